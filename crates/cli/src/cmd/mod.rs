@@ -1,0 +1,8 @@
+//! One module per subcommand: its flags (`Args`) and its `run`.
+
+pub mod control;
+pub mod identify;
+pub mod plant_config;
+pub mod reproduce;
+pub mod simulate;
+pub mod validate;

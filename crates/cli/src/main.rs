@@ -1,0 +1,49 @@
+//! `ipa-sysid`: the command-line front end. Thin by design: it parses flags, reads and writes files and
+//! prints; all logic lives in the library crates `sysid`, `ipa`, `control` and `report`.
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+mod cmd;
+mod exit;
+
+/// Model, identify, validate and control an Intelligent Pneumatic Actuator (IPA).
+#[derive(Debug, Parser)]
+#[command(name = "ipa-sysid", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Debug, Subcommand)]
+enum Command {
+    /// Identify an ARX or Hammerstein model from a CSV of input/output data (MATLAB `arx`).
+    Identify(cmd::identify::Args),
+    /// Metrics of a saved model on new data (MATLAB `compare`).
+    Validate(cmd::validate::Args),
+    /// Simulate a plant (physics IPA, the paper's model, or a saved model) and write t,u,y to CSV.
+    Simulate(cmd::simulate::Args),
+    /// Print the physics plant's default parameters as TOML (edit and pass with --plant-config).
+    PlantConfig(cmd::plant_config::Args),
+    /// Closed-loop PI position control on a plant, with step metrics (MATLAB `stepinfo`).
+    Control(cmd::control::Args),
+    /// Reproduce the paper end to end: experiment, identification, validation, control, report.
+    Reproduce(cmd::reproduce::Args),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Identify(a) => cmd::identify::run(a),
+        Command::Validate(a) => cmd::validate::run(a),
+        Command::Simulate(a) => cmd::simulate::run(a),
+        Command::PlantConfig(a) => cmd::plant_config::run(a),
+        Command::Control(a) => cmd::control::run(a),
+        Command::Reproduce(a) => cmd::reproduce::run(a),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => exit::report(&e),
+    }
+}

@@ -1,0 +1,18 @@
+//! `sysid`: single-input single-output system identification for the Intelligent Pneumatic Actuator
+//! (and any other SISO system with a CSV of input/output data).
+//!
+//! Data flows one way: [`data`] -> model structure ([`model`], [`deadzone`]) -> estimator
+//! ([`estimate`]) -> fitted [`Model`] -> [`validation`] / simulation / [`plant`].
+
+pub mod data;
+pub mod deadzone;
+pub mod error;
+pub mod model;
+pub mod output;
+pub mod plant;
+
+pub use data::Dataset;
+pub use deadzone::Deadzone;
+pub use error::SysidError;
+pub use model::{Model, ModelKind, ModelPlant, Orders};
+pub use plant::{run_open_loop, Plant};

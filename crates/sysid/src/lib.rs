@@ -8,6 +8,7 @@ pub mod data;
 pub mod deadzone;
 pub mod error;
 pub mod model;
+pub mod model_file;
 pub mod output;
 pub mod plant;
 

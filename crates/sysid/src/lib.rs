@@ -7,10 +7,16 @@
 pub mod data;
 pub mod deadzone;
 pub mod error;
+pub mod estimate;
+pub mod ls;
 pub mod model;
 pub mod model_file;
 pub mod output;
 pub mod plant;
+pub mod regressor;
+pub mod rls;
+pub mod summary;
+pub mod validation;
 
 pub use data::Dataset;
 pub use deadzone::Deadzone;

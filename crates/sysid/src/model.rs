@@ -128,9 +128,6 @@ impl Model {
                     return bad("a hammerstein model needs nb >= 1".into());
                 }
                 values.extend([d.b_l, d.b_r, d.m_l, d.m_r]);
-                if d.b_l > d.b_r {
-                    return bad(format!("deadzone b_l = {} is above b_r = {}", d.b_l, d.b_r));
-                }
             }
             _ => {}
         }

@@ -1,19 +1,31 @@
-//! PI position control (placeholder being written).
+//! `control`: closed-loop PI position control of the Intelligent Pneumatic Actuator (or any plant behind
+//! [`sysid::Plant`]), set-point profiles and step-response metrics.
+//!
+//! Data flow: a [`Profile`] gives the set-point r(t); a [`PiController`] (built from [`PiSettings`]) turns
+//! e = r - y into the command u, optionally passed through a [`DeadzoneCompensator`];
+//! [`closed_loop::run`] drives the plant and records a [`Trace`]; [`StepMetrics`] summarise it as MATLAB
+//! `stepinfo` would.
+//!
+//! ```
+//! use control::{closed_loop, PiSettings, Profile, StepMetrics};
+//! let mut plant = sysid::ModelPlant::new(sysid::Model::paper(), "paper model").unwrap();
+//! let mut pi = PiSettings::paper().build(0.01).unwrap();
+//! let profile = Profile::Fixed { setpoint_mm: 50.0 };
+//! let trace = closed_loop::run(&mut plant, &mut pi, None, &profile, 10.0, 0.0).unwrap();
+//! let m = StepMetrics::compute(&trace.t, &trace.y, trace.y[0], 50.0).unwrap();
+//! assert!(m.overshoot_percent.unwrap() < 10.0);
+//! ```
 
-/// Errors of the control crate.
-#[derive(Debug, thiserror::Error)]
-pub enum ControlError {
-    /// Bad settings or profile.
-    #[error("{0}")]
-    Config(String),
-    /// Numerical failure (the plant diverged).
-    #[error("numerical failure: {0}")]
-    Numerical(String),
-}
+pub mod closed_loop;
+pub mod compensator;
+pub mod error;
+pub mod metrics;
+pub mod pi;
+pub mod profile;
 
-impl ControlError {
-    /// True for numerical failures (exit code 1).
-    pub fn is_numerical(&self) -> bool {
-        matches!(self, ControlError::Numerical(_))
-    }
-}
+pub use closed_loop::Trace;
+pub use compensator::{DeadzoneCompensator, SlopeMode};
+pub use error::ControlError;
+pub use metrics::{metrics_for_steps, StepMetrics, StepSegment};
+pub use pi::{AntiWindup, IntegralForm, PiController, PiSettings};
+pub use profile::Profile;

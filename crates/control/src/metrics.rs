@@ -1,0 +1,417 @@
+//! Step-response metrics (MATLAB `stepinfo`, python-control `step_info`) of a recorded response.
+//!
+//! For a response y(t_0..t_(N-1)) that starts at y0 and is driven towards the set-point r:
+//!
+//! * **final value** y_f = y(t_(N-1)), the last sample (as python-control; MATLAB uses the last sample of a
+//!   simulated response too). The run must be long enough for the response to have settled.
+//! * **step** Δ = y_f - y0, direction d = sign(Δ). All relative measures are taken on |Δ|.
+//! * **overshoot** OS = max(0, max_k d (y_k - y_f)) in mm, and 100 OS / |Δ| in % (MATLAB `Overshoot`).
+//! * **steady-state error** e_ss = r - y_f in mm (signed).
+//! * **rise time** t_r = t_90 - t_10, where t_p is the first time d (y - y0) reaches p |Δ|, found by linear
+//!   interpolation between the two samples around the crossing (MATLAB `RiseTime`, limits 10 %-90 %).
+//! * **settling time** t_s = the time, from t_0, after which |y - y_f| stays within 2 % of |Δ|; the
+//!   crossing into the band after the last sample outside it is linearly interpolated. 0 if no sample is
+//!   ever outside the band.
+//!
+//! When Δ = 0 (the response never left y0) the step-relative metrics are `None` (JSON `null`): there is no
+//! step to measure, and a made-up number would be misleading.
+
+use serde::{Deserialize, Serialize};
+
+use crate::{ControlError, Trace};
+
+/// Lower rise-time limit: 10 % of the step.
+pub const RISE_LOW: f64 = 0.1;
+/// Upper rise-time limit: 90 % of the step.
+pub const RISE_HIGH: f64 = 0.9;
+/// Settling band: 2 % of the step.
+pub const SETTLING_BAND: f64 = 0.02;
+
+/// Step-response metrics of one step (the JSON `metrics` object of `ipa-sysid control`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct StepMetrics {
+    /// OS: overshoot beyond the final value, in mm (>= 0).
+    pub overshoot_mm: Option<f64>,
+    /// OS as a percentage of the step |y_f - y0|.
+    pub overshoot_percent: Option<f64>,
+    /// e_ss = r - y_f: set-point minus final value, in mm.
+    pub steady_state_error_mm: Option<f64>,
+    /// t_r: 10 %-90 % rise time in s.
+    pub rise_time_s: Option<f64>,
+    /// t_s: 2 % settling time in s, from the start of the step.
+    pub settling_time_s: Option<f64>,
+}
+
+impl StepMetrics {
+    /// Metrics of the response `y_mm` sampled at `t_s` (same length >= 2, finite, t increasing), which
+    /// started at `y0_mm` and was driven towards the set-point `r_mm`. See the module documentation.
+    ///
+    /// ```
+    /// use control::StepMetrics;
+    /// // A ramp from 0 to 1 over 1 s, then flat: rise 0.1 -> 0.9 s, enters the 2 % band at 0.98 s.
+    /// let t: Vec<f64> = (0..=20).map(|k| k as f64 * 0.1).collect();
+    /// let y: Vec<f64> = t.iter().map(|&t| t.min(1.0)).collect();
+    /// let m = StepMetrics::compute(&t, &y, 0.0, 1.0).unwrap();
+    /// assert!((m.rise_time_s.unwrap() - 0.8).abs() < 1e-12);
+    /// assert!((m.settling_time_s.unwrap() - 0.98).abs() < 1e-12);
+    /// assert_eq!(m.overshoot_mm, Some(0.0));
+    /// ```
+    pub fn compute(
+        t_s: &[f64],
+        y_mm: &[f64],
+        y0_mm: f64,
+        r_mm: f64,
+    ) -> Result<StepMetrics, ControlError> {
+        let n = t_s.len();
+        if n != y_mm.len() {
+            return Err(ControlError::Config(format!(
+                "step metrics: {n} times but {} outputs",
+                y_mm.len()
+            )));
+        }
+        if n < 2 {
+            return Err(ControlError::Config(format!(
+                "step metrics need at least 2 samples, got {n}"
+            )));
+        }
+        if let Some(k) = (0..n).find(|&k| !(t_s[k].is_finite() && y_mm[k].is_finite())) {
+            return Err(ControlError::Numerical(format!(
+                "step metrics: sample {k} is not finite (t = {}, y = {})",
+                t_s[k], y_mm[k]
+            )));
+        }
+        if let Some(k) = (1..n).find(|&k| t_s[k] <= t_s[k - 1]) {
+            return Err(ControlError::Config(format!(
+                "step metrics: time does not increase at sample {k}"
+            )));
+        }
+        if !(y0_mm.is_finite() && r_mm.is_finite()) {
+            return Err(ControlError::Numerical(format!(
+                "step metrics: y0 = {y0_mm}, r = {r_mm} must be finite"
+            )));
+        }
+        let y_f = y_mm[n - 1];
+        let ess = Some(r_mm - y_f);
+        let delta = y_f - y0_mm;
+        let scale = y0_mm.abs().max(y_f.abs()).max(1.0);
+        if delta.abs() <= 16.0 * f64::EPSILON * scale {
+            return Ok(StepMetrics {
+                overshoot_mm: None,
+                overshoot_percent: None,
+                steady_state_error_mm: ess,
+                rise_time_s: None,
+                settling_time_s: None,
+            });
+        }
+        let d = delta.signum();
+        let step = delta.abs();
+        let t0 = t_s[0];
+        // z_k: progress along the step direction, from 0 at y0 to |Δ| at y_f.
+        let z = |k: usize| d * (y_mm[k] - y0_mm);
+
+        let peak = (0..n).map(z).fold(f64::NEG_INFINITY, f64::max);
+        let overshoot = (peak - step).max(0.0);
+
+        let first_reach = |p: f64| -> Option<f64> {
+            let level = p * step;
+            let k = (0..n).find(|&k| z(k) >= level)?;
+            if k == 0 {
+                return Some(t_s[0]);
+            }
+            let (za, zb) = (z(k - 1), z(k));
+            // za < level <= zb, so zb - za > 0.
+            Some(t_s[k - 1] + (level - za) / (zb - za) * (t_s[k] - t_s[k - 1]))
+        };
+        let rise = match (first_reach(RISE_LOW), first_reach(RISE_HIGH)) {
+            (Some(lo), Some(hi)) => Some(hi - lo),
+            _ => None,
+        };
+
+        let band = SETTLING_BAND * step;
+        let settling = match (0..n).rev().find(|&k| (y_mm[k] - y_f).abs() > band) {
+            None => Some(0.0),
+            Some(k) if k + 1 >= n => None,
+            Some(k) => {
+                // y_k is outside the band, y_(k+1) inside: interpolate the crossing of the violated edge.
+                let edge = if y_mm[k] > y_f {
+                    y_f + band
+                } else {
+                    y_f - band
+                };
+                let frac = (y_mm[k] - edge) / (y_mm[k] - y_mm[k + 1]);
+                Some(t_s[k] + frac * (t_s[k + 1] - t_s[k]) - t0)
+            }
+        };
+
+        Ok(StepMetrics {
+            overshoot_mm: Some(overshoot),
+            overshoot_percent: Some(100.0 * overshoot / step),
+            steady_state_error_mm: ess,
+            rise_time_s: rise,
+            settling_time_s: settling,
+        })
+    }
+
+    /// Field-wise worst case over several steps (largest overshoot, rise and settling time; the steady-state
+    /// error of largest magnitude, sign kept). `None` fields are skipped; `None` if `steps` is empty.
+    pub fn worst<'a>(steps: impl IntoIterator<Item = &'a StepMetrics>) -> Option<StepMetrics> {
+        fn pick(a: Option<f64>, b: Option<f64>) -> Option<f64> {
+            match (a, b) {
+                (Some(x), Some(y)) => Some(if y.abs() > x.abs() { y } else { x }),
+                (x, None) => x,
+                (None, y) => y,
+            }
+        }
+        steps.into_iter().copied().reduce(|a, b| StepMetrics {
+            overshoot_mm: pick(a.overshoot_mm, b.overshoot_mm),
+            overshoot_percent: pick(a.overshoot_percent, b.overshoot_percent),
+            steady_state_error_mm: pick(a.steady_state_error_mm, b.steady_state_error_mm),
+            rise_time_s: pick(a.rise_time_s, b.rise_time_s),
+            settling_time_s: pick(a.settling_time_s, b.settling_time_s),
+        })
+    }
+}
+
+/// One step of an unfixed set-point profile and its metrics.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct StepSegment {
+    /// Time (s) at which the set-point changed to `setpoint_mm`.
+    pub start_s: f64,
+    /// Time (s) of the segment's last sample.
+    pub end_s: f64,
+    /// r: the set-point held over the segment, in mm.
+    pub setpoint_mm: f64,
+    /// y0: the measured position when the set-point changed, in mm.
+    pub y0_mm: f64,
+    /// Metrics of the segment, times measured from `start_s`.
+    pub metrics: StepMetrics,
+}
+
+/// Splits a trace where the set-point r changes (and at sample 0) and computes the metrics of each step,
+/// from the position at the change (y0) to the segment's last sample (its final value). Segments shorter
+/// than two samples are skipped.
+pub fn metrics_for_steps(trace: &Trace) -> Result<Vec<StepSegment>, ControlError> {
+    let n = trace.len();
+    let mut starts: Vec<usize> = (1..n).filter(|&k| trace.r[k] != trace.r[k - 1]).collect();
+    if n > 0 {
+        starts.insert(0, 0);
+    }
+    let mut out = Vec::with_capacity(starts.len());
+    for (i, &s) in starts.iter().enumerate() {
+        let e = starts.get(i + 1).copied().unwrap_or(n);
+        if e - s < 2 {
+            continue;
+        }
+        let metrics = StepMetrics::compute(&trace.t[s..e], &trace.y[s..e], trace.y[s], trace.r[s])?;
+        out.push(StepSegment {
+            start_s: trace.t[s],
+            end_s: trace.t[e - 1],
+            setpoint_mm: trace.r[s],
+            y0_mm: trace.y[s],
+            metrics,
+        });
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn grid(dt: f64, t_end: f64) -> Vec<f64> {
+        (0..=(t_end / dt).round() as usize)
+            .map(|k| k as f64 * dt)
+            .collect()
+    }
+
+    #[test]
+    fn first_order_rise_time_is_tau_ln_9_and_settling_tau_ln_50() {
+        // y = 1 - e^(-t/τ): 10 % at τ ln(10/9), 90 % at τ ln 10 -> t_r = τ ln 9; |y - 1| = e^(-t/τ) = 0.02
+        // at t_s = τ ln 50. Linear interpolation error is O(dt²/τ) = 1e-6 τ for dt = τ/1000; y_f = 1 - e^-20.
+        let tau = 0.5;
+        let dt = tau / 1000.0;
+        let t = grid(dt, 20.0 * tau);
+        let y: Vec<f64> = t.iter().map(|&t| 1.0 - (-t / tau).exp()).collect();
+        let m = StepMetrics::compute(&t, &y, 0.0, 1.0).unwrap();
+        let tol = 1e-5 * tau;
+        assert!(
+            (m.rise_time_s.unwrap() - tau * 9f64.ln()).abs() < tol,
+            "{m:?}"
+        );
+        assert!(
+            (m.settling_time_s.unwrap() - tau * 50f64.ln()).abs() < tol,
+            "{m:?}"
+        );
+        assert_eq!(m.overshoot_mm, Some(0.0));
+        assert!(m.steady_state_error_mm.unwrap().abs() < 1e-8);
+    }
+
+    #[test]
+    fn downward_first_order_step_has_the_same_times_and_a_signed_error() {
+        // y = 10 - 3 (1 - e^(-t/τ)) towards r = 6.5: t_r = τ ln 9, t_s = τ ln 50, e_ss = 6.5 - 7 = -0.5.
+        let tau = 0.2;
+        let dt = tau / 1000.0;
+        let t = grid(dt, 25.0 * tau);
+        let y: Vec<f64> = t
+            .iter()
+            .map(|&t| 10.0 - 3.0 * (1.0 - (-t / tau).exp()))
+            .collect();
+        let m = StepMetrics::compute(&t, &y, 10.0, 6.5).unwrap();
+        assert!((m.rise_time_s.unwrap() - tau * 9f64.ln()).abs() < 1e-5 * tau);
+        assert!((m.settling_time_s.unwrap() - tau * 50f64.ln()).abs() < 1e-5 * tau);
+        assert!((m.steady_state_error_mm.unwrap() + 0.5).abs() < 1e-9);
+        assert_eq!(m.overshoot_percent, Some(0.0));
+    }
+
+    fn second_order(zeta: f64, wn: f64, t: f64) -> f64 {
+        let s = (1.0 - zeta * zeta).sqrt();
+        let wd = wn * s;
+        1.0 - (-zeta * wn * t).exp() * ((wd * t).cos() + zeta / s * (wd * t).sin())
+    }
+
+    #[test]
+    fn second_order_overshoot_is_exp_of_minus_pi_zeta_over_sqrt_one_minus_zeta_squared() {
+        // Unit step of ωn²/(s² + 2ζωn s + ωn²): peak overshoot e^(-πζ/√(1-ζ²)) of the final value 1.
+        // Sampling the peak with dt = 1e-4 s misses it by at most ½ |y''| (dt/2)² < 1e-6.
+        let (wn, dt) = (10.0, 1e-4);
+        let t = grid(dt, 15.0);
+        for zeta in [0.1, 0.3, 0.5, 0.7] {
+            let y: Vec<f64> = t.iter().map(|&t| second_order(zeta, wn, t)).collect();
+            let m = StepMetrics::compute(&t, &y, 0.0, 1.0).unwrap();
+            let want = (-std::f64::consts::PI * zeta / (1.0 - zeta * zeta).sqrt()).exp();
+            assert!(
+                (m.overshoot_mm.unwrap() - want).abs() < 1e-6,
+                "ζ = {zeta}: {m:?} vs {want}"
+            );
+            assert!((m.overshoot_percent.unwrap() - 100.0 * want).abs() < 1e-4);
+            // Extrema of y are at t_n = nπ/ωd with |y - 1| = e^(-ζωn t_n), decreasing: t_s lies between the
+            // last extremum outside the 2 % band and the first one inside.
+            let wd = wn * (1.0 - zeta * zeta).sqrt();
+            let n_out = (1..)
+                .take_while(|&n| (-zeta * wn * n as f64 * std::f64::consts::PI / wd).exp() > 0.02)
+                .last()
+                .unwrap();
+            let t_out = n_out as f64 * std::f64::consts::PI / wd;
+            let t_in = t_out + std::f64::consts::PI / wd;
+            let ts = m.settling_time_s.unwrap();
+            assert!(
+                t_out < ts && ts < t_in,
+                "ζ = {zeta}: t_s = {ts} not in ({t_out}, {t_in})"
+            );
+        }
+    }
+
+    #[test]
+    fn piecewise_linear_response_gives_exact_interpolated_times() {
+        // y = t on [0, 1], 1.05 - 0.05 (t - 1) ... : rises 0.1 -> 0.9 at t = 0.1 .. 0.9 (t_r = 0.8), then a
+        // 5 % overshoot to 1.05 at t = 1.1 decaying linearly to 1 at 1.6; the 0.02 band is entered at t = 1.4.
+        let t: Vec<f64> = (0..=30).map(|k| k as f64 * 0.1).collect();
+        let y: Vec<f64> = t
+            .iter()
+            .map(|&t| {
+                if t <= 1.0 {
+                    t
+                } else if t <= 1.1 {
+                    1.0 + 0.5 * (t - 1.0)
+                } else if t <= 1.6 {
+                    1.05 - 0.1 * (t - 1.1)
+                } else {
+                    1.0
+                }
+            })
+            .collect();
+        let m = StepMetrics::compute(&t, &y, 0.0, 1.0).unwrap();
+        assert!((m.rise_time_s.unwrap() - 0.8).abs() < 1e-12);
+        assert!((m.overshoot_mm.unwrap() - 0.05).abs() < 1e-12);
+        assert!((m.overshoot_percent.unwrap() - 5.0).abs() < 1e-10);
+        assert!((m.settling_time_s.unwrap() - 1.4).abs() < 1e-9, "{m:?}");
+    }
+
+    #[test]
+    fn no_step_gives_null_metrics_not_numbers() {
+        // y never leaves y0: Δ = 0, only e_ss = r - y_f = 5 is defined.
+        let t = [0.0, 0.1, 0.2];
+        let m = StepMetrics::compute(&t, &[2.0; 3], 2.0, 7.0).unwrap();
+        assert_eq!(m.steady_state_error_mm, Some(5.0));
+        assert_eq!(
+            (
+                m.overshoot_mm,
+                m.overshoot_percent,
+                m.rise_time_s,
+                m.settling_time_s
+            ),
+            (None, None, None, None)
+        );
+        let json = serde_json::to_string(&m).unwrap();
+        assert!(json.contains("\"rise_time_s\":null"), "{json}");
+    }
+
+    #[test]
+    fn malformed_inputs_are_errors() {
+        // Length mismatch, a single sample, NaN, non-increasing time.
+        assert!(StepMetrics::compute(&[0.0, 1.0], &[0.0], 0.0, 1.0).is_err());
+        assert!(StepMetrics::compute(&[0.0], &[0.0], 0.0, 1.0).is_err());
+        assert!(
+            StepMetrics::compute(&[0.0, 1.0], &[0.0, f64::NAN], 0.0, 1.0)
+                .unwrap_err()
+                .is_numerical()
+        );
+        assert!(StepMetrics::compute(&[0.0, 0.0], &[0.0, 1.0], 0.0, 1.0).is_err());
+    }
+
+    #[test]
+    fn staircase_trace_splits_into_one_segment_per_level() {
+        // r = 1 for 3 samples then 3 for 3 samples; y jumps to r one sample late: each segment is a step of
+        // 1 then 2 mm with zero error, from y0 = y at the change.
+        let trace = Trace {
+            t: vec![0.0, 1.0, 2.0, 3.0, 4.0, 5.0],
+            r: vec![1.0, 1.0, 1.0, 3.0, 3.0, 3.0],
+            u: vec![0.0; 6],
+            y: vec![0.0, 1.0, 1.0, 1.0, 3.0, 3.0],
+        };
+        let segs = metrics_for_steps(&trace).unwrap();
+        assert_eq!(segs.len(), 2);
+        assert_eq!(
+            (segs[0].start_s, segs[0].y0_mm, segs[0].setpoint_mm),
+            (0.0, 0.0, 1.0)
+        );
+        assert_eq!(
+            (
+                segs[1].start_s,
+                segs[1].end_s,
+                segs[1].y0_mm,
+                segs[1].setpoint_mm
+            ),
+            (3.0, 5.0, 1.0, 3.0)
+        );
+        // Segment 2: z = 0, 2, 2 -> 10 % at t = 3.1, 90 % at t = 3.9: t_r = 0.8 s.
+        assert!((segs[1].metrics.rise_time_s.unwrap() - 0.8).abs() < 1e-12);
+        assert_eq!(segs[1].metrics.steady_state_error_mm, Some(0.0));
+    }
+
+    #[test]
+    fn worst_case_takes_the_largest_magnitude_per_field() {
+        // max over steps field by field, e_ss by magnitude with its sign.
+        let a = StepMetrics {
+            overshoot_mm: Some(1.0),
+            overshoot_percent: Some(2.0),
+            steady_state_error_mm: Some(0.1),
+            rise_time_s: Some(0.3),
+            settling_time_s: None,
+        };
+        let b = StepMetrics {
+            overshoot_mm: Some(0.5),
+            overshoot_percent: Some(4.0),
+            steady_state_error_mm: Some(-0.2),
+            rise_time_s: Some(0.2),
+            settling_time_s: Some(1.0),
+        };
+        let w = StepMetrics::worst([&a, &b]).unwrap();
+        assert_eq!(w.overshoot_mm, Some(1.0));
+        assert_eq!(w.overshoot_percent, Some(4.0));
+        assert_eq!(w.steady_state_error_mm, Some(-0.2));
+        assert_eq!(w.rise_time_s, Some(0.3));
+        assert_eq!(w.settling_time_s, Some(1.0));
+        assert!(StepMetrics::worst([]).is_none());
+    }
+}

@@ -1,0 +1,376 @@
+//! Set-point profiles r(t) in mm: the paper's fixed set-point and unfixed set-points (a staircase, or a
+//! sampled-and-held record from a CSV file).
+//!
+//! Specification strings (command-line `--profile`):
+//!
+//! | spec                         | profile                                                            |
+//! |------------------------------|--------------------------------------------------------------------|
+//! | `fixed:50` or `50`           | r(t) = 50 mm for all t                                             |
+//! | `staircase:20,60,100,40@3`   | 20 mm for 0 <= t < 3 s, 60 mm for 3 <= t < 6 s, ..., the last held |
+//! | `file:PATH.csv`              | columns `t` (s) and `r` (mm), sample-and-hold between rows         |
+
+use std::path::{Path, PathBuf};
+
+use serde::Serialize;
+
+use crate::ControlError;
+
+/// Tolerance (relative, in units of the hold time or of Ts) applied when locating t on a grid, so that
+/// t = k Ts computed in floating point lands on the intended side of a switching instant.
+const GRID_EPS: f64 = 1e-9;
+
+/// A set-point profile r(t) in mm.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(tag = "kind", rename_all = "kebab-case")]
+pub enum Profile {
+    /// The paper's fixed set-point: r(t) = `setpoint_mm`.
+    Fixed {
+        /// r: the set-point in mm.
+        setpoint_mm: f64,
+    },
+    /// Unfixed set-point: each level in turn for `hold_s` seconds; the last level is held after the end.
+    Staircase {
+        /// The successive set-points in mm.
+        levels_mm: Vec<f64>,
+        /// How long each level is held, in s (> 0).
+        hold_s: f64,
+    },
+    /// Unfixed set-point from a file: r(t) = r_i for t_i <= t < t_(i+1) (sample-and-hold); r_0 before t_0,
+    /// the last r after the last t.
+    Samples {
+        /// The file it came from (for reports).
+        path: PathBuf,
+        /// t_i in s, strictly increasing.
+        t_s: Vec<f64>,
+        /// r_i in mm.
+        r_mm: Vec<f64>,
+    },
+}
+
+impl Profile {
+    /// Parses a specification string (see the module documentation); `file:` specs read the file.
+    ///
+    /// ```
+    /// use control::Profile;
+    /// let p = Profile::parse("staircase:20,60,100,40@3").unwrap();
+    /// assert_eq!(p.r_at(0.0), 20.0);
+    /// assert_eq!(p.r_at(3.0), 60.0);
+    /// assert_eq!(p.r_at(100.0), 40.0);
+    /// assert_eq!(p.natural_duration_s(), Some(12.0));
+    /// ```
+    pub fn parse(spec: &str) -> Result<Profile, ControlError> {
+        let err = |message: String| ControlError::Profile {
+            spec: spec.to_string(),
+            message,
+        };
+        let s = spec.trim();
+        let (kind, rest) = match s.split_once(':') {
+            Some((k, r)) => (k.trim(), r.trim()),
+            None => ("fixed", s),
+        };
+        match kind {
+            "fixed" => {
+                let setpoint_mm = parse_mm(rest).map_err(|m| err(format!("{m}; expected `fixed:MM`, e.g. `fixed:50`")))?;
+                Ok(Profile::Fixed { setpoint_mm })
+            }
+            "staircase" => {
+                let expected = "expected `staircase:L1,L2,...@HOLD_S`, e.g. `staircase:20,60,100,40@3` (levels in mm, hold in s)";
+                let (levels, hold) = rest.rsplit_once('@').ok_or_else(|| err(format!("no `@HOLD_S`; {expected}")))?;
+                let hold_s: f64 = hold
+                    .trim()
+                    .parse()
+                    .map_err(|_| err(format!("hold time `{}` is not a number; {expected}", hold.trim())))?;
+                if !(hold_s.is_finite() && hold_s > 0.0) {
+                    return Err(err(format!("hold time {hold_s} s must be finite and > 0; {expected}")));
+                }
+                let mut levels_mm = Vec::new();
+                for (i, l) in levels.split(',').enumerate() {
+                    let v = parse_mm(l).map_err(|m| err(format!("level {} : {m}; {expected}", i + 1)))?;
+                    levels_mm.push(v);
+                }
+                Ok(Profile::Staircase { levels_mm, hold_s })
+            }
+            "file" => {
+                if rest.is_empty() {
+                    return Err(err("no file name; expected `file:PATH.csv` with columns t,r".into()));
+                }
+                Profile::from_csv_file(Path::new(rest)).map_err(|e| match e {
+                    ControlError::Profile { message, .. } => err(message),
+                    other => other,
+                })
+            }
+            other => Err(err(format!("unknown profile kind `{other}`; expected `fixed:MM`, `staircase:L1,L2,...@HOLD_S` or `file:PATH.csv`"))),
+        }
+    }
+
+    /// Reads a profile file: CSV with a header naming columns `t` (s) and `r` (mm) (also accepted: `t_s`,
+    /// `r_mm`; other columns are ignored), at least one row, finite values, strictly increasing t.
+    pub fn from_csv_file(path: &Path) -> Result<Profile, ControlError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ControlError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        let file = path.display().to_string();
+        let err = |message: String| ControlError::Profile {
+            spec: format!("file:{file}"),
+            message,
+        };
+        let mut lines = text
+            .lines()
+            .enumerate()
+            .filter(|(_, l)| !l.trim().is_empty());
+        let (_, header) = lines.next().ok_or_else(|| {
+            err(format!(
+                "{file}: the file is empty; expected a header `t,r` and rows"
+            ))
+        })?;
+        let names: Vec<String> = header
+            .split(',')
+            .map(|h| h.trim().trim_matches('"').to_ascii_lowercase())
+            .collect();
+        let find = |alts: &[&str]| names.iter().position(|n| alts.contains(&n.as_str()));
+        let (it, ir) = match (find(&["t", "t_s"]), find(&["r", "r_mm"])) {
+            (Some(a), Some(b)) => (a, b),
+            _ => return Err(err(format!("{file}:1: header `{header}` has no `t` and `r` columns; expected a header like `t,r` (t in s, r in mm)"))),
+        };
+        let mut t_s = Vec::new();
+        let mut r_mm = Vec::new();
+        for (i, line) in lines {
+            let line_no = i + 1;
+            let fields: Vec<&str> = line.split(',').collect();
+            let get = |col: usize, what: &str| -> Result<f64, ControlError> {
+                let raw = fields.get(col).map(|f| f.trim()).ok_or_else(|| {
+                    err(format!(
+                        "{file}:{line_no}:{}: missing field; expected {what}",
+                        col + 1
+                    ))
+                })?;
+                let v: f64 = raw.parse().map_err(|_| {
+                    err(format!(
+                        "{file}:{line_no}:{}: `{raw}` is not a number; expected {what}",
+                        col + 1
+                    ))
+                })?;
+                if !v.is_finite() {
+                    return Err(err(format!(
+                        "{file}:{line_no}:{}: `{raw}` is not finite; expected {what}",
+                        col + 1
+                    )));
+                }
+                Ok(v)
+            };
+            let t = get(it, "a time t in s")?;
+            let r = get(ir, "a set-point r in mm")?;
+            if let Some(&prev) = t_s.last() {
+                if t <= prev {
+                    return Err(err(format!("{file}:{line_no}:{}: t = {t} s does not increase (previous row t = {prev} s); expected strictly increasing times", it + 1)));
+                }
+            }
+            t_s.push(t);
+            r_mm.push(r);
+        }
+        if t_s.is_empty() {
+            return Err(err(format!(
+                "{file}: no data rows after the header; expected at least one row t,r"
+            )));
+        }
+        Ok(Profile::Samples {
+            path: path.to_path_buf(),
+            t_s,
+            r_mm,
+        })
+    }
+
+    /// Checks a profile built in code (parsed ones are already valid): finite values, at least one level
+    /// or row, hold time > 0, equal-length strictly increasing file rows.
+    pub fn validate(&self) -> Result<(), ControlError> {
+        let err = |message: &str| {
+            Err(ControlError::Profile {
+                spec: self.describe(),
+                message: message.to_string(),
+            })
+        };
+        match self {
+            Profile::Fixed { setpoint_mm } if !setpoint_mm.is_finite() => {
+                err("the set-point must be finite")
+            }
+            Profile::Staircase { levels_mm, hold_s } => {
+                if levels_mm.is_empty() || levels_mm.iter().any(|v| !v.is_finite()) {
+                    err("expected at least one level, all finite")
+                } else if !(hold_s.is_finite() && *hold_s > 0.0) {
+                    err("expected a finite hold time > 0 s")
+                } else {
+                    Ok(())
+                }
+            }
+            Profile::Samples { t_s, r_mm, .. } => {
+                if t_s.is_empty() || t_s.len() != r_mm.len() {
+                    err("expected at least one row and as many times as set-points")
+                } else if t_s.iter().chain(r_mm).any(|v| !v.is_finite())
+                    || t_s.windows(2).any(|w| w[1] <= w[0])
+                {
+                    err("expected finite values and strictly increasing times")
+                } else {
+                    Ok(())
+                }
+            }
+            _ => Ok(()),
+        }
+    }
+
+    /// The set-point r(t) in mm at time `t_s` (s from the start of the run).
+    pub fn r_at(&self, t_s: f64) -> f64 {
+        match self {
+            Profile::Fixed { setpoint_mm } => *setpoint_mm,
+            Profile::Staircase { levels_mm, hold_s } => {
+                let Some(&last) = levels_mm.last() else {
+                    return 0.0;
+                };
+                let idx = (t_s / hold_s + GRID_EPS).floor();
+                if idx < 0.0 {
+                    levels_mm[0]
+                } else if idx >= levels_mm.len() as f64 {
+                    last
+                } else {
+                    levels_mm[idx as usize]
+                }
+            }
+            Profile::Samples { t_s: ts, r_mm, .. } => {
+                // Number of t_i <= t (with tolerance), minus one, is the row in force.
+                let tol = GRID_EPS * (1.0 + t_s.abs());
+                let n = ts.partition_point(|&ti| ti <= t_s + tol);
+                r_mm[n.saturating_sub(1)]
+            }
+        }
+    }
+
+    /// The profile's own length in s: levels × hold for a staircase, the last t for a file; `None` for a
+    /// fixed set-point (the caller chooses).
+    pub fn natural_duration_s(&self) -> Option<f64> {
+        match self {
+            Profile::Fixed { .. } => None,
+            Profile::Staircase { levels_mm, hold_s } => Some(levels_mm.len() as f64 * hold_s),
+            Profile::Samples { t_s, .. } => t_s.last().copied(),
+        }
+    }
+
+    /// True for the paper's fixed set-point.
+    pub fn is_fixed(&self) -> bool {
+        matches!(self, Profile::Fixed { .. })
+    }
+
+    /// A short description for summaries ("fixed 50 mm", "staircase 20, 60 mm, 3 s each", "file x.csv").
+    pub fn describe(&self) -> String {
+        match self {
+            Profile::Fixed { setpoint_mm } => format!("fixed set-point {setpoint_mm} mm"),
+            Profile::Staircase { levels_mm, hold_s } => {
+                let l: Vec<String> = levels_mm.iter().map(|v| v.to_string()).collect();
+                format!("staircase {} mm, {hold_s} s each", l.join(", "))
+            }
+            Profile::Samples { path, t_s, .. } => {
+                format!("set-points from {} ({} rows)", path.display(), t_s.len())
+            }
+        }
+    }
+}
+
+fn parse_mm(s: &str) -> Result<f64, String> {
+    let s = s.trim();
+    if s.is_empty() {
+        return Err("empty value".into());
+    }
+    let v: f64 = s
+        .parse()
+        .map_err(|_| format!("`{s}` is not a number of mm"))?;
+    if !v.is_finite() {
+        return Err(format!("`{s}` is not finite"));
+    }
+    Ok(v)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fixed_profile_is_constant() {
+        // r(t) = 50 for every t; a bare number means fixed.
+        for spec in ["fixed:50", "50", " fixed: 50 "] {
+            let p = Profile::parse(spec).unwrap();
+            assert_eq!(p, Profile::Fixed { setpoint_mm: 50.0 });
+            assert_eq!(p.r_at(0.0), 50.0);
+            assert_eq!(p.r_at(1e6), 50.0);
+        }
+    }
+
+    #[test]
+    fn staircase_switches_at_multiples_of_the_hold_time() {
+        // r(t) = level[floor(t / hold)], exactly at k Ts = 3 s with Ts = 0.01 (300 * 0.01 in floating point).
+        let p = Profile::parse("staircase:20,60,100,40@3").unwrap();
+        assert_eq!(p.r_at(2.99), 20.0);
+        assert_eq!(p.r_at(300.0 * 0.01), 60.0);
+        assert_eq!(p.r_at(599.0 * 0.01), 60.0);
+        assert_eq!(p.r_at(600.0 * 0.01), 100.0);
+        assert_eq!(p.r_at(11.99), 40.0);
+        assert_eq!(p.r_at(50.0), 40.0);
+        assert_eq!(p.natural_duration_s(), Some(12.0));
+    }
+
+    #[test]
+    fn bad_specs_name_the_spec_and_what_was_expected() {
+        // Each malformed spec is rejected with its text and the expected form in the message.
+        for (spec, needle) in [
+            ("staircase:20,60", "@HOLD_S"),
+            ("staircase:20,x@3", "`x` is not a number"),
+            ("staircase:20,60@0", "must be finite and > 0"),
+            ("staircase:20,,60@1", "empty value"),
+            ("ramp:1", "unknown profile kind"),
+            ("fixed:nan", "not finite"),
+            ("file:", "no file name"),
+        ] {
+            let msg = Profile::parse(spec).unwrap_err().to_string();
+            assert!(msg.contains(spec), "{msg}");
+            assert!(msg.contains(needle), "{msg}");
+        }
+    }
+
+    #[test]
+    fn file_profile_samples_and_holds() {
+        // r(t) = r_i for t_i <= t < t_(i+1); r_0 before t_0; the last r after the last t.
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("r.csv");
+        std::fs::write(&path, "t,r\n0.5,10\n1.0,-5\n2,30\n").unwrap();
+        let p = Profile::parse(&format!("file:{}", path.display())).unwrap();
+        assert_eq!(p.r_at(0.0), 10.0);
+        assert_eq!(p.r_at(0.5), 10.0);
+        assert_eq!(p.r_at(0.99), 10.0);
+        assert_eq!(p.r_at(100.0 * 0.01), -5.0);
+        assert_eq!(p.r_at(3.0), 30.0);
+        assert_eq!(p.natural_duration_s(), Some(2.0));
+    }
+
+    #[test]
+    fn file_errors_give_line_and_column() {
+        // Row 3 (line 3), column 2 holds a non-number; times must increase; the header needs t and r.
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("r.csv");
+        let check = |content: &str, needle: &str| {
+            std::fs::write(&path, content).unwrap();
+            let msg = Profile::parse(&format!("file:{}", path.display()))
+                .unwrap_err()
+                .to_string();
+            assert!(msg.contains(needle), "{msg} lacks {needle}");
+        };
+        check("t,r\n0,1\n1,abc\n", "r.csv:3:2: `abc` is not a number");
+        check("t,r\n0,1\n0,2\n", "r.csv:3:1: t = 0 s does not increase");
+        check("time,pos\n0,1\n", "r.csv:1: header");
+        check("t,r\n", "no data rows");
+        check("t,r\n0\n", "r.csv:2:2: missing field");
+        check("t,r\n0,inf\n", "not finite");
+        let missing = dir.path().join("nope.csv");
+        assert!(Profile::parse(&format!("file:{}", missing.display()))
+            .unwrap_err()
+            .to_string()
+            .contains("nope.csv"));
+    }
+}

@@ -377,7 +377,7 @@ fn hammerstein_ls(data: &Dataset, s: &Structure, st: &IdentifySettings) -> Resul
     let (max_neg, min_pos, min_neg, max_pos) = input_range(data)?;
     let limit = max_pos.max(-min_neg);
     // Initial switching: h_r = [u > 0], h_l = [u < 0].
-    let mut dz = Deadzone { b_l: max_neg, b_r: min_pos, m_l: 0.0, m_r: 0.0 };
+    let mut dz = Deadzone { b_l: max_neg, b_r: min_pos, m_l: 1.0, m_r: 1.0 };
     let names = s.theta_names();
     let mut seen: Vec<DVector<f64>> = Vec::new();
     let mut best: Option<(f64, DVector<f64>, ls::LsSolution, usize)> = None;
@@ -440,8 +440,11 @@ fn hammerstein_ls(data: &Dataset, s: &Structure, st: &IdentifySettings) -> Resul
     })
 }
 
-/// RLS for ARX, and recursive key-term separation for Hammerstein: switching functions and the internal
-/// x̂ are evaluated with the latest estimate at every sample.
+/// RLS for ARX, and recursive key-term separation for Hammerstein. First pass (the paper's scheme):
+/// switching functions and the internal x̂ are evaluated with the latest estimate at every sample.
+/// Later passes restart P = p0 I, keep θ̂ and evaluate the switching functions and x̂ with the estimate
+/// the pass started from, so each pass is the recursive solution of one key-term LS step regularised
+/// towards the previous estimate; the passes converge to the batch key-term fixed point.
 fn recursive(data: &Dataset, s: &Structure, st: &IdentifySettings) -> Result<Identified, SysidError> {
     let p = s.n_params();
     let k0 = s.orders.k0();
@@ -451,7 +454,7 @@ fn recursive(data: &Dataset, s: &Structure, st: &IdentifySettings) -> Result<Ide
     let hammer = s.kind == ModelKind::Hammerstein;
     let (mut dz, limit) = if hammer {
         let (max_neg, min_pos, min_neg, max_pos) = input_range(data)?;
-        (Deadzone { b_l: max_neg, b_r: min_pos, m_l: 0.0, m_r: 0.0 }, max_pos.max(-min_neg))
+        (Deadzone { b_l: max_neg, b_r: min_pos, m_l: 1.0, m_r: 1.0 }, max_pos.max(-min_neg))
     } else {
         (Deadzone { b_l: 0.0, b_r: 0.0, m_l: 0.0, m_r: 0.0 }, 0.0)
     };
@@ -464,12 +467,15 @@ fn recursive(data: &Dataset, s: &Structure, st: &IdentifySettings) -> Result<Ide
     for pass in 0..st.passes {
         if pass > 0 {
             est.restart_covariance(st.p0);
+            if hammer {
+                dz = deadzone_from_theta(est.theta.as_slice(), dz, limit);
+            }
         }
         for k in k0..n {
             if k == tail_start {
                 theta_tail.copy_from(&est.theta);
             }
-            if hammer && (pass > 0 || k > k0) {
+            if hammer && pass == 0 && k > k0 {
                 dz = deadzone_from_theta(est.theta.as_slice(), dz, limit);
                 if est.theta[0] == 0.0 && est.theta[2] == 0.0 {
                     dz = initial_dz;

@@ -76,10 +76,13 @@ impl Rls {
         for i in 0..n {
             self.theta[i] += self.pphi[i] * inv * eps;
         }
+        // Update the upper triangle and mirror it, so that P stays exactly symmetric in floating point.
         for j in 0..n {
             let vj = self.pphi[j] * inv;
-            for i in 0..n {
-                self.p[(i, j)] = (self.p[(i, j)] - self.pphi[i] * vj) * inv_rho;
+            for i in 0..=j {
+                let v = (self.p[(i, j)] - self.pphi[i] * vj) * inv_rho;
+                self.p[(i, j)] = v;
+                self.p[(j, i)] = v;
             }
         }
         Ok(eps)

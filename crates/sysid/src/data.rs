@@ -77,11 +77,13 @@ pub struct CsvOptions {
     pub t_col: String,
     /// Sampling period in s (`--ts`); when given, the time column is not needed and not read.
     pub ts: Option<f64>,
+    /// Ts to use when `ts` is `None` and the file has no time column (e.g. a saved model's Ts).
+    pub fallback_ts: Option<f64>,
 }
 
 impl Default for CsvOptions {
     fn default() -> Self {
-        CsvOptions { u_col: "u".into(), y_col: "y".into(), t_col: "t".into(), ts: None }
+        CsvOptions { u_col: "u".into(), y_col: "y".into(), t_col: "t".into(), ts: None, fallback_ts: None }
     }
 }
 
@@ -96,7 +98,9 @@ pub fn read_csv_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Dat
     let table = read_table(bytes, name)?;
     let ucol = table.column_index(&opts.u_col, "--u-col")?;
     let ycol = table.column_index(&opts.y_col, "--y-col")?;
-    let tcol = match opts.ts {
+    let has_t = table.headers.iter().any(|h| *h == opts.t_col);
+    let ts_given = opts.ts.or(if has_t { None } else { opts.fallback_ts });
+    let tcol = match ts_given {
         Some(_) => None,
         None => Some(table.column_index(&opts.t_col, "--t-col").map_err(|_| SysidError::File {
             file: name.to_string(),
@@ -110,7 +114,7 @@ pub fn read_csv_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Dat
     };
     let u = table.numbers(ucol)?;
     let y = table.numbers(ycol)?;
-    let ts = match (opts.ts, tcol) {
+    let ts = match (ts_given, tcol) {
         (Some(ts), _) => {
             check_ts(ts)?;
             ts

@@ -99,3 +99,100 @@ impl IdentifyReport {
 pub fn poles(model: &Model) -> Vec<Pole> {
     model.poles().iter().map(|p| Pole { re: p.re, im: p.im, abs: p.norm() }).collect()
 }
+
+/// Formats a number for a report: 6 significant digits, scientific for very large or small values.
+pub fn num(v: f64) -> String {
+    if v == 0.0 {
+        "0".into()
+    } else if !v.is_finite() {
+        format!("{v}")
+    } else if v.abs() >= 1e5 || v.abs() < 1e-3 {
+        format!("{v:.5e}")
+    } else {
+        let digits = (5 - v.abs().log10().floor() as i32).clamp(0, 9) as usize;
+        format!("{v:.digits$}")
+    }
+}
+
+fn opt(v: Option<f64>) -> String {
+    v.map_or_else(|| "n/a".into(), num)
+}
+
+impl IdentifyReport {
+    /// A readable plain-text report (parameters ± std, poles, stability, metrics), as `identify` prints.
+    pub fn to_text(&self) -> String {
+        use std::fmt::Write;
+        let m = &self.model;
+        let mut s = String::new();
+        let kind = match m.kind {
+            crate::ModelKind::Arx => "Linear ARX".to_string(),
+            crate::ModelKind::Hammerstein => "Hammerstein (deadzone + ARX)".to_string(),
+        };
+        let _ = writeln!(
+            s,
+            "{kind} model, na = {} nb = {} nk = {}, Ts = {} s, estimated by {} ({} {}, {})",
+            m.na,
+            m.nb,
+            m.nk,
+            num(m.ts),
+            self.estimation.method,
+            self.estimation.iterations,
+            match self.estimation.method {
+                Method::Ls => "iteration(s)",
+                Method::Rls => "pass(es)",
+            },
+            if self.estimation.converged { "converged" } else { "NOT converged" }
+        );
+        if let Some(note) = &self.estimation.note {
+            let _ = writeln!(s, "note: {note}");
+        }
+        let _ = writeln!(s, "\nParameters (estimate ± standard deviation)");
+        for p in &self.parameters {
+            let sd = match p.std {
+                Some(v) => format!("± {}", num(v)),
+                None if p.name == "b1" && m.kind == crate::ModelKind::Hammerstein => "(fixed: normalisation)".into(),
+                None => "± n/a".into(),
+            };
+            let _ = writeln!(s, "  {:<6} = {:>14}  {sd}", p.name, num(p.value));
+        }
+        let poles: Vec<String> = self
+            .poles
+            .iter()
+            .map(|p| {
+                if p.im.abs() < 1e-12 {
+                    num(p.re)
+                } else {
+                    format!("{} {} {}i", num(p.re), if p.im < 0.0 { "-" } else { "+" }, num(p.im.abs()))
+                }
+            })
+            .collect();
+        let _ = writeln!(
+            s,
+            "\nPoles: {}  → {}",
+            if poles.is_empty() { "none".to_string() } else { poles.join(", ") },
+            if self.stable { "stable (all inside the unit circle)" } else { "UNSTABLE (a pole on or outside the unit circle)" }
+        );
+        let val = self.metrics.validation.as_ref();
+        let _ = writeln!(s, "\n{:<22}{:>16}{:>16}", "Metric", "estimation", if val.is_some() { "validation" } else { "" });
+        let rows: [(&str, fn(&Metrics) -> String); 9] = [
+            ("fit % (simulation)", |m| opt(m.fit_sim_percent)),
+            ("fit % (1-step pred.)", |m| opt(m.fit_pred_percent)),
+            ("RMSE (simulation)", |m| opt(m.rmse_sim)),
+            ("RMSE (1-step pred.)", |m| num(m.rmse_pred)),
+            ("loss V (eq. 14)", |m| num(m.loss)),
+            ("FPE (eq. 15)", |m| opt(m.fpe)),
+            ("AIC (normalised)", |m| opt(m.aic)),
+            ("N (rows used)", |m| m.n.to_string()),
+            ("p (parameters)", |m| m.p.to_string()),
+        ];
+        for (label, f) in rows {
+            let _ = writeln!(s, "{label:<22}{:>16}{:>16}", f(&self.metrics.estimation), val.map(f).unwrap_or_default());
+        }
+        for (which, mm) in [("estimation", Some(&self.metrics.estimation)), ("validation", val)] {
+            if let Some(note) = mm.and_then(|m| m.note.as_ref()) {
+                let _ = writeln!(s, "note ({which}): {note}");
+            }
+        }
+        s
+    }
+}

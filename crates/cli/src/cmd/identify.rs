@@ -1,10 +1,150 @@
-//! TODO: being written.
+//! `ipa-sysid identify`: a model from a CSV of input/output data (MATLAB `arx`, plus the Hammerstein model).
 
-/// Flags.
+use std::path::{Path, PathBuf};
+
+use sysid::estimate::{identify, IdentifySettings, Method};
+use sysid::summary::IdentifyReport;
+use sysid::validation::metrics;
+use sysid::{ModelKind, Orders};
+
+use super::common::{check_outputs, write_output, ColumnArgs};
+
+/// Model structure flag values.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum KindArg {
+    /// Static deadzone (b_l, b_r, m_l, m_r) followed by ARX, b1 = 1.
+    Hammerstein,
+    /// Linear ARX.
+    Arx,
+}
+
+/// Estimator flag values.
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum MethodArg {
+    /// Batch least squares via QR (Hammerstein: iterated key-term separation).
+    Ls,
+    /// Recursive least squares with forgetting (paper eqs. 9-12).
+    Rls,
+}
+
+/// Flags of `identify`.
 #[derive(Debug, clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// CSV file with a header row (columns chosen by --u-col, --y-col, --t-col).
+    #[arg(long, value_name = "FILE")]
+    pub data: PathBuf,
+    #[command(flatten)]
+    pub columns: ColumnArgs,
+    /// Model structure.
+    #[arg(long, value_enum, default_value = "hammerstein")]
+    pub model: KindArg,
+    /// na: number of poles (order of A).
+    #[arg(long, default_value_t = 3)]
+    pub na: usize,
+    /// nb: number of B coefficients (>= 1 for Hammerstein).
+    #[arg(long, default_value_t = 1)]
+    pub nb: usize,
+    /// nk: input delay in samples.
+    #[arg(long, default_value_t = 1)]
+    pub nk: usize,
+    /// Estimator.
+    #[arg(long, value_enum, default_value = "rls")]
+    pub method: MethodArg,
+    /// RLS forgetting factor ρ in (0, 1].
+    #[arg(long, default_value_t = 1.0)]
+    pub forgetting: f64,
+    /// RLS initial covariance P(0) = p0 · I.
+    #[arg(long, default_value_t = 1e6)]
+    pub p0: f64,
+    /// RLS passes over the data (later passes restart P and refine the estimate).
+    #[arg(long, default_value_t = 1)]
+    pub passes: usize,
+    /// Maximum key-term iterations (Hammerstein with --method ls).
+    #[arg(long, default_value_t = 100)]
+    pub max_iterations: usize,
+    /// Estimate a constant term c in the linear block.
+    #[arg(long)]
+    pub offset: bool,
+    /// Separate CSV record to validate on.
+    #[arg(long, value_name = "FILE")]
+    pub validation: Option<PathBuf>,
+    /// Input column of the validation file (default: --u-col).
+    #[arg(long, value_name = "NAME")]
+    pub val_u_col: Option<String>,
+    /// Output column of the validation file (default: --y-col).
+    #[arg(long, value_name = "NAME")]
+    pub val_y_col: Option<String>,
+    /// Write the JSON summary here (`-` for standard output).
+    #[arg(long, value_name = "OUT")]
+    pub json: Option<PathBuf>,
+    /// Save the model for `validate --model` and `--plant model:FILE`.
+    #[arg(long, value_name = "MODEL.json")]
+    pub save_model: Option<PathBuf>,
+}
 
-/// Runs the subcommand.
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("not implemented yet")
+impl Args {
+    /// The estimator settings these flags describe.
+    pub fn settings(&self) -> IdentifySettings {
+        IdentifySettings {
+            kind: match self.model {
+                KindArg::Hammerstein => ModelKind::Hammerstein,
+                KindArg::Arx => ModelKind::Arx,
+            },
+            orders: Orders { na: self.na, nb: self.nb, nk: self.nk },
+            method: match self.method {
+                MethodArg::Ls => Method::Ls,
+                MethodArg::Rls => Method::Rls,
+            },
+            forgetting: self.forgetting,
+            p0: self.p0,
+            offset: self.offset,
+            passes: self.passes,
+            max_iterations: self.max_iterations,
+            ..IdentifySettings::default()
+        }
+    }
+}
+
+/// Runs `identify`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let settings = args.settings();
+    settings.structure()?; // refuse bad flags before reading anything
+    let mut inputs: Vec<&Path> = vec![&args.data];
+    inputs.extend(args.validation.as_deref());
+    check_outputs(&[(&args.json, "--json"), (&args.save_model, "--save-model")], &inputs)?;
+    let opts = args.columns.csv_options();
+    let data = sysid::data::read_csv(&args.data, &opts)?;
+    let val = match &args.validation {
+        Some(path) => {
+            let mut vopts = opts.clone();
+            vopts.u_col = args.val_u_col.clone().unwrap_or(opts.u_col.clone());
+            vopts.y_col = args.val_y_col.clone().unwrap_or(opts.y_col.clone());
+            Some(sysid::data::read_csv(path, &vopts)?)
+        }
+        None => None,
+    };
+    let fit = identify(&data, &settings)?;
+    let est = metrics(&fit.model, &data)?;
+    let val_metrics = val.as_ref().map(|v| metrics(&fit.model, v)).transpose()?;
+    let report = IdentifyReport::new(&fit, &settings, est, val_metrics);
+    let json_to_stdout = args.json.as_deref().is_some_and(|p| p.as_os_str() == "-");
+    let text = format!(
+        "Data: {} ({} samples){}\n{}",
+        data.name,
+        data.len(),
+        val.as_ref().map(|v| format!("; validation: {} ({} samples)", v.name, v.len())).unwrap_or_default(),
+        report.to_text()
+    );
+    if json_to_stdout {
+        eprint!("{text}");
+    } else {
+        print!("{text}");
+    }
+    if let Some(path) = &args.json {
+        write_output(path, report.to_json().as_bytes(), &inputs, "--json")?;
+    }
+    if let Some(path) = &args.save_model {
+        write_output(path, sysid::model_file::to_json(&fit.model).as_bytes(), &inputs, "--save-model")?;
+    }
+    Ok(())
 }

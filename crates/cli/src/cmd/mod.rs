@@ -1,5 +1,6 @@
 //! One module per subcommand: its flags (`Args`) and its `run`.
 
+pub mod common;
 pub mod control;
 pub mod identify;
 pub mod plant_config;

@@ -1,0 +1,62 @@
+//! Flags and output helpers shared by several subcommands.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use sysid::data::CsvOptions;
+
+/// Which columns of a CSV file hold the data, and its sampling period.
+#[derive(Debug, Clone, clap::Args)]
+pub struct ColumnArgs {
+    /// Name of the input column u.
+    #[arg(long, default_value = "u", value_name = "NAME")]
+    pub u_col: String,
+    /// Name of the output column y.
+    #[arg(long, default_value = "y", value_name = "NAME")]
+    pub y_col: String,
+    /// Name of the time column (gives Ts when --ts is not passed; must be uniform and increasing).
+    #[arg(long, default_value = "t", value_name = "NAME")]
+    pub t_col: String,
+    /// Sampling period Ts in seconds (overrides the time column).
+    #[arg(long, value_name = "SECONDS")]
+    pub ts: Option<f64>,
+}
+
+impl ColumnArgs {
+    /// The CSV reader options for these flags.
+    pub fn csv_options(&self) -> CsvOptions {
+        CsvOptions {
+            u_col: self.u_col.clone(),
+            y_col: self.y_col.clone(),
+            t_col: self.t_col.clone(),
+            ts: self.ts,
+            fallback_ts: None,
+        }
+    }
+}
+
+/// Writes `content` to `path` atomically, or to standard output when `path` is `-`. Refuses to write over
+/// any of `inputs`; `flag` names the option in messages.
+pub fn write_output(path: &Path, content: &[u8], inputs: &[&Path], flag: &str) -> anyhow::Result<()> {
+    if path.as_os_str() == "-" {
+        let mut out = std::io::stdout().lock();
+        out.write_all(content).context("writing to standard output")?;
+        return Ok(());
+    }
+    sysid::output::refuse_overwrite_input(path, inputs, flag)?;
+    sysid::output::write_atomic(path, content)?;
+    Ok(())
+}
+
+/// Checks before any work that an output path does not name one of the inputs.
+pub fn check_outputs(outputs: &[(&Option<PathBuf>, &str)], inputs: &[&Path]) -> anyhow::Result<()> {
+    for (out, flag) in outputs {
+        if let Some(p) = out {
+            if p.as_os_str() != "-" {
+                sysid::output::refuse_overwrite_input(p, inputs, flag)?;
+            }
+        }
+    }
+    Ok(())
+}

@@ -30,6 +30,12 @@ enum Command {
     Control(cmd::control::Args),
     /// Reproduce the paper end to end: experiment, identification, validation, control, report.
     Reproduce(cmd::reproduce::Args),
+    /// Rank model orders and delays by validation fit, AIC and FPE (parallel).
+    Order(cmd::order::Args),
+    /// Monte Carlo study of estimator bias and spread under output noise (parallel).
+    Montecarlo(cmd::montecarlo::Args),
+    /// Benchmarks: RLS throughput, identification time, plant real-time factor.
+    Bench(cmd::bench::Args),
 }
 
 fn main() -> ExitCode {
@@ -41,6 +47,9 @@ fn main() -> ExitCode {
         Command::PlantConfig(a) => cmd::plant_config::run(a),
         Command::Control(a) => cmd::control::run(a),
         Command::Reproduce(a) => cmd::reproduce::run(a),
+        Command::Order(a) => cmd::order::run(a),
+        Command::Montecarlo(a) => cmd::montecarlo::run(a),
+        Command::Bench(a) => cmd::bench::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,8 +1,11 @@
 //! One module per subcommand: its flags (`Args`) and its `run`.
 
+pub mod bench;
 pub mod common;
 pub mod control;
 pub mod identify;
+pub mod montecarlo;
+pub mod order;
 pub mod plant_config;
 pub mod reproduce;
 pub mod simulate;

@@ -1,19 +1,27 @@
-//! Physics-based simulator of the Intelligent Pneumatic Actuator (placeholder being written).
+//! `ipa`: a physics-based simulator of the Intelligent Pneumatic Actuator (IPA) of the paper, and the
+//! design of identification experiments.
+//!
+//! - [`Ipa`] (module [`plant`]): double-acting cylinder ([`cylinder`]) with two PWM-driven on/off valves
+//!   ([`valve`]), seal friction with stiction ([`friction`]), end stops, an optical encoder ([`encoder`]);
+//!   integrated by RK4 ([`dynamics`]). Parameters in [`PlantConfig`] ([`config`], TOML).
+//! - [`spec::plant_from_spec`]: `ipa`, `paper` or `model:FILE` behind [`sysid::Plant`].
+//! - [`input`]: staircase, PRBS, APRBS, multisine, step and file inputs.
+//!
+//! See `docs/plant.md` for the equations, the parameters and their sources.
 
-/// Errors of the plant crate.
-#[derive(Debug, thiserror::Error)]
-pub enum IpaError {
-    /// Bad configuration or input specification.
-    #[error("{0}")]
-    Config(String),
-    /// Numerical failure of the integration.
-    #[error("numerical failure: {0}")]
-    Numerical(String),
-}
+pub mod config;
+pub mod cylinder;
+pub mod dynamics;
+pub mod encoder;
+pub mod error;
+pub mod friction;
+pub mod input;
+pub mod plant;
+pub mod spec;
+pub mod valve;
 
-impl IpaError {
-    /// True for numerical failures (exit code 1).
-    pub fn is_numerical(&self) -> bool {
-        matches!(self, IpaError::Numerical(_))
-    }
-}
+pub use config::PlantConfig;
+pub use error::IpaError;
+pub use input::{generate, InputSpec};
+pub use plant::Ipa;
+pub use spec::{plant_from_spec, plant_from_spec_with_ts, DEFAULT_TS_S};

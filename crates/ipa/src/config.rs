@@ -1,0 +1,535 @@
+//! Parameters of the physics IPA plant ([`PlantConfig`]), their defaults with sources, TOML reading and
+//! the commented TOML printed by `ipa-sysid plant-config`.
+//!
+//! Every value has a unit in its key (`bore_mm`, `opening_delay_ms`). Sources: Table II of the paper
+//! (bore, rod, stroke, supply pressure, temperature, k), ISO 6358 / ISO 8778 (reference density and
+//! temperature), Richer & Hurmuzlu (2000) (polytropic exponents), and engineering estimates for what the
+//! paper and the available catalogues do not give (valve conductance and delays, friction, dead volumes,
+//! moving mass). The estimates are calibrated so that the simulated IPA extends at about 0.35 m/s and
+//! retracts at about 0.45 m/s at full command (the paper's model: +0.37 / -0.53 m/s) and has a deadzone of
+//! a few tens of counts. `docs/plant.md` gives the reasoning for each value.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::IpaError;
+
+/// All parameters of the physics plant. Every section has defaults, so a TOML file only needs the keys
+/// it changes; unknown keys are refused.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(default, deny_unknown_fields)]
+pub struct PlantConfig {
+    /// Cylinder geometry.
+    pub cylinder: CylinderConfig,
+    /// Air supply and gas properties.
+    pub air: AirConfig,
+    /// The two on/off valves and their PWM drive.
+    pub valve: ValveConfig,
+    /// Moving mass and external load.
+    pub load: LoadConfig,
+    /// Seal friction.
+    pub friction: FrictionConfig,
+    /// Position encoder.
+    pub encoder: EncoderConfig,
+    /// Numerical integration.
+    pub integration: IntegrationConfig,
+}
+
+/// Double-acting cylinder (Koganei twin-port, Table I/II).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct CylinderConfig {
+    /// Bore (piston) diameter D in mm (Table II: 40 mm).
+    pub bore_mm: f64,
+    /// Rod diameter d in mm (Table II: 16 mm).
+    pub rod_mm: f64,
+    /// Stroke L in mm (Table II: 200 mm).
+    pub stroke_mm: f64,
+    /// Dead volume V_a0 of the cap-side chamber (end cap, port, tube to the valve) in cm^3.
+    pub dead_volume_cap_cm3: f64,
+    /// Dead volume V_b0 of the rod-side chamber in cm^3.
+    pub dead_volume_rod_cm3: f64,
+}
+
+impl Default for CylinderConfig {
+    fn default() -> Self {
+        CylinderConfig {
+            bore_mm: 40.0,
+            rod_mm: 16.0,
+            stroke_mm: 200.0,
+            dead_volume_cap_cm3: 10.0,
+            dead_volume_rod_cm3: 10.0,
+        }
+    }
+}
+
+/// Supply, atmosphere and gas properties.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct AirConfig {
+    /// Supply pressure above atmosphere in MPa (Table II: 0.6 MPa).
+    pub supply_gauge_mpa: f64,
+    /// Atmospheric (exhaust) pressure p_atm in Pa (standard atmosphere).
+    pub atmosphere_pa: f64,
+    /// Supply and chamber air temperature T in K (Table II: 294.5 K).
+    pub temperature_k: f64,
+    /// Specific heat ratio k of air (Table II: 1.4).
+    pub heat_capacity_ratio: f64,
+    /// Specific gas constant R of air in J/(kg K).
+    pub gas_constant_j_kg_k: f64,
+    /// Polytropic exponent alpha_in of charging (Richer & Hurmuzlu 2000: k, adiabatic).
+    pub exponent_charging: f64,
+    /// Polytropic exponent alpha_out of discharging (Richer & Hurmuzlu 2000: 1, isothermal).
+    pub exponent_discharging: f64,
+    /// Polytropic exponent alpha of the volume (work) term (Richer & Hurmuzlu 2000: 1.2).
+    pub exponent_volume: f64,
+}
+
+impl Default for AirConfig {
+    fn default() -> Self {
+        AirConfig {
+            supply_gauge_mpa: 0.6,
+            atmosphere_pa: 101_325.0,
+            temperature_k: 294.5,
+            heat_capacity_ratio: 1.4,
+            gas_constant_j_kg_k: 287.0,
+            exponent_charging: 1.4,
+            exponent_discharging: 1.0,
+            exponent_volume: 1.2,
+        }
+    }
+}
+
+/// The two 3/2 on/off valves (Koganei EB10ES1-PS-6W, Table I) and their PWM drive. Energised, a valve
+/// connects its chamber to the supply; de-energised, to the exhaust.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ValveConfig {
+    /// Sonic conductance C (ISO 6358) of each flow path, in dm^3/(s bar) (ANR).
+    pub sonic_conductance_dm3_s_bar: f64,
+    /// Critical pressure ratio b (ISO 6358).
+    pub critical_pressure_ratio: f64,
+    /// Pressure ratio above which the flow is taken as laminar (linear in the pressure difference),
+    /// which keeps the flow Lipschitz near equal pressures (as Simscape's pneumatic valves do).
+    pub laminar_pressure_ratio: f64,
+    /// PWM period in ms (one PWM period per default sampling period Ts = 10 ms).
+    pub pwm_period_ms: f64,
+    /// Opening delay in ms: a valve opens this long after it is energised; shorter pulses do not open it.
+    pub opening_delay_ms: f64,
+    /// Closing delay in ms: a valve closes this long after it is de-energised.
+    pub closing_delay_ms: f64,
+}
+
+impl Default for ValveConfig {
+    fn default() -> Self {
+        ValveConfig {
+            sonic_conductance_dm3_s_bar: 0.2,
+            critical_pressure_ratio: 0.3,
+            laminar_pressure_ratio: 0.995,
+            pwm_period_ms: 10.0,
+            opening_delay_ms: 0.7,
+            closing_delay_ms: 0.4,
+        }
+    }
+}
+
+/// Moving mass and external load.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct LoadConfig {
+    /// Moving mass M of piston, rod and load in kg.
+    pub moving_mass_kg: f64,
+    /// Constant external force on the rod in N, positive in the extending direction (Table II: 0 N).
+    pub external_force_n: f64,
+}
+
+impl Default for LoadConfig {
+    fn default() -> Self {
+        LoadConfig {
+            moving_mass_kg: 0.6,
+            external_force_n: 0.0,
+        }
+    }
+}
+
+/// Seal friction: stiction, Coulomb, Stribeck and viscous parts.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct FrictionConfig {
+    /// Static (breakaway) friction F_s in N.
+    pub static_n: f64,
+    /// Coulomb (kinetic) friction F_c in N (at most F_s).
+    pub coulomb_n: f64,
+    /// Stribeck velocity v_s in mm/s.
+    pub stribeck_velocity_mm_s: f64,
+    /// Viscous friction coefficient sigma in N s/m.
+    pub viscous_n_s_m: f64,
+}
+
+impl Default for FrictionConfig {
+    fn default() -> Self {
+        FrictionConfig {
+            static_n: 25.0,
+            coulomb_n: 18.0,
+            stribeck_velocity_mm_s: 10.0,
+            viscous_n_s_m: 30.0,
+        }
+    }
+}
+
+/// Optical encoder (AEDR-8300 with a linear strip, Table I).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct EncoderConfig {
+    /// Resolution in mm per count; the output y is the position rounded to a multiple of it.
+    pub resolution_mm: f64,
+}
+
+impl Default for EncoderConfig {
+    fn default() -> Self {
+        EncoderConfig {
+            resolution_mm: 0.01,
+        }
+    }
+}
+
+/// Numerical integration.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct IntegrationConfig {
+    /// Largest RK4 substep in ms; substeps are also cut at every valve switching instant.
+    pub max_substep_ms: f64,
+}
+
+impl Default for IntegrationConfig {
+    fn default() -> Self {
+        IntegrationConfig {
+            max_substep_ms: 0.5,
+        }
+    }
+}
+
+/// One documented parameter: TOML key, value, and the comment printed with it.
+struct Entry {
+    key: &'static str,
+    value: f64,
+    doc: &'static str,
+}
+
+impl PlantConfig {
+    /// Reads a TOML file: keys not given keep their defaults, unknown keys are an error naming the key,
+    /// and the values are checked with [`PlantConfig::validate`].
+    pub fn from_toml_file(path: &Path) -> Result<Self, IpaError> {
+        let text = std::fs::read_to_string(path).map_err(|e| {
+            IpaError::Config(format!("cannot read plant config {}: {e}", path.display()))
+        })?;
+        Self::from_toml_str(&text, &path.display().to_string())
+    }
+
+    /// Parses TOML text (`name` is used in messages) and validates it.
+    pub fn from_toml_str(text: &str, name: &str) -> Result<Self, IpaError> {
+        let cfg: PlantConfig = toml::from_str(text)
+            .map_err(|e| IpaError::Config(format!("{name}: invalid plant config: {e}")))?;
+        cfg.validate()
+            .map_err(|e| IpaError::Config(format!("{name}: {e}")))?;
+        Ok(cfg)
+    }
+
+    /// Checks every value; the error names the key (`section.key`), the value and what is accepted.
+    pub fn validate(&self) -> Result<(), IpaError> {
+        for (section, entries) in self.sections() {
+            for e in entries {
+                if !e.value.is_finite() {
+                    return Err(bad(section, e.key, e.value, "a finite number"));
+                }
+            }
+        }
+        let c = &self.cylinder;
+        pos("cylinder", "bore_mm", c.bore_mm)?;
+        nonneg("cylinder", "rod_mm", c.rod_mm)?;
+        if c.rod_mm >= c.bore_mm {
+            return Err(bad(
+                "cylinder",
+                "rod_mm",
+                c.rod_mm,
+                "a rod diameter smaller than cylinder.bore_mm",
+            ));
+        }
+        pos("cylinder", "stroke_mm", c.stroke_mm)?;
+        pos("cylinder", "dead_volume_cap_cm3", c.dead_volume_cap_cm3)?;
+        pos("cylinder", "dead_volume_rod_cm3", c.dead_volume_rod_cm3)?;
+        let a = &self.air;
+        pos("air", "supply_gauge_mpa", a.supply_gauge_mpa).map_err(|_| {
+            bad(
+                "air",
+                "supply_gauge_mpa",
+                a.supply_gauge_mpa,
+                "a supply pressure above atmosphere (gauge > 0)",
+            )
+        })?;
+        pos("air", "atmosphere_pa", a.atmosphere_pa)?;
+        pos("air", "temperature_k", a.temperature_k)?;
+        if !(a.heat_capacity_ratio > 1.0 && a.heat_capacity_ratio <= 5.0 / 3.0) {
+            return Err(bad(
+                "air",
+                "heat_capacity_ratio",
+                a.heat_capacity_ratio,
+                "a value in (1, 5/3]",
+            ));
+        }
+        pos("air", "gas_constant_j_kg_k", a.gas_constant_j_kg_k)?;
+        for (key, v) in [
+            ("exponent_charging", a.exponent_charging),
+            ("exponent_discharging", a.exponent_discharging),
+            ("exponent_volume", a.exponent_volume),
+        ] {
+            if !(1.0..=a.heat_capacity_ratio).contains(&v) {
+                return Err(bad("air", key, v, "a polytropic exponent between 1 (isothermal) and air.heat_capacity_ratio (adiabatic)"));
+            }
+        }
+        let v = &self.valve;
+        nonneg(
+            "valve",
+            "sonic_conductance_dm3_s_bar",
+            v.sonic_conductance_dm3_s_bar,
+        )?;
+        if !(v.critical_pressure_ratio >= 0.0 && v.critical_pressure_ratio < 1.0) {
+            return Err(bad(
+                "valve",
+                "critical_pressure_ratio",
+                v.critical_pressure_ratio,
+                "a ratio in [0, 1)",
+            ));
+        }
+        if !(v.laminar_pressure_ratio > v.critical_pressure_ratio && v.laminar_pressure_ratio < 1.0)
+        {
+            return Err(bad(
+                "valve",
+                "laminar_pressure_ratio",
+                v.laminar_pressure_ratio,
+                "a ratio above valve.critical_pressure_ratio and below 1",
+            ));
+        }
+        pos("valve", "pwm_period_ms", v.pwm_period_ms)?;
+        nonneg("valve", "opening_delay_ms", v.opening_delay_ms)?;
+        nonneg("valve", "closing_delay_ms", v.closing_delay_ms)?;
+        for (key, d) in [
+            ("opening_delay_ms", v.opening_delay_ms),
+            ("closing_delay_ms", v.closing_delay_ms),
+        ] {
+            if d >= v.pwm_period_ms {
+                return Err(bad(
+                    "valve",
+                    key,
+                    d,
+                    "a delay shorter than valve.pwm_period_ms",
+                ));
+            }
+        }
+        pos("load", "moving_mass_kg", self.load.moving_mass_kg)?;
+        let f = &self.friction;
+        nonneg("friction", "static_n", f.static_n)?;
+        nonneg("friction", "coulomb_n", f.coulomb_n)?;
+        if f.coulomb_n > f.static_n {
+            return Err(bad(
+                "friction",
+                "coulomb_n",
+                f.coulomb_n,
+                "a Coulomb friction not above friction.static_n",
+            ));
+        }
+        pos(
+            "friction",
+            "stribeck_velocity_mm_s",
+            f.stribeck_velocity_mm_s,
+        )?;
+        nonneg("friction", "viscous_n_s_m", f.viscous_n_s_m)?;
+        pos("encoder", "resolution_mm", self.encoder.resolution_mm)?;
+        let h = self.integration.max_substep_ms;
+        if !(h > 0.0 && h <= v.pwm_period_ms) {
+            return Err(bad(
+                "integration",
+                "max_substep_ms",
+                h,
+                "a positive step not longer than valve.pwm_period_ms",
+            ));
+        }
+        Ok(())
+    }
+
+    /// The configuration as TOML with a comment on every key giving its unit and source (the output of
+    /// `ipa-sysid plant-config`). Parsing it back gives the same configuration.
+    pub fn to_commented_toml(&self) -> String {
+        let mut s = String::from(
+            "# Physics IPA plant parameters (ipa-sysid plant-config).\n\
+             # Edit and pass with --plant-config FILE; keys left out keep their defaults, unknown keys are refused.\n\
+             # Sources: paper Table I/II, ISO 6358, Richer & Hurmuzlu (2000); 'estimate' marks engineering\n\
+             # estimates calibrated as explained in docs/plant.md.\n",
+        );
+        for (section, entries) in self.sections() {
+            s.push_str(&format!("\n[{section}]\n"));
+            for e in entries {
+                s.push_str(&format!("{} = {:?}  # {}\n", e.key, e.value, e.doc));
+            }
+        }
+        s
+    }
+
+    fn sections(&self) -> Vec<(&'static str, Vec<Entry>)> {
+        let e = |key, value, doc| Entry { key, value, doc };
+        let c = &self.cylinder;
+        let a = &self.air;
+        let v = &self.valve;
+        let f = &self.friction;
+        vec![
+            (
+                "cylinder",
+                vec![
+                    e("bore_mm", c.bore_mm, "bore D, mm (paper Table II)"),
+                    e("rod_mm", c.rod_mm, "rod diameter d, mm (Table II); rod side is the smaller area"),
+                    e("stroke_mm", c.stroke_mm, "stroke L, mm (Table II); end stops at 0 and L"),
+                    e("dead_volume_cap_cm3", c.dead_volume_cap_cm3, "cap-side dead volume, cm^3 (estimate: end cap + port + 0.5 m of 4 mm tube)"),
+                    e("dead_volume_rod_cm3", c.dead_volume_rod_cm3, "rod-side dead volume, cm^3 (estimate, as cap side)"),
+                ],
+            ),
+            (
+                "air",
+                vec![
+                    e("supply_gauge_mpa", a.supply_gauge_mpa, "supply pressure above atmosphere, MPa (Table II: 0.6 MPa)"),
+                    e("atmosphere_pa", a.atmosphere_pa, "exhaust/atmospheric pressure, Pa (standard atmosphere)"),
+                    e("temperature_k", a.temperature_k, "air temperature T, K (Table II, ISO 6358)"),
+                    e("heat_capacity_ratio", a.heat_capacity_ratio, "specific heat ratio k (Table II)"),
+                    e("gas_constant_j_kg_k", a.gas_constant_j_kg_k, "gas constant R of air, J/(kg K)"),
+                    e("exponent_charging", a.exponent_charging, "polytropic exponent of charging alpha_in (Richer & Hurmuzlu 2000: k)"),
+                    e("exponent_discharging", a.exponent_discharging, "polytropic exponent of discharging alpha_out (Richer & Hurmuzlu 2000: 1)"),
+                    e("exponent_volume", a.exponent_volume, "polytropic exponent of the volume term alpha (Richer & Hurmuzlu 2000: 1.2)"),
+                ],
+            ),
+            (
+                "valve",
+                vec![
+                    e("sonic_conductance_dm3_s_bar", v.sonic_conductance_dm3_s_bar, "ISO 6358 sonic conductance C per flow path, dm^3/(s bar) ANR (estimate for a 10 mm wide solenoid valve, ~1 mm orifice; sets the full-command speed)"),
+                    e("critical_pressure_ratio", v.critical_pressure_ratio, "ISO 6358 critical pressure ratio b (estimate, typical of small solenoid valves)"),
+                    e("laminar_pressure_ratio", v.laminar_pressure_ratio, "above this pressure ratio the flow is linear in the pressure difference (numerical regularisation)"),
+                    e("pwm_period_ms", v.pwm_period_ms, "PWM period, ms (estimate: one period per sample Ts = 10 ms); duty = |u|/255, latched at each period start"),
+                    e("opening_delay_ms", v.opening_delay_ms, "valve opening delay, ms (estimate; with the PWM period it sets the deadzone)"),
+                    e("closing_delay_ms", v.closing_delay_ms, "valve closing delay, ms (estimate)"),
+                ],
+            ),
+            (
+                "load",
+                vec![
+                    e("moving_mass_kg", self.load.moving_mass_kg, "piston + 16 mm steel rod + encoder strip, kg (estimate)"),
+                    e("external_force_n", self.load.external_force_n, "constant external force on the rod, N, + extends (Table II: ambient force 0 N)"),
+                ],
+            ),
+            (
+                "friction",
+                vec![
+                    e("static_n", f.static_n, "breakaway (static) friction F_s, N (estimate for 40 mm bore seals)"),
+                    e("coulomb_n", f.coulomb_n, "Coulomb friction F_c, N (estimate)"),
+                    e("stribeck_velocity_mm_s", f.stribeck_velocity_mm_s, "Stribeck velocity v_s, mm/s (estimate)"),
+                    e("viscous_n_s_m", f.viscous_n_s_m, "viscous friction sigma, N s/m (estimate)"),
+                ],
+            ),
+            ("encoder", vec![e("resolution_mm", self.encoder.resolution_mm, "encoder resolution, mm per count (issue 3: 0.01 mm)")]),
+            (
+                "integration",
+                vec![e("max_substep_ms", self.integration.max_substep_ms, "largest RK4 substep, ms (cut at valve switching instants; see the convergence test)")],
+            ),
+        ]
+    }
+}
+
+fn bad(section: &str, key: &str, value: f64, expected: &str) -> IpaError {
+    IpaError::Config(format!(
+        "invalid plant config {section}.{key} = {value}: expected {expected}"
+    ))
+}
+
+fn pos(section: &str, key: &str, value: f64) -> Result<(), IpaError> {
+    if value > 0.0 {
+        Ok(())
+    } else {
+        Err(bad(section, key, value, "a positive number"))
+    }
+}
+
+fn nonneg(section: &str, key: &str, value: f64) -> Result<(), IpaError> {
+    if value >= 0.0 {
+        Ok(())
+    } else {
+        Err(bad(section, key, value, "a number >= 0"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    // Printing then parsing is the identity, also for non-default values (so every key is printed).
+    #[test]
+    fn commented_toml_parses_back_to_the_same_config() {
+        let d = PlantConfig::default();
+        assert_eq!(
+            PlantConfig::from_toml_str(&d.to_commented_toml(), "t").unwrap(),
+            d
+        );
+        let mut c = PlantConfig::default();
+        c.cylinder.bore_mm = 50.0;
+        c.cylinder.dead_volume_rod_cm3 = 3.5;
+        c.air.exponent_volume = 1.3;
+        c.valve.closing_delay_ms = 0.9;
+        c.load.external_force_n = -12.0;
+        c.friction.viscous_n_s_m = 7.0;
+        c.encoder.resolution_mm = 0.005;
+        c.integration.max_substep_ms = 0.25;
+        assert_eq!(
+            PlantConfig::from_toml_str(&c.to_commented_toml(), "t").unwrap(),
+            c
+        );
+    }
+
+    #[test]
+    fn a_partial_file_keeps_the_other_defaults() {
+        let c = PlantConfig::from_toml_str("[load]\nmoving_mass_kg = 2.0\n", "t").unwrap();
+        assert_eq!(c.load.moving_mass_kg, 2.0);
+        assert_eq!(c.cylinder, CylinderConfig::default());
+    }
+
+    #[test]
+    fn an_unknown_key_is_an_error_naming_it() {
+        let e = PlantConfig::from_toml_str("[cylinder]\nbore_diameter = 40.0\n", "cfg.toml")
+            .unwrap_err();
+        let m = e.to_string();
+        assert!(m.contains("bore_diameter") && m.contains("cfg.toml"), "{m}");
+        let e = PlantConfig::from_toml_str("[pump]\nx = 1.0\n", "cfg.toml").unwrap_err();
+        assert!(e.to_string().contains("pump"), "{e}");
+    }
+
+    #[test]
+    fn invalid_values_are_refused_with_the_key() {
+        for (toml, key) in [
+            ("[load]\nmoving_mass_kg = -1.0\n", "load.moving_mass_kg"),
+            ("[air]\nsupply_gauge_mpa = -0.05\n", "air.supply_gauge_mpa"),
+            ("[cylinder]\nrod_mm = 45.0\n", "cylinder.rod_mm"),
+            ("[friction]\ncoulomb_n = 40.0\n", "friction.coulomb_n"),
+            (
+                "[valve]\nopening_delay_ms = 12.0\n",
+                "valve.opening_delay_ms",
+            ),
+            ("[air]\nexponent_volume = 2.0\n", "air.exponent_volume"),
+            ("[encoder]\nresolution_mm = 0.0\n", "encoder.resolution_mm"),
+            ("[cylinder]\nbore_mm = nan\n", "cylinder.bore_mm"),
+        ] {
+            let e = PlantConfig::from_toml_str(toml, "t")
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains(key), "{toml}: {e}");
+        }
+        let e =
+            PlantConfig::from_toml_str("[load]\nmoving_mass_kg = \"heavy\"\n", "t").unwrap_err();
+        assert!(e.to_string().contains("moving_mass_kg"), "{e}");
+    }
+}

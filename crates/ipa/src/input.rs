@@ -1,0 +1,449 @@
+//! Input design: the command sequences u(k) (PWM counts) of identification experiments.
+//!
+//! [`InputSpec`] is parsed from the `--input` flag and [`generate`] turns it into N samples,
+//! deterministically for a given seed (ChaCha8 random numbers).
+//!
+//! | spec          | signal |
+//! |---------------|--------|
+//! | `staircase`   | the paper's "continuous step signal": random integer levels in [-A, A] held 0.1..0.5 s, with the sign chosen by an experimenter's rule that keeps the piston inside the stroke (see [`staircase`]) |
+//! | `prbs`        | maximum-length PRBS (10-bit LFSR), levels +-A, clock 50 ms |
+//! | `aprbs`       | amplitude-modulated PRBS: a new level uniform in [-A, A] at every switch of the PRBS |
+//! | `multisine`   | sum of sines at the record's harmonics between 1 and 10 Hz, random phases, peak A |
+//! | `step:LEVEL`  | 0 for the first 10 samples, then LEVEL (`step:LEVEL@K` starts at sample K) |
+//! | `file:CSV`    | column `u` of a CSV file with a header row |
+
+use std::path::{Path, PathBuf};
+use std::str::FromStr;
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use crate::IpaError;
+
+/// An experiment's input signal, as given to `--input`.
+#[derive(Debug, Clone, PartialEq)]
+pub enum InputSpec {
+    /// Random levels held for random durations, kept inside the stroke by an experimenter's rule.
+    Staircase,
+    /// Maximum-length pseudo-random binary sequence, levels +-A.
+    Prbs,
+    /// Amplitude-modulated PRBS, levels uniform in [-A, A].
+    Aprbs,
+    /// Multisine with random phases, peak amplitude A.
+    Multisine,
+    /// u = 0 before sample `onset`, then u = `level` (counts); the amplitude is not used.
+    Step {
+        /// The step's level in counts.
+        level: f64,
+        /// First sample at the level.
+        onset: usize,
+    },
+    /// Column `u` of a CSV file; the amplitude is not used.
+    File(PathBuf),
+}
+
+/// Sample at which `step:LEVEL` steps when no `@K` is given.
+pub const DEFAULT_STEP_ONSET: usize = 10;
+
+const SPEC_HELP: &str = "staircase, prbs, aprbs, multisine, step:LEVEL[@SAMPLE] or file:CSV";
+
+impl FromStr for InputSpec {
+    type Err = IpaError;
+
+    fn from_str(s: &str) -> Result<Self, IpaError> {
+        let bad = |why: &str| {
+            IpaError::Config(format!(
+                "invalid --input '{s}': {why}; expected {SPEC_HELP}"
+            ))
+        };
+        let t = s.trim();
+        match t {
+            "staircase" => return Ok(InputSpec::Staircase),
+            "prbs" => return Ok(InputSpec::Prbs),
+            "aprbs" => return Ok(InputSpec::Aprbs),
+            "multisine" => return Ok(InputSpec::Multisine),
+            _ => {}
+        }
+        if let Some(rest) = t.strip_prefix("step:") {
+            let (lv, onset) = match rest.split_once('@') {
+                Some((lv, k)) => {
+                    let k = k
+                        .trim()
+                        .parse::<usize>()
+                        .map_err(|_| bad("the step onset after '@' must be a sample index"))?;
+                    (lv, k)
+                }
+                None => (rest, DEFAULT_STEP_ONSET),
+            };
+            let level: f64 = lv
+                .trim()
+                .parse()
+                .map_err(|_| bad("the step level must be a number of counts"))?;
+            if !level.is_finite() {
+                return Err(bad("the step level must be finite"));
+            }
+            return Ok(InputSpec::Step { level, onset });
+        }
+        if let Some(rest) = t.strip_prefix("file:") {
+            if rest.is_empty() {
+                return Err(bad("no file name after 'file:'"));
+            }
+            return Ok(InputSpec::File(PathBuf::from(rest)));
+        }
+        Err(bad("unknown input"))
+    }
+}
+
+impl std::fmt::Display for InputSpec {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            InputSpec::Staircase => f.write_str("staircase"),
+            InputSpec::Prbs => f.write_str("prbs"),
+            InputSpec::Aprbs => f.write_str("aprbs"),
+            InputSpec::Multisine => f.write_str("multisine"),
+            InputSpec::Step { level, onset } => write!(f, "step:{level}@{onset}"),
+            InputSpec::File(p) => write!(f, "file:{}", p.display()),
+        }
+    }
+}
+
+impl InputSpec {
+    /// The input file, for `file:CSV` (so that callers can refuse to overwrite it).
+    pub fn file(&self) -> Option<&Path> {
+        match self {
+            InputSpec::File(p) => Some(p),
+            _ => None,
+        }
+    }
+}
+
+/// Generates `samples` commands u(0..N-1) in counts for `spec`, sampled every `ts_s` seconds, with
+/// amplitude `amplitude` (counts, used by the random signals). The same seed gives the same sequence.
+///
+/// ```
+/// use ipa::input::{generate, InputSpec};
+/// let u = generate(&"step:100".parse().unwrap(), 20, 0.01, 255.0, 0).unwrap();
+/// assert_eq!(u[9], 0.0);
+/// assert_eq!(u[10], 100.0);
+/// ```
+pub fn generate(
+    spec: &InputSpec,
+    samples: usize,
+    ts_s: f64,
+    amplitude: f64,
+    seed: u64,
+) -> Result<Vec<f64>, IpaError> {
+    if samples == 0 || samples > sysid::data::MAX_SAMPLES {
+        return Err(IpaError::Config(format!(
+            "invalid --samples {samples}: expected 1..={}",
+            sysid::data::MAX_SAMPLES
+        )));
+    }
+    if !(ts_s.is_finite() && ts_s > 0.0) {
+        return Err(IpaError::Config(format!(
+            "invalid --ts {ts_s}: expected a positive sampling period in s"
+        )));
+    }
+    if !(amplitude.is_finite() && amplitude >= 0.0) {
+        return Err(IpaError::Config(format!(
+            "invalid --amplitude {amplitude}: expected a number of counts >= 0"
+        )));
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    Ok(match spec {
+        InputSpec::Staircase => staircase(
+            &StaircaseDesign::default(),
+            samples,
+            ts_s,
+            amplitude,
+            &mut rng,
+        ),
+        InputSpec::Prbs => prbs(samples, clock_samples(ts_s), seed)
+            .into_iter()
+            .map(|b| if b { amplitude } else { -amplitude })
+            .collect(),
+        InputSpec::Aprbs => aprbs(samples, ts_s, amplitude, seed, &mut rng),
+        InputSpec::Multisine => multisine(samples, ts_s, amplitude, &mut rng),
+        InputSpec::Step { level, onset } => (0..samples)
+            .map(|k| if k >= *onset { *level } else { 0.0 })
+            .collect(),
+        InputSpec::File(path) => {
+            let u = read_input_file(path)?;
+            if u.len() < samples {
+                return Err(IpaError::Config(format!(
+                    "{}: has {} samples of u but {samples} were asked for (--samples)",
+                    path.display(),
+                    u.len()
+                )));
+            }
+            u[..samples].to_vec()
+        }
+    })
+}
+
+/// Reads column `u` of a CSV file (header row required), every cell a finite number.
+pub fn read_input_file(path: &Path) -> Result<Vec<f64>, IpaError> {
+    let bytes = std::fs::read(path).map_err(|source| sysid::SysidError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let table = sysid::data::read_table(&bytes, &path.display().to_string())?;
+    let col = table.column_index("u", "--input file:CSV")?;
+    Ok(table.numbers(col)?)
+}
+
+/// Clock period of the PRBS in samples: 50 ms, at least one sample.
+fn clock_samples(ts_s: f64) -> usize {
+    ((0.05 / ts_s).round() as usize).max(1)
+}
+
+/// Parameters of the experimenter's rule behind `staircase`.
+///
+/// The experimenter keeps a dead-reckoning estimate p of the piston's displacement from where the record
+/// starts (mid-stroke by default), using a nominal command-to-velocity curve with a deadzone
+/// (v = g_ext (u - d) for u > d, v = g_ret (u + d) for u < -d, 0 between; the defaults were measured on the
+/// default physics plant). Each new level has a magnitude uniform in [0, A] (integer counts) and a hold
+/// uniform in [hold_min_s, hold_max_s]; its sign is + with probability (1 - p / band_mm) / 2 clamped to
+/// [0, 1] (so the estimate is pulled back to the middle), and the hold is shortened so that the estimate
+/// stays within `reach_mm` of the start (the piston is never commanded towards an end stop it would reach).
+#[derive(Debug, Clone, PartialEq)]
+pub struct StaircaseDesign {
+    /// Shortest hold of a level, s.
+    pub hold_min_s: f64,
+    /// Longest hold of a level, s.
+    pub hold_max_s: f64,
+    /// Nominal extending speed per count above the deadzone, mm/s per count.
+    pub gain_extend_mm_s: f64,
+    /// Nominal retracting speed per count beyond the deadzone, mm/s per count.
+    pub gain_retract_mm_s: f64,
+    /// Nominal deadzone half-width d, counts.
+    pub deadzone_counts: f64,
+    /// Displacement (mm) at which the sign is always chosen back towards the start.
+    pub band_mm: f64,
+    /// Largest displacement (mm) from the start that the experimenter accepts.
+    pub reach_mm: f64,
+}
+
+impl Default for StaircaseDesign {
+    fn default() -> Self {
+        StaircaseDesign {
+            hold_min_s: 0.1,
+            hold_max_s: 0.5,
+            gain_extend_mm_s: 1.5,
+            gain_retract_mm_s: 2.0,
+            deadzone_counts: 20.0,
+            band_mm: 60.0,
+            reach_mm: 80.0,
+        }
+    }
+}
+
+impl StaircaseDesign {
+    /// Nominal velocity in mm/s at command u (counts).
+    fn velocity_mm_s(&self, u: f64) -> f64 {
+        if u > self.deadzone_counts {
+            self.gain_extend_mm_s * (u - self.deadzone_counts)
+        } else if u < -self.deadzone_counts {
+            self.gain_retract_mm_s * (u + self.deadzone_counts)
+        } else {
+            0.0
+        }
+    }
+}
+
+/// The `staircase` signal with the experimenter's rule of [`StaircaseDesign`].
+pub fn staircase(
+    design: &StaircaseDesign,
+    samples: usize,
+    ts_s: f64,
+    amplitude: f64,
+    rng: &mut ChaCha8Rng,
+) -> Vec<f64> {
+    let mut u = Vec::with_capacity(samples);
+    let mut p_mm = 0.0_f64;
+    let a = amplitude.floor().max(0.0);
+    while u.len() < samples {
+        let magnitude = if a >= 1.0 {
+            rng.gen_range(0..=a as u64) as f64
+        } else {
+            amplitude
+        };
+        let hold_s = rng.gen_range(design.hold_min_s..=design.hold_max_s);
+        let p_plus = (0.5 - 0.5 * p_mm / design.band_mm).clamp(0.0, 1.0);
+        let sign = if rng.gen_bool(p_plus) { 1.0 } else { -1.0 };
+        let level = sign * magnitude;
+        let v = design.velocity_mm_s(level);
+        let mut hold = ((hold_s / ts_s).round() as usize).max(1);
+        if v != 0.0 {
+            // Longest hold that keeps the estimate within reach (at least one sample).
+            let room_mm = if v > 0.0 {
+                design.reach_mm - p_mm
+            } else {
+                design.reach_mm + p_mm
+            };
+            let max_hold = (room_mm.max(0.0) / (v.abs() * ts_s)).floor() as usize;
+            hold = hold.min(max_hold.max(1));
+        }
+        for _ in 0..hold {
+            if u.len() == samples {
+                break;
+            }
+            u.push(level);
+            p_mm += v * ts_s;
+        }
+    }
+    u
+}
+
+/// Maximum-length PRBS from a 10-bit Fibonacci LFSR (x^10 + x^7 + 1, period 1023), each bit held for
+/// `clock` samples; the seed chooses the (nonzero) initial register.
+pub fn prbs(samples: usize, clock: usize, seed: u64) -> Vec<bool> {
+    let mut reg: u16 = (seed % 1023) as u16 + 1;
+    let mut out = Vec::with_capacity(samples);
+    let mut bit = reg & 1 == 1;
+    for k in 0..samples {
+        if k % clock == 0 {
+            let fb = ((reg >> 9) ^ (reg >> 6)) & 1;
+            reg = ((reg << 1) | fb) & 0x3ff;
+            bit = fb == 1;
+        }
+        out.push(bit);
+    }
+    out
+}
+
+fn aprbs(samples: usize, ts_s: f64, amplitude: f64, seed: u64, rng: &mut ChaCha8Rng) -> Vec<f64> {
+    let bits = prbs(samples, clock_samples(ts_s), seed);
+    let mut level = rng.gen_range(-1.0..=1.0) * amplitude;
+    let mut out = Vec::with_capacity(samples);
+    for k in 0..samples {
+        if k > 0 && bits[k] != bits[k - 1] {
+            level = rng.gen_range(-1.0..=1.0) * amplitude;
+        }
+        out.push(level.round());
+    }
+    out
+}
+
+fn multisine(samples: usize, ts_s: f64, amplitude: f64, rng: &mut ChaCha8Rng) -> Vec<f64> {
+    let duration = samples as f64 * ts_s;
+    let f_nyq = 0.5 / ts_s;
+    let j_min = (1.0 * duration).ceil().max(1.0) as usize;
+    let j_max = ((10.0_f64.min(0.8 * f_nyq)) * duration).floor() as usize;
+    let harmonics: Vec<(f64, f64)> = (j_min..=j_max.max(j_min))
+        .map(|j| {
+            (
+                j as f64 / duration,
+                rng.gen_range(0.0..std::f64::consts::TAU),
+            )
+        })
+        .collect();
+    let s: Vec<f64> = (0..samples)
+        .map(|k| {
+            let t = k as f64 * ts_s;
+            harmonics
+                .iter()
+                .map(|(f, ph)| (std::f64::consts::TAU * f * t + ph).sin())
+                .sum()
+        })
+        .collect();
+    let peak = s.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+    if peak == 0.0 {
+        return vec![0.0; samples];
+    }
+    s.iter().map(|v| (amplitude * v / peak).round()).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn specs_parse_and_bad_specs_are_explained() {
+        assert_eq!(
+            "staircase".parse::<InputSpec>().unwrap(),
+            InputSpec::Staircase
+        );
+        assert_eq!(
+            "step:-40".parse::<InputSpec>().unwrap(),
+            InputSpec::Step {
+                level: -40.0,
+                onset: 10
+            }
+        );
+        assert_eq!(
+            "step:40@0".parse::<InputSpec>().unwrap(),
+            InputSpec::Step {
+                level: 40.0,
+                onset: 0
+            }
+        );
+        assert_eq!(
+            "file:a.csv".parse::<InputSpec>().unwrap(),
+            InputSpec::File("a.csv".into())
+        );
+        for bad in ["stair", "step:", "step:x", "step:1@-2", "file:", "step:inf"] {
+            let e = bad.parse::<InputSpec>().unwrap_err().to_string();
+            assert!(
+                e.contains("--input") && e.contains("staircase"),
+                "{bad}: {e}"
+            );
+        }
+    }
+
+    // A maximum-length 10-bit sequence has period 2^10 - 1 = 1023 with 512 ones and 511 zeros.
+    #[test]
+    fn prbs_has_period_1023_with_512_ones() {
+        let b = prbs(2046, 1, 7);
+        assert_eq!(&b[..1023], &b[1023..]);
+        assert_eq!(b[..1023].iter().filter(|&&x| x).count(), 512);
+        assert!((1..1023).all(|p| b[..1023] != b[p..p + 1023]));
+    }
+
+    #[test]
+    fn same_seed_same_signal_other_seed_other_signal() {
+        for spec in [
+            InputSpec::Staircase,
+            InputSpec::Prbs,
+            InputSpec::Aprbs,
+            InputSpec::Multisine,
+        ] {
+            let a = generate(&spec, 500, 0.01, 255.0, 3).unwrap();
+            assert_eq!(a, generate(&spec, 500, 0.01, 255.0, 3).unwrap());
+            assert_ne!(a, generate(&spec, 500, 0.01, 255.0, 4).unwrap(), "{spec}");
+            assert!(a.iter().all(|v| v.abs() <= 255.0), "{spec}");
+        }
+    }
+
+    #[test]
+    fn staircase_levels_are_integers_within_the_amplitude_and_held() {
+        let u = generate(&InputSpec::Staircase, 2000, 0.01, 200.0, 1).unwrap();
+        assert!(u.iter().all(|v| v.fract() == 0.0 && v.abs() <= 200.0));
+        let changes = u.windows(2).filter(|w| w[0] != w[1]).count();
+        // Holds of 0.1..0.5 s (10..50 samples), some shortened: far fewer changes than samples.
+        assert!(changes > 20 && changes < 400, "{changes}");
+    }
+
+    #[test]
+    fn multisine_peak_is_the_amplitude() {
+        let u = generate(&InputSpec::Multisine, 1000, 0.01, 100.0, 0).unwrap();
+        let peak = u.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+        assert_eq!(peak, 100.0);
+    }
+
+    #[test]
+    fn bad_settings_are_refused() {
+        assert!(generate(&InputSpec::Prbs, 0, 0.01, 1.0, 0).is_err());
+        assert!(generate(&InputSpec::Prbs, 10, 0.0, 1.0, 0).is_err());
+        assert!(generate(&InputSpec::Prbs, 10, 0.01, f64::NAN, 0).is_err());
+        let e = generate(
+            &InputSpec::File("/nonexistent/u.csv".into()),
+            10,
+            0.01,
+            1.0,
+            0,
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("/nonexistent/u.csv"), "{e}");
+    }
+}

@@ -85,7 +85,7 @@ impl Profile {
                 }
                 let mut levels_mm = Vec::new();
                 for (i, l) in levels.split(',').enumerate() {
-                    let v = parse_mm(l).map_err(|m| err(format!("level {} : {m}; {expected}", i + 1)))?;
+                    let v = parse_mm(l).map_err(|m| err(format!("level {}: {m}; {expected}", i + 1)))?;
                     levels_mm.push(v);
                 }
                 Ok(Profile::Staircase { levels_mm, hold_s })

@@ -1,10 +1,470 @@
-//! TODO: being written.
+//! `ipa-sysid control`: closed-loop PI position control on a plant, with step metrics (MATLAB `stepinfo`).
+//!
+//! Thin: flags -> `control` library -> summary, JSON and trace CSV. Definitions are in docs/control.md.
 
-/// Flags.
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context};
+use clap::ValueEnum;
+use control::{
+    closed_loop, metrics_for_steps, AntiWindup, DeadzoneCompensator, IntegralForm, PiSettings,
+    Profile, SlopeMode, StepMetrics, StepSegment, Trace,
+};
+use serde::Serialize;
+
+/// Default run length for a fixed set-point, in s.
+const DEFAULT_FIXED_DURATION_S: f64 = 10.0;
+
+/// Form of the integral term (`--integral`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum IntegralArg {
+    /// u = Kp e + Ki Ts Σe (Ki in counts/(mm·s)); the default.
+    Scaled,
+    /// u = Kp e + Ki Σe (Ki in counts/(mm·sample)).
+    PerSample,
+}
+
+/// Anti-windup scheme (`--anti-windup`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum AntiWindupArg {
+    /// The integral always accumulates (the paper's plain PI); the default.
+    None,
+    /// Conditional integration: no integration while saturated in the direction of the error.
+    Clamping,
+    /// Back-calculation with tracking time --tracking-time.
+    BackCalculation,
+}
+
+/// Slope handling of the compensator (`--compensator-slopes`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum SlopesArg {
+    /// Shift the command past the deadzone only: u + b_r or u + b_l.
+    Shift,
+    /// Also rescale both branches to the mean slope (m_l + m_r) / 2.
+    Equalise,
+}
+
+/// Flags of `ipa-sysid control`.
 #[derive(Debug, clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// Plant: `ipa` (physics simulator), `paper` (the paper's Table III model) or `model:FILE` (a saved model).
+    #[arg(long, value_name = "SPEC", default_value = "ipa")]
+    pub plant: String,
+    /// TOML file of physics-plant parameters (see `ipa-sysid plant-config`); only with `--plant ipa`.
+    #[arg(long, value_name = "FILE")]
+    pub plant_config: Option<PathBuf>,
+    /// Kp: proportional gain, counts/mm.
+    #[arg(long, default_value_t = 14.0, allow_negative_numbers = true)]
+    pub kp: f64,
+    /// Ki: integral gain, counts/(mm·s) with --integral scaled, counts/(mm·sample) with per-sample.
+    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
+    pub ki: f64,
+    /// Fixed set-point r in mm (the paper's fixed set-point test).
+    #[arg(
+        long,
+        value_name = "MM",
+        allow_negative_numbers = true,
+        conflicts_with = "profile",
+        required_unless_present = "profile"
+    )]
+    pub setpoint: Option<f64>,
+    /// Set-point profile: `fixed:MM`, `staircase:L1,L2,...@HOLD_S` (mm, s) or `file:PATH.csv` (columns t,r).
+    #[arg(long, value_name = "SPEC")]
+    pub profile: Option<String>,
+    /// Run length in s [default: the profile's length; 10 s for a fixed set-point].
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    pub duration: Option<f64>,
+    /// Initial position y0 in mm (the plant is reset there at rest).
+    #[arg(
+        long,
+        value_name = "MM",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    pub y0: f64,
+    /// Form of the integral term.
+    #[arg(long, value_enum, default_value_t = IntegralArg::Scaled)]
+    pub integral: IntegralArg,
+    /// Anti-windup scheme.
+    #[arg(long, value_enum, default_value_t = AntiWindupArg::None)]
+    pub anti_windup: AntiWindupArg,
+    /// Tracking time constant Tt in s for --anti-windup back-calculation [default: Ti = Kp/Ki, scaled form].
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    pub tracking_time: Option<f64>,
+    /// Saturation limit of the command in counts.
+    #[arg(
+        long,
+        value_name = "COUNTS",
+        default_value_t = 255.0,
+        allow_negative_numbers = true
+    )]
+    pub u_max: f64,
+    /// Add a deadzone-inverse compensator built from the deadzone of this saved Hammerstein model
+    /// (`paper` = the paper's Table III deadzone; write `./paper` for a file of that name).
+    #[arg(long, value_name = "MODEL.json")]
+    pub compensate_deadzone: Option<PathBuf>,
+    /// How the compensator treats the deadzone slopes.
+    #[arg(long, value_enum, default_value_t = SlopesArg::Shift)]
+    pub compensator_slopes: SlopesArg,
+    /// |u| at or below this many counts gives no command (avoids chattering at the set-point).
+    #[arg(
+        long,
+        value_name = "COUNTS",
+        default_value_t = 0.0,
+        allow_negative_numbers = true
+    )]
+    pub compensator_threshold: f64,
+    /// Write the metrics and settings as JSON to this file (`-` = standard output).
+    #[arg(long, value_name = "OUT")]
+    pub json: Option<PathBuf>,
+    /// Write the trace as CSV (columns t,r,u,y) to this file.
+    #[arg(long, value_name = "CSV")]
+    pub out: Option<PathBuf>,
+}
 
-/// Runs the subcommand.
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("not implemented yet")
+/// The `settings` object of the JSON output.
+#[derive(Debug, Serialize)]
+struct SettingsOut<'a> {
+    controller: &'a PiSettings,
+    ts_s: f64,
+    duration_s: f64,
+    y0_mm: f64,
+    profile: &'a Profile,
+    compensator: Option<&'a DeadzoneCompensator>,
+}
+
+/// The JSON output of `ipa-sysid control --json`.
+#[derive(Debug, Serialize)]
+struct ControlOut<'a> {
+    /// The plant's name and the spec it was built from.
+    plant: PlantOut<'a>,
+    settings: SettingsOut<'a>,
+    /// `fixed`: metrics of the single step; `worst-step`: field-wise worst over `steps` (unfixed set-point).
+    metrics_kind: &'static str,
+    metrics: StepMetrics,
+    steps: &'a [StepSegment],
+    samples: usize,
+    trace: Option<String>,
+}
+
+#[derive(Debug, Serialize)]
+struct PlantOut<'a> {
+    name: String,
+    spec: &'a str,
+}
+
+/// Runs `ipa-sysid control`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let profile = match (&args.setpoint, &args.profile) {
+        (Some(r), None) => {
+            if !r.is_finite() {
+                bail!(sysid::SysidError::setting(
+                    "--setpoint",
+                    r,
+                    "a finite position in mm"
+                ));
+            }
+            Profile::Fixed { setpoint_mm: *r }
+        }
+        (None, Some(spec)) => Profile::parse(spec).context("invalid --profile")?,
+        _ => bail!(sysid::SysidError::setting(
+            "--setpoint/--profile",
+            "",
+            "exactly one of --setpoint MM or --profile SPEC"
+        )),
+    };
+
+    let integral = match args.integral {
+        IntegralArg::Scaled => IntegralForm::Scaled,
+        IntegralArg::PerSample => IntegralForm::PerSample,
+    };
+    if args.tracking_time.is_some() && args.anti_windup != AntiWindupArg::BackCalculation {
+        bail!(sysid::SysidError::setting(
+            "--tracking-time",
+            args.tracking_time.unwrap_or_default(),
+            "only together with --anti-windup back-calculation"
+        ));
+    }
+
+    // Inputs (for refusing to overwrite them) and the plant.
+    let mut inputs: Vec<PathBuf> = Vec::new();
+    if let Some(p) = &args.plant_config {
+        inputs.push(p.clone());
+    }
+    if let Some(f) = args.plant.trim().strip_prefix("model:") {
+        inputs.push(PathBuf::from(f));
+    }
+    if let Profile::Samples { path, .. } = &profile {
+        inputs.push(path.clone());
+    }
+    let mut plant = ipa::plant_from_spec(&args.plant, args.plant_config.as_deref())
+        .with_context(|| format!("cannot build the plant for --plant {}", args.plant))?;
+    let ts = plant.ts();
+
+    let anti_windup = match args.anti_windup {
+        AntiWindupArg::None => AntiWindup::None,
+        AntiWindupArg::Clamping => AntiWindup::Clamping,
+        AntiWindupArg::BackCalculation => {
+            let tt_s = match args.tracking_time {
+                Some(t) => t,
+                None => {
+                    // Ti = Kp / Ki in s (scaled form); Ki per sample is Ki / Ts per second.
+                    let ki_per_s = match integral {
+                        IntegralForm::Scaled => args.ki,
+                        IntegralForm::PerSample => args.ki / ts,
+                    };
+                    if ki_per_s == 0.0 || args.kp == 0.0 {
+                        bail!(sysid::SysidError::setting(
+                            "--tracking-time",
+                            "(none)",
+                            "a tracking time in s (the default Ti = Kp/Ki needs Kp and Ki nonzero)"
+                        ));
+                    }
+                    (args.kp / ki_per_s).abs()
+                }
+            };
+            AntiWindup::BackCalculation { tt_s }
+        }
+    };
+    let settings = PiSettings::new(args.kp, args.ki)
+        .with_integral(integral)
+        .with_anti_windup(anti_windup)
+        .with_u_max(args.u_max);
+    let mut controller = settings.build(ts)?;
+
+    let compensator = match &args.compensate_deadzone {
+        None => None,
+        Some(path) => {
+            let deadzone = if path.as_os_str() == "paper" {
+                sysid::Model::paper().deadzone
+            } else {
+                inputs.push(path.clone());
+                sysid::model_file::read_model(path)
+                    .context("cannot read --compensate-deadzone")?
+                    .deadzone
+            };
+            let Some(deadzone) = deadzone else {
+                bail!(sysid::SysidError::setting(
+                    "--compensate-deadzone",
+                    path.display(),
+                    "a Hammerstein model file (this model is ARX and has no deadzone)"
+                ));
+            };
+            let slope_mode = match args.compensator_slopes {
+                SlopesArg::Shift => SlopeMode::Shift,
+                SlopesArg::Equalise => SlopeMode::Equalise,
+            };
+            Some(
+                DeadzoneCompensator::new(deadzone, slope_mode, args.u_max)?
+                    .with_threshold(args.compensator_threshold)?,
+            )
+        }
+    };
+
+    let duration_s = match (args.duration, profile.natural_duration_s()) {
+        (Some(d), _) => d,
+        (None, Some(d)) => d,
+        (None, None) => DEFAULT_FIXED_DURATION_S,
+    };
+
+    // Output paths: never over an input, and not both to the same file.
+    let input_refs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
+    if let Some(out) = &args.out {
+        sysid::output::refuse_overwrite_input(out, &input_refs, "--out")?;
+    }
+    if let Some(json) = args.json.as_ref().filter(|j| j.as_os_str() != "-") {
+        sysid::output::refuse_overwrite_input(json, &input_refs, "--json")?;
+        if let Some(out) = &args.out {
+            if json == out {
+                bail!(sysid::SysidError::setting(
+                    "--json",
+                    json.display(),
+                    "a path different from --out"
+                ));
+            }
+            sysid::output::refuse_overwrite_input(json, &[out.as_path()], "--json")?;
+        }
+    }
+
+    let trace = closed_loop::run(
+        plant.as_mut(),
+        &mut controller,
+        compensator.as_ref(),
+        &profile,
+        duration_s,
+        args.y0,
+    )?;
+    if trace.len() < 2 {
+        bail!(sysid::SysidError::setting(
+            "--duration",
+            duration_s,
+            &format!("at least one sampling period ({ts} s) to measure a response")
+        ));
+    }
+    let steps = metrics_for_steps(&trace)?;
+    let (metrics_kind, metrics) = match &profile {
+        Profile::Fixed { setpoint_mm } => (
+            "fixed",
+            StepMetrics::compute(&trace.t, &trace.y, trace.y[0], *setpoint_mm)?,
+        ),
+        _ => (
+            "worst-step",
+            StepMetrics::worst(steps.iter().map(|s| &s.metrics))
+                .context("the profile has no step to measure")?,
+        ),
+    };
+
+    if let Some(out) = &args.out {
+        sysid::output::write_atomic(out, trace.to_csv().as_bytes())?;
+    }
+    let json_to_stdout = args.json.as_ref().is_some_and(|j| j.as_os_str() == "-");
+    if let Some(json) = &args.json {
+        let doc = ControlOut {
+            plant: PlantOut {
+                name: plant.name(),
+                spec: &args.plant,
+            },
+            settings: SettingsOut {
+                controller: &settings,
+                ts_s: ts,
+                duration_s,
+                y0_mm: args.y0,
+                profile: &profile,
+                compensator: compensator.as_ref(),
+            },
+            metrics_kind,
+            metrics,
+            steps: &steps,
+            samples: trace.len(),
+            trace: args.out.as_ref().map(|p| p.display().to_string()),
+        };
+        let text =
+            serde_json::to_string_pretty(&doc).context("serialising the JSON output")? + "\n";
+        if json_to_stdout {
+            std::io::stdout()
+                .write_all(text.as_bytes())
+                .context("writing JSON to standard output")?;
+        } else {
+            sysid::output::write_atomic(json, text.as_bytes())?;
+        }
+    }
+
+    let summary = summary_text(
+        &plant.name(),
+        &settings,
+        ts,
+        &profile,
+        args.y0,
+        compensator.as_ref(),
+        &trace,
+        metrics_kind,
+        &metrics,
+        &steps,
+    );
+    // Keep standard output clean JSON when the JSON goes there.
+    if json_to_stdout {
+        eprint!("{summary}");
+    } else {
+        print!("{summary}");
+    }
+    Ok(())
+}
+
+fn fmt_opt(v: Option<f64>, unit: &str) -> String {
+    match v {
+        Some(x) => format!("{x:.4} {unit}"),
+        None => "n/a (no step)".to_string(),
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn summary_text(
+    plant: &str,
+    s: &PiSettings,
+    ts: f64,
+    profile: &Profile,
+    y0: f64,
+    compensator: Option<&DeadzoneCompensator>,
+    trace: &Trace,
+    metrics_kind: &str,
+    m: &StepMetrics,
+    steps: &[StepSegment],
+) -> String {
+    let mut o = String::new();
+    let form = match s.integral {
+        IntegralForm::Scaled => "u = Kp e + Ki Ts Σe",
+        IntegralForm::PerSample => "u = Kp e + Ki Σe",
+    };
+    let duration = trace.t.last().copied().unwrap_or(0.0);
+    o += &format!(
+        "plant:        {plant} (Ts = {ts} s), {} samples over {duration} s\n",
+        trace.len()
+    );
+    o += &format!(
+        "controller:   PI Kp = {}, Ki = {} ({form}), anti-windup {}, |u| <= {} counts\n",
+        s.kp, s.ki, s.anti_windup, s.u_max
+    );
+    o += &format!("set-point:    {} from y0 = {y0} mm\n", profile.describe());
+    match compensator {
+        None => o += "compensator:  none\n",
+        Some(c) => {
+            let d = c.deadzone;
+            o += &format!(
+                "compensator:  deadzone inverse ({:?}), b_l = {}, b_r = {}, m_l = {}, m_r = {}, threshold {} counts\n",
+                c.slope_mode, d.b_l, d.b_r, d.m_l, d.m_r, c.threshold_counts
+            );
+        }
+    }
+    let heading = if metrics_kind == "fixed" {
+        "step metrics (stepinfo)"
+    } else {
+        "worst step (field-wise)"
+    };
+    o += &format!("{heading}:\n");
+    o += &format!(
+        "  overshoot            {} ({} of the step)\n",
+        fmt_opt(m.overshoot_mm, "mm"),
+        fmt_opt(m.overshoot_percent, "%")
+    );
+    o += &format!(
+        "  steady-state error   {}\n",
+        fmt_opt(m.steady_state_error_mm, "mm")
+    );
+    o += &format!("  rise time 10-90 %    {}\n", fmt_opt(m.rise_time_s, "s"));
+    o += &format!(
+        "  settling time 2 %    {}\n",
+        fmt_opt(m.settling_time_s, "s")
+    );
+    if steps.len() > 1 {
+        o += "steps:\n    start_s   r_mm      y0_mm     OS_%      e_ss_mm   t_r_s     t_s_s\n";
+        for st in steps {
+            let f = |v: Option<f64>| v.map_or("n/a".to_string(), |x| format!("{x:.4}"));
+            o += &format!(
+                "  {:<9} {:<9} {:<9} {:<9} {:<9} {:<9} {:<9}\n",
+                format!("{:.2}", st.start_s),
+                st.setpoint_mm,
+                format!("{:.3}", st.y0_mm),
+                f(st.metrics.overshoot_percent),
+                f(st.metrics.steady_state_error_mm),
+                f(st.metrics.rise_time_s),
+                f(st.metrics.settling_time_s),
+            );
+        }
+    }
+    // The paper's acceptance: overshoot < 10 %, |e_ss| < 2 % of the step.
+    if let (Some(os), Some(ess), Some(first)) =
+        (m.overshoot_percent, m.steady_state_error_mm, steps.first())
+    {
+        if metrics_kind == "fixed" {
+            let step = (first.setpoint_mm - first.y0_mm).abs();
+            let yes = |b: bool| if b { "yes" } else { "NO" };
+            o += &format!(
+                "paper's acceptance: overshoot < 10 %: {}; |e_ss| < 2 % of the step: {}\n",
+                yes(os < 10.0),
+                yes(ess.abs() < 0.02 * step)
+            );
+        }
+    }
+    o
 }

@@ -1,0 +1,332 @@
+//! `ipa-sysid control` end to end on the paper's model (`--plant paper`, fast): outputs, their consistency
+//! with each other (metrics recomputed here from the trace CSV, by independent code), and bad flags.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn ipa_sysid(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
+        .arg("control")
+        .args(args)
+        .output()
+        .expect("run ipa-sysid")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// Reads a `t,r,u,y` CSV written by `--out`.
+fn read_trace(path: &Path) -> (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("t,r,u,y"));
+    let (mut t, mut r, mut u, mut y) = (vec![], vec![], vec![], vec![]);
+    for line in lines {
+        let v: Vec<f64> = line.split(',').map(|s| s.parse().unwrap()).collect();
+        assert_eq!(v.len(), 4, "{line}");
+        t.push(v[0]);
+        r.push(v[1]);
+        u.push(v[2]);
+        y.push(v[3]);
+    }
+    (t, r, u, y)
+}
+
+/// First time y crosses `level` going up, linearly interpolated (independent of the library's code).
+fn crossing_up(t: &[f64], y: &[f64], level: f64) -> f64 {
+    for k in 1..y.len() {
+        if y[k - 1] < level && y[k] >= level {
+            return t[k - 1] + (level - y[k - 1]) / (y[k] - y[k - 1]) * (t[k] - t[k - 1]);
+        }
+    }
+    panic!("never crosses {level}");
+}
+
+#[test]
+fn fixed_setpoint_json_matches_metrics_recomputed_from_the_trace() {
+    // From the CSV: y_f = last y; OS = max y - y_f; OS % = 100 OS / (y_f - y0); e_ss = 50 - y_f;
+    // t_r = t(90 %) - t(10 %) of y_f - y0 (the response rises monotonically to the first peak).
+    let dir = tempfile::tempdir().unwrap();
+    let json = dir.path().join("m.json");
+    let csv = dir.path().join("trace.csv");
+    let o = ipa_sysid(&[
+        "--plant",
+        "paper",
+        "--setpoint",
+        "50",
+        "--duration",
+        "5",
+        "--json",
+        json.to_str().unwrap(),
+        "--out",
+        csv.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        stdout.contains("overshoot") && stdout.contains("settling time"),
+        "{stdout}"
+    );
+
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let m = &v["metrics"];
+    for key in [
+        "overshoot_mm",
+        "overshoot_percent",
+        "steady_state_error_mm",
+        "rise_time_s",
+        "settling_time_s",
+    ] {
+        assert!(
+            m[key].is_f64(),
+            "metrics.{key} missing or not a number: {m}"
+        );
+    }
+    assert_eq!(v["settings"]["controller"]["kp"], 14.0);
+    assert_eq!(v["settings"]["controller"]["integral"], "scaled");
+    assert_eq!(v["plant"]["spec"], "paper");
+    assert_eq!(v["samples"], 501);
+
+    let (t, r, u, y) = read_trace(&csv);
+    assert_eq!(t.len(), 501);
+    assert!((t[500] - 5.0).abs() < 1e-9 && (t[1] - 0.01).abs() < 1e-12);
+    assert!(r.iter().all(|&r| r == 50.0));
+    assert!(u.iter().all(|&u| u.abs() <= 255.0));
+    assert_eq!(u[0], 255.0); // Kp e(0) = 700 saturates.
+    let (y0, yf) = (y[0], *y.last().unwrap());
+    let peak = y.iter().copied().fold(f64::MIN, f64::max);
+    let os = (peak - yf).max(0.0);
+    let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * (1.0 + b.abs());
+    assert!(
+        close(m["overshoot_mm"].as_f64().unwrap(), os),
+        "{m} vs OS {os}"
+    );
+    assert!(close(
+        m["overshoot_percent"].as_f64().unwrap(),
+        100.0 * os / (yf - y0)
+    ));
+    assert!(close(
+        m["steady_state_error_mm"].as_f64().unwrap(),
+        50.0 - yf
+    ));
+    let rise =
+        crossing_up(&t, &y, y0 + 0.9 * (yf - y0)) - crossing_up(&t, &y, y0 + 0.1 * (yf - y0));
+    assert!(
+        close(m["rise_time_s"].as_f64().unwrap(), rise),
+        "{m} vs t_r {rise}"
+    );
+    // Settling: every sample after t_s is within 2 % of the step; the sample before it is not.
+    let ts = m["settling_time_s"].as_f64().unwrap();
+    let band = 0.02 * (yf - y0);
+    assert!(t
+        .iter()
+        .zip(&y)
+        .filter(|(t, _)| **t > ts + 1e-12)
+        .all(|(_, y)| (y - yf).abs() <= band));
+    let before = t.iter().rposition(|&tk| tk < ts).unwrap();
+    assert!((y[before] - yf).abs() > band);
+}
+
+#[test]
+fn json_to_stdout_is_clean_json_and_the_summary_goes_to_stderr() {
+    // `--json -`: stdout parses as JSON; the human summary is on stderr.
+    let o = ipa_sysid(&[
+        "--plant",
+        "paper",
+        "--setpoint",
+        "20",
+        "--duration",
+        "2",
+        "--json",
+        "-",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("stdout is JSON");
+    assert_eq!(v["metrics_kind"], "fixed");
+    assert!(stderr(&o).contains("rise time"));
+}
+
+#[test]
+fn staircase_profile_reports_one_step_per_level() {
+    // staircase:10,30,20@1 over its natural 3 s: 3 segments starting at 0, 1, 2 s with set-points 10, 30, 20.
+    let o = ipa_sysid(&[
+        "--plant",
+        "paper",
+        "--profile",
+        "staircase:10,30,20@1",
+        "--json",
+        "-",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    let steps = v["steps"].as_array().unwrap();
+    assert_eq!(steps.len(), 3);
+    for (s, (start, r)) in steps.iter().zip([(0.0, 10.0), (1.0, 30.0), (2.0, 20.0)]) {
+        assert!((s["start_s"].as_f64().unwrap() - start).abs() < 1e-9);
+        assert_eq!(s["setpoint_mm"], r);
+    }
+    assert_eq!(v["metrics_kind"], "worst-step");
+    assert_eq!(v["samples"], 301);
+}
+
+#[test]
+fn per_sample_integral_overshoots_more_than_scaled() {
+    // Ki per sample is 1/Ts = 100 times stronger: a 50 mm step overshoots ~56 % instead of ~3.7 %.
+    let os = |form: &str| {
+        let o = ipa_sysid(&[
+            "--plant",
+            "paper",
+            "--setpoint",
+            "50",
+            "--integral",
+            form,
+            "--json",
+            "-",
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        v["metrics"]["overshoot_percent"].as_f64().unwrap()
+    };
+    let (scaled, per_sample) = (os("scaled"), os("per-sample"));
+    assert!(scaled < 10.0 && per_sample > 40.0, "{scaled} {per_sample}");
+}
+
+#[test]
+fn deadzone_compensator_is_recorded_in_the_settings() {
+    // --compensate-deadzone paper: the compensator object carries the paper's b_r = 1.41.
+    let o = ipa_sysid(&[
+        "--plant",
+        "paper",
+        "--setpoint",
+        "5",
+        "--duration",
+        "2",
+        "--compensate-deadzone",
+        "paper",
+        "--json",
+        "-",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(v["settings"]["compensator"]["deadzone"]["b_r"], 1.41);
+}
+
+/// Runs with `args`, expects exit code 2 and every needle in stderr, and no panic.
+fn expect_usage_error(args: &[&str], needles: &[&str]) {
+    let o = ipa_sysid(args);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "args {args:?}: {err}");
+    assert!(!err.contains("panicked"), "{err}");
+    for n in needles {
+        assert!(err.contains(n), "args {args:?}: stderr lacks {n:?}: {err}");
+    }
+}
+
+#[test]
+fn bad_flags_exit_2_with_a_message_naming_the_flag() {
+    // Each malformed flag is named in the message; exit code 2 (bad input).
+    expect_usage_error(
+        &["--plant", "paper", "--setpoint", "50", "--kp", "abc"],
+        &["--kp"],
+    );
+    expect_usage_error(
+        &["--plant", "paper", "--setpoint", "50", "--kp", "nan"],
+        &["--kp"],
+    );
+    expect_usage_error(
+        &["--plant", "paper", "--setpoint", "50", "--u-max", "0"],
+        &["--u-max"],
+    );
+    expect_usage_error(
+        &["--plant", "paper", "--setpoint", "50", "--duration", "-1"],
+        &["--duration"],
+    );
+    expect_usage_error(&["--plant", "paper", "--setpoint", "inf"], &["--setpoint"]);
+    expect_usage_error(&["--plant", "paper"], &["--setpoint"]);
+    expect_usage_error(
+        &[
+            "--plant",
+            "paper",
+            "--setpoint",
+            "5",
+            "--profile",
+            "fixed:5",
+        ],
+        &["--profile"],
+    );
+    expect_usage_error(
+        &["--plant", "paper", "--profile", "staircase:20,x@3"],
+        &["staircase:20,x@3", "not a number"],
+    );
+    expect_usage_error(
+        &[
+            "--plant",
+            "paper",
+            "--setpoint",
+            "5",
+            "--integral",
+            "trapezoid",
+        ],
+        &["--integral"],
+    );
+    expect_usage_error(
+        &[
+            "--plant",
+            "paper",
+            "--setpoint",
+            "5",
+            "--tracking-time",
+            "1",
+        ],
+        &["--tracking-time"],
+    );
+    expect_usage_error(&["--plant", "nonsense", "--setpoint", "5"], &["--plant"]);
+    expect_usage_error(
+        &[
+            "--plant",
+            "paper",
+            "--setpoint",
+            "5",
+            "--compensate-deadzone",
+            "/nonexistent/m.json",
+        ],
+        &["--compensate-deadzone", "/nonexistent/m.json"],
+    );
+}
+
+#[test]
+fn refuses_to_write_the_trace_over_the_profile_file() {
+    // --out equal to the profile file given with --profile file:PATH: exit 2, file untouched.
+    let dir = tempfile::tempdir().unwrap();
+    let prof = dir.path().join("r.csv");
+    std::fs::write(&prof, "t,r\n0,10\n1,20\n").unwrap();
+    let spec = format!("file:{}", prof.display());
+    expect_usage_error(
+        &[
+            "--plant",
+            "paper",
+            "--profile",
+            &spec,
+            "--out",
+            prof.to_str().unwrap(),
+        ],
+        &["--out", "refusing"],
+    );
+    assert_eq!(std::fs::read_to_string(&prof).unwrap(), "t,r\n0,10\n1,20\n");
+    // The same profile with a separate output works, and the trace follows the file's set-points.
+    let csv = dir.path().join("trace.csv");
+    let o = ipa_sysid(&[
+        "--plant",
+        "paper",
+        "--profile",
+        &spec,
+        "--out",
+        csv.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (t, r, _, _) = read_trace(&csv);
+    assert_eq!(t.len(), 101);
+    assert_eq!((r[0], r[99], r[100]), (10.0, 10.0, 20.0));
+}

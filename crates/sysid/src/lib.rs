@@ -4,6 +4,7 @@
 //! Data flows one way: [`data`] -> model structure ([`model`], [`deadzone`]) -> estimator
 //! ([`estimate`]) -> fitted [`Model`] -> [`validation`] / simulation / [`plant`].
 
+pub mod bench;
 pub mod data;
 pub mod deadzone;
 pub mod error;

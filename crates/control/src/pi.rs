@@ -2,7 +2,7 @@
 //!
 //! The paper gives Kp = 14 and Ki = 1 but not the form of the integral. Two forms are offered:
 //!
-//! * [`IntegralForm::Scaled`] (default): I(k) = Ki Ts Σ_{j<=k} e(j), the rectangle (forward-Euler, current
+//! * [`IntegralForm::Scaled`] (default): I(k) = Ki Ts Σ_{j<=k} e(j), the backward-Euler (rectangle, current
 //!   sample included) discretisation of the continuous PI u = Kp e + Ki ∫ e dt. Ki is in counts/(mm·s).
 //! * [`IntegralForm::PerSample`]: I(k) = Ki Σ_{j<=k} e(j), Ki in counts/(mm·sample) — 1/Ts = 100 times
 //!   stronger at Ts = 0.01 s.

@@ -1,15 +1,22 @@
 //! Estimators: batch least squares (QR) and recursive least squares (paper eqs. 9–12) for ARX, and the
-//! Hammerstein model by key-term separation (reading notes, eq. 8) — iterated batch LS or recursive.
+//! Hammerstein model by key-term separation (reading notes, eq. 8) — iterated batch LS or recursive;
+//! beyond the paper: output-error refinement ([`crate::oe`]), recursive instrumental variables
+//! ([`crate::iv`]), a UD-factorised RLS with windup protection ([`crate::rls_ud`], [`crate::windup`]), and
+//! Hammerstein models on one-sided inputs ([`crate::branches`]).
 //!
 //! Unfitted settings ([`IdentifySettings`]) → [`identify`] → a fitted [`Identified`] holding the [`Model`].
 
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
+use crate::branches::Branches;
 use crate::ls;
 use crate::model::MAX_ORDER;
 use crate::regressor::Structure;
 use crate::rls::{self, Rls};
+use crate::rls_ud::{RlsForm, RobustRls};
+use crate::windup::Windup;
+use crate::{iv, oe};
 use crate::{Dataset, Deadzone, Model, ModelKind, Orders, SysidError};
 
 /// Estimation method (`--method`).
@@ -20,6 +27,12 @@ pub enum Method {
     Ls,
     /// Recursive least squares with forgetting (paper eqs. 9–12).
     Rls,
+    /// Output-error refinement of every parameter (Levenberg–Marquardt on the free-run simulation error),
+    /// started from the LS estimate. Unbiased under white output (measurement) noise; batch.
+    Oe,
+    /// Recursive instrumental variables with instruments from an auxiliary model's simulated output.
+    /// Unbiased under output noise; recursive (online).
+    Iv,
 }
 
 impl std::fmt::Display for Method {
@@ -27,6 +40,8 @@ impl std::fmt::Display for Method {
         f.write_str(match self {
             Method::Ls => "ls",
             Method::Rls => "rls",
+            Method::Oe => "oe",
+            Method::Iv => "iv",
         })
     }
 }
@@ -56,6 +71,19 @@ pub struct IdentifySettings {
     pub tolerance: f64,
     /// Keep the RLS parameter trajectory (for convergence plots).
     pub record_history: bool,
+    /// RLS covariance form (`--rls-form`, default standard: the paper's eq. 12). IV always uses the
+    /// dense form.
+    pub rls_form: RlsForm,
+    /// RLS covariance-windup protection (`--windup`, default none).
+    pub windup: Windup,
+    /// Bound T on tr P for `--windup trace` (`--max-trace`); `None`: p0 times the number of parameters.
+    pub max_trace: Option<f64>,
+    /// Hammerstein on an input that never goes below (above) zero: drop the unexcited deadzone branch
+    /// (fix m_l = b_l = 0) instead of refusing the data. Default `false` (refuse, as the paper's method
+    /// cannot estimate it); the command line turns it on.
+    pub drop_unexcited_branch: bool,
+    /// IV: number of stages, each rebuilding the instruments from the previous stage's model (default 5).
+    pub iv_stages: usize,
 }
 
 impl Default for IdentifySettings {
@@ -71,6 +99,11 @@ impl Default for IdentifySettings {
             max_iterations: 100,
             tolerance: 1e-10,
             record_history: false,
+            rls_form: RlsForm::Standard,
+            windup: Windup::None,
+            max_trace: None,
+            drop_unexcited_branch: false,
+            iv_stages: 5,
         }
     }
 }
@@ -112,27 +145,69 @@ impl IdentifySettings {
         let o = self.orders;
         for (name, v) in [("--na", o.na), ("--nb", o.nb), ("--nk", o.nk)] {
             if v > MAX_ORDER {
-                return Err(SysidError::setting(name, v, &format!("an order of at most {MAX_ORDER}")));
+                return Err(SysidError::setting(
+                    name,
+                    v,
+                    &format!("an order of at most {MAX_ORDER}"),
+                ));
             }
         }
         if self.kind == ModelKind::Hammerstein && o.nb == 0 {
-            return Err(SysidError::setting("--nb", 0, "nb >= 1 for a Hammerstein model (b1 = 1 is the key term)"));
+            return Err(SysidError::setting(
+                "--nb",
+                0,
+                "nb >= 1 for a Hammerstein model (b1 = 1 is the key term)",
+            ));
         }
-        if self.method == Method::Rls {
+        if matches!(self.method, Method::Rls | Method::Iv) {
             rls::check_settings(self.forgetting, self.p0)?;
             if self.passes == 0 || self.passes > 1000 {
-                return Err(SysidError::setting("--passes", self.passes, "between 1 and 1000 passes"));
+                return Err(SysidError::setting(
+                    "--passes",
+                    self.passes,
+                    "between 1 and 1000 passes",
+                ));
             }
         }
+        if let Some(t) = self.max_trace {
+            if !(t.is_finite() && t > 0.0) {
+                return Err(SysidError::setting(
+                    "--max-trace",
+                    t,
+                    "a positive, finite bound on tr P",
+                ));
+            }
+        }
+        if self.iv_stages == 0 || self.iv_stages > 1000 {
+            return Err(SysidError::setting(
+                "--iv-stages",
+                self.iv_stages,
+                "between 1 and 1000 stages",
+            ));
+        }
         if self.max_iterations == 0 || self.max_iterations > 100_000 {
-            return Err(SysidError::setting("--max-iterations", self.max_iterations, "between 1 and 100000"));
+            return Err(SysidError::setting(
+                "--max-iterations",
+                self.max_iterations,
+                "between 1 and 100000",
+            ));
         }
         if !(self.tolerance.is_finite() && self.tolerance > 0.0) {
-            return Err(SysidError::setting("tolerance", self.tolerance, "a positive number"));
+            return Err(SysidError::setting(
+                "tolerance",
+                self.tolerance,
+                "a positive number",
+            ));
         }
-        let s = Structure { kind: self.kind, orders: o, offset: self.offset };
+        let s = Structure {
+            kind: self.kind,
+            orders: o,
+            offset: self.offset,
+        };
         if s.n_params() == 0 {
-            return Err(SysidError::Data("the model has no parameter to estimate (na = nb = 0)".into()));
+            return Err(SysidError::Data(
+                "the model has no parameter to estimate (na = nb = 0)".into(),
+            ));
         }
         Ok(s)
     }
@@ -204,38 +279,232 @@ pub fn identify(data: &Dataset, settings: &IdentifySettings) -> Result<Identifie
             s.orders.nk
         )));
     }
-    match (s.kind, settings.method) {
-        (ModelKind::Arx, Method::Ls) => arx_ls(data, &s),
-        (ModelKind::Arx, Method::Rls) => recursive(data, &s, settings),
-        (ModelKind::Hammerstein, Method::Ls) => hammerstein_ls(data, &s, settings),
-        (ModelKind::Hammerstein, Method::Rls) => {
-            input_range(data)?;
-            recursive(data, &s, settings)
-        }
+    let branches = match s.kind {
+        ModelKind::Hammerstein => Branches::of(data, s.offset, settings.drop_unexcited_branch)?,
+        ModelKind::Arx => Branches::all(0.0, 0.0, 0.0),
+    };
+    let mut fit = match settings.method {
+        Method::Ls => least_squares(data, &s, settings, &branches)?,
+        Method::Rls => recursive(data, &s, settings, &branches)?,
+        Method::Oe => output_error(data, &s, settings, &branches)?,
+        Method::Iv => instrumental(data, &s, settings, &branches)?,
+    };
+    if let Some(extra) = branches.note() {
+        fit.note = Some(match fit.note.take() {
+            Some(n) => format!("{extra}; {n}"),
+            None => extra,
+        });
+    }
+    Ok(fit)
+}
+
+/// LS: plain ARX, or the iterated key-term separation for Hammerstein.
+fn least_squares(
+    data: &Dataset,
+    s: &Structure,
+    st: &IdentifySettings,
+    br: &Branches,
+) -> Result<Identified, SysidError> {
+    match s.kind {
+        ModelKind::Arx => arx_ls(data, s),
+        ModelKind::Hammerstein => hammerstein_ls(data, s, st, br),
     }
 }
 
-/// The range of the input that switches each branch: (largest negative u, smallest positive u,
-/// most negative u, most positive u). Fails when one side of the deadzone is never excited.
-fn input_range(data: &Dataset) -> Result<(f64, f64, f64, f64), SysidError> {
-    let pos = data.u.iter().copied().filter(|&v| v > 0.0);
-    let neg = data.u.iter().copied().filter(|&v| v < 0.0);
-    let (min_pos, max_pos) = pos.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| (a.min(v), b.max(v)));
-    let (max_neg, min_neg) = neg.fold((f64::NEG_INFINITY, f64::INFINITY), |(a, b), v| (a.max(v), b.min(v)));
-    if !min_pos.is_finite() || !max_neg.is_finite() {
-        return Err(SysidError::Data(format!(
-            "{}: the input is never {}: a Hammerstein deadzone needs commands on both sides of zero \
-             (not persistently exciting); use --model arx or richer data",
-            data.name,
-            if min_pos.is_finite() { "negative" } else { "positive" }
-        )));
+/// Least squares over the free columns of Φ; θ and (ΦᵀΦ)⁻¹ are returned at full size with zeros for
+/// the fixed entries.
+fn solve_free(
+    phi: &DMatrix<f64>,
+    y: &DVector<f64>,
+    free: &[bool],
+    names: &[String],
+) -> Result<ls::LsSolution, SysidError> {
+    if free.iter().all(|f| *f) {
+        return ls::solve(phi, y, names);
     }
-    Ok((max_neg, min_pos, min_neg, max_pos))
+    let idx: Vec<usize> = (0..free.len()).filter(|&i| free[i]).collect();
+    let sub = phi.select_columns(idx.iter());
+    let sub_names: Vec<String> = idx.iter().map(|&i| names[i].clone()).collect();
+    let sol = ls::solve(&sub, y, &sub_names)?;
+    let p = free.len();
+    let mut theta = DVector::zeros(p);
+    let mut inv_gram = DMatrix::zeros(p, p);
+    for (a, &i) in idx.iter().enumerate() {
+        theta[i] = sol.theta[a];
+        for (b, &j) in idx.iter().enumerate() {
+            inv_gram[(i, j)] = sol.inv_gram[(a, b)];
+        }
+    }
+    Ok(ls::LsSolution {
+        theta,
+        inv_gram,
+        rss: sol.rss,
+    })
+}
+
+/// Physical parameters, with the fixed deadzone entries set from the model and without a standard deviation.
+fn params_with_branches(
+    s: &Structure,
+    theta: &DVector<f64>,
+    cov: Option<&DMatrix<f64>>,
+    model: &Model,
+    br: &Branches,
+) -> Vec<Param> {
+    let mut params = physical_params(s, theta, cov);
+    if let (ModelKind::Hammerstein, Some(d)) = (s.kind, model.deadzone.as_ref()) {
+        let free = br.free_physical(s);
+        let values = [d.b_l, d.b_r, d.m_l, d.m_r];
+        for i in 0..4 {
+            if !free[i] {
+                params[i].value = values[i];
+                params[i].std = None;
+            }
+        }
+    }
+    params
+}
+
+/// The key-term θ = [m_r, m_r b_r, m_l, m_l b_l, a.., b2.., c] (ARX: [a.., b.., c]) of a model.
+fn theta_of_model(m: &Model) -> DVector<f64> {
+    let mut v = Vec::new();
+    let skip = match &m.deadzone {
+        Some(d) => {
+            v.extend([d.m_r, d.m_r * d.b_r, d.m_l, d.m_l * d.b_l]);
+            1
+        }
+        None => 0,
+    };
+    v.extend_from_slice(&m.a);
+    v.extend(m.b.iter().skip(skip));
+    v.extend(m.offset);
+    DVector::from_vec(v)
+}
+
+/// Output-error refinement from the LS (key-term) estimate.
+fn output_error(
+    data: &Dataset,
+    s: &Structure,
+    st: &IdentifySettings,
+    br: &Branches,
+) -> Result<Identified, SysidError> {
+    let start = least_squares(data, s, st, br)?;
+    let free = br.free_physical(s);
+    let fit = oe::refine(data, s, &free, &start.model, st.max_iterations)?;
+    let mut notes = Vec::new();
+    if let Some(n) = &start.note {
+        notes.push(format!("start (LS): {n}"));
+    }
+    if fit.stabilised_start {
+        notes.push("the LS start was unstable in simulation; its poles were reflected into the unit circle".into());
+    }
+    notes.push(format!(
+        "output-error refinement: simulation RSS {:.6e} -> {:.6e} in {} iterations ({} evaluations), stopped: {}",
+        fit.rss_start, fit.rss, fit.iterations, fit.evaluations, fit.termination
+    ));
+    Ok(Identified {
+        model: fit.model,
+        params: fit.params,
+        method: Method::Oe,
+        iterations: fit.iterations,
+        converged: fit.converged,
+        note: Some(notes.join("; ")),
+        noise_variance: fit.noise_variance,
+        history: Vec::new(),
+        history_samples: Vec::new(),
+    })
+}
+
+/// Recursive IV in stages, the first stage's instruments from the LS (key-term) estimate.
+fn instrumental(
+    data: &Dataset,
+    s: &Structure,
+    st: &IdentifySettings,
+    br: &Branches,
+) -> Result<Identified, SysidError> {
+    let start = least_squares(data, s, st, br)?;
+    let free = br.free_theta(s);
+    let idx: Vec<usize> = (0..free.len()).filter(|&i| free[i]).collect();
+    let mut aux = start.model.clone();
+    let mut theta_full = theta_of_model(&aux);
+    let mut last = None;
+    let mut converged = false;
+    let mut stages = 0;
+    let mut notes = Vec::new();
+    for stage in 1..=st.iv_stages {
+        stages = stage;
+        let y_aux = match aux.simulate(&data.u, &data.y) {
+            Ok(y) => y,
+            Err(_) => {
+                aux.a = oe::stabilise(&aux.a);
+                notes.push(format!(
+                    "stage {stage}: the auxiliary model was unstable; its poles were reflected"
+                ));
+                aux.simulate(&data.u, &data.y)?
+            }
+        };
+        let dz = aux.deadzone.unwrap_or(Deadzone {
+            b_l: 0.0,
+            b_r: 0.0,
+            m_l: 0.0,
+            m_r: 0.0,
+        });
+        let theta0 = DVector::from_iterator(idx.len(), idx.iter().map(|&i| theta_full[i]));
+        let pass = iv::pass(data, s, &dz, &y_aux, &free, &theta0, st.forgetting, st.p0)?;
+        let mut next = DVector::zeros(free.len());
+        for (q, &i) in idx.iter().enumerate() {
+            next[i] = pass.theta[q];
+        }
+        let change = (&next - &theta_full).norm() / (1e-300 + next.norm());
+        theta_full = next;
+        let mut model = model_from_theta(s, &theta_full, data.ts);
+        if let Some(d) = model.deadzone.as_mut() {
+            br.impose(d);
+        }
+        aux = model;
+        last = Some(pass);
+        if change < 1e-9 {
+            converged = true;
+            break;
+        }
+    }
+    let pass = last.ok_or_else(|| SysidError::Numerical("IV produced no estimate".into()))?;
+    let k0 = s.orders.k0();
+    let rss = prediction_rss(&aux, data)?;
+    let sigma2 = rss / (data.len() - k0).saturating_sub(idx.len()).max(1) as f64;
+    let cov = iv::covariance(&pass, sigma2).map(|c| {
+        let mut full = DMatrix::zeros(free.len(), free.len());
+        for (a, &i) in idx.iter().enumerate() {
+            for (b, &j) in idx.iter().enumerate() {
+                full[(i, j)] = c[(a, b)];
+            }
+        }
+        full
+    });
+    if !converged {
+        notes.push(format!(
+            "IV stages had not settled after {stages} stages (relative change >= 1e-9)"
+        ));
+    }
+    Ok(Identified {
+        params: params_with_branches(s, &theta_full, cov.as_ref(), &aux, br),
+        model: aux,
+        method: Method::Iv,
+        iterations: stages,
+        converged,
+        note: (!notes.is_empty()).then(|| notes.join("; ")),
+        noise_variance: sigma2,
+        history: Vec::new(),
+        history_samples: Vec::new(),
+    })
 }
 
 /// Physical parameters and their covariance-based standard deviations from θ̂ and Cov(θ̂).
 fn physical_params(s: &Structure, theta: &DVector<f64>, cov: Option<&DMatrix<f64>>) -> Vec<Param> {
-    let sd = |i: usize| cov.map(|c| c[(i, i)]).filter(|v| v.is_finite() && *v >= 0.0).map(f64::sqrt);
+    let sd = |i: usize| {
+        cov.map(|c| c[(i, i)])
+            .filter(|v| v.is_finite() && *v >= 0.0)
+            .map(f64::sqrt)
+    };
     let names = s.theta_names();
     let mut out = Vec::new();
     let mut first = 0;
@@ -256,20 +525,48 @@ fn physical_params(s: &Structure, theta: &DVector<f64>, cov: Option<&DMatrix<f64
         };
         let (bl, bl_sd) = ratio(2, 3);
         let (br, br_sd) = ratio(0, 1);
-        out.push(Param { name: "b_l".into(), value: bl, std: bl_sd });
-        out.push(Param { name: "b_r".into(), value: br, std: br_sd });
-        out.push(Param { name: "m_l".into(), value: theta[2], std: sd(2) });
-        out.push(Param { name: "m_r".into(), value: theta[0], std: sd(0) });
+        out.push(Param {
+            name: "b_l".into(),
+            value: bl,
+            std: bl_sd,
+        });
+        out.push(Param {
+            name: "b_r".into(),
+            value: br,
+            std: br_sd,
+        });
+        out.push(Param {
+            name: "m_l".into(),
+            value: theta[2],
+            std: sd(2),
+        });
+        out.push(Param {
+            name: "m_r".into(),
+            value: theta[0],
+            std: sd(0),
+        });
         first = 4;
     }
     for (i, name) in names.iter().enumerate().skip(first) {
         if s.kind == ModelKind::Hammerstein && i == first + s.orders.na {
-            out.push(Param { name: "b1".into(), value: 1.0, std: None });
+            out.push(Param {
+                name: "b1".into(),
+                value: 1.0,
+                std: None,
+            });
         }
-        out.push(Param { name: name.clone(), value: theta[i], std: sd(i) });
+        out.push(Param {
+            name: name.clone(),
+            value: theta[i],
+            std: sd(i),
+        });
     }
     if s.kind == ModelKind::Hammerstein && names.len() == first + s.orders.na {
-        out.push(Param { name: "b1".into(), value: 1.0, std: None });
+        out.push(Param {
+            name: "b1".into(),
+            value: 1.0,
+            std: None,
+        });
     }
     out
 }
@@ -280,7 +577,16 @@ fn model_from_theta(s: &Structure, theta: &DVector<f64>, ts: f64) -> Model {
     let mut i = 0;
     let deadzone = (s.kind == ModelKind::Hammerstein).then(|| {
         i = 4;
-        deadzone_from_theta(theta.as_slice(), Deadzone { b_l: 0.0, b_r: 0.0, m_l: 0.0, m_r: 0.0 }, f64::INFINITY)
+        deadzone_from_theta(
+            theta.as_slice(),
+            Deadzone {
+                b_l: 0.0,
+                b_r: 0.0,
+                m_l: 0.0,
+                m_r: 0.0,
+            },
+            f64::INFINITY,
+        )
     });
     let a: Vec<f64> = theta.as_slice()[i..i + o.na].to_vec();
     i += o.na;
@@ -298,7 +604,17 @@ fn model_from_theta(s: &Structure, theta: &DVector<f64>, ts: f64) -> Model {
         }
     };
     let offset = s.offset.then(|| theta[i]);
-    Model { kind: s.kind, ts, na: o.na, nb: o.nb, nk: o.nk, a, b, offset, deadzone }
+    Model {
+        kind: s.kind,
+        ts,
+        na: o.na,
+        nb: o.nb,
+        nk: o.nk,
+        a,
+        b,
+        offset,
+        deadzone,
+    }
 }
 
 /// Deadzone from θ = [m_r, m_r b_r, m_l, m_l b_l, ...]. A breakpoint whose ratio is not finite (slope
@@ -339,7 +655,12 @@ fn build_regression(data: &Dataset, s: &Structure, dz: &Deadzone) -> (DMatrix<f6
 }
 
 fn arx_ls(data: &Dataset, s: &Structure) -> Result<Identified, SysidError> {
-    let dz = Deadzone { b_l: 0.0, b_r: 0.0, m_l: 0.0, m_r: 0.0 };
+    let dz = Deadzone {
+        b_l: 0.0,
+        b_r: 0.0,
+        m_l: 0.0,
+        m_r: 0.0,
+    };
     let (phi, y) = build_regression(data, s, &dz);
     let sol = ls::solve(&phi, &y, &s.theta_names()).map_err(|e| context(data, e))?;
     let dof = (phi.nrows() - phi.ncols()).max(1) as f64;
@@ -370,14 +691,23 @@ fn context(data: &Dataset, e: SysidError) -> SysidError {
 fn prediction_rss(model: &Model, data: &Dataset) -> Result<f64, SysidError> {
     let k0 = model.orders().k0();
     let yhat = model.predict(&data.u, &data.y)?;
-    Ok(data.y[k0..].iter().zip(&yhat[k0..]).map(|(y, p)| (y - p) * (y - p)).sum())
+    Ok(data.y[k0..]
+        .iter()
+        .zip(&yhat[k0..])
+        .map(|(y, p)| (y - p) * (y - p))
+        .sum())
 }
 
-fn hammerstein_ls(data: &Dataset, s: &Structure, st: &IdentifySettings) -> Result<Identified, SysidError> {
-    let (max_neg, min_pos, min_neg, max_pos) = input_range(data)?;
-    let limit = max_pos.max(-min_neg);
-    // Initial switching: h_r = [u > 0], h_l = [u < 0].
-    let mut dz = Deadzone { b_l: max_neg, b_r: min_pos, m_l: 1.0, m_r: 1.0 };
+fn hammerstein_ls(
+    data: &Dataset,
+    s: &Structure,
+    st: &IdentifySettings,
+    br: &Branches,
+) -> Result<Identified, SysidError> {
+    let limit = br.limit;
+    // Initial switching: h_r = [u > 0], h_l = [u < 0] (breakpoints at the smallest commands).
+    let mut dz = br.initial_deadzone();
+    let free = br.free_theta(s);
     let names = s.theta_names();
     let mut seen: Vec<DVector<f64>> = Vec::new();
     let mut best: Option<(f64, DVector<f64>, ls::LsSolution, usize)> = None;
@@ -387,7 +717,13 @@ fn hammerstein_ls(data: &Dataset, s: &Structure, st: &IdentifySettings) -> Resul
     for it in 1..=st.max_iterations {
         iterations = it;
         let (phi, y) = build_regression(data, s, &dz);
-        let sol = ls::solve(&phi, &y, &names).map_err(|e| context(data, e))?;
+        let sol = match solve_free(&phi, &y, &free, &names) {
+            Ok(sol) => sol,
+            // A later iterate's breakpoints can leave a branch with too few distinct commands: stop and keep
+            // the best iterate so far (reported in the note as not converged).
+            Err(SysidError::Data(_)) if best.is_some() => break,
+            Err(e) => return Err(context(data, e)),
+        };
         let theta = sol.theta.clone();
         let model = model_from_theta(s, &theta, data.ts);
         let rss = prediction_rss(&model, data).unwrap_or(f64::INFINITY);
@@ -401,15 +737,23 @@ fn hammerstein_ls(data: &Dataset, s: &Structure, st: &IdentifySettings) -> Resul
                 break;
             }
         }
-        if seen.iter().rev().skip(1).any(|old| (&theta - old).norm() <= st.tolerance * scale) {
+        if seen
+            .iter()
+            .rev()
+            .skip(1)
+            .any(|old| (&theta - old).norm() <= st.tolerance * scale)
+        {
             cycle = true;
             break;
         }
         seen.push(theta.clone());
         dz = deadzone_from_theta(theta.as_slice(), dz, limit);
+        br.impose(&mut dz);
     }
     let Some((rss, theta, sol, best_it)) = best else {
-        return Err(SysidError::Numerical("key-term iteration produced no estimate".into()));
+        return Err(SysidError::Numerical(
+            "key-term iteration produced no estimate".into(),
+        ));
     };
     let note = if converged {
         None
@@ -425,11 +769,16 @@ fn hammerstein_ls(data: &Dataset, s: &Structure, st: &IdentifySettings) -> Resul
         ))
     };
     let rows = data.len() - s.orders.k0();
-    let sigma2 = rss / (rows.saturating_sub(s.n_params()).max(1)) as f64;
+    let n_free = free.iter().filter(|f| **f).count();
+    let sigma2 = rss / (rows.saturating_sub(n_free).max(1)) as f64;
     let cov = &sol.inv_gram * sigma2;
+    let mut model = model_from_theta(s, &theta, data.ts);
+    if let Some(d) = model.deadzone.as_mut() {
+        br.impose(d);
+    }
     Ok(Identified {
-        model: model_from_theta(s, &theta, data.ts),
-        params: physical_params(s, &theta, Some(&cov)),
+        params: params_with_branches(s, &theta, Some(&cov), &model, br),
+        model,
         method: Method::Ls,
         iterations,
         converged,
@@ -440,77 +789,173 @@ fn hammerstein_ls(data: &Dataset, s: &Structure, st: &IdentifySettings) -> Resul
     })
 }
 
+/// The recursive estimator behind `--method rls`: the paper's RLS ([`Rls`]) when no robust option is
+/// asked for, otherwise [`RobustRls`].
+enum Recursive {
+    Paper(Rls),
+    Robust(RobustRls),
+}
+
+impl Recursive {
+    fn theta(&self) -> &DVector<f64> {
+        match self {
+            Recursive::Paper(r) => &r.theta,
+            Recursive::Robust(r) => &r.theta,
+        }
+    }
+    fn update(&mut self, phi: &[f64], y: f64, k: usize) -> Result<f64, SysidError> {
+        match self {
+            Recursive::Paper(r) => r.update(phi, y, k),
+            Recursive::Robust(r) => r.update(phi, y, k),
+        }
+    }
+    fn restart_covariance(&mut self, p0: f64) {
+        match self {
+            Recursive::Paper(r) => r.restart_covariance(p0),
+            Recursive::Robust(r) => r.restart_covariance(p0),
+        }
+    }
+    fn covariance(&self) -> DMatrix<f64> {
+        match self {
+            Recursive::Paper(r) => r.p.clone(),
+            Recursive::Robust(r) => r.covariance(),
+        }
+    }
+}
+
 /// RLS for ARX, and recursive key-term separation for Hammerstein. First pass (the paper's scheme):
 /// switching functions and the internal x̂ are evaluated with the latest estimate at every sample.
 /// Later passes restart P = p0 I, keep θ̂ and evaluate the switching functions and x̂ with the estimate
 /// the pass started from, so each pass is the recursive solution of one key-term LS step regularised
 /// towards the previous estimate; the passes converge to the batch key-term fixed point.
-fn recursive(data: &Dataset, s: &Structure, st: &IdentifySettings) -> Result<Identified, SysidError> {
-    let p = s.n_params();
+fn recursive(
+    data: &Dataset,
+    s: &Structure,
+    st: &IdentifySettings,
+    br: &Branches,
+) -> Result<Identified, SysidError> {
     let k0 = s.orders.k0();
     let n = data.len();
-    let mut est = Rls::new(p, st.forgetting, st.p0)?;
+    let free = br.free_theta(s);
+    let idx: Vec<usize> = (0..free.len()).filter(|&i| free[i]).collect();
+    let p = idx.len();
+    let mut est = if st.rls_form == RlsForm::Standard && st.windup == Windup::None {
+        Recursive::Paper(Rls::new(p, st.forgetting, st.p0)?)
+    } else {
+        Recursive::Robust(RobustRls::new(
+            p,
+            st.forgetting,
+            st.p0,
+            st.rls_form,
+            st.windup,
+            st.max_trace,
+        )?)
+    };
+    let mut full_row = vec![0.0; s.n_params()];
     let mut row = vec![0.0; p];
     let hammer = s.kind == ModelKind::Hammerstein;
-    let (mut dz, limit) = if hammer {
-        let (max_neg, min_pos, min_neg, max_pos) = input_range(data)?;
-        (Deadzone { b_l: max_neg, b_r: min_pos, m_l: 1.0, m_r: 1.0 }, max_pos.max(-min_neg))
+    let mut dz = if hammer {
+        br.initial_deadzone()
     } else {
-        (Deadzone { b_l: 0.0, b_r: 0.0, m_l: 0.0, m_r: 0.0 }, 0.0)
+        Deadzone {
+            b_l: 0.0,
+            b_r: 0.0,
+            m_l: 0.0,
+            m_r: 0.0,
+        }
     };
+    let limit = br.limit;
     let initial_dz = dz;
+    let expand = |t: &DVector<f64>| {
+        let mut full = DVector::zeros(free.len());
+        for (q, &i) in idx.iter().enumerate() {
+            full[i] = t[q];
+        }
+        full
+    };
     let mut history = Vec::new();
     let mut history_samples = Vec::new();
     let mut pass_ends: Vec<DVector<f64>> = Vec::new();
     let tail_start = n - (n - k0) / 10;
-    let mut theta_tail = est.theta.clone();
+    let mut theta_tail = est.theta().clone();
     for pass in 0..st.passes {
         if pass > 0 {
             est.restart_covariance(st.p0);
             if hammer {
-                dz = deadzone_from_theta(est.theta.as_slice(), dz, limit);
+                dz = deadzone_from_theta(expand(est.theta()).as_slice(), dz, limit);
+                br.impose(&mut dz);
             }
         }
         for k in k0..n {
             if k == tail_start {
-                theta_tail.copy_from(&est.theta);
+                theta_tail.copy_from(est.theta());
             }
             if hammer && pass == 0 && k > k0 {
-                dz = deadzone_from_theta(est.theta.as_slice(), dz, limit);
-                if est.theta[0] == 0.0 && est.theta[2] == 0.0 {
+                let full = expand(est.theta());
+                dz = deadzone_from_theta(full.as_slice(), dz, limit);
+                br.impose(&mut dz);
+                if full[0] == 0.0 && full[2] == 0.0 {
                     dz = initial_dz;
                 }
             }
-            s.fill_row(&data.u, &data.y, k, &dz, &mut row);
-            est.update(&row, s.target(&data.y, k), k).map_err(|e| match e {
-                SysidError::Numerical(m) => SysidError::Numerical(format!("{}: {m}", data.name)),
-                other => other,
-            })?;
+            s.fill_row(&data.u, &data.y, k, &dz, &mut full_row);
+            for (q, &i) in idx.iter().enumerate() {
+                row[q] = full_row[i];
+            }
+            est.update(&row, s.target(&data.y, k), k)
+                .map_err(|e| match e {
+                    SysidError::Numerical(m) => {
+                        SysidError::Numerical(format!("{}: {m}", data.name))
+                    }
+                    other => other,
+                })?;
             if st.record_history {
-                history.push(physical_params(s, &est.theta, None).iter().map(|q| q.value).collect());
+                history.push(
+                    physical_params(s, &expand(est.theta()), None)
+                        .iter()
+                        .map(|q| q.value)
+                        .collect(),
+                );
                 history_samples.push(k);
             }
         }
-        pass_ends.push(est.theta.clone());
+        pass_ends.push(est.theta().clone());
     }
-    let theta = est.theta.clone();
+    let theta = est.theta().clone();
     let rel = |a: &DVector<f64>, b: &DVector<f64>| (a - b).norm() / (1e-300 + b.norm());
     let converged = if pass_ends.len() >= 2 {
         rel(&pass_ends[pass_ends.len() - 2], &theta) < 1e-3
     } else {
         rel(&theta_tail, &theta) < 1e-3
     };
-    let model = model_from_theta(s, &theta, data.ts);
+    let theta_full = expand(&theta);
+    let mut model = model_from_theta(s, &theta_full, data.ts);
+    if let Some(d) = model.deadzone.as_mut() {
+        br.impose(d);
+    }
     let rss = prediction_rss(&model, data)?;
     let sigma2 = rss / (n - k0).saturating_sub(p).max(1) as f64;
-    let cov = &est.p * sigma2;
+    let pc = est.covariance() * sigma2;
+    let mut cov = DMatrix::zeros(free.len(), free.len());
+    for (a, &i) in idx.iter().enumerate() {
+        for (b, &j) in idx.iter().enumerate() {
+            cov[(i, j)] = pc[(a, b)];
+        }
+    }
+    let mut note = None;
+    if st.rls_form != RlsForm::Standard || st.windup != Windup::None {
+        note = Some(format!(
+            "RLS form {}, windup protection {}",
+            st.rls_form, st.windup
+        ));
+    }
     Ok(Identified {
+        params: params_with_branches(s, &theta_full, Some(&cov), &model, br),
         model,
-        params: physical_params(s, &theta, Some(&cov)),
         method: Method::Rls,
         iterations: st.passes,
         converged,
-        note: None,
+        note,
         noise_variance: sigma2,
         history,
         history_samples,

@@ -5,19 +5,24 @@
 //! ([`estimate`]) -> fitted [`Model`] -> [`validation`] / simulation / [`plant`].
 
 pub mod bench;
+pub mod branches;
 pub mod data;
 pub mod deadzone;
 pub mod error;
 pub mod estimate;
+pub mod iv;
 pub mod ls;
 pub mod model;
 pub mod model_file;
+pub mod oe;
 pub mod output;
 pub mod plant;
 pub mod regressor;
 pub mod rls;
+pub mod rls_ud;
 pub mod summary;
 pub mod validation;
+pub mod windup;
 
 pub use data::Dataset;
 pub use deadzone::Deadzone;

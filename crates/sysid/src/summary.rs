@@ -138,8 +138,9 @@ impl IdentifyReport {
             self.estimation.method,
             self.estimation.iterations,
             match self.estimation.method {
-                Method::Ls => "iteration(s)",
+                Method::Ls | Method::Oe => "iteration(s)",
                 Method::Rls => "pass(es)",
+                Method::Iv => "stage(s)",
             },
             if self.estimation.converged { "converged" } else { "NOT converged" }
         );

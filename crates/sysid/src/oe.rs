@@ -1,0 +1,514 @@
+//! Output-error (prediction-error with an output-error noise model) refinement: minimise the free-run
+//! simulation error V(θ) = ½ Σ_{k >= k0} (y(k) − ŷ(k; θ))² over every parameter of the model, by
+//! Levenberg–Marquardt (crate `levenberg-marquardt`), started from a least-squares estimate.
+//!
+//! Why: LS/RLS minimise the *equation* error, which is biased when noise enters at the output (an
+//! encoder's quantisation and noise). The simulation error does not regress on noisy past outputs, so its
+//! minimiser is consistent under white output noise (Ljung, *System Identification*, ch. 7–8).
+//!
+//! Parameter vector (the physical parameters, [`physical_vector`]):
+//! - Hammerstein: θ = [b_l, b_r, m_l, m_r, a1..a_na, b2..b_nb, (c)], b1 = 1 fixed (normalisation);
+//! - ARX: θ = [a1..a_na, b1..b_nb, (c)].
+//!
+//! The simulation is ŷ(k) = y(k) for k < k0 and ŷ(k) = −Σ a_i ŷ(k−i) + Σ_j b_j x(k−nk−j+1) + c after
+//! ([`Model::simulate`]), x = f(u) the deadzone (paper eq. 1).
+//!
+//! Jacobian: analytic, by sensitivity filtering. For each parameter q the sensitivity s_q(k) = ∂ŷ(k)/∂q
+//! obeys A(q⁻¹) s_q(k) = g_q(k) with s_q(k) = 0 for k < k0, where
+//! g = −ŷ(k−i) for a_i, x(k−nk−j+1) for b_j, 1 for c, and Σ_j b_j ∂x(k−nk−j+1)/∂q for the deadzone with
+//! ∂x/∂m_r = h_r (u − b_r), ∂x/∂b_r = −m_r h_r, ∂x/∂m_l = h_l (u − b_l), ∂x/∂b_l = −m_l h_l
+//! (h_r = [u ≥ b_r], h_l = [u ≤ b_l]). The deadzone is not differentiable at u = b: there the one-sided
+//! derivative of the branch the sample lies on is used (the breakpoint's derivative is −m·h). Since the
+//! commands take finitely many values, the kinks form a set of measure zero in parameter space and the
+//! loss is smooth between them; a step that moves a breakpoint across a command level is judged by the
+//! actual loss (the trust-region ratio), so the kink cannot mislead the optimiser into a worse point.
+//!
+//! Unstable iterates: an iterate whose simulation exceeds 10⁶ (1 + max|y|) or becomes non-finite gets a
+//! constant residual of that bound at every sample, a loss far above any stable iterate's, so the step is
+//! rejected and the trust region shrinks. A start whose simulation diverges (an unstable LS estimate) is
+//! first stabilised by reflecting the poles of A outside the unit circle into it (p → 1/p̄).
+//!
+//! Standard deviations: σ̂² (JᵀJ)⁻¹ with J the final Jacobian and σ̂² = 2 V / (N − p).
+
+use std::cell::Cell;
+
+use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
+use nalgebra::{Complex, DMatrix, DVector, Dyn, Owned};
+
+use crate::estimate::Param;
+use crate::ls;
+use crate::model::poles_of;
+use crate::regressor::Structure;
+use crate::{Dataset, Deadzone, Model, ModelKind, SysidError};
+
+/// The result of an output-error refinement.
+#[derive(Debug, Clone)]
+pub struct OeFit {
+    /// The refined model.
+    pub model: Model,
+    /// Physical parameters with standard deviations from σ̂² (JᵀJ)⁻¹ (`None` for fixed ones).
+    pub params: Vec<Param>,
+    /// Number of Jacobian evaluations (Levenberg–Marquardt iterations).
+    pub iterations: usize,
+    /// Number of residual evaluations.
+    pub evaluations: usize,
+    /// The optimiser stopped on a convergence criterion (not on patience or a numerical failure).
+    pub converged: bool,
+    /// The optimiser's termination reason, in words.
+    pub termination: String,
+    /// Σ (y − ŷ)² at the start and at the end.
+    pub rss_start: f64,
+    /// Σ (y − ŷ)² of the refined model.
+    pub rss: f64,
+    /// σ̂² = RSS / (N − p_free).
+    pub noise_variance: f64,
+    /// The start had to be stabilised.
+    pub stabilised_start: bool,
+}
+
+/// Names of the physical parameter vector of `s` (see the module docs).
+pub fn physical_names(s: &Structure) -> Vec<String> {
+    let o = s.orders;
+    let mut v: Vec<String> = Vec::new();
+    if s.kind == ModelKind::Hammerstein {
+        v.extend(["b_l", "b_r", "m_l", "m_r"].map(String::from));
+    }
+    v.extend((1..=o.na).map(|i| format!("a{i}")));
+    let first_b = if s.kind == ModelKind::Hammerstein {
+        2
+    } else {
+        1
+    };
+    v.extend((first_b..=o.nb).map(|j| format!("b{j}")));
+    if s.offset {
+        v.push("c".into());
+    }
+    v
+}
+
+/// The physical parameter vector of `model` in the layout of the module docs.
+pub fn physical_vector(model: &Model) -> Vec<f64> {
+    let mut v = Vec::new();
+    let skip_b1 = match &model.deadzone {
+        Some(d) => {
+            v.extend([d.b_l, d.b_r, d.m_l, d.m_r]);
+            1
+        }
+        None => 0,
+    };
+    v.extend_from_slice(&model.a);
+    v.extend(model.b.iter().skip(skip_b1));
+    v.extend(model.offset);
+    v
+}
+
+/// The model of structure `s` with physical parameters `v` (layout of the module docs).
+pub fn model_from_physical(s: &Structure, v: &[f64], ts: f64) -> Model {
+    let o = s.orders;
+    let mut i = 0;
+    let deadzone = (s.kind == ModelKind::Hammerstein).then(|| {
+        i = 4;
+        Deadzone {
+            b_l: v[0],
+            b_r: v[1],
+            m_l: v[2],
+            m_r: v[3],
+        }
+    });
+    let a = v[i..i + o.na].to_vec();
+    i += o.na;
+    let mut b = Vec::new();
+    if s.kind == ModelKind::Hammerstein {
+        b.push(1.0);
+        b.extend_from_slice(&v[i..i + o.nb - 1]);
+        i += o.nb - 1;
+    } else {
+        b.extend_from_slice(&v[i..i + o.nb]);
+        i += o.nb;
+    }
+    let offset = s.offset.then(|| v[i]);
+    Model {
+        kind: s.kind,
+        ts,
+        na: o.na,
+        nb: o.nb,
+        nk: o.nk,
+        a,
+        b,
+        offset,
+        deadzone,
+    }
+}
+
+/// Reflects the roots of z^n + a1 z^(n−1) + ... + a_n outside the unit circle to 1/p̄ (and pulls roots on
+/// the circle to modulus 0.999); returns the new coefficients a1..a_n.
+pub fn stabilise(a: &[f64]) -> Vec<f64> {
+    let roots: Vec<Complex<f64>> = poles_of(a)
+        .into_iter()
+        .map(|p| {
+            let r = p.norm();
+            if r >= 1.0 {
+                let q = p / (r * r);
+                if q.norm() > 0.999 {
+                    q * (0.999 / q.norm())
+                } else {
+                    q
+                }
+            } else {
+                p
+            }
+        })
+        .collect();
+    // Multiply out Π (z − p_i).
+    let mut c = vec![Complex::new(1.0, 0.0)];
+    for p in roots {
+        let mut next = vec![Complex::new(0.0, 0.0); c.len() + 1];
+        for (i, ci) in c.iter().enumerate() {
+            next[i] += ci;
+            next[i + 1] -= ci * p;
+        }
+        c = next;
+    }
+    c.iter().skip(1).map(|v| v.re).collect()
+}
+
+struct Problem<'a> {
+    u: &'a [f64],
+    y: &'a [f64],
+    s: Structure,
+    full: Vec<f64>,
+    free: Vec<usize>,
+    bound: f64,
+    jacobians: Cell<usize>,
+}
+
+struct Decoded {
+    dz: Option<Deadzone>,
+    a: Vec<f64>,
+    b: Vec<f64>,
+    c: f64,
+    /// Index of a1 in the full vector.
+    ia: usize,
+    /// Index of the first free B coefficient and which b_j it is (0-based j).
+    ib: usize,
+    jb0: usize,
+}
+
+impl Problem<'_> {
+    fn decode(&self) -> Decoded {
+        let m = model_from_physical(&self.s, &self.full, 1.0);
+        let hammer = self.s.kind == ModelKind::Hammerstein;
+        let ia = if hammer { 4 } else { 0 };
+        Decoded {
+            dz: m.deadzone,
+            a: m.a,
+            b: m.b,
+            c: m.offset.unwrap_or(0.0),
+            ia,
+            ib: ia + self.s.orders.na,
+            jb0: usize::from(hammer),
+        }
+    }
+
+    /// ŷ over the record and x = f(u); `None` when the simulation leaves ±bound or is not finite.
+    fn simulate(&self, d: &Decoded) -> Option<(Vec<f64>, Vec<f64>)> {
+        let n = self.u.len();
+        let k0 = self.s.orders.k0();
+        let nk = self.s.orders.nk;
+        let x: Vec<f64> = match &d.dz {
+            Some(dz) => self.u.iter().map(|&v| dz.apply(v)).collect(),
+            None => self.u.to_vec(),
+        };
+        let mut yh = self.y[..k0.min(n)].to_vec();
+        yh.reserve(n.saturating_sub(k0));
+        for k in k0..n {
+            let mut v = d.c;
+            for (i, ai) in d.a.iter().enumerate() {
+                v -= ai * yh[k - 1 - i];
+            }
+            for (j, bj) in d.b.iter().enumerate() {
+                v += bj * x[k - nk - j];
+            }
+            if !(v.is_finite() && v.abs() <= self.bound) {
+                return None;
+            }
+            yh.push(v);
+        }
+        Some((yh, x))
+    }
+}
+
+impl LeastSquaresProblem<f64, Dyn, Dyn> for Problem<'_> {
+    type ResidualStorage = Owned<f64, Dyn>;
+    type JacobianStorage = Owned<f64, Dyn, Dyn>;
+    type ParameterStorage = Owned<f64, Dyn>;
+
+    fn set_params(&mut self, x: &DVector<f64>) {
+        for (q, &i) in self.free.iter().enumerate() {
+            self.full[i] = x[q];
+        }
+    }
+
+    fn params(&self) -> DVector<f64> {
+        DVector::from_iterator(self.free.len(), self.free.iter().map(|&i| self.full[i]))
+    }
+
+    fn residuals(&self) -> Option<DVector<f64>> {
+        let k0 = self.s.orders.k0();
+        let m = self.u.len() - k0;
+        let d = self.decode();
+        Some(match self.simulate(&d) {
+            Some((yh, _)) => {
+                DVector::from_iterator(m, (k0..self.u.len()).map(|k| self.y[k] - yh[k]))
+            }
+            None => DVector::from_element(m, self.bound),
+        })
+    }
+
+    fn jacobian(&self) -> Option<DMatrix<f64>> {
+        self.jacobians.set(self.jacobians.get() + 1);
+        let d = self.decode();
+        let (yh, x) = self.simulate(&d)?;
+        Some(self.sensitivities(&d, &yh, &x).scale(-1.0))
+    }
+}
+
+impl Problem<'_> {
+    /// ∂ŷ(k)/∂θ_q for k >= k0 (rows) and the free parameters q (columns).
+    fn sensitivities(&self, d: &Decoded, yh: &[f64], x: &[f64]) -> DMatrix<f64> {
+        let n = self.u.len();
+        let o = self.s.orders;
+        let k0 = o.k0();
+        let m = n - k0;
+        let mut jac = DMatrix::<f64>::zeros(m, self.free.len());
+        let mut g = vec![0.0; n];
+        let mut s = vec![0.0; n];
+        for (col, &q) in self.free.iter().enumerate() {
+            // Drive g(k), k >= k0.
+            if let (Some(dz), true) = (&d.dz, q < 4) {
+                let dx = |u: f64| -> f64 {
+                    let hr = dz.h_r(u);
+                    let hl = if hr > 0.0 { 0.0 } else { dz.h_l(u) };
+                    match q {
+                        0 => -dz.m_l * hl,
+                        1 => -dz.m_r * hr,
+                        2 => hl * (u - dz.b_l),
+                        _ => hr * (u - dz.b_r),
+                    }
+                };
+                let dxs: Vec<f64> = self.u.iter().map(|&v| dx(v)).collect();
+                for k in k0..n {
+                    g[k] =
+                        d.b.iter()
+                            .enumerate()
+                            .map(|(j, bj)| bj * dxs[k - o.nk - j])
+                            .sum();
+                }
+            } else if q >= d.ia && q < d.ib {
+                let i = q - d.ia + 1;
+                for k in k0..n {
+                    g[k] = -yh[k - i];
+                }
+            } else if q >= d.ib && q < d.ib + o.nb - d.jb0 {
+                let j = q - d.ib + d.jb0;
+                for k in k0..n {
+                    g[k] = x[k - o.nk - j];
+                }
+            } else {
+                g[k0..n].fill(1.0);
+            }
+            // A(q⁻¹) s = g with s = 0 before k0.
+            s[..k0].fill(0.0);
+            for k in k0..n {
+                let mut v = g[k];
+                for (i, ai) in d.a.iter().enumerate() {
+                    v -= ai * s[k - 1 - i];
+                }
+                s[k] = v;
+            }
+            for k in k0..n {
+                jac[(k - k0, col)] = s[k];
+            }
+        }
+        jac
+    }
+}
+
+/// Refines `start` (structure `s`) by minimising the simulation error on `data`. `free[i]` says whether
+/// entry i of the physical vector is estimated (fixed entries keep the start's value). `patience` bounds
+/// the residual evaluations at patience · (free parameters + 1).
+pub fn refine(
+    data: &Dataset,
+    s: &Structure,
+    free: &[bool],
+    start: &Model,
+    patience: usize,
+) -> Result<OeFit, SysidError> {
+    let k0 = s.orders.k0();
+    let n = data.len();
+    let full = physical_vector(start);
+    if full.len() != s.n_params() || free.len() != full.len() {
+        return Err(SysidError::Data(
+            "output-error refinement: the start model does not match the structure".into(),
+        ));
+    }
+    let free_idx: Vec<usize> = (0..full.len()).filter(|&i| free[i]).collect();
+    if n <= k0 || n - k0 <= free_idx.len() {
+        return Err(SysidError::Data(format!(
+            "{}: too few samples ({n}) for an output-error fit of {} parameters",
+            data.name,
+            free_idx.len()
+        )));
+    }
+    let ymax = data.y.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let mut problem = Problem {
+        u: &data.u,
+        y: &data.y,
+        s: *s,
+        full,
+        free: free_idx.clone(),
+        bound: 1e6 * (1.0 + ymax),
+        jacobians: Cell::new(0),
+    };
+    let mut stabilised_start = false;
+    if problem.simulate(&problem.decode()).is_none() {
+        let ia = if s.kind == ModelKind::Hammerstein {
+            4
+        } else {
+            0
+        };
+        let a = stabilise(&problem.full[ia..ia + s.orders.na]);
+        problem.full[ia..ia + s.orders.na].copy_from_slice(&a);
+        stabilised_start = true;
+        if problem.simulate(&problem.decode()).is_none() {
+            return Err(SysidError::Numerical(format!(
+                "{}: the simulation of the start model diverges even after stabilising its poles",
+                data.name
+            )));
+        }
+    }
+    let rss_of = |p: &Problem| p.residuals().map_or(f64::INFINITY, |r| r.norm_squared());
+    let rss_start = rss_of(&problem);
+    let (problem, report) = LevenbergMarquardt::new()
+        .with_ftol(1e-12)
+        .with_xtol(1e-12)
+        .with_gtol(1e-12)
+        .with_patience(patience.max(1))
+        .minimize(problem);
+    let d = problem.decode();
+    let (yh, x) = problem.simulate(&d).ok_or_else(|| {
+        SysidError::Numerical(format!(
+            "{}: output-error refinement ended on a diverging model",
+            data.name
+        ))
+    })?;
+    let resid = DVector::from_iterator(n - k0, (k0..n).map(|k| data.y[k] - yh[k]));
+    let rss = resid.norm_squared();
+    let jac = problem.sensitivities(&d, &yh, &x);
+    let p = free_idx.len();
+    let sigma2 = rss / (n - k0 - p) as f64;
+    let names = physical_names(s);
+    let free_names: Vec<String> = free_idx.iter().map(|&i| names[i].clone()).collect();
+    let cov = ls::solve(&jac, &resid, &free_names)
+        .ok()
+        .map(|sol| sol.inv_gram * sigma2);
+    let mut params = Vec::new();
+    for (i, name) in names.iter().enumerate() {
+        if s.kind == ModelKind::Hammerstein && i == 4 + s.orders.na {
+            params.push(Param {
+                name: "b1".into(),
+                value: 1.0,
+                std: None,
+            });
+        }
+        let std = free_idx.iter().position(|&f| f == i).and_then(|q| {
+            let v = cov.as_ref()?[(q, q)];
+            (v.is_finite() && v >= 0.0).then(|| v.sqrt())
+        });
+        params.push(Param {
+            name: name.clone(),
+            value: problem.full[i],
+            std,
+        });
+    }
+    if s.kind == ModelKind::Hammerstein && names.len() == 4 + s.orders.na {
+        params.push(Param {
+            name: "b1".into(),
+            value: 1.0,
+            std: None,
+        });
+    }
+    Ok(OeFit {
+        model: model_from_physical(s, &problem.full, data.ts),
+        params,
+        iterations: problem.jacobians.get(),
+        evaluations: report.number_of_evaluations,
+        converged: report.termination.was_successful(),
+        termination: format!("{:?}", report.termination),
+        rss_start,
+        rss,
+        noise_variance: sigma2,
+        stabilised_start,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    // (z − 2)(z − 0.5) = z² − 2.5 z + 1: the root 2 reflects to 0.5, giving (z − 0.5)² = z² − z + 0.25.
+    #[test]
+    fn stabilise_reflects_a_root_outside_the_unit_circle() {
+        let a = stabilise(&[-2.5, 1.0]);
+        assert!(
+            (a[0] + 1.0).abs() < 1e-12 && (a[1] - 0.25).abs() < 1e-12,
+            "{a:?}"
+        );
+    }
+
+    // Finite differences of the simulation agree with the analytic sensitivities away from the kinks.
+    #[test]
+    fn analytic_jacobian_matches_central_differences() {
+        let u: Vec<f64> = (0..200)
+            .map(|k| ((k * 37) % 17) as f64 - 8.0 + 0.25)
+            .collect();
+        let y: Vec<f64> = (0..200).map(|k| (k as f64 * 0.05).sin()).collect();
+        let data = Dataset::new(u, y, 0.01, "t").unwrap();
+        let s = Structure {
+            kind: ModelKind::Hammerstein,
+            orders: crate::Orders {
+                na: 2,
+                nb: 2,
+                nk: 1,
+            },
+            offset: true,
+        };
+        let full = vec![-1.4, 1.3, 0.02, 0.03, -1.2, 0.4, 0.5, 0.1];
+        let mut p = Problem {
+            u: &data.u,
+            y: &data.y,
+            s,
+            full: full.clone(),
+            free: (0..full.len()).collect(),
+            bound: 1e9,
+            jacobians: Cell::new(0),
+        };
+        let j = p.jacobian().unwrap();
+        for q in 0..full.len() {
+            let h = 1e-6 * (1.0 + full[q].abs());
+            p.full = full.clone();
+            p.full[q] += h;
+            let rp = p.residuals().unwrap();
+            p.full[q] -= 2.0 * h;
+            let rm = p.residuals().unwrap();
+            for row in 0..rp.len() {
+                let fd = (rp[row] - rm[row]) / (2.0 * h);
+                assert!(
+                    (fd - j[(row, q)]).abs() < 1e-5 * (1.0 + fd.abs()),
+                    "param {q} row {row}: {fd} vs {}",
+                    j[(row, q)]
+                );
+            }
+        }
+    }
+}

@@ -440,8 +440,8 @@ fn summary_text(
         o += "steps:\n    start_s   r_mm      y0_mm     OS_%      e_ss_mm   t_r_s     t_s_s\n";
         for st in steps {
             let f = |v: Option<f64>| v.map_or("n/a".to_string(), |x| format!("{x:.4}"));
-            o += &format!(
-                "  {:<9} {:<9} {:<9} {:<9} {:<9} {:<9} {:<9}\n",
+            let row = format!(
+                "  {:<9} {:<9} {:<9} {:<9} {:<9} {:<9} {:<9}",
                 format!("{:.2}", st.start_s),
                 st.setpoint_mm,
                 format!("{:.3}", st.y0_mm),
@@ -450,6 +450,8 @@ fn summary_text(
                 f(st.metrics.rise_time_s),
                 f(st.metrics.settling_time_s),
             );
+            o += row.trim_end();
+            o += "\n";
         }
     }
     // The paper's acceptance: overshoot < 10 %, |e_ss| < 2 % of the step.

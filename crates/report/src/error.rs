@@ -1,0 +1,74 @@
+//! The error type of the report library.
+
+use sysid::SysidError;
+
+/// Everything that can go wrong while drawing figures or writing the report.
+///
+/// Messages name the figure, panel or series at fault (1-based indices, as a reader counts them) and
+/// what was expected.
+#[derive(Debug, thiserror::Error)]
+pub enum ReportError {
+    /// A figure description cannot be drawn as given (zero size, `x` and `y` of different lengths...).
+    #[error("figure \"{figure}\": {message}")]
+    InvalidFigure {
+        /// The figure's title.
+        figure: String,
+        /// What is wrong and what was expected.
+        message: String,
+    },
+    /// The plotting backend failed while drawing (a bug or an unusable font, not bad data).
+    #[error("figure \"{figure}\": drawing failed: {message}")]
+    Render {
+        /// The figure's title.
+        figure: String,
+        /// The backend's message.
+        message: String,
+    },
+    /// Encoding the rendered pixels as PNG failed.
+    #[error("figure \"{figure}\": PNG encoding failed: {message}")]
+    Encode {
+        /// The figure's title.
+        figure: String,
+        /// The encoder's message.
+        message: String,
+    },
+    /// An error of the identification library, including failed (atomic) writes of output files.
+    #[error(transparent)]
+    Sysid(#[from] SysidError),
+    /// A failure of the plant simulator (reproduce pipeline).
+    #[error(transparent)]
+    Ipa(#[from] ipa::IpaError),
+    /// A failure of the control layer (reproduce pipeline).
+    #[error(transparent)]
+    Control(#[from] control::ControlError),
+}
+
+impl ReportError {
+    /// True for failures of the numerics (exit code 1) rather than of the input or the output files
+    /// (exit code 2). Drawing and encoding never fail for numerical reasons: non-finite samples are
+    /// skipped when plotting.
+    pub fn is_numerical(&self) -> bool {
+        match self {
+            ReportError::Sysid(e) => e.is_numerical(),
+            ReportError::Ipa(e) => e.is_numerical(),
+            ReportError::Control(e) => e.is_numerical(),
+            _ => false,
+        }
+    }
+
+    /// Shorthand for a [`ReportError::InvalidFigure`].
+    pub(crate) fn invalid(figure: &str, message: impl Into<String>) -> Self {
+        ReportError::InvalidFigure {
+            figure: figure.to_string(),
+            message: message.into(),
+        }
+    }
+
+    /// Shorthand for a [`ReportError::Render`].
+    pub(crate) fn render(figure: &str, message: impl ToString) -> Self {
+        ReportError::Render {
+            figure: figure.to_string(),
+            message: message.to_string(),
+        }
+    }
+}

@@ -1,0 +1,261 @@
+//! Figures: SVG structure, PNG encoding and size, robustness to NaN / empty / constant data.
+
+mod common;
+
+use common::{check_well_formed, decode_rgb, png_size, PNG_SIGNATURE};
+use report::plot::{
+    render_png, render_svg, save_figure, Figure, Panel, Series, SeriesStyle, PALETTE,
+};
+use report::ReportError;
+
+/// Two panels like the paper's Fig. 2: a held PWM input over a position output, plus a dashed
+/// reference and markers, with labels that need escaping.
+fn two_panel_figure() -> Figure {
+    let t: Vec<f64> = (0..300).map(|k| k as f64 * 0.01).collect();
+    let u: Vec<f64> = t
+        .iter()
+        .map(|&t| {
+            if (t * 2.0) as i64 % 2 == 0 {
+                255.0
+            } else {
+                -255.0
+            }
+        })
+        .collect();
+    let y: Vec<f64> = t.iter().map(|&t| 20.0 + 10.0 * (3.0 * t).sin()).collect();
+    let r: Vec<f64> = t.iter().map(|_| 25.0).collect();
+    Figure::new("Data <input & output>")
+        .size(800, 600)
+        .panel(
+            Panel::new("time t (s)", "input u (PWM counts)").series(Series::step(
+                "u(k) held",
+                t.clone(),
+                u,
+            )),
+        )
+        .panel(
+            Panel::new("time t (s)", "position y (mm)")
+                .series(Series::line("measured y", t.clone(), y.clone()))
+                .series(Series::dashed("set-point r", t.clone(), r))
+                .series(Series::points(
+                    "samples \"ŷ\"",
+                    t[..30].to_vec(),
+                    y[..30].to_vec(),
+                )),
+        )
+}
+
+// The SVG is one well-formed <svg> element carrying the (escaped) title and every legend label.
+#[test]
+fn svg_is_well_formed_and_names_title_and_every_series() {
+    let svg = render_svg(&two_panel_figure()).unwrap();
+    let names = check_well_formed(&svg).unwrap_or_else(|e| panic!("{e}"));
+    assert_eq!(names.first().map(String::as_str), Some("svg"));
+    assert!(
+        svg.contains("Data &lt;input &amp; output&gt;"),
+        "title missing"
+    );
+    for label in [
+        "u(k) held",
+        "measured y",
+        "set-point r",
+        "samples &quot;ŷ&quot;",
+        "time t (s)",
+        "position y (mm)",
+    ] {
+        assert!(svg.contains(label), "label {label} missing");
+    }
+    assert!(svg.contains("width=\"800\"") && svg.contains("height=\"600\""));
+}
+
+// A PNG begins with the 8-byte signature, its IHDR gives the requested size, and it decodes.
+#[test]
+fn png_has_signature_and_requested_size() {
+    let fig = two_panel_figure();
+    let png = render_png(&fig).unwrap();
+    assert_eq!(png[..8], PNG_SIGNATURE);
+    assert_eq!(png_size(&png).unwrap(), (800, 600));
+    let (w, h, rgb) = decode_rgb(&png);
+    assert_eq!((w, h), (800, 600));
+    assert_eq!(rgb.len(), 800 * 600 * 3);
+    // Background is white: the top-left pixel lies in the margin.
+    assert_eq!(&rgb[..3], &[255, 255, 255]);
+}
+
+// The title is drawn with the embedded font: dark pixels appear in the title band (top 6 %) of an
+// otherwise empty figure, which would be blank if no glyph were rasterised.
+#[test]
+fn png_title_text_is_rasterised_without_system_fonts() {
+    let fig = Figure::new("Title only").size(600, 400);
+    let (w, _, rgb) = decode_rgb(&render_png(&fig).unwrap());
+    let band = &rgb[..(w as usize * 24 * 3)];
+    let dark = band
+        .chunks(3)
+        .filter(|p| p.iter().all(|&c| c < 100))
+        .count();
+    assert!(dark > 50, "only {dark} dark pixels in the title band");
+    let below = &rgb[(w as usize * 60 * 3)..];
+    assert!(
+        below.chunks(3).all(|p| p == [255, 255, 255]),
+        "no panel, so nothing below the title"
+    );
+}
+
+// Series take the palette colours in order: the second series of a panel is drawn in PALETTE[1].
+#[test]
+fn series_colours_follow_the_palette() {
+    let x: Vec<f64> = (0..100).map(f64::from).collect();
+    let fig = Figure::new("").size(400, 300).panel(
+        Panel::new("x", "y")
+            .series(Series::line("a", x.clone(), x.clone()))
+            .series(Series::line(
+                "b",
+                x.clone(),
+                x.iter().map(|v| 100.0 - v).collect(),
+            )),
+    );
+    let (_, _, rgb) = decode_rgb(&render_png(&fig).unwrap());
+    let (r, g, b) = PALETTE[1];
+    let close = |p: &[u8]| {
+        (i32::from(p[0]) - i32::from(r)).abs() < 8
+            && (i32::from(p[1]) - i32::from(g)).abs() < 8
+            && (i32::from(p[2]) - i32::from(b)).abs() < 8
+    };
+    assert!(
+        rgb.chunks(3).filter(|p| close(p)).count() > 100,
+        "second series colour not found"
+    );
+}
+
+// NaN, inf, empty, constant and all-NaN series, an empty panel and a figure with no panel all render.
+#[test]
+fn degenerate_data_renders_without_panic() {
+    let nan = f64::NAN;
+    let fig = Figure::new("degenerate")
+        .panel(
+            Panel::new("t (s)", "y (mm)")
+                .series(Series::line(
+                    "gappy",
+                    vec![0.0, 1.0, 2.0, 3.0, 4.0],
+                    vec![1.0, nan, 3.0, f64::INFINITY, 2.0],
+                ))
+                .series(Series::step("empty", vec![], vec![]))
+                .series(Series::dashed("all NaN", vec![nan, nan], vec![nan, nan]))
+                .series(Series::points("single", vec![2.0], vec![2.5])),
+        )
+        .panel(Panel::new("t (s)", "constant").series(Series::line(
+            "c",
+            vec![0.0, 1.0],
+            vec![50.0, 50.0],
+        )))
+        .panel(Panel::new("t (s)", "zero").series(Series::step(
+            "z",
+            vec![3.0, 3.0],
+            vec![0.0, 0.0],
+        )))
+        .panel(Panel::new("nothing", "at all"));
+    let svg = render_svg(&fig).unwrap();
+    check_well_formed(&svg).unwrap();
+    assert!(
+        svg.contains("all NaN") && svg.contains("empty"),
+        "legend keeps series without data"
+    );
+    assert_eq!(
+        png_size(&render_png(&fig).unwrap()).unwrap(),
+        (fig.width, fig.height)
+    );
+    let bare = Figure::new("no panels");
+    assert!(render_svg(&bare).is_ok() && render_png(&bare).is_ok());
+    let blank =
+        Figure::new("").panel(Panel::new("", "").series(Series::line("", vec![nan], vec![1.0])));
+    assert!(render_png(&blank).is_ok());
+}
+
+// Values near ±f64::MAX make the axis span overflow: an error naming the panel, not a panic.
+#[test]
+fn overflowing_range_is_an_error() {
+    let fig = Figure::new("huge").panel(Panel::new("t", "y (mm)").series(Series::line(
+        "h",
+        vec![0.0, 1.0],
+        vec![-1e308, 1e308],
+    )));
+    let e = render_svg(&fig).unwrap_err();
+    assert!(
+        matches!(e, ReportError::InvalidFigure { .. }) && e.to_string().contains("y (mm)"),
+        "{e}"
+    );
+}
+
+// x and y of different lengths cannot be paired: the error names the panel, series and lengths.
+#[test]
+fn mismatched_lengths_are_reported() {
+    let fig = Figure::new("bad").panel(Panel::new("t", "y").series(Series::new(
+        "y meas",
+        vec![0.0, 1.0, 2.0],
+        vec![1.0],
+        SeriesStyle::Line,
+    )));
+    let msg = render_png(&fig).unwrap_err().to_string();
+    assert!(
+        msg.contains("panel 1, series 1")
+            && msg.contains("y meas")
+            && msg.contains('3')
+            && msg.contains('1'),
+        "{msg}"
+    );
+    assert!(!render_svg(&fig).unwrap_err().is_numerical());
+}
+
+// A zero-sized or oversized canvas is rejected before any allocation.
+#[test]
+fn zero_or_huge_size_is_rejected() {
+    for (w, h) in [(0, 100), (100, 0), (100_000, 100)] {
+        let fig = Figure::new("size").size(w, h);
+        assert!(
+            matches!(render_png(&fig), Err(ReportError::InvalidFigure { .. })),
+            "{w}x{h}"
+        );
+        assert!(render_svg(&fig).is_err());
+    }
+}
+
+// Each extra panel of a default-sized figure adds DEFAULT_PANEL_HEIGHT; an explicit size is kept.
+#[test]
+fn default_height_grows_with_panels() {
+    use report::plot::{DEFAULT_HEIGHT, DEFAULT_PANEL_HEIGHT};
+    let p = || Panel::new("x", "y");
+    assert_eq!(Figure::new("a").panel(p()).height, DEFAULT_HEIGHT);
+    assert_eq!(
+        Figure::new("a").panel(p()).panel(p()).panel(p()).height,
+        DEFAULT_HEIGHT + 2 * DEFAULT_PANEL_HEIGHT
+    );
+    assert_eq!(
+        Figure::new("a").size(500, 300).panel(p()).panel(p()).height,
+        300
+    );
+}
+
+// save_figure writes stem.svg and stem.png (no temporary file left) and refuses a stem with a folder.
+#[test]
+fn save_figure_writes_both_formats() {
+    let dir = tempfile::tempdir().unwrap();
+    let fig = two_panel_figure();
+    save_figure(&fig, dir.path(), "fig2_data").unwrap();
+    let svg = std::fs::read_to_string(dir.path().join("fig2_data.svg")).unwrap();
+    assert_eq!(svg, render_svg(&fig).unwrap());
+    let png = std::fs::read(dir.path().join("fig2_data.png")).unwrap();
+    assert_eq!(png_size(&png).unwrap(), (800, 600));
+    let mut names: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["fig2_data.png", "fig2_data.svg"]);
+    for stem in ["", "a/b", ".."] {
+        assert!(save_figure(&fig, dir.path(), stem).is_err(), "{stem:?}");
+    }
+    // A missing folder is an I/O error naming the path.
+    let missing = dir.path().join("no_such_dir");
+    let e = save_figure(&fig, &missing, "x").unwrap_err();
+    assert!(e.to_string().contains("no_such_dir"), "{e}");
+}

@@ -10,6 +10,7 @@
 pub mod error;
 pub mod html;
 pub mod plot;
+pub mod reproduce;
 
 pub use error::ReportError;
 pub use html::Report;

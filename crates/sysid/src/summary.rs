@@ -3,7 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::estimate::{IdentifySettings, Identified, Method, Param};
+use crate::estimate::{Identified, IdentifySettings, Method, Param};
 use crate::validation::Metrics;
 use crate::Model;
 
@@ -69,7 +69,12 @@ pub struct IdentifyReport {
 
 impl IdentifyReport {
     /// Assembles the report of a fit.
-    pub fn new(fit: &Identified, settings: &IdentifySettings, est: Metrics, val: Option<Metrics>) -> Self {
+    pub fn new(
+        fit: &Identified,
+        settings: &IdentifySettings,
+        est: Metrics,
+        val: Option<Metrics>,
+    ) -> Self {
         let rls = fit.method == Method::Rls;
         IdentifyReport {
             model: fit.model.clone(),
@@ -85,7 +90,10 @@ impl IdentifyReport {
                 noise_variance: fit.noise_variance,
                 note: fit.note.clone(),
             },
-            metrics: MetricsPair { estimation: est, validation: val },
+            metrics: MetricsPair {
+                estimation: est,
+                validation: val,
+            },
         }
     }
 
@@ -97,20 +105,51 @@ impl IdentifyReport {
 
 /// The poles of a model as JSON-friendly values.
 pub fn poles(model: &Model) -> Vec<Pole> {
-    model.poles().iter().map(|p| Pole { re: p.re, im: p.im, abs: p.norm() }).collect()
+    model
+        .poles()
+        .iter()
+        .map(|p| Pole {
+            re: p.re,
+            im: p.im,
+            abs: p.norm(),
+        })
+        .collect()
 }
 
 /// Formats a number for a report: 6 significant digits, scientific for very large or small values.
 pub fn num(v: f64) -> String {
+    fn trim(s: String) -> String {
+        match s.split_once('e') {
+            Some((m, e)) if m.contains('.') => {
+                format!("{}e{e}", m.trim_end_matches('0').trim_end_matches('.'))
+            }
+            None if s.contains('.') => s.trim_end_matches('0').trim_end_matches('.').to_string(),
+            _ => s,
+        }
+    }
     if v == 0.0 {
         "0".into()
     } else if !v.is_finite() {
         format!("{v}")
     } else if v.abs() >= 1e5 || v.abs() < 1e-3 {
-        format!("{v:.5e}")
+        trim(format!("{v:.5e}"))
     } else {
         let digits = (5 - v.abs().log10().floor() as i32).clamp(0, 9) as usize;
-        format!("{v:.digits$}")
+        trim(format!("{v:.digits$}"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    // Six significant digits, trailing zeros dropped: 0.01 → "0.01", 1.41 → "1.41", 1/3 → "0.333333".
+    #[test]
+    fn numbers_keep_six_significant_digits_without_trailing_zeros() {
+        assert_eq!(super::num(0.01), "0.01");
+        assert_eq!(super::num(1.41), "1.41");
+        assert_eq!(super::num(1.0 / 3.0), "0.333333");
+        assert_eq!(super::num(-1234.5678), "-1234.57");
+        assert_eq!(super::num(2.5e-4), "2.5e-4");
+        assert_eq!(super::num(100.0), "100");
     }
 }
 
@@ -142,7 +181,11 @@ impl IdentifyReport {
                 Method::Rls => "pass(es)",
                 Method::Iv => "stage(s)",
             },
-            if self.estimation.converged { "converged" } else { "NOT converged" }
+            if self.estimation.converged {
+                "converged"
+            } else {
+                "NOT converged"
+            }
         );
         if let Some(note) = &self.estimation.note {
             let _ = writeln!(s, "note: {note}");
@@ -151,7 +194,9 @@ impl IdentifyReport {
         for p in &self.parameters {
             let sd = match p.std {
                 Some(v) => format!("± {}", num(v)),
-                None if p.name == "b1" && m.kind == crate::ModelKind::Hammerstein => "(fixed: normalisation)".into(),
+                None if p.name == "b1" && m.kind == crate::ModelKind::Hammerstein => {
+                    "(fixed: normalisation)".into()
+                }
                 None => "± n/a".into(),
             };
             let _ = writeln!(s, "  {:<6} = {:>14}  {sd}", p.name, num(p.value));
@@ -163,18 +208,37 @@ impl IdentifyReport {
                 if p.im.abs() < 1e-12 {
                     num(p.re)
                 } else {
-                    format!("{} {} {}i", num(p.re), if p.im < 0.0 { "-" } else { "+" }, num(p.im.abs()))
+                    format!(
+                        "{} {} {}i",
+                        num(p.re),
+                        if p.im < 0.0 { "-" } else { "+" },
+                        num(p.im.abs())
+                    )
                 }
             })
             .collect();
         let _ = writeln!(
             s,
             "\nPoles: {}  → {}",
-            if poles.is_empty() { "none".to_string() } else { poles.join(", ") },
-            if self.stable { "stable (all inside the unit circle)" } else { "UNSTABLE (a pole on or outside the unit circle)" }
+            if poles.is_empty() {
+                "none".to_string()
+            } else {
+                poles.join(", ")
+            },
+            if self.stable {
+                "stable (all inside the unit circle)"
+            } else {
+                "UNSTABLE (a pole on or outside the unit circle)"
+            }
         );
         let val = self.metrics.validation.as_ref();
-        let _ = writeln!(s, "\n{:<22}{:>16}{:>16}", "Metric", "estimation", if val.is_some() { "validation" } else { "" });
+        let _ = writeln!(
+            s,
+            "\n{:<22}{:>16}{:>16}",
+            "Metric",
+            "estimation",
+            if val.is_some() { "validation" } else { "" }
+        );
         let rows: [(&str, fn(&Metrics) -> String); 9] = [
             ("fit % (simulation)", |m| opt(m.fit_sim_percent)),
             ("fit % (1-step pred.)", |m| opt(m.fit_pred_percent)),
@@ -187,9 +251,17 @@ impl IdentifyReport {
             ("p (parameters)", |m| m.p.to_string()),
         ];
         for (label, f) in rows {
-            let _ = writeln!(s, "{label:<22}{:>16}{:>16}", f(&self.metrics.estimation), val.map(f).unwrap_or_default());
+            let _ = writeln!(
+                s,
+                "{label:<22}{:>16}{:>16}",
+                f(&self.metrics.estimation),
+                val.map(f).unwrap_or_default()
+            );
         }
-        for (which, mm) in [("estimation", Some(&self.metrics.estimation)), ("validation", val)] {
+        for (which, mm) in [
+            ("estimation", Some(&self.metrics.estimation)),
+            ("validation", val),
+        ] {
             if let Some(note) = mm.and_then(|m| m.note.as_ref()) {
                 let _ = writeln!(s, "note ({which}): {note}");
             }

@@ -68,7 +68,7 @@ impl Branches {
         }
         let right = min_pos.is_finite();
         let left = max_neg.is_finite();
-        if !(left && right) && !allow_one_sided {
+        if !(allow_one_sided || left && right) {
             return Err(SysidError::Data(format!(
                 "{}: the input is never {}: a Hammerstein deadzone needs commands on both sides of zero \
                  (not persistently exciting); use --model arx or richer data",

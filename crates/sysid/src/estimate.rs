@@ -82,7 +82,7 @@ pub struct IdentifySettings {
     /// (fix m_l = b_l = 0) instead of refusing the data. Default `false` (refuse, as the paper's method
     /// cannot estimate it); the command line turns it on.
     pub drop_unexcited_branch: bool,
-    /// IV: number of stages, each rebuilding the instruments from the previous stage's model (default 5).
+    /// IV: number of stages, each rebuilding the instruments from the previous stage's model (default 10).
     pub iv_stages: usize,
 }
 
@@ -103,7 +103,7 @@ impl Default for IdentifySettings {
             windup: Windup::None,
             max_trace: None,
             drop_unexcited_branch: false,
-            iv_stages: 5,
+            iv_stages: 10,
         }
     }
 }
@@ -414,6 +414,9 @@ fn output_error(
     })
 }
 
+/// Relative change of θ̂ between IV stages below which the stages have settled.
+const IV_SETTLED: f64 = 1e-6;
+
 /// Recursive IV in stages, the first stage's instruments from the LS (key-term) estimate.
 fn instrumental(
     data: &Dataset,
@@ -430,16 +433,25 @@ fn instrumental(
     let mut converged = false;
     let mut stages = 0;
     let mut notes = Vec::new();
+    // The auxiliary simulation starts at rest at the mean of the first k0 outputs: the measured initial
+    // outputs carry noise, and for a near-integrator a noisy initial velocity makes the simulated output
+    // drift away from the true one for the whole record (weak instruments).
+    let k0 = s.orders.k0();
+    let mut y_init = data.y.clone();
+    if k0 > 0 {
+        let mean = data.y[..k0].iter().sum::<f64>() / k0 as f64;
+        y_init[..k0].fill(mean);
+    }
     for stage in 1..=st.iv_stages {
         stages = stage;
-        let y_aux = match aux.simulate(&data.u, &data.y) {
+        let y_aux = match aux.simulate(&data.u, &y_init) {
             Ok(y) => y,
             Err(_) => {
                 aux.a = oe::stabilise(&aux.a);
                 notes.push(format!(
                     "stage {stage}: the auxiliary model was unstable; its poles were reflected"
                 ));
-                aux.simulate(&data.u, &data.y)?
+                aux.simulate(&data.u, &y_init)?
             }
         };
         let dz = aux.deadzone.unwrap_or(Deadzone {
@@ -462,13 +474,12 @@ fn instrumental(
         }
         aux = model;
         last = Some(pass);
-        if change < 1e-9 {
+        if change < IV_SETTLED {
             converged = true;
             break;
         }
     }
     let pass = last.ok_or_else(|| SysidError::Numerical("IV produced no estimate".into()))?;
-    let k0 = s.orders.k0();
     let rss = prediction_rss(&aux, data)?;
     let sigma2 = rss / (data.len() - k0).saturating_sub(idx.len()).max(1) as f64;
     let cov = iv::covariance(&pass, sigma2).map(|c| {
@@ -482,7 +493,7 @@ fn instrumental(
     });
     if !converged {
         notes.push(format!(
-            "IV stages had not settled after {stages} stages (relative change >= 1e-9)"
+            "IV stages had not settled after {stages} stages (relative change >= {IV_SETTLED:e})"
         ));
     }
     Ok(Identified {

@@ -71,7 +71,7 @@ pub fn pass(
         let pz = &pm * &z;
         let phip = pm.tr_mul(&phi); // (φᵀ P)ᵀ
         let den = forgetting + phi.dot(&pz);
-        if !(den.is_finite() && den.abs() > 1e-300) || !eps.is_finite() {
+        if !(den.is_finite() && den.abs() > 1e-300 && eps.is_finite()) {
             return Err(SysidError::Numerical(format!(
                 "{}: recursive IV met a singular or non-finite update at sample {k} (ρ + φᵀPz = {den})",
                 data.name

@@ -10,11 +10,17 @@
 //! - Hammerstein: θ = [b_l, b_r, m_l, m_r, a1..a_na, b2..b_nb, (c)], b1 = 1 fixed (normalisation);
 //! - ARX: θ = [a1..a_na, b1..b_nb, (c)].
 //!
-//! The simulation is ŷ(k) = y(k) for k < k0 and ŷ(k) = −Σ a_i ŷ(k−i) + Σ_j b_j x(k−nk−j+1) + c after
-//! ([`Model::simulate`]), x = f(u) the deadzone (paper eq. 1).
+//! The simulation is ŷ(k) = η_k for k < k0 and ŷ(k) = −Σ a_i ŷ(k−i) + Σ_j b_j x(k−nk−j+1) + c after,
+//! x = f(u) the deadzone (paper eq. 1). The initial outputs η_0..η_{k0−1} are estimated with the model
+//! (MATLAB `oe` with `InitialCondition = 'estimate'`), starting from the measured y(0..k0−1), and the
+//! residuals run over every sample, y(k) − ŷ(k) for k = 0..N−1. Taking the *measured* initial outputs
+//! instead (as [`Model::simulate`] does for validation) is fatal for a near-integrator under output noise:
+//! the noise on y(1) − y(0) is an initial velocity error that the simulation integrates for the whole
+//! record (with the paper's model, 0.01 mm of noise drifts by millimetres), and the optimiser then fits
+//! the drift rather than the dynamics.
 //!
 //! Jacobian: analytic, by sensitivity filtering. For each parameter q the sensitivity s_q(k) = ∂ŷ(k)/∂q
-//! obeys A(q⁻¹) s_q(k) = g_q(k) with s_q(k) = 0 for k < k0, where
+//! obeys A(q⁻¹) s_q(k) = g_q(k) with s_q(k) = 0 for k < k0 (for η_j: s(j) = 1, g = 0), where
 //! g = −ŷ(k−i) for a_i, x(k−nk−j+1) for b_j, 1 for c, and Σ_j b_j ∂x(k−nk−j+1)/∂q for the deadzone with
 //! ∂x/∂m_r = h_r (u − b_r), ∂x/∂b_r = −m_r h_r, ∂x/∂m_l = h_l (u − b_l), ∂x/∂b_l = −m_l h_l
 //! (h_r = [u ≥ b_r], h_l = [u ≤ b_l]). The deadzone is not differentiable at u = b: there the one-sided
@@ -60,8 +66,10 @@ pub struct OeFit {
     pub rss_start: f64,
     /// Σ (y − ŷ)² of the refined model.
     pub rss: f64,
-    /// σ̂² = RSS / (N − p_free).
+    /// σ̂² = RSS / (N − p_free − k0).
     pub noise_variance: f64,
+    /// The estimated initial outputs η_0..η_{k0−1}.
+    pub initial_outputs: Vec<f64>,
     /// The start had to be stabilised.
     pub stabilised_start: bool,
 }
@@ -219,7 +227,8 @@ impl Problem<'_> {
             Some(dz) => self.u.iter().map(|&v| dz.apply(v)).collect(),
             None => self.u.to_vec(),
         };
-        let mut yh = self.y[..k0.min(n)].to_vec();
+        let np = self.s.n_params();
+        let mut yh = self.full[np..np + k0].to_vec();
         yh.reserve(n.saturating_sub(k0));
         for k in k0..n {
             let mut v = d.c;
@@ -254,13 +263,10 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for Problem<'_> {
     }
 
     fn residuals(&self) -> Option<DVector<f64>> {
-        let k0 = self.s.orders.k0();
-        let m = self.u.len() - k0;
+        let m = self.u.len();
         let d = self.decode();
         Some(match self.simulate(&d) {
-            Some((yh, _)) => {
-                DVector::from_iterator(m, (k0..self.u.len()).map(|k| self.y[k] - yh[k]))
-            }
+            Some((yh, _)) => DVector::from_iterator(m, (0..m).map(|k| self.y[k] - yh[k])),
             None => DVector::from_element(m, self.bound),
         })
     }
@@ -274,18 +280,22 @@ impl LeastSquaresProblem<f64, Dyn, Dyn> for Problem<'_> {
 }
 
 impl Problem<'_> {
-    /// ∂ŷ(k)/∂θ_q for k >= k0 (rows) and the free parameters q (columns).
+    /// ∂ŷ(k)/∂θ_q for every sample k (rows) and the free parameters q (columns).
     fn sensitivities(&self, d: &Decoded, yh: &[f64], x: &[f64]) -> DMatrix<f64> {
         let n = self.u.len();
         let o = self.s.orders;
         let k0 = o.k0();
-        let m = n - k0;
-        let mut jac = DMatrix::<f64>::zeros(m, self.free.len());
+        let np = self.s.n_params();
+        let mut jac = DMatrix::<f64>::zeros(n, self.free.len());
         let mut g = vec![0.0; n];
         let mut s = vec![0.0; n];
         for (col, &q) in self.free.iter().enumerate() {
+            s[..k0].fill(0.0);
             // Drive g(k), k >= k0.
-            if let (Some(dz), true) = (&d.dz, q < 4) {
+            if q >= np {
+                s[q - np] = 1.0;
+                g[k0..n].fill(0.0);
+            } else if let (Some(dz), true) = (&d.dz, q < 4) {
                 let dx = |u: f64| -> f64 {
                     let hr = dz.h_r(u);
                     let hl = if hr > 0.0 { 0.0 } else { dz.h_l(u) };
@@ -317,8 +327,7 @@ impl Problem<'_> {
             } else {
                 g[k0..n].fill(1.0);
             }
-            // A(q⁻¹) s = g with s = 0 before k0.
-            s[..k0].fill(0.0);
+            // A(q⁻¹) s = g with s given before k0.
             for k in k0..n {
                 let mut v = g[k];
                 for (i, ai) in d.a.iter().enumerate() {
@@ -326,8 +335,8 @@ impl Problem<'_> {
                 }
                 s[k] = v;
             }
-            for k in k0..n {
-                jac[(k - k0, col)] = s[k];
+            for k in 0..n {
+                jac[(k, col)] = s[k];
             }
         }
         jac
@@ -346,14 +355,16 @@ pub fn refine(
 ) -> Result<OeFit, SysidError> {
     let k0 = s.orders.k0();
     let n = data.len();
-    let full = physical_vector(start);
-    if full.len() != s.n_params() || free.len() != full.len() {
+    let np = s.n_params();
+    let mut full = physical_vector(start);
+    if full.len() != np || free.len() != np {
         return Err(SysidError::Data(
             "output-error refinement: the start model does not match the structure".into(),
         ));
     }
-    let free_idx: Vec<usize> = (0..full.len()).filter(|&i| free[i]).collect();
-    if n <= k0 || n - k0 <= free_idx.len() {
+    full.extend_from_slice(&data.y[..k0.min(n)]);
+    let free_idx: Vec<usize> = (0..np).filter(|&i| free[i]).chain(np..np + k0).collect();
+    if n <= k0 || n <= free_idx.len() {
         return Err(SysidError::Data(format!(
             "{}: too few samples ({n}) for an output-error fit of {} parameters",
             data.name,
@@ -378,6 +389,7 @@ pub fn refine(
             0
         };
         let a = stabilise(&problem.full[ia..ia + s.orders.na]);
+        problem.full[np..np + k0].copy_from_slice(&data.y[..k0]);
         problem.full[ia..ia + s.orders.na].copy_from_slice(&a);
         stabilised_start = true;
         if problem.simulate(&problem.decode()).is_none() {
@@ -402,13 +414,21 @@ pub fn refine(
             data.name
         ))
     })?;
-    let resid = DVector::from_iterator(n - k0, (k0..n).map(|k| data.y[k] - yh[k]));
+    let resid = DVector::from_iterator(n, (0..n).map(|k| data.y[k] - yh[k]));
     let rss = resid.norm_squared();
     let jac = problem.sensitivities(&d, &yh, &x);
     let p = free_idx.len();
-    let sigma2 = rss / (n - k0 - p) as f64;
+    let sigma2 = rss / (n - p) as f64;
     let names = physical_names(s);
-    let free_names: Vec<String> = free_idx.iter().map(|&i| names[i].clone()).collect();
+    let free_names: Vec<String> = free_idx
+        .iter()
+        .map(|&i| {
+            names
+                .get(i)
+                .cloned()
+                .unwrap_or_else(|| format!("y0({})", i - np))
+        })
+        .collect();
     let cov = ls::solve(&jac, &resid, &free_names)
         .ok()
         .map(|sol| sol.inv_gram * sigma2);
@@ -439,7 +459,8 @@ pub fn refine(
         });
     }
     Ok(OeFit {
-        model: model_from_physical(s, &problem.full, data.ts),
+        model: model_from_physical(s, &problem.full[..np], data.ts),
+        initial_outputs: problem.full[np..].to_vec(),
         params,
         iterations: problem.jacobians.get(),
         evaluations: report.number_of_evaluations,
@@ -483,7 +504,8 @@ mod tests {
             },
             offset: true,
         };
-        let full = vec![-1.4, 1.3, 0.02, 0.03, -1.2, 0.4, 0.5, 0.1];
+        // [b_l, b_r, m_l, m_r, a1, a2, b2, c, η0, η1]
+        let full = vec![-1.4, 1.3, 0.02, 0.03, -1.2, 0.4, 0.5, 0.1, 0.3, -0.2];
         let mut p = Problem {
             u: &data.u,
             y: &data.y,

@@ -25,6 +25,32 @@ pub enum MethodArg {
     Ls,
     /// Recursive least squares with forgetting (paper eqs. 9-12).
     Rls,
+    /// Output-error refinement (Levenberg-Marquardt on the simulation error) from the LS estimate:
+    /// unbiased under output (measurement) noise. Batch.
+    Oe,
+    /// Recursive instrumental variables, instruments from an auxiliary model's simulated output:
+    /// unbiased under output noise. Recursive.
+    Iv,
+}
+
+/// RLS covariance form (`--rls-form`).
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum RlsFormArg {
+    /// Dense P, the paper's eq. 12.
+    Standard,
+    /// Bierman's UD factorisation P = U D U^T (numerically robust).
+    Ud,
+}
+
+/// RLS covariance-windup protection (`--windup`).
+#[derive(Debug, Clone, Copy, clap::ValueEnum)]
+pub enum WindupArg {
+    /// Ordinary exponential forgetting.
+    None,
+    /// Scale P down whenever tr P exceeds --max-trace.
+    Trace,
+    /// Directional forgetting: forget only along the measured regressor.
+    Directional,
 }
 
 /// Flags of `identify`.
@@ -62,6 +88,18 @@ pub struct Args {
     /// Maximum key-term iterations (Hammerstein with --method ls).
     #[arg(long, default_value_t = 100)]
     pub max_iterations: usize,
+    /// RLS covariance form.
+    #[arg(long, value_enum, default_value = "standard")]
+    pub rls_form: RlsFormArg,
+    /// RLS covariance-windup protection (for long records with periods without excitation).
+    #[arg(long, value_enum, default_value = "none")]
+    pub windup: WindupArg,
+    /// Bound on tr P for --windup trace (default: p0 times the number of parameters).
+    #[arg(long, value_name = "T")]
+    pub max_trace: Option<f64>,
+    /// IV stages (each rebuilds the instruments from the previous stage's model).
+    #[arg(long, default_value_t = 10)]
+    pub iv_stages: usize,
     /// Estimate a constant term c in the linear block.
     #[arg(long)]
     pub offset: bool,
@@ -90,16 +128,36 @@ impl Args {
                 KindArg::Hammerstein => ModelKind::Hammerstein,
                 KindArg::Arx => ModelKind::Arx,
             },
-            orders: Orders { na: self.na, nb: self.nb, nk: self.nk },
+            orders: Orders {
+                na: self.na,
+                nb: self.nb,
+                nk: self.nk,
+            },
             method: match self.method {
                 MethodArg::Ls => Method::Ls,
                 MethodArg::Rls => Method::Rls,
+                MethodArg::Oe => Method::Oe,
+                MethodArg::Iv => Method::Iv,
             },
             forgetting: self.forgetting,
             p0: self.p0,
             offset: self.offset,
             passes: self.passes,
             max_iterations: self.max_iterations,
+            rls_form: match self.rls_form {
+                RlsFormArg::Standard => sysid::rls_ud::RlsForm::Standard,
+                RlsFormArg::Ud => sysid::rls_ud::RlsForm::Ud,
+            },
+            windup: match self.windup {
+                WindupArg::None => sysid::windup::Windup::None,
+                WindupArg::Trace => sysid::windup::Windup::Trace,
+                WindupArg::Directional => sysid::windup::Windup::Directional,
+            },
+            max_trace: self.max_trace,
+            iv_stages: self.iv_stages,
+            // A one-sided input (never negative or never positive) drops the unexcited deadzone branch
+            // and says so in the report's note.
+            drop_unexcited_branch: true,
             ..IdentifySettings::default()
         }
     }
@@ -111,7 +169,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     settings.structure()?; // refuse bad flags before reading anything
     let mut inputs: Vec<&Path> = vec![&args.data];
     inputs.extend(args.validation.as_deref());
-    check_outputs(&[(&args.json, "--json"), (&args.save_model, "--save-model")], &inputs)?;
+    check_outputs(
+        &[(&args.json, "--json"), (&args.save_model, "--save-model")],
+        &inputs,
+    )?;
     let opts = args.columns.csv_options();
     let data = sysid::data::read_csv(&args.data, &opts)?;
     let val = match &args.validation {
@@ -132,7 +193,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "Data: {} ({} samples){}\n{}",
         data.name,
         data.len(),
-        val.as_ref().map(|v| format!("; validation: {} ({} samples)", v.name, v.len())).unwrap_or_default(),
+        val.as_ref()
+            .map(|v| format!("; validation: {} ({} samples)", v.name, v.len()))
+            .unwrap_or_default(),
         report.to_text()
     );
     if json_to_stdout {
@@ -144,7 +207,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         write_output(path, report.to_json().as_bytes(), &inputs, "--json")?;
     }
     if let Some(path) = &args.save_model {
-        write_output(path, sysid::model_file::to_json(&fit.model).as_bytes(), &inputs, "--save-model")?;
+        write_output(
+            path,
+            sysid::model_file::to_json(&fit.model).as_bytes(),
+            &inputs,
+            "--save-model",
+        )?;
     }
     Ok(())
 }

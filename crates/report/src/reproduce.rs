@@ -12,7 +12,10 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use control::{closed_loop, metrics_for_steps, PiSettings, Profile, StepMetrics, Trace};
+use control::{
+    closed_loop, metrics_for_steps, DeadzoneCompensator, PiSettings, Profile, SlopeMode,
+    StepMetrics, Trace,
+};
 use ipa::input::{generate, InputSpec};
 use serde_json::json;
 use sysid::estimate::{identify, Identified, IdentifySettings, Method};
@@ -196,6 +199,34 @@ fn closed_loop_pair(
     Ok((tp, tm))
 }
 
+/// The fixed set-point run on the plant with a deadzone-inverse compensator built from the key-term LS
+/// deadzone; `Ok(Err(reason))` when that deadzone cannot be inverted (e.g. b_l > 0 or a slope <= 0).
+fn compensated_run(
+    plant: &mut dyn Plant,
+    fit: &Identified,
+    pi: &PiSettings,
+    profile: &Profile,
+    duration_s: f64,
+    y0_mm: f64,
+) -> Result<Result<Trace, String>, ReportError> {
+    let Some(dz) = fit.model.deadzone else {
+        return Ok(Err("the model has no deadzone".into()));
+    };
+    let comp = match DeadzoneCompensator::new(dz, SlopeMode::Shift, pi.u_max) {
+        Ok(c) => c,
+        Err(e) => return Ok(Err(e.to_string())),
+    };
+    let mut c = pi.clone().build(plant.ts())?;
+    Ok(Ok(closed_loop::run(
+        plant,
+        &mut c,
+        Some(&comp),
+        profile,
+        duration_s,
+        y0_mm,
+    )?))
+}
+
 fn step_metrics(trace: &Trace, y0_mm: f64, r_mm: f64) -> Result<StepMetrics, ReportError> {
     Ok(StepMetrics::compute(&trace.t, &trace.y, y0_mm, r_mm)?)
 }
@@ -339,6 +370,25 @@ pub fn run(
     )?;
     let m_fx_plant = step_metrics(&fx_plant, s.fixed_start_mm, s.fixed_setpoint_mm)?;
     let m_fx_model = step_metrics(&fx_model, s.fixed_start_mm, s.fixed_setpoint_mm)?;
+    // The paper's future work: the same PI followed by the inverse of the identified deadzone.
+    let compensated = compensated_run(
+        plant.as_mut(),
+        hls,
+        &s.pi,
+        &fixed,
+        s.fixed_duration_s,
+        s.fixed_start_mm,
+    )?;
+    let m_fx_comp = match &compensated {
+        Ok(tr) => {
+            sysid::output::write_atomic(
+                &data_dir.join("closed_loop_fixed_plant_compensated.csv"),
+                tr.to_csv().as_bytes(),
+            )?;
+            Ok(step_metrics(tr, s.fixed_start_mm, s.fixed_setpoint_mm)?)
+        }
+        Err(reason) => Err(reason.clone()),
+    };
     let unfixed = Profile::parse(&s.unfixed_profile)?;
     let uf_duration = unfixed.natural_duration_s().unwrap_or(20.0);
     let uf_start = unfixed.r_at(0.0);
@@ -454,7 +504,11 @@ pub fn run(
         "open_loop": { "fit_percent": fit_ol, "samples": u_ol.len() },
         "closed_loop": {
             "fixed": { "setpoint_mm": s.fixed_setpoint_mm, "y0_mm": s.fixed_start_mm,
-                       "model": metrics_json(&m_fx_model), "plant": metrics_json(&m_fx_plant) },
+                       "model": metrics_json(&m_fx_model), "plant": metrics_json(&m_fx_plant),
+                       "plant_compensated": match &m_fx_comp {
+                           Ok(m) => metrics_json(m),
+                           Err(reason) => json!({"not_applicable": reason}),
+                       } },
             "unfixed": { "profile": s.unfixed_profile,
                          "model": metrics_json(&m_uf_model), "plant": metrics_json(&m_uf_plant),
                          "steps_model": steps_model, "steps_plant": steps_plant },
@@ -489,6 +543,7 @@ pub fn run(
         hls_rep,
         &m_fx_model,
         &m_fx_plant,
+        &m_fx_comp,
         &m_uf_model,
         &m_uf_plant,
         fit_ol,
@@ -837,6 +892,7 @@ fn build_report(
     hls_rep: &IdentifyReport,
     m_fx_model: &StepMetrics,
     m_fx_plant: &StepMetrics,
+    m_fx_comp: &Result<StepMetrics, String>,
     m_uf_model: &StepMetrics,
     m_uf_plant: &StepMetrics,
     fit_ol: Option<f64>,
@@ -979,6 +1035,19 @@ fn build_report(
         "—".into(),
         "< 10 (acceptance)".into(),
     ]);
+    let comp_text = match m_fx_comp {
+        Ok(m) => format!(
+            "With the inverse of the identified (key-term LS) deadzone after the PI — the paper's suggested future \
+             work — the plant gives: overshoot {} mm ({} %), steady-state error {} mm, rise time {} s, settling time {} s \
+             (data/closed_loop_fixed_plant_compensated.csv).",
+            fmt_opt(m.overshoot_mm),
+            fmt_opt(m.overshoot_percent),
+            fmt_opt(m.steady_state_error_mm),
+            fmt_opt(m.rise_time_s),
+            fmt_opt(m.settling_time_s)
+        ),
+        Err(reason) => format!("Deadzone compensation was not run: the identified deadzone cannot be inverted ({reason})."),
+    };
     let cl = with_fig(
         Section::new("5. Closed-loop position control")
             .paragraph(
@@ -986,7 +1055,8 @@ fn build_report(
                  final value, rise time 10 % → 90 % of the step, settling time into a 2 % band. The paper does not \
                  state its step size; a step from the retracted end is used here.",
             )
-            .table(t5),
+            .table(t5)
+            .paragraph(comp_text),
         "fig7a_closed_loop_fixed",
     )?;
     let cl = with_fig(

@@ -24,7 +24,11 @@ pub struct Orders {
 
 impl Orders {
     /// The paper's structure: na = 3, nb = 1, nk = 1.
-    pub const PAPER: Orders = Orders { na: 3, nb: 1, nk: 1 };
+    pub const PAPER: Orders = Orders {
+        na: 3,
+        nb: 1,
+        nk: 1,
+    };
 
     /// k0 = max(na, nk + nb - 1): the first sample at which every regressor exists in the data.
     pub fn k0(&self) -> usize {
@@ -82,7 +86,11 @@ pub const MAX_ORDER: usize = 100;
 impl Model {
     /// Orders (na, nb, nk).
     pub fn orders(&self) -> Orders {
-        Orders { na: self.na, nb: self.nb, nk: self.nk }
+        Orders {
+            na: self.na,
+            nb: self.nb,
+            nk: self.nk,
+        }
     }
 
     /// The paper's "actual" Hammerstein model (Table III), normalised to b1 = 1 (reading notes):
@@ -99,7 +107,12 @@ impl Model {
             a: vec![-1.869, 0.9976, -0.1284],
             b: vec![1.0],
             offset: None,
-            deadzone: Some(Deadzone { b_l: -1.50, b_r: 1.41, m_l: 3.46 * b1, m_r: 2.38 * b1 }),
+            deadzone: Some(Deadzone {
+                b_l: -1.50,
+                b_r: 1.41,
+                m_l: 3.46 * b1,
+                m_r: 2.38 * b1,
+            }),
         }
     }
 
@@ -110,18 +123,31 @@ impl Model {
             return bad(format!("orders above {MAX_ORDER} are not supported"));
         }
         if self.a.len() != self.na {
-            return bad(format!("na = {} but a has {} coefficients", self.na, self.a.len()));
+            return bad(format!(
+                "na = {} but a has {} coefficients",
+                self.na,
+                self.a.len()
+            ));
         }
         if self.b.len() != self.nb {
-            return bad(format!("nb = {} but b has {} coefficients", self.nb, self.b.len()));
+            return bad(format!(
+                "nb = {} but b has {} coefficients",
+                self.nb,
+                self.b.len()
+            ));
         }
         if !(self.ts.is_finite() && self.ts > 0.0) {
-            return bad(format!("ts = {} must be a positive number of seconds", self.ts));
+            return bad(format!(
+                "ts = {} must be a positive number of seconds",
+                self.ts
+            ));
         }
         let mut values: Vec<f64> = self.a.iter().chain(&self.b).copied().collect();
         values.extend(self.offset);
         match (self.kind, &self.deadzone) {
-            (ModelKind::Hammerstein, None) => return bad("a hammerstein model needs a deadzone".into()),
+            (ModelKind::Hammerstein, None) => {
+                return bad("a hammerstein model needs a deadzone".into())
+            }
             (ModelKind::Arx, Some(_)) => return bad("an arx model has no deadzone".into()),
             (ModelKind::Hammerstein, Some(d)) => {
                 if self.nb == 0 {
@@ -173,7 +199,11 @@ impl Model {
         for k in k0..n {
             let mut v = c;
             for (i, ai) in self.a.iter().enumerate() {
-                let past = if one_step { y[k - 1 - i] } else { out[k - 1 - i] };
+                let past = if one_step {
+                    y[k - 1 - i]
+                } else {
+                    out[k - 1 - i]
+                };
                 v -= ai * past;
             }
             for (j, bj) in self.b.iter().enumerate() {
@@ -212,21 +242,67 @@ impl Model {
 }
 
 /// Roots of the monic polynomial z^n + c1 z^(n-1) + ... + c_n (n = c.len()), via the companion matrix.
+///
+/// Always terminates: trailing zero coefficients give exact roots at z = 0, and the Schur iteration is
+/// bounded (nalgebra's unbounded `complex_eigenvalues` never returns for some companion matrices, e.g.
+/// z^3, nalgebra issues #611/#1291); when it does not converge the roots come from a bounded
+/// Durand–Kerner iteration instead.
 pub fn poles_of(c: &[f64]) -> Vec<Complex<f64>> {
+    // z^n + ... + c_m z^(n-m) with c_{m+1..n} = 0 has n - m roots at exactly 0.
+    let m = c.iter().rposition(|&v| v != 0.0).map_or(0, |i| i + 1);
+    let mut p = vec![Complex::new(0.0, 0.0); c.len() - m];
+    let c = &c[..m];
     let n = c.len();
-    if n == 0 {
-        return Vec::new();
+    if n > 0 {
+        let mut comp = DMatrix::<f64>::zeros(n, n);
+        for (j, cj) in c.iter().enumerate() {
+            comp[(0, j)] = -cj;
+        }
+        for i in 1..n {
+            comp[(i, i - 1)] = 1.0;
+        }
+        match nalgebra::linalg::Schur::try_new(comp, f64::EPSILON, 1000 + 100 * n) {
+            Some(schur) => p.extend(schur.complex_eigenvalues().iter().copied()),
+            None => p.extend(durand_kerner(c)),
+        }
     }
-    let mut m = DMatrix::<f64>::zeros(n, n);
-    for (j, cj) in c.iter().enumerate() {
-        m[(0, j)] = -cj;
-    }
-    for i in 1..n {
-        m[(i, i - 1)] = 1.0;
-    }
-    let mut p: Vec<Complex<f64>> = m.complex_eigenvalues().iter().copied().collect();
     p.sort_by(|a, b| b.norm().total_cmp(&a.norm()).then(b.im.total_cmp(&a.im)));
     p
+}
+
+/// Roots of z^n + c1 z^(n-1) + ... + c_n by the Durand–Kerner (Weierstrass) iteration, at most 2000
+/// sweeps, started on a circle of the Cauchy bound 1 + max |c_i|.
+fn durand_kerner(c: &[f64]) -> Vec<Complex<f64>> {
+    let n = c.len();
+    let eval = |z: Complex<f64>| {
+        c.iter()
+            .fold(Complex::new(1.0, 0.0), |acc, &ci| acc * z + ci)
+    };
+    let radius = 1.0 + c.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+    let mut z: Vec<Complex<f64>> = (0..n)
+        .map(|k| Complex::from_polar(radius, 0.4 + std::f64::consts::TAU * k as f64 / n as f64))
+        .collect();
+    for _ in 0..2000 {
+        let mut moved = 0.0_f64;
+        for i in 0..n {
+            let mut den = Complex::new(1.0, 0.0);
+            for j in 0..n {
+                if j != i {
+                    den *= z[i] - z[j];
+                }
+            }
+            if den.norm() == 0.0 {
+                continue;
+            }
+            let step = eval(z[i]) / den;
+            z[i] -= step;
+            moved = moved.max(step.norm() / z[i].norm().max(1.0));
+        }
+        if moved.is_nan() || moved <= 1e-15 {
+            break;
+        }
+    }
+    z
 }
 
 /// An identified (or given) model run as a [`Plant`](crate::Plant): state = past outputs and past x.
@@ -254,7 +330,12 @@ impl ModelPlant {
         }
         let y_hist = vec![0.0; model.na.max(1)];
         let x_hist = vec![0.0; model.nk + model.nb - 1];
-        Ok(ModelPlant { model, y_hist, x_hist, label: label.into() })
+        Ok(ModelPlant {
+            model,
+            y_hist,
+            x_hist,
+            label: label.into(),
+        })
     }
 
     /// The wrapped model.
@@ -288,7 +369,10 @@ impl crate::Plant for ModelPlant {
             v += bj * self.x_hist[m.nk - 1 + j];
         }
         if !v.is_finite() {
-            return Err(SysidError::Numerical(format!("{} output became non-finite", self.label)));
+            return Err(SysidError::Numerical(format!(
+                "{} output became non-finite",
+                self.label
+            )));
         }
         self.y_hist.rotate_right(1);
         self.y_hist[0] = v;

@@ -23,9 +23,10 @@ pub struct Branches {
     pub b_l_fixed: bool,
     /// b_r is fixed at 0 although m_r is estimated (every u > 0 and an offset c: not separable).
     pub b_r_fixed: bool,
-    /// The most negative command below zero (for the initial breakpoint), 0 when none.
+    /// The initial left breakpoint: the largest command below zero (see [`Branches::of`] for the case
+    /// with an offset), 0 when none.
     pub max_neg: f64,
-    /// The smallest command above zero, 0 when none.
+    /// The initial right breakpoint: the smallest command above zero, 0 when none.
     pub min_pos: f64,
     /// max |u|: bound for breakpoint estimates.
     pub limit: f64,
@@ -83,13 +84,25 @@ impl Branches {
             )));
         }
         let limit = max_pos.max(-min_neg).max(0.0);
+        // Two-sided input without a zero command and with an offset: with the breakpoints at the smallest
+        // commands h_r + h_l = 1 on every sample, which is the offset's column. Start instead with the
+        // breakpoints at the 10 % quantiles of |u| on each side, so that some samples lie in the deadzone.
+        let (mut start_neg, mut start_pos) = (max_neg, min_pos);
+        if offset && left && right && !zero {
+            let quantile = |mut v: Vec<f64>| {
+                v.sort_by(f64::total_cmp);
+                v[(v.len() - 1) / 10]
+            };
+            start_pos = quantile(data.u.iter().copied().filter(|&v| v > 0.0).collect());
+            start_neg = -quantile(data.u.iter().filter(|&&v| v < 0.0).map(|v| -v).collect());
+        }
         Ok(Branches {
             left,
             right,
             b_l_fixed: left && !right && !zero && offset,
             b_r_fixed: right && !left && !zero && offset,
-            max_neg: if left { max_neg } else { 0.0 },
-            min_pos: if right { min_pos } else { 0.0 },
+            max_neg: if left { start_neg } else { 0.0 },
+            min_pos: if right { start_pos } else { 0.0 },
             limit,
         })
     }

@@ -429,7 +429,7 @@ fn instrumental(
     let idx: Vec<usize> = (0..free.len()).filter(|&i| free[i]).collect();
     let mut aux = start.model.clone();
     let mut theta_full = theta_of_model(&aux);
-    let mut last = None;
+    let mut best = None;
     let mut converged = false;
     let mut stages = 0;
     let mut notes = Vec::new();
@@ -472,14 +472,37 @@ fn instrumental(
         if let Some(d) = model.deadzone.as_mut() {
             br.impose(d);
         }
+        // Keep the stage whose model simulates the record best (from rest, as the instruments do).
+        let sim_rss = model
+            .simulate(&data.u, &y_init)
+            .ok()
+            .map_or(f64::INFINITY, |ys| {
+                ys[k0..]
+                    .iter()
+                    .zip(&data.y[k0..])
+                    .map(|(a, b)| (a - b) * (a - b))
+                    .sum::<f64>()
+            });
+        if best
+            .as_ref()
+            .is_none_or(|b: &(f64, usize, DVector<f64>, Model, iv::IvPass)| sim_rss < b.0)
+        {
+            best = Some((sim_rss, stage, theta_full.clone(), model.clone(), pass));
+        }
         aux = model;
-        last = Some(pass);
         if change < IV_SETTLED {
             converged = true;
             break;
         }
     }
-    let pass = last.ok_or_else(|| SysidError::Numerical("IV produced no estimate".into()))?;
+    let Some((_, best_stage, theta_full, aux, pass)) = best else {
+        return Err(SysidError::Numerical("IV produced no estimate".into()));
+    };
+    if best_stage != stages {
+        notes.push(format!(
+            "kept stage {best_stage} of {stages}, the one whose model simulates the record best"
+        ));
+    }
     let rss = prediction_rss(&aux, data)?;
     let sigma2 = rss / (data.len() - k0).saturating_sub(idx.len()).max(1) as f64;
     let cov = iv::covariance(&pass, sigma2).map(|c| {

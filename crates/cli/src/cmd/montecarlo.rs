@@ -1,10 +1,193 @@
-//! TODO: being written.
+//! `ipa-sysid montecarlo`: bias and spread of every parameter per estimator under white output noise.
+//! The study is `sysid::montecarlo::study` (parallel, deterministic per seed); this file wires the plants
+//! (`ipa::plant_from_spec`) and the input design (`ipa::input::generate`) into it.
 
-/// Flags.
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use ipa::input::{generate, InputSpec};
+use sysid::estimate::{IdentifySettings, Method};
+use sysid::montecarlo::{study, truth_of, StudySettings};
+use sysid::{Model, ModelKind, Orders};
+
+use super::common::{check_outputs, write_output};
+use super::identify::KindArg;
+
+/// Flags of `montecarlo`.
 #[derive(Debug, clap::Args)]
-pub struct Args {}
+pub struct Args {
+    /// Plant: `paper` (the paper's model), `ipa` (physics simulator) or `model:FILE` (a saved model).
+    #[arg(long, default_value = "paper")]
+    pub plant: String,
+    /// TOML parameters of the physics plant (`--plant ipa` only).
+    #[arg(long, value_name = "FILE")]
+    pub plant_config: Option<PathBuf>,
+    /// Standard deviation of the white noise added to the output (units of y, mm).
+    #[arg(long, default_value_t = 0.01)]
+    pub noise_std: f64,
+    /// Number of runs.
+    #[arg(long, default_value_t = 100)]
+    pub runs: usize,
+    /// Estimators to compare, comma separated: ls, rls, iv, oe.
+    #[arg(long, default_value = "ls,rls,iv,oe", value_delimiter = ',')]
+    pub method: Vec<String>,
+    /// Input signal (staircase, prbs, aprbs, multisine, step:LEVEL, file:CSV).
+    #[arg(long, default_value = "staircase")]
+    pub input: String,
+    /// Input amplitude in counts.
+    #[arg(long, default_value_t = 255.0)]
+    pub amplitude: f64,
+    /// Samples per run.
+    #[arg(long, default_value_t = 2000)]
+    pub samples: usize,
+    /// Study seed (run r uses a seed derived from (seed, r)).
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Model structure to estimate (default: the plant model's own; hammerstein for `ipa`).
+    #[arg(long, value_enum)]
+    pub model: Option<KindArg>,
+    /// na (default: the plant model's; 3 for `ipa`).
+    #[arg(long)]
+    pub na: Option<usize>,
+    /// nb (default: the plant model's; 1 for `ipa`).
+    #[arg(long)]
+    pub nb: Option<usize>,
+    /// nk (default: the plant model's; 1 for `ipa`).
+    #[arg(long)]
+    pub nk: Option<usize>,
+    /// Estimate an offset c (default: when the plant model has one).
+    #[arg(long)]
+    pub offset: bool,
+    /// RLS forgetting factor.
+    #[arg(long, default_value_t = 1.0)]
+    pub forgetting: f64,
+    /// Write the study as JSON here (`-` for standard output).
+    #[arg(long, value_name = "OUT")]
+    pub json: Option<PathBuf>,
+}
 
-/// Runs the subcommand.
-pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("not implemented yet")
+fn parse_method(m: &str) -> anyhow::Result<Method> {
+    Ok(match m.trim() {
+        "ls" => Method::Ls,
+        "rls" => Method::Rls,
+        "iv" => Method::Iv,
+        "oe" => Method::Oe,
+        other => anyhow::bail!(
+            "invalid --method '{other}': expected a comma-separated list of ls, rls, iv, oe"
+        ),
+    })
+}
+
+/// Runs `montecarlo`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let methods = args
+        .method
+        .iter()
+        .map(|m| parse_method(m))
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let spec: InputSpec = args.input.parse()?;
+    let mut inputs: Vec<&Path> =
+        ipa::spec::spec_input_files(&args.plant, args.plant_config.as_deref());
+    inputs.extend(spec.file());
+    check_outputs(&[(&args.json, "--json")], &inputs)?;
+    // The truth (known for model plants) and the sampling period.
+    let plant_spec = args.plant.trim().to_string();
+    let truth_model: Option<Model> = if plant_spec == "paper" {
+        Some(Model::paper())
+    } else if let Some(file) = plant_spec.strip_prefix("model:") {
+        Some(sysid::model_file::read_model(Path::new(file))?)
+    } else {
+        None
+    };
+    // Building one plant checks the spec and the config before any run.
+    let probe = ipa::plant_from_spec(&plant_spec, args.plant_config.as_deref())?;
+    let ts_s = probe.ts();
+    drop(probe);
+    let (kind, orders, offset) = match &truth_model {
+        Some(m) => (m.kind, m.orders(), m.offset.is_some()),
+        None => (ModelKind::Hammerstein, Orders::PAPER, false),
+    };
+    let kind = match args.model {
+        Some(KindArg::Arx) => ModelKind::Arx,
+        Some(KindArg::Hammerstein) => ModelKind::Hammerstein,
+        None => kind,
+    };
+    let orders = Orders {
+        na: args.na.unwrap_or(orders.na),
+        nb: args.nb.unwrap_or(orders.nb),
+        nk: args.nk.unwrap_or(orders.nk),
+    };
+    let base = IdentifySettings {
+        kind,
+        orders,
+        offset: offset || args.offset,
+        forgetting: args.forgetting,
+        drop_unexcited_branch: true,
+        ..IdentifySettings::default()
+    };
+    // The truth is comparable only when the estimated structure is the plant model's own.
+    let truth = truth_model
+        .as_ref()
+        .filter(|m| m.kind == kind && m.orders() == orders && m.offset.is_some() == base.offset)
+        .map(truth_of);
+    let settings = StudySettings {
+        runs: args.runs,
+        seed: args.seed,
+        noise_std: args.noise_std,
+        methods,
+        base,
+        ts_s,
+    };
+    let config = args.plant_config.clone();
+    let (samples, amplitude) = (args.samples, args.amplitude);
+    let spec_run = spec.clone();
+    let experiment = move |_run: usize, seed: u64| -> Result<(Vec<f64>, Vec<f64>), String> {
+        let u = generate(&spec_run, samples, ts_s, amplitude, seed).map_err(|e| e.to_string())?;
+        let mut plant =
+            ipa::plant_from_spec(&plant_spec, config.as_deref()).map_err(|e| e.to_string())?;
+        let y = sysid::run_open_loop(plant.as_mut(), &u).map_err(|e| e.to_string())?;
+        Ok((u, y))
+    };
+    let bar = ProgressBar::with_draw_target(
+        Some(args.runs as u64),
+        if std::io::stderr().is_terminal() {
+            ProgressDrawTarget::stderr()
+        } else {
+            ProgressDrawTarget::hidden()
+        },
+    );
+    if let Ok(style) = ProgressStyle::with_template("{bar:40} {pos}/{len} runs {elapsed}") {
+        bar.set_style(style);
+    }
+    let report = study(&settings, truth.as_deref(), &experiment, &|| bar.inc(1))
+        .context("Monte Carlo study")?;
+    bar.finish_and_clear();
+    let header = format!(
+        "Plant: {}; input {} ±{} counts, {} samples, Ts = {} s; estimated structure {} na = {} nb = {} nk = {}{}{}\n",
+        args.plant,
+        args.input,
+        args.amplitude,
+        args.samples,
+        ts_s,
+        kind,
+        orders.na,
+        orders.nb,
+        orders.nk,
+        if settings.base.offset { " with offset" } else { "" },
+        if truth.is_none() { " (truth unknown or a different structure: spread only)" } else { "" }
+    );
+    let text = header + &report.to_text();
+    let json_to_stdout = args.json.as_deref().is_some_and(|p| p.as_os_str() == "-");
+    if json_to_stdout {
+        eprint!("{text}");
+    } else {
+        print!("{text}");
+    }
+    if let Some(path) = &args.json {
+        let json = serde_json::to_string_pretty(&report)? + "\n";
+        write_output(path, json.as_bytes(), &inputs, "--json")?;
+    }
+    Ok(())
 }

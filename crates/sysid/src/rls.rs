@@ -104,7 +104,12 @@ impl Rls {
 
     /// The same update as [`Rls::update`], written as the plain textbook loop with no specialisation.
     /// Kept as the reference that the fast kernels are tested against, and for benchmarks.
-    pub fn update_reference(&mut self, phi: &[f64], y: f64, sample: usize) -> Result<f64, SysidError> {
+    pub fn update_reference(
+        &mut self,
+        phi: &[f64],
+        y: f64,
+        sample: usize,
+    ) -> Result<f64, SysidError> {
         let n = self.theta.len();
         if phi.len() != n || self.p.nrows() != n || self.p.ncols() != n || self.pphi.len() != n {
             return Err(shape_error(n, phi.len(), self.p.shape()));
@@ -166,7 +171,11 @@ impl<const N: usize> RlsN<N> {
     /// A new estimator with θ̂(0) = 0 and P(0) = p0 · I, forgetting factor ρ = `forgetting`.
     pub fn new(forgetting: f64, p0: f64) -> Result<Self, SysidError> {
         check_settings(forgetting, p0)?;
-        let mut est = RlsN { theta: [0.0; N], p: [[0.0; N]; N], forgetting };
+        let mut est = RlsN {
+            theta: [0.0; N],
+            p: [[0.0; N]; N],
+            forgetting,
+        };
         est.restart_covariance(p0);
         Ok(est)
     }
@@ -175,8 +184,14 @@ impl<const N: usize> RlsN<N> {
     /// numerical failure (P no longer positive definite, a non-finite value) the state is unchanged.
     #[inline]
     pub fn update(&mut self, phi: &[f64; N], y: f64, sample: usize) -> Result<f64, SysidError> {
-        update_fixed::<N>(&mut self.theta, self.p.as_flattened_mut(), phi, y, self.forgetting)
-            .map_err(|(denom, eps)| numerical(sample, denom, eps))
+        update_fixed::<N>(
+            &mut self.theta,
+            self.p.as_flattened_mut(),
+            phi,
+            y,
+            self.forgetting,
+        )
+        .map_err(|(denom, eps)| numerical(sample, denom, eps))
     }
 
     /// Restarts the covariance at p0 · I while keeping θ̂.
@@ -281,11 +296,15 @@ fn update_fixed<const N: usize>(
 fn sym_update<const N: usize, const SCALE: bool>(p: &mut [f64], pphi: &[f64; N], gain: &[f64; N], inv_rho: f64) {
     for j in 0..N {
         let col = &mut p[j * N..j * N + N];
+        let (upper, lower) = col.split_at_mut(j + 1);
         let (gj, pj) = (gain[j], pphi[j]);
-        for i in 0..N {
-            let prod = if i <= j { pphi[i] * gj } else { pj * gain[i] };
-            let v = col[i] - prod;
-            col[i] = if SCALE { v * inv_rho } else { v };
+        for (c, q) in upper.iter_mut().zip(&pphi[..=j]) {
+            let v = *c - q * gj;
+            *c = if SCALE { v * inv_rho } else { v };
+        }
+        for (c, g) in lower.iter_mut().zip(&gain[j + 1..]) {
+            let v = *c - pj * g;
+            *c = if SCALE { v * inv_rho } else { v };
         }
     }
 }
@@ -327,10 +346,17 @@ fn update_dynamic(
     for (j, col) in p.chunks_exact_mut(n).enumerate() {
         let pj = pphi[j];
         let gj = pj * inv;
-        for (i, c) in col.iter_mut().enumerate() {
-            let prod = if i <= j { pphi[i] * gj } else { pj * (pphi[i] * inv) };
-            let v = *c - prod;
-            *c = if rho == 1.0 { v } else { v * inv_rho };
+        let (upper, lower) = col.split_at_mut(j + 1);
+        for (c, q) in upper.iter_mut().zip(&pphi[..=j]) {
+            *c -= q * gj;
+        }
+        for (c, q) in lower.iter_mut().zip(&pphi[j + 1..]) {
+            *c -= pj * (q * inv);
+        }
+        if rho != 1.0 {
+            for c in col.iter_mut() {
+                *c *= inv_rho;
+            }
         }
     }
     Ok(eps)
@@ -353,10 +379,18 @@ fn shape_error(n: usize, got: usize, p_shape: (usize, usize)) -> SysidError {
 /// Checks ρ ∈ (0, 1] and P(0) > 0.
 pub fn check_settings(forgetting: f64, p0: f64) -> Result<(), SysidError> {
     if !(forgetting > 0.0 && forgetting <= 1.0) {
-        return Err(SysidError::setting("--forgetting", forgetting, "a forgetting factor in (0, 1]"));
+        return Err(SysidError::setting(
+            "--forgetting",
+            forgetting,
+            "a forgetting factor in (0, 1]",
+        ));
     }
     if !(p0.is_finite() && p0 > 0.0) {
-        return Err(SysidError::setting("--p0", p0, "a positive, finite initial covariance scale"));
+        return Err(SysidError::setting(
+            "--p0",
+            p0,
+            "a positive, finite initial covariance scale",
+        ));
     }
     Ok(())
 }
@@ -373,9 +407,17 @@ mod tests {
         let truth: Vec<f64> = (0..n).map(|_| rng.gen_range(-2.0..2.0)).collect();
         (0..samples)
             .map(|_| {
-                let phi: Vec<f64> =
-                    (0..n).map(|_| if rng.gen_bool(0.1) { 0.0 } else { rng.gen_range(-100.0..100.0) }).collect();
-                let y = phi.iter().zip(&truth).map(|(a, b)| a * b).sum::<f64>() + rng.gen_range(-0.5..0.5);
+                let phi: Vec<f64> = (0..n)
+                    .map(|_| {
+                        if rng.gen_bool(0.1) {
+                            0.0
+                        } else {
+                            rng.gen_range(-100.0..100.0)
+                        }
+                    })
+                    .collect();
+                let y = phi.iter().zip(&truth).map(|(a, b)| a * b).sum::<f64>()
+                    + rng.gen_range(-0.5..0.5);
                 (phi, y)
             })
             .collect()
@@ -398,13 +440,26 @@ mod tests {
                 for (k, (phi, y)) in data.iter().enumerate() {
                     let ef = fast.update(phi, *y, k).unwrap();
                     let er = refr.update_reference(phi, *y, k).unwrap();
-                    assert!(rel_diff(ef, er) <= 1e-12, "n={n} rho={rho} k={k}: ε {ef} vs {er}");
+                    assert!(
+                        rel_diff(ef, er) <= 1e-12,
+                        "n={n} rho={rho} k={k}: ε {ef} vs {er}"
+                    );
                 }
                 for i in 0..n {
-                    assert!(rel_diff(fast.theta[i], refr.theta[i]) <= 1e-12, "n={n} θ{i}");
+                    assert!(
+                        rel_diff(fast.theta[i], refr.theta[i]) <= 1e-12,
+                        "n={n} θ{i}"
+                    );
                     for j in 0..n {
-                        assert!(rel_diff(fast.p[(i, j)], refr.p[(i, j)]) <= 1e-12, "n={n} P{i}{j}");
-                        assert_eq!(fast.p[(i, j)], fast.p[(j, i)], "P must stay exactly symmetric");
+                        assert!(
+                            rel_diff(fast.p[(i, j)], refr.p[(i, j)]) <= 1e-12,
+                            "n={n} P{i}{j}"
+                        );
+                        assert_eq!(
+                            fast.p[(i, j)],
+                            fast.p[(j, i)],
+                            "P must stay exactly symmetric"
+                        );
                     }
                 }
             }
@@ -460,7 +515,10 @@ mod tests {
         est.update(&[1.0, 2.0, 3.0], 1.0, 0).unwrap();
         let before = est.clone();
         let e = est.update(&[1.0, 0.5, 0.0], f64::NAN, 7).unwrap_err();
-        assert!(e.is_numerical() && e.to_string().contains("sample 7"), "{e}");
+        assert!(
+            e.is_numerical() && e.to_string().contains("sample 7"),
+            "{e}"
+        );
         assert_eq!(est.theta, before.theta);
         assert_eq!(est.p, before.p);
     }

@@ -116,7 +116,7 @@ norm() { sed -e 's/&quot;/"/g' -e "s/&#39;/'/g" -e 's/&#x27;/'"'"'/g'; }
 flat() { tr '\n' ' ' <"$1" | sed -e 's/</\n</g'; }
 
 # 3. Title and section headings.
-title=$(flat "$report" | grep -o '^<h1[^>]*>[^<]*' | head -n 1 | sed -e 's/^<h1[^>]*>//' | norm || true)
+title=$(flat "$report" | grep -o '^<h1[^>]*>[^<]*' | sed -n '1p' | sed -e 's/^<h1[^>]*>//' | norm || true)
 if [ -z "$title" ]; then
     fail "$report has no <h1> title"
 elif grep -qF -- ">$title" <<<"$(flat "$dom" | norm)"; then
@@ -159,7 +159,7 @@ done
 if grep -qi '^<script' <<<"$(flat "$report")"; then
     fail "the report contains a <script>"
 fi
-external=$(grep -oiE '(src|href)="(https?|file|ftp):[^"]*"|url\((https?|file):[^)]*\)|@import' "$report" | head -n 5 || true)
+external=$(grep -oiE '(src|href)="(https?|file|ftp):[^"]*"|url\((https?|file):[^)]*\)|@import' "$report" | sed -n '1,5p' || true)
 if [ -n "$external" ]; then
     fail "external resources referenced: $external"
 else

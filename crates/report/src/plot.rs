@@ -693,7 +693,9 @@ fn encode_png(figure: &str, rgb: &[u8], width: u32, height: u32) -> Result<Vec<u
         let mut encoder = png::Encoder::new(&mut out, width, height);
         encoder.set_color(png::ColorType::Rgb);
         encoder.set_depth(png::BitDepth::Eight);
-        encoder.set_compression(png::Compression::Best);
+        // Default rather than Best: for a 960 x 800 two-panel figure of 2000 samples (release build)
+        // Default took 11 ms for 34 kB, Best 57 ms for 35 kB.
+        encoder.set_compression(png::Compression::Default);
         let mut writer = encoder.write_header().map_err(fail)?;
         writer.write_image_data(rgb).map_err(fail)?;
         writer.finish().map_err(fail)?;

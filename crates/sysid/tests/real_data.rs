@@ -1,0 +1,68 @@
+//! Real measured data from `../shared/data` (read at run time, never copied into the repository). Each test
+//! skips, saying so, when the folder is absent.
+
+use std::path::PathBuf;
+
+use sysid::data::{read_csv, CsvOptions};
+use sysid::estimate::{identify, IdentifySettings, Method};
+use sysid::validation::metrics;
+use sysid::{Dataset, ModelKind};
+
+fn data_dir() -> Option<PathBuf> {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
+    if dir.is_dir() {
+        Some(dir)
+    } else {
+        println!(
+            "SKIPPED: the shared data folder {} is absent",
+            dir.display()
+        );
+        None
+    }
+}
+
+fn tanks(dir: &std::path::Path, u: &str, y: &str) -> Dataset {
+    let opts = CsvOptions {
+        u_col: u.into(),
+        y_col: y.into(),
+        t_col: "t".into(),
+        ts: Some(4.0),
+        fallback_ts: None,
+    };
+    read_csv(&dir.join("cascaded_tanks/dataBenchmark.csv"), &opts).unwrap()
+}
+
+// Cascaded tanks (SOURCE.md): a linear ARX(2, 2, 1) with offset refined by output error simulates the test
+// record with an RMSE below the published best linear approximation (0.75 V); LS ARX is above OE.
+#[test]
+fn cascaded_tanks_output_error_arx_beats_the_published_bla() {
+    let Some(dir) = data_dir() else { return };
+    let (est, val) = (tanks(&dir, "uEst", "yEst"), tanks(&dir, "uVal", "yVal"));
+    let s = IdentifySettings::default()
+        .with_kind(ModelKind::Arx)
+        .with_orders(2, 2, 1)
+        .with_offset(true);
+    let ls = identify(&est, &s.clone().with_method(Method::Ls)).unwrap();
+    let oe = identify(&est, &s.with_method(Method::Oe)).unwrap();
+    let rmse_ls = metrics(&ls.model, &val).unwrap().rmse_sim.unwrap();
+    let rmse_oe = metrics(&oe.model, &val).unwrap().rmse_sim.unwrap();
+    assert!(rmse_oe < 0.75, "OE test RMSE {rmse_oe}");
+    assert!(rmse_oe < rmse_ls, "OE {rmse_oe} vs LS {rmse_ls}");
+}
+
+// The pump voltage is never negative: a Hammerstein model is estimated (not refused) with the left branch
+// dropped and the fixed parameters reported without a standard deviation.
+#[test]
+fn cascaded_tanks_one_sided_hammerstein_is_estimated_with_a_note() {
+    let Some(dir) = data_dir() else { return };
+    let est = tanks(&dir, "uEst", "yEst");
+    let mut s = IdentifySettings::default()
+        .with_orders(2, 2, 1)
+        .with_method(Method::Ls)
+        .with_offset(true);
+    s.drop_unexcited_branch = true;
+    let fit = identify(&est, &s).unwrap();
+    assert!(fit.note.unwrap().contains("never negative"));
+    let d = fit.model.deadzone.unwrap();
+    assert_eq!((d.m_l, d.b_l), (0.0, 0.0));
+}

@@ -1,9 +1,17 @@
 //! Input/output data records and the CSV reader.
 //!
-//! A CSV file has a header row; columns are chosen by name. The delimiter is a comma, or a semicolon or
-//! a tab when the header row has no comma but one of those (as exported by spreadsheets in many locales).
-//! Trailing empty fields (as in some benchmark files) are tolerated; every cell that is read must hold a
-//! finite number, otherwise the error names the file, line and column.
+//! A CSV file has a header row; columns are chosen by name. What is accepted (docs/reliability.md):
+//! - delimiter: a comma, or a semicolon or a tab when the header row has no comma but one of those (as
+//!   exported by spreadsheets in many locales); with a semicolon or tab delimiter a decimal comma
+//!   (`0,01`) is read as a decimal point;
+//! - a UTF-8 byte-order mark, CRLF line ends, quoted fields, spaces around fields, blank lines, trailing
+//!   empty fields (as in some benchmark files) and extra columns that are not used;
+//! - any finite f64, however large or small (the estimators then report a numerical failure if the
+//!   magnitudes overflow).
+//!
+//! Everything else is refused with the file, line and column and what was expected: a cell that is
+//! empty, not a number, NaN or infinite; a value beyond the header's columns; a time column that does
+//! not increase or is not uniform within 0.1 %; a file that is not UTF-8 text.
 
 use std::path::Path;
 
@@ -11,6 +19,9 @@ use crate::SysidError;
 
 /// Upper bound on the number of samples read from one file (keeps hostile inputs from exhausting memory).
 pub const MAX_SAMPLES: usize = 50_000_000;
+
+/// Upper bound on the size of a CSV file, checked before the file is read (2 GiB).
+pub const MAX_FILE_BYTES: u64 = 2 * 1024 * 1024 * 1024;
 
 /// A uniformly sampled SISO record: u(k) and y(k), k = 0..N-1, sampled every `ts` seconds.
 #[derive(Debug, Clone, PartialEq)]
@@ -27,7 +38,12 @@ pub struct Dataset {
 
 impl Dataset {
     /// A record from vectors; fails on unequal lengths, non-finite values or a bad Ts.
-    pub fn new(u: Vec<f64>, y: Vec<f64>, ts: f64, name: impl Into<String>) -> Result<Self, SysidError> {
+    pub fn new(
+        u: Vec<f64>,
+        y: Vec<f64>,
+        ts: f64,
+        name: impl Into<String>,
+    ) -> Result<Self, SysidError> {
         let name = name.into();
         if u.len() != y.len() {
             return Err(SysidError::File {
@@ -62,7 +78,11 @@ fn check_ts(ts: f64) -> Result<(), SysidError> {
     if ts.is_finite() && ts > 0.0 {
         Ok(())
     } else {
-        Err(SysidError::setting("--ts", ts, "a positive, finite sampling period in seconds"))
+        Err(SysidError::setting(
+            "--ts",
+            ts,
+            "a positive, finite sampling period in seconds",
+        ))
     }
 }
 
@@ -83,13 +103,32 @@ pub struct CsvOptions {
 
 impl Default for CsvOptions {
     fn default() -> Self {
-        CsvOptions { u_col: "u".into(), y_col: "y".into(), t_col: "t".into(), ts: None, fallback_ts: None }
+        CsvOptions {
+            u_col: "u".into(),
+            y_col: "y".into(),
+            t_col: "t".into(),
+            ts: None,
+            fallback_ts: None,
+        }
     }
 }
 
 /// Reads a record from a CSV file.
 pub fn read_csv(path: &Path, opts: &CsvOptions) -> Result<Dataset, SysidError> {
-    let bytes = std::fs::read(path).map_err(|source| SysidError::Io { path: path.to_path_buf(), source })?;
+    let io = |source| SysidError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let size = std::fs::metadata(path).map_err(io)?.len();
+    if size > MAX_FILE_BYTES {
+        return Err(SysidError::File {
+            file: path.display().to_string(),
+            message: format!(
+                "{size} bytes is more than the {MAX_FILE_BYTES} bytes a data file may have; split the record"
+            ),
+        });
+    }
+    let bytes = std::fs::read(path).map_err(io)?;
     read_csv_bytes(&bytes, &path.display().to_string(), opts)
 }
 
@@ -98,32 +137,37 @@ pub fn read_csv_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Dat
     let table = read_table(bytes, name)?;
     let ucol = table.column_index(&opts.u_col, "--u-col")?;
     let ycol = table.column_index(&opts.y_col, "--y-col")?;
+    if ucol == ycol {
+        return Err(SysidError::setting(
+            "--y-col",
+            &opts.y_col,
+            "a column different from --u-col (u and y cannot be the same column)",
+        ));
+    }
     let has_t = table.headers.iter().any(|h| *h == opts.t_col);
     let ts_given = opts.ts.or(if has_t { None } else { opts.fallback_ts });
-    let tcol = match ts_given {
-        Some(_) => None,
-        None => Some(table.column_index(&opts.t_col, "--t-col").map_err(|_| SysidError::File {
-            file: name.to_string(),
-            message: format!(
-                "no time column '{}' and no --ts: pass --ts SECONDS or name the time column with --t-col \
-                 (columns are: {})",
-                opts.t_col,
-                table.header_list()
-            ),
-        })?),
-    };
     let u = table.numbers(ucol)?;
     let y = table.numbers(ycol)?;
-    let ts = match (ts_given, tcol) {
-        (Some(ts), _) => {
+    let ts = match ts_given {
+        Some(ts) => {
             check_ts(ts)?;
             ts
         }
-        (None, Some(tc)) => {
+        None => {
+            let tc = table
+                .column_index(&opts.t_col, "--t-col")
+                .map_err(|_| SysidError::File {
+                    file: name.to_string(),
+                    message: format!(
+                        "no time column '{}' and no --ts: pass --ts SECONDS or name the time column with \
+                         --t-col (columns are: {})",
+                        opts.t_col,
+                        table.header_list()
+                    ),
+                })?;
             let t = table.numbers(tc)?;
             uniform_ts(&t, &table, tc)?
         }
-        (None, None) => unreachable!("tcol is Some when ts is None"),
     };
     Dataset::new(u, y, ts, name)
 }
@@ -135,16 +179,29 @@ pub struct Table {
     /// Column names, trimmed and unquoted.
     pub headers: Vec<String>,
     rows: Vec<(usize, csv::StringRecord)>,
+    /// Read `1,5` as 1.5 (semicolon- or tab-delimited files).
+    decimal_comma: bool,
 }
 
 /// Parses CSV bytes into a [`Table`], checking the header and the shape of every row.
 pub fn read_table(bytes: &[u8], name: &str) -> Result<Table, SysidError> {
-    let file_err = |message: String| SysidError::File { file: name.to_string(), message };
+    let file_err = |message: String| SysidError::File {
+        file: name.to_string(),
+        message,
+    };
     if bytes.is_empty() || bytes.iter().all(|b| b.is_ascii_whitespace()) {
-        return Err(file_err("the file is empty; expected a header row and data rows".into()));
+        return Err(file_err(
+            "the file is empty; expected a header row and data rows".into(),
+        ));
     }
-    let text = std::str::from_utf8(bytes).map_err(|e| {
-        let (line, column) = line_col(bytes, e.valid_up_to());
+    // A UTF-8 byte-order mark (spreadsheet exports) is not part of the first column's name.
+    let bom = if bytes.starts_with(b"\xef\xbb\xbf") {
+        3
+    } else {
+        0
+    };
+    let text = std::str::from_utf8(&bytes[bom..]).map_err(|e| {
+        let (line, column) = line_col(&bytes[bom..], e.valid_up_to());
         SysidError::Parse {
             file: name.to_string(),
             line,
@@ -153,7 +210,7 @@ pub fn read_table(bytes: &[u8], name: &str) -> Result<Table, SysidError> {
         }
     })?;
     if text.contains('\0') {
-        let (line, column) = line_col(bytes, text.find('\0').unwrap_or(0));
+        let (line, column) = line_col(text.as_bytes(), text.find('\0').unwrap_or(0));
         return Err(SysidError::Parse {
             file: name.to_string(),
             line,
@@ -181,7 +238,9 @@ pub fn read_table(bytes: &[u8], name: &str) -> Result<Table, SysidError> {
         headers.pop();
     }
     if headers.is_empty() {
-        return Err(file_err("the header row is empty; expected column names such as u,y".into()));
+        return Err(file_err(
+            "the header row is empty; expected column names such as u,y".into(),
+        ));
     }
     for (i, h) in headers.iter().enumerate() {
         if h.is_empty() {
@@ -197,7 +256,10 @@ pub fn read_table(bytes: &[u8], name: &str) -> Result<Table, SysidError> {
                 file: name.to_string(),
                 line: 1,
                 column: i + 1,
-                message: format!("duplicate column name '{h}' (also column {}); names must be unique", j + 1),
+                message: format!(
+                    "duplicate column name '{h}' (also column {}); names must be unique",
+                    j + 1
+                ),
             });
         }
     }
@@ -213,29 +275,56 @@ pub fn read_table(bytes: &[u8], name: &str) -> Result<Table, SysidError> {
                 file: name.to_string(),
                 line,
                 column: headers.len() + extra + 1,
-                message: format!("ragged row: a value beyond the {} columns of the header", headers.len()),
+                message: format!(
+                    "ragged row: a value beyond the {} columns of the header; expected at most {} \
+                     fields per row (or a header naming every column)",
+                    headers.len(),
+                    headers.len()
+                ),
             });
         }
         if rows.len() >= MAX_SAMPLES {
-            return Err(file_err(format!("more than {MAX_SAMPLES} data rows; split the record")));
+            return Err(file_err(format!(
+                "more than {MAX_SAMPLES} data rows (the limit); split the record"
+            )));
         }
         rows.push((line, rec));
     }
     if rows.is_empty() {
         return Err(file_err("the file has a header but no data rows".into()));
     }
-    Ok(Table { name: name.to_string(), headers, rows })
+    Ok(Table {
+        name: name.to_string(),
+        headers,
+        rows,
+        decimal_comma: delimiter != b',',
+    })
 }
 
 fn csv_err(name: &str, e: csv::Error) -> SysidError {
-    let (line, column) = e.position().map_or((0, 0), |p| (p.line() as usize, 1));
-    SysidError::Parse { file: name.to_string(), line, column, message: format!("malformed CSV: {e}") }
+    match e.position() {
+        Some(p) => SysidError::Parse {
+            file: name.to_string(),
+            line: p.line() as usize,
+            column: 1,
+            message: format!("malformed CSV: {e}"),
+        },
+        None => SysidError::File {
+            file: name.to_string(),
+            message: format!("malformed CSV: {e}"),
+        },
+    }
 }
 
 fn line_col(bytes: &[u8], offset: usize) -> (usize, usize) {
     let before = &bytes[..offset.min(bytes.len())];
     let line = before.iter().filter(|&&b| b == b'\n').count() + 1;
-    let column = offset - before.iter().rposition(|&b| b == b'\n').map_or(0, |p| p + 1) + 1;
+    let column = offset
+        - before
+            .iter()
+            .rposition(|&b| b == b'\n')
+            .map_or(0, |p| p + 1)
+        + 1;
     (line, column)
 }
 
@@ -256,10 +345,21 @@ impl Table {
 
     /// The 0-based index of the column called `col`; `flag` names the option that chose it.
     pub fn column_index(&self, col: &str, flag: &str) -> Result<usize, SysidError> {
-        self.headers.iter().position(|h| h == col).ok_or_else(|| SysidError::File {
+        if let Some(i) = self.headers.iter().position(|h| h == col) {
+            return Ok(i);
+        }
+        let hint = if self.headers.iter().all(|h| parse_number(h, true).is_some()) {
+            " (the first row holds numbers: the file has no header row; add one such as t,u,y)"
+                .to_string()
+        } else if let Some(h) = self.headers.iter().find(|h| h.eq_ignore_ascii_case(col)) {
+            format!(" (names are case-sensitive: did you mean {flag} {h}?)")
+        } else {
+            String::new()
+        };
+        Err(SysidError::File {
             file: self.name.clone(),
             message: format!(
-                "no column named '{col}' (chosen by {flag}); the header has: {}",
+                "no column named '{col}' (chosen by {flag}); the header has: {}{hint}",
                 self.header_list()
             ),
         })
@@ -267,7 +367,7 @@ impl Table {
 
     /// Every cell of column `col` as a finite f64, or an error at the first bad cell.
     pub fn numbers(&self, col: usize) -> Result<Vec<f64>, SysidError> {
-        let cname = &self.headers[col];
+        let cname = self.headers.get(col).map_or("?", String::as_str);
         self.rows
             .iter()
             .map(|(line, rec)| {
@@ -277,25 +377,59 @@ impl Table {
                     column: col + 1,
                     message,
                 };
-                let cell = rec.get(col).unwrap_or("");
+                let Some(cell) = rec.get(col) else {
+                    return Err(err(format!(
+                        "the row has only {} of the header's {} fields; expected a number for column '{cname}'",
+                        rec.len(),
+                        self.headers.len()
+                    )));
+                };
                 if cell.is_empty() {
-                    return Err(err(format!("empty cell in column '{cname}'; expected a number")));
+                    return Err(err(format!(
+                        "empty cell in column '{cname}'; expected a number (remove or fill missing samples)"
+                    )));
                 }
-                let v: f64 = cell
-                    .parse()
-                    .map_err(|_| err(format!("'{}' in column '{cname}' is not a number", shorten(cell))))?;
+                let v = parse_number(cell, self.decimal_comma).ok_or_else(|| {
+                    err(format!(
+                        "'{}' in column '{cname}' is not a number; expected a decimal number such as -1.5 or 2e-3",
+                        shorten(cell)
+                    ))
+                })?;
                 if !v.is_finite() {
-                    return Err(err(format!("'{cell}' in column '{cname}' is not a finite number")));
+                    return Err(err(format!(
+                        "'{}' in column '{cname}' is not a finite number; expected a finite value \
+                         (remove or fill missing samples)",
+                        shorten(cell)
+                    )));
                 }
                 Ok(v)
             })
             .collect()
     }
 
-    /// The line number (1-based) of data row `row`.
+    /// The line number (1-based) of data row `row` (0 when there is no such row).
     pub fn line_of(&self, row: usize) -> usize {
-        self.rows[row].0
+        self.rows.get(row).map_or(0, |r| r.0)
     }
+}
+
+/// A cell as f64: Rust's float syntax, plus a decimal comma (`1,5`) when `decimal_comma` (a semicolon-
+/// or tab-delimited file) and the cell has one comma and no point.
+fn parse_number(cell: &str, decimal_comma: bool) -> Option<f64> {
+    if let Ok(v) = cell.parse::<f64>() {
+        return Some(v);
+    }
+    if decimal_comma && cell.matches(',').count() == 1 && !cell.contains('.') {
+        return cell.replace(',', ".").parse().ok();
+    }
+    None
+}
+
+/// `x` to 6 significant digits, without trailing zeros (0.019999999999999997 -> 0.02).
+fn sig6(x: f64) -> String {
+    format!("{x:.5e}")
+        .parse::<f64>()
+        .map_or_else(|_| x.to_string(), |v| v.to_string())
 }
 
 fn shorten(s: &str) -> String {
@@ -306,39 +440,56 @@ fn shorten(s: &str) -> String {
     }
 }
 
-/// Ts from a time column: every step must be positive and equal to the mean step within 0.1 %.
+/// Ts from a time column: time must increase strictly, and every step must equal the median step
+/// within 0.1 %; Ts is then the mean step (t_last - t_0) / (N - 1).
 fn uniform_ts(t: &[f64], table: &Table, col: usize) -> Result<f64, SysidError> {
+    let at = |k: usize, message: String| SysidError::Parse {
+        file: table.name.clone(),
+        line: table.line_of(k),
+        column: col + 1,
+        message,
+    };
     if t.len() < 2 {
         return Err(SysidError::File {
             file: table.name.clone(),
             message: "one sample is not enough to find Ts from the time column; pass --ts".into(),
         });
     }
-    let ts = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
     for k in 1..t.len() {
-        let dt = t[k] - t[k - 1];
-        if dt <= 0.0 || !ts.is_finite() || ts <= 0.0 {
-            return Err(SysidError::Parse {
-                file: table.name.clone(),
-                line: table.line_of(k),
-                column: col + 1,
-                message: format!(
-                    "time {} does not increase after {} on the previous row; time must increase",
+        if t[k] <= t[k - 1] {
+            return Err(at(
+                k,
+                format!(
+                    "time {} s does not increase after {} s on the previous row; expected strictly \
+                     increasing time",
                     t[k],
                     t[k - 1]
                 ),
-            });
+            ));
         }
-        if (dt - ts).abs() > 1e-3 * ts {
-            return Err(SysidError::Parse {
-                file: table.name.clone(),
-                line: table.line_of(k),
-                column: col + 1,
-                message: format!(
-                    "non-uniform sampling: step {dt} s differs from the mean step {ts} s by more than 0.1 %; \
-                     resample the record or pass --ts"
+    }
+    let mut steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    let mid = steps.len() / 2;
+    let median = *steps.select_nth_unstable_by(mid, f64::total_cmp).1;
+    let ts = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
+    if !(median.is_finite() && median > 0.0 && ts.is_finite() && ts > 0.0) {
+        return Err(at(
+            1,
+            format!("the time steps (median {median} s) do not give a usable Ts; pass --ts"),
+        ));
+    }
+    for k in 1..t.len() {
+        let dt = t[k] - t[k - 1];
+        if (dt - median).abs() > 1e-3 * median {
+            return Err(at(
+                k,
+                format!(
+                    "non-uniform sampling: step {} s from the previous row differs from the typical \
+                     (median) step {} s by more than 0.1 %; resample the record or pass --ts",
+                    sig6(dt),
+                    sig6(median)
                 ),
-            });
+            ));
         }
     }
     Ok(ts)

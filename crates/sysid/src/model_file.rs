@@ -22,16 +22,22 @@ struct ModelFileOut<'a> {
     model: &'a Model,
 }
 
+/// Upper bound on the size of a model file (a model has at most 3 * [`crate::model::MAX_ORDER`]
+/// coefficients; the `identify --json` summary is larger but still a few kB).
+pub const MAX_MODEL_FILE_BYTES: u64 = 16 * 1024 * 1024;
+
 #[derive(Deserialize)]
 struct ModelFileIn {
-    format: Option<String>,
-    version: Option<u32>,
-    model: Option<serde_json::Value>,
+    model: Model,
 }
 
 /// Serialises `model` as a model file (pretty JSON).
 pub fn to_json(model: &Model) -> String {
-    let out = ModelFileOut { format: FORMAT, version: VERSION, model };
+    let out = ModelFileOut {
+        format: FORMAT,
+        version: VERSION,
+        model,
+    };
     // Serialising plain structs of numbers and strings cannot fail.
     serde_json::to_string_pretty(&out).unwrap_or_default() + "\n"
 }
@@ -43,39 +49,137 @@ pub fn write_model(path: &Path, model: &Model) -> Result<(), SysidError> {
 
 /// Reads and checks a model file.
 pub fn read_model(path: &Path) -> Result<Model, SysidError> {
-    let text = std::fs::read(path).map_err(|source| SysidError::Io { path: path.to_path_buf(), source })?;
+    let io = |source| SysidError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let size = std::fs::metadata(path).map_err(io)?.len();
+    if size > MAX_MODEL_FILE_BYTES {
+        return Err(SysidError::File {
+            file: path.display().to_string(),
+            message: format!(
+                "{size} bytes is too large for a model file (at most {MAX_MODEL_FILE_BYTES}); \
+                 expected a file written by identify --save-model"
+            ),
+        });
+    }
+    let text = std::fs::read(path).map_err(io)?;
     parse_model(&text, &path.display().to_string())
 }
 
 /// Parses model-file bytes; `name` is used in messages.
+///
+/// Errors name the file, and the line and column for malformed JSON or a value of the wrong type, and
+/// say what was expected. A UTF-8 byte-order mark is skipped. Never panics, whatever the bytes.
 pub fn parse_model(bytes: &[u8], name: &str) -> Result<Model, SysidError> {
-    let file_err = |message: String| SysidError::File { file: name.to_string(), message };
-    let json_err = |e: serde_json::Error, what: &str| SysidError::Parse {
+    let file_err = |message: String| SysidError::File {
         file: name.to_string(),
-        line: e.line(),
-        column: e.column(),
-        message: format!("{what}: {e}"),
+        message,
     };
-    let raw: ModelFileIn =
-        serde_json::from_slice(bytes).map_err(|e| json_err(e, "not a JSON model file"))?;
-    if let Some(f) = &raw.format {
-        if f != FORMAT {
-            return Err(file_err(format!("format is '{f}', expected '{FORMAT}'")));
-        }
+    let bytes = bytes.strip_prefix(b"\xef\xbb\xbf").unwrap_or(bytes);
+    if bytes.iter().all(|b| b.is_ascii_whitespace()) {
+        return Err(file_err(
+            "the file is empty; expected a JSON model file written by identify --save-model".into(),
+        ));
     }
-    if let Some(v) = raw.version {
-        if v > VERSION {
+    let raw: serde_json::Value =
+        serde_json::from_slice(bytes).map_err(|e| json_err(bytes, name, &e, "not valid JSON"))?;
+    let Some(obj) = raw.as_object() else {
+        return Err(file_err(format!(
+            "the file holds a JSON {}; expected an object {{\"format\": \"{FORMAT}\", \"version\": \
+             {VERSION}, \"model\": {{...}}}}",
+            kind_of(&raw)
+        )));
+    };
+    match obj.get("format") {
+        None => {}
+        Some(serde_json::Value::String(f)) if f == FORMAT => {}
+        Some(other) => {
             return Err(file_err(format!(
-                "model file version {v} is newer than this program understands ({VERSION}); upgrade ipa-sysid"
-            )));
+                "\"format\" is {other}, expected \"{FORMAT}\" (is this a model file?)"
+            )))
         }
     }
-    let value = raw.model.ok_or_else(|| {
-        file_err("no \"model\" object; expected a file written by identify --save-model or --json".into())
+    match obj.get("version") {
+        None => {}
+        Some(v) => match v.as_u64() {
+            Some(v) if v <= u64::from(VERSION) => {}
+            Some(v) => {
+                return Err(file_err(format!(
+                    "model file version {v} is newer than this program understands ({VERSION}); \
+                     upgrade ipa-sysid"
+                )))
+            }
+            None => {
+                return Err(file_err(format!(
+                    "\"version\" is {v}; expected a whole number such as {VERSION}"
+                )))
+            }
+        },
+    }
+    if !obj.get("model").is_some_and(|m| m.is_object()) {
+        return Err(file_err(
+            "no \"model\" object; expected a file written by identify --save-model or --json"
+                .into(),
+        ));
+    }
+    // Parse again, typed, so that a value of the wrong type is reported with its line and column.
+    let typed: ModelFileIn = serde_json::from_slice(bytes).map_err(|e| {
+        json_err(
+            bytes,
+            name,
+            &e,
+            "the \"model\" object does not match the model schema",
+        )
     })?;
-    let model: Model = serde_json::from_value(value).map_err(|e| {
-        file_err(format!("the \"model\" object does not match the model schema: {e}"))
-    })?;
-    model.check().map_err(|e| file_err(e.to_string()))?;
-    Ok(model)
+    typed.model.check().map_err(|e| file_err(e.to_string()))?;
+    Ok(typed.model)
+}
+
+/// A positioned error for malformed JSON, with a hint for the usual causes.
+fn json_err(bytes: &[u8], name: &str, e: &serde_json::Error, what: &str) -> SysidError {
+    let (line, column) = (e.line().max(1), e.column().max(1));
+    let full = e.to_string();
+    let bare = full
+        .rsplit_once(" at line ")
+        .map_or(full.as_str(), |(head, _)| head);
+    let message = match e.classify() {
+        serde_json::error::Category::Eof => {
+            format!("{what}: the file ends in the middle of the JSON (truncated?): {bare}")
+        }
+        serde_json::error::Category::Syntax if non_finite_literal_at(bytes, line, column) => format!(
+            "{what}: NaN and Infinity are not JSON numbers; every coefficient must be a finite number"
+        ),
+        _ => format!("{what}: {bare}"),
+    };
+    SysidError::Parse {
+        file: name.to_string(),
+        line,
+        column,
+        message,
+    }
+}
+
+/// True when the text at (1-based) `line`, `column` starts with NaN or Infinity (as written by
+/// Python's `json` or JavaScript), possibly signed.
+fn non_finite_literal_at(bytes: &[u8], line: usize, column: usize) -> bool {
+    let Some(text) = bytes.split(|&b| b == b'\n').nth(line - 1) else {
+        return false;
+    };
+    let start = column.saturating_sub(1).min(text.len());
+    // serde_json points at the offending character or just after it; look a few bytes around.
+    let from = start.saturating_sub(2);
+    let window = String::from_utf8_lossy(&text[from..text.len().min(start + 10)]).to_lowercase();
+    window.contains("nan") || window.contains("inf")
+}
+
+fn kind_of(v: &serde_json::Value) -> &'static str {
+    match v {
+        serde_json::Value::Null => "null",
+        serde_json::Value::Bool(_) => "boolean",
+        serde_json::Value::Number(_) => "number",
+        serde_json::Value::String(_) => "string",
+        serde_json::Value::Array(_) => "array",
+        serde_json::Value::Object(_) => "object",
+    }
 }

@@ -6,24 +6,66 @@ use std::path::Path;
 
 use crate::SysidError;
 
-/// Writes `bytes` to `path` atomically: the content goes to a temporary file beside `path`, which is
-/// then renamed over it, so a crash never leaves a half-written file.
+/// Writes `bytes` to `path` atomically: the content goes to a temporary file beside `path` (flushed to
+/// disk), which is then renamed over it, so a crash or a failed run never leaves a half-written file and
+/// an existing file is either untouched or entirely replaced.
+///
+/// The new file gets the permissions of the file it replaces, or the usual ones for a new file (0o666
+/// less the umask) — not the 0o600 of a bare temporary file. A symbolic link at `path` is replaced by
+/// the file, not followed.
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), SysidError> {
-    let io = |source| SysidError::Io { path: path.to_path_buf(), source };
+    let io = |source| SysidError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    if path.is_dir() {
+        return Err(io(std::io::Error::new(
+            std::io::ErrorKind::IsADirectory,
+            "is a folder; expected a file name",
+        )));
+    }
     let dir = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
     };
-    let mut tmp = tempfile::Builder::new().prefix(".ipa-sysid-").suffix(".tmp").tempfile_in(dir).map_err(io)?;
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".ipa-sysid-").suffix(".tmp");
+    let permissions = match std::fs::symlink_metadata(path) {
+        Ok(m) if m.is_file() => Some(m.permissions()),
+        _ => default_permissions(),
+    };
+    if let Some(p) = permissions {
+        builder.permissions(p);
+    }
+    let mut tmp = builder.tempfile_in(dir).map_err(io)?;
     tmp.write_all(bytes).map_err(io)?;
     tmp.as_file().sync_all().map_err(io)?;
     tmp.persist(path).map_err(|e| io(e.error))?;
+    // Make the rename itself durable; not every platform or file system can sync a folder.
+    if let Ok(d) = std::fs::File::open(dir) {
+        let _ = d.sync_all();
+    }
     Ok(())
+}
+
+#[cfg(unix)]
+fn default_permissions() -> Option<std::fs::Permissions> {
+    use std::os::unix::fs::PermissionsExt;
+    Some(std::fs::Permissions::from_mode(0o666)) // the umask applies on creation
+}
+
+#[cfg(not(unix))]
+fn default_permissions() -> Option<std::fs::Permissions> {
+    None
 }
 
 /// Refuses to write `output` when it is the same file as any of `inputs` (compared after resolving
 /// links, so `./a.csv` and `a.csv` are the same file).
-pub fn refuse_overwrite_input(output: &Path, inputs: &[&Path], flag: &str) -> Result<(), SysidError> {
+pub fn refuse_overwrite_input(
+    output: &Path,
+    inputs: &[&Path],
+    flag: &str,
+) -> Result<(), SysidError> {
     let canon = |p: &Path| std::fs::canonicalize(p).ok();
     if let Some(out) = canon(output) {
         for input in inputs {
@@ -35,6 +77,30 @@ pub fn refuse_overwrite_input(output: &Path, inputs: &[&Path], flag: &str) -> Re
                 ));
             }
         }
+    }
+    Ok(())
+}
+
+/// Checks before any work that `output` can be written: its folder exists and it is not itself a
+/// folder; `flag` names the option in messages.
+pub fn check_writable(output: &Path, flag: &str) -> Result<(), SysidError> {
+    if output.is_dir() {
+        return Err(SysidError::setting(
+            flag,
+            output.display(),
+            "a file name (this is a folder)",
+        ));
+    }
+    let dir = match output.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        return Err(SysidError::setting(
+            flag,
+            output.display(),
+            &format!("a file in an existing folder ({} does not exist)", dir.display()),
+        ));
     }
     Ok(())
 }

@@ -144,7 +144,7 @@ pub fn read_csv_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Dat
             "a column different from --u-col (u and y cannot be the same column)",
         ));
     }
-    let has_t = table.headers.iter().any(|h| *h == opts.t_col);
+    let has_t = table.headers.contains(&opts.t_col);
     let ts_given = opts.ts.or(if has_t { None } else { opts.fallback_ts });
     let u = table.numbers(ucol)?;
     let y = table.numbers(ycol)?;

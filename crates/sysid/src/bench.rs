@@ -120,7 +120,11 @@ pub fn staircase(samples: usize, amplitude_counts: f64, seed: u64) -> Vec<f64> {
 /// `noise_std_mm` (seeded, Gaussian).
 pub fn paper_experiment(u: &[f64], noise_std_mm: f64, seed: u64) -> Result<Dataset, SysidError> {
     if !(noise_std_mm.is_finite() && noise_std_mm >= 0.0) {
-        return Err(SysidError::setting("--noise", noise_std_mm, "a standard deviation >= 0 in mm"));
+        return Err(SysidError::setting(
+            "--noise",
+            noise_std_mm,
+            "a standard deviation >= 0 in mm",
+        ));
     }
     let model = Model::paper();
     let ts = model.ts;
@@ -177,16 +181,34 @@ fn rls_data(n: usize, ring: usize, seed: u64) -> (Vec<f64>, Vec<f64>) {
 
 /// Measures RLS throughput for `params` parameters over `samples` updates per run (random regressors
 /// cycled from a ring of 1024, so the data stay in the L1/L2 cache and the update itself is measured).
-pub fn bench_rls(params: usize, samples: usize, forgetting: f64, repetitions: usize) -> Result<RlsBench, SysidError> {
+pub fn bench_rls(
+    params: usize,
+    samples: usize,
+    forgetting: f64,
+    repetitions: usize,
+) -> Result<RlsBench, SysidError> {
     if params == 0 || params > 1000 {
-        return Err(SysidError::setting("--params", params, "between 1 and 1000 parameters"));
+        return Err(SysidError::setting(
+            "--params",
+            params,
+            "between 1 and 1000 parameters",
+        ));
     }
     if samples == 0 {
-        return Err(SysidError::setting("--samples", samples, "at least one update"));
+        return Err(SysidError::setting(
+            "--samples",
+            samples,
+            "at least one update",
+        ));
     }
     crate::rls::check_settings(forgetting, 1e3)?;
     let (phi, y) = rls_data(params, 1024, 42 + params as u64);
-    let rows = || phi.chunks_exact(params).zip(y.iter().copied()).cycle().take(samples);
+    let rows = || {
+        phi.chunks_exact(params)
+            .zip(y.iter().copied())
+            .cycle()
+            .take(samples)
+    };
     let fast = time_it(repetitions, samples, || {
         let mut est = Rls::new(params, forgetting, 1e3)?;
         for (k, (row, yk)) in rows().enumerate() {
@@ -236,11 +258,19 @@ fn bench_fixed(
         forgetting: f64,
         repetitions: usize,
     ) -> Result<Timing, SysidError> {
-        let rows: Vec<[f64; N]> =
-            phi.chunks_exact(N).map(|c| std::array::from_fn(|i| c[i])).collect();
+        let rows: Vec<[f64; N]> = phi
+            .chunks_exact(N)
+            .map(|c| std::array::from_fn(|i| c[i]))
+            .collect();
         time_it(repetitions, samples, || {
             let mut est = RlsN::<N>::new(forgetting, 1e3)?;
-            for (k, (row, yk)) in rows.iter().zip(y.iter().copied()).cycle().take(samples).enumerate() {
+            for (k, (row, yk)) in rows
+                .iter()
+                .zip(y.iter().copied())
+                .cycle()
+                .take(samples)
+                .enumerate()
+            {
                 black_box(est.update(black_box(row), yk, k)?);
             }
             black_box(est.theta());
@@ -279,7 +309,11 @@ pub struct IdentifyBench {
 
 /// Times a full identification of `data` with `settings` (the same call as `ipa-sysid identify`, without
 /// reading files or computing validation metrics).
-pub fn bench_identify(data: &Dataset, settings: &IdentifySettings, repetitions: usize) -> Result<IdentifyBench, SysidError> {
+pub fn bench_identify(
+    data: &Dataset,
+    settings: &IdentifySettings,
+    repetitions: usize,
+) -> Result<IdentifyBench, SysidError> {
     let fit = identify(data, settings)?;
     let t = time_it(repetitions, 1, || {
         black_box(identify(black_box(data), settings)?);
@@ -298,7 +332,10 @@ pub fn bench_identify(data: &Dataset, settings: &IdentifySettings, repetitions: 
 
 /// The paper's Hammerstein structure (na = 3, nb = 1, nk = 1) with `method` and default settings.
 pub fn paper_settings(method: Method) -> IdentifySettings {
-    IdentifySettings::default().with_kind(ModelKind::Hammerstein).with_orders(3, 1, 1).with_method(method)
+    IdentifySettings::default()
+        .with_kind(ModelKind::Hammerstein)
+        .with_orders(3, 1, 1)
+        .with_method(method)
 }
 
 /// Result of [`bench_plant`].
@@ -321,7 +358,11 @@ pub struct PlantBench {
 }
 
 /// Times `plant` open loop over the commands `u` (counts), reset to its initial output before each run.
-pub fn bench_plant(plant: &mut dyn Plant, u: &[f64], repetitions: usize) -> Result<PlantBench, SysidError> {
+pub fn bench_plant(
+    plant: &mut dyn Plant,
+    u: &[f64],
+    repetitions: usize,
+) -> Result<PlantBench, SysidError> {
     if u.is_empty() {
         return Err(SysidError::setting("--samples", 0, "at least one sample"));
     }
@@ -373,7 +414,9 @@ pub fn peak_flops(repetitions: usize) -> PeakFlops {
         Ok::<(), SysidError>(())
     });
     let best = t.map(|t| t.best_s).unwrap_or(f64::NAN);
-    PeakFlops { gflops_build_target: 1.0 / best / 1e9 }
+    PeakFlops {
+        gflops_build_target: 1.0 / best / 1e9,
+    }
 }
 
 #[cfg(test)]
@@ -411,10 +454,13 @@ mod tests {
         let u = staircase(400, 200.0, 3);
         let d = paper_experiment(&u, 0.0, 1).unwrap();
         let m = Model::paper();
-        for k in 3..399 {
-            let x = m.input_map(u[k]);
+        for (k, &uk) in u.iter().enumerate().take(399).skip(3) {
+            let x = m.input_map(uk);
             let want = -m.a[0] * d.y[k] - m.a[1] * d.y[k - 1] - m.a[2] * d.y[k - 2] + x;
-            assert!((d.y[k + 1] - want).abs() <= 1e-9 * (1.0 + want.abs()), "k={k}");
+            assert!(
+                (d.y[k + 1] - want).abs() <= 1e-9 * (1.0 + want.abs()),
+                "k={k}"
+            );
         }
     }
 

@@ -10,6 +10,7 @@ pub mod data;
 pub mod deadzone;
 pub mod error;
 pub mod estimate;
+pub mod fast_ls;
 pub mod iv;
 pub mod ls;
 pub mod model;

@@ -104,6 +104,7 @@ impl Rls {
 
     /// The same update as [`Rls::update`], written as the plain textbook loop with no specialisation.
     /// Kept as the reference that the fast kernels are tested against, and for benchmarks.
+    #[allow(clippy::needless_range_loop)] // the textbook index loops are the point of the reference
     pub fn update_reference(
         &mut self,
         phi: &[f64],
@@ -127,7 +128,7 @@ impl Rls {
         for i in 0..n {
             denom += phi[i] * self.pphi[i];
         }
-        if !(denom.is_finite() && denom > 0.0) || !eps.is_finite() {
+        if !(denom.is_finite() && denom > 0.0 && eps.is_finite()) {
             return Err(numerical(sample, denom, eps));
         }
         let inv = 1.0 / denom;
@@ -272,7 +273,7 @@ fn update_fixed<const N: usize>(
     for i in 0..N {
         denom += phi[i] * pphi[i];
     }
-    if !(denom.is_finite() && denom > 0.0) || !eps.is_finite() {
+    if !(denom.is_finite() && denom > 0.0 && eps.is_finite()) {
         return Err((denom, eps));
     }
     let inv = 1.0 / denom;
@@ -293,7 +294,12 @@ fn update_fixed<const N: usize>(
 /// (P_ij − (Pφ)_min(i,j) L̃_max(i,j)) · (1/ρ), so P stays exactly symmetric. Column j is contiguous:
 /// rows i ≤ j use (Pφ)_i L̃_j, rows i > j use (Pφ)_j L̃_i.
 #[inline(always)]
-fn sym_update<const N: usize, const SCALE: bool>(p: &mut [f64], pphi: &[f64; N], gain: &[f64; N], inv_rho: f64) {
+fn sym_update<const N: usize, const SCALE: bool>(
+    p: &mut [f64],
+    pphi: &[f64; N],
+    gain: &[f64; N],
+    inv_rho: f64,
+) {
     for j in 0..N {
         let col = &mut p[j * N..j * N + N];
         let (upper, lower) = col.split_at_mut(j + 1);
@@ -334,7 +340,7 @@ fn update_dynamic(
     for (f, q) in phi.iter().zip(pphi.iter()) {
         denom += f * q;
     }
-    if !(denom.is_finite() && denom > 0.0) || !eps.is_finite() {
+    if !(denom.is_finite() && denom > 0.0 && eps.is_finite()) {
         return Err((denom, eps));
     }
     let inv = 1.0 / denom;

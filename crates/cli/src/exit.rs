@@ -1,28 +1,100 @@
 //! The one place that turns errors into messages and exit codes.
 //!
-//! Exit codes: 0 success; 1 numerical failure (non-finite values, loss of positive definiteness, an
-//! unstable simulation); 2 bad usage or bad input (files, flags) — clap also uses 2 for malformed flags.
+//! Exit codes (documented in `--help` and docs/reliability.md):
+//! - 0: success;
+//! - 1: numerical failure — non-finite values, loss of positive definiteness in RLS, an unstable
+//!   simulation: the input was well-formed but the computation could not produce finite numbers;
+//! - 2: bad usage or bad input — a malformed or missing file, a flag out of range, data that cannot
+//!   support the estimate (too short, not persistently exciting). clap also uses 2 for malformed flags.
+//!
+//! Every library error type says which kind it is through `is_numerical()`: [`sysid::SysidError`],
+//! [`ipa::IpaError`], [`control::ControlError`] and [`report::ReportError`](::report::ReportError). Any other error (I/O at the
+//! binary's edge, `anyhow::bail!` in a subcommand) is a usage/input error.
 
 use std::process::ExitCode;
 
+/// Exit code of a numerical failure.
+pub const NUMERICAL: u8 = 1;
+/// Exit code of bad usage or bad input.
+pub const USAGE: u8 = 2;
+
 /// Prints `error: ...` with its chain of causes to stderr and returns the exit code.
+///
+/// A cause whose text is already part of the message above it (e.g. the operating system's error after
+/// `file: error`) is not repeated.
 pub fn report(e: &anyhow::Error) -> ExitCode {
     eprintln!("error: {e}");
+    let mut shown = e.to_string();
     for cause in e.chain().skip(1) {
-        eprintln!("  caused by: {cause}");
+        let text = cause.to_string();
+        if !shown.contains(&text) {
+            eprintln!("  caused by: {text}");
+        }
+        shown = text;
     }
     ExitCode::from(code(e))
 }
 
-fn code(e: &anyhow::Error) -> u8 {
-    let numerical = e.chain().any(|c| {
-        c.downcast_ref::<sysid::SysidError>().is_some_and(|s| s.is_numerical())
-            || c.downcast_ref::<ipa::IpaError>().is_some_and(|s| s.is_numerical())
-            || c.downcast_ref::<control::ControlError>().is_some_and(|s| s.is_numerical())
-    });
-    if numerical {
-        1
+/// The exit code of `e`: [`NUMERICAL`] when any error in its chain is a numerical failure of one of
+/// the libraries, [`USAGE`] otherwise.
+pub fn code(e: &anyhow::Error) -> u8 {
+    if e.chain().any(is_numerical) {
+        NUMERICAL
     } else {
-        2
+        USAGE
+    }
+}
+
+fn is_numerical(c: &(dyn std::error::Error + 'static)) -> bool {
+    if let Some(s) = c.downcast_ref::<sysid::SysidError>() {
+        return s.is_numerical();
+    }
+    if let Some(s) = c.downcast_ref::<ipa::IpaError>() {
+        return s.is_numerical();
+    }
+    if let Some(s) = c.downcast_ref::<control::ControlError>() {
+        return s.is_numerical();
+    }
+    if let Some(s) = c.downcast_ref::<::report::ReportError>() {
+        return s.is_numerical();
+    }
+    false
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    // Numerical failures of every library map to 1, whatever context is added around them.
+    #[test]
+    fn numerical_errors_of_every_library_exit_1() {
+        let errs: Vec<anyhow::Error> = vec![
+            sysid::SysidError::Numerical("x".into()).into(),
+            ipa::IpaError::Numerical("x".into()).into(),
+            control::ControlError::Numerical("x".into()).into(),
+            ::report::ReportError::Sysid(sysid::SysidError::Numerical("x".into())).into(),
+            ::report::ReportError::Control(control::ControlError::Numerical("x".into())).into(),
+            anyhow::Error::from(ipa::IpaError::Numerical("x".into())).context("while simulating"),
+        ];
+        for e in &errs {
+            assert_eq!(code(e), NUMERICAL, "{e:#}");
+        }
+    }
+
+    // Input and usage errors of every library, and plain messages, map to 2.
+    #[test]
+    fn input_errors_of_every_library_exit_2() {
+        let errs: Vec<anyhow::Error> = vec![
+            sysid::SysidError::setting("--p0", 0, "a positive number").into(),
+            sysid::SysidError::Data("too short".into()).into(),
+            ipa::IpaError::Config("bad".into()).into(),
+            control::ControlError::setting("--kp", f64::NAN, "a finite number").into(),
+            ::report::ReportError::Sysid(sysid::SysidError::Data("x".into())).into(),
+            ::report::ReportError::Ipa(ipa::IpaError::Config("x".into())).into(),
+            anyhow::anyhow!("--out x: is a file"),
+        ];
+        for e in &errs {
+            assert_eq!(code(e), USAGE, "{e:#}");
+        }
     }
 }

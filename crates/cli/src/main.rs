@@ -38,9 +38,24 @@ enum Command {
     Bench(cmd::bench::Args),
 }
 
+/// Shown at the end of every `--help`.
+const EXIT_CODES: &str = "Exit codes: 0 success; 1 numerical failure (non-finite values, RLS lost positive \
+definiteness, unstable simulation); 2 bad usage or bad input (malformed or missing file, flag out of range, \
+data that cannot support the estimate). Errors name the file:line:column or the flag, and what was expected. \
+See docs/reliability.md.";
+
+/// Negative numbers are values, not flags, in every (nested) subcommand (`--p0 -1` is refused by
+/// range, not by the parser), and every `--help` ends with the exit codes.
+fn configure(c: clap::Command) -> clap::Command {
+    c.allow_negative_numbers(true)
+        .after_help(EXIT_CODES)
+        .mut_subcommands(configure)
+}
+
 fn main() -> ExitCode {
-    // Negative numbers are values, not flags, everywhere (`--p0 -1` is refused by range, not by the parser).
-    let command = Cli::command().mut_subcommands(|s| s.allow_negative_numbers(true));
+    let command = Cli::command()
+        .after_help(EXIT_CODES)
+        .mut_subcommands(configure);
     let cli = match Cli::from_arg_matches(&command.get_matches()) {
         Ok(cli) => cli,
         Err(e) => e.exit(),

@@ -192,9 +192,9 @@ fn closed_loop_pair(
     duration_s: f64,
     y0_mm: f64,
 ) -> Result<(Trace, Trace), ReportError> {
-    let mut c1 = pi.clone().build(plant.ts())?;
+    let mut c1 = pi.build(plant.ts())?;
     let tp = closed_loop::run(plant, &mut c1, None, profile, duration_s, y0_mm)?;
-    let mut c2 = pi.clone().build(model.ts())?;
+    let mut c2 = pi.build(model.ts())?;
     let tm = closed_loop::run(model, &mut c2, None, profile, duration_s, y0_mm)?;
     Ok((tp, tm))
 }
@@ -216,7 +216,7 @@ fn compensated_run(
         Ok(c) => c,
         Err(e) => return Ok(Err(e.to_string())),
     };
-    let mut c = pi.clone().build(plant.ts())?;
+    let mut c = pi.build(plant.ts())?;
     Ok(Ok(closed_loop::run(
         plant,
         &mut c,

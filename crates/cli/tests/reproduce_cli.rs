@@ -1,0 +1,125 @@
+//! `reproduce` through the binary on the paper's model (fast): every promised file and JSON key exists, and
+//! the closed-loop metrics in summary.json agree with the trace written beside them (recomputed here).
+
+use std::path::Path;
+use std::process::Command;
+
+fn read_trace(path: &Path) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("t,r,u,y"));
+    let (mut t, mut r, mut y) = (Vec::new(), Vec::new(), Vec::new());
+    for l in lines {
+        let v: Vec<f64> = l.split(',').map(|c| c.parse().unwrap()).collect();
+        t.push(v[0]);
+        r.push(v[1]);
+        y.push(v[3]);
+    }
+    (t, r, y)
+}
+
+#[test]
+fn reproduce_on_the_paper_model_writes_report_summary_figures_and_data() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("run");
+    let o = Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
+        .args(["reproduce", "--plant", "paper", "--seed", "3", "--out"])
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    for needle in ["Table III", "Table IV", "Table V", "Acceptance"] {
+        assert!(stdout.contains(needle), "{needle} missing from:\n{stdout}");
+    }
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    for m in ["arx", "hammerstein"] {
+        let v = &s["models"][m];
+        assert_eq!(
+            v["model"]["kind"],
+            if m == "arx" { "arx" } else { "hammerstein" }
+        );
+        assert!(
+            v["metrics"]["validation"]["fit_sim_percent"].is_number(),
+            "{m}"
+        );
+        assert!(v["poles"].as_array().is_some_and(|p| p.len() == 3));
+    }
+    for which in ["fixed", "unfixed"] {
+        for side in ["model", "plant"] {
+            let m = &s["closed_loop"][which][side];
+            for key in [
+                "overshoot_mm",
+                "overshoot_percent",
+                "steady_state_error_mm",
+                "rise_time_s",
+                "settling_time_s",
+            ] {
+                assert!(
+                    m.get(key).is_some(),
+                    "closed_loop.{which}.{side}.{key} missing"
+                );
+            }
+        }
+    }
+    // On the paper's own (noise-free) model the Hammerstein RLS fit must beat the linear ARX.
+    let fit = |m: &str| {
+        s["models"][m]["metrics"]["validation"]["fit_sim_percent"]
+            .as_f64()
+            .unwrap()
+    };
+    assert!(
+        fit("hammerstein") > fit("arx"),
+        "{} vs {}",
+        fit("hammerstein"),
+        fit("arx")
+    );
+
+    // Independent check of the plant's fixed set-point metrics from the trace file.
+    let (t, r, y) = read_trace(&out.join("data/closed_loop_fixed_plant.csv"));
+    let (y0, setpoint) = (y[0], r[0]);
+    let fin = *y.last().unwrap();
+    let peak = y.iter().cloned().fold(f64::NEG_INFINITY, f64::max);
+    let os = (peak - fin).max(0.0);
+    let m = &s["closed_loop"]["fixed"]["plant"];
+    assert!((m["overshoot_mm"].as_f64().unwrap() - os).abs() < 1e-9);
+    assert!((m["steady_state_error_mm"].as_f64().unwrap() - (setpoint - fin)).abs() < 1e-9);
+    let first = |level: f64| {
+        let target = y0 + level * (fin - y0);
+        let k = y.iter().position(|&v| v >= target).unwrap();
+        t[k - 1] + (target - y[k - 1]) / (y[k] - y[k - 1]) * (t[k] - t[k - 1])
+    };
+    let rise = first(0.9) - first(0.1);
+    assert!(
+        (m["rise_time_s"].as_f64().unwrap() - rise).abs() < 1e-9,
+        "{rise} vs {m}"
+    );
+
+    for f in [
+        "report.html",
+        "data/estimation.csv",
+        "data/validation.csv",
+        "data/closed_loop_unfixed_plant.csv",
+    ] {
+        assert!(out.join(f).is_file(), "{f} missing");
+    }
+    for stem in [
+        "fig2_experiment",
+        "fig4_deadzone",
+        "fig5_fit",
+        "fig6_open_loop",
+        "fig7a_closed_loop_fixed",
+        "fig7b_closed_loop_unfixed",
+        "rls_convergence",
+    ] {
+        for ext in ["svg", "png"] {
+            assert!(
+                out.join("figures").join(format!("{stem}.{ext}")).is_file(),
+                "{stem}.{ext} missing"
+            );
+        }
+    }
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(html.contains("data:image/png;base64,") && !html.contains("<script"));
+}

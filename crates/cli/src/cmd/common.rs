@@ -38,10 +38,16 @@ impl ColumnArgs {
 
 /// Writes `content` to `path` atomically, or to standard output when `path` is `-`. Refuses to write over
 /// any of `inputs`; `flag` names the option in messages.
-pub fn write_output(path: &Path, content: &[u8], inputs: &[&Path], flag: &str) -> anyhow::Result<()> {
+pub fn write_output(
+    path: &Path,
+    content: &[u8],
+    inputs: &[&Path],
+    flag: &str,
+) -> anyhow::Result<()> {
     if path.as_os_str() == "-" {
         let mut out = std::io::stdout().lock();
-        out.write_all(content).context("writing to standard output")?;
+        out.write_all(content)
+            .context("writing to standard output")?;
         return Ok(());
     }
     sysid::output::refuse_overwrite_input(path, inputs, flag)?;
@@ -49,14 +55,35 @@ pub fn write_output(path: &Path, content: &[u8], inputs: &[&Path], flag: &str) -
     Ok(())
 }
 
-/// Checks before any work that an output path does not name one of the inputs.
+/// Checks before any work that every output path can be written (its folder exists, it is not a folder),
+/// names none of the inputs, and that no two outputs are the same file.
 pub fn check_outputs(outputs: &[(&Option<PathBuf>, &str)], inputs: &[&Path]) -> anyhow::Result<()> {
-    for (out, flag) in outputs {
-        if let Some(p) = out {
-            if p.as_os_str() != "-" {
-                sysid::output::refuse_overwrite_input(p, inputs, flag)?;
+    let files: Vec<(&Path, &str)> = outputs
+        .iter()
+        .filter_map(|(out, flag)| out.as_deref().map(|p| (p, *flag)))
+        .filter(|(p, _)| p.as_os_str() != "-")
+        .collect();
+    for (i, (p, flag)) in files.iter().enumerate() {
+        sysid::output::check_writable(p, flag)?;
+        sysid::output::refuse_overwrite_input(p, inputs, flag)?;
+        for (q, other) in &files[..i] {
+            if p == q || target(p) == target(q) {
+                anyhow::bail!(sysid::SysidError::setting(
+                    flag,
+                    p.display(),
+                    &format!("a path different from {other}")
+                ));
             }
         }
     }
     Ok(())
+}
+
+/// Where `p` will be written: its folder resolved (links, `.`), then its file name.
+fn target(p: &Path) -> Option<PathBuf> {
+    let dir = match p.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    Some(std::fs::canonicalize(dir).ok()?.join(p.file_name()?))
 }

@@ -271,9 +271,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // Output paths: never over an input, and not both to the same file.
     let input_refs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
     if let Some(out) = &args.out {
+        sysid::output::check_writable(out, "--out")?;
         sysid::output::refuse_overwrite_input(out, &input_refs, "--out")?;
     }
     if let Some(json) = args.json.as_ref().filter(|j| j.as_os_str() != "-") {
+        sysid::output::check_writable(json, "--json")?;
         sysid::output::refuse_overwrite_input(json, &input_refs, "--json")?;
         if let Some(out) = &args.out {
             if json == out {

@@ -105,6 +105,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let probe = ipa::plant_from_spec(&plant_spec, args.plant_config.as_deref())?;
     let ts_s = probe.ts();
     drop(probe);
+    // Check the input design (samples, amplitude, file) once, before any run: a bad flag is an error,
+    // not a study in which every run failed.
+    generate(&spec, args.samples, ts_s, args.amplitude, args.seed)?;
     let (kind, orders, offset) = match &truth_model {
         Some(m) => (m.kind, m.orders(), m.offset.is_some()),
         None => (ModelKind::Hammerstein, Orders::PAPER, false),

@@ -33,6 +33,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             args.out.display()
         );
     }
+    // The run replaces files in --out: refuse an input file inside it, and a bad plant before the
+    // folder is created.
+    if let Ok(out) = std::fs::canonicalize(&args.out) {
+        for input in ipa::spec::spec_input_files(&args.plant, args.plant_config.as_deref()) {
+            if std::fs::canonicalize(input).is_ok_and(|p| p.starts_with(&out)) {
+                anyhow::bail!(sysid::SysidError::setting(
+                    "--out",
+                    args.out.display(),
+                    &format!(
+                        "a folder that does not hold the input file {} (the run writes into it)",
+                        input.display()
+                    )
+                ));
+            }
+        }
+    }
+    ipa::plant_from_spec(&args.plant, args.plant_config.as_deref())?;
+    sysid::rls::check_settings(args.forgetting, 1.0)?;
     let settings = ReproduceSettings {
         plant: args.plant.clone(),
         plant_config: args.plant_config.clone(),

@@ -56,9 +56,10 @@ pub enum WindupArg {
 /// Flags of `identify`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// CSV file with a header row (columns chosen by --u-col, --y-col, --t-col).
-    #[arg(long, value_name = "FILE")]
-    pub data: PathBuf,
+    /// CSV file with a header row (columns chosen by --u-col, --y-col, --t-col). Several files or a
+    /// folder (its *.csv files) identify each in parallel: one JSON line per file to --json or stdout.
+    #[arg(long, value_name = "FILE", num_args = 1.., required = true)]
+    pub data: Vec<PathBuf>,
     #[command(flatten)]
     pub columns: ColumnArgs,
     /// Model structure.
@@ -165,16 +166,22 @@ impl Args {
 
 /// Runs `identify`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if super::identify_batch::is_batch(&args.data) {
+        return super::identify_batch::run(args);
+    }
     let settings = args.settings();
     settings.structure()?; // refuse bad flags before reading anything
-    let mut inputs: Vec<&Path> = vec![&args.data];
+    let Some(data_path) = args.data.first() else {
+        anyhow::bail!("--data needs a file");
+    };
+    let mut inputs: Vec<&Path> = vec![data_path.as_path()];
     inputs.extend(args.validation.as_deref());
     check_outputs(
         &[(&args.json, "--json"), (&args.save_model, "--save-model")],
         &inputs,
     )?;
     let opts = args.columns.csv_options();
-    let data = sysid::data::read_csv(&args.data, &opts)?;
+    let data = sysid::data::read_csv(data_path, &opts)?;
     let val = match &args.validation {
         Some(path) => {
             let mut vopts = opts.clone();

@@ -4,6 +4,7 @@ pub mod bench;
 pub mod common;
 pub mod control;
 pub mod identify;
+pub mod identify_batch;
 pub mod montecarlo;
 pub mod order;
 pub mod plant_config;

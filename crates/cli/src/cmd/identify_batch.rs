@@ -1,0 +1,211 @@
+//! `ipa-sysid identify --data a.csv b.csv …` or `--data DIR`: many records identified in parallel
+//! (rayon), one JSON line per file — the single-file `--json` object plus a `"file"` key, or
+//! `{"file": …, "error": …}` for a file that fails — in the order the files were given (a folder's
+//! `*.csv` files sorted by name). A progress bar goes to standard error when it is a terminal. Every file
+//! is processed; the exit status is non-zero when any failed.
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::Context;
+use indicatif::{ProgressBar, ProgressStyle};
+use rayon::prelude::*;
+use serde::Serialize;
+use sysid::estimate::{identify, IdentifySettings};
+use sysid::summary::IdentifyReport;
+use sysid::validation::metrics;
+use sysid::{Dataset, SysidError};
+
+use super::common::{check_outputs, write_output};
+use super::identify::Args;
+
+/// True when `--data` asks for batch mode: more than one path, or a folder.
+pub fn is_batch(paths: &[PathBuf]) -> bool {
+    paths.len() > 1 || paths.iter().any(|p| p.is_dir())
+}
+
+/// The files named by `--data`: files as given, folders expanded to their `*.csv` files sorted by name.
+pub fn expand(paths: &[PathBuf]) -> anyhow::Result<Vec<PathBuf>> {
+    let mut files = Vec::new();
+    for p in paths {
+        if p.is_dir() {
+            let mut found: Vec<PathBuf> = std::fs::read_dir(p)
+                .with_context(|| format!("--data {}: cannot list the folder", p.display()))?
+                .filter_map(|e| e.ok().map(|e| e.path()))
+                .filter(|f| {
+                    f.is_file() && f.extension().is_some_and(|x| x.eq_ignore_ascii_case("csv"))
+                })
+                .collect();
+            if found.is_empty() {
+                anyhow::bail!(SysidError::setting(
+                    "--data",
+                    p.display(),
+                    "a folder with at least one *.csv file"
+                ));
+            }
+            found.sort();
+            files.extend(found);
+        } else {
+            files.push(p.clone());
+        }
+    }
+    Ok(files)
+}
+
+/// One output line of a successful file.
+#[derive(Serialize)]
+struct Line<'a> {
+    file: String,
+    #[serde(flatten)]
+    report: &'a IdentifyReport,
+}
+
+/// One output line of a failed file.
+#[derive(Serialize)]
+struct Failure {
+    file: String,
+    error: String,
+}
+
+/// Runs `identify` in batch mode.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let settings = args.settings();
+    settings.structure()?; // refuse bad flags before reading anything
+    if args.save_model.is_some() {
+        anyhow::bail!(SysidError::setting(
+            "--save-model",
+            args.save_model
+                .as_deref()
+                .map(Path::display)
+                .map(|d| d.to_string())
+                .unwrap_or_default(),
+            "a single --data file (in batch mode each line of --json holds its file's model)"
+        ));
+    }
+    let files = expand(&args.data)?;
+    let mut inputs: Vec<&Path> = files.iter().map(PathBuf::as_path).collect();
+    inputs.extend(args.validation.as_deref());
+    check_outputs(&[(&args.json, "--json")], &inputs)?;
+    let opts = args.columns.csv_options();
+    let val = match &args.validation {
+        Some(path) => {
+            let mut vopts = opts.clone();
+            vopts.u_col = args.val_u_col.clone().unwrap_or(opts.u_col.clone());
+            vopts.y_col = args.val_y_col.clone().unwrap_or(opts.y_col.clone());
+            Some(sysid::data::read_csv(path, &vopts)?)
+        }
+        None => None,
+    };
+    let bar = if std::io::stderr().is_terminal() {
+        let bar = ProgressBar::new(files.len() as u64);
+        if let Ok(style) =
+            ProgressStyle::with_template("{bar:40} {pos}/{len} files  {per_sec}  eta {eta}")
+        {
+            bar.set_style(style);
+        }
+        bar
+    } else {
+        ProgressBar::hidden()
+    };
+    let start = Instant::now();
+    // Each line with the exit code its failure would have alone (0 for success).
+    let lines: Vec<(String, u8)> = files
+        .par_iter()
+        .map(|path| {
+            let file = path.display().to_string();
+            let line = match sysid::data::read_csv(path, &opts)
+                .map_err(anyhow::Error::from)
+                .and_then(|data| fit_report(&data, &settings, val.as_ref()))
+            {
+                Ok(report) => (
+                    serde_json::to_string(&Line {
+                        file,
+                        report: &report,
+                    }),
+                    0,
+                ),
+                Err(e) => (
+                    serde_json::to_string(&Failure {
+                        file,
+                        error: format!("{e:#}"),
+                    }),
+                    crate::exit::code(&e),
+                ),
+            };
+            bar.inc(1);
+            match line {
+                (Ok(text), code) => (text, code),
+                (Err(e), _) => {
+                    let f = Failure {
+                        file: path.display().to_string(),
+                        error: format!("cannot serialise the report: {e}"),
+                    };
+                    (
+                        serde_json::to_string(&f).unwrap_or_default(),
+                        crate::exit::USAGE,
+                    )
+                }
+            }
+        })
+        .collect();
+    let elapsed = start.elapsed().as_secs_f64();
+    bar.finish_and_clear();
+    let failed = lines.iter().filter(|(_, code)| *code != 0).count();
+    let mut body = String::with_capacity(lines.iter().map(|(l, _)| l.len() + 1).sum());
+    for (l, _) in &lines {
+        body.push_str(l);
+        body.push('\n');
+    }
+    match &args.json {
+        Some(path) => write_output(path, body.as_bytes(), &inputs, "--json")?,
+        None => write_output(Path::new("-"), body.as_bytes(), &inputs, "--json")?,
+    }
+    eprintln!(
+        "identified {} of {} files in {:.3} s ({:.1} files/s on {} threads){}",
+        files.len() - failed,
+        files.len(),
+        elapsed,
+        files.len() as f64 / elapsed.max(1e-9),
+        rayon::current_num_threads(),
+        if failed > 0 {
+            format!("; {failed} failed (see their \"error\" lines)")
+        } else {
+            String::new()
+        }
+    );
+    if failed > 0 {
+        // Exit 1 when every failure was numerical, 2 when any file was bad input.
+        let msg = format!("{failed} of {} files could not be identified", files.len());
+        if lines
+            .iter()
+            .all(|(_, code)| *code == 0 || *code == crate::exit::NUMERICAL)
+        {
+            anyhow::bail!(SysidError::Numerical(msg));
+        }
+        anyhow::bail!(SysidError::Data(msg));
+    }
+    Ok(())
+}
+
+/// The single-file pipeline of `identify` on one record: fit, refuse non-finite estimates, metrics on the
+/// record and on the validation record.
+fn fit_report(
+    data: &Dataset,
+    settings: &IdentifySettings,
+    val: Option<&Dataset>,
+) -> anyhow::Result<IdentifyReport> {
+    let fit = identify(data, settings)?;
+    if let Some(p) = fit.params.iter().find(|p| !p.value.is_finite()) {
+        anyhow::bail!(SysidError::Numerical(format!(
+            "{}: the estimate of {} is {} (not finite): the data do not determine it in f64 arithmetic",
+            data.name, p.name, p.value
+        )));
+    }
+    fit.model
+        .check()
+        .map_err(|e| SysidError::Numerical(format!("{}: {e}", data.name)))?;
+    let est = metrics(&fit.model, data)?;
+    let val_metrics = val.map(|v| metrics(&fit.model, v)).transpose()?;
+    Ok(IdentifyReport::new(&fit, settings, est, val_metrics))
+}

@@ -106,8 +106,10 @@ impl Default for AirConfig {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct ValveConfig {
-    /// Sonic conductance C (ISO 6358) of each flow path, in dm^3/(s bar) (ANR).
-    pub sonic_conductance_dm3_s_bar: f64,
+    /// Sonic conductance C (ISO 6358) of the supply-to-chamber path, in dm^3/(s bar) (ANR).
+    pub supply_conductance_dm3_s_bar: f64,
+    /// Sonic conductance C (ISO 6358) of the chamber-to-exhaust path, in dm^3/(s bar) (ANR).
+    pub exhaust_conductance_dm3_s_bar: f64,
     /// Critical pressure ratio b (ISO 6358).
     pub critical_pressure_ratio: f64,
     /// Pressure ratio above which the flow is taken as laminar (linear in the pressure difference),
@@ -124,11 +126,12 @@ pub struct ValveConfig {
 impl Default for ValveConfig {
     fn default() -> Self {
         ValveConfig {
-            sonic_conductance_dm3_s_bar: 0.2,
+            supply_conductance_dm3_s_bar: 0.1,
+            exhaust_conductance_dm3_s_bar: 0.5,
             critical_pressure_ratio: 0.3,
             laminar_pressure_ratio: 0.995,
             pwm_period_ms: 10.0,
-            opening_delay_ms: 0.7,
+            opening_delay_ms: 0.4,
             closing_delay_ms: 0.4,
         }
     }
@@ -170,8 +173,8 @@ pub struct FrictionConfig {
 impl Default for FrictionConfig {
     fn default() -> Self {
         FrictionConfig {
-            static_n: 25.0,
-            coulomb_n: 18.0,
+            static_n: 8.0,
+            coulomb_n: 5.0,
             stribeck_velocity_mm_s: 10.0,
             viscous_n_s_m: 30.0,
         }
@@ -200,12 +203,19 @@ impl Default for EncoderConfig {
 pub struct IntegrationConfig {
     /// Largest RK4 substep in ms; substeps are also cut at every valve switching instant.
     pub max_substep_ms: f64,
+    /// Largest RK4 substep in ms while sliding slower than `slow_speed_mm_s` (the Stribeck region,
+    /// where the friction changes on a time scale of v_s / acceleration).
+    pub slow_substep_ms: f64,
+    /// Speed in mm/s below which `slow_substep_ms` is used.
+    pub slow_speed_mm_s: f64,
 }
 
 impl Default for IntegrationConfig {
     fn default() -> Self {
         IntegrationConfig {
-            max_substep_ms: 0.5,
+            max_substep_ms: 0.25,
+            slow_substep_ms: 0.0625,
+            slow_speed_mm_s: 40.0,
         }
     }
 }
@@ -289,11 +299,8 @@ impl PlantConfig {
             }
         }
         let v = &self.valve;
-        nonneg(
-            "valve",
-            "sonic_conductance_dm3_s_bar",
-            v.sonic_conductance_dm3_s_bar,
-        )?;
+        nonneg("valve", "supply_conductance_dm3_s_bar", v.supply_conductance_dm3_s_bar)?;
+        nonneg("valve", "exhaust_conductance_dm3_s_bar", v.exhaust_conductance_dm3_s_bar)?;
         if !(v.critical_pressure_ratio >= 0.0 && v.critical_pressure_ratio < 1.0) {
             return Err(bad(
                 "valve",
@@ -348,13 +355,13 @@ impl PlantConfig {
         pos("encoder", "resolution_mm", self.encoder.resolution_mm)?;
         let h = self.integration.max_substep_ms;
         if !(h > 0.0 && h <= v.pwm_period_ms) {
-            return Err(bad(
-                "integration",
-                "max_substep_ms",
-                h,
-                "a positive step not longer than valve.pwm_period_ms",
-            ));
+            return Err(bad("integration", "max_substep_ms", h, "a positive step not longer than valve.pwm_period_ms"));
         }
+        let hs = self.integration.slow_substep_ms;
+        if !(hs > 0.0 && hs <= h) {
+            return Err(bad("integration", "slow_substep_ms", hs, "a positive step not longer than integration.max_substep_ms"));
+        }
+        nonneg("integration", "slow_speed_mm_s", self.integration.slow_speed_mm_s)?;
         Ok(())
     }
 
@@ -409,7 +416,8 @@ impl PlantConfig {
             (
                 "valve",
                 vec![
-                    e("sonic_conductance_dm3_s_bar", v.sonic_conductance_dm3_s_bar, "ISO 6358 sonic conductance C per flow path, dm^3/(s bar) ANR (estimate for a 10 mm wide solenoid valve, ~1 mm orifice; sets the full-command speed)"),
+                    e("supply_conductance_dm3_s_bar", v.supply_conductance_dm3_s_bar, "ISO 6358 sonic conductance C supply -> chamber, dm^3/(s bar) ANR (estimate for a 10 mm wide solenoid valve, ~1 mm orifice; sets the full-command speed)"),
+                    e("exhaust_conductance_dm3_s_bar", v.exhaust_conductance_dm3_s_bar, "ISO 6358 sonic conductance C chamber -> exhaust, dm^3/(s bar) ANR (estimate; larger than the supply path, which makes retracting faster than extending as in the paper's model)"),
                     e("critical_pressure_ratio", v.critical_pressure_ratio, "ISO 6358 critical pressure ratio b (estimate, typical of small solenoid valves)"),
                     e("laminar_pressure_ratio", v.laminar_pressure_ratio, "above this pressure ratio the flow is linear in the pressure difference (numerical regularisation)"),
                     e("pwm_period_ms", v.pwm_period_ms, "PWM period, ms (estimate: one period per sample Ts = 10 ms); duty = |u|/255, latched at each period start"),
@@ -436,7 +444,11 @@ impl PlantConfig {
             ("encoder", vec![e("resolution_mm", self.encoder.resolution_mm, "encoder resolution, mm per count (issue 3: 0.01 mm)")]),
             (
                 "integration",
-                vec![e("max_substep_ms", self.integration.max_substep_ms, "largest RK4 substep, ms (cut at valve switching instants; see the convergence test)")],
+                vec![
+                    e("max_substep_ms", self.integration.max_substep_ms, "largest RK4 substep, ms (cut at valve switching instants; see the convergence test)"),
+                    e("slow_substep_ms", self.integration.slow_substep_ms, "largest RK4 substep while sliding slowly (Stribeck region), ms"),
+                    e("slow_speed_mm_s", self.integration.slow_speed_mm_s, "speed below which slow_substep_ms applies, mm/s (4 Stribeck velocities)"),
+                ],
             ),
         ]
     }
@@ -484,7 +496,9 @@ mod tests {
         c.load.external_force_n = -12.0;
         c.friction.viscous_n_s_m = 7.0;
         c.encoder.resolution_mm = 0.005;
-        c.integration.max_substep_ms = 0.25;
+        c.integration.max_substep_ms = 0.2;
+        c.integration.slow_substep_ms = 0.1;
+        c.integration.slow_speed_mm_s = 12.0;
         assert_eq!(
             PlantConfig::from_toml_str(&c.to_commented_toml(), "t").unwrap(),
             c

@@ -73,8 +73,10 @@ pub struct Valves {
 pub struct Dynamics {
     /// Cylinder geometry and chamber equation.
     pub cylinder: Cylinder,
-    /// ISO 6358 flow path of each valve port (supply and exhaust alike).
-    pub flow: FlowPath,
+    /// ISO 6358 flow path supply -> chamber (valve energised).
+    pub supply_path: FlowPath,
+    /// ISO 6358 flow path chamber -> exhaust (valve de-energised).
+    pub exhaust_path: FlowPath,
     /// Seal friction.
     pub friction: Friction,
     /// M: moving mass, kg.
@@ -92,7 +94,8 @@ impl Dynamics {
     pub fn new(cfg: &PlantConfig) -> Self {
         Dynamics {
             cylinder: Cylinder::new(cfg),
-            flow: FlowPath::new(&cfg.valve, cfg.air.temperature_k),
+            supply_path: FlowPath::new(cfg.valve.supply_conductance_dm3_s_bar, &cfg.valve, cfg.air.temperature_k),
+            exhaust_path: FlowPath::new(cfg.valve.exhaust_conductance_dm3_s_bar, &cfg.valve, cfg.air.temperature_k),
             friction: Friction::new(&cfg.friction),
             mass_kg: cfg.load.moving_mass_kg,
             external_force_n: cfg.load.external_force_n,
@@ -115,9 +118,9 @@ impl Dynamics {
     #[inline]
     pub fn chamber_inflow_kg_s(&self, p_pa: f64, open: bool) -> f64 {
         if open {
-            self.flow.mass_flow_kg_s(self.supply_pa, p_pa)
+            self.supply_path.mass_flow_kg_s(self.supply_pa, p_pa)
         } else {
-            -self.flow.mass_flow_kg_s(p_pa, self.atmosphere_pa)
+            -self.exhaust_path.mass_flow_kg_s(p_pa, self.atmosphere_pa)
         }
     }
 

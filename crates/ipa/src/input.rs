@@ -133,31 +133,10 @@ pub fn generate(
     amplitude: f64,
     seed: u64,
 ) -> Result<Vec<f64>, IpaError> {
-    if samples == 0 || samples > sysid::data::MAX_SAMPLES {
-        return Err(IpaError::Config(format!(
-            "invalid --samples {samples}: expected 1..={}",
-            sysid::data::MAX_SAMPLES
-        )));
-    }
-    if !(ts_s.is_finite() && ts_s > 0.0) {
-        return Err(IpaError::Config(format!(
-            "invalid --ts {ts_s}: expected a positive sampling period in s"
-        )));
-    }
-    if !(amplitude.is_finite() && amplitude >= 0.0) {
-        return Err(IpaError::Config(format!(
-            "invalid --amplitude {amplitude}: expected a number of counts >= 0"
-        )));
-    }
+    check_settings(samples, ts_s, amplitude)?;
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     Ok(match spec {
-        InputSpec::Staircase => staircase(
-            &StaircaseDesign::default(),
-            samples,
-            ts_s,
-            amplitude,
-            &mut rng,
-        ),
+        InputSpec::Staircase => staircase(samples, ts_s, amplitude, seed)?,
         InputSpec::Prbs => prbs(samples, clock_samples(ts_s), seed)
             .into_iter()
             .map(|b| if b { amplitude } else { -amplitude })
@@ -181,6 +160,24 @@ pub fn generate(
     })
 }
 
+fn check_settings(samples: usize, ts_s: f64, amplitude: f64) -> Result<(), IpaError> {
+    if samples == 0 || samples > sysid::data::MAX_SAMPLES {
+        return Err(IpaError::Config(format!(
+            "invalid --samples {samples}: expected 1..={}",
+            sysid::data::MAX_SAMPLES
+        )));
+    }
+    if !(ts_s.is_finite() && ts_s > 0.0) {
+        return Err(IpaError::Config(format!("invalid --ts {ts_s}: expected a positive sampling period in s")));
+    }
+    if !(amplitude.is_finite() && amplitude >= 0.0) {
+        return Err(IpaError::Config(format!(
+            "invalid --amplitude {amplitude}: expected a number of counts >= 0"
+        )));
+    }
+    Ok(())
+}
+
 /// Reads column `u` of a CSV file (header row required), every cell a finite number.
 pub fn read_input_file(path: &Path) -> Result<Vec<f64>, IpaError> {
     let bytes = std::fs::read(path).map_err(|source| sysid::SysidError::Io {
@@ -197,102 +194,82 @@ fn clock_samples(ts_s: f64) -> usize {
     ((0.05 / ts_s).round() as usize).max(1)
 }
 
-/// Parameters of the experimenter's rule behind `staircase`.
+/// The experimenter's rule behind `staircase` (the paper's "continuous step signal").
 ///
-/// The experimenter keeps a dead-reckoning estimate p of the piston's displacement from where the record
-/// starts (mid-stroke by default), using a nominal command-to-velocity curve with a deadzone
-/// (v = g_ext (u - d) for u > d, v = g_ret (u + d) for u < -d, 0 between; the defaults were measured on the
-/// default physics plant). Each new level has a magnitude uniform in [0, A] (integer counts) and a hold
-/// uniform in [hold_min_s, hold_max_s]; its sign is + with probability (1 - p / band_mm) / 2 clamped to
-/// [0, 1] (so the estimate is pulled back to the middle), and the hold is shortened so that the estimate
-/// stays within `reach_mm` of the start (the piston is never commanded towards an end stop it would reach).
+/// A real experimenter watches the piston and keeps it inside the stroke. Each new level has a magnitude
+/// drawn uniformly from the integers 0..=A and a hold drawn uniformly from [hold_min_s, hold_max_s]; its
+/// sign is + with probability (1 - (y - L/2) / band_mm) / 2, clamped to [0, 1], where y is the measured
+/// position when the level starts (so the piston is pulled back towards mid-stroke), and a level is ended
+/// early when it drives the piston to within `margin_mm` of the end stop it is moving towards.
+///
+/// [`staircase_experiment`] applies the rule to any plant. The open-loop [`generate`] applies it to the
+/// default physics plant started at mid-stroke (the experimenter's nominal plant), so the sequence it
+/// returns reproduces exactly on that plant and approximately on others.
 #[derive(Debug, Clone, PartialEq)]
 pub struct StaircaseDesign {
     /// Shortest hold of a level, s.
     pub hold_min_s: f64,
     /// Longest hold of a level, s.
     pub hold_max_s: f64,
-    /// Nominal extending speed per count above the deadzone, mm/s per count.
-    pub gain_extend_mm_s: f64,
-    /// Nominal retracting speed per count beyond the deadzone, mm/s per count.
-    pub gain_retract_mm_s: f64,
-    /// Nominal deadzone half-width d, counts.
-    pub deadzone_counts: f64,
-    /// Displacement (mm) at which the sign is always chosen back towards the start.
+    /// Stroke L, mm (end stops at 0 and L).
+    pub stroke_mm: f64,
+    /// Distance from mid-stroke (mm) at which the sign is always chosen back towards the middle.
     pub band_mm: f64,
-    /// Largest displacement (mm) from the start that the experimenter accepts.
-    pub reach_mm: f64,
+    /// A level ends early once the piston is within this distance (mm) of the end stop it moves to.
+    pub margin_mm: f64,
 }
 
 impl Default for StaircaseDesign {
     fn default() -> Self {
-        StaircaseDesign {
-            hold_min_s: 0.1,
-            hold_max_s: 0.5,
-            gain_extend_mm_s: 1.5,
-            gain_retract_mm_s: 2.0,
-            deadzone_counts: 20.0,
-            band_mm: 60.0,
-            reach_mm: 80.0,
-        }
+        StaircaseDesign { hold_min_s: 0.1, hold_max_s: 0.5, stroke_mm: 200.0, band_mm: 60.0, margin_mm: 25.0 }
     }
 }
 
-impl StaircaseDesign {
-    /// Nominal velocity in mm/s at command u (counts).
-    fn velocity_mm_s(&self, u: f64) -> f64 {
-        if u > self.deadzone_counts {
-            self.gain_extend_mm_s * (u - self.deadzone_counts)
-        } else if u < -self.deadzone_counts {
-            self.gain_retract_mm_s * (u + self.deadzone_counts)
-        } else {
-            0.0
-        }
-    }
-}
-
-/// The `staircase` signal with the experimenter's rule of [`StaircaseDesign`].
-pub fn staircase(
+/// Runs the supervised staircase of `design` on `plant` from its current state for `samples` samples
+/// with amplitude `amplitude` (counts) and returns (u, y) as a data logger records them: y(k) is the
+/// output before u(k) is applied. The same seed and plant state give the same record.
+pub fn staircase_experiment(
+    plant: &mut dyn sysid::Plant,
     design: &StaircaseDesign,
     samples: usize,
-    ts_s: f64,
     amplitude: f64,
-    rng: &mut ChaCha8Rng,
-) -> Vec<f64> {
+    seed: u64,
+) -> Result<(Vec<f64>, Vec<f64>), IpaError> {
+    let ts_s = plant.ts();
+    check_settings(samples, ts_s, amplitude)?;
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let mut u = Vec::with_capacity(samples);
-    let mut p_mm = 0.0_f64;
-    let a = amplitude.floor().max(0.0);
+    let mut y = Vec::with_capacity(samples);
+    let a = amplitude.floor();
+    let mid = 0.5 * design.stroke_mm;
+    let hold_max_s = design.hold_max_s.max(design.hold_min_s);
     while u.len() < samples {
-        let magnitude = if a >= 1.0 {
-            rng.gen_range(0..=a as u64) as f64
-        } else {
-            amplitude
-        };
-        let hold_s = rng.gen_range(design.hold_min_s..=design.hold_max_s);
-        let p_plus = (0.5 - 0.5 * p_mm / design.band_mm).clamp(0.0, 1.0);
-        let sign = if rng.gen_bool(p_plus) { 1.0 } else { -1.0 };
-        let level = sign * magnitude;
-        let v = design.velocity_mm_s(level);
-        let mut hold = ((hold_s / ts_s).round() as usize).max(1);
-        if v != 0.0 {
-            // Longest hold that keeps the estimate within reach (at least one sample).
-            let room_mm = if v > 0.0 {
-                design.reach_mm - p_mm
-            } else {
-                design.reach_mm + p_mm
-            };
-            let max_hold = (room_mm.max(0.0) / (v.abs() * ts_s)).floor() as usize;
-            hold = hold.min(max_hold.max(1));
-        }
+        let magnitude = if a >= 1.0 { rng.gen_range(0..=a as u64) as f64 } else { amplitude };
+        let hold_s = rng.gen_range(design.hold_min_s..=hold_max_s);
+        let hold = ((hold_s / ts_s).round() as usize).max(1);
+        let p_plus = (0.5 - 0.5 * (plant.output() - mid) / design.band_mm).clamp(0.0, 1.0);
+        let level = if rng.gen_bool(p_plus) { magnitude } else { -magnitude };
         for _ in 0..hold {
-            if u.len() == samples {
+            let yk = plant.output();
+            let near_end = (level > 0.0 && yk >= design.stroke_mm - design.margin_mm)
+                || (level < 0.0 && yk <= design.margin_mm);
+            if u.len() == samples || near_end {
                 break;
             }
             u.push(level);
-            p_mm += v * ts_s;
+            y.push(yk);
+            plant.step(level)?;
         }
     }
-    u
+    Ok((u, y))
+}
+
+/// The open-loop staircase: [`staircase_experiment`] on the default physics plant at mid-stroke.
+fn staircase(samples: usize, ts_s: f64, amplitude: f64, seed: u64) -> Result<Vec<f64>, IpaError> {
+    let design = StaircaseDesign::default();
+    let mut nominal = crate::Ipa::with_ts(crate::PlantConfig::default(), ts_s)?;
+    sysid::Plant::reset(&mut nominal, 0.5 * design.stroke_mm);
+    Ok(staircase_experiment(&mut nominal, &design, samples, amplitude, seed)?.0)
 }
 
 /// Maximum-length PRBS from a 10-bit Fibonacci LFSR (x^10 + x^7 + 1, period 1023), each bit held for

@@ -47,6 +47,8 @@ pub struct Ipa {
     ts_s: f64,
     pwm_period_s: f64,
     max_substep_s: f64,
+    slow_substep_s: f64,
+    slow_speed_m_s: f64,
     state: State,
     mode: Mode,
     valve_cap: Valve,
@@ -94,6 +96,8 @@ impl Ipa {
             ts_s,
             pwm_period_s: v.pwm_period_ms * 1e-3,
             max_substep_s: config.integration.max_substep_ms * 1e-3,
+            slow_substep_s: config.integration.slow_substep_ms * 1e-3,
+            slow_speed_m_s: config.integration.slow_speed_mm_s * 1e-3,
             state: State {
                 x_m: 0.0,
                 v_m_s: 0.0,
@@ -316,7 +320,12 @@ impl Ipa {
         let mut t = ta;
         let tiny = 1e-12 * self.ts_s;
         while tb - t > tiny {
-            let h = h_nom.min(tb - t);
+            // Finer substeps through the Stribeck region, whose time scale v_s / a is short.
+            let slow = match self.mode {
+                Mode::Sliding(_) => self.state.v_m_s.abs() < self.slow_speed_m_s,
+                Mode::Stuck => false,
+            };
+            let h = if slow { h_nom.min(self.slow_substep_s) } else { h_nom }.min(tb - t);
             let next = self.dynamics.rk4(&self.state, self.mode, valves, h);
             match self.detect(&next) {
                 None => {

@@ -36,10 +36,11 @@ pub struct FlowPath {
 }
 
 impl FlowPath {
-    /// From the valve configuration and the upstream air temperature `temperature_k` (K).
-    pub fn new(cfg: &ValveConfig, temperature_k: f64) -> Self {
+    /// A path of sonic conductance `c_dm3_s_bar` (dm^3/(s bar), ANR) with the critical and laminar
+    /// pressure ratios of `cfg`, for upstream air at `temperature_k` (K).
+    pub fn new(c_dm3_s_bar: f64, cfg: &ValveConfig, temperature_k: f64) -> Self {
         // C in dm^3/(s bar) -> m^3/(s Pa): 1e-3 / 1e5.
-        let c_si = cfg.sonic_conductance_dm3_s_bar * 1e-8;
+        let c_si = c_dm3_s_bar * 1e-8;
         let b = cfg.critical_pressure_ratio;
         let r_lam = cfg.laminar_pressure_ratio;
         let z = (r_lam - b) / (1.0 - b);
@@ -166,8 +167,8 @@ mod tests {
 
     fn path() -> FlowPath {
         FlowPath::new(
+            1.0,
             &ValveConfig {
-                sonic_conductance_dm3_s_bar: 1.0,
                 critical_pressure_ratio: 0.5,
                 ..ValveConfig::default()
             },

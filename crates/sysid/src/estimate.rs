@@ -234,10 +234,11 @@ pub struct Identified {
     pub params: Vec<Param>,
     /// Method used.
     pub method: Method,
-    /// Key-term iterations (LS) or passes (RLS).
+    /// Key-term iterations (LS), passes (RLS), Levenberg–Marquardt iterations (OE) or stages (IV).
     pub iterations: usize,
     /// LS key-term: reached a fixed point. RLS: the estimate settled (relative change below 1e-3 over the
-    /// last 10 % of the final pass, or between the ends of the last two passes).
+    /// last 10 % of the final pass, or between the ends of the last two passes). OE: the optimiser stopped
+    /// on its ftol/xtol/gtol criterion. IV: the stages settled (relative change below 1e-6).
     pub converged: bool,
     /// Human-readable remark (limit cycle detected, best iterate kept, ...).
     pub note: Option<String>,

@@ -1,0 +1,175 @@
+//! `identify` batch mode through the binary: a folder or several files, one JSON line per file, failures
+//! reported per file with a non-zero exit, each line equal to the single-file `--json` object.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use serde_json::Value;
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
+}
+
+/// The paper model (b1 = 1, deadzone b_l = −1.5, b_r = 1.41) driven by a staircase, by a plain loop:
+/// y(k) = 1.869 y(k−1) − 0.9976 y(k−2) + 0.1284 y(k−3) + x(k−1).
+fn paper_record(n: usize, phase: usize) -> (Vec<f64>, Vec<f64>) {
+    let levels = [
+        200.0, -120.0, 0.5, 255.0, -255.0, 60.0, -30.0, 1.0, -90.0, 140.0, -4.0, 25.0,
+    ];
+    let u: Vec<f64> = (0..n)
+        .map(|k| levels[((k / 17) + phase) % levels.len()])
+        .collect();
+    let (bl, br, ml, mr) = (-1.5, 1.41, 3.46 * 15.67e-4, 2.38 * 15.67e-4);
+    let dz = |v: f64| {
+        if v >= br {
+            mr * (v - br)
+        } else if v <= bl {
+            ml * (v - bl)
+        } else {
+            0.0
+        }
+    };
+    let mut y = vec![0.0; n];
+    for k in 1..n {
+        let mut v = dz(u[k - 1]) + 1.869 * y[k - 1];
+        if k >= 2 {
+            v -= 0.9976 * y[k - 2];
+        }
+        if k >= 3 {
+            v += 0.1284 * y[k - 3];
+        }
+        y[k] = v;
+    }
+    (u, y)
+}
+
+fn write_csv(dir: &Path, name: &str, u: &[f64], y: &[f64]) -> PathBuf {
+    let mut s = String::from("t,u,y\n");
+    for k in 0..u.len() {
+        s += &format!("{},{},{}\n", k as f64 * 0.01, u[k], y[k]);
+    }
+    let p = dir.join(name);
+    std::fs::write(&p, s).unwrap();
+    p
+}
+
+fn lines(text: &str) -> Vec<Value> {
+    text.lines()
+        .map(|l| serde_json::from_str(l).unwrap_or_else(|e| panic!("not JSON: {e}: {l}")))
+        .collect()
+}
+
+// A folder: its *.csv files in name order (other files ignored), one line each; a malformed file gets an
+// error line naming line and column, the others are still identified, and the exit code is 2.
+#[test]
+fn folder_gives_one_line_per_csv_in_name_order_and_fails_at_the_end() {
+    let dir = tempfile::tempdir().unwrap();
+    for (i, name) in ["c.csv", "a.csv", "b.csv"].iter().enumerate() {
+        let (u, y) = paper_record(900, 3 * i);
+        write_csv(dir.path(), name, &u, &y);
+    }
+    std::fs::write(dir.path().join("bad.csv"), "t,u,y\n0,1,2\n0.01,oops,3\n").unwrap();
+    std::fs::write(dir.path().join("notes.txt"), "not data").unwrap();
+    let out = bin()
+        .args(["identify", "--method", "ls", "--data"])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert_eq!(
+        out.status.code(),
+        Some(2),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v = lines(&String::from_utf8(out.stdout).unwrap());
+    let files: Vec<String> = v
+        .iter()
+        .map(|l| {
+            Path::new(l["file"].as_str().unwrap())
+                .file_name()
+                .unwrap()
+                .to_string_lossy()
+                .into_owned()
+        })
+        .collect();
+    assert_eq!(files, ["a.csv", "b.csv", "bad.csv", "c.csv"]);
+    let err = v[2]["error"].as_str().unwrap();
+    assert!(err.contains(":3:2:") && err.contains("oops"), "{err}");
+    for l in [&v[0], &v[1], &v[3]] {
+        assert!(l.get("error").is_none());
+        // Noise-free paper data: a1 = −1.869 is recovered.
+        let a1 = l["model"]["a"][0].as_f64().unwrap();
+        assert!((a1 + 1.869).abs() < 1e-6, "a1 = {a1}");
+    }
+}
+
+// Each batch line is the single-file --json object of that file plus "file"; explicit files keep the
+// order given; --json OUT receives the lines and the exit code is 0 when every file succeeds.
+#[test]
+fn explicit_files_keep_their_order_and_match_single_file_output() {
+    let dir = tempfile::tempdir().unwrap();
+    let (u, y) = paper_record(700, 1);
+    let second = write_csv(dir.path(), "z.csv", &u, &y);
+    let (u, y) = paper_record(800, 4);
+    let first = write_csv(dir.path(), "m.csv", &u, &y);
+    let out_path = dir.path().join("all.jsonl");
+    let st = bin()
+        .args(["identify", "--method", "rls", "--passes", "3", "--data"])
+        .arg(&first)
+        .arg(&second)
+        .arg("--json")
+        .arg(&out_path)
+        .status()
+        .unwrap();
+    assert!(st.success());
+    let v = lines(&std::fs::read_to_string(&out_path).unwrap());
+    assert_eq!(v.len(), 2);
+    for (line, path) in v.iter().zip([&first, &second]) {
+        assert_eq!(line["file"].as_str().unwrap(), path.display().to_string());
+        let single = dir.path().join("single.json");
+        let st = bin()
+            .args(["identify", "--method", "rls", "--passes", "3", "--data"])
+            .arg(path)
+            .arg("--json")
+            .arg(&single)
+            .output()
+            .unwrap();
+        assert!(st.status.success());
+        let want: Value = serde_json::from_str(&std::fs::read_to_string(&single).unwrap()).unwrap();
+        let mut got = line.clone();
+        got.as_object_mut().unwrap().remove("file");
+        assert_eq!(got, want);
+    }
+}
+
+// One model file cannot hold many models: --save-model is refused in batch mode before any work.
+#[test]
+fn save_model_is_refused_in_batch_mode() {
+    let dir = tempfile::tempdir().unwrap();
+    let (u, y) = paper_record(300, 0);
+    let a = write_csv(dir.path(), "a.csv", &u, &y);
+    let b = write_csv(dir.path(), "b.csv", &u, &y);
+    let out = bin()
+        .args(["identify", "--data"])
+        .arg(&a)
+        .arg(&b)
+        .arg("--save-model")
+        .arg(dir.path().join("m.json"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--save-model"));
+    assert!(out.stdout.is_empty());
+}
+
+#[test]
+fn folder_without_csv_files_is_a_clear_error() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = bin()
+        .args(["identify", "--data"])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("*.csv"));
+}

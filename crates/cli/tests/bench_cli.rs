@@ -1,0 +1,107 @@
+//! `bench` through the binary with tiny sizes (speed itself is measured by the benchmarks, not by
+//! tests): the JSON reports are complete and internally consistent.
+
+use std::process::Command;
+
+use serde_json::Value;
+
+fn bench(args: &[&str]) -> Value {
+    let out = Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
+        .arg("bench")
+        .args(args)
+        .args(["--json", "-"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+fn f(v: &Value, key: &str) -> f64 {
+    v[key]
+        .as_f64()
+        .unwrap_or_else(|| panic!("missing {key}: {v}"))
+}
+
+// flops per update for n = 5, ρ < 1: ε 2n + Pφ 2n² + denominator 2n + 1 division + gain n + θ 2n
+// + 3 per distinct entry of P (n(n+1)/2 = 15) + 1/ρ = 10 + 50 + 10 + 1 + 5 + 10 + 45 + 1 = 132;
+// GFLOP/s = flops × samples/s / 1e9 and ns/update = 1e9 / (samples/s).
+#[test]
+fn rls_bench_reports_consistent_throughput_and_flops() {
+    let v = bench(&[
+        "rls",
+        "--params",
+        "5",
+        "--samples",
+        "2000",
+        "--repetitions",
+        "1",
+    ]);
+    assert_eq!(v["params"], 5);
+    assert_eq!(f(&v, "flops_per_update"), 132.0);
+    let sps = f(&v, "samples_per_second");
+    assert!(sps > 0.0 && sps.is_finite());
+    assert!((f(&v, "gflops") - 132.0 * sps / 1e9).abs() <= 1e-9 * f(&v, "gflops"));
+    assert!((f(&v, "ns_per_update") - 1e9 / sps).abs() <= 1e-9 * f(&v, "ns_per_update"));
+    assert!(f(&v, "reference_samples_per_second") > 0.0 && f(&v, "fixed_samples_per_second") > 0.0);
+    assert!(f(&v, "peak_gflops_build_target") > 0.0);
+}
+
+// n = 13 has no fixed-size kernel: the array figure is absent (null), the others are there.
+#[test]
+fn rls_bench_above_the_fixed_sizes_has_no_array_figure() {
+    let v = bench(&[
+        "rls",
+        "--params",
+        "13",
+        "--samples",
+        "500",
+        "--repetitions",
+        "1",
+        "--forgetting",
+        "1",
+    ]);
+    assert!(v["fixed_samples_per_second"].is_null());
+    // ρ = 1: 3n² + 8n + 1 = 507 + 104 + 1 = 612.
+    assert_eq!(f(&v, "flops_per_update"), 612.0);
+}
+
+#[test]
+fn identify_bench_times_both_estimators() {
+    let v = bench(&["identify", "--samples", "400", "--repetitions", "1"]);
+    for m in ["ls", "rls"] {
+        assert_eq!(v[m]["method"], m);
+        assert_eq!(v[m]["samples"], 400);
+        assert!(v[m]["seconds_per_identification"].as_f64().unwrap() > 0.0);
+    }
+}
+
+// Real-time factor = simulated time / wall time = samples · Ts / wall.
+#[test]
+fn plant_bench_real_time_factor_is_simulated_over_wall_time() {
+    let v = bench(&[
+        "plant",
+        "--plant",
+        "paper",
+        "--samples",
+        "300",
+        "--repetitions",
+        "1",
+    ]);
+    assert!((f(&v, "simulated_seconds") - 3.0).abs() < 1e-9);
+    let rtf = f(&v, "real_time_factor");
+    assert!((rtf - 3.0 / f(&v, "wall_seconds")).abs() <= 1e-9 * rtf);
+}
+
+#[test]
+fn rls_bench_refuses_a_bad_forgetting_factor() {
+    let out = Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
+        .args(["bench", "rls", "--forgetting", "1.5"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--forgetting"));
+}

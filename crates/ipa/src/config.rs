@@ -299,8 +299,16 @@ impl PlantConfig {
             }
         }
         let v = &self.valve;
-        nonneg("valve", "supply_conductance_dm3_s_bar", v.supply_conductance_dm3_s_bar)?;
-        nonneg("valve", "exhaust_conductance_dm3_s_bar", v.exhaust_conductance_dm3_s_bar)?;
+        nonneg(
+            "valve",
+            "supply_conductance_dm3_s_bar",
+            v.supply_conductance_dm3_s_bar,
+        )?;
+        nonneg(
+            "valve",
+            "exhaust_conductance_dm3_s_bar",
+            v.exhaust_conductance_dm3_s_bar,
+        )?;
         if !(v.critical_pressure_ratio >= 0.0 && v.critical_pressure_ratio < 1.0) {
             return Err(bad(
                 "valve",
@@ -355,13 +363,27 @@ impl PlantConfig {
         pos("encoder", "resolution_mm", self.encoder.resolution_mm)?;
         let h = self.integration.max_substep_ms;
         if !(h > 0.0 && h <= v.pwm_period_ms) {
-            return Err(bad("integration", "max_substep_ms", h, "a positive step not longer than valve.pwm_period_ms"));
+            return Err(bad(
+                "integration",
+                "max_substep_ms",
+                h,
+                "a positive step not longer than valve.pwm_period_ms",
+            ));
         }
         let hs = self.integration.slow_substep_ms;
         if !(hs > 0.0 && hs <= h) {
-            return Err(bad("integration", "slow_substep_ms", hs, "a positive step not longer than integration.max_substep_ms"));
+            return Err(bad(
+                "integration",
+                "slow_substep_ms",
+                hs,
+                "a positive step not longer than integration.max_substep_ms",
+            ));
         }
-        nonneg("integration", "slow_speed_mm_s", self.integration.slow_speed_mm_s)?;
+        nonneg(
+            "integration",
+            "slow_speed_mm_s",
+            self.integration.slow_speed_mm_s,
+        )?;
         Ok(())
     }
 

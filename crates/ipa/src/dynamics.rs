@@ -94,8 +94,16 @@ impl Dynamics {
     pub fn new(cfg: &PlantConfig) -> Self {
         Dynamics {
             cylinder: Cylinder::new(cfg),
-            supply_path: FlowPath::new(cfg.valve.supply_conductance_dm3_s_bar, &cfg.valve, cfg.air.temperature_k),
-            exhaust_path: FlowPath::new(cfg.valve.exhaust_conductance_dm3_s_bar, &cfg.valve, cfg.air.temperature_k),
+            supply_path: FlowPath::new(
+                cfg.valve.supply_conductance_dm3_s_bar,
+                &cfg.valve,
+                cfg.air.temperature_k,
+            ),
+            exhaust_path: FlowPath::new(
+                cfg.valve.exhaust_conductance_dm3_s_bar,
+                &cfg.valve,
+                cfg.air.temperature_k,
+            ),
             friction: Friction::new(&cfg.friction),
             mass_kg: cfg.load.moving_mass_kg,
             external_force_n: cfg.load.external_force_n,

@@ -41,7 +41,11 @@ impl Friction {
     pub fn sliding_n(&self, dir: f64, v_m_s: f64) -> f64 {
         let q = v_m_s * v_m_s * self.inv_vs2;
         // exp(-q) < 1e-19 beyond q = 44: below the last bit of F_c, so the exponential is skipped.
-        let stribeck = if q < 44.0 { (self.static_n - self.coulomb_n) * (-q).exp() } else { 0.0 };
+        let stribeck = if q < 44.0 {
+            (self.static_n - self.coulomb_n) * (-q).exp()
+        } else {
+            0.0
+        };
         dir * (self.coulomb_n + stribeck) + self.viscous_n_s_m * v_m_s
     }
 }

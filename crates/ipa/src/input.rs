@@ -160,6 +160,23 @@ pub fn generate(
     })
 }
 
+/// y + white Gaussian measurement noise of standard deviation `std_mm` (Box-Muller on ChaCha8 seeded
+/// with `seed`, stream 1, so that it is independent of the input's random numbers).
+pub fn add_noise(y: &[f64], std_mm: f64, seed: u64) -> Vec<f64> {
+    if std_mm == 0.0 {
+        return y.to_vec();
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    rng.set_stream(1);
+    y.iter()
+        .map(|v| {
+            let u1: f64 = 1.0 - rng.gen::<f64>();
+            let u2: f64 = rng.gen::<f64>();
+            v + std_mm * (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+        })
+        .collect()
+}
+
 fn check_settings(samples: usize, ts_s: f64, amplitude: f64) -> Result<(), IpaError> {
     if samples == 0 || samples > sysid::data::MAX_SAMPLES {
         return Err(IpaError::Config(format!(
@@ -168,7 +185,9 @@ fn check_settings(samples: usize, ts_s: f64, amplitude: f64) -> Result<(), IpaEr
         )));
     }
     if !(ts_s.is_finite() && ts_s > 0.0) {
-        return Err(IpaError::Config(format!("invalid --ts {ts_s}: expected a positive sampling period in s")));
+        return Err(IpaError::Config(format!(
+            "invalid --ts {ts_s}: expected a positive sampling period in s"
+        )));
     }
     if !(amplitude.is_finite() && amplitude >= 0.0) {
         return Err(IpaError::Config(format!(
@@ -221,7 +240,13 @@ pub struct StaircaseDesign {
 
 impl Default for StaircaseDesign {
     fn default() -> Self {
-        StaircaseDesign { hold_min_s: 0.1, hold_max_s: 0.5, stroke_mm: 200.0, band_mm: 60.0, margin_mm: 25.0 }
+        StaircaseDesign {
+            hold_min_s: 0.1,
+            hold_max_s: 0.5,
+            stroke_mm: 200.0,
+            band_mm: 60.0,
+            margin_mm: 25.0,
+        }
     }
 }
 
@@ -244,11 +269,19 @@ pub fn staircase_experiment(
     let mid = 0.5 * design.stroke_mm;
     let hold_max_s = design.hold_max_s.max(design.hold_min_s);
     while u.len() < samples {
-        let magnitude = if a >= 1.0 { rng.gen_range(0..=a as u64) as f64 } else { amplitude };
+        let magnitude = if a >= 1.0 {
+            rng.gen_range(0..=a as u64) as f64
+        } else {
+            amplitude
+        };
         let hold_s = rng.gen_range(design.hold_min_s..=hold_max_s);
         let hold = ((hold_s / ts_s).round() as usize).max(1);
         let p_plus = (0.5 - 0.5 * (plant.output() - mid) / design.band_mm).clamp(0.0, 1.0);
-        let level = if rng.gen_bool(p_plus) { magnitude } else { -magnitude };
+        let level = if rng.gen_bool(p_plus) {
+            magnitude
+        } else {
+            -magnitude
+        };
         for _ in 0..hold {
             let yk = plant.output();
             let near_end = (level > 0.0 && yk >= design.stroke_mm - design.margin_mm)

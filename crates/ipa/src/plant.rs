@@ -325,7 +325,12 @@ impl Ipa {
                 Mode::Sliding(_) => self.state.v_m_s.abs() < self.slow_speed_m_s,
                 Mode::Stuck => false,
             };
-            let h = if slow { h_nom.min(self.slow_substep_s) } else { h_nom }.min(tb - t);
+            let h = if slow {
+                h_nom.min(self.slow_substep_s)
+            } else {
+                h_nom
+            }
+            .min(tb - t);
             let next = self.dynamics.rk4(&self.state, self.mode, valves, h);
             match self.detect(&next) {
                 None => {

@@ -133,14 +133,12 @@ impl Valve {
     ) {
         let mut next = 0;
         loop {
-            let pending = (self.commanded != self.open).then(|| {
-                self.commanded_since_s
-                    + if self.commanded {
-                        self.opening_delay_s
-                    } else {
-                        self.closing_delay_s
-                    }
-            });
+            let delay = if self.commanded {
+                self.opening_delay_s
+            } else {
+                self.closing_delay_s
+            };
+            let pending = (self.commanded != self.open).then_some(self.commanded_since_s + delay);
             let next_cmd = commands.get(next).map(|c| c.0).unwrap_or(f64::INFINITY);
             match pending {
                 Some(tp) if tp <= next_cmd && tp < t1_s => {

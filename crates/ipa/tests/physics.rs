@@ -45,12 +45,20 @@ fn steady_speed(cfg: &PlantConfig, extend: bool) -> (f64, f64) {
     let r = cfg.cylinder.rod_mm * 1e-3;
     let a_cap = std::f64::consts::PI * d * d / 4.0;
     let a_rod = std::f64::consts::PI * (d * d - r * r) / 4.0;
-    let (a_fill, a_exh) = if extend { (a_cap, a_rod) } else { (a_rod, a_cap) };
+    let (a_fill, a_exh) = if extend {
+        (a_cap, a_rod)
+    } else {
+        (a_rod, a_cap)
+    };
     let p_s = P_ATM + cfg.air.supply_gauge_mpa * 1e6;
     let b = cfg.valve.critical_pressure_ratio;
     let k_s = k_per_pa(cfg.valve.supply_conductance_dm3_s_bar);
     let k_e = k_per_pa(cfg.valve.exhaust_conductance_dm3_s_bar);
-    let (a_in, a_out, alpha) = (cfg.air.exponent_charging, cfg.air.exponent_discharging, cfg.air.exponent_volume);
+    let (a_in, a_out, alpha) = (
+        cfg.air.exponent_charging,
+        cfg.air.exponent_discharging,
+        cfg.air.exponent_volume,
+    );
     let rt = R * T;
     let fric = |v: f64| cfg.friction.coulomb_n + cfg.friction.viscous_n_s_m * v;
     // Given v: exhaust chamber pressure from alpha_out K_e p f(p_atm/p) RT = alpha p A_exh v.
@@ -72,7 +80,11 @@ fn steady_speed(cfg: &PlantConfig, extend: bool) -> (f64, f64) {
 /// Simulated speed (m/s) between 80 and 150 mm of travel at full command from an end.
 fn simulated_full_speed(extend: bool) -> f64 {
     let mut p = Ipa::new(PlantConfig::default()).unwrap();
-    let (start, u) = if extend { (10.0, 255.0) } else { (190.0, -255.0) };
+    let (start, u) = if extend {
+        (10.0, 255.0)
+    } else {
+        (190.0, -255.0)
+    };
     p.reset(start);
     let mut samples = vec![];
     for k in 0..60 {
@@ -94,10 +106,17 @@ fn full_command_speed_matches_the_choked_flow_estimate() {
         let extend = true;
         let (v_balance, p_fill) = steady_speed(&cfg, extend);
         let p_s = P_ATM + cfg.air.supply_gauge_mpa * 1e6;
-        assert!(p_fill / p_s <= cfg.valve.critical_pressure_ratio, "inflow not choked: {p_fill}");
+        assert!(
+            p_fill / p_s <= cfg.valve.critical_pressure_ratio,
+            "inflow not choked: {p_fill}"
+        );
         let d = cfg.cylinder.bore_mm * 1e-3;
         let r = cfg.cylinder.rod_mm * 1e-3;
-        let a_fill = if extend { std::f64::consts::PI * d * d / 4.0 } else { std::f64::consts::PI * (d * d - r * r) / 4.0 };
+        let a_fill = if extend {
+            std::f64::consts::PI * d * d / 4.0
+        } else {
+            std::f64::consts::PI * (d * d - r * r) / 4.0
+        };
         let q_fill = cfg.air.exponent_charging / cfg.air.exponent_volume
             * k_per_pa(cfg.valve.supply_conductance_dm3_s_bar)
             * p_s
@@ -107,7 +126,10 @@ fn full_command_speed_matches_the_choked_flow_estimate() {
         let v_choked = q_fill / a_fill;
         assert!((v_choked - v_balance).abs() < 1e-6 * v_choked);
         let v_sim = simulated_full_speed(extend);
-        assert!((0.15..=0.8).contains(&v_sim), "extend {extend}: {v_sim} m/s");
+        assert!(
+            (0.15..=0.8).contains(&v_sim),
+            "extend {extend}: {v_sim} m/s"
+        );
         assert!(
             (v_sim - v_choked).abs() < 0.2 * v_choked,
             "extend {extend}: simulated {v_sim} m/s, choked-flow estimate {v_choked} m/s"
@@ -184,10 +206,19 @@ fn closed_adiabatic_chambers_keep_p_v_to_the_k_constant() {
         p.step(0.0).unwrap();
         let c = invariant(&p);
         for i in 0..2 {
-            assert!((c[i] - c0[i]).abs() < 1e-7 * c0[i], "chamber {i}: {} vs {}", c[i], c0[i]);
+            assert!(
+                (c[i] - c0[i]).abs() < 1e-7 * c0[i],
+                "chamber {i}: {} vs {}",
+                c[i],
+                c0[i]
+            );
         }
     }
-    assert!(p.position_mm() > 105.0, "the force must move the piston: {}", p.position_mm());
+    assert!(
+        p.position_mm() > 105.0,
+        "the force must move the piston: {}",
+        p.position_mm()
+    );
 }
 
 // Isothermal closed chambers (all exponents 1): the gas mass p V / (R T) of each chamber is conserved.
@@ -237,7 +268,10 @@ fn choked_filling_adds_mass_at_the_choked_rate() {
             }
             let mass_gain = (pa - P_ATM) * v0 / (R * T) / exponent;
             let expected = mdot * (t - t_on);
-            assert!((mass_gain - expected).abs() < 1e-9 * expected, "t = {t}: {mass_gain} vs {expected}");
+            assert!(
+                (mass_gain - expected).abs() < 1e-9 * expected,
+                "t = {t}: {mass_gain} vs {expected}"
+            );
             assert_eq!(p.position_mm(), 0.0);
             assert_eq!(p.pressures_pa()[1], P_ATM);
             checked += 1;
@@ -266,7 +300,10 @@ fn the_piston_never_leaves_the_stroke() {
             k += 1;
         }
     }
-    assert!(hit_low && hit_high, "the random commands should reach both end stops");
+    assert!(
+        hit_low && hit_high,
+        "the random commands should reach both end stops"
+    );
 }
 
 // Refining the RK4 substep 16 times changes the position by less than 1e-6 mm (fourth-order convergence
@@ -289,7 +326,11 @@ fn default_step_has_converged_to_below_a_nanometre() {
     };
     let coarse = run(1.0);
     let fine = run(16.0);
-    let err = coarse.iter().zip(&fine).map(|(a, b)| (a - b).abs()).fold(0.0, f64::max);
+    let err = coarse
+        .iter()
+        .zip(&fine)
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
     let travel = coarse.iter().fold(0.0_f64, |m, x| m.max((x - 100.0).abs()));
     assert!(err < 1e-6, "max position difference {err} mm");
     assert!(travel > 20.0, "the record must move the piston: {travel}");
@@ -312,12 +353,20 @@ fn default_staircase_stays_inside_the_stroke_and_is_reproducible() {
     };
     let x = run(&u);
     let at_stop = x.iter().filter(|&&v| v <= 0.0 || v >= 200.0).count();
-    let (lo, hi) = x.iter().fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+    let (lo, hi) = x
+        .iter()
+        .fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
     assert!(at_stop <= 100, "{at_stop} samples at an end stop");
     assert!(hi - lo >= 50.0, "moved over {lo}..{hi} mm only");
     assert_eq!(x, run(&u));
-    assert_eq!(u, ipa::generate(&ipa::InputSpec::Staircase, 2000, 0.01, 255.0, 0).unwrap());
-    assert_ne!(u, ipa::generate(&ipa::InputSpec::Staircase, 2000, 0.01, 255.0, 1).unwrap());
+    assert_eq!(
+        u,
+        ipa::generate(&ipa::InputSpec::Staircase, 2000, 0.01, 255.0, 0).unwrap()
+    );
+    assert_ne!(
+        u,
+        ipa::generate(&ipa::InputSpec::Staircase, 2000, 0.01, 255.0, 1).unwrap()
+    );
 }
 
 // The paper's PI loop (u = Kp e + Ki Ts sum e, Kp = 14, Ki = 1, saturated at +-255) positions the piston:
@@ -338,9 +387,18 @@ fn the_papers_pi_loop_positions_the_piston() {
             peak = peak.max((y - from) * (to - from) / 50.0);
             let e = to - y;
             sum += e;
-            p.step((kp * e + ki * ts * sum).clamp(-255.0, 255.0)).unwrap();
+            p.step((kp * e + ki * ts * sum).clamp(-255.0, 255.0))
+                .unwrap();
         }
-        assert!(peak < 55.0, "{from}->{to}: overshoot {} %", 2.0 * (peak - 50.0));
-        assert!((to - y).abs() < 2.5, "{from}->{to}: steady-state error {} mm", to - y);
+        assert!(
+            peak < 55.0,
+            "{from}->{to}: overshoot {} %",
+            2.0 * (peak - 50.0)
+        );
+        assert!(
+            (to - y).abs() < 2.5,
+            "{from}->{to}: steady-state error {} mm",
+            to - y
+        );
     }
 }

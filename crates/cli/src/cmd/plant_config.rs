@@ -1,10 +1,11 @@
-//! TODO: being written.
+//! `ipa-sysid plant-config`: prints the physics plant's default parameters as commented TOML.
 
-/// Flags.
+/// Flags of `plant-config` (none: the TOML goes to stdout; redirect it to a file and edit it).
 #[derive(Debug, clap::Args)]
 pub struct Args {}
 
-/// Runs the subcommand.
+/// Prints the defaults as TOML with the unit and source of every value.
 pub fn run(_args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("not implemented yet")
+    print!("{}", ipa::PlantConfig::default().to_commented_toml());
+    Ok(())
 }

@@ -1,4 +1,8 @@
-//! Scratch measurements of the default plant (calibration aid): speeds, deadzone, PI step, staircase.
+//! Characterises the physics plant (default, or the TOML file given as argument): full-command speeds,
+//! the command-to-velocity curve (deadzone), the paper's PI loop on 50 mm steps, the default staircase
+//! experiment for a few seeds, and the simulation speed.
+//!
+//! `cargo run --release -p ipa --example characterise [-- plant.toml]`
 use ipa::{Ipa, PlantConfig};
 use sysid::Plant;
 
@@ -48,7 +52,11 @@ fn main() {
         Some(f) => PlantConfig::from_toml_file(std::path::Path::new(f)).unwrap(),
         None => PlantConfig::default(),
     };
-    println!("full speed +255: {:.1} mm/s, -255: {:.1} mm/s", speed(&cfg, 255.0, 0.6), speed(&cfg, -255.0, 0.6));
+    println!(
+        "full speed +255: {:.1} mm/s, -255: {:.1} mm/s",
+        speed(&cfg, 255.0, 0.6),
+        speed(&cfg, -255.0, 0.6)
+    );
     let mut line = String::new();
     for u in [5, 10, 15, 20, 25, 30, 35, 40, 50, 60, 80, 100, 150, 200] {
         let up = speed(&cfg, u as f64, 1.0);
@@ -58,7 +66,10 @@ fn main() {
     println!("{line}");
     for (a, b) in [(50.0, 100.0), (100.0, 50.0), (20.0, 70.0), (150.0, 100.0)] {
         let (os, sse, ys) = pi_step(&cfg, a, b, 8.0);
-        println!("PI {a}->{b}: overshoot {os:.2} %, sse(8s) {sse:.3} mm, y(1s) {:.2}, y(3s) {:.2}", ys[100], ys[300]);
+        println!(
+            "PI {a}->{b}: overshoot {os:.2} %, sse(8s) {sse:.3} mm, y(1s) {:.2}, y(3s) {:.2}",
+            ys[100], ys[300]
+        );
     }
     for seed in 0..6 {
         let u = ipa::generate(&ipa::InputSpec::Staircase, 2000, 0.01, 255.0, seed).unwrap();
@@ -66,13 +77,22 @@ fn main() {
         p.reset(100.0);
         let y = sysid::run_open_loop(&mut p, &u).unwrap();
         let ends = y.iter().filter(|&&v| v <= 0.0 || v >= 200.0).count();
-        let (lo, hi) = y.iter().fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
-        println!("staircase seed {seed}: at end stops {ends}/2000, range {lo:.1}..{hi:.1}, events {}", p.event_count());
+        let (lo, hi) = y
+            .iter()
+            .fold((f64::MAX, f64::MIN), |(a, b), &v| (a.min(v), b.max(v)));
+        println!(
+            "staircase seed {seed}: at end stops {ends}/2000, range {lo:.1}..{hi:.1}, events {}",
+            p.event_count()
+        );
     }
     let u = ipa::generate(&ipa::InputSpec::Staircase, 200_000, 0.01, 255.0, 1).unwrap();
     let mut p = Ipa::new(cfg.clone()).unwrap();
     let t = std::time::Instant::now();
     let y = sysid::run_open_loop(&mut p, &u).unwrap();
     let el = t.elapsed().as_secs_f64();
-    println!("200000 steps (2000 s): {el:.3} s -> {:.0}x real time; last y {}", 2000.0 / el, y[y.len() - 1]);
+    println!(
+        "200000 steps (2000 s): {el:.3} s -> {:.0}x real time; last y {}",
+        2000.0 / el,
+        y[y.len() - 1]
+    );
 }

@@ -10,7 +10,7 @@ use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
 use crate::branches::Branches;
-use crate::ls;
+use crate::fast_ls as ls; // the same API as crate::ls (Householder QR), without forming Q
 use crate::model::MAX_ORDER;
 use crate::regressor::Structure;
 use crate::rls::{self, Rls};

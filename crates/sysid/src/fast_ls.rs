@@ -18,8 +18,11 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use crate::ls::{LsSolution, RANK_TOLERANCE};
 use crate::SysidError;
+
+/// The result type and rank tolerance are those of [`crate::ls`], so `use crate::fast_ls as ls;` swaps
+/// the solver without other changes.
+pub use crate::ls::{LsSolution, RANK_TOLERANCE};
 
 /// Reusable storage for [`LsWorkspace::solve`]: the augmented matrix, by columns.
 #[derive(Debug, Clone, Default)]

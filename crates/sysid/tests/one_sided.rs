@@ -17,7 +17,7 @@ fn positive_levels(n: usize, seed: u64) -> Vec<f64> {
             rng.gen_range(0.0..10.0)
         };
         let hold = rng.gen_range(5..30);
-        u.extend(std::iter::repeat(l).take(hold));
+        u.resize(u.len() + hold, l);
     }
     u.truncate(n);
     u

@@ -19,7 +19,7 @@ fn levels(n: usize, amp: i64, rng: &mut ChaCha8Rng) -> Vec<f64> {
     while u.len() < n {
         let l = rng.gen_range(-amp..=amp) as f64;
         let hold = rng.gen_range(10..50);
-        u.extend(std::iter::repeat(l).take(hold));
+        u.resize(u.len() + hold, l);
     }
     u.truncate(n);
     u

@@ -74,11 +74,12 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let pi = Panel::new("time (s)", "position y (mm), PI Kp = 14, Ki = 1")
         .series(Series::dashed("set-point", t.clone(), r))
         .series(Series::line("y", t, y));
-    let fig = Figure::new("Physics IPA: open-loop command steps (u from t = 0.1 s), pressures, PI step")
-        .panel(pos)
-        .panel(prs)
-        .panel(pi)
-        .size(900, 1000);
+    let fig =
+        Figure::new("Physics IPA: open-loop command steps (u from t = 0.1 s), pressures, PI step")
+            .panel(pos)
+            .panel(prs)
+            .panel(pi)
+            .size(900, 1000);
     save_figure(&fig, &dir, "plant_step")?;
 
     // Command-to-velocity curve.
@@ -91,10 +92,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let zoom: Vec<usize> = (0..us.len()).filter(|&i| us[i].abs() <= 80.0).collect();
     let fig = Figure::new("Physics IPA: steady velocity versus command (deadzone)")
-        .panel(Panel::new("command u (counts)", "velocity (mm/s)").series(Series::points("measured", us.clone(), vs.clone())))
         .panel(
-            Panel::new("command u (counts), |u| <= 80", "velocity (mm/s)")
-                .series(Series::points("measured", zoom.iter().map(|&i| us[i]).collect(), zoom.iter().map(|&i| vs[i]).collect())),
+            Panel::new("command u (counts)", "velocity (mm/s)").series(Series::points(
+                "measured",
+                us.clone(),
+                vs.clone(),
+            )),
+        )
+        .panel(
+            Panel::new("command u (counts), |u| <= 80", "velocity (mm/s)").series(Series::points(
+                "measured",
+                zoom.iter().map(|&i| us[i]).collect(),
+                zoom.iter().map(|&i| vs[i]).collect(),
+            )),
         )
         .size(900, 800);
     save_figure(&fig, &dir, "plant_deadzone")?;

@@ -233,7 +233,7 @@ pub fn read_table(bytes: &[u8], name: &str) -> Result<Table, SysidError> {
         .trim(csv::Trim::All)
         .from_reader(text.as_bytes());
     let header = rdr.headers().map_err(|e| csv_err(name, e))?.clone();
-    let mut headers: Vec<String> = header.iter().map(|h| h.to_string()).collect();
+    let mut headers: Vec<String> = header.iter().map(|h| unquote(h).to_string()).collect();
     while headers.last().is_some_and(|h| h.is_empty()) {
         headers.pop();
     }
@@ -384,7 +384,7 @@ impl Table {
                         self.headers.len()
                     )));
                 };
-                if cell.is_empty() {
+                if unquote(cell).is_empty() {
                     return Err(err(format!(
                         "empty cell in column '{cname}'; expected a number (remove or fill missing samples)"
                     )));
@@ -416,6 +416,7 @@ impl Table {
 /// A cell as f64: Rust's float syntax, plus a decimal comma (`1,5`) when `decimal_comma` (a semicolon-
 /// or tab-delimited file) and the cell has one comma and no point.
 fn parse_number(cell: &str, decimal_comma: bool) -> Option<f64> {
+    let cell = unquote(cell);
     if let Ok(v) = cell.parse::<f64>() {
         return Some(v);
     }
@@ -423,6 +424,15 @@ fn parse_number(cell: &str, decimal_comma: bool) -> Option<f64> {
         return cell.replace(',', ".").parse().ok();
     }
     None
+}
+
+/// A field with the quotes the CSV parser left in place (spaces before the opening quote, `  "y" `)
+/// removed, and trimmed again.
+fn unquote(field: &str) -> &str {
+    match field.strip_prefix('"').and_then(|f| f.strip_suffix('"')) {
+        Some(inner) => inner.trim(),
+        None => field,
+    }
 }
 
 /// `x` to 6 significant digits, without trailing zeros (0.019999999999999997 -> 0.02).

@@ -296,6 +296,18 @@ pub fn identify(data: &Dataset, settings: &IdentifySettings) -> Result<Identifie
             None => extra,
         });
     }
+    // No silent NaN: an estimate the data do not determine in f64 (magnitudes whose squares underflow
+    // or overflow) is a numerical failure, not a result.
+    if let Some(p) = fit.params.iter().find(|p| !p.value.is_finite()) {
+        return Err(SysidError::Numerical(format!(
+            "{}: the estimate of {} is {} (not finite): the data do not determine it in f64 arithmetic \
+             (values too large or too small? rescale the data)",
+            data.name, p.name, p.value
+        )));
+    }
+    fit.model
+        .check()
+        .map_err(|e| SysidError::Numerical(format!("{}: {e}", data.name)))?;
     Ok(fit)
 }
 

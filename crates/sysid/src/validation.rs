@@ -49,8 +49,17 @@ pub fn fit_percent(y: &[f64], yhat: &[f64]) -> Option<f64> {
         return None;
     }
     let mean = y[..n].iter().sum::<f64>() / n as f64;
-    let num: f64 = y.iter().zip(yhat).map(|(a, b)| (a - b) * (a - b)).sum::<f64>().sqrt();
-    let den: f64 = y[..n].iter().map(|a| (a - mean) * (a - mean)).sum::<f64>().sqrt();
+    let num: f64 = y
+        .iter()
+        .zip(yhat)
+        .map(|(a, b)| (a - b) * (a - b))
+        .sum::<f64>()
+        .sqrt();
+    let den: f64 = y[..n]
+        .iter()
+        .map(|a| (a - mean) * (a - mean))
+        .sum::<f64>()
+        .sqrt();
     let f = 100.0 * (1.0 - num / den);
     (den > 0.0 && f.is_finite()).then_some(f)
 }
@@ -58,7 +67,12 @@ pub fn fit_percent(y: &[f64], yhat: &[f64]) -> Option<f64> {
 /// RMSE √(mean (y − ŷ)²).
 pub fn rmse(y: &[f64], yhat: &[f64]) -> f64 {
     let n = y.len().min(yhat.len()).max(1);
-    (y.iter().zip(yhat).map(|(a, b)| (a - b) * (a - b)).sum::<f64>() / n as f64).sqrt()
+    (y.iter()
+        .zip(yhat)
+        .map(|(a, b)| (a - b) * (a - b))
+        .sum::<f64>()
+        / n as f64)
+        .sqrt()
 }
 
 /// Computes the validation metrics of `model` on `data`.
@@ -82,14 +96,27 @@ pub fn metrics(model: &Model, data: &Dataset) -> Result<Metrics, SysidError> {
         Err(e) => (None, Some(e.to_string())),
     };
     let sse: f64 = y.iter().zip(pred).map(|(a, b)| (a - b) * (a - b)).sum();
+    if !sse.is_finite() {
+        return Err(SysidError::Numerical(format!(
+            "{}: the squared prediction errors overflow f64 (values too large? rescale the data)",
+            data.name
+        )));
+    }
     let mse = sse / n as f64;
     let loss = 0.5 * mse;
-    let fpe = (n > p).then(|| (n + p) as f64 / (n - p) as f64 * loss);
-    let aic = (mse > 0.0).then(|| mse.ln() + 2.0 * p as f64 / n as f64).filter(|v| v.is_finite());
+    let fpe = (n > p)
+        .then(|| (n + p) as f64 / (n - p) as f64 * loss)
+        .filter(|v| v.is_finite());
+    let aic = (mse > 0.0)
+        .then(|| mse.ln() + 2.0 * p as f64 / n as f64)
+        .filter(|v| v.is_finite());
     Ok(Metrics {
         fit_sim_percent: sim.as_ref().and_then(|s| fit_percent(y, &s[k0..])),
         fit_pred_percent: fit_percent(y, pred),
-        rmse_sim: sim.as_ref().map(|s| rmse(y, &s[k0..])),
+        rmse_sim: sim
+            .as_ref()
+            .map(|s| rmse(y, &s[k0..]))
+            .filter(|v| v.is_finite()),
         rmse_pred: mse.sqrt(),
         loss,
         fpe,

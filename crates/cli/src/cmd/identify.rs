@@ -192,19 +192,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => None,
     };
     let fit = identify(&data, &settings)?;
-    // No silent NaN: a parameter that came out non-finite (e.g. magnitudes that underflow or overflow
-    // f64) is a numerical failure, not a result.
-    if let Some(p) = fit.params.iter().find(|p| !p.value.is_finite()) {
-        return Err(sysid::SysidError::Numerical(format!(
-            "{}: the estimate of {} is {} (not finite): the data do not determine it in f64 arithmetic \
-             (values too large or too small? rescale the data)",
-            data.name, p.name, p.value
-        ))
-        .into());
-    }
-    fit.model
-        .check()
-        .map_err(|e| sysid::SysidError::Numerical(format!("{}: {e}", data.name)))?;
     let est = metrics(&fit.model, &data)?;
     let val_metrics = val.as_ref().map(|v| metrics(&fit.model, v)).transpose()?;
     let report = IdentifyReport::new(&fit, &settings, est, val_metrics);

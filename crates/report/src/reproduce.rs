@@ -9,7 +9,7 @@
 //!    the paper's numbers beside ours.
 //! 4. Figures (SVG and PNG) and `report.html`, `summary.json`, `data/*.csv`.
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 use control::{
@@ -243,6 +243,83 @@ fn unfixed_metrics(trace: &Trace) -> Result<(StepMetrics, Vec<control::StepSegme
     Ok((worst, steps))
 }
 
+/// One identified model of the run.
+struct Fitted {
+    /// Key in `summary.json` `models` and in `model_<key>.json`.
+    key: &'static str,
+    /// Label in tables and figures.
+    label: &'static str,
+    /// Column heading in the terminal tables.
+    short: &'static str,
+    fit: Identified,
+    rep: IdentifyReport,
+}
+
+/// A closed-loop test on plant and model.
+struct Loop {
+    plant: Trace,
+    model: Trace,
+    m_plant: StepMetrics,
+    m_model: StepMetrics,
+}
+
+/// Everything a run computed; the tables, figures, report and summary are views of it.
+struct Study {
+    plant_name: String,
+    ts: f64,
+    est: Dataset,
+    val: Dataset,
+    /// `[arx, hammerstein (RLS), hammerstein_ls, hammerstein_oe]`: the first two are the paper's.
+    models: Vec<Fitted>,
+    u_ol: Vec<f64>,
+    y_ol_plant: Vec<f64>,
+    y_ol_model: Vec<f64>,
+    fit_ol: Option<f64>,
+    fixed: Loop,
+    compensated: Result<StepMetrics, String>,
+    unfixed: Loop,
+    steps_plant: Vec<control::StepSegment>,
+    steps_model: Vec<control::StepSegment>,
+    verdicts: Vec<(bool, String)>,
+}
+
+impl Study {
+    fn arx(&self) -> &Fitted {
+        &self.models[0]
+    }
+    fn ham(&self) -> &Fitted {
+        &self.models[1]
+    }
+    fn hammersteins(&self) -> &[Fitted] {
+        &self.models[1..]
+    }
+    fn model(&self, key: &str) -> Option<&Fitted> {
+        self.models.iter().find(|m| m.key == key)
+    }
+}
+
+fn validation_fit(r: &IdentifyReport) -> Option<f64> {
+    r.metrics
+        .validation
+        .as_ref()
+        .and_then(|m| m.fit_sim_percent)
+}
+
+fn pole_list(r: &IdentifyReport) -> String {
+    r.poles
+        .iter()
+        .filter(|p| p.im >= 0.0)
+        .map(|p| {
+            if p.im.abs() < 1e-12 {
+                num(p.re)
+            } else {
+                format!("{} ± {}i", num(p.re), num(p.im.abs()))
+            }
+        })
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
 /// Runs the whole reproduction; `progress(step, fraction_done)` is called between stages.
 pub fn run(
     s: &ReproduceSettings,
@@ -263,7 +340,7 @@ pub fn run(
     progress("experiment on the plant", 0.0);
     let mut plant = ipa::plant_from_spec(&s.plant, s.plant_config.as_deref())?;
     let ts = plant.ts();
-    let stair: InputSpec = InputSpec::Staircase;
+    let stair = InputSpec::Staircase;
     let u_est = generate(&stair, s.samples, ts, s.amplitude_counts, s.seed)?;
     let u_val = generate(
         &stair,
@@ -292,38 +369,69 @@ pub fn run(
         )?;
     }
 
-    // 2. Identification.
-    progress("identification (ARX, Hammerstein RLS, Hammerstein LS)", 0.2);
+    // 2. Identification: the paper's two models, then this project's additions.
+    progress(
+        "identification (ARX and Hammerstein by RLS; key-term LS; output error)",
+        0.2,
+    );
     let base = IdentifySettings {
         forgetting: s.forgetting,
         ..IdentifySettings::default()
     };
-    let arx_set = IdentifySettings {
-        kind: ModelKind::Arx,
-        ..base.clone()
-    };
-    let ham_set = IdentifySettings {
-        record_history: true,
-        ..base.clone()
-    };
-    let ls_set = IdentifySettings {
-        method: Method::Ls,
-        ..base.clone()
-    };
-    let mut fits = Vec::new();
-    for set in [&arx_set, &ham_set, &ls_set] {
-        let fit = identify(&est, set)?;
+    let plan: [(&str, &str, &str, IdentifySettings); 4] = [
+        (
+            "arx",
+            "linear ARX (RLS)",
+            "ARX RLS",
+            IdentifySettings {
+                kind: ModelKind::Arx,
+                ..base.clone()
+            },
+        ),
+        (
+            "hammerstein",
+            "Hammerstein (RLS, paper's method)",
+            "RLS (paper)",
+            IdentifySettings {
+                record_history: true,
+                ..base.clone()
+            },
+        ),
+        (
+            "hammerstein_ls",
+            "Hammerstein (key-term LS, addition)",
+            "key-term LS",
+            IdentifySettings {
+                method: Method::Ls,
+                ..base.clone()
+            },
+        ),
+        (
+            "hammerstein_oe",
+            "Hammerstein (output error, addition)",
+            "output error",
+            IdentifySettings {
+                method: Method::Oe,
+                ..base.clone()
+            },
+        ),
+    ];
+    let mut models = Vec::with_capacity(plan.len());
+    for (key, label, short, set) in plan {
+        let fit = identify(&est, &set)?;
         let e = metrics(&fit.model, &est)?;
         let v = metrics(&fit.model, &val)?;
-        let rep = IdentifyReport::new(&fit, set, e, Some(v));
-        fits.push((fit, rep));
+        let rep = IdentifyReport::new(&fit, &set, e, Some(v));
+        sysid::model_file::write_model(&out.join(format!("model_{key}.json")), &fit.model)?;
+        models.push(Fitted {
+            key,
+            label,
+            short,
+            fit,
+            rep,
+        });
     }
-    let (arx, arx_rep) = &fits[0];
-    let (ham, ham_rep) = &fits[1];
-    let (hls, hls_rep) = &fits[2];
-    for (name, fit) in [("arx", arx), ("hammerstein", ham), ("hammerstein_ls", hls)] {
-        sysid::model_file::write_model(&out.join(format!("model_{name}.json")), &fit.model)?;
-    }
+    let ham_model = models[1].fit.model.clone();
 
     // Open-loop test (Fig. 6): a fresh staircase on plant and identified Hammerstein model.
     progress("open-loop test", 0.4);
@@ -334,222 +442,120 @@ pub fn run(
         s.amplitude_counts,
         s.seed.wrapping_add(2),
     )?;
-    let ol_plant = record(
+    let ol = record(
         plant.as_mut(),
         u_ol.clone(),
         s.experiment_start_mm,
         "open-loop test",
     )?;
-    let mut model_plant = ModelPlant::new(ham.model.clone(), "identified Hammerstein model")?;
+    let mut model_plant = ModelPlant::new(ham_model, "identified Hammerstein model")?;
     model_plant.reset(s.experiment_start_mm);
     let y_ol_model = sysid::run_open_loop(&mut model_plant, &u_ol)?;
-    let fit_ol = fit_percent(&ol_plant.y, &y_ol_model);
+    let fit_ol = fit_percent(&ol.y, &y_ol_model);
     let t_ol = time_axis(u_ol.len(), ts);
     sysid::output::write_atomic(
         &data_dir.join("open_loop.csv"),
-        csv_columns(
-            "t,u,y_plant,y_model",
-            &t_ol,
-            &[&u_ol, &ol_plant.y, &y_ol_model],
-        )
-        .as_bytes(),
+        csv_columns("t,u,y_plant,y_model", &t_ol, &[&u_ol, &ol.y, &y_ol_model]).as_bytes(),
     )?;
 
     // 3. Closed loop, fixed and unfixed set-point, model vs plant.
     progress("closed-loop PI control", 0.55);
-    let fixed = Profile::Fixed {
+    let fixed_profile = Profile::Fixed {
         setpoint_mm: s.fixed_setpoint_mm,
     };
-    let (fx_plant, fx_model) = closed_loop_pair(
+    let (fp, fm) = closed_loop_pair(
         plant.as_mut(),
         &mut model_plant,
         &s.pi,
-        &fixed,
+        &fixed_profile,
         s.fixed_duration_s,
         s.fixed_start_mm,
     )?;
-    let m_fx_plant = step_metrics(&fx_plant, s.fixed_start_mm, s.fixed_setpoint_mm)?;
-    let m_fx_model = step_metrics(&fx_model, s.fixed_start_mm, s.fixed_setpoint_mm)?;
-    // The paper's future work: the same PI followed by the inverse of the identified deadzone.
-    let compensated = compensated_run(
+    let fixed = Loop {
+        m_plant: step_metrics(&fp, s.fixed_start_mm, s.fixed_setpoint_mm)?,
+        m_model: step_metrics(&fm, s.fixed_start_mm, s.fixed_setpoint_mm)?,
+        plant: fp,
+        model: fm,
+    };
+    // The paper's future work: the same PI followed by the inverse of the identified deadzone
+    // (from the output-error model, whose breakpoints are the most accurate).
+    let comp_source = &models[3].fit;
+    let compensated = match compensated_run(
         plant.as_mut(),
-        hls,
+        comp_source,
         &s.pi,
-        &fixed,
+        &fixed_profile,
         s.fixed_duration_s,
         s.fixed_start_mm,
-    )?;
-    let m_fx_comp = match &compensated {
+    )? {
         Ok(tr) => {
             sysid::output::write_atomic(
                 &data_dir.join("closed_loop_fixed_plant_compensated.csv"),
                 tr.to_csv().as_bytes(),
             )?;
-            Ok(step_metrics(tr, s.fixed_start_mm, s.fixed_setpoint_mm)?)
+            Ok(step_metrics(&tr, s.fixed_start_mm, s.fixed_setpoint_mm)?)
         }
-        Err(reason) => Err(reason.clone()),
+        Err(reason) => Err(reason),
     };
-    let unfixed = Profile::parse(&s.unfixed_profile)?;
-    let uf_duration = unfixed.natural_duration_s().unwrap_or(20.0);
-    let uf_start = unfixed.r_at(0.0);
-    let (uf_plant, uf_model) = closed_loop_pair(
+    let unfixed_profile = Profile::parse(&s.unfixed_profile)?;
+    let uf_duration = unfixed_profile.natural_duration_s().unwrap_or(20.0);
+    let (up, um) = closed_loop_pair(
         plant.as_mut(),
         &mut model_plant,
         &s.pi,
-        &unfixed,
+        &unfixed_profile,
         uf_duration,
         s.fixed_start_mm,
     )?;
-    let _ = uf_start;
-    let (m_uf_plant, steps_plant) = unfixed_metrics(&uf_plant)?;
-    let (m_uf_model, steps_model) = unfixed_metrics(&uf_model)?;
+    let (m_up, steps_plant) = unfixed_metrics(&up)?;
+    let (m_um, steps_model) = unfixed_metrics(&um)?;
+    let unfixed = Loop {
+        plant: up,
+        model: um,
+        m_plant: m_up,
+        m_model: m_um,
+    };
     for (name, tr) in [
-        ("closed_loop_fixed_plant.csv", &fx_plant),
-        ("closed_loop_fixed_model.csv", &fx_model),
-        ("closed_loop_unfixed_plant.csv", &uf_plant),
-        ("closed_loop_unfixed_model.csv", &uf_model),
+        ("closed_loop_fixed_plant.csv", &fixed.plant),
+        ("closed_loop_fixed_model.csv", &fixed.model),
+        ("closed_loop_unfixed_plant.csv", &unfixed.plant),
+        ("closed_loop_unfixed_model.csv", &unfixed.model),
     ] {
         sysid::output::write_atomic(&data_dir.join(name), tr.to_csv().as_bytes())?;
     }
 
-    // Acceptance.
-    let step = (s.fixed_setpoint_mm - s.fixed_start_mm).abs();
-    let fit_v = |r: &IdentifyReport| {
-        r.metrics
-            .validation
-            .as_ref()
-            .and_then(|m| m.fit_sim_percent)
+    let mut study = Study {
+        plant_name: plant.name(),
+        ts,
+        est,
+        val,
+        models,
+        u_ol,
+        y_ol_plant: ol.y,
+        y_ol_model,
+        fit_ol,
+        fixed,
+        compensated,
+        unfixed,
+        steps_plant,
+        steps_model,
+        verdicts: Vec::new(),
     };
-    let mut verdicts: Vec<(bool, String)> = Vec::new();
-    let (fa, fh) = (fit_v(arx_rep), fit_v(ham_rep));
-    verdicts.push((
-        matches!((fa, fh), (Some(a), Some(h)) if h > a),
-        format!(
-            "Hammerstein (RLS) fits the validation record better than the linear ARX: {} % vs {} % (paper: {} % vs {} %)",
-            fmt_opt(fh),
-            fmt_opt(fa),
-            paper::FIT.1,
-            paper::FIT.0
-        ),
-    ));
-    verdicts.push((
-        ham_rep.stable,
-        format!(
-            "Hammerstein poles inside the unit circle: {}",
-            ham_rep
-                .poles
-                .iter()
-                .map(|p| format!("|{}|", num(p.abs)))
-                .collect::<Vec<_>>()
-                .join(", ")
-        ),
-    ));
-    let os = m_fx_plant.overshoot_percent;
-    verdicts.push((
-        os.is_some_and(|v| v < 10.0),
-        format!(
-            "PI on the plant: overshoot {} % of the step (paper's acceptance: < 10 %)",
-            fmt_opt(os)
-        ),
-    ));
-    let ess = m_fx_plant.steady_state_error_mm;
-    verdicts.push((
-        ess.is_some_and(|e| e.abs() < 0.02 * step),
-        format!(
-            "PI on the plant: |steady-state error| {} mm, {} % of the {} mm step (paper's acceptance: < 2 %)",
-            fmt_opt(ess.map(f64::abs)),
-            fmt_opt(ess.map(|e| 100.0 * e.abs() / step.max(f64::MIN_POSITIVE))),
-            num(step)
-        ),
-    ));
-    let accepted = verdicts.iter().all(|v| v.0);
+    study.verdicts = verdicts(s, &study);
+    let accepted = study.verdicts.iter().all(|v| v.0);
 
     // 4. Figures.
     progress("figures", 0.7);
-    let figs = figures(
-        s,
-        &est,
-        &val,
-        arx,
-        ham,
-        hls,
-        &t_ol,
-        &u_ol,
-        &ol_plant.y,
-        &y_ol_model,
-        [&fx_plant, &fx_model, &uf_plant, &uf_model],
-    )?;
+    let figs = figures(s, &study);
     for (stem, fig, _) in &figs {
         save_figure(fig, &fig_dir, stem)?;
     }
 
     // 5. Summary and report.
     progress("report", 0.9);
-    let metrics_json = |m: &StepMetrics| serde_json::to_value(m).unwrap_or_default();
-    let summary = json!({
-        "plant": plant.name(),
-        "settings": {
-            "plant": s.plant, "seed": s.seed, "samples": s.samples, "ts": ts,
-            "amplitude_counts": s.amplitude_counts, "experiment_start_mm": s.experiment_start_mm,
-            "fixed_start_mm": s.fixed_start_mm, "fixed_setpoint_mm": s.fixed_setpoint_mm,
-            "fixed_duration_s": s.fixed_duration_s, "unfixed_profile": s.unfixed_profile,
-            "pi": {"kp": s.pi.kp, "ki": s.pi.ki, "integral": s.pi.integral.to_string(), "anti_windup": s.pi.anti_windup.to_string()},
-            "forgetting": s.forgetting,
-        },
-        "models": {
-            "arx": arx_rep,
-            "hammerstein": ham_rep,
-            "hammerstein_ls": hls_rep,
-        },
-        "open_loop": { "fit_percent": fit_ol, "samples": u_ol.len() },
-        "closed_loop": {
-            "fixed": { "setpoint_mm": s.fixed_setpoint_mm, "y0_mm": s.fixed_start_mm,
-                       "model": metrics_json(&m_fx_model), "plant": metrics_json(&m_fx_plant),
-                       "plant_compensated": match &m_fx_comp {
-                           Ok(m) => metrics_json(m),
-                           Err(reason) => json!({"not_applicable": reason}),
-                       } },
-            "unfixed": { "profile": s.unfixed_profile,
-                         "model": metrics_json(&m_uf_model), "plant": metrics_json(&m_uf_plant),
-                         "steps_model": steps_model, "steps_plant": steps_plant },
-        },
-        "acceptance": {
-            "accepted": accepted,
-            "criteria": verdicts.iter().map(|(ok, text)| json!({"met": ok, "criterion": text})).collect::<Vec<_>>(),
-        },
-        "elapsed_s": started.elapsed().as_secs_f64(),
-    });
-    let text = tables_text(
-        s,
-        arx,
-        ham,
-        hls,
-        arx_rep,
-        ham_rep,
-        hls_rep,
-        &m_fx_model,
-        &m_fx_plant,
-        &verdicts,
-    );
-    let report = build_report(
-        s,
-        &plant.name(),
-        &summary,
-        arx,
-        ham,
-        hls,
-        arx_rep,
-        ham_rep,
-        hls_rep,
-        &m_fx_model,
-        &m_fx_plant,
-        &m_fx_comp,
-        &m_uf_model,
-        &m_uf_plant,
-        fit_ol,
-        &verdicts,
-        &figs,
-    )?;
+    let summary = summary_json(s, &study, accepted, started.elapsed().as_secs_f64());
+    let text = tables_text(s, &study);
+    let report = build_report(s, &study, &figs)?;
     let report_path = out.join("report.html");
     report.save(&report_path)?;
     sysid::output::write_atomic(
@@ -565,39 +571,142 @@ pub fn run(
     })
 }
 
+/// The acceptance criteria of the paper (and the issue), each with whether it is met and why.
+fn verdicts(s: &ReproduceSettings, st: &Study) -> Vec<(bool, String)> {
+    let step = (s.fixed_setpoint_mm - s.fixed_start_mm).abs();
+    let (fa, fh) = (validation_fit(&st.arx().rep), validation_fit(&st.ham().rep));
+    let mut v = vec![(
+        matches!((fa, fh), (Some(a), Some(h)) if h > a),
+        format!(
+            "Hammerstein (RLS, paper's method) fits the validation record better than the linear ARX: {} % vs {} % \
+             (paper: {} % vs {} %)",
+            fmt_opt(fh),
+            fmt_opt(fa),
+            paper::FIT.1,
+            paper::FIT.0
+        ),
+    )];
+    let ham = &st.ham().rep;
+    let max_pole = ham.poles.iter().map(|p| p.abs).fold(0.0, f64::max);
+    v.push((
+        ham.stable,
+        if ham.stable {
+            format!("Hammerstein (RLS) poles inside the unit circle: {}", pole_list(ham))
+        } else {
+            format!(
+                "Hammerstein (RLS) poles inside the unit circle: {} — the largest has |p| = {}. The plant integrates \
+                 (position is the integral of velocity), so its true pole is at 1, and the equation-error estimate \
+                 lands just outside; the output-error model (an addition of this project) does not have this bias",
+                pole_list(ham),
+                num(max_pole)
+            )
+        },
+    ));
+    if let Some(oe) = st.model("hammerstein_oe") {
+        let fo = validation_fit(&oe.rep);
+        v.push((
+            oe.rep.stable && matches!((fa, fo), (Some(a), Some(o)) if o > a),
+            format!(
+                "Addition: Hammerstein by output error is {} and fits the validation record by {} % (linear ARX: {} %)",
+                if oe.rep.stable { "stable" } else { "UNSTABLE" },
+                fmt_opt(fo),
+                fmt_opt(fa)
+            ),
+        ));
+    }
+    let os = st.fixed.m_plant.overshoot_percent;
+    v.push((
+        os.is_some_and(|x| x < 10.0),
+        format!(
+            "PI on the plant: overshoot {} % of the step (paper's acceptance: < 10 %)",
+            fmt_opt(os)
+        ),
+    ));
+    let ess = st.fixed.m_plant.steady_state_error_mm;
+    v.push((
+        ess.is_some_and(|e| e.abs() < 0.02 * step),
+        format!(
+            "PI on the plant: |steady-state error| {} mm, {} % of the {} mm step after {} s (paper's acceptance: < 2 %)",
+            fmt_opt(ess.map(f64::abs)),
+            fmt_opt(ess.map(|e| 100.0 * e.abs() / step.max(f64::MIN_POSITIVE))),
+            num(step),
+            num(s.fixed_duration_s)
+        ),
+    ));
+    v
+}
+
+fn summary_json(
+    s: &ReproduceSettings,
+    st: &Study,
+    accepted: bool,
+    elapsed_s: f64,
+) -> serde_json::Value {
+    let mj = |m: &StepMetrics| serde_json::to_value(m).unwrap_or_default();
+    let models: serde_json::Map<String, serde_json::Value> = st
+        .models
+        .iter()
+        .map(|m| {
+            let mut v = serde_json::to_value(&m.rep).unwrap_or_default();
+            v["label"] = json!(m.label);
+            (m.key.to_string(), v)
+        })
+        .collect();
+    json!({
+        "plant": st.plant_name,
+        "settings": {
+            "plant": s.plant, "seed": s.seed, "samples": s.samples, "ts": st.ts,
+            "amplitude_counts": s.amplitude_counts, "experiment_start_mm": s.experiment_start_mm,
+            "fixed_start_mm": s.fixed_start_mm, "fixed_setpoint_mm": s.fixed_setpoint_mm,
+            "fixed_duration_s": s.fixed_duration_s, "unfixed_profile": s.unfixed_profile,
+            "pi": {"kp": s.pi.kp, "ki": s.pi.ki, "integral": s.pi.integral.to_string(),
+                   "anti_windup": s.pi.anti_windup.to_string()},
+            "forgetting": s.forgetting,
+        },
+        "models": models,
+        "open_loop": { "fit_percent": st.fit_ol, "samples": st.u_ol.len() },
+        "closed_loop": {
+            "fixed": { "setpoint_mm": s.fixed_setpoint_mm, "y0_mm": s.fixed_start_mm,
+                       "model": mj(&st.fixed.m_model), "plant": mj(&st.fixed.m_plant),
+                       "plant_compensated": match &st.compensated {
+                           Ok(m) => mj(m),
+                           Err(reason) => json!({"not_applicable": reason}),
+                       } },
+            "unfixed": { "profile": s.unfixed_profile,
+                         "model": mj(&st.unfixed.m_model), "plant": mj(&st.unfixed.m_plant),
+                         "steps_model": st.steps_model, "steps_plant": st.steps_plant },
+        },
+        "acceptance": {
+            "accepted": accepted,
+            "criteria": st.verdicts.iter().map(|(ok, text)| json!({"met": ok, "criterion": text})).collect::<Vec<_>>(),
+        },
+        "elapsed_s": elapsed_s,
+    })
+}
+
 type Fig = (&'static str, Figure, &'static str);
 
-#[allow(clippy::too_many_arguments)]
-fn figures(
-    s: &ReproduceSettings,
-    est: &Dataset,
-    val: &Dataset,
-    arx: &Identified,
-    ham: &Identified,
-    hls: &Identified,
-    t_ol: &[f64],
-    u_ol: &[f64],
-    y_ol_plant: &[f64],
-    y_ol_model: &[f64],
-    traces: [&Trace; 4],
-) -> Result<Vec<Fig>, ReportError> {
-    let ts = est.ts;
-    let t = time_axis(est.len(), ts);
+fn sim_or_nan(model: &Model, d: &Dataset) -> Vec<f64> {
+    model
+        .simulate(&d.u, &d.y)
+        .unwrap_or_else(|_| vec![f64::NAN; d.len()])
+}
+
+fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
+    let ts = st.ts;
+    let t = time_axis(st.est.len(), ts);
     let mut figs: Vec<Fig> = Vec::new();
     figs.push((
         "fig2_experiment",
         Figure::new("Fig. 2 — Experiment: staircase input and measured position")
-            .panel(Panel::new("time (s)", "u (counts)").series(Series::step("u: PWM command", t.clone(), est.u.clone())))
-            .panel(Panel::new("time (s)", "y (mm)").series(Series::line("y: position", t.clone(), est.y.clone()))),
+            .panel(Panel::new("time (s)", "u (counts)").series(Series::step("u: PWM command", t.clone(), st.est.u.clone())))
+            .panel(Panel::new("time (s)", "y (mm)").series(Series::line("y: position", t.clone(), st.est.y.clone()))),
         "The estimation record: the staircase command u (PWM counts) and the measured stroke position y (mm).",
     ));
     let us: Vec<f64> = (-255..=255).map(f64::from).collect();
     let mut dz_panel = Panel::new("u (counts)", "x (key-term units, b1 = 1)");
-    for (label, fit) in [
-        ("Hammerstein RLS (paper's method)", ham),
-        ("Hammerstein LS key-term", hls),
-    ] {
-        dz_panel = dz_panel.series(Series::line(label, us.clone(), fit.model.internal(&us)));
+    for m in st.hammersteins() {
+        dz_panel = dz_panel.series(Series::line(m.label, us.clone(), m.fit.model.internal(&us)));
     }
     if s.plant == "paper" {
         dz_panel = dz_panel.series(Series::dashed(
@@ -611,49 +720,61 @@ fn figures(
         Figure::new("Fig. 4 — Identified valve deadzone x = f(u)").panel(dz_panel),
         "The identified static nonlinearity: the valve deadzone between b_l and b_r and the slopes m_l, m_r.",
     ));
-    let tv = time_axis(val.len(), ts);
-    let sim_arx = arx
-        .model
-        .simulate(&val.u, &val.y)
-        .unwrap_or_else(|_| vec![f64::NAN; val.len()]);
-    let sim_ham = ham
-        .model
-        .simulate(&val.u, &val.y)
-        .unwrap_or_else(|_| vec![f64::NAN; val.len()]);
+    let tv = time_axis(st.val.len(), ts);
+    let mut fit_panel = Panel::new("time (s)", "y (mm)").series(Series::line(
+        "measured",
+        tv.clone(),
+        st.val.y.clone(),
+    ));
+    for key in ["arx", "hammerstein", "hammerstein_oe"] {
+        if let Some(m) = st.model(key) {
+            fit_panel = fit_panel.series(Series::dashed(
+                m.label,
+                tv.clone(),
+                sim_or_nan(&m.fit.model, &st.val),
+            ));
+        }
+    }
     figs.push((
         "fig5_fit",
-        Figure::new("Fig. 5 — Validation record: measured vs simulated output").panel(
-            Panel::new("time (s)", "y (mm)")
-                .series(Series::line("measured", tv.clone(), val.y.clone()))
-                .series(Series::dashed("linear ARX (RLS)", tv.clone(), sim_arx))
-                .series(Series::dashed("Hammerstein (RLS)", tv.clone(), sim_ham)),
-        ),
-        "Free-run simulation of both models on the validation record (which was not used for estimation).",
+        Figure::new("Fig. 5 — Validation record: measured vs simulated output").panel(fit_panel),
+        "Free-run simulation of the models on the validation record (which was not used for estimation).",
     ));
+    let t_ol = time_axis(st.u_ol.len(), ts);
     figs.push((
         "fig6_open_loop",
         Figure::new("Fig. 6 — Open-loop test: identified Hammerstein model vs plant")
             .panel(Panel::new("time (s)", "u (counts)").series(Series::step(
                 "u",
-                t_ol.to_vec(),
-                u_ol.to_vec(),
+                t_ol.clone(),
+                st.u_ol.clone(),
             )))
             .panel(
                 Panel::new("time (s)", "y (mm)")
-                    .series(Series::line("plant", t_ol.to_vec(), y_ol_plant.to_vec()))
+                    .series(Series::line("plant", t_ol.clone(), st.y_ol_plant.clone()))
                     .series(Series::dashed(
-                        "Hammerstein model",
-                        t_ol.to_vec(),
-                        y_ol_model.to_vec(),
+                        "Hammerstein model (RLS)",
+                        t_ol,
+                        st.y_ol_model.clone(),
                     )),
             ),
         "A fresh staircase applied to the plant and to the identified model from the same start.",
     ));
-    let [fxp, fxm, ufp, ufm] = traces;
-    for (stem, title, p, m, cap) in [
-        ("fig7a_closed_loop_fixed", "Fig. 7a — PI control, fixed set-point", fxp, fxm, "PI (Kp = 14, Ki = 1) from rest to the fixed set-point: identified model (simulation) vs plant."),
-        ("fig7b_closed_loop_unfixed", "Fig. 7b — PI control, changing set-point", ufp, ufm, "PI (Kp = 14, Ki = 1) following a staircase of set-points: identified model vs plant."),
+    for (stem, title, lp, cap) in [
+        (
+            "fig7a_closed_loop_fixed",
+            "Fig. 7a — PI control, fixed set-point",
+            &st.fixed,
+            "PI (Kp = 14, Ki = 1) from rest to the fixed set-point: identified model (simulation) vs plant.",
+        ),
+        (
+            "fig7b_closed_loop_unfixed",
+            "Fig. 7b — PI control, changing set-point",
+            &st.unfixed,
+            "PI (Kp = 14, Ki = 1) following a staircase of set-points: identified model vs plant.",
+        ),
     ] {
+        let (p, m) = (&lp.plant, &lp.model);
         figs.push((
             stem,
             Figure::new(title)
@@ -671,6 +792,7 @@ fn figures(
             cap,
         ));
     }
+    let ham = &st.ham().fit;
     if !ham.history.is_empty() {
         let th: Vec<f64> = ham.history_samples.iter().map(|&k| k as f64 * ts).collect();
         let names: Vec<&str> = ham.params.iter().map(|p| p.name.as_str()).collect();
@@ -678,99 +800,93 @@ fn figures(
             let i = names.iter().position(|n| *n == name)?;
             Some(ham.history.iter().map(|h| h[i]).collect())
         };
-        let mut p1 = Panel::new("time (s)", "breakpoints (counts)");
-        let mut p2 = Panel::new("time (s)", "slopes");
-        let mut p3 = Panel::new("time (s)", "A coefficients");
-        for n in ["b_l", "b_r"] {
-            if let Some(v) = col(n) {
-                p1 = p1.series(Series::line(
-                    n,
-                    th.clone(),
-                    v.iter().map(|x| x.clamp(-255.0, 255.0)).collect(),
-                ));
+        let mut panels = [
+            Panel::new("time (s)", "breakpoints (counts)"),
+            Panel::new("time (s)", "slopes"),
+            Panel::new("time (s)", "A coefficients"),
+        ];
+        for (i, group) in [&["b_l", "b_r"][..], &["m_l", "m_r"], &["a1", "a2", "a3"]]
+            .iter()
+            .enumerate()
+        {
+            for n in group.iter() {
+                if let Some(v) = col(n) {
+                    let v = if i == 0 {
+                        v.iter().map(|x| x.clamp(-255.0, 255.0)).collect()
+                    } else {
+                        v
+                    };
+                    panels[i] = panels[i].clone().series(Series::line(*n, th.clone(), v));
+                }
             }
         }
-        for n in ["m_l", "m_r"] {
-            if let Some(v) = col(n) {
-                p2 = p2.series(Series::line(n, th.clone(), v));
-            }
-        }
-        for n in ["a1", "a2", "a3"] {
-            if let Some(v) = col(n) {
-                p3 = p3.series(Series::line(n, th.clone(), v));
-            }
-        }
+        let [p1, p2, p3] = panels;
         figs.push((
             "rls_convergence",
             Figure::new("RLS parameter convergence (Hammerstein, paper's method)").panel(p1).panel(p2).panel(p3),
             "The recursive estimates after each sample of the estimation record (breakpoints clipped to ±255 for display).",
         ));
     }
-    Ok(figs)
+    figs
 }
 
-#[allow(clippy::too_many_arguments)]
-fn table3(s: &ReproduceSettings, ham: &Identified, hls: &Identified) -> Table {
-    let truth = (s.plant == "paper").then(Model::paper);
-    let mut header = vec![
-        "parameter",
-        "ours: Hammerstein RLS (paper's method)",
-        "ours: key-term LS (addition)",
-    ];
-    if truth.is_some() {
-        header.push("this plant's actual value");
+const TABLE3_NAMES: [&str; 8] = ["b_r", "b_l", "m_r", "m_l", "a1", "a2", "a3", "b1"];
+
+/// The plant's true value of a parameter when the plant is the paper's model.
+fn truth(s: &ReproduceSettings, name: &str) -> Option<f64> {
+    if s.plant != "paper" {
+        return None;
     }
-    header.extend(["paper: estimated", "paper: actual"]);
-    let mut t = Table::new(header.clone());
-    let ncols = header.len();
-    let names = ["b_r", "b_l", "m_r", "m_l", "a1", "a2", "a3", "b1"];
-    for name in names.iter().chain(
-        ham.params
+    let m = Model::paper();
+    let d = m.deadzone?;
+    match name {
+        "b_r" => Some(d.b_r),
+        "b_l" => Some(d.b_l),
+        "m_r" => Some(d.m_r),
+        "m_l" => Some(d.m_l),
+        "b1" => Some(1.0),
+        n => n
+            .strip_prefix('a')
+            .and_then(|i| i.parse::<usize>().ok())
+            .and_then(|i| m.a.get(i - 1).copied()),
+    }
+}
+
+fn table3(s: &ReproduceSettings, st: &Study) -> Table {
+    let mut header: Vec<String> = vec!["parameter".into()];
+    header.extend(
+        st.hammersteins()
             .iter()
-            .map(|p| p.name.as_str())
-            .filter(|n| !names.contains(n))
-            .collect::<Vec<_>>()
-            .iter(),
-    ) {
-        let mut row = vec![
-            name.to_string(),
-            param_cell(ham, name),
-            param_cell(hls, name),
-        ];
-        if let Some(m) = &truth {
-            let d = m.deadzone.unwrap_or(sysid::Deadzone {
-                b_l: f64::NAN,
-                b_r: f64::NAN,
-                m_l: f64::NAN,
-                m_r: f64::NAN,
-            });
-            let v = match *name {
-                "b_r" => Some(d.b_r),
-                "b_l" => Some(d.b_l),
-                "m_r" => Some(d.m_r),
-                "m_l" => Some(d.m_l),
-                "b1" => Some(1.0),
-                n => n
-                    .strip_prefix('a')
-                    .and_then(|i| i.parse::<usize>().ok())
-                    .and_then(|i| m.a.get(i - 1).copied()),
-            };
-            row.push(fmt_opt(v));
+            .map(|m| format!("ours: {}", m.label)),
+    );
+    if s.plant == "paper" {
+        header.push("this plant's actual value".into());
+    }
+    header.extend(["paper: estimated".to_string(), "paper: actual".to_string()]);
+    let ncols = header.len();
+    let mut t = Table::new(header);
+    for name in TABLE3_NAMES {
+        let mut row = vec![name.to_string()];
+        row.extend(st.hammersteins().iter().map(|m| param_cell(&m.fit, name)));
+        if s.plant == "paper" {
+            row.push(fmt_opt(truth(s, name)));
         }
         row.push(fmt_opt(paper_normalised(&paper::ESTIMATED, name)));
         row.push(fmt_opt(paper_normalised(&paper::ACTUAL, name)));
         t.push_row(row);
     }
-    t.caption("Table III — Hammerstein parameter estimates (± one standard deviation), normalised to b1 = 1 \
-               (the paper's slopes are multiplied by its b1 so that they compare; see the reading notes)")
-        .paper_column(ncols - 2)
-        .paper_column(ncols - 1)
+    t.caption(
+        "Table III — Hammerstein parameter estimates (± one standard deviation), normalised to b1 = 1 \
+         (the paper's slopes are multiplied by its b1 so that they compare; see the reading notes)",
+    )
+    .paper_column(ncols - 2)
+    .paper_column(ncols - 1)
 }
 
-fn metrics_row(name: &str, rep: &IdentifyReport) -> [String; 5] {
+fn metrics_row(label: &str, rep: &IdentifyReport) -> [String; 5] {
     let v = rep.metrics.validation.as_ref();
     [
-        name.to_string(),
+        label.to_string(),
         fmt_opt(v.and_then(|m| m.fit_sim_percent)),
         fmt_opt(v.map(|m| m.loss)),
         fmt_opt(v.and_then(|m| m.fpe)),
@@ -782,33 +898,44 @@ fn metrics_row(name: &str, rep: &IdentifyReport) -> [String; 5] {
     ]
 }
 
-#[allow(clippy::too_many_arguments)]
-fn tables_text(
-    s: &ReproduceSettings,
-    _arx: &Identified,
-    ham: &Identified,
-    hls: &Identified,
-    arx_rep: &IdentifyReport,
-    ham_rep: &IdentifyReport,
-    hls_rep: &IdentifyReport,
-    m_model: &StepMetrics,
-    m_plant: &StepMetrics,
-    verdicts: &[(bool, String)],
-) -> String {
+/// A Table V row: criterion, the paper's simulation and experiment values, ours on model and plant.
+type ClosedLoopRow = (&'static str, f64, f64, Option<f64>, Option<f64>);
+
+fn closed_loop_rows(lp: &Loop) -> [ClosedLoopRow; 4] {
+    let [a, b, c, d] = paper::CLOSED_LOOP;
+    let (m, p) = (&lp.m_model, &lp.m_plant);
+    [
+        (a.0, a.1, a.2, m.overshoot_mm, p.overshoot_mm),
+        (
+            b.0,
+            b.1,
+            b.2,
+            m.steady_state_error_mm,
+            p.steady_state_error_mm,
+        ),
+        (c.0, c.1, c.2, m.rise_time_s, p.rise_time_s),
+        (d.0, d.1, d.2, m.settling_time_s, p.settling_time_s),
+    ]
+}
+
+fn tables_text(s: &ReproduceSettings, st: &Study) -> String {
     use std::fmt::Write;
     let mut o = String::new();
-    let _ = writeln!(o, "Table III — Hammerstein estimates (normalised b1 = 1)");
-    let _ = writeln!(
-        o,
-        "{:<6}{:>28}{:>28}{:>14}{:>14}",
-        "param", "ours RLS", "ours LS", "paper est.", "paper act."
-    );
-    for name in ["b_r", "b_l", "m_r", "m_l", "a1", "a2", "a3", "b1"] {
+    let hs = st.hammersteins();
+    let _ = writeln!(o, "Table III — Hammerstein estimates (normalised b1 = 1): RLS (paper's method), key-term LS, output error");
+    let _ = write!(o, "{:<6}", "param");
+    for m in hs {
+        let _ = write!(o, "{:>26}", m.short);
+    }
+    let _ = writeln!(o, "{:>13}{:>13}", "paper est.", "paper act.");
+    for name in TABLE3_NAMES {
+        let _ = write!(o, "{name:<6}");
+        for m in hs {
+            let _ = write!(o, "{:>26}", param_cell(&m.fit, name));
+        }
         let _ = writeln!(
             o,
-            "{name:<6}{:>28}{:>28}{:>14}{:>14}",
-            param_cell(ham, name),
-            param_cell(hls, name),
+            "{:>13}{:>13}",
             fmt_opt(paper_normalised(&paper::ESTIMATED, name)),
             fmt_opt(paper_normalised(&paper::ACTUAL, name))
         );
@@ -819,50 +946,38 @@ fn tables_text(
     );
     let _ = writeln!(
         o,
-        "{:<28}{:>12}{:>14}{:>14}{:>10}",
+        "{:<40}{:>10}{:>12}{:>12}{:>10}",
         "model", "fit %", "loss", "FPE", "poles"
     );
-    for (name, rep) in [
-        ("linear ARX (RLS)", arx_rep),
-        ("Hammerstein (RLS)", ham_rep),
-        ("Hammerstein (key-term LS)", hls_rep),
-    ] {
-        let r = metrics_row(name, rep);
+    for m in &st.models {
+        let r = metrics_row(m.label, &m.rep);
         let _ = writeln!(
             o,
-            "{:<28}{:>12}{:>14}{:>14}{:>10}",
+            "{:<40}{:>10}{:>12}{:>12}{:>10}",
             r[0], r[1], r[2], r[3], r[4]
+        );
+    }
+    for (label, i) in [("paper: linear ARX", 0), ("paper: Hammerstein", 1)] {
+        let pick = |p: (f64, f64)| if i == 0 { p.0 } else { p.1 };
+        let _ = writeln!(
+            o,
+            "{label:<40}{:>10}{:>12}{:>12}",
+            num(pick(paper::FIT)),
+            num(pick(paper::LOSS)),
+            num(pick(paper::FPE))
         );
     }
     let _ = writeln!(
         o,
-        "{:<28}{:>12}{:>14}{:>14}\n{:<28}{:>12}{:>14}{:>14}",
-        "paper: linear ARX",
-        paper::FIT.0,
-        num(paper::LOSS.0),
-        num(paper::FPE.0),
-        "paper: Hammerstein",
-        paper::FIT.1,
-        num(paper::LOSS.1),
-        num(paper::FPE.1)
-    );
-    let _ = writeln!(
-        o,
-        "\nTable V — PI (Kp = {}, Ki = {}) fixed set-point {} → {} mm",
-        s.pi.kp, s.pi.ki, s.fixed_start_mm, s.fixed_setpoint_mm
+        "\nTable V — PI (Kp = {}, Ki = {}) fixed set-point {} → {} mm, {} s",
+        s.pi.kp, s.pi.ki, s.fixed_start_mm, s.fixed_setpoint_mm, s.fixed_duration_s
     );
     let _ = writeln!(
         o,
         "{:<26}{:>14}{:>14}{:>14}{:>14}",
         "criterion", "model (sim.)", "plant", "paper sim.", "paper exp."
     );
-    let ours = [
-        (m_model.overshoot_mm, m_plant.overshoot_mm),
-        (m_model.steady_state_error_mm, m_plant.steady_state_error_mm),
-        (m_model.rise_time_s, m_plant.rise_time_s),
-        (m_model.settling_time_s, m_plant.settling_time_s),
-    ];
-    for ((label, ps, pe), (a, b)) in paper::CLOSED_LOOP.iter().zip(ours) {
+    for (label, ps, pe, a, b) in closed_loop_rows(&st.fixed) {
         let _ = writeln!(
             o,
             "{label:<26}{:>14}{:>14}{:>14}{:>14}",
@@ -873,32 +988,13 @@ fn tables_text(
         );
     }
     let _ = writeln!(o, "\nAcceptance");
-    for (ok, text) in verdicts {
+    for (ok, text) in &st.verdicts {
         let _ = writeln!(o, "  [{}] {text}", if *ok { "met" } else { "NOT met" });
     }
     o
 }
 
-#[allow(clippy::too_many_arguments)]
-fn build_report(
-    s: &ReproduceSettings,
-    plant_name: &str,
-    summary: &serde_json::Value,
-    arx: &Identified,
-    ham: &Identified,
-    hls: &Identified,
-    arx_rep: &IdentifyReport,
-    ham_rep: &IdentifyReport,
-    hls_rep: &IdentifyReport,
-    m_fx_model: &StepMetrics,
-    m_fx_plant: &StepMetrics,
-    m_fx_comp: &Result<StepMetrics, String>,
-    m_uf_model: &StepMetrics,
-    m_uf_plant: &StepMetrics,
-    fit_ol: Option<f64>,
-    verdicts: &[(bool, String)],
-    figs: &[Fig],
-) -> Result<Report, ReportError> {
+fn build_report(s: &ReproduceSettings, st: &Study, figs: &[Fig]) -> Result<Report, ReportError> {
     let fig = |stem: &str| figs.iter().find(|f| f.0 == stem);
     let with_fig = |sec: Section, stem: &str| -> Result<Section, ReportError> {
         match fig(stem) {
@@ -914,18 +1010,19 @@ fn build_report(
         _ => "a saved model given on the command line",
     };
     let mut r = Report::new("Hammerstein model based RLS identification of an Intelligent Pneumatic Actuator — reproduction")
-        .subtitle(format!("Plant: {plant_name}. Seed {}. Generated by ipa-sysid reproduce.", s.seed))
+        .subtitle(format!("Plant: {}. Seed {}. Generated by ipa-sysid reproduce.", st.plant_name, s.seed))
         .intro(format!(
             "This report repeats the study of \"Hammerstein Model Based RLS Algorithm for Modeling the Intelligent \
              Pneumatic Actuator (IPA) System\" (IJASEIT 7(4), 2017) end to end. A pneumatic cylinder is driven by a \
              PWM command u (counts, ±255) and its position y (mm) is sampled every {} s. The Hammerstein model is a \
              static valve deadzone (breakpoints b_l, b_r, slopes m_l, m_r) followed by a linear ARX block \
              A(q) y = B(q) x (na = 3, nb = 1, nk = 1), estimated by recursive least squares. The plant here is {plant_text}. \
-             Every number below was computed in this run; the paper's numbers are shown beside ours in shaded columns.",
-            num(summary["settings"]["ts"].as_f64().unwrap_or(0.01))
+             Every number below was computed in this run; the paper's numbers are shown beside ours in shaded columns. \
+             Models marked \"addition\" are this project's, not the paper's.",
+            num(st.ts)
         ));
     let mut acc = Section::new("Verdict");
-    for (ok, text) in verdicts {
+    for (ok, text) in &st.verdicts {
         acc = acc.callout(
             if *ok { Verdict::Pass } else { Verdict::Fail },
             text.clone(),
@@ -935,52 +1032,53 @@ fn build_report(
     r.push_section(with_fig(
         Section::new("1. Experiment").paragraph(format!(
             "{} samples at Ts = {} s of a staircase command with random levels in ±{} counts held for random \
-             durations, starting at {} mm; a second record with the next seed is used only for validation.",
+             durations, starting at {} mm (the experimenter steers the signs so that the piston stays inside the \
+             stroke, as on a real rig); a second record with the next seed is used only for validation.",
             s.samples,
-            num(summary["settings"]["ts"].as_f64().unwrap_or(0.01)),
+            num(st.ts),
             s.amplitude_counts,
             s.experiment_start_mm
         )),
         "fig2_experiment",
     )?);
+    let arx = &st.arx().fit;
     let est_sec = Section::new("2. Estimated parameters")
         .paragraph(
             "Only products of the deadzone slopes with B are identifiable, so b1 = 1 and the slopes carry the gain. \
              The paper's slopes are converted to this normalisation (multiplied by its b1) so that the columns compare. \
-             The linear ARX baseline is estimated by the same RLS; the key-term least-squares column is this project's \
-             addition (iterated batch least squares, usually more accurate than one recursive pass).",
+             The linear ARX baseline is estimated by the same RLS. Key-term LS iterates batch least squares to a fixed \
+             point; output error (OE) refines all parameters by minimising the free-run simulation error, which removes \
+             the bias that equation-error methods (LS, RLS) have when the output is measured with noise or the model \
+             is not exact.",
         )
-        .table(table3(s, ham, hls))
+        .table(table3(s, st))
         .paragraph(format!(
-            "Linear ARX baseline: a = [{}], b1 = {}. Poles of the Hammerstein model: {}.",
+            "Linear ARX baseline: a = [{}], b1 = {}. Poles — {}.",
             arx.model.a.iter().map(|v| num(*v)).collect::<Vec<_>>().join(", "),
             num(arx.model.b[0]),
-            ham_rep.poles.iter().map(|p| if p.im.abs() < 1e-12 { num(p.re) } else { format!("{} ± {}i", num(p.re), num(p.im.abs())) }).collect::<Vec<_>>().join(", ")
+            st.models.iter().map(|m| format!("{}: {}", m.label, pole_list(&m.rep))).collect::<Vec<_>>().join("; ")
         ));
     r.push_section(with_fig(
         with_fig(est_sec, "fig4_deadzone")?,
         "rls_convergence",
     )?);
     let mut t4 = Table::new(["model", "best fit (%)", "loss V", "FPE", "poles"]).caption(
-        "Table IV — validation record: free-run fit % (eq. 13), loss V = (1/N) Σ ½ ε² (eq. 14) and FPE (eq. 15) of the one-step errors",
+        "Table IV — validation record: free-run fit % (eq. 13), loss V = (1/N) Σ ½ ε² (eq. 14) and FPE (eq. 15) of \
+         the one-step errors",
     );
-    for (name, rep) in [
-        ("linear ARX (RLS)", arx_rep),
-        ("Hammerstein (RLS)", ham_rep),
-        ("Hammerstein (key-term LS)", hls_rep),
-    ] {
-        t4.push_row(metrics_row(name, rep));
+    for m in &st.models {
+        t4.push_row(metrics_row(m.label, &m.rep));
     }
     t4.push_row([
         "paper: linear ARX".to_string(),
-        paper::FIT.0.to_string(),
+        num(paper::FIT.0),
         num(paper::LOSS.0),
         num(paper::FPE.0),
         "stable".into(),
     ]);
     t4.push_row([
         "paper: Hammerstein".to_string(),
-        paper::FIT.1.to_string(),
+        num(paper::FIT.1),
         num(paper::LOSS.1),
         num(paper::FPE.1),
         "stable".into(),
@@ -990,56 +1088,43 @@ fn build_report(
             .paragraph(
                 "The fit is computed on the validation record by free-run simulation (the model sees only u after \
                  its first na samples), as MATLAB's compare does; loss and FPE use the one-step prediction errors, as \
-                 in the paper's equations.",
+                 in the paper's equations. A free-run fit is demanding for a plant that integrates: a small error in a \
+                 gain or in the integrating pole accumulates into a drift of the position.",
             )
             .table(t4),
         "fig5_fit",
     )?);
     r.push_section(with_fig(
         Section::new("4. Open-loop test").paragraph(format!(
-            "The identified Hammerstein model and the plant receive the same fresh staircase; the model's free-run \
+            "The identified Hammerstein model (RLS) and the plant receive the same fresh staircase; the model's free-run \
              output fits the plant's by {} %.",
-            fmt_opt(fit_ol)
+            fmt_opt(st.fit_ol)
         )),
         "fig6_open_loop",
     )?);
     let mut t5 = Table::new(["criterion", "model (simulation)", "plant", "paper: simulation", "paper: experiment"])
         .caption(format!(
-            "Table V — PI control (Kp = {}, Ki = {}, u = Kp e + Ki Ts Σe, saturated at ±255) from {} mm to the fixed set-point {} mm",
-            s.pi.kp, s.pi.ki, s.fixed_start_mm, s.fixed_setpoint_mm
+            "Table V — PI control (Kp = {}, Ki = {}, u = Kp e + Ki Ts Σe, saturated at ±255) from {} mm to the fixed \
+             set-point {} mm, {} s",
+            s.pi.kp, s.pi.ki, s.fixed_start_mm, s.fixed_setpoint_mm, s.fixed_duration_s
         ))
         .paper_column(3)
         .paper_column(4);
-    let ours = [
-        (m_fx_model.overshoot_mm, m_fx_plant.overshoot_mm),
-        (
-            m_fx_model.steady_state_error_mm,
-            m_fx_plant.steady_state_error_mm,
-        ),
-        (m_fx_model.rise_time_s, m_fx_plant.rise_time_s),
-        (m_fx_model.settling_time_s, m_fx_plant.settling_time_s),
-    ];
-    for ((label, ps, pe), (a, b)) in paper::CLOSED_LOOP.iter().zip(ours) {
-        t5.push_row([
-            label.to_string(),
-            fmt_opt(a),
-            fmt_opt(b),
-            ps.to_string(),
-            pe.to_string(),
-        ]);
+    for (label, ps, pe, a, b) in closed_loop_rows(&st.fixed) {
+        t5.push_row([label.to_string(), fmt_opt(a), fmt_opt(b), num(ps), num(pe)]);
     }
     t5.push_row([
         "overshoot (% of step)".to_string(),
-        fmt_opt(m_fx_model.overshoot_percent),
-        fmt_opt(m_fx_plant.overshoot_percent),
+        fmt_opt(st.fixed.m_model.overshoot_percent),
+        fmt_opt(st.fixed.m_plant.overshoot_percent),
         "—".into(),
         "< 10 (acceptance)".into(),
     ]);
-    let comp_text = match m_fx_comp {
+    let comp_text = match &st.compensated {
         Ok(m) => format!(
-            "With the inverse of the identified (key-term LS) deadzone after the PI — the paper's suggested future \
-             work — the plant gives: overshoot {} mm ({} %), steady-state error {} mm, rise time {} s, settling time {} s \
-             (data/closed_loop_fixed_plant_compensated.csv).",
+            "With the inverse of the identified (output-error) deadzone after the PI — the paper's suggested future \
+             work — the plant gives: overshoot {} mm ({} %), steady-state error {} mm, rise time {} s, settling time \
+             {} s (data/closed_loop_fixed_plant_compensated.csv).",
             fmt_opt(m.overshoot_mm),
             fmt_opt(m.overshoot_percent),
             fmt_opt(m.steady_state_error_mm),
@@ -1053,30 +1138,35 @@ fn build_report(
             .paragraph(
                 "Metrics follow MATLAB stepinfo: overshoot beyond the final value, steady-state error = set-point − \
                  final value, rise time 10 % → 90 % of the step, settling time into a 2 % band. The paper does not \
-                 state its step size; a step from the retracted end is used here.",
+                 state its step size; a step from the retracted end is used here. The model is the Hammerstein model \
+                 identified by RLS (the paper's).",
             )
             .table(t5)
             .paragraph(comp_text),
         "fig7a_closed_loop_fixed",
     )?;
+    let (up, um) = (&st.unfixed.m_plant, &st.unfixed.m_model);
     let cl = with_fig(
         cl.paragraph(format!(
             "Changing set-point ({}): worst step on the plant — overshoot {} mm, steady-state error {} mm, settling {} s; \
              on the model — overshoot {} mm, steady-state error {} mm, settling {} s.",
             s.unfixed_profile,
-            fmt_opt(m_uf_plant.overshoot_mm),
-            fmt_opt(m_uf_plant.steady_state_error_mm),
-            fmt_opt(m_uf_plant.settling_time_s),
-            fmt_opt(m_uf_model.overshoot_mm),
-            fmt_opt(m_uf_model.steady_state_error_mm),
-            fmt_opt(m_uf_model.settling_time_s),
+            fmt_opt(up.overshoot_mm),
+            fmt_opt(up.steady_state_error_mm),
+            fmt_opt(up.settling_time_s),
+            fmt_opt(um.overshoot_mm),
+            fmt_opt(um.steady_state_error_mm),
+            fmt_opt(um.settling_time_s),
         )),
         "fig7b_closed_loop_unfixed",
     )?;
     r.push_section(cl);
     r.push_section(Section::new("6. Files").list([
         "summary.json — every number of this report, machine-readable".to_string(),
-        "model_arx.json, model_hammerstein.json, model_hammerstein_ls.json — saved models (ipa-sysid validate --model …)".into(),
+        format!(
+            "{} — saved models (ipa-sysid validate --model …)",
+            st.models.iter().map(|m| format!("model_{}.json", m.key)).collect::<Vec<_>>().join(", ")
+        ),
         "data/estimation.csv, data/validation.csv, data/open_loop.csv, data/closed_loop_*.csv — the records".into(),
         "figures/*.svg, figures/*.png — the figures".into(),
     ]));
@@ -1086,9 +1176,4 @@ fn build_report(
         s.plant,
         s.seed
     )))
-}
-
-/// Default output folder name.
-pub fn default_out_dir() -> &'static Path {
-    Path::new("reproduce-out")
 }

@@ -51,7 +51,9 @@ pub struct Rls {
     pub p: DMatrix<f64>,
     /// ρ: forgetting factor in (0, 1].
     pub forgetting: f64,
+    /// Work vectors P φ and L̃ of the generic loop (n > MAX_FIXED).
     pphi: DVector<f64>,
+    gain: DVector<f64>,
 }
 
 impl Rls {
@@ -63,6 +65,7 @@ impl Rls {
             p: DMatrix::identity(n_params, n_params) * p0,
             forgetting,
             pphi: DVector::zeros(n_params),
+            gain: DVector::zeros(n_params),
         })
     }
 
@@ -86,7 +89,12 @@ impl Rls {
     pub fn update(&mut self, phi: &[f64], y: f64, sample: usize) -> Result<f64, SysidError> {
         let n = self.theta.len();
         let rho = self.forgetting;
-        if phi.len() != n || self.p.nrows() != n || self.p.ncols() != n || self.pphi.len() != n {
+        if phi.len() != n
+            || self.p.nrows() != n
+            || self.p.ncols() != n
+            || self.pphi.len() != n
+            || self.gain.len() != n
+        {
             return Err(shape_error(n, phi.len(), self.p.shape()));
         }
         let theta = self.theta.as_mut_slice();
@@ -95,7 +103,7 @@ impl Rls {
             ($($k:literal)*) => {
                 match n {
                     $($k => update_fixed::<$k>(theta, p, phi, y, rho),)*
-                    _ => update_dynamic(theta, p, self.pphi.as_mut_slice(), phi, y, rho),
+                    _ => update_dynamic(theta, p, self.pphi.as_mut_slice(), self.gain.as_mut_slice(), phi, y, rho),
                 }
             };
         }
@@ -112,7 +120,12 @@ impl Rls {
         sample: usize,
     ) -> Result<f64, SysidError> {
         let n = self.theta.len();
-        if phi.len() != n || self.p.nrows() != n || self.p.ncols() != n || self.pphi.len() != n {
+        if phi.len() != n
+            || self.p.nrows() != n
+            || self.p.ncols() != n
+            || self.pphi.len() != n
+            || self.gain.len() != n
+        {
             return Err(shape_error(n, phi.len(), self.p.shape()));
         }
         let mut eps = y;
@@ -231,6 +244,7 @@ impl<const N: usize> RlsN<N> {
             p: DMatrix::from_column_slice(N, N, self.p.as_flattened()),
             forgetting: self.forgetting,
             pphi: DVector::zeros(N),
+            gain: DVector::zeros(N),
         }
     }
 }
@@ -320,12 +334,13 @@ fn update_dynamic(
     theta: &mut [f64],
     p: &mut [f64],
     pphi: &mut [f64],
+    gain: &mut [f64],
     phi: &[f64],
     y: f64,
     rho: f64,
 ) -> Result<f64, (f64, f64)> {
     let n = theta.len();
-    let (p, phi, pphi) = (&mut p[..n * n], &phi[..n], &mut pphi[..n]);
+    let (p, phi, pphi, gain) = (&mut p[..n * n], &phi[..n], &mut pphi[..n], &mut gain[..n]);
     let mut eps = y;
     for (f, t) in phi.iter().zip(theta.iter()) {
         eps -= f * t;
@@ -346,23 +361,19 @@ fn update_dynamic(
     let inv = 1.0 / denom;
     let inv_rho = 1.0 / rho;
     // θ̂ += L̃ ε with L̃ = Pφ / denom, computed as (Pφ · inv) · ε like the reference.
-    for (t, q) in theta.iter_mut().zip(pphi.iter()) {
-        *t += q * inv * eps;
+    for ((t, q), g) in theta.iter_mut().zip(pphi.iter()).zip(gain.iter_mut()) {
+        *g = q * inv;
+        *t += *g * eps;
     }
     for (j, col) in p.chunks_exact_mut(n).enumerate() {
-        let pj = pphi[j];
-        let gj = pj * inv;
+        let (pj, gj) = (pphi[j], gain[j]);
         let (upper, lower) = col.split_at_mut(j + 1);
+        // (x − a b) · 1/ρ; for ρ = 1 the multiplication by 1 is exact, so no branch is needed.
         for (c, q) in upper.iter_mut().zip(&pphi[..=j]) {
-            *c -= q * gj;
+            *c = (*c - q * gj) * inv_rho;
         }
-        for (c, q) in lower.iter_mut().zip(&pphi[j + 1..]) {
-            *c -= pj * (q * inv);
-        }
-        if rho != 1.0 {
-            for c in col.iter_mut() {
-                *c *= inv_rho;
-            }
+        for (c, g) in lower.iter_mut().zip(&gain[j + 1..]) {
+            *c = (*c - pj * g) * inv_rho;
         }
     }
     Ok(eps)

@@ -139,19 +139,8 @@ pub fn num(v: f64) -> String {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    // Six significant digits, trailing zeros dropped: 0.01 → "0.01", 1.41 → "1.41", 1/3 → "0.333333".
-    #[test]
-    fn numbers_keep_six_significant_digits_without_trailing_zeros() {
-        assert_eq!(super::num(0.01), "0.01");
-        assert_eq!(super::num(1.41), "1.41");
-        assert_eq!(super::num(1.0 / 3.0), "0.333333");
-        assert_eq!(super::num(-1234.5678), "-1234.57");
-        assert_eq!(super::num(2.5e-4), "2.5e-4");
-        assert_eq!(super::num(100.0), "100");
-    }
-}
+/// A row of the text metrics table: label and how to format the value from a [`Metrics`].
+type MetricRow = (&'static str, fn(&Metrics) -> String);
 
 fn opt(v: Option<f64>) -> String {
     v.map_or_else(|| "n/a".into(), num)
@@ -239,7 +228,7 @@ impl IdentifyReport {
             "estimation",
             if val.is_some() { "validation" } else { "" }
         );
-        let rows: [(&str, fn(&Metrics) -> String); 9] = [
+        let rows: [MetricRow; 9] = [
             ("fit % (simulation)", |m| opt(m.fit_sim_percent)),
             ("fit % (1-step pred.)", |m| opt(m.fit_pred_percent)),
             ("RMSE (simulation)", |m| opt(m.rmse_sim)),
@@ -267,5 +256,19 @@ impl IdentifyReport {
             }
         }
         s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    // Six significant digits, trailing zeros dropped: 0.01 → "0.01", 1.41 → "1.41", 1/3 → "0.333333".
+    #[test]
+    fn numbers_keep_six_significant_digits_without_trailing_zeros() {
+        assert_eq!(super::num(0.01), "0.01");
+        assert_eq!(super::num(1.41), "1.41");
+        assert_eq!(super::num(1.0 / 3.0), "0.333333");
+        assert_eq!(super::num(-1234.5678), "-1234.57");
+        assert_eq!(super::num(2.5e-4), "2.5e-4");
+        assert_eq!(super::num(100.0), "100");
     }
 }

@@ -481,7 +481,9 @@ fn uniform_ts(t: &[f64], table: &Table, col: usize) -> Result<f64, SysidError> {
     let mut steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
     let mid = steps.len() / 2;
     let median = *steps.select_nth_unstable_by(mid, f64::total_cmp).1;
-    let ts = (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64;
+    // The mean step, rounded to 12 significant digits so that a column 0, 0.01, 0.02, … gives Ts = 0.01
+    // and not the 0.009999999999999998 of its floating-point sum.
+    let ts = round_significant((t[t.len() - 1] - t[0]) / (t.len() - 1) as f64, 12);
     if !(median.is_finite() && median > 0.0 && ts.is_finite() && ts > 0.0) {
         return Err(at(
             1,
@@ -503,4 +505,14 @@ fn uniform_ts(t: &[f64], table: &Table, col: usize) -> Result<f64, SysidError> {
         }
     }
     Ok(ts)
+}
+
+/// `v` rounded to `digits` significant decimal digits (non-finite values unchanged).
+fn round_significant(v: f64, digits: usize) -> f64 {
+    if !v.is_finite() || v == 0.0 {
+        return v;
+    }
+    format!("{:.*e}", digits.saturating_sub(1), v)
+        .parse()
+        .unwrap_or(v)
 }

@@ -30,14 +30,34 @@ pub struct LsWorkspace {
     a: Vec<f64>,
 }
 
+/// Largest buffer (in numbers) that [`solve`] keeps between calls on a thread: 512 Ki numbers = 4 MiB,
+/// enough for 65 536 rows of 7 parameters; bigger problems allocate and free their own.
+pub const KEPT_WORKSPACE: usize = 1 << 19;
+
+thread_local! {
+    static WORKSPACE: std::cell::RefCell<LsWorkspace> = std::cell::RefCell::new(LsWorkspace::new());
+}
+
 /// Solves min ‖y − Φθ‖ exactly like [`crate::ls::solve`] (same errors, same rank test on the
-/// column-normalised R) but faster. `names` label the columns in errors.
+/// column-normalised R) but faster. `names` label the columns in errors. Reuses a per-thread buffer
+/// (up to [`KEPT_WORKSPACE`] numbers), so that repeated solves (the key-term iteration, Monte Carlo
+/// runs) allocate no large block.
 pub fn solve(
     phi: &DMatrix<f64>,
     y: &DVector<f64>,
     names: &[String],
 ) -> Result<LsSolution, SysidError> {
-    LsWorkspace::default().solve(phi, y, names)
+    WORKSPACE.with(|ws| match ws.try_borrow_mut() {
+        Ok(mut ws) => {
+            let result = ws.solve(phi, y, names);
+            if ws.a.capacity() > KEPT_WORKSPACE {
+                *ws = LsWorkspace::new();
+            }
+            result
+        }
+        // Re-entered on this thread (cannot happen today): use a fresh buffer.
+        Err(_) => LsWorkspace::new().solve(phi, y, names),
+    })
 }
 
 impl LsWorkspace {
@@ -80,7 +100,7 @@ impl LsWorkspace {
         // units (counts vs mm vs 0/1 switches).
         let cols = p + 1;
         self.a.clear();
-        self.a.resize(n * cols, 0.0);
+        self.a.reserve(n * cols);
         let mut scale = vec![0.0; p];
         for (j, scale_j) in scale.iter_mut().enumerate() {
             let src = phi.column(j);
@@ -100,11 +120,9 @@ impl LsWorkspace {
             }
             *scale_j = norm;
             let inv = 1.0 / norm;
-            for (d, s) in self.a[j * n..(j + 1) * n].iter_mut().zip(src) {
-                *d = s * inv;
-            }
+            self.a.extend(src.iter().map(|s| s * inv));
         }
-        self.a[p * n..].copy_from_slice(y.as_slice());
+        self.a.extend_from_slice(y.as_slice());
         let mut r = vec![0.0; p * cols]; // R and z by rows: r[k * cols + c]
         for k in 0..p {
             let (left, right) = self.a.split_at_mut((k + 1) * n);

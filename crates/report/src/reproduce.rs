@@ -698,7 +698,7 @@ fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
     let mut figs: Vec<Fig> = Vec::new();
     figs.push((
         "fig2_experiment",
-        Figure::new("Fig. 2 — Experiment: staircase input and measured position")
+        Figure::new("Experiment: staircase input and measured position (paper's Fig. 2)")
             .panel(Panel::new("time (s)", "u (counts)").series(Series::step("u: PWM command", t.clone(), st.est.u.clone())))
             .panel(Panel::new("time (s)", "y (mm)").series(Series::line("y: position", t.clone(), st.est.y.clone()))),
         "The estimation record: the staircase command u (PWM counts) and the measured stroke position y (mm).",
@@ -717,7 +717,7 @@ fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
     }
     figs.push((
         "fig4_deadzone",
-        Figure::new("Fig. 4 — Identified valve deadzone x = f(u)").panel(dz_panel),
+        Figure::new("Identified valve deadzone x = f(u) (paper's Fig. 4)").panel(dz_panel),
         "The identified static nonlinearity: the valve deadzone between b_l and b_r and the slopes m_l, m_r.",
     ));
     let tv = time_axis(st.val.len(), ts);
@@ -737,13 +737,13 @@ fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
     }
     figs.push((
         "fig5_fit",
-        Figure::new("Fig. 5 — Validation record: measured vs simulated output").panel(fit_panel),
+        Figure::new("Validation record: measured vs simulated output (paper's Fig. 5)").panel(fit_panel),
         "Free-run simulation of the models on the validation record (which was not used for estimation).",
     ));
     let t_ol = time_axis(st.u_ol.len(), ts);
     figs.push((
         "fig6_open_loop",
-        Figure::new("Fig. 6 — Open-loop test: identified Hammerstein model vs plant")
+        Figure::new("Open-loop test: identified Hammerstein model vs plant (paper's Fig. 6)")
             .panel(Panel::new("time (s)", "u (counts)").series(Series::step(
                 "u",
                 t_ol.clone(),
@@ -763,13 +763,13 @@ fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
     for (stem, title, lp, cap) in [
         (
             "fig7a_closed_loop_fixed",
-            "Fig. 7a — PI control, fixed set-point",
+            "PI control, fixed set-point (paper's Fig. 7a)",
             &st.fixed,
             "PI (Kp = 14, Ki = 1) from rest to the fixed set-point: identified model (simulation) vs plant.",
         ),
         (
             "fig7b_closed_loop_unfixed",
-            "Fig. 7b — PI control, changing set-point",
+            "PI control, changing set-point (paper's Fig. 7b)",
             &st.unfixed,
             "PI (Kp = 14, Ki = 1) following a staircase of set-points: identified model vs plant.",
         ),
@@ -876,7 +876,7 @@ fn table3(s: &ReproduceSettings, st: &Study) -> Table {
         t.push_row(row);
     }
     t.caption(
-        "Table III — Hammerstein parameter estimates (± one standard deviation), normalised to b1 = 1 \
+        "The paper's Table III: Hammerstein parameter estimates (± one standard deviation), normalised to b1 = 1 \
          (the paper's slopes are multiplied by its b1 so that they compare; see the reading notes)",
     )
     .paper_column(ncols - 2)
@@ -1063,7 +1063,7 @@ fn build_report(s: &ReproduceSettings, st: &Study, figs: &[Fig]) -> Result<Repor
         "rls_convergence",
     )?);
     let mut t4 = Table::new(["model", "best fit (%)", "loss V", "FPE", "poles"]).caption(
-        "Table IV — validation record: free-run fit % (eq. 13), loss V = (1/N) Σ ½ ε² (eq. 14) and FPE (eq. 15) of \
+        "The paper's Table IV: validation record, free-run fit % (eq. 13), loss V = (1/N) Σ ½ ε² (eq. 14) and FPE (eq. 15) of \
          the one-step errors",
     );
     for m in &st.models {
@@ -1104,7 +1104,7 @@ fn build_report(s: &ReproduceSettings, st: &Study, figs: &[Fig]) -> Result<Repor
     )?);
     let mut t5 = Table::new(["criterion", "model (simulation)", "plant", "paper: simulation", "paper: experiment"])
         .caption(format!(
-            "Table V — PI control (Kp = {}, Ki = {}, u = Kp e + Ki Ts Σe, saturated at ±255) from {} mm to the fixed \
+            "The paper's Table V: PI control (Kp = {}, Ki = {}, u = Kp e + Ki Ts Σe, saturated at ±255) from {} mm to the fixed \
              set-point {} mm, {} s",
             s.pi.kp, s.pi.ki, s.fixed_start_mm, s.fixed_setpoint_mm, s.fixed_duration_s
         ))

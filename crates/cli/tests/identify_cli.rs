@@ -9,12 +9,24 @@ fn bin() -> Command {
 
 /// Paper model (normalised b1 = 1) driven by a deterministic staircase, by a plain loop.
 fn paper_record(n: usize, phase: usize) -> (Vec<f64>, Vec<f64>) {
-    let levels = [200.0, -120.0, 0.5, 255.0, -255.0, 60.0, -30.0, 1.0, -90.0, 140.0, -4.0, 25.0];
-    let u: Vec<f64> = (0..n).map(|k| levels[((k / 17) + phase) % levels.len()]).collect();
+    let levels = [
+        200.0, -120.0, 0.5, 255.0, -255.0, 60.0, -30.0, 1.0, -90.0, 140.0, -4.0, 25.0,
+    ];
+    let u: Vec<f64> = (0..n)
+        .map(|k| levels[((k / 17) + phase) % levels.len()])
+        .collect();
     let (bl, br, ml, mr) = (-1.5, 1.41, 3.46 * 15.67e-4, 2.38 * 15.67e-4);
     let x: Vec<f64> = u
         .iter()
-        .map(|&v| if v >= br { mr * (v - br) } else if v <= bl { ml * (v - bl) } else { 0.0 })
+        .map(|&v| {
+            if v >= br {
+                mr * (v - br)
+            } else if v <= bl {
+                ml * (v - bl)
+            } else {
+                0.0
+            }
+        })
         .collect();
     let a = [-1.869, 0.9976, -0.1284];
     let mut y = vec![0.0; n];
@@ -60,16 +72,29 @@ fn identify_writes_the_documented_json_and_recovers_the_paper_model() {
         .arg(&model)
         .output()
         .unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let text = String::from_utf8_lossy(&out.stdout);
     assert!(text.contains("b_r") && text.contains("stable"), "{text}");
-    let v: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     let m = &v["model"];
     assert_eq!(m["kind"], "hammerstein");
-    assert_eq!((m["na"].as_u64(), m["nb"].as_u64(), m["nk"].as_u64()), (Some(3), Some(1), Some(1)));
+    assert_eq!(
+        (m["na"].as_u64(), m["nb"].as_u64(), m["nk"].as_u64()),
+        (Some(3), Some(1), Some(1))
+    );
     assert!((m["ts"].as_f64().unwrap() - 0.01).abs() < 1e-12);
     assert!(m["offset"].is_null());
-    let a: Vec<f64> = m["a"].as_array().unwrap().iter().map(|x| x.as_f64().unwrap()).collect();
+    let a: Vec<f64> = m["a"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
     for (g, w) in a.iter().zip([-1.869, 0.9976, -0.1284]) {
         assert!((g - w).abs() < 1e-8, "{a:?}");
     }
@@ -86,7 +111,17 @@ fn identify_writes_the_documented_json_and_recovers_the_paper_model() {
     assert!(v["estimation"]["iterations"].as_u64().unwrap() >= 1);
     for part in ["estimation", "validation"] {
         let mm = &v["metrics"][part];
-        for key in ["fit_sim_percent", "fit_pred_percent", "rmse_sim", "rmse_pred", "loss", "fpe", "aic", "n", "p"] {
+        for key in [
+            "fit_sim_percent",
+            "fit_pred_percent",
+            "rmse_sim",
+            "rmse_pred",
+            "loss",
+            "fpe",
+            "aic",
+            "n",
+            "p",
+        ] {
             assert!(mm.get(key).is_some(), "metrics.{part}.{key} missing");
         }
         // A noise-free exact model fits its own data to rounding.
@@ -96,8 +131,18 @@ fn identify_writes_the_documented_json_and_recovers_the_paper_model() {
     assert_eq!(v["metrics"]["validation"]["n"].as_u64(), Some(800 - 3));
 
     // validate: the saved model on the validation record gives the same numbers as identify's validation.
-    let out = bin().args(["validate", "--json", "-", "--model"]).arg(&model).arg("--data").arg(&val).output().unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = bin()
+        .args(["validate", "--json", "-", "--model"])
+        .arg(&model)
+        .arg("--data")
+        .arg(&val)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let w: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(w["metrics"]["validation"], v["metrics"]["validation"]);
 }
@@ -115,19 +160,34 @@ fn run_err(args: &[&str], files: &[(&str, &str)]) -> (i32, String) {
 
 #[test]
 fn bad_cells_are_reported_with_file_line_and_column() {
-    let (code, err) = run_err(&["identify", "--data", "d.csv"], &[("d.csv", "t,u,y\n0,1,2\n0.01,NaN,3\n")]);
+    let (code, err) = run_err(
+        &["identify", "--data", "d.csv"],
+        &[("d.csv", "t,u,y\n0,1,2\n0.01,NaN,3\n")],
+    );
     assert_eq!(code, 2);
-    assert!(err.contains("d.csv:3:2") && err.contains("not a finite number"), "{err}");
-    let (code, err) = run_err(&["identify", "--data", "d.csv"], &[("d.csv", "t,u,y\n0,1,2\n0.01,1,abc\n")]);
+    assert!(
+        err.contains("d.csv:3:2") && err.contains("not a finite number"),
+        "{err}"
+    );
+    let (code, err) = run_err(
+        &["identify", "--data", "d.csv"],
+        &[("d.csv", "t,u,y\n0,1,2\n0.01,1,abc\n")],
+    );
     assert_eq!(code, 2);
     assert!(err.contains("d.csv:3:3") && err.contains("'abc'"), "{err}");
 }
 
 #[test]
 fn missing_column_names_what_the_header_has() {
-    let (code, err) = run_err(&["identify", "--data", "d.csv", "--y-col", "pos"], &[("d.csv", "t,u,y\n0,1,2\n")]);
+    let (code, err) = run_err(
+        &["identify", "--data", "d.csv", "--y-col", "pos"],
+        &[("d.csv", "t,u,y\n0,1,2\n")],
+    );
     assert_eq!(code, 2);
-    assert!(err.contains("no column named 'pos'") && err.contains("t, u, y"), "{err}");
+    assert!(
+        err.contains("no column named 'pos'") && err.contains("t, u, y"),
+        "{err}"
+    );
 }
 
 #[test]
@@ -140,7 +200,10 @@ fn out_of_range_flags_are_refused_naming_the_flag() {
         ("--nb", "0", "--nb"),
         ("--ts", "0", "--ts"),
     ] {
-        let (code, err) = run_err(&["identify", "--data", "d.csv", flag, value], &[("d.csv", csv)]);
+        let (code, err) = run_err(
+            &["identify", "--data", "d.csv", flag, value],
+            &[("d.csv", csv)],
+        );
         assert_eq!(code, 2, "{flag} {value}: {err}");
         assert!(err.contains(needle), "{flag} {value}: {err}");
     }
@@ -152,7 +215,13 @@ fn an_output_path_equal_to_the_input_is_refused_and_the_input_is_untouched() {
     let (u, y) = paper_record(300, 0);
     let data = write_csv(dir.path(), "d.csv", &u, &y);
     let before = std::fs::read(&data).unwrap();
-    let out = bin().args(["identify", "--method", "ls", "--data"]).arg(&data).arg("--json").arg(&data).output().unwrap();
+    let out = bin()
+        .args(["identify", "--method", "ls", "--data"])
+        .arg(&data)
+        .arg("--json")
+        .arg(&data)
+        .output()
+        .unwrap();
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("--json"));
     assert_eq!(std::fs::read(&data).unwrap(), before);
@@ -160,7 +229,10 @@ fn an_output_path_equal_to_the_input_is_refused_and_the_input_is_untouched() {
 
 #[test]
 fn too_few_samples_for_the_orders_is_a_clear_error() {
-    let (code, err) = run_err(&["identify", "--data", "d.csv", "--na", "5"], &[("d.csv", "t,u,y\n0,1,2\n0.01,-1,3\n0.02,2,1\n")]);
+    let (code, err) = run_err(
+        &["identify", "--data", "d.csv", "--na", "5"],
+        &[("d.csv", "t,u,y\n0,1,2\n0.01,-1,3\n0.02,2,1\n")],
+    );
     assert_eq!(code, 2);
     assert!(err.contains("regression rows"), "{err}");
 }

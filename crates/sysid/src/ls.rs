@@ -23,7 +23,11 @@ pub const RANK_TOLERANCE: f64 = 1e-10;
 /// Fails with [`SysidError::Data`] when Φ is rank deficient (a column is zero or a combination of the
 /// others — the input is not persistently exciting for this structure) and with
 /// [`SysidError::Numerical`] on non-finite data.
-pub fn solve(phi: &DMatrix<f64>, y: &DVector<f64>, names: &[String]) -> Result<LsSolution, SysidError> {
+pub fn solve(
+    phi: &DMatrix<f64>,
+    y: &DVector<f64>,
+    names: &[String],
+) -> Result<LsSolution, SysidError> {
     let (n, p) = phi.shape();
     if n < p {
         return Err(SysidError::Data(format!(
@@ -31,9 +35,16 @@ pub fn solve(phi: &DMatrix<f64>, y: &DVector<f64>, names: &[String]) -> Result<L
         )));
     }
     if phi.iter().chain(y.iter()).any(|v| !v.is_finite()) {
-        return Err(SysidError::Numerical("non-finite value in the regression data".into()));
+        return Err(SysidError::Numerical(
+            "non-finite value in the regression data".into(),
+        ));
     }
-    let name = |j: usize| names.get(j).cloned().unwrap_or_else(|| format!("column {}", j + 1));
+    let name = |j: usize| {
+        names
+            .get(j)
+            .cloned()
+            .unwrap_or_else(|| format!("column {}", j + 1))
+    };
     // Column scaling makes the rank test independent of units (counts vs mm vs 0/1 switches).
     let mut scale = DVector::<f64>::zeros(p);
     let mut a = phi.clone();
@@ -60,15 +71,17 @@ pub fn solve(phi: &DMatrix<f64>, y: &DVector<f64>, names: &[String]) -> Result<L
         }
     }
     let qty = qr.q().transpose() * y;
-    let z = r
-        .solve_upper_triangular(&qty)
-        .ok_or_else(|| SysidError::Numerical("singular triangular factor in least squares".into()))?;
+    let z = r.solve_upper_triangular(&qty).ok_or_else(|| {
+        SysidError::Numerical("singular triangular factor in least squares".into())
+    })?;
     let theta = z.component_div(&scale);
     let resid = y - phi * &theta;
     let rss = resid.norm_squared();
     let rinv = r
         .solve_upper_triangular(&DMatrix::identity(p, p))
-        .ok_or_else(|| SysidError::Numerical("singular triangular factor in least squares".into()))?;
+        .ok_or_else(|| {
+            SysidError::Numerical("singular triangular factor in least squares".into())
+        })?;
     let mut inv_gram = &rinv * rinv.transpose();
     for i in 0..p {
         for j in 0..p {
@@ -76,9 +89,15 @@ pub fn solve(phi: &DMatrix<f64>, y: &DVector<f64>, names: &[String]) -> Result<L
         }
     }
     if !rss.is_finite() || theta.iter().any(|v| !v.is_finite()) {
-        return Err(SysidError::Numerical("least squares produced a non-finite estimate".into()));
+        return Err(SysidError::Numerical(
+            "least squares produced a non-finite estimate".into(),
+        ));
     }
-    Ok(LsSolution { theta, inv_gram, rss })
+    Ok(LsSolution {
+        theta,
+        inv_gram,
+        rss,
+    })
 }
 
 #[cfg(test)]

@@ -37,7 +37,11 @@ impl Structure {
             v.extend(["m_r", "m_r*b_r", "m_l", "m_l*b_l"].map(String::from));
         }
         v.extend((1..=o.na).map(|i| format!("a{i}")));
-        let first_b = if self.kind == ModelKind::Hammerstein { 2 } else { 1 };
+        let first_b = if self.kind == ModelKind::Hammerstein {
+            2
+        } else {
+            1
+        };
         v.extend((first_b..=o.nb).map(|j| format!("b{j}")));
         if self.offset {
             v.push("c".into());

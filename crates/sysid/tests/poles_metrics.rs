@@ -4,7 +4,17 @@ use sysid::validation::metrics;
 use sysid::{Dataset, Model, ModelKind};
 
 fn arx(a: Vec<f64>, b: Vec<f64>, nk: usize) -> Model {
-    Model { kind: ModelKind::Arx, ts: 1.0, na: a.len(), nb: b.len(), nk, a, b, offset: None, deadzone: None }
+    Model {
+        kind: ModelKind::Arx,
+        ts: 1.0,
+        na: a.len(),
+        nb: b.len(),
+        nk,
+        a,
+        b,
+        offset: None,
+        deadzone: None,
+    }
 }
 
 // Reading notes: the paper's actual A has real poles 0.999227, 0.681112, 0.188661.
@@ -22,9 +32,15 @@ fn paper_actual_polynomial_has_the_poles_in_the_reading_notes() {
 #[test]
 fn paper_estimated_polynomial_has_the_reported_poles() {
     let p = sysid::model::poles_of(&[-1.82, 1.001, -0.1808]);
-    assert!((p[0].re - 0.9994).abs() < 1e-4 && p[0].im.abs() < 1e-12, "{p:?}");
+    assert!(
+        (p[0].re - 0.9994).abs() < 1e-4 && p[0].im.abs() < 1e-12,
+        "{p:?}"
+    );
     for q in &p[1..] {
-        assert!((q.re - 0.4103).abs() < 1e-4 && (q.im.abs() - 0.1121).abs() < 1e-4, "{p:?}");
+        assert!(
+            (q.re - 0.4103).abs() < 1e-4 && (q.im.abs() - 0.1121).abs() < 1e-4,
+            "{p:?}"
+        );
     }
 }
 
@@ -33,7 +49,9 @@ fn paper_estimated_polynomial_has_the_reported_poles() {
 fn poles_outside_the_unit_circle_are_unstable() {
     let m = arx(vec![0.0, 1.21], vec![1.0], 1);
     let p = m.poles();
-    assert!(p.iter().all(|q| (q.norm() - 1.1).abs() < 1e-12 && q.re.abs() < 1e-12));
+    assert!(p
+        .iter()
+        .all(|q| (q.norm() - 1.1).abs() < 1e-12 && q.re.abs() < 1e-12));
     assert!(!m.is_stable());
 }
 

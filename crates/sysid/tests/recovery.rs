@@ -15,7 +15,11 @@ fn staircase(n: usize, seed: u64) -> Vec<f64> {
     let specials = [255.0, -255.0, 0.0, 1.0, -1.0, 3.0, -3.0];
     let mut i = 0;
     while u.len() < n {
-        let level = if rng.gen_bool(0.3) { specials[i % specials.len()] } else { rng.gen_range(-255.0..255.0) };
+        let level = if rng.gen_bool(0.3) {
+            specials[i % specials.len()]
+        } else {
+            rng.gen_range(-255.0..255.0)
+        };
         i += 1;
         let hold = rng.gen_range(3..25);
         for _ in 0..hold {
@@ -77,7 +81,12 @@ fn cases() -> Vec<Case> {
             a: vec![-1.869, 0.9976, -0.1284],
             b: vec![1.0],
             nk: 1,
-            dz: Deadzone { b_l: -1.5, b_r: 1.41, m_l: 3.46 * pap, m_r: 2.38 * pap },
+            dz: Deadzone {
+                b_l: -1.5,
+                b_r: 1.41,
+                m_l: 3.46 * pap,
+                m_r: 2.38 * pap,
+            },
             c: 0.0,
         },
         // Second order, two B coefficients, delay 2, a wide asymmetric deadzone.
@@ -85,7 +94,12 @@ fn cases() -> Vec<Case> {
             a: vec![-1.2, 0.35],
             b: vec![1.0, 0.5],
             nk: 2,
-            dz: Deadzone { b_l: -40.0, b_r: 25.0, m_l: 0.02, m_r: 0.012 },
+            dz: Deadzone {
+                b_l: -40.0,
+                b_r: 25.0,
+                m_l: 0.02,
+                m_r: 0.012,
+            },
             c: 0.0,
         },
         // First order, three B coefficients, no delay, with an offset.
@@ -93,7 +107,12 @@ fn cases() -> Vec<Case> {
             a: vec![-0.8],
             b: vec![1.0, -0.3, 0.2],
             nk: 0,
-            dz: Deadzone { b_l: -10.0, b_r: 7.5, m_l: 0.5, m_r: 0.8 },
+            dz: Deadzone {
+                b_l: -10.0,
+                b_r: 7.5,
+                m_l: 0.5,
+                m_r: 0.8,
+            },
             c: 0.25,
         },
     ]
@@ -114,11 +133,19 @@ fn check_recovery(method: Method, passes: usize, rel: f64) {
         let m = &fit.model;
         let d = m.deadzone.unwrap();
         let msg = format!("case {ci} {method:?}: {m:?} iterations {}", fit.iterations);
-        for (got, want) in [(d.b_l, case.dz.b_l), (d.b_r, case.dz.b_r), (d.m_l, case.dz.m_l), (d.m_r, case.dz.m_r)] {
+        for (got, want) in [
+            (d.b_l, case.dz.b_l),
+            (d.b_r, case.dz.b_r),
+            (d.m_l, case.dz.m_l),
+            (d.m_r, case.dz.m_r),
+        ] {
             assert!(close(got, want, rel), "deadzone {got} vs {want}; {msg}");
         }
         for (got, want) in m.a.iter().zip(&case.a).chain(m.b.iter().zip(&case.b)) {
-            assert!(close(*got, *want, rel), "coefficient {got} vs {want}; {msg}");
+            assert!(
+                close(*got, *want, rel),
+                "coefficient {got} vs {want}; {msg}"
+            );
         }
         if case.c != 0.0 {
             assert!(close(m.offset.unwrap(), case.c, rel), "{msg}");
@@ -144,11 +171,18 @@ fn key_term_rls_with_passes_recovers_noise_free_hammerstein_models() {
 // Noise-free ARX data: LS returns the generating coefficients.
 #[test]
 fn ls_recovers_noise_free_arx_of_several_orders() {
-    for (a, b, nk) in [(vec![-0.5], vec![2.0], 1), (vec![-1.5, 0.7], vec![0.5, 0.25], 0), (vec![0.3, -0.1, 0.05], vec![1.0], 3)] {
+    for (a, b, nk) in [
+        (vec![-0.5], vec![2.0], 1),
+        (vec![-1.5, 0.7], vec![0.5, 0.25], 0),
+        (vec![0.3, -0.1, 0.05], vec![1.0], 3),
+    ] {
         let u = staircase(400, 3);
         let y = simulate(&u, &a, &b, nk, 0.0, None);
         let data = Dataset::new(u, y, 1.0, "arx").unwrap();
-        let s = IdentifySettings::default().with_kind(ModelKind::Arx).with_orders(a.len(), b.len(), nk).with_method(Method::Ls);
+        let s = IdentifySettings::default()
+            .with_kind(ModelKind::Arx)
+            .with_orders(a.len(), b.len(), nk)
+            .with_method(Method::Ls);
         let m = identify(&data, &s).unwrap().model;
         for (g, w) in m.a.iter().zip(&a).chain(m.b.iter().zip(&b)) {
             assert!(close(*g, *w, 1e-10), "{g} vs {w}");
@@ -160,14 +194,29 @@ fn ls_recovers_noise_free_arx_of_several_orders() {
 // Minimising (1-b)² + (2+a)² + (1+2a)² gives b = 1, a = -0.8, RSS = 1.8, σ² = RSS/(3-2).
 #[test]
 fn ls_solves_a_hand_derived_three_row_case() {
-    let data = Dataset::new(vec![1.0, 0.0, 0.0, 1.0], vec![0.0, 1.0, 2.0, 1.0], 1.0, "hand").unwrap();
-    let s = IdentifySettings::default().with_kind(ModelKind::Arx).with_orders(1, 1, 1).with_method(Method::Ls);
+    let data = Dataset::new(
+        vec![1.0, 0.0, 0.0, 1.0],
+        vec![0.0, 1.0, 2.0, 1.0],
+        1.0,
+        "hand",
+    )
+    .unwrap();
+    let s = IdentifySettings::default()
+        .with_kind(ModelKind::Arx)
+        .with_orders(1, 1, 1)
+        .with_method(Method::Ls);
     let fit = identify(&data, &s).unwrap();
     assert!((fit.model.a[0] + 0.8).abs() < 1e-12);
     assert!((fit.model.b[0] - 1.0).abs() < 1e-12);
     assert!((fit.noise_variance - 1.8).abs() < 1e-12);
     // Cov = σ² (ΦᵀΦ)⁻¹ with ΦᵀΦ = diag(1+4, 1) over columns (-y(k-1), u(k-1)): std(a) = √(1.8/5).
-    let std_a = fit.params.iter().find(|p| p.name == "a1").unwrap().std.unwrap();
+    let std_a = fit
+        .params
+        .iter()
+        .find(|p| p.name == "a1")
+        .unwrap()
+        .std
+        .unwrap();
     assert!((std_a - (1.8f64 / 5.0).sqrt()).abs() < 1e-12, "{std_a}");
 }
 
@@ -183,7 +232,10 @@ fn rls_equals_the_weighted_regularised_least_squares_closed_form() {
     y.iter_mut().for_each(|v| *v += rng.gen_range(-0.5..0.5));
     for (rho, p0) in [(1.0, 10.0), (0.97, 2.0), (0.9, 1e3), (1.0, 1e6)] {
         let data = Dataset::new(u.clone(), y.clone(), 1.0, "rls").unwrap();
-        let mut s = IdentifySettings::default().with_kind(ModelKind::Arx).with_orders(2, 2, 1).with_forgetting(rho);
+        let mut s = IdentifySettings::default()
+            .with_kind(ModelKind::Arx)
+            .with_orders(2, 2, 1)
+            .with_forgetting(rho);
         s.p0 = p0;
         let fit = identify(&data, &s).unwrap_or_else(|e| panic!("rho {rho} p0 {p0}: {e}"));
         // Independent closed form.
@@ -198,9 +250,17 @@ fn rls_equals_the_weighted_regularised_least_squares_closed_form() {
             h += &phi * (w * y[k]);
         }
         let theta = g.lu().solve(&h).unwrap();
-        let got = [fit.model.a[0], fit.model.a[1], fit.model.b[0], fit.model.b[1]];
+        let got = [
+            fit.model.a[0],
+            fit.model.a[1],
+            fit.model.b[0],
+            fit.model.b[1],
+        ];
         for i in 0..4 {
-            assert!(close(got[i], theta[i], 1e-8), "rho {rho} p0 {p0}: {got:?} vs {theta}");
+            assert!(
+                close(got[i], theta[i], 1e-8),
+                "rho {rho} p0 {p0}: {got:?} vs {theta}"
+            );
         }
     }
 }
@@ -221,7 +281,11 @@ fn constant_input_is_refused_as_not_persistently_exciting() {
     let u = vec![3.0; 200];
     let y: Vec<f64> = (0..200).map(|k| (k as f64 * 0.1).sin()).collect();
     let data = Dataset::new(u, y, 1.0, "const").unwrap();
-    let s = IdentifySettings::default().with_kind(ModelKind::Arx).with_orders(2, 1, 1).with_method(Method::Ls).with_offset(true);
+    let s = IdentifySettings::default()
+        .with_kind(ModelKind::Arx)
+        .with_orders(2, 1, 1)
+        .with_method(Method::Ls)
+        .with_offset(true);
     let e = identify(&data, &s).unwrap_err();
     assert!(e.to_string().contains("persistently exciting"), "{e}");
 }

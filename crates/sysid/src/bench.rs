@@ -152,7 +152,7 @@ pub struct RlsBench {
     pub median_samples_per_second: f64,
     /// Nanoseconds per update, best run.
     pub ns_per_update: f64,
-    /// Updates per second of the array-backed [`RlsN`] (n ≤ 12 only), best run.
+    /// Updates per second of the array-backed [`RlsN`] (n ≤ [`crate::rls::MAX_FIXED`] only), best run.
     pub fixed_samples_per_second: Option<f64>,
     /// Updates per second of the plain loop [`Rls::update_reference`], best run.
     pub reference_samples_per_second: f64,
@@ -242,7 +242,7 @@ pub fn bench_rls(
     })
 }
 
-/// Times [`RlsN`] for n ≤ 12 (a compile-time size chosen at run time).
+/// Times [`RlsN`] for n ≤ [`crate::rls::MAX_FIXED`] (a compile-time size chosen at run time).
 fn bench_fixed(
     params: usize,
     phi: &[f64],
@@ -285,7 +285,7 @@ fn bench_fixed(
             }
         };
     }
-    Ok(dispatch!(1 2 3 4 5 6 7 8 9 10 11 12))
+    Ok(dispatch!(1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16))
 }
 
 /// Result of [`bench_identify`].

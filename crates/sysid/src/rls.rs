@@ -37,7 +37,7 @@ use nalgebra::{DMatrix, DVector};
 use crate::SysidError;
 
 /// Largest parameter count with a kernel compiled for a constant n (larger n use the generic loop).
-pub const MAX_FIXED: usize = 12;
+pub const MAX_FIXED: usize = 16;
 
 /// The RLS estimator state (θ̂, P) and its settings, with heap storage for any number of parameters.
 ///
@@ -54,6 +54,36 @@ pub struct Rls {
     /// Work vectors P φ and L̃ of the generic loop (n > MAX_FIXED).
     pphi: DVector<f64>,
     gain: DVector<f64>,
+    /// The update kernel for n = θ̂.len(), chosen once in [`Rls::new`].
+    kernel: Kernel,
+}
+
+/// An update kernel: (θ̂, P by columns, P φ work, L̃ work, φ, y, ρ) → ε, or (ρ + φᵀPφ, ε) on failure.
+type Kernel =
+    fn(&mut [f64], &mut [f64], &mut [f64], &mut [f64], &[f64], f64, f64) -> Result<f64, (f64, f64)>;
+
+/// The kernel compiled for a constant n when n ≤ [`MAX_FIXED`], the generic loop otherwise.
+fn kernel_for(n: usize) -> Kernel {
+    fn fixed<const N: usize>(
+        theta: &mut [f64],
+        p: &mut [f64],
+        _pphi: &mut [f64],
+        _gain: &mut [f64],
+        phi: &[f64],
+        y: f64,
+        rho: f64,
+    ) -> Result<f64, (f64, f64)> {
+        update_fixed::<N>(theta, p, phi, y, rho)
+    }
+    macro_rules! choose {
+        ($($k:literal)*) => {
+            match n {
+                $($k => fixed::<$k> as Kernel,)*
+                _ => update_dynamic as Kernel,
+            }
+        };
+    }
+    choose!(1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16)
 }
 
 impl Rls {
@@ -66,6 +96,7 @@ impl Rls {
             forgetting,
             pphi: DVector::zeros(n_params),
             gain: DVector::zeros(n_params),
+            kernel: kernel_for(n_params),
         })
     }
 
@@ -86,6 +117,7 @@ impl Rls {
     /// Uses the kernel compiled for n parameters when n ≤ [`MAX_FIXED`]. `sample` is used in the error
     /// message when P loses positive definiteness or a value is not finite; the state is left unchanged
     /// then.
+    #[inline]
     pub fn update(&mut self, phi: &[f64], y: f64, sample: usize) -> Result<f64, SysidError> {
         let n = self.theta.len();
         let rho = self.forgetting;
@@ -97,17 +129,17 @@ impl Rls {
         {
             return Err(shape_error(n, phi.len(), self.p.shape()));
         }
-        let theta = self.theta.as_mut_slice();
-        let p = self.p.as_mut_slice();
-        macro_rules! dispatch {
-            ($($k:literal)*) => {
-                match n {
-                    $($k => update_fixed::<$k>(theta, p, phi, y, rho),)*
-                    _ => update_dynamic(theta, p, self.pphi.as_mut_slice(), self.gain.as_mut_slice(), phi, y, rho),
-                }
-            };
-        }
-        dispatch!(1 2 3 4 5 6 7 8 9 10 11 12).map_err(|(denom, eps)| numerical(sample, denom, eps))
+        // The kernel was chosen for pphi.len() = n in `new`, and n is checked above.
+        (self.kernel)(
+            self.theta.as_mut_slice(),
+            self.p.as_mut_slice(),
+            self.pphi.as_mut_slice(),
+            self.gain.as_mut_slice(),
+            phi,
+            y,
+            rho,
+        )
+        .map_err(|(denom, eps)| numerical(sample, denom, eps))
     }
 
     /// The same update as [`Rls::update`], written as the plain textbook loop with no specialisation.
@@ -245,6 +277,7 @@ impl<const N: usize> RlsN<N> {
             forgetting: self.forgetting,
             pphi: DVector::zeros(N),
             gain: DVector::zeros(N),
+            kernel: kernel_for(N),
         }
     }
 }
@@ -445,11 +478,11 @@ mod tests {
     }
 
     // The fast kernels do the reference's operations in the same order: θ̂, P and every ε agree to 1e-12
-    // relative (in fact bit for bit) for fixed-size n = 1..=12 and the generic loop (n = 13, 17), ρ < 1
+    // relative (in fact bit for bit) for fixed-size n ≤ 16 and the generic loop (n = 17, 23), ρ < 1
     // and ρ = 1.
     #[test]
     fn fast_update_equals_reference_update_for_every_size() {
-        for n in [1, 2, 3, 4, 5, 7, 9, 12, 13, 17] {
+        for n in [1, 2, 3, 4, 5, 7, 9, 12, 16, 17, 23] {
             for rho in [1.0, 0.97] {
                 let data = random_data(n, 300, n as u64);
                 let mut fast = Rls::new(n, rho, 1e6).unwrap();
@@ -483,7 +516,7 @@ mod tests {
         }
     }
 
-    // The array-backed RlsN<N> is the same estimator as the heap Rls for N = 4, 9, 16 (16 > MAX_FIXED).
+    // The array-backed RlsN<N> is the same estimator as the heap Rls for N = 4, 9, 16 and 20 (> MAX_FIXED).
     #[test]
     fn array_estimator_equals_reference_estimator() {
         fn check<const N: usize>() {
@@ -508,6 +541,7 @@ mod tests {
         check::<4>();
         check::<9>();
         check::<16>();
+        check::<20>();
     }
 
     // One update from θ̂ = 0, P = p0 I with φ = (1, 2), y = 5, ρ = 1: φᵀPφ = 5 p0, so

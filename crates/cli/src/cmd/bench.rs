@@ -148,7 +148,7 @@ fn rls(a: RlsArgs) -> anyhow::Result<()> {
         r.ns_per_update,
         r.median_samples_per_second,
         r.params,
-        r.fixed_samples_per_second.map_or("n/a (n > 12)".to_string(), |v| format!("{v:.4e} samples/s")),
+        r.fixed_samples_per_second.map_or(format!("n/a (n > {})", sysid::rls::MAX_FIXED), |v| format!("{v:.4e} samples/s")),
         r.reference_samples_per_second,
         r.flops_per_update,
         r.gflops,

@@ -393,6 +393,10 @@ pub struct PeakFlops {
     /// 128-bit SSE2 vectors, separate multiply and add instructions, no FMA) — the ceiling for code of
     /// this build, including the RLS kernels.
     pub gflops_build_target: f64,
+    /// Nanoseconds per addition in a chain of dependent additions: the latency of one floating-point
+    /// add. Divided into the add latency in cycles (3 on AMD Zen 4, 4 on Intel Skylake and later) it
+    /// gives the clock frequency the benchmarks actually ran at.
+    pub dependent_add_ns: f64,
 }
 
 /// Measures the floating-point ceiling of this build on one core: 24 independent accumulators
@@ -415,8 +419,19 @@ pub fn peak_flops(repetitions: usize) -> PeakFlops {
         Ok::<(), SysidError>(())
     });
     let best = t.map(|t| t.best_s).unwrap_or(f64::NAN);
+    const CHAIN: usize = 10_000_000;
+    let chain = time_it(repetitions, CHAIN, || {
+        let mut x = black_box(1.0f64);
+        let d = black_box(1e-9f64);
+        for _ in 0..CHAIN {
+            x += d;
+        }
+        black_box(x);
+        Ok::<(), SysidError>(())
+    });
     PeakFlops {
         gflops_build_target: 1.0 / best / 1e9,
+        dependent_add_ns: chain.map(|t| t.best_s * 1e9).unwrap_or(f64::NAN),
     }
 }
 

@@ -126,6 +126,7 @@ fn rls(a: RlsArgs) -> anyhow::Result<()> {
         rls: sysid::bench::RlsBench,
         peak_gflops_build_target: f64,
         fraction_of_peak: f64,
+        dependent_add_ns: f64,
     }
     let r = bench_rls(
         a.params as usize,
@@ -133,13 +134,15 @@ fn rls(a: RlsArgs) -> anyhow::Result<()> {
         a.forgetting,
         a.common.repetitions as usize,
     )?;
-    let peak = peak_flops(a.common.repetitions as usize).gflops_build_target;
+    let machine = peak_flops(a.common.repetitions as usize);
+    let peak = machine.gflops_build_target;
     let text = format!(
         "RLS, n = {} parameters, rho = {}, {} updates per run, best of {}:\n  \
          fast (Rls::update):       {:.4e} samples/s ({:.1} ns/update, median {:.4e} samples/s)\n  \
          array (RlsN<{}>):         {}\n  \
          reference (plain loop):   {:.4e} samples/s\n  \
-         flops/update:             {} -> {:.2} GFLOP/s ({:.0} % of the measured {:.1} GFLOP/s mul+add peak of this build)\n",
+         flops/update:             {} -> {:.2} GFLOP/s ({:.0} % of the measured {:.1} GFLOP/s mul+add peak of this build)\n  \
+         dependent add latency:    {:.3} ns (clock = add latency in cycles / this)\n",
         r.params,
         r.forgetting,
         r.samples,
@@ -153,13 +156,15 @@ fn rls(a: RlsArgs) -> anyhow::Result<()> {
         r.flops_per_update,
         r.gflops,
         100.0 * r.gflops / peak,
-        peak
+        peak,
+        machine.dependent_add_ns
     );
     let out = Out {
         benchmark: "rls",
         fraction_of_peak: r.gflops / peak,
         rls: r,
         peak_gflops_build_target: peak,
+        dependent_add_ns: machine.dependent_add_ns,
     };
     emit(&text, &out, &a.common.json, &[])
 }

@@ -71,6 +71,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(f) = spec.file() {
         inputs.push(f);
     }
+    sysid::output::check_writable(&args.out, "--out")?;
     sysid::output::refuse_overwrite_input(&args.out, &inputs, "--out")?;
     let samples = match (args.samples, spec.file()) {
         (Some(n), _) => n,

@@ -83,6 +83,11 @@ fn failed_runs_leave_existing_outputs_untouched() {
             &["trace.csv", "c.json"],
         ),
         (
+            "simulate --plant model:{c}/model/unstable.json --input step:100 --samples 200 --out {t}/sim.csv",
+            1,
+            &["sim.csv"],
+        ),
+        (
             "order --data {t}/data.csv --na 5..2 --json {t}/order.json",
             2,
             &["order.json"],
@@ -154,6 +159,16 @@ fn an_output_equal_to_an_input_is_refused() {
             "--json",
             "model.json",
         ),
+        (
+            "simulate --plant paper --input file:{t}/data.csv --out {t}/./data.csv",
+            "--out",
+            "data.csv",
+        ),
+        (
+            "simulate --plant model:{t}/model.json --samples 10 --out {t}/model.json",
+            "--out",
+            "model.json",
+        ),
         // reproduce writes a whole folder: an input inside it is refused
         ("reproduce --plant model:{t}/model.json --out {t}", "--out", "model.json"),
     ];
@@ -210,6 +225,10 @@ fn unwritable_output_paths_are_refused_before_work() {
             "does not exist",
         ),
         ("order --data {t}/data.csv --json {t}", "a file name"),
+        (
+            "simulate --plant paper --out {t}/none/sim.csv",
+            "does not exist",
+        ),
     ] {
         let dir = tempfile::tempdir().unwrap();
         setup(dir.path(), &[]);
@@ -278,6 +297,7 @@ fn outputs_hold_no_nan_text() {
         "validate --model {t}/model.json --data {t}/data.csv --json {t}/v.json",
         "validate --model {c}/model/unstable.json --data {t}/data.csv --json {t}/unstable.json",
         "control --plant paper --setpoint 5 --duration 1 --out {t}/trace.csv --json {t}/c.json",
+        "simulate --plant paper --samples 300 --out {t}/sim.csv",
     ] {
         let out = run(args, dir.path());
         assert!(
@@ -286,7 +306,14 @@ fn outputs_hold_no_nan_text() {
             String::from_utf8_lossy(&out.stderr)
         );
     }
-    for f in ["fit.json", "v.json", "unstable.json", "trace.csv", "c.json"] {
+    for f in [
+        "fit.json",
+        "v.json",
+        "unstable.json",
+        "trace.csv",
+        "c.json",
+        "sim.csv",
+    ] {
         let text = std::fs::read_to_string(dir.path().join(f)).unwrap();
         let lower = text.to_lowercase();
         assert!(

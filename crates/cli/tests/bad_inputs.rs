@@ -309,6 +309,11 @@ fn numerical_failures_exit_1_and_name_the_sample() {
             ],
         ),
         case(
+            "simulate --plant model:{c}/model/unstable.json --input step:100 --samples 200 --out {t}/s.csv",
+            1,
+            &["numerical failure", "unstable.json", "non-finite"],
+        ),
+        case(
             "control --plant model:{c}/model/unstable.json --setpoint 5 --out {t}/trace.csv",
             1,
             &["numerical failure", "sample", "non-finite"],
@@ -634,11 +639,72 @@ fn control_flags_out_of_range_exit_2_naming_the_flag() {
     ]);
 }
 
-// simulate-like input designs and sample counts (montecarlo, bench), order ranges and reproduce:
+// Input designs and sample counts (simulate, montecarlo, bench), order ranges and reproduce:
 // refused before any work, naming the flag and the limit.
 #[test]
 fn study_and_benchmark_flags_exit_2_naming_the_flag() {
     check_all(&[
+        case(
+            "simulate --out {t}/s.csv --samples 0",
+            2,
+            &["--samples 0", "expected 1..=50000000"],
+        ),
+        case(
+            "simulate --out {t}/s.csv --plant paper --samples 10000000000",
+            2,
+            &["--samples 10000000000", "expected 1..=50000000"],
+        ),
+        case(
+            "simulate --out {t}/s.csv --ts 0",
+            2,
+            &["--ts 0", "(0, 10] s"],
+        ),
+        case(
+            "simulate --out {t}/s.csv --ts nan",
+            2,
+            &["--ts NaN", "(0, 10] s"],
+        ),
+        case(
+            "simulate --out {t}/s.csv --amplitude nan",
+            2,
+            &["--amplitude NaN", "counts >= 0"],
+        ),
+        case(
+            "simulate --out {t}/s.csv --x0 nan",
+            2,
+            &["--x0", "finite position"],
+        ),
+        case(
+            "simulate --out {t}/s.csv --noise-std -1",
+            2,
+            &["--noise-std", ">= 0"],
+        ),
+        case(
+            "simulate --out {t}/s.csv --input bogus",
+            2,
+            &["--input 'bogus'", "expected staircase"],
+        ),
+        case(
+            "simulate --out {t}/s.csv --input step:abc",
+            2,
+            &["--input 'step:abc'", "must be a number"],
+        ),
+        case(
+            "simulate --out {t}/s.csv --plant paper --input file:{c}/csv/text_cell.csv",
+            2,
+            &["text_cell.csv:3:2", "expected a decimal number"],
+        ),
+        case(
+            "simulate --out {t}/s.csv --plant model:{c}/model/truncated.json",
+            2,
+            &["truncated.json:13:1", "truncated"],
+        ),
+        case(
+            "simulate --out {t}/s.csv --plant bogus",
+            2,
+            &["--plant", "expected ipa, paper or model:FILE"],
+        ),
+        case("simulate --plant paper", 2, &["--out"]),
         case(
             "order --data {c}/good.csv --na 0..1000000",
             2,

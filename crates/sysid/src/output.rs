@@ -99,7 +99,10 @@ pub fn check_writable(output: &Path, flag: &str) -> Result<(), SysidError> {
         return Err(SysidError::setting(
             flag,
             output.display(),
-            &format!("a file in an existing folder ({} does not exist)", dir.display()),
+            &format!(
+                "a file in an existing folder ({} does not exist)",
+                dir.display()
+            ),
         ));
     }
     Ok(())

@@ -473,6 +473,34 @@ pub fn refine(
     })
 }
 
+/// The optimiser's termination reason as a sentence fragment for reports.
+fn termination_words(t: &levenberg_marquardt::TerminationReason) -> String {
+    use levenberg_marquardt::TerminationReason as T;
+    match t {
+        T::Converged {
+            ftol: true,
+            xtol: true,
+        } => "converged (relative change of cost and parameters below tolerance)".into(),
+        T::Converged { ftol: true, .. } => {
+            "converged (relative change of the cost below tolerance)".into()
+        }
+        T::Converged { .. } => {
+            "converged (relative change of the parameters below tolerance)".into()
+        }
+        T::ResidualsZero => "converged (residuals zero)".into(),
+        T::Orthogonal => "converged (residuals orthogonal to the Jacobian)".into(),
+        T::LostPatience => "stopped at the evaluation limit (not converged)".into(),
+        T::NoImprovementPossible(what) => {
+            format!("stopped: no further improvement possible ({what})")
+        }
+        T::Numerical(what) => format!("stopped: non-finite value ({what})"),
+        T::User(what) => format!("stopped: {what}"),
+        T::WrongDimensions(what) => format!("stopped: wrong dimensions ({what})"),
+        T::NoParameters => "stopped: no parameters".into(),
+        T::NoResiduals => "stopped: no residuals".into(),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -532,33 +560,5 @@ mod tests {
                 );
             }
         }
-    }
-}
-
-/// The optimiser's termination reason as a sentence fragment for reports.
-fn termination_words(t: &levenberg_marquardt::TerminationReason) -> String {
-    use levenberg_marquardt::TerminationReason as T;
-    match t {
-        T::Converged {
-            ftol: true,
-            xtol: true,
-        } => "converged (relative change of cost and parameters below tolerance)".into(),
-        T::Converged { ftol: true, .. } => {
-            "converged (relative change of the cost below tolerance)".into()
-        }
-        T::Converged { .. } => {
-            "converged (relative change of the parameters below tolerance)".into()
-        }
-        T::ResidualsZero => "converged (residuals zero)".into(),
-        T::Orthogonal => "converged (residuals orthogonal to the Jacobian)".into(),
-        T::LostPatience => "stopped at the evaluation limit (not converged)".into(),
-        T::NoImprovementPossible(what) => {
-            format!("stopped: no further improvement possible ({what})")
-        }
-        T::Numerical(what) => format!("stopped: non-finite value ({what})"),
-        T::User(what) => format!("stopped: {what}"),
-        T::WrongDimensions(what) => format!("stopped: wrong dimensions ({what})"),
-        T::NoParameters => "stopped: no parameters".into(),
-        T::NoResiduals => "stopped: no residuals".into(),
     }
 }

@@ -291,7 +291,13 @@ pub fn staircase_experiment(
             }
             u.push(level);
             y.push(yk);
-            plant.step(level)?;
+            plant.step(level).map_err(|e| match e {
+                sysid::SysidError::Numerical(m) => sysid::SysidError::Numerical(format!(
+                    "{m} (while applying u({}) = {level})",
+                    u.len() - 1
+                )),
+                other => other,
+            })?;
         }
     }
     Ok((u, y))

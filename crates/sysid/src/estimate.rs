@@ -913,6 +913,13 @@ fn recursive(
     };
     let limit = br.limit;
     let initial_dz = dz;
+    // Persistent excitation: the recursion never fails on data that cannot determine θ (P merely stays
+    // large in the unexcited directions), so the regressor matrix of the first pass is rank-tested
+    // first, as the batch methods do, and such data are refused with the same message.
+    if data.len() - k0 >= p {
+        let (phi, y) = build_regression(data, s, &dz);
+        solve_free(&phi, &y, &free, &s.theta_names()).map_err(|e| context(data, e))?;
+    }
     let expand = |t: &DVector<f64>| {
         let mut full = DVector::zeros(free.len());
         for (q, &i) in idx.iter().enumerate() {

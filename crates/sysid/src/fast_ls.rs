@@ -105,7 +105,7 @@ impl LsWorkspace {
         for (j, scale_j) in scale.iter_mut().enumerate() {
             let src = phi.column(j);
             let src = src.as_slice();
-            let norm = dot(src, src).sqrt();
+            let norm = scaled_norm(src);
             if norm == 0.0 {
                 return Err(SysidError::Data(format!(
                     "regressor {} is zero over the whole record: the input does not excite it (not persistently exciting)",
@@ -229,6 +229,17 @@ fn axpy(a: f64, x: &[f64], y: &mut [f64]) {
     for (yi, xi) in y.iter_mut().zip(x) {
         *yi += a * xi;
     }
+}
+
+/// ‖x‖₂ computed as m·‖x/m‖₂ with m = max |x_i|, so that columns of 1e160 or 1e-200 neither overflow nor
+/// underflow (the plain sum of squares would give inf or 0 and a false rank verdict).
+pub(crate) fn scaled_norm(x: &[f64]) -> f64 {
+    let m = x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    if m == 0.0 || !m.is_finite() {
+        return m;
+    }
+    let inv = 1.0 / m;
+    m * x.iter().map(|v| (v * inv) * (v * inv)).sum::<f64>().sqrt()
 }
 
 #[cfg(test)]

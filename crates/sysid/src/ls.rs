@@ -49,7 +49,7 @@ pub fn solve(
     let mut scale = DVector::<f64>::zeros(p);
     let mut a = phi.clone();
     for j in 0..p {
-        let norm = a.column(j).norm();
+        let norm = crate::fast_ls::scaled_norm(a.column(j).as_slice());
         if norm == 0.0 {
             return Err(SysidError::Data(format!(
                 "regressor {} is zero over the whole record: the input does not excite it (not persistently exciting)",

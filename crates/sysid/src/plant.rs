@@ -31,12 +31,18 @@ pub trait Plant {
 }
 
 /// Runs `plant` open loop over the commands `u` and returns the outputs y(0..=N-1) that a data logger
-/// would record beside them: y(0) is the output before u(0) is applied.
+/// would record beside them: y(0) is the output before u(0) is applied. A numerical failure of the plant
+/// names the sample at which it happened.
 pub fn run_open_loop(plant: &mut dyn Plant, u: &[f64]) -> Result<Vec<f64>, SysidError> {
     let mut y = Vec::with_capacity(u.len());
-    for &uk in u {
+    for (k, &uk) in u.iter().enumerate() {
         y.push(plant.output());
-        plant.step(uk)?;
+        plant.step(uk).map_err(|e| match e {
+            SysidError::Numerical(m) => {
+                SysidError::Numerical(format!("{m} (while applying u({k}) = {uk})"))
+            }
+            other => other,
+        })?;
     }
     Ok(y)
 }

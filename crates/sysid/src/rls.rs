@@ -415,7 +415,7 @@ fn update_dynamic(
 fn numerical(sample: usize, denom: f64, eps: f64) -> SysidError {
     SysidError::Numerical(format!(
         "RLS lost positive definiteness or met a non-finite value at sample {sample} \
-         (denominator ρ + φᵀPφ = {denom}, error ε = {eps})"
+         (denominator ρ + φᵀPφ = {denom:e}, error ε = {eps:e})"
     ))
 }
 

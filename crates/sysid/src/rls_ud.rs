@@ -150,7 +150,7 @@ impl RobustRls {
             .sum::<f64>();
         if !eps.is_finite() {
             return Err(SysidError::Numerical(format!(
-                "RLS met a non-finite value at sample {sample} (error ε = {eps})"
+                "RLS met a non-finite value at sample {sample} (error ε = {eps:e})"
             )));
         }
         match self.form {
@@ -185,7 +185,7 @@ impl RobustRls {
         let denom = rho + r;
         if !(denom.is_finite() && denom > 0.0 && r >= 0.0) {
             return Err(SysidError::Numerical(format!(
-                "RLS lost positive definiteness or met a non-finite value at sample {sample} (φᵀPφ = {r})"
+                "RLS lost positive definiteness or met a non-finite value at sample {sample} (φᵀPφ = {r:e})"
             )));
         }
         for i in 0..n {

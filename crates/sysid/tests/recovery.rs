@@ -289,3 +289,50 @@ fn constant_input_is_refused_as_not_persistently_exciting() {
     let e = identify(&data, &s).unwrap_err();
     assert!(e.to_string().contains("persistently exciting"), "{e}");
 }
+
+// Scaling u and y by the same factor leaves A and B unchanged; at 1e150 a plain sum of squares of a
+// column would overflow, so this checks the column scaling of the rank test.
+#[test]
+fn ls_is_invariant_to_a_huge_common_scale_of_the_data() {
+    let (a, b) = (vec![-1.5, 0.7], vec![0.5, 0.25]);
+    let u = staircase(400, 9);
+    let y = simulate(&u, &a, &b, 1, 0.0, None);
+    let big = 1e150;
+    let data = Dataset::new(
+        u.iter().map(|v| v * big).collect(),
+        y.iter().map(|v| v * big).collect(),
+        1.0,
+        "big",
+    )
+    .unwrap();
+    let s = IdentifySettings::default()
+        .with_kind(ModelKind::Arx)
+        .with_orders(2, 2, 1)
+        .with_method(Method::Ls);
+    let m = identify(&data, &s).unwrap().model;
+    for (g, w) in m.a.iter().zip(&a).chain(m.b.iter().zip(&b)) {
+        assert!(close(*g, *w, 1e-9), "{g} vs {w}");
+    }
+}
+
+// The recursion cannot tell that a constant input leaves θ undetermined, so RLS is refused up front
+// with the same message as LS.
+#[test]
+fn rls_refuses_a_constant_input_as_not_persistently_exciting() {
+    let u = vec![3.0; 200];
+    let y: Vec<f64> = (0..200).map(|k| (k as f64 * 0.1).sin()).collect();
+    let data = Dataset::new(u, y, 1.0, "const").unwrap();
+    for kind in [ModelKind::Arx, ModelKind::Hammerstein] {
+        let s = IdentifySettings::default()
+            .with_kind(kind)
+            .with_orders(2, 1, 1)
+            .with_method(Method::Rls)
+            .with_offset(true);
+        let e = identify(&data, &s).unwrap_err();
+        assert!(
+            e.to_string().contains("persistently exciting")
+                || e.to_string().contains("never negative"),
+            "{kind:?}: {e}"
+        );
+    }
+}

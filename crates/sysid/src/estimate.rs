@@ -918,7 +918,11 @@ fn recursive(
     // first, as the batch methods do, and such data are refused with the same message.
     if data.len() - k0 >= p {
         let (phi, y) = build_regression(data, s, &dz);
-        solve_free(&phi, &y, &free, &s.theta_names()).map_err(|e| context(data, e))?;
+        // Only the rank verdict matters here; numerical trouble (overflow) is left to the recursion,
+        // which reports the sample where it happens.
+        if let Err(e @ SysidError::Data(_)) = solve_free(&phi, &y, &free, &s.theta_names()) {
+            return Err(context(data, e));
+        }
     }
     let expand = |t: &DVector<f64>| {
         let mut full = DVector::zeros(free.len());

@@ -87,3 +87,36 @@ fn target(p: &Path) -> Option<PathBuf> {
     };
     Some(std::fs::canonicalize(dir).ok()?.join(p.file_name()?))
 }
+
+/// Reads the `--validation` record, if any, with the estimation file's options except for the columns
+/// named by `--val-u-col` / `--val-y-col` (default: the estimation column names).
+pub fn read_validation(
+    path: Option<&Path>,
+    opts: &CsvOptions,
+    val_u_col: &Option<String>,
+    val_y_col: &Option<String>,
+) -> anyhow::Result<Option<sysid::Dataset>> {
+    let Some(path) = path else {
+        return Ok(None);
+    };
+    let vopts = CsvOptions {
+        u_col: val_u_col.clone().unwrap_or_else(|| opts.u_col.clone()),
+        y_col: val_y_col.clone().unwrap_or_else(|| opts.y_col.clone()),
+        ..opts.clone()
+    };
+    Ok(Some(sysid::data::read_csv(path, &vopts)?))
+}
+
+/// A progress bar of `len` steps on standard error with the template `template` (indicatif syntax),
+/// hidden when standard error is not a terminal (pipes, CI logs).
+pub fn progress_bar(len: u64, template: &str) -> indicatif::ProgressBar {
+    use std::io::IsTerminal;
+    if !std::io::stderr().is_terminal() {
+        return indicatif::ProgressBar::hidden();
+    }
+    let bar = indicatif::ProgressBar::new(len);
+    if let Ok(style) = indicatif::ProgressStyle::with_template(template) {
+        bar.set_style(style.progress_chars("=> "));
+    }
+    bar
+}

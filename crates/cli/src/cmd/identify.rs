@@ -7,7 +7,7 @@ use sysid::summary::IdentifyReport;
 use sysid::validation::metrics;
 use sysid::{ModelKind, Orders};
 
-use super::common::{check_outputs, write_output, ColumnArgs};
+use super::common::{check_outputs, read_validation, write_output, ColumnArgs};
 
 /// Model structure flag values.
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
@@ -182,15 +182,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     )?;
     let opts = args.columns.csv_options();
     let data = sysid::data::read_csv(data_path, &opts)?;
-    let val = match &args.validation {
-        Some(path) => {
-            let mut vopts = opts.clone();
-            vopts.u_col = args.val_u_col.clone().unwrap_or(opts.u_col.clone());
-            vopts.y_col = args.val_y_col.clone().unwrap_or(opts.y_col.clone());
-            Some(sysid::data::read_csv(path, &vopts)?)
-        }
-        None => None,
-    };
+    let val = read_validation(
+        args.validation.as_deref(),
+        &opts,
+        &args.val_u_col,
+        &args.val_y_col,
+    )?;
     let fit = identify(&data, &settings)?;
     let est = metrics(&fit.model, &data)?;
     let val_metrics = val.as_ref().map(|v| metrics(&fit.model, v)).transpose()?;

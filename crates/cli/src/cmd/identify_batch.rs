@@ -4,12 +4,10 @@
 //! `*.csv` files sorted by name). A progress bar goes to standard error when it is a terminal. Every file
 //! is processed; the exit status is non-zero when any failed.
 
-use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context;
-use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 use serde::Serialize;
 use sysid::estimate::{identify, IdentifySettings};
@@ -17,7 +15,7 @@ use sysid::summary::IdentifyReport;
 use sysid::validation::metrics;
 use sysid::{Dataset, SysidError};
 
-use super::common::{check_outputs, write_output};
+use super::common::{check_outputs, progress_bar, read_validation, write_output};
 use super::identify::Args;
 
 /// True when `--data` asks for batch mode: more than one path, or a folder.
@@ -88,26 +86,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     inputs.extend(args.validation.as_deref());
     check_outputs(&[(&args.json, "--json")], &inputs)?;
     let opts = args.columns.csv_options();
-    let val = match &args.validation {
-        Some(path) => {
-            let mut vopts = opts.clone();
-            vopts.u_col = args.val_u_col.clone().unwrap_or(opts.u_col.clone());
-            vopts.y_col = args.val_y_col.clone().unwrap_or(opts.y_col.clone());
-            Some(sysid::data::read_csv(path, &vopts)?)
-        }
-        None => None,
-    };
-    let bar = if std::io::stderr().is_terminal() {
-        let bar = ProgressBar::new(files.len() as u64);
-        if let Ok(style) =
-            ProgressStyle::with_template("{bar:40} {pos}/{len} files  {per_sec}  eta {eta}")
-        {
-            bar.set_style(style);
-        }
-        bar
-    } else {
-        ProgressBar::hidden()
-    };
+    let val = read_validation(
+        args.validation.as_deref(),
+        &opts,
+        &args.val_u_col,
+        &args.val_y_col,
+    )?;
+    let bar = progress_bar(
+        files.len() as u64,
+        "{bar:40} {pos}/{len} files  {per_sec}  eta {eta}",
+    );
     let start = Instant::now();
     // Each line with the exit code its failure would have alone (0 for success).
     let lines: Vec<(String, u8)> = files

@@ -2,17 +2,15 @@
 //! The study is `sysid::montecarlo::study` (parallel, deterministic per seed); this file wires the plants
 //! (`ipa::plant_from_spec`) and the input design (`ipa::input::generate`) into it.
 
-use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use ipa::input::{generate, InputSpec};
 use sysid::estimate::{IdentifySettings, Method};
 use sysid::montecarlo::{study, truth_of, StudySettings};
 use sysid::{Model, ModelKind, Orders};
 
-use super::common::{check_outputs, write_output};
+use super::common::{check_outputs, progress_bar, write_output};
 use super::identify::KindArg;
 
 /// Flags of `montecarlo`.
@@ -153,17 +151,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let y = sysid::run_open_loop(plant.as_mut(), &u).map_err(|e| e.to_string())?;
         Ok((u, y))
     };
-    let bar = ProgressBar::with_draw_target(
-        Some(args.runs as u64),
-        if std::io::stderr().is_terminal() {
-            ProgressDrawTarget::stderr()
-        } else {
-            ProgressDrawTarget::hidden()
-        },
-    );
-    if let Ok(style) = ProgressStyle::with_template("{bar:40} {pos}/{len} runs {elapsed}") {
-        bar.set_style(style);
-    }
+    let bar = progress_bar(args.runs as u64, "{bar:40} {pos}/{len} runs {elapsed}");
     let report = study(&settings, truth.as_deref(), &experiment, &|| bar.inc(1))
         .context("Monte Carlo study")?;
     bar.finish_and_clear();

@@ -1,16 +1,14 @@
 //! `ipa-sysid order`: rank model orders and delays (MATLAB `arxstruc`/`selstruc`) by validation fit, AIC
 //! and FPE; the search itself is `sysid::order::search` (parallel).
 
-use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 
-use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use sysid::estimate::{IdentifySettings, Method};
 use sysid::order::{grid_size, parse_range, search, Candidate};
 use sysid::summary::num;
 use sysid::ModelKind;
 
-use super::common::{check_outputs, write_output, ColumnArgs};
+use super::common::{check_outputs, progress_bar, read_validation, write_output, ColumnArgs};
 use super::identify::{KindArg, MethodArg};
 
 /// Flags of `order`.
@@ -90,27 +88,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     check_outputs(&[(&args.json, "--json")], &inputs)?;
     let opts = args.columns.csv_options();
     let data = sysid::data::read_csv(&args.data, &opts)?;
-    let val = match &args.validation {
-        Some(path) => {
-            let mut vopts = opts.clone();
-            vopts.u_col = args.val_u_col.clone().unwrap_or(opts.u_col.clone());
-            vopts.y_col = args.val_y_col.clone().unwrap_or(opts.y_col.clone());
-            Some(sysid::data::read_csv(path, &vopts)?)
-        }
-        None => None,
-    };
-    let total = grid_size(&na, &nb, &nk) as u64;
-    let bar = ProgressBar::with_draw_target(
-        Some(total),
-        if std::io::stderr().is_terminal() {
-            ProgressDrawTarget::stderr()
-        } else {
-            ProgressDrawTarget::hidden()
-        },
+    let val = read_validation(
+        args.validation.as_deref(),
+        &opts,
+        &args.val_u_col,
+        &args.val_y_col,
+    )?;
+    let bar = progress_bar(
+        grid_size(&na, &nb, &nk) as u64,
+        "{bar:40} {pos}/{len} structures {elapsed}",
     );
-    if let Ok(style) = ProgressStyle::with_template("{bar:40} {pos}/{len} structures {elapsed}") {
-        bar.set_style(style);
-    }
     let ranked = search(&data, val.as_ref(), &na, &nb, &nk, &base, &|| bar.inc(1));
     bar.finish_and_clear();
     let ranked_by = if val.is_some() {

@@ -6,7 +6,7 @@
 //! the last sample is at t = duration (to within one Ts).
 
 use serde::Serialize;
-use sysid::Plant;
+use sysid::{Plant, SysidError};
 
 use crate::{ControlError, DeadzoneCompensator, PiController, Profile};
 
@@ -146,12 +146,12 @@ pub fn run(
         trace.r.push(r);
         trace.u.push(u);
         trace.y.push(y);
-        plant.step(u).map_err(|e| {
-            if e.is_numerical() {
-                ControlError::Numerical(format!("sample {k} (t = {t} s): {e}"))
-            } else {
-                ControlError::Plant(e)
+        plant.step(u).map_err(|e| match e {
+            // The outer error already says "numerical failure"; keep only the plant's own words.
+            SysidError::Numerical(m) => {
+                ControlError::Numerical(format!("sample {k} (t = {t} s): {m}"))
             }
+            other => ControlError::Plant(other),
         })?;
     }
     Ok(trace)

@@ -914,9 +914,11 @@ fn recursive(
     let limit = br.limit;
     let initial_dz = dz;
     // Persistent excitation: the recursion never fails on data that cannot determine θ (P merely stays
-    // large in the unexcited directions), so the regressor matrix of the first pass is rank-tested
-    // first, as the batch methods do, and such data are refused with the same message.
-    if data.len() - k0 >= p {
+    // large in the unexcited directions), so for identification proper (ρ = 1, no windup protection:
+    // every sample weighs the same) the regressor matrix of the first pass is rank-tested first, as the
+    // batch methods do, and such data are refused with the same message. With forgetting ρ < 1 or windup
+    // protection the estimator is being used as a tracker, where spells without excitation are expected.
+    if st.forgetting == 1.0 && st.windup == Windup::None && data.len() - k0 >= p {
         let (phi, y) = build_regression(data, s, &dz);
         // Only the rank verdict matters here; numerical trouble (overflow) is left to the recursion,
         // which reports the sample where it happens.

@@ -30,7 +30,7 @@ enum Command {
     Control(cmd::control::Args),
     /// Reproduce the paper end to end: experiment, identification, validation, control, report.
     Reproduce(cmd::reproduce::Args),
-    /// Rank model orders and delays by validation fit, AIC and FPE (parallel).
+    /// Rank model orders and delays by validation fit (estimation fit without --validation), AIC and FPE.
     Order(cmd::order::Args),
     /// Monte Carlo study of estimator bias and spread under output noise (parallel).
     Montecarlo(cmd::montecarlo::Args),

@@ -88,23 +88,34 @@ fn target(p: &Path) -> Option<PathBuf> {
     Some(std::fs::canonicalize(dir).ok()?.join(p.file_name()?))
 }
 
-/// Reads the `--validation` record, if any, with the estimation file's options except for the columns
-/// named by `--val-u-col` / `--val-y-col` (default: the estimation column names).
-pub fn read_validation(
-    path: Option<&Path>,
-    opts: &CsvOptions,
-    val_u_col: &Option<String>,
-    val_y_col: &Option<String>,
-) -> anyhow::Result<Option<sysid::Dataset>> {
-    let Some(path) = path else {
-        return Ok(None);
-    };
-    let vopts = CsvOptions {
-        u_col: val_u_col.clone().unwrap_or_else(|| opts.u_col.clone()),
-        y_col: val_y_col.clone().unwrap_or_else(|| opts.y_col.clone()),
-        ..opts.clone()
-    };
-    Ok(Some(sysid::data::read_csv(path, &vopts)?))
+/// A separate validation record (`--validation FILE`) and its column names.
+#[derive(Debug, Clone, clap::Args)]
+pub struct ValidationArgs {
+    /// Separate CSV record to validate on.
+    #[arg(long, value_name = "FILE")]
+    pub validation: Option<PathBuf>,
+    /// Input column of the validation file (default: --u-col).
+    #[arg(long, value_name = "NAME")]
+    pub val_u_col: Option<String>,
+    /// Output column of the validation file (default: --y-col).
+    #[arg(long, value_name = "NAME")]
+    pub val_y_col: Option<String>,
+}
+
+impl ValidationArgs {
+    /// Reads the validation record, if any, with the estimation file's options except for the columns
+    /// named by `--val-u-col` / `--val-y-col` (default: the estimation column names).
+    pub fn read(&self, opts: &CsvOptions) -> anyhow::Result<Option<sysid::Dataset>> {
+        let Some(path) = &self.validation else {
+            return Ok(None);
+        };
+        let vopts = CsvOptions {
+            u_col: self.val_u_col.clone().unwrap_or_else(|| opts.u_col.clone()),
+            y_col: self.val_y_col.clone().unwrap_or_else(|| opts.y_col.clone()),
+            ..opts.clone()
+        };
+        Ok(Some(sysid::data::read_csv(path, &vopts)?))
+    }
 }
 
 /// A progress bar of `len` steps on standard error with the template `template` (indicatif syntax),

@@ -7,7 +7,7 @@ use sysid::summary::IdentifyReport;
 use sysid::validation::metrics;
 use sysid::{ModelKind, Orders};
 
-use super::common::{check_outputs, read_validation, write_output, ColumnArgs};
+use super::common::{check_outputs, write_output, ColumnArgs, ValidationArgs};
 
 /// Model structure flag values.
 #[derive(Debug, Clone, Copy, clap::ValueEnum)]
@@ -104,15 +104,8 @@ pub struct Args {
     /// Estimate a constant term c in the linear block.
     #[arg(long)]
     pub offset: bool,
-    /// Separate CSV record to validate on.
-    #[arg(long, value_name = "FILE")]
-    pub validation: Option<PathBuf>,
-    /// Input column of the validation file (default: --u-col).
-    #[arg(long, value_name = "NAME")]
-    pub val_u_col: Option<String>,
-    /// Output column of the validation file (default: --y-col).
-    #[arg(long, value_name = "NAME")]
-    pub val_y_col: Option<String>,
+    #[command(flatten)]
+    pub val: ValidationArgs,
     /// Write the JSON summary here (`-` for standard output).
     #[arg(long, value_name = "OUT")]
     pub json: Option<PathBuf>,
@@ -175,19 +168,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         anyhow::bail!("--data needs a file");
     };
     let mut inputs: Vec<&Path> = vec![data_path.as_path()];
-    inputs.extend(args.validation.as_deref());
+    inputs.extend(args.val.validation.as_deref());
     check_outputs(
         &[(&args.json, "--json"), (&args.save_model, "--save-model")],
         &inputs,
     )?;
     let opts = args.columns.csv_options();
     let data = sysid::data::read_csv(data_path, &opts)?;
-    let val = read_validation(
-        args.validation.as_deref(),
-        &opts,
-        &args.val_u_col,
-        &args.val_y_col,
-    )?;
+    let val = args.val.read(&opts)?;
     let fit = identify(&data, &settings)?;
     let est = metrics(&fit.model, &data)?;
     let val_metrics = val.as_ref().map(|v| metrics(&fit.model, v)).transpose()?;

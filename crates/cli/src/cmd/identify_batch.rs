@@ -15,7 +15,7 @@ use sysid::summary::IdentifyReport;
 use sysid::validation::metrics;
 use sysid::{Dataset, SysidError};
 
-use super::common::{check_outputs, progress_bar, read_validation, write_output};
+use super::common::{check_outputs, progress_bar, write_output};
 use super::identify::Args;
 
 /// True when `--data` asks for batch mode: more than one path, or a folder.
@@ -83,15 +83,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let files = expand(&args.data)?;
     let mut inputs: Vec<&Path> = files.iter().map(PathBuf::as_path).collect();
-    inputs.extend(args.validation.as_deref());
+    inputs.extend(args.val.validation.as_deref());
     check_outputs(&[(&args.json, "--json")], &inputs)?;
     let opts = args.columns.csv_options();
-    let val = read_validation(
-        args.validation.as_deref(),
-        &opts,
-        &args.val_u_col,
-        &args.val_y_col,
-    )?;
+    let val = args.val.read(&opts)?;
     let bar = progress_bar(
         files.len() as u64,
         "{bar:40} {pos}/{len} files  {per_sec}  eta {eta}",

@@ -8,7 +8,7 @@ use sysid::order::{grid_size, parse_range, search, Candidate};
 use sysid::summary::num;
 use sysid::ModelKind;
 
-use super::common::{check_outputs, progress_bar, read_validation, write_output, ColumnArgs};
+use super::common::{check_outputs, progress_bar, write_output, ColumnArgs, ValidationArgs};
 use super::identify::{KindArg, MethodArg};
 
 /// Flags of `order`.
@@ -19,15 +19,8 @@ pub struct Args {
     pub data: PathBuf,
     #[command(flatten)]
     pub columns: ColumnArgs,
-    /// Validation CSV file; without it the structures are ranked by their estimation fit.
-    #[arg(long, value_name = "FILE")]
-    pub validation: Option<PathBuf>,
-    /// Input column of the validation file (default: --u-col).
-    #[arg(long, value_name = "NAME")]
-    pub val_u_col: Option<String>,
-    /// Output column of the validation file (default: --y-col).
-    #[arg(long, value_name = "NAME")]
-    pub val_y_col: Option<String>,
+    #[command(flatten)]
+    pub val: ValidationArgs,
     /// Orders of A to try: a..b (inclusive) or a single value.
     #[arg(long, default_value = "1..5")]
     pub na: String,
@@ -84,16 +77,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..IdentifySettings::default()
     };
     let mut inputs: Vec<&Path> = vec![&args.data];
-    inputs.extend(args.validation.as_deref());
+    inputs.extend(args.val.validation.as_deref());
     check_outputs(&[(&args.json, "--json")], &inputs)?;
     let opts = args.columns.csv_options();
     let data = sysid::data::read_csv(&args.data, &opts)?;
-    let val = read_validation(
-        args.validation.as_deref(),
-        &opts,
-        &args.val_u_col,
-        &args.val_y_col,
-    )?;
+    let val = args.val.read(&opts)?;
     let bar = progress_bar(
         grid_size(&na, &nb, &nk) as u64,
         "{bar:40} {pos}/{len} structures {elapsed}",

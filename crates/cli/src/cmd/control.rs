@@ -55,16 +55,15 @@ pub struct Args {
     #[arg(long, value_name = "FILE")]
     pub plant_config: Option<PathBuf>,
     /// Kp: proportional gain, counts/mm.
-    #[arg(long, default_value_t = 14.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 14.0)]
     pub kp: f64,
     /// Ki: integral gain, counts/(mm·s) with --integral scaled, counts/(mm·sample) with per-sample.
-    #[arg(long, default_value_t = 1.0, allow_negative_numbers = true)]
+    #[arg(long, default_value_t = 1.0)]
     pub ki: f64,
     /// Fixed set-point r in mm (the paper's fixed set-point test).
     #[arg(
         long,
         value_name = "MM",
-        allow_negative_numbers = true,
         conflicts_with = "profile",
         required_unless_present = "profile"
     )]
@@ -73,15 +72,10 @@ pub struct Args {
     #[arg(long, value_name = "SPEC")]
     pub profile: Option<String>,
     /// Run length in s [default: the profile's length; 10 s for a fixed set-point].
-    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    #[arg(long, value_name = "S")]
     pub duration: Option<f64>,
     /// Initial position y0 in mm (the plant is reset there at rest).
-    #[arg(
-        long,
-        value_name = "MM",
-        default_value_t = 0.0,
-        allow_negative_numbers = true
-    )]
+    #[arg(long, value_name = "MM", default_value_t = 0.0)]
     pub y0: f64,
     /// Form of the integral term.
     #[arg(long, value_enum, default_value_t = IntegralArg::Scaled)]
@@ -90,15 +84,10 @@ pub struct Args {
     #[arg(long, value_enum, default_value_t = AntiWindupArg::None)]
     pub anti_windup: AntiWindupArg,
     /// Tracking time constant Tt in s for --anti-windup back-calculation [default: Ti = Kp/Ki, scaled form].
-    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    #[arg(long, value_name = "S")]
     pub tracking_time: Option<f64>,
     /// Saturation limit of the command in counts.
-    #[arg(
-        long,
-        value_name = "COUNTS",
-        default_value_t = 255.0,
-        allow_negative_numbers = true
-    )]
+    #[arg(long, value_name = "COUNTS", default_value_t = 255.0)]
     pub u_max: f64,
     /// Add a deadzone-inverse compensator built from the deadzone of this saved Hammerstein model
     /// (`paper` = the paper's Table III deadzone; write `./paper` for a file of that name).
@@ -108,12 +97,7 @@ pub struct Args {
     #[arg(long, value_enum, default_value_t = SlopesArg::Shift)]
     pub compensator_slopes: SlopesArg,
     /// |u| at or below this many counts gives no command (avoids chattering at the set-point).
-    #[arg(
-        long,
-        value_name = "COUNTS",
-        default_value_t = 0.0,
-        allow_negative_numbers = true
-    )]
+    #[arg(long, value_name = "COUNTS", default_value_t = 0.0)]
     pub compensator_threshold: f64,
     /// Write the metrics and settings as JSON to this file (`-` = standard output).
     #[arg(long, value_name = "OUT")]

@@ -144,10 +144,6 @@ fn csv_columns(header: &str, t: &[f64], cols: &[&[f64]]) -> String {
     s
 }
 
-fn time_axis(n: usize, ts: f64) -> Vec<f64> {
-    (0..n).map(|k| k as f64 * ts).collect()
-}
-
 fn record(
     plant: &mut dyn Plant,
     u: Vec<f64>,
@@ -361,7 +357,7 @@ pub fn run(
         s.experiment_start_mm,
         "validation record",
     )?;
-    let t_rec = time_axis(est.len(), ts);
+    let t_rec = sysid::data::sample_times(est.len(), ts);
     for (name, d) in [("estimation.csv", &est), ("validation.csv", &val)] {
         sysid::output::write_atomic(
             &data_dir.join(name),
@@ -452,7 +448,7 @@ pub fn run(
     model_plant.reset(s.experiment_start_mm);
     let y_ol_model = sysid::run_open_loop(&mut model_plant, &u_ol)?;
     let fit_ol = fit_percent(&ol.y, &y_ol_model);
-    let t_ol = time_axis(u_ol.len(), ts);
+    let t_ol = sysid::data::sample_times(u_ol.len(), ts);
     sysid::output::write_atomic(
         &data_dir.join("open_loop.csv"),
         csv_columns("t,u,y_plant,y_model", &t_ol, &[&u_ol, &ol.y, &y_ol_model]).as_bytes(),
@@ -694,7 +690,7 @@ fn sim_or_nan(model: &Model, d: &Dataset) -> Vec<f64> {
 
 fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
     let ts = st.ts;
-    let t = time_axis(st.est.len(), ts);
+    let t = sysid::data::sample_times(st.est.len(), ts);
     let mut figs: Vec<Fig> = Vec::new();
     figs.push((
         "fig2_experiment",
@@ -720,7 +716,7 @@ fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
         Figure::new("Identified valve deadzone x = f(u) (paper's Fig. 4)").panel(dz_panel),
         "The identified static nonlinearity: the valve deadzone between b_l and b_r and the slopes m_l, m_r.",
     ));
-    let tv = time_axis(st.val.len(), ts);
+    let tv = sysid::data::sample_times(st.val.len(), ts);
     let mut fit_panel = Panel::new("time (s)", "y (mm)").series(Series::line(
         "measured",
         tv.clone(),
@@ -740,7 +736,7 @@ fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
         Figure::new("Validation record: measured vs simulated output (paper's Fig. 5)").panel(fit_panel),
         "Free-run simulation of the models on the validation record (which was not used for estimation).",
     ));
-    let t_ol = time_axis(st.u_ol.len(), ts);
+    let t_ol = sysid::data::sample_times(st.u_ol.len(), ts);
     figs.push((
         "fig6_open_loop",
         Figure::new("Open-loop test: identified Hammerstein model vs plant (paper's Fig. 6)")

@@ -516,3 +516,20 @@ fn round_significant(v: f64, digits: usize) -> f64 {
         .parse()
         .unwrap_or(v)
 }
+
+/// Sample times t_k = k·Ts, k = 0..n−1, in s. When 1/Ts is a whole number (100 Hz for Ts = 0.01 s) they
+/// are computed as k / (1/Ts), so that they print as the decimals a logger writes (0.07, not
+/// 0.07000000000000001).
+pub fn sample_times(n: usize, ts: f64) -> Vec<f64> {
+    let rate = 1.0 / ts;
+    let integral_rate = (rate - rate.round()).abs() < 1e-9 * rate;
+    (0..n)
+        .map(|k| {
+            if integral_rate {
+                k as f64 / rate.round()
+            } else {
+                k as f64 * ts
+            }
+        })
+        .collect()
+}

@@ -77,3 +77,13 @@ fn a_missing_time_column_without_ts_says_how_to_fix_it() {
     let e = read("u,y\n1,2\n", &CsvOptions::default()).unwrap_err();
     assert!(e.contains("--ts") && e.contains("--t-col"), "{e}");
 }
+
+// At Ts = 0.1 s the times are k/10: t_3 is the decimal 0.3, which 3 × 0.1 (0.30000000000000004) is not.
+#[test]
+fn sample_times_at_a_whole_rate_are_the_logger_decimals() {
+    let t = sysid::data::sample_times(4, 0.1);
+    assert_eq!(t, vec![0.0, 0.1, 0.2, 0.3]);
+    assert_ne!(3.0 * 0.1, 0.3);
+    assert_eq!(sysid::data::sample_times(8, 0.01)[7], 0.07);
+    assert_eq!(sysid::data::sample_times(3, 0.3), vec![0.0, 0.3, 0.6]);
+}

@@ -160,14 +160,8 @@ fn to_csv(rec: &Record, y: &[f64]) -> String {
     } else {
         "t,u,y\n"
     });
-    let inv = 1.0 / rec.ts;
-    let integral_rate = (inv - inv.round()).abs() < 1e-9 * inv;
-    for k in 0..rec.u.len() {
-        let t = if integral_rate {
-            k as f64 / inv.round()
-        } else {
-            k as f64 * rec.ts
-        };
+    let times = sysid::data::sample_times(rec.u.len(), rec.ts);
+    for (k, t) in times.iter().enumerate() {
         let _ = write!(s, "{t},{},{}", rec.u[k], y[k]);
         if let Some(p) = &rec.pressures {
             let _ = write!(s, ",{:.1},{:.1}", p[k][0], p[k][1]);

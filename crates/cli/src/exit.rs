@@ -23,16 +23,51 @@ pub const USAGE: u8 = 2;
 /// A cause whose text is already part of the message above it (e.g. the operating system's error after
 /// `file: error`) is not repeated.
 pub fn report(e: &anyhow::Error) -> ExitCode {
-    eprintln!("error: {e}");
-    let mut shown = e.to_string();
+    eprintln!("error: {}", render(e.as_ref()));
+    let mut shown = render(e.as_ref());
     for cause in e.chain().skip(1) {
-        let text = cause.to_string();
+        let text = render(cause);
         if !shown.contains(&text) {
             eprintln!("  caused by: {text}");
         }
         shown = text;
     }
     ExitCode::from(code(e))
+}
+
+/// The message of one error, with the library's settings named by their flags.
+pub fn render(e: &(dyn std::error::Error + 'static)) -> String {
+    match e.downcast_ref::<sysid::SysidError>() {
+        Some(s) => s.render(&|setting| flag(setting).to_string()),
+        None => e.to_string(),
+    }
+}
+
+/// The whole chain of `e` on one line, as `{e:#}` prints it, with settings named by their flags.
+pub fn render_chain(e: &anyhow::Error) -> String {
+    e.chain().map(render).collect::<Vec<_>>().join(": ")
+}
+
+/// The command-line flag of a library setting.
+pub fn flag(s: sysid::Setting) -> &'static str {
+    use sysid::Setting;
+    match s {
+        Setting::Na => "--na",
+        Setting::Nb => "--nb",
+        Setting::Nk => "--nk",
+        Setting::Ts => "--ts",
+        Setting::UCol => "--u-col",
+        Setting::YCol => "--y-col",
+        Setting::TCol => "--t-col",
+        Setting::Forgetting => "--forgetting",
+        Setting::P0 => "--p0",
+        Setting::Passes => "--passes",
+        Setting::MaxTrace => "--max-trace",
+        Setting::IvStages => "--iv-stages",
+        Setting::MaxIterations => "--max-iterations",
+        Setting::Tolerance => "tolerance",
+        Setting::Other(name) => name,
+    }
 }
 
 /// The exit code of `e`: [`NUMERICAL`] when any error in its chain is a numerical failure of one of
@@ -58,6 +93,9 @@ fn is_numerical(c: &(dyn std::error::Error + 'static)) -> bool {
     if let Some(s) = c.downcast_ref::<::report::ReportError>() {
         return s.is_numerical();
     }
+    if let Some(s) = c.downcast_ref::<ipa_reproduce::ReproduceError>() {
+        return s.is_numerical();
+    }
     false
 }
 
@@ -72,8 +110,9 @@ mod tests {
             sysid::SysidError::Numerical("x".into()).into(),
             ipa::IpaError::Numerical("x".into()).into(),
             control::ControlError::Numerical("x".into()).into(),
-            ::report::ReportError::Sysid(sysid::SysidError::Numerical("x".into())).into(),
-            ::report::ReportError::Control(control::ControlError::Numerical("x".into())).into(),
+            ipa_reproduce::ReproduceError::Sysid(sysid::SysidError::Numerical("x".into())).into(),
+            ipa_reproduce::ReproduceError::Control(control::ControlError::Numerical("x".into()))
+                .into(),
             anyhow::Error::from(ipa::IpaError::Numerical("x".into())).context("while simulating"),
         ];
         for e in &errs {
@@ -85,16 +124,36 @@ mod tests {
     #[test]
     fn input_errors_of_every_library_exit_2() {
         let errs: Vec<anyhow::Error> = vec![
-            sysid::SysidError::setting("--p0", 0, "a positive number").into(),
+            sysid::SysidError::setting(sysid::Setting::Other("--p0"), 0, "a positive number").into(),
             sysid::SysidError::Data("too short".into()).into(),
             ipa::IpaError::Config("bad".into()).into(),
             control::ControlError::setting("--kp", f64::NAN, "a finite number").into(),
-            ::report::ReportError::Sysid(sysid::SysidError::Data("x".into())).into(),
-            ::report::ReportError::Ipa(ipa::IpaError::Config("x".into())).into(),
+            ipa_reproduce::ReproduceError::Sysid(sysid::SysidError::Data("x".into())).into(),
+            ipa_reproduce::ReproduceError::Ipa(ipa::IpaError::Config("x".into())).into(),
             anyhow::anyhow!("--out x: is a file"),
         ];
         for e in &errs {
             assert_eq!(code(e), USAGE, "{e:#}");
         }
+    }
+}
+
+#[cfg(test)]
+mod render_tests {
+    use super::*;
+
+    // A library setting error reads with the flag the user typed, not the library's name.
+    #[test]
+    fn setting_errors_name_the_flag() {
+        let e: anyhow::Error =
+            sysid::SysidError::setting(sysid::Setting::Na, 200, "an order of at most 100").into();
+        assert_eq!(
+            render(e.as_ref()),
+            "invalid setting --na = 200: an order of at most 100"
+        );
+        assert_eq!(
+            e.to_string(),
+            "invalid setting na = 200: an order of at most 100"
+        );
     }
 }

@@ -7,6 +7,7 @@ use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 
 mod cmd;
 mod exit;
+mod text;
 
 /// Model, identify, validate and control an Intelligent Pneumatic Actuator (IPA).
 #[derive(Debug, Parser)]

@@ -1,12 +1,12 @@
 //! The closed loop: PI controller (and optional deadzone compensator) around any [`Plant`].
 //!
-//! Timing (the plant's convention, [`sysid::plant`]): at sample k, t_k = k Ts, the position y(k) is read,
+//! Timing (the plant's convention, [`sysid_core::plant`]): at sample k, t_k = k Ts, the position y(k) is read,
 //! the set-point r(k) = r(t_k) taken from the profile, the command u(k) computed and applied for one Ts.
 //! The trace records (t_k, r(k), u(k), y(k)) for k = 0..N-1 with N = floor(duration / Ts) + 1, so that
 //! the last sample is at t = duration (to within one Ts).
 
 use serde::Serialize;
-use sysid::{Plant, SysidError};
+use sysid_core::{Plant, PlantError};
 
 use crate::{ControlError, DeadzoneCompensator, PiController, Profile};
 
@@ -62,7 +62,7 @@ impl Trace {
 ///
 /// ```
 /// use control::{closed_loop, PiSettings, Profile};
-/// let mut plant = sysid::ModelPlant::new(sysid::Model::paper(), "paper").unwrap();
+/// let mut plant = sysid_core::ModelPlant::new(sysid_core::Model::paper(), "paper").unwrap();
 /// let mut pi = PiSettings::paper().build(0.01).unwrap();
 /// let trace = closed_loop::run(&mut plant, &mut pi, None, &Profile::Fixed { setpoint_mm: 50.0 }, 2.0, 0.0).unwrap();
 /// assert_eq!(trace.len(), 201);
@@ -148,10 +148,9 @@ pub fn run(
         trace.y.push(y);
         plant.step(u).map_err(|e| match e {
             // The outer error already says "numerical failure"; keep only the plant's own words.
-            SysidError::Numerical(m) => {
+            PlantError::Diverged(m) => {
                 ControlError::Numerical(format!("sample {k} (t = {t} s): {m}"))
             }
-            other => ControlError::Plant(other),
         })?;
     }
     Ok(trace)
@@ -161,7 +160,7 @@ pub fn run(
 mod tests {
     use super::*;
     use crate::{IntegralForm, PiSettings};
-    use sysid::{Model, ModelPlant, SysidError};
+    use sysid_core::{Model, ModelPlant, SysidError};
 
     fn paper_plant() -> ModelPlant {
         ModelPlant::new(Model::paper(), "paper").unwrap()
@@ -281,10 +280,10 @@ mod tests {
         fn output(&self) -> f64 {
             0.0
         }
-        fn step(&mut self, _u: f64) -> Result<f64, SysidError> {
+        fn step(&mut self, _u: f64) -> Result<f64, sysid_core::PlantError> {
             self.0 += 1;
             if self.0 == 3 {
-                Err(SysidError::Numerical("state blew up".into()))
+                Err(sysid_core::PlantError::Diverged("state blew up".into()))
             } else {
                 Ok(0.0)
             }

@@ -4,7 +4,7 @@
 //! The PI output u (counts) is read as the command the controller would give a valve *without* a deadzone.
 //! With reference slope m_ref the wanted internal variable is x_d = m_ref u, and the compensator sends the
 //! smallest command that produces it through the identified deadzone, f^{-1}(x_d)
-//! ([`Deadzone::inverse`](sysid::Deadzone::inverse)):
+//! ([`Deadzone::inverse`](sysid_core::Deadzone::inverse)):
 //!
 //! ```text
 //! u_c = b_r + (m_ref / m_r) u    for u >  t
@@ -23,7 +23,7 @@
 //! With an exact deadzone model, f(u_c) = m_ref u: the controller sees a linear valve.
 
 use serde::{Deserialize, Serialize};
-use sysid::Deadzone;
+use sysid_core::Deadzone;
 
 use crate::ControlError;
 
@@ -42,7 +42,7 @@ pub enum SlopeMode {
 ///
 /// ```
 /// use control::{DeadzoneCompensator, SlopeMode};
-/// use sysid::Deadzone;
+/// use sysid_core::Deadzone;
 /// let dz = Deadzone { b_l: -20.0, b_r: 30.0, m_l: 1.0, m_r: 1.0 };
 /// let c = DeadzoneCompensator::new(dz, SlopeMode::Shift, 255.0).unwrap();
 /// assert_eq!(c.apply(10.0), 40.0);   // 10 + b_r

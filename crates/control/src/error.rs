@@ -35,9 +35,6 @@ pub enum ControlError {
         /// The operating system's error.
         source: std::io::Error,
     },
-    /// The plant refused a command for a reason other than numerics (a bad plant configuration).
-    #[error("plant: {0}")]
-    Plant(sysid::SysidError),
     /// Numerical failure: the plant's output or the controller became non-finite (says at which sample).
     #[error("numerical failure: {0}")]
     Numerical(String),

@@ -1,5 +1,5 @@
 //! `control`: closed-loop PI position control of the Intelligent Pneumatic Actuator (or any plant behind
-//! [`sysid::Plant`]), set-point profiles and step-response metrics.
+//! [`sysid_core::Plant`]), set-point profiles and step-response metrics.
 //!
 //! Data flow: a [`Profile`] gives the set-point r(t); a [`PiController`] (built from [`PiSettings`]) turns
 //! e = r - y into the command u, optionally passed through a [`DeadzoneCompensator`];
@@ -8,7 +8,7 @@
 //!
 //! ```
 //! use control::{closed_loop, PiSettings, Profile, StepMetrics};
-//! let mut plant = sysid::ModelPlant::new(sysid::Model::paper(), "paper model").unwrap();
+//! let mut plant = sysid_core::ModelPlant::new(sysid_core::Model::paper(), "paper model").unwrap();
 //! let mut pi = PiSettings::paper().build(0.01).unwrap();
 //! let profile = Profile::Fixed { setpoint_mm: 50.0 };
 //! let trace = closed_loop::run(&mut plant, &mut pi, None, &profile, 10.0, 0.0).unwrap();

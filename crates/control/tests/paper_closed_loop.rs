@@ -9,7 +9,7 @@
 //! halved; the per-sample form is 15 times larger.
 
 use control::{closed_loop, IntegralForm, PiSettings, Profile, StepMetrics};
-use sysid::{Model, ModelPlant};
+use sysid_core::{Model, ModelPlant};
 
 fn fifty_mm_step(form: IntegralForm) -> StepMetrics {
     let mut plant = ModelPlant::new(Model::paper(), "paper").unwrap();

@@ -4,7 +4,7 @@
 //!
 //! `cargo run --release -p ipa --example characterise [-- plant.toml]`
 use ipa::{Ipa, PlantConfig};
-use sysid::Plant;
+use sysid_core::Plant;
 
 fn speed(cfg: &PlantConfig, u: f64, dur_s: f64) -> f64 {
     let mut p = Ipa::new(cfg.clone()).unwrap();
@@ -75,7 +75,7 @@ fn main() {
         let u = ipa::generate(&ipa::InputSpec::Staircase, 2000, 0.01, 255.0, seed).unwrap();
         let mut p = Ipa::new(cfg.clone()).unwrap();
         p.reset(100.0);
-        let y = sysid::run_open_loop(&mut p, &u).unwrap();
+        let y = sysid_core::run_open_loop(&mut p, &u).unwrap();
         let ends = y.iter().filter(|&&v| v <= 0.0 || v >= 200.0).count();
         let (lo, hi) = y
             .iter()
@@ -88,7 +88,7 @@ fn main() {
     let u = ipa::generate(&ipa::InputSpec::Staircase, 200_000, 0.01, 255.0, 1).unwrap();
     let mut p = Ipa::new(cfg.clone()).unwrap();
     let t = std::time::Instant::now();
-    let y = sysid::run_open_loop(&mut p, &u).unwrap();
+    let y = sysid_core::run_open_loop(&mut p, &u).unwrap();
     let el = t.elapsed().as_secs_f64();
     println!(
         "200000 steps (2000 s): {el:.3} s -> {:.0}x real time; last y {}",

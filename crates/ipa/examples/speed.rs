@@ -3,7 +3,7 @@
 //!
 //! `cargo run --release -p ipa --example speed`
 
-use sysid::Plant;
+use sysid_core::Plant;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let n = 200_000;
@@ -11,7 +11,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut plant = ipa::Ipa::new(ipa::PlantConfig::default())?;
     plant.reset(100.0);
     let start = std::time::Instant::now();
-    let y = sysid::run_open_loop(&mut plant, &u)?;
+    let y = sysid_core::run_open_loop(&mut plant, &u)?;
     let elapsed = start.elapsed().as_secs_f64();
     let plant_time = n as f64 * plant.ts();
     println!(

@@ -10,7 +10,7 @@ pub enum IpaError {
     Config(String),
     /// A file could not be read, or its content is invalid.
     #[error(transparent)]
-    Sysid(#[from] sysid::SysidError),
+    Sysid(#[from] sysid_core::SysidError),
     /// Numerical failure of the integration (non-finite or non-physical state).
     #[error("numerical failure: {0}")]
     Numerical(String),

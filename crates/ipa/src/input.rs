@@ -178,10 +178,10 @@ pub fn add_noise(y: &[f64], std_mm: f64, seed: u64) -> Vec<f64> {
 }
 
 fn check_settings(samples: usize, ts_s: f64, amplitude: f64) -> Result<(), IpaError> {
-    if samples == 0 || samples > sysid::data::MAX_SAMPLES {
+    if samples == 0 || samples > sysid_core::data::MAX_SAMPLES {
         return Err(IpaError::Config(format!(
             "invalid --samples {samples}: expected 1..={}",
-            sysid::data::MAX_SAMPLES
+            sysid_core::data::MAX_SAMPLES
         )));
     }
     if !(ts_s.is_finite() && ts_s > 0.0) {
@@ -199,12 +199,12 @@ fn check_settings(samples: usize, ts_s: f64, amplitude: f64) -> Result<(), IpaEr
 
 /// Reads column `u` of a CSV file (header row required), every cell a finite number.
 pub fn read_input_file(path: &Path) -> Result<Vec<f64>, IpaError> {
-    let bytes = std::fs::read(path).map_err(|source| sysid::SysidError::Io {
+    let bytes = std::fs::read(path).map_err(|source| sysid_core::SysidError::Io {
         path: path.to_path_buf(),
         source,
     })?;
-    let table = sysid::data::read_table(&bytes, &path.display().to_string())?;
-    let col = table.column_index("u", "--input file:CSV")?;
+    let table = sysid_core::data::read_table(&bytes, &path.display().to_string())?;
+    let col = table.column_index("u", sysid_core::Setting::Other("--input file:CSV"))?;
     Ok(table.numbers(col)?)
 }
 
@@ -254,7 +254,7 @@ impl Default for StaircaseDesign {
 /// with amplitude `amplitude` (counts) and returns (u, y) as a data logger records them: y(k) is the
 /// output before u(k) is applied. The same seed and plant state give the same record.
 pub fn staircase_experiment(
-    plant: &mut dyn sysid::Plant,
+    plant: &mut dyn sysid_core::Plant,
     design: &StaircaseDesign,
     samples: usize,
     amplitude: f64,
@@ -292,11 +292,10 @@ pub fn staircase_experiment(
             u.push(level);
             y.push(yk);
             plant.step(level).map_err(|e| match e {
-                sysid::SysidError::Numerical(m) => sysid::SysidError::Numerical(format!(
+                sysid_core::PlantError::Diverged(m) => sysid_core::SysidError::Numerical(format!(
                     "{m} (while applying u({}) = {level})",
                     u.len() - 1
                 )),
-                other => other,
             })?;
         }
     }
@@ -307,7 +306,7 @@ pub fn staircase_experiment(
 fn staircase(samples: usize, ts_s: f64, amplitude: f64, seed: u64) -> Result<Vec<f64>, IpaError> {
     let design = StaircaseDesign::default();
     let mut nominal = crate::Ipa::with_ts(crate::PlantConfig::default(), ts_s)?;
-    sysid::Plant::reset(&mut nominal, 0.5 * design.stroke_mm);
+    sysid_core::Plant::reset(&mut nominal, 0.5 * design.stroke_mm);
     Ok(staircase_experiment(&mut nominal, &design, samples, amplitude, seed)?.0)
 }
 

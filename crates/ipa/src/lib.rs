@@ -4,7 +4,7 @@
 //! - [`Ipa`] (module [`plant`]): double-acting cylinder ([`cylinder`]) with two PWM-driven on/off valves
 //!   ([`valve`]), seal friction with stiction ([`friction`]), end stops, an optical encoder ([`encoder`]);
 //!   integrated by RK4 ([`dynamics`]). Parameters in [`PlantConfig`] ([`config`], TOML).
-//! - [`spec::plant_from_spec`]: `ipa`, `paper` or `model:FILE` behind [`sysid::Plant`].
+//! - [`spec::plant_from_spec`]: `ipa`, `paper` or `model:FILE` behind [`sysid_core::Plant`].
 //! - [`input`]: staircase, PRBS, APRBS, multisine, step and file inputs.
 //!
 //! See `docs/plant.md` for the equations, the parameters and their sources.
@@ -24,4 +24,4 @@ pub use config::PlantConfig;
 pub use error::IpaError;
 pub use input::{generate, InputSpec};
 pub use plant::Ipa;
-pub use spec::{plant_from_spec, plant_from_spec_with_ts, DEFAULT_TS_S};
+pub use spec::{plant_from_spec, plant_from_spec_with_ts, PlantSpec, DEFAULT_TS_S};

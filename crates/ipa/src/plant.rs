@@ -1,4 +1,4 @@
-//! [`Ipa`]: the physics simulator of the Intelligent Pneumatic Actuator behind the [`sysid::Plant`] trait.
+//! [`Ipa`]: the physics simulator of the Intelligent Pneumatic Actuator behind the [`sysid_core::Plant`] trait.
 //!
 //! Each sampling period Ts the command u (counts, clamped to [-255, 255]) is latched by the PWM at the
 //! start of every PWM period: u > 0 energises the cap-side valve for |u|/255 of the period, u < 0 the
@@ -31,7 +31,7 @@ struct PwmPeriod {
 /// The physics IPA plant.
 ///
 /// ```
-/// use sysid::Plant;
+/// use sysid_core::Plant;
 /// let mut ipa = ipa::Ipa::new(ipa::PlantConfig::default()).unwrap();
 /// ipa.reset(100.0);
 /// for _ in 0..30 {
@@ -118,7 +118,7 @@ impl Ipa {
             config,
         };
         let mid = 0.5 * ipa.config.cylinder.stroke_mm;
-        sysid::Plant::reset(&mut ipa, mid);
+        sysid_core::Plant::reset(&mut ipa, mid);
         Ok(ipa)
     }
 
@@ -191,7 +191,7 @@ impl Ipa {
         self.settle();
     }
 
-    /// Applies u for one sampling period (like [`sysid::Plant::step`]) with the crate's error type.
+    /// Applies u for one sampling period (like [`sysid_core::Plant::step`]) with the crate's error type.
     pub fn advance(&mut self, u: f64) -> Result<(), IpaError> {
         if !u.is_finite() {
             return Err(IpaError::Numerical(format!(
@@ -497,7 +497,7 @@ impl Ipa {
     }
 }
 
-impl sysid::Plant for Ipa {
+impl sysid_core::Plant for Ipa {
     fn ts(&self) -> f64 {
         self.ts_s
     }
@@ -507,9 +507,9 @@ impl sysid::Plant for Ipa {
         self.encoder.read_mm(self.state.x_m * 1e3)
     }
 
-    fn step(&mut self, u: f64) -> Result<f64, sysid::SysidError> {
+    fn step(&mut self, u: f64) -> Result<f64, sysid_core::PlantError> {
         self.advance(u)
-            .map_err(|e| sysid::SysidError::Numerical(format!("physics IPA: {e}")))?;
+            .map_err(|e| sysid_core::PlantError::Diverged(format!("physics IPA: {e}")))?;
         Ok(self.output())
     }
 

@@ -1,7 +1,7 @@
 //! Physical checks of the IPA simulator, each against an independently computed expectation.
 
 use ipa::{Ipa, PlantConfig};
-use sysid::Plant;
+use sysid_core::Plant;
 
 const P_ATM: f64 = 101_325.0;
 const R: f64 = 287.0;

@@ -1,7 +1,5 @@
 //! The error type of the report library.
 
-use sysid::SysidError;
-
 /// Everything that can go wrong while drawing figures or writing the report.
 ///
 /// Messages name the figure, panel or series at fault (1-based indices, as a reader counts them) and
@@ -32,28 +30,16 @@ pub enum ReportError {
         /// The encoder's message.
         message: String,
     },
-    /// An error of the identification library, including failed (atomic) writes of output files.
+    /// A failed (atomic) write of an output file.
     #[error(transparent)]
-    Sysid(#[from] SysidError),
-    /// A failure of the plant simulator (reproduce pipeline).
-    #[error(transparent)]
-    Ipa(#[from] ipa::IpaError),
-    /// A failure of the control layer (reproduce pipeline).
-    #[error(transparent)]
-    Control(#[from] control::ControlError),
+    Output(#[from] sysid_io::OutputError),
 }
 
 impl ReportError {
-    /// True for failures of the numerics (exit code 1) rather than of the input or the output files
-    /// (exit code 2). Drawing and encoding never fail for numerical reasons: non-finite samples are
-    /// skipped when plotting.
+    /// Always false: drawing, encoding and writing never fail for numerical reasons (non-finite samples
+    /// are skipped when plotting), so a report error is an input or output error (exit code 2).
     pub fn is_numerical(&self) -> bool {
-        match self {
-            ReportError::Sysid(e) => e.is_numerical(),
-            ReportError::Ipa(e) => e.is_numerical(),
-            ReportError::Control(e) => e.is_numerical(),
-            _ => false,
-        }
+        false
     }
 
     /// Shorthand for a [`ReportError::InvalidFigure`].

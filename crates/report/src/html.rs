@@ -539,7 +539,7 @@ impl Report {
 
     /// Writes the document to `path` atomically.
     pub fn save(&self, path: &Path) -> Result<(), ReportError> {
-        sysid::output::write_atomic(path, self.to_html().as_bytes())?;
+        sysid_io::write_atomic(path, self.to_html().as_bytes())?;
         Ok(())
     }
 }

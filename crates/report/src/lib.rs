@@ -5,12 +5,15 @@
 //! - [`html`]: a small builder for a single-file HTML report (sections, escaped text, tables with the
 //!   paper's values beside ours, figures inline), readable in print and without JavaScript.
 //!
-//! The end-to-end `reproduce` pipeline builds on these.
+//! - [`format`]: numbers as reports print them.
+//!
+//! It depends on no estimator, plant or controller: the reproduction pipeline (crate `ipa-reproduce`)
+//! and the command line feed it plain numbers.
 
 pub mod error;
+pub mod format;
 pub mod html;
 pub mod plot;
-pub mod reproduce;
 
 pub use error::ReportError;
 pub use html::Report;

@@ -259,8 +259,8 @@ pub fn save_figure(fig: &Figure, dir: &Path, stem: &str) -> Result<(), ReportErr
     }
     let svg = render_svg(fig)?;
     let png = render_png(fig)?;
-    sysid::output::write_atomic(&dir.join(format!("{stem}.svg")), svg.as_bytes())?;
-    sysid::output::write_atomic(&dir.join(format!("{stem}.png")), &png)?;
+    sysid_io::write_atomic(&dir.join(format!("{stem}.svg")), svg.as_bytes())?;
+    sysid_io::write_atomic(&dir.join(format!("{stem}.png")), &png)?;
     Ok(())
 }
 

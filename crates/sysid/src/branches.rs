@@ -9,8 +9,8 @@
 //!
 //! Entries of θ (key-term layout, [`Structure::theta_names`]) that are fixed are zero and not estimated.
 
-use crate::regressor::Structure;
-use crate::{Dataset, Deadzone, ModelKind, SysidError};
+use sysid_core::param::{Layout, Parameterisation};
+use sysid_core::{Dataset, Deadzone, ModelKind, Structure, SysidError};
 
 /// The deadzone branches a record excites, and which breakpoints are fixed.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -112,6 +112,17 @@ impl Branches {
         self.left && self.right && !self.b_l_fixed && !self.b_r_fixed
     }
 
+    /// The parameterisation of `s` in `layout` with the entries this record determines marked free.
+    pub fn parameterisation(&self, s: &Structure, layout: Layout) -> Parameterisation {
+        let free = match layout {
+            Layout::KeyTerm => self.free_theta(s),
+            Layout::Physical => self.free_physical(s),
+        };
+        let p = Parameterisation::new(*s, layout);
+        // The masks have one entry per parameter of `s` by construction.
+        p.clone().with_free(free).unwrap_or(p)
+    }
+
     /// Which entries of θ (key-term layout [m_r, m_r b_r, m_l, m_l b_l, ...]) are estimated.
     pub fn free_theta(&self, s: &Structure) -> Vec<bool> {
         let mut free = vec![true; s.n_params()];
@@ -174,8 +185,8 @@ impl Branches {
         }
     }
 
-    /// The remark for the report, when something is fixed.
-    pub fn note(&self) -> Option<String> {
+    /// The remarks for the report, one per fixed part (empty when nothing is fixed).
+    pub fn notes(&self) -> Vec<String> {
         let mut parts = Vec::new();
         if !self.left {
             parts.push("the input is never negative: the left deadzone branch is not excited and was dropped (m_l = 0, b_l = 0 fixed)".to_string());
@@ -189,7 +200,7 @@ impl Branches {
         if self.b_l_fixed {
             parts.push("every input sample is on the left branch, so b_l cannot be separated from the offset c: b_l = 0 fixed (c absorbs -m_l b_l)".to_string());
         }
-        (!parts.is_empty()).then(|| parts.join("; "))
+        parts
     }
 }
 
@@ -200,7 +211,7 @@ mod tests {
 
     fn data(u: Vec<f64>) -> Dataset {
         let y = vec![0.0; u.len()];
-        Dataset::new(u, y, 1.0, "t").unwrap()
+        Dataset::new(Signals { u, y }, 1.0, "t").unwrap()
     }
 
     // u in {1, 2, 3}: no negative command, so m_l and m_l b_l (θ entries 2, 3) are not estimated.

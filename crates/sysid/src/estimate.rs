@@ -1,26 +1,30 @@
-//! Estimators: batch least squares (QR) and recursive least squares (paper eqs. 9–12) for ARX, and the
-//! Hammerstein model by key-term separation (reading notes, eq. 8) — iterated batch LS or recursive;
-//! beyond the paper: output-error refinement ([`crate::oe`]), recursive instrumental variables
-//! ([`crate::iv`]), a UD-factorised RLS with windup protection ([`crate::rls_ud`], [`crate::windup`]), and
-//! Hammerstein models on one-sided inputs ([`crate::branches`]).
+//! Estimators behind one trait: batch least squares (QR) and recursive least squares (paper eqs. 9–12)
+//! for ARX, and the Hammerstein model by key-term separation (docs/paper.md, eq. 8) — iterated batch LS
+//! or recursive; beyond the paper: output-error refinement ([`crate::oe`]), recursive instrumental
+//! variables ([`crate::iv`]), a UD-factorised RLS with windup protection ([`crate::rls_ud`],
+//! [`crate::windup`]), and Hammerstein models on one-sided inputs ([`crate::branches`]).
 //!
-//! Unfitted settings ([`IdentifySettings`]) → [`identify`] → a fitted [`Identified`] holding the [`Model`].
+//! Unfitted settings, one type per method ([`LeastSquares`], [`RecursiveLeastSquares`],
+//! [`OutputError`], [`InstrumentalVariables`]) → [`Estimator::fit`] on a [`Problem`] → a [`Fitted`]
+//! model with its diagnostics. [`identify`] is the one entry point that checks the problem, runs an
+//! estimator and applies the safeguards common to every method.
 
 use nalgebra::{DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 
 use crate::branches::Branches;
-use crate::fast_ls as ls; // the same API as crate::ls (Householder QR), without forming Q
-use crate::model::MAX_ORDER;
-use crate::regressor::Structure;
-use crate::rls::{self, Rls};
+use crate::ls;
+use crate::rls::{self, RecursiveUpdate, Rls};
 use crate::rls_ud::{RlsForm, RobustRls};
 use crate::windup::Windup;
 use crate::{iv, oe};
-use crate::{Dataset, Deadzone, Model, ModelKind, Orders, SysidError};
+use sysid_core::model::MAX_ORDER;
+use sysid_core::param::{deadzone_from_theta, Layout, Parameterisation, ZERO_DEADZONE};
+use sysid_core::{Dataset, Model, ModelKind, Orders, ParamName, Setting, Structure, SysidError};
 
-/// Estimation method (`--method`).
+/// Estimation method (the JSON `method`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum Method {
     /// Batch least squares via QR; for Hammerstein, iterated key-term separation.
@@ -46,170 +50,320 @@ impl std::fmt::Display for Method {
     }
 }
 
-/// Unfitted settings of an identification.
-#[derive(Debug, Clone, PartialEq)]
-pub struct IdentifySettings {
-    /// ARX or Hammerstein.
-    pub kind: ModelKind,
-    /// na, nb, nk.
-    pub orders: Orders,
-    /// LS or RLS.
-    pub method: Method,
-    /// ρ: RLS forgetting factor in (0, 1] (`--forgetting`, default 1).
-    pub forgetting: f64,
-    /// P(0) = p0 · I for RLS (`--p0`, default 1e6).
-    pub p0: f64,
-    /// Estimate a constant term c in the linear block (`--offset`).
-    pub offset: bool,
-    /// RLS passes over the data (`--passes`, default 1 as in the paper). Each new pass restarts
-    /// P = p0 · I and keeps θ̂, so the P(0) regularisation pulls towards the previous pass's estimate and
-    /// vanishes geometrically: with noise-free data a few passes reach the exact solution.
-    pub passes: usize,
-    /// Maximum key-term iterations for Hammerstein LS (`--max-iterations`, default 100).
+/// Settings of batch least squares (and of the key-term iteration for Hammerstein models).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LeastSquares {
+    /// Maximum key-term iterations for Hammerstein LS (default 100).
     pub max_iterations: usize,
     /// Relative change of θ̂ below which the key-term iteration has converged (default 1e-10).
     pub tolerance: f64,
-    /// Keep the RLS parameter trajectory (for convergence plots).
-    pub record_history: bool,
-    /// RLS covariance form (`--rls-form`, default standard: the paper's eq. 12). IV always uses the
-    /// dense form.
-    pub rls_form: RlsForm,
-    /// RLS covariance-windup protection (`--windup`, default none).
+}
+
+impl Default for LeastSquares {
+    fn default() -> Self {
+        LeastSquares {
+            max_iterations: 100,
+            tolerance: 1e-10,
+        }
+    }
+}
+
+/// Settings of recursive least squares (paper eqs. 9–12).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RecursiveLeastSquares {
+    /// ρ: forgetting factor in (0, 1] (default 1).
+    pub forgetting: f64,
+    /// P(0) = p0 · I (default 1e6).
+    pub p0: f64,
+    /// Passes over the data (default 1 as in the paper). Each new pass restarts P = p0 · I and keeps θ̂,
+    /// so the P(0) regularisation pulls towards the previous pass's estimate and vanishes geometrically:
+    /// with noise-free data a few passes reach the exact solution.
+    pub passes: usize,
+    /// Covariance form (default standard: the paper's eq. 12).
+    pub form: RlsForm,
+    /// Covariance-windup protection (default none).
     pub windup: Windup,
-    /// Bound T on tr P for `--windup trace` (`--max-trace`); `None`: p0 times the number of parameters.
+    /// Bound T on tr P for [`Windup::Trace`]; `None`: p0 times the number of parameters.
     pub max_trace: Option<f64>,
+    /// Keep the parameter trajectory (for convergence plots).
+    pub record_history: bool,
+}
+
+impl Default for RecursiveLeastSquares {
+    fn default() -> Self {
+        RecursiveLeastSquares {
+            forgetting: 1.0,
+            p0: 1e6,
+            passes: 1,
+            form: RlsForm::Standard,
+            windup: Windup::None,
+            max_trace: None,
+            record_history: false,
+        }
+    }
+}
+
+/// Settings of the output-error refinement, started from least squares.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OutputError {
+    /// The least-squares start.
+    pub start: LeastSquares,
+    /// Patience: the search stops after this many residual evaluations per free parameter (default
+    /// 100, shared with the start's key-term iteration cap).
+    pub max_iterations: usize,
+}
+
+impl Default for OutputError {
+    fn default() -> Self {
+        OutputError {
+            start: LeastSquares::default(),
+            max_iterations: 100,
+        }
+    }
+}
+
+/// Settings of recursive instrumental variables, started from least squares.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct InstrumentalVariables {
+    /// The least-squares start (first auxiliary model).
+    pub start: LeastSquares,
+    /// ρ: forgetting factor in (0, 1].
+    pub forgetting: f64,
+    /// P(0) = p0 · I.
+    pub p0: f64,
+    /// Number of stages, each rebuilding the instruments from the previous stage's model (default 10).
+    pub stages: usize,
+}
+
+impl Default for InstrumentalVariables {
+    fn default() -> Self {
+        InstrumentalVariables {
+            start: LeastSquares::default(),
+            forgetting: 1.0,
+            p0: 1e6,
+            stages: 10,
+        }
+    }
+}
+
+/// What an estimator is fitted to: the data, the model structure and the deadzone branches the data
+/// excite. Made by [`Problem::new`], which checks that the data can support the structure.
+#[derive(Debug, Clone)]
+pub struct Problem<'a> {
+    data: &'a Dataset,
+    structure: Structure,
+    branches: Branches,
+}
+
+impl<'a> Problem<'a> {
+    /// Checks `structure` against `data` and finds the branches the input excites. With
+    /// `drop_unexcited_branch`, a Hammerstein model on a one-sided input drops the unexcited branch
+    /// instead of refusing the data.
+    pub fn new(
+        data: &'a Dataset,
+        structure: Structure,
+        drop_unexcited_branch: bool,
+    ) -> Result<Self, SysidError> {
+        check_structure(&structure)?;
+        let k0 = structure.orders.k0();
+        let p = structure.n_params();
+        let n = data.len();
+        if n <= k0 || n - k0 < p {
+            return Err(SysidError::Data(format!(
+                "{}: {n} samples leave {} regression rows for {p} parameters (na = {}, nb = {}, nk = {}); \
+                 more data or lower orders are needed",
+                data.name,
+                n.saturating_sub(k0),
+                structure.orders.na,
+                structure.orders.nb,
+                structure.orders.nk
+            )));
+        }
+        let branches = match structure.kind {
+            ModelKind::Hammerstein => Branches::of(data, structure.offset, drop_unexcited_branch)?,
+            ModelKind::Arx => Branches::all(0.0, 0.0, 0.0),
+        };
+        Ok(Problem {
+            data,
+            structure,
+            branches,
+        })
+    }
+
+    /// The data.
+    pub fn data(&self) -> &Dataset {
+        self.data
+    }
+    /// The structure.
+    pub fn structure(&self) -> &Structure {
+        &self.structure
+    }
+    /// The deadzone branches the data excite.
+    pub fn branches(&self) -> &Branches {
+        &self.branches
+    }
+    /// The key-term parameterisation with the entries the data determine marked free.
+    fn key_term(&self) -> Parameterisation {
+        self.branches.parameterisation(&self.structure, Layout::KeyTerm)
+    }
+}
+
+fn check_structure(s: &Structure) -> Result<(), SysidError> {
+    let o = s.orders;
+    for (setting, v) in [(Setting::Na, o.na), (Setting::Nb, o.nb), (Setting::Nk, o.nk)] {
+        if v > MAX_ORDER {
+            return Err(SysidError::setting(
+                setting,
+                v,
+                &format!("an order of at most {MAX_ORDER}"),
+            ));
+        }
+    }
+    if s.kind == ModelKind::Hammerstein && o.nb == 0 {
+        return Err(SysidError::setting(
+            Setting::Nb,
+            0,
+            "nb >= 1 for a Hammerstein model (b1 = 1 is the key term)",
+        ));
+    }
+    if s.n_params() == 0 {
+        return Err(SysidError::Data(
+            "the model has no parameter to estimate (na = nb = 0)".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// An estimation method: checks its settings and fits a [`Problem`].
+pub trait Estimator {
+    /// Which method this is (reported in the fitted result).
+    fn method(&self) -> Method;
+    /// Checks the settings (each error names the [`Setting`] at fault).
+    fn check(&self) -> Result<(), SysidError>;
+    /// Fits the problem. Called by [`identify`], which checks the settings first and applies the common
+    /// safeguards after.
+    fn fit(&self, problem: &Problem) -> Result<Fitted, SysidError>;
+}
+
+/// One method's settings, for callers that choose the method at run time (the command line).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum EstimatorSettings {
+    /// Least squares.
+    Ls(LeastSquares),
+    /// Recursive least squares.
+    Rls(RecursiveLeastSquares),
+    /// Output error.
+    Oe(OutputError),
+    /// Instrumental variables.
+    Iv(InstrumentalVariables),
+}
+
+impl EstimatorSettings {
+    fn inner(&self) -> &dyn Estimator {
+        match self {
+            EstimatorSettings::Ls(e) => e,
+            EstimatorSettings::Rls(e) => e,
+            EstimatorSettings::Oe(e) => e,
+            EstimatorSettings::Iv(e) => e,
+        }
+    }
+}
+
+impl Estimator for EstimatorSettings {
+    fn method(&self) -> Method {
+        self.inner().method()
+    }
+    fn check(&self) -> Result<(), SysidError> {
+        self.inner().check()
+    }
+    fn fit(&self, problem: &Problem) -> Result<Fitted, SysidError> {
+        self.inner().fit(problem)
+    }
+}
+
+/// A whole identification: the structure, the estimator and how to treat a one-sided input.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Identification {
+    /// The model structure.
+    pub structure: Structure,
+    /// The estimator and its settings.
+    pub estimator: EstimatorSettings,
     /// Hammerstein on an input that never goes below (above) zero: drop the unexcited deadzone branch
     /// (fix m_l = b_l = 0) instead of refusing the data. Default `false` (refuse, as the paper's method
     /// cannot estimate it); the command line turns it on.
     pub drop_unexcited_branch: bool,
-    /// IV: number of stages, each rebuilding the instruments from the previous stage's model (default 10).
-    pub iv_stages: usize,
 }
 
-impl Default for IdentifySettings {
+impl Default for Identification {
+    /// The paper's identification: Hammerstein (3, 1, 1) by one pass of RLS with ρ = 1.
     fn default() -> Self {
-        IdentifySettings {
-            kind: ModelKind::Hammerstein,
-            orders: Orders::PAPER,
-            method: Method::Rls,
-            forgetting: 1.0,
-            p0: 1e6,
-            offset: false,
-            passes: 1,
-            max_iterations: 100,
-            tolerance: 1e-10,
-            record_history: false,
-            rls_form: RlsForm::Standard,
-            windup: Windup::None,
-            max_trace: None,
+        Identification {
+            structure: Structure {
+                kind: ModelKind::Hammerstein,
+                orders: Orders::PAPER,
+                offset: false,
+            },
+            estimator: EstimatorSettings::Rls(RecursiveLeastSquares::default()),
             drop_unexcited_branch: false,
-            iv_stages: 10,
         }
     }
 }
 
-impl IdentifySettings {
+impl Identification {
+    /// Checks the structure and the estimator's settings, without data.
+    pub fn check(&self) -> Result<(), SysidError> {
+        check_structure(&self.structure)?;
+        self.estimator.check()
+    }
+
     /// Builder: the model structure.
     pub fn with_kind(mut self, kind: ModelKind) -> Self {
-        self.kind = kind;
+        self.structure.kind = kind;
         self
     }
     /// Builder: orders.
     pub fn with_orders(mut self, na: usize, nb: usize, nk: usize) -> Self {
-        self.orders = Orders { na, nb, nk };
-        self
-    }
-    /// Builder: method.
-    pub fn with_method(mut self, method: Method) -> Self {
-        self.method = method;
-        self
-    }
-    /// Builder: forgetting factor ρ.
-    pub fn with_forgetting(mut self, rho: f64) -> Self {
-        self.forgetting = rho;
+        self.structure.orders = Orders { na, nb, nk };
         self
     }
     /// Builder: estimate the offset c.
     pub fn with_offset(mut self, offset: bool) -> Self {
-        self.offset = offset;
+        self.structure.offset = offset;
         self
     }
-    /// Builder: RLS passes.
-    pub fn with_passes(mut self, passes: usize) -> Self {
-        self.passes = passes;
+    /// Builder: the estimator.
+    pub fn with_estimator(mut self, estimator: EstimatorSettings) -> Self {
+        self.estimator = estimator;
         self
     }
-
-    /// Checks every setting and returns the regression structure.
-    pub fn structure(&self) -> Result<Structure, SysidError> {
-        let o = self.orders;
-        for (name, v) in [("--na", o.na), ("--nb", o.nb), ("--nk", o.nk)] {
-            if v > MAX_ORDER {
-                return Err(SysidError::setting(
-                    name,
-                    v,
-                    &format!("an order of at most {MAX_ORDER}"),
-                ));
-            }
-        }
-        if self.kind == ModelKind::Hammerstein && o.nb == 0 {
-            return Err(SysidError::setting(
-                "--nb",
-                0,
-                "nb >= 1 for a Hammerstein model (b1 = 1 is the key term)",
-            ));
-        }
-        if matches!(self.method, Method::Rls | Method::Iv) {
-            rls::check_settings(self.forgetting, self.p0)?;
-            if self.passes == 0 || self.passes > 1000 {
-                return Err(SysidError::setting(
-                    "--passes",
-                    self.passes,
-                    "between 1 and 1000 passes",
-                ));
-            }
-        }
-        if let Some(t) = self.max_trace {
-            if !(t.is_finite() && t > 0.0) {
-                return Err(SysidError::setting(
-                    "--max-trace",
-                    t,
-                    "a positive, finite bound on tr P",
-                ));
-            }
-        }
-        if self.iv_stages == 0 || self.iv_stages > 1000 {
-            return Err(SysidError::setting(
-                "--iv-stages",
-                self.iv_stages,
-                "between 1 and 1000 stages",
-            ));
-        }
-        if self.max_iterations == 0 || self.max_iterations > 100_000 {
-            return Err(SysidError::setting(
-                "--max-iterations",
-                self.max_iterations,
-                "between 1 and 100000",
-            ));
-        }
-        if !(self.tolerance.is_finite() && self.tolerance > 0.0) {
-            return Err(SysidError::setting(
-                "tolerance",
-                self.tolerance,
-                "a positive number",
-            ));
-        }
-        let s = Structure {
-            kind: self.kind,
-            orders: o,
-            offset: self.offset,
+    /// Builder: switch to `method`, keeping the settings methods share (ρ and P(0) of the recursive
+    /// methods, the least-squares start and its iteration cap) and defaults for the rest.
+    pub fn with_method(self, method: Method) -> Self {
+        let rec = RecursiveLeastSquares::default();
+        let (forgetting, p0, start) = match self.estimator {
+            EstimatorSettings::Ls(l) => (rec.forgetting, rec.p0, l),
+            EstimatorSettings::Rls(r) => (r.forgetting, r.p0, LeastSquares::default()),
+            EstimatorSettings::Oe(o) => (rec.forgetting, rec.p0, o.start),
+            EstimatorSettings::Iv(i) => (i.forgetting, i.p0, i.start),
         };
-        if s.n_params() == 0 {
-            return Err(SysidError::Data(
-                "the model has no parameter to estimate (na = nb = 0)".into(),
-            ));
-        }
-        Ok(s)
+        self.with_estimator(match method {
+            Method::Ls => EstimatorSettings::Ls(start),
+            Method::Rls => EstimatorSettings::Rls(RecursiveLeastSquares {
+                forgetting,
+                p0,
+                ..rec
+            }),
+            Method::Oe => EstimatorSettings::Oe(OutputError {
+                start,
+                max_iterations: start.max_iterations,
+            }),
+            Method::Iv => EstimatorSettings::Iv(InstrumentalVariables {
+                start,
+                forgetting,
+                p0,
+                ..InstrumentalVariables::default()
+            }),
+        })
     }
 }
 
@@ -217,7 +371,7 @@ impl IdentifySettings {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Param {
     /// Name: b_l, b_r, m_l, m_r, a1.., b1.., c.
-    pub name: String,
+    pub name: ParamName,
     /// Estimate.
     pub value: f64,
     /// Standard deviation from the covariance (delta method for ratios); `None` for fixed parameters (b1 = 1
@@ -225,9 +379,144 @@ pub struct Param {
     pub std: Option<f64>,
 }
 
-/// A fitted model with its estimation record.
+/// How an estimator stopped.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Termination {
+    /// It met its convergence criterion: LS key-term iteration at a fixed point; RLS estimate settled
+    /// (relative change below 1e-3 over the last 10 % of the final pass, or between the ends of the last
+    /// two passes); OE optimiser on its ftol/xtol/gtol criterion; IV stages settled.
+    Converged,
+    /// The key-term iteration entered a limit cycle.
+    LimitCycle,
+    /// An iteration or evaluation cap was reached first.
+    IterationLimit,
+    /// The recursive estimate was still moving at the end of the data.
+    NotSettled,
+    /// The optimiser stopped for another reason (its words).
+    Stopped(String),
+}
+
+impl Termination {
+    /// True for [`Termination::Converged`].
+    pub fn converged(&self) -> bool {
+        matches!(self, Termination::Converged)
+    }
+}
+
+/// A remark on an estimate, in words by `Display`.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Note {
+    /// A one-sided input: a deadzone branch was dropped or a breakpoint fixed (the words of
+    /// [`Branches::notes`]).
+    Branches(String),
+    /// The key-term iteration cycled; the iterate with the smallest self-consistent residual was kept.
+    KeyTermLimitCycle {
+        /// Iterations run.
+        iterations: usize,
+        /// The iterate kept.
+        kept: usize,
+    },
+    /// The key-term iteration hit its cap; the best iterate was kept.
+    KeyTermNotConverged {
+        /// Iterations run.
+        iterations: usize,
+        /// The iterate kept.
+        kept: usize,
+    },
+    /// A recursive estimator other than the paper's plain RLS ran.
+    RlsForm {
+        /// Covariance form.
+        form: RlsForm,
+        /// Windup protection.
+        windup: Windup,
+    },
+    /// A remark on the least-squares start of an iterative method.
+    Start(Box<Note>),
+    /// The LS start simulated unstably; its poles were reflected into the unit circle.
+    StabilisedStart,
+    /// The output-error search: simulation RSS before and after.
+    Refinement {
+        /// RSS of the start.
+        rss_start: f64,
+        /// RSS of the result.
+        rss: f64,
+        /// Jacobian evaluations.
+        iterations: usize,
+        /// Residual evaluations.
+        evaluations: usize,
+        /// The optimiser's termination, in words.
+        stopped: String,
+    },
+    /// An IV stage's auxiliary model was unstable; its poles were reflected.
+    UnstableAuxiliary {
+        /// The stage.
+        stage: usize,
+    },
+    /// IV kept an earlier stage, the one whose model simulates the record best.
+    KeptStage {
+        /// The stage kept.
+        kept: usize,
+        /// Stages run.
+        of: usize,
+    },
+    /// IV stages had not settled.
+    StagesNotSettled {
+        /// Stages run.
+        stages: usize,
+    },
+}
+
+impl std::fmt::Display for Note {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Note::Branches(words) => f.write_str(words),
+            Note::KeyTermLimitCycle { iterations, kept } => write!(
+                f,
+                "key-term iteration entered a limit cycle after {iterations} iterations; kept iterate {kept}, \
+                 the one with the smallest self-consistent residual"
+            ),
+            Note::KeyTermNotConverged { iterations, kept } => write!(
+                f,
+                "key-term iteration did not converge in {iterations} iterations; kept iterate {kept}, the one \
+                 with the smallest self-consistent residual"
+            ),
+            Note::RlsForm { form, windup } => {
+                write!(f, "RLS form {form}, windup protection {windup}")
+            }
+            Note::Start(n) => write!(f, "start (LS): {n}"),
+            Note::StabilisedStart => f.write_str(
+                "the LS start was unstable in simulation; its poles were reflected into the unit circle",
+            ),
+            Note::Refinement {
+                rss_start,
+                rss,
+                iterations,
+                evaluations,
+                stopped,
+            } => write!(
+                f,
+                "output-error refinement: simulation RSS {rss_start:.6e} -> {rss:.6e} in {iterations} iterations \
+                 ({evaluations} evaluations), stopped: {stopped}"
+            ),
+            Note::UnstableAuxiliary { stage } => write!(
+                f,
+                "stage {stage}: the auxiliary model was unstable; its poles were reflected"
+            ),
+            Note::KeptStage { kept, of } => write!(
+                f,
+                "kept stage {kept} of {of}, the one whose model simulates the record best"
+            ),
+            Note::StagesNotSettled { stages } => write!(
+                f,
+                "IV stages had not settled after {stages} stages (relative change >= {IV_SETTLED:e})"
+            ),
+        }
+    }
+}
+
+/// A fitted model with its estimation record: the same type whatever the method.
 #[derive(Debug, Clone)]
-pub struct Identified {
+pub struct Fitted {
     /// The fitted model.
     pub model: Model,
     /// Physical parameters with standard deviations.
@@ -236,12 +525,10 @@ pub struct Identified {
     pub method: Method,
     /// Key-term iterations (LS), passes (RLS), Levenberg–Marquardt iterations (OE) or stages (IV).
     pub iterations: usize,
-    /// LS key-term: reached a fixed point. RLS: the estimate settled (relative change below 1e-3 over the
-    /// last 10 % of the final pass, or between the ends of the last two passes). OE: the optimiser stopped
-    /// on its ftol/xtol/gtol criterion. IV: the stages settled (relative change below 1e-6).
-    pub converged: bool,
-    /// Human-readable remark (limit cycle detected, best iterate kept, ...).
-    pub note: Option<String>,
+    /// How the estimator stopped.
+    pub termination: Termination,
+    /// Remarks, in the order they arose.
+    pub notes: Vec<Note>,
     /// σ̂²: residual variance of the one-step prediction errors, RSS / (N − p).
     pub noise_variance: f64,
     /// RLS only, when requested: the physical parameters (order of `params`) after each update.
@@ -250,78 +537,202 @@ pub struct Identified {
     pub history_samples: Vec<usize>,
 }
 
-/// Identifies a model from `data` with `settings`.
+impl Fitted {
+    /// True when the estimator met its convergence criterion.
+    pub fn converged(&self) -> bool {
+        self.termination.converged()
+    }
+
+    /// The notes in words, joined by "; " (`None` without notes).
+    pub fn note(&self) -> Option<String> {
+        (!self.notes.is_empty()).then(|| {
+            self.notes
+                .iter()
+                .map(ToString::to_string)
+                .collect::<Vec<_>>()
+                .join("; ")
+        })
+    }
+
+    fn new(model: Model, params: Vec<Param>, method: Method, noise_variance: f64) -> Self {
+        Fitted {
+            model,
+            params,
+            method,
+            iterations: 1,
+            termination: Termination::Converged,
+            notes: Vec::new(),
+            noise_variance,
+            history: Vec::new(),
+            history_samples: Vec::new(),
+        }
+    }
+}
+
+/// Identifies a model from `data`: checks the settings and the data, fits, and applies the safeguards
+/// common to every method (no non-finite estimate is returned as a result).
 ///
 /// ```
-/// use sysid::{Dataset, ModelKind};
-/// use sysid::estimate::{identify, IdentifySettings, Method};
+/// use sysid::data::Signals;
+/// use sysid::{identify, Dataset, Identification, Method, ModelKind};
 /// // y(k) = 0.5 y(k-1) + 2 u(k-1), noise-free: LS recovers a1 = -0.5, b1 = 2.
 /// let u: Vec<f64> = (0..50).map(|k| ((k * 7919) % 13) as f64 - 6.0).collect();
 /// let mut y = vec![0.0; 50];
 /// for k in 1..50 { y[k] = 0.5 * y[k - 1] + 2.0 * u[k - 1]; }
-/// let data = Dataset::new(u, y, 0.01, "doc").unwrap();
-/// let s = IdentifySettings::default().with_kind(ModelKind::Arx).with_orders(1, 1, 1).with_method(Method::Ls);
+/// let data = Dataset::new(Signals { u, y }, 0.01, "doc").unwrap();
+/// let s = Identification::default().with_kind(ModelKind::Arx).with_orders(1, 1, 1).with_method(Method::Ls);
 /// let fit = identify(&data, &s).unwrap();
-/// assert!((fit.model.a[0] + 0.5).abs() < 1e-10 && (fit.model.b[0] - 2.0).abs() < 1e-10);
+/// assert!((fit.model.a()[0] + 0.5).abs() < 1e-10 && (fit.model.b()[0] - 2.0).abs() < 1e-10);
 /// ```
-pub fn identify(data: &Dataset, settings: &IdentifySettings) -> Result<Identified, SysidError> {
-    let s = settings.structure()?;
-    let k0 = s.orders.k0();
-    let p = s.n_params();
-    let n = data.len();
-    if n <= k0 || n - k0 < p {
-        return Err(SysidError::Data(format!(
-            "{}: {n} samples leave {} regression rows for {p} parameters (na = {}, nb = {}, nk = {}); \
-             more data or lower orders are needed",
-            data.name,
-            n.saturating_sub(k0),
-            s.orders.na,
-            s.orders.nb,
-            s.orders.nk
-        )));
-    }
-    let branches = match s.kind {
-        ModelKind::Hammerstein => Branches::of(data, s.offset, settings.drop_unexcited_branch)?,
-        ModelKind::Arx => Branches::all(0.0, 0.0, 0.0),
-    };
-    let mut fit = match settings.method {
-        Method::Ls => least_squares(data, &s, settings, &branches)?,
-        Method::Rls => recursive(data, &s, settings, &branches)?,
-        Method::Oe => output_error(data, &s, settings, &branches)?,
-        Method::Iv => instrumental(data, &s, settings, &branches)?,
-    };
-    if let Some(extra) = branches.note() {
-        fit.note = Some(match fit.note.take() {
-            Some(n) => format!("{extra}; {n}"),
-            None => extra,
-        });
-    }
-    // No silent NaN: an estimate the data do not determine in f64 (magnitudes whose squares underflow
-    // or overflow) is a numerical failure, not a result.
-    if let Some(p) = fit.params.iter().find(|p| !p.value.is_finite()) {
-        return Err(SysidError::Numerical(format!(
-            "{}: the estimate of {} is {} (not finite): the data do not determine it in f64 arithmetic \
-             (values too large or too small? rescale the data)",
-            data.name, p.name, p.value
-        )));
-    }
-    fit.model
-        .check()
-        .map_err(|e| SysidError::Numerical(format!("{}: {e}", data.name)))?;
+pub fn identify(data: &Dataset, settings: &Identification) -> Result<Fitted, SysidError> {
+    settings.check()?;
+    let problem = Problem::new(data, settings.structure, settings.drop_unexcited_branch)?;
+    let mut fit = settings.estimator.fit(&problem)?;
+    let mut notes: Vec<Note> = problem
+        .branches
+        .notes()
+        .into_iter()
+        .map(Note::Branches)
+        .collect();
+    notes.append(&mut fit.notes);
+    fit.notes = notes;
+    check_finite(data, &fit.params)?;
     Ok(fit)
 }
 
-/// LS: plain ARX, or the iterated key-term separation for Hammerstein.
-fn least_squares(
-    data: &Dataset,
-    s: &Structure,
-    st: &IdentifySettings,
-    br: &Branches,
-) -> Result<Identified, SysidError> {
-    match s.kind {
-        ModelKind::Arx => arx_ls(data, s),
-        ModelKind::Hammerstein => hammerstein_ls(data, s, st, br),
+/// No silent NaN: an estimate the data do not determine in f64 (magnitudes whose squares underflow or
+/// overflow) is a numerical failure, not a result.
+fn check_finite(data: &Dataset, params: &[Param]) -> Result<(), SysidError> {
+    match params.iter().find(|p| !p.value.is_finite()) {
+        Some(p) => Err(SysidError::Numerical(format!(
+            "{}: the estimate of {} is {} (not finite): the data do not determine it in f64 arithmetic \
+             (values too large or too small? rescale the data)",
+            data.name, p.name, p.value
+        ))),
+        None => Ok(()),
     }
+}
+
+/// The model of structure `s` from the full key-term θ̂, with the branches' fixed parts imposed; a
+/// non-finite θ̂ is a numerical failure naming the data.
+fn model_from_theta(
+    data: &Dataset,
+    key: &Parameterisation,
+    br: &Branches,
+    theta: &DVector<f64>,
+) -> Result<Model, SysidError> {
+    key.model_of(theta.as_slice(), data.ts)
+        .and_then(|m| m.map_deadzone(|d| br.impose(d)))
+        .map_err(|e| SysidError::Numerical(format!("{}: {e}", data.name)))
+}
+
+fn check_key_term(ls: &LeastSquares) -> Result<(), SysidError> {
+    if ls.max_iterations == 0 || ls.max_iterations > 100_000 {
+        return Err(SysidError::setting(
+            Setting::MaxIterations,
+            ls.max_iterations,
+            "between 1 and 100000",
+        ));
+    }
+    if !(ls.tolerance.is_finite() && ls.tolerance > 0.0) {
+        return Err(SysidError::setting(
+            Setting::Tolerance,
+            ls.tolerance,
+            "a positive number",
+        ));
+    }
+    Ok(())
+}
+
+impl Estimator for LeastSquares {
+    fn method(&self) -> Method {
+        Method::Ls
+    }
+    fn check(&self) -> Result<(), SysidError> {
+        check_key_term(self)
+    }
+    fn fit(&self, p: &Problem) -> Result<Fitted, SysidError> {
+        match p.structure.kind {
+            ModelKind::Arx => arx_ls(p),
+            ModelKind::Hammerstein => hammerstein_ls(p, self),
+        }
+    }
+}
+
+fn check_recursive(forgetting: f64, p0: f64, passes: usize) -> Result<(), SysidError> {
+    rls::check_settings(forgetting, p0)?;
+    if passes == 0 || passes > 1000 {
+        return Err(SysidError::setting(
+            Setting::Passes,
+            passes,
+            "between 1 and 1000 passes",
+        ));
+    }
+    Ok(())
+}
+
+impl Estimator for RecursiveLeastSquares {
+    fn method(&self) -> Method {
+        Method::Rls
+    }
+    fn check(&self) -> Result<(), SysidError> {
+        check_recursive(self.forgetting, self.p0, self.passes)?;
+        if let Some(t) = self.max_trace {
+            if !(t.is_finite() && t > 0.0) {
+                return Err(SysidError::setting(
+                    Setting::MaxTrace,
+                    t,
+                    "a positive, finite bound on tr P",
+                ));
+            }
+        }
+        Ok(())
+    }
+    fn fit(&self, p: &Problem) -> Result<Fitted, SysidError> {
+        recursive(p, self)
+    }
+}
+
+impl Estimator for OutputError {
+    fn method(&self) -> Method {
+        Method::Oe
+    }
+    fn check(&self) -> Result<(), SysidError> {
+        check_key_term(&self.start)?;
+        check_key_term(&LeastSquares {
+            max_iterations: self.max_iterations,
+            tolerance: 1.0,
+        })
+    }
+    fn fit(&self, p: &Problem) -> Result<Fitted, SysidError> {
+        output_error(p, self)
+    }
+}
+
+impl Estimator for InstrumentalVariables {
+    fn method(&self) -> Method {
+        Method::Iv
+    }
+    fn check(&self) -> Result<(), SysidError> {
+        check_key_term(&self.start)?;
+        check_recursive(self.forgetting, self.p0, 1)?;
+        if self.stages == 0 || self.stages > 1000 {
+            return Err(SysidError::setting(
+                Setting::IvStages,
+                self.stages,
+                "between 1 and 1000 stages",
+            ));
+        }
+        Ok(())
+    }
+    fn fit(&self, p: &Problem) -> Result<Fitted, SysidError> {
+        instrumental(p, self)
+    }
+}
+
+/// LS start of the iterative methods: plain ARX or the key-term iteration.
+fn least_squares(p: &Problem, st: &LeastSquares) -> Result<Fitted, SysidError> {
+    st.fit(p)
 }
 
 /// Least squares over the free columns of Φ; θ and (ΦᵀΦ)⁻¹ are returned at full size with zeros for
@@ -329,46 +740,38 @@ fn least_squares(
 fn solve_free(
     phi: &DMatrix<f64>,
     y: &DVector<f64>,
-    free: &[bool],
-    names: &[String],
+    key: &Parameterisation,
 ) -> Result<ls::LsSolution, SysidError> {
-    if free.iter().all(|f| *f) {
-        return ls::solve(phi, y, names);
+    let names = key.name_strings();
+    if key.all_free() {
+        return ls::solve(phi, y, &names);
     }
-    let idx: Vec<usize> = (0..free.len()).filter(|&i| free[i]).collect();
+    let idx = key.free_indices();
     let sub = phi.select_columns(idx.iter());
     let sub_names: Vec<String> = idx.iter().map(|&i| names[i].clone()).collect();
     let sol = ls::solve(&sub, y, &sub_names)?;
-    let p = free.len();
-    let mut theta = DVector::zeros(p);
-    let mut inv_gram = DMatrix::zeros(p, p);
-    for (a, &i) in idx.iter().enumerate() {
-        theta[i] = sol.theta[a];
-        for (b, &j) in idx.iter().enumerate() {
-            inv_gram[(i, j)] = sol.inv_gram[(a, b)];
-        }
-    }
+    let zeros = vec![0.0; key.len()];
     Ok(ls::LsSolution {
-        theta,
-        inv_gram,
+        theta: DVector::from_vec(key.scatter(sol.theta.as_slice(), &zeros)),
+        inv_gram: key.scatter_matrix(&sol.inv_gram),
         rss: sol.rss,
     })
 }
 
 /// Physical parameters, with the fixed deadzone entries set from the model and without a standard deviation.
 fn params_with_branches(
-    s: &Structure,
+    p: &Problem,
     theta: &DVector<f64>,
     cov: Option<&DMatrix<f64>>,
     model: &Model,
-    br: &Branches,
 ) -> Vec<Param> {
+    let s = &p.structure;
     let mut params = physical_params(s, theta, cov);
-    if let (ModelKind::Hammerstein, Some(d)) = (s.kind, model.deadzone.as_ref()) {
-        let free = br.free_physical(s);
+    if let (ModelKind::Hammerstein, Some(d)) = (s.kind, model.deadzone()) {
+        let free = p.branches.parameterisation(s, Layout::Physical);
         let values = [d.b_l, d.b_r, d.m_l, d.m_r];
         for i in 0..4 {
-            if !free[i] {
+            if !free.free()[i] {
                 params[i].value = values[i];
                 params[i].std = None;
             }
@@ -377,53 +780,32 @@ fn params_with_branches(
     params
 }
 
-/// The key-term θ = [m_r, m_r b_r, m_l, m_l b_l, a.., b2.., c] (ARX: [a.., b.., c]) of a model.
-fn theta_of_model(m: &Model) -> DVector<f64> {
-    let mut v = Vec::new();
-    let skip = match &m.deadzone {
-        Some(d) => {
-            v.extend([d.m_r, d.m_r * d.b_r, d.m_l, d.m_l * d.b_l]);
-            1
-        }
-        None => 0,
-    };
-    v.extend_from_slice(&m.a);
-    v.extend(m.b.iter().skip(skip));
-    v.extend(m.offset);
-    DVector::from_vec(v)
-}
-
 /// Output-error refinement from the LS (key-term) estimate.
-fn output_error(
-    data: &Dataset,
-    s: &Structure,
-    st: &IdentifySettings,
-    br: &Branches,
-) -> Result<Identified, SysidError> {
-    let start = least_squares(data, s, st, br)?;
-    let free = br.free_physical(s);
-    let fit = oe::refine(data, s, &free, &start.model, st.max_iterations)?;
+fn output_error(p: &Problem, st: &OutputError) -> Result<Fitted, SysidError> {
+    let start = least_squares(p, &st.start)?;
+    let physical = p.branches.parameterisation(&p.structure, Layout::Physical);
+    let fit = oe::refine(p.data, &physical, &start.model, st.max_iterations)?;
     let mut notes = Vec::new();
-    if let Some(n) = &start.note {
-        notes.push(format!("start (LS): {n}"));
-    }
+    notes.extend(start.notes.into_iter().map(|n| Note::Start(Box::new(n))));
     if fit.stabilised_start {
-        notes.push("the LS start was unstable in simulation; its poles were reflected into the unit circle".into());
+        notes.push(Note::StabilisedStart);
     }
-    notes.push(format!(
-        "output-error refinement: simulation RSS {:.6e} -> {:.6e} in {} iterations ({} evaluations), stopped: {}",
-        fit.rss_start, fit.rss, fit.iterations, fit.evaluations, fit.termination
-    ));
-    Ok(Identified {
-        model: fit.model,
-        params: fit.params,
-        method: Method::Oe,
+    notes.push(Note::Refinement {
+        rss_start: fit.rss_start,
+        rss: fit.rss,
         iterations: fit.iterations,
-        converged: fit.converged,
-        note: Some(notes.join("; ")),
-        noise_variance: fit.noise_variance,
-        history: Vec::new(),
-        history_samples: Vec::new(),
+        evaluations: fit.evaluations,
+        stopped: fit.termination.clone(),
+    });
+    Ok(Fitted {
+        iterations: fit.iterations,
+        termination: if fit.converged {
+            Termination::Converged
+        } else {
+            Termination::Stopped(fit.termination)
+        },
+        notes,
+        ..Fitted::new(fit.model, fit.params, Method::Oe, fit.noise_variance)
     })
 }
 
@@ -431,17 +813,12 @@ fn output_error(
 const IV_SETTLED: f64 = 1e-6;
 
 /// Recursive IV in stages, the first stage's instruments from the LS (key-term) estimate.
-fn instrumental(
-    data: &Dataset,
-    s: &Structure,
-    st: &IdentifySettings,
-    br: &Branches,
-) -> Result<Identified, SysidError> {
-    let start = least_squares(data, s, st, br)?;
-    let free = br.free_theta(s);
-    let idx: Vec<usize> = (0..free.len()).filter(|&i| free[i]).collect();
+fn instrumental(p: &Problem, st: &InstrumentalVariables) -> Result<Fitted, SysidError> {
+    let (data, s) = (p.data, &p.structure);
+    let start = least_squares(p, &st.start)?;
+    let key = p.key_term();
     let mut aux = start.model.clone();
-    let mut theta_full = theta_of_model(&aux);
+    let mut theta_full = DVector::from_vec(key.vector_of(&aux));
     let mut best = None;
     let mut converged = false;
     let mut stages = 0;
@@ -455,36 +832,25 @@ fn instrumental(
         let mean = data.y[..k0].iter().sum::<f64>() / k0 as f64;
         y_init[..k0].fill(mean);
     }
-    for stage in 1..=st.iv_stages {
+    for stage in 1..=st.stages {
         stages = stage;
         let y_aux = match aux.simulate(&data.u, &y_init) {
             Ok(y) => y,
             Err(_) => {
-                aux.a = oe::stabilise(&aux.a);
-                notes.push(format!(
-                    "stage {stage}: the auxiliary model was unstable; its poles were reflected"
-                ));
+                let a = oe::stabilise(aux.a());
+                aux = aux.with_a(a)?;
+                notes.push(Note::UnstableAuxiliary { stage });
                 aux.simulate(&data.u, &y_init)?
             }
         };
-        let dz = aux.deadzone.unwrap_or(Deadzone {
-            b_l: 0.0,
-            b_r: 0.0,
-            m_l: 0.0,
-            m_r: 0.0,
-        });
-        let theta0 = DVector::from_iterator(idx.len(), idx.iter().map(|&i| theta_full[i]));
-        let pass = iv::pass(data, s, &dz, &y_aux, &free, &theta0, st.forgetting, st.p0)?;
-        let mut next = DVector::zeros(free.len());
-        for (q, &i) in idx.iter().enumerate() {
-            next[i] = pass.theta[q];
-        }
+        let dz = aux.deadzone().copied().unwrap_or(ZERO_DEADZONE);
+        let theta0 = DVector::from_vec(key.gather(theta_full.as_slice()));
+        let pass = iv::pass(data, s, &dz, &y_aux, key.free(), &theta0, st.forgetting, st.p0)?;
+        let next = DVector::from_vec(key.scatter(pass.theta.as_slice(), &vec![0.0; key.len()]));
         let change = (&next - &theta_full).norm() / (1e-300 + next.norm());
         theta_full = next;
-        let mut model = model_from_theta(s, &theta_full, data.ts);
-        if let Some(d) = model.deadzone.as_mut() {
-            br.impose(d);
-        }
+        check_finite(data, &physical_params(s, &theta_full, None))?;
+        let model = model_from_theta(data, &key, &p.branches, &theta_full)?;
         // Keep the stage whose model simulates the record best (from rest, as the instruments do).
         let sim_rss = model
             .simulate(&data.u, &y_init)
@@ -512,36 +878,27 @@ fn instrumental(
         return Err(SysidError::Numerical("IV produced no estimate".into()));
     };
     if best_stage != stages {
-        notes.push(format!(
-            "kept stage {best_stage} of {stages}, the one whose model simulates the record best"
-        ));
+        notes.push(Note::KeptStage {
+            kept: best_stage,
+            of: stages,
+        });
     }
     let rss = prediction_rss(&aux, data)?;
-    let sigma2 = rss / (data.len() - k0).saturating_sub(idx.len()).max(1) as f64;
-    let cov = iv::covariance(&pass, sigma2).map(|c| {
-        let mut full = DMatrix::zeros(free.len(), free.len());
-        for (a, &i) in idx.iter().enumerate() {
-            for (b, &j) in idx.iter().enumerate() {
-                full[(i, j)] = c[(a, b)];
-            }
-        }
-        full
-    });
+    let sigma2 = rss / (data.len() - k0).saturating_sub(key.n_free()).max(1) as f64;
+    let cov = iv::covariance(&pass, sigma2).map(|c| key.scatter_matrix(&c));
     if !converged {
-        notes.push(format!(
-            "IV stages had not settled after {stages} stages (relative change >= {IV_SETTLED:e})"
-        ));
+        notes.push(Note::StagesNotSettled { stages });
     }
-    Ok(Identified {
-        params: params_with_branches(s, &theta_full, cov.as_ref(), &aux, br),
-        model: aux,
-        method: Method::Iv,
+    Ok(Fitted {
+        params: params_with_branches(p, &theta_full, cov.as_ref(), &aux),
         iterations: stages,
-        converged,
-        note: (!notes.is_empty()).then(|| notes.join("; ")),
-        noise_variance: sigma2,
-        history: Vec::new(),
-        history_samples: Vec::new(),
+        termination: if converged {
+            Termination::Converged
+        } else {
+            Termination::NotSettled
+        },
+        notes,
+        ..Fitted::new(aux, Vec::new(), Method::Iv, sigma2)
     })
 }
 
@@ -552,9 +909,14 @@ fn physical_params(s: &Structure, theta: &DVector<f64>, cov: Option<&DMatrix<f64
             .filter(|v| v.is_finite() && *v >= 0.0)
             .map(f64::sqrt)
     };
-    let names = s.theta_names();
+    let names = Parameterisation::new(*s, Layout::KeyTerm).names();
     let mut out = Vec::new();
     let mut first = 0;
+    let b1 = || Param {
+        name: ParamName::B(1),
+        value: 1.0,
+        std: None,
+    };
     if s.kind == ModelKind::Hammerstein {
         // b = θ_j / θ_i; gradient (−θ_j/θ_i², 1/θ_i).
         let ratio = |i: usize, j: usize| {
@@ -573,22 +935,22 @@ fn physical_params(s: &Structure, theta: &DVector<f64>, cov: Option<&DMatrix<f64
         let (bl, bl_sd) = ratio(2, 3);
         let (br, br_sd) = ratio(0, 1);
         out.push(Param {
-            name: "b_l".into(),
+            name: ParamName::BL,
             value: bl,
             std: bl_sd,
         });
         out.push(Param {
-            name: "b_r".into(),
+            name: ParamName::BR,
             value: br,
             std: br_sd,
         });
         out.push(Param {
-            name: "m_l".into(),
+            name: ParamName::ML,
             value: theta[2],
             std: sd(2),
         });
         out.push(Param {
-            name: "m_r".into(),
+            name: ParamName::MR,
             value: theta[0],
             std: sd(0),
         });
@@ -596,95 +958,25 @@ fn physical_params(s: &Structure, theta: &DVector<f64>, cov: Option<&DMatrix<f64
     }
     for (i, name) in names.iter().enumerate().skip(first) {
         if s.kind == ModelKind::Hammerstein && i == first + s.orders.na {
-            out.push(Param {
-                name: "b1".into(),
-                value: 1.0,
-                std: None,
-            });
+            out.push(b1());
         }
         out.push(Param {
-            name: name.clone(),
+            name: *name,
             value: theta[i],
             std: sd(i),
         });
     }
     if s.kind == ModelKind::Hammerstein && names.len() == first + s.orders.na {
-        out.push(Param {
-            name: "b1".into(),
-            value: 1.0,
-            std: None,
-        });
+        out.push(b1());
     }
     out
 }
 
-/// Builds the fitted model from θ̂ (the deadzone breakpoints are the ratios θ2/θ1 and θ4/θ3).
-fn model_from_theta(s: &Structure, theta: &DVector<f64>, ts: f64) -> Model {
-    let o = s.orders;
-    let mut i = 0;
-    let deadzone = (s.kind == ModelKind::Hammerstein).then(|| {
-        i = 4;
-        deadzone_from_theta(
-            theta.as_slice(),
-            Deadzone {
-                b_l: 0.0,
-                b_r: 0.0,
-                m_l: 0.0,
-                m_r: 0.0,
-            },
-            f64::INFINITY,
-        )
-    });
-    let a: Vec<f64> = theta.as_slice()[i..i + o.na].to_vec();
-    i += o.na;
-    let b: Vec<f64> = match s.kind {
-        ModelKind::Arx => {
-            let b = theta.as_slice()[i..i + o.nb].to_vec();
-            i += o.nb;
-            b
-        }
-        ModelKind::Hammerstein => {
-            let mut b = vec![1.0];
-            b.extend_from_slice(&theta.as_slice()[i..i + o.nb - 1]);
-            i += o.nb - 1;
-            b
-        }
-    };
-    let offset = s.offset.then(|| theta[i]);
-    Model {
-        kind: s.kind,
-        ts,
-        na: o.na,
-        nb: o.nb,
-        nk: o.nk,
-        a,
-        b,
-        offset,
-        deadzone,
-    }
-}
-
-/// Deadzone from θ = [m_r, m_r b_r, m_l, m_l b_l, ...]. A breakpoint whose ratio is not finite (slope
-/// 0) keeps its `prev` value; breakpoints are clamped to ±`limit` so that a wild early estimate cannot
-/// switch a branch off for the whole record.
-fn deadzone_from_theta(theta: &[f64], prev: Deadzone, limit: f64) -> Deadzone {
-    let ratio = |num: f64, den: f64, prev: f64| {
-        let r = num / den;
-        if r.is_finite() {
-            r.clamp(-limit, limit)
-        } else {
-            prev
-        }
-    };
-    Deadzone {
-        b_r: ratio(theta[1], theta[0], prev.b_r),
-        b_l: ratio(theta[3], theta[2], prev.b_l),
-        m_r: theta[0],
-        m_l: theta[2],
-    }
-}
-
-fn build_regression(data: &Dataset, s: &Structure, dz: &Deadzone) -> (DMatrix<f64>, DVector<f64>) {
+fn build_regression(
+    data: &Dataset,
+    s: &Structure,
+    dz: &sysid_core::Deadzone,
+) -> (DMatrix<f64>, DVector<f64>) {
     let k0 = s.orders.k0();
     let rows = data.len() - k0;
     let p = s.n_params();
@@ -701,29 +993,18 @@ fn build_regression(data: &Dataset, s: &Structure, dz: &Deadzone) -> (DMatrix<f6
     (phi, y)
 }
 
-fn arx_ls(data: &Dataset, s: &Structure) -> Result<Identified, SysidError> {
-    let dz = Deadzone {
-        b_l: 0.0,
-        b_r: 0.0,
-        m_l: 0.0,
-        m_r: 0.0,
-    };
-    let (phi, y) = build_regression(data, s, &dz);
-    let sol = ls::solve(&phi, &y, &s.theta_names()).map_err(|e| context(data, e))?;
+fn arx_ls(p: &Problem) -> Result<Fitted, SysidError> {
+    let (data, s) = (p.data, &p.structure);
+    let (phi, y) = build_regression(data, s, &ZERO_DEADZONE);
+    let key = p.key_term();
+    let sol = ls::solve(&phi, &y, &key.name_strings()).map_err(|e| context(data, e))?;
     let dof = (phi.nrows() - phi.ncols()).max(1) as f64;
     let sigma2 = sol.rss / dof;
     let cov = &sol.inv_gram * sigma2;
-    Ok(Identified {
-        model: model_from_theta(s, &sol.theta, data.ts),
-        params: physical_params(s, &sol.theta, Some(&cov)),
-        method: Method::Ls,
-        iterations: 1,
-        converged: true,
-        note: None,
-        noise_variance: sigma2,
-        history: Vec::new(),
-        history_samples: Vec::new(),
-    })
+    let params = physical_params(s, &sol.theta, Some(&cov));
+    check_finite(data, &params)?;
+    let model = model_from_theta(data, &key, &p.branches, &sol.theta)?;
+    Ok(Fitted::new(model, params, Method::Ls, sigma2))
 }
 
 fn context(data: &Dataset, e: SysidError) -> SysidError {
@@ -736,7 +1017,7 @@ fn context(data: &Dataset, e: SysidError) -> SysidError {
 /// Sum of squared one-step prediction errors of `model` over rows k >= k0 (the self-consistent residual:
 /// switching functions and x from the model itself).
 fn prediction_rss(model: &Model, data: &Dataset) -> Result<f64, SysidError> {
-    let k0 = model.orders().k0();
+    let k0 = model.k0();
     let yhat = model.predict(&data.u, &data.y)?;
     Ok(data.y[k0..]
         .iter()
@@ -745,17 +1026,12 @@ fn prediction_rss(model: &Model, data: &Dataset) -> Result<f64, SysidError> {
         .sum())
 }
 
-fn hammerstein_ls(
-    data: &Dataset,
-    s: &Structure,
-    st: &IdentifySettings,
-    br: &Branches,
-) -> Result<Identified, SysidError> {
+fn hammerstein_ls(p: &Problem, st: &LeastSquares) -> Result<Fitted, SysidError> {
+    let (data, s, br) = (p.data, &p.structure, &p.branches);
     let limit = br.limit;
     // Initial switching: h_r = [u > 0], h_l = [u < 0] (breakpoints at the smallest commands).
     let mut dz = br.initial_deadzone();
-    let free = br.free_theta(s);
-    let names = s.theta_names();
+    let key = p.key_term();
     let mut seen: Vec<DVector<f64>> = Vec::new();
     let mut best: Option<(f64, DVector<f64>, ls::LsSolution, usize)> = None;
     let mut converged = false;
@@ -764,7 +1040,7 @@ fn hammerstein_ls(
     for it in 1..=st.max_iterations {
         iterations = it;
         let (phi, y) = build_regression(data, s, &dz);
-        let sol = match solve_free(&phi, &y, &free, &names) {
+        let sol = match solve_free(&phi, &y, &key) {
             Ok(sol) => sol,
             // A later iterate's breakpoints can leave a branch with too few distinct commands: stop and keep
             // the best iterate so far (reported in the note as not converged).
@@ -772,8 +1048,9 @@ fn hammerstein_ls(
             Err(e) => return Err(context(data, e)),
         };
         let theta = sol.theta.clone();
-        let model = model_from_theta(s, &theta, data.ts);
-        let rss = prediction_rss(&model, data).unwrap_or(f64::INFINITY);
+        let rss = model_from_theta(data, &key, br, &theta)
+            .and_then(|m| prediction_rss(&m, data))
+            .unwrap_or(f64::INFINITY);
         if best.as_ref().is_none_or(|b| rss < b.0) {
             best = Some((rss, theta.clone(), sol, it));
         }
@@ -802,72 +1079,37 @@ fn hammerstein_ls(
             "key-term iteration produced no estimate".into(),
         ));
     };
-    let note = if converged {
-        None
+    let (termination, notes) = if converged {
+        (Termination::Converged, Vec::new())
     } else if cycle {
-        Some(format!(
-            "key-term iteration entered a limit cycle after {iterations} iterations; kept iterate {best_it}, \
-             the one with the smallest self-consistent residual"
-        ))
+        (
+            Termination::LimitCycle,
+            vec![Note::KeyTermLimitCycle {
+                iterations,
+                kept: best_it,
+            }],
+        )
     } else {
-        Some(format!(
-            "key-term iteration did not converge in {iterations} iterations; kept iterate {best_it}, the one \
-             with the smallest self-consistent residual"
-        ))
+        (
+            Termination::IterationLimit,
+            vec![Note::KeyTermNotConverged {
+                iterations,
+                kept: best_it,
+            }],
+        )
     };
     let rows = data.len() - s.orders.k0();
-    let n_free = free.iter().filter(|f| **f).count();
-    let sigma2 = rss / (rows.saturating_sub(n_free).max(1)) as f64;
+    let sigma2 = rss / (rows.saturating_sub(key.n_free()).max(1)) as f64;
     let cov = &sol.inv_gram * sigma2;
-    let mut model = model_from_theta(s, &theta, data.ts);
-    if let Some(d) = model.deadzone.as_mut() {
-        br.impose(d);
-    }
-    Ok(Identified {
-        params: params_with_branches(s, &theta, Some(&cov), &model, br),
-        model,
-        method: Method::Ls,
+    check_finite(data, &physical_params(s, &theta, None))?;
+    let model = model_from_theta(data, &key, br, &theta)?;
+    Ok(Fitted {
+        params: params_with_branches(p, &theta, Some(&cov), &model),
         iterations,
-        converged,
-        note,
-        noise_variance: sigma2,
-        history: Vec::new(),
-        history_samples: Vec::new(),
+        termination,
+        notes,
+        ..Fitted::new(model, Vec::new(), Method::Ls, sigma2)
     })
-}
-
-/// The recursive estimator behind `--method rls`: the paper's RLS ([`Rls`]) when no robust option is
-/// asked for, otherwise [`RobustRls`].
-enum Recursive {
-    Paper(Rls),
-    Robust(RobustRls),
-}
-
-impl Recursive {
-    fn theta(&self) -> &DVector<f64> {
-        match self {
-            Recursive::Paper(r) => &r.theta,
-            Recursive::Robust(r) => &r.theta,
-        }
-    }
-    fn update(&mut self, phi: &[f64], y: f64, k: usize) -> Result<f64, SysidError> {
-        match self {
-            Recursive::Paper(r) => r.update(phi, y, k),
-            Recursive::Robust(r) => r.update(phi, y, k),
-        }
-    }
-    fn restart_covariance(&mut self, p0: f64) {
-        match self {
-            Recursive::Paper(r) => r.restart_covariance(p0),
-            Recursive::Robust(r) => r.restart_covariance(p0),
-        }
-    }
-    fn covariance(&self) -> DMatrix<f64> {
-        match self {
-            Recursive::Paper(r) => r.p.clone(),
-            Recursive::Robust(r) => r.covariance(),
-        }
-    }
 }
 
 /// RLS for ARX, and recursive key-term separation for Hammerstein. First pass (the paper's scheme):
@@ -875,41 +1117,33 @@ impl Recursive {
 /// Later passes restart P = p0 I, keep θ̂ and evaluate the switching functions and x̂ with the estimate
 /// the pass started from, so each pass is the recursive solution of one key-term LS step regularised
 /// towards the previous estimate; the passes converge to the batch key-term fixed point.
-fn recursive(
-    data: &Dataset,
-    s: &Structure,
-    st: &IdentifySettings,
-    br: &Branches,
-) -> Result<Identified, SysidError> {
+fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitted, SysidError> {
+    let (data, s, br) = (p.data, &p.structure, &p.branches);
     let k0 = s.orders.k0();
     let n = data.len();
-    let free = br.free_theta(s);
-    let idx: Vec<usize> = (0..free.len()).filter(|&i| free[i]).collect();
-    let p = idx.len();
-    let mut est = if st.rls_form == RlsForm::Standard && st.windup == Windup::None {
-        Recursive::Paper(Rls::new(p, st.forgetting, st.p0)?)
-    } else {
-        Recursive::Robust(RobustRls::new(
-            p,
-            st.forgetting,
-            st.p0,
-            st.rls_form,
-            st.windup,
-            st.max_trace,
-        )?)
-    };
+    let key = p.key_term();
+    let idx = key.free_indices();
+    let np = idx.len();
+    let mut est: Box<dyn RecursiveUpdate> =
+        if st.form == RlsForm::Standard && st.windup == Windup::None {
+            Box::new(Rls::new(np, st.forgetting, st.p0)?)
+        } else {
+            Box::new(RobustRls::new(
+                np,
+                st.forgetting,
+                st.p0,
+                st.form,
+                st.windup,
+                st.max_trace,
+            )?)
+        };
     let mut full_row = vec![0.0; s.n_params()];
-    let mut row = vec![0.0; p];
+    let mut row = vec![0.0; np];
     let hammer = s.kind == ModelKind::Hammerstein;
     let mut dz = if hammer {
         br.initial_deadzone()
     } else {
-        Deadzone {
-            b_l: 0.0,
-            b_r: 0.0,
-            m_l: 0.0,
-            m_r: 0.0,
-        }
+        ZERO_DEADZONE
     };
     let limit = br.limit;
     let initial_dz = dz;
@@ -918,26 +1152,21 @@ fn recursive(
     // every sample weighs the same) the regressor matrix of the first pass is rank-tested first, as the
     // batch methods do, and such data are refused with the same message. With forgetting ρ < 1 or windup
     // protection the estimator is being used as a tracker, where spells without excitation are expected.
-    if st.forgetting == 1.0 && st.windup == Windup::None && data.len() - k0 >= p {
+    if st.forgetting == 1.0 && st.windup == Windup::None && data.len() - k0 >= np {
         let (phi, y) = build_regression(data, s, &dz);
         // Only the rank verdict matters here; numerical trouble (overflow) is left to the recursion,
         // which reports the sample where it happens.
-        if let Err(e @ SysidError::Data(_)) = solve_free(&phi, &y, &free, &s.theta_names()) {
+        if let Err(e @ SysidError::Data(_)) = solve_free(&phi, &y, &key) {
             return Err(context(data, e));
         }
     }
-    let expand = |t: &DVector<f64>| {
-        let mut full = DVector::zeros(free.len());
-        for (q, &i) in idx.iter().enumerate() {
-            full[i] = t[q];
-        }
-        full
-    };
+    let zeros = vec![0.0; key.len()];
+    let expand = |t: &[f64]| DVector::from_vec(key.scatter(t, &zeros));
     let mut history = Vec::new();
     let mut history_samples = Vec::new();
     let mut pass_ends: Vec<DVector<f64>> = Vec::new();
     let tail_start = n - (n - k0) / 10;
-    let mut theta_tail = est.theta().clone();
+    let mut theta_tail = DVector::from_column_slice(est.theta());
     for pass in 0..st.passes {
         if pass > 0 {
             est.restart_covariance(st.p0);
@@ -948,7 +1177,7 @@ fn recursive(
         }
         for k in k0..n {
             if k == tail_start {
-                theta_tail.copy_from(est.theta());
+                theta_tail.copy_from_slice(est.theta());
             }
             if hammer && pass == 0 && k > k0 {
                 let full = expand(est.theta());
@@ -963,12 +1192,7 @@ fn recursive(
                 row[q] = full_row[i];
             }
             est.update(&row, s.target(&data.y, k), k)
-                .map_err(|e| match e {
-                    SysidError::Numerical(m) => {
-                        SysidError::Numerical(format!("{}: {m}", data.name))
-                    }
-                    other => other,
-                })?;
+                .map_err(|e| e.context(&data.name))?;
             if st.record_history {
                 history.push(
                     physical_params(s, &expand(est.theta()), None)
@@ -979,45 +1203,39 @@ fn recursive(
                 history_samples.push(k);
             }
         }
-        pass_ends.push(est.theta().clone());
+        pass_ends.push(DVector::from_column_slice(est.theta()));
     }
-    let theta = est.theta().clone();
+    let theta = DVector::from_column_slice(est.theta());
     let rel = |a: &DVector<f64>, b: &DVector<f64>| (a - b).norm() / (1e-300 + b.norm());
     let converged = if pass_ends.len() >= 2 {
         rel(&pass_ends[pass_ends.len() - 2], &theta) < 1e-3
     } else {
         rel(&theta_tail, &theta) < 1e-3
     };
-    let theta_full = expand(&theta);
-    let mut model = model_from_theta(s, &theta_full, data.ts);
-    if let Some(d) = model.deadzone.as_mut() {
-        br.impose(d);
-    }
+    let theta_full = expand(theta.as_slice());
+    check_finite(data, &physical_params(s, &theta_full, None))?;
+    let model = model_from_theta(data, &key, br, &theta_full)?;
     let rss = prediction_rss(&model, data)?;
-    let sigma2 = rss / (n - k0).saturating_sub(p).max(1) as f64;
-    let pc = est.covariance() * sigma2;
-    let mut cov = DMatrix::zeros(free.len(), free.len());
-    for (a, &i) in idx.iter().enumerate() {
-        for (b, &j) in idx.iter().enumerate() {
-            cov[(i, j)] = pc[(a, b)];
-        }
+    let sigma2 = rss / (n - k0).saturating_sub(np).max(1) as f64;
+    let cov = key.scatter_matrix(&(est.covariance() * sigma2));
+    let mut notes = Vec::new();
+    if st.form != RlsForm::Standard || st.windup != Windup::None {
+        notes.push(Note::RlsForm {
+            form: st.form,
+            windup: st.windup,
+        });
     }
-    let mut note = None;
-    if st.rls_form != RlsForm::Standard || st.windup != Windup::None {
-        note = Some(format!(
-            "RLS form {}, windup protection {}",
-            st.rls_form, st.windup
-        ));
-    }
-    Ok(Identified {
-        params: params_with_branches(s, &theta_full, Some(&cov), &model, br),
-        model,
-        method: Method::Rls,
+    Ok(Fitted {
+        params: params_with_branches(p, &theta_full, Some(&cov), &model),
         iterations: st.passes,
-        converged,
-        note,
-        noise_variance: sigma2,
+        termination: if converged {
+            Termination::Converged
+        } else {
+            Termination::NotSettled
+        },
+        notes,
         history,
         history_samples,
+        ..Fitted::new(model, Vec::new(), Method::Rls, sigma2)
     })
 }

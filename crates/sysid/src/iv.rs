@@ -20,8 +20,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use crate::regressor::Structure;
-use crate::{Dataset, Deadzone, SysidError};
+use sysid_core::{Dataset, Deadzone, Structure, SysidError};
 
 /// The result of one recursive IV pass.
 #[derive(Debug, Clone)]

@@ -1,34 +1,30 @@
-//! `sysid`: single-input single-output system identification for the Intelligent Pneumatic Actuator
-//! (and any other SISO system with a CSV of input/output data).
+//! `sysid`: the estimators of ipa-sysid, behind one trait.
 //!
-//! Data flows one way: [`data`] -> model structure ([`model`], [`deadzone`]) -> estimator
-//! ([`estimate`]) -> fitted [`Model`] -> [`validation`] / simulation / [`plant`].
+//! Unfitted settings (one type per method: [`LeastSquares`], [`RecursiveLeastSquares`],
+//! [`OutputError`], [`InstrumentalVariables`]) → [`Estimator::fit`] → a [`Fitted`] model that carries
+//! its diagnostics (termination, notes), the same type whatever the method, so that the safeguards
+//! against a wrongly trusted estimate live in one place ([`estimate::identify`]).
+//!
+//! The model structures, data records, simulation and validation metrics are those of `sysid-core`,
+//! re-exported here for convenience. Recursive updates share one abstraction ([`rls::RecursiveUpdate`]).
 
-pub mod bench;
 pub mod branches;
-pub mod data;
-pub mod deadzone;
-pub mod error;
 pub mod estimate;
-pub mod fast_ls;
 pub mod iv;
 pub mod ls;
-pub mod model;
-pub mod model_file;
-pub mod montecarlo;
 pub mod oe;
 pub mod order;
-pub mod output;
-pub mod plant;
-pub mod regressor;
 pub mod rls;
 pub mod rls_ud;
 pub mod summary;
-pub mod validation;
 pub mod windup;
 
-pub use data::Dataset;
-pub use deadzone::Deadzone;
-pub use error::SysidError;
-pub use model::{Model, ModelKind, ModelPlant, Orders};
-pub use plant::{run_open_loop, Plant};
+pub use estimate::{
+    identify, Estimator, EstimatorSettings, Fitted, Identification, InstrumentalVariables,
+    LeastSquares, Method, Note, OutputError, Param, RecursiveLeastSquares, Termination,
+};
+pub use sysid_core::{
+    data, metrics, model, model_file, nonlinearity, param, plant, structure, Dataset, Deadzone,
+    InputChannel, Model, ModelKind, ModelPlant, Orders, ParamName, Parameterisation, Plant,
+    PlantError, Setting, StaticNonlinearity, Structure, SysidError,
+};

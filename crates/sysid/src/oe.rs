@@ -6,7 +6,7 @@
 //! encoder's quantisation and noise). The simulation error does not regress on noisy past outputs, so its
 //! minimiser is consistent under white output noise (Ljung, *System Identification*, ch. 7–8).
 //!
-//! Parameter vector (the physical parameters, [`physical_vector`]):
+//! Parameter vector (the physical layout of [`Parameterisation`]):
 //! - Hammerstein: θ = [b_l, b_r, m_l, m_r, a1..a_na, b2..b_nb, (c)], b1 = 1 fixed (normalisation);
 //! - ARX: θ = [a1..a_na, b1..b_nb, (c)].
 //!
@@ -43,9 +43,9 @@ use nalgebra::{Complex, DMatrix, DVector, Dyn, Owned};
 
 use crate::estimate::Param;
 use crate::ls;
-use crate::model::poles_of;
-use crate::regressor::Structure;
-use crate::{Dataset, Deadzone, Model, ModelKind, SysidError};
+use sysid_core::model::poles_of;
+use sysid_core::param::{Layout, Parameterisation};
+use sysid_core::{Dataset, Deadzone, Model, ModelKind, ParamName, Structure, SysidError};
 
 /// The result of an output-error refinement.
 #[derive(Debug, Clone)]
@@ -72,80 +72,6 @@ pub struct OeFit {
     pub initial_outputs: Vec<f64>,
     /// The start had to be stabilised.
     pub stabilised_start: bool,
-}
-
-/// Names of the physical parameter vector of `s` (see the module docs).
-pub fn physical_names(s: &Structure) -> Vec<String> {
-    let o = s.orders;
-    let mut v: Vec<String> = Vec::new();
-    if s.kind == ModelKind::Hammerstein {
-        v.extend(["b_l", "b_r", "m_l", "m_r"].map(String::from));
-    }
-    v.extend((1..=o.na).map(|i| format!("a{i}")));
-    let first_b = if s.kind == ModelKind::Hammerstein {
-        2
-    } else {
-        1
-    };
-    v.extend((first_b..=o.nb).map(|j| format!("b{j}")));
-    if s.offset {
-        v.push("c".into());
-    }
-    v
-}
-
-/// The physical parameter vector of `model` in the layout of the module docs.
-pub fn physical_vector(model: &Model) -> Vec<f64> {
-    let mut v = Vec::new();
-    let skip_b1 = match &model.deadzone {
-        Some(d) => {
-            v.extend([d.b_l, d.b_r, d.m_l, d.m_r]);
-            1
-        }
-        None => 0,
-    };
-    v.extend_from_slice(&model.a);
-    v.extend(model.b.iter().skip(skip_b1));
-    v.extend(model.offset);
-    v
-}
-
-/// The model of structure `s` with physical parameters `v` (layout of the module docs).
-pub fn model_from_physical(s: &Structure, v: &[f64], ts: f64) -> Model {
-    let o = s.orders;
-    let mut i = 0;
-    let deadzone = (s.kind == ModelKind::Hammerstein).then(|| {
-        i = 4;
-        Deadzone {
-            b_l: v[0],
-            b_r: v[1],
-            m_l: v[2],
-            m_r: v[3],
-        }
-    });
-    let a = v[i..i + o.na].to_vec();
-    i += o.na;
-    let mut b = Vec::new();
-    if s.kind == ModelKind::Hammerstein {
-        b.push(1.0);
-        b.extend_from_slice(&v[i..i + o.nb - 1]);
-        i += o.nb - 1;
-    } else {
-        b.extend_from_slice(&v[i..i + o.nb]);
-        i += o.nb;
-    }
-    let offset = s.offset.then(|| v[i]);
-    Model {
-        kind: s.kind,
-        ts,
-        na: o.na,
-        nb: o.nb,
-        nk: o.nk,
-        a,
-        b,
-        offset,
-        deadzone,
-    }
 }
 
 /// Reflects the roots of z^n + a1 z^(n−1) + ... + a_n outside the unit circle to 1/p̄ (and pulls roots on
@@ -203,18 +129,33 @@ struct Decoded {
 }
 
 impl Problem<'_> {
+    /// The parts of the model in the physical vector (no validation: an iterate may be non-finite,
+    /// which the simulation then reports).
     fn decode(&self) -> Decoded {
-        let m = model_from_physical(&self.s, &self.full, 1.0);
+        let o = self.s.orders;
+        let v = &self.full;
         let hammer = self.s.kind == ModelKind::Hammerstein;
         let ia = if hammer { 4 } else { 0 };
+        let ib = ia + o.na;
+        let jb0 = usize::from(hammer);
+        let mut b = Vec::with_capacity(o.nb);
+        if hammer {
+            b.push(1.0);
+        }
+        b.extend_from_slice(&v[ib..ib + o.nb - jb0]);
         Decoded {
-            dz: m.deadzone,
-            a: m.a,
-            b: m.b,
-            c: m.offset.unwrap_or(0.0),
+            dz: hammer.then(|| Deadzone {
+                b_l: v[0],
+                b_r: v[1],
+                m_l: v[2],
+                m_r: v[3],
+            }),
+            a: v[ia..ib].to_vec(),
+            b,
+            c: if self.s.offset { v[ib + o.nb - jb0] } else { 0.0 },
             ia,
-            ib: ia + self.s.orders.na,
-            jb0: usize::from(hammer),
+            ib,
+            jb0,
         }
     }
 
@@ -343,20 +284,26 @@ impl Problem<'_> {
     }
 }
 
-/// Refines `start` (structure `s`) by minimising the simulation error on `data`. `free[i]` says whether
-/// entry i of the physical vector is estimated (fixed entries keep the start's value). `patience` bounds
-/// the residual evaluations at patience · (free parameters + 1).
+/// Refines `start` by minimising the simulation error on `data`, over the free entries of `physical`
+/// (a physical-layout parameterisation; fixed entries keep the start's value). `patience` bounds the
+/// residual evaluations at patience · (free parameters + 1).
 pub fn refine(
     data: &Dataset,
-    s: &Structure,
-    free: &[bool],
+    physical: &Parameterisation,
     start: &Model,
     patience: usize,
 ) -> Result<OeFit, SysidError> {
+    let s = physical.structure();
+    let free = physical.free();
+    if physical.layout() != Layout::Physical {
+        return Err(SysidError::Data(
+            "output-error refinement works on the physical parameter layout".into(),
+        ));
+    }
     let k0 = s.orders.k0();
     let n = data.len();
     let np = s.n_params();
-    let mut full = physical_vector(start);
+    let mut full = physical.vector_of(start);
     if full.len() != np || free.len() != np {
         return Err(SysidError::Data(
             "output-error refinement: the start model does not match the structure".into(),
@@ -419,14 +366,13 @@ pub fn refine(
     let jac = problem.sensitivities(&d, &yh, &x);
     let p = free_idx.len();
     let sigma2 = rss / (n - p) as f64;
-    let names = physical_names(s);
+    let names = physical.names();
     let free_names: Vec<String> = free_idx
         .iter()
         .map(|&i| {
             names
                 .get(i)
-                .cloned()
-                .unwrap_or_else(|| format!("y0({})", i - np))
+                .map_or_else(|| format!("y0({})", i - np), ToString::to_string)
         })
         .collect();
     let cov = ls::solve(&jac, &resid, &free_names)
@@ -436,7 +382,7 @@ pub fn refine(
     for (i, name) in names.iter().enumerate() {
         if s.kind == ModelKind::Hammerstein && i == 4 + s.orders.na {
             params.push(Param {
-                name: "b1".into(),
+                name: ParamName::B(1),
                 value: 1.0,
                 std: None,
             });
@@ -446,20 +392,22 @@ pub fn refine(
             (v.is_finite() && v >= 0.0).then(|| v.sqrt())
         });
         params.push(Param {
-            name: name.clone(),
+            name: *name,
             value: problem.full[i],
             std,
         });
     }
     if s.kind == ModelKind::Hammerstein && names.len() == 4 + s.orders.na {
         params.push(Param {
-            name: "b1".into(),
+            name: ParamName::B(1),
             value: 1.0,
             std: None,
         });
     }
     Ok(OeFit {
-        model: model_from_physical(s, &problem.full[..np], data.ts),
+        model: physical
+            .model_of(&problem.full[..np], data.ts)
+            .map_err(|e| SysidError::Numerical(format!("{}: {e}", data.name)))?,
         initial_outputs: problem.full[np..].to_vec(),
         params,
         iterations: problem.jacobians.get(),
@@ -522,7 +470,7 @@ mod tests {
             .map(|k| ((k * 37) % 17) as f64 - 8.0 + 0.25)
             .collect();
         let y: Vec<f64> = (0..200).map(|k| (k as f64 * 0.05).sin()).collect();
-        let data = Dataset::new(u, y, 0.01, "t").unwrap();
+        let data = Dataset::new(Signals { u, y }, 0.01, "t").unwrap();
         let s = Structure {
             kind: ModelKind::Hammerstein,
             orders: crate::Orders {

@@ -6,13 +6,13 @@
 //! Ranking: fit % descending (to 1e-6 %); a structure whose estimation failed or whose simulation diverged
 //! (no fit) comes last; ties go to fewer parameters, then to the smaller AIC.
 
+#[cfg(feature = "parallel")]
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::estimate::{identify, IdentifySettings};
-use crate::model::MAX_ORDER;
-use crate::validation::metrics;
-use crate::{Dataset, Orders, SysidError};
+use crate::estimate::{identify, Identification};
+use sysid_core::metrics::metrics;
+use sysid_core::{Dataset, Orders};
 
 /// One evaluated structure.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -43,39 +43,7 @@ impl Candidate {
     }
 }
 
-/// Parses `a..b` (inclusive) or a single value `a`; `flag` names the option in errors.
-///
-/// ```
-/// assert_eq!(sysid::order::parse_range("1..3", "--na").unwrap(), vec![1, 2, 3]);
-/// assert_eq!(sysid::order::parse_range("4", "--nk").unwrap(), vec![4]);
-/// assert!(sysid::order::parse_range("3..1", "--na").is_err());
-/// ```
-pub fn parse_range(text: &str, flag: &str) -> Result<Vec<usize>, SysidError> {
-    let bad = || {
-        SysidError::setting(
-            flag,
-            text,
-            &format!("an order a..b (inclusive, a <= b) or a single value, at most {MAX_ORDER}"),
-        )
-    };
-    let t = text.trim();
-    let (a, b) = match t.split_once("..") {
-        Some((a, b)) => (
-            a.trim().parse::<usize>().map_err(|_| bad())?,
-            b.trim().parse::<usize>().map_err(|_| bad())?,
-        ),
-        None => {
-            let v = t.parse::<usize>().map_err(|_| bad())?;
-            (v, v)
-        }
-    };
-    if a > b || b > MAX_ORDER {
-        return Err(bad());
-    }
-    Ok((a..=b).collect())
-}
-
-/// Estimates every (na, nb, nk) of the grid with the estimator settings `base` (its orders are
+/// Estimates every (na, nb, nk) of the grid with the identification `base` (its orders are
 /// ignored) and returns the candidates ranked best first. `progress` is called once per structure, from
 /// the worker threads.
 pub fn search(
@@ -84,7 +52,7 @@ pub fn search(
     na: &[usize],
     nb: &[usize],
     nk: &[usize],
-    base: &IdentifySettings,
+    base: &Identification,
     progress: &(dyn Fn() + Sync),
 ) -> Vec<Candidate> {
     let grid: Vec<Orders> = na
@@ -99,14 +67,16 @@ pub fn search(
             })
         })
         .collect();
-    let mut out: Vec<Candidate> = grid
-        .par_iter()
-        .map(|&o| {
-            let c = evaluate(est, val, o, base);
-            progress();
-            c
-        })
-        .collect();
+    let run = |&o: &Orders| {
+        let c = evaluate(est, val, o, base);
+        progress();
+        c
+    };
+    // With the `parallel` feature the structures are estimated on all cores.
+    #[cfg(feature = "parallel")]
+    let mut out: Vec<Candidate> = grid.par_iter().map(run).collect();
+    #[cfg(not(feature = "parallel"))]
+    let mut out: Vec<Candidate> = grid.iter().map(run).collect();
     // Fits are compared to 1e-6 % (rounding noise of an exact fit must not decide); then fewer
     // parameters, then AIC.
     let key = |c: &Candidate| {
@@ -128,7 +98,7 @@ pub fn grid_size(na: &[usize], nb: &[usize], nk: &[usize]) -> usize {
     na.len() * nb.len() * nk.len()
 }
 
-fn evaluate(est: &Dataset, val: Option<&Dataset>, o: Orders, base: &IdentifySettings) -> Candidate {
+fn evaluate(est: &Dataset, val: Option<&Dataset>, o: Orders, base: &Identification) -> Candidate {
     let mut c = Candidate {
         orders: o,
         p: 0,
@@ -139,8 +109,11 @@ fn evaluate(est: &Dataset, val: Option<&Dataset>, o: Orders, base: &IdentifySett
         stable: false,
         error: None,
     };
-    let settings = IdentifySettings {
-        orders: o,
+    let settings = Identification {
+        structure: sysid_core::Structure {
+            orders: o,
+            ..base.structure
+        },
         ..base.clone()
     };
     let fit = match identify(est, &settings) {
@@ -173,7 +146,8 @@ fn evaluate(est: &Dataset, val: Option<&Dataset>, o: Orders, base: &IdentifySett
 mod tests {
     use super::*;
     use crate::estimate::Method;
-    use crate::ModelKind;
+    use sysid_core::data::Signals;
+    use sysid_core::ModelKind;
 
     // Data from y(k) = 0.6 y(k−1) + u(k−2) − 0.3 u(k−3) (na = 1, nb = 2, nk = 2), noise-free: the true
     // structure fits 100 %, and so does every structure containing it; AIC then prefers the fewest parameters.
@@ -186,8 +160,8 @@ mod tests {
         for k in 3..400 {
             y[k] = 0.6 * y[k - 1] + u[k - 2] - 0.3 * u[k - 3];
         }
-        let data = Dataset::new(u, y, 1.0, "t").unwrap();
-        let base = IdentifySettings::default()
+        let data = Dataset::new(Signals { u, y }, 1.0, "t").unwrap();
+        let base = Identification::default()
             .with_kind(ModelKind::Arx)
             .with_method(Method::Ls);
         let r = search(&data, None, &[1, 2], &[1, 2], &[1, 2, 3], &base, &|| {});

@@ -34,21 +34,21 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use crate::SysidError;
+use sysid_core::{Setting, SysidError};
 
 /// Largest parameter count with a kernel compiled for a constant n (larger n use the generic loop).
 pub const MAX_FIXED: usize = 16;
 
 /// The RLS estimator state (θ̂, P) and its settings, with heap storage for any number of parameters.
 ///
-/// P must stay symmetric (it does under [`Rls::update`]; a caller that writes `p` must write a
-/// symmetric matrix).
+/// P stays symmetric positive definite: only [`Rls::update`] and [`Rls::restart_covariance`] write it.
 #[derive(Debug, Clone)]
 pub struct Rls {
     /// θ̂: current parameter estimate.
     pub theta: DVector<f64>,
-    /// P: the matrix proportional to the covariance of θ̂ (symmetric, positive definite).
-    pub p: DMatrix<f64>,
+    /// P: the matrix proportional to the covariance of θ̂ (symmetric, positive definite; private so
+    /// that only the update writes it).
+    p: DMatrix<f64>,
     /// ρ: forgetting factor in (0, 1].
     pub forgetting: f64,
     /// Work vectors P φ and L̃ of the generic loop (n > MAX_FIXED).
@@ -86,6 +86,54 @@ fn kernel_for(n: usize) -> Kernel {
     choose!(1 2 3 4 5 6 7 8 9 10 11 12 13 14 15 16)
 }
 
+/// One recursive least-squares update scheme (the paper's RLS, the fixed-size [`RlsN`], the
+/// UD-factorised and windup-protected [`RobustRls`](crate::rls_ud::RobustRls)): the estimators drive
+/// them through this trait.
+pub trait RecursiveUpdate {
+    /// θ̂: the current estimate.
+    fn theta(&self) -> &[f64];
+    /// One update with regressor φ(k) and measurement y(k); returns the a-priori error ε(k). `sample`
+    /// (k) names the sample in errors.
+    fn update(&mut self, phi: &[f64], y: f64, sample: usize) -> Result<f64, SysidError>;
+    /// Restarts P at p0 · I, keeping θ̂.
+    fn restart_covariance(&mut self, p0: f64);
+    /// P (times σ² the covariance of θ̂).
+    fn covariance(&self) -> DMatrix<f64>;
+}
+
+impl RecursiveUpdate for Rls {
+    fn theta(&self) -> &[f64] {
+        self.theta.as_slice()
+    }
+    fn update(&mut self, phi: &[f64], y: f64, sample: usize) -> Result<f64, SysidError> {
+        Rls::update(self, phi, y, sample)
+    }
+    fn restart_covariance(&mut self, p0: f64) {
+        Rls::restart_covariance(self, p0)
+    }
+    fn covariance(&self) -> DMatrix<f64> {
+        self.p.clone()
+    }
+}
+
+impl<const N: usize> RecursiveUpdate for RlsN<N> {
+    fn theta(&self) -> &[f64] {
+        RlsN::theta(self)
+    }
+    fn update(&mut self, phi: &[f64], y: f64, sample: usize) -> Result<f64, SysidError> {
+        let phi: &[f64; N] = phi
+            .try_into()
+            .map_err(|_| shape_error(N, phi.len(), (N, N)))?;
+        RlsN::update(self, phi, y, sample)
+    }
+    fn restart_covariance(&mut self, p0: f64) {
+        RlsN::restart_covariance(self, p0)
+    }
+    fn covariance(&self) -> DMatrix<f64> {
+        DMatrix::from_fn(N, N, |i, j| self.p(i, j))
+    }
+}
+
 impl Rls {
     /// A new estimator with θ̂(0) = 0 and P(0) = p0 · I.
     pub fn new(n_params: usize, forgetting: f64, p0: f64) -> Result<Self, SysidError> {
@@ -103,6 +151,11 @@ impl Rls {
     /// Number of parameters n.
     pub fn n_params(&self) -> usize {
         self.theta.len()
+    }
+
+    /// P: the matrix proportional to the covariance of θ̂.
+    pub fn p(&self) -> &DMatrix<f64> {
+        &self.p
     }
 
     /// Restarts the covariance at p0 · I while keeping θ̂ (a new pass over the data starts from the
@@ -430,14 +483,14 @@ fn shape_error(n: usize, got: usize, p_shape: (usize, usize)) -> SysidError {
 pub fn check_settings(forgetting: f64, p0: f64) -> Result<(), SysidError> {
     if !(forgetting > 0.0 && forgetting <= 1.0) {
         return Err(SysidError::setting(
-            "--forgetting",
+            Setting::Forgetting,
             forgetting,
             "a forgetting factor in (0, 1]",
         ));
     }
     if !(p0.is_finite() && p0 > 0.0) {
         return Err(SysidError::setting(
-            "--p0",
+            Setting::P0,
             p0,
             "a positive, finite initial covariance scale",
         ));

@@ -21,10 +21,11 @@ use serde::{Deserialize, Serialize};
 
 use crate::rls::check_settings;
 use crate::windup::{directional_gamma, Windup, MIN_EXCITATION};
-use crate::SysidError;
+use sysid_core::{Setting, SysidError};
 
 /// Representation of the RLS covariance (`--rls-form`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum RlsForm {
     /// Dense P updated by the paper's eq. 12 (symmetrised).
@@ -75,7 +76,7 @@ impl RobustRls {
         let max_trace = max_trace.unwrap_or(p0 * n_params as f64);
         if !(max_trace.is_finite() && max_trace > 0.0) {
             return Err(SysidError::setting(
-                "--max-trace",
+                Setting::MaxTrace,
                 max_trace,
                 "a positive, finite bound on tr P",
             ));
@@ -371,5 +372,20 @@ mod tests {
                 assert!(e.trace() <= 3.0 * (1.0 + 1e-12), "{form}: {}", e.trace());
             }
         }
+    }
+}
+
+impl crate::rls::RecursiveUpdate for RobustRls {
+    fn theta(&self) -> &[f64] {
+        self.theta.as_slice()
+    }
+    fn update(&mut self, phi: &[f64], y: f64, sample: usize) -> Result<f64, SysidError> {
+        RobustRls::update(self, phi, y, sample)
+    }
+    fn restart_covariance(&mut self, p0: f64) {
+        RobustRls::restart_covariance(self, p0)
+    }
+    fn covariance(&self) -> DMatrix<f64> {
+        RobustRls::covariance(self)
     }
 }

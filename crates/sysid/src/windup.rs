@@ -24,6 +24,7 @@ use serde::{Deserialize, Serialize};
 
 /// Windup protection (`--windup`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "lowercase")]
 pub enum Windup {
     /// Ordinary exponential forgetting (the paper's eq. 12).

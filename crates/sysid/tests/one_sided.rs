@@ -49,7 +49,7 @@ fn settings(method: Method) -> IdentifySettings {
 fn positive_input_recovers_the_right_branch_exactly() {
     let u = positive_levels(1500, 3);
     let y = simulate(&u, 2.5, 0.03, 0.0);
-    let data = Dataset::new(u, y, 1.0, "pump").unwrap();
+    let data = Dataset::new(Signals { u, y }, 1.0, "pump").unwrap();
     for method in [Method::Ls, Method::Oe, Method::Iv] {
         let fit = identify(&data, &settings(method)).unwrap_or_else(|e| panic!("{method}: {e}"));
         let d = fit.model.deadzone.unwrap();
@@ -88,7 +88,7 @@ fn positive_input_recovers_the_right_branch_exactly() {
 fn with_an_offset_the_breakpoint_below_every_sample_is_absorbed_by_c() {
     let u: Vec<f64> = positive_levels(1500, 5).iter().map(|v| v + 1.5).collect();
     let y = simulate(&u, 1.0, 0.05, 0.2);
-    let data = Dataset::new(u, y, 1.0, "heater").unwrap();
+    let data = Dataset::new(Signals { u, y }, 1.0, "heater").unwrap();
     let fit = identify(&data, &settings(Method::Ls).with_offset(true)).unwrap();
     let d = fit.model.deadzone.unwrap();
     assert_eq!(d.b_r, 0.0);

@@ -63,7 +63,7 @@ fn output_error_recovers_the_paper_model_under_output_noise() {
             .iter()
             .map(|v| v + 0.01 * gauss(&mut rng))
             .collect();
-        let data = Dataset::new(u, y, 0.01, "noisy paper").unwrap();
+        let data = Dataset::new(Signals { u, y }, 0.01, "noisy paper").unwrap();
         let s = IdentifySettings::default().with_method(Method::Oe);
         let fit = identify(&data, &s).unwrap();
         let d = fit.model.deadzone.unwrap();
@@ -100,7 +100,7 @@ fn equation_error_ls_is_biased_on_the_same_data() {
         .iter()
         .map(|v| v + 0.01 * gauss(&mut rng))
         .collect();
-    let data = Dataset::new(u, y, 0.01, "noisy paper").unwrap();
+    let data = Dataset::new(Signals { u, y }, 0.01, "noisy paper").unwrap();
     let fit = identify(&data, &IdentifySettings::default().with_method(Method::Ls)).unwrap();
     let worst = fit
         .model
@@ -126,7 +126,7 @@ fn instrumental_variables_remove_the_output_noise_bias_of_ls() {
         y0[k] = 0.9 * y0[k - 1] + 0.5 * u[k - 1];
     }
     let y: Vec<f64> = y0.iter().map(|v| v + 0.5 * gauss(&mut rng)).collect();
-    let data = Dataset::new(u, y, 1.0, "arx noisy").unwrap();
+    let data = Dataset::new(Signals { u, y }, 1.0, "arx noisy").unwrap();
     let base = IdentifySettings::default()
         .with_kind(ModelKind::Arx)
         .with_orders(1, 1, 1);

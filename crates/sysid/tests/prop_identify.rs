@@ -127,7 +127,7 @@ proptest! {
         method in prop_oneof![Just(Method::Ls), Just(Method::Rls)],
         offset in any::<bool>(),
     ) {
-        let data = Dataset::new(u, y, 0.01, "prop").expect("finite record");
+        let data = Dataset::new(Signals { u, y }, 0.01, "prop").expect("finite record");
         check_outcome(&data, &settings(kind, orders, method, offset))?;
     }
 }
@@ -143,7 +143,7 @@ proptest! {
         orders in (0usize..4, 0usize..3, 0usize..3),
         method in prop_oneof![Just(Method::Iv), Just(Method::Oe)],
     ) {
-        let data = Dataset::new(u, y, 0.01, "prop").expect("finite record");
+        let data = Dataset::new(Signals { u, y }, 0.01, "prop").expect("finite record");
         check_outcome(&data, &settings(kind, orders, method, false))?;
     }
 }

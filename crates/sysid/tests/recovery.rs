@@ -122,7 +122,7 @@ fn check_recovery(method: Method, passes: usize, rel: f64) {
     for (ci, case) in cases().iter().enumerate() {
         let u = staircase(1500, 7 + ci as u64);
         let y = simulate(&u, &case.a, &case.b, case.nk, case.c, Some(&case.dz));
-        let data = Dataset::new(u, y, 0.01, "synthetic").unwrap();
+        let data = Dataset::new(Signals { u, y }, 0.01, "synthetic").unwrap();
         let settings = IdentifySettings::default()
             .with_kind(ModelKind::Hammerstein)
             .with_orders(case.a.len(), case.b.len(), case.nk)
@@ -178,7 +178,7 @@ fn ls_recovers_noise_free_arx_of_several_orders() {
     ] {
         let u = staircase(400, 3);
         let y = simulate(&u, &a, &b, nk, 0.0, None);
-        let data = Dataset::new(u, y, 1.0, "arx").unwrap();
+        let data = Dataset::new(Signals { u, y }, 1.0, "arx").unwrap();
         let s = IdentifySettings::default()
             .with_kind(ModelKind::Arx)
             .with_orders(a.len(), b.len(), nk)
@@ -194,9 +194,7 @@ fn ls_recovers_noise_free_arx_of_several_orders() {
 // Minimising (1-b)² + (2+a)² + (1+2a)² gives b = 1, a = -0.8, RSS = 1.8, σ² = RSS/(3-2).
 #[test]
 fn ls_solves_a_hand_derived_three_row_case() {
-    let data = Dataset::new(
-        vec![1.0, 0.0, 0.0, 1.0],
-        vec![0.0, 1.0, 2.0, 1.0],
+    let data = Dataset::new(Signals { u: vec![1.0, 0.0, 0.0, 1.0], y: vec![0.0, 1.0, 2.0, 1.0] },
         1.0,
         "hand",
     )
@@ -231,7 +229,7 @@ fn rls_equals_the_weighted_regularised_least_squares_closed_form() {
     let mut y = simulate(&u, &a, &b, 1, 0.0, None);
     y.iter_mut().for_each(|v| *v += rng.gen_range(-0.5..0.5));
     for (rho, p0) in [(1.0, 10.0), (0.97, 2.0), (0.9, 1e3), (1.0, 1e6)] {
-        let data = Dataset::new(u.clone(), y.clone(), 1.0, "rls").unwrap();
+        let data = Dataset::new(Signals { u: u.clone(), y: y.clone() }, 1.0, "rls").unwrap();
         let mut s = IdentifySettings::default()
             .with_kind(ModelKind::Arx)
             .with_orders(2, 2, 1)
@@ -270,7 +268,7 @@ fn rls_equals_the_weighted_regularised_least_squares_closed_form() {
 fn one_sided_input_is_refused_for_hammerstein() {
     let u: Vec<f64> = (0..100).map(|k| (k % 7) as f64 + 1.0).collect();
     let y = simulate(&u, &[-0.5], &[1.0], 1, 0.0, None);
-    let data = Dataset::new(u, y, 1.0, "pos").unwrap();
+    let data = Dataset::new(Signals { u, y }, 1.0, "pos").unwrap();
     let e = identify(&data, &IdentifySettings::default().with_method(Method::Ls)).unwrap_err();
     assert!(e.to_string().contains("never negative"), "{e}");
 }
@@ -280,7 +278,7 @@ fn one_sided_input_is_refused_for_hammerstein() {
 fn constant_input_is_refused_as_not_persistently_exciting() {
     let u = vec![3.0; 200];
     let y: Vec<f64> = (0..200).map(|k| (k as f64 * 0.1).sin()).collect();
-    let data = Dataset::new(u, y, 1.0, "const").unwrap();
+    let data = Dataset::new(Signals { u, y }, 1.0, "const").unwrap();
     let s = IdentifySettings::default()
         .with_kind(ModelKind::Arx)
         .with_orders(2, 1, 1)
@@ -298,9 +296,7 @@ fn ls_is_invariant_to_a_huge_common_scale_of_the_data() {
     let u = staircase(400, 9);
     let y = simulate(&u, &a, &b, 1, 0.0, None);
     let big = 1e150;
-    let data = Dataset::new(
-        u.iter().map(|v| v * big).collect(),
-        y.iter().map(|v| v * big).collect(),
+    let data = Dataset::new(Signals { u: u.iter().map(|v| v * big).collect(), y: y.iter().map(|v| v * big).collect() },
         1.0,
         "big",
     )
@@ -321,7 +317,7 @@ fn ls_is_invariant_to_a_huge_common_scale_of_the_data() {
 fn rls_refuses_a_constant_input_as_not_persistently_exciting() {
     let u = vec![3.0; 200];
     let y: Vec<f64> = (0..200).map(|k| (k as f64 * 0.1).sin()).collect();
-    let data = Dataset::new(u, y, 1.0, "const").unwrap();
+    let data = Dataset::new(Signals { u, y }, 1.0, "const").unwrap();
     for kind in [ModelKind::Arx, ModelKind::Hammerstein] {
         let s = IdentifySettings::default()
             .with_kind(kind)

@@ -12,7 +12,7 @@ use sysid::{Dataset, ModelKind};
 const N: usize = 100_000;
 
 fn quiet_data() -> Dataset {
-    Dataset::new(vec![0.0; N], vec![1.0; N], 0.01, "no excitation").unwrap()
+    Dataset::new(Signals { u: vec![0.0; N], y: vec![1.0; N] }, 0.01, "no excitation").unwrap()
 }
 
 fn settings(form: RlsForm, windup: Windup) -> IdentifySettings {

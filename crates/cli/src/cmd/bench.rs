@@ -1,11 +1,11 @@
 //! `ipa-sysid bench`: RLS throughput, identification time and the plant's real-time factor. The timing
-//! loops live in `sysid::bench`; this file parses flags, builds the inputs and prints.
+//! loops live in `sysid_studies::bench`; this file parses flags, builds the inputs and prints.
 
 use std::path::PathBuf;
 
 use anyhow::Context;
 use serde::Serialize;
-use sysid::bench::{
+use sysid_studies::bench::{
     bench_identify, bench_plant, bench_rls, paper_experiment, paper_settings, peak_flops,
 };
 use sysid::estimate::Method;
@@ -123,7 +123,7 @@ fn rls(a: RlsArgs) -> anyhow::Result<()> {
     struct Out {
         benchmark: &'static str,
         #[serde(flatten)]
-        rls: sysid::bench::RlsBench,
+        rls: sysid_studies::bench::RlsBench,
         peak_gflops_build_target: f64,
         fraction_of_peak: f64,
         dependent_add_ns: f64,
@@ -176,8 +176,8 @@ fn identify(a: IdentifyArgs) -> anyhow::Result<()> {
         samples: usize,
         noise_std_mm: f64,
         seed: u64,
-        ls: sysid::bench::IdentifyBench,
-        rls: sysid::bench::IdentifyBench,
+        ls: sysid_studies::bench::IdentifyBench,
+        rls: sysid_studies::bench::IdentifyBench,
     }
     let n = a.samples as usize;
     let u = ipa::input::generate(&ipa::InputSpec::Staircase, n, 0.01, 255.0, a.seed)?;
@@ -185,7 +185,7 @@ fn identify(a: IdentifyArgs) -> anyhow::Result<()> {
     let reps = a.common.repetitions as usize;
     let ls = bench_identify(&data, &paper_settings(Method::Ls), reps)?;
     let rls = bench_identify(&data, &paper_settings(Method::Rls), reps)?;
-    let line = |b: &sysid::bench::IdentifyBench| {
+    let line = |b: &sysid_studies::bench::IdentifyBench| {
         format!(
             "  {:<4} {:>10.1} µs per identification (median {:.1} µs), {} {}, converged: {}\n",
             b.method.to_string(),
@@ -223,7 +223,7 @@ fn plant(a: PlantArgs) -> anyhow::Result<()> {
     struct Out {
         benchmark: &'static str,
         #[serde(flatten)]
-        plant: sysid::bench::PlantBench,
+        plant: sysid_studies::bench::PlantBench,
     }
     let inputs = ipa::spec::spec_input_files(&a.plant, a.plant_config.as_deref());
     let mut p = ipa::plant_from_spec(&a.plant, a.plant_config.as_deref())?;

@@ -50,8 +50,8 @@ pub fn write_output(
             .context("writing to standard output")?;
         return Ok(());
     }
-    sysid::output::refuse_overwrite_input(path, inputs, flag)?;
-    sysid::output::write_atomic(path, content)?;
+    sysid_io::refuse_overwrite_input(path, inputs, flag)?;
+    sysid_io::write_atomic(path, content)?;
     Ok(())
 }
 
@@ -64,15 +64,15 @@ pub fn check_outputs(outputs: &[(&Option<PathBuf>, &str)], inputs: &[&Path]) -> 
         .filter(|(p, _)| p.as_os_str() != "-")
         .collect();
     for (i, (p, flag)) in files.iter().enumerate() {
-        sysid::output::check_writable(p, flag)?;
-        sysid::output::refuse_overwrite_input(p, inputs, flag)?;
+        sysid_io::check_writable(p, flag)?;
+        sysid_io::refuse_overwrite_input(p, inputs, flag)?;
         for (q, other) in &files[..i] {
             if p == q || target(p) == target(q) {
-                anyhow::bail!(sysid::SysidError::setting(
-                    flag,
-                    p.display(),
-                    &format!("a path different from {other}")
-                ));
+                anyhow::bail!(sysid_io::OutputError::Refused {
+                    flag: flag.to_string(),
+                    path: p.to_path_buf(),
+                    expected: format!("a path different from {other}"),
+                });
             }
         }
     }

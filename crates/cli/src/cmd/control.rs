@@ -143,8 +143,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let profile = match (&args.setpoint, &args.profile) {
         (Some(r), None) => {
             if !r.is_finite() {
-                bail!(sysid::SysidError::setting(
-                    "--setpoint",
+                bail!(sysid::SysidError::setting(sysid::Setting::Other("--setpoint"),
                     r,
                     "a finite position in mm"
                 ));
@@ -153,7 +152,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         (None, Some(spec)) => Profile::parse(spec).context("invalid --profile")?,
         _ => bail!(sysid::SysidError::setting(
-            "--setpoint/--profile",
+            sysid::Setting::Other("--setpoint/--profile"),
             "",
             "exactly one of --setpoint MM or --profile SPEC"
         )),
@@ -164,8 +163,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         IntegralArg::PerSample => IntegralForm::PerSample,
     };
     if args.tracking_time.is_some() && args.anti_windup != AntiWindupArg::BackCalculation {
-        bail!(sysid::SysidError::setting(
-            "--tracking-time",
+        bail!(sysid::SysidError::setting(sysid::Setting::Other("--tracking-time"),
             args.tracking_time.unwrap_or_default(),
             "only together with --anti-windup back-calculation"
         ));
@@ -199,8 +197,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                         IntegralForm::PerSample => args.ki / ts,
                     };
                     if ki_per_s == 0.0 || args.kp == 0.0 {
-                        bail!(sysid::SysidError::setting(
-                            "--tracking-time",
+                        bail!(sysid::SysidError::setting(sysid::Setting::Other("--tracking-time"),
                             "(none)",
                             "a tracking time in s (the default Ti = Kp/Ki needs Kp and Ki nonzero)"
                         ));
@@ -221,16 +218,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => None,
         Some(path) => {
             let deadzone = if path.as_os_str() == "paper" {
-                sysid::Model::paper().deadzone
+                sysid::Model::paper().deadzone().copied()
             } else {
                 inputs.push(path.clone());
                 sysid::model_file::read_model(path)
                     .context("cannot read --compensate-deadzone")?
-                    .deadzone
+                    .deadzone()
+                    .copied()
             };
             let Some(deadzone) = deadzone else {
-                bail!(sysid::SysidError::setting(
-                    "--compensate-deadzone",
+                bail!(sysid::SysidError::setting(sysid::Setting::Other("--compensate-deadzone"),
                     path.display(),
                     "a Hammerstein model file (this model is ARX and has no deadzone)"
                 ));
@@ -255,21 +252,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // Output paths: never over an input, and not both to the same file.
     let input_refs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
     if let Some(out) = &args.out {
-        sysid::output::check_writable(out, "--out")?;
-        sysid::output::refuse_overwrite_input(out, &input_refs, "--out")?;
+        sysid_io::check_writable(out, "--out")?;
+        sysid_io::refuse_overwrite_input(out, &input_refs, "--out")?;
     }
     if let Some(json) = args.json.as_ref().filter(|j| j.as_os_str() != "-") {
-        sysid::output::check_writable(json, "--json")?;
-        sysid::output::refuse_overwrite_input(json, &input_refs, "--json")?;
+        sysid_io::check_writable(json, "--json")?;
+        sysid_io::refuse_overwrite_input(json, &input_refs, "--json")?;
         if let Some(out) = &args.out {
             if json == out {
-                bail!(sysid::SysidError::setting(
-                    "--json",
+                bail!(sysid::SysidError::setting(sysid::Setting::Other("--json"),
                     json.display(),
                     "a path different from --out"
                 ));
             }
-            sysid::output::refuse_overwrite_input(json, &[out.as_path()], "--json")?;
+            sysid_io::refuse_overwrite_input(json, &[out.as_path()], "--json")?;
         }
     }
 
@@ -282,8 +278,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.y0,
     )?;
     if trace.len() < 2 {
-        bail!(sysid::SysidError::setting(
-            "--duration",
+        bail!(sysid::SysidError::setting(sysid::Setting::Other("--duration"),
             duration_s,
             &format!("at least one sampling period ({ts} s) to measure a response")
         ));
@@ -302,7 +297,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
 
     if let Some(out) = &args.out {
-        sysid::output::write_atomic(out, trace.to_csv().as_bytes())?;
+        sysid_io::write_atomic(out, trace.to_csv().as_bytes())?;
     }
     let json_to_stdout = args.json.as_ref().is_some_and(|j| j.as_os_str() == "-");
     if let Some(json) = &args.json {
@@ -332,7 +327,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 .write_all(text.as_bytes())
                 .context("writing JSON to standard output")?;
         } else {
-            sysid::output::write_atomic(json, text.as_bytes())?;
+            sysid_io::write_atomic(json, text.as_bytes())?;
         }
     }
 

@@ -2,56 +2,17 @@
 
 use std::path::{Path, PathBuf};
 
-use sysid::estimate::{identify, IdentifySettings, Method};
+use sysid::estimate::{
+    identify, EstimatorSettings, Identification, InstrumentalVariables, LeastSquares, Method,
+    OutputError, RecursiveLeastSquares,
+};
+use sysid::metrics::metrics;
+use sysid::rls_ud::RlsForm;
 use sysid::summary::IdentifyReport;
-use sysid::validation::metrics;
-use sysid::{ModelKind, Orders};
+use sysid::windup::Windup;
+use sysid::{ModelKind, Orders, Structure};
 
 use super::common::{check_outputs, write_output, ColumnArgs, ValidationArgs};
-
-/// Model structure flag values.
-#[derive(Debug, Clone, Copy, clap::ValueEnum)]
-pub enum KindArg {
-    /// Static deadzone (b_l, b_r, m_l, m_r) followed by ARX, b1 = 1.
-    Hammerstein,
-    /// Linear ARX.
-    Arx,
-}
-
-/// Estimator flag values.
-#[derive(Debug, Clone, Copy, clap::ValueEnum)]
-pub enum MethodArg {
-    /// Batch least squares via QR (Hammerstein: iterated key-term separation).
-    Ls,
-    /// Recursive least squares with forgetting (paper eqs. 9-12).
-    Rls,
-    /// Output-error refinement (Levenberg-Marquardt on the simulation error) from the LS estimate:
-    /// unbiased under output (measurement) noise. Batch.
-    Oe,
-    /// Recursive instrumental variables, instruments from an auxiliary model's simulated output:
-    /// unbiased under output noise. Recursive.
-    Iv,
-}
-
-/// RLS covariance form (`--rls-form`).
-#[derive(Debug, Clone, Copy, clap::ValueEnum)]
-pub enum RlsFormArg {
-    /// Dense P, the paper's eq. 12.
-    Standard,
-    /// Bierman's UD factorisation P = U D U^T (numerically robust).
-    Ud,
-}
-
-/// RLS covariance-windup protection (`--windup`).
-#[derive(Debug, Clone, Copy, clap::ValueEnum)]
-pub enum WindupArg {
-    /// Ordinary exponential forgetting.
-    None,
-    /// Scale P down whenever tr P exceeds --max-trace.
-    Trace,
-    /// Directional forgetting: forget only along the measured regressor.
-    Directional,
-}
 
 /// Flags of `identify`.
 #[derive(Debug, clap::Args)]
@@ -64,7 +25,7 @@ pub struct Args {
     pub columns: ColumnArgs,
     /// Model structure.
     #[arg(long, value_enum, default_value = "hammerstein")]
-    pub model: KindArg,
+    pub model: ModelKind,
     /// na: number of poles (order of A).
     #[arg(long, default_value_t = 3)]
     pub na: usize,
@@ -76,7 +37,7 @@ pub struct Args {
     pub nk: usize,
     /// Estimator.
     #[arg(long, value_enum, default_value = "rls")]
-    pub method: MethodArg,
+    pub method: Method,
     /// RLS forgetting factor ρ in (0, 1].
     #[arg(long, default_value_t = 1.0)]
     pub forgetting: f64,
@@ -91,10 +52,10 @@ pub struct Args {
     pub max_iterations: usize,
     /// RLS covariance form.
     #[arg(long, value_enum, default_value = "standard")]
-    pub rls_form: RlsFormArg,
+    pub rls_form: RlsForm,
     /// RLS covariance-windup protection (for long records with periods without excitation).
     #[arg(long, value_enum, default_value = "none")]
-    pub windup: WindupArg,
+    pub windup: Windup,
     /// Bound on tr P for --windup trace (default: p0 times the number of parameters).
     #[arg(long, value_name = "T")]
     pub max_trace: Option<f64>,
@@ -115,44 +76,48 @@ pub struct Args {
 }
 
 impl Args {
-    /// The estimator settings these flags describe.
-    pub fn settings(&self) -> IdentifySettings {
-        IdentifySettings {
-            kind: match self.model {
-                KindArg::Hammerstein => ModelKind::Hammerstein,
-                KindArg::Arx => ModelKind::Arx,
-            },
-            orders: Orders {
-                na: self.na,
-                nb: self.nb,
-                nk: self.nk,
-            },
-            method: match self.method {
-                MethodArg::Ls => Method::Ls,
-                MethodArg::Rls => Method::Rls,
-                MethodArg::Oe => Method::Oe,
-                MethodArg::Iv => Method::Iv,
-            },
-            forgetting: self.forgetting,
-            p0: self.p0,
-            offset: self.offset,
-            passes: self.passes,
+    /// The identification these flags describe.
+    pub fn settings(&self) -> Identification {
+        let start = LeastSquares {
             max_iterations: self.max_iterations,
-            rls_form: match self.rls_form {
-                RlsFormArg::Standard => sysid::rls_ud::RlsForm::Standard,
-                RlsFormArg::Ud => sysid::rls_ud::RlsForm::Ud,
+            ..LeastSquares::default()
+        };
+        let estimator = match self.method {
+            Method::Ls => EstimatorSettings::Ls(start),
+            Method::Rls => EstimatorSettings::Rls(RecursiveLeastSquares {
+                forgetting: self.forgetting,
+                p0: self.p0,
+                passes: self.passes,
+                form: self.rls_form,
+                windup: self.windup,
+                max_trace: self.max_trace,
+                record_history: false,
+            }),
+            Method::Oe => EstimatorSettings::Oe(OutputError {
+                start,
+                max_iterations: self.max_iterations,
+            }),
+            Method::Iv => EstimatorSettings::Iv(InstrumentalVariables {
+                start,
+                forgetting: self.forgetting,
+                p0: self.p0,
+                stages: self.iv_stages,
+            }),
+        };
+        Identification {
+            structure: Structure {
+                kind: self.model,
+                orders: Orders {
+                    na: self.na,
+                    nb: self.nb,
+                    nk: self.nk,
+                },
+                offset: self.offset,
             },
-            windup: match self.windup {
-                WindupArg::None => sysid::windup::Windup::None,
-                WindupArg::Trace => sysid::windup::Windup::Trace,
-                WindupArg::Directional => sysid::windup::Windup::Directional,
-            },
-            max_trace: self.max_trace,
-            iv_stages: self.iv_stages,
+            estimator,
             // A one-sided input (never negative or never positive) drops the unexcited deadzone branch
             // and says so in the report's note.
             drop_unexcited_branch: true,
-            ..IdentifySettings::default()
         }
     }
 }
@@ -163,7 +128,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return super::identify_batch::run(args);
     }
     let settings = args.settings();
-    settings.structure()?; // refuse bad flags before reading anything
+    settings.check()?; // refuse bad flags before reading anything
     let Some(data_path) = args.data.first() else {
         anyhow::bail!("--data needs a file");
     };
@@ -188,7 +153,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         val.as_ref()
             .map(|v| format!("; validation: {} ({} samples)", v.name, v.len()))
             .unwrap_or_default(),
-        report.to_text()
+        crate::text::identify_report(&report)
     );
     if json_to_stdout {
         eprint!("{text}");
@@ -196,12 +161,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         print!("{text}");
     }
     if let Some(path) = &args.json {
-        write_output(path, report.to_json().as_bytes(), &inputs, "--json")?;
+        write_output(path, report.to_json()?.as_bytes(), &inputs, "--json")?;
     }
     if let Some(path) = &args.save_model {
         write_output(
             path,
-            sysid::model_file::to_json(&fit.model).as_bytes(),
+            sysid::model_file::to_json(&fit.model)?.as_bytes(),
             &inputs,
             "--save-model",
         )?;

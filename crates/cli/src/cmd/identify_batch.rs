@@ -10,9 +10,9 @@ use std::time::Instant;
 use anyhow::Context;
 use rayon::prelude::*;
 use serde::Serialize;
-use sysid::estimate::{identify, IdentifySettings};
+use sysid::estimate::{identify, Identification};
 use sysid::summary::IdentifyReport;
-use sysid::validation::metrics;
+use sysid::metrics::metrics;
 use sysid::{Dataset, SysidError};
 
 use super::common::{check_outputs, progress_bar, write_output};
@@ -36,8 +36,7 @@ pub fn expand(paths: &[PathBuf]) -> anyhow::Result<Vec<PathBuf>> {
                 })
                 .collect();
             if found.is_empty() {
-                anyhow::bail!(SysidError::setting(
-                    "--data",
+                anyhow::bail!(SysidError::setting(sysid::Setting::Other("--data"),
                     p.display(),
                     "a folder with at least one *.csv file"
                 ));
@@ -69,10 +68,9 @@ struct Failure {
 /// Runs `identify` in batch mode.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let settings = args.settings();
-    settings.structure()?; // refuse bad flags before reading anything
+    settings.check()?; // refuse bad flags before reading anything
     if args.save_model.is_some() {
-        anyhow::bail!(SysidError::setting(
-            "--save-model",
+        anyhow::bail!(SysidError::setting(sysid::Setting::Other("--save-model"),
             args.save_model
                 .as_deref()
                 .map(Path::display)
@@ -111,7 +109,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 Err(e) => (
                     serde_json::to_string(&Failure {
                         file,
-                        error: format!("{e:#}"),
+                        error: crate::exit::render_chain(&e),
                     }),
                     crate::exit::code(&e),
                 ),
@@ -175,7 +173,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 /// record and on the validation record.
 fn fit_report(
     data: &Dataset,
-    settings: &IdentifySettings,
+    settings: &Identification,
     val: Option<&Dataset>,
 ) -> anyhow::Result<IdentifyReport> {
     let fit = identify(data, settings)?;
@@ -185,9 +183,6 @@ fn fit_report(
             data.name, p.name, p.value
         )));
     }
-    fit.model
-        .check()
-        .map_err(|e| SysidError::Numerical(format!("{}: {e}", data.name)))?;
     let est = metrics(&fit.model, data)?;
     let val_metrics = val.map(|v| metrics(&fit.model, v)).transpose()?;
     Ok(IdentifyReport::new(&fit, settings, est, val_metrics))

@@ -1,17 +1,16 @@
 //! `ipa-sysid montecarlo`: bias and spread of every parameter per estimator under white output noise.
-//! The study is `sysid::montecarlo::study` (parallel, deterministic per seed); this file wires the plants
+//! The study is `sysid_studies::montecarlo::study` (parallel, deterministic per seed); this file wires the plants
 //! (`ipa::plant_from_spec`) and the input design (`ipa::input::generate`) into it.
 
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use ipa::input::{generate, InputSpec};
-use sysid::estimate::{IdentifySettings, Method};
-use sysid::montecarlo::{study, truth_of, StudySettings};
+use sysid::estimate::{Identification, Method};
+use sysid_studies::montecarlo::{study, truth_of, StudySettings};
 use sysid::{Model, ModelKind, Orders};
 
 use super::common::{check_outputs, progress_bar, write_output};
-use super::identify::KindArg;
 
 /// Flags of `montecarlo`.
 #[derive(Debug, clap::Args)]
@@ -45,7 +44,7 @@ pub struct Args {
     pub seed: u64,
     /// Model structure to estimate (default: the plant model's own; hammerstein for `ipa`).
     #[arg(long, value_enum)]
-    pub model: Option<KindArg>,
+    pub model: Option<ModelKind>,
     /// na (default: the plant model's; 3 for `ipa`).
     #[arg(long)]
     pub na: Option<usize>,
@@ -107,12 +106,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // not a study in which every run failed.
     generate(&spec, args.samples, ts_s, args.amplitude, args.seed)?;
     let (kind, orders, offset) = match &truth_model {
-        Some(m) => (m.kind, m.orders(), m.offset.is_some()),
+        Some(m) => (m.kind(), m.orders(), m.offset().is_some()),
         None => (ModelKind::Hammerstein, Orders::PAPER, false),
     };
     let kind = match args.model {
-        Some(KindArg::Arx) => ModelKind::Arx,
-        Some(KindArg::Hammerstein) => ModelKind::Hammerstein,
+        Some(k) => k,
         None => kind,
     };
     let orders = Orders {
@@ -120,18 +118,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         nb: args.nb.unwrap_or(orders.nb),
         nk: args.nk.unwrap_or(orders.nk),
     };
-    let base = IdentifySettings {
-        kind,
-        orders,
-        offset: offset || args.offset,
-        forgetting: args.forgetting,
+    let base = Identification {
+        structure: sysid::Structure {
+            kind,
+            orders,
+            offset: offset || args.offset,
+        },
+        estimator: sysid::EstimatorSettings::Rls(sysid::RecursiveLeastSquares {
+            forgetting: args.forgetting,
+            ..sysid::RecursiveLeastSquares::default()
+        }),
         drop_unexcited_branch: true,
-        ..IdentifySettings::default()
     };
     // The truth is comparable only when the estimated structure is the plant model's own.
     let truth = truth_model
         .as_ref()
-        .filter(|m| m.kind == kind && m.orders() == orders && m.offset.is_some() == base.offset)
+        .filter(|m| {
+            m.kind() == kind && m.orders() == orders && m.offset().is_some() == base.structure.offset
+        })
         .map(truth_of);
     let settings = StudySettings {
         runs: args.runs,
@@ -148,7 +152,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let u = generate(&spec_run, samples, ts_s, amplitude, seed).map_err(|e| e.to_string())?;
         let mut plant =
             ipa::plant_from_spec(&plant_spec, config.as_deref()).map_err(|e| e.to_string())?;
-        let y = sysid::run_open_loop(plant.as_mut(), &u).map_err(|e| e.to_string())?;
+        let y = sysid::plant::run_open_loop(plant.as_mut(), &u).map_err(|e| e.to_string())?;
         Ok((u, y))
     };
     let bar = progress_bar(args.runs as u64, "{bar:40} {pos}/{len} runs {elapsed}");
@@ -166,7 +170,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         orders.na,
         orders.nb,
         orders.nk,
-        if settings.base.offset { " with offset" } else { "" },
+        if settings.base.structure.offset { " with offset" } else { "" },
         if truth.is_none() { " (truth unknown or a different structure: spread only)" } else { "" }
     );
     let text = header + &report.to_text();

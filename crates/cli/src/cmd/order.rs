@@ -3,13 +3,13 @@
 
 use std::path::{Path, PathBuf};
 
-use sysid::estimate::{IdentifySettings, Method};
-use sysid::order::{grid_size, parse_range, search, Candidate};
-use sysid::summary::num;
+use report::format::num;
+use sysid::estimate::{Identification, Method};
+use sysid::model::MAX_ORDER;
+use sysid::order::{grid_size, search, Candidate};
 use sysid::ModelKind;
 
 use super::common::{check_outputs, progress_bar, write_output, ColumnArgs, ValidationArgs};
-use super::identify::{KindArg, MethodArg};
 
 /// Flags of `order`.
 #[derive(Debug, clap::Args)]
@@ -32,10 +32,10 @@ pub struct Args {
     pub nk: String,
     /// Model structure.
     #[arg(long, value_enum, default_value = "arx")]
-    pub model: KindArg,
+    pub model: ModelKind,
     /// Estimator.
     #[arg(long, value_enum, default_value = "ls")]
-    pub method: MethodArg,
+    pub method: Method,
     /// Estimate a constant term c in the linear block.
     #[arg(long)]
     pub offset: bool,
@@ -45,6 +45,32 @@ pub struct Args {
     /// Write the ranking as JSON here (`-` for standard output).
     #[arg(long, value_name = "OUT")]
     pub json: Option<PathBuf>,
+}
+
+/// Parses `a..b` (inclusive) or a single value `a`; `flag` names the option in errors.
+pub fn parse_range(text: &str, flag: &'static str) -> anyhow::Result<Vec<usize>> {
+    let bad = || {
+        sysid::SysidError::setting(
+            sysid::Setting::Other(flag),
+            text,
+            &format!("an order a..b (inclusive, a <= b) or a single value, at most {MAX_ORDER}"),
+        )
+    };
+    let t = text.trim();
+    let (a, b) = match t.split_once("..") {
+        Some((a, b)) => (
+            a.trim().parse::<usize>().map_err(|_| bad())?,
+            b.trim().parse::<usize>().map_err(|_| bad())?,
+        ),
+        None => {
+            let v = t.parse::<usize>().map_err(|_| bad())?;
+            (v, v)
+        }
+    };
+    if a > b || b > MAX_ORDER {
+        return Err(bad().into());
+    }
+    Ok((a..=b).collect())
 }
 
 /// The JSON document of `order --json`.
@@ -61,21 +87,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let na = parse_range(&args.na, "--na")?;
     let nb = parse_range(&args.nb, "--nb")?;
     let nk = parse_range(&args.nk, "--nk")?;
-    let base = IdentifySettings {
-        kind: match args.model {
-            KindArg::Hammerstein => ModelKind::Hammerstein,
-            KindArg::Arx => ModelKind::Arx,
-        },
-        method: match args.method {
-            MethodArg::Ls => Method::Ls,
-            MethodArg::Rls => Method::Rls,
-            MethodArg::Oe => Method::Oe,
-            MethodArg::Iv => Method::Iv,
-        },
-        offset: args.offset,
+    let base = Identification {
         drop_unexcited_branch: true,
-        ..IdentifySettings::default()
-    };
+        ..Identification::default()
+    }
+    .with_kind(args.model)
+    .with_method(args.method)
+    .with_offset(args.offset);
     let mut inputs: Vec<&Path> = vec![&args.data];
     inputs.extend(args.val.validation.as_deref());
     check_outputs(&[(&args.json, "--json")], &inputs)?;
@@ -96,8 +114,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut text = format!(
         "Order search: {} structures ({} model, {} estimator) on {}{}; ranked by {ranked_by}, then fewer parameters, then AIC\n\n",
         ranked.len(),
-        base.kind,
-        base.method,
+        base.structure.kind,
+        sysid::Estimator::method(&base.estimator),
         data.name,
         val.as_ref().map(|v| format!(", validated on {}", v.name)).unwrap_or_default()
     );

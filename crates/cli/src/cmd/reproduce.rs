@@ -3,7 +3,7 @@
 use std::path::PathBuf;
 
 use indicatif::{ProgressBar, ProgressStyle};
-use report::reproduce::{run as reproduce, ReproduceSettings};
+use ipa_reproduce::{run as reproduce, ReproduceSettings};
 
 /// Flags of `reproduce`.
 #[derive(Debug, clap::Args)]
@@ -38,8 +38,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Ok(out) = std::fs::canonicalize(&args.out) {
         for input in ipa::spec::spec_input_files(&args.plant, args.plant_config.as_deref()) {
             if std::fs::canonicalize(input).is_ok_and(|p| p.starts_with(&out)) {
-                anyhow::bail!(sysid::SysidError::setting(
-                    "--out",
+                anyhow::bail!(sysid::SysidError::setting(sysid::Setting::Other("--out"),
                     args.out.display(),
                     &format!(
                         "a folder that does not hold the input file {} (the run writes into it)",

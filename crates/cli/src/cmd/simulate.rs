@@ -56,11 +56,10 @@ struct Record {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let spec: InputSpec = args.input.parse()?;
     if !args.x0.is_finite() {
-        return Err(sysid::SysidError::setting("--x0", args.x0, "a finite position in mm").into());
+        return Err(sysid::SysidError::setting(sysid::Setting::Other("--x0"), args.x0, "a finite position in mm").into());
     }
     if !(args.noise_std.is_finite() && args.noise_std >= 0.0) {
-        return Err(sysid::SysidError::setting(
-            "--noise-std",
+        return Err(sysid::SysidError::setting(sysid::Setting::Other("--noise-std"),
             args.noise_std,
             "a standard deviation >= 0 in mm",
         )
@@ -71,8 +70,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(f) = spec.file() {
         inputs.push(f);
     }
-    sysid::output::check_writable(&args.out, "--out")?;
-    sysid::output::refuse_overwrite_input(&args.out, &inputs, "--out")?;
+    sysid_io::check_writable(&args.out, "--out")?;
+    sysid_io::refuse_overwrite_input(&args.out, &inputs, "--out")?;
     let samples = match (args.samples, spec.file()) {
         (Some(n), _) => n,
         (None, Some(f)) => ipa::input::read_input_file(f)?.len(),
@@ -130,7 +129,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             )?,
             _ => {
                 let u = ipa::generate(&spec, samples, ts, args.amplitude, args.seed)?;
-                let y = sysid::run_open_loop(plant.as_mut(), &u)?;
+                let y = sysid::plant::run_open_loop(plant.as_mut(), &u)?;
                 (u, y)
             }
         };
@@ -143,7 +142,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let y = ipa::input::add_noise(&rec.y, args.noise_std, args.seed);
     let csv = to_csv(&rec, &y);
-    sysid::output::write_atomic(&args.out, csv.as_bytes())?;
+    sysid_io::write_atomic(&args.out, csv.as_bytes())?;
     eprintln!(
         "wrote {} samples (Ts = {} s) to {}",
         rec.u.len(),

@@ -2,7 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
-use sysid::validation::metrics;
+use sysid::metrics::metrics;
 
 use super::common::{check_outputs, write_output, ColumnArgs};
 
@@ -28,15 +28,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     check_outputs(&[(&args.json, "--json")], &inputs)?;
     let model = sysid::model_file::read_model(&args.model)?;
     let mut opts = args.columns.csv_options();
-    opts.fallback_ts = Some(model.ts);
+    opts.fallback_ts = Some(model.ts());
     let data = sysid::data::read_csv(&args.data, &opts)?;
-    if (data.ts - model.ts).abs() > 1e-3 * model.ts {
+    if (data.ts - model.ts()).abs() > 1e-3 * model.ts() {
         anyhow::bail!(
             "{}: the data are sampled at Ts = {} s but the model was identified at Ts = {} s; \
              resample the data or pass the matching --ts",
             data.name,
             data.ts,
-            model.ts
+            model.ts()
         );
     }
     let m = metrics(&model, &data)?;
@@ -53,8 +53,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         data.len(),
         m.fit_sim_percent.map_or("n/a".into(), |v| format!("{v:.2}")),
         m.fit_pred_percent.map_or("n/a".into(), |v| format!("{v:.2}")),
-        sysid::summary::num(m.loss),
-        m.fpe.map_or("n/a".into(), sysid::summary::num),
+        report::format::num(m.loss),
+        m.fpe.map_or("n/a".into(), report::format::num),
         if model.is_stable() { "stable" } else { "UNSTABLE" }
     );
     if args.json.as_deref().is_some_and(|p| p.as_os_str() == "-") {

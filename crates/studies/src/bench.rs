@@ -11,9 +11,10 @@ use std::time::{Duration, Instant};
 
 use serde::{Deserialize, Serialize};
 
-use crate::estimate::{identify, IdentifySettings, Method};
-use crate::rls::{flops_per_update, Rls, RlsN};
-use crate::{Dataset, Model, ModelKind, ModelPlant, Plant, SysidError};
+use sysid::estimate::{identify, Estimator, Identification, Method};
+use sysid::rls::{flops_per_update, Rls, RlsN};
+use sysid::data::Signals;
+use sysid::{Dataset, Model, ModelKind, ModelPlant, Plant, SysidError};
 
 /// Shortest timed run; shorter work is repeated within one run until it takes at least this long.
 pub const MIN_RUN: Duration = Duration::from_millis(20);
@@ -121,20 +122,20 @@ pub fn staircase(samples: usize, amplitude_counts: f64, seed: u64) -> Vec<f64> {
 pub fn paper_experiment(u: &[f64], noise_std_mm: f64, seed: u64) -> Result<Dataset, SysidError> {
     if !(noise_std_mm.is_finite() && noise_std_mm >= 0.0) {
         return Err(SysidError::setting(
-            "--noise",
+            sysid::Setting::Other("--noise"),
             noise_std_mm,
             "a standard deviation >= 0 in mm",
         ));
     }
     let model = Model::paper();
-    let ts = model.ts;
+    let ts = model.ts();
     let mut plant = ModelPlant::new(model, "paper model")?;
-    let mut y = crate::run_open_loop(&mut plant, u)?;
+    let mut y = sysid::plant::run_open_loop(&mut plant, u)?;
     let mut rng = SplitMix64::new(seed ^ 0x5EED);
     for v in &mut y {
         *v += noise_std_mm * rng.normal();
     }
-    Dataset::new(u.to_vec(), y, ts, "paper model experiment")
+    Dataset::new(Signals { u: u.to_vec(), y: y }, ts, "paper model experiment")
 }
 
 /// Result of [`bench_rls`].
@@ -152,7 +153,7 @@ pub struct RlsBench {
     pub median_samples_per_second: f64,
     /// Nanoseconds per update, best run.
     pub ns_per_update: f64,
-    /// Updates per second of the array-backed [`RlsN`] (n ≤ [`crate::rls::MAX_FIXED`] only), best run.
+    /// Updates per second of the array-backed [`RlsN`] (n ≤ [`sysid::rls::MAX_FIXED`] only), best run.
     pub fixed_samples_per_second: Option<f64>,
     /// Updates per second of the plain loop [`Rls::update_reference`], best run.
     pub reference_samples_per_second: f64,
@@ -189,19 +190,19 @@ pub fn bench_rls(
 ) -> Result<RlsBench, SysidError> {
     if params == 0 || params > 1000 {
         return Err(SysidError::setting(
-            "--params",
+            sysid::Setting::Other("--params"),
             params,
             "between 1 and 1000 parameters",
         ));
     }
     if samples == 0 {
         return Err(SysidError::setting(
-            "--samples",
+            sysid::Setting::Other("--samples"),
             samples,
             "at least one update",
         ));
     }
-    crate::rls::check_settings(forgetting, 1e3)?;
+    sysid::rls::check_settings(forgetting, 1e3)?;
     let (phi, y) = rls_data(params, 1024, 42 + params as u64);
     let rows = || {
         phi.chunks_exact(params)
@@ -242,7 +243,7 @@ pub fn bench_rls(
     })
 }
 
-/// Times [`RlsN`] for n ≤ [`crate::rls::MAX_FIXED`] (a compile-time size chosen at run time).
+/// Times [`RlsN`] for n ≤ [`sysid::rls::MAX_FIXED`] (a compile-time size chosen at run time).
 fn bench_fixed(
     params: usize,
     phi: &[f64],
@@ -311,7 +312,7 @@ pub struct IdentifyBench {
 /// reading files or computing validation metrics).
 pub fn bench_identify(
     data: &Dataset,
-    settings: &IdentifySettings,
+    settings: &Identification,
     repetitions: usize,
 ) -> Result<IdentifyBench, SysidError> {
     let fit = identify(data, settings)?;
@@ -320,19 +321,19 @@ pub fn bench_identify(
         Ok::<(), SysidError>(())
     })?;
     Ok(IdentifyBench {
-        method: settings.method,
+        method: settings.estimator.method(),
         samples: data.len(),
         seconds_per_identification: t.best_s,
         median_seconds_per_identification: t.median_s,
         iterations: fit.iterations,
-        converged: fit.converged,
+        converged: fit.converged(),
         repetitions: t.repetitions,
     })
 }
 
 /// The paper's Hammerstein structure (na = 3, nb = 1, nk = 1) with `method` and default settings.
-pub fn paper_settings(method: Method) -> IdentifySettings {
-    IdentifySettings::default()
+pub fn paper_settings(method: Method) -> Identification {
+    Identification::default()
         .with_kind(ModelKind::Hammerstein)
         .with_orders(3, 1, 1)
         .with_method(method)
@@ -364,7 +365,8 @@ pub fn bench_plant(
     repetitions: usize,
 ) -> Result<PlantBench, SysidError> {
     if u.is_empty() {
-        return Err(SysidError::setting("--samples", 0, "at least one sample"));
+        return Err(SysidError::setting(
+            sysid::Setting::Other("--samples"), 0, "at least one sample"));
     }
     let y0 = plant.output();
     let t = time_it(repetitions, u.len(), || {
@@ -472,7 +474,7 @@ mod tests {
         let m = Model::paper();
         for (k, &uk) in u.iter().enumerate().take(399).skip(3) {
             let x = m.input_map(uk);
-            let want = -m.a[0] * d.y[k] - m.a[1] * d.y[k - 1] - m.a[2] * d.y[k - 2] + x;
+            let want = -m.a()[0] * d.y[k] - m.a()[1] * d.y[k - 1] - m.a()[2] * d.y[k - 2] + x;
             assert!(
                 (d.y[k + 1] - want).abs() <= 1e-9 * (1.0 + want.abs()),
                 "k={k}"

@@ -18,14 +18,18 @@ use control::{
 };
 use ipa::input::{generate, InputSpec};
 use serde_json::json;
-use sysid::estimate::{identify, Identified, IdentifySettings, Method};
-use sysid::summary::{num, IdentifyReport};
-use sysid::validation::{fit_percent, metrics};
+use report::format::num;
+use report::html::{Section, Table, Verdict};
+use report::plot::{save_figure, Figure, Panel, Series};
+use report::Report;
+use sysid::data::Signals;
+use sysid::estimate::{identify, EstimatorSettings, Fitted as FittedModel, Identification, Method, RecursiveLeastSquares};
+use sysid::metrics::{fit_percent, metrics};
+use sysid::summary::IdentifyReport;
 use sysid::{Dataset, Model, ModelKind, ModelPlant, Plant};
 
-use crate::html::{Section, Table, Verdict};
-use crate::plot::{save_figure, Figure, Panel, Series};
-use crate::{Report, ReportError};
+pub mod error;
+pub use error::ReproduceError;
 
 /// Settings of a reproduction run.
 #[derive(Debug, Clone)]
@@ -149,18 +153,18 @@ fn record(
     u: Vec<f64>,
     start_mm: f64,
     name: &str,
-) -> Result<Dataset, ReportError> {
+) -> Result<Dataset, ReproduceError> {
     plant.reset(start_mm);
-    let y = sysid::run_open_loop(plant, &u)?;
-    Ok(Dataset::new(u, y, plant.ts(), name)?)
+    let y = sysid::plant::run_open_loop(plant, &u)?;
+    Ok(Dataset::new(Signals { u, y }, plant.ts(), name)?)
 }
 
 fn fmt_opt(v: Option<f64>) -> String {
     v.map_or_else(|| "n/a".into(), num)
 }
 
-fn param_cell(fit: &Identified, name: &str) -> String {
-    match fit.params.iter().find(|p| p.name == name) {
+fn param_cell(fit: &FittedModel, name: &str) -> String {
+    match fit.params.iter().find(|p| p.name.to_string() == name) {
         Some(p) => match p.std {
             Some(s) => format!("{} ± {}", num(p.value), num(s)),
             None => num(p.value),
@@ -187,7 +191,7 @@ fn closed_loop_pair(
     profile: &Profile,
     duration_s: f64,
     y0_mm: f64,
-) -> Result<(Trace, Trace), ReportError> {
+) -> Result<(Trace, Trace), ReproduceError> {
     let mut c1 = pi.build(plant.ts())?;
     let tp = closed_loop::run(plant, &mut c1, None, profile, duration_s, y0_mm)?;
     let mut c2 = pi.build(model.ts())?;
@@ -199,13 +203,13 @@ fn closed_loop_pair(
 /// deadzone; `Ok(Err(reason))` when that deadzone cannot be inverted (e.g. b_l > 0 or a slope <= 0).
 fn compensated_run(
     plant: &mut dyn Plant,
-    fit: &Identified,
+    fit: &FittedModel,
     pi: &PiSettings,
     profile: &Profile,
     duration_s: f64,
     y0_mm: f64,
-) -> Result<Result<Trace, String>, ReportError> {
-    let Some(dz) = fit.model.deadzone else {
+) -> Result<Result<Trace, String>, ReproduceError> {
+    let Some(&dz) = fit.model.deadzone() else {
         return Ok(Err("the model has no deadzone".into()));
     };
     let comp = match DeadzoneCompensator::new(dz, SlopeMode::Shift, pi.u_max) {
@@ -223,11 +227,11 @@ fn compensated_run(
     )?))
 }
 
-fn step_metrics(trace: &Trace, y0_mm: f64, r_mm: f64) -> Result<StepMetrics, ReportError> {
+fn step_metrics(trace: &Trace, y0_mm: f64, r_mm: f64) -> Result<StepMetrics, ReproduceError> {
     Ok(StepMetrics::compute(&trace.t, &trace.y, y0_mm, r_mm)?)
 }
 
-fn unfixed_metrics(trace: &Trace) -> Result<(StepMetrics, Vec<control::StepSegment>), ReportError> {
+fn unfixed_metrics(trace: &Trace) -> Result<(StepMetrics, Vec<control::StepSegment>), ReproduceError> {
     let steps = metrics_for_steps(trace)?;
     let worst = StepMetrics::worst(steps.iter().map(|s| &s.metrics)).unwrap_or(StepMetrics {
         overshoot_mm: None,
@@ -247,7 +251,7 @@ struct Fitted {
     label: &'static str,
     /// Column heading in the terminal tables.
     short: &'static str,
-    fit: Identified,
+    fit: FittedModel,
     rep: IdentifyReport,
 }
 
@@ -320,7 +324,7 @@ fn pole_list(r: &IdentifyReport) -> String {
 pub fn run(
     s: &ReproduceSettings,
     progress: &mut dyn FnMut(&str, f64),
-) -> Result<Outcome, ReportError> {
+) -> Result<Outcome, ReproduceError> {
     let started = Instant::now();
     let out = &s.out_dir;
     let fig_dir = out.join("figures");
@@ -359,7 +363,7 @@ pub fn run(
     )?;
     let t_rec = sysid::data::sample_times(est.len(), ts);
     for (name, d) in [("estimation.csv", &est), ("validation.csv", &val)] {
-        sysid::output::write_atomic(
+        sysid_io::write_atomic(
             &data_dir.join(name),
             csv_columns("t,u,y", &t_rec, &[&d.u, &d.y]).as_bytes(),
         )?;
@@ -370,46 +374,39 @@ pub fn run(
         "identification (ARX and Hammerstein by RLS; key-term LS; output error)",
         0.2,
     );
-    let base = IdentifySettings {
+    let rls = RecursiveLeastSquares {
         forgetting: s.forgetting,
-        ..IdentifySettings::default()
+        ..RecursiveLeastSquares::default()
     };
-    let plan: [(&str, &str, &str, IdentifySettings); 4] = [
+    let base = Identification::default().with_estimator(EstimatorSettings::Rls(rls));
+    let plan: [(&str, &str, &str, Identification); 4] = [
         (
             "arx",
             "linear ARX (RLS)",
             "ARX RLS",
-            IdentifySettings {
-                kind: ModelKind::Arx,
-                ..base.clone()
-            },
+            base.clone().with_kind(ModelKind::Arx),
         ),
         (
             "hammerstein",
             "Hammerstein (RLS, paper's method)",
             "RLS (paper)",
-            IdentifySettings {
-                record_history: true,
-                ..base.clone()
-            },
+            base.clone()
+                .with_estimator(EstimatorSettings::Rls(RecursiveLeastSquares {
+                    record_history: true,
+                    ..rls
+                })),
         ),
         (
             "hammerstein_ls",
             "Hammerstein (key-term LS, addition)",
             "key-term LS",
-            IdentifySettings {
-                method: Method::Ls,
-                ..base.clone()
-            },
+            base.clone().with_method(Method::Ls),
         ),
         (
             "hammerstein_oe",
             "Hammerstein (output error, addition)",
             "output error",
-            IdentifySettings {
-                method: Method::Oe,
-                ..base.clone()
-            },
+            base.clone().with_method(Method::Oe),
         ),
     ];
     let mut models = Vec::with_capacity(plan.len());
@@ -418,7 +415,10 @@ pub fn run(
         let e = metrics(&fit.model, &est)?;
         let v = metrics(&fit.model, &val)?;
         let rep = IdentifyReport::new(&fit, &set, e, Some(v));
-        sysid::model_file::write_model(&out.join(format!("model_{key}.json")), &fit.model)?;
+        sysid_io::write_atomic(
+            &out.join(format!("model_{key}.json")),
+            sysid::model_file::to_json(&fit.model)?.as_bytes(),
+        )?;
         models.push(Fitted {
             key,
             label,
@@ -446,10 +446,10 @@ pub fn run(
     )?;
     let mut model_plant = ModelPlant::new(ham_model, "identified Hammerstein model")?;
     model_plant.reset(s.experiment_start_mm);
-    let y_ol_model = sysid::run_open_loop(&mut model_plant, &u_ol)?;
+    let y_ol_model = sysid::plant::run_open_loop(&mut model_plant, &u_ol)?;
     let fit_ol = fit_percent(&ol.y, &y_ol_model);
     let t_ol = sysid::data::sample_times(u_ol.len(), ts);
-    sysid::output::write_atomic(
+    sysid_io::write_atomic(
         &data_dir.join("open_loop.csv"),
         csv_columns("t,u,y_plant,y_model", &t_ol, &[&u_ol, &ol.y, &y_ol_model]).as_bytes(),
     )?;
@@ -485,7 +485,7 @@ pub fn run(
         s.fixed_start_mm,
     )? {
         Ok(tr) => {
-            sysid::output::write_atomic(
+            sysid_io::write_atomic(
                 &data_dir.join("closed_loop_fixed_plant_compensated.csv"),
                 tr.to_csv().as_bytes(),
             )?;
@@ -517,7 +517,7 @@ pub fn run(
         ("closed_loop_unfixed_plant.csv", &unfixed.plant),
         ("closed_loop_unfixed_model.csv", &unfixed.model),
     ] {
-        sysid::output::write_atomic(&data_dir.join(name), tr.to_csv().as_bytes())?;
+        sysid_io::write_atomic(&data_dir.join(name), tr.to_csv().as_bytes())?;
     }
 
     let mut study = Study {
@@ -554,7 +554,7 @@ pub fn run(
     let report = build_report(s, &study, &figs)?;
     let report_path = out.join("report.html");
     report.save(&report_path)?;
-    sysid::output::write_atomic(
+    sysid_io::write_atomic(
         &out.join("summary.json"),
         (serde_json::to_string_pretty(&summary).unwrap_or_default() + "\n").as_bytes(),
     )?;
@@ -791,7 +791,7 @@ fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
     let ham = &st.ham().fit;
     if !ham.history.is_empty() {
         let th: Vec<f64> = ham.history_samples.iter().map(|&k| k as f64 * ts).collect();
-        let names: Vec<&str> = ham.params.iter().map(|p| p.name.as_str()).collect();
+        let names: Vec<String> = ham.params.iter().map(|p| p.name.to_string()).collect();
         let col = |name: &str| -> Option<Vec<f64>> {
             let i = names.iter().position(|n| *n == name)?;
             Some(ham.history.iter().map(|h| h[i]).collect())
@@ -834,7 +834,7 @@ fn truth(s: &ReproduceSettings, name: &str) -> Option<f64> {
         return None;
     }
     let m = Model::paper();
-    let d = m.deadzone?;
+    let d = *m.deadzone()?;
     match name {
         "b_r" => Some(d.b_r),
         "b_l" => Some(d.b_l),
@@ -844,7 +844,7 @@ fn truth(s: &ReproduceSettings, name: &str) -> Option<f64> {
         n => n
             .strip_prefix('a')
             .and_then(|i| i.parse::<usize>().ok())
-            .and_then(|i| m.a.get(i - 1).copied()),
+            .and_then(|i| m.a().get(i - 1).copied()),
     }
 }
 
@@ -990,11 +990,11 @@ fn tables_text(s: &ReproduceSettings, st: &Study) -> String {
     o
 }
 
-fn build_report(s: &ReproduceSettings, st: &Study, figs: &[Fig]) -> Result<Report, ReportError> {
+fn build_report(s: &ReproduceSettings, st: &Study, figs: &[Fig]) -> Result<Report, ReproduceError> {
     let fig = |stem: &str| figs.iter().find(|f| f.0 == stem);
-    let with_fig = |sec: Section, stem: &str| -> Result<Section, ReportError> {
+    let with_fig = |sec: Section, stem: &str| -> Result<Section, ReproduceError> {
         match fig(stem) {
-            Some((_, f, cap)) => sec.figure_png(f, *cap),
+            Some((_, f, cap)) => Ok(sec.figure_png(f, *cap)?),
             None => Ok(sec),
         }
     };
@@ -1050,8 +1050,8 @@ fn build_report(s: &ReproduceSettings, st: &Study, figs: &[Fig]) -> Result<Repor
         .table(table3(s, st))
         .paragraph(format!(
             "Linear ARX baseline: a = [{}], b1 = {}. Poles — {}.",
-            arx.model.a.iter().map(|v| num(*v)).collect::<Vec<_>>().join(", "),
-            num(arx.model.b[0]),
+            arx.model.a().iter().map(|v| num(*v)).collect::<Vec<_>>().join(", "),
+            num(arx.model.b()[0]),
             st.models.iter().map(|m| format!("{}: {}", m.label, pole_list(&m.rep))).collect::<Vec<_>>().join("; ")
         ));
     r.push_section(with_fig(

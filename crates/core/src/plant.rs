@@ -7,7 +7,7 @@
 //! command u(k) is applied for one sampling period Ts, after which y(k+1) is read. A data record therefore
 //! has y(k+1) depend on u(k): a pure delay nk >= 1 in ARX terms.
 
-use crate::SysidError;
+use crate::{PlantError, SysidError};
 
 /// A sampled single-input single-output plant: command u (PWM counts, [-255, 255] for the IPA) in,
 /// position y (mm) out, one call per sampling period Ts.
@@ -21,7 +21,7 @@ pub trait Plant {
     /// Applies the command u(k) for one sampling period and returns the next output y(k+1) in mm.
     ///
     /// Fails when the plant's state becomes non-finite (for example an unstable identified model).
-    fn step(&mut self, u: f64) -> Result<f64, SysidError>;
+    fn step(&mut self, u: f64) -> Result<f64, PlantError>;
 
     /// Puts the plant back at rest with its output at `y0_mm` (clamped to what the plant can reach).
     fn reset(&mut self, y0_mm: f64);
@@ -38,10 +38,9 @@ pub fn run_open_loop(plant: &mut dyn Plant, u: &[f64]) -> Result<Vec<f64>, Sysid
     for (k, &uk) in u.iter().enumerate() {
         y.push(plant.output());
         plant.step(uk).map_err(|e| match e {
-            SysidError::Numerical(m) => {
+            PlantError::Diverged(m) => {
                 SysidError::Numerical(format!("{m} (while applying u({k}) = {uk})"))
             }
-            other => other,
         })?;
     }
     Ok(y)

@@ -77,8 +77,7 @@ pub fn rmse(y: &[f64], yhat: &[f64]) -> f64 {
 
 /// Computes the validation metrics of `model` on `data`.
 pub fn metrics(model: &Model, data: &Dataset) -> Result<Metrics, SysidError> {
-    model.check()?;
-    let k0 = model.orders().k0();
+    let k0 = model.k0();
     let p = model.parameter_count();
     if data.len() <= k0 {
         return Err(SysidError::Data(format!(

@@ -1,4 +1,6 @@
-//! The static nonlinearity of the Hammerstein model: the asymmetric valve deadzone of paper eq. (1).
+//! Static nonlinearities x = f(u) of a Hammerstein model's inputs: the identity (a linear input) and the
+//! asymmetric valve deadzone of paper eq. (1). To add one (saturation, backlash...), add a variant to
+//! [`StaticNonlinearity`] and follow docs/architecture.md.
 
 use serde::{Deserialize, Serialize};
 
@@ -14,7 +16,7 @@ use serde::{Deserialize, Serialize};
 /// With the key-term normalisation b1 = 1 the slopes carry the static gain of the whole model.
 ///
 /// ```
-/// use sysid::Deadzone;
+/// use sysid_core::Deadzone;
 /// let dz = Deadzone { b_l: -1.5, b_r: 1.41, m_l: 2.0, m_r: 3.0 };
 /// assert_eq!(dz.apply(0.0), 0.0);
 /// assert!((dz.apply(2.41) - 3.0).abs() < 1e-12);
@@ -74,6 +76,56 @@ impl Deadzone {
             self.b_l + x / self.m_l
         } else {
             0.0
+        }
+    }
+}
+
+impl Deadzone {
+    /// True when every parameter is a finite number.
+    pub fn is_finite(&self) -> bool {
+        [self.b_l, self.b_r, self.m_l, self.m_r]
+            .iter()
+            .all(|v| v.is_finite())
+    }
+}
+
+/// The static nonlinearity f of one model input: x = f(u).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum StaticNonlinearity {
+    /// x = u: a linear input (ARX).
+    Linear,
+    /// The asymmetric deadzone of paper eq. (1).
+    Deadzone(Deadzone),
+}
+
+impl StaticNonlinearity {
+    /// x = f(u).
+    #[inline]
+    pub fn apply(&self, u: f64) -> f64 {
+        match self {
+            StaticNonlinearity::Linear => u,
+            StaticNonlinearity::Deadzone(d) => d.apply(u),
+        }
+    }
+
+    /// True for the identity.
+    pub fn is_linear(&self) -> bool {
+        matches!(self, StaticNonlinearity::Linear)
+    }
+
+    /// The deadzone, if this is one.
+    pub fn deadzone(&self) -> Option<&Deadzone> {
+        match self {
+            StaticNonlinearity::Deadzone(d) => Some(d),
+            StaticNonlinearity::Linear => None,
+        }
+    }
+
+    /// True when every parameter is finite.
+    pub fn is_finite(&self) -> bool {
+        match self {
+            StaticNonlinearity::Linear => true,
+            StaticNonlinearity::Deadzone(d) => d.is_finite(),
         }
     }
 }

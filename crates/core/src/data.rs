@@ -15,6 +15,7 @@
 
 use std::path::Path;
 
+use crate::error::{ColumnHint, Setting};
 use crate::SysidError;
 
 /// Upper bound on the number of samples read from one file (keeps hostile inputs from exhausting memory).
@@ -36,14 +37,25 @@ pub struct Dataset {
     pub name: String,
 }
 
+/// The two signals of a record, named so that they cannot be swapped silently (`Signals { u, y }`).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Signals {
+    /// Input u(k) (for the IPA: PWM command in counts).
+    pub u: Vec<f64>,
+    /// Output y(k) (for the IPA: position in mm).
+    pub y: Vec<f64>,
+}
+
 impl Dataset {
-    /// A record from vectors; fails on unequal lengths, non-finite values or a bad Ts.
-    pub fn new(
-        u: Vec<f64>,
-        y: Vec<f64>,
-        ts: f64,
-        name: impl Into<String>,
-    ) -> Result<Self, SysidError> {
+    /// A record from its signals; fails on unequal lengths, non-finite values or a bad Ts (s).
+    ///
+    /// ```
+    /// use sysid_core::data::{Dataset, Signals};
+    /// let d = Dataset::new(Signals { u: vec![1.0, 2.0], y: vec![0.0, 0.5] }, 0.01, "doc").unwrap();
+    /// assert_eq!(d.len(), 2);
+    /// ```
+    pub fn new(signals: Signals, ts: f64, name: impl Into<String>) -> Result<Self, SysidError> {
+        let Signals { u, y } = signals;
         let name = name.into();
         if u.len() != y.len() {
             return Err(SysidError::File {
@@ -79,7 +91,7 @@ fn check_ts(ts: f64) -> Result<(), SysidError> {
         Ok(())
     } else {
         Err(SysidError::setting(
-            "--ts",
+            Setting::Ts,
             ts,
             "a positive, finite sampling period in seconds",
         ))
@@ -135,14 +147,14 @@ pub fn read_csv(path: &Path, opts: &CsvOptions) -> Result<Dataset, SysidError> {
 /// Reads a record from CSV text held in memory; `name` is used in messages.
 pub fn read_csv_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Dataset, SysidError> {
     let table = read_table(bytes, name)?;
-    let ucol = table.column_index(&opts.u_col, "--u-col")?;
-    let ycol = table.column_index(&opts.y_col, "--y-col")?;
+    let ucol = table.column_index(&opts.u_col, Setting::UCol)?;
+    let ycol = table.column_index(&opts.y_col, Setting::YCol)?;
     if ucol == ycol {
-        return Err(SysidError::setting(
-            "--y-col",
-            &opts.y_col,
-            "a column different from --u-col (u and y cannot be the same column)",
-        ));
+        return Err(SysidError::SameColumn {
+            setting: Setting::YCol,
+            other: Setting::UCol,
+            column: opts.y_col.clone(),
+        });
     }
     let has_t = table.headers.contains(&opts.t_col);
     let ts_given = opts.ts.or(if has_t { None } else { opts.fallback_ts });
@@ -155,7 +167,7 @@ pub fn read_csv_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Dat
         }
         None => {
             let tc = table
-                .column_index(&opts.t_col, "--t-col")
+                .column_index(&opts.t_col, Setting::TCol)
                 .map_err(|_| SysidError::File {
                     file: name.to_string(),
                     message: format!(
@@ -169,7 +181,7 @@ pub fn read_csv_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Dat
             uniform_ts(&t, &table, tc)?
         }
     };
-    Dataset::new(u, y, ts, name)
+    Dataset::new(Signals { u, y }, ts, name)
 }
 
 /// A parsed CSV table: header names and raw cells with their line numbers.
@@ -343,25 +355,25 @@ impl Table {
         self.headers.join(", ")
     }
 
-    /// The 0-based index of the column called `col`; `flag` names the option that chose it.
-    pub fn column_index(&self, col: &str, flag: &str) -> Result<usize, SysidError> {
+    /// The 0-based index of the column called `col`; `setting` is the option that chose it.
+    pub fn column_index(&self, col: &str, setting: Setting) -> Result<usize, SysidError> {
         if let Some(i) = self.headers.iter().position(|h| h == col) {
             return Ok(i);
         }
         let hint = if self.headers.iter().all(|h| parse_number(h, true).is_some()) {
-            " (the first row holds numbers: the file has no header row; add one such as t,u,y)"
-                .to_string()
-        } else if let Some(h) = self.headers.iter().find(|h| h.eq_ignore_ascii_case(col)) {
-            format!(" (names are case-sensitive: did you mean {flag} {h}?)")
+            Some(ColumnHint::NoHeader)
         } else {
-            String::new()
+            self.headers
+                .iter()
+                .find(|h| h.eq_ignore_ascii_case(col))
+                .map(|h| ColumnHint::Case(h.clone()))
         };
-        Err(SysidError::File {
+        Err(SysidError::MissingColumn {
             file: self.name.clone(),
-            message: format!(
-                "no column named '{col}' (chosen by {flag}); the header has: {}{hint}",
-                self.header_list()
-            ),
+            column: col.to_string(),
+            setting,
+            header: self.headers.clone(),
+            hint,
         })
     }
 

@@ -15,8 +15,9 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use crate::estimate::{identify, IdentifySettings, Method};
-use crate::{Dataset, Model, ModelKind, SysidError};
+use sysid::estimate::{identify, Identification, Method};
+use sysid::data::Signals;
+use sysid::{Dataset, Model, ModelKind, ParamName, SysidError};
 
 /// The seed of run `run` of a study seeded with `seed` (SplitMix64 of both, so that neighbouring seeds and
 /// runs give unrelated streams).
@@ -49,7 +50,7 @@ pub struct StudySettings {
     /// Methods compared on every run.
     pub methods: Vec<Method>,
     /// Estimator settings (structure, forgetting...); the method is replaced by each of `methods`.
-    pub base: IdentifySettings,
+    pub base: Identification,
     /// Sampling period Ts in s of the records.
     pub ts_s: f64,
 }
@@ -103,7 +104,7 @@ pub struct StudyReport {
 /// The true physical parameters of a model, by name (b1 of a Hammerstein model is fixed and left out).
 pub fn truth_of(model: &Model) -> Vec<(String, f64)> {
     let mut v = Vec::new();
-    if let Some(d) = &model.deadzone {
+    if let Some(d) = model.deadzone() {
         v.extend(
             [
                 ("b_l", d.b_l),
@@ -116,21 +117,21 @@ pub fn truth_of(model: &Model) -> Vec<(String, f64)> {
     }
     v.extend(
         model
-            .a
+            .a()
             .iter()
             .enumerate()
             .map(|(i, a)| (format!("a{}", i + 1), *a)),
     );
-    let skip = usize::from(model.kind == ModelKind::Hammerstein);
+    let skip = usize::from(model.kind() == ModelKind::Hammerstein);
     v.extend(
         model
-            .b
+            .b()
             .iter()
             .enumerate()
             .skip(skip)
             .map(|(j, b)| (format!("b{}", j + 1), *b)),
     );
-    if let Some(c) = model.offset {
+    if let Some(c) = model.offset() {
         v.push(("c".into(), c));
     }
     v
@@ -149,31 +150,31 @@ pub fn study(
 ) -> Result<StudyReport, SysidError> {
     if st.runs == 0 || st.runs > 1_000_000 {
         return Err(SysidError::setting(
-            "--runs",
+            sysid::Setting::Other("--runs"),
             st.runs,
             "between 1 and 1000000 runs",
         ));
     }
     if !(st.noise_std.is_finite() && st.noise_std >= 0.0) {
         return Err(SysidError::setting(
-            "--noise-std",
+            sysid::Setting::Other("--noise-std"),
             st.noise_std,
             "a finite standard deviation >= 0",
         ));
     }
     if st.methods.is_empty() {
         return Err(SysidError::setting(
-            "--method",
+            sysid::Setting::Other("--method"),
             "",
             "at least one of ls, rls, iv, oe",
         ));
     }
     for m in &st.methods {
-        st.base.clone().with_method(*m).structure()?;
+        st.base.clone().with_method(*m).check()?;
     }
     // results[run][method] = Ok(param values by name) or Err(message).
     type RunResult = Vec<Result<Vec<(String, f64)>, String>>;
-    let hammer = st.base.kind == ModelKind::Hammerstein;
+    let hammer = st.base.structure.kind == ModelKind::Hammerstein;
     let results: Vec<RunResult> = (0..st.runs)
         .into_par_iter()
         .map(|r| {
@@ -190,7 +191,7 @@ pub fn study(
                         .iter()
                         .map(|v| v + st.noise_std * gaussian(&mut rng))
                         .collect();
-                    match Dataset::new(u, y, st.ts_s, format!("run {r}")) {
+                    match Dataset::new(Signals { u, y }, st.ts_s, format!("run {r}")) {
                         Err(e) => st.methods.iter().map(|_| Err(e.to_string())).collect(),
                         Ok(data) => st
                             .methods
@@ -200,8 +201,8 @@ pub fn study(
                                     .map(|f| {
                                         f.params
                                             .into_iter()
-                                            .filter(|p| !(hammer && p.name == "b1"))
-                                            .map(|p| (p.name, p.value))
+                                            .filter(|p| !(hammer && p.name == ParamName::B(1)))
+                                            .map(|p| (p.name.to_string(), p.value))
                                             .collect()
                                     })
                                     .map_err(|e| format!("run {r}: {e}"))
@@ -271,7 +272,7 @@ pub fn study(
 impl StudyReport {
     /// A plain-text table: per method, per parameter, truth, mean, bias, std, RMSE.
     pub fn to_text(&self) -> String {
-        use crate::summary::num;
+        use report::format::num;
         use std::fmt::Write;
         let mut s = String::new();
         let _ = writeln!(
@@ -333,7 +334,7 @@ mod tests {
             seed: 11,
             noise_std: noise,
             methods: vec![Method::Ls, Method::Oe],
-            base: IdentifySettings::default()
+            base: Identification::default()
                 .with_kind(ModelKind::Arx)
                 .with_orders(1, 1, 1),
             ts_s: 1.0,

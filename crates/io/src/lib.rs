@@ -1,10 +1,40 @@
-//! Writing output files safely: atomically (temporary file in the same folder, then rename), never over
-//! one of the run's input files.
+//! `sysid-io`: writing output files safely — atomically (temporary file in the same folder, then
+//! rename), never over one of the run's input files. Shared by the command line, the report and the
+//! reproduction pipeline; the libraries that compute never write files.
 
 use std::io::Write;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
-use crate::SysidError;
+/// Why an output could not be written. Options are named as the caller names them (`flag`).
+#[derive(Debug, thiserror::Error)]
+pub enum OutputError {
+    /// The operating system refused.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file concerned.
+        path: PathBuf,
+        /// The operating system's error.
+        source: std::io::Error,
+    },
+    /// The output path chosen by an option is unusable (a folder, an input file, a missing folder).
+    #[error("invalid setting {flag} = {}: {expected}", path.display())]
+    Refused {
+        /// The option that chose the path, as the caller names it (e.g. `--out`).
+        flag: String,
+        /// The path.
+        path: PathBuf,
+        /// What is accepted.
+        expected: String,
+    },
+}
+
+fn refused(flag: &str, path: &Path, expected: impl Into<String>) -> OutputError {
+    OutputError::Refused {
+        flag: flag.to_string(),
+        path: path.to_path_buf(),
+        expected: expected.into(),
+    }
+}
 
 /// Writes `bytes` to `path` atomically: the content goes to a temporary file beside `path` (flushed to
 /// disk), which is then renamed over it, so a crash or a failed run never leaves a half-written file and
@@ -13,8 +43,8 @@ use crate::SysidError;
 /// The new file gets the permissions of the file it replaces, or the usual ones for a new file (0o666
 /// less the umask) — not the 0o600 of a bare temporary file. A symbolic link at `path` is replaced by
 /// the file, not followed.
-pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), SysidError> {
-    let io = |source| SysidError::Io {
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
+    let io = |source| OutputError::Io {
         path: path.to_path_buf(),
         source,
     };
@@ -65,14 +95,14 @@ pub fn refuse_overwrite_input(
     output: &Path,
     inputs: &[&Path],
     flag: &str,
-) -> Result<(), SysidError> {
+) -> Result<(), OutputError> {
     let canon = |p: &Path| std::fs::canonicalize(p).ok();
     if let Some(out) = canon(output) {
         for input in inputs {
             if canon(input).as_deref() == Some(out.as_path()) {
-                return Err(SysidError::setting(
+                return Err(refused(
                     flag,
-                    output.display(),
+                    output,
                     "an output path different from every input file (refusing to overwrite your data)",
                 ));
             }
@@ -83,23 +113,19 @@ pub fn refuse_overwrite_input(
 
 /// Checks before any work that `output` can be written: its folder exists and it is not itself a
 /// folder; `flag` names the option in messages.
-pub fn check_writable(output: &Path, flag: &str) -> Result<(), SysidError> {
+pub fn check_writable(output: &Path, flag: &str) -> Result<(), OutputError> {
     if output.is_dir() {
-        return Err(SysidError::setting(
-            flag,
-            output.display(),
-            "a file name (this is a folder)",
-        ));
+        return Err(refused(flag, output, "a file name (this is a folder)"));
     }
     let dir = match output.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
     };
     if !dir.is_dir() {
-        return Err(SysidError::setting(
+        return Err(refused(
             flag,
-            output.display(),
-            &format!(
+            output,
+            format!(
                 "a file in an existing folder ({} does not exist)",
                 dir.display()
             ),

@@ -8,6 +8,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
+use crate::model::ModelRepr;
 use crate::{Model, SysidError};
 
 /// Value of the `format` key of a model file.
@@ -28,23 +29,19 @@ pub const MAX_MODEL_FILE_BYTES: u64 = 16 * 1024 * 1024;
 
 #[derive(Deserialize)]
 struct ModelFileIn {
-    model: Model,
+    model: ModelRepr,
 }
 
-/// Serialises `model` as a model file (pretty JSON).
-pub fn to_json(model: &Model) -> String {
+/// Serialises `model` as a model file (pretty JSON, ending with a newline).
+pub fn to_json(model: &Model) -> Result<String, SysidError> {
     let out = ModelFileOut {
         format: FORMAT,
         version: VERSION,
         model,
     };
-    // Serialising plain structs of numbers and strings cannot fail.
-    serde_json::to_string_pretty(&out).unwrap_or_default() + "\n"
-}
-
-/// Writes `model` to `path` atomically.
-pub fn write_model(path: &Path, model: &Model) -> Result<(), SysidError> {
-    crate::output::write_atomic(path, to_json(model).as_bytes())
+    serde_json::to_string_pretty(&out)
+        .map(|s| s + "\n")
+        .map_err(|e| SysidError::Numerical(format!("the model could not be serialised: {e}")))
 }
 
 /// Reads and checks a model file.
@@ -132,8 +129,7 @@ pub fn parse_model(bytes: &[u8], name: &str) -> Result<Model, SysidError> {
             "the \"model\" object does not match the model schema",
         )
     })?;
-    typed.model.check().map_err(|e| file_err(e.to_string()))?;
-    Ok(typed.model)
+    Model::try_from(typed.model).map_err(|e| file_err(e.to_string()))
 }
 
 /// A positioned error for malformed JSON, with a hint for the usual causes.

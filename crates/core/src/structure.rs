@@ -2,9 +2,10 @@
 //! current deadzone estimate) into rows φ(k) of a linear regression y(k) = φᵀ(k) θ + ε(k). Every estimator
 //! works on every structure through this.
 
+use crate::param::{Layout, Parameterisation};
 use crate::{Deadzone, ModelKind, Orders};
 
-/// A linear-in-parameters structure: ARX, or Hammerstein by key-term separation (reading notes, eq. 8).
+/// A linear-in-parameters structure: ARX, or Hammerstein by key-term separation (docs/paper.md, eq. 8).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Structure {
     /// ARX or Hammerstein.
@@ -29,24 +30,9 @@ impl Structure {
         }
     }
 
-    /// Names of the entries of θ, for messages and reports.
+    /// Names of the entries of θ (key-term layout), for messages and reports.
     pub fn theta_names(&self) -> Vec<String> {
-        let o = self.orders;
-        let mut v: Vec<String> = Vec::new();
-        if self.kind == ModelKind::Hammerstein {
-            v.extend(["m_r", "m_r*b_r", "m_l", "m_l*b_l"].map(String::from));
-        }
-        v.extend((1..=o.na).map(|i| format!("a{i}")));
-        let first_b = if self.kind == ModelKind::Hammerstein {
-            2
-        } else {
-            1
-        };
-        v.extend((first_b..=o.nb).map(|j| format!("b{j}")));
-        if self.offset {
-            v.push("c".into());
-        }
-        v
+        Parameterisation::new(*self, Layout::KeyTerm).name_strings()
     }
 
     /// Fills `row` with φ(k). For Hammerstein, `dz` gives the switching functions h_r, h_l at

@@ -1,0 +1,150 @@
+//! Plain-text reports printed by the command line (the libraries return data; printing is the
+//! application's).
+
+use report::format::num;
+use sysid::metrics::Metrics;
+use sysid::summary::IdentifyReport;
+use sysid::{Method, ParamName};
+
+/// A row of the text metrics table: label and how to format the value from a [`Metrics`].
+type MetricRow = (&'static str, fn(&Metrics) -> String);
+
+fn opt(v: Option<f64>) -> String {
+    v.map_or_else(|| "n/a".into(), num)
+}
+
+/// A readable plain-text report of an identification (parameters ± std, poles, stability, metrics), as
+/// `identify` prints it.
+pub fn identify_report(r: &IdentifyReport) -> String {
+    r.to_text()
+}
+
+trait ToText {
+    fn to_text(&self) -> String;
+}
+
+impl ToText for IdentifyReport {
+    fn to_text(&self) -> String {
+        use std::fmt::Write;
+        let m = &self.model;
+        let mut s = String::new();
+        let kind = match m.kind() {
+            sysid::ModelKind::Arx => "Linear ARX".to_string(),
+            sysid::ModelKind::Hammerstein => "Hammerstein (deadzone + ARX)".to_string(),
+        };
+        let _ = writeln!(
+            s,
+            "{kind} model, na = {} nb = {} nk = {}, Ts = {} s, estimated by {} ({} {}, {})",
+            m.na(),
+            m.nb(),
+            m.nk(),
+            num(m.ts()),
+            self.estimation.method,
+            self.estimation.iterations,
+            match self.estimation.method {
+                Method::Ls | Method::Oe => "iteration(s)",
+                Method::Rls => "pass(es)",
+                Method::Iv => "stage(s)",
+            },
+            if self.estimation.converged {
+                "converged"
+            } else {
+                "NOT converged"
+            }
+        );
+        if let Some(note) = &self.estimation.note {
+            let _ = writeln!(s, "note: {note}");
+        }
+        let _ = writeln!(s, "\nParameters (estimate ± standard deviation)");
+        for p in &self.parameters {
+            let sd = match p.std {
+                Some(v) => format!("± {}", num(v)),
+                None if p.name == ParamName::B(1) && m.kind() == sysid::ModelKind::Hammerstein => {
+                    "(fixed: normalisation)".into()
+                }
+                None => "± n/a".into(),
+            };
+            let _ = writeln!(s, "  {:<6} = {:>14}  {sd}", p.name, num(p.value));
+        }
+        let poles: Vec<String> = self
+            .poles
+            .iter()
+            .map(|p| {
+                if p.im.abs() < 1e-12 {
+                    num(p.re)
+                } else {
+                    format!(
+                        "{} {} {}i",
+                        num(p.re),
+                        if p.im < 0.0 { "-" } else { "+" },
+                        num(p.im.abs())
+                    )
+                }
+            })
+            .collect();
+        let _ = writeln!(
+            s,
+            "\nPoles: {}  → {}",
+            if poles.is_empty() {
+                "none".to_string()
+            } else {
+                poles.join(", ")
+            },
+            if self.stable {
+                "stable (all inside the unit circle)"
+            } else {
+                "UNSTABLE (a pole on or outside the unit circle)"
+            }
+        );
+        let val = self.metrics.validation.as_ref();
+        let _ = writeln!(
+            s,
+            "\n{:<22}{:>16}{:>16}",
+            "Metric",
+            "estimation",
+            if val.is_some() { "validation" } else { "" }
+        );
+        let rows: [MetricRow; 9] = [
+            ("fit % (simulation)", |m| opt(m.fit_sim_percent)),
+            ("fit % (1-step pred.)", |m| opt(m.fit_pred_percent)),
+            ("RMSE (simulation)", |m| opt(m.rmse_sim)),
+            ("RMSE (1-step pred.)", |m| num(m.rmse_pred)),
+            ("loss V (eq. 14)", |m| num(m.loss)),
+            ("FPE (eq. 15)", |m| opt(m.fpe)),
+            ("AIC (normalised)", |m| opt(m.aic)),
+            ("N (rows used)", |m| m.n.to_string()),
+            ("p (parameters)", |m| m.p.to_string()),
+        ];
+        for (label, f) in rows {
+            let _ = writeln!(
+                s,
+                "{label:<22}{:>16}{:>16}",
+                f(&self.metrics.estimation),
+                val.map(f).unwrap_or_default()
+            );
+        }
+        for (which, mm) in [
+            ("estimation", Some(&self.metrics.estimation)),
+            ("validation", val),
+        ] {
+            if let Some(note) = mm.and_then(|m| m.note.as_ref()) {
+                let _ = writeln!(s, "note ({which}): {note}");
+            }
+        }
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    // Six significant digits, trailing zeros dropped: 0.01 → "0.01", 1.41 → "1.41", 1/3 → "0.333333".
+    #[test]
+    fn numbers_keep_six_significant_digits_without_trailing_zeros() {
+        assert_eq!(super::num(0.01), "0.01");
+        assert_eq!(super::num(1.41), "1.41");
+        assert_eq!(super::num(1.0 / 3.0), "0.333333");
+        assert_eq!(super::num(-1234.5678), "-1234.57");
+        assert_eq!(super::num(2.5e-4), "2.5e-4");
+        assert_eq!(super::num(100.0), "100");
+    }
+}

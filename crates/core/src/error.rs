@@ -1,0 +1,269 @@
+//! The error types of the core: [`SysidError`] for data, models and settings (also used by the
+//! estimators of crate `sysid`), and [`PlantError`] for the [`Plant`](crate::Plant) trait.
+
+use std::path::PathBuf;
+
+/// A setting of the library that a caller chose (the command line maps each to its flag, e.g.
+/// [`Setting::Na`] to `--na`; the Python package to its keyword argument).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Setting {
+    /// na: order of A(q).
+    Na,
+    /// nb: number of coefficients of B(q).
+    Nb,
+    /// nk: input delay in samples.
+    Nk,
+    /// Ts: sampling period in s.
+    Ts,
+    /// The input column of a data file.
+    UCol,
+    /// The output column of a data file.
+    YCol,
+    /// The time column of a data file.
+    TCol,
+    /// ρ: RLS forgetting factor.
+    Forgetting,
+    /// P(0) = p0 · I: RLS initial covariance scale.
+    P0,
+    /// Number of RLS passes over the data.
+    Passes,
+    /// Bound T on tr P of the trace windup guard.
+    MaxTrace,
+    /// Number of instrumental-variable stages.
+    IvStages,
+    /// Iteration cap of an iterative estimator.
+    MaxIterations,
+    /// Relative tolerance of the key-term iteration.
+    Tolerance,
+    /// Any other setting, by the name the caller uses (an application's own options).
+    Other(&'static str),
+}
+
+impl Setting {
+    /// The name used in the library's own messages (`na`, `forgetting`, ...), which is also the keyword
+    /// of the Python package.
+    pub fn name(&self) -> &'static str {
+        match self {
+            Setting::Na => "na",
+            Setting::Nb => "nb",
+            Setting::Nk => "nk",
+            Setting::Ts => "ts",
+            Setting::UCol => "u_col",
+            Setting::YCol => "y_col",
+            Setting::TCol => "t_col",
+            Setting::Forgetting => "forgetting",
+            Setting::P0 => "p0",
+            Setting::Passes => "passes",
+            Setting::MaxTrace => "max_trace",
+            Setting::IvStages => "iv_stages",
+            Setting::MaxIterations => "max_iterations",
+            Setting::Tolerance => "tolerance",
+            Setting::Other(name) => name,
+        }
+    }
+}
+
+impl std::fmt::Display for Setting {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// Why a column named by a setting is not in a file's header, beyond its absence.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum ColumnHint {
+    /// Every header cell is a number: the file has no header row.
+    NoHeader,
+    /// A header name equal to the requested one but for case.
+    Case(String),
+}
+
+/// Everything that can go wrong with data, models and settings. Messages name the file, line and column
+/// (1-based) or the setting at fault, and what was expected.
+#[derive(Debug)]
+pub enum SysidError {
+    /// A data or model file could not be read or written.
+    Io {
+        /// The file concerned.
+        path: PathBuf,
+        /// The operating system's error.
+        source: std::io::Error,
+    },
+    /// A file's content is malformed at a known place.
+    Parse {
+        /// The file (or `<stdin>` / `<memory>`).
+        file: String,
+        /// 1-based line number.
+        line: usize,
+        /// 1-based column number (field index for CSV).
+        column: usize,
+        /// What was found and what was expected.
+        message: String,
+    },
+    /// A file is malformed as a whole (too few rows, wrong schema...).
+    File {
+        /// The file concerned.
+        file: String,
+        /// What is wrong and what was expected.
+        message: String,
+    },
+    /// A column chosen by a setting is not in a file's header.
+    MissingColumn {
+        /// The file concerned.
+        file: String,
+        /// The column asked for.
+        column: String,
+        /// Which setting chose it.
+        setting: Setting,
+        /// The header's column names.
+        header: Vec<String>,
+        /// What probably went wrong, when it can be told.
+        hint: Option<ColumnHint>,
+    },
+    /// A setting is outside its valid range.
+    Setting {
+        /// The setting at fault.
+        setting: Setting,
+        /// The value given.
+        value: String,
+        /// What is accepted.
+        expected: String,
+    },
+    /// Two settings chose the same data column.
+    SameColumn {
+        /// The setting that chose the column second.
+        setting: Setting,
+        /// The setting that chose it first.
+        other: Setting,
+        /// The column.
+        column: String,
+    },
+    /// The data cannot support the requested estimate (too short, not persistently exciting...).
+    Data(String),
+    /// A numerical failure: non-finite values, loss of positive definiteness, singular problem.
+    Numerical(String),
+}
+
+impl SysidError {
+    /// The message, with each [`Setting`] named by `name` (the library's own names in `Display`; the
+    /// command line passes its flag names, so that its messages say `--na` where this says `na`).
+    pub fn render(&self, name: &dyn Fn(Setting) -> String) -> String {
+        match self {
+            SysidError::Io { path, source } => format!("{}: {source}", path.display()),
+            SysidError::Parse {
+                file,
+                line,
+                column,
+                message,
+            } => format!("{file}:{line}:{column}: {message}"),
+            SysidError::File { file, message } => format!("{file}: {message}"),
+            SysidError::MissingColumn {
+                file,
+                column,
+                setting,
+                header,
+                hint,
+            } => {
+                let flag = name(*setting);
+                let hint = match hint {
+                    None => String::new(),
+                    Some(ColumnHint::NoHeader) => " (the first row holds numbers: the file has no header \
+                                                  row; add one such as t,u,y)"
+                        .to_string(),
+                    Some(ColumnHint::Case(h)) => {
+                        format!(" (names are case-sensitive: did you mean {flag} {h}?)")
+                    }
+                };
+                format!(
+                    "{file}: no column named '{column}' (chosen by {flag}); the header has: {}{hint}",
+                    header.join(", ")
+                )
+            }
+            SysidError::Setting {
+                setting,
+                value,
+                expected,
+            } => format!("invalid setting {} = {value}: {expected}", name(*setting)),
+            SysidError::SameColumn {
+                setting,
+                other,
+                column,
+            } => format!(
+                "invalid setting {} = {column}: a column different from {} ({} and {} cannot be the same column)",
+                name(*setting),
+                name(*other),
+                other_symbol(*other),
+                other_symbol(*setting),
+            ),
+            SysidError::Data(m) => m.clone(),
+            SysidError::Numerical(m) => format!("numerical failure: {m}"),
+        }
+    }
+}
+
+/// The signal a column setting chooses (u, y, t), for messages.
+fn other_symbol(s: Setting) -> &'static str {
+    match s {
+        Setting::UCol => "u",
+        Setting::YCol => "y",
+        Setting::TCol => "t",
+        _ => "the two",
+    }
+}
+
+impl std::fmt::Display for SysidError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.render(&|s| s.name().to_string()))
+    }
+}
+
+impl std::error::Error for SysidError {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            SysidError::Io { source, .. } => Some(source),
+            _ => None,
+        }
+    }
+}
+
+impl SysidError {
+    /// True for failures of the numerics (exit code 1) rather than of the input (exit code 2).
+    pub fn is_numerical(&self) -> bool {
+        matches!(self, SysidError::Numerical(_))
+    }
+
+    /// Shorthand for a [`SysidError::Setting`].
+    pub fn setting(setting: Setting, value: impl ToString, expected: &str) -> Self {
+        SysidError::Setting {
+            setting,
+            value: value.to_string(),
+            expected: expected.to_string(),
+        }
+    }
+
+    /// Prefixes a [`SysidError::Data`] or [`SysidError::Numerical`] message with `context` (for
+    /// example the data set's name); other variants already say where they come from.
+    pub fn context(self, context: &str) -> Self {
+        match self {
+            SysidError::Data(m) => SysidError::Data(format!("{context}: {m}")),
+            SysidError::Numerical(m) => SysidError::Numerical(format!("{context}: {m}")),
+            other => other,
+        }
+    }
+}
+
+/// Failure of a [`Plant`](crate::Plant) step.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum PlantError {
+    /// The plant's state became non-finite (an unstable identified model, a diverging integration).
+    #[error("{0}")]
+    Diverged(String),
+}
+
+impl From<PlantError> for SysidError {
+    fn from(e: PlantError) -> Self {
+        match e {
+            PlantError::Diverged(m) => SysidError::Numerical(m),
+        }
+    }
+}

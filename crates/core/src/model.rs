@@ -1,0 +1,758 @@
+//! Fitted model structures: linear ARX(na, nb, nk) and Hammerstein (static nonlinearity + ARX), with
+//! free-run simulation, k-step prediction and poles. A model may have several inputs (MISO), each with
+//! its own B polynomial, delay and static nonlinearity.
+//!
+//! Conventions (MATLAB's `arx`):
+//! A(q) y(k) = Σ_i B_i(q) x_i(k) + c + e(k), A = 1 + a1 q^-1 + ... + a_na q^-na,
+//! B_i = b_i1 q^-nk_i + ... + b_i,nb_i q^-(nk_i+nb_i-1); x_i = f_i(u_i) with f_i the static nonlinearity of
+//! input i (the identity for ARX, the valve deadzone for the paper's Hammerstein model), c the optional
+//! constant offset.
+
+use nalgebra::{Complex, DMatrix};
+use serde::{Deserialize, Serialize};
+
+use crate::{Deadzone, StaticNonlinearity, SysidError};
+
+/// Model orders of a single-input model: na poles, nb coefficients in B, nk samples of pure delay.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct Orders {
+    /// na: order of A(q) (number of poles).
+    pub na: usize,
+    /// nb: number of coefficients of B(q).
+    pub nb: usize,
+    /// nk: input delay in samples.
+    pub nk: usize,
+}
+
+impl Orders {
+    /// The paper's structure: na = 3, nb = 1, nk = 1.
+    pub const PAPER: Orders = Orders {
+        na: 3,
+        nb: 1,
+        nk: 1,
+    };
+
+    /// k0 = max(na, nk + nb - 1): the first sample at which every regressor exists in the data.
+    pub fn k0(&self) -> usize {
+        self.na.max((self.nk + self.nb).saturating_sub(1))
+    }
+}
+
+/// Which model structure.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "lowercase")]
+pub enum ModelKind {
+    /// Linear ARX: x = u.
+    Arx,
+    /// Hammerstein: static deadzone (b_l, b_r, m_l, m_r) x = f(u), then ARX on x, normalised b1 = 1.
+    Hammerstein,
+}
+
+impl std::fmt::Display for ModelKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            ModelKind::Arx => "arx",
+            ModelKind::Hammerstein => "hammerstein",
+        })
+    }
+}
+
+/// Upper bound on model orders accepted anywhere (keeps allocations bounded for hostile inputs).
+pub const MAX_ORDER: usize = 100;
+
+/// One input of a model: its static nonlinearity f, delay nk and B polynomial.
+#[derive(Debug, Clone, PartialEq)]
+pub struct InputChannel {
+    name: String,
+    nk: usize,
+    b: Vec<f64>,
+    nonlinearity: StaticNonlinearity,
+}
+
+impl InputChannel {
+    /// An input named `name` (for messages and files), x = f(u) through `nonlinearity`, delayed by `nk`
+    /// samples, with B coefficients `b` (b1..b_nb). Fails on a non-finite coefficient, an order above
+    /// [`MAX_ORDER`], or a nonlinear input without B coefficient (its b1 is the key term).
+    pub fn new(
+        name: impl Into<String>,
+        nk: usize,
+        b: Vec<f64>,
+        nonlinearity: StaticNonlinearity,
+    ) -> Result<Self, SysidError> {
+        let bad = |m: String| Err(SysidError::Data(format!("invalid model: {m}")));
+        if nk > MAX_ORDER || b.len() > MAX_ORDER {
+            return bad(format!("orders above {MAX_ORDER} are not supported"));
+        }
+        if !nonlinearity.is_linear() && b.is_empty() {
+            return bad("a hammerstein model needs nb >= 1".into());
+        }
+        if b.iter().any(|v| !v.is_finite()) || !nonlinearity.is_finite() {
+            return bad("a coefficient is NaN or infinite".into());
+        }
+        Ok(InputChannel {
+            name: name.into(),
+            nk,
+            b,
+            nonlinearity,
+        })
+    }
+
+    /// The input's name.
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+    /// nk: delay in samples.
+    pub fn nk(&self) -> usize {
+        self.nk
+    }
+    /// nb: number of B coefficients.
+    pub fn nb(&self) -> usize {
+        self.b.len()
+    }
+    /// b1..b_nb.
+    pub fn b(&self) -> &[f64] {
+        &self.b
+    }
+    /// The static nonlinearity f of this input.
+    pub fn nonlinearity(&self) -> &StaticNonlinearity {
+        &self.nonlinearity
+    }
+    /// The deadzone of this input, if it has one.
+    pub fn deadzone(&self) -> Option<&Deadzone> {
+        self.nonlinearity.deadzone()
+    }
+    /// x = f(u).
+    #[inline]
+    pub fn map(&self, u: f64) -> f64 {
+        self.nonlinearity.apply(u)
+    }
+    /// nk + nb - 1: the largest input lag in the regression.
+    fn max_lag(&self) -> usize {
+        (self.nk + self.b.len()).saturating_sub(1)
+    }
+}
+
+/// A fitted (or given) model: the JSON `model` object of `identify --json`.
+///
+/// Fields are private and every constructor validates, so a model in hand is always consistent (orders
+/// match the coefficient vectors, every value finite, a Hammerstein input has its B key term).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "ModelRepr", into = "ModelRepr")]
+pub struct Model {
+    ts: f64,
+    a: Vec<f64>,
+    inputs: Vec<InputChannel>,
+    offset: Option<f64>,
+}
+
+impl Model {
+    /// A model from its parts: Ts (s), a1..a_na, the inputs and the optional offset c. Fails on
+    /// inconsistent or non-finite parts.
+    pub fn new(
+        ts: f64,
+        a: Vec<f64>,
+        inputs: Vec<InputChannel>,
+        offset: Option<f64>,
+    ) -> Result<Self, SysidError> {
+        let bad = |m: String| Err(SysidError::Data(format!("invalid model: {m}")));
+        if a.len() > MAX_ORDER {
+            return bad(format!("orders above {MAX_ORDER} are not supported"));
+        }
+        if inputs.is_empty() {
+            return bad("a model needs at least one input".into());
+        }
+        if !(ts.is_finite() && ts > 0.0) {
+            return bad(format!("ts = {ts} must be a positive number of seconds"));
+        }
+        if a.iter().chain(offset.iter()).any(|v| !v.is_finite()) {
+            return bad("a coefficient is NaN or infinite".into());
+        }
+        Ok(Model {
+            ts,
+            a,
+            inputs,
+            offset,
+        })
+    }
+
+    /// A single-input ARX model: A(q) y = B(q) u + c.
+    pub fn arx(
+        ts: f64,
+        a: Vec<f64>,
+        b: Vec<f64>,
+        nk: usize,
+        offset: Option<f64>,
+    ) -> Result<Self, SysidError> {
+        let input = InputChannel::new("u", nk, b, StaticNonlinearity::Linear)?;
+        Model::new(ts, a, vec![input], offset)
+    }
+
+    /// A single-input Hammerstein model: x = deadzone(u), A(q) y = B(q) x + c.
+    pub fn hammerstein(
+        ts: f64,
+        a: Vec<f64>,
+        b: Vec<f64>,
+        nk: usize,
+        deadzone: Deadzone,
+        offset: Option<f64>,
+    ) -> Result<Self, SysidError> {
+        let input = InputChannel::new("u", nk, b, StaticNonlinearity::Deadzone(deadzone))?;
+        Model::new(ts, a, vec![input], offset)
+    }
+
+    /// A single-input model of `kind` (ARX ignores `deadzone`; Hammerstein needs one).
+    pub fn siso(
+        kind: ModelKind,
+        ts: f64,
+        a: Vec<f64>,
+        b: Vec<f64>,
+        nk: usize,
+        deadzone: Option<Deadzone>,
+        offset: Option<f64>,
+    ) -> Result<Self, SysidError> {
+        match (kind, deadzone) {
+            (ModelKind::Arx, None) => Model::arx(ts, a, b, nk, offset),
+            (ModelKind::Hammerstein, Some(d)) => Model::hammerstein(ts, a, b, nk, d, offset),
+            (ModelKind::Hammerstein, None) => Err(SysidError::Data(
+                "invalid model: a hammerstein model needs a deadzone".into(),
+            )),
+            (ModelKind::Arx, Some(_)) => Err(SysidError::Data(
+                "invalid model: an arx model has no deadzone".into(),
+            )),
+        }
+    }
+
+    /// The paper's "actual" Hammerstein model (Table III), normalised to b1 = 1 (docs/paper.md):
+    /// A = 1 - 1.869 q^-1 + 0.9976 q^-2 - 0.1284 q^-3, nk = 1, b_r = 1.41, b_l = -1.50,
+    /// m_r = 2.38 * 15.67e-4, m_l = 3.46 * 15.67e-4, Ts = 0.01 s.
+    pub fn paper() -> Model {
+        let b1 = 15.67e-4;
+        let deadzone = Deadzone {
+            b_l: -1.50,
+            b_r: 1.41,
+            m_l: 3.46 * b1,
+            m_r: 2.38 * b1,
+        };
+        Model {
+            ts: 0.01,
+            a: vec![-1.869, 0.9976, -0.1284],
+            inputs: vec![InputChannel {
+                name: "u".into(),
+                nk: 1,
+                b: vec![1.0],
+                nonlinearity: StaticNonlinearity::Deadzone(deadzone),
+            }],
+            offset: None,
+        }
+    }
+
+    /// Structure: Hammerstein when any input has a (non-identity) static nonlinearity.
+    pub fn kind(&self) -> ModelKind {
+        if self.inputs.iter().all(|i| i.nonlinearity.is_linear()) {
+            ModelKind::Arx
+        } else {
+            ModelKind::Hammerstein
+        }
+    }
+    /// Sampling period Ts in s.
+    pub fn ts(&self) -> f64 {
+        self.ts
+    }
+    /// na: order of A.
+    pub fn na(&self) -> usize {
+        self.a.len()
+    }
+    /// a1..a_na.
+    pub fn a(&self) -> &[f64] {
+        &self.a
+    }
+    /// The inputs.
+    pub fn inputs(&self) -> &[InputChannel] {
+        &self.inputs
+    }
+    /// The first (for a SISO model: the only) input.
+    pub fn input(&self) -> &InputChannel {
+        &self.inputs[0]
+    }
+    /// nb of the first input.
+    pub fn nb(&self) -> usize {
+        self.input().nb()
+    }
+    /// nk of the first input.
+    pub fn nk(&self) -> usize {
+        self.input().nk()
+    }
+    /// b1..b_nb of the first input (b1 = 1 for a Hammerstein model).
+    pub fn b(&self) -> &[f64] {
+        self.input().b()
+    }
+    /// The deadzone of the first input (Hammerstein only).
+    pub fn deadzone(&self) -> Option<&Deadzone> {
+        self.input().deadzone()
+    }
+    /// Constant term c of the linear block (mm), when estimated with an offset.
+    pub fn offset(&self) -> Option<f64> {
+        self.offset
+    }
+
+    /// The same model with A replaced by `a` (same order or not); fails on non-finite values.
+    pub fn with_a(mut self, a: Vec<f64>) -> Result<Self, SysidError> {
+        if a.iter().any(|v| !v.is_finite()) || a.len() > MAX_ORDER {
+            return Err(SysidError::Data(
+                "invalid model: a coefficient is NaN or infinite".into(),
+            ));
+        }
+        self.a = a;
+        Ok(self)
+    }
+
+    /// The same model with the first input's deadzone changed by `f` (no-op for an ARX model); fails when
+    /// the result is not finite.
+    pub fn map_deadzone(mut self, f: impl FnOnce(&mut Deadzone)) -> Result<Self, SysidError> {
+        if let StaticNonlinearity::Deadzone(d) = &mut self.inputs[0].nonlinearity {
+            f(d);
+            if !self.inputs[0].nonlinearity.is_finite() {
+                return Err(SysidError::Data(
+                    "invalid model: a coefficient is NaN or infinite".into(),
+                ));
+            }
+        }
+        Ok(self)
+    }
+
+    /// Orders (na, nb, nk) of the first input.
+    pub fn orders(&self) -> Orders {
+        Orders {
+            na: self.na(),
+            nb: self.nb(),
+            nk: self.nk(),
+        }
+    }
+
+    /// k0 = max(na, nk_i + nb_i - 1 over the inputs): the first sample the model can predict.
+    pub fn k0(&self) -> usize {
+        self.inputs
+            .iter()
+            .map(InputChannel::max_lag)
+            .fold(self.a.len(), usize::max)
+    }
+
+    /// The static input map x = f(u) of the first input: identity for ARX, the deadzone for Hammerstein.
+    #[inline]
+    pub fn input_map(&self, u: f64) -> f64 {
+        self.input().map(u)
+    }
+
+    /// x(k) = f(u(k)) of the first input for a whole record.
+    pub fn internal(&self, u: &[f64]) -> Vec<f64> {
+        u.iter().map(|&v| self.input_map(v)).collect()
+    }
+
+    /// Free-run simulation (MATLAB `sim`/`compare` with infinite horizon) of a single-input model:
+    /// y_hat(k) = y(k) for k < k0, then y_hat(k) = -sum a_i y_hat(k-i) + sum b_j x(k-nk-j+1) + c. Fails if
+    /// the simulation becomes non-finite.
+    pub fn simulate(&self, u: &[f64], y: &[f64]) -> Result<Vec<f64>, SysidError> {
+        self.run(&[u], y, None)
+    }
+
+    /// One-step-ahead prediction (MATLAB `predict` with horizon 1) of a single-input model: y_hat(k)
+    /// uses measured y(k-i). Entries k < k0 are copies of the data.
+    pub fn predict(&self, u: &[f64], y: &[f64]) -> Result<Vec<f64>, SysidError> {
+        self.run(&[u], y, Some(1))
+    }
+
+    /// Free-run simulation with one input record per model input (MISO).
+    pub fn simulate_miso(&self, u: &[&[f64]], y: &[f64]) -> Result<Vec<f64>, SysidError> {
+        self.run(u, y, None)
+    }
+
+    /// k-step-ahead prediction (MATLAB `predict(m, data, k)`): y_hat(k) from measured outputs up to
+    /// k - horizon and the model's own predictions after that; horizon 1 is [`Model::predict`] and a
+    /// horizon of N or more is free-run simulation. One input record per model input.
+    pub fn predict_k(
+        &self,
+        u: &[&[f64]],
+        y: &[f64],
+        horizon: usize,
+    ) -> Result<Vec<f64>, SysidError> {
+        if horizon == 0 {
+            return Err(SysidError::Data(
+                "the prediction horizon must be at least 1 sample".into(),
+            ));
+        }
+        self.run(u, y, Some(horizon))
+    }
+
+    /// `horizon = None`: free run; `Some(h)`: each y_hat(k) is the h-step prediction from the measured
+    /// outputs up to k - h.
+    fn run(&self, u: &[&[f64]], y: &[f64], horizon: Option<usize>) -> Result<Vec<f64>, SysidError> {
+        if u.len() != self.inputs.len() {
+            return Err(SysidError::Data(format!(
+                "the model has {} input(s) but {} input record(s) were given",
+                self.inputs.len(),
+                u.len()
+            )));
+        }
+        let n = u.iter().map(|s| s.len()).fold(y.len(), usize::min);
+        let k0 = self.k0();
+        let x: Vec<Vec<f64>> = self
+            .inputs
+            .iter()
+            .zip(u)
+            .map(|(ch, s)| s[..n].iter().map(|&v| ch.map(v)).collect())
+            .collect();
+        let c = self.offset.unwrap_or(0.0);
+        let one_step = |k: usize, past: &dyn Fn(usize) -> f64| {
+            let mut v = c;
+            for (i, ai) in self.a.iter().enumerate() {
+                v -= ai * past(k - 1 - i);
+            }
+            for (ch, xi) in self.inputs.iter().zip(&x) {
+                for (j, bj) in ch.b.iter().enumerate() {
+                    v += bj * xi[k - ch.nk - j];
+                }
+            }
+            v
+        };
+        let fail = |k: usize, what: &str| {
+            Err(SysidError::Numerical(format!(
+                "{what} of the model became non-finite at sample {k} (unstable model?)"
+            )))
+        };
+        let mut out: Vec<f64> = y[..n.min(k0)].to_vec();
+        out.reserve(n.saturating_sub(k0));
+        match horizon {
+            None => {
+                for k in k0..n {
+                    let v = one_step(k, &|i| out[i]);
+                    if !v.is_finite() {
+                        return fail(k, "simulation");
+                    }
+                    out.push(v);
+                }
+            }
+            Some(1) => {
+                for k in k0..n {
+                    let v = one_step(k, &|i| y[i]);
+                    if !v.is_finite() {
+                        return fail(k, "prediction");
+                    }
+                    out.push(v);
+                }
+            }
+            Some(h) => {
+                // y_hat(k) = the model run from the measured outputs up to k - h for h steps.
+                let mut scratch = vec![0.0; n];
+                for k in k0..n {
+                    let start = k.saturating_sub(h - 1).max(k0);
+                    scratch[..start].copy_from_slice(&y[..start]);
+                    for j in start..=k {
+                        let v = one_step(j, &|i| scratch[i]);
+                        scratch[j] = v;
+                    }
+                    let v = scratch[k];
+                    if !v.is_finite() {
+                        return fail(k, "prediction");
+                    }
+                    out.push(v);
+                }
+            }
+        }
+        Ok(out)
+    }
+
+    /// Poles: roots of z^na + a1 z^(na-1) + ... + a_na, as eigenvalues of the companion matrix.
+    pub fn poles(&self) -> Vec<Complex<f64>> {
+        poles_of(&self.a)
+    }
+
+    /// True when every pole lies strictly inside the unit circle.
+    pub fn is_stable(&self) -> bool {
+        self.poles().iter().all(|p| p.norm() < 1.0)
+    }
+
+    /// Number of estimated parameters p: na (+1 with offset) plus, per input, nb for a linear input and
+    /// 4 + (nb - 1) for a deadzone input (b1 = 1 is fixed by normalisation).
+    pub fn parameter_count(&self) -> usize {
+        let lin = self.na() + self.offset.map_or(0, |_| 1);
+        lin + self
+            .inputs
+            .iter()
+            .map(|ch| match ch.nonlinearity {
+                StaticNonlinearity::Linear => ch.nb(),
+                StaticNonlinearity::Deadzone(_) => 4 + ch.nb().saturating_sub(1),
+            })
+            .sum::<usize>()
+    }
+}
+
+/// The serialised form of one extra input of a MISO model (the first input keeps the top-level keys).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct InputRepr {
+    name: String,
+    nb: usize,
+    nk: usize,
+    b: Vec<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    deadzone: Option<Deadzone>,
+}
+
+/// The serialised form of a [`Model`]: the keys of model files and of `identify --json`'s `model`.
+/// A single-input model has exactly `kind, ts, na, nb, nk, a, b, offset` and `deadzone` (Hammerstein);
+/// a MISO model adds `inputs`, the list of every input (the first repeated from the top-level keys).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(crate) struct ModelRepr {
+    kind: ModelKind,
+    ts: f64,
+    na: usize,
+    nb: usize,
+    nk: usize,
+    a: Vec<f64>,
+    b: Vec<f64>,
+    offset: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    deadzone: Option<Deadzone>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    inputs: Option<Vec<InputRepr>>,
+}
+
+fn channel_of(name: String, nk: usize, b: Vec<f64>, dz: Option<Deadzone>) -> Result<InputChannel, SysidError> {
+    let f = dz.map_or(StaticNonlinearity::Linear, StaticNonlinearity::Deadzone);
+    InputChannel::new(name, nk, b, f)
+}
+
+impl TryFrom<ModelRepr> for Model {
+    type Error = SysidError;
+    fn try_from(r: ModelRepr) -> Result<Self, SysidError> {
+        let bad = |m: String| Err(SysidError::Data(format!("invalid model: {m}")));
+        if r.na > MAX_ORDER || r.nb > MAX_ORDER || r.nk > MAX_ORDER {
+            return bad(format!("orders above {MAX_ORDER} are not supported"));
+        }
+        if r.a.len() != r.na {
+            return bad(format!("na = {} but a has {} coefficients", r.na, r.a.len()));
+        }
+        if r.b.len() != r.nb {
+            return bad(format!("nb = {} but b has {} coefficients", r.nb, r.b.len()));
+        }
+        if !(r.ts.is_finite() && r.ts > 0.0) {
+            return bad(format!("ts = {} must be a positive number of seconds", r.ts));
+        }
+        match (r.kind, &r.deadzone) {
+            (ModelKind::Hammerstein, None) => return bad("a hammerstein model needs a deadzone".into()),
+            (ModelKind::Arx, Some(_)) => return bad("an arx model has no deadzone".into()),
+            _ => {}
+        }
+        let inputs = match r.inputs {
+            None => vec![channel_of("u".into(), r.nk, r.b, r.deadzone)?],
+            Some(list) => {
+                let first_matches = list.first().is_some_and(|f| {
+                    f.nb == r.nb && f.nk == r.nk && f.b == r.b && f.deadzone == r.deadzone
+                });
+                if !first_matches {
+                    return bad("the first entry of inputs must repeat nb, nk, b and deadzone".into());
+                }
+                let mut v = Vec::with_capacity(list.len());
+                for i in list {
+                    if i.b.len() != i.nb {
+                        return bad(format!("input {}: nb = {} but b has {} coefficients", i.name, i.nb, i.b.len()));
+                    }
+                    v.push(channel_of(i.name, i.nk, i.b, i.deadzone)?);
+                }
+                v
+            }
+        };
+        let m = Model::new(r.ts, r.a, inputs, r.offset)?;
+        if m.kind() != r.kind {
+            return bad(format!("kind = {} does not match the inputs' nonlinearities", r.kind));
+        }
+        Ok(m)
+    }
+}
+
+impl From<Model> for ModelRepr {
+    fn from(m: Model) -> Self {
+        let kind = m.kind();
+        let first = m.inputs[0].clone();
+        let inputs = (m.inputs.len() > 1).then(|| {
+            m.inputs
+                .iter()
+                .map(|i| InputRepr {
+                    name: i.name.clone(),
+                    nb: i.nb(),
+                    nk: i.nk,
+                    b: i.b.clone(),
+                    deadzone: i.deadzone().copied(),
+                })
+                .collect()
+        });
+        ModelRepr {
+            kind,
+            ts: m.ts,
+            na: m.a.len(),
+            nb: first.nb(),
+            nk: first.nk,
+            deadzone: first.deadzone().copied(),
+            a: m.a,
+            b: first.b,
+            offset: m.offset,
+            inputs,
+        }
+    }
+}
+
+/// Roots of the monic polynomial z^n + c1 z^(n-1) + ... + c_n (n = c.len()), via the companion matrix.
+///
+/// Always terminates: trailing zero coefficients give exact roots at z = 0, and the Schur iteration is
+/// bounded (nalgebra's unbounded `complex_eigenvalues` never returns for some companion matrices, e.g.
+/// z^3, nalgebra issues #611/#1291); when it does not converge the roots come from a bounded
+/// Durand–Kerner iteration instead.
+pub fn poles_of(c: &[f64]) -> Vec<Complex<f64>> {
+    // z^n + ... + c_m z^(n-m) with c_{m+1..n} = 0 has n - m roots at exactly 0.
+    let m = c.iter().rposition(|&v| v != 0.0).map_or(0, |i| i + 1);
+    let mut p = vec![Complex::new(0.0, 0.0); c.len() - m];
+    let c = &c[..m];
+    let n = c.len();
+    if n > 0 {
+        let mut comp = DMatrix::<f64>::zeros(n, n);
+        for (j, cj) in c.iter().enumerate() {
+            comp[(0, j)] = -cj;
+        }
+        for i in 1..n {
+            comp[(i, i - 1)] = 1.0;
+        }
+        match nalgebra::linalg::Schur::try_new(comp, f64::EPSILON, 1000 + 100 * n) {
+            Some(schur) => p.extend(schur.complex_eigenvalues().iter().copied()),
+            None => p.extend(durand_kerner(c)),
+        }
+    }
+    p.sort_by(|a, b| b.norm().total_cmp(&a.norm()).then(b.im.total_cmp(&a.im)));
+    p
+}
+
+/// Roots of z^n + c1 z^(n-1) + ... + c_n by the Durand–Kerner (Weierstrass) iteration, at most 2000
+/// sweeps, started on a circle of the Cauchy bound 1 + max |c_i|.
+fn durand_kerner(c: &[f64]) -> Vec<Complex<f64>> {
+    let n = c.len();
+    let eval = |z: Complex<f64>| {
+        c.iter()
+            .fold(Complex::new(1.0, 0.0), |acc, &ci| acc * z + ci)
+    };
+    let radius = 1.0 + c.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+    let mut z: Vec<Complex<f64>> = (0..n)
+        .map(|k| Complex::from_polar(radius, 0.4 + std::f64::consts::TAU * k as f64 / n as f64))
+        .collect();
+    for _ in 0..2000 {
+        let mut moved = 0.0_f64;
+        for i in 0..n {
+            let mut den = Complex::new(1.0, 0.0);
+            for j in 0..n {
+                if j != i {
+                    den *= z[i] - z[j];
+                }
+            }
+            if den.norm() == 0.0 {
+                continue;
+            }
+            let step = eval(z[i]) / den;
+            z[i] -= step;
+            moved = moved.max(step.norm() / z[i].norm().max(1.0));
+        }
+        if moved.is_nan() || moved <= 1e-15 {
+            break;
+        }
+    }
+    z
+}
+
+/// An identified (or given) single-input model run as a [`Plant`](crate::Plant): state = past outputs
+/// and past x.
+///
+/// Starts at rest: every past output equal to y0 and every past x equal to 0.
+#[derive(Debug, Clone)]
+pub struct ModelPlant {
+    model: Model,
+    /// y(k), y(k-1), ..., newest first (length max(na, 1)).
+    y_hist: Vec<f64>,
+    /// x(k-1), x(k-2), ... newest first (length nk + nb - 1).
+    x_hist: Vec<f64>,
+    label: String,
+}
+
+impl ModelPlant {
+    /// Wraps `model`; fails for nk = 0 (direct feed-through cannot be run sample by sample as a plant)
+    /// or a model with several inputs.
+    pub fn new(model: Model, label: impl Into<String>) -> Result<Self, SysidError> {
+        if model.inputs().len() != 1 {
+            return Err(SysidError::Data(
+                "a model with several inputs cannot be used as a single-input plant".into(),
+            ));
+        }
+        if model.nk() == 0 {
+            return Err(SysidError::Data(
+                "a model with nk = 0 (direct feed-through) cannot be used as a plant; nk >= 1 is needed".into(),
+            ));
+        }
+        let y_hist = vec![0.0; model.na().max(1)];
+        let x_hist = vec![0.0; model.nk() + model.nb() - 1];
+        Ok(ModelPlant {
+            model,
+            y_hist,
+            x_hist,
+            label: label.into(),
+        })
+    }
+
+    /// The wrapped model.
+    pub fn model(&self) -> &Model {
+        &self.model
+    }
+}
+
+impl crate::Plant for ModelPlant {
+    fn ts(&self) -> f64 {
+        self.model.ts()
+    }
+
+    fn output(&self) -> f64 {
+        self.y_hist[0]
+    }
+
+    fn step(&mut self, u: f64) -> Result<f64, crate::PlantError> {
+        let m = &self.model;
+        // x(k) enters the history; x_hist[i] = x(k - i) after the shift.
+        if !self.x_hist.is_empty() {
+            self.x_hist.rotate_right(1);
+            self.x_hist[0] = m.input_map(u);
+        }
+        // y(k+1) = -sum a_i y(k+1-i) + sum b_j x(k+1-nk-(j-1)) + c; x(k+1-nk-j') = x_hist[nk-1+j'].
+        let mut v = m.offset().unwrap_or(0.0);
+        for (i, ai) in m.a().iter().enumerate() {
+            v -= ai * self.y_hist[i];
+        }
+        let nk = m.nk();
+        for (j, bj) in m.b().iter().enumerate() {
+            v += bj * self.x_hist[nk - 1 + j];
+        }
+        if !v.is_finite() {
+            return Err(crate::PlantError::Diverged(format!(
+                "{} output became non-finite",
+                self.label
+            )));
+        }
+        self.y_hist.rotate_right(1);
+        self.y_hist[0] = v;
+        Ok(v)
+    }
+
+    fn reset(&mut self, y0_mm: f64) {
+        self.y_hist.iter_mut().for_each(|v| *v = y0_mm);
+        self.x_hist.iter_mut().for_each(|v| *v = 0.0);
+    }
+
+    fn name(&self) -> String {
+        self.label.clone()
+    }
+}

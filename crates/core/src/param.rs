@@ -53,6 +53,13 @@ impl std::fmt::Display for ParamName {
     }
 }
 
+impl PartialEq<&str> for ParamName {
+    /// Compares with the paper's symbol (`ParamName::BL == "b_l"`).
+    fn eq(&self, other: &&str) -> bool {
+        self.to_string() == *other
+    }
+}
+
 impl Serialize for ParamName {
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
         s.collect_str(self)

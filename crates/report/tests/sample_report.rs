@@ -183,7 +183,7 @@ fn sample_report() -> Report {
             .paragraph("SAMPLE DATA, not results: this report exercises the report layer with synthetic signals.")
             .list(["Identification data (Fig. 2)", "Deadzone (Fig. 4)", "Validation (Fig. 5, Table IV)"])
             .code("ipa-sysid reproduce --out out/ --seed 1"),
-        Section::new("Identified model").table(table3),
+        Section::new("Fitted model").table(table3),
         Section::new("Validation").table(table4).callout(Verdict::Pass, "Hammerstein fit 93.0 % > ARX fit 87.1 %."),
         Section::new("Closed loop").callout(Verdict::Fail, "Overshoot 12.3 % > 10 % (sample text)."),
     ];

@@ -207,6 +207,7 @@ impl Branches {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use sysid_core::data::Signals;
     use crate::Orders;
 
     fn data(u: Vec<f64>) -> Dataset {

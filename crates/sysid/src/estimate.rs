@@ -336,6 +336,24 @@ impl Identification {
         self.estimator = estimator;
         self
     }
+    /// Builder: forgetting factor ρ of a recursive method (RLS, IV); no effect on the batch methods.
+    pub fn with_forgetting(mut self, rho: f64) -> Self {
+        match &mut self.estimator {
+            EstimatorSettings::Rls(r) => r.forgetting = rho,
+            EstimatorSettings::Iv(i) => i.forgetting = rho,
+            _ => {}
+        }
+        self
+    }
+
+    /// Builder: RLS passes over the data; no effect on the other methods.
+    pub fn with_passes(mut self, passes: usize) -> Self {
+        if let EstimatorSettings::Rls(r) = &mut self.estimator {
+            r.passes = passes;
+        }
+        self
+    }
+
     /// Builder: switch to `method`, keeping the settings methods share (ρ and P(0) of the recursive
     /// methods, the least-squares start and its iteration cap) and defaults for the rest.
     pub fn with_method(self, method: Method) -> Self {
@@ -623,7 +641,12 @@ fn model_from_theta(
 ) -> Result<Model, SysidError> {
     key.model_of(theta.as_slice(), data.ts)
         .and_then(|m| m.map_deadzone(|d| br.impose(d)))
-        .map_err(|e| SysidError::Numerical(format!("{}: {e}", data.name)))
+        .map_err(|e| {
+            let params = physical_params(key.structure(), theta, None);
+            check_finite(data, &params)
+                .err()
+                .unwrap_or_else(|| SysidError::Numerical(format!("{}: {e}", data.name)))
+        })
 }
 
 fn check_key_term(ls: &LeastSquares) -> Result<(), SysidError> {
@@ -849,7 +872,6 @@ fn instrumental(p: &Problem, st: &InstrumentalVariables) -> Result<Fitted, Sysid
         let next = DVector::from_vec(key.scatter(pass.theta.as_slice(), &vec![0.0; key.len()]));
         let change = (&next - &theta_full).norm() / (1e-300 + next.norm());
         theta_full = next;
-        check_finite(data, &physical_params(s, &theta_full, None))?;
         let model = model_from_theta(data, &key, &p.branches, &theta_full)?;
         // Keep the stage whose model simulates the record best (from rest, as the instruments do).
         let sim_rss = model
@@ -1002,7 +1024,6 @@ fn arx_ls(p: &Problem) -> Result<Fitted, SysidError> {
     let sigma2 = sol.rss / dof;
     let cov = &sol.inv_gram * sigma2;
     let params = physical_params(s, &sol.theta, Some(&cov));
-    check_finite(data, &params)?;
     let model = model_from_theta(data, &key, &p.branches, &sol.theta)?;
     Ok(Fitted::new(model, params, Method::Ls, sigma2))
 }
@@ -1101,7 +1122,6 @@ fn hammerstein_ls(p: &Problem, st: &LeastSquares) -> Result<Fitted, SysidError> 
     let rows = data.len() - s.orders.k0();
     let sigma2 = rss / (rows.saturating_sub(key.n_free()).max(1)) as f64;
     let cov = &sol.inv_gram * sigma2;
-    check_finite(data, &physical_params(s, &theta, None))?;
     let model = model_from_theta(data, &key, br, &theta)?;
     Ok(Fitted {
         params: params_with_branches(p, &theta, Some(&cov), &model),
@@ -1213,7 +1233,6 @@ fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitted, SysidErr
         rel(&theta_tail, &theta) < 1e-3
     };
     let theta_full = expand(theta.as_slice());
-    check_finite(data, &physical_params(s, &theta_full, None))?;
     let model = model_from_theta(data, &key, br, &theta_full)?;
     let rss = prediction_rss(&model, data)?;
     let sigma2 = rss / (n - k0).saturating_sub(np).max(1) as f64;

@@ -452,6 +452,7 @@ fn termination_words(t: &levenberg_marquardt::TerminationReason) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use sysid_core::data::Signals;
 
     // (z − 2)(z − 0.5) = z² − 2.5 z + 1: the root 2 reflects to 0.5, giving (z − 0.5)² = z² − z + 0.25.
     #[test]

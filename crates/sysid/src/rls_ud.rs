@@ -334,7 +334,7 @@ mod tests {
                 );
                 for j in 0..4 {
                     assert!(
-                        (a.p[(i, j)] - pb[(i, j)]).abs() < 1e-9 * (1.0 + a.p[(i, j)].abs()),
+                        (a.p()[(i, j)] - pb[(i, j)]).abs() < 1e-9 * (1.0 + a.p()[(i, j)].abs()),
                         "rho {rho}"
                     );
                 }

@@ -5,9 +5,12 @@
 //!
 //! Case counts are modest so that the debug-mode run stays within a few seconds.
 
+use sysid::data::Signals;
+use sysid::estimate::{EstimatorSettings, InstrumentalVariables, LeastSquares, OutputError, RecursiveLeastSquares};
+use sysid::Structure;
 use proptest::prelude::*;
-use sysid::estimate::{identify, IdentifySettings, Method};
-use sysid::validation::metrics;
+use sysid::estimate::{identify, Identification, Method};
+use sysid::metrics::metrics;
 use sysid::{Dataset, ModelKind, Orders, SysidError};
 
 /// Any finite f64, weighted towards ordinary magnitudes but with extremes, subnormals and zeros.
@@ -51,30 +54,44 @@ fn settings(
     (na, nb, nk): (usize, usize, usize),
     method: Method,
     offset: bool,
-) -> IdentifySettings {
-    IdentifySettings {
-        kind,
-        orders: Orders { na, nb, nk },
-        method,
-        offset,
-        drop_unexcited_branch: true,
+) -> Identification {
+    let start = LeastSquares {
         max_iterations: 30,
-        iv_stages: 2,
-        ..IdentifySettings::default()
+        ..LeastSquares::default()
+    };
+    let estimator = match method {
+        Method::Ls => EstimatorSettings::Ls(start),
+        Method::Rls => EstimatorSettings::Rls(RecursiveLeastSquares::default()),
+        Method::Oe => EstimatorSettings::Oe(OutputError {
+            start,
+            max_iterations: 30,
+        }),
+        Method::Iv => EstimatorSettings::Iv(InstrumentalVariables {
+            start,
+            stages: 2,
+            ..InstrumentalVariables::default()
+        }),
+    };
+    Identification {
+        structure: Structure {
+            kind,
+            orders: Orders { na, nb, nk },
+            offset,
+        },
+        estimator,
+        drop_unexcited_branch: true,
     }
 }
 
 /// The contract: Ok holds a consistent, finite model with finite parameters and metrics that are
 /// finite or absent (never NaN); Err is a non-empty message.
-fn check_outcome(data: &Dataset, s: &IdentifySettings) -> Result<(), TestCaseError> {
+fn check_outcome(data: &Dataset, s: &Identification) -> Result<(), TestCaseError> {
     match identify(data, s) {
         Ok(fit) => {
-            prop_assert!(
-                fit.model.check().is_ok(),
-                "{:?}: {:?}",
-                fit.model,
-                fit.model.check()
-            );
+            // The model survives its own file format, whose reader validates every field.
+            let text = sysid::model_file::to_json(&fit.model).unwrap();
+            let back = sysid::model_file::parse_model(text.as_bytes(), "prop");
+            prop_assert!(back.is_ok(), "{:?}: {:?}", fit.model, back);
             for p in &fit.params {
                 prop_assert!(p.value.is_finite(), "{} = {}", p.name, p.value);
                 prop_assert!(

@@ -4,8 +4,8 @@
 use std::path::PathBuf;
 
 use sysid::data::{read_csv, CsvOptions};
-use sysid::estimate::{identify, IdentifySettings, Method};
-use sysid::validation::metrics;
+use sysid::estimate::{identify, Identification, Method};
+use sysid::metrics::metrics;
 use sysid::{Dataset, ModelKind};
 
 fn data_dir() -> Option<PathBuf> {
@@ -38,7 +38,7 @@ fn tanks(dir: &std::path::Path, u: &str, y: &str) -> Dataset {
 fn cascaded_tanks_output_error_arx_beats_the_published_bla() {
     let Some(dir) = data_dir() else { return };
     let (est, val) = (tanks(&dir, "uEst", "yEst"), tanks(&dir, "uVal", "yVal"));
-    let s = IdentifySettings::default()
+    let s = Identification::default()
         .with_kind(ModelKind::Arx)
         .with_orders(2, 2, 1)
         .with_offset(true);
@@ -56,13 +56,13 @@ fn cascaded_tanks_output_error_arx_beats_the_published_bla() {
 fn cascaded_tanks_one_sided_hammerstein_is_estimated_with_a_note() {
     let Some(dir) = data_dir() else { return };
     let est = tanks(&dir, "uEst", "yEst");
-    let mut s = IdentifySettings::default()
+    let mut s = Identification::default()
         .with_orders(2, 2, 1)
         .with_method(Method::Ls)
         .with_offset(true);
     s.drop_unexcited_branch = true;
     let fit = identify(&est, &s).unwrap();
-    assert!(fit.note.unwrap().contains("never negative"));
-    let d = fit.model.deadzone.unwrap();
+    assert!(fit.note().unwrap().contains("never negative"));
+    let d = fit.model.deadzone().copied().unwrap();
     assert_eq!((d.m_l, d.b_l), (0.0, 0.0));
 }

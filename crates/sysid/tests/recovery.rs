@@ -1,10 +1,11 @@
 //! Exact recovery of noise-free models, RLS against its closed form, LS against a hand-derived case.
 //! Data are generated here by a plain difference-equation loop, independent of the library's simulator.
 
+use sysid::data::Signals;
 use nalgebra::{DMatrix, DVector};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use sysid::estimate::{identify, IdentifySettings, Method};
+use sysid::estimate::{identify, Identification, Method};
 use sysid::{Dataset, Deadzone, ModelKind};
 
 /// A staircase of random levels in [-255, 255] (with exact ±255 and small levels near zero) held for
@@ -123,7 +124,7 @@ fn check_recovery(method: Method, passes: usize, rel: f64) {
         let u = staircase(1500, 7 + ci as u64);
         let y = simulate(&u, &case.a, &case.b, case.nk, case.c, Some(&case.dz));
         let data = Dataset::new(Signals { u, y }, 0.01, "synthetic").unwrap();
-        let settings = IdentifySettings::default()
+        let settings = Identification::default()
             .with_kind(ModelKind::Hammerstein)
             .with_orders(case.a.len(), case.b.len(), case.nk)
             .with_method(method)
@@ -131,7 +132,7 @@ fn check_recovery(method: Method, passes: usize, rel: f64) {
             .with_offset(case.c != 0.0);
         let fit = identify(&data, &settings).unwrap();
         let m = &fit.model;
-        let d = m.deadzone.unwrap();
+        let d = m.deadzone().copied().unwrap();
         let msg = format!("case {ci} {method:?}: {m:?} iterations {}", fit.iterations);
         for (got, want) in [
             (d.b_l, case.dz.b_l),
@@ -141,17 +142,17 @@ fn check_recovery(method: Method, passes: usize, rel: f64) {
         ] {
             assert!(close(got, want, rel), "deadzone {got} vs {want}; {msg}");
         }
-        for (got, want) in m.a.iter().zip(&case.a).chain(m.b.iter().zip(&case.b)) {
+        for (got, want) in m.a().iter().zip(&case.a).chain(m.b().iter().zip(&case.b)) {
             assert!(
                 close(*got, *want, rel),
                 "coefficient {got} vs {want}; {msg}"
             );
         }
         if case.c != 0.0 {
-            assert!(close(m.offset.unwrap(), case.c, rel), "{msg}");
+            assert!(close(m.offset().unwrap(), case.c, rel), "{msg}");
         }
         if method == Method::Ls {
-            assert!(fit.converged, "{msg}");
+            assert!(fit.converged(), "{msg}");
         }
     }
 }
@@ -179,12 +180,12 @@ fn ls_recovers_noise_free_arx_of_several_orders() {
         let u = staircase(400, 3);
         let y = simulate(&u, &a, &b, nk, 0.0, None);
         let data = Dataset::new(Signals { u, y }, 1.0, "arx").unwrap();
-        let s = IdentifySettings::default()
+        let s = Identification::default()
             .with_kind(ModelKind::Arx)
             .with_orders(a.len(), b.len(), nk)
             .with_method(Method::Ls);
         let m = identify(&data, &s).unwrap().model;
-        for (g, w) in m.a.iter().zip(&a).chain(m.b.iter().zip(&b)) {
+        for (g, w) in m.a().iter().zip(&a).chain(m.b().iter().zip(&b)) {
             assert!(close(*g, *w, 1e-10), "{g} vs {w}");
         }
     }
@@ -199,13 +200,13 @@ fn ls_solves_a_hand_derived_three_row_case() {
         "hand",
     )
     .unwrap();
-    let s = IdentifySettings::default()
+    let s = Identification::default()
         .with_kind(ModelKind::Arx)
         .with_orders(1, 1, 1)
         .with_method(Method::Ls);
     let fit = identify(&data, &s).unwrap();
-    assert!((fit.model.a[0] + 0.8).abs() < 1e-12);
-    assert!((fit.model.b[0] - 1.0).abs() < 1e-12);
+    assert!((fit.model.a()[0] + 0.8).abs() < 1e-12);
+    assert!((fit.model.b()[0] - 1.0).abs() < 1e-12);
     assert!((fit.noise_variance - 1.8).abs() < 1e-12);
     // Cov = σ² (ΦᵀΦ)⁻¹ with ΦᵀΦ = diag(1+4, 1) over columns (-y(k-1), u(k-1)): std(a) = √(1.8/5).
     let std_a = fit
@@ -230,11 +231,14 @@ fn rls_equals_the_weighted_regularised_least_squares_closed_form() {
     y.iter_mut().for_each(|v| *v += rng.gen_range(-0.5..0.5));
     for (rho, p0) in [(1.0, 10.0), (0.97, 2.0), (0.9, 1e3), (1.0, 1e6)] {
         let data = Dataset::new(Signals { u: u.clone(), y: y.clone() }, 1.0, "rls").unwrap();
-        let mut s = IdentifySettings::default()
+        let s = Identification::default()
             .with_kind(ModelKind::Arx)
             .with_orders(2, 2, 1)
-            .with_forgetting(rho);
-        s.p0 = p0;
+            .with_estimator(sysid::EstimatorSettings::Rls(sysid::RecursiveLeastSquares {
+                forgetting: rho,
+                p0,
+                ..sysid::RecursiveLeastSquares::default()
+            }));
         let fit = identify(&data, &s).unwrap_or_else(|e| panic!("rho {rho} p0 {p0}: {e}"));
         // Independent closed form.
         let n = u.len();
@@ -249,10 +253,10 @@ fn rls_equals_the_weighted_regularised_least_squares_closed_form() {
         }
         let theta = g.lu().solve(&h).unwrap();
         let got = [
-            fit.model.a[0],
-            fit.model.a[1],
-            fit.model.b[0],
-            fit.model.b[1],
+            fit.model.a()[0],
+            fit.model.a()[1],
+            fit.model.b()[0],
+            fit.model.b()[1],
         ];
         for i in 0..4 {
             assert!(
@@ -269,7 +273,7 @@ fn one_sided_input_is_refused_for_hammerstein() {
     let u: Vec<f64> = (0..100).map(|k| (k % 7) as f64 + 1.0).collect();
     let y = simulate(&u, &[-0.5], &[1.0], 1, 0.0, None);
     let data = Dataset::new(Signals { u, y }, 1.0, "pos").unwrap();
-    let e = identify(&data, &IdentifySettings::default().with_method(Method::Ls)).unwrap_err();
+    let e = identify(&data, &Identification::default().with_method(Method::Ls)).unwrap_err();
     assert!(e.to_string().contains("never negative"), "{e}");
 }
 
@@ -279,7 +283,7 @@ fn constant_input_is_refused_as_not_persistently_exciting() {
     let u = vec![3.0; 200];
     let y: Vec<f64> = (0..200).map(|k| (k as f64 * 0.1).sin()).collect();
     let data = Dataset::new(Signals { u, y }, 1.0, "const").unwrap();
-    let s = IdentifySettings::default()
+    let s = Identification::default()
         .with_kind(ModelKind::Arx)
         .with_orders(2, 1, 1)
         .with_method(Method::Ls)
@@ -301,12 +305,12 @@ fn ls_is_invariant_to_a_huge_common_scale_of_the_data() {
         "big",
     )
     .unwrap();
-    let s = IdentifySettings::default()
+    let s = Identification::default()
         .with_kind(ModelKind::Arx)
         .with_orders(2, 2, 1)
         .with_method(Method::Ls);
     let m = identify(&data, &s).unwrap().model;
-    for (g, w) in m.a.iter().zip(&a).chain(m.b.iter().zip(&b)) {
+    for (g, w) in m.a().iter().zip(&a).chain(m.b().iter().zip(&b)) {
         assert!(close(*g, *w, 1e-9), "{g} vs {w}");
     }
 }
@@ -319,7 +323,7 @@ fn rls_refuses_a_constant_input_as_not_persistently_exciting() {
     let y: Vec<f64> = (0..200).map(|k| (k as f64 * 0.1).sin()).collect();
     let data = Dataset::new(Signals { u, y }, 1.0, "const").unwrap();
     for kind in [ModelKind::Arx, ModelKind::Hammerstein] {
-        let s = IdentifySettings::default()
+        let s = Identification::default()
             .with_kind(kind)
             .with_orders(2, 1, 1)
             .with_method(Method::Rls)

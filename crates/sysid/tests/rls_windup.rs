@@ -4,7 +4,9 @@
 //! direction of P orthogonal to φ is divided by ρ at each sample: tr P ≥ p0 ρ^(−k), which overflows
 //! f64 (1.8e308) once k > ln(1.8e308 / p0) / ln(1/ρ) ≈ 34 400 for p0 = 10^6.
 
-use sysid::estimate::{identify, IdentifySettings, Method};
+use sysid::data::Signals;
+use sysid::{EstimatorSettings, RecursiveLeastSquares};
+use sysid::estimate::{identify, Identification};
 use sysid::rls_ud::{RlsForm, RobustRls};
 use sysid::windup::Windup;
 use sysid::{Dataset, ModelKind};
@@ -15,15 +17,16 @@ fn quiet_data() -> Dataset {
     Dataset::new(Signals { u: vec![0.0; N], y: vec![1.0; N] }, 0.01, "no excitation").unwrap()
 }
 
-fn settings(form: RlsForm, windup: Windup) -> IdentifySettings {
-    let mut s = IdentifySettings::default()
+fn settings(form: RlsForm, windup: Windup) -> Identification {
+    Identification::default()
         .with_kind(ModelKind::Arx)
         .with_orders(2, 1, 1)
-        .with_method(Method::Rls)
-        .with_forgetting(0.98);
-    s.rls_form = form;
-    s.windup = windup;
-    s
+        .with_estimator(EstimatorSettings::Rls(RecursiveLeastSquares {
+            forgetting: 0.98,
+            form,
+            windup,
+            ..RecursiveLeastSquares::default()
+        }))
 }
 
 // The paper's RLS winds up: P overflows (tr P ≥ 10^6 · 0.98^(−k)) and the estimator reports a numerical failure.

@@ -124,7 +124,8 @@ mod tests {
     #[test]
     fn input_errors_of_every_library_exit_2() {
         let errs: Vec<anyhow::Error> = vec![
-            sysid::SysidError::setting(sysid::Setting::Other("--p0"), 0, "a positive number").into(),
+            sysid::SysidError::setting(sysid::Setting::Other("--p0"), 0, "a positive number")
+                .into(),
             sysid::SysidError::Data("too short".into()).into(),
             ipa::IpaError::Config("bad".into()).into(),
             control::ControlError::setting("--kp", f64::NAN, "a finite number").into(),

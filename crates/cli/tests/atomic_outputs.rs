@@ -2,6 +2,8 @@
 //! to an input (or to another output) is refused, no temporary file is left behind, and the written files
 //! have ordinary permissions.
 
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 

@@ -5,6 +5,8 @@
 //! expected. The accepted variants (semicolon, tab, CRLF, BOM, ...) must read as exactly the same
 //! numbers as the plain file. See docs/reliability.md for the decisions.
 
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 

@@ -1,6 +1,8 @@
 //! `identify` batch mode through the binary: a folder or several files, one JSON line per file, failures
 //! reported per file with a non-zero exit, each line equal to the single-file `--json` object.
 
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 

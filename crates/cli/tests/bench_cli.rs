@@ -1,6 +1,8 @@
 //! `bench` through the binary with tiny sizes (speed itself is measured by the benchmarks, not by
 //! tests): the JSON reports are complete and internally consistent.
 
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
+
 use std::process::Command;
 
 use serde_json::Value;

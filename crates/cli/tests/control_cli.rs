@@ -1,6 +1,8 @@
 //! `ipa-sysid control` end to end on the paper's model (`--plant paper`, fast): outputs, their consistency
 //! with each other (metrics recomputed here from the trace CSV, by independent code), and bad flags.
 
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
+
 use std::path::Path;
 use std::process::{Command, Output};
 

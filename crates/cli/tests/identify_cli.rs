@@ -1,5 +1,7 @@
 //! `identify` and `validate` through the binary: JSON schema, exact recovery end to end, clear errors.
 
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 

@@ -1,5 +1,7 @@
 //! `montecarlo` through the binary: a small study on the paper's model, deterministic per seed.
 
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
+
 use std::process::Command;
 
 fn bin() -> Command {

@@ -1,5 +1,7 @@
 //! `order` through the binary: ranking, JSON, range syntax errors.
 
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
+
 use std::process::Command;
 
 fn bin() -> Command {

@@ -1,5 +1,7 @@
 //! `ipa-sysid simulate` and `plant-config` end to end.
 
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
+
 use std::path::Path;
 use std::process::Command;
 

@@ -160,7 +160,7 @@ pub fn run(
 mod tests {
     use super::*;
     use crate::{IntegralForm, PiSettings};
-    use sysid_core::{Model, ModelPlant, SysidError};
+    use sysid_core::{Model, ModelPlant};
 
     fn paper_plant() -> ModelPlant {
         ModelPlant::new(Model::paper(), "paper").unwrap()

@@ -8,6 +8,8 @@
 //! when the overshoot is measured beyond r instead of beyond the final value y_f, and 3.414 % with Ki
 //! halved; the per-sample form is 15 times larger.
 
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
+
 use control::{closed_loop, IntegralForm, PiSettings, Profile, StepMetrics};
 use sysid_core::{Model, ModelPlant};
 

@@ -519,7 +519,12 @@ pub(crate) struct ModelRepr {
     inputs: Option<Vec<InputRepr>>,
 }
 
-fn channel_of(name: String, nk: usize, b: Vec<f64>, dz: Option<Deadzone>) -> Result<InputChannel, SysidError> {
+fn channel_of(
+    name: String,
+    nk: usize,
+    b: Vec<f64>,
+    dz: Option<Deadzone>,
+) -> Result<InputChannel, SysidError> {
     let f = dz.map_or(StaticNonlinearity::Linear, StaticNonlinearity::Deadzone);
     InputChannel::new(name, nk, b, f)
 }
@@ -532,16 +537,29 @@ impl TryFrom<ModelRepr> for Model {
             return bad(format!("orders above {MAX_ORDER} are not supported"));
         }
         if r.a.len() != r.na {
-            return bad(format!("na = {} but a has {} coefficients", r.na, r.a.len()));
+            return bad(format!(
+                "na = {} but a has {} coefficients",
+                r.na,
+                r.a.len()
+            ));
         }
         if r.b.len() != r.nb {
-            return bad(format!("nb = {} but b has {} coefficients", r.nb, r.b.len()));
+            return bad(format!(
+                "nb = {} but b has {} coefficients",
+                r.nb,
+                r.b.len()
+            ));
         }
         if !(r.ts.is_finite() && r.ts > 0.0) {
-            return bad(format!("ts = {} must be a positive number of seconds", r.ts));
+            return bad(format!(
+                "ts = {} must be a positive number of seconds",
+                r.ts
+            ));
         }
         match (r.kind, &r.deadzone) {
-            (ModelKind::Hammerstein, None) => return bad("a hammerstein model needs a deadzone".into()),
+            (ModelKind::Hammerstein, None) => {
+                return bad("a hammerstein model needs a deadzone".into())
+            }
             (ModelKind::Arx, Some(_)) => return bad("an arx model has no deadzone".into()),
             _ => {}
         }
@@ -552,12 +570,19 @@ impl TryFrom<ModelRepr> for Model {
                     f.nb == r.nb && f.nk == r.nk && f.b == r.b && f.deadzone == r.deadzone
                 });
                 if !first_matches {
-                    return bad("the first entry of inputs must repeat nb, nk, b and deadzone".into());
+                    return bad(
+                        "the first entry of inputs must repeat nb, nk, b and deadzone".into(),
+                    );
                 }
                 let mut v = Vec::with_capacity(list.len());
                 for i in list {
                     if i.b.len() != i.nb {
-                        return bad(format!("input {}: nb = {} but b has {} coefficients", i.name, i.nb, i.b.len()));
+                        return bad(format!(
+                            "input {}: nb = {} but b has {} coefficients",
+                            i.name,
+                            i.nb,
+                            i.b.len()
+                        ));
                     }
                     v.push(channel_of(i.name, i.nk, i.b, i.deadzone)?);
                 }
@@ -566,7 +591,10 @@ impl TryFrom<ModelRepr> for Model {
         };
         let m = Model::new(r.ts, r.a, inputs, r.offset)?;
         if m.kind() != r.kind {
-            return bad(format!("kind = {} does not match the inputs' nonlinearities", r.kind));
+            return bad(format!(
+                "kind = {} does not match the inputs' nonlinearities",
+                r.kind
+            ));
         }
         Ok(m)
     }

@@ -56,7 +56,7 @@ impl std::fmt::Display for ParamName {
 impl PartialEq<&str> for ParamName {
     /// Compares with the paper's symbol (`ParamName::BL == "b_l"`).
     fn eq(&self, other: &&str) -> bool {
-        self.to_string() == *other
+        other.parse::<ParamName>().is_ok_and(|n| n == *self)
     }
 }
 
@@ -85,7 +85,10 @@ impl std::str::FromStr for ParamName {
             "m_r*b_r" => ParamName::MrBr,
             "m_l*b_l" => ParamName::MlBl,
             "c" => ParamName::C,
-            _ => match (t.strip_prefix('a').and_then(index), t.strip_prefix('b').and_then(index)) {
+            _ => match (
+                t.strip_prefix('a').and_then(index),
+                t.strip_prefix('b').and_then(index),
+            ) {
                 (Some(i), _) => ParamName::A(i),
                 (_, Some(j)) => ParamName::B(j),
                 _ => {
@@ -188,7 +191,12 @@ impl Parameterisation {
         let hammer = s.kind == ModelKind::Hammerstein;
         if hammer {
             v.extend(match self.layout {
-                Layout::KeyTerm => [ParamName::MR, ParamName::MrBr, ParamName::ML, ParamName::MlBl],
+                Layout::KeyTerm => [
+                    ParamName::MR,
+                    ParamName::MrBr,
+                    ParamName::ML,
+                    ParamName::MlBl,
+                ],
                 Layout::Physical => [ParamName::BL, ParamName::BR, ParamName::ML, ParamName::MR],
             });
         }
@@ -334,7 +342,11 @@ mod tests {
     fn hammer(offset: bool) -> Structure {
         Structure {
             kind: ModelKind::Hammerstein,
-            orders: Orders { na: 2, nb: 2, nk: 1 },
+            orders: Orders {
+                na: 2,
+                nb: 2,
+                nk: 1,
+            },
             offset,
         }
     }
@@ -356,7 +368,10 @@ mod tests {
             assert!((a - b).abs() <= 1e-15 * b.abs().max(1.0), "{a} vs {b}");
         }
         let names: Vec<String> = p.name_strings();
-        assert_eq!(names, ["m_r", "m_r*b_r", "m_l", "m_l*b_l", "a1", "a2", "a3"]);
+        assert_eq!(
+            names,
+            ["m_r", "m_r*b_r", "m_l", "m_l*b_l", "a1", "a2", "a3"]
+        );
     }
 
     // Physical vector → model → physical vector is the identity.
@@ -388,7 +403,11 @@ mod tests {
     fn gather_and_scatter_are_inverse_on_the_free_entries() {
         let s = Structure {
             kind: ModelKind::Arx,
-            orders: Orders { na: 1, nb: 2, nk: 1 },
+            orders: Orders {
+                na: 1,
+                nb: 2,
+                nk: 1,
+            },
             offset: false,
         };
         let p = Parameterisation::new(s, Layout::KeyTerm)
@@ -397,13 +416,22 @@ mod tests {
         assert_eq!(p.gather(&[1.0, 2.0, 3.0]), [1.0, 3.0]);
         assert_eq!(p.scatter(&[7.0, 9.0], &[1.0, 2.0, 3.0]), [7.0, 2.0, 9.0]);
         let m = p.scatter_matrix(&DMatrix::from_row_slice(2, 2, &[1.0, 2.0, 3.0, 4.0]));
-        assert_eq!(m, DMatrix::from_row_slice(3, 3, &[1.0, 0.0, 2.0, 0.0, 0.0, 0.0, 3.0, 0.0, 4.0]));
+        assert_eq!(
+            m,
+            DMatrix::from_row_slice(3, 3, &[1.0, 0.0, 2.0, 0.0, 0.0, 0.0, 3.0, 0.0, 4.0])
+        );
         assert!(p.clone().with_free(vec![true]).is_err());
     }
 
     #[test]
     fn names_parse_back() {
-        for n in [ParamName::BL, ParamName::MlBl, ParamName::A(3), ParamName::B(12), ParamName::C] {
+        for n in [
+            ParamName::BL,
+            ParamName::MlBl,
+            ParamName::A(3),
+            ParamName::B(12),
+            ParamName::C,
+        ] {
             assert_eq!(n.to_string().parse::<ParamName>().unwrap(), n);
         }
         assert!("x1".parse::<ParamName>().is_err());

@@ -3,6 +3,8 @@
 //! experiment for a few seeds, and the simulation speed.
 //!
 //! `cargo run --release -p ipa --example characterise [-- plant.toml]`
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
+
 use ipa::{Ipa, PlantConfig};
 use sysid_core::Plant;
 

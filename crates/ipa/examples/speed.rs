@@ -3,6 +3,8 @@
 //!
 //! `cargo run --release -p ipa --example speed`
 
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
+
 use sysid_core::Plant;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {

@@ -1,5 +1,7 @@
 //! Physical checks of the IPA simulator, each against an independently computed expectation.
 
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
+
 use ipa::{Ipa, PlantConfig};
 use sysid_core::Plant;
 

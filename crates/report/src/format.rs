@@ -22,4 +22,3 @@ pub fn num(v: f64) -> String {
         trim(format!("{v:.digits$}"))
     }
 }
-

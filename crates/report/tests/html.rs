@@ -1,5 +1,7 @@
 //! HTML report: escaping, document structure, tables, inline figures, atomic save.
 
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
+
 mod common;
 
 use base64::Engine;

@@ -1,5 +1,7 @@
 //! Figures: SVG structure, PNG encoding and size, robustness to NaN / empty / constant data.
 
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
+
 mod common;
 
 use common::{check_well_formed, decode_rgb, png_size, PNG_SIGNATURE};

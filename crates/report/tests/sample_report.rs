@@ -2,6 +2,8 @@
 //! structure and self-containment. With `REPORT_SAMPLE_OUT=DIR` set, the report and its figures are
 //! also written to DIR, for a look in a browser (`scripts/check_report_browser.sh DIR/report.html`).
 
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
+
 mod common;
 
 use common::check_well_formed;

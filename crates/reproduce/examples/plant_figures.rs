@@ -3,6 +3,8 @@
 //!
 //! `cargo run --release -p report --example plant_figures` (writes docs/figures/plant_*.{svg,png}).
 
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
+
 use std::path::Path;
 
 use ipa::{Ipa, PlantConfig};

@@ -17,13 +17,16 @@ use control::{
     StepMetrics, Trace,
 };
 use ipa::input::{generate, InputSpec};
-use serde_json::json;
 use report::format::num;
 use report::html::{Section, Table, Verdict};
 use report::plot::{save_figure, Figure, Panel, Series};
 use report::Report;
+use serde_json::json;
 use sysid::data::Signals;
-use sysid::estimate::{identify, EstimatorSettings, Fitted as FittedModel, Identification, Method, RecursiveLeastSquares};
+use sysid::estimate::{
+    identify, EstimatorSettings, Fitted as FittedModel, Identification, Method,
+    RecursiveLeastSquares,
+};
 use sysid::metrics::{fit_percent, metrics};
 use sysid::summary::IdentifyReport;
 use sysid::{Dataset, Model, ModelKind, ModelPlant, Plant};
@@ -164,7 +167,7 @@ fn fmt_opt(v: Option<f64>) -> String {
 }
 
 fn param_cell(fit: &FittedModel, name: &str) -> String {
-    match fit.params.iter().find(|p| p.name.to_string() == name) {
+    match fit.params.iter().find(|p| p.name == name) {
         Some(p) => match p.std {
             Some(s) => format!("{} ± {}", num(p.value), num(s)),
             None => num(p.value),
@@ -231,7 +234,9 @@ fn step_metrics(trace: &Trace, y0_mm: f64, r_mm: f64) -> Result<StepMetrics, Rep
     Ok(StepMetrics::compute(&trace.t, &trace.y, y0_mm, r_mm)?)
 }
 
-fn unfixed_metrics(trace: &Trace) -> Result<(StepMetrics, Vec<control::StepSegment>), ReproduceError> {
+fn unfixed_metrics(
+    trace: &Trace,
+) -> Result<(StepMetrics, Vec<control::StepSegment>), ReproduceError> {
     let steps = metrics_for_steps(trace)?;
     let worst = StepMetrics::worst(steps.iter().map(|s| &s.metrics)).unwrap_or(StepMetrics {
         overshoot_mm: None,

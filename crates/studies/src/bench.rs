@@ -11,9 +11,9 @@ use std::time::{Duration, Instant};
 
 use serde::{Deserialize, Serialize};
 
+use sysid::data::Signals;
 use sysid::estimate::{identify, Estimator, Identification, Method};
 use sysid::rls::{flops_per_update, Rls, RlsN};
-use sysid::data::Signals;
 use sysid::{Dataset, Model, ModelKind, ModelPlant, Plant, SysidError};
 
 /// Shortest timed run; shorter work is repeated within one run until it takes at least this long.
@@ -135,7 +135,7 @@ pub fn paper_experiment(u: &[f64], noise_std_mm: f64, seed: u64) -> Result<Datas
     for v in &mut y {
         *v += noise_std_mm * rng.normal();
     }
-    Dataset::new(Signals { u: u.to_vec(), y: y }, ts, "paper model experiment")
+    Dataset::new(Signals { u: u.to_vec(), y }, ts, "paper model experiment")
 }
 
 /// Result of [`bench_rls`].
@@ -366,7 +366,10 @@ pub fn bench_plant(
 ) -> Result<PlantBench, SysidError> {
     if u.is_empty() {
         return Err(SysidError::setting(
-            sysid::Setting::Other("--samples"), 0, "at least one sample"));
+            sysid::Setting::Other("--samples"),
+            0,
+            "at least one sample",
+        ));
     }
     let y0 = plant.output();
     let t = time_it(repetitions, u.len(), || {

@@ -15,8 +15,8 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
-use sysid::estimate::{identify, Identification, Method};
 use sysid::data::Signals;
+use sysid::estimate::{identify, Identification, Method};
 use sysid::{Dataset, Model, ModelKind, ParamName, SysidError};
 
 /// The seed of run `run` of a study seeded with `seed` (SplitMix64 of both, so that neighbouring seeds and

@@ -207,8 +207,8 @@ impl Branches {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use sysid_core::data::Signals;
     use crate::Orders;
+    use sysid_core::data::Signals;
 
     fn data(u: Vec<f64>) -> Dataset {
         let y = vec![0.0; u.len()];

@@ -204,13 +204,18 @@ impl<'a> Problem<'a> {
     }
     /// The key-term parameterisation with the entries the data determine marked free.
     fn key_term(&self) -> Parameterisation {
-        self.branches.parameterisation(&self.structure, Layout::KeyTerm)
+        self.branches
+            .parameterisation(&self.structure, Layout::KeyTerm)
     }
 }
 
 fn check_structure(s: &Structure) -> Result<(), SysidError> {
     let o = s.orders;
-    for (setting, v) in [(Setting::Na, o.na), (Setting::Nb, o.nb), (Setting::Nk, o.nk)] {
+    for (setting, v) in [
+        (Setting::Na, o.na),
+        (Setting::Nb, o.nb),
+        (Setting::Nk, o.nk),
+    ] {
         if v > MAX_ORDER {
             return Err(SysidError::setting(
                 setting,
@@ -868,7 +873,16 @@ fn instrumental(p: &Problem, st: &InstrumentalVariables) -> Result<Fitted, Sysid
         };
         let dz = aux.deadzone().copied().unwrap_or(ZERO_DEADZONE);
         let theta0 = DVector::from_vec(key.gather(theta_full.as_slice()));
-        let pass = iv::pass(data, s, &dz, &y_aux, key.free(), &theta0, st.forgetting, st.p0)?;
+        let pass = iv::pass(
+            data,
+            s,
+            &dz,
+            &y_aux,
+            key.free(),
+            &theta0,
+            st.forgetting,
+            st.p0,
+        )?;
         let next = DVector::from_vec(key.scatter(pass.theta.as_slice(), &vec![0.0; key.len()]));
         let change = (&next - &theta_full).norm() / (1e-300 + next.norm());
         theta_full = next;

@@ -152,7 +152,11 @@ impl Problem<'_> {
             }),
             a: v[ia..ib].to_vec(),
             b,
-            c: if self.s.offset { v[ib + o.nb - jb0] } else { 0.0 },
+            c: if self.s.offset {
+                v[ib + o.nb - jb0]
+            } else {
+                0.0
+            },
             ia,
             ib,
             jb0,

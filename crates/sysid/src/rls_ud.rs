@@ -296,6 +296,21 @@ impl RobustRls {
     }
 }
 
+impl crate::rls::RecursiveUpdate for RobustRls {
+    fn theta(&self) -> &[f64] {
+        self.theta.as_slice()
+    }
+    fn update(&mut self, phi: &[f64], y: f64, sample: usize) -> Result<f64, SysidError> {
+        RobustRls::update(self, phi, y, sample)
+    }
+    fn restart_covariance(&mut self, p0: f64) {
+        RobustRls::restart_covariance(self, p0)
+    }
+    fn covariance(&self) -> DMatrix<f64> {
+        RobustRls::covariance(self)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -372,20 +387,5 @@ mod tests {
                 assert!(e.trace() <= 3.0 * (1.0 + 1e-12), "{form}: {}", e.trace());
             }
         }
-    }
-}
-
-impl crate::rls::RecursiveUpdate for RobustRls {
-    fn theta(&self) -> &[f64] {
-        self.theta.as_slice()
-    }
-    fn update(&mut self, phi: &[f64], y: f64, sample: usize) -> Result<f64, SysidError> {
-        RobustRls::update(self, phi, y, sample)
-    }
-    fn restart_covariance(&mut self, p0: f64) {
-        RobustRls::restart_covariance(self, p0)
-    }
-    fn covariance(&self) -> DMatrix<f64> {
-        RobustRls::covariance(self)
     }
 }

@@ -120,4 +120,3 @@ pub fn poles(model: &Model) -> Vec<Pole> {
         })
         .collect()
 }
-

@@ -1,5 +1,7 @@
 //! The CSV reader on small hand-written files: what is accepted and what is refused, and where.
 
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
+
 use sysid::data::{read_csv_bytes, CsvOptions};
 
 fn read(text: &str, opts: &CsvOptions) -> Result<sysid::Dataset, String> {

@@ -1,9 +1,11 @@
 //! Hammerstein models on one-sided inputs (a pump or heater voltage never goes negative): the unexcited
 //! deadzone branch is dropped, the rest is recovered exactly from noise-free data.
 
-use sysid::data::Signals;
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
+
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use sysid::data::Signals;
 use sysid::estimate::{identify, Identification, Method};
 use sysid::Dataset;
 

@@ -1,9 +1,11 @@
 //! Estimators under white output (measurement) noise: output-error and IV against the equation-error LS.
 //! Data are generated here by a plain difference-equation loop, independent of the library's simulator.
 
-use sysid::data::Signals;
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
+
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use sysid::data::Signals;
 use sysid::estimate::{identify, Identification, Method};
 use sysid::{Dataset, Deadzone, ModelKind};
 

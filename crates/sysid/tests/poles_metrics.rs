@@ -1,5 +1,7 @@
 //! Poles and validation metrics on hand-checkable cases.
 
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
+
 use sysid::data::Signals;
 use sysid::metrics::metrics;
 use sysid::{Dataset, Model};
@@ -52,7 +54,15 @@ fn poles_outside_the_unit_circle_are_unstable() {
 #[test]
 fn loss_fpe_aic_and_fit_on_a_hand_checked_record() {
     let m = arx(vec![], vec![0.5], 1);
-    let d = Dataset::new(Signals { u: vec![2.0; 4], y: vec![0.0, 1.0, 0.0, 2.0] }, 1.0, "hand").unwrap();
+    let d = Dataset::new(
+        Signals {
+            u: vec![2.0; 4],
+            y: vec![0.0, 1.0, 0.0, 2.0],
+        },
+        1.0,
+        "hand",
+    )
+    .unwrap();
     let v = metrics(&m, &d).unwrap();
     assert_eq!((v.n, v.p), (3, 1));
     assert!((v.loss - 1.0 / 3.0).abs() < 1e-12);

@@ -5,12 +5,16 @@
 //!
 //! Case counts are modest so that the debug-mode run stays within a few seconds.
 
-use sysid::data::Signals;
-use sysid::estimate::{EstimatorSettings, InstrumentalVariables, LeastSquares, OutputError, RecursiveLeastSquares};
-use sysid::Structure;
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
+
 use proptest::prelude::*;
+use sysid::data::Signals;
 use sysid::estimate::{identify, Identification, Method};
+use sysid::estimate::{
+    EstimatorSettings, InstrumentalVariables, LeastSquares, OutputError, RecursiveLeastSquares,
+};
 use sysid::metrics::metrics;
+use sysid::Structure;
 use sysid::{Dataset, ModelKind, Orders, SysidError};
 
 /// Any finite f64, weighted towards ordinary magnitudes but with extremes, subnormals and zeros.

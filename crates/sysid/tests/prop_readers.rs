@@ -3,6 +3,8 @@
 //!
 //! Case counts are modest so that the debug-mode run stays within a few seconds.
 
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
+
 use proptest::prelude::*;
 use sysid::data::{read_csv_bytes, read_table, CsvOptions};
 use sysid::model_file::{parse_model, to_json};

@@ -1,6 +1,8 @@
 //! Real measured data from `../shared/data` (read at run time, never copied into the repository). Each test
 //! skips, saying so, when the folder is absent.
 
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
+
 use std::path::PathBuf;
 
 use sysid::data::{read_csv, CsvOptions};

@@ -1,10 +1,12 @@
 //! Exact recovery of noise-free models, RLS against its closed form, LS against a hand-derived case.
 //! Data are generated here by a plain difference-equation loop, independent of the library's simulator.
 
-use sysid::data::Signals;
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
+
 use nalgebra::{DMatrix, DVector};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use sysid::data::Signals;
 use sysid::estimate::{identify, Identification, Method};
 use sysid::{Dataset, Deadzone, ModelKind};
 
@@ -195,7 +197,11 @@ fn ls_recovers_noise_free_arx_of_several_orders() {
 // Minimising (1-b)² + (2+a)² + (1+2a)² gives b = 1, a = -0.8, RSS = 1.8, σ² = RSS/(3-2).
 #[test]
 fn ls_solves_a_hand_derived_three_row_case() {
-    let data = Dataset::new(Signals { u: vec![1.0, 0.0, 0.0, 1.0], y: vec![0.0, 1.0, 2.0, 1.0] },
+    let data = Dataset::new(
+        Signals {
+            u: vec![1.0, 0.0, 0.0, 1.0],
+            y: vec![0.0, 1.0, 2.0, 1.0],
+        },
         1.0,
         "hand",
     )
@@ -230,15 +236,25 @@ fn rls_equals_the_weighted_regularised_least_squares_closed_form() {
     let mut y = simulate(&u, &a, &b, 1, 0.0, None);
     y.iter_mut().for_each(|v| *v += rng.gen_range(-0.5..0.5));
     for (rho, p0) in [(1.0, 10.0), (0.97, 2.0), (0.9, 1e3), (1.0, 1e6)] {
-        let data = Dataset::new(Signals { u: u.clone(), y: y.clone() }, 1.0, "rls").unwrap();
+        let data = Dataset::new(
+            Signals {
+                u: u.clone(),
+                y: y.clone(),
+            },
+            1.0,
+            "rls",
+        )
+        .unwrap();
         let s = Identification::default()
             .with_kind(ModelKind::Arx)
             .with_orders(2, 2, 1)
-            .with_estimator(sysid::EstimatorSettings::Rls(sysid::RecursiveLeastSquares {
-                forgetting: rho,
-                p0,
-                ..sysid::RecursiveLeastSquares::default()
-            }));
+            .with_estimator(sysid::EstimatorSettings::Rls(
+                sysid::RecursiveLeastSquares {
+                    forgetting: rho,
+                    p0,
+                    ..sysid::RecursiveLeastSquares::default()
+                },
+            ));
         let fit = identify(&data, &s).unwrap_or_else(|e| panic!("rho {rho} p0 {p0}: {e}"));
         // Independent closed form.
         let n = u.len();
@@ -300,7 +316,11 @@ fn ls_is_invariant_to_a_huge_common_scale_of_the_data() {
     let u = staircase(400, 9);
     let y = simulate(&u, &a, &b, 1, 0.0, None);
     let big = 1e150;
-    let data = Dataset::new(Signals { u: u.iter().map(|v| v * big).collect(), y: y.iter().map(|v| v * big).collect() },
+    let data = Dataset::new(
+        Signals {
+            u: u.iter().map(|v| v * big).collect(),
+            y: y.iter().map(|v| v * big).collect(),
+        },
         1.0,
         "big",
     )

@@ -4,17 +4,27 @@
 //! direction of P orthogonal to φ is divided by ρ at each sample: tr P ≥ p0 ρ^(−k), which overflows
 //! f64 (1.8e308) once k > ln(1.8e308 / p0) / ln(1/ρ) ≈ 34 400 for p0 = 10^6.
 
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
+
 use sysid::data::Signals;
-use sysid::{EstimatorSettings, RecursiveLeastSquares};
 use sysid::estimate::{identify, Identification};
 use sysid::rls_ud::{RlsForm, RobustRls};
 use sysid::windup::Windup;
 use sysid::{Dataset, ModelKind};
+use sysid::{EstimatorSettings, RecursiveLeastSquares};
 
 const N: usize = 100_000;
 
 fn quiet_data() -> Dataset {
-    Dataset::new(Signals { u: vec![0.0; N], y: vec![1.0; N] }, 0.01, "no excitation").unwrap()
+    Dataset::new(
+        Signals {
+            u: vec![0.0; N],
+            y: vec![1.0; N],
+        },
+        0.01,
+        "no excitation",
+    )
+    .unwrap()
 }
 
 fn settings(form: RlsForm, windup: Windup) -> Identification {

@@ -143,7 +143,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let profile = match (&args.setpoint, &args.profile) {
         (Some(r), None) => {
             if !r.is_finite() {
-                bail!(sysid::SysidError::setting(sysid::Setting::Other("--setpoint"),
+                bail!(sysid::SysidError::setting(
+                    sysid::Setting::Other("--setpoint"),
                     r,
                     "a finite position in mm"
                 ));
@@ -163,7 +164,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         IntegralArg::PerSample => IntegralForm::PerSample,
     };
     if args.tracking_time.is_some() && args.anti_windup != AntiWindupArg::BackCalculation {
-        bail!(sysid::SysidError::setting(sysid::Setting::Other("--tracking-time"),
+        bail!(sysid::SysidError::setting(
+            sysid::Setting::Other("--tracking-time"),
             args.tracking_time.unwrap_or_default(),
             "only together with --anti-windup back-calculation"
         ));
@@ -197,7 +199,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                         IntegralForm::PerSample => args.ki / ts,
                     };
                     if ki_per_s == 0.0 || args.kp == 0.0 {
-                        bail!(sysid::SysidError::setting(sysid::Setting::Other("--tracking-time"),
+                        bail!(sysid::SysidError::setting(
+                            sysid::Setting::Other("--tracking-time"),
                             "(none)",
                             "a tracking time in s (the default Ti = Kp/Ki needs Kp and Ki nonzero)"
                         ));
@@ -227,7 +230,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     .copied()
             };
             let Some(deadzone) = deadzone else {
-                bail!(sysid::SysidError::setting(sysid::Setting::Other("--compensate-deadzone"),
+                bail!(sysid::SysidError::setting(
+                    sysid::Setting::Other("--compensate-deadzone"),
                     path.display(),
                     "a Hammerstein model file (this model is ARX and has no deadzone)"
                 ));
@@ -260,7 +264,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         sysid_io::refuse_overwrite_input(json, &input_refs, "--json")?;
         if let Some(out) = &args.out {
             if json == out {
-                bail!(sysid::SysidError::setting(sysid::Setting::Other("--json"),
+                bail!(sysid::SysidError::setting(
+                    sysid::Setting::Other("--json"),
                     json.display(),
                     "a path different from --out"
                 ));
@@ -278,7 +283,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.y0,
     )?;
     if trace.len() < 2 {
-        bail!(sysid::SysidError::setting(sysid::Setting::Other("--duration"),
+        bail!(sysid::SysidError::setting(
+            sysid::Setting::Other("--duration"),
             duration_s,
             &format!("at least one sampling period ({ts} s) to measure a response")
         ));

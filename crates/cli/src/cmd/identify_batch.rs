@@ -11,8 +11,8 @@ use anyhow::Context;
 use rayon::prelude::*;
 use serde::Serialize;
 use sysid::estimate::{identify, Identification};
-use sysid::summary::IdentifyReport;
 use sysid::metrics::metrics;
+use sysid::summary::IdentifyReport;
 use sysid::{Dataset, SysidError};
 
 use super::common::{check_outputs, progress_bar, write_output};
@@ -36,7 +36,8 @@ pub fn expand(paths: &[PathBuf]) -> anyhow::Result<Vec<PathBuf>> {
                 })
                 .collect();
             if found.is_empty() {
-                anyhow::bail!(SysidError::setting(sysid::Setting::Other("--data"),
+                anyhow::bail!(SysidError::setting(
+                    sysid::Setting::Other("--data"),
                     p.display(),
                     "a folder with at least one *.csv file"
                 ));
@@ -70,7 +71,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let settings = args.settings();
     settings.check()?; // refuse bad flags before reading anything
     if args.save_model.is_some() {
-        anyhow::bail!(SysidError::setting(sysid::Setting::Other("--save-model"),
+        anyhow::bail!(SysidError::setting(
+            sysid::Setting::Other("--save-model"),
             args.save_model
                 .as_deref()
                 .map(Path::display)

@@ -7,8 +7,8 @@ use std::path::{Path, PathBuf};
 use anyhow::Context;
 use ipa::input::{generate, InputSpec};
 use sysid::estimate::{Identification, Method};
-use sysid_studies::montecarlo::{study, truth_of, StudySettings};
 use sysid::{Model, ModelKind, Orders};
+use sysid_studies::montecarlo::{study, truth_of, StudySettings};
 
 use super::common::{check_outputs, progress_bar, write_output};
 
@@ -134,7 +134,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let truth = truth_model
         .as_ref()
         .filter(|m| {
-            m.kind() == kind && m.orders() == orders && m.offset().is_some() == base.structure.offset
+            m.kind() == kind
+                && m.orders() == orders
+                && m.offset().is_some() == base.structure.offset
         })
         .map(truth_of);
     let settings = StudySettings {

@@ -38,7 +38,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Ok(out) = std::fs::canonicalize(&args.out) {
         for input in ipa::spec::spec_input_files(&args.plant, args.plant_config.as_deref()) {
             if std::fs::canonicalize(input).is_ok_and(|p| p.starts_with(&out)) {
-                anyhow::bail!(sysid::SysidError::setting(sysid::Setting::Other("--out"),
+                anyhow::bail!(sysid::SysidError::setting(
+                    sysid::Setting::Other("--out"),
                     args.out.display(),
                     &format!(
                         "a folder that does not hold the input file {} (the run writes into it)",

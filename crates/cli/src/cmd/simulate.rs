@@ -56,10 +56,16 @@ struct Record {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let spec: InputSpec = args.input.parse()?;
     if !args.x0.is_finite() {
-        return Err(sysid::SysidError::setting(sysid::Setting::Other("--x0"), args.x0, "a finite position in mm").into());
+        return Err(sysid::SysidError::setting(
+            sysid::Setting::Other("--x0"),
+            args.x0,
+            "a finite position in mm",
+        )
+        .into());
     }
     if !(args.noise_std.is_finite() && args.noise_std >= 0.0) {
-        return Err(sysid::SysidError::setting(sysid::Setting::Other("--noise-std"),
+        return Err(sysid::SysidError::setting(
+            sysid::Setting::Other("--noise-std"),
             args.noise_std,
             "a standard deviation >= 0 in mm",
         )

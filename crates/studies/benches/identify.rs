@@ -2,11 +2,13 @@
 //! the paper's model driven by a staircase, with 0.01 mm measurement noise: key-term LS and RLS.
 //! Run with `cargo bench -p sysid --bench identify` (not part of the tests).
 
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
+
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use sysid::bench::{paper_experiment, paper_settings, staircase};
 use sysid::estimate::{identify, Method};
+use sysid_studies::bench::{paper_experiment, paper_settings, staircase};
 
 fn hammerstein_2000(c: &mut Criterion) {
     let u = staircase(2000, 255.0, 1);

@@ -2,11 +2,13 @@
 //! heap estimator `Rls::update`, the array-backed `RlsN<N>` and the plain reference loop.
 //! Run with `cargo bench -p sysid --bench rls` (not part of the tests).
 
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
+
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
-use sysid::bench::SplitMix64;
 use sysid::rls::{Rls, RlsN};
+use sysid_studies::bench::SplitMix64;
 
 const RING: usize = 1024;
 

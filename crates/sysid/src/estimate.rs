@@ -1,5 +1,5 @@
 //! Estimators: batch least squares (QR) and recursive least squares (paper eqs. 9–12) for ARX, and the
-//! Hammerstein model by key-term separation (reading notes, eq. 8) — iterated batch LS or recursive;
+//! Hammerstein model by key-term separation (docs/paper.md, eq. 8) — iterated batch LS or recursive;
 //! beyond the paper: output-error refinement ([`crate::oe`]), recursive instrumental variables
 //! ([`crate::iv`]), a UD-factorised RLS with windup protection ([`crate::rls_ud`], [`crate::windup`]), and
 //! Hammerstein models on one-sided inputs ([`crate::branches`]).

@@ -93,7 +93,7 @@ impl Model {
         }
     }
 
-    /// The paper's "actual" Hammerstein model (Table III), normalised to b1 = 1 (reading notes):
+    /// The paper's "actual" Hammerstein model (Table III), normalised to b1 = 1 (docs/paper.md):
     /// A = 1 - 1.869 q^-1 + 0.9976 q^-2 - 0.1284 q^-3, nk = 1, b_r = 1.41, b_l = -1.50,
     /// m_r = 2.38 * 15.67e-4, m_l = 3.46 * 15.67e-4, Ts = 0.01 s.
     pub fn paper() -> Model {

@@ -4,7 +4,7 @@
 
 use crate::{Deadzone, ModelKind, Orders};
 
-/// A linear-in-parameters structure: ARX, or Hammerstein by key-term separation (reading notes, eq. 8).
+/// A linear-in-parameters structure: ARX, or Hammerstein by key-term separation (docs/paper.md, eq. 8).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Structure {
     /// ARX or Hammerstein.

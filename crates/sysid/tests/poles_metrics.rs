@@ -17,7 +17,7 @@ fn arx(a: Vec<f64>, b: Vec<f64>, nk: usize) -> Model {
     }
 }
 
-// Reading notes: the paper's actual A has real poles 0.999227, 0.681112, 0.188661.
+// docs/paper.md, 3.2: the paper's actual A has real poles 0.999227, 0.681112, 0.188661.
 #[test]
 fn paper_actual_polynomial_has_the_poles_in_the_reading_notes() {
     let p = Model::paper().poles();
@@ -28,7 +28,7 @@ fn paper_actual_polynomial_has_the_poles_in_the_reading_notes() {
     assert!(Model::paper().is_stable());
 }
 
-// Reading notes: the estimated A = 1 - 1.82 z^-1 + 1.001 z^-2 - 0.1808 z^-3 has poles 0.9994, 0.4103 ± 0.1121i.
+// docs/paper.md, 3.2: the estimated A = 1 - 1.82 z^-1 + 1.001 z^-2 - 0.1808 z^-3 has poles 0.9994, 0.4103 ± 0.1121i.
 #[test]
 fn paper_estimated_polynomial_has_the_reported_poles() {
     let p = sysid::model::poles_of(&[-1.82, 1.001, -0.1808]);

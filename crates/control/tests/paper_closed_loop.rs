@@ -2,7 +2,7 @@
 //!
 //! Reference values come from an independent 25-line Python recurrence (docs/control.md, "Reference
 //! computation"): overshoot 3.6516 % (scaled integral) and 55.7885 % (per-sample integral) at 30 s, and from
-//! the reading notes (NOTES.md: "about 3.6 %" and "about 56 %"). The bands are ±0.005 percentage points
+//! docs/paper.md (section 3.4: 3.65 % and 55.8 %). The bands are ±0.005 percentage points
 //! around the Python values: both programs do the same f64 arithmetic, so only the last digits can differ.
 //! The band is narrow enough to catch a change of definition or form: the same Python run gives 3.662 %
 //! when the overshoot is measured beyond r instead of beyond the final value y_f, and 3.414 % with Ki
@@ -30,7 +30,7 @@ fn fifty_mm_step(form: IntegralForm) -> StepMetrics {
 
 #[test]
 fn scaled_integral_overshoots_the_paper_model_by_3_65_percent() {
-    // Python reference: OS = 3.6516 % = 1.8260 mm, e_ss = -0.00506 mm (NOTES.md: about 3.6 %).
+    // Python reference: OS = 3.6516 % = 1.8260 mm, e_ss = -0.00506 mm (docs/paper.md: 3.65 %).
     let m = fifty_mm_step(IntegralForm::Scaled);
     let os = m.overshoot_percent.unwrap();
     assert!((os - 3.6516).abs() < 0.005, "overshoot {os} %");
@@ -45,7 +45,7 @@ fn scaled_integral_overshoots_the_paper_model_by_3_65_percent() {
 
 #[test]
 fn per_sample_integral_overshoots_the_paper_model_by_56_percent() {
-    // Python reference: OS = 55.7885 % (NOTES.md: about 56 %): Ki per sample is 1/Ts = 100 times stronger.
+    // Python reference: OS = 55.7885 % (docs/paper.md: 55.8 %): Ki per sample is 1/Ts = 100 times stronger.
     let m = fifty_mm_step(IntegralForm::PerSample);
     let os = m.overshoot_percent.unwrap();
     assert!((os - 55.7885).abs() < 0.005, "overshoot {os} %");

@@ -28,7 +28,7 @@ fn levels(n: usize, amp: i64, rng: &mut ChaCha8Rng) -> Vec<f64> {
     u
 }
 
-/// The paper's actual model (b1 = 1 normalisation, reading notes), simulated from rest.
+/// The paper's actual model (b1 = 1 normalisation, docs/paper.md), simulated from rest.
 fn paper_output(u: &[f64]) -> Vec<f64> {
     let (a, b1) = ([-1.869, 0.9976, -0.1284], 15.67e-4);
     let d = Deadzone {
@@ -94,7 +94,7 @@ fn output_error_recovers_the_paper_model_under_output_noise() {
 }
 
 // The contrast: on the same data the equation-error (key-term LS) estimate misplaces the poles
-// (reading notes: the second difference of y is below the noise), so some a_i is off by more than 0.05.
+// (docs/paper.md, 4.6: the second difference of y is below the noise), so some a_i is off by more than 0.05.
 #[test]
 fn equation_error_ls_is_biased_on_the_same_data() {
     let mut rng = ChaCha8Rng::seed_from_u64(100);

@@ -21,7 +21,7 @@ fn paper_actual_polynomial_has_three_real_poles_inside_the_unit_circle() {
     assert!(Model::paper().is_stable());
 }
 
-// Reading notes: the estimated A = 1 - 1.82 z^-1 + 1.001 z^-2 - 0.1808 z^-3 has poles 0.9994, 0.4103 ± 0.1121i.
+// docs/paper.md, 3.2: the estimated A = 1 - 1.82 z^-1 + 1.001 z^-2 - 0.1808 z^-3 has poles 0.9994, 0.4103 ± 0.1121i.
 #[test]
 fn paper_estimated_polynomial_has_the_reported_poles() {
     let p = sysid::model::poles_of(&[-1.82, 1.001, -0.1808]);

@@ -21,6 +21,7 @@ pub mod order;
 pub mod output;
 pub mod plant;
 pub mod regressor;
+pub mod residuals;
 pub mod rls;
 pub mod rls_ud;
 pub mod summary;

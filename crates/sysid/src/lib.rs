@@ -14,6 +14,7 @@ pub mod iv;
 pub mod ls;
 pub mod oe;
 pub mod order;
+pub mod residuals;
 pub mod rls;
 pub mod rls_ud;
 pub mod summary;

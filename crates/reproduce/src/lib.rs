@@ -878,7 +878,7 @@ fn table3(s: &ReproduceSettings, st: &Study) -> Table {
     }
     t.caption(
         "The paper's Table III: Hammerstein parameter estimates (± one standard deviation), normalised to b1 = 1 \
-         (the paper's slopes are multiplied by its b1 so that they compare; see the reading notes)",
+         (the paper's slopes are multiplied by its b1 so that they compare; see docs/paper.md)",
     )
     .paper_column(ncols - 2)
     .paper_column(ncols - 1)

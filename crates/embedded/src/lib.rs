@@ -12,6 +12,7 @@
 //! | [`hammerstein::HammersteinRls`] | deadzone key-term regressor + RLS, switching functions from the latest θ̂ every sample | eqs. 1–12, reading notes eq. 8 |
 //! | [`deadzone::Deadzone`], [`deadzone::Compensator`] | the deadzone x = f(u) and its inverse | eq. 1 |
 //! | [`pi::Pi`] | u = Kp e + Ki Ts Σe, saturated at ±u_max, with anti-windup | Table V controller |
+//! | [`cusum::Cusum`] | change detection on normalised prediction errors | issue 15 part 4 |
 //! | [`ffi`] | `extern "C"` functions with caller-provided storage (`include/ipa_embedded.h`) | — |
 //!
 //! Units: u is the valve command in PWM counts (±255), y the stroke position in mm, Ts the sampling
@@ -33,6 +34,7 @@
 #[cfg(feature = "std")]
 extern crate std;
 
+pub mod cusum;
 pub mod deadzone;
 pub mod ffi;
 pub mod float;
@@ -123,6 +125,9 @@ mod tests {
             assert_eq!(size_of::<hammerstein::PaperHrls<f32>>(), 352);
             assert_eq!(ffi::ipa_hrls_state_size(), 3432);
         }
+        // Cusum: five floats and three usize.
+        assert_eq!(size_of::<cusum::Cusum<f64>>(), 5 * 8 + 3 * w);
+        assert_eq!(size_of::<cusum::Cusum<f32>>(), round(5 * 4 + 3 * w, w));
         assert!(ffi::ipa_hrls_state_size() <= ffi::IPA_HRLS_STATE_BYTES);
         assert!(ffi::ipa_pi_state_size() <= ffi::IPA_PI_STATE_BYTES);
     }

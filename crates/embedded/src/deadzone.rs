@@ -11,7 +11,7 @@ use crate::{Error, Float};
 /// x = m_r (u − b_r)   for u ≥ b_r
 /// ```
 ///
-/// Size: 4 · size_of::<F>() (32 bytes for f64, 16 for f32). Cost: [`Deadzone::apply`] 2 flops.
+/// Size: 4 · `size_of::<F>()` (32 bytes for f64, 16 for f32). Cost: [`Deadzone::apply`] 2 flops.
 ///
 /// ```
 /// use ipa_embedded::Deadzone;

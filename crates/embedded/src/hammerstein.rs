@@ -441,6 +441,14 @@ mod tests {
         assert_eq!((s.b_l0, s.b_r0, s.limit), (f32::NEG_INFINITY, 12.0, 30.0));
     }
 
+    // Paper orders, n = 7: RLS 3.5·49 + 8.5·7 + 2 = 233 (ρ < 1) or 3·49 + 8·7 + 1 = 204 (ρ = 1), plus
+    // 2 ratios, 2 products h·u, 2 + 3 sign changes, no x̂ term: 9.
+    #[test]
+    fn flops_per_sample_for_the_paper_orders() {
+        assert_eq!(flops_per_sample(3, 1, false), 242);
+        assert_eq!(flops_per_sample(3, 1, true), 213);
+    }
+
     #[test]
     fn delay_line_shifts_by_one_sample() {
         let mut line = [1.0, 2.0, 3.0];

@@ -23,13 +23,13 @@
 //! # Cost per update, n parameters (each +, −, ×, ÷ one flop)
 //!
 //! 3.5 n² + 8.5 n + 2 for ρ < 1, 3 n² + 8 n + 1 for ρ = 1 ([`flops_per_update`], the same count as
-//! `sysid`), plus n + 1 for the trace test when the guard is on (and n² + 1 when it scales P).
+//! `sysid`), plus n for tr P when the guard is on (and n² + 1 when it scales P).
 
 use crate::{Error, Float};
 
 /// The RLS state: θ̂, P and ρ for at most `N` parameters (n ≤ N in use), with no heap.
 ///
-/// Size: `size_of::<Rls<F, N>>()` = (N + N² + 3) · size_of::<F>() + size_of::<usize>() rounded to the
+/// Size: `size_of::<Rls<F, N>>()` = (N + N² + 3) · `size_of::<F>()` + `size_of::<usize>()` rounded to the
 /// alignment, e.g. 480 bytes for `Rls<f64, 7>` and 240 bytes for `Rls<f32, 7>` on a 32-bit target
 /// (248 on a 64-bit host); see the test `state_sizes`.
 ///

@@ -1,5 +1,6 @@
 //! The C example of `ipa-embedded` (crates/embedded/examples/c/track.c, linked against the static
-//! library) against `ipa-sysid identify --method rls --passes 1` on records of the physics IPA simulator:
+//! library) against `ipa-sysid identify --method rls --passes 1` (also with `--rls-form ud`) on records of
+//! the physics IPA simulator:
 //! every parameter equal to 1e-9 relative (in practice bit for bit: the embedded estimator does the
 //! same floating-point operations in the same order, and both sides print round-trip decimals).
 //!
@@ -90,11 +91,12 @@ fn c_example_matches_identify_rls_single_pass() {
     let track = build_track(tmp.path());
     let mut bitwise = 0;
     let mut total = 0;
-    for (seed, na, nb, nk, rho) in [
-        (1, 3, 1, 1, "1"),
-        (1, 3, 1, 1, "0.99"),
-        (2, 2, 2, 1, "1"),
-        (3, 2, 3, 2, "0.995"),
+    for (seed, na, nb, nk, rho, form) in [
+        (1, 3, 1, 1, "1", "standard"),
+        (1, 3, 1, 1, "0.99", "standard"),
+        (2, 2, 2, 1, "1", "standard"),
+        (3, 2, 3, 2, "0.995", "standard"),
+        (4, 3, 1, 1, "0.99", "ud"),
     ] {
         let csv = tmp.path().join(format!("rec{seed}.csv"));
         let csv_s = csv.to_str().unwrap();
@@ -124,13 +126,15 @@ fn c_example_matches_identify_rls_single_pass() {
             &nb_s,
             "--nk",
             &nk_s,
+            "--rls-form",
+            form,
             "--json",
             "-",
         ]);
         let report: serde_json::Value = serde_json::from_str(&json).unwrap();
         let model = &report["model"];
         let out = Command::new(&track)
-            .args([&na_s, &nb_s, &nk_s, rho])
+            .args([&na_s, &nb_s, &nk_s, rho, "1e6", form])
             .stdin(std::fs::File::open(&csv).unwrap())
             .output()
             .unwrap();
@@ -156,7 +160,7 @@ fn c_example_matches_identify_rls_single_pass() {
         for (name, cli_v, c_v) in &pairs {
             assert!(
                 close(*cli_v, *c_v),
-                "seed {seed} ({na},{nb},{nk}) rho {rho}: {name}: identify {cli_v:e}, C {c_v:e}"
+                "seed {seed} ({na},{nb},{nk}) rho {rho} {form}: {name}: identify {cli_v:e}, C {c_v:e}"
             );
             total += 1;
             bitwise += usize::from(cli_v.to_bits() == c_v.to_bits());

@@ -9,6 +9,16 @@
 #include <stdint.h>
 
 /**
+ * Default drift ν = 3 and threshold h = 30 (ARL ≈ 2.8 · 10⁷ samples without change).
+ */
+#define Cusum_DEFAULT_DRIFT 3.0
+
+/**
+ * See [`Cusum::DEFAULT_DRIFT`].
+ */
+#define Cusum_DEFAULT_THRESHOLD 30.0
+
+/**
  * Largest na (order of A) of the C estimator.
  */
 #define IPA_MAX_NA 8
@@ -26,12 +36,23 @@
 /**
  * An upper bound, valid on every target, of [`ipa_hrls_state_size`] in bytes (for static storage).
  */
-#define IPA_HRLS_STATE_BYTES 3440
+#define IPA_HRLS_STATE_BYTES 3456
 
 /**
  * An upper bound, valid on every target, of [`ipa_pi_state_size`] in bytes.
  */
 #define IPA_PI_STATE_BYTES 80
+
+/**
+ * `ipa_hrls_init` form: P itself, updated by the paper's eq. 12 (`identify --rls-form standard`).
+ */
+#define IPA_FORM_STANDARD 0
+
+/**
+ * `ipa_hrls_init` form: Bierman's UD factors of P (`identify --rls-form ud`), positive semi-definite
+ * whatever the rounding.
+ */
+#define IPA_FORM_UD 1
 
 /**
  * Success.
@@ -134,8 +155,8 @@ int32_t ipa_hrls_record_start(const double *u, size_t n, double *b_l0, double *b
  * aligned to [`ipa_hrls_state_align`]): orders na ≤ 8, 1 ≤ nb ≤ 8, nk ≤ 8; forgetting ρ ∈ (0, 1];
  * P(0) = p0 · I (p0 > 0, `identify` uses 1e6); initial breakpoints b_l0 ≤ 0 ≤ b_r0 in counts (±∞
  * allowed for an unexcited branch); `limit` ≥ 0 bounds |b̂| (counts); `max_trace` > 0 bounds tr P
- * (windup guard), 0 for none. Returns [`IPA_OK`] or a negative code (the storage is then marked
- * uninitialised).
+ * (windup guard), 0 for none; `form` [`IPA_FORM_STANDARD`] (the paper's eq. 12) or [`IPA_FORM_UD`].
+ * Returns [`IPA_OK`] or a negative code (the storage is then marked uninitialised).
  *
  * # Safety
  * `mem` must be null or writable for `len` bytes, and not used by another thread during the call.
@@ -150,7 +171,8 @@ int32_t ipa_hrls_init(void *mem,
                       double b_l0,
                       double b_r0,
                       double limit,
-                      double max_trace);
+                      double max_trace,
+                      uint32_t form);
 
 /**
  * Feeds sample k: command u(k) (counts) and position y(k) (mm). Returns [`IPA_OK`] after an estimate

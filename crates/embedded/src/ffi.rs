@@ -22,6 +22,7 @@ use core::mem::{align_of, size_of};
 use crate::deadzone::{Compensator, Deadzone, SlopeMode};
 use crate::hammerstein::{HammersteinRls, HammersteinSettings};
 use crate::pi::{AntiWindup, Pi};
+use crate::rls::Form;
 use crate::Error;
 
 /// Largest na (order of A) of the C estimator.
@@ -31,9 +32,15 @@ pub const IPA_MAX_NB: u32 = 8;
 /// Largest nk (input delay in samples) of the C estimator.
 pub const IPA_MAX_NK: u32 = 8;
 /// An upper bound, valid on every target, of [`ipa_hrls_state_size`] in bytes (for static storage).
-pub const IPA_HRLS_STATE_BYTES: usize = 3440;
+pub const IPA_HRLS_STATE_BYTES: usize = 3456;
 /// An upper bound, valid on every target, of [`ipa_pi_state_size`] in bytes.
 pub const IPA_PI_STATE_BYTES: usize = 80;
+
+/// `ipa_hrls_init` form: P itself, updated by the paper's eq. 12 (`identify --rls-form standard`).
+pub const IPA_FORM_STANDARD: u32 = 0;
+/// `ipa_hrls_init` form: Bierman's UD factors of P (`identify --rls-form ud`), positive semi-definite
+/// whatever the rounding.
+pub const IPA_FORM_UD: u32 = 1;
 
 /// Success.
 pub const IPA_OK: i32 = 0;
@@ -206,8 +213,8 @@ pub unsafe extern "C" fn ipa_hrls_record_start(
 /// aligned to [`ipa_hrls_state_align`]): orders na ≤ 8, 1 ≤ nb ≤ 8, nk ≤ 8; forgetting ρ ∈ (0, 1];
 /// P(0) = p0 · I (p0 > 0, `identify` uses 1e6); initial breakpoints b_l0 ≤ 0 ≤ b_r0 in counts (±∞
 /// allowed for an unexcited branch); `limit` ≥ 0 bounds |b̂| (counts); `max_trace` > 0 bounds tr P
-/// (windup guard), 0 for none. Returns [`IPA_OK`] or a negative code (the storage is then marked
-/// uninitialised).
+/// (windup guard), 0 for none; `form` [`IPA_FORM_STANDARD`] (the paper's eq. 12) or [`IPA_FORM_UD`].
+/// Returns [`IPA_OK`] or a negative code (the storage is then marked uninitialised).
 ///
 /// # Safety
 /// `mem` must be null or writable for `len` bytes, and not used by another thread during the call.
@@ -225,25 +232,34 @@ pub unsafe extern "C" fn ipa_hrls_init(
     b_r0: f64,
     limit: f64,
     max_trace: f64,
+    form: u32,
 ) -> i32 {
-    let est = if na > IPA_MAX_NA || nb > IPA_MAX_NB || nk > IPA_MAX_NK {
-        Err(Error::Capacity)
-    } else {
-        let s = HammersteinSettings {
-            na: na as usize,
-            nb: nb as usize,
-            nk: nk as usize,
-            forgetting,
-            p0,
-            b_l0,
-            b_r0,
-            limit,
-            max_trace: (max_trace != 0.0).then_some(max_trace),
-        };
-        HammersteinRls::new(s).map(|est| HrlsState {
-            magic: HRLS_MAGIC,
-            est,
-        })
+    let form = match form {
+        IPA_FORM_STANDARD => Ok(Form::Standard),
+        IPA_FORM_UD => Ok(Form::Ud),
+        _ => Err(Error::Setting),
+    };
+    let est = match form {
+        Err(e) => Err(e),
+        Ok(_) if na > IPA_MAX_NA || nb > IPA_MAX_NB || nk > IPA_MAX_NK => Err(Error::Capacity),
+        Ok(form) => {
+            let s = HammersteinSettings {
+                na: na as usize,
+                nb: nb as usize,
+                nk: nk as usize,
+                forgetting,
+                p0,
+                b_l0,
+                b_r0,
+                limit,
+                max_trace: (max_trace != 0.0).then_some(max_trace),
+                form,
+            };
+            HammersteinRls::new(s).map(|est| HrlsState {
+                magic: HRLS_MAGIC,
+                est,
+            })
+        }
     };
     // SAFETY: forwarded contract.
     unsafe { init(mem, len, est) }
@@ -490,15 +506,15 @@ mod tests {
                 IPA_ERR_NOT_INITIALISED
             );
             let ok = |na, nb, nk, rho| {
-                ipa_hrls_init(p, len, na, nb, nk, rho, 1e6, -1.0, 1.0, 255.0, 0.0)
+                ipa_hrls_init(p, len, na, nb, nk, rho, 1e6, -1.0, 1.0, 255.0, 0.0, 0)
             };
             assert_eq!(
-                ipa_hrls_init(p, 16, 3, 1, 1, 1.0, 1e6, -1.0, 1.0, 255.0, 0.0),
+                ipa_hrls_init(p, 16, 3, 1, 1, 1.0, 1e6, -1.0, 1.0, 255.0, 0.0, 0),
                 IPA_ERR_STORAGE
             );
             let odd = (p as *mut u8).add(4) as *mut c_void;
             assert_eq!(
-                ipa_hrls_init(odd, len - 8, 3, 1, 1, 1.0, 1e6, -1.0, 1.0, 255.0, 0.0),
+                ipa_hrls_init(odd, len - 8, 3, 1, 1, 1.0, 1e6, -1.0, 1.0, 255.0, 0.0, 0),
                 IPA_ERR_STORAGE
             );
             assert_eq!(ok(8, 8, 8, 0.99), IPA_OK, "the maximum orders fit");
@@ -508,6 +524,27 @@ mod tests {
                 IPA_ERR_NOT_INITIALISED
             );
             assert_eq!(ok(3, 1, 1, 1.5), IPA_ERR_SETTING);
+            assert_eq!(
+                ipa_hrls_init(p, len, 3, 1, 1, 1.0, 1e6, -1.0, 1.0, 255.0, 0.0, 2),
+                IPA_ERR_SETTING
+            );
+            assert_eq!(
+                ipa_hrls_init(
+                    p,
+                    len,
+                    3,
+                    1,
+                    1,
+                    1.0,
+                    1e6,
+                    -1.0,
+                    1.0,
+                    255.0,
+                    0.0,
+                    IPA_FORM_UD
+                ),
+                IPA_OK
+            );
             assert_eq!(ok(3, 1, 1, 1.0), IPA_OK);
             for _ in 0..3 {
                 assert_eq!(

@@ -30,7 +30,7 @@
 //! The optional offset c of `identify --offset` is not supported.
 
 use crate::deadzone::Deadzone;
-use crate::rls::{self, Rls};
+use crate::rls::{self, Form, Rls};
 use crate::{Error, Float};
 
 /// Settings of a [`HammersteinRls`]. Orders: na poles, nb coefficients of B (b1 = 1), nk delay.
@@ -55,6 +55,9 @@ pub struct HammersteinSettings<F: Float> {
     /// Windup guard: bound T on tr P (`identify --windup trace --max-trace T`), `None` for the paper's
     /// plain forgetting.
     pub max_trace: Option<F>,
+    /// Covariance form: [`Form::Standard`] (the paper's eq. 12) or [`Form::Ud`] (`--rls-form ud`; use it
+    /// with f32).
+    pub form: Form,
 }
 
 impl<F: Float> HammersteinSettings<F> {
@@ -71,6 +74,7 @@ impl<F: Float> HammersteinSettings<F> {
             b_r0: F::ONE,
             limit: F::from_f64(255.0),
             max_trace: None,
+            form: Form::Standard,
         }
     }
 
@@ -101,12 +105,12 @@ impl<F: Float> HammersteinSettings<F> {
 /// samples (na ≤ D, nk + nb − 1 ≤ D). No heap; `Copy`.
 ///
 /// Size (`core::mem::size_of`, test `state_sizes`): the [`Rls`] state plus 2 D + 9 floats and 5 `usize`,
-/// e.g. [`PaperHrls<f64>`] (N = 7, D = 3) 640 bytes, `PaperHrls<f32>` 320
-/// bytes on a 32-bit target (352 on a 64-bit host).
+/// e.g. [`PaperHrls<f64>`] (N = 7, D = 3) 648 bytes on a 64-bit host, `PaperHrls<f32>` 324 bytes on a
+/// 32-bit target (352 on a 64-bit host).
 ///
 /// Cost per sample ([`flops_per_sample`]): the RLS update for n parameters plus 4 + na + 2 nb flops
 /// for the deadzone from θ̂ and the regressor: 242 flops for the paper's orders with ρ < 1, 213 with
-/// ρ = 1; plus D + D moves of the delay lines.
+/// ρ = 1 (UD form: 241 and 234); plus D + D moves of the delay lines.
 #[derive(Debug, Clone, Copy)]
 pub struct HammersteinRls<F: Float, const N: usize, const D: usize> {
     rls: Rls<F, N>,
@@ -153,7 +157,7 @@ impl<F: Float, const N: usize, const D: usize> HammersteinRls<F, N, D> {
         if is_nan(s.b_l0) || is_nan(s.b_r0) || limit_bad {
             return Err(Error::Setting);
         }
-        let mut rls = Rls::new(n, s.forgetting, s.p0)?;
+        let mut rls = Rls::new(n, s.forgetting, s.p0)?.with_form(s.form);
         if let Some(t) = s.max_trace {
             rls = rls.with_max_trace(t)?;
         }
@@ -295,6 +299,11 @@ impl<F: Float, const N: usize, const D: usize> HammersteinRls<F, N, D> {
 /// multiplications h u(k−d), 2 + na sign changes and 2 per x̂ term (nb − 1 of them).
 pub fn flops_per_sample(na: usize, nb: usize, rho_is_one: bool) -> usize {
     rls::flops_per_update(3 + na + nb, rho_is_one) + 4 + na + 2 * nb
+}
+
+/// As [`flops_per_sample`] with the UD form ([`rls::flops_per_update_ud`]).
+pub fn flops_per_sample_ud(na: usize, nb: usize, rho_is_one: bool) -> usize {
+    rls::flops_per_update_ud(3 + na + nb, rho_is_one) + 4 + na + 2 * nb
 }
 
 /// Deadzone from θ = [m_r, m_r b_r, m_l, m_l b_l, ...] as `sysid` computes it: a breakpoint whose
@@ -447,6 +456,8 @@ mod tests {
     fn flops_per_sample_for_the_paper_orders() {
         assert_eq!(flops_per_sample(3, 1, false), 242);
         assert_eq!(flops_per_sample(3, 1, true), 213);
+        assert_eq!(flops_per_sample_ud(3, 1, false), 241);
+        assert_eq!(flops_per_sample_ud(3, 1, true), 234);
     }
 
     #[test]

@@ -8,7 +8,7 @@
 //!
 //! | item | what | paper |
 //! |---|---|---|
-//! | [`rls::Rls`] | RLS with forgetting ρ and an optional trace bound on P | eqs. 9–12 |
+//! | [`rls::Rls`] | RLS with forgetting ρ (P itself, or its UD factors) and an optional trace bound on P | eqs. 9–12 |
 //! | [`hammerstein::HammersteinRls`] | deadzone key-term regressor + RLS, switching functions from the latest θ̂ every sample | eqs. 1–12, reading notes eq. 8 |
 //! | [`deadzone::Deadzone`], [`deadzone::Compensator`] | the deadzone x = f(u) and its inverse | eq. 1 |
 //! | [`pi::Pi`] | u = Kp e + Ki Ts Σe, saturated at ±u_max, with anti-windup | Table V controller |
@@ -46,7 +46,7 @@ pub use deadzone::{Compensator, Deadzone, SlopeMode};
 pub use float::Float;
 pub use hammerstein::{HammersteinRls, HammersteinSettings};
 pub use pi::{AntiWindup, Pi};
-pub use rls::Rls;
+pub use rls::{Form, Rls};
 
 /// A failure of an embedded routine. In the C interface each is a negative return code
 /// ([`Error::code`]).
@@ -100,8 +100,8 @@ mod tests {
     #[test]
     fn state_sizes() {
         let w = size_of::<usize>();
-        // Rls<F, N>: N + N² + 3 floats, one usize.
-        let rls = |f: usize, n: usize| round((n + n * n + 3) * f + w, f.max(w));
+        // Rls<F, N>: N + N² + 3 floats, one usize, the one-byte form.
+        let rls = |f: usize, n: usize| round((n + n * n + 3) * f + w + 1, f.max(w));
         assert_eq!(size_of::<Rls<f64, 7>>(), rls(8, 7));
         assert_eq!(size_of::<Rls<f32, 7>>(), rls(4, 7));
         // HammersteinRls<F, N, D>: the Rls, 2 D + 9 floats, five usize.
@@ -119,11 +119,11 @@ mod tests {
         assert_eq!(size_of::<Compensator<f32>>(), round(6 * 4 + 1, 4));
         if w == 8 {
             // The numbers quoted in the documentation for a 64-bit host.
-            assert_eq!(size_of::<Rls<f64, 7>>(), 480);
+            assert_eq!(size_of::<Rls<f64, 7>>(), 488);
             assert_eq!(size_of::<Rls<f32, 7>>(), 248);
-            assert_eq!(size_of::<hammerstein::PaperHrls<f64>>(), 640);
+            assert_eq!(size_of::<hammerstein::PaperHrls<f64>>(), 648);
             assert_eq!(size_of::<hammerstein::PaperHrls<f32>>(), 352);
-            assert_eq!(ffi::ipa_hrls_state_size(), 3432);
+            assert_eq!(ffi::ipa_hrls_state_size(), 3440);
         }
         // Cusum: five floats and three usize.
         assert_eq!(size_of::<cusum::Cusum<f64>>(), 5 * 8 + 3 * w);

@@ -3,13 +3,15 @@
  *
  *   cc -O2 -std=c99 -Icrates/embedded/include crates/embedded/examples/c/track.c \
  *      target/release/libipa_embedded.a -lm -lpthread -ldl
- *   ./a.out NA NB NK FORGETTING [P0] < data.csv
+ *   ./a.out NA NB NK FORGETTING [P0 [FORM]] < data.csv
  *
  * data.csv has a header row naming (at least) the columns u (PWM counts) and y (mm); other columns,
  * such as t, are ignored. The estimate starts, as `ipa-sysid identify --method rls --passes 1` does,
  * from breakpoints at the record's smallest commands (ipa_hrls_record_start), so it reads the whole
  * record first; firmware would call ipa_hrls_init with b_l0 = -1, b_r0 = 1, limit = 255 instead and
- * ipa_hrls_update once per sample. At the end it prints one JSON object with the fitted model:
+ * ipa_hrls_update once per sample. P0 (default 1e6) is identify's --p0; FORM is "standard" (the paper's
+ * eq. 12, default) or "ud" (Bierman's factors, identify --rls-form ud). At the end it prints one JSON
+ * object with the fitted model:
  *   {"b_l":..,"b_r":..,"m_l":..,"m_r":..,"a":[..],"b":[..]}
  */
 #include <stdint.h>
@@ -65,12 +67,21 @@ static void print_array(const char *name, const double *v, int n) {
 
 int main(int argc, char **argv) {
     if (argc < 5) {
-        fprintf(stderr, "usage: %s NA NB NK FORGETTING [P0] < data.csv\n", argv[0]);
+        fprintf(stderr, "usage: %s NA NB NK FORGETTING [P0 [standard|ud]] < data.csv\n", argv[0]);
         return 2;
     }
     unsigned na = (unsigned)atoi(argv[1]), nb = (unsigned)atoi(argv[2]), nk = (unsigned)atoi(argv[3]);
     double rho = strtod(argv[4], NULL);
     double p0 = argc > 5 ? strtod(argv[5], NULL) : 1e6;
+    uint32_t form = IPA_FORM_STANDARD;
+    if (argc > 6) {
+        if (strcmp(argv[6], "ud") == 0) {
+            form = IPA_FORM_UD;
+        } else if (strcmp(argv[6], "standard") != 0) {
+            fprintf(stderr, "FORM must be standard or ud\n");
+            return 2;
+        }
+    }
 
     char line[4096];
     if (fgets(line, sizeof line, stdin) == NULL) {
@@ -104,7 +115,7 @@ int main(int argc, char **argv) {
     double b_l0, b_r0, limit;
     int rc = ipa_hrls_record_start(u, n, &b_l0, &b_r0, &limit);
     if (rc == IPA_OK)
-        rc = ipa_hrls_init(state, sizeof state, na, nb, nk, rho, p0, b_l0, b_r0, limit, 0.0);
+        rc = ipa_hrls_init(state, sizeof state, na, nb, nk, rho, p0, b_l0, b_r0, limit, 0.0, form);
     if (rc != IPA_OK) {
         fprintf(stderr, "ipa_hrls_init failed: %d\n", rc);
         return 1;

@@ -133,17 +133,28 @@ fn c_example_matches_identify_rls_single_pass() {
         ]);
         let report: serde_json::Value = serde_json::from_str(&json).unwrap();
         let model = &report["model"];
-        let out = Command::new(&track)
-            .args([&na_s, &nb_s, &nk_s, rho, "1e6", form])
-            .stdin(std::fs::File::open(&csv).unwrap())
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "track failed: {}",
-            String::from_utf8_lossy(&out.stderr)
+        let run_track = |form: &str| {
+            let out = Command::new(&track)
+                .args([&na_s, &nb_s, &nk_s, rho, "1e6", form])
+                .stdin(std::fs::File::open(&csv).unwrap())
+                .output()
+                .unwrap();
+            assert!(
+                out.status.success(),
+                "track failed: {}",
+                String::from_utf8_lossy(&out.stderr)
+            );
+            serde_json::from_slice::<serde_json::Value>(&out.stdout).unwrap()
+        };
+        let c = run_track(form);
+        // The two covariance forms agree only to rounding (≈ 1e-10 here), closer than the tolerance: check
+        // that the form argument reaches the library, i.e. the other form gives different bits.
+        let other = run_track(if form == "ud" { "standard" } else { "ud" });
+        assert_ne!(
+            c.to_string(),
+            other.to_string(),
+            "FORM must change the computation"
         );
-        let c: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
         let mut pairs: Vec<(String, f64, f64)> = Vec::new();
         for name in ["b_l", "b_r", "m_l", "m_r"] {
             let cli_v = model["deadzone"][name].as_f64().unwrap();

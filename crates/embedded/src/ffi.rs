@@ -1,0 +1,605 @@
+//! The C interface (`include/ipa_embedded.h`, generated from this file by cbindgen): the paper's
+//! recursive Hammerstein estimator, the PI controller and the deadzone compensator, each state in
+//! storage the caller provides (no heap), f64 (`double`) throughout.
+//!
+//! Fixed maximum orders: na ≤ [`IPA_MAX_NA`], nb ≤ [`IPA_MAX_NB`], nk ≤ [`IPA_MAX_NK`] (so at most 19
+//! parameters and delay lines of 15 samples). The state of any order takes
+//! [`ipa_hrls_state_size`] bytes (≤ [`IPA_HRLS_STATE_BYTES`] on every target), aligned to
+//! [`ipa_hrls_state_align`] (8: `double` alignment).
+//!
+//! Return codes: [`IPA_OK`] (0), [`IPA_PENDING`] (1: sample buffered, no estimate update yet), a
+//! non-negative count for the getters, or a negative [`crate::Error`] code: [`IPA_ERR_SETTING`] … .
+//! No function panics or aborts; every pointer is checked for null and alignment, the storage length
+//! against the state size, and a marker word against uninitialised storage.
+//!
+//! Call sequence: `ipa_hrls_init` once (or `ipa_hrls_record_start` first to take the breakpoints from a
+//! whole record, as `ipa-sysid identify` does), then `ipa_hrls_update(u(k), y(k))` every sample,
+//! then the getters whenever the model is wanted.
+
+use core::ffi::c_void;
+use core::mem::{align_of, size_of};
+
+use crate::deadzone::{Compensator, Deadzone, SlopeMode};
+use crate::hammerstein::{HammersteinRls, HammersteinSettings};
+use crate::pi::{AntiWindup, Pi};
+use crate::rls::Form;
+use crate::Error;
+
+/// Largest na (order of A) of the C estimator.
+pub const IPA_MAX_NA: u32 = 8;
+/// Largest nb (coefficients of B, b1 = 1) of the C estimator.
+pub const IPA_MAX_NB: u32 = 8;
+/// Largest nk (input delay in samples) of the C estimator.
+pub const IPA_MAX_NK: u32 = 8;
+/// An upper bound, valid on every target, of [`ipa_hrls_state_size`] in bytes (for static storage).
+pub const IPA_HRLS_STATE_BYTES: usize = 3456;
+/// An upper bound, valid on every target, of [`ipa_pi_state_size`] in bytes.
+pub const IPA_PI_STATE_BYTES: usize = 80;
+
+/// `ipa_hrls_init` form: P itself, updated by the paper's eq. 12 (`identify --rls-form standard`).
+pub const IPA_FORM_STANDARD: u32 = 0;
+/// `ipa_hrls_init` form: Bierman's UD factors of P (`identify --rls-form ud`), positive semi-definite
+/// whatever the rounding.
+pub const IPA_FORM_UD: u32 = 1;
+
+/// Success.
+pub const IPA_OK: i32 = 0;
+/// `ipa_hrls_update`: the sample filled the delay lines; no estimate update yet (k < max(na, nk+nb−1)).
+pub const IPA_PENDING: i32 = 1;
+/// A setting is out of range (ρ ∉ (0, 1], P(0) ≤ 0, NaN breakpoint, bad gain, ...).
+pub const IPA_ERR_SETTING: i32 = -1;
+/// Orders beyond the maximum (or nb = 0).
+pub const IPA_ERR_CAPACITY: i32 = -2;
+/// A non-finite sample; the state is unchanged.
+pub const IPA_ERR_NOT_FINITE: i32 = -3;
+/// The RLS update would lose positive definiteness or meet a non-finite value; the state is unchanged.
+pub const IPA_ERR_NUMERICAL: i32 = -4;
+/// An output buffer is too short.
+pub const IPA_ERR_LENGTH: i32 = -5;
+/// A null pointer.
+pub const IPA_ERR_NULL: i32 = -6;
+/// The storage is too small or misaligned.
+pub const IPA_ERR_STORAGE: i32 = -7;
+/// The storage does not hold an initialised state.
+pub const IPA_ERR_NOT_INITIALISED: i32 = -8;
+
+const MAX_N: usize = 3 + IPA_MAX_NA as usize + IPA_MAX_NB as usize;
+const MAX_D: usize = IPA_MAX_NK as usize + IPA_MAX_NB as usize - 1;
+const HRLS_MAGIC: u64 = 0x4950_415f_4852_4c53; // "IPA_HRLS"
+const PI_MAGIC: u64 = 0x4950_415f_5049_4354; // "IPA_PICT"
+
+#[repr(C)]
+struct HrlsState {
+    magic: u64,
+    est: HammersteinRls<f64, MAX_N, MAX_D>,
+}
+
+#[repr(C)]
+struct PiState {
+    magic: u64,
+    pi: Pi<f64>,
+}
+
+const _: () = assert!(size_of::<HrlsState>() <= IPA_HRLS_STATE_BYTES);
+const _: () = assert!(size_of::<PiState>() <= IPA_PI_STATE_BYTES);
+const _: () = assert!(MAX_D >= IPA_MAX_NA as usize);
+
+/// The deadzone x = f(u) of paper eq. (1): breakpoints in counts, slopes in x per count.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct IpaDeadzone {
+    /// b_l: left breakpoint (counts).
+    pub b_l: f64,
+    /// b_r: right breakpoint (counts).
+    pub b_r: f64,
+    /// m_l: left slope.
+    pub m_l: f64,
+    /// m_r: right slope.
+    pub m_r: f64,
+}
+
+fn code(r: Result<i32, Error>) -> i32 {
+    match r {
+        Ok(v) => v,
+        Err(e) => e.code(),
+    }
+}
+
+/// Checks `mem` (non-null, aligned for T, `len` ≥ size of T).
+fn check_storage<T>(mem: *const c_void, len: usize) -> Result<(), Error> {
+    if mem.is_null() {
+        return Err(Error::Null);
+    }
+    if len < size_of::<T>() || !(mem as *const T).is_aligned() {
+        return Err(Error::Storage);
+    }
+    Ok(())
+}
+
+/// The state in `mem` when it carries the marker `magic` (first word).
+///
+/// # Safety
+/// `mem` must be null or point to at least size_of::<T>() bytes that were written by the matching
+/// `*_init` (or hold any other bytes, which the marker then rejects in practice).
+unsafe fn state<'a, T>(mem: *const c_void, magic: u64) -> Result<&'a T, Error> {
+    check_storage::<T>(mem, size_of::<T>())?;
+    // SAFETY: non-null and aligned for T (whose first field is the u64 marker); readable per the contract.
+    if unsafe { (mem as *const u64).read() } != magic {
+        return Err(Error::NotInitialised);
+    }
+    // SAFETY: the marker says `*_init` wrote a T here.
+    Ok(unsafe { &*(mem as *const T) })
+}
+
+/// Mutable variant of [`state`].
+///
+/// # Safety
+/// As [`state`], and no other reference to the state may be live.
+unsafe fn state_mut<'a, T>(mem: *mut c_void, magic: u64) -> Result<&'a mut T, Error> {
+    // SAFETY: forwarded contract.
+    unsafe { state::<T>(mem, magic)? };
+    // SAFETY: as in `state`; exclusive per the contract.
+    Ok(unsafe { &mut *(mem as *mut T) })
+}
+
+/// Writes `value` into checked storage; on failure clears the marker of storage large enough to hold it.
+///
+/// # Safety
+/// `mem` must be null or writable for `len` bytes.
+unsafe fn init<T>(mem: *mut c_void, len: usize, value: Result<T, Error>) -> i32 {
+    if let Err(e) = check_storage::<T>(mem, len) {
+        return e.code();
+    }
+    match value {
+        Ok(v) => {
+            // SAFETY: checked non-null, aligned and large enough; writable per the contract.
+            unsafe { (mem as *mut T).write(v) };
+            IPA_OK
+        }
+        Err(e) => {
+            // SAFETY: as above; the first word of every state is its u64 marker.
+            unsafe { (mem as *mut u64).write(0) };
+            e.code()
+        }
+    }
+}
+
+/// Size in bytes of the estimator state (for any orders up to the maximum).
+#[no_mangle]
+pub extern "C" fn ipa_hrls_state_size() -> usize {
+    size_of::<HrlsState>()
+}
+
+/// Alignment in bytes that the estimator storage needs (that of `double`/`uint64_t`).
+#[no_mangle]
+pub extern "C" fn ipa_hrls_state_align() -> usize {
+    align_of::<HrlsState>()
+}
+
+/// The breakpoints `ipa-sysid identify` starts from for a whole record of `n` commands `u` (counts):
+/// `*b_l0` = the largest u < 0 (−∞ when none), `*b_r0` = the smallest u > 0 (+∞ when none),
+/// `*limit` = max |u|. Returns [`IPA_OK`] or [`IPA_ERR_NULL`].
+///
+/// # Safety
+/// `u` must point to `n` readable doubles (or be null with n = 0); the outputs must be writable.
+#[no_mangle]
+pub unsafe extern "C" fn ipa_hrls_record_start(
+    u: *const f64,
+    n: usize,
+    b_l0: *mut f64,
+    b_r0: *mut f64,
+    limit: *mut f64,
+) -> i32 {
+    if b_l0.is_null() || b_r0.is_null() || limit.is_null() || (u.is_null() && n > 0) {
+        return IPA_ERR_NULL;
+    }
+    let record: &[f64] = if n == 0 {
+        &[]
+    } else {
+        // SAFETY: non-null, n readable doubles per the contract.
+        unsafe { core::slice::from_raw_parts(u, n) }
+    };
+    let s = HammersteinSettings::<f64>::paper().from_record(record);
+    // SAFETY: non-null and writable per the contract.
+    unsafe {
+        b_l0.write(s.b_l0);
+        b_r0.write(s.b_r0);
+        limit.write(s.limit);
+    }
+    IPA_OK
+}
+
+/// Initialises the recursive Hammerstein estimator in `mem` (`len` bytes, ≥ [`ipa_hrls_state_size`],
+/// aligned to [`ipa_hrls_state_align`]): orders na ≤ 8, 1 ≤ nb ≤ 8, nk ≤ 8; forgetting ρ ∈ (0, 1];
+/// P(0) = p0 · I (p0 > 0, `identify` uses 1e6); initial breakpoints b_l0 ≤ 0 ≤ b_r0 in counts (±∞
+/// allowed for an unexcited branch); `limit` ≥ 0 bounds |b̂| (counts); `max_trace` > 0 bounds tr P
+/// (windup guard), 0 for none; `form` [`IPA_FORM_STANDARD`] (the paper's eq. 12) or [`IPA_FORM_UD`].
+/// Returns [`IPA_OK`] or a negative code (the storage is then marked uninitialised).
+///
+/// # Safety
+/// `mem` must be null or writable for `len` bytes, and not used by another thread during the call.
+#[no_mangle]
+#[allow(clippy::too_many_arguments)]
+pub unsafe extern "C" fn ipa_hrls_init(
+    mem: *mut c_void,
+    len: usize,
+    na: u32,
+    nb: u32,
+    nk: u32,
+    forgetting: f64,
+    p0: f64,
+    b_l0: f64,
+    b_r0: f64,
+    limit: f64,
+    max_trace: f64,
+    form: u32,
+) -> i32 {
+    let form = match form {
+        IPA_FORM_STANDARD => Ok(Form::Standard),
+        IPA_FORM_UD => Ok(Form::Ud),
+        _ => Err(Error::Setting),
+    };
+    let est = match form {
+        Err(e) => Err(e),
+        Ok(_) if na > IPA_MAX_NA || nb > IPA_MAX_NB || nk > IPA_MAX_NK => Err(Error::Capacity),
+        Ok(form) => {
+            let s = HammersteinSettings {
+                na: na as usize,
+                nb: nb as usize,
+                nk: nk as usize,
+                forgetting,
+                p0,
+                b_l0,
+                b_r0,
+                limit,
+                max_trace: (max_trace != 0.0).then_some(max_trace),
+                form,
+            };
+            HammersteinRls::new(s).map(|est| HrlsState {
+                magic: HRLS_MAGIC,
+                est,
+            })
+        }
+    };
+    // SAFETY: forwarded contract.
+    unsafe { init(mem, len, est) }
+}
+
+/// Feeds sample k: command u(k) (counts) and position y(k) (mm). Returns [`IPA_OK`] after an estimate
+/// update (then `*eps`, when not null, is the a-priori prediction error ε(k) in mm), [`IPA_PENDING`]
+/// while the delay lines fill, or a negative code (state unchanged).
+///
+/// # Safety
+/// `mem` must be storage passed to a successful [`ipa_hrls_init`] (or null); `eps` null or writable.
+#[no_mangle]
+pub unsafe extern "C" fn ipa_hrls_update(mem: *mut c_void, u: f64, y: f64, eps: *mut f64) -> i32 {
+    // SAFETY: forwarded contract.
+    let st = match unsafe { state_mut::<HrlsState>(mem, HRLS_MAGIC) } {
+        Ok(st) => st,
+        Err(e) => return e.code(),
+    };
+    code(st.est.update(u, y).map(|e| match e {
+        Some(e) => {
+            if !eps.is_null() {
+                // SAFETY: non-null and writable per the contract.
+                unsafe { eps.write(e) };
+            }
+            IPA_OK
+        }
+        None => IPA_PENDING,
+    }))
+}
+
+/// Writes the fitted deadzone (b_r = θ̂₂/θ̂₁, b_l = θ̂₄/θ̂₃, m_r = θ̂₁, m_l = θ̂₃; a non-finite ratio gives
+/// 0) to `*out`. Returns [`IPA_OK`] or a negative code.
+///
+/// # Safety
+/// As [`ipa_hrls_update`]; `out` null or writable.
+#[no_mangle]
+pub unsafe extern "C" fn ipa_hrls_deadzone(mem: *const c_void, out: *mut IpaDeadzone) -> i32 {
+    // SAFETY: forwarded contract.
+    let st = match unsafe { state::<HrlsState>(mem, HRLS_MAGIC) } {
+        Ok(st) => st,
+        Err(e) => return e.code(),
+    };
+    if out.is_null() {
+        return IPA_ERR_NULL;
+    }
+    let d = st.est.deadzone();
+    // SAFETY: non-null and writable per the contract.
+    unsafe {
+        out.write(IpaDeadzone {
+            b_l: d.b_l,
+            b_r: d.b_r,
+            m_l: d.m_l,
+            m_r: d.m_r,
+        })
+    };
+    IPA_OK
+}
+
+/// Which coefficient vector a getter copies.
+#[derive(Clone, Copy)]
+enum Coefs {
+    A,
+    B,
+    Theta,
+}
+
+/// # Safety
+/// As [`ipa_hrls_update`]; `out` null or writable for `len` doubles.
+unsafe fn coefs(mem: *const c_void, out: *mut f64, len: usize, which: Coefs) -> i32 {
+    // SAFETY: forwarded contract.
+    let st = match unsafe { state::<HrlsState>(mem, HRLS_MAGIC) } {
+        Ok(st) => st,
+        Err(e) => return e.code(),
+    };
+    if out.is_null() {
+        return IPA_ERR_NULL;
+    }
+    // SAFETY: non-null, `len` writable doubles per the contract.
+    let out = unsafe { core::slice::from_raw_parts_mut(out, len) };
+    let r = match which {
+        Coefs::A => st.est.a(out),
+        Coefs::B => st.est.b(out),
+        Coefs::Theta => {
+            let n = st.est.rls().n_params();
+            out.get_mut(..n).ok_or(Error::Length).map(|o| {
+                o.iter_mut().zip(st.est.theta()).for_each(|(o, t)| *o = *t);
+                n
+            })
+        }
+    };
+    code(r.map(|n| n as i32))
+}
+
+/// Writes a_1..a_na (A = 1 + a_1 q⁻¹ + … + a_na q^−na) to `out` (room for `len` doubles). Returns na
+/// (≥ 0) or a negative code ([`IPA_ERR_LENGTH`] when len < na).
+///
+/// # Safety
+/// As [`ipa_hrls_update`]; `out` null or writable for `len` doubles.
+#[no_mangle]
+pub unsafe extern "C" fn ipa_hrls_a(mem: *const c_void, out: *mut f64, len: usize) -> i32 {
+    // SAFETY: forwarded contract.
+    unsafe { coefs(mem, out, len, Coefs::A) }
+}
+
+/// Writes b_1..b_nb (b_1 = 1) to `out`. Returns nb or a negative code.
+///
+/// # Safety
+/// As [`ipa_hrls_a`].
+#[no_mangle]
+pub unsafe extern "C" fn ipa_hrls_b(mem: *const c_void, out: *mut f64, len: usize) -> i32 {
+    // SAFETY: forwarded contract.
+    unsafe { coefs(mem, out, len, Coefs::B) }
+}
+
+/// Writes θ̂ = [m_r, m_r b_r, m_l, m_l b_l, a_1..a_na, b_2..b_nb] to `out`. Returns n = 3 + na + nb or a
+/// negative code.
+///
+/// # Safety
+/// As [`ipa_hrls_a`].
+#[no_mangle]
+pub unsafe extern "C" fn ipa_hrls_theta(mem: *const c_void, out: *mut f64, len: usize) -> i32 {
+    // SAFETY: forwarded contract.
+    unsafe { coefs(mem, out, len, Coefs::Theta) }
+}
+
+/// Size in bytes of the PI controller state.
+#[no_mangle]
+pub extern "C" fn ipa_pi_state_size() -> usize {
+    size_of::<PiState>()
+}
+
+/// Initialises a PI controller in `mem`: Kp (counts/mm), Ki (counts/(mm·s)), Ts (s), u_max (counts,
+/// 255 for the IPA), `anti_windup` 0 = none, 1 = clamping, 2 = back-calculation with tracking time
+/// `tt_s` (s; ignored otherwise). Returns [`IPA_OK`] or a negative code.
+///
+/// # Safety
+/// `mem` null or writable for `len` bytes, aligned to 8.
+#[no_mangle]
+#[allow(clippy::too_many_arguments)]
+pub unsafe extern "C" fn ipa_pi_init(
+    mem: *mut c_void,
+    len: usize,
+    kp: f64,
+    ki: f64,
+    ts: f64,
+    u_max: f64,
+    anti_windup: i32,
+    tt_s: f64,
+) -> i32 {
+    let aw = match anti_windup {
+        0 => Ok(AntiWindup::None),
+        1 => Ok(AntiWindup::Clamping),
+        2 => Ok(AntiWindup::BackCalculation { tt_s }),
+        _ => Err(Error::Setting),
+    };
+    let pi = aw
+        .and_then(|aw| Pi::new(kp, ki, ts, u_max, aw))
+        .map(|pi| PiState {
+            magic: PI_MAGIC,
+            pi,
+        });
+    // SAFETY: forwarded contract.
+    unsafe { init(mem, len, pi) }
+}
+
+/// One PI sample: set-point r and position y in mm; writes the saturated command (counts) to `*u`.
+/// Returns [`IPA_OK`] or a negative code.
+///
+/// # Safety
+/// `mem` storage of a successful [`ipa_pi_init`] (or null); `u` null or writable.
+#[no_mangle]
+pub unsafe extern "C" fn ipa_pi_step(mem: *mut c_void, r: f64, y: f64, u: *mut f64) -> i32 {
+    // SAFETY: forwarded contract.
+    let st = match unsafe { state_mut::<PiState>(mem, PI_MAGIC) } {
+        Ok(st) => st,
+        Err(e) => return e.code(),
+    };
+    if u.is_null() {
+        return IPA_ERR_NULL;
+    }
+    code(st.pi.step(r, y).map(|v| {
+        // SAFETY: non-null and writable per the contract.
+        unsafe { u.write(v) };
+        IPA_OK
+    }))
+}
+
+/// Deadzone-inverse compensation of a controller output `u` (counts): `*u_c` = f⁻¹(m_ref u) clamped to
+/// ±u_max, 0 when |u| ≤ threshold; `mode` 0 = shift (m_ref = m_r or m_l), 1 = equalise (mean slope).
+/// Returns [`IPA_OK`] or a negative code (deadzone not finite, b_l > 0, b_r < 0, a slope ≤ 0, ...).
+///
+/// # Safety
+/// `dz` null or readable; `u_c` null or writable.
+#[no_mangle]
+pub unsafe extern "C" fn ipa_dz_compensate(
+    dz: *const IpaDeadzone,
+    mode: i32,
+    threshold: f64,
+    u_max: f64,
+    u: f64,
+    u_c: *mut f64,
+) -> i32 {
+    if dz.is_null() || u_c.is_null() {
+        return IPA_ERR_NULL;
+    }
+    // SAFETY: non-null and readable per the contract.
+    let d = unsafe { dz.read() };
+    let mode = match mode {
+        0 => SlopeMode::Shift,
+        1 => SlopeMode::Equalise,
+        _ => return IPA_ERR_SETTING,
+    };
+    let dz = Deadzone {
+        b_l: d.b_l,
+        b_r: d.b_r,
+        m_l: d.m_l,
+        m_r: d.m_r,
+    };
+    code(Compensator::new(dz, mode, threshold, u_max).map(|c| {
+        // SAFETY: non-null and writable per the contract.
+        unsafe { u_c.write(c.apply(u)) };
+        IPA_OK
+    }))
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    // The storage is checked: null, too short, misaligned, uninitialised; a failed init marks it so.
+    #[test]
+    fn storage_is_checked_before_use() {
+        let mut mem = [0u64; IPA_HRLS_STATE_BYTES / 8];
+        let p = mem.as_mut_ptr() as *mut c_void;
+        let len = IPA_HRLS_STATE_BYTES;
+        unsafe {
+            assert_eq!(
+                ipa_hrls_update(core::ptr::null_mut(), 0.0, 0.0, core::ptr::null_mut()),
+                IPA_ERR_NULL
+            );
+            assert_eq!(
+                ipa_hrls_update(p, 0.0, 0.0, core::ptr::null_mut()),
+                IPA_ERR_NOT_INITIALISED
+            );
+            let ok = |na, nb, nk, rho| {
+                ipa_hrls_init(p, len, na, nb, nk, rho, 1e6, -1.0, 1.0, 255.0, 0.0, 0)
+            };
+            assert_eq!(
+                ipa_hrls_init(p, 16, 3, 1, 1, 1.0, 1e6, -1.0, 1.0, 255.0, 0.0, 0),
+                IPA_ERR_STORAGE
+            );
+            let odd = (p as *mut u8).add(4) as *mut c_void;
+            assert_eq!(
+                ipa_hrls_init(odd, len - 8, 3, 1, 1, 1.0, 1e6, -1.0, 1.0, 255.0, 0.0, 0),
+                IPA_ERR_STORAGE
+            );
+            assert_eq!(ok(8, 8, 8, 0.99), IPA_OK, "the maximum orders fit");
+            assert_eq!(ok(9, 1, 1, 1.0), IPA_ERR_CAPACITY);
+            assert_eq!(
+                ipa_hrls_update(p, 0.0, 0.0, core::ptr::null_mut()),
+                IPA_ERR_NOT_INITIALISED
+            );
+            assert_eq!(ok(3, 1, 1, 1.5), IPA_ERR_SETTING);
+            assert_eq!(
+                ipa_hrls_init(p, len, 3, 1, 1, 1.0, 1e6, -1.0, 1.0, 255.0, 0.0, 2),
+                IPA_ERR_SETTING
+            );
+            assert_eq!(
+                ipa_hrls_init(
+                    p,
+                    len,
+                    3,
+                    1,
+                    1,
+                    1.0,
+                    1e6,
+                    -1.0,
+                    1.0,
+                    255.0,
+                    0.0,
+                    IPA_FORM_UD
+                ),
+                IPA_OK
+            );
+            assert_eq!(ok(3, 1, 1, 1.0), IPA_OK);
+            for _ in 0..3 {
+                assert_eq!(
+                    ipa_hrls_update(p, 5.0, 0.0, core::ptr::null_mut()),
+                    IPA_PENDING
+                );
+            }
+            let mut eps = f64::NAN;
+            assert_eq!(ipa_hrls_update(p, 5.0, 2.0, &mut eps), IPA_OK);
+            assert_eq!(eps, 2.0, "θ̂(0) = 0, so ε = y");
+            assert_eq!(
+                ipa_hrls_update(p, f64::NAN, 2.0, &mut eps),
+                IPA_ERR_NOT_FINITE
+            );
+            let mut a = [0.0; 3];
+            assert_eq!(ipa_hrls_a(p, a.as_mut_ptr(), 3), 3);
+            assert_eq!(ipa_hrls_a(p, a.as_mut_ptr(), 2), IPA_ERR_LENGTH);
+            let mut b = [0.0; 1];
+            assert_eq!(ipa_hrls_b(p, b.as_mut_ptr(), 1), 1);
+            assert_eq!(b[0], 1.0);
+            let mut th = [0.0; 19];
+            assert_eq!(ipa_hrls_theta(p, th.as_mut_ptr(), 19), 7);
+            assert_eq!(ipa_hrls_deadzone(p, core::ptr::null_mut()), IPA_ERR_NULL);
+        }
+    }
+
+    #[test]
+    fn pi_and_compensator_through_the_c_interface() {
+        let mut mem = [0u64; IPA_PI_STATE_BYTES / 8];
+        let p = mem.as_mut_ptr() as *mut c_void;
+        let mut u = 0.0;
+        unsafe {
+            assert_eq!(
+                ipa_pi_init(p, IPA_PI_STATE_BYTES, 14.0, 1.0, 0.01, 255.0, 3, 0.0),
+                IPA_ERR_SETTING
+            );
+            assert_eq!(
+                ipa_pi_init(p, IPA_PI_STATE_BYTES, 14.0, 1.0, 0.01, 255.0, 1, 0.0),
+                IPA_OK
+            );
+            assert_eq!(ipa_pi_step(p, 1.0, 0.0, &mut u), IPA_OK);
+            assert!((u - 14.01).abs() < 1e-12);
+            let dz = IpaDeadzone {
+                b_l: -20.0,
+                b_r: 30.0,
+                m_l: 1.0,
+                m_r: 1.0,
+            };
+            assert_eq!(ipa_dz_compensate(&dz, 0, 0.0, 255.0, 10.0, &mut u), IPA_OK);
+            assert_eq!(u, 40.0);
+            let bad = IpaDeadzone { m_r: -1.0, ..dz };
+            assert_eq!(
+                ipa_dz_compensate(&bad, 0, 0.0, 255.0, 10.0, &mut u),
+                IPA_ERR_SETTING
+            );
+        }
+    }
+}

@@ -1,0 +1,134 @@
+//! `ipa-embedded`: the paper's recursive Hammerstein estimator, the plain RLS, the deadzone inverse
+//! (compensator) and the PI position controller for microcontroller firmware.
+//!
+//! `#![no_std]`, no `alloc`, no heap: every state is a fixed-size value whose capacity is a const
+//! generic, generic over `f64` and `f32` ([`Float`]). No panic is reachable from the API: every
+//! failure is an [`Error`] (a C return code in [`ffi`]); the crate denies `unwrap`, `expect`, `panic!`
+//! and slice indexing.
+//!
+//! | item | what | paper |
+//! |---|---|---|
+//! | [`rls::Rls`] | RLS with forgetting ρ (P itself, or its UD factors) and an optional trace bound on P | eqs. 9–12 |
+//! | [`hammerstein::HammersteinRls`] | deadzone key-term regressor + RLS, switching functions from the latest θ̂ every sample | eqs. 1–12, reading notes eq. 8 |
+//! | [`deadzone::Deadzone`], [`deadzone::Compensator`] | the deadzone x = f(u) and its inverse | eq. 1 |
+//! | [`pi::Pi`] | u = Kp e + Ki Ts Σe, saturated at ±u_max, with anti-windup | Table V controller |
+//! | [`cusum::Cusum`] | change detection on normalised prediction errors | issue 15 part 4 |
+//! | [`ffi`] | `extern "C"` functions with caller-provided storage (`include/ipa_embedded.h`) | — |
+//!
+//! Units: u is the valve command in PWM counts (±255), y the stroke position in mm, Ts the sampling
+//! period in s. State sizes (bytes, checked by tests) and flops per sample are stated on each type and
+//! in `docs/embedded.md`.
+//!
+//! The f64 estimator does the same floating-point operations in the same order as the `sysid` crate's
+//! first RLS pass (`identify --method rls --passes 1`), so its estimates are bit-for-bit equal to
+//! them (tests `tests/verify_sysid.rs` and the C example's test in the CLI crate).
+#![no_std]
+#![deny(missing_docs)]
+#![deny(
+    clippy::panic,
+    clippy::unwrap_used,
+    clippy::expect_used,
+    clippy::indexing_slicing
+)]
+
+#[cfg(feature = "std")]
+extern crate std;
+
+pub mod cusum;
+pub mod deadzone;
+pub mod ffi;
+pub mod float;
+pub mod hammerstein;
+pub mod pi;
+pub mod rls;
+
+pub use deadzone::{Compensator, Deadzone, SlopeMode};
+pub use float::Float;
+pub use hammerstein::{HammersteinRls, HammersteinSettings};
+pub use pi::{AntiWindup, Pi};
+pub use rls::{Form, Rls};
+
+/// A failure of an embedded routine. In the C interface each is a negative return code
+/// ([`Error::code`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[repr(i32)]
+pub enum Error {
+    /// A setting is out of range (ρ not in (0, 1], P(0) not positive and finite, a gain not finite, ...).
+    Setting = -1,
+    /// The model orders do not fit the state's fixed capacity (or nb = 0 for a Hammerstein model).
+    Capacity = -2,
+    /// An input sample (u, y, r) is not a finite number; the state is unchanged.
+    NotFinite = -3,
+    /// The update would lose positive definiteness of P or meet a non-finite value
+    /// (ρ + φᵀPφ not finite and > 0, or ε not finite); the state is unchanged.
+    Numerical = -4,
+    /// A regressor or output buffer is shorter than the number of parameters / coefficients.
+    Length = -5,
+    /// C interface: a null pointer.
+    Null = -6,
+    /// C interface: the storage is too small or not aligned for the state.
+    Storage = -7,
+    /// C interface: the storage does not hold an initialised state.
+    NotInitialised = -8,
+}
+
+impl Error {
+    /// The C return code (negative).
+    pub fn code(self) -> i32 {
+        self as i32
+    }
+}
+
+#[cfg(all(feature = "panic-halt", not(feature = "std"), not(test)))]
+#[panic_handler]
+fn panic(_: &core::panic::PanicInfo) -> ! {
+    // No panic is reachable from the API; this only satisfies the linker of a `std`-free static library.
+    loop {}
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use core::mem::size_of;
+
+    /// `n` rounded up to a multiple of `align`.
+    fn round(n: usize, align: usize) -> usize {
+        n.div_ceil(align) * align
+    }
+
+    // The sizes stated in the rustdoc and docs/embedded.md, from the field lists (f floats, w = usize).
+    #[test]
+    fn state_sizes() {
+        let w = size_of::<usize>();
+        // Rls<F, N>: N + N² + 3 floats, one usize, the one-byte form.
+        let rls = |f: usize, n: usize| round((n + n * n + 3) * f + w + 1, f.max(w));
+        assert_eq!(size_of::<Rls<f64, 7>>(), rls(8, 7));
+        assert_eq!(size_of::<Rls<f32, 7>>(), rls(4, 7));
+        // HammersteinRls<F, N, D>: the Rls, 2 D + 9 floats, five usize.
+        let hrls =
+            |f: usize, n: usize, d: usize| round(rls(f, n) + (2 * d + 9) * f + 5 * w, f.max(w));
+        assert_eq!(size_of::<hammerstein::PaperHrls<f64>>(), hrls(8, 7, 3));
+        assert_eq!(size_of::<hammerstein::PaperHrls<f32>>(), hrls(4, 7, 3));
+        assert_eq!(size_of::<HammersteinRls<f64, 19, 15>>(), hrls(8, 19, 15));
+        // Pi: five floats and the anti-windup enum (a tag and Tt).
+        assert_eq!(size_of::<Pi<f64>>(), 5 * 8 + 16);
+        assert_eq!(size_of::<Pi<f32>>(), 5 * 4 + 8);
+        // Deadzone: four floats; Compensator: six floats and the slope-mode byte.
+        assert_eq!(size_of::<Deadzone<f64>>(), 32);
+        assert_eq!(size_of::<Compensator<f64>>(), round(6 * 8 + 1, 8));
+        assert_eq!(size_of::<Compensator<f32>>(), round(6 * 4 + 1, 4));
+        if w == 8 {
+            // The numbers quoted in the documentation for a 64-bit host.
+            assert_eq!(size_of::<Rls<f64, 7>>(), 488);
+            assert_eq!(size_of::<Rls<f32, 7>>(), 248);
+            assert_eq!(size_of::<hammerstein::PaperHrls<f64>>(), 648);
+            assert_eq!(size_of::<hammerstein::PaperHrls<f32>>(), 352);
+            assert_eq!(ffi::ipa_hrls_state_size(), 3440);
+        }
+        // Cusum: five floats and three usize.
+        assert_eq!(size_of::<cusum::Cusum<f64>>(), 5 * 8 + 3 * w);
+        assert_eq!(size_of::<cusum::Cusum<f32>>(), round(5 * 4 + 3 * w, w));
+        assert!(ffi::ipa_hrls_state_size() <= ffi::IPA_HRLS_STATE_BYTES);
+        assert!(ffi::ipa_pi_state_size() <= ffi::IPA_PI_STATE_BYTES);
+    }
+}

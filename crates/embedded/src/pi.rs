@@ -1,0 +1,161 @@
+//! The paper's PI position controller with saturation and anti-windup:
+//! e(k) = r(k) − y(k) (mm), v(k) = Kp e(k) + I(k−1) + Ki Ts e(k), u(k) = sat(v(k)) to ±u_max counts.
+//!
+//! The integral is the backward-Euler form I(k) = Ki Ts Σ_{j≤k} e(j) (Ki in counts/(mm·s); the form
+//! `control`'s `IntegralForm::Scaled` uses and the one the paper's Table V is compatible with, see
+//! docs/control.md). The same operations as `control::PiController::step`, so f64 results are equal to
+//! it bit for bit.
+
+use crate::{Error, Float};
+
+/// What the integral does while the command is saturated.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum AntiWindup<F: Float> {
+    /// The integral always accumulates (the paper's plain PI).
+    None,
+    /// Conditional integration: e(k) is not integrated when v(k) saturates and e(k) v(k) > 0.
+    Clamping,
+    /// Back-calculation: I(k) = I(k−1) + Ki Ts e(k) + (Ts / Tt)(u(k) − v(k)), Tt in s (> 0).
+    BackCalculation {
+        /// Tt: tracking time constant in s.
+        tt_s: F,
+    },
+}
+
+/// A PI controller: settings and the integral state I (counts).
+///
+/// Size: 5 floats and the anti-windup enum (tag and Tt): 56 bytes for f64, 28 for f32 (test
+/// `state_sizes`). Cost per sample: 6 flops (+3 for back-calculation), one clamp.
+///
+/// ```
+/// use ipa_embedded::{AntiWindup, Pi};
+/// // Kp = 14, Ki = 1, Ts = 0.01 s: u(0) = 14·1 + 1·0.01·1 = 14.01 counts for e = 1 mm.
+/// let mut pi = Pi::new(14.0f64, 1.0, 0.01, 255.0, AntiWindup::Clamping).unwrap();
+/// assert!((pi.step(1.0, 0.0).unwrap() - 14.01).abs() < 1e-12);
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Pi<F: Float> {
+    kp: F,
+    /// g = Ki Ts: the gain that multiplies e(k) in the integral update.
+    g: F,
+    ts: F,
+    u_max: F,
+    anti_windup: AntiWindup<F>,
+    integral: F,
+}
+
+impl<F: Float> Pi<F> {
+    /// A controller with Kp (counts/mm), Ki (counts/(mm·s)), Ts (s, > 0), u_max (counts, > 0; 255
+    /// for the IPA's PWM) and an anti-windup scheme. Non-finite gains, Ts ≤ 0, u_max ≤ 0 or Tt ≤ 0 give
+    /// [`Error::Setting`].
+    pub fn new(kp: F, ki: F, ts: F, u_max: F, anti_windup: AntiWindup<F>) -> Result<Self, Error> {
+        let positive = |v: F| v.is_finite() && v > F::ZERO;
+        if !(kp.is_finite() && ki.is_finite() && positive(ts) && positive(u_max)) {
+            return Err(Error::Setting);
+        }
+        if let AntiWindup::BackCalculation { tt_s } = anti_windup {
+            if !positive(tt_s) {
+                return Err(Error::Setting);
+            }
+        }
+        Ok(Pi {
+            kp,
+            g: ki * ts,
+            ts,
+            u_max,
+            anti_windup,
+            integral: F::ZERO,
+        })
+    }
+
+    /// One sample: set-point r(k) and measured position y(k) in mm → saturated command u(k) in counts.
+    /// Non-finite inputs give [`Error::NotFinite`] and leave the integral unchanged.
+    pub fn step(&mut self, r_mm: F, y_mm: F) -> Result<F, Error> {
+        if !(r_mm.is_finite() && y_mm.is_finite()) {
+            return Err(Error::NotFinite);
+        }
+        let e = r_mm - y_mm;
+        let proportional = self.kp * e;
+        let integrated = self.integral + self.g * e;
+        let v = proportional + integrated;
+        let u = v.clamp_to(-self.u_max, self.u_max);
+        let u = match self.anti_windup {
+            AntiWindup::None => {
+                self.integral = integrated;
+                u
+            }
+            AntiWindup::Clamping => {
+                if u != v && e * v > F::ZERO {
+                    (proportional + self.integral).clamp_to(-self.u_max, self.u_max)
+                } else {
+                    self.integral = integrated;
+                    u
+                }
+            }
+            AntiWindup::BackCalculation { tt_s } => {
+                self.integral = integrated + (self.ts / tt_s) * (u - v);
+                u
+            }
+        };
+        Ok(u)
+    }
+
+    /// The integral term I(k) in counts.
+    pub fn integral(&self) -> F {
+        self.integral
+    }
+
+    /// Back to rest: I = 0.
+    pub fn reset(&mut self) {
+        self.integral = F::ZERO;
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    // u(0) = Kp e + Ki Ts e; u(1) = Kp e + 2 Ki Ts e with e = 1 mm, Kp = 14, Ki = 1, Ts = 0.01.
+    #[test]
+    fn scaled_integral_adds_ki_ts_times_error() {
+        let mut pi = Pi::new(14.0, 1.0, 0.01, 255.0, AntiWindup::None).unwrap();
+        assert!((pi.step(1.0, 0.0).unwrap() - 14.01).abs() < 1e-12);
+        assert!((pi.step(1.0, 0.0).unwrap() - 14.02).abs() < 1e-12);
+    }
+
+    // Without anti-windup 10 saturated samples at e = 100 mm integrate 0.01·100·10 = 10 counts; with
+    // clamping nothing; with back-calculation Tt = Ts the integral puts v on the limit: 255 − 1400.
+    #[test]
+    fn anti_windup_schemes_limit_the_integral() {
+        let mut plain = Pi::new(14.0, 1.0, 0.01, 255.0, AntiWindup::None).unwrap();
+        let mut clamp = Pi::new(14.0, 1.0, 0.01, 255.0, AntiWindup::Clamping).unwrap();
+        for _ in 0..10 {
+            assert_eq!(plain.step(100.0, 0.0).unwrap(), 255.0);
+            assert_eq!(clamp.step(100.0, 0.0).unwrap(), 255.0);
+        }
+        assert!((plain.integral() - 10.0).abs() < 1e-9);
+        assert_eq!(clamp.integral(), 0.0);
+        let bc = AntiWindup::BackCalculation { tt_s: 0.01 };
+        let mut back = Pi::new(14.0f32, 1.0, 0.01, 255.0, bc).unwrap();
+        assert_eq!(back.step(100.0, 0.0).unwrap(), 255.0);
+        assert!((back.integral() - (255.0 - 1400.0)).abs() < 1e-3);
+    }
+
+    #[test]
+    fn bad_settings_and_inputs_are_errors() {
+        assert!(Pi::new(f64::NAN, 1.0, 0.01, 255.0, AntiWindup::None).is_err());
+        assert!(Pi::new(1.0, 1.0, 0.0, 255.0, AntiWindup::None).is_err());
+        assert!(Pi::new(
+            1.0,
+            1.0,
+            0.01,
+            255.0,
+            AntiWindup::BackCalculation { tt_s: -1.0 }
+        )
+        .is_err());
+        let mut pi = Pi::new(14.0, 1.0, 0.01, 255.0, AntiWindup::None).unwrap();
+        assert_eq!(pi.step(f64::INFINITY, 0.0).unwrap_err(), Error::NotFinite);
+        assert_eq!(pi.integral(), 0.0);
+    }
+}

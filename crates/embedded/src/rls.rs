@@ -1,0 +1,527 @@
+//! Recursive least squares with a forgetting factor (paper eqs. 9–12), in fixed-size arrays.
+//!
+//! ```text
+//! ε(k) = y(k) − φᵀ(k) θ̂(k−1)                         (11)
+//! L(k) = P(k−1) φ(k) / (ρ + φᵀ(k) P(k−1) φ(k))        (10)
+//! θ̂(k) = θ̂(k−1) + L(k) ε(k)                          (9)
+//! P(k) = [P(k−1) − L(k) φᵀ(k) P(k−1)] / ρ             (12)
+//! ```
+//!
+//! The operations and their order are those of `sysid::rls::Rls::update` (and its reference loop):
+//! ε = ((y − φ₀θ₀) − φ₁θ₁) − …; (Pφ)_i = Σ_j P_ij φ_j for j = 0, 1, …; ρ + Σ φ_i (Pφ)_i; 1/(ρ + φᵀPφ);
+//! L̃_i = (Pφ)_i · (1/(ρ + φᵀPφ)); θ̂_i += L̃_i ε; P_ij ← (P_ij − (Pφ)_min(i,j) L̃_max(i,j)) · (1/ρ), the
+//! scaling skipped for ρ = 1. So with f64 the results are bit-for-bit those of `sysid`, and P stays
+//! exactly symmetric.
+//!
+//! # UD form (optional)
+//!
+//! With [`Form::Ud`] ([`Rls::with_form`]) P = U D Uᵀ is kept as its factors (U unit upper triangular,
+//! D diagonal) and updated by Bierman's measurement update with variance ρ followed by D ← D/ρ, the
+//! operations and order of `identify --rls-form ud` (`sysid::rls_ud`), so f64 results equal it bit for
+//! bit (up to the sign of zero). P is then positive semi-definite whatever the rounding: the form to use
+//! in f32, where eq. 12 loses definiteness on IPA data (docs/embedded.md). The factors live in the same
+//! N × N array (row j: U_0j..U_(j−1)j, then d_j on the diagonal), so the state has the same size.
+//! Cost ([`flops_per_update_ud`]): ε 2n + 1; f = Uᵀφ n² + n; v = D f n; per column of Bierman's
+//! update 6, plus 4 per entry above the diagonal (2 n(n − 1) in all); D/ρ n (ρ < 1); θ̂ 3n. Total
+//! 3 n² + 12 n + 1 for ρ < 1 (3 n² + 11 n + 1 for ρ = 1): 232 for n = 7, the cost of eq. 12 (233).
+//!
+//! # Windup guard (optional)
+//!
+//! With ρ < 1 and no excitation P grows like ρ^(−k) (covariance windup). With a trace bound T
+//! ([`Rls::with_max_trace`]), after every update P is scaled by T / tr P whenever tr P > T, as
+//! `identify --windup trace --max-trace T` does (with eq. 12 its guarded update is written in a
+//! different operation order, so results agree to rounding, not bit for bit; with the UD form they are
+//! bit for bit).
+//!
+//! # Cost per update, n parameters (each +, −, ×, ÷ one flop)
+//!
+//! 3.5 n² + 8.5 n + 2 for ρ < 1, 3 n² + 8 n + 1 for ρ = 1 ([`flops_per_update`], the same count as
+//! `sysid`), plus n for tr P when the guard is on (and n² + 1 when it scales P).
+
+use crate::{Error, Float};
+
+/// How P is stored and updated.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Form {
+    /// P itself, updated by the paper's eq. 12 (`identify --rls-form standard`, the default).
+    Standard,
+    /// Bierman's factorisation P = U D Uᵀ (`identify --rls-form ud`): positive semi-definite by
+    /// construction; use it in f32.
+    Ud,
+}
+
+/// The RLS state: θ̂, P and ρ for at most `N` parameters (n ≤ N in use), with no heap.
+///
+/// Size: `size_of::<Rls<F, N>>()` = (N + N² + 3) · `size_of::<F>()` + `size_of::<usize>()` + 1 rounded
+/// to the alignment, e.g. 488 bytes for `Rls<f64, 7>` on a 64-bit host (480 on a 32-bit target) and 244
+/// bytes for `Rls<f32, 7>` on a 32-bit target (248 on a 64-bit host); see the test `state_sizes`.
+///
+/// ```
+/// use ipa_embedded::Rls;
+/// // y = 2 φ0 − φ1, noise-free: two independent regressors and a large P(0) give θ̂ ≈ (2, −1).
+/// let mut est = Rls::<f64, 2>::new(2, 1.0, 1e8).unwrap();
+/// est.update(&[1.0, 0.0], 2.0).unwrap();
+/// est.update(&[0.0, 1.0], -1.0).unwrap();
+/// assert!((est.theta()[0] - 2.0).abs() < 1e-6 && (est.theta()[1] + 1.0).abs() < 1e-6);
+/// ```
+#[derive(Debug, Clone, Copy)]
+pub struct Rls<F: Float, const N: usize> {
+    /// θ̂ (entries n..N stay 0).
+    theta: [F; N],
+    /// P by rows (symmetric; entries outside n×n stay 0).
+    p: [[F; N]; N],
+    /// ρ: forgetting factor in (0, 1].
+    forgetting: F,
+    /// T: bound on tr P (+∞: no guard).
+    max_trace: F,
+    /// P(0) scale p0, for [`Rls::restart_covariance`].
+    p0: F,
+    /// n: parameters in use.
+    n: usize,
+    /// Standard: `p` is P. UD: row j of `p` holds U_0j..U_(j−1)j and d_j (at column j).
+    form: Form,
+}
+
+impl<F: Float, const N: usize> Rls<F, N> {
+    /// A new estimator for `n` ≤ N parameters with θ̂(0) = 0, P(0) = p0 · I and forgetting factor
+    /// ρ = `forgetting` ∈ (0, 1]. Errors: [`Error::Capacity`] for n = 0 or n > N, [`Error::Setting`] for
+    /// ρ or p0 out of range.
+    pub fn new(n: usize, forgetting: F, p0: F) -> Result<Self, Error> {
+        if n == 0 || n > N {
+            return Err(Error::Capacity);
+        }
+        if !(forgetting > F::ZERO && forgetting <= F::ONE) {
+            return Err(Error::Setting);
+        }
+        if !(p0.is_finite() && p0 > F::ZERO) {
+            return Err(Error::Setting);
+        }
+        let mut est = Rls {
+            theta: [F::ZERO; N],
+            p: [[F::ZERO; N]; N],
+            forgetting,
+            max_trace: F::INFINITY,
+            p0,
+            n,
+            form: Form::Standard,
+        };
+        est.restart_covariance();
+        Ok(est)
+    }
+
+    /// Turns on the windup guard: after each update, P ← P · T / tr P whenever tr P > T (T > 0 finite,
+    /// else [`Error::Setting`]). `identify --windup trace` uses T = p0 · n by default.
+    pub fn with_max_trace(mut self, max_trace: F) -> Result<Self, Error> {
+        if !(max_trace.is_finite() && max_trace > F::ZERO) {
+            return Err(Error::Setting);
+        }
+        self.max_trace = max_trace;
+        Ok(self)
+    }
+
+    /// Chooses the covariance form and restarts P = p0 · I (call it before the first update).
+    pub fn with_form(mut self, form: Form) -> Self {
+        self.form = form;
+        self.restart_covariance();
+        self
+    }
+
+    /// The covariance form.
+    pub fn form(&self) -> Form {
+        self.form
+    }
+
+    /// Restarts P = p0 · I (U = I, D = p0 I in the UD form), keeping θ̂.
+    pub fn restart_covariance(&mut self) {
+        let p0 = self.p0;
+        for (i, row) in self.p.iter_mut().enumerate() {
+            for (j, v) in row.iter_mut().enumerate() {
+                *v = if i == j && i < self.n { p0 } else { F::ZERO };
+            }
+        }
+    }
+
+    /// n: the number of parameters in use.
+    pub fn n_params(&self) -> usize {
+        self.n
+    }
+
+    /// θ̂: the first n entries are the estimate.
+    pub fn theta(&self) -> &[F; N] {
+        &self.theta
+    }
+
+    /// P_ij (0 outside n×n or out of range); in the UD form computed as Σ_k U_ik d_k U_jk.
+    pub fn p(&self, i: usize, j: usize) -> F {
+        let at = |r: usize, c: usize| {
+            self.p
+                .get(r)
+                .and_then(|row| row.get(c))
+                .copied()
+                .unwrap_or(F::ZERO)
+        };
+        match self.form {
+            Form::Standard => at(i, j),
+            Form::Ud => {
+                // U_ik is stored at (k, i) for i < k; U_kk = 1.
+                let u = |i: usize, k: usize| if i == k { F::ONE } else { at(k, i) };
+                let mut s = F::ZERO;
+                for k in i.max(j)..self.n {
+                    s += u(i, k) * at(k, k) * u(j, k);
+                }
+                s
+            }
+        }
+    }
+
+    /// tr P: Σ_i P_ii in the order i = 0, 1, …, n−1 (UD form: Σ_j d_j Σ_(i≤j) U_ij², as `sysid`).
+    pub fn trace(&self) -> F {
+        match self.form {
+            Form::Standard => {
+                let mut tr = F::ZERO;
+                for (i, row) in self.p.iter().enumerate().take(self.n) {
+                    tr += row.get(i).copied().unwrap_or(F::ZERO);
+                }
+                tr
+            }
+            Form::Ud => ud_trace(&self.p, self.n),
+        }
+    }
+
+    /// ρ: the forgetting factor.
+    pub fn forgetting(&self) -> F {
+        self.forgetting
+    }
+
+    /// One update with regressor φ(k) (its first n entries) and measurement y(k); returns the a-priori
+    /// error ε(k) = y(k) − φᵀ(k) θ̂(k−1). Errors (the state is then unchanged): [`Error::Length`] when φ
+    /// has fewer than n entries, [`Error::Numerical`] when ρ + φᵀPφ is not finite and positive or ε is
+    /// not finite.
+    pub fn update(&mut self, phi: &[F], y: F) -> Result<F, Error> {
+        match self.form {
+            Form::Standard => self.update_standard(phi, y),
+            Form::Ud => self.update_ud(phi, y),
+        }
+    }
+
+    /// The paper's eq. 12 (see the module documentation for the operation order).
+    fn update_standard(&mut self, phi: &[F], y: F) -> Result<F, Error> {
+        let n = self.n;
+        let phi = phi.get(..n).ok_or(Error::Length)?;
+        let mut eps = y;
+        for (f, t) in phi.iter().zip(self.theta.iter()) {
+            eps -= *f * *t;
+        }
+        let mut pphi = [F::ZERO; N];
+        for (acc, row) in pphi.iter_mut().zip(self.p.iter()).take(n) {
+            let mut s = F::ZERO;
+            for (pij, f) in row.iter().zip(phi) {
+                s += *pij * *f;
+            }
+            *acc = s;
+        }
+        let mut denom = self.forgetting;
+        for (f, q) in phi.iter().zip(pphi.iter()) {
+            denom += *f * *q;
+        }
+        if !(denom.is_finite() && denom > F::ZERO && eps.is_finite()) {
+            return Err(Error::Numerical);
+        }
+        let inv = F::ONE / denom;
+        let mut gain = [F::ZERO; N];
+        for ((g, q), t) in gain
+            .iter_mut()
+            .zip(pphi.iter())
+            .zip(self.theta.iter_mut())
+            .take(n)
+        {
+            *g = *q * inv;
+            *t += *g * eps;
+        }
+        let scale = self.forgetting != F::ONE;
+        let inv_rho = F::ONE / self.forgetting;
+        for (i, ((row, pi), gi)) in self
+            .p
+            .iter_mut()
+            .zip(pphi.iter())
+            .zip(gain.iter())
+            .enumerate()
+            .take(n)
+        {
+            for (j, ((c, pj), gj)) in row
+                .iter_mut()
+                .zip(pphi.iter())
+                .zip(gain.iter())
+                .enumerate()
+                .take(n)
+            {
+                // Upper-triangle operands for both (i, j) and (j, i): P stays exactly symmetric.
+                let v = if i <= j {
+                    *c - *pi * *gj
+                } else {
+                    *c - *pj * *gi
+                };
+                *c = if scale { v * inv_rho } else { v };
+            }
+        }
+        if self.max_trace.is_finite() {
+            let tr = self.trace();
+            if tr > self.max_trace {
+                let s = self.max_trace / tr;
+                for row in self.p.iter_mut().take(n) {
+                    for c in row.iter_mut().take(n) {
+                        *c *= s;
+                    }
+                }
+            }
+        }
+        Ok(eps)
+    }
+
+    /// Bierman's UD update with forgetting, in the operation order of `sysid::rls_ud::RobustRls`
+    /// (sums start at −0, as `Iterator::sum` of floats does). The factors and θ̂ are updated in copies
+    /// and committed only on success.
+    fn update_ud(&mut self, phi: &[F], y: F) -> Result<F, Error> {
+        let n = self.n;
+        let phi = phi.get(..n).ok_or(Error::Length)?;
+        let mut dot = -F::ZERO;
+        for (f, t) in phi.iter().zip(self.theta.iter()) {
+            dot += *f * *t;
+        }
+        let eps = y - dot;
+        if !eps.is_finite() {
+            return Err(Error::Numerical);
+        }
+        let rho = self.forgetting;
+        let mut fac = self.p;
+        // f = Uᵀφ (f_j = Σ_(i≤j) U_ij φ_i, U_jj = 1) and v = D f (in `work`).
+        let mut f = [F::ZERO; N];
+        let mut work = [F::ZERO; N];
+        for (j, ((row, fj), wj)) in fac
+            .iter()
+            .zip(f.iter_mut())
+            .zip(work.iter_mut())
+            .enumerate()
+            .take(n)
+        {
+            let mut acc = -F::ZERO;
+            for (u, ph) in row.iter().take(j).zip(phi) {
+                acc += *u * *ph;
+            }
+            acc += F::ONE * phi.get(j).copied().unwrap_or(F::ZERO);
+            *fj = acc;
+            *wj = row.get(j).copied().unwrap_or(F::ZERO) * acc;
+        }
+        // Bierman: after column j, work[0..=j] holds the unnormalised gain.
+        let mut alpha = rho;
+        for (j, (row, fj)) in fac.iter_mut().zip(f.iter()).enumerate().take(n) {
+            let v = work.get(j).copied().unwrap_or(F::ZERO);
+            let alpha_prev = alpha;
+            alpha += *fj * v;
+            let Some((u_col, rest)) = row.split_at_mut_checked(j) else {
+                return Err(Error::Capacity);
+            };
+            if let Some(dj) = rest.first_mut() {
+                *dj *= alpha_prev / alpha;
+            }
+            let lambda = -*fj / alpha_prev;
+            for (u, w) in u_col.iter_mut().zip(work.iter_mut()) {
+                let uij = *u;
+                *u = uij + *w * lambda;
+                *w += uij * v;
+            }
+        }
+        let mut d_ok = true;
+        for (j, row) in fac.iter_mut().enumerate().take(n) {
+            if let Some(d) = row.get_mut(j) {
+                if rho < F::ONE {
+                    *d = *d / rho;
+                }
+                d_ok &= d.is_finite() && *d >= F::ZERO;
+            }
+        }
+        if !(alpha.is_finite() && alpha > F::ZERO && d_ok) {
+            return Err(Error::Numerical);
+        }
+        let mut theta = self.theta;
+        for (t, w) in theta.iter_mut().zip(work.iter()).take(n) {
+            *t += *w / alpha * eps;
+        }
+        if self.max_trace.is_finite() {
+            let tr = ud_trace(&fac, n);
+            if tr > self.max_trace {
+                let s = self.max_trace / tr;
+                for (j, row) in fac.iter_mut().enumerate().take(n) {
+                    if let Some(d) = row.get_mut(j) {
+                        *d *= s;
+                    }
+                }
+            }
+        }
+        if theta.iter().any(|t| !t.is_finite()) {
+            return Err(Error::Numerical);
+        }
+        self.p = fac;
+        self.theta = theta;
+        Ok(eps)
+    }
+}
+
+/// tr P = Σ_j d_j Σ_(i≤j) U_ij² of UD factors stored by rows (row j: U_0j..U_(j−1)j, d_j), summed as
+/// `sysid` does (sums from −0, the U_jj = 1 term last).
+fn ud_trace<F: Float, const N: usize>(fac: &[[F; N]; N], n: usize) -> F {
+    let mut tr = -F::ZERO;
+    for (j, row) in fac.iter().enumerate().take(n) {
+        let mut col = -F::ZERO;
+        for u in row.iter().take(j) {
+            col += *u * *u;
+        }
+        col += F::ONE * F::ONE;
+        tr += row.get(j).copied().unwrap_or(F::ZERO) * col;
+    }
+    tr
+}
+
+/// Flops of one UD-form update for `n` parameters (no guard): 3 n² + 12 n + 1 for ρ < 1,
+/// 3 n² + 11 n + 1 for ρ = 1 (breakdown in the module documentation).
+pub fn flops_per_update_ud(n: usize, rho_is_one: bool) -> usize {
+    let unscale = if rho_is_one { 0 } else { n };
+    3 * n * n + 11 * n + 1 + unscale
+}
+
+/// Flops of one update for `n` parameters (no guard): 3.5 n² + 8.5 n + 2 for ρ < 1, 3 n² + 8 n + 1
+/// for ρ = 1. Breakdown: ε 2n; Pφ 2n²; ρ + φᵀPφ 2n; its inverse 1; L̃ n; θ̂ 2n; the n(n+1)/2
+/// distinct entries of P 2 each, plus 1 each and 1 for 1/ρ when ρ < 1.
+pub fn flops_per_update(n: usize, rho_is_one: bool) -> usize {
+    let tri = n * (n + 1) / 2;
+    let scale = if rho_is_one { 0 } else { tri + 1 };
+    7 * n + 2 * n * n + 1 + 2 * tri + scale
+}
+
+#[cfg(test)]
+#[allow(clippy::indexing_slicing, clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    // One update from θ̂ = 0, P = p0 I with φ = (1, 2), y = 5, ρ = 1: φᵀPφ = 5 p0, so
+    // θ̂ = p0 φ y / (1 + 5 p0) and P = p0 I − p0² φφᵀ / (1 + 5 p0). Hand-derived, p0 = 2.
+    #[test]
+    fn single_update_matches_the_hand_computed_rank_one_correction() {
+        let mut est = Rls::<f64, 3>::new(2, 1.0, 2.0).unwrap();
+        let eps = est.update(&[1.0, 2.0], 5.0).unwrap();
+        assert_eq!(eps, 5.0);
+        let d = 11.0;
+        assert!((est.theta()[0] - 10.0 / d).abs() < 1e-15);
+        assert!((est.theta()[1] - 20.0 / d).abs() < 1e-15);
+        assert_eq!(est.theta()[2], 0.0, "the unused capacity stays zero");
+        assert!((est.p(0, 0) - (2.0 - 4.0 / d)).abs() < 1e-15);
+        assert!((est.p(0, 1) - (-8.0 / d)).abs() < 1e-15);
+        assert!((est.p(1, 1) - (2.0 - 16.0 / d)).abs() < 1e-15);
+        assert_eq!(est.p(0, 1), est.p(1, 0));
+    }
+
+    // With ρ = 0.5 and φ = 1 (n = 1): P(1) = (p0 − p0²/(ρ + p0)) / ρ = p0 / (ρ + p0) (hand-derived):
+    // p0 = 1 → 2/3.
+    #[test]
+    fn forgetting_divides_the_covariance_by_rho() {
+        let mut est = Rls::<f64, 1>::new(1, 0.5, 1.0).unwrap();
+        est.update(&[1.0], 0.0).unwrap();
+        assert!((est.p(0, 0) - 2.0 / 3.0).abs() < 1e-15);
+    }
+
+    // Without excitation (φ = 0) and ρ = 0.5 P doubles every sample; the guard T = 3 (n = 2, p0 = 1)
+    // scales it back so that tr P = 3 exactly (to rounding) from the first sample on.
+    #[test]
+    fn trace_guard_bounds_the_covariance_without_excitation() {
+        let mut free = Rls::<f32, 2>::new(2, 0.5, 1.0).unwrap();
+        let mut guarded = free.with_max_trace(3.0).unwrap();
+        for _ in 0..20 {
+            free.update(&[0.0, 0.0], 0.0).unwrap();
+            guarded.update(&[0.0, 0.0], 0.0).unwrap();
+        }
+        assert_eq!(free.trace(), 2.0 * 1048576.0);
+        assert!((guarded.trace() - 3.0).abs() < 1e-6);
+    }
+
+    #[test]
+    fn bad_settings_and_short_regressors_are_errors_not_panics() {
+        assert_eq!(
+            Rls::<f64, 2>::new(3, 1.0, 1.0).unwrap_err(),
+            Error::Capacity
+        );
+        assert_eq!(
+            Rls::<f64, 2>::new(0, 1.0, 1.0).unwrap_err(),
+            Error::Capacity
+        );
+        assert_eq!(Rls::<f64, 2>::new(2, 1.5, 1.0).unwrap_err(), Error::Setting);
+        assert_eq!(
+            Rls::<f64, 2>::new(2, f64::NAN, 1.0).unwrap_err(),
+            Error::Setting
+        );
+        assert_eq!(Rls::<f64, 2>::new(2, 1.0, 0.0).unwrap_err(), Error::Setting);
+        let mut est = Rls::<f64, 2>::new(2, 1.0, 1.0).unwrap();
+        assert_eq!(est.update(&[1.0], 1.0).unwrap_err(), Error::Length);
+        let before = est;
+        assert_eq!(
+            est.update(&[1.0, 1.0], f64::NAN).unwrap_err(),
+            Error::Numerical
+        );
+        assert_eq!(est.theta(), before.theta());
+        assert_eq!(est.p(0, 0), before.p(0, 0));
+    }
+
+    // Bierman's update is an exact refactorisation of eq. 12: the same θ̂ and P to rounding, for ρ = 1
+    // and ρ = 0.9, with D ≥ 0 throughout; with a trace bound both forms keep tr P ≤ T.
+    #[test]
+    fn ud_form_equals_the_standard_form_to_rounding() {
+        for (rho, t) in [(1.0, None), (0.9, None), (0.9, Some(5.0))] {
+            let mut a = Rls::<f64, 4>::new(4, rho, 100.0).unwrap();
+            let mut b = Rls::<f64, 4>::new(4, rho, 100.0)
+                .unwrap()
+                .with_form(Form::Ud);
+            if let Some(t) = t {
+                a = a.with_max_trace(t).unwrap();
+                b = b.with_max_trace(t).unwrap();
+            }
+            for k in 0..300usize {
+                let phi: [f64; 4] =
+                    core::array::from_fn(|i| ((k * 7 + i * 13) % 11) as f64 - 5.0 + 0.1 * i as f64);
+                let y = phi
+                    .iter()
+                    .enumerate()
+                    .map(|(i, v)| v * (i as f64 - 1.5))
+                    .sum::<f64>()
+                    + ((k % 5) as f64 - 2.0) * 0.1;
+                let ea = a.update(&phi, y).unwrap();
+                let eb = b.update(&phi, y).unwrap();
+                assert!(
+                    (ea - eb).abs() <= 1e-9 * (1.0 + ea.abs()),
+                    "k={k}: {ea} vs {eb}"
+                );
+                assert!((0..4).all(|j| b.p[j][j] >= 0.0));
+            }
+            for i in 0..4 {
+                assert!((a.theta()[i] - b.theta()[i]).abs() < 1e-9, "{rho} θ{i}");
+                for j in 0..4 {
+                    let (pa, pb) = (a.p(i, j), b.p(i, j));
+                    assert!(
+                        (pa - pb).abs() <= 1e-9 * (1.0 + pa.abs()),
+                        "{rho} P{i}{j}: {pa} vs {pb}"
+                    );
+                }
+            }
+            assert!((a.trace() - b.trace()).abs() < 1e-9 * (1.0 + a.trace()));
+        }
+    }
+
+    // 3.5·81 + 8.5·9 + 2 = 362 and 3·81 + 8·9 + 1 = 316 (the closed forms above).
+    #[test]
+    fn flop_count_follows_the_closed_form() {
+        assert_eq!(flops_per_update(9, false), 362);
+        assert_eq!(flops_per_update(9, true), 316);
+        assert_eq!(flops_per_update(7, false), 233);
+        // UD: 3·49 + 12·7 + 1 = 232; ρ = 1: 3·49 + 11·7 + 1 = 225.
+        assert_eq!(flops_per_update_ud(7, false), 232);
+        assert_eq!(flops_per_update_ud(7, true), 225);
+    }
+}

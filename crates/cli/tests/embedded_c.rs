@@ -8,6 +8,8 @@
 //! the test's temporary folder (no lock contention with the running `cargo test`; the crate has no
 //! dependencies, so this takes seconds). Skips with a message when no C compiler `cc` is installed.
 
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests may panic
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Stdio};
 

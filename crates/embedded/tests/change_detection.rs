@@ -4,6 +4,8 @@
 //! of 50 000 samples raises no alarm; and the detector's run length on white noise agrees with an
 //! independent Markov-chain computation.
 
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests may panic
+
 use ipa_embedded::cusum::{Cusum, CusumStatus};
 use ipa_embedded::hammerstein::{HammersteinSettings, PaperHrls};
 use ipa_embedded::Deadzone;

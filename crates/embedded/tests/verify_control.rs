@@ -2,6 +2,8 @@
 //! command line's `control` subcommand runs): bit-for-bit equal commands on random error sequences,
 //! because the operations and their order are the same.
 
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests may panic
+
 use control::{AntiWindup as CAw, DeadzoneCompensator, PiSettings, SlopeMode as CMode};
 use ipa_embedded::{AntiWindup, Compensator, Deadzone, Pi, SlopeMode};
 use rand::{Rng, SeedableRng};

@@ -9,6 +9,8 @@
 //!
 //! This file keeps its use of the `sysid` API to `Dataset::new`, `Identification` and `identify`.
 
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests may panic
+
 use ipa_embedded::hammerstein::{HammersteinRls, HammersteinSettings};
 use ipa_embedded::{Deadzone, Form};
 use rand::{Rng, SeedableRng};

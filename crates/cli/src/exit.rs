@@ -35,6 +35,19 @@ pub fn report(e: &anyhow::Error) -> ExitCode {
     ExitCode::from(code(e))
 }
 
+/// `--strict` was given and the result carries warnings.
+#[derive(Debug, thiserror::Error)]
+#[error("{0} warning(s) and --strict: the result is not to be trusted without review")]
+pub struct StrictWarnings(pub usize);
+
+/// With `--strict`, turns warnings into an error (exit code 1); otherwise Ok.
+pub fn strict(strict: bool, warnings: usize) -> anyhow::Result<()> {
+    if strict && warnings > 0 {
+        return Err(StrictWarnings(warnings).into());
+    }
+    Ok(())
+}
+
 /// The message of one error, with the library's settings named by their flags.
 pub fn render(e: &(dyn std::error::Error + 'static)) -> String {
     match e.downcast_ref::<sysid::SysidError>() {
@@ -81,6 +94,9 @@ pub fn code(e: &anyhow::Error) -> u8 {
 }
 
 fn is_numerical(c: &(dyn std::error::Error + 'static)) -> bool {
+    if c.downcast_ref::<StrictWarnings>().is_some() {
+        return true;
+    }
     if let Some(s) = c.downcast_ref::<sysid::SysidError>() {
         return s.is_numerical();
     }

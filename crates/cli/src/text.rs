@@ -3,7 +3,7 @@
 
 use report::format::num;
 use sysid::metrics::Metrics;
-use sysid::summary::IdentifyReport;
+use sysid::summary::{IdentifyReport, ResidualEntry, ResidualsPair};
 use sysid::{Method, ParamName};
 
 /// A row of the text metrics table: label and how to format the value from a [`Metrics`].
@@ -104,10 +104,15 @@ impl ToText for IdentifyReport {
             "estimation",
             if val.is_some() { "validation" } else { "" }
         );
-        let rows: [MetricRow; 9] = [
+        let rows: [MetricRow; 11] = [
             ("fit % (simulation)", |m| opt(m.fit_sim_percent)),
+            (
+                "fit % (sim., y0 meas.)",
+                |m| opt(m.fit_sim_measured_percent),
+            ),
             ("fit % (1-step pred.)", |m| opt(m.fit_pred_percent)),
             ("RMSE (simulation)", |m| opt(m.rmse_sim)),
+            ("RMSE (sim., y0 meas.)", |m| opt(m.rmse_sim_measured)),
             ("RMSE (1-step pred.)", |m| num(m.rmse_pred)),
             ("loss V (eq. 14)", |m| num(m.loss)),
             ("FPE (eq. 15)", |m| opt(m.fpe)),
@@ -131,8 +136,67 @@ impl ToText for IdentifyReport {
                 let _ = writeln!(s, "note ({which}): {note}");
             }
         }
+        s.push_str(&residuals_text(&self.residuals));
+        for w in &self.warnings {
+            let _ = writeln!(s, "warning: {w}");
+        }
         s
     }
+}
+
+/// The residual analysis as text: verdicts, statistics and the worst lags.
+pub fn residuals_text(r: &ResidualsPair) -> String {
+    use std::fmt::Write;
+    let mut s = String::new();
+    let entries = [
+        ("estimation", Some(&r.estimation)),
+        ("validation", r.validation.as_ref()),
+    ];
+    let mut header = false;
+    for (which, entry) in entries {
+        let Some(entry) = entry else { continue };
+        if !header {
+            let _ = writeln!(
+                s,
+                "\nResidual analysis (one-step prediction errors, 99 % level)"
+            );
+            header = true;
+        }
+        match entry {
+            ResidualEntry::Analysis(a) => {
+                let worst = a.worst_lags();
+                let _ = writeln!(
+                    s,
+                    "  {which:<11} whiteness: {} (Ljung-Box Q = {} for M = {}, p = {}; worst lag {}: r = {})",
+                    if a.white { "white" } else { "NOT white" },
+                    num(a.ljung_box_q),
+                    a.max_lag,
+                    num(a.ljung_box_p),
+                    worst.autocorrelation.lag,
+                    num(worst.autocorrelation.value)
+                );
+                let _ = writeln!(
+                    s,
+                    "  {:<11} input: {} (S = {}, p = {}; worst lag {}: r = {}; bound ±{})",
+                    "",
+                    if a.independent {
+                        "independent"
+                    } else {
+                        "NOT independent"
+                    },
+                    num(a.cross_statistic),
+                    num(a.cross_p),
+                    worst.cross_correlation.lag,
+                    num(worst.cross_correlation.value),
+                    num(a.bound)
+                );
+            }
+            ResidualEntry::Unavailable { error } => {
+                let _ = writeln!(s, "  {which:<11} not available: {error}");
+            }
+        }
+    }
+    s
 }
 
 #[cfg(test)]
@@ -140,11 +204,12 @@ mod tests {
     // Six significant digits, trailing zeros dropped: 0.01 → "0.01", 1.41 → "1.41", 1/3 → "0.333333".
     #[test]
     fn numbers_keep_six_significant_digits_without_trailing_zeros() {
-        assert_eq!(super::num(0.01), "0.01");
-        assert_eq!(super::num(1.41), "1.41");
-        assert_eq!(super::num(1.0 / 3.0), "0.333333");
-        assert_eq!(super::num(-1234.5678), "-1234.57");
-        assert_eq!(super::num(2.5e-4), "2.5e-4");
-        assert_eq!(super::num(100.0), "100");
+        use report::format::num;
+        assert_eq!(num(0.01), "0.01");
+        assert_eq!(num(1.41), "1.41");
+        assert_eq!(num(1.0 / 3.0), "0.333333");
+        assert_eq!(num(-1234.5678), "-1234.57");
+        assert_eq!(num(2.5e-4), "2.5e-4");
+        assert_eq!(num(100.0), "100");
     }
 }

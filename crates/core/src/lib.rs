@@ -11,6 +11,7 @@
 
 pub mod data;
 pub mod error;
+pub mod ls;
 pub mod metrics;
 pub mod model;
 pub mod model_file;
@@ -21,7 +22,7 @@ pub mod structure;
 
 pub use data::Dataset;
 pub use error::{PlantError, Setting, SysidError};
-pub use model::{InputChannel, Model, ModelKind, ModelPlant, Orders};
+pub use model::{InputChannel, Model, ModelKind, ModelPlant, NoiseModel, Orders};
 pub use nonlinearity::{Deadzone, StaticNonlinearity};
 pub use param::{ParamName, Parameterisation};
 pub use plant::{run_open_loop, Plant};

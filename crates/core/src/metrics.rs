@@ -17,14 +17,24 @@ use serde::{Deserialize, Serialize};
 use crate::{Dataset, Model, SysidError};
 
 /// Validation metrics of a model on one record.
+///
+/// The free-run simulation starts from initial outputs ŷ(0..k0−1) *estimated* to fit the record
+/// (MATLAB `compare` with its default `InitialCondition = 'e'`, [`simulate_estimated_initial`]); the
+/// `*_measured` values start from the measured y(0..k0−1) instead (`InitialCondition` given as data),
+/// which for a lightly damped or integrating model carries the measurement noise of the first samples
+/// through the whole record.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Metrics {
-    /// Fit % of the free-run simulation.
+    /// Fit % of the free-run simulation (estimated initial outputs).
     pub fit_sim_percent: Option<f64>,
     /// Fit % of the one-step prediction.
     pub fit_pred_percent: Option<f64>,
-    /// RMSE of the free-run simulation (units of y).
+    /// RMSE of the free-run simulation (estimated initial outputs; units of y).
     pub rmse_sim: Option<f64>,
+    /// Fit % of the free-run simulation from the measured initial outputs.
+    pub fit_sim_measured_percent: Option<f64>,
+    /// RMSE of the free-run simulation from the measured initial outputs (units of y).
+    pub rmse_sim_measured: Option<f64>,
     /// RMSE of the one-step prediction (units of y).
     pub rmse_pred: f64,
     /// Loss V = (1/N) Σ ½ ε² (paper eq. 14).
@@ -75,6 +85,76 @@ pub fn rmse(y: &[f64], yhat: &[f64]) -> f64 {
         .sqrt()
 }
 
+/// The free-run simulation of a single-input `model` on `data` from the initial outputs
+/// η = ŷ(0..k0−1) that fit the record best (MATLAB `compare` with `InitialCondition = 'e'`): η
+/// minimises Σ_{k<k0} (y(k) − η_k)² + Σ_{k≥k0} (y(k) − ŷ(k; η))², a linear least-squares problem since
+/// ŷ(k; η) = ŷ_m(k) + Σ_j s_j(k) (η_j − y(j)) with ŷ_m the simulation from the measured outputs and s_j
+/// the free responses of 1/A(q) to a unit initial output j (A s_j = 0, s_j(i) = δ_ij for i < k0).
+/// Returns the simulation and η. Fails when the simulation or a free response is not finite.
+pub fn simulate_estimated_initial(
+    model: &Model,
+    data: &Dataset,
+) -> Result<(Vec<f64>, Vec<f64>), SysidError> {
+    let base = model.simulate(&data.u, &data.y)?;
+    let n = base.len();
+    let k0 = model.k0().min(n);
+    let y0: Vec<f64> = data.y[..k0].to_vec();
+    if k0 == 0 || n <= k0 {
+        return Ok((base, y0));
+    }
+    let a = model.a();
+    // Rows: k < k0 (the initial outputs themselves) then k ≥ k0; columns: the k0 free responses.
+    let mut phi = nalgebra::DMatrix::<f64>::zeros(n, k0);
+    let mut target = nalgebra::DVector::<f64>::zeros(n);
+    for j in 0..k0 {
+        let mut s = vec![0.0; n];
+        s[j] = 1.0;
+        for k in k0..n {
+            let mut v = 0.0;
+            for (i, ai) in a.iter().enumerate() {
+                v -= ai * s[k - 1 - i];
+            }
+            s[k] = v;
+        }
+        if s.iter().any(|v| !v.is_finite()) {
+            return Err(SysidError::Numerical(
+                "the free response of the model is not finite (unstable model?)".into(),
+            ));
+        }
+        for (k, v) in s.iter().enumerate() {
+            phi[(k, j)] = *v;
+        }
+    }
+    for k in k0..n {
+        target[k] = data.y[k] - base[k];
+    }
+    // A free response that is identically zero after k0 (a pole at 0) still has its unit row below
+    // k0, so the problem is never rank deficient.
+    let sol = crate::ls::solve(&phi, &target, &[])?;
+    let eta: Vec<f64> = (0..k0).map(|j| y0[j] + sol.theta[j]).collect();
+    let mut out = base;
+    for k in 0..n {
+        let shift: f64 = (0..k0).map(|j| phi[(k, j)] * sol.theta[j]).sum();
+        out[k] += shift;
+    }
+    if out.iter().any(|v| !v.is_finite()) {
+        return Err(SysidError::Numerical(
+            "simulation of the model became non-finite (unstable model?)".into(),
+        ));
+    }
+    Ok((out, eta))
+}
+
+/// The one-step prediction ŷ(k|k−1) of `model` on `data` (MATLAB `predict(m, data, 1)` with estimated
+/// initial conditions): for an equation-error model the ARX predictor from the measured outputs; for an
+/// output-error model (H = 1) the simulation from the estimated initial outputs.
+pub fn one_step_prediction(model: &Model, data: &Dataset) -> Result<Vec<f64>, SysidError> {
+    match model.noise_model() {
+        crate::NoiseModel::EquationError => model.predict(&data.u, &data.y),
+        crate::NoiseModel::OutputError => simulate_estimated_initial(model, data).map(|(s, _)| s),
+    }
+}
+
 /// Computes the validation metrics of `model` on `data`.
 pub fn metrics(model: &Model, data: &Dataset) -> Result<Metrics, SysidError> {
     let k0 = model.k0();
@@ -88,11 +168,15 @@ pub fn metrics(model: &Model, data: &Dataset) -> Result<Metrics, SysidError> {
     }
     let y = &data.y[k0..];
     let n = y.len();
-    let pred = model.predict(&data.u, &data.y)?;
+    let pred = one_step_prediction(model, data)?;
     let pred = &pred[k0..];
-    let (sim, note) = match model.simulate(&data.u, &data.y) {
+    let (sim_measured, note) = match model.simulate(&data.u, &data.y) {
         Ok(s) => (Some(s), None),
         Err(e) => (None, Some(e.to_string())),
+    };
+    let (sim, note) = match simulate_estimated_initial(model, data) {
+        Ok((s, _)) => (Some(s), note),
+        Err(e) => (None, note.or_else(|| Some(e.to_string()))),
     };
     let sse: f64 = y.iter().zip(pred).map(|(a, b)| (a - b) * (a - b)).sum();
     if !sse.is_finite() {
@@ -113,6 +197,11 @@ pub fn metrics(model: &Model, data: &Dataset) -> Result<Metrics, SysidError> {
         fit_sim_percent: sim.as_ref().and_then(|s| fit_percent(y, &s[k0..])),
         fit_pred_percent: fit_percent(y, pred),
         rmse_sim: sim
+            .as_ref()
+            .map(|s| rmse(y, &s[k0..]))
+            .filter(|v| v.is_finite()),
+        fit_sim_measured_percent: sim_measured.as_ref().and_then(|s| fit_percent(y, &s[k0..])),
+        rmse_sim_measured: sim_measured
             .as_ref()
             .map(|s| rmse(y, &s[k0..]))
             .filter(|v| v.is_finite()),
@@ -140,5 +229,29 @@ mod tests {
     #[test]
     fn fit_of_a_constant_output_is_undefined() {
         assert_eq!(fit_percent(&[2.0, 2.0], &[2.0, 2.0]), None);
+    }
+}
+
+#[cfg(test)]
+mod initial_tests {
+    use super::*;
+    use crate::data::Signals;
+
+    // y(k) = 0.9 y(k−1) + u(k−1) from y(0) = 5 with u = 0: the free response 5·0.9^k. A record that
+    // starts with a noisy y(0) = 4 is fitted exactly once η0 is estimated: η0 = 5 minimises
+    // (4 − η0)² + Σ_{k≥1} (5·0.9^k − η0·0.9^k)² only approximately, so check against the closed form
+    // η0 = (4 + 5 Σ 0.81^k) / (1 + Σ 0.81^k), k = 1..N−1.
+    #[test]
+    fn estimated_initial_output_is_the_least_squares_value() {
+        let n = 40;
+        let mut y: Vec<f64> = (0..n).map(|k| 5.0 * 0.9f64.powi(k as i32)).collect();
+        y[0] = 4.0;
+        let data = Dataset::new(Signals { u: vec![0.0; n], y }, 1.0, "free").unwrap();
+        let m = Model::arx(1.0, vec![-0.9], vec![1.0], 1, None).unwrap();
+        let (sim, eta) = simulate_estimated_initial(&m, &data).unwrap();
+        let g: f64 = (1..n).map(|k| 0.81f64.powi(k as i32)).sum();
+        let want = (4.0 + 5.0 * g) / (1.0 + g);
+        assert!((eta[0] - want).abs() < 1e-12, "{} vs {want}", eta[0]);
+        assert!((sim[3] - want * 0.9f64.powi(3)).abs() < 1e-12);
     }
 }

@@ -58,6 +58,25 @@ impl std::fmt::Display for ModelKind {
     }
 }
 
+/// The noise model H(q) of a fitted model, which decides what its one-step predictor is (Ljung ch. 3;
+/// MATLAB's `idpoly`): equation error (ARX, H = 1/A: ŷ(k|k−1) uses the measured past outputs) or output
+/// error (OE, H = 1: the predictor is the simulation, and the residuals are the output errors).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum NoiseModel {
+    /// A(q) y = B(q) x + e: white equation error (LS, RLS, IV).
+    #[default]
+    EquationError,
+    /// y = B(q)/A(q) x + e: white output error (the output-error method).
+    OutputError,
+}
+
+impl NoiseModel {
+    fn is_equation_error(&self) -> bool {
+        *self == NoiseModel::EquationError
+    }
+}
+
 /// Upper bound on model orders accepted anywhere (keeps allocations bounded for hostile inputs).
 pub const MAX_ORDER: usize = 100;
 
@@ -144,6 +163,7 @@ pub struct Model {
     a: Vec<f64>,
     inputs: Vec<InputChannel>,
     offset: Option<f64>,
+    noise: NoiseModel,
 }
 
 impl Model {
@@ -173,6 +193,7 @@ impl Model {
             a,
             inputs,
             offset,
+            noise: NoiseModel::EquationError,
         })
     }
 
@@ -244,7 +265,20 @@ impl Model {
                 nonlinearity: StaticNonlinearity::Deadzone(deadzone),
             }],
             offset: None,
+            noise: NoiseModel::EquationError,
         }
+    }
+
+    /// The same model with the noise model `noise` (what its one-step predictor is).
+    pub fn with_noise_model(mut self, noise: NoiseModel) -> Self {
+        self.noise = noise;
+        self
+    }
+
+    /// The noise model: equation error (ARX predictor) or output error (the predictor is the
+    /// simulation).
+    pub fn noise_model(&self) -> NoiseModel {
+        self.noise
     }
 
     /// Structure: Hammerstein when any input has a (non-identity) static nonlinearity.
@@ -356,9 +390,16 @@ impl Model {
         self.run(&[u], y, None)
     }
 
-    /// One-step-ahead prediction (MATLAB `predict` with horizon 1) of a single-input model: y_hat(k)
-    /// uses measured y(k-i). Entries k < k0 are copies of the data.
+    /// One-step-ahead prediction (MATLAB `predict` with horizon 1) of a single-input model. With an
+    /// equation-error noise model y_hat(k) uses the measured y(k-i); with an output-error noise model the
+    /// predictor is the free-run simulation (H = 1). Entries k < k0 are copies of the data.
     pub fn predict(&self, u: &[f64], y: &[f64]) -> Result<Vec<f64>, SysidError> {
+        self.predict_k(&[u], y, 1)
+    }
+
+    /// The equation-error one-step prediction (measured past outputs), whatever the noise model: the
+    /// regression residual of the key-term estimators.
+    pub fn predict_equation_error(&self, u: &[f64], y: &[f64]) -> Result<Vec<f64>, SysidError> {
         self.run(&[u], y, Some(1))
     }
 
@@ -369,7 +410,8 @@ impl Model {
 
     /// k-step-ahead prediction (MATLAB `predict(m, data, k)`): y_hat(k) from measured outputs up to
     /// k - horizon and the model's own predictions after that; horizon 1 is [`Model::predict`] and a
-    /// horizon of N or more is free-run simulation. One input record per model input.
+    /// horizon of N or more is free-run simulation (an output-error model always predicts by
+    /// simulation). One input record per model input.
     pub fn predict_k(
         &self,
         u: &[&[f64]],
@@ -381,7 +423,11 @@ impl Model {
                 "the prediction horizon must be at least 1 sample".into(),
             ));
         }
-        self.run(u, y, Some(horizon))
+        if self.noise.is_equation_error() {
+            self.run(u, y, Some(horizon))
+        } else {
+            self.run(u, y, None)
+        }
     }
 
     /// `horizon = None`: free run; `Some(h)`: each y_hat(k) is the h-step prediction from the measured
@@ -517,6 +563,13 @@ pub(crate) struct ModelRepr {
     deadzone: Option<Deadzone>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     inputs: Option<Vec<InputRepr>>,
+    /// Absent for the equation-error (ARX) noise model, so that such models keep their keys.
+    #[serde(default, skip_serializing_if = "is_equation_error")]
+    noise_model: NoiseModel,
+}
+
+fn is_equation_error(n: &NoiseModel) -> bool {
+    n.is_equation_error()
 }
 
 fn channel_of(
@@ -589,7 +642,7 @@ impl TryFrom<ModelRepr> for Model {
                 v
             }
         };
-        let m = Model::new(r.ts, r.a, inputs, r.offset)?;
+        let m = Model::new(r.ts, r.a, inputs, r.offset)?.with_noise_model(r.noise_model);
         if m.kind() != r.kind {
             return bad(format!(
                 "kind = {} does not match the inputs' nonlinearities",
@@ -627,8 +680,39 @@ impl From<Model> for ModelRepr {
             b: first.b,
             offset: m.offset,
             inputs,
+            noise_model: m.noise,
         }
     }
+}
+
+/// True when every root of z^n + c1 z^(n-1) + ... + c_n lies strictly inside the unit circle, by the
+/// Schur–Cohn step-down recursion (reflection coefficients |k_i| < 1; Jury's test): O(n²), no roots.
+pub fn is_stable_polynomial(c: &[f64]) -> bool {
+    is_stable_polynomial_within(c, 1.0)
+}
+
+/// True when every root of z^n + c1 z^(n-1) + ... + c_n lies strictly inside the circle of radius
+/// `radius` (the roots of z^n + (c1/r) z^(n-1) + ... + c_n/r^n are the roots divided by r).
+pub fn is_stable_polynomial_within(c: &[f64], radius: f64) -> bool {
+    let mut scale = 1.0;
+    let mut a: Vec<f64> = c
+        .iter()
+        .map(|v| {
+            scale /= radius;
+            v * scale
+        })
+        .collect();
+    while let Some(&k) = a.last() {
+        if !(k.is_finite() && k.abs() < 1.0) {
+            return false;
+        }
+        let n = a.len();
+        let d = 1.0 - k * k;
+        // a'_i = (a_i − k a_{n−i}) / (1 − k²), i = 1..n−1 (1-based).
+        let next: Vec<f64> = (0..n - 1).map(|i| (a[i] - k * a[n - 2 - i]) / d).collect();
+        a = next;
+    }
+    true
 }
 
 /// Roots of the monic polynomial z^n + c1 z^(n-1) + ... + c_n (n = c.len()), via the companion matrix.
@@ -782,5 +866,56 @@ impl crate::Plant for ModelPlant {
 
     fn name(&self) -> String {
         self.label.clone()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    // Jury's step-down test agrees with the roots: (z − 0.5)(z + 0.9) stable, (z − 1.1)(z − 0.2)
+    // unstable, z² + 1 on the circle (not strictly inside), and 200 pseudo-random cubics against the
+    // companion-matrix roots.
+    #[test]
+    fn step_down_test_agrees_with_the_roots() {
+        assert!(is_stable_polynomial(&[0.4, -0.45]));
+        assert!(!is_stable_polynomial(&[-1.3, 0.22]));
+        assert!(!is_stable_polynomial(&[0.0, 1.0]));
+        assert!(is_stable_polynomial(&[]));
+        let mut state = 12345u64;
+        let mut next = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((state >> 11) as f64 / (1u64 << 53) as f64) * 4.0 - 2.0
+        };
+        for _ in 0..200 {
+            let c = [next(), next(), next()];
+            let by_roots = poles_of(&c).iter().all(|p| p.norm() < 1.0);
+            let margin = poles_of(&c)
+                .iter()
+                .map(|p| (p.norm() - 1.0).abs())
+                .fold(f64::INFINITY, f64::min);
+            if margin > 1e-9 {
+                assert_eq!(is_stable_polynomial(&c), by_roots, "{c:?}");
+            }
+        }
+    }
+
+    // An output-error model predicts by simulation; an equation-error one from the measured outputs.
+    #[test]
+    fn output_error_models_predict_by_simulation() {
+        let m = Model::arx(1.0, vec![-0.5], vec![1.0], 1, None).unwrap();
+        let u = [1.0, 0.0, 0.0, 0.0];
+        let y = [0.0, 2.0, 2.0, 2.0];
+        // Equation error: ŷ(k) = 0.5 y(k−1) + u(k−1) = (·, 1, 1, 1).
+        assert_eq!(m.predict(&u, &y).unwrap(), vec![0.0, 1.0, 1.0, 1.0]);
+        // Output error: ŷ = simulation from y(0) = 0: (0, 1, 0.5, 0.25).
+        let oe = m.with_noise_model(NoiseModel::OutputError);
+        assert_eq!(oe.predict(&u, &y).unwrap(), vec![0.0, 1.0, 0.5, 0.25]);
+        let json = serde_json::to_string(&oe).unwrap();
+        assert!(json.contains("\"noise_model\":\"output-error\""), "{json}");
+        let back: Model = serde_json::from_str(&json).unwrap();
+        assert_eq!(back.noise_model(), NoiseModel::OutputError);
     }
 }

@@ -92,6 +92,7 @@ fn sysid_fit_form(
     .unwrap();
     let mut rls = RecursiveLeastSquares {
         forgetting: rho,
+        passes: sysid::Passes::Fixed(1), // the paper's single pass, as the embedded estimator runs
         ..RecursiveLeastSquares::default()
     };
     if let Some(t) = max_trace {
@@ -103,6 +104,7 @@ fn sysid_fit_form(
     }
     let s = Identification {
         drop_unexcited_branch: true, // as the command line does
+        fallback: false,             // the estimator's own result, whatever its quality
         ..Identification::default()
     }
     .with_orders(na, nb, nk)

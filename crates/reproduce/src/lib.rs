@@ -379,8 +379,10 @@ pub fn run(
         "identification (ARX and Hammerstein by RLS; key-term LS; output error)",
         0.2,
     );
+    // The paper's method: one RLS pass.
     let rls = RecursiveLeastSquares {
         forgetting: s.forgetting,
+        passes: sysid::Passes::Fixed(1),
         ..RecursiveLeastSquares::default()
     };
     let base = Identification::default().with_estimator(EstimatorSettings::Rls(rls));

@@ -16,6 +16,7 @@ use crate::branches::Branches;
 use crate::ls;
 use crate::rls::{self, RecursiveUpdate, Rls};
 use crate::rls_ud::{RlsForm, RobustRls};
+use crate::warnings::{deadzone_warnings, Record, Warning};
 use crate::windup::Windup;
 use crate::{iv, oe};
 use sysid_core::model::MAX_ORDER;
@@ -68,6 +69,34 @@ impl Default for LeastSquares {
     }
 }
 
+/// How many passes of recursive least squares run over the data.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Passes {
+    /// Exactly this many passes (the paper: 1).
+    Fixed(usize),
+    /// Passes until the estimate settles (relative change between the ends of two passes below
+    /// [`PASSES_SETTLED`]), at most `max`.
+    UntilSettled {
+        /// The cap.
+        max: usize,
+    },
+}
+
+impl Passes {
+    /// The default: repeat until settled, at most 100 passes.
+    pub const AUTO: Passes = Passes::UntilSettled { max: 100 };
+
+    fn max(&self) -> usize {
+        match self {
+            Passes::Fixed(n) => *n,
+            Passes::UntilSettled { max } => *max,
+        }
+    }
+}
+
+/// Relative change of θ̂ between the ends of two passes below which repeated passes have settled.
+pub const PASSES_SETTLED: f64 = 1e-10;
+
 /// Settings of recursive least squares (paper eqs. 9–12).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RecursiveLeastSquares {
@@ -75,10 +104,11 @@ pub struct RecursiveLeastSquares {
     pub forgetting: f64,
     /// P(0) = p0 · I (default 1e6).
     pub p0: f64,
-    /// Passes over the data (default 1 as in the paper). Each new pass restarts P = p0 · I and keeps θ̂,
-    /// so the P(0) regularisation pulls towards the previous pass's estimate and vanishes geometrically:
-    /// with noise-free data a few passes reach the exact solution.
-    pub passes: usize,
+    /// Passes over the data (default: until the estimate settles; the paper's method is one pass). Each
+    /// new pass restarts P = p0 · I and keeps θ̂, so the P(0) regularisation pulls towards the previous
+    /// pass's estimate and vanishes geometrically: with noise-free data a few passes reach the exact
+    /// solution.
+    pub passes: Passes,
     /// Covariance form (default standard: the paper's eq. 12).
     pub form: RlsForm,
     /// Covariance-windup protection (default none).
@@ -94,7 +124,7 @@ impl Default for RecursiveLeastSquares {
         RecursiveLeastSquares {
             forgetting: 1.0,
             p0: 1e6,
-            passes: 1,
+            passes: Passes::AUTO,
             form: RlsForm::Standard,
             windup: Windup::None,
             max_trace: None,
@@ -297,6 +327,11 @@ pub struct Identification {
     /// (fix m_l = b_l = 0) instead of refusing the data. Default `false` (refuse, as the paper's method
     /// cannot estimate it); the command line turns it on.
     pub drop_unexcited_branch: bool,
+    /// Replace a Hammerstein estimate that diverged (non-finite or unstable simulation) or simulates far
+    /// worse than the linear ARX start by that linear model, written as a Hammerstein model with
+    /// b_l = b_r = 0 (a warning says so). Default `false`: the method's own estimate is returned and a
+    /// warning says that the linear start is better.
+    pub fallback: bool,
 }
 
 impl Default for Identification {
@@ -310,6 +345,7 @@ impl Default for Identification {
             },
             estimator: EstimatorSettings::Rls(RecursiveLeastSquares::default()),
             drop_unexcited_branch: false,
+            fallback: false,
         }
     }
 }
@@ -352,7 +388,7 @@ impl Identification {
     }
 
     /// Builder: RLS passes over the data; no effect on the other methods.
-    pub fn with_passes(mut self, passes: usize) -> Self {
+    pub fn with_passes(mut self, passes: Passes) -> Self {
         if let EstimatorSettings::Rls(r) = &mut self.estimator {
             r.passes = passes;
         }
@@ -453,6 +489,24 @@ pub enum Note {
         /// Windup protection.
         windup: Windup,
     },
+    /// RLS ran passes until the estimate settled (the paper's method is a single pass).
+    PassesUntilSettled {
+        /// Passes run.
+        passes: usize,
+        /// Whether it settled before the cap.
+        settled: bool,
+        /// The cap.
+        max: usize,
+    },
+    /// Which candidate an iterative method returned, on the reported criterion.
+    KeptCandidate {
+        /// The candidate kept.
+        kept: &'static str,
+        /// Its estimation simulation RMSE (initial outputs estimated, as MATLAB `compare`).
+        rmse: f64,
+        /// The other candidates and their RMSE (`None`: the simulation diverged or the model is unstable).
+        others: Vec<(&'static str, Option<f64>)>,
+    },
     /// A remark on the least-squares start of an iterative method.
     Start(Box<Note>),
     /// The LS start simulated unstably; its poles were reflected into the unit circle.
@@ -506,6 +560,37 @@ impl std::fmt::Display for Note {
             Note::RlsForm { form, windup } => {
                 write!(f, "RLS form {form}, windup protection {windup}")
             }
+            Note::PassesUntilSettled {
+                passes,
+                settled: true,
+                ..
+            } => write!(
+                f,
+                "RLS passes repeated until the estimate settled: {passes} passes (the paper's method is a \
+                 single pass)"
+            ),
+            Note::PassesUntilSettled {
+                passes,
+                settled: false,
+                max,
+            } => write!(
+                f,
+                "RLS passes repeated until the estimate settles: still moving after {passes} of at most \
+                 {max} passes"
+            ),
+            Note::KeptCandidate { kept, rmse, others } => {
+                write!(
+                    f,
+                    "kept the {kept} (estimation simulation RMSE {rmse:.6e}, initial outputs estimated"
+                )?;
+                for (name, r) in others {
+                    match r {
+                        Some(r) => write!(f, "; {name}: {r:.6e}")?,
+                        None => write!(f, "; {name}: unstable or diverging")?,
+                    }
+                }
+                f.write_str(")")
+            }
             Note::Start(n) => write!(f, "start (LS): {n}"),
             Note::StabilisedStart => f.write_str(
                 "the LS start was unstable in simulation; its poles were reflected into the unit circle",
@@ -552,6 +637,8 @@ pub struct Fitted {
     pub termination: Termination,
     /// Remarks, in the order they arose.
     pub notes: Vec<Note>,
+    /// Reasons not to trust the estimate blindly (empty when all is well).
+    pub warnings: Vec<Warning>,
     /// σ̂²: residual variance of the one-step prediction errors, RSS / (N − p).
     pub noise_variance: f64,
     /// RLS only, when requested: the physical parameters (order of `params`) after each update.
@@ -577,6 +664,11 @@ impl Fitted {
         })
     }
 
+    fn with_method(mut self, method: Method) -> Self {
+        self.method = method;
+        self
+    }
+
     fn new(model: Model, params: Vec<Param>, method: Method, noise_variance: f64) -> Self {
         Fitted {
             model,
@@ -585,6 +677,7 @@ impl Fitted {
             iterations: 1,
             termination: Termination::Converged,
             notes: Vec::new(),
+            warnings: Vec::new(),
             noise_variance,
             history: Vec::new(),
             history_samples: Vec::new(),
@@ -620,7 +713,213 @@ pub fn identify(data: &Dataset, settings: &Identification) -> Result<Fitted, Sys
     notes.append(&mut fit.notes);
     fit.notes = notes;
     check_finite(data, &fit.params)?;
+    safeguard(&problem, settings, fit)
+}
+
+/// Fit % of the free-run simulation from the measured initial outputs on `data`; `None` when the
+/// simulation diverges or the output is constant.
+fn simulation_fit(model: &Model, data: &Dataset) -> Option<f64> {
+    sysid_core::metrics::metrics(model, data)
+        .ok()
+        .and_then(|m| m.fit_sim_percent)
+}
+
+/// Percentage points of estimation simulation fit by which a Hammerstein estimate may trail the linear
+/// ARX start before the linear model replaces it.
+pub const FALLBACK_FIT_MARGIN: f64 = 10.0;
+
+/// The safeguards common to every method: a Hammerstein estimate that diverged or simulates far worse
+/// than the linear start is replaced by it (when `settings.fallback`), and every reason not to trust
+/// the result becomes a [`Warning`].
+fn safeguard(
+    p: &Problem,
+    settings: &Identification,
+    mut fit: Fitted,
+) -> Result<Fitted, SysidError> {
+    let data = p.data;
+    let s = &p.structure;
+    let mut fit_sim = simulation_fit(&fit.model, data);
+    let mut fell_back = false;
+    if s.kind == ModelKind::Hammerstein {
+        if let Some((linear, linear_fit)) = linear_start(p) {
+            let diverged = fit_sim.is_none();
+            let unstable = !fit.model.is_stable() && linear.model.is_stable();
+            let trails = fit_sim.is_some_and(|f| f < linear_fit - FALLBACK_FIT_MARGIN);
+            if diverged || unstable || trails {
+                let why = if diverged {
+                    format!(
+                        "the {} estimate's simulation diverges on the estimation data",
+                        fit.method
+                    )
+                } else if unstable {
+                    format!(
+                        "the {} estimate is unstable and the linear start is not",
+                        fit.method
+                    )
+                } else {
+                    format!(
+                        "the {} estimate simulates the estimation data far worse than the linear start \
+                         (fit {:.2} % against {linear_fit:.2} %)",
+                        fit.method,
+                        fit_sim.unwrap_or(f64::NAN)
+                    )
+                };
+                if settings.fallback {
+                    let mut warnings = std::mem::take(&mut fit.warnings);
+                    warnings.push(Warning::Fallback {
+                        used: "the linear ARX least-squares model, as a Hammerstein model with b_l = b_r = 0 \
+                               and m_l = m_r = b1"
+                            .into(),
+                        why,
+                    });
+                    fit = Fitted {
+                        warnings,
+                        notes: fit.notes,
+                        method: fit.method,
+                        iterations: fit.iterations,
+                        termination: fit.termination,
+                        ..linear
+                    };
+                    fit_sim = Some(linear_fit);
+                    fell_back = true;
+                } else {
+                    fit.warnings.push(Warning::LinearStartBetter { why });
+                }
+            }
+        }
+    }
+    if !fit.converged() {
+        fit.warnings.push(Warning::NotConverged {
+            how: termination_words(&fit.termination, fit.method),
+        });
+    }
+    let max_pole = fit
+        .model
+        .poles()
+        .iter()
+        .map(|z| z.norm())
+        .fold(0.0, f64::max);
+    if max_pole >= 1.0 {
+        fit.warnings.push(Warning::Unstable {
+            max_pole_modulus: max_pole,
+        });
+    }
+    match fit_sim {
+        Some(f) if f >= 0.0 => {}
+        other => fit.warnings.push(Warning::PoorSimulation {
+            record: Record::Estimation,
+            fit_percent: other,
+        }),
+    }
+    // The fallback's breakpoints are fixed at 0 by construction, not estimated: nothing to check.
+    if let (Some(d), false) = (fit.model.deadzone().copied(), fell_back) {
+        let br = &p.branches;
+        let (w, no_std) = deadzone_warnings(&d, data, br.left, br.right);
+        for q in fit.params.iter_mut() {
+            if no_std.contains(&q.name) {
+                q.std = None;
+            }
+        }
+        fit.warnings.extend(w);
+    }
     Ok(fit)
+}
+
+/// How an estimator stopped, in words, for the not-converged warning.
+fn termination_words(t: &Termination, method: Method) -> String {
+    match (t, method) {
+        (Termination::LimitCycle, _) => "the key-term iteration entered a limit cycle".into(),
+        (Termination::IterationLimit, Method::Oe) => {
+            "the output-error search reached its iteration limit".into()
+        }
+        (Termination::IterationLimit, _) => "the iteration limit was reached".into(),
+        (Termination::NotSettled, Method::Rls) => {
+            "the recursive estimate was still moving at the end of the data (more passes or a \
+             forgetting factor below 1 may settle it)"
+                .into()
+        }
+        (Termination::NotSettled, _) => "the estimate had not settled".into(),
+        (Termination::Stopped(w), _) => w.clone(),
+        (Termination::Converged, _) => "converged".into(),
+    }
+}
+
+/// The linear ARX least-squares model of the same orders and offset, written as a Hammerstein model
+/// (b_l = b_r = 0, m_l = m_r = b1, B/b1), with its estimation simulation fit; `None` when it cannot be
+/// estimated, b1 = 0, or its simulation diverges.
+fn linear_start(p: &Problem) -> Option<(Fitted, f64)> {
+    let s = Structure {
+        kind: ModelKind::Arx,
+        ..p.structure
+    };
+    let lp = Problem::new(p.data, s, true).ok()?;
+    let arx = arx_ls(&lp).ok()?;
+    let m = &arx.model;
+    let b1 = *m.b().first()?;
+    if b1 == 0.0 || !b1.is_finite() {
+        return None;
+    }
+    let b: Vec<f64> = m.b().iter().map(|v| v / b1).collect();
+    let d = sysid_core::Deadzone {
+        b_l: 0.0,
+        b_r: 0.0,
+        m_l: b1,
+        m_r: b1,
+    };
+    let model = Model::hammerstein(m.ts(), m.a().to_vec(), b, m.nk(), d, m.offset()).ok()?;
+    let fit_sim = simulation_fit(&model, p.data)?;
+    let std_of = |name: ParamName| {
+        arx.params
+            .iter()
+            .find(|q| q.name == name)
+            .and_then(|q| q.std)
+    };
+    let mut params = vec![
+        Param {
+            name: ParamName::BL,
+            value: 0.0,
+            std: None,
+        },
+        Param {
+            name: ParamName::BR,
+            value: 0.0,
+            std: None,
+        },
+        Param {
+            name: ParamName::ML,
+            value: b1,
+            std: std_of(ParamName::B(1)),
+        },
+        Param {
+            name: ParamName::MR,
+            value: b1,
+            std: std_of(ParamName::B(1)),
+        },
+    ];
+    params.extend(m.a().iter().enumerate().map(|(i, v)| Param {
+        name: ParamName::A(i + 1),
+        value: *v,
+        std: std_of(ParamName::A(i + 1)),
+    }));
+    params.extend(model.b().iter().enumerate().map(|(j, v)| Param {
+        name: ParamName::B(j + 1),
+        value: *v,
+        std: None,
+    }));
+    if let Some(c) = m.offset() {
+        params.push(Param {
+            name: ParamName::C,
+            value: c,
+            std: std_of(ParamName::C),
+        });
+    }
+    Some((
+        Fitted {
+            params,
+            ..Fitted::new(model, Vec::new(), Method::Ls, arx.noise_variance)
+        },
+        fit_sim,
+    ))
 }
 
 /// No silent NaN: an estimate the data do not determine in f64 (magnitudes whose squares underflow or
@@ -687,7 +986,8 @@ impl Estimator for LeastSquares {
     }
 }
 
-fn check_recursive(forgetting: f64, p0: f64, passes: usize) -> Result<(), SysidError> {
+fn check_recursive(forgetting: f64, p0: f64, passes: Passes) -> Result<(), SysidError> {
+    let passes = passes.max();
     rls::check_settings(forgetting, p0)?;
     if passes == 0 || passes > 1000 {
         return Err(SysidError::setting(
@@ -743,7 +1043,7 @@ impl Estimator for InstrumentalVariables {
     }
     fn check(&self) -> Result<(), SysidError> {
         check_key_term(&self.start)?;
-        check_recursive(self.forgetting, self.p0, 1)?;
+        check_recursive(self.forgetting, self.p0, Passes::Fixed(1))?;
         if self.stages == 0 || self.stages > 1000 {
             return Err(SysidError::setting(
                 Setting::IvStages,
@@ -808,13 +1108,33 @@ fn params_with_branches(
     params
 }
 
-/// Output-error refinement from the LS (key-term) estimate.
+/// The reported estimation criterion: the RMSE of the free-run simulation with estimated initial
+/// outputs (MATLAB `compare`'s default), `None` when the model is unstable or its simulation diverges.
+fn reported_rmse(model: &Model, data: &Dataset) -> Option<f64> {
+    if !model.is_stable() {
+        return None;
+    }
+    sysid_core::metrics::metrics(model, data)
+        .ok()
+        .and_then(|m| m.rmse_sim)
+}
+
+/// Output-error refinement from the LS (key-term) estimate. The search minimises the simulation error
+/// with estimated initial outputs, the criterion the tool reports. Both candidates (the LS start and
+/// the refined model) are judged on it and the better stable one is returned, with a note saying which
+/// (and a warning when it is not the refined model).
 fn output_error(p: &Problem, st: &OutputError) -> Result<Fitted, SysidError> {
     let start = least_squares(p, &st.start)?;
     let physical = p.branches.parameterisation(&p.structure, Layout::Physical);
     let fit = oe::refine(p.data, &physical, &start.model, st.max_iterations)?;
     let mut notes = Vec::new();
-    notes.extend(start.notes.into_iter().map(|n| Note::Start(Box::new(n))));
+    notes.extend(
+        start
+            .notes
+            .iter()
+            .cloned()
+            .map(|n| Note::Start(Box::new(n))),
+    );
     if fit.stabilised_start {
         notes.push(Note::StabilisedStart);
     }
@@ -823,18 +1143,62 @@ fn output_error(p: &Problem, st: &OutputError) -> Result<Fitted, SysidError> {
         rss: fit.rss,
         iterations: fit.iterations,
         evaluations: fit.evaluations,
-        stopped: fit.termination.clone(),
+        stopped: fit.stop.to_string(),
     });
+    let refined_rmse = reported_rmse(&fit.model, p.data);
+    let start_rmse = reported_rmse(&start.model, p.data);
+    let refined_better = match (refined_rmse, start_rmse) {
+        (Some(r), Some(s)) => r <= s,
+        (Some(_), None) => true,
+        (None, Some(_)) => false,
+        // Neither simulates stably: keep the refined model (stable by construction) and let the
+        // warnings say what is wrong.
+        (None, None) => true,
+    };
+    let termination = if fit.stop.converged() {
+        Termination::Converged
+    } else {
+        Termination::IterationLimit
+    };
+    if refined_better {
+        if let (Some(r), true) = (refined_rmse, start_rmse.is_some() || fit.stabilised_start) {
+            notes.push(Note::KeptCandidate {
+                kept: "output-error refinement",
+                rmse: r,
+                others: vec![("least-squares start", start_rmse)],
+            });
+        }
+        return Ok(Fitted {
+            iterations: fit.iterations,
+            termination,
+            notes,
+            ..Fitted::new(fit.model, fit.params, Method::Oe, fit.noise_variance)
+        });
+    }
+    let (kept_rmse, refined_text) = (
+        start_rmse.unwrap_or(f64::NAN),
+        refined_rmse.map_or_else(|| "diverges".to_string(), |r| format!("{r:.6e}")),
+    );
+    notes.push(Note::KeptCandidate {
+        kept: "least-squares start",
+        rmse: kept_rmse,
+        others: vec![("output-error refinement", refined_rmse)],
+    });
+    let why = format!(
+        "the refined model simulates the estimation data worse (RMSE {refined_text} against {kept_rmse:.6e} \
+         for the start)"
+    );
     Ok(Fitted {
         iterations: fit.iterations,
-        termination: if fit.converged {
-            Termination::Converged
-        } else {
-            Termination::Stopped(fit.termination)
-        },
+        termination,
         notes,
-        ..Fitted::new(fit.model, fit.params, Method::Oe, fit.noise_variance)
-    })
+        warnings: vec![Warning::Fallback {
+            used: "the least-squares start instead of the output-error refinement".into(),
+            why,
+        }],
+        ..start
+    }
+    .with_method(Method::Oe))
 }
 
 /// Relative change of θ̂ between IV stages below which the stages have settled.
@@ -1053,7 +1417,7 @@ fn context(data: &Dataset, e: SysidError) -> SysidError {
 /// switching functions and x from the model itself).
 fn prediction_rss(model: &Model, data: &Dataset) -> Result<f64, SysidError> {
     let k0 = model.k0();
-    let yhat = model.predict(&data.u, &data.y)?;
+    let yhat = model.predict_equation_error(&data.u, &data.y)?;
     Ok(data.y[k0..]
         .iter()
         .zip(&yhat[k0..])
@@ -1201,7 +1565,8 @@ fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitted, SysidErr
     let mut pass_ends: Vec<DVector<f64>> = Vec::new();
     let tail_start = n - (n - k0) / 10;
     let mut theta_tail = DVector::from_column_slice(est.theta());
-    for pass in 0..st.passes {
+    let mut settled = false;
+    for pass in 0..st.passes.max() {
         if pass > 0 {
             est.restart_covariance(st.p0);
             if hammer {
@@ -1237,14 +1602,25 @@ fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitted, SysidErr
                 history_samples.push(k);
             }
         }
-        pass_ends.push(DVector::from_column_slice(est.theta()));
+        let end = DVector::from_column_slice(est.theta());
+        if let (Passes::UntilSettled { .. }, Some(prev)) = (st.passes, pass_ends.last()) {
+            if (&end - prev).norm() <= PASSES_SETTLED * (1e-300 + end.norm()) {
+                settled = true;
+                pass_ends.push(end);
+                break;
+            }
+        }
+        pass_ends.push(end);
     }
+    let passes_run = pass_ends.len();
     let theta = DVector::from_column_slice(est.theta());
     let rel = |a: &DVector<f64>, b: &DVector<f64>| (a - b).norm() / (1e-300 + b.norm());
-    let converged = if pass_ends.len() >= 2 {
-        rel(&pass_ends[pass_ends.len() - 2], &theta) < 1e-3
-    } else {
-        rel(&theta_tail, &theta) < 1e-3
+    let converged = match st.passes {
+        Passes::UntilSettled { .. } => settled,
+        Passes::Fixed(_) if pass_ends.len() >= 2 => {
+            rel(&pass_ends[pass_ends.len() - 2], &theta) < 1e-3
+        }
+        Passes::Fixed(_) => rel(&theta_tail, &theta) < 1e-3,
     };
     let theta_full = expand(theta.as_slice());
     let model = model_from_theta(data, &key, br, &theta_full)?;
@@ -1252,6 +1628,13 @@ fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitted, SysidErr
     let sigma2 = rss / (n - k0).saturating_sub(np).max(1) as f64;
     let cov = key.scatter_matrix(&(est.covariance() * sigma2));
     let mut notes = Vec::new();
+    if let Passes::UntilSettled { max } = st.passes {
+        notes.push(Note::PassesUntilSettled {
+            passes: passes_run,
+            settled,
+            max,
+        });
+    }
     if st.form != RlsForm::Standard || st.windup != Windup::None {
         notes.push(Note::RlsForm {
             form: st.form,
@@ -1260,7 +1643,7 @@ fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitted, SysidErr
     }
     Ok(Fitted {
         params: params_with_branches(p, &theta_full, Some(&cov), &model),
-        iterations: st.passes,
+        iterations: passes_run,
         termination: if converged {
             Termination::Converged
         } else {

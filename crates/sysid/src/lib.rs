@@ -11,21 +11,23 @@
 pub mod branches;
 pub mod estimate;
 pub mod iv;
-pub mod ls;
+pub use sysid_core::ls;
 pub mod oe;
 pub mod order;
 pub mod residuals;
 pub mod rls;
 pub mod rls_ud;
 pub mod summary;
+pub mod warnings;
 pub mod windup;
 
 pub use estimate::{
     identify, Estimator, EstimatorSettings, Fitted, Identification, InstrumentalVariables,
-    LeastSquares, Method, Note, OutputError, Param, RecursiveLeastSquares, Termination,
+    LeastSquares, Method, Note, OutputError, Param, Passes, RecursiveLeastSquares, Termination,
 };
 pub use sysid_core::{
     data, metrics, model, model_file, nonlinearity, param, plant, structure, Dataset, Deadzone,
     InputChannel, Model, ModelKind, ModelPlant, Orders, ParamName, Parameterisation, Plant,
     PlantError, Setting, StaticNonlinearity, Structure, SysidError,
 };
+pub use warnings::Warning;

@@ -1,6 +1,6 @@
 //! Output-error (prediction-error with an output-error noise model) refinement: minimise the free-run
-//! simulation error V(θ) = ½ Σ_{k >= k0} (y(k) − ŷ(k; θ))² over every parameter of the model, by
-//! Levenberg–Marquardt (crate `levenberg-marquardt`), started from a least-squares estimate.
+//! simulation error V(θ) = ½ Σ_{k >= k0} (y(k) − ŷ(k; θ))² over every parameter of the model, by a
+//! Levenberg–Marquardt search constrained to stable models, started from a least-squares estimate.
 //!
 //! Why: LS/RLS minimise the *equation* error, which is biased when noise enters at the output (an
 //! encoder's quantisation and noise). The simulation error does not regress on noisy past outputs, so its
@@ -29,23 +29,36 @@
 //! loss is smooth between them; a step that moves a breakpoint across a command level is judged by the
 //! actual loss (the trust-region ratio), so the kink cannot mislead the optimiser into a worse point.
 //!
-//! Unstable iterates: an iterate whose simulation exceeds 10⁶ (1 + max|y|) or becomes non-finite gets a
-//! constant residual of that bound at every sample, a loss far above any stable iterate's, so the step is
-//! rejected and the trust region shrinks. A start whose simulation diverges (an unstable LS estimate) is
-//! first stabilised by reflecting the poles of A outside the unit circle into it (p → 1/p̄).
+//! Stability is enforced during the search, as MATLAB's `oe` does: an unstable start (an unstable LS
+//! estimate) is first stabilised by reflecting the poles of A outside the unit circle into it
+//! (p → 1/p̄), and a trial step whose A has a pole beyond [`MAX_POLE_MODULUS`] (Jury's test,
+//! [`sysid_core::model::is_stable_polynomial_within`]) is halved until it stays inside (projected onto
+//! that circle if 20 halvings do not suffice) before its loss is evaluated.
+//! Without this, a finite record lets an unstable model fit well with estimated initial outputs that
+//! cancel its unstable mode — and then diverge in any other use. An iterate whose simulation exceeds
+//! 10⁶ (1 + max|y|) or becomes non-finite counts as an infinite loss (step rejected, damping raised).
+//!
+//! The search (Levenberg–Marquardt with Marquardt's scaling, Moré 1978): at θ with residuals r and
+//! Jacobian J = ∂ŷ/∂θ, the step δ minimises ‖r − J δ‖² + λ ‖D δ‖² (D = the column norms of J), solved by
+//! QR of the stacked matrix [J; √λ D] ([`crate::ls::solve`], never the normal equations). A step that
+//! lowers the loss is taken and λ shrinks by 3; otherwise λ grows by 4 and the step is retried. It stops
+//! when a taken step lowers the loss by less than 1.5e-8 relative or moves θ by less than 1.5e-8 relative
+//! (√ε, MINPACK's defaults)
+//! (converged), when λ exceeds 1e16 (no further improvement possible), or at the iteration cap.
 //!
 //! Standard deviations: σ̂² (JᵀJ)⁻¹ with J the final Jacobian and σ̂² = 2 V / (N − p).
 
 use std::cell::Cell;
 
-use levenberg_marquardt::{LeastSquaresProblem, LevenbergMarquardt};
-use nalgebra::{Complex, DMatrix, DVector, Dyn, Owned};
+use nalgebra::{Complex, DMatrix, DVector};
 
 use crate::estimate::Param;
 use crate::ls;
-use sysid_core::model::poles_of;
+use sysid_core::model::{is_stable_polynomial_within, poles_of};
 use sysid_core::param::{Layout, Parameterisation};
-use sysid_core::{Dataset, Deadzone, Model, ModelKind, ParamName, Structure, SysidError};
+use sysid_core::{
+    Dataset, Deadzone, Model, ModelKind, NoiseModel, ParamName, Structure, SysidError,
+};
 
 /// The result of an output-error refinement.
 #[derive(Debug, Clone)]
@@ -58,10 +71,10 @@ pub struct OeFit {
     pub iterations: usize,
     /// Number of residual evaluations.
     pub evaluations: usize,
-    /// The optimiser stopped on a convergence criterion (not on patience or a numerical failure).
-    pub converged: bool,
-    /// The optimiser's termination reason, in words.
-    pub termination: String,
+    /// How the search stopped.
+    pub stop: OeStop,
+    /// Trial steps whose A was unstable and that were projected into the stable region.
+    pub projected_steps: usize,
     /// Σ (y − ŷ)² at the start and at the end.
     pub rss_start: f64,
     /// Σ (y − ŷ)² of the refined model.
@@ -74,26 +87,89 @@ pub struct OeFit {
     pub stabilised_start: bool,
 }
 
+/// Why the output-error search stopped.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OeStop {
+    /// A taken step lowered the loss by less than the relative tolerance.
+    CostConverged,
+    /// A taken step moved the parameters by less than the relative tolerance.
+    StepConverged,
+    /// The gradient vanished (the start is already a stationary point).
+    GradientZero,
+    /// No step lowers the loss any more (the damping exceeded its bound): a local minimum at the
+    /// resolution of f64, or a kink of the deadzone loss.
+    NoImprovement,
+    /// The best model lies on the stability boundary (a pole held at |p| = [`MAX_POLE_MODULUS`]: an
+    /// integrating plant); steps projected onto it no longer lower the loss noticeably.
+    StabilityBoundary,
+    /// The iteration cap was reached first.
+    IterationLimit,
+}
+
+impl OeStop {
+    /// True for the convergence criteria (not the cap).
+    pub fn converged(&self) -> bool {
+        !matches!(self, OeStop::IterationLimit)
+    }
+}
+
+impl std::fmt::Display for OeStop {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            OeStop::CostConverged => "converged (relative change of the cost below tolerance)",
+            OeStop::StepConverged => "converged (relative change of the parameters below tolerance)",
+            OeStop::GradientZero => "converged (gradient zero)",
+            OeStop::NoImprovement => {
+                "converged (no step lowers the cost further: a local minimum or a kink of the deadzone)"
+            }
+            OeStop::StabilityBoundary => {
+                "converged on the stability boundary (a pole held at |p| = 1 - 1e-6: an integrating plant?)"
+            }
+            OeStop::IterationLimit => "stopped at the iteration limit (not converged)",
+        })
+    }
+}
+
 /// Reflects the roots of z^n + a1 z^(n−1) + ... + a_n outside the unit circle to 1/p̄ (and pulls roots on
 /// the circle to modulus 0.999); returns the new coefficients a1..a_n.
 pub fn stabilise(a: &[f64]) -> Vec<f64> {
-    let roots: Vec<Complex<f64>> = poles_of(a)
-        .into_iter()
-        .map(|p| {
-            let r = p.norm();
-            if r >= 1.0 {
-                let q = p / (r * r);
-                if q.norm() > 0.999 {
-                    q * (0.999 / q.norm())
-                } else {
-                    q
-                }
+    map_roots(a, |p| {
+        let r = p.norm();
+        if r >= 1.0 {
+            let q = p / (r * r);
+            if q.norm() > 0.999 {
+                q * (0.999 / q.norm())
             } else {
-                p
+                q
             }
-        })
-        .collect();
-    // Multiply out Π (z − p_i).
+        } else {
+            p
+        }
+    })
+}
+
+/// Largest pole modulus the output-error search allows: strictly inside the unit circle by a margin
+/// that the eigenvalue computation of the poles resolves, so that an integrating plant's pole settles
+/// just inside 1 and the reported model is stable.
+pub const MAX_POLE_MODULUS: f64 = 1.0 - 1e-6;
+
+/// Reflects the roots of z^n + a1 z^(n−1) + ... + a_n outside the unit circle to 1/p̄ and pulls every
+/// root whose modulus still exceeds `radius` onto that circle; returns the new coefficients.
+pub fn stabilise_within(a: &[f64], radius: f64) -> Vec<f64> {
+    map_roots(a, |p| {
+        let r = p.norm();
+        let q = if r >= 1.0 { p / (r * r) } else { p };
+        if q.norm() > radius {
+            q * (radius / q.norm())
+        } else {
+            q
+        }
+    })
+}
+
+/// The coefficients a1..a_n of Π (z − f(p_i)) over the roots p_i of z^n + a1 z^(n−1) + ... + a_n.
+fn map_roots(a: &[f64], f: impl Fn(Complex<f64>) -> Complex<f64>) -> Vec<f64> {
+    let roots: Vec<Complex<f64>> = poles_of(a).into_iter().map(f).collect();
     let mut c = vec![Complex::new(1.0, 0.0)];
     for p in roots {
         let mut next = vec![Complex::new(0.0, 0.0); c.len() + 1];
@@ -192,36 +268,179 @@ impl Problem<'_> {
     }
 }
 
-impl LeastSquaresProblem<f64, Dyn, Dyn> for Problem<'_> {
-    type ResidualStorage = Owned<f64, Dyn>;
-    type JacobianStorage = Owned<f64, Dyn, Dyn>;
-    type ParameterStorage = Owned<f64, Dyn>;
-
-    fn set_params(&mut self, x: &DVector<f64>) {
-        for (q, &i) in self.free.iter().enumerate() {
-            self.full[i] = x[q];
-        }
-    }
-
-    fn params(&self) -> DVector<f64> {
-        DVector::from_iterator(self.free.len(), self.free.iter().map(|&i| self.full[i]))
-    }
-
+impl Problem<'_> {
+    /// Residuals y − ŷ over every sample; `None` when the simulation diverges.
     fn residuals(&self) -> Option<DVector<f64>> {
         let m = self.u.len();
         let d = self.decode();
-        Some(match self.simulate(&d) {
-            Some((yh, _)) => DVector::from_iterator(m, (0..m).map(|k| self.y[k] - yh[k])),
-            None => DVector::from_element(m, self.bound),
-        })
+        let (yh, _) = self.simulate(&d)?;
+        Some(DVector::from_iterator(m, (0..m).map(|k| self.y[k] - yh[k])))
     }
 
+    /// Loss Σ r² (infinite when the simulation diverges).
+    fn cost(&self) -> f64 {
+        self.residuals().map_or(f64::INFINITY, |r| r.norm_squared())
+    }
+
+    /// ∂ŷ/∂θ for the free parameters, with the simulation it was computed on.
     fn jacobian(&self) -> Option<DMatrix<f64>> {
         self.jacobians.set(self.jacobians.get() + 1);
         let d = self.decode();
         let (yh, x) = self.simulate(&d)?;
-        Some(self.sensitivities(&d, &yh, &x).scale(-1.0))
+        Some(self.sensitivities(&d, &yh, &x))
     }
+
+    /// Index of a1 in the full vector.
+    fn ia(&self) -> usize {
+        if self.s.kind == ModelKind::Hammerstein {
+            4
+        } else {
+            0
+        }
+    }
+
+    /// True when A of the current parameters is stable.
+    fn stable(&self) -> bool {
+        let ia = self.ia();
+        is_stable_polynomial_within(&self.full[ia..ia + self.s.orders.na], MAX_POLE_MODULUS)
+    }
+
+    /// Reflects the unstable poles of A into the unit circle.
+    fn project(&mut self) {
+        let ia = self.ia();
+        let na = self.s.orders.na;
+        let a = stabilise_within(&self.full[ia..ia + na], MAX_POLE_MODULUS);
+        self.full[ia..ia + na].copy_from_slice(&a);
+    }
+
+    fn free_values(&self) -> Vec<f64> {
+        self.free.iter().map(|&i| self.full[i]).collect()
+    }
+
+    fn set_free(&mut self, v: &[f64]) {
+        for (q, &i) in self.free.iter().enumerate() {
+            self.full[i] = v[q];
+        }
+    }
+}
+
+/// Relative loss decrease and relative step below which the search has converged.
+const FTOL: f64 = 1.5e-8;
+const XTOL: f64 = 1.5e-8;
+/// Relative loss decrease below which a step projected onto the stability boundary ends the search:
+/// the constrained optimum has a pole on the boundary (an integrating plant) and projected steps creep
+/// along it.
+const FTOL_BOUNDARY: f64 = 1e-6;
+/// Damping bound: beyond it no step lowers the loss.
+const LAMBDA_MAX: f64 = 1e16;
+
+/// The stability-constrained Levenberg–Marquardt search (module docs). Returns how it stopped, the
+/// iterations and the loss evaluations.
+fn search(
+    problem: &mut Problem,
+    max_iterations: usize,
+) -> Result<(OeStop, usize, usize, usize), SysidError> {
+    let mut cost = problem.cost();
+    let mut evaluations = 1;
+    let mut projected = 0;
+    let mut lambda: f64 = 1e-3;
+    let p = problem.free.len();
+    for iteration in 1..=max_iterations {
+        let (Some(jac), Some(r)) = (problem.jacobian(), problem.residuals()) else {
+            return Err(SysidError::Numerical(
+                "output-error search: the simulation of the current iterate diverged".into(),
+            ));
+        };
+        let gradient = jac.transpose() * &r;
+        let gmax = gradient.amax();
+        if gmax == 0.0 || !gmax.is_finite() {
+            return Ok((OeStop::GradientZero, iteration, evaluations, projected));
+        }
+        let norms: Vec<f64> = (0..p).map(|j| jac.column(j).norm().max(1e-300)).collect();
+        let theta = problem.free_values();
+        let n = jac.nrows();
+        loop {
+            // Stack [J; √λ D] and [r; 0]: the damped least-squares step.
+            let mut a = DMatrix::<f64>::zeros(n + p, p);
+            a.view_mut((0, 0), (n, p)).copy_from(&jac);
+            for (j, dj) in norms.iter().enumerate() {
+                a[(n + j, j)] = lambda.sqrt() * dj;
+            }
+            let mut b = DVector::<f64>::zeros(n + p);
+            b.rows_mut(0, n).copy_from(&r);
+            let Ok(step) = ls::solve(&a, &b, &[]) else {
+                lambda = (lambda * 4.0).max(1e-10);
+                if lambda > LAMBDA_MAX {
+                    problem.set_free(&theta);
+                    return Ok((OeStop::NoImprovement, iteration, evaluations, projected));
+                }
+                continue;
+            };
+            // A step that leaves the stable region is shortened (halved) until it stays inside; one that
+            // cannot be kept inside that way is projected (poles pulled onto the allowed circle).
+            let mut scale = 1.0;
+            let mut on_boundary = false;
+            loop {
+                let trial: Vec<f64> = theta
+                    .iter()
+                    .zip(step.theta.iter())
+                    .map(|(t, d)| t + scale * d)
+                    .collect();
+                problem.set_free(&trial);
+                if problem.stable() {
+                    break;
+                }
+                on_boundary = true;
+                scale *= 0.5;
+                if scale < 1e-6 {
+                    problem.project();
+                    break;
+                }
+            }
+            if on_boundary {
+                projected += 1;
+            }
+            let new_cost = problem.cost();
+            evaluations += 1;
+            if new_cost < cost {
+                let moved = problem
+                    .free_values()
+                    .iter()
+                    .zip(&theta)
+                    .map(|(a, b)| (a - b) * (a - b))
+                    .sum::<f64>()
+                    .sqrt();
+                let size = theta.iter().map(|t| t * t).sum::<f64>().sqrt();
+                let decrease = (cost - new_cost) / cost.max(f64::MIN_POSITIVE);
+                cost = new_cost;
+                // No floor: on ill-conditioned problems (a near-integrator's poles and its initial
+                // outputs) any fixed damping would shorten the Gauss–Newton step along the weak
+                // directions and slow the search to a crawl.
+                lambda /= 3.0;
+                if decrease < FTOL {
+                    return Ok((OeStop::CostConverged, iteration, evaluations, projected));
+                }
+                if on_boundary && decrease < FTOL_BOUNDARY {
+                    return Ok((OeStop::StabilityBoundary, iteration, evaluations, projected));
+                }
+                if moved <= XTOL * (size + XTOL) {
+                    return Ok((OeStop::StepConverged, iteration, evaluations, projected));
+                }
+                break;
+            }
+            lambda = (lambda * 4.0).max(1e-10);
+            if lambda > LAMBDA_MAX {
+                problem.set_free(&theta);
+                return Ok((OeStop::NoImprovement, iteration, evaluations, projected));
+            }
+        }
+    }
+    Ok((
+        OeStop::IterationLimit,
+        max_iterations,
+        evaluations,
+        projected,
+    ))
 }
 
 impl Problem<'_> {
@@ -289,13 +508,13 @@ impl Problem<'_> {
 }
 
 /// Refines `start` by minimising the simulation error on `data`, over the free entries of `physical`
-/// (a physical-layout parameterisation; fixed entries keep the start's value). `patience` bounds the
-/// residual evaluations at patience · (free parameters + 1).
+/// (a physical-layout parameterisation; fixed entries keep the start's value), in at most
+/// `max_iterations` Levenberg–Marquardt iterations.
 pub fn refine(
     data: &Dataset,
     physical: &Parameterisation,
     start: &Model,
-    patience: usize,
+    max_iterations: usize,
 ) -> Result<OeFit, SysidError> {
     let s = physical.structure();
     let free = physical.free();
@@ -333,15 +552,9 @@ pub fn refine(
         jacobians: Cell::new(0),
     };
     let mut stabilised_start = false;
-    if problem.simulate(&problem.decode()).is_none() {
-        let ia = if s.kind == ModelKind::Hammerstein {
-            4
-        } else {
-            0
-        };
-        let a = stabilise(&problem.full[ia..ia + s.orders.na]);
+    if !problem.stable() || problem.simulate(&problem.decode()).is_none() {
         problem.full[np..np + k0].copy_from_slice(&data.y[..k0]);
-        problem.full[ia..ia + s.orders.na].copy_from_slice(&a);
+        problem.project();
         stabilised_start = true;
         if problem.simulate(&problem.decode()).is_none() {
             return Err(SysidError::Numerical(format!(
@@ -350,14 +563,9 @@ pub fn refine(
             )));
         }
     }
-    let rss_of = |p: &Problem| p.residuals().map_or(f64::INFINITY, |r| r.norm_squared());
-    let rss_start = rss_of(&problem);
-    let (problem, report) = LevenbergMarquardt::new()
-        .with_ftol(1e-12)
-        .with_xtol(1e-12)
-        .with_gtol(1e-12)
-        .with_patience(patience.max(1))
-        .minimize(problem);
+    let rss_start = problem.cost();
+    let (stop, iterations, evaluations, projected_steps) =
+        search(&mut problem, max_iterations).map_err(|e| e.context(&data.name))?;
     let d = problem.decode();
     let (yh, x) = problem.simulate(&d).ok_or_else(|| {
         SysidError::Numerical(format!(
@@ -411,46 +619,19 @@ pub fn refine(
     Ok(OeFit {
         model: physical
             .model_of(&problem.full[..np], data.ts)
-            .map_err(|e| SysidError::Numerical(format!("{}: {e}", data.name)))?,
+            .map_err(|e| SysidError::Numerical(format!("{}: {e}", data.name)))?
+            .with_noise_model(NoiseModel::OutputError),
         initial_outputs: problem.full[np..].to_vec(),
         params,
-        iterations: problem.jacobians.get(),
-        evaluations: report.number_of_evaluations,
-        converged: report.termination.was_successful(),
-        termination: termination_words(&report.termination),
+        iterations,
+        evaluations,
+        stop,
+        projected_steps,
         rss_start,
         rss,
         noise_variance: sigma2,
         stabilised_start,
     })
-}
-
-/// The optimiser's termination reason as a sentence fragment for reports.
-fn termination_words(t: &levenberg_marquardt::TerminationReason) -> String {
-    use levenberg_marquardt::TerminationReason as T;
-    match t {
-        T::Converged {
-            ftol: true,
-            xtol: true,
-        } => "converged (relative change of cost and parameters below tolerance)".into(),
-        T::Converged { ftol: true, .. } => {
-            "converged (relative change of the cost below tolerance)".into()
-        }
-        T::Converged { .. } => {
-            "converged (relative change of the parameters below tolerance)".into()
-        }
-        T::ResidualsZero => "converged (residuals zero)".into(),
-        T::Orthogonal => "converged (residuals orthogonal to the Jacobian)".into(),
-        T::LostPatience => "stopped at the evaluation limit (not converged)".into(),
-        T::NoImprovementPossible(what) => {
-            format!("stopped: no further improvement possible ({what})")
-        }
-        T::Numerical(what) => format!("stopped: non-finite value ({what})"),
-        T::User(what) => format!("stopped: {what}"),
-        T::WrongDimensions(what) => format!("stopped: wrong dimensions ({what})"),
-        T::NoParameters => "stopped: no parameters".into(),
-        T::NoResiduals => "stopped: no residuals".into(),
-    }
 }
 
 #[cfg(test)]
@@ -505,7 +686,8 @@ mod tests {
             p.full[q] -= 2.0 * h;
             let rm = p.residuals().unwrap();
             for row in 0..rp.len() {
-                let fd = (rp[row] - rm[row]) / (2.0 * h);
+                // r = y − ŷ, so ∂ŷ/∂θ = −∂r/∂θ.
+                let fd = -(rp[row] - rm[row]) / (2.0 * h);
                 assert!(
                     (fd - j[(row, q)]).abs() < 1e-5 * (1.0 + fd.abs()),
                     "param {q} row {row}: {fd} vs {}",

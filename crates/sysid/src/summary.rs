@@ -3,9 +3,11 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::estimate::{EstimatorSettings, Fitted, Identification, Method, Param};
-use sysid_core::metrics::Metrics;
-use sysid_core::{Model, SysidError};
+use crate::estimate::{EstimatorSettings, Fitted, Identification, Method, Param, Passes};
+use crate::residuals::{analyze, ResidOptions, ResidualAnalysis};
+use crate::warnings::{Record, Warning};
+use sysid_core::metrics::{metrics, Metrics};
+use sysid_core::{Dataset, Model, SysidError};
 
 /// A pole p = re + i·im of the linear block.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -33,6 +35,10 @@ pub struct EstimationInfo {
     /// RLS P(0) scale (RLS only).
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub p0: Option<f64>,
+    /// RLS passes: `"until-settled"` (the default) or `"fixed"` (the paper's single pass is
+    /// `"fixed"` with 1 iteration). RLS only.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub passes: Option<String>,
     /// σ̂² of the one-step prediction errors.
     pub noise_variance: f64,
     /// Remarks (limit cycle, best iterate kept...).
@@ -50,6 +56,54 @@ pub struct MetricsPair {
     pub validation: Option<Metrics>,
 }
 
+/// The residual analysis of one record, or why it could not be made.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum ResidualEntry {
+    /// The analysis (MATLAB `resid`).
+    Analysis(Box<ResidualAnalysis>),
+    /// Why there is none (record too short for the lags, constant residuals...).
+    Unavailable {
+        /// The reason.
+        error: String,
+    },
+}
+
+/// Residual analysis on the estimation record and, when given, on the validation record.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ResidualsPair {
+    /// On the estimation data.
+    pub estimation: ResidualEntry,
+    /// On the validation data.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub validation: Option<ResidualEntry>,
+}
+
+/// The one-step prediction residuals ε(k) = y(k) − ŷ(k|k−1) of `model` on `data` (the model's own
+/// predictor: equation error for ARX-type estimates, output error for the output-error method), rows
+/// k ≥ k0, analysed against the input of the same rows with `max_lag` lags.
+pub fn residual_analysis(model: &Model, data: &Dataset, max_lag: usize) -> ResidualEntry {
+    let k0 = model.k0();
+    let result = sysid_core::metrics::one_step_prediction(model, data)
+        .map_err(|e| e.to_string())
+        .and_then(|pred| {
+            let eps: Vec<f64> = data.y[k0..]
+                .iter()
+                .zip(&pred[k0..])
+                .map(|(y, p)| y - p)
+                .collect();
+            let options = ResidOptions {
+                max_lag,
+                ..ResidOptions::default()
+            };
+            analyze(&eps, &data.u[k0..], &options).map_err(|e| e.to_string())
+        });
+    match result {
+        Ok(a) => ResidualEntry::Analysis(Box::new(a)),
+        Err(error) => ResidualEntry::Unavailable { error },
+    }
+}
+
 /// The whole `identify --json` document.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct IdentifyReport {
@@ -65,10 +119,48 @@ pub struct IdentifyReport {
     pub estimation: EstimationInfo,
     /// Validation metrics.
     pub metrics: MetricsPair,
+    /// Residual analysis (MATLAB `resid`) of the one-step prediction errors.
+    pub residuals: ResidualsPair,
+    /// Reasons not to trust the model blindly, in words (always present; empty when all is well).
+    pub warnings: Vec<String>,
 }
 
 impl IdentifyReport {
-    /// Assembles the report of a fit.
+    /// Assembles the whole report of a fit on its estimation data and, optionally, validation data:
+    /// metrics, residual analysis with `max_lag` lags, and the warnings (the fit's own plus those the
+    /// validation record raises). The one place where the `identify --json` document is made (the
+    /// command line and the Python package both call it).
+    pub fn assemble(
+        fit: &Fitted,
+        settings: &Identification,
+        est_data: &Dataset,
+        val_data: Option<&Dataset>,
+        max_lag: usize,
+    ) -> Result<Self, SysidError> {
+        let est = metrics(&fit.model, est_data)?;
+        let val = val_data.map(|v| metrics(&fit.model, v)).transpose()?;
+        let mut report = IdentifyReport::new(fit, settings, est, val);
+        report.residuals = ResidualsPair {
+            estimation: residual_analysis(&fit.model, est_data, max_lag),
+            validation: val_data.map(|v| residual_analysis(&fit.model, v, max_lag)),
+        };
+        if let Some(m) = &report.metrics.validation {
+            match m.fit_sim_percent {
+                Some(f) if f >= 0.0 => {}
+                other => report.warnings.push(
+                    Warning::PoorSimulation {
+                        record: Record::Validation,
+                        fit_percent: other,
+                    }
+                    .to_string(),
+                ),
+            }
+        }
+        Ok(report)
+    }
+
+    /// The report of a fit from metrics computed elsewhere (no residual analysis; the fit's own
+    /// warnings). Prefer [`IdentifyReport::assemble`].
     pub fn new(
         fit: &Fitted,
         settings: &Identification,
@@ -90,6 +182,10 @@ impl IdentifyReport {
                 converged: fit.converged(),
                 forgetting: rls.map(|r| r.forgetting),
                 p0: rls.map(|r| r.p0),
+                passes: rls.map(|r| match r.passes {
+                    Passes::Fixed(_) => "fixed".to_string(),
+                    Passes::UntilSettled { .. } => "until-settled".to_string(),
+                }),
                 noise_variance: fit.noise_variance,
                 note: fit.note(),
             },
@@ -97,6 +193,13 @@ impl IdentifyReport {
                 estimation: est,
                 validation: val,
             },
+            residuals: ResidualsPair {
+                estimation: ResidualEntry::Unavailable {
+                    error: "not computed".into(),
+                },
+                validation: None,
+            },
+            warnings: fit.warnings.iter().map(ToString::to_string).collect(),
         }
     }
 

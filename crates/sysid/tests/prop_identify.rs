@@ -84,6 +84,7 @@ fn settings(
         },
         estimator,
         drop_unexcited_branch: true,
+        fallback: true,
     }
 }
 

@@ -130,7 +130,7 @@ fn check_recovery(method: Method, passes: usize, rel: f64) {
             .with_kind(ModelKind::Hammerstein)
             .with_orders(case.a.len(), case.b.len(), case.nk)
             .with_method(method)
-            .with_passes(passes)
+            .with_passes(sysid::Passes::Fixed(passes))
             .with_offset(case.c != 0.0);
         let fit = identify(&data, &settings).unwrap();
         let m = &fit.model;
@@ -252,6 +252,7 @@ fn rls_equals_the_weighted_regularised_least_squares_closed_form() {
                 sysid::RecursiveLeastSquares {
                     forgetting: rho,
                     p0,
+                    passes: sysid::Passes::Fixed(1),
                     ..sysid::RecursiveLeastSquares::default()
                 },
             ));

@@ -4,9 +4,8 @@ use std::path::{Path, PathBuf};
 
 use sysid::estimate::{
     identify, EstimatorSettings, Identification, InstrumentalVariables, LeastSquares, Method,
-    OutputError, RecursiveLeastSquares,
+    OutputError, Passes, RecursiveLeastSquares,
 };
-use sysid::metrics::metrics;
 use sysid::rls_ud::RlsForm;
 use sysid::summary::IdentifyReport;
 use sysid::windup::Windup;
@@ -44,9 +43,10 @@ pub struct Args {
     /// RLS initial covariance P(0) = p0 · I.
     #[arg(long, default_value_t = 1e6)]
     pub p0: f64,
-    /// RLS passes over the data (later passes restart P and refine the estimate).
-    #[arg(long, default_value_t = 1)]
-    pub passes: usize,
+    /// RLS passes over the data: `auto` (default) repeats passes until the estimate settles (at most
+    /// 100); `1` is the paper's single pass; N runs exactly N (later passes restart P and refine).
+    #[arg(long, default_value = "auto", value_parser = parse_passes)]
+    pub passes: Passes,
     /// Maximum key-term iterations (Hammerstein with --method ls).
     #[arg(long, default_value_t = 100)]
     pub max_iterations: usize,
@@ -67,12 +67,33 @@ pub struct Args {
     pub offset: bool,
     #[command(flatten)]
     pub val: ValidationArgs,
+    /// Lags M of the residual analysis (autocorrelation τ = 1..M, cross-correlation τ = −M..M).
+    #[arg(long, default_value_t = sysid::residuals::DEFAULT_MAX_LAG, value_name = "M")]
+    pub resid_lags: usize,
+    /// Hammerstein: when the estimate diverges, is unstable or simulates the estimation data far worse
+    /// (10 fit points) than the linear ARX model of the same orders, return that linear model written
+    /// as a Hammerstein model (b_l = b_r = 0) instead; a warning says so either way.
+    #[arg(long)]
+    pub fallback: bool,
+    /// Exit with code 1 when the result carries warnings (they are printed either way).
+    #[arg(long)]
+    pub strict: bool,
     /// Write the JSON summary here (`-` for standard output).
     #[arg(long, value_name = "OUT")]
     pub json: Option<PathBuf>,
     /// Save the model for `validate --model` and `--plant model:FILE`.
     #[arg(long, value_name = "MODEL.json")]
     pub save_model: Option<PathBuf>,
+}
+
+/// `--passes`: a whole number of passes, or `auto`.
+fn parse_passes(text: &str) -> Result<Passes, String> {
+    match text.trim() {
+        "auto" => Ok(Passes::AUTO),
+        t => t.parse::<usize>().map(Passes::Fixed).map_err(|_| {
+            format!("'{t}' is not a number of passes; expected a whole number such as 1, or auto")
+        }),
+    }
 }
 
 impl Args {
@@ -118,6 +139,7 @@ impl Args {
             // A one-sided input (never negative or never positive) drops the unexcited deadzone branch
             // and says so in the report's note.
             drop_unexcited_branch: true,
+            fallback: self.fallback,
         }
     }
 }
@@ -142,9 +164,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let data = sysid::data::read_csv(data_path, &opts)?;
     let val = args.val.read(&opts)?;
     let fit = identify(&data, &settings)?;
-    let est = metrics(&fit.model, &data)?;
-    let val_metrics = val.as_ref().map(|v| metrics(&fit.model, v)).transpose()?;
-    let report = IdentifyReport::new(&fit, &settings, est, val_metrics);
+    let report = IdentifyReport::assemble(&fit, &settings, &data, val.as_ref(), args.resid_lags)?;
     let json_to_stdout = args.json.as_deref().is_some_and(|p| p.as_os_str() == "-");
     let text = format!(
         "Data: {} ({} samples){}\n{}",
@@ -171,5 +191,5 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "--save-model",
         )?;
     }
-    Ok(())
+    crate::exit::strict(args.strict, report.warnings.len())
 }

@@ -11,7 +11,6 @@ use anyhow::Context;
 use rayon::prelude::*;
 use serde::Serialize;
 use sysid::estimate::{identify, Identification};
-use sysid::metrics::metrics;
 use sysid::summary::IdentifyReport;
 use sysid::{Dataset, SysidError};
 
@@ -99,7 +98,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let file = path.display().to_string();
             let line = match sysid::data::read_csv(path, &opts)
                 .map_err(anyhow::Error::from)
-                .and_then(|data| fit_report(&data, &settings, val.as_ref()))
+                .and_then(|data| fit_report(&data, &settings, val.as_ref(), args.resid_lags))
             {
                 Ok(report) => (
                     serde_json::to_string(&Line {
@@ -177,15 +176,10 @@ fn fit_report(
     data: &Dataset,
     settings: &Identification,
     val: Option<&Dataset>,
+    resid_lags: usize,
 ) -> anyhow::Result<IdentifyReport> {
     let fit = identify(data, settings)?;
-    if let Some(p) = fit.params.iter().find(|p| !p.value.is_finite()) {
-        anyhow::bail!(SysidError::Numerical(format!(
-            "{}: the estimate of {} is {} (not finite): the data do not determine it in f64 arithmetic",
-            data.name, p.name, p.value
-        )));
-    }
-    let est = metrics(&fit.model, data)?;
-    let val_metrics = val.map(|v| metrics(&fit.model, v)).transpose()?;
-    Ok(IdentifyReport::new(&fit, settings, est, val_metrics))
+    Ok(IdentifyReport::assemble(
+        &fit, settings, data, val, resid_lags,
+    )?)
 }

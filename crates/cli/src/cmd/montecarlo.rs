@@ -129,6 +129,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ..sysid::RecursiveLeastSquares::default()
         }),
         drop_unexcited_branch: true,
+        // A study of the estimators' bias and spread looks at their own estimates, never a fallback.
+        fallback: false,
     };
     // The truth is comparable only when the estimated structure is the plant model's own.
     let truth = truth_model

@@ -3,7 +3,7 @@
 
 use report::format::num;
 use sysid::metrics::Metrics;
-use sysid::summary::{IdentifyReport, ResidualEntry, ResidualsPair};
+use sysid::summary::{IdentifyReport, ResidualEntry};
 use sysid::{Method, ParamName};
 
 /// A row of the text metrics table: label and how to format the value from a [`Metrics`].
@@ -136,7 +136,14 @@ impl ToText for IdentifyReport {
                 let _ = writeln!(s, "note ({which}): {note}");
             }
         }
-        s.push_str(&residuals_text(&self.residuals));
+        let mut entries = vec![("estimation", &self.residuals.estimation)];
+        entries.extend(
+            self.residuals
+                .validation
+                .as_ref()
+                .map(|v| ("validation", v)),
+        );
+        s.push_str(&residuals_text(&entries));
         for w in &self.warnings {
             let _ = writeln!(s, "warning: {w}");
         }
@@ -144,17 +151,12 @@ impl ToText for IdentifyReport {
     }
 }
 
-/// The residual analysis as text: verdicts, statistics and the worst lags.
-pub fn residuals_text(r: &ResidualsPair) -> String {
+/// The residual analysis of each labelled record as text: verdicts, statistics and the worst lags.
+pub fn residuals_text(entries: &[(&str, &ResidualEntry)]) -> String {
     use std::fmt::Write;
     let mut s = String::new();
-    let entries = [
-        ("estimation", Some(&r.estimation)),
-        ("validation", r.validation.as_ref()),
-    ];
     let mut header = false;
     for (which, entry) in entries {
-        let Some(entry) = entry else { continue };
         if !header {
             let _ = writeln!(
                 s,

@@ -238,3 +238,146 @@ fn too_few_samples_for_the_orders_is_a_clear_error() {
     assert_eq!(code, 2);
     assert!(err.contains("regression rows"), "{err}");
 }
+
+// `warnings` is always present (empty for the exact paper model); `residuals` holds the estimation and
+// validation analyses with M autocorrelations and 2M + 1 cross-correlations; the residuals of an exact
+// model are zero... so use a noisy copy: y + a deterministic ±0.001 mm dither.
+#[test]
+fn identify_json_carries_warnings_and_residual_analysis() {
+    let dir = tempfile::tempdir().unwrap();
+    let (u, y) = paper_record(1200, 0);
+    let y: Vec<f64> = y
+        .iter()
+        .enumerate()
+        .map(|(k, v)| v + 0.001 * (((k * 7919) % 13) as f64 - 6.0) / 6.0)
+        .collect();
+    let est = write_csv(dir.path(), "est.csv", &u, &y);
+    let (u2, y2) = paper_record(1200, 3);
+    let val = write_csv(dir.path(), "val.csv", &u2, &y2);
+    let out = bin()
+        .args(["identify", "--data"])
+        .arg(&est)
+        .arg("--validation")
+        .arg(&val)
+        .args(["--method", "ls", "--resid-lags", "10", "--json", "-"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(v["warnings"].is_array(), "{v}");
+    for which in ["estimation", "validation"] {
+        let r = &v["residuals"][which];
+        assert_eq!(r["max_lag"], 10, "{which}: {r}");
+        assert_eq!(r["autocorrelation"].as_array().unwrap().len(), 10);
+        assert_eq!(r["cross_correlation"].as_array().unwrap().len(), 21);
+        assert!(r["white"].is_boolean() && r["independent"].is_boolean());
+        // The 99 % bound is 2.58/√N with N the rows after k0 = 3.
+        let bound = r["bound"].as_f64().unwrap();
+        assert!(
+            (bound - 2.58 / ((1200.0f64 - 3.0).sqrt())).abs() < 1e-12,
+            "{bound}"
+        );
+    }
+}
+
+// --strict turns warnings into exit code 1; without it the exit code stays 0 and the warning is printed
+// as a `warning:` line. The case: ARX(1,1,1) on an output that is a random walk unrelated to the input
+// (a deterministic generator), whose free-run simulation is worse than the mean (negative fit).
+#[test]
+fn strict_turns_warnings_into_exit_code_1() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut state = 7u64;
+    let mut next = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((state >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
+    };
+    let n = 400;
+    let u: Vec<f64> = (0..n).map(|_| next()).collect();
+    let mut y = vec![0.0; n];
+    for k in 1..n {
+        y[k] = y[k - 1] + next();
+    }
+    let est = write_csv(dir.path(), "est.csv", &u, &y);
+    let run = |strict: bool| {
+        let mut c = bin();
+        c.args(["identify", "--data"]).arg(&est).args([
+            "--model", "arx", "--na", "1", "--nb", "1", "--nk", "1", "--method", "ls", "--json",
+            "-",
+        ]);
+        if strict {
+            c.arg("--strict");
+        }
+        c.output().unwrap()
+    };
+    let loose = run(false);
+    assert!(loose.status.success());
+    let v: serde_json::Value = serde_json::from_slice(&loose.stdout).unwrap();
+    let warnings = v["warnings"].as_array().unwrap();
+    assert!(!warnings.is_empty(), "{v}");
+    let stderr = String::from_utf8_lossy(&loose.stderr);
+    assert!(
+        stderr.contains("warning: negative simulation fit"),
+        "{stderr}"
+    );
+    let strict = run(true);
+    assert_eq!(strict.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&strict.stderr).contains("--strict"));
+}
+
+// `validate --json` reports the residual analysis and the warnings of the record too.
+#[test]
+fn validate_reports_residuals_and_warnings() {
+    let dir = tempfile::tempdir().unwrap();
+    let (u, y) = paper_record(1200, 0);
+    let est = write_csv(dir.path(), "est.csv", &u, &y);
+    let model = dir.path().join("m.json");
+    let ok = bin()
+        .args(["identify", "--data"])
+        .arg(&est)
+        .args(["--method", "ls", "--save-model"])
+        .arg(&model)
+        .output()
+        .unwrap();
+    assert!(ok.status.success());
+    let (u2, y2) = paper_record(1200, 5);
+    let y2: Vec<f64> = y2
+        .iter()
+        .enumerate()
+        .map(|(k, v)| v + 0.001 * (((k * 104729) % 11) as f64 - 5.0) / 5.0)
+        .collect();
+    let val = write_csv(dir.path(), "val.csv", &u2, &y2);
+    let out = bin()
+        .args(["validate", "--model"])
+        .arg(&model)
+        .arg("--data")
+        .arg(&val)
+        .args(["--json", "-"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(v["warnings"].as_array().unwrap().is_empty(), "{v}");
+    assert_eq!(
+        v["residuals"]["validation"]["autocorrelation"]
+            .as_array()
+            .unwrap()
+            .len(),
+        25
+    );
+    assert!(
+        v["metrics"]["validation"]["fit_sim_percent"]
+            .as_f64()
+            .unwrap()
+            > 99.0
+    );
+}

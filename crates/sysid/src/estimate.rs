@@ -814,7 +814,18 @@ fn safeguard(
     // The fallback's breakpoints are fixed at 0 by construction, not estimated: nothing to check.
     if let (Some(d), false) = (fit.model.deadzone().copied(), fell_back) {
         let br = &p.branches;
-        let (w, no_std) = deadzone_warnings(&d, data, br.left, br.right);
+        let std_of = |name: ParamName| {
+            fit.params
+                .iter()
+                .find(|q| q.name == name)
+                .and_then(|q| q.std)
+        };
+        let (w, no_std) = deadzone_warnings(
+            &d,
+            data,
+            (br.left, br.right),
+            (std_of(ParamName::BL), std_of(ParamName::BR)),
+        );
         for q in fit.params.iter_mut() {
             if no_std.contains(&q.name) {
                 q.std = None;

@@ -211,6 +211,82 @@ impl IdentifyReport {
     }
 }
 
+/// Metrics of a validation record (`validate --json`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ValidationMetrics {
+    /// On the validation data.
+    pub validation: Metrics,
+}
+
+/// Residual analysis of a validation record.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ValidationResiduals {
+    /// On the validation data.
+    pub validation: ResidualEntry,
+}
+
+/// The `validate --json` document: a saved model judged on new data.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ValidationReport {
+    /// The model.
+    pub model: Model,
+    /// Its poles, largest modulus first.
+    pub poles: Vec<Pole>,
+    /// All poles strictly inside the unit circle.
+    pub stable: bool,
+    /// Metrics on the record.
+    pub metrics: ValidationMetrics,
+    /// Residual analysis on the record.
+    pub residuals: ValidationResiduals,
+    /// Reasons not to trust the model on this record, in words (always present).
+    pub warnings: Vec<String>,
+}
+
+impl ValidationReport {
+    /// Validates `model` on `data`: metrics, residual analysis with `max_lag` lags, warnings (unstable
+    /// model, negative or diverging simulation fit).
+    pub fn assemble(model: &Model, data: &Dataset, max_lag: usize) -> Result<Self, SysidError> {
+        let m = metrics(model, data)?;
+        let mut warnings = Vec::new();
+        let max_pole = model.poles().iter().map(|z| z.norm()).fold(0.0, f64::max);
+        if max_pole >= 1.0 {
+            warnings.push(
+                Warning::Unstable {
+                    max_pole_modulus: max_pole,
+                }
+                .to_string(),
+            );
+        }
+        match m.fit_sim_percent {
+            Some(f) if f >= 0.0 => {}
+            other => warnings.push(
+                Warning::PoorSimulation {
+                    record: Record::Validation,
+                    fit_percent: other,
+                }
+                .to_string(),
+            ),
+        }
+        Ok(ValidationReport {
+            model: model.clone(),
+            poles: poles(model),
+            stable: model.is_stable(),
+            metrics: ValidationMetrics { validation: m },
+            residuals: ValidationResiduals {
+                validation: residual_analysis(model, data, max_lag),
+            },
+            warnings,
+        })
+    }
+
+    /// Pretty JSON text (ending with a newline).
+    pub fn to_json(&self) -> Result<String, SysidError> {
+        serde_json::to_string_pretty(self)
+            .map(|s| s + "\n")
+            .map_err(|e| SysidError::Numerical(format!("the report could not be serialised: {e}")))
+    }
+}
+
 /// The poles of a model as JSON-friendly values.
 pub fn poles(model: &Model) -> Vec<Pole> {
     model

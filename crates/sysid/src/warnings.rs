@@ -74,11 +74,13 @@ pub enum Warning {
         /// Why.
         why: String,
     },
-    /// A breakpoint sits on one of the input's levels: the loss has a kink there and its standard
-    /// deviation is not meaningful.
+    /// A breakpoint sits on one of the input's levels, or within its standard deviation of one: the
+    /// loss has a kink there, so the quadratic approximation behind the standard deviation fails.
     BreakpointOnInputLevel {
         /// b_l or b_r.
         name: ParamName,
+        /// Its value.
+        value: f64,
         /// The level (counts).
         level: f64,
     },
@@ -135,10 +137,10 @@ impl std::fmt::Display for Warning {
                 "{why}; the linear ARX model of the same orders does better (the fallback option returns \
                  it as a Hammerstein model with b_l = b_r = 0)"
             ),
-            Warning::BreakpointOnInputLevel { name, level } => write!(
+            Warning::BreakpointOnInputLevel { name, value, level } => write!(
                 f,
-                "{name} = {level} lies on an input level: the criterion has a kink there, so its standard \
-                 deviation is not meaningful (not reported)"
+                "{name} = {value:.6} lies on the input level {level} (within its standard deviation): the \
+                 criterion has a kink there, so its standard deviation is not meaningful (not reported)"
             ),
             Warning::BreakpointNotBracketed {
                 name,
@@ -168,14 +170,15 @@ impl Serialize for Warning {
 }
 
 /// Checks a deadzone estimate against the input it was estimated from: a physical shape, breakpoints
-/// bracketed by the data and not on an input level, at least two distinct levels on each estimated
-/// branch. `left`/`right`: whether that branch was estimated (not dropped for a one-sided input).
-/// Returns the warnings and the names of the breakpoints whose standard deviation is not meaningful.
+/// bracketed by the data and not on an input level (nor within their standard deviation `std_l`,
+/// `std_r` of one), at least two distinct levels on each estimated branch. `left`/`right`: whether that
+/// branch was estimated (not dropped for a one-sided input). Returns the warnings and the names of the
+/// breakpoints whose standard deviation is not meaningful.
 pub fn deadzone_warnings(
     d: &Deadzone,
     data: &Dataset,
-    left: bool,
-    right: bool,
+    (left, right): (bool, bool),
+    (std_l, std_r): (Option<f64>, Option<f64>),
 ) -> (Vec<Warning>, Vec<ParamName>) {
     let mut w = Vec::new();
     let mut no_std = Vec::new();
@@ -200,19 +203,18 @@ pub fn deadzone_warnings(
         });
     }
     let checks = [
-        (left, ParamName::BL, d.b_l, Branch::Left),
-        (right, ParamName::BR, d.b_r, Branch::Right),
+        (left, ParamName::BL, d.b_l, std_l, Branch::Left),
+        (right, ParamName::BR, d.b_r, std_r, Branch::Right),
     ];
-    for (estimated, name, b, branch) in checks {
+    for (estimated, name, b, std, branch) in checks {
         if !estimated {
             continue;
         }
-        if let Some(level) = levels
-            .iter()
-            .find(|l| (b - **l).abs() <= 1e-9 * l.abs().max(1.0))
-        {
+        let reach = |l: f64| (1e-9 * l.abs().max(1.0)).max(std.unwrap_or(0.0));
+        if let Some(level) = levels.iter().find(|l| (b - **l).abs() <= reach(**l)) {
             w.push(Warning::BreakpointOnInputLevel {
                 name,
+                value: b,
                 level: *level,
             });
             no_std.push(name);
@@ -264,15 +266,27 @@ mod tests {
             m_l: 0.005,
             m_r: 0.005,
         };
-        let (w, no_std) = deadzone_warnings(&dz, &d, true, true);
+        let (w, no_std) = deadzone_warnings(&dz, &d, (true, true), (None, None));
         assert_eq!(no_std, vec![ParamName::BL]);
         assert!(matches!(
             w[..],
             [Warning::BreakpointOnInputLevel { level, .. }] if level == -48.0
         ));
-        assert!(w[0]
-            .to_string()
-            .contains("b_l = -48 lies on an input level"));
+        assert!(w[0].to_string().contains("lies on the input level -48"));
+        // A breakpoint 4e-5 from the level, with a standard deviation of 0.5: the kink is within one
+        // standard deviation, so the same warning; 0.4 away with σ 0.1 is not.
+        let near = Deadzone {
+            b_l: -47.99996,
+            ..dz
+        };
+        let (w, _) = deadzone_warnings(&near, &d, (true, true), (Some(0.5), Some(0.1)));
+        assert!(
+            matches!(w[..], [Warning::BreakpointOnInputLevel { .. }]),
+            "{w:?}"
+        );
+        let apart = Deadzone { b_l: -47.6, ..dz };
+        let (w, no_std) = deadzone_warnings(&apart, &d, (true, true), (Some(0.1), Some(0.1)));
+        assert!(w.is_empty() && no_std.is_empty(), "{w:?}");
     }
 
     // b_r above every command: not bracketed; the right branch has no level beyond it.
@@ -285,7 +299,7 @@ mod tests {
             m_l: 1.0,
             m_r: 1.0,
         };
-        let (w, no_std) = deadzone_warnings(&dz, &d, true, true);
+        let (w, no_std) = deadzone_warnings(&dz, &d, (true, true), (None, None));
         assert_eq!(no_std, vec![ParamName::BR]);
         assert!(w.contains(&Warning::BreakpointNotBracketed {
             name: ParamName::BR,
@@ -314,7 +328,7 @@ mod tests {
             m_l: -1.0,
             m_r: 1.0,
         };
-        let (w, _) = deadzone_warnings(&dz, &d, true, true);
+        let (w, _) = deadzone_warnings(&dz, &d, (true, true), (None, None));
         let n = w
             .iter()
             .filter(|w| matches!(w, Warning::NonPhysicalDeadzone { .. }))
@@ -332,7 +346,7 @@ mod tests {
             m_l: 0.0,
             m_r: 1.0,
         };
-        let (w, _) = deadzone_warnings(&dz, &d, false, true);
+        let (w, _) = deadzone_warnings(&dz, &d, (false, true), (None, None));
         assert!(w.is_empty(), "{w:?}");
     }
 }

@@ -2,7 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
-use sysid::metrics::metrics;
+use sysid::summary::ValidationReport;
 
 use super::common::{check_outputs, write_output, ColumnArgs};
 
@@ -17,6 +17,12 @@ pub struct Args {
     pub data: PathBuf,
     #[command(flatten)]
     pub columns: ColumnArgs,
+    /// Lags M of the residual analysis (autocorrelation τ = 1..M, cross-correlation τ = −M..M).
+    #[arg(long, default_value_t = sysid::residuals::DEFAULT_MAX_LAG, value_name = "M")]
+    pub resid_lags: usize,
+    /// Exit with code 1 when the result carries warnings (they are printed either way).
+    #[arg(long)]
+    pub strict: bool,
     /// Write the metrics as JSON here (`-` for standard output).
     #[arg(long, value_name = "OUT")]
     pub json: Option<PathBuf>,
@@ -39,14 +45,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             model.ts()
         );
     }
-    let m = metrics(&model, &data)?;
-    let value = serde_json::json!({
-        "model": model,
-        "poles": sysid::summary::poles(&model),
-        "stable": model.is_stable(),
-        "metrics": { "validation": m },
-    });
-    let text = format!(
+    let report = ValidationReport::assemble(&model, &data, args.resid_lags)?;
+    let m = &report.metrics.validation;
+    let mut text = format!(
         "{} on {} ({} samples): fit {} % (simulation), {} % (1-step prediction); loss {}, FPE {}; {}\n",
         args.model.display(),
         data.name,
@@ -57,14 +58,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         m.fpe.map_or("n/a".into(), report::format::num),
         if model.is_stable() { "stable" } else { "UNSTABLE" }
     );
+    text.push_str(&crate::text::residuals_text(&[(
+        "validation",
+        &report.residuals.validation,
+    )]));
+    for w in &report.warnings {
+        text.push_str(&format!("warning: {w}\n"));
+    }
     if args.json.as_deref().is_some_and(|p| p.as_os_str() == "-") {
         eprint!("{text}");
     } else {
         print!("{text}");
     }
     if let Some(path) = &args.json {
-        let json = serde_json::to_string_pretty(&value)? + "\n";
-        write_output(path, json.as_bytes(), &inputs, "--json")?;
+        write_output(path, report.to_json()?.as_bytes(), &inputs, "--json")?;
     }
-    Ok(())
+    crate::exit::strict(args.strict, report.warnings.len())
 }

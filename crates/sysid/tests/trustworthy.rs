@@ -1,0 +1,336 @@
+//! Trustworthy estimates (issue "no confidently wrong model"): the output-error search stays stable and
+//! never does worse than its least-squares start on the reported criterion; Hammerstein estimates that
+//! blow up carry a warning (or fall back); residual tests tell output error from equation error; the
+//! default recursive identification converges. Real records are read from `../shared/data` at run time
+//! and the tests that need them skip, saying so, when the folder is absent.
+
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests may panic
+
+use std::path::{Path, PathBuf};
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use sysid::data::{read_csv, CsvOptions, Signals};
+use sysid::estimate::{identify, Identification, Method};
+use sysid::metrics::metrics;
+use sysid::summary::{residual_analysis, ResidualEntry};
+use sysid::{Dataset, Model, ModelKind, Warning};
+
+fn data_dir() -> Option<PathBuf> {
+    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
+    if dir.is_dir() {
+        Some(dir)
+    } else {
+        println!(
+            "SKIPPED: the shared data folder {} is absent",
+            dir.display()
+        );
+        None
+    }
+}
+
+fn read(path: &Path, u: &str, y: &str, ts: f64) -> Dataset {
+    let opts = CsvOptions {
+        u_col: u.into(),
+        y_col: y.into(),
+        t_col: "t".into(),
+        ts: Some(ts),
+        fallback_ts: None,
+    };
+    read_csv(path, &opts).unwrap()
+}
+
+/// Rows `a..b` of a record.
+fn rows(d: &Dataset, a: usize, b: usize) -> Dataset {
+    Dataset::new(
+        Signals {
+            u: d.u[a..b].to_vec(),
+            y: d.y[a..b].to_vec(),
+        },
+        d.ts,
+        format!("{}[{a}..{b}]", d.name),
+    )
+    .unwrap()
+}
+
+fn arx(na: usize, nb: usize, nk: usize, method: Method) -> Identification {
+    Identification::default()
+        .with_kind(ModelKind::Arx)
+        .with_orders(na, nb, nk)
+        .with_offset(true)
+        .with_method(method)
+}
+
+/// The records of the issue's table, split as each SOURCE.md gives: (name, estimation, orders).
+fn table_cases(dir: &Path) -> Vec<(&'static str, Dataset, (usize, usize, usize))> {
+    let arm = read(&dir.join("robot_arm_flexible/robot_arm.csv"), "u", "y", 1.0);
+    let bb = read(&dir.join("ball_and_beam/ballbeam.csv"), "u", "y", 1.0);
+    let dryer = read(&dir.join("hair_dryer_pt326/dryer.csv"), "u", "y", 1.0);
+    let emps = read(&dir.join("emps/DATA_EMPS.csv"), "vir", "qm", 0.001);
+    vec![
+        ("robot arm (8,7,1)", rows(&arm, 0, 512), (8, 7, 1)),
+        ("robot arm (12,10,0)", rows(&arm, 0, 512), (12, 10, 0)),
+        ("EMPS (6,5,0)", emps, (6, 5, 0)),
+        ("ball and beam (2,2,1)", rows(&bb, 0, 500), (2, 2, 1)),
+        ("hair dryer (3,5,2)", rows(&dryer, 0, 500), (3, 5, 2)),
+    ]
+}
+
+// On every record of the table, output error with an offset returns a stable model whose estimation
+// simulation RMSE (the reported criterion) is not above least squares'; it converges within its cap.
+#[test]
+fn output_error_is_stable_and_never_worse_than_least_squares_on_real_records() {
+    let Some(dir) = data_dir() else { return };
+    for (name, est, (na, nb, nk)) in table_cases(&dir) {
+        let ls = identify(&est, &arx(na, nb, nk, Method::Ls)).unwrap();
+        let oe = identify(&est, &arx(na, nb, nk, Method::Oe)).unwrap();
+        let rmse_ls = metrics(&ls.model, &est).unwrap().rmse_sim.unwrap();
+        let rmse_oe = metrics(&oe.model, &est).unwrap().rmse_sim.unwrap();
+        // The poles, computed independently of the search's stability test.
+        let max_pole = oe
+            .model
+            .poles()
+            .iter()
+            .map(|p| p.norm())
+            .fold(0.0, f64::max);
+        assert!(max_pole < 1.0, "{name}: OE pole modulus {max_pole}");
+        assert!(
+            rmse_oe <= rmse_ls * (1.0 + 1e-12),
+            "{name}: OE {rmse_oe} > LS {rmse_ls}"
+        );
+        assert!(oe.converged(), "{name}: {:?}", oe.note());
+        assert!(
+            !oe.warnings
+                .iter()
+                .any(|w| matches!(w, Warning::Unstable { .. })),
+            "{name}"
+        );
+    }
+}
+
+// Key-term LS on the Hammerstein structure blows up on these records (issue table: robot arm (8,7,1)
+// with offset, gas furnace (2,2,3), cascaded tanks (2,4,1) without offset): whenever the estimate
+// simulates worse than the record's mean, diverges or is unstable, it carries a warning; with the
+// fallback on, the result simulates at least as well as the linear ARX start minus the margin.
+#[test]
+fn blown_up_hammerstein_estimates_are_never_silent() {
+    let Some(dir) = data_dir() else { return };
+    let arm = read(&dir.join("robot_arm_flexible/robot_arm.csv"), "u", "y", 1.0);
+    let gas = read(
+        &dir.join("gas_furnace_box_jenkins/gas_furnace.csv"),
+        "InputGasRate",
+        "CO2",
+        9.0,
+    );
+    let tanks = read(
+        &dir.join("cascaded_tanks/dataBenchmark.csv"),
+        "uEst",
+        "yEst",
+        4.0,
+    );
+    let cases = [
+        ("robot arm", rows(&arm, 0, 512), (8, 7, 1), true),
+        ("gas furnace", rows(&gas, 0, 148), (2, 2, 3), false),
+        ("cascaded tanks", tanks, (2, 4, 1), false),
+    ];
+    for (name, est, (na, nb, nk), offset) in cases {
+        for fallback in [false, true] {
+            let s = Identification {
+                drop_unexcited_branch: true,
+                fallback,
+                ..Identification::default()
+            }
+            .with_orders(na, nb, nk)
+            .with_offset(offset)
+            .with_method(Method::Ls);
+            let fit = identify(&est, &s).unwrap();
+            let m = metrics(&fit.model, &est).unwrap();
+            let bad = m.fit_sim_percent.is_none_or(|f| f < 0.0) || !fit.model.is_stable();
+            assert!(!bad || !fit.warnings.is_empty(), "{name}: silent {m:?}");
+            // The linear start, computed here on its own.
+            let lin = identify(
+                &est,
+                &Identification::default()
+                    .with_kind(ModelKind::Arx)
+                    .with_orders(na, nb, nk)
+                    .with_offset(offset)
+                    .with_method(Method::Ls),
+            )
+            .unwrap();
+            let lin_fit = metrics(&lin.model, &est).unwrap().fit_sim_percent.unwrap();
+            let got = m.fit_sim_percent.unwrap_or(f64::NEG_INFINITY);
+            if fallback {
+                assert!(
+                    got >= lin_fit - sysid::estimate::FALLBACK_FIT_MARGIN - 1e-9,
+                    "{name}: fallback result {got} vs linear {lin_fit}"
+                );
+            } else if got < lin_fit - sysid::estimate::FALLBACK_FIT_MARGIN {
+                assert!(
+                    fit.warnings
+                        .iter()
+                        .any(|w| matches!(w, Warning::LinearStartBetter { .. })),
+                    "{name}: {:?}",
+                    fit.warnings
+                );
+            }
+        }
+    }
+}
+
+/// y = B/A u + e with e white: a stable second-order output-error system.
+fn oe_system(seed: u64) -> Dataset {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let n = 3000;
+    let u: Vec<f64> = (0..n).map(|_| rng.gen_range(-1.0..1.0)).collect();
+    let mut x = vec![0.0; n];
+    for k in 2..n {
+        x[k] = 1.5 * x[k - 1] - 0.7 * x[k - 2] + u[k - 1] + 0.5 * u[k - 2];
+    }
+    let y: Vec<f64> = x
+        .iter()
+        .map(|v| v + 0.5 * rng.gen_range(-1.0..1.0))
+        .collect();
+    Dataset::new(Signals { u, y }, 1.0, "oe system").unwrap()
+}
+
+fn verdicts(model: &Model, data: &Dataset) -> (bool, bool) {
+    match residual_analysis(model, data, 25) {
+        ResidualEntry::Analysis(a) => (a.white, a.independent),
+        ResidualEntry::Unavailable { error } => panic!("{error}"),
+    }
+}
+
+// On an output-error system (white noise added at the output), the residuals of the output-error
+// estimate are white and independent of the input, and those of equation-error least squares on the
+// same data are not white (their equation error is A(q) e, coloured).
+#[test]
+fn residual_tests_tell_output_error_from_equation_error() {
+    for seed in [1, 2, 3] {
+        let data = oe_system(seed);
+        let s = |m| {
+            Identification::default()
+                .with_kind(ModelKind::Arx)
+                .with_orders(2, 2, 1)
+                .with_method(m)
+        };
+        let oe = identify(&data, &s(Method::Oe)).unwrap();
+        let ls = identify(&data, &s(Method::Ls)).unwrap();
+        let (white, independent) = verdicts(&oe.model, &data);
+        assert!(
+            white && independent,
+            "seed {seed}: OE residuals {white} {independent}"
+        );
+        let (white, _) = verdicts(&ls.model, &data);
+        assert!(!white, "seed {seed}: LS residuals judged white");
+    }
+}
+
+fn paper_record(n: usize, seed: u64) -> Dataset {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut u = Vec::with_capacity(n);
+    while u.len() < n {
+        let level = rng.gen_range(-40i32..=40) as f64;
+        let hold = rng.gen_range(10..50);
+        for _ in 0..hold.min(n - u.len()) {
+            u.push(level);
+        }
+    }
+    let y = Model::paper().simulate(&u, &vec![0.0; n]).unwrap();
+    Dataset::new(Signals { u, y }, 0.01, "paper").unwrap()
+}
+
+// The default identification (RLS, passes until settled) on noise-free data of the paper's model
+// converges and recovers it to 1e-8 relative; the paper's single pass does not settle and says so.
+#[test]
+fn default_identification_converges_exactly_on_the_paper_model() {
+    let data = paper_record(2000, 7);
+    let fit = identify(&data, &Identification::default()).unwrap();
+    assert!(fit.converged(), "{:?}", fit.note());
+    assert!(fit.warnings.is_empty(), "{:?}", fit.warnings);
+    let truth = Model::paper();
+    let (d, t) = (fit.model.deadzone().unwrap(), truth.deadzone().unwrap());
+    for (got, want) in [
+        (d.b_l, t.b_l),
+        (d.b_r, t.b_r),
+        (d.m_l, t.m_l),
+        (d.m_r, t.m_r),
+    ]
+    .into_iter()
+    .chain(fit.model.a().iter().copied().zip(truth.a().iter().copied()))
+    {
+        assert!((got - want).abs() <= 1e-8 * want.abs(), "{got} vs {want}");
+    }
+    let single = Identification::default().with_passes(sysid::Passes::Fixed(1));
+    let fit1 = identify(&data, &single).unwrap();
+    if !fit1.converged() {
+        assert!(
+            fit1.warnings
+                .iter()
+                .any(|w| matches!(w, Warning::NotConverged { .. })),
+            "{:?}",
+            fit1.warnings
+        );
+    }
+}
+
+// An unstable estimate is flagged: ARX(1,1,1) on a record that grows geometrically, y(k) = 1.05 y(k−1)
+// + u(k−1), has its pole at 1.05.
+#[test]
+fn an_unstable_model_is_flagged() {
+    let n = 60;
+    let u: Vec<f64> = (0..n).map(|k| if k % 7 < 3 { 1.0 } else { -0.5 }).collect();
+    let mut y = vec![0.0; n];
+    for k in 1..n {
+        y[k] = 1.05 * y[k - 1] + u[k - 1];
+    }
+    let data = Dataset::new(Signals { u, y }, 1.0, "growing").unwrap();
+    let fit = identify(
+        &data,
+        &Identification::default()
+            .with_kind(ModelKind::Arx)
+            .with_orders(1, 1, 1)
+            .with_method(Method::Ls),
+    )
+    .unwrap();
+    assert!((fit.model.a()[0] + 1.05).abs() < 1e-9);
+    assert!(
+        fit.warnings
+            .iter()
+            .any(|w| matches!(w, Warning::Unstable { max_pole_modulus } if (max_pole_modulus - 1.05).abs() < 1e-9)),
+        "{:?}",
+        fit.warnings
+    );
+}
+
+// A model that simulates worse than the mean is flagged: ARX(1,1,1) on a record whose output is a
+// random walk unrelated to the input: the estimated pole sits near 1 and b near 0, so the free run is
+// the initial output drifting slowly, below 0 % fit.
+#[test]
+fn a_negative_simulation_fit_is_flagged() {
+    let mut rng = ChaCha8Rng::seed_from_u64(3);
+    let n = 400;
+    let u: Vec<f64> = (0..n).map(|_| rng.gen_range(-1.0..1.0)).collect();
+    let mut y = vec![0.0; n];
+    for k in 1..n {
+        y[k] = y[k - 1] + rng.gen_range(-1.0..1.0);
+    }
+    let data = Dataset::new(Signals { u, y }, 1.0, "random walk").unwrap();
+    let fit = identify(
+        &data,
+        &Identification::default()
+            .with_kind(ModelKind::Arx)
+            .with_orders(1, 1, 1)
+            .with_method(Method::Ls),
+    )
+    .unwrap();
+    let f = metrics(&fit.model, &data).unwrap().fit_sim_percent.unwrap();
+    let flagged = fit
+        .warnings
+        .iter()
+        .any(|w| matches!(w, Warning::PoorSimulation { .. }));
+    assert!(
+        f < 0.0,
+        "the case must simulate worse than the mean: fit {f}"
+    );
+    assert!(flagged, "fit {f}: {:?}", fit.warnings);
+}

@@ -1,4 +1,6 @@
-//! The equations of motion of the IPA: state, right-hand side and one RK4 step.
+//! The equations of motion of the IPA: state, right-hand side, one classical RK4 step (the reference
+//! integrator) and one Dormand–Prince 5(4) step with its error estimate and dense output (the production
+//! integrator, see [`crate::plant`]).
 //!
 //! State s = (x, v, p_a, p_b): piston position x (m, 0 = retracted), velocity v (m/s), cap-side and
 //! rod-side absolute pressures (Pa). With both valve states fixed (between switching instants):
@@ -29,6 +31,14 @@ pub struct State {
 }
 
 impl State {
+    /// The state with every component zero.
+    pub const ZERO: State = State {
+        x_m: 0.0,
+        v_m_s: 0.0,
+        p_cap_pa: 0.0,
+        p_rod_pa: 0.0,
+    };
+
     #[inline]
     fn axpy(&self, h: f64, d: &State) -> State {
         State {
@@ -178,6 +188,182 @@ impl Dynamics {
                 + h6 * (k1.p_cap_pa + 2.0 * (k2.p_cap_pa + k3.p_cap_pa) + k4.p_cap_pa),
             p_rod_pa: s.p_rod_pa
                 + h6 * (k1.p_rod_pa + 2.0 * (k2.p_rod_pa + k3.p_rod_pa) + k4.p_rod_pa),
+        }
+    }
+
+    /// One Dormand–Prince 5(4) step of length `h_s` from `s` (time derivative `k1` there, in the same
+    /// mode and valve states): the fifth-order solution, the difference to the embedded fourth-order
+    /// one (the local error estimate, same units as the state) and the stage derivatives kept for the
+    /// dense output. `k7` (the derivative at the new state) is the next step's `k1` (FSAL).
+    #[inline]
+    pub fn dopri5(
+        &self,
+        s: &State,
+        k1: &State,
+        mode: Mode,
+        valves: Valves,
+        h_s: f64,
+    ) -> Dopri5Step {
+        let f = |y: State| self.derivative(&y, mode, valves);
+        let k2 = f(s.axpy(h_s * A21, k1));
+        let k3 = f(lin(s, h_s, &[(A31, k1), (A32, &k2)]));
+        let k4 = f(lin(s, h_s, &[(A41, k1), (A42, &k2), (A43, &k3)]));
+        let k5 = f(lin(
+            s,
+            h_s,
+            &[(A51, k1), (A52, &k2), (A53, &k3), (A54, &k4)],
+        ));
+        let k6 = f(lin(
+            s,
+            h_s,
+            &[(A61, k1), (A62, &k2), (A63, &k3), (A64, &k4), (A65, &k5)],
+        ));
+        let y = lin(
+            s,
+            h_s,
+            &[(B1, k1), (B3, &k3), (B4, &k4), (B5, &k5), (B6, &k6)],
+        );
+        let k7 = f(y);
+        let err = lin(
+            &State::ZERO,
+            h_s,
+            &[
+                (E1, k1),
+                (E3, &k3),
+                (E4, &k4),
+                (E5, &k5),
+                (E6, &k6),
+                (E7, &k7),
+            ],
+        );
+        Dopri5Step {
+            y0: *s,
+            y,
+            err,
+            k: [*k1, k3, k4, k5, k6, k7],
+            h_s,
+        }
+    }
+}
+
+/// s + h sum_i a_i k_i.
+#[inline]
+fn lin(s: &State, h: f64, terms: &[(f64, &State)]) -> State {
+    let mut r = *s;
+    for &(a, k) in terms {
+        r = r.axpy(h * a, k);
+    }
+    r
+}
+
+// Dormand & Prince (1980) coefficients (Hairer, Norsett & Wanner, Solving ODE I, table II.5.2).
+const A21: f64 = 1.0 / 5.0;
+const A31: f64 = 3.0 / 40.0;
+const A32: f64 = 9.0 / 40.0;
+const A41: f64 = 44.0 / 45.0;
+const A42: f64 = -56.0 / 15.0;
+const A43: f64 = 32.0 / 9.0;
+const A51: f64 = 19372.0 / 6561.0;
+const A52: f64 = -25360.0 / 2187.0;
+const A53: f64 = 64448.0 / 6561.0;
+const A54: f64 = -212.0 / 729.0;
+const A61: f64 = 9017.0 / 3168.0;
+const A62: f64 = -355.0 / 33.0;
+const A63: f64 = 46732.0 / 5247.0;
+const A64: f64 = 49.0 / 176.0;
+const A65: f64 = -5103.0 / 18656.0;
+const B1: f64 = 35.0 / 384.0;
+const B3: f64 = 500.0 / 1113.0;
+const B4: f64 = 125.0 / 192.0;
+const B5: f64 = -2187.0 / 6784.0;
+const B6: f64 = 11.0 / 84.0;
+// Fifth-order minus fourth-order weights.
+const E1: f64 = 71.0 / 57600.0;
+const E3: f64 = -71.0 / 16695.0;
+const E4: f64 = 71.0 / 1920.0;
+const E5: f64 = -17253.0 / 339200.0;
+const E6: f64 = 22.0 / 525.0;
+const E7: f64 = -1.0 / 40.0;
+// Dense output (Hairer's DOPRI5 code, CONTD5): fourth-order continuous extension.
+const D1: f64 = -12715105075.0 / 11282082432.0;
+const D3: f64 = 87487479700.0 / 32700410799.0;
+const D4: f64 = -10690763975.0 / 1880347072.0;
+const D5: f64 = 701980252875.0 / 199316789632.0;
+const D6: f64 = -1453857185.0 / 822651844.0;
+const D7: f64 = 69997945.0 / 29380423.0;
+
+/// One Dormand–Prince step: start and end states, error estimate and what the dense output needs.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Dopri5Step {
+    /// The state at the start of the step.
+    pub y0: State,
+    /// The fifth-order state at the end of the step.
+    pub y: State,
+    /// Fifth- minus fourth-order solution: the local error estimate (m, m/s, Pa, Pa).
+    pub err: State,
+    /// Stage derivatives k1, k3, k4, k5, k6, k7 (k2 has zero weight in the solution and dense output).
+    k: [State; 6],
+    /// The step length, s.
+    pub h_s: f64,
+}
+
+impl Dopri5Step {
+    /// The derivative at the end of the step (k7), valid as the next step's k1.
+    pub fn end_derivative(&self) -> State {
+        self.k[5]
+    }
+
+    /// The fourth-order continuous extension of the step, for locating events inside it.
+    pub fn dense(&self) -> Dense {
+        let h = self.h_s;
+        let [k1, k3, k4, k5, k6, k7] = &self.k;
+        let r2 = self.y.axpy(-1.0, &self.y0);
+        let r3 = lin(&State::ZERO, h, &[(1.0, k1)]).axpy(-1.0, &r2);
+        let r4 = r2.axpy(-h, k7).axpy(-1.0, &r3);
+        let r5 = lin(
+            &State::ZERO,
+            h,
+            &[(D1, k1), (D3, k3), (D4, k4), (D5, k5), (D6, k6), (D7, k7)],
+        );
+        Dense {
+            r: [self.y0, r2, r3, r4, r5],
+        }
+    }
+}
+
+/// The dense output of a Dormand–Prince step: y(t + theta h) for theta in [0, 1], fourth order.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Dense {
+    r: [State; 5],
+}
+
+impl Dense {
+    /// The state at the fraction `theta` (0..=1) of the step.
+    #[inline]
+    pub fn at(&self, theta: f64) -> State {
+        let t1 = 1.0 - theta;
+        let [r1, r2, r3, r4, r5] = &self.r;
+        // r1 + theta (r2 + t1 (r3 + theta (r4 + t1 r5)))
+        let c = |a: f64, b: f64, c3: f64, d: f64, e: f64| {
+            a + theta * (b + t1 * (c3 + theta * (d + t1 * e)))
+        };
+        State {
+            x_m: c(r1.x_m, r2.x_m, r3.x_m, r4.x_m, r5.x_m),
+            v_m_s: c(r1.v_m_s, r2.v_m_s, r3.v_m_s, r4.v_m_s, r5.v_m_s),
+            p_cap_pa: c(
+                r1.p_cap_pa,
+                r2.p_cap_pa,
+                r3.p_cap_pa,
+                r4.p_cap_pa,
+                r5.p_cap_pa,
+            ),
+            p_rod_pa: c(
+                r1.p_rod_pa,
+                r2.p_rod_pa,
+                r3.p_rod_pa,
+                r4.p_rod_pa,
+                r5.p_rod_pa,
+            ),
         }
     }
 }

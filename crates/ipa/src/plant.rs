@@ -3,12 +3,14 @@
 //! Each sampling period Ts the command u (counts, clamped to [-255, 255]) is latched by the PWM at the
 //! start of every PWM period: u > 0 energises the cap-side valve for |u|/255 of the period, u < 0 the
 //! rod-side valve. The valves switch after their opening/closing delays; between switching instants the
-//! state is integrated by classical RK4 with substeps no longer than `integration.max_substep_ms`.
-//! Sticking, breakaway and end-stop contact are located events (Illinois root finding on the RK4 step
-//! length), so the trajectory converges at the integrator's order.
+//! state is integrated by the adaptive Dormand–Prince 5(4) pair ([`Integrator::DormandPrince`], local
+//! error tolerance `integration.tolerance`), or by the reference integrator, classical RK4 with substeps
+//! no longer than `integration.max_substep_ms` ([`Integrator::Rk4`]). Sticking, breakaway and end-stop
+//! contact are located events (Illinois root finding on the Dormand–Prince dense output, or on the RK4
+//! step length), so the trajectory converges at the integrator's order.
 
 use crate::config::PlantConfig;
-use crate::dynamics::{Dynamics, Mode, State, Valves};
+use crate::dynamics::{Dense, Dopri5Step, Dynamics, Mode, State, Valves};
 use crate::encoder::Encoder;
 use crate::valve::Valve;
 use crate::IpaError;
@@ -18,6 +20,25 @@ pub const U_MAX: f64 = 255.0;
 
 /// Upper bound on located events within one sampling period (guards against chattering).
 const MAX_EVENTS_PER_SAMPLE: usize = 10_000;
+
+/// Fractions of a Dormand–Prince step at which the event functions are checked on the dense output
+/// (so that an event that happens and reverts within one step is still seen).
+const EVENT_CHECKS: [f64; 3] = [1.0 / 3.0, 2.0 / 3.0, 1.0];
+
+/// Velocity scale of the step-size control, m/s (the order of the full-command speed).
+const VELOCITY_SCALE_M_S: f64 = 1.0;
+
+/// The numerical integrator of the plant's continuous state between valve switching instants.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Integrator {
+    /// Adaptive Dormand–Prince 5(4) with local error control (`integration.tolerance`), FSAL and
+    /// events located on its dense output: the production integrator.
+    #[default]
+    DormandPrince,
+    /// Classical RK4 with fixed substeps (`integration.max_substep_ms`, `slow_substep_ms`): the
+    /// integrator used before, kept as the reference for accuracy tests and benchmarks.
+    Rk4,
+}
 
 /// The PWM period currently running: its start (s), which valve it drives (+1 cap, -1 rod, 0 none) and
 /// the duty in [0, 1].
@@ -49,6 +70,13 @@ pub struct Ipa {
     max_substep_s: f64,
     slow_substep_s: f64,
     slow_speed_m_s: f64,
+    integrator: Integrator,
+    /// 1 / (tolerance * scale) for x, v and the pressures: weights of the local error norm.
+    err_weight: [f64; 3],
+    /// Proposed length of the next Dormand–Prince step, s.
+    h_next_s: f64,
+    /// The derivative at the current state, with the valve states and mode it was computed for (FSAL).
+    fsal: Option<(Valves, Mode, State)>,
     state: State,
     mode: Mode,
     valve_cap: Valve,
@@ -98,6 +126,17 @@ impl Ipa {
             max_substep_s: config.integration.max_substep_ms * 1e-3,
             slow_substep_s: config.integration.slow_substep_ms * 1e-3,
             slow_speed_m_s: config.integration.slow_speed_mm_s * 1e-3,
+            integrator: Integrator::DormandPrince,
+            err_weight: {
+                let tol = config.integration.tolerance;
+                [
+                    1.0 / (tol * dynamics.cylinder.stroke_m),
+                    1.0 / (tol * VELOCITY_SCALE_M_S),
+                    1.0 / (tol * dynamics.supply_pa),
+                ]
+            },
+            h_next_s: 0.0,
+            fsal: None,
             state: State {
                 x_m: 0.0,
                 v_m_s: 0.0,
@@ -162,6 +201,17 @@ impl Ipa {
         self.mode == Mode::Stuck
     }
 
+    /// The integrator in use ([`Integrator::DormandPrince`] unless changed by [`Ipa::set_integrator`]).
+    pub fn integrator(&self) -> Integrator {
+        self.integrator
+    }
+
+    /// Chooses the integrator (for reference runs; the state is kept).
+    pub fn set_integrator(&mut self, integrator: Integrator) {
+        self.integrator = integrator;
+        self.fsal = None;
+    }
+
     /// Number of located events (stops, breakaways, end-stop contacts) since the last reset.
     pub fn event_count(&self) -> u64 {
         self.events
@@ -188,7 +238,15 @@ impl Ipa {
         self.sample = 0;
         self.events = 0;
         self.mode = Mode::Stuck;
+        self.h_next_s = self.initial_step_s();
+        self.fsal = None;
         self.settle();
+    }
+
+    /// The first Dormand–Prince step tried after a reset: a tenth of a PWM period (the step control
+    /// adapts it within a few steps).
+    fn initial_step_s(&self) -> f64 {
+        0.1 * self.pwm_period_s.min(self.ts_s)
     }
 
     /// Applies u for one sampling period (like [`sysid::Plant::step`]) with the crate's error type.
@@ -306,9 +364,193 @@ impl Ipa {
         }
     }
 
-    /// Integrates over [ta, tb] with the valves fixed: equal RK4 substeps no longer than the maximum,
-    /// events located within a substep.
+    /// Integrates over [ta, tb] with the valves fixed, with the chosen integrator.
     fn integrate(
+        &mut self,
+        ta: f64,
+        tb: f64,
+        valves: Valves,
+        events: &mut usize,
+    ) -> Result<(), IpaError> {
+        match self.integrator {
+            Integrator::DormandPrince => self.integrate_dopri5(ta, tb, valves, events),
+            Integrator::Rk4 => self.integrate_rk4(ta, tb, valves, events),
+        }
+    }
+
+    /// Counts a located event; an error when a sample has too many (chattering).
+    fn count_event(&mut self, events: &mut usize, t: f64) -> Result<(), IpaError> {
+        *events += 1;
+        self.events += 1;
+        if *events > MAX_EVENTS_PER_SAMPLE {
+            return Err(IpaError::Numerical(format!(
+                "more than {MAX_EVENTS_PER_SAMPLE} stick/slip events within one sample at t = {t} s (chattering)"
+            )));
+        }
+        Ok(())
+    }
+
+    /// The error for a non-physical state at time `t` (s); `hint` says which setting to change.
+    fn non_physical(&self, s: &State, t: f64, hint: &str) -> IpaError {
+        IpaError::Numerical(format!(
+            "the state became non-physical at t = {t:.6} s (sample {}; x = {} m, v = {} m/s, p_a = {} Pa, p_b = {} Pa); \
+             {hint}",
+            self.sample, s.x_m, s.v_m_s, s.p_cap_pa, s.p_rod_pa
+        ))
+    }
+
+    /// Weighted maximum norm of a Dormand–Prince error estimate: <= 1 means within the tolerance.
+    #[inline]
+    fn error_norm(&self, e: &State) -> f64 {
+        let [wx, wv, wp] = self.err_weight;
+        (e.x_m.abs() * wx)
+            .max(e.v_m_s.abs() * wv)
+            .max(e.p_cap_pa.abs() * wp)
+            .max(e.p_rod_pa.abs() * wp)
+    }
+
+    /// Integrates over [ta, tb] with the valves fixed by adaptive Dormand–Prince 5(4) steps (local error
+    /// control on the weighted maximum norm, FSAL); events are detected on the dense output of every
+    /// accepted step and located on it.
+    fn integrate_dopri5(
+        &mut self,
+        ta: f64,
+        tb: f64,
+        valves: Valves,
+        events: &mut usize,
+    ) -> Result<(), IpaError> {
+        let mut t = ta;
+        let tiny = 1e-12 * self.ts_s;
+        let h_min = 1e-9 * self.ts_s;
+        let mut k1 = match self.fsal {
+            Some((v, m, k)) if v == valves && m == self.mode => k,
+            _ => self.dynamics.derivative(&self.state, self.mode, valves),
+        };
+        while tb - t > tiny {
+            let rest = tb - t;
+            // Take the rest of the interval when it is at most 10 % longer than the proposed step.
+            let to_end = self.h_next_s * 1.1 >= rest;
+            let h = if to_end { rest } else { self.h_next_s };
+            let step = self.dynamics.dopri5(&self.state, &k1, self.mode, valves, h);
+            let en = if step.y.is_physical() {
+                self.error_norm(&step.err)
+            } else {
+                f64::INFINITY
+            };
+            if !(en <= 1.0) {
+                // Rejected (NaN or inf included): shorter step.
+                let fac = if en.is_finite() {
+                    (0.9 * en.powf(-0.2)).clamp(0.2, 0.9)
+                } else {
+                    0.2
+                };
+                self.h_next_s = h * fac;
+                if self.h_next_s < h_min {
+                    let hint = format!(
+                        "the adaptive step fell below {h_min:e} s; loosen or tighten integration.tolerance"
+                    );
+                    return Err(self.non_physical(&step.y, t + h, &hint));
+                }
+                continue;
+            }
+            let fac = if en > 0.0 {
+                (0.9 * en.powf(-0.2)).clamp(0.2, 5.0)
+            } else {
+                5.0
+            };
+            let proposal = h * fac;
+            // A step shortened to end the interval does not shorten the next one.
+            self.h_next_s = if to_end {
+                proposal.max(self.h_next_s)
+            } else {
+                proposal
+            };
+            match self.detect_dense(&step) {
+                None => {
+                    self.state = step.y;
+                    k1 = step.end_derivative();
+                    t = if to_end { tb } else { t + h };
+                }
+                Some((ev, theta, s)) => {
+                    self.count_event(events, t)?;
+                    self.state = s;
+                    t += theta * h;
+                    self.apply_event(ev);
+                    if !self.state.is_physical() {
+                        return Err(self.non_physical(
+                            &self.state,
+                            t,
+                            "tighten integration.tolerance",
+                        ));
+                    }
+                    k1 = self.dynamics.derivative(&self.state, self.mode, valves);
+                }
+            }
+        }
+        self.fsal = Some((valves, self.mode, k1));
+        Ok(())
+    }
+
+    /// The first event inside an accepted Dormand–Prince step, located on its dense output: the kind,
+    /// the fraction theta of the step and the state just after the crossing.
+    fn detect_dense(&self, step: &Dopri5Step) -> Option<(Event, f64, State)> {
+        let kinds: &[Event] = match self.mode {
+            Mode::Stuck => &[Event::Breakaway],
+            // End stop first: on a tie it wins (the position crossed while still moving).
+            Mode::Sliding(_) => &[Event::EndStop, Event::Stop],
+        };
+        // Cheap test at the end of the step; the dense output only when needed.
+        let mut lo = 0.0;
+        let dense = step.dense();
+        for &theta in &EVENT_CHECKS {
+            let s = if theta == 1.0 {
+                step.y
+            } else {
+                dense.at(theta)
+            };
+            let mut best: Option<(Event, f64, State)> = None;
+            for &ev in kinds {
+                if self.event_value(ev, &s) > 0.0 {
+                    let (th, st) = self.locate_dense(ev, &dense, lo, theta, s, step.h_s);
+                    if best.is_none_or(|b| th < b.1) {
+                        best = Some((ev, th, st));
+                    }
+                }
+            }
+            if best.is_some() {
+                return best;
+            }
+            lo = theta;
+        }
+        None
+    }
+
+    /// Finds theta in (lo, hi] where the event function of `ev` crosses zero on the dense output
+    /// (Illinois method, bisection when stuck at a bracket end); `s_hi` is the state at hi (event
+    /// function > 0). Returns theta and the state just after the crossing.
+    fn locate_dense(
+        &self,
+        ev: Event,
+        dense: &Dense,
+        lo: f64,
+        hi: f64,
+        s_hi: State,
+        dense_step_s: f64,
+    ) -> (f64, State) {
+        let at = |theta: f64| {
+            let s = dense.at(theta);
+            (self.event_value(ev, &s), s)
+        };
+        let g_lo = at(lo).0;
+        let g_hi = self.event_value(ev, &s_hi);
+        // 1e-13 Ts in time, as the RK4 reference.
+        let tol = 1e-13 * self.ts_s / dense_step_s;
+        illinois(lo, g_lo, hi, g_hi, s_hi, tol, at)
+    }
+
+    /// Integrates over [ta, tb] with the valves fixed: equal RK4 substeps no longer than the maximum,
+    /// events located within a substep (the reference integrator).
+    fn integrate_rk4(
         &mut self,
         ta: f64,
         tb: f64,
@@ -406,43 +648,9 @@ impl Ipa {
             let s = self.dynamics.rk4(&self.state, self.mode, valves, theta * h);
             (self.event_value(ev, &s), s)
         };
-        let (mut lo, mut g_lo) = (0.0, self.event_value(ev, &self.state));
-        let (mut hi, (mut g_hi, mut s_hi)) = (1.0, at(1.0));
-        let tol = 1e-13 * self.ts_s / h;
-        let mut side = 0i8;
-        for _ in 0..60 {
-            if hi - lo <= tol {
-                break;
-            }
-            let theta = if g_lo < 0.0 && g_hi > 0.0 {
-                let th = (lo * g_hi - hi * g_lo) / (g_hi - g_lo);
-                if th > lo && th < hi {
-                    th
-                } else {
-                    0.5 * (lo + hi)
-                }
-            } else {
-                0.5 * (lo + hi)
-            };
-            let (g, s) = at(theta);
-            if g > 0.0 {
-                hi = theta;
-                g_hi = g;
-                s_hi = s;
-                if side == 1 {
-                    g_lo *= 0.5;
-                }
-                side = 1;
-            } else {
-                lo = theta;
-                g_lo = g;
-                if side == -1 {
-                    g_hi *= 0.5;
-                }
-                side = -1;
-            }
-        }
-        (hi, s_hi)
+        let g_lo = self.event_value(ev, &self.state);
+        let (g_hi, s_hi) = at(1.0);
+        illinois(0.0, g_lo, 1.0, g_hi, s_hi, 1e-13 * self.ts_s / h, at)
     }
 
     /// Changes the mode after a located event.
@@ -495,6 +703,54 @@ impl Ipa {
             Mode::Stuck
         };
     }
+}
+
+/// Illinois root finding of g(theta) on [lo, hi] with g(lo) <= 0 < g(hi) (bisection when the secant
+/// falls outside the bracket), until the bracket is at most `tol` wide: theta and the state at the upper
+/// end of the final bracket (where g > 0).
+fn illinois(
+    mut lo: f64,
+    mut g_lo: f64,
+    mut hi: f64,
+    mut g_hi: f64,
+    mut s_hi: State,
+    tol: f64,
+    mut at: impl FnMut(f64) -> (f64, State),
+) -> (f64, State) {
+    let mut side = 0i8;
+    for _ in 0..60 {
+        if hi - lo <= tol {
+            break;
+        }
+        let theta = if g_lo < 0.0 && g_hi > 0.0 {
+            let th = (lo * g_hi - hi * g_lo) / (g_hi - g_lo);
+            if th > lo && th < hi {
+                th
+            } else {
+                0.5 * (lo + hi)
+            }
+        } else {
+            0.5 * (lo + hi)
+        };
+        let (g, s) = at(theta);
+        if g > 0.0 {
+            hi = theta;
+            g_hi = g;
+            s_hi = s;
+            if side == 1 {
+                g_lo *= 0.5;
+            }
+            side = 1;
+        } else {
+            lo = theta;
+            g_lo = g;
+            if side == -1 {
+                g_hi *= 0.5;
+            }
+            side = -1;
+        }
+    }
+    (hi, s_hi)
 }
 
 impl sysid::Plant for Ipa {

@@ -39,8 +39,20 @@ impl State {
         p_rod_pa: 0.0,
     };
 
+    /// Every component times `a`.
     #[inline]
-    fn axpy(&self, h: f64, d: &State) -> State {
+    pub fn scale(&self, a: f64) -> State {
+        State {
+            x_m: a * self.x_m,
+            v_m_s: a * self.v_m_s,
+            p_cap_pa: a * self.p_cap_pa,
+            p_rod_pa: a * self.p_rod_pa,
+        }
+    }
+
+    /// self + h d, component by component.
+    #[inline]
+    pub fn axpy(&self, h: f64, d: &State) -> State {
         State {
             x_m: self.x_m + h * d.x_m,
             v_m_s: self.v_m_s + h * d.v_m_s,
@@ -97,6 +109,8 @@ pub struct Dynamics {
     pub supply_pa: f64,
     /// p_atm: atmospheric pressure, Pa.
     pub atmosphere_pa: f64,
+    /// 1 / M, 1/kg.
+    inv_mass: f64,
 }
 
 impl Dynamics {
@@ -116,6 +130,7 @@ impl Dynamics {
             ),
             friction: Friction::new(&cfg.friction),
             mass_kg: cfg.load.moving_mass_kg,
+            inv_mass: 1.0 / cfg.load.moving_mass_kg,
             external_force_n: cfg.load.external_force_n,
             supply_pa: cfg.air.atmosphere_pa + cfg.air.supply_gauge_mpa * 1e6,
             atmosphere_pa: cfg.air.atmosphere_pa,
@@ -150,7 +165,7 @@ impl Dynamics {
             Mode::Stuck => (0.0, 0.0),
             Mode::Sliding(dir) => {
                 let f = self.drive_force_n(s) - self.friction.sliding_n(dir, s.v_m_s);
-                (s.v_m_s, f / self.mass_kg)
+                (s.v_m_s, f * self.inv_mass)
             }
         };
         let mdot_a = self.chamber_inflow_kg_s(s.p_cap_pa, valves.cap);
@@ -308,6 +323,11 @@ pub struct Dopri5Step {
 }
 
 impl Dopri5Step {
+    /// The derivative at the start of the step (k1).
+    pub fn k1(&self) -> State {
+        self.k[0]
+    }
+
     /// The derivative at the end of the step (k7), valid as the next step's k1.
     pub fn end_derivative(&self) -> State {
         self.k[5]

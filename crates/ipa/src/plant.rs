@@ -25,8 +25,13 @@ const MAX_EVENTS_PER_SAMPLE: usize = 10_000;
 /// (so that an event that happens and reverts within one step is still seen).
 const EVENT_CHECKS: [f64; 3] = [1.0 / 3.0, 2.0 / 3.0, 1.0];
 
-/// Velocity scale of the step-size control, m/s (the order of the full-command speed).
+/// Velocity scale of the step-size control at rest, m/s; it grows as 1 + |v| / v_s with the speed
+/// (relative control of the velocity error outside the Stribeck region, absolute inside it, where the
+/// negative friction slope amplifies errors).
 const VELOCITY_SCALE_M_S: f64 = 1.0;
+
+/// Pressure scale of the step-size control, as a fraction of the supply pressure.
+const PRESSURE_SCALE: f64 = 0.5;
 
 /// The numerical integrator of the plant's continuous state between valve switching instants.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -71,10 +76,14 @@ pub struct Ipa {
     slow_substep_s: f64,
     slow_speed_m_s: f64,
     integrator: Integrator,
-    /// 1 / (tolerance * scale) for x, v and the pressures: weights of the local error norm.
+    /// 1 / (tolerance * scale) for x, v (at rest) and the pressures: weights of the local error norm.
     err_weight: [f64; 3],
-    /// Proposed length of the next Dormand–Prince step, s.
-    h_next_s: f64,
+    /// 1 / v_s: the velocity scale grows as 1 + |v| / v_s, s/m.
+    inv_stribeck_m_s: f64,
+    /// Proposed length of the next Dormand–Prince step for each valve state (index 2 cap + rod), s:
+    /// the dynamics change abruptly when a valve switches, and the step that suited the same valve
+    /// state in the previous PWM period is a better guess than the one of the last segment.
+    h_next_s: [f64; 4],
     /// The derivative at the current state, with the valve states and mode it was computed for (FSAL).
     fsal: Option<(Valves, Mode, State)>,
     state: State,
@@ -89,6 +98,18 @@ pub struct Ipa {
     switches: Vec<(f64, bool, bool)>,
     sw_tmp: Vec<(f64, bool)>,
     events: u64,
+    stats: IntegrationStats,
+}
+
+/// Work done by the integrator since the last reset (for benchmarks and the documentation).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct IntegrationStats {
+    /// Accepted steps (Dormand–Prince) or substeps (RK4), event-location trials not included.
+    pub steps: u64,
+    /// Rejected Dormand–Prince steps (error estimate above the tolerance); 0 for RK4.
+    pub rejected_steps: u64,
+    /// Evaluations of the right-hand side ds/dt, event location included.
+    pub derivative_evaluations: u64,
 }
 
 /// What ended an RK4 step early.
@@ -132,10 +153,11 @@ impl Ipa {
                 [
                     1.0 / (tol * dynamics.cylinder.stroke_m),
                     1.0 / (tol * VELOCITY_SCALE_M_S),
-                    1.0 / (tol * dynamics.supply_pa),
+                    1.0 / (tol * PRESSURE_SCALE * dynamics.supply_pa),
                 ]
             },
-            h_next_s: 0.0,
+            inv_stribeck_m_s: 1.0 / (config.friction.stribeck_velocity_mm_s * 1e-3),
+            h_next_s: [0.0; 4],
             fsal: None,
             state: State {
                 x_m: 0.0,
@@ -153,6 +175,7 @@ impl Ipa {
             switches: Vec::new(),
             sw_tmp: Vec::new(),
             events: 0,
+            stats: IntegrationStats::default(),
             dynamics,
             config,
         };
@@ -212,6 +235,11 @@ impl Ipa {
         self.fsal = None;
     }
 
+    /// Steps, rejected steps and right-hand-side evaluations since the last reset.
+    pub fn integration_stats(&self) -> IntegrationStats {
+        self.stats
+    }
+
     /// Number of located events (stops, breakaways, end-stop contacts) since the last reset.
     pub fn event_count(&self) -> u64 {
         self.events
@@ -237,8 +265,9 @@ impl Ipa {
         self.pwm = None;
         self.sample = 0;
         self.events = 0;
+        self.stats = IntegrationStats::default();
         self.mode = Mode::Stuck;
-        self.h_next_s = self.initial_step_s();
+        self.h_next_s = [self.initial_step_s(); 4];
         self.fsal = None;
         self.settle();
     }
@@ -399,10 +428,12 @@ impl Ipa {
         ))
     }
 
-    /// Weighted maximum norm of a Dormand–Prince error estimate: <= 1 means within the tolerance.
+    /// Weighted maximum norm of a Dormand–Prince error estimate `e` of a step whose largest speed at
+    /// its ends is `v_abs` (m/s): <= 1 means within the tolerance.
     #[inline]
-    fn error_norm(&self, e: &State) -> f64 {
+    fn error_norm(&self, e: &State, v_abs: f64) -> f64 {
         let [wx, wv, wp] = self.err_weight;
+        let wv = wv / (1.0 + v_abs * self.inv_stribeck_m_s);
         (e.x_m.abs() * wx)
             .max(e.v_m_s.abs() * wv)
             .max(e.p_cap_pa.abs() * wp)
@@ -420,32 +451,39 @@ impl Ipa {
         events: &mut usize,
     ) -> Result<(), IpaError> {
         let mut t = ta;
+        let iv = 2 * usize::from(valves.cap) + usize::from(valves.rod);
         let tiny = 1e-12 * self.ts_s;
         let h_min = 1e-9 * self.ts_s;
         let mut k1 = match self.fsal {
             Some((v, m, k)) if v == valves && m == self.mode => k,
-            _ => self.dynamics.derivative(&self.state, self.mode, valves),
+            _ => {
+                self.stats.derivative_evaluations += 1;
+                self.dynamics.derivative(&self.state, self.mode, valves)
+            }
         };
         while tb - t > tiny {
             let rest = tb - t;
             // Take the rest of the interval when it is at most 10 % longer than the proposed step.
-            let to_end = self.h_next_s * 1.1 >= rest;
-            let h = if to_end { rest } else { self.h_next_s };
+            let to_end = self.h_next_s[iv] * 1.1 >= rest;
+            let h = if to_end { rest } else { self.h_next_s[iv] };
             let step = self.dynamics.dopri5(&self.state, &k1, self.mode, valves, h);
+            self.stats.derivative_evaluations += 6;
             let en = if step.y.is_physical() {
-                self.error_norm(&step.err)
+                let v_abs = step.y.v_m_s.abs().max(self.state.v_m_s.abs());
+                self.error_norm(&step.err, v_abs)
             } else {
                 f64::INFINITY
             };
             if !(en <= 1.0) {
                 // Rejected (NaN or inf included): shorter step.
+                self.stats.rejected_steps += 1;
                 let fac = if en.is_finite() {
                     (0.9 * inv_fifth_root(en)).clamp(0.2, 0.9)
                 } else {
                     0.2
                 };
-                self.h_next_s = h * fac;
-                if self.h_next_s < h_min {
+                self.h_next_s[iv] = h * fac;
+                if self.h_next_s[iv] < h_min {
                     let hint = format!(
                         "the adaptive step fell below {h_min:e} s; loosen or tighten integration.tolerance"
                     );
@@ -461,11 +499,12 @@ impl Ipa {
             };
             let proposal = h * fac;
             // A step shortened to end the interval does not shorten the next one.
-            self.h_next_s = if to_end {
-                proposal.max(self.h_next_s)
+            self.h_next_s[iv] = if to_end {
+                proposal.max(self.h_next_s[iv])
             } else {
                 proposal
             };
+            self.stats.steps += 1;
             match self.detect_dense(&step) {
                 None => {
                     self.state = step.y;
@@ -484,6 +523,7 @@ impl Ipa {
                             "tighten integration.tolerance",
                         ));
                     }
+                    self.stats.derivative_evaluations += 1;
                     k1 = self.dynamics.derivative(&self.state, self.mode, valves);
                 }
             }
@@ -591,6 +631,8 @@ impl Ipa {
             }
             .min(tb - t);
             let next = self.dynamics.rk4(&self.state, self.mode, valves, h);
+            self.stats.steps += 1;
+            self.stats.derivative_evaluations += 4;
             match self.detect(&next) {
                 None => {
                     self.state = next;
@@ -604,7 +646,8 @@ impl Ipa {
                             "more than {MAX_EVENTS_PER_SAMPLE} stick/slip events within one sample at t = {t} s (chattering)"
                         )));
                     }
-                    let (theta, s) = self.locate(ev, valves, h);
+                    let (theta, s, trials) = self.locate(ev, valves, h);
+                    self.stats.derivative_evaluations += 4 * trials;
                     self.state = s;
                     t += theta * h;
                     self.apply_event(ev);
@@ -660,14 +703,17 @@ impl Ipa {
     /// Finds theta in (0, 1] where the event function of `ev` crosses zero along an RK4 step of
     /// length theta h (Illinois method, bisection when stuck at a bracket end), and returns the state
     /// just after the crossing.
-    fn locate(&self, ev: Event, valves: Valves, h: f64) -> (f64, State) {
+    fn locate(&self, ev: Event, valves: Valves, h: f64) -> (f64, State, u64) {
+        let trials = std::cell::Cell::new(0u64);
         let at = |theta: f64| {
+            trials.set(trials.get() + 1);
             let s = self.dynamics.rk4(&self.state, self.mode, valves, theta * h);
             (self.event_value(ev, &s), s)
         };
         let g_lo = self.event_value(ev, &self.state);
         let (g_hi, s_hi) = at(1.0);
-        illinois(0.0, g_lo, 1.0, g_hi, s_hi, 1e-13 * self.ts_s / h, at)
+        let (theta, s) = illinois(0.0, g_lo, 1.0, g_hi, s_hi, 1e-13 * self.ts_s / h, at);
+        (theta, s, trials.get())
     }
 
     /// Changes the mode after a located event.

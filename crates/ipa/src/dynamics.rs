@@ -138,7 +138,7 @@ impl Dynamics {
     }
 
     /// F: net pneumatic and external force on the piston, N (+ extends).
-    #[inline]
+    #[inline(always)]
     pub fn drive_force_n(&self, s: &State) -> f64 {
         let c = &self.cylinder;
         s.p_cap_pa * c.area_cap_m2
@@ -148,7 +148,7 @@ impl Dynamics {
     }
 
     /// Net mass flow into a chamber at pressure `p_pa` through its valve (kg/s).
-    #[inline]
+    #[inline(always)]
     pub fn chamber_inflow_kg_s(&self, p_pa: f64, open: bool) -> f64 {
         if open {
             self.supply_path.mass_flow_kg_s(self.supply_pa, p_pa)

@@ -61,7 +61,7 @@ impl FlowPath {
     }
 
     /// Mass flow from `p1_pa` to `p2_pa`, kg/s; negative when p2 > p1 (the flow reverses).
-    #[inline]
+    #[inline(always)]
     pub fn mass_flow_kg_s(&self, p1_pa: f64, p2_pa: f64) -> f64 {
         if p1_pa >= p2_pa {
             self.forward(p1_pa, p2_pa)
@@ -72,7 +72,7 @@ impl FlowPath {
 
     /// Forward flow (p_up >= p_down), written without divisions: with r = p_down / p_up,
     /// p_up sqrt(1 - z^2) = sqrt(p_up^2 - (p_up z)^2) and p_up z = (p_down - b p_up) / (1 - b).
-    #[inline]
+    #[inline(always)]
     fn forward(&self, p_up: f64, p_down: f64) -> f64 {
         if p_up <= 0.0 {
             return 0.0;

@@ -1,7 +1,7 @@
 //! Simulation speed of the physics plant: 200 000 samples (2000 s of plant time at Ts = 0.01 s) of the
 //! staircase input, timed in the release build.
 //!
-//! `cargo run --release -p ipa --example speed [SAMPLES] [rk4]` (default 200 000 samples, the adaptive
+//! `cargo run --release -p ipa --example speed [SAMPLES] [rk4|dp] [TOLERANCE]` (default 200 000 samples, the adaptive
 //! Dormand–Prince integrator; `rk4` runs the classical RK4 reference instead).
 
 use sysid::Plant;
@@ -17,7 +17,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         _ => ipa::plant::Integrator::DormandPrince,
     };
     let u = ipa::generate(&ipa::InputSpec::Staircase, n, 0.01, 255.0, 1)?;
-    let mut plant = ipa::Ipa::new(ipa::PlantConfig::default())?;
+    let mut cfg = ipa::PlantConfig::default();
+    if let Some(t) = args.next() {
+        cfg.integration.tolerance = t.parse()?;
+    }
+    let mut plant = ipa::Ipa::new(cfg)?;
     plant.set_integrator(integrator);
     plant.reset(100.0);
     let start = std::time::Instant::now();

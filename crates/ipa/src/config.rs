@@ -220,7 +220,7 @@ pub struct IntegrationConfig {
 impl Default for IntegrationConfig {
     fn default() -> Self {
         IntegrationConfig {
-            tolerance: 1e-8,
+            tolerance: 5e-9,
             max_substep_ms: 0.25,
             slow_substep_ms: 0.0625,
             slow_speed_mm_s: 40.0,

@@ -358,6 +358,16 @@ pub struct Dense {
 }
 
 impl Dense {
+    /// The coefficients m_0..m_4 of the quartic polynomial w . y(theta) + c in theta (monomial basis),
+    /// for the linear function of the state with weights `w` = (x, v, p_a, p_b) and constant `c`.
+    pub fn quartic(&self, w: &[f64; 4], c: f64) -> [f64; 5] {
+        let dot = |s: &State| w[0] * s.x_m + w[1] * s.v_m_s + w[2] * s.p_cap_pa + w[3] * s.p_rod_pa;
+        let [r1, r2, r3, r4, r5] = &self.r;
+        let (a, b, c3, d, e) = (dot(r1) + c, dot(r2), dot(r3), dot(r4), dot(r5));
+        // a + theta (b + (1 - theta)(c3 + theta (d + (1 - theta) e))), expanded.
+        [a, b + c3, d + e - c3, -(d + 2.0 * e), e]
+    }
+
     /// The state at the fraction `theta` (0..=1) of the step.
     #[inline]
     pub fn at(&self, theta: f64) -> State {

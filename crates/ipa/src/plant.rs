@@ -21,10 +21,6 @@ pub const U_MAX: f64 = 255.0;
 /// Upper bound on located events within one sampling period (guards against chattering).
 const MAX_EVENTS_PER_SAMPLE: usize = 10_000;
 
-/// Fractions of a Dormand–Prince step at which the event functions are checked on the dense output
-/// (so that an event that happens and reverts within one step is still seen).
-const EVENT_CHECKS: [f64; 3] = [1.0 / 3.0, 2.0 / 3.0, 1.0];
-
 /// Velocity scale of the step-size control at rest, m/s; it grows as 1 + |v| / v_s with the speed
 /// (relative control of the velocity error outside the Stribeck region, absolute inside it, where the
 /// negative friction slope amplifies errors).
@@ -532,54 +528,64 @@ impl Ipa {
         Ok(())
     }
 
+    /// The event functions of the current mode as linear functions w . s + c of the state (at most
+    /// two): their maximum is [`Ipa::event_value`] (the breakaway margin is the larger of the two
+    /// directions; the direction into an end stop is left out, x being constant while stuck).
+    fn event_lines(&self) -> [Option<(Event, [f64; 4], f64)>; 2] {
+        let d = &self.dynamics;
+        let stroke = d.cylinder.stroke_m;
+        match self.mode {
+            Mode::Stuck => {
+                // F = A_a p_a - A_b p_b + (F_ext - p_atm (A_a - A_b)).
+                let (aa, ab) = (d.cylinder.area_cap_m2, d.cylinder.area_rod_side_m2);
+                let f0 = d.external_force_n - d.atmosphere_pa * (aa - ab);
+                let fs = d.friction.static_n;
+                let up = (self.state.x_m < stroke)
+                    .then_some((Event::Breakaway, [0.0, 0.0, aa, -ab], f0 - fs));
+                let down = (self.state.x_m > 0.0)
+                    .then_some((Event::Breakaway, [0.0, 0.0, -aa, ab], -f0 - fs));
+                [up, down]
+            }
+            // End stop first: on a tie it wins (the position crossed while still moving).
+            Mode::Sliding(dir) => [
+                Some(if dir > 0.0 {
+                    (Event::EndStop, [1.0, 0.0, 0.0, 0.0], -stroke)
+                } else {
+                    (Event::EndStop, [-1.0, 0.0, 0.0, 0.0], 0.0)
+                }),
+                Some((Event::Stop, [0.0, -dir, 0.0, 0.0], 0.0)),
+            ],
+        }
+    }
+
     /// The first event inside an accepted Dormand–Prince step, located on its dense output: the kind,
     /// the fraction theta of the step and the state just after the crossing.
+    ///
+    /// Along the step each event function is a quartic polynomial in theta. Its Bernstein
+    /// coefficients bound it: when none is positive, no event happens in the step (the usual case,
+    /// a few flops). Otherwise the step is halved (de Casteljau) down to 2^-12 of its length to find
+    /// the first sub-interval where the polynomial becomes positive, so that even an event that
+    /// happens and reverts within one step (a grazing stop or breakaway) is seen; Illinois root
+    /// finding on the dense output then locates it.
     fn detect_dense(&self, step: &Dopri5Step) -> Option<(Event, f64, State)> {
-        let kinds: &[Event] = match self.mode {
-            Mode::Stuck => &[Event::Breakaway],
-            // End stop first: on a tie it wins (the position crossed while still moving).
-            Mode::Sliding(_) => &[Event::EndStop, Event::Stop],
-        };
-        // Cheap test first: the exact end state and the cubic Hermite interpolant (from the end states
-        // and derivatives) at the interior checks; the dense output only when one shows an event.
-        let hermite = |theta: f64| {
-            let (t2, t3) = (theta * theta, theta * theta * theta);
-            let (h00, h01) = (1.0 - 3.0 * t2 + 2.0 * t3, 3.0 * t2 - 2.0 * t3);
-            let (h10, h11) = (theta - 2.0 * t2 + t3, t3 - t2);
-            let y = step.y0.scale(h00).axpy(h01, &step.y);
-            y.axpy(h10 * step.h_s, &step.k1())
-                .axpy(h11 * step.h_s, &step.end_derivative())
-        };
-        let any = EVENT_CHECKS.iter().any(|&theta| {
-            let s = if theta == 1.0 { step.y } else { hermite(theta) };
-            kinds.iter().any(|&ev| self.event_value(ev, &s) > 0.0)
-        });
-        if !any {
-            return None;
-        }
-        let mut lo = 0.0;
         let dense = step.dense();
-        for &theta in &EVENT_CHECKS {
-            let s = if theta == 1.0 {
-                step.y
-            } else {
-                dense.at(theta)
-            };
-            let mut best: Option<(Event, f64, State)> = None;
-            for &ev in kinds {
-                if self.event_value(ev, &s) > 0.0 {
-                    let (th, st) = self.locate_dense(ev, &dense, lo, theta, s, step.h_s);
-                    if best.is_none_or(|b| th < b.1) {
-                        best = Some((ev, th, st));
-                    }
+        let mut first: Option<(Event, f64, f64)> = None;
+        for (ev, w, c) in self.event_lines().into_iter().flatten() {
+            let beta = bernstein(&dense.quartic(&w, c));
+            if let Some((lo, hi)) = first_positive(&beta, 0.0, 1.0, 12) {
+                if first.is_none_or(|f| hi < f.2) {
+                    first = Some((ev, lo, hi));
                 }
             }
-            if best.is_some() {
-                return best;
-            }
-            lo = theta;
         }
-        None
+        let (ev, lo, hi) = first?;
+        let s_hi = dense.at(hi);
+        if self.event_value(ev, &s_hi) <= 0.0 {
+            // Positive on the polynomial, not on the state (rounding at a grazing contact): no event.
+            return None;
+        }
+        let (theta, s) = self.locate_dense(ev, &dense, lo, hi, s_hi, step.h_s);
+        Some((ev, theta, s))
     }
 
     /// Finds theta in (lo, hi] where the event function of `ev` crosses zero on the dense output
@@ -701,8 +707,8 @@ impl Ipa {
     }
 
     /// Finds theta in (0, 1] where the event function of `ev` crosses zero along an RK4 step of
-    /// length theta h (Illinois method, bisection when stuck at a bracket end), and returns the state
-    /// just after the crossing.
+    /// length theta h (Illinois method, bisection when stuck at a bracket end), and returns it, the
+    /// state just after the crossing and the number of RK4 trial steps taken.
     fn locate(&self, ev: Event, valves: Valves, h: f64) -> (f64, State, u64) {
         let trials = std::cell::Cell::new(0u64);
         let at = |theta: f64| {
@@ -766,6 +772,49 @@ impl Ipa {
             Mode::Stuck
         };
     }
+}
+
+/// Bernstein coefficients on [0, 1] of the quartic with monomial coefficients `m`: the polynomial
+/// lies between their minimum and maximum on [0, 1] and equals the first and last at 0 and 1.
+fn bernstein(m: &[f64; 5]) -> [f64; 5] {
+    [
+        m[0],
+        m[0] + 0.25 * m[1],
+        m[0] + 0.5 * m[1] + m[2] / 6.0,
+        m[0] + 0.75 * m[1] + 0.5 * m[2] + 0.25 * m[3],
+        m[0] + m[1] + m[2] + m[3] + m[4],
+    ]
+}
+
+/// The first sub-interval [lo, hi] of [a, b] (a halving of it, at most `depth` deep) where the
+/// quartic with Bernstein coefficients `beta` on [a, b] goes from <= 0 at lo to > 0 at hi; None when
+/// it stays <= 0 (a positive excursion narrower than the finest halving that is <= 0 at both of its
+/// ends is ignored).
+fn first_positive(beta: &[f64; 5], a: f64, b: f64, depth: u32) -> Option<(f64, f64)> {
+    if beta.iter().all(|&v| v <= 0.0) {
+        return None;
+    }
+    if beta[0] > 0.0 {
+        // Positive at the start (only possible at theta = 0: the left halves were <= 0 at their ends).
+        return Some((a, a));
+    }
+    if depth == 0 {
+        return (beta[4] > 0.0).then_some((a, b));
+    }
+    // de Casteljau at the midpoint: the left half's coefficients are the first entries of each
+    // level, the right half's the last ones.
+    let mut left = [0.0; 5];
+    let mut right = [0.0; 5];
+    let mut level = *beta;
+    for k in 0..5 {
+        left[k] = level[0];
+        right[4 - k] = level[4 - k];
+        for i in 0..4 - k {
+            level[i] = 0.5 * (level[i] + level[i + 1]);
+        }
+    }
+    let mid = 0.5 * (a + b);
+    first_positive(&left, a, mid, depth - 1).or_else(|| first_positive(&right, mid, b, depth - 1))
 }
 
 /// x^(-1/5) for x in about [1e-4, 1e6], to 1e-3 relative (for the step-size factor, which needs no

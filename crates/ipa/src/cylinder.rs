@@ -80,6 +80,9 @@ impl Cylinder {
         } else {
             self.alpha_out
         };
-        (self.rt * exponent * mdot_kg_s - self.alpha * p_pa * dv_m3_s) / v_m3
+        // Times 1/V rather than divided by V: the division depends on x only and runs while the flow
+        // is computed, instead of after it.
+        let inv_v = 1.0 / v_m3;
+        (self.rt * exponent * mdot_kg_s - self.alpha * p_pa * dv_m3_s) * inv_v
     }
 }

@@ -333,6 +333,24 @@ impl Dopri5Step {
         self.k[5]
     }
 
+    /// The coefficients m_0..m_4 (monomial basis in theta) of w . y(t + theta h) + c along the dense
+    /// output of the step, for the linear function of the state with weights `w` = (x, v, p_a, p_b)
+    /// and constant `c`: the same polynomial as [`Dopri5Step::dense`] gives, from scalar projections
+    /// only (no full dense output needed to test a step for events).
+    #[inline]
+    pub fn quartic(&self, w: &[f64; 4], c: f64) -> [f64; 5] {
+        let dot = |s: &State| w[0] * s.x_m + w[1] * s.v_m_s + w[2] * s.p_cap_pa + w[3] * s.p_rod_pa;
+        let h = self.h_s;
+        let [k1, k3, k4, k5, k6, k7] = self.k.each_ref().map(dot);
+        let a = dot(&self.y0) + c;
+        let b = dot(&self.y) - dot(&self.y0);
+        let c3 = h * k1 - b;
+        let d = b - h * k7 - c3;
+        let e = h * (D1 * k1 + D3 * k3 + D4 * k4 + D5 * k5 + D6 * k6 + D7 * k7);
+        // a + theta (b + (1 - theta)(c3 + theta (d + (1 - theta) e))), expanded.
+        [a, b + c3, d + e - c3, -(d + 2.0 * e), e]
+    }
+
     /// The fourth-order continuous extension of the step, for locating events inside it.
     pub fn dense(&self) -> Dense {
         let h = self.h_s;
@@ -358,16 +376,6 @@ pub struct Dense {
 }
 
 impl Dense {
-    /// The coefficients m_0..m_4 of the quartic polynomial w . y(theta) + c in theta (monomial basis),
-    /// for the linear function of the state with weights `w` = (x, v, p_a, p_b) and constant `c`.
-    pub fn quartic(&self, w: &[f64; 4], c: f64) -> [f64; 5] {
-        let dot = |s: &State| w[0] * s.x_m + w[1] * s.v_m_s + w[2] * s.p_cap_pa + w[3] * s.p_rod_pa;
-        let [r1, r2, r3, r4, r5] = &self.r;
-        let (a, b, c3, d, e) = (dot(r1) + c, dot(r2), dot(r3), dot(r4), dot(r5));
-        // a + theta (b + (1 - theta)(c3 + theta (d + (1 - theta) e))), expanded.
-        [a, b + c3, d + e - c3, -(d + 2.0 * e), e]
-    }
-
     /// The state at the fraction `theta` (0..=1) of the step.
     #[inline]
     pub fn at(&self, theta: f64) -> State {

@@ -568,10 +568,12 @@ impl Ipa {
     /// happens and reverts within one step (a grazing stop or breakaway) is seen; Illinois root
     /// finding on the dense output then locates it.
     fn detect_dense(&self, step: &Dopri5Step) -> Option<(Event, f64, State)> {
-        let dense = step.dense();
         let mut first: Option<(Event, f64, f64)> = None;
         for (ev, w, c) in self.event_lines().into_iter().flatten() {
-            let beta = bernstein(&dense.quartic(&w, c));
+            let beta = bernstein(&step.quartic(&w, c));
+            if beta.iter().all(|&b| b <= 0.0) {
+                continue;
+            }
             if let Some((lo, hi)) = first_positive(&beta, 0.0, 1.0, 12) {
                 if first.is_none_or(|f| hi < f.2) {
                     first = Some((ev, lo, hi));
@@ -579,6 +581,7 @@ impl Ipa {
             }
         }
         let (ev, lo, hi) = first?;
+        let dense = step.dense();
         let s_hi = dense.at(hi);
         if self.event_value(ev, &s_hi) <= 0.0 {
             // Positive on the polynomial, not on the state (rounding at a grazing contact): no event.
@@ -776,6 +779,7 @@ impl Ipa {
 
 /// Bernstein coefficients on [0, 1] of the quartic with monomial coefficients `m`: the polynomial
 /// lies between their minimum and maximum on [0, 1] and equals the first and last at 0 and 1.
+#[inline]
 fn bernstein(m: &[f64; 5]) -> [f64; 5] {
     [
         m[0],

@@ -21,6 +21,14 @@ pub const U_MAX: f64 = 255.0;
 /// Upper bound on located events within one sampling period (guards against chattering).
 const MAX_EVENTS_PER_SAMPLE: usize = 10_000;
 
+/// A step is stretched to the end of the interval when that is at most this times the proposed step.
+const STRETCH: f64 = 1.1;
+
+/// Largest factor by which a rejected step is shortened; with [`STRETCH`] below its inverse, a step
+/// rejected at the end of an interval is retried strictly shorter (no endless retry of the same step).
+const MAX_SHRINK: f64 = 0.9;
+const _: () = assert!(STRETCH * MAX_SHRINK < 1.0);
+
 /// Velocity scale of the step-size control at rest, m/s; it grows as 1 + |v| / v_s with the speed
 /// (relative control of the velocity error outside the Stribeck region, absolute inside it, where the
 /// negative friction slope amplifies errors).
@@ -459,8 +467,8 @@ impl Ipa {
         };
         while tb - t > tiny {
             let rest = tb - t;
-            // Take the rest of the interval when it is at most 10 % longer than the proposed step.
-            let to_end = self.h_next_s[iv] * 1.1 >= rest;
+            // Take the rest of the interval when it is at most STRETCH times the proposed step.
+            let to_end = self.h_next_s[iv] * STRETCH >= rest;
             let h = if to_end { rest } else { self.h_next_s[iv] };
             let step = self.dynamics.dopri5(&self.state, &k1, self.mode, valves, h);
             self.stats.derivative_evaluations += 6;
@@ -470,11 +478,11 @@ impl Ipa {
             } else {
                 f64::INFINITY
             };
-            if !(en <= 1.0) {
+            if en.is_nan() || en > 1.0 {
                 // Rejected (NaN or inf included): shorter step.
                 self.stats.rejected_steps += 1;
                 let fac = if en.is_finite() {
-                    (0.9 * inv_fifth_root(en)).clamp(0.2, 0.9)
+                    (0.9 * inv_fifth_root(en)).clamp(0.2, MAX_SHRINK)
                 } else {
                     0.2
                 };
@@ -540,10 +548,16 @@ impl Ipa {
                 let (aa, ab) = (d.cylinder.area_cap_m2, d.cylinder.area_rod_side_m2);
                 let f0 = d.external_force_n - d.atmosphere_pa * (aa - ab);
                 let fs = d.friction.static_n;
-                let up = (self.state.x_m < stroke)
-                    .then_some((Event::Breakaway, [0.0, 0.0, aa, -ab], f0 - fs));
-                let down = (self.state.x_m > 0.0)
-                    .then_some((Event::Breakaway, [0.0, 0.0, -aa, ab], -f0 - fs));
+                let up = (self.state.x_m < stroke).then_some((
+                    Event::Breakaway,
+                    [0.0, 0.0, aa, -ab],
+                    f0 - fs,
+                ));
+                let down = (self.state.x_m > 0.0).then_some((
+                    Event::Breakaway,
+                    [0.0, 0.0, -aa, ab],
+                    -f0 - fs,
+                ));
                 [up, down]
             }
             // End stop first: on a tie it wins (the position crossed while still moving).

@@ -70,7 +70,10 @@ fn check(name: &str, u: &[f64]) -> (f64, usize, usize) {
 fn default_staircase_matches_the_refined_reference() {
     let u = ipa::generate(&ipa::InputSpec::Staircase, 4000, 0.01, 255.0, 0).unwrap();
     let (_, stuck, at_end) = check("staircase", &u);
-    assert!(stuck > 100, "the record must include sticking phases: {stuck}");
+    assert!(
+        stuck > 100,
+        "the record must include sticking phases: {stuck}"
+    );
     assert!(at_end > 0, "the record must reach an end stop");
 }
 
@@ -79,7 +82,10 @@ fn default_staircase_matches_the_refined_reference() {
 fn full_amplitude_prbs_matches_the_refined_reference() {
     let u = ipa::generate(&ipa::InputSpec::Prbs, 2000, 0.01, 255.0, 1).unwrap();
     let (_, stuck, at_end) = check("prbs", &u);
-    assert!(stuck > 100 && at_end > 50, "stuck {stuck}, at an end stop {at_end}");
+    assert!(
+        stuck > 100 && at_end > 50,
+        "stuck {stuck}, at an end stop {at_end}"
+    );
 }
 
 // Small commands around the deadzone (APRBS within ±60 counts), 20 s: slow creep and stick-slip, where
@@ -88,5 +94,8 @@ fn full_amplitude_prbs_matches_the_refined_reference() {
 fn creeping_near_the_deadzone_matches_the_refined_reference() {
     let u = ipa::generate(&ipa::InputSpec::Aprbs, 2000, 0.01, 60.0, 3).unwrap();
     let (_, stuck, _) = check("aprbs 60", &u);
-    assert!(stuck > 100, "the record must include sticking phases: {stuck}");
+    assert!(
+        stuck > 100,
+        "the record must include sticking phases: {stuck}"
+    );
 }

@@ -116,6 +116,10 @@ pub struct IntegrationStats {
     pub derivative_evaluations: u64,
 }
 
+/// An event function as a linear function w . s + c of the state: weights w for (x, v, p_a, p_b)
+/// and the constant c.
+type EventLine = ([f64; 4], f64);
+
 /// What ended an RK4 step early.
 #[derive(Debug, Clone, Copy, PartialEq)]
 enum Event {
@@ -515,8 +519,10 @@ impl Ipa {
                     k1 = step.end_derivative();
                     t = if to_end { tb } else { t + h };
                 }
-                Some((ev, theta, s)) => {
+                Some((ev, theta_dense, s_dense, line)) => {
                     self.count_event(events, t)?;
+                    let (theta, s) =
+                        self.refine_event(ev, line, &step, k1, valves, theta_dense, s_dense);
                     self.state = s;
                     t += theta * h;
                     self.apply_event(ev);
@@ -539,7 +545,7 @@ impl Ipa {
     /// The event functions of the current mode as linear functions w . s + c of the state (at most
     /// two): their maximum is [`Ipa::event_value`] (the breakaway margin is the larger of the two
     /// directions; the direction into an end stop is left out, x being constant while stuck).
-    fn event_lines(&self) -> [Option<(Event, [f64; 4], f64)>; 2] {
+    fn event_lines(&self) -> [Option<(Event, EventLine)>; 2] {
         let d = &self.dynamics;
         let stroke = d.cylinder.stroke_m;
         match self.mode {
@@ -548,26 +554,20 @@ impl Ipa {
                 let (aa, ab) = (d.cylinder.area_cap_m2, d.cylinder.area_rod_side_m2);
                 let f0 = d.external_force_n - d.atmosphere_pa * (aa - ab);
                 let fs = d.friction.static_n;
-                let up = (self.state.x_m < stroke).then_some((
-                    Event::Breakaway,
-                    [0.0, 0.0, aa, -ab],
-                    f0 - fs,
-                ));
-                let down = (self.state.x_m > 0.0).then_some((
-                    Event::Breakaway,
-                    [0.0, 0.0, -aa, ab],
-                    -f0 - fs,
-                ));
+                let up = (self.state.x_m < stroke)
+                    .then_some((Event::Breakaway, ([0.0, 0.0, aa, -ab], f0 - fs)));
+                let down = (self.state.x_m > 0.0)
+                    .then_some((Event::Breakaway, ([0.0, 0.0, -aa, ab], -f0 - fs)));
                 [up, down]
             }
             // End stop first: on a tie it wins (the position crossed while still moving).
             Mode::Sliding(dir) => [
                 Some(if dir > 0.0 {
-                    (Event::EndStop, [1.0, 0.0, 0.0, 0.0], -stroke)
+                    (Event::EndStop, ([1.0, 0.0, 0.0, 0.0], -stroke))
                 } else {
-                    (Event::EndStop, [-1.0, 0.0, 0.0, 0.0], 0.0)
+                    (Event::EndStop, ([-1.0, 0.0, 0.0, 0.0], 0.0))
                 }),
-                Some((Event::Stop, [0.0, -dir, 0.0, 0.0], 0.0)),
+                Some((Event::Stop, ([0.0, -dir, 0.0, 0.0], 0.0))),
             ],
         }
     }
@@ -581,20 +581,20 @@ impl Ipa {
     /// the first sub-interval where the polynomial becomes positive, so that even an event that
     /// happens and reverts within one step (a grazing stop or breakaway) is seen; Illinois root
     /// finding on the dense output then locates it.
-    fn detect_dense(&self, step: &Dopri5Step) -> Option<(Event, f64, State)> {
-        let mut first: Option<(Event, f64, f64)> = None;
-        for (ev, w, c) in self.event_lines().into_iter().flatten() {
+    fn detect_dense(&self, step: &Dopri5Step) -> Option<(Event, f64, State, EventLine)> {
+        let mut first: Option<(Event, f64, f64, EventLine)> = None;
+        for (ev, (w, c)) in self.event_lines().into_iter().flatten() {
             let beta = bernstein(&step.quartic(&w, c));
             if beta.iter().all(|&b| b <= 0.0) {
                 continue;
             }
             if let Some((lo, hi)) = first_positive(&beta, 0.0, 1.0, 12) {
                 if first.is_none_or(|f| hi < f.2) {
-                    first = Some((ev, lo, hi));
+                    first = Some((ev, lo, hi, (w, c)));
                 }
             }
         }
-        let (ev, lo, hi) = first?;
+        let (ev, lo, hi, line) = first?;
         let dense = step.dense();
         let s_hi = dense.at(hi);
         if self.event_value(ev, &s_hi) <= 0.0 {
@@ -602,7 +602,64 @@ impl Ipa {
             return None;
         }
         let (theta, s) = self.locate_dense(ev, &dense, lo, hi, s_hi, step.h_s);
-        Some((ev, theta, s))
+        Some((ev, theta, s, line))
+    }
+
+    /// Sharpens an event located on the dense output (fraction `theta_dense` of `step`, state
+    /// `s_dense`): Newton iterations on the event time with true Dormand–Prince steps from the step's
+    /// start (the dense output is one order less accurate than the steps, and an error in the time of
+    /// a breakaway shifts all the motion after it), using the derivative at the end of each trial step
+    /// (FSAL) for the slope of the event function `line`. Returns the fraction of the step and the
+    /// state just after the crossing (event function > 0); the dense result when the iterations do
+    /// not give one.
+    #[allow(clippy::too_many_arguments)]
+    fn refine_event(
+        &mut self,
+        ev: Event,
+        line: EventLine,
+        step: &Dopri5Step,
+        k1: State,
+        valves: Valves,
+        theta_dense: f64,
+        s_dense: State,
+    ) -> (f64, State) {
+        let (w, c) = line;
+        let dot = |s: &State| w[0] * s.x_m + w[1] * s.v_m_s + w[2] * s.p_cap_pa + w[3] * s.p_rod_pa;
+        let h = step.h_s;
+        // 1e-10 s in time.
+        let tol = 1e-10 / h;
+        let mut best: Option<(f64, State)> = None;
+        let mut theta = theta_dense;
+        for _ in 0..4 {
+            if !(theta > 0.0 && theta <= 1.0) {
+                break;
+            }
+            let trial = self
+                .dynamics
+                .dopri5(&step.y0, &k1, self.mode, valves, theta * h);
+            self.stats.derivative_evaluations += 6;
+            let g = dot(&trial.y) + c;
+            let crossed =
+                g > 0.0 && self.event_value(ev, &trial.y) > 0.0 && trial.y.is_physical();
+            if crossed && best.is_none_or(|b| theta < b.0) {
+                best = Some((theta, trial.y));
+            }
+            let slope = dot(&trial.end_derivative()) * h;
+            if slope.is_nan() || slope <= 0.0 {
+                break;
+            }
+            let next = theta - g / slope;
+            if (next - theta).abs() <= tol {
+                if crossed {
+                    break;
+                }
+                // Converged from below: one more step just past the root.
+                theta = next + tol;
+            } else {
+                theta = next;
+            }
+        }
+        best.unwrap_or((theta_dense, s_dense))
     }
 
     /// Finds theta in (lo, hi] where the event function of `ev` crosses zero on the dense output

@@ -204,8 +204,9 @@ impl Default for EncoderConfig {
 #[serde(default, deny_unknown_fields)]
 pub struct IntegrationConfig {
     /// Local error tolerance of the adaptive Dormand–Prince steps (dimensionless): the error estimate
-    /// of every accepted step is at most this times the stroke (position), 1 m/s (velocity) and the
-    /// supply pressure (pressures).
+    /// of every accepted step is at most this times the stroke (position, m), 1 m/s × (1 + |v| / v_s)
+    /// (velocity) and 0.2 × the absolute supply pressure (pressures, Pa). With 5e-9: 1 nm, 5 nm/s at
+    /// rest, 0.7 mPa.
     pub tolerance: f64,
     /// Largest RK4 substep in ms (reference integrator); substeps are also cut at every valve
     /// switching instant.
@@ -484,7 +485,7 @@ impl PlantConfig {
             (
                 "integration",
                 vec![
-                    e("tolerance", self.integration.tolerance, "local error tolerance of the adaptive Dormand-Prince steps, relative to stroke, 1 m/s and supply pressure (see the accuracy test)"),
+                    e("tolerance", self.integration.tolerance, "local error tolerance of the adaptive Dormand-Prince steps, relative to stroke, 1 m/s (1 + |v|/v_s) and 0.2 supply pressure (tests/accuracy.rs)"),
                     e("max_substep_ms", self.integration.max_substep_ms, "largest substep of the RK4 reference integrator, ms (cut at valve switching instants)"),
                     e("slow_substep_ms", self.integration.slow_substep_ms, "largest RK4 reference substep while sliding slowly (Stribeck region), ms"),
                     e("slow_speed_mm_s", self.integration.slow_speed_mm_s, "speed below which slow_substep_ms applies, mm/s (4 Stribeck velocities)"),

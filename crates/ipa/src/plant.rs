@@ -34,8 +34,11 @@ const _: () = assert!(STRETCH * MAX_SHRINK < 1.0);
 /// negative friction slope amplifies errors).
 const VELOCITY_SCALE_M_S: f64 = 1.0;
 
-/// Pressure scale of the step-size control, as a fraction of the supply pressure.
-const PRESSURE_SCALE: f64 = 0.5;
+/// Pressure scale of the step-size control, as a fraction of the supply pressure. The breakaway time
+/// is set by the pressure force crossing F_s, so pressure errors shift the motion after every
+/// breakaway: 0.2 (rather than 1) cut the largest position error over 2000 s of the default staircase
+/// from 8e-4 to 1e-4 mm for 10 % more derivative evaluations.
+const PRESSURE_SCALE: f64 = 0.2;
 
 /// The numerical integrator of the plant's continuous state between valve switching instants.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -639,8 +642,7 @@ impl Ipa {
                 .dopri5(&step.y0, &k1, self.mode, valves, theta * h);
             self.stats.derivative_evaluations += 6;
             let g = dot(&trial.y) + c;
-            let crossed =
-                g > 0.0 && self.event_value(ev, &trial.y) > 0.0 && trial.y.is_physical();
+            let crossed = g > 0.0 && self.event_value(ev, &trial.y) > 0.0 && trial.y.is_physical();
             if crossed && best.is_none_or(|b| theta < b.0) {
                 best = Some((theta, trial.y));
             }

@@ -91,6 +91,10 @@ pub struct Ipa {
     /// the dynamics change abruptly when a valve switches, and the step that suited the same valve
     /// state in the previous PWM period is a better guess than the one of the last segment.
     h_next_s: [f64; 4],
+    /// Proposed length of the first step after a valve switches to each valve state, s: the chamber
+    /// that has just been connected changes fastest then, and the first step that suited the same
+    /// switch in the previous PWM period is the best guess.
+    h_first_s: [f64; 4],
     /// The derivative at the current state, with the valve states and mode it was computed for (FSAL).
     fsal: Option<(Valves, Mode, State)>,
     state: State,
@@ -169,6 +173,7 @@ impl Ipa {
             },
             inv_stribeck_m_s: 1.0 / (config.friction.stribeck_velocity_mm_s * 1e-3),
             h_next_s: [0.0; 4],
+            h_first_s: [0.0; 4],
             fsal: None,
             state: State {
                 x_m: 0.0,
@@ -279,6 +284,7 @@ impl Ipa {
         self.stats = IntegrationStats::default();
         self.mode = Mode::Stuck;
         self.h_next_s = [self.initial_step_s(); 4];
+        self.h_first_s = [self.initial_step_s(); 4];
         self.fsal = None;
         self.settle();
     }
@@ -465,18 +471,27 @@ impl Ipa {
         let iv = 2 * usize::from(valves.cap) + usize::from(valves.rod);
         let tiny = 1e-12 * self.ts_s;
         let h_min = 1e-9 * self.ts_s;
-        let mut k1 = match self.fsal {
-            Some((v, m, k)) if v == valves && m == self.mode => k,
+        // Fresh: the valves have just switched (or the plant was reset); the first step uses h_first_s.
+        let (mut k1, mut fresh) = match self.fsal {
+            Some((v, m, k)) if v == valves && m == self.mode => (k, false),
             _ => {
                 self.stats.derivative_evaluations += 1;
-                self.dynamics.derivative(&self.state, self.mode, valves)
+                (
+                    self.dynamics.derivative(&self.state, self.mode, valves),
+                    true,
+                )
             }
         };
         while tb - t > tiny {
             let rest = tb - t;
             // Take the rest of the interval when it is at most STRETCH times the proposed step.
-            let to_end = self.h_next_s[iv] * STRETCH >= rest;
-            let h = if to_end { rest } else { self.h_next_s[iv] };
+            let h_prop = if fresh {
+                self.h_first_s[iv]
+            } else {
+                self.h_next_s[iv]
+            };
+            let to_end = h_prop * STRETCH >= rest;
+            let h = if to_end { rest } else { h_prop };
             let step = self.dynamics.dopri5(&self.state, &k1, self.mode, valves, h);
             self.stats.derivative_evaluations += 6;
             let en = if step.y.is_physical() {
@@ -493,8 +508,13 @@ impl Ipa {
                 } else {
                     0.2
                 };
-                self.h_next_s[iv] = h * fac;
-                if self.h_next_s[iv] < h_min {
+                let h_retry = h * fac;
+                if fresh {
+                    self.h_first_s[iv] = h_retry;
+                } else {
+                    self.h_next_s[iv] = h_retry;
+                }
+                if h_retry < h_min {
                     let hint = format!(
                         "the adaptive step fell below {h_min:e} s; loosen or tighten integration.tolerance"
                     );
@@ -510,11 +530,12 @@ impl Ipa {
             };
             let proposal = h * fac;
             // A step shortened to end the interval does not shorten the next one.
-            self.h_next_s[iv] = if to_end {
-                proposal.max(self.h_next_s[iv])
-            } else {
-                proposal
-            };
+            let keep = |old: f64| if to_end { proposal.max(old) } else { proposal };
+            if fresh {
+                self.h_first_s[iv] = keep(self.h_first_s[iv]);
+                fresh = false;
+            }
+            self.h_next_s[iv] = keep(self.h_next_s[iv]);
             self.stats.steps += 1;
             match self.detect_dense(&step) {
                 None => {

@@ -578,6 +578,8 @@ mod tests {
             ("[air]\nexponent_volume = 2.0\n", "air.exponent_volume"),
             ("[encoder]\nresolution_mm = 0.0\n", "encoder.resolution_mm"),
             ("[cylinder]\nbore_mm = nan\n", "cylinder.bore_mm"),
+            ("[integration]\ntolerance = 0.0\n", "integration.tolerance"),
+            ("[integration]\ntolerance = 0.01\n", "integration.tolerance"),
         ] {
             let e = PlantConfig::from_toml_str(toml, "t")
                 .unwrap_err()

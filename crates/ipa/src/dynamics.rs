@@ -39,17 +39,6 @@ impl State {
         p_rod_pa: 0.0,
     };
 
-    /// Every component times `a`.
-    #[inline]
-    pub fn scale(&self, a: f64) -> State {
-        State {
-            x_m: a * self.x_m,
-            v_m_s: a * self.v_m_s,
-            p_cap_pa: a * self.p_cap_pa,
-            p_rod_pa: a * self.p_rod_pa,
-        }
-    }
-
     /// self + h d, component by component.
     #[inline]
     pub fn axpy(&self, h: f64, d: &State) -> State {
@@ -323,11 +312,6 @@ pub struct Dopri5Step {
 }
 
 impl Dopri5Step {
-    /// The derivative at the start of the step (k1).
-    pub fn k1(&self) -> State {
-        self.k[0]
-    }
-
     /// The derivative at the end of the step (k7), valid as the next step's k1.
     pub fn end_derivative(&self) -> State {
         self.k[5]

@@ -107,3 +107,27 @@ fn rls_bench_refuses_a_bad_forgetting_factor() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("--forgetting"));
 }
+
+// Physics plant with --reference and --accuracy: the RK4 peer is timed on the same record (speed-up =
+// real-time factor over the peer's), and the production integrator stays within 1e-3 mm of the
+// 16×-refined RK4 reference over it.
+#[test]
+fn physics_plant_bench_times_the_rk4_reference_and_reports_the_accuracy() {
+    let v = bench(&[
+        "plant",
+        "--samples",
+        "200",
+        "--repetitions",
+        "1",
+        "--reference",
+        "--accuracy",
+    ]);
+    assert_eq!(v["work"]["integrator"], "DormandPrince");
+    let r = &v["reference"];
+    assert_eq!(r["work"]["integrator"], "Rk4");
+    assert_eq!(r["samples"], 200);
+    let speedup = f(&v, "real_time_factor") / f(r, "real_time_factor");
+    assert!((f(r, "speedup") - speedup).abs() <= 1e-9 * speedup);
+    let acc = f(&v["accuracy"], "max_position_difference_mm");
+    assert!((0.0..1e-3).contains(&acc), "{acc}");
+}

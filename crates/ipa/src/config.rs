@@ -197,22 +197,31 @@ impl Default for EncoderConfig {
     }
 }
 
-/// Numerical integration.
+/// Numerical integration. The production integrator is the adaptive Dormand–Prince 5(4) pair with
+/// `tolerance`; the substep settings apply to the classical RK4 reference integrator
+/// ([`crate::plant::Integrator::Rk4`]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct IntegrationConfig {
-    /// Largest RK4 substep in ms; substeps are also cut at every valve switching instant.
+    /// Local error tolerance of the adaptive Dormand–Prince steps (dimensionless): the error estimate
+    /// of every accepted step is at most this times the stroke (position, m), 1 m/s × (1 + |v| / v_s)
+    /// (velocity) and 0.2 × the absolute supply pressure (pressures, Pa). With 5e-9: 1 nm, 5 nm/s at
+    /// rest, 0.7 mPa.
+    pub tolerance: f64,
+    /// Largest RK4 substep in ms (reference integrator); substeps are also cut at every valve
+    /// switching instant.
     pub max_substep_ms: f64,
-    /// Largest RK4 substep in ms while sliding slower than `slow_speed_mm_s` (the Stribeck region,
-    /// where the friction changes on a time scale of v_s / acceleration).
+    /// Largest RK4 substep in ms while sliding slower than `slow_speed_mm_s` (reference integrator; the
+    /// Stribeck region, where the friction changes on a time scale of v_s / acceleration).
     pub slow_substep_ms: f64,
-    /// Speed in mm/s below which `slow_substep_ms` is used.
+    /// Speed in mm/s below which `slow_substep_ms` is used (reference integrator).
     pub slow_speed_mm_s: f64,
 }
 
 impl Default for IntegrationConfig {
     fn default() -> Self {
         IntegrationConfig {
+            tolerance: 5e-9,
             max_substep_ms: 0.25,
             slow_substep_ms: 0.0625,
             slow_speed_mm_s: 40.0,
@@ -361,6 +370,15 @@ impl PlantConfig {
         )?;
         nonneg("friction", "viscous_n_s_m", f.viscous_n_s_m)?;
         pos("encoder", "resolution_mm", self.encoder.resolution_mm)?;
+        let tol = self.integration.tolerance;
+        if !(1e-14..=1e-3).contains(&tol) {
+            return Err(bad(
+                "integration",
+                "tolerance",
+                tol,
+                "a local error tolerance in [1e-14, 1e-3]",
+            ));
+        }
         let h = self.integration.max_substep_ms;
         if !(h > 0.0 && h <= v.pwm_period_ms) {
             return Err(bad(
@@ -467,8 +485,9 @@ impl PlantConfig {
             (
                 "integration",
                 vec![
-                    e("max_substep_ms", self.integration.max_substep_ms, "largest RK4 substep, ms (cut at valve switching instants; see the convergence test)"),
-                    e("slow_substep_ms", self.integration.slow_substep_ms, "largest RK4 substep while sliding slowly (Stribeck region), ms"),
+                    e("tolerance", self.integration.tolerance, "local error tolerance of the adaptive Dormand-Prince steps, relative to stroke, 1 m/s (1 + |v|/v_s) and 0.2 supply pressure (tests/accuracy.rs)"),
+                    e("max_substep_ms", self.integration.max_substep_ms, "largest substep of the RK4 reference integrator, ms (cut at valve switching instants)"),
+                    e("slow_substep_ms", self.integration.slow_substep_ms, "largest RK4 reference substep while sliding slowly (Stribeck region), ms"),
                     e("slow_speed_mm_s", self.integration.slow_speed_mm_s, "speed below which slow_substep_ms applies, mm/s (4 Stribeck velocities)"),
                 ],
             ),
@@ -518,6 +537,7 @@ mod tests {
         c.load.external_force_n = -12.0;
         c.friction.viscous_n_s_m = 7.0;
         c.encoder.resolution_mm = 0.005;
+        c.integration.tolerance = 3e-9;
         c.integration.max_substep_ms = 0.2;
         c.integration.slow_substep_ms = 0.1;
         c.integration.slow_speed_mm_s = 12.0;
@@ -558,6 +578,8 @@ mod tests {
             ("[air]\nexponent_volume = 2.0\n", "air.exponent_volume"),
             ("[encoder]\nresolution_mm = 0.0\n", "encoder.resolution_mm"),
             ("[cylinder]\nbore_mm = nan\n", "cylinder.bore_mm"),
+            ("[integration]\ntolerance = 0.0\n", "integration.tolerance"),
+            ("[integration]\ntolerance = 0.01\n", "integration.tolerance"),
         ] {
             let e = PlantConfig::from_toml_str(toml, "t")
                 .unwrap_err()

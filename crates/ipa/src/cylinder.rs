@@ -60,26 +60,29 @@ impl Cylinder {
     }
 
     /// V_a(x), m^3.
-    #[inline]
+    #[inline(always)]
     pub fn volume_cap_m3(&self, x_m: f64) -> f64 {
         self.dead_cap_m3 + self.area_cap_m2 * x_m
     }
 
     /// V_b(x), m^3.
-    #[inline]
+    #[inline(always)]
     pub fn volume_rod_m3(&self, x_m: f64) -> f64 {
         self.dead_rod_m3 + self.area_rod_side_m2 * (self.stroke_m - x_m)
     }
 
     /// dp/dt of a chamber (Pa/s) at pressure `p_pa` and volume `v_m3`, with net mass flow `mdot_kg_s`
     /// into it (negative: out of it) and volume rate `dv_m3_s`.
-    #[inline]
+    #[inline(always)]
     pub fn dp_dt(&self, p_pa: f64, v_m3: f64, mdot_kg_s: f64, dv_m3_s: f64) -> f64 {
         let exponent = if mdot_kg_s >= 0.0 {
             self.alpha_in
         } else {
             self.alpha_out
         };
-        (self.rt * exponent * mdot_kg_s - self.alpha * p_pa * dv_m3_s) / v_m3
+        // Times 1/V rather than divided by V: the division depends on x only and runs while the flow
+        // is computed, instead of after it.
+        let inv_v = 1.0 / v_m3;
+        (self.rt * exponent * mdot_kg_s - self.alpha * p_pa * dv_m3_s) * inv_v
     }
 }

@@ -37,7 +37,7 @@ impl Friction {
     }
 
     /// Friction force (N, opposing the motion) while sliding in direction `dir` (+-1) at velocity `v_m_s`.
-    #[inline]
+    #[inline(always)]
     pub fn sliding_n(&self, dir: f64, v_m_s: f64) -> f64 {
         let q = v_m_s * v_m_s * self.inv_vs2;
         // exp(-q) < 1e-19 beyond q = 44: below the last bit of F_c, so the exponential is skipped.

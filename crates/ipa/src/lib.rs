@@ -3,7 +3,8 @@
 //!
 //! - [`Ipa`] (module [`plant`]): double-acting cylinder ([`cylinder`]) with two PWM-driven on/off valves
 //!   ([`valve`]), seal friction with stiction ([`friction`]), end stops, an optical encoder ([`encoder`]);
-//!   integrated by RK4 ([`dynamics`]). Parameters in [`PlantConfig`] ([`config`], TOML).
+//!   integrated by adaptive Dormand–Prince 5(4) steps with located events ([`dynamics`], [`plant`]; the
+//!   earlier classical RK4 is kept as the reference). Parameters in [`PlantConfig`] ([`config`], TOML).
 //! - [`spec::plant_from_spec`]: `ipa`, `paper` or `model:FILE` behind [`sysid_core::Plant`].
 //! - [`input`]: staircase, PRBS, APRBS, multisine, step and file inputs.
 //!

@@ -33,6 +33,8 @@ pub struct FlowPath {
     r_lam: f64,
     /// sqrt(1 - ((r_lam - b)/(1 - b))^2) / (1 - r_lam): slope factor of the laminar branch.
     lam_factor: f64,
+    /// 1 / (1 - b).
+    inv_one_minus_b: f64,
 }
 
 impl FlowPath {
@@ -49,6 +51,7 @@ impl FlowPath {
             b,
             r_lam,
             lam_factor: (1.0 - z * z).sqrt() / (1.0 - r_lam),
+            inv_one_minus_b: 1.0 / (1.0 - b),
         }
     }
 
@@ -58,7 +61,7 @@ impl FlowPath {
     }
 
     /// Mass flow from `p1_pa` to `p2_pa`, kg/s; negative when p2 > p1 (the flow reverses).
-    #[inline]
+    #[inline(always)]
     pub fn mass_flow_kg_s(&self, p1_pa: f64, p2_pa: f64) -> f64 {
         if p1_pa >= p2_pa {
             self.forward(p1_pa, p2_pa)
@@ -67,20 +70,21 @@ impl FlowPath {
         }
     }
 
-    #[inline]
+    /// Forward flow (p_up >= p_down), written without divisions: with r = p_down / p_up,
+    /// p_up sqrt(1 - z^2) = sqrt(p_up^2 - (p_up z)^2) and p_up z = (p_down - b p_up) / (1 - b).
+    #[inline(always)]
     fn forward(&self, p_up: f64, p_down: f64) -> f64 {
         if p_up <= 0.0 {
             return 0.0;
         }
-        let r = p_down / p_up;
-        let choked = self.choked_per_pa * p_up;
-        if r <= self.b {
-            choked
-        } else if r < self.r_lam {
-            let z = (r - self.b) / (1.0 - self.b);
-            choked * (1.0 - z * z).sqrt()
+        if p_down <= self.b * p_up {
+            self.choked_per_pa * p_up
+        } else if p_down < self.r_lam * p_up {
+            let pz = (p_down - self.b * p_up) * self.inv_one_minus_b;
+            // p_up > pz here (r < r_lam < 1); max(0) guards the rounding.
+            self.choked_per_pa * (p_up * p_up - pz * pz).max(0.0).sqrt()
         } else {
-            choked * self.lam_factor * (1.0 - r)
+            self.choked_per_pa * self.lam_factor * (p_up - p_down)
         }
     }
 }

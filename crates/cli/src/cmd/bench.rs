@@ -85,6 +85,14 @@ pub struct PlantArgs {
     /// Samples simulated per run (staircase input, Ts = 0.01 s).
     #[arg(long, default_value_t = 6000, value_parser = clap::value_parser!(u64).range(1..=100_000_000))]
     pub samples: u64,
+    /// Physics plant only: also time the previous integrator (classical RK4 at the default substeps,
+    /// `ipa::plant::Integrator::Rk4`) on the same input in the same run, and print the speed-up.
+    #[arg(long)]
+    pub reference: bool,
+    /// Physics plant only: also print the largest difference of the unquantised position (mm) to the
+    /// 16×-refined reference (RK4 with substeps 16 times shorter) over the benchmark record (not timed).
+    #[arg(long)]
+    pub accuracy: bool,
     #[command(flatten)]
     pub common: CommonArgs,
 }
@@ -218,7 +226,71 @@ fn identify(a: IdentifyArgs) -> anyhow::Result<()> {
     emit(&text, &out, &a.common.json, &[])
 }
 
+/// Integrator work per sample of the physics plant (last timed run).
+#[derive(Serialize)]
+struct IntegratorWork {
+    integrator: String,
+    steps_per_sample: f64,
+    rejected_steps_per_sample: f64,
+    derivative_evaluations_per_sample: f64,
+}
+
+fn work(p: &ipa::Ipa, samples: usize) -> IntegratorWork {
+    let st = p.integration_stats();
+    let n = samples as f64;
+    IntegratorWork {
+        integrator: format!("{:?}", p.integrator()),
+        steps_per_sample: st.steps as f64 / n,
+        rejected_steps_per_sample: st.rejected_steps as f64 / n,
+        derivative_evaluations_per_sample: st.derivative_evaluations as f64 / n,
+    }
+}
+
+fn work_line(w: &IntegratorWork) -> String {
+    format!(
+        "  {}: {:.2} steps ({:.2} rejected), {:.1} derivative evaluations per sample\n",
+        w.integrator,
+        w.steps_per_sample,
+        w.rejected_steps_per_sample,
+        w.derivative_evaluations_per_sample
+    )
+}
+
+/// Unquantised positions (mm) after each sample of `u`, from rest at mid-stroke, with `integrator` and
+/// the RK4 substeps divided by `refine`.
+fn positions(
+    cfg: &ipa::PlantConfig,
+    integrator: ipa::plant::Integrator,
+    refine: f64,
+    u: &[f64],
+) -> anyhow::Result<Vec<f64>> {
+    let mut cfg = cfg.clone();
+    cfg.integration.max_substep_ms /= refine;
+    cfg.integration.slow_substep_ms /= refine;
+    let mut p = ipa::Ipa::new(cfg)?;
+    p.set_integrator(integrator);
+    u.iter()
+        .map(|&uk| {
+            p.advance(uk)?;
+            Ok(p.position_mm())
+        })
+        .collect()
+}
+
+fn max_abs_diff(a: &[f64], b: &[f64]) -> f64 {
+    a.iter()
+        .zip(b)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0.0, f64::max)
+}
+
 fn plant(a: PlantArgs) -> anyhow::Result<()> {
+    if a.plant.trim() == "ipa" {
+        return physics_plant(a);
+    }
+    if a.reference || a.accuracy {
+        anyhow::bail!("--reference and --accuracy apply to --plant ipa only");
+    }
     #[derive(Serialize)]
     struct Out {
         benchmark: &'static str,
@@ -244,6 +316,115 @@ fn plant(a: PlantArgs) -> anyhow::Result<()> {
         &Out {
             benchmark: "plant",
             plant: r,
+        },
+        &a.common.json,
+        &inputs,
+    )
+}
+
+/// `bench plant` for the physics plant: the production integrator, and on request the RK4 reference
+/// timed in the same run and the accuracy against the 16×-refined reference.
+fn physics_plant(a: PlantArgs) -> anyhow::Result<()> {
+    use ipa::plant::Integrator;
+    use sysid::Plant;
+    #[derive(Serialize)]
+    struct Out {
+        benchmark: &'static str,
+        #[serde(flatten)]
+        plant: sysid_studies::bench::PlantBench,
+        work: IntegratorWork,
+        #[serde(skip_serializing_if = "Option::is_none")]
+        reference: Option<Reference>,
+        #[serde(skip_serializing_if = "Option::is_none")]
+        accuracy: Option<Accuracy>,
+    }
+    #[derive(Serialize)]
+    struct Reference {
+        #[serde(flatten)]
+        plant: sysid_studies::bench::PlantBench,
+        work: IntegratorWork,
+        /// Best real-time factor over the reference's best.
+        speedup: f64,
+        /// Median over median.
+        median_speedup: f64,
+    }
+    #[derive(Serialize)]
+    struct Accuracy {
+        refined_reference: &'static str,
+        max_position_difference_mm: f64,
+        reference_max_position_difference_mm: f64,
+    }
+    let inputs = ipa::spec::spec_input_files(&a.plant, a.plant_config.as_deref());
+    let cfg = match a.plant_config.as_deref() {
+        Some(path) => ipa::PlantConfig::from_toml_file(path)?,
+        None => ipa::PlantConfig::default(),
+    };
+    let mut p = ipa::Ipa::new(cfg.clone())?;
+    let n = a.samples as usize;
+    let u = ipa::input::generate(&ipa::InputSpec::Staircase, n, p.ts(), 255.0, 1)?;
+    let reps = a.common.repetitions as usize;
+    let r = bench_plant(&mut p, &u, reps)?;
+    let w = work(&p, n);
+    let mut text = format!(
+        "Plant '{}': {} samples ({:.1} s simulated) in {:.4} s, real-time factor {:.0} (median {:.0}), best of {}\n",
+        r.plant, r.samples, r.simulated_seconds, r.wall_seconds, r.real_time_factor, r.median_real_time_factor, r.repetitions
+    );
+    text.push_str(&work_line(&w));
+    let reference = if a.reference {
+        let mut q = ipa::Ipa::new(cfg.clone())?;
+        q.set_integrator(Integrator::Rk4);
+        let rr = bench_plant(&mut q, &u, reps)?;
+        let rw = work(&q, n);
+        text.push_str(&format!(
+            "Reference (previous integrator, classical RK4, substeps {} / {} ms), same input and run: {:.4} s, real-time factor {:.0} (median {:.0})\n",
+            cfg.integration.max_substep_ms,
+            cfg.integration.slow_substep_ms,
+            rr.wall_seconds,
+            rr.real_time_factor,
+            rr.median_real_time_factor
+        ));
+        text.push_str(&work_line(&rw));
+        let speedup = r.real_time_factor / rr.real_time_factor;
+        let median_speedup = r.median_real_time_factor / rr.median_real_time_factor;
+        text.push_str(&format!(
+            "  speed-up {speedup:.2} (median {median_speedup:.2})\n"
+        ));
+        Some(Reference {
+            plant: rr,
+            work: rw,
+            speedup,
+            median_speedup,
+        })
+    } else {
+        None
+    };
+    let accuracy = if a.accuracy {
+        let fine = positions(&cfg, Integrator::Rk4, 16.0, &u)?;
+        let ours = positions(&cfg, Integrator::DormandPrince, 1.0, &u)?;
+        let rk4 = positions(&cfg, Integrator::Rk4, 1.0, &u)?;
+        let acc = Accuracy {
+            refined_reference: "classical RK4, substeps divided by 16",
+            max_position_difference_mm: max_abs_diff(&ours, &fine),
+            reference_max_position_difference_mm: max_abs_diff(&rk4, &fine),
+        };
+        text.push_str(&format!(
+            "Accuracy over the record (unquantised position vs RK4 with 16x shorter substeps): max difference {:.3e} mm ({:?}), {:.3e} mm (RK4 at the default substeps)\n",
+            acc.max_position_difference_mm,
+            p.integrator(),
+            acc.reference_max_position_difference_mm
+        ));
+        Some(acc)
+    } else {
+        None
+    };
+    emit(
+        &text,
+        &Out {
+            benchmark: "plant",
+            plant: r,
+            work: w,
+            reference,
+            accuracy,
         },
         &a.common.json,
         &inputs,

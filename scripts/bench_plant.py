@@ -1,0 +1,72 @@
+#!/usr/bin/env python3
+"""Real-time factor of the physics plant: `ipa-sysid bench plant --reference` (the production
+Dormand-Prince integrator and the previous RK4 integrator timed in the same run) and the end-to-end
+`ipa-sysid simulate --plant ipa --samples N` (input design, simulation and CSV writing), repeated in
+rounds; prints the median over the rounds (the machine is shared: single runs are noisy).
+
+    python3 scripts/bench_plant.py [--bin target/release/ipa-sysid] [--before OLD_BINARY] [--rounds 5]
+
+--before times an older build of ipa-sysid (e.g. the commit before the change) in the same rounds.
+"""
+import argparse
+import json
+import statistics
+import subprocess
+import tempfile
+import time
+from pathlib import Path
+
+
+def bench_plant(binary, reference, reps, samples):
+    cmd = [binary, "bench", "plant", "--repetitions", str(reps), "--samples", str(samples), "--json", "-"]
+    if reference:
+        cmd.append("--reference")
+    out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
+    return json.loads(out)
+
+
+def simulate_rtf(binary, samples, out_csv):
+    start = time.perf_counter()
+    subprocess.run(
+        [binary, "simulate", "--plant", "ipa", "--samples", str(samples), "--out", str(out_csv)],
+        check=True,
+        capture_output=True,
+    )
+    wall = time.perf_counter() - start
+    return samples * 0.01 / wall
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--bin", default="target/release/ipa-sysid")
+    ap.add_argument("--before", help="an older ipa-sysid binary, timed in the same rounds")
+    ap.add_argument("--rounds", type=int, default=5)
+    ap.add_argument("--repetitions", type=int, default=5, help="timed runs inside each bench plant call")
+    ap.add_argument("--bench-samples", type=int, default=6000)
+    ap.add_argument("--simulate-samples", type=int, default=200000)
+    a = ap.parse_args()
+    rows = {}
+
+    def add(key, value):
+        rows.setdefault(key, []).append(value)
+
+    with tempfile.TemporaryDirectory() as tmp:
+        csv = Path(tmp) / "x.csv"
+        for _ in range(a.rounds):
+            r = bench_plant(a.bin, True, a.repetitions, a.bench_samples)
+            add("bench plant: Dormand-Prince (median of its runs)", r["median_real_time_factor"])
+            add("bench plant: RK4 reference, same run (median of its runs)", r["reference"]["median_real_time_factor"])
+            add("bench plant: speed-up (median/median)", r["reference"]["median_speedup"])
+            add(f"simulate --samples {a.simulate_samples}: end-to-end", simulate_rtf(a.bin, a.simulate_samples, csv))
+            if a.before:
+                rb = bench_plant(a.before, False, a.repetitions, a.bench_samples)
+                add("before: bench plant (median of its runs)", rb["median_real_time_factor"])
+                add(f"before: simulate --samples {a.simulate_samples}: end-to-end",
+                    simulate_rtf(a.before, a.simulate_samples, csv))
+    print(f"real-time factor, median of {a.rounds} rounds (min..max):")
+    for key, vals in rows.items():
+        print(f"  {key:<62} {statistics.median(vals):8.2f}  ({min(vals):.2f}..{max(vals):.2f})")
+
+
+if __name__ == "__main__":
+    main()

@@ -2,7 +2,7 @@
 //!
 //! The reproduction report prints every estimate and measured quantity with [`estimate`] (4 significant
 //! digits) and every standard deviation with [`std_dev`] (2 significant digits), in its HTML tables, its
-//! terminal tables and its captions alike: `30.83 ± 3.5`, `0.08114 s`, `8.510e-4`. [`num`] is the older
+//! terminal tables and its captions alike: `30.83 ± 3.5`, `0.08114 s`, `8.51e-4`. [`num`] is the older
 //! 6-digit format kept for the command line's own tables.
 
 /// Formats a number for a report: 6 significant digits, scientific for very large or small values.
@@ -28,9 +28,8 @@ pub fn num(v: f64) -> String {
     }
 }
 
-/// `v` rounded to `digits` significant digits (1 to 15), trailing zeros kept (they are significant):
-/// fixed notation for 1e-3 ≤ |v| < 1e5 (`0.08114`, `30.83`, `1.410`), scientific otherwise
-/// (`8.510e-4`, `1.235e5`). An integer below 1e5 in magnitude
+/// `v` rounded to `digits` significant digits (1 to 15), trailing zeros trimmed: fixed notation for
+/// 1e-3 ≤ |v| < 1e5 (`0.08114`, `30.83`, `1.41`), scientific otherwise (`8.51e-4`, `1.235e5`). An integer below 1e5 in magnitude
 /// is printed whole (`255`, `2000`, `-50`); 0 is `0`; NaN and ±inf print as Rust does.
 pub fn sig(v: f64, digits: usize) -> String {
     let digits = digits.clamp(1, 15);
@@ -51,10 +50,22 @@ pub fn sig(v: f64, digits: usize) -> String {
         .and_then(|(_, e)| e.parse().ok())
         .unwrap_or(0);
     if !(-3..5).contains(&exponent) {
-        return sci;
+        return match sci.split_once('e') {
+            Some((m, e)) => format!("{}e{e}", trim_zeros(m)),
+            None => sci,
+        };
     }
     let decimals = (digits as i32 - 1 - exponent).max(0) as usize;
-    format!("{v:.decimals$}")
+    trim_zeros(&format!("{v:.decimals$}"))
+}
+
+/// `1.500` → `1.5`, `2.000` → `2`; a string without a decimal point is returned unchanged.
+fn trim_zeros(s: &str) -> String {
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s.to_string()
+    }
 }
 
 /// An estimate or measured value: 4 significant digits ([`sig`]).

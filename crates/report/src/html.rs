@@ -184,11 +184,24 @@ impl Table {
             out.push_str("<tr>");
             for c in 0..columns {
                 let text = row.get(c).map(String::as_str).unwrap_or("");
-                out.push_str(&format!("<td{}>{}</td>", class(c, text), escape(text)));
+                out.push_str(&format!("<td{}>{}</td>", class(c, text), cell_html(text)));
             }
             out.push_str("</tr>\n");
         }
         out.push_str("</tbody>\n</table>\n</div>\n");
+    }
+}
+
+/// A cell's escaped content; `value ± std` is split so that a narrow screen may wrap it at the `±`
+/// but never inside a number.
+fn cell_html(text: &str) -> String {
+    match text.split_once(" ± ") {
+        Some((v, s)) if looks_numeric(text) => format!(
+            "<span class=\"nw\">{}</span> ± <span class=\"nw\">{}</span>",
+            escape(v),
+            escape(s)
+        ),
+        _ => escape(text),
     }
 }
 
@@ -386,6 +399,7 @@ caption { caption-side: top; text-align: left; font-weight: 600; padding-bottom:
 th, td { border: 1px solid #999; padding: 0.25rem 0.6rem; text-align: left; vertical-align: top; }
 thead th { background: #e8e8e8; }
 td.num { text-align: right; font-variant-numeric: tabular-nums; white-space: nowrap; }
+.nw { white-space: nowrap; }
 th.paper, td.paper { background: #f3f0e6; font-style: italic; color: #333; }
 figure { margin: 1.2rem 0; break-inside: avoid; page-break-inside: avoid; }
 figure svg, figure img { display: block; max-width: 100%; height: auto; border: 1px solid #ddd; }
@@ -397,6 +411,11 @@ pre { background: #f5f5f5; border: 1px solid #ddd; padding: 0.6rem; overflow-x: 
 .callout.fail { border-color: #d55e00; }
 .callout .verdict { font-weight: 700; margin-right: 0.4rem; }
 footer { margin-top: 3rem; font-size: 0.85rem; color: #555; border-top: 1px solid #ccc; padding-top: 0.5rem; }
+@media (max-width: 60rem) {
+  td.num { white-space: normal; }
+  th, td { padding: 0.2rem 0.35rem; }
+  table { font-size: 0.88rem; }
+}
 @media print {
   body { max-width: none; padding: 0; font-size: 10.5pt; }
   nav.toc { display: none; }

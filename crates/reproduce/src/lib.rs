@@ -19,7 +19,7 @@ use control::{
 use ipa::input::{generate, InputSpec};
 use report::format::{estimate, opt, pm};
 use report::html::{Section, Table, Verdict};
-use report::plot::{save_figure, Figure, Panel, Series};
+use report::plot::{save_figure, Figure, Panel, Series, SeriesStyle};
 use report::Report;
 use serde_json::json;
 use sysid::data::Signals;
@@ -895,13 +895,13 @@ fn difference_cells(d: &Difference) -> [String; 4] {
         join(
             d.plant
                 .iter()
-                .map(|(l, v)| format!("{} ({l})", opt(*v)))
+                .map(|(l, v)| format!("{l}: {}", opt(*v)))
                 .collect(),
         ),
         join(
             d.paper
                 .iter()
-                .map(|(l, v)| format!("{} ({l})", estimate(*v)))
+                .map(|(l, v)| format!("{l}: {}", estimate(*v)))
                 .collect(),
         ),
         d.reason.to_string(),
@@ -1160,9 +1160,8 @@ fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
             .series(Series::line("plant", tp, yp).colour(plant_c));
         if let Some(m) = &lp.model {
             let (tm, ym) = cut(m, &m.y);
-            p = p.series(
-                Series::dashed(format!("{cl_label} (simulation)"), tm, ym).colour(cl_colour),
-            );
+            p = p
+                .series(Series::dashed(format!("simulated: {cl_label}"), tm, ym).colour(cl_colour));
         }
         p
     };
@@ -1268,15 +1267,23 @@ fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
         let Ok(a) = &r.validation else { continue };
         let label = st.model(r.key).map_or(r.key, |m| m.label);
         let lags: Vec<f64> = (1..=a.max_lag).map(|l| l as f64).collect();
+        // Key-term LS nearly coincides with RLS: dashed on top so that both stay visible.
+        let style = if r.key == "hammerstein_ls" {
+            SeriesStyle::Dashed
+        } else {
+            SeriesStyle::Line
+        };
         acf = acf.series(
-            Series::line(label, lags, a.autocorrelation.clone()).colour(colours::model(r.key)),
+            Series::new(label, lags, a.autocorrelation.clone(), style)
+                .colour(colours::model(r.key)),
         );
         let m = a.max_lag as f64;
         let lags: Vec<f64> = (0..a.cross_correlation.len())
             .map(|i| i as f64 - m)
             .collect();
         ccf = ccf.series(
-            Series::line(label, lags, a.cross_correlation.clone()).colour(colours::model(r.key)),
+            Series::new(label, lags, a.cross_correlation.clone(), style)
+                .colour(colours::model(r.key)),
         );
         bound = Some((a.bound, a.max_lag as f64));
     }
@@ -1364,7 +1371,7 @@ fn table3(s: &ReproduceSettings, st: &Study) -> Table {
     header.extend(
         st.hammersteins()
             .iter()
-            .map(|m| format!("ours: {}", m.label)),
+            .map(|m| format!("ours: {}", m.short)),
     );
     if s.plant == "paper" {
         header.push("this plant's actual value".into());
@@ -1606,21 +1613,23 @@ fn paper_model_table(st: &Study) -> Table {
 }
 
 fn residual_table(st: &Study) -> Table {
+    let n = st
+        .residuals
+        .iter()
+        .find_map(|r| r.validation.as_ref().ok().map(|a| (a.n, a.max_lag)));
     let mut t = Table::new([
         "model",
         "record",
-        "N",
         "residual std (mm)",
-        "lags outside ±2.58/√N: auto / cross",
-        "Ljung–Box Q (p)",
-        "whiteness",
-        "independence S (p)",
-        "independence",
+        "lags outside ±2.58/√N (auto / cross)",
+        "whiteness: Ljung–Box Q (p)",
+        "independence of u: S (p)",
     ])
-    .caption(
-        "Residual tests at the 1 % level on the one-step prediction errors, lags up to 25: whiteness by \
-         Ljung–Box against χ²(M), independence of the input by the input-whitened statistic against χ²(2M+1)",
-    );
+    .caption(format!(
+        "Residual tests at the 1 % level on the one-step prediction errors{}: whiteness by Ljung–Box against \
+         χ²(M), independence of the input by the input-whitened statistic against χ²(2M+1)",
+        n.map_or(String::new(), |(n, m)| format!(" (N = {n} samples per record, M = {m} lags)"))
+    ));
     for r in &st.residuals {
         let label = st.model(r.key).map_or(r.key, |m| m.label);
         for (record, res) in [("estimation", &r.estimation), ("validation", &r.validation)] {
@@ -1628,32 +1637,27 @@ fn residual_table(st: &Study) -> Table {
                 Ok(a) => t.push_row([
                     label.to_string(),
                     record.to_string(),
-                    a.n.to_string(),
                     estimate(a.residual_std),
                     format!(
                         "{} / {}",
                         a.autocorrelation_outside, a.cross_correlation_outside
                     ),
                     format!(
-                        "{} ({})",
+                        "{}: {} ({})",
+                        if a.white { "white" } else { "NOT white" },
                         estimate(a.ljung_box_q),
                         report::format::sig(a.ljung_box_p, 2)
                     ),
-                    if a.white {
-                        "white".into()
-                    } else {
-                        "NOT white".into()
-                    },
                     format!(
-                        "{} ({})",
+                        "{}: {} ({})",
+                        if a.independent {
+                            "independent"
+                        } else {
+                            "NOT independent"
+                        },
                         estimate(a.cross_statistic),
                         report::format::sig(a.cross_p, 2)
                     ),
-                    if a.independent {
-                        "independent".into()
-                    } else {
-                        "NOT independent".into()
-                    },
                 ]),
                 Err(e) => t.push_row([
                     label.to_string(),
@@ -1742,7 +1746,7 @@ fn build_report(s: &ReproduceSettings, st: &Study, figs: &[Fig]) -> Result<Repor
             .fold(0.0, f64::max)
     };
     r.push_section(
-        Section::new("1. The method on the paper's own model")
+        Section::new("The method on the paper's own model")
             .id("paper-model")
             .paragraph(format!(
                 "Before the harder physics plant: the paper's Table III \"actual\" model is used as the plant, driven \
@@ -1760,7 +1764,7 @@ fn build_report(s: &ReproduceSettings, st: &Study, figs: &[Fig]) -> Result<Repor
     );
 
     r.push_section(with_fig(
-        Section::new("2. Experiment").id("experiment").paragraph(format!(
+        Section::new("Experiment").id("experiment").paragraph(format!(
             "{} samples at Ts = {} s of a staircase command with random levels in ±{} counts held for random \
              durations, starting at {} mm (the experimenter steers the signs so that the piston stays inside the \
              stroke, as on a real rig); a second record with the next seed is used only for validation.",
@@ -1772,7 +1776,7 @@ fn build_report(s: &ReproduceSettings, st: &Study, figs: &[Fig]) -> Result<Repor
         "fig2_experiment",
     )?);
     let arx = &st.arx().fit;
-    let est_sec = Section::new("3. Estimated parameters")
+    let est_sec = Section::new("Estimated parameters")
         .id("estimates")
         .paragraph(
             "Only products of the deadzone slopes with B are identifiable, so b1 = 1 and the slopes carry the gain. \
@@ -1811,7 +1815,7 @@ fn build_report(s: &ReproduceSettings, st: &Study, figs: &[Fig]) -> Result<Repor
         ]);
     }
     r.push_section(with_fig(
-        Section::new("4. Validation")
+        Section::new("Validation")
             .id("validation")
             .paragraph(
                 "The fit is computed on the validation record by free-run simulation (the model sees only u after \
@@ -1824,7 +1828,7 @@ fn build_report(s: &ReproduceSettings, st: &Study, figs: &[Fig]) -> Result<Repor
         "fig5_fit",
     )?);
     r.push_section(with_fig(
-        Section::new("5. Residual analysis")
+        Section::new("Residual analysis")
             .id("residuals")
             .paragraph(
                 "A model that has captured the plant leaves one-step prediction residuals ε(k) = y(k) − ŷ(k|k−1) that \
@@ -1836,19 +1840,20 @@ fn build_report(s: &ReproduceSettings, st: &Study, figs: &[Fig]) -> Result<Repor
         "residuals",
     )?);
     r.push_section(with_fig(
-        Section::new("6. Frequency response")
+        Section::new("Frequency response")
             .id("frequency-response")
             .paragraph(format!(
                 "The identified linear blocks B(q)/A(q) as Bode plots up to the Nyquist frequency {} Hz. An integrating \
-                 plant shows a magnitude falling at 20 dB per decade and a phase near −90° at low frequency; a pole \
-                 just outside the unit circle shows the same magnitude but a phase that starts near −270° (−90° − 180°) \
-                 instead.",
+                 plant shows a magnitude falling at 20 dB per decade and a phase near −90° over most of the band. Below \
+                 the corner frequency |1 − p|/(2π Ts) of the slow pole p, the phase of a stable pole (p < 1) returns \
+                 toward 0° and that of an unstable one (p > 1) falls toward −180°: this is where the unstable models \
+                 show themselves.",
                 estimate(0.5 / st.ts)
             )),
         "bode",
     )?);
     r.push_section(with_fig(
-        Section::new("7. Open-loop test").id("open-loop").paragraph(match st.cl() {
+        Section::new("Open-loop test").id("open-loop").paragraph(match st.cl() {
             Some(m) => format!(
                 "The model for the open-loop test and the simulated closed loops is chosen by a stated rule: {CLOSED_LOOP_RULE}. \
                  Here it is {}. It and the plant receive the same fresh staircase; the model's free-run output fits \
@@ -1915,7 +1920,7 @@ fn build_report(s: &ReproduceSettings, st: &Study, figs: &[Fig]) -> Result<Repor
         Err(reason) => format!("Deadzone compensation was not run: the identified deadzone cannot be inverted ({reason})."),
     };
     let cl = with_fig(
-        Section::new("8. Closed-loop position control")
+        Section::new("Closed-loop position control")
             .id("closed-loop")
             .paragraph(format!(
                 "Metrics follow MATLAB stepinfo: overshoot beyond the final value, steady-state error = set-point − \
@@ -1952,7 +1957,7 @@ fn build_report(s: &ReproduceSettings, st: &Study, figs: &[Fig]) -> Result<Repor
         td.push_row(difference_cells(&d));
     }
     r.push_section(
-        Section::new("9. Differences from the paper")
+        Section::new("Differences from the paper")
             .id("differences")
             .paragraph(if s.plant == "ipa" {
                 "The plant here is a physics simulator, not the paper's rig, and it was not tuned to the paper's \
@@ -1963,7 +1968,7 @@ fn build_report(s: &ReproduceSettings, st: &Study, figs: &[Fig]) -> Result<Repor
             })
             .table(td),
     );
-    r.push_section(Section::new("10. Files").id("files").list([
+    r.push_section(Section::new("Files").id("files").list([
         "summary.json — every number of this report, machine-readable".to_string(),
         format!(
             "{} — saved models (ipa-sysid validate --model …)",

@@ -29,7 +29,8 @@ pub fn num(v: f64) -> String {
 }
 
 /// `v` rounded to `digits` significant digits (1 to 15), trailing zeros trimmed: fixed notation for
-/// 1e-3 ≤ |v| < 1e5 (`0.08114`, `30.83`, `1.41`), scientific otherwise (`8.51e-4`, `1.235e5`). An integer below 1e5 in magnitude
+/// 1e-3 ≤ |v| < 1e5 when the integer part fits in `digits` (`0.08114`, `30.83`, `1.41`), scientific
+/// otherwise (`8.51e-4`, `1.235e4` for 12345.6 with 4 digits). An integer below 1e5 in magnitude
 /// is printed whole (`255`, `2000`, `-50`); 0 is `0`; NaN and ±inf print as Rust does.
 pub fn sig(v: f64, digits: usize) -> String {
     let digits = digits.clamp(1, 15);
@@ -49,7 +50,7 @@ pub fn sig(v: f64, digits: usize) -> String {
         .split_once('e')
         .and_then(|(_, e)| e.parse().ok())
         .unwrap_or(0);
-    if !(-3..5).contains(&exponent) {
+    if !(-3..5).contains(&exponent) || exponent >= digits as i32 {
         return match sci.split_once('e') {
             Some((m, e)) => format!("{}e{e}", trim_zeros(m)),
             None => sci,

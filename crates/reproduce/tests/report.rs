@@ -133,9 +133,8 @@ fn expected_closed_loop_model(s: &Value) -> Option<String> {
             }
         }
     }
-    best.map(|(k, _)| k.clone()).or_else(|| {
-        stable_by_poles(&models["arx"]).then(|| "arx".to_string())
-    })
+    best.map(|(k, _)| k.clone())
+        .or_else(|| stable_by_poles(&models["arx"]).then(|| "arx".to_string()))
 }
 
 #[test]
@@ -149,7 +148,10 @@ fn the_closed_loop_runs_on_a_stable_model_chosen_by_the_stated_rule() {
             .unwrap()
             .contains("never controlled"));
         let key = chosen.expect("a stable model exists on both plants");
-        assert!(s["models"].get(&key).is_some(), "{key} is not a key of models");
+        assert!(
+            s["models"].get(&key).is_some(),
+            "{key} is not a key of models"
+        );
         assert!(stable_by_poles(&s["models"][&key]));
         assert_eq!(s["open_loop"]["model"], key.as_str());
         // The simulated closed loop of the chosen model really ran and was written.
@@ -195,7 +197,10 @@ fn the_new_sections_and_figures_exist() {
         }
     }
     // Every figure has alt text; the report names the colour key once.
-    assert_eq!(page.matches("<figure>").count(), page.matches(" alt=\"").count());
+    assert_eq!(
+        page.matches("<figure>").count(),
+        page.matches(" alt=\"").count()
+    );
     assert!(page.contains("Colours are the same in every figure"));
     // Residual analyses in summary.json: both records of every model, the 99 % bound 2.58/√N.
     for key in s["models"].as_object().unwrap().keys() {
@@ -207,7 +212,17 @@ fn the_new_sections_and_figures_exist() {
         }
     }
     let diffs = s["differences"].as_array().unwrap();
-    for id in ["b_r", "b_l", "m_r", "m_l", "dominant_pole", "fit", "loss", "fpe", "settling_time"] {
+    for id in [
+        "b_r",
+        "b_l",
+        "m_r",
+        "m_l",
+        "dominant_pole",
+        "fit",
+        "loss",
+        "fpe",
+        "settling_time",
+    ] {
         let d = diffs.iter().find(|d| d["id"] == id).unwrap();
         assert!(!d["reason"].as_str().unwrap().is_empty(), "{id}");
     }
@@ -250,7 +265,10 @@ fn estimates_have_four_significant_digits_and_deviations_two() {
         };
         if std.ends_with('i') {
             // A complex pole re ± im·i: both parts are estimates.
-            assert!(digits(&value) <= 4 && digits(&std) <= 4, "pole {value} ± {std}");
+            assert!(
+                digits(&value) <= 4 && digits(&std) <= 4,
+                "pole {value} ± {std}"
+            );
         } else if value.parse::<f64>().is_ok() && std.parse::<f64>().is_ok() {
             seen += 1;
             assert!(digits(&value) <= 4, "estimate {value} ± {std}");
@@ -299,7 +317,12 @@ fn legend_entries(svg: &str) -> Vec<(String, String)> {
         .match_indices("<polyline ")
         .filter_map(|(i, _)| {
             let tag = &svg[i..i + svg[i..].find("/>")?];
-            let colour = tag.split("stroke=\"").nth(1)?.split('"').next()?.to_string();
+            let colour = tag
+                .split("stroke=\"")
+                .nth(1)?
+                .split('"')
+                .next()?
+                .to_string();
             let pts: Vec<(f64, f64)> = tag
                 .split("points=\"")
                 .nth(1)?
@@ -365,14 +388,21 @@ fn each_model_has_one_colour_in_every_figure() {
                 }
             }
             if label == "plant" || label == "measured" {
-                assert_eq!(colour.to_uppercase(), colours::hex(colours::PLANT), "{label}");
+                assert_eq!(
+                    colour.to_uppercase(),
+                    colours::hex(colours::PLANT),
+                    "{label}"
+                );
             }
         }
     }
     // fig5 (3 models), residuals (2 x 4), bode (2 x 4), deadzone (3), the closed loops and open loop.
     assert!(checked >= 20, "only {checked} legend entries checked");
     // Distinct models have distinct colours.
-    let mut hexes: Vec<String> = labels.iter().map(|(k, _)| colours::hex(colours::model(k))).collect();
+    let mut hexes: Vec<String> = labels
+        .iter()
+        .map(|(k, _)| colours::hex(colours::model(k)))
+        .collect();
     hexes.push(colours::hex(colours::PLANT));
     hexes.push(colours::hex(colours::PAPER));
     let n = hexes.len();
@@ -412,13 +442,14 @@ fn the_method_recovers_the_papers_model_without_noise() {
     };
     for (name, truth) in ACTUAL_NORMALISED {
         let e = value(clean, name);
-        assert!(
-            ((e - truth) / truth).abs() < 1e-4,
-            "{name}: {e} vs {truth}"
-        );
+        assert!(((e - truth) / truth).abs() < 1e-4, "{name}: {e} vs {truth}");
         // With 0.01 mm of noise the estimate stays within 10 % (breakpoints within 0.5 count).
         let n = value(noisy, name);
-        let tol = if name.starts_with('b') { 0.5 } else { 0.1 * truth.abs() };
+        let tol = if name.starts_with('b') {
+            0.5
+        } else {
+            0.1 * truth.abs()
+        };
         assert!((n - truth).abs() < tol, "{name} (noisy): {n} vs {truth}");
     }
     let page = html(dir);
@@ -435,7 +466,10 @@ fn bode_matches_the_closed_form_of_a_first_order_model() {
     let m = sysid::Model::arx(ts, vec![-p], vec![g], 1, None).unwrap();
     let b = ipa_reproduce::analysis::bode(&m, 2.0, 0.01, 50);
     assert_eq!(b.f_hz.len(), 50);
-    assert!((b.f_hz[49] - 50.0).abs() < 1e-9, "last frequency is Nyquist");
+    assert!(
+        (b.f_hz[49] - 50.0).abs() < 1e-9,
+        "last frequency is Nyquist"
+    );
     for k in [0, 17, 49] {
         let w = 2.0 * std::f64::consts::PI * b.f_hz[k] * ts;
         let (re, im) = (1.0 - p * w.cos(), p * w.sin());
@@ -443,6 +477,10 @@ fn bode_matches_the_closed_form_of_a_first_order_model() {
         assert!((b.mag_db[k] - 20.0 * mag.log10()).abs() < 1e-9, "{k}");
         // arg G = −ωTs − arg(1 − p e^{−jω}).
         let phase = (-w - im.atan2(re)).to_degrees();
-        assert!((b.phase_deg[k] - phase).abs() < 1e-9, "{k}: {} vs {phase}", b.phase_deg[k]);
+        assert!(
+            (b.phase_deg[k] - phase).abs() < 1e-9,
+            "{k}: {} vs {phase}",
+            b.phase_deg[k]
+        );
     }
 }

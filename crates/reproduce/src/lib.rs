@@ -803,7 +803,11 @@ fn differences(s: &ReproduceSettings, st: &Study) -> Vec<Difference> {
             quantity: "left breakpoint b_l (counts)",
             plant: per_model(&|m| param_value(&m.fit, "b_l")),
             paper: vec![("estimated", est("b_l"))],
-            reason: deadzone_reason,
+            reason: if physics {
+                "as for b_r"
+            } else {
+                deadzone_reason
+            },
         },
         Difference {
             id: "m_r",
@@ -1183,7 +1187,7 @@ fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
         .fold(0.0, f64::max);
     let zoom = (10.0 * rise).clamp(1.0, s.fixed_duration_s);
     let sim_note = if st.cl().is_some() {
-        format!("{cl_label} (simulation) vs plant")
+        format!("the simulated {cl_label} vs the plant")
     } else {
         "the plant only (no identified model is stable)".to_string()
     };

@@ -1,7 +1,11 @@
 #!/usr/bin/env bash
 # Opens an ipa-sysid HTML report in headless Chromium (Debian's `chromium` package), the way a reader
 # would, and checks what the browser actually built:
-#   - the page loads and renders (a screenshot is written: OUT.png, 1200 x 3000 px viewport);
+#   - at window widths of 800 and 1400 px (scripts/report_browser.py, the DevTools protocol over a pipe):
+#     full-page screenshots SHOTS/report-800.png and SHOTS/report-1400.png (pages taller than 16000 px
+#     are cut into report-W-1.png, -2.png, ...), and a failure on horizontal page overflow (a table
+#     wider than the window must scroll inside its own box), a broken image, a figure without alt text
+#     or a console error;
 #   - the DOM Chromium produced contains the report's <h1> and every expected section title
 #     (by default the <h2> headings found in the file; add more with --expect TEXT);
 #   - every <img> has a data: URI (the report is self-contained), and the DOM holds as many inline
@@ -11,11 +15,12 @@
 # Nothing is installed by this script. Exit status: 0 all checks pass, 1 a check failed, 2 usage or
 # missing browser.
 #
-# Usage: scripts/check_report_browser.sh REPORT.html [OUT.png] [--expect TEXT]...
+# Usage: scripts/check_report_browser.sh REPORT.html [SHOTS_DIR] [--expect TEXT]...
+# (SHOTS_DIR defaults to the report's folder + /screenshots.)
 set -euo pipefail
 
 usage() {
-    echo "usage: $0 REPORT.html [OUT.png] [--expect 'Section title']..." >&2
+    echo "usage: $0 REPORT.html [SHOTS_DIR] [--expect 'Section title']..." >&2
     exit 2
 }
 
@@ -47,7 +52,7 @@ if [ ! -f "$report" ]; then
     echo "error: $report: no such file (expected the report.html written by ipa-sysid reproduce)" >&2
     exit 2
 fi
-[ -n "$shot" ] || shot="${report%.html}-screenshot.png"
+[ -n "$shot" ] || shot="$(dirname "$report")/screenshots"
 
 browser=/usr/bin/chromium
 if [ ! -x "$browser" ]; then
@@ -57,9 +62,7 @@ if [ ! -x "$browser" ]; then
 fi
 
 report_abs="$(cd "$(dirname "$report")" && pwd)/$(basename "$report")"
-shot_dir="$(dirname "$shot")"
-mkdir -p "$shot_dir"
-shot_abs="$(cd "$shot_dir" && pwd)/$(basename "$shot")"
+mkdir -p "$shot"
 work="$(mktemp -d)"
 trap 'rm -rf "$work"' EXIT
 
@@ -73,7 +76,7 @@ ok() { echo "ok:   $*"; }
 common_flags=(
     --headless --no-sandbox --disable-gpu --disable-quic --no-first-run
     --disable-background-networking --disable-component-update --disable-sync
-    --hide-scrollbars --window-size=1200,3000
+    --hide-scrollbars --window-size=1200,900
 )
 
 # 1. The DOM as Chromium built it.
@@ -83,24 +86,26 @@ if ! timeout 120 "$browser" "${common_flags[@]}" --user-data-dir="$(mktemp -d -p
     fail "chromium could not load $report (see its messages above)"
 fi
 
-# 2. A screenshot of the first 1200 x 3000 px.
-rm -f "$shot_abs"
-if ! timeout 120 "$browser" "${common_flags[@]}" --user-data-dir="$(mktemp -d -p "$work")" \
-    --screenshot="$shot_abs" "file://$report_abs" >"$work/shot.log" 2>&1; then
-    cat "$work/shot.log" >&2
-    fail "chromium could not take the screenshot"
-fi
-if [ -s "$shot_abs" ] && [ "$(head -c 8 "$shot_abs" | od -An -tx1 | tr -d ' \n')" = "89504e470d0a1a0a" ]; then
-    size=$(stat -c %s "$shot_abs")
-    # A blank white 1200 x 3000 page compresses to a few kB; text and figures make it far larger.
-    if [ "$size" -lt 20000 ]; then
-        fail "screenshot $shot is only $size bytes: the page looks blank"
-    else
-        ok "screenshot $shot ($size bytes)"
-    fi
+# 2. Full-page screenshots at 800 and 1400 px; overflow, broken images, alt text, console errors.
+here="$(cd "$(dirname "$0")" && pwd)"
+if timeout 300 python3 "$here/report_browser.py" "$report_abs" "$shot" 800 1400 >"$work/widths.json" 2>"$work/widths.log"; then
+    ok "widths 800 and 1400 px: no horizontal overflow, no broken image, alt text on every figure, no console error"
 else
-    fail "no PNG screenshot at $shot"
+    cat "$work/widths.log" >&2
+    fail "layout check at 800/1400 px: $(grep -o '"failures": \[[^]]*\]' "$work/widths.json" | tr '\n' ' ')"
 fi
+for f in "$shot"/report-800*.png "$shot"/report-1400*.png; do
+    [ -e "$f" ] || continue
+    size=$(stat -c %s "$f")
+    # A blank page compresses to a few kB; text and figures make a full page far larger.
+    if [ "$size" -lt 20000 ] && [[ "$f" != *-[2-9].png ]]; then
+        fail "screenshot $f is only $size bytes: the page looks blank"
+    else
+        ok "screenshot $f ($size bytes)"
+    fi
+done
+[ -e "$shot/report-800.png" ] || [ -e "$shot/report-800-1.png" ] || fail "no screenshot at 800 px in $shot"
+[ -e "$shot/report-1400.png" ] || [ -e "$shot/report-1400-1.png" ] || fail "no screenshot at 1400 px in $shot"
 
 dom="$work/dom.html"
 if [ ! -s "$dom" ]; then
@@ -170,4 +175,4 @@ if [ "$failures" -gt 0 ]; then
     echo "$failures check(s) failed for $report" >&2
     exit 1
 fi
-echo "all checks passed for $report (screenshot: $shot)"
+echo "all checks passed for $report (screenshots in $shot)"

@@ -1,4 +1,4 @@
-//! The paper's recursive Hammerstein estimator: deadzone key-term regressor (reading notes, eq. 8) and
+//! The paper's recursive Hammerstein estimator: deadzone key-term regressor (eq. 8 as reconstructed in docs/paper.md §2.3) and
 //! RLS with forgetting (eqs. 9–12), the switching functions and the internal variable x̂ evaluated with
 //! the latest θ̂ at every sample.
 //!

@@ -9,7 +9,7 @@
 //! | item | what | paper |
 //! |---|---|---|
 //! | [`rls::Rls`] | RLS with forgetting ρ (P itself, or its UD factors) and an optional trace bound on P | eqs. 9–12 |
-//! | [`hammerstein::HammersteinRls`] | deadzone key-term regressor + RLS, switching functions from the latest θ̂ every sample | eqs. 1–12, reading notes eq. 8 |
+//! | [`hammerstein::HammersteinRls`] | deadzone key-term regressor + RLS, switching functions from the latest θ̂ every sample | eqs. 1–12, eq. 8 as reconstructed in docs/paper.md §2.3 |
 //! | [`deadzone::Deadzone`], [`deadzone::Compensator`] | the deadzone x = f(u) and its inverse | eq. 1 |
 //! | [`pi::Pi`] | u = Kp e + Ki Ts Σe, saturated at ±u_max, with anti-windup | Table V controller |
 //! | [`cusum::Cusum`] | change detection on normalised prediction errors | issue 15 part 4 |

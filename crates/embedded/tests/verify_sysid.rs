@@ -19,7 +19,7 @@ use sysid::data::Signals;
 use sysid::estimate::{identify, EstimatorSettings, Identification, RecursiveLeastSquares};
 
 /// A record of a Hammerstein plant: the paper's A(q) (near-integrator), deadzone b_l = −25, b_r = 20
-/// counts, the key-term slopes of the reading notes, and white output-equation noise N(0, σ²) mm;
+/// counts, the key-term slopes of docs/paper.md §2.3, and white output-equation noise N(0, σ²) mm;
 /// staircase input of random levels held 40 samples, both signs unless `one_sided`.
 fn record(n: usize, seed: u64, sigma: f64, one_sided: bool) -> (Vec<f64>, Vec<f64>) {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);

@@ -156,7 +156,8 @@ impl Table {
                 format!(" class=\"{}\"", classes.join(" "))
             }
         };
-        out.push_str("<table>\n");
+        // The wrapper scrolls sideways on a narrow screen, so that a wide table never widens the page.
+        out.push_str("<div class=\"table-wrap\">\n<table>\n");
         out.push_str(&format!(
             "<caption><span class=\"label\">Table {number}.</span>"
         ));
@@ -183,11 +184,24 @@ impl Table {
             out.push_str("<tr>");
             for c in 0..columns {
                 let text = row.get(c).map(String::as_str).unwrap_or("");
-                out.push_str(&format!("<td{}>{}</td>", class(c, text), escape(text)));
+                out.push_str(&format!("<td{}>{}</td>", class(c, text), cell_html(text)));
             }
             out.push_str("</tr>\n");
         }
-        out.push_str("</tbody>\n</table>\n");
+        out.push_str("</tbody>\n</table>\n</div>\n");
+    }
+}
+
+/// A cell's escaped content; `value ± std` is split so that a narrow screen may wrap it at the `±`
+/// but never inside a number.
+fn cell_html(text: &str) -> String {
+    match text.split_once(" ± ") {
+        Some((v, s)) if looks_numeric(text) => format!(
+            "<span class=\"nw\">{}</span> ± <span class=\"nw\">{}</span>",
+            escape(v),
+            escape(s)
+        ),
+        _ => escape(text),
     }
 }
 
@@ -228,6 +242,7 @@ enum Block {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Section {
     heading: String,
+    id: Option<String>,
     blocks: Vec<Block>,
 }
 
@@ -236,8 +251,33 @@ impl Section {
     pub fn new(heading: impl Into<String>) -> Self {
         Section {
             heading: heading.into(),
+            id: None,
             blocks: Vec::new(),
         }
+    }
+
+    /// Sets a stable anchor, written as `<section id="...">` (e.g. `paper-model`), so that links and
+    /// tests can find the section whatever its number. Characters other than ASCII letters, digits,
+    /// `-` and `_` are replaced by `-`.
+    pub fn id(mut self, id: impl Into<String>) -> Self {
+        let id: String = id
+            .into()
+            .chars()
+            .map(|c| {
+                if c.is_ascii_alphanumeric() || c == '-' || c == '_' {
+                    c
+                } else {
+                    '-'
+                }
+            })
+            .collect();
+        self.id = (!id.is_empty()).then_some(id);
+        self
+    }
+
+    /// The section's anchor set with [`Section::id`], if any.
+    pub fn anchor(&self) -> Option<&str> {
+        self.id.as_deref()
     }
 
     /// The section's heading.
@@ -343,7 +383,11 @@ fn inline_svg(svg: &str) -> &str {
 const CSS: &str = r#"
 :root { color-scheme: light; }
 body { font-family: "DejaVu Sans", "Helvetica Neue", Arial, sans-serif; line-height: 1.5; color: #111;
-       background: #fff; max-width: 62rem; margin: 0 auto; padding: 1.5rem 1.25rem 3rem; }
+       background: #fff; max-width: 62rem; margin: 0 auto; padding: 1.5rem 1.25rem 3rem;
+       overflow-wrap: break-word; }
+main, section, figure, .callout, nav.toc { max-width: 100%; min-width: 0; }
+.table-wrap { max-width: 100%; overflow-x: auto; margin: 1rem 0; }
+.table-wrap table { margin: 0; }
 h1 { font-size: 1.8rem; margin: 0 0 0.3rem; }
 h2 { font-size: 1.35rem; margin: 2.2rem 0 0.6rem; border-bottom: 1px solid #bbb; padding-bottom: 0.2rem; }
 p.subtitle { color: #444; margin-top: 0; }
@@ -355,6 +399,7 @@ caption { caption-side: top; text-align: left; font-weight: 600; padding-bottom:
 th, td { border: 1px solid #999; padding: 0.25rem 0.6rem; text-align: left; vertical-align: top; }
 thead th { background: #e8e8e8; }
 td.num { text-align: right; font-variant-numeric: tabular-nums; white-space: nowrap; }
+.nw { white-space: nowrap; }
 th.paper, td.paper { background: #f3f0e6; font-style: italic; color: #333; }
 figure { margin: 1.2rem 0; break-inside: avoid; page-break-inside: avoid; }
 figure svg, figure img { display: block; max-width: 100%; height: auto; border: 1px solid #ddd; }
@@ -366,11 +411,19 @@ pre { background: #f5f5f5; border: 1px solid #ddd; padding: 0.6rem; overflow-x: 
 .callout.fail { border-color: #d55e00; }
 .callout .verdict { font-weight: 700; margin-right: 0.4rem; }
 footer { margin-top: 3rem; font-size: 0.85rem; color: #555; border-top: 1px solid #ccc; padding-top: 0.5rem; }
+@media (max-width: 60rem) {
+  td.num { white-space: normal; }
+  th, td { padding: 0.2rem 0.35rem; }
+  table { font-size: 0.88rem; }
+}
 @media print {
   body { max-width: none; padding: 0; font-size: 10.5pt; }
   nav.toc { display: none; }
   a { color: inherit; text-decoration: none; }
   table, figure, .callout { break-inside: avoid; page-break-inside: avoid; }
+  .table-wrap { overflow: visible; }
+  h2 { break-after: avoid; page-break-after: avoid; }
+  figure svg, figure img { max-height: 23cm; width: auto; }
   th.paper, td.paper, thead th, .callout { -webkit-print-color-adjust: exact; print-color-adjust: exact; }
 }
 "#;
@@ -469,8 +522,13 @@ impl Report {
         out.push_str("<main>\n");
         let (mut tables, mut figures) = (0usize, 0usize);
         for (i, section) in self.sections.iter().enumerate() {
+            let anchor = section
+                .id
+                .as_ref()
+                .map(|id| format!(" id=\"{}\"", escape(id)))
+                .unwrap_or_default();
             out.push_str(&format!(
-                "<section>\n<h2 id=\"sec-{}\">{}</h2>\n",
+                "<section{anchor}>\n<h2 id=\"sec-{}\">{}</h2>\n",
                 i + 1,
                 escape(&section.heading)
             ));

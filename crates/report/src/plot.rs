@@ -101,6 +101,9 @@ pub struct Series {
     pub y: Vec<f64>,
     /// How the series is drawn.
     pub style: SeriesStyle,
+    /// Colour as `(r, g, b)`; `None` takes the [`PALETTE`] colour of the series' position in its panel.
+    /// Give a colour when one curve (a model, the plant) must keep its colour across figures.
+    pub colour: Option<(u8, u8, u8)>,
 }
 
 impl Series {
@@ -111,7 +114,14 @@ impl Series {
             x,
             y,
             style,
+            colour: None,
         }
+    }
+
+    /// Sets the colour `(r, g, b)` (builder style), overriding the palette colour of its position.
+    pub fn colour(mut self, rgb: (u8, u8, u8)) -> Self {
+        self.colour = Some(rgb);
+        self
     }
 
     /// A solid line ([`SeriesStyle::Line`]).
@@ -151,6 +161,11 @@ pub struct Panel {
     pub y_label: String,
     /// The curves, drawn in order (later ones on top).
     pub series: Vec<Series>,
+    /// Fixed y range `(lo, hi)`; `None` fits the data. Values outside are clipped at the axes.
+    pub y_range: Option<(f64, f64)>,
+    /// The x values are log10 of the quantity (e.g. log10 of a frequency in Hz); tick labels show
+    /// 10^x (`0.1`, `1`, `10`), so the axis reads as a logarithmic one.
+    pub x_log10: bool,
 }
 
 impl Panel {
@@ -159,13 +174,25 @@ impl Panel {
         Panel {
             x_label: x_label.into(),
             y_label: y_label.into(),
-            series: Vec::new(),
+            ..Panel::default()
         }
     }
 
     /// Adds a series (builder style).
     pub fn series(mut self, series: Series) -> Self {
         self.series.push(series);
+        self
+    }
+
+    /// Fixes the y range to `lo..hi` (builder style); ignored unless both are finite and `lo < hi`.
+    pub fn y_range(mut self, lo: f64, hi: f64) -> Self {
+        self.y_range = (lo.is_finite() && hi.is_finite() && lo < hi).then_some((lo, hi));
+        self
+    }
+
+    /// Marks the x values as log10 of the quantity (builder style): tick labels show 10^x.
+    pub fn x_log10(mut self) -> Self {
+        self.x_log10 = true;
         self
     }
 }
@@ -519,7 +546,12 @@ fn draw_panel<DB: DrawingBackend>(
     figure: &str,
 ) -> Result<(), ReportError> {
     let err = |e: DrawingAreaErrorKind<DB::ErrorType>| ReportError::render(figure, e);
-    let runs: Vec<Vec<Vec<(f64, f64)>>> = panel.series.iter().map(finite_runs).collect();
+    let mut runs: Vec<Vec<Vec<(f64, f64)>>> = panel.series.iter().map(finite_runs).collect();
+    if let Some((lo, hi)) = panel.y_range {
+        for p in runs.iter_mut().flatten().flatten() {
+            p.1 = p.1.clamp(lo, hi);
+        }
+    }
     let all = || runs.iter().flatten().flatten();
     let overflow = || {
         ReportError::invalid(
@@ -531,7 +563,10 @@ fn draw_panel<DB: DrawingBackend>(
         )
     };
     let x_range = axis_range(all().map(|p| p.0), 0.0).ok_or_else(overflow)?;
-    let mut y_range = axis_range(all().map(|p| p.1), 0.05).ok_or_else(overflow)?;
+    let mut y_range = match panel.y_range {
+        Some(r) => r,
+        None => axis_range(all().map(|p| p.1), 0.05).ok_or_else(overflow)?,
+    };
 
     let (area_w, area_h) = area.dim_in_pixel();
     let tick_px = fonts.tick / 1.24;
@@ -576,7 +611,14 @@ fn draw_panel<DB: DrawingBackend>(
     };
     let y_span = y_range.1 - y_range.0;
     let x_span = x_range.1 - x_range.0;
-    let x_fmt = move |v: &f64| tick_label(*v, x_span);
+    let x_log10 = panel.x_log10;
+    let x_fmt = move |v: &f64| {
+        if x_log10 {
+            crate::format::sig(10f64.powf(*v), 2)
+        } else {
+            tick_label(*v, x_span)
+        }
+    };
     let y_fmt = move |v: &f64| tick_label(*v, y_span);
     let mut chart = ChartBuilder::on(area)
         .margin_top((fonts.tick * 0.6) as u32)
@@ -607,7 +649,10 @@ fn draw_panel<DB: DrawingBackend>(
     let stroke = ((f64::from(area_w.min(area_h * 3)) / 480.0).round() as u32).clamp(1, 4);
     let mut dashed_seen = 0usize;
     for (index, (series, runs)) in panel.series.iter().zip(runs.iter()).enumerate() {
-        let color = colour(index);
+        let color = match series.colour {
+            Some((r, g, b)) => RGBColor(r, g, b),
+            None => colour(index),
+        };
         let style = color.stroke_width(stroke);
         let (dash, gap) = DASHES[dashed_seen % DASHES.len()];
         if series.style == SeriesStyle::Dashed {

@@ -208,3 +208,43 @@ fn save_writes_the_document_atomically() {
     assert!(e.to_string().contains("missing"), "{e}");
     assert!(!e.is_numerical());
 }
+
+// A section anchor is written on <section>, sanitised; the h2 keeps its numbered id for the contents.
+#[test]
+fn section_ids_are_written_and_sanitised() {
+    let html = Report::new("t")
+        .section(Section::new("Residual analysis").id("residuals"))
+        .section(Section::new("Odd").id("a b\"<c>"))
+        .section(Section::new("None"))
+        .to_html();
+    assert!(html.contains("<section id=\"residuals\">\n<h2 id=\"sec-1\">Residual analysis</h2>"));
+    assert!(html.contains("<section id=\"a-b--c-\">\n<h2 id=\"sec-2\">Odd</h2>"));
+    assert!(html.contains("<section>\n<h2 id=\"sec-3\">None</h2>"));
+    assert_eq!(
+        Section::new("x").id("paper-model").anchor(),
+        Some("paper-model")
+    );
+}
+
+// Wide tables scroll inside their own box; "value ± std" may wrap at the ± but not inside a number.
+#[test]
+fn tables_scroll_in_a_wrapper_and_deviations_wrap_only_at_the_sign() {
+    let html = Report::new("t")
+        .section(
+            Section::new("s").table(
+                Table::new(["p", "v"])
+                    .row(["b_r", "30.83 ± 3.5"])
+                    .row(["x", "a ± b"]),
+            ),
+        )
+        .to_html();
+    assert!(html.contains("<div class=\"table-wrap\">\n<table>"));
+    assert!(html.contains("</table>\n</div>"));
+    assert!(html.contains(
+        "<td class=\"num\"><span class=\"nw\">30.83</span> ± <span class=\"nw\">3.5</span></td>"
+    ));
+    // Not a number: left as plain escaped text.
+    assert!(html.contains("<td>a ± b</td>"));
+    assert!(html.contains(".table-wrap { max-width: 100%; overflow-x: auto;"));
+    assert!(html.contains("@media print"));
+}

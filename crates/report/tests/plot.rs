@@ -261,3 +261,86 @@ fn save_figure_writes_both_formats() {
     let e = save_figure(&fig, &missing, "x").unwrap_err();
     assert!(e.to_string().contains("no_such_dir"), "{e}");
 }
+
+// A series' own colour overrides the palette colour of its position; without one the palette applies.
+#[test]
+fn a_series_colour_overrides_its_position_in_the_palette() {
+    let x = vec![0.0, 1.0, 2.0];
+    let fig = Figure::new("c").panel(
+        Panel::new("x", "y")
+            .series(Series::line("first", x.clone(), vec![0.0, 1.0, 0.0]).colour((204, 121, 167)))
+            .series(Series::line("second", x, vec![1.0, 0.0, 1.0])),
+    );
+    let svg = render_svg(&fig).unwrap();
+    // Position 0 would be black; it is reddish purple. Position 1 keeps vermillion.
+    assert!(svg.contains("stroke=\"#CC79A7\""));
+    assert!(svg.contains(&format!(
+        "stroke=\"#{:02X}{:02X}{:02X}\"",
+        PALETTE[1].0, PALETTE[1].1, PALETTE[1].2
+    )));
+    assert!(!svg.contains("stroke=\"#000000\" stroke-width=\"2\""));
+}
+
+// A fixed y range is used as given (tick labels inside it only) and values beyond it are clipped
+// to the axes instead of leaving the panel.
+#[test]
+fn a_fixed_y_range_clips_the_data() {
+    let x: Vec<f64> = (0..50).map(f64::from).collect();
+    let mut y = vec![1.0; 50];
+    y[0] = 1000.0; // a start-up transient
+    let fig = Figure::new("r").size(400, 300).panel(
+        Panel::new("x", "y")
+            .y_range(0.5, 1.5)
+            .series(Series::line("", x, y)),
+    );
+    let svg = render_svg(&fig).unwrap();
+    assert!(
+        svg.contains(">\n1.2\n<") || svg.contains(">1.2<"),
+        "tick 1.2 expected"
+    );
+    assert!(!svg.contains(">\n1000\n<") && !svg.contains(">\n500\n<"));
+    // Every drawn point of the series lies inside the SVG canvas.
+    for poly in svg.split("<polyline").skip(1) {
+        let pts = poly
+            .split("points=\"")
+            .nth(1)
+            .unwrap()
+            .split('"')
+            .next()
+            .unwrap();
+        for p in pts.split_whitespace() {
+            let (px, py) = p.split_once(',').unwrap();
+            let (px, py): (f64, f64) = (px.parse().unwrap(), py.parse().unwrap());
+            assert!(
+                (0.0..=400.0).contains(&px) && (0.0..=300.0).contains(&py),
+                "{p}"
+            );
+        }
+    }
+    // An empty or reversed range is ignored.
+    assert_eq!(Panel::new("x", "y").y_range(2.0, 1.0).y_range, None);
+    assert_eq!(Panel::new("x", "y").y_range(f64::NAN, 1.0).y_range, None);
+}
+
+// On a log10 axis the tick labels show 10^x: x = -1, 0, 1 read 0.1, 1, 10.
+#[test]
+fn log10_x_axis_labels_show_the_frequency() {
+    let lf: Vec<f64> = (0..=40).map(|i| -2.0 + f64::from(i) * 0.1).collect();
+    let mag: Vec<f64> = lf.iter().map(|v| -20.0 * v).collect();
+    let fig = Figure::new("b").panel(
+        Panel::new("f (Hz)", "dB")
+            .x_log10()
+            .series(Series::line("", lf, mag)),
+    );
+    let svg = render_svg(&fig).unwrap();
+    for label in ["0.01", "0.1", "1", "10", "100"] {
+        assert!(
+            svg.contains(&format!(">\n{label}\n<")),
+            "tick {label} missing"
+        );
+    }
+    assert!(
+        !svg.contains(">\n-1\n<"),
+        "raw log10 values must not be shown"
+    );
+}

@@ -1,0 +1,188 @@
+//! The report's analyses beyond the paper's tables: the method on the paper's own model (known truth),
+//! residual analysis and the frequency response of the identified linear blocks.
+
+use rand::SeedableRng;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, Normal};
+use sysid::data::Signals;
+use sysid::estimate::{identify, Fitted, Identification};
+use sysid::metrics::fit_percent;
+use sysid::residuals::{analyze_default, ResidualAnalysis};
+use sysid::{Dataset, Model, ModelPlant, Plant};
+
+use crate::ReproduceError;
+
+/// Standard deviation of the output noise added to the paper's model in the known-truth check, mm
+/// (the encoder resolution of the IPA).
+pub const PAPER_NOISE_MM: f64 = 0.01;
+
+/// One identification of the paper's Table III model used as the plant.
+pub struct PaperRun {
+    /// Which record: `noise-free` or `0.01 mm noise`.
+    pub label: &'static str,
+    /// The estimate.
+    pub fit: Fitted,
+    /// Free-run fit % on a noise-free validation record of the paper's model.
+    pub fit_val: Option<f64>,
+}
+
+/// The method (the same settings as the main study) run on the paper's actual model as the plant.
+pub struct PaperCheck {
+    /// Noise-free record, then the record with [`PAPER_NOISE_MM`] of output noise.
+    pub runs: Vec<PaperRun>,
+}
+
+/// Records `u` on the paper's actual model from `start_mm`; adds N(0, `noise_mm`²) to y when
+/// `noise_mm > 0` (seeded, reproducible).
+fn paper_record(
+    u: &[f64],
+    start_mm: f64,
+    noise_mm: f64,
+    seed: u64,
+    name: &str,
+) -> Result<Dataset, ReproduceError> {
+    let mut plant = ModelPlant::new(Model::paper(), "paper's actual model")?;
+    plant.reset(start_mm);
+    let mut y = sysid::plant::run_open_loop(&mut plant, u)?;
+    if noise_mm > 0.0 {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let normal = Normal::new(0.0, noise_mm).map_err(|e| {
+            sysid::SysidError::Numerical(format!("output noise {noise_mm} mm: {e}"))
+        })?;
+        for v in &mut y {
+            *v += normal.sample(&mut rng);
+        }
+    }
+    Ok(Dataset::new(
+        Signals { u: u.to_vec(), y },
+        plant.ts(),
+        name,
+    )?)
+}
+
+/// Identifies the paper's model from `u_est` (noise-free and noisy) with `settings`, validated by a
+/// free-run fit on `u_val` (noise-free).
+pub fn paper_check(
+    settings: &Identification,
+    u_est: &[f64],
+    u_val: &[f64],
+    start_mm: f64,
+    seed: u64,
+) -> Result<PaperCheck, ReproduceError> {
+    let val = paper_record(u_val, start_mm, 0.0, seed, "paper model, validation")?;
+    let mut runs = Vec::new();
+    for (label, noise) in [("noise-free", 0.0), ("0.01 mm noise", PAPER_NOISE_MM)] {
+        let est = paper_record(u_est, start_mm, noise, seed, "paper model, estimation")?;
+        let fit = identify(&est, settings)?;
+        let fit_val = fit
+            .model
+            .simulate(&val.u, &val.y)
+            .ok()
+            .and_then(|sim| fit_percent(&val.y, &sim));
+        runs.push(PaperRun {
+            label,
+            fit,
+            fit_val,
+        });
+    }
+    Ok(PaperCheck { runs })
+}
+
+/// The residual analysis of one model on the estimation and the validation record.
+pub struct ModelResiduals {
+    /// Key of the model in `summary.json` `models`.
+    pub key: &'static str,
+    /// On the estimation record (`None` with the reason when it cannot be computed).
+    pub estimation: Result<ResidualAnalysis, String>,
+    /// On the validation record.
+    pub validation: Result<ResidualAnalysis, String>,
+}
+
+/// Residual analysis (auto-correlation, cross-correlation with u, Ljung–Box and independence tests,
+/// [`sysid::residuals::analyze_default`]) of the one-step prediction errors ε(k) = y(k) − ŷ(k|k−1) of
+/// `model` on `d`, from its first predicted sample k0 on.
+pub fn residuals(model: &Model, d: &Dataset) -> Result<ResidualAnalysis, String> {
+    let yhat = model.predict(&d.u, &d.y).map_err(|e| e.to_string())?;
+    let k0 = model.k0().min(d.len());
+    let eps: Vec<f64> = d.y[k0..]
+        .iter()
+        .zip(&yhat[k0..])
+        .map(|(y, p)| y - p)
+        .collect();
+    analyze_default(&eps, &d.u[k0..]).map_err(|e| e.to_string())
+}
+
+/// Frequency response of a model's linear block, scaled by `gain`: the frequencies (Hz), |H| in dB
+/// and the unwrapped phase in degrees, at `points` log-spaced frequencies from `f_min_hz` up to the
+/// Nyquist frequency 1/(2 Ts).
+///
+/// H(e^{jω Ts}) = gain · Σ_i b_i e^{−jω Ts (nk+i−1)} / (1 + Σ_i a_i e^{−jω Ts i}). A zero |H| gives
+/// NaN dB (a gap in the plot).
+pub fn bode(model: &Model, gain: f64, f_min_hz: f64, points: usize) -> Bode {
+    let ts = model.ts();
+    let nyquist = 0.5 / ts;
+    let points = points.max(2);
+    let (lo, hi) = (f_min_hz.log10(), nyquist.log10());
+    let mut out = Bode {
+        f_hz: Vec::with_capacity(points),
+        mag_db: Vec::with_capacity(points),
+        phase_deg: Vec::with_capacity(points),
+    };
+    let mut prev: Option<f64> = None;
+    for i in 0..points {
+        let f = 10f64.powf(lo + (hi - lo) * i as f64 / (points - 1) as f64);
+        let w = 2.0 * std::f64::consts::PI * f * ts;
+        let (mut nr, mut ni) = (0.0, 0.0);
+        for (i, b) in model.b().iter().enumerate() {
+            let d = (model.nk() + i) as f64 * w;
+            nr += b * d.cos();
+            ni -= b * d.sin();
+        }
+        let (mut dr, mut di) = (1.0, 0.0);
+        for (i, a) in model.a().iter().enumerate() {
+            let d = (i + 1) as f64 * w;
+            dr += a * d.cos();
+            di -= a * d.sin();
+        }
+        let den = dr * dr + di * di;
+        let (hr, hi_) = if den > 0.0 {
+            (
+                gain * (nr * dr + ni * di) / den,
+                gain * (ni * dr - nr * di) / den,
+            )
+        } else {
+            (f64::NAN, f64::NAN)
+        };
+        let mag = hr.hypot(hi_);
+        out.f_hz.push(f);
+        out.mag_db.push(if mag > 0.0 {
+            20.0 * mag.log10()
+        } else {
+            f64::NAN
+        });
+        let mut ph = hi_.atan2(hr).to_degrees();
+        if let Some(p) = prev {
+            while ph - p > 180.0 {
+                ph -= 360.0;
+            }
+            while ph - p < -180.0 {
+                ph += 360.0;
+            }
+        }
+        if ph.is_finite() {
+            prev = Some(ph);
+        }
+        out.phase_deg.push(ph);
+    }
+    out
+}
+
+/// A frequency response (see [`bode`]).
+pub struct Bode {
+    /// Frequencies f, Hz.
+    pub f_hz: Vec<f64>,
+    /// Magnitude 20 log10 |H|, dB.
+    pub mag_db: Vec<f64>,
+    /// Phase arg H, degrees, unwrapped.
+    pub phase_deg: Vec<f64>,
+}

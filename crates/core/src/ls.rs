@@ -82,6 +82,19 @@ impl LsWorkspace {
         y: &DVector<f64>,
         names: &[String],
     ) -> Result<LsSolution, SysidError> {
+        self.triangularise(phi, y, names, true)?.solution()
+    }
+
+    /// The Householder triangularisation of [Φ D⁻¹ | y] (module docs): R, z = Qᵀy and ‖r‖², with the
+    /// column scales D. With `rank_test` a (near-)zero pivot is refused as in [`solve`]; without it the
+    /// caller regularises (a damped step, [`Triangular::damped_step`]).
+    pub fn triangularise(
+        &mut self,
+        phi: &DMatrix<f64>,
+        y: &DVector<f64>,
+        names: &[String],
+        rank_test: bool,
+    ) -> Result<Triangular, SysidError> {
         let (n, p) = phi.shape();
         if y.len() != n {
             return Err(SysidError::Data(format!(
@@ -138,7 +151,7 @@ impl LsWorkspace {
             let v = &mut left[k * n + k..(k + 1) * n];
             let sigma = dot(v, v).sqrt();
             // |R_kk| = ‖column k below the diagonal‖; the rank test of ls::solve.
-            if sigma < RANK_TOLERANCE {
+            if rank_test && sigma < RANK_TOLERANCE {
                 return Err(dependent(&name(k)));
             }
             let alpha = if v[0] > 0.0 { -sigma } else { sigma };
@@ -157,6 +170,62 @@ impl LsWorkspace {
         // ‖r‖²: what is left of the transformed y below row p.
         let tail = &self.a[p * n + p..];
         let rss = dot(tail, tail);
+        Ok(Triangular { r, scale, rss, p })
+    }
+}
+
+/// The triangular factor of a scaled least-squares problem (see [`LsWorkspace::triangularise`]):
+/// [Φ D⁻¹ | y] = Q [R z; 0 r].
+#[derive(Debug, Clone)]
+pub struct Triangular {
+    /// R and z by rows: `r[k * (p + 1) + c]`, column p holding z.
+    r: Vec<f64>,
+    /// D: the column norms of Φ.
+    scale: Vec<f64>,
+    /// ‖r‖²: the residual sum of squares of the least-squares solution.
+    rss: f64,
+    p: usize,
+}
+
+impl Triangular {
+    /// The column norms D of Φ.
+    pub fn scale(&self) -> &[f64] {
+        &self.scale
+    }
+
+    /// The damped step δ minimising ‖y − Φ δ‖² + λ ‖D δ‖² (Levenberg–Marquardt with Marquardt's
+    /// scaling): in the scaled variables w = D δ it is min ‖z − R w‖² + λ ‖w‖², solved by a Householder
+    /// QR of the small stacked matrix [R; √λ I] (2p × p). Fails when that system is singular (λ = 0 on a
+    /// rank-deficient Φ) or the result is not finite.
+    pub fn damped_step(&self, lambda: f64) -> Result<DVector<f64>, SysidError> {
+        let p = self.p;
+        let cols = p + 1;
+        let mut a = DMatrix::<f64>::zeros(2 * p, p);
+        let mut b = DVector::<f64>::zeros(2 * p);
+        for k in 0..p {
+            for c in k..p {
+                a[(k, c)] = self.r[k * cols + c];
+            }
+            b[k] = self.r[k * cols + p];
+            a[(p + k, k)] = lambda.max(0.0).sqrt();
+        }
+        let qr = a.qr();
+        let qtb = qr.q().transpose() * b;
+        let w = qr.r().solve_upper_triangular(&qtb).ok_or_else(|| {
+            SysidError::Numerical("the damped least-squares step is singular".into())
+        })?;
+        let delta = DVector::from_iterator(p, w.iter().zip(&self.scale).map(|(wi, si)| wi / si));
+        if delta.iter().any(|v| !v.is_finite()) {
+            return Err(SysidError::Numerical(
+                "the damped least-squares step is not finite".into(),
+            ));
+        }
+        Ok(delta)
+    }
+
+    /// The least-squares solution θ̂, (ΦᵀΦ)⁻¹ and the RSS.
+    pub fn solution(&self) -> Result<LsSolution, SysidError> {
+        let (p, cols, r, scale, rss) = (self.p, self.p + 1, &self.r, &self.scale, self.rss);
         // θ̂ = D⁻¹ R⁻¹ z by back substitution.
         let mut z = vec![0.0; p];
         for k in (0..p).rev() {
@@ -166,7 +235,7 @@ impl LsWorkspace {
             }
             z[k] = s / r[k * cols + k];
         }
-        let theta = DVector::from_iterator(p, z.iter().zip(&scale).map(|(zi, si)| zi / si));
+        let theta = DVector::from_iterator(p, z.iter().zip(scale).map(|(zi, si)| zi / si));
         // R⁻¹ (upper triangular) by columns, then (ΦᵀΦ)⁻¹ = D⁻¹ R⁻¹ R⁻ᵀ D⁻¹.
         let mut rinv = DMatrix::<f64>::zeros(p, p);
         for j in 0..p {

@@ -344,7 +344,7 @@ fn search(
     let mut evaluations = 1;
     let mut projected = 0;
     let mut lambda: f64 = 1e-3;
-    let p = problem.free.len();
+    let mut workspace = ls::LsWorkspace::new();
     for iteration in 1..=max_iterations {
         let (Some(jac), Some(r)) = (problem.jacobian(), problem.residuals()) else {
             return Err(SysidError::Numerical(
@@ -356,19 +356,14 @@ fn search(
         if gmax == 0.0 || !gmax.is_finite() {
             return Ok((OeStop::GradientZero, iteration, evaluations, projected));
         }
-        let norms: Vec<f64> = (0..p).map(|j| jac.column(j).norm().max(1e-300)).collect();
         let theta = problem.free_values();
-        let n = jac.nrows();
+        // One Householder triangularisation of [J D⁻¹ | r] per iteration; every damped trial step is
+        // then a small 2p × p problem (Triangular::damped_step).
+        let Ok(tri) = workspace.triangularise(&jac, &r, &[], false) else {
+            return Ok((OeStop::NoImprovement, iteration, evaluations, projected));
+        };
         loop {
-            // Stack [J; √λ D] and [r; 0]: the damped least-squares step.
-            let mut a = DMatrix::<f64>::zeros(n + p, p);
-            a.view_mut((0, 0), (n, p)).copy_from(&jac);
-            for (j, dj) in norms.iter().enumerate() {
-                a[(n + j, j)] = lambda.sqrt() * dj;
-            }
-            let mut b = DVector::<f64>::zeros(n + p);
-            b.rows_mut(0, n).copy_from(&r);
-            let Ok(step) = ls::solve(&a, &b, &[]) else {
+            let Ok(step) = tri.damped_step(lambda) else {
                 lambda = (lambda * 4.0).max(1e-10);
                 if lambda > LAMBDA_MAX {
                     problem.set_free(&theta);
@@ -383,7 +378,7 @@ fn search(
             loop {
                 let trial: Vec<f64> = theta
                     .iter()
-                    .zip(step.theta.iter())
+                    .zip(step.iter())
                     .map(|(t, d)| t + scale * d)
                     .collect();
                 problem.set_free(&trial);

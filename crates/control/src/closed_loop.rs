@@ -38,17 +38,12 @@ impl Trace {
         self.t.is_empty()
     }
 
-    /// The trace as CSV text with header `t,r,u,y` (full precision: Rust's shortest round-trip form).
-    pub fn to_csv(&self) -> String {
-        let mut s = String::with_capacity(32 * self.len() + 8);
-        s.push_str("t,r,u,y\n");
-        for k in 0..self.len() {
-            s.push_str(&format!(
-                "{},{},{},{}\n",
-                self.t[k], self.r[k], self.u[k], self.y[k]
-            ));
-        }
-        s
+    /// Column names of the trace as a table: `t,r,u,y` (the order of [`Trace::columns`]).
+    pub const COLUMNS: [&'static str; 4] = ["t", "r", "u", "y"];
+
+    /// The columns t, r, u, y (s, mm, counts, mm), for writing the trace as a table.
+    pub fn columns(&self) -> [&[f64]; 4] {
+        [&self.t, &self.r, &self.u, &self.y]
     }
 }
 
@@ -248,9 +243,9 @@ mod tests {
         .unwrap();
         assert_eq!(trace.len(), 101);
         assert!((trace.t[100] - 1.0).abs() < 1e-12);
-        let csv = trace.to_csv();
-        assert!(csv.starts_with("t,r,u,y\n0,5,"));
-        assert_eq!(csv.lines().count(), 102);
+        let [t, r, u, y] = trace.columns();
+        assert_eq!((t.len(), r.len(), u.len(), y.len()), (101, 101, 101, 101));
+        assert_eq!((t[0], r[0]), (0.0, 5.0));
     }
 
     #[test]

@@ -137,20 +137,6 @@ pub mod paper {
     ];
 }
 
-fn csv_columns(header: &str, t: &[f64], cols: &[&[f64]]) -> String {
-    let mut s = String::with_capacity(24 * t.len() * (cols.len() + 1));
-    s.push_str(header);
-    s.push('\n');
-    for k in 0..t.len() {
-        s.push_str(&format!("{}", t[k]));
-        for c in cols {
-            s.push_str(&format!(",{}", c[k]));
-        }
-        s.push('\n');
-    }
-    s
-}
-
 fn record(
     plant: &mut dyn Plant,
     u: Vec<f64>,
@@ -368,10 +354,7 @@ pub fn run(
     )?;
     let t_rec = sysid::data::sample_times(est.len(), ts);
     for (name, d) in [("estimation.csv", &est), ("validation.csv", &val)] {
-        sysid_io::write_atomic(
-            &data_dir.join(name),
-            csv_columns("t,u,y", &t_rec, &[&d.u, &d.y]).as_bytes(),
-        )?;
+        sysid_io::write_columns_csv(&data_dir.join(name), &["t", "u", "y"], &[&t_rec, &d.u, &d.y])?;
     }
 
     // 2. Identification: the paper's two models, then this project's additions.
@@ -454,9 +437,10 @@ pub fn run(
     let y_ol_model = sysid::plant::run_open_loop(&mut model_plant, &u_ol)?;
     let fit_ol = fit_percent(&ol.y, &y_ol_model);
     let t_ol = sysid::data::sample_times(u_ol.len(), ts);
-    sysid_io::write_atomic(
+    sysid_io::write_columns_csv(
         &data_dir.join("open_loop.csv"),
-        csv_columns("t,u,y_plant,y_model", &t_ol, &[&u_ol, &ol.y, &y_ol_model]).as_bytes(),
+        &["t", "u", "y_plant", "y_model"],
+        &[&t_ol, &u_ol, &ol.y, &y_ol_model],
     )?;
 
     // 3. Closed loop, fixed and unfixed set-point, model vs plant.
@@ -490,9 +474,10 @@ pub fn run(
         s.fixed_start_mm,
     )? {
         Ok(tr) => {
-            sysid_io::write_atomic(
+            sysid_io::write_columns_csv(
                 &data_dir.join("closed_loop_fixed_plant_compensated.csv"),
-                tr.to_csv().as_bytes(),
+                &Trace::COLUMNS,
+                &tr.columns(),
             )?;
             Ok(step_metrics(&tr, s.fixed_start_mm, s.fixed_setpoint_mm)?)
         }
@@ -522,7 +507,7 @@ pub fn run(
         ("closed_loop_unfixed_plant.csv", &unfixed.plant),
         ("closed_loop_unfixed_model.csv", &unfixed.model),
     ] {
-        sysid_io::write_atomic(&data_dir.join(name), tr.to_csv().as_bytes())?;
+        sysid_io::write_columns_csv(&data_dir.join(name), &Trace::COLUMNS, &tr.columns())?;
     }
 
     let mut study = Study {

@@ -303,7 +303,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
 
     if let Some(out) = &args.out {
-        sysid_io::write_atomic(out, trace.to_csv().as_bytes())?;
+        sysid_io::write_columns_csv(out, &Trace::COLUMNS, &trace.columns())?;
     }
     let json_to_stdout = args.json.as_ref().is_some_and(|j| j.as_os_str() == "-");
     if let Some(json) = &args.json {

@@ -104,7 +104,11 @@ where
 /// `header` row, then row k holds `columns[j][k]` for every j, each printed with Rust's `{}` (the
 /// shortest decimal that reads back as the same f64). Fails, writing nothing, when the header and the
 /// columns differ in number or the columns in length.
-pub fn write_columns_csv(path: &Path, header: &[&str], columns: &[&[f64]]) -> Result<(), OutputError> {
+pub fn write_columns_csv(
+    path: &Path,
+    header: &[&str],
+    columns: &[&[f64]],
+) -> Result<(), OutputError> {
     let n = columns.first().map_or(0, |c| c.len());
     if header.len() != columns.len() || columns.iter().any(|c| c.len() != n) {
         return Err(OutputError::Io {

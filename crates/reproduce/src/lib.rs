@@ -354,7 +354,11 @@ pub fn run(
     )?;
     let t_rec = sysid::data::sample_times(est.len(), ts);
     for (name, d) in [("estimation.csv", &est), ("validation.csv", &val)] {
-        sysid_io::write_columns_csv(&data_dir.join(name), &["t", "u", "y"], &[&t_rec, &d.u, &d.y])?;
+        sysid_io::write_columns_csv(
+            &data_dir.join(name),
+            &["t", "u", "y"],
+            &[&t_rec, &d.u, &d.y],
+        )?;
     }
 
     // 2. Identification: the paper's two models, then this project's additions.

@@ -3,39 +3,34 @@
 //! Run r (r = 0..R−1) is seeded with s_r = [`run_seed`](seed, r). An experiment closure turns (r, s_r) into
 //! an input record u and the plant's noise-free output y₀ (the plant wiring lives with the caller: the
 //! command line builds plants with the `ipa` crate). The study adds white Gaussian noise of standard
-//! deviation σ (ChaCha8 seeded with s_r) to y₀ and identifies the model with every method on the same
+//! deviation σ (`rand_distr::StandardNormal` on ChaCha8 seeded with s_r) to y₀ and identifies the model with every method on the same
 //! noisy record. Runs are independent and processed in parallel (rayon); the result depends only on the
 //! seed, not on the number of threads.
 //!
 //! Per method and physical parameter θ: mean, sample standard deviation, and, when the truth θ₀ is known,
 //! bias = mean − θ₀ and RMSE = √(mean (θ̂ − θ₀)²). Failed runs are counted, not averaged.
 
-use rand::{Rng, SeedableRng};
+use rand::{Rng, RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use rand_distr::StandardNormal;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use crate::rng::SplitMix64;
 use sysid::data::Signals;
 use sysid::estimate::{identify, Identification, Method};
 use sysid::{Dataset, Model, ModelKind, ParamName, SysidError};
 
-/// The seed of run `run` of a study seeded with `seed` (SplitMix64 of both, so that neighbouring seeds and
-/// runs give unrelated streams).
+/// The seed of run `run` of a study seeded with `seed`: the first output of [`SplitMix64`] started from
+/// seed ⊕ (run·0x9E3779B97F4A7C15 + 0xD1B54A32D192ED03), so that neighbouring seeds and runs give
+/// unrelated streams.
 pub fn run_seed(seed: u64, run: usize) -> u64 {
-    let mut z = seed
-        ^ (run as u64)
+    SplitMix64::new(
+        seed ^ (run as u64)
             .wrapping_mul(0x9E37_79B9_7F4A_7C15)
-            .wrapping_add(0xD1B5_4A32_D192_ED03);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
-/// Standard normal sample (Box–Muller).
-pub fn gaussian(rng: &mut ChaCha8Rng) -> f64 {
-    let u1: f64 = rng.gen_range(f64::MIN_POSITIVE..1.0);
-    let u2: f64 = rng.gen();
-    (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+            .wrapping_add(0xD1B5_4A32_D192_ED03),
+    )
+    .next_u64()
 }
 
 /// Settings of a study.
@@ -189,7 +184,7 @@ pub fn study(
                     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x006E_6F69_7365);
                     let y: Vec<f64> = y0
                         .iter()
-                        .map(|v| v + st.noise_std * gaussian(&mut rng))
+                        .map(|v| v + st.noise_std * rng.sample::<f64, _>(StandardNormal))
                         .collect();
                     match Dataset::new(Signals { u, y }, st.ts_s, format!("run {r}")) {
                         Err(e) => st.methods.iter().map(|_| Err(e.to_string())).collect(),

@@ -20,6 +20,8 @@ use crate::rng::SplitMix64;
 use sysid::data::Signals;
 use sysid::estimate::{identify, Identification, Method};
 use sysid::{Dataset, Model, ModelKind, ParamName, SysidError};
+use sysid_core::param::{Layout, Parameterisation};
+use sysid_core::Structure;
 
 /// The seed of run `run` of a study seeded with `seed`: the first output of [`SplitMix64`] started from
 /// seed ⊕ (run·0x9E3779B97F4A7C15 + 0xD1B54A32D192ED03), so that neighbouring seeds and runs give
@@ -54,7 +56,7 @@ pub struct StudySettings {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ParamStats {
     /// Parameter name (b_l, b_r, m_l, m_r, a1.., b1.., c).
-    pub name: String,
+    pub name: ParamName,
     /// The true value, when known.
     pub truth: Option<f64>,
     /// Mean of the estimates.
@@ -96,40 +98,52 @@ pub struct StudyReport {
     pub methods: Vec<MethodStats>,
 }
 
-/// The true physical parameters of a model, by name (b1 of a Hammerstein model is fixed and left out).
-pub fn truth_of(model: &Model) -> Vec<(String, f64)> {
-    let mut v = Vec::new();
-    if let Some(d) = model.deadzone() {
-        v.extend(
-            [
-                ("b_l", d.b_l),
-                ("b_r", d.b_r),
-                ("m_l", d.m_l),
-                ("m_r", d.m_r),
-            ]
-            .map(|(n, x)| (n.to_string(), x)),
-        );
+/// One parameter's value in the physical layout, by name.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct NamedValue {
+    /// The parameter (b_l, b_r, m_l, m_r, a1.., b2.. or b1.., c).
+    pub name: ParamName,
+    /// Its value (counts for b_l, b_r; dimensionless otherwise).
+    pub value: f64,
+}
+
+/// The true physical parameters of a model, by name, in the order of
+/// [`Parameterisation`] with [`Layout::Physical`] (b1 of a Hammerstein model is fixed at 1 and left out).
+pub fn truth_of(model: &Model) -> Vec<NamedValue> {
+    let structure = Structure {
+        kind: model.kind(),
+        orders: model.orders(),
+        offset: model.offset().is_some(),
+    };
+    let p = Parameterisation::new(structure, Layout::Physical);
+    p.names()
+        .into_iter()
+        .zip(p.vector_of(model))
+        .map(|(name, value)| NamedValue { name, value })
+        .collect()
+}
+
+/// What one method gave on one run: its estimates, or the failure's message.
+type Outcome = Result<Vec<NamedValue>, String>;
+
+/// Mean, sample standard deviation and, against `truth`, bias and RMSE of the estimates `vals` of one
+/// parameter.
+fn param_stats(name: ParamName, vals: &[f64], truth: Option<f64>) -> ParamStats {
+    let n = vals.len().max(1) as f64;
+    let mean = vals.iter().sum::<f64>() / n;
+    let std = if vals.len() > 1 {
+        (vals.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (vals.len() - 1) as f64).sqrt()
+    } else {
+        0.0
+    };
+    ParamStats {
+        name,
+        truth,
+        mean,
+        std,
+        bias: truth.map(|t| mean - t),
+        rmse: truth.map(|t| (vals.iter().map(|v| (v - t).powi(2)).sum::<f64>() / n).sqrt()),
     }
-    v.extend(
-        model
-            .a()
-            .iter()
-            .enumerate()
-            .map(|(i, a)| (format!("a{}", i + 1), *a)),
-    );
-    let skip = usize::from(model.kind() == ModelKind::Hammerstein);
-    v.extend(
-        model
-            .b()
-            .iter()
-            .enumerate()
-            .skip(skip)
-            .map(|(j, b)| (format!("b{}", j + 1), *b)),
-    );
-    if let Some(c) = model.offset() {
-        v.push(("c".into(), c));
-    }
-    v
 }
 
 /// An experiment: (run index, run seed) → (u, noise-free y), or a message.
@@ -139,7 +153,7 @@ pub type Experiment = dyn Fn(usize, u64) -> Result<(Vec<f64>, Vec<f64>), String>
 /// when known; `progress` is called after each run.
 pub fn study(
     st: &StudySettings,
-    truth: Option<&[(String, f64)]>,
+    truth: Option<&[NamedValue]>,
     experiment: &Experiment,
     progress: &(dyn Fn() + Sync),
 ) -> Result<StudyReport, SysidError> {
@@ -167,10 +181,9 @@ pub fn study(
     for m in &st.methods {
         st.base.clone().with_method(*m).check()?;
     }
-    // results[run][method] = Ok(param values by name) or Err(message).
-    type RunResult = Vec<Result<Vec<(String, f64)>, String>>;
+    // results[run][method]: the outcome of that method on that run.
     let hammer = st.base.structure.kind == ModelKind::Hammerstein;
-    let results: Vec<RunResult> = (0..st.runs)
+    let results: Vec<Vec<Outcome>> = (0..st.runs)
         .into_par_iter()
         .map(|r| {
             let seed = run_seed(st.seed, r);
@@ -197,7 +210,10 @@ pub fn study(
                                         f.params
                                             .into_iter()
                                             .filter(|p| !(hammer && p.name == ParamName::B(1)))
-                                            .map(|p| (p.name.to_string(), p.value))
+                                            .map(|p| NamedValue {
+                                                name: p.name,
+                                                value: p.value,
+                                            })
                                             .collect()
                                     })
                                     .map_err(|e| format!("run {r}: {e}"))
@@ -212,40 +228,23 @@ pub fn study(
         .collect();
     let mut methods = Vec::new();
     for (mi, m) in st.methods.iter().enumerate() {
-        let ok: Vec<&Vec<(String, f64)>> =
+        let ok: Vec<&Vec<NamedValue>> =
             results.iter().filter_map(|r| r[mi].as_ref().ok()).collect();
         let errors: Vec<&String> = results
             .iter()
             .filter_map(|r| r[mi].as_ref().err())
             .collect();
-        let names: Vec<String> = ok
+        let names: Vec<ParamName> = ok
             .first()
-            .map(|v| v.iter().map(|(n, _)| n.clone()).collect())
+            .map(|v| v.iter().map(|p| p.name).collect())
             .unwrap_or_default();
+        let find =
+            |v: &[NamedValue], name: ParamName| v.iter().find(|p| p.name == name).map(|p| p.value);
         let params = names
             .iter()
-            .map(|name| {
-                let vals: Vec<f64> = ok
-                    .iter()
-                    .filter_map(|v| v.iter().find(|(n, _)| n == name).map(|(_, x)| *x))
-                    .collect();
-                let n = vals.len().max(1) as f64;
-                let mean = vals.iter().sum::<f64>() / n;
-                let std = if vals.len() > 1 {
-                    (vals.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (vals.len() - 1) as f64)
-                        .sqrt()
-                } else {
-                    0.0
-                };
-                let t = truth.and_then(|t| t.iter().find(|(n, _)| n == name).map(|(_, x)| *x));
-                ParamStats {
-                    name: name.clone(),
-                    truth: t,
-                    mean,
-                    std,
-                    bias: t.map(|t| mean - t),
-                    rmse: t.map(|t| (vals.iter().map(|v| (v - t).powi(2)).sum::<f64>() / n).sqrt()),
-                }
+            .map(|&name| {
+                let vals: Vec<f64> = ok.iter().filter_map(|v| find(v, name)).collect();
+                param_stats(name, &vals, truth.and_then(|t| find(t, name)))
             })
             .collect();
         methods.push(MethodStats {
@@ -336,10 +335,49 @@ mod tests {
         }
     }
 
+    // The truth of a hand-built Hammerstein model with offset is [b_l, b_r, m_l, m_r, a1, a2, b2, c]
+    // (b1 = 1 is fixed and left out).
+    #[test]
+    fn truth_lists_the_physical_parameters_without_the_fixed_b1() {
+        let dz = sysid::Deadzone {
+            b_l: -20.0,
+            b_r: 30.0,
+            m_l: 0.9,
+            m_r: 1.1,
+        };
+        let m = Model::siso(
+            ModelKind::Hammerstein,
+            0.01,
+            vec![-1.2, 0.3],
+            vec![1.0, 0.5],
+            1,
+            Some(dz),
+            Some(0.7),
+        )
+        .unwrap();
+        let got: Vec<(String, f64)> = truth_of(&m)
+            .iter()
+            .map(|p| (p.name.to_string(), p.value))
+            .collect();
+        let want = [
+            ("b_l", -20.0),
+            ("b_r", 30.0),
+            ("m_l", 0.9),
+            ("m_r", 1.1),
+            ("a1", -1.2),
+            ("a2", 0.3),
+            ("b2", 0.5),
+            ("c", 0.7),
+        ]
+        .map(|(n, v)| (n.to_string(), v));
+        assert_eq!(got, want);
+    }
+
     // Noise-free ARX records: every run recovers a1 = −0.5, b1 = 2 exactly: bias, std and RMSE are 0.
     #[test]
     fn noise_free_runs_have_no_bias_and_no_spread() {
-        let truth = vec![("a1".to_string(), -0.5), ("b1".to_string(), 2.0)];
+        let truth = [(ParamName::A(1), -0.5), (ParamName::B(1), 2.0)]
+            .map(|(name, value)| NamedValue { name, value });
         let r = study(&settings(0.0), Some(&truth), &experiment, &|| {}).unwrap();
         for m in &r.methods {
             assert_eq!(m.ok_runs, 6);
@@ -355,7 +393,8 @@ mod tests {
     // RMSE² = bias² + (n−1)/n · std² for any sample (the identity behind the table).
     #[test]
     fn rmse_squared_is_bias_squared_plus_biased_variance() {
-        let truth = vec![("a1".to_string(), -0.5), ("b1".to_string(), 2.0)];
+        let truth = [(ParamName::A(1), -0.5), (ParamName::B(1), 2.0)]
+            .map(|(name, value)| NamedValue { name, value });
         let r = study(&settings(0.3), Some(&truth), &experiment, &|| {}).unwrap();
         for p in &r.methods[0].params {
             let lhs = p.rmse.unwrap().powi(2);

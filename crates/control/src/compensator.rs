@@ -29,6 +29,7 @@ use crate::ControlError;
 
 /// How the compensator treats the slopes m_l, m_r of the deadzone.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum SlopeMode {
     /// Shift only: u_c = u + b_r (u > 0) or u + b_l (u < 0).

@@ -27,5 +27,5 @@ pub use closed_loop::Trace;
 pub use compensator::{DeadzoneCompensator, SlopeMode};
 pub use error::ControlError;
 pub use metrics::{metrics_for_steps, StepMetrics, StepSegment};
-pub use pi::{AntiWindup, IntegralForm, PiController, PiSettings};
+pub use pi::{AntiWindup, AntiWindupScheme, IntegralForm, PiController, PiSettings};
 pub use profile::Profile;

@@ -8,7 +8,7 @@
 use serde::Serialize;
 use sysid_core::{Plant, PlantError};
 
-use crate::{ControlError, DeadzoneCompensator, PiController, Profile};
+use crate::{ControlError, ControlSetting, DeadzoneCompensator, PiController, Profile};
 
 /// Upper bound on the number of samples of one run (10^8: 11 days at Ts = 0.01 s), so that a typo in a
 /// duration cannot exhaust memory.
@@ -87,14 +87,14 @@ pub fn run(
     }
     if !(duration_s.is_finite() && duration_s >= 0.0) {
         return Err(ControlError::setting(
-            "--duration",
+            ControlSetting::Duration,
             duration_s,
             "a finite number of seconds >= 0",
         ));
     }
     if !y0_mm.is_finite() {
         return Err(ControlError::setting(
-            "--y0",
+            ControlSetting::Y0,
             y0_mm,
             "a finite position in mm",
         ));
@@ -103,7 +103,7 @@ pub fn run(
     let steps = (duration_s / ts + 1e-9).floor();
     if steps >= MAX_SAMPLES as f64 {
         return Err(ControlError::setting(
-            "--duration",
+            ControlSetting::Duration,
             duration_s,
             &format!("at most {} samples of Ts = {ts} s", MAX_SAMPLES),
         ));
@@ -318,7 +318,16 @@ mod tests {
         let mut pi = PiSettings::paper().build(0.01).unwrap();
         for d in [-1.0, f64::NAN, 1e12] {
             let e = run(&mut plant, &mut pi, None, &p, d, 0.0).unwrap_err();
-            assert!(e.to_string().contains("--duration"), "{e}");
+            assert!(
+                matches!(
+                    e,
+                    ControlError::Setting {
+                        setting: ControlSetting::Duration,
+                        ..
+                    }
+                ),
+                "{e}"
+            );
         }
     }
 }

@@ -17,7 +17,7 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::ControlError;
+use crate::{ControlError, ControlSetting};
 
 /// How the integral term is scaled (the paper does not say; see the module documentation).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
@@ -162,21 +162,25 @@ impl PiSettings {
     }
 
     /// Checks the settings: finite gains, u_max finite and > 0, Tt finite and > 0.
-    /// Setting names in errors are the command-line flags (`--kp`, `--ki`, ...).
+    /// Errors name the [`ControlSetting`] at fault.
     pub fn validate(&self) -> Result<(), ControlError> {
         if !self.kp.is_finite() {
             return Err(ControlError::setting(
-                "--kp",
+                ControlSetting::Kp,
                 self.kp,
                 "a finite number (counts/mm)",
             ));
         }
         if !self.ki.is_finite() {
-            return Err(ControlError::setting("--ki", self.ki, "a finite number"));
+            return Err(ControlError::setting(
+                ControlSetting::Ki,
+                self.ki,
+                "a finite number",
+            ));
         }
         if !(self.u_max.is_finite() && self.u_max > 0.0) {
             return Err(ControlError::setting(
-                "--u-max",
+                ControlSetting::UMax,
                 self.u_max,
                 "a finite number of counts > 0",
             ));
@@ -184,7 +188,7 @@ impl PiSettings {
         if let AntiWindup::BackCalculation { tt_s } = self.anti_windup {
             if !(tt_s.is_finite() && tt_s > 0.0) {
                 return Err(ControlError::setting(
-                    "--tracking-time",
+                    ControlSetting::TrackingTime,
                     tt_s,
                     "a finite number of seconds > 0",
                 ));
@@ -221,7 +225,7 @@ impl PiSettings {
         self.validate()?;
         if !(ts_s.is_finite() && ts_s > 0.0) {
             return Err(ControlError::setting(
-                "ts",
+                ControlSetting::Ts,
                 ts_s,
                 "a finite sampling period in s > 0",
             ));
@@ -404,12 +408,31 @@ mod tests {
     #[test]
     fn settings_reject_non_finite_gains_and_non_positive_limits() {
         // Each invalid setting is named in the error.
-        let msg = |s: PiSettings| s.validate().unwrap_err().to_string();
-        assert!(msg(PiSettings::new(f64::NAN, 1.0)).contains("--kp"));
-        assert!(msg(PiSettings::new(1.0, f64::INFINITY)).contains("--ki"));
-        assert!(msg(PiSettings::paper().with_u_max(0.0)).contains("--u-max"));
+        let named = |s: PiSettings| match s.validate().unwrap_err() {
+            ControlError::Setting { setting, .. } => setting,
+            e => panic!("not a setting error: {e}"),
+        };
+        assert_eq!(named(PiSettings::new(f64::NAN, 1.0)), ControlSetting::Kp);
+        assert_eq!(
+            named(PiSettings::new(1.0, f64::INFINITY)),
+            ControlSetting::Ki
+        );
+        assert_eq!(
+            named(PiSettings::paper().with_u_max(0.0)),
+            ControlSetting::UMax
+        );
         let bc = AntiWindup::BackCalculation { tt_s: -1.0 };
-        assert!(msg(PiSettings::paper().with_anti_windup(bc)).contains("--tracking-time"));
+        assert_eq!(
+            named(PiSettings::paper().with_anti_windup(bc)),
+            ControlSetting::TrackingTime
+        );
+        assert_eq!(
+            PiSettings::new(f64::NAN, 1.0)
+                .validate()
+                .unwrap_err()
+                .to_string(),
+            "invalid setting kp = NaN: a finite number (counts/mm)"
+        );
         assert!(PiSettings::paper().build(0.0).is_err());
     }
 }

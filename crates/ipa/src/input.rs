@@ -19,7 +19,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 
-use crate::IpaError;
+use crate::{IpaError, IpaSetting};
 
 /// An experiment's input signal, as given to `--input`.
 #[derive(Debug, Clone, PartialEq)]
@@ -53,9 +53,11 @@ impl FromStr for InputSpec {
 
     fn from_str(s: &str) -> Result<Self, IpaError> {
         let bad = |why: &str| {
-            IpaError::Config(format!(
-                "invalid --input '{s}': {why}; expected {SPEC_HELP}"
-            ))
+            IpaError::setting(
+                IpaSetting::Input,
+                format!("'{s}'"),
+                format!("{why}; expected {SPEC_HELP}"),
+            )
         };
         let t = s.trim();
         match t {
@@ -176,20 +178,25 @@ pub fn add_noise(y: &[f64], std_mm: f64, seed: u64) -> Vec<f64> {
 
 fn check_settings(samples: usize, ts_s: f64, amplitude: f64) -> Result<(), IpaError> {
     if samples == 0 || samples > sysid_core::data::MAX_SAMPLES {
-        return Err(IpaError::Config(format!(
-            "invalid --samples {samples}: expected 1..={}",
-            sysid_core::data::MAX_SAMPLES
-        )));
+        return Err(IpaError::setting(
+            IpaSetting::Samples,
+            samples,
+            format!("expected 1..={}", sysid_core::data::MAX_SAMPLES),
+        ));
     }
     if !(ts_s.is_finite() && ts_s > 0.0) {
-        return Err(IpaError::Config(format!(
-            "invalid --ts {ts_s}: expected a positive sampling period in s"
-        )));
+        return Err(IpaError::setting(
+            IpaSetting::Ts,
+            ts_s,
+            "expected a positive sampling period in s",
+        ));
     }
     if !(amplitude.is_finite() && amplitude >= 0.0) {
-        return Err(IpaError::Config(format!(
-            "invalid --amplitude {amplitude}: expected a number of counts >= 0"
-        )));
+        return Err(IpaError::setting(
+            IpaSetting::Amplitude,
+            amplitude,
+            "expected a number of counts >= 0",
+        ));
     }
     Ok(())
 }
@@ -417,9 +424,16 @@ mod tests {
             InputSpec::File("a.csv".into())
         );
         for bad in ["stair", "step:", "step:x", "step:1@-2", "file:", "step:inf"] {
-            let e = bad.parse::<InputSpec>().unwrap_err().to_string();
+            let e = bad.parse::<InputSpec>().unwrap_err();
             assert!(
-                e.contains("--input") && e.contains("staircase"),
+                matches!(
+                    &e,
+                    IpaError::Setting {
+                        setting: IpaSetting::Input,
+                        expected,
+                        ..
+                    } if expected.contains("staircase")
+                ),
                 "{bad}: {e}"
             );
         }

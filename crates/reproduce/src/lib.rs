@@ -29,7 +29,9 @@ use sysid::estimate::{
 };
 use sysid::metrics::{fit_percent, metrics};
 use sysid::summary::IdentifyReport;
-use sysid::{Dataset, Model, ModelKind, ModelPlant, Plant};
+use sysid::{Dataset, Model, ModelKind, ModelPlant, ParamName, Plant};
+use sysid_core::param::{Layout, Parameterisation};
+use sysid_core::Structure;
 
 pub mod error;
 pub use error::ReproduceError;
@@ -152,7 +154,7 @@ fn fmt_opt(v: Option<f64>) -> String {
     v.map_or_else(|| "n/a".into(), num)
 }
 
-fn param_cell(fit: &FittedModel, name: &str) -> String {
+fn param_cell(fit: &FittedModel, name: ParamName) -> String {
     match fit.params.iter().find(|p| p.name == name) {
         Some(p) => match p.std {
             Some(s) => format!("{} ± {}", num(p.value), num(s)),
@@ -163,12 +165,12 @@ fn param_cell(fit: &FittedModel, name: &str) -> String {
 }
 
 /// The paper's Table III value of `name`, normalised to b1 = 1 (slopes times b1).
-fn paper_normalised(table: &[(&str, f64); 8], name: &str) -> Option<f64> {
+fn paper_normalised(table: &[(&str, f64); 8], name: ParamName) -> Option<f64> {
     let b1 = table[7].1;
-    let v = table.iter().find(|(n, _)| *n == name)?.1;
+    let v = table.iter().find(|(n, _)| name == *n)?.1;
     Some(match name {
-        "m_r" | "m_l" => v * b1,
-        "b1" => 1.0,
+        ParamName::MR | ParamName::ML => v * b1,
+        ParamName::B(1) => 1.0,
         _ => v,
     })
 }
@@ -820,26 +822,38 @@ fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
     figs
 }
 
-const TABLE3_NAMES: [&str; 8] = ["b_r", "b_l", "m_r", "m_l", "a1", "a2", "a3", "b1"];
+/// The rows of Table III, in the paper's order.
+const TABLE3_NAMES: [ParamName; 8] = [
+    ParamName::BR,
+    ParamName::BL,
+    ParamName::MR,
+    ParamName::ML,
+    ParamName::A(1),
+    ParamName::A(2),
+    ParamName::A(3),
+    ParamName::B(1),
+];
 
-/// The plant's true value of a parameter when the plant is the paper's model.
-fn truth(s: &ReproduceSettings, name: &str) -> Option<f64> {
+/// The plant's true value of a parameter when the plant is the paper's model (b1 = 1: the model is
+/// normalised), from the physical parameterisation of [`Model::paper`].
+fn truth(s: &ReproduceSettings, name: ParamName) -> Option<f64> {
     if s.plant != "paper" {
         return None;
     }
-    let m = Model::paper();
-    let d = *m.deadzone()?;
-    match name {
-        "b_r" => Some(d.b_r),
-        "b_l" => Some(d.b_l),
-        "m_r" => Some(d.m_r),
-        "m_l" => Some(d.m_l),
-        "b1" => Some(1.0),
-        n => n
-            .strip_prefix('a')
-            .and_then(|i| i.parse::<usize>().ok())
-            .and_then(|i| m.a().get(i - 1).copied()),
+    if name == ParamName::B(1) {
+        return Some(1.0);
     }
+    let m = Model::paper();
+    let structure = Structure {
+        kind: m.kind(),
+        orders: m.orders(),
+        offset: m.offset().is_some(),
+    };
+    let p = Parameterisation::new(structure, Layout::Physical);
+    p.names()
+        .into_iter()
+        .zip(p.vector_of(&m))
+        .find_map(|(n, v)| (n == name).then_some(v))
 }
 
 fn table3(s: &ReproduceSettings, st: &Study) -> Table {

@@ -31,7 +31,6 @@ use sysid::metrics::{fit_percent, metrics};
 use sysid::summary::IdentifyReport;
 use sysid::{Dataset, Model, ModelKind, ModelPlant, ParamName, Plant};
 use sysid_core::param::{Layout, Parameterisation};
-use sysid_core::Structure;
 
 pub mod error;
 pub use error::ReproduceError;
@@ -844,15 +843,9 @@ fn truth(s: &ReproduceSettings, name: ParamName) -> Option<f64> {
         return Some(1.0);
     }
     let m = Model::paper();
-    let structure = Structure {
-        kind: m.kind(),
-        orders: m.orders(),
-        offset: m.offset().is_some(),
-    };
-    let p = Parameterisation::new(structure, Layout::Physical);
-    p.names()
+    Parameterisation::of_model(&m, Layout::Physical)
+        .named_vector_of(&m)
         .into_iter()
-        .zip(p.vector_of(&m))
         .find_map(|(n, v)| (n == name).then_some(v))
 }
 

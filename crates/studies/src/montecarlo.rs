@@ -21,7 +21,6 @@ use sysid::data::Signals;
 use sysid::estimate::{identify, Identification, Method};
 use sysid::{Dataset, Model, ModelKind, ParamName, SysidError};
 use sysid_core::param::{Layout, Parameterisation};
-use sysid_core::Structure;
 
 /// The seed of run `run` of a study seeded with `seed`: the first output of [`SplitMix64`] started from
 /// seed ⊕ (run·0x9E3779B97F4A7C15 + 0xD1B54A32D192ED03), so that neighbouring seeds and runs give
@@ -110,15 +109,9 @@ pub struct NamedValue {
 /// The true physical parameters of a model, by name, in the order of
 /// [`Parameterisation`] with [`Layout::Physical`] (b1 of a Hammerstein model is fixed at 1 and left out).
 pub fn truth_of(model: &Model) -> Vec<NamedValue> {
-    let structure = Structure {
-        kind: model.kind(),
-        orders: model.orders(),
-        offset: model.offset().is_some(),
-    };
-    let p = Parameterisation::new(structure, Layout::Physical);
-    p.names()
+    Parameterisation::of_model(model, Layout::Physical)
+        .named_vector_of(model)
         .into_iter()
-        .zip(p.vector_of(model))
         .map(|(name, value)| NamedValue { name, value })
         .collect()
 }

@@ -328,42 +328,26 @@ mod tests {
         }
     }
 
-    // The truth of a hand-built Hammerstein model with offset is [b_l, b_r, m_l, m_r, a1, a2, b2, c]
-    // (b1 = 1 is fixed and left out).
+    // The truth of the paper's model is its Table III "actual" column normalised to b1 = 1 (slopes times
+    // b1 = 15.67e-4), without the fixed b1.
     #[test]
-    fn truth_lists_the_physical_parameters_without_the_fixed_b1() {
-        let dz = sysid::Deadzone {
-            b_l: -20.0,
-            b_r: 30.0,
-            m_l: 0.9,
-            m_r: 1.1,
-        };
-        let m = Model::siso(
-            ModelKind::Hammerstein,
-            0.01,
-            vec![-1.2, 0.3],
-            vec![1.0, 0.5],
-            1,
-            Some(dz),
-            Some(0.7),
-        )
-        .unwrap();
-        let got: Vec<(String, f64)> = truth_of(&m)
-            .iter()
-            .map(|p| (p.name.to_string(), p.value))
-            .collect();
+    fn truth_of_the_paper_model_is_table_iii_without_b1() {
+        let b1 = 15.67e-4;
         let want = [
-            ("b_l", -20.0),
-            ("b_r", 30.0),
-            ("m_l", 0.9),
-            ("m_r", 1.1),
-            ("a1", -1.2),
-            ("a2", 0.3),
-            ("b2", 0.5),
-            ("c", 0.7),
-        ]
-        .map(|(n, v)| (n.to_string(), v));
-        assert_eq!(got, want);
+            ("b_l", -1.50),
+            ("b_r", 1.41),
+            ("m_l", 3.46 * b1),
+            ("m_r", 2.38 * b1),
+            ("a1", -1.869),
+            ("a2", 0.9976),
+            ("a3", -0.1284),
+        ];
+        let got = truth_of(&Model::paper());
+        assert_eq!(got.len(), want.len());
+        for (g, (name, value)) in got.iter().zip(want) {
+            assert_eq!(g.name.to_string(), name);
+            assert!((g.value - value).abs() < 1e-12, "{name}: {}", g.value);
+        }
     }
 
     // Noise-free ARX records: every run recovers a1 = −0.5, b1 = 2 exactly: bias, std and RMSE are 0.

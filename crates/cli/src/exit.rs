@@ -50,10 +50,16 @@ pub fn strict(strict: bool, warnings: usize) -> anyhow::Result<()> {
 
 /// The message of one error, with the library's settings named by their flags.
 pub fn render(e: &(dyn std::error::Error + 'static)) -> String {
-    match e.downcast_ref::<sysid::SysidError>() {
-        Some(s) => s.render(&|setting| flag(setting).to_string()),
-        None => e.to_string(),
+    if let Some(s) = e.downcast_ref::<sysid::SysidError>() {
+        return s.render(&|setting| flag(setting).to_string());
     }
+    if let Some(c) = e.downcast_ref::<control::ControlError>() {
+        return c.render(&|setting| control_flag(setting).to_string());
+    }
+    if let Some(i) = e.downcast_ref::<ipa::IpaError>() {
+        return i.render(&|setting| ipa_flag(setting).to_string());
+    }
+    e.to_string()
 }
 
 /// The whole chain of `e` on one line, as `{e:#}` prints it, with settings named by their flags.
@@ -80,6 +86,34 @@ pub fn flag(s: sysid::Setting) -> &'static str {
         Setting::MaxIterations => "--max-iterations",
         Setting::Tolerance => "tolerance",
         Setting::Other(name) => name,
+    }
+}
+
+/// The command-line flag of a control-library setting (`ts` has none: the plant sets it).
+pub fn control_flag(s: control::ControlSetting) -> &'static str {
+    use control::ControlSetting;
+    match s {
+        ControlSetting::Kp => "--kp",
+        ControlSetting::Ki => "--ki",
+        ControlSetting::UMax => "--u-max",
+        ControlSetting::TrackingTime => "--tracking-time",
+        ControlSetting::Ts => "ts",
+        ControlSetting::Duration => "--duration",
+        ControlSetting::Y0 => "--y0",
+        ControlSetting::Deadzone => "--compensate-deadzone",
+        ControlSetting::CompensatorThreshold => "--compensator-threshold",
+    }
+}
+
+/// The command-line flag of a plant-library setting.
+pub fn ipa_flag(s: ipa::IpaSetting) -> &'static str {
+    use ipa::IpaSetting;
+    match s {
+        IpaSetting::Samples => "--samples",
+        IpaSetting::Ts => "--ts",
+        IpaSetting::Amplitude => "--amplitude",
+        IpaSetting::Input => "--input",
+        IpaSetting::Plant => "--plant",
     }
 }
 
@@ -144,7 +178,12 @@ mod tests {
                 .into(),
             sysid::SysidError::Data("too short".into()).into(),
             ipa::IpaError::Config("bad".into()).into(),
-            control::ControlError::setting("--kp", f64::NAN, "a finite number").into(),
+            control::ControlError::setting(
+                control::ControlSetting::Kp,
+                f64::NAN,
+                "a finite number",
+            )
+            .into(),
             ipa_reproduce::ReproduceError::Sysid(sysid::SysidError::Data("x".into())).into(),
             ipa_reproduce::ReproduceError::Ipa(ipa::IpaError::Config("x".into())).into(),
             anyhow::anyhow!("--out x: is a file"),
@@ -171,6 +210,12 @@ mod render_tests {
         assert_eq!(
             e.to_string(),
             "invalid setting na = 200: an order of at most 100"
+        );
+        let c = control::ControlError::setting(control::ControlSetting::UMax, 0, "> 0");
+        let e = anyhow::Error::from(c).context("cannot build the controller");
+        assert_eq!(
+            render_chain(&e),
+            "cannot build the controller: invalid setting --u-max = 0: > 0"
         );
     }
 }

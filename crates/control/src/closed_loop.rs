@@ -8,7 +8,7 @@
 use serde::Serialize;
 use sysid_core::{Plant, PlantError};
 
-use crate::{ControlError, DeadzoneCompensator, PiController, Profile};
+use crate::{ControlError, ControlSetting, DeadzoneCompensator, PiController, Profile};
 
 /// Upper bound on the number of samples of one run (10^8: 11 days at Ts = 0.01 s), so that a typo in a
 /// duration cannot exhaust memory.
@@ -38,17 +38,12 @@ impl Trace {
         self.t.is_empty()
     }
 
-    /// The trace as CSV text with header `t,r,u,y` (full precision: Rust's shortest round-trip form).
-    pub fn to_csv(&self) -> String {
-        let mut s = String::with_capacity(32 * self.len() + 8);
-        s.push_str("t,r,u,y\n");
-        for k in 0..self.len() {
-            s.push_str(&format!(
-                "{},{},{},{}\n",
-                self.t[k], self.r[k], self.u[k], self.y[k]
-            ));
-        }
-        s
+    /// Column names of the trace as a table: `t,r,u,y` (the order of [`Trace::columns`]).
+    pub const COLUMNS: [&'static str; 4] = ["t", "r", "u", "y"];
+
+    /// The columns t, r, u, y (s, mm, counts, mm), for writing the trace as a table.
+    pub fn columns(&self) -> [&[f64]; 4] {
+        [&self.t, &self.r, &self.u, &self.y]
     }
 }
 
@@ -92,14 +87,14 @@ pub fn run(
     }
     if !(duration_s.is_finite() && duration_s >= 0.0) {
         return Err(ControlError::setting(
-            "--duration",
+            ControlSetting::Duration,
             duration_s,
             "a finite number of seconds >= 0",
         ));
     }
     if !y0_mm.is_finite() {
         return Err(ControlError::setting(
-            "--y0",
+            ControlSetting::Y0,
             y0_mm,
             "a finite position in mm",
         ));
@@ -108,7 +103,7 @@ pub fn run(
     let steps = (duration_s / ts + 1e-9).floor();
     if steps >= MAX_SAMPLES as f64 {
         return Err(ControlError::setting(
-            "--duration",
+            ControlSetting::Duration,
             duration_s,
             &format!("at most {} samples of Ts = {ts} s", MAX_SAMPLES),
         ));
@@ -248,9 +243,9 @@ mod tests {
         .unwrap();
         assert_eq!(trace.len(), 101);
         assert!((trace.t[100] - 1.0).abs() < 1e-12);
-        let csv = trace.to_csv();
-        assert!(csv.starts_with("t,r,u,y\n0,5,"));
-        assert_eq!(csv.lines().count(), 102);
+        let [t, r, u, y] = trace.columns();
+        assert_eq!((t.len(), r.len(), u.len(), y.len()), (101, 101, 101, 101));
+        assert_eq!((t[0], r[0]), (0.0, 5.0));
     }
 
     #[test]
@@ -323,7 +318,16 @@ mod tests {
         let mut pi = PiSettings::paper().build(0.01).unwrap();
         for d in [-1.0, f64::NAN, 1e12] {
             let e = run(&mut plant, &mut pi, None, &p, d, 0.0).unwrap_err();
-            assert!(e.to_string().contains("--duration"), "{e}");
+            assert!(
+                matches!(
+                    e,
+                    ControlError::Setting {
+                        setting: ControlSetting::Duration,
+                        ..
+                    }
+                ),
+                "{e}"
+            );
         }
     }
 }

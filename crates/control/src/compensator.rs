@@ -25,10 +25,11 @@
 use serde::{Deserialize, Serialize};
 use sysid_core::Deadzone;
 
-use crate::ControlError;
+use crate::{ControlError, ControlSetting};
 
 /// How the compensator treats the slopes m_l, m_r of the deadzone.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum SlopeMode {
     /// Shift only: u_c = u + b_r (u > 0) or u + b_l (u < 0).
@@ -63,7 +64,7 @@ pub struct DeadzoneCompensator {
 }
 
 impl DeadzoneCompensator {
-    /// Builds a compensator with threshold 0. Fails (naming `--compensate-deadzone`) when the deadzone is not
+    /// Builds a compensator with threshold 0. Fails (naming [`ControlSetting::Deadzone`]) when the deadzone is not
     /// finite, has b_l > 0, b_r < 0, b_l > b_r, or a slope that is not > 0, or when u_max is not > 0.
     pub fn new(
         deadzone: Deadzone,
@@ -73,7 +74,7 @@ impl DeadzoneCompensator {
         let d = deadzone;
         let bad = |what: &str| {
             Err(ControlError::setting(
-                "--compensate-deadzone",
+                ControlSetting::Deadzone,
                 format!(
                     "b_l = {}, b_r = {}, m_l = {}, m_r = {}",
                     d.b_l, d.b_r, d.m_l, d.m_r
@@ -92,7 +93,7 @@ impl DeadzoneCompensator {
         }
         if !(u_max.is_finite() && u_max > 0.0) {
             return Err(ControlError::setting(
-                "--u-max",
+                ControlSetting::UMax,
                 u_max,
                 "a finite number of counts > 0",
             ));
@@ -109,7 +110,7 @@ impl DeadzoneCompensator {
     pub fn with_threshold(mut self, threshold_counts: f64) -> Result<Self, ControlError> {
         if !(threshold_counts.is_finite() && threshold_counts >= 0.0) {
             return Err(ControlError::setting(
-                "--compensator-threshold",
+                ControlSetting::CompensatorThreshold,
                 threshold_counts,
                 "a finite number of counts >= 0",
             ));
@@ -192,10 +193,13 @@ mod tests {
         // Zero slope, b_l > b_r around a nonzero centre, non-finite values: each names the flag.
         let mut d = dz();
         d.m_r = 0.0;
-        assert!(DeadzoneCompensator::new(d, SlopeMode::Shift, 255.0)
-            .unwrap_err()
-            .to_string()
-            .contains("--compensate-deadzone"));
+        assert!(matches!(
+            DeadzoneCompensator::new(d, SlopeMode::Shift, 255.0).unwrap_err(),
+            ControlError::Setting {
+                setting: ControlSetting::Deadzone,
+                ..
+            }
+        ));
         let d = Deadzone {
             b_l: 5.0,
             b_r: 10.0,

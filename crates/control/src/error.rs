@@ -2,6 +2,53 @@
 
 use std::path::PathBuf;
 
+/// A setting of the control library, as named in [`ControlError::Setting`]; a command line maps each to
+/// its flag ([`ControlError::render`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum ControlSetting {
+    /// Kp: proportional gain (counts/mm).
+    Kp,
+    /// Ki: integral gain (counts/(mm·s) or counts/(mm·sample)).
+    Ki,
+    /// u_max: saturation limit of the command (counts).
+    UMax,
+    /// Tt: tracking time constant of back-calculation (s).
+    TrackingTime,
+    /// Ts: sampling period of the controller (s).
+    Ts,
+    /// Length of a closed-loop run (s).
+    Duration,
+    /// y0: initial position (mm).
+    Y0,
+    /// The deadzone (b_l, b_r, m_l, m_r) a compensator inverts.
+    Deadzone,
+    /// The compensator's threshold (counts).
+    CompensatorThreshold,
+}
+
+impl ControlSetting {
+    /// The library's name of the setting (the field it sets).
+    pub fn name(&self) -> &'static str {
+        match self {
+            ControlSetting::Kp => "kp",
+            ControlSetting::Ki => "ki",
+            ControlSetting::UMax => "u_max",
+            ControlSetting::TrackingTime => "tt_s",
+            ControlSetting::Ts => "ts",
+            ControlSetting::Duration => "duration_s",
+            ControlSetting::Y0 => "y0_mm",
+            ControlSetting::Deadzone => "deadzone",
+            ControlSetting::CompensatorThreshold => "threshold_counts",
+        }
+    }
+}
+
+impl std::fmt::Display for ControlSetting {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
 /// Everything that can go wrong in `control`. Messages name the setting, profile or file at fault and
 /// what was expected.
 #[derive(Debug, thiserror::Error)]
@@ -10,10 +57,10 @@ pub enum ControlError {
     #[error("{0}")]
     Config(String),
     /// A setting (controller gain, duration, ...) is outside its valid range.
-    #[error("invalid setting {name} = {value}: {expected}")]
+    #[error("invalid setting {setting} = {value}: {expected}")]
     Setting {
-        /// The setting's name as the user sees it (e.g. `--kp`).
-        name: String,
+        /// The setting.
+        setting: ControlSetting,
         /// The value given.
         value: String,
         /// What is accepted.
@@ -46,10 +93,23 @@ impl ControlError {
         matches!(self, ControlError::Numerical(_))
     }
 
+    /// The message with each setting named by `name` (a command line passes its flags); the
+    /// `Display` form uses [`ControlSetting::name`].
+    pub fn render(&self, name: &dyn Fn(ControlSetting) -> String) -> String {
+        match self {
+            ControlError::Setting {
+                setting,
+                value,
+                expected,
+            } => format!("invalid setting {} = {value}: {expected}", name(*setting)),
+            other => other.to_string(),
+        }
+    }
+
     /// Shorthand for a [`ControlError::Setting`].
-    pub fn setting(name: &str, value: impl ToString, expected: &str) -> Self {
+    pub fn setting(setting: ControlSetting, value: impl ToString, expected: &str) -> Self {
         ControlError::Setting {
-            name: name.to_string(),
+            setting,
             value: value.to_string(),
             expected: expected.to_string(),
         }

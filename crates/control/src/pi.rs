@@ -17,10 +17,11 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::ControlError;
+use crate::{ControlError, ControlSetting};
 
 /// How the integral term is scaled (the paper does not say; see the module documentation).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 #[serde(rename_all = "kebab-case")]
 pub enum IntegralForm {
     /// I(k) = Ki Ts Σ_{j<=k} e(j): Ki in counts/(mm·s) (the discretised continuous PI). Default.
@@ -55,6 +56,32 @@ pub enum AntiWindup {
         /// Tt: tracking time constant in s (> 0). Tt = Ts resets v onto the limit at every sample.
         tt_s: f64,
     },
+}
+
+/// The anti-windup schemes by name, without their settings (what a command line's `--anti-windup`
+/// chooses; [`AntiWindup`] carries the tracking time Tt of back-calculation).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "kebab-case")]
+pub enum AntiWindupScheme {
+    /// The integral always accumulates (the paper's plain PI); the default.
+    #[default]
+    None,
+    /// Conditional integration: no integration while saturated in the direction of the error.
+    Clamping,
+    /// Back-calculation with tracking time constant Tt (s).
+    BackCalculation,
+}
+
+impl AntiWindup {
+    /// The scheme, without its settings.
+    pub fn scheme(&self) -> AntiWindupScheme {
+        match self {
+            AntiWindup::None => AntiWindupScheme::None,
+            AntiWindup::Clamping => AntiWindupScheme::Clamping,
+            AntiWindup::BackCalculation { .. } => AntiWindupScheme::BackCalculation,
+        }
+    }
 }
 
 impl std::fmt::Display for AntiWindup {
@@ -135,21 +162,25 @@ impl PiSettings {
     }
 
     /// Checks the settings: finite gains, u_max finite and > 0, Tt finite and > 0.
-    /// Setting names in errors are the command-line flags (`--kp`, `--ki`, ...).
+    /// Errors name the [`ControlSetting`] at fault.
     pub fn validate(&self) -> Result<(), ControlError> {
         if !self.kp.is_finite() {
             return Err(ControlError::setting(
-                "--kp",
+                ControlSetting::Kp,
                 self.kp,
                 "a finite number (counts/mm)",
             ));
         }
         if !self.ki.is_finite() {
-            return Err(ControlError::setting("--ki", self.ki, "a finite number"));
+            return Err(ControlError::setting(
+                ControlSetting::Ki,
+                self.ki,
+                "a finite number",
+            ));
         }
         if !(self.u_max.is_finite() && self.u_max > 0.0) {
             return Err(ControlError::setting(
-                "--u-max",
+                ControlSetting::UMax,
                 self.u_max,
                 "a finite number of counts > 0",
             ));
@@ -157,13 +188,27 @@ impl PiSettings {
         if let AntiWindup::BackCalculation { tt_s } = self.anti_windup {
             if !(tt_s.is_finite() && tt_s > 0.0) {
                 return Err(ControlError::setting(
-                    "--tracking-time",
+                    ControlSetting::TrackingTime,
                     tt_s,
                     "a finite number of seconds > 0",
                 ));
             }
         }
         Ok(())
+    }
+
+    /// Ti = |Kp / Ki| in s, the integral time of the PI sampled at `ts_s` (s): Ki is in counts/(mm·s) for
+    /// the scaled form, Ki / Ts for the per-sample form. `None` when Kp or Ki (per second) is 0. The usual
+    /// default tracking time Tt of back-calculation ([`PiSettings::validate`] refuses it when not finite).
+    pub fn integral_time_s(&self, ts_s: f64) -> Option<f64> {
+        let ki_per_s = match self.integral {
+            IntegralForm::Scaled => self.ki,
+            IntegralForm::PerSample => self.ki / ts_s,
+        };
+        if ki_per_s == 0.0 || self.kp == 0.0 {
+            return None;
+        }
+        Some((self.kp / ki_per_s).abs())
     }
 
     /// The gain g that multiplies e(k) in the integral update I(k) = I(k-1) + g e(k):
@@ -180,7 +225,7 @@ impl PiSettings {
         self.validate()?;
         if !(ts_s.is_finite() && ts_s > 0.0) {
             return Err(ControlError::setting(
-                "ts",
+                ControlSetting::Ts,
                 ts_s,
                 "a finite sampling period in s > 0",
             ));
@@ -259,6 +304,26 @@ impl PiController {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    // Ti = Kp/Ki: Kp = 14, Ki = 2 counts/(mm·s) gives 7 s; per sample at Ts = 0.01 s, Ki = 0.02 is
+    // 2 per second, the same 7 s; Ki = 0 has no Ti.
+    #[test]
+    fn integral_time_is_kp_over_ki_per_second() {
+        assert_eq!(PiSettings::new(14.0, 2.0).integral_time_s(0.01), Some(7.0));
+        let per_sample = PiSettings::new(-14.0, 0.02).with_integral(IntegralForm::PerSample);
+        let ti = per_sample.integral_time_s(0.01).unwrap();
+        assert!((ti - 7.0).abs() < 1e-12, "{ti}");
+        assert_eq!(PiSettings::new(14.0, 0.0).integral_time_s(0.01), None);
+        assert_eq!(PiSettings::new(0.0, 1.0).integral_time_s(0.01), None);
+    }
+
+    #[test]
+    fn anti_windup_names_its_scheme() {
+        assert_eq!(AntiWindup::None.scheme(), AntiWindupScheme::None);
+        assert_eq!(AntiWindup::Clamping.scheme(), AntiWindupScheme::Clamping);
+        let bc = AntiWindup::BackCalculation { tt_s: 0.5 };
+        assert_eq!(bc.scheme(), AntiWindupScheme::BackCalculation);
+    }
 
     #[test]
     fn scaled_integral_adds_ki_ts_times_error() {
@@ -343,12 +408,31 @@ mod tests {
     #[test]
     fn settings_reject_non_finite_gains_and_non_positive_limits() {
         // Each invalid setting is named in the error.
-        let msg = |s: PiSettings| s.validate().unwrap_err().to_string();
-        assert!(msg(PiSettings::new(f64::NAN, 1.0)).contains("--kp"));
-        assert!(msg(PiSettings::new(1.0, f64::INFINITY)).contains("--ki"));
-        assert!(msg(PiSettings::paper().with_u_max(0.0)).contains("--u-max"));
+        let named = |s: PiSettings| match s.validate().unwrap_err() {
+            ControlError::Setting { setting, .. } => setting,
+            e => panic!("not a setting error: {e}"),
+        };
+        assert_eq!(named(PiSettings::new(f64::NAN, 1.0)), ControlSetting::Kp);
+        assert_eq!(
+            named(PiSettings::new(1.0, f64::INFINITY)),
+            ControlSetting::Ki
+        );
+        assert_eq!(
+            named(PiSettings::paper().with_u_max(0.0)),
+            ControlSetting::UMax
+        );
         let bc = AntiWindup::BackCalculation { tt_s: -1.0 };
-        assert!(msg(PiSettings::paper().with_anti_windup(bc)).contains("--tracking-time"));
+        assert_eq!(
+            named(PiSettings::paper().with_anti_windup(bc)),
+            ControlSetting::TrackingTime
+        );
+        assert_eq!(
+            PiSettings::new(f64::NAN, 1.0)
+                .validate()
+                .unwrap_err()
+                .to_string(),
+            "invalid setting kp = NaN: a finite number (counts/mm)"
+        );
         assert!(PiSettings::paper().build(0.0).is_err());
     }
 }

@@ -130,6 +130,16 @@ impl Parameterisation {
         }
     }
 
+    /// Every parameter of `model`'s own structure (kind, orders, offset) free, in `layout`.
+    pub fn of_model(model: &Model, layout: Layout) -> Self {
+        let structure = Structure {
+            kind: model.kind(),
+            orders: model.orders(),
+            offset: model.offset().is_some(),
+        };
+        Parameterisation::new(structure, layout)
+    }
+
     /// The same with the free mask `free` (one entry per parameter); fails on a length mismatch.
     pub fn with_free(mut self, free: Vec<bool>) -> Result<Self, SysidError> {
         if free.len() != self.free.len() {
@@ -230,6 +240,15 @@ impl Parameterisation {
         v.extend(model.b().iter().skip(skip_b1));
         v.extend(model.offset());
         v
+    }
+
+    /// The full parameter vector of `model` in this layout, each entry with its name (b1 of a Hammerstein
+    /// model is fixed at 1 and not an entry).
+    pub fn named_vector_of(&self, model: &Model) -> Vec<(ParamName, f64)> {
+        self.names()
+            .into_iter()
+            .zip(self.vector_of(model))
+            .collect()
     }
 
     /// The model with the full parameter vector `v` (key-term breakpoints as the ratios θ2/θ1 and θ4/θ3,
@@ -371,6 +390,43 @@ mod tests {
         assert_eq!(
             names,
             ["m_r", "m_r*b_r", "m_l", "m_l*b_l", "a1", "a2", "a3"]
+        );
+    }
+
+    // A model's own parameterisation names its entries: for a Hammerstein model with offset,
+    // b_l, b_r, m_l, m_r, a1, a2, b2, c with the values the model was built from.
+    #[test]
+    fn of_model_names_every_entry_of_the_model() {
+        let dz = Deadzone {
+            b_l: -30.0,
+            b_r: 25.0,
+            m_l: 0.004,
+            m_r: 0.005,
+        };
+        let m = Model::siso(
+            ModelKind::Hammerstein,
+            0.01,
+            vec![-1.5, 0.6],
+            vec![1.0, 0.3],
+            1,
+            Some(dz),
+            Some(0.7),
+        )
+        .unwrap();
+        let p = Parameterisation::of_model(&m, Layout::Physical);
+        assert_eq!(p.structure(), &hammer(true));
+        assert_eq!(
+            p.named_vector_of(&m),
+            [
+                (ParamName::BL, -30.0),
+                (ParamName::BR, 25.0),
+                (ParamName::ML, 0.004),
+                (ParamName::MR, 0.005),
+                (ParamName::A(1), -1.5),
+                (ParamName::A(2), 0.6),
+                (ParamName::B(2), 0.3),
+                (ParamName::C, 0.7)
+            ]
         );
     }
 

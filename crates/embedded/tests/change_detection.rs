@@ -12,9 +12,9 @@ use ipa_embedded::Deadzone;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
+/// Standard normal sample (rand_distr).
 fn gauss(rng: &mut ChaCha8Rng) -> f64 {
-    let (u1, u2) = (rng.gen::<f64>().max(1e-300), rng.gen::<f64>());
-    (-2.0 * u1.ln()).sqrt() * (std::f64::consts::TAU * u2).cos()
+    rng.sample(rand_distr::StandardNormal)
 }
 
 /// The paper's A(q) with a deadzone that becomes `after` from sample `change` on; σ = 0.01 mm white

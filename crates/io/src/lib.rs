@@ -78,6 +78,59 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
     Ok(())
 }
 
+/// Writes a CSV table to `path` atomically ([`write_atomic`]) through `csv::Writer` (fields quoted
+/// only where needed, `\n` line ends): the `header` row, then every row of `rows`, whose cells the
+/// caller has already formatted.
+pub fn write_csv<R, C>(path: &Path, header: &[&str], rows: R) -> Result<(), OutputError>
+where
+    R: IntoIterator,
+    R::Item: IntoIterator<Item = C>,
+    C: AsRef<[u8]>,
+{
+    let io = |source| OutputError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let mut w = csv::Writer::from_writer(Vec::new());
+    w.write_record(header).map_err(|e| io(e.into()))?;
+    for row in rows {
+        w.write_record(row).map_err(|e| io(e.into()))?;
+    }
+    let bytes = w.into_inner().map_err(|e| io(e.into_error()))?;
+    write_atomic(path, &bytes)
+}
+
+/// Writes equally long columns of numbers as a CSV table to `path` atomically ([`write_csv`]): the
+/// `header` row, then row k holds `columns[j][k]` for every j, each printed with Rust's `{}` (the
+/// shortest decimal that reads back as the same f64). Fails, writing nothing, when the header and the
+/// columns differ in number or the columns in length.
+pub fn write_columns_csv(
+    path: &Path,
+    header: &[&str],
+    columns: &[&[f64]],
+) -> Result<(), OutputError> {
+    let n = columns.first().map_or(0, |c| c.len());
+    if header.len() != columns.len() || columns.iter().any(|c| c.len() != n) {
+        return Err(OutputError::Io {
+            path: path.to_path_buf(),
+            source: std::io::Error::new(
+                std::io::ErrorKind::InvalidInput,
+                format!(
+                    "{} header names for {} columns of lengths {:?}; expected one name per column and columns of equal length",
+                    header.len(),
+                    columns.len(),
+                    columns.iter().map(|c| c.len()).collect::<Vec<_>>()
+                ),
+            ),
+        });
+    }
+    write_csv(
+        path,
+        header,
+        (0..n).map(|k| columns.iter().map(move |c| c[k].to_string())),
+    )
+}
+
 #[cfg(unix)]
 fn default_permissions() -> Option<std::fs::Permissions> {
     use std::os::unix::fs::PermissionsExt;

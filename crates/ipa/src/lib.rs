@@ -22,7 +22,7 @@ pub mod spec;
 pub mod valve;
 
 pub use config::PlantConfig;
-pub use error::IpaError;
+pub use error::{IpaError, IpaSetting};
 pub use input::{generate, InputSpec};
 pub use plant::Ipa;
 pub use spec::{plant_from_spec, plant_from_spec_with_ts, PlantSpec, DEFAULT_TS_S};

@@ -13,7 +13,7 @@ use crate::config::PlantConfig;
 use crate::dynamics::{Dense, Dopri5Step, Dynamics, Mode, State, Valves};
 use crate::encoder::Encoder;
 use crate::valve::Valve;
-use crate::IpaError;
+use crate::{IpaError, IpaSetting};
 
 /// Largest PWM command magnitude (counts): duty = |u| / U_MAX.
 pub const U_MAX: f64 = 255.0;
@@ -149,9 +149,11 @@ impl Ipa {
     pub fn with_ts(config: PlantConfig, ts_s: f64) -> Result<Self, IpaError> {
         config.validate()?;
         if !(ts_s.is_finite() && ts_s > 0.0 && ts_s <= 10.0) {
-            return Err(IpaError::Config(format!(
-                "invalid --ts {ts_s}: expected a sampling period in (0, 10] s"
-            )));
+            return Err(IpaError::setting(
+                IpaSetting::Ts,
+                ts_s,
+                "expected a sampling period in (0, 10] s",
+            ));
         }
         let dynamics = Dynamics::new(&config);
         let v = &config.valve;

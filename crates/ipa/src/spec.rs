@@ -4,7 +4,7 @@
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
-use crate::{Ipa, IpaError, PlantConfig};
+use crate::{Ipa, IpaError, IpaSetting, PlantConfig};
 
 /// Default sampling period Ts of the IPA experiments, s (paper: 0.01 s).
 pub const DEFAULT_TS_S: f64 = 0.01;
@@ -28,13 +28,17 @@ impl FromStr for PlantSpec {
             "ipa" => Ok(PlantSpec::Ipa),
             "paper" => Ok(PlantSpec::Paper),
             _ => match spec.strip_prefix("model:") {
-                Some("") => Err(IpaError::Config(
-                    "invalid --plant 'model:': no file name after 'model:'".into(),
+                Some("") => Err(IpaError::setting(
+                    IpaSetting::Plant,
+                    "'model:'",
+                    "no file name after 'model:'",
                 )),
                 Some(file) => Ok(PlantSpec::ModelFile(PathBuf::from(file))),
-                None => Err(IpaError::Config(format!(
-                    "invalid --plant '{spec}': expected ipa, paper or model:FILE"
-                ))),
+                None => Err(IpaError::setting(
+                    IpaSetting::Plant,
+                    format!("'{spec}'"),
+                    "expected ipa, paper or model:FILE",
+                )),
             },
         }
     }

@@ -29,7 +29,8 @@ use sysid::estimate::{
 };
 use sysid::metrics::{fit_percent, metrics};
 use sysid::summary::IdentifyReport;
-use sysid::{Dataset, Model, ModelKind, ModelPlant, Plant};
+use sysid::{Dataset, Model, ModelKind, ModelPlant, ParamName, Plant};
+use sysid_core::param::{Layout, Parameterisation};
 
 pub mod analysis;
 pub mod colours;
@@ -139,20 +140,6 @@ pub mod paper {
     ];
 }
 
-fn csv_columns(header: &str, t: &[f64], cols: &[&[f64]]) -> String {
-    let mut s = String::with_capacity(24 * t.len() * (cols.len() + 1));
-    s.push_str(header);
-    s.push('\n');
-    for k in 0..t.len() {
-        s.push_str(&format!("{}", t[k]));
-        for c in cols {
-            s.push_str(&format!(",{}", c[k]));
-        }
-        s.push('\n');
-    }
-    s
-}
-
 fn record(
     plant: &mut dyn Plant,
     u: Vec<f64>,
@@ -164,7 +151,7 @@ fn record(
     Ok(Dataset::new(Signals { u, y }, plant.ts(), name)?)
 }
 
-fn param_cell(fit: &FittedModel, name: &str) -> String {
+fn param_cell(fit: &FittedModel, name: ParamName) -> String {
     match fit.params.iter().find(|p| p.name == name) {
         Some(p) => pm(p.value, p.std),
         None => "—".into(),
@@ -172,12 +159,12 @@ fn param_cell(fit: &FittedModel, name: &str) -> String {
 }
 
 /// The paper's Table III value of `name`, normalised to b1 = 1 (slopes times b1).
-fn paper_normalised(table: &[(&str, f64); 8], name: &str) -> Option<f64> {
+fn paper_normalised(table: &[(&str, f64); 8], name: ParamName) -> Option<f64> {
     let b1 = table[7].1;
-    let v = table.iter().find(|(n, _)| *n == name)?.1;
+    let v = table.iter().find(|(n, _)| name == *n)?.1;
     Some(match name {
-        "m_r" | "m_l" => v * b1,
-        "b1" => 1.0,
+        ParamName::MR | ParamName::ML => v * b1,
+        ParamName::B(1) => 1.0,
         _ => v,
     })
 }
@@ -411,9 +398,10 @@ pub fn run(
     )?;
     let t_rec = sysid::data::sample_times(est.len(), ts);
     for (name, d) in [("estimation.csv", &est), ("validation.csv", &val)] {
-        sysid_io::write_atomic(
+        sysid_io::write_columns_csv(
             &data_dir.join(name),
-            csv_columns("t,u,y", &t_rec, &[&d.u, &d.y]).as_bytes(),
+            &["t", "u", "y"],
+            &[&t_rec, &d.u, &d.y],
         )?;
     }
 
@@ -521,14 +509,10 @@ pub fn run(
     let fit_ol = y_ol_model.as_ref().and_then(|y| fit_percent(&ol.y, y));
     let t_ol = sysid::data::sample_times(u_ol.len(), ts);
     let nan = vec![f64::NAN; u_ol.len()];
-    sysid_io::write_atomic(
+    sysid_io::write_columns_csv(
         &data_dir.join("open_loop.csv"),
-        csv_columns(
-            "t,u,y_plant,y_model",
-            &t_ol,
-            &[&u_ol, &ol.y, y_ol_model.as_ref().unwrap_or(&nan)],
-        )
-        .as_bytes(),
+        &["t", "u", "y_plant", "y_model"],
+        &[&t_ol, &u_ol, &ol.y, y_ol_model.as_ref().unwrap_or(&nan)],
     )?;
 
     // 3. Closed loop, fixed and unfixed set-point, model vs plant.
@@ -565,9 +549,10 @@ pub fn run(
         s.fixed_start_mm,
     )? {
         Ok(tr) => {
-            sysid_io::write_atomic(
+            sysid_io::write_columns_csv(
                 &data_dir.join("closed_loop_fixed_plant_compensated.csv"),
-                tr.to_csv().as_bytes(),
+                &Trace::COLUMNS,
+                &tr.columns(),
             )?;
             Ok(step_metrics(&tr, s.fixed_start_mm, s.fixed_setpoint_mm)?)
         }
@@ -604,7 +589,7 @@ pub fn run(
         ("closed_loop_unfixed_model.csv", unfixed.model.as_ref()),
     ] {
         if let Some(tr) = tr {
-            sysid_io::write_atomic(&data_dir.join(name), tr.to_csv().as_bytes())?;
+            sysid_io::write_columns_csv(&data_dir.join(name), &Trace::COLUMNS, &tr.columns())?;
         }
     }
 
@@ -764,7 +749,7 @@ struct Difference {
     reason: &'static str,
 }
 
-fn param_value(fit: &FittedModel, name: &str) -> Option<f64> {
+fn param_value(fit: &FittedModel, name: ParamName) -> Option<f64> {
     fit.params.iter().find(|p| p.name == name).map(|p| p.value)
 }
 
@@ -778,7 +763,7 @@ fn differences(s: &ReproduceSettings, st: &Study) -> Vec<Difference> {
     let per_model = |f: &dyn Fn(&Fitted) -> Option<f64>| -> Vec<(String, Option<f64>)> {
         shown.iter().map(|m| (m.short.to_string(), f(m))).collect()
     };
-    let est = |name: &str| paper_normalised(&paper::ESTIMATED, name).unwrap_or(f64::NAN);
+    let est = |name: ParamName| paper_normalised(&paper::ESTIMATED, name).unwrap_or(f64::NAN);
     let val = |m: &Fitted, f: &dyn Fn(&sysid_core::metrics::Metrics) -> Option<f64>| {
         m.rep.metrics.validation.as_ref().and_then(f)
     };
@@ -796,15 +781,15 @@ fn differences(s: &ReproduceSettings, st: &Study) -> Vec<Difference> {
         Difference {
             id: "b_r",
             quantity: "right breakpoint b_r (counts)",
-            plant: per_model(&|m| param_value(&m.fit, "b_r")),
-            paper: vec![("estimated", est("b_r"))],
+            plant: per_model(&|m| param_value(&m.fit, ParamName::BR)),
+            paper: vec![("estimated", est(ParamName::BR))],
             reason: deadzone_reason,
         },
         Difference {
             id: "b_l",
             quantity: "left breakpoint b_l (counts)",
-            plant: per_model(&|m| param_value(&m.fit, "b_l")),
-            paper: vec![("estimated", est("b_l"))],
+            plant: per_model(&|m| param_value(&m.fit, ParamName::BL)),
+            paper: vec![("estimated", est(ParamName::BL))],
             reason: if physics {
                 "as for b_r"
             } else {
@@ -814,8 +799,8 @@ fn differences(s: &ReproduceSettings, st: &Study) -> Vec<Difference> {
         Difference {
             id: "m_r",
             quantity: "right gain m_r·b1 (mm per count and sample, b1 = 1)",
-            plant: per_model(&|m| param_value(&m.fit, "m_r")),
-            paper: vec![("estimated", est("m_r"))],
+            plant: per_model(&|m| param_value(&m.fit, ParamName::MR)),
+            paper: vec![("estimated", est(ParamName::MR))],
             reason: if physics {
                 "beyond the deadzone the simulator's command-to-velocity curve is not a straight line (it bends up \
                  from creep at 40 counts to full speed), so one slope averages it; the paper's own estimated and \
@@ -827,8 +812,8 @@ fn differences(s: &ReproduceSettings, st: &Study) -> Vec<Difference> {
         Difference {
             id: "m_l",
             quantity: "left gain m_l·b1 (mm per count and sample, b1 = 1)",
-            plant: per_model(&|m| param_value(&m.fit, "m_l")),
-            paper: vec![("estimated", est("m_l"))],
+            plant: per_model(&|m| param_value(&m.fit, ParamName::ML)),
+            paper: vec![("estimated", est(ParamName::ML))],
             reason: if physics {
                 "as for m_r; retracting is slower than extending (smaller rod-side area)"
             } else {
@@ -952,7 +937,7 @@ fn summary_json(
         "models": models,
         "paper_model": {
             "description": "the paper's method on the paper's Table III actual model as the plant (b1 = 1 normalisation)",
-            "actual": TABLE3_NAMES.iter().map(|n| (n.to_string(), json!(paper_normalised(&paper::ACTUAL, n)))).collect::<serde_json::Map<_, _>>(),
+            "actual": TABLE3_NAMES.iter().map(|n| (n.to_string(), json!(paper_normalised(&paper::ACTUAL, *n)))).collect::<serde_json::Map<_, _>>(),
             "runs": st.paper_check.runs.iter().map(|r| json!({
                 "record": r.label,
                 "output_noise_std_mm": if r.label == "noise-free" { 0.0 } else { analysis::PAPER_NOISE_MM },
@@ -1350,26 +1335,32 @@ fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
     figs
 }
 
-const TABLE3_NAMES: [&str; 8] = ["b_r", "b_l", "m_r", "m_l", "a1", "a2", "a3", "b1"];
+/// The rows of Table III, in the paper's order.
+const TABLE3_NAMES: [ParamName; 8] = [
+    ParamName::BR,
+    ParamName::BL,
+    ParamName::MR,
+    ParamName::ML,
+    ParamName::A(1),
+    ParamName::A(2),
+    ParamName::A(3),
+    ParamName::B(1),
+];
 
-/// The plant's true value of a parameter when the plant is the paper's model.
-fn truth(s: &ReproduceSettings, name: &str) -> Option<f64> {
+/// The plant's true value of a parameter when the plant is the paper's model (b1 = 1: the model is
+/// normalised), from the physical parameterisation of [`Model::paper`].
+fn truth(s: &ReproduceSettings, name: ParamName) -> Option<f64> {
     if s.plant != "paper" {
         return None;
     }
-    let m = Model::paper();
-    let d = *m.deadzone()?;
-    match name {
-        "b_r" => Some(d.b_r),
-        "b_l" => Some(d.b_l),
-        "m_r" => Some(d.m_r),
-        "m_l" => Some(d.m_l),
-        "b1" => Some(1.0),
-        n => n
-            .strip_prefix('a')
-            .and_then(|i| i.parse::<usize>().ok())
-            .and_then(|i| m.a().get(i - 1).copied()),
+    if name == ParamName::B(1) {
+        return Some(1.0);
     }
+    let m = Model::paper();
+    Parameterisation::of_model(&m, Layout::Physical)
+        .named_vector_of(&m)
+        .into_iter()
+        .find_map(|(n, v)| (n == name).then_some(v))
 }
 
 fn table3(s: &ReproduceSettings, st: &Study) -> Table {
@@ -1744,8 +1735,8 @@ fn build_report(s: &ReproduceSettings, st: &Study, figs: &[Fig]) -> Result<Repor
             .iter()
             .filter_map(|n| {
                 Some((
-                    param_value(&r.fit, n)?,
-                    paper_normalised(&paper::ACTUAL, n)?,
+                    param_value(&r.fit, *n)?,
+                    paper_normalised(&paper::ACTUAL, *n)?,
                 ))
             })
             .map(|(e, a)| ((e - a) / a.abs().max(f64::MIN_POSITIVE)).abs() * 100.0)

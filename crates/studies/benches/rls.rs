@@ -7,8 +7,9 @@
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
+use rand::Rng;
 use sysid::rls::{Rls, RlsN};
-use sysid_studies::bench::SplitMix64;
+use sysid_studies::rng::SplitMix64;
 
 const RING: usize = 1024;
 
@@ -19,7 +20,10 @@ fn data(n: usize) -> (Vec<f64>, Vec<f64>) {
     let phi: Vec<f64> = (0..RING * n).map(|_| rng.range(-1.0, 1.0)).collect();
     let y = phi
         .chunks_exact(n)
-        .map(|r| r.iter().zip(&truth).map(|(a, b)| a * b).sum::<f64>() + 0.01 * rng.normal())
+        .map(|r| {
+            r.iter().zip(&truth).map(|(a, b)| a * b).sum::<f64>()
+                + 0.01 * rng.sample::<f64, _>(rand_distr::StandardNormal)
+        })
         .collect();
     (phi, y)
 }

@@ -3,39 +3,35 @@
 //! Run r (r = 0..R−1) is seeded with s_r = [`run_seed`](seed, r). An experiment closure turns (r, s_r) into
 //! an input record u and the plant's noise-free output y₀ (the plant wiring lives with the caller: the
 //! command line builds plants with the `ipa` crate). The study adds white Gaussian noise of standard
-//! deviation σ (ChaCha8 seeded with s_r) to y₀ and identifies the model with every method on the same
+//! deviation σ (`rand_distr::StandardNormal` on ChaCha8 seeded with s_r) to y₀ and identifies the model with every method on the same
 //! noisy record. Runs are independent and processed in parallel (rayon); the result depends only on the
 //! seed, not on the number of threads.
 //!
 //! Per method and physical parameter θ: mean, sample standard deviation, and, when the truth θ₀ is known,
 //! bias = mean − θ₀ and RMSE = √(mean (θ̂ − θ₀)²). Failed runs are counted, not averaged.
 
-use rand::{Rng, SeedableRng};
+use rand::{Rng, RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
+use rand_distr::StandardNormal;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
+use crate::rng::SplitMix64;
 use sysid::data::Signals;
 use sysid::estimate::{identify, Identification, Method};
 use sysid::{Dataset, Model, ModelKind, ParamName, SysidError};
+use sysid_core::param::{Layout, Parameterisation};
 
-/// The seed of run `run` of a study seeded with `seed` (SplitMix64 of both, so that neighbouring seeds and
-/// runs give unrelated streams).
+/// The seed of run `run` of a study seeded with `seed`: the first output of [`SplitMix64`] started from
+/// seed ⊕ (run·0x9E3779B97F4A7C15 + 0xD1B54A32D192ED03), so that neighbouring seeds and runs give
+/// unrelated streams.
 pub fn run_seed(seed: u64, run: usize) -> u64 {
-    let mut z = seed
-        ^ (run as u64)
+    SplitMix64::new(
+        seed ^ (run as u64)
             .wrapping_mul(0x9E37_79B9_7F4A_7C15)
-            .wrapping_add(0xD1B5_4A32_D192_ED03);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    z ^ (z >> 31)
-}
-
-/// Standard normal sample (Box–Muller).
-pub fn gaussian(rng: &mut ChaCha8Rng) -> f64 {
-    let u1: f64 = rng.gen_range(f64::MIN_POSITIVE..1.0);
-    let u2: f64 = rng.gen();
-    (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+            .wrapping_add(0xD1B5_4A32_D192_ED03),
+    )
+    .next_u64()
 }
 
 /// Settings of a study.
@@ -59,7 +55,7 @@ pub struct StudySettings {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ParamStats {
     /// Parameter name (b_l, b_r, m_l, m_r, a1.., b1.., c).
-    pub name: String,
+    pub name: ParamName,
     /// The true value, when known.
     pub truth: Option<f64>,
     /// Mean of the estimates.
@@ -101,40 +97,46 @@ pub struct StudyReport {
     pub methods: Vec<MethodStats>,
 }
 
-/// The true physical parameters of a model, by name (b1 of a Hammerstein model is fixed and left out).
-pub fn truth_of(model: &Model) -> Vec<(String, f64)> {
-    let mut v = Vec::new();
-    if let Some(d) = model.deadzone() {
-        v.extend(
-            [
-                ("b_l", d.b_l),
-                ("b_r", d.b_r),
-                ("m_l", d.m_l),
-                ("m_r", d.m_r),
-            ]
-            .map(|(n, x)| (n.to_string(), x)),
-        );
+/// One parameter's value in the physical layout, by name.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct NamedValue {
+    /// The parameter (b_l, b_r, m_l, m_r, a1.., b2.. or b1.., c).
+    pub name: ParamName,
+    /// Its value (counts for b_l, b_r; dimensionless otherwise).
+    pub value: f64,
+}
+
+/// The true physical parameters of a model, by name, in the order of
+/// [`Parameterisation`] with [`Layout::Physical`] (b1 of a Hammerstein model is fixed at 1 and left out).
+pub fn truth_of(model: &Model) -> Vec<NamedValue> {
+    Parameterisation::of_model(model, Layout::Physical)
+        .named_vector_of(model)
+        .into_iter()
+        .map(|(name, value)| NamedValue { name, value })
+        .collect()
+}
+
+/// What one method gave on one run: its estimates, or the failure's message.
+type Outcome = Result<Vec<NamedValue>, String>;
+
+/// Mean, sample standard deviation and, against `truth`, bias and RMSE of the estimates `vals` of one
+/// parameter.
+fn param_stats(name: ParamName, vals: &[f64], truth: Option<f64>) -> ParamStats {
+    let n = vals.len().max(1) as f64;
+    let mean = vals.iter().sum::<f64>() / n;
+    let std = if vals.len() > 1 {
+        (vals.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (vals.len() - 1) as f64).sqrt()
+    } else {
+        0.0
+    };
+    ParamStats {
+        name,
+        truth,
+        mean,
+        std,
+        bias: truth.map(|t| mean - t),
+        rmse: truth.map(|t| (vals.iter().map(|v| (v - t).powi(2)).sum::<f64>() / n).sqrt()),
     }
-    v.extend(
-        model
-            .a()
-            .iter()
-            .enumerate()
-            .map(|(i, a)| (format!("a{}", i + 1), *a)),
-    );
-    let skip = usize::from(model.kind() == ModelKind::Hammerstein);
-    v.extend(
-        model
-            .b()
-            .iter()
-            .enumerate()
-            .skip(skip)
-            .map(|(j, b)| (format!("b{}", j + 1), *b)),
-    );
-    if let Some(c) = model.offset() {
-        v.push(("c".into(), c));
-    }
-    v
 }
 
 /// An experiment: (run index, run seed) → (u, noise-free y), or a message.
@@ -144,7 +146,7 @@ pub type Experiment = dyn Fn(usize, u64) -> Result<(Vec<f64>, Vec<f64>), String>
 /// when known; `progress` is called after each run.
 pub fn study(
     st: &StudySettings,
-    truth: Option<&[(String, f64)]>,
+    truth: Option<&[NamedValue]>,
     experiment: &Experiment,
     progress: &(dyn Fn() + Sync),
 ) -> Result<StudyReport, SysidError> {
@@ -172,10 +174,9 @@ pub fn study(
     for m in &st.methods {
         st.base.clone().with_method(*m).check()?;
     }
-    // results[run][method] = Ok(param values by name) or Err(message).
-    type RunResult = Vec<Result<Vec<(String, f64)>, String>>;
+    // results[run][method]: the outcome of that method on that run.
     let hammer = st.base.structure.kind == ModelKind::Hammerstein;
-    let results: Vec<RunResult> = (0..st.runs)
+    let results: Vec<Vec<Outcome>> = (0..st.runs)
         .into_par_iter()
         .map(|r| {
             let seed = run_seed(st.seed, r);
@@ -189,7 +190,7 @@ pub fn study(
                     let mut rng = ChaCha8Rng::seed_from_u64(seed ^ 0x006E_6F69_7365);
                     let y: Vec<f64> = y0
                         .iter()
-                        .map(|v| v + st.noise_std * gaussian(&mut rng))
+                        .map(|v| v + st.noise_std * rng.sample::<f64, _>(StandardNormal))
                         .collect();
                     match Dataset::new(Signals { u, y }, st.ts_s, format!("run {r}")) {
                         Err(e) => st.methods.iter().map(|_| Err(e.to_string())).collect(),
@@ -202,7 +203,10 @@ pub fn study(
                                         f.params
                                             .into_iter()
                                             .filter(|p| !(hammer && p.name == ParamName::B(1)))
-                                            .map(|p| (p.name.to_string(), p.value))
+                                            .map(|p| NamedValue {
+                                                name: p.name,
+                                                value: p.value,
+                                            })
                                             .collect()
                                     })
                                     .map_err(|e| format!("run {r}: {e}"))
@@ -217,40 +221,23 @@ pub fn study(
         .collect();
     let mut methods = Vec::new();
     for (mi, m) in st.methods.iter().enumerate() {
-        let ok: Vec<&Vec<(String, f64)>> =
+        let ok: Vec<&Vec<NamedValue>> =
             results.iter().filter_map(|r| r[mi].as_ref().ok()).collect();
         let errors: Vec<&String> = results
             .iter()
             .filter_map(|r| r[mi].as_ref().err())
             .collect();
-        let names: Vec<String> = ok
+        let names: Vec<ParamName> = ok
             .first()
-            .map(|v| v.iter().map(|(n, _)| n.clone()).collect())
+            .map(|v| v.iter().map(|p| p.name).collect())
             .unwrap_or_default();
+        let find =
+            |v: &[NamedValue], name: ParamName| v.iter().find(|p| p.name == name).map(|p| p.value);
         let params = names
             .iter()
-            .map(|name| {
-                let vals: Vec<f64> = ok
-                    .iter()
-                    .filter_map(|v| v.iter().find(|(n, _)| n == name).map(|(_, x)| *x))
-                    .collect();
-                let n = vals.len().max(1) as f64;
-                let mean = vals.iter().sum::<f64>() / n;
-                let std = if vals.len() > 1 {
-                    (vals.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (vals.len() - 1) as f64)
-                        .sqrt()
-                } else {
-                    0.0
-                };
-                let t = truth.and_then(|t| t.iter().find(|(n, _)| n == name).map(|(_, x)| *x));
-                ParamStats {
-                    name: name.clone(),
-                    truth: t,
-                    mean,
-                    std,
-                    bias: t.map(|t| mean - t),
-                    rmse: t.map(|t| (vals.iter().map(|v| (v - t).powi(2)).sum::<f64>() / n).sqrt()),
-                }
+            .map(|&name| {
+                let vals: Vec<f64> = ok.iter().filter_map(|v| find(v, name)).collect();
+                param_stats(name, &vals, truth.and_then(|t| find(t, name)))
             })
             .collect();
         methods.push(MethodStats {
@@ -341,10 +328,33 @@ mod tests {
         }
     }
 
+    // The truth of the paper's model is its Table III "actual" column normalised to b1 = 1 (slopes times
+    // b1 = 15.67e-4), without the fixed b1.
+    #[test]
+    fn truth_of_the_paper_model_is_table_iii_without_b1() {
+        let b1 = 15.67e-4;
+        let want = [
+            ("b_l", -1.50),
+            ("b_r", 1.41),
+            ("m_l", 3.46 * b1),
+            ("m_r", 2.38 * b1),
+            ("a1", -1.869),
+            ("a2", 0.9976),
+            ("a3", -0.1284),
+        ];
+        let got = truth_of(&Model::paper());
+        assert_eq!(got.len(), want.len());
+        for (g, (name, value)) in got.iter().zip(want) {
+            assert_eq!(g.name.to_string(), name);
+            assert!((g.value - value).abs() < 1e-12, "{name}: {}", g.value);
+        }
+    }
+
     // Noise-free ARX records: every run recovers a1 = −0.5, b1 = 2 exactly: bias, std and RMSE are 0.
     #[test]
     fn noise_free_runs_have_no_bias_and_no_spread() {
-        let truth = vec![("a1".to_string(), -0.5), ("b1".to_string(), 2.0)];
+        let truth = [(ParamName::A(1), -0.5), (ParamName::B(1), 2.0)]
+            .map(|(name, value)| NamedValue { name, value });
         let r = study(&settings(0.0), Some(&truth), &experiment, &|| {}).unwrap();
         for m in &r.methods {
             assert_eq!(m.ok_runs, 6);
@@ -360,7 +370,8 @@ mod tests {
     // RMSE² = bias² + (n−1)/n · std² for any sample (the identity behind the table).
     #[test]
     fn rmse_squared_is_bias_squared_plus_biased_variance() {
-        let truth = vec![("a1".to_string(), -0.5), ("b1".to_string(), 2.0)];
+        let truth = [(ParamName::A(1), -0.5), (ParamName::B(1), 2.0)]
+            .map(|(name, value)| NamedValue { name, value });
         let r = study(&settings(0.3), Some(&truth), &experiment, &|| {}).unwrap();
         for p in &r.methods[0].params {
             let lhs = p.rmse.unwrap().powi(2);

@@ -635,11 +635,9 @@ mod tests {
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
-    /// Standard normal by Box–Muller (test-only; keeps the module free of distribution crates).
+    /// Standard normal sample (rand_distr, a test-only dependency).
     fn gauss(rng: &mut ChaCha8Rng) -> f64 {
-        let u1: f64 = 1.0 - rng.gen::<f64>(); // (0, 1]
-        let u2: f64 = rng.gen::<f64>();
-        (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+        rng.sample(rand_distr::StandardNormal)
     }
 
     fn white(rng: &mut ChaCha8Rng, n: usize) -> Vec<f64> {

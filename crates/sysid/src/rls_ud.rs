@@ -44,6 +44,20 @@ impl std::fmt::Display for RlsForm {
     }
 }
 
+/// The covariance P in the chosen form; which matrices exist follows from the form.
+#[derive(Debug, Clone)]
+enum Covariance {
+    /// [`RlsForm::Standard`]: the dense, symmetric P.
+    Dense(DMatrix<f64>),
+    /// [`RlsForm::Ud`]: P = U D Uᵀ.
+    Ud {
+        /// U: unit upper triangular.
+        u: DMatrix<f64>,
+        /// The diagonal of D (≥ 0).
+        d: DVector<f64>,
+    },
+}
+
 /// An RLS estimator with a chosen covariance form and windup protection.
 #[derive(Debug, Clone)]
 pub struct RobustRls {
@@ -51,13 +65,9 @@ pub struct RobustRls {
     pub theta: DVector<f64>,
     /// ρ: forgetting factor in (0, 1].
     pub forgetting: f64,
-    form: RlsForm,
     windup: Windup,
     max_trace: f64,
-    /// Standard form: P. UD form: U (unit upper triangular).
-    m: DMatrix<f64>,
-    /// UD form: the diagonal D.
-    d: DVector<f64>,
+    cov: Covariance,
     work: DVector<f64>,
     work2: DVector<f64>,
 }
@@ -82,59 +92,66 @@ impl RobustRls {
             ));
         }
         let n = n_params;
-        let (m, d) = match form {
-            RlsForm::Standard => (DMatrix::identity(n, n) * p0, DVector::zeros(0)),
-            RlsForm::Ud => (DMatrix::identity(n, n), DVector::from_element(n, p0)),
+        let cov = match form {
+            RlsForm::Standard => Covariance::Dense(DMatrix::identity(n, n) * p0),
+            RlsForm::Ud => Covariance::Ud {
+                u: DMatrix::identity(n, n),
+                d: DVector::from_element(n, p0),
+            },
         };
         Ok(RobustRls {
             theta: DVector::zeros(n),
             forgetting,
-            form,
             windup,
             max_trace,
-            m,
-            d,
+            cov,
             work: DVector::zeros(n),
             work2: DVector::zeros(n),
         })
     }
 
+    /// The covariance form.
+    pub fn form(&self) -> RlsForm {
+        match self.cov {
+            Covariance::Dense(_) => RlsForm::Standard,
+            Covariance::Ud { .. } => RlsForm::Ud,
+        }
+    }
+
     /// Restarts P = p0 I, keeping θ̂.
     pub fn restart_covariance(&mut self, p0: f64) {
-        self.m.fill(0.0);
-        match self.form {
-            RlsForm::Standard => self.m.fill_diagonal(p0),
-            RlsForm::Ud => {
-                self.m.fill_diagonal(1.0);
-                self.d.fill(p0);
+        match &mut self.cov {
+            Covariance::Dense(p) => {
+                p.fill(0.0);
+                p.fill_diagonal(p0);
+            }
+            Covariance::Ud { u, d } => {
+                u.fill(0.0);
+                u.fill_diagonal(1.0);
+                d.fill(p0);
             }
         }
     }
 
     /// P (for the UD form, U D Uᵀ).
     pub fn covariance(&self) -> DMatrix<f64> {
-        match self.form {
-            RlsForm::Standard => self.m.clone(),
-            RlsForm::Ud => {
-                let ud = &self.m * DMatrix::from_diagonal(&self.d);
-                &ud * self.m.transpose()
+        match &self.cov {
+            Covariance::Dense(p) => p.clone(),
+            Covariance::Ud { u, d } => {
+                let ud = u * DMatrix::from_diagonal(d);
+                &ud * u.transpose()
             }
         }
     }
 
     /// tr P.
     pub fn trace(&self) -> f64 {
-        match self.form {
-            RlsForm::Standard => self.m.trace(),
-            RlsForm::Ud => {
-                let n = self.d.len();
+        match &self.cov {
+            Covariance::Dense(p) => p.trace(),
+            Covariance::Ud { u, d } => {
+                let n = d.len();
                 (0..n)
-                    .map(|j| {
-                        self.d[j]
-                            * (0..=j)
-                                .map(|i| self.m[(i, j)] * self.m[(i, j)])
-                                .sum::<f64>()
-                    })
+                    .map(|j| d[j] * (0..=j).map(|i| u[(i, j)] * u[(i, j)]).sum::<f64>())
                     .sum()
             }
         }
@@ -154,17 +171,32 @@ impl RobustRls {
                 "RLS met a non-finite value at sample {sample} (error ε = {eps:e})"
             )));
         }
-        match self.form {
-            RlsForm::Standard => self.update_standard(phi, eps, sample)?,
-            RlsForm::Ud => self.update_ud(phi, eps, sample)?,
+        let step = Step {
+            phi,
+            eps,
+            rho: self.forgetting,
+            windup: self.windup,
+            sample,
+        };
+        match &mut self.cov {
+            Covariance::Dense(p) => update_standard(p, &mut self.theta, &mut self.work, &step)?,
+            Covariance::Ud { u, d } => {
+                let mut f = Factors {
+                    u,
+                    d,
+                    work: &mut self.work,
+                    work2: &mut self.work2,
+                };
+                update_ud(&mut f, &mut self.theta, &step)?
+            }
         }
         if self.windup == Windup::Trace {
             let tr = self.trace();
             if tr > self.max_trace {
                 let s = self.max_trace / tr;
-                match self.form {
-                    RlsForm::Standard => self.m.scale_mut(s),
-                    RlsForm::Ud => self.d.scale_mut(s),
+                match &mut self.cov {
+                    Covariance::Dense(p) => p.scale_mut(s),
+                    Covariance::Ud { d, .. } => d.scale_mut(s),
                 }
             }
         }
@@ -175,125 +207,153 @@ impl RobustRls {
         }
         Ok(eps)
     }
+}
 
-    fn update_standard(&mut self, phi: &[f64], eps: f64, sample: usize) -> Result<(), SysidError> {
-        let n = self.theta.len();
-        let rho = self.forgetting;
+/// What one update needs besides the covariance: φ(k), ε(k), ρ, the windup protection and k (for
+/// messages).
+struct Step<'a> {
+    phi: &'a [f64],
+    eps: f64,
+    rho: f64,
+    windup: Windup,
+    sample: usize,
+}
+
+/// The UD factors and two work vectors of length n, borrowed for one update.
+struct Factors<'a> {
+    u: &'a mut DMatrix<f64>,
+    d: &'a mut DVector<f64>,
+    work: &'a mut DVector<f64>,
+    work2: &'a mut DVector<f64>,
+}
+
+/// The dense update (paper eq. 12, or its directional-forgetting form) of P and θ̂.
+fn update_standard(
+    p: &mut DMatrix<f64>,
+    theta: &mut DVector<f64>,
+    work: &mut DVector<f64>,
+    st: &Step<'_>,
+) -> Result<(), SysidError> {
+    let (phi, rho, sample) = (st.phi, st.rho, st.sample);
+    let n = theta.len();
+    for i in 0..n {
+        work[i] = (0..n).map(|j| p[(i, j)] * phi[j]).sum();
+    }
+    let r: f64 = (0..n).map(|i| phi[i] * work[i]).sum();
+    let denom = rho + r;
+    if !(denom.is_finite() && denom > 0.0 && r >= 0.0) {
+        return Err(SysidError::Numerical(format!(
+            "RLS lost positive definiteness or met a non-finite value at sample {sample} (φᵀPφ = {r:e})"
+        )));
+    }
+    for i in 0..n {
+        theta[i] += work[i] / denom * st.eps;
+    }
+    // P(k) = P − γ ppᵀ (divided by ρ for ordinary forgetting), upper triangle mirrored.
+    let (gamma, scale) = match st.windup {
+        Windup::Directional if r > MIN_EXCITATION => (directional_gamma(rho, r), 1.0),
+        Windup::Directional => (1.0 / (1.0 + r), 1.0),
+        _ => (1.0 / denom, 1.0 / rho),
+    };
+    for j in 0..n {
+        for i in 0..=j {
+            let v = (p[(i, j)] - gamma * work[i] * work[j]) * scale;
+            p[(i, j)] = v;
+            p[(j, i)] = v;
+        }
+    }
+    Ok(())
+}
+
+/// Bierman's measurement update of (U, D) with measurement variance `var`; returns the unnormalised
+/// gain in `work` and α = var + φᵀPφ.
+fn bierman(f: &mut Factors<'_>, phi: &[f64], var: f64) -> f64 {
+    let n = f.d.len();
+    // f = Uᵀ φ (work2), v = D f (work).
+    for j in 0..n {
+        f.work2[j] = (0..=j).map(|i| f.u[(i, j)] * phi[i]).sum();
+    }
+    for j in 0..n {
+        f.work[j] = f.d[j] * f.work2[j];
+    }
+    let mut alpha = var;
+    // b (the gain numerator) is built in place of v: after column j, work[0..=j] holds b.
+    for j in 0..n {
+        let fj = f.work2[j];
+        let v = f.work[j];
+        let alpha_prev = alpha;
+        alpha += fj * v;
+        f.d[j] *= alpha_prev / alpha;
+        let lambda = -fj / alpha_prev;
+        for i in 0..j {
+            let uij = f.u[(i, j)];
+            f.u[(i, j)] = uij + f.work[i] * lambda;
+            f.work[i] += uij * v;
+        }
+        // work[j] = v already.
+    }
+    alpha
+}
+
+/// Agee–Turner rank-one update U D Uᵀ + c a aᵀ (c > 0); `a` is destroyed.
+fn agee_turner(u: &mut DMatrix<f64>, d: &mut DVector<f64>, mut c: f64, a: &mut DVector<f64>) {
+    let n = d.len();
+    for j in (0..n).rev() {
+        let s = a[j];
+        let d_new = d[j] + c * s * s;
+        if d_new <= 0.0 || !d_new.is_finite() {
+            continue;
+        }
+        let b = c * s / d_new;
+        c *= d[j] / d_new;
+        d[j] = d_new;
+        for i in 0..j {
+            a[i] -= s * u[(i, j)];
+            u[(i, j)] += b * a[i];
+        }
+    }
+}
+
+/// The UD update of (U, D) and θ̂ (module documentation).
+fn update_ud(
+    f: &mut Factors<'_>,
+    theta: &mut DVector<f64>,
+    st: &Step<'_>,
+) -> Result<(), SysidError> {
+    let (phi, rho, sample) = (st.phi, st.rho, st.sample);
+    let n = theta.len();
+    let alpha = if st.windup == Windup::Directional {
+        // p = Pφ = U D Uᵀ φ and r = φᵀPφ.
+        let mut g = DVector::<f64>::zeros(n);
+        for j in 0..n {
+            g[j] = (0..=j).map(|i| f.u[(i, j)] * phi[i]).sum::<f64>() * f.d[j];
+        }
+        let mut p = DVector::<f64>::zeros(n);
         for i in 0..n {
-            self.work[i] = (0..n).map(|j| self.m[(i, j)] * phi[j]).sum();
+            p[i] = (i..n).map(|j| f.u[(i, j)] * g[j]).sum();
         }
-        let r: f64 = (0..n).map(|i| phi[i] * self.work[i]).sum();
-        let denom = rho + r;
-        if !(denom.is_finite() && denom > 0.0 && r >= 0.0) {
-            return Err(SysidError::Numerical(format!(
-                "RLS lost positive definiteness or met a non-finite value at sample {sample} (φᵀPφ = {r:e})"
-            )));
+        let r: f64 = (0..n).map(|i| phi[i] * p[i]).sum();
+        if r > MIN_EXCITATION && rho < 1.0 {
+            let c = (1.0 - rho) / (rho * r);
+            agee_turner(f.u, f.d, c, &mut p);
         }
-        for i in 0..n {
-            self.theta[i] += self.work[i] / denom * eps;
+        bierman(f, phi, 1.0)
+    } else {
+        let a = bierman(f, phi, rho);
+        if rho < 1.0 {
+            f.d.unscale_mut(rho);
         }
-        // P(k) = P − γ ppᵀ (divided by ρ for ordinary forgetting), upper triangle mirrored.
-        let (gamma, scale) = match self.windup {
-            Windup::Directional if r > MIN_EXCITATION => (directional_gamma(rho, r), 1.0),
-            Windup::Directional => (1.0 / (1.0 + r), 1.0),
-            _ => (1.0 / denom, 1.0 / rho),
-        };
-        for j in 0..n {
-            for i in 0..=j {
-                let v = (self.m[(i, j)] - gamma * self.work[i] * self.work[j]) * scale;
-                self.m[(i, j)] = v;
-                self.m[(j, i)] = v;
-            }
-        }
-        Ok(())
+        a
+    };
+    if !(alpha.is_finite() && alpha > 0.0) || f.d.iter().any(|v| !v.is_finite() || *v < 0.0) {
+        return Err(SysidError::Numerical(format!(
+            "UD RLS met a non-finite or negative factor at sample {sample} (α = {alpha})"
+        )));
     }
-
-    /// Bierman's measurement update of (U, D) with measurement variance `var`; returns the unnormalised
-    /// gain in `work` and α = var + φᵀPφ.
-    fn bierman(&mut self, phi: &[f64], var: f64) -> f64 {
-        let n = self.theta.len();
-        // f = Uᵀ φ (work2), v = D f (work).
-        for j in 0..n {
-            self.work2[j] = (0..=j).map(|i| self.m[(i, j)] * phi[i]).sum();
-        }
-        for j in 0..n {
-            self.work[j] = self.d[j] * self.work2[j];
-        }
-        let mut alpha = var;
-        // b (the gain numerator) is built in place of v: after column j, work[0..=j] holds b.
-        for j in 0..n {
-            let f = self.work2[j];
-            let v = self.work[j];
-            let alpha_prev = alpha;
-            alpha += f * v;
-            self.d[j] *= alpha_prev / alpha;
-            let lambda = -f / alpha_prev;
-            for i in 0..j {
-                let uij = self.m[(i, j)];
-                self.m[(i, j)] = uij + self.work[i] * lambda;
-                self.work[i] += uij * v;
-            }
-            // work[j] = v already.
-        }
-        alpha
+    for i in 0..n {
+        theta[i] += f.work[i] / alpha * st.eps;
     }
-
-    /// Agee–Turner rank-one update U D Uᵀ + c a aᵀ (c > 0); `a` is destroyed.
-    fn agee_turner(&mut self, mut c: f64, a: &mut DVector<f64>) {
-        let n = self.d.len();
-        for j in (0..n).rev() {
-            let s = a[j];
-            let d_new = self.d[j] + c * s * s;
-            if d_new <= 0.0 || !d_new.is_finite() {
-                continue;
-            }
-            let b = c * s / d_new;
-            c *= self.d[j] / d_new;
-            self.d[j] = d_new;
-            for i in 0..j {
-                a[i] -= s * self.m[(i, j)];
-                self.m[(i, j)] += b * a[i];
-            }
-        }
-    }
-
-    fn update_ud(&mut self, phi: &[f64], eps: f64, sample: usize) -> Result<(), SysidError> {
-        let n = self.theta.len();
-        let rho = self.forgetting;
-        let alpha = if self.windup == Windup::Directional {
-            // p = Pφ = U D Uᵀ φ and r = φᵀPφ.
-            let mut f = DVector::<f64>::zeros(n);
-            for j in 0..n {
-                f[j] = (0..=j).map(|i| self.m[(i, j)] * phi[i]).sum::<f64>() * self.d[j];
-            }
-            let mut p = DVector::<f64>::zeros(n);
-            for i in 0..n {
-                p[i] = (i..n).map(|j| self.m[(i, j)] * f[j]).sum();
-            }
-            let r: f64 = (0..n).map(|i| phi[i] * p[i]).sum();
-            if r > MIN_EXCITATION && rho < 1.0 {
-                let c = (1.0 - rho) / (rho * r);
-                self.agee_turner(c, &mut p);
-            }
-            self.bierman(phi, 1.0)
-        } else {
-            let a = self.bierman(phi, rho);
-            if rho < 1.0 {
-                self.d.unscale_mut(rho);
-            }
-            a
-        };
-        if !(alpha.is_finite() && alpha > 0.0) || self.d.iter().any(|v| !v.is_finite() || *v < 0.0)
-        {
-            return Err(SysidError::Numerical(format!(
-                "UD RLS met a non-finite or negative factor at sample {sample} (α = {alpha})"
-            )));
-        }
-        for i in 0..n {
-            self.theta[i] += self.work[i] / alpha * eps;
-        }
-        Ok(())
-    }
+    Ok(())
 }
 
 impl crate::rls::RecursiveUpdate for RobustRls {
@@ -374,6 +434,22 @@ mod tests {
             for j in 0..3 {
                 assert!((pa[(i, j)] - pb[(i, j)]).abs() < 1e-9 * (1.0 + pa[(i, j)].abs()));
             }
+        }
+    }
+
+    // The form asked for is the form kept, and a restart gives P = p0 I in either form.
+    #[test]
+    fn restart_gives_p0_times_identity_in_either_form() {
+        for form in [RlsForm::Standard, RlsForm::Ud] {
+            let mut e = RobustRls::new(3, 0.9, 10.0, form, Windup::None, None).unwrap();
+            assert_eq!(e.form(), form);
+            for k in 0..20 {
+                let (phi, y) = regressors(3, k);
+                e.update(&phi, y, k).unwrap();
+            }
+            e.restart_covariance(5.0);
+            assert_eq!(e.covariance(), DMatrix::identity(3, 3) * 5.0, "{form}");
+            assert_eq!(e.trace(), 15.0);
         }
     }
 

@@ -9,11 +9,9 @@ use sysid::data::Signals;
 use sysid::estimate::{identify, Identification, Method};
 use sysid::{Dataset, Deadzone, ModelKind};
 
-/// Standard normal sample by Box–Muller.
+/// Standard normal sample (rand_distr).
 fn gauss(rng: &mut ChaCha8Rng) -> f64 {
-    let u1: f64 = rng.gen_range(1e-300..1.0);
-    let u2: f64 = rng.gen();
-    (-2.0 * u1.ln()).sqrt() * (2.0 * std::f64::consts::PI * u2).cos()
+    rng.sample(rand_distr::StandardNormal)
 }
 
 /// Integer levels uniform in [-amp, amp] held 10..50 samples (0.1..0.5 s at Ts = 0.01 s).

@@ -6,44 +6,14 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
-use clap::ValueEnum;
 use control::{
-    closed_loop, metrics_for_steps, AntiWindup, DeadzoneCompensator, IntegralForm, PiSettings,
-    Profile, SlopeMode, StepMetrics, StepSegment, Trace,
+    closed_loop, metrics_for_steps, AntiWindup, AntiWindupScheme, DeadzoneCompensator,
+    IntegralForm, PiSettings, Profile, SlopeMode, StepMetrics, StepSegment, Trace,
 };
 use serde::Serialize;
 
 /// Default run length for a fixed set-point, in s.
 const DEFAULT_FIXED_DURATION_S: f64 = 10.0;
-
-/// Form of the integral term (`--integral`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum IntegralArg {
-    /// u = Kp e + Ki Ts Σe (Ki in counts/(mm·s)); the default.
-    Scaled,
-    /// u = Kp e + Ki Σe (Ki in counts/(mm·sample)).
-    PerSample,
-}
-
-/// Anti-windup scheme (`--anti-windup`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum AntiWindupArg {
-    /// The integral always accumulates (the paper's plain PI); the default.
-    None,
-    /// Conditional integration: no integration while saturated in the direction of the error.
-    Clamping,
-    /// Back-calculation with tracking time --tracking-time.
-    BackCalculation,
-}
-
-/// Slope handling of the compensator (`--compensator-slopes`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
-pub enum SlopesArg {
-    /// Shift the command past the deadzone only: u + b_r or u + b_l.
-    Shift,
-    /// Also rescale both branches to the mean slope (m_l + m_r) / 2.
-    Equalise,
-}
 
 /// Flags of `ipa-sysid control`.
 #[derive(Debug, clap::Args)]
@@ -78,11 +48,11 @@ pub struct Args {
     #[arg(long, value_name = "MM", default_value_t = 0.0)]
     pub y0: f64,
     /// Form of the integral term.
-    #[arg(long, value_enum, default_value_t = IntegralArg::Scaled)]
-    pub integral: IntegralArg,
+    #[arg(long, value_enum, default_value_t = IntegralForm::Scaled)]
+    pub integral: IntegralForm,
     /// Anti-windup scheme.
-    #[arg(long, value_enum, default_value_t = AntiWindupArg::None)]
-    pub anti_windup: AntiWindupArg,
+    #[arg(long, value_enum, default_value_t = AntiWindupScheme::None)]
+    pub anti_windup: AntiWindupScheme,
     /// Tracking time constant Tt in s for --anti-windup back-calculation [default: Ti = Kp/Ki, scaled form].
     #[arg(long, value_name = "S")]
     pub tracking_time: Option<f64>,
@@ -94,8 +64,8 @@ pub struct Args {
     #[arg(long, value_name = "MODEL.json")]
     pub compensate_deadzone: Option<PathBuf>,
     /// How the compensator treats the deadzone slopes.
-    #[arg(long, value_enum, default_value_t = SlopesArg::Shift)]
-    pub compensator_slopes: SlopesArg,
+    #[arg(long, value_enum, default_value_t = SlopeMode::Shift)]
+    pub compensator_slopes: SlopeMode,
     /// |u| at or below this many counts gives no command (avoids chattering at the set-point).
     #[arg(long, value_name = "COUNTS", default_value_t = 0.0)]
     pub compensator_threshold: f64,
@@ -159,11 +129,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         )),
     };
 
-    let integral = match args.integral {
-        IntegralArg::Scaled => IntegralForm::Scaled,
-        IntegralArg::PerSample => IntegralForm::PerSample,
-    };
-    if args.tracking_time.is_some() && args.anti_windup != AntiWindupArg::BackCalculation {
+    let integral = args.integral;
+    if args.tracking_time.is_some() && args.anti_windup != AntiWindupScheme::BackCalculation {
         bail!(sysid::SysidError::setting(
             sysid::Setting::Other("--tracking-time"),
             args.tracking_time.unwrap_or_default(),
@@ -187,26 +154,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let ts = plant.ts();
 
     let anti_windup = match args.anti_windup {
-        AntiWindupArg::None => AntiWindup::None,
-        AntiWindupArg::Clamping => AntiWindup::Clamping,
-        AntiWindupArg::BackCalculation => {
-            let tt_s = match args.tracking_time {
-                Some(t) => t,
-                None => {
-                    // Ti = Kp / Ki in s (scaled form); Ki per sample is Ki / Ts per second.
-                    let ki_per_s = match integral {
-                        IntegralForm::Scaled => args.ki,
-                        IntegralForm::PerSample => args.ki / ts,
-                    };
-                    if ki_per_s == 0.0 || args.kp == 0.0 {
-                        bail!(sysid::SysidError::setting(
-                            sysid::Setting::Other("--tracking-time"),
-                            "(none)",
-                            "a tracking time in s (the default Ti = Kp/Ki needs Kp and Ki nonzero)"
-                        ));
-                    }
-                    (args.kp / ki_per_s).abs()
-                }
+        AntiWindupScheme::None => AntiWindup::None,
+        AntiWindupScheme::Clamping => AntiWindup::Clamping,
+        AntiWindupScheme::BackCalculation => {
+            let default_tt = || {
+                PiSettings::new(args.kp, args.ki)
+                    .with_integral(integral)
+                    .integral_time_s(ts)
+            };
+            let Some(tt_s) = args.tracking_time.or_else(default_tt) else {
+                bail!(sysid::SysidError::setting(
+                    sysid::Setting::Other("--tracking-time"),
+                    "(none)",
+                    "a tracking time in s (the default Ti = Kp/Ki needs Kp and Ki nonzero)"
+                ));
             };
             AntiWindup::BackCalculation { tt_s }
         }
@@ -236,10 +197,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     "a Hammerstein model file (this model is ARX and has no deadzone)"
                 ));
             };
-            let slope_mode = match args.compensator_slopes {
-                SlopesArg::Shift => SlopeMode::Shift,
-                SlopesArg::Equalise => SlopeMode::Equalise,
-            };
+            let slope_mode = args.compensator_slopes;
             Some(
                 DeadzoneCompensator::new(deadzone, slope_mode, args.u_max)?
                     .with_threshold(args.compensator_threshold)?,
@@ -303,7 +261,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
 
     if let Some(out) = &args.out {
-        sysid_io::write_atomic(out, trace.to_csv().as_bytes())?;
+        sysid_io::write_columns_csv(out, &Trace::COLUMNS, &trace.columns())?;
     }
     let json_to_stdout = args.json.as_ref().is_some_and(|j| j.as_os_str() == "-");
     if let Some(json) = &args.json {

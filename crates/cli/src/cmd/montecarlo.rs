@@ -153,9 +153,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let (samples, amplitude) = (args.samples, args.amplitude);
     let spec_run = spec.clone();
     let experiment = move |_run: usize, seed: u64| -> Result<(Vec<f64>, Vec<f64>), String> {
-        let u = generate(&spec_run, samples, ts_s, amplitude, seed).map_err(|e| e.to_string())?;
-        let mut plant =
-            ipa::plant_from_spec(&plant_spec, config.as_deref()).map_err(|e| e.to_string())?;
+        let u = generate(&spec_run, samples, ts_s, amplitude, seed)
+            .map_err(|e| crate::exit::render(&e))?;
+        let mut plant = ipa::plant_from_spec(&plant_spec, config.as_deref())
+            .map_err(|e| crate::exit::render(&e))?;
         let y = sysid::plant::run_open_loop(plant.as_mut(), &u).map_err(|e| e.to_string())?;
         Ok((u, y))
     };

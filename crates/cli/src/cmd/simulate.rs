@@ -1,7 +1,6 @@
 //! `ipa-sysid simulate`: runs a plant (physics IPA, the paper's model or a saved model) on a designed
 //! input and writes the record `t,u,y` (plus the chamber pressures for the physics plant) as CSV.
 
-use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
@@ -147,8 +146,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     };
     let y = ipa::input::add_noise(&rec.y, args.noise_std, args.seed);
-    let csv = to_csv(&rec, &y);
-    sysid_io::write_atomic(&args.out, csv.as_bytes())?;
+    write_csv(&args.out, &rec, &y)?;
     eprintln!(
         "wrote {} samples (Ts = {} s) to {}",
         rec.u.len(),
@@ -158,20 +156,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// CSV text with deterministic number formatting (shortest round-trip decimal of each f64).
-fn to_csv(rec: &Record, y: &[f64]) -> String {
-    let mut s = String::from(if rec.pressures.is_some() {
-        "t,u,y,p_a_pa,p_b_pa\n"
+/// Writes the record as CSV (t, u, y in Rust's shortest round-trip decimals; pressures, when simulated,
+/// to 0.1 Pa).
+fn write_csv(out: &Path, rec: &Record, y: &[f64]) -> anyhow::Result<()> {
+    let header: &[&str] = if rec.pressures.is_some() {
+        &["t", "u", "y", "p_a_pa", "p_b_pa"]
     } else {
-        "t,u,y\n"
-    });
+        &["t", "u", "y"]
+    };
     let times = sysid::data::sample_times(rec.u.len(), rec.ts);
-    for (k, t) in times.iter().enumerate() {
-        let _ = write!(s, "{t},{},{}", rec.u[k], y[k]);
+    let rows = times.iter().enumerate().map(|(k, t)| {
+        let mut row = vec![t.to_string(), rec.u[k].to_string(), y[k].to_string()];
         if let Some(p) = &rec.pressures {
-            let _ = write!(s, ",{:.1},{:.1}", p[k][0], p[k][1]);
+            row.extend([format!("{:.1}", p[k][0]), format!("{:.1}", p[k][1])]);
         }
-        s.push('\n');
-    }
-    s
+        row
+    });
+    Ok(sysid_io::write_csv(out, header, rows)?)
 }

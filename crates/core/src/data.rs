@@ -9,13 +9,23 @@
 //! - any finite f64, however large or small (the estimators then report a numerical failure if the
 //!   magnitudes overflow).
 //!
+//! Options (docs/data.md): `--no-header` names columns by position (1-based); `--rows A..B` keeps data rows
+//! A..B (0-based, half-open) before anything else; `--time-unit ms|us` scales the time column to seconds;
+//! `--resample TS` interpolates a non-uniform record onto a uniform grid and says how non-uniform it was.
+//!
 //! Everything else is refused with the file, line and column and what was expected: a cell that is
 //! empty, not a number, NaN or infinite; a value beyond the header's columns; a time column that does
 //! not increase or is not uniform within 0.1 %; a file that is not UTF-8 text.
 
 use std::path::Path;
 
+pub mod ranges;
+pub mod resample;
+
+pub use ranges::{split_rows, RowRange};
+
 use crate::error::{ColumnHint, Setting};
+pub use resample::TimeUnit;
 use crate::SysidError;
 
 /// Upper bound on the number of samples read from one file (keeps hostile inputs from exhausting memory).
@@ -111,6 +121,26 @@ pub struct CsvOptions {
     pub ts: Option<f64>,
     /// Ts to use when `ts` is `None` and the file has no time column (e.g. a saved model's Ts).
     pub fallback_ts: Option<f64>,
+    /// The file has no header row (`--no-header`): columns are named by position, `"1"`, `"2"`, ...
+    pub no_header: bool,
+    /// Only these data rows (`--rows A..B`, 0-based, half-open), selected before Ts is found.
+    pub rows: Option<RowRange>,
+    /// The flag that chose `rows`, for messages (`--rows` or `--val-rows`).
+    pub rows_flag: &'static str,
+    /// Unit of the time column (`--time-unit`); Ts and `--ts` are always in seconds.
+    pub time_unit: TimeUnit,
+    /// Resample a non-uniform time column onto this uniform Ts in s (`--resample TS`), by linear
+    /// interpolation.
+    pub resample: Option<f64>,
+}
+
+/// A record read from a file, with what the reader did to it that the user should know (resampling).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Record {
+    /// The record.
+    pub data: Dataset,
+    /// Warnings in words (empty when the file was used as it is).
+    pub notes: Vec<String>,
 }
 
 impl Default for CsvOptions {
@@ -121,12 +151,22 @@ impl Default for CsvOptions {
             t_col: "t".into(),
             ts: None,
             fallback_ts: None,
+            no_header: false,
+            rows: None,
+            rows_flag: "--rows",
+            time_unit: TimeUnit::S,
+            resample: None,
         }
     }
 }
 
 /// Reads a record from a CSV file.
 pub fn read_csv(path: &Path, opts: &CsvOptions) -> Result<Dataset, SysidError> {
+    read_record(path, opts).map(|r| r.data)
+}
+
+/// Reads a record from a CSV file, with the reader's warnings (how non-uniform a resampled record was).
+pub fn read_record(path: &Path, opts: &CsvOptions) -> Result<Record, SysidError> {
     let io = |source| SysidError::Io {
         path: path.to_path_buf(),
         source,
@@ -141,12 +181,25 @@ pub fn read_csv(path: &Path, opts: &CsvOptions) -> Result<Dataset, SysidError> {
         });
     }
     let bytes = std::fs::read(path).map_err(io)?;
-    read_csv_bytes(&bytes, &path.display().to_string(), opts)
+    read_record_bytes(&bytes, &path.display().to_string(), opts)
 }
 
 /// Reads a record from CSV text held in memory; `name` is used in messages.
 pub fn read_csv_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Dataset, SysidError> {
-    let table = read_table(bytes, name)?;
+    read_record_bytes(bytes, name, opts).map(|r| r.data)
+}
+
+/// [`read_csv_bytes`] with the reader's warnings.
+pub fn read_record_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Record, SysidError> {
+    let mut table = read_table_with(bytes, name, !opts.no_header)?;
+    let mut name = name.to_string();
+    if let Some(r) = &opts.rows {
+        let range = r.resolve(table.rows.len(), opts.rows_flag, &name)?;
+        table.rows = table.rows[range.clone()].to_vec();
+        name = format!("{name}[{}..{}]", range.start, range.end);
+    }
+    let name = name.as_str();
+    let mut notes = Vec::new();
     let ucol = table.column_index(&opts.u_col, Setting::UCol)?;
     let ycol = table.column_index(&opts.y_col, Setting::YCol)?;
     if ucol == ycol {
@@ -158,8 +211,53 @@ pub fn read_csv_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Dat
     }
     let has_t = table.headers.contains(&opts.t_col);
     let ts_given = opts.ts.or(if has_t { None } else { opts.fallback_ts });
-    let u = table.numbers(ucol)?;
-    let y = table.numbers(ycol)?;
+    let mut u = table.numbers(ucol)?;
+    let mut y = table.numbers(ycol)?;
+    if let Some(ts) = opts.resample {
+        check_ts(ts).map_err(|_| {
+            SysidError::setting(
+                Setting::Other("--resample"),
+                ts,
+                "a positive, finite sampling period in seconds",
+            )
+        })?;
+        let tc = table.column_index(&opts.t_col, Setting::TCol)?;
+        let t: Vec<f64> = table
+            .numbers(tc)?
+            .iter()
+            .map(|v| v * opts.time_unit.seconds())
+            .collect();
+        increasing(&t, &table, tc)?;
+        let sp = resample::spacing(&t);
+        let mut out = resample::linear(&t, &[&u, &y], ts).into_iter();
+        let (Some(ru), Some(ry)) = (out.next(), out.next()) else {
+            return Err(SysidError::Numerical("resampling produced no signal".into()));
+        };
+        notes.push(format!(
+            "{name}: resampled {} rows onto {} samples at Ts = {} s by linear interpolation; the time \
+             steps were {} to {} s (median {} s), {:.1} % of them more than 0.1 % off the median{}",
+            u.len(),
+            ru.len(),
+            sig6(ts),
+            sig6(sp.min),
+            sig6(sp.max),
+            sig6(sp.median),
+            100.0 * sp.irregular,
+            if sp.max > 2.0 * ts {
+                format!(
+                    "; the largest gap, {} s, is filled with a straight line (invented data)",
+                    sig6(sp.max)
+                )
+            } else {
+                String::new()
+            }
+        ));
+        (u, y) = (ru, ry);
+        return Ok(Record {
+            data: Dataset::new(Signals { u, y }, ts, name)?,
+            notes,
+        });
+    }
     let ts = match ts_given {
         Some(ts) => {
             check_ts(ts)?;
@@ -177,11 +275,18 @@ pub fn read_csv_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Dat
                         table.header_list()
                     ),
                 })?;
-            let t = table.numbers(tc)?;
+            let t: Vec<f64> = table
+                .numbers(tc)?
+                .iter()
+                .map(|v| v * opts.time_unit.seconds())
+                .collect();
             uniform_ts(&t, &table, tc)?
         }
     };
-    Dataset::new(Signals { u, y }, ts, name)
+    Ok(Record {
+        data: Dataset::new(Signals { u, y }, ts, name)?,
+        notes,
+    })
 }
 
 /// A parsed CSV table: header names and raw cells with their line numbers.
@@ -197,6 +302,12 @@ pub struct Table {
 
 /// Parses CSV bytes into a [`Table`], checking the header and the shape of every row.
 pub fn read_table(bytes: &[u8], name: &str) -> Result<Table, SysidError> {
+    read_table_with(bytes, name, true)
+}
+
+/// [`read_table`], or with `has_header = false` a file without a header row (`--no-header`), whose columns
+/// are then named by their position, 1-based (`"1"`, `"2"`, ...).
+pub fn read_table_with(bytes: &[u8], name: &str, has_header: bool) -> Result<Table, SysidError> {
     let file_err = |message: String| SysidError::File {
         file: name.to_string(),
         message,
@@ -240,12 +351,26 @@ pub fn read_table(bytes: &[u8], name: &str) -> Result<Table, SysidError> {
     };
     let mut rdr = csv::ReaderBuilder::new()
         .delimiter(delimiter)
-        .has_headers(true)
+        .has_headers(has_header)
         .flexible(true)
         .trim(csv::Trim::All)
         .from_reader(text.as_bytes());
-    let header = rdr.headers().map_err(|e| csv_err(name, e))?.clone();
-    let mut headers: Vec<String> = header.iter().map(|h| unquote(h).to_string()).collect();
+    let mut headers: Vec<String> = if has_header {
+        let header = rdr.headers().map_err(|e| csv_err(name, e))?.clone();
+        header.iter().map(|h| unquote(h).to_string()).collect()
+    } else {
+        // Columns named by position, 1-based: "1", "2", ... (as many as the widest of the first rows).
+        let width = text
+            .lines()
+            .take(1000)
+            .map(|l| {
+                let fields: Vec<&str> = l.split(delimiter as char).collect();
+                fields.iter().rposition(|f| !f.trim().is_empty()).map_or(0, |i| i + 1)
+            })
+            .max()
+            .unwrap_or(0);
+        (1..=width).map(|i| i.to_string()).collect()
+    };
     while headers.last().is_some_and(|h| h.is_empty()) {
         headers.pop();
     }
@@ -471,25 +596,7 @@ fn uniform_ts(t: &[f64], table: &Table, col: usize) -> Result<f64, SysidError> {
         column: col + 1,
         message,
     };
-    if t.len() < 2 {
-        return Err(SysidError::File {
-            file: table.name.clone(),
-            message: "one sample is not enough to find Ts from the time column; pass --ts".into(),
-        });
-    }
-    for k in 1..t.len() {
-        if t[k] <= t[k - 1] {
-            return Err(at(
-                k,
-                format!(
-                    "time {} s does not increase after {} s on the previous row; expected strictly \
-                     increasing time",
-                    t[k],
-                    t[k - 1]
-                ),
-            ));
-        }
-    }
+    increasing(t, table, col)?;
     let mut steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
     let mid = steps.len() / 2;
     let median = *steps.select_nth_unstable_by(mid, f64::total_cmp).1;
@@ -509,7 +616,8 @@ fn uniform_ts(t: &[f64], table: &Table, col: usize) -> Result<f64, SysidError> {
                 k,
                 format!(
                     "non-uniform sampling: step {} s from the previous row differs from the typical \
-                     (median) step {} s by more than 0.1 %; resample the record or pass --ts",
+                     (median) step {} s by more than 0.1 %; pass --resample TS to interpolate onto a uniform \
+                     grid, or --ts",
                     sig6(dt),
                     sig6(median)
                 ),
@@ -517,6 +625,32 @@ fn uniform_ts(t: &[f64], table: &Table, col: usize) -> Result<f64, SysidError> {
         }
     }
     Ok(ts)
+}
+
+/// Checks that time increases strictly (at least two samples).
+fn increasing(t: &[f64], table: &Table, col: usize) -> Result<(), SysidError> {
+    if t.len() < 2 {
+        return Err(SysidError::File {
+            file: table.name.clone(),
+            message: "one sample is not enough to find Ts from the time column; pass --ts".into(),
+        });
+    }
+    for k in 1..t.len() {
+        if t[k] <= t[k - 1] {
+            return Err(SysidError::Parse {
+                file: table.name.clone(),
+                line: table.line_of(k),
+                column: col + 1,
+                message: format!(
+                    "time {} s does not increase after {} s on the previous row; expected strictly \
+                     increasing time",
+                    t[k],
+                    t[k - 1]
+                ),
+            });
+        }
+    }
+    Ok(())
 }
 
 /// `v` rounded to `digits` significant decimal digits (non-finite values unchanged).

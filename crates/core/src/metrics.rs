@@ -142,3 +142,31 @@ mod tests {
         assert_eq!(fit_percent(&[2.0, 2.0], &[2.0, 2.0]), None);
     }
 }
+
+/// The outputs of a model on a record (`validate --out`): free-run simulation and K-step prediction.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModelOutput {
+    /// Free-run simulation ŷ_sim(k) (MATLAB `compare`), `None` when it diverged.
+    pub y_sim: Option<Vec<f64>>,
+    /// K-step-ahead prediction ŷ(k | k − K) (MATLAB `predict(m, z, K)`); entries k < k0 are the data.
+    pub y_pred: Vec<f64>,
+    /// Fit % of `y_pred` over k >= k0.
+    pub fit_pred_percent: Option<f64>,
+}
+
+/// Simulation and `horizon`-step prediction of `model` on `data` (horizon >= 1).
+pub fn model_output(
+    model: &Model,
+    data: &Dataset,
+    horizon: usize,
+) -> Result<ModelOutput, SysidError> {
+    let k0 = model.k0().min(data.len());
+    let y_pred = model.predict_k(&[&data.u], &data.y, horizon)?;
+    let y_sim = model.simulate(&data.u, &data.y).ok();
+    let fit_pred_percent = fit_percent(&data.y[k0..], &y_pred[k0..]);
+    Ok(ModelOutput {
+        y_sim,
+        y_pred,
+        fit_pred_percent,
+    })
+}

@@ -12,7 +12,8 @@ use sysid::summary::IdentifyReport;
 use sysid::windup::Windup;
 use sysid::{ModelKind, Orders, Structure};
 
-use super::common::{check_outputs, write_output, ColumnArgs, ValidationArgs};
+use super::common::{check_outputs, print_notes, write_output, ColumnArgs, ValidationArgs};
+use sysid::detrend::{detrend, Detrend};
 
 /// Flags of `identify`.
 #[derive(Debug, clap::Args)]
@@ -65,6 +66,11 @@ pub struct Args {
     /// Estimate a constant term c in the linear block.
     #[arg(long)]
     pub offset: bool,
+    /// Remove the estimation record's operating point from u and y (MATLAB `detrend`): `mean` (ū, ȳ) or
+    /// `linear` (a straight line per signal). The model stores (u0, y0) = (ū, ȳ) and puts it back in
+    /// validate, simulate and control.
+    #[arg(long, value_enum, default_value = "none")]
+    pub detrend: Detrend,
     #[command(flatten)]
     pub val: ValidationArgs,
     /// Write the JSON summary here (`-` for standard output).
@@ -139,9 +145,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &inputs,
     )?;
     let opts = args.columns.csv_options();
-    let data = sysid::data::read_csv(data_path, &opts)?;
-    let val = args.val.read(&opts)?;
-    let fit = identify(&data, &settings)?;
+    let records = args.val.records(data_path, &opts)?;
+    print_notes(&records.notes);
+    let (data, val) = (records.est, records.val);
+    let (detrended, op) = detrend(&data, args.detrend);
+    let mut fit = identify(&detrended, &settings)?;
+    fit.model = fit.model.with_operating_point(op)?;
+    // Metrics in the user's units: the model puts its operating point back.
     let est = metrics(&fit.model, &data)?;
     let val_metrics = val.as_ref().map(|v| metrics(&fit.model, v)).transpose()?;
     let report = IdentifyReport::new(&fit, &settings, est, val_metrics);
@@ -154,14 +164,36 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .map(|v| format!("; validation: {} ({} samples)", v.name, v.len()))
             .unwrap_or_default(),
         crate::text::identify_report(&report)
-    );
+    ) + &fit
+        .model
+        .operating_point()
+        .map(|o| {
+            format!(
+                "Detrended ({}): the model works around the operating point u0 = {}, y0 = {} (put back in \
+                 its simulations and predictions)\n",
+                args.detrend,
+                o.u.iter().map(|v| report::format::num(*v)).collect::<Vec<_>>().join(", "),
+                report::format::num(o.y)
+            )
+        })
+        .unwrap_or_default();
     if json_to_stdout {
         eprint!("{text}");
     } else {
         print!("{text}");
     }
     if let Some(path) = &args.json {
-        write_output(path, report.to_json()?.as_bytes(), &inputs, "--json")?;
+        let mut json = report.to_json()?;
+        if !records.notes.is_empty() || args.detrend != Detrend::None {
+            // The reader's warnings and the detrending travel with the numbers they concern.
+            let mut value: serde_json::Value = serde_json::from_str(&json)?;
+            if let Some(obj) = value.as_object_mut() {
+                obj.insert("detrend".into(), serde_json::json!(args.detrend));
+                obj.insert("data_notes".into(), serde_json::json!(records.notes));
+            }
+            json = serde_json::to_string_pretty(&value)? + "\n";
+        }
+        write_output(path, json.as_bytes(), &inputs, "--json")?;
     }
     if let Some(path) = &args.save_model {
         write_output(

@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 
 use sysid::metrics::metrics;
 
-use super::common::{check_outputs, write_output, ColumnArgs};
+use super::common::{check_outputs, print_notes, write_output, ColumnArgs};
 
 /// Flags of `validate`.
 #[derive(Debug, clap::Args)]
@@ -20,16 +20,33 @@ pub struct Args {
     /// Write the metrics as JSON here (`-` for standard output).
     #[arg(long, value_name = "OUT")]
     pub json: Option<PathBuf>,
+    /// Write the model's output as CSV: t,y,y_sim,y_pred,residual (residual = y − y_pred; y_pred is the
+    /// --horizon-step prediction; MATLAB `compare`/`predict`).
+    #[arg(long, value_name = "FILE.csv")]
+    pub out: Option<PathBuf>,
+    /// Prediction horizon K in samples for y_pred and the prediction metrics (MATLAB `predict(m, z, K)`;
+    /// 1 = one-step-ahead).
+    #[arg(long, value_name = "K", default_value_t = 1)]
+    pub horizon: usize,
 }
 
 /// Runs `validate`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let inputs: [&Path; 2] = [&args.model, &args.data];
-    check_outputs(&[(&args.json, "--json")], &inputs)?;
+    check_outputs(&[(&args.json, "--json"), (&args.out, "--out")], &inputs)?;
+    if args.horizon == 0 {
+        anyhow::bail!(sysid::SysidError::setting(
+            sysid::Setting::Other("--horizon"),
+            0,
+            "a prediction horizon K >= 1 in samples"
+        ));
+    }
     let model = sysid::model_file::read_model(&args.model)?;
     let mut opts = args.columns.csv_options();
     opts.fallback_ts = Some(model.ts());
-    let data = sysid::data::read_csv(&args.data, &opts)?;
+    let record = sysid::data::read_record(&args.data, &opts)?;
+    print_notes(&record.notes);
+    let data = record.data;
     if (data.ts - model.ts()).abs() > 1e-3 * model.ts() {
         anyhow::bail!(
             "{}: the data are sampled at Ts = {} s but the model was identified at Ts = {} s; \
@@ -40,19 +57,32 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     let m = metrics(&model, &data)?;
+    let out = sysid::metrics::model_output(&model, &data, args.horizon)?;
     let value = serde_json::json!({
         "model": model,
         "poles": sysid::summary::poles(&model),
         "stable": model.is_stable(),
         "metrics": { "validation": m },
+        "horizon": args.horizon,
+        "fit_pred_horizon_percent": out.fit_pred_percent,
+        "data_notes": record.notes,
     });
     let text = format!(
-        "{} on {} ({} samples): fit {} % (simulation), {} % (1-step prediction); loss {}, FPE {}; {}\n",
+        "{} on {} ({} samples): fit {} % (simulation), {} % (1-step prediction){}; loss {}, FPE {}; {}\n",
         args.model.display(),
         data.name,
         data.len(),
         m.fit_sim_percent.map_or("n/a".into(), |v| format!("{v:.2}")),
         m.fit_pred_percent.map_or("n/a".into(), |v| format!("{v:.2}")),
+        if args.horizon > 1 {
+            format!(
+                ", {} % ({}-step prediction)",
+                out.fit_pred_percent.map_or("n/a".into(), |v| format!("{v:.2}")),
+                args.horizon
+            )
+        } else {
+            String::new()
+        },
         report::format::num(m.loss),
         m.fpe.map_or("n/a".into(), report::format::num),
         if model.is_stable() { "stable" } else { "UNSTABLE" }
@@ -61,6 +91,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         eprint!("{text}");
     } else {
         print!("{text}");
+    }
+    if let Some(path) = &args.out {
+        let t = sysid::data::sample_times(data.len(), data.ts);
+        let mut w = csv::Writer::from_writer(Vec::new());
+        w.write_record(["t", "y", "y_sim", "y_pred", "residual"])?;
+        for k in 0..data.len() {
+            let sim = out.y_sim.as_ref().map_or(String::new(), |s| s[k].to_string());
+            w.write_record([
+                t[k].to_string(),
+                data.y[k].to_string(),
+                sim,
+                out.y_pred[k].to_string(),
+                (data.y[k] - out.y_pred[k]).to_string(),
+            ])?;
+        }
+        let bytes = w.into_inner().map_err(|e| anyhow::anyhow!("{e}"))?;
+        write_output(path, &bytes, &inputs, "--out")?;
     }
     if let Some(path) = &args.json {
         let json = serde_json::to_string_pretty(&value)? + "\n";

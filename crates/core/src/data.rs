@@ -401,9 +401,25 @@ pub fn read_table_with(bytes: &[u8], name: &str, has_header: bool) -> Result<Tab
         }
     }
     let mut rows = Vec::new();
+    // Line numbers from byte offsets (the csv crate's own line count is one short after CRLF line ends).
+    let (mut seen_byte, mut seen_line) = (0usize, 1usize);
     for rec in rdr.records() {
         let rec = rec.map_err(|e| csv_err(name, e))?;
-        let line = rec.position().map_or(0, |p| p.line() as usize);
+        let line = rec.position().map_or(0, |p| {
+            let bytes = text.as_bytes();
+            let mut at = (p.byte() as usize).min(bytes.len());
+            while at < bytes.len() && (bytes[at] == b'\r' || bytes[at] == b'\n') {
+                at += 1; // the record starts after the line ends before it
+            }
+            if at >= seen_byte {
+                seen_line += bytes[seen_byte..at]
+                    .iter()
+                    .filter(|&&b| b == b'\n')
+                    .count();
+                seen_byte = at;
+            }
+            seen_line
+        });
         if rec.iter().all(|f| f.is_empty()) {
             continue; // a blank line or a row of bare delimiters
         }

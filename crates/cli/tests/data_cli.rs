@@ -1,0 +1,373 @@
+//! Data workflow through the binary (issue 13): row ranges, detrending, time units and resampling,
+//! header-less files, written predictions. Every expectation is computed here, independently of the
+//! library (plain loops and closed-form least squares).
+
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
+}
+
+fn run(args: &[&str]) -> Output {
+    let out = bin().args(args).output().unwrap();
+    assert!(
+        out.status.success(),
+        "{args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out
+}
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+fn json(p: &Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+}
+
+fn num(v: &serde_json::Value) -> f64 {
+    v.as_f64().unwrap()
+}
+
+/// A deterministic, persistently exciting input (a sum of incommensurate sines plus a ramp of levels).
+fn input(n: usize) -> Vec<f64> {
+    (0..n)
+        .map(|k| {
+            let k = k as f64;
+            (0.37 * k).sin() + 0.6 * (1.91 * k).sin() + 0.3 * (0.053 * k).cos() + ((k / 7.0).floor() % 3.0)
+        })
+        .collect()
+}
+
+/// y(k) = -a y(k-1) + b u(k-1) + c from y(0) = y_init.
+fn arx1(u: &[f64], a: f64, b: f64, c: f64, y_init: f64) -> Vec<f64> {
+    let mut y = vec![y_init; u.len()];
+    for k in 1..u.len() {
+        y[k] = -a * y[k - 1] + b * u[k - 1] + c;
+    }
+    y
+}
+
+fn write_uy(path: &Path, u: &[f64], y: &[f64]) {
+    let mut t = String::from("u,y\n");
+    for (a, b) in u.iter().zip(y) {
+        t.push_str(&format!("{a},{b}\n"));
+    }
+    std::fs::write(path, t).unwrap();
+}
+
+/// Least squares of z(k) = θ1 p(k) + θ2 q(k) by the 2x2 normal equations.
+fn ls2(z: &[f64], p: &[f64], q: &[f64]) -> (f64, f64) {
+    let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+    let (pp, pq, qq, pz, qz) = (dot(p, p), dot(p, q), dot(q, q), dot(p, z), dot(q, z));
+    let det = pp * qq - pq * pq;
+    ((qq * pz - pq * qz) / det, (pp * qz - pq * pz) / det)
+}
+
+fn mean(v: &[f64]) -> f64 {
+    v.iter().sum::<f64>() / v.len() as f64
+}
+
+fn identify_json(extra: &[&str], out: &Path) -> serde_json::Value {
+    let mut args = vec![
+        "identify", "--model", "arx", "--method", "ls", "--na", "1", "--nb", "1", "--nk", "1",
+        "--ts", "0.1", "--json",
+    ];
+    args.push(s(out));
+    args.extend_from_slice(extra);
+    run(&args);
+    json(out)
+}
+
+#[test]
+fn rows_select_the_estimation_part_and_val_rows_the_validation_part() {
+    let dir = tempfile::tempdir().unwrap();
+    // Rows 0..300 follow y = 0.7 y(k-1) + 2 u(k-1); rows 300.. another system entirely.
+    let u = input(500);
+    let mut y = arx1(&u[..300], -0.7, 2.0, 0.0, 0.0);
+    let tail = arx1(&u[300..], 0.4, -1.0, 3.0, y[299]);
+    y.extend(tail);
+    let f = dir.path().join("two.csv");
+    write_uy(&f, &u, &y);
+    let out = dir.path().join("r.json");
+
+    let j = identify_json(&["--data", s(&f), "--rows", "0..300", "--val-rows", "..300"], &out);
+    let a1 = num(&j["model"]["a"][0]);
+    let b1 = num(&j["model"]["b"][0]);
+    assert!((a1 + 0.7).abs() < 1e-9 && (b1 - 2.0).abs() < 1e-9, "a1 {a1} b1 {b1}");
+    // N = rows used = 300 - k0 (k0 = 1) on both records; the validation is the same system: fit 100 %.
+    assert_eq!(j["metrics"]["estimation"]["n"], 299);
+    assert_eq!(j["metrics"]["validation"]["n"], 299);
+    assert!(num(&j["metrics"]["validation"]["fit_sim_percent"]) > 99.999);
+
+    // The same flags without --rows mix the two systems: the estimate is not the first one.
+    let j = identify_json(&["--data", s(&f)], &out);
+    assert!((num(&j["model"]["a"][0]) + 0.7).abs() > 1e-3);
+
+    // `A..` runs to the end; validation rows of the second system give a poor fit.
+    let j = identify_json(&["--data", s(&f), "--rows", "..300", "--val-rows", "300.."], &out);
+    assert_eq!(j["metrics"]["validation"]["n"], 199);
+    assert!(num(&j["metrics"]["validation"]["fit_sim_percent"]) < 90.0);
+
+    // --split 0.6 of 500 rows: 300 estimation rows (the first system, exact), 200 validation rows.
+    let j = identify_json(&["--data", s(&f), "--split", "0.6"], &out);
+    assert!((num(&j["model"]["a"][0]) + 0.7).abs() < 1e-9);
+    assert_eq!(j["metrics"]["estimation"]["n"], 299);
+    assert_eq!(j["metrics"]["validation"]["n"], 199);
+}
+
+#[test]
+fn bad_row_ranges_are_refused_with_the_flag_and_what_was_expected() {
+    let dir = tempfile::tempdir().unwrap();
+    let u = input(50);
+    let y = arx1(&u, -0.5, 1.0, 0.0, 0.0);
+    let f = dir.path().join("d.csv");
+    write_uy(&f, &u, &y);
+    for (flag, value, want) in [
+        ("--rows", "10..5", "A..B"),
+        ("--rows", "0..51", "inside the 50 data rows"),
+        ("--rows", "x", "A..B"),
+        ("--val-rows", "40..60", "inside the 50 data rows"),
+        ("--split", "1.5", "0 < F < 1"),
+    ] {
+        let out = bin()
+            .args(["identify", "--data", s(&f), "--ts", "1", "--model", "arx", flag, value])
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(2), "{flag} {value}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains(want) && !err.contains("panicked"), "{flag} {value}: {err}");
+    }
+}
+
+#[test]
+fn detrend_mean_identifies_deviations_and_puts_the_operating_point_back() {
+    let dir = tempfile::tempdir().unwrap();
+    let n = 400;
+    let u: Vec<f64> = input(n).iter().map(|v| 100.0 + 5.0 * v).collect();
+    // Around (u, y) = (100, 50): y - 50 = 0.8 (y(k-1) - 50) + 0.3 (u(k-1) - 100), plus a small wobble so
+    // that the data are not exactly ARX in the record's own means.
+    let mut y = vec![50.0; n];
+    for k in 1..n {
+        y[k] = 50.0 + 0.8 * (y[k - 1] - 50.0) + 0.3 * (u[k - 1] - 100.0) + 0.05 * (0.7 * k as f64).sin();
+    }
+    let f = dir.path().join("op.csv");
+    write_uy(&f, &u, &y);
+    let model = dir.path().join("m.json");
+    let out = dir.path().join("r.json");
+    for how in ["mean", "linear"] {
+        let j = identify_json(
+            &["--data", s(&f), "--detrend", how, "--save-model", s(&model)],
+            &out,
+        );
+        // Independent: remove the mean (and for `linear` the least-squares line) of each signal, then
+        // least squares of y'(k) on -y'(k-1), u'(k-1).
+        let remove = |v: &[f64]| -> Vec<f64> {
+            let m = mean(v);
+            let kbar = (v.len() as f64 - 1.0) / 2.0;
+            let slope = if how == "linear" {
+                let num: f64 = v.iter().enumerate().map(|(k, x)| (k as f64 - kbar) * (x - m)).sum();
+                let den: f64 = (0..v.len()).map(|k| (k as f64 - kbar).powi(2)).sum();
+                num / den
+            } else {
+                0.0
+            };
+            v.iter().enumerate().map(|(k, x)| x - m - slope * (k as f64 - kbar)).collect()
+        };
+        let (ud, yd) = (remove(&u), remove(&y));
+        let z = &yd[1..];
+        let p: Vec<f64> = yd[..n - 1].iter().map(|v| -v).collect();
+        let (a1, b1) = ls2(z, &p, &ud[..n - 1]);
+        let got_a = num(&j["model"]["a"][0]);
+        let got_b = num(&j["model"]["b"][0]);
+        assert!((got_a - a1).abs() < 1e-9 && (got_b - b1).abs() < 1e-9, "{how}: {got_a} {got_b} vs {a1} {b1}");
+        let op = &j["model"]["operating_point"];
+        assert!((num(&op["u"][0]) - mean(&u)).abs() < 1e-9, "{how}: {op}");
+        assert!((num(&op["y"]) - mean(&y)).abs() < 1e-9, "{how}: {op}");
+        assert_eq!(j["detrend"], how);
+        // The saved model is version 2 and carries the operating point.
+        let m = json(&model);
+        assert_eq!(m["version"], 2);
+        assert_eq!(m["model"]["operating_point"], *op);
+
+        // validate --out: y_sim in the user's units = y0 + the deviation model run on u - u0.
+        let csv = dir.path().join(format!("o_{how}.csv"));
+        run(&["validate", "--model", s(&model), "--data", s(&f), "--ts", "0.1", "--out", s(&csv)]);
+        let (u0, y0) = (mean(&u), mean(&y));
+        let mut sim = vec![y[0]; n];
+        for k in 1..n {
+            sim[k] = y0 - a1 * (sim[k - 1] - y0) + b1 * (u[k - 1] - u0);
+        }
+        let got = read_columns(&csv);
+        for k in 0..n {
+            assert!((got["y_sim"][k] - sim[k]).abs() < 1e-7, "{how} k = {k}: {} vs {}", got["y_sim"][k], sim[k]);
+        }
+    }
+    // Without --detrend the JSON has no operating point and no detrend key (today's keys).
+    let j = identify_json(&["--data", s(&f)], &out);
+    assert!(j["model"].get("operating_point").is_none() && j.get("detrend").is_none());
+}
+
+/// The columns of a CSV written by `validate --out` (empty cells as NaN).
+fn read_columns(path: &Path) -> std::collections::HashMap<String, Vec<f64>> {
+    let mut r = csv::Reader::from_path(path).unwrap();
+    let names: Vec<String> = r.headers().unwrap().iter().map(String::from).collect();
+    let mut cols: std::collections::HashMap<String, Vec<f64>> =
+        names.iter().map(|n| (n.clone(), Vec::new())).collect();
+    for rec in r.records() {
+        let rec = rec.unwrap();
+        for (name, cell) in names.iter().zip(rec.iter()) {
+            cols.get_mut(name).unwrap().push(cell.parse().unwrap_or(f64::NAN));
+        }
+    }
+    cols
+}
+
+/// A version-1 model file (the format before operating points) of y = 0.8 y(k-1) + 0.5 u(k-1) + 0.1.
+fn v1_model(dir: &Path, ts: f64) -> PathBuf {
+    let p = dir.join("v1.json");
+    std::fs::write(
+        &p,
+        format!(
+            r#"{{"format": "ipa-sysid-model", "version": 1, "model": {{"kind": "arx", "ts": {ts}, "na": 1,
+            "nb": 1, "nk": 1, "a": [-0.8], "b": [0.5], "offset": 0.1}}}}"#
+        ),
+    )
+    .unwrap();
+    p
+}
+
+#[test]
+fn validate_out_writes_simulation_and_k_step_prediction() {
+    let dir = tempfile::tempdir().unwrap();
+    let n = 120;
+    let u = input(n);
+    // Data from a different system, so that prediction and simulation differ.
+    let y: Vec<f64> = arx1(&u, -0.6, 0.9, 0.0, 1.0)
+        .iter()
+        .enumerate()
+        .map(|(k, v)| v + 0.2 * (0.9 * k as f64).cos())
+        .collect();
+    let f = dir.path().join("d.csv");
+    write_uy(&f, &u, &y);
+    let model = v1_model(dir.path(), 0.1);
+    let step = |prev: f64, k: usize| 0.8 * prev + 0.5 * u[k - 1] + 0.1;
+    for horizon in [1usize, 3, 1000] {
+        let csv = dir.path().join(format!("o{horizon}.csv"));
+        let js = dir.path().join(format!("o{horizon}.json"));
+        let h = horizon.to_string();
+        run(&[
+            "validate", "--model", s(&model), "--data", s(&f), "--ts", "0.1", "--out", s(&csv),
+            "--horizon", &h, "--json", s(&js),
+        ]);
+        let got = read_columns(&csv);
+        // ŷ(k | k - K): start from the measured y(k - K) (or y(0)) and step the model K times.
+        let mut pred = vec![y[0]; n];
+        for k in 1..n {
+            let start = k.saturating_sub(horizon);
+            let mut v = y[start];
+            for j in start + 1..=k {
+                v = step(v, j);
+            }
+            pred[k] = v;
+        }
+        let mut sim = vec![y[0]; n];
+        for k in 1..n {
+            sim[k] = step(sim[k - 1], k);
+        }
+        for k in 0..n {
+            assert!((got["t"][k] - 0.1 * k as f64).abs() < 1e-12);
+            assert_eq!(got["y"][k], y[k]);
+            assert!((got["y_pred"][k] - pred[k]).abs() < 1e-9, "K = {horizon}, k = {k}");
+            assert!((got["y_sim"][k] - sim[k]).abs() < 1e-9, "k = {k}");
+            assert!((got["residual"][k] - (y[k] - pred[k])).abs() < 1e-9);
+        }
+        // The K-step fit in the JSON is 100 (1 - |y - ŷ| / |y - ȳ|) over k >= k0 = 1.
+        let yk = &y[1..];
+        let m = mean(yk);
+        let e: f64 = yk.iter().zip(&pred[1..]).map(|(a, b)| (a - b).powi(2)).sum::<f64>().sqrt();
+        let d: f64 = yk.iter().map(|a| (a - m).powi(2)).sum::<f64>().sqrt();
+        let fit = num(&json(&js)["fit_pred_horizon_percent"]);
+        assert!((fit - 100.0 * (1.0 - e / d)).abs() < 1e-9, "K = {horizon}: {fit}");
+    }
+    let out = bin()
+        .args(["validate", "--model", s(&model), "--data", s(&f), "--ts", "0.1", "--horizon", "0"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("--horizon"));
+}
+
+#[test]
+fn header_less_millisecond_records_are_read_and_resampled_linearly() {
+    let dir = tempfile::tempdir().unwrap();
+    // Tab-separated, no header, time in ms with irregular steps (10, 10, 15, 5, 30, 10, ...).
+    let t_ms: Vec<f64> = {
+        let steps = [10.0, 10.0, 15.0, 5.0, 30.0, 10.0, 10.0, 10.0];
+        let mut t = vec![0.0];
+        for k in 0..80 {
+            let last = t[t.len() - 1];
+            t.push(last + steps[k % steps.len()]);
+        }
+        t
+    };
+    let u: Vec<f64> = t_ms.iter().map(|t| (t / 37.0).sin() * 3.0).collect();
+    let y: Vec<f64> = t_ms.iter().map(|t| (t / 53.0).cos() + t / 1000.0).collect();
+    let mut text = String::new();
+    for k in 0..t_ms.len() {
+        text.push_str(&format!("{}\t7\t{}\t{}\n", t_ms[k], u[k], y[k]));
+    }
+    let f = dir.path().join("log.tsv");
+    std::fs::write(&f, text).unwrap();
+    let model = v1_model(dir.path(), 0.01);
+    let csv = dir.path().join("o.csv");
+    let cols = ["--no-header", "--t-col", "1", "--u-col", "3", "--y-col", "4", "--time-unit", "ms"];
+    // Without --resample the non-uniform column is refused, naming line 4 (the 15 ms step) and the fix.
+    let out = bin()
+        .args(["validate", "--model", s(&model), "--data", s(&f)])
+        .args(cols)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("log.tsv:4:1") && err.contains("--resample"), "{err}");
+
+    let out = run(&[
+        &["validate", "--model", s(&model), "--data", s(&f), "--resample", "0.01", "--out", s(&csv)][..],
+        &cols[..],
+    ]
+    .concat());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("warning") && err.contains("resampled 81 rows"), "{err}");
+    let got = read_columns(&csv);
+    // Grid 0, 10, ... ms up to the last time; y by linear interpolation between the neighbours.
+    let t_last = t_ms[t_ms.len() - 1];
+    let m = (t_last / 10.0).floor() as usize + 1;
+    assert_eq!(got["y"].len(), m);
+    for j in 0..m {
+        let tj = 10.0 * j as f64;
+        let i = t_ms.iter().rposition(|&t| t <= tj).unwrap().min(t_ms.len() - 2);
+        let w = (tj - t_ms[i]) / (t_ms[i + 1] - t_ms[i]);
+        let want = y[i] + w * (y[i + 1] - y[i]);
+        assert!((got["y"][j] - want).abs() < 1e-9, "j = {j}: {} vs {want}", got["y"][j]);
+        assert!((got["t"][j] - tj / 1000.0).abs() < 1e-12);
+    }
+
+    // A uniform millisecond column gives Ts in seconds.
+    let mut text = String::new();
+    for k in 0..60 {
+        text.push_str(&format!("{}\t{}\t{}\n", 20 * k, u[k], y[k]));
+    }
+    let g = dir.path().join("uniform.tsv");
+    std::fs::write(&g, text).unwrap();
+    let js = dir.path().join("r.json");
+    run(&[
+        "identify", "--data", s(&g), "--no-header", "--t-col", "1", "--u-col", "2", "--y-col", "3",
+        "--time-unit", "ms", "--model", "arx", "--method", "ls", "--na", "1", "--json", s(&js),
+    ]);
+    assert_eq!(num(&json(&js)["model"]["ts"]), 0.02);
+}

@@ -38,7 +38,10 @@ fn input(n: usize) -> Vec<f64> {
     (0..n)
         .map(|k| {
             let k = k as f64;
-            (0.37 * k).sin() + 0.6 * (1.91 * k).sin() + 0.3 * (0.053 * k).cos() + ((k / 7.0).floor() % 3.0)
+            (0.37 * k).sin()
+                + 0.6 * (1.91 * k).sin()
+                + 0.3 * (0.053 * k).cos()
+                + ((k / 7.0).floor() % 3.0)
         })
         .collect()
 }
@@ -95,10 +98,16 @@ fn rows_select_the_estimation_part_and_val_rows_the_validation_part() {
     write_uy(&f, &u, &y);
     let out = dir.path().join("r.json");
 
-    let j = identify_json(&["--data", s(&f), "--rows", "0..300", "--val-rows", "..300"], &out);
+    let j = identify_json(
+        &["--data", s(&f), "--rows", "0..300", "--val-rows", "..300"],
+        &out,
+    );
     let a1 = num(&j["model"]["a"][0]);
     let b1 = num(&j["model"]["b"][0]);
-    assert!((a1 + 0.7).abs() < 1e-9 && (b1 - 2.0).abs() < 1e-9, "a1 {a1} b1 {b1}");
+    assert!(
+        (a1 + 0.7).abs() < 1e-9 && (b1 - 2.0).abs() < 1e-9,
+        "a1 {a1} b1 {b1}"
+    );
     // N = rows used = 300 - k0 (k0 = 1) on both records; the validation is the same system: fit 100 %.
     assert_eq!(j["metrics"]["estimation"]["n"], 299);
     assert_eq!(j["metrics"]["validation"]["n"], 299);
@@ -109,7 +118,10 @@ fn rows_select_the_estimation_part_and_val_rows_the_validation_part() {
     assert!((num(&j["model"]["a"][0]) + 0.7).abs() > 1e-3);
 
     // `A..` runs to the end; validation rows of the second system give a poor fit.
-    let j = identify_json(&["--data", s(&f), "--rows", "..300", "--val-rows", "300.."], &out);
+    let j = identify_json(
+        &["--data", s(&f), "--rows", "..300", "--val-rows", "300.."],
+        &out,
+    );
     assert_eq!(j["metrics"]["validation"]["n"], 199);
     assert!(num(&j["metrics"]["validation"]["fit_sim_percent"]) < 90.0);
 
@@ -135,12 +147,25 @@ fn bad_row_ranges_are_refused_with_the_flag_and_what_was_expected() {
         ("--split", "1.5", "0 < F < 1"),
     ] {
         let out = bin()
-            .args(["identify", "--data", s(&f), "--ts", "1", "--model", "arx", flag, value])
+            .args([
+                "identify",
+                "--data",
+                s(&f),
+                "--ts",
+                "1",
+                "--model",
+                "arx",
+                flag,
+                value,
+            ])
             .output()
             .unwrap();
         assert_eq!(out.status.code(), Some(2), "{flag} {value}");
         let err = String::from_utf8_lossy(&out.stderr);
-        assert!(err.contains(want) && !err.contains("panicked"), "{flag} {value}: {err}");
+        assert!(
+            err.contains(want) && !err.contains("panicked"),
+            "{flag} {value}: {err}"
+        );
     }
 }
 
@@ -153,7 +178,10 @@ fn detrend_mean_identifies_deviations_and_puts_the_operating_point_back() {
     // that the data are not exactly ARX in the record's own means.
     let mut y = vec![50.0; n];
     for k in 1..n {
-        y[k] = 50.0 + 0.8 * (y[k - 1] - 50.0) + 0.3 * (u[k - 1] - 100.0) + 0.05 * (0.7 * k as f64).sin();
+        y[k] = 50.0
+            + 0.8 * (y[k - 1] - 50.0)
+            + 0.3 * (u[k - 1] - 100.0)
+            + 0.05 * (0.7 * k as f64).sin();
     }
     let f = dir.path().join("op.csv");
     write_uy(&f, &u, &y);
@@ -170,13 +198,20 @@ fn detrend_mean_identifies_deviations_and_puts_the_operating_point_back() {
             let m = mean(v);
             let kbar = (v.len() as f64 - 1.0) / 2.0;
             let slope = if how == "linear" {
-                let num: f64 = v.iter().enumerate().map(|(k, x)| (k as f64 - kbar) * (x - m)).sum();
+                let num: f64 = v
+                    .iter()
+                    .enumerate()
+                    .map(|(k, x)| (k as f64 - kbar) * (x - m))
+                    .sum();
                 let den: f64 = (0..v.len()).map(|k| (k as f64 - kbar).powi(2)).sum();
                 num / den
             } else {
                 0.0
             };
-            v.iter().enumerate().map(|(k, x)| x - m - slope * (k as f64 - kbar)).collect()
+            v.iter()
+                .enumerate()
+                .map(|(k, x)| x - m - slope * (k as f64 - kbar))
+                .collect()
         };
         let (ud, yd) = (remove(&u), remove(&y));
         let z = &yd[1..];
@@ -184,7 +219,10 @@ fn detrend_mean_identifies_deviations_and_puts_the_operating_point_back() {
         let (a1, b1) = ls2(z, &p, &ud[..n - 1]);
         let got_a = num(&j["model"]["a"][0]);
         let got_b = num(&j["model"]["b"][0]);
-        assert!((got_a - a1).abs() < 1e-9 && (got_b - b1).abs() < 1e-9, "{how}: {got_a} {got_b} vs {a1} {b1}");
+        assert!(
+            (got_a - a1).abs() < 1e-9 && (got_b - b1).abs() < 1e-9,
+            "{how}: {got_a} {got_b} vs {a1} {b1}"
+        );
         let op = &j["model"]["operating_point"];
         assert!((num(&op["u"][0]) - mean(&u)).abs() < 1e-9, "{how}: {op}");
         assert!((num(&op["y"]) - mean(&y)).abs() < 1e-9, "{how}: {op}");
@@ -196,7 +234,17 @@ fn detrend_mean_identifies_deviations_and_puts_the_operating_point_back() {
 
         // validate --out: y_sim in the user's units = y0 + the deviation model run on u - u0.
         let csv = dir.path().join(format!("o_{how}.csv"));
-        run(&["validate", "--model", s(&model), "--data", s(&f), "--ts", "0.1", "--out", s(&csv)]);
+        run(&[
+            "validate",
+            "--model",
+            s(&model),
+            "--data",
+            s(&f),
+            "--ts",
+            "0.1",
+            "--out",
+            s(&csv),
+        ]);
         let (u0, y0) = (mean(&u), mean(&y));
         let mut sim = vec![y[0]; n];
         for k in 1..n {
@@ -204,8 +252,45 @@ fn detrend_mean_identifies_deviations_and_puts_the_operating_point_back() {
         }
         let got = read_columns(&csv);
         for k in 0..n {
-            assert!((got["y_sim"][k] - sim[k]).abs() < 1e-7, "{how} k = {k}: {} vs {}", got["y_sim"][k], sim[k]);
+            assert!(
+                (got["y_sim"][k] - sim[k]).abs() < 1e-7,
+                "{how} k = {k}: {} vs {}",
+                got["y_sim"][k],
+                sim[k]
+            );
         }
+    }
+    // simulate with the (last, linear-detrended) model as the plant: from rest at y0 with u = u0 + 2 from
+    // sample 0, y - y0 follows the deviation model driven by 2.
+    let m = json(&model);
+    let (a1, b1) = (num(&m["model"]["a"][0]), num(&m["model"]["b"][0]));
+    let (u0, y0) = (mean(&u), mean(&y));
+    let sim = dir.path().join("sim.csv");
+    let plant = format!("model:{}", s(&model));
+    let (step, start) = (format!("step:{}@0", u0 + 2.0), format!("{y0}"));
+    run(&[
+        "simulate",
+        "--plant",
+        &plant,
+        "--input",
+        &step,
+        "--samples",
+        "30",
+        "--y0",
+        &start,
+        "--out",
+        s(&sim),
+    ]);
+    let got = read_columns(&sim);
+    let mut dev = 0.0;
+    for k in 0..30 {
+        assert!(
+            (got["y"][k] - (y0 + dev)).abs() < 1e-7,
+            "k = {k}: {} vs {}",
+            got["y"][k],
+            y0 + dev
+        );
+        dev = -a1 * dev + b1 * 2.0;
     }
     // Without --detrend the JSON has no operating point and no detrend key (today's keys).
     let j = identify_json(&["--data", s(&f)], &out);
@@ -221,7 +306,9 @@ fn read_columns(path: &Path) -> std::collections::HashMap<String, Vec<f64>> {
     for rec in r.records() {
         let rec = rec.unwrap();
         for (name, cell) in names.iter().zip(rec.iter()) {
-            cols.get_mut(name).unwrap().push(cell.parse().unwrap_or(f64::NAN));
+            cols.get_mut(name)
+                .unwrap()
+                .push(cell.parse().unwrap_or(f64::NAN));
         }
     }
     cols
@@ -261,8 +348,19 @@ fn validate_out_writes_simulation_and_k_step_prediction() {
         let js = dir.path().join(format!("o{horizon}.json"));
         let h = horizon.to_string();
         run(&[
-            "validate", "--model", s(&model), "--data", s(&f), "--ts", "0.1", "--out", s(&csv),
-            "--horizon", &h, "--json", s(&js),
+            "validate",
+            "--model",
+            s(&model),
+            "--data",
+            s(&f),
+            "--ts",
+            "0.1",
+            "--out",
+            s(&csv),
+            "--horizon",
+            &h,
+            "--json",
+            s(&js),
         ]);
         let got = read_columns(&csv);
         // ŷ(k | k - K): start from the measured y(k - K) (or y(0)) and step the model K times.
@@ -282,20 +380,41 @@ fn validate_out_writes_simulation_and_k_step_prediction() {
         for k in 0..n {
             assert!((got["t"][k] - 0.1 * k as f64).abs() < 1e-12);
             assert_eq!(got["y"][k], y[k]);
-            assert!((got["y_pred"][k] - pred[k]).abs() < 1e-9, "K = {horizon}, k = {k}");
+            assert!(
+                (got["y_pred"][k] - pred[k]).abs() < 1e-9,
+                "K = {horizon}, k = {k}"
+            );
             assert!((got["y_sim"][k] - sim[k]).abs() < 1e-9, "k = {k}");
             assert!((got["residual"][k] - (y[k] - pred[k])).abs() < 1e-9);
         }
         // The K-step fit in the JSON is 100 (1 - |y - ŷ| / |y - ȳ|) over k >= k0 = 1.
         let yk = &y[1..];
         let m = mean(yk);
-        let e: f64 = yk.iter().zip(&pred[1..]).map(|(a, b)| (a - b).powi(2)).sum::<f64>().sqrt();
+        let e: f64 = yk
+            .iter()
+            .zip(&pred[1..])
+            .map(|(a, b)| (a - b).powi(2))
+            .sum::<f64>()
+            .sqrt();
         let d: f64 = yk.iter().map(|a| (a - m).powi(2)).sum::<f64>().sqrt();
         let fit = num(&json(&js)["fit_pred_horizon_percent"]);
-        assert!((fit - 100.0 * (1.0 - e / d)).abs() < 1e-9, "K = {horizon}: {fit}");
+        assert!(
+            (fit - 100.0 * (1.0 - e / d)).abs() < 1e-9,
+            "K = {horizon}: {fit}"
+        );
     }
     let out = bin()
-        .args(["validate", "--model", s(&model), "--data", s(&f), "--ts", "0.1", "--horizon", "0"])
+        .args([
+            "validate",
+            "--model",
+            s(&model),
+            "--data",
+            s(&f),
+            "--ts",
+            "0.1",
+            "--horizon",
+            "0",
+        ])
         .output()
         .unwrap();
     assert_eq!(out.status.code(), Some(2));
@@ -325,7 +444,17 @@ fn header_less_millisecond_records_are_read_and_resampled_linearly() {
     std::fs::write(&f, text).unwrap();
     let model = v1_model(dir.path(), 0.01);
     let csv = dir.path().join("o.csv");
-    let cols = ["--no-header", "--t-col", "1", "--u-col", "3", "--y-col", "4", "--time-unit", "ms"];
+    let cols = [
+        "--no-header",
+        "--t-col",
+        "1",
+        "--u-col",
+        "3",
+        "--y-col",
+        "4",
+        "--time-unit",
+        "ms",
+    ];
     // Without --resample the non-uniform column is refused, naming line 4 (the 15 ms step) and the fix.
     let out = bin()
         .args(["validate", "--model", s(&model), "--data", s(&f)])
@@ -334,15 +463,31 @@ fn header_less_millisecond_records_are_read_and_resampled_linearly() {
         .unwrap();
     assert_eq!(out.status.code(), Some(2));
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("log.tsv:4:1") && err.contains("--resample"), "{err}");
+    assert!(
+        err.contains("log.tsv:4:1") && err.contains("--resample"),
+        "{err}"
+    );
 
     let out = run(&[
-        &["validate", "--model", s(&model), "--data", s(&f), "--resample", "0.01", "--out", s(&csv)][..],
+        &[
+            "validate",
+            "--model",
+            s(&model),
+            "--data",
+            s(&f),
+            "--resample",
+            "0.01",
+            "--out",
+            s(&csv),
+        ][..],
         &cols[..],
     ]
     .concat());
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(err.contains("warning") && err.contains("resampled 81 rows"), "{err}");
+    assert!(
+        err.contains("warning") && err.contains("resampled 81 rows"),
+        "{err}"
+    );
     let got = read_columns(&csv);
     // Grid 0, 10, ... ms up to the last time; y by linear interpolation between the neighbours.
     let t_last = t_ms[t_ms.len() - 1];
@@ -350,10 +495,18 @@ fn header_less_millisecond_records_are_read_and_resampled_linearly() {
     assert_eq!(got["y"].len(), m);
     for j in 0..m {
         let tj = 10.0 * j as f64;
-        let i = t_ms.iter().rposition(|&t| t <= tj).unwrap().min(t_ms.len() - 2);
+        let i = t_ms
+            .iter()
+            .rposition(|&t| t <= tj)
+            .unwrap()
+            .min(t_ms.len() - 2);
         let w = (tj - t_ms[i]) / (t_ms[i + 1] - t_ms[i]);
         let want = y[i] + w * (y[i + 1] - y[i]);
-        assert!((got["y"][j] - want).abs() < 1e-9, "j = {j}: {} vs {want}", got["y"][j]);
+        assert!(
+            (got["y"][j] - want).abs() < 1e-9,
+            "j = {j}: {} vs {want}",
+            got["y"][j]
+        );
         assert!((got["t"][j] - tj / 1000.0).abs() < 1e-12);
     }
 
@@ -366,8 +519,99 @@ fn header_less_millisecond_records_are_read_and_resampled_linearly() {
     std::fs::write(&g, text).unwrap();
     let js = dir.path().join("r.json");
     run(&[
-        "identify", "--data", s(&g), "--no-header", "--t-col", "1", "--u-col", "2", "--y-col", "3",
-        "--time-unit", "ms", "--model", "arx", "--method", "ls", "--na", "1", "--json", s(&js),
+        "identify",
+        "--data",
+        s(&g),
+        "--no-header",
+        "--t-col",
+        "1",
+        "--u-col",
+        "2",
+        "--y-col",
+        "3",
+        "--time-unit",
+        "ms",
+        "--model",
+        "arx",
+        "--method",
+        "ls",
+        "--na",
+        "1",
+        "--json",
+        s(&js),
     ]);
     assert_eq!(num(&json(&js)["model"]["ts"]), 0.02);
+}
+
+#[test]
+fn one_word_per_meaning_with_the_old_spellings_kept() {
+    let dir = tempfile::tempdir().unwrap();
+    let u = input(200);
+    let y = arx1(&u, -0.5, 1.0, 0.0, 0.0);
+    let f = dir.path().join("d.csv");
+    write_uy(&f, &u, &y);
+    // --structure and its old spelling --model give the same model.
+    let a = dir.path().join("a.json");
+    let b = dir.path().join("b.json");
+    for (flag, out) in [("--structure", &a), ("--model", &b)] {
+        run(&[
+            "identify",
+            "--data",
+            s(&f),
+            "--ts",
+            "1",
+            flag,
+            "arx",
+            "--method",
+            "ls",
+            "--save-model",
+            s(out),
+        ]);
+    }
+    assert_eq!(std::fs::read(&a).unwrap(), std::fs::read(&b).unwrap());
+    assert_eq!(json(&a)["model"]["kind"], "arx");
+    // simulate: --y0 as in control, --x0 still accepted; both start the model plant at that position.
+    let (p, q) = (dir.path().join("p.csv"), dir.path().join("q.csv"));
+    let plant = format!("model:{}", s(&a));
+    for (flag, out) in [("--y0", &p), ("--x0", &q)] {
+        run(&[
+            "simulate",
+            "--plant",
+            &plant,
+            "--input",
+            "step:0",
+            "--samples",
+            "5",
+            flag,
+            "7.5",
+            "--out",
+            s(out),
+        ]);
+    }
+    assert_eq!(std::fs::read(&p).unwrap(), std::fs::read(&q).unwrap());
+    // A zero input from rest at y0 = 7.5 with y = 0.5 y(k-1) + u(k-1): 7.5, 3.75, 1.875, ...
+    let cols = read_columns(&p);
+    let a1 = num(&json(&a)["model"]["a"][0]);
+    let mut want = 7.5;
+    for v in &cols["y"] {
+        assert!((v - want).abs() < 1e-9, "{v} vs {want}");
+        want *= -a1;
+    }
+    // --plant has the same default (ipa) in every command.
+    for cmd in ["simulate", "control", "montecarlo"] {
+        let help = String::from_utf8(bin().args([cmd, "--help"]).output().unwrap().stdout).unwrap();
+        let line = help
+            .lines()
+            .skip_while(|l| !l.contains("--plant <"))
+            .take(4)
+            .collect::<String>();
+        assert!(line.contains("[default: ipa]"), "{cmd}: {line}");
+    }
+    // identify with a range of orders points to `order`.
+    let out = bin()
+        .args(["identify", "--data", s(&f), "--ts", "1", "--na", "1..5"])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&out.stderr).contains("ipa-sysid order"));
 }

@@ -25,8 +25,8 @@ pub mod resample;
 pub use ranges::{split_rows, RowRange};
 
 use crate::error::{ColumnHint, Setting};
-pub use resample::TimeUnit;
 use crate::SysidError;
+pub use resample::TimeUnit;
 
 /// Upper bound on the number of samples read from one file (keeps hostile inputs from exhausting memory).
 pub const MAX_SAMPLES: usize = 50_000_000;
@@ -190,7 +190,11 @@ pub fn read_csv_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Dat
 }
 
 /// [`read_csv_bytes`] with the reader's warnings.
-pub fn read_record_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Record, SysidError> {
+pub fn read_record_bytes(
+    bytes: &[u8],
+    name: &str,
+    opts: &CsvOptions,
+) -> Result<Record, SysidError> {
     let mut table = read_table_with(bytes, name, !opts.no_header)?;
     let mut name = name.to_string();
     if let Some(r) = &opts.rows {
@@ -231,7 +235,9 @@ pub fn read_record_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<
         let sp = resample::spacing(&t);
         let mut out = resample::linear(&t, &[&u, &y], ts).into_iter();
         let (Some(ru), Some(ry)) = (out.next(), out.next()) else {
-            return Err(SysidError::Numerical("resampling produced no signal".into()));
+            return Err(SysidError::Numerical(
+                "resampling produced no signal".into(),
+            ));
         };
         notes.push(format!(
             "{name}: resampled {} rows onto {} samples at Ts = {} s by linear interpolation; the time \
@@ -365,7 +371,10 @@ pub fn read_table_with(bytes: &[u8], name: &str, has_header: bool) -> Result<Tab
             .take(1000)
             .map(|l| {
                 let fields: Vec<&str> = l.split(delimiter as char).collect();
-                fields.iter().rposition(|f| !f.trim().is_empty()).map_or(0, |i| i + 1)
+                fields
+                    .iter()
+                    .rposition(|f| !f.trim().is_empty())
+                    .map_or(0, |i| i + 1)
             })
             .max()
             .unwrap_or(0);
@@ -412,10 +421,7 @@ pub fn read_table_with(bytes: &[u8], name: &str, has_header: bool) -> Result<Tab
                 at += 1; // the record starts after the line ends before it
             }
             if at >= seen_byte {
-                seen_line += bytes[seen_byte..at]
-                    .iter()
-                    .filter(|&&b| b == b'\n')
-                    .count();
+                seen_line += bytes[seen_byte..at].iter().filter(|&&b| b == b'\n').count();
                 seen_byte = at;
             }
             seen_line

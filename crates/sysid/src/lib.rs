@@ -25,7 +25,7 @@ pub use estimate::{
     LeastSquares, Method, Note, OutputError, Param, RecursiveLeastSquares, Termination,
 };
 pub use sysid_core::{
-    data, detrend, metrics, model, model_file, nonlinearity, param, plant, structure, Dataset, Deadzone,
-    InputChannel, Model, ModelKind, ModelPlant, Orders, ParamName, Parameterisation, Plant,
-    PlantError, Setting, StaticNonlinearity, Structure, SysidError,
+    data, detrend, metrics, model, model_file, nonlinearity, param, plant, structure, Dataset,
+    Deadzone, InputChannel, Model, ModelKind, ModelPlant, Orders, ParamName, Parameterisation,
+    Plant, PlantError, Setting, StaticNonlinearity, Structure, SysidError,
 };

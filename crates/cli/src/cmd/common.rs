@@ -8,8 +8,9 @@ use sysid::data::{CsvOptions, Record, RowRange, TimeUnit};
 
 /// Parses `--rows A..B`.
 pub fn parse_rows(text: &str) -> Result<RowRange, String> {
-    text.parse::<RowRange>()
-        .map_err(|_| "expected A..B: 0-based data rows, B excluded (A.. and ..B allowed), e.g. 0..500".into())
+    text.parse::<RowRange>().map_err(|_| {
+        "expected A..B: 0-based data rows, B excluded (A.. and ..B allowed), e.g. 0..500".into()
+    })
 }
 
 /// Which columns of a CSV file hold the data, and its sampling period.

@@ -15,6 +15,19 @@ use sysid::{ModelKind, Orders, Structure};
 use super::common::{check_outputs, print_notes, write_output, ColumnArgs, ValidationArgs};
 use sysid::detrend::{detrend, Detrend};
 
+/// Parses one order (`--na 3`); a range such as `1..5` points to `order`, which compares structures.
+fn parse_order(text: &str) -> Result<usize, String> {
+    if text.contains("..") || text.contains(',') {
+        return Err(format!(
+            "identify fits one structure; to compare orders {text} use `ipa-sysid order --na 1..5 --nb 1..3 \
+             --nk 0..5` (it ranks them by fit, AIC and FPE), then identify the chosen one"
+        ));
+    }
+    text.trim()
+        .parse()
+        .map_err(|_| "expected a whole number >= 0".to_string())
+}
+
 /// Flags of `identify`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -24,17 +37,23 @@ pub struct Args {
     pub data: Vec<PathBuf>,
     #[command(flatten)]
     pub columns: ColumnArgs,
-    /// Model structure.
-    #[arg(long, value_enum, default_value = "hammerstein")]
+    /// Model structure (`--model` is an older spelling; `--model` names a model file elsewhere).
+    #[arg(
+        long = "structure",
+        alias = "model",
+        value_name = "STRUCTURE",
+        value_enum,
+        default_value = "hammerstein"
+    )]
     pub model: ModelKind,
     /// na: number of poles (order of A).
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = 3, value_parser = parse_order)]
     pub na: usize,
     /// nb: number of B coefficients (>= 1 for Hammerstein).
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = parse_order)]
     pub nb: usize,
     /// nk: input delay in samples.
-    #[arg(long, default_value_t = 1)]
+    #[arg(long, default_value_t = 1, value_parser = parse_order)]
     pub nk: usize,
     /// Estimator.
     #[arg(long, value_enum, default_value = "rls")]

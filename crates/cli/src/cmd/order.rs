@@ -30,8 +30,14 @@ pub struct Args {
     /// Input delays to try.
     #[arg(long, default_value = "0..5")]
     pub nk: String,
-    /// Model structure.
-    #[arg(long, value_enum, default_value = "arx")]
+    /// Model structure (`--model` is an older spelling; `--model` names a model file elsewhere).
+    #[arg(
+        long = "structure",
+        alias = "model",
+        value_name = "STRUCTURE",
+        value_enum,
+        default_value = "arx"
+    )]
     pub model: ModelKind,
     /// Estimator.
     #[arg(long, value_enum, default_value = "ls")]

@@ -97,7 +97,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let mut w = csv::Writer::from_writer(Vec::new());
         w.write_record(["t", "y", "y_sim", "y_pred", "residual"])?;
         for k in 0..data.len() {
-            let sim = out.y_sim.as_ref().map_or(String::new(), |s| s[k].to_string());
+            let sim = out
+                .y_sim
+                .as_ref()
+                .map_or(String::new(), |s| s[k].to_string());
             w.write_record([
                 t[k].to_string(),
                 data.y[k].to_string(),

@@ -19,7 +19,8 @@ pub struct RowRange {
     pub end: Option<usize>,
 }
 
-const EXPECTED: &str = "a row range A..B (0-based data rows, B excluded; A.. and ..B allowed), e.g. 0..500";
+const EXPECTED: &str =
+    "a row range A..B (0-based data rows, B excluded; A.. and ..B allowed), e.g. 0..500";
 
 impl FromStr for RowRange {
     type Err = SysidError;
@@ -64,7 +65,12 @@ impl std::fmt::Display for RowRange {
 impl RowRange {
     /// The rows `A..B` of a record of `n` rows; fails (naming `flag` and the file `name`) when the range
     /// reaches past the end or holds no row.
-    pub fn resolve(&self, n: usize, flag: &'static str, name: &str) -> Result<Range<usize>, SysidError> {
+    pub fn resolve(
+        &self,
+        n: usize,
+        flag: &'static str,
+        name: &str,
+    ) -> Result<Range<usize>, SysidError> {
         let a = self.start.unwrap_or(0);
         let b = self.end.unwrap_or(n);
         if b > n || a >= b {

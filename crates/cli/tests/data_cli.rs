@@ -615,3 +615,159 @@ fn one_word_per_meaning_with_the_old_spellings_kept() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("ipa-sysid order"));
 }
+
+/// y(k) = 0.6 y(k-1) + b1 u(k-nk) + b2 u(k-nk-1), noise-free.
+fn delayed(u: &[f64], nk: usize, b1: f64, b2: f64) -> Vec<f64> {
+    let mut y = vec![0.0; u.len()];
+    for k in nk + 1..u.len() {
+        y[k] = 0.6 * y[k - 1] + b1 * u[k - nk] + b2 * u[k - nk - 1];
+    }
+    y
+}
+
+#[test]
+fn delay_finds_the_generating_delay() {
+    let dir = tempfile::tempdir().unwrap();
+    let u = input(400);
+    let y = delayed(&u, 4, 1.0, 0.5);
+    let f = dir.path().join("d.csv");
+    write_uy(&f, &u, &y);
+    let out = dir.path().join("delay.json");
+    run(&[
+        "delay",
+        "--data",
+        s(&f),
+        "--ts",
+        "0.1",
+        "--max-delay",
+        "10",
+        "--json",
+        s(&out),
+    ]);
+    let j = json(&out);
+    assert_eq!(j["nk"], 4);
+    assert!((num(&j["delay_s"]) - 0.4).abs() < 1e-12);
+    // All candidates on the same rows k >= k0 = max(na, 10 + nb - 1) = 11.
+    assert_eq!(j["n"], 400 - 11);
+    let c = j["candidates"].as_array().unwrap();
+    assert_eq!(c.len(), 11);
+    for cand in c {
+        let nk = cand["nk"].as_u64().unwrap();
+        match cand["loss"].as_f64() {
+            Some(loss) if nk == 4 => {
+                assert!(loss < 1e-20, "the generating delay fits exactly: {loss}")
+            }
+            Some(loss) => assert!(nk != 5 && loss > 1e-6, "nk = {nk}: {loss}"),
+            // Noise-free data, nk = 5: y(k-1) = 0.6 y(k-2) + u(k-5) + 0.5 u(k-6) is a combination of the
+            // other regressors, which cannot be fitted (and is said so).
+            None => assert!(
+                nk == 5
+                    && cand["error"]
+                        .as_str()
+                        .unwrap()
+                        .contains("linearly dependent")
+            ),
+        }
+    }
+    // A delay of 6 with --max-delay 5: nk = 5 with nb = 2 (b1 = 0, b2 = 1) fits exactly, and being the
+    // largest tried, the result says to look further.
+    let y = delayed(&u, 5, 0.0, 1.0);
+    write_uy(&f, &u, &y);
+    let o = run(&[
+        "delay",
+        "--data",
+        s(&f),
+        "--ts",
+        "0.1",
+        "--max-delay",
+        "5",
+        "--json",
+        s(&out),
+    ]);
+    let j = json(&out);
+    assert_eq!(j["nk"], 5);
+    assert!(
+        j["warnings"][0].as_str().unwrap().contains("--max-delay"),
+        "{j}"
+    );
+    assert!(String::from_utf8_lossy(&o.stdout).contains("Warning"));
+}
+
+#[test]
+fn order_ranks_on_a_selection_set_and_reports_the_test_fit_separately() {
+    let dir = tempfile::tempdir().unwrap();
+    // Estimation file: system A (nk = 2); test file: system B (nk = 1, other gains).
+    let u = input(450);
+    let mut ya = vec![0.0; 450];
+    for k in 2..450 {
+        ya[k] = 0.7 * ya[k - 1] + 0.5 * u[k - 2];
+    }
+    let ut: Vec<f64> = input(500)[50..].to_vec();
+    let mut yb = vec![0.0; 450];
+    for k in 1..450 {
+        yb[k] = 0.5 * yb[k - 1] + 0.9 * ut[k - 1];
+    }
+    let (fa, fb) = (dir.path().join("a.csv"), dir.path().join("b.csv"));
+    write_uy(&fa, &u, &ya);
+    write_uy(&fb, &ut, &yb);
+    let out = dir.path().join("order.json");
+    let grid = [
+        "--na", "1..2", "--nb", "1..2", "--nk", "1..2", "--ts", "0.1",
+    ];
+    for extra in [
+        vec![],
+        vec!["--selection-rows", "300..450", "--rows", "0..300"],
+    ] {
+        let mut args = vec![
+            "order",
+            "--data",
+            s(&fa),
+            "--validation",
+            s(&fb),
+            "--json",
+            s(&out),
+        ];
+        args.extend_from_slice(&grid);
+        args.extend(extra.iter().copied());
+        run(&args);
+        let j = json(&out);
+        // Ranked on rows of the estimation file (system A): the generating structure (1, 1, 2) first,
+        // although system B would prefer nk = 1.
+        let best = &j["candidates"][0]["orders"];
+        assert_eq!(
+            (
+                best["na"].as_u64(),
+                best["nb"].as_u64(),
+                best["nk"].as_u64()
+            ),
+            (Some(1), Some(1), Some(2))
+        );
+        assert!(
+            j["selection"]
+                .as_str()
+                .unwrap()
+                .ends_with("a.csv[300..450]"),
+            "{}",
+            j["selection"]
+        );
+        // The test fit: the exact model of A simulated on B's input, computed here.
+        let mut sim = vec![yb[0], yb[1]];
+        for k in 2..450 {
+            let v = 0.7 * sim[k - 1] + 0.5 * ut[k - 2];
+            sim.push(v);
+        }
+        let (yk, sk) = (&yb[2..], &sim[2..]);
+        let m = mean(yk);
+        let e: f64 = yk
+            .iter()
+            .zip(sk)
+            .map(|(a, b)| (a - b).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        let d: f64 = yk.iter().map(|a| (a - m).powi(2)).sum::<f64>().sqrt();
+        let want = 100.0 * (1.0 - e / d);
+        let got = num(&j["test"]["fit_sim_percent"]);
+        assert!((got - want).abs() < 1e-6, "test fit {got} vs {want}");
+        assert!(j["test"]["data"].as_str().unwrap().ends_with("b.csv"));
+    }
+}

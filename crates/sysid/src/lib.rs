@@ -9,6 +9,7 @@
 //! re-exported here for convenience. Recursive updates share one abstraction ([`rls::RecursiveUpdate`]).
 
 pub mod branches;
+pub mod delay;
 pub mod estimate;
 pub mod iv;
 pub mod ls;

@@ -771,3 +771,171 @@ fn order_ranks_on_a_selection_set_and_reports_the_test_fit_separately() {
         assert!(j["test"]["data"].as_str().unwrap().ends_with("b.csv"));
     }
 }
+
+/// A Level 5 MAT-file written by hand from the format specification (independent of the reader crate):
+/// a 128-byte header, then one miMATRIX element per variable (double class), optionally each wrapped in
+/// a zlib-compressed miCOMPRESSED element as MATLAB's default `save` writes.
+fn mat_file(vars: &[(&str, usize, usize, &[f64])], compressed: bool) -> Vec<u8> {
+    fn tag(out: &mut Vec<u8>, ty: u32, len: usize) {
+        out.extend_from_slice(&ty.to_le_bytes());
+        out.extend_from_slice(&(len as u32).to_le_bytes());
+    }
+    fn pad(out: &mut Vec<u8>) {
+        while out.len() % 8 != 0 {
+            out.push(0);
+        }
+    }
+    let mut text = b"MATLAB 5.0 MAT-file, written by the ipa-sysid tests".to_vec();
+    text.resize(116, b' ');
+    let mut out = text;
+    out.extend_from_slice(&[0u8; 8]); // subsystem data offset
+    out.extend_from_slice(&0x0100u16.to_le_bytes());
+    out.extend_from_slice(b"IM"); // little-endian marker
+    for (name, rows, cols, data) in vars {
+        let mut body = Vec::new();
+        tag(&mut body, 6, 8); // miUINT32 array flags
+        body.extend_from_slice(&6u32.to_le_bytes()); // mxDOUBLE_CLASS
+        body.extend_from_slice(&0u32.to_le_bytes());
+        tag(&mut body, 5, 8); // miINT32 dimensions
+        body.extend_from_slice(&(*rows as i32).to_le_bytes());
+        body.extend_from_slice(&(*cols as i32).to_le_bytes());
+        tag(&mut body, 1, name.len()); // miINT8 name
+        body.extend_from_slice(name.as_bytes());
+        pad(&mut body);
+        tag(&mut body, 9, 8 * data.len()); // miDOUBLE real part, column-major
+        for v in *data {
+            body.extend_from_slice(&v.to_le_bytes());
+        }
+        pad(&mut body);
+        let mut element = Vec::new();
+        tag(&mut element, 14, body.len()); // miMATRIX
+        element.extend_from_slice(&body);
+        if compressed {
+            use std::io::Write;
+            let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
+            z.write_all(&element).unwrap();
+            let zipped = z.finish().unwrap();
+            tag(&mut out, 15, zipped.len()); // miCOMPRESSED
+            out.extend_from_slice(&zipped);
+        } else {
+            out.extend_from_slice(&element);
+        }
+    }
+    out
+}
+
+#[test]
+fn mat_files_are_read_by_variable_name() {
+    let dir = tempfile::tempdir().unwrap();
+    let n = 200;
+    let u = input(n);
+    let y = arx1(&u, -0.7, 2.0, 0.0, 0.0);
+    let t: Vec<f64> = (0..n).map(|k| 0.05 * k as f64).collect();
+    let m = [1.0, 2.0, 3.0, 4.0, 5.0, 6.0];
+    for compressed in [false, true] {
+        // u a column vector, y a row vector, t a column, M a 2x3 matrix.
+        let bytes = mat_file(
+            &[
+                ("uu", n, 1, &u),
+                ("yy", 1, n, &y),
+                ("time", n, 1, &t),
+                ("M", 2, 3, &m),
+            ],
+            compressed,
+        );
+        let f = dir.path().join(format!("rec{compressed}.mat"));
+        std::fs::write(&f, bytes).unwrap();
+        let out = dir.path().join("r.json");
+        let j = identify_json(
+            &[
+                "--data",
+                s(&f),
+                "--u-col",
+                "uu",
+                "--y-col",
+                "yy",
+                "--rows",
+                "0..150",
+                "--val-rows",
+                "150..",
+            ],
+            &out,
+        );
+        assert!(
+            (num(&j["model"]["a"][0]) + 0.7).abs() < 1e-9,
+            "{}",
+            j["model"]
+        );
+        assert!((num(&j["model"]["b"][0]) - 2.0).abs() < 1e-9);
+        assert_eq!(j["metrics"]["estimation"]["n"], 149);
+        assert_eq!(j["metrics"]["validation"]["n"], 49);
+        // Ts from the time variable (without --ts).
+        let out2 = dir.path().join("r2.json");
+        run(&[
+            "identify",
+            "--data",
+            s(&f),
+            "--u-col",
+            "uu",
+            "--y-col",
+            "yy",
+            "--t-col",
+            "time",
+            "--structure",
+            "arx",
+            "--method",
+            "ls",
+            "--na",
+            "1",
+            "--json",
+            s(&out2),
+        ]);
+        assert!((num(&json(&out2)["model"]["ts"]) - 0.05).abs() < 1e-12);
+        // A matrix is not a signal; a missing variable lists the ones there are.
+        for (var, want) in [("M", "2x3 array"), ("nope", "uu")] {
+            let o = bin()
+                .args([
+                    "identify",
+                    "--data",
+                    s(&f),
+                    "--ts",
+                    "1",
+                    "--u-col",
+                    var,
+                    "--y-col",
+                    "yy",
+                ])
+                .output()
+                .unwrap();
+            assert_eq!(o.status.code(), Some(2));
+            let err = String::from_utf8_lossy(&o.stderr);
+            assert!(err.contains(want) && err.contains("rec"), "{var}: {err}");
+        }
+    }
+    // MATLAB v7.3 (HDF5) is refused with the way out.
+    let mut v73 = b"MATLAB 7.3 MAT-file, Platform: GLNXA64, Created on: Mon Jan  1 00:00:00 2024 HDF5 schema 1.00 .".to_vec();
+    v73.resize(512, b' ');
+    v73.extend_from_slice(b"\x89HDF\r\n\x1a\n");
+    let f = dir.path().join("new.mat");
+    std::fs::write(&f, v73).unwrap();
+    let o = bin()
+        .args(["identify", "--data", s(&f), "--ts", "1"])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("v7.3") && err.contains("-v7") && err.contains("new.mat"),
+        "{err}"
+    );
+    // A truncated file is an error, not a panic.
+    let mut bytes = mat_file(&[("u", n, 1, &u), ("y", n, 1, &y)], false);
+    bytes.truncate(700);
+    std::fs::write(&f, bytes).unwrap();
+    let o = bin()
+        .args(["identify", "--data", s(&f), "--ts", "1"])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(!String::from_utf8_lossy(&o.stderr).contains("panicked"));
+}

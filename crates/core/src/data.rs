@@ -19,6 +19,7 @@
 
 use std::path::Path;
 
+pub mod mat;
 pub mod ranges;
 pub mod resample;
 
@@ -96,7 +97,7 @@ impl Dataset {
     }
 }
 
-fn check_ts(ts: f64) -> Result<(), SysidError> {
+pub(crate) fn check_ts(ts: f64) -> Result<(), SysidError> {
     if ts.is_finite() && ts > 0.0 {
         Ok(())
     } else {
@@ -160,7 +161,7 @@ impl Default for CsvOptions {
     }
 }
 
-/// Reads a record from a CSV file.
+/// Reads a record from a CSV file, or from a MATLAB Level 5 `.mat` file (by its header; see [`mat`]).
 pub fn read_csv(path: &Path, opts: &CsvOptions) -> Result<Dataset, SysidError> {
     read_record(path, opts).map(|r| r.data)
 }
@@ -181,7 +182,14 @@ pub fn read_record(path: &Path, opts: &CsvOptions) -> Result<Record, SysidError>
         });
     }
     let bytes = std::fs::read(path).map_err(io)?;
-    read_record_bytes(&bytes, &path.display().to_string(), opts)
+    let name = path.display().to_string();
+    let is_mat_name = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("mat"));
+    if is_mat_name || mat::is_mat(&bytes) {
+        return mat::read_mat_bytes(&bytes, &name, opts);
+    }
+    read_record_bytes(&bytes, &name, opts)
 }
 
 /// Reads a record from CSV text held in memory; `name` is used in messages.
@@ -215,16 +223,9 @@ pub fn read_record_bytes(
     }
     let has_t = table.headers.contains(&opts.t_col);
     let ts_given = opts.ts.or(if has_t { None } else { opts.fallback_ts });
-    let mut u = table.numbers(ucol)?;
-    let mut y = table.numbers(ycol)?;
+    let u = table.numbers(ucol)?;
+    let y = table.numbers(ycol)?;
     if let Some(ts) = opts.resample {
-        check_ts(ts).map_err(|_| {
-            SysidError::setting(
-                Setting::Other("--resample"),
-                ts,
-                "a positive, finite sampling period in seconds",
-            )
-        })?;
         let tc = table.column_index(&opts.t_col, Setting::TCol)?;
         let t: Vec<f64> = table
             .numbers(tc)?
@@ -232,33 +233,8 @@ pub fn read_record_bytes(
             .map(|v| v * opts.time_unit.seconds())
             .collect();
         increasing(&t, &table, tc)?;
-        let sp = resample::spacing(&t);
-        let mut out = resample::linear(&t, &[&u, &y], ts).into_iter();
-        let (Some(ru), Some(ry)) = (out.next(), out.next()) else {
-            return Err(SysidError::Numerical(
-                "resampling produced no signal".into(),
-            ));
-        };
-        notes.push(format!(
-            "{name}: resampled {} rows onto {} samples at Ts = {} s by linear interpolation; the time \
-             steps were {} to {} s (median {} s), {:.1} % of them more than 0.1 % off the median{}",
-            u.len(),
-            ru.len(),
-            sig6(ts),
-            sig6(sp.min),
-            sig6(sp.max),
-            sig6(sp.median),
-            100.0 * sp.irregular,
-            if sp.max > 2.0 * ts {
-                format!(
-                    "; the largest gap, {} s, is filled with a straight line (invented data)",
-                    sig6(sp.max)
-                )
-            } else {
-                String::new()
-            }
-        ));
-        (u, y) = (ru, ry);
+        let ((u, y), note) = resample::resample_record(&t, &u, &y, ts, name)?;
+        notes.push(note);
         return Ok(Record {
             data: Dataset::new(Signals { u, y }, ts, name)?,
             notes,
@@ -595,7 +571,7 @@ fn unquote(field: &str) -> &str {
 }
 
 /// `x` to 6 significant digits, without trailing zeros (0.019999999999999997 -> 0.02).
-fn sig6(x: f64) -> String {
+pub(crate) fn sig6(x: f64) -> String {
     format!("{x:.5e}")
         .parse::<f64>()
         .map_or_else(|_| x.to_string(), |v| v.to_string())

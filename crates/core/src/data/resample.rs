@@ -7,6 +7,9 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::error::Setting;
+use crate::SysidError;
+
 /// Unit of the time column.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
@@ -98,4 +101,50 @@ pub fn linear(t: &[f64], signals: &[&[f64]], ts: f64) -> Vec<Vec<f64>> {
         }
     }
     out
+}
+
+/// `u` and `y` sampled at the increasing times `t` (s), resampled onto Ts = `ts` (`--resample`), with the
+/// warning that says how non-uniform the record was; `name` names the record in it.
+pub fn resample_record(
+    t: &[f64],
+    u: &[f64],
+    y: &[f64],
+    ts: f64,
+    name: &str,
+) -> Result<((Vec<f64>, Vec<f64>), String), SysidError> {
+    if !(ts.is_finite() && ts > 0.0) {
+        return Err(SysidError::setting(
+            Setting::Other("--resample"),
+            ts,
+            "a positive, finite sampling period in seconds",
+        ));
+    }
+    let sp = spacing(t);
+    let mut out = linear(t, &[u, y], ts).into_iter();
+    let (Some(ru), Some(ry)) = (out.next(), out.next()) else {
+        return Err(SysidError::Numerical(
+            "resampling produced no signal".into(),
+        ));
+    };
+    let sig = super::sig6;
+    let note = format!(
+        "{name}: resampled {} rows onto {} samples at Ts = {} s by linear interpolation; the time steps \
+         were {} to {} s (median {} s), {:.1} % of them more than 0.1 % off the median{}",
+        u.len(),
+        ru.len(),
+        sig(ts),
+        sig(sp.min),
+        sig(sp.max),
+        sig(sp.median),
+        100.0 * sp.irregular,
+        if sp.max > 2.0 * ts {
+            format!(
+                "; the largest gap, {} s, is filled with a straight line (invented data)",
+                sig(sp.max)
+            )
+        } else {
+            String::new()
+        }
+    );
+    Ok(((ru, ry), note))
 }

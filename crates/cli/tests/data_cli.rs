@@ -939,3 +939,167 @@ fn mat_files_are_read_by_variable_name() {
     assert_eq!(o.status.code(), Some(2));
     assert!(!String::from_utf8_lossy(&o.stderr).contains("panicked"));
 }
+
+#[test]
+fn merge_estimates_one_model_without_rows_spanning_records() {
+    let dir = tempfile::tempdir().unwrap();
+    // Two experiments on y = 0.7 y(k-1) + 2 u(k-1), with a wobble on y so that the fit is not exact, and
+    // very different starting points (a naive concatenation would have a wrong row at the seam).
+    let make = |phase: usize, y_init: f64| {
+        let u: Vec<f64> = input(300 + phase)[phase..].to_vec();
+        let mut y = arx1(&u, -0.7, 2.0, 0.0, y_init);
+        for (k, v) in y.iter_mut().enumerate() {
+            *v += 0.3 * (1.3 * (k + phase) as f64).sin();
+        }
+        (u, y)
+    };
+    let (u1, y1) = make(0, 0.0);
+    let (u2, y2) = make(37, 80.0);
+    let (f1, f2) = (dir.path().join("e1.csv"), dir.path().join("e2.csv"));
+    write_uy(&f1, &u1, &y1);
+    write_uy(&f2, &u2, &y2);
+    let out = dir.path().join("m.json");
+    run(&[
+        "identify",
+        "--data",
+        s(&f1),
+        s(&f2),
+        "--merge",
+        "--structure",
+        "arx",
+        "--method",
+        "ls",
+        "--na",
+        "1",
+        "--nb",
+        "1",
+        "--nk",
+        "1",
+        "--ts",
+        "0.1",
+        "--json",
+        s(&out),
+    ]);
+    let j = json(&out);
+    // Expected: least squares over rows k = 1..N-1 of each record, stacked (no seam row).
+    let (mut z, mut p, mut q) = (Vec::new(), Vec::new(), Vec::new());
+    for (u, y) in [(&u1, &y1), (&u2, &y2)] {
+        for k in 1..u.len() {
+            z.push(y[k]);
+            p.push(-y[k - 1]);
+            q.push(u[k - 1]);
+        }
+    }
+    let (a1, b1) = ls2(&z, &p, &q);
+    let (ga, gb) = (num(&j["model"]["a"][0]), num(&j["model"]["b"][0]));
+    assert!(
+        (ga - a1).abs() < 1e-9 && (gb - b1).abs() < 1e-9,
+        "{ga} {gb} vs {a1} {b1}"
+    );
+    // Per-record and pooled free-run fits, computed here.
+    let sim = |u: &[f64], y: &[f64]| {
+        let mut s = vec![y[0]; u.len()];
+        for k in 1..u.len() {
+            s[k] = -a1 * s[k - 1] + b1 * u[k - 1];
+        }
+        s
+    };
+    let fit = |y: &[f64], s: &[f64]| {
+        let m = mean(y);
+        let e: f64 = y
+            .iter()
+            .zip(s)
+            .map(|(a, b)| (a - b).powi(2))
+            .sum::<f64>()
+            .sqrt();
+        let d: f64 = y.iter().map(|a| (a - m).powi(2)).sum::<f64>().sqrt();
+        100.0 * (1.0 - e / d)
+    };
+    let (s1, s2) = (sim(&u1, &y1), sim(&u2, &y2));
+    let recs = j["metrics"]["estimation"].as_array().unwrap();
+    assert_eq!(recs.len(), 2);
+    assert!((num(&recs[0]["metrics"]["fit_sim_percent"]) - fit(&y1[1..], &s1[1..])).abs() < 1e-6);
+    assert!((num(&recs[1]["metrics"]["fit_sim_percent"]) - fit(&y2[1..], &s2[1..])).abs() < 1e-6);
+    let ys: Vec<f64> = y1[1..].iter().chain(&y2[1..]).copied().collect();
+    let ss: Vec<f64> = s1[1..].iter().chain(&s2[1..]).copied().collect();
+    assert!((num(&j["metrics"]["pooled"]["fit_sim_percent"]) - fit(&ys, &ss)).abs() < 1e-6);
+    // --merge is least squares only; other methods are refused by name.
+    let o = bin()
+        .args([
+            "identify",
+            "--data",
+            s(&f1),
+            s(&f2),
+            "--merge",
+            "--method",
+            "rls",
+            "--ts",
+            "0.1",
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--method"));
+}
+
+#[test]
+fn merge_recovers_a_hammerstein_deadzone_from_two_records() {
+    let dir = tempfile::tempdir().unwrap();
+    // x = deadzone(u) with b_l = -1, b_r = 0.5, m_l = 0.8, m_r = 1.2; y = 0.6 y(k-1) + x(k-1).
+    let dz = |v: f64| {
+        if v >= 0.5 {
+            1.2 * (v - 0.5)
+        } else if v <= -1.0 {
+            0.8 * (v + 1.0)
+        } else {
+            0.0
+        }
+    };
+    let mut files = Vec::new();
+    for (i, phase) in [0usize, 53].iter().enumerate() {
+        let u: Vec<f64> = input(400 + phase)[*phase..]
+            .iter()
+            .map(|v| 3.0 * (v - 1.0))
+            .collect();
+        let mut y = vec![10.0 * i as f64; u.len()];
+        for k in 1..u.len() {
+            y[k] = 0.6 * y[k - 1] + dz(u[k - 1]);
+        }
+        let f = dir.path().join(format!("h{i}.csv"));
+        write_uy(&f, &u, &y);
+        files.push(f);
+    }
+    let out = dir.path().join("h.json");
+    run(&[
+        "identify",
+        "--data",
+        s(&files[0]),
+        s(&files[1]),
+        "--merge",
+        "--structure",
+        "hammerstein",
+        "--method",
+        "ls",
+        "--na",
+        "1",
+        "--nb",
+        "1",
+        "--nk",
+        "1",
+        "--ts",
+        "0.1",
+        "--json",
+        s(&out),
+    ]);
+    let m = &json(&out)["model"];
+    let d = &m["deadzone"];
+    for (got, want) in [
+        (num(&m["a"][0]), -0.6),
+        (num(&d["b_l"]), -1.0),
+        (num(&d["b_r"]), 0.5),
+        (num(&d["m_l"]), 0.8),
+        (num(&d["m_r"]), 1.2),
+    ] {
+        assert!((got - want).abs() < 1e-6, "{m}");
+    }
+}

@@ -13,6 +13,7 @@ pub mod delay;
 pub mod estimate;
 pub mod iv;
 pub mod ls;
+pub mod merge;
 pub mod oe;
 pub mod order;
 pub mod residuals;

@@ -90,6 +90,10 @@ pub struct Args {
     /// validate, simulate and control.
     #[arg(long, value_enum, default_value = "none")]
     pub detrend: Detrend,
+    /// Several --data files: estimate ONE model from all of them (MATLAB `merge`; no regression row spans
+    /// two records), with metrics per record and pooled. Least squares only (--method ls).
+    #[arg(long)]
+    pub merge: bool,
     #[command(flatten)]
     pub val: ValidationArgs,
     /// Write the JSON summary here (`-` for standard output).
@@ -149,6 +153,9 @@ impl Args {
 
 /// Runs `identify`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.merge {
+        return run_merged(&args);
+    }
     if super::identify_batch::is_batch(&args.data) {
         return super::identify_batch::run(args);
     }
@@ -212,6 +219,125 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             }
             json = serde_json::to_string_pretty(&value)? + "\n";
         }
+        write_output(path, json.as_bytes(), &inputs, "--json")?;
+    }
+    if let Some(path) = &args.save_model {
+        write_output(
+            path,
+            sysid::model_file::to_json(&fit.model)?.as_bytes(),
+            &inputs,
+            "--save-model",
+        )?;
+    }
+    Ok(())
+}
+
+/// Runs `identify --merge`: one model from every `--data` record.
+fn run_merged(args: &Args) -> anyhow::Result<()> {
+    let settings = args.settings();
+    settings.check()?;
+    if args.method != Method::Ls {
+        anyhow::bail!(sysid::SysidError::setting(
+            sysid::Setting::Other("--method"),
+            args.method,
+            "ls: --merge estimates by least squares on the stacked records"
+        ));
+    }
+    if args.detrend != Detrend::None || args.val.split.is_some() {
+        anyhow::bail!(
+            "--merge cannot be combined with --detrend or --split; detrend or split the records first"
+        );
+    }
+    let files = super::identify_batch::expand(&args.data)?;
+    let mut inputs: Vec<&Path> = files.iter().map(PathBuf::as_path).collect();
+    inputs.extend(args.val.validation.as_deref());
+    check_outputs(
+        &[(&args.json, "--json"), (&args.save_model, "--save-model")],
+        &inputs,
+    )?;
+    let opts = args.columns.csv_options();
+    let mut records = Vec::with_capacity(files.len());
+    let mut notes = Vec::new();
+    for f in &files {
+        let r = sysid::data::read_record(f, &opts)?;
+        notes.extend(r.notes);
+        records.push(r.data);
+    }
+    let val = args.val.read(&opts)?;
+    print_notes(&notes);
+    let fit = sysid::merge::identify_merged(&records, settings.structure, args.max_iterations)?;
+    let est = sysid::merge::merged_metrics(&fit.model, &records)?;
+    let val_metrics = val.as_ref().map(|v| metrics(&fit.model, v)).transpose()?;
+    let o = |v: Option<f64>| v.map_or_else(|| "n/a".to_string(), |v| format!("{v:.2}"));
+    let mut text = format!(
+        "Merged estimation: one {} model (na = {}, nb = {}, nk = {}) by least squares from {} records \
+         ({} regression rows; no row spans two records), {} iteration(s)\n  a = {:?}\n  b = {:?}{}{}\n\n",
+        fit.model.kind(),
+        fit.model.na(),
+        fit.model.nb(),
+        fit.model.nk(),
+        records.len(),
+        fit.rows.iter().sum::<usize>(),
+        fit.iterations,
+        fit.model.a(),
+        fit.model.b(),
+        fit.model
+            .deadzone()
+            .map(|d| format!("\n  deadzone: b_l = {}, b_r = {}, m_l = {}, m_r = {}", d.b_l, d.b_r, d.m_l, d.m_r))
+            .unwrap_or_default(),
+        fit.model.offset().map(|c| format!("\n  c = {c}")).unwrap_or_default(),
+    );
+    text.push_str(&format!(
+        "{:<50} {:>8} {:>14} {:>14}\n",
+        "record", "N", "fit sim %", "fit pred %"
+    ));
+    for (name, m) in &est.records {
+        text.push_str(&format!(
+            "{:<50} {:>8} {:>14} {:>14}\n",
+            name,
+            m.n,
+            o(m.fit_sim_percent),
+            o(m.fit_pred_percent)
+        ));
+    }
+    text.push_str(&format!(
+        "{:<50} {:>8} {:>14} {:>14}\n",
+        "pooled",
+        est.records.iter().map(|(_, m)| m.n).sum::<usize>(),
+        o(est.pooled_fit_sim_percent),
+        o(est.pooled_fit_pred_percent)
+    ));
+    if let (Some(v), Some(m)) = (&val, &val_metrics) {
+        text.push_str(&format!(
+            "{:<50} {:>8} {:>14} {:>14}  (validation)\n",
+            v.name,
+            m.n,
+            o(m.fit_sim_percent),
+            o(m.fit_pred_percent)
+        ));
+    }
+    if args.json.as_deref().is_some_and(|p| p.as_os_str() == "-") {
+        eprint!("{text}");
+    } else {
+        print!("{text}");
+    }
+    if let Some(path) = &args.json {
+        let value = serde_json::json!({
+            "model": fit.model,
+            "merged": records.iter().map(|r| r.name.clone()).collect::<Vec<_>>(),
+            "iterations": fit.iterations,
+            "stable": fit.model.is_stable(),
+            "metrics": {
+                "estimation": est.records.iter().map(|(name, m)| serde_json::json!({"data": name, "metrics": m})).collect::<Vec<_>>(),
+                "pooled": {
+                    "fit_sim_percent": est.pooled_fit_sim_percent,
+                    "fit_pred_percent": est.pooled_fit_pred_percent,
+                },
+                "validation": val_metrics,
+            },
+            "data_notes": notes,
+        });
+        let json = serde_json::to_string_pretty(&value)? + "\n";
         write_output(path, json.as_bytes(), &inputs, "--json")?;
     }
     if let Some(path) = &args.save_model {

@@ -3,6 +3,7 @@
 //! library (plain loops and closed-form least squares).
 
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
+#![allow(clippy::needless_range_loop)] // the expectations index signals as the equations do
 
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};

@@ -233,10 +233,10 @@ pub fn read_record_bytes(
             .map(|v| v * opts.time_unit.seconds())
             .collect();
         increasing(&t, &table, tc)?;
-        let ((u, y), note) = resample::resample_record(&t, &u, &y, ts, name)?;
-        notes.push(note);
+        let r = resample::resample_record(&t, &u, &y, ts, name)?;
+        notes.push(r.note);
         return Ok(Record {
-            data: Dataset::new(Signals { u, y }, ts, name)?,
+            data: Dataset::new(Signals { u: r.u, y: r.y }, ts, name)?,
             notes,
         });
     }

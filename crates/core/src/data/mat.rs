@@ -150,9 +150,9 @@ pub fn read_mat_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Rec
     let ts = match (opts.resample, &t, opts.ts.or(if has_t { None } else { opts.fallback_ts })) {
         (Some(ts), Some(t), _) => {
             increasing(t, &name, &opts.t_col)?;
-            let (out, note) = resample::resample_record(t, &u, &y, ts, &name)?;
-            (u, y) = out;
-            notes.push(note);
+            let r = resample::resample_record(t, &u, &y, ts, &name)?;
+            (u, y) = (r.u, r.y);
+            notes.push(r.note);
             ts
         }
         (_, _, Some(ts)) => {

@@ -103,6 +103,17 @@ pub fn linear(t: &[f64], signals: &[&[f64]], ts: f64) -> Vec<Vec<f64>> {
     out
 }
 
+/// A record resampled by [`resample_record`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Resampled {
+    /// u on the uniform grid.
+    pub u: Vec<f64>,
+    /// y on the uniform grid.
+    pub y: Vec<f64>,
+    /// The warning that says how non-uniform the record was.
+    pub note: String,
+}
+
 /// `u` and `y` sampled at the increasing times `t` (s), resampled onto Ts = `ts` (`--resample`), with the
 /// warning that says how non-uniform the record was; `name` names the record in it.
 pub fn resample_record(
@@ -111,7 +122,7 @@ pub fn resample_record(
     y: &[f64],
     ts: f64,
     name: &str,
-) -> Result<((Vec<f64>, Vec<f64>), String), SysidError> {
+) -> Result<Resampled, SysidError> {
     if !(ts.is_finite() && ts > 0.0) {
         return Err(SysidError::setting(
             Setting::Other("--resample"),
@@ -146,5 +157,5 @@ pub fn resample_record(
             String::new()
         }
     );
-    Ok(((ru, ry), note))
+    Ok(Resampled { u: ru, y: ry, note })
 }

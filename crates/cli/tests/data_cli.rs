@@ -14,11 +14,7 @@ fn bin() -> Command {
 
 fn run(args: &[&str]) -> Output {
     let out = bin().args(args).output().unwrap();
-    assert!(
-        out.status.success(),
-        "{args:?} failed: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert!(out.status.success(), "{args:?} failed: {}", out.clone());
     out
 }
 
@@ -74,6 +70,28 @@ fn ls2(z: &[f64], p: &[f64], q: &[f64]) -> (f64, f64) {
 
 fn mean(v: &[f64]) -> f64 {
     v.iter().sum::<f64>() / v.len() as f64
+}
+
+/// Fit % = 100 (1 − ‖y − ŷ‖ / ‖y − ȳ‖) (MATLAB `compare`).
+fn fit_pct(y: &[f64], yhat: &[f64]) -> f64 {
+    let m = mean(y);
+    let e: f64 = y
+        .iter()
+        .zip(yhat)
+        .map(|(a, b)| (a - b).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    let d: f64 = y.iter().map(|a| (a - m).powi(2)).sum::<f64>().sqrt();
+    100.0 * (1.0 - e / d)
+}
+
+/// Runs a command that must fail with exit code 2 (bad usage or input) without a panic; its stderr.
+fn fails(args: &[&str]) -> String {
+    let out = bin().args(args).output().unwrap();
+    let err = out.clone().to_string();
+    assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
+    assert!(!err.contains("panicked"), "{err}");
+    err
 }
 
 fn identify_json(extra: &[&str], out: &Path) -> serde_json::Value {
@@ -147,22 +165,18 @@ fn bad_row_ranges_are_refused_with_the_flag_and_what_was_expected() {
         ("--val-rows", "40..60", "inside the 50 data rows"),
         ("--split", "1.5", "0 < F < 1"),
     ] {
-        let out = bin()
-            .args([
-                "identify",
-                "--data",
-                s(&f),
-                "--ts",
-                "1",
-                "--model",
-                "arx",
-                flag,
-                value,
-            ])
-            .output()
-            .unwrap();
-        assert_eq!(out.status.code(), Some(2), "{flag} {value}");
-        let err = String::from_utf8_lossy(&out.stderr);
+        let out = fails(&[
+            "identify",
+            "--data",
+            s(&f),
+            "--ts",
+            "1",
+            "--model",
+            "arx",
+            flag,
+            value,
+        ]);
+        let err = out;
         assert!(
             err.contains(want) && !err.contains("panicked"),
             "{flag} {value}: {err}"
@@ -390,36 +404,22 @@ fn validate_out_writes_simulation_and_k_step_prediction() {
         }
         // The K-step fit in the JSON is 100 (1 - |y - ŷ| / |y - ȳ|) over k >= k0 = 1.
         let yk = &y[1..];
-        let m = mean(yk);
-        let e: f64 = yk
-            .iter()
-            .zip(&pred[1..])
-            .map(|(a, b)| (a - b).powi(2))
-            .sum::<f64>()
-            .sqrt();
-        let d: f64 = yk.iter().map(|a| (a - m).powi(2)).sum::<f64>().sqrt();
+        let want_fit = fit_pct(yk, &pred[1..]);
         let fit = num(&json(&js)["fit_pred_horizon_percent"]);
-        assert!(
-            (fit - 100.0 * (1.0 - e / d)).abs() < 1e-9,
-            "K = {horizon}: {fit}"
-        );
+        assert!((fit - want_fit).abs() < 1e-9, "K = {horizon}: {fit}");
     }
-    let out = bin()
-        .args([
-            "validate",
-            "--model",
-            s(&model),
-            "--data",
-            s(&f),
-            "--ts",
-            "0.1",
-            "--horizon",
-            "0",
-        ])
-        .output()
-        .unwrap();
-    assert_eq!(out.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("--horizon"));
+    let out = fails(&[
+        "validate",
+        "--model",
+        s(&model),
+        "--data",
+        s(&f),
+        "--ts",
+        "0.1",
+        "--horizon",
+        "0",
+    ]);
+    assert!(out.contains("--horizon"));
 }
 
 #[test]
@@ -457,13 +457,13 @@ fn header_less_millisecond_records_are_read_and_resampled_linearly() {
         "ms",
     ];
     // Without --resample the non-uniform column is refused, naming line 4 (the 15 ms step) and the fix.
-    let out = bin()
-        .args(["validate", "--model", s(&model), "--data", s(&f)])
-        .args(cols)
-        .output()
-        .unwrap();
-    assert_eq!(out.status.code(), Some(2));
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = fails(
+        &[
+            &["validate", "--model", s(&model), "--data", s(&f)][..],
+            &cols[..],
+        ]
+        .concat(),
+    );
     assert!(
         err.contains("log.tsv:4:1") && err.contains("--resample"),
         "{err}"
@@ -484,7 +484,7 @@ fn header_less_millisecond_records_are_read_and_resampled_linearly() {
         &cols[..],
     ]
     .concat());
-    let err = String::from_utf8_lossy(&out.stderr);
+    let err = out;
     assert!(
         err.contains("warning") && err.contains("resampled 81 rows"),
         "{err}"
@@ -609,12 +609,8 @@ fn one_word_per_meaning_with_the_old_spellings_kept() {
         assert!(line.contains("[default: ipa]"), "{cmd}: {line}");
     }
     // identify with a range of orders points to `order`.
-    let out = bin()
-        .args(["identify", "--data", s(&f), "--ts", "1", "--na", "1..5"])
-        .output()
-        .unwrap();
-    assert_eq!(out.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&out.stderr).contains("ipa-sysid order"));
+    let err = fails(&["identify", "--data", s(&f), "--ts", "1", "--na", "1..5"]);
+    assert!(err.contains("ipa-sysid order"));
 }
 
 /// y(k) = 0.6 y(k-1) + b1 u(k-nk) + b2 u(k-nk-1), noise-free.
@@ -758,15 +754,7 @@ fn order_ranks_on_a_selection_set_and_reports_the_test_fit_separately() {
             sim.push(v);
         }
         let (yk, sk) = (&yb[2..], &sim[2..]);
-        let m = mean(yk);
-        let e: f64 = yk
-            .iter()
-            .zip(sk)
-            .map(|(a, b)| (a - b).powi(2))
-            .sum::<f64>()
-            .sqrt();
-        let d: f64 = yk.iter().map(|a| (a - m).powi(2)).sum::<f64>().sqrt();
-        let want = 100.0 * (1.0 - e / d);
+        let want = fit_pct(yk, sk);
         let got = num(&j["test"]["fit_sim_percent"]);
         assert!((got - want).abs() < 1e-6, "test fit {got} vs {want}");
         assert!(j["test"]["data"].as_str().unwrap().ends_with("b.csv"));
@@ -894,22 +882,18 @@ fn mat_files_are_read_by_variable_name() {
         assert!((num(&json(&out2)["model"]["ts"]) - 0.05).abs() < 1e-12);
         // A matrix is not a signal; a missing variable lists the ones there are.
         for (var, want) in [("M", "2x3 array"), ("nope", "uu")] {
-            let o = bin()
-                .args([
-                    "identify",
-                    "--data",
-                    s(&f),
-                    "--ts",
-                    "1",
-                    "--u-col",
-                    var,
-                    "--y-col",
-                    "yy",
-                ])
-                .output()
-                .unwrap();
-            assert_eq!(o.status.code(), Some(2));
-            let err = String::from_utf8_lossy(&o.stderr);
+            let o = fails(&[
+                "identify",
+                "--data",
+                s(&f),
+                "--ts",
+                "1",
+                "--u-col",
+                var,
+                "--y-col",
+                "yy",
+            ]);
+            let err = o;
             assert!(err.contains(want) && err.contains("rec"), "{var}: {err}");
         }
     }
@@ -919,12 +903,8 @@ fn mat_files_are_read_by_variable_name() {
     v73.extend_from_slice(b"\x89HDF\r\n\x1a\n");
     let f = dir.path().join("new.mat");
     std::fs::write(&f, v73).unwrap();
-    let o = bin()
-        .args(["identify", "--data", s(&f), "--ts", "1"])
-        .output()
-        .unwrap();
-    assert_eq!(o.status.code(), Some(2));
-    let err = String::from_utf8_lossy(&o.stderr);
+    let o = fails(&["identify", "--data", s(&f), "--ts", "1"]);
+    let err = o;
     assert!(
         err.contains("v7.3") && err.contains("-v7") && err.contains("new.mat"),
         "{err}"
@@ -933,12 +913,8 @@ fn mat_files_are_read_by_variable_name() {
     let mut bytes = mat_file(&[("u", n, 1, &u), ("y", n, 1, &y)], false);
     bytes.truncate(700);
     std::fs::write(&f, bytes).unwrap();
-    let o = bin()
-        .args(["identify", "--data", s(&f), "--ts", "1"])
-        .output()
-        .unwrap();
-    assert_eq!(o.status.code(), Some(2));
-    assert!(!String::from_utf8_lossy(&o.stderr).contains("panicked"));
+    let o = fails(&["identify", "--data", s(&f), "--ts", "1"]);
+    assert!(!o.contains("panicked"));
 }
 
 #[test]
@@ -1005,17 +981,7 @@ fn merge_estimates_one_model_without_rows_spanning_records() {
         }
         s
     };
-    let fit = |y: &[f64], s: &[f64]| {
-        let m = mean(y);
-        let e: f64 = y
-            .iter()
-            .zip(s)
-            .map(|(a, b)| (a - b).powi(2))
-            .sum::<f64>()
-            .sqrt();
-        let d: f64 = y.iter().map(|a| (a - m).powi(2)).sum::<f64>().sqrt();
-        100.0 * (1.0 - e / d)
-    };
+    let fit = fit_pct;
     let (s1, s2) = (sim(&u1, &y1), sim(&u2, &y2));
     let recs = j["metrics"]["estimation"].as_array().unwrap();
     assert_eq!(recs.len(), 2);
@@ -1025,22 +991,18 @@ fn merge_estimates_one_model_without_rows_spanning_records() {
     let ss: Vec<f64> = s1[1..].iter().chain(&s2[1..]).copied().collect();
     assert!((num(&j["metrics"]["pooled"]["fit_sim_percent"]) - fit(&ys, &ss)).abs() < 1e-6);
     // --merge is least squares only; other methods are refused by name.
-    let o = bin()
-        .args([
-            "identify",
-            "--data",
-            s(&f1),
-            s(&f2),
-            "--merge",
-            "--method",
-            "rls",
-            "--ts",
-            "0.1",
-        ])
-        .output()
-        .unwrap();
-    assert_eq!(o.status.code(), Some(2));
-    assert!(String::from_utf8_lossy(&o.stderr).contains("--method"));
+    let o = fails(&[
+        "identify",
+        "--data",
+        s(&f1),
+        s(&f2),
+        "--merge",
+        "--method",
+        "rls",
+        "--ts",
+        "0.1",
+    ]);
+    assert!(o.contains("--method"));
 }
 
 #[test]

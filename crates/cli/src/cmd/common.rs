@@ -61,6 +61,16 @@ impl ColumnArgs {
     }
 }
 
+/// Prints a command's text report: on standard error when the JSON goes to standard output (`--json -`),
+/// so that the JSON stays parseable, else on standard output.
+pub fn print_report(text: &str, json: Option<&Path>) {
+    if json.is_some_and(|p| p.as_os_str() == "-") {
+        eprint!("{text}");
+    } else {
+        print!("{text}");
+    }
+}
+
 /// Prints the reader's warnings on standard error.
 pub fn print_notes(notes: &[String]) {
     for n in notes {

@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use super::common::{check_outputs, print_notes, write_output, ColumnArgs};
+use super::common::{check_outputs, print_notes, print_report, write_output, ColumnArgs};
 
 /// Flags of `delay`.
 #[derive(Debug, clap::Args)]
@@ -64,11 +64,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(n) = &est.note {
         text.push_str(&format!("\nWarning: {n}\n"));
     }
-    if args.json.as_deref().is_some_and(|p| p.as_os_str() == "-") {
-        eprint!("{text}");
-    } else {
-        print!("{text}");
-    }
+    print_report(&text, args.json.as_deref());
     if let Some(path) = &args.json {
         let value = serde_json::json!({
             "data": data.name,

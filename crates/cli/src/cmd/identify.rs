@@ -12,7 +12,9 @@ use sysid::summary::IdentifyReport;
 use sysid::windup::Windup;
 use sysid::{ModelKind, Orders, Structure};
 
-use super::common::{check_outputs, print_notes, write_output, ColumnArgs, ValidationArgs};
+use super::common::{
+    check_outputs, print_notes, print_report, write_output, ColumnArgs, ValidationArgs,
+};
 use sysid::detrend::{detrend, Detrend};
 
 /// Parses one order (`--na 3`); a range such as `1..5` points to `order`, which compares structures.
@@ -25,7 +27,7 @@ fn parse_order(text: &str) -> Result<usize, String> {
     }
     text.trim()
         .parse()
-        .map_err(|_| "expected a whole number >= 0".to_string())
+        .map_err(|e| format!("{e}; expected a whole number >= 0"))
 }
 
 /// Flags of `identify`.
@@ -221,13 +223,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         write_output(path, json.as_bytes(), &inputs, "--json")?;
     }
+    save_model(&args, &fit.model, &inputs)
+}
+
+/// Writes `--save-model`, if given.
+fn save_model(args: &Args, model: &sysid::Model, inputs: &[&Path]) -> anyhow::Result<()> {
     if let Some(path) = &args.save_model {
-        write_output(
-            path,
-            sysid::model_file::to_json(&fit.model)?.as_bytes(),
-            &inputs,
-            "--save-model",
-        )?;
+        let json = sysid::model_file::to_json(model)?;
+        write_output(path, json.as_bytes(), inputs, "--save-model")?;
     }
     Ok(())
 }
@@ -316,11 +319,7 @@ fn run_merged(args: &Args) -> anyhow::Result<()> {
             o(m.fit_pred_percent)
         ));
     }
-    if args.json.as_deref().is_some_and(|p| p.as_os_str() == "-") {
-        eprint!("{text}");
-    } else {
-        print!("{text}");
-    }
+    print_report(&text, args.json.as_deref());
     if let Some(path) = &args.json {
         let value = serde_json::json!({
             "model": fit.model,
@@ -340,13 +339,5 @@ fn run_merged(args: &Args) -> anyhow::Result<()> {
         let json = serde_json::to_string_pretty(&value)? + "\n";
         write_output(path, json.as_bytes(), &inputs, "--json")?;
     }
-    if let Some(path) = &args.save_model {
-        write_output(
-            path,
-            sysid::model_file::to_json(&fit.model)?.as_bytes(),
-            &inputs,
-            "--save-model",
-        )?;
-    }
-    Ok(())
+    save_model(args, &fit.model, &inputs)
 }

@@ -16,7 +16,8 @@ use sysid::order::{grid_size, search, Candidate};
 use sysid::ModelKind;
 
 use super::common::{
-    check_outputs, parse_rows, print_notes, progress_bar, write_output, ColumnArgs, ValidationArgs,
+    check_outputs, parse_rows, print_notes, print_report, progress_bar, write_output, ColumnArgs,
+    ValidationArgs,
 };
 use sysid::data::RowRange;
 
@@ -272,12 +273,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
              structure is optimistic; check it on data it has not seen.\n",
         ),
     }
-    let json_to_stdout = args.json.as_deref().is_some_and(|p| p.as_os_str() == "-");
-    if json_to_stdout {
-        eprint!("{text}");
-    } else {
-        print!("{text}");
-    }
+    print_report(&text, args.json.as_deref());
     if let Some(path) = &args.json {
         let doc = OrderReport {
             data: fit_part.name.clone(),

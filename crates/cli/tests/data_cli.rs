@@ -14,7 +14,11 @@ fn bin() -> Command {
 
 fn run(args: &[&str]) -> Output {
     let out = bin().args(args).output().unwrap();
-    assert!(out.status.success(), "{args:?} failed: {}", out.clone());
+    assert!(
+        out.status.success(),
+        "{args:?} failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     out
 }
 
@@ -88,7 +92,7 @@ fn fit_pct(y: &[f64], yhat: &[f64]) -> f64 {
 /// Runs a command that must fail with exit code 2 (bad usage or input) without a panic; its stderr.
 fn fails(args: &[&str]) -> String {
     let out = bin().args(args).output().unwrap();
-    let err = out.clone().to_string();
+    let err = String::from_utf8_lossy(&out.stderr).to_string();
     assert_eq!(out.status.code(), Some(2), "{args:?}: {err}");
     assert!(!err.contains("panicked"), "{err}");
     err
@@ -484,7 +488,7 @@ fn header_less_millisecond_records_are_read_and_resampled_linearly() {
         &cols[..],
     ]
     .concat());
-    let err = out;
+    let err = String::from_utf8_lossy(&out.stderr);
     assert!(
         err.contains("warning") && err.contains("resampled 81 rows"),
         "{err}"

@@ -626,6 +626,22 @@ fn delayed(u: &[f64], nk: usize, b1: f64, b2: f64) -> Vec<f64> {
     y
 }
 
+/// `delay --max-delay MAX` on `f` at Ts = 0.1 s: its JSON and its output.
+fn delay_json(f: &Path, max: &str, out: &Path) -> (serde_json::Value, Output) {
+    let o = run(&[
+        "delay",
+        "--data",
+        s(f),
+        "--ts",
+        "0.1",
+        "--max-delay",
+        max,
+        "--json",
+        s(out),
+    ]);
+    (json(out), o)
+}
+
 #[test]
 fn delay_finds_the_generating_delay() {
     let dir = tempfile::tempdir().unwrap();
@@ -634,18 +650,7 @@ fn delay_finds_the_generating_delay() {
     let f = dir.path().join("d.csv");
     write_uy(&f, &u, &y);
     let out = dir.path().join("delay.json");
-    run(&[
-        "delay",
-        "--data",
-        s(&f),
-        "--ts",
-        "0.1",
-        "--max-delay",
-        "10",
-        "--json",
-        s(&out),
-    ]);
-    let j = json(&out);
+    let (j, _) = delay_json(&f, "10", &out);
     assert_eq!(j["nk"], 4);
     assert!((num(&j["delay_s"]) - 0.4).abs() < 1e-12);
     // All candidates on the same rows k >= k0 = max(na, 10 + nb - 1) = 11.
@@ -674,18 +679,7 @@ fn delay_finds_the_generating_delay() {
     // largest tried, the result says to look further.
     let y = delayed(&u, 5, 0.0, 1.0);
     write_uy(&f, &u, &y);
-    let o = run(&[
-        "delay",
-        "--data",
-        s(&f),
-        "--ts",
-        "0.1",
-        "--max-delay",
-        "5",
-        "--json",
-        s(&out),
-    ]);
-    let j = json(&out);
+    let (j, o) = delay_json(&f, "5", &out);
     assert_eq!(j["nk"], 5);
     assert!(
         j["warnings"][0].as_str().unwrap().contains("--max-delay"),
@@ -921,6 +915,31 @@ fn mat_files_are_read_by_variable_name() {
     assert!(!o.contains("panicked"));
 }
 
+/// `identify --merge` of two records with a first-order `structure` (na = nb = nk = 1) by least squares.
+fn merge_json(a: &str, b: &str, structure: &str, out: &Path) {
+    run(&[
+        "identify",
+        "--data",
+        a,
+        b,
+        "--merge",
+        "--structure",
+        structure,
+        "--method",
+        "ls",
+        "--na",
+        "1",
+        "--nb",
+        "1",
+        "--nk",
+        "1",
+        "--ts",
+        "0.1",
+        "--json",
+        s(out),
+    ]);
+}
+
 #[test]
 fn merge_estimates_one_model_without_rows_spanning_records() {
     let dir = tempfile::tempdir().unwrap();
@@ -940,27 +959,22 @@ fn merge_estimates_one_model_without_rows_spanning_records() {
     write_uy(&f1, &u1, &y1);
     write_uy(&f2, &u2, &y2);
     let out = dir.path().join("m.json");
-    run(&[
+    // Without --merge several files are batch mode, where splitting one file has no meaning.
+    let err = fails(&[
         "identify",
         "--data",
         s(&f1),
         s(&f2),
-        "--merge",
-        "--structure",
-        "arx",
-        "--method",
-        "ls",
-        "--na",
-        "1",
-        "--nb",
-        "1",
-        "--nk",
-        "1",
+        "--split",
+        "0.5",
         "--ts",
         "0.1",
-        "--json",
-        s(&out),
     ]);
+    assert!(
+        err.contains("batch mode") && err.contains("--merge"),
+        "{err}"
+    );
+    merge_json(s(&f1), s(&f2), "arx", &out);
     let j = json(&out);
     // Expected: least squares over rows k = 1..N-1 of each record, stacked (no seam row).
     let (mut z, mut p, mut q) = (Vec::new(), Vec::new(), Vec::new());
@@ -1037,27 +1051,7 @@ fn merge_recovers_a_hammerstein_deadzone_from_two_records() {
         files.push(f);
     }
     let out = dir.path().join("h.json");
-    run(&[
-        "identify",
-        "--data",
-        s(&files[0]),
-        s(&files[1]),
-        "--merge",
-        "--structure",
-        "hammerstein",
-        "--method",
-        "ls",
-        "--na",
-        "1",
-        "--nb",
-        "1",
-        "--nk",
-        "1",
-        "--ts",
-        "0.1",
-        "--json",
-        s(&out),
-    ]);
+    merge_json(s(&files[0]), s(&files[1]), "hammerstein", &out);
     let m = &json(&out)["model"];
     let d = &m["deadzone"];
     for (got, want) in [

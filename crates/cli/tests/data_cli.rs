@@ -1064,3 +1064,176 @@ fn merge_recovers_a_hammerstein_deadzone_from_two_records() {
         assert!((got - want).abs() < 1e-6, "{m}");
     }
 }
+
+/// Two inputs: u1 with nb = 2, nk = 1 through `f1`, u2 linear with nb = 1, nk = 2:
+/// y(k) = 0.5 y(k-1) + f1(u1(k-1)) + b12 f1(u1(k-2)) - 2 u2(k-2).
+fn miso_record(
+    dir: &Path,
+    f1: &dyn Fn(f64) -> f64,
+    b12: f64,
+) -> (PathBuf, Vec<f64>, Vec<f64>, Vec<f64>) {
+    let n = 400;
+    let u1: Vec<f64> = input(n).iter().map(|v| 3.0 * (v - 1.0)).collect();
+    let u2: Vec<f64> = input(n + 61)[61..].to_vec();
+    let mut y = vec![0.0; n];
+    for k in 2..n {
+        y[k] = 0.5 * y[k - 1] + f1(u1[k - 1]) + b12 * f1(u1[k - 2]) - 2.0 * u2[k - 2];
+    }
+    let mut text = String::from("u1,u2,y\n");
+    for k in 0..n {
+        text.push_str(&format!("{},{},{}\n", u1[k], u2[k], y[k]));
+    }
+    let f = dir.join("miso.csv");
+    std::fs::write(&f, text).unwrap();
+    (f, u1, u2, y)
+}
+
+#[test]
+fn several_inputs_arx_and_hammerstein_with_a_linear_input() {
+    let dir = tempfile::tempdir().unwrap();
+    // ARX: f1 = identity, b = (1, 0.3) for u1 and (-2) for u2.
+    let (f, u1, u2, y) = miso_record(dir.path(), &|v| v, 0.3);
+    let out = dir.path().join("arx.json");
+    let model = dir.path().join("arx_model.json");
+    run(&[
+        "identify",
+        "--data",
+        s(&f),
+        "--u-col",
+        "u1,u2",
+        "--nb",
+        "2,1",
+        "--nk",
+        "1,2",
+        "--na",
+        "1",
+        "--structure",
+        "arx",
+        "--method",
+        "ls",
+        "--ts",
+        "0.1",
+        "--rows",
+        "0..300",
+        "--val-rows",
+        "300..",
+        "--json",
+        s(&out),
+        "--save-model",
+        s(&model),
+    ]);
+    let j = json(&out);
+    let inputs = j["model"]["inputs"].as_array().unwrap();
+    assert_eq!(inputs.len(), 2);
+    assert_eq!(
+        (inputs[0]["name"].as_str(), inputs[1]["name"].as_str()),
+        (Some("u1"), Some("u2"))
+    );
+    assert_eq!(
+        (inputs[0]["nb"].as_u64(), inputs[0]["nk"].as_u64()),
+        (Some(2), Some(1))
+    );
+    assert_eq!(
+        (inputs[1]["nb"].as_u64(), inputs[1]["nk"].as_u64()),
+        (Some(1), Some(2))
+    );
+    for (got, want) in [
+        (&j["model"]["a"][0], -0.5),
+        (&inputs[0]["b"][0], 1.0),
+        (&inputs[0]["b"][1], 0.3),
+        (&inputs[1]["b"][0], -2.0),
+    ] {
+        assert!((num(got) - want).abs() < 1e-9, "{}", j["model"]);
+    }
+    // Single-input keys are kept: the top-level nb, nk, b repeat the first input.
+    assert_eq!(j["model"]["nb"], 2);
+    assert_eq!(j["metrics"]["validation"]["n"], 98); // rows 300..400, k0 = max(1, 1+2-1, 2+1-1) = 2
+                                                     // validate reads the model's input columns by name; the exact model simulates the data exactly.
+    let csv = dir.path().join("v.csv");
+    run(&[
+        "validate",
+        "--model",
+        s(&model),
+        "--data",
+        s(&f),
+        "--ts",
+        "0.1",
+        "--out",
+        s(&csv),
+    ]);
+    let got = read_columns(&csv);
+    let mut sim = vec![y[0], y[1]];
+    for k in 2..y.len() {
+        sim.push(0.5 * sim[k - 1] + u1[k - 1] + 0.3 * u1[k - 2] - 2.0 * u2[k - 2]);
+    }
+    for k in 0..y.len() {
+        assert!((got["y_sim"][k] - sim[k]).abs() < 1e-6, "k = {k}");
+    }
+
+    // Hammerstein: a deadzone on u1 (b_l = -1, b_r = 0.5, m_l = 0.8, m_r = 1.2), u2 declared linear.
+    let dz = |v: f64| {
+        if v >= 0.5 {
+            1.2 * (v - 0.5)
+        } else if v <= -1.0 {
+            0.8 * (v + 1.0)
+        } else {
+            0.0
+        }
+    };
+    let (f, ..) = miso_record(dir.path(), &dz, 0.3);
+    let out = dir.path().join("ham.json");
+    run(&[
+        "identify",
+        "--data",
+        s(&f),
+        "--u-col",
+        "u1,u2",
+        "--nb",
+        "2,1",
+        "--nk",
+        "1,2",
+        "--na",
+        "1",
+        "--structure",
+        "hammerstein",
+        "--linear-inputs",
+        "u2",
+        "--method",
+        "ls",
+        "--ts",
+        "0.1",
+        "--json",
+        s(&out),
+    ]);
+    let j = json(&out);
+    let inputs = j["model"]["inputs"].as_array().unwrap();
+    let d = &inputs[0]["deadzone"];
+    for (got, want) in [
+        (&j["model"]["a"][0], -0.5),
+        (&inputs[0]["b"][0], 1.0),
+        (&inputs[0]["b"][1], 0.3),
+        (&d["b_l"], -1.0),
+        (&d["b_r"], 0.5),
+        (&d["m_l"], 0.8),
+        (&d["m_r"], 1.2),
+        (&inputs[1]["b"][0], -2.0),
+    ] {
+        assert!((num(got) - want).abs() < 1e-6, "{}", j["model"]);
+    }
+    assert!(inputs[1].get("deadzone").is_none());
+    // A list of the wrong length is refused by flag.
+    let err = fails(&[
+        "identify",
+        "--data",
+        s(&f),
+        "--u-col",
+        "u1,u2",
+        "--nb",
+        "2,1,1",
+        "--method",
+        "ls",
+        "--ts",
+        "0.1",
+    ]);
+    assert!(err.contains("--nb") && err.contains("2 inputs"), "{err}");
+}

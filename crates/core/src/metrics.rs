@@ -77,20 +77,29 @@ pub fn rmse(y: &[f64], yhat: &[f64]) -> f64 {
 
 /// Computes the validation metrics of `model` on `data`.
 pub fn metrics(model: &Model, data: &Dataset) -> Result<Metrics, SysidError> {
+    metrics_miso(model, &[&data.u], &data.y, &data.name)
+}
+
+/// [`metrics`] of a model with one input record per model input (MISO); `name` names the record.
+pub fn metrics_miso(
+    model: &Model,
+    u: &[&[f64]],
+    y_all: &[f64],
+    name: &str,
+) -> Result<Metrics, SysidError> {
     let k0 = model.k0();
     let p = model.parameter_count();
-    if data.len() <= k0 {
+    if y_all.len() <= k0 {
         return Err(SysidError::Data(format!(
-            "{}: {} samples are not enough to validate a model with k0 = {k0}",
-            data.name,
-            data.len()
+            "{name}: {} samples are not enough to validate a model with k0 = {k0}",
+            y_all.len()
         )));
     }
-    let y = &data.y[k0..];
+    let y = &y_all[k0..];
     let n = y.len();
-    let pred = model.predict(&data.u, &data.y)?;
+    let pred = model.predict_k(u, y_all, 1)?;
     let pred = &pred[k0..];
-    let (sim, note) = match model.simulate(&data.u, &data.y) {
+    let (sim, note) = match model.simulate_miso(u, y_all) {
         Ok(s) => (Some(s), None),
         Err(e) => (None, Some(e.to_string())),
     };
@@ -98,7 +107,7 @@ pub fn metrics(model: &Model, data: &Dataset) -> Result<Metrics, SysidError> {
     if !sse.is_finite() {
         return Err(SysidError::Numerical(format!(
             "{}: the squared prediction errors overflow f64 (values too large? rescale the data)",
-            data.name
+            name
         )));
     }
     let mse = sse / n as f64;
@@ -154,16 +163,18 @@ pub struct ModelOutput {
     pub fit_pred_percent: Option<f64>,
 }
 
-/// Simulation and `horizon`-step prediction of `model` on `data` (horizon >= 1).
+/// Simulation and `horizon`-step prediction of `model` (horizon >= 1) from one input record per model
+/// input and the measured output `y`.
 pub fn model_output(
     model: &Model,
-    data: &Dataset,
+    u: &[&[f64]],
+    y: &[f64],
     horizon: usize,
 ) -> Result<ModelOutput, SysidError> {
-    let k0 = model.k0().min(data.len());
-    let y_pred = model.predict_k(&[&data.u], &data.y, horizon)?;
-    let y_sim = model.simulate(&data.u, &data.y).ok();
-    let fit_pred_percent = fit_percent(&data.y[k0..], &y_pred[k0..]);
+    let y_pred = model.predict_k(u, y, horizon)?;
+    let k0 = model.k0().min(y_pred.len());
+    let y_sim = model.simulate_miso(u, y).ok();
+    let fit_pred_percent = fit_percent(&y[k0..y_pred.len()], &y_pred[k0..]);
     Ok(ModelOutput {
         y_sim,
         y_pred,

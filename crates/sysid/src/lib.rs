@@ -14,6 +14,7 @@ pub mod estimate;
 pub mod iv;
 pub mod ls;
 pub mod merge;
+pub mod miso;
 pub mod oe;
 pub mod order;
 pub mod residuals;

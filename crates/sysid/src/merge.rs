@@ -87,7 +87,12 @@ pub fn identify_merged(
             .copied()
             .collect())
     };
-    let zero = ZERO_DEADZONE;
+    // Start: breakpoints at 0 and unit slopes, so that x̂ = u in the b2.. columns of the first solve.
+    let zero = Deadzone {
+        m_l: 1.0,
+        m_r: 1.0,
+        ..ZERO_DEADZONE
+    };
     let mut theta = solve(&zero)?;
     let mut iterations = 1;
     if structure.kind == ModelKind::Hammerstein {

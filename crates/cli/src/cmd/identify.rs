@@ -17,9 +17,43 @@ use super::common::{
 };
 use sysid::detrend::{detrend, Detrend};
 
+/// One order per input (`--nb 2,1`; one value applies to every input).
+#[derive(Debug, Clone, PartialEq)]
+pub struct OrderList(pub Vec<usize>);
+
+impl OrderList {
+    /// The first (for one input: the only) value.
+    pub fn first(&self) -> usize {
+        self.0.first().copied().unwrap_or(0)
+    }
+
+    /// The value for each of `n` inputs: one value applies to all; fails (naming `flag`) unless there is
+    /// one value or one per input.
+    pub fn per_input(&self, n: usize, flag: &'static str) -> anyhow::Result<Vec<usize>> {
+        match self.0.len() {
+            1 => Ok(vec![self.first(); n]),
+            m if m == n => Ok(self.0.clone()),
+            m => Err(sysid::SysidError::setting(
+                sysid::Setting::Other(flag),
+                format!("{m} values"),
+                &format!("one value for every input, or one per input ({n} inputs)"),
+            )
+            .into()),
+        }
+    }
+}
+
+/// Parses `--nb 2` or, with several inputs, `--nb 2,1`.
+fn parse_order_list(text: &str) -> Result<OrderList, String> {
+    text.split(',')
+        .map(parse_order)
+        .collect::<Result<_, _>>()
+        .map(OrderList)
+}
+
 /// Parses one order (`--na 3`); a range such as `1..5` points to `order`, which compares structures.
 fn parse_order(text: &str) -> Result<usize, String> {
-    if text.contains("..") || text.contains(',') {
+    if text.contains("..") {
         return Err(format!(
             "identify fits one structure; to compare orders {text} use `ipa-sysid order --na 1..5 --nb 1..3 \
              --nk 0..5` (it ranks them by fit, AIC and FPE), then identify the chosen one"
@@ -51,12 +85,16 @@ pub struct Args {
     /// na: number of poles (order of A).
     #[arg(long, default_value_t = 3, value_parser = parse_order)]
     pub na: usize,
-    /// nb: number of B coefficients (>= 1 for Hammerstein).
-    #[arg(long, default_value_t = 1, value_parser = parse_order)]
-    pub nb: usize,
-    /// nk: input delay in samples.
-    #[arg(long, default_value_t = 1, value_parser = parse_order)]
-    pub nk: usize,
+    /// nb: number of B coefficients (>= 1 for Hammerstein); with several inputs one per input (2,1) or
+    /// one for all.
+    #[arg(long, default_value = "1", value_parser = parse_order_list)]
+    pub nb: OrderList,
+    /// nk: input delay in samples; with several inputs one per input (1,2) or one for all.
+    #[arg(long, default_value = "1", value_parser = parse_order_list)]
+    pub nk: OrderList,
+    /// Several inputs (--u-col u1,u2) with --structure hammerstein: these inputs are linear (no deadzone).
+    #[arg(long, value_name = "NAME,...", value_delimiter = ',')]
+    pub linear_inputs: Vec<String>,
     /// Estimator.
     #[arg(long, value_enum, default_value = "rls")]
     pub method: Method,
@@ -140,8 +178,8 @@ impl Args {
                 kind: self.model,
                 orders: Orders {
                     na: self.na,
-                    nb: self.nb,
-                    nk: self.nk,
+                    nb: self.nb.first(),
+                    nk: self.nk.first(),
                 },
                 offset: self.offset,
             },
@@ -155,6 +193,14 @@ impl Args {
 
 /// Runs `identify`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.columns.u_col.contains(',') {
+        return run_miso(&args);
+    }
+    if args.nb.0.len() > 1 || args.nk.0.len() > 1 || !args.linear_inputs.is_empty() {
+        anyhow::bail!(
+            "--nb/--nk lists and --linear-inputs are for several inputs: name them with --u-col u1,u2"
+        );
+    }
     if args.merge {
         return run_merged(&args);
     }
@@ -340,4 +386,147 @@ fn run_merged(args: &Args) -> anyhow::Result<()> {
         write_output(path, json.as_bytes(), &inputs, "--json")?;
     }
     save_model(args, &fit.model, &inputs)
+}
+
+/// Runs `identify --u-col u1,u2,...`: one model with several inputs (MISO), by least squares.
+fn run_miso(args: &Args) -> anyhow::Result<()> {
+    let names: Vec<String> = args
+        .columns
+        .u_col
+        .split(',')
+        .map(|s| s.trim().to_string())
+        .collect();
+    if args.method != Method::Ls
+        || args.merge
+        || args.detrend != Detrend::None
+        || args.data.len() != 1
+    {
+        anyhow::bail!(
+            "several inputs (--u-col {}) are estimated by least squares from one --data file: use \
+             --method ls, without --merge or --detrend",
+            args.columns.u_col
+        );
+    }
+    for l in &args.linear_inputs {
+        if !names.contains(l) {
+            anyhow::bail!(sysid::SysidError::setting(
+                sysid::Setting::Other("--linear-inputs"),
+                l,
+                &format!("names among the inputs of --u-col ({})", names.join(", "))
+            ));
+        }
+    }
+    let nb = args.nb.per_input(names.len(), "--nb")?;
+    let nk = args.nk.per_input(names.len(), "--nk")?;
+    let data_path = &args.data[0];
+    let mut inputs: Vec<&Path> = vec![data_path.as_path()];
+    inputs.extend(args.val.validation.as_deref());
+    check_outputs(
+        &[(&args.json, "--json"), (&args.save_model, "--save-model")],
+        &inputs,
+    )?;
+    // One record per input column (same file, same output column, same rows).
+    let mut est_inputs = Vec::with_capacity(names.len());
+    let mut val_inputs = Vec::with_capacity(names.len());
+    let (mut est_y, mut val_y, mut notes) = (None, None, Vec::new());
+    for (i, name) in names.iter().enumerate() {
+        let mut opts = args.columns.csv_options();
+        opts.u_col = name.clone();
+        let val_args = ValidationArgs {
+            val_u_col: None,
+            ..args.val.clone()
+        };
+        let r = val_args.records(data_path, &opts)?;
+        notes.extend(r.notes);
+        est_inputs.push(sysid::miso::MisoInput {
+            name: name.clone(),
+            u: r.est.u,
+            nb: nb[i],
+            nk: nk[i],
+            linear: args.linear_inputs.contains(name),
+        });
+        if let Some(v) = r.val {
+            val_inputs.push(v.u);
+            val_y.get_or_insert((v.y, v.name));
+        }
+        est_y.get_or_insert((r.est.y, r.est.ts, r.est.name));
+    }
+    notes.dedup();
+    print_notes(&notes);
+    let Some((y, ts, data_name)) = est_y else {
+        anyhow::bail!("--u-col names no input");
+    };
+    let fit = sysid::miso::identify_miso(
+        &est_inputs,
+        &y,
+        ts,
+        args.na,
+        args.model,
+        args.offset,
+        args.max_iterations,
+    )?;
+    let us: Vec<&[f64]> = est_inputs.iter().map(|m| m.u.as_slice()).collect();
+    let est = sysid::metrics::metrics_miso(&fit.model, &us, &y, &data_name)?;
+    let val = match &val_y {
+        Some((vy, vname)) => {
+            let vu: Vec<&[f64]> = val_inputs.iter().map(Vec::as_slice).collect();
+            Some(sysid::metrics::metrics_miso(&fit.model, &vu, vy, vname)?)
+        }
+        None => None,
+    };
+    let m = &fit.model;
+    let mut text = format!(
+        "Data: {data_name} ({} samples){}\n{} model with {} inputs, na = {}, Ts = {} s, estimated by least \
+         squares ({} iteration(s))\n  a = {:?}{}\n",
+        y.len(),
+        val_y
+            .as_ref()
+            .map(|(v, n)| format!("; validation: {n} ({} samples)", v.len()))
+            .unwrap_or_default(),
+        m.kind(),
+        m.inputs().len(),
+        m.na(),
+        ts,
+        fit.iterations,
+        m.a(),
+        m.offset().map(|c| format!("\n  c = {c}")).unwrap_or_default(),
+    );
+    for ch in m.inputs() {
+        text.push_str(&format!(
+            "  input {}: nb = {}, nk = {}, b = {:?}{}\n",
+            ch.name(),
+            ch.nb(),
+            ch.nk(),
+            ch.b(),
+            ch.deadzone()
+                .map(|d| format!(
+                    ", deadzone b_l = {}, b_r = {}, m_l = {}, m_r = {}",
+                    d.b_l, d.b_r, d.m_l, d.m_r
+                ))
+                .unwrap_or_else(|| ", linear".into())
+        ));
+    }
+    let o = |v: Option<f64>| v.map_or_else(|| "n/a".to_string(), |v| format!("{v:.4}"));
+    text.push_str(&format!(
+        "Fit % (simulation): estimation {}{}; {}\n",
+        o(est.fit_sim_percent),
+        val.as_ref()
+            .map(|v| format!(", validation {}", o(v.fit_sim_percent)))
+            .unwrap_or_default(),
+        if m.is_stable() { "stable" } else { "UNSTABLE" }
+    ));
+    print_report(&text, args.json.as_deref());
+    if let Some(path) = &args.json {
+        let value = serde_json::json!({
+            "model": m,
+            "poles": sysid::summary::poles(m),
+            "stable": m.is_stable(),
+            "iterations": fit.iterations,
+            "metrics": { "estimation": est, "validation": val },
+            "data_notes": notes,
+        });
+        let json = serde_json::to_string_pretty(&value)? + "\n";
+        write_output(path, json.as_bytes(), &inputs, "--json")?;
+    }
+    save_model(args, m, &inputs)
 }

@@ -2,8 +2,6 @@
 
 use std::path::{Path, PathBuf};
 
-use sysid::metrics::metrics;
-
 use super::common::{check_outputs, print_notes, write_output, ColumnArgs};
 
 /// Flags of `validate`.
@@ -44,9 +42,51 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let model = sysid::model_file::read_model(&args.model)?;
     let mut opts = args.columns.csv_options();
     opts.fallback_ts = Some(model.ts());
+    // A model with several inputs reads one column per input: --u-col u1,u2 or the model's input names.
+    let miso = model.inputs().len() > 1 || opts.u_col.contains(',');
+    let cols: Vec<String> = if opts.u_col.contains(',') {
+        opts.u_col
+            .split(',')
+            .map(|s| s.trim().to_string())
+            .collect()
+    } else if miso {
+        model
+            .inputs()
+            .iter()
+            .map(|i| i.name().to_string())
+            .collect()
+    } else {
+        vec![opts.u_col.clone()]
+    };
+    let all_cols = opts.u_col.clone();
+    if let Some(first) = cols.first() {
+        opts.u_col = first.clone();
+    }
     let record = sysid::data::read_record(&args.data, &opts)?;
     print_notes(&record.notes);
     let data = record.data;
+    let mut extra: Vec<Vec<f64>> = Vec::new();
+    if miso {
+        if cols.len() != model.inputs().len() {
+            anyhow::bail!(sysid::SysidError::setting(
+                sysid::Setting::UCol,
+                &all_cols,
+                &format!("one column per model input ({})", model.inputs().len())
+            ));
+        }
+        for c in &cols {
+            let o = sysid::data::CsvOptions {
+                u_col: c.clone(),
+                ..opts.clone()
+            };
+            extra.push(sysid::data::read_record(&args.data, &o)?.data.u);
+        }
+    }
+    let us: Vec<&[f64]> = if extra.is_empty() {
+        vec![data.u.as_slice()]
+    } else {
+        extra.iter().map(Vec::as_slice).collect()
+    };
     if (data.ts - model.ts()).abs() > 1e-3 * model.ts() {
         anyhow::bail!(
             "{}: the data are sampled at Ts = {} s but the model was identified at Ts = {} s; \
@@ -56,8 +96,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             model.ts()
         );
     }
-    let m = metrics(&model, &data)?;
-    let out = sysid::metrics::model_output(&model, &data, args.horizon)?;
+    let m = sysid::metrics::metrics_miso(&model, &us, &data.y, &data.name)?;
+    let out = sysid::metrics::model_output(&model, &us, &data.y, args.horizon)?;
     let value = serde_json::json!({
         "model": model,
         "poles": sysid::summary::poles(&model),

@@ -11,7 +11,7 @@ use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
 use sysid_core::metrics::{fit_percent, metrics, Metrics};
-use sysid_core::param::{deadzone_from_theta, Layout, Parameterisation, ZERO_DEADZONE};
+use sysid_core::param::{Layout, Parameterisation};
 use sysid_core::{Dataset, Deadzone, Model, ModelKind, Structure, SysidError};
 
 /// The result of a merged estimation.
@@ -87,32 +87,9 @@ pub fn identify_merged(
             .copied()
             .collect())
     };
-    // Start: breakpoints at 0 and unit slopes, so that x̂ = u in the b2.. columns of the first solve.
-    let zero = Deadzone {
-        m_l: 1.0,
-        m_r: 1.0,
-        ..ZERO_DEADZONE
-    };
-    let mut theta = solve(&zero)?;
-    let mut iterations = 1;
-    if structure.kind == ModelKind::Hammerstein {
-        let mut dz = deadzone_from_theta(&theta, zero, f64::INFINITY);
-        while iterations < max_iterations.max(1) {
-            let next = solve(&dz)?;
-            iterations += 1;
-            let change = next
-                .iter()
-                .zip(&theta)
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0, f64::max);
-            let scale = next.iter().fold(1e-300_f64, |m, v| m.max(v.abs()));
-            theta = next;
-            dz = deadzone_from_theta(&theta, dz, f64::INFINITY);
-            if change <= 1e-10 * scale {
-                break;
-            }
-        }
-    }
+    let nonlinear = [structure.kind == ModelKind::Hammerstein];
+    let (theta, _, iterations) =
+        crate::miso::key_term_iteration(&nonlinear, max_iterations, |dz| solve(&dz[0]))?;
     let model = Parameterisation::new(structure, Layout::KeyTerm).model_of(&theta, first.ts)?;
     Ok(MergedFit {
         model,

@@ -12,7 +12,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use sysid_core::param::{deadzone_from_theta, ZERO_DEADZONE};
+use sysid_core::param::deadzone_from_theta;
 use sysid_core::{Deadzone, InputChannel, Model, ModelKind, StaticNonlinearity, SysidError};
 
 /// One input of a MISO problem.
@@ -117,42 +117,7 @@ pub fn identify_miso(
             .copied()
             .collect())
     };
-    // Start: breakpoints at 0 and unit slopes, so that x̂ = u in the b2.. columns of the first solve.
-    let start = Deadzone {
-        m_l: 1.0,
-        m_r: 1.0,
-        ..ZERO_DEADZONE
-    };
-    let mut dz = vec![start; inputs.len()];
-    let mut theta = solve(&dz)?;
-    let mut iterations = 1;
-    let update = |theta: &[f64], dz: &mut [Deadzone]| {
-        let mut i = 0;
-        for (d, &nl) in dz.iter_mut().zip(&nonlinear) {
-            if nl {
-                *d = deadzone_from_theta(&theta[i..i + 4], *d, f64::INFINITY);
-                i += 4;
-            }
-        }
-    };
-    update(&theta, &mut dz);
-    if n_key > 0 {
-        while iterations < max_iterations.max(1) {
-            let next = solve(&dz)?;
-            iterations += 1;
-            let change = next
-                .iter()
-                .zip(&theta)
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0, f64::max);
-            let scale = next.iter().fold(1e-300_f64, |m, v| m.max(v.abs()));
-            theta = next;
-            update(&theta, &mut dz);
-            if change <= 1e-10 * scale {
-                break;
-            }
-        }
-    }
+    let (theta, dz, iterations) = key_term_iteration(&nonlinear, max_iterations, solve)?;
     // θ back to the model.
     let a = theta[n_key..n_key + na].to_vec();
     let mut i = n_key + na;
@@ -175,6 +140,57 @@ pub fn identify_miso(
         model: Model::new(ts, a, channels, c)?,
         iterations,
     })
+}
+
+/// Start of the key-term iteration: breakpoints at 0 and unit slopes, so that x̂ = u in the b2.. columns of
+/// the first solve.
+pub const START_DEADZONE: Deadzone = Deadzone {
+    b_l: 0.0,
+    b_r: 0.0,
+    m_l: 1.0,
+    m_r: 1.0,
+};
+
+/// θ̂, the deadzones and the number of solves of the key-term iteration: `solve` gives θ̂ for given
+/// deadzones (one per input; θ starts with a key-term block [m_r, m_r b_r, m_l, m_l b_l] per input whose
+/// `nonlinear` entry is true), the deadzones are updated from θ̂, until θ̂ changes by less than 1e-10
+/// (relative to its largest entry) or after `max_iterations` solves. Without a nonlinear input, one solve.
+pub(crate) fn key_term_iteration(
+    nonlinear: &[bool],
+    max_iterations: usize,
+    solve: impl Fn(&[Deadzone]) -> Result<Vec<f64>, SysidError>,
+) -> Result<(Vec<f64>, Vec<Deadzone>, usize), SysidError> {
+    let update = |theta: &[f64], dz: &mut [Deadzone]| {
+        let mut i = 0;
+        for (d, &nl) in dz.iter_mut().zip(nonlinear) {
+            if nl {
+                *d = deadzone_from_theta(&theta[i..i + 4], *d, f64::INFINITY);
+                i += 4;
+            }
+        }
+    };
+    let mut dz = vec![START_DEADZONE; nonlinear.len()];
+    let mut theta = solve(&dz)?;
+    let mut iterations = 1;
+    update(&theta, &mut dz);
+    if nonlinear.iter().any(|&v| v) {
+        while iterations < max_iterations.max(1) {
+            let next = solve(&dz)?;
+            iterations += 1;
+            let change = next
+                .iter()
+                .zip(&theta)
+                .map(|(a, b)| (a - b).abs())
+                .fold(0.0, f64::max);
+            let scale = next.iter().fold(1e-300_f64, |m, v| m.max(v.abs()));
+            theta = next;
+            update(&theta, &mut dz);
+            if change <= 1e-10 * scale {
+                break;
+            }
+        }
+    }
+    Ok((theta, dz, iterations))
 }
 
 /// Entry `c` of the regressor φ(k) (module docs).

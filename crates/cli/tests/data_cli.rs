@@ -1088,17 +1088,12 @@ fn miso_record(
     (f, u1, u2, y)
 }
 
-#[test]
-fn several_inputs_arx_and_hammerstein_with_a_linear_input() {
-    let dir = tempfile::tempdir().unwrap();
-    // ARX: f1 = identity, b = (1, 0.3) for u1 and (-2) for u2.
-    let (f, u1, u2, y) = miso_record(dir.path(), &|v| v, 0.3);
-    let out = dir.path().join("arx.json");
-    let model = dir.path().join("arx_model.json");
-    run(&[
+/// `identify` of the two-input record `f` (nb = 2,1, nk = 1,2, na = 1) by least squares, plus `extra`.
+fn miso_identify(f: &str, structure: &str, extra: &[&str]) {
+    let mut args = vec![
         "identify",
         "--data",
-        s(&f),
+        f,
         "--u-col",
         "u1,u2",
         "--nb",
@@ -1108,20 +1103,37 @@ fn several_inputs_arx_and_hammerstein_with_a_linear_input() {
         "--na",
         "1",
         "--structure",
-        "arx",
+        structure,
         "--method",
         "ls",
         "--ts",
         "0.1",
-        "--rows",
-        "0..300",
-        "--val-rows",
-        "300..",
-        "--json",
-        s(&out),
-        "--save-model",
-        s(&model),
-    ]);
+    ];
+    args.extend_from_slice(extra);
+    run(&args);
+}
+
+#[test]
+fn several_inputs_arx_and_hammerstein_with_a_linear_input() {
+    let dir = tempfile::tempdir().unwrap();
+    // ARX: f1 = identity, b = (1, 0.3) for u1 and (-2) for u2.
+    let (f, u1, u2, y) = miso_record(dir.path(), &|v| v, 0.3);
+    let out = dir.path().join("arx.json");
+    let model = dir.path().join("arx_model.json");
+    miso_identify(
+        s(&f),
+        "arx",
+        &[
+            "--rows",
+            "0..300",
+            "--val-rows",
+            "300..",
+            "--json",
+            s(&out),
+            "--save-model",
+            s(&model),
+        ],
+    );
     let j = json(&out);
     let inputs = j["model"]["inputs"].as_array().unwrap();
     assert_eq!(inputs.len(), 2);
@@ -1182,29 +1194,11 @@ fn several_inputs_arx_and_hammerstein_with_a_linear_input() {
     };
     let (f, ..) = miso_record(dir.path(), &dz, 0.3);
     let out = dir.path().join("ham.json");
-    run(&[
-        "identify",
-        "--data",
+    miso_identify(
         s(&f),
-        "--u-col",
-        "u1,u2",
-        "--nb",
-        "2,1",
-        "--nk",
-        "1,2",
-        "--na",
-        "1",
-        "--structure",
         "hammerstein",
-        "--linear-inputs",
-        "u2",
-        "--method",
-        "ls",
-        "--ts",
-        "0.1",
-        "--json",
-        s(&out),
-    ]);
+        &["--linear-inputs", "u2", "--json", s(&out)],
+    );
     let j = json(&out);
     let inputs = j["model"]["inputs"].as_array().unwrap();
     let d = &inputs[0]["deadzone"];

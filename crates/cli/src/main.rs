@@ -33,6 +33,8 @@ enum Command {
     Reproduce(cmd::reproduce::Args),
     /// Rank model orders and delays by validation fit (estimation fit without --validation), AIC and FPE.
     Order(cmd::order::Args),
+    /// Estimate the input delay nk by comparing ARX fits over nk (MATLAB `delayest`).
+    Delay(cmd::delay::Args),
     /// Monte Carlo study of estimator bias and spread under output noise (parallel).
     Montecarlo(cmd::montecarlo::Args),
     /// Benchmarks: RLS throughput, identification time, plant real-time factor.
@@ -69,6 +71,7 @@ fn main() -> ExitCode {
         Command::Control(a) => cmd::control::run(a),
         Command::Reproduce(a) => cmd::reproduce::run(a),
         Command::Order(a) => cmd::order::run(a),
+        Command::Delay(a) => cmd::delay::run(a),
         Command::Montecarlo(a) => cmd::montecarlo::run(a),
         Command::Bench(a) => cmd::bench::run(a),
     };

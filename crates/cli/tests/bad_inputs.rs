@@ -674,7 +674,7 @@ fn study_and_benchmark_flags_exit_2_naming_the_flag() {
         case(
             "simulate --out {t}/s.csv --x0 nan",
             2,
-            &["--x0", "finite position"],
+            &["--y0", "finite position"],
         ),
         case(
             "simulate --out {t}/s.csv --noise-std -1",

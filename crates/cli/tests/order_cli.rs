@@ -63,7 +63,7 @@ fn order_ranks_the_generating_structure_first() {
     );
     assert!(c[0]["fit_validation"].as_f64().unwrap() > 99.999);
     let text = String::from_utf8_lossy(&out.stdout);
-    assert!(text.contains("ranked by validation fit"), "{text}");
+    assert!(text.contains("by selection fit"), "{text}");
 }
 
 #[test]

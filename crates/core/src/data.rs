@@ -9,14 +9,25 @@
 //! - any finite f64, however large or small (the estimators then report a numerical failure if the
 //!   magnitudes overflow).
 //!
+//! Options (docs/data.md): `--no-header` names columns by position (1-based); `--rows A..B` keeps data rows
+//! A..B (0-based, half-open) before anything else; `--time-unit ms|us` scales the time column to seconds;
+//! `--resample TS` interpolates a non-uniform record onto a uniform grid and says how non-uniform it was.
+//!
 //! Everything else is refused with the file, line and column and what was expected: a cell that is
 //! empty, not a number, NaN or infinite; a value beyond the header's columns; a time column that does
 //! not increase or is not uniform within 0.1 %; a file that is not UTF-8 text.
 
 use std::path::Path;
 
+pub mod mat;
+pub mod ranges;
+pub mod resample;
+
+pub use ranges::{split_rows, RowRange};
+
 use crate::error::{ColumnHint, Setting};
 use crate::SysidError;
+pub use resample::TimeUnit;
 
 /// Upper bound on the number of samples read from one file (keeps hostile inputs from exhausting memory).
 pub const MAX_SAMPLES: usize = 50_000_000;
@@ -86,7 +97,7 @@ impl Dataset {
     }
 }
 
-fn check_ts(ts: f64) -> Result<(), SysidError> {
+pub(crate) fn check_ts(ts: f64) -> Result<(), SysidError> {
     if ts.is_finite() && ts > 0.0 {
         Ok(())
     } else {
@@ -111,6 +122,26 @@ pub struct CsvOptions {
     pub ts: Option<f64>,
     /// Ts to use when `ts` is `None` and the file has no time column (e.g. a saved model's Ts).
     pub fallback_ts: Option<f64>,
+    /// The file has no header row (`--no-header`): columns are named by position, `"1"`, `"2"`, ...
+    pub no_header: bool,
+    /// Only these data rows (`--rows A..B`, 0-based, half-open), selected before Ts is found.
+    pub rows: Option<RowRange>,
+    /// The flag that chose `rows`, for messages (`--rows` or `--val-rows`).
+    pub rows_flag: &'static str,
+    /// Unit of the time column (`--time-unit`); Ts and `--ts` are always in seconds.
+    pub time_unit: TimeUnit,
+    /// Resample a non-uniform time column onto this uniform Ts in s (`--resample TS`), by linear
+    /// interpolation.
+    pub resample: Option<f64>,
+}
+
+/// A record read from a file, with what the reader did to it that the user should know (resampling).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Record {
+    /// The record.
+    pub data: Dataset,
+    /// Warnings in words (empty when the file was used as it is).
+    pub notes: Vec<String>,
 }
 
 impl Default for CsvOptions {
@@ -121,12 +152,22 @@ impl Default for CsvOptions {
             t_col: "t".into(),
             ts: None,
             fallback_ts: None,
+            no_header: false,
+            rows: None,
+            rows_flag: "--rows",
+            time_unit: TimeUnit::S,
+            resample: None,
         }
     }
 }
 
-/// Reads a record from a CSV file.
+/// Reads a record from a CSV file, or from a MATLAB Level 5 `.mat` file (by its header; see [`mat`]).
 pub fn read_csv(path: &Path, opts: &CsvOptions) -> Result<Dataset, SysidError> {
+    read_record(path, opts).map(|r| r.data)
+}
+
+/// Reads a record from a CSV file, with the reader's warnings (how non-uniform a resampled record was).
+pub fn read_record(path: &Path, opts: &CsvOptions) -> Result<Record, SysidError> {
     let io = |source| SysidError::Io {
         path: path.to_path_buf(),
         source,
@@ -141,12 +182,36 @@ pub fn read_csv(path: &Path, opts: &CsvOptions) -> Result<Dataset, SysidError> {
         });
     }
     let bytes = std::fs::read(path).map_err(io)?;
-    read_csv_bytes(&bytes, &path.display().to_string(), opts)
+    let name = path.display().to_string();
+    let is_mat_name = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("mat"));
+    if is_mat_name || mat::is_mat(&bytes) {
+        return mat::read_mat_bytes(&bytes, &name, opts);
+    }
+    read_record_bytes(&bytes, &name, opts)
 }
 
 /// Reads a record from CSV text held in memory; `name` is used in messages.
 pub fn read_csv_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Dataset, SysidError> {
-    let table = read_table(bytes, name)?;
+    read_record_bytes(bytes, name, opts).map(|r| r.data)
+}
+
+/// [`read_csv_bytes`] with the reader's warnings.
+pub fn read_record_bytes(
+    bytes: &[u8],
+    name: &str,
+    opts: &CsvOptions,
+) -> Result<Record, SysidError> {
+    let mut table = read_table_with(bytes, name, !opts.no_header)?;
+    let mut name = name.to_string();
+    if let Some(r) = &opts.rows {
+        let range = r.resolve(table.rows.len(), opts.rows_flag, &name)?;
+        table.rows = table.rows[range.clone()].to_vec();
+        name = format!("{name}[{}..{}]", range.start, range.end);
+    }
+    let name = name.as_str();
+    let mut notes = Vec::new();
     let ucol = table.column_index(&opts.u_col, Setting::UCol)?;
     let ycol = table.column_index(&opts.y_col, Setting::YCol)?;
     if ucol == ycol {
@@ -160,6 +225,21 @@ pub fn read_csv_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Dat
     let ts_given = opts.ts.or(if has_t { None } else { opts.fallback_ts });
     let u = table.numbers(ucol)?;
     let y = table.numbers(ycol)?;
+    if let Some(ts) = opts.resample {
+        let tc = table.column_index(&opts.t_col, Setting::TCol)?;
+        let t: Vec<f64> = table
+            .numbers(tc)?
+            .iter()
+            .map(|v| v * opts.time_unit.seconds())
+            .collect();
+        increasing(&t, &table, tc)?;
+        let r = resample::resample_record(&t, &u, &y, ts, name)?;
+        notes.push(r.note);
+        return Ok(Record {
+            data: Dataset::new(Signals { u: r.u, y: r.y }, ts, name)?,
+            notes,
+        });
+    }
     let ts = match ts_given {
         Some(ts) => {
             check_ts(ts)?;
@@ -177,11 +257,18 @@ pub fn read_csv_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Dat
                         table.header_list()
                     ),
                 })?;
-            let t = table.numbers(tc)?;
+            let t: Vec<f64> = table
+                .numbers(tc)?
+                .iter()
+                .map(|v| v * opts.time_unit.seconds())
+                .collect();
             uniform_ts(&t, &table, tc)?
         }
     };
-    Dataset::new(Signals { u, y }, ts, name)
+    Ok(Record {
+        data: Dataset::new(Signals { u, y }, ts, name)?,
+        notes,
+    })
 }
 
 /// A parsed CSV table: header names and raw cells with their line numbers.
@@ -197,6 +284,12 @@ pub struct Table {
 
 /// Parses CSV bytes into a [`Table`], checking the header and the shape of every row.
 pub fn read_table(bytes: &[u8], name: &str) -> Result<Table, SysidError> {
+    read_table_with(bytes, name, true)
+}
+
+/// [`read_table`], or with `has_header = false` a file without a header row (`--no-header`), whose columns
+/// are then named by their position, 1-based (`"1"`, `"2"`, ...).
+pub fn read_table_with(bytes: &[u8], name: &str, has_header: bool) -> Result<Table, SysidError> {
     let file_err = |message: String| SysidError::File {
         file: name.to_string(),
         message,
@@ -240,12 +333,29 @@ pub fn read_table(bytes: &[u8], name: &str) -> Result<Table, SysidError> {
     };
     let mut rdr = csv::ReaderBuilder::new()
         .delimiter(delimiter)
-        .has_headers(true)
+        .has_headers(has_header)
         .flexible(true)
         .trim(csv::Trim::All)
         .from_reader(text.as_bytes());
-    let header = rdr.headers().map_err(|e| csv_err(name, e))?.clone();
-    let mut headers: Vec<String> = header.iter().map(|h| unquote(h).to_string()).collect();
+    let mut headers: Vec<String> = if has_header {
+        let header = rdr.headers().map_err(|e| csv_err(name, e))?.clone();
+        header.iter().map(|h| unquote(h).to_string()).collect()
+    } else {
+        // Columns named by position, 1-based: "1", "2", ... (as many as the widest of the first rows).
+        let width = text
+            .lines()
+            .take(1000)
+            .map(|l| {
+                let fields: Vec<&str> = l.split(delimiter as char).collect();
+                fields
+                    .iter()
+                    .rposition(|f| !f.trim().is_empty())
+                    .map_or(0, |i| i + 1)
+            })
+            .max()
+            .unwrap_or(0);
+        (1..=width).map(|i| i.to_string()).collect()
+    };
     while headers.last().is_some_and(|h| h.is_empty()) {
         headers.pop();
     }
@@ -276,9 +386,22 @@ pub fn read_table(bytes: &[u8], name: &str) -> Result<Table, SysidError> {
         }
     }
     let mut rows = Vec::new();
+    // Line numbers from byte offsets (the csv crate's own line count is one short after CRLF line ends).
+    let (mut seen_byte, mut seen_line) = (0usize, 1usize);
     for rec in rdr.records() {
         let rec = rec.map_err(|e| csv_err(name, e))?;
-        let line = rec.position().map_or(0, |p| p.line() as usize);
+        let line = rec.position().map_or(0, |p| {
+            let bytes = text.as_bytes();
+            let mut at = (p.byte() as usize).min(bytes.len());
+            while at < bytes.len() && (bytes[at] == b'\r' || bytes[at] == b'\n') {
+                at += 1; // the record starts after the line ends before it
+            }
+            if at >= seen_byte {
+                seen_line += bytes[seen_byte..at].iter().filter(|&&b| b == b'\n').count();
+                seen_byte = at;
+            }
+            seen_line
+        });
         if rec.iter().all(|f| f.is_empty()) {
             continue; // a blank line or a row of bare delimiters
         }
@@ -448,7 +571,7 @@ fn unquote(field: &str) -> &str {
 }
 
 /// `x` to 6 significant digits, without trailing zeros (0.019999999999999997 -> 0.02).
-fn sig6(x: f64) -> String {
+pub(crate) fn sig6(x: f64) -> String {
     format!("{x:.5e}")
         .parse::<f64>()
         .map_or_else(|_| x.to_string(), |v| v.to_string())
@@ -471,25 +594,7 @@ fn uniform_ts(t: &[f64], table: &Table, col: usize) -> Result<f64, SysidError> {
         column: col + 1,
         message,
     };
-    if t.len() < 2 {
-        return Err(SysidError::File {
-            file: table.name.clone(),
-            message: "one sample is not enough to find Ts from the time column; pass --ts".into(),
-        });
-    }
-    for k in 1..t.len() {
-        if t[k] <= t[k - 1] {
-            return Err(at(
-                k,
-                format!(
-                    "time {} s does not increase after {} s on the previous row; expected strictly \
-                     increasing time",
-                    t[k],
-                    t[k - 1]
-                ),
-            ));
-        }
-    }
+    increasing(t, table, col)?;
     let mut steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
     let mid = steps.len() / 2;
     let median = *steps.select_nth_unstable_by(mid, f64::total_cmp).1;
@@ -509,7 +614,8 @@ fn uniform_ts(t: &[f64], table: &Table, col: usize) -> Result<f64, SysidError> {
                 k,
                 format!(
                     "non-uniform sampling: step {} s from the previous row differs from the typical \
-                     (median) step {} s by more than 0.1 %; resample the record or pass --ts",
+                     (median) step {} s by more than 0.1 %; pass --resample TS to interpolate onto a uniform \
+                     grid, or --ts",
                     sig6(dt),
                     sig6(median)
                 ),
@@ -517,6 +623,32 @@ fn uniform_ts(t: &[f64], table: &Table, col: usize) -> Result<f64, SysidError> {
         }
     }
     Ok(ts)
+}
+
+/// Checks that time increases strictly (at least two samples).
+fn increasing(t: &[f64], table: &Table, col: usize) -> Result<(), SysidError> {
+    if t.len() < 2 {
+        return Err(SysidError::File {
+            file: table.name.clone(),
+            message: "one sample is not enough to find Ts from the time column; pass --ts".into(),
+        });
+    }
+    for k in 1..t.len() {
+        if t[k] <= t[k - 1] {
+            return Err(SysidError::Parse {
+                file: table.name.clone(),
+                line: table.line_of(k),
+                column: col + 1,
+                message: format!(
+                    "time {} s does not increase after {} s on the previous row; expected strictly \
+                     increasing time",
+                    t[k],
+                    t[k - 1]
+                ),
+            });
+        }
+    }
+    Ok(())
 }
 
 /// `v` rounded to `digits` significant decimal digits (non-finite values unchanged).

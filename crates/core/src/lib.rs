@@ -10,6 +10,7 @@
 //! of the static nonlinearity (the valve deadzone b_l, b_r, m_l, m_r), A(q) y = B(q) x + c + e.
 
 pub mod data;
+pub mod detrend;
 pub mod error;
 pub mod ls;
 pub mod metrics;

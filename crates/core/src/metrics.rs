@@ -85,20 +85,21 @@ pub fn rmse(y: &[f64], yhat: &[f64]) -> f64 {
         .sqrt()
 }
 
-/// The free-run simulation of a single-input `model` on `data` from the initial outputs
+/// The free-run simulation of `model` (one input record per model input) from the initial outputs
 /// η = ŷ(0..k0−1) that fit the record best (MATLAB `compare` with `InitialCondition = 'e'`): η
 /// minimises Σ_{k<k0} (y(k) − η_k)² + Σ_{k≥k0} (y(k) − ŷ(k; η))², a linear least-squares problem since
 /// ŷ(k; η) = ŷ_m(k) + Σ_j s_j(k) (η_j − y(j)) with ŷ_m the simulation from the measured outputs and s_j
 /// the free responses of 1/A(q) to a unit initial output j (A s_j = 0, s_j(i) = δ_ij for i < k0).
 /// Returns the simulation and η. Fails when the simulation or a free response is not finite.
-pub fn simulate_estimated_initial(
+pub fn simulate_estimated_initial_miso(
     model: &Model,
-    data: &Dataset,
+    u: &[&[f64]],
+    y: &[f64],
 ) -> Result<(Vec<f64>, Vec<f64>), SysidError> {
-    let base = model.simulate(&data.u, &data.y)?;
+    let base = model.simulate_miso(u, y)?;
     let n = base.len();
     let k0 = model.k0().min(n);
-    let y0: Vec<f64> = data.y[..k0].to_vec();
+    let y0: Vec<f64> = y[..k0].to_vec();
     if k0 == 0 || n <= k0 {
         return Ok((base, y0));
     }
@@ -126,16 +127,16 @@ pub fn simulate_estimated_initial(
         }
     }
     for k in k0..n {
-        target[k] = data.y[k] - base[k];
+        target[k] = y[k] - base[k];
     }
     // A free response that is identically zero after k0 (a pole at 0) still has its unit row below
     // k0, so the problem is never rank deficient.
     let sol = crate::ls::solve(&phi, &target, &[])?;
     let eta: Vec<f64> = (0..k0).map(|j| y0[j] + sol.theta[j]).collect();
     let mut out = base;
-    for k in 0..n {
+    for (k, o) in out.iter_mut().enumerate() {
         let shift: f64 = (0..k0).map(|j| phi[(k, j)] * sol.theta[j]).sum();
-        out[k] += shift;
+        *o += shift;
     }
     if out.iter().any(|v| !v.is_finite()) {
         return Err(SysidError::Numerical(
@@ -145,36 +146,64 @@ pub fn simulate_estimated_initial(
     Ok((out, eta))
 }
 
-/// The one-step prediction ŷ(k|k−1) of `model` on `data` (MATLAB `predict(m, data, 1)` with estimated
-/// initial conditions): for an equation-error model the ARX predictor from the measured outputs; for an
+/// [`simulate_estimated_initial_miso`] of a single-input model on a record.
+pub fn simulate_estimated_initial(
+    model: &Model,
+    data: &Dataset,
+) -> Result<(Vec<f64>, Vec<f64>), SysidError> {
+    simulate_estimated_initial_miso(model, &[&data.u], &data.y)
+}
+
+/// The one-step prediction ŷ(k|k−1) of `model` (MATLAB `predict(m, data, 1)` with estimated initial
+/// conditions): for an equation-error model the ARX predictor from the measured outputs; for an
 /// output-error model (H = 1) the simulation from the estimated initial outputs.
-pub fn one_step_prediction(model: &Model, data: &Dataset) -> Result<Vec<f64>, SysidError> {
+pub fn one_step_prediction_miso(
+    model: &Model,
+    u: &[&[f64]],
+    y: &[f64],
+) -> Result<Vec<f64>, SysidError> {
     match model.noise_model() {
-        crate::NoiseModel::EquationError => model.predict(&data.u, &data.y),
-        crate::NoiseModel::OutputError => simulate_estimated_initial(model, data).map(|(s, _)| s),
+        crate::NoiseModel::EquationError => model.predict_k(u, y, 1),
+        crate::NoiseModel::OutputError => {
+            simulate_estimated_initial_miso(model, u, y).map(|(s, _)| s)
+        }
     }
+}
+
+/// [`one_step_prediction_miso`] of a single-input model on a record.
+pub fn one_step_prediction(model: &Model, data: &Dataset) -> Result<Vec<f64>, SysidError> {
+    one_step_prediction_miso(model, &[&data.u], &data.y)
 }
 
 /// Computes the validation metrics of `model` on `data`.
 pub fn metrics(model: &Model, data: &Dataset) -> Result<Metrics, SysidError> {
+    metrics_miso(model, &[&data.u], &data.y, &data.name)
+}
+
+/// [`metrics`] of a model with one input record per model input (MISO); `name` names the record.
+pub fn metrics_miso(
+    model: &Model,
+    u: &[&[f64]],
+    y_all: &[f64],
+    name: &str,
+) -> Result<Metrics, SysidError> {
     let k0 = model.k0();
     let p = model.parameter_count();
-    if data.len() <= k0 {
+    if y_all.len() <= k0 {
         return Err(SysidError::Data(format!(
-            "{}: {} samples are not enough to validate a model with k0 = {k0}",
-            data.name,
-            data.len()
+            "{name}: {} samples are not enough to validate a model with k0 = {k0}",
+            y_all.len()
         )));
     }
-    let y = &data.y[k0..];
+    let y = &y_all[k0..];
     let n = y.len();
-    let pred = one_step_prediction(model, data)?;
+    let pred = one_step_prediction_miso(model, u, y_all)?;
     let pred = &pred[k0..];
-    let (sim_measured, note) = match model.simulate(&data.u, &data.y) {
+    let (sim_measured, note) = match model.simulate_miso(u, y_all) {
         Ok(s) => (Some(s), None),
         Err(e) => (None, Some(e.to_string())),
     };
-    let (sim, note) = match simulate_estimated_initial(model, data) {
+    let (sim, note) = match simulate_estimated_initial_miso(model, u, y_all) {
         Ok((s, _)) => (Some(s), note),
         Err(e) => (None, note.or_else(|| Some(e.to_string()))),
     };
@@ -182,7 +211,7 @@ pub fn metrics(model: &Model, data: &Dataset) -> Result<Metrics, SysidError> {
     if !sse.is_finite() {
         return Err(SysidError::Numerical(format!(
             "{}: the squared prediction errors overflow f64 (values too large? rescale the data)",
-            data.name
+            name
         )));
     }
     let mse = sse / n as f64;
@@ -230,6 +259,37 @@ mod tests {
     fn fit_of_a_constant_output_is_undefined() {
         assert_eq!(fit_percent(&[2.0, 2.0], &[2.0, 2.0]), None);
     }
+}
+
+/// The outputs of a model on a record (`validate --out`): free-run simulation and K-step prediction.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ModelOutput {
+    /// Free-run simulation ŷ_sim(k) from the measured initial outputs (the k < k0 entries are the
+    /// data), `None` when it diverged.
+    pub y_sim: Option<Vec<f64>>,
+    /// K-step-ahead prediction ŷ(k | k − K) (MATLAB `predict(m, z, K)`); entries k < k0 are the data.
+    pub y_pred: Vec<f64>,
+    /// Fit % of `y_pred` over k >= k0.
+    pub fit_pred_percent: Option<f64>,
+}
+
+/// Simulation and `horizon`-step prediction of `model` (horizon >= 1) from one input record per model
+/// input and the measured output `y`.
+pub fn model_output(
+    model: &Model,
+    u: &[&[f64]],
+    y: &[f64],
+    horizon: usize,
+) -> Result<ModelOutput, SysidError> {
+    let y_pred = model.predict_k(u, y, horizon)?;
+    let k0 = model.k0().min(y_pred.len());
+    let y_sim = model.simulate_miso(u, y).ok();
+    let fit_pred_percent = fit_percent(&y[k0..y_pred.len()], &y_pred[k0..]);
+    Ok(ModelOutput {
+        y_sim,
+        y_pred,
+        fit_pred_percent,
+    })
 }
 
 #[cfg(test)]

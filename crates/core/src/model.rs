@@ -11,6 +11,7 @@
 use nalgebra::{Complex, DMatrix};
 use serde::{Deserialize, Serialize};
 
+use crate::detrend::OperatingPoint;
 use crate::{Deadzone, StaticNonlinearity, SysidError};
 
 /// Model orders of a single-input model: na poles, nb coefficients in B, nk samples of pure delay.
@@ -164,6 +165,7 @@ pub struct Model {
     inputs: Vec<InputChannel>,
     offset: Option<f64>,
     noise: NoiseModel,
+    operating_point: Option<OperatingPoint>,
 }
 
 impl Model {
@@ -194,6 +196,7 @@ impl Model {
             inputs,
             offset,
             noise: NoiseModel::EquationError,
+            operating_point: None,
         })
     }
 
@@ -266,6 +269,7 @@ impl Model {
             }],
             offset: None,
             noise: NoiseModel::EquationError,
+            operating_point: None,
         }
     }
 
@@ -328,6 +332,32 @@ impl Model {
     /// Constant term c of the linear block (mm), when estimated with an offset.
     pub fn offset(&self) -> Option<f64> {
         self.offset
+    }
+
+    /// The operating point (u0, y0) the model was identified around (`--detrend`), if any: the model
+    /// relates u − u0 to y − y0, and its simulations, predictions and plant steps are in the user's units.
+    pub fn operating_point(&self) -> Option<&OperatingPoint> {
+        self.operating_point.as_ref()
+    }
+
+    /// The same model around the operating point `op` (one u0 per input, all finite), or without one.
+    pub fn with_operating_point(mut self, op: Option<OperatingPoint>) -> Result<Self, SysidError> {
+        if let Some(o) = &op {
+            if o.u.len() != self.inputs.len() {
+                return Err(SysidError::Data(format!(
+                    "invalid model: the operating point has {} input value(s) but the model has {} input(s)",
+                    o.u.len(),
+                    self.inputs.len()
+                )));
+            }
+            if o.u.iter().any(|v| !v.is_finite()) || !o.y.is_finite() {
+                return Err(SysidError::Data(
+                    "invalid model: the operating point is NaN or infinite".into(),
+                ));
+            }
+        }
+        self.operating_point = op;
+        Ok(self)
     }
 
     /// The same model with A replaced by `a` (same order or not); fails on non-finite values.
@@ -430,9 +460,38 @@ impl Model {
         }
     }
 
-    /// `horizon = None`: free run; `Some(h)`: each y_hat(k) is the h-step prediction from the measured
-    /// outputs up to k - h.
+    /// [`Model::run_deviation`] in the user's units: with an operating point (u0, y0), the model runs on
+    /// u − u0 and y − y0 and y0 is added back to its output.
     fn run(&self, u: &[&[f64]], y: &[f64], horizon: Option<usize>) -> Result<Vec<f64>, SysidError> {
+        let Some(op) = &self.operating_point else {
+            return self.run_deviation(u, y, horizon);
+        };
+        if u.len() != op.u.len() {
+            return self.run_deviation(u, y, horizon); // reports the mismatch
+        }
+        let du: Vec<Vec<f64>> = u
+            .iter()
+            .zip(&op.u)
+            .map(|(s, u0)| s.iter().map(|v| v - u0).collect())
+            .collect();
+        let du: Vec<&[f64]> = du.iter().map(Vec::as_slice).collect();
+        let dy: Vec<f64> = y.iter().map(|v| v - op.y).collect();
+        let mut out = self.run_deviation(&du, &dy, horizon)?;
+        // The first k0 entries are the measured outputs themselves.
+        let k0 = self.k0().min(out.len());
+        out[..k0].copy_from_slice(&y[..k0]);
+        out[k0..].iter_mut().for_each(|v| *v += op.y);
+        Ok(out)
+    }
+
+    /// `horizon = None`: free run; `Some(h)`: each y_hat(k) is the h-step prediction from the measured
+    /// outputs up to k - h. Signals are deviations from the operating point (if any).
+    fn run_deviation(
+        &self,
+        u: &[&[f64]],
+        y: &[f64],
+        horizon: Option<usize>,
+    ) -> Result<Vec<f64>, SysidError> {
         if u.len() != self.inputs.len() {
             return Err(SysidError::Data(format!(
                 "the model has {} input(s) but {} input record(s) were given",
@@ -563,6 +622,9 @@ pub(crate) struct ModelRepr {
     deadzone: Option<Deadzone>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     inputs: Option<Vec<InputRepr>>,
+    /// (u0, y0) of a detrended identification; absent otherwise (model file version 2).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    operating_point: Option<OperatingPoint>,
     /// Absent for the equation-error (ARX) noise model, so that such models keep their keys.
     #[serde(default, skip_serializing_if = "is_equation_error")]
     noise_model: NoiseModel,
@@ -642,7 +704,9 @@ impl TryFrom<ModelRepr> for Model {
                 v
             }
         };
-        let m = Model::new(r.ts, r.a, inputs, r.offset)?.with_noise_model(r.noise_model);
+        let m = Model::new(r.ts, r.a, inputs, r.offset)?
+            .with_operating_point(r.operating_point)?
+            .with_noise_model(r.noise_model);
         if m.kind() != r.kind {
             return bad(format!(
                 "kind = {} does not match the inputs' nonlinearities",
@@ -681,6 +745,7 @@ impl From<Model> for ModelRepr {
             offset: m.offset,
             inputs,
             noise_model: m.noise,
+            operating_point: m.operating_point,
         }
     }
 }
@@ -782,7 +847,8 @@ fn durand_kerner(c: &[f64]) -> Vec<Complex<f64>> {
 /// An identified (or given) single-input model run as a [`Plant`](crate::Plant): state = past outputs
 /// and past x.
 ///
-/// Starts at rest: every past output equal to y0 and every past x equal to 0.
+/// Starts at rest: every past output equal to y0 and every past x equal to 0. A model with an operating
+/// point (u0, y0) takes u and returns y in the user's units (it runs on u − u0 and adds y0).
 #[derive(Debug, Clone)]
 pub struct ModelPlant {
     model: Model,
@@ -821,6 +887,20 @@ impl ModelPlant {
     pub fn model(&self) -> &Model {
         &self.model
     }
+
+    /// u0 of the model's operating point (0 without one).
+    fn u0(&self) -> f64 {
+        self.model
+            .operating_point
+            .as_ref()
+            .and_then(|o| o.u.first().copied())
+            .unwrap_or(0.0)
+    }
+
+    /// y0 of the model's operating point (0 without one).
+    fn y0(&self) -> f64 {
+        self.model.operating_point.as_ref().map_or(0.0, |o| o.y)
+    }
 }
 
 impl crate::Plant for ModelPlant {
@@ -829,15 +909,16 @@ impl crate::Plant for ModelPlant {
     }
 
     fn output(&self) -> f64 {
-        self.y_hist[0]
+        self.y_hist[0] + self.y0()
     }
 
     fn step(&mut self, u: f64) -> Result<f64, crate::PlantError> {
+        let (u0, y0) = (self.u0(), self.y0());
         let m = &self.model;
         // x(k) enters the history; x_hist[i] = x(k - i) after the shift.
         if !self.x_hist.is_empty() {
             self.x_hist.rotate_right(1);
-            self.x_hist[0] = m.input_map(u);
+            self.x_hist[0] = m.input_map(u - u0);
         }
         // y(k+1) = -sum a_i y(k+1-i) + sum b_j x(k+1-nk-(j-1)) + c; x(k+1-nk-j') = x_hist[nk-1+j'].
         let mut v = m.offset().unwrap_or(0.0);
@@ -856,11 +937,12 @@ impl crate::Plant for ModelPlant {
         }
         self.y_hist.rotate_right(1);
         self.y_hist[0] = v;
-        Ok(v)
+        Ok(v + y0)
     }
 
     fn reset(&mut self, y0_mm: f64) {
-        self.y_hist.iter_mut().for_each(|v| *v = y0_mm);
+        let dev = y0_mm - self.y0();
+        self.y_hist.iter_mut().for_each(|v| *v = dev);
         self.x_hist.iter_mut().for_each(|v| *v = 0.0);
     }
 

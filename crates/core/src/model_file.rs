@@ -1,6 +1,6 @@
 //! Saved model files (`identify --save-model`), read back by `validate --model` and `--plant model:FILE`.
 //!
-//! A model file is a JSON object `{"format": "ipa-sysid-model", "version": 1, "model": {...}}` where
+//! A model file is a JSON object `{"format": "ipa-sysid-model", "version": 2, "model": {...}}` where
 //! `model` has the keys of [`Model`]. The JSON written by `identify --json` is accepted too (it also has a
 //! top-level `model` object).
 
@@ -13,8 +13,9 @@ use crate::{Model, SysidError};
 
 /// Value of the `format` key of a model file.
 pub const FORMAT: &str = "ipa-sysid-model";
-/// Current version of the model file schema.
-pub const VERSION: u32 = 1;
+/// Current version of the model file schema. Version 2 added the optional `operating_point` (`--detrend`);
+/// version 1 files still load (they have no operating point).
+pub const VERSION: u32 = 2;
 
 #[derive(Serialize)]
 struct ModelFileOut<'a> {

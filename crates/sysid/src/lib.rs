@@ -9,9 +9,12 @@
 //! re-exported here for convenience. Recursive updates share one abstraction ([`rls::RecursiveUpdate`]).
 
 pub mod branches;
+pub mod delay;
 pub mod estimate;
 pub mod iv;
 pub use sysid_core::ls;
+pub mod merge;
+pub mod miso;
 pub mod oe;
 pub mod order;
 pub mod residuals;
@@ -26,8 +29,8 @@ pub use estimate::{
     LeastSquares, Method, Note, OutputError, Param, Passes, RecursiveLeastSquares, Termination,
 };
 pub use sysid_core::{
-    data, metrics, model, model_file, nonlinearity, param, plant, structure, Dataset, Deadzone,
-    InputChannel, Model, ModelKind, ModelPlant, Orders, ParamName, Parameterisation, Plant,
-    PlantError, Setting, StaticNonlinearity, Structure, SysidError,
+    data, detrend, metrics, model, model_file, nonlinearity, param, plant, structure, Dataset,
+    Deadzone, InputChannel, Model, ModelKind, ModelPlant, Orders, ParamName, Parameterisation,
+    Plant, PlantError, Setting, StaticNonlinearity, Structure, SysidError,
 };
 pub use warnings::Warning;

@@ -83,11 +83,22 @@ pub struct ResidualsPair {
 /// predictor: equation error for ARX-type estimates, output error for the output-error method), rows
 /// k ≥ k0, analysed against the input of the same rows with `max_lag` lags.
 pub fn residual_analysis(model: &Model, data: &Dataset, max_lag: usize) -> ResidualEntry {
+    residual_analysis_miso(model, &[&data.u], &data.y, max_lag)
+}
+
+/// [`residual_analysis`] with one input record per model input; the cross-correlation is with the
+/// first input.
+pub fn residual_analysis_miso(
+    model: &Model,
+    u: &[&[f64]],
+    y: &[f64],
+    max_lag: usize,
+) -> ResidualEntry {
     let k0 = model.k0();
-    let result = sysid_core::metrics::one_step_prediction(model, data)
+    let result = sysid_core::metrics::one_step_prediction_miso(model, u, y)
         .map_err(|e| e.to_string())
         .and_then(|pred| {
-            let eps: Vec<f64> = data.y[k0..]
+            let eps: Vec<f64> = y[k0..]
                 .iter()
                 .zip(&pred[k0..])
                 .map(|(y, p)| y - p)
@@ -96,7 +107,8 @@ pub fn residual_analysis(model: &Model, data: &Dataset, max_lag: usize) -> Resid
                 max_lag,
                 ..ResidOptions::default()
             };
-            analyze(&eps, &data.u[k0..], &options).map_err(|e| e.to_string())
+            let u0 = u.first().map_or(&[][..], |u| &u[k0..]);
+            analyze(&eps, u0, &options).map_err(|e| e.to_string())
         });
     match result {
         Ok(a) => ResidualEntry::Analysis(Box::new(a)),
@@ -246,7 +258,18 @@ impl ValidationReport {
     /// Validates `model` on `data`: metrics, residual analysis with `max_lag` lags, warnings (unstable
     /// model, negative or diverging simulation fit).
     pub fn assemble(model: &Model, data: &Dataset, max_lag: usize) -> Result<Self, SysidError> {
-        let m = metrics(model, data)?;
+        Self::assemble_miso(model, &[&data.u], &data.y, &data.name, max_lag)
+    }
+
+    /// [`ValidationReport::assemble`] with one input record per model input; `name` names the record.
+    pub fn assemble_miso(
+        model: &Model,
+        u: &[&[f64]],
+        y: &[f64],
+        name: &str,
+        max_lag: usize,
+    ) -> Result<Self, SysidError> {
+        let m = sysid_core::metrics::metrics_miso(model, u, y, name)?;
         let mut warnings = Vec::new();
         let max_pole = model.poles().iter().map(|z| z.norm()).fold(0.0, f64::max);
         if max_pole >= 1.0 {
@@ -273,7 +296,7 @@ impl ValidationReport {
             stable: model.is_stable(),
             metrics: ValidationMetrics { validation: m },
             residuals: ValidationResiduals {
-                validation: residual_analysis(model, data, max_lag),
+                validation: residual_analysis_miso(model, u, y, max_lag),
             },
             warnings,
         })

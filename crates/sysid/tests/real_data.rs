@@ -29,7 +29,7 @@ fn tanks(dir: &std::path::Path, u: &str, y: &str) -> Dataset {
         y_col: y.into(),
         t_col: "t".into(),
         ts: Some(4.0),
-        fallback_ts: None,
+        ..CsvOptions::default()
     };
     read_csv(&dir.join("cascaded_tanks/dataBenchmark.csv"), &opts).unwrap()
 }

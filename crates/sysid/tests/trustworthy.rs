@@ -36,6 +36,7 @@ fn read(path: &Path, u: &str, y: &str, ts: f64) -> Dataset {
         t_col: "t".into(),
         ts: Some(ts),
         fallback_ts: None,
+        ..CsvOptions::default()
     };
     read_csv(path, &opts).unwrap()
 }

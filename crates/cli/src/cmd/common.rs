@@ -4,15 +4,22 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use sysid::data::CsvOptions;
+use sysid::data::{CsvOptions, Record, RowRange, TimeUnit};
+
+/// Parses `--rows A..B`.
+pub fn parse_rows(text: &str) -> Result<RowRange, String> {
+    text.parse::<RowRange>().map_err(|_| {
+        "expected A..B: 0-based data rows, B excluded (A.. and ..B allowed), e.g. 0..500".into()
+    })
+}
 
 /// Which columns of a CSV file hold the data, and its sampling period.
 #[derive(Debug, Clone, clap::Args)]
 pub struct ColumnArgs {
-    /// Name of the input column u.
+    /// Name of the input column u (with --no-header: its position, 1-based).
     #[arg(long, default_value = "u", value_name = "NAME")]
     pub u_col: String,
-    /// Name of the output column y.
+    /// Name of the output column y (with --no-header: its position, 1-based).
     #[arg(long, default_value = "y", value_name = "NAME")]
     pub y_col: String,
     /// Name of the time column (gives Ts when --ts is not passed; must be uniform and increasing).
@@ -21,6 +28,19 @@ pub struct ColumnArgs {
     /// Sampling period Ts in seconds (overrides the time column).
     #[arg(long, value_name = "SECONDS")]
     pub ts: Option<f64>,
+    /// The file has no header row: columns are named by position, 1-based (--u-col 2 --y-col 5 --t-col 1).
+    #[arg(long)]
+    pub no_header: bool,
+    /// Use only data rows A..B (0-based, B excluded; A.. and ..B allowed), e.g. --rows 0..500.
+    #[arg(long, value_name = "A..B", value_parser = parse_rows)]
+    pub rows: Option<RowRange>,
+    /// Unit of the time column (Ts and --ts are always in seconds).
+    #[arg(long, value_enum, default_value = "s")]
+    pub time_unit: TimeUnit,
+    /// Interpolate a non-uniform record onto a uniform grid with this Ts in seconds (linear; a warning
+    /// says how non-uniform it was).
+    #[arg(long, value_name = "SECONDS", conflicts_with = "ts")]
+    pub resample: Option<f64>,
 }
 
 impl ColumnArgs {
@@ -32,7 +52,29 @@ impl ColumnArgs {
             t_col: self.t_col.clone(),
             ts: self.ts,
             fallback_ts: None,
+            no_header: self.no_header,
+            rows: self.rows,
+            rows_flag: "--rows",
+            time_unit: self.time_unit,
+            resample: self.resample,
         }
+    }
+}
+
+/// Prints a command's text report: on standard error when the JSON goes to standard output (`--json -`),
+/// so that the JSON stays parseable, else on standard output.
+pub fn print_report(text: &str, json: Option<&Path>) {
+    if json.is_some_and(|p| p.as_os_str() == "-") {
+        eprint!("{text}");
+    } else {
+        print!("{text}");
+    }
+}
+
+/// Prints the reader's warnings on standard error.
+pub fn print_notes(notes: &[String]) {
+    for n in notes {
+        eprintln!("warning: {n}");
     }
 }
 
@@ -100,21 +142,76 @@ pub struct ValidationArgs {
     /// Output column of the validation file (default: --y-col).
     #[arg(long, value_name = "NAME")]
     pub val_y_col: Option<String>,
+    /// Validation rows A..B (0-based, B excluded) of --validation FILE, or of the --data file itself.
+    #[arg(long, value_name = "A..B", value_parser = parse_rows)]
+    pub val_rows: Option<RowRange>,
+    /// Estimate on the first fraction F of the (--rows) record and validate on the rest (0 < F < 1).
+    #[arg(long, value_name = "F", conflicts_with_all = ["validation", "val_rows"])]
+    pub split: Option<f64>,
+}
+
+/// An estimation record and its optional validation record, with the reader's warnings.
+pub struct Records {
+    /// The estimation record.
+    pub est: sysid::Dataset,
+    /// The validation record, if any.
+    pub val: Option<sysid::Dataset>,
+    /// Reader warnings (resampling) of both.
+    pub notes: Vec<String>,
 }
 
 impl ValidationArgs {
     /// Reads the validation record, if any, with the estimation file's options except for the columns
-    /// named by `--val-u-col` / `--val-y-col` (default: the estimation column names).
-    pub fn read(&self, opts: &CsvOptions) -> anyhow::Result<Option<sysid::Dataset>> {
-        let Some(path) = &self.validation else {
-            return Ok(None);
+    /// named by `--val-u-col` / `--val-y-col` (default: the estimation column names) and the rows
+    /// (`--val-rows`, default all). Without `--validation`, `--val-rows` selects rows of `data`.
+    pub fn read_from(&self, data: &Path, opts: &CsvOptions) -> anyhow::Result<Option<Record>> {
+        let path = match (&self.validation, &self.val_rows) {
+            (Some(p), _) => p.as_path(),
+            (None, Some(_)) => data,
+            (None, None) => return Ok(None),
         };
         let vopts = CsvOptions {
             u_col: self.val_u_col.clone().unwrap_or_else(|| opts.u_col.clone()),
             y_col: self.val_y_col.clone().unwrap_or_else(|| opts.y_col.clone()),
+            rows: self.val_rows,
+            rows_flag: "--val-rows",
             ..opts.clone()
         };
-        Ok(Some(sysid::data::read_csv(path, &vopts)?))
+        Ok(Some(sysid::data::read_record(path, &vopts)?))
+    }
+
+    /// Reads the validation record of `--validation` (rows `--val-rows`), if any (batch mode).
+    pub fn read(&self, opts: &CsvOptions) -> anyhow::Result<Option<sysid::Dataset>> {
+        match &self.validation {
+            None => Ok(None),
+            Some(p) => Ok(self.read_from(p, opts)?.map(|r| r.data)),
+        }
+    }
+
+    /// The estimation record of `data` (its `--rows`) and the validation record: `--split F` of the
+    /// estimation rows, `--validation FILE` (its `--val-rows`), or `--val-rows` of `data`.
+    pub fn records(&self, data: &Path, opts: &CsvOptions) -> anyhow::Result<Records> {
+        let est = sysid::data::read_record(data, opts)?;
+        let mut notes = est.notes;
+        if let Some(f) = self.split {
+            let n = est.data.len();
+            let k = sysid::data::split_rows(n, f)?;
+            return Ok(Records {
+                val: Some(est.data.rows(k..n)),
+                est: est.data.rows(0..k),
+                notes,
+            });
+        }
+        let val = self.read_from(data, opts)?;
+        let val = val.map(|v| {
+            notes.extend(v.notes);
+            v.data
+        });
+        Ok(Records {
+            est: est.data,
+            val,
+            notes,
+        })
     }
 }
 

@@ -185,10 +185,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 sysid::Model::paper().deadzone().copied()
             } else {
                 inputs.push(path.clone());
-                sysid::model_file::read_model(path)
-                    .context("cannot read --compensate-deadzone")?
-                    .deadzone()
-                    .copied()
+                let m = sysid::model_file::read_model(path)
+                    .context("cannot read --compensate-deadzone")?;
+                // A detrended model's deadzone acts on u - u0: in the command's units its breakpoints
+                // are shifted by u0 (the slopes are unchanged).
+                let u0 = m
+                    .operating_point()
+                    .and_then(|o| o.u.first().copied())
+                    .unwrap_or(0.0);
+                m.deadzone().map(|d| sysid::Deadzone {
+                    b_l: d.b_l + u0,
+                    b_r: d.b_r + u0,
+                    ..*d
+                })
             };
             let Some(deadzone) = deadzone else {
                 bail!(sysid::SysidError::setting(

@@ -11,7 +11,57 @@ use sysid::summary::IdentifyReport;
 use sysid::windup::Windup;
 use sysid::{ModelKind, Orders, Structure};
 
-use super::common::{check_outputs, write_output, ColumnArgs, ValidationArgs};
+use super::common::{
+    check_outputs, print_notes, print_report, write_output, ColumnArgs, ValidationArgs,
+};
+use sysid::detrend::{detrend, Detrend};
+
+/// One order per input (`--nb 2,1`; one value applies to every input).
+#[derive(Debug, Clone, PartialEq)]
+pub struct OrderList(pub Vec<usize>);
+
+impl OrderList {
+    /// The first (for one input: the only) value.
+    pub fn first(&self) -> usize {
+        self.0.first().copied().unwrap_or(0)
+    }
+
+    /// The value for each of `n` inputs: one value applies to all; fails (naming `flag`) unless there is
+    /// one value or one per input.
+    pub fn per_input(&self, n: usize, flag: &'static str) -> anyhow::Result<Vec<usize>> {
+        match self.0.len() {
+            1 => Ok(vec![self.first(); n]),
+            m if m == n => Ok(self.0.clone()),
+            m => Err(sysid::SysidError::setting(
+                sysid::Setting::Other(flag),
+                format!("{m} values"),
+                &format!("one value for every input, or one per input ({n} inputs)"),
+            )
+            .into()),
+        }
+    }
+}
+
+/// Parses `--nb 2` or, with several inputs, `--nb 2,1`.
+fn parse_order_list(text: &str) -> Result<OrderList, String> {
+    text.split(',')
+        .map(parse_order)
+        .collect::<Result<_, _>>()
+        .map(OrderList)
+}
+
+/// Parses one order (`--na 3`); a range such as `1..5` points to `order`, which compares structures.
+fn parse_order(text: &str) -> Result<usize, String> {
+    if text.contains("..") {
+        return Err(format!(
+            "identify fits one structure; to compare orders {text} use `ipa-sysid order --na 1..5 --nb 1..3 \
+             --nk 0..5` (it ranks them by fit, AIC and FPE), then identify the chosen one"
+        ));
+    }
+    text.trim()
+        .parse()
+        .map_err(|e| format!("{e}; expected a whole number >= 0"))
+}
 
 /// Flags of `identify`.
 #[derive(Debug, clap::Args)]
@@ -22,18 +72,28 @@ pub struct Args {
     pub data: Vec<PathBuf>,
     #[command(flatten)]
     pub columns: ColumnArgs,
-    /// Model structure.
-    #[arg(long, value_enum, default_value = "hammerstein")]
+    /// Model structure (`--model` is an older spelling; `--model` names a model file elsewhere).
+    #[arg(
+        long = "structure",
+        alias = "model",
+        value_name = "STRUCTURE",
+        value_enum,
+        default_value = "hammerstein"
+    )]
     pub model: ModelKind,
     /// na: number of poles (order of A).
-    #[arg(long, default_value_t = 3)]
+    #[arg(long, default_value_t = 3, value_parser = parse_order)]
     pub na: usize,
-    /// nb: number of B coefficients (>= 1 for Hammerstein).
-    #[arg(long, default_value_t = 1)]
-    pub nb: usize,
-    /// nk: input delay in samples.
-    #[arg(long, default_value_t = 1)]
-    pub nk: usize,
+    /// nb: number of B coefficients (>= 1 for Hammerstein); with several inputs one per input (2,1) or
+    /// one for all.
+    #[arg(long, default_value = "1", value_parser = parse_order_list)]
+    pub nb: OrderList,
+    /// nk: input delay in samples; with several inputs one per input (1,2) or one for all.
+    #[arg(long, default_value = "1", value_parser = parse_order_list)]
+    pub nk: OrderList,
+    /// Several inputs (--u-col u1,u2) with --structure hammerstein: these inputs are linear (no deadzone).
+    #[arg(long, value_name = "NAME,...", value_delimiter = ',')]
+    pub linear_inputs: Vec<String>,
     /// Estimator.
     #[arg(long, value_enum, default_value = "rls")]
     pub method: Method,
@@ -65,6 +125,15 @@ pub struct Args {
     /// Estimate a constant term c in the linear block.
     #[arg(long)]
     pub offset: bool,
+    /// Remove the estimation record's operating point from u and y (MATLAB `detrend`): `mean` (ū, ȳ) or
+    /// `linear` (a straight line per signal). The model stores (u0, y0) = (ū, ȳ) and puts it back in
+    /// validate, simulate and control.
+    #[arg(long, value_enum, default_value = "none")]
+    pub detrend: Detrend,
+    /// Several --data files: estimate ONE model from all of them (MATLAB `merge`; no regression row spans
+    /// two records), with metrics per record and pooled. Least squares only (--method ls).
+    #[arg(long)]
+    pub merge: bool,
     #[command(flatten)]
     pub val: ValidationArgs,
     /// Lags M of the residual analysis (autocorrelation τ = 1..M, cross-correlation τ = −M..M).
@@ -130,8 +199,8 @@ impl Args {
                 kind: self.model,
                 orders: Orders {
                     na: self.na,
-                    nb: self.nb,
-                    nk: self.nk,
+                    nb: self.nb.first(),
+                    nk: self.nk.first(),
                 },
                 offset: self.offset,
             },
@@ -146,6 +215,17 @@ impl Args {
 
 /// Runs `identify`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.columns.u_col.contains(',') {
+        return run_miso(&args);
+    }
+    if args.nb.0.len() > 1 || args.nk.0.len() > 1 || !args.linear_inputs.is_empty() {
+        anyhow::bail!(
+            "--nb/--nk lists and --linear-inputs are for several inputs: name them with --u-col u1,u2"
+        );
+    }
+    if args.merge {
+        return run_merged(&args);
+    }
     if super::identify_batch::is_batch(&args.data) {
         return super::identify_batch::run(args);
     }
@@ -161,10 +241,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &inputs,
     )?;
     let opts = args.columns.csv_options();
-    let data = sysid::data::read_csv(data_path, &opts)?;
-    let val = args.val.read(&opts)?;
-    let fit = identify(&data, &settings)?;
-    let report = IdentifyReport::assemble(&fit, &settings, &data, val.as_ref(), args.resid_lags)?;
+    let records = args.val.records(data_path, &opts)?;
+    print_notes(&records.notes);
+    let (data, val) = (records.est, records.val);
+    let (detrended, op) = detrend(&data, args.detrend);
+    let mut fit = identify(&detrended, &settings)?;
+    fit.model = fit.model.with_operating_point(op)?;
+    // Metrics, residuals and warnings in the user's units: the model puts its operating point back.
+    let mut report =
+        IdentifyReport::assemble(&fit, &settings, &data, val.as_ref(), args.resid_lags)?;
+    // The reader's warnings (a resampled record...) are warnings about these numbers too.
+    report
+        .warnings
+        .extend(records.notes.iter().map(|n| format!("data: {n}")));
     let json_to_stdout = args.json.as_deref().is_some_and(|p| p.as_os_str() == "-");
     let text = format!(
         "Data: {} ({} samples){}\n{}",
@@ -174,22 +263,299 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .map(|v| format!("; validation: {} ({} samples)", v.name, v.len()))
             .unwrap_or_default(),
         crate::text::identify_report(&report)
-    );
+    ) + &fit
+        .model
+        .operating_point()
+        .map(|o| {
+            format!(
+                "Detrended ({}): the model works around the operating point u0 = {}, y0 = {} (put back in \
+                 its simulations and predictions)\n",
+                args.detrend,
+                o.u.iter().map(|v| report::format::num(*v)).collect::<Vec<_>>().join(", "),
+                report::format::num(o.y)
+            )
+        })
+        .unwrap_or_default();
     if json_to_stdout {
         eprint!("{text}");
     } else {
         print!("{text}");
     }
     if let Some(path) = &args.json {
-        write_output(path, report.to_json()?.as_bytes(), &inputs, "--json")?;
+        let mut json = report.to_json()?;
+        if !records.notes.is_empty() || args.detrend != Detrend::None {
+            // The reader's warnings and the detrending travel with the numbers they concern.
+            let mut value: serde_json::Value = serde_json::from_str(&json)?;
+            if let Some(obj) = value.as_object_mut() {
+                obj.insert("detrend".into(), serde_json::json!(args.detrend));
+                obj.insert("data_notes".into(), serde_json::json!(records.notes));
+            }
+            json = serde_json::to_string_pretty(&value)? + "\n";
+        }
+        write_output(path, json.as_bytes(), &inputs, "--json")?;
     }
-    if let Some(path) = &args.save_model {
-        write_output(
-            path,
-            sysid::model_file::to_json(&fit.model)?.as_bytes(),
-            &inputs,
-            "--save-model",
-        )?;
-    }
+    save_model(&args, &fit.model, &inputs)?;
     crate::exit::strict(args.strict, report.warnings.len())
+}
+
+/// Writes `--save-model`, if given.
+fn save_model(args: &Args, model: &sysid::Model, inputs: &[&Path]) -> anyhow::Result<()> {
+    if let Some(path) = &args.save_model {
+        let json = sysid::model_file::to_json(model)?;
+        write_output(path, json.as_bytes(), inputs, "--save-model")?;
+    }
+    Ok(())
+}
+
+/// Runs `identify --merge`: one model from every `--data` record.
+fn run_merged(args: &Args) -> anyhow::Result<()> {
+    let settings = args.settings();
+    settings.check()?;
+    if args.method != Method::Ls {
+        anyhow::bail!(sysid::SysidError::setting(
+            sysid::Setting::Other("--method"),
+            args.method,
+            "ls: --merge estimates by least squares on the stacked records"
+        ));
+    }
+    if args.detrend != Detrend::None || args.val.split.is_some() {
+        anyhow::bail!(
+            "--merge cannot be combined with --detrend or --split; detrend or split the records first"
+        );
+    }
+    let files = super::identify_batch::expand(&args.data)?;
+    let mut inputs: Vec<&Path> = files.iter().map(PathBuf::as_path).collect();
+    inputs.extend(args.val.validation.as_deref());
+    check_outputs(
+        &[(&args.json, "--json"), (&args.save_model, "--save-model")],
+        &inputs,
+    )?;
+    let opts = args.columns.csv_options();
+    let mut records = Vec::with_capacity(files.len());
+    let mut notes = Vec::new();
+    for f in &files {
+        let r = sysid::data::read_record(f, &opts)?;
+        notes.extend(r.notes);
+        records.push(r.data);
+    }
+    let val = args.val.read(&opts)?;
+    print_notes(&notes);
+    let fit = sysid::merge::identify_merged(&records, settings.structure, args.max_iterations)?;
+    let est = sysid::merge::merged_metrics(&fit.model, &records)?;
+    let val_metrics = val
+        .as_ref()
+        .map(|v| sysid::metrics::metrics(&fit.model, v))
+        .transpose()?;
+    let o = |v: Option<f64>| v.map_or_else(|| "n/a".to_string(), |v| format!("{v:.2}"));
+    let mut text = format!(
+        "Merged estimation: one {} model (na = {}, nb = {}, nk = {}) by least squares from {} records \
+         ({} regression rows; no row spans two records), {} iteration(s)\n  a = {:?}\n  b = {:?}{}{}\n\n",
+        fit.model.kind(),
+        fit.model.na(),
+        fit.model.nb(),
+        fit.model.nk(),
+        records.len(),
+        fit.rows.iter().sum::<usize>(),
+        fit.iterations,
+        fit.model.a(),
+        fit.model.b(),
+        fit.model
+            .deadzone()
+            .map(|d| format!("\n  deadzone: b_l = {}, b_r = {}, m_l = {}, m_r = {}", d.b_l, d.b_r, d.m_l, d.m_r))
+            .unwrap_or_default(),
+        fit.model.offset().map(|c| format!("\n  c = {c}")).unwrap_or_default(),
+    );
+    text.push_str(&format!(
+        "{:<50} {:>8} {:>14} {:>14}\n",
+        "record", "N", "fit sim %", "fit pred %"
+    ));
+    for (name, m) in &est.records {
+        text.push_str(&format!(
+            "{:<50} {:>8} {:>14} {:>14}\n",
+            name,
+            m.n,
+            o(m.fit_sim_percent),
+            o(m.fit_pred_percent)
+        ));
+    }
+    text.push_str(&format!(
+        "{:<50} {:>8} {:>14} {:>14}\n",
+        "pooled",
+        est.records.iter().map(|(_, m)| m.n).sum::<usize>(),
+        o(est.pooled_fit_sim_percent),
+        o(est.pooled_fit_pred_percent)
+    ));
+    if let (Some(v), Some(m)) = (&val, &val_metrics) {
+        text.push_str(&format!(
+            "{:<50} {:>8} {:>14} {:>14}  (validation)\n",
+            v.name,
+            m.n,
+            o(m.fit_sim_percent),
+            o(m.fit_pred_percent)
+        ));
+    }
+    print_report(&text, args.json.as_deref());
+    if let Some(path) = &args.json {
+        let value = serde_json::json!({
+            "model": fit.model,
+            "merged": records.iter().map(|r| r.name.clone()).collect::<Vec<_>>(),
+            "iterations": fit.iterations,
+            "stable": fit.model.is_stable(),
+            "metrics": {
+                "estimation": est.records.iter().map(|(name, m)| serde_json::json!({"data": name, "metrics": m})).collect::<Vec<_>>(),
+                "pooled": {
+                    "fit_sim_percent": est.pooled_fit_sim_percent,
+                    "fit_pred_percent": est.pooled_fit_pred_percent,
+                },
+                "validation": val_metrics,
+            },
+            "data_notes": notes,
+        });
+        let json = serde_json::to_string_pretty(&value)? + "\n";
+        write_output(path, json.as_bytes(), &inputs, "--json")?;
+    }
+    save_model(args, &fit.model, &inputs)
+}
+
+/// Runs `identify --u-col u1,u2,...`: one model with several inputs (MISO), by least squares.
+fn run_miso(args: &Args) -> anyhow::Result<()> {
+    let names: Vec<String> = args
+        .columns
+        .u_col
+        .split(',')
+        .map(|s| s.trim().to_string())
+        .collect();
+    if args.method != Method::Ls
+        || args.merge
+        || args.detrend != Detrend::None
+        || args.data.len() != 1
+    {
+        anyhow::bail!(
+            "several inputs (--u-col {}) are estimated by least squares from one --data file: use \
+             --method ls, without --merge or --detrend",
+            args.columns.u_col
+        );
+    }
+    for l in &args.linear_inputs {
+        if !names.contains(l) {
+            anyhow::bail!(sysid::SysidError::setting(
+                sysid::Setting::Other("--linear-inputs"),
+                l,
+                &format!("names among the inputs of --u-col ({})", names.join(", "))
+            ));
+        }
+    }
+    let nb = args.nb.per_input(names.len(), "--nb")?;
+    let nk = args.nk.per_input(names.len(), "--nk")?;
+    let data_path = &args.data[0];
+    let mut inputs: Vec<&Path> = vec![data_path.as_path()];
+    inputs.extend(args.val.validation.as_deref());
+    check_outputs(
+        &[(&args.json, "--json"), (&args.save_model, "--save-model")],
+        &inputs,
+    )?;
+    // One record per input column (same file, same output column, same rows).
+    let mut est_inputs = Vec::with_capacity(names.len());
+    let mut val_inputs = Vec::with_capacity(names.len());
+    let (mut est_y, mut val_y, mut notes) = (None, None, Vec::new());
+    for (i, name) in names.iter().enumerate() {
+        let mut opts = args.columns.csv_options();
+        opts.u_col = name.clone();
+        let val_args = ValidationArgs {
+            val_u_col: None,
+            ..args.val.clone()
+        };
+        let r = val_args.records(data_path, &opts)?;
+        notes.extend(r.notes);
+        est_inputs.push(sysid::miso::MisoInput {
+            name: name.clone(),
+            u: r.est.u,
+            nb: nb[i],
+            nk: nk[i],
+            linear: args.linear_inputs.contains(name),
+        });
+        if let Some(v) = r.val {
+            val_inputs.push(v.u);
+            val_y.get_or_insert((v.y, v.name));
+        }
+        est_y.get_or_insert((r.est.y, r.est.ts, r.est.name));
+    }
+    notes.dedup();
+    print_notes(&notes);
+    let Some((y, ts, data_name)) = est_y else {
+        anyhow::bail!("--u-col names no input");
+    };
+    let fit = sysid::miso::identify_miso(
+        &est_inputs,
+        &y,
+        ts,
+        args.na,
+        args.model,
+        args.offset,
+        args.max_iterations,
+    )?;
+    let us: Vec<&[f64]> = est_inputs.iter().map(|m| m.u.as_slice()).collect();
+    let est = sysid::metrics::metrics_miso(&fit.model, &us, &y, &data_name)?;
+    let val = match &val_y {
+        Some((vy, vname)) => {
+            let vu: Vec<&[f64]> = val_inputs.iter().map(Vec::as_slice).collect();
+            Some(sysid::metrics::metrics_miso(&fit.model, &vu, vy, vname)?)
+        }
+        None => None,
+    };
+    let m = &fit.model;
+    let mut text = format!(
+        "Data: {data_name} ({} samples){}\n{} model with {} inputs, na = {}, Ts = {} s, estimated by least \
+         squares ({} iteration(s))\n  a = {:?}{}\n",
+        y.len(),
+        val_y
+            .as_ref()
+            .map(|(v, n)| format!("; validation: {n} ({} samples)", v.len()))
+            .unwrap_or_default(),
+        m.kind(),
+        m.inputs().len(),
+        m.na(),
+        ts,
+        fit.iterations,
+        m.a(),
+        m.offset().map(|c| format!("\n  c = {c}")).unwrap_or_default(),
+    );
+    for ch in m.inputs() {
+        text.push_str(&format!(
+            "  input {}: nb = {}, nk = {}, b = {:?}{}\n",
+            ch.name(),
+            ch.nb(),
+            ch.nk(),
+            ch.b(),
+            ch.deadzone()
+                .map(|d| format!(
+                    ", deadzone b_l = {}, b_r = {}, m_l = {}, m_r = {}",
+                    d.b_l, d.b_r, d.m_l, d.m_r
+                ))
+                .unwrap_or_else(|| ", linear".into())
+        ));
+    }
+    let o = |v: Option<f64>| v.map_or_else(|| "n/a".to_string(), |v| format!("{v:.4}"));
+    text.push_str(&format!(
+        "Fit % (simulation): estimation {}{}; {}\n",
+        o(est.fit_sim_percent),
+        val.as_ref()
+            .map(|v| format!(", validation {}", o(v.fit_sim_percent)))
+            .unwrap_or_default(),
+        if m.is_stable() { "stable" } else { "UNSTABLE" }
+    ));
+    print_report(&text, args.json.as_deref());
+    if let Some(path) = &args.json {
+        let value = serde_json::json!({
+            "model": m,
+            "poles": sysid::summary::poles(m),
+            "stable": m.is_stable(),
+            "iterations": fit.iterations,
+            "metrics": { "estimation": est, "validation": val },
+            "data_notes": notes,
+        });
+        let json = serde_json::to_string_pretty(&value)? + "\n";
+        write_output(path, json.as_bytes(), &inputs, "--json")?;
+    }
+    save_model(args, m, &inputs)
 }

@@ -80,6 +80,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "a single --data file (in batch mode each line of --json holds its file's model)"
         ));
     }
+    if args.val.split.is_some() || (args.val.val_rows.is_some() && args.val.validation.is_none()) {
+        anyhow::bail!(
+            "--split and --val-rows without --validation split one file; in batch mode (several --data \
+             files) pass --rows for the estimation rows of every file and --validation FILE (with \
+             --val-rows) for the validation record, or --merge for one model from all files"
+        );
+    }
+    if args.detrend != sysid::detrend::Detrend::None {
+        anyhow::bail!(
+            "--detrend is not available in batch mode yet; identify the files one by one"
+        );
+    }
     let files = expand(&args.data)?;
     let mut inputs: Vec<&Path> = files.iter().map(PathBuf::as_path).collect();
     inputs.extend(args.val.validation.as_deref());

@@ -3,6 +3,7 @@
 pub mod bench;
 pub mod common;
 pub mod control;
+pub mod delay;
 pub mod identify;
 pub mod identify_batch;
 pub mod montecarlo;

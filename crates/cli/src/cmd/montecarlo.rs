@@ -15,8 +15,9 @@ use super::common::{check_outputs, progress_bar, write_output};
 /// Flags of `montecarlo`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Plant: `paper` (the paper's model), `ipa` (physics simulator) or `model:FILE` (a saved model).
-    #[arg(long, default_value = "paper")]
+    /// Plant: `ipa` (physics simulator), `paper` (the paper's model) or `model:FILE` (a saved model);
+    /// the default is `ipa`, as in every command (bias against known parameters needs `paper` or a model).
+    #[arg(long, default_value = "ipa")]
     pub plant: String,
     /// TOML parameters of the physics plant (`--plant ipa` only).
     #[arg(long, value_name = "FILE")]
@@ -42,8 +43,14 @@ pub struct Args {
     /// Study seed (run r uses a seed derived from (seed, r)).
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
-    /// Model structure to estimate (default: the plant model's own; hammerstein for `ipa`).
-    #[arg(long, value_enum)]
+    /// Model structure to estimate (default: the plant model's own; hammerstein for `ipa`; `--model` is
+    /// an older spelling).
+    #[arg(
+        long = "structure",
+        alias = "model",
+        value_name = "STRUCTURE",
+        value_enum
+    )]
     pub model: Option<ModelKind>,
     /// na (default: the plant model's; 3 for `ipa`).
     #[arg(long)]

@@ -1,5 +1,11 @@
-//! `ipa-sysid order`: rank model orders and delays (MATLAB `arxstruc`/`selstruc`) by validation fit, AIC
-//! and FPE; the search itself is `sysid::order::search` (parallel).
+//! `ipa-sysid order`: rank model orders and delays (MATLAB `arxstruc`/`selstruc`) by fit on a selection
+//! record, with AIC and FPE beside it; the search itself is `sysid::order::search` (parallel).
+//!
+//! Honest selection: the ranking never sees the test record. Structures are estimated on the estimation
+//! part and ranked by their free-run fit on the selection part (`--selection-rows`, or by default the last
+//! `1 − --selection-split` of the estimation record); the chosen structure is then re-estimated on the whole
+//! estimation record and its fit on the test record (`--validation`, `--val-rows` or `--split`) is
+//! reported separately.
 
 use std::path::{Path, PathBuf};
 
@@ -9,7 +15,11 @@ use sysid::model::MAX_ORDER;
 use sysid::order::{grid_size, search, Candidate};
 use sysid::ModelKind;
 
-use super::common::{check_outputs, progress_bar, write_output, ColumnArgs, ValidationArgs};
+use super::common::{
+    check_outputs, parse_rows, print_notes, print_report, progress_bar, write_output, ColumnArgs,
+    ValidationArgs,
+};
+use sysid::data::RowRange;
 
 /// Flags of `order`.
 #[derive(Debug, clap::Args)]
@@ -27,11 +37,24 @@ pub struct Args {
     /// Numbers of B coefficients to try.
     #[arg(long, default_value = "1..3")]
     pub nb: String,
-    /// Input delays to try.
+    /// Input delays to try; `auto` estimates the delay first (as `ipa-sysid delay`) and tries it ± 1.
     #[arg(long, default_value = "0..5")]
     pub nk: String,
-    /// Model structure.
-    #[arg(long, value_enum, default_value = "arx")]
+    /// Rows A..B of the --data file that rank the structures (not used for estimation); default: the
+    /// last part of the estimation record (see --selection-split).
+    #[arg(long, value_name = "A..B", value_parser = parse_rows)]
+    pub selection_rows: Option<RowRange>,
+    /// Without --selection-rows: estimate on this first fraction of the estimation record, rank on the rest.
+    #[arg(long, default_value_t = 2.0 / 3.0, value_name = "F")]
+    pub selection_split: f64,
+    /// Model structure (`--model` is an older spelling; `--model` names a model file elsewhere).
+    #[arg(
+        long = "structure",
+        alias = "model",
+        value_name = "STRUCTURE",
+        value_enum,
+        default_value = "arx"
+    )]
     pub model: ModelKind,
     /// Estimator.
     #[arg(long, value_enum, default_value = "ls")]
@@ -76,17 +99,42 @@ pub fn parse_range(text: &str, flag: &'static str) -> anyhow::Result<Vec<usize>>
 /// The JSON document of `order --json`.
 #[derive(Debug, serde::Serialize)]
 struct OrderReport<'a> {
+    /// The record the structures were estimated on.
     data: String,
+    /// The record that ranked them (its fit is each candidate's `fit_validation`).
+    selection: String,
+    /// The test record, never used for ranking.
     validation: Option<String>,
     ranked_by: &'static str,
+    /// The delay estimate behind `--nk auto`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    delay: Option<sysid::delay::DelayEstimate>,
+    /// The chosen structure, re-estimated on the whole estimation record, on the test record.
+    test: Option<TestResult>,
     candidates: &'a [Candidate],
+}
+
+/// The chosen structure's fit on the test record.
+#[derive(Debug, serde::Serialize)]
+struct TestResult {
+    orders: sysid::Orders,
+    /// Re-estimated on this record (estimation and selection rows together).
+    estimated_on: String,
+    data: String,
+    fit_sim_percent: Option<f64>,
+    metrics: sysid::metrics::Metrics,
 }
 
 /// Runs `order`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let na = parse_range(&args.na, "--na")?;
     let nb = parse_range(&args.nb, "--nb")?;
-    let nk = parse_range(&args.nk, "--nk")?;
+    let auto_nk = args.nk.trim() == "auto";
+    let mut nk = if auto_nk {
+        Vec::new()
+    } else {
+        parse_range(&args.nk, "--nk")?
+    };
     let base = Identification {
         drop_unexcited_branch: true,
         ..Identification::default()
@@ -98,30 +146,95 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     inputs.extend(args.val.validation.as_deref());
     check_outputs(&[(&args.json, "--json")], &inputs)?;
     let opts = args.columns.csv_options();
-    let data = sysid::data::read_csv(&args.data, &opts)?;
-    let val = args.val.read(&opts)?;
+    let records = args.val.records(&args.data, &opts)?;
+    let (data, test) = (records.est, records.val);
+    let mut notes = records.notes;
+    // The estimation part and the selection part.
+    let (fit_part, selection) = match &args.selection_rows {
+        Some(r) => {
+            let sopts = sysid::data::CsvOptions {
+                rows: Some(*r),
+                rows_flag: "--selection-rows",
+                ..opts.clone()
+            };
+            let sel = sysid::data::read_record(&args.data, &sopts)?;
+            notes.extend(sel.notes);
+            (data.clone(), sel.data)
+        }
+        None => {
+            let n = data.len();
+            let k = sysid::data::split_rows(n, args.selection_split).map_err(|_| {
+                sysid::SysidError::setting(
+                    sysid::Setting::Other("--selection-split"),
+                    args.selection_split,
+                    &format!(
+                        "a fraction F with 0 < F < 1 of the {n} estimation rows, leaving rows to rank on"
+                    ),
+                )
+            })?;
+            (data.rows(0..k), data.rows(k..n))
+        }
+    };
+    print_notes(&notes);
+    let delay = if auto_nk {
+        let d = sysid::delay::estimate_delay(&fit_part, 2, 2, 10)?;
+        nk = (d.nk.saturating_sub(1)..=d.nk + 1).collect();
+        Some(d)
+    } else {
+        None
+    };
     let bar = progress_bar(
         grid_size(&na, &nb, &nk) as u64,
         "{bar:40} {pos}/{len} structures {elapsed}",
     );
-    let ranked = search(&data, val.as_ref(), &na, &nb, &nk, &base, &|| bar.inc(1));
+    let ranked = search(&fit_part, Some(&selection), &na, &nb, &nk, &base, &|| {
+        bar.inc(1)
+    });
     bar.finish_and_clear();
-    let ranked_by = if val.is_some() {
-        "validation fit % (simulation)"
-    } else {
-        "estimation fit % (simulation)"
+    let ranked_by = "selection fit % (simulation)";
+    // The chosen structure on the test record, re-estimated on the whole estimation record.
+    let chosen = ranked
+        .iter()
+        .find(|c| c.error.is_none() && c.fit_validation.is_some());
+    let test_result = match (chosen, &test) {
+        (Some(c), Some(t)) => {
+            let mut id = base.clone();
+            id.structure.orders = c.orders;
+            let fit = sysid::estimate::identify(&data, &id)?;
+            let m = sysid::metrics::metrics(&fit.model, t)?;
+            Some(TestResult {
+                orders: c.orders,
+                estimated_on: data.name.clone(),
+                data: t.name.clone(),
+                fit_sim_percent: m.fit_sim_percent,
+                metrics: m,
+            })
+        }
+        _ => None,
     };
     let mut text = format!(
-        "Order search: {} structures ({} model, {} estimator) on {}{}; ranked by {ranked_by}, then fewer parameters, then AIC\n\n",
+        "Order search: {} structures ({} model, {} estimator) estimated on {} ({} samples), ranked on \
+         {} ({} samples) by {ranked_by}, then fewer parameters, then AIC\n",
         ranked.len(),
         base.structure.kind,
         sysid::Estimator::method(&base.estimator),
-        data.name,
-        val.as_ref().map(|v| format!(", validated on {}", v.name)).unwrap_or_default()
+        fit_part.name,
+        fit_part.len(),
+        selection.name,
+        selection.len(),
     );
+    if let Some(d) = &delay {
+        text.push_str(&format!(
+            "--nk auto: estimated delay nk = {} (ARX(2, 2) fits over nk = 0..10), trying nk = {:?}{}\n",
+            d.nk,
+            nk,
+            d.note.as_ref().map(|n| format!("; warning: {n}")).unwrap_or_default()
+        ));
+    }
+    text.push('\n');
     text.push_str(&format!(
         "{:>4} {:>3} {:>3} {:>3} {:>4} {:>12} {:>12} {:>12} {:>12} {:>7}\n",
-        "rank", "na", "nb", "nk", "p", "fit est %", "fit val %", "AIC", "FPE", "stable"
+        "rank", "na", "nb", "nk", "p", "fit est %", "fit sel %", "AIC", "FPE", "stable"
     ));
     let o = |v: Option<f64>| v.map_or_else(|| "n/a".to_string(), num);
     for (i, c) in ranked.iter().take(args.top).enumerate() {
@@ -143,17 +256,32 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 .unwrap_or_default()
         ));
     }
-    let json_to_stdout = args.json.as_deref().is_some_and(|p| p.as_os_str() == "-");
-    if json_to_stdout {
-        eprint!("{text}");
-    } else {
-        print!("{text}");
+    match (&test_result, &test) {
+        (Some(t), _) => text.push_str(&format!(
+            "\nChosen structure (na, nb, nk) = ({}, {}, {}), re-estimated on {}: test fit {} % (simulation) \
+             on {} (never used for ranking)\n",
+            t.orders.na,
+            t.orders.nb,
+            t.orders.nk,
+            t.estimated_on,
+            o(t.fit_sim_percent),
+            t.data
+        )),
+        (None, Some(_)) => text.push_str("\nNo structure could be estimated: no test fit.\n"),
+        (None, None) => text.push_str(
+            "\nNo test record (--validation, --val-rows or --split): the selection fit of the chosen \
+             structure is optimistic; check it on data it has not seen.\n",
+        ),
     }
+    print_report(&text, args.json.as_deref());
     if let Some(path) = &args.json {
         let doc = OrderReport {
-            data: data.name.clone(),
-            validation: val.as_ref().map(|v| v.name.clone()),
+            data: fit_part.name.clone(),
+            selection: selection.name.clone(),
+            validation: test.as_ref().map(|v| v.name.clone()),
             ranked_by,
+            delay,
+            test: test_result,
             candidates: &ranked,
         };
         let json = serde_json::to_string_pretty(&doc)? + "\n";

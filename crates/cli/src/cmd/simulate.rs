@@ -29,9 +29,9 @@ pub struct Args {
     /// Sampling period Ts in s (default 0.01; a model plant uses its own Ts).
     #[arg(long)]
     pub ts: Option<f64>,
-    /// Initial position in mm (the piston starts at rest there).
-    #[arg(long, default_value_t = 100.0)]
-    pub x0: f64,
+    /// Initial position y0 in mm (the piston starts at rest there; `--x0` is an older spelling).
+    #[arg(long = "y0", alias = "x0", default_value_t = 100.0)]
+    pub y0: f64,
     /// Seed of the random input and noise (the same seed gives a byte-identical file).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -54,10 +54,10 @@ struct Record {
 /// Runs the subcommand.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let spec: InputSpec = args.input.parse()?;
-    if !args.x0.is_finite() {
+    if !args.y0.is_finite() {
         return Err(sysid::SysidError::setting(
-            sysid::Setting::Other("--x0"),
-            args.x0,
+            sysid::Setting::Other("--y0"),
+            args.y0,
             "a finite position in mm",
         )
         .into());
@@ -88,7 +88,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             None => PlantConfig::default(),
         };
         let mut plant = Ipa::with_ts(cfg, args.ts.unwrap_or(ipa::DEFAULT_TS_S))?;
-        plant.reset(args.x0);
+        plant.reset(args.y0);
         let u = match spec {
             InputSpec::Staircase => {
                 // The experimenter's rule watches the plant: design on a copy, then record.
@@ -122,7 +122,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         let mut plant =
             ipa::plant_from_spec_with_ts(&args.plant, args.plant_config.as_deref(), args.ts)?;
-        plant.reset(args.x0);
+        plant.reset(args.y0);
         let ts = plant.ts();
         let (u, y) = match spec {
             InputSpec::Staircase => staircase_experiment(

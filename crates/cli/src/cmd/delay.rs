@@ -1,0 +1,85 @@
+//! `ipa-sysid delay`: estimate the input delay nk (MATLAB `delayest`); the logic is
+//! `sysid::delay::estimate_delay`.
+
+use std::path::{Path, PathBuf};
+
+use super::common::{check_outputs, print_notes, print_report, write_output, ColumnArgs};
+
+/// Flags of `delay`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// CSV file with the record (columns chosen by --u-col, --y-col, --t-col).
+    #[arg(long, value_name = "FILE")]
+    pub data: PathBuf,
+    #[command(flatten)]
+    pub columns: ColumnArgs,
+    /// Largest delay to try, in samples (delays 0..=N are compared).
+    #[arg(long, default_value_t = 10, value_name = "N")]
+    pub max_delay: usize,
+    /// na of the ARX models compared (MATLAB `delayest` default 2).
+    #[arg(long, default_value_t = 2)]
+    pub na: usize,
+    /// nb of the ARX models compared (MATLAB `delayest` default 2).
+    #[arg(long, default_value_t = 2)]
+    pub nb: usize,
+    /// Write the result as JSON here (`-` for standard output); its `nk` is the estimate.
+    #[arg(long, value_name = "OUT")]
+    pub json: Option<PathBuf>,
+}
+
+/// Runs `delay`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let inputs: [&Path; 1] = [&args.data];
+    check_outputs(&[(&args.json, "--json")], &inputs)?;
+    let record = sysid::data::read_record(&args.data, &args.columns.csv_options())?;
+    print_notes(&record.notes);
+    let data = record.data;
+    let est = sysid::delay::estimate_delay(&data, args.na, args.nb, args.max_delay)?;
+    let mut text = format!(
+        "Delay estimate on {} ({} samples): nk = {} samples ({} s), from ARX(na = {}, nb = {}, nk) fits \
+         with a constant term on the same {} rows\n\n{:>4} {:>14}\n",
+        data.name,
+        data.len(),
+        est.nk,
+        report::format::num(est.nk as f64 * data.ts),
+        est.na,
+        est.nb,
+        est.n,
+        "nk",
+        "loss V"
+    );
+    for c in &est.candidates {
+        text.push_str(&format!(
+            "{:>4} {:>14}{}\n",
+            c.nk,
+            c.loss
+                .map_or_else(|| "n/a".to_string(), report::format::num),
+            match (&c.error, c.nk == est.nk) {
+                (_, true) => "  <- best".to_string(),
+                (Some(e), false) => format!("  ({e})"),
+                (None, false) => String::new(),
+            }
+        ));
+    }
+    if let Some(n) = &est.note {
+        text.push_str(&format!("\nWarning: {n}\n"));
+    }
+    print_report(&text, args.json.as_deref());
+    if let Some(path) = &args.json {
+        let value = serde_json::json!({
+            "data": data.name,
+            "ts": data.ts,
+            "nk": est.nk,
+            "delay_s": est.nk as f64 * data.ts,
+            "na": est.na,
+            "nb": est.nb,
+            "n": est.n,
+            "margin": est.margin,
+            "candidates": est.candidates,
+            "warnings": est.note.iter().chain(&record.notes).collect::<Vec<_>>(),
+        });
+        let json = serde_json::to_string_pretty(&value)? + "\n";
+        write_output(path, json.as_bytes(), &inputs, "--json")?;
+    }
+    Ok(())
+}

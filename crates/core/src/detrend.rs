@@ -1,0 +1,95 @@
+//! Detrending (`--detrend none|mean|linear`, MATLAB `detrend`): the operating point of the estimation
+//! record is removed from u and y before estimation and stored in the model, which puts it back whenever it
+//! simulates, predicts or runs as a plant, so that every output stays in the user's units.
+//!
+//! For `mean`, u(k) − ū and y(k) − ȳ are identified. For `linear`, the least-squares line through each
+//! signal, s(k) ≈ s̄ + β (k − k̄), is removed. The least-squares line passes through (k̄, s̄), so in both
+//! cases the stored operating point is (ū, ȳ): a model with an operating point maps a record as
+//! y(k) = y0 + model(u(k) − u0). A drift removed by `linear` is a property of the estimation record, not of
+//! the system, and is not put back.
+
+use serde::{Deserialize, Serialize};
+
+use crate::Dataset;
+
+/// How to remove the estimation record's operating point.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "lowercase")]
+pub enum Detrend {
+    /// Use the data as they are (no operating point).
+    #[default]
+    None,
+    /// Remove the means ū, ȳ.
+    Mean,
+    /// Remove the least-squares straight line of each signal (its mean and its drift).
+    Linear,
+}
+
+impl std::fmt::Display for Detrend {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Detrend::None => "none",
+            Detrend::Mean => "mean",
+            Detrend::Linear => "linear",
+        })
+    }
+}
+
+/// The operating point (u0, y0) a model was identified around: the model relates u − u0 to y − y0.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OperatingPoint {
+    /// u0 of each input, in the input's units (for the IPA: PWM counts), in the model's input order.
+    pub u: Vec<f64>,
+    /// y0 in the output's units (for the IPA: mm).
+    pub y: f64,
+}
+
+/// The mean s̄ and the least-squares slope β per sample of s(k) ≈ s̄ + β (k − k̄); β = 0 for fewer than
+/// two samples.
+pub fn line_fit(s: &[f64]) -> (f64, f64) {
+    let n = s.len();
+    if n == 0 {
+        return (0.0, 0.0);
+    }
+    let mean = s.iter().sum::<f64>() / n as f64;
+    let kbar = (n as f64 - 1.0) / 2.0;
+    let (mut sxy, mut sxx) = (0.0, 0.0);
+    for (k, v) in s.iter().enumerate() {
+        let dk = k as f64 - kbar;
+        sxy += dk * (v - mean);
+        sxx += dk * dk;
+    }
+    let slope = if sxx > 0.0 { sxy / sxx } else { 0.0 };
+    (mean, slope)
+}
+
+fn remove(s: &[f64], how: Detrend) -> Vec<f64> {
+    let (mean, slope) = line_fit(s);
+    let slope = if how == Detrend::Linear { slope } else { 0.0 };
+    let kbar = (s.len() as f64 - 1.0) / 2.0;
+    s.iter()
+        .enumerate()
+        .map(|(k, v)| v - mean - slope * (k as f64 - kbar))
+        .collect()
+}
+
+/// The record with its operating point removed, and that operating point (`None` for [`Detrend::None`],
+/// which returns the record unchanged).
+pub fn detrend(data: &Dataset, how: Detrend) -> (Dataset, Option<OperatingPoint>) {
+    if how == Detrend::None {
+        return (data.clone(), None);
+    }
+    let op = OperatingPoint {
+        u: vec![line_fit(&data.u).0],
+        y: line_fit(&data.y).0,
+    };
+    let out = Dataset {
+        u: remove(&data.u, how),
+        y: remove(&data.y, how),
+        ts: data.ts,
+        name: data.name.clone(),
+    };
+    (out, Some(op))
+}

@@ -1,0 +1,177 @@
+//! Input delay estimation (`ipa-sysid delay`, MATLAB `delayest`): ARX models with the same na, nb and
+//! every delay nk = 0..=nk_max are fitted by least squares on the same regression rows, and the delay
+//! whose one-step prediction error is smallest wins.
+//!
+//! Every candidate has the same number of parameters (na + nb + 1: a constant term c absorbs non-zero
+//! means, unlike `delayest`), and every candidate's loss is summed over the same rows k ≥ k0 =
+//! max(na, nk_max + nb − 1), so the losses compare like with like. When the runner-up's loss is within
+//! 5 % of the winner's, the delay is poorly determined by these data and the result says so.
+
+use nalgebra::{DMatrix, DVector};
+use serde::Serialize;
+
+use crate::{Dataset, SysidError};
+
+/// One delay tried.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DelayCandidate {
+    /// nk: delay in samples.
+    pub nk: usize,
+    /// Loss V = (1/N) Σ ½ ε² of the one-step prediction errors (paper eq. 14), units of y²; `None` when
+    /// this delay's regressors are linearly dependent (see `error`).
+    pub loss: Option<f64>,
+    /// Why this delay could not be fitted (for noise-free data, delays beyond the true one make the
+    /// past outputs a combination of the inputs).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+}
+
+/// The estimated delay and every candidate.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct DelayEstimate {
+    /// nk: the estimated input delay in samples.
+    pub nk: usize,
+    /// na of the ARX models compared.
+    pub na: usize,
+    /// nb of the ARX models compared.
+    pub nb: usize,
+    /// N: regression rows per candidate.
+    pub n: usize,
+    /// Every delay tried, in order of nk.
+    pub candidates: Vec<DelayCandidate>,
+    /// Ratio of the runner-up's loss to the winner's (≥ 1; `None` with a single candidate).
+    pub margin: Option<f64>,
+    /// A warning in words when the delay is poorly determined.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub note: Option<String>,
+}
+
+/// Ratio of runner-up to best loss below which the delay counts as poorly determined.
+pub const CLEAR_MARGIN: f64 = 1.05;
+
+/// The ARX regression y(k) = −Σ a_i y(k−i) + Σ_j b_j u(k−nk−j+1) + c over rows k = k0..N−1:
+/// (Φ, y) with columns a1..a_na, b1..b_nb, c.
+pub(crate) fn arx_regression(
+    y: &[f64],
+    u: &[f64],
+    na: usize,
+    nb: usize,
+    nk: usize,
+    k0: usize,
+) -> (DMatrix<f64>, DVector<f64>, Vec<String>) {
+    let n = y.len().min(u.len()).saturating_sub(k0);
+    let p = na + nb + 1;
+    let phi = DMatrix::from_fn(n, p, |r, c| {
+        let k = k0 + r;
+        if c < na {
+            -y[k - 1 - c]
+        } else if c < na + nb {
+            u[k - nk - (c - na)]
+        } else {
+            1.0
+        }
+    });
+    let target = DVector::from_fn(n, |r, _| y[k0 + r]);
+    let names = (1..=na)
+        .map(|i| format!("a{i}"))
+        .chain((1..=nb).map(|j| format!("b{j}")))
+        .chain(std::iter::once("c".to_string()))
+        .collect();
+    (phi, target, names)
+}
+
+/// Estimates the input delay of `data` by comparing ARX(na, nb, nk) fits for nk = 0..=max_delay.
+pub fn estimate_delay(
+    data: &Dataset,
+    na: usize,
+    nb: usize,
+    max_delay: usize,
+) -> Result<DelayEstimate, SysidError> {
+    if nb == 0 {
+        return Err(SysidError::setting(
+            crate::Setting::Nb,
+            nb,
+            "at least one B coefficient",
+        ));
+    }
+    if max_delay > crate::model::MAX_ORDER {
+        return Err(SysidError::setting(
+            crate::Setting::Other("--max-delay"),
+            max_delay,
+            &format!("a delay of at most {} samples", crate::model::MAX_ORDER),
+        ));
+    }
+    let k0 = na.max(max_delay + nb - 1);
+    let p = na + nb + 1;
+    if data.len() < k0 + p + 1 {
+        return Err(SysidError::Data(format!(
+            "{}: {} samples are too few to compare delays up to {max_delay} with na = {na}, nb = {nb} \
+             (at least {} are needed)",
+            data.name,
+            data.len(),
+            k0 + p + 1
+        )));
+    }
+    let mut candidates = Vec::with_capacity(max_delay + 1);
+    for nk in 0..=max_delay {
+        let (phi, target, names) = arx_regression(&data.y, &data.u, na, nb, nk, k0);
+        candidates.push(match crate::ls::solve(&phi, &target, &names) {
+            Ok(sol) => DelayCandidate {
+                nk,
+                loss: Some(0.5 * sol.rss / target.len() as f64),
+                error: None,
+            },
+            Err(e) if !e.is_numerical() => DelayCandidate {
+                nk,
+                loss: None,
+                error: Some(e.to_string()),
+            },
+            Err(e) => return Err(e),
+        });
+    }
+    let mut order: Vec<(usize, f64)> = candidates
+        .iter()
+        .filter_map(|c| c.loss.map(|l| (c.nk, l)))
+        .collect();
+    order.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
+    let Some(&(best_nk, best_loss)) = order.first() else {
+        return Err(SysidError::Data(format!(
+            "{}: no delay in 0..={max_delay} could be fitted: {}",
+            data.name,
+            candidates
+                .first()
+                .and_then(|c| c.error.clone())
+                .unwrap_or_default()
+        )));
+    };
+    let margin = order.get(1).map(|r| {
+        if best_loss > 0.0 {
+            r.1 / best_loss
+        } else if r.1 > 0.0 {
+            f64::INFINITY
+        } else {
+            1.0
+        }
+    });
+    let note = match (margin, order.get(1)) {
+        (Some(m), Some(r)) if m < CLEAR_MARGIN => Some(format!(
+            "the delay is poorly determined: nk = {} fits almost as well (loss {:.3} % higher); the input \
+             may not excite the system enough, or the system responds gradually",
+            r.0,
+            100.0 * (m - 1.0)
+        )),
+        _ if best_nk == max_delay && max_delay > 0 => Some(format!(
+            "the best delay is the largest one tried ({max_delay}); try a larger --max-delay"
+        )),
+        _ => None,
+    };
+    Ok(DelayEstimate {
+        nk: best_nk,
+        na,
+        nb,
+        n: data.len() - k0,
+        candidates,
+        margin: margin.filter(|m| m.is_finite()),
+        note,
+    })
+}

@@ -38,7 +38,7 @@ pub fn report(e: &anyhow::Error) -> ExitCode {
 /// The message of one error, with the library's settings named by their flags.
 pub fn render(e: &(dyn std::error::Error + 'static)) -> String {
     match e.downcast_ref::<sysid::SysidError>() {
-        Some(s) => s.render(&|setting| flag(setting).to_string()),
+        Some(s) => s.render_flags(),
         None => e.to_string(),
     }
 }
@@ -46,28 +46,6 @@ pub fn render(e: &(dyn std::error::Error + 'static)) -> String {
 /// The whole chain of `e` on one line, as `{e:#}` prints it, with settings named by their flags.
 pub fn render_chain(e: &anyhow::Error) -> String {
     e.chain().map(render).collect::<Vec<_>>().join(": ")
-}
-
-/// The command-line flag of a library setting.
-pub fn flag(s: sysid::Setting) -> &'static str {
-    use sysid::Setting;
-    match s {
-        Setting::Na => "--na",
-        Setting::Nb => "--nb",
-        Setting::Nk => "--nk",
-        Setting::Ts => "--ts",
-        Setting::UCol => "--u-col",
-        Setting::YCol => "--y-col",
-        Setting::TCol => "--t-col",
-        Setting::Forgetting => "--forgetting",
-        Setting::P0 => "--p0",
-        Setting::Passes => "--passes",
-        Setting::MaxTrace => "--max-trace",
-        Setting::IvStages => "--iv-stages",
-        Setting::MaxIterations => "--max-iterations",
-        Setting::Tolerance => "tolerance",
-        Setting::Other(name) => name,
-    }
 }
 
 /// The exit code of `e`: [`NUMERICAL`] when any error in its chain is a numerical failure of one of

@@ -214,6 +214,43 @@ pub fn metrics_for_steps(trace: &Trace) -> Result<Vec<StepSegment>, ControlError
     Ok(out)
 }
 
+/// The metrics of a closed-loop run as `ipa-sysid control` reports them.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunMetrics {
+    /// `fixed`: `metrics` are those of the single step of a fixed set-point; `worst-step`: the
+    /// field-wise worst over `steps` ([`StepMetrics::worst`]).
+    pub kind: String,
+    /// The step metrics (see `kind`).
+    pub metrics: StepMetrics,
+    /// Every step of the set-point profile ([`metrics_for_steps`]).
+    pub steps: Vec<StepSegment>,
+}
+
+/// The metrics of a run of `profile`: for a fixed set-point r, those of the response from y(0) towards
+/// r; otherwise the worst over the profile's steps. Fails when the profile has no step to measure.
+pub fn run_metrics(trace: &Trace, profile: &crate::Profile) -> Result<RunMetrics, ControlError> {
+    let steps = metrics_for_steps(trace)?;
+    let (kind, metrics) = match profile {
+        crate::Profile::Fixed { setpoint_mm } => {
+            let y0 = trace.y.first().copied().unwrap_or(0.0);
+            (
+                "fixed",
+                StepMetrics::compute(&trace.t, &trace.y, y0, *setpoint_mm)?,
+            )
+        }
+        _ => (
+            "worst-step",
+            StepMetrics::worst(steps.iter().map(|s| &s.metrics))
+                .ok_or_else(|| ControlError::Config("the profile has no step to measure".into()))?,
+        ),
+    };
+    Ok(RunMetrics {
+        kind: kind.to_string(),
+        metrics,
+        steps,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -5,6 +5,7 @@
 //!   ([`valve`]), seal friction with stiction ([`friction`]), end stops, an optical encoder ([`encoder`]);
 //!   integrated by RK4 ([`dynamics`]). Parameters in [`PlantConfig`] ([`config`], TOML).
 //! - [`spec::plant_from_spec`]: `ipa`, `paper` or `model:FILE` behind [`sysid_core::Plant`].
+//! - [`experiment`]: one open-loop experiment (input design, plant, noise) as `simulate` runs it.
 //! - [`input`]: staircase, PRBS, APRBS, multisine, step and file inputs.
 //!
 //! See `docs/plant.md` for the equations, the parameters and their sources.
@@ -14,6 +15,7 @@ pub mod cylinder;
 pub mod dynamics;
 pub mod encoder;
 pub mod error;
+pub mod experiment;
 pub mod friction;
 pub mod input;
 pub mod plant;
@@ -22,6 +24,7 @@ pub mod valve;
 
 pub use config::PlantConfig;
 pub use error::IpaError;
+pub use experiment::{Experiment, Record};
 pub use input::{generate, InputSpec};
 pub use plant::Ipa;
 pub use spec::{plant_from_spec, plant_from_spec_with_ts, PlantSpec, DEFAULT_TS_S};

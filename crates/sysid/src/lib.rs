@@ -13,6 +13,7 @@ pub mod estimate;
 pub mod iv;
 pub mod ls;
 pub mod oe;
+pub mod options;
 pub mod order;
 pub mod residuals;
 pub mod rls;
@@ -24,6 +25,7 @@ pub use estimate::{
     identify, Estimator, EstimatorSettings, Fitted, Identification, InstrumentalVariables,
     LeastSquares, Method, Note, OutputError, Param, RecursiveLeastSquares, Termination,
 };
+pub use options::IdentifyOptions;
 pub use sysid_core::{
     data, metrics, model, model_file, nonlinearity, param, plant, structure, Dataset, Deadzone,
     InputChannel, Model, ModelKind, ModelPlant, Orders, ParamName, Parameterisation, Plant,

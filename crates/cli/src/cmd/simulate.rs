@@ -4,10 +4,7 @@
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use anyhow::Context;
-use ipa::input::{staircase_experiment, InputSpec, StaircaseDesign};
-use ipa::{Ipa, PlantConfig};
-use sysid::Plant;
+use ipa::{Experiment, Record};
 
 /// Flags of `simulate`.
 #[derive(Debug, clap::Args)]
@@ -44,110 +41,29 @@ pub struct Args {
     pub out: PathBuf,
 }
 
-/// The simulated record.
-struct Record {
-    u: Vec<f64>,
-    y: Vec<f64>,
-    pressures: Option<Vec<[f64; 2]>>,
-    ts: f64,
-}
-
 /// Runs the subcommand.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let spec: InputSpec = args.input.parse()?;
-    if !args.x0.is_finite() {
-        return Err(sysid::SysidError::setting(
-            sysid::Setting::Other("--x0"),
-            args.x0,
-            "a finite position in mm",
-        )
-        .into());
-    }
-    if !(args.noise_std.is_finite() && args.noise_std >= 0.0) {
-        return Err(sysid::SysidError::setting(
-            sysid::Setting::Other("--noise-std"),
-            args.noise_std,
-            "a standard deviation >= 0 in mm",
-        )
-        .into());
-    }
+    let exp = Experiment {
+        plant: args.plant.parse()?,
+        plant_config: args.plant_config.clone(),
+        input: args.input.parse()?,
+        amplitude: args.amplitude,
+        samples: args.samples,
+        ts: args.ts,
+        x0: args.x0,
+        seed: args.seed,
+        noise_std: args.noise_std,
+    };
+    exp.check()?;
     let mut inputs: Vec<&Path> =
         ipa::spec::spec_input_files(&args.plant, args.plant_config.as_deref());
-    if let Some(f) = spec.file() {
+    if let Some(f) = exp.input.file() {
         inputs.push(f);
     }
     sysid_io::check_writable(&args.out, "--out")?;
     sysid_io::refuse_overwrite_input(&args.out, &inputs, "--out")?;
-    let samples = match (args.samples, spec.file()) {
-        (Some(n), _) => n,
-        (None, Some(f)) => ipa::input::read_input_file(f)?.len(),
-        (None, None) => 2000,
-    };
-    let rec = if args.plant.trim() == "ipa" {
-        let cfg = match &args.plant_config {
-            Some(p) => PlantConfig::from_toml_file(p)?,
-            None => PlantConfig::default(),
-        };
-        let mut plant = Ipa::with_ts(cfg, args.ts.unwrap_or(ipa::DEFAULT_TS_S))?;
-        plant.reset(args.x0);
-        let u = match spec {
-            InputSpec::Staircase => {
-                // The experimenter's rule watches the plant: design on a copy, then record.
-                let mut copy = plant.clone();
-                staircase_experiment(
-                    &mut copy,
-                    &StaircaseDesign::default(),
-                    samples,
-                    args.amplitude,
-                    args.seed,
-                )?
-                .0
-            }
-            _ => ipa::generate(&spec, samples, plant.ts(), args.amplitude, args.seed)?,
-        };
-        let mut y = Vec::with_capacity(u.len());
-        let mut p = Vec::with_capacity(u.len());
-        for (k, &uk) in u.iter().enumerate() {
-            y.push(plant.output());
-            p.push(plant.pressures_pa());
-            plant
-                .step(uk)
-                .with_context(|| format!("simulating sample {k}"))?;
-        }
-        Record {
-            u,
-            y,
-            pressures: Some(p),
-            ts: plant.ts(),
-        }
-    } else {
-        let mut plant =
-            ipa::plant_from_spec_with_ts(&args.plant, args.plant_config.as_deref(), args.ts)?;
-        plant.reset(args.x0);
-        let ts = plant.ts();
-        let (u, y) = match spec {
-            InputSpec::Staircase => staircase_experiment(
-                plant.as_mut(),
-                &StaircaseDesign::default(),
-                samples,
-                args.amplitude,
-                args.seed,
-            )?,
-            _ => {
-                let u = ipa::generate(&spec, samples, ts, args.amplitude, args.seed)?;
-                let y = sysid::plant::run_open_loop(plant.as_mut(), &u)?;
-                (u, y)
-            }
-        };
-        Record {
-            u,
-            y,
-            pressures: None,
-            ts,
-        }
-    };
-    let y = ipa::input::add_noise(&rec.y, args.noise_std, args.seed);
-    let csv = to_csv(&rec, &y);
+    let rec = exp.run()?;
+    let csv = to_csv(&rec);
     sysid_io::write_atomic(&args.out, csv.as_bytes())?;
     eprintln!(
         "wrote {} samples (Ts = {} s) to {}",
@@ -159,7 +75,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 }
 
 /// CSV text with deterministic number formatting (shortest round-trip decimal of each f64).
-fn to_csv(rec: &Record, y: &[f64]) -> String {
+fn to_csv(rec: &Record) -> String {
     let mut s = String::from(if rec.pressures.is_some() {
         "t,u,y,p_a_pa,p_b_pa\n"
     } else {
@@ -167,7 +83,7 @@ fn to_csv(rec: &Record, y: &[f64]) -> String {
     });
     let times = sysid::data::sample_times(rec.u.len(), rec.ts);
     for (k, t) in times.iter().enumerate() {
-        let _ = write!(s, "{t},{},{}", rec.u[k], y[k]);
+        let _ = write!(s, "{t},{},{}", rec.u[k], rec.y[k]);
         if let Some(p) = &rec.pressures {
             let _ = write!(s, ",{:.1},{:.1}", p[k][0], p[k][1]);
         }

@@ -22,8 +22,9 @@ print(
     "fit % (simulation, validation): "
     f"{m['estimation']['fit_sim_percent']:.4f}, {m['validation']['fit_sim_percent']:.4f}"
 )
+# Remarks on trust (until the library reports `warnings`, the estimator's note).
 for w in fit.warnings:
-    print("warning:", w)
+    print("remark:", w)
 
 # %% Free-run simulation and 10-step prediction on the validation record.
 y_sim = fit.model.simulate(u_val, y0=y_val)

@@ -92,7 +92,7 @@ def bench_identify(cli, reps):
     tmp = tempfile.mkdtemp()
     csv_path = os.path.join(tmp, "paper.csv")
     with open(csv_path, "w") as f:
-        f.write("u,y\n" + "".join(f"{a!r},{b!r}\n" for a, b in zip(u, y)))
+        f.write("u,y\n" + "".join(f"{float(a)!r},{float(b)!r}\n" for a, b in zip(u, y)))
     out = {}
     for method in ("rls", "ls"):
         fit = ipa_sysid.identify(u, y, 0.01, method=method)

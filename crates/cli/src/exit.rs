@@ -51,13 +51,13 @@ pub fn strict(strict: bool, warnings: usize) -> anyhow::Result<()> {
 /// The message of one error, with the library's settings named by their flags.
 pub fn render(e: &(dyn std::error::Error + 'static)) -> String {
     if let Some(s) = e.downcast_ref::<sysid::SysidError>() {
-        return s.render(&|setting| flag(setting).to_string());
+        return s.render_flags();
     }
     if let Some(c) = e.downcast_ref::<control::ControlError>() {
-        return c.render(&|setting| control_flag(setting).to_string());
+        return c.render(&|setting| setting.flag().to_string());
     }
     if let Some(i) = e.downcast_ref::<ipa::IpaError>() {
-        return i.render(&|setting| ipa_flag(setting).to_string());
+        return i.render(&|setting| setting.flag().to_string());
     }
     e.to_string()
 }
@@ -65,56 +65,6 @@ pub fn render(e: &(dyn std::error::Error + 'static)) -> String {
 /// The whole chain of `e` on one line, as `{e:#}` prints it, with settings named by their flags.
 pub fn render_chain(e: &anyhow::Error) -> String {
     e.chain().map(render).collect::<Vec<_>>().join(": ")
-}
-
-/// The command-line flag of a library setting.
-pub fn flag(s: sysid::Setting) -> &'static str {
-    use sysid::Setting;
-    match s {
-        Setting::Na => "--na",
-        Setting::Nb => "--nb",
-        Setting::Nk => "--nk",
-        Setting::Ts => "--ts",
-        Setting::UCol => "--u-col",
-        Setting::YCol => "--y-col",
-        Setting::TCol => "--t-col",
-        Setting::Forgetting => "--forgetting",
-        Setting::P0 => "--p0",
-        Setting::Passes => "--passes",
-        Setting::MaxTrace => "--max-trace",
-        Setting::IvStages => "--iv-stages",
-        Setting::MaxIterations => "--max-iterations",
-        Setting::Tolerance => "tolerance",
-        Setting::Other(name) => name,
-    }
-}
-
-/// The command-line flag of a control-library setting (`ts` has none: the plant sets it).
-pub fn control_flag(s: control::ControlSetting) -> &'static str {
-    use control::ControlSetting;
-    match s {
-        ControlSetting::Kp => "--kp",
-        ControlSetting::Ki => "--ki",
-        ControlSetting::UMax => "--u-max",
-        ControlSetting::TrackingTime => "--tracking-time",
-        ControlSetting::Ts => "ts",
-        ControlSetting::Duration => "--duration",
-        ControlSetting::Y0 => "--y0",
-        ControlSetting::Deadzone => "--compensate-deadzone",
-        ControlSetting::CompensatorThreshold => "--compensator-threshold",
-    }
-}
-
-/// The command-line flag of a plant-library setting.
-pub fn ipa_flag(s: ipa::IpaSetting) -> &'static str {
-    use ipa::IpaSetting;
-    match s {
-        IpaSetting::Samples => "--samples",
-        IpaSetting::Ts => "--ts",
-        IpaSetting::Amplitude => "--amplitude",
-        IpaSetting::Input => "--input",
-        IpaSetting::Plant => "--plant",
-    }
 }
 
 /// The exit code of `e`: [`NUMERICAL`] when any error in its chain is a numerical failure of one of

@@ -115,3 +115,20 @@ impl ControlError {
         }
     }
 }
+
+impl ControlSetting {
+    /// The command-line flag of this setting (the Python package raises with the same words).
+    pub fn flag(&self) -> &'static str {
+        match self {
+            ControlSetting::Kp => "--kp",
+            ControlSetting::Ki => "--ki",
+            ControlSetting::UMax => "--u-max",
+            ControlSetting::TrackingTime => "--tracking-time",
+            ControlSetting::Ts => "ts",
+            ControlSetting::Duration => "--duration",
+            ControlSetting::Y0 => "--y0",
+            ControlSetting::Deadzone => "--compensate-deadzone",
+            ControlSetting::CompensatorThreshold => "--compensator-threshold",
+        }
+    }
+}

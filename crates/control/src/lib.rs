@@ -26,6 +26,6 @@ pub mod profile;
 pub use closed_loop::Trace;
 pub use compensator::{DeadzoneCompensator, SlopeMode};
 pub use error::{ControlError, ControlSetting};
-pub use metrics::{metrics_for_steps, StepMetrics, StepSegment};
+pub use metrics::{metrics_for_steps, run_metrics, RunMetrics, StepMetrics, StepSegment};
 pub use pi::{AntiWindup, AntiWindupScheme, IntegralForm, PiController, PiSettings};
 pub use profile::Profile;

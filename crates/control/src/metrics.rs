@@ -214,9 +214,93 @@ pub fn metrics_for_steps(trace: &Trace) -> Result<Vec<StepSegment>, ControlError
     Ok(out)
 }
 
+/// The metrics of a closed-loop run as `ipa-sysid control` reports them.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RunMetrics {
+    /// `fixed`: `metrics` are those of the single step of a fixed set-point; `worst-step`: the
+    /// field-wise worst over `steps` ([`StepMetrics::worst`]).
+    pub kind: String,
+    /// The step metrics (see `kind`).
+    pub metrics: StepMetrics,
+    /// Every step of the set-point profile ([`metrics_for_steps`]).
+    pub steps: Vec<StepSegment>,
+}
+
+/// The metrics of a run of `profile`: for a fixed set-point r, those of the response from y(0) towards
+/// r; otherwise the worst over the profile's steps. Fails when the profile has no step to measure.
+pub fn run_metrics(trace: &Trace, profile: &crate::Profile) -> Result<RunMetrics, ControlError> {
+    let steps = metrics_for_steps(trace)?;
+    let (kind, metrics) = match profile {
+        crate::Profile::Fixed { setpoint_mm } => {
+            let y0 = trace.y.first().copied().unwrap_or(0.0);
+            (
+                "fixed",
+                StepMetrics::compute(&trace.t, &trace.y, y0, *setpoint_mm)?,
+            )
+        }
+        _ => (
+            "worst-step",
+            StepMetrics::worst(steps.iter().map(|s| &s.metrics))
+                .ok_or_else(|| ControlError::Config("the profile has no step to measure".into()))?,
+        ),
+    };
+    Ok(RunMetrics {
+        kind: kind.to_string(),
+        metrics,
+        steps,
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    // A staircase run: r steps 0 -> 10 at t = 1 s and 10 -> 4 at t = 2 s, y follows r exactly one sample
+    // late. Hand-derived: the first segment (y at 0, r = 0) has no step, the second rises 0 -> 10 within one
+    // sample (0.1 s) and the third falls 10 -> 4 the same way; each has no overshoot and zero final error.
+    // worst-step takes the largest of each field; a fixed profile measures from y(0) towards r.
+    #[test]
+    fn run_metrics_picks_fixed_or_worst_step() {
+        let t: Vec<f64> = (0..30).map(|k| k as f64 * 0.1).collect();
+        let r: Vec<f64> = t
+            .iter()
+            .map(|&t| {
+                if t < 0.95 {
+                    0.0
+                } else if t < 1.95 {
+                    10.0
+                } else {
+                    4.0
+                }
+            })
+            .collect();
+        let mut y = vec![0.0];
+        y.extend_from_slice(&r[..29]);
+        let trace = Trace {
+            t: t.clone(),
+            r,
+            u: vec![0.0; 30],
+            y,
+        };
+        let stairs = crate::Profile::Staircase {
+            levels_mm: vec![0.0, 10.0, 4.0],
+            hold_s: 1.0,
+        };
+        let run = run_metrics(&trace, &stairs).unwrap();
+        assert_eq!(run.kind, "worst-step");
+        assert_eq!(run.steps.len(), 3);
+        assert_eq!(run.steps[1].setpoint_mm, 10.0);
+        assert_eq!(run.steps[2].y0_mm, 10.0);
+        // Worst steady-state error: 0 everywhere (r - y_f with y_f = r).
+        assert_eq!(run.metrics.steady_state_error_mm, Some(0.0));
+        assert_eq!(run.metrics.overshoot_mm, Some(0.0));
+        let fixed = crate::Profile::Fixed { setpoint_mm: 4.0 };
+        let run = run_metrics(&trace, &fixed).unwrap();
+        assert_eq!(run.kind, "fixed");
+        // From y(0) = 0 to y_f = 4: the response peaks at 10, 6 mm above the final value (150 %).
+        assert_eq!(run.metrics.overshoot_mm, Some(6.0));
+        assert!((run.metrics.overshoot_percent.unwrap() - 150.0).abs() < 1e-12);
+    }
 
     fn grid(dt: f64, t_end: f64) -> Vec<f64> {
         (0..=(t_end / dt).round() as usize)

@@ -63,6 +63,31 @@ impl Setting {
     }
 }
 
+impl Setting {
+    /// The command-line flag of the setting (`--na`, `--forgetting`, ...); [`Setting::Other`] is already
+    /// named as the caller wants it. The command line and the Python package both render errors with
+    /// these, so that their messages are the same.
+    pub fn flag(&self) -> &'static str {
+        match self {
+            Setting::Na => "--na",
+            Setting::Nb => "--nb",
+            Setting::Nk => "--nk",
+            Setting::Ts => "--ts",
+            Setting::UCol => "--u-col",
+            Setting::YCol => "--y-col",
+            Setting::TCol => "--t-col",
+            Setting::Forgetting => "--forgetting",
+            Setting::P0 => "--p0",
+            Setting::Passes => "--passes",
+            Setting::MaxTrace => "--max-trace",
+            Setting::IvStages => "--iv-stages",
+            Setting::MaxIterations => "--max-iterations",
+            Setting::Tolerance => "tolerance",
+            Setting::Other(name) => name,
+        }
+    }
+}
+
 impl std::fmt::Display for Setting {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.name())
@@ -208,6 +233,14 @@ fn other_symbol(s: Setting) -> &'static str {
         Setting::YCol => "y",
         Setting::TCol => "t",
         _ => "the two",
+    }
+}
+
+impl SysidError {
+    /// The message with each [`Setting`] named by its command-line flag ([`Setting::flag`]): what the
+    /// command line prints after `error: ` and what the Python package raises.
+    pub fn render_flags(&self) -> String {
+        self.render(&|s| s.flag().to_string())
     }
 }
 

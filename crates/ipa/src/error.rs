@@ -95,3 +95,16 @@ impl std::fmt::Display for IpaSetting {
         f.write_str(self.name())
     }
 }
+
+impl IpaSetting {
+    /// The command-line flag of this setting (the Python package raises with the same words).
+    pub fn flag(&self) -> &'static str {
+        match self {
+            IpaSetting::Samples => "--samples",
+            IpaSetting::Ts => "--ts",
+            IpaSetting::Amplitude => "--amplitude",
+            IpaSetting::Input => "--input",
+            IpaSetting::Plant => "--plant",
+        }
+    }
+}

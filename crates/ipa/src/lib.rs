@@ -6,6 +6,7 @@
 //!   integrated by adaptive Dormand–Prince 5(4) steps with located events ([`dynamics`], [`plant`]; the
 //!   earlier classical RK4 is kept as the reference). Parameters in [`PlantConfig`] ([`config`], TOML).
 //! - [`spec::plant_from_spec`]: `ipa`, `paper` or `model:FILE` behind [`sysid_core::Plant`].
+//! - [`experiment`]: one open-loop experiment (input design, plant, noise) as `simulate` runs it.
 //! - [`input`]: staircase, PRBS, APRBS, multisine, step and file inputs.
 //!
 //! See `docs/plant.md` for the equations, the parameters and their sources.
@@ -15,6 +16,7 @@ pub mod cylinder;
 pub mod dynamics;
 pub mod encoder;
 pub mod error;
+pub mod experiment;
 pub mod friction;
 pub mod input;
 pub mod plant;
@@ -23,6 +25,7 @@ pub mod valve;
 
 pub use config::PlantConfig;
 pub use error::{IpaError, IpaSetting};
+pub use experiment::{Experiment, Record};
 pub use input::{generate, InputSpec};
 pub use plant::Ipa;
 pub use spec::{plant_from_spec, plant_from_spec_with_ts, PlantSpec, DEFAULT_TS_S};

@@ -16,6 +16,7 @@ pub use sysid_core::ls;
 pub mod merge;
 pub mod miso;
 pub mod oe;
+pub mod options;
 pub mod order;
 pub mod residuals;
 pub mod rls;
@@ -28,6 +29,7 @@ pub use estimate::{
     identify, Estimator, EstimatorSettings, Fitted, Identification, InstrumentalVariables,
     LeastSquares, Method, Note, OutputError, Param, Passes, RecursiveLeastSquares, Termination,
 };
+pub use options::IdentifyOptions;
 pub use sysid_core::{
     data, detrend, metrics, model, model_file, nonlinearity, param, plant, structure, Dataset,
     Deadzone, InputChannel, Model, ModelKind, ModelPlant, Orders, ParamName, Parameterisation,

@@ -7,8 +7,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 use control::{
-    closed_loop, metrics_for_steps, AntiWindup, AntiWindupScheme, DeadzoneCompensator,
-    IntegralForm, PiSettings, Profile, SlopeMode, StepMetrics, StepSegment, Trace,
+    closed_loop, run_metrics, AntiWindup, AntiWindupScheme, DeadzoneCompensator, IntegralForm,
+    PiSettings, Profile, RunMetrics, SlopeMode, StepMetrics, StepSegment, Trace,
 };
 use serde::Serialize;
 
@@ -95,7 +95,7 @@ struct ControlOut<'a> {
     plant: PlantOut<'a>,
     settings: SettingsOut<'a>,
     /// `fixed`: metrics of the single step; `worst-step`: field-wise worst over `steps` (unfixed set-point).
-    metrics_kind: &'static str,
+    metrics_kind: &'a str,
     metrics: StepMetrics,
     steps: &'a [StepSegment],
     samples: usize,
@@ -256,18 +256,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             &format!("at least one sampling period ({ts} s) to measure a response")
         ));
     }
-    let steps = metrics_for_steps(&trace)?;
-    let (metrics_kind, metrics) = match &profile {
-        Profile::Fixed { setpoint_mm } => (
-            "fixed",
-            StepMetrics::compute(&trace.t, &trace.y, trace.y[0], *setpoint_mm)?,
-        ),
-        _ => (
-            "worst-step",
-            StepMetrics::worst(steps.iter().map(|s| &s.metrics))
-                .context("the profile has no step to measure")?,
-        ),
-    };
+    let RunMetrics {
+        kind,
+        metrics,
+        steps,
+    } = run_metrics(&trace, &profile)?;
+    let metrics_kind = kind.as_str();
 
     if let Some(out) = &args.out {
         sysid_io::write_columns_csv(out, &Trace::COLUMNS, &trace.columns())?;

@@ -2,14 +2,11 @@
 
 use std::path::{Path, PathBuf};
 
-use sysid::estimate::{
-    identify, EstimatorSettings, Identification, InstrumentalVariables, LeastSquares, Method,
-    OutputError, Passes, RecursiveLeastSquares,
-};
+use sysid::estimate::{identify, Identification, Method, Passes};
 use sysid::rls_ud::RlsForm;
 use sysid::summary::IdentifyReport;
 use sysid::windup::Windup;
-use sysid::{ModelKind, Orders, Structure};
+use sysid::{IdentifyOptions, ModelKind};
 
 use super::common::{
     check_outputs, print_notes, print_report, write_output, ColumnArgs, ValidationArgs,
@@ -166,50 +163,26 @@ fn parse_passes(text: &str) -> Result<Passes, String> {
 }
 
 impl Args {
-    /// The identification these flags describe.
+    /// The identification these flags describe (one input; several inputs go through `miso`).
     pub fn settings(&self) -> Identification {
-        let start = LeastSquares {
+        IdentifyOptions {
+            model: self.model,
+            na: self.na,
+            nb: self.nb.first(),
+            nk: self.nk.first(),
+            method: self.method,
+            forgetting: self.forgetting,
+            p0: self.p0,
+            passes: self.passes,
             max_iterations: self.max_iterations,
-            ..LeastSquares::default()
-        };
-        let estimator = match self.method {
-            Method::Ls => EstimatorSettings::Ls(start),
-            Method::Rls => EstimatorSettings::Rls(RecursiveLeastSquares {
-                forgetting: self.forgetting,
-                p0: self.p0,
-                passes: self.passes,
-                form: self.rls_form,
-                windup: self.windup,
-                max_trace: self.max_trace,
-                record_history: false,
-            }),
-            Method::Oe => EstimatorSettings::Oe(OutputError {
-                start,
-                max_iterations: self.max_iterations,
-            }),
-            Method::Iv => EstimatorSettings::Iv(InstrumentalVariables {
-                start,
-                forgetting: self.forgetting,
-                p0: self.p0,
-                stages: self.iv_stages,
-            }),
-        };
-        Identification {
-            structure: Structure {
-                kind: self.model,
-                orders: Orders {
-                    na: self.na,
-                    nb: self.nb.first(),
-                    nk: self.nk.first(),
-                },
-                offset: self.offset,
-            },
-            estimator,
-            // A one-sided input (never negative or never positive) drops the unexcited deadzone branch
-            // and says so in the report's note.
-            drop_unexcited_branch: true,
+            rls_form: self.rls_form,
+            windup: self.windup,
+            max_trace: self.max_trace,
+            iv_stages: self.iv_stages,
+            offset: self.offset,
             fallback: self.fallback,
         }
+        .settings()
     }
 }
 

@@ -1,0 +1,165 @@
+//! One open-loop experiment on a plant (`ipa-sysid simulate`, the Python `simulate_plant`): a designed
+//! input u(k) (PWM counts) applied to the physics IPA, the paper's model or a saved model, recording the
+//! position y(k) (mm, with optional white measurement noise) and, for the physics plant, the chamber
+//! pressures p_a, p_b (Pa).
+
+use std::path::PathBuf;
+
+use sysid_core::{Plant, Setting, SysidError};
+
+use crate::input::{staircase_experiment, InputSpec, StaircaseDesign};
+use crate::{Ipa, IpaError, PlantConfig, PlantSpec};
+
+/// Default number of samples N of an experiment.
+pub const DEFAULT_SAMPLES: usize = 2000;
+
+/// What to run: the settings of `ipa-sysid simulate` (each field is the flag of the same name).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Experiment {
+    /// The plant (`--plant`).
+    pub plant: PlantSpec,
+    /// TOML file overriding the physics plant's parameters (`--plant-config`, `ipa` only).
+    pub plant_config: Option<PathBuf>,
+    /// The input design (`--input`).
+    pub input: InputSpec,
+    /// Amplitude A of the random inputs, PWM counts (`--amplitude`).
+    pub amplitude: f64,
+    /// Number of samples N (`--samples`); `None`: the length of a file input, else [`DEFAULT_SAMPLES`].
+    pub samples: Option<usize>,
+    /// Sampling period Ts in s (`--ts`); `None`: 0.01 s, or a model plant's own Ts.
+    pub ts: Option<f64>,
+    /// Initial position y0 in mm, the piston at rest (`--y0`).
+    pub x0: f64,
+    /// Seed of the random input and of the noise (`--seed`).
+    pub seed: u64,
+    /// Standard deviation of white Gaussian noise added to y, mm (`--noise-std`).
+    pub noise_std: f64,
+}
+
+impl Default for Experiment {
+    fn default() -> Self {
+        Experiment {
+            plant: PlantSpec::Ipa,
+            plant_config: None,
+            input: InputSpec::Staircase,
+            amplitude: 255.0,
+            samples: None,
+            ts: None,
+            x0: 100.0,
+            seed: 0,
+            noise_std: 0.0,
+        }
+    }
+}
+
+/// The recorded experiment.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Record {
+    /// Input u(k), PWM counts.
+    pub u: Vec<f64>,
+    /// Output y(k), mm (noise included).
+    pub y: Vec<f64>,
+    /// Chamber pressures [p_a, p_b] in Pa at each sample (physics plant only).
+    pub pressures: Option<Vec<[f64; 2]>>,
+    /// Sampling period Ts in s.
+    pub ts: f64,
+}
+
+impl Experiment {
+    /// Checks the settings that do not need the plant (x0, noise).
+    pub fn check(&self) -> Result<(), IpaError> {
+        if !self.x0.is_finite() {
+            return Err(SysidError::setting(
+                Setting::Other("--y0"),
+                self.x0,
+                "a finite position in mm",
+            )
+            .into());
+        }
+        if !(self.noise_std.is_finite() && self.noise_std >= 0.0) {
+            return Err(SysidError::setting(
+                Setting::Other("--noise-std"),
+                self.noise_std,
+                "a standard deviation >= 0 in mm",
+            )
+            .into());
+        }
+        Ok(())
+    }
+
+    /// Runs the experiment: y(k) is the plant's output before u(k) is applied.
+    pub fn run(&self) -> Result<Record, IpaError> {
+        self.check()?;
+        let samples = match (self.samples, self.input.file()) {
+            (Some(n), _) => n,
+            (None, Some(f)) => crate::input::read_input_file(f)?.len(),
+            (None, None) => DEFAULT_SAMPLES,
+        };
+        let rec = if self.plant == PlantSpec::Ipa {
+            let cfg = match &self.plant_config {
+                Some(p) => PlantConfig::from_toml_file(p)?,
+                None => PlantConfig::default(),
+            };
+            let mut plant = Ipa::with_ts(cfg, self.ts.unwrap_or(crate::DEFAULT_TS_S))?;
+            plant.reset(self.x0);
+            let u = match self.input {
+                InputSpec::Staircase => {
+                    // The experimenter's rule watches the plant: design on a copy, then record.
+                    let mut copy = plant.clone();
+                    staircase_experiment(
+                        &mut copy,
+                        &StaircaseDesign::default(),
+                        samples,
+                        self.amplitude,
+                        self.seed,
+                    )?
+                    .0
+                }
+                _ => crate::generate(&self.input, samples, plant.ts(), self.amplitude, self.seed)?,
+            };
+            let mut y = Vec::with_capacity(u.len());
+            let mut p = Vec::with_capacity(u.len());
+            for (k, &uk) in u.iter().enumerate() {
+                y.push(plant.output());
+                p.push(plant.pressures_pa());
+                plant.step(uk).map_err(|e| {
+                    IpaError::Sysid(SysidError::from(e).context(&format!("simulating sample {k}")))
+                })?;
+            }
+            Record {
+                u,
+                y,
+                pressures: Some(p),
+                ts: plant.ts(),
+            }
+        } else {
+            let mut plant = self.plant.build(self.plant_config.as_deref(), self.ts)?;
+            plant.reset(self.x0);
+            let ts = plant.ts();
+            let (u, y) = match self.input {
+                InputSpec::Staircase => staircase_experiment(
+                    plant.as_mut(),
+                    &StaircaseDesign::default(),
+                    samples,
+                    self.amplitude,
+                    self.seed,
+                )?,
+                _ => {
+                    let u = crate::generate(&self.input, samples, ts, self.amplitude, self.seed)?;
+                    let y = sysid_core::plant::run_open_loop(plant.as_mut(), &u)?;
+                    (u, y)
+                }
+            };
+            Record {
+                u,
+                y,
+                pressures: None,
+                ts,
+            }
+        };
+        Ok(Record {
+            y: crate::input::add_noise(&rec.y, self.noise_std, self.seed),
+            ..rec
+        })
+    }
+}

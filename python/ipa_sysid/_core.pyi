@@ -1,0 +1,193 @@
+"""Type stubs of the compiled module ipa_sysid._core (see ipa_sysid for the overview)."""
+
+from os import PathLike
+from typing import Any, Literal, Sequence
+
+import numpy as np
+import numpy.typing as npt
+
+ArrayLike = npt.ArrayLike
+FloatArray = npt.NDArray[np.float64]
+ComplexArray = npt.NDArray[np.complex128]
+
+__version__: str
+
+class Model:
+    """An identified or loaded model: A(q) y(k) = B(q) x(k - nk) + c, x = u (ARX) or the deadzone f(u)."""
+
+    @property
+    def kind(self) -> Literal["hammerstein", "arx"]:
+        """"hammerstein" or "arx"."""
+    @property
+    def a(self) -> FloatArray:
+        """A(q) coefficients [a1, ..., a_na]."""
+    @property
+    def b(self) -> FloatArray:
+        """B(q) coefficients [b1, ..., b_nb]."""
+    @property
+    def na(self) -> int:
+        """na: number of poles."""
+    @property
+    def nb(self) -> int:
+        """nb: number of B coefficients."""
+    @property
+    def nk(self) -> int:
+        """nk: input delay in samples."""
+    @property
+    def k0(self) -> int:
+        """k0 = max(na, nk + nb - 1): initial outputs a simulation takes as given."""
+    @property
+    def ts(self) -> float:
+        """Ts: sampling period in s."""
+    @property
+    def offset(self) -> float | None:
+        """c: constant term, or None."""
+    @property
+    def deadzone(self) -> dict[str, float] | None:
+        """{"b_l", "b_r", "m_l", "m_r"} for Hammerstein, None for ARX."""
+    @property
+    def poles(self) -> ComplexArray:
+        """Poles of the linear block."""
+    @property
+    def stable(self) -> bool:
+        """All poles strictly inside the unit circle."""
+    @property
+    def parameter_count(self) -> int:
+        """p: number of estimated parameters."""
+    def simulate(self, u: ArrayLike, y0: ArrayLike | None = None) -> FloatArray:
+        """Free-run simulation of len(u) samples; the first k0 outputs from y0 (zeros when None)."""
+    def predict(self, u: ArrayLike, y: ArrayLike, horizon: int = 1) -> FloatArray:
+        """k-step-ahead prediction from measured u and y."""
+    def metrics(self, u: ArrayLike, y: ArrayLike, name: str = "data") -> dict[str, Any]:
+        """Validation metrics (fit %, RMSE, loss, FPE, AIC, N, p) on a record, as `validate`."""
+    def to_json(self) -> str:
+        """The model file text (`identify --save-model` format)."""
+    def save(self, path: str | PathLike[str]) -> None:
+        """Writes the model file atomically."""
+    def to_control(self) -> Any:
+        """The linear block as a python-control TransferFunction (ImportError without python-control)."""
+    def transfer_polynomials(self) -> tuple[list[float], list[float]]:
+        """(num, den) of the linear block in descending powers of z."""
+    def __eq__(self, other: object) -> bool: ...
+
+class Fit:
+    """The result of identify()."""
+
+    @property
+    def model(self) -> Model:
+        """The fitted model."""
+    @property
+    def poles(self) -> ComplexArray:
+        """Poles, largest modulus first."""
+    @property
+    def stable(self) -> bool:
+        """All poles strictly inside the unit circle."""
+    @property
+    def metrics(self) -> dict[str, Any]:
+        """{"estimation": {...}, "validation": {...}} as in identify --json."""
+    @property
+    def parameters(self) -> list[dict[str, Any]]:
+        """[{"name", "value", "std"}] as in identify --json."""
+    @property
+    def estimation(self) -> dict[str, Any]:
+        """The `estimation` object of identify --json."""
+    @property
+    def warnings(self) -> list[Any]:
+        """Reasons not to trust the estimate."""
+    @property
+    def residuals(self) -> dict[str, Any] | None:
+        """Residual analysis of identify --json, when reported."""
+    def to_dict(self) -> dict[str, Any]:
+        """The identify --json document."""
+    def to_json(self) -> str:
+        """The identify --json document as text."""
+
+class Rls:
+    """Recursive least squares (paper eqs. 9-12) on n parameters."""
+
+    def __init__(self, n: int, forgetting: float = 1.0, p0: float = 1e6) -> None: ...
+    @property
+    def n(self) -> int:
+        """Number of parameters."""
+    @property
+    def forgetting(self) -> float:
+        """Forgetting factor rho."""
+    @property
+    def samples(self) -> int:
+        """Updates applied so far."""
+    @property
+    def theta(self) -> FloatArray:
+        """Current estimate (copy)."""
+    @property
+    def P(self) -> FloatArray:
+        """n x n covariance-like matrix (copy)."""
+    def update(self, phi: ArrayLike, y: float) -> float:
+        """One update; returns the a-priori error."""
+    def update_many(self, Phi: ArrayLike, y: ArrayLike) -> FloatArray:
+        """Updates with each row of Phi (N x n); returns the a-priori errors."""
+    def restart_covariance(self, p0: float) -> None:
+        """P = p0 I, keeping theta."""
+
+def identify(
+    u: ArrayLike,
+    y: ArrayLike,
+    ts: float,
+    model: Literal["hammerstein", "arx"] = "hammerstein",
+    method: Literal["rls", "ls", "oe", "iv"] = "rls",
+    na: int = 3,
+    nb: int = 1,
+    nk: int = 1,
+    forgetting: float = 1.0,
+    p0: float = 1e6,
+    offset: bool = False,
+    validation: tuple[ArrayLike, ArrayLike] | None = None,
+    passes: int | None = None,
+    max_iterations: int = 100,
+    rls_form: Literal["standard", "ud"] = "standard",
+    windup: Literal["none", "trace", "directional"] = "none",
+    max_trace: float | None = None,
+    iv_stages: int = 10,
+    name: str = "data",
+    validation_name: str = "validation",
+    resid_lags: int = 25,
+    fallback: bool = False,
+) -> Fit:
+    """Identifies a model as `ipa-sysid identify` does with the same options."""
+
+def load_model(path: str | PathLike[str]) -> Model:
+    """Reads a model file of `identify --save-model`."""
+
+def paper_model() -> Model:
+    """The paper's Table III Hammerstein model."""
+
+def simulate_plant(
+    plant: str = "ipa",
+    input: str = "staircase",
+    samples: int | None = None,
+    seed: int = 0,
+    amplitude: float = 255.0,
+    ts: float | None = None,
+    x0: float = 100.0,
+    noise_std: float = 0.0,
+    plant_config: str | PathLike[str] | None = None,
+) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray | None]:
+    """One open-loop experiment as `ipa-sysid simulate`: (t, u, y, pressures)."""
+
+def control(
+    plant: str = "ipa",
+    setpoint: float | None = None,
+    profile: str | None = None,
+    kp: float = 14.0,
+    ki: float = 1.0,
+    duration: float | None = None,
+    y0: float = 0.0,
+    integral: Literal["scaled", "per-sample"] = "scaled",
+    anti_windup: Literal["none", "clamping", "back-calculation"] = "none",
+    tracking_time: float | None = None,
+    u_max: float = 255.0,
+    compensate_deadzone: Model | Literal["paper"] | None = None,
+    compensator_slopes: Literal["shift", "equalise"] = "shift",
+    compensator_threshold: float = 0.0,
+    plant_config: str | PathLike[str] | None = None,
+) -> dict[str, Any]:
+    """Closed-loop PI control as `ipa-sysid control`: trace arrays, metrics, steps."""

@@ -1,0 +1,975 @@
+//! `ipa_sysid._core`: the Python bindings of ipa-sysid (PyO3, numpy). Thin: every computation is a call
+//! into the libraries `sysid-core`, `sysid`, `ipa`, `control` and `sysid-io`; this crate converts
+//! arguments and results and maps errors to Python exceptions with the command line's messages
+//! ([`sysid_core::SysidError::render_flags`]).
+//!
+//! The Python package `ipa_sysid` (python/ipa_sysid) re-exports everything defined here.
+
+use std::path::PathBuf;
+
+use clap::ValueEnum;
+use numpy::{
+    Complex64, IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2,
+    PyUntypedArrayMethods,
+};
+use pyo3::exceptions::{PyArithmeticError, PyImportError, PyOSError, PyValueError};
+use pyo3::prelude::*;
+use pyo3::types::{PyDict, PyList};
+
+use sysid::data::{Dataset, Signals};
+use sysid::summary::IdentifyReport;
+use sysid::{IdentifyOptions, Model, Setting, SysidError};
+
+/// Upper bound on the number of parameters of a stand-alone [`Rls`] (P has n² entries).
+const MAX_RLS_PARAMS: usize = 1000;
+
+/// Default run length of `control` with a fixed set-point, s (as `ipa-sysid control`).
+const DEFAULT_FIXED_DURATION_S: f64 = 10.0;
+
+// ---------------------------------------------------------------------------------------------------
+// Errors: input errors are ValueError, numerical failures ArithmeticError, file-system errors OSError.
+
+/// A library error as the Python exception of its kind, with the command line's message.
+fn sysid_err(e: SysidError) -> PyErr {
+    let msg = e.render_flags();
+    match e {
+        SysidError::Numerical(_) => PyArithmeticError::new_err(msg),
+        SysidError::Io { .. } => PyOSError::new_err(msg),
+        _ => PyValueError::new_err(msg),
+    }
+}
+
+/// An error of the plant library.
+fn ipa_err(e: ipa::IpaError) -> PyErr {
+    match e {
+        ipa::IpaError::Sysid(s) => sysid_err(s),
+        ipa::IpaError::Numerical(_) => PyArithmeticError::new_err(e.to_string()),
+        ipa::IpaError::Config(_) | ipa::IpaError::Setting { .. } => {
+            PyValueError::new_err(e.render(&|s| s.flag().to_string()))
+        }
+    }
+}
+
+/// An error of the control library.
+fn control_err(e: ::control::ControlError) -> PyErr {
+    match e {
+        ::control::ControlError::Numerical(_) => PyArithmeticError::new_err(e.to_string()),
+        ::control::ControlError::Io { .. } => PyOSError::new_err(e.to_string()),
+        _ => PyValueError::new_err(e.render(&|s| s.flag().to_string())),
+    }
+}
+
+/// A `ValueError` naming a setting, worded as the library's setting errors.
+fn setting_err(name: &'static str, value: impl ToString, expected: &str) -> PyErr {
+    sysid_err(SysidError::setting(Setting::Other(name), value, expected))
+}
+
+/// One of the command line's value names (`--method rls`, ...) parsed into its enum.
+fn choice<T: ValueEnum>(flag: &'static str, value: &str) -> PyResult<T> {
+    T::from_str(value, false).map_err(|_| {
+        let names: Vec<String> = T::value_variants()
+            .iter()
+            .filter_map(|v| v.to_possible_value().map(|p| p.get_name().to_string()))
+            .collect();
+        setting_err(flag, value, &format!("one of {}", names.join(", ")))
+    })
+}
+
+// ---------------------------------------------------------------------------------------------------
+// Conversions.
+
+/// A 1-D float64 copy of `obj` (ndarray, list, pandas Series, anything `numpy.asarray` accepts).
+fn floats(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<f64>> {
+    if let Ok(a) = obj.extract::<PyReadonlyArray1<'_, f64>>() {
+        return Ok(match a.as_slice() {
+            Ok(s) => s.to_vec(),
+            Err(_) => a.as_array().to_vec(),
+        });
+    }
+    let arr = as_float_array(obj, what)?;
+    if arr.ndim() != 1 {
+        return Err(PyValueError::new_err(format!(
+            "{what}: expected a 1-D array of numbers, got an array of shape {:?}",
+            arr.shape()
+        )));
+    }
+    let a: PyReadonlyArray1<'_, f64> = arr.extract()?;
+    Ok(a.as_array().to_vec())
+}
+
+/// `numpy.ascontiguousarray(obj, dtype=float64)`, with a message naming the argument on failure.
+fn as_float_array<'py>(
+    obj: &Bound<'py, PyAny>,
+    what: &str,
+) -> PyResult<Bound<'py, numpy::PyUntypedArray>> {
+    let py = obj.py();
+    let np = py.import("numpy")?;
+    let kwargs = PyDict::new(py);
+    kwargs.set_item("dtype", "float64")?;
+    let arr = np
+        .call_method("ascontiguousarray", (obj,), Some(&kwargs))
+        .map_err(|e| {
+            PyValueError::new_err(format!("{what}: expected an array of numbers ({e})"))
+        })?;
+    Ok(arr.cast_into::<numpy::PyUntypedArray>()?)
+}
+
+/// A record (u, y) checked by the library (equal lengths, finite values, Ts > 0).
+fn dataset(u: &Bound<'_, PyAny>, y: &Bound<'_, PyAny>, ts: f64, name: &str) -> PyResult<Dataset> {
+    let u = floats(u, "u")?;
+    let y = floats(y, "y")?;
+    Dataset::new(Signals { u, y }, ts, name).map_err(sysid_err)
+}
+
+/// A JSON text as Python objects (`json.loads`).
+fn json_loads<'py>(py: Python<'py>, text: &str) -> PyResult<Bound<'py, PyAny>> {
+    py.import("json")?.call_method1("loads", (text,))
+}
+
+/// A serialisable value as Python objects, through its JSON form.
+fn to_py<'py, T: serde::Serialize>(py: Python<'py>, v: &T) -> PyResult<Bound<'py, PyAny>> {
+    let text = serde_json::to_string(v)
+        .map_err(|e| PyArithmeticError::new_err(format!("serialising a result: {e}")))?;
+    json_loads(py, &text)
+}
+
+// ---------------------------------------------------------------------------------------------------
+// Model.
+
+/// An identified (or loaded) model: the ARX block A(q) y(k) = B(q) x(k − nk) + c, with x = u for ARX
+/// and x = the deadzone f(u) (b_l, b_r in counts, m_l, m_r) for Hammerstein. Ts in s.
+#[pyclass(name = "Model", module = "ipa_sysid", frozen)]
+#[derive(Clone)]
+struct PyModel {
+    inner: Model,
+}
+
+#[pymethods]
+impl PyModel {
+    /// "hammerstein" or "arx".
+    #[getter]
+    fn kind(&self) -> String {
+        self.inner.kind().to_string()
+    }
+
+    /// A(q) coefficients [a1, ..., a_na] (the leading 1 omitted), as a float64 array.
+    #[getter]
+    fn a<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_slice(py, self.inner.a())
+    }
+
+    /// B(q) coefficients [b1, ..., b_nb] of the input (b1 = 1 by normalisation for Hammerstein).
+    #[getter]
+    fn b<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_slice(py, self.inner.b())
+    }
+
+    /// na: number of poles.
+    #[getter]
+    fn na(&self) -> usize {
+        self.inner.na()
+    }
+
+    /// nb: number of B coefficients.
+    #[getter]
+    fn nb(&self) -> usize {
+        self.inner.nb()
+    }
+
+    /// nk: input delay in samples.
+    #[getter]
+    fn nk(&self) -> usize {
+        self.inner.nk()
+    }
+
+    /// k0 = max(na, nk + nb − 1): the number of initial outputs a simulation takes as given.
+    #[getter]
+    fn k0(&self) -> usize {
+        self.inner.k0()
+    }
+
+    /// Ts: sampling period in s.
+    #[getter]
+    fn ts(&self) -> f64 {
+        self.inner.ts()
+    }
+
+    /// c: the constant term of the linear block, or None when the model has none.
+    #[getter]
+    fn offset(&self) -> Option<f64> {
+        self.inner.offset()
+    }
+
+    /// The deadzone as a dict {"b_l", "b_r" (counts), "m_l", "m_r"}, or None for an ARX model.
+    #[getter]
+    fn deadzone<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        self.inner.deadzone().map(|d| to_py(py, d)).transpose()
+    }
+
+    /// Poles of the linear block (roots of z^na + a1 z^(na−1) + ... + a_na), complex array.
+    #[getter]
+    fn poles<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<Complex64>> {
+        poles_array(py, &self.inner)
+    }
+
+    /// True when every pole lies strictly inside the unit circle.
+    #[getter]
+    fn stable(&self) -> bool {
+        self.inner.is_stable()
+    }
+
+    /// p: the number of estimated parameters (as in FPE and AIC).
+    #[getter]
+    fn parameter_count(&self) -> usize {
+        self.inner.parameter_count()
+    }
+
+    /// Free-run simulation (MATLAB `sim`) of the model driven by `u`: an array of len(u). The first k0
+    /// outputs are the initial conditions, taken from `y0` (at least k0 values; only the first k0 are
+    /// used, so a measured output record can be passed, exactly as `validate` does) or zeros when None.
+    #[pyo3(signature = (u, y0=None))]
+    fn simulate<'py>(
+        &self,
+        py: Python<'py>,
+        u: &Bound<'py, PyAny>,
+        y0: Option<&Bound<'py, PyAny>>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let u = floats(u, "u")?;
+        let k0 = self.inner.k0();
+        let mut y = vec![0.0; u.len()];
+        if let Some(y0) = y0 {
+            let y0 = floats(y0, "y0")?;
+            if y0.len() < k0.min(u.len()) {
+                return Err(setting_err(
+                    "y0",
+                    format!("{} value(s)", y0.len()),
+                    &format!("at least k0 = {k0} initial output(s) (or None for zeros)"),
+                ));
+            }
+            let k = k0.min(u.len());
+            y[..k].copy_from_slice(&y0[..k]);
+        }
+        let data =
+            Dataset::new(Signals { u, y }, self.inner.ts(), "simulate").map_err(sysid_err)?;
+        let out = self.inner.simulate(&data.u, &data.y).map_err(sysid_err)?;
+        Ok(out.into_pyarray(py))
+    }
+
+    /// k-step-ahead prediction (MATLAB `predict(m, data, k)`) from measured `u` and `y` (equal lengths):
+    /// ŷ(k) uses measured outputs up to k − horizon. horizon = 1 is the one-step prediction; entries
+    /// k < k0 are copies of `y`.
+    #[pyo3(signature = (u, y, horizon=1))]
+    fn predict<'py>(
+        &self,
+        py: Python<'py>,
+        u: &Bound<'py, PyAny>,
+        y: &Bound<'py, PyAny>,
+        horizon: usize,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let data = dataset(u, y, self.inner.ts(), "predict")?;
+        let out = self
+            .inner
+            .predict_k(&[&data.u], &data.y, horizon)
+            .map_err(sysid_err)?;
+        Ok(out.into_pyarray(py))
+    }
+
+    /// Validation metrics on a record (the `validate` command): fit % (simulation and 1-step), RMSE,
+    /// loss V (paper eq. 14), FPE (eq. 15), AIC, N, p, as a dict like the CLI JSON's.
+    #[pyo3(signature = (u, y, name="data"))]
+    fn metrics<'py>(
+        &self,
+        py: Python<'py>,
+        u: &Bound<'py, PyAny>,
+        y: &Bound<'py, PyAny>,
+        name: &str,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        let data = dataset(u, y, self.inner.ts(), name)?;
+        let m = sysid::metrics::metrics(&self.inner, &data).map_err(sysid_err)?;
+        to_py(py, &m)
+    }
+
+    /// The model file text (the command line's `--save-model` format, JSON).
+    fn to_json(&self) -> PyResult<String> {
+        sysid::model_file::to_json(&self.inner).map_err(sysid_err)
+    }
+
+    /// Writes the model file (as `identify --save-model`), atomically; readable by `load_model` and by
+    /// `ipa-sysid validate --model` / `--plant model:FILE`.
+    fn save(&self, path: PathBuf) -> PyResult<()> {
+        let text = self.to_json()?;
+        sysid_io::write_atomic(&path, text.as_bytes())
+            .map_err(|e| PyOSError::new_err(e.to_string()))
+    }
+
+    /// The linear block as a python-control `TransferFunction` in z (discrete, dt = Ts):
+    /// G(z) = (b1 z^-nk + ... + b_nb z^-(nk+nb-1)) / (1 + a1 z^-1 + ... + a_na z^-na). The deadzone and the
+    /// constant term are not part of it. Raises ImportError when python-control is not installed.
+    fn to_control<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let ct = py.import("control").map_err(|e| {
+            PyImportError::new_err(format!(
+                "Model.to_control needs python-control: pip install control ({e})"
+            ))
+        })?;
+        let (num, den) = self.transfer_polynomials();
+        ct.getattr("TransferFunction")?
+            .call1((num, den, self.inner.ts()))
+    }
+
+    /// Numerator and denominator of the linear block in descending powers of z (equal lengths n + 1,
+    /// n = max(na, nk + nb − 1)), as `to_control` uses them.
+    fn transfer_polynomials(&self) -> (Vec<f64>, Vec<f64>) {
+        let m = &self.inner;
+        let n = m.k0().max(1);
+        let mut den = vec![0.0; n + 1];
+        den[0] = 1.0;
+        den[1..=m.na()].copy_from_slice(m.a());
+        let mut num = vec![0.0; n + 1];
+        for (j, bj) in m.b().iter().enumerate() {
+            num[m.nk() + j] = *bj;
+        }
+        (num, den)
+    }
+
+    fn __repr__(&self) -> String {
+        let m = &self.inner;
+        format!(
+            "Model(kind={:?}, na={}, nb={}, nk={}, ts={}, a={:?}, b={:?}, deadzone={})",
+            m.kind().to_string(),
+            m.na(),
+            m.nb(),
+            m.nk(),
+            m.ts(),
+            m.a(),
+            m.b(),
+            m.deadzone().map_or("None".to_string(), |d| format!(
+                "{{b_l={}, b_r={}, m_l={}, m_r={}}}",
+                d.b_l, d.b_r, d.m_l, d.m_r
+            ))
+        )
+    }
+
+    fn __eq__(&self, other: &Self) -> bool {
+        self.inner == other.inner
+    }
+}
+
+/// The poles of a model as a complex array, in the order of the `identify --json` `poles`.
+fn poles_array<'py>(py: Python<'py>, m: &Model) -> Bound<'py, PyArray1<Complex64>> {
+    let p: Vec<Complex64> = m
+        .poles()
+        .iter()
+        .map(|z| Complex64::new(z.re, z.im))
+        .collect();
+    p.into_pyarray(py)
+}
+
+/// Reads a model file written by `ipa-sysid identify --save-model` (or an `identify --json` summary, or
+/// `Model.save`).
+#[pyfunction]
+fn load_model(path: PathBuf) -> PyResult<PyModel> {
+    sysid::model_file::read_model(&path)
+        .map(|inner| PyModel { inner })
+        .map_err(sysid_err)
+}
+
+/// The paper's "actual" Hammerstein model (Table III): the `paper` plant.
+#[pyfunction]
+fn paper_model() -> PyModel {
+    PyModel {
+        inner: Model::paper(),
+    }
+}
+
+// ---------------------------------------------------------------------------------------------------
+// identify.
+
+/// The result of `identify`: the model, its poles and stability, the metrics, the estimator's remarks,
+/// and `to_dict()`, the document `ipa-sysid identify --json` writes.
+#[pyclass(name = "Fit", module = "ipa_sysid", frozen)]
+struct PyFit {
+    report: IdentifyReport,
+    json: String,
+}
+
+#[pymethods]
+impl PyFit {
+    /// The fitted model.
+    #[getter]
+    fn model(&self) -> PyModel {
+        PyModel {
+            inner: self.report.model.clone(),
+        }
+    }
+
+    /// Poles of the linear block (largest modulus first), complex array.
+    #[getter]
+    fn poles<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<Complex64>> {
+        let p: Vec<Complex64> = self
+            .report
+            .poles
+            .iter()
+            .map(|z| Complex64::new(z.re, z.im))
+            .collect();
+        p.into_pyarray(py)
+    }
+
+    /// True when every pole lies strictly inside the unit circle.
+    #[getter]
+    fn stable(&self) -> bool {
+        self.report.stable
+    }
+
+    /// {"estimation": {...}, "validation": {...}} (validation only when given): the `metrics` of
+    /// `identify --json` (fit_sim_percent, fit_pred_percent, rmse_sim, rmse_pred, loss, fpe, aic, n, p).
+    #[getter]
+    fn metrics<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        to_py(py, &self.report.metrics)
+    }
+
+    /// Parameters with standard deviations: a list of {"name", "value", "std"} (std None when fixed).
+    #[getter]
+    fn parameters<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        to_py(py, &self.report.parameters)
+    }
+
+    /// How the model was estimated: the `estimation` object of `identify --json` (method, iterations,
+    /// converged, noise_variance, note, ...).
+    #[getter]
+    fn estimation<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        to_py(py, &self.report.estimation)
+    }
+
+    /// Reasons not to trust the estimate, in words: the `warnings` of `identify --json` when the
+    /// library reports them, otherwise the estimator's note (if any) as a one-element list.
+    #[getter]
+    fn warnings<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let d = self.to_dict(py)?;
+        if let Some(w) = d.cast::<PyDict>()?.get_item("warnings")? {
+            return Ok(w);
+        }
+        let notes: Vec<String> = self.report.estimation.note.iter().cloned().collect();
+        Ok(PyList::new(py, notes)?.into_any())
+    }
+
+    /// The residual analysis of `identify --json` (`residuals`), or None when the library does not
+    /// report one.
+    #[getter]
+    fn residuals<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        let d = self.to_dict(py)?;
+        d.cast::<PyDict>()?.get_item("residuals")
+    }
+
+    /// The whole `ipa-sysid identify --json` document as Python objects (dicts, lists, floats).
+    fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        json_loads(py, &self.json)
+    }
+
+    /// The `ipa-sysid identify --json` document as text.
+    fn to_json(&self) -> String {
+        self.json.clone()
+    }
+
+    fn __repr__(&self) -> String {
+        let m = &self.report.metrics.estimation;
+        format!(
+            "Fit(method={:?}, model={:?}, stable={}, fit_sim_percent={}, fit_pred_percent={})",
+            self.report.estimation.method.to_string(),
+            self.report.model.kind().to_string(),
+            if self.report.stable { "True" } else { "False" },
+            py_float(m.fit_sim_percent),
+            py_float(m.fit_pred_percent)
+        )
+    }
+}
+
+/// An optional number as Python prints it (`None` when absent).
+fn py_float(v: Option<f64>) -> String {
+    v.map_or("None".to_string(), |x| format!("{x:?}"))
+}
+
+/// Identifies a Hammerstein (deadzone + ARX) or ARX model from the input `u` (counts) and output `y`
+/// (mm) sampled every `ts` s, as `ipa-sysid identify` does with the same options; `validation` =
+/// (u_val, y_val) adds validation metrics. `name` and `validation_name` name the records in messages
+/// (the command line uses the file names).
+#[pyfunction]
+#[pyo3(signature = (u, y, ts, model="hammerstein", method="rls", na=3, nb=1, nk=1, forgetting=1.0,
+    p0=1e6, offset=false, validation=None, passes=None, max_iterations=100, rls_form="standard",
+    windup="none", max_trace=None, iv_stages=10, name="data", validation_name="validation",
+    resid_lags=25, fallback=false))]
+#[allow(clippy::too_many_arguments)]
+fn identify(
+    py: Python<'_>,
+    u: &Bound<'_, PyAny>,
+    y: &Bound<'_, PyAny>,
+    ts: f64,
+    model: &str,
+    method: &str,
+    na: usize,
+    nb: usize,
+    nk: usize,
+    forgetting: f64,
+    p0: f64,
+    offset: bool,
+    validation: Option<(Bound<'_, PyAny>, Bound<'_, PyAny>)>,
+    passes: Option<usize>,
+    max_iterations: usize,
+    rls_form: &str,
+    windup: &str,
+    max_trace: Option<f64>,
+    iv_stages: usize,
+    name: &str,
+    validation_name: &str,
+    resid_lags: usize,
+    fallback: bool,
+) -> PyResult<PyFit> {
+    let options = IdentifyOptions {
+        model: choice("--model", model)?,
+        na,
+        nb,
+        nk,
+        method: choice("--method", method)?,
+        forgetting,
+        p0,
+        // None: passes until the estimate settles (the command line's `--passes auto`).
+        passes: passes.map_or(sysid::Passes::AUTO, sysid::Passes::Fixed),
+        max_iterations,
+        rls_form: choice("--rls-form", rls_form)?,
+        windup: choice("--windup", windup)?,
+        max_trace,
+        iv_stages,
+        offset,
+        fallback,
+    };
+    let settings = options.settings();
+    settings.check().map_err(sysid_err)?;
+    let data = dataset(u, y, ts, name)?;
+    let val = validation
+        .map(|(uv, yv)| dataset(&uv, &yv, ts, validation_name))
+        .transpose()?;
+    let report = py
+        .detach(|| -> Result<IdentifyReport, SysidError> {
+            let fit = sysid::identify(&data, &settings)?;
+            IdentifyReport::assemble(&fit, &settings, &data, val.as_ref(), resid_lags)
+        })
+        .map_err(sysid_err)?;
+    let json = report.to_json().map_err(sysid_err)?;
+    Ok(PyFit { report, json })
+}
+
+// ---------------------------------------------------------------------------------------------------
+// Rls.
+
+/// Recursive least squares (paper eqs. 9–12) on n parameters: θ̂(0) = 0, P(0) = p0 · I, forgetting
+/// factor ρ in (0, 1]. Each update takes a regressor φ(k) (n values) and a measurement y(k).
+#[pyclass(name = "Rls", module = "ipa_sysid")]
+struct PyRls {
+    inner: sysid::rls::Rls,
+    samples: usize,
+}
+
+#[pymethods]
+impl PyRls {
+    #[new]
+    #[pyo3(signature = (n, forgetting=1.0, p0=1e6))]
+    fn new(n: usize, forgetting: f64, p0: f64) -> PyResult<Self> {
+        if n == 0 || n > MAX_RLS_PARAMS {
+            return Err(setting_err(
+                "n",
+                n,
+                &format!("a number of parameters from 1 to {MAX_RLS_PARAMS}"),
+            ));
+        }
+        Ok(PyRls {
+            inner: sysid::rls::Rls::new(n, forgetting, p0).map_err(sysid_err)?,
+            samples: 0,
+        })
+    }
+
+    /// n: number of parameters.
+    #[getter]
+    fn n(&self) -> usize {
+        self.inner.n_params()
+    }
+
+    /// ρ: the forgetting factor.
+    #[getter]
+    fn forgetting(&self) -> f64 {
+        self.inner.forgetting
+    }
+
+    /// Number of updates applied so far.
+    #[getter]
+    fn samples(&self) -> usize {
+        self.samples
+    }
+
+    /// θ̂: the current estimate (a copy, float64 array of n).
+    #[getter]
+    fn theta<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
+        PyArray1::from_slice(py, self.inner.theta.as_slice())
+    }
+
+    /// P: the n × n matrix proportional to the covariance of θ̂ (a copy).
+    #[getter(P)]
+    fn p<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray2<f64>> {
+        let p = self.inner.p();
+        let n = p.nrows();
+        let mut out = numpy::ndarray::Array2::<f64>::zeros((n, n));
+        for ((i, j), v) in out.indexed_iter_mut() {
+            *v = p[(i, j)];
+        }
+        out.into_pyarray(py)
+    }
+
+    /// One update with regressor φ (n values) and measurement y; returns the a-priori error
+    /// ε = y − φᵀθ̂. Raises ArithmeticError (state unchanged) when P loses positive definiteness or a
+    /// value is not finite.
+    fn update(&mut self, phi: &Bound<'_, PyAny>, y: f64) -> PyResult<f64> {
+        let phi = floats(phi, "phi")?;
+        self.check_columns(phi.len(), "phi has")?;
+        let e = self
+            .inner
+            .update(&phi, y, self.samples)
+            .map_err(sysid_err)?;
+        self.samples += 1;
+        Ok(e)
+    }
+
+    /// Updates with each row of `Phi` (N × n float64) and each entry of `y` (N), in Rust without a
+    /// Python loop; returns the a-priori errors ε (N). On a numerical failure at row k, rows before k
+    /// are applied, the state is that after row k − 1, and ArithmeticError names the sample.
+    #[allow(non_snake_case)]
+    fn update_many<'py>(
+        &mut self,
+        py: Python<'py>,
+        Phi: &Bound<'py, PyAny>,
+        y: &Bound<'py, PyAny>,
+    ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let y = floats(y, "y")?;
+        let owned;
+        let phi: PyReadonlyArray2<'py, f64> = match Phi.extract::<PyReadonlyArray2<'py, f64>>() {
+            Ok(a) if a.is_c_contiguous() => a,
+            _ => {
+                owned = as_float_array(Phi, "Phi")?;
+                if owned.ndim() != 2 {
+                    return Err(PyValueError::new_err(format!(
+                        "Phi: expected an N × n array, got an array of shape {:?}",
+                        owned.shape()
+                    )));
+                }
+                owned.extract()?
+            }
+        };
+        let [rows, cols] = [phi.shape()[0], phi.shape()[1]];
+        self.check_columns(cols, "Phi has")?;
+        if rows != y.len() {
+            return Err(PyValueError::new_err(format!(
+                "Phi has {rows} rows but y has {} samples",
+                y.len()
+            )));
+        }
+        let data = phi
+            .as_slice()
+            .map_err(|e| PyValueError::new_err(format!("Phi: {e}")))?;
+        let mut errors = Vec::with_capacity(rows);
+        let mut failure = None;
+        for (row, yk) in data.chunks_exact(cols).zip(&y) {
+            match self.inner.update(row, *yk, self.samples) {
+                Ok(e) => {
+                    errors.push(e);
+                    self.samples += 1;
+                }
+                Err(e) => {
+                    failure = Some(e);
+                    break;
+                }
+            }
+        }
+        match failure {
+            Some(e) => Err(sysid_err(e)),
+            None => Ok(errors.into_pyarray(py)),
+        }
+    }
+
+    /// Restarts P at p0 · I, keeping θ̂ (a new pass over the data).
+    fn restart_covariance(&mut self, p0: f64) -> PyResult<()> {
+        sysid::rls::check_settings(self.inner.forgetting, p0).map_err(sysid_err)?;
+        self.inner.restart_covariance(p0);
+        Ok(())
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "Rls(n={}, forgetting={}, samples={})",
+            self.inner.n_params(),
+            self.inner.forgetting,
+            self.samples
+        )
+    }
+}
+
+impl PyRls {
+    fn check_columns(&self, got: usize, what: &str) -> PyResult<()> {
+        let n = self.inner.n_params();
+        if got == n {
+            Ok(())
+        } else {
+            Err(PyValueError::new_err(format!(
+                "{what} {got} entries per regressor but the estimator has n = {n} parameters"
+            )))
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------------------
+// Plants and control.
+
+/// A plant spec as the command line's `--plant`: "ipa", "paper", "model:FILE", or a model file path.
+fn plant_spec(plant: &str) -> PyResult<ipa::PlantSpec> {
+    let t = plant.trim();
+    let spec = if t == "ipa" || t == "paper" || t.starts_with("model:") {
+        t.to_string()
+    } else {
+        format!("model:{t}")
+    };
+    spec.parse::<ipa::PlantSpec>().map_err(ipa_err)
+}
+
+/// Runs one open-loop experiment, as `ipa-sysid simulate` (same options, same numbers): returns
+/// (t, u, y, pressures) — t in s, u in counts, y in mm (noise included), pressures an N × 2 array of
+/// the chamber pressures p_a, p_b in Pa (physics plant `ipa` only; None otherwise; the CSV of the
+/// command line rounds them to 0.1 Pa). `plant`: "ipa", "paper", or a model file ("model:FILE" or its path).
+#[pyfunction]
+#[pyo3(signature = (plant="ipa", input="staircase", samples=None, seed=0, amplitude=255.0, ts=None,
+    x0=100.0, noise_std=0.0, plant_config=None))]
+#[allow(clippy::too_many_arguments, clippy::type_complexity)]
+fn simulate_plant<'py>(
+    py: Python<'py>,
+    plant: &str,
+    input: &str,
+    samples: Option<usize>,
+    seed: u64,
+    amplitude: f64,
+    ts: Option<f64>,
+    x0: f64,
+    noise_std: f64,
+    plant_config: Option<PathBuf>,
+) -> PyResult<(
+    Bound<'py, PyArray1<f64>>,
+    Bound<'py, PyArray1<f64>>,
+    Bound<'py, PyArray1<f64>>,
+    Option<Bound<'py, PyArray2<f64>>>,
+)> {
+    let exp = ipa::Experiment {
+        plant: plant_spec(plant)?,
+        plant_config,
+        input: input.parse().map_err(ipa_err)?,
+        amplitude,
+        samples,
+        ts,
+        x0,
+        seed,
+        noise_std,
+    };
+    let rec = py.detach(|| exp.run()).map_err(ipa_err)?;
+    let t = sysid::data::sample_times(rec.u.len(), rec.ts);
+    let pressures = rec.pressures.map(|p| {
+        let flat: Vec<f64> = p.iter().flatten().copied().collect();
+        numpy::ndarray::Array2::from_shape_vec((p.len(), 2), flat).map(|a| a.into_pyarray(py))
+    });
+    let pressures = pressures
+        .transpose()
+        .map_err(|e| PyArithmeticError::new_err(format!("pressures: {e}")))?;
+    Ok((
+        t.into_pyarray(py),
+        rec.u.into_pyarray(py),
+        rec.y.into_pyarray(py),
+        pressures,
+    ))
+}
+
+/// Closed-loop PI position control, as `ipa-sysid control`: returns a dict with the trace ("t" s,
+/// "r" mm, "u" counts, "y" mm as arrays), "metrics" (overshoot, rise and settling time, steady-state
+/// error: MATLAB `stepinfo`), "metrics_kind" ("fixed" or "worst-step"), "steps" and "ts". Give exactly
+/// one of `setpoint` (mm) or `profile` ("fixed:MM", "staircase:L1,L2,...@HOLD_S", "file:PATH.csv").
+/// `anti_windup`: "none" or "clamping" ("back-calculation" needs `tracking_time` in s).
+/// `compensate_deadzone`: a Hammerstein `Model` or "paper" adds a deadzone-inverse compensator.
+#[pyfunction]
+#[pyo3(signature = (plant="ipa", setpoint=None, profile=None, kp=14.0, ki=1.0, duration=None, y0=0.0,
+    integral="scaled", anti_windup="none", tracking_time=None, u_max=255.0, compensate_deadzone=None,
+    compensator_slopes="shift", compensator_threshold=0.0, plant_config=None))]
+#[pyo3(name = "control")]
+#[allow(clippy::too_many_arguments)]
+fn control_loop<'py>(
+    py: Python<'py>,
+    plant: &str,
+    setpoint: Option<f64>,
+    profile: Option<&str>,
+    kp: f64,
+    ki: f64,
+    duration: Option<f64>,
+    y0: f64,
+    integral: &str,
+    anti_windup: &str,
+    tracking_time: Option<f64>,
+    u_max: f64,
+    compensate_deadzone: Option<&Bound<'py, PyAny>>,
+    compensator_slopes: &str,
+    compensator_threshold: f64,
+    plant_config: Option<PathBuf>,
+) -> PyResult<Bound<'py, PyDict>> {
+    use ::control::{AntiWindup, IntegralForm, Profile, SlopeMode};
+    let profile = match (setpoint, profile) {
+        (Some(r), None) if r.is_finite() => Profile::Fixed { setpoint_mm: r },
+        (Some(r), None) => return Err(setting_err("--setpoint", r, "a finite position in mm")),
+        (None, Some(spec)) => Profile::parse(spec).map_err(control_err)?,
+        _ => {
+            return Err(setting_err(
+                "--setpoint/--profile",
+                "",
+                "exactly one of --setpoint MM or --profile SPEC",
+            ))
+        }
+    };
+    let integral = match integral {
+        "scaled" => IntegralForm::Scaled,
+        "per-sample" => IntegralForm::PerSample,
+        other => {
+            return Err(setting_err(
+                "--integral",
+                other,
+                "one of scaled, per-sample",
+            ))
+        }
+    };
+    let anti_windup = match (anti_windup, tracking_time) {
+        ("none", None) => AntiWindup::None,
+        ("clamping", None) => AntiWindup::Clamping,
+        ("back-calculation", Some(tt_s)) => AntiWindup::BackCalculation { tt_s },
+        ("back-calculation", None) => {
+            return Err(setting_err(
+                "--tracking-time",
+                "(none)",
+                "a tracking time in s with --anti-windup back-calculation",
+            ))
+        }
+        ("none" | "clamping", Some(t)) => {
+            return Err(setting_err(
+                "--tracking-time",
+                t,
+                "only together with --anti-windup back-calculation",
+            ))
+        }
+        (other, _) => {
+            return Err(setting_err(
+                "--anti-windup",
+                other,
+                "one of none, clamping, back-calculation",
+            ))
+        }
+    };
+    let mut plant = plant_spec(plant)?
+        .build(plant_config.as_deref(), None)
+        .map_err(ipa_err)?;
+    let ts = plant.ts();
+    let settings = ::control::PiSettings::new(kp, ki)
+        .with_integral(integral)
+        .with_anti_windup(anti_windup)
+        .with_u_max(u_max);
+    let mut controller = settings.build(ts).map_err(control_err)?;
+    let compensator = match compensate_deadzone {
+        None => None,
+        Some(obj) => {
+            let deadzone = if obj.extract::<&str>().ok() == Some("paper") {
+                Model::paper().deadzone().copied()
+            } else {
+                obj.cast::<PyModel>()
+                    .map_err(|_| {
+                        setting_err(
+                            "--compensate-deadzone",
+                            obj.to_string(),
+                            "a Hammerstein Model or \"paper\"",
+                        )
+                    })?
+                    .get()
+                    .inner
+                    .deadzone()
+                    .copied()
+            };
+            let Some(deadzone) = deadzone else {
+                return Err(setting_err(
+                    "--compensate-deadzone",
+                    "Model(kind=\"arx\")",
+                    "a Hammerstein model (this model is ARX and has no deadzone)",
+                ));
+            };
+            let mode = match compensator_slopes {
+                "shift" => SlopeMode::Shift,
+                "equalise" => SlopeMode::Equalise,
+                other => {
+                    return Err(setting_err(
+                        "--compensator-slopes",
+                        other,
+                        "one of shift, equalise",
+                    ))
+                }
+            };
+            Some(
+                ::control::DeadzoneCompensator::new(deadzone, mode, u_max)
+                    .and_then(|c| c.with_threshold(compensator_threshold))
+                    .map_err(control_err)?,
+            )
+        }
+    };
+    let duration_s = duration
+        .or(profile.natural_duration_s())
+        .unwrap_or(DEFAULT_FIXED_DURATION_S);
+    let (trace, run) = py
+        .detach(|| -> Result<_, ::control::ControlError> {
+            let trace = ::control::closed_loop::run(
+                plant.as_mut(),
+                &mut controller,
+                compensator.as_ref(),
+                &profile,
+                duration_s,
+                y0,
+            )?;
+            if trace.len() < 2 {
+                return Err(::control::ControlError::setting(
+                    ::control::ControlSetting::Duration,
+                    duration_s,
+                    &format!("at least one sampling period ({ts} s) to measure a response"),
+                ));
+            }
+            let run = ::control::run_metrics(&trace, &profile)?;
+            Ok((trace, run))
+        })
+        .map_err(control_err)?;
+    let out = PyDict::new(py);
+    out.set_item("t", trace.t.into_pyarray(py))?;
+    out.set_item("r", trace.r.into_pyarray(py))?;
+    out.set_item("u", trace.u.into_pyarray(py))?;
+    out.set_item("y", trace.y.into_pyarray(py))?;
+    out.set_item("ts", ts)?;
+    out.set_item("metrics_kind", run.kind.as_str())?;
+    out.set_item("metrics", to_py(py, &run.metrics)?)?;
+    out.set_item("steps", to_py(py, &run.steps)?)?;
+    Ok(out)
+}
+
+/// ipa-sysid from Python: identification (Hammerstein/ARX by LS, RLS, OE, IV), recursive least
+/// squares, the physics IPA simulator and PI control, computed in Rust.
+#[pymodule]
+fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add_class::<PyModel>()?;
+    m.add_class::<PyFit>()?;
+    m.add_class::<PyRls>()?;
+    m.add_function(wrap_pyfunction!(identify, m)?)?;
+    m.add_function(wrap_pyfunction!(load_model, m)?)?;
+    m.add_function(wrap_pyfunction!(paper_model, m)?)?;
+    m.add_function(wrap_pyfunction!(simulate_plant, m)?)?;
+    m.add_function(wrap_pyfunction!(control_loop, m)?)?;
+    m.add("__version__", env!("CARGO_PKG_VERSION"))?;
+    Ok(())
+}

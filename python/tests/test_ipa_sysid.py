@@ -1,0 +1,377 @@
+"""Tests of the Python package against the command line (same data, same options) and against
+independent implementations written here (closed-form least squares, a plain Python simulation loop).
+
+The command line is found through IPA_SYSID_BIN (set by scripts/test) or in target/{debug,release};
+the tests that need it fail when IPA_SYSID_BIN names a missing file, and skip with a message when no
+binary was built."""
+
+import csv
+import json
+import math
+import os
+import pathlib
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import ipa_sysid
+
+REPO = pathlib.Path(__file__).resolve().parents[2]
+TOL = 1e-12
+
+
+def cli_path():
+    env = os.environ.get("IPA_SYSID_BIN")
+    if env:
+        if not pathlib.Path(env).is_file():
+            pytest.fail(f"IPA_SYSID_BIN={env} is not a file")
+        return env
+    for profile in ("debug", "release"):
+        p = REPO / "target" / profile / "ipa-sysid"
+        if p.is_file():
+            return str(p)
+    pytest.skip("no ipa-sysid binary: build it (cargo build -p ipa-sysid) or set IPA_SYSID_BIN")
+
+
+def cli(*args, check=True):
+    r = subprocess.run([cli_path(), *map(str, args)], capture_output=True, text=True)
+    if check and r.returncode != 0:
+        raise AssertionError(f"ipa-sysid {' '.join(map(str, args))} failed: {r.stderr}")
+    return r
+
+
+def read_csv(path):
+    """Columns of a CSV as float64 arrays, parsed by Python's float (correctly rounded)."""
+    with open(path, newline="") as f:
+        rows = list(csv.reader(f))
+    header, body = rows[0], rows[1:]
+    return {name: np.array([float(r[i]) for r in body]) for i, name in enumerate(header)}
+
+
+@pytest.fixture(scope="module")
+def records(tmp_path_factory):
+    d = tmp_path_factory.mktemp("data")
+    est, val = d / "est.csv", d / "val.csv"
+    cli("simulate", "--plant", "ipa", "--seed", 1, "--out", est)
+    cli("simulate", "--plant", "ipa", "--seed", 2, "--out", val)
+    return est, val
+
+
+def assert_same(a, b, path="$"):
+    """Equal structures; numbers equal to 1e-12 (relative to their size, absolute below 1)."""
+    if isinstance(b, dict):
+        assert isinstance(a, dict), path
+        assert sorted(a) == sorted(b), f"{path}: keys {sorted(a)} != {sorted(b)}"
+        for k in b:
+            assert_same(a[k], b[k], f"{path}.{k}")
+    elif isinstance(b, list):
+        assert isinstance(a, list) and len(a) == len(b), path
+        for i, (x, y) in enumerate(zip(a, b)):
+            assert_same(x, y, f"{path}[{i}]")
+    elif isinstance(b, float) or isinstance(a, float):
+        assert a is not None and b is not None, f"{path}: {a} != {b}"
+        assert abs(a - b) <= TOL * max(1.0, abs(b)), f"{path}: {a} != {b}"
+    else:
+        assert a == b, f"{path}: {a!r} != {b!r}"
+
+
+# --- identify: the same document as identify --json ----------------------------------------------
+
+
+@pytest.mark.parametrize(
+    "model,method",
+    [("hammerstein", "rls"), ("hammerstein", "ls"), ("hammerstein", "oe"), ("hammerstein", "iv"),
+     ("arx", "rls"), ("arx", "ls")],
+)
+def test_identify_matches_cli_json(records, tmp_path, model, method):
+    est, val = records
+    out = tmp_path / "fit.json"
+    cli("identify", "--data", est, "--validation", val, "--ts", 0.01, "--model", model,
+        "--method", method, "--json", out)
+    expected = json.loads(out.read_text())
+    e, v = read_csv(est), read_csv(val)
+    fit = ipa_sysid.identify(e["u"], e["y"], 0.01, model=model, method=method,
+                             validation=(v["u"], v["y"]), name=str(est), validation_name=str(val))
+    got = fit.to_dict()
+    # Every key the command line writes, with the same values.
+    assert_same({k: got[k] for k in expected}, expected)
+    assert_same(fit.metrics, expected["metrics"])
+    assert fit.stable == expected["stable"]
+    poles = sorted(expected["poles"], key=lambda p: (-p["abs"], p["re"], p["im"]))
+    got_poles = sorted(fit.poles, key=lambda z: (-abs(z), z.real, z.imag))
+    for z, p in zip(got_poles, poles):
+        assert abs(z.real - p["re"]) <= TOL and abs(z.imag - p["im"]) <= TOL
+    assert isinstance(fit.warnings, list)
+
+
+def test_identify_options_reach_the_estimator(records, tmp_path):
+    est, _ = records
+    out = tmp_path / "fit.json"
+    cli("identify", "--data", est, "--ts", 0.01, "--na", 2, "--nb", 2, "--nk", 2, "--forgetting",
+        0.999, "--p0", 100, "--offset", "--model", "arx", "--json", out)
+    e = read_csv(est)
+    fit = ipa_sysid.identify(e["u"], e["y"], 0.01, model="arx", na=2, nb=2, nk=2, forgetting=0.999,
+                             p0=100, offset=True, name=str(est))
+    expected = json.loads(out.read_text())
+    assert_same({k: fit.to_dict()[k] for k in expected}, expected)
+    assert fit.model.na == 2 and fit.model.nb == 2 and fit.model.nk == 2
+    assert fit.model.offset is not None
+
+
+def test_inputs_lists_and_pandas_give_the_same_fit(records):
+    est, _ = records
+    e = read_csv(est)
+    a = ipa_sysid.identify(e["u"], e["y"], 0.01).to_dict()
+    b = ipa_sysid.identify(list(e["u"]), list(e["y"]), 0.01).to_dict()
+    assert_same(b, a)
+    pd = pytest.importorskip("pandas")
+    df = pd.DataFrame({"u": e["u"], "y": e["y"]})
+    c = ipa_sysid.identify(df["u"], df["y"], 0.01).to_dict()
+    assert_same(c, a)
+    # A strided view and integer input are converted too.
+    u2 = np.repeat(e["u"], 2)[::2]
+    assert_same(ipa_sysid.identify(u2, e["y"], 0.01).to_dict(), a)
+
+
+# --- model files ---------------------------------------------------------------------------------
+
+
+def test_model_file_round_trip_and_cli_reads_it(records, tmp_path):
+    est, val = records
+    e = read_csv(est)
+    fit = ipa_sysid.identify(e["u"], e["y"], 0.01, method="ls")
+    path = tmp_path / "m.json"
+    fit.model.save(path)
+    back = ipa_sysid.load_model(path)
+    assert back == fit.model
+    assert np.array_equal(back.a, fit.model.a) and back.deadzone == fit.model.deadzone
+    # The command line validates the saved model with the same metrics as Model.metrics.
+    out = tmp_path / "v.json"
+    cli("validate", "--model", path, "--data", val, "--ts", 0.01, "--json", out)
+    doc = json.loads(out.read_text())
+    v = read_csv(val)
+    assert_same(back.metrics(v["u"], v["y"]), doc["metrics"]["validation"])
+
+
+def test_load_model_reads_the_cli_model_file(records, tmp_path):
+    est, _ = records
+    path, out = tmp_path / "cli-model.json", tmp_path / "fit.json"
+    cli("identify", "--data", est, "--ts", 0.01, "--save-model", path, "--json", out)
+    m = ipa_sysid.load_model(path)
+    doc = json.loads(out.read_text())
+    assert_same(json.loads(m.to_json())["model"], doc["model"])
+    assert path.read_text() == m.to_json()  # the same bytes as the command line writes
+
+
+def test_load_model_errors_name_the_file(tmp_path):
+    bad = tmp_path / "bad.json"
+    bad.write_text('{"format": "ipa-sysid-model", "version": 1, "model": {"ts": "x"}}')
+    with pytest.raises(ValueError, match="bad.json"):
+        ipa_sysid.load_model(bad)
+    with pytest.raises(OSError):
+        ipa_sysid.load_model(tmp_path / "missing.json")
+
+
+# --- simulation and prediction against a plain Python loop ---------------------------------------
+
+
+def python_simulate(a, b, nk, dz, u, y0, one_step_y=None):
+    """y(k) = -sum a_i y(k-i) + sum b_j x(k-nk-j+1), x = f(u) the deadzone (paper eq. 1)."""
+
+    def f(v):
+        if dz is None:
+            return v
+        if v >= dz["b_r"]:
+            return dz["m_r"] * (v - dz["b_r"])
+        if v <= dz["b_l"]:
+            return dz["m_l"] * (v - dz["b_l"])
+        return 0.0
+
+    x = [f(v) for v in u]
+    k0 = max(len(a), nk + len(b) - 1)
+    out = list(y0[:k0])
+    for k in range(k0, len(u)):
+        past = one_step_y if one_step_y is not None else out
+        v = -sum(a[i] * past[k - 1 - i] for i in range(len(a)))
+        v += sum(b[j] * x[k - nk - j] for j in range(len(b)))
+        out.append(v)
+    return np.array(out)
+
+
+def test_simulate_and_predict_match_a_python_loop():
+    m = ipa_sysid.paper_model()
+    rng = np.random.default_rng(3)
+    u = rng.uniform(-255, 255, 400)
+    y0 = [1.0, 2.0, 3.0, 4.0][: m.k0]
+    expected = python_simulate(list(m.a), list(m.b), m.nk, m.deadzone, u, y0)
+    got = m.simulate(u, y0)
+    assert got.shape == (400,)
+    assert np.allclose(got, expected, rtol=1e-12, atol=1e-9)
+    zeros = python_simulate(list(m.a), list(m.b), m.nk, m.deadzone, u, [0.0] * m.k0)
+    assert np.allclose(m.simulate(u), zeros, rtol=1e-12, atol=1e-9)
+    y = expected + rng.normal(0, 0.1, 400)
+    pred = python_simulate(list(m.a), list(m.b), m.nk, m.deadzone, u, list(y), one_step_y=list(y))
+    assert np.allclose(m.predict(u, y), pred, rtol=1e-12, atol=1e-9)
+    # An infinite horizon is the simulation from the measured initial outputs.
+    assert np.allclose(m.predict(u, y, horizon=10_000), m.simulate(u, y), rtol=1e-12, atol=1e-9)
+    with pytest.raises(ValueError, match="k0"):
+        m.simulate(u, y0=[])
+
+
+# --- Rls against closed-form regularised least squares -------------------------------------------
+
+
+def test_rls_update_many_equals_closed_form():
+    rng = np.random.default_rng(7)
+    n, N, p0 = 9, 500, 1e3
+    Phi = rng.normal(size=(N, n))
+    theta = rng.normal(size=n)
+    y = Phi @ theta + rng.normal(0, 0.01, N)
+    r = ipa_sysid.Rls(n, forgetting=1.0, p0=p0)
+    eps = r.update_many(Phi, y)
+    # With rho = 1, RLS from theta(0) = 0, P(0) = p0 I is exactly ridge regression:
+    # P = (I/p0 + Phi'Phi)^-1, theta = P Phi' y.
+    P = np.linalg.inv(np.eye(n) / p0 + Phi.T @ Phi)
+    assert np.allclose(r.P, P, rtol=1e-8, atol=1e-14)
+    assert np.allclose(r.theta, P @ Phi.T @ y, rtol=1e-8, atol=1e-10)
+    assert eps.shape == (N,) and abs(eps[0] - y[0]) < 1e-15  # a-priori error with theta(0) = 0
+    assert r.samples == N
+    # One update at a time gives the same state.
+    s = ipa_sysid.Rls(n, forgetting=1.0, p0=p0)
+    for k in range(N):
+        s.update(Phi[k], y[k])
+    assert np.array_equal(s.theta, r.theta) and np.array_equal(s.P, r.P)
+    # Fortran order and lists are accepted.
+    t = ipa_sysid.Rls(n, p0=p0)
+    t.update_many(np.asfortranarray(Phi), list(y))
+    assert np.array_equal(t.theta, r.theta)
+
+
+def test_rls_errors():
+    with pytest.raises(ValueError, match="--forgetting"):
+        ipa_sysid.Rls(3, forgetting=1.5)
+    with pytest.raises(ValueError, match="n = 0"):
+        ipa_sysid.Rls(0)
+    r = ipa_sysid.Rls(3)
+    with pytest.raises(ValueError, match="n = 3"):
+        r.update_many(np.zeros((4, 2)), np.zeros(4))
+    with pytest.raises(ValueError, match="4 rows"):
+        r.update_many(np.zeros((4, 3)), np.zeros(5))
+    with pytest.raises(ArithmeticError):
+        r.update([1.0, 0.0, 0.0], math.inf)
+    assert r.samples == 0 and np.array_equal(r.theta, np.zeros(3))
+
+
+# --- errors: the command line's messages ---------------------------------------------------------
+
+
+def cli_error(*args):
+    r = cli(*args, check=False)
+    assert r.returncode == 2, r.stderr
+    first = r.stderr.splitlines()[0]
+    assert first.startswith("error: ")
+    return first[len("error: "):]
+
+
+def test_setting_errors_have_the_cli_message(records):
+    est, _ = records
+    e = read_csv(est)
+    for flag, kw in [("--na", dict(na=200)), ("--forgetting", dict(forgetting=0.0)),
+                     ("--p0", dict(p0=-1.0))]:
+        msg = cli_error("identify", "--data", est, "--ts", 0.01, flag, list(kw.values())[0])
+        with pytest.raises(ValueError) as info:
+            ipa_sysid.identify(e["u"], e["y"], 0.01, **kw)
+        assert str(info.value) == msg
+
+
+def test_bad_data_raises_value_error(records):
+    est, _ = records
+    e = read_csv(est)
+    y = e["y"].copy()
+    y[5] = np.nan
+    with pytest.raises(ValueError, match=r"y\(5\) = NaN is not a finite number"):
+        ipa_sysid.identify(e["u"], y, 0.01)
+    with pytest.raises(ValueError, match="u has 2000 samples but y has 10"):
+        ipa_sysid.identify(e["u"], e["y"][:10], 0.01)
+    with pytest.raises(ValueError, match="1-D"):
+        ipa_sysid.identify(np.zeros((3, 3)), np.zeros(3), 0.01)
+    with pytest.raises(ValueError, match="--method"):
+        ipa_sysid.identify(e["u"], e["y"], 0.01, method="magic")
+    with pytest.raises(ValueError, match="--ts"):
+        ipa_sysid.identify(e["u"], e["y"], -1.0)
+    with pytest.raises(ValueError):
+        ipa_sysid.identify(["a", "b"], [1.0, 2.0], 0.01)
+
+
+def test_numerical_failure_raises_arithmetic_error(tmp_path):
+    # An unstable model (poles 2, 2, 2: A = (z - 2)^3) overflows f64 in a free run: the library's
+    # numerical failure, not a ValueError.
+    doc = json.loads(ipa_sysid.paper_model().to_json())
+    doc["model"]["a"] = [-6.0, 12.0, -8.0]
+    path = tmp_path / "unstable.json"
+    path.write_text(json.dumps(doc))
+    m = ipa_sysid.load_model(path)
+    assert not m.stable
+    with pytest.raises(ArithmeticError, match="non-finite"):
+        m.simulate(np.full(5000, 255.0), [1.0, 1.0, 1.0])
+
+
+# --- plant and control against the command line --------------------------------------------------
+
+
+def test_simulate_plant_matches_cli(records, tmp_path):
+    est, _ = records
+    t, u, y, p = ipa_sysid.simulate_plant("ipa", seed=1)
+    e = read_csv(est)
+    assert np.array_equal(u, e["u"]) and np.array_equal(y, e["y"])
+    assert np.allclose(t, e["t"], rtol=0, atol=1e-12)
+    assert p.shape == (2000, 2)
+    assert np.all(np.abs(p[:, 0] - e["p_a_pa"]) <= 0.05 + 1e-6)  # the CSV rounds to 0.1 Pa
+    out = tmp_path / "paper.csv"
+    cli("simulate", "--plant", "paper", "--input", "prbs", "--samples", 300, "--seed", 4,
+        "--noise-std", 0.1, "--out", out)
+    t, u, y, p = ipa_sysid.simulate_plant("paper", input="prbs", samples=300, seed=4, noise_std=0.1)
+    c = read_csv(out)
+    assert p is None and np.array_equal(u, c["u"]) and np.array_equal(y, c["y"])
+    with pytest.raises(ValueError, match="--plant"):
+        ipa_sysid.simulate_plant("model:")
+
+
+def test_control_matches_cli(tmp_path):
+    js, tr = tmp_path / "c.json", tmp_path / "trace.csv"
+    cli("control", "--plant", "paper", "--setpoint", 50, "--duration", 5, "--json", js, "--out", tr)
+    doc = json.loads(js.read_text())
+    c = ipa_sysid.control("paper", setpoint=50, duration=5)
+    trace = read_csv(tr)
+    for k in ("t", "r", "u", "y"):
+        assert np.array_equal(c[k], trace[k]), k
+    assert_same(c["metrics"], doc["metrics"])
+    assert c["metrics_kind"] == doc["metrics_kind"]
+    assert_same(c["steps"], doc["steps"])
+    with pytest.raises(ValueError, match="exactly one of"):
+        ipa_sysid.control("paper")
+
+
+def test_to_control_transfer_function():
+    m = ipa_sysid.paper_model()
+    num, den = m.transfer_polynomials()
+    # G(z) = b1 z^-1 / (1 + a1 z^-1 + a2 z^-2 + a3 z^-3) = b1 z^2 / (z^3 + a1 z^2 + a2 z + a3).
+    assert den == [1.0, *m.a] and num == [0.0, m.b[0], 0.0, 0.0]
+    try:
+        import control  # noqa: F401
+    except ImportError:
+        with pytest.raises(ImportError, match="pip install control"):
+            m.to_control()
+        return
+    tf = m.to_control()
+    assert tf.dt == m.ts
+    assert np.allclose(np.sort_complex(tf.poles()), np.sort_complex(m.poles), atol=1e-9)
+
+
+def test_example_script_runs(tmp_path):
+    script = REPO / "python" / "examples" / "quickstart.py"
+    r = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, cwd=tmp_path)
+    assert r.returncode == 0, r.stderr
+    assert "fit % (simulation, validation)" in r.stdout

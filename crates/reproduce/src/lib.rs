@@ -1815,11 +1815,14 @@ fn build_report(s: &ReproduceSettings, st: &Study, figs: &[Fig]) -> Result<Repor
         Section::new("Validation")
             .id("validation")
             .paragraph(
-                "The fit is computed on the validation record by free-run simulation (the model sees only u after \
-                 its first na samples), as MATLAB's compare does; loss and FPE use the one-step prediction errors, as \
-                 in the paper's equations. A free-run fit is demanding for a plant that integrates: a small error in a \
-                 gain or in the integrating pole accumulates into a drift of the position. A fit of 0 % or less is no \
-                 better than the record's mean.",
+                "The fit is computed on the validation record by free-run simulation from initial outputs estimated \
+                 to fit the record (the model sees only u after its first na samples), as MATLAB's compare does; \
+                 loss and FPE use the one-step prediction errors, as in the paper's equations. The output-error \
+                 model's predictor is its simulation (its noise model is white output error), so its loss and FPE \
+                 are simulation errors and are not comparable with the equation-error losses of the other rows. A \
+                 free-run fit is demanding for a plant that integrates: a small error in a gain or in the \
+                 integrating pole accumulates into a drift of the position. A fit of 0 % or less is no better than \
+                 the record's mean.",
             )
             .table(t4),
         "fig5_fit",

@@ -96,7 +96,16 @@ pub fn simulate_estimated_initial_miso(
     u: &[&[f64]],
     y: &[f64],
 ) -> Result<(Vec<f64>, Vec<f64>), SysidError> {
-    let base = model.simulate_miso(u, y)?;
+    estimate_initial_from(model, y, model.simulate_miso(u, y)?)
+}
+
+/// The estimated-initial-output simulation from `base`, the simulation from the measured initial
+/// outputs (see [`simulate_estimated_initial_miso`]).
+fn estimate_initial_from(
+    model: &Model,
+    y: &[f64],
+    base: Vec<f64>,
+) -> Result<(Vec<f64>, Vec<f64>), SysidError> {
     let n = base.len();
     let k0 = model.k0().min(n);
     let y0: Vec<f64> = y[..k0].to_vec();
@@ -197,15 +206,26 @@ pub fn metrics_miso(
     }
     let y = &y_all[k0..];
     let n = y.len();
-    let pred = one_step_prediction_miso(model, u, y_all)?;
+    // One simulation from the measured initial outputs serves both simulation metrics (and the
+    // output-error predictor).
+    let measured = model.simulate_miso(u, y_all);
+    let estimated = match &measured {
+        Ok(s) => estimate_initial_from(model, y_all, s.clone()).map_err(|e| e.to_string()),
+        Err(e) => Err(e.to_string()),
+    };
+    let pred = match (model.noise_model(), &estimated) {
+        (crate::NoiseModel::OutputError, Ok((s, _))) => s.clone(),
+        // The equation-error predictor, or the output-error one's own failure (a diverging model).
+        _ => one_step_prediction_miso(model, u, y_all)?,
+    };
     let pred = &pred[k0..];
-    let (sim_measured, note) = match model.simulate_miso(u, y_all) {
+    let (sim_measured, note) = match measured {
         Ok(s) => (Some(s), None),
         Err(e) => (None, Some(e.to_string())),
     };
-    let (sim, note) = match simulate_estimated_initial_miso(model, u, y_all) {
+    let (sim, note) = match estimated {
         Ok((s, _)) => (Some(s), note),
-        Err(e) => (None, note.or_else(|| Some(e.to_string()))),
+        Err(e) => (None, note.or(Some(e))),
     };
     let sse: f64 = y.iter().zip(pred).map(|(a, b)| (a - b) * (a - b)).sum();
     if !sse.is_finite() {

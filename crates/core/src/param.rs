@@ -303,10 +303,9 @@ impl Parameterisation {
     /// `base` with its free entries replaced by `sub` (in order).
     pub fn scatter(&self, sub: &[f64], base: &[f64]) -> Vec<f64> {
         let mut out = base.to_vec();
-        for (q, i) in self.free_indices().into_iter().enumerate() {
-            if let (Some(o), Some(s)) = (out.get_mut(i), sub.get(q)) {
-                *o = *s;
-            }
+        let free = out.iter_mut().zip(&self.free).filter(|(_, f)| **f);
+        for ((o, _), s) in free.zip(sub) {
+            *o = *s;
         }
         out
     }

@@ -793,38 +793,20 @@ fn safeguard(
             how: termination_words(&fit.termination, fit.method),
         });
     }
-    let max_pole = fit
-        .model
-        .poles()
-        .iter()
-        .map(|z| z.norm())
-        .fold(0.0, f64::max);
-    if max_pole >= 1.0 {
-        fit.warnings.push(Warning::Unstable {
-            max_pole_modulus: max_pole,
-        });
-    }
-    match fit_sim {
-        Some(f) if f >= 0.0 => {}
-        other => fit.warnings.push(Warning::PoorSimulation {
-            record: Record::Estimation,
-            fit_percent: other,
-        }),
-    }
+    fit.warnings.extend(Warning::if_unstable(&fit.model));
+    fit.warnings
+        .extend(Warning::if_poor_simulation(Record::Estimation, fit_sim));
     // The fallback's breakpoints are fixed at 0 by construction, not estimated: nothing to check.
     if let (Some(d), false) = (fit.model.deadzone().copied(), fell_back) {
         let br = &p.branches;
-        let std_of = |name: ParamName| {
-            fit.params
-                .iter()
-                .find(|q| q.name == name)
-                .and_then(|q| q.std)
-        };
         let (w, no_std) = deadzone_warnings(
             &d,
             data,
             (br.left, br.right),
-            (std_of(ParamName::BL), std_of(ParamName::BR)),
+            (
+                std_of(&fit.params, ParamName::BL),
+                std_of(&fit.params, ParamName::BR),
+            ),
         );
         for q in fit.params.iter_mut() {
             if no_std.contains(&q.name) {
@@ -834,6 +816,11 @@ fn safeguard(
         fit.warnings.extend(w);
     }
     Ok(fit)
+}
+
+/// The standard deviation of parameter `name` in `params`, if it is there and has one.
+fn std_of(params: &[Param], name: ParamName) -> Option<f64> {
+    params.iter().find(|q| q.name == name).and_then(|q| q.std)
 }
 
 /// How an estimator stopped, in words, for the not-converged warning.
@@ -879,12 +866,6 @@ fn linear_start(p: &Problem) -> Option<(Fitted, f64)> {
     };
     let model = Model::hammerstein(m.ts(), m.a().to_vec(), b, m.nk(), d, m.offset()).ok()?;
     let fit_sim = simulation_fit(&model, p.data)?;
-    let std_of = |name: ParamName| {
-        arx.params
-            .iter()
-            .find(|q| q.name == name)
-            .and_then(|q| q.std)
-    };
     let mut params = vec![
         Param {
             name: ParamName::BL,
@@ -899,18 +880,18 @@ fn linear_start(p: &Problem) -> Option<(Fitted, f64)> {
         Param {
             name: ParamName::ML,
             value: b1,
-            std: std_of(ParamName::B(1)),
+            std: std_of(&arx.params, ParamName::B(1)),
         },
         Param {
             name: ParamName::MR,
             value: b1,
-            std: std_of(ParamName::B(1)),
+            std: std_of(&arx.params, ParamName::B(1)),
         },
     ];
     params.extend(m.a().iter().enumerate().map(|(i, v)| Param {
         name: ParamName::A(i + 1),
         value: *v,
-        std: std_of(ParamName::A(i + 1)),
+        std: std_of(&arx.params, ParamName::A(i + 1)),
     }));
     params.extend(model.b().iter().enumerate().map(|(j, v)| Param {
         name: ParamName::B(j + 1),
@@ -921,7 +902,7 @@ fn linear_start(p: &Problem) -> Option<(Fitted, f64)> {
         params.push(Param {
             name: ParamName::C,
             value: c,
-            std: std_of(ParamName::C),
+            std: std_of(&arx.params, ParamName::C),
         });
     }
     Some((

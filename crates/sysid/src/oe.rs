@@ -512,7 +512,6 @@ pub fn refine(
     max_iterations: usize,
 ) -> Result<OeFit, SysidError> {
     let s = physical.structure();
-    let free = physical.free();
     if physical.layout() != Layout::Physical {
         return Err(SysidError::Data(
             "output-error refinement works on the physical parameter layout".into(),
@@ -522,13 +521,17 @@ pub fn refine(
     let n = data.len();
     let np = s.n_params();
     let mut full = physical.vector_of(start);
-    if full.len() != np || free.len() != np {
+    if full.len() != np || physical.len() != np {
         return Err(SysidError::Data(
             "output-error refinement: the start model does not match the structure".into(),
         ));
     }
     full.extend_from_slice(&data.y[..k0.min(n)]);
-    let free_idx: Vec<usize> = (0..np).filter(|&i| free[i]).chain(np..np + k0).collect();
+    let free_idx: Vec<usize> = physical
+        .free_indices()
+        .into_iter()
+        .chain(np..np + k0)
+        .collect();
     if n <= k0 || n <= free_idx.len() {
         return Err(SysidError::Data(format!(
             "{}: too few samples ({n}) for an output-error fit of {} parameters",

@@ -157,16 +157,10 @@ impl IdentifyReport {
             validation: val_data.map(|v| residual_analysis(&fit.model, v, max_lag)),
         };
         if let Some(m) = &report.metrics.validation {
-            match m.fit_sim_percent {
-                Some(f) if f >= 0.0 => {}
-                other => report.warnings.push(
-                    Warning::PoorSimulation {
-                        record: Record::Validation,
-                        fit_percent: other,
-                    }
-                    .to_string(),
-                ),
-            }
+            report.warnings.extend(
+                Warning::if_poor_simulation(Record::Validation, m.fit_sim_percent)
+                    .map(|w| w.to_string()),
+            );
         }
         Ok(report)
     }
@@ -270,26 +264,14 @@ impl ValidationReport {
         max_lag: usize,
     ) -> Result<Self, SysidError> {
         let m = sysid_core::metrics::metrics_miso(model, u, y, name)?;
-        let mut warnings = Vec::new();
-        let max_pole = model.poles().iter().map(|z| z.norm()).fold(0.0, f64::max);
-        if max_pole >= 1.0 {
-            warnings.push(
-                Warning::Unstable {
-                    max_pole_modulus: max_pole,
-                }
-                .to_string(),
-            );
-        }
-        match m.fit_sim_percent {
-            Some(f) if f >= 0.0 => {}
-            other => warnings.push(
-                Warning::PoorSimulation {
-                    record: Record::Validation,
-                    fit_percent: other,
-                }
-                .to_string(),
-            ),
-        }
+        let warnings: Vec<String> = Warning::if_unstable(model)
+            .into_iter()
+            .chain(Warning::if_poor_simulation(
+                Record::Validation,
+                m.fit_sim_percent,
+            ))
+            .map(|w| w.to_string())
+            .collect();
         Ok(ValidationReport {
             model: model.clone(),
             poles: poles(model),

@@ -3,7 +3,7 @@
 //! the sentence users read. [`deadzone_warnings`] holds the checks of a deadzone against the data.
 
 use serde::{Serialize, Serializer};
-use sysid_core::{Dataset, Deadzone, ParamName};
+use sysid_core::{Dataset, Deadzone, Model, ParamName};
 
 /// Which record a warning is about.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -159,6 +159,26 @@ impl std::fmt::Display for Warning {
                 "too few distinct input levels on the {branch} deadzone branch ({levels} beyond its \
                  breakpoint; at least 2 are needed to separate slope and breakpoint)"
             ),
+        }
+    }
+}
+
+impl Warning {
+    /// [`Warning::Unstable`] when a pole of `model` has modulus >= 1.
+    pub fn if_unstable(model: &Model) -> Option<Warning> {
+        let max_pole_modulus = model.poles().iter().map(|z| z.norm()).fold(0.0, f64::max);
+        (max_pole_modulus >= 1.0).then_some(Warning::Unstable { max_pole_modulus })
+    }
+
+    /// [`Warning::PoorSimulation`] when the simulation fit % on `record` is negative or missing (the
+    /// simulation diverged).
+    pub fn if_poor_simulation(record: Record, fit_percent: Option<f64>) -> Option<Warning> {
+        match fit_percent {
+            Some(f) if f >= 0.0 => None,
+            other => Some(Warning::PoorSimulation {
+                record,
+                fit_percent: other,
+            }),
         }
     }
 }

@@ -643,6 +643,22 @@ pub fn run(
     })
 }
 
+/// The words a fit comparison needs when a compared model is unstable: its simulation grows without
+/// bound, so a fit over a finite record flatters it and says nothing about a longer one.
+fn unstable_caveat(models: &[(&str, bool)]) -> String {
+    let unstable: Vec<&str> = models.iter().filter(|m| !m.1).map(|m| m.0).collect();
+    if unstable.is_empty() {
+        return String::new();
+    }
+    format!(
+        ". Caution: {} {} UNSTABLE, so {} simulation diverges and this comparison holds only over this record's \
+         length",
+        unstable.join(" and "),
+        if unstable.len() == 1 { "is" } else { "are" },
+        if unstable.len() == 1 { "its" } else { "their" }
+    )
+}
+
 /// The acceptance criteria of the paper (and the issue), each with its id, whether it is met and why.
 fn verdicts(s: &ReproduceSettings, st: &Study) -> Vec<Criterion> {
     let step = (s.fixed_setpoint_mm - s.fixed_start_mm).abs();
@@ -654,7 +670,7 @@ fn verdicts(s: &ReproduceSettings, st: &Study) -> Vec<Criterion> {
         met: beats,
         text: format!(
             "Hammerstein (RLS, paper's method) fits the validation record with a positive fit, better than the \
-             linear ARX: {} % vs {} % (paper: {} % vs {} %){}",
+             linear ARX: {} % vs {} % (paper: {} % vs {} %){}{}",
             opt(fh),
             opt(fa),
             estimate(paper::FIT.1),
@@ -664,7 +680,8 @@ fn verdicts(s: &ReproduceSettings, st: &Study) -> Vec<Criterion> {
                     " — a fit of 0 % or less is no better than the record's mean, so neither model passes"
                 }
                 _ => "",
-            }
+            },
+            unstable_caveat(&[("Hammerstein (RLS)", st.ham().rep.stable), ("ARX", st.arx().rep.stable)]),
         ),
     }];
     let ham = &st.ham().rep;

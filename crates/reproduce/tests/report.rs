@@ -86,6 +86,17 @@ fn every_criterion_has_an_id_and_the_verdicts_follow_from_the_numbers() {
             criterion(s, "hammerstein_stable")["met"],
             stable_by_poles(&s["models"]["hammerstein"])
         );
+        // A fit comparison involving an unstable model says so in words.
+        let any_unstable =
+            !stable_by_poles(&s["models"]["hammerstein"]) || !stable_by_poles(&s["models"]["arx"]);
+        assert_eq!(
+            criterion(s, "hammerstein_beats_arx")["criterion"]
+                .as_str()
+                .unwrap()
+                .contains("UNSTABLE"),
+            any_unstable,
+            "{plant}"
+        );
         let os = s["closed_loop"]["fixed"]["plant"]["overshoot_percent"]
             .as_f64()
             .unwrap();

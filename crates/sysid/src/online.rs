@@ -141,11 +141,15 @@ pub struct TrackSettings {
     pub pe_window: usize,
     /// The change detector; `None`: no detection.
     pub detector: Option<DetectorSettings>,
+    /// Hammerstein: the switching functions and x̂ never use a deadzone branch with a slope ≤ 0 or a
+    /// breakpoint on the wrong side of zero (b_l > 0, b_r < 0); the last plausible branch is kept
+    /// instead. Without it (`false`) every sample is exactly `identify`'s first pass.
+    pub guard: bool,
 }
 
 impl Default for TrackSettings {
     /// The paper's structure (Hammerstein, na = 3, nb = 1, nk = 1), ρ = 1, p0 = 10⁶, trace windup
-    /// guard, [`DeadzoneStart::PWM`], a window of 100 errors, the default detector.
+    /// guard, [`DeadzoneStart::PWM`], a window of 100 errors, the default detector, the deadzone guard.
     fn default() -> Self {
         TrackSettings {
             kind: ModelKind::Hammerstein,
@@ -157,6 +161,7 @@ impl Default for TrackSettings {
             start: DeadzoneStart::PWM,
             pe_window: 100,
             detector: Some(DetectorSettings::default()),
+            guard: true,
         }
     }
 }
@@ -193,6 +198,7 @@ pub struct Tracker {
     errors: Vec<f64>,
     detector: Option<Cusum<f64>>,
     changes: Vec<usize>,
+    guard_hits: usize,
 }
 
 /// The recursive estimator `identify --method rls` uses for these settings: the plain RLS for the
@@ -283,6 +289,7 @@ impl Tracker {
             errors: Vec::with_capacity(settings.pe_window),
             detector,
             changes: Vec::new(),
+            guard_hits: 0,
             settings,
         })
     }
@@ -345,10 +352,15 @@ impl Tracker {
         let hammer = self.structure.kind == ModelKind::Hammerstein;
         if hammer && k > self.k0 {
             let theta = self.est.theta();
-            self.dz = if theta[0] == 0.0 && theta[2] == 0.0 {
+            let dz = if theta[0] == 0.0 && theta[2] == 0.0 {
                 self.settings.start.deadzone()
             } else {
                 deadzone_from_theta(theta, self.dz, self.settings.start.limit)
+            };
+            self.dz = if self.settings.guard {
+                self.guarded(dz)
+            } else {
+                dz
             };
         }
         let last = self.u.len() - 1;
@@ -380,6 +392,27 @@ impl Tracker {
             error: Some(eps),
             change,
         })
+    }
+
+    /// The deadzone guard: a branch of `dz` with a slope ≤ 0 or its breakpoint on the wrong side of zero
+    /// is replaced by that branch of the deadzone in use (counted in [`Tracker::guard_interventions`]).
+    fn guarded(&mut self, mut dz: Deadzone) -> Deadzone {
+        let mut hit = false;
+        if !(dz.m_r > 0.0 && dz.b_r >= 0.0) {
+            (dz.m_r, dz.b_r) = (self.dz.m_r, self.dz.b_r);
+            hit = true;
+        }
+        if !(dz.m_l > 0.0 && dz.b_l <= 0.0) {
+            (dz.m_l, dz.b_l) = (self.dz.m_l, self.dz.b_l);
+            hit = true;
+        }
+        self.guard_hits += usize::from(hit);
+        dz
+    }
+
+    /// Samples at which the deadzone guard replaced an implausible branch of the estimate.
+    pub fn guard_interventions(&self) -> usize {
+        self.guard_hits
     }
 
     /// RMS of the last [`TrackSettings::pe_window`] a-priori prediction errors (mm); `None` before k0.
@@ -426,6 +459,23 @@ impl Tracker {
         }
         if !model.is_stable() {
             w.push("the current model is unstable (a pole on or outside the unit circle)".into());
+        }
+        if let Some(d) = model.deadzone() {
+            if !(d.m_r > 0.0 && d.m_l > 0.0 && d.b_l <= 0.0 && d.b_r >= 0.0) {
+                w.push(format!(
+                    "the deadzone estimate is implausible (b_l = {}, b_r = {}, m_l = {}, m_r = {}: a slope <= 0 \
+                     or a breakpoint on the wrong side of zero){}",
+                    d.b_l,
+                    d.b_r,
+                    d.m_l,
+                    d.m_r,
+                    if self.settings.guard {
+                        "; the switching functions use the last plausible branch"
+                    } else {
+                        ""
+                    }
+                ));
+            }
         }
         w
     }
@@ -499,6 +549,8 @@ pub struct TrackSummary {
     pub pe_rms: Option<f64>,
     /// Detected changes.
     pub change_points: Vec<ChangePoint>,
+    /// Samples at which the deadzone guard replaced an implausible branch ([`TrackSettings::guard`]).
+    pub guard_interventions: usize,
     /// Reasons not to trust the final model, in words.
     pub warnings: Vec<String>,
 }
@@ -791,6 +843,7 @@ fn summary(
         model,
         pe_rms: tracker.pe_rms(),
         change_points,
+        guard_interventions: tracker.guard_interventions(),
         warnings,
     })
 }

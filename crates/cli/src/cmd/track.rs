@@ -94,6 +94,10 @@ pub struct Args {
     /// Number of recent prediction errors in pe_rms.
     #[arg(long, value_name = "N", default_value_t = 100)]
     pub pe_window: usize,
+    /// Hammerstein: no deadzone guard (the switching functions then follow every estimate, as
+    /// `identify --method rls --passes 1` does, even a negative slope; see docs/online.md).
+    #[arg(long)]
+    pub no_guard: bool,
     /// No change detection.
     #[arg(long)]
     pub no_detect: bool,
@@ -140,6 +144,7 @@ impl Args {
                 drift: self.detect_drift,
                 threshold: self.detect_threshold,
             }),
+            guard: !self.no_guard,
         }
     }
 
@@ -214,8 +219,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         eprintln!("warning: {w}");
     }
     eprintln!(
-        "{} samples, {} change(s) detected{}",
+        "{} samples, {} deadzone guard intervention(s), {} change(s) detected{}",
         summary.samples,
+        summary.guard_interventions,
         summary.change_points.len(),
         summary
             .change_points

@@ -93,14 +93,17 @@ pub struct DetectorSettings {
 }
 
 impl Default for DetectorSettings {
-    /// Warm-up 500, calibration 2000 samples, ν = 3, h = 30 (average run length without change
-    /// ≈ 2.8 · 10⁷ samples for Gaussian errors: see [`ipa_embedded::cusum`]).
+    /// Warm-up 500, calibration 2000 samples, ν = 3, h = 60. For white Gaussian errors the average run
+    /// length without change is ≈ 3.6 · 10¹³ samples (h = 30, the firmware default of
+    /// [`ipa_embedded::cusum`], gives 2.7 · 10⁷); the higher threshold is for the coloured errors of a
+    /// model fitted to data with output noise, where h = 30 raised 6 false alarms in 500 000 samples
+    /// and h = 60 none in 2 000 000 (docs/online.md).
     fn default() -> Self {
         DetectorSettings {
             warmup: 500,
             calibration: 2000,
             drift: 3.0,
-            threshold: 30.0,
+            threshold: 60.0,
         }
     }
 }

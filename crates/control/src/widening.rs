@@ -44,7 +44,7 @@ impl FromStr for DeadzoneChange {
 
 /// `inner` with the deadzone change applied to its input (see the module documentation).
 pub struct Widened {
-    inner: Box<dyn Plant>,
+    inner: Box<dyn Plant + Send>,
     change: DeadzoneChange,
     /// Samples stepped since the last reset.
     k: usize,
@@ -52,7 +52,7 @@ pub struct Widened {
 
 impl Widened {
     /// Wraps `inner`.
-    pub fn new(inner: Box<dyn Plant>, change: DeadzoneChange) -> Self {
+    pub fn new(inner: Box<dyn Plant + Send>, change: DeadzoneChange) -> Self {
         Widened {
             inner,
             change,

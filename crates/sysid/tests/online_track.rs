@@ -153,6 +153,7 @@ fn a_valve_whose_deadzone_and_slope_change_is_flagged_within_a_few_hundred_sampl
         let (u, y) = record(40_000, Some(change), 0.01, seed);
         let t = track(&u, &y, TrackSettings::default());
         let first = t.change_points().first().copied();
+        eprintln!("seed {seed}: alarms at {:?} (change at {change})", t.change_points());
         assert!(
             first.is_some_and(|k| (change..change + 300).contains(&k)),
             "seed {seed}: change at {change}, alarms at {:?}",

@@ -13,6 +13,7 @@
 //!   e = (A(1) r + m_r Δ) / (A(1) + m_r Kp) — about Δ/Kp = 1.43 mm more.
 
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
+#![allow(clippy::needless_range_loop)] // hold numbers index both runs and the set-point
 
 use control::{
     closed_loop, run_adaptive, AdaptiveSettings, DeadzoneChange, DeadzoneCompensator, PiSettings,
@@ -125,9 +126,10 @@ fn with_proportional_control_the_fixed_compensator_keeps_the_deadzone_error_and_
 // constant Kp/Ki = 14 s). The adaptive compensator removes the offset instead.
 #[test]
 fn with_the_papers_pi_the_adaptive_compensator_recovers_much_faster() {
-    let (fixed, adaptive) = runs(1.0);
+    let ki = 1.0;
+    let (fixed, adaptive) = runs(ki);
     let (ef, ea) = (hold_errors(&fixed), hold_errors(&adaptive.trace));
-    let first = CHANGE.widen_counts / KP * (-1.0 * 9.0 / KP).exp();
+    let first = CHANGE.widen_counts / KP * (-ki * 9.0 / KP).exp();
     assert!(
         ef[3] > 0.6 * first,
         "fixed, first hold after the change: {}",

@@ -63,7 +63,7 @@ fn record(n: usize, change: Option<usize>, noise: f64, seed: u64) -> (Vec<f64>, 
         };
         u[k] = (level + pull).clamp(-255.0, 255.0);
         if k >= 3 {
-            let dz = if change.is_some_and(|c| k - 1 >= c) {
+            let dz = if change.is_some_and(|c| k > c) {
                 &WORN_DZ
             } else {
                 &PAPER_DZ
@@ -153,7 +153,10 @@ fn a_valve_whose_deadzone_and_slope_change_is_flagged_within_a_few_hundred_sampl
         let (u, y) = record(40_000, Some(change), 0.01, seed);
         let t = track(&u, &y, TrackSettings::default());
         let first = t.change_points().first().copied();
-        eprintln!("seed {seed}: alarms at {:?} (change at {change})", t.change_points());
+        eprintln!(
+            "seed {seed}: alarms at {:?} (change at {change})",
+            t.change_points()
+        );
         assert!(
             first.is_some_and(|k| (change..change + 300).contains(&k)),
             "seed {seed}: change at {change}, alarms at {:?}",

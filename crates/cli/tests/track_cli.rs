@@ -212,6 +212,30 @@ fn paper_lines(n: usize) -> String {
         .collect()
 }
 
+/// Starts `track` on `source` (flags naming the source) with a 1.5-s idle time-out, no detector, a line
+/// every `every` samples and the summary to `summary`.
+fn spawn_track(source: &[&str], every: &str, summary: &Path) -> std::process::Child {
+    Command::new(BIN)
+        .arg("track")
+        .args(source)
+        .args(["--idle-timeout", "1.5", "--no-detect", "--every", every])
+        .args(["--json-summary", summary.to_str().unwrap()])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap()
+}
+
+/// Waits for `child`; returns its summary's sample count and the number of JSON lines it printed.
+fn finish(child: std::process::Child, summary: &Path) -> (u64, usize) {
+    let o = child.wait_with_output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(summary).unwrap()).unwrap();
+    let lines = String::from_utf8(o.stdout).unwrap().lines().count();
+    (s["samples"].as_u64().unwrap(), lines)
+}
+
 // Lines appended after track has reached the end of the file are read; it stops after the idle
 // time-out.
 #[test]
@@ -222,23 +246,7 @@ fn follow_reads_lines_appended_later_and_stops_after_the_idle_timeout() {
     write!(f, "t,u,y\n{}", paper_lines(10)).unwrap();
     f.flush().unwrap();
     let summary = dir.path().join("s.json");
-    let child = Command::new(BIN)
-        .args([
-            "track",
-            "--follow",
-            path.to_str().unwrap(),
-            "--idle-timeout",
-            "1.5",
-            "--no-detect",
-            "--every",
-            "5",
-            "--json-summary",
-            summary.to_str().unwrap(),
-        ])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let child = spawn_track(&["--follow", path.to_str().unwrap()], "5", &summary);
     std::thread::sleep(Duration::from_millis(500));
     let more: String = paper_lines(30)
         .lines()
@@ -247,16 +255,8 @@ fn follow_reads_lines_appended_later_and_stops_after_the_idle_timeout() {
         .collect();
     f.write_all(more.as_bytes()).unwrap();
     f.flush().unwrap();
-    let o = child.wait_with_output().unwrap();
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let s: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
-    assert_eq!(s["samples"], 30);
-    assert_eq!(
-        String::from_utf8(o.stdout).unwrap().lines().count(),
-        6,
-        "k = 4, 9, ..., 29"
-    );
+    // 30 samples, lines at k = 4, 9, ..., 29.
+    assert_eq!(finish(child, &summary), (30, 6));
 }
 
 // A pseudo-terminal pair stands in for the serial cable: the test writes CSV lines to the master side,
@@ -269,35 +269,12 @@ fn serial_reads_lines_from_a_pseudo_terminal() {
     let name = slave.name().unwrap();
     let dir = tempfile::tempdir().unwrap();
     let summary = dir.path().join("s.json");
-    let child = Command::new(BIN)
-        .args([
-            "track",
-            "--serial",
-            &name,
-            "--baud",
-            "115200",
-            "--idle-timeout",
-            "1.5",
-            "--no-detect",
-            "--every",
-            "10",
-            "--json-summary",
-            summary.to_str().unwrap(),
-        ])
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
+    let child = spawn_track(&["--serial", &name, "--baud", "115200"], "10", &summary);
     std::thread::sleep(Duration::from_millis(400));
     master
         .write_all(format!("t,u,y\n{}", paper_lines(20)).as_bytes())
         .unwrap();
     master.flush().unwrap();
-    let o = child.wait_with_output().unwrap();
+    assert_eq!(finish(child, &summary), (20, 2));
     drop(slave);
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let s: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
-    assert_eq!(s["samples"], 20);
-    assert_eq!(String::from_utf8(o.stdout).unwrap().lines().count(), 2);
 }

@@ -10,7 +10,10 @@
 //! `--windup none`, [`RobustRls`] otherwise). The only input `identify` takes from the whole record is
 //! the start of the deadzone (the largest negative and smallest positive command, and max |u| as the
 //! clamp); online these are settings, [`DeadzoneStart`], whose default (−1, 1, 255) suits integer PWM
-//! commands. With [`DeadzoneStart::from_record`] the estimate equals `identify`'s bit for bit.
+//! commands. With [`DeadzoneStart::from_record`] and without the deadzone guard
+//! ([`TrackSettings::guard`] = false) the estimate equals `identify`'s bit for bit. The guard (on by
+//! default) keeps the switching functions from using a deadzone branch with a slope ≤ 0 or a breakpoint
+//! on the wrong side of zero, on which the one-pass estimate can otherwise lock (docs/online.md).
 //!
 //! # Change detection
 //!

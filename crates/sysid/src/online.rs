@@ -115,7 +115,7 @@ impl DetectorSettings {
     fn detector(&self) -> Result<Cusum<f64>, SysidError> {
         Cusum::new(self.warmup, self.calibration, self.drift, self.threshold).map_err(|_| {
             SysidError::setting(
-                Setting::Other("detector"),
+                Setting::Other("--detect-calibration/--detect-drift/--detect-threshold"),
                 format!(
                     "calibration {}, drift {}, threshold {}",
                     self.calibration, self.drift, self.threshold
@@ -245,14 +245,14 @@ impl Tracker {
             let s = settings.start;
             if !(s.b_l0.is_finite() && s.b_l0 < 0.0 && s.b_r0.is_finite() && s.b_r0 > 0.0) {
                 return Err(SysidError::setting(
-                    Setting::Other("start breakpoints"),
+                    Setting::Other("--b-l0/--b-r0"),
                     format!("{}, {}", s.b_l0, s.b_r0),
                     "finite breakpoints b_l0 < 0 < b_r0",
                 ));
             }
             if !(s.limit.is_finite() && s.limit > 0.0) {
                 return Err(SysidError::setting(
-                    Setting::Other("breakpoint limit"),
+                    Setting::Other("--breakpoint-limit"),
                     s.limit,
                     "a positive, finite bound on |b_l|, |b_r|",
                 ));
@@ -260,7 +260,7 @@ impl Tracker {
         }
         if settings.pe_window == 0 {
             return Err(SysidError::setting(
-                Setting::Other("pe window"),
+                Setting::Other("--pe-window"),
                 0,
                 "at least 1 sample",
             ));
@@ -659,7 +659,7 @@ impl Columns {
             return Err(SysidError::Parse {
                 file: name.to_string(),
                 line: line_no,
-                column: found.max(1),
+                column: found + 1,
                 message: format!(
                     "the line has only {found} field(s); expected {} (the header's columns)",
                     header.len()
@@ -693,7 +693,7 @@ pub fn track_stream<R: BufRead, W: Write>(
 ) -> Result<TrackSummary, SysidError> {
     if options.every == 0 {
         return Err(SysidError::setting(
-            Setting::Other("every"),
+            Setting::Other("--every"),
             0,
             "at least 1 sample",
         ));

@@ -37,6 +37,9 @@ enum Command {
     Delay(cmd::delay::Args),
     /// Monte Carlo study of estimator bias and spread under output noise (parallel).
     Montecarlo(cmd::montecarlo::Args),
+    /// Track a model online: recursive estimation of samples as they arrive (stdin, a growing file, a
+    /// serial port), JSON lines, change detection.
+    Track(cmd::track::Args),
     /// Benchmarks: RLS throughput, identification time, plant real-time factor.
     Bench(cmd::bench::Args),
 }
@@ -73,6 +76,7 @@ fn main() -> ExitCode {
         Command::Order(a) => cmd::order::run(a),
         Command::Delay(a) => cmd::delay::run(a),
         Command::Montecarlo(a) => cmd::montecarlo::run(a),
+        Command::Track(a) => cmd::track::run(a),
         Command::Bench(a) => cmd::bench::run(a),
     };
     match result {

@@ -71,6 +71,26 @@ pub fn run(
     duration_s: f64,
     y0_mm: f64,
 ) -> Result<Trace, ControlError> {
+    run_with(
+        plant,
+        controller,
+        profile,
+        duration_s,
+        y0_mm,
+        &mut |_, u, _| Ok(compensator.map_or(u, |c| c.apply(u))),
+    )
+}
+
+/// [`run`] with the command applied at sample k given by `command(k, u_pi, y)` from the PI output u_pi
+/// and the measured y(k) (a compensator, possibly one that adapts; see [`crate::adaptive`]).
+pub fn run_with(
+    plant: &mut dyn Plant,
+    controller: &mut PiController,
+    profile: &Profile,
+    duration_s: f64,
+    y0_mm: f64,
+    command: &mut dyn FnMut(usize, f64, f64) -> Result<f64, ControlError>,
+) -> Result<Trace, ControlError> {
     let ts = plant.ts();
     if !(ts.is_finite() && ts > 0.0) {
         return Err(ControlError::Config(format!(
@@ -128,10 +148,7 @@ pub fn run(
             )));
         }
         let r = profile.r_at(t);
-        let mut u = controller.step(r, y);
-        if let Some(c) = compensator {
-            u = c.apply(u);
-        }
+        let u = command(k, controller.step(r, y), y)?;
         if !u.is_finite() {
             return Err(ControlError::Numerical(format!(
                 "the command became {u} at sample {k} (t = {t} s)"

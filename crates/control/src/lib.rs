@@ -4,7 +4,8 @@
 //! Data flow: a [`Profile`] gives the set-point r(t); a [`PiController`] (built from [`PiSettings`]) turns
 //! e = r - y into the command u, optionally passed through a [`DeadzoneCompensator`];
 //! [`closed_loop::run`] drives the plant and records a [`Trace`]; [`StepMetrics`] summarise it as MATLAB
-//! `stepinfo` would.
+//! `stepinfo` would. [`adaptive::run_adaptive`] lets the compensator follow the online estimate of
+//! `sysid::online`; [`Widened`] is a plant whose deadzone widens mid-run, to show it.
 //!
 //! ```
 //! use control::{closed_loop, PiSettings, Profile, StepMetrics};
@@ -16,16 +17,20 @@
 //! assert!(m.overshoot_percent.unwrap() < 10.0);
 //! ```
 
+pub mod adaptive;
 pub mod closed_loop;
 pub mod compensator;
 pub mod error;
 pub mod metrics;
 pub mod pi;
 pub mod profile;
+pub mod widening;
 
+pub use adaptive::{run_adaptive, AdaptiveRun, AdaptiveSettings};
 pub use closed_loop::Trace;
 pub use compensator::{DeadzoneCompensator, SlopeMode};
 pub use error::{ControlError, ControlSetting};
 pub use metrics::{metrics_for_steps, run_metrics, RunMetrics, StepMetrics, StepSegment};
 pub use pi::{AntiWindup, AntiWindupScheme, IntegralForm, PiController, PiSettings};
 pub use profile::Profile;
+pub use widening::{DeadzoneChange, Widened};

@@ -65,6 +65,16 @@
 #define IPA_PENDING 1
 
 /**
+ * `ipa_cusum_update`: the detector's statistic is above its threshold (a change).
+ */
+#define IPA_ALARM 2
+
+/**
+ * An upper bound, valid on every target, of [`ipa_cusum_state_size`] in bytes.
+ */
+#define IPA_CUSUM_STATE_BYTES 80
+
+/**
  * A setting is out of range (ρ ∉ (0, 1], P(0) ≤ 0, NaN breakpoint, bad gain, ...).
  */
 #define IPA_ERR_SETTING -1
@@ -226,6 +236,49 @@ int32_t ipa_hrls_b(const void *mem, double *out, size_t len);
 int32_t ipa_hrls_theta(const void *mem,
                        double *out,
                        size_t len);
+
+/**
+ * Size in bytes of the change detector state.
+ */
+size_t ipa_cusum_state_size(void);
+
+/**
+ * Initialises Page's CUSUM change detector (module `cusum`) in `mem`: the first `warmup` errors are
+ * ignored, σ̂² is the mean of ε² over the next `calibration` (≥ 1) errors, then g(k) = max(0, g(k−1) +
+ * ε²/σ̂² − `drift`) raises an alarm when g > `threshold` (drift > 1, threshold > 0; 3 and 30 in the
+ * firmware, 3 and 60 in `ipa-sysid track`). Returns [`IPA_OK`] or a negative code.
+ *
+ * # Safety
+ * `mem` null or writable for `len` bytes, aligned to 8.
+ */
+int32_t ipa_cusum_init(void *mem,
+                       size_t len,
+                       uint32_t warmup,
+                       uint32_t calibration,
+                       double drift,
+                       double threshold);
+
+/**
+ * Feeds the prediction error ε(k) (mm, e.g. `*eps` of [`ipa_hrls_update`]). Returns [`IPA_PENDING`]
+ * while warming up or calibrating, [`IPA_OK`] while monitoring without alarm, [`IPA_ALARM`] once g > h
+ * (latched until [`ipa_cusum_rearm`]), or a negative code (state unchanged); `*g`, when not null,
+ * receives the statistic g(k).
+ *
+ * # Safety
+ * `mem` storage of a successful [`ipa_cusum_init`] (or null); `g` null or writable.
+ */
+int32_t ipa_cusum_update(void *mem,
+                         double eps,
+                         double *g);
+
+/**
+ * Clears an alarm (g = 0), keeping σ̂² (e.g. after `ipa_hrls_init` restarted the estimator on the new
+ * valve). Returns [`IPA_OK`] or a negative code.
+ *
+ * # Safety
+ * `mem` storage of a successful [`ipa_cusum_init`] (or null).
+ */
+int32_t ipa_cusum_rearm(void *mem);
 
 /**
  * Size in bytes of the PI controller state.

@@ -1,5 +1,6 @@
 //! The C interface (`include/ipa_embedded.h`, generated from this file by cbindgen): the paper's
-//! recursive Hammerstein estimator, the PI controller and the deadzone compensator, each state in
+//! recursive Hammerstein estimator, the CUSUM change detector, the PI controller and the deadzone
+//! compensator, each state in
 //! storage the caller provides (no heap), f64 (`double`) throughout.
 //!
 //! Fixed maximum orders: na ≤ [`IPA_MAX_NA`], nb ≤ [`IPA_MAX_NB`], nk ≤ [`IPA_MAX_NK`] (so at most 19
@@ -19,6 +20,7 @@
 use core::ffi::c_void;
 use core::mem::{align_of, size_of};
 
+use crate::cusum::{Cusum, CusumStatus};
 use crate::deadzone::{Compensator, Deadzone, SlopeMode};
 use crate::hammerstein::{HammersteinRls, HammersteinSettings};
 use crate::pi::{AntiWindup, Pi};
@@ -46,6 +48,10 @@ pub const IPA_FORM_UD: u32 = 1;
 pub const IPA_OK: i32 = 0;
 /// `ipa_hrls_update`: the sample filled the delay lines; no estimate update yet (k < max(na, nk+nb−1)).
 pub const IPA_PENDING: i32 = 1;
+/// `ipa_cusum_update`: the detector's statistic is above its threshold (a change).
+pub const IPA_ALARM: i32 = 2;
+/// An upper bound, valid on every target, of [`ipa_cusum_state_size`] in bytes.
+pub const IPA_CUSUM_STATE_BYTES: usize = 80;
 /// A setting is out of range (ρ ∉ (0, 1], P(0) ≤ 0, NaN breakpoint, bad gain, ...).
 pub const IPA_ERR_SETTING: i32 = -1;
 /// Orders beyond the maximum (or nb = 0).
@@ -67,11 +73,18 @@ const MAX_N: usize = 3 + IPA_MAX_NA as usize + IPA_MAX_NB as usize;
 const MAX_D: usize = IPA_MAX_NK as usize + IPA_MAX_NB as usize - 1;
 const HRLS_MAGIC: u64 = 0x4950_415f_4852_4c53; // "IPA_HRLS"
 const PI_MAGIC: u64 = 0x4950_415f_5049_4354; // "IPA_PICT"
+const CUSUM_MAGIC: u64 = 0x4950_415f_4355_534d; // "IPA_CUSM"
 
 #[repr(C)]
 struct HrlsState {
     magic: u64,
     est: HammersteinRls<f64, MAX_N, MAX_D>,
+}
+
+#[repr(C)]
+struct CusumState {
+    magic: u64,
+    cusum: Cusum<f64>,
 }
 
 #[repr(C)]
@@ -82,6 +95,7 @@ struct PiState {
 
 const _: () = assert!(size_of::<HrlsState>() <= IPA_HRLS_STATE_BYTES);
 const _: () = assert!(size_of::<PiState>() <= IPA_PI_STATE_BYTES);
+const _: () = assert!(size_of::<CusumState>() <= IPA_CUSUM_STATE_BYTES);
 const _: () = assert!(MAX_D >= IPA_MAX_NA as usize);
 
 /// The deadzone x = f(u) of paper eq. (1): breakpoints in counts, slopes in x per count.
@@ -385,6 +399,82 @@ pub unsafe extern "C" fn ipa_hrls_theta(mem: *const c_void, out: *mut f64, len: 
     unsafe { coefs(mem, out, len, Coefs::Theta) }
 }
 
+/// Size in bytes of the change detector state.
+#[no_mangle]
+pub extern "C" fn ipa_cusum_state_size() -> usize {
+    size_of::<CusumState>()
+}
+
+/// Initialises Page's CUSUM change detector (module `cusum`) in `mem`: the first `warmup` errors are
+/// ignored, σ̂² is the mean of ε² over the next `calibration` (≥ 1) errors, then g(k) = max(0, g(k−1) +
+/// ε²/σ̂² − `drift`) raises an alarm when g > `threshold` (drift > 1, threshold > 0; 3 and 30 in the
+/// firmware, 3 and 60 in `ipa-sysid track`). Returns [`IPA_OK`] or a negative code.
+///
+/// # Safety
+/// `mem` null or writable for `len` bytes, aligned to 8.
+#[no_mangle]
+pub unsafe extern "C" fn ipa_cusum_init(
+    mem: *mut c_void,
+    len: usize,
+    warmup: u32,
+    calibration: u32,
+    drift: f64,
+    threshold: f64,
+) -> i32 {
+    let d = Cusum::new(warmup as usize, calibration as usize, drift, threshold).map(|cusum| {
+        CusumState {
+            magic: CUSUM_MAGIC,
+            cusum,
+        }
+    });
+    // SAFETY: forwarded contract.
+    unsafe { init(mem, len, d) }
+}
+
+/// Feeds the prediction error ε(k) (mm, e.g. `*eps` of [`ipa_hrls_update`]). Returns [`IPA_PENDING`]
+/// while warming up or calibrating, [`IPA_OK`] while monitoring without alarm, [`IPA_ALARM`] once g > h
+/// (latched until [`ipa_cusum_rearm`]), or a negative code (state unchanged); `*g`, when not null,
+/// receives the statistic g(k).
+///
+/// # Safety
+/// `mem` storage of a successful [`ipa_cusum_init`] (or null); `g` null or writable.
+#[no_mangle]
+pub unsafe extern "C" fn ipa_cusum_update(mem: *mut c_void, eps: f64, g: *mut f64) -> i32 {
+    // SAFETY: forwarded contract.
+    let st = match unsafe { state_mut::<CusumState>(mem, CUSUM_MAGIC) } {
+        Ok(st) => st,
+        Err(e) => return e.code(),
+    };
+    code(st.cusum.update(eps).map(|status| {
+        if !g.is_null() {
+            // SAFETY: non-null and writable per the contract.
+            unsafe { g.write(st.cusum.statistic()) };
+        }
+        match status {
+            CusumStatus::WarmUp | CusumStatus::Calibrating => IPA_PENDING,
+            CusumStatus::Monitoring(_) => IPA_OK,
+            CusumStatus::Alarm(_) => IPA_ALARM,
+        }
+    }))
+}
+
+/// Clears an alarm (g = 0), keeping σ̂² (e.g. after `ipa_hrls_init` restarted the estimator on the new
+/// valve). Returns [`IPA_OK`] or a negative code.
+///
+/// # Safety
+/// `mem` storage of a successful [`ipa_cusum_init`] (or null).
+#[no_mangle]
+pub unsafe extern "C" fn ipa_cusum_rearm(mem: *mut c_void) -> i32 {
+    // SAFETY: forwarded contract.
+    match unsafe { state_mut::<CusumState>(mem, CUSUM_MAGIC) } {
+        Ok(st) => {
+            st.cusum.rearm();
+            IPA_OK
+        }
+        Err(e) => e.code(),
+    }
+}
+
 /// Size in bytes of the PI controller state.
 #[no_mangle]
 pub extern "C" fn ipa_pi_state_size() -> usize {
@@ -489,6 +579,41 @@ pub unsafe extern "C" fn ipa_dz_compensate(
 #[allow(clippy::unwrap_used)]
 mod tests {
     use super::*;
+
+    // Warm-up 1, calibration 2 with ε = ±2 → σ̂² = 4, ν = 3, h = 10: ε = 6 adds 36/4 − 3 = 6 (g = 6),
+    // again 6 more (g = 12 > 10: alarm, latched); rearm clears g. Bad settings and storage are refused.
+    #[test]
+    fn the_c_detector_calibrates_accumulates_and_latches_its_alarm() {
+        let mut mem = [0u64; IPA_CUSUM_STATE_BYTES / 8];
+        let p = mem.as_mut_ptr() as *mut c_void;
+        let mut g = f64::NAN;
+        unsafe {
+            assert_eq!(ipa_cusum_update(p, 1.0, &mut g), IPA_ERR_NOT_INITIALISED);
+            assert_eq!(ipa_cusum_init(p, 8, 1, 2, 3.0, 10.0), IPA_ERR_STORAGE);
+            assert_eq!(
+                ipa_cusum_init(p, IPA_CUSUM_STATE_BYTES, 1, 2, 1.0, 10.0),
+                IPA_ERR_SETTING
+            );
+            assert_eq!(
+                ipa_cusum_init(p, IPA_CUSUM_STATE_BYTES, 1, 2, 3.0, 10.0),
+                IPA_OK
+            );
+            assert_eq!(ipa_cusum_update(p, 100.0, &mut g), IPA_PENDING);
+            assert_eq!(ipa_cusum_update(p, 2.0, &mut g), IPA_PENDING);
+            assert_eq!(ipa_cusum_update(p, -2.0, &mut g), IPA_PENDING);
+            assert_eq!(ipa_cusum_update(p, 6.0, &mut g), IPA_OK);
+            assert_eq!(g, 6.0);
+            assert_eq!(ipa_cusum_update(p, 6.0, core::ptr::null_mut()), IPA_ALARM);
+            assert_eq!(ipa_cusum_update(p, 0.0, &mut g), IPA_ALARM);
+            assert_eq!(g, 12.0);
+            assert_eq!(ipa_cusum_update(p, f64::NAN, &mut g), IPA_ERR_NOT_FINITE);
+            assert_eq!(ipa_cusum_rearm(p), IPA_OK);
+            assert_eq!(ipa_cusum_update(p, 0.0, &mut g), IPA_OK);
+            assert_eq!(g, 0.0);
+            assert_eq!(ipa_cusum_rearm(core::ptr::null_mut()), IPA_ERR_NULL);
+        }
+        assert!(ipa_cusum_state_size() <= IPA_CUSUM_STATE_BYTES);
+    }
 
     // The storage is checked: null, too short, misaligned, uninitialised; a failed init marks it so.
     #[test]

@@ -1,9 +1,13 @@
 //! `sysid-io`: writing output files safely — atomically (temporary file in the same folder, then
 //! rename), never over one of the run's input files. Shared by the command line, the report and the
-//! reproduction pipeline; the libraries that compute never write files.
+//! reproduction pipeline; the libraries that compute never write files. [`Follow`] reads a source that is
+//! still being written (`track --follow`).
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
+
+pub mod follow;
+pub use follow::Follow;
 
 /// Why an output could not be written. Options are named as the caller names them (`flag`).
 #[derive(Debug, thiserror::Error)]

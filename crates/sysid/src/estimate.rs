@@ -14,8 +14,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::branches::Branches;
 use crate::ls;
-use crate::rls::{self, RecursiveUpdate, Rls};
-use crate::rls_ud::{RlsForm, RobustRls};
+use crate::rls;
+use crate::rls_ud::RlsForm;
 use crate::warnings::{deadzone_warnings, Record, Warning};
 use crate::windup::Windup;
 use crate::{iv, oe};
@@ -1514,19 +1514,14 @@ fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitted, SysidErr
     let key = p.key_term();
     let idx = key.free_indices();
     let np = idx.len();
-    let mut est: Box<dyn RecursiveUpdate> =
-        if st.form == RlsForm::Standard && st.windup == Windup::None {
-            Box::new(Rls::new(np, st.forgetting, st.p0)?)
-        } else {
-            Box::new(RobustRls::new(
-                np,
-                st.forgetting,
-                st.p0,
-                st.form,
-                st.windup,
-                st.max_trace,
-            )?)
-        };
+    let mut est = crate::online::recursive_estimator(
+        np,
+        st.forgetting,
+        st.p0,
+        st.form,
+        st.windup,
+        st.max_trace,
+    )?;
     let mut full_row = vec![0.0; s.n_params()];
     let mut row = vec![0.0; np];
     let hammer = s.kind == ModelKind::Hammerstein;

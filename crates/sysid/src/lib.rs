@@ -16,6 +16,7 @@ pub use sysid_core::ls;
 pub mod merge;
 pub mod miso;
 pub mod oe;
+pub mod online;
 pub mod options;
 pub mod order;
 pub mod residuals;

@@ -69,6 +69,20 @@ pub struct Args {
     /// |u| at or below this many counts gives no command (avoids chattering at the set-point).
     #[arg(long, value_name = "COUNTS", default_value_t = 0.0)]
     pub compensator_threshold: f64,
+    /// Let the deadzone compensator follow the online recursive Hammerstein estimate during the run
+    /// (needs --compensate-deadzone as its start; docs/online.md).
+    #[arg(long, requires = "compensate_deadzone")]
+    pub adaptive: bool,
+    /// --adaptive: RLS forgetting factor ρ of the online estimate.
+    #[arg(long, default_value_t = control::AdaptiveSettings::default().tracker.forgetting)]
+    pub adaptive_forgetting: f64,
+    /// --adaptive: estimator updates before its deadzone is used (again after a detected change).
+    #[arg(long, value_name = "N", default_value_t = control::AdaptiveSettings::default().min_updates)]
+    pub adaptive_min_updates: usize,
+    /// Make the plant's valve deadzone wider during the run: `AT_S:WIDEN_COUNTS` (e.g. 30:20: from
+    /// t = 30 s every command loses 20 counts towards zero, i.e. b_r + 20 and b_l − 20).
+    #[arg(long, value_name = "AT_S:COUNTS")]
+    pub deadzone_change: Option<control::DeadzoneChange>,
     /// Write the metrics and settings as JSON to this file (`-` = standard output).
     #[arg(long, value_name = "OUT")]
     pub json: Option<PathBuf>,
@@ -100,6 +114,24 @@ struct ControlOut<'a> {
     steps: &'a [StepSegment],
     samples: usize,
     trace: Option<String>,
+    /// With --adaptive: what the adaptation did.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    adaptive: Option<&'a AdaptiveOut>,
+}
+
+/// The `adaptive` object of the JSON output (`--adaptive`).
+#[derive(Debug, Serialize)]
+struct AdaptiveOut {
+    /// The compensator's deadzone at the end of the run.
+    final_deadzone: Option<sysid::Deadzone>,
+    /// Times (s) at which the online estimator detected a change of the plant.
+    change_points_s: Vec<f64>,
+    /// Samples at which the estimate could not be inverted and the previous compensator was kept.
+    rejected_estimates: usize,
+    /// ρ of the online estimate.
+    forgetting: f64,
+    /// Updates before an estimate is used.
+    min_updates: usize,
 }
 
 #[derive(Debug, Serialize)]
@@ -151,6 +183,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let mut plant = ipa::plant_from_spec(&args.plant, args.plant_config.as_deref())
         .with_context(|| format!("cannot build the plant for --plant {}", args.plant))?;
+    if let Some(change) = args.deadzone_change {
+        plant = Box::new(control::Widened::new(plant, change));
+    }
     let ts = plant.ts();
 
     let anti_windup = match args.anti_windup {
@@ -241,14 +276,43 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
 
-    let trace = closed_loop::run(
-        plant.as_mut(),
-        &mut controller,
-        compensator.as_ref(),
-        &profile,
-        duration_s,
-        args.y0,
-    )?;
+    let (trace, adaptive) = match (&compensator, args.adaptive) {
+        (Some(initial), true) => {
+            let mut adaptive_settings = control::AdaptiveSettings {
+                min_updates: args.adaptive_min_updates,
+                ..control::AdaptiveSettings::default()
+            };
+            adaptive_settings.tracker.forgetting = args.adaptive_forgetting;
+            let run = control::run_adaptive(
+                plant.as_mut(),
+                &mut controller,
+                *initial,
+                &adaptive_settings,
+                &profile,
+                duration_s,
+                args.y0,
+            )?;
+            let summary = AdaptiveOut {
+                final_deadzone: run.deadzones.last().copied(),
+                change_points_s: run.change_points.iter().map(|&k| k as f64 * ts).collect(),
+                rejected_estimates: run.rejected,
+                forgetting: args.adaptive_forgetting,
+                min_updates: args.adaptive_min_updates,
+            };
+            (run.trace, Some(summary))
+        }
+        _ => (
+            closed_loop::run(
+                plant.as_mut(),
+                &mut controller,
+                compensator.as_ref(),
+                &profile,
+                duration_s,
+                args.y0,
+            )?,
+            None,
+        ),
+    };
     if trace.len() < 2 {
         bail!(sysid::SysidError::setting(
             sysid::Setting::Other("--duration"),
@@ -286,6 +350,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             steps: &steps,
             samples: trace.len(),
             trace: args.out.as_ref().map(|p| p.display().to_string()),
+            adaptive: adaptive.as_ref(),
         };
         let text =
             serde_json::to_string_pretty(&doc).context("serialising the JSON output")? + "\n";
@@ -310,6 +375,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &metrics,
         &steps,
     );
+    let summary = match &adaptive {
+        None => summary,
+        Some(a) => {
+            let dz = a.final_deadzone.map_or("n/a".to_string(), |d| {
+                format!(
+                    "b_l = {}, b_r = {}, m_l = {}, m_r = {}",
+                    d.b_l, d.b_r, d.m_l, d.m_r
+                )
+            });
+            format!(
+                "{summary}adaptive:     final compensator deadzone {dz}; changes detected at t = {:?} s; \
+                 {} estimate(s) not invertible (previous kept)\n",
+                a.change_points_s, a.rejected_estimates
+            )
+        }
+    };
     // Keep standard output clean JSON when the JSON goes there.
     if json_to_stdout {
         eprint!("{summary}");

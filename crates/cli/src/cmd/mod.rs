@@ -11,4 +11,5 @@ pub mod order;
 pub mod plant_config;
 pub mod reproduce;
 pub mod simulate;
+pub mod track;
 pub mod validate;

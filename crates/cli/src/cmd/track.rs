@@ -1,0 +1,239 @@
+//! `ipa-sysid track`: the recursive estimator on samples as they arrive (standard input, a file being
+//! appended, a serial port), one JSON line every `--every` samples; change detection on the prediction
+//! errors. The logic is `sysid::online`; this module opens the source and maps flags.
+
+use std::io::{BufReader, Write};
+use std::path::PathBuf;
+use std::time::Duration;
+
+use anyhow::Context;
+use sysid::online::{
+    track_stream, DeadzoneStart, DetectorSettings, StreamOptions, TrackSettings, Tracker,
+};
+use sysid::windup::Windup;
+use sysid::{ModelKind, Orders};
+
+use super::common::check_outputs;
+
+/// Flags of `track`.
+#[derive(Debug, clap::Args)]
+#[command(group(clap::ArgGroup::new("source").required(true).args(["data", "follow", "serial"])))]
+pub struct Args {
+    /// CSV stream with a header row (`-`: standard input), read to its end.
+    #[arg(long, value_name = "FILE")]
+    pub data: Option<PathBuf>,
+    /// A CSV file that is still being appended: keeps reading new lines; ends only after
+    /// --idle-timeout seconds without a new byte (without it: until stopped).
+    #[arg(long, value_name = "FILE")]
+    pub follow: Option<PathBuf>,
+    /// A serial port (e.g. /dev/ttyUSB0) sending CSV lines (8N1, raw); ends like --follow.
+    #[arg(long, value_name = "PATH")]
+    pub serial: Option<PathBuf>,
+    /// Baud rate of --serial.
+    #[arg(long, default_value_t = 115_200)]
+    pub baud: u32,
+    /// --follow / --serial: stop after this many seconds without new data.
+    #[arg(long, value_name = "SECONDS")]
+    pub idle_timeout: Option<f64>,
+    /// Name of the input column u.
+    #[arg(long, default_value = "u", value_name = "NAME")]
+    pub u_col: String,
+    /// Name of the output column y.
+    #[arg(long, default_value = "y", value_name = "NAME")]
+    pub y_col: String,
+    /// Name of the time column t (optional with --ts: then t = k Ts).
+    #[arg(long, default_value = "t", value_name = "NAME")]
+    pub t_col: String,
+    /// Sampling period Ts in seconds (default: the difference of the first two times).
+    #[arg(long, value_name = "SECONDS")]
+    pub ts: Option<f64>,
+    /// Model structure (as `identify`; `--model` is an alias).
+    #[arg(
+        long = "structure",
+        alias = "model",
+        value_name = "STRUCTURE",
+        value_enum,
+        default_value = "hammerstein"
+    )]
+    pub model: ModelKind,
+    /// na: number of poles.
+    #[arg(long, default_value_t = 3)]
+    pub na: usize,
+    /// nb: number of B coefficients (>= 1 for Hammerstein).
+    #[arg(long, default_value_t = 1)]
+    pub nb: usize,
+    /// nk: input delay in samples.
+    #[arg(long, default_value_t = 1)]
+    pub nk: usize,
+    /// RLS forgetting factor ρ in (0, 1].
+    #[arg(long, default_value_t = 1.0)]
+    pub forgetting: f64,
+    /// RLS initial covariance P(0) = p0 · I (also P after a detected change).
+    #[arg(long, default_value_t = 1e6)]
+    pub p0: f64,
+    /// Covariance-windup protection (as `identify`; default trace here, for long runs).
+    #[arg(long, value_enum, default_value = "trace")]
+    pub windup: Windup,
+    /// Bound on tr P for --windup trace (default: p0 times the number of parameters).
+    #[arg(long, value_name = "T")]
+    pub max_trace: Option<f64>,
+    /// Hammerstein: initial left breakpoint b_l0 (counts, < 0; identify uses the record's largest
+    /// negative command).
+    #[arg(long, value_name = "COUNTS", default_value_t = DeadzoneStart::PWM.b_l0)]
+    pub b_l0: f64,
+    /// Hammerstein: initial right breakpoint b_r0 (counts, > 0; identify uses the record's smallest
+    /// positive command).
+    #[arg(long, value_name = "COUNTS", default_value_t = DeadzoneStart::PWM.b_r0)]
+    pub b_r0: f64,
+    /// Hammerstein: bound on |b_l|, |b_r| while estimating, counts (identify uses max |u| of the record).
+    #[arg(long, value_name = "COUNTS", default_value_t = DeadzoneStart::PWM.limit)]
+    pub breakpoint_limit: f64,
+    /// Print a JSON line every K samples (and at every detected change).
+    #[arg(long, value_name = "K", default_value_t = 100)]
+    pub every: usize,
+    /// Number of recent prediction errors in pe_rms.
+    #[arg(long, value_name = "N", default_value_t = 100)]
+    pub pe_window: usize,
+    /// Hammerstein: no deadzone guard (the switching functions then follow every estimate, as
+    /// `identify --method rls --passes 1` does, even a negative slope; see docs/online.md).
+    #[arg(long)]
+    pub no_guard: bool,
+    /// No change detection.
+    #[arg(long)]
+    pub no_detect: bool,
+    /// Change detector: samples ignored after the start and after each change (estimator converging).
+    #[arg(long, value_name = "N", default_value_t = DetectorSettings::default().warmup)]
+    pub detect_warmup: usize,
+    /// Change detector: samples over which the error variance σ̂² is calibrated.
+    #[arg(long, value_name = "N", default_value_t = DetectorSettings::default().calibration)]
+    pub detect_calibration: usize,
+    /// Change detector: CUSUM drift ν (> 1) subtracted from ε²/σ̂².
+    #[arg(long, value_name = "NU", default_value_t = DetectorSettings::default().drift)]
+    pub detect_drift: f64,
+    /// Change detector: CUSUM threshold h (docs/online.md gives the false-alarm rates).
+    #[arg(long, value_name = "H", default_value_t = DetectorSettings::default().threshold)]
+    pub detect_threshold: f64,
+    /// Write a summary at the end: final model, samples, change points.
+    #[arg(long, value_name = "FILE")]
+    pub json_summary: Option<PathBuf>,
+}
+
+impl Args {
+    /// The tracker these flags describe.
+    pub fn settings(&self) -> TrackSettings {
+        TrackSettings {
+            kind: self.model,
+            orders: Orders {
+                na: self.na,
+                nb: self.nb,
+                nk: self.nk,
+            },
+            forgetting: self.forgetting,
+            p0: self.p0,
+            windup: self.windup,
+            max_trace: self.max_trace,
+            start: DeadzoneStart {
+                b_l0: self.b_l0,
+                b_r0: self.b_r0,
+                limit: self.breakpoint_limit,
+            },
+            pe_window: self.pe_window,
+            detector: (!self.no_detect).then_some(DetectorSettings {
+                warmup: self.detect_warmup,
+                calibration: self.detect_calibration,
+                drift: self.detect_drift,
+                threshold: self.detect_threshold,
+            }),
+            guard: !self.no_guard,
+        }
+    }
+
+    fn idle(&self) -> anyhow::Result<Option<Duration>> {
+        self.idle_timeout
+            .map(|s| {
+                Duration::try_from_secs_f64(s).map_err(|_| {
+                    anyhow::anyhow!(
+                        "invalid setting --idle-timeout = {s}: a number of seconds >= 0"
+                    )
+                })
+            })
+            .transpose()
+    }
+}
+
+/// How often a followed file or serial port is polled when no data has come.
+const POLL: Duration = Duration::from_millis(20);
+
+/// Runs `track`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let mut tracker = Tracker::new(args.settings())?;
+    let idle = args.idle()?;
+    let mut inputs = Vec::new();
+    let (reader, name): (Box<dyn std::io::BufRead>, String) = if let Some(p) = &args.data {
+        if p.as_os_str() == "-" {
+            (Box::new(std::io::stdin().lock()), "<stdin>".into())
+        } else {
+            inputs.push(p.as_path());
+            let f = std::fs::File::open(p).with_context(|| p.display().to_string())?;
+            (
+                Box::new(BufReader::with_capacity(1 << 16, f)),
+                p.display().to_string(),
+            )
+        }
+    } else if let Some(p) = &args.follow {
+        inputs.push(p.as_path());
+        let f = std::fs::File::open(p).with_context(|| p.display().to_string())?;
+        let r = sysid_io::Follow::new(f, idle, POLL);
+        (
+            Box::new(BufReader::with_capacity(1 << 16, r)),
+            p.display().to_string(),
+        )
+    } else if let Some(p) = &args.serial {
+        let path = p.to_string_lossy().into_owned();
+        let port = serialport::new(&path, args.baud)
+            .timeout(POLL)
+            .open()
+            .with_context(|| {
+                format!("{path}: cannot open the serial port at {} baud", args.baud)
+            })?;
+        let r = sysid_io::Follow::new(port, idle, POLL);
+        (Box::new(BufReader::new(r)), path)
+    } else {
+        anyhow::bail!(
+            "give a source: --data FILE (- for standard input), --follow FILE or --serial PATH"
+        );
+    };
+    check_outputs(&[(&args.json_summary, "--json-summary")], &inputs)?;
+    let options = StreamOptions {
+        name,
+        u_col: args.u_col.clone(),
+        y_col: args.y_col.clone(),
+        t_col: args.t_col.clone(),
+        ts: args.ts,
+        every: args.every,
+    };
+    let mut out = std::io::BufWriter::new(std::io::stdout().lock());
+    let summary = track_stream(reader, &mut out, &mut tracker, &options)?;
+    out.flush().context("writing to standard output")?;
+    for w in &summary.warnings {
+        eprintln!("warning: {w}");
+    }
+    eprintln!(
+        "{} samples, {} deadzone guard intervention(s), {} change(s) detected{}",
+        summary.samples,
+        summary.guard_interventions,
+        summary.change_points.len(),
+        summary
+            .change_points
+            .iter()
+            .map(|c| format!(" at k = {} (t = {} s)", c.k, c.t))
+            .collect::<Vec<_>>()
+            .join(",")
+    );
+    if let Some(path) = &args.json_summary {
+        let mut text = serde_json::to_string_pretty(&summary).context("serialising the summary")?;
+        text.push('\n');
+        super::common::write_output(path, text.as_bytes(), &inputs, "--json-summary")?;
+    }
+    Ok(())
+}

@@ -1,0 +1,280 @@
+//! `ipa-sysid track` end to end: the one-pass recursive identification reproduced sample by sample from
+//! standard input, the JSON line format, the summary, malformed input, a file being appended
+//! (`--follow`) and a serial port (`--serial`, on a pseudo-terminal pair).
+
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
+
+use std::io::Write;
+use std::path::Path;
+use std::process::{Command, Output, Stdio};
+use std::time::Duration;
+
+const BIN: &str = env!("CARGO_BIN_EXE_ipa-sysid");
+
+fn run(args: &[&str], stdin: &[u8]) -> Output {
+    let mut child = Command::new(BIN)
+        .args(args)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut input = child.stdin.take().unwrap();
+    input.write_all(stdin).unwrap();
+    drop(input);
+    child.wait_with_output().unwrap()
+}
+
+fn simulate(dir: &Path, samples: usize, seed: u64) -> std::path::PathBuf {
+    let out = dir.join(format!("rec{seed}.csv"));
+    let o = run(
+        &[
+            "simulate",
+            "--plant",
+            "paper",
+            "--input",
+            "aprbs",
+            "--samples",
+            &samples.to_string(),
+            "--noise-std",
+            "0.01",
+            "--seed",
+            &seed.to_string(),
+            "--out",
+            out.to_str().unwrap(),
+        ],
+        b"",
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    out
+}
+
+/// The model's numbers in a fixed order: b_l, b_r, m_l, m_r, a..., b...
+fn numbers(model: &serde_json::Value) -> Vec<f64> {
+    let dz = &model["deadzone"];
+    let mut v: Vec<f64> = ["b_l", "b_r", "m_l", "m_r"]
+        .iter()
+        .map(|k| dz[k].as_f64().unwrap())
+        .collect();
+    for key in ["a", "b"] {
+        v.extend(
+            model[key]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|x| x.as_f64().unwrap()),
+        );
+    }
+    v
+}
+
+// identify takes its start deadzone from the whole record (largest negative and smallest positive
+// command, and max |u| as the clamp); the test reads them from the CSV itself and gives them to track,
+// which then runs the same recursion sample by sample.
+#[test]
+fn track_from_stdin_ends_at_the_model_of_the_one_pass_recursive_identification() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = simulate(dir.path(), 3000, 3);
+    let text = std::fs::read(&data).unwrap();
+    let u: Vec<f64> = String::from_utf8_lossy(&text)
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(1).unwrap().parse().unwrap())
+        .collect();
+    let b_l0 = u
+        .iter()
+        .copied()
+        .filter(|&v| v < 0.0)
+        .fold(f64::NEG_INFINITY, f64::max);
+    let b_r0 = u
+        .iter()
+        .copied()
+        .filter(|&v| v > 0.0)
+        .fold(f64::INFINITY, f64::min);
+    let limit = u.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+    let summary = dir.path().join("summary.json");
+    let o = run(
+        &[
+            "track",
+            "--data",
+            "-",
+            "--windup",
+            "none",
+            "--no-guard",
+            "--every",
+            "1000",
+            "--b-l0",
+            &b_l0.to_string(),
+            "--b-r0",
+            &b_r0.to_string(),
+            "--breakpoint-limit",
+            &limit.to_string(),
+            "--json-summary",
+            summary.to_str().unwrap(),
+        ],
+        &text,
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let lines: Vec<serde_json::Value> = String::from_utf8(o.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    // Lines at k = 999, 1999, 2999 (every 1000 samples, k 0-based).
+    let ks: Vec<u64> = lines.iter().map(|l| l["k"].as_u64().unwrap()).collect();
+    assert_eq!(ks, [999, 1999, 2999]);
+    let last = lines.last().unwrap();
+    assert!((last["t"].as_f64().unwrap() - 29.99).abs() < 1e-9);
+    for key in ["model", "poles", "stable", "change", "pe_rms", "warnings"] {
+        assert!(!last[key].is_null(), "{key} in {last}");
+    }
+    let json = dir.path().join("identify.json");
+    let o = run(
+        &[
+            "identify",
+            "--data",
+            data.to_str().unwrap(),
+            "--method",
+            "rls",
+            "--passes",
+            "1",
+            "--windup",
+            "none",
+            "--json",
+            json.to_str().unwrap(),
+        ],
+        b"",
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let id: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    assert_eq!(s["samples"], 3000);
+    for model in [&last["model"], &s["model"]] {
+        for (a, b) in numbers(model).iter().zip(numbers(&id["model"])) {
+            assert!((a - b).abs() <= 1e-9 * b.abs(), "track {a} identify {b}");
+        }
+    }
+}
+
+// A stationary record of 50 000 samples of the paper's plant with output noise (the prediction errors
+// are then coloured, a harder case than the white errors of the CUSUM's run-length table): no alarm.
+#[test]
+fn a_stationary_simulated_record_gives_no_change_point() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = simulate(dir.path(), 50_000, 7);
+    let summary = dir.path().join("s.json");
+    let o = run(
+        &[
+            "track",
+            "--data",
+            data.to_str().unwrap(),
+            "--every",
+            "100000",
+            "--json-summary",
+            summary.to_str().unwrap(),
+        ],
+        b"",
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    assert_eq!(s["samples"], 50_000);
+    assert_eq!(s["change_points"], serde_json::json!([]));
+}
+
+#[test]
+fn a_malformed_line_is_an_error_naming_line_and_column() {
+    let o = run(&["track", "--data", "-"], b"t,u,y\n0,1,2\n0.01,abc,3\n");
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("<stdin>:3:2:") && err.contains("'abc'"),
+        "{err}"
+    );
+    let o = run(&["track", "--data", "-"], b"time,u,y\n0,1,2\n");
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--t-col"));
+}
+
+fn paper_lines(n: usize) -> String {
+    // A square wave through the paper's deadzone; the content only has to be numbers here.
+    (0..n)
+        .map(|k| {
+            format!(
+                "{},{},{}\n",
+                k as f64 * 0.01,
+                if (k / 7) % 2 == 0 { 100 } else { -100 },
+                k as f64 * 0.1
+            )
+        })
+        .collect()
+}
+
+/// Starts `track` on `source` (flags naming the source) with a 1.5-s idle time-out, no detector, a line
+/// every `every` samples and the summary to `summary`.
+fn spawn_track(source: &[&str], every: &str, summary: &Path) -> std::process::Child {
+    Command::new(BIN)
+        .arg("track")
+        .args(source)
+        .args(["--idle-timeout", "1.5", "--no-detect", "--every", every])
+        .args(["--json-summary", summary.to_str().unwrap()])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap()
+}
+
+/// Waits for `child`; returns its summary's sample count and the number of JSON lines it printed.
+fn finish(child: std::process::Child, summary: &Path) -> (u64, usize) {
+    let o = child.wait_with_output().unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(summary).unwrap()).unwrap();
+    let lines = String::from_utf8(o.stdout).unwrap().lines().count();
+    (s["samples"].as_u64().unwrap(), lines)
+}
+
+// Lines appended after track has reached the end of the file are read; it stops after the idle
+// time-out.
+#[test]
+fn follow_reads_lines_appended_later_and_stops_after_the_idle_timeout() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("live.csv");
+    let mut f = std::fs::File::create(&path).unwrap();
+    write!(f, "t,u,y\n{}", paper_lines(10)).unwrap();
+    f.flush().unwrap();
+    let summary = dir.path().join("s.json");
+    let child = spawn_track(&["--follow", path.to_str().unwrap()], "5", &summary);
+    std::thread::sleep(Duration::from_millis(500));
+    let more: String = paper_lines(30)
+        .lines()
+        .skip(10)
+        .map(|l| format!("{l}\n"))
+        .collect();
+    f.write_all(more.as_bytes()).unwrap();
+    f.flush().unwrap();
+    // 30 samples, lines at k = 4, 9, ..., 29.
+    assert_eq!(finish(child, &summary), (30, 6));
+}
+
+// A pseudo-terminal pair stands in for the serial cable: the test writes CSV lines to the master side,
+// track reads the slave side as a serial port.
+#[cfg(unix)]
+#[test]
+fn serial_reads_lines_from_a_pseudo_terminal() {
+    use serialport::SerialPort;
+    let (mut master, slave) = serialport::TTYPort::pair().unwrap();
+    let name = slave.name().unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let summary = dir.path().join("s.json");
+    let child = spawn_track(&["--serial", &name, "--baud", "115200"], "10", &summary);
+    std::thread::sleep(Duration::from_millis(400));
+    master
+        .write_all(format!("t,u,y\n{}", paper_lines(20)).as_bytes())
+        .unwrap();
+    master.flush().unwrap();
+    assert_eq!(finish(child, &summary), (20, 2));
+    drop(slave);
+}

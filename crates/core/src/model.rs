@@ -864,9 +864,14 @@ impl ModelPlant {
     /// or a model with several inputs.
     pub fn new(model: Model, label: impl Into<String>) -> Result<Self, SysidError> {
         if model.inputs().len() != 1 {
-            return Err(SysidError::Data(
-                "a model with several inputs cannot be used as a single-input plant".into(),
-            ));
+            let names: Vec<&str> = model.inputs().iter().map(InputChannel::name).collect();
+            return Err(SysidError::Data(format!(
+                "a model with {} inputs ({}) cannot be used as a plant: simulate and control drive one \
+                 command; a several-input model's output on recorded inputs is the y_sim column of \
+                 `ipa-sysid validate --model FILE --data RECORD.csv --out OUT.csv`",
+                names.len(),
+                names.join(", ")
+            )));
         }
         if model.nk() == 0 {
             return Err(SysidError::Data(

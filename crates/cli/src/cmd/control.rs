@@ -187,6 +187,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 inputs.push(path.clone());
                 let m = sysid::model_file::read_model(path)
                     .context("cannot read --compensate-deadzone")?;
+                if m.inputs().len() > 1 {
+                    bail!(sysid::SysidError::setting(
+                        sysid::Setting::Other("--compensate-deadzone"),
+                        path.display(),
+                        &format!(
+                            "a single-input Hammerstein model file (this model has {} inputs; the PI \
+                             controller drives one command)",
+                            m.inputs().len()
+                        )
+                    ));
+                }
                 // A detrended model's deadzone acts on u - u0: in the command's units its breakpoints
                 // are shifted by u0 (the slopes are unchanged).
                 let u0 = m

@@ -44,7 +44,8 @@ pub struct Args {
     /// Run length in s [default: the profile's length; 10 s for a fixed set-point].
     #[arg(long, value_name = "S")]
     pub duration: Option<f64>,
-    /// Initial position y0 in mm (the plant is reset there at rest).
+    /// Initial position y0 in mm (the plant is reset there at rest; the paper's step test starts at 0;
+    /// `simulate` starts mid-stroke at 100 mm so that its open-loop input can move both ways).
     #[arg(long, value_name = "MM", default_value_t = 0.0)]
     pub y0: f64,
     /// Form of the integral term.

@@ -69,7 +69,9 @@ pub struct Args {
     pub data: Vec<PathBuf>,
     #[command(flatten)]
     pub columns: ColumnArgs,
-    /// Model structure (`--model` is an older spelling; `--model` names a model file elsewhere).
+    /// Model structure (`--model` is an older spelling; `--model` names a model file elsewhere). Default:
+    /// the paper's Hammerstein model; `order` and `delay` search linear (arx) structures, as MATLAB's
+    /// `arxstruc` and `delayest` do.
     #[arg(
         long = "structure",
         alias = "model",
@@ -91,7 +93,7 @@ pub struct Args {
     /// Several inputs (--u-col u1,u2) with --structure hammerstein: these inputs are linear (no deadzone).
     #[arg(long, value_name = "NAME,...", value_delimiter = ',')]
     pub linear_inputs: Vec<String>,
-    /// Estimator.
+    /// Estimator. Default: the paper's recursive least squares (`order` defaults to ls, its closed form).
     #[arg(long, value_enum, default_value = "rls")]
     pub method: Method,
     /// RLS forgetting factor ρ in (0, 1].

@@ -26,7 +26,9 @@ pub struct Args {
     /// Sampling period Ts in s (default 0.01; a model plant uses its own Ts).
     #[arg(long)]
     pub ts: Option<f64>,
-    /// Initial position y0 in mm (the piston starts at rest there; `--x0` is an older spelling).
+    /// Initial position y0 in mm (the piston starts at rest there; `--x0` is an older spelling). The
+    /// default, mid-stroke, differs from `control`'s 0 on purpose: an open-loop experiment must be able to
+    /// move both ways, the paper's closed-loop test starts from the end of the stroke.
     #[arg(long = "y0", alias = "x0", default_value_t = 100.0)]
     pub y0: f64,
     /// Seed of the random input and noise (the same seed gives a byte-identical file).

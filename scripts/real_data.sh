@@ -158,10 +158,10 @@ for i in 0 1; do
     printf '| %s | %s | %s | %s |\n' "$(jq -r ".metrics.estimation[$i].data" "$tmp/m.json")" \
         "$(pct ".metrics.estimation[$i].metrics.fit_sim_percent" "$tmp/m.json")" \
         "$(pct ".metrics.estimation[$i].metrics.fit_sim_measured_percent" "$tmp/m.json")" \
-        "$(pct ".metrics.estimation[$i].metrics.fit_pred_percent" "$tmp/m.json" 3)"
+        "$(pct ".metrics.estimation[$i].metrics.fit_pred_percent" "$tmp/m.json" 4)"
 done
 printf '| pooled | %s | %s | %s |\n' "$(pct .metrics.pooled.fit_sim_percent "$tmp/m.json")" \
-    "$(pct .metrics.pooled.fit_sim_measured_percent "$tmp/m.json")" "$(pct .metrics.pooled.fit_pred_percent "$tmp/m.json" 3)"
+    "$(pct .metrics.pooled.fit_sim_measured_percent "$tmp/m.json")" "$(pct .metrics.pooled.fit_pred_percent "$tmp/m.json" 4)"
 
 echo
 echo "## Pneumatic cylinder friction record, read as logged"

@@ -1041,12 +1041,8 @@ fn merge_estimates_one_model_without_rows_spanning_records() {
         estimated_initial_first_order(&y1, &s1, -a1),
         estimated_initial_first_order(&y2, &s2, -a1),
     );
-    assert!(
-        (num(&recs[0]["metrics"]["fit_sim_percent"]) - fit(&y1[1..], &e1[1..])).abs() < 1e-6
-    );
-    assert!(
-        (num(&recs[1]["metrics"]["fit_sim_percent"]) - fit(&y2[1..], &e2[1..])).abs() < 1e-6
-    );
+    assert!((num(&recs[0]["metrics"]["fit_sim_percent"]) - fit(&y1[1..], &e1[1..])).abs() < 1e-6);
+    assert!((num(&recs[1]["metrics"]["fit_sim_percent"]) - fit(&y2[1..], &e2[1..])).abs() < 1e-6);
     let es: Vec<f64> = e1[1..].iter().chain(&e2[1..]).copied().collect();
     let pooled_fit = num(&pooled["fit_sim_percent"]);
     assert!((pooled_fit - fit(&ys, &es)).abs() < 1e-6, "{pooled_fit}");
@@ -1335,8 +1331,26 @@ fn several_inputs_by_rls_reach_the_least_squares_solution() {
     let want = normal_equations(&rows, &z);
     let out = dir.path().join("rls.json");
     run(&[
-        "identify", "--data", s(&f), "--u-col", "u1,u2", "--nb", "2,1", "--nk", "1,2", "--na", "1",
-        "--structure", "arx", "--method", "rls", "--offset", "--ts", "0.1", "--json", s(&out),
+        "identify",
+        "--data",
+        s(&f),
+        "--u-col",
+        "u1,u2",
+        "--nb",
+        "2,1",
+        "--nk",
+        "1,2",
+        "--na",
+        "1",
+        "--structure",
+        "arx",
+        "--method",
+        "rls",
+        "--offset",
+        "--ts",
+        "0.1",
+        "--json",
+        s(&out),
     ]);
     let j = json(&out);
     let m = &j["model"];
@@ -1349,11 +1363,18 @@ fn several_inputs_by_rls_reach_the_least_squares_solution() {
         num(&m["offset"]),
     ];
     for (g, w) in got.iter().zip(&want) {
-        assert!((g - w).abs() < 1e-6 * (1.0 + w.abs()), "{got:?} vs {want:?}");
+        assert!(
+            (g - w).abs() < 1e-6 * (1.0 + w.abs()),
+            "{got:?} vs {want:?}"
+        );
     }
     assert_eq!(j["method"], "rls");
     assert_eq!(j["converged"], true);
-    assert!(j["warnings"].as_array().unwrap().is_empty(), "{}", j["warnings"]);
+    assert!(
+        j["warnings"].as_array().unwrap().is_empty(),
+        "{}",
+        j["warnings"]
+    );
 
     // Hammerstein by RLS: a deadzone on u1, u2 linear, noise-free: the passes reach the generating model.
     let dz = |v: f64| {
@@ -1390,9 +1411,20 @@ fn several_inputs_by_rls_reach_the_least_squares_solution() {
     // Output error and IV take one input: refused by flag, saying what is supported.
     for method in ["oe", "iv"] {
         let err = fails(&[
-            "identify", "--data", s(&f), "--u-col", "u1,u2", "--method", method, "--ts", "0.1",
+            "identify",
+            "--data",
+            s(&f),
+            "--u-col",
+            "u1,u2",
+            "--method",
+            method,
+            "--ts",
+            "0.1",
         ]);
-        assert!(err.contains("--method") && err.contains("ls or rls"), "{err}");
+        assert!(
+            err.contains("--method") && err.contains("ls or rls"),
+            "{err}"
+        );
     }
 }
 
@@ -1408,7 +1440,14 @@ fn several_input_models_are_simulated_on_recorded_inputs_and_refused_as_control_
     // simulate runs it from rest at y0 on the recorded commands (file columns named as the inputs):
     // y(0) = y0, y(k) = 0.5 y(k-1) + u1(k-1) + 0.3 u1(k-2) - 2 u2(k-2) with u(k < 0) = 0.
     run(&[
-        "simulate", "--plant", &spec, "--input", &format!("file:{}", s(&f)), "--y0", "7", "--out",
+        "simulate",
+        "--plant",
+        &spec,
+        "--input",
+        &format!("file:{}", s(&f)),
+        "--y0",
+        "7",
+        "--out",
         s(&out),
     ]);
     let got = read_columns(&out);
@@ -1421,7 +1460,10 @@ fn several_input_models_are_simulated_on_recorded_inputs_and_refused_as_control_
     assert_eq!(got["u1"], u1);
     assert_eq!(got["u2"], u2);
     for k in 0..y.len() {
-        assert!((got["y"][k] - y[k]).abs() < 1e-6 * (1.0 + y[k].abs()), "k = {k}");
+        assert!(
+            (got["y"][k] - y[k]).abs() < 1e-6 * (1.0 + y[k].abs()),
+            "k = {k}"
+        );
         assert!((got["t"][k] - 0.1 * k as f64).abs() < 1e-12);
     }
     // A designed input cannot drive two inputs; control drives one command.
@@ -1433,7 +1475,15 @@ fn several_input_models_are_simulated_on_recorded_inputs_and_refused_as_control_
         "{err}"
     );
     // --compensate-deadzone needs a single-input Hammerstein model.
-    let dz = |v: f64| if v >= 0.5 { v - 0.5 } else if v <= -1.0 { v + 1.0 } else { 0.0 };
+    let dz = |v: f64| {
+        if v >= 0.5 {
+            v - 0.5
+        } else if v <= -1.0 {
+            v + 1.0
+        } else {
+            0.0
+        }
+    };
     let (f, ..) = miso_record(dir.path(), &dz, 0.3);
     let ham = dir.path().join("h.json");
     miso_identify(
@@ -1443,7 +1493,16 @@ fn several_input_models_are_simulated_on_recorded_inputs_and_refused_as_control_
         &["--linear-inputs", "u2", "--save-model", s(&ham)],
     );
     let err = fails(&[
-        "control", "--plant", "paper", "--setpoint", "10", "--compensate-deadzone", s(&ham),
+        "control",
+        "--plant",
+        "paper",
+        "--setpoint",
+        "10",
+        "--compensate-deadzone",
+        s(&ham),
     ]);
-    assert!(err.contains("--compensate-deadzone") && err.contains("2 inputs"), "{err}");
+    assert!(
+        err.contains("--compensate-deadzone") && err.contains("2 inputs"),
+        "{err}"
+    );
 }

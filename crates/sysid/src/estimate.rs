@@ -1509,18 +1509,20 @@ pub(crate) fn recursive_estimator(
     np: usize,
     st: &RecursiveLeastSquares,
 ) -> Result<Box<dyn RecursiveUpdate>, SysidError> {
-    Ok(if st.form == RlsForm::Standard && st.windup == Windup::None {
-        Box::new(Rls::new(np, st.forgetting, st.p0)?)
-    } else {
-        Box::new(RobustRls::new(
-            np,
-            st.forgetting,
-            st.p0,
-            st.form,
-            st.windup,
-            st.max_trace,
-        )?)
-    })
+    Ok(
+        if st.form == RlsForm::Standard && st.windup == Windup::None {
+            Box::new(Rls::new(np, st.forgetting, st.p0)?)
+        } else {
+            Box::new(RobustRls::new(
+                np,
+                st.forgetting,
+                st.p0,
+                st.form,
+                st.windup,
+                st.max_trace,
+            )?)
+        },
+    )
 }
 
 /// RLS for ARX, and recursive key-term separation for Hammerstein. First pass (the paper's scheme):

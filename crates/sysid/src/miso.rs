@@ -272,13 +272,13 @@ pub fn identify_miso_rls(
                 reg.update_deadzones(est.theta(), &mut dz);
             }
         }
-        for k in reg.k0..y.len() {
+        for (k, &yk) in y.iter().enumerate().skip(reg.k0) {
             if hammer && pass == 0 && k > reg.k0 {
                 let theta = est.theta().to_vec();
                 reg.update_deadzones(&theta, &mut dz);
             }
             reg.fill_row(&dz, k, &mut row);
-            est.update(&row, y[k], k)?;
+            est.update(&row, yk, k)?;
         }
         let end = est.theta().to_vec();
         if let (crate::Passes::UntilSettled { .. }, Some(prev)) = (st.passes, pass_ends.last()) {

@@ -500,8 +500,14 @@ fn run_miso(args: &Args) -> anyhow::Result<()> {
     };
     let m = &fit.model;
     let how = match (args.method, fit.converged) {
-        (Method::Rls, true) => format!("recursive least squares ({} pass(es), settled)", fit.iterations),
-        (Method::Rls, false) => format!("recursive least squares ({} pass(es), NOT settled)", fit.iterations),
+        (Method::Rls, true) => format!(
+            "recursive least squares ({} pass(es), settled)",
+            fit.iterations
+        ),
+        (Method::Rls, false) => format!(
+            "recursive least squares ({} pass(es), NOT settled)",
+            fit.iterations
+        ),
         (_, true) => format!("least squares ({} key-term iteration(s))", fit.iterations),
         (_, false) => format!(
             "least squares ({} key-term iteration(s), NOT converged)",
@@ -523,7 +529,10 @@ fn run_miso(args: &Args) -> anyhow::Result<()> {
         });
     }
     if !m.is_stable() {
-        warnings.push("the model is unstable (a pole on or outside the unit circle): its simulations diverge".into());
+        warnings.push(
+            "the model is unstable (a pole on or outside the unit circle): its simulations diverge"
+                .into(),
+        );
     }
     for (what, mm) in [("estimation", Some(&est)), ("validation", val.as_ref())] {
         if let Some(note) = mm.and_then(|mm| mm.note.as_ref()) {

@@ -1066,16 +1066,8 @@ fn merge_estimates_one_model_without_rows_spanning_records() {
 #[test]
 fn merge_recovers_a_hammerstein_deadzone_from_two_records() {
     let dir = tempfile::tempdir().unwrap();
-    // x = deadzone(u) with b_l = -1, b_r = 0.5, m_l = 0.8, m_r = 1.2; y = 0.6 y(k-1) + x(k-1).
-    let dz = |v: f64| {
-        if v >= 0.5 {
-            1.2 * (v - 0.5)
-        } else if v <= -1.0 {
-            0.8 * (v + 1.0)
-        } else {
-            0.0
-        }
-    };
+    // x = valve(u) (b_l = -1, b_r = 0.5, m_l = 0.8, m_r = 1.2); y = 0.6 y(k-1) + x(k-1).
+    let dz = valve;
     let mut files = Vec::new();
     for (i, phase) in [0usize, 53].iter().enumerate() {
         let u: Vec<f64> = input(400 + phase)[*phase..]
@@ -1153,6 +1145,54 @@ fn miso_identify(f: &str, structure: &str, method: &str, extra: &[&str]) {
     run(&args);
 }
 
+/// The deadzone of input u1 in the Hammerstein two-input records: b_l = -1, b_r = 0.5, m_l = 0.8, m_r = 1.2.
+fn valve(v: f64) -> f64 {
+    if v >= 0.5 {
+        1.2 * (v - 0.5)
+    } else if v <= -1.0 {
+        0.8 * (v + 1.0)
+    } else {
+        0.0
+    }
+}
+
+/// Identifies the noise-free two-input Hammerstein record (deadzone `valve` on u1, b = (1, 0.3); u2
+/// linear with b = -2; a1 = -0.5) by `method`, checks every parameter against the generating model within
+/// `tol` and returns the record, the JSON and the saved model file.
+fn hammerstein_miso(dir: &Path, method: &str, tol: f64) -> (PathBuf, serde_json::Value, PathBuf) {
+    let (f, ..) = miso_record(dir, &valve, 0.3);
+    let out = dir.join(format!("ham_{method}.json"));
+    let model = dir.join(format!("ham_{method}_model.json"));
+    miso_identify(
+        s(&f),
+        "hammerstein",
+        method,
+        &[
+            "--linear-inputs",
+            "u2",
+            "--json",
+            s(&out),
+            "--save-model",
+            s(&model),
+        ],
+    );
+    let j = json(&out);
+    let inputs = j["model"]["inputs"].as_array().unwrap();
+    let d = &inputs[0]["deadzone"];
+    for (got, want) in [
+        (&j["model"]["a"][0], -0.5),
+        (&inputs[0]["b"][1], 0.3),
+        (&d["b_l"], -1.0),
+        (&d["b_r"], 0.5),
+        (&d["m_l"], 0.8),
+        (&d["m_r"], 1.2),
+        (&inputs[1]["b"][0], -2.0),
+    ] {
+        assert!((num(got) - want).abs() < tol, "{method}: {}", j["model"]);
+    }
+    (f, j, model)
+}
+
 #[test]
 fn several_inputs_arx_and_hammerstein_with_a_linear_input() {
     let dir = tempfile::tempdir().unwrap();
@@ -1223,39 +1263,10 @@ fn several_inputs_arx_and_hammerstein_with_a_linear_input() {
         assert!((got["y_sim"][k] - sim[k]).abs() < 1e-6, "k = {k}");
     }
 
-    // Hammerstein: a deadzone on u1 (b_l = -1, b_r = 0.5, m_l = 0.8, m_r = 1.2), u2 declared linear.
-    let dz = |v: f64| {
-        if v >= 0.5 {
-            1.2 * (v - 0.5)
-        } else if v <= -1.0 {
-            0.8 * (v + 1.0)
-        } else {
-            0.0
-        }
-    };
-    let (f, ..) = miso_record(dir.path(), &dz, 0.3);
-    let out = dir.path().join("ham.json");
-    miso_identify(
-        s(&f),
-        "hammerstein",
-        "ls",
-        &["--linear-inputs", "u2", "--json", s(&out)],
-    );
-    let j = json(&out);
+    // Hammerstein: a deadzone on u1, u2 declared linear.
+    let (f, j, _) = hammerstein_miso(dir.path(), "ls", 1e-6);
     let inputs = j["model"]["inputs"].as_array().unwrap();
-    let d = &inputs[0]["deadzone"];
-    for (got, want) in [
-        (&j["model"]["a"][0], -0.5),
-        (&inputs[0]["b"][0], 1.0),
-        (&inputs[0]["b"][1], 0.3),
-        (&d["b_l"], -1.0),
-        (&d["b_r"], 0.5),
-        (&d["m_l"], 0.8),
-        (&d["m_r"], 1.2),
-        (&inputs[1]["b"][0], -2.0),
-    ] {
-        assert!((num(got) - want).abs() < 1e-6, "{}", j["model"]);
-    }
+    assert_eq!(num(&inputs[0]["b"][0]), 1.0);
     assert!(inputs[1].get("deadzone").is_none());
     // A list of the wrong length is refused by flag.
     let err = fails(&[
@@ -1330,28 +1341,7 @@ fn several_inputs_by_rls_reach_the_least_squares_solution() {
     }
     let want = normal_equations(&rows, &z);
     let out = dir.path().join("rls.json");
-    run(&[
-        "identify",
-        "--data",
-        s(&f),
-        "--u-col",
-        "u1,u2",
-        "--nb",
-        "2,1",
-        "--nk",
-        "1,2",
-        "--na",
-        "1",
-        "--structure",
-        "arx",
-        "--method",
-        "rls",
-        "--offset",
-        "--ts",
-        "0.1",
-        "--json",
-        s(&out),
-    ]);
+    miso_identify(s(&f), "arx", "rls", &["--offset", "--json", s(&out)]);
     let j = json(&out);
     let m = &j["model"];
     let inputs = m["inputs"].as_array().unwrap();
@@ -1377,37 +1367,7 @@ fn several_inputs_by_rls_reach_the_least_squares_solution() {
     );
 
     // Hammerstein by RLS: a deadzone on u1, u2 linear, noise-free: the passes reach the generating model.
-    let dz = |v: f64| {
-        if v >= 0.5 {
-            1.2 * (v - 0.5)
-        } else if v <= -1.0 {
-            0.8 * (v + 1.0)
-        } else {
-            0.0
-        }
-    };
-    let (f, ..) = miso_record(dir.path(), &dz, 0.3);
-    let out = dir.path().join("ham_rls.json");
-    miso_identify(
-        s(&f),
-        "hammerstein",
-        "rls",
-        &["--linear-inputs", "u2", "--json", s(&out)],
-    );
-    let j = json(&out);
-    let inputs = j["model"]["inputs"].as_array().unwrap();
-    let d = &inputs[0]["deadzone"];
-    for (got, want) in [
-        (&j["model"]["a"][0], -0.5),
-        (&inputs[0]["b"][1], 0.3),
-        (&d["b_l"], -1.0),
-        (&d["b_r"], 0.5),
-        (&d["m_l"], 0.8),
-        (&d["m_r"], 1.2),
-        (&inputs[1]["b"][0], -2.0),
-    ] {
-        assert!((num(got) - want).abs() < 1e-4, "{}", j["model"]);
-    }
+    let (f, ..) = hammerstein_miso(dir.path(), "rls", 1e-4);
     // Output error and IV take one input: refused by flag, saying what is supported.
     for method in ["oe", "iv"] {
         let err = fails(&[
@@ -1475,23 +1435,7 @@ fn several_input_models_are_simulated_on_recorded_inputs_and_refused_as_control_
         "{err}"
     );
     // --compensate-deadzone needs a single-input Hammerstein model.
-    let dz = |v: f64| {
-        if v >= 0.5 {
-            v - 0.5
-        } else if v <= -1.0 {
-            v + 1.0
-        } else {
-            0.0
-        }
-    };
-    let (f, ..) = miso_record(dir.path(), &dz, 0.3);
-    let ham = dir.path().join("h.json");
-    miso_identify(
-        s(&f),
-        "hammerstein",
-        "ls",
-        &["--linear-inputs", "u2", "--save-model", s(&ham)],
-    );
+    let (_, _, ham) = hammerstein_miso(dir.path(), "ls", 1e-6);
     let err = fails(&[
         "control",
         "--plant",

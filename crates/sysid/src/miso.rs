@@ -208,103 +208,114 @@ impl<'a> Regression<'a> {
     }
 }
 
-/// Estimates a MISO model of `kind` from `inputs` and `y` (Ts = `ts` s) by least squares (module docs).
-pub fn identify_miso(
-    inputs: &[MisoInput],
-    y: &[f64],
-    ts: f64,
-    na: usize,
-    kind: ModelKind,
-    offset: bool,
-    max_iterations: usize,
-) -> Result<MisoFit, SysidError> {
-    let reg = Regression::new(inputs, y, na, kind, offset)?;
-    let (theta, dz, iterations, converged) =
-        key_term_iteration(&reg.nonlinear, max_iterations, |dz| reg.solve(dz))?;
-    Ok(MisoFit {
-        model: reg.model(&theta, &dz, ts)?,
-        iterations,
-        converged,
-    })
+/// A MISO estimation problem: the inputs, the output y (Ts = `ts` s), na, the structure and whether a
+/// constant c is estimated. [`MisoProblem::least_squares`] and [`MisoProblem::recursive`] fit it.
+#[derive(Debug, Clone, Copy)]
+pub struct MisoProblem<'a> {
+    /// The inputs with their orders (and which are linear).
+    pub inputs: &'a [MisoInput],
+    /// y(k) (for the IPA: the position in mm).
+    pub y: &'a [f64],
+    /// Ts in s.
+    pub ts: f64,
+    /// na: order of A, common to every input.
+    pub na: usize,
+    /// ARX, or Hammerstein with a deadzone on every input not declared linear.
+    pub kind: ModelKind,
+    /// Whether a constant term c is estimated.
+    pub offset: bool,
 }
 
-/// Estimates a MISO model of `kind` by recursive least squares (paper eqs. 9–12) with the settings `st`
-/// (forgetting, P(0), passes, covariance form). ARX: the recursion on φ(k) of the module docs. Hammerstein:
-/// recursive key-term separation as for one input — in the first pass each input's switching functions
-/// and x̂ use the deadzone of the latest estimate; each later pass restarts P = p0 I, keeps θ̂ and uses the
-/// deadzones of the estimate the pass started from. `iterations` counts the passes; `converged` says
-/// whether the estimate settled (relative change between the ends of two passes below
-/// [`crate::estimate::PASSES_SETTLED`] with `passes auto`, below 1e-3 with a fixed number of passes).
-/// With ρ = 1 and no windup protection, data that cannot determine θ are refused as by least squares.
-#[allow(clippy::too_many_arguments)]
-pub fn identify_miso_rls(
-    inputs: &[MisoInput],
-    y: &[f64],
-    ts: f64,
-    na: usize,
-    kind: ModelKind,
-    offset: bool,
-    st: &crate::RecursiveLeastSquares,
-) -> Result<MisoFit, SysidError> {
-    let reg = Regression::new(inputs, y, na, kind, offset)?;
-    let np = reg.len();
-    let mut est = crate::estimate::recursive_estimator(np, st)?;
-    let mut dz = vec![START_DEADZONE; inputs.len()];
-    if st.forgetting == 1.0 && st.windup == crate::windup::Windup::None {
-        // Persistent excitation, as for one input: only the rank verdict of the solve matters.
-        if let Err(e @ SysidError::Data(_)) = reg.solve(&dz) {
-            return Err(e);
-        }
+impl MisoProblem<'_> {
+    /// The regression of this problem (checks the inputs).
+    fn regression(&self) -> Result<Regression<'_>, SysidError> {
+        Regression::new(self.inputs, self.y, self.na, self.kind, self.offset)
     }
-    let hammer = reg.nonlinear.iter().any(|&v| v);
-    let mut row = vec![0.0; np];
-    let mut pass_ends: Vec<Vec<f64>> = Vec::new();
-    let mut settled = false;
-    let rel = |a: &[f64], b: &[f64]| {
-        let d = a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum::<f64>();
-        let s = b.iter().map(|v| v * v).sum::<f64>();
-        d.sqrt() / (1e-300 + s.sqrt())
-    };
-    for pass in 0..st.passes.max() {
-        if pass > 0 {
-            est.restart_covariance(st.p0);
-            if hammer {
-                reg.update_deadzones(est.theta(), &mut dz);
+
+    /// Least squares (module docs): one solve for ARX; for Hammerstein the key-term iteration, at most
+    /// `max_iterations` solves.
+    pub fn least_squares(&self, max_iterations: usize) -> Result<MisoFit, SysidError> {
+        let reg = self.regression()?;
+        let (theta, dz, iterations, converged) =
+            key_term_iteration(&reg.nonlinear, max_iterations, |dz| reg.solve(dz))?;
+        Ok(MisoFit {
+            model: reg.model(&theta, &dz, self.ts)?,
+            iterations,
+            converged,
+        })
+    }
+
+    /// Recursive least squares (paper eqs. 9–12) with the settings `st` (forgetting, P(0), passes,
+    /// covariance form). ARX: the recursion on φ(k) of the module docs. Hammerstein: recursive key-term
+    /// separation as for one input — in the first pass each input's switching functions and x̂ use the
+    /// deadzone of the latest estimate; each later pass restarts P = p0 I, keeps θ̂ and uses the deadzones
+    /// of the estimate the pass started from. `iterations` counts the passes; `converged` says whether the
+    /// estimate settled (relative change between the ends of two passes below
+    /// [`crate::estimate::PASSES_SETTLED`] with `passes auto`, below 1e-3 with a fixed number of passes).
+    /// With ρ = 1 and no windup protection, data that cannot determine θ are refused as by least squares.
+    pub fn recursive(&self, st: &crate::RecursiveLeastSquares) -> Result<MisoFit, SysidError> {
+        let (y, inputs, ts) = (self.y, self.inputs, self.ts);
+        let reg = self.regression()?;
+        let np = reg.len();
+        let mut est = crate::estimate::recursive_estimator(np, st)?;
+        let mut dz = vec![START_DEADZONE; inputs.len()];
+        if st.forgetting == 1.0 && st.windup == crate::windup::Windup::None {
+            // Persistent excitation, as for one input: only the rank verdict of the solve matters.
+            if let Err(e @ SysidError::Data(_)) = reg.solve(&dz) {
+                return Err(e);
             }
         }
-        for (k, &yk) in y.iter().enumerate().skip(reg.k0) {
-            if hammer && pass == 0 && k > reg.k0 {
-                let theta = est.theta().to_vec();
-                reg.update_deadzones(&theta, &mut dz);
+        let hammer = reg.nonlinear.iter().any(|&v| v);
+        let mut row = vec![0.0; np];
+        let mut pass_ends: Vec<Vec<f64>> = Vec::new();
+        let mut settled = false;
+        let rel = |a: &[f64], b: &[f64]| {
+            let d = a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum::<f64>();
+            let s = b.iter().map(|v| v * v).sum::<f64>();
+            d.sqrt() / (1e-300 + s.sqrt())
+        };
+        for pass in 0..st.passes.max() {
+            if pass > 0 {
+                est.restart_covariance(st.p0);
+                if hammer {
+                    reg.update_deadzones(est.theta(), &mut dz);
+                }
             }
-            reg.fill_row(&dz, k, &mut row);
-            est.update(&row, yk, k)?;
-        }
-        let end = est.theta().to_vec();
-        if let (crate::Passes::UntilSettled { .. }, Some(prev)) = (st.passes, pass_ends.last()) {
-            if rel(&end, prev) <= crate::estimate::PASSES_SETTLED {
-                settled = true;
-                pass_ends.push(end);
-                break;
+            for (k, &yk) in y.iter().enumerate().skip(reg.k0) {
+                if hammer && pass == 0 && k > reg.k0 {
+                    let theta = est.theta().to_vec();
+                    reg.update_deadzones(&theta, &mut dz);
+                }
+                reg.fill_row(&dz, k, &mut row);
+                est.update(&row, yk, k)?;
             }
+            let end = est.theta().to_vec();
+            if let (crate::Passes::UntilSettled { .. }, Some(prev)) = (st.passes, pass_ends.last())
+            {
+                if rel(&end, prev) <= crate::estimate::PASSES_SETTLED {
+                    settled = true;
+                    pass_ends.push(end);
+                    break;
+                }
+            }
+            pass_ends.push(end);
         }
-        pass_ends.push(end);
-    }
-    let theta = est.theta().to_vec();
-    let converged = match st.passes {
-        crate::Passes::UntilSettled { .. } => settled,
-        crate::Passes::Fixed(_) => {
-            pass_ends.len() >= 2 && rel(&pass_ends[pass_ends.len() - 2], &theta) < 1e-3
+        let theta = est.theta().to_vec();
+        let converged = match st.passes {
+            crate::Passes::UntilSettled { .. } => settled,
+            crate::Passes::Fixed(_) => {
+                pass_ends.len() >= 2 && rel(&pass_ends[pass_ends.len() - 2], &theta) < 1e-3
+            }
+        };
+        if hammer {
+            reg.update_deadzones(&theta, &mut dz);
         }
-    };
-    if hammer {
-        reg.update_deadzones(&theta, &mut dz);
+        Ok(MisoFit {
+            model: reg.model(&theta, &dz, ts)?,
+            iterations: pass_ends.len(),
+            converged,
+        })
     }
-    Ok(MisoFit {
-        model: reg.model(&theta, &dz, ts)?,
-        iterations: pass_ends.len(),
-        converged,
-    })
 }
 
 /// Start of the key-term iteration: breakpoints at 0 and unit slopes, so that x̂ = u in the b2.. columns of

@@ -472,22 +472,17 @@ fn run_miso(args: &Args) -> anyhow::Result<()> {
     let Some((y, ts, data_name)) = est_y else {
         anyhow::bail!("--u-col names no input");
     };
-    let fit = if args.method == Method::Rls {
-        let st = match args.settings().estimator {
-            sysid::EstimatorSettings::Rls(st) => st,
-            _ => sysid::RecursiveLeastSquares::default(),
-        };
-        sysid::miso::identify_miso_rls(&est_inputs, &y, ts, args.na, args.model, args.offset, &st)?
-    } else {
-        sysid::miso::identify_miso(
-            &est_inputs,
-            &y,
-            ts,
-            args.na,
-            args.model,
-            args.offset,
-            args.max_iterations,
-        )?
+    let problem = sysid::miso::MisoProblem {
+        inputs: &est_inputs,
+        y: &y,
+        ts,
+        na: args.na,
+        kind: args.model,
+        offset: args.offset,
+    };
+    let fit = match args.settings().estimator {
+        sysid::EstimatorSettings::Rls(st) => problem.recursive(&st)?,
+        _ => problem.least_squares(args.max_iterations)?,
     };
     let us: Vec<&[f64]> = est_inputs.iter().map(|m| m.u.as_slice()).collect();
     let est = sysid::metrics::metrics_miso(&fit.model, &us, &y, &data_name)?;

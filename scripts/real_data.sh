@@ -6,13 +6,14 @@
 #   cargo build --release -p ipa-sysid
 #   DATA=/path/to/the/shared/data scripts/real_data.sh [BINARY] > /tmp/real-data.md
 #
-# DATA defaults to the shared data folder beside the repository (read only, never copied into it). Needs jq.
+# DATA (required) is the folder of the shared measured data sets (read only, never copied into the
+# repository). Needs jq.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 bin=${1:-$root/target/release/ipa-sysid}
-DATA=${DATA:-$root/../shared/data}
-if [ ! -d "$DATA" ]; then
-    echo "real_data.sh: no data folder at $DATA (set DATA)" >&2
+DATA=${DATA:-}
+if [ -z "$DATA" ] || [ ! -d "$DATA" ]; then
+    echo "real_data.sh: set DATA to the folder of the shared data sets (got '${DATA}')" >&2
     exit 1
 fi
 command -v jq >/dev/null || { echo "real_data.sh: needs jq" >&2; exit 1; }

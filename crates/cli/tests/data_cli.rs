@@ -89,6 +89,18 @@ fn fit_pct(y: &[f64], yhat: &[f64]) -> f64 {
     100.0 * (1.0 - e / d)
 }
 
+/// The free-run simulation of a first-order model (pole `pole`, k0 = 1) from the estimated initial output
+/// (MATLAB `compare`'s default), given its simulation `measured` from the measured y(0): ŷ(k; η) =
+/// ŷ_m(k) + pole^k (η − y(0)), and δ = η − y(0) minimises Σ_k (y(k) − ŷ_m(k) − pole^k δ)², so
+/// δ = Σ pole^k r(k) / Σ pole^2k with r = y − ŷ_m (r(0) = 0).
+fn estimated_initial_first_order(y: &[f64], measured: &[f64], pole: f64) -> Vec<f64> {
+    let s: Vec<f64> = (0..y.len()).map(|k| pole.powi(k as i32)).collect();
+    let num: f64 = (0..y.len()).map(|k| s[k] * (y[k] - measured[k])).sum();
+    let den: f64 = s.iter().map(|v| v * v).sum();
+    let delta = num / den;
+    (0..y.len()).map(|k| measured[k] + s[k] * delta).collect()
+}
+
 /// Runs a command that must fail with exit code 2 (bad usage or input) without a panic; its stderr.
 fn fails(args: &[&str]) -> String {
     let out = bin().args(args).output().unwrap();
@@ -265,10 +277,12 @@ fn detrend_mean_identifies_deviations_and_puts_the_operating_point_back() {
             s(&csv),
         ]);
         let (u0, y0) = (mean(&u), mean(&y));
-        let mut sim = vec![y[0]; n];
+        let mut measured = vec![y[0]; n];
         for k in 1..n {
-            sim[k] = y0 - a1 * (sim[k - 1] - y0) + b1 * (u[k - 1] - u0);
+            measured[k] = y0 - a1 * (measured[k - 1] - y0) + b1 * (u[k - 1] - u0);
         }
+        // From the estimated initial output, as the reported fit (the free response is that of 1/A).
+        let sim = estimated_initial_first_order(&y, &measured, -a1);
         let got = read_columns(&csv);
         for k in 0..n {
             assert!(
@@ -392,10 +406,14 @@ fn validate_out_writes_simulation_and_k_step_prediction() {
             }
             pred[k] = v;
         }
-        let mut sim = vec![y[0]; n];
+        let mut measured = vec![y[0]; n];
         for k in 1..n {
-            sim[k] = step(sim[k - 1], k);
+            measured[k] = step(measured[k - 1], k);
         }
+        // y_sim starts from the estimated initial output, as the reported simulation fit does.
+        let sim = estimated_initial_first_order(&y, &measured, 0.8);
+        let reported = num(&json(&js)["metrics"]["validation"]["fit_sim_percent"]);
+        assert!((reported - fit_pct(&y[1..], &sim[1..])).abs() < 1e-9);
         for k in 0..n {
             assert!((got["t"][k] - 0.1 * k as f64).abs() < 1e-12);
             assert_eq!(got["y"][k], y[k]);
@@ -1015,7 +1033,21 @@ fn merge_estimates_one_model_without_rows_spanning_records() {
     );
     let ys: Vec<f64> = y1[1..].iter().chain(&y2[1..]).copied().collect();
     let ss: Vec<f64> = s1[1..].iter().chain(&s2[1..]).copied().collect();
-    assert!((num(&j["metrics"]["pooled"]["fit_sim_percent"]) - fit(&ys, &ss)).abs() < 1e-6);
+    let pooled = &j["metrics"]["pooled"];
+    assert!((num(&pooled["fit_sim_measured_percent"]) - fit(&ys, &ss)).abs() < 1e-6);
+    // The pooled free-run fit starts each record from its own estimated initial output, as the
+    // per-record fits do (MATLAB compare).
+    let (e1, e2) = (
+        estimated_initial_first_order(&y1, &s1, -a1),
+        estimated_initial_first_order(&y2, &s2, -a1),
+    );
+    assert!((num(&recs[0]["metrics"]["fit_sim_percent"]) - fit(&y1[1..], &e1[1..])).abs() < 1e-6);
+    assert!((num(&recs[1]["metrics"]["fit_sim_percent"]) - fit(&y2[1..], &e2[1..])).abs() < 1e-6);
+    let es: Vec<f64> = e1[1..].iter().chain(&e2[1..]).copied().collect();
+    let pooled_fit = num(&pooled["fit_sim_percent"]);
+    assert!((pooled_fit - fit(&ys, &es)).abs() < 1e-6, "{pooled_fit}");
+    // The start at 80 mm makes the two differ: the measured y(0) carries the wobble.
+    assert!((fit(&ys, &es) - fit(&ys, &ss)).abs() > 1e-6);
     // --merge is least squares only; other methods are refused by name.
     let o = fails(&[
         "identify",
@@ -1034,16 +1066,8 @@ fn merge_estimates_one_model_without_rows_spanning_records() {
 #[test]
 fn merge_recovers_a_hammerstein_deadzone_from_two_records() {
     let dir = tempfile::tempdir().unwrap();
-    // x = deadzone(u) with b_l = -1, b_r = 0.5, m_l = 0.8, m_r = 1.2; y = 0.6 y(k-1) + x(k-1).
-    let dz = |v: f64| {
-        if v >= 0.5 {
-            1.2 * (v - 0.5)
-        } else if v <= -1.0 {
-            0.8 * (v + 1.0)
-        } else {
-            0.0
-        }
-    };
+    // x = valve(u) (b_l = -1, b_r = 0.5, m_l = 0.8, m_r = 1.2); y = 0.6 y(k-1) + x(k-1).
+    let dz = valve;
     let mut files = Vec::new();
     for (i, phase) in [0usize, 53].iter().enumerate() {
         let u: Vec<f64> = input(400 + phase)[*phase..]
@@ -1096,8 +1120,8 @@ fn miso_record(
     (f, u1, u2, y)
 }
 
-/// `identify` of the two-input record `f` (nb = 2,1, nk = 1,2, na = 1) by least squares, plus `extra`.
-fn miso_identify(f: &str, structure: &str, extra: &[&str]) {
+/// `identify` of the two-input record `f` (nb = 2,1, nk = 1,2, na = 1) by `method`, plus `extra`.
+fn miso_identify(f: &str, structure: &str, method: &str, extra: &[&str]) {
     let mut args = vec![
         "identify",
         "--data",
@@ -1113,12 +1137,60 @@ fn miso_identify(f: &str, structure: &str, extra: &[&str]) {
         "--structure",
         structure,
         "--method",
-        "ls",
+        method,
         "--ts",
         "0.1",
     ];
     args.extend_from_slice(extra);
     run(&args);
+}
+
+/// The deadzone of input u1 in the Hammerstein two-input records: b_l = -1, b_r = 0.5, m_l = 0.8, m_r = 1.2.
+fn valve(v: f64) -> f64 {
+    if v >= 0.5 {
+        1.2 * (v - 0.5)
+    } else if v <= -1.0 {
+        0.8 * (v + 1.0)
+    } else {
+        0.0
+    }
+}
+
+/// Identifies the noise-free two-input Hammerstein record (deadzone `valve` on u1, b = (1, 0.3); u2
+/// linear with b = -2; a1 = -0.5) by `method`, checks every parameter against the generating model within
+/// `tol` and returns the record, the JSON and the saved model file.
+fn hammerstein_miso(dir: &Path, method: &str, tol: f64) -> (PathBuf, serde_json::Value, PathBuf) {
+    let (f, ..) = miso_record(dir, &valve, 0.3);
+    let out = dir.join(format!("ham_{method}.json"));
+    let model = dir.join(format!("ham_{method}_model.json"));
+    miso_identify(
+        s(&f),
+        "hammerstein",
+        method,
+        &[
+            "--linear-inputs",
+            "u2",
+            "--json",
+            s(&out),
+            "--save-model",
+            s(&model),
+        ],
+    );
+    let j = json(&out);
+    let inputs = j["model"]["inputs"].as_array().unwrap();
+    let d = &inputs[0]["deadzone"];
+    for (got, want) in [
+        (&j["model"]["a"][0], -0.5),
+        (&inputs[0]["b"][1], 0.3),
+        (&d["b_l"], -1.0),
+        (&d["b_r"], 0.5),
+        (&d["m_l"], 0.8),
+        (&d["m_r"], 1.2),
+        (&inputs[1]["b"][0], -2.0),
+    ] {
+        assert!((num(got) - want).abs() < tol, "{method}: {}", j["model"]);
+    }
+    (f, j, model)
 }
 
 #[test]
@@ -1131,6 +1203,7 @@ fn several_inputs_arx_and_hammerstein_with_a_linear_input() {
     miso_identify(
         s(&f),
         "arx",
+        "ls",
         &[
             "--rows",
             "0..300",
@@ -1190,38 +1263,10 @@ fn several_inputs_arx_and_hammerstein_with_a_linear_input() {
         assert!((got["y_sim"][k] - sim[k]).abs() < 1e-6, "k = {k}");
     }
 
-    // Hammerstein: a deadzone on u1 (b_l = -1, b_r = 0.5, m_l = 0.8, m_r = 1.2), u2 declared linear.
-    let dz = |v: f64| {
-        if v >= 0.5 {
-            1.2 * (v - 0.5)
-        } else if v <= -1.0 {
-            0.8 * (v + 1.0)
-        } else {
-            0.0
-        }
-    };
-    let (f, ..) = miso_record(dir.path(), &dz, 0.3);
-    let out = dir.path().join("ham.json");
-    miso_identify(
-        s(&f),
-        "hammerstein",
-        &["--linear-inputs", "u2", "--json", s(&out)],
-    );
-    let j = json(&out);
+    // Hammerstein: a deadzone on u1, u2 declared linear.
+    let (f, j, _) = hammerstein_miso(dir.path(), "ls", 1e-6);
     let inputs = j["model"]["inputs"].as_array().unwrap();
-    let d = &inputs[0]["deadzone"];
-    for (got, want) in [
-        (&j["model"]["a"][0], -0.5),
-        (&inputs[0]["b"][0], 1.0),
-        (&inputs[0]["b"][1], 0.3),
-        (&d["b_l"], -1.0),
-        (&d["b_r"], 0.5),
-        (&d["m_l"], 0.8),
-        (&d["m_r"], 1.2),
-        (&inputs[1]["b"][0], -2.0),
-    ] {
-        assert!((num(got) - want).abs() < 1e-6, "{}", j["model"]);
-    }
+    assert_eq!(num(&inputs[0]["b"][0]), 1.0);
     assert!(inputs[1].get("deadzone").is_none());
     // A list of the wrong length is refused by flag.
     let err = fails(&[
@@ -1238,4 +1283,170 @@ fn several_inputs_arx_and_hammerstein_with_a_linear_input() {
         "0.1",
     ]);
     assert!(err.contains("--nb") && err.contains("2 inputs"), "{err}");
+}
+
+/// Least squares of z ≈ Φ θ by the normal equations ΦᵀΦ θ = Φᵀz, solved by Gaussian elimination with
+/// partial pivoting (rows of Φ given one by one).
+fn normal_equations(rows: &[Vec<f64>], z: &[f64]) -> Vec<f64> {
+    let p = rows[0].len();
+    let mut m = vec![vec![0.0; p + 1]; p];
+    for (r, zk) in rows.iter().zip(z) {
+        for i in 0..p {
+            for j in 0..p {
+                m[i][j] += r[i] * r[j];
+            }
+            m[i][p] += r[i] * zk;
+        }
+    }
+    for c in 0..p {
+        let piv = (c..p)
+            .max_by(|&a, &b| m[a][c].abs().total_cmp(&m[b][c].abs()))
+            .unwrap();
+        m.swap(c, piv);
+        for r in c + 1..p {
+            let f = m[r][c] / m[c][c];
+            for j in c..=p {
+                m[r][j] -= f * m[c][j];
+            }
+        }
+    }
+    let mut theta = vec![0.0; p];
+    for i in (0..p).rev() {
+        let rest: f64 = (i + 1..p).map(|j| m[i][j] * theta[j]).sum();
+        theta[i] = (m[i][p] - rest) / m[i][i];
+    }
+    theta
+}
+
+#[test]
+fn several_inputs_by_rls_reach_the_least_squares_solution() {
+    let dir = tempfile::tempdir().unwrap();
+    let (f, u1, u2, y) = miso_record(dir.path(), &|v| v, 0.3);
+    // A deterministic disturbance on y, so that the least-squares solution is not the true system.
+    let y: Vec<f64> = y
+        .iter()
+        .enumerate()
+        .map(|(k, v)| v + 0.4 * (2.3 * k as f64).sin())
+        .collect();
+    let mut text = String::from("u1,u2,y\n");
+    for k in 0..y.len() {
+        text.push_str(&format!("{},{},{}\n", u1[k], u2[k], y[k]));
+    }
+    std::fs::write(&f, text).unwrap();
+    // θ = [a1, b1(u1), b2(u1), b1(u2), c] over rows k >= k0 = 2, by the normal equations.
+    let (mut rows, mut z) = (Vec::new(), Vec::new());
+    for k in 2..y.len() {
+        rows.push(vec![-y[k - 1], u1[k - 1], u1[k - 2], u2[k - 2], 1.0]);
+        z.push(y[k]);
+    }
+    let want = normal_equations(&rows, &z);
+    let out = dir.path().join("rls.json");
+    miso_identify(s(&f), "arx", "rls", &["--offset", "--json", s(&out)]);
+    let j = json(&out);
+    let m = &j["model"];
+    let inputs = m["inputs"].as_array().unwrap();
+    let got = [
+        num(&m["a"][0]),
+        num(&inputs[0]["b"][0]),
+        num(&inputs[0]["b"][1]),
+        num(&inputs[1]["b"][0]),
+        num(&m["offset"]),
+    ];
+    for (g, w) in got.iter().zip(&want) {
+        assert!(
+            (g - w).abs() < 1e-6 * (1.0 + w.abs()),
+            "{got:?} vs {want:?}"
+        );
+    }
+    assert_eq!(j["method"], "rls");
+    assert_eq!(j["converged"], true);
+    assert!(
+        j["warnings"].as_array().unwrap().is_empty(),
+        "{}",
+        j["warnings"]
+    );
+
+    // Hammerstein by RLS: a deadzone on u1, u2 linear, noise-free: the passes reach the generating model.
+    let (f, ..) = hammerstein_miso(dir.path(), "rls", 1e-4);
+    // Output error and IV take one input: refused by flag, saying what is supported.
+    for method in ["oe", "iv"] {
+        let err = fails(&[
+            "identify",
+            "--data",
+            s(&f),
+            "--u-col",
+            "u1,u2",
+            "--method",
+            method,
+            "--ts",
+            "0.1",
+        ]);
+        assert!(
+            err.contains("--method") && err.contains("ls or rls"),
+            "{err}"
+        );
+    }
+}
+
+#[test]
+fn several_input_models_are_simulated_on_recorded_inputs_and_refused_as_control_plants() {
+    let dir = tempfile::tempdir().unwrap();
+    // The generating model y(k) = 0.5 y(k-1) + u1(k-1) + 0.3 u1(k-2) - 2 u2(k-2), identified exactly.
+    let (f, u1, u2, _) = miso_record(dir.path(), &|v| v, 0.3);
+    let model = dir.path().join("m.json");
+    miso_identify(s(&f), "arx", "ls", &["--save-model", s(&model)]);
+    let spec = format!("model:{}", s(&model));
+    let out = dir.path().join("o.csv");
+    // simulate runs it from rest at y0 on the recorded commands (file columns named as the inputs):
+    // y(0) = y0, y(k) = 0.5 y(k-1) + u1(k-1) + 0.3 u1(k-2) - 2 u2(k-2) with u(k < 0) = 0.
+    run(&[
+        "simulate",
+        "--plant",
+        &spec,
+        "--input",
+        &format!("file:{}", s(&f)),
+        "--y0",
+        "7",
+        "--out",
+        s(&out),
+    ]);
+    let got = read_columns(&out);
+    let at = |v: &[f64], k: isize| if k < 0 { 0.0 } else { v[k as usize] };
+    let mut y = vec![7.0; u1.len()];
+    for k in 1..u1.len() {
+        let i = k as isize;
+        y[k] = 0.5 * y[k - 1] + at(&u1, i - 1) + 0.3 * at(&u1, i - 2) - 2.0 * at(&u2, i - 2);
+    }
+    assert_eq!(got["u1"], u1);
+    assert_eq!(got["u2"], u2);
+    for k in 0..y.len() {
+        assert!(
+            (got["y"][k] - y[k]).abs() < 1e-6 * (1.0 + y[k].abs()),
+            "k = {k}"
+        );
+        assert!((got["t"][k] - 0.1 * k as f64).abs() < 1e-12);
+    }
+    // A designed input cannot drive two inputs; control drives one command.
+    let err = fails(&["simulate", "--plant", &spec, "--out", s(&out)]);
+    assert!(err.contains("--input") && err.contains("u1, u2"), "{err}");
+    let err = fails(&["control", "--plant", &spec, "--setpoint", "10"]);
+    assert!(
+        err.contains("2 inputs (u1, u2)") && err.contains("one command"),
+        "{err}"
+    );
+    // --compensate-deadzone needs a single-input Hammerstein model.
+    let (_, _, ham) = hammerstein_miso(dir.path(), "ls", 1e-6);
+    let err = fails(&[
+        "control",
+        "--plant",
+        "paper",
+        "--setpoint",
+        "10",
+        "--compensate-deadzone",
+        s(&ham),
+    ]);
+    assert!(
+        err.contains("--compensate-deadzone") && err.contains("2 inputs"),
+        "{err}"
+    );
 }

@@ -284,10 +284,12 @@ mod tests {
 /// The outputs of a model on a record (`validate --out`): free-run simulation and K-step prediction.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ModelOutput {
-    /// Free-run simulation ŷ_sim(k) from the measured initial outputs (the k < k0 entries are the
-    /// data), `None` when it diverged.
+    /// Free-run simulation ŷ_sim(k) from the estimated initial outputs (MATLAB `compare`'s default, as
+    /// in [`Metrics::fit_sim_percent`]; its k < k0 entries are those initial outputs), `None` when it
+    /// diverged.
     pub y_sim: Option<Vec<f64>>,
     /// K-step-ahead prediction ŷ(k | k − K) (MATLAB `predict(m, z, K)`); entries k < k0 are the data.
+    /// An output-error model predicts by simulation at every horizon: its `y_pred` is `y_sim`.
     pub y_pred: Vec<f64>,
     /// Fit % of `y_pred` over k >= k0.
     pub fit_pred_percent: Option<f64>,
@@ -301,9 +303,14 @@ pub fn model_output(
     y: &[f64],
     horizon: usize,
 ) -> Result<ModelOutput, SysidError> {
-    let y_pred = model.predict_k(u, y, horizon)?;
+    let y_sim = simulate_estimated_initial_miso(model, u, y)
+        .ok()
+        .map(|(s, _)| s);
+    let y_pred = match (model.noise_model(), &y_sim) {
+        (crate::NoiseModel::OutputError, Some(s)) => s.clone(),
+        _ => model.predict_k(u, y, horizon)?,
+    };
     let k0 = model.k0().min(y_pred.len());
-    let y_sim = model.simulate_miso(u, y).ok();
     let fit_pred_percent = fit_percent(&y[k0..y_pred.len()], &y_pred[k0..]);
     Ok(ModelOutput {
         y_sim,

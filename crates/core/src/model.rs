@@ -848,14 +848,15 @@ fn durand_kerner(c: &[f64]) -> Vec<Complex<f64>> {
 /// and past x.
 ///
 /// Starts at rest: every past output equal to y0 and every past x equal to 0. A model with an operating
-/// point (u0, y0) takes u and returns y in the user's units (it runs on u − u0 and adds y0).
+/// point (u0, y0) takes u and returns y in the user's units (it runs on u − u0 and adds y0). A model with
+/// several inputs is not a plant (one command per step); [`run_from_rest`] runs it open loop.
 #[derive(Debug, Clone)]
 pub struct ModelPlant {
     model: Model,
     /// y(k), y(k-1), ..., newest first (length max(na, 1)).
     y_hist: Vec<f64>,
-    /// x(k-1), x(k-2), ... newest first (length nk + nb - 1).
-    x_hist: Vec<f64>,
+    /// Per input: x(k-1), x(k-2), ... newest first (length nk + nb - 1).
+    x_hist: Vec<Vec<f64>>,
     label: String,
 }
 
@@ -864,17 +865,32 @@ impl ModelPlant {
     /// or a model with several inputs.
     pub fn new(model: Model, label: impl Into<String>) -> Result<Self, SysidError> {
         if model.inputs().len() != 1 {
-            return Err(SysidError::Data(
-                "a model with several inputs cannot be used as a single-input plant".into(),
-            ));
+            let names: Vec<&str> = model.inputs().iter().map(InputChannel::name).collect();
+            return Err(SysidError::Data(format!(
+                "a model with {} inputs ({}) cannot be used as a plant with one command: `simulate` runs it on \
+                 recorded inputs (--input file:CSV with one column per input), `control` drives one command; \
+                 its output on a record with y is also the y_sim column of `ipa-sysid validate --model FILE \
+                 --data RECORD.csv --out OUT.csv`",
+                names.len(),
+                names.join(", ")
+            )));
         }
-        if model.nk() == 0 {
+        Self::any_inputs(model, label)
+    }
+
+    /// Wraps `model` whatever its number of inputs; fails for an input with nk = 0.
+    fn any_inputs(model: Model, label: impl Into<String>) -> Result<Self, SysidError> {
+        if model.inputs().iter().any(|ch| ch.nk() == 0) {
             return Err(SysidError::Data(
                 "a model with nk = 0 (direct feed-through) cannot be used as a plant; nk >= 1 is needed".into(),
             ));
         }
         let y_hist = vec![0.0; model.na().max(1)];
-        let x_hist = vec![0.0; model.nk() + model.nb() - 1];
+        let x_hist = model
+            .inputs()
+            .iter()
+            .map(|ch| vec![0.0; ch.nk() + ch.nb() - 1])
+            .collect();
         Ok(ModelPlant {
             model,
             y_hist,
@@ -888,19 +904,82 @@ impl ModelPlant {
         &self.model
     }
 
-    /// u0 of the model's operating point (0 without one).
-    fn u0(&self) -> f64 {
-        self.model
-            .operating_point
-            .as_ref()
-            .and_then(|o| o.u.first().copied())
-            .unwrap_or(0.0)
-    }
-
     /// y0 of the model's operating point (0 without one).
     fn y0(&self) -> f64 {
         self.model.operating_point.as_ref().map_or(0.0, |o| o.y)
     }
+
+    /// Applies one command per input (`u[m]` to input m) for one sampling period; returns y(k+1).
+    fn advance(&mut self, u: &[f64]) -> Result<f64, crate::PlantError> {
+        let y0 = self.y0();
+        let m = &self.model;
+        let mut v = m.offset().unwrap_or(0.0);
+        for (i, ai) in m.a().iter().enumerate() {
+            v -= ai * self.y_hist[i];
+        }
+        for (idx, (ch, hist)) in m.inputs().iter().zip(&mut self.x_hist).enumerate() {
+            let u0 = m
+                .operating_point
+                .as_ref()
+                .and_then(|o| o.u.get(idx).copied())
+                .unwrap_or(0.0);
+            // x(k) enters the history; hist[i] = x(k - i) after the shift.
+            if !hist.is_empty() {
+                hist.rotate_right(1);
+                hist[0] = ch.map(u[idx] - u0);
+            }
+            // y(k+1) = ... + sum b_j x(k+1-nk-(j-1)); x(k+1-nk-j') = hist[nk-1+j'].
+            for (j, bj) in ch.b().iter().enumerate() {
+                v += bj * hist[ch.nk() - 1 + j];
+            }
+        }
+        if !v.is_finite() {
+            return Err(crate::PlantError::Diverged(format!(
+                "{} output became non-finite",
+                self.label
+            )));
+        }
+        self.y_hist.rotate_right(1);
+        self.y_hist[0] = v;
+        Ok(v + y0)
+    }
+}
+
+/// Runs `model` open loop from rest at `y0_mm` (as [`ModelPlant`] after `reset(y0_mm)`) over one record of
+/// commands per model input, and returns the outputs a data logger would record beside them: y(0) is the
+/// output before the first commands are applied. For models with any number of inputs (`simulate` with a
+/// several-input model). Fails for an input with nk = 0, records of the wrong number or length, or a
+/// non-finite output (naming the sample).
+pub fn run_from_rest(model: &Model, u: &[&[f64]], y0_mm: f64) -> Result<Vec<f64>, SysidError> {
+    let n_in = model.inputs().len();
+    if u.len() != n_in {
+        return Err(SysidError::Data(format!(
+            "the model has {n_in} input(s) but {} input record(s) were given",
+            u.len()
+        )));
+    }
+    let n = u.first().map_or(0, |s| s.len());
+    if u.iter().any(|s| s.len() != n) {
+        return Err(SysidError::Data(
+            "the input records have different lengths".into(),
+        ));
+    }
+    let mut plant = ModelPlant::any_inputs(model.clone(), "model")?;
+    crate::Plant::reset(&mut plant, y0_mm);
+    let mut y = Vec::with_capacity(n);
+    let mut now = vec![0.0; n_in];
+    for k in 0..n {
+        y.push(crate::Plant::output(&plant));
+        for (v, s) in now.iter_mut().zip(u) {
+            *v = s[k];
+        }
+        plant.advance(&now).map_err(|e| match e {
+            crate::PlantError::Diverged(m) => {
+                SysidError::Numerical(format!("{m} (while applying the inputs of sample {k})"))
+            }
+        })?;
+    }
+    Ok(y)
 }
 
 impl crate::Plant for ModelPlant {
@@ -913,37 +992,13 @@ impl crate::Plant for ModelPlant {
     }
 
     fn step(&mut self, u: f64) -> Result<f64, crate::PlantError> {
-        let (u0, y0) = (self.u0(), self.y0());
-        let m = &self.model;
-        // x(k) enters the history; x_hist[i] = x(k - i) after the shift.
-        if !self.x_hist.is_empty() {
-            self.x_hist.rotate_right(1);
-            self.x_hist[0] = m.input_map(u - u0);
-        }
-        // y(k+1) = -sum a_i y(k+1-i) + sum b_j x(k+1-nk-(j-1)) + c; x(k+1-nk-j') = x_hist[nk-1+j'].
-        let mut v = m.offset().unwrap_or(0.0);
-        for (i, ai) in m.a().iter().enumerate() {
-            v -= ai * self.y_hist[i];
-        }
-        let nk = m.nk();
-        for (j, bj) in m.b().iter().enumerate() {
-            v += bj * self.x_hist[nk - 1 + j];
-        }
-        if !v.is_finite() {
-            return Err(crate::PlantError::Diverged(format!(
-                "{} output became non-finite",
-                self.label
-            )));
-        }
-        self.y_hist.rotate_right(1);
-        self.y_hist[0] = v;
-        Ok(v + y0)
+        self.advance(&[u])
     }
 
     fn reset(&mut self, y0_mm: f64) {
         let dev = y0_mm - self.y0();
         self.y_hist.iter_mut().for_each(|v| *v = dev);
-        self.x_hist.iter_mut().for_each(|v| *v = 0.0);
+        self.x_hist.iter_mut().flatten().for_each(|v| *v = 0.0);
     }
 
     fn name(&self) -> String {

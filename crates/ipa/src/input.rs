@@ -203,13 +203,24 @@ fn check_settings(samples: usize, ts_s: f64, amplitude: f64) -> Result<(), IpaEr
 
 /// Reads column `u` of a CSV file (header row required), every cell a finite number.
 pub fn read_input_file(path: &Path) -> Result<Vec<f64>, IpaError> {
+    let mut cols = read_input_columns(path, &["u"])?;
+    Ok(cols.pop().unwrap_or_default())
+}
+
+/// Reads the columns `names` of a CSV file (header row required), every cell a finite number: the
+/// commands of a model with several inputs, one column per input.
+pub fn read_input_columns(path: &Path, names: &[&str]) -> Result<Vec<Vec<f64>>, IpaError> {
     let bytes = std::fs::read(path).map_err(|source| sysid_core::SysidError::Io {
         path: path.to_path_buf(),
         source,
     })?;
     let table = sysid_core::data::read_table(&bytes, &path.display().to_string())?;
-    let col = table.column_index("u", sysid_core::Setting::Other("--input file:CSV"))?;
-    Ok(table.numbers(col)?)
+    let mut cols = Vec::with_capacity(names.len());
+    for name in names {
+        let col = table.column_index(name, sysid_core::Setting::Other("--input file:CSV"))?;
+        cols.push(table.numbers(col)?);
+    }
+    Ok(cols)
 }
 
 /// Clock period of the PRBS in samples: 50 ms, at least one sample.

@@ -86,7 +86,8 @@ impl Passes {
     /// The default: repeat until settled, at most 100 passes.
     pub const AUTO: Passes = Passes::UntilSettled { max: 100 };
 
-    fn max(&self) -> usize {
+    /// The largest number of passes that may run.
+    pub fn max(&self) -> usize {
         match self {
             Passes::Fixed(n) => *n,
             Passes::UntilSettled { max } => *max,
@@ -1502,6 +1503,15 @@ fn hammerstein_ls(p: &Problem, st: &LeastSquares) -> Result<Fitted, SysidError> 
     })
 }
 
+/// The recursive estimator of `np` parameters that `st` describes: the paper's RLS for the standard form
+/// without windup protection, `RobustRls` otherwise.
+pub(crate) fn recursive_estimator(
+    np: usize,
+    st: &RecursiveLeastSquares,
+) -> Result<Box<dyn rls::RecursiveUpdate>, SysidError> {
+    crate::online::recursive_estimator(np, st.forgetting, st.p0, st.form, st.windup, st.max_trace)
+}
+
 /// RLS for ARX, and recursive key-term separation for Hammerstein. First pass (the paper's scheme):
 /// switching functions and the internal x̂ are evaluated with the latest estimate at every sample.
 /// Later passes restart P = p0 I, keep θ̂ and evaluate the switching functions and x̂ with the estimate
@@ -1514,14 +1524,7 @@ fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitted, SysidErr
     let key = p.key_term();
     let idx = key.free_indices();
     let np = idx.len();
-    let mut est = crate::online::recursive_estimator(
-        np,
-        st.forgetting,
-        st.p0,
-        st.form,
-        st.windup,
-        st.max_trace,
-    )?;
+    let mut est = recursive_estimator(np, st)?;
     let mut full_row = vec![0.0; s.n_params()];
     let mut row = vec![0.0; np];
     let hammer = s.kind == ModelKind::Hammerstein;

@@ -10,7 +10,9 @@
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
-use sysid_core::metrics::{fit_percent, metrics, Metrics};
+use sysid_core::metrics::{
+    fit_percent, metrics, one_step_prediction, simulate_estimated_initial, Metrics,
+};
 use sysid_core::param::{Layout, Parameterisation};
 use sysid_core::{Dataset, Deadzone, Model, ModelKind, Structure, SysidError};
 
@@ -26,12 +28,21 @@ pub struct MergedFit {
 }
 
 /// Free-run fits of one model over several records: each record's and the pooled one.
+///
+/// As in the per-record [`Metrics`], each record's free-run simulation starts from its own estimated
+/// initial outputs (MATLAB `compare`'s default, [`simulate_estimated_initial`]); the pooled fits put
+/// those simulations (and the one-step predictions) of every record's rows k ≥ k0 side by side, with
+/// one ȳ over all of them. The `*_measured` value pools the simulations from the measured initial
+/// outputs instead.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct MergedMetrics {
     /// Per record: its name and metrics.
     pub records: Vec<(String, Metrics)>,
-    /// Fit % of the free-run simulations over all records' rows k ≥ k0 pooled (one ȳ for all).
+    /// Fit % of the free-run simulations (estimated initial outputs per record) over all records' rows
+    /// k ≥ k0 pooled (one ȳ for all); `None` when a simulation diverged.
     pub pooled_fit_sim_percent: Option<f64>,
+    /// The same from the measured initial outputs of each record.
+    pub pooled_fit_sim_measured_percent: Option<f64>,
     /// Fit % of the one-step predictions, pooled.
     pub pooled_fit_pred_percent: Option<f64>,
 }
@@ -88,7 +99,7 @@ pub fn identify_merged(
             .collect())
     };
     let nonlinear = [structure.kind == ModelKind::Hammerstein];
-    let (theta, _, iterations) =
+    let (theta, _, iterations, _) =
         crate::miso::key_term_iteration(&nonlinear, max_iterations, |dz| solve(&dz[0]))?;
     let model = Parameterisation::new(structure, Layout::KeyTerm).model_of(&theta, first.ts)?;
     Ok(MergedFit {
@@ -98,25 +109,33 @@ pub fn identify_merged(
     })
 }
 
-/// The metrics of `model` on each record and pooled over all of them.
+/// The metrics of `model` on each record and pooled over all of them (see [`MergedMetrics`]).
 pub fn merged_metrics(model: &Model, records: &[Dataset]) -> Result<MergedMetrics, SysidError> {
     let k0 = model.k0();
-    let (mut y, mut sim, mut pred) = (Vec::new(), Vec::new(), Vec::new());
-    let mut sim_ok = true;
+    let (mut y, mut sim, mut sim_measured, mut pred) =
+        (Vec::new(), Vec::new(), Vec::new(), Vec::new());
+    let (mut sim_ok, mut measured_ok) = (true, true);
     let mut per = Vec::with_capacity(records.len());
     for r in records {
         per.push((r.name.clone(), metrics(model, r)?));
         let from = k0.min(r.len());
         y.extend_from_slice(&r.y[from..]);
-        pred.extend_from_slice(&model.predict(&r.u, &r.y)?[from..]);
-        match model.simulate(&r.u, &r.y) {
-            Ok(s) => sim.extend_from_slice(&s[from..]),
+        pred.extend_from_slice(&one_step_prediction(model, r)?[from..]);
+        match simulate_estimated_initial(model, r) {
+            Ok((s, _)) => sim.extend_from_slice(&s[from..]),
             Err(_) => sim_ok = false,
+        }
+        match model.simulate(&r.u, &r.y) {
+            Ok(s) => sim_measured.extend_from_slice(&s[from..]),
+            Err(_) => measured_ok = false,
         }
     }
     Ok(MergedMetrics {
         records: per,
-        pooled_fit_sim_percent: if sim_ok { fit_percent(&y, &sim) } else { None },
+        pooled_fit_sim_percent: sim_ok.then(|| fit_percent(&y, &sim)).flatten(),
+        pooled_fit_sim_measured_percent: measured_ok
+            .then(|| fit_percent(&y, &sim_measured))
+            .flatten(),
         pooled_fit_pred_percent: fit_percent(&y, &pred),
     })
 }

@@ -1,4 +1,4 @@
-//! Several inputs, one output (MISO): least squares for ARX with one B polynomial per input, and for the
+//! Several inputs, one output (MISO): least squares and recursive least squares for ARX with one B polynomial per input, and for the
 //! Hammerstein model with a static deadzone per input (key-term separation per input, b1 = 1 for each
 //! nonlinear input); an input can be declared linear (the IPA's two valves are the motivating case).
 //!
@@ -35,111 +35,287 @@ pub struct MisoInput {
 pub struct MisoFit {
     /// The model (one `InputChannel` per input, in the given order).
     pub model: Model,
-    /// Key-term iterations (1 for ARX or when every input is linear).
+    /// Key-term iterations of least squares (1 for ARX or when every input is linear), or passes of RLS.
     pub iterations: usize,
+    /// Whether the key-term iteration reached its fixed point (least squares) or the RLS estimate
+    /// settled over the passes.
+    pub converged: bool,
 }
 
-/// Estimates a MISO model of `kind` from `inputs` and `y` (Ts = `ts` s) by least squares (module docs).
-pub fn identify_miso(
-    inputs: &[MisoInput],
-    y: &[f64],
-    ts: f64,
+/// The regression of a MISO problem (module docs): which inputs are nonlinear, k0, the rows and the
+/// parameter names, and the map from θ back to a model.
+struct Regression<'a> {
+    inputs: &'a [MisoInput],
+    nonlinear: Vec<bool>,
+    y: &'a [f64],
     na: usize,
-    kind: ModelKind,
     offset: bool,
-    max_iterations: usize,
-) -> Result<MisoFit, SysidError> {
-    if inputs.is_empty() {
-        return Err(SysidError::Data(
-            "a MISO model needs at least one input".into(),
-        ));
-    }
-    for m in inputs {
-        if m.nb == 0 {
-            return Err(SysidError::setting(
-                sysid_core::Setting::Nb,
-                format!("0 for input {}", m.name),
-                "at least one B coefficient per input",
+    /// First regression sample k0.
+    k0: usize,
+    /// Key-term entries (4 per nonlinear input).
+    n_key: usize,
+    names: Vec<String>,
+}
+
+impl<'a> Regression<'a> {
+    /// Checks the inputs and lays out θ.
+    fn new(
+        inputs: &'a [MisoInput],
+        y: &'a [f64],
+        na: usize,
+        kind: ModelKind,
+        offset: bool,
+    ) -> Result<Self, SysidError> {
+        if inputs.is_empty() {
+            return Err(SysidError::Data(
+                "a MISO model needs at least one input".into(),
             ));
         }
-        if m.u.len() != y.len() {
+        for m in inputs {
+            if m.nb == 0 {
+                return Err(SysidError::setting(
+                    sysid_core::Setting::Nb,
+                    format!("0 for input {}", m.name),
+                    "at least one B coefficient per input",
+                ));
+            }
+            if m.u.len() != y.len() {
+                return Err(SysidError::Data(format!(
+                    "input {} has {} samples but y has {}",
+                    m.name,
+                    m.u.len(),
+                    y.len()
+                )));
+            }
+        }
+        let nonlinear: Vec<bool> = inputs
+            .iter()
+            .map(|m| kind == ModelKind::Hammerstein && !m.linear)
+            .collect();
+        let k0 = inputs.iter().map(|m| m.nk + m.nb - 1).fold(na, usize::max);
+        let n_key = 4 * nonlinear.iter().filter(|&&v| v).count();
+        let mut names = Vec::new();
+        for (m, &nl) in inputs.iter().zip(&nonlinear) {
+            if nl {
+                for s in ["m_r", "m_r*b_r", "m_l", "m_l*b_l"] {
+                    names.push(format!("{s} ({})", m.name));
+                }
+            }
+        }
+        names.extend((1..=na).map(|i| format!("a{i}")));
+        for (m, &nl) in inputs.iter().zip(&nonlinear) {
+            let from = if nl { 2 } else { 1 };
+            names.extend((from..=m.nb).map(|j| format!("b{j} ({})", m.name)));
+        }
+        if offset {
+            names.push("c".into());
+        }
+        let r = Regression {
+            inputs,
+            nonlinear,
+            y,
+            na,
+            offset,
+            k0,
+            n_key,
+            names,
+        };
+        let (n, p) = (r.rows(), r.len());
+        if n <= p {
             return Err(SysidError::Data(format!(
-                "input {} has {} samples but y has {}",
-                m.name,
-                m.u.len(),
+                "{} samples leave {n} regression rows for {p} parameters; more data or lower orders are needed",
                 y.len()
             )));
         }
+        Ok(r)
     }
-    let nonlinear: Vec<bool> = inputs
-        .iter()
-        .map(|m| kind == ModelKind::Hammerstein && !m.linear)
-        .collect();
-    let k0 = inputs.iter().map(|m| m.nk + m.nb - 1).fold(na, usize::max);
-    let n = y.len().saturating_sub(k0);
-    let n_key = 4 * nonlinear.iter().filter(|&&v| v).count();
-    let n_b: usize = inputs
-        .iter()
-        .zip(&nonlinear)
-        .map(|(m, &nl)| if nl { m.nb - 1 } else { m.nb })
-        .sum();
-    let p = n_key + na + n_b + usize::from(offset);
-    if n <= p {
-        return Err(SysidError::Data(format!(
-            "{} samples leave {n} regression rows for {p} parameters; more data or lower orders are needed",
-            y.len()
-        )));
+
+    /// Number of entries of θ.
+    fn len(&self) -> usize {
+        self.names.len()
     }
-    let mut names = Vec::with_capacity(p);
-    for (m, &nl) in inputs.iter().zip(&nonlinear) {
-        if nl {
-            for s in ["m_r", "m_r*b_r", "m_l", "m_l*b_l"] {
-                names.push(format!("{s} ({})", m.name));
-            }
+
+    /// Number of regression rows (k = k0..N−1).
+    fn rows(&self) -> usize {
+        self.y.len().saturating_sub(self.k0)
+    }
+
+    /// φ(k) with the deadzones `dz` (one per input).
+    fn fill_row(&self, dz: &[Deadzone], k: usize, row: &mut [f64]) {
+        for (c, v) in row.iter_mut().enumerate() {
+            *v = regressor(
+                self.inputs,
+                &self.nonlinear,
+                dz,
+                self.y,
+                self.na,
+                self.offset,
+                k,
+                c,
+            );
         }
     }
-    names.extend((1..=na).map(|i| format!("a{i}")));
-    for (m, &nl) in inputs.iter().zip(&nonlinear) {
-        let from = if nl { 2 } else { 1 };
-        names.extend((from..=m.nb).map(|j| format!("b{j} ({})", m.name)));
+
+    /// The stacked regression matrix Φ (rows k0..N−1) with the deadzones `dz`.
+    fn matrix(&self, dz: &[Deadzone]) -> DMatrix<f64> {
+        let mut phi = DMatrix::zeros(self.rows(), self.len());
+        let mut row = vec![0.0; self.len()];
+        for r in 0..self.rows() {
+            self.fill_row(dz, self.k0 + r, &mut row);
+            for (c, v) in row.iter().enumerate() {
+                phi[(r, c)] = *v;
+            }
+        }
+        phi
     }
-    if offset {
-        names.push("c".into());
-    }
-    let target = DVector::from_iterator(n, y[k0..].iter().copied());
-    let solve = |dz: &[Deadzone]| -> Result<Vec<f64>, SysidError> {
-        let phi = DMatrix::from_fn(n, p, |r, c| {
-            regressor(inputs, &nonlinear, dz, y, na, offset, k0 + r, c)
-        });
-        Ok(crate::ls::solve(&phi, &target, &names)?
+
+    /// The least-squares θ̂ with the deadzones `dz`.
+    fn solve(&self, dz: &[Deadzone]) -> Result<Vec<f64>, SysidError> {
+        let target = DVector::from_iterator(self.rows(), self.y[self.k0..].iter().copied());
+        Ok(crate::ls::solve(&self.matrix(dz), &target, &self.names)?
             .theta
             .iter()
             .copied()
             .collect())
-    };
-    let (theta, dz, iterations) = key_term_iteration(&nonlinear, max_iterations, solve)?;
-    // θ back to the model.
-    let a = theta[n_key..n_key + na].to_vec();
-    let mut i = n_key + na;
-    let mut channels = Vec::with_capacity(inputs.len());
-    for ((m, &nl), d) in inputs.iter().zip(&nonlinear).zip(&dz) {
-        let (b, f) = if nl {
-            let mut b = vec![1.0];
-            b.extend_from_slice(&theta[i..i + m.nb - 1]);
-            i += m.nb - 1;
-            (b, StaticNonlinearity::Deadzone(*d))
-        } else {
-            let b = theta[i..i + m.nb].to_vec();
-            i += m.nb;
-            (b, StaticNonlinearity::Linear)
-        };
-        channels.push(InputChannel::new(m.name.clone(), m.nk, b, f)?);
     }
-    let c = offset.then(|| theta[i]);
-    Ok(MisoFit {
-        model: Model::new(ts, a, channels, c)?,
-        iterations,
-    })
+
+    /// The deadzones `dz` updated from the key-term blocks of θ̂ (inputs without one keep theirs).
+    fn update_deadzones(&self, theta: &[f64], dz: &mut [Deadzone]) {
+        update_deadzones(&self.nonlinear, theta, dz);
+    }
+
+    /// The model of θ̂ and the deadzones `dz` (Ts = `ts` s).
+    fn model(&self, theta: &[f64], dz: &[Deadzone], ts: f64) -> Result<Model, SysidError> {
+        let (n_key, na) = (self.n_key, self.na);
+        let a = theta[n_key..n_key + na].to_vec();
+        let mut i = n_key + na;
+        let mut channels = Vec::with_capacity(self.inputs.len());
+        for ((m, &nl), d) in self.inputs.iter().zip(&self.nonlinear).zip(dz) {
+            let (b, f) = if nl {
+                let mut b = vec![1.0];
+                b.extend_from_slice(&theta[i..i + m.nb - 1]);
+                i += m.nb - 1;
+                (b, StaticNonlinearity::Deadzone(*d))
+            } else {
+                let b = theta[i..i + m.nb].to_vec();
+                i += m.nb;
+                (b, StaticNonlinearity::Linear)
+            };
+            channels.push(InputChannel::new(m.name.clone(), m.nk, b, f)?);
+        }
+        let c = self.offset.then(|| theta[i]);
+        Model::new(ts, a, channels, c)
+    }
+}
+
+/// A MISO estimation problem: the inputs, the output y (Ts = `ts` s), na, the structure and whether a
+/// constant c is estimated. [`MisoProblem::least_squares`] and [`MisoProblem::recursive`] fit it.
+#[derive(Debug, Clone, Copy)]
+pub struct MisoProblem<'a> {
+    /// The inputs with their orders (and which are linear).
+    pub inputs: &'a [MisoInput],
+    /// y(k) (for the IPA: the position in mm).
+    pub y: &'a [f64],
+    /// Ts in s.
+    pub ts: f64,
+    /// na: order of A, common to every input.
+    pub na: usize,
+    /// ARX, or Hammerstein with a deadzone on every input not declared linear.
+    pub kind: ModelKind,
+    /// Whether a constant term c is estimated.
+    pub offset: bool,
+}
+
+impl MisoProblem<'_> {
+    /// The regression of this problem (checks the inputs).
+    fn regression(&self) -> Result<Regression<'_>, SysidError> {
+        Regression::new(self.inputs, self.y, self.na, self.kind, self.offset)
+    }
+
+    /// Least squares (module docs): one solve for ARX; for Hammerstein the key-term iteration, at most
+    /// `max_iterations` solves.
+    pub fn least_squares(&self, max_iterations: usize) -> Result<MisoFit, SysidError> {
+        let reg = self.regression()?;
+        let (theta, dz, iterations, converged) =
+            key_term_iteration(&reg.nonlinear, max_iterations, |dz| reg.solve(dz))?;
+        Ok(MisoFit {
+            model: reg.model(&theta, &dz, self.ts)?,
+            iterations,
+            converged,
+        })
+    }
+
+    /// Recursive least squares (paper eqs. 9–12) with the settings `st` (forgetting, P(0), passes,
+    /// covariance form). ARX: the recursion on φ(k) of the module docs. Hammerstein: recursive key-term
+    /// separation as for one input — in the first pass each input's switching functions and x̂ use the
+    /// deadzone of the latest estimate; each later pass restarts P = p0 I, keeps θ̂ and uses the deadzones
+    /// of the estimate the pass started from. `iterations` counts the passes; `converged` says whether the
+    /// estimate settled (relative change between the ends of two passes below
+    /// [`crate::estimate::PASSES_SETTLED`] with `passes auto`, below 1e-3 with a fixed number of passes).
+    /// With ρ = 1 and no windup protection, data that cannot determine θ are refused as by least squares.
+    pub fn recursive(&self, st: &crate::RecursiveLeastSquares) -> Result<MisoFit, SysidError> {
+        let (y, inputs, ts) = (self.y, self.inputs, self.ts);
+        let reg = self.regression()?;
+        let np = reg.len();
+        let mut est = crate::estimate::recursive_estimator(np, st)?;
+        let mut dz = vec![START_DEADZONE; inputs.len()];
+        if st.forgetting == 1.0 && st.windup == crate::windup::Windup::None {
+            // Persistent excitation, as for one input: only the rank verdict of the solve matters.
+            if let Err(e @ SysidError::Data(_)) = reg.solve(&dz) {
+                return Err(e);
+            }
+        }
+        let hammer = reg.nonlinear.iter().any(|&v| v);
+        let mut row = vec![0.0; np];
+        let mut pass_ends: Vec<Vec<f64>> = Vec::new();
+        let mut settled = false;
+        let rel = |a: &[f64], b: &[f64]| {
+            let d = a.iter().zip(b).map(|(x, y)| (x - y) * (x - y)).sum::<f64>();
+            let s = b.iter().map(|v| v * v).sum::<f64>();
+            d.sqrt() / (1e-300 + s.sqrt())
+        };
+        for pass in 0..st.passes.max() {
+            if pass > 0 {
+                est.restart_covariance(st.p0);
+                if hammer {
+                    reg.update_deadzones(est.theta(), &mut dz);
+                }
+            }
+            for (k, &yk) in y.iter().enumerate().skip(reg.k0) {
+                if hammer && pass == 0 && k > reg.k0 {
+                    let theta = est.theta().to_vec();
+                    reg.update_deadzones(&theta, &mut dz);
+                }
+                reg.fill_row(&dz, k, &mut row);
+                est.update(&row, yk, k)?;
+            }
+            let end = est.theta().to_vec();
+            if let (crate::Passes::UntilSettled { .. }, Some(prev)) = (st.passes, pass_ends.last())
+            {
+                if rel(&end, prev) <= crate::estimate::PASSES_SETTLED {
+                    settled = true;
+                    pass_ends.push(end);
+                    break;
+                }
+            }
+            pass_ends.push(end);
+        }
+        let theta = est.theta().to_vec();
+        let converged = match st.passes {
+            crate::Passes::UntilSettled { .. } => settled,
+            crate::Passes::Fixed(_) => {
+                pass_ends.len() >= 2 && rel(&pass_ends[pass_ends.len() - 2], &theta) < 1e-3
+            }
+        };
+        if hammer {
+            reg.update_deadzones(&theta, &mut dz);
+        }
+        Ok(MisoFit {
+            model: reg.model(&theta, &dz, ts)?,
+            iterations: pass_ends.len(),
+            converged,
+        })
+    }
 }
 
 /// Start of the key-term iteration: breakpoints at 0 and unit slopes, so that x̂ = u in the b2.. columns of
@@ -155,25 +331,19 @@ pub const START_DEADZONE: Deadzone = Deadzone {
 /// deadzones (one per input; θ starts with a key-term block [m_r, m_r b_r, m_l, m_l b_l] per input whose
 /// `nonlinear` entry is true), the deadzones are updated from θ̂, until θ̂ changes by less than 1e-10
 /// (relative to its largest entry) or after `max_iterations` solves. Without a nonlinear input, one solve.
+/// The last entry says whether it converged (always true without a nonlinear input).
 pub(crate) fn key_term_iteration(
     nonlinear: &[bool],
     max_iterations: usize,
     solve: impl Fn(&[Deadzone]) -> Result<Vec<f64>, SysidError>,
-) -> Result<(Vec<f64>, Vec<Deadzone>, usize), SysidError> {
-    let update = |theta: &[f64], dz: &mut [Deadzone]| {
-        let mut i = 0;
-        for (d, &nl) in dz.iter_mut().zip(nonlinear) {
-            if nl {
-                *d = deadzone_from_theta(&theta[i..i + 4], *d, f64::INFINITY);
-                i += 4;
-            }
-        }
-    };
+) -> Result<(Vec<f64>, Vec<Deadzone>, usize, bool), SysidError> {
+    let update = |theta: &[f64], dz: &mut [Deadzone]| update_deadzones(nonlinear, theta, dz);
     let mut dz = vec![START_DEADZONE; nonlinear.len()];
     let mut theta = solve(&dz)?;
     let mut iterations = 1;
     update(&theta, &mut dz);
-    if nonlinear.iter().any(|&v| v) {
+    let mut converged = !nonlinear.iter().any(|&v| v);
+    if !converged {
         while iterations < max_iterations.max(1) {
             let next = solve(&dz)?;
             iterations += 1;
@@ -186,11 +356,24 @@ pub(crate) fn key_term_iteration(
             theta = next;
             update(&theta, &mut dz);
             if change <= 1e-10 * scale {
+                converged = true;
                 break;
             }
         }
     }
-    Ok((theta, dz, iterations))
+    Ok((theta, dz, iterations, converged))
+}
+
+/// The deadzones `dz` updated from the key-term blocks [m_r, m_r b_r, m_l, m_l b_l] at the start of θ̂,
+/// one block per input whose `nonlinear` entry is true (the others keep theirs).
+fn update_deadzones(nonlinear: &[bool], theta: &[f64], dz: &mut [Deadzone]) {
+    let mut i = 0;
+    for (d, &nl) in dz.iter_mut().zip(nonlinear) {
+        if nl {
+            *d = deadzone_from_theta(&theta[i..i + 4], *d, f64::INFINITY);
+            i += 4;
+        }
+    }
 }
 
 /// Entry `c` of the regressor φ(k) (module docs).

@@ -44,7 +44,8 @@ pub struct Args {
     /// Run length in s [default: the profile's length; 10 s for a fixed set-point].
     #[arg(long, value_name = "S")]
     pub duration: Option<f64>,
-    /// Initial position y0 in mm (the plant is reset there at rest).
+    /// Initial position y0 in mm (the plant is reset there at rest; the paper's step test starts at 0;
+    /// `simulate` starts mid-stroke at 100 mm so that its open-loop input can move both ways).
     #[arg(long, value_name = "MM", default_value_t = 0.0)]
     pub y0: f64,
     /// Form of the integral term.
@@ -222,6 +223,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 inputs.push(path.clone());
                 let m = sysid::model_file::read_model(path)
                     .context("cannot read --compensate-deadzone")?;
+                if m.inputs().len() > 1 {
+                    bail!(sysid::SysidError::setting(
+                        sysid::Setting::Other("--compensate-deadzone"),
+                        path.display(),
+                        &format!(
+                            "a single-input Hammerstein model file (this model has {} inputs; the PI \
+                             controller drives one command)",
+                            m.inputs().len()
+                        )
+                    ));
+                }
                 // A detrended model's deadzone acts on u - u0: in the command's units its breakpoints
                 // are shifted by u0 (the slopes are unchanged).
                 let u0 = m

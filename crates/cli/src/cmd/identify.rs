@@ -69,7 +69,9 @@ pub struct Args {
     pub data: Vec<PathBuf>,
     #[command(flatten)]
     pub columns: ColumnArgs,
-    /// Model structure (`--model` is an older spelling; `--model` names a model file elsewhere).
+    /// Model structure (`--model` is an older spelling; `--model` names a model file elsewhere). Default:
+    /// the paper's Hammerstein model; `order` and `delay` search linear (arx) structures, as MATLAB's
+    /// `arxstruc` and `delayest` do.
     #[arg(
         long = "structure",
         alias = "model",
@@ -91,7 +93,7 @@ pub struct Args {
     /// Several inputs (--u-col u1,u2) with --structure hammerstein: these inputs are linear (no deadzone).
     #[arg(long, value_name = "NAME,...", value_delimiter = ',')]
     pub linear_inputs: Vec<String>,
-    /// Estimator.
+    /// Estimator. Default: the paper's recursive least squares (`order` defaults to ls, its closed form).
     #[arg(long, value_enum, default_value = "rls")]
     pub method: Method,
     /// RLS forgetting factor ρ in (0, 1].
@@ -338,6 +340,10 @@ fn run_merged(args: &Args) -> anyhow::Result<()> {
             .unwrap_or_default(),
         fit.model.offset().map(|c| format!("\n  c = {c}")).unwrap_or_default(),
     );
+    text.push_str(
+        "Free-run fits simulate each record from its own estimated initial outputs (MATLAB compare); \
+         pooled: all records' rows k >= k0 with one mean\n",
+    );
     text.push_str(&format!(
         "{:<50} {:>8} {:>14} {:>14}\n",
         "record", "N", "fit sim %", "fit pred %"
@@ -378,6 +384,7 @@ fn run_merged(args: &Args) -> anyhow::Result<()> {
                 "estimation": est.records.iter().map(|(name, m)| serde_json::json!({"data": name, "metrics": m})).collect::<Vec<_>>(),
                 "pooled": {
                     "fit_sim_percent": est.pooled_fit_sim_percent,
+                    "fit_sim_measured_percent": est.pooled_fit_sim_measured_percent,
                     "fit_pred_percent": est.pooled_fit_pred_percent,
                 },
                 "validation": val_metrics,
@@ -390,7 +397,7 @@ fn run_merged(args: &Args) -> anyhow::Result<()> {
     save_model(args, &fit.model, &inputs)
 }
 
-/// Runs `identify --u-col u1,u2,...`: one model with several inputs (MISO), by least squares.
+/// Runs `identify --u-col u1,u2,...`: one model with several inputs (MISO), by least squares or RLS.
 fn run_miso(args: &Args) -> anyhow::Result<()> {
     let names: Vec<String> = args
         .columns
@@ -398,14 +405,20 @@ fn run_miso(args: &Args) -> anyhow::Result<()> {
         .split(',')
         .map(|s| s.trim().to_string())
         .collect();
-    if args.method != Method::Ls
-        || args.merge
-        || args.detrend != Detrend::None
-        || args.data.len() != 1
-    {
+    if !matches!(args.method, Method::Ls | Method::Rls) {
+        anyhow::bail!(sysid::SysidError::setting(
+            sysid::Setting::Other("--method"),
+            args.method,
+            &format!(
+                "ls or rls: several inputs (--u-col {}) are estimated by least squares or recursive least \
+                 squares; output error and instrumental variables take one input",
+                args.columns.u_col
+            )
+        ));
+    }
+    if args.merge || args.detrend != Detrend::None || args.data.len() != 1 {
         anyhow::bail!(
-            "several inputs (--u-col {}) are estimated by least squares from one --data file: use \
-             --method ls, without --merge or --detrend",
+            "several inputs (--u-col {}) are estimated from one --data file, without --merge or --detrend",
             args.columns.u_col
         );
     }
@@ -418,6 +431,7 @@ fn run_miso(args: &Args) -> anyhow::Result<()> {
             ));
         }
     }
+    args.settings().check()?;
     let nb = args.nb.per_input(names.len(), "--nb")?;
     let nk = args.nk.per_input(names.len(), "--nk")?;
     let data_path = &args.data[0];
@@ -458,15 +472,18 @@ fn run_miso(args: &Args) -> anyhow::Result<()> {
     let Some((y, ts, data_name)) = est_y else {
         anyhow::bail!("--u-col names no input");
     };
-    let fit = sysid::miso::identify_miso(
-        &est_inputs,
-        &y,
+    let problem = sysid::miso::MisoProblem {
+        inputs: &est_inputs,
+        y: &y,
         ts,
-        args.na,
-        args.model,
-        args.offset,
-        args.max_iterations,
-    )?;
+        na: args.na,
+        kind: args.model,
+        offset: args.offset,
+    };
+    let fit = match args.settings().estimator {
+        sysid::EstimatorSettings::Rls(st) => problem.recursive(&st)?,
+        _ => problem.least_squares(args.max_iterations)?,
+    };
     let us: Vec<&[f64]> = est_inputs.iter().map(|m| m.u.as_slice()).collect();
     let est = sysid::metrics::metrics_miso(&fit.model, &us, &y, &data_name)?;
     let val = match &val_y {
@@ -477,9 +494,50 @@ fn run_miso(args: &Args) -> anyhow::Result<()> {
         None => None,
     };
     let m = &fit.model;
+    let how = match (args.method, fit.converged) {
+        (Method::Rls, true) => format!(
+            "recursive least squares ({} pass(es), settled)",
+            fit.iterations
+        ),
+        (Method::Rls, false) => format!(
+            "recursive least squares ({} pass(es), NOT settled)",
+            fit.iterations
+        ),
+        (_, true) => format!("least squares ({} key-term iteration(s))", fit.iterations),
+        (_, false) => format!(
+            "least squares ({} key-term iteration(s), NOT converged)",
+            fit.iterations
+        ),
+    };
+    let mut warnings = Vec::new();
+    if !fit.converged {
+        warnings.push(match args.method {
+            Method::Rls => format!(
+                "the RLS estimate did not settle in {} pass(es); more passes (--passes auto) or --method ls",
+                fit.iterations
+            ),
+            _ => format!(
+                "the key-term iteration did not reach its fixed point in {} iteration(s) \
+                 (--max-iterations); the estimate may not be the least-squares one",
+                fit.iterations
+            ),
+        });
+    }
+    if !m.is_stable() {
+        warnings.push(
+            "the model is unstable (a pole on or outside the unit circle): its simulations diverge"
+                .into(),
+        );
+    }
+    for (what, mm) in [("estimation", Some(&est)), ("validation", val.as_ref())] {
+        if let Some(note) = mm.and_then(|mm| mm.note.as_ref()) {
+            warnings.push(format!("{what}: {note}"));
+        }
+    }
+    warnings.extend(notes.iter().map(|n| format!("data: {n}")));
     let mut text = format!(
-        "Data: {data_name} ({} samples){}\n{} model with {} inputs, na = {}, Ts = {} s, estimated by least \
-         squares ({} iteration(s))\n  a = {:?}{}\n",
+        "Data: {data_name} ({} samples){}\n{} model with {} inputs, na = {}, Ts = {} s, estimated by {how}\n  \
+         a = {:?}{}\n",
         y.len(),
         val_y
             .as_ref()
@@ -489,7 +547,6 @@ fn run_miso(args: &Args) -> anyhow::Result<()> {
         m.inputs().len(),
         m.na(),
         ts,
-        fit.iterations,
         m.a(),
         m.offset().map(|c| format!("\n  c = {c}")).unwrap_or_default(),
     );
@@ -517,18 +574,25 @@ fn run_miso(args: &Args) -> anyhow::Result<()> {
             .unwrap_or_default(),
         if m.is_stable() { "stable" } else { "UNSTABLE" }
     ));
+    for w in &warnings {
+        text.push_str(&format!("warning: {w}\n"));
+    }
     print_report(&text, args.json.as_deref());
     if let Some(path) = &args.json {
         let value = serde_json::json!({
             "model": m,
+            "method": args.method,
             "poles": sysid::summary::poles(m),
             "stable": m.is_stable(),
             "iterations": fit.iterations,
+            "converged": fit.converged,
             "metrics": { "estimation": est, "validation": val },
+            "warnings": warnings,
             "data_notes": notes,
         });
         let json = serde_json::to_string_pretty(&value)? + "\n";
         write_output(path, json.as_bytes(), &inputs, "--json")?;
     }
-    save_model(args, m, &inputs)
+    save_model(args, m, &inputs)?;
+    crate::exit::strict(args.strict, warnings.len())
 }

@@ -47,7 +47,9 @@ pub struct Args {
     /// Without --selection-rows: estimate on this first fraction of the estimation record, rank on the rest.
     #[arg(long, default_value_t = 2.0 / 3.0, value_name = "F")]
     pub selection_split: f64,
-    /// Model structure (`--model` is an older spelling; `--model` names a model file elsewhere).
+    /// Model structure (`--model` is an older spelling; `--model` names a model file elsewhere). The
+    /// default differs from `identify` on purpose: the search is MATLAB's `arxstruc`/`selstruc`, linear
+    /// structures that need no two-sided deadzone excitation; `identify` defaults to the paper's model.
     #[arg(
         long = "structure",
         alias = "model",
@@ -56,7 +58,8 @@ pub struct Args {
         default_value = "arx"
     )]
     pub model: ModelKind,
-    /// Estimator.
+    /// Estimator. The default differs from `identify` (rls, the paper's) on purpose: least squares is
+    /// the closed form for every structure of the grid, which RLS with ρ = 1 converges to.
     #[arg(long, value_enum, default_value = "ls")]
     pub method: Method,
     /// Estimate a constant term c in the linear block.

@@ -8,13 +8,15 @@ use ipa::{Experiment, Record};
 /// Flags of `simulate`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Plant: `ipa` (physics simulator), `paper` (the paper's Hammerstein model) or `model:FILE`.
+    /// Plant: `ipa` (physics simulator), `paper` (the paper's Hammerstein model) or `model:FILE` (a model
+    /// with several inputs runs on --input file:CSV and writes t, its inputs, y).
     #[arg(long, default_value = "ipa")]
     pub plant: String,
     /// TOML file overriding the physics plant's parameters (see `ipa-sysid plant-config`).
     #[arg(long, value_name = "FILE")]
     pub plant_config: Option<PathBuf>,
-    /// Input: staircase, prbs, aprbs, multisine, step:LEVEL[@SAMPLE] or file:CSV (column u).
+    /// Input: staircase, prbs, aprbs, multisine, step:LEVEL[@SAMPLE] or file:CSV (column u; for a model
+    /// with several inputs, one column per input named as in the model).
     #[arg(long, default_value = "staircase")]
     pub input: String,
     /// Amplitude A of the random inputs, PWM counts.
@@ -26,7 +28,9 @@ pub struct Args {
     /// Sampling period Ts in s (default 0.01; a model plant uses its own Ts).
     #[arg(long)]
     pub ts: Option<f64>,
-    /// Initial position y0 in mm (the piston starts at rest there; `--x0` is an older spelling).
+    /// Initial position y0 in mm (the piston starts at rest there; `--x0` is an older spelling). The
+    /// default, mid-stroke, differs from `control`'s 0 on purpose: an open-loop experiment must be able to
+    /// move both ways, the paper's closed-loop test starts from the end of the stroke.
     #[arg(long = "y0", alias = "x0", default_value_t = 100.0)]
     pub y0: f64,
     /// Seed of the random input and noise (the same seed gives a byte-identical file).
@@ -42,8 +46,15 @@ pub struct Args {
 
 /// Runs the subcommand.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    let plant: ipa::spec::PlantSpec = args.plant.parse()?;
+    if let ipa::spec::PlantSpec::ModelFile(path) = &plant {
+        let model = sysid::model_file::read_model(path)?;
+        if model.inputs().len() > 1 {
+            return run_miso(&args, &model, path);
+        }
+    }
     let exp = Experiment {
-        plant: args.plant.parse()?,
+        plant,
         plant_config: args.plant_config.clone(),
         input: args.input.parse()?,
         amplitude: args.amplitude,
@@ -89,4 +100,67 @@ fn write_csv(out: &Path, rec: &Record) -> anyhow::Result<()> {
         row
     });
     Ok(sysid_io::write_csv(out, header, rows)?)
+}
+
+/// Runs a model with several inputs open loop on recorded commands (`--input file:CSV` with one column per
+/// model input, named as in the model) from rest at `--y0`, and writes `t,<inputs>,y`.
+fn run_miso(args: &Args, model: &sysid::Model, model_path: &Path) -> anyhow::Result<()> {
+    let names: Vec<&str> = model.inputs().iter().map(|i| i.name()).collect();
+    let input: ipa::InputSpec = args.input.parse()?;
+    let Some(file) = input.file() else {
+        anyhow::bail!(sysid::SysidError::setting(
+            sysid::Setting::Other("--input"),
+            &args.input,
+            &format!(
+                "file:CSV with one column per model input ({}): a model with several inputs is simulated on \
+                 recorded commands",
+                names.join(", ")
+            )
+        ));
+    };
+    let refused = [
+        (args.noise_std != 0.0, "--noise-std"),
+        (args.plant_config.is_some(), "--plant-config"),
+        (args.samples.is_some(), "--samples"),
+    ];
+    if let Some((_, flag)) = refused.iter().find(|(on, _)| *on) {
+        anyhow::bail!(
+            "{flag} is not available with a several-input model: it runs the commands of --input file:CSV \
+             as they are, without noise"
+        );
+    }
+    if let Some(ts) = args.ts {
+        if (ts - model.ts()).abs() > 1e-9 * model.ts() {
+            anyhow::bail!(sysid::SysidError::setting(
+                sysid::Setting::Other("--ts"),
+                ts,
+                &format!("the model's own Ts ({} s), or no --ts", model.ts())
+            ));
+        }
+    }
+    let inputs: Vec<&Path> = vec![model_path, file];
+    sysid_io::check_writable(&args.out, "--out")?;
+    sysid_io::refuse_overwrite_input(&args.out, &inputs, "--out")?;
+    let u = ipa::input::read_input_columns(file, &names)?;
+    let us: Vec<&[f64]> = u.iter().map(Vec::as_slice).collect();
+    let y = sysid::model::run_from_rest(model, &us, args.y0)?;
+    let mut header = vec!["t"];
+    header.extend(&names);
+    header.push("y");
+    let times = sysid::data::sample_times(y.len(), model.ts());
+    let rows = times.iter().enumerate().map(|(k, t)| {
+        let mut row = vec![t.to_string()];
+        row.extend(u.iter().map(|c| c[k].to_string()));
+        row.push(y[k].to_string());
+        row
+    });
+    sysid_io::write_csv(&args.out, &header, rows)?;
+    eprintln!(
+        "wrote {} samples (Ts = {} s) of the {}-input model to {}",
+        y.len(),
+        model.ts(),
+        names.len(),
+        args.out.display()
+    );
+    Ok(())
 }

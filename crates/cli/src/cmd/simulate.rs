@@ -82,9 +82,11 @@ fn write_csv(out: &Path, rec: &Record) -> anyhow::Result<()> {
     };
     let times = sysid::data::sample_times(rec.u.len(), rec.ts);
     let rows = times.iter().enumerate().map(|(k, t)| {
-        let mut row = vec![t.to_string(), rec.u[k].to_string(), rec.y[k].to_string()];
+        let mut row = [*t, rec.u[k], rec.y[k]]
+            .map(sysid_io::format_shortest)
+            .to_vec();
         if let Some(p) = &rec.pressures {
-            row.extend([format!("{:.1}", p[k][0]), format!("{:.1}", p[k][1])]);
+            row.extend(p[k].map(sysid_io::format_one_decimal));
         }
         row
     });

@@ -117,8 +117,13 @@ impl Experiment {
                     |ipa: &Ipa| p.push(ipa.pressures_pa()),
                 )?,
                 _ => {
-                    let u =
-                        crate::generate(&self.input, samples, plant.ts(), self.amplitude, self.seed)?;
+                    let u = crate::generate(
+                        &self.input,
+                        samples,
+                        plant.ts(),
+                        self.amplitude,
+                        self.seed,
+                    )?;
                     let mut y = Vec::with_capacity(u.len());
                     for (k, &uk) in u.iter().enumerate() {
                         y.push(plant.output());

@@ -1,8 +1,8 @@
 #!/usr/bin/env python3
 """Real-time factor of the physics plant: `ipa-sysid bench plant --reference` (the production
 Dormand-Prince integrator and the previous RK4 integrator timed in the same run) and the end-to-end
-`ipa-sysid simulate --plant ipa --samples N` (input design, simulation and CSV writing), repeated in
-rounds; prints the median over the rounds (the machine is shared: single runs are noisy).
+`ipa-sysid simulate --plant ipa --samples N` (input design, simulation and CSV writing; per wall-clock
+second and per CPU second of the process, which a loaded machine does not inflate), repeated in rounds; prints the median over the rounds (the machine is shared: single runs are noisy).
 
     python3 scripts/bench_plant.py [--bin target/release/ipa-sysid] [--before OLD_BINARY] [--rounds 5]
 
@@ -10,6 +10,7 @@ rounds; prints the median over the rounds (the machine is shared: single runs ar
 """
 import argparse
 import json
+import resource
 import statistics
 import subprocess
 import tempfile
@@ -25,7 +26,14 @@ def bench_plant(binary, reference, reps, samples):
     return json.loads(out)
 
 
+def cpu_seconds():
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
 def simulate_rtf(binary, samples, out_csv):
+    """Real-time factors of one `simulate` run: per wall-clock second and per CPU second (user + system)."""
+    cpu = cpu_seconds()
     start = time.perf_counter()
     subprocess.run(
         [binary, "simulate", "--plant", "ipa", "--samples", str(samples), "--out", str(out_csv)],
@@ -33,7 +41,8 @@ def simulate_rtf(binary, samples, out_csv):
         capture_output=True,
     )
     wall = time.perf_counter() - start
-    return samples * 0.01 / wall
+    cpu = cpu_seconds() - cpu
+    return samples * 0.01 / wall, samples * 0.01 / cpu
 
 
 def main():
@@ -57,12 +66,15 @@ def main():
             add("bench plant: Dormand-Prince (median of its runs)", r["median_real_time_factor"])
             add("bench plant: RK4 reference, same run (median of its runs)", r["reference"]["median_real_time_factor"])
             add("bench plant: speed-up (median/median)", r["reference"]["median_speedup"])
-            add(f"simulate --samples {a.simulate_samples}: end-to-end", simulate_rtf(a.bin, a.simulate_samples, csv))
+            wall, cpu = simulate_rtf(a.bin, a.simulate_samples, csv)
+            add(f"simulate --samples {a.simulate_samples}: end-to-end", wall)
+            add(f"simulate --samples {a.simulate_samples}: end-to-end per CPU second", cpu)
             if a.before:
                 rb = bench_plant(a.before, False, a.repetitions, a.bench_samples)
                 add("before: bench plant (median of its runs)", rb["median_real_time_factor"])
-                add(f"before: simulate --samples {a.simulate_samples}: end-to-end",
-                    simulate_rtf(a.before, a.simulate_samples, csv))
+                wall, cpu = simulate_rtf(a.before, a.simulate_samples, csv)
+                add(f"before: simulate --samples {a.simulate_samples}: end-to-end", wall)
+                add(f"before: simulate --samples {a.simulate_samples}: per CPU second", cpu)
     print(f"real-time factor, median of {a.rounds} rounds (min..max):")
     for key, vals in rows.items():
         print(f"  {key:<62} {statistics.median(vals):8.2f}  ({min(vals):.2f}..{max(vals):.2f})")

@@ -45,6 +45,18 @@ def simulate_rtf(binary, samples, out_csv):
     return samples * 0.01 / wall, samples * 0.01 / cpu
 
 
+def bench_plant_cpu(binary, samples):
+    """Real-time factor of `bench plant` per CPU second: the CPU time of a run with 5 timed repetitions
+    minus that of a run with 1 (input design, warm-up and start-up cancel), over the 4 extra runs."""
+    def cpu_of(reps):
+        c = cpu_seconds()
+        subprocess.run([binary, "bench", "plant", "--repetitions", str(reps), "--samples", str(samples)],
+                       check=True, capture_output=True)
+        return cpu_seconds() - c
+    per_run = (cpu_of(5) - cpu_of(1)) / 4
+    return samples * 0.01 / per_run
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--bin", default="target/release/ipa-sysid")
@@ -53,6 +65,8 @@ def main():
     ap.add_argument("--repetitions", type=int, default=5, help="timed runs inside each bench plant call")
     ap.add_argument("--bench-samples", type=int, default=6000)
     ap.add_argument("--simulate-samples", type=int, default=200000)
+    ap.add_argument("--cpu-samples", type=int, default=200000,
+                    help="samples of the bench plant runs timed per CPU second (0: skip)")
     a = ap.parse_args()
     rows = {}
 
@@ -69,7 +83,12 @@ def main():
             wall, cpu = simulate_rtf(a.bin, a.simulate_samples, csv)
             add(f"simulate --samples {a.simulate_samples}: end-to-end", wall)
             add(f"simulate --samples {a.simulate_samples}: end-to-end per CPU second", cpu)
+            if a.cpu_samples:
+                add(f"bench plant --samples {a.cpu_samples}: per CPU second", bench_plant_cpu(a.bin, a.cpu_samples))
             if a.before:
+                if a.cpu_samples:
+                    add(f"before: bench plant --samples {a.cpu_samples}: per CPU second",
+                        bench_plant_cpu(a.before, a.cpu_samples))
                 rb = bench_plant(a.before, False, a.repetitions, a.bench_samples)
                 add("before: bench plant (median of its runs)", rb["median_real_time_factor"])
                 wall, cpu = simulate_rtf(a.before, a.simulate_samples, csv)

@@ -2,12 +2,15 @@
 """The peer of `ipa-sysid bench oe`: SysIdentPy's FROLS (forward-regression orthogonal least squares with
 AIC order selection) on the same records and the same regressors as the output-error benchmark.
 
-    python scripts/bench_sysidentpy.py [--data-dir ../shared/data] [--repetitions 3] [--json OUT|-]
+    python scripts/bench_sysidentpy.py --data-dir DATA [--repetitions 3] [--json OUT|-]
 
 Needs `sysidentpy` (PyPI), e.g. in a venv under target/ (never committed):
 
     python3 -m venv target/bench-venv && target/bench-venv/bin/pip install sysidentpy
-    target/release/ipa-sysid bench oe --peer target/bench-venv/bin/python   # both in one run
+    target/release/ipa-sysid bench oe --data-dir DATA --peer target/bench-venv/bin/python   # both in one run
+
+DATA is the folder holding the public benchmark records emps/DATA_EMPS.csv and silverbox/SNLS80mV.csv
+(nonlinearbenchmark.org); they are not part of the project.
 
 Cases (as `sysid_studies::oe_bench::OE_CASES`): EMPS `vir` -> `qm`, all 24 841 rows, ARX(6,5,0) with a
 constant; silverbox `V1` -> `V2`, rows [40650, 105712), ARX(7,9,0). The candidate terms are the linear
@@ -108,7 +111,7 @@ def run_case(case, data_dir, reps):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--data-dir", default="../shared/data")
+    ap.add_argument("--data-dir", required=True, help="folder with emps/ and silverbox/")
     ap.add_argument("--repetitions", type=int, default=3)
     ap.add_argument("--json", help="write the result as JSON here ('-' for standard output)")
     a = ap.parse_args()

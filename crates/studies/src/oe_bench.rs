@@ -1,8 +1,8 @@
 //! Output-error identification on long real records (issue 16): the cases `ipa-sysid bench oe` times —
 //! EMPS (`vir` → `qm`, ARX(6,5,0) with an offset) and the silverbox multisine block (`V1` → `V2`,
 //! ARX(7,9,0)) — and the timing of one case. The records themselves are not part of the project: the
-//! caller reads them from a data folder (`../shared/data` on the development machine) and skips a case
-//! whose file is absent.
+//! caller reads them from a data folder that holds the public EMPS and silverbox benchmark records
+//! (nonlinearbenchmark.org) and skips a case whose file is absent.
 
 use std::hint::black_box;
 use std::path::{Path, PathBuf};

@@ -14,9 +14,10 @@ use super::common::write_output;
 /// Flags of `bench oe`.
 #[derive(Debug, clap::Args)]
 pub struct OeArgs {
-    /// Folder holding `emps/DATA_EMPS.csv` and `silverbox/SNLS80mV.csv`; a case whose file is absent is
-    /// skipped with a message.
-    #[arg(long, value_name = "DIR", default_value = "../shared/data")]
+    /// Folder holding the public benchmark records `emps/DATA_EMPS.csv` and `silverbox/SNLS80mV.csv`
+    /// (nonlinearbenchmark.org; not part of the project); a case whose file is absent is skipped with a
+    /// message.
+    #[arg(long, value_name = "DIR")]
     pub data_dir: PathBuf,
     /// Timed repetitions per case (the best and the median are reported).
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..=1000))]

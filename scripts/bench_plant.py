@@ -2,7 +2,9 @@
 """Real-time factor of the physics plant: `ipa-sysid bench plant --reference` (the production
 Dormand-Prince integrator and the previous RK4 integrator timed in the same run) and the end-to-end
 `ipa-sysid simulate --plant ipa --samples N` (input design, simulation and CSV writing; per wall-clock
-second and per CPU second of the process, which a loaded machine does not inflate), repeated in rounds; prints the median over the rounds (the machine is shared: single runs are noisy).
+second and per CPU second of the process, which a loaded machine does not inflate), and `bench plant`
+per CPU second, repeated in rounds; prints the median over the rounds (the machine is shared: single
+runs are noisy).
 
     python3 scripts/bench_plant.py [--bin target/release/ipa-sysid] [--before OLD_BINARY] [--rounds 5]
 

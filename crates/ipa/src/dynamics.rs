@@ -147,7 +147,7 @@ impl Dynamics {
     }
 
     /// ds/dt in mode `mode` with valves `valves`.
-    #[inline]
+    #[inline(always)]
     pub fn derivative(&self, s: &State, mode: Mode, valves: Valves) -> State {
         let c = &self.cylinder;
         let (v, a) = match mode {

@@ -1,8 +1,10 @@
 #!/usr/bin/env python3
 """Real-time factor of the physics plant: `ipa-sysid bench plant --reference` (the production
 Dormand-Prince integrator and the previous RK4 integrator timed in the same run) and the end-to-end
-`ipa-sysid simulate --plant ipa --samples N` (input design, simulation and CSV writing), repeated in
-rounds; prints the median over the rounds (the machine is shared: single runs are noisy).
+`ipa-sysid simulate --plant ipa --samples N` (input design, simulation and CSV writing; per wall-clock
+second and per CPU second of the process, which a loaded machine does not inflate), and `bench plant`
+per CPU second, repeated in rounds; prints the median over the rounds (the machine is shared: single
+runs are noisy).
 
     python3 scripts/bench_plant.py [--bin target/release/ipa-sysid] [--before OLD_BINARY] [--rounds 5]
 
@@ -10,6 +12,7 @@ rounds; prints the median over the rounds (the machine is shared: single runs ar
 """
 import argparse
 import json
+import resource
 import statistics
 import subprocess
 import tempfile
@@ -25,7 +28,14 @@ def bench_plant(binary, reference, reps, samples):
     return json.loads(out)
 
 
+def cpu_seconds():
+    r = resource.getrusage(resource.RUSAGE_CHILDREN)
+    return r.ru_utime + r.ru_stime
+
+
 def simulate_rtf(binary, samples, out_csv):
+    """Real-time factors of one `simulate` run: per wall-clock second and per CPU second (user + system)."""
+    cpu = cpu_seconds()
     start = time.perf_counter()
     subprocess.run(
         [binary, "simulate", "--plant", "ipa", "--samples", str(samples), "--out", str(out_csv)],
@@ -33,7 +43,20 @@ def simulate_rtf(binary, samples, out_csv):
         capture_output=True,
     )
     wall = time.perf_counter() - start
-    return samples * 0.01 / wall
+    cpu = cpu_seconds() - cpu
+    return samples * 0.01 / wall, samples * 0.01 / cpu
+
+
+def bench_plant_cpu(binary, samples):
+    """Real-time factor of `bench plant` per CPU second: the CPU time of a run with 5 timed repetitions
+    minus that of a run with 1 (input design, warm-up and start-up cancel), over the 4 extra runs."""
+    def cpu_of(reps):
+        c = cpu_seconds()
+        subprocess.run([binary, "bench", "plant", "--repetitions", str(reps), "--samples", str(samples)],
+                       check=True, capture_output=True)
+        return cpu_seconds() - c
+    per_run = (cpu_of(5) - cpu_of(1)) / 4
+    return samples * 0.01 / per_run
 
 
 def main():
@@ -44,6 +67,8 @@ def main():
     ap.add_argument("--repetitions", type=int, default=5, help="timed runs inside each bench plant call")
     ap.add_argument("--bench-samples", type=int, default=6000)
     ap.add_argument("--simulate-samples", type=int, default=200000)
+    ap.add_argument("--cpu-samples", type=int, default=200000,
+                    help="samples of the bench plant runs timed per CPU second (0: skip)")
     a = ap.parse_args()
     rows = {}
 
@@ -57,12 +82,20 @@ def main():
             add("bench plant: Dormand-Prince (median of its runs)", r["median_real_time_factor"])
             add("bench plant: RK4 reference, same run (median of its runs)", r["reference"]["median_real_time_factor"])
             add("bench plant: speed-up (median/median)", r["reference"]["median_speedup"])
-            add(f"simulate --samples {a.simulate_samples}: end-to-end", simulate_rtf(a.bin, a.simulate_samples, csv))
+            wall, cpu = simulate_rtf(a.bin, a.simulate_samples, csv)
+            add(f"simulate --samples {a.simulate_samples}: end-to-end", wall)
+            add(f"simulate --samples {a.simulate_samples}: end-to-end per CPU second", cpu)
+            if a.cpu_samples:
+                add(f"bench plant --samples {a.cpu_samples}: per CPU second", bench_plant_cpu(a.bin, a.cpu_samples))
             if a.before:
+                if a.cpu_samples:
+                    add(f"before: bench plant --samples {a.cpu_samples}: per CPU second",
+                        bench_plant_cpu(a.before, a.cpu_samples))
                 rb = bench_plant(a.before, False, a.repetitions, a.bench_samples)
                 add("before: bench plant (median of its runs)", rb["median_real_time_factor"])
-                add(f"before: simulate --samples {a.simulate_samples}: end-to-end",
-                    simulate_rtf(a.before, a.simulate_samples, csv))
+                wall, cpu = simulate_rtf(a.before, a.simulate_samples, csv)
+                add(f"before: simulate --samples {a.simulate_samples}: end-to-end", wall)
+                add(f"before: simulate --samples {a.simulate_samples}: per CPU second", cpu)
     print(f"real-time factor, median of {a.rounds} rounds (min..max):")
     for key, vals in rows.items():
         print(f"  {key:<62} {statistics.median(vals):8.2f}  ({min(vals):.2f}..{max(vals):.2f})")

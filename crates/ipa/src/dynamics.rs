@@ -147,7 +147,7 @@ impl Dynamics {
     }
 
     /// ds/dt in mode `mode` with valves `valves`.
-    #[inline]
+    #[inline(always)]
     pub fn derivative(&self, s: &State, mode: Mode, valves: Valves) -> State {
         let c = &self.cylinder;
         let (v, a) = match mode {
@@ -325,7 +325,15 @@ impl Dopri5Step {
     pub fn quartic(&self, w: &[f64; 4], c: f64) -> [f64; 5] {
         let dot = |s: &State| w[0] * s.x_m + w[1] * s.v_m_s + w[2] * s.p_cap_pa + w[3] * s.p_rod_pa;
         let h = self.h_s;
-        let [k1, k3, k4, k5, k6, k7] = self.k.each_ref().map(dot);
+        // Written out: `each_ref().map(dot)` compiled to an out-of-line array map (4 % of a simulation).
+        let [k1, k3, k4, k5, k6, k7] = [
+            dot(&self.k[0]),
+            dot(&self.k[1]),
+            dot(&self.k[2]),
+            dot(&self.k[3]),
+            dot(&self.k[4]),
+            dot(&self.k[5]),
+        ];
         let a = dot(&self.y0) + c;
         let b = dot(&self.y) - dot(&self.y0);
         let c3 = h * k1 - b;

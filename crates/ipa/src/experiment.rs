@@ -7,7 +7,9 @@ use std::path::PathBuf;
 
 use sysid_core::{Plant, Setting, SysidError};
 
-use crate::input::{staircase_experiment, InputSpec, StaircaseDesign};
+use crate::input::{
+    staircase_experiment, staircase_experiment_observed, InputSpec, StaircaseDesign,
+};
 use crate::{Ipa, IpaError, PlantConfig, PlantSpec};
 
 /// Default number of samples N of an experiment.
@@ -102,30 +104,39 @@ impl Experiment {
             };
             let mut plant = Ipa::with_ts(cfg, self.ts.unwrap_or(crate::DEFAULT_TS_S))?;
             plant.reset(self.x0);
-            let u = match self.input {
-                InputSpec::Staircase => {
-                    // The experimenter's rule watches the plant: design on a copy, then record.
-                    let mut copy = plant.clone();
-                    staircase_experiment(
-                        &mut copy,
-                        &StaircaseDesign::default(),
+            let mut p = Vec::with_capacity(samples);
+            let (u, y) = match self.input {
+                // The experimenter's rule watches the plant: the designed input and the record come from
+                // one run, the pressures observed at each sample before its command is applied.
+                InputSpec::Staircase => staircase_experiment_observed(
+                    &mut plant,
+                    &StaircaseDesign::default(),
+                    samples,
+                    self.amplitude,
+                    self.seed,
+                    |ipa: &Ipa| p.push(ipa.pressures_pa()),
+                )?,
+                _ => {
+                    let u = crate::generate(
+                        &self.input,
                         samples,
+                        plant.ts(),
                         self.amplitude,
                         self.seed,
-                    )?
-                    .0
+                    )?;
+                    let mut y = Vec::with_capacity(u.len());
+                    for (k, &uk) in u.iter().enumerate() {
+                        y.push(plant.output());
+                        p.push(plant.pressures_pa());
+                        plant.step(uk).map_err(|e| {
+                            IpaError::Sysid(
+                                SysidError::from(e).context(&format!("simulating sample {k}")),
+                            )
+                        })?;
+                    }
+                    (u, y)
                 }
-                _ => crate::generate(&self.input, samples, plant.ts(), self.amplitude, self.seed)?,
             };
-            let mut y = Vec::with_capacity(u.len());
-            let mut p = Vec::with_capacity(u.len());
-            for (k, &uk) in u.iter().enumerate() {
-                y.push(plant.output());
-                p.push(plant.pressures_pa());
-                plant.step(uk).map_err(|e| {
-                    IpaError::Sysid(SysidError::from(e).context(&format!("simulating sample {k}")))
-                })?;
-            }
             Record {
                 u,
                 y,

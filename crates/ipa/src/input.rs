@@ -275,6 +275,20 @@ pub fn staircase_experiment(
     amplitude: f64,
     seed: u64,
 ) -> Result<(Vec<f64>, Vec<f64>), IpaError> {
+    staircase_experiment_observed(plant, design, samples, amplitude, seed, |_| ())
+}
+
+/// [`staircase_experiment`] that also hands the plant to `observe` at every sample, just before u(k) is
+/// applied (when y(k) is recorded): what else a logger records (the physics plant's pressures) comes
+/// from the same run, so the plant need not be simulated a second time with the designed input.
+pub fn staircase_experiment_observed<P: sysid_core::Plant + ?Sized>(
+    plant: &mut P,
+    design: &StaircaseDesign,
+    samples: usize,
+    amplitude: f64,
+    seed: u64,
+    mut observe: impl FnMut(&P),
+) -> Result<(Vec<f64>, Vec<f64>), IpaError> {
     let ts_s = plant.ts();
     check_settings(samples, ts_s, amplitude)?;
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
@@ -306,6 +320,7 @@ pub fn staircase_experiment(
             }
             u.push(level);
             y.push(yk);
+            observe(plant);
             plant.step(level).map_err(|e| match e {
                 sysid_core::PlantError::Diverged(m) => sysid_core::SysidError::Numerical(format!(
                     "{m} (while applying u({}) = {level})",

@@ -1,7 +1,8 @@
 //! `sysid-studies`: studies of the estimators of crate `sysid` — Monte-Carlo runs for bias and spread
-//! ([`montecarlo`]) and speed benchmarks ([`bench`]). Application code: it may use threads (rayon) and
+//! ([`montecarlo`]) and speed benchmarks ([`bench`], [`oe_bench`]). Application code: it may use threads (rayon) and
 //! random numbers (rand), which the identification library itself does not.
 
 pub mod bench;
 pub mod montecarlo;
+pub mod oe_bench;
 pub mod rng;

@@ -1,5 +1,6 @@
-//! `ipa-sysid bench`: RLS throughput, identification time and the plant's real-time factor. The timing
-//! loops live in `sysid_studies::bench`; this file parses flags, builds the inputs and prints.
+//! `ipa-sysid bench`: RLS throughput, identification time, the plant's real-time factor and output error
+//! on real records (`bench_oe.rs`). The timing loops live in `sysid_studies`; this file parses flags,
+//! builds the inputs and prints.
 
 use std::path::PathBuf;
 
@@ -28,6 +29,9 @@ pub enum What {
     Identify(IdentifyArgs),
     /// Real-time factor of a plant simulation (simulated seconds per wall-clock second).
     Plant(PlantArgs),
+    /// Seconds, iterations and fit of output-error identification on the EMPS and silverbox records
+    /// (`--peer PYTHON`: SysIdentPy's FROLS on the same records in the same run).
+    Oe(super::bench_oe::OeArgs),
 }
 
 /// Flags shared by every benchmark.
@@ -103,6 +107,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         What::Rls(a) => rls(a),
         What::Identify(a) => identify(a),
         What::Plant(a) => plant(a),
+        What::Oe(a) => super::bench_oe::run(a),
     }
 }
 

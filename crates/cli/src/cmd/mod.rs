@@ -1,6 +1,7 @@
 //! One module per subcommand: its flags (`Args`) and its `run`.
 
 pub mod bench;
+pub mod bench_oe;
 pub mod common;
 pub mod control;
 pub mod delay;

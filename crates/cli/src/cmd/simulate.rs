@@ -86,20 +86,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 /// Writes the record as CSV (t, u, y in Rust's shortest round-trip decimals; pressures, when simulated,
 /// to 0.1 Pa).
 fn write_csv(out: &Path, rec: &Record) -> anyhow::Result<()> {
-    let header: &[&str] = if rec.pressures.is_some() {
-        &["t", "u", "y", "p_a_pa", "p_b_pa"]
-    } else {
-        &["t", "u", "y"]
-    };
+    use sysid_io::NumberFormat::{OneDecimal, Shortest};
     let times = sysid::data::sample_times(rec.u.len(), rec.ts);
-    let rows = times.iter().enumerate().map(|(k, t)| {
-        let mut row = vec![t.to_string(), rec.u[k].to_string(), rec.y[k].to_string()];
-        if let Some(p) = &rec.pressures {
-            row.extend([format!("{:.1}", p[k][0]), format!("{:.1}", p[k][1])]);
-        }
-        row
-    });
-    Ok(sysid_io::write_csv(out, header, rows)?)
+    let mut header = vec!["t", "u", "y"];
+    let mut columns: Vec<(&[f64], sysid_io::NumberFormat)> =
+        vec![(&times, Shortest), (&rec.u, Shortest), (&rec.y, Shortest)];
+    let pressures: Option<[Vec<f64>; 2]> = rec
+        .pressures
+        .as_ref()
+        .map(|p| [0, 1].map(|i| p.iter().map(|pk| pk[i]).collect()));
+    if let Some([pa, pb]) = &pressures {
+        header.extend(["p_a_pa", "p_b_pa"]);
+        columns.extend([(pa.as_slice(), OneDecimal), (pb.as_slice(), OneDecimal)]);
+    }
+    Ok(sysid_io::write_formatted_columns_csv(
+        out, &header, &columns,
+    )?)
 }
 
 /// Runs a model with several inputs open loop on recorded commands (`--input file:CSV` with one column per

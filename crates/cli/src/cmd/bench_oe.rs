@@ -1,0 +1,213 @@
+//! `ipa-sysid bench oe`: seconds, iterations and fit of output-error identification on the EMPS and
+//! silverbox records (`sysid_studies::oe_bench`), and on request SysIdentPy's FROLS on the same records
+//! in the same run (`scripts/bench_sysidentpy.py`, run with the Python given by `--peer`).
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use anyhow::Context;
+use serde::Serialize;
+use sysid_studies::oe_bench::{bench_oe, OeBench, OE_CASES};
+
+use super::common::write_output;
+
+/// Flags of `bench oe`.
+#[derive(Debug, clap::Args)]
+pub struct OeArgs {
+    /// Folder holding the public benchmark records `emps/DATA_EMPS.csv` and `silverbox/SNLS80mV.csv`
+    /// (nonlinearbenchmark.org; not part of the project); a case whose file is absent is skipped with a
+    /// message.
+    #[arg(long, value_name = "DIR")]
+    pub data_dir: PathBuf,
+    /// Timed repetitions per case (the best and the median are reported).
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u64).range(1..=1000))]
+    pub repetitions: u64,
+    /// Also run the peer, SysIdentPy's FROLS on the same records, with this Python interpreter (one that
+    /// has `sysidentpy` installed), in the same run.
+    #[arg(long, value_name = "PYTHON")]
+    pub peer: Option<PathBuf>,
+    /// The peer's script.
+    #[arg(
+        long,
+        value_name = "FILE",
+        default_value = "scripts/bench_sysidentpy.py"
+    )]
+    pub peer_script: PathBuf,
+    /// Write the result as JSON here (`-` for standard output).
+    #[arg(long, value_name = "OUT")]
+    pub json: Option<PathBuf>,
+}
+
+/// One case of the JSON output.
+#[derive(Serialize)]
+struct Case {
+    name: &'static str,
+    file: String,
+    command: String,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    output_error: Option<OeBench>,
+    /// Why the case was not run (its file is absent).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    skipped: Option<String>,
+    /// The peer's result on the same record (its script's JSON for this case).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    peer: Option<serde_json::Value>,
+}
+
+/// Runs `bench oe`.
+pub fn run(a: OeArgs) -> anyhow::Result<()> {
+    let reps = a.repetitions as usize;
+    let mut text = format!(
+        "Output-error identification (ARX, Levenberg-Marquardt on the simulation error), best of {reps}:\n"
+    );
+    let mut cases = Vec::new();
+    let mut inputs: Vec<PathBuf> = Vec::new();
+    for case in &OE_CASES {
+        let path = case.path(&a.data_dir);
+        let mut out = Case {
+            name: case.name,
+            file: path.display().to_string(),
+            command: case.command(&a.data_dir),
+            output_error: None,
+            skipped: None,
+            peer: None,
+        };
+        if !path.is_file() {
+            let why = format!(
+                "{} not found (the record is not part of the project)",
+                path.display()
+            );
+            text.push_str(&format!("  {:<10} skipped: {why}\n", case.name));
+            out.skipped = Some(why);
+            cases.push(out);
+            continue;
+        }
+        let data = sysid::data::read_csv(&path, &case.csv_options())?;
+        let r = bench_oe(&data, &case.settings(), reps)
+            .with_context(|| format!("bench oe: case {}", case.name))?;
+        let (na, nb, nk) = case.orders;
+        text.push_str(&format!(
+            "  {:<10} ({na},{nb},{nk}), {} samples: {:.3} s (median {:.3} s), {} iterations ({}), fit {} % (simulation), {} % (y0 measured)\n",
+            case.name,
+            r.samples,
+            r.seconds,
+            r.median_seconds,
+            r.iterations,
+            if r.converged { "converged" } else { "NOT converged" },
+            percent(r.fit_sim_percent),
+            percent(r.fit_sim_measured_percent),
+        ));
+        out.output_error = Some(r);
+        inputs.push(path);
+        cases.push(out);
+    }
+    let peer = match &a.peer {
+        Some(python) if !inputs.is_empty() => Some(run_peer(python, &a, &mut cases, &mut text)?),
+        Some(_) => {
+            text.push_str("peer not run: no record was found\n");
+            None
+        }
+        None => None,
+    };
+    #[derive(Serialize)]
+    struct Out {
+        benchmark: &'static str,
+        data_dir: String,
+        repetitions: usize,
+        cases: Vec<Case>,
+        #[serde(skip_serializing_if = "Option::is_none")]
+        peer_versions: Option<serde_json::Value>,
+    }
+    let out = Out {
+        benchmark: "oe",
+        data_dir: a.data_dir.display().to_string(),
+        repetitions: reps,
+        cases,
+        peer_versions: peer,
+    };
+    let to_stdout = a.json.as_deref().is_some_and(|p| p.as_os_str() == "-");
+    if to_stdout {
+        eprint!("{text}");
+    } else {
+        print!("{text}");
+    }
+    if let Some(path) = &a.json {
+        let body =
+            serde_json::to_string_pretty(&out).context("serialising the benchmark result")? + "\n";
+        let ins: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
+        write_output(path, body.as_bytes(), &ins, "--json")?;
+    }
+    Ok(())
+}
+
+fn percent(v: Option<f64>) -> String {
+    v.map_or_else(|| "n/a".into(), |f| format!("{f:.2}"))
+}
+
+/// Runs the peer script; adds its per-case results to `cases` and its lines to `text`; returns the
+/// versions it reports.
+fn run_peer(
+    python: &Path,
+    a: &OeArgs,
+    cases: &mut [Case],
+    text: &mut String,
+) -> anyhow::Result<serde_json::Value> {
+    let output = Command::new(python)
+        .arg(&a.peer_script)
+        .arg("--data-dir")
+        .arg(&a.data_dir)
+        .arg("--repetitions")
+        .arg(a.repetitions.to_string())
+        .arg("--json")
+        .arg("-")
+        .output()
+        .with_context(|| {
+            format!(
+                "--peer {}: cannot run {}",
+                python.display(),
+                a.peer_script.display()
+            )
+        })?;
+    if !output.status.success() {
+        anyhow::bail!(
+            "--peer: {} {} failed ({}): {}",
+            python.display(),
+            a.peer_script.display(),
+            output.status,
+            String::from_utf8_lossy(&output.stderr).trim()
+        );
+    }
+    let v: serde_json::Value = serde_json::from_slice(&output.stdout)
+        .with_context(|| format!("--peer: {} did not print JSON", a.peer_script.display()))?;
+    let versions = v
+        .get("versions")
+        .cloned()
+        .unwrap_or(serde_json::Value::Null);
+    text.push_str(&format!(
+        "Peer in the same run: SysIdentPy FROLS ({versions}):\n"
+    ));
+    for case in cases.iter_mut() {
+        let Some(p) = v.get("cases").and_then(|c| c.get(case.name)) else {
+            continue;
+        };
+        let num = |k: &str| p.get(k).and_then(serde_json::Value::as_f64);
+        text.push_str(&format!(
+            "  {:<10} {} samples: {} s (median {} s), {} terms, fit {} % (free-run simulation)\n",
+            case.name,
+            num("samples").map_or("?".into(), |n| format!("{n:.0}")),
+            num("seconds").map_or("?".into(), |s| format!("{s:.3}")),
+            num("median_seconds").map_or("?".into(), |s| format!("{s:.3}")),
+            num("terms").map_or("?".into(), |n| format!("{n:.0}")),
+            percent(num("fit_sim_percent")),
+        ));
+        if let (Some(ours), Some(theirs)) = (&case.output_error, num("seconds")) {
+            text.push_str(&format!(
+                "  {:<10} time ratio (SysIdentPy / ipa-sysid): {:.1}\n",
+                "",
+                theirs / ours.seconds.max(1e-12)
+            ));
+        }
+        case.peer = Some(p.clone());
+    }
+    Ok(versions)
+}

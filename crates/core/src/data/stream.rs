@@ -304,7 +304,6 @@ impl RecordSource for CsvStream {
             .delimiter(self.delimiter)
             .has_headers(self.has_header)
             .flexible(true)
-            .trim(csv::Trim::All)
             .buffer_capacity(1 << 16)
             .from_reader(file);
         let file_name = self.path.display().to_string();
@@ -328,11 +327,13 @@ impl RecordSource for CsvStream {
                 Ok(false) => break,
                 Err(e) => return Err(csv_err(&file_name, e)),
             }
-            if rec.iter().all(<[u8]>::is_empty) {
+            // Fields are trimmed here (csv's own trimming allocates a new record per row).
+            let blank = |f: &[u8]| f.trim_ascii().is_empty();
+            if rec.iter().all(blank) {
                 continue; // a blank line or a row of bare delimiters
             }
             let line = rec.position().map_or(0, |p| p.line() as usize);
-            if let Some(extra) = rec.iter().skip(width).position(|f| !f.is_empty()) {
+            if let Some(extra) = rec.iter().skip(width).position(|f| !blank(f)) {
                 return Err(ragged_row(&file_name, line, width, extra));
             }
             let index = row;
@@ -352,7 +353,7 @@ impl RecordSource for CsvStream {
                             "the file is not UTF-8 text (binary data?); expected CSV".into(),
                         ))
                     }
-                    Some(Ok(c)) => Some(c),
+                    Some(Ok(c)) => Some(c.trim()),
                     None => None,
                 };
                 cell_value(

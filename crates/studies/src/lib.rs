@@ -3,5 +3,6 @@
 //! random numbers (rand), which the identification library itself does not.
 
 pub mod bench;
+pub mod long;
 pub mod montecarlo;
 pub mod rng;

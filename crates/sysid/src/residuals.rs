@@ -443,9 +443,12 @@ impl CovarianceSums {
 #[derive(Debug, Clone)]
 pub struct CovarianceAccumulator {
     sums: CovarianceSums,
-    /// The last 2M + 1 values of e and v, at index k mod (2M + 1).
+    /// The last 2M + 1 values of e and v, each stored twice, at k mod (2M + 1) and 2M + 1 positions
+    /// later, so that the values back from k are one contiguous slice (no division per product).
     e: Vec<f64>,
     v: Vec<f64>,
+    /// k mod (2M + 1) for the next sample.
+    at: usize,
     bad: Option<ResidError>,
 }
 
@@ -470,8 +473,9 @@ impl CovarianceAccumulator {
                 residual_peak: 0.0,
                 input_peak: 0.0,
             },
-            e: vec![0.0; 2 * m + 1],
-            v: vec![0.0; 2 * m + 1],
+            e: vec![0.0; 2 * (2 * m + 1)],
+            v: vec![0.0; 2 * (2 * m + 1)],
+            at: 0,
             bad: None,
         }
     }
@@ -498,21 +502,30 @@ impl CovarianceAccumulator {
         } else {
             (residual, input)
         };
-        let r = self.e.len();
-        let at = k % r;
-        self.e[at] = e;
-        self.v[at] = v;
+        let r = self.e.len() / 2;
+        let at = self.at;
+        self.at = if at + 1 == r { 0 } else { at + 1 };
+        for (buf, x) in [(&mut self.e, e), (&mut self.v, v)] {
+            buf[at] = x;
+            buf[at + r] = x;
+        }
         if s.head.len() < s.max_lag {
             s.head.push(v);
         }
-        for tau in 0..=k.min(s.max_lag) {
-            let j = (k - tau) % r;
-            s.ee[tau] += e * self.e[j];
-            s.ev[tau] += e * self.v[j];
-            s.ve[tau] += v * self.e[j];
+        // e(k − τ) = e[at + r − τ]: the window of the last values, newest last.
+        let lags = k.min(s.max_lag);
+        let (ew, vw) = (
+            &self.e[at + r - lags..=at + r],
+            &self.v[at + r - lags..=at + r],
+        );
+        for (tau, (ej, vj)) in ew.iter().rev().zip(vw.iter().rev()).enumerate() {
+            s.ee[tau] += e * ej;
+            s.ev[tau] += e * vj;
+            s.ve[tau] += v * ej;
         }
-        for lag in 0..=k.min(2 * s.max_lag) {
-            s.vv[lag] += v * self.v[(k - lag) % r];
+        let lags = k.min(2 * s.max_lag);
+        for (lag, vj) in self.v[at + r - lags..=at + r].iter().rev().enumerate() {
+            s.vv[lag] += v * vj;
         }
     }
 
@@ -534,7 +547,7 @@ impl CovarianceAccumulator {
             return Err(e);
         }
         let (_, tail) = CovarianceSums::ends(n, m);
-        let r = self.v.len();
+        let r = self.v.len() / 2;
         self.sums.tail = (n - tail..n).map(|k| self.v[k % r]).collect();
         finish(&self.sums)
     }

@@ -35,6 +35,21 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
+/// `identify --data FILE --structure arx --method ls` followed by `extra`.
+fn arx_ls<'a>(data: &'a str, extra: &[&'a str]) -> Vec<&'a str> {
+    let mut a = vec![
+        "identify",
+        "--data",
+        data,
+        "--structure",
+        "arx",
+        "--method",
+        "ls",
+    ];
+    a.extend_from_slice(extra);
+    a
+}
+
 fn json(p: &Path) -> serde_json::Value {
     serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
 }
@@ -140,21 +155,17 @@ fn streamed_identify_and_validate_equal_the_in_memory_path() {
         for mode in ["off", "on"] {
             let out = dir.path().join(format!("{i}-{mode}.json"));
             let model = dir.path().join(format!("{i}-{mode}-model.json"));
-            let mut args = vec![
-                "identify",
-                "--data",
+            let mut args = arx_ls(
                 s(&est),
-                "--structure",
-                "arx",
-                "--method",
-                "ls",
-                "--stream",
-                mode,
-                "--json",
-                s(&out),
-                "--save-model",
-                s(&model),
-            ];
+                &[
+                    "--stream",
+                    mode,
+                    "--json",
+                    s(&out),
+                    "--save-model",
+                    s(&model),
+                ],
+            );
             args.extend_from_slice(extra);
             let o = run(&args);
             let err = String::from_utf8_lossy(&o.stderr);
@@ -188,19 +199,7 @@ fn streamed_least_squares_recovers_a_noise_free_system() {
     let u = input(20_000, 7);
     write_tuy(&f, &u, &output(&u, 0.0, 7));
     let out = dir.path().join("clean.json");
-    run(&[
-        "identify",
-        "--data",
-        s(&f),
-        "--structure",
-        "arx",
-        "--method",
-        "ls",
-        "--offset",
-        "--stream",
-        "--json",
-        s(&out),
-    ]);
+    run(&arx_ls(s(&f), &["--offset", "--stream", "--json", s(&out)]));
     let j = json(&out);
     let model = &j["model"];
     let want_a = [-1.2, 0.5, -0.1];
@@ -231,32 +230,14 @@ fn streamed_reading_reports_bad_cells_with_line_and_column() {
     let mut lines: Vec<String> = text.lines().map(String::from).collect();
     lines[10_002] = format!("{},{},abc", 10_001.0 / 100.0, u[10_001]); // line 10003 of the file
     std::fs::write(&f, lines.join("\n")).unwrap();
-    let e = fails(&[
-        "identify",
-        "--data",
-        s(&f),
-        "--structure",
-        "arx",
-        "--method",
-        "ls",
-        "--stream",
-    ]);
+    let e = fails(&arx_ls(s(&f), &["--stream"]));
     assert!(
         e.contains("bad.csv:10003:3:") && e.contains("'abc' in column 'y' is not a number"),
         "{e}"
     );
     lines[10_002] = format!("{},{},{}", 10_001.5 / 100.0, u[10_001], y[10_001]);
     std::fs::write(&f, lines.join("\n")).unwrap();
-    let e = fails(&[
-        "identify",
-        "--data",
-        s(&f),
-        "--structure",
-        "arx",
-        "--method",
-        "ls",
-        "--stream",
-    ]);
+    let e = fails(&arx_ls(s(&f), &["--stream"]));
     assert!(
         e.contains("non-uniform sampling") && e.contains("bad.csv:1000"),
         "{e}"
@@ -287,31 +268,10 @@ fn stream_refuses_what_needs_the_whole_record() {
         "--stream",
     ]);
     assert!(e.contains("--method rls"), "{e}");
-    let e = fails(&[
-        "identify",
-        "--data",
-        s(&f),
-        "--structure",
-        "arx",
-        "--method",
-        "ls",
-        "--stream",
-        "--split",
-        "0.5",
-    ]);
+    let e = fails(&arx_ls(s(&f), &["--stream", "--split", "0.5"]));
     assert!(e.contains("--split"), "{e}");
     let model = dir.path().join("m.json");
-    run(&[
-        "identify",
-        "--data",
-        s(&f),
-        "--structure",
-        "arx",
-        "--method",
-        "ls",
-        "--save-model",
-        s(&model),
-    ]);
+    run(&arx_ls(s(&f), &["--save-model", s(&model)]));
     let e = fails(&[
         "validate",
         "--model",

@@ -213,17 +213,7 @@ pub fn read_record_bytes(
     }
     let name = name.as_str();
     let mut notes = Vec::new();
-    let ucol = table.column_index(&opts.u_col, Setting::UCol)?;
-    let ycol = table.column_index(&opts.y_col, Setting::YCol)?;
-    if ucol == ycol {
-        return Err(SysidError::SameColumn {
-            setting: Setting::YCol,
-            other: Setting::UCol,
-            column: opts.y_col.clone(),
-        });
-    }
-    let has_t = table.headers.contains(&opts.t_col);
-    let ts_given = opts.ts.or(if has_t { None } else { opts.fallback_ts });
+    let (ucol, ycol, ts_given) = table.columns(opts)?;
     let u = table.numbers(ucol)?;
     let y = table.numbers(ycol)?;
     if let Some(ts) = opts.resample {
@@ -486,6 +476,29 @@ impl Table {
 
     fn header_list(&self) -> String {
         self.headers.join(", ")
+    }
+
+    /// The indices of the u and y columns of `opts` (different columns), and Ts when it is given
+    /// (`--ts`, or the fallback when there is no time column).
+    pub(crate) fn columns(
+        &self,
+        opts: &CsvOptions,
+    ) -> Result<(usize, usize, Option<f64>), SysidError> {
+        let ucol = self.column_index(&opts.u_col, Setting::UCol)?;
+        let ycol = self.column_index(&opts.y_col, Setting::YCol)?;
+        if ucol == ycol {
+            return Err(SysidError::SameColumn {
+                setting: Setting::YCol,
+                other: Setting::UCol,
+                column: opts.y_col.clone(),
+            });
+        }
+        let has_t = self.headers.contains(&opts.t_col);
+        Ok((
+            ucol,
+            ycol,
+            opts.ts.or(if has_t { None } else { opts.fallback_ts }),
+        ))
     }
 
     /// The 0-based index of the column called `col`; `setting` is the option that chose it.

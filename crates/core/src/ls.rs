@@ -102,22 +102,8 @@ impl LsWorkspace {
                 y.len()
             )));
         }
-        if n < p {
-            return Err(SysidError::Data(format!(
-                "{n} regression rows for {p} parameters: too few samples for these orders"
-            )));
-        }
-        if phi.iter().chain(y.iter()).any(|v| !v.is_finite()) {
-            return Err(SysidError::Numerical(
-                "non-finite value in the regression data".into(),
-            ));
-        }
-        let name = |j: usize| {
-            names
-                .get(j)
-                .cloned()
-                .unwrap_or_else(|| format!("column {}", j + 1))
-        };
+        check_problem(n, p, phi.iter().chain(y.iter()).all(|v| v.is_finite()))?;
+        let name = |j: usize| column_name(names, j);
         // Augmented matrix [Φ D⁻¹ | y], by columns; column scaling makes the rank test independent of
         // units (counts vs mm vs 0/1 switches).
         let cols = p + 1;
@@ -128,18 +114,7 @@ impl LsWorkspace {
             let src = phi.column(j);
             let src = src.as_slice();
             let norm = scaled_norm(src);
-            if norm == 0.0 {
-                return Err(SysidError::Data(format!(
-                    "regressor {} is zero over the whole record: the input does not excite it (not persistently exciting)",
-                    name(j)
-                )));
-            }
-            if !norm.is_finite() {
-                return Err(SysidError::Numerical(format!(
-                    "regressor {} overflows (too large values)",
-                    name(j)
-                )));
-            }
+            check_norm(norm, || name(j))?;
             *scale_j = norm;
             let inv = 1.0 / norm;
             self.a.extend(src.iter().map(|s| s * inv));
@@ -408,22 +383,8 @@ impl QrAccumulator {
     ) -> Result<Triangular, SysidError> {
         self.fold();
         let (cols, p, n) = (self.cols, self.cols - 1, self.rows);
-        if n < p {
-            return Err(SysidError::Data(format!(
-                "{n} regression rows for {p} parameters: too few samples for these orders"
-            )));
-        }
-        if !self.finite || self.r.iter().any(|v| !v.is_finite()) {
-            return Err(SysidError::Numerical(
-                "non-finite value in the regression data".into(),
-            ));
-        }
-        let name = |j: usize| {
-            names
-                .get(j)
-                .cloned()
-                .unwrap_or_else(|| format!("column {}", j + 1))
-        };
+        check_problem(n, p, self.finite && self.r.iter().all(|v| v.is_finite()))?;
+        let name = |j: usize| column_name(names, j);
         let pre = self.pre.unwrap_or_else(|| vec![1.0; cols]);
         let r = &self.r;
         let mut out = vec![0.0; p * cols];
@@ -433,19 +394,8 @@ impl QrAccumulator {
             column.clear();
             column.extend((0..=j).map(|i| r[i * cols + j]));
             let norm = scaled_norm(&column);
-            if norm == 0.0 {
-                return Err(SysidError::Data(format!(
-                    "regressor {} is zero over the whole record: the input does not excite it (not persistently exciting)",
-                    name(j)
-                )));
-            }
             scale[j] = norm / pre[j];
-            if !scale[j].is_finite() {
-                return Err(SysidError::Numerical(format!(
-                    "regressor {} overflows (too large values)",
-                    name(j)
-                )));
-            }
+            check_norm(scale[j], || name(j))?;
             for i in 0..=j {
                 out[i * cols + j] = r[i * cols + j] / norm;
             }
@@ -469,6 +419,46 @@ impl QrAccumulator {
     pub fn solve(self, names: &[String]) -> Result<LsSolution, SysidError> {
         self.triangular(names, true)?.solution()
     }
+}
+
+/// The checks before a solve: at least as many rows `n` as parameters `p`, every value finite.
+fn check_problem(n: usize, p: usize, finite: bool) -> Result<(), SysidError> {
+    if n < p {
+        return Err(SysidError::Data(format!(
+            "{n} regression rows for {p} parameters: too few samples for these orders"
+        )));
+    }
+    if !finite {
+        return Err(SysidError::Numerical(
+            "non-finite value in the regression data".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// The name of column `j` for messages.
+fn column_name(names: &[String], j: usize) -> String {
+    names
+        .get(j)
+        .cloned()
+        .unwrap_or_else(|| format!("column {}", j + 1))
+}
+
+/// A column norm must be positive (the input excites the regressor) and finite.
+fn check_norm(norm: f64, name: impl Fn() -> String) -> Result<(), SysidError> {
+    if norm == 0.0 {
+        return Err(SysidError::Data(format!(
+            "regressor {} is zero over the whole record: the input does not excite it (not persistently exciting)",
+            name()
+        )));
+    }
+    if !norm.is_finite() {
+        return Err(SysidError::Numerical(format!(
+            "regressor {} overflows (too large values)",
+            name()
+        )));
+    }
+    Ok(())
 }
 
 fn dependent(name: &str) -> SysidError {

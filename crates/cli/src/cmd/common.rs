@@ -101,6 +101,18 @@ impl StreamMode {
     }
 }
 
+/// Says on standard error that `name` (of `rows` rows) was read in `passes` passes.
+pub fn stream_note(name: &str, passes: usize, rows: usize, mode: StreamMode) {
+    eprintln!(
+        "note: {name} was read in {passes} passes ({rows} rows; memory does not grow with the record{})",
+        if mode == StreamMode::On {
+            ""
+        } else {
+            "; streamed automatically for a large file"
+        }
+    );
+}
+
 /// Prints a command's text report: on standard error when the JSON goes to standard output (`--json -`),
 /// so that the JSON stays parseable, else on standard output.
 pub fn print_report(text: &str, json: Option<&Path>) {

@@ -10,7 +10,8 @@ use sysid::windup::Windup;
 use sysid::{IdentifyOptions, ModelKind};
 
 use super::common::{
-    check_outputs, print_notes, print_report, write_output, ColumnArgs, StreamMode, ValidationArgs,
+    check_outputs, print_notes, print_report, stream_note, write_output, ColumnArgs, StreamMode,
+    ValidationArgs,
 };
 use sysid::detrend::{detrend, Detrend};
 
@@ -216,12 +217,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if streaming(&args, &settings, data_path)? {
         return run_streamed(&args, &settings, data_path);
     }
-    let mut inputs: Vec<&Path> = vec![data_path.as_path()];
-    inputs.extend(args.val.validation.as_deref());
-    check_outputs(
-        &[(&args.json, "--json"), (&args.save_model, "--save-model")],
-        &inputs,
-    )?;
+    let inputs = checked_inputs(&args, data_path)?;
     let opts = args.columns.csv_options();
     let records = args.val.records(data_path, &opts)?;
     print_notes(&records.notes);
@@ -323,12 +319,7 @@ fn streaming(args: &Args, settings: &Identification, data: &Path) -> anyhow::Res
 
 /// `identify` with the records read in passes (`sysid::stream`): memory does not grow with the record.
 fn run_streamed(args: &Args, settings: &Identification, data_path: &Path) -> anyhow::Result<()> {
-    let mut inputs: Vec<&Path> = vec![data_path];
-    inputs.extend(args.val.validation.as_deref());
-    check_outputs(
-        &[(&args.json, "--json"), (&args.save_model, "--save-model")],
-        &inputs,
-    )?;
+    let inputs = checked_inputs(args, data_path)?;
     let opts = args.columns.csv_options();
     let mut est = CsvStream::open(data_path, &opts)?;
     let mut val = match args.val.validation_source(data_path, &opts) {
@@ -343,16 +334,11 @@ fn run_streamed(args: &Args, settings: &Identification, data_path: &Path) -> any
         args.resid_lags,
     )?;
     let (fit, report) = &streamed.result;
-    eprintln!(
-        "note: {} was read in {} passes ({} rows; memory does not grow with the record{})",
+    stream_note(
         est.name(),
         streamed.passes,
         streamed.shape.rows,
-        if args.stream == StreamMode::On {
-            ""
-        } else {
-            "; streamed automatically for a large file"
-        }
+        args.stream,
     );
     let val_desc = val
         .as_ref()
@@ -367,6 +353,18 @@ fn run_streamed(args: &Args, settings: &Identification, data_path: &Path) -> any
         &[],
         &inputs,
     )
+}
+
+/// The input files (the record and the validation file) after checking that the outputs can be written
+/// and name none of them.
+fn checked_inputs<'a>(args: &'a Args, data_path: &'a Path) -> anyhow::Result<Vec<&'a Path>> {
+    let mut inputs: Vec<&Path> = vec![data_path];
+    inputs.extend(args.val.validation.as_deref());
+    check_outputs(
+        &[(&args.json, "--json"), (&args.save_model, "--save-model")],
+        &inputs,
+    )?;
+    Ok(inputs)
 }
 
 /// Writes `--save-model`, if given.

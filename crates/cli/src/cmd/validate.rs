@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use sysid::summary::ValidationReport;
 
 use super::common::{
-    check_outputs, print_notes, print_report, write_output, ColumnArgs, StreamMode,
+    check_outputs, print_notes, print_report, stream_note, write_output, ColumnArgs, StreamMode,
 };
 
 /// Flags of `validate`.
@@ -250,16 +250,7 @@ fn run_streamed(
     let shape = streamed.shape;
     let name = sysid::data::stream::RecordSource::name(&src).to_string();
     check_ts(&name, shape.ts, model.ts())?;
-    eprintln!(
-        "note: {name} was read in {} passes ({} rows; memory does not grow with the record{})",
-        streamed.passes,
-        shape.rows,
-        if args.stream == StreamMode::On {
-            ""
-        } else {
-            "; streamed automatically for a large file"
-        }
-    );
+    stream_note(&name, streamed.passes, shape.rows, args.stream);
     let report = streamed.result;
     // The 1-step prediction of `model_output`: the ARX predictor, or for an output-error model the
     // simulation from the measured initial outputs.

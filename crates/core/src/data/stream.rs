@@ -183,17 +183,7 @@ impl CsvStream {
             &prefix[..=end]
         };
         let table = read_table_with(checked, &name, !opts.no_header)?;
-        let ucol = table.column_index(&opts.u_col, Setting::UCol)?;
-        let ycol = table.column_index(&opts.y_col, Setting::YCol)?;
-        if ucol == ycol {
-            return Err(SysidError::SameColumn {
-                setting: Setting::YCol,
-                other: Setting::UCol,
-                column: opts.y_col.clone(),
-            });
-        }
-        let has_t = table.headers.contains(&opts.t_col);
-        let ts_given = opts.ts.or(if has_t { None } else { opts.fallback_ts });
+        let (ucol, ycol, ts_given) = table.columns(opts)?;
         let tcol = match ts_given {
             Some(ts) => {
                 check_ts(ts)?;

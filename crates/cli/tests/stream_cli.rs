@@ -235,6 +235,10 @@ fn streamed_reading_reports_bad_cells_with_line_and_column() {
         e.contains("bad.csv:10003:3:") && e.contains("'abc' in column 'y' is not a number"),
         "{e}"
     );
+    // The same file with CRLF line ends (spreadsheet exports): the same line number.
+    std::fs::write(&f, lines.join("\r\n")).unwrap();
+    let e = fails(&arx_ls(s(&f), &["--stream"]));
+    assert!(e.contains("bad.csv:10003:3:"), "{e}");
     lines[10_002] = format!("{},{},{}", 10_001.5 / 100.0, u[10_001], y[10_001]);
     std::fs::write(&f, lines.join("\n")).unwrap();
     let e = fails(&arx_ls(s(&f), &["--stream"]));

@@ -100,6 +100,9 @@ pub struct CsvStream {
     delimiter: u8,
     has_header: bool,
     bom: bool,
+    /// The file ends its lines with CRLF: the csv crate then counts a record's line one short (the
+    /// in-memory reader counts from byte offsets).
+    crlf: bool,
     decimal_comma: bool,
     headers: Vec<String>,
     ucol: usize,
@@ -211,6 +214,7 @@ impl CsvStream {
             delimiter: sniff_delimiter(text),
             has_header: !opts.no_header,
             bom,
+            crlf: checked.windows(2).any(|w| w == b"\r\n"),
             decimal_comma: table.decimal_comma,
             headers: table.headers,
             ucol,
@@ -322,7 +326,9 @@ impl RecordSource for CsvStream {
             if rec.iter().all(blank) {
                 continue; // a blank line or a row of bare delimiters
             }
-            let line = rec.position().map_or(0, |p| p.line() as usize);
+            let line = rec
+                .position()
+                .map_or(0, |p| p.line() as usize + usize::from(self.crlf));
             if let Some(extra) = rec.iter().skip(width).position(|f| !blank(f)) {
                 return Err(ragged_row(&file_name, line, width, extra));
             }

@@ -274,6 +274,8 @@ fn stream_refuses_what_needs_the_whole_record() {
     assert!(e.contains("--method rls"), "{e}");
     let e = fails(&arx_ls(s(&f), &["--stream", "--split", "0.5"]));
     assert!(e.contains("--split"), "{e}");
+    let e = fails(&arx_ls(s(&f), &["--stream", "--merge"]));
+    assert!(e.contains("--merge"), "{e}");
     let model = dir.path().join("m.json");
     run(&arx_ls(s(&f), &["--save-model", s(&model)]));
     let e = fails(&[

@@ -195,6 +195,14 @@ impl Args {
 
 /// Runs `identify`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    let several = args.columns.u_col.contains(',')
+        || args.merge
+        || super::identify_batch::is_batch(&args.data);
+    if args.stream == StreamMode::On && several {
+        anyhow::bail!(sysid::stream::refused(
+            "several inputs, --merge and several files are read in memory"
+        ));
+    }
     if args.columns.u_col.contains(',') {
         return run_miso(&args);
     }

@@ -139,6 +139,9 @@ pub struct LongRow {
     pub numpy: Option<Measured>,
     /// Versions and the split of the numpy time.
     pub numpy_detail: Option<NumpyDetail>,
+    /// Why the numpy peer gave no result (numpy missing...), when it failed.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub numpy_error: Option<String>,
 }
 
 /// Runs the benchmark (see the module documentation); `progress` is told what runs.
@@ -203,24 +206,29 @@ pub fn bench_long(
         } else {
             None
         };
-        let (numpy, numpy_detail) = match &cfg.numpy {
-            Some((python, script)) => {
-                progress(&format!("numpy peer on {n} rows"));
-                let json = cfg.dir.join(format!("numpy_{n}.json"));
-                let run = run_measured(
-                    Command::new(python)
-                        .arg(script)
-                        .arg("--data")
-                        .arg(&csv)
-                        .arg("--json")
-                        .arg(&json),
-                    &log("numpy"),
-                )?;
-                let (t, detail) = numpy_result(&json)?;
-                (Some(measured(run, Some(&t))), Some(detail))
+        let (mut numpy, mut numpy_detail, mut numpy_error) = (None, None, None);
+        if let Some((python, script)) = &cfg.numpy {
+            progress(&format!("numpy peer on {n} rows"));
+            let json = cfg.dir.join(format!("numpy_{n}.json"));
+            // A failing peer (no numpy) is reported, not fatal: the measurements above stand.
+            let result = run_measured(
+                Command::new(python)
+                    .arg(script)
+                    .arg("--data")
+                    .arg(&csv)
+                    .arg("--json")
+                    .arg(&json),
+                &log("numpy"),
+            )
+            .and_then(|run| numpy_result(&json).map(|r| (run, r)));
+            match result {
+                Ok((run, (t, detail))) => {
+                    numpy = Some(measured(run, Some(&t)));
+                    numpy_detail = Some(detail);
+                }
+                Err(e) => numpy_error = Some(e),
             }
-            None => (None, None),
-        };
+        }
         // The record is not kept (up to gigabytes).
         let _ = std::fs::remove_file(&csv);
         out.push(LongRow {
@@ -230,6 +238,7 @@ pub fn bench_long(
             in_memory,
             numpy,
             numpy_detail,
+            numpy_error,
         });
     }
     Ok(out)

@@ -576,6 +576,9 @@ fn long(a: LongArgs) -> anyhow::Result<()> {
         if let Some(m) = &r.in_memory {
             text.push_str(&line("ipa-sysid identify --stream off", m));
         }
+        if let Some(e) = &r.numpy_error {
+            text.push_str(&format!("  numpy peer: no result ({e})\n"));
+        }
         if let (Some(m), Some(d)) = (&r.numpy, &r.numpy_detail) {
             text.push_str(&line(
                 &format!("numpy {} lstsq (Python {})", d.numpy, d.python),

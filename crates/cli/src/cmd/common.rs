@@ -64,7 +64,7 @@ impl ColumnArgs {
 /// `--stream`: read a record in passes with bounded memory (docs/data.md, "Long records").
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
 pub enum StreamMode {
-    /// Stream a CSV file of [`sysid::stream::AUTO_STREAM_BYTES`] (64 MiB) or more when the command's
+    /// Stream a CSV file of 64 MiB or more (`sysid::stream::AUTO_STREAM_BYTES`) when the command's
     /// settings allow it; otherwise read the record into memory.
     #[default]
     Auto,

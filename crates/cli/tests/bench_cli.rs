@@ -131,3 +131,30 @@ fn physics_plant_bench_times_the_rk4_reference_and_reports_the_accuracy() {
     let acc = f(&v["accuracy"], "max_position_difference_mm");
     assert!((0.0..1e-3).contains(&acc), "{acc}");
 }
+
+// `bench long` on a tiny record (no numpy): the streamed and in-memory runs are child processes of the
+// binary with their own peak memory, rows/s = N / wall time, and both estimate the same θ (1e-9).
+#[test]
+fn long_bench_measures_child_runs_of_the_streamed_and_in_memory_paths() {
+    let dir = tempfile::tempdir().unwrap();
+    let v = bench(&[
+        "long",
+        "--rows",
+        "3000",
+        "--no-numpy",
+        "--dir",
+        dir.path().to_str().unwrap(),
+    ]);
+    let r = &v["results"][0];
+    assert_eq!(r["rows"].as_u64(), Some(3000));
+    for key in ["stream", "in_memory"] {
+        let m = &r[key];
+        let (wall, rate) = (f(m, "wall_s"), f(m, "rows_per_s"));
+        assert!((rate * wall - 3000.0).abs() < 1e-6 * 3000.0, "{m}");
+        assert!(f(m, "peak_rss_bytes") > 0.0, "{m}");
+    }
+    assert!(f(&r["in_memory"], "max_rel_diff_to_stream") < 1e-9, "{r}");
+    assert!(r["numpy"].is_null());
+    // The record itself is not kept.
+    assert!(!dir.path().join("long_3000.csv").exists());
+}

@@ -22,6 +22,7 @@ use std::path::Path;
 pub mod mat;
 pub mod ranges;
 pub mod resample;
+pub mod stream;
 
 pub use ranges::{split_rows, RowRange};
 
@@ -212,17 +213,7 @@ pub fn read_record_bytes(
     }
     let name = name.as_str();
     let mut notes = Vec::new();
-    let ucol = table.column_index(&opts.u_col, Setting::UCol)?;
-    let ycol = table.column_index(&opts.y_col, Setting::YCol)?;
-    if ucol == ycol {
-        return Err(SysidError::SameColumn {
-            setting: Setting::YCol,
-            other: Setting::UCol,
-            column: opts.y_col.clone(),
-        });
-    }
-    let has_t = table.headers.contains(&opts.t_col);
-    let ts_given = opts.ts.or(if has_t { None } else { opts.fallback_ts });
+    let (ucol, ycol, ts_given) = table.columns(opts)?;
     let u = table.numbers(ucol)?;
     let y = table.numbers(ycol)?;
     if let Some(ts) = opts.resample {
@@ -323,14 +314,7 @@ pub fn read_table_with(bytes: &[u8], name: &str, has_header: bool) -> Result<Tab
             message: "NUL byte: the file is binary, not CSV text".into(),
         });
     }
-    let first = text.lines().find(|l| !l.trim().is_empty()).unwrap_or("");
-    let delimiter = if !first.contains(',') && first.contains(';') {
-        b';'
-    } else if !first.contains(',') && first.contains('\t') {
-        b'\t'
-    } else {
-        b','
-    };
+    let delimiter = sniff_delimiter(text);
     let mut rdr = csv::ReaderBuilder::new()
         .delimiter(delimiter)
         .has_headers(has_header)
@@ -406,17 +390,7 @@ pub fn read_table_with(bytes: &[u8], name: &str, has_header: bool) -> Result<Tab
             continue; // a blank line or a row of bare delimiters
         }
         if let Some(extra) = rec.iter().skip(headers.len()).position(|f| !f.is_empty()) {
-            return Err(SysidError::Parse {
-                file: name.to_string(),
-                line,
-                column: headers.len() + extra + 1,
-                message: format!(
-                    "ragged row: a value beyond the {} columns of the header; expected at most {} \
-                     fields per row (or a header naming every column)",
-                    headers.len(),
-                    headers.len()
-                ),
-            });
+            return Err(ragged_row(name, line, headers.len(), extra));
         }
         if rows.len() >= MAX_SAMPLES {
             return Err(file_err(format!(
@@ -436,7 +410,33 @@ pub fn read_table_with(bytes: &[u8], name: &str, has_header: bool) -> Result<Tab
     })
 }
 
-fn csv_err(name: &str, e: csv::Error) -> SysidError {
+/// The delimiter of CSV text, from its first non-blank line: a comma, or a semicolon or a tab when that
+/// line has no comma but one of those.
+pub(crate) fn sniff_delimiter(text: &str) -> u8 {
+    let first = text.lines().find(|l| !l.trim().is_empty()).unwrap_or("");
+    if !first.contains(',') && first.contains(';') {
+        b';'
+    } else if !first.contains(',') && first.contains('\t') {
+        b'\t'
+    } else {
+        b','
+    }
+}
+
+/// The error of a row with a value `extra` fields beyond the header's `width` columns.
+pub(crate) fn ragged_row(name: &str, line: usize, width: usize, extra: usize) -> SysidError {
+    SysidError::Parse {
+        file: name.to_string(),
+        line,
+        column: width + extra + 1,
+        message: format!(
+            "ragged row: a value beyond the {width} columns of the header; expected at most {width} \
+             fields per row (or a header naming every column)"
+        ),
+    }
+}
+
+pub(crate) fn csv_err(name: &str, e: csv::Error) -> SysidError {
     match e.position() {
         Some(p) => SysidError::Parse {
             file: name.to_string(),
@@ -478,6 +478,29 @@ impl Table {
         self.headers.join(", ")
     }
 
+    /// The indices of the u and y columns of `opts` (different columns), and Ts when it is given
+    /// (`--ts`, or the fallback when there is no time column).
+    pub(crate) fn columns(
+        &self,
+        opts: &CsvOptions,
+    ) -> Result<(usize, usize, Option<f64>), SysidError> {
+        let ucol = self.column_index(&opts.u_col, Setting::UCol)?;
+        let ycol = self.column_index(&opts.y_col, Setting::YCol)?;
+        if ucol == ycol {
+            return Err(SysidError::SameColumn {
+                setting: Setting::YCol,
+                other: Setting::UCol,
+                column: opts.y_col.clone(),
+            });
+        }
+        let has_t = self.headers.contains(&opts.t_col);
+        Ok((
+            ucol,
+            ycol,
+            opts.ts.or(if has_t { None } else { opts.fallback_ts }),
+        ))
+    }
+
     /// The 0-based index of the column called `col`; `setting` is the option that chose it.
     pub fn column_index(&self, col: &str, setting: Setting) -> Result<usize, SysidError> {
         if let Some(i) = self.headers.iter().position(|h| h == col) {
@@ -506,38 +529,19 @@ impl Table {
         self.rows
             .iter()
             .map(|(line, rec)| {
-                let err = |message: String| SysidError::Parse {
+                cell_value(
+                    rec.get(col),
+                    rec.len(),
+                    self.headers.len(),
+                    cname,
+                    self.decimal_comma,
+                )
+                .map_err(|message| SysidError::Parse {
                     file: self.name.clone(),
                     line: *line,
                     column: col + 1,
                     message,
-                };
-                let Some(cell) = rec.get(col) else {
-                    return Err(err(format!(
-                        "the row has only {} of the header's {} fields; expected a number for column '{cname}'",
-                        rec.len(),
-                        self.headers.len()
-                    )));
-                };
-                if unquote(cell).is_empty() {
-                    return Err(err(format!(
-                        "empty cell in column '{cname}'; expected a number (remove or fill missing samples)"
-                    )));
-                }
-                let v = parse_number(cell, self.decimal_comma).ok_or_else(|| {
-                    err(format!(
-                        "'{}' in column '{cname}' is not a number; expected a decimal number such as -1.5 or 2e-3",
-                        shorten(cell)
-                    ))
-                })?;
-                if !v.is_finite() {
-                    return Err(err(format!(
-                        "'{}' in column '{cname}' is not a finite number; expected a finite value \
-                         (remove or fill missing samples)",
-                        shorten(cell)
-                    )));
-                }
-                Ok(v)
+                })
             })
             .collect()
     }
@@ -546,6 +550,41 @@ impl Table {
     pub fn line_of(&self, row: usize) -> usize {
         self.rows.get(row).map_or(0, |r| r.0)
     }
+}
+
+/// The value of one cell of column `cname` (`None`: the row, of `fields` fields, ends before it) as a
+/// finite f64, or what is wrong with it in words (the CSV reader and the streaming reader share it).
+pub(crate) fn cell_value(
+    cell: Option<&str>,
+    fields: usize,
+    headers: usize,
+    cname: &str,
+    decimal_comma: bool,
+) -> Result<f64, String> {
+    let Some(cell) = cell else {
+        return Err(format!(
+            "the row has only {fields} of the header's {headers} fields; expected a number for column '{cname}'"
+        ));
+    };
+    if unquote(cell).is_empty() {
+        return Err(format!(
+            "empty cell in column '{cname}'; expected a number (remove or fill missing samples)"
+        ));
+    }
+    let v = parse_number(cell, decimal_comma).ok_or_else(|| {
+        format!(
+            "'{}' in column '{cname}' is not a number; expected a decimal number such as -1.5 or 2e-3",
+            shorten(cell)
+        )
+    })?;
+    if !v.is_finite() {
+        return Err(format!(
+            "'{}' in column '{cname}' is not a finite number; expected a finite value \
+             (remove or fill missing samples)",
+            shorten(cell)
+        ));
+    }
+    Ok(v)
 }
 
 /// A cell as f64: Rust's float syntax, plus a decimal comma (`1,5`) when `decimal_comma` (a semicolon-
@@ -652,7 +691,7 @@ fn increasing(t: &[f64], table: &Table, col: usize) -> Result<(), SysidError> {
 }
 
 /// `v` rounded to `digits` significant decimal digits (non-finite values unchanged).
-fn round_significant(v: f64, digits: usize) -> f64 {
+pub(crate) fn round_significant(v: f64, digits: usize) -> f64 {
     if !v.is_finite() || v == 0.0 {
         return v;
     }

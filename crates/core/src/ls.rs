@@ -102,22 +102,8 @@ impl LsWorkspace {
                 y.len()
             )));
         }
-        if n < p {
-            return Err(SysidError::Data(format!(
-                "{n} regression rows for {p} parameters: too few samples for these orders"
-            )));
-        }
-        if phi.iter().chain(y.iter()).any(|v| !v.is_finite()) {
-            return Err(SysidError::Numerical(
-                "non-finite value in the regression data".into(),
-            ));
-        }
-        let name = |j: usize| {
-            names
-                .get(j)
-                .cloned()
-                .unwrap_or_else(|| format!("column {}", j + 1))
-        };
+        check_problem(n, p, phi.iter().chain(y.iter()).all(|v| v.is_finite()))?;
+        let name = |j: usize| column_name(names, j);
         // Augmented matrix [Φ D⁻¹ | y], by columns; column scaling makes the rank test independent of
         // units (counts vs mm vs 0/1 switches).
         let cols = p + 1;
@@ -128,18 +114,7 @@ impl LsWorkspace {
             let src = phi.column(j);
             let src = src.as_slice();
             let norm = scaled_norm(src);
-            if norm == 0.0 {
-                return Err(SysidError::Data(format!(
-                    "regressor {} is zero over the whole record: the input does not excite it (not persistently exciting)",
-                    name(j)
-                )));
-            }
-            if !norm.is_finite() {
-                return Err(SysidError::Numerical(format!(
-                    "regressor {} overflows (too large values)",
-                    name(j)
-                )));
-            }
+            check_norm(norm, || name(j))?;
             *scale_j = norm;
             let inv = 1.0 / norm;
             self.a.extend(src.iter().map(|s| s * inv));
@@ -271,6 +246,219 @@ impl Triangular {
             rss,
         })
     }
+}
+
+/// Rows of [φ y] collected before they are folded into R ([`QrAccumulator`]).
+pub const FOLD_ROWS: usize = 256;
+
+/// The least-squares problem min ‖y − Φθ‖ accumulated row by row in O(p²) memory, for records too long
+/// to hold (`identify --stream`): the (p + 1) × (p + 1) triangular factor R of [Φ | y] is updated with
+/// each block of [`FOLD_ROWS`] rows by Householder reflections of the stacked matrix [R; block]
+/// (row-block QR, the building step of TSQR; Golub & Van Loan, *Matrix Computations*, 4th ed., §5.2 and
+/// §6.5.3). The normal equations are never formed.
+///
+/// [Φ | y] = Q [R; 0] has the same triangular factor whatever order the rows arrive in, so at the end
+/// the column norms ‖Φ e_j‖ are the norms of R's columns, and R D⁻¹ is the factor of the column-scaled
+/// [Φ D⁻¹ | y] that [`LsWorkspace::triangularise`] computes: the same [`Triangular`], the same rank test,
+/// the same θ̂, (ΦᵀΦ)⁻¹ and RSS up to rounding. Each column is pre-scaled by a power of two chosen from
+/// the first block (exact in floating point), so that magnitudes such as 1e160 neither overflow nor
+/// underflow in the reflections.
+#[derive(Debug, Clone)]
+pub struct QrAccumulator {
+    /// p + 1: the regressors and the target.
+    cols: usize,
+    /// R by rows, `r[i * cols + j]`, upper triangular (of the pre-scaled columns).
+    r: Vec<f64>,
+    /// The rows not yet folded, by columns: `block[j * FOLD_ROWS + i]`.
+    block: Vec<f64>,
+    filled: usize,
+    rows: usize,
+    /// The power of two each column is multiplied by (set by the first fold).
+    pre: Option<Vec<f64>>,
+    finite: bool,
+}
+
+impl QrAccumulator {
+    /// An empty problem with `p` regressors.
+    pub fn new(p: usize) -> Self {
+        let cols = p + 1;
+        QrAccumulator {
+            cols,
+            r: vec![0.0; cols * cols],
+            block: vec![0.0; cols * FOLD_ROWS],
+            filled: 0,
+            rows: 0,
+            pre: None,
+            finite: true,
+        }
+    }
+
+    /// Number of rows added.
+    pub fn rows(&self) -> usize {
+        self.rows
+    }
+
+    /// Adds the row φᵀ θ ≈ y (`phi` has p entries).
+    #[inline]
+    pub fn push(&mut self, phi: &[f64], y: f64) {
+        let i = self.filled;
+        for (j, v) in phi.iter().take(self.cols - 1).enumerate() {
+            self.block[j * FOLD_ROWS + i] = *v;
+        }
+        self.block[(self.cols - 1) * FOLD_ROWS + i] = y;
+        self.filled += 1;
+        self.rows += 1;
+        if self.filled == FOLD_ROWS {
+            self.fold();
+        }
+    }
+
+    /// Folds the collected rows into R: for each column k, the reflection that maps (R_kk, block(:, k))
+    /// to (±σ, 0) is applied to the columns on its right.
+    fn fold(&mut self) {
+        let (m, cols) = (self.filled, self.cols);
+        if m == 0 {
+            return;
+        }
+        let block = &mut self.block;
+        if block
+            .chunks(FOLD_ROWS)
+            .any(|c| c[..m].iter().any(|v| !v.is_finite()))
+        {
+            self.finite = false;
+        }
+        let pre = self.pre.get_or_insert_with(|| {
+            block
+                .chunks(FOLD_ROWS)
+                .map(|c| {
+                    let peak = c[..m].iter().fold(0.0f64, |a, v| a.max(v.abs()));
+                    if peak > 0.0 && peak.is_finite() {
+                        // 2^−e with 2^e the power of two nearest above the peak: exact scaling.
+                        let e = peak.log2().ceil() as i32;
+                        2f64.powi(-e.clamp(-1000, 1000))
+                    } else {
+                        1.0
+                    }
+                })
+                .collect()
+        });
+        for (j, s) in pre.iter().enumerate() {
+            if *s != 1.0 {
+                block[j * FOLD_ROWS..j * FOLD_ROWS + m]
+                    .iter_mut()
+                    .for_each(|v| *v *= s);
+            }
+        }
+        let r = &mut self.r;
+        for k in 0..cols {
+            let (left, right) = block.split_at_mut((k + 1) * FOLD_ROWS);
+            let a = &left[k * FOLD_ROWS..k * FOLD_ROWS + m];
+            let aa = dot(a, a);
+            if aa == 0.0 {
+                continue; // nothing below the diagonal to annihilate
+            }
+            let rkk = r[k * cols + k];
+            let sigma = (rkk * rkk + aa).sqrt();
+            let alpha = if rkk > 0.0 { -sigma } else { sigma };
+            // v = (R_kk − α, a); H = I − β v vᵀ with vᵀv = 2σ(σ + |R_kk|).
+            let v0 = rkk - alpha;
+            let beta = 1.0 / (sigma * (sigma + rkk.abs()));
+            for c in k + 1..cols {
+                let col = &mut right[(c - k - 1) * FOLD_ROWS..(c - k - 1) * FOLD_ROWS + m];
+                let w = beta * (v0 * r[k * cols + c] + dot(a, col));
+                r[k * cols + c] -= w * v0;
+                axpy(-w, a, col);
+            }
+            r[k * cols + k] = alpha;
+        }
+        self.filled = 0;
+    }
+
+    /// The triangular factor of the column-scaled problem, as [`LsWorkspace::triangularise`] gives it
+    /// for the same rows held in memory (same checks and messages; `names` label the columns).
+    pub fn triangular(
+        mut self,
+        names: &[String],
+        rank_test: bool,
+    ) -> Result<Triangular, SysidError> {
+        self.fold();
+        let (cols, p, n) = (self.cols, self.cols - 1, self.rows);
+        check_problem(n, p, self.finite && self.r.iter().all(|v| v.is_finite()))?;
+        let name = |j: usize| column_name(names, j);
+        let pre = self.pre.unwrap_or_else(|| vec![1.0; cols]);
+        let r = &self.r;
+        let mut out = vec![0.0; p * cols];
+        let mut scale = vec![0.0; p];
+        let mut column = Vec::with_capacity(cols);
+        for j in 0..p {
+            column.clear();
+            column.extend((0..=j).map(|i| r[i * cols + j]));
+            let norm = scaled_norm(&column);
+            scale[j] = norm / pre[j];
+            check_norm(scale[j], || name(j))?;
+            for i in 0..=j {
+                out[i * cols + j] = r[i * cols + j] / norm;
+            }
+        }
+        for k in 0..p {
+            if rank_test && out[k * cols + k].abs() < RANK_TOLERANCE {
+                return Err(dependent(&name(k)));
+            }
+            out[k * cols + p] = r[k * cols + p] / pre[p];
+        }
+        let tail = r[p * cols + p] / pre[p];
+        Ok(Triangular {
+            r: out,
+            scale,
+            rss: tail * tail,
+            p,
+        })
+    }
+
+    /// θ̂, (ΦᵀΦ)⁻¹ and the RSS (as [`solve`] on the same rows).
+    pub fn solve(self, names: &[String]) -> Result<LsSolution, SysidError> {
+        self.triangular(names, true)?.solution()
+    }
+}
+
+/// The checks before a solve: at least as many rows `n` as parameters `p`, every value finite.
+fn check_problem(n: usize, p: usize, finite: bool) -> Result<(), SysidError> {
+    if n < p {
+        return Err(SysidError::Data(format!(
+            "{n} regression rows for {p} parameters: too few samples for these orders"
+        )));
+    }
+    if !finite {
+        return Err(SysidError::Numerical(
+            "non-finite value in the regression data".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// The name of column `j` for messages.
+fn column_name(names: &[String], j: usize) -> String {
+    names
+        .get(j)
+        .cloned()
+        .unwrap_or_else(|| format!("column {}", j + 1))
+}
+
+/// A column norm must be positive (the input excites the regressor) and finite.
+fn check_norm(norm: f64, name: impl Fn() -> String) -> Result<(), SysidError> {
+    if norm == 0.0 {
+        return Err(SysidError::Data(format!(
+            "regressor {} is zero over the whole record: the input does not excite it (not persistently exciting)",
+            name()
+        )));
+    }
+    if !norm.is_finite() {
+        return Err(SysidError::Numerical(format!(
+            "regressor {} overflows (too large values)",
+            name()
+        )));
+    }
+    Ok(())
 }
 
 fn dependent(name: &str) -> SysidError {
@@ -459,5 +647,64 @@ mod tests {
             assert_eq!(a.theta, b.theta);
             assert_eq!(a.rss, b.rss);
         }
+    }
+
+    // Row-block QR: the accumulated factor gives what the in-memory QR gives on the same rows (θ̂,
+    // (ΦᵀΦ)⁻¹, RSS to 1e-12 relative; two different sequences of reflections of the same matrix), for
+    // fewer rows than one block, several blocks with a partial last one, and columns 1e±150 apart.
+    #[test]
+    fn accumulated_factor_agrees_with_the_in_memory_qr() {
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        for (n, p, big) in [(5, 3, 0), (1000, 5, 0), (3 * FOLD_ROWS + 17, 7, 150)] {
+            let expo = |j: usize| if j == 0 { big } else { -big * (j as i32 % 2) };
+            let phi = DMatrix::from_fn(n, p, |_, j| rng.gen_range(-1.0..1.0) * 10f64.powi(expo(j)));
+            // y = Σ_j (j + 1) 10^−e_j φ_j + noise: every θ_j is of order one in its own units.
+            let y = DVector::from_fn(n, |i, _| {
+                (0..p)
+                    .map(|j| (j + 1) as f64 * 10f64.powi(-expo(j)) * phi[(i, j)])
+                    .sum::<f64>()
+                    + rng.gen_range(-1.0..1.0)
+            });
+            let a = solve(&phi, &y, &[]).unwrap();
+            let mut acc = QrAccumulator::new(p);
+            let mut row = vec![0.0; p];
+            for i in 0..n {
+                for (j, r) in row.iter_mut().enumerate() {
+                    *r = phi[(i, j)];
+                }
+                acc.push(&row, y[i]);
+            }
+            assert_eq!(acc.rows(), n);
+            let b = acc.solve(&[]).unwrap();
+            for j in 0..p {
+                assert!(rel(a.theta[j], b.theta[j]) < 1e-12, "n={n} θ{j}");
+                for i in 0..p {
+                    assert!(rel(a.inv_gram[(i, j)], b.inv_gram[(i, j)]) < 1e-10);
+                }
+            }
+            assert!(n == p || rel(a.rss, b.rss) < 1e-12, "{} {}", a.rss, b.rss);
+        }
+    }
+
+    #[test]
+    fn accumulator_refuses_what_the_in_memory_solver_refuses() {
+        let mut acc = QrAccumulator::new(2);
+        for _ in 0..10 {
+            acc.push(&[1.0, 2.0], 1.0);
+        }
+        let e = acc.solve(&["a".into(), "b".into()]).unwrap_err();
+        assert!(e.to_string().contains("persistently exciting") && e.to_string().contains("b"));
+        let mut acc = QrAccumulator::new(2);
+        acc.push(&[1.0, 0.0], 1.0);
+        acc.push(&[2.0, 0.0], 1.0);
+        let e = acc.solve(&["a".into(), "b".into()]).unwrap_err();
+        assert!(e.to_string().contains("regressor b is zero"), "{e}");
+        let mut acc = QrAccumulator::new(2);
+        acc.push(&[1.0, 0.0], 1.0);
+        assert!(!acc.solve(&[]).unwrap_err().is_numerical());
+        let mut acc = QrAccumulator::new(1);
+        acc.push(&[f64::NAN], 1.0);
+        acc.push(&[1.0], 1.0);
+        assert!(acc.solve(&[]).unwrap_err().is_numerical());
     }
 }

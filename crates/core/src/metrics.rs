@@ -227,14 +227,62 @@ pub fn metrics_miso(
         Ok((s, _)) => (Some(s), note),
         Err(e) => (None, note.or(Some(e))),
     };
-    let sse: f64 = y.iter().zip(pred).map(|(a, b)| (a - b) * (a - b)).sum();
-    if !sse.is_finite() {
+    let mean = y.iter().sum::<f64>() / n as f64;
+    let sums = MetricSums {
+        n,
+        p,
+        y_deviation: y.iter().map(|a| (a - mean) * (a - mean)).sum(),
+        sse_pred: sse(y, pred),
+        sse_sim: sim.as_ref().map(|s| sse(y, &s[k0..])),
+        sse_sim_measured: sim_measured.as_ref().map(|s| sse(y, &s[k0..])),
+        note,
+    };
+    metrics_from_sums(&sums, name)
+}
+
+/// Σ (y − ŷ)² over the common length.
+fn sse(y: &[f64], yhat: &[f64]) -> f64 {
+    y.iter().zip(yhat).map(|(a, b)| (a - b) * (a - b)).sum()
+}
+
+/// The sums over the rows k ≥ k0 of a record from which its [`Metrics`] are made: by [`metrics_miso`]
+/// from the whole record, or pass by pass from a record too long to hold (`sysid::stream`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct MetricSums {
+    /// N: rows k ≥ k0.
+    pub n: usize,
+    /// p: estimated parameters.
+    pub p: usize,
+    /// Σ (y − ȳ)², ȳ the mean over the same rows.
+    pub y_deviation: f64,
+    /// Σ ε² of the one-step prediction errors.
+    pub sse_pred: f64,
+    /// Σ (y − ŷ_sim)² of the simulation from estimated initial outputs (`None`: it failed).
+    pub sse_sim: Option<f64>,
+    /// Σ (y − ŷ_sim)² of the simulation from the measured initial outputs (`None`: it failed).
+    pub sse_sim_measured: Option<f64>,
+    /// Why a simulation failed.
+    pub note: Option<String>,
+}
+
+/// Fit % = 100 (1 − √sse / √deviation), or `None` when the output is constant.
+fn fit_of(sse: f64, deviation: f64) -> Option<f64> {
+    let den = deviation.sqrt();
+    let f = 100.0 * (1.0 - sse.sqrt() / den);
+    (den > 0.0 && f.is_finite()).then_some(f)
+}
+
+/// The [`Metrics`] of a record from its sums (`name` names the record in errors).
+pub fn metrics_from_sums(s: &MetricSums, name: &str) -> Result<Metrics, SysidError> {
+    let (n, p) = (s.n, s.p);
+    if !s.sse_pred.is_finite() {
         return Err(SysidError::Numerical(format!(
             "{}: the squared prediction errors overflow f64 (values too large? rescale the data)",
             name
         )));
     }
-    let mse = sse / n as f64;
+    let nf = n.max(1) as f64;
+    let mse = s.sse_pred / n as f64;
     let loss = 0.5 * mse;
     let fpe = (n > p)
         .then(|| (n + p) as f64 / (n - p) as f64 * loss)
@@ -242,25 +290,20 @@ pub fn metrics_miso(
     let aic = (mse > 0.0)
         .then(|| mse.ln() + 2.0 * p as f64 / n as f64)
         .filter(|v| v.is_finite());
+    let rmse_of = |sse: f64| Some((sse / nf).sqrt()).filter(|v| v.is_finite());
     Ok(Metrics {
-        fit_sim_percent: sim.as_ref().and_then(|s| fit_percent(y, &s[k0..])),
-        fit_pred_percent: fit_percent(y, pred),
-        rmse_sim: sim
-            .as_ref()
-            .map(|s| rmse(y, &s[k0..]))
-            .filter(|v| v.is_finite()),
-        fit_sim_measured_percent: sim_measured.as_ref().and_then(|s| fit_percent(y, &s[k0..])),
-        rmse_sim_measured: sim_measured
-            .as_ref()
-            .map(|s| rmse(y, &s[k0..]))
-            .filter(|v| v.is_finite()),
+        fit_sim_percent: s.sse_sim.and_then(|e| fit_of(e, s.y_deviation)),
+        fit_pred_percent: fit_of(s.sse_pred, s.y_deviation),
+        rmse_sim: s.sse_sim.and_then(rmse_of),
+        fit_sim_measured_percent: s.sse_sim_measured.and_then(|e| fit_of(e, s.y_deviation)),
+        rmse_sim_measured: s.sse_sim_measured.and_then(rmse_of),
         rmse_pred: mse.sqrt(),
         loss,
         fpe,
         aic,
         n,
         p,
-        note,
+        note: s.note.clone(),
     })
 }
 

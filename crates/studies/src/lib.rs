@@ -3,6 +3,7 @@
 //! random numbers (rand), which the identification library itself does not.
 
 pub mod bench;
+pub mod long;
 pub mod montecarlo;
 pub mod oe_bench;
 pub mod rng;

@@ -670,7 +670,12 @@ impl Fitted {
         self
     }
 
-    fn new(model: Model, params: Vec<Param>, method: Method, noise_variance: f64) -> Self {
+    pub(crate) fn new(
+        model: Model,
+        params: Vec<Param>,
+        method: Method,
+        noise_variance: f64,
+    ) -> Self {
         Fitted {
             model,
             params,
@@ -713,7 +718,7 @@ pub fn identify(data: &Dataset, settings: &Identification) -> Result<Fitted, Sys
         .collect();
     notes.append(&mut fit.notes);
     fit.notes = notes;
-    check_finite(data, &fit.params)?;
+    check_finite(&data.name, &fit.params)?;
     safeguard(&problem, settings, fit)
 }
 
@@ -917,12 +922,12 @@ fn linear_start(p: &Problem) -> Option<(Fitted, f64)> {
 
 /// No silent NaN: an estimate the data do not determine in f64 (magnitudes whose squares underflow or
 /// overflow) is a numerical failure, not a result.
-fn check_finite(data: &Dataset, params: &[Param]) -> Result<(), SysidError> {
+pub(crate) fn check_finite(name: &str, params: &[Param]) -> Result<(), SysidError> {
     match params.iter().find(|p| !p.value.is_finite()) {
         Some(p) => Err(SysidError::Numerical(format!(
             "{}: the estimate of {} is {} (not finite): the data do not determine it in f64 arithmetic \
              (values too large or too small? rescale the data)",
-            data.name, p.name, p.value
+            name, p.name, p.value
         ))),
         None => Ok(()),
     }
@@ -940,7 +945,7 @@ fn model_from_theta(
         .and_then(|m| m.map_deadzone(|d| br.impose(d)))
         .map_err(|e| {
             let params = physical_params(key.structure(), theta, None);
-            check_finite(data, &params)
+            check_finite(&data.name, &params)
                 .err()
                 .unwrap_or_else(|| SysidError::Numerical(format!("{}: {e}", data.name)))
         })
@@ -1296,7 +1301,11 @@ fn instrumental(p: &Problem, st: &InstrumentalVariables) -> Result<Fitted, Sysid
 }
 
 /// Physical parameters and their covariance-based standard deviations from θ̂ and Cov(θ̂).
-fn physical_params(s: &Structure, theta: &DVector<f64>, cov: Option<&DMatrix<f64>>) -> Vec<Param> {
+pub(crate) fn physical_params(
+    s: &Structure,
+    theta: &DVector<f64>,
+    cov: Option<&DMatrix<f64>>,
+) -> Vec<Param> {
     let sd = |i: usize| {
         cov.map(|c| c[(i, i)])
             .filter(|v| v.is_finite() && *v >= 0.0)

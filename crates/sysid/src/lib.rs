@@ -22,6 +22,7 @@ pub mod order;
 pub mod residuals;
 pub mod rls;
 pub mod rls_ud;
+pub mod stream;
 pub mod summary;
 pub mod warnings;
 pub mod windup;

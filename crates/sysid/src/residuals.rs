@@ -362,29 +362,219 @@ pub fn analyze(
     } else {
         (residuals.to_vec(), input.to_vec())
     };
-
-    // Covariances R(τ) = (1/N) Σ_k a(k) b(k−τ), τ ≥ 0.
-    let cov = |a: &[f64], b: &[f64], tau: usize| -> f64 {
-        a[tau..].iter().zip(b).map(|(x, y)| x * y).sum::<f64>() / nf
+    // Σ_k a(k) b(k−τ), τ ≥ 0.
+    let sum = |a: &[f64], b: &[f64], tau: usize| -> f64 {
+        a[tau..].iter().zip(b).map(|(x, y)| x * y).sum::<f64>()
     };
-    let re0 = cov(&e, &e, 0);
-    let rv0 = cov(&v, &v, 0);
-    check_variance(re0, residuals, Signal::Residual)?;
-    check_variance(rv0, input, Signal::Input)?;
+    let peak = |x: &[f64]| x.iter().fold(0.0_f64, |a, x| a.max(x.abs()));
+    let (head, tail) = CovarianceSums::ends(n, m);
+    finish(&CovarianceSums {
+        n,
+        max_lag: m,
+        remove_mean: options.remove_mean,
+        residual_mean,
+        input_mean,
+        ee: (0..=m).map(|t| sum(&e, &e, t)).collect(),
+        ev: (0..=m).map(|t| sum(&e, &v, t)).collect(),
+        ve: (0..=m).map(|t| sum(&v, &e, t)).collect(),
+        vv: (0..=2 * m).map(|t| sum(&v, &v, t)).collect(),
+        head: v[..head].to_vec(),
+        tail: v[n - tail..].to_vec(),
+        residual_peak: peak(residuals),
+        input_peak: peak(input),
+    })
+}
 
-    let autocorrelation: Vec<f64> = (1..=m).map(|tau| cov(&e, &e, tau) / re0).collect();
+/// The sums a residual analysis is made of (see the module documentation), with e and v the centred
+/// (or, without mean removal, raw) residual and input: by [`analyze`] from whole signals, or sample by
+/// sample by a [`CovarianceAccumulator`] from a record too long to hold.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CovarianceSums {
+    /// N.
+    pub n: usize,
+    /// M.
+    pub max_lag: usize,
+    /// Whether ε̄ and ū were subtracted.
+    pub remove_mean: bool,
+    /// ε̄.
+    pub residual_mean: f64,
+    /// ū.
+    pub input_mean: f64,
+    /// Σ_k e(k) e(k−τ), τ = 0..M.
+    pub ee: Vec<f64>,
+    /// Σ_k e(k) v(k−τ), τ = 0..M.
+    pub ev: Vec<f64>,
+    /// Σ_k v(k) e(k−τ), τ = 0..M.
+    pub ve: Vec<f64>,
+    /// Σ_k v(k) v(k−s), s = 0..2M.
+    pub vv: Vec<f64>,
+    /// v(0..h), the first samples (see [`CovarianceSums::ends`]).
+    pub head: Vec<f64>,
+    /// v(N−t..N), the last samples.
+    pub tail: Vec<f64>,
+    /// max |ε(k)| of the raw residuals.
+    pub residual_peak: f64,
+    /// max |u(k)| of the raw input.
+    pub input_peak: f64,
+}
+
+impl CovarianceSums {
+    /// How many of the first and last input samples the end corrections of the lagged Gram matrix read:
+    /// the terms v(a) v(a + s) left out at the start have a, a + s < −min(τ_i, τ_j) ≤ M, those at the
+    /// end a, a + s ≥ N − max(τ_i, τ_j) ≥ N − M (see [`lagged_gram`]); so (M, M), at most N.
+    pub fn ends(n: usize, m: usize) -> (usize, usize) {
+        (m.min(n), m.min(n))
+    }
+
+    /// v(i) for an index the end corrections read.
+    fn v_at(&self, i: usize) -> f64 {
+        if i < self.head.len() {
+            self.head[i]
+        } else {
+            let from = self.n - self.tail.len();
+            self.tail.get(i.wrapping_sub(from)).copied().unwrap_or(0.0)
+        }
+    }
+}
+
+/// The sums of a residual analysis accumulated sample by sample, for a record too long to hold: the
+/// means ε̄ and ū (when removed) come from an earlier pass. The sums are added in the order [`analyze`]
+/// adds them, so both give the same numbers bit for bit on the same signals.
+#[derive(Debug, Clone)]
+pub struct CovarianceAccumulator {
+    sums: CovarianceSums,
+    /// The last 2M + 1 values of e and v, each stored twice, at k mod (2M + 1) and 2M + 1 positions
+    /// later, so that the values back from k are one contiguous slice (no division per product).
+    e: Vec<f64>,
+    v: Vec<f64>,
+    /// k mod (2M + 1) for the next sample.
+    at: usize,
+    bad: Option<ResidError>,
+}
+
+impl CovarianceAccumulator {
+    /// An empty accumulator for M = `options.max_lag` lags; `residual_mean` and `input_mean` are ε̄ and ū
+    /// of the whole record (subtracted when `options.remove_mean`).
+    pub fn new(options: &ResidOptions, residual_mean: f64, input_mean: f64) -> Self {
+        let m = options.max_lag;
+        CovarianceAccumulator {
+            sums: CovarianceSums {
+                n: 0,
+                max_lag: m,
+                remove_mean: options.remove_mean,
+                residual_mean,
+                input_mean,
+                ee: vec![0.0; m + 1],
+                ev: vec![0.0; m + 1],
+                ve: vec![0.0; m + 1],
+                vv: vec![0.0; 2 * m + 1],
+                head: Vec::with_capacity(m),
+                tail: Vec::new(),
+                residual_peak: 0.0,
+                input_peak: 0.0,
+            },
+            e: vec![0.0; 2 * (2 * m + 1)],
+            v: vec![0.0; 2 * (2 * m + 1)],
+            at: 0,
+            bad: None,
+        }
+    }
+
+    /// Adds the next residual ε(k) and input u(k).
+    #[inline]
+    pub fn push(&mut self, residual: f64, input: f64) {
+        let s = &mut self.sums;
+        let k = s.n;
+        s.n += 1;
+        for (x, signal) in [(residual, Signal::Residual), (input, Signal::Input)] {
+            if !x.is_finite() && self.bad.is_none() {
+                self.bad = Some(ResidError::NonFinite {
+                    signal,
+                    index: k,
+                    value: x,
+                });
+            }
+        }
+        s.residual_peak = s.residual_peak.max(residual.abs());
+        s.input_peak = s.input_peak.max(input.abs());
+        let (e, v) = if s.remove_mean {
+            (residual - s.residual_mean, input - s.input_mean)
+        } else {
+            (residual, input)
+        };
+        let r = self.e.len() / 2;
+        let at = self.at;
+        self.at = if at + 1 == r { 0 } else { at + 1 };
+        for (buf, x) in [(&mut self.e, e), (&mut self.v, v)] {
+            buf[at] = x;
+            buf[at + r] = x;
+        }
+        if s.head.len() < s.max_lag {
+            s.head.push(v);
+        }
+        // e(k − τ) = e[at + r − τ]: the window of the last values, newest last.
+        let lags = k.min(s.max_lag);
+        let (ew, vw) = (
+            &self.e[at + r - lags..=at + r],
+            &self.v[at + r - lags..=at + r],
+        );
+        for (tau, (ej, vj)) in ew.iter().rev().zip(vw.iter().rev()).enumerate() {
+            s.ee[tau] += e * ej;
+            s.ev[tau] += e * vj;
+            s.ve[tau] += v * ej;
+        }
+        let lags = k.min(2 * s.max_lag);
+        for (lag, vj) in self.v[at + r - lags..=at + r].iter().rev().enumerate() {
+            s.vv[lag] += v * vj;
+        }
+    }
+
+    /// The analysis (the errors of [`analyze`]).
+    pub fn finish(mut self) -> Result<ResidualAnalysis, ResidError> {
+        let (n, m) = (self.sums.n, self.sums.max_lag);
+        if m == 0 {
+            return Err(ResidError::ZeroMaxLag);
+        }
+        let required = 2 * (m + 1);
+        if n < required {
+            return Err(ResidError::TooShort {
+                n,
+                max_lag: m,
+                required,
+            });
+        }
+        if let Some(e) = self.bad {
+            return Err(e);
+        }
+        let (_, tail) = CovarianceSums::ends(n, m);
+        let r = self.v.len() / 2;
+        self.sums.tail = (n - tail..n).map(|k| self.v[k % r]).collect();
+        finish(&self.sums)
+    }
+}
+
+/// The residual analysis from its sums (the checks of [`analyze`] that need them).
+pub fn finish(s: &CovarianceSums) -> Result<ResidualAnalysis, ResidError> {
+    let (n, m) = (s.n, s.max_lag);
+    let nf = n as f64;
+    // Covariances R(τ) = (1/N) Σ_k a(k) b(k−τ), τ ≥ 0.
+    let re0 = s.ee[0] / nf;
+    let rv0 = s.vv[0] / nf;
+    check_variance(re0, s.residual_peak, Signal::Residual)?;
+    check_variance(rv0, s.input_peak, Signal::Input)?;
+
+    let autocorrelation: Vec<f64> = (1..=m).map(|tau| s.ee[tau] / nf / re0).collect();
     let scale = (re0 * rv0).sqrt();
     // Lag τ < 0: Σ_k e(k) v(k+|τ|) = Σ_j v(j) e(j−|τ|), the covariance of v against e at |τ|.
     let cross_correlation: Vec<f64> = (0..=2 * m)
         .map(|i| {
             if i < m {
-                cov(&v, &e, m - i) / scale
+                s.ve[m - i] / nf / scale
             } else {
-                cov(&e, &v, i - m) / scale
+                s.ev[i - m] / nf / scale
             }
         })
         .collect();
-
     // Whiteness: Ljung–Box.
     let ljung_box_q = nf
         * (nf + 2.0)
@@ -397,7 +587,7 @@ pub fn analyze(
 
     // Independence: S = N cᵀ G⁻¹ c with G the Gram matrix of the lagged inputs.
     let order = 2 * m + 1;
-    let gram = lagged_gram(&v, m, nf * rv0);
+    let gram = lagged_gram(s, nf * rv0);
     let cross_statistic = nf * quadratic_form_inverse(&gram, &cross_correlation)?;
     let cross_p = chi2_sf(cross_statistic, order as f64);
     let cross_statistic_plain = nf * cross_correlation.iter().map(|r| r * r).sum::<f64>();
@@ -407,10 +597,10 @@ pub fn analyze(
     Ok(ResidualAnalysis {
         n,
         max_lag: m,
-        mean_removed: options.remove_mean,
-        residual_mean,
+        mean_removed: s.remove_mean,
+        residual_mean: s.residual_mean,
         residual_std: re0.sqrt(),
-        input_mean,
+        input_mean: s.input_mean,
         bound,
         autocorrelation_outside: autocorrelation.iter().filter(|r| r.abs() > bound).count(),
         cross_correlation_outside: cross_correlation.iter().filter(|r| r.abs() > bound).count(),
@@ -442,8 +632,7 @@ fn check_finite(x: &[f64], signal: Signal) -> Result<(), ResidError> {
 
 /// R(0) is "zero" when √R(0) is below 1e-12 of the signal's largest magnitude: after mean removal
 /// of a constant signal only rounding noise of that order is left.
-fn check_variance(r0: f64, raw: &[f64], signal: Signal) -> Result<(), ResidError> {
-    let peak = raw.iter().fold(0.0_f64, |a, x| a.max(x.abs()));
+fn check_variance(r0: f64, peak: f64, signal: Signal) -> Result<(), ResidError> {
     if r0 <= 0.0 || r0.sqrt() <= 1e-12 * peak {
         Err(ResidError::ZeroVariance { signal })
     } else {
@@ -455,15 +644,14 @@ fn check_variance(r0: f64, raw: &[f64], signal: Signal) -> Result<(), ResidError
 /// row-major (2M+1)² matrix. With s = τ_i − τ_j the sum runs over a = k − τ_i in
 /// [max(0, −τ_i, −s), min(N, N−τ_i, N−s)) of v(a) v(a+s): the full lag-s sum T(s) (a in
 /// [max(0, −s), min(N, N−s))) minus at most M terms at each end. Cost O(N·M + M³).
-fn lagged_gram(v: &[f64], m: usize, scale: f64) -> Vec<f64> {
-    let n = v.len() as i64;
+fn lagged_gram(sums: &CovarianceSums, scale: f64) -> Vec<f64> {
+    let m = sums.max_lag;
+    let n = sums.n as i64;
     let mi = m as i64;
     let p = 2 * m + 1;
     // T(s) for s = 0..=2M; T(−s) = T(s).
-    let full: Vec<f64> = (0..=2 * m)
-        .map(|s| v[s..].iter().zip(v).map(|(x, y)| x * y).sum::<f64>())
-        .collect();
-    let term = |a: i64, s: i64| v[a as usize] * v[(a + s) as usize];
+    let full = &sums.vv;
+    let term = |a: i64, s: i64| sums.v_at(a as usize) * sums.v_at((a + s) as usize);
     let mut g = vec![0.0; p * p];
     for i in 0..p {
         for j in 0..=i {
@@ -1011,6 +1199,35 @@ mod tests {
             plain_rejects >= 5,
             "plain statistic rejected only {plain_rejects}/100"
         );
+    }
+
+    // The accumulator adds the same products in the same order as `analyze` (itself checked against the
+    // naive double sums above), so both give identical analyses, at the shortest allowed record
+    // (N = 2(M+1), where the first and last M samples overlap) and on a long one, with and without
+    // mean removal; and the accumulator refuses a short record as `analyze` does.
+    #[test]
+    fn accumulated_sums_give_the_same_analysis_as_the_whole_signals() {
+        let mut rng = ChaCha8Rng::seed_from_u64(77);
+        for (n, m, remove_mean) in [(12, 5, true), (3000, 25, true), (500, 7, false)] {
+            let eps: Vec<f64> = ar1(&mut rng, n, 0.3).iter().map(|e| e + 0.2).collect();
+            let u: Vec<f64> = ar1(&mut rng, n, 0.8).iter().map(|x| 100.0 + x).collect();
+            let o = opts(m, remove_mean);
+            let want = analyze(&eps, &u, &o).unwrap();
+            let mean = |x: &[f64]| x.iter().sum::<f64>() / n as f64;
+            let mut acc = CovarianceAccumulator::new(&o, mean(&eps), mean(&u));
+            for (e, x) in eps.iter().zip(&u) {
+                acc.push(*e, *x);
+            }
+            assert_eq!(acc.finish().unwrap(), want, "n = {n}, M = {m}");
+        }
+        let mut acc = CovarianceAccumulator::new(&opts(5, true), 0.0, 0.0);
+        for k in 0..11 {
+            acc.push(k as f64, (k * k) as f64);
+        }
+        assert!(matches!(
+            acc.finish(),
+            Err(ResidError::TooShort { n: 11, .. })
+        ));
     }
 
     #[test]

@@ -151,18 +151,31 @@ impl IdentifyReport {
     ) -> Result<Self, SysidError> {
         let est = metrics(&fit.model, est_data)?;
         let val = val_data.map(|v| metrics(&fit.model, v)).transpose()?;
-        let mut report = IdentifyReport::new(fit, settings, est, val);
-        report.residuals = ResidualsPair {
+        let residuals = ResidualsPair {
             estimation: residual_analysis(&fit.model, est_data, max_lag),
             validation: val_data.map(|v| residual_analysis(&fit.model, v, max_lag)),
         };
+        Ok(Self::from_parts(fit, settings, est, val, residuals))
+    }
+
+    /// The report from metrics and residual analyses computed elsewhere (the streaming path,
+    /// `sysid::stream`), with the warnings [`IdentifyReport::assemble`] adds.
+    pub fn from_parts(
+        fit: &Fitted,
+        settings: &Identification,
+        est: Metrics,
+        val: Option<Metrics>,
+        residuals: ResidualsPair,
+    ) -> Self {
+        let mut report = IdentifyReport::new(fit, settings, est, val);
+        report.residuals = residuals;
         if let Some(m) = &report.metrics.validation {
             report.warnings.extend(
                 Warning::if_poor_simulation(Record::Validation, m.fit_sim_percent)
                     .map(|w| w.to_string()),
             );
         }
-        Ok(report)
+        report
     }
 
     /// The report of a fit from metrics computed elsewhere (no residual analysis; the fit's own
@@ -264,6 +277,16 @@ impl ValidationReport {
         max_lag: usize,
     ) -> Result<Self, SysidError> {
         let m = sysid_core::metrics::metrics_miso(model, u, y, name)?;
+        Ok(Self::from_parts(
+            model,
+            m,
+            residual_analysis_miso(model, u, y, max_lag),
+        ))
+    }
+
+    /// The report from metrics and a residual analysis computed elsewhere (the streaming path,
+    /// `sysid::stream`), with the warnings [`ValidationReport::assemble`] gives.
+    pub fn from_parts(model: &Model, m: Metrics, residuals: ResidualEntry) -> Self {
         let warnings: Vec<String> = Warning::if_unstable(model)
             .into_iter()
             .chain(Warning::if_poor_simulation(
@@ -272,16 +295,16 @@ impl ValidationReport {
             ))
             .map(|w| w.to_string())
             .collect();
-        Ok(ValidationReport {
+        ValidationReport {
             model: model.clone(),
             poles: poles(model),
             stable: model.is_stable(),
             metrics: ValidationMetrics { validation: m },
             residuals: ValidationResiduals {
-                validation: residual_analysis_miso(model, u, y, max_lag),
+                validation: residuals,
             },
             warnings,
-        })
+        }
     }
 
     /// Pretty JSON text (ending with a newline).

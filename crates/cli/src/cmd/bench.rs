@@ -32,6 +32,63 @@ pub enum What {
     /// Seconds, iterations and fit of output-error identification on the EMPS and silverbox records
     /// (`--peer PYTHON`: SysIdentPy's FROLS on the same records in the same run).
     Oe(super::bench_oe::OeArgs),
+    /// Rows per second and peak memory of the streaming identification of long records (child
+    /// processes), beside the in-memory path and a numpy least-squares peer in the same run.
+    Long(LongArgs),
+}
+
+/// Record lengths (`--rows 1e6,1e7`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct RowsList(pub Vec<usize>);
+
+/// Parses `--rows 1000000,10000000` (each at least 10).
+fn parse_rows_list(text: &str) -> Result<RowsList, String> {
+    text.split(',')
+        .map(|t| {
+            let t = t.trim().replace('_', "");
+            let v = t
+                .parse::<f64>()
+                .ok()
+                .filter(|v| v.fract() == 0.0 && *v >= 10.0 && *v <= 1e9)
+                .ok_or_else(|| {
+                    format!("'{t}': expected a number of rows between 10 and 1e9, such as 1e6")
+                })?;
+            Ok(v as usize)
+        })
+        .collect::<Result<_, _>>()
+        .map(RowsList)
+}
+
+/// Flags of `bench long`.
+#[derive(Debug, clap::Args)]
+pub struct LongArgs {
+    /// Record lengths N (comma-separated; 1e6 accepted).
+    #[arg(long, default_value = "1e6,1e7", value_parser = parse_rows_list, value_name = "N,...")]
+    pub rows: RowsList,
+    /// Folder for the records and logs (default: a new folder in the system's temporary folder, removed
+    /// afterwards). A record of 1e7 rows takes about 310 MB.
+    #[arg(long, value_name = "DIR")]
+    pub dir: Option<PathBuf>,
+    /// Also time the in-memory path (`--stream off`) on records of at most this many rows (it needs
+    /// about 250 bytes per row).
+    #[arg(long, default_value_t = 1_000_000, value_name = "N")]
+    pub in_memory_max: usize,
+    /// Python interpreter with numpy for the peer.
+    #[arg(long, default_value = "python3", value_name = "PYTHON")]
+    pub python: PathBuf,
+    /// The numpy peer script.
+    #[arg(
+        long,
+        default_value = "scripts/bench_numpy_long.py",
+        value_name = "FILE"
+    )]
+    pub numpy_script: PathBuf,
+    /// Leave out the numpy peer.
+    #[arg(long)]
+    pub no_numpy: bool,
+    /// Write the result as JSON here (`-` for standard output).
+    #[arg(long, value_name = "OUT")]
+    pub json: Option<PathBuf>,
 }
 
 /// Flags shared by every benchmark.
@@ -108,6 +165,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         What::Identify(a) => identify(a),
         What::Plant(a) => plant(a),
         What::Oe(a) => super::bench_oe::run(a),
+        What::Long(a) => long(a),
     }
 }
 
@@ -434,4 +492,114 @@ fn physics_plant(a: PlantArgs) -> anyhow::Result<()> {
         &a.common.json,
         &inputs,
     )
+}
+
+/// The load average of the last minute (`/proc/loadavg`), when the system has one.
+fn load_average() -> Option<f64> {
+    std::fs::read_to_string("/proc/loadavg")
+        .ok()?
+        .split_whitespace()
+        .next()?
+        .parse()
+        .ok()
+}
+
+fn long(a: LongArgs) -> anyhow::Result<()> {
+    use sysid_studies::long::{bench_long, LongConfig, Measured};
+    #[derive(Serialize)]
+    struct Out {
+        benchmark: &'static str,
+        load_average_before: Option<f64>,
+        load_average_after: Option<f64>,
+        results: Vec<sysid_studies::long::LongRow>,
+    }
+    if a.rows.0.is_empty() {
+        anyhow::bail!("--rows needs at least one record length");
+    }
+    let numpy = if a.no_numpy {
+        None
+    } else if a.numpy_script.is_file() {
+        Some((a.python.clone(), a.numpy_script.clone()))
+    } else {
+        anyhow::bail!(
+            "the numpy peer {} is not there: run from the repository's root, pass --numpy-script FILE, or \
+             --no-numpy",
+            a.numpy_script.display()
+        );
+    };
+    let (dir, remove) = match &a.dir {
+        Some(d) => (d.clone(), false),
+        None => (
+            std::env::temp_dir().join(format!("ipa-sysid-bench-long-{}", std::process::id())),
+            true,
+        ),
+    };
+    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    let cfg = LongConfig {
+        exe: std::env::current_exe().context("finding the ipa-sysid binary")?,
+        dir: dir.clone(),
+        rows: a.rows.0.clone(),
+        in_memory_max: a.in_memory_max,
+        numpy,
+    };
+    let before = load_average();
+    let results = bench_long(&cfg, |what| eprintln!("bench long: {what}..."));
+    if remove {
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+    let results = results.map_err(|e| anyhow::anyhow!("bench long: {e}"))?;
+    let after = load_average();
+    let mib = |m: &Measured| {
+        m.run.peak_rss_bytes.map_or("n/a".to_string(), |b| {
+            format!("{:.1}", b as f64 / 1048576.0)
+        })
+    };
+    let line = |name: &str, m: &Measured| {
+        format!(
+            "  {name:<34} {:>9.2} s {:>12.3e} rows/s {:>10} MiB peak RSS{}\n",
+            m.run.wall_s,
+            m.rows_per_s,
+            mib(m),
+            m.max_rel_diff_to_stream.map_or(String::new(), |d| format!(
+                "   θ differs from streamed by ≤ {d:.1e} (relative)"
+            ))
+        )
+    };
+    let mut text = format!(
+        "Long records: ARX(3,1,1) by least squares on `simulate --plant paper` records (child processes; \
+         wall time from start to exit, peak RSS = the child's ru_maxrss); load average {} before, {} after\n",
+        before.map_or("n/a".into(), |v| format!("{v:.2}")),
+        after.map_or("n/a".into(), |v| format!("{v:.2}")),
+    );
+    for r in &results {
+        text.push_str(&format!(
+            "{} rows ({:.1} MB CSV):\n",
+            r.rows,
+            r.file_bytes as f64 / 1e6
+        ));
+        text.push_str(&line("ipa-sysid identify --stream on", &r.stream));
+        if let Some(m) = &r.in_memory {
+            text.push_str(&line("ipa-sysid identify --stream off", m));
+        }
+        if let Some(e) = &r.numpy_error {
+            text.push_str(&format!("  numpy peer: no result ({e})\n"));
+        }
+        if let (Some(m), Some(d)) = (&r.numpy, &r.numpy_detail) {
+            text.push_str(&line(
+                &format!("numpy {} lstsq (Python {})", d.numpy, d.python),
+                m,
+            ));
+            text.push_str(&format!(
+                "  {:<34} read {:.2} s, lstsq {:.2} s (θ only: no standard deviations, metrics or residual tests)\n",
+                "", d.read_s, d.solve_s
+            ));
+        }
+    }
+    let out = Out {
+        benchmark: "long",
+        load_average_before: before,
+        load_average_after: after,
+        results,
+    };
+    emit(&text, &out, &a.json, &[])
 }

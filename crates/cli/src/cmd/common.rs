@@ -61,6 +61,58 @@ impl ColumnArgs {
     }
 }
 
+/// `--stream`: read a record in passes with bounded memory (docs/data.md, "Long records").
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, clap::ValueEnum)]
+pub enum StreamMode {
+    /// Stream a CSV file of 64 MiB or more (`sysid::stream::AUTO_STREAM_BYTES`) when the command's
+    /// settings allow it; otherwise read the record into memory.
+    #[default]
+    Auto,
+    /// Always stream; settings that need the whole record are an error.
+    On,
+    /// Never stream.
+    Off,
+}
+
+impl StreamMode {
+    /// Whether to stream `data`: `why_not` is the reason the settings cannot be streamed, if any
+    /// (an error with `--stream on`); `refused` makes that error.
+    pub fn decide(
+        self,
+        data: &Path,
+        why_not: Option<String>,
+        refused: impl FnOnce(&str) -> sysid::SysidError,
+    ) -> anyhow::Result<bool> {
+        match self {
+            StreamMode::Off => Ok(false),
+            StreamMode::On => match why_not {
+                Some(why) => Err(refused(&why).into()),
+                None => Ok(true),
+            },
+            StreamMode::Auto => {
+                let large = std::fs::metadata(data)
+                    .is_ok_and(|m| m.is_file() && m.len() >= sysid::stream::AUTO_STREAM_BYTES);
+                let csv = data
+                    .extension()
+                    .is_none_or(|e| !e.eq_ignore_ascii_case("mat"));
+                Ok(large && csv && why_not.is_none())
+            }
+        }
+    }
+}
+
+/// Says on standard error that `name` (of `rows` rows) was read in `passes` passes.
+pub fn stream_note(name: &str, passes: usize, rows: usize, mode: StreamMode) {
+    eprintln!(
+        "note: {name} was read in {passes} passes ({rows} rows; memory does not grow with the record{})",
+        if mode == StreamMode::On {
+            ""
+        } else {
+            "; streamed automatically for a large file"
+        }
+    );
+}
+
 /// Prints a command's text report: on standard error when the JSON goes to standard output (`--json -`),
 /// so that the JSON stays parseable, else on standard output.
 pub fn print_report(text: &str, json: Option<&Path>) {
@@ -165,10 +217,23 @@ impl ValidationArgs {
     /// named by `--val-u-col` / `--val-y-col` (default: the estimation column names) and the rows
     /// (`--val-rows`, default all). Without `--validation`, `--val-rows` selects rows of `data`.
     pub fn read_from(&self, data: &Path, opts: &CsvOptions) -> anyhow::Result<Option<Record>> {
+        match self.validation_source(data, opts) {
+            Some((path, vopts)) => Ok(Some(sysid::data::read_record(path, &vopts)?)),
+            None => Ok(None),
+        }
+    }
+
+    /// The file and reader options of the validation record (see [`ValidationArgs::read_from`]), if
+    /// any; `--split` is not among them.
+    pub fn validation_source<'a>(
+        &'a self,
+        data: &'a Path,
+        opts: &CsvOptions,
+    ) -> Option<(&'a Path, CsvOptions)> {
         let path = match (&self.validation, &self.val_rows) {
             (Some(p), _) => p.as_path(),
             (None, Some(_)) => data,
-            (None, None) => return Ok(None),
+            (None, None) => return None,
         };
         let vopts = CsvOptions {
             u_col: self.val_u_col.clone().unwrap_or_else(|| opts.u_col.clone()),
@@ -177,7 +242,7 @@ impl ValidationArgs {
             rows_flag: "--val-rows",
             ..opts.clone()
         };
-        Ok(Some(sysid::data::read_record(path, &vopts)?))
+        Some((path, vopts))
     }
 
     /// Reads the validation record of `--validation` (rows `--val-rows`), if any (batch mode).

@@ -2,6 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
+use sysid::data::stream::{CsvStream, RecordSource};
 use sysid::estimate::{identify, Identification, Method, Passes};
 use sysid::rls_ud::RlsForm;
 use sysid::summary::IdentifyReport;
@@ -9,7 +10,8 @@ use sysid::windup::Windup;
 use sysid::{IdentifyOptions, ModelKind};
 
 use super::common::{
-    check_outputs, print_notes, print_report, write_output, ColumnArgs, ValidationArgs,
+    check_outputs, print_notes, print_report, stream_note, write_output, ColumnArgs, StreamMode,
+    ValidationArgs,
 };
 use sysid::detrend::{detrend, Detrend};
 
@@ -152,6 +154,11 @@ pub struct Args {
     /// Save the model for `validate --model` and `--plant model:FILE`.
     #[arg(long, value_name = "MODEL.json")]
     pub save_model: Option<PathBuf>,
+    /// Read the record in passes with bounded memory (ARX by least squares; docs/data.md, "Long
+    /// records"): `auto` streams a CSV file of 64 MiB or more when the identification allows it;
+    /// `--stream` alone is `on`.
+    #[arg(long, value_enum, default_value = "auto", num_args = 0..=1, default_missing_value = "on", value_name = "WHEN")]
+    pub stream: StreamMode,
 }
 
 /// `--passes`: a whole number of passes, or `auto`.
@@ -190,6 +197,14 @@ impl Args {
 
 /// Runs `identify`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    let several = args.columns.u_col.contains(',')
+        || args.merge
+        || super::identify_batch::is_batch(&args.data);
+    if args.stream == StreamMode::On && several {
+        anyhow::bail!(sysid::stream::refused(
+            "several inputs, --merge and several files are read in memory"
+        ));
+    }
     if args.columns.u_col.contains(',') {
         return run_miso(&args);
     }
@@ -209,12 +224,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let Some(data_path) = args.data.first() else {
         anyhow::bail!("--data needs a file");
     };
-    let mut inputs: Vec<&Path> = vec![data_path.as_path()];
-    inputs.extend(args.val.validation.as_deref());
-    check_outputs(
-        &[(&args.json, "--json"), (&args.save_model, "--save-model")],
-        &inputs,
-    )?;
+    if streaming(&args, &settings, data_path)? {
+        return run_streamed(&args, &settings, data_path);
+    }
+    let inputs = checked_inputs(&args, data_path)?;
     let opts = args.columns.csv_options();
     let records = args.val.records(data_path, &opts)?;
     print_notes(&records.notes);
@@ -229,17 +242,39 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     report
         .warnings
         .extend(records.notes.iter().map(|n| format!("data: {n}")));
+    let est = (data.name.as_str(), data.len());
+    let val = val.as_ref().map(|v| (v.name.as_str(), v.len()));
+    output(
+        &args,
+        &report,
+        &fit.model,
+        est,
+        val,
+        &records.notes,
+        &inputs,
+    )
+}
+
+/// Prints the report of an identification (`est` and `val`: the records' names and lengths) and writes
+/// `--json` and `--save-model`; the in-memory and the streaming paths share it.
+fn output(
+    args: &Args,
+    report: &IdentifyReport,
+    model: &sysid::Model,
+    est: (&str, usize),
+    val: Option<(&str, usize)>,
+    notes: &[String],
+    inputs: &[&Path],
+) -> anyhow::Result<()> {
     let json_to_stdout = args.json.as_deref().is_some_and(|p| p.as_os_str() == "-");
     let text = format!(
         "Data: {} ({} samples){}\n{}",
-        data.name,
-        data.len(),
-        val.as_ref()
-            .map(|v| format!("; validation: {} ({} samples)", v.name, v.len()))
+        est.0,
+        est.1,
+        val.map(|(name, len)| format!("; validation: {name} ({len} samples)"))
             .unwrap_or_default(),
-        crate::text::identify_report(&report)
-    ) + &fit
-        .model
+        crate::text::identify_report(report)
+    ) + &model
         .operating_point()
         .map(|o| {
             format!(
@@ -258,19 +293,88 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     if let Some(path) = &args.json {
         let mut json = report.to_json()?;
-        if !records.notes.is_empty() || args.detrend != Detrend::None {
+        if !notes.is_empty() || args.detrend != Detrend::None {
             // The reader's warnings and the detrending travel with the numbers they concern.
             let mut value: serde_json::Value = serde_json::from_str(&json)?;
             if let Some(obj) = value.as_object_mut() {
                 obj.insert("detrend".into(), serde_json::json!(args.detrend));
-                obj.insert("data_notes".into(), serde_json::json!(records.notes));
+                obj.insert("data_notes".into(), serde_json::json!(notes));
             }
             json = serde_json::to_string_pretty(&value)? + "\n";
         }
-        write_output(path, json.as_bytes(), &inputs, "--json")?;
+        write_output(path, json.as_bytes(), inputs, "--json")?;
     }
-    save_model(&args, &fit.model, &inputs)?;
+    save_model(args, model, inputs)?;
     crate::exit::strict(args.strict, report.warnings.len())
+}
+
+/// Whether to read the record in passes (`--stream`, [`StreamMode::decide`]): ARX by least squares,
+/// without `--split` or `--resample`.
+fn streaming(args: &Args, settings: &Identification, data: &Path) -> anyhow::Result<bool> {
+    let why = sysid::stream::unsupported(settings)
+        .or_else(|| {
+            args.val.split.is_some().then(|| {
+                "--split needs the record's length before reading it; use --rows and --val-rows"
+                    .into()
+            })
+        })
+        .or_else(|| {
+            args.columns
+                .resample
+                .is_some()
+                .then(|| "--resample needs the whole record".into())
+        });
+    args.stream.decide(data, why, sysid::stream::refused)
+}
+
+/// `identify` with the records read in passes (`sysid::stream`): memory does not grow with the record.
+fn run_streamed(args: &Args, settings: &Identification, data_path: &Path) -> anyhow::Result<()> {
+    let inputs = checked_inputs(args, data_path)?;
+    let opts = args.columns.csv_options();
+    let mut est = CsvStream::open(data_path, &opts)?;
+    let mut val = match args.val.validation_source(data_path, &opts) {
+        Some((path, vopts)) => Some(CsvStream::open(path, &vopts)?),
+        None => None,
+    };
+    let streamed = sysid::stream::identify_report(
+        &mut est,
+        val.as_mut().map(|v| v as &mut dyn RecordSource),
+        settings,
+        args.detrend,
+        args.resid_lags,
+    )?;
+    let (fit, report) = &streamed.result;
+    stream_note(
+        est.name(),
+        streamed.passes,
+        streamed.shape.rows,
+        args.stream,
+    );
+    let val_desc = val
+        .as_ref()
+        .zip(streamed.val_shape)
+        .map(|(v, s)| (v.name(), s.rows));
+    output(
+        args,
+        report,
+        &fit.model,
+        (est.name(), streamed.shape.rows),
+        val_desc,
+        &[],
+        &inputs,
+    )
+}
+
+/// The input files (the record and the validation file) after checking that the outputs can be written
+/// and name none of them.
+fn checked_inputs<'a>(args: &'a Args, data_path: &'a Path) -> anyhow::Result<Vec<&'a Path>> {
+    let mut inputs: Vec<&Path> = vec![data_path];
+    inputs.extend(args.val.validation.as_deref());
+    check_outputs(
+        &[(&args.json, "--json"), (&args.save_model, "--save-model")],
+        &inputs,
+    )?;
+    Ok(inputs)
 }
 
 /// Writes `--save-model`, if given.

@@ -4,7 +4,9 @@ use std::path::{Path, PathBuf};
 
 use sysid::summary::ValidationReport;
 
-use super::common::{check_outputs, print_notes, write_output, ColumnArgs};
+use super::common::{
+    check_outputs, print_notes, print_report, stream_note, write_output, ColumnArgs, StreamMode,
+};
 
 /// Flags of `validate`.
 #[derive(Debug, clap::Args)]
@@ -34,6 +36,11 @@ pub struct Args {
     /// 1 = one-step-ahead).
     #[arg(long, value_name = "K", default_value_t = 1)]
     pub horizon: usize,
+    /// Read the record in passes with bounded memory (single-input models, horizon 1, no --out;
+    /// docs/data.md, "Long records"): `auto` streams a CSV file of 64 MiB or more when those hold;
+    /// `--stream` alone is `on`.
+    #[arg(long, value_enum, default_value = "auto", num_args = 0..=1, default_missing_value = "on", value_name = "WHEN")]
+    pub stream: StreamMode,
 }
 
 /// Runs `validate`.
@@ -70,6 +77,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(first) = cols.first() {
         opts.u_col = first.clone();
     }
+    if streaming(&args, miso)? {
+        return run_streamed(&args, &model, &opts, &inputs);
+    }
     let record = sysid::data::read_record(&args.data, &opts)?;
     print_notes(&record.notes);
     let data = record.data;
@@ -95,63 +105,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         extra.iter().map(Vec::as_slice).collect()
     };
-    if (data.ts - model.ts()).abs() > 1e-3 * model.ts() {
-        anyhow::bail!(
-            "{}: the data are sampled at Ts = {} s but the model was identified at Ts = {} s; \
-             resample the data or pass the matching --ts",
-            data.name,
-            data.ts,
-            model.ts()
-        );
-    }
+    check_ts(&data.name, data.ts, model.ts())?;
     let mut report =
         ValidationReport::assemble_miso(&model, &us, &data.y, &data.name, args.resid_lags)?;
     report
         .warnings
         .extend(record.notes.iter().map(|n| format!("data: {n}")));
-    let m = report.metrics.validation.clone();
     let out = sysid::metrics::model_output(&model, &us, &data.y, args.horizon)?;
-    let mut value = serde_json::to_value(&report)?;
-    if let Some(obj) = value.as_object_mut() {
-        obj.insert("horizon".into(), serde_json::json!(args.horizon));
-        obj.insert(
-            "fit_pred_horizon_percent".into(),
-            serde_json::json!(out.fit_pred_percent),
-        );
-        obj.insert("data_notes".into(), serde_json::json!(record.notes));
-    }
-    let mut text = format!(
-        "{} on {} ({} samples): fit {} % (simulation), {} % (1-step prediction){}; loss {}, FPE {}; {}\n",
-        args.model.display(),
-        data.name,
-        data.len(),
-        m.fit_sim_percent.map_or("n/a".into(), |v| format!("{v:.2}")),
-        m.fit_pred_percent.map_or("n/a".into(), |v| format!("{v:.2}")),
-        if args.horizon > 1 {
-            format!(
-                ", {} % ({}-step prediction)",
-                out.fit_pred_percent.map_or("n/a".into(), |v| format!("{v:.2}")),
-                args.horizon
-            )
-        } else {
-            String::new()
-        },
-        report::format::num(m.loss),
-        m.fpe.map_or("n/a".into(), report::format::num),
-        if model.is_stable() { "stable" } else { "UNSTABLE" }
-    );
-    text.push_str(&crate::text::residuals_text(&[(
-        "validation",
-        &report.residuals.validation,
-    )]));
-    for w in &report.warnings {
-        text.push_str(&format!("warning: {w}\n"));
-    }
-    if args.json.as_deref().is_some_and(|p| p.as_os_str() == "-") {
-        eprint!("{text}");
-    } else {
-        print!("{text}");
-    }
+    let value = report_json(&report, args.horizon, out.fit_pred_percent, &record.notes)?;
+    let text = report_text(&args, &report, &data.name, data.len(), out.fit_pred_percent);
+    print_report(&text, args.json.as_deref());
     if let Some(path) = &args.out {
         let t = sysid::data::sample_times(data.len(), data.ts);
         let mut w = csv::Writer::from_writer(Vec::new());
@@ -172,9 +135,143 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let bytes = w.into_inner().map_err(|e| anyhow::anyhow!("{e}"))?;
         write_output(path, &bytes, &inputs, "--out")?;
     }
+    finish(&args, &report, &value, &inputs)
+}
+
+/// Writes `--json` and applies `--strict`.
+fn finish(
+    args: &Args,
+    report: &ValidationReport,
+    value: &serde_json::Value,
+    inputs: &[&Path],
+) -> anyhow::Result<()> {
     if let Some(path) = &args.json {
-        let json = serde_json::to_string_pretty(&value)? + "\n";
-        write_output(path, json.as_bytes(), &inputs, "--json")?;
+        let json = serde_json::to_string_pretty(value)? + "\n";
+        write_output(path, json.as_bytes(), inputs, "--json")?;
     }
     crate::exit::strict(args.strict, report.warnings.len())
+}
+
+/// The `validate --json` document: the report with the horizon, the fit of its prediction and the
+/// reader's notes.
+fn report_json(
+    report: &ValidationReport,
+    horizon: usize,
+    fit_horizon: Option<f64>,
+    notes: &[String],
+) -> anyhow::Result<serde_json::Value> {
+    let mut value = serde_json::to_value(report)?;
+    if let Some(obj) = value.as_object_mut() {
+        obj.insert("horizon".into(), serde_json::json!(horizon));
+        obj.insert(
+            "fit_pred_horizon_percent".into(),
+            serde_json::json!(fit_horizon),
+        );
+        obj.insert("data_notes".into(), serde_json::json!(notes));
+    }
+    Ok(value)
+}
+
+/// The text summary of a validation on the record `name` of `len` samples.
+fn report_text(
+    args: &Args,
+    report: &ValidationReport,
+    name: &str,
+    len: usize,
+    fit_horizon: Option<f64>,
+) -> String {
+    let m = &report.metrics.validation;
+    let mut text = format!(
+        "{} on {} ({} samples): fit {} % (simulation), {} % (1-step prediction){}; loss {}, FPE {}; {}\n",
+        args.model.display(),
+        name,
+        len,
+        m.fit_sim_percent.map_or("n/a".into(), |v| format!("{v:.2}")),
+        m.fit_pred_percent.map_or("n/a".into(), |v| format!("{v:.2}")),
+        if args.horizon > 1 {
+            format!(
+                ", {} % ({}-step prediction)",
+                fit_horizon.map_or("n/a".into(), |v| format!("{v:.2}")),
+                args.horizon
+            )
+        } else {
+            String::new()
+        },
+        report::format::num(m.loss),
+        m.fpe.map_or("n/a".into(), report::format::num),
+        if report.stable { "stable" } else { "UNSTABLE" }
+    );
+    text.push_str(&crate::text::residuals_text(&[(
+        "validation",
+        &report.residuals.validation,
+    )]));
+    for w in &report.warnings {
+        text.push_str(&format!("warning: {w}\n"));
+    }
+    text
+}
+
+/// Whether to read the record in passes (`--stream`, [`StreamMode::decide`]): one input, horizon 1,
+/// no `--out`, no `--resample`.
+fn streaming(args: &Args, miso: bool) -> anyhow::Result<bool> {
+    let why = if miso {
+        Some("a model with several inputs")
+    } else if args.horizon > 1 {
+        Some("--horizon above 1")
+    } else if args.out.is_some() {
+        Some("--out (it writes every sample)")
+    } else if args.columns.resample.is_some() {
+        Some("--resample")
+    } else {
+        None
+    };
+    args.stream
+        .decide(&args.data, why.map(String::from), |why| {
+            sysid::SysidError::setting(
+                sysid::Setting::Other("--stream"),
+                "on",
+                &format!(
+                "a single-input model with --horizon 1 and no --out or --resample, or no --stream \
+                 (not {why})"
+            ),
+            )
+        })
+}
+
+/// `validate` with the record read in passes (`sysid::stream`).
+fn run_streamed(
+    args: &Args,
+    model: &sysid::Model,
+    opts: &sysid::data::CsvOptions,
+    inputs: &[&Path],
+) -> anyhow::Result<()> {
+    let mut src = sysid::data::stream::CsvStream::open(&args.data, opts)?;
+    let streamed = sysid::stream::validation_report(model, &mut src, args.resid_lags)?;
+    let shape = streamed.shape;
+    let name = sysid::data::stream::RecordSource::name(&src).to_string();
+    check_ts(&name, shape.ts, model.ts())?;
+    stream_note(&name, streamed.passes, shape.rows, args.stream);
+    let report = streamed.result;
+    // The 1-step prediction of `model_output`: the ARX predictor, or for an output-error model the
+    // simulation from the measured initial outputs.
+    let m = &report.metrics.validation;
+    let fit_horizon = match model.noise_model() {
+        sysid::model::NoiseModel::EquationError => m.fit_pred_percent,
+        sysid::model::NoiseModel::OutputError => m.fit_sim_measured_percent,
+    };
+    let value = report_json(&report, args.horizon, fit_horizon, &[])?;
+    let text = report_text(args, &report, &name, shape.rows, fit_horizon);
+    print_report(&text, args.json.as_deref());
+    finish(args, &report, &value, inputs)
+}
+
+/// The record's Ts must be the model's (within 0.1 %).
+fn check_ts(name: &str, ts: f64, model_ts: f64) -> anyhow::Result<()> {
+    if (ts - model_ts).abs() > 1e-3 * model_ts {
+        anyhow::bail!(
+            "{name}: the data are sampled at Ts = {ts} s but the model was identified at Ts = {model_ts} s; \
+             resample the data or pass the matching --ts"
+        );
+    }
+    Ok(())
 }

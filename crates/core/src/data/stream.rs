@@ -1,0 +1,457 @@
+//! Long records read in passes with bounded memory (`identify --stream`, `validate --stream`).
+//!
+//! A [`RecordSource`] hands its samples to a consumer in consecutive chunks, as many times as the
+//! consumer asks (one pass per call of [`RecordSource::pass`]); nothing but one chunk of
+//! [`CHUNK_ROWS`] samples is held. [`CsvStream`] re-reads a CSV file from the start for every pass:
+//! the `csv` crate's [`csv::ByteRecord`] is reused from row to row (no allocation per row) and each cell
+//! is parsed by the standard library's `f64` parser (the Eisel–Lemire "fast float" algorithm since Rust
+//! 1.55). [`DatasetSource`] passes over a record held in memory (tests, the Python package).
+//!
+//! What the streaming reader accepts is what [`super::read_record`] accepts (the header, delimiter,
+//! decimal comma, quoting, blank-line and ragged-row rules are shared; the first 64 KiB are checked by
+//! the in-memory reader itself), with these differences (docs/data.md, "Long records"):
+//! - the time column must be uniform within 0.1 % of the **mean** step (t_last − t_0)/(N − 1), which is
+//!   also Ts; the in-memory reader compares with the median step (the two agree on any record that passes);
+//! - `--resample` and MATLAB `.mat` files are refused (they need the whole record);
+//! - the input must be a file that can be read again (not standard input or a pipe);
+//! - there is no limit on the number of rows or the file size ([`super::MAX_SAMPLES`],
+//!   [`super::MAX_FILE_BYTES`] protect the in-memory reader only).
+
+use std::io::Read;
+use std::path::{Path, PathBuf};
+
+use super::{
+    cell_value, check_ts, csv_err, ragged_row, read_table_with, round_significant, sig6,
+    sniff_delimiter, CsvOptions, Dataset,
+};
+use crate::error::Setting;
+use crate::SysidError;
+
+/// Samples handed to the consumer at a time (two buffers of this many f64: 128 KiB).
+pub const CHUNK_ROWS: usize = 8192;
+
+/// Bytes at the start of a CSV file checked by the in-memory reader (header, delimiter, first rows).
+pub const PREFIX_BYTES: usize = 1 << 16;
+
+/// The length and sampling period of a record, known after a complete pass.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Shape {
+    /// N: number of samples.
+    pub rows: usize,
+    /// Ts in s.
+    pub ts: f64,
+}
+
+/// The consumer of one pass: called with the index k of the chunk's first sample and the chunk's
+/// u(k..) and y(k..) (equal lengths, at most [`CHUNK_ROWS`]).
+pub type ChunkFn<'a> = dyn FnMut(usize, &[f64], &[f64]) -> Result<(), SysidError> + 'a;
+
+/// A record that can be read from the start as many times as needed, in chunks.
+pub trait RecordSource {
+    /// Where the data come from, for messages (as [`Dataset::name`]).
+    fn name(&self) -> &str;
+    /// One pass over the whole record, in order; returns its shape. Fails with the reader's error
+    /// (file, line, column) or the consumer's.
+    fn pass(&mut self, consume: &mut ChunkFn<'_>) -> Result<Shape, SysidError>;
+}
+
+/// A record held in memory, passed in chunks of `chunk` samples.
+#[derive(Debug, Clone)]
+pub struct DatasetSource<'a> {
+    data: &'a Dataset,
+    chunk: usize,
+}
+
+impl<'a> DatasetSource<'a> {
+    /// Passes over `data` in chunks of `chunk` samples (at least 1).
+    pub fn new(data: &'a Dataset, chunk: usize) -> Self {
+        DatasetSource {
+            data,
+            chunk: chunk.max(1),
+        }
+    }
+}
+
+impl RecordSource for DatasetSource<'_> {
+    fn name(&self) -> &str {
+        &self.data.name
+    }
+
+    fn pass(&mut self, consume: &mut ChunkFn<'_>) -> Result<Shape, SysidError> {
+        let n = self.data.len();
+        let mut k = 0;
+        while k < n {
+            let end = (k + self.chunk).min(n);
+            consume(k, &self.data.u[k..end], &self.data.y[k..end])?;
+            k = end;
+        }
+        Ok(Shape {
+            rows: n,
+            ts: self.data.ts,
+        })
+    }
+}
+
+/// A CSV file read in passes (see the module documentation).
+#[derive(Debug, Clone)]
+pub struct CsvStream {
+    path: PathBuf,
+    name: String,
+    delimiter: u8,
+    has_header: bool,
+    bom: bool,
+    /// The file ends its lines with CRLF: the csv crate then counts a record's line one short (the
+    /// in-memory reader counts from byte offsets).
+    crlf: bool,
+    decimal_comma: bool,
+    headers: Vec<String>,
+    ucol: usize,
+    ycol: usize,
+    /// The time column, when Ts comes from it.
+    tcol: Option<usize>,
+    ts_given: Option<f64>,
+    time_scale: f64,
+    rows: Option<super::RowRange>,
+    rows_flag: &'static str,
+    shape: Option<Shape>,
+}
+
+/// Time steps seen in a pass: the first and last time, the smallest and largest step with their lines.
+#[derive(Debug, Clone, Copy)]
+struct TimeScan {
+    first: f64,
+    last: f64,
+    count: usize,
+    min_step: (f64, usize),
+    max_step: (f64, usize),
+}
+
+impl CsvStream {
+    /// Opens `path` with the reader options `opts`: checks the header and the first rows (the in-memory
+    /// reader's rules) and finds the columns. Nothing else is read until [`RecordSource::pass`].
+    pub fn open(path: &Path, opts: &CsvOptions) -> Result<Self, SysidError> {
+        let name = path.display().to_string();
+        let io = |source| SysidError::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        let meta = std::fs::metadata(path).map_err(io)?;
+        if !meta.is_file() {
+            return Err(SysidError::File {
+                file: name,
+                message:
+                    "streaming reads the file several times, so it must be a regular file (not \
+                          standard input, a pipe or a folder); save the data to a file first"
+                        .into(),
+            });
+        }
+        let mut prefix = Vec::with_capacity(PREFIX_BYTES);
+        std::fs::File::open(path)
+            .map_err(io)?
+            .take(PREFIX_BYTES as u64)
+            .read_to_end(&mut prefix)
+            .map_err(io)?;
+        let is_mat_name = path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("mat"));
+        if is_mat_name || super::mat::is_mat(&prefix) {
+            return Err(SysidError::File {
+                file: name,
+                message:
+                    "streaming reads CSV text; a MATLAB .mat record is read in memory (leave out \
+                          --stream)"
+                        .into(),
+            });
+        }
+        if opts.resample.is_some() {
+            return Err(SysidError::setting(
+                Setting::Other("--resample"),
+                "given",
+                "no --resample with --stream: resampling needs the whole record in memory",
+            ));
+        }
+        // The in-memory reader checks the header and the first rows (up to the last whole line).
+        let whole = (meta.len() as usize) <= prefix.len();
+        let checked = if whole {
+            &prefix[..]
+        } else {
+            let end = prefix.iter().rposition(|&b| b == b'\n').ok_or_else(|| {
+                SysidError::File {
+                    file: name.clone(),
+                    message: format!(
+                        "the first line is longer than {PREFIX_BYTES} bytes; expected a CSV header row"
+                    ),
+                }
+            })?;
+            &prefix[..=end]
+        };
+        let table = read_table_with(checked, &name, !opts.no_header)?;
+        let (ucol, ycol, ts_given) = table.columns(opts)?;
+        let tcol = match ts_given {
+            Some(ts) => {
+                check_ts(ts)?;
+                None
+            }
+            None => Some(
+                table
+                    .column_index(&opts.t_col, Setting::TCol)
+                    .map_err(|_| SysidError::File {
+                        file: name.clone(),
+                        message: format!(
+                            "no time column '{}' and no --ts: pass --ts SECONDS or name the time column \
+                             with --t-col (columns are: {})",
+                            opts.t_col,
+                            table.header_list()
+                        ),
+                    })?,
+            ),
+        };
+        let bom = prefix.starts_with(b"\xef\xbb\xbf");
+        let text = std::str::from_utf8(&checked[usize::from(bom) * 3..]).unwrap_or("");
+        Ok(CsvStream {
+            path: path.to_path_buf(),
+            name,
+            delimiter: sniff_delimiter(text),
+            has_header: !opts.no_header,
+            bom,
+            crlf: checked.windows(2).any(|w| w == b"\r\n"),
+            decimal_comma: table.decimal_comma,
+            headers: table.headers,
+            ucol,
+            ycol,
+            tcol,
+            ts_given,
+            time_scale: opts.time_unit.seconds(),
+            rows: opts.rows,
+            rows_flag: opts.rows_flag,
+            shape: None,
+        })
+    }
+
+    /// The shape found by the first complete pass (`None` before it).
+    pub fn shape(&self) -> Option<Shape> {
+        self.shape
+    }
+
+    /// The error at line `line`, column `col` (0-based) of the file.
+    fn at(&self, line: usize, col: usize, message: String) -> SysidError {
+        SysidError::Parse {
+            file: self.path.display().to_string(),
+            line,
+            column: col + 1,
+            message,
+        }
+    }
+
+    /// Ts from the time steps of a pass (see the module documentation).
+    fn ts_of(&self, scan: Option<TimeScan>, col: usize) -> Result<f64, SysidError> {
+        let Some(s) = scan.filter(|s| s.count >= 2) else {
+            return Err(SysidError::File {
+                file: self.name.clone(),
+                message: "one sample is not enough to find Ts from the time column; pass --ts"
+                    .into(),
+            });
+        };
+        let ts = round_significant((s.last - s.first) / (s.count - 1) as f64, 12);
+        if !(ts.is_finite() && ts > 0.0) {
+            return Err(self.at(
+                0,
+                col,
+                format!("the time steps (mean {ts} s) do not give a usable Ts; pass --ts"),
+            ));
+        }
+        for (step, line) in [s.min_step, s.max_step] {
+            if (step - ts).abs() > 1e-3 * ts {
+                return Err(self.at(
+                    line,
+                    col,
+                    format!(
+                        "non-uniform sampling: step {} s from the previous row differs from the mean step \
+                         {} s by more than 0.1 %; pass --resample TS to interpolate onto a uniform grid \
+                         (in memory, without --stream), or --ts",
+                        sig6(step),
+                        sig6(ts)
+                    ),
+                ));
+            }
+        }
+        Ok(ts)
+    }
+}
+
+impl RecordSource for CsvStream {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn pass(&mut self, consume: &mut ChunkFn<'_>) -> Result<Shape, SysidError> {
+        let io = |source| SysidError::Io {
+            path: self.path.clone(),
+            source,
+        };
+        let mut file = std::fs::File::open(&self.path).map_err(io)?;
+        if self.bom {
+            let mut skip = [0u8; 3];
+            file.read_exact(&mut skip).map_err(io)?;
+        }
+        let mut rdr = csv::ReaderBuilder::new()
+            .delimiter(self.delimiter)
+            .has_headers(self.has_header)
+            .flexible(true)
+            .buffer_capacity(1 << 16)
+            .from_reader(file);
+        let file_name = self.path.display().to_string();
+        let width = self.headers.len();
+        let (first, end) = match self.rows {
+            Some(r) => (r.start.unwrap_or(0), r.end),
+            None => (0, None),
+        };
+        // Time is checked on the first pass only; later passes read u and y.
+        let tcol = self.tcol.filter(|_| self.shape.is_none());
+        let mut scan: Option<TimeScan> = None;
+        let mut rec = csv::ByteRecord::new();
+        let (mut u, mut y) = (
+            Vec::with_capacity(CHUNK_ROWS),
+            Vec::with_capacity(CHUNK_ROWS),
+        );
+        let (mut row, mut used, mut chunk_start) = (0usize, 0usize, 0usize);
+        loop {
+            match rdr.read_byte_record(&mut rec) {
+                Ok(true) => {}
+                Ok(false) => break,
+                Err(e) => return Err(csv_err(&file_name, e)),
+            }
+            // Fields are trimmed here (csv's own trimming allocates a new record per row).
+            let blank = |f: &[u8]| f.trim_ascii().is_empty();
+            if rec.iter().all(blank) {
+                continue; // a blank line or a row of bare delimiters
+            }
+            let line = rec
+                .position()
+                .map_or(0, |p| p.line() as usize + usize::from(self.crlf));
+            if let Some(extra) = rec.iter().skip(width).position(|f| !blank(f)) {
+                return Err(ragged_row(&file_name, line, width, extra));
+            }
+            let index = row;
+            row += 1;
+            if index < first {
+                continue;
+            }
+            if end.is_some_and(|b| index >= b) {
+                break;
+            }
+            let value = |col: usize| -> Result<f64, SysidError> {
+                let cell = match rec.get(col).map(std::str::from_utf8) {
+                    Some(Err(_)) => {
+                        return Err(self.at(
+                            line,
+                            col,
+                            "the file is not UTF-8 text (binary data?); expected CSV".into(),
+                        ))
+                    }
+                    Some(Ok(c)) => Some(c.trim()),
+                    None => None,
+                };
+                cell_value(
+                    cell,
+                    rec.len(),
+                    width,
+                    &self.headers[col],
+                    self.decimal_comma,
+                )
+                .map_err(|m| self.at(line, col, m))
+            };
+            u.push(value(self.ucol)?);
+            y.push(value(self.ycol)?);
+            if let Some(tc) = tcol {
+                let t = value(tc)? * self.time_scale;
+                scan = Some(match scan {
+                    None => TimeScan {
+                        first: t,
+                        last: t,
+                        count: 1,
+                        min_step: (f64::INFINITY, line),
+                        max_step: (f64::NEG_INFINITY, line),
+                    },
+                    Some(mut s) => {
+                        if t <= s.last {
+                            return Err(self.at(
+                                line,
+                                tc,
+                                format!(
+                                    "time {t} s does not increase after {} s on the previous row; \
+                                     expected strictly increasing time",
+                                    s.last
+                                ),
+                            ));
+                        }
+                        let step = t - s.last;
+                        if step < s.min_step.0 {
+                            s.min_step = (step, line);
+                        }
+                        if step > s.max_step.0 {
+                            s.max_step = (step, line);
+                        }
+                        s.last = t;
+                        s.count += 1;
+                        s
+                    }
+                });
+            }
+            used += 1;
+            if u.len() == CHUNK_ROWS {
+                consume(chunk_start, &u, &y)?;
+                chunk_start += u.len();
+                u.clear();
+                y.clear();
+            }
+        }
+        if !u.is_empty() {
+            consume(chunk_start, &u, &y)?;
+        }
+        if let Some(r) = self.rows {
+            // The in-memory reader's check and message (the end must lie inside the record).
+            let range = r.resolve(row, self.rows_flag, &file_name)?;
+            if self.shape.is_none() {
+                self.name = format!("{file_name}[{}..{}]", range.start, range.end);
+            }
+        }
+        if used == 0 {
+            return Err(SysidError::File {
+                file: self.name.clone(),
+                message: "the file has a header but no data rows".into(),
+            });
+        }
+        let shape = match self.shape {
+            Some(s) if s.rows != used => {
+                return Err(SysidError::File {
+                    file: self.name.clone(),
+                    message: format!(
+                        "the file changed while it was being read: {used} rows on this pass, {} on the \
+                         first",
+                        s.rows
+                    ),
+                })
+            }
+            Some(s) => s,
+            None => Shape {
+                rows: used,
+                ts: match (self.ts_given, self.tcol) {
+                    (Some(ts), _) => ts,
+                    (None, Some(tc)) => self.ts_of(scan, tc)?,
+                    (None, None) => unreachable_ts(&self.name)?,
+                },
+            },
+        };
+        self.shape = Some(shape);
+        Ok(shape)
+    }
+}
+
+/// `open` makes sure that Ts is given or a time column exists; this is the error should that change.
+fn unreachable_ts(name: &str) -> Result<f64, SysidError> {
+    Err(SysidError::File {
+        file: name.to_string(),
+        message: "no sampling period: pass --ts".into(),
+    })
+}

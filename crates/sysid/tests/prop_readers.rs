@@ -114,7 +114,11 @@ proptest! {
             Ok(d) => check_dataset(&d),
             Err(e) => {
                 let m = e.to_string();
-                prop_assert!(m.contains("messy.csv") || m.contains("--ts") || m.contains("--y-col"), "{m}");
+                // A bad file names the file; a bad setting (Ts ≤ 0 given with the record) names the setting.
+                prop_assert!(
+                    m.contains("messy.csv") || m.contains("setting ts =") || m.contains("--y-col"),
+                    "{m}"
+                );
             }
         }
     }

@@ -4,7 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::estimate::{EstimatorSettings, Fitted, Identification, Method, Param, Passes};
-use crate::residuals::{analyze, ResidOptions, ResidualAnalysis};
+use crate::residuals::{analyze, InputCorrelation, ResidOptions, ResidualAnalysis};
 use crate::warnings::{Record, Warning};
 use sysid_core::metrics::{metrics, Metrics};
 use sysid_core::{Dataset, Model, SysidError};
@@ -86,8 +86,9 @@ pub fn residual_analysis(model: &Model, data: &Dataset, max_lag: usize) -> Resid
     residual_analysis_miso(model, &[&data.u], &data.y, max_lag)
 }
 
-/// [`residual_analysis`] with one input record per model input; the cross-correlation is with the
-/// first input.
+/// [`residual_analysis`] with one input record per model input. The top-level cross-correlation is
+/// with the first input; with several inputs `inputs` holds the cross-correlation and independence
+/// test with each input.
 pub fn residual_analysis_miso(
     model: &Model,
     u: &[&[f64]],
@@ -95,6 +96,10 @@ pub fn residual_analysis_miso(
     max_lag: usize,
 ) -> ResidualEntry {
     let k0 = model.k0();
+    let options = ResidOptions {
+        max_lag,
+        ..ResidOptions::default()
+    };
     let result = sysid_core::metrics::one_step_prediction_miso(model, u, y)
         .map_err(|e| e.to_string())
         .and_then(|pred| {
@@ -103,12 +108,16 @@ pub fn residual_analysis_miso(
                 .zip(&pred[k0..])
                 .map(|(y, p)| y - p)
                 .collect();
-            let options = ResidOptions {
-                max_lag,
-                ..ResidOptions::default()
-            };
             let u0 = u.first().map_or(&[][..], |u| &u[k0..]);
-            analyze(&eps, u0, &options).map_err(|e| e.to_string())
+            let mut a = analyze(&eps, u0, &options).map_err(|e| e.to_string())?;
+            if u.len() > 1 {
+                for (ui, ch) in u.iter().zip(model.inputs()) {
+                    let ai = analyze(&eps, &ui[k0..], &options)
+                        .map_err(|e| format!("input {}: {e}", ch.name()))?;
+                    a.inputs.push(InputCorrelation::of(ch.name(), &ai));
+                }
+            }
+            Ok(a)
         });
     match result {
         Ok(a) => ResidualEntry::Analysis(Box::new(a)),

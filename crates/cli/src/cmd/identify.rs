@@ -397,7 +397,8 @@ fn run_merged(args: &Args) -> anyhow::Result<()> {
     save_model(args, &fit.model, &inputs)
 }
 
-/// Runs `identify --u-col u1,u2,...`: one model with several inputs (MISO), by least squares or RLS.
+/// Runs `identify --u-col u1,u2,...`: one model with several inputs (MISO), by least squares, RLS or
+/// output error.
 fn run_miso(args: &Args) -> anyhow::Result<()> {
     let names: Vec<String> = args
         .columns
@@ -405,22 +406,32 @@ fn run_miso(args: &Args) -> anyhow::Result<()> {
         .split(',')
         .map(|s| s.trim().to_string())
         .collect();
-    if !matches!(args.method, Method::Ls | Method::Rls) {
+    if !matches!(args.method, Method::Ls | Method::Rls | Method::Oe) {
         anyhow::bail!(sysid::SysidError::setting(
             sysid::Setting::Other("--method"),
             args.method,
             &format!(
-                "ls or rls: several inputs (--u-col {}) are estimated by least squares or recursive least \
-                 squares; output error and instrumental variables take one input",
+                "ls, rls or oe: several inputs (--u-col {}) are estimated by least squares, recursive least \
+                 squares or output error; instrumental variables take one input",
                 args.columns.u_col
             )
         ));
     }
-    if args.merge || args.detrend != Detrend::None || args.data.len() != 1 {
+    if args.merge {
+        if args.method != Method::Ls || args.val.split.is_some() {
+            anyhow::bail!(
+                "--merge with several inputs (--u-col {}) estimates by least squares (--method ls), without --split",
+                args.columns.u_col
+            );
+        }
+    } else if args.data.len() != 1 {
         anyhow::bail!(
-            "several inputs (--u-col {}) are estimated from one --data file, without --merge or --detrend",
+            "several inputs (--u-col {}) are estimated from one --data file, or from several with --merge",
             args.columns.u_col
         );
+    }
+    if args.merge && args.detrend != Detrend::None {
+        anyhow::bail!("--merge cannot be combined with --detrend; detrend the records first");
     }
     for l in &args.linear_inputs {
         if !names.contains(l) {
@@ -434,64 +445,114 @@ fn run_miso(args: &Args) -> anyhow::Result<()> {
     args.settings().check()?;
     let nb = args.nb.per_input(names.len(), "--nb")?;
     let nk = args.nk.per_input(names.len(), "--nk")?;
-    let data_path = &args.data[0];
-    let mut inputs: Vec<&Path> = vec![data_path.as_path()];
+    let files = if args.merge {
+        super::identify_batch::expand(&args.data)?
+    } else {
+        args.data.clone()
+    };
+    let mut inputs: Vec<&Path> = files.iter().map(PathBuf::as_path).collect();
     inputs.extend(args.val.validation.as_deref());
     check_outputs(
         &[(&args.json, "--json"), (&args.save_model, "--save-model")],
         &inputs,
     )?;
-    // One record per input column (same file, same output column, same rows).
-    let mut est_inputs = Vec::with_capacity(names.len());
-    let mut val_inputs = Vec::with_capacity(names.len());
-    let (mut est_y, mut val_y, mut notes) = (None, None, Vec::new());
-    for (i, name) in names.iter().enumerate() {
-        let mut opts = args.columns.csv_options();
-        opts.u_col = name.clone();
-        let val_args = ValidationArgs {
-            val_u_col: None,
-            ..args.val.clone()
-        };
-        let r = val_args.records(data_path, &opts)?;
-        notes.extend(r.notes);
-        est_inputs.push(sysid::miso::MisoInput {
-            name: name.clone(),
-            u: r.est.u,
-            nb: nb[i],
-            nk: nk[i],
-            linear: args.linear_inputs.contains(name),
-        });
-        if let Some(v) = r.val {
-            val_inputs.push(v.u);
-            val_y.get_or_insert((v.y, v.name));
+    let mut records = Vec::with_capacity(files.len());
+    let mut notes = Vec::new();
+    let mut val = None;
+    for f in &files {
+        let (est, v) = read_miso(args, f, &names, &mut notes)?;
+        records.push(est);
+        if val.is_none() {
+            val = v;
         }
-        est_y.get_or_insert((r.est.y, r.est.ts, r.est.name));
     }
     notes.dedup();
     print_notes(&notes);
-    let Some((y, ts, data_name)) = est_y else {
-        anyhow::bail!("--u-col names no input");
+    let Some(first) = records.first() else {
+        anyhow::bail!("--data needs a file");
     };
-    let problem = sysid::miso::MisoProblem {
-        inputs: &est_inputs,
-        y: &y,
-        ts,
-        na: args.na,
-        kind: args.model,
-        offset: args.offset,
+    let ts = first.ts;
+    let problem_inputs = |u: &[Vec<f64>]| -> Vec<sysid::miso::MisoInput> {
+        names
+            .iter()
+            .zip(u)
+            .enumerate()
+            .map(|(i, (name, u))| sysid::miso::MisoInput {
+                name: name.clone(),
+                u: u.clone(),
+                nb: nb[i],
+                nk: nk[i],
+                linear: args.linear_inputs.contains(name),
+            })
+            .collect()
     };
-    let fit = match args.settings().estimator {
-        sysid::EstimatorSettings::Rls(st) => problem.recursive(&st)?,
-        _ => problem.least_squares(args.max_iterations)?,
+    let fit = if args.merge {
+        let segments: Vec<Vec<sysid::miso::MisoInput>> =
+            records.iter().map(|r| problem_inputs(&r.u)).collect();
+        let ys: Vec<&[f64]> = records.iter().map(|r| r.y.as_slice()).collect();
+        sysid::miso::least_squares_merged(
+            &segments,
+            &ys,
+            ts,
+            args.na,
+            args.model,
+            args.offset,
+            args.max_iterations,
+        )?
+    } else {
+        let r = first;
+        let us: Vec<&[f64]> = r.u.iter().map(Vec::as_slice).collect();
+        let (du, dy, op) = sysid::detrend::detrend_signals(&us, &r.y, args.detrend);
+        let est_inputs = problem_inputs(&du);
+        let problem = sysid::miso::MisoProblem {
+            inputs: &est_inputs,
+            y: &dy,
+            ts,
+            na: args.na,
+            kind: args.model,
+            offset: args.offset,
+        };
+        let mut fit = match args.settings().estimator {
+            sysid::EstimatorSettings::Rls(st) => problem.recursive(&st)?,
+            sysid::EstimatorSettings::Oe(st) => {
+                problem.output_error(st.start.max_iterations, st.max_iterations, &r.name)?
+            }
+            _ => problem.least_squares(args.max_iterations)?,
+        };
+        fit.model = fit.model.with_operating_point(op)?;
+        fit
     };
-    let us: Vec<&[f64]> = est_inputs.iter().map(|m| m.u.as_slice()).collect();
-    let est = sysid::metrics::metrics_miso(&fit.model, &us, &y, &data_name)?;
-    let val = match &val_y {
-        Some((vy, vname)) => {
-            let vu: Vec<&[f64]> = val_inputs.iter().map(Vec::as_slice).collect();
-            Some(sysid::metrics::metrics_miso(&fit.model, &vu, vy, vname)?)
+    // Metrics and residuals in the user's units (the model puts its operating point back).
+    let mut est = Vec::with_capacity(records.len());
+    let mut est_resid = Vec::with_capacity(records.len());
+    for r in &records {
+        let us: Vec<&[f64]> = r.u.iter().map(Vec::as_slice).collect();
+        est.push(sysid::metrics::metrics_miso(
+            &fit.model, &us, &r.y, &r.name,
+        )?);
+        est_resid.push(sysid::summary::residual_analysis_miso(
+            &fit.model,
+            &us,
+            &r.y,
+            args.resid_lags,
+        ));
+    }
+    let (val_metrics, val_resid) = match &val {
+        Some(v) => {
+            let vu: Vec<&[f64]> = v.u.iter().map(Vec::as_slice).collect();
+            (
+                Some(sysid::metrics::metrics_miso(
+                    &fit.model, &vu, &v.y, &v.name,
+                )?),
+                Some(sysid::summary::residual_analysis_miso(
+                    &fit.model,
+                    &vu,
+                    &v.y,
+                    args.resid_lags,
+                )),
+            )
         }
-        None => None,
+        None => (None, None),
     };
     let m = &fit.model;
     let how = match (args.method, fit.converged) {
@@ -503,17 +564,26 @@ fn run_miso(args: &Args) -> anyhow::Result<()> {
             "recursive least squares ({} pass(es), NOT settled)",
             fit.iterations
         ),
+        (Method::Oe, c) => format!(
+            "output error ({} iteration(s){})",
+            fit.iterations,
+            if c { ", converged" } else { ", NOT converged" }
+        ),
         (_, true) => format!("least squares ({} key-term iteration(s))", fit.iterations),
         (_, false) => format!(
             "least squares ({} key-term iteration(s), NOT converged)",
             fit.iterations
         ),
     };
-    let mut warnings = Vec::new();
+    let mut warnings: Vec<String> = fit.warnings.iter().map(ToString::to_string).collect();
     if !fit.converged {
         warnings.push(match args.method {
             Method::Rls => format!(
                 "the RLS estimate did not settle in {} pass(es); more passes (--passes auto) or --method ls",
+                fit.iterations
+            ),
+            Method::Oe => format!(
+                "the output-error search stopped at its iteration limit ({}) before converging",
                 fit.iterations
             ),
             _ => format!(
@@ -529,19 +599,42 @@ fn run_miso(args: &Args) -> anyhow::Result<()> {
                 .into(),
         );
     }
-    for (what, mm) in [("estimation", Some(&est)), ("validation", val.as_ref())] {
-        if let Some(note) = mm.and_then(|mm| mm.note.as_ref()) {
+    for (what, mm) in est
+        .iter()
+        .map(|e| ("estimation", e))
+        .chain(val_metrics.iter().map(|v| ("validation", v)))
+    {
+        if let Some(note) = &mm.note {
             warnings.push(format!("{what}: {note}"));
         }
     }
+    for p in &fit.params {
+        if p.std.is_none() && !p.name.starts_with("b1 (") {
+            warnings.push(format!(
+                "{} = {}: its standard deviation could not be computed (the regression or the Jacobian is \
+                 singular there)",
+                p.name,
+                report::format::num(p.value)
+            ));
+        }
+    }
     warnings.extend(notes.iter().map(|n| format!("data: {n}")));
+    let data_name = records
+        .iter()
+        .map(|r| r.name.as_str())
+        .collect::<Vec<_>>()
+        .join(" + ");
+    let n_samples: usize = records.iter().map(|r| r.y.len()).sum();
     let mut text = format!(
-        "Data: {data_name} ({} samples){}\n{} model with {} inputs, na = {}, Ts = {} s, estimated by {how}\n  \
+        "Data: {data_name} ({n_samples} samples){}{}\n{} model with {} inputs, na = {}, Ts = {} s, estimated by {how}\n  \
          a = {:?}{}\n",
-        y.len(),
-        val_y
-            .as_ref()
-            .map(|(v, n)| format!("; validation: {n} ({} samples)", v.len()))
+        if args.merge {
+            format!(" merged ({} records; no regression row spans two records)", records.len())
+        } else {
+            String::new()
+        },
+        val.as_ref()
+            .map(|v| format!("; validation: {} ({} samples)", v.name, v.y.len()))
             .unwrap_or_default(),
         m.kind(),
         m.inputs().len(),
@@ -565,28 +658,85 @@ fn run_miso(args: &Args) -> anyhow::Result<()> {
                 .unwrap_or_else(|| ", linear".into())
         ));
     }
+    if let Some(o) = m.operating_point() {
+        text.push_str(&format!(
+            "Detrended ({}): the model works around the operating point u0 = {}, y0 = {} (put back in its \
+             simulations and predictions)\n",
+            args.detrend,
+            o.u.iter().map(|v| report::format::num(*v)).collect::<Vec<_>>().join(", "),
+            report::format::num(o.y)
+        ));
+    }
+    text.push_str("\nParameters (estimate ± standard deviation)\n");
+    for p in &fit.params {
+        let sd = match (&p.std, p.name.starts_with("b1 (") && p.value == 1.0) {
+            (_, true) => " (fixed: normalisation)".to_string(),
+            (Some(s), _) => format!("  ± {}", report::format::num(*s)),
+            (None, _) => "  ± n/a".to_string(),
+        };
+        text.push_str(&format!(
+            "  {:<14} = {:>14}{sd}\n",
+            p.name,
+            report::format::num(p.value)
+        ));
+    }
+    for n in &fit.notes {
+        text.push_str(&format!("note: {n}\n"));
+    }
     let o = |v: Option<f64>| v.map_or_else(|| "n/a".to_string(), |v| format!("{v:.4}"));
     text.push_str(&format!(
-        "Fit % (simulation): estimation {}{}; {}\n",
-        o(est.fit_sim_percent),
-        val.as_ref()
+        "\nFit % (simulation): estimation {}{}; {}\n",
+        est.iter()
+            .map(|e| o(e.fit_sim_percent))
+            .collect::<Vec<_>>()
+            .join(", "),
+        val_metrics
+            .as_ref()
             .map(|v| format!(", validation {}", o(v.fit_sim_percent)))
             .unwrap_or_default(),
         if m.is_stable() { "stable" } else { "UNSTABLE" }
     ));
+    let mut entries: Vec<(&str, &sysid::summary::ResidualEntry)> =
+        est_resid.iter().map(|e| ("estimation", e)).collect();
+    if let Some(v) = &val_resid {
+        entries.push(("validation", v));
+    }
+    text.push_str(&crate::text::residuals_text(&entries));
     for w in &warnings {
         text.push_str(&format!("warning: {w}\n"));
     }
     print_report(&text, args.json.as_deref());
     if let Some(path) = &args.json {
+        // One record: `estimation` is its metrics object, as for one input; merged: a list per record.
+        let (est_json, resid_json) = if args.merge {
+            (
+                serde_json::json!(records
+                    .iter()
+                    .zip(&est)
+                    .map(|(r, m)| serde_json::json!({"data": r.name, "metrics": m}))
+                    .collect::<Vec<_>>()),
+                serde_json::json!(est_resid),
+            )
+        } else {
+            (
+                serde_json::json!(est.first()),
+                serde_json::json!(est_resid.first()),
+            )
+        };
         let value = serde_json::json!({
             "model": m,
             "method": args.method,
+            "parameters": fit.params,
+            "noise_variance": fit.noise_variance,
             "poles": sysid::summary::poles(m),
             "stable": m.is_stable(),
             "iterations": fit.iterations,
             "converged": fit.converged,
-            "metrics": { "estimation": est, "validation": val },
+            "notes": fit.notes.iter().map(ToString::to_string).collect::<Vec<_>>(),
+            "metrics": { "estimation": est_json, "validation": val_metrics },
+            "residuals": { "estimation": resid_json, "validation": val_resid },
+            "detrend": args.detrend,
+            "merged": args.merge.then(|| records.iter().map(|r| r.name.clone()).collect::<Vec<_>>()),
             "warnings": warnings,
             "data_notes": notes,
         });
@@ -595,4 +745,54 @@ fn run_miso(args: &Args) -> anyhow::Result<()> {
     }
     save_model(args, m, &inputs)?;
     crate::exit::strict(args.strict, warnings.len())
+}
+
+/// One record with several inputs: each input's signal, the output, Ts and the name.
+struct MisoRecord {
+    u: Vec<Vec<f64>>,
+    y: Vec<f64>,
+    ts: f64,
+    name: String,
+}
+
+/// Reads the estimation record (and, when asked for, the validation record) of `file` with one input
+/// column per name in `names` (same output column, same rows); the reader's notes go to `notes`.
+fn read_miso(
+    args: &Args,
+    file: &Path,
+    names: &[String],
+    notes: &mut Vec<String>,
+) -> anyhow::Result<(MisoRecord, Option<MisoRecord>)> {
+    let mut est: Option<MisoRecord> = None;
+    let mut val: Option<MisoRecord> = None;
+    for name in names {
+        let mut opts = args.columns.csv_options();
+        opts.u_col = name.clone();
+        let val_args = ValidationArgs {
+            val_u_col: None,
+            ..args.val.clone()
+        };
+        let r = val_args.records(file, &opts)?;
+        notes.extend(r.notes);
+        let e = est.get_or_insert_with(|| MisoRecord {
+            u: Vec::new(),
+            y: r.est.y.clone(),
+            ts: r.est.ts,
+            name: r.est.name.clone(),
+        });
+        e.u.push(r.est.u);
+        if let Some(v) = r.val {
+            let vr = val.get_or_insert_with(|| MisoRecord {
+                u: Vec::new(),
+                y: v.y.clone(),
+                ts: v.ts,
+                name: v.name.clone(),
+            });
+            vr.u.push(v.u);
+        }
+    }
+    let Some(est) = est else {
+        anyhow::bail!("--u-col names no input");
+    };
+    Ok((est, val))
 }

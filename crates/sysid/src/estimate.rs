@@ -33,10 +33,11 @@ pub enum Method {
     /// Recursive least squares with forgetting (paper eqs. 9–12).
     Rls,
     /// Output-error refinement of every parameter (Levenberg–Marquardt on the free-run simulation error),
-    /// started from the LS estimate. Unbiased under white output (measurement) noise; batch.
+    /// started from the LS estimate. Unbiased under white output (measurement) noise; batch. Also with
+    /// several inputs.
     Oe,
     /// Recursive instrumental variables with instruments from an auxiliary model's simulated output.
-    /// Unbiased under output noise; recursive (online).
+    /// Unbiased under output noise; recursive (online). One input only.
     Iv,
 }
 

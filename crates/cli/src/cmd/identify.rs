@@ -125,12 +125,13 @@ pub struct Args {
     #[arg(long)]
     pub offset: bool,
     /// Remove the estimation record's operating point from u and y (MATLAB `detrend`): `mean` (ū, ȳ) or
-    /// `linear` (a straight line per signal). The model stores (u0, y0) = (ū, ȳ) and puts it back in
-    /// validate, simulate and control.
+    /// `linear` (a straight line per signal). The model stores (u0, y0) = (ū, ȳ) (one u0 per input) and
+    /// puts it back in validate, simulate and control.
     #[arg(long, value_enum, default_value = "none")]
     pub detrend: Detrend,
     /// Several --data files: estimate ONE model from all of them (MATLAB `merge`; no regression row spans
-    /// two records), with metrics per record and pooled. Least squares only (--method ls).
+    /// two records), with metrics per record and pooled. Least squares only (--method ls); several
+    /// inputs (--u-col u1,u2) too.
     #[arg(long)]
     pub merge: bool,
     #[command(flatten)]

@@ -846,7 +846,7 @@ pub fn miso_model_of(v: &[f64], like: &Model) -> Result<Model, SysidError> {
                 (b, StaticNonlinearity::Linear)
             }
         };
-        channels.push(InputChannel::new(ch.name().to_string(), ch.nk(), b, f)?);
+        channels.push(InputChannel::new(ch.name(), ch.nk(), b, f)?);
     }
     let c = like.offset().map(|_| v[i]);
     Model::new(like.ts(), a, channels, c)
@@ -1042,5 +1042,41 @@ mod tests {
                 );
             }
         }
+    }
+
+    // Layout of several-input parameters: deadzones first, then a, then each input's B with b1 = 1 of a
+    // nonlinear input inserted (fixed) even when nb = 1 leaves it no free coefficient; the vector maps back
+    // to the same model.
+    #[test]
+    fn several_input_parameters_list_each_fixed_b1_in_its_place() {
+        let dz = |b: f64| {
+            StaticNonlinearity::Deadzone(Deadzone {
+                b_l: -b,
+                b_r: b,
+                m_l: 0.5,
+                m_r: 0.7,
+            })
+        };
+        let inputs = vec![
+            InputChannel::new("v1", 1, vec![1.0], dz(1.0)).unwrap(),
+            InputChannel::new("p", 2, vec![0.2, 0.1], StaticNonlinearity::Linear).unwrap(),
+            InputChannel::new("v2", 1, vec![1.0], dz(2.0)).unwrap(),
+        ];
+        let model = Model::new(0.01, vec![-0.9], inputs, None).unwrap();
+        let (v, names) = miso_vector(&model);
+        assert_eq!(v.len(), names.len());
+        let params = miso_params(&model, &names, |i| v[i], |_| Some(1.0));
+        let got: Vec<&str> = params.iter().map(|p| p.name.as_str()).collect();
+        assert_eq!(
+            got,
+            [
+                "b_l (v1)", "b_r (v1)", "m_l (v1)", "m_r (v1)", "b_l (v2)", "b_r (v2)", "m_l (v2)",
+                "m_r (v2)", "a1", "b1 (v1)", "b1 (p)", "b2 (p)", "b1 (v2)"
+            ]
+        );
+        let fixed: Vec<bool> = params.iter().map(|p| p.std.is_none()).collect();
+        assert_eq!(fixed.iter().filter(|f| **f).count(), 2);
+        assert!(fixed[9] && fixed[12]);
+        assert_eq!(miso_model_of(&v, &model).unwrap(), model);
     }
 }

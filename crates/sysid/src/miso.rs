@@ -271,6 +271,28 @@ impl MisoProblem<'_> {
         reg.fit(&theta, &dz, self.ts, iterations, converged)
     }
 
+    /// The fit by the estimator `settings` says: least squares, RLS or output error (`name` names the
+    /// record in errors). Instrumental variables take one input: refused, naming `--method`.
+    pub fn fit(
+        &self,
+        settings: &crate::EstimatorSettings,
+        name: &str,
+    ) -> Result<MisoFit, SysidError> {
+        match settings {
+            crate::EstimatorSettings::Ls(st) => self.least_squares(st.max_iterations),
+            crate::EstimatorSettings::Rls(st) => self.recursive(st),
+            crate::EstimatorSettings::Oe(st) => {
+                self.output_error(st.start.max_iterations, st.max_iterations, name)
+            }
+            crate::EstimatorSettings::Iv(_) => Err(SysidError::setting(
+                sysid_core::Setting::Other("--method"),
+                "iv",
+                "ls, rls or oe: several inputs are estimated by least squares, recursive least squares \
+                 or output error; instrumental variables take one input",
+            )),
+        }
+    }
+
     /// Output error (docs/estimators.md, [`crate::oe::refine_miso`]): every parameter refined by
     /// minimising the free-run simulation error, started from [`MisoProblem::least_squares`] (at most
     /// `ls_iterations` key-term solves), at most `max_iterations` Levenberg–Marquardt iterations,

@@ -407,17 +407,6 @@ fn run_miso(args: &Args) -> anyhow::Result<()> {
         .split(',')
         .map(|s| s.trim().to_string())
         .collect();
-    if !matches!(args.method, Method::Ls | Method::Rls | Method::Oe) {
-        anyhow::bail!(sysid::SysidError::setting(
-            sysid::Setting::Other("--method"),
-            args.method,
-            &format!(
-                "ls, rls or oe: several inputs (--u-col {}) are estimated by least squares, recursive least \
-                 squares or output error; instrumental variables take one input",
-                args.columns.u_col
-            )
-        ));
-    }
     if args.merge {
         if args.method != Method::Ls || args.val.split.is_some() {
             anyhow::bail!(
@@ -513,49 +502,46 @@ fn run_miso(args: &Args) -> anyhow::Result<()> {
             kind: args.model,
             offset: args.offset,
         };
-        let mut fit = match args.settings().estimator {
-            sysid::EstimatorSettings::Rls(st) => problem.recursive(&st)?,
-            sysid::EstimatorSettings::Oe(st) => {
-                problem.output_error(st.start.max_iterations, st.max_iterations, &r.name)?
-            }
-            _ => problem.least_squares(args.max_iterations)?,
-        };
+        let mut fit = problem.fit(&args.settings().estimator, &r.name)?;
         fit.model = fit.model.with_operating_point(op)?;
         fit
     };
-    // Metrics and residuals in the user's units (the model puts its operating point back).
-    let mut est = Vec::with_capacity(records.len());
-    let mut est_resid = Vec::with_capacity(records.len());
-    for r in &records {
-        let us: Vec<&[f64]> = r.u.iter().map(Vec::as_slice).collect();
-        est.push(sysid::metrics::metrics_miso(
-            &fit.model, &us, &r.y, &r.name,
-        )?);
-        est_resid.push(sysid::summary::residual_analysis_miso(
-            &fit.model,
-            &us,
-            &r.y,
-            args.resid_lags,
-        ));
-    }
-    let (val_metrics, val_resid) = match &val {
-        Some(v) => {
-            let vu: Vec<&[f64]> = v.u.iter().map(Vec::as_slice).collect();
-            (
-                Some(sysid::metrics::metrics_miso(
-                    &fit.model, &vu, &v.y, &v.name,
-                )?),
-                Some(sysid::summary::residual_analysis_miso(
-                    &fit.model,
-                    &vu,
-                    &v.y,
-                    args.resid_lags,
-                )),
-            )
-        }
-        None => (None, None),
-    };
-    let m = &fit.model;
+    // Metrics, residuals and warnings in the user's units (the model puts its operating point back).
+    let est_u: Vec<Vec<&[f64]>> = records
+        .iter()
+        .map(|r| r.u.iter().map(Vec::as_slice).collect())
+        .collect();
+    let est_records: Vec<sysid::summary::MisoRecord> = records
+        .iter()
+        .zip(&est_u)
+        .map(|(r, u)| sysid::summary::MisoRecord {
+            name: &r.name,
+            u,
+            y: &r.y,
+        })
+        .collect();
+    let val_u: Option<Vec<&[f64]>> = val
+        .as_ref()
+        .map(|v| v.u.iter().map(Vec::as_slice).collect());
+    let val_record = val
+        .as_ref()
+        .zip(val_u.as_ref())
+        .map(|(v, u)| sysid::summary::MisoRecord {
+            name: &v.name,
+            u,
+            y: &v.y,
+        });
+    let mut report = sysid::summary::MisoReport::assemble(
+        fit,
+        args.method,
+        &est_records,
+        val_record.as_ref(),
+        args.resid_lags,
+    )?;
+    report
+        .warnings
+        .extend(notes.iter().map(|n| format!("data: {n}")));
+    let (fit, warnings) = (&report.fit, &report.warnings);
     let how = match (args.method, fit.converged) {
         (Method::Rls, true) => format!(
             "recursive least squares ({} pass(es), settled)",
@@ -576,50 +562,7 @@ fn run_miso(args: &Args) -> anyhow::Result<()> {
             fit.iterations
         ),
     };
-    let mut warnings: Vec<String> = fit.warnings.iter().map(ToString::to_string).collect();
-    if !fit.converged {
-        warnings.push(match args.method {
-            Method::Rls => format!(
-                "the RLS estimate did not settle in {} pass(es); more passes (--passes auto) or --method ls",
-                fit.iterations
-            ),
-            Method::Oe => format!(
-                "the output-error search stopped at its iteration limit ({}) before converging",
-                fit.iterations
-            ),
-            _ => format!(
-                "the key-term iteration did not reach its fixed point in {} iteration(s) \
-                 (--max-iterations); the estimate may not be the least-squares one",
-                fit.iterations
-            ),
-        });
-    }
-    if !m.is_stable() {
-        warnings.push(
-            "the model is unstable (a pole on or outside the unit circle): its simulations diverge"
-                .into(),
-        );
-    }
-    for (what, mm) in est
-        .iter()
-        .map(|e| ("estimation", e))
-        .chain(val_metrics.iter().map(|v| ("validation", v)))
-    {
-        if let Some(note) = &mm.note {
-            warnings.push(format!("{what}: {note}"));
-        }
-    }
-    for p in &fit.params {
-        if p.std.is_none() && !p.name.starts_with("b1 (") {
-            warnings.push(format!(
-                "{} = {}: its standard deviation could not be computed (the regression or the Jacobian is \
-                 singular there)",
-                p.name,
-                report::format::num(p.value)
-            ));
-        }
-    }
-    warnings.extend(notes.iter().map(|n| format!("data: {n}")));
+    let m = &fit.model;
     let data_name = records
         .iter()
         .map(|r| r.name.as_str())
@@ -687,60 +630,44 @@ fn run_miso(args: &Args) -> anyhow::Result<()> {
     let o = |v: Option<f64>| v.map_or_else(|| "n/a".to_string(), |v| format!("{v:.4}"));
     text.push_str(&format!(
         "\nFit % (simulation): estimation {}{}; {}\n",
-        est.iter()
-            .map(|e| o(e.fit_sim_percent))
+        report
+            .estimation
+            .iter()
+            .map(|e| o(e.metrics.fit_sim_percent))
             .collect::<Vec<_>>()
             .join(", "),
-        val_metrics
+        report
+            .validation
             .as_ref()
-            .map(|v| format!(", validation {}", o(v.fit_sim_percent)))
+            .map(|v| format!(", validation {}", o(v.metrics.fit_sim_percent)))
             .unwrap_or_default(),
         if m.is_stable() { "stable" } else { "UNSTABLE" }
     ));
-    let mut entries: Vec<(&str, &sysid::summary::ResidualEntry)> =
-        est_resid.iter().map(|e| ("estimation", e)).collect();
-    if let Some(v) = &val_resid {
-        entries.push(("validation", v));
+    let mut entries: Vec<(&str, &sysid::summary::ResidualEntry)> = report
+        .estimation
+        .iter()
+        .map(|e| ("estimation", &e.residuals))
+        .collect();
+    if let Some(v) = &report.validation {
+        entries.push(("validation", &v.residuals));
     }
     text.push_str(&crate::text::residuals_text(&entries));
-    for w in &warnings {
+    for w in warnings {
         text.push_str(&format!("warning: {w}\n"));
     }
     print_report(&text, args.json.as_deref());
     if let Some(path) = &args.json {
-        // One record: `estimation` is its metrics object, as for one input; merged: a list per record.
-        let (est_json, resid_json) = if args.merge {
-            (
-                serde_json::json!(records
-                    .iter()
-                    .zip(&est)
-                    .map(|(r, m)| serde_json::json!({"data": r.name, "metrics": m}))
-                    .collect::<Vec<_>>()),
-                serde_json::json!(est_resid),
-            )
-        } else {
-            (
-                serde_json::json!(est.first()),
-                serde_json::json!(est_resid.first()),
-            )
-        };
-        let value = serde_json::json!({
-            "model": m,
-            "method": args.method,
-            "parameters": fit.params,
-            "noise_variance": fit.noise_variance,
-            "poles": sysid::summary::poles(m),
-            "stable": m.is_stable(),
-            "iterations": fit.iterations,
-            "converged": fit.converged,
-            "notes": fit.notes.iter().map(ToString::to_string).collect::<Vec<_>>(),
-            "metrics": { "estimation": est_json, "validation": val_metrics },
-            "residuals": { "estimation": resid_json, "validation": val_resid },
-            "detrend": args.detrend,
-            "merged": args.merge.then(|| records.iter().map(|r| r.name.clone()).collect::<Vec<_>>()),
-            "warnings": warnings,
-            "data_notes": notes,
-        });
+        let mut value = report.to_json_value();
+        if let Some(obj) = value.as_object_mut() {
+            obj.insert("detrend".into(), serde_json::json!(args.detrend));
+            obj.insert(
+                "merged".into(),
+                serde_json::json!(args
+                    .merge
+                    .then(|| records.iter().map(|r| r.name.clone()).collect::<Vec<_>>())),
+            );
+            obj.insert("data_notes".into(), serde_json::json!(notes));
+        }
         let json = serde_json::to_string_pretty(&value)? + "\n";
         write_output(path, json.as_bytes(), &inputs, "--json")?;
     }

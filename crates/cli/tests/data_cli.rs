@@ -1877,4 +1877,24 @@ fn several_inputs_merged_pool_the_rows_of_each_record_and_none_across() {
         err.contains("--merge") && err.contains("--detrend"),
         "{err}"
     );
+    // So are validation rows without saying of which file.
+    let err = fails(&[
+        "identify",
+        "--data",
+        s(&fa),
+        s(&fb),
+        "--merge",
+        "--u-col",
+        "u1,u2",
+        "--method",
+        "ls",
+        "--val-rows",
+        "300..",
+        "--ts",
+        "0.1",
+    ]);
+    assert!(
+        err.contains("--val-rows") && err.contains("--validation"),
+        "{err}"
+    );
 }

@@ -420,6 +420,11 @@ fn run_miso(args: &Args) -> anyhow::Result<()> {
             args.columns.u_col
         );
     }
+    if args.merge && args.val.val_rows.is_some() && args.val.validation.is_none() {
+        anyhow::bail!(
+            "--merge with --val-rows needs --validation FILE (which of the merged records would the rows be of?)"
+        );
+    }
     if args.merge && args.detrend != Detrend::None {
         anyhow::bail!("--merge cannot be combined with --detrend; detrend the records first");
     }

@@ -665,12 +665,10 @@ fn run_miso(args: &Args) -> anyhow::Result<()> {
         let mut value = report.to_json_value();
         if let Some(obj) = value.as_object_mut() {
             obj.insert("detrend".into(), serde_json::json!(args.detrend));
-            obj.insert(
-                "merged".into(),
-                serde_json::json!(args
-                    .merge
-                    .then(|| records.iter().map(|r| r.name.clone()).collect::<Vec<_>>())),
-            );
+            if args.merge {
+                let names: Vec<&str> = records.iter().map(|r| r.name.as_str()).collect();
+                obj.insert("merged".into(), serde_json::json!(names));
+            }
             obj.insert("data_notes".into(), serde_json::json!(notes));
         }
         let json = serde_json::to_string_pretty(&value)? + "\n";

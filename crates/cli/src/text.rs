@@ -177,21 +177,34 @@ pub fn residuals_text(entries: &[(&str, &ResidualEntry)]) -> String {
                     worst.autocorrelation.lag,
                     num(worst.autocorrelation.value)
                 );
-                let _ = writeln!(
-                    s,
-                    "  {:<11} input: {} (S = {}, p = {}; worst lag {}: r = {}; bound ±{})",
-                    "",
-                    if a.independent {
-                        "independent"
+                let single = [sysid::residuals::InputCorrelation::of("", a)];
+                let inputs = if a.inputs.is_empty() {
+                    &single[..]
+                } else {
+                    &a.inputs[..]
+                };
+                for c in inputs {
+                    let label = if c.name.is_empty() {
+                        "input:".to_string()
                     } else {
-                        "NOT independent"
-                    },
-                    num(a.cross_statistic),
-                    num(a.cross_p),
-                    worst.cross_correlation.lag,
-                    num(worst.cross_correlation.value),
-                    num(a.bound)
-                );
+                        format!("input {}:", c.name)
+                    };
+                    let _ = writeln!(
+                        s,
+                        "  {:<11} {label} {} (S = {}, p = {}; worst lag {}: r = {}; bound ±{})",
+                        "",
+                        if c.independent {
+                            "independent"
+                        } else {
+                            "NOT independent"
+                        },
+                        num(c.cross_statistic),
+                        num(c.cross_p),
+                        c.worst.lag,
+                        num(c.worst.value),
+                        num(a.bound)
+                    );
+                }
             }
             ResidualEntry::Unavailable { error } => {
                 let _ = writeln!(s, "  {which:<11} not available: {error}");

@@ -1368,24 +1368,171 @@ fn several_inputs_by_rls_reach_the_least_squares_solution() {
 
     // Hammerstein by RLS: a deadzone on u1, u2 linear, noise-free: the passes reach the generating model.
     let (f, ..) = hammerstein_miso(dir.path(), "rls", 1e-4);
-    // Output error and IV take one input: refused by flag, saying what is supported.
-    for method in ["oe", "iv"] {
-        let err = fails(&[
+    // IV takes one input: refused by flag, saying what is supported.
+    let err = fails(&[
+        "identify",
+        "--data",
+        s(&f),
+        "--u-col",
+        "u1,u2",
+        "--method",
+        "iv",
+        "--ts",
+        "0.1",
+    ]);
+    assert!(
+        err.contains("--method") && err.contains("ls, rls or oe"),
+        "{err}"
+    );
+}
+
+/// A deterministic stand-in for white noise of unit variance: a 64-bit LCG, uniform on (−√3, √3).
+fn white(n: usize, seed: u64) -> Vec<f64> {
+    let mut x = seed;
+    (0..n)
+        .map(|_| {
+            x = x
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((x >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 2.0 * 3f64.sqrt()
+        })
+        .collect()
+}
+
+/// Writes columns u1, u2, y.
+fn write_u1u2y(path: &Path, u1: &[f64], u2: &[f64], y: &[f64]) {
+    let mut text = String::from("u1,u2,y\n");
+    for k in 0..y.len() {
+        text.push_str(&format!("{},{},{}\n", u1[k], u2[k], y[k]));
+    }
+    std::fs::write(path, text).unwrap();
+}
+
+/// Two inputs with white noise at the OUTPUT:
+/// x(k) = 0.9 x(k-1) + f1(u1(k-1)) + 0.5 f1(u1(k-2)) + 0.4 u2(k-2), y = x + `noise` e (e of unit
+/// variance). The equation error e(k) − 0.9 e(k−1) is coloured, so least squares is biased (a1 pulled
+/// towards 0); the output-error criterion's minimiser is the generating model.
+fn noisy_miso(dir: &Path, f1: &dyn Fn(f64) -> f64, noise: f64, name: &str) -> PathBuf {
+    let n = 3000;
+    let u1: Vec<f64> = input(n).iter().map(|v| 3.0 * (v - 1.0)).collect();
+    let u2: Vec<f64> = white(n, 7).iter().map(|v| 2.0 * v).collect();
+    let e = white(n, 99);
+    let mut x = vec![0.0; n];
+    for k in 2..n {
+        x[k] = 0.9 * x[k - 1] + f1(u1[k - 1]) + 0.5 * f1(u1[k - 2]) + 0.4 * u2[k - 2];
+    }
+    let y: Vec<f64> = x.iter().zip(&e).map(|(x, e)| x + noise * e).collect();
+    let f = dir.join(name);
+    write_u1u2y(&f, &u1, &u2, &y);
+    f
+}
+
+#[test]
+fn output_error_with_two_inputs_recovers_the_model_that_least_squares_biases() {
+    let dir = tempfile::tempdir().unwrap();
+    let args_of = |f: &Path, structure: &str, method: &str, extra: &[&str]| {
+        let out = dir.path().join(format!("{structure}_{method}.json"));
+        let mut args = vec![
             "identify",
             "--data",
-            s(&f),
+            s(f),
             "--u-col",
             "u1,u2",
+            "--nb",
+            "2,1",
+            "--nk",
+            "1,2",
+            "--na",
+            "1",
+            "--structure",
+            structure,
             "--method",
             method,
             "--ts",
             "0.1",
-        ]);
+            "--rows",
+            "0..2400",
+            "--val-rows",
+            "2400..",
+            "--json",
+            s(&out),
+        ];
+        args.extend_from_slice(extra);
+        run(&args);
+        json(&out)
+    };
+    // ARX: the generating a1 = -0.9, b(u1) = (1, 0.5), b(u2) = 0.4.
+    let f = noisy_miso(dir.path(), &|v| v, 6.0, "arx.csv");
+    let want = [-0.9, 1.0, 0.5, 0.4];
+    let coeffs = |j: &serde_json::Value| {
+        let m = &j["model"];
+        let i = m["inputs"].as_array().unwrap();
+        [
+            num(&m["a"][0]),
+            num(&i[0]["b"][0]),
+            num(&i[0]["b"][1]),
+            num(&i[1]["b"][0]),
+        ]
+    };
+    let ls = args_of(&f, "arx", "ls", &[]);
+    let oe = args_of(&f, "arx", "oe", &[]);
+    let (ls_c, oe_c) = (coeffs(&ls), coeffs(&oe));
+    // Least squares is visibly biased on a1; output error is close on every coefficient.
+    assert!((ls_c[0] - want[0]).abs() > 0.05, "LS {ls_c:?}");
+    for (g, w) in oe_c.iter().zip(&want) {
+        assert!((g - w).abs() < 0.03, "OE {oe_c:?} vs {want:?}");
+    }
+    assert_eq!(oe["method"], "oe");
+    assert_eq!(oe["model"]["noise_model"], "output-error");
+    let fit = |j: &serde_json::Value| num(&j["metrics"]["validation"]["fit_sim_percent"]);
+    assert!(
+        fit(&oe) > fit(&ls) + 1.0,
+        "OE {} vs LS {}",
+        fit(&oe),
+        fit(&ls)
+    );
+    // Every free parameter has a standard deviation, and the truth lies within 4 of them.
+    let params = oe["parameters"].as_array().unwrap();
+    assert_eq!(params.len(), 4, "{params:?}");
+    for (p, w) in params.iter().zip(&want) {
+        let (v, sd) = (num(&p["value"]), num(&p["std"]));
+        assert!(sd > 0.0 && (v - w).abs() < 4.0 * sd, "{p} vs {w}");
+    }
+    assert!(oe["notes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .any(|n| n.as_str().unwrap().contains("output-error refinement")));
+
+    // Hammerstein: the deadzone `valve` on u1, u2 linear: output error recovers the deadzone too.
+    let f = noisy_miso(dir.path(), &valve, 2.0, "ham.csv");
+    let ls = args_of(&f, "hammerstein", "ls", &["--linear-inputs", "u2"]);
+    let oe = args_of(&f, "hammerstein", "oe", &["--linear-inputs", "u2"]);
+    let get = |j: &serde_json::Value| {
+        let m = &j["model"];
+        let i = m["inputs"].as_array().unwrap();
+        let d = &i[0]["deadzone"];
+        [
+            num(&m["a"][0]),
+            num(&i[0]["b"][1]),
+            num(&i[1]["b"][0]),
+            num(&d["b_l"]),
+            num(&d["b_r"]),
+            num(&d["m_l"]),
+            num(&d["m_r"]),
+        ]
+    };
+    let want = [-0.9, 0.5, 0.4, -1.0, 0.5, 0.8, 1.2];
+    let (ls_c, oe_c) = (get(&ls), get(&oe));
+    assert!((ls_c[0] - want[0]).abs() > 0.02, "LS {ls_c:?}");
+    assert!((oe_c[0] - want[0]).abs() < 0.005, "OE {oe_c:?}");
+    for (g, w) in oe_c.iter().zip(&want) {
         assert!(
-            err.contains("--method") && err.contains("ls or rls"),
-            "{err}"
+            (g - w).abs() < 0.06 * (1.0 + w.abs()),
+            "OE {oe_c:?} vs {want:?}"
         );
     }
+    assert!(fit(&oe) > fit(&ls), "OE {} vs LS {}", fit(&oe), fit(&ls));
 }
 
 #[test]
@@ -1447,6 +1594,307 @@ fn several_input_models_are_simulated_on_recorded_inputs_and_refused_as_control_
     ]);
     assert!(
         err.contains("--compensate-deadzone") && err.contains("2 inputs"),
+        "{err}"
+    );
+}
+
+/// (ΦᵀΦ)⁻¹ by Gauss–Jordan elimination with partial pivoting (rows of Φ given one by one).
+fn inverse_gram(rows: &[Vec<f64>]) -> Vec<Vec<f64>> {
+    let p = rows[0].len();
+    let mut m = vec![vec![0.0; 2 * p]; p];
+    for r in rows {
+        for i in 0..p {
+            for j in 0..p {
+                m[i][j] += r[i] * r[j];
+            }
+        }
+    }
+    for i in 0..p {
+        m[i][p + i] = 1.0;
+    }
+    for c in 0..p {
+        let piv = (c..p)
+            .max_by(|&a, &b| m[a][c].abs().total_cmp(&m[b][c].abs()))
+            .unwrap();
+        m.swap(c, piv);
+        let d = m[c][c];
+        for j in 0..2 * p {
+            m[c][j] /= d;
+        }
+        for r in 0..p {
+            if r != c {
+                let f = m[r][c];
+                for j in 0..2 * p {
+                    m[r][j] -= f * m[c][j];
+                }
+            }
+        }
+    }
+    m.iter().map(|r| r[p..].to_vec()).collect()
+}
+
+/// The two-input ARX record of `miso_record` (a1 = -0.5, b(u1) = (1, 0.3), b(u2) = -2) with a
+/// deterministic disturbance 0.4 sin(2.3 k + `phase`) on y, so that least squares is not exact.
+fn disturbed_miso(dir: &Path, name: &str, phase: f64) -> (PathBuf, Vec<f64>, Vec<f64>, Vec<f64>) {
+    let (_, u1, u2, y) = miso_record(dir, &|v| v, 0.3);
+    let y: Vec<f64> = y
+        .iter()
+        .enumerate()
+        .map(|(k, v)| v + 0.4 * (2.3 * k as f64 + phase).sin())
+        .collect();
+    let f = dir.join(name);
+    write_u1u2y(&f, &u1, &u2, &y);
+    (f, u1, u2, y)
+}
+
+/// Regression rows [-y(k-1), u1(k-1), u1(k-2), u2(k-2)] and targets y(k), k = 2..N (nb = 2,1, nk = 1,2).
+fn miso_rows(u1: &[f64], u2: &[f64], y: &[f64]) -> (Vec<Vec<f64>>, Vec<f64>) {
+    (2..y.len())
+        .map(|k| (vec![-y[k - 1], u1[k - 1], u1[k - 2], u2[k - 2]], y[k]))
+        .unzip()
+}
+
+#[test]
+fn several_input_standard_deviations_are_sigma_squared_times_the_inverse_gram_matrix() {
+    let dir = tempfile::tempdir().unwrap();
+    let (f, u1, u2, y) = disturbed_miso(dir.path(), "d.csv", 0.0);
+    let (rows, z) = miso_rows(&u1, &u2, &y);
+    let theta = normal_equations(&rows, &z);
+    let eps: Vec<f64> = rows
+        .iter()
+        .zip(&z)
+        .map(|(r, zk)| zk - r.iter().zip(&theta).map(|(a, b)| a * b).sum::<f64>())
+        .collect();
+    let (n, p) = (rows.len(), theta.len());
+    let sigma2 = eps.iter().map(|e| e * e).sum::<f64>() / (n - p) as f64;
+    let inv = inverse_gram(&rows);
+    for method in ["ls", "rls"] {
+        let out = dir.path().join(format!("{method}.json"));
+        miso_identify(s(&f), "arx", method, &["--json", s(&out)]);
+        let j = json(&out);
+        let params = j["parameters"].as_array().unwrap();
+        let names: Vec<&str> = params.iter().map(|p| p["name"].as_str().unwrap()).collect();
+        assert_eq!(names, ["a1", "b1 (u1)", "b2 (u1)", "b1 (u2)"]);
+        for (i, prm) in params.iter().enumerate() {
+            let want = (sigma2 * inv[i][i]).sqrt();
+            let got = num(&prm["std"]);
+            assert!(
+                (got - want).abs() < 1e-5 * want,
+                "{method} {i}: {got} vs {want}"
+            );
+        }
+        assert!((num(&j["noise_variance"]) - sigma2).abs() < 1e-5 * sigma2);
+    }
+    // Residual analysis of the LS model: the one-step errors ε(k), k >= 2, against EACH input.
+    let j = json(&dir.path().join("ls.json"));
+    let a = &j["residuals"]["estimation"];
+    let m = a["max_lag"].as_u64().unwrap() as usize;
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    let e_bar = mean(&eps);
+    let e: Vec<f64> = eps.iter().map(|v| v - e_bar).collect();
+    let inputs = a["inputs"].as_array().unwrap();
+    assert_eq!(inputs.len(), 2);
+    for (c, u) in inputs.iter().zip([&u1, &u2]) {
+        let u = &u[2..];
+        let u_bar = mean(u);
+        let v: Vec<f64> = u.iter().map(|x| x - u_bar).collect();
+        let cov = |a: &[f64], b: &[f64], tau: usize| {
+            a[tau..].iter().zip(b).map(|(x, y)| x * y).sum::<f64>() / n as f64
+        };
+        let scale = (cov(&e, &e, 0) * cov(&v, &v, 0)).sqrt();
+        // r_εu(τ) = R_εu(τ) / √(R_ε(0) R_u(0)), ε(t) against u(t − τ); index M + τ.
+        for tau in [0usize, 3] {
+            let want = cov(&e, &v, tau) / scale;
+            let got = num(&c["cross_correlation"][m + tau]);
+            assert!(
+                (got - want).abs() < 1e-6,
+                "{} lag {tau}: {got} vs {want}",
+                c["name"]
+            );
+        }
+    }
+    assert_eq!(
+        (inputs[0]["name"].as_str(), inputs[1]["name"].as_str()),
+        (Some("u1"), Some("u2"))
+    );
+}
+
+#[test]
+fn several_inputs_detrended_keep_each_operating_point_and_put_it_back() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, u1, u2, y) = disturbed_miso(dir.path(), "d.csv", 0.0);
+    // Operating point away from zero.
+    let u1: Vec<f64> = u1.iter().map(|v| v + 5.0).collect();
+    let u2: Vec<f64> = u2.iter().map(|v| v - 3.0).collect();
+    let y: Vec<f64> = y.iter().map(|v| v + 10.0).collect();
+    let f = dir.path().join("op.csv");
+    write_u1u2y(&f, &u1, &u2, &y);
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    let (m1, m2, my) = (mean(&u1), mean(&u2), mean(&y));
+    let d = |v: &[f64], m: f64| v.iter().map(|x| x - m).collect::<Vec<f64>>();
+    let (d1, d2, dy) = (d(&u1, m1), d(&u2, m2), d(&y, my));
+    let (rows, z) = miso_rows(&d1, &d2, &dy);
+    let theta = normal_equations(&rows, &z);
+    let out = dir.path().join("dt.json");
+    let model = dir.path().join("dt_model.json");
+    miso_identify(
+        s(&f),
+        "arx",
+        "ls",
+        &[
+            "--detrend",
+            "mean",
+            "--json",
+            s(&out),
+            "--save-model",
+            s(&model),
+        ],
+    );
+    let j = json(&out);
+    let mj = &j["model"];
+    let i = mj["inputs"].as_array().unwrap();
+    let got = [
+        num(&mj["a"][0]),
+        num(&i[0]["b"][0]),
+        num(&i[0]["b"][1]),
+        num(&i[1]["b"][0]),
+    ];
+    for (g, w) in got.iter().zip(&theta) {
+        assert!(
+            (g - w).abs() < 1e-8 * (1.0 + w.abs()),
+            "{got:?} vs {theta:?}"
+        );
+    }
+    let op = &mj["operating_point"];
+    for (g, w) in [(&op["u"][0], m1), (&op["u"][1], m2), (&op["y"], my)] {
+        assert!((num(g) - w).abs() < 1e-9 * (1.0 + w.abs()), "{op}");
+    }
+    // validate puts the operating point back: the one-step prediction is ȳ plus the deviation model's
+    // prediction from the measured deviations.
+    let csv = dir.path().join("v.csv");
+    run(&[
+        "validate",
+        "--model",
+        s(&model),
+        "--data",
+        s(&f),
+        "--ts",
+        "0.1",
+        "--out",
+        s(&csv),
+    ]);
+    let got = read_columns(&csv);
+    for k in 2..y.len() {
+        let want = my - theta[0] * dy[k - 1]
+            + theta[1] * d1[k - 1]
+            + theta[2] * d1[k - 2]
+            + theta[3] * d2[k - 2];
+        assert!((got["y_pred"][k] - want).abs() < 1e-6, "k = {k}");
+    }
+}
+
+#[test]
+fn several_inputs_merged_pool_the_rows_of_each_record_and_none_across() {
+    let dir = tempfile::tempdir().unwrap();
+    let (fa, a1, a2, ay) = disturbed_miso(dir.path(), "a.csv", 0.0);
+    // The second record: the same system on the inputs reversed in time, another disturbance phase.
+    let (b1, b2): (Vec<f64>, Vec<f64>) = (
+        a1.iter().rev().copied().collect(),
+        a2.iter().rev().copied().collect(),
+    );
+    let mut by = vec![0.0; b1.len()];
+    for k in 2..by.len() {
+        by[k] = 0.5 * by[k - 1] + b1[k - 1] + 0.3 * b1[k - 2] - 2.0 * b2[k - 2];
+    }
+    for (k, v) in by.iter_mut().enumerate() {
+        *v += 0.4 * (2.3 * k as f64 + 1.0).sin() + 0.7;
+    }
+    let fb = dir.path().join("b.csv");
+    write_u1u2y(&fb, &b1, &b2, &by);
+    let (mut rows, mut z) = miso_rows(&a1, &a2, &ay);
+    let (rb, zb) = miso_rows(&b1, &b2, &by);
+    rows.extend(rb);
+    z.extend(zb);
+    let theta = normal_equations(&rows, &z);
+    let out = dir.path().join("merged.json");
+    run(&[
+        "identify",
+        "--data",
+        s(&fa),
+        s(&fb),
+        "--merge",
+        "--u-col",
+        "u1,u2",
+        "--nb",
+        "2,1",
+        "--nk",
+        "1,2",
+        "--na",
+        "1",
+        "--structure",
+        "arx",
+        "--method",
+        "ls",
+        "--ts",
+        "0.1",
+        "--json",
+        s(&out),
+    ]);
+    let j = json(&out);
+    let mj = &j["model"];
+    let i = mj["inputs"].as_array().unwrap();
+    let got = [
+        num(&mj["a"][0]),
+        num(&i[0]["b"][0]),
+        num(&i[0]["b"][1]),
+        num(&i[1]["b"][0]),
+    ];
+    for (g, w) in got.iter().zip(&theta) {
+        assert!(
+            (g - w).abs() < 1e-8 * (1.0 + w.abs()),
+            "{got:?} vs {theta:?}"
+        );
+    }
+    assert_eq!(j["merged"].as_array().unwrap().len(), 2);
+    assert_eq!(j["metrics"]["estimation"].as_array().unwrap().len(), 2);
+    // Detrending merged records is refused by name, not silently done per record.
+    let err = fails(&[
+        "identify",
+        "--data",
+        s(&fa),
+        s(&fb),
+        "--merge",
+        "--u-col",
+        "u1,u2",
+        "--method",
+        "ls",
+        "--detrend",
+        "mean",
+        "--ts",
+        "0.1",
+    ]);
+    assert!(
+        err.contains("--merge") && err.contains("--detrend"),
+        "{err}"
+    );
+    // So are validation rows without saying of which file.
+    let err = fails(&[
+        "identify",
+        "--data",
+        s(&fa),
+        s(&fb),
+        "--merge",
+        "--u-col",
+        "u1,u2",
+        "--method",
+        "ls",
+        "--val-rows",
+        "300..",
+        "--ts",
+        "0.1",
+    ]);
+    assert!(
+        err.contains("--val-rows") && err.contains("--validation"),
         "{err}"
     );
 }

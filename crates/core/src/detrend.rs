@@ -78,18 +78,34 @@ fn remove(s: &[f64], how: Detrend) -> Vec<f64> {
 /// The record with its operating point removed, and that operating point (`None` for [`Detrend::None`],
 /// which returns the record unchanged).
 pub fn detrend(data: &Dataset, how: Detrend) -> (Dataset, Option<OperatingPoint>) {
-    if how == Detrend::None {
-        return (data.clone(), None);
-    }
-    let op = OperatingPoint {
-        u: vec![line_fit(&data.u).0],
-        y: line_fit(&data.y).0,
-    };
+    let (mut u, y, op) = detrend_signals(&[&data.u], &data.y, how);
     let out = Dataset {
-        u: remove(&data.u, how),
-        y: remove(&data.y, how),
+        u: u.pop().unwrap_or_default(),
+        y,
         ts: data.ts,
         name: data.name.clone(),
     };
-    (out, Some(op))
+    (out, op)
+}
+
+/// [`detrend`] of a record with several inputs (one signal per input in `u`, the output `y`): each
+/// signal has its own mean (and, for [`Detrend::Linear`], line) removed; the operating point holds the
+/// mean of each input and of y. [`Detrend::None`] returns the signals unchanged and `None`.
+pub fn detrend_signals(
+    u: &[&[f64]],
+    y: &[f64],
+    how: Detrend,
+) -> (Vec<Vec<f64>>, Vec<f64>, Option<OperatingPoint>) {
+    if how == Detrend::None {
+        return (u.iter().map(|u| u.to_vec()).collect(), y.to_vec(), None);
+    }
+    let op = OperatingPoint {
+        u: u.iter().map(|u| line_fit(u).0).collect(),
+        y: line_fit(y).0,
+    };
+    (
+        u.iter().map(|u| remove(u, how)).collect(),
+        remove(y, how),
+        Some(op),
+    )
 }

@@ -33,10 +33,11 @@ pub enum Method {
     /// Recursive least squares with forgetting (paper eqs. 9–12).
     Rls,
     /// Output-error refinement of every parameter (Levenberg–Marquardt on the free-run simulation error),
-    /// started from the LS estimate. Unbiased under white output (measurement) noise; batch.
+    /// started from the LS estimate. Unbiased under white output (measurement) noise; batch. Also with
+    /// several inputs.
     Oe,
     /// Recursive instrumental variables with instruments from an auxiliary model's simulated output.
-    /// Unbiased under output noise; recursive (online).
+    /// Unbiased under output noise; recursive (online). One input only.
     Iv,
 }
 
@@ -1125,78 +1126,115 @@ fn output_error(p: &Problem, st: &OutputError) -> Result<Fitted, SysidError> {
     let start = least_squares(p, &st.start)?;
     let physical = p.branches.parameterisation(&p.structure, Layout::Physical);
     let fit = oe::refine(p.data, &physical, &start.model, st.max_iterations)?;
-    let mut notes = Vec::new();
-    notes.extend(
-        start
-            .notes
-            .iter()
-            .cloned()
-            .map(|n| Note::Start(Box::new(n))),
+    let verdict = OeVerdict::judge(
+        &fit,
+        &start.notes,
+        reported_rmse(&fit.model, p.data),
+        reported_rmse(&start.model, p.data),
     );
-    if fit.stabilised_start {
-        notes.push(Note::StabilisedStart);
-    }
-    notes.push(Note::Refinement {
-        rss_start: fit.rss_start,
-        rss: fit.rss,
-        iterations: fit.iterations,
-        evaluations: fit.evaluations,
-        stopped: fit.stop.to_string(),
-    });
-    let refined_rmse = reported_rmse(&fit.model, p.data);
-    let start_rmse = reported_rmse(&start.model, p.data);
-    let refined_better = match (refined_rmse, start_rmse) {
-        (Some(r), Some(s)) => r <= s,
-        (Some(_), None) => true,
-        (None, Some(_)) => false,
-        // Neither simulates stably: keep the refined model (stable by construction) and let the
-        // warnings say what is wrong.
-        (None, None) => true,
-    };
-    let termination = if fit.stop.converged() {
-        Termination::Converged
-    } else {
-        Termination::IterationLimit
-    };
-    if refined_better {
-        if let (Some(r), true) = (refined_rmse, start_rmse.is_some() || fit.stabilised_start) {
-            notes.push(Note::KeptCandidate {
-                kept: "output-error refinement",
-                rmse: r,
-                others: vec![("least-squares start", start_rmse)],
-            });
-        }
+    if verdict.fallback.is_none() {
         return Ok(Fitted {
             iterations: fit.iterations,
-            termination,
-            notes,
+            termination: verdict.termination,
+            notes: verdict.notes,
             ..Fitted::new(fit.model, fit.params, Method::Oe, fit.noise_variance)
         });
     }
-    let (kept_rmse, refined_text) = (
-        start_rmse.unwrap_or(f64::NAN),
-        refined_rmse.map_or_else(|| "diverges".to_string(), |r| format!("{r:.6e}")),
-    );
-    notes.push(Note::KeptCandidate {
-        kept: "least-squares start",
-        rmse: kept_rmse,
-        others: vec![("output-error refinement", refined_rmse)],
-    });
-    let why = format!(
-        "the refined model simulates the estimation data worse (RMSE {refined_text} against {kept_rmse:.6e} \
-         for the start)"
-    );
     Ok(Fitted {
         iterations: fit.iterations,
-        termination,
-        notes,
-        warnings: vec![Warning::Fallback {
-            used: "the least-squares start instead of the output-error refinement".into(),
-            why,
-        }],
+        termination: verdict.termination,
+        notes: verdict.notes,
+        warnings: verdict.fallback.into_iter().collect(),
         ..start
     }
     .with_method(Method::Oe))
+}
+
+/// Which of the least-squares start and the output-error refinement to keep, and the notes that say so
+/// (one input or several).
+#[derive(Debug, Clone, PartialEq)]
+pub struct OeVerdict {
+    /// The start's notes, the stabilisation, the refinement and the kept candidate.
+    pub notes: Vec<Note>,
+    /// Converged or stopped at the iteration cap.
+    pub termination: Termination,
+    /// `None` when the refinement is kept; else the warning that the start was kept instead.
+    pub fallback: Option<Warning>,
+}
+
+impl OeVerdict {
+    /// Judges both candidates on the reported criterion (the estimation simulation RMSE with estimated
+    /// initial outputs, `None` for an unstable or diverging model): the better stable one is kept; when
+    /// neither simulates stably the refinement (stable by construction) is kept and the warnings say
+    /// what is wrong.
+    pub fn judge<P>(
+        fit: &oe::OeFit<P>,
+        start_notes: &[Note],
+        refined_rmse: Option<f64>,
+        start_rmse: Option<f64>,
+    ) -> Self {
+        let mut notes: Vec<Note> = start_notes
+            .iter()
+            .cloned()
+            .map(|n| Note::Start(Box::new(n)))
+            .collect();
+        if fit.stabilised_start {
+            notes.push(Note::StabilisedStart);
+        }
+        notes.push(Note::Refinement {
+            rss_start: fit.rss_start,
+            rss: fit.rss,
+            iterations: fit.iterations,
+            evaluations: fit.evaluations,
+            stopped: fit.stop.to_string(),
+        });
+        let refined_better = match (refined_rmse, start_rmse) {
+            (Some(r), Some(s)) => r <= s,
+            (Some(_), None) => true,
+            (None, Some(_)) => false,
+            (None, None) => true,
+        };
+        let termination = if fit.stop.converged() {
+            Termination::Converged
+        } else {
+            Termination::IterationLimit
+        };
+        if refined_better {
+            if let (Some(r), true) = (refined_rmse, start_rmse.is_some() || fit.stabilised_start) {
+                notes.push(Note::KeptCandidate {
+                    kept: "output-error refinement",
+                    rmse: r,
+                    others: vec![("least-squares start", start_rmse)],
+                });
+            }
+            return OeVerdict {
+                notes,
+                termination,
+                fallback: None,
+            };
+        }
+        let (kept_rmse, refined_text) = (
+            start_rmse.unwrap_or(f64::NAN),
+            refined_rmse.map_or_else(|| "diverges".to_string(), |r| format!("{r:.6e}")),
+        );
+        notes.push(Note::KeptCandidate {
+            kept: "least-squares start",
+            rmse: kept_rmse,
+            others: vec![("output-error refinement", refined_rmse)],
+        });
+        let why = format!(
+            "the refined model simulates the estimation data worse (RMSE {refined_text} against {kept_rmse:.6e} \
+             for the start)"
+        );
+        OeVerdict {
+            notes,
+            termination,
+            fallback: Some(Warning::Fallback {
+                used: "the least-squares start instead of the output-error refinement".into(),
+                why,
+            }),
+        }
+    }
 }
 
 /// Relative change of θ̂ between IV stages below which the stages have settled.
@@ -1300,6 +1338,27 @@ fn instrumental(p: &Problem, st: &InstrumentalVariables) -> Result<Fitted, Sysid
     })
 }
 
+/// The ratio b = θ_j / θ_i (a breakpoint from its key-term product and slope) and its standard deviation
+/// by the delta method (gradient (−θ_j/θ_i², 1/θ_i)) from Cov(θ̂); NaN and `None` when θ_i = 0.
+pub(crate) fn ratio_with_std(
+    theta: &[f64],
+    cov: Option<&DMatrix<f64>>,
+    i: usize,
+    j: usize,
+) -> (f64, Option<f64>) {
+    let (ti, tj) = (theta[i], theta[j]);
+    let value = if ti != 0.0 { tj / ti } else { f64::NAN };
+    let std = cov.and_then(|c| {
+        if ti == 0.0 {
+            return None;
+        }
+        let (gi, gj) = (-tj / (ti * ti), 1.0 / ti);
+        let v = gi * gi * c[(i, i)] + 2.0 * gi * gj * c[(i, j)] + gj * gj * c[(j, j)];
+        (v.is_finite() && v >= 0.0).then(|| v.sqrt())
+    });
+    (value, std)
+}
+
 /// Physical parameters and their covariance-based standard deviations from θ̂ and Cov(θ̂).
 pub(crate) fn physical_params(
     s: &Structure,
@@ -1320,20 +1379,7 @@ pub(crate) fn physical_params(
         std: None,
     };
     if s.kind == ModelKind::Hammerstein {
-        // b = θ_j / θ_i; gradient (−θ_j/θ_i², 1/θ_i).
-        let ratio = |i: usize, j: usize| {
-            let (ti, tj) = (theta[i], theta[j]);
-            let value = if ti != 0.0 { tj / ti } else { f64::NAN };
-            let std = cov.and_then(|c| {
-                if ti == 0.0 {
-                    return None;
-                }
-                let (gi, gj) = (-tj / (ti * ti), 1.0 / ti);
-                let v = gi * gi * c[(i, i)] + 2.0 * gi * gj * c[(i, j)] + gj * gj * c[(j, j)];
-                (v.is_finite() && v >= 0.0).then(|| v.sqrt())
-            });
-            (value, std)
-        };
+        let ratio = |i: usize, j: usize| ratio_with_std(theta.as_slice(), cov, i, j);
         let (bl, bl_sd) = ratio(2, 3);
         let (br, br_sd) = ratio(0, 1);
         out.push(Param {

@@ -12,6 +12,9 @@
 
 use nalgebra::{DMatrix, DVector};
 
+use crate::estimate::{Note, OeVerdict};
+use crate::oe::{miso_params, miso_vector, NamedParam};
+use crate::warnings::Warning;
 use sysid_core::param::deadzone_from_theta;
 use sysid_core::{Deadzone, InputChannel, Model, ModelKind, StaticNonlinearity, SysidError};
 
@@ -35,11 +38,23 @@ pub struct MisoInput {
 pub struct MisoFit {
     /// The model (one `InputChannel` per input, in the given order).
     pub model: Model,
-    /// Key-term iterations of least squares (1 for ARX or when every input is linear), or passes of RLS.
+    /// The physical parameters in the layout of [`crate::oe::miso_vector`] (deadzones, a, B of each
+    /// input with b1 = 1 fixed for a nonlinear one, c), with standard deviations: σ̂² (ΦᵀΦ)⁻¹ of the final
+    /// regression for least squares and RLS (delta method for the breakpoints), σ̂² (JᵀJ)⁻¹ of the
+    /// final simulation Jacobian for output error.
+    pub params: Vec<NamedParam>,
+    /// σ̂² = RSS / (N − p) of the final regression (LS, RLS) or of the simulation errors (OE).
+    pub noise_variance: f64,
+    /// Key-term iterations of least squares (1 for ARX or when every input is linear), passes of RLS, or
+    /// Levenberg–Marquardt iterations of output error.
     pub iterations: usize,
-    /// Whether the key-term iteration reached its fixed point (least squares) or the RLS estimate
-    /// settled over the passes.
+    /// Whether the key-term iteration reached its fixed point (least squares), the RLS estimate
+    /// settled over the passes, or the output-error search converged.
     pub converged: bool,
+    /// Remarks (output error: the refinement and which candidate was kept).
+    pub notes: Vec<Note>,
+    /// Reasons not to trust the estimate (output error: the start kept instead of the refinement).
+    pub warnings: Vec<Warning>,
 }
 
 /// The regression of a MISO problem (module docs): which inputs are nonlinear, k0, the rows and the
@@ -171,17 +186,32 @@ impl<'a> Regression<'a> {
 
     /// The least-squares θ̂ with the deadzones `dz`.
     fn solve(&self, dz: &[Deadzone]) -> Result<Vec<f64>, SysidError> {
-        let target = DVector::from_iterator(self.rows(), self.y[self.k0..].iter().copied());
-        Ok(crate::ls::solve(&self.matrix(dz), &target, &self.names)?
-            .theta
-            .iter()
-            .copied()
-            .collect())
+        solve_stacked(std::slice::from_ref(self), dz)
     }
 
     /// The deadzones `dz` updated from the key-term blocks of θ̂ (inputs without one keep theirs).
     fn update_deadzones(&self, theta: &[f64], dz: &mut [Deadzone]) {
         update_deadzones(&self.nonlinear, theta, dz);
+    }
+
+    /// The fit of θ̂ with the deadzones `dz` (Ts = `ts` s): its model and parameters with standard
+    /// deviations ([`Regression::params`]).
+    fn fit(
+        &self,
+        theta: &[f64],
+        dz: &[Deadzone],
+        ts: f64,
+        iterations: usize,
+        converged: bool,
+    ) -> Result<MisoFit, SysidError> {
+        fit_stacked(
+            std::slice::from_ref(self),
+            theta,
+            dz,
+            ts,
+            iterations,
+            converged,
+        )
     }
 
     /// The model of θ̂ and the deadzones `dz` (Ts = `ts` s).
@@ -238,10 +268,73 @@ impl MisoProblem<'_> {
         let reg = self.regression()?;
         let (theta, dz, iterations, converged) =
             key_term_iteration(&reg.nonlinear, max_iterations, |dz| reg.solve(dz))?;
+        reg.fit(&theta, &dz, self.ts, iterations, converged)
+    }
+
+    /// The fit by the estimator `settings` says: least squares, RLS or output error (`name` names the
+    /// record in errors). Instrumental variables take one input: refused, naming `--method`.
+    pub fn fit(
+        &self,
+        settings: &crate::EstimatorSettings,
+        name: &str,
+    ) -> Result<MisoFit, SysidError> {
+        match settings {
+            crate::EstimatorSettings::Ls(st) => self.least_squares(st.max_iterations),
+            crate::EstimatorSettings::Rls(st) => self.recursive(st),
+            crate::EstimatorSettings::Oe(st) => {
+                self.output_error(st.start.max_iterations, st.max_iterations, name)
+            }
+            crate::EstimatorSettings::Iv(_) => Err(SysidError::setting(
+                sysid_core::Setting::Other("--method"),
+                "iv",
+                "ls, rls or oe: several inputs are estimated by least squares, recursive least squares \
+                 or output error; instrumental variables take one input",
+            )),
+        }
+    }
+
+    /// Output error (docs/estimators.md, [`crate::oe::refine_miso`]): every parameter refined by
+    /// minimising the free-run simulation error, started from [`MisoProblem::least_squares`] (at most
+    /// `ls_iterations` key-term solves), at most `max_iterations` Levenberg–Marquardt iterations,
+    /// constrained to stable models. As for one input, the start and the refinement are judged on the
+    /// estimation simulation RMSE with estimated initial outputs and the better stable one is kept; the
+    /// notes say which, and a warning when it is the start. `name` names the record in errors.
+    pub fn output_error(
+        &self,
+        ls_iterations: usize,
+        max_iterations: usize,
+        name: &str,
+    ) -> Result<MisoFit, SysidError> {
+        let start = self.least_squares(ls_iterations)?;
+        let us: Vec<&[f64]> = self.inputs.iter().map(|m| m.u.as_slice()).collect();
+        let fit = crate::oe::refine_miso(&us, self.y, &start.model, max_iterations, name)?;
+        let rmse = |m: &Model| {
+            if !m.is_stable() {
+                return None;
+            }
+            sysid_core::metrics::metrics_miso(m, &us, self.y, name)
+                .ok()
+                .and_then(|m| m.rmse_sim)
+        };
+        let verdict = OeVerdict::judge(&fit, &start.notes, rmse(&fit.model), rmse(&start.model));
+        let converged = verdict.termination.converged();
+        if verdict.fallback.is_none() {
+            return Ok(MisoFit {
+                model: fit.model,
+                params: fit.params,
+                noise_variance: fit.noise_variance,
+                iterations: fit.iterations,
+                converged,
+                notes: verdict.notes,
+                warnings: Vec::new(),
+            });
+        }
         Ok(MisoFit {
-            model: reg.model(&theta, &dz, self.ts)?,
-            iterations,
+            iterations: fit.iterations,
             converged,
+            notes: verdict.notes,
+            warnings: verdict.fallback.into_iter().collect(),
+            ..start
         })
     }
 
@@ -310,12 +403,145 @@ impl MisoProblem<'_> {
         if hammer {
             reg.update_deadzones(&theta, &mut dz);
         }
-        Ok(MisoFit {
-            model: reg.model(&theta, &dz, ts)?,
-            iterations: pass_ends.len(),
-            converged,
-        })
+        reg.fit(&theta, &dz, ts, pass_ends.len(), converged)
     }
+}
+
+/// Φ and y of the regressions `regs` stacked (records one after the other: no row spans two), with the
+/// deadzones `dz`.
+fn stacked(regs: &[Regression], dz: &[Deadzone]) -> (DMatrix<f64>, DVector<f64>) {
+    let rows: usize = regs.iter().map(Regression::rows).sum();
+    let p = regs.first().map_or(0, Regression::len);
+    let mut phi = DMatrix::zeros(rows, p);
+    let mut target = DVector::zeros(rows);
+    let mut at = 0;
+    for reg in regs {
+        let m = reg.matrix(dz);
+        phi.rows_mut(at, reg.rows()).copy_from(&m);
+        for (i, v) in reg.y[reg.k0..].iter().enumerate() {
+            target[at + i] = *v;
+        }
+        at += reg.rows();
+    }
+    (phi, target)
+}
+
+/// The least-squares θ̂ of the stacked regressions `regs` with the deadzones `dz`.
+fn solve_stacked(regs: &[Regression], dz: &[Deadzone]) -> Result<Vec<f64>, SysidError> {
+    let (phi, target) = stacked(regs, dz);
+    let names = regs.first().map_or(&[][..], |r| &r.names[..]);
+    Ok(crate::ls::solve(&phi, &target, names)?
+        .theta
+        .iter()
+        .copied()
+        .collect())
+}
+
+/// The physical parameters of `model` (fitted as θ̂ with the deadzones `dz` on the stacked regressions
+/// `regs`) with standard deviations from Cov(θ̂) = σ̂² (ΦᵀΦ)⁻¹, σ̂² = ‖y − Φθ̂‖² / (N − p) over the
+/// stacked rows; the breakpoints by the delta method. Returns them with σ̂².
+fn params_stacked(
+    regs: &[Regression],
+    theta: &[f64],
+    dz: &[Deadzone],
+    model: &Model,
+) -> (Vec<NamedParam>, f64) {
+    let (phi, target) = stacked(regs, dz);
+    let (names, n_key) = regs
+        .first()
+        .map_or((&[][..], 0), |r| (&r.names[..], r.n_key));
+    let th = DVector::from_column_slice(theta);
+    let rss = (&target - &phi * &th).norm_squared();
+    let dof = phi.nrows().saturating_sub(phi.ncols()).max(1);
+    let sigma2 = rss / dof as f64;
+    let cov = crate::ls::solve(&phi, &target, names)
+        .ok()
+        .map(|sol| sol.inv_gram * sigma2);
+    let sd = |i: usize| {
+        cov.as_ref()
+            .map(|c| c[(i, i)])
+            .filter(|v| v.is_finite() && *v >= 0.0)
+            .map(f64::sqrt)
+    };
+    // Physical and key-term layouts differ only inside each deadzone block:
+    // [b_l, b_r, m_l, m_r] against [m_r, m_r b_r, m_l, m_l b_l].
+    let std = |i: usize| {
+        if i >= n_key {
+            return sd(i);
+        }
+        let t = i - i % 4;
+        match i % 4 {
+            0 => crate::estimate::ratio_with_std(theta, cov.as_ref(), t + 2, t + 3).1,
+            1 => crate::estimate::ratio_with_std(theta, cov.as_ref(), t, t + 1).1,
+            2 => sd(t + 2),
+            _ => sd(t),
+        }
+    };
+    let (values, pnames) = miso_vector(model);
+    (miso_params(model, &pnames, |i| values[i], std), sigma2)
+}
+
+/// Least squares on several records at once (MATLAB `merge`): `records[r]` are the inputs of record r
+/// (same names and orders in every record) and `ys[r]` its output. Each record has its own first row
+/// k0, so no regression row spans two records; the rows are stacked into one solve (ARX) or one
+/// key-term iteration (Hammerstein, at most `max_iterations` solves). Ts = `ts` s.
+pub fn least_squares_merged(
+    records: &[Vec<MisoInput>],
+    ys: &[&[f64]],
+    ts: f64,
+    na: usize,
+    kind: ModelKind,
+    offset: bool,
+    max_iterations: usize,
+) -> Result<MisoFit, SysidError> {
+    if records.is_empty() || records.len() != ys.len() {
+        return Err(SysidError::Data(
+            "merged estimation needs one output per record and at least one record".into(),
+        ));
+    }
+    let regs = records
+        .iter()
+        .zip(ys)
+        .map(|(inputs, y)| Regression::new(inputs, y, na, kind, offset))
+        .collect::<Result<Vec<_>, _>>()?;
+    let first = &regs[0];
+    if regs.iter().any(|r| r.names != first.names) {
+        return Err(SysidError::Data(
+            "merged records must have the same inputs, in the same order, with the same orders"
+                .into(),
+        ));
+    }
+    let (theta, dz, iterations, converged) =
+        key_term_iteration(&first.nonlinear, max_iterations, |dz| {
+            solve_stacked(&regs, dz)
+        })?;
+    fit_stacked(&regs, &theta, &dz, ts, iterations, converged)
+}
+
+/// The fit of θ̂ with the deadzones `dz` on the stacked regressions `regs` (Ts = `ts` s): its model and
+/// parameters with standard deviations ([`params_stacked`]).
+fn fit_stacked(
+    regs: &[Regression],
+    theta: &[f64],
+    dz: &[Deadzone],
+    ts: f64,
+    iterations: usize,
+    converged: bool,
+) -> Result<MisoFit, SysidError> {
+    let Some(first) = regs.first() else {
+        return Err(SysidError::Data("no record to fit".into()));
+    };
+    let model = first.model(theta, dz, ts)?;
+    let (params, noise_variance) = params_stacked(regs, theta, dz, &model);
+    Ok(MisoFit {
+        model,
+        params,
+        noise_variance,
+        iterations,
+        converged,
+        notes: Vec::new(),
+        warnings: Vec::new(),
+    })
 }
 
 /// Start of the key-term iteration: breakpoints at 0 and unit slopes, so that x̂ = u in the b2.. columns of

@@ -57,16 +57,17 @@ use crate::ls;
 use sysid_core::model::{is_stable_polynomial_within, poles_of};
 use sysid_core::param::{Layout, Parameterisation};
 use sysid_core::{
-    Dataset, Deadzone, Model, ModelKind, NoiseModel, ParamName, Structure, SysidError,
+    Dataset, Deadzone, InputChannel, Model, ModelKind, NoiseModel, ParamName, StaticNonlinearity,
+    SysidError,
 };
 
 /// The result of an output-error refinement.
 #[derive(Debug, Clone)]
-pub struct OeFit {
+pub struct OeFit<P = Param> {
     /// The refined model.
     pub model: Model,
     /// Physical parameters with standard deviations from σ̂² (JᵀJ)⁻¹ (`None` for fixed ones).
-    pub params: Vec<Param>,
+    pub params: Vec<P>,
     /// Number of Jacobian evaluations (Levenberg–Marquardt iterations).
     pub iterations: usize,
     /// Number of residual evaluations.
@@ -182,73 +183,155 @@ fn map_roots(a: &[f64], f: impl Fn(Complex<f64>) -> Complex<f64>) -> Vec<f64> {
     c.iter().skip(1).map(|v| v.re).collect()
 }
 
-struct Problem<'a> {
+/// One input of the output-error problem: its record, orders and whether it passes a deadzone.
+#[derive(Debug, Clone, Copy)]
+struct Channel<'a> {
     u: &'a [f64],
+    nb: usize,
+    nk: usize,
+    nonlinear: bool,
+}
+
+/// The output-error problem over one or several inputs. `full` holds the model parameters in the
+/// physical layout generalised to several inputs — for each nonlinear input [b_l, b_r, m_l, m_r], then
+/// a1..a_na, then per input b1..b_nb (b2..b_nb for a nonlinear input, b1 = 1), then c — followed by the
+/// estimated initial outputs η_0..η_{k0−1}. With one input this is [`Layout::Physical`].
+struct Problem<'a> {
+    channels: Vec<Channel<'a>>,
     y: &'a [f64],
-    s: Structure,
+    na: usize,
+    offset: bool,
+    k0: usize,
     full: Vec<f64>,
     free: Vec<usize>,
     bound: f64,
     jacobians: Cell<usize>,
 }
 
+/// What entry q of the full vector is.
+#[derive(Debug, Clone, Copy)]
+enum Role {
+    /// Deadzone parameter `which` (0 b_l, 1 b_r, 2 m_l, 3 m_r) of input `ch`.
+    Deadzone { ch: usize, which: usize },
+    /// a_(i+1).
+    A(usize),
+    /// The B coefficient of input `ch` at lag j (0-based: b_(j+1)).
+    B { ch: usize, j: usize },
+    /// The constant c.
+    C,
+    /// The initial output η_j.
+    Eta(usize),
+}
+
 struct Decoded {
-    dz: Option<Deadzone>,
+    /// One deadzone per input (`None` for a linear one).
+    dz: Vec<Option<Deadzone>>,
     a: Vec<f64>,
-    b: Vec<f64>,
+    /// The whole B of each input (b1 = 1 included for a nonlinear one).
+    b: Vec<Vec<f64>>,
     c: f64,
-    /// Index of a1 in the full vector.
-    ia: usize,
-    /// Index of the first free B coefficient and which b_j it is (0-based j).
-    ib: usize,
-    jb0: usize,
 }
 
 impl Problem<'_> {
-    /// The parts of the model in the physical vector (no validation: an iterate may be non-finite,
-    /// which the simulation then reports).
-    fn decode(&self) -> Decoded {
-        let o = self.s.orders;
-        let v = &self.full;
-        let hammer = self.s.kind == ModelKind::Hammerstein;
-        let ia = if hammer { 4 } else { 0 };
-        let ib = ia + o.na;
-        let jb0 = usize::from(hammer);
-        let mut b = Vec::with_capacity(o.nb);
-        if hammer {
-            b.push(1.0);
-        }
-        b.extend_from_slice(&v[ib..ib + o.nb - jb0]);
-        Decoded {
-            dz: hammer.then(|| Deadzone {
-                b_l: v[0],
-                b_r: v[1],
-                m_l: v[2],
-                m_r: v[3],
-            }),
-            a: v[ia..ib].to_vec(),
-            b,
-            c: if self.s.offset {
-                v[ib + o.nb - jb0]
-            } else {
-                0.0
-            },
-            ia,
-            ib,
-            jb0,
-        }
+    /// Index of a1 in the full vector (after the deadzone blocks).
+    fn ia(&self) -> usize {
+        4 * self.channels.iter().filter(|c| c.nonlinear).count()
     }
 
-    /// ŷ over the record and x = f(u); `None` when the simulation leaves ±bound or is not finite.
-    fn simulate(&self, d: &Decoded) -> Option<(Vec<f64>, Vec<f64>)> {
-        let n = self.u.len();
-        let k0 = self.s.orders.k0();
-        let nk = self.s.orders.nk;
-        let x: Vec<f64> = match &d.dz {
-            Some(dz) => self.u.iter().map(|&v| dz.apply(v)).collect(),
-            None => self.u.to_vec(),
-        };
-        let np = self.s.n_params();
+    /// Number of model parameters (the initial outputs follow them in `full`).
+    fn n_params(&self) -> usize {
+        let nb: usize = self
+            .channels
+            .iter()
+            .map(|c| c.nb - usize::from(c.nonlinear))
+            .sum();
+        self.ia() + self.na + nb + usize::from(self.offset)
+    }
+
+    /// The role of entry `q` of the full vector.
+    fn role(&self, q: usize) -> Role {
+        let mut i = q;
+        for (ch, _) in self
+            .channels
+            .iter()
+            .enumerate()
+            .filter(|(_, c)| c.nonlinear)
+        {
+            if i < 4 {
+                return Role::Deadzone { ch, which: i };
+            }
+            i -= 4;
+        }
+        if i < self.na {
+            return Role::A(i);
+        }
+        i -= self.na;
+        for (ch, c) in self.channels.iter().enumerate() {
+            let from = usize::from(c.nonlinear);
+            if i < c.nb - from {
+                return Role::B { ch, j: i + from };
+            }
+            i -= c.nb - from;
+        }
+        if self.offset {
+            if i == 0 {
+                return Role::C;
+            }
+            i -= 1;
+        }
+        Role::Eta(i)
+    }
+
+    /// The parts of the model in the full vector (no validation: an iterate may be non-finite, which the
+    /// simulation then reports).
+    fn decode(&self) -> Decoded {
+        let v = &self.full;
+        let mut i = 0;
+        let mut dz = Vec::with_capacity(self.channels.len());
+        for c in &self.channels {
+            dz.push(c.nonlinear.then(|| {
+                i += 4;
+                Deadzone {
+                    b_l: v[i - 4],
+                    b_r: v[i - 3],
+                    m_l: v[i - 2],
+                    m_r: v[i - 1],
+                }
+            }));
+        }
+        let a = v[i..i + self.na].to_vec();
+        i += self.na;
+        let mut b = Vec::with_capacity(self.channels.len());
+        for c in &self.channels {
+            let mut bc = Vec::with_capacity(c.nb);
+            if c.nonlinear {
+                bc.push(1.0);
+            }
+            let count = c.nb - usize::from(c.nonlinear);
+            bc.extend_from_slice(&v[i..i + count]);
+            i += count;
+            b.push(bc);
+        }
+        let c = if self.offset { v[i] } else { 0.0 };
+        Decoded { dz, a, b, c }
+    }
+
+    /// ŷ over the record and x = f(u) of each input; `None` when the simulation leaves ±bound or is not
+    /// finite.
+    #[allow(clippy::type_complexity)]
+    fn simulate(&self, d: &Decoded) -> Option<(Vec<f64>, Vec<Vec<f64>>)> {
+        let n = self.y.len();
+        let k0 = self.k0;
+        let x: Vec<Vec<f64>> = self
+            .channels
+            .iter()
+            .zip(&d.dz)
+            .map(|(c, dz)| match dz {
+                Some(dz) => c.u.iter().map(|&v| dz.apply(v)).collect(),
+                None => c.u.to_vec(),
+            })
+            .collect();
+        let np = self.n_params();
         let mut yh = self.full[np..np + k0].to_vec();
         yh.reserve(n.saturating_sub(k0));
         for k in k0..n {
@@ -256,8 +339,10 @@ impl Problem<'_> {
             for (i, ai) in d.a.iter().enumerate() {
                 v -= ai * yh[k - 1 - i];
             }
-            for (j, bj) in d.b.iter().enumerate() {
-                v += bj * x[k - nk - j];
+            for ((c, b), x) in self.channels.iter().zip(&d.b).zip(&x) {
+                for (j, bj) in b.iter().enumerate() {
+                    v += bj * x[k - c.nk - j];
+                }
             }
             if !(v.is_finite() && v.abs() <= self.bound) {
                 return None;
@@ -266,12 +351,10 @@ impl Problem<'_> {
         }
         Some((yh, x))
     }
-}
 
-impl Problem<'_> {
     /// Residuals y − ŷ over every sample; `None` when the simulation diverges.
     fn residuals(&self) -> Option<DVector<f64>> {
-        let m = self.u.len();
+        let m = self.y.len();
         let d = self.decode();
         let (yh, _) = self.simulate(&d)?;
         Some(DVector::from_iterator(m, (0..m).map(|k| self.y[k] - yh[k])))
@@ -290,25 +373,16 @@ impl Problem<'_> {
         Some(self.sensitivities(&d, &yh, &x))
     }
 
-    /// Index of a1 in the full vector.
-    fn ia(&self) -> usize {
-        if self.s.kind == ModelKind::Hammerstein {
-            4
-        } else {
-            0
-        }
-    }
-
     /// True when A of the current parameters is stable.
     fn stable(&self) -> bool {
         let ia = self.ia();
-        is_stable_polynomial_within(&self.full[ia..ia + self.s.orders.na], MAX_POLE_MODULUS)
+        is_stable_polynomial_within(&self.full[ia..ia + self.na], MAX_POLE_MODULUS)
     }
 
     /// Reflects the unstable poles of A into the unit circle.
     fn project(&mut self) {
         let ia = self.ia();
-        let na = self.s.orders.na;
+        let na = self.na;
         let a = stabilise_within(&self.full[ia..ia + na], MAX_POLE_MODULUS);
         self.full[ia..ia + na].copy_from_slice(&a);
     }
@@ -440,51 +514,57 @@ fn search(
 
 impl Problem<'_> {
     /// ∂ŷ(k)/∂θ_q for every sample k (rows) and the free parameters q (columns).
-    fn sensitivities(&self, d: &Decoded, yh: &[f64], x: &[f64]) -> DMatrix<f64> {
-        let n = self.u.len();
-        let o = self.s.orders;
-        let k0 = o.k0();
-        let np = self.s.n_params();
+    fn sensitivities(&self, d: &Decoded, yh: &[f64], x: &[Vec<f64>]) -> DMatrix<f64> {
+        let n = self.y.len();
+        let k0 = self.k0;
         let mut jac = DMatrix::<f64>::zeros(n, self.free.len());
         let mut g = vec![0.0; n];
         let mut s = vec![0.0; n];
         for (col, &q) in self.free.iter().enumerate() {
             s[..k0].fill(0.0);
             // Drive g(k), k >= k0.
-            if q >= np {
-                s[q - np] = 1.0;
-                g[k0..n].fill(0.0);
-            } else if let (Some(dz), true) = (&d.dz, q < 4) {
-                let dx = |u: f64| -> f64 {
-                    let hr = dz.h_r(u);
-                    let hl = if hr > 0.0 { 0.0 } else { dz.h_l(u) };
-                    match q {
-                        0 => -dz.m_l * hl,
-                        1 => -dz.m_r * hr,
-                        2 => hl * (u - dz.b_l),
-                        _ => hr * (u - dz.b_r),
-                    }
-                };
-                let dxs: Vec<f64> = self.u.iter().map(|&v| dx(v)).collect();
-                for k in k0..n {
-                    g[k] =
-                        d.b.iter()
+            match self.role(q) {
+                Role::Eta(j) => {
+                    s[j] = 1.0;
+                    g[k0..n].fill(0.0);
+                }
+                Role::Deadzone { ch, which } => {
+                    let c = &self.channels[ch];
+                    let Some(dz) = d.dz[ch] else {
+                        g[k0..n].fill(0.0);
+                        continue;
+                    };
+                    let dx = |u: f64| -> f64 {
+                        let hr = dz.h_r(u);
+                        let hl = if hr > 0.0 { 0.0 } else { dz.h_l(u) };
+                        match which {
+                            0 => -dz.m_l * hl,
+                            1 => -dz.m_r * hr,
+                            2 => hl * (u - dz.b_l),
+                            _ => hr * (u - dz.b_r),
+                        }
+                    };
+                    let dxs: Vec<f64> = c.u.iter().map(|&v| dx(v)).collect();
+                    for k in k0..n {
+                        g[k] = d.b[ch]
+                            .iter()
                             .enumerate()
-                            .map(|(j, bj)| bj * dxs[k - o.nk - j])
+                            .map(|(j, bj)| bj * dxs[k - c.nk - j])
                             .sum();
+                    }
                 }
-            } else if q >= d.ia && q < d.ib {
-                let i = q - d.ia + 1;
-                for k in k0..n {
-                    g[k] = -yh[k - i];
+                Role::A(i) => {
+                    for k in k0..n {
+                        g[k] = -yh[k - 1 - i];
+                    }
                 }
-            } else if q >= d.ib && q < d.ib + o.nb - d.jb0 {
-                let j = q - d.ib + d.jb0;
-                for k in k0..n {
-                    g[k] = x[k - o.nk - j];
+                Role::B { ch, j } => {
+                    let nk = self.channels[ch].nk;
+                    for k in k0..n {
+                        g[k] = x[ch][k - nk - j];
+                    }
                 }
-            } else {
-                g[k0..n].fill(1.0);
+                Role::C => g[k0..n].fill(1.0),
             }
             // A(q⁻¹) s = g with s given before k0.
             for k in k0..n {
@@ -499,6 +579,139 @@ impl Problem<'_> {
             }
         }
         jac
+    }
+}
+
+/// What the search leaves for the wrappers: the final parameters, their covariance over the free
+/// entries, and the statistics of [`OeFit`].
+struct Searched {
+    full: Vec<f64>,
+    free: Vec<usize>,
+    /// n_params: where the initial outputs start in `full`.
+    np: usize,
+    cov: Option<DMatrix<f64>>,
+    stop: OeStop,
+    iterations: usize,
+    evaluations: usize,
+    projected_steps: usize,
+    rss_start: f64,
+    rss: f64,
+    noise_variance: f64,
+    stabilised_start: bool,
+}
+
+/// Stabilises the start if needed, runs the search and computes σ̂² (JᵀJ)⁻¹ at its end. `model_part`
+/// is the start's parameter vector (without initial outputs), `model_free` its free entries; `names`
+/// labels the columns in errors.
+fn run(
+    mut problem: Problem,
+    model_part: Vec<f64>,
+    model_free: Vec<usize>,
+    max_iterations: usize,
+    name: &str,
+) -> Result<Searched, SysidError> {
+    let (n, k0, np) = (problem.y.len(), problem.k0, problem.n_params());
+    if model_part.len() != np {
+        return Err(SysidError::Data(
+            "output-error refinement: the start model does not match the structure".into(),
+        ));
+    }
+    let free: Vec<usize> = model_free.into_iter().chain(np..np + k0).collect();
+    if n <= k0 || n <= free.len() {
+        return Err(SysidError::Data(format!(
+            "{name}: too few samples ({n}) for an output-error fit of {} parameters",
+            free.len()
+        )));
+    }
+    problem.full = model_part;
+    problem.full.extend_from_slice(&problem.y[..k0]);
+    problem.free = free.clone();
+    let mut stabilised_start = false;
+    if !problem.stable() || problem.simulate(&problem.decode()).is_none() {
+        problem.project();
+        stabilised_start = true;
+        if problem.simulate(&problem.decode()).is_none() {
+            return Err(SysidError::Numerical(format!(
+                "{name}: the simulation of the start model diverges even after stabilising its poles"
+            )));
+        }
+    }
+    let rss_start = problem.cost();
+    let (stop, iterations, evaluations, projected_steps) =
+        search(&mut problem, max_iterations).map_err(|e| e.context(name))?;
+    let d = problem.decode();
+    let (yh, x) = problem.simulate(&d).ok_or_else(|| {
+        SysidError::Numerical(format!(
+            "{name}: output-error refinement ended on a diverging model"
+        ))
+    })?;
+    let resid = DVector::from_iterator(n, (0..n).map(|k| problem.y[k] - yh[k]));
+    let rss = resid.norm_squared();
+    let jac = problem.sensitivities(&d, &yh, &x);
+    let sigma2 = rss / (n - free.len()) as f64;
+    let cov = ls::solve(&jac, &resid, &[])
+        .ok()
+        .map(|sol| sol.inv_gram * sigma2);
+    Ok(Searched {
+        full: problem.full,
+        free,
+        np,
+        cov,
+        stop,
+        iterations,
+        evaluations,
+        projected_steps,
+        rss_start,
+        rss,
+        noise_variance: sigma2,
+        stabilised_start,
+    })
+}
+
+impl Searched {
+    /// The standard deviation of entry `i` of the full vector (`None` when fixed or not computable).
+    fn std(&self, i: usize) -> Option<f64> {
+        self.free.iter().position(|&f| f == i).and_then(|q| {
+            let v = self.cov.as_ref()?[(q, q)];
+            (v.is_finite() && v >= 0.0).then(|| v.sqrt())
+        })
+    }
+
+    /// The fit with the model `model` and the parameters `params`.
+    fn into_fit<P>(self, model: Model, params: Vec<P>) -> OeFit<P> {
+        OeFit {
+            model: model.with_noise_model(NoiseModel::OutputError),
+            initial_outputs: self.full[self.np..].to_vec(),
+            params,
+            iterations: self.iterations,
+            evaluations: self.evaluations,
+            stop: self.stop,
+            projected_steps: self.projected_steps,
+            rss_start: self.rss_start,
+            rss: self.rss,
+            noise_variance: self.noise_variance,
+            stabilised_start: self.stabilised_start,
+        }
+    }
+}
+
+/// A problem over `channels` with the output `y` (its vectors filled in by [`run`]).
+fn problem<'a>(channels: Vec<Channel<'a>>, y: &'a [f64], na: usize, offset: bool) -> Problem<'a> {
+    let k0 = channels
+        .iter()
+        .map(|c| c.nk + c.nb - 1)
+        .fold(na, usize::max);
+    let ymax = y.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    Problem {
+        channels,
+        y,
+        na,
+        offset,
+        k0,
+        full: Vec::new(),
+        free: Vec::new(),
+        bound: 1e6 * (1.0 + ymax),
+        jacobians: Cell::new(0),
     }
 }
 
@@ -517,119 +730,214 @@ pub fn refine(
             "output-error refinement works on the physical parameter layout".into(),
         ));
     }
-    let k0 = s.orders.k0();
-    let n = data.len();
-    let np = s.n_params();
-    let mut full = physical.vector_of(start);
-    if full.len() != np || physical.len() != np {
+    let channel = Channel {
+        u: &data.u,
+        nb: s.orders.nb,
+        nk: s.orders.nk,
+        nonlinear: s.kind == ModelKind::Hammerstein,
+    };
+    let full = physical.vector_of(start);
+    if physical.len() != full.len() {
         return Err(SysidError::Data(
             "output-error refinement: the start model does not match the structure".into(),
         ));
     }
-    full.extend_from_slice(&data.y[..k0.min(n)]);
-    let free_idx: Vec<usize> = physical
-        .free_indices()
-        .into_iter()
-        .chain(np..np + k0)
-        .collect();
-    if n <= k0 || n <= free_idx.len() {
-        return Err(SysidError::Data(format!(
-            "{}: too few samples ({n}) for an output-error fit of {} parameters",
-            data.name,
-            free_idx.len()
-        )));
-    }
-    let ymax = data.y.iter().fold(0.0f64, |m, v| m.max(v.abs()));
-    let mut problem = Problem {
-        u: &data.u,
-        y: &data.y,
-        s: *s,
+    let problem = problem(vec![channel], &data.y, s.orders.na, s.offset);
+    let found = run(
+        problem,
         full,
-        free: free_idx.clone(),
-        bound: 1e6 * (1.0 + ymax),
-        jacobians: Cell::new(0),
-    };
-    let mut stabilised_start = false;
-    if !problem.stable() || problem.simulate(&problem.decode()).is_none() {
-        problem.full[np..np + k0].copy_from_slice(&data.y[..k0]);
-        problem.project();
-        stabilised_start = true;
-        if problem.simulate(&problem.decode()).is_none() {
-            return Err(SysidError::Numerical(format!(
-                "{}: the simulation of the start model diverges even after stabilising its poles",
-                data.name
-            )));
-        }
-    }
-    let rss_start = problem.cost();
-    let (stop, iterations, evaluations, projected_steps) =
-        search(&mut problem, max_iterations).map_err(|e| e.context(&data.name))?;
-    let d = problem.decode();
-    let (yh, x) = problem.simulate(&d).ok_or_else(|| {
-        SysidError::Numerical(format!(
-            "{}: output-error refinement ended on a diverging model",
-            data.name
-        ))
-    })?;
-    let resid = DVector::from_iterator(n, (0..n).map(|k| data.y[k] - yh[k]));
-    let rss = resid.norm_squared();
-    let jac = problem.sensitivities(&d, &yh, &x);
-    let p = free_idx.len();
-    let sigma2 = rss / (n - p) as f64;
+        physical.free_indices(),
+        max_iterations,
+        &data.name,
+    )?;
     let names = physical.names();
-    let free_names: Vec<String> = free_idx
-        .iter()
-        .map(|&i| {
-            names
-                .get(i)
-                .map_or_else(|| format!("y0({})", i - np), ToString::to_string)
-        })
-        .collect();
-    let cov = ls::solve(&jac, &resid, &free_names)
-        .ok()
-        .map(|sol| sol.inv_gram * sigma2);
+    let b1 = || Param {
+        name: ParamName::B(1),
+        value: 1.0,
+        std: None,
+    };
     let mut params = Vec::new();
     for (i, name) in names.iter().enumerate() {
         if s.kind == ModelKind::Hammerstein && i == 4 + s.orders.na {
-            params.push(Param {
-                name: ParamName::B(1),
+            params.push(b1());
+        }
+        params.push(Param {
+            name: *name,
+            value: found.full[i],
+            std: found.std(i),
+        });
+    }
+    if s.kind == ModelKind::Hammerstein && names.len() == 4 + s.orders.na {
+        params.push(b1());
+    }
+    let model = physical
+        .model_of(&found.full[..found.np], data.ts)
+        .map_err(|e| SysidError::Numerical(format!("{}: {e}", data.name)))?;
+    Ok(found.into_fit(model, params))
+}
+
+/// One parameter of a several-input model, named with its input (`b2 (u1)`, `b_r (valve)`), with
+/// its standard deviation.
+#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
+pub struct NamedParam {
+    /// The parameter's symbol and, for an input's parameter, the input's name in brackets.
+    pub name: String,
+    /// Estimate.
+    pub value: f64,
+    /// Standard deviation; `None` for fixed parameters (b1 = 1 of a nonlinear input) or when it cannot
+    /// be computed.
+    pub std: Option<f64>,
+}
+
+/// The full-vector layout of a several-input model (module docs of [`Problem`]): its entries and
+/// their names. b1 = 1 of a nonlinear input is not an entry.
+pub fn miso_vector(model: &Model) -> (Vec<f64>, Vec<String>) {
+    let (mut v, mut names) = (Vec::new(), Vec::new());
+    for ch in model.inputs() {
+        if let Some(d) = ch.deadzone() {
+            v.extend([d.b_l, d.b_r, d.m_l, d.m_r]);
+            names.extend(["b_l", "b_r", "m_l", "m_r"].map(|s| format!("{s} ({})", ch.name())));
+        }
+    }
+    v.extend_from_slice(model.a());
+    names.extend((1..=model.na()).map(|i| format!("a{i}")));
+    for ch in model.inputs() {
+        let from = usize::from(ch.deadzone().is_some());
+        v.extend_from_slice(&ch.b()[from..]);
+        names.extend((from + 1..=ch.nb()).map(|j| format!("b{j} ({})", ch.name())));
+    }
+    if let Some(c) = model.offset() {
+        v.push(c);
+        names.push("c".into());
+    }
+    (v, names)
+}
+
+/// The model of a several-input full vector `v` (layout of [`miso_vector`]) with the structure of
+/// `like` (its inputs' names, orders and which have a deadzone).
+pub fn miso_model_of(v: &[f64], like: &Model) -> Result<Model, SysidError> {
+    let mut i = 0;
+    let mut dz = Vec::new();
+    for ch in like.inputs() {
+        dz.push(ch.deadzone().map(|_| {
+            i += 4;
+            Deadzone {
+                b_l: v[i - 4],
+                b_r: v[i - 3],
+                m_l: v[i - 2],
+                m_r: v[i - 1],
+            }
+        }));
+    }
+    let a = v[i..i + like.na()].to_vec();
+    i += like.na();
+    let mut channels = Vec::with_capacity(like.inputs().len());
+    for (ch, d) in like.inputs().iter().zip(dz) {
+        let (b, f) = match d {
+            Some(d) => {
+                let mut b = vec![1.0];
+                b.extend_from_slice(&v[i..i + ch.nb() - 1]);
+                i += ch.nb() - 1;
+                (b, StaticNonlinearity::Deadzone(d))
+            }
+            None => {
+                let b = v[i..i + ch.nb()].to_vec();
+                i += ch.nb();
+                (b, StaticNonlinearity::Linear)
+            }
+        };
+        channels.push(InputChannel::new(ch.name(), ch.nk(), b, f)?);
+    }
+    let c = like.offset().map(|_| v[i]);
+    Model::new(like.ts(), a, channels, c)
+}
+
+/// The parameters of a several-input model laid out as [`miso_vector`] of `like` (entry i named
+/// `names[i]`, valued `value(i)`, with standard deviation `std(i)`), b1 = 1 of each nonlinear input
+/// inserted (fixed, no standard deviation) before its b2.
+pub fn miso_params(
+    like: &Model,
+    names: &[String],
+    value: impl Fn(usize) -> f64,
+    std: impl Fn(usize) -> Option<f64>,
+) -> Vec<NamedParam> {
+    let mut out = Vec::with_capacity(names.len() + like.inputs().len());
+    let n_dz = 4 * like
+        .inputs()
+        .iter()
+        .filter(|c| c.deadzone().is_some())
+        .count();
+    let mut i = n_dz + like.na();
+    let mut b_starts = Vec::new();
+    for ch in like.inputs() {
+        if ch.deadzone().is_some() {
+            b_starts.push((i, ch.name()));
+        }
+        i += ch.nb() - usize::from(ch.deadzone().is_some());
+    }
+    for (i, n) in names.iter().enumerate() {
+        for (_, input) in b_starts.iter().filter(|(at, _)| *at == i) {
+            out.push(NamedParam {
+                name: format!("b1 ({input})"),
                 value: 1.0,
                 std: None,
             });
         }
-        let std = free_idx.iter().position(|&f| f == i).and_then(|q| {
-            let v = cov.as_ref()?[(q, q)];
-            (v.is_finite() && v >= 0.0).then(|| v.sqrt())
-        });
-        params.push(Param {
-            name: *name,
-            value: problem.full[i],
-            std,
+        out.push(NamedParam {
+            name: n.clone(),
+            value: value(i),
+            std: std(i),
         });
     }
-    if s.kind == ModelKind::Hammerstein && names.len() == 4 + s.orders.na {
-        params.push(Param {
-            name: ParamName::B(1),
+    // A nonlinear input with nb = 1 whose (empty) b block ends the vector: its b1 comes last.
+    for (_, input) in b_starts.iter().filter(|(at, _)| *at >= names.len()) {
+        out.push(NamedParam {
+            name: format!("b1 ({input})"),
             value: 1.0,
             std: None,
         });
     }
-    Ok(OeFit {
-        model: physical
-            .model_of(&problem.full[..np], data.ts)
-            .map_err(|e| SysidError::Numerical(format!("{}: {e}", data.name)))?
-            .with_noise_model(NoiseModel::OutputError),
-        initial_outputs: problem.full[np..].to_vec(),
-        params,
-        iterations,
-        evaluations,
-        stop,
-        projected_steps,
-        rss_start,
-        rss,
-        noise_variance: sigma2,
-        stabilised_start,
-    })
+    out
+}
+
+/// Output-error refinement of a several-input model `start` (one record per model input in `u`, the
+/// output `y`; `name` names the record in errors): every parameter of [`miso_vector`] is free (b1 = 1
+/// of a nonlinear input stays fixed), with the same search, stability constraint and initial-output
+/// estimation as [`refine`]. The parameters come in the layout of [`miso_vector`], b1 = 1 of each
+/// nonlinear input inserted before its b2.
+pub fn refine_miso(
+    u: &[&[f64]],
+    y: &[f64],
+    start: &Model,
+    max_iterations: usize,
+    name: &str,
+) -> Result<OeFit<NamedParam>, SysidError> {
+    if u.len() != start.inputs().len() || u.iter().any(|u| u.len() != y.len()) {
+        return Err(SysidError::Data(format!(
+            "{name}: output-error refinement needs one record of {} samples per model input ({})",
+            y.len(),
+            start.inputs().len()
+        )));
+    }
+    let channels = start
+        .inputs()
+        .iter()
+        .zip(u)
+        .map(|(ch, u)| Channel {
+            u,
+            nb: ch.nb(),
+            nk: ch.nk(),
+            nonlinear: ch.deadzone().is_some(),
+        })
+        .collect();
+    let (full, names) = miso_vector(start);
+    let free = (0..full.len()).collect();
+    let problem = problem(channels, y, start.na(), start.offset().is_some());
+    let found = run(problem, full, free, max_iterations, name)?;
+    let model = miso_model_of(&found.full[..found.np], start)
+        .map_err(|e| SysidError::Numerical(format!("{name}: {e}")))?;
+    let params = miso_params(start, &names, |i| found.full[i], |i| found.std(i));
+    Ok(found.into_fit(model, params))
 }
 
 #[cfg(test)]
@@ -655,26 +963,17 @@ mod tests {
             .collect();
         let y: Vec<f64> = (0..200).map(|k| (k as f64 * 0.05).sin()).collect();
         let data = Dataset::new(Signals { u, y }, 0.01, "t").unwrap();
-        let s = Structure {
-            kind: ModelKind::Hammerstein,
-            orders: crate::Orders {
-                na: 2,
-                nb: 2,
-                nk: 1,
-            },
-            offset: true,
+        let channel = Channel {
+            u: &data.u,
+            nb: 2,
+            nk: 1,
+            nonlinear: true,
         };
         // [b_l, b_r, m_l, m_r, a1, a2, b2, c, η0, η1]
         let full = vec![-1.4, 1.3, 0.02, 0.03, -1.2, 0.4, 0.5, 0.1, 0.3, -0.2];
-        let mut p = Problem {
-            u: &data.u,
-            y: &data.y,
-            s,
-            full: full.clone(),
-            free: (0..full.len()).collect(),
-            bound: 1e9,
-            jacobians: Cell::new(0),
-        };
+        let mut p = problem(vec![channel], &data.y, 2, true);
+        p.full = full.clone();
+        p.free = (0..full.len()).collect();
         let j = p.jacobian().unwrap();
         for q in 0..full.len() {
             let h = 1e-6 * (1.0 + full[q].abs());
@@ -693,5 +992,91 @@ mod tests {
                 );
             }
         }
+    }
+
+    // Two inputs (a deadzone on the first, nb = 2, nk = 1; the second linear, nb = 2, nk = 2) and c:
+    // the analytic sensitivities of every entry, initial outputs included, match central differences.
+    #[test]
+    fn analytic_jacobian_with_two_inputs_matches_central_differences() {
+        let u1: Vec<f64> = (0..150)
+            .map(|k| ((k * 37) % 17) as f64 - 8.0 + 0.25)
+            .collect();
+        let u2: Vec<f64> = (0..150).map(|k| (k as f64 * 0.7).cos()).collect();
+        let y: Vec<f64> = (0..150).map(|k| (k as f64 * 0.05).sin()).collect();
+        let channels = vec![
+            Channel {
+                u: &u1,
+                nb: 2,
+                nk: 1,
+                nonlinear: true,
+            },
+            Channel {
+                u: &u2,
+                nb: 2,
+                nk: 2,
+                nonlinear: false,
+            },
+        ];
+        let mut p = problem(channels, &y, 2, true);
+        assert_eq!((p.k0, p.n_params()), (3, 10));
+        // [b_l, b_r, m_l, m_r, a1, a2, b2(u1), b1(u2), b2(u2), c, η0, η1, η2]
+        let full = vec![
+            -1.4, 1.3, 0.02, 0.03, -1.2, 0.4, 0.5, 0.3, -0.2, 0.1, 0.3, -0.2, 0.1,
+        ];
+        p.full = full.clone();
+        p.free = (0..full.len()).collect();
+        let j = p.jacobian().unwrap();
+        for q in 0..full.len() {
+            let h = 1e-6 * (1.0 + full[q].abs());
+            p.full = full.clone();
+            p.full[q] += h;
+            let rp = p.residuals().unwrap();
+            p.full[q] -= 2.0 * h;
+            let rm = p.residuals().unwrap();
+            for row in 0..rp.len() {
+                let fd = -(rp[row] - rm[row]) / (2.0 * h);
+                assert!(
+                    (fd - j[(row, q)]).abs() < 1e-5 * (1.0 + fd.abs()),
+                    "param {q} row {row}: {fd} vs {}",
+                    j[(row, q)]
+                );
+            }
+        }
+    }
+
+    // Layout of several-input parameters: deadzones first, then a, then each input's B with b1 = 1 of a
+    // nonlinear input inserted (fixed) even when nb = 1 leaves it no free coefficient; the vector maps back
+    // to the same model.
+    #[test]
+    fn several_input_parameters_list_each_fixed_b1_in_its_place() {
+        let dz = |b: f64| {
+            StaticNonlinearity::Deadzone(Deadzone {
+                b_l: -b,
+                b_r: b,
+                m_l: 0.5,
+                m_r: 0.7,
+            })
+        };
+        let inputs = vec![
+            InputChannel::new("v1", 1, vec![1.0], dz(1.0)).unwrap(),
+            InputChannel::new("p", 2, vec![0.2, 0.1], StaticNonlinearity::Linear).unwrap(),
+            InputChannel::new("v2", 1, vec![1.0], dz(2.0)).unwrap(),
+        ];
+        let model = Model::new(0.01, vec![-0.9], inputs, None).unwrap();
+        let (v, names) = miso_vector(&model);
+        assert_eq!(v.len(), names.len());
+        let params = miso_params(&model, &names, |i| v[i], |_| Some(1.0));
+        let got: Vec<&str> = params.iter().map(|p| p.name.as_str()).collect();
+        assert_eq!(
+            got,
+            [
+                "b_l (v1)", "b_r (v1)", "m_l (v1)", "m_r (v1)", "b_l (v2)", "b_r (v2)", "m_l (v2)",
+                "m_r (v2)", "a1", "b1 (v1)", "b1 (p)", "b2 (p)", "b1 (v2)"
+            ]
+        );
+        let fixed: Vec<bool> = params.iter().map(|p| p.std.is_none()).collect();
+        assert_eq!(fixed.iter().filter(|f| **f).count(), 2);
+        assert!(fixed[9] && fixed[12]);
+        assert_eq!(miso_model_of(&v, &model).unwrap(), model);
     }
 }

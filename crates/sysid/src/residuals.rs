@@ -271,6 +271,10 @@ pub struct ResidualAnalysis {
     pub autocorrelation_outside: usize,
     /// Number of lags τ = −M..M with |r_εu(τ)| > `bound`.
     pub cross_correlation_outside: usize,
+    /// A several-input model: the cross-correlation and independence test with every input, in the
+    /// model's order (the first repeats the fields above). Empty (and absent from JSON) for one input.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub inputs: Vec<InputCorrelation>,
 }
 
 impl ResidualAnalysis {
@@ -616,7 +620,46 @@ pub fn finish(s: &CovarianceSums) -> Result<ResidualAnalysis, ResidError> {
         cross_p_plain,
         dof_independence: order,
         independent: cross_p >= SIGNIFICANCE,
+        inputs: Vec::new(),
     })
+}
+
+/// The residuals against one input of a several-input model: the cross-correlation and the
+/// independence test of [`analyze`] with that input.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct InputCorrelation {
+    /// The input's name (its data column).
+    pub name: String,
+    /// Sample mean of the input.
+    pub input_mean: f64,
+    /// r_εu(τ) for τ = −M..M (lag −M first).
+    pub cross_correlation: Vec<f64>,
+    /// Independence statistic S (input-whitened).
+    pub cross_statistic: f64,
+    /// P(χ²(2M+1) ≥ S).
+    pub cross_p: f64,
+    /// Independence accepted: `cross_p` ≥ [`SIGNIFICANCE`].
+    pub independent: bool,
+    /// Number of lags with |r_εu(τ)| beyond the 99 % band.
+    pub cross_correlation_outside: usize,
+    /// arg max_τ |r_εu(τ)| and its value.
+    pub worst: LagValue,
+}
+
+impl InputCorrelation {
+    /// The input part of `a`, an analysis of the residuals against the input `name`.
+    pub fn of(name: &str, a: &ResidualAnalysis) -> Self {
+        InputCorrelation {
+            name: name.to_string(),
+            input_mean: a.input_mean,
+            worst: a.worst_lags().cross_correlation,
+            cross_correlation: a.cross_correlation.clone(),
+            cross_statistic: a.cross_statistic,
+            cross_p: a.cross_p,
+            independent: a.independent,
+            cross_correlation_outside: a.cross_correlation_outside,
+        }
+    }
 }
 
 fn check_finite(x: &[f64], signal: Signal) -> Result<(), ResidError> {

@@ -4,7 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::estimate::{EstimatorSettings, Fitted, Identification, Method, Param, Passes};
-use crate::residuals::{analyze, ResidOptions, ResidualAnalysis};
+use crate::residuals::{analyze, InputCorrelation, ResidOptions, ResidualAnalysis};
 use crate::warnings::{Record, Warning};
 use sysid_core::metrics::{metrics, Metrics};
 use sysid_core::{Dataset, Model, SysidError};
@@ -86,8 +86,9 @@ pub fn residual_analysis(model: &Model, data: &Dataset, max_lag: usize) -> Resid
     residual_analysis_miso(model, &[&data.u], &data.y, max_lag)
 }
 
-/// [`residual_analysis`] with one input record per model input; the cross-correlation is with the
-/// first input.
+/// [`residual_analysis`] with one input record per model input. The top-level cross-correlation is
+/// with the first input; with several inputs `inputs` holds the cross-correlation and independence
+/// test with each input.
 pub fn residual_analysis_miso(
     model: &Model,
     u: &[&[f64]],
@@ -95,6 +96,10 @@ pub fn residual_analysis_miso(
     max_lag: usize,
 ) -> ResidualEntry {
     let k0 = model.k0();
+    let options = ResidOptions {
+        max_lag,
+        ..ResidOptions::default()
+    };
     let result = sysid_core::metrics::one_step_prediction_miso(model, u, y)
         .map_err(|e| e.to_string())
         .and_then(|pred| {
@@ -103,12 +108,16 @@ pub fn residual_analysis_miso(
                 .zip(&pred[k0..])
                 .map(|(y, p)| y - p)
                 .collect();
-            let options = ResidOptions {
-                max_lag,
-                ..ResidOptions::default()
-            };
             let u0 = u.first().map_or(&[][..], |u| &u[k0..]);
-            analyze(&eps, u0, &options).map_err(|e| e.to_string())
+            let mut a = analyze(&eps, u0, &options).map_err(|e| e.to_string())?;
+            if u.len() > 1 {
+                for (ui, ch) in u.iter().zip(model.inputs()) {
+                    let ai = analyze(&eps, &ui[k0..], &options)
+                        .map_err(|e| format!("input {}: {e}", ch.name()))?;
+                    a.inputs.push(InputCorrelation::of(ch.name(), &ai));
+                }
+            }
+            Ok(a)
         });
     match result {
         Ok(a) => ResidualEntry::Analysis(Box::new(a)),
@@ -326,4 +335,163 @@ pub fn poles(model: &Model) -> Vec<Pole> {
             abs: p.norm(),
         })
         .collect()
+}
+
+/// One record of a several-input model: its name, one signal per model input and the output.
+#[derive(Debug, Clone, Copy)]
+pub struct MisoRecord<'a> {
+    /// The record's name (file and rows).
+    pub name: &'a str,
+    /// u^(m)(k), one signal per model input, in the model's order.
+    pub u: &'a [&'a [f64]],
+    /// y(k).
+    pub y: &'a [f64],
+}
+
+/// Metrics and residual analysis of a several-input model on one record.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct MisoRecordReport {
+    /// The record's name.
+    pub data: String,
+    /// Metrics (fit, loss, FPE...).
+    pub metrics: Metrics,
+    /// Residual analysis with the cross-correlation with each input.
+    pub residuals: ResidualEntry,
+}
+
+impl MisoRecordReport {
+    /// `model` judged on `record` with `max_lag` residual lags.
+    fn assemble(model: &Model, record: &MisoRecord, max_lag: usize) -> Result<Self, SysidError> {
+        Ok(MisoRecordReport {
+            data: record.name.to_string(),
+            metrics: sysid_core::metrics::metrics_miso(model, record.u, record.y, record.name)?,
+            residuals: residual_analysis_miso(model, record.u, record.y, max_lag),
+        })
+    }
+}
+
+/// The identification of a several-input model (`identify --u-col u1,u2`): the fit, its records judged,
+/// and every reason not to trust it in words.
+#[derive(Debug, Clone, PartialEq)]
+pub struct MisoReport {
+    /// The fit (model, parameters with standard deviations, iterations, notes).
+    pub fit: crate::miso::MisoFit,
+    /// The method.
+    pub method: Method,
+    /// Each estimation record (several with `--merge`).
+    pub estimation: Vec<MisoRecordReport>,
+    /// The validation record, if any.
+    pub validation: Option<MisoRecordReport>,
+    /// Warnings: the fit's own, not converged, unstable, a diverging or negative-fit simulation, a
+    /// standard deviation that could not be computed.
+    pub warnings: Vec<String>,
+}
+
+impl MisoReport {
+    /// Judges `fit` (estimated by `method`) on the estimation records and the validation record, with
+    /// `max_lag` residual lags, and gathers the warnings.
+    pub fn assemble(
+        fit: crate::miso::MisoFit,
+        method: Method,
+        estimation: &[MisoRecord],
+        validation: Option<&MisoRecord>,
+        max_lag: usize,
+    ) -> Result<Self, SysidError> {
+        let m = &fit.model;
+        let est = estimation
+            .iter()
+            .map(|r| MisoRecordReport::assemble(m, r, max_lag))
+            .collect::<Result<Vec<_>, _>>()?;
+        let val = validation
+            .map(|r| MisoRecordReport::assemble(m, r, max_lag))
+            .transpose()?;
+        let mut warnings: Vec<String> = fit.warnings.iter().map(ToString::to_string).collect();
+        if !fit.converged {
+            warnings.push(match method {
+                Method::Rls => format!(
+                    "the RLS estimate did not settle in {} pass(es); more passes (--passes auto) or --method ls",
+                    fit.iterations
+                ),
+                Method::Oe => format!(
+                    "the output-error search stopped at its iteration limit ({}) before converging",
+                    fit.iterations
+                ),
+                _ => format!(
+                    "the key-term iteration did not reach its fixed point in {} iteration(s) \
+                     (--max-iterations); the estimate may not be the least-squares one",
+                    fit.iterations
+                ),
+            });
+        }
+        warnings.extend(Warning::if_unstable(m).map(|w| w.to_string()));
+        for (what, r) in est
+            .iter()
+            .map(|r| (Record::Estimation, r))
+            .chain(val.iter().map(|r| (Record::Validation, r)))
+        {
+            if let Some(note) = &r.metrics.note {
+                warnings.push(format!("{what}: {note}"));
+            } else if let Some(w) = Warning::if_poor_simulation(what, r.metrics.fit_sim_percent) {
+                warnings.push(w.to_string());
+            }
+        }
+        for p in &fit.params {
+            let fixed = p.name.starts_with("b1 (") && p.value == 1.0;
+            if p.std.is_none() && !fixed {
+                warnings.push(format!(
+                    "{} = {}: its standard deviation could not be computed (the regression or the \
+                     Jacobian is singular there)",
+                    p.name, p.value
+                ));
+            }
+        }
+        Ok(MisoReport {
+            fit,
+            method,
+            estimation: est,
+            validation: val,
+            warnings,
+        })
+    }
+
+    /// The `identify --json` document: `model`, `method`, `parameters`, `noise_variance`, `poles`,
+    /// `stable`, `iterations`, `converged`, `notes`, `metrics` and `residuals` (`estimation`: the one
+    /// record's object, or with several records a list of `{data, metrics}` / residual entries;
+    /// `validation`), `warnings`.
+    pub fn to_json_value(&self) -> serde_json::Value {
+        let m = &self.fit.model;
+        let (est_metrics, est_resid) = match self.estimation.as_slice() {
+            [one] => (
+                serde_json::json!(one.metrics),
+                serde_json::json!(one.residuals),
+            ),
+            many => (
+                serde_json::json!(many
+                    .iter()
+                    .map(|r| serde_json::json!({"data": r.data, "metrics": r.metrics}))
+                    .collect::<Vec<_>>()),
+                serde_json::json!(many.iter().map(|r| &r.residuals).collect::<Vec<_>>()),
+            ),
+        };
+        serde_json::json!({
+            "model": m,
+            "method": self.method,
+            "parameters": self.fit.params,
+            "noise_variance": self.fit.noise_variance,
+            "poles": poles(m),
+            "stable": m.is_stable(),
+            "iterations": self.fit.iterations,
+            "converged": self.fit.converged,
+            "notes": self.fit.notes.iter().map(ToString::to_string).collect::<Vec<_>>(),
+            "metrics": {
+                "estimation": est_metrics,
+                "validation": self.validation.as_ref().map(|v| &v.metrics),
+            },
+            "residuals": {
+                "estimation": est_resid,
+                "validation": self.validation.as_ref().map(|v| &v.residuals),
+            },
+            "warnings": self.warnings,
+        })
+    }
 }

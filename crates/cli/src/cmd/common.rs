@@ -16,7 +16,8 @@ pub fn parse_rows(text: &str) -> Result<RowRange, String> {
 /// Which columns of a CSV file hold the data, and its sampling period.
 #[derive(Debug, Clone, clap::Args)]
 pub struct ColumnArgs {
-    /// Name of the input column u (with --no-header: its position, 1-based).
+    /// Name of the input column u (with --no-header: its position, 1-based). identify and validate take
+    /// several inputs as a list (u1,u2): one B polynomial (and deadzone) per input.
     #[arg(long, default_value = "u", value_name = "NAME")]
     pub u_col: String,
     /// Name of the output column y (with --no-header: its position, 1-based).

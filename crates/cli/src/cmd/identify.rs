@@ -127,12 +127,13 @@ pub struct Args {
     #[arg(long)]
     pub offset: bool,
     /// Remove the estimation record's operating point from u and y (MATLAB `detrend`): `mean` (ū, ȳ) or
-    /// `linear` (a straight line per signal). The model stores (u0, y0) = (ū, ȳ) and puts it back in
-    /// validate, simulate and control.
+    /// `linear` (a straight line per signal). The model stores (u0, y0) = (ū, ȳ) (one u0 per input) and
+    /// puts it back in validate, simulate and control.
     #[arg(long, value_enum, default_value = "none")]
     pub detrend: Detrend,
     /// Several --data files: estimate ONE model from all of them (MATLAB `merge`; no regression row spans
-    /// two records), with metrics per record and pooled. Least squares only (--method ls).
+    /// two records), with metrics per record and pooled. Least squares only (--method ls); several
+    /// inputs (--u-col u1,u2) too.
     #[arg(long)]
     pub merge: bool,
     #[command(flatten)]
@@ -501,7 +502,8 @@ fn run_merged(args: &Args) -> anyhow::Result<()> {
     save_model(args, &fit.model, &inputs)
 }
 
-/// Runs `identify --u-col u1,u2,...`: one model with several inputs (MISO), by least squares or RLS.
+/// Runs `identify --u-col u1,u2,...`: one model with several inputs (MISO), by least squares, RLS or
+/// output error.
 fn run_miso(args: &Args) -> anyhow::Result<()> {
     let names: Vec<String> = args
         .columns
@@ -509,22 +511,26 @@ fn run_miso(args: &Args) -> anyhow::Result<()> {
         .split(',')
         .map(|s| s.trim().to_string())
         .collect();
-    if !matches!(args.method, Method::Ls | Method::Rls) {
-        anyhow::bail!(sysid::SysidError::setting(
-            sysid::Setting::Other("--method"),
-            args.method,
-            &format!(
-                "ls or rls: several inputs (--u-col {}) are estimated by least squares or recursive least \
-                 squares; output error and instrumental variables take one input",
+    if args.merge {
+        if args.method != Method::Ls || args.val.split.is_some() {
+            anyhow::bail!(
+                "--merge with several inputs (--u-col {}) estimates by least squares (--method ls), without --split",
                 args.columns.u_col
-            )
-        ));
-    }
-    if args.merge || args.detrend != Detrend::None || args.data.len() != 1 {
+            );
+        }
+    } else if args.data.len() != 1 {
         anyhow::bail!(
-            "several inputs (--u-col {}) are estimated from one --data file, without --merge or --detrend",
+            "several inputs (--u-col {}) are estimated from one --data file, or from several with --merge",
             args.columns.u_col
         );
+    }
+    if args.merge && args.val.val_rows.is_some() && args.val.validation.is_none() {
+        anyhow::bail!(
+            "--merge with --val-rows needs --validation FILE (which of the merged records would the rows be of?)"
+        );
+    }
+    if args.merge && args.detrend != Detrend::None {
+        anyhow::bail!("--merge cannot be combined with --detrend; detrend the records first");
     }
     for l in &args.linear_inputs {
         if !names.contains(l) {
@@ -538,66 +544,113 @@ fn run_miso(args: &Args) -> anyhow::Result<()> {
     args.settings().check()?;
     let nb = args.nb.per_input(names.len(), "--nb")?;
     let nk = args.nk.per_input(names.len(), "--nk")?;
-    let data_path = &args.data[0];
-    let mut inputs: Vec<&Path> = vec![data_path.as_path()];
+    let files = if args.merge {
+        super::identify_batch::expand(&args.data)?
+    } else {
+        args.data.clone()
+    };
+    let mut inputs: Vec<&Path> = files.iter().map(PathBuf::as_path).collect();
     inputs.extend(args.val.validation.as_deref());
     check_outputs(
         &[(&args.json, "--json"), (&args.save_model, "--save-model")],
         &inputs,
     )?;
-    // One record per input column (same file, same output column, same rows).
-    let mut est_inputs = Vec::with_capacity(names.len());
-    let mut val_inputs = Vec::with_capacity(names.len());
-    let (mut est_y, mut val_y, mut notes) = (None, None, Vec::new());
-    for (i, name) in names.iter().enumerate() {
-        let mut opts = args.columns.csv_options();
-        opts.u_col = name.clone();
-        let val_args = ValidationArgs {
-            val_u_col: None,
-            ..args.val.clone()
-        };
-        let r = val_args.records(data_path, &opts)?;
-        notes.extend(r.notes);
-        est_inputs.push(sysid::miso::MisoInput {
-            name: name.clone(),
-            u: r.est.u,
-            nb: nb[i],
-            nk: nk[i],
-            linear: args.linear_inputs.contains(name),
-        });
-        if let Some(v) = r.val {
-            val_inputs.push(v.u);
-            val_y.get_or_insert((v.y, v.name));
+    let mut records = Vec::with_capacity(files.len());
+    let mut notes = Vec::new();
+    let mut val = None;
+    for f in &files {
+        let (est, v) = read_miso(args, f, &names, &mut notes)?;
+        records.push(est);
+        if val.is_none() {
+            val = v;
         }
-        est_y.get_or_insert((r.est.y, r.est.ts, r.est.name));
     }
     notes.dedup();
     print_notes(&notes);
-    let Some((y, ts, data_name)) = est_y else {
-        anyhow::bail!("--u-col names no input");
+    let Some(first) = records.first() else {
+        anyhow::bail!("--data needs a file");
     };
-    let problem = sysid::miso::MisoProblem {
-        inputs: &est_inputs,
-        y: &y,
-        ts,
-        na: args.na,
-        kind: args.model,
-        offset: args.offset,
+    let ts = first.ts;
+    let problem_inputs = |u: &[Vec<f64>]| -> Vec<sysid::miso::MisoInput> {
+        names
+            .iter()
+            .zip(u)
+            .enumerate()
+            .map(|(i, (name, u))| sysid::miso::MisoInput {
+                name: name.clone(),
+                u: u.clone(),
+                nb: nb[i],
+                nk: nk[i],
+                linear: args.linear_inputs.contains(name),
+            })
+            .collect()
     };
-    let fit = match args.settings().estimator {
-        sysid::EstimatorSettings::Rls(st) => problem.recursive(&st)?,
-        _ => problem.least_squares(args.max_iterations)?,
+    let fit = if args.merge {
+        let segments: Vec<Vec<sysid::miso::MisoInput>> =
+            records.iter().map(|r| problem_inputs(&r.u)).collect();
+        let ys: Vec<&[f64]> = records.iter().map(|r| r.y.as_slice()).collect();
+        sysid::miso::least_squares_merged(
+            &segments,
+            &ys,
+            ts,
+            args.na,
+            args.model,
+            args.offset,
+            args.max_iterations,
+        )?
+    } else {
+        let r = first;
+        let us: Vec<&[f64]> = r.u.iter().map(Vec::as_slice).collect();
+        let (du, dy, op) = sysid::detrend::detrend_signals(&us, &r.y, args.detrend);
+        let est_inputs = problem_inputs(&du);
+        let problem = sysid::miso::MisoProblem {
+            inputs: &est_inputs,
+            y: &dy,
+            ts,
+            na: args.na,
+            kind: args.model,
+            offset: args.offset,
+        };
+        let mut fit = problem.fit(&args.settings().estimator, &r.name)?;
+        fit.model = fit.model.with_operating_point(op)?;
+        fit
     };
-    let us: Vec<&[f64]> = est_inputs.iter().map(|m| m.u.as_slice()).collect();
-    let est = sysid::metrics::metrics_miso(&fit.model, &us, &y, &data_name)?;
-    let val = match &val_y {
-        Some((vy, vname)) => {
-            let vu: Vec<&[f64]> = val_inputs.iter().map(Vec::as_slice).collect();
-            Some(sysid::metrics::metrics_miso(&fit.model, &vu, vy, vname)?)
-        }
-        None => None,
-    };
-    let m = &fit.model;
+    // Metrics, residuals and warnings in the user's units (the model puts its operating point back).
+    let est_u: Vec<Vec<&[f64]>> = records
+        .iter()
+        .map(|r| r.u.iter().map(Vec::as_slice).collect())
+        .collect();
+    let est_records: Vec<sysid::summary::MisoRecord> = records
+        .iter()
+        .zip(&est_u)
+        .map(|(r, u)| sysid::summary::MisoRecord {
+            name: &r.name,
+            u,
+            y: &r.y,
+        })
+        .collect();
+    let val_u: Option<Vec<&[f64]>> = val
+        .as_ref()
+        .map(|v| v.u.iter().map(Vec::as_slice).collect());
+    let val_record = val
+        .as_ref()
+        .zip(val_u.as_ref())
+        .map(|(v, u)| sysid::summary::MisoRecord {
+            name: &v.name,
+            u,
+            y: &v.y,
+        });
+    let mut report = sysid::summary::MisoReport::assemble(
+        fit,
+        args.method,
+        &est_records,
+        val_record.as_ref(),
+        args.resid_lags,
+    )?;
+    report
+        .warnings
+        .extend(notes.iter().map(|n| format!("data: {n}")));
+    let (fit, warnings) = (&report.fit, &report.warnings);
     let how = match (args.method, fit.converged) {
         (Method::Rls, true) => format!(
             "recursive least squares ({} pass(es), settled)",
@@ -607,45 +660,34 @@ fn run_miso(args: &Args) -> anyhow::Result<()> {
             "recursive least squares ({} pass(es), NOT settled)",
             fit.iterations
         ),
+        (Method::Oe, c) => format!(
+            "output error ({} iteration(s){})",
+            fit.iterations,
+            if c { ", converged" } else { ", NOT converged" }
+        ),
         (_, true) => format!("least squares ({} key-term iteration(s))", fit.iterations),
         (_, false) => format!(
             "least squares ({} key-term iteration(s), NOT converged)",
             fit.iterations
         ),
     };
-    let mut warnings = Vec::new();
-    if !fit.converged {
-        warnings.push(match args.method {
-            Method::Rls => format!(
-                "the RLS estimate did not settle in {} pass(es); more passes (--passes auto) or --method ls",
-                fit.iterations
-            ),
-            _ => format!(
-                "the key-term iteration did not reach its fixed point in {} iteration(s) \
-                 (--max-iterations); the estimate may not be the least-squares one",
-                fit.iterations
-            ),
-        });
-    }
-    if !m.is_stable() {
-        warnings.push(
-            "the model is unstable (a pole on or outside the unit circle): its simulations diverge"
-                .into(),
-        );
-    }
-    for (what, mm) in [("estimation", Some(&est)), ("validation", val.as_ref())] {
-        if let Some(note) = mm.and_then(|mm| mm.note.as_ref()) {
-            warnings.push(format!("{what}: {note}"));
-        }
-    }
-    warnings.extend(notes.iter().map(|n| format!("data: {n}")));
+    let m = &fit.model;
+    let data_name = records
+        .iter()
+        .map(|r| r.name.as_str())
+        .collect::<Vec<_>>()
+        .join(" + ");
+    let n_samples: usize = records.iter().map(|r| r.y.len()).sum();
     let mut text = format!(
-        "Data: {data_name} ({} samples){}\n{} model with {} inputs, na = {}, Ts = {} s, estimated by {how}\n  \
+        "Data: {data_name} ({n_samples} samples){}{}\n{} model with {} inputs, na = {}, Ts = {} s, estimated by {how}\n  \
          a = {:?}{}\n",
-        y.len(),
-        val_y
-            .as_ref()
-            .map(|(v, n)| format!("; validation: {n} ({} samples)", v.len()))
+        if args.merge {
+            format!(" merged ({} records; no regression row spans two records)", records.len())
+        } else {
+            String::new()
+        },
+        val.as_ref()
+            .map(|v| format!("; validation: {} ({} samples)", v.name, v.y.len()))
             .unwrap_or_default(),
         m.kind(),
         m.inputs().len(),
@@ -669,34 +711,123 @@ fn run_miso(args: &Args) -> anyhow::Result<()> {
                 .unwrap_or_else(|| ", linear".into())
         ));
     }
+    if let Some(o) = m.operating_point() {
+        text.push_str(&format!(
+            "Detrended ({}): the model works around the operating point u0 = {}, y0 = {} (put back in its \
+             simulations and predictions)\n",
+            args.detrend,
+            o.u.iter().map(|v| report::format::num(*v)).collect::<Vec<_>>().join(", "),
+            report::format::num(o.y)
+        ));
+    }
+    text.push_str("\nParameters (estimate ± standard deviation)\n");
+    for p in &fit.params {
+        let sd = match (&p.std, p.name.starts_with("b1 (") && p.value == 1.0) {
+            (_, true) => " (fixed: normalisation)".to_string(),
+            (Some(s), _) => format!("  ± {}", report::format::num(*s)),
+            (None, _) => "  ± n/a".to_string(),
+        };
+        text.push_str(&format!(
+            "  {:<14} = {:>14}{sd}\n",
+            p.name,
+            report::format::num(p.value)
+        ));
+    }
+    for n in &fit.notes {
+        text.push_str(&format!("note: {n}\n"));
+    }
     let o = |v: Option<f64>| v.map_or_else(|| "n/a".to_string(), |v| format!("{v:.4}"));
     text.push_str(&format!(
-        "Fit % (simulation): estimation {}{}; {}\n",
-        o(est.fit_sim_percent),
-        val.as_ref()
-            .map(|v| format!(", validation {}", o(v.fit_sim_percent)))
+        "\nFit % (simulation): estimation {}{}; {}\n",
+        report
+            .estimation
+            .iter()
+            .map(|e| o(e.metrics.fit_sim_percent))
+            .collect::<Vec<_>>()
+            .join(", "),
+        report
+            .validation
+            .as_ref()
+            .map(|v| format!(", validation {}", o(v.metrics.fit_sim_percent)))
             .unwrap_or_default(),
         if m.is_stable() { "stable" } else { "UNSTABLE" }
     ));
-    for w in &warnings {
+    let mut entries: Vec<(&str, &sysid::summary::ResidualEntry)> = report
+        .estimation
+        .iter()
+        .map(|e| ("estimation", &e.residuals))
+        .collect();
+    if let Some(v) = &report.validation {
+        entries.push(("validation", &v.residuals));
+    }
+    text.push_str(&crate::text::residuals_text(&entries));
+    for w in warnings {
         text.push_str(&format!("warning: {w}\n"));
     }
     print_report(&text, args.json.as_deref());
     if let Some(path) = &args.json {
-        let value = serde_json::json!({
-            "model": m,
-            "method": args.method,
-            "poles": sysid::summary::poles(m),
-            "stable": m.is_stable(),
-            "iterations": fit.iterations,
-            "converged": fit.converged,
-            "metrics": { "estimation": est, "validation": val },
-            "warnings": warnings,
-            "data_notes": notes,
-        });
+        let mut value = report.to_json_value();
+        if let Some(obj) = value.as_object_mut() {
+            obj.insert("detrend".into(), serde_json::json!(args.detrend));
+            if args.merge {
+                let names: Vec<&str> = records.iter().map(|r| r.name.as_str()).collect();
+                obj.insert("merged".into(), serde_json::json!(names));
+            }
+            obj.insert("data_notes".into(), serde_json::json!(notes));
+        }
         let json = serde_json::to_string_pretty(&value)? + "\n";
         write_output(path, json.as_bytes(), &inputs, "--json")?;
     }
     save_model(args, m, &inputs)?;
     crate::exit::strict(args.strict, warnings.len())
+}
+
+/// One record with several inputs: each input's signal, the output, Ts and the name.
+struct MisoRecord {
+    u: Vec<Vec<f64>>,
+    y: Vec<f64>,
+    ts: f64,
+    name: String,
+}
+
+/// Reads the estimation record (and, when asked for, the validation record) of `file` with one input
+/// column per name in `names` (same output column, same rows); the reader's notes go to `notes`.
+fn read_miso(
+    args: &Args,
+    file: &Path,
+    names: &[String],
+    notes: &mut Vec<String>,
+) -> anyhow::Result<(MisoRecord, Option<MisoRecord>)> {
+    let mut est: Option<MisoRecord> = None;
+    let mut val: Option<MisoRecord> = None;
+    for name in names {
+        let mut opts = args.columns.csv_options();
+        opts.u_col = name.clone();
+        let val_args = ValidationArgs {
+            val_u_col: None,
+            ..args.val.clone()
+        };
+        let r = val_args.records(file, &opts)?;
+        notes.extend(r.notes);
+        let e = est.get_or_insert_with(|| MisoRecord {
+            u: Vec::new(),
+            y: r.est.y.clone(),
+            ts: r.est.ts,
+            name: r.est.name.clone(),
+        });
+        e.u.push(r.est.u);
+        if let Some(v) = r.val {
+            let vr = val.get_or_insert_with(|| MisoRecord {
+                u: Vec::new(),
+                y: v.y.clone(),
+                ts: v.ts,
+                name: v.name.clone(),
+            });
+            vr.u.push(v.u);
+        }
+    }
+    let Some(est) = est else {
+        anyhow::bail!("--u-col names no input");
+    };
+    Ok((est, val))
 }

@@ -699,7 +699,7 @@ impl Searched {
 fn problem<'a>(channels: Vec<Channel<'a>>, y: &'a [f64], na: usize, offset: bool) -> Problem<'a> {
     let k0 = channels
         .iter()
-        .map(|c| c.nk + c.nb - 1)
+        .map(|c| (c.nk + c.nb).saturating_sub(1))
         .fold(na, usize::max);
     let ymax = y.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     Problem {

@@ -238,6 +238,16 @@ int32_t ipa_hrls_theta(const void *mem,
                        size_t len);
 
 /**
+ * Restarts the covariance P = p0 · I of the estimator in `mem`, keeping θ̂ and the delay lines (what
+ * `ipa-sysid track` does after a change alarm; [`ipa_hrls_init`] would restart θ̂ too). Returns
+ * [`IPA_OK`] or a negative code.
+ *
+ * # Safety
+ * As [`ipa_hrls_update`].
+ */
+int32_t ipa_hrls_restart_covariance(void *mem);
+
+/**
  * Size in bytes of the change detector state.
  */
 size_t ipa_cusum_state_size(void);

@@ -399,6 +399,24 @@ pub unsafe extern "C" fn ipa_hrls_theta(mem: *const c_void, out: *mut f64, len: 
     unsafe { coefs(mem, out, len, Coefs::Theta) }
 }
 
+/// Restarts the covariance P = p0 · I of the estimator in `mem`, keeping θ̂ and the delay lines (what
+/// `ipa-sysid track` does after a change alarm; [`ipa_hrls_init`] would restart θ̂ too). Returns
+/// [`IPA_OK`] or a negative code.
+///
+/// # Safety
+/// As [`ipa_hrls_update`].
+#[no_mangle]
+pub unsafe extern "C" fn ipa_hrls_restart_covariance(mem: *mut c_void) -> i32 {
+    // SAFETY: forwarded contract.
+    match unsafe { state_mut::<HrlsState>(mem, HRLS_MAGIC) } {
+        Ok(st) => {
+            st.est.restart_covariance();
+            IPA_OK
+        }
+        Err(e) => e.code(),
+    }
+}
+
 /// Size in bytes of the change detector state.
 #[no_mangle]
 pub extern "C" fn ipa_cusum_state_size() -> usize {
@@ -611,6 +629,12 @@ mod tests {
             assert_eq!(ipa_cusum_update(p, 0.0, &mut g), IPA_OK);
             assert_eq!(g, 0.0);
             assert_eq!(ipa_cusum_rearm(core::ptr::null_mut()), IPA_ERR_NULL);
+            assert_eq!(
+                ipa_hrls_restart_covariance(core::ptr::null_mut()),
+                IPA_ERR_NULL
+            );
+            // Detector storage is not estimator storage.
+            assert_eq!(ipa_hrls_restart_covariance(p), IPA_ERR_NOT_INITIALISED);
         }
         assert!(ipa_cusum_state_size() <= IPA_CUSUM_STATE_BYTES);
     }

@@ -251,6 +251,12 @@ impl<F: Float, const N: usize, const D: usize> HammersteinRls<F, N, D> {
         &self.rls
     }
 
+    /// Restarts the covariance P = p0 · I, keeping θ̂ and the delay lines: what `ipa-sysid track` does
+    /// after a detected change, so the estimate moves quickly from where it was to the changed valve.
+    pub fn restart_covariance(&mut self) {
+        self.rls.restart_covariance();
+    }
+
     /// The fitted model's deadzone, as `identify` reports it: b_r = θ̂₂/θ̂₁, b_l = θ̂₄/θ̂₃ (0 when the
     /// ratio is not finite, no clamping), m_r = θ̂₁, m_l = θ̂₃.
     pub fn deadzone(&self) -> Deadzone<F> {
@@ -413,6 +419,21 @@ mod tests {
         );
         assert_eq!(b[0], 1.0);
         assert!((b[1] - b2).abs() < 1e-5, "{b:?}");
+
+        // A covariance restart (as after a change alarm) keeps θ̂ and sets P = p0 I exactly.
+        let theta = *est.theta();
+        assert!(
+            (est.rls().p(0, 0) - s.p0).abs() > 1.0,
+            "P has moved away from p0 I"
+        );
+        est.restart_covariance();
+        assert_eq!(*est.theta(), theta);
+        let n_par = 3 + s.na + s.nb;
+        for i in 0..n_par {
+            for j in 0..n_par {
+                assert_eq!(est.rls().p(i, j), if i == j { s.p0 } else { 0.0 });
+            }
+        }
     }
 
     #[test]

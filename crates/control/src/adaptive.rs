@@ -15,7 +15,12 @@
 //!    [`AdaptiveSettings::max_breakpoint_sd_counts`] and the slope's at most
 //!    [`AdaptiveSettings::max_slope_rel_sd`] of the slope.
 //!
-//! A branch that passes both moves towards the estimate, by at most
+//! 3. **steady**: it has passed 1 and 2 for [`AdaptiveSettings::settle_samples`] consecutive samples,
+//!    its breakpoint staying within ± [`AdaptiveSettings::max_breakpoint_sd_counts`] of where that run
+//!    began (on the physics plant short bursts of confident but wrong estimates, b_r ≈ 118 counts for
+//!    0.2–0.7 s, came between long steady runs of physical ones, b_r ≈ 32–41 counts for 6–9 s).
+//!
+//! A branch that passes all three moves towards the estimate, by at most
 //! [`AdaptiveSettings::max_rate_counts_per_s`] · Ts counts for the breakpoint and a factor
 //! exp(± [`AdaptiveSettings::max_slope_rate_per_s`] · Ts) for the slope per sample; otherwise it is
 //! **frozen** at its current value for that sample. Every sample is counted in [`BranchCounts`].
@@ -44,7 +49,7 @@ pub struct AdaptiveSettings {
     /// The online estimator (its structure must be Hammerstein; its start deadzone is replaced by the
     /// initial compensator's when that one has b_l < 0 < b_r).
     pub tracker: TrackSettings,
-    /// Estimator updates (since its start or its last detected change) before its deadzone is used.
+    /// Estimator updates (since its start or its last detected change) before its deadzone is judged.
     pub min_updates: usize,
     /// Largest standard deviation of a breakpoint estimate (counts) for it to be used.
     pub max_breakpoint_sd_counts: f64,
@@ -61,23 +66,28 @@ pub struct AdaptiveSettings {
     /// Largest relative change of a compensator slope, per second (the slope moves by at most a factor
     /// exp(rate · Ts) per sample).
     pub max_slope_rate_per_s: f64,
+    /// Consecutive samples a branch's estimate must have been plausible and well determined, with its
+    /// breakpoint within ± [`AdaptiveSettings::max_breakpoint_sd_counts`] of where that run began,
+    /// before the branch follows it.
+    pub settle_samples: usize,
 }
 
 impl Default for AdaptiveSettings {
     /// The paper's structure with forgetting ρ = 0.995 (a memory of about 200 samples, 2 s at 100 Hz),
-    /// the trace windup guard and the default change detector; 200 updates before an estimate is used;
+    /// the trace windup guard and the default change detector; 100 updates before an estimate is judged;
     /// a breakpoint used when its standard deviation is ≤ 2 counts and a slope when ≤ 20 % (σ̂ at least
     /// 0.01 mm); plausible breakpoints within half the command range, slopes within a factor 3 of the
     /// start; breakpoints moving at most 100 counts/s (a widening of 20 counts followed in 0.2 s: a slower
     /// compensator lets the PI integral wind up meanwhile, and the loop overshoots once it catches up),
-    /// slopes 20 %/s.
+    /// slopes 20 %/s; an estimate followed once it has been steady for 100 samples (1 s at 100 Hz, half
+    /// the estimator's memory).
     fn default() -> Self {
         AdaptiveSettings {
             tracker: TrackSettings {
                 forgetting: 0.995,
                 ..TrackSettings::default()
             },
-            min_updates: 200,
+            min_updates: 100,
             max_breakpoint_sd_counts: 2.0,
             max_slope_rel_sd: 0.2,
             sigma_floor_mm: 0.01,
@@ -85,6 +95,7 @@ impl Default for AdaptiveSettings {
             slope_factor: 3.0,
             max_rate_counts_per_s: 100.0,
             max_slope_rate_per_s: 0.2,
+            settle_samples: 100,
         }
     }
 }
@@ -98,6 +109,8 @@ pub struct BranchCounts {
     pub implausible: usize,
     /// Plausible but not well determined: the branch was frozen.
     pub undetermined: usize,
+    /// Plausible and well determined, but not yet steady for `settle_samples`: the branch was frozen.
+    pub settling: usize,
     /// The branch moved towards the estimate.
     pub following: usize,
     /// Samples since the last detected change (or the start) at which the branch followed.
@@ -107,7 +120,7 @@ pub struct BranchCounts {
 impl BranchCounts {
     /// Samples at which the estimate was judged (not waiting).
     pub fn judged(&self) -> usize {
-        self.implausible + self.undetermined + self.following
+        self.implausible + self.undetermined + self.settling + self.following
     }
 }
 
@@ -260,6 +273,8 @@ pub fn run_adaptive(
     let mut comp = initial;
     let mut deadzones = Vec::new();
     let (mut right, mut left) = (BranchCounts::default(), BranchCounts::default());
+    // Per branch (right, left): the breakpoint where the current steady run began and its length.
+    let mut steady = [(0.0_f64, 0_usize); 2];
     let trace = run_with(
         plant,
         controller,
@@ -285,14 +300,29 @@ pub fn run_adaptive(
                     tracker.deadzone_sd(settings.sigma_floor_mm),
                 )
             };
-            for (side, counts) in [(Side::Right, &mut right), (Side::Left, &mut left)] {
+            for ((side, counts), run) in [(Side::Right, &mut right), (Side::Left, &mut left)]
+                .into_iter()
+                .zip(steady.iter_mut())
+            {
                 if waiting {
                     counts.waiting += 1;
+                    run.1 = 0;
                     continue;
                 }
-                match gate.verdict(side, est.as_ref(), sd.as_ref()) {
+                let verdict = gate.verdict(side, est.as_ref(), sd.as_ref());
+                match verdict {
+                    Verdict::Follow(b, _) => {
+                        if run.1 == 0 || (b - run.0).abs() > settings.max_breakpoint_sd_counts {
+                            *run = (b, 0);
+                        }
+                        run.1 += 1;
+                    }
+                    _ => run.1 = 0,
+                }
+                match verdict {
                     Verdict::Implausible => counts.implausible += 1,
                     Verdict::Undetermined => counts.undetermined += 1,
+                    Verdict::Follow(..) if run.1 < settings.settle_samples => counts.settling += 1,
                     Verdict::Follow(b, m) => {
                         counts.following += 1;
                         counts.following_since_change += 1;
@@ -366,7 +396,7 @@ fn warnings(run: &AdaptiveRun, gate: &Gate, last: Deadzone, ts: f64) -> Vec<Stri
         if pct(c.implausible, judged) > 20.0 {
             w.push(format!(
                 "the online estimate of the {} branch was implausible at {:.0} % of the {judged} judged \
-                 samples (breakpoint outside {:.4} counts of zero on its side or slope beyond a factor \
+                 samples (breakpoint outside {} counts of zero on its side or slope beyond a factor \
                  {} of the start): the branch was frozen there",
                 side.name(),
                 pct(c.implausible, judged),
@@ -374,15 +404,17 @@ fn warnings(run: &AdaptiveRun, gate: &Gate, last: Deadzone, ts: f64) -> Vec<Stri
                 s.slope_factor
             ));
         }
-        if pct(c.undetermined, judged) > 50.0 {
+        if pct(c.undetermined + c.settling, judged) > 50.0 {
             w.push(format!(
-                "the online estimate of the {} branch was not well determined at {:.0} % of the {judged} \
-                 judged samples (breakpoint standard deviation over {} counts or slope over {} %: the \
-                 closed-loop commands did not excite it): the branch was frozen there",
+                "the online estimate of the {} branch was not well determined or not steady at {:.0} % of \
+                 the {judged} judged samples (breakpoint standard deviation over {} counts or slope over {} \
+                 %, or not steady for {} samples: the closed-loop commands did not excite it): the branch \
+                 was frozen there",
                 side.name(),
-                pct(c.undetermined, judged),
+                pct(c.undetermined + c.settling, judged),
                 s.max_breakpoint_sd_counts,
-                100.0 * s.max_slope_rel_sd
+                100.0 * s.max_slope_rel_sd,
+                s.settle_samples
             ));
         }
         if c.following == 0 {

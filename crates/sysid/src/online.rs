@@ -459,6 +459,13 @@ impl Tracker {
     /// estimate of 0 gives an infinite breakpoint deviation. The floor keeps a run of near-zero errors
     /// (a piston stuck at its set-point, the encoder not moving) from making a poorly excited
     /// estimate look certain: P, not the error level, then carries the lack of excitation.
+    ///
+    /// Measured against the spread over 40 independent records of the paper's model
+    /// (`crates/sysid/tests/online_track.rs`): the breakpoint deviations agree within the sampling error
+    /// (spread/prediction 1.0–1.3); the slope deviations are optimistic by a factor ≈ 3.4 at 20 000
+    /// samples (6.5 at 3000), because the one-pass estimate keeps the error of its first samples, made
+    /// with a deadzone still far from the truth. Closed-loop data with a model that does not fit the
+    /// plant (friction) make both optimistic: a small deviation is necessary, not sufficient, for trust.
     pub fn deadzone_sd(&self, sigma_floor_mm: f64) -> Option<DeadzoneSd> {
         if self.structure.kind != ModelKind::Hammerstein || self.updates_total == 0 {
             return None;

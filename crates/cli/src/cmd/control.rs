@@ -420,11 +420,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             });
             let counts = |c: &control::BranchCounts| {
                 format!(
-                    "followed {} / frozen {} (implausible {}, undetermined {}) / waiting {}",
+                    "followed {} / frozen {} (implausible {}, undetermined {}, settling {}) / waiting {}",
                     c.following,
-                    c.implausible + c.undetermined,
+                    c.implausible + c.undetermined + c.settling,
                     c.implausible,
                     c.undetermined,
+                    c.settling,
                     c.waiting
                 )
             };

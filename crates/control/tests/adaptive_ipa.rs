@@ -140,6 +140,11 @@ fn on_the_physics_plant_the_final_compensator_deadzone_is_physical_or_the_run_sa
         assert!(dz.m_r >= s.m_r / 3.0 && dz.m_r <= 3.0 * s.m_r, "{dz:?}");
         assert!(dz.m_l >= s.m_l / 3.0 && dz.m_l <= 3.0 * s.m_l, "{dz:?}");
     }
+    // The rate limit: 100 counts/s at Ts = 0.01 s is at most 1 count per sample.
+    for w in adaptive.deadzones.windows(2) {
+        assert!((w[1].b_r - w[0].b_r).abs() <= 1.0 + 1e-9, "{w:?}");
+        assert!((w[1].b_l - w[0].b_l).abs() <= 1.0 + 1e-9, "{w:?}");
+    }
     let last = adaptive.deadzones.last().unwrap();
     let (right, left) = (breakaway_counts(1.0), breakaway_counts(-1.0));
     eprintln!("breakaway +{right} / -{left} counts; final compensator {last:?}");

@@ -181,9 +181,10 @@ fn on_the_physics_plant_the_final_compensator_deadzone_is_physical_or_the_run_sa
     // The raw estimate the old loop applied wandered off (issue 15: b_r = 105, m_l = 9e-5); whatever it
     // does now, an implausible final estimate is said in words.
     if let Some(e) = adaptive.final_estimate {
-        let implausible_right = !(0.0..=127.5).contains(&e.b_r)
-            || !(e.m_r >= start.deadzone.m_r / 3.0 && e.m_r <= 3.0 * start.deadzone.m_r);
-        if implausible_right {
+        let m0 = start.deadzone.m_r;
+        let plausible_right =
+            (0.0..=127.5).contains(&e.b_r) && e.m_r >= m0 / 3.0 && e.m_r <= 3.0 * m0;
+        if !plausible_right {
             assert!(adaptive
                 .warnings()
                 .iter()

@@ -102,7 +102,7 @@ fn breakaway_counts(sign: f64) -> f64 {
 // so the piston sticks short of or past the set-point by up to ~1.4 mm (measured: 0.30, 1.00, 1.37,
 // 0.72 mm at the ends of the holds after the change, `steady_state_error_mm` of `control --json`). The
 // adaptive compensator moves b_r to the breakaway the estimate sees, so the PI output needs far less
-// winding up (measured: mean of the last-second errors 0.85 mm fixed against 0.3 mm adaptive; under
+// winding up (measured: mean of the last-second errors 0.85 mm fixed against 0.24 mm adaptive; under
 // stick-slip the per-hold values are erratic, so only the mean over the four holds is compared).
 #[test]
 fn on_the_physics_plant_the_adaptive_compensator_is_no_worse_than_the_fixed_one_after_the_widening()

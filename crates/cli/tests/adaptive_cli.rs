@@ -84,3 +84,55 @@ fn adaptive_control_reports_the_change_and_beats_the_fixed_compensator_after_it(
         "--adaptive needs --compensate-deadzone"
     );
 }
+
+// The physics plant from the paper's compensator (issue 15): the estimate of the left branch is
+// implausible throughout (closed-loop holds with a stuck piston), so the run must say so in the text
+// (`warning:` lines) and in the JSON (`adaptive.warnings`), and the compensator it ends with stays
+// within the plausible range (breakpoints on their side of zero within half of u_max = 255).
+#[test]
+fn on_the_physics_plant_the_adaptive_run_warns_in_text_and_json_and_ends_plausible() {
+    let dir = tempfile::tempdir().unwrap();
+    let json = dir.path().join("c.json");
+    let o = Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
+        .args([
+            "control",
+            "--plant",
+            "ipa",
+            "--profile",
+            "staircase:20,40,20,40,20,40@10",
+            "--duration",
+            "60",
+            "--compensate-deadzone",
+            "paper",
+            "--deadzone-change",
+            "20:20",
+            "--adaptive",
+            "--json",
+            json.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    let doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(json).unwrap()).unwrap();
+    let a = &doc["adaptive"];
+    let warnings = a["warnings"].as_array().unwrap();
+    assert!(!warnings.is_empty(), "{a}");
+    for w in warnings {
+        assert!(
+            text.contains(&format!("warning: {}", w.as_str().unwrap())),
+            "{text}"
+        );
+    }
+    assert!(warnings
+        .iter()
+        .any(|w| w.as_str().unwrap().contains("left (b_l, m_l) branch")));
+    let d = &a["final_deadzone"];
+    let (b_l, b_r) = (d["b_l"].as_f64().unwrap(), d["b_r"].as_f64().unwrap());
+    assert!(
+        (0.0..=127.5).contains(&b_r) && (-127.5..=0.0).contains(&b_l),
+        "{d}"
+    );
+    assert!(a["right"]["following"].as_u64().unwrap() > 0, "{a}");
+}

@@ -26,7 +26,7 @@ pub mod pi;
 pub mod profile;
 pub mod widening;
 
-pub use adaptive::{run_adaptive, AdaptiveRun, AdaptiveSettings};
+pub use adaptive::{run_adaptive, AdaptiveRun, AdaptiveSettings, BranchCounts};
 pub use closed_loop::Trace;
 pub use compensator::{DeadzoneCompensator, SlopeMode};
 pub use error::{ControlError, ControlSetting};

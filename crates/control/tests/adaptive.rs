@@ -145,3 +145,46 @@ fn with_the_papers_pi_the_adaptive_compensator_recovers_much_faster() {
         );
     }
 }
+
+// A gate no estimate can pass (breakpoint deviation at most 1e-9 counts): both branches stay frozen, so
+// the adaptive loop is the fixed one sample for sample, and the run says that neither branch followed.
+#[test]
+fn a_gate_no_estimate_passes_keeps_the_start_compensator_and_says_so() {
+    let profile = Profile::parse("staircase:20,40,20,40@10").unwrap();
+    let comp =
+        DeadzoneCompensator::new(*Model::paper().deadzone().unwrap(), SlopeMode::Shift, 255.0)
+            .unwrap();
+    let plant = || {
+        Widened::new(
+            Box::new(ModelPlant::new(Model::paper(), "paper").unwrap()),
+            CHANGE,
+        )
+    };
+    let mut pi = PiSettings::paper().build(0.01).unwrap();
+    let fixed = closed_loop::run(&mut plant(), &mut pi, Some(&comp), &profile, 40.0, 0.0).unwrap();
+    let settings = AdaptiveSettings {
+        max_breakpoint_sd_counts: 1e-9,
+        ..AdaptiveSettings::default()
+    };
+    let mut pi = PiSettings::paper().build(0.01).unwrap();
+    let a = run_adaptive(&mut plant(), &mut pi, comp, &settings, &profile, 40.0, 0.0).unwrap();
+    assert_eq!(a.trace, fixed);
+    assert!(a.deadzones.iter().all(|d| *d == comp.deadzone));
+    assert_eq!((a.right.following, a.left.following), (0, 0));
+    for side in ["right (b_r, m_r)", "left (b_l, m_l)"] {
+        assert!(
+            a.warnings()
+                .iter()
+                .any(|w| w.contains(side) && w.contains("never followed")),
+            "{:?}",
+            a.warnings()
+        );
+    }
+    // Out-of-range settings are an error, not a silent default.
+    let bad = AdaptiveSettings {
+        slope_factor: 0.5,
+        ..AdaptiveSettings::default()
+    };
+    let mut pi = PiSettings::paper().build(0.01).unwrap();
+    assert!(run_adaptive(&mut plant(), &mut pi, comp, &bad, &profile, 1.0, 0.0).is_err());
+}

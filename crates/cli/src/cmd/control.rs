@@ -80,6 +80,13 @@ pub struct Args {
     /// --adaptive: estimator updates before its deadzone is used (again after a detected change).
     #[arg(long, value_name = "N", default_value_t = control::AdaptiveSettings::default().min_updates)]
     pub adaptive_min_updates: usize,
+    /// --adaptive: a compensator breakpoint follows the estimate only when its standard deviation is at
+    /// most this many counts (otherwise it is frozen).
+    #[arg(long, value_name = "COUNTS", default_value_t = control::AdaptiveSettings::default().max_breakpoint_sd_counts)]
+    pub adaptive_max_sd: f64,
+    /// --adaptive: largest change of a compensator breakpoint, counts per second.
+    #[arg(long, value_name = "COUNTS_PER_S", default_value_t = control::AdaptiveSettings::default().max_rate_counts_per_s)]
+    pub adaptive_max_rate: f64,
     /// Make the plant's valve deadzone wider during the run: `AT_S:WIDEN_COUNTS` (e.g. 30:20: from
     /// t = 30 s every command loses 20 counts towards zero, i.e. b_r + 20 and b_l − 20).
     #[arg(long, value_name = "AT_S:COUNTS")]
@@ -127,8 +134,17 @@ struct AdaptiveOut {
     final_deadzone: Option<sysid::Deadzone>,
     /// Times (s) at which the online estimator detected a change of the plant.
     change_points_s: Vec<f64>,
-    /// Samples at which the estimate could not be inverted and the previous compensator was kept.
-    rejected_estimates: usize,
+    /// The online estimate's deadzone at the end of the run (not necessarily the compensator's).
+    final_estimate: Option<sysid::Deadzone>,
+    /// Its standard deviations.
+    final_estimate_sd: Option<sysid::online::DeadzoneSd>,
+    /// Samples at which the right branch (b_r, m_r) waited, was frozen (implausible, undetermined) or
+    /// followed the estimate.
+    right: control::BranchCounts,
+    /// The same for the left branch (b_l, m_l).
+    left: control::BranchCounts,
+    /// Reasons not to trust the adaptation, in words.
+    warnings: Vec<String>,
     /// ρ of the online estimate.
     forgetting: f64,
     /// Updates before an estimate is used.
@@ -292,6 +308,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         (Some(initial), true) => {
             let mut adaptive_settings = control::AdaptiveSettings {
                 min_updates: args.adaptive_min_updates,
+                max_breakpoint_sd_counts: args.adaptive_max_sd,
+                max_rate_counts_per_s: args.adaptive_max_rate,
                 ..control::AdaptiveSettings::default()
             };
             adaptive_settings.tracker.forgetting = args.adaptive_forgetting;
@@ -307,7 +325,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let summary = AdaptiveOut {
                 final_deadzone: run.deadzones.last().copied(),
                 change_points_s: run.change_points.iter().map(|&k| k as f64 * ts).collect(),
-                rejected_estimates: run.rejected,
+                final_estimate: run.final_estimate,
+                final_estimate_sd: run.final_sd,
+                right: run.right,
+                left: run.left,
+                warnings: run.warnings().to_vec(),
                 forgetting: args.adaptive_forgetting,
                 min_updates: args.adaptive_min_updates,
             };
@@ -396,11 +418,28 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     d.b_l, d.b_r, d.m_l, d.m_r
                 )
             });
-            format!(
-                "{summary}adaptive:     final compensator deadzone {dz}; changes detected at t = {:?} s; \
-                 {} estimate(s) not invertible (previous kept)\n",
-                a.change_points_s, a.rejected_estimates
-            )
+            let counts = |c: &control::BranchCounts| {
+                format!(
+                    "followed {} / frozen {} (implausible {}, undetermined {}, settling {}) / waiting {}",
+                    c.following,
+                    c.implausible + c.undetermined + c.settling,
+                    c.implausible,
+                    c.undetermined,
+                    c.settling,
+                    c.waiting
+                )
+            };
+            let mut text = format!(
+                "{summary}adaptive:     final compensator deadzone {dz}; changes detected at t = {:?} s\n\
+                 adaptive:     samples: right branch {}; left branch {}\n",
+                a.change_points_s,
+                counts(&a.right),
+                counts(&a.left)
+            );
+            for w in &a.warnings {
+                text += &format!("warning: {w}\n");
+            }
+            text
         }
     };
     // Keep standard output clean JSON when the JSON goes there.

@@ -750,34 +750,17 @@ fn safeguard(
     let mut fell_back = false;
     if s.kind == ModelKind::Hammerstein {
         if let Some((linear, linear_fit)) = linear_start(p) {
-            let diverged = fit_sim.is_none();
-            let unstable = !fit.model.is_stable() && linear.model.is_stable();
-            let trails = fit_sim.is_some_and(|f| f < linear_fit - FALLBACK_FIT_MARGIN);
-            if diverged || unstable || trails {
-                let why = if diverged {
-                    format!(
-                        "the {} estimate's simulation diverges on the estimation data",
-                        fit.method
-                    )
-                } else if unstable {
-                    format!(
-                        "the {} estimate is unstable and the linear start is not",
-                        fit.method
-                    )
-                } else {
-                    format!(
-                        "the {} estimate simulates the estimation data far worse than the linear start \
-                         (fit {:.2} % against {linear_fit:.2} %)",
-                        fit.method,
-                        fit_sim.unwrap_or(f64::NAN)
-                    )
-                };
+            if let Some(why) = hammerstein_guard(
+                fit.method,
+                fit_sim,
+                fit.model.is_stable(),
+                linear.model.is_stable(),
+                linear_fit,
+            ) {
                 if settings.fallback {
                     let mut warnings = std::mem::take(&mut fit.warnings);
                     warnings.push(Warning::Fallback {
-                        used: "the linear ARX least-squares model, as a Hammerstein model with b_l = b_r = 0 \
-                               and m_l = m_r = b1"
-                            .into(),
+                        used: LINEAR_START_USED.into(),
                         why,
                     });
                     fit = Fitted {
@@ -809,7 +792,7 @@ fn safeguard(
         let br = &p.branches;
         let (w, no_std) = deadzone_warnings(
             &d,
-            data,
+            &data.u,
             (br.left, br.right),
             (
                 std_of(&fit.params, ParamName::BL),
@@ -825,6 +808,41 @@ fn safeguard(
     }
     Ok(fit)
 }
+
+/// Why a Hammerstein estimate by `method` should give way to the linear ARX start (one input or
+/// several): its estimation simulation diverges (`fit_sim` = `None`), it is unstable while the start
+/// is not, or its simulation fit trails the start's `linear_fit` by more than
+/// [`FALLBACK_FIT_MARGIN`] points; `None` when none of these holds.
+pub(crate) fn hammerstein_guard(
+    method: Method,
+    fit_sim: Option<f64>,
+    stable: bool,
+    linear_stable: bool,
+    linear_fit: f64,
+) -> Option<String> {
+    if fit_sim.is_none() {
+        Some(format!(
+            "the {method} estimate's simulation diverges on the estimation data"
+        ))
+    } else if !stable && linear_stable {
+        Some(format!(
+            "the {method} estimate is unstable and the linear start is not"
+        ))
+    } else {
+        fit_sim
+            .filter(|f| *f < linear_fit - FALLBACK_FIT_MARGIN)
+            .map(|f| {
+                format!(
+                    "the {method} estimate simulates the estimation data far worse than the linear start \
+                     (fit {f:.2} % against {linear_fit:.2} %)"
+                )
+            })
+    }
+}
+
+/// The words of the fallback warning: what replaced the Hammerstein estimate.
+pub(crate) const LINEAR_START_USED: &str =
+    "the linear ARX least-squares model, as a Hammerstein model with b_l = b_r = 0 and m_l = m_r = b1";
 
 /// The standard deviation of parameter `name` in `params`, if it is there and has one.
 fn std_of(params: &[Param], name: ParamName) -> Option<f64> {

@@ -12,7 +12,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use crate::estimate::{Note, OeVerdict};
+use crate::estimate::{Estimator, Note, OeVerdict};
 use crate::oe::{miso_params, miso_vector, NamedParam};
 use crate::warnings::Warning;
 use sysid_core::param::deadzone_from_theta;
@@ -275,6 +275,166 @@ impl MisoProblem<'_> {
         let (theta, dz, iterations, converged) =
             key_term_iteration(&reg.nonlinear, max_iterations, |dz| reg.solve(dz))?;
         reg.fit(&theta, &dz, self.ts, iterations, converged)
+    }
+
+    /// The fit by `settings.estimator` ([`MisoProblem::fit`]) with the safeguards of one input applied
+    /// per input ([`MisoProblem::safeguard`]); `settings.fallback` substitutes the linear start.
+    pub fn identify(
+        &self,
+        settings: &crate::Identification,
+        name: &str,
+    ) -> Result<MisoFit, SysidError> {
+        let fit = self.fit(&settings.estimator, name)?;
+        self.safeguard(fit, settings.estimator.method(), settings.fallback, name)
+    }
+
+    /// The safeguards of `estimate::identify` for a several-input Hammerstein fit (by `method`):
+    /// an estimate whose estimation simulation diverges, that is unstable while the linear ARX start is
+    /// not, or whose simulation fit trails the start's by more than
+    /// [`crate::estimate::FALLBACK_FIT_MARGIN`] points gets a warning, or with `fallback` is replaced by
+    /// the linear start (b_l = b_r = 0, m_l = m_r = b1 on each nonlinear input); then each estimated
+    /// deadzone is checked against its own input ([`crate::warnings::deadzone_warnings`]: breakpoint on
+    /// an input level or within 1 σ of one, not bracketed, not physical, too few levels), the warning
+    /// naming the input, and a breakpoint whose standard deviation is not meaningful loses it. ARX and
+    /// all-linear fits are returned unchanged.
+    pub fn safeguard(
+        &self,
+        mut fit: MisoFit,
+        method: crate::Method,
+        fallback: bool,
+        name: &str,
+    ) -> Result<MisoFit, SysidError> {
+        let reg = self.regression()?;
+        if !reg.nonlinear.iter().any(|&v| v) {
+            return Ok(fit);
+        }
+        let us: Vec<&[f64]> = self.inputs.iter().map(|m| m.u.as_slice()).collect();
+        let fit_sim = |m: &Model| {
+            sysid_core::metrics::metrics_miso(m, &us, self.y, name)
+                .ok()
+                .and_then(|m| m.fit_sim_percent)
+        };
+        if let Some((linear, linear_fit)) = self.linear_start(&reg).and_then(|l| {
+            let f = fit_sim(&l.model)?;
+            Some((l, f))
+        }) {
+            if let Some(why) = crate::estimate::hammerstein_guard(
+                method,
+                fit_sim(&fit.model),
+                fit.model.is_stable(),
+                linear.model.is_stable(),
+                linear_fit,
+            ) {
+                if fallback {
+                    let mut warnings = std::mem::take(&mut fit.warnings);
+                    warnings.push(Warning::Fallback {
+                        used: format!(
+                            "{} on each nonlinear input",
+                            crate::estimate::LINEAR_START_USED
+                        ),
+                        why,
+                    });
+                    // The fallback's breakpoints are fixed at 0 by construction: nothing to check.
+                    return Ok(MisoFit {
+                        warnings,
+                        notes: fit.notes,
+                        iterations: fit.iterations,
+                        converged: fit.converged,
+                        ..linear
+                    });
+                }
+                fit.warnings.push(Warning::LinearStartBetter { why });
+            }
+        }
+        for (ch, m) in fit.model.inputs().iter().zip(self.inputs) {
+            let Some(d) = ch.deadzone() else { continue };
+            let std = |n: &str| {
+                let full = format!("{n} ({})", ch.name());
+                fit.params.iter().find(|q| q.name == full).and_then(|q| q.std)
+            };
+            let (w, no_std) = crate::warnings::deadzone_warnings(
+                d,
+                &m.u,
+                (true, true),
+                (std("b_l"), std("b_r")),
+            );
+            for n in no_std {
+                let full = format!("{n} ({})", ch.name());
+                for q in fit.params.iter_mut().filter(|q| q.name == full) {
+                    q.std = None;
+                }
+            }
+            fit.warnings.extend(w.into_iter().map(|w| Warning::ForInput {
+                input: ch.name().to_string(),
+                warning: Box::new(w),
+            }));
+        }
+        Ok(fit)
+    }
+
+    /// The linear ARX least-squares model of the same orders, written as a Hammerstein model (each
+    /// nonlinear input: b_l = b_r = 0, m_l = m_r = b1, B/b1), with standard deviations where the ARX
+    /// regression gives them (a, linear inputs' B, c; m_l and m_r from b1); `None` when it cannot be
+    /// estimated or a nonlinear input's b1 is 0.
+    fn linear_start(&self, reg: &Regression) -> Option<MisoFit> {
+        let arx = MisoProblem {
+            kind: ModelKind::Arx,
+            ..*self
+        }
+        .least_squares(1)
+        .ok()?;
+        let m = &arx.model;
+        let mut channels = Vec::with_capacity(m.inputs().len());
+        for (ch, &nl) in m.inputs().iter().zip(&reg.nonlinear) {
+            if !nl {
+                channels.push(ch.clone());
+                continue;
+            }
+            let b1 = *ch.b().first()?;
+            if b1 == 0.0 || !b1.is_finite() {
+                return None;
+            }
+            let d = Deadzone {
+                b_l: 0.0,
+                b_r: 0.0,
+                m_l: b1,
+                m_r: b1,
+            };
+            let b = ch.b().iter().map(|v| v / b1).collect();
+            let f = StaticNonlinearity::Deadzone(d);
+            channels.push(InputChannel::new(ch.name().to_string(), ch.nk(), b, f).ok()?);
+        }
+        let model = Model::new(m.ts(), m.a().to_vec(), channels, m.offset()).ok()?;
+        let arx_std = |n: &str| arx.params.iter().find(|q| q.name == n).and_then(|q| q.std);
+        let (values, names) = miso_vector(&model);
+        let std = |i: usize| {
+            let n: &str = &names[i];
+            let (head, input) = n.split_once(' ').unwrap_or((n, ""));
+            match head {
+                "m_l" | "m_r" => arx_std(&format!("b1 {input}")),
+                "b_l" | "b_r" => None,
+                _ if reg.nonlinear.iter().any(|&v| v) && head.starts_with('b') => {
+                    // B/b1 of a nonlinear input has no standard deviation of its own here.
+                    let linear = self
+                        .inputs
+                        .iter()
+                        .zip(&reg.nonlinear)
+                        .any(|(mi, &nl)| !nl && input == format!("({})", mi.name));
+                    if linear {
+                        arx_std(n)
+                    } else {
+                        None
+                    }
+                }
+                _ => arx_std(n),
+            }
+        };
+        let params = miso_params(&model, &names, |i| values[i], std);
+        Some(MisoFit {
+            model,
+            params,
+            ..arx
+        })
     }
 
     /// The fit by the estimator `settings` says: least squares, RLS, output error or instrumental

@@ -350,24 +350,24 @@ impl MisoProblem<'_> {
             let Some(d) = ch.deadzone() else { continue };
             let std = |n: &str| {
                 let full = format!("{n} ({})", ch.name());
-                fit.params.iter().find(|q| q.name == full).and_then(|q| q.std)
+                fit.params
+                    .iter()
+                    .find(|q| q.name == full)
+                    .and_then(|q| q.std)
             };
-            let (w, no_std) = crate::warnings::deadzone_warnings(
-                d,
-                &m.u,
-                (true, true),
-                (std("b_l"), std("b_r")),
-            );
+            let (w, no_std) =
+                crate::warnings::deadzone_warnings(d, &m.u, (true, true), (std("b_l"), std("b_r")));
             for n in no_std {
                 let full = format!("{n} ({})", ch.name());
                 for q in fit.params.iter_mut().filter(|q| q.name == full) {
                     q.std = None;
                 }
             }
-            fit.warnings.extend(w.into_iter().map(|w| Warning::ForInput {
-                input: ch.name().to_string(),
-                warning: Box::new(w),
-            }));
+            fit.warnings
+                .extend(w.into_iter().map(|w| Warning::ForInput {
+                    input: ch.name().to_string(),
+                    warning: Box::new(w),
+                }));
         }
         Ok(fit)
     }

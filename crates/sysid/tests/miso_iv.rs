@@ -178,3 +178,51 @@ fn iv_with_a_deadzone_input_and_a_linear_one_is_exact_on_noise_free_data() {
         assert!((g - w).abs() < 1e-8, "{got:?} vs {want:?}");
     }
 }
+
+// The Hammerstein guard with several inputs: an estimate made unstable (a1 = −1.2, pole 1.2) while the
+// linear ARX start is stable warns; with the fallback the linear start replaces it. The record is
+// linear and noise-free, y(k) = 0.7 y(k−1) + 1.5 u1(k−1) − 0.8 u2(k−2), so the linear start written as
+// a Hammerstein model has b_l = b_r = 0, m_l = m_r = 1.5 on u1 and b = −0.8 on the linear u2.
+#[test]
+fn an_unstable_several_input_hammerstein_estimate_gives_way_to_the_linear_start() {
+    let n = 400;
+    let (u1, u2) = (white(n, 3), white(n, 5));
+    let mut y = vec![0.0; n];
+    for k in 2..n {
+        y[k] = 0.7 * y[k - 1] + 1.5 * u1[k - 1] - 0.8 * u2[k - 2];
+    }
+    let mut ins = inputs(&u1, &u2);
+    ins[0].nb = 1;
+    ins[1].linear = true;
+    let p = MisoProblem {
+        inputs: &ins,
+        y: &y,
+        ts: 0.01,
+        na: 1,
+        kind: ModelKind::Hammerstein,
+        offset: false,
+    };
+    let mut bad = p.least_squares(50).unwrap();
+    bad.model = bad.model.with_a(vec![-1.2]).unwrap();
+    let kept = p
+        .safeguard(bad.clone(), sysid::Method::Ls, false, "lin")
+        .unwrap();
+    assert!(
+        kept.warnings.iter().any(
+            |w| matches!(w, sysid::Warning::LinearStartBetter { why } if why.contains("unstable"))
+        ),
+        "{:?}",
+        kept.warnings
+    );
+    let fb = p.safeguard(bad, sysid::Method::Ls, true, "lin").unwrap();
+    assert!(fb
+        .warnings
+        .iter()
+        .any(|w| matches!(w, sysid::Warning::Fallback { .. })));
+    let m = &fb.model;
+    let d = m.inputs()[0].deadzone().unwrap();
+    assert!((m.a()[0] + 0.7).abs() < 1e-9);
+    assert!(d.b_l == 0.0 && d.b_r == 0.0);
+    assert!((d.m_l - 1.5).abs() < 1e-9 && (d.m_r - 1.5).abs() < 1e-9);
+    assert!((m.inputs()[1].b()[0] + 0.8).abs() < 1e-9);
+}

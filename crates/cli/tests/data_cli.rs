@@ -1972,3 +1972,93 @@ fn several_input_deadzone_warnings_name_the_input() {
     assert!(param("b_r (u1)")["std"].is_null());
     assert!(num(&param("b_l (u1)")["std"]) >= 0.0);
 }
+
+// The Hammerstein guard with several inputs, from the binary: RLS with forgetting 0.8 and one pass on
+// the noisy two-input Hammerstein record ends on an estimate fitted to its last samples, which simulates
+// the record far worse than the linear ARX least-squares model of the same orders. Without --fallback a
+// warning says so; with it the linear model is returned, written as a Hammerstein model: a1 and the B of
+// each input from the normal equations on rows [−y(k−1), u1(k−1), u1(k−2), u2(k−2)] (computed here),
+// b_l = b_r = 0, m_l = m_r = b1(u1), b(u1) = (1, b2/b1).
+#[test]
+fn several_input_hammerstein_estimates_far_worse_than_the_linear_start_are_flagged_or_replaced() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = noisy_miso(dir.path(), &valve, 2.0, "ham.csv");
+    let run_rls = |extra: &[&str], out: &Path| {
+        let mut args = vec![
+            "identify",
+            "--data",
+            s(&f),
+            "--u-col",
+            "u1,u2",
+            "--nb",
+            "2,1",
+            "--nk",
+            "1,2",
+            "--na",
+            "1",
+            "--linear-inputs",
+            "u2",
+            "--method",
+            "rls",
+            "--forgetting",
+            "0.8",
+            "--passes",
+            "1",
+            "--rls-form",
+            "ud",
+            "--ts",
+            "0.1",
+            "--json",
+            s(out),
+        ];
+        args.extend_from_slice(extra);
+        run(&args);
+        json(out)
+    };
+    let texts = |j: &serde_json::Value| -> Vec<String> {
+        j["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|w| w.as_str().unwrap().to_string())
+            .collect()
+    };
+    let plain = run_rls(&[], &dir.path().join("plain.json"));
+    assert!(
+        texts(&plain)
+            .iter()
+            .any(|w| w.contains("far worse than the linear start")
+                && w.contains("the linear ARX model of the same orders does better")),
+        "{:?}",
+        texts(&plain)
+    );
+    let fb = run_rls(&["--fallback"], &dir.path().join("fb.json"));
+    assert!(
+        texts(&fb)
+            .iter()
+            .any(|w| w.starts_with("fallback used: the linear ARX least-squares model")),
+        "{:?}",
+        texts(&fb)
+    );
+    let c = read_columns(&f);
+    let (u1, u2, y) = (&c["u1"], &c["u2"], &c["y"]);
+    let rows: Vec<Vec<f64>> = (2..y.len())
+        .map(|k| vec![-y[k - 1], u1[k - 1], u1[k - 2], u2[k - 2]])
+        .collect();
+    let th = normal_equations(&rows, &y[2..]);
+    let m = &fb["model"];
+    let i = m["inputs"].as_array().unwrap();
+    let d = &i[0]["deadzone"];
+    for (got, want) in [
+        (&m["a"][0], th[0]),
+        (&d["b_l"], 0.0),
+        (&d["b_r"], 0.0),
+        (&d["m_l"], th[1]),
+        (&d["m_r"], th[1]),
+        (&i[0]["b"][0], 1.0),
+        (&i[0]["b"][1], th[2] / th[1]),
+        (&i[1]["b"][0], th[3]),
+    ] {
+        assert!((num(got) - want).abs() < 1e-8, "{m} vs {th:?}");
+    }
+}

@@ -37,7 +37,7 @@ pub enum Method {
     /// several inputs.
     Oe,
     /// Recursive instrumental variables with instruments from an auxiliary model's simulated output.
-    /// Unbiased under output noise; recursive (online). One input only.
+    /// Unbiased under output noise; recursive (online). Also with several inputs.
     Iv,
 }
 

@@ -173,9 +173,12 @@ impl std::fmt::Display for Warning {
 
 impl Warning {
     /// Whether this warning already says why the parameter named `param` (as in a several-input
-    /// parameter list: `b_l (u1)`) has no standard deviation.
+    /// parameter list: `b_l (u1)`) has no standard deviation: a breakpoint warning naming it, or the
+    /// linear start returned by the fallback (its breakpoints are fixed at 0 and its B/b1 not estimated
+    /// as such).
     pub fn explains_missing_std(&self, param: &str) -> bool {
         match self {
+            Warning::Fallback { used, .. } => used.starts_with(crate::estimate::LINEAR_START_USED),
             Warning::ForInput { input, warning } => match warning.as_ref() {
                 Warning::BreakpointOnInputLevel { name, .. }
                 | Warning::BreakpointNotBracketed { name, .. } => {

@@ -1367,23 +1367,11 @@ fn several_inputs_by_rls_reach_the_least_squares_solution() {
     );
 
     // Hammerstein by RLS: a deadzone on u1, u2 linear, noise-free: the passes reach the generating model.
-    let (f, ..) = hammerstein_miso(dir.path(), "rls", 1e-4);
-    // IV takes one input: refused by flag, saying what is supported.
-    let err = fails(&[
-        "identify",
-        "--data",
-        s(&f),
-        "--u-col",
-        "u1,u2",
-        "--method",
-        "iv",
-        "--ts",
-        "0.1",
-    ]);
-    assert!(
-        err.contains("--method") && err.contains("ls, rls or oe"),
-        "{err}"
-    );
+    hammerstein_miso(dir.path(), "rls", 1e-4);
+    // Hammerstein by IV: noise-free, the LS start is exact and every IV residual is 0, so IV keeps
+    // the generating model (to 1e-8).
+    let (_, j, _) = hammerstein_miso(dir.path(), "iv", 1e-8);
+    assert_eq!(j["method"], "iv");
 }
 
 /// A deterministic stand-in for white noise of unit variance: a 64-bit LCG, uniform on (−√3, √3).
@@ -1897,4 +1885,188 @@ fn several_inputs_merged_pool_the_rows_of_each_record_and_none_across() {
         err.contains("--val-rows") && err.contains("--validation"),
         "{err}"
     );
+}
+
+// Two inputs, u1 through a deadzone whose right breakpoint b_r = 1 is one of u1's levels
+// (-3, -2, -1.5, 0, 1, 2, 3), u2 linear: y(k) = 0.5 y(k-1) + f(u1(k-1)) - 2 u2(k-1), noise-free. The
+// key-term estimate is exact, so b_r = 1 sits on a level: the single-input warning appears, naming the
+// input, b_r (u1) loses its standard deviation, and b_l = -1 (between levels) gets no warning.
+#[test]
+fn several_input_deadzone_warnings_name_the_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let levels = [-3.0, -2.0, -1.5, 0.0, 1.0, 2.0, 3.0];
+    let n = 700;
+    let pick = white(n / 5 + 1, 17);
+    let u1: Vec<f64> = (0..n)
+        .map(|k| {
+            let r = (pick[k / 5] / (2.0 * 3f64.sqrt()) + 0.5) * levels.len() as f64;
+            levels[(r as usize).min(levels.len() - 1)]
+        })
+        .collect();
+    let u2 = white(n, 23);
+    let f = |v: f64| {
+        if v >= 1.0 {
+            1.2 * (v - 1.0)
+        } else if v <= -1.0 {
+            0.8 * (v + 1.0)
+        } else {
+            0.0
+        }
+    };
+    let mut y = vec![0.0; n];
+    for k in 1..n {
+        y[k] = 0.5 * y[k - 1] + f(u1[k - 1]) - 2.0 * u2[k - 1];
+    }
+    let data = dir.path().join("levels.csv");
+    write_u1u2y(&data, &u1, &u2, &y);
+    let out = dir.path().join("levels.json");
+    run(&[
+        "identify",
+        "--data",
+        s(&data),
+        "--u-col",
+        "u1,u2",
+        "--nb",
+        "1",
+        "--nk",
+        "1",
+        "--na",
+        "1",
+        "--structure",
+        "hammerstein",
+        "--linear-inputs",
+        "u2",
+        "--method",
+        "ls",
+        "--ts",
+        "0.1",
+        "--json",
+        s(&out),
+    ]);
+    let j = json(&out);
+    let d = &j["model"]["inputs"][0]["deadzone"];
+    assert!((num(&d["b_r"]) - 1.0).abs() < 1e-9, "{d}");
+    assert!((num(&d["b_l"]) + 1.0).abs() < 1e-9, "{d}");
+    let warnings: Vec<&str> = j["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w.as_str().unwrap())
+        .collect();
+    assert!(
+        warnings
+            .iter()
+            .any(|w| w.starts_with("input u1: b_r = 1.000000 lies on the input level 1")),
+        "{warnings:?}"
+    );
+    assert!(!warnings.iter().any(|w| w.contains("b_l")), "{warnings:?}");
+    let param = |name: &str| {
+        j["parameters"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|p| p["name"] == name)
+            .unwrap()
+            .clone()
+    };
+    assert!(param("b_r (u1)")["std"].is_null());
+    assert!(num(&param("b_l (u1)")["std"]) >= 0.0);
+}
+
+// The Hammerstein guard with several inputs, from the binary: RLS with forgetting 0.8 and one pass on
+// the noisy two-input Hammerstein record ends on an estimate fitted to its last samples, which simulates
+// the record far worse than the linear ARX least-squares model of the same orders. Without --fallback a
+// warning says so; with it the linear model is returned, written as a Hammerstein model: a1 and the B of
+// each input from the normal equations on rows [−y(k−1), u1(k−1), u1(k−2), u2(k−2)] (computed here),
+// b_l = b_r = 0, m_l = m_r = b1(u1), b(u1) = (1, b2/b1).
+#[test]
+fn several_input_hammerstein_estimates_far_worse_than_the_linear_start_are_flagged_or_replaced() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = noisy_miso(dir.path(), &valve, 2.0, "ham.csv");
+    let run_rls = |extra: &[&str], out: &Path| {
+        let mut args = vec![
+            "identify",
+            "--data",
+            s(&f),
+            "--u-col",
+            "u1,u2",
+            "--nb",
+            "2,1",
+            "--nk",
+            "1,2",
+            "--na",
+            "1",
+            "--linear-inputs",
+            "u2",
+            "--method",
+            "rls",
+            "--forgetting",
+            "0.8",
+            "--passes",
+            "1",
+            "--rls-form",
+            "ud",
+            "--ts",
+            "0.1",
+            "--json",
+            s(out),
+        ];
+        args.extend_from_slice(extra);
+        run(&args);
+        json(out)
+    };
+    let texts = |j: &serde_json::Value| -> Vec<String> {
+        j["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|w| w.as_str().unwrap().to_string())
+            .collect()
+    };
+    let plain = run_rls(&[], &dir.path().join("plain.json"));
+    assert!(
+        texts(&plain)
+            .iter()
+            .any(|w| w.contains("far worse than the linear start")
+                && w.contains("the linear ARX model of the same orders does better")),
+        "{:?}",
+        texts(&plain)
+    );
+    let fb = run_rls(&["--fallback"], &dir.path().join("fb.json"));
+    assert!(
+        texts(&fb)
+            .iter()
+            .any(|w| w.starts_with("fallback used: the linear ARX least-squares model")),
+        "{:?}",
+        texts(&fb)
+    );
+    // The fallback's fixed breakpoints are explained by that warning, not called singular.
+    assert!(
+        !texts(&fb)
+            .iter()
+            .any(|w| w.contains("could not be computed")),
+        "{:?}",
+        texts(&fb)
+    );
+    let c = read_columns(&f);
+    let (u1, u2, y) = (&c["u1"], &c["u2"], &c["y"]);
+    let rows: Vec<Vec<f64>> = (2..y.len())
+        .map(|k| vec![-y[k - 1], u1[k - 1], u1[k - 2], u2[k - 2]])
+        .collect();
+    let th = normal_equations(&rows, &y[2..]);
+    let m = &fb["model"];
+    let i = m["inputs"].as_array().unwrap();
+    let d = &i[0]["deadzone"];
+    for (got, want) in [
+        (&m["a"][0], th[0]),
+        (&d["b_l"], 0.0),
+        (&d["b_r"], 0.0),
+        (&d["m_l"], th[1]),
+        (&d["m_r"], th[1]),
+        (&i[0]["b"][0], 1.0),
+        (&i[0]["b"][1], th[2] / th[1]),
+        (&i[1]["b"][0], th[3]),
+    ] {
+        assert!((num(got) - want).abs() < 1e-8, "{m} vs {th:?}");
+    }
 }

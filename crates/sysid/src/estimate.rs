@@ -37,7 +37,7 @@ pub enum Method {
     /// several inputs.
     Oe,
     /// Recursive instrumental variables with instruments from an auxiliary model's simulated output.
-    /// Unbiased under output noise; recursive (online). One input only.
+    /// Unbiased under output noise; recursive (online). Also with several inputs.
     Iv,
 }
 
@@ -618,7 +618,8 @@ impl std::fmt::Display for Note {
             ),
             Note::StagesNotSettled { stages } => write!(
                 f,
-                "IV stages had not settled after {stages} stages (relative change >= {IV_SETTLED:e})"
+                "IV stages had not settled after {stages} stages (relative change >= {:e})",
+                iv::IV_SETTLED
             ),
         }
     }
@@ -749,34 +750,17 @@ fn safeguard(
     let mut fell_back = false;
     if s.kind == ModelKind::Hammerstein {
         if let Some((linear, linear_fit)) = linear_start(p) {
-            let diverged = fit_sim.is_none();
-            let unstable = !fit.model.is_stable() && linear.model.is_stable();
-            let trails = fit_sim.is_some_and(|f| f < linear_fit - FALLBACK_FIT_MARGIN);
-            if diverged || unstable || trails {
-                let why = if diverged {
-                    format!(
-                        "the {} estimate's simulation diverges on the estimation data",
-                        fit.method
-                    )
-                } else if unstable {
-                    format!(
-                        "the {} estimate is unstable and the linear start is not",
-                        fit.method
-                    )
-                } else {
-                    format!(
-                        "the {} estimate simulates the estimation data far worse than the linear start \
-                         (fit {:.2} % against {linear_fit:.2} %)",
-                        fit.method,
-                        fit_sim.unwrap_or(f64::NAN)
-                    )
-                };
+            if let Some(why) = hammerstein_guard(
+                fit.method,
+                fit_sim,
+                fit.model.is_stable(),
+                linear.model.is_stable(),
+                linear_fit,
+            ) {
                 if settings.fallback {
                     let mut warnings = std::mem::take(&mut fit.warnings);
                     warnings.push(Warning::Fallback {
-                        used: "the linear ARX least-squares model, as a Hammerstein model with b_l = b_r = 0 \
-                               and m_l = m_r = b1"
-                            .into(),
+                        used: LINEAR_START_USED.into(),
                         why,
                     });
                     fit = Fitted {
@@ -808,7 +792,7 @@ fn safeguard(
         let br = &p.branches;
         let (w, no_std) = deadzone_warnings(
             &d,
-            data,
+            &data.u,
             (br.left, br.right),
             (
                 std_of(&fit.params, ParamName::BL),
@@ -824,6 +808,41 @@ fn safeguard(
     }
     Ok(fit)
 }
+
+/// Why a Hammerstein estimate by `method` should give way to the linear ARX start (one input or
+/// several): its estimation simulation diverges (`fit_sim` = `None`), it is unstable while the start
+/// is not, or its simulation fit trails the start's `linear_fit` by more than
+/// [`FALLBACK_FIT_MARGIN`] points; `None` when none of these holds.
+pub(crate) fn hammerstein_guard(
+    method: Method,
+    fit_sim: Option<f64>,
+    stable: bool,
+    linear_stable: bool,
+    linear_fit: f64,
+) -> Option<String> {
+    if fit_sim.is_none() {
+        Some(format!(
+            "the {method} estimate's simulation diverges on the estimation data"
+        ))
+    } else if !stable && linear_stable {
+        Some(format!(
+            "the {method} estimate is unstable and the linear start is not"
+        ))
+    } else {
+        fit_sim
+            .filter(|f| *f < linear_fit - FALLBACK_FIT_MARGIN)
+            .map(|f| {
+                format!(
+                    "the {method} estimate simulates the estimation data far worse than the linear start \
+                     (fit {f:.2} % against {linear_fit:.2} %)"
+                )
+            })
+    }
+}
+
+/// The words of the fallback warning: what replaced the Hammerstein estimate.
+pub(crate) const LINEAR_START_USED: &str =
+    "the linear ARX least-squares model, as a Hammerstein model with b_l = b_r = 0 and m_l = m_r = b1";
 
 /// The standard deviation of parameter `name` in `params`, if it is there and has one.
 fn std_of(params: &[Param], name: ParamName) -> Option<f64> {
@@ -1237,104 +1256,46 @@ impl OeVerdict {
     }
 }
 
-/// Relative change of θ̂ between IV stages below which the stages have settled.
-const IV_SETTLED: f64 = 1e-6;
-
-/// Recursive IV in stages, the first stage's instruments from the LS (key-term) estimate.
+/// Recursive IV in stages ([`iv::staged`]), the first stage's instruments from the LS (key-term) estimate.
 fn instrumental(p: &Problem, st: &InstrumentalVariables) -> Result<Fitted, SysidError> {
     let (data, s) = (p.data, &p.structure);
     let start = least_squares(p, &st.start)?;
     let key = p.key_term();
-    let mut aux = start.model.clone();
-    let mut theta_full = DVector::from_vec(key.vector_of(&aux));
-    let mut best = None;
-    let mut converged = false;
-    let mut stages = 0;
-    let mut notes = Vec::new();
-    // The auxiliary simulation starts at rest at the mean of the first k0 outputs: the measured initial
-    // outputs carry noise, and for a near-integrator a noisy initial velocity makes the simulated output
-    // drift away from the true one for the whole record (weak instruments).
     let k0 = s.orders.k0();
-    let mut y_init = data.y.clone();
-    if k0 > 0 {
-        let mean = data.y[..k0].iter().sum::<f64>() / k0 as f64;
-        y_init[..k0].fill(mean);
-    }
-    for stage in 1..=st.stages {
-        stages = stage;
-        let y_aux = match aux.simulate(&data.u, &y_init) {
-            Ok(y) => y,
-            Err(_) => {
-                let a = oe::stabilise(aux.a());
-                aux = aux.with_a(a)?;
-                notes.push(Note::UnstableAuxiliary { stage });
-                aux.simulate(&data.u, &y_init)?
-            }
-        };
-        let dz = aux.deadzone().copied().unwrap_or(ZERO_DEADZONE);
-        let theta0 = DVector::from_vec(key.gather(theta_full.as_slice()));
-        let pass = iv::pass(
-            data,
-            s,
-            &dz,
-            &y_aux,
-            key.free(),
-            &theta0,
-            st.forgetting,
-            st.p0,
-        )?;
-        let next = DVector::from_vec(key.scatter(pass.theta.as_slice(), &vec![0.0; key.len()]));
-        let change = (&next - &theta_full).norm() / (1e-300 + next.norm());
-        theta_full = next;
-        let model = model_from_theta(data, &key, &p.branches, &theta_full)?;
-        // Keep the stage whose model simulates the record best (from rest, as the instruments do).
-        let sim_rss = model
-            .simulate(&data.u, &y_init)
-            .ok()
-            .map_or(f64::INFINITY, |ys| {
-                ys[k0..]
-                    .iter()
-                    .zip(&data.y[k0..])
-                    .map(|(a, b)| (a - b) * (a - b))
-                    .sum::<f64>()
-            });
-        if best
-            .as_ref()
-            .is_none_or(|b: &(f64, usize, DVector<f64>, Model, iv::IvPass)| sim_rss < b.0)
-        {
-            best = Some((sim_rss, stage, theta_full.clone(), model.clone(), pass));
-        }
-        aux = model;
-        if change < IV_SETTLED {
-            converged = true;
-            break;
-        }
-    }
-    let Some((_, best_stage, theta_full, aux, pass)) = best else {
-        return Err(SysidError::Numerical("IV produced no estimate".into()));
+    let r = iv::IvRegression {
+        rows: (),
+        y: &data.y,
+        k0,
+        free: key.free(),
+        name: &data.name,
     };
-    if best_stage != stages {
-        notes.push(Note::KeptStage {
-            kept: best_stage,
-            of: stages,
-        });
-    }
-    let rss = prediction_rss(&aux, data)?;
+    let out = iv::staged(
+        &start.model,
+        &key.vector_of(&start.model),
+        &[&data.u],
+        &r,
+        |aux: &Model| {
+            let dz = aux.deadzone().copied().unwrap_or(ZERO_DEADZONE);
+            move |ys: &[f64], k: usize, row: &mut [f64]| s.fill_row(&data.u, ys, k, &dz, row)
+        },
+        |theta| model_from_theta(data, &key, &p.branches, theta),
+        st.stages,
+        st.forgetting,
+        st.p0,
+    )?;
+    let rss = prediction_rss(&out.model, data)?;
     let sigma2 = rss / (data.len() - k0).saturating_sub(key.n_free()).max(1) as f64;
-    let cov = iv::covariance(&pass, sigma2).map(|c| key.scatter_matrix(&c));
-    if !converged {
-        notes.push(Note::StagesNotSettled { stages });
-    }
+    let cov = iv::covariance(&out.pass, sigma2).map(|c| key.scatter_matrix(&c));
     Ok(Fitted {
-        params: params_with_branches(p, &theta_full, cov.as_ref(), &aux),
-        iterations: stages,
-        termination: if converged {
+        params: params_with_branches(p, &out.theta, cov.as_ref(), &out.model),
+        iterations: out.stages,
+        termination: if out.converged {
             Termination::Converged
         } else {
             Termination::NotSettled
         },
-        notes,
-        ..Fitted::new(aux, Vec::new(), Method::Iv, sigma2)
+        notes: out.notes,
+        ..Fitted::new(out.model, Vec::new(), Method::Iv, sigma2)
     })
 }
 

@@ -18,9 +18,15 @@
 //! (`iv_stages` stages; for Hammerstein the switching functions and x̂ of a stage use the auxiliary
 //! model's deadzone, as in later RLS passes).
 
+//! One implementation serves one input and several (MISO): [`pass`] takes the regressor as a function
+//! of the output sequence it is built from (measured y for φ, ŷ_aux for z), and [`staged`] runs the
+//! stages for any model, simulating the auxiliary model driven by every input (as MATLAB `iv4` does
+//! for several inputs). A single input is one channel.
+
 use nalgebra::{DMatrix, DVector};
 
-use sysid_core::{Dataset, Deadzone, Structure, SysidError};
+use crate::estimate::Note;
+use sysid_core::{Model, SysidError};
 
 /// The result of one recursive IV pass.
 #[derive(Debug, Clone)]
@@ -33,24 +39,36 @@ pub struct IvPass {
     pub zz: DMatrix<f64>,
 }
 
-/// One pass of recursive IV over `data`. `y_aux` is the auxiliary model's simulated output, `dz` the
-/// deadzone giving h_r, h_l and x̂ (ignored for ARX), `free` the estimated entries of θ (key-term layout),
-/// `theta0` the start (free entries).
-#[allow(clippy::too_many_arguments)]
-pub fn pass(
-    data: &Dataset,
-    s: &Structure,
-    dz: &Deadzone,
+/// The regression an IV pass runs on: `rows(ys, k, row)` fills the full regressor at sample k built
+/// from the output sequence `ys` (the measured y gives φ(k), the auxiliary simulation gives z(k));
+/// `y` is the measured output (the target y(k)), rows k0..N−1 are used, `free` marks the estimated
+/// entries of θ and `name` names the record in errors.
+pub struct IvRegression<'a, F> {
+    /// φ or z at sample k from an output sequence.
+    pub rows: F,
+    /// Measured output y(k).
+    pub y: &'a [f64],
+    /// First regression sample.
+    pub k0: usize,
+    /// Estimated entries of the full θ.
+    pub free: &'a [bool],
+    /// The record's name, for errors.
+    pub name: &'a str,
+}
+
+/// One pass of recursive IV (module docs) on the regression `r`. `y_aux` is the auxiliary model's
+/// simulated output, `theta0` the start (free entries), ρ = `forgetting`, P(0) = `p0` I.
+pub fn pass<F: Fn(&[f64], usize, &mut [f64])>(
+    r: &IvRegression<F>,
     y_aux: &[f64],
-    free: &[bool],
     theta0: &DVector<f64>,
     forgetting: f64,
     p0: f64,
 ) -> Result<IvPass, SysidError> {
     crate::rls::check_settings(forgetting, p0)?;
+    let free = r.free;
     let idx: Vec<usize> = (0..free.len()).filter(|&i| free[i]).collect();
     let p = idx.len();
-    let k0 = s.orders.k0();
     let mut theta = theta0.clone();
     let mut pm = DMatrix::<f64>::identity(p, p) * p0;
     let mut full_phi = vec![0.0; free.len()];
@@ -59,21 +77,21 @@ pub fn pass(
     let mut z = DVector::<f64>::zeros(p);
     let mut zphi = DMatrix::<f64>::zeros(p, p);
     let mut zz = DMatrix::<f64>::zeros(p, p);
-    for k in k0..data.len() {
-        s.fill_row(&data.u, &data.y, k, dz, &mut full_phi);
-        s.fill_row(&data.u, y_aux, k, dz, &mut full_z);
+    for k in r.k0..r.y.len() {
+        (r.rows)(r.y, k, &mut full_phi);
+        (r.rows)(y_aux, k, &mut full_z);
         for (q, &i) in idx.iter().enumerate() {
             phi[q] = full_phi[i];
             z[q] = full_z[i];
         }
-        let eps = s.target(&data.y, k) - phi.dot(&theta);
+        let eps = r.y[k] - phi.dot(&theta);
         let pz = &pm * &z;
         let phip = pm.tr_mul(&phi); // (φᵀ P)ᵀ
         let den = forgetting + phi.dot(&pz);
         if !(den.is_finite() && den.abs() > 1e-300 && eps.is_finite()) {
             return Err(SysidError::Numerical(format!(
                 "{}: recursive IV met a singular or non-finite update at sample {k} (ρ + φᵀPz = {den})",
-                data.name
+                r.name
             )));
         }
         theta.axpy(eps / den, &pz, 1.0);
@@ -87,10 +105,146 @@ pub fn pass(
     if theta.iter().any(|v| !v.is_finite()) {
         return Err(SysidError::Numerical(format!(
             "{}: recursive IV produced a non-finite estimate",
-            data.name
+            r.name
         )));
     }
     Ok(IvPass { theta, zphi, zz })
+}
+
+/// Relative change of θ̂ between IV stages below which the stages have settled.
+pub const IV_SETTLED: f64 = 1e-6;
+
+/// The outcome of [`staged`].
+#[derive(Debug, Clone)]
+pub struct Staged {
+    /// The kept stage's full θ̂ (fixed entries 0).
+    pub theta: DVector<f64>,
+    /// The kept stage's model.
+    pub model: Model,
+    /// The kept stage's pass (for the covariance).
+    pub pass: IvPass,
+    /// Stages run.
+    pub stages: usize,
+    /// Whether θ̂ settled (relative change below [`IV_SETTLED`]).
+    pub converged: bool,
+    /// Unstable auxiliary models, the kept stage when not the last, unsettled stages.
+    pub notes: Vec<Note>,
+}
+
+/// Recursive IV in at most `stages` stages on the regression `r` (one input or several): stage s
+/// simulates the auxiliary model (first `start`, the least-squares estimate with full θ `theta_start`;
+/// then stage s−1's model) driven by every input `u`, from rest at the mean of the first k0 outputs,
+/// builds the instruments from that simulation (`rows_for(aux)` gives the regressor with the auxiliary
+/// model's static nonlinearities) and runs one [`pass`]; `model_of` turns a full θ̂ into a model. The
+/// stage whose model simulates the record best (from the same rest) is kept. An unstable auxiliary
+/// model has its poles reflected into the unit circle first (a note says so).
+#[allow(clippy::too_many_arguments)]
+pub fn staged<F: Fn(&[f64], usize, &mut [f64])>(
+    start: &Model,
+    theta_start: &[f64],
+    u: &[&[f64]],
+    r: &IvRegression<()>,
+    rows_for: impl Fn(&Model) -> F,
+    model_of: impl Fn(&DVector<f64>) -> Result<Model, SysidError>,
+    stages: usize,
+    forgetting: f64,
+    p0: f64,
+) -> Result<Staged, SysidError> {
+    let (y, k0) = (r.y, r.k0);
+    let gather = |full: &DVector<f64>| -> DVector<f64> {
+        DVector::from_iterator(
+            r.free.iter().filter(|f| **f).count(),
+            full.iter()
+                .zip(r.free)
+                .filter(|(_, f)| **f)
+                .map(|(v, _)| *v),
+        )
+    };
+    let scatter = |sub: &DVector<f64>| -> DVector<f64> {
+        let mut out = DVector::zeros(r.free.len());
+        let free_entries = out.iter_mut().zip(r.free).filter(|(_, f)| **f);
+        for ((o, _), v) in free_entries.zip(sub.iter()) {
+            *o = *v;
+        }
+        out
+    };
+    let mut aux = start.clone();
+    let mut theta_full = DVector::from_column_slice(theta_start);
+    let mut best: Option<(f64, usize, DVector<f64>, Model, IvPass)> = None;
+    let mut converged = false;
+    let mut run = 0;
+    let mut notes = Vec::new();
+    // The auxiliary simulation starts at rest at the mean of the first k0 outputs: the measured initial
+    // outputs carry noise, and for a near-integrator a noisy initial velocity makes the simulated output
+    // drift away from the true one for the whole record (weak instruments).
+    let mut y_init = y.to_vec();
+    if k0 > 0 {
+        let mean = y[..k0].iter().sum::<f64>() / k0 as f64;
+        y_init[..k0].fill(mean);
+    }
+    for stage in 1..=stages {
+        run = stage;
+        let y_aux = match aux.simulate_miso(u, &y_init) {
+            Ok(ys) => ys,
+            Err(_) => {
+                let a = crate::oe::stabilise(aux.a());
+                aux = aux.with_a(a)?;
+                notes.push(Note::UnstableAuxiliary { stage });
+                aux.simulate_miso(u, &y_init)?
+            }
+        };
+        let stage_r = IvRegression {
+            rows: rows_for(&aux),
+            y,
+            k0,
+            free: r.free,
+            name: r.name,
+        };
+        let pass = pass(&stage_r, &y_aux, &gather(&theta_full), forgetting, p0)?;
+        let next = scatter(&pass.theta);
+        let change = (&next - &theta_full).norm() / (1e-300 + next.norm());
+        theta_full = next;
+        let model = model_of(&theta_full)?;
+        // Keep the stage whose model simulates the record best (from rest, as the instruments do).
+        let sim_rss = model
+            .simulate_miso(u, &y_init)
+            .ok()
+            .map_or(f64::INFINITY, |ys| {
+                ys[k0..]
+                    .iter()
+                    .zip(&y[k0..])
+                    .map(|(a, b)| (a - b) * (a - b))
+                    .sum::<f64>()
+            });
+        if best.as_ref().is_none_or(|b| sim_rss < b.0) {
+            best = Some((sim_rss, stage, theta_full.clone(), model.clone(), pass));
+        }
+        aux = model;
+        if change < IV_SETTLED {
+            converged = true;
+            break;
+        }
+    }
+    let Some((_, best_stage, theta, model, pass)) = best else {
+        return Err(SysidError::Numerical("IV produced no estimate".into()));
+    };
+    if best_stage != run {
+        notes.push(Note::KeptStage {
+            kept: best_stage,
+            of: run,
+        });
+    }
+    if !converged {
+        notes.push(Note::StagesNotSettled { stages: run });
+    }
+    Ok(Staged {
+        theta,
+        model,
+        pass,
+        stages: run,
+        converged,
+        notes,
+    })
 }
 
 /// Asymptotic covariance of the basic IV estimate, σ² (ZᵀΦ)⁻¹ ZᵀZ (ΦᵀZ)⁻¹, or `None` when ZᵀΦ is

@@ -12,7 +12,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use crate::estimate::{Note, OeVerdict};
+use crate::estimate::{Estimator, Note, OeVerdict};
 use crate::oe::{miso_params, miso_vector, NamedParam};
 use crate::warnings::Warning;
 use sysid_core::param::deadzone_from_theta;
@@ -157,12 +157,18 @@ impl<'a> Regression<'a> {
 
     /// φ(k) with the deadzones `dz` (one per input).
     fn fill_row(&self, dz: &[Deadzone], k: usize, row: &mut [f64]) {
+        self.fill_row_from(self.y, dz, k, row);
+    }
+
+    /// φ(k) built from the output sequence `ys` (the measured y, or an auxiliary simulation for the
+    /// IV instruments) with the deadzones `dz`.
+    fn fill_row_from(&self, ys: &[f64], dz: &[Deadzone], k: usize, row: &mut [f64]) {
         for (c, v) in row.iter_mut().enumerate() {
             *v = regressor(
                 self.inputs,
                 &self.nonlinear,
                 dz,
-                self.y,
+                ys,
                 self.na,
                 self.offset,
                 k,
@@ -271,8 +277,168 @@ impl MisoProblem<'_> {
         reg.fit(&theta, &dz, self.ts, iterations, converged)
     }
 
-    /// The fit by the estimator `settings` says: least squares, RLS or output error (`name` names the
-    /// record in errors). Instrumental variables take one input: refused, naming `--method`.
+    /// The fit by `settings.estimator` ([`MisoProblem::fit`]) with the safeguards of one input applied
+    /// per input ([`MisoProblem::safeguard`]); `settings.fallback` substitutes the linear start.
+    pub fn identify(
+        &self,
+        settings: &crate::Identification,
+        name: &str,
+    ) -> Result<MisoFit, SysidError> {
+        let fit = self.fit(&settings.estimator, name)?;
+        self.safeguard(fit, settings.estimator.method(), settings.fallback, name)
+    }
+
+    /// The safeguards of `estimate::identify` for a several-input Hammerstein fit (by `method`):
+    /// an estimate whose estimation simulation diverges, that is unstable while the linear ARX start is
+    /// not, or whose simulation fit trails the start's by more than
+    /// [`crate::estimate::FALLBACK_FIT_MARGIN`] points gets a warning, or with `fallback` is replaced by
+    /// the linear start (b_l = b_r = 0, m_l = m_r = b1 on each nonlinear input); then each estimated
+    /// deadzone is checked against its own input ([`crate::warnings::deadzone_warnings`]: breakpoint on
+    /// an input level or within 1 σ of one, not bracketed, not physical, too few levels), the warning
+    /// naming the input, and a breakpoint whose standard deviation is not meaningful loses it. ARX and
+    /// all-linear fits are returned unchanged.
+    pub fn safeguard(
+        &self,
+        mut fit: MisoFit,
+        method: crate::Method,
+        fallback: bool,
+        name: &str,
+    ) -> Result<MisoFit, SysidError> {
+        let reg = self.regression()?;
+        if !reg.nonlinear.iter().any(|&v| v) {
+            return Ok(fit);
+        }
+        let us: Vec<&[f64]> = self.inputs.iter().map(|m| m.u.as_slice()).collect();
+        let fit_sim = |m: &Model| {
+            sysid_core::metrics::metrics_miso(m, &us, self.y, name)
+                .ok()
+                .and_then(|m| m.fit_sim_percent)
+        };
+        if let Some((linear, linear_fit)) = self.linear_start(&reg).and_then(|l| {
+            let f = fit_sim(&l.model)?;
+            Some((l, f))
+        }) {
+            if let Some(why) = crate::estimate::hammerstein_guard(
+                method,
+                fit_sim(&fit.model),
+                fit.model.is_stable(),
+                linear.model.is_stable(),
+                linear_fit,
+            ) {
+                if fallback {
+                    let mut warnings = std::mem::take(&mut fit.warnings);
+                    warnings.push(Warning::Fallback {
+                        used: format!(
+                            "{} on each nonlinear input",
+                            crate::estimate::LINEAR_START_USED
+                        ),
+                        why,
+                    });
+                    // The fallback's breakpoints are fixed at 0 by construction: nothing to check.
+                    return Ok(MisoFit {
+                        warnings,
+                        notes: fit.notes,
+                        iterations: fit.iterations,
+                        converged: fit.converged,
+                        ..linear
+                    });
+                }
+                fit.warnings.push(Warning::LinearStartBetter { why });
+            }
+        }
+        for (ch, m) in fit.model.inputs().iter().zip(self.inputs) {
+            let Some(d) = ch.deadzone() else { continue };
+            let std = |n: &str| {
+                let full = format!("{n} ({})", ch.name());
+                fit.params
+                    .iter()
+                    .find(|q| q.name == full)
+                    .and_then(|q| q.std)
+            };
+            let (w, no_std) =
+                crate::warnings::deadzone_warnings(d, &m.u, (true, true), (std("b_l"), std("b_r")));
+            for n in no_std {
+                let full = format!("{n} ({})", ch.name());
+                for q in fit.params.iter_mut().filter(|q| q.name == full) {
+                    q.std = None;
+                }
+            }
+            fit.warnings
+                .extend(w.into_iter().map(|w| Warning::ForInput {
+                    input: ch.name().to_string(),
+                    warning: Box::new(w),
+                }));
+        }
+        Ok(fit)
+    }
+
+    /// The linear ARX least-squares model of the same orders, written as a Hammerstein model (each
+    /// nonlinear input: b_l = b_r = 0, m_l = m_r = b1, B/b1), with standard deviations where the ARX
+    /// regression gives them (a, linear inputs' B, c; m_l and m_r from b1); `None` when it cannot be
+    /// estimated or a nonlinear input's b1 is 0.
+    fn linear_start(&self, reg: &Regression) -> Option<MisoFit> {
+        let arx = MisoProblem {
+            kind: ModelKind::Arx,
+            ..*self
+        }
+        .least_squares(1)
+        .ok()?;
+        let m = &arx.model;
+        let mut channels = Vec::with_capacity(m.inputs().len());
+        for (ch, &nl) in m.inputs().iter().zip(&reg.nonlinear) {
+            if !nl {
+                channels.push(ch.clone());
+                continue;
+            }
+            let b1 = *ch.b().first()?;
+            if b1 == 0.0 || !b1.is_finite() {
+                return None;
+            }
+            let d = Deadzone {
+                b_l: 0.0,
+                b_r: 0.0,
+                m_l: b1,
+                m_r: b1,
+            };
+            let b = ch.b().iter().map(|v| v / b1).collect();
+            let f = StaticNonlinearity::Deadzone(d);
+            channels.push(InputChannel::new(ch.name().to_string(), ch.nk(), b, f).ok()?);
+        }
+        let model = Model::new(m.ts(), m.a().to_vec(), channels, m.offset()).ok()?;
+        let arx_std = |n: &str| arx.params.iter().find(|q| q.name == n).and_then(|q| q.std);
+        let (values, names) = miso_vector(&model);
+        let std = |i: usize| {
+            let n: &str = &names[i];
+            let (head, input) = n.split_once(' ').unwrap_or((n, ""));
+            match head {
+                "m_l" | "m_r" => arx_std(&format!("b1 {input}")),
+                "b_l" | "b_r" => None,
+                _ if reg.nonlinear.iter().any(|&v| v) && head.starts_with('b') => {
+                    // B/b1 of a nonlinear input has no standard deviation of its own here.
+                    let linear = self
+                        .inputs
+                        .iter()
+                        .zip(&reg.nonlinear)
+                        .any(|(mi, &nl)| !nl && input == format!("({})", mi.name));
+                    if linear {
+                        arx_std(n)
+                    } else {
+                        None
+                    }
+                }
+                _ => arx_std(n),
+            }
+        };
+        let params = miso_params(&model, &names, |i| values[i], std);
+        Some(MisoFit {
+            model,
+            params,
+            ..arx
+        })
+    }
+
+    /// The fit by the estimator `settings` says: least squares, RLS, output error or instrumental
+    /// variables (`name` names the record in errors).
     pub fn fit(
         &self,
         settings: &crate::EstimatorSettings,
@@ -284,12 +450,7 @@ impl MisoProblem<'_> {
             crate::EstimatorSettings::Oe(st) => {
                 self.output_error(st.start.max_iterations, st.max_iterations, name)
             }
-            crate::EstimatorSettings::Iv(_) => Err(SysidError::setting(
-                sysid_core::Setting::Other("--method"),
-                "iv",
-                "ls, rls or oe: several inputs are estimated by least squares, recursive least squares \
-                 or output error; instrumental variables take one input",
-            )),
+            crate::EstimatorSettings::Iv(st) => self.instrumental(st, name),
         }
     }
 
@@ -335,6 +496,68 @@ impl MisoProblem<'_> {
             notes: verdict.notes,
             warnings: verdict.fallback.into_iter().collect(),
             ..start
+        })
+    }
+
+    /// Recursive instrumental variables in stages ([`crate::iv::staged`], the same implementation as
+    /// for one input) with the settings `st`: the first auxiliary model is [`MisoProblem::least_squares`]
+    /// (at most `st.start.max_iterations` key-term solves); the instruments z(k) are the regressor built
+    /// from the auxiliary model's noise-free simulation driven by every input (as MATLAB `iv4` for
+    /// several inputs), with each input's switching functions and x̂ from the auxiliary model's deadzone.
+    /// Standard deviations from σ̂² (ZᵀΦ)⁻¹ ZᵀZ (ΦᵀZ)⁻¹, σ̂² the equation-error residual variance of the
+    /// kept model (delta method for the breakpoints). `iterations` counts the stages; `converged` says
+    /// whether θ̂ settled. `name` names the record in errors.
+    pub fn instrumental(
+        &self,
+        st: &crate::InstrumentalVariables,
+        name: &str,
+    ) -> Result<MisoFit, SysidError> {
+        let reg = self.regression()?;
+        let start = self.least_squares(st.start.max_iterations)?;
+        let (theta_start, start_dz) = key_term_vector(&reg, &start.model);
+        let free = vec![true; reg.len()];
+        let r = crate::iv::IvRegression {
+            rows: (),
+            y: self.y,
+            k0: reg.k0,
+            free: &free,
+            name,
+        };
+        let us: Vec<&[f64]> = self.inputs.iter().map(|m| m.u.as_slice()).collect();
+        let reg_ref = &reg;
+        let out = crate::iv::staged(
+            &start.model,
+            &theta_start,
+            &us,
+            &r,
+            |aux: &Model| {
+                let dz = deadzones_of(aux, &start_dz);
+                move |ys: &[f64], k: usize, row: &mut [f64]| reg_ref.fill_row_from(ys, &dz, k, row)
+            },
+            |theta| {
+                let mut dz = start_dz.clone();
+                reg.update_deadzones(theta.as_slice(), &mut dz);
+                reg.model(theta.as_slice(), &dz, self.ts)
+                    .map_err(|e| SysidError::Numerical(format!("{name}: {e}")))
+            },
+            st.stages,
+            st.forgetting,
+            st.p0,
+        )?;
+        let dz = deadzones_of(&out.model, &start_dz);
+        let (phi, target) = stacked(std::slice::from_ref(&reg), &dz);
+        let rss = (&target - &phi * &out.theta).norm_squared();
+        let sigma2 = rss / phi.nrows().saturating_sub(phi.ncols()).max(1) as f64;
+        let cov = crate::iv::covariance(&out.pass, sigma2);
+        let params = params_with_cov(&reg, out.theta.as_slice(), cov.as_ref(), &out.model);
+        Ok(MisoFit {
+            model: out.model,
+            params,
+            noise_variance: sigma2,
+            iterations: out.stages,
+            converged: out.converged,
+            notes: out.notes,
+            warnings: Vec::new(),
         })
     }
 
@@ -447,9 +670,7 @@ fn params_stacked(
     model: &Model,
 ) -> (Vec<NamedParam>, f64) {
     let (phi, target) = stacked(regs, dz);
-    let (names, n_key) = regs
-        .first()
-        .map_or((&[][..], 0), |r| (&r.names[..], r.n_key));
+    let names = regs.first().map_or(&[][..], |r| &r.names[..]);
     let th = DVector::from_column_slice(theta);
     let rss = (&target - &phi * &th).norm_squared();
     let dof = phi.nrows().saturating_sub(phi.ncols()).max(1);
@@ -457,9 +678,23 @@ fn params_stacked(
     let cov = crate::ls::solve(&phi, &target, names)
         .ok()
         .map(|sol| sol.inv_gram * sigma2);
+    match regs.first() {
+        Some(r) => (params_with_cov(r, theta, cov.as_ref(), model), sigma2),
+        None => (Vec::new(), sigma2),
+    }
+}
+
+/// The physical parameters of `model` (θ̂ in the key-term layout of `reg`) with standard deviations
+/// from Cov(θ̂) = `cov` (the breakpoints by the delta method).
+fn params_with_cov(
+    reg: &Regression,
+    theta: &[f64],
+    cov: Option<&DMatrix<f64>>,
+    model: &Model,
+) -> Vec<NamedParam> {
+    let n_key = reg.n_key;
     let sd = |i: usize| {
-        cov.as_ref()
-            .map(|c| c[(i, i)])
+        cov.map(|c| c[(i, i)])
             .filter(|v| v.is_finite() && *v >= 0.0)
             .map(f64::sqrt)
     };
@@ -471,14 +706,42 @@ fn params_stacked(
         }
         let t = i - i % 4;
         match i % 4 {
-            0 => crate::estimate::ratio_with_std(theta, cov.as_ref(), t + 2, t + 3).1,
-            1 => crate::estimate::ratio_with_std(theta, cov.as_ref(), t, t + 1).1,
+            0 => crate::estimate::ratio_with_std(theta, cov, t + 2, t + 3).1,
+            1 => crate::estimate::ratio_with_std(theta, cov, t, t + 1).1,
             2 => sd(t + 2),
             _ => sd(t),
         }
     };
     let (values, pnames) = miso_vector(model);
-    (miso_params(model, &pnames, |i| values[i], std), sigma2)
+    miso_params(model, &pnames, |i| values[i], std)
+}
+
+/// The key-term θ of `model` in the layout of `reg` (module docs) and its deadzones (one per input;
+/// [`START_DEADZONE`] for a linear one).
+fn key_term_vector(reg: &Regression, model: &Model) -> (Vec<f64>, Vec<Deadzone>) {
+    let dz = deadzones_of(model, &vec![START_DEADZONE; reg.inputs.len()]);
+    let mut theta = Vec::with_capacity(reg.len());
+    for (d, &nl) in dz.iter().zip(&reg.nonlinear) {
+        if nl {
+            theta.extend([d.m_r, d.m_r * d.b_r, d.m_l, d.m_l * d.b_l]);
+        }
+    }
+    theta.extend_from_slice(model.a());
+    for (ch, &nl) in model.inputs().iter().zip(&reg.nonlinear) {
+        theta.extend_from_slice(&ch.b()[usize::from(nl)..]);
+    }
+    theta.extend(model.offset());
+    (theta, dz)
+}
+
+/// The deadzone of each input of `model`, `default[m]` for an input without one.
+fn deadzones_of(model: &Model, default: &[Deadzone]) -> Vec<Deadzone> {
+    model
+        .inputs()
+        .iter()
+        .zip(default)
+        .map(|(ch, d)| ch.deadzone().copied().unwrap_or(*d))
+        .collect()
 }
 
 /// Least squares on several records at once (MATLAB `merge`): `records[r]` are the inputs of record r

@@ -416,6 +416,10 @@ impl MisoReport {
                     "the output-error search stopped at its iteration limit ({}) before converging",
                     fit.iterations
                 ),
+                Method::Iv => format!(
+                    "the IV stages had not settled after {} stage(s) (--iv-stages)",
+                    fit.iterations
+                ),
                 _ => format!(
                     "the key-term iteration did not reach its fixed point in {} iteration(s) \
                      (--max-iterations); the estimate may not be the least-squares one",
@@ -437,7 +441,8 @@ impl MisoReport {
         }
         for p in &fit.params {
             let fixed = p.name.starts_with("b1 (") && p.value == 1.0;
-            if p.std.is_none() && !fixed {
+            let explained = fit.warnings.iter().any(|w| w.explains_missing_std(&p.name));
+            if p.std.is_none() && !fixed && !explained {
                 warnings.push(format!(
                     "{} = {}: its standard deviation could not be computed (the regression or the \
                      Jacobian is singular there)",

@@ -3,7 +3,7 @@
 //! the sentence users read. [`deadzone_warnings`] holds the checks of a deadzone against the data.
 
 use serde::{Serialize, Serializer};
-use sysid_core::{Dataset, Deadzone, Model, ParamName};
+use sysid_core::{Deadzone, Model, ParamName};
 
 /// Which record a warning is about.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -100,6 +100,13 @@ pub enum Warning {
         /// What is wrong.
         why: String,
     },
+    /// A warning about the deadzone of one input of a several-input model.
+    ForInput {
+        /// The input's name.
+        input: String,
+        /// The warning (one of the deadzone checks).
+        warning: Box<Warning>,
+    },
     /// A deadzone branch with fewer than two distinct input levels beyond its breakpoint: its slope and
     /// breakpoint are not separately determined.
     FewInputLevels {
@@ -154,6 +161,7 @@ impl std::fmt::Display for Warning {
                  meaningful (not reported)"
             ),
             Warning::NonPhysicalDeadzone { why } => write!(f, "deadzone not physical: {why}"),
+            Warning::ForInput { input, warning } => write!(f, "input {input}: {warning}"),
             Warning::FewInputLevels { branch, levels } => write!(
                 f,
                 "too few distinct input levels on the {branch} deadzone branch ({levels} beyond its \
@@ -164,6 +172,24 @@ impl std::fmt::Display for Warning {
 }
 
 impl Warning {
+    /// Whether this warning already says why the parameter named `param` (as in a several-input
+    /// parameter list: `b_l (u1)`) has no standard deviation: a breakpoint warning naming it, or the
+    /// linear start returned by the fallback (its breakpoints are fixed at 0 and its B/b1 not estimated
+    /// as such).
+    pub fn explains_missing_std(&self, param: &str) -> bool {
+        match self {
+            Warning::Fallback { used, .. } => used.starts_with(crate::estimate::LINEAR_START_USED),
+            Warning::ForInput { input, warning } => match warning.as_ref() {
+                Warning::BreakpointOnInputLevel { name, .. }
+                | Warning::BreakpointNotBracketed { name, .. } => {
+                    param == format!("{name} ({input})")
+                }
+                _ => false,
+            },
+            _ => false,
+        }
+    }
+
     /// [`Warning::Unstable`] when a pole of `model` has modulus >= 1.
     pub fn if_unstable(model: &Model) -> Option<Warning> {
         let max_pole_modulus = model.poles().iter().map(|z| z.norm()).fold(0.0, f64::max);
@@ -196,13 +222,13 @@ impl Serialize for Warning {
 /// breakpoints whose standard deviation is not meaningful.
 pub fn deadzone_warnings(
     d: &Deadzone,
-    data: &Dataset,
+    u: &[f64],
     (left, right): (bool, bool),
     (std_l, std_r): (Option<f64>, Option<f64>),
 ) -> (Vec<Warning>, Vec<ParamName>) {
     let mut w = Vec::new();
     let mut no_std = Vec::new();
-    let mut levels: Vec<f64> = data.u.clone();
+    let mut levels: Vec<f64> = u.to_vec();
     levels.sort_by(f64::total_cmp);
     levels.dedup();
     let (u_min, u_max) = match (levels.first(), levels.last()) {
@@ -269,6 +295,8 @@ mod tests {
     use super::*;
     use sysid_core::data::Signals;
 
+    use sysid_core::Dataset;
+
     fn data(u: Vec<f64>) -> Dataset {
         let y = vec![0.0; u.len()];
         Dataset::new(Signals { u, y }, 1.0, "t").unwrap()
@@ -286,7 +314,7 @@ mod tests {
             m_l: 0.005,
             m_r: 0.005,
         };
-        let (w, no_std) = deadzone_warnings(&dz, &d, (true, true), (None, None));
+        let (w, no_std) = deadzone_warnings(&dz, &d.u, (true, true), (None, None));
         assert_eq!(no_std, vec![ParamName::BL]);
         assert!(matches!(
             w[..],
@@ -299,13 +327,13 @@ mod tests {
             b_l: -47.99996,
             ..dz
         };
-        let (w, _) = deadzone_warnings(&near, &d, (true, true), (Some(0.5), Some(0.1)));
+        let (w, _) = deadzone_warnings(&near, &d.u, (true, true), (Some(0.5), Some(0.1)));
         assert!(
             matches!(w[..], [Warning::BreakpointOnInputLevel { .. }]),
             "{w:?}"
         );
         let apart = Deadzone { b_l: -47.6, ..dz };
-        let (w, no_std) = deadzone_warnings(&apart, &d, (true, true), (Some(0.1), Some(0.1)));
+        let (w, no_std) = deadzone_warnings(&apart, &d.u, (true, true), (Some(0.1), Some(0.1)));
         assert!(w.is_empty() && no_std.is_empty(), "{w:?}");
     }
 
@@ -319,7 +347,7 @@ mod tests {
             m_l: 1.0,
             m_r: 1.0,
         };
-        let (w, no_std) = deadzone_warnings(&dz, &d, (true, true), (None, None));
+        let (w, no_std) = deadzone_warnings(&dz, &d.u, (true, true), (None, None));
         assert_eq!(no_std, vec![ParamName::BR]);
         assert!(w.contains(&Warning::BreakpointNotBracketed {
             name: ParamName::BR,
@@ -348,7 +376,7 @@ mod tests {
             m_l: -1.0,
             m_r: 1.0,
         };
-        let (w, _) = deadzone_warnings(&dz, &d, (true, true), (None, None));
+        let (w, _) = deadzone_warnings(&dz, &d.u, (true, true), (None, None));
         let n = w
             .iter()
             .filter(|w| matches!(w, Warning::NonPhysicalDeadzone { .. }))
@@ -366,7 +394,7 @@ mod tests {
             m_l: 0.0,
             m_r: 1.0,
         };
-        let (w, _) = deadzone_warnings(&dz, &d, (false, true), (None, None));
+        let (w, _) = deadzone_warnings(&dz, &d.u, (false, true), (None, None));
         assert!(w.is_empty(), "{w:?}");
     }
 }

@@ -502,8 +502,8 @@ fn run_merged(args: &Args) -> anyhow::Result<()> {
     save_model(args, &fit.model, &inputs)
 }
 
-/// Runs `identify --u-col u1,u2,...`: one model with several inputs (MISO), by least squares, RLS or
-/// output error.
+/// Runs `identify --u-col u1,u2,...`: one model with several inputs (MISO), by least squares, RLS,
+/// output error or instrumental variables, with the single-input safeguards applied per input.
 fn run_miso(args: &Args) -> anyhow::Result<()> {
     let names: Vec<String> = args
         .columns
@@ -611,7 +611,7 @@ fn run_miso(args: &Args) -> anyhow::Result<()> {
             kind: args.model,
             offset: args.offset,
         };
-        let mut fit = problem.fit(&args.settings().estimator, &r.name)?;
+        let mut fit = problem.identify(&args.settings(), &r.name)?;
         fit.model = fit.model.with_operating_point(op)?;
         fit
     };
@@ -664,6 +664,11 @@ fn run_miso(args: &Args) -> anyhow::Result<()> {
             "output error ({} iteration(s){})",
             fit.iterations,
             if c { ", converged" } else { ", NOT converged" }
+        ),
+        (Method::Iv, c) => format!(
+            "instrumental variables ({} stage(s){})",
+            fit.iterations,
+            if c { ", settled" } else { ", NOT settled" }
         ),
         (_, true) => format!("least squares ({} key-term iteration(s))", fit.iterations),
         (_, false) => format!(

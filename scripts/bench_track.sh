@@ -2,7 +2,8 @@
 # Throughput of `ipa-sysid track` from standard input (docs/online.md, docs/benchmarks.md): simulates N
 # samples of the paper's plant (default 2 000 000, 63 MB of CSV), pipes them R times (default 5)
 # through `track --data - --every N` (one JSON line at the end) and prints the best run in samples/s,
-# for the defaults (trace windup guard, change detector, deadzone guard) and for the plain paper RLS.
+# for the defaults (trace windup guard, change detector), with --guard --restart-on-change, and for the
+# plain paper RLS.
 #   scripts/bench_track.sh [N [R]]      (IPA_SYSID=path/to/ipa-sysid to use another binary)
 set -eu
 N=${1:-2000000}
@@ -11,7 +12,7 @@ B=${IPA_SYSID:-target/release/ipa-sysid}
 DIR=$(mktemp -d)
 trap 'rm -rf "$DIR"' EXIT
 "$B" simulate --plant paper --input aprbs --samples "$N" --noise-std 0.01 --seed 1 --out "$DIR/big.csv" 2>/dev/null
-for args in "" "--windup none --no-detect --no-guard"; do
+for args in "" "--guard --restart-on-change" "--windup none --no-detect"; do
     best=""
     i=0
     while [ "$i" -lt "$R" ]; do

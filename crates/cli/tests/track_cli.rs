@@ -100,7 +100,6 @@ fn track_from_stdin_ends_at_the_model_of_the_one_pass_recursive_identification()
             "-",
             "--windup",
             "none",
-            "--no-guard",
             "--every",
             "1000",
             "--b-l0",

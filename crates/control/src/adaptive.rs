@@ -85,6 +85,8 @@ impl Default for AdaptiveSettings {
         AdaptiveSettings {
             tracker: TrackSettings {
                 forgetting: 0.995,
+                guard: true,
+                restart_on_change: true,
                 ..TrackSettings::default()
             },
             min_updates: 100,

@@ -10,10 +10,11 @@
 //! `--windup none`, [`RobustRls`] otherwise). The only input `identify` takes from the whole record is
 //! the start of the deadzone (the largest negative and smallest positive command, and max |u| as the
 //! clamp); online these are settings, [`DeadzoneStart`], whose default (−1, 1, 255) suits integer PWM
-//! commands. With [`DeadzoneStart::from_record`] and without the deadzone guard
-//! ([`TrackSettings::guard`] = false) the estimate equals `identify`'s bit for bit. The guard (on by
-//! default) keeps the switching functions from using a deadzone branch with a slope ≤ 0 or a breakpoint
-//! on the wrong side of zero, on which the one-pass estimate can otherwise lock (docs/online.md).
+//! commands. With the defaults (no deadzone guard, no restart on a change) and the start `identify`
+//! uses ([`DeadzoneStart::from_record`], or the default on integer PWM commands) the estimate equals
+//! `identify`'s bit for bit. The guard ([`TrackSettings::guard`], opt-in) keeps the switching functions
+//! from using a deadzone branch with a slope ≤ 0 or a breakpoint on the wrong side of zero, on which
+//! the one-pass estimate can otherwise lock (docs/online.md).
 //!
 //! # Change detection
 //!
@@ -21,9 +22,11 @@
 //! module documents the average run lengths): after a warm-up of [`DetectorSettings::warmup`] samples
 //! (the estimator converging) σ̂² is the mean of ε² over the next [`DetectorSettings::calibration`]
 //! samples, then g(k) = max(0, g(k−1) + z(k) − ν) raises an alarm when g > h. On an alarm the tracker
-//! records a change point, restarts the covariance P = p0 · I (θ̂ kept, so the estimator re-converges on
-//! the new valve) and starts a new detector (warm-up and calibration again, because the noise level of
-//! the new valve may differ). No second alarm can come during that warm-up and calibration.
+//! records a change point, with [`TrackSettings::restart_on_change`] restarts the covariance P = p0 · I
+//! (θ̂ kept, so the estimator re-converges on the new valve), and starts a new detector (warm-up and
+//! calibration again, because the noise level of the new valve may differ). No second alarm can come
+//! during that warm-up and calibration. Without the restart (the default) the alarm changes nothing in
+//! the estimate.
 
 use std::io::{BufRead, Write};
 
@@ -149,13 +152,19 @@ pub struct TrackSettings {
     pub detector: Option<DetectorSettings>,
     /// Hammerstein: the switching functions and x̂ never use a deadzone branch with a slope ≤ 0 or a
     /// breakpoint on the wrong side of zero (b_l > 0, b_r < 0); the last plausible branch is kept
-    /// instead. Without it (`false`) every sample is exactly `identify`'s first pass.
+    /// instead. Without it (`false`, the default) every sample is exactly `identify`'s first pass.
     pub guard: bool,
+    /// On a detected change restart the covariance P = p0 · I (θ̂ kept), so the estimate re-converges on
+    /// the changed plant with full gain. Without it (`false`, the default) a change is only reported and
+    /// the estimate stays exactly `identify`'s first pass.
+    pub restart_on_change: bool,
 }
 
 impl Default for TrackSettings {
     /// The paper's structure (Hammerstein, na = 3, nb = 1, nk = 1), ρ = 1, p0 = 10⁶, trace windup
-    /// guard, [`DeadzoneStart::PWM`], a window of 100 errors, the default detector, the deadzone guard.
+    /// guard, [`DeadzoneStart::PWM`], a window of 100 errors, the default detector reporting changes
+    /// (no restart), no deadzone guard: with `windup: Windup::None` the estimate is then exactly
+    /// `identify --method rls --passes 1`'s, whatever the detector reports.
     fn default() -> Self {
         TrackSettings {
             kind: ModelKind::Hammerstein,
@@ -167,7 +176,8 @@ impl Default for TrackSettings {
             start: DeadzoneStart::PWM,
             pe_window: 100,
             detector: Some(DetectorSettings::default()),
-            guard: true,
+            guard: false,
+            restart_on_change: false,
         }
     }
 }
@@ -328,7 +338,8 @@ impl Tracker {
         self.k0
     }
 
-    /// Updates of θ̂ since the start or the last detected change.
+    /// Updates of θ̂ since the start or the last covariance restart (a detected change with
+    /// [`TrackSettings::restart_on_change`]).
     pub fn updates_since_restart(&self) -> usize {
         self.updates
     }
@@ -402,8 +413,10 @@ impl Tracker {
         }
         if change {
             self.changes.push(k);
-            self.est.restart_covariance(self.settings.p0);
-            self.updates = 0;
+            if self.settings.restart_on_change {
+                self.est.restart_covariance(self.settings.p0);
+                self.updates = 0;
+            }
             self.detector = self.settings.detector.map(|d| d.detector()).transpose()?;
         }
         Ok(Step {

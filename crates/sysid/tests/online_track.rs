@@ -76,12 +76,49 @@ fn record(n: usize, change: Option<usize>, noise: f64, seed: u64) -> (Vec<f64>, 
     (u, y)
 }
 
+/// The live-tracking settings `track --guard --restart-on-change`: the deadzone guard (without it the
+/// one-pass estimate can lock on a wrong deadzone, and the detector then flags the lock) and the
+/// covariance restarted on a detected change.
+fn restart() -> TrackSettings {
+    TrackSettings {
+        guard: true,
+        restart_on_change: true,
+        ..TrackSettings::default()
+    }
+}
+
 fn track(u: &[f64], y: &[f64], settings: TrackSettings) -> Tracker {
     let mut t = Tracker::new(settings).unwrap();
     for (&u, &y) in u.iter().zip(y) {
         t.push(u, y).unwrap();
     }
     t
+}
+
+// The defaults only report a change: on a record whose valve changes (the detector fires) the final
+// estimate is still bit-for-bit the batch one-pass RLS, which knows nothing of changes.
+#[test]
+fn the_defaults_report_changes_without_touching_the_estimate() {
+    let (u, y) = record(40_000, Some(20_000), 0.01, 21);
+    let settings = TrackSettings {
+        windup: Windup::None,
+        start: DeadzoneStart::from_record(&u).unwrap(),
+        ..TrackSettings::default()
+    };
+    assert!(!settings.guard && !settings.restart_on_change && settings.detector.is_some());
+    let t = track(&u, &y, settings);
+    assert!(
+        !t.change_points().is_empty(),
+        "the detector should fire on this record"
+    );
+    let data = Dataset::new(Signals { u, y }, 0.01, "r").unwrap();
+    let id =
+        Identification::default().with_estimator(EstimatorSettings::Rls(RecursiveLeastSquares {
+            passes: Passes::Fixed(1),
+            windup: Windup::None,
+            ..RecursiveLeastSquares::default()
+        }));
+    assert_eq!(t.model(0.01).unwrap(), identify(&data, &id).unwrap().model);
 }
 
 // Without the deadzone guard the tracker makes the same floating-point operations in the same order as
@@ -151,7 +188,7 @@ fn a_valve_whose_deadzone_and_slope_change_is_flagged_within_a_few_hundred_sampl
     let change = 20_000;
     for seed in 21..31 {
         let (u, y) = record(40_000, Some(change), 0.01, seed);
-        let t = track(&u, &y, TrackSettings::default());
+        let t = track(&u, &y, restart());
         let first = t.change_points().first().copied();
         eprintln!(
             "seed {seed}: alarms at {:?} (change at {change})",
@@ -179,13 +216,13 @@ fn a_valve_whose_deadzone_and_slope_change_is_flagged_within_a_few_hundred_sampl
 #[test]
 fn without_detection_the_estimate_lags_behind_the_new_valve() {
     let (u, y) = record(40_000, Some(20_000), 0.01, 21);
-    let with = track(&u, &y, TrackSettings::default());
+    let with = track(&u, &y, restart());
     let without = track(
         &u,
         &y,
         TrackSettings {
             detector: None,
-            ..TrackSettings::default()
+            ..restart()
         },
     );
     let (a, b) = (with.pe_rms().unwrap(), without.pe_rms().unwrap());
@@ -256,6 +293,7 @@ fn the_deadzone_guard_prevents_the_one_pass_estimate_from_locking_on_a_wrong_dea
 fn the_predicted_deadzone_deviations_match_the_spread_over_independent_records() {
     let settings = TrackSettings {
         detector: None,
+        guard: true,
         ..TrackSettings::default()
     };
     let n = 40;

@@ -94,10 +94,18 @@ pub struct Args {
     /// Number of recent prediction errors in pe_rms.
     #[arg(long, value_name = "N", default_value_t = 100)]
     pub pe_window: usize,
-    /// Hammerstein: no deadzone guard (the switching functions then follow every estimate, as
-    /// `identify --method rls --passes 1` does, even a negative slope; see docs/online.md).
+    /// Hammerstein: the deadzone guard — the switching functions never use a branch with a slope ≤ 0
+    /// or a breakpoint on the wrong side of zero, on which the one-pass estimate can lock. Off by
+    /// default, so the estimate is exactly `identify --method rls --passes 1`'s (docs/online.md).
     #[arg(long)]
+    pub guard: bool,
+    /// Off by default, kept so that scripts that turned the guard off keep working.
+    #[arg(long, hide = true, conflicts_with = "guard")]
     pub no_guard: bool,
+    /// On a detected change restart the covariance P = p0 I (θ̂ kept) so the estimate re-converges on
+    /// the changed plant; without it a change is only reported (`change: true`, change points).
+    #[arg(long)]
+    pub restart_on_change: bool,
     /// No change detection.
     #[arg(long)]
     pub no_detect: bool,
@@ -144,7 +152,8 @@ impl Args {
                 drift: self.detect_drift,
                 threshold: self.detect_threshold,
             }),
-            guard: !self.no_guard,
+            guard: self.guard,
+            restart_on_change: self.restart_on_change,
         }
     }
 

@@ -183,6 +183,61 @@ fn a_stationary_simulated_record_gives_no_change_point() {
     assert_eq!(s["change_points"], serde_json::json!([]));
 }
 
+// The physics plant (the default of `simulate`) on its default staircase, unchanged for 50 000 samples.
+// Its friction is outside the tracked model, so the errors come in bursts while the piston moves; with
+// the fixed threshold h = 60 alone (`--detect-excursion-factor 0`) such records alarmed again after
+// every calibration. The threshold calibrated on the record's own bursts gives no alarm.
+#[test]
+fn a_stationary_physics_plant_record_gives_no_change_point() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("ipa.csv");
+    let o = run(
+        &[
+            "simulate",
+            "--samples",
+            "50000",
+            "--noise-std",
+            "0.01",
+            "--seed",
+            "2",
+            "--out",
+            data.to_str().unwrap(),
+        ],
+        b"",
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let count = |factor: &str| {
+        let summary = dir.path().join(format!("s{factor}.json"));
+        let o = run(
+            &[
+                "track",
+                "--data",
+                data.to_str().unwrap(),
+                "--every",
+                "100000",
+                "--detect-excursion-factor",
+                factor,
+                "--json-summary",
+                summary.to_str().unwrap(),
+            ],
+            b"",
+        );
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let s: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+        assert_eq!(s["samples"], 50_000);
+        (
+            s["change_points"].as_array().unwrap().len(),
+            s["detector_threshold"].as_f64().unwrap(),
+        )
+    };
+    let (fixed, h) = count("0");
+    assert!(fixed > 0 && h == 60.0, "{fixed} alarms with h = {h}");
+    let (calibrated, h) = count("4");
+    assert_eq!(calibrated, 0, "threshold {h}");
+    assert!(h > 60.0, "threshold {h}");
+}
+
 #[test]
 fn a_malformed_line_is_an_error_naming_line_and_column() {
     let o = run(&["track", "--data", "-"], b"t,u,y\n0,1,2\n0.01,abc,3\n");

@@ -40,7 +40,7 @@ use sysid_core::Deadzone;
 
 use crate::closed_loop::{run_with, Trace};
 use crate::{ControlError, DeadzoneCompensator, PiController, Profile};
-use sysid::online::{DeadzoneSd, DeadzoneStart, TrackSettings, Tracker};
+use sysid::online::{DeadzoneSd, DeadzoneStart, DetectorSettings, TrackSettings, Tracker};
 use sysid_core::Plant;
 
 /// Settings of the adaptation.
@@ -87,6 +87,13 @@ impl Default for AdaptiveSettings {
                 forgetting: 0.995,
                 guard: true,
                 restart_on_change: true,
+                // The fixed threshold h: in closed loop the set-point steps make the errors bursty, and
+                // a threshold raised to the calibration's bursts would miss the widening; a false alarm
+                // here only restarts P, which the gate below absorbs.
+                detector: Some(DetectorSettings {
+                    excursion_factor: 0.0,
+                    ..DetectorSettings::default()
+                }),
                 ..TrackSettings::default()
             },
             min_updates: 100,

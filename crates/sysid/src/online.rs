@@ -94,8 +94,15 @@ pub struct DetectorSettings {
     pub calibration: usize,
     /// ν > 1: the drift subtracted from each z(k) (E z = 1 without change).
     pub drift: f64,
-    /// h > 0: alarm when g(k) > h.
+    /// h > 0: alarm when g(k) > h (the least threshold; see `excursion_factor`).
     pub threshold: f64,
+    /// c ≥ 0: after calibration the CUSUM is replayed over the calibration errors themselves and the
+    /// threshold becomes max(h, c · the largest g(k) seen there). Errors of a model that does not
+    /// describe the plant (a cylinder with stick-slip friction, for a deadzone + ARX model) are
+    /// heavy-tailed — large while the piston moves, tiny while it sticks — and a fixed h then alarms after
+    /// every calibration; raising h to what the unchanged plant itself produces keeps alarms for changes
+    /// the calibration data have not seen. 0: the fixed h alone.
+    pub excursion_factor: f64,
 }
 
 impl Default for DetectorSettings {
@@ -110,22 +117,96 @@ impl Default for DetectorSettings {
             calibration: 2000,
             drift: 3.0,
             threshold: 60.0,
+            excursion_factor: 4.0,
         }
     }
 }
 
 impl DetectorSettings {
-    fn detector(&self) -> Result<Cusum<f64>, SysidError> {
-        Cusum::new(self.warmup, self.calibration, self.drift, self.threshold).map_err(|_| {
-            SysidError::setting(
-                Setting::Other("--detect-calibration/--detect-drift/--detect-threshold"),
-                format!(
-                    "calibration {}, drift {}, threshold {}",
-                    self.calibration, self.drift, self.threshold
+    fn detector(&self) -> Result<Detector, SysidError> {
+        let valid = Cusum::<f64>::new(self.warmup, self.calibration, self.drift, self.threshold)
+            .is_ok()
+            && self.excursion_factor.is_finite()
+            && self.excursion_factor >= 0.0;
+        if !valid {
+            return Err(SysidError::setting(
+                Setting::Other(
+                    "--detect-calibration/--detect-drift/--detect-threshold/--detect-excursion-factor",
                 ),
-                "calibration >= 1 sample, drift > 1 and a positive, finite threshold",
-            )
+                format!(
+                    "calibration {}, drift {}, threshold {}, excursion factor {}",
+                    self.calibration, self.drift, self.threshold, self.excursion_factor
+                ),
+                "calibration >= 1 sample, drift > 1, a positive, finite threshold and a factor >= 0",
+            ));
+        }
+        Ok(Detector {
+            settings: *self,
+            seen: 0,
+            calibration: Vec::with_capacity(self.calibration),
+            cusum: None,
+            threshold: self.threshold,
         })
+    }
+}
+
+/// Page's CUSUM ([`ipa_embedded::cusum::Cusum`]) with σ̂² and the threshold taken from a calibration
+/// window of the errors themselves ([`DetectorSettings::excursion_factor`]).
+#[derive(Debug, Clone)]
+struct Detector {
+    settings: DetectorSettings,
+    /// Errors seen since this detector started.
+    seen: usize,
+    /// The calibration errors, until the CUSUM starts.
+    calibration: Vec<f64>,
+    /// Monitoring once calibrated.
+    cusum: Option<Cusum<f64>>,
+    /// The threshold in use: h, raised after calibration.
+    threshold: f64,
+}
+
+impl Detector {
+    /// Feeds ε(k) (finite); true on an alarm.
+    fn update(&mut self, eps: f64) -> bool {
+        self.seen += 1;
+        if let Some(c) = &mut self.cusum {
+            return matches!(c.update(eps), Ok(CusumStatus::Alarm(_)));
+        }
+        if self.seen <= self.settings.warmup {
+            return false;
+        }
+        self.calibration.push(eps);
+        if self.calibration.len() < self.settings.calibration {
+            return false;
+        }
+        let n = self.calibration.len() as f64;
+        let variance = self.calibration.iter().map(|e| e * e).sum::<f64>() / n;
+        let (nu, h) = (self.settings.drift, self.settings.threshold);
+        // The statistic over the calibration errors: what the unchanged plant produces.
+        let largest = (variance > 0.0).then(|| {
+            let mut g = 0.0_f64;
+            self.calibration.iter().fold(0.0_f64, |m, e| {
+                g = (g + e * e / variance - nu).max(0.0);
+                m.max(g)
+            })
+        });
+        let threshold = largest.map_or(h, |m| h.max(self.settings.excursion_factor * m));
+        match Cusum::with_variance(variance, nu, threshold) {
+            Ok(c) => {
+                self.cusum = Some(c);
+                self.threshold = threshold;
+                self.calibration = Vec::new();
+            }
+            // σ̂² = 0 (a noise-free record): keep calibrating, so never alarm.
+            Err(_) => self.calibration.clear(),
+        }
+        false
+    }
+
+    /// g(k) and σ̂² once calibrated.
+    fn state(&self) -> Option<(f64, f64)> {
+        let c = self.cusum.as_ref()?;
+        c.variance().map(|v| (c.statistic(), v))
     }
 }
 
@@ -225,7 +306,7 @@ pub struct Tracker {
     updates_total: usize,
     /// The last `pe_window` a-priori errors (a ring).
     errors: Vec<f64>,
-    detector: Option<Cusum<f64>>,
+    detector: Option<Detector>,
     changes: Vec<usize>,
     guard_hits: usize,
 }
@@ -407,9 +488,7 @@ impl Tracker {
         let mut change = false;
         if let Some(d) = &mut self.detector {
             // ε is finite: the update checked it.
-            if let Ok(CusumStatus::Alarm(_)) = d.update(eps) {
-                change = true;
-            }
+            change = d.update(eps);
         }
         if change {
             self.changes.push(k);
@@ -459,8 +538,13 @@ impl Tracker {
     /// The detector's statistic g(k) and σ̂² (mm²); `None` while warming up or calibrating, or without
     /// a detector.
     pub fn detector_state(&self) -> Option<(f64, f64)> {
-        let d = self.detector.as_ref()?;
-        d.variance().map(|v| (d.statistic(), v))
+        self.detector.as_ref()?.state()
+    }
+
+    /// The detector's threshold in use: h, or after calibration max(h, c · the largest g(k) over the
+    /// calibration errors) ([`DetectorSettings::excursion_factor`]); `None` without a detector.
+    pub fn detector_threshold(&self) -> Option<f64> {
+        self.detector.as_ref().map(|d| d.threshold)
     }
 
     /// Standard deviations of the current deadzone estimate (Hammerstein trackers; `None` for ARX or
@@ -624,6 +708,8 @@ pub struct TrackSummary {
     pub pe_rms: Option<f64>,
     /// Detected changes.
     pub change_points: Vec<ChangePoint>,
+    /// The CUSUM threshold in use at the end ([`Tracker::detector_threshold`]; `None` without a detector).
+    pub detector_threshold: Option<f64>,
     /// Samples at which the deadzone guard replaced an implausible branch ([`TrackSettings::guard`]).
     pub guard_interventions: usize,
     /// Reasons not to trust the final model, in words.
@@ -918,6 +1004,7 @@ fn summary(
         model,
         pe_rms: tracker.pe_rms(),
         change_points,
+        detector_threshold: tracker.detector_threshold(),
         guard_interventions: tracker.guard_interventions(),
         warnings,
     })

@@ -99,26 +99,37 @@ fn track(u: &[f64], y: &[f64], settings: TrackSettings) -> Tracker {
 // estimate is still bit-for-bit the batch one-pass RLS, which knows nothing of changes.
 #[test]
 fn the_defaults_report_changes_without_touching_the_estimate() {
-    let (u, y) = record(40_000, Some(20_000), 0.01, 21);
-    let settings = TrackSettings {
-        windup: Windup::None,
-        start: DeadzoneStart::from_record(&u).unwrap(),
-        ..TrackSettings::default()
-    };
-    assert!(!settings.guard && !settings.restart_on_change && settings.detector.is_some());
-    let t = track(&u, &y, settings);
-    assert!(
-        !t.change_points().is_empty(),
-        "the detector should fire on this record"
-    );
-    let data = Dataset::new(Signals { u, y }, 0.01, "r").unwrap();
-    let id =
-        Identification::default().with_estimator(EstimatorSettings::Rls(RecursiveLeastSquares {
-            passes: Passes::Fixed(1),
+    let mut fired = 0;
+    for seed in 21..31 {
+        let (u, y) = record(40_000, Some(20_000), 0.01, seed);
+        let settings = TrackSettings {
             windup: Windup::None,
-            ..RecursiveLeastSquares::default()
-        }));
-    assert_eq!(t.model(0.01).unwrap(), identify(&data, &id).unwrap().model);
+            start: DeadzoneStart::from_record(&u).unwrap(),
+            ..TrackSettings::default()
+        };
+        assert!(!settings.guard && !settings.restart_on_change && settings.detector.is_some());
+        let t = track(&u, &y, settings);
+        fired += usize::from(!t.change_points().is_empty());
+        let data = Dataset::new(Signals { u, y }, 0.01, "r").unwrap();
+        let id = Identification::default().with_estimator(EstimatorSettings::Rls(
+            RecursiveLeastSquares {
+                passes: Passes::Fixed(1),
+                windup: Windup::None,
+                ..RecursiveLeastSquares::default()
+            },
+        ));
+        assert_eq!(
+            t.model(0.01).unwrap(),
+            identify(&data, &id).unwrap().model,
+            "seed {seed}"
+        );
+    }
+    // Without the guard some of these records lock on a wrong deadzone early, and the detector then
+    // calibrates on large errors and may not see the change; most still flag it.
+    assert!(
+        fired >= 5,
+        "the detector fired on {fired} of 10 changing records"
+    );
 }
 
 // Without the deadzone guard the tracker makes the same floating-point operations in the same order as

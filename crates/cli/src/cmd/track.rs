@@ -121,6 +121,11 @@ pub struct Args {
     /// Change detector: CUSUM threshold h (docs/online.md gives the false-alarm rates).
     #[arg(long, value_name = "H", default_value_t = DetectorSettings::default().threshold)]
     pub detect_threshold: f64,
+    /// Change detector: after calibration the threshold becomes max(H, C × the largest CUSUM value over
+    /// the calibration errors), so the unchanged plant's own bursts of error (stick-slip friction) do
+    /// not alarm; 0 keeps H alone (docs/online.md).
+    #[arg(long, value_name = "C", default_value_t = DetectorSettings::default().excursion_factor)]
+    pub detect_excursion_factor: f64,
     /// Write a summary at the end: final model, samples, change points.
     #[arg(long, value_name = "FILE")]
     pub json_summary: Option<PathBuf>,
@@ -151,6 +156,7 @@ impl Args {
                 calibration: self.detect_calibration,
                 drift: self.detect_drift,
                 threshold: self.detect_threshold,
+                excursion_factor: self.detect_excursion_factor,
             }),
             guard: self.guard,
             restart_on_change: self.restart_on_change,

@@ -163,24 +163,27 @@ fn track_from_stdin_ends_at_the_model_of_the_one_pass_recursive_identification()
 fn a_stationary_simulated_record_gives_no_change_point() {
     let dir = tempfile::tempdir().unwrap();
     let data = simulate(dir.path(), 50_000, 7);
-    let summary = dir.path().join("s.json");
-    let o = run(
-        &[
-            "track",
-            "--data",
-            data.to_str().unwrap(),
-            "--every",
-            "100000",
-            "--json-summary",
-            summary.to_str().unwrap(),
-        ],
-        b"",
-    );
-    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    let s: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    let s = track_summary(&data, &[]);
     assert_eq!(s["samples"], 50_000);
     assert_eq!(s["change_points"], serde_json::json!([]));
+}
+
+/// `track --data FILE EXTRA...` with one JSON line at most and `--json-summary`: the summary.
+fn track_summary(data: &Path, extra: &[&str]) -> serde_json::Value {
+    let summary = data.with_extension(format!("summary{}.json", extra.join("")));
+    let mut args = vec![
+        "track",
+        "--data",
+        data.to_str().unwrap(),
+        "--every",
+        "100000",
+        "--json-summary",
+        summary.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    let o = run(&args, b"");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap()
 }
 
 // The physics plant (the default of `simulate`) on its default staircase, unchanged for 50 000 samples.
@@ -207,24 +210,7 @@ fn a_stationary_physics_plant_record_gives_no_change_point() {
     );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let count = |factor: &str| {
-        let summary = dir.path().join(format!("s{factor}.json"));
-        let o = run(
-            &[
-                "track",
-                "--data",
-                data.to_str().unwrap(),
-                "--every",
-                "100000",
-                "--detect-excursion-factor",
-                factor,
-                "--json-summary",
-                summary.to_str().unwrap(),
-            ],
-            b"",
-        );
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let s: serde_json::Value =
-            serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+        let s = track_summary(&data, &["--detect-excursion-factor", factor]);
         assert_eq!(s["samples"], 50_000);
         (
             s["change_points"].as_array().unwrap().len(),

@@ -955,6 +955,31 @@ mod tests {
         );
     }
 
+    /// The analytic Jacobian of `p` at `full` (every entry free) against central differences of the
+    /// residuals, entry by entry.
+    fn assert_jacobian_matches_central_differences(p: &mut Problem, full: &[f64]) {
+        p.full = full.to_vec();
+        p.free = (0..full.len()).collect();
+        let j = p.jacobian().unwrap();
+        for q in 0..full.len() {
+            let h = 1e-6 * (1.0 + full[q].abs());
+            p.full = full.to_vec();
+            p.full[q] += h;
+            let rp = p.residuals().unwrap();
+            p.full[q] -= 2.0 * h;
+            let rm = p.residuals().unwrap();
+            for row in 0..rp.len() {
+                // r = y − ŷ, so ∂ŷ/∂θ = −∂r/∂θ.
+                let fd = -(rp[row] - rm[row]) / (2.0 * h);
+                assert!(
+                    (fd - j[(row, q)]).abs() < 1e-5 * (1.0 + fd.abs()),
+                    "param {q} row {row}: {fd} vs {}",
+                    j[(row, q)]
+                );
+            }
+        }
+    }
+
     // Finite differences of the simulation agree with the analytic sensitivities away from the kinks.
     #[test]
     fn analytic_jacobian_matches_central_differences() {
@@ -972,26 +997,7 @@ mod tests {
         // [b_l, b_r, m_l, m_r, a1, a2, b2, c, η0, η1]
         let full = vec![-1.4, 1.3, 0.02, 0.03, -1.2, 0.4, 0.5, 0.1, 0.3, -0.2];
         let mut p = problem(vec![channel], &data.y, 2, true);
-        p.full = full.clone();
-        p.free = (0..full.len()).collect();
-        let j = p.jacobian().unwrap();
-        for q in 0..full.len() {
-            let h = 1e-6 * (1.0 + full[q].abs());
-            p.full = full.clone();
-            p.full[q] += h;
-            let rp = p.residuals().unwrap();
-            p.full[q] -= 2.0 * h;
-            let rm = p.residuals().unwrap();
-            for row in 0..rp.len() {
-                // r = y − ŷ, so ∂ŷ/∂θ = −∂r/∂θ.
-                let fd = -(rp[row] - rm[row]) / (2.0 * h);
-                assert!(
-                    (fd - j[(row, q)]).abs() < 1e-5 * (1.0 + fd.abs()),
-                    "param {q} row {row}: {fd} vs {}",
-                    j[(row, q)]
-                );
-            }
-        }
+        assert_jacobian_matches_central_differences(&mut p, &full);
     }
 
     // Two inputs (a deadzone on the first, nb = 2, nk = 1; the second linear, nb = 2, nk = 2) and c:
@@ -1023,25 +1029,7 @@ mod tests {
         let full = vec![
             -1.4, 1.3, 0.02, 0.03, -1.2, 0.4, 0.5, 0.3, -0.2, 0.1, 0.3, -0.2, 0.1,
         ];
-        p.full = full.clone();
-        p.free = (0..full.len()).collect();
-        let j = p.jacobian().unwrap();
-        for q in 0..full.len() {
-            let h = 1e-6 * (1.0 + full[q].abs());
-            p.full = full.clone();
-            p.full[q] += h;
-            let rp = p.residuals().unwrap();
-            p.full[q] -= 2.0 * h;
-            let rm = p.residuals().unwrap();
-            for row in 0..rp.len() {
-                let fd = -(rp[row] - rm[row]) / (2.0 * h);
-                assert!(
-                    (fd - j[(row, q)]).abs() < 1e-5 * (1.0 + fd.abs()),
-                    "param {q} row {row}: {fd} vs {}",
-                    j[(row, q)]
-                );
-            }
-        }
+        assert_jacobian_matches_central_differences(&mut p, &full);
     }
 
     // Layout of several-input parameters: deadzones first, then a, then each input's B with b1 = 1 of a

@@ -251,7 +251,10 @@ impl PyModel {
         }
         let data =
             Dataset::new(Signals { u, y }, self.inner.ts(), "simulate").map_err(sysid_err)?;
-        let out = self.inner.simulate(&data.u, &data.y).map_err(sysid_err)?;
+        let out = self
+            .inner
+            .simulate(&data.input_signals(), data.y())
+            .map_err(sysid_err)?;
         Ok(out.into_pyarray(py))
     }
 
@@ -269,7 +272,7 @@ impl PyModel {
         let data = dataset(u, y, self.inner.ts(), "predict")?;
         let out = self
             .inner
-            .predict_k(&[&data.u], &data.y, horizon)
+            .predict_k(&[&data.u()], &data.y(), horizon)
             .map_err(sysid_err)?;
         Ok(out.into_pyarray(py))
     }
@@ -550,7 +553,13 @@ fn identify(
     let report = py
         .detach(|| -> Result<IdentifyReport, SysidError> {
             let fit = sysid::identify(&data, &settings)?;
-            IdentifyReport::assemble(&fit, &settings, &data, val.as_ref(), resid_lags)
+            IdentifyReport::assemble(
+                &fit,
+                &settings,
+                std::slice::from_ref(&data),
+                val.as_ref(),
+                resid_lags,
+            )
         })
         .map_err(sysid_err)?;
     let json = report.to_json().map_err(sysid_err)?;

@@ -32,12 +32,15 @@ impl ToText for IdentifyReport {
             sysid::ModelKind::Arx => "Linear ARX".to_string(),
             sysid::ModelKind::Hammerstein => "Hammerstein (deadzone + ARX)".to_string(),
         };
+        let several = m.inputs().len() > 1;
+        let orders = if several {
+            format!("{} inputs, na = {}", m.inputs().len(), m.na())
+        } else {
+            format!("na = {} nb = {} nk = {}", m.na(), m.nb(), m.nk())
+        };
         let _ = writeln!(
             s,
-            "{kind} model, na = {} nb = {} nk = {}, Ts = {} s, estimated by {} ({} {}, {})",
-            m.na(),
-            m.nb(),
-            m.nk(),
+            "{kind} model, {orders}, Ts = {} s, estimated by {} ({} {}, {})",
             num(m.ts()),
             self.estimation.method,
             self.estimation.iterations,
@@ -52,19 +55,36 @@ impl ToText for IdentifyReport {
                 "NOT converged"
             }
         );
+        if several {
+            for ch in m.inputs() {
+                let _ = writeln!(
+                    s,
+                    "  input {}: nb = {}, nk = {}, {}",
+                    ch.name(),
+                    ch.nb(),
+                    ch.nk(),
+                    sysid::NonlinearityKind::of(ch.nonlinearity())
+                );
+            }
+        }
         if let Some(note) = &self.estimation.note {
             let _ = writeln!(s, "note: {note}");
         }
         let _ = writeln!(s, "\nParameters (estimate ± standard deviation)");
+        let width = if several { 14 } else { 6 };
         for p in &self.parameters {
+            // b1 = 1 of an input with a static nonlinearity is the key-term normalisation.
+            let normalised = p.name == ParamName::B(1)
+                && m.inputs()
+                    .iter()
+                    .find(|c| p.input.as_deref().is_none_or(|i| i == c.name()))
+                    .is_some_and(|c| !c.nonlinearity().is_linear());
             let sd = match p.std {
                 Some(v) => format!("± {}", num(v)),
-                None if p.name == ParamName::B(1) && m.kind() == sysid::ModelKind::Hammerstein => {
-                    "(fixed: normalisation)".into()
-                }
+                None if normalised => "(fixed: normalisation)".into(),
                 None => "± n/a".into(),
             };
-            let _ = writeln!(s, "  {:<6} = {:>14}  {sd}", p.name, num(p.value));
+            let _ = writeln!(s, "  {:<width$} = {:>14}  {sd}", p.label(), num(p.value));
         }
         let poles: Vec<String> = self
             .poles
@@ -128,6 +148,24 @@ impl ToText for IdentifyReport {
                 val.map(f).unwrap_or_default()
             );
         }
+        if let Some(records) = &self.records {
+            let _ = writeln!(
+                s,
+                "\nEstimation records (each simulated from its own estimated initial outputs; the \
+                 estimation column above pools their rows)\n{:<50} {:>8} {:>14} {:>14}",
+                "record", "N", "fit sim %", "fit pred %"
+            );
+            for r in records {
+                let _ = writeln!(
+                    s,
+                    "{:<50} {:>8} {:>14} {:>14}",
+                    r.data,
+                    r.metrics.n,
+                    opt(r.metrics.fit_sim_percent),
+                    opt(r.metrics.fit_pred_percent)
+                );
+            }
+        }
         for (which, mm) in [
             ("estimation", Some(&self.metrics.estimation)),
             ("validation", val),
@@ -136,7 +174,13 @@ impl ToText for IdentifyReport {
                 let _ = writeln!(s, "note ({which}): {note}");
             }
         }
-        let mut entries = vec![("estimation", &self.residuals.estimation)];
+        let mut entries = match &self.records {
+            Some(records) => records
+                .iter()
+                .map(|r| (r.data.as_str(), &r.residuals))
+                .collect(),
+            None => vec![("estimation", &self.residuals.estimation)],
+        };
         entries.extend(
             self.residuals
                 .validation

@@ -36,17 +36,33 @@ pub const MAX_SAMPLES: usize = 50_000_000;
 /// Upper bound on the size of a CSV file, checked before the file is read (2 GiB).
 pub const MAX_FILE_BYTES: u64 = 2 * 1024 * 1024 * 1024;
 
-/// A uniformly sampled SISO record: u(k) and y(k), k = 0..N-1, sampled every `ts` seconds.
+/// A uniformly sampled record: one or several named inputs u^(m)(k) and the output y(k), k = 0..N-1,
+/// sampled every `ts` seconds. Every signal has N samples and is finite (checked by the constructors;
+/// the fields are private so that no later change can break it). One input is the ordinary case.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Dataset {
-    /// Input u(k) (for the IPA: PWM command in counts).
-    pub u: Vec<f64>,
-    /// Output y(k) (for the IPA: position in mm).
-    pub y: Vec<f64>,
-    /// Sampling period Ts in s.
-    pub ts: f64,
-    /// Where the data came from (file name), for messages.
-    pub name: String,
+    inputs: Vec<Input>,
+    y: Vec<f64>,
+    ts: f64,
+    name: String,
+}
+
+/// One named input signal of a [`Dataset`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct Input {
+    name: String,
+    u: Vec<f64>,
+}
+
+impl Input {
+    /// The input's name (its data column; "u" for the one input of [`Dataset::new`]).
+    pub fn name(&self) -> &str {
+        &self.name
+    }
+    /// u(k) (for the IPA: a valve command in PWM counts).
+    pub fn u(&self) -> &[f64] {
+        &self.u
+    }
 }
 
 /// The two signals of a record, named so that they cannot be swapped silently (`Signals { u, y }`).
@@ -58,8 +74,12 @@ pub struct Signals {
     pub y: Vec<f64>,
 }
 
+/// The name of the one input of a single-input record.
+pub const SINGLE_INPUT: &str = "u";
+
 impl Dataset {
-    /// A record from its signals; fails on unequal lengths, non-finite values or a bad Ts (s).
+    /// A one-input record from its signals (the input named "u"); fails on unequal lengths, non-finite
+    /// values or a bad Ts (s).
     ///
     /// ```
     /// use sysid_core::data::{Dataset, Signals};
@@ -68,33 +88,129 @@ impl Dataset {
     /// ```
     pub fn new(signals: Signals, ts: f64, name: impl Into<String>) -> Result<Self, SysidError> {
         let Signals { u, y } = signals;
+        Dataset::with_inputs(vec![(SINGLE_INPUT.to_string(), u)], y, ts, name)
+    }
+
+    /// A record with one or several named inputs; fails without an input, on unequal lengths,
+    /// duplicate input names, non-finite values or a bad Ts (s).
+    pub fn with_inputs(
+        inputs: Vec<(String, Vec<f64>)>,
+        y: Vec<f64>,
+        ts: f64,
+        name: impl Into<String>,
+    ) -> Result<Self, SysidError> {
         let name = name.into();
-        if u.len() != y.len() {
-            return Err(SysidError::File {
-                file: name,
-                message: format!("u has {} samples but y has {}", u.len(), y.len()),
-            });
+        let bad = |message: String| SysidError::File {
+            file: name.clone(),
+            message,
+        };
+        if inputs.is_empty() {
+            return Err(bad("a record needs at least one input".into()));
         }
-        check_ts(ts)?;
-        for (what, v) in [("u", &u), ("y", &y)] {
-            if let Some(k) = v.iter().position(|x| !x.is_finite()) {
-                return Err(SysidError::File {
-                    file: name,
-                    message: format!("{what}({k}) = {} is not a finite number", v[k]),
-                });
+        let single = inputs.len() == 1;
+        let what = |input: &String| {
+            if single {
+                "u".to_string()
+            } else {
+                input.clone()
+            }
+        };
+        for (input, u) in &inputs {
+            if u.len() != y.len() {
+                return Err(bad(format!(
+                    "{} has {} samples but y has {}",
+                    what(input),
+                    u.len(),
+                    y.len()
+                )));
             }
         }
-        Ok(Dataset { u, y, ts, name })
+        check_ts(ts)?;
+        for (i, (input, u)) in inputs.iter().enumerate() {
+            let what = what(input);
+            if inputs[..i].iter().any(|(n, _)| n == input) {
+                return Err(bad(format!("the input {input} is named twice")));
+            }
+            if let Some(k) = u.iter().position(|x| !x.is_finite()) {
+                return Err(bad(format!(
+                    "{what}({k}) = {} is not a finite number",
+                    u[k]
+                )));
+            }
+        }
+        if let Some(k) = y.iter().position(|x| !x.is_finite()) {
+            return Err(bad(format!("y({k}) = {} is not a finite number", y[k])));
+        }
+        let inputs = inputs
+            .into_iter()
+            .map(|(name, u)| Input { name, u })
+            .collect();
+        Ok(Dataset {
+            inputs,
+            y,
+            ts,
+            name,
+        })
+    }
+
+    /// The same record under another name (for messages).
+    pub fn renamed(mut self, name: impl Into<String>) -> Self {
+        self.name = name.into();
+        self
+    }
+
+    /// The same record with every signal mapped sample by sample (`f(u)` on each input, `g(y)` on the
+    /// output); fails when a mapped value is not finite.
+    pub fn map_signals(
+        &self,
+        f: impl Fn(usize, f64) -> f64,
+        g: impl Fn(f64) -> f64,
+    ) -> Result<Self, SysidError> {
+        Dataset::with_inputs(
+            self.inputs
+                .iter()
+                .enumerate()
+                .map(|(m, i)| (i.name.clone(), i.u.iter().map(|&v| f(m, v)).collect()))
+                .collect(),
+            self.y.iter().map(|&v| g(v)).collect(),
+            self.ts,
+            self.name.clone(),
+        )
+    }
+
+    /// Input u(k) of the first (for a one-input record: the) input.
+    pub fn u(&self) -> &[f64] {
+        &self.inputs[0].u
+    }
+    /// The inputs, in order.
+    pub fn inputs(&self) -> &[Input] {
+        &self.inputs
+    }
+    /// The input signals, in order (one slice per model input).
+    pub fn input_signals(&self) -> Vec<&[f64]> {
+        self.inputs.iter().map(|i| i.u.as_slice()).collect()
+    }
+    /// Output y(k) (for the IPA: position in mm).
+    pub fn y(&self) -> &[f64] {
+        &self.y
+    }
+    /// Sampling period Ts in s.
+    pub fn ts(&self) -> f64 {
+        self.ts
+    }
+    /// Where the data came from (file name), for messages.
+    pub fn name(&self) -> &str {
+        &self.name
     }
 
     /// Number of samples N.
     pub fn len(&self) -> usize {
-        self.u.len()
+        self.y.len()
     }
 
     /// True when the record holds no sample.
     pub fn is_empty(&self) -> bool {
-        self.u.is_empty()
+        self.y.is_empty()
     }
 }
 
@@ -143,6 +259,16 @@ pub struct Record {
     pub data: Dataset,
     /// Warnings in words (empty when the file was used as it is).
     pub notes: Vec<String>,
+}
+
+impl CsvOptions {
+    /// The input column names: `u_col` split at commas (`--u-col u1,u2`), trimmed.
+    pub fn input_names(&self) -> Vec<String> {
+        self.u_col
+            .split(',')
+            .map(|s| s.trim().to_string())
+            .collect()
+    }
 }
 
 impl Default for CsvOptions {
@@ -213,9 +339,21 @@ pub fn read_record_bytes(
     }
     let name = name.as_str();
     let mut notes = Vec::new();
-    let (ucol, ycol, ts_given) = table.columns(opts)?;
-    let u = table.numbers(ucol)?;
+    let (ucols, ycol, ts_given) = table.input_columns(opts)?;
+    let names = opts.input_names();
+    let us = ucols
+        .iter()
+        .map(|&c| table.numbers(c))
+        .collect::<Result<Vec<_>, _>>()?;
     let y = table.numbers(ycol)?;
+    let record = |us: Vec<Vec<f64>>, y: Vec<f64>, ts: f64| {
+        if names.len() == 1 {
+            let u = us.into_iter().next().unwrap_or_default();
+            Dataset::new(Signals { u, y }, ts, name)
+        } else {
+            Dataset::with_inputs(names.iter().cloned().zip(us).collect(), y, ts, name)
+        }
+    };
     if let Some(ts) = opts.resample {
         let tc = table.column_index(&opts.t_col, Setting::TCol)?;
         let t: Vec<f64> = table
@@ -224,10 +362,17 @@ pub fn read_record_bytes(
             .map(|v| v * opts.time_unit.seconds())
             .collect();
         increasing(&t, &table, tc)?;
-        let r = resample::resample_record(&t, &u, &y, ts, name)?;
-        notes.push(r.note);
+        let (mut ru, mut ry) = (Vec::with_capacity(us.len()), Vec::new());
+        for u in &us {
+            let r = resample::resample_record(&t, u, &y, ts, name)?;
+            if ru.is_empty() {
+                notes.push(r.note);
+            }
+            ru.push(r.u);
+            ry = r.y;
+        }
         return Ok(Record {
-            data: Dataset::new(Signals { u: r.u, y: r.y }, ts, name)?,
+            data: record(ru, ry, ts)?,
             notes,
         });
     }
@@ -257,7 +402,7 @@ pub fn read_record_bytes(
         }
     };
     Ok(Record {
-        data: Dataset::new(Signals { u, y }, ts, name)?,
+        data: record(us, y, ts)?,
         notes,
     })
 }
@@ -480,6 +625,29 @@ impl Table {
 
     /// The indices of the u and y columns of `opts` (different columns), and Ts when it is given
     /// (`--ts`, or the fallback when there is no time column).
+    /// The input columns (one per name of `--u-col u1,u2`), the output column and the Ts given.
+    pub(crate) fn input_columns(
+        &self,
+        opts: &CsvOptions,
+    ) -> Result<(Vec<usize>, usize, Option<f64>), SysidError> {
+        let names = opts.input_names();
+        if names.len() == 1 {
+            let (u, y, ts) = self.columns(opts)?;
+            return Ok((vec![u], y, ts));
+        }
+        let mut out = (Vec::with_capacity(names.len()), 0, None);
+        for n in &names {
+            let one = CsvOptions {
+                u_col: n.clone(),
+                ..opts.clone()
+            };
+            let (u, y, ts) = self.columns(&one)?;
+            out.0.push(u);
+            (out.1, out.2) = (y, ts);
+        }
+        Ok(out)
+    }
+
     pub(crate) fn columns(
         &self,
         opts: &CsvOptions,

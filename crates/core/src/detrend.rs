@@ -78,13 +78,16 @@ fn remove(s: &[f64], how: Detrend) -> Vec<f64> {
 /// The record with its operating point removed, and that operating point (`None` for [`Detrend::None`],
 /// which returns the record unchanged).
 pub fn detrend(data: &Dataset, how: Detrend) -> (Dataset, Option<OperatingPoint>) {
-    let (mut u, y, op) = detrend_signals(&[&data.u], &data.y, how);
-    let out = Dataset {
-        u: u.pop().unwrap_or_default(),
-        y,
-        ts: data.ts,
-        name: data.name.clone(),
-    };
+    let (u, y, op) = detrend_signals(&data.input_signals(), data.y(), how);
+    let inputs = data
+        .inputs()
+        .iter()
+        .map(|i| i.name().to_string())
+        .zip(u)
+        .collect();
+    // The detrended signals of a valid record are finite and as long as y.
+    let out =
+        Dataset::with_inputs(inputs, y, data.ts(), data.name()).unwrap_or_else(|_| data.clone());
     (out, op)
 }
 

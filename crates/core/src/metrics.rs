@@ -91,16 +91,24 @@ pub fn rmse(y: &[f64], yhat: &[f64]) -> f64 {
 /// ŷ(k; η) = ŷ_m(k) + Σ_j s_j(k) (η_j − y(j)) with ŷ_m the simulation from the measured outputs and s_j
 /// the free responses of 1/A(q) to a unit initial output j (A s_j = 0, s_j(i) = δ_ij for i < k0).
 /// Returns the simulation and η. Fails when the simulation or a free response is not finite.
-pub fn simulate_estimated_initial_miso(
+pub fn simulate_estimated_initial(
+    model: &Model,
+    data: &Dataset,
+) -> Result<(Vec<f64>, Vec<f64>), SysidError> {
+    simulate_estimated_initial_signals(model, &data.input_signals(), data.y())
+}
+
+/// [`simulate_estimated_initial`] from the signals (one input record per model input in `u`).
+pub fn simulate_estimated_initial_signals(
     model: &Model,
     u: &[&[f64]],
     y: &[f64],
 ) -> Result<(Vec<f64>, Vec<f64>), SysidError> {
-    estimate_initial_from(model, y, model.simulate_miso(u, y)?)
+    estimate_initial_from(model, y, model.simulate(u, y)?)
 }
 
 /// The estimated-initial-output simulation from `base`, the simulation from the measured initial
-/// outputs (see [`simulate_estimated_initial_miso`]).
+/// outputs (see [`simulate_estimated_initial`]).
 fn estimate_initial_from(
     model: &Model,
     y: &[f64],
@@ -155,47 +163,67 @@ fn estimate_initial_from(
     Ok((out, eta))
 }
 
-/// [`simulate_estimated_initial_miso`] of a single-input model on a record.
-pub fn simulate_estimated_initial(
-    model: &Model,
-    data: &Dataset,
-) -> Result<(Vec<f64>, Vec<f64>), SysidError> {
-    simulate_estimated_initial_miso(model, &[&data.u], &data.y)
-}
-
 /// The one-step prediction ŷ(k|k−1) of `model` (MATLAB `predict(m, data, 1)` with estimated initial
 /// conditions): for an equation-error model the ARX predictor from the measured outputs; for an
 /// output-error model (H = 1) the simulation from the estimated initial outputs.
-pub fn one_step_prediction_miso(
-    model: &Model,
-    u: &[&[f64]],
-    y: &[f64],
-) -> Result<Vec<f64>, SysidError> {
+pub fn one_step_prediction(model: &Model, data: &Dataset) -> Result<Vec<f64>, SysidError> {
+    let (u, y) = (data.input_signals(), data.y());
     match model.noise_model() {
-        crate::NoiseModel::EquationError => model.predict_k(u, y, 1),
+        crate::NoiseModel::EquationError => model.predict_k(&u, y, 1),
         crate::NoiseModel::OutputError => {
-            simulate_estimated_initial_miso(model, u, y).map(|(s, _)| s)
+            simulate_estimated_initial_signals(model, &u, y).map(|(s, _)| s)
         }
     }
 }
 
-/// [`one_step_prediction_miso`] of a single-input model on a record.
-pub fn one_step_prediction(model: &Model, data: &Dataset) -> Result<Vec<f64>, SysidError> {
-    one_step_prediction_miso(model, &[&data.u], &data.y)
-}
-
-/// Computes the validation metrics of `model` on `data`.
+/// Computes the validation metrics of `model` on `data` (every input of the record feeds the model's
+/// input of the same position).
 pub fn metrics(model: &Model, data: &Dataset) -> Result<Metrics, SysidError> {
-    metrics_miso(model, &[&data.u], &data.y, &data.name)
+    metrics_from_sums(&record_sums(model, data)?, data.name())
 }
 
-/// [`metrics`] of a model with one input record per model input (MISO); `name` names the record.
-pub fn metrics_miso(
-    model: &Model,
-    u: &[&[f64]],
-    y_all: &[f64],
-    name: &str,
-) -> Result<Metrics, SysidError> {
+/// The metrics of `model` over several records (merged experiments): every record's rows k ≥ k0
+/// pooled, with one mean ȳ over all of them (each record simulated from its own initial outputs). For
+/// one record, [`metrics`].
+pub fn pooled_metrics(model: &Model, records: &[Dataset]) -> Result<Metrics, SysidError> {
+    let [first, rest @ ..] = records else {
+        return Err(SysidError::Data("no record to judge the model on".into()));
+    };
+    if rest.is_empty() {
+        return metrics(model, first);
+    }
+    let k0 = model.k0();
+    let mut pooled = MetricSums {
+        n: 0,
+        p: model.parameter_count(),
+        y_deviation: 0.0,
+        sse_pred: 0.0,
+        sse_sim: Some(0.0),
+        sse_sim_measured: Some(0.0),
+        note: None,
+    };
+    let mut ys = Vec::new();
+    for r in records {
+        let s = record_sums(model, r)?;
+        pooled.n += s.n;
+        pooled.sse_pred += s.sse_pred;
+        pooled.sse_sim = pooled.sse_sim.zip(s.sse_sim).map(|(a, b)| a + b);
+        pooled.sse_sim_measured = pooled
+            .sse_sim_measured
+            .zip(s.sse_sim_measured)
+            .map(|(a, b)| a + b);
+        pooled.note = pooled.note.or(s.note.map(|n| format!("{}: {n}", r.name())));
+        ys.extend_from_slice(&r.y()[k0..]);
+    }
+    let mean = ys.iter().sum::<f64>() / ys.len() as f64;
+    pooled.y_deviation = ys.iter().map(|a| (a - mean) * (a - mean)).sum();
+    let names: Vec<&str> = records.iter().map(Dataset::name).collect();
+    metrics_from_sums(&pooled, &names.join(" + "))
+}
+
+/// The sums of [`metrics`] over the rows k ≥ k0 of one record.
+fn record_sums(model: &Model, data: &Dataset) -> Result<MetricSums, SysidError> {
+    let (u, y_all, name) = (&data.input_signals(), data.y(), data.name());
     let k0 = model.k0();
     let p = model.parameter_count();
     if y_all.len() <= k0 {
@@ -208,7 +236,7 @@ pub fn metrics_miso(
     let n = y.len();
     // One simulation from the measured initial outputs serves both simulation metrics (and the
     // output-error predictor).
-    let measured = model.simulate_miso(u, y_all);
+    let measured = model.simulate(u, y_all);
     let estimated = match &measured {
         Ok(s) => estimate_initial_from(model, y_all, s.clone()).map_err(|e| e.to_string()),
         Err(e) => Err(e.to_string()),
@@ -216,7 +244,7 @@ pub fn metrics_miso(
     let pred = match (model.noise_model(), &estimated) {
         (crate::NoiseModel::OutputError, Ok((s, _))) => s.clone(),
         // The equation-error predictor, or the output-error one's own failure (a diverging model).
-        _ => one_step_prediction_miso(model, u, y_all)?,
+        _ => one_step_prediction(model, data)?,
     };
     let pred = &pred[k0..];
     let (sim_measured, note) = match measured {
@@ -237,7 +265,7 @@ pub fn metrics_miso(
         sse_sim_measured: sim_measured.as_ref().map(|s| sse(y, &s[k0..])),
         note,
     };
-    metrics_from_sums(&sums, name)
+    Ok(sums)
 }
 
 /// Σ (y − ŷ)² over the common length.
@@ -245,7 +273,7 @@ fn sse(y: &[f64], yhat: &[f64]) -> f64 {
     y.iter().zip(yhat).map(|(a, b)| (a - b) * (a - b)).sum()
 }
 
-/// The sums over the rows k ≥ k0 of a record from which its [`Metrics`] are made: by [`metrics_miso`]
+/// The sums over the rows k ≥ k0 of a record from which its [`Metrics`] are made: by [`metrics`]
 /// from the whole record, or pass by pass from a record too long to hold (`sysid::stream`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct MetricSums {
@@ -346,7 +374,7 @@ pub fn model_output(
     y: &[f64],
     horizon: usize,
 ) -> Result<ModelOutput, SysidError> {
-    let y_sim = simulate_estimated_initial_miso(model, u, y)
+    let y_sim = simulate_estimated_initial_signals(model, u, y)
         .ok()
         .map(|(s, _)| s);
     let y_pred = match (model.noise_model(), &y_sim) {

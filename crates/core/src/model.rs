@@ -413,11 +413,11 @@ impl Model {
         u.iter().map(|&v| self.input_map(v)).collect()
     }
 
-    /// Free-run simulation (MATLAB `sim`/`compare` with infinite horizon) of a single-input model:
-    /// y_hat(k) = y(k) for k < k0, then y_hat(k) = -sum a_i y_hat(k-i) + sum b_j x(k-nk-j+1) + c. Fails if
-    /// the simulation becomes non-finite.
-    pub fn simulate(&self, u: &[f64], y: &[f64]) -> Result<Vec<f64>, SysidError> {
-        self.run(&[u], y, None)
+    /// Free-run simulation (MATLAB `sim`/`compare` with infinite horizon), one input record per model
+    /// input in `u`: y_hat(k) = y(k) for k < k0, then y_hat(k) = -sum a_i y_hat(k-i) + sum over the
+    /// inputs of sum b_j x(k-nk-j+1) + c. Fails if the simulation becomes non-finite.
+    pub fn simulate(&self, u: &[&[f64]], y: &[f64]) -> Result<Vec<f64>, SysidError> {
+        self.run(u, y, None)
     }
 
     /// One-step-ahead prediction (MATLAB `predict` with horizon 1) of a single-input model. With an
@@ -428,14 +428,9 @@ impl Model {
     }
 
     /// The equation-error one-step prediction (measured past outputs), whatever the noise model: the
-    /// regression residual of the key-term estimators.
-    pub fn predict_equation_error(&self, u: &[f64], y: &[f64]) -> Result<Vec<f64>, SysidError> {
-        self.run(&[u], y, Some(1))
-    }
-
-    /// Free-run simulation with one input record per model input (MISO).
-    pub fn simulate_miso(&self, u: &[&[f64]], y: &[f64]) -> Result<Vec<f64>, SysidError> {
-        self.run(u, y, None)
+    /// regression residual of the key-term estimators. One input record per model input.
+    pub fn predict_equation_error(&self, u: &[&[f64]], y: &[f64]) -> Result<Vec<f64>, SysidError> {
+        self.run(u, y, Some(1))
     }
 
     /// k-step-ahead prediction (MATLAB `predict(m, data, k)`): y_hat(k) from measured outputs up to

@@ -16,7 +16,7 @@ use ipa_embedded::{Deadzone, Form};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sysid::data::Signals;
-use sysid::estimate::{identify, EstimatorSettings, Identification, RecursiveLeastSquares};
+use sysid::{identify, EstimatorSettings, Identification, RecursiveLeastSquares};
 
 /// A record of a Hammerstein plant: the paper's A(q) (near-integrator), deadzone b_l = −25, b_r = 20
 /// counts, the key-term slopes of docs/paper.md §2.3, and white output-equation noise N(0, σ²) mm;

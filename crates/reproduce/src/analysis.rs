@@ -5,9 +5,9 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use sysid::data::Signals;
-use sysid::estimate::{identify, Fitted, Identification};
 use sysid::metrics::fit_percent;
 use sysid::residuals::{analyze_default, ResidualAnalysis};
+use sysid::{identify, Fitted, Identification};
 use sysid::{Dataset, Model, ModelPlant, Plant};
 
 use crate::ReproduceError;
@@ -76,9 +76,9 @@ pub fn paper_check(
         let fit = identify(&est, settings)?;
         let fit_val = fit
             .model
-            .simulate(&val.u, &val.y)
+            .simulate(&[val.u()], val.y())
             .ok()
-            .and_then(|sim| fit_percent(&val.y, &sim));
+            .and_then(|sim| fit_percent(&val.y(), &sim));
         runs.push(PaperRun {
             label,
             fit,
@@ -102,14 +102,14 @@ pub struct ModelResiduals {
 /// [`sysid::residuals::analyze_default`]) of the one-step prediction errors ε(k) = y(k) − ŷ(k|k−1) of
 /// `model` on `d`, from its first predicted sample k0 on.
 pub fn residuals(model: &Model, d: &Dataset) -> Result<ResidualAnalysis, String> {
-    let yhat = model.predict(&d.u, &d.y).map_err(|e| e.to_string())?;
+    let yhat = model.predict(&d.u(), &d.y()).map_err(|e| e.to_string())?;
     let k0 = model.k0().min(d.len());
-    let eps: Vec<f64> = d.y[k0..]
+    let eps: Vec<f64> = d.y()[k0..]
         .iter()
         .zip(&yhat[k0..])
         .map(|(y, p)| y - p)
         .collect();
-    analyze_default(&eps, &d.u[k0..]).map_err(|e| e.to_string())
+    analyze_default(&eps, &d.u()[k0..]).map_err(|e| e.to_string())
 }
 
 /// Frequency response of a model's linear block, scaled by `gain`: the frequencies (Hz), |H| in dB

@@ -23,12 +23,12 @@ use report::plot::{save_figure, Figure, Panel, Series, SeriesStyle};
 use report::Report;
 use serde_json::json;
 use sysid::data::Signals;
-use sysid::estimate::{
+use sysid::metrics::{fit_percent, metrics};
+use sysid::summary::IdentifyReport;
+use sysid::{
     identify, EstimatorSettings, Fitted as FittedModel, Identification, Method,
     RecursiveLeastSquares,
 };
-use sysid::metrics::{fit_percent, metrics};
-use sysid::summary::IdentifyReport;
 use sysid::{Dataset, Model, ModelKind, ModelPlant, ParamName, Plant};
 use sysid_core::param::{Layout, Parameterisation};
 
@@ -401,7 +401,7 @@ pub fn run(
         sysid_io::write_columns_csv(
             &data_dir.join(name),
             &["t", "u", "y"],
-            &[&t_rec, &d.u, &d.y],
+            &[&t_rec, &d.u(), &d.y()],
         )?;
     }
 
@@ -473,8 +473,13 @@ pub fn run(
 
     // The paper's own model as the plant (known truth), with the paper's method.
     progress("the method on the paper's model", 0.3);
-    let paper_check =
-        analysis::paper_check(&plan[1].3, &est.u, &val.u, s.experiment_start_mm, s.seed)?;
+    let paper_check = analysis::paper_check(
+        &plan[1].3,
+        &est.u(),
+        &val.u(),
+        s.experiment_start_mm,
+        s.seed,
+    )?;
     let residuals = models
         .iter()
         .map(|m| analysis::ModelResiduals {
@@ -506,13 +511,13 @@ pub fn run(
         }
         None => None,
     };
-    let fit_ol = y_ol_model.as_ref().and_then(|y| fit_percent(&ol.y, y));
+    let fit_ol = y_ol_model.as_ref().and_then(|y| fit_percent(ol.y(), y));
     let t_ol = sysid::data::sample_times(u_ol.len(), ts);
     let nan = vec![f64::NAN; u_ol.len()];
     sysid_io::write_columns_csv(
         &data_dir.join("open_loop.csv"),
         &["t", "u", "y_plant", "y_model"],
-        &[&t_ol, &u_ol, &ol.y, y_ol_model.as_ref().unwrap_or(&nan)],
+        &[&t_ol, &u_ol, ol.y(), y_ol_model.as_ref().unwrap_or(&nan)],
     )?;
 
     // 3. Closed loop, fixed and unfixed set-point, model vs plant.
@@ -601,7 +606,7 @@ pub fn run(
         models,
         cl_model,
         u_ol,
-        y_ol_plant: ol.y,
+        y_ol_plant: ol.y().to_vec(),
         y_ol_model,
         fit_ol,
         fixed,
@@ -998,7 +1003,7 @@ type Fig = (&'static str, Figure, String);
 
 fn sim_or_nan(model: &Model, d: &Dataset) -> Vec<f64> {
     model
-        .simulate(&d.u, &d.y)
+        .simulate(&[d.u()], d.y())
         .unwrap_or_else(|_| vec![f64::NAN; d.len()])
 }
 
@@ -1053,8 +1058,8 @@ fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
     figs.push((
         "fig2_experiment",
         Figure::new("Experiment: staircase input and measured position (paper's Fig. 2)")
-            .panel(Panel::new("time (s)", "u (counts)").series(Series::step("u: PWM command", t.clone(), st.est.u.clone()).colour(plant_c)))
-            .panel(Panel::new("time (s)", "y (mm)").series(Series::line("y: position", t.clone(), st.est.y.clone()).colour(plant_c))),
+            .panel(Panel::new("time (s)", "u (counts)").series(Series::step("u: PWM command", t.clone(), st.est.u().to_vec()).colour(plant_c)))
+            .panel(Panel::new("time (s)", "y (mm)").series(Series::line("y: position", t.clone(), st.est.y().to_vec()).colour(plant_c))),
         "The estimation record: the staircase command u (PWM counts) and the measured stroke position y (mm).".into(),
     ));
 
@@ -1112,7 +1117,7 @@ fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
 
     let tv = sysid::data::sample_times(st.val.len(), ts);
     let mut fit_panel = Panel::new("time (s)", "y (mm)")
-        .series(Series::line("measured", tv.clone(), st.val.y.clone()).colour(plant_c));
+        .series(Series::line("measured", tv.clone(), st.val.y().to_vec()).colour(plant_c));
     for key in ["arx", "hammerstein", "hammerstein_oe"] {
         if let Some(m) = st.model(key) {
             fit_panel = fit_panel.series(

@@ -7,7 +7,7 @@
 use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, Criterion};
-use sysid::estimate::{identify, Method};
+use sysid::{identify, Method};
 use sysid_studies::bench::{paper_experiment, paper_settings, staircase};
 
 fn hammerstein_2000(c: &mut Criterion) {

@@ -15,8 +15,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::rng::SplitMix64;
 use sysid::data::Signals;
-use sysid::estimate::{identify, Estimator, Identification, Method};
 use sysid::rls::{flops_per_update, Rls, RlsN};
+use sysid::{identify, Estimator, Identification, Method};
 use sysid::{Dataset, Model, ModelKind, ModelPlant, Plant, SysidError};
 
 /// Shortest timed run; shorter work is repeated within one run until it takes at least this long.

@@ -18,7 +18,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::rng::SplitMix64;
 use sysid::data::Signals;
-use sysid::estimate::{identify, Identification, Method};
+use sysid::{identify, Identification, Method};
 use sysid::{Dataset, Model, ModelKind, ParamName, SysidError};
 use sysid_core::param::{Layout, Parameterisation};
 

@@ -11,8 +11,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::bench::time_it;
 use sysid::data::{CsvOptions, RowRange};
-use sysid::estimate::{identify, Identification, Method};
 use sysid::metrics::metrics;
+use sysid::{identify, Identification, Method};
 use sysid::{Dataset, ModelKind, SysidError};
 
 /// One output-error benchmark case: a real record and the ARX structure identified on it.

@@ -107,14 +107,14 @@ pub fn estimate_delay(
         return Err(SysidError::Data(format!(
             "{}: {} samples are too few to compare delays up to {max_delay} with na = {na}, nb = {nb} \
              (at least {} are needed)",
-            data.name,
+            data.name(),
             data.len(),
             k0 + p + 1
         )));
     }
     let mut candidates = Vec::with_capacity(max_delay + 1);
     for nk in 0..=max_delay {
-        let (phi, target, names) = arx_regression(&data.y, &data.u, na, nb, nk, k0);
+        let (phi, target, names) = arx_regression(&data.y(), &data.u(), na, nb, nk, k0);
         candidates.push(match crate::ls::solve(&phi, &target, &names) {
             Ok(sol) => DelayCandidate {
                 nk,
@@ -137,7 +137,7 @@ pub fn estimate_delay(
     let Some(&(best_nk, best_loss)) = order.first() else {
         return Err(SysidError::Data(format!(
             "{}: no delay in 0..={max_delay} could be fitted: {}",
-            data.name,
+            data.name(),
             candidates
                 .first()
                 .and_then(|c| c.error.clone())

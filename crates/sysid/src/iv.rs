@@ -25,7 +25,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use crate::estimate::Note;
+use crate::fitted::Note;
 use sysid_core::{Model, SysidError};
 
 /// The result of one recursive IV pass.
@@ -184,13 +184,13 @@ pub fn staged<F: Fn(&[f64], usize, &mut [f64])>(
     }
     for stage in 1..=stages {
         run = stage;
-        let y_aux = match aux.simulate_miso(u, &y_init) {
+        let y_aux = match aux.simulate(u, &y_init) {
             Ok(ys) => ys,
             Err(_) => {
                 let a = crate::oe::stabilise(aux.a());
                 aux = aux.with_a(a)?;
                 notes.push(Note::UnstableAuxiliary { stage });
-                aux.simulate_miso(u, &y_init)?
+                aux.simulate(u, &y_init)?
             }
         };
         let stage_r = IvRegression {
@@ -206,16 +206,13 @@ pub fn staged<F: Fn(&[f64], usize, &mut [f64])>(
         theta_full = next;
         let model = model_of(&theta_full)?;
         // Keep the stage whose model simulates the record best (from rest, as the instruments do).
-        let sim_rss = model
-            .simulate_miso(u, &y_init)
-            .ok()
-            .map_or(f64::INFINITY, |ys| {
-                ys[k0..]
-                    .iter()
-                    .zip(&y[k0..])
-                    .map(|(a, b)| (a - b) * (a - b))
-                    .sum::<f64>()
-            });
+        let sim_rss = model.simulate(u, &y_init).ok().map_or(f64::INFINITY, |ys| {
+            ys[k0..]
+                .iter()
+                .zip(&y[k0..])
+                .map(|(a, b)| (a - b) * (a - b))
+                .sum::<f64>()
+        });
         if best.as_ref().is_none_or(|b| sim_rss < b.0) {
             best = Some((sim_rss, stage, theta_full.clone(), model.clone(), pass));
         }

@@ -3,22 +3,33 @@
 //! Unfitted settings (one type per method: [`LeastSquares`], [`RecursiveLeastSquares`],
 //! [`OutputError`], [`InstrumentalVariables`]) → [`Estimator::fit`] → a [`Fitted`] model that carries
 //! its diagnostics (termination, notes), the same type whatever the method, so that the safeguards
-//! against a wrongly trusted estimate live in one place ([`estimate::identify`]).
+//! against a wrongly trusted estimate live in one place ([`estimate::identify`]). One record or several
+//! (merged experiments), one input or several: one path.
+//!
+//! Modules by concern:
+//! - vocabulary: [`fitted`] (method, parameters, termination, notes, the fitted result), [`warnings`];
+//! - structure: [`blocks`] (static nonlinearities as blocks of the estimation), [`regression`] (the one
+//!   key-term regression over inputs and records);
+//! - identification: [`estimate`] (settings, [`Problem`](estimate::Problem), [`identify`], safeguards),
+//!   [`methods`] (LS, RLS, IV, OE fits), [`oe`], [`iv`], [`rls`], [`rls_ud`], [`windup`];
+//! - around it: [`order`], [`delay`], [`residuals`],
+//!   [`stream`] (records read in passes), [`online`] (tracking).
 //!
 //! The model structures, data records, simulation and validation metrics are those of `sysid-core`,
 //! re-exported here for convenience. Recursive updates share one abstraction ([`rls::RecursiveUpdate`]).
 
-pub mod branches;
+pub mod blocks;
 pub mod delay;
 pub mod estimate;
+pub mod fitted;
 pub mod iv;
 pub use sysid_core::ls;
-pub mod merge;
-pub mod miso;
+pub mod methods;
 pub mod oe;
 pub mod online;
 pub mod options;
 pub mod order;
+pub mod regression;
 pub mod residuals;
 pub mod rls;
 pub mod rls_ud;
@@ -27,10 +38,12 @@ pub mod summary;
 pub mod warnings;
 pub mod windup;
 
+pub use blocks::NonlinearityKind;
 pub use estimate::{
-    identify, Estimator, EstimatorSettings, Fitted, Identification, InstrumentalVariables,
-    LeastSquares, Method, Note, OutputError, Param, Passes, RecursiveLeastSquares, Termination,
+    identify, Estimator, EstimatorSettings, Identification, InputSpec, InstrumentalVariables,
+    LeastSquares, OutputError, Passes, RecursiveLeastSquares,
 };
+pub use fitted::{Fitted, Method, Note, Param, Termination};
 pub use options::IdentifyOptions;
 pub use sysid_core::{
     data, detrend, metrics, model, model_file, nonlinearity, param, plant, structure, Dataset,

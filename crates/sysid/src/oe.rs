@@ -52,22 +52,20 @@ use std::cell::Cell;
 
 use nalgebra::{Complex, DMatrix, DVector};
 
-use crate::estimate::Param;
+use crate::blocks::Block;
+use crate::fitted::Param;
 use crate::ls;
+use crate::regression::Regression;
 use sysid_core::model::{is_stable_polynomial_within, poles_of};
-use sysid_core::param::{Layout, Parameterisation};
-use sysid_core::{
-    Dataset, Deadzone, InputChannel, Model, ModelKind, NoiseModel, ParamName, StaticNonlinearity,
-    SysidError,
-};
+use sysid_core::{Dataset, Model, NoiseModel, StaticNonlinearity, SysidError};
 
 /// The result of an output-error refinement.
 #[derive(Debug, Clone)]
-pub struct OeFit<P = Param> {
+pub struct OeFit {
     /// The refined model.
     pub model: Model,
     /// Physical parameters with standard deviations from σ̂² (JᵀJ)⁻¹ (`None` for fixed ones).
-    pub params: Vec<P>,
+    pub params: Vec<Param>,
     /// Number of Jacobian evaluations (Levenberg–Marquardt iterations).
     pub iterations: usize,
     /// Number of residual evaluations.
@@ -183,19 +181,30 @@ fn map_roots(a: &[f64], f: impl Fn(Complex<f64>) -> Complex<f64>) -> Vec<f64> {
     c.iter().skip(1).map(|v| v.re).collect()
 }
 
-/// One input of the output-error problem: its record, orders and whether it passes a deadzone.
-#[derive(Debug, Clone, Copy)]
+/// One input of the output-error problem: its record, orders and static nonlinearity block.
+#[derive(Clone, Copy)]
 struct Channel<'a> {
     u: &'a [f64],
     nb: usize,
     nk: usize,
-    nonlinear: bool,
+    block: &'static dyn Block,
+}
+
+impl Channel<'_> {
+    /// Number of the block's physical parameters.
+    fn n_block(&self) -> usize {
+        self.block.physical_names().len()
+    }
+    /// 1 when b1 = 1 is fixed by the key-term normalisation.
+    fn b_from(&self) -> usize {
+        usize::from(self.n_block() > 0)
+    }
 }
 
 /// The output-error problem over one or several inputs. `full` holds the model parameters in the
-/// physical layout generalised to several inputs — for each nonlinear input [b_l, b_r, m_l, m_r], then
-/// a1..a_na, then per input b1..b_nb (b2..b_nb for a nonlinear input, b1 = 1), then c — followed by the
-/// estimated initial outputs η_0..η_{k0−1}. With one input this is [`Layout::Physical`].
+/// physical layout of [`Regression`] — each input's block parameters, then a1..a_na, then per input
+/// b1..b_nb (b2..b_nb for a nonlinear input, b1 = 1), then c — followed by the estimated initial
+/// outputs η_0..η_{k0−1}.
 struct Problem<'a> {
     channels: Vec<Channel<'a>>,
     y: &'a [f64],
@@ -211,8 +220,8 @@ struct Problem<'a> {
 /// What entry q of the full vector is.
 #[derive(Debug, Clone, Copy)]
 enum Role {
-    /// Deadzone parameter `which` (0 b_l, 1 b_r, 2 m_l, 3 m_r) of input `ch`.
-    Deadzone { ch: usize, which: usize },
+    /// Physical parameter `which` of input `ch`'s static nonlinearity.
+    Block { ch: usize, which: usize },
     /// a_(i+1).
     A(usize),
     /// The B coefficient of input `ch` at lag j (0-based: b_(j+1)).
@@ -224,8 +233,8 @@ enum Role {
 }
 
 struct Decoded {
-    /// One deadzone per input (`None` for a linear one).
-    dz: Vec<Option<Deadzone>>,
+    /// One static nonlinearity per input.
+    f: Vec<StaticNonlinearity>,
     a: Vec<f64>,
     /// The whole B of each input (b1 = 1 included for a nonlinear one).
     b: Vec<Vec<f64>>,
@@ -233,41 +242,32 @@ struct Decoded {
 }
 
 impl Problem<'_> {
-    /// Index of a1 in the full vector (after the deadzone blocks).
+    /// Index of a1 in the full vector (after the nonlinearity blocks).
     fn ia(&self) -> usize {
-        4 * self.channels.iter().filter(|c| c.nonlinear).count()
+        self.channels.iter().map(Channel::n_block).sum()
     }
 
     /// Number of model parameters (the initial outputs follow them in `full`).
     fn n_params(&self) -> usize {
-        let nb: usize = self
-            .channels
-            .iter()
-            .map(|c| c.nb - usize::from(c.nonlinear))
-            .sum();
+        let nb: usize = self.channels.iter().map(|c| c.nb - c.b_from()).sum();
         self.ia() + self.na + nb + usize::from(self.offset)
     }
 
     /// The role of entry `q` of the full vector.
     fn role(&self, q: usize) -> Role {
         let mut i = q;
-        for (ch, _) in self
-            .channels
-            .iter()
-            .enumerate()
-            .filter(|(_, c)| c.nonlinear)
-        {
-            if i < 4 {
-                return Role::Deadzone { ch, which: i };
+        for (ch, c) in self.channels.iter().enumerate() {
+            if i < c.n_block() {
+                return Role::Block { ch, which: i };
             }
-            i -= 4;
+            i -= c.n_block();
         }
         if i < self.na {
             return Role::A(i);
         }
         i -= self.na;
         for (ch, c) in self.channels.iter().enumerate() {
-            let from = usize::from(c.nonlinear);
+            let from = c.b_from();
             if i < c.nb - from {
                 return Role::B { ch, j: i + from };
             }
@@ -287,33 +287,26 @@ impl Problem<'_> {
     fn decode(&self) -> Decoded {
         let v = &self.full;
         let mut i = 0;
-        let mut dz = Vec::with_capacity(self.channels.len());
+        let mut f = Vec::with_capacity(self.channels.len());
         for c in &self.channels {
-            dz.push(c.nonlinear.then(|| {
-                i += 4;
-                Deadzone {
-                    b_l: v[i - 4],
-                    b_r: v[i - 3],
-                    m_l: v[i - 2],
-                    m_r: v[i - 1],
-                }
-            }));
+            f.push(c.block.from_physical(&v[i..i + c.n_block()]));
+            i += c.n_block();
         }
         let a = v[i..i + self.na].to_vec();
         i += self.na;
         let mut b = Vec::with_capacity(self.channels.len());
         for c in &self.channels {
             let mut bc = Vec::with_capacity(c.nb);
-            if c.nonlinear {
+            if c.b_from() == 1 {
                 bc.push(1.0);
             }
-            let count = c.nb - usize::from(c.nonlinear);
+            let count = c.nb - c.b_from();
             bc.extend_from_slice(&v[i..i + count]);
             i += count;
             b.push(bc);
         }
         let c = if self.offset { v[i] } else { 0.0 };
-        Decoded { dz, a, b, c }
+        Decoded { f, a, b, c }
     }
 
     /// ŷ over the record and x = f(u) of each input; `None` when the simulation leaves ±bound or is not
@@ -325,11 +318,8 @@ impl Problem<'_> {
         let x: Vec<Vec<f64>> = self
             .channels
             .iter()
-            .zip(&d.dz)
-            .map(|(c, dz)| match dz {
-                Some(dz) => c.u.iter().map(|&v| dz.apply(v)).collect(),
-                None => c.u.to_vec(),
-            })
+            .zip(&d.f)
+            .map(|(c, f)| c.u.iter().map(|&v| f.apply(v)).collect())
             .collect();
         let np = self.n_params();
         let mut yh = self.full[np..np + k0].to_vec();
@@ -528,23 +518,13 @@ impl Problem<'_> {
                     s[j] = 1.0;
                     g[k0..n].fill(0.0);
                 }
-                Role::Deadzone { ch, which } => {
+                Role::Block { ch, which } => {
                     let c = &self.channels[ch];
-                    let Some(dz) = d.dz[ch] else {
-                        g[k0..n].fill(0.0);
-                        continue;
-                    };
-                    let dx = |u: f64| -> f64 {
-                        let hr = dz.h_r(u);
-                        let hl = if hr > 0.0 { 0.0 } else { dz.h_l(u) };
-                        match which {
-                            0 => -dz.m_l * hl,
-                            1 => -dz.m_r * hr,
-                            2 => hl * (u - dz.b_l),
-                            _ => hr * (u - dz.b_r),
-                        }
-                    };
-                    let dxs: Vec<f64> = c.u.iter().map(|&v| dx(v)).collect();
+                    let f = &d.f[ch];
+                    let dxs: Vec<f64> =
+                        c.u.iter()
+                            .map(|&v| c.block.derivative(f, which, v))
+                            .collect();
                     for k in k0..n {
                         g[k] = d.b[ch]
                             .iter()
@@ -678,7 +658,7 @@ impl Searched {
     }
 
     /// The fit with the model `model` and the parameters `params`.
-    fn into_fit<P>(self, model: Model, params: Vec<P>) -> OeFit<P> {
+    fn into_fit(self, model: Model, params: Vec<Param>) -> OeFit {
         OeFit {
             model: model.with_noise_model(NoiseModel::OutputError),
             initial_outputs: self.full[self.np..].to_vec(),
@@ -715,228 +695,49 @@ fn problem<'a>(channels: Vec<Channel<'a>>, y: &'a [f64], na: usize, offset: bool
     }
 }
 
-/// Refines `start` by minimising the simulation error on `data`, over the free entries of `physical`
-/// (a physical-layout parameterisation; fixed entries keep the start's value), in at most
-/// `max_iterations` Levenberg–Marquardt iterations.
+/// Refines `start` (a model of the structure `reg`) by minimising the simulation error on `data`, over
+/// the entries of `reg`'s physical layout marked in `free` (fixed entries keep the start's value), in at
+/// most `max_iterations` Levenberg–Marquardt iterations. The parameters come in the reported order of
+/// [`Regression::params_from`].
 pub fn refine(
     data: &Dataset,
-    physical: &Parameterisation,
+    reg: &Regression,
+    free: &[bool],
     start: &Model,
     max_iterations: usize,
 ) -> Result<OeFit, SysidError> {
-    let s = physical.structure();
-    if physical.layout() != Layout::Physical {
-        return Err(SysidError::Data(
-            "output-error refinement works on the physical parameter layout".into(),
-        ));
+    let name = data.name();
+    let u = data.input_signals();
+    if u.len() != reg.channels().len() || start.inputs().len() != u.len() {
+        return Err(SysidError::Data(format!(
+            "{name}: output-error refinement needs one record per model input ({})",
+            reg.channels().len()
+        )));
     }
-    let channel = Channel {
-        u: &data.u,
-        nb: s.orders.nb,
-        nk: s.orders.nk,
-        nonlinear: s.kind == ModelKind::Hammerstein,
-    };
-    let full = physical.vector_of(start);
-    if physical.len() != full.len() {
+    let channels = reg
+        .channels()
+        .iter()
+        .zip(&u)
+        .map(|(c, u)| Channel {
+            u,
+            nb: c.nb,
+            nk: c.nk,
+            block: c.kind.block(),
+        })
+        .collect();
+    let full = reg.physical_vector(start);
+    if free.len() != full.len() {
         return Err(SysidError::Data(
             "output-error refinement: the start model does not match the structure".into(),
         ));
     }
-    let problem = problem(vec![channel], &data.y, s.orders.na, s.offset);
-    let found = run(
-        problem,
-        full,
-        physical.free_indices(),
-        max_iterations,
-        &data.name,
-    )?;
-    let names = physical.names();
-    let b1 = || Param {
-        name: ParamName::B(1),
-        value: 1.0,
-        std: None,
-    };
-    let mut params = Vec::new();
-    for (i, name) in names.iter().enumerate() {
-        if s.kind == ModelKind::Hammerstein && i == 4 + s.orders.na {
-            params.push(b1());
-        }
-        params.push(Param {
-            name: *name,
-            value: found.full[i],
-            std: found.std(i),
-        });
-    }
-    if s.kind == ModelKind::Hammerstein && names.len() == 4 + s.orders.na {
-        params.push(b1());
-    }
-    let model = physical
-        .model_of(&found.full[..found.np], data.ts)
-        .map_err(|e| SysidError::Numerical(format!("{}: {e}", data.name)))?;
-    Ok(found.into_fit(model, params))
-}
-
-/// One parameter of a several-input model, named with its input (`b2 (u1)`, `b_r (valve)`), with
-/// its standard deviation.
-#[derive(Debug, Clone, PartialEq, serde::Serialize, serde::Deserialize)]
-pub struct NamedParam {
-    /// The parameter's symbol and, for an input's parameter, the input's name in brackets.
-    pub name: String,
-    /// Estimate.
-    pub value: f64,
-    /// Standard deviation; `None` for fixed parameters (b1 = 1 of a nonlinear input) or when it cannot
-    /// be computed.
-    pub std: Option<f64>,
-}
-
-/// The full-vector layout of a several-input model (module docs of [`Problem`]): its entries and
-/// their names. b1 = 1 of a nonlinear input is not an entry.
-pub fn miso_vector(model: &Model) -> (Vec<f64>, Vec<String>) {
-    let (mut v, mut names) = (Vec::new(), Vec::new());
-    for ch in model.inputs() {
-        if let Some(d) = ch.deadzone() {
-            v.extend([d.b_l, d.b_r, d.m_l, d.m_r]);
-            names.extend(["b_l", "b_r", "m_l", "m_r"].map(|s| format!("{s} ({})", ch.name())));
-        }
-    }
-    v.extend_from_slice(model.a());
-    names.extend((1..=model.na()).map(|i| format!("a{i}")));
-    for ch in model.inputs() {
-        let from = usize::from(ch.deadzone().is_some());
-        v.extend_from_slice(&ch.b()[from..]);
-        names.extend((from + 1..=ch.nb()).map(|j| format!("b{j} ({})", ch.name())));
-    }
-    if let Some(c) = model.offset() {
-        v.push(c);
-        names.push("c".into());
-    }
-    (v, names)
-}
-
-/// The model of a several-input full vector `v` (layout of [`miso_vector`]) with the structure of
-/// `like` (its inputs' names, orders and which have a deadzone).
-pub fn miso_model_of(v: &[f64], like: &Model) -> Result<Model, SysidError> {
-    let mut i = 0;
-    let mut dz = Vec::new();
-    for ch in like.inputs() {
-        dz.push(ch.deadzone().map(|_| {
-            i += 4;
-            Deadzone {
-                b_l: v[i - 4],
-                b_r: v[i - 3],
-                m_l: v[i - 2],
-                m_r: v[i - 1],
-            }
-        }));
-    }
-    let a = v[i..i + like.na()].to_vec();
-    i += like.na();
-    let mut channels = Vec::with_capacity(like.inputs().len());
-    for (ch, d) in like.inputs().iter().zip(dz) {
-        let (b, f) = match d {
-            Some(d) => {
-                let mut b = vec![1.0];
-                b.extend_from_slice(&v[i..i + ch.nb() - 1]);
-                i += ch.nb() - 1;
-                (b, StaticNonlinearity::Deadzone(d))
-            }
-            None => {
-                let b = v[i..i + ch.nb()].to_vec();
-                i += ch.nb();
-                (b, StaticNonlinearity::Linear)
-            }
-        };
-        channels.push(InputChannel::new(ch.name(), ch.nk(), b, f)?);
-    }
-    let c = like.offset().map(|_| v[i]);
-    Model::new(like.ts(), a, channels, c)
-}
-
-/// The parameters of a several-input model laid out as [`miso_vector`] of `like` (entry i named
-/// `names[i]`, valued `value(i)`, with standard deviation `std(i)`), b1 = 1 of each nonlinear input
-/// inserted (fixed, no standard deviation) before its b2.
-pub fn miso_params(
-    like: &Model,
-    names: &[String],
-    value: impl Fn(usize) -> f64,
-    std: impl Fn(usize) -> Option<f64>,
-) -> Vec<NamedParam> {
-    let mut out = Vec::with_capacity(names.len() + like.inputs().len());
-    let n_dz = 4 * like
-        .inputs()
-        .iter()
-        .filter(|c| c.deadzone().is_some())
-        .count();
-    let mut i = n_dz + like.na();
-    let mut b_starts = Vec::new();
-    for ch in like.inputs() {
-        if ch.deadzone().is_some() {
-            b_starts.push((i, ch.name()));
-        }
-        i += ch.nb() - usize::from(ch.deadzone().is_some());
-    }
-    for (i, n) in names.iter().enumerate() {
-        for (_, input) in b_starts.iter().filter(|(at, _)| *at == i) {
-            out.push(NamedParam {
-                name: format!("b1 ({input})"),
-                value: 1.0,
-                std: None,
-            });
-        }
-        out.push(NamedParam {
-            name: n.clone(),
-            value: value(i),
-            std: std(i),
-        });
-    }
-    // A nonlinear input with nb = 1 whose (empty) b block ends the vector: its b1 comes last.
-    for (_, input) in b_starts.iter().filter(|(at, _)| *at >= names.len()) {
-        out.push(NamedParam {
-            name: format!("b1 ({input})"),
-            value: 1.0,
-            std: None,
-        });
-    }
-    out
-}
-
-/// Output-error refinement of a several-input model `start` (one record per model input in `u`, the
-/// output `y`; `name` names the record in errors): every parameter of [`miso_vector`] is free (b1 = 1
-/// of a nonlinear input stays fixed), with the same search, stability constraint and initial-output
-/// estimation as [`refine`]. The parameters come in the layout of [`miso_vector`], b1 = 1 of each
-/// nonlinear input inserted before its b2.
-pub fn refine_miso(
-    u: &[&[f64]],
-    y: &[f64],
-    start: &Model,
-    max_iterations: usize,
-    name: &str,
-) -> Result<OeFit<NamedParam>, SysidError> {
-    if u.len() != start.inputs().len() || u.iter().any(|u| u.len() != y.len()) {
-        return Err(SysidError::Data(format!(
-            "{name}: output-error refinement needs one record of {} samples per model input ({})",
-            y.len(),
-            start.inputs().len()
-        )));
-    }
-    let channels = start
-        .inputs()
-        .iter()
-        .zip(u)
-        .map(|(ch, u)| Channel {
-            u,
-            nb: ch.nb(),
-            nk: ch.nk(),
-            nonlinear: ch.deadzone().is_some(),
-        })
-        .collect();
-    let (full, names) = miso_vector(start);
-    let free = (0..full.len()).collect();
-    let problem = problem(channels, y, start.na(), start.offset().is_some());
-    let found = run(problem, full, free, max_iterations, name)?;
-    let model = miso_model_of(&found.full[..found.np], start)
+    let problem = problem(channels, data.y(), reg.na(), reg.offset());
+    let model_free = (0..free.len()).filter(|&i| free[i]).collect();
+    let found = run(problem, full, model_free, max_iterations, name)?;
+    let params = reg.params_from(|i| (found.full[i], found.std(i)));
+    let model = reg
+        .model_of_physical(&found.full[..found.np], data.ts())
         .map_err(|e| SysidError::Numerical(format!("{name}: {e}")))?;
-    let params = miso_params(start, &names, |i| found.full[i], |i| found.std(i));
     Ok(found.into_fit(model, params))
 }
 
@@ -989,14 +790,14 @@ mod tests {
         let y: Vec<f64> = (0..200).map(|k| (k as f64 * 0.05).sin()).collect();
         let data = Dataset::new(Signals { u, y }, 0.01, "t").unwrap();
         let channel = Channel {
-            u: &data.u,
+            u: &data.u(),
             nb: 2,
             nk: 1,
-            nonlinear: true,
+            block: &crate::blocks::DeadzoneBlock,
         };
         // [b_l, b_r, m_l, m_r, a1, a2, b2, c, η0, η1]
         let full = vec![-1.4, 1.3, 0.02, 0.03, -1.2, 0.4, 0.5, 0.1, 0.3, -0.2];
-        let mut p = problem(vec![channel], &data.y, 2, true);
+        let mut p = problem(vec![channel], &data.y(), 2, true);
         assert_jacobian_matches_central_differences(&mut p, &full);
     }
 
@@ -1014,13 +815,13 @@ mod tests {
                 u: &u1,
                 nb: 2,
                 nk: 1,
-                nonlinear: true,
+                block: &crate::blocks::DeadzoneBlock,
             },
             Channel {
                 u: &u2,
                 nb: 2,
                 nk: 2,
-                nonlinear: false,
+                block: &crate::blocks::LinearBlock,
             },
         ];
         let mut p = problem(channels, &y, 2, true);
@@ -1030,41 +831,5 @@ mod tests {
             -1.4, 1.3, 0.02, 0.03, -1.2, 0.4, 0.5, 0.3, -0.2, 0.1, 0.3, -0.2, 0.1,
         ];
         assert_jacobian_matches_central_differences(&mut p, &full);
-    }
-
-    // Layout of several-input parameters: deadzones first, then a, then each input's B with b1 = 1 of a
-    // nonlinear input inserted (fixed) even when nb = 1 leaves it no free coefficient; the vector maps back
-    // to the same model.
-    #[test]
-    fn several_input_parameters_list_each_fixed_b1_in_its_place() {
-        let dz = |b: f64| {
-            StaticNonlinearity::Deadzone(Deadzone {
-                b_l: -b,
-                b_r: b,
-                m_l: 0.5,
-                m_r: 0.7,
-            })
-        };
-        let inputs = vec![
-            InputChannel::new("v1", 1, vec![1.0], dz(1.0)).unwrap(),
-            InputChannel::new("p", 2, vec![0.2, 0.1], StaticNonlinearity::Linear).unwrap(),
-            InputChannel::new("v2", 1, vec![1.0], dz(2.0)).unwrap(),
-        ];
-        let model = Model::new(0.01, vec![-0.9], inputs, None).unwrap();
-        let (v, names) = miso_vector(&model);
-        assert_eq!(v.len(), names.len());
-        let params = miso_params(&model, &names, |i| v[i], |_| Some(1.0));
-        let got: Vec<&str> = params.iter().map(|p| p.name.as_str()).collect();
-        assert_eq!(
-            got,
-            [
-                "b_l (v1)", "b_r (v1)", "m_l (v1)", "m_r (v1)", "b_l (v2)", "b_r (v2)", "m_l (v2)",
-                "m_r (v2)", "a1", "b1 (v1)", "b1 (p)", "b2 (p)", "b1 (v2)"
-            ]
-        );
-        let fixed: Vec<bool> = params.iter().map(|p| p.std.is_none()).collect();
-        assert_eq!(fixed.iter().filter(|f| **f).count(), 2);
-        assert!(fixed[9] && fixed[12]);
-        assert_eq!(miso_model_of(&v, &model).unwrap(), model);
     }
 }

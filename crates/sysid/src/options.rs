@@ -2,9 +2,10 @@
 //! keyword arguments of the Python `ipa_sysid.identify`), turned into an [`Identification`] in one place.
 
 use crate::estimate::{
-    EstimatorSettings, Identification, InstrumentalVariables, LeastSquares, Method, OutputError,
-    Passes, RecursiveLeastSquares,
+    EstimatorSettings, Identification, InstrumentalVariables, LeastSquares, OutputError, Passes,
+    RecursiveLeastSquares,
 };
+use crate::fitted::Method;
 use crate::rls_ud::RlsForm;
 use crate::windup::Windup;
 use sysid_core::{ModelKind, Orders, Structure};
@@ -109,6 +110,7 @@ impl IdentifyOptions {
                 },
                 offset: self.offset,
             },
+            inputs: Vec::new(),
             estimator,
             // A one-sided input (never negative or never positive) drops the unexcited deadzone branch
             // and says so in the report's note.

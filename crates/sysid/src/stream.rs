@@ -25,9 +25,8 @@
 //! identified this way (the Hammerstein key-term iteration needs one pass per iteration, the other
 //! methods the whole record); any saved single-input model can be validated.
 
-use crate::estimate::{
-    check_finite, physical_params, Estimator, EstimatorSettings, Fitted, Identification, Method,
-};
+use crate::estimate::{check_finite, Estimator, EstimatorSettings, Identification};
+use crate::fitted::{Fitted, Method};
 use crate::residuals::{CovarianceAccumulator, ResidOptions};
 use crate::summary::{IdentifyReport, ResidualEntry, ResidualsPair, ValidationReport};
 use crate::warnings::{Record, Warning};
@@ -284,7 +283,9 @@ pub fn identify_arx(
     let dof = (n - k0 - p).max(1) as f64;
     let sigma2 = sol.rss / dof;
     let cov = &sol.inv_gram * sigma2;
-    let params = physical_params(&s, &sol.theta, Some(&cov));
+    let params = settings
+        .regression(&[sysid_core::data::SINGLE_INPUT])?
+        .params_of_theta(sol.theta.as_slice(), Some(&cov));
     check_finite(&name, &params)?;
     let model = key
         .model_of(sol.theta.as_slice(), shape.ts)

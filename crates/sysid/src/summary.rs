@@ -3,10 +3,11 @@
 
 use serde::{Deserialize, Serialize};
 
-use crate::estimate::{EstimatorSettings, Fitted, Identification, Method, Param, Passes};
+use crate::estimate::{EstimatorSettings, Identification, Passes};
+use crate::fitted::{Fitted, Method, Param};
 use crate::residuals::{analyze, InputCorrelation, ResidOptions, ResidualAnalysis};
 use crate::warnings::{Record, Warning};
-use sysid_core::metrics::{metrics, Metrics};
+use sysid_core::metrics::{metrics, pooled_metrics, Metrics};
 use sysid_core::{Dataset, Model, SysidError};
 
 /// A pole p = re + i·im of the linear block.
@@ -81,26 +82,17 @@ pub struct ResidualsPair {
 
 /// The one-step prediction residuals ε(k) = y(k) − ŷ(k|k−1) of `model` on `data` (the model's own
 /// predictor: equation error for ARX-type estimates, output error for the output-error method), rows
-/// k ≥ k0, analysed against the input of the same rows with `max_lag` lags.
+/// k ≥ k0, analysed against the input of the same rows with `max_lag` lags. The top-level
+/// cross-correlation is with the first input; with several inputs `inputs` holds the cross-correlation
+/// and independence test with each input.
 pub fn residual_analysis(model: &Model, data: &Dataset, max_lag: usize) -> ResidualEntry {
-    residual_analysis_miso(model, &[&data.u], &data.y, max_lag)
-}
-
-/// [`residual_analysis`] with one input record per model input. The top-level cross-correlation is
-/// with the first input; with several inputs `inputs` holds the cross-correlation and independence
-/// test with each input.
-pub fn residual_analysis_miso(
-    model: &Model,
-    u: &[&[f64]],
-    y: &[f64],
-    max_lag: usize,
-) -> ResidualEntry {
     let k0 = model.k0();
     let options = ResidOptions {
         max_lag,
         ..ResidOptions::default()
     };
-    let result = sysid_core::metrics::one_step_prediction_miso(model, u, y)
+    let (u, y) = (data.input_signals(), data.y());
+    let result = sysid_core::metrics::one_step_prediction(model, data)
         .map_err(|e| e.to_string())
         .and_then(|pred| {
             let eps: Vec<f64> = y[k0..]
@@ -125,11 +117,25 @@ pub fn residual_analysis_miso(
     }
 }
 
+/// Metrics and residual analysis of a model on one of several estimation records.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct RecordReport {
+    /// The record's name.
+    pub data: String,
+    /// Metrics (fit, loss, FPE...).
+    pub metrics: Metrics,
+    /// Residual analysis.
+    pub residuals: ResidualEntry,
+}
+
 /// The whole `identify --json` document.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct IdentifyReport {
     /// The fitted model (the same object a model file holds).
     pub model: Model,
+    /// The inputs' names, when the model has several (its parameters name their input).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub inputs: Option<Vec<String>>,
     /// Physical parameters with standard deviations.
     pub parameters: Vec<Param>,
     /// Poles of the linear block, largest modulus first.
@@ -142,6 +148,11 @@ pub struct IdentifyReport {
     pub metrics: MetricsPair,
     /// Residual analysis (MATLAB `resid`) of the one-step prediction errors.
     pub residuals: ResidualsPair,
+    /// Several estimation records (merged experiments): each one's metrics and residual analysis
+    /// (`metrics.estimation` then pools the rows of every record; `residuals.estimation` is per record
+    /// only, here).
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub records: Option<Vec<RecordReport>>,
     /// Reasons not to trust the model blindly, in words (always present; empty when all is well).
     pub warnings: Vec<String>,
 }
@@ -151,20 +162,45 @@ impl IdentifyReport {
     /// metrics, residual analysis with `max_lag` lags, and the warnings (the fit's own plus those the
     /// validation record raises). The one place where the `identify --json` document is made (the
     /// command line and the Python package both call it).
+    ///
+    /// With several estimation records (`est_data`: merged experiments) `metrics.estimation` pools their
+    /// rows and `records` holds each one's metrics and residual analysis.
     pub fn assemble(
         fit: &Fitted,
         settings: &Identification,
-        est_data: &Dataset,
+        est_data: &[Dataset],
         val_data: Option<&Dataset>,
         max_lag: usize,
     ) -> Result<Self, SysidError> {
-        let est = metrics(&fit.model, est_data)?;
-        let val = val_data.map(|v| metrics(&fit.model, v)).transpose()?;
-        let residuals = ResidualsPair {
-            estimation: residual_analysis(&fit.model, est_data, max_lag),
-            validation: val_data.map(|v| residual_analysis(&fit.model, v, max_lag)),
+        let m = &fit.model;
+        let est = pooled_metrics(m, est_data)?;
+        let val = val_data.map(|v| metrics(m, v)).transpose()?;
+        let (estimation, records) = match est_data {
+            [one] => (residual_analysis(m, one, max_lag), None),
+            many => (
+                ResidualEntry::Unavailable {
+                    error: "several records: see each record's residual analysis in records".into(),
+                },
+                Some(
+                    many.iter()
+                        .map(|r| {
+                            Ok(RecordReport {
+                                data: r.name().to_string(),
+                                metrics: metrics(m, r)?,
+                                residuals: residual_analysis(m, r, max_lag),
+                            })
+                        })
+                        .collect::<Result<Vec<_>, SysidError>>()?,
+                ),
+            ),
         };
-        Ok(Self::from_parts(fit, settings, est, val, residuals))
+        let residuals = ResidualsPair {
+            estimation,
+            validation: val_data.map(|v| residual_analysis(m, v, max_lag)),
+        };
+        let mut report = Self::from_parts(fit, settings, est, val, residuals);
+        report.records = records;
+        Ok(report)
     }
 
     /// The report from metrics and residual analyses computed elsewhere (the streaming path,
@@ -199,8 +235,16 @@ impl IdentifyReport {
             EstimatorSettings::Rls(r) if fit.method == Method::Rls => Some(r),
             _ => None,
         };
+        let several = fit.model.inputs().len() > 1;
         IdentifyReport {
             model: fit.model.clone(),
+            inputs: several.then(|| {
+                fit.model
+                    .inputs()
+                    .iter()
+                    .map(|c| c.name().to_string())
+                    .collect()
+            }),
             parameters: fit.params.clone(),
             poles: poles(&fit.model),
             stable: fit.model.is_stable(),
@@ -227,6 +271,7 @@ impl IdentifyReport {
                 },
                 validation: None,
             },
+            records: None,
             warnings: fit.warnings.iter().map(ToString::to_string).collect(),
         }
     }
@@ -274,22 +319,11 @@ impl ValidationReport {
     /// Validates `model` on `data`: metrics, residual analysis with `max_lag` lags, warnings (unstable
     /// model, negative or diverging simulation fit).
     pub fn assemble(model: &Model, data: &Dataset, max_lag: usize) -> Result<Self, SysidError> {
-        Self::assemble_miso(model, &[&data.u], &data.y, &data.name, max_lag)
-    }
-
-    /// [`ValidationReport::assemble`] with one input record per model input; `name` names the record.
-    pub fn assemble_miso(
-        model: &Model,
-        u: &[&[f64]],
-        y: &[f64],
-        name: &str,
-        max_lag: usize,
-    ) -> Result<Self, SysidError> {
-        let m = sysid_core::metrics::metrics_miso(model, u, y, name)?;
+        let m = metrics(model, data)?;
         Ok(Self::from_parts(
             model,
             m,
-            residual_analysis_miso(model, u, y, max_lag),
+            residual_analysis(model, data, max_lag),
         ))
     }
 
@@ -335,168 +369,4 @@ pub fn poles(model: &Model) -> Vec<Pole> {
             abs: p.norm(),
         })
         .collect()
-}
-
-/// One record of a several-input model: its name, one signal per model input and the output.
-#[derive(Debug, Clone, Copy)]
-pub struct MisoRecord<'a> {
-    /// The record's name (file and rows).
-    pub name: &'a str,
-    /// u^(m)(k), one signal per model input, in the model's order.
-    pub u: &'a [&'a [f64]],
-    /// y(k).
-    pub y: &'a [f64],
-}
-
-/// Metrics and residual analysis of a several-input model on one record.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct MisoRecordReport {
-    /// The record's name.
-    pub data: String,
-    /// Metrics (fit, loss, FPE...).
-    pub metrics: Metrics,
-    /// Residual analysis with the cross-correlation with each input.
-    pub residuals: ResidualEntry,
-}
-
-impl MisoRecordReport {
-    /// `model` judged on `record` with `max_lag` residual lags.
-    fn assemble(model: &Model, record: &MisoRecord, max_lag: usize) -> Result<Self, SysidError> {
-        Ok(MisoRecordReport {
-            data: record.name.to_string(),
-            metrics: sysid_core::metrics::metrics_miso(model, record.u, record.y, record.name)?,
-            residuals: residual_analysis_miso(model, record.u, record.y, max_lag),
-        })
-    }
-}
-
-/// The identification of a several-input model (`identify --u-col u1,u2`): the fit, its records judged,
-/// and every reason not to trust it in words.
-#[derive(Debug, Clone, PartialEq)]
-pub struct MisoReport {
-    /// The fit (model, parameters with standard deviations, iterations, notes).
-    pub fit: crate::miso::MisoFit,
-    /// The method.
-    pub method: Method,
-    /// Each estimation record (several with `--merge`).
-    pub estimation: Vec<MisoRecordReport>,
-    /// The validation record, if any.
-    pub validation: Option<MisoRecordReport>,
-    /// Warnings: the fit's own, not converged, unstable, a diverging or negative-fit simulation, a
-    /// standard deviation that could not be computed.
-    pub warnings: Vec<String>,
-}
-
-impl MisoReport {
-    /// Judges `fit` (estimated by `method`) on the estimation records and the validation record, with
-    /// `max_lag` residual lags, and gathers the warnings.
-    pub fn assemble(
-        fit: crate::miso::MisoFit,
-        method: Method,
-        estimation: &[MisoRecord],
-        validation: Option<&MisoRecord>,
-        max_lag: usize,
-    ) -> Result<Self, SysidError> {
-        let m = &fit.model;
-        let est = estimation
-            .iter()
-            .map(|r| MisoRecordReport::assemble(m, r, max_lag))
-            .collect::<Result<Vec<_>, _>>()?;
-        let val = validation
-            .map(|r| MisoRecordReport::assemble(m, r, max_lag))
-            .transpose()?;
-        let mut warnings: Vec<String> = fit.warnings.iter().map(ToString::to_string).collect();
-        if !fit.converged {
-            warnings.push(match method {
-                Method::Rls => format!(
-                    "the RLS estimate did not settle in {} pass(es); more passes (--passes auto) or --method ls",
-                    fit.iterations
-                ),
-                Method::Oe => format!(
-                    "the output-error search stopped at its iteration limit ({}) before converging",
-                    fit.iterations
-                ),
-                Method::Iv => format!(
-                    "the IV stages had not settled after {} stage(s) (--iv-stages)",
-                    fit.iterations
-                ),
-                _ => format!(
-                    "the key-term iteration did not reach its fixed point in {} iteration(s) \
-                     (--max-iterations); the estimate may not be the least-squares one",
-                    fit.iterations
-                ),
-            });
-        }
-        warnings.extend(Warning::if_unstable(m).map(|w| w.to_string()));
-        for (what, r) in est
-            .iter()
-            .map(|r| (Record::Estimation, r))
-            .chain(val.iter().map(|r| (Record::Validation, r)))
-        {
-            if let Some(note) = &r.metrics.note {
-                warnings.push(format!("{what}: {note}"));
-            } else if let Some(w) = Warning::if_poor_simulation(what, r.metrics.fit_sim_percent) {
-                warnings.push(w.to_string());
-            }
-        }
-        for p in &fit.params {
-            let fixed = p.name.starts_with("b1 (") && p.value == 1.0;
-            let explained = fit.warnings.iter().any(|w| w.explains_missing_std(&p.name));
-            if p.std.is_none() && !fixed && !explained {
-                warnings.push(format!(
-                    "{} = {}: its standard deviation could not be computed (the regression or the \
-                     Jacobian is singular there)",
-                    p.name, p.value
-                ));
-            }
-        }
-        Ok(MisoReport {
-            fit,
-            method,
-            estimation: est,
-            validation: val,
-            warnings,
-        })
-    }
-
-    /// The `identify --json` document: `model`, `method`, `parameters`, `noise_variance`, `poles`,
-    /// `stable`, `iterations`, `converged`, `notes`, `metrics` and `residuals` (`estimation`: the one
-    /// record's object, or with several records a list of `{data, metrics}` / residual entries;
-    /// `validation`), `warnings`.
-    pub fn to_json_value(&self) -> serde_json::Value {
-        let m = &self.fit.model;
-        let (est_metrics, est_resid) = match self.estimation.as_slice() {
-            [one] => (
-                serde_json::json!(one.metrics),
-                serde_json::json!(one.residuals),
-            ),
-            many => (
-                serde_json::json!(many
-                    .iter()
-                    .map(|r| serde_json::json!({"data": r.data, "metrics": r.metrics}))
-                    .collect::<Vec<_>>()),
-                serde_json::json!(many.iter().map(|r| &r.residuals).collect::<Vec<_>>()),
-            ),
-        };
-        serde_json::json!({
-            "model": m,
-            "method": self.method,
-            "parameters": self.fit.params,
-            "noise_variance": self.fit.noise_variance,
-            "poles": poles(m),
-            "stable": m.is_stable(),
-            "iterations": self.fit.iterations,
-            "converged": self.fit.converged,
-            "notes": self.fit.notes.iter().map(ToString::to_string).collect::<Vec<_>>(),
-            "metrics": {
-                "estimation": est_metrics,
-                "validation": self.validation.as_ref().map(|v| &v.metrics),
-            },
-            "residuals": {
-                "estimation": est_resid,
-                "validation": self.validation.as_ref().map(|v| &v.residuals),
-            },
-            "warnings": self.warnings,
-        })
-    }
 }

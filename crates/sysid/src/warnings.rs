@@ -1,9 +1,10 @@
 //! Warnings: when an estimate may not deserve trust, the tool says so in words (the `warnings` list of
 //! `identify --json`, `warning: ...` lines in the text). Each [`Warning`] is typed; its `Display` is
-//! the sentence users read. [`deadzone_warnings`] holds the checks of a deadzone against the data.
+//! the sentence users read. The checks of a static nonlinearity against its data are its block's
+//! (`crate::blocks`).
 
 use serde::{Serialize, Serializer};
-use sysid_core::{Deadzone, Model, ParamName};
+use sysid_core::{Model, ParamName};
 
 /// Which record a warning is about.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -178,7 +179,7 @@ impl Warning {
     /// as such).
     pub fn explains_missing_std(&self, param: &str) -> bool {
         match self {
-            Warning::Fallback { used, .. } => used.starts_with(crate::estimate::LINEAR_START_USED),
+            Warning::Fallback { used, .. } => used.starts_with(crate::fitted::LINEAR_START_USED),
             Warning::ForInput { input, warning } => match warning.as_ref() {
                 Warning::BreakpointOnInputLevel { name, .. }
                 | Warning::BreakpointNotBracketed { name, .. } => {
@@ -212,189 +213,5 @@ impl Warning {
 impl Serialize for Warning {
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
         s.collect_str(self)
-    }
-}
-
-/// Checks a deadzone estimate against the input it was estimated from: a physical shape, breakpoints
-/// bracketed by the data and not on an input level (nor within their standard deviation `std_l`,
-/// `std_r` of one), at least two distinct levels on each estimated branch. `left`/`right`: whether that
-/// branch was estimated (not dropped for a one-sided input). Returns the warnings and the names of the
-/// breakpoints whose standard deviation is not meaningful.
-pub fn deadzone_warnings(
-    d: &Deadzone,
-    u: &[f64],
-    (left, right): (bool, bool),
-    (std_l, std_r): (Option<f64>, Option<f64>),
-) -> (Vec<Warning>, Vec<ParamName>) {
-    let mut w = Vec::new();
-    let mut no_std = Vec::new();
-    let mut levels: Vec<f64> = u.to_vec();
-    levels.sort_by(f64::total_cmp);
-    levels.dedup();
-    let (u_min, u_max) = match (levels.first(), levels.last()) {
-        (Some(a), Some(b)) => (*a, *b),
-        _ => return (w, no_std),
-    };
-    if left && right && d.b_l > d.b_r {
-        w.push(Warning::NonPhysicalDeadzone {
-            why: format!("b_l = {} > b_r = {}", d.b_l, d.b_r),
-        });
-    }
-    if left && right && d.m_l * d.m_r < 0.0 {
-        w.push(Warning::NonPhysicalDeadzone {
-            why: format!(
-                "the slopes have opposite signs (m_l = {}, m_r = {})",
-                d.m_l, d.m_r
-            ),
-        });
-    }
-    let checks = [
-        (left, ParamName::BL, d.b_l, std_l, Branch::Left),
-        (right, ParamName::BR, d.b_r, std_r, Branch::Right),
-    ];
-    for (estimated, name, b, std, branch) in checks {
-        if !estimated {
-            continue;
-        }
-        let reach = |l: f64| (1e-9 * l.abs().max(1.0)).max(std.unwrap_or(0.0));
-        if let Some(level) = levels.iter().find(|l| (b - **l).abs() <= reach(**l)) {
-            w.push(Warning::BreakpointOnInputLevel {
-                name,
-                value: b,
-                level: *level,
-            });
-            no_std.push(name);
-        } else if b <= u_min || b >= u_max {
-            w.push(Warning::BreakpointNotBracketed {
-                name,
-                value: b,
-                u_min,
-                u_max,
-            });
-            no_std.push(name);
-        }
-        let beyond = levels
-            .iter()
-            .filter(|l| match branch {
-                Branch::Left => **l < b,
-                Branch::Right => **l > b,
-            })
-            .count();
-        if beyond < 2 {
-            w.push(Warning::FewInputLevels {
-                branch,
-                levels: beyond,
-            });
-        }
-    }
-    (w, no_std)
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-    use sysid_core::data::Signals;
-
-    use sysid_core::Dataset;
-
-    fn data(u: Vec<f64>) -> Dataset {
-        let y = vec![0.0; u.len()];
-        Dataset::new(Signals { u, y }, 1.0, "t").unwrap()
-    }
-
-    // A staircase of levels −60, −56, −48, −33, 20, 40, 60: a deadzone with b_l = −48 (on a level, two
-    // levels below it) and b_r = 25 (between levels) warns about b_l only; b_r keeps its standard
-    // deviation.
-    #[test]
-    fn a_breakpoint_on_an_input_level_is_flagged() {
-        let d = data(vec![-60.0, -56.0, -48.0, -33.0, 20.0, 40.0, 60.0, -56.0]);
-        let dz = Deadzone {
-            b_l: -48.0,
-            b_r: 25.0,
-            m_l: 0.005,
-            m_r: 0.005,
-        };
-        let (w, no_std) = deadzone_warnings(&dz, &d.u, (true, true), (None, None));
-        assert_eq!(no_std, vec![ParamName::BL]);
-        assert!(matches!(
-            w[..],
-            [Warning::BreakpointOnInputLevel { level, .. }] if level == -48.0
-        ));
-        assert!(w[0].to_string().contains("lies on the input level -48"));
-        // A breakpoint 4e-5 from the level, with a standard deviation of 0.5: the kink is within one
-        // standard deviation, so the same warning; 0.4 away with σ 0.1 is not.
-        let near = Deadzone {
-            b_l: -47.99996,
-            ..dz
-        };
-        let (w, _) = deadzone_warnings(&near, &d.u, (true, true), (Some(0.5), Some(0.1)));
-        assert!(
-            matches!(w[..], [Warning::BreakpointOnInputLevel { .. }]),
-            "{w:?}"
-        );
-        let apart = Deadzone { b_l: -47.6, ..dz };
-        let (w, no_std) = deadzone_warnings(&apart, &d.u, (true, true), (Some(0.1), Some(0.1)));
-        assert!(w.is_empty() && no_std.is_empty(), "{w:?}");
-    }
-
-    // b_r above every command: not bracketed; the right branch has no level beyond it.
-    #[test]
-    fn a_breakpoint_outside_the_input_range_is_not_bracketed() {
-        let d = data(vec![-30.0, -20.0, -10.0, 5.0, 10.0]);
-        let dz = Deadzone {
-            b_l: -15.0,
-            b_r: 12.0,
-            m_l: 1.0,
-            m_r: 1.0,
-        };
-        let (w, no_std) = deadzone_warnings(&dz, &d.u, (true, true), (None, None));
-        assert_eq!(no_std, vec![ParamName::BR]);
-        assert!(w.contains(&Warning::BreakpointNotBracketed {
-            name: ParamName::BR,
-            value: 12.0,
-            u_min: -30.0,
-            u_max: 10.0
-        }));
-        assert!(w.contains(&Warning::FewInputLevels {
-            branch: Branch::Right,
-            levels: 0
-        }));
-        // Left: levels below −15 are −30 and −20: two, enough.
-        assert!(!w.contains(&Warning::FewInputLevels {
-            branch: Branch::Left,
-            levels: 2
-        }));
-    }
-
-    // b_l > b_r and slopes of opposite sign are not a valve deadzone.
-    #[test]
-    fn crossed_breakpoints_and_opposite_slopes_are_not_physical() {
-        let d = data(vec![-30.0, -20.0, -10.0, 10.0, 20.0, 30.0]);
-        let dz = Deadzone {
-            b_l: 5.0,
-            b_r: -5.0,
-            m_l: -1.0,
-            m_r: 1.0,
-        };
-        let (w, _) = deadzone_warnings(&dz, &d.u, (true, true), (None, None));
-        let n = w
-            .iter()
-            .filter(|w| matches!(w, Warning::NonPhysicalDeadzone { .. }))
-            .count();
-        assert_eq!(n, 2, "{w:?}");
-    }
-
-    // A dropped branch is not checked.
-    #[test]
-    fn dropped_branches_are_not_checked() {
-        let d = data(vec![1.0, 2.0, 3.0, 4.0]);
-        let dz = Deadzone {
-            b_l: 0.0,
-            b_r: 1.5,
-            m_l: 0.0,
-            m_r: 1.0,
-        };
-        let (w, _) = deadzone_warnings(&dz, &d.u, (false, true), (None, None));
-        assert!(w.is_empty(), "{w:?}");
     }
 }

@@ -6,8 +6,8 @@
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sysid::data::Signals;
-use sysid::estimate::{identify, Identification, Method};
 use sysid::Dataset;
+use sysid::{identify, Identification, Method};
 
 /// Levels in [0, 10] (a few exactly 0 and inside the deadzone) held 5..30 samples.
 fn positive_levels(n: usize, seed: u64) -> Vec<f64> {

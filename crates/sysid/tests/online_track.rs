@@ -9,9 +9,9 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use sysid::data::Signals;
-use sysid::estimate::{identify, Identification, Passes};
 use sysid::online::{DeadzoneStart, StreamOptions, TrackSettings, Tracker};
 use sysid::windup::Windup;
+use sysid::{identify, Identification, Passes};
 use sysid::{Dataset, Deadzone, EstimatorSettings, ModelKind, RecursiveLeastSquares};
 
 const A: [f64; 3] = [-1.869, 0.9976, -0.1284];

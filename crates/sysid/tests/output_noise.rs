@@ -6,7 +6,7 @@
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sysid::data::Signals;
-use sysid::estimate::{identify, Identification, Method};
+use sysid::{identify, Identification, Method};
 use sysid::{Dataset, Deadzone, ModelKind};
 
 /// Standard normal sample (rand_distr).

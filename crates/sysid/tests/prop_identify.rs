@@ -9,13 +9,13 @@
 
 use proptest::prelude::*;
 use sysid::data::Signals;
-use sysid::estimate::{identify, Identification, Method};
-use sysid::estimate::{
-    EstimatorSettings, InstrumentalVariables, LeastSquares, OutputError, RecursiveLeastSquares,
-};
 use sysid::metrics::metrics;
 use sysid::Structure;
+use sysid::{identify, Identification, Method};
 use sysid::{Dataset, ModelKind, Orders, SysidError};
+use sysid::{
+    EstimatorSettings, InstrumentalVariables, LeastSquares, OutputError, RecursiveLeastSquares,
+};
 
 /// Any finite f64, weighted towards ordinary magnitudes but with extremes, subnormals and zeros.
 fn finite() -> impl Strategy<Value = f64> {
@@ -82,6 +82,7 @@ fn settings(
             orders: Orders { na, nb, nk },
             offset,
         },
+        inputs: Vec::new(),
         estimator,
         drop_unexcited_branch: true,
         fallback: true,

@@ -170,9 +170,9 @@ proptest! {
         let o = CsvOptions { ts: if with_time { None } else { Some(ts) }, ..opts() };
         let data = read_csv_bytes(text.as_bytes(), "gen.csv", &o).map_err(|e| TestCaseError::fail(format!("{e}\n{text}")))?;
         let (u, y): (Vec<f64>, Vec<f64>) = rows.iter().copied().unzip();
-        prop_assert_eq!(data.u.iter().map(|v| v.to_bits()).collect::<Vec<_>>(), u.iter().map(|v| v.to_bits()).collect::<Vec<_>>());
-        prop_assert_eq!(data.y.iter().map(|v| v.to_bits()).collect::<Vec<_>>(), y.iter().map(|v| v.to_bits()).collect::<Vec<_>>());
-        prop_assert!((data.ts - ts).abs() <= 1e-9 * ts, "{} vs {}", data.ts, ts);
+        prop_assert_eq!(data.u().iter().map(|v| v.to_bits()).collect::<Vec<_>>(), u.iter().map(|v| v.to_bits()).collect::<Vec<_>>());
+        prop_assert_eq!(data.y().iter().map(|v| v.to_bits()).collect::<Vec<_>>(), y.iter().map(|v| v.to_bits()).collect::<Vec<_>>());
+        prop_assert!((data.ts() - ts).abs() <= 1e-9 * ts, "{} vs {}", data.ts(), ts);
     }
 }
 

@@ -6,8 +6,8 @@
 use std::path::PathBuf;
 
 use sysid::data::{read_csv, CsvOptions};
-use sysid::estimate::{identify, Identification, Method};
 use sysid::metrics::metrics;
+use sysid::{identify, Identification, Method};
 use sysid::{Dataset, ModelKind};
 
 fn data_dir() -> Option<PathBuf> {

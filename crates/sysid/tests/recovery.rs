@@ -7,7 +7,7 @@ use nalgebra::{DMatrix, DVector};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sysid::data::Signals;
-use sysid::estimate::{identify, Identification, Method};
+use sysid::{identify, Identification, Method};
 use sysid::{Dataset, Deadzone, ModelKind};
 
 /// A staircase of random levels in [-255, 255] (with exact ±255 and small levels near zero) held for

@@ -7,9 +7,9 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
 
 use sysid::data::Signals;
-use sysid::estimate::{identify, Identification};
 use sysid::rls_ud::{RlsForm, RobustRls};
 use sysid::windup::Windup;
+use sysid::{identify, Identification};
 use sysid::{Dataset, ModelKind};
 use sysid::{EstimatorSettings, RecursiveLeastSquares};
 

@@ -11,9 +11,9 @@ use std::path::{Path, PathBuf};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sysid::data::{read_csv, CsvOptions, Signals};
-use sysid::estimate::{identify, Identification, Method};
 use sysid::metrics::metrics;
 use sysid::summary::{residual_analysis, ResidualEntry};
+use sysid::{identify, Identification, Method};
 use sysid::{Dataset, Model, ModelKind, Warning};
 
 fn data_dir() -> Option<PathBuf> {

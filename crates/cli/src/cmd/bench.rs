@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use anyhow::Context;
 use serde::Serialize;
-use sysid::estimate::Method;
+use sysid::Method;
 use sysid_studies::bench::{
     bench_identify, bench_plant, bench_rls, paper_experiment, paper_settings, peak_flops,
 };

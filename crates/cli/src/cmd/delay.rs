@@ -38,10 +38,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut text = format!(
         "Delay estimate on {} ({} samples): nk = {} samples ({} s), from ARX(na = {}, nb = {}, nk) fits \
          with a constant term on the same {} rows\n\n{:>4} {:>14}\n",
-        data.name,
+        data.name(),
         data.len(),
         est.nk,
-        report::format::num(est.nk as f64 * data.ts),
+        report::format::num(est.nk as f64 * data.ts()),
         est.na,
         est.nb,
         est.n,
@@ -67,10 +67,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     print_report(&text, args.json.as_deref());
     if let Some(path) = &args.json {
         let value = serde_json::json!({
-            "data": data.name,
-            "ts": data.ts,
+            "data": data.name(),
+            "ts": data.ts(),
             "nk": est.nk,
-            "delay_s": est.nk as f64 * data.ts,
+            "delay_s": est.nk as f64 * data.ts(),
             "na": est.na,
             "nb": est.nb,
             "n": est.n,

@@ -10,8 +10,8 @@ use std::time::Instant;
 use anyhow::Context;
 use rayon::prelude::*;
 use serde::Serialize;
-use sysid::estimate::{identify, Identification};
 use sysid::summary::IdentifyReport;
+use sysid::{identify, Identification};
 use sysid::{Dataset, SysidError};
 
 use super::common::{check_outputs, progress_bar, write_output};
@@ -65,10 +65,9 @@ struct Failure {
     error: String,
 }
 
-/// Runs `identify` in batch mode.
-pub fn run(args: Args) -> anyhow::Result<()> {
-    let settings = args.settings();
-    settings.check()?; // refuse bad flags before reading anything
+/// Runs `identify` in batch mode with the (checked) `settings`; with `--strict`, exits 1 when any
+/// file's report carries warnings (every line is written first).
+pub fn run(args: Args, settings: &Identification) -> anyhow::Result<()> {
     if args.save_model.is_some() {
         anyhow::bail!(SysidError::setting(
             sysid::Setting::Other("--save-model"),
@@ -103,14 +102,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "{bar:40} {pos}/{len} files  {per_sec}  eta {eta}",
     );
     let start = Instant::now();
-    // Each line with the exit code its failure would have alone (0 for success).
-    let lines: Vec<(String, u8)> = files
+    // Each line with the exit code its failure would have alone (0 for success) and its warnings.
+    let lines: Vec<(String, u8, usize)> = files
         .par_iter()
         .map(|path| {
             let file = path.display().to_string();
             let line = match sysid::data::read_csv(path, &opts)
                 .map_err(anyhow::Error::from)
-                .and_then(|data| fit_report(&data, &settings, val.as_ref(), args.resid_lags))
+                .and_then(|data| fit_report(&data, settings, val.as_ref(), args.resid_lags))
             {
                 Ok(report) => (
                     serde_json::to_string(&Line {
@@ -118,6 +117,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                         report: &report,
                     }),
                     0,
+                    report.warnings.len(),
                 ),
                 Err(e) => (
                     serde_json::to_string(&Failure {
@@ -125,12 +125,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                         error: crate::exit::render_chain(&e),
                     }),
                     crate::exit::code(&e),
+                    0,
                 ),
             };
             bar.inc(1);
             match line {
-                (Ok(text), code) => (text, code),
-                (Err(e), _) => {
+                (Ok(text), code, warnings) => (text, code, warnings),
+                (Err(e), _, _) => {
                     let f = Failure {
                         file: path.display().to_string(),
                         error: format!("cannot serialise the report: {e}"),
@@ -138,6 +139,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     (
                         serde_json::to_string(&f).unwrap_or_default(),
                         crate::exit::USAGE,
+                        0,
                     )
                 }
             }
@@ -145,9 +147,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .collect();
     let elapsed = start.elapsed().as_secs_f64();
     bar.finish_and_clear();
-    let failed = lines.iter().filter(|(_, code)| *code != 0).count();
-    let mut body = String::with_capacity(lines.iter().map(|(l, _)| l.len() + 1).sum());
-    for (l, _) in &lines {
+    let failed = lines.iter().filter(|(_, code, _)| *code != 0).count();
+    let mut body = String::with_capacity(lines.iter().map(|(l, _, _)| l.len() + 1).sum());
+    for (l, _, _) in &lines {
         body.push_str(l);
         body.push('\n');
     }
@@ -173,13 +175,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let msg = format!("{failed} of {} files could not be identified", files.len());
         if lines
             .iter()
-            .all(|(_, code)| *code == 0 || *code == crate::exit::NUMERICAL)
+            .all(|(_, code, _)| *code == 0 || *code == crate::exit::NUMERICAL)
         {
             anyhow::bail!(SysidError::Numerical(msg));
         }
         anyhow::bail!(SysidError::Data(msg));
     }
-    Ok(())
+    crate::exit::strict(args.strict, lines.iter().map(|(_, _, w)| w).sum())
 }
 
 /// The single-file pipeline of `identify` on one record: fit, refuse non-finite estimates, metrics on the
@@ -192,6 +194,10 @@ fn fit_report(
 ) -> anyhow::Result<IdentifyReport> {
     let fit = identify(data, settings)?;
     Ok(IdentifyReport::assemble(
-        &fit, settings, data, val, resid_lags,
+        &fit,
+        settings,
+        std::slice::from_ref(data),
+        val,
+        resid_lags,
     )?)
 }

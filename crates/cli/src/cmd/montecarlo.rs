@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use ipa::input::{generate, InputSpec};
-use sysid::estimate::{Identification, Method};
+use sysid::{Identification, Method};
 use sysid::{Model, ModelKind, Orders};
 use sysid_studies::montecarlo::{study, truth_of, StudySettings};
 
@@ -131,6 +131,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             orders,
             offset: offset || args.offset,
         },
+        inputs: Vec::new(),
         estimator: sysid::EstimatorSettings::Rls(sysid::RecursiveLeastSquares {
             forgetting: args.forgetting,
             ..sysid::RecursiveLeastSquares::default()

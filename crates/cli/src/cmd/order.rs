@@ -10,10 +10,10 @@
 use std::path::{Path, PathBuf};
 
 use report::format::num;
-use sysid::estimate::{Identification, Method};
 use sysid::model::MAX_ORDER;
 use sysid::order::{grid_size, search, Candidate};
 use sysid::ModelKind;
+use sysid::{Identification, Method};
 
 use super::common::{
     check_outputs, parse_rows, print_notes, print_report, progress_bar, write_output, ColumnArgs,
@@ -207,8 +207,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let m = sysid::metrics::metrics(&fit.model, t)?;
             Some(TestResult {
                 orders: c.orders,
-                estimated_on: data.name.clone(),
-                data: t.name.clone(),
+                estimated_on: data.name().to_string(),
+                data: t.name().to_string(),
                 fit_sim_percent: m.fit_sim_percent,
                 metrics: m,
             })
@@ -221,9 +221,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ranked.len(),
         base.structure.kind,
         sysid::Estimator::method(&base.estimator),
-        fit_part.name,
+        fit_part.name(),
         fit_part.len(),
-        selection.name,
+        selection.name(),
         selection.len(),
     );
     if let Some(d) = &delay {
@@ -279,9 +279,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     print_report(&text, args.json.as_deref());
     if let Some(path) = &args.json {
         let doc = OrderReport {
-            data: fit_part.name.clone(),
-            selection: selection.name.clone(),
-            validation: test.as_ref().map(|v| v.name.clone()),
+            data: fit_part.name().to_string(),
+            selection: selection.name().to_string(),
+            validation: test.as_ref().map(|v| v.name().to_string()),
             ranked_by,
             delay,
             test: test_result,

@@ -59,23 +59,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     opts.fallback_ts = Some(model.ts());
     // A model with several inputs reads one column per input: --u-col u1,u2 or the model's input names.
     let miso = model.inputs().len() > 1 || opts.u_col.contains(',');
-    let cols: Vec<String> = if opts.u_col.contains(',') {
-        opts.u_col
-            .split(',')
-            .map(|s| s.trim().to_string())
-            .collect()
-    } else if miso {
-        model
+    if miso && !opts.u_col.contains(',') {
+        opts.u_col = model
             .inputs()
             .iter()
-            .map(|i| i.name().to_string())
-            .collect()
-    } else {
-        vec![opts.u_col.clone()]
-    };
-    let all_cols = opts.u_col.clone();
-    if let Some(first) = cols.first() {
-        opts.u_col = first.clone();
+            .map(|i| i.name())
+            .collect::<Vec<_>>()
+            .join(",");
     }
     if streaming(&args, miso)? {
         return run_streamed(&args, &model, &opts, &inputs);
@@ -83,40 +73,31 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let record = sysid::data::read_record(&args.data, &opts)?;
     print_notes(&record.notes);
     let data = record.data;
-    let mut extra: Vec<Vec<f64>> = Vec::new();
-    if miso {
-        if cols.len() != model.inputs().len() {
-            anyhow::bail!(sysid::SysidError::setting(
-                sysid::Setting::UCol,
-                &all_cols,
-                &format!("one column per model input ({})", model.inputs().len())
-            ));
-        }
-        for c in &cols {
-            let o = sysid::data::CsvOptions {
-                u_col: c.clone(),
-                ..opts.clone()
-            };
-            extra.push(sysid::data::read_record(&args.data, &o)?.data.u);
-        }
+    if data.inputs().len() != model.inputs().len() {
+        anyhow::bail!(sysid::SysidError::setting(
+            sysid::Setting::UCol,
+            &opts.u_col,
+            &format!("one column per model input ({})", model.inputs().len())
+        ));
     }
-    let us: Vec<&[f64]> = if extra.is_empty() {
-        vec![data.u.as_slice()]
-    } else {
-        extra.iter().map(Vec::as_slice).collect()
-    };
-    check_ts(&data.name, data.ts, model.ts())?;
-    let mut report =
-        ValidationReport::assemble_miso(&model, &us, &data.y, &data.name, args.resid_lags)?;
+    let us = data.input_signals();
+    check_ts(&data.name(), data.ts(), model.ts())?;
+    let mut report = ValidationReport::assemble(&model, &data, args.resid_lags)?;
     report
         .warnings
         .extend(record.notes.iter().map(|n| format!("data: {n}")));
-    let out = sysid::metrics::model_output(&model, &us, &data.y, args.horizon)?;
+    let out = sysid::metrics::model_output(&model, &us, data.y(), args.horizon)?;
     let value = report_json(&report, args.horizon, out.fit_pred_percent, &record.notes)?;
-    let text = report_text(&args, &report, &data.name, data.len(), out.fit_pred_percent);
+    let text = report_text(
+        &args,
+        &report,
+        &data.name(),
+        data.len(),
+        out.fit_pred_percent,
+    );
     print_report(&text, args.json.as_deref());
     if let Some(path) = &args.out {
-        let t = sysid::data::sample_times(data.len(), data.ts);
+        let t = sysid::data::sample_times(data.len(), data.ts());
         let mut w = csv::Writer::from_writer(Vec::new());
         w.write_record(["t", "y", "y_sim", "y_pred", "residual"])?;
         for k in 0..data.len() {
@@ -126,10 +107,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 .map_or(String::new(), |s| s[k].to_string());
             w.write_record([
                 t[k].to_string(),
-                data.y[k].to_string(),
+                data.y()[k].to_string(),
                 sim,
                 out.y_pred[k].to_string(),
-                (data.y[k] - out.y_pred[k]).to_string(),
+                (data.y()[k] - out.y_pred[k]).to_string(),
             ])?;
         }
         let bytes = w.into_inner().map_err(|e| anyhow::anyhow!("{e}"))?;

@@ -106,12 +106,21 @@ pub fn split_rows(n: usize, fraction: f64) -> Result<usize, SysidError> {
     Ok(k)
 }
 
+use super::Input;
+
 impl Dataset {
     /// Rows `r` of the record (same Ts); its name says which rows (`file.csv[100..600]`).
     pub fn rows(&self, r: Range<usize>) -> Dataset {
         let r = r.start.min(self.len())..r.end.min(self.len());
         Dataset {
-            u: self.u[r.clone()].to_vec(),
+            inputs: self
+                .inputs
+                .iter()
+                .map(|i| Input {
+                    name: i.name.clone(),
+                    u: i.u[r.clone()].to_vec(),
+                })
+                .collect(),
             y: self.y[r.clone()].to_vec(),
             ts: self.ts,
             name: format!("{}[{}..{}]", self.name, r.start, r.end),

@@ -74,7 +74,7 @@ impl<'a> DatasetSource<'a> {
 
 impl RecordSource for DatasetSource<'_> {
     fn name(&self) -> &str {
-        &self.data.name
+        &self.data.name()
     }
 
     fn pass(&mut self, consume: &mut ChunkFn<'_>) -> Result<Shape, SysidError> {
@@ -82,12 +82,12 @@ impl RecordSource for DatasetSource<'_> {
         let mut k = 0;
         while k < n {
             let end = (k + self.chunk).min(n);
-            consume(k, &self.data.u[k..end], &self.data.y[k..end])?;
+            consume(k, &self.data.u()[k..end], &self.data.y()[k..end])?;
             k = end;
         }
         Ok(Shape {
             rows: n,
-            ts: self.data.ts,
+            ts: self.data.ts(),
         })
     }
 }

@@ -1,0 +1,321 @@
+//! The vocabulary every estimator shares: the [`Method`], a [`Param`] with its standard deviation,
+//! how an estimator stopped ([`Termination`]), remarks ([`Note`]) and the fitted result ([`Fitted`]).
+//! Small types in their own module, so that the estimators, the warnings and the online tracker can all
+//! use them without importing each other.
+
+use serde::{Deserialize, Serialize};
+
+use crate::rls_ud::RlsForm;
+use crate::warnings::Warning;
+use crate::windup::Windup;
+use sysid_core::{Model, ParamName};
+
+/// Estimation method (the JSON `method`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "lowercase")]
+pub enum Method {
+    /// Batch least squares via QR; for Hammerstein, iterated key-term separation.
+    Ls,
+    /// Recursive least squares with forgetting (paper eqs. 9–12).
+    Rls,
+    /// Output-error refinement of every parameter (Levenberg–Marquardt on the free-run simulation error),
+    /// started from the LS estimate. Unbiased under white output (measurement) noise; batch. Also with
+    /// several inputs.
+    Oe,
+    /// Recursive instrumental variables with instruments from an auxiliary model's simulated output.
+    /// Unbiased under output noise; recursive (online). Also with several inputs.
+    Iv,
+}
+
+impl std::fmt::Display for Method {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Method::Ls => "ls",
+            Method::Rls => "rls",
+            Method::Oe => "oe",
+            Method::Iv => "iv",
+        })
+    }
+}
+
+/// One physical parameter with its standard deviation (MATLAB `present`).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Param {
+    /// Name: b_l, b_r, m_l, m_r, a1.., b1.., c.
+    pub name: ParamName,
+    /// The input the parameter belongs to (its static nonlinearity or B polynomial), named only when the
+    /// model has several inputs.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub input: Option<String>,
+    /// Estimate.
+    pub value: f64,
+    /// Standard deviation from the covariance (delta method for ratios); `None` for fixed parameters (b1 = 1
+    /// of a Hammerstein model) or when it cannot be computed.
+    pub std: Option<f64>,
+}
+
+/// How an estimator stopped.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Termination {
+    /// It met its convergence criterion: LS key-term iteration at a fixed point; RLS estimate settled
+    /// (relative change below 1e-3 over the last 10 % of the final pass, or between the ends of the last
+    /// two passes); OE optimiser on its ftol/xtol/gtol criterion; IV stages settled.
+    Converged,
+    /// The key-term iteration entered a limit cycle.
+    LimitCycle,
+    /// An iteration or evaluation cap was reached first.
+    IterationLimit,
+    /// The recursive estimate was still moving at the end of the data.
+    NotSettled,
+}
+
+impl Termination {
+    /// True for [`Termination::Converged`].
+    pub fn converged(&self) -> bool {
+        matches!(self, Termination::Converged)
+    }
+}
+
+/// A remark on an estimate, in words by `Display`.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Note {
+    /// A one-sided input: a deadzone branch was dropped or a breakpoint fixed (the words of
+    /// `Branches::notes`).
+    Branches(String),
+    /// The key-term iteration cycled; the iterate with the smallest self-consistent residual was kept.
+    KeyTermLimitCycle {
+        /// Iterations run.
+        iterations: usize,
+        /// The iterate kept.
+        kept: usize,
+    },
+    /// The key-term iteration hit its cap; the best iterate was kept.
+    KeyTermNotConverged {
+        /// Iterations run.
+        iterations: usize,
+        /// The iterate kept.
+        kept: usize,
+    },
+    /// A recursive estimator other than the paper's plain RLS ran.
+    RlsForm {
+        /// Covariance form.
+        form: RlsForm,
+        /// Windup protection.
+        windup: Windup,
+    },
+    /// RLS ran passes until the estimate settled (the paper's method is a single pass).
+    PassesUntilSettled {
+        /// Passes run.
+        passes: usize,
+        /// Whether it settled before the cap.
+        settled: bool,
+        /// The cap.
+        max: usize,
+    },
+    /// Which candidate an iterative method returned, on the reported criterion.
+    KeptCandidate {
+        /// The candidate kept.
+        kept: &'static str,
+        /// Its estimation simulation RMSE (initial outputs estimated, as MATLAB `compare`).
+        rmse: f64,
+        /// The other candidates and their RMSE (`None`: the simulation diverged or the model is unstable).
+        others: Vec<(&'static str, Option<f64>)>,
+    },
+    /// A remark on the least-squares start of an iterative method.
+    Start(Box<Note>),
+    /// The LS start simulated unstably; its poles were reflected into the unit circle.
+    StabilisedStart,
+    /// The output-error search: simulation RSS before and after.
+    Refinement {
+        /// RSS of the start.
+        rss_start: f64,
+        /// RSS of the result.
+        rss: f64,
+        /// Jacobian evaluations.
+        iterations: usize,
+        /// Residual evaluations.
+        evaluations: usize,
+        /// The optimiser's termination, in words.
+        stopped: String,
+    },
+    /// An IV stage's auxiliary model was unstable; its poles were reflected.
+    UnstableAuxiliary {
+        /// The stage.
+        stage: usize,
+    },
+    /// IV kept an earlier stage, the one whose model simulates the record best.
+    KeptStage {
+        /// The stage kept.
+        kept: usize,
+        /// Stages run.
+        of: usize,
+    },
+    /// IV stages had not settled.
+    StagesNotSettled {
+        /// Stages run.
+        stages: usize,
+    },
+}
+
+impl std::fmt::Display for Note {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Note::Branches(words) => f.write_str(words),
+            Note::KeyTermLimitCycle { iterations, kept } => write!(
+                f,
+                "key-term iteration entered a limit cycle after {iterations} iterations; kept iterate {kept}, \
+                 the one with the smallest self-consistent residual"
+            ),
+            Note::KeyTermNotConverged { iterations, kept } => write!(
+                f,
+                "key-term iteration did not converge in {iterations} iterations; kept iterate {kept}, the one \
+                 with the smallest self-consistent residual"
+            ),
+            Note::RlsForm { form, windup } => {
+                write!(f, "RLS form {form}, windup protection {windup}")
+            }
+            Note::PassesUntilSettled {
+                passes,
+                settled: true,
+                ..
+            } => write!(
+                f,
+                "RLS passes repeated until the estimate settled: {passes} passes (the paper's method is a \
+                 single pass)"
+            ),
+            Note::PassesUntilSettled {
+                passes,
+                settled: false,
+                max,
+            } => write!(
+                f,
+                "RLS passes repeated until the estimate settles: still moving after {passes} of at most \
+                 {max} passes"
+            ),
+            Note::KeptCandidate { kept, rmse, others } => {
+                write!(
+                    f,
+                    "kept the {kept} (estimation simulation RMSE {rmse:.6e}, initial outputs estimated"
+                )?;
+                for (name, r) in others {
+                    match r {
+                        Some(r) => write!(f, "; {name}: {r:.6e}")?,
+                        None => write!(f, "; {name}: unstable or diverging")?,
+                    }
+                }
+                f.write_str(")")
+            }
+            Note::Start(n) => write!(f, "start (LS): {n}"),
+            Note::StabilisedStart => f.write_str(
+                "the LS start was unstable in simulation; its poles were reflected into the unit circle",
+            ),
+            Note::Refinement {
+                rss_start,
+                rss,
+                iterations,
+                evaluations,
+                stopped,
+            } => write!(
+                f,
+                "output-error refinement: simulation RSS {rss_start:.6e} -> {rss:.6e} in {iterations} iterations \
+                 ({evaluations} evaluations), stopped: {stopped}"
+            ),
+            Note::UnstableAuxiliary { stage } => write!(
+                f,
+                "stage {stage}: the auxiliary model was unstable; its poles were reflected"
+            ),
+            Note::KeptStage { kept, of } => write!(
+                f,
+                "kept stage {kept} of {of}, the one whose model simulates the record best"
+            ),
+            Note::StagesNotSettled { stages } => write!(
+                f,
+                "IV stages had not settled after {stages} stages (relative change >= {:e})",
+                crate::iv::IV_SETTLED
+            ),
+        }
+    }
+}
+
+/// A fitted model with its estimation record: the same type whatever the method.
+#[derive(Debug, Clone)]
+pub struct Fitted {
+    /// The fitted model.
+    pub model: Model,
+    /// Physical parameters with standard deviations.
+    pub params: Vec<Param>,
+    /// Method used.
+    pub method: Method,
+    /// Key-term iterations (LS), passes (RLS), Levenberg–Marquardt iterations (OE) or stages (IV).
+    pub iterations: usize,
+    /// How the estimator stopped.
+    pub termination: Termination,
+    /// Remarks, in the order they arose.
+    pub notes: Vec<Note>,
+    /// Reasons not to trust the estimate blindly (empty when all is well).
+    pub warnings: Vec<Warning>,
+    /// σ̂²: residual variance of the one-step prediction errors, RSS / (N − p).
+    pub noise_variance: f64,
+    /// RLS only, when requested: the physical parameters (order of `params`) after each update.
+    pub history: Vec<Vec<f64>>,
+    /// Sample index of each `history` entry (pass-major, so passes > 1 repeat indices).
+    pub history_samples: Vec<usize>,
+}
+
+impl Param {
+    /// The name as users read it: `b_l`, or `b_l (u1)` for a parameter of input u1.
+    pub fn label(&self) -> String {
+        match &self.input {
+            Some(i) => format!("{} ({i})", self.name),
+            None => self.name.to_string(),
+        }
+    }
+}
+
+impl Fitted {
+    /// True when the estimator met its convergence criterion.
+    pub fn converged(&self) -> bool {
+        self.termination.converged()
+    }
+
+    /// The notes in words, joined by "; " (`None` without notes).
+    pub fn note(&self) -> Option<String> {
+        (!self.notes.is_empty()).then(|| {
+            self.notes
+                .iter()
+                .map(ToString::to_string)
+                .collect::<Vec<_>>()
+                .join("; ")
+        })
+    }
+
+    pub(crate) fn with_method(mut self, method: Method) -> Self {
+        self.method = method;
+        self
+    }
+
+    pub(crate) fn new(
+        model: Model,
+        params: Vec<Param>,
+        method: Method,
+        noise_variance: f64,
+    ) -> Self {
+        Fitted {
+            model,
+            params,
+            method,
+            iterations: 1,
+            termination: Termination::Converged,
+            notes: Vec::new(),
+            warnings: Vec::new(),
+            noise_variance,
+            history: Vec::new(),
+            history_samples: Vec::new(),
+        }
+    }
+}
+
+/// The words of the fallback warning: what replaced a Hammerstein estimate.
+pub(crate) const LINEAR_START_USED: &str =
+    "the linear ARX least-squares model, as a Hammerstein model with b_l = b_r = 0 and m_l = m_r = b1";

@@ -1,0 +1,526 @@
+//! The estimators, each over the one [`Regression`] of a [`Problem`] (one or several inputs, one or
+//! several records) and the nonlinearity blocks of its inputs ([`crate::blocks`]):
+//! - least squares: one QR solve without key terms (ARX); otherwise the key-term iteration
+//!   (docs/paper.md, eq. 8): the switching and x̂ of every input rebuilt from the current estimate, the
+//!   regression solved, until θ̂ moves less than the tolerance, with limit-cycle detection and the
+//!   iterate of smallest self-consistent residual kept;
+//! - recursive least squares (paper eqs. 9–12), the recursive key-term separation, in passes;
+//! - output error ([`crate::oe`]) and recursive instrumental variables ([`crate::iv`]), started from
+//!   least squares.
+
+use nalgebra::{DMatrix, DVector};
+
+use crate::estimate::{
+    InstrumentalVariables, LeastSquares, OutputError, Passes, Problem, RecursiveLeastSquares,
+    PASSES_SETTLED,
+};
+use crate::fitted::{Fitted, Method, Note, Termination};
+use crate::regression::{scatter, scatter_matrix};
+use crate::rls_ud::RlsForm;
+use crate::warnings::Warning;
+use crate::windup::Windup;
+use crate::{iv, ls, oe, rls};
+use sysid_core::{Dataset, Model, StaticNonlinearity, SysidError};
+
+/// A data error prefixed with the records' name.
+fn context(p: &Problem, e: SysidError) -> SysidError {
+    match e {
+        SysidError::Data(m) => SysidError::Data(format!("{}: {m}", p.name())),
+        other => other,
+    }
+}
+
+/// Sum of squared one-step prediction errors of `model` over every record's rows k >= k0 (the
+/// self-consistent residual: switching functions and x from the model itself).
+fn prediction_rss(model: &Model, records: &[Dataset]) -> Result<f64, SysidError> {
+    let k0 = model.k0();
+    let mut rss = 0.0;
+    for r in records {
+        let yhat = model.predict_equation_error(&r.input_signals(), r.y())?;
+        rss += r.y()[k0..]
+            .iter()
+            .zip(&yhat[k0..])
+            .map(|(y, p)| (y - p) * (y - p))
+            .sum::<f64>();
+    }
+    Ok(rss)
+}
+
+/// The model of the full key-term θ̂ with the blocks' fixed parts imposed; a non-finite θ̂ is a
+/// numerical failure naming the data.
+fn model_from_theta(p: &Problem, theta: &DVector<f64>) -> Result<Model, SysidError> {
+    let reg = p.regression();
+    reg.model_of(theta.as_slice(), p.starts(), p.ts())
+        .map_err(|e| {
+            let params = reg.params_of_theta(theta.as_slice(), None);
+            crate::estimate::check_finite(p.name(), &params)
+                .err()
+                .unwrap_or_else(|| SysidError::Numerical(format!("{}: {e}", p.name())))
+        })
+}
+
+/// Least squares over the free columns of Φ; θ and (ΦᵀΦ)⁻¹ are returned at full size with zeros for
+/// the fixed entries.
+fn solve_free(
+    phi: &DMatrix<f64>,
+    y: &DVector<f64>,
+    free: &[bool],
+    names: &[String],
+) -> Result<ls::LsSolution, SysidError> {
+    if free.iter().all(|f| *f) {
+        return ls::solve(phi, y, names);
+    }
+    let idx: Vec<usize> = (0..free.len()).filter(|&i| free[i]).collect();
+    let sub = phi.select_columns(idx.iter());
+    let sub_names: Vec<String> = idx.iter().map(|&i| names[i].clone()).collect();
+    let sol = ls::solve(&sub, y, &sub_names)?;
+    let zeros = vec![0.0; free.len()];
+    Ok(ls::LsSolution {
+        theta: DVector::from_vec(scatter(free, sol.theta.as_slice(), &zeros)),
+        inv_gram: scatter_matrix(free, &sol.inv_gram),
+        rss: sol.rss,
+    })
+}
+
+/// The nonlinearities the estimators start from (each block's start).
+fn initial(p: &Problem) -> Vec<StaticNonlinearity> {
+    p.starts().iter().map(|s| s.initial).collect()
+}
+
+/// Least squares without key terms: one solve of the linear regression.
+pub(crate) fn arx_ls(p: &Problem) -> Result<Fitted, SysidError> {
+    let reg = p.regression();
+    let (phi, y) = reg.stacked(p.records(), &initial(p));
+    let sol = ls::solve(&phi, &y, &reg.names()).map_err(|e| context(p, e))?;
+    let dof = (phi.nrows() - phi.ncols()).max(1) as f64;
+    let sigma2 = sol.rss / dof;
+    let cov = &sol.inv_gram * sigma2;
+    let params = reg.params_of_theta(sol.theta.as_slice(), Some(&cov));
+    let model = model_from_theta(p, &sol.theta)?;
+    Ok(Fitted::new(model, params, Method::Ls, sigma2))
+}
+
+/// Least squares (module docs): [`arx_ls`] without key terms, else the key-term iteration.
+pub(crate) fn least_squares(p: &Problem, st: &LeastSquares) -> Result<Fitted, SysidError> {
+    if !p.regression().nonlinear() {
+        return arx_ls(p);
+    }
+    let reg = p.regression();
+    let names = reg.names();
+    let free = reg.free_key(p.starts());
+    let n_free = free.iter().filter(|f| **f).count();
+    // Initial switching: each block's start (a deadzone: breakpoints at the smallest commands).
+    let mut f = initial(p);
+    let mut seen: Vec<DVector<f64>> = Vec::new();
+    let mut best: Option<(f64, DVector<f64>, ls::LsSolution, usize)> = None;
+    let mut converged = false;
+    let mut cycle = false;
+    let mut iterations = 0;
+    for it in 1..=st.max_iterations {
+        iterations = it;
+        let (phi, y) = reg.stacked(p.records(), &f);
+        let sol = match solve_free(&phi, &y, &free, &names) {
+            Ok(sol) => sol,
+            // A later iterate's breakpoints can leave a branch with too few distinct commands: stop and keep
+            // the best iterate so far (reported in the note as not converged).
+            Err(SysidError::Data(_)) if best.is_some() => break,
+            Err(e) => return Err(context(p, e)),
+        };
+        let theta = sol.theta.clone();
+        let rss = model_from_theta(p, &theta)
+            .and_then(|m| prediction_rss(&m, p.records()))
+            .unwrap_or(f64::INFINITY);
+        if best.as_ref().is_none_or(|b| rss < b.0) {
+            best = Some((rss, theta.clone(), sol, it));
+        }
+        let scale = 1.0 + theta.norm();
+        if let Some(prev) = seen.last() {
+            if (&theta - prev).norm() <= st.tolerance * scale {
+                converged = true;
+                break;
+            }
+        }
+        if seen
+            .iter()
+            .rev()
+            .skip(1)
+            .any(|old| (&theta - old).norm() <= st.tolerance * scale)
+        {
+            cycle = true;
+            break;
+        }
+        seen.push(theta.clone());
+        reg.update(theta.as_slice(), &mut f, p.starts());
+    }
+    let Some((rss, theta, sol, best_it)) = best else {
+        return Err(SysidError::Numerical(
+            "key-term iteration produced no estimate".into(),
+        ));
+    };
+    let (termination, notes) = if converged {
+        (Termination::Converged, Vec::new())
+    } else if cycle {
+        (
+            Termination::LimitCycle,
+            vec![Note::KeyTermLimitCycle {
+                iterations,
+                kept: best_it,
+            }],
+        )
+    } else {
+        (
+            Termination::IterationLimit,
+            vec![Note::KeyTermNotConverged {
+                iterations,
+                kept: best_it,
+            }],
+        )
+    };
+    let rows = reg.rows(p.records());
+    let sigma2 = rss / (rows.saturating_sub(n_free).max(1)) as f64;
+    let cov = &sol.inv_gram * sigma2;
+    let model = model_from_theta(p, &theta)?;
+    Ok(Fitted {
+        params: reg.params(theta.as_slice(), Some(&cov), &model, p.starts()),
+        iterations,
+        termination,
+        notes,
+        ..Fitted::new(model, Vec::new(), Method::Ls, sigma2)
+    })
+}
+
+/// The recursive estimator of `np` parameters that `st` describes: the paper's RLS for the standard form
+/// without windup protection, `RobustRls` otherwise.
+fn recursive_estimator(
+    np: usize,
+    st: &RecursiveLeastSquares,
+) -> Result<Box<dyn rls::RecursiveUpdate>, SysidError> {
+    crate::online::recursive_estimator(np, st.forgetting, st.p0, st.form, st.windup, st.max_trace)
+}
+
+/// RLS, the recursive key-term separation. First pass (the paper's scheme): each input's switching and
+/// x̂ are evaluated with the latest estimate at every sample. Later passes restart P = p0 I, keep θ̂ and
+/// evaluate them with the estimate the pass started from, so each pass is the recursive solution of one
+/// key-term LS step regularised towards the previous estimate; the passes converge to the batch
+/// key-term fixed point. Several records run one after the other in each pass; no regressor spans two.
+pub(crate) fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitted, SysidError> {
+    let reg = p.regression();
+    let records = p.records();
+    let k0 = reg.k0();
+    let free = reg.free_key(p.starts());
+    let idx: Vec<usize> = (0..free.len()).filter(|&i| free[i]).collect();
+    let np = idx.len();
+    let mut est = recursive_estimator(np, st)?;
+    let mut full_row = vec![0.0; reg.len()];
+    let mut row = vec![0.0; np];
+    let hammer = reg.nonlinear();
+    let mut f = initial(p);
+    let initial_f = f.clone();
+    // Persistent excitation: the recursion never fails on data that cannot determine θ (P merely stays
+    // large in the unexcited directions), so for identification proper (ρ = 1, no windup protection:
+    // every sample weighs the same) the regressor matrix of the first pass is rank-tested first, as the
+    // batch methods do, and such data are refused with the same message. With forgetting ρ < 1 or windup
+    // protection the estimator is being used as a tracker, where spells without excitation are expected.
+    let total_rows = reg.rows(records);
+    if st.forgetting == 1.0 && st.windup == Windup::None && total_rows >= np {
+        let (phi, y) = reg.stacked(records, &f);
+        // Only the rank verdict matters here; numerical trouble (overflow) is left to the recursion,
+        // which reports the sample where it happens.
+        if let Err(e @ SysidError::Data(_)) = solve_free(&phi, &y, &free, &reg.names()) {
+            return Err(context(p, e));
+        }
+    }
+    let zeros = vec![0.0; reg.len()];
+    let expand = |t: &[f64]| DVector::from_vec(scatter(&free, t, &zeros));
+    let mut history = Vec::new();
+    let mut history_samples = Vec::new();
+    let mut pass_ends: Vec<DVector<f64>> = Vec::new();
+    let tail_start = total_rows - total_rows / 10;
+    let mut theta_tail = DVector::from_column_slice(est.theta());
+    let mut settled = false;
+    for pass in 0..st.passes.max() {
+        if pass > 0 {
+            est.restart_covariance(st.p0);
+            if hammer {
+                reg.update(expand(est.theta()).as_slice(), &mut f, p.starts());
+            }
+        }
+        let mut at = 0;
+        for r in records {
+            let u = r.input_signals();
+            for k in k0..r.len() {
+                if at == tail_start {
+                    theta_tail.copy_from_slice(est.theta());
+                }
+                if hammer && pass == 0 && at > 0 {
+                    reg.update(expand(est.theta()).as_slice(), &mut f, p.starts());
+                    for ((fm, start), ch) in f.iter_mut().zip(&initial_f).zip(reg.channels()) {
+                        if ch.kind.block().is_degenerate(fm) {
+                            *fm = *start;
+                        }
+                    }
+                }
+                reg.fill_row(&u, r.y(), &f, k, &mut full_row);
+                for (q, &i) in idx.iter().enumerate() {
+                    row[q] = full_row[i];
+                }
+                est.update(&row, r.y()[k], k)
+                    .map_err(|e| e.context(r.name()))?;
+                if st.record_history {
+                    history.push(
+                        reg.params_of_theta(expand(est.theta()).as_slice(), None)
+                            .iter()
+                            .map(|q| q.value)
+                            .collect(),
+                    );
+                    history_samples.push(k);
+                }
+                at += 1;
+            }
+        }
+        let end = DVector::from_column_slice(est.theta());
+        if let (Passes::UntilSettled { .. }, Some(prev)) = (st.passes, pass_ends.last()) {
+            if (&end - prev).norm() <= PASSES_SETTLED * (1e-300 + end.norm()) {
+                settled = true;
+                pass_ends.push(end);
+                break;
+            }
+        }
+        pass_ends.push(end);
+    }
+    let passes_run = pass_ends.len();
+    let theta = DVector::from_column_slice(est.theta());
+    let rel = |a: &DVector<f64>, b: &DVector<f64>| (a - b).norm() / (1e-300 + b.norm());
+    let converged = match st.passes {
+        Passes::UntilSettled { .. } => settled,
+        Passes::Fixed(_) if pass_ends.len() >= 2 => {
+            rel(&pass_ends[pass_ends.len() - 2], &theta) < 1e-3
+        }
+        Passes::Fixed(_) => rel(&theta_tail, &theta) < 1e-3,
+    };
+    let theta_full = expand(theta.as_slice());
+    let model = model_from_theta(p, &theta_full)?;
+    let rss = prediction_rss(&model, records)?;
+    let sigma2 = rss / total_rows.saturating_sub(np).max(1) as f64;
+    let cov = scatter_matrix(&free, &(est.covariance() * sigma2));
+    let mut notes = Vec::new();
+    if let Passes::UntilSettled { max } = st.passes {
+        notes.push(Note::PassesUntilSettled {
+            passes: passes_run,
+            settled,
+            max,
+        });
+    }
+    if st.form != RlsForm::Standard || st.windup != Windup::None {
+        notes.push(Note::RlsForm {
+            form: st.form,
+            windup: st.windup,
+        });
+    }
+    Ok(Fitted {
+        params: reg.params(theta_full.as_slice(), Some(&cov), &model, p.starts()),
+        iterations: passes_run,
+        termination: if converged {
+            Termination::Converged
+        } else {
+            Termination::NotSettled
+        },
+        notes,
+        history,
+        history_samples,
+        ..Fitted::new(model, Vec::new(), Method::Rls, sigma2)
+    })
+}
+
+/// The one record of `p`, or an error naming `method` for merged records.
+fn one_record<'a>(p: &Problem<'a>, method: &str) -> Result<&'a Dataset, SysidError> {
+    match p.records() {
+        [one] => Ok(one),
+        _ => Err(SysidError::setting(
+            sysid_core::Setting::Other("--method"),
+            method,
+            "ls or rls with several records (--merge): output error and instrumental variables work on one record",
+        )),
+    }
+}
+
+/// Recursive IV in stages ([`iv::staged`]), the first stage's instruments from the LS (key-term)
+/// estimate; the instruments use each input's nonlinearity of the auxiliary model.
+pub(crate) fn instrumental(p: &Problem, st: &InstrumentalVariables) -> Result<Fitted, SysidError> {
+    let data = one_record(p, "iv")?;
+    let reg = p.regression();
+    let start = least_squares(p, &st.start)?;
+    let free = reg.free_key(p.starts());
+    let n_free = free.iter().filter(|f| **f).count();
+    let k0 = reg.k0();
+    let u = data.input_signals();
+    let r = iv::IvRegression {
+        rows: (),
+        y: data.y(),
+        k0,
+        free: &free,
+        name: data.name(),
+    };
+    let out = iv::staged(
+        &start.model,
+        &reg.key_vector(&start.model),
+        &u,
+        &r,
+        |aux: &Model| {
+            let f: Vec<StaticNonlinearity> =
+                aux.inputs().iter().map(|c| *c.nonlinearity()).collect();
+            let u = &u;
+            move |ys: &[f64], k: usize, row: &mut [f64]| reg.fill_row(u, ys, &f, k, row)
+        },
+        |theta| model_from_theta(p, theta),
+        st.stages,
+        st.forgetting,
+        st.p0,
+    )?;
+    let rss = prediction_rss(&out.model, p.records())?;
+    let sigma2 = rss / (data.len() - k0).saturating_sub(n_free).max(1) as f64;
+    let cov = iv::covariance(&out.pass, sigma2).map(|c| scatter_matrix(&free, &c));
+    Ok(Fitted {
+        params: reg.params(out.theta.as_slice(), cov.as_ref(), &out.model, p.starts()),
+        iterations: out.stages,
+        termination: if out.converged {
+            Termination::Converged
+        } else {
+            Termination::NotSettled
+        },
+        notes: out.notes,
+        ..Fitted::new(out.model, Vec::new(), Method::Iv, sigma2)
+    })
+}
+
+/// The reported estimation criterion: the RMSE of the free-run simulation with estimated initial
+/// outputs (MATLAB `compare`'s default), `None` when the model is unstable or its simulation diverges.
+fn reported_rmse(model: &Model, data: &Dataset) -> Option<f64> {
+    if !model.is_stable() {
+        return None;
+    }
+    sysid_core::metrics::metrics(model, data)
+        .ok()
+        .and_then(|m| m.rmse_sim)
+}
+
+/// Output-error refinement from the LS (key-term) estimate. The search minimises the simulation error
+/// with estimated initial outputs, the criterion the tool reports. Both candidates (the LS start and
+/// the refined model) are judged on it and the better stable one is returned, with a note saying which
+/// (and a warning when it is not the refined model).
+pub(crate) fn output_error(p: &Problem, st: &OutputError) -> Result<Fitted, SysidError> {
+    let data = one_record(p, "oe")?;
+    let start = least_squares(p, &st.start)?;
+    let reg = p.regression();
+    let free = reg.free_physical(p.starts());
+    let fit = oe::refine(data, reg, &free, &start.model, st.max_iterations)?;
+    let verdict = OeVerdict::judge(
+        &fit,
+        &start.notes,
+        reported_rmse(&fit.model, data),
+        reported_rmse(&start.model, data),
+    );
+    if verdict.fallback.is_none() {
+        return Ok(Fitted {
+            iterations: fit.iterations,
+            termination: verdict.termination,
+            notes: verdict.notes,
+            ..Fitted::new(fit.model, fit.params, Method::Oe, fit.noise_variance)
+        });
+    }
+    Ok(Fitted {
+        iterations: fit.iterations,
+        termination: verdict.termination,
+        notes: verdict.notes,
+        warnings: verdict.fallback.into_iter().collect(),
+        ..start
+    }
+    .with_method(Method::Oe))
+}
+
+/// Which of the least-squares start and the output-error refinement to keep, and the notes that say so
+/// (one input or several).
+#[derive(Debug, Clone, PartialEq)]
+pub struct OeVerdict {
+    /// The start's notes, the stabilisation, the refinement and the kept candidate.
+    pub notes: Vec<Note>,
+    /// Converged or stopped at the iteration cap.
+    pub termination: Termination,
+    /// `None` when the refinement is kept; else the warning that the start was kept instead.
+    pub fallback: Option<Warning>,
+}
+
+impl OeVerdict {
+    /// Judges both candidates on the reported criterion (the estimation simulation RMSE with estimated
+    /// initial outputs, `None` for an unstable or diverging model): the better stable one is kept; when
+    /// neither simulates stably the refinement (stable by construction) is kept and the warnings say
+    /// what is wrong.
+    pub fn judge(
+        fit: &oe::OeFit,
+        start_notes: &[Note],
+        refined_rmse: Option<f64>,
+        start_rmse: Option<f64>,
+    ) -> Self {
+        let mut notes: Vec<Note> = start_notes
+            .iter()
+            .cloned()
+            .map(|n| Note::Start(Box::new(n)))
+            .collect();
+        if fit.stabilised_start {
+            notes.push(Note::StabilisedStart);
+        }
+        notes.push(Note::Refinement {
+            rss_start: fit.rss_start,
+            rss: fit.rss,
+            iterations: fit.iterations,
+            evaluations: fit.evaluations,
+            stopped: fit.stop.to_string(),
+        });
+        let refined_better = match (refined_rmse, start_rmse) {
+            (Some(r), Some(s)) => r <= s,
+            (Some(_), None) => true,
+            (None, Some(_)) => false,
+            (None, None) => true,
+        };
+        let termination = if fit.stop.converged() {
+            Termination::Converged
+        } else {
+            Termination::IterationLimit
+        };
+        if refined_better {
+            if let (Some(r), true) = (refined_rmse, start_rmse.is_some() || fit.stabilised_start) {
+                notes.push(Note::KeptCandidate {
+                    kept: "output-error refinement",
+                    rmse: r,
+                    others: vec![("least-squares start", start_rmse)],
+                });
+            }
+            return OeVerdict {
+                notes,
+                termination,
+                fallback: None,
+            };
+        }
+        let (kept_rmse, refined_text) = (
+            start_rmse.unwrap_or(f64::NAN),
+            refined_rmse.map_or_else(|| "diverges".to_string(), |r| format!("{r:.6e}")),
+        );
+        notes.push(Note::KeptCandidate {
+            kept: "least-squares start",
+            rmse: kept_rmse,
+            others: vec![("output-error refinement", refined_rmse)],
+        });
+        let why = format!(
+            "the refined model simulates the estimation data worse (RMSE {refined_text} against {kept_rmse:.6e} \
+             for the start)"
+        );
+        OeVerdict {
+            notes,
+            termination,
+            fallback: Some(Warning::Fallback {
+                used: "the least-squares start instead of the output-error refinement".into(),
+                why,
+            }),
+        }
+    }
+}

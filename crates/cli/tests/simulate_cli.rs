@@ -34,9 +34,9 @@ fn default_simulation_is_readable_and_byte_identical_per_seed() {
     assert!(text.starts_with("t,u,y,p_a_pa,p_b_pa\n"));
     let d = sysid::data::read_csv(&dir.path().join("a.csv"), &Default::default()).unwrap();
     assert_eq!(d.len(), 300);
-    assert!((d.ts - 0.01).abs() < 1e-12);
-    assert_eq!(d.y[0], 100.0);
-    assert!(d.u.iter().all(|u| u.abs() <= 255.0));
+    assert!((d.ts() - 0.01).abs() < 1e-12);
+    assert_eq!(d.y()[0], 100.0);
+    assert!(d.u().iter().all(|u| u.abs() <= 255.0));
 }
 
 // The paper model: y(1) = -a1 y0 - a2 y0 - a3 y0 + x(0) with x = m_r (u - b_r) for u >= b_r.
@@ -60,9 +60,9 @@ fn paper_plant_follows_its_difference_equation() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let d = sysid::data::read_csv(&dir.path().join("p.csv"), &Default::default()).unwrap();
     let x = 2.38 * 15.67e-4 * (100.0 - 1.41);
-    assert_eq!(d.y[0], 0.0);
-    assert!((d.y[1] - x).abs() < 1e-12);
-    assert!((d.y[2] - (1.869 * x + x)).abs() < 1e-12);
+    assert_eq!(d.y()[0], 0.0);
+    assert!((d.y()[1] - x).abs() < 1e-12);
+    assert!((d.y()[2] - (1.869 * x + x)).abs() < 1e-12);
 }
 
 #[test]
@@ -76,9 +76,9 @@ fn file_input_and_noise() {
     );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let d = sysid::data::read_csv(&dir.path().join("o.csv"), &Default::default()).unwrap();
-    assert_eq!(d.u, vec![0.0, 50.0, -50.0, 255.0]);
+    assert_eq!(d.u(), vec![0.0, 50.0, -50.0, 255.0]);
     assert!(
-        d.y.iter().any(|y| (y * 100.0).fract().abs() > 1e-6),
+        d.y().iter().any(|y| (y * 100.0).fract().abs() > 1e-6),
         "noise must leave the 0.01 mm grid"
     );
 }

@@ -439,9 +439,9 @@ mod tests {
         let m = Model::paper();
         for (k, &uk) in u.iter().enumerate().take(399).skip(3) {
             let x = m.input_map(uk);
-            let want = -m.a()[0] * d.y[k] - m.a()[1] * d.y[k - 1] - m.a()[2] * d.y[k - 2] + x;
+            let want = -m.a()[0] * d.y()[k] - m.a()[1] * d.y()[k - 1] - m.a()[2] * d.y()[k - 2] + x;
             assert!(
-                (d.y[k + 1] - want).abs() <= 1e-9 * (1.0 + want.abs()),
+                (d.y()[k + 1] - want).abs() <= 1e-9 * (1.0 + want.abs()),
                 "k={k}"
             );
         }

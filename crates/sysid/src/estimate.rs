@@ -608,7 +608,7 @@ pub const FALLBACK_FIT_MARGIN: f64 = 10.0;
 /// simulates far worse than the linear start is replaced by it (when `settings.fallback`), and every
 /// reason not to trust the result becomes a [`Warning`] (the checks of each input's nonlinearity
 /// against its own input name the input when there are several).
-fn safeguard(
+pub fn safeguard(
     p: &Problem,
     settings: &Identification,
     mut fit: Fitted,

@@ -145,7 +145,7 @@ fn evaluate(est: &Dataset, val: Option<&Dataset>, o: Orders, base: &Identificati
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::estimate::Method;
+    use crate::fitted::Method;
     use sysid_core::data::Signals;
     use sysid_core::ModelKind;
 

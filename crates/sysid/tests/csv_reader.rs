@@ -21,8 +21,8 @@ fn ts_from_a_decimal_time_column_is_the_decimal_step() {
         );
     }
     let d = read(&s, &CsvOptions::default()).unwrap();
-    assert_eq!(d.ts, 0.01);
-    assert_eq!(d.u, (0..8).map(f64::from).collect::<Vec<_>>());
+    assert_eq!(d.ts(), 0.01);
+    assert_eq!(d.u(), (0..8).map(f64::from).collect::<Vec<_>>());
 }
 
 // The cascaded-tanks layout: quoted names, a trailing comma on every row, a Ts column filled only once.
@@ -37,7 +37,7 @@ fn quoted_headers_and_trailing_empty_fields_are_accepted() {
     };
     let d = read(text, &opts).unwrap();
     assert_eq!(
-        (d.u.clone(), d.y.clone(), d.ts),
+        (d.u().to_vec(), d.y().to_vec(), d.ts()),
         (vec![3.25, 3.24], vec![5.2, 5.21], 4.0)
     );
 }
@@ -46,7 +46,7 @@ fn quoted_headers_and_trailing_empty_fields_are_accepted() {
 fn a_semicolon_delimited_export_is_accepted() {
     let d = read("t;u;y\n0;1;2\n0.5;3;4\n", &CsvOptions::default()).unwrap();
     assert_eq!(
-        (d.u.clone(), d.y.clone(), d.ts),
+        (d.u().to_vec(), d.y().to_vec(), d.ts()),
         (vec![1.0, 3.0], vec![2.0, 4.0], 0.5)
     );
 }

@@ -2,8 +2,11 @@
 //! squares is biased, and exact on noise-free data.
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
 
-use sysid::miso::{MisoInput, MisoProblem};
-use sysid::{EstimatorSettings, InstrumentalVariables, ModelKind};
+use sysid::estimate::{safeguard, Problem};
+use sysid::{
+    identify, Dataset, EstimatorSettings, Identification, InputSpec, InstrumentalVariables,
+    LeastSquares, Method, ModelKind, NonlinearityKind,
+};
 
 /// A deterministic stand-in for white noise of unit variance: a 64-bit LCG, uniform on (−√3, √3).
 fn white(n: usize, seed: u64) -> Vec<f64> {
@@ -42,24 +45,37 @@ fn record(n: usize, sigma: f64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
     (u1, u2, y)
 }
 
-fn inputs(u1: &[f64], u2: &[f64]) -> Vec<MisoInput> {
-    vec![
-        MisoInput {
-            name: "u1".into(),
-            u: u1.to_vec(),
-            nb: 2,
-            nk: 1,
-            linear: false,
-        },
-        MisoInput {
-            name: "u2".into(),
-            u: u2.to_vec(),
-            nb: 1,
-            nk: 2,
-            linear: false,
-        },
-    ]
+/// The record with inputs u1, u2 and output y (Ts = 0.01 s).
+fn record2(u1: &[f64], u2: &[f64], y: &[f64], name: &str) -> Dataset {
+    Dataset::with_inputs(
+        vec![("u1".into(), u1.to_vec()), ("u2".into(), u2.to_vec())],
+        y.to_vec(),
+        0.01,
+        name,
+    )
+    .unwrap()
 }
+
+/// na, then u1 with nb = 2, nk = 1 and u2 with nb = 1, nk = 2 (the generating orders), each with the
+/// nonlinearity given, fitted by `estimator`.
+fn settings(
+    na: usize,
+    kinds: [NonlinearityKind; 2],
+    estimator: EstimatorSettings,
+) -> Identification {
+    let spec = |nb, nk, nonlinearity| InputSpec {
+        nb,
+        nk,
+        nonlinearity,
+    };
+    Identification::default()
+        .with_kind(ModelKind::Arx)
+        .with_orders(na, 1, 1)
+        .with_inputs(vec![spec(2, 1, kinds[0]), spec(1, 2, kinds[1])])
+        .with_estimator(estimator)
+}
+
+const ARX: [NonlinearityKind; 2] = [NonlinearityKind::Linear, NonlinearityKind::Linear];
 
 /// [a1, a2, b1(u1), b2(u1), b1(u2)] of a fitted ARX model.
 fn coefficients(m: &sysid::Model) -> [f64; 5] {
@@ -75,22 +91,15 @@ const TRUE: [f64; 5] = [A[0], A[1], B1[0], B1[1], B2];
 #[test]
 fn iv_with_two_inputs_is_consistent_where_least_squares_is_biased_by_arma_noise() {
     let (u1, u2, y) = record(20_000, 0.5);
-    let ins = inputs(&u1, &u2);
-    let p = MisoProblem {
-        inputs: &ins,
-        y: &y,
-        ts: 0.01,
-        na: 2,
-        kind: ModelKind::Arx,
-        offset: false,
-    };
-    let ls = coefficients(&p.least_squares(1).unwrap().model);
-    let fit = p
-        .fit(
-            &EstimatorSettings::Iv(InstrumentalVariables::default()),
-            "arma",
-        )
-        .unwrap();
+    let data = record2(&u1, &u2, &y, "arma");
+    let ls_settings = settings(2, ARX, EstimatorSettings::Ls(LeastSquares::default()));
+    let ls = coefficients(&identify(&data, &ls_settings).unwrap().model);
+    let iv_settings = settings(
+        2,
+        ARX,
+        EstimatorSettings::Iv(InstrumentalVariables::default()),
+    );
+    let fit = identify(&data, &iv_settings).unwrap();
     let iv = coefficients(&fit.model);
     // LS is biased on the A coefficients by far more than sampling spread (a1 moves by > 0.05).
     assert!((ls[0] - TRUE[0]).abs() > 0.05, "LS {ls:?}");
@@ -111,22 +120,17 @@ fn iv_with_two_inputs_is_consistent_where_least_squares_is_biased_by_arma_noise(
 #[test]
 fn iv_with_two_inputs_is_exact_on_noise_free_data() {
     let (u1, u2, y) = record(500, 0.0);
-    let ins = inputs(&u1, &u2);
-    let p = MisoProblem {
-        inputs: &ins,
-        y: &y,
-        ts: 0.01,
-        na: 2,
-        kind: ModelKind::Arx,
-        offset: false,
-    };
-    let iv = p
-        .instrumental(&InstrumentalVariables::default(), "clean")
-        .unwrap();
+    let data = record2(&u1, &u2, &y, "clean");
+    let s = settings(
+        2,
+        ARX,
+        EstimatorSettings::Iv(InstrumentalVariables::default()),
+    );
+    let iv = identify(&data, &s).unwrap();
     for (g, w) in coefficients(&iv.model).iter().zip(&TRUE) {
         assert!((g - w).abs() < 1e-8, "{g} vs {w}");
     }
-    assert!(iv.converged);
+    assert!(iv.converged());
 }
 
 // Hammerstein, noise-free: a deadzone (b_l = −0.6, b_r = 0.4, m_l = 0.9, m_r = 1.3) on u1, u2 linear;
@@ -149,19 +153,13 @@ fn iv_with_a_deadzone_input_and_a_linear_one_is_exact_on_noise_free_data() {
     for k in 2..n {
         y[k] = 0.7 * y[k - 1] + f(u1[k - 1]) + 0.5 * f(u1[k - 2]) - 0.8 * u2[k - 2];
     }
-    let mut ins = inputs(&u1, &u2);
-    ins[1].linear = true;
-    let p = MisoProblem {
-        inputs: &ins,
-        y: &y,
-        ts: 0.01,
-        na: 1,
-        kind: ModelKind::Hammerstein,
-        offset: false,
-    };
-    let iv = p
-        .instrumental(&InstrumentalVariables::default(), "clean")
-        .unwrap();
+    let data = record2(&u1, &u2, &y, "clean");
+    let s = settings(
+        1,
+        [NonlinearityKind::Deadzone, NonlinearityKind::Linear],
+        EstimatorSettings::Iv(InstrumentalVariables::default()),
+    );
+    let iv = identify(&data, &s).unwrap();
     let m = &iv.model;
     let d = m.inputs()[0].deadzone().unwrap();
     let got = [
@@ -191,22 +189,24 @@ fn an_unstable_several_input_hammerstein_estimate_gives_way_to_the_linear_start(
     for k in 2..n {
         y[k] = 0.7 * y[k - 1] + 1.5 * u1[k - 1] - 0.8 * u2[k - 2];
     }
-    let mut ins = inputs(&u1, &u2);
-    ins[0].nb = 1;
-    ins[1].linear = true;
-    let p = MisoProblem {
-        inputs: &ins,
-        y: &y,
-        ts: 0.01,
-        na: 1,
-        kind: ModelKind::Hammerstein,
-        offset: false,
+    let data = record2(&u1, &u2, &y, "lin");
+    let spec = |nb, nk, nonlinearity| InputSpec {
+        nb,
+        nk,
+        nonlinearity,
     };
-    let mut bad = p.least_squares(50).unwrap();
+    let s = Identification::default()
+        .with_orders(1, 1, 1)
+        .with_inputs(vec![
+            spec(1, 1, NonlinearityKind::Deadzone),
+            spec(1, 2, NonlinearityKind::Linear),
+        ])
+        .with_method(Method::Ls);
+    let p = Problem::new(std::slice::from_ref(&data), &s).unwrap();
+    let mut bad = identify(&data, &s).unwrap();
     bad.model = bad.model.with_a(vec![-1.2]).unwrap();
-    let kept = p
-        .safeguard(bad.clone(), sysid::Method::Ls, false, "lin")
-        .unwrap();
+    bad.warnings.clear();
+    let kept = safeguard(&p, &s, bad.clone()).unwrap();
     assert!(
         kept.warnings.iter().any(
             |w| matches!(w, sysid::Warning::LinearStartBetter { why } if why.contains("unstable"))
@@ -214,7 +214,11 @@ fn an_unstable_several_input_hammerstein_estimate_gives_way_to_the_linear_start(
         "{:?}",
         kept.warnings
     );
-    let fb = p.safeguard(bad, sysid::Method::Ls, true, "lin").unwrap();
+    let with_fallback = Identification {
+        fallback: true,
+        ..s.clone()
+    };
+    let fb = safeguard(&p, &with_fallback, bad).unwrap();
     assert!(fb
         .warnings
         .iter()

@@ -78,7 +78,7 @@ fn loss_fpe_aic_and_fit_on_a_hand_checked_record() {
 #[test]
 fn simulation_starts_from_data_and_runs_free() {
     let m = arx(vec![-0.5], vec![1.0], 1);
-    let s = m.simulate(&[1.0; 4], &[0.0, 9.0, 9.0, 9.0]).unwrap();
+    let s = m.simulate(&[&[1.0; 4]], &[0.0, 9.0, 9.0, 9.0]).unwrap();
     assert_eq!(s, vec![0.0, 1.0, 1.5, 1.75]);
     let p = m.predict(&[1.0; 4], &[0.0, 9.0, 9.0, 9.0]).unwrap();
     assert_eq!(p, vec![0.0, 1.0, 5.5, 5.5]);

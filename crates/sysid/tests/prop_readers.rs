@@ -87,9 +87,9 @@ fn messy_csv() -> impl Strategy<Value = String> {
 
 /// The invariants of an accepted record: equal lengths, finite values, a usable Ts.
 fn check_dataset(d: &sysid::Dataset) {
-    assert_eq!(d.u.len(), d.y.len());
-    assert!(d.u.iter().chain(&d.y).all(|v| v.is_finite()));
-    assert!(d.ts.is_finite() && d.ts > 0.0);
+    assert_eq!(d.u().len(), d.y().len());
+    assert!(d.u().iter().chain(d.y()).all(|v| v.is_finite()));
+    assert!(d.ts().is_finite() && d.ts() > 0.0);
 }
 
 proptest! {

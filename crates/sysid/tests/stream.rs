@@ -103,7 +103,7 @@ fn in_memory(
     let (detrended, op) = detrend(est, how);
     let mut fit = identify(&detrended, s).unwrap();
     fit.model = fit.model.with_operating_point(op).unwrap();
-    IdentifyReport::assemble(&fit, s, est, val, 25).unwrap()
+    IdentifyReport::assemble(&fit, s, std::slice::from_ref(est), val, 25).unwrap()
 }
 
 // Least squares accumulated block by block is the same least-squares problem: parameters, their
@@ -203,7 +203,7 @@ fn streamed_validation_equals_the_in_memory_one() {
     let n = 20_000;
     let u = staircase(&mut rng, n);
     let paper = Model::paper();
-    let mut y = paper.simulate(&u, &vec![0.0; n]).unwrap();
+    let mut y = paper.simulate(&[&u], &vec![0.0; n]).unwrap();
     for v in y.iter_mut() {
         *v += rng.gen_range(-0.05..0.05);
     }

@@ -45,11 +45,11 @@ fn read(path: &Path, u: &str, y: &str, ts: f64) -> Dataset {
 fn rows(d: &Dataset, a: usize, b: usize) -> Dataset {
     Dataset::new(
         Signals {
-            u: d.u[a..b].to_vec(),
-            y: d.y[a..b].to_vec(),
+            u: d.u()[a..b].to_vec(),
+            y: d.y()[a..b].to_vec(),
         },
-        d.ts,
-        format!("{}[{a}..{b}]", d.name),
+        d.ts(),
+        format!("{}[{a}..{b}]", d.name()),
     )
     .unwrap()
 }
@@ -257,7 +257,7 @@ fn paper_record(n: usize, seed: u64) -> Dataset {
             u.push(level);
         }
     }
-    let y = Model::paper().simulate(&u, &vec![0.0; n]).unwrap();
+    let y = Model::paper().simulate(&[&u], &vec![0.0; n]).unwrap();
     Dataset::new(Signals { u, y }, 0.01, "paper").unwrap()
 }
 

@@ -102,6 +102,14 @@ fn estimated_initial_first_order(y: &[f64], measured: &[f64], pole: f64) -> Vec<
 }
 
 /// Runs a command that must fail with exit code 2 (bad usage or input) without a panic; its stderr.
+/// A parameter's name as the text report prints it: `b_l`, or `b_l (u1)` with its input.
+fn label(p: &serde_json::Value) -> String {
+    match p["input"].as_str() {
+        Some(i) => format!("{} ({i})", p["name"].as_str().unwrap()),
+        None => p["name"].as_str().unwrap().to_string(),
+    }
+}
+
 fn fails(args: &[&str]) -> String {
     let out = bin().args(args).output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr).to_string();
@@ -1020,7 +1028,7 @@ fn merge_estimates_one_model_without_rows_spanning_records() {
     };
     let fit = fit_pct;
     let (s1, s2) = (sim(&u1, &y1), sim(&u2, &y2));
-    let recs = j["metrics"]["estimation"].as_array().unwrap();
+    let recs = j["records"].as_array().unwrap();
     assert_eq!(recs.len(), 2);
     // These simulations start from the measured outputs: compare with that metric.
     assert!(
@@ -1033,7 +1041,7 @@ fn merge_estimates_one_model_without_rows_spanning_records() {
     );
     let ys: Vec<f64> = y1[1..].iter().chain(&y2[1..]).copied().collect();
     let ss: Vec<f64> = s1[1..].iter().chain(&s2[1..]).copied().collect();
-    let pooled = &j["metrics"]["pooled"];
+    let pooled = &j["metrics"]["estimation"];
     assert!((num(&pooled["fit_sim_measured_percent"]) - fit(&ys, &ss)).abs() < 1e-6);
     // The pooled free-run fit starts each record from its own estimated initial output, as the
     // per-record fits do (MATLAB compare).
@@ -1048,7 +1056,37 @@ fn merge_estimates_one_model_without_rows_spanning_records() {
     assert!((pooled_fit - fit(&ys, &es)).abs() < 1e-6, "{pooled_fit}");
     // The start at 80 mm makes the two differ: the measured y(0) carries the wobble.
     assert!((fit(&ys, &es) - fit(&ys, &ss)).abs() > 1e-6);
-    // --merge is least squares only; other methods are refused by name.
+    // RLS on the merged records runs its passes over both records (no regressor spans two) and
+    // settles at the same least-squares solution.
+    let rls = dir.path().join("rls.json");
+    run(&[
+        "identify",
+        "--data",
+        s(&f1),
+        s(&f2),
+        "--merge",
+        "--structure",
+        "arx",
+        "--na",
+        "1",
+        "--nb",
+        "1",
+        "--nk",
+        "1",
+        "--method",
+        "rls",
+        "--ts",
+        "0.1",
+        "--json",
+        s(&rls),
+    ]);
+    let jr = json(&rls);
+    let (ra, rb) = (num(&jr["model"]["a"][0]), num(&jr["model"]["b"][0]));
+    assert!(
+        (ra - a1).abs() < 1e-6 && (rb - b1).abs() < 1e-6,
+        "{ra} {rb} vs {a1} {b1}"
+    );
+    // Output error and IV work on one record; with --merge they are refused by name.
     let o = fails(&[
         "identify",
         "--data",
@@ -1056,11 +1094,11 @@ fn merge_estimates_one_model_without_rows_spanning_records() {
         s(&f2),
         "--merge",
         "--method",
-        "rls",
+        "oe",
         "--ts",
         "0.1",
     ]);
-    assert!(o.contains("--method"));
+    assert!(o.contains("--method"), "{o}");
 }
 
 #[test]
@@ -1358,8 +1396,8 @@ fn several_inputs_by_rls_reach_the_least_squares_solution() {
             "{got:?} vs {want:?}"
         );
     }
-    assert_eq!(j["method"], "rls");
-    assert_eq!(j["converged"], true);
+    assert_eq!(j["estimation"]["method"], "rls");
+    assert_eq!(j["estimation"]["converged"], true);
     assert!(
         j["warnings"].as_array().unwrap().is_empty(),
         "{}",
@@ -1371,7 +1409,7 @@ fn several_inputs_by_rls_reach_the_least_squares_solution() {
     // Hammerstein by IV: noise-free, the LS start is exact and every IV residual is 0, so IV keeps
     // the generating model (to 1e-8).
     let (_, j, _) = hammerstein_miso(dir.path(), "iv", 1e-8);
-    assert_eq!(j["method"], "iv");
+    assert_eq!(j["estimation"]["method"], "iv");
 }
 
 /// A deterministic stand-in for white noise of unit variance: a 64-bit LCG, uniform on (−√3, √3).
@@ -1470,7 +1508,7 @@ fn output_error_with_two_inputs_recovers_the_model_that_least_squares_biases() {
     for (g, w) in oe_c.iter().zip(&want) {
         assert!((g - w).abs() < 0.03, "OE {oe_c:?} vs {want:?}");
     }
-    assert_eq!(oe["method"], "oe");
+    assert_eq!(oe["estimation"]["method"], "oe");
     assert_eq!(oe["model"]["noise_model"], "output-error");
     let fit = |j: &serde_json::Value| num(&j["metrics"]["validation"]["fit_sim_percent"]);
     assert!(
@@ -1486,11 +1524,10 @@ fn output_error_with_two_inputs_recovers_the_model_that_least_squares_biases() {
         let (v, sd) = (num(&p["value"]), num(&p["std"]));
         assert!(sd > 0.0 && (v - w).abs() < 4.0 * sd, "{p} vs {w}");
     }
-    assert!(oe["notes"]
-        .as_array()
+    assert!(oe["estimation"]["note"]
+        .as_str()
         .unwrap()
-        .iter()
-        .any(|n| n.as_str().unwrap().contains("output-error refinement")));
+        .contains("output-error refinement"));
 
     // Hammerstein: the deadzone `valve` on u1, u2 linear: output error recovers the deadzone too.
     let f = noisy_miso(dir.path(), &valve, 2.0, "ham.csv");
@@ -1661,7 +1698,7 @@ fn several_input_standard_deviations_are_sigma_squared_times_the_inverse_gram_ma
         miso_identify(s(&f), "arx", method, &["--json", s(&out)]);
         let j = json(&out);
         let params = j["parameters"].as_array().unwrap();
-        let names: Vec<&str> = params.iter().map(|p| p["name"].as_str().unwrap()).collect();
+        let names: Vec<String> = params.iter().map(label).collect();
         assert_eq!(names, ["a1", "b1 (u1)", "b2 (u1)", "b1 (u2)"]);
         for (i, prm) in params.iter().enumerate() {
             let want = (sigma2 * inv[i][i]).sqrt();
@@ -1671,7 +1708,7 @@ fn several_input_standard_deviations_are_sigma_squared_times_the_inverse_gram_ma
                 "{method} {i}: {got} vs {want}"
             );
         }
-        assert!((num(&j["noise_variance"]) - sigma2).abs() < 1e-5 * sigma2);
+        assert!((num(&j["estimation"]["noise_variance"]) - sigma2).abs() < 1e-5 * sigma2);
     }
     // Residual analysis of the LS model: the one-step errors ε(k), k >= 2, against EACH input.
     let j = json(&dir.path().join("ls.json"));
@@ -1843,8 +1880,12 @@ fn several_inputs_merged_pool_the_rows_of_each_record_and_none_across() {
             "{got:?} vs {theta:?}"
         );
     }
-    assert_eq!(j["merged"].as_array().unwrap().len(), 2);
-    assert_eq!(j["metrics"]["estimation"].as_array().unwrap().len(), 2);
+    let records = j["records"].as_array().unwrap();
+    assert_eq!(records.len(), 2);
+    assert_eq!(
+        records[0]["metrics"]["n"].as_u64().unwrap() + records[1]["metrics"]["n"].as_u64().unwrap(),
+        j["metrics"]["estimation"]["n"].as_u64().unwrap()
+    );
     // Detrending merged records is refused by name, not silently done per record.
     let err = fails(&[
         "identify",
@@ -1965,7 +2006,7 @@ fn several_input_deadzone_warnings_name_the_input() {
             .as_array()
             .unwrap()
             .iter()
-            .find(|p| p["name"] == name)
+            .find(|p| label(p) == name)
             .unwrap()
             .clone()
     };

@@ -9,144 +9,19 @@
 //! recursive instrumental variables, [`crate::iv`]); they see a [`Regression`] and the nonlinearity
 //! [`crate::blocks`], never a deadzone.
 
-use crate::blocks::{BlockStart, NonlinearityKind};
-use crate::fitted::{Fitted, Method, Param, Termination, LINEAR_START_USED};
+use crate::blocks::NonlinearityKind;
+use crate::fitted::{check_finite, Fitted, Method, Param, Termination};
 use crate::methods;
+pub use crate::methods::{
+    InstrumentalVariables, LeastSquares, OutputError, Passes, RecursiveLeastSquares, PASSES_SETTLED,
+};
+pub use crate::problem::{Estimator, Problem, Records};
 use crate::regression::{Channel, Regression};
-use crate::rls;
-use crate::rls_ud::RlsForm;
-use crate::warnings::{Record, Warning};
-use crate::windup::Windup;
+use crate::warnings::{Record, Warning, LINEAR_START_USED};
 use sysid_core::data::SINGLE_INPUT;
 use sysid_core::{
-    Dataset, InputChannel, Model, ModelKind, Orders, ParamName, Setting, Structure, SysidError,
+    Dataset, InputChannel, Model, ModelKind, Orders, ParamName, Structure, SysidError,
 };
-
-/// Settings of batch least squares (and of the key-term iteration for Hammerstein models).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct LeastSquares {
-    /// Maximum key-term iterations for Hammerstein LS (default 100).
-    pub max_iterations: usize,
-    /// Relative change of θ̂ below which the key-term iteration has converged (default 1e-10).
-    pub tolerance: f64,
-}
-
-impl Default for LeastSquares {
-    fn default() -> Self {
-        LeastSquares {
-            max_iterations: 100,
-            tolerance: 1e-10,
-        }
-    }
-}
-
-/// How many passes of recursive least squares run over the data.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Passes {
-    /// Exactly this many passes (the paper: 1).
-    Fixed(usize),
-    /// Passes until the estimate settles (relative change between the ends of two passes below
-    /// [`PASSES_SETTLED`]), at most `max`.
-    UntilSettled {
-        /// The cap.
-        max: usize,
-    },
-}
-
-impl Passes {
-    /// The default: repeat until settled, at most 100 passes.
-    pub const AUTO: Passes = Passes::UntilSettled { max: 100 };
-
-    /// The largest number of passes that may run.
-    pub fn max(&self) -> usize {
-        match self {
-            Passes::Fixed(n) => *n,
-            Passes::UntilSettled { max } => *max,
-        }
-    }
-}
-
-/// Relative change of θ̂ between the ends of two passes below which repeated passes have settled.
-pub const PASSES_SETTLED: f64 = 1e-10;
-
-/// Settings of recursive least squares (paper eqs. 9–12).
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct RecursiveLeastSquares {
-    /// ρ: forgetting factor in (0, 1] (default 1).
-    pub forgetting: f64,
-    /// P(0) = p0 · I (default 1e6).
-    pub p0: f64,
-    /// Passes over the data (default: until the estimate settles; the paper's method is one pass). Each
-    /// new pass restarts P = p0 · I and keeps θ̂, so the P(0) regularisation pulls towards the previous
-    /// pass's estimate and vanishes geometrically: with noise-free data a few passes reach the exact
-    /// solution.
-    pub passes: Passes,
-    /// Covariance form (default standard: the paper's eq. 12).
-    pub form: RlsForm,
-    /// Covariance-windup protection (default none).
-    pub windup: Windup,
-    /// Bound T on tr P for [`Windup::Trace`]; `None`: p0 times the number of parameters.
-    pub max_trace: Option<f64>,
-    /// Keep the parameter trajectory (for convergence plots).
-    pub record_history: bool,
-}
-
-impl Default for RecursiveLeastSquares {
-    fn default() -> Self {
-        RecursiveLeastSquares {
-            forgetting: 1.0,
-            p0: 1e6,
-            passes: Passes::AUTO,
-            form: RlsForm::Standard,
-            windup: Windup::None,
-            max_trace: None,
-            record_history: false,
-        }
-    }
-}
-
-/// Settings of the output-error refinement, started from least squares.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct OutputError {
-    /// The least-squares start.
-    pub start: LeastSquares,
-    /// Patience: the search stops after this many residual evaluations per free parameter (default
-    /// 100, shared with the start's key-term iteration cap).
-    pub max_iterations: usize,
-}
-
-impl Default for OutputError {
-    fn default() -> Self {
-        OutputError {
-            start: LeastSquares::default(),
-            max_iterations: 100,
-        }
-    }
-}
-
-/// Settings of recursive instrumental variables, started from least squares.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct InstrumentalVariables {
-    /// The least-squares start (first auxiliary model).
-    pub start: LeastSquares,
-    /// ρ: forgetting factor in (0, 1].
-    pub forgetting: f64,
-    /// P(0) = p0 · I.
-    pub p0: f64,
-    /// Number of stages, each rebuilding the instruments from the previous stage's model (default 10).
-    pub stages: usize,
-}
-
-impl Default for InstrumentalVariables {
-    fn default() -> Self {
-        InstrumentalVariables {
-            start: LeastSquares::default(),
-            forgetting: 1.0,
-            p0: 1e6,
-            stages: 10,
-        }
-    }
-}
 
 /// One input's part of a structure with several inputs: orders and static nonlinearity.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -157,218 +32,6 @@ pub struct InputSpec {
     pub nk: usize,
     /// The input's static nonlinearity.
     pub nonlinearity: NonlinearityKind,
-}
-
-/// One record or several (merged experiments, MATLAB `merge`): what [`identify`] accepts.
-pub trait Records {
-    /// The records.
-    fn records(&self) -> &[Dataset];
-}
-
-impl Records for Dataset {
-    fn records(&self) -> &[Dataset] {
-        std::slice::from_ref(self)
-    }
-}
-
-impl Records for [Dataset] {
-    fn records(&self) -> &[Dataset] {
-        self
-    }
-}
-
-impl Records for Vec<Dataset> {
-    fn records(&self) -> &[Dataset] {
-        self
-    }
-}
-
-/// What an estimator is fitted to: the records, the regression of the structure and, per input, what
-/// the data determine of its static nonlinearity. Made by [`Problem::new`], which checks that the data
-/// can support the structure.
-#[derive(Debug, Clone)]
-pub struct Problem<'a> {
-    records: &'a [Dataset],
-    regression: Regression,
-    starts: Vec<BlockStart>,
-    name: String,
-}
-
-impl<'a> Problem<'a> {
-    /// Checks the structure of `settings` against `records` (same inputs and Ts in every record, enough
-    /// rows) and finds what each input determines of its nonlinearity ([`crate::blocks::Block::start`]).
-    pub fn new(records: &'a [Dataset], settings: &Identification) -> Result<Self, SysidError> {
-        let Some(first) = records.first() else {
-            return Err(SysidError::Data(
-                "identification needs at least one record".into(),
-            ));
-        };
-        let names: Vec<&str> = first.inputs().iter().map(|i| i.name()).collect();
-        for r in records {
-            if (r.ts() - first.ts()).abs() > 1e-3 * first.ts() {
-                return Err(SysidError::Data(format!(
-                    "{} is sampled at Ts = {} s but {} at Ts = {} s; merged records need the same Ts",
-                    r.name(),
-                    r.ts(),
-                    first.name(),
-                    first.ts()
-                )));
-            }
-            if r.inputs()
-                .iter()
-                .map(|i| i.name())
-                .ne(names.iter().copied())
-            {
-                return Err(SysidError::Data(format!(
-                    "{} and {} have different inputs; merged records must have the same inputs, in the same order",
-                    first.name(),
-                    r.name()
-                )));
-            }
-        }
-        let regression = settings.regression(&names)?;
-        let name = records
-            .iter()
-            .map(Dataset::name)
-            .collect::<Vec<_>>()
-            .join(" + ");
-        let p = regression.len();
-        let k0 = regression.k0();
-        let rows = regression.rows(records);
-        if records.len() == 1 {
-            let n = first.len();
-            if n <= k0 || n - k0 < p {
-                let s = settings.structure;
-                let list = |f: fn(&Channel) -> usize| {
-                    regression
-                        .channels()
-                        .iter()
-                        .map(|c| f(c).to_string())
-                        .collect::<Vec<_>>()
-                        .join(",")
-                };
-                return Err(SysidError::Data(format!(
-                    "{}: {n} samples leave {} regression rows for {p} parameters (na = {}, nb = {}, nk = {}); \
-                     more data or lower orders are needed",
-                    first.name(),
-                    n.saturating_sub(k0),
-                    s.orders.na,
-                    list(|c| c.nb),
-                    list(|c| c.nk),
-                )));
-            }
-        } else if rows <= p {
-            return Err(SysidError::Data(format!(
-                "the merged records give {rows} regression rows for {p} parameters; more data or lower orders"
-            )));
-        }
-        let several = regression.channels().len() > 1;
-        let mut starts = Vec::with_capacity(names.len());
-        for (m, ch) in regression.channels().iter().enumerate() {
-            let u: Vec<f64> = records
-                .iter()
-                .flat_map(|r| r.inputs()[m].u().iter().copied())
-                .collect();
-            let who = if several {
-                format!("{} (input {})", name, ch.name)
-            } else {
-                name.clone()
-            };
-            starts.push(ch.kind.block().start(
-                &u,
-                regression.offset(),
-                settings.drop_unexcited_branch,
-                &who,
-            )?);
-        }
-        Ok(Problem {
-            records,
-            regression,
-            starts,
-            name,
-        })
-    }
-
-    /// The records.
-    pub fn records(&self) -> &'a [Dataset] {
-        self.records
-    }
-    /// The regression of the structure.
-    pub fn regression(&self) -> &Regression {
-        &self.regression
-    }
-    /// What the data determine of each input's nonlinearity.
-    pub fn starts(&self) -> &[BlockStart] {
-        &self.starts
-    }
-    /// The records' names, for messages.
-    pub fn name(&self) -> &str {
-        &self.name
-    }
-    /// Ts in s.
-    pub fn ts(&self) -> f64 {
-        self.records[0].ts()
-    }
-    /// The same problem with every input linear (the ARX structure of the same orders).
-    pub(crate) fn linear(&self) -> Result<Problem<'a>, SysidError> {
-        let regression = self.regression.linear()?;
-        let starts = regression
-            .channels()
-            .iter()
-            .map(|c| c.kind.block().start(&[], false, true, &self.name))
-            .collect::<Result<_, _>>()?;
-        Ok(Problem {
-            records: self.records,
-            regression,
-            starts,
-            name: self.name.clone(),
-        })
-    }
-    /// Input m of every record, one after the other.
-    fn input_samples(&self, m: usize) -> Vec<f64> {
-        self.records
-            .iter()
-            .flat_map(|r| r.inputs()[m].u().iter().copied())
-            .collect()
-    }
-    /// The remarks of the blocks' starts (a dropped branch...), naming the input when there are several.
-    fn notes(&self) -> Vec<String> {
-        let several = self.starts.len() > 1;
-        self.regression
-            .channels()
-            .iter()
-            .zip(&self.starts)
-            .flat_map(|(c, s)| {
-                s.notes.iter().map(move |n| {
-                    if several {
-                        format!("input {}: {n}", c.name)
-                    } else {
-                        n.clone()
-                    }
-                })
-            })
-            .collect()
-    }
-
-    /// Fit % of the free-run simulation (initial outputs estimated, as MATLAB `compare`) on the
-    /// estimation records (pooled over several: every record's rows k ≥ k0 with one mean); `None` when
-    /// the simulation diverges or the output is constant.
-    pub(crate) fn simulation_fit(&self, model: &Model) -> Option<f64> {
-        sysid_core::metrics::pooled_metrics(model, self.records)
-            .ok()
-            .and_then(|m| m.fit_sim_percent)
-    }
-}
-
-/// An estimation method: checks its settings and fits a [`Problem`].
-pub trait Estimator {
-    /// Which method this is (reported in the fitted result).
-    fn method(&self) -> Method;
-    /// Checks the settings (each error names the [`Setting`] at fault).
-    fn check(&self) -> Result<(), SysidError>;
-    /// Fits the problem. Called by [`identify`], which checks the settings first and applies the common
-    /// safeguards after.
-    fn fit(&self, problem: &Problem) -> Result<Fitted, SysidError>;
 }
 
 /// One method's settings, for callers that choose the method at run time (the command line).
@@ -500,6 +163,24 @@ impl Identification {
         Regression::new(o.na, self.structure.offset, channels)
     }
 
+    /// The problem of this identification on `records` (their inputs named by the first record).
+    pub fn problem<'a>(&self, records: &'a [Dataset]) -> Result<Problem<'a>, SysidError> {
+        let names: Vec<&str> = records
+            .first()
+            .map(|r| r.inputs().iter().map(|i| i.name()).collect())
+            .unwrap_or_default();
+        if names.is_empty() {
+            return Err(SysidError::Data(
+                "identification needs at least one record".into(),
+            ));
+        }
+        Problem::new(
+            records,
+            self.regression(&names)?,
+            self.drop_unexcited_branch,
+        )
+    }
+
     /// Builder: one input specification per input of the data.
     pub fn with_inputs(mut self, inputs: Vec<InputSpec>) -> Self {
         self.inputs = inputs;
@@ -587,7 +268,7 @@ pub fn identify<R: Records + ?Sized>(
     settings: &Identification,
 ) -> Result<Fitted, SysidError> {
     settings.check()?;
-    let problem = Problem::new(records.records(), settings)?;
+    let problem = settings.problem(records.records())?;
     let mut fit = settings.estimator.fit(&problem)?;
     let mut notes: Vec<crate::fitted::Note> = problem
         .notes()
@@ -615,8 +296,8 @@ pub fn safeguard(
 ) -> Result<Fitted, SysidError> {
     let mut fit_sim = p.simulation_fit(&fit.model);
     let mut fell_back = false;
-    let several = p.regression.channels().len() > 1;
-    if p.regression.nonlinear() {
+    let several = p.regression().channels().len() > 1;
+    if p.regression().nonlinear() {
         if let Some((linear, linear_fit)) = linear_start(p) {
             if let Some(why) = hammerstein_guard(
                 fit.method,
@@ -660,10 +341,10 @@ pub fn safeguard(
     // The fallback's nonlinearities are fixed by construction, not estimated: nothing to check.
     if !fell_back {
         for (m, ((ch, start), fitted)) in p
-            .regression
+            .regression()
             .channels()
             .iter()
-            .zip(&p.starts)
+            .zip(p.starts())
             .zip(fit.model.inputs().to_vec())
             .enumerate()
         {
@@ -759,7 +440,7 @@ fn linear_start(p: &Problem) -> Option<(Fitted, f64)> {
     let lp = p.linear().ok()?;
     let arx = methods::arx_ls(&lp).ok()?;
     let m = &arx.model;
-    let reg = &p.regression;
+    let reg = p.regression();
     let several = reg.channels().len() > 1;
     let mut channels = Vec::with_capacity(m.inputs().len());
     // (value, std) of each entry of the physical layout: blocks first, then a, B, c.
@@ -814,121 +495,4 @@ fn linear_start(p: &Problem) -> Option<(Fitted, f64)> {
         },
         fit_sim,
     ))
-}
-
-/// No silent NaN: an estimate the data do not determine in f64 (magnitudes whose squares underflow or
-/// overflow) is a numerical failure, not a result.
-pub(crate) fn check_finite(name: &str, params: &[Param]) -> Result<(), SysidError> {
-    match params.iter().find(|p| !p.value.is_finite()) {
-        Some(p) => Err(SysidError::Numerical(format!(
-            "{}: the estimate of {} is {} (not finite): the data do not determine it in f64 arithmetic \
-             (values too large or too small? rescale the data)",
-            name,
-            p.label(),
-            p.value
-        ))),
-        None => Ok(()),
-    }
-}
-
-fn check_key_term(ls: &LeastSquares) -> Result<(), SysidError> {
-    if ls.max_iterations == 0 || ls.max_iterations > 100_000 {
-        return Err(SysidError::setting(
-            Setting::MaxIterations,
-            ls.max_iterations,
-            "between 1 and 100000",
-        ));
-    }
-    if !(ls.tolerance.is_finite() && ls.tolerance > 0.0) {
-        return Err(SysidError::setting(
-            Setting::Tolerance,
-            ls.tolerance,
-            "a positive number",
-        ));
-    }
-    Ok(())
-}
-
-impl Estimator for LeastSquares {
-    fn method(&self) -> Method {
-        Method::Ls
-    }
-    fn check(&self) -> Result<(), SysidError> {
-        check_key_term(self)
-    }
-    fn fit(&self, p: &Problem) -> Result<Fitted, SysidError> {
-        methods::least_squares(p, self)
-    }
-}
-
-fn check_recursive(forgetting: f64, p0: f64, passes: Passes) -> Result<(), SysidError> {
-    let passes = passes.max();
-    rls::check_settings(forgetting, p0)?;
-    if passes == 0 || passes > 1000 {
-        return Err(SysidError::setting(
-            Setting::Passes,
-            passes,
-            "between 1 and 1000 passes",
-        ));
-    }
-    Ok(())
-}
-
-impl Estimator for RecursiveLeastSquares {
-    fn method(&self) -> Method {
-        Method::Rls
-    }
-    fn check(&self) -> Result<(), SysidError> {
-        check_recursive(self.forgetting, self.p0, self.passes)?;
-        if let Some(t) = self.max_trace {
-            if !(t.is_finite() && t > 0.0) {
-                return Err(SysidError::setting(
-                    Setting::MaxTrace,
-                    t,
-                    "a positive, finite bound on tr P",
-                ));
-            }
-        }
-        Ok(())
-    }
-    fn fit(&self, p: &Problem) -> Result<Fitted, SysidError> {
-        methods::recursive(p, self)
-    }
-}
-
-impl Estimator for OutputError {
-    fn method(&self) -> Method {
-        Method::Oe
-    }
-    fn check(&self) -> Result<(), SysidError> {
-        check_key_term(&self.start)?;
-        check_key_term(&LeastSquares {
-            max_iterations: self.max_iterations,
-            tolerance: 1.0,
-        })
-    }
-    fn fit(&self, p: &Problem) -> Result<Fitted, SysidError> {
-        methods::output_error(p, self)
-    }
-}
-
-impl Estimator for InstrumentalVariables {
-    fn method(&self) -> Method {
-        Method::Iv
-    }
-    fn check(&self) -> Result<(), SysidError> {
-        check_key_term(&self.start)?;
-        check_recursive(self.forgetting, self.p0, Passes::Fixed(1))?;
-        if self.stages == 0 || self.stages > 1000 {
-            return Err(SysidError::setting(
-                Setting::IvStages,
-                self.stages,
-                "between 1 and 1000 stages",
-            ));
-        }
-        Ok(())
-    }
-    fn fit(&self, p: &Problem) -> Result<Fitted, SysidError> {
-        methods::instrumental(p, self)
-    }
 }

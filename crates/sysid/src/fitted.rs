@@ -232,7 +232,7 @@ impl std::fmt::Display for Note {
             Note::StagesNotSettled { stages } => write!(
                 f,
                 "IV stages had not settled after {stages} stages (relative change >= {:e})",
-                crate::iv::IV_SETTLED
+                IV_SETTLED
             ),
         }
     }
@@ -316,6 +316,20 @@ impl Fitted {
     }
 }
 
-/// The words of the fallback warning: what replaced a Hammerstein estimate.
-pub(crate) const LINEAR_START_USED: &str =
-    "the linear ARX least-squares model, as a Hammerstein model with b_l = b_r = 0 and m_l = m_r = b1";
+/// Relative change of θ̂ between IV stages below which the stages have settled.
+pub const IV_SETTLED: f64 = 1e-6;
+
+/// No silent NaN: an estimate the data do not determine in f64 (magnitudes whose squares underflow or
+/// overflow) is a numerical failure, not a result.
+pub(crate) fn check_finite(name: &str, params: &[Param]) -> Result<(), sysid_core::SysidError> {
+    match params.iter().find(|p| !p.value.is_finite()) {
+        Some(p) => Err(sysid_core::SysidError::Numerical(format!(
+            "{}: the estimate of {} is {} (not finite): the data do not determine it in f64 arithmetic \
+             (values too large or too small? rescale the data)",
+            name,
+            p.label(),
+            p.value
+        ))),
+        None => Ok(()),
+    }
+}

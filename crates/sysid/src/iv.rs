@@ -111,8 +111,7 @@ pub fn pass<F: Fn(&[f64], usize, &mut [f64])>(
     Ok(IvPass { theta, zphi, zz })
 }
 
-/// Relative change of θ̂ between IV stages below which the stages have settled.
-pub const IV_SETTLED: f64 = 1e-6;
+pub use crate::fitted::IV_SETTLED;
 
 /// The outcome of [`staged`].
 #[derive(Debug, Clone)]

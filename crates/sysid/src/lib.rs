@@ -10,8 +10,8 @@
 //! - vocabulary: [`fitted`] (method, parameters, termination, notes, the fitted result), [`warnings`];
 //! - structure: [`blocks`] (static nonlinearities as blocks of the estimation), [`regression`] (the one
 //!   key-term regression over inputs and records);
-//! - identification: [`estimate`] (settings, [`Problem`](estimate::Problem), [`identify`], safeguards),
-//!   [`methods`] (LS, RLS, IV, OE fits), [`oe`], [`iv`], [`rls`], [`rls_ud`], [`windup`];
+//! - identification: [`problem`] (what is fitted, the [`Estimator`] trait), [`methods`] (each method's
+//!   settings and fit), [`estimate`] ([`Identification`], [`identify`], the safeguards), [`oe`], [`iv`], [`rls`], [`rls_ud`], [`windup`];
 //! - around it: [`order`], [`delay`], [`residuals`],
 //!   [`stream`] (records read in passes), [`online`] (tracking).
 //!
@@ -29,6 +29,7 @@ pub mod oe;
 pub mod online;
 pub mod options;
 pub mod order;
+pub mod problem;
 pub mod regression;
 pub mod residuals;
 pub mod rls;

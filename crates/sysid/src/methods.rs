@@ -7,20 +7,248 @@
 //! - recursive least squares (paper eqs. 9–12), the recursive key-term separation, in passes;
 //! - output error ([`crate::oe`]) and recursive instrumental variables ([`crate::iv`]), started from
 //!   least squares.
+//!
+//! Each method has its settings type (a small builder with defaults) and implements
+//! [`Estimator`]; the safeguards common to every method are `estimate::identify`'s, not theirs.
 
 use nalgebra::{DMatrix, DVector};
 
-use crate::estimate::{
-    InstrumentalVariables, LeastSquares, OutputError, Passes, Problem, RecursiveLeastSquares,
-    PASSES_SETTLED,
-};
 use crate::fitted::{Fitted, Method, Note, Termination};
+use crate::problem::{Estimator, Problem};
 use crate::regression::{scatter, scatter_matrix};
 use crate::rls_ud::RlsForm;
 use crate::warnings::Warning;
 use crate::windup::Windup;
 use crate::{iv, ls, oe, rls};
-use sysid_core::{Dataset, Model, StaticNonlinearity, SysidError};
+use sysid_core::{Dataset, Model, Setting, StaticNonlinearity, SysidError};
+
+/// Settings of batch least squares (and of the key-term iteration for Hammerstein models).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LeastSquares {
+    /// Maximum key-term iterations for Hammerstein LS (default 100).
+    pub max_iterations: usize,
+    /// Relative change of θ̂ below which the key-term iteration has converged (default 1e-10).
+    pub tolerance: f64,
+}
+
+impl Default for LeastSquares {
+    fn default() -> Self {
+        LeastSquares {
+            max_iterations: 100,
+            tolerance: 1e-10,
+        }
+    }
+}
+
+/// How many passes of recursive least squares run over the data.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Passes {
+    /// Exactly this many passes (the paper: 1).
+    Fixed(usize),
+    /// Passes until the estimate settles (relative change between the ends of two passes below
+    /// [`PASSES_SETTLED`]), at most `max`.
+    UntilSettled {
+        /// The cap.
+        max: usize,
+    },
+}
+
+impl Passes {
+    /// The default: repeat until settled, at most 100 passes.
+    pub const AUTO: Passes = Passes::UntilSettled { max: 100 };
+
+    /// The largest number of passes that may run.
+    pub fn max(&self) -> usize {
+        match self {
+            Passes::Fixed(n) => *n,
+            Passes::UntilSettled { max } => *max,
+        }
+    }
+}
+
+/// Relative change of θ̂ between the ends of two passes below which repeated passes have settled.
+pub const PASSES_SETTLED: f64 = 1e-10;
+
+/// Settings of recursive least squares (paper eqs. 9–12).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RecursiveLeastSquares {
+    /// ρ: forgetting factor in (0, 1] (default 1).
+    pub forgetting: f64,
+    /// P(0) = p0 · I (default 1e6).
+    pub p0: f64,
+    /// Passes over the data (default: until the estimate settles; the paper's method is one pass). Each
+    /// new pass restarts P = p0 · I and keeps θ̂, so the P(0) regularisation pulls towards the previous
+    /// pass's estimate and vanishes geometrically: with noise-free data a few passes reach the exact
+    /// solution.
+    pub passes: Passes,
+    /// Covariance form (default standard: the paper's eq. 12).
+    pub form: RlsForm,
+    /// Covariance-windup protection (default none).
+    pub windup: Windup,
+    /// Bound T on tr P for [`Windup::Trace`]; `None`: p0 times the number of parameters.
+    pub max_trace: Option<f64>,
+    /// Keep the parameter trajectory (for convergence plots).
+    pub record_history: bool,
+}
+
+impl Default for RecursiveLeastSquares {
+    fn default() -> Self {
+        RecursiveLeastSquares {
+            forgetting: 1.0,
+            p0: 1e6,
+            passes: Passes::AUTO,
+            form: RlsForm::Standard,
+            windup: Windup::None,
+            max_trace: None,
+            record_history: false,
+        }
+    }
+}
+
+/// Settings of the output-error refinement, started from least squares.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct OutputError {
+    /// The least-squares start.
+    pub start: LeastSquares,
+    /// Patience: the search stops after this many residual evaluations per free parameter (default
+    /// 100, shared with the start's key-term iteration cap).
+    pub max_iterations: usize,
+}
+
+impl Default for OutputError {
+    fn default() -> Self {
+        OutputError {
+            start: LeastSquares::default(),
+            max_iterations: 100,
+        }
+    }
+}
+
+/// Settings of recursive instrumental variables, started from least squares.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct InstrumentalVariables {
+    /// The least-squares start (first auxiliary model).
+    pub start: LeastSquares,
+    /// ρ: forgetting factor in (0, 1].
+    pub forgetting: f64,
+    /// P(0) = p0 · I.
+    pub p0: f64,
+    /// Number of stages, each rebuilding the instruments from the previous stage's model (default 10).
+    pub stages: usize,
+}
+
+impl Default for InstrumentalVariables {
+    fn default() -> Self {
+        InstrumentalVariables {
+            start: LeastSquares::default(),
+            forgetting: 1.0,
+            p0: 1e6,
+            stages: 10,
+        }
+    }
+}
+
+fn check_key_term(ls: &LeastSquares) -> Result<(), SysidError> {
+    if ls.max_iterations == 0 || ls.max_iterations > 100_000 {
+        return Err(SysidError::setting(
+            Setting::MaxIterations,
+            ls.max_iterations,
+            "between 1 and 100000",
+        ));
+    }
+    if !(ls.tolerance.is_finite() && ls.tolerance > 0.0) {
+        return Err(SysidError::setting(
+            Setting::Tolerance,
+            ls.tolerance,
+            "a positive number",
+        ));
+    }
+    Ok(())
+}
+
+impl Estimator for LeastSquares {
+    fn method(&self) -> Method {
+        Method::Ls
+    }
+    fn check(&self) -> Result<(), SysidError> {
+        check_key_term(self)
+    }
+    fn fit(&self, p: &Problem) -> Result<Fitted, SysidError> {
+        least_squares(p, self)
+    }
+}
+
+fn check_recursive(forgetting: f64, p0: f64, passes: Passes) -> Result<(), SysidError> {
+    let passes = passes.max();
+    rls::check_settings(forgetting, p0)?;
+    if passes == 0 || passes > 1000 {
+        return Err(SysidError::setting(
+            Setting::Passes,
+            passes,
+            "between 1 and 1000 passes",
+        ));
+    }
+    Ok(())
+}
+
+impl Estimator for RecursiveLeastSquares {
+    fn method(&self) -> Method {
+        Method::Rls
+    }
+    fn check(&self) -> Result<(), SysidError> {
+        check_recursive(self.forgetting, self.p0, self.passes)?;
+        if let Some(t) = self.max_trace {
+            if !(t.is_finite() && t > 0.0) {
+                return Err(SysidError::setting(
+                    Setting::MaxTrace,
+                    t,
+                    "a positive, finite bound on tr P",
+                ));
+            }
+        }
+        Ok(())
+    }
+    fn fit(&self, p: &Problem) -> Result<Fitted, SysidError> {
+        recursive(p, self)
+    }
+}
+
+impl Estimator for OutputError {
+    fn method(&self) -> Method {
+        Method::Oe
+    }
+    fn check(&self) -> Result<(), SysidError> {
+        check_key_term(&self.start)?;
+        check_key_term(&LeastSquares {
+            max_iterations: self.max_iterations,
+            tolerance: 1.0,
+        })
+    }
+    fn fit(&self, p: &Problem) -> Result<Fitted, SysidError> {
+        output_error(p, self)
+    }
+}
+
+impl Estimator for InstrumentalVariables {
+    fn method(&self) -> Method {
+        Method::Iv
+    }
+    fn check(&self) -> Result<(), SysidError> {
+        check_key_term(&self.start)?;
+        check_recursive(self.forgetting, self.p0, Passes::Fixed(1))?;
+        if self.stages == 0 || self.stages > 1000 {
+            return Err(SysidError::setting(
+                Setting::IvStages,
+                self.stages,
+                "between 1 and 1000 stages",
+            ));
+        }
+        Ok(())
+    }
+    fn fit(&self, p: &Problem) -> Result<Fitted, SysidError> {
+        instrumental(p, self)
+    }
+}
 
 /// A data error prefixed with the records' name.
 fn context(p: &Problem, e: SysidError) -> SysidError {
@@ -53,7 +281,7 @@ fn model_from_theta(p: &Problem, theta: &DVector<f64>) -> Result<Model, SysidErr
     reg.model_of(theta.as_slice(), p.starts(), p.ts())
         .map_err(|e| {
             let params = reg.params_of_theta(theta.as_slice(), None);
-            crate::estimate::check_finite(p.name(), &params)
+            crate::fitted::check_finite(p.name(), &params)
                 .err()
                 .unwrap_or_else(|| SysidError::Numerical(format!("{}: {e}", p.name())))
         })
@@ -195,7 +423,7 @@ fn recursive_estimator(
     np: usize,
     st: &RecursiveLeastSquares,
 ) -> Result<Box<dyn rls::RecursiveUpdate>, SysidError> {
-    crate::online::recursive_estimator(np, st.forgetting, st.p0, st.form, st.windup, st.max_trace)
+    crate::rls_ud::recursive_estimator(np, st.forgetting, st.p0, st.form, st.windup, st.max_trace)
 }
 
 /// RLS, the recursive key-term separation. First pass (the paper's scheme): each input's switching and

@@ -7,7 +7,7 @@
 //! deadzone of the switching functions and of x̂ is taken from the latest θ̂ (breakpoints clamped to
 //! ±limit, the start deadzone while both slopes are 0), φ(k) is filled by [`Structure::fill_row`] and
 //! one RLS update (paper eqs. 9–12) is made by the same estimator type `identify` chooses (plain RLS for
-//! `--windup none`, [`RobustRls`] otherwise). The only input `identify` takes from the whole record is
+//! `--windup none`, [`RobustRls`](crate::rls_ud::RobustRls) otherwise). The only input `identify` takes from the whole record is
 //! the start of the deadzone (the largest negative and smallest positive command, and max |u| as the
 //! clamp); online these are settings, [`DeadzoneStart`], whose default (−1, 1, 255) suits integer PWM
 //! commands. With the defaults (no deadzone guard, no restart on a change) and the start `identify`
@@ -32,8 +32,8 @@ use std::io::{BufRead, Write};
 
 use serde::Serialize;
 
-use crate::rls::{RecursiveUpdate, Rls};
-use crate::rls_ud::{RlsForm, RobustRls};
+use crate::rls::RecursiveUpdate;
+use crate::rls_ud::{recursive_estimator, RlsForm};
 use crate::summary::{poles, Pole};
 use crate::windup::Windup;
 use ipa_embedded::cusum::{Cusum, CusumStatus};
@@ -309,25 +309,6 @@ pub struct Tracker {
     detector: Option<Detector>,
     changes: Vec<usize>,
     guard_hits: usize,
-}
-
-/// The recursive estimator `identify --method rls` uses for these settings: the plain RLS for the
-/// standard form without windup protection, [`RobustRls`] otherwise.
-pub(crate) fn recursive_estimator(
-    n_params: usize,
-    forgetting: f64,
-    p0: f64,
-    form: RlsForm,
-    windup: Windup,
-    max_trace: Option<f64>,
-) -> Result<Box<dyn RecursiveUpdate>, SysidError> {
-    Ok(if form == RlsForm::Standard && windup == Windup::None {
-        Box::new(Rls::new(n_params, forgetting, p0)?)
-    } else {
-        Box::new(RobustRls::new(
-            n_params, forgetting, p0, form, windup, max_trace,
-        )?)
-    })
 }
 
 impl Tracker {

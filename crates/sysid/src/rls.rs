@@ -87,7 +87,7 @@ fn kernel_for(n: usize) -> Kernel {
 }
 
 /// One recursive least-squares update scheme (the paper's RLS, the fixed-size [`RlsN`], the
-/// UD-factorised and windup-protected [`RobustRls`](crate::rls_ud::RobustRls)): the estimators drive
+/// UD-factorised and windup-protected `rls_ud::RobustRls`): the estimators drive
 /// them through this trait.
 pub trait RecursiveUpdate {
     /// θ̂: the current estimate.

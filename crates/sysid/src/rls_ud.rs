@@ -371,6 +371,25 @@ impl crate::rls::RecursiveUpdate for RobustRls {
     }
 }
 
+/// The recursive estimator `identify --method rls` uses for these settings: the plain RLS for the
+/// standard form without windup protection, [`RobustRls`] otherwise.
+pub fn recursive_estimator(
+    n_params: usize,
+    forgetting: f64,
+    p0: f64,
+    form: RlsForm,
+    windup: Windup,
+    max_trace: Option<f64>,
+) -> Result<Box<dyn crate::rls::RecursiveUpdate>, SysidError> {
+    Ok(if form == RlsForm::Standard && windup == Windup::None {
+        Box::new(crate::rls::Rls::new(n_params, forgetting, p0)?)
+    } else {
+        Box::new(RobustRls::new(
+            n_params, forgetting, p0, form, windup, max_trace,
+        )?)
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

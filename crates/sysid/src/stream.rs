@@ -25,7 +25,8 @@
 //! identified this way (the Hammerstein key-term iteration needs one pass per iteration, the other
 //! methods the whole record); any saved single-input model can be validated.
 
-use crate::estimate::{check_finite, Estimator, EstimatorSettings, Identification};
+use crate::estimate::{Estimator, EstimatorSettings, Identification};
+use crate::fitted::check_finite;
 use crate::fitted::{Fitted, Method};
 use crate::residuals::{CovarianceAccumulator, ResidOptions};
 use crate::summary::{IdentifyReport, ResidualEntry, ResidualsPair, ValidationReport};

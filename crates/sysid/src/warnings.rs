@@ -1,7 +1,7 @@
 //! Warnings: when an estimate may not deserve trust, the tool says so in words (the `warnings` list of
 //! `identify --json`, `warning: ...` lines in the text). Each [`Warning`] is typed; its `Display` is
 //! the sentence users read. The checks of a static nonlinearity against its data are its block's
-//! (`crate::blocks`).
+//! (module `blocks`).
 
 use serde::{Serialize, Serializer};
 use sysid_core::{Model, ParamName};
@@ -179,7 +179,7 @@ impl Warning {
     /// as such).
     pub fn explains_missing_std(&self, param: &str) -> bool {
         match self {
-            Warning::Fallback { used, .. } => used.starts_with(crate::fitted::LINEAR_START_USED),
+            Warning::Fallback { used, .. } => used.starts_with(LINEAR_START_USED),
             Warning::ForInput { input, warning } => match warning.as_ref() {
                 Warning::BreakpointOnInputLevel { name, .. }
                 | Warning::BreakpointNotBracketed { name, .. } => {
@@ -209,6 +209,10 @@ impl Warning {
         }
     }
 }
+
+/// The words of the fallback warning: what replaced a Hammerstein estimate.
+pub(crate) const LINEAR_START_USED: &str =
+    "the linear ARX least-squares model, as a Hammerstein model with b_l = b_r = 0 and m_l = m_r = b1";
 
 impl Serialize for Warning {
     fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {

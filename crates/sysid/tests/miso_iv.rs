@@ -2,7 +2,7 @@
 //! squares is biased, and exact on noise-free data.
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
 
-use sysid::estimate::{safeguard, Problem};
+use sysid::estimate::safeguard;
 use sysid::{
     identify, Dataset, EstimatorSettings, Identification, InputSpec, InstrumentalVariables,
     LeastSquares, Method, ModelKind, NonlinearityKind,
@@ -202,7 +202,7 @@ fn an_unstable_several_input_hammerstein_estimate_gives_way_to_the_linear_start(
             spec(1, 2, NonlinearityKind::Linear),
         ])
         .with_method(Method::Ls);
-    let p = Problem::new(std::slice::from_ref(&data), &s).unwrap();
+    let p = s.problem(std::slice::from_ref(&data)).unwrap();
     let mut bad = identify(&data, &s).unwrap();
     bad.model = bad.model.with_a(vec![-1.2]).unwrap();
     bad.warnings.clear();

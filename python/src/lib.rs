@@ -272,7 +272,7 @@ impl PyModel {
         let data = dataset(u, y, self.inner.ts(), "predict")?;
         let out = self
             .inner
-            .predict_k(&[&data.u()], &data.y(), horizon)
+            .predict_k(&[data.u()], data.y(), horizon)
             .map_err(sysid_err)?;
         Ok(out.into_pyarray(py))
     }

@@ -78,7 +78,7 @@ pub fn paper_check(
             .model
             .simulate(&[val.u()], val.y())
             .ok()
-            .and_then(|sim| fit_percent(&val.y(), &sim));
+            .and_then(|sim| fit_percent(val.y(), &sim));
         runs.push(PaperRun {
             label,
             fit,
@@ -102,7 +102,7 @@ pub struct ModelResiduals {
 /// [`sysid::residuals::analyze_default`]) of the one-step prediction errors ε(k) = y(k) − ŷ(k|k−1) of
 /// `model` on `d`, from its first predicted sample k0 on.
 pub fn residuals(model: &Model, d: &Dataset) -> Result<ResidualAnalysis, String> {
-    let yhat = model.predict(&d.u(), &d.y()).map_err(|e| e.to_string())?;
+    let yhat = model.predict(d.u(), d.y()).map_err(|e| e.to_string())?;
     let k0 = model.k0().min(d.len());
     let eps: Vec<f64> = d.y()[k0..]
         .iter()

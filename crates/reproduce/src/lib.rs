@@ -401,7 +401,7 @@ pub fn run(
         sysid_io::write_columns_csv(
             &data_dir.join(name),
             &["t", "u", "y"],
-            &[&t_rec, &d.u(), &d.y()],
+            &[&t_rec, d.u(), d.y()],
         )?;
     }
 
@@ -473,13 +473,8 @@ pub fn run(
 
     // The paper's own model as the plant (known truth), with the paper's method.
     progress("the method on the paper's model", 0.3);
-    let paper_check = analysis::paper_check(
-        &plan[1].3,
-        &est.u(),
-        &val.u(),
-        s.experiment_start_mm,
-        s.seed,
-    )?;
+    let paper_check =
+        analysis::paper_check(&plan[1].3, est.u(), val.u(), s.experiment_start_mm, s.seed)?;
     let residuals = models
         .iter()
         .map(|m| analysis::ModelResiduals {

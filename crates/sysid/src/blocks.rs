@@ -101,7 +101,7 @@ impl BlockStart {
                 *v = fixed;
             }
         }
-        block.from_physical(&v)
+        block.of_physical(&v)
     }
 }
 
@@ -115,7 +115,7 @@ pub trait Block: Sync {
     /// The physical parameters of `f` (of this kind).
     fn physical(&self, f: &StaticNonlinearity) -> Vec<f64>;
     /// The nonlinearity with physical parameters `v` (no validation: an iterate may be non-finite).
-    fn from_physical(&self, v: &[f64]) -> StaticNonlinearity;
+    fn of_physical(&self, v: &[f64]) -> StaticNonlinearity;
     /// The key terms of `f`, the values the regression estimates.
     fn key_terms(&self, f: &StaticNonlinearity) -> Vec<f64>;
     /// Fills `out` (one entry per key term) with the regressors at the command u, the switching of the
@@ -123,7 +123,7 @@ pub trait Block: Sync {
     fn fill_key_terms(&self, f: &StaticNonlinearity, u: f64, out: &mut [f64]);
     /// The nonlinearity from estimated key terms `key`; a parameter they do not determine keeps its
     /// value in `prev`; breakpoints are clamped to ±`limit`.
-    fn from_key_terms(
+    fn of_key_terms(
         &self,
         key: &[f64],
         prev: &StaticNonlinearity,
@@ -183,14 +183,14 @@ impl Block for LinearBlock {
     fn physical(&self, _: &StaticNonlinearity) -> Vec<f64> {
         Vec::new()
     }
-    fn from_physical(&self, _: &[f64]) -> StaticNonlinearity {
+    fn of_physical(&self, _: &[f64]) -> StaticNonlinearity {
         StaticNonlinearity::Linear
     }
     fn key_terms(&self, _: &StaticNonlinearity) -> Vec<f64> {
         Vec::new()
     }
     fn fill_key_terms(&self, _: &StaticNonlinearity, _: f64, _: &mut [f64]) {}
-    fn from_key_terms(&self, _: &[f64], _: &StaticNonlinearity, _: f64) -> StaticNonlinearity {
+    fn of_key_terms(&self, _: &[f64], _: &StaticNonlinearity, _: f64) -> StaticNonlinearity {
         StaticNonlinearity::Linear
     }
     fn physical_with_std(
@@ -291,7 +291,7 @@ impl Block for DeadzoneBlock {
         let d = dz(f);
         vec![d.b_l, d.b_r, d.m_l, d.m_r]
     }
-    fn from_physical(&self, v: &[f64]) -> StaticNonlinearity {
+    fn of_physical(&self, v: &[f64]) -> StaticNonlinearity {
         StaticNonlinearity::Deadzone(Deadzone {
             b_l: v[0],
             b_r: v[1],
@@ -311,7 +311,7 @@ impl Block for DeadzoneBlock {
         out[2] = hl * u;
         out[3] = -hl;
     }
-    fn from_key_terms(
+    fn of_key_terms(
         &self,
         key: &[f64],
         prev: &StaticNonlinearity,
@@ -636,7 +636,7 @@ mod tests {
         let s = DeadzoneBlock
             .start(&[1.0, 2.0, 3.0], false, true, "t")
             .unwrap();
-        let f = DeadzoneBlock.from_physical(&[-3.0, 1.5, 0.7, 2.0]);
+        let f = DeadzoneBlock.of_physical(&[-3.0, 1.5, 0.7, 2.0]);
         assert_eq!(
             DeadzoneBlock.physical(&s.impose(&DeadzoneBlock, &f)),
             [0.0, 1.5, 0.0, 2.0]

@@ -114,7 +114,7 @@ pub fn estimate_delay(
     }
     let mut candidates = Vec::with_capacity(max_delay + 1);
     for nk in 0..=max_delay {
-        let (phi, target, names) = arx_regression(&data.y(), &data.u(), na, nb, nk, k0);
+        let (phi, target, names) = arx_regression(data.y(), data.u(), na, nb, nk, k0);
         candidates.push(match crate::ls::solve(&phi, &target, &names) {
             Ok(sol) => DelayCandidate {
                 nk,

@@ -467,7 +467,7 @@ fn linear_start(p: &Problem) -> Option<(Fitted, f64)> {
         tail.push((*a, std_of(&arx.params, ParamName::A(i + 1), None)));
     }
     for (ch, mi) in reg.channels().iter().zip(model.inputs()) {
-        let input = several.then(|| ch.name.as_str());
+        let input = several.then_some(ch.name.as_str());
         let keyed = !ch.kind.block().key_names().is_empty();
         for (j, v) in mi.b().iter().enumerate().skip(usize::from(keyed)) {
             let std = (!keyed)

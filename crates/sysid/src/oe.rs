@@ -289,7 +289,7 @@ impl Problem<'_> {
         let mut i = 0;
         let mut f = Vec::with_capacity(self.channels.len());
         for c in &self.channels {
-            f.push(c.block.from_physical(&v[i..i + c.n_block()]));
+            f.push(c.block.of_physical(&v[i..i + c.n_block()]));
             i += c.n_block();
         }
         let a = v[i..i + self.na].to_vec();
@@ -790,14 +790,14 @@ mod tests {
         let y: Vec<f64> = (0..200).map(|k| (k as f64 * 0.05).sin()).collect();
         let data = Dataset::new(Signals { u, y }, 0.01, "t").unwrap();
         let channel = Channel {
-            u: &data.u(),
+            u: data.u(),
             nb: 2,
             nk: 1,
             block: &crate::blocks::DeadzoneBlock,
         };
         // [b_l, b_r, m_l, m_r, a1, a2, b2, c, η0, η1]
         let full = vec![-1.4, 1.3, 0.02, 0.03, -1.2, 0.4, 0.5, 0.1, 0.3, -0.2];
-        let mut p = problem(vec![channel], &data.y(), 2, true);
+        let mut p = problem(vec![channel], data.y(), 2, true);
         assert_jacobian_matches_central_differences(&mut p, &full);
     }
 

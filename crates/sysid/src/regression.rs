@@ -290,7 +290,7 @@ impl Regression {
             let b = ch.block();
             let n = b.key_names().len();
             if n > 0 {
-                let next = b.from_key_terms(&theta[i..i + n], f, s.limit);
+                let next = b.of_key_terms(&theta[i..i + n], f, s.limit);
                 *f = s.impose(b, &next);
                 i += n;
             }
@@ -310,8 +310,8 @@ impl Regression {
         for (ch, s) in self.channels.iter().zip(starts) {
             let b = ch.block();
             let n = b.key_names().len();
-            let zero = b.from_physical(&vec![0.0; b.physical_names().len()]);
-            let next = b.from_key_terms(&theta[i..i + n], &zero, f64::INFINITY);
+            let zero = b.of_physical(&vec![0.0; b.physical_names().len()]);
+            let next = b.of_key_terms(&theta[i..i + n], &zero, f64::INFINITY);
             f.push(s.impose(b, &next));
             i += n;
         }
@@ -379,7 +379,7 @@ impl Regression {
         let mut i = 0;
         for ch in &self.channels {
             let n = ch.block().physical_names().len();
-            f.push(ch.block().from_physical(&v[i..i + n]));
+            f.push(ch.block().of_physical(&v[i..i + n]));
             i += n;
         }
         self.model_with(&f, &v[self.n_phys..], ts)

@@ -81,7 +81,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ));
     }
     let us = data.input_signals();
-    check_ts(&data.name(), data.ts(), model.ts())?;
+    check_ts(data.name(), data.ts(), model.ts())?;
     let mut report = ValidationReport::assemble(&model, &data, args.resid_lags)?;
     report
         .warnings
@@ -91,7 +91,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let text = report_text(
         &args,
         &report,
-        &data.name(),
+        data.name(),
         data.len(),
         out.fit_pred_percent,
     );

@@ -74,7 +74,7 @@ impl<'a> DatasetSource<'a> {
 
 impl RecordSource for DatasetSource<'_> {
     fn name(&self) -> &str {
-        &self.data.name()
+        self.data.name()
     }
 
     fn pass(&mut self, consume: &mut ChunkFn<'_>) -> Result<Shape, SysidError> {

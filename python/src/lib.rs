@@ -494,12 +494,13 @@ fn py_float(v: Option<f64>) -> String {
 /// Identifies a Hammerstein (deadzone + ARX) or ARX model from the input `u` (counts) and output `y`
 /// (mm) sampled every `ts` s, as `ipa-sysid identify` does with the same options; `validation` =
 /// (u_val, y_val) adds validation metrics. `name` and `validation_name` name the records in messages
-/// (the command line uses the file names).
+/// (the command line uses the file names). `nonlinearity` ("deadzone" or "linear", the command line's
+/// `--nonlinearity`) chooses the input's static nonlinearity instead of `model`.
 #[pyfunction]
 #[pyo3(signature = (u, y, ts, model="hammerstein", method="rls", na=3, nb=1, nk=1, forgetting=1.0,
     p0=1e6, offset=false, validation=None, passes=None, max_iterations=100, rls_form="standard",
     windup="none", max_trace=None, iv_stages=10, name="data", validation_name="validation",
-    resid_lags=25, fallback=false))]
+    resid_lags=25, fallback=false, nonlinearity=None))]
 #[allow(clippy::too_many_arguments)]
 fn identify(
     py: Python<'_>,
@@ -525,9 +526,16 @@ fn identify(
     validation_name: &str,
     resid_lags: usize,
     fallback: bool,
+    nonlinearity: Option<&str>,
 ) -> PyResult<PyFit> {
+    let model = match nonlinearity.map(str::parse::<sysid::NonlinearityKind>) {
+        None => choice("--model", model)?,
+        Some(Ok(sysid::NonlinearityKind::Deadzone)) => sysid::ModelKind::Hammerstein,
+        Some(Ok(sysid::NonlinearityKind::Linear)) => sysid::ModelKind::Arx,
+        Some(Err(e)) => return Err(PyValueError::new_err(format!("nonlinearity: {e}"))),
+    };
     let options = IdentifyOptions {
-        model: choice("--model", model)?,
+        model,
         na,
         nb,
         nk,

@@ -120,6 +120,23 @@ def test_identify_options_reach_the_estimator(records, tmp_path):
     assert fit.model.offset is not None
 
 
+@pytest.mark.parametrize("nonlinearity,model", [("deadzone", "hammerstein"), ("linear", "arx")])
+def test_nonlinearity_keyword_matches_cli(records, tmp_path, nonlinearity, model):
+    # nonlinearity= is --nonlinearity: the input's static nonlinearity, the same fit as model=.
+    est, _ = records
+    out = tmp_path / "fit.json"
+    cli("identify", "--data", est, "--ts", 0.01, "--method", "ls", "--nonlinearity", nonlinearity,
+        "--json", out)
+    expected = json.loads(out.read_text())
+    e = read_csv(est)
+    fit = ipa_sysid.identify(e["u"], e["y"], 0.01, method="ls", nonlinearity=nonlinearity,
+                             name=str(est))
+    assert_same({k: fit.to_dict()[k] for k in expected}, expected)
+    assert fit.model.kind == model
+    with pytest.raises(ValueError, match="nonlinearity"):
+        ipa_sysid.identify(e["u"], e["y"], 0.01, nonlinearity="saturation")
+
+
 def test_inputs_lists_and_pandas_give_the_same_fit(records):
     est, _ = records
     e = read_csv(est)

@@ -528,14 +528,12 @@ fn identify(
     fallback: bool,
     nonlinearity: Option<&str>,
 ) -> PyResult<PyFit> {
-    let model = match nonlinearity.map(str::parse::<sysid::NonlinearityKind>) {
-        None => choice("--model", model)?,
-        Some(Ok(sysid::NonlinearityKind::Deadzone)) => sysid::ModelKind::Hammerstein,
-        Some(Ok(sysid::NonlinearityKind::Linear)) => sysid::ModelKind::Arx,
-        Some(Err(e)) => return Err(PyValueError::new_err(format!("nonlinearity: {e}"))),
-    };
+    let nonlinearity = nonlinearity
+        .map(str::parse::<sysid::NonlinearityKind>)
+        .transpose()
+        .map_err(|e| PyValueError::new_err(format!("nonlinearity: {e}")))?;
     let options = IdentifyOptions {
-        model,
+        model: choice("--model", model)?,
         na,
         nb,
         nk,
@@ -552,7 +550,14 @@ fn identify(
         offset,
         fallback,
     };
-    let settings = options.settings();
+    let mut settings = options.settings();
+    if let Some(nonlinearity) = nonlinearity {
+        settings = settings.with_inputs(vec![sysid::InputSpec {
+            nb,
+            nk,
+            nonlinearity,
+        }]);
+    }
     settings.check().map_err(sysid_err)?;
     let data = dataset(u, y, ts, name)?;
     let val = validation

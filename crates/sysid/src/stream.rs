@@ -58,6 +58,13 @@ pub struct Streamed<T> {
 /// Why an identification cannot be streamed, or `None` when it can: ARX by least squares (any
 /// orders, `offset`), one input.
 pub fn unsupported(settings: &Identification) -> Option<String> {
+    if !settings.inputs.is_empty() {
+        return Some(
+            "a structure given per input (--nonlinearity) is identified in memory; for streaming use \
+             --structure arx"
+                .into(),
+        );
+    }
     if settings.structure.kind != ModelKind::Arx {
         return Some(format!(
             "the {} structure cannot be identified in streaming (its key-term iteration needs one pass \

@@ -208,7 +208,7 @@ impl Args {
     /// `--linear-inputs` or `--structure`).
     pub fn settings(&self) -> anyhow::Result<Identification> {
         let names = self.columns.csv_options().input_names();
-        let mut options = IdentifyOptions {
+        let options = IdentifyOptions {
             model: self.model,
             na: self.na,
             nb: self.nb.first(),
@@ -231,13 +231,19 @@ impl Args {
                     "--nb/--nk lists and --linear-inputs are for several inputs: name them with --u-col u1,u2"
                 );
             }
-            if let Some(arg) = &self.nonlinearity {
-                options.model = match self.kind_of(arg, &names[0])? {
-                    NonlinearityKind::Linear => ModelKind::Arx,
-                    NonlinearityKind::Deadzone => ModelKind::Hammerstein,
-                };
-            }
-            return Ok(options.settings());
+            let settings = options.settings();
+            return Ok(match &self.nonlinearity {
+                Some(arg) => {
+                    let o = settings.structure.orders;
+                    let nonlinearity = self.kind_of(arg, &names[0])?;
+                    settings.with_inputs(vec![InputSpec {
+                        nb: o.nb,
+                        nk: o.nk,
+                        nonlinearity,
+                    }])
+                }
+                None => settings,
+            });
         }
         for l in &self.linear_inputs {
             if !names.contains(l) {

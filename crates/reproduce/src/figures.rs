@@ -133,7 +133,7 @@ pub(crate) fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
     // The axis is the measured range with a quarter of its span on each side: a diverging simulation
     // would otherwise scale the figure so that the measured record is a flat line. Where a model leaves
     // that range, it is clipped at the edge and a point marks the first sample outside.
-    let view = settled_range(&st.val.y(), 0).map(|(lo, hi)| {
+    let view = settled_range(st.val.y(), 0).map(|(lo, hi)| {
         let pad = (hi - lo) * 0.25 / 1.2;
         (lo - pad, hi + pad)
     });

@@ -150,7 +150,7 @@ pub fn run(
         sysid_io::write_columns_csv(
             &data_dir.join(name),
             &["t", "u", "y"],
-            &[&t_rec, &d.u(), &d.y()],
+            &[&t_rec, d.u(), d.y()],
         )?;
     }
 
@@ -222,13 +222,8 @@ pub fn run(
 
     // The paper's own model as the plant (known truth), with the paper's method.
     progress("the method on the paper's model", 0.3);
-    let paper_check = analysis::paper_check(
-        &plan[1].3,
-        &est.u(),
-        &val.u(),
-        s.experiment_start_mm,
-        s.seed,
-    )?;
+    let paper_check =
+        analysis::paper_check(&plan[1].3, est.u(), val.u(), s.experiment_start_mm, s.seed)?;
     let residuals = models
         .iter()
         .map(|m| analysis::ModelResiduals {
@@ -260,13 +255,13 @@ pub fn run(
         }
         None => None,
     };
-    let fit_ol = y_ol_model.as_ref().and_then(|y| fit_percent(&ol.y(), y));
+    let fit_ol = y_ol_model.as_ref().and_then(|y| fit_percent(ol.y(), y));
     let t_ol = sysid::data::sample_times(u_ol.len(), ts);
     let nan = vec![f64::NAN; u_ol.len()];
     sysid_io::write_columns_csv(
         &data_dir.join("open_loop.csv"),
         &["t", "u", "y_plant", "y_model"],
-        &[&t_ol, &u_ol, &ol.y(), y_ol_model.as_ref().unwrap_or(&nan)],
+        &[&t_ol, &u_ol, ol.y(), y_ol_model.as_ref().unwrap_or(&nan)],
     )?;
 
     // 3. Closed loop, fixed and unfixed set-point, model vs plant.

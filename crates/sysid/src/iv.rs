@@ -25,7 +25,7 @@
 
 use nalgebra::{DMatrix, DVector};
 
-use crate::fitted::Note;
+use crate::fitted::{Note, Termination};
 use sysid_core::{Model, SysidError};
 
 /// The result of one recursive IV pass.
@@ -124,8 +124,8 @@ pub struct Staged {
     pub pass: IvPass,
     /// Stages run.
     pub stages: usize,
-    /// Whether θ̂ settled (relative change below [`IV_SETTLED`]).
-    pub converged: bool,
+    /// Converged when θ̂ settled (relative change below [`IV_SETTLED`]), else not settled.
+    pub termination: Termination,
     /// Unstable auxiliary models, the kept stage when not the last, unsettled stages.
     pub notes: Vec<Note>,
 }
@@ -238,7 +238,11 @@ pub fn staged<F: Fn(&[f64], usize, &mut [f64])>(
         model,
         pass,
         stages: run,
-        converged,
+        termination: if converged {
+            Termination::Converged
+        } else {
+            Termination::NotSettled
+        },
         notes,
     })
 }

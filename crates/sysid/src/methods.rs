@@ -611,11 +611,7 @@ pub(crate) fn instrumental(p: &Problem, st: &InstrumentalVariables) -> Result<Fi
     Ok(Fitted {
         params: reg.params(out.theta.as_slice(), cov.as_ref(), &out.model, p.starts()),
         iterations: out.stages,
-        termination: if out.converged {
-            Termination::Converged
-        } else {
-            Termination::NotSettled
-        },
+        termination: out.termination,
         notes: out.notes,
         ..Fitted::new(out.model, Vec::new(), Method::Iv, sigma2)
     })

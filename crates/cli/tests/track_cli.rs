@@ -318,3 +318,62 @@ fn serial_reads_lines_from_a_pseudo_terminal() {
     assert_eq!(finish(child, &summary), (20, 2));
     drop(slave);
 }
+
+// Issue 20, drift 6: `track` reads with `identify`'s CSV rules. A spreadsheet export of a record —
+// semicolon delimiter, decimal commas, quoted names, a byte-order mark, CRLF line ends — is the same
+// record to `identify` and to `track`: both give the numbers they give on the comma-separated original.
+#[test]
+fn track_reads_a_semicolon_file_that_identify_reads_with_the_same_numbers() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = simulate(dir.path(), 2000, 11);
+    let text = std::fs::read_to_string(&data).unwrap();
+    let mut semi = String::from("\u{feff}");
+    for (i, line) in text.lines().enumerate() {
+        let cells: Vec<String> = line
+            .split(',')
+            .map(|c| {
+                if i == 0 {
+                    format!("\"{c}\"")
+                } else {
+                    c.replace('.', ",")
+                }
+            })
+            .collect();
+        semi += &cells.join(";");
+        semi += "\r\n";
+    }
+    let semi_path = dir.path().join("semicolon.csv");
+    std::fs::write(&semi_path, semi).unwrap();
+    let identify_model = |path: &Path| {
+        let json = path.with_extension("identify.json");
+        let o = run(
+            &[
+                "identify",
+                "--data",
+                path.to_str().unwrap(),
+                "--method",
+                "rls",
+                "--passes",
+                "1",
+                "--json",
+                json.to_str().unwrap(),
+            ],
+            b"",
+        );
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        numbers(&v["model"])
+    };
+    assert_eq!(identify_model(&semi_path), identify_model(&data));
+    let (a, b) = (track_summary(&semi_path, &[]), track_summary(&data, &[]));
+    assert_eq!(a["samples"], 2000);
+    assert_eq!(numbers(&a["model"]), numbers(&b["model"]));
+    // Standard input is read by the same rules.
+    let o = run(
+        &["track", "--data", "-", "--every", "100000"],
+        &std::fs::read(&semi_path).unwrap(),
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(String::from_utf8_lossy(&o.stderr).starts_with("2000 samples"));
+}

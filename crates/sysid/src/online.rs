@@ -81,6 +81,13 @@ impl DeadzoneStart {
     }
 }
 
+/// Upper bound on the windows a tracker keeps, samples ([`TrackSettings::pe_window`],
+/// [`DetectorSettings::calibration`]): a record's limit, [`sysid_core::data::MAX_SAMPLES`].
+pub const MAX_WINDOW: usize = sysid_core::data::MAX_SAMPLES;
+
+/// Samples reserved for a window at the start; it grows with the samples that come, up to its length.
+const RESERVE: usize = 4096;
+
 /// Settings of the change detector (see the module documentation).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DetectorSettings {
@@ -120,6 +127,13 @@ impl Default for DetectorSettings {
 
 impl DetectorSettings {
     fn detector(&self) -> Result<Detector, SysidError> {
+        if self.calibration > MAX_WINDOW {
+            return Err(SysidError::setting(
+                Setting::Other("--detect-calibration"),
+                self.calibration,
+                &format!("at most {MAX_WINDOW} samples"),
+            ));
+        }
         let valid = Cusum::<f64>::new(self.warmup, self.calibration, self.drift, self.threshold)
             .is_ok()
             && self.excursion_factor.is_finite()
@@ -139,7 +153,7 @@ impl DetectorSettings {
         Ok(Detector {
             settings: *self,
             seen: 0,
-            calibration: Vec::with_capacity(self.calibration),
+            calibration: Vec::with_capacity(self.calibration.min(RESERVE)),
             cusum: None,
             threshold: self.threshold,
         })
@@ -334,14 +348,8 @@ impl Tracker {
             orders: settings.orders,
             offset: false,
         };
+        structure.check()?;
         if settings.kind == ModelKind::Hammerstein {
-            if settings.orders.nb == 0 {
-                return Err(SysidError::setting(
-                    Setting::Nb,
-                    0,
-                    "nb >= 1 for a Hammerstein model (b1 = 1 is its key term)",
-                ));
-            }
             let s = settings.start;
             if !(s.b_l0.is_finite() && s.b_l0 < 0.0 && s.b_r0.is_finite() && s.b_r0 > 0.0) {
                 return Err(SysidError::setting(
@@ -358,11 +366,11 @@ impl Tracker {
                 ));
             }
         }
-        if settings.pe_window == 0 {
+        if settings.pe_window == 0 || settings.pe_window > MAX_WINDOW {
             return Err(SysidError::setting(
                 Setting::Other("--pe-window"),
-                0,
-                "at least 1 sample",
+                settings.pe_window,
+                &format!("at least 1 and at most {MAX_WINDOW} samples"),
             ));
         }
         let detector = settings.detector.map(|d| d.detector()).transpose()?;
@@ -392,7 +400,7 @@ impl Tracker {
             k0,
             updates: 0,
             updates_total: 0,
-            errors: Vec::with_capacity(settings.pe_window),
+            errors: Vec::with_capacity(settings.pe_window.min(RESERVE)),
             detector,
             changes: Vec::new(),
             guard_hits: 0,

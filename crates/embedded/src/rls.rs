@@ -198,173 +198,262 @@ impl<F: Float, const N: usize> Rls<F, N> {
     /// has fewer than n entries, [`Error::Numerical`] when ρ + φᵀPφ is not finite and positive or ε is
     /// not finite.
     pub fn update(&mut self, phi: &[F], y: F) -> Result<F, Error> {
-        match self.form {
-            Form::Standard => self.update_standard(phi, y),
-            Form::Ud => self.update_ud(phi, y),
+        // n = N (the state sized exactly) runs kernels whose loops all have the constant trip count N:
+        // fully unrolled and vectorised, no bounds checks. n < N runs the same code with the loop
+        // bounds read at run time.
+        let full = self.n == N;
+        let (theta, p, rho, t, n) = (
+            &mut self.theta,
+            &mut self.p,
+            self.forgetting,
+            self.max_trace,
+            self.n,
+        );
+        match (self.form, full) {
+            (Form::Standard, true) => update_standard::<F, N, true>(theta, p, phi, y, rho, t, n),
+            (Form::Standard, false) => update_standard::<F, N, false>(theta, p, phi, y, rho, t, n),
+            (Form::Ud, true) => update_ud::<F, N, true>(theta, p, phi, y, rho, t, n),
+            (Form::Ud, false) => update_ud::<F, N, false>(theta, p, phi, y, rho, t, n),
         }
     }
+}
 
-    /// The paper's eq. 12 (see the module documentation for the operation order).
-    fn update_standard(&mut self, phi: &[F], y: F) -> Result<F, Error> {
-        let n = self.n;
-        let phi = phi.get(..n).ok_or(Error::Length)?;
-        let mut eps = y;
-        for (f, t) in phi.iter().zip(self.theta.iter()) {
-            eps -= *f * *t;
-        }
-        let mut pphi = [F::ZERO; N];
-        for (acc, row) in pphi.iter_mut().zip(self.p.iter()).take(n) {
-            let mut s = F::ZERO;
-            for (pij, f) in row.iter().zip(phi) {
-                s += *pij * *f;
-            }
-            *acc = s;
-        }
-        let mut denom = self.forgetting;
-        for (f, q) in phi.iter().zip(pphi.iter()) {
-            denom += *f * *q;
-        }
-        if !(denom.is_finite() && denom > F::ZERO && eps.is_finite()) {
-            return Err(Error::Numerical);
-        }
-        let inv = F::ONE / denom;
-        let mut gain = [F::ZERO; N];
-        for ((g, q), t) in gain
-            .iter_mut()
-            .zip(pphi.iter())
-            .zip(self.theta.iter_mut())
-            .take(n)
-        {
-            *g = *q * inv;
-            *t += *g * eps;
-        }
-        let scale = self.forgetting != F::ONE;
-        let inv_rho = F::ONE / self.forgetting;
-        for (i, ((row, pi), gi)) in self
-            .p
-            .iter_mut()
-            .zip(pphi.iter())
-            .zip(gain.iter())
-            .enumerate()
-            .take(n)
-        {
-            for (j, ((c, pj), gj)) in row
-                .iter_mut()
-                .zip(pphi.iter())
-                .zip(gain.iter())
-                .enumerate()
-                .take(n)
-            {
-                // Upper-triangle operands for both (i, j) and (j, i): P stays exactly symmetric.
-                let v = if i <= j {
-                    *c - *pi * *gj
-                } else {
-                    *c - *pj * *gi
-                };
-                *c = if scale { v * inv_rho } else { v };
-            }
-        }
-        if self.max_trace.is_finite() {
-            let tr = self.trace();
-            if tr > self.max_trace {
-                let s = self.max_trace / tr;
-                for row in self.p.iter_mut().take(n) {
-                    for c in row.iter_mut().take(n) {
-                        *c *= s;
-                    }
-                }
-            }
-        }
-        Ok(eps)
+/// The paper's eq. 12 on the leading m × m block of `p` (m = N when `FULL`, else `n`), in the operation
+/// order of the module documentation; with a finite trace bound T the guard's scaling is folded into
+/// the division by ρ (see [`Rls::with_max_trace`]). Errors before any write, so a failed update leaves
+/// the state unchanged.
+#[inline(always)]
+fn update_standard<F: Float, const N: usize, const FULL: bool>(
+    theta: &mut [F; N],
+    p: &mut [[F; N]; N],
+    phi: &[F],
+    y: F,
+    rho: F,
+    max_trace: F,
+    n: usize,
+) -> Result<F, Error> {
+    let m = if FULL { N } else { n };
+    let phi = phi.get(..m).ok_or(Error::Length)?;
+    let mut eps = y;
+    for (f, t) in phi.iter().zip(theta.iter()) {
+        eps -= *f * *t;
     }
-
-    /// Bierman's UD update with forgetting, in the operation order of `sysid::rls_ud::RobustRls`
-    /// (sums start at −0, as `Iterator::sum` of floats does). The factors and θ̂ are updated in copies
-    /// and committed only on success.
-    fn update_ud(&mut self, phi: &[F], y: F) -> Result<F, Error> {
-        let n = self.n;
-        let phi = phi.get(..n).ok_or(Error::Length)?;
-        let mut dot = -F::ZERO;
-        for (f, t) in phi.iter().zip(self.theta.iter()) {
-            dot += *f * *t;
+    // (Pφ)_i = Σ_j P_ij φ_j for j = 0, 1, …, accumulated one row of P at a time (P is exactly
+    // symmetric, so row j is column j): the inner loop runs along contiguous memory, across i.
+    let mut pphi = [F::ZERO; N];
+    for (row, f) in p.iter().zip(phi) {
+        for (acc, c) in pphi.iter_mut().zip(row.iter()).take(m) {
+            *acc += *c * *f;
         }
-        let eps = y - dot;
-        if !eps.is_finite() {
-            return Err(Error::Numerical);
-        }
-        let rho = self.forgetting;
-        let mut fac = self.p;
-        // f = Uᵀφ (f_j = Σ_(i≤j) U_ij φ_i, U_jj = 1) and v = D f (in `work`).
-        let mut f = [F::ZERO; N];
-        let mut work = [F::ZERO; N];
-        for (j, ((row, fj), wj)) in fac
-            .iter()
-            .zip(f.iter_mut())
-            .zip(work.iter_mut())
-            .enumerate()
-            .take(n)
-        {
-            let mut acc = -F::ZERO;
-            for (u, ph) in row.iter().take(j).zip(phi) {
-                acc += *u * *ph;
+    }
+    let mut denom = rho;
+    for (f, q) in phi.iter().zip(pphi.iter()) {
+        denom += *f * *q;
+    }
+    if !(denom.is_finite() && denom > F::ZERO && eps.is_finite()) {
+        return Err(Error::Numerical);
+    }
+    let inv = F::ONE / denom;
+    let inv_rho = F::ONE / rho;
+    let mut gain = [F::ZERO; N];
+    for ((g, q), t) in gain
+        .iter_mut()
+        .zip(pphi.iter())
+        .zip(theta.iter_mut())
+        .take(m)
+    {
+        *g = *q * inv;
+        *t += *g * eps;
+    }
+    // P ← (P − (Pφ) L̃ᵀ) · s with s = 1/ρ (no multiplication for ρ = 1), or, when the guard is on and
+    // the new trace exceeds T, s = (1/ρ) · T / tr P(k): the trace is summed first from the new
+    // diagonal (the values the update writes), so the guard costs n flops, not a second pass over P.
+    let mut scale = rho != F::ONE;
+    let mut s = inv_rho;
+    if max_trace.is_finite() {
+        let mut tr = F::ZERO;
+        for (i, ((row, q), g)) in p.iter().zip(pphi.iter()).zip(gain.iter()).enumerate() {
+            if i < m {
+                let v = row.get(i).copied().unwrap_or(F::ZERO) - *q * *g;
+                tr += if scale { v * inv_rho } else { v };
             }
-            acc += F::ONE * phi.get(j).copied().unwrap_or(F::ZERO);
-            *fj = acc;
-            *wj = row.get(j).copied().unwrap_or(F::ZERO) * acc;
         }
-        // Bierman: after column j, work[0..=j] holds the unnormalised gain.
-        let mut alpha = rho;
-        for (j, (row, fj)) in fac.iter_mut().zip(f.iter()).enumerate().take(n) {
-            let v = work.get(j).copied().unwrap_or(F::ZERO);
-            let alpha_prev = alpha;
-            alpha += *fj * v;
-            let Some((u_col, rest)) = row.split_at_mut_checked(j) else {
-                return Err(Error::Capacity);
+        if tr > max_trace {
+            s = if scale {
+                inv_rho * (max_trace / tr)
+            } else {
+                max_trace / tr
             };
-            if let Some(dj) = rest.first_mut() {
-                *dj *= alpha_prev / alpha;
-            }
-            let lambda = -*fj / alpha_prev;
-            for (u, w) in u_col.iter_mut().zip(work.iter_mut()) {
-                let uij = *u;
-                *u = uij + *w * lambda;
-                *w += uij * v;
-            }
+            scale = true;
         }
-        let mut d_ok = true;
-        for (j, row) in fac.iter_mut().enumerate().take(n) {
-            if let Some(d) = row.get_mut(j) {
-                if rho < F::ONE {
-                    *d = *d / rho;
-                }
-                d_ok &= d.is_finite() && *d >= F::ZERO;
-            }
-        }
-        if !(alpha.is_finite() && alpha > F::ZERO && d_ok) {
-            return Err(Error::Numerical);
-        }
-        let mut theta = self.theta;
-        for (t, w) in theta.iter_mut().zip(work.iter()).take(n) {
-            *t += *w / alpha * eps;
-        }
-        if self.max_trace.is_finite() {
-            let tr = ud_trace(&fac, n);
-            if tr > self.max_trace {
-                let s = self.max_trace / tr;
-                for (j, row) in fac.iter_mut().enumerate().take(n) {
-                    if let Some(d) = row.get_mut(j) {
-                        *d *= s;
-                    }
-                }
-            }
-        }
-        if theta.iter().any(|t| !t.is_finite()) {
-            return Err(Error::Numerical);
-        }
-        self.p = fac;
-        self.theta = theta;
-        Ok(eps)
     }
+    // Entry (r, c) is P_rc − (Pφ)_min(r,c) L̃_max(r,c): row r splits at the diagonal into c < r
+    // (operands (Pφ)_c L̃_r) and c ≥ r ((Pφ)_r L̃_c), both contiguous; P stays exactly symmetric.
+    for (r, (row, (pr, gr))) in p
+        .iter_mut()
+        .zip(pphi.iter().zip(gain.iter()))
+        .enumerate()
+        .take(m)
+    {
+        let Some((lo, hi)) = row.split_at_mut_checked(r) else {
+            continue;
+        };
+        let (pr, gr, width) = (*pr, *gr, m - r);
+        let upper = hi.iter_mut().zip(gain.iter().skip(r)).take(width);
+        if scale {
+            for (c, q) in lo.iter_mut().zip(pphi.iter()) {
+                *c = (*c - *q * gr) * s;
+            }
+            for (c, g) in upper {
+                *c = (*c - pr * *g) * s;
+            }
+        } else {
+            for (c, q) in lo.iter_mut().zip(pphi.iter()) {
+                *c -= *q * gr;
+            }
+            for (c, g) in upper {
+                *c -= pr * *g;
+            }
+        }
+    }
+    Ok(eps)
+}
+
+/// Bierman's UD update with forgetting on the leading m × m block (m = N when `FULL`), in the operation
+/// order of `sysid::rls_ud::RobustRls` (sums start at −0, as `Iterator::sum` of floats does).
+///
+/// Two passes over the factors: the first only reads them and computes f = Uᵀφ, v = D f, the α_j of
+/// the recursion, the new d_j, the gain numerator U v and θ̂(k), and checks them; the second, reached
+/// only when every check passed, writes U, D and θ̂ (and sums tr P for the guard on the way). So a
+/// failed update leaves the state unchanged without copying the factors.
+#[inline(always)]
+fn update_ud<F: Float, const N: usize, const FULL: bool>(
+    theta: &mut [F; N],
+    fac: &mut [[F; N]; N],
+    phi: &[F],
+    y: F,
+    rho: F,
+    max_trace: F,
+    n: usize,
+) -> Result<F, Error> {
+    let m = if FULL { N } else { n };
+    let phi = phi.get(..m).ok_or(Error::Length)?;
+    let mut dot = -F::ZERO;
+    for (f, t) in phi.iter().zip(theta.iter()) {
+        dot += *f * *t;
+    }
+    let eps = y - dot;
+    if !eps.is_finite() {
+        return Err(Error::Numerical);
+    }
+    // Pass 1. Column j of U is row j of `fac` (U_0j..U_(j−1)j, then d_j).
+    let mut f = [F::ZERO; N]; // f_j = Σ_(i<j) U_ij φ_i + φ_j
+    let mut v = [F::ZERO; N]; // v_j = d_j f_j
+    let mut w = [F::ZERO; N]; // w_i = v_i + Σ_(j>i) U_ij v_j: the gain numerator after the last column
+    let mut a_before = [F::ZERO; N]; // α before column j
+    let mut a_after = [F::ZERO; N]; // α after column j
+    let mut d = [F::ZERO; N];
+    let mut alpha = rho;
+    for (j, (row, ph)) in fac.iter().zip(phi).enumerate() {
+        let Some((u_col, rest)) = row.split_at_checked(j) else {
+            continue;
+        };
+        let mut acc = -F::ZERO;
+        for (u, x) in u_col.iter().zip(phi) {
+            acc += *u * *x;
+        }
+        acc += F::ONE * *ph;
+        let dj = rest.first().copied().unwrap_or(F::ZERO);
+        let vj = dj * acc;
+        for (wi, u) in w.iter_mut().zip(u_col) {
+            *wi += *u * vj;
+        }
+        if let (Some(wj), Some(fj), Some(vv), Some(dd), Some(ab), Some(aa)) = (
+            w.get_mut(j),
+            f.get_mut(j),
+            v.get_mut(j),
+            d.get_mut(j),
+            a_before.get_mut(j),
+            a_after.get_mut(j),
+        ) {
+            *wj = vj;
+            *fj = acc;
+            *vv = vj;
+            *dd = dj;
+            *ab = alpha;
+            alpha += acc * vj;
+            *aa = alpha;
+        }
+    }
+    if !(alpha.is_finite() && alpha > F::ZERO) {
+        return Err(Error::Numerical);
+    }
+    // d_j ← d_j α_(j−1)/α_j / ρ and λ_j = −f_j / α_(j−1): independent divisions, vectorised.
+    let mut lambda = [F::ZERO; N];
+    let mut d_ok = true;
+    let unscale = rho < F::ONE;
+    for ((((dj, l), fj), ab), aa) in d
+        .iter_mut()
+        .zip(lambda.iter_mut())
+        .zip(f.iter())
+        .zip(a_before.iter())
+        .zip(a_after.iter())
+        .take(m)
+    {
+        let mut x = *dj * (*ab / *aa);
+        if unscale {
+            x = x / rho;
+        }
+        d_ok &= x.is_finite() && x >= F::ZERO;
+        *dj = x;
+        *l = -*fj / *ab;
+    }
+    let mut theta_new = *theta;
+    let mut theta_ok = true;
+    for (t, wi) in theta_new.iter_mut().zip(w.iter()).take(m) {
+        *t += *wi / alpha * eps;
+        theta_ok &= t.is_finite();
+    }
+    if !(d_ok && theta_ok) {
+        return Err(Error::Numerical);
+    }
+    // Pass 2: U_ij ← U_ij + w_i λ_j with w the partial gain numerator before column j (w_i += U_ij v_j
+    // after), d_j ← its new value; tr P = Σ_j d_j (Σ_(i<j) U_ij² + 1) summed on the way.
+    let mut work = v;
+    let mut tr = -F::ZERO;
+    for (j, (row, ((l, vj), dj))) in fac
+        .iter_mut()
+        .zip(lambda.iter().zip(v.iter()).zip(d.iter()))
+        .enumerate()
+        .take(m)
+    {
+        let Some((u_col, rest)) = row.split_at_mut_checked(j) else {
+            continue;
+        };
+        let mut col = -F::ZERO;
+        for (u, wi) in u_col.iter_mut().zip(work.iter_mut()) {
+            let uij = *u;
+            let un = uij + *wi * *l;
+            *u = un;
+            *wi += uij * *vj;
+            col += un * un;
+        }
+        col += F::ONE * F::ONE;
+        if let Some(slot) = rest.first_mut() {
+            *slot = *dj;
+        }
+        tr += *dj * col;
+    }
+    if max_trace.is_finite() && tr > max_trace {
+        let s = max_trace / tr;
+        for (j, row) in fac.iter_mut().enumerate().take(m) {
+            if let Some(dj) = row.get_mut(j) {
+                *dj *= s;
+            }
+        }
+    }
+    *theta = theta_new;
+    Ok(eps)
 }
 
 /// tr P = Σ_j d_j Σ_(i≤j) U_ij² of UD factors stored by rows (row j: U_0j..U_(j−1)j, d_j), summed as

@@ -218,6 +218,30 @@ impl<F: Float, const N: usize> Rls<F, N> {
     }
 }
 
+/// Runs the closure `$f` for the columns j = 0, 1, …, m − 1 in order. With `$full` (m = N) and N ≤ 16
+/// the calls are written out with literal j, so that once the closure is inlined every loop inside it
+/// has a constant trip count (unrolled, vectorised, no bounds check); otherwise a plain loop.
+macro_rules! for_columns {
+    ($full:expr, $m:expr, $f:expr) => {{
+        #[allow(unused_mut)]
+        let mut f = $f;
+        if $full && N <= 16 {
+            for_columns!(@each f; 0 1 2 3 4 5 6 7 8 9 10 11 12 13 14 15);
+        } else {
+            for j in 0..$m {
+                f(j);
+            }
+        }
+    }};
+    (@each $f:ident; $($j:literal)*) => {
+        $(
+            if $j < N {
+                $f($j);
+            }
+        )*
+    };
+}
+
 /// The paper's eq. 12 on the leading m × m block of `p` (m = N when `FULL`, else `n`), in the operation
 /// order of the module documentation; with a finite trace bound T the guard's scaling is folded into
 /// the division by ρ (see [`Rls::with_max_trace`]). Errors before any write, so a failed update leaves
@@ -233,17 +257,26 @@ fn update_standard<F: Float, const N: usize, const FULL: bool>(
     n: usize,
 ) -> Result<F, Error> {
     let m = if FULL { N } else { n };
+    // Exact-length slices: every loop below is a zip of slices of length m (for n = N a constant), so
+    // there is no bounds check and nothing depends on the data but the guard's one branch.
     let phi = phi.get(..m).ok_or(Error::Length)?;
+    let theta = theta.get_mut(..m).ok_or(Error::Capacity)?;
+    let p = p.get_mut(..m).ok_or(Error::Capacity)?;
+    let mut pphi_buf = [F::ZERO; N];
+    let mut gain_buf = [F::ZERO; N];
+    let pphi = pphi_buf.get_mut(..m).ok_or(Error::Capacity)?;
+    let gain = gain_buf.get_mut(..m).ok_or(Error::Capacity)?;
     let mut eps = y;
     for (f, t) in phi.iter().zip(theta.iter()) {
         eps -= *f * *t;
     }
     // (Pφ)_i = Σ_j P_ij φ_j for j = 0, 1, …, accumulated one row of P at a time (P is exactly
     // symmetric, so row j is column j): the inner loop runs along contiguous memory, across i.
-    let mut pphi = [F::ZERO; N];
     for (row, f) in p.iter().zip(phi) {
-        for (acc, c) in pphi.iter_mut().zip(row.iter()).take(m) {
-            *acc += *c * *f;
+        if let Some(row) = row.get(..m) {
+            for (acc, c) in pphi.iter_mut().zip(row) {
+                *acc += *c * *f;
+            }
         }
     }
     let mut denom = rho;
@@ -255,13 +288,7 @@ fn update_standard<F: Float, const N: usize, const FULL: bool>(
     }
     let inv = F::ONE / denom;
     let inv_rho = F::ONE / rho;
-    let mut gain = [F::ZERO; N];
-    for ((g, q), t) in gain
-        .iter_mut()
-        .zip(pphi.iter())
-        .zip(theta.iter_mut())
-        .take(m)
-    {
+    for ((g, q), t) in gain.iter_mut().zip(pphi.iter()).zip(theta.iter_mut()) {
         *g = *q * inv;
         *t += *g * eps;
     }
@@ -273,10 +300,8 @@ fn update_standard<F: Float, const N: usize, const FULL: bool>(
     if max_trace.is_finite() {
         let mut tr = F::ZERO;
         for (i, ((row, q), g)) in p.iter().zip(pphi.iter()).zip(gain.iter()).enumerate() {
-            if i < m {
-                let v = row.get(i).copied().unwrap_or(F::ZERO) - *q * *g;
-                tr += if scale { v * inv_rho } else { v };
-            }
+            let v = row.get(i).copied().unwrap_or(F::ZERO) - *q * *g;
+            tr += if scale { v * inv_rho } else { v };
         }
         if tr > max_trace {
             s = if scale {
@@ -287,36 +312,48 @@ fn update_standard<F: Float, const N: usize, const FULL: bool>(
             scale = true;
         }
     }
-    // Entry (r, c) is P_rc − (Pφ)_min(r,c) L̃_max(r,c): row r splits at the diagonal into c < r
-    // (operands (Pφ)_c L̃_r) and c ≥ r ((Pφ)_r L̃_c), both contiguous; P stays exactly symmetric.
-    for (r, (row, (pr, gr))) in p
-        .iter_mut()
-        .zip(pphi.iter().zip(gain.iter()))
-        .enumerate()
-        .take(m)
-    {
-        let Some((lo, hi)) = row.split_at_mut_checked(r) else {
-            continue;
-        };
-        let (pr, gr, width) = (*pr, *gr, m - r);
-        let upper = hi.iter_mut().zip(gain.iter().skip(r)).take(width);
-        if scale {
-            for (c, q) in lo.iter_mut().zip(pphi.iter()) {
-                *c = (*c - *q * gr) * s;
-            }
-            for (c, g) in upper {
-                *c = (*c - pr * *g) * s;
-            }
-        } else {
-            for (c, q) in lo.iter_mut().zip(pphi.iter()) {
-                *c -= *q * gr;
-            }
-            for (c, g) in upper {
-                *c -= pr * *g;
-            }
-        }
+    if scale {
+        symmetric_update::<F, N, true>(p, pphi, gain, s);
+    } else {
+        symmetric_update::<F, N, false>(p, pphi, gain, s);
     }
     Ok(eps)
+}
+
+/// P ← (P − (Pφ) L̃ᵀ) · s (· s only when `SCALE`) on the leading m × m block (m = `pphi.len()`), entry
+/// (r, c) computed as (P_rc − (Pφ)_min(r,c) L̃_max(r,c)) · s: row r splits at the diagonal into c < r
+/// (operands (Pφ)_c L̃_r) and c ≥ r ((Pφ)_r L̃_c), both contiguous, and P stays exactly symmetric.
+#[inline(always)]
+fn symmetric_update<F: Float, const N: usize, const SCALE: bool>(
+    p: &mut [[F; N]],
+    pphi: &[F],
+    gain: &[F],
+    s: F,
+) {
+    let m = pphi.len();
+    let full = m == N;
+    for_columns!(full, m, |r: usize| {
+        let (Some(row), Some(pr), Some(gr), Some(q_lo), Some(g_hi)) = (
+            p.get_mut(r).and_then(|row| row.get_mut(..m)),
+            pphi.get(r),
+            gain.get(r),
+            pphi.get(..r),
+            gain.get(r..),
+        ) else {
+            return;
+        };
+        let Some((lo, hi)) = row.split_at_mut_checked(r) else {
+            return;
+        };
+        for (c, q) in lo.iter_mut().zip(q_lo) {
+            let v = *c - *q * *gr;
+            *c = if SCALE { v * s } else { v };
+        }
+        for (c, g) in hi.iter_mut().zip(g_hi) {
+            let v = *c - *pr * *g;
+            *c = if SCALE { v * s } else { v };
+        }
+    });
 }
 
 /// Bierman's UD update with forgetting on the leading m × m block (m = N when `FULL`), in the operation
@@ -354,19 +391,24 @@ fn update_ud<F: Float, const N: usize, const FULL: bool>(
     let mut a_after = [F::ZERO; N]; // α after column j
     let mut d = [F::ZERO; N];
     let mut alpha = rho;
-    for (j, (row, ph)) in fac.iter().zip(phi).enumerate() {
-        let Some((u_col, rest)) = row.split_at_checked(j) else {
-            continue;
+    let full = FULL;
+    for_columns!(full, m, |j: usize| {
+        let (Some(row), Some(ph)) = (fac.get(j), phi.get(j)) else {
+            return;
+        };
+        let (Some(u_col), Some(dj)) = (row.get(..j), row.get(j)) else {
+            return;
         };
         let mut acc = -F::ZERO;
         for (u, x) in u_col.iter().zip(phi) {
             acc += *u * *x;
         }
         acc += F::ONE * *ph;
-        let dj = rest.first().copied().unwrap_or(F::ZERO);
-        let vj = dj * acc;
-        for (wi, u) in w.iter_mut().zip(u_col) {
-            *wi += *u * vj;
+        let vj = *dj * acc;
+        if let Some(w_lo) = w.get_mut(..j) {
+            for (wi, u) in w_lo.iter_mut().zip(u_col) {
+                *wi += *u * vj;
+            }
         }
         if let (Some(wj), Some(fj), Some(vv), Some(dd), Some(ab), Some(aa)) = (
             w.get_mut(j),
@@ -379,19 +421,18 @@ fn update_ud<F: Float, const N: usize, const FULL: bool>(
             *wj = vj;
             *fj = acc;
             *vv = vj;
-            *dd = dj;
+            *dd = *dj;
             *ab = alpha;
             alpha += acc * vj;
             *aa = alpha;
         }
-    }
+    });
     if !(alpha.is_finite() && alpha > F::ZERO) {
         return Err(Error::Numerical);
     }
     // d_j ← d_j α_(j−1)/α_j / ρ and λ_j = −f_j / α_(j−1): independent divisions, vectorised.
     let mut lambda = [F::ZERO; N];
     let mut d_ok = true;
-    let unscale = rho < F::ONE;
     for ((((dj, l), fj), ab), aa) in d
         .iter_mut()
         .zip(lambda.iter_mut())
@@ -400,10 +441,8 @@ fn update_ud<F: Float, const N: usize, const FULL: bool>(
         .zip(a_after.iter())
         .take(m)
     {
-        let mut x = *dj * (*ab / *aa);
-        if unscale {
-            x = x / rho;
-        }
+        // x / 1 = x exactly: no branch for ρ = 1, so the loop vectorises.
+        let x = *dj * (*ab / *aa) / rho;
         d_ok &= x.is_finite() && x >= F::ZERO;
         *dj = x;
         *l = -*fj / *ab;
@@ -421,30 +460,42 @@ fn update_ud<F: Float, const N: usize, const FULL: bool>(
     // after), d_j ← its new value; tr P = Σ_j d_j (Σ_(i<j) U_ij² + 1) summed on the way.
     let mut work = v;
     let mut tr = -F::ZERO;
-    for (j, (row, ((l, vj), dj))) in fac
-        .iter_mut()
-        .zip(lambda.iter().zip(v.iter()).zip(d.iter()))
-        .enumerate()
-        .take(m)
-    {
-        let Some((u_col, rest)) = row.split_at_mut_checked(j) else {
-            continue;
+    let guarded = max_trace.is_finite();
+    for_columns!(full, m, |j: usize| {
+        let (Some(row), Some(l), Some(vj), Some(dj)) =
+            (fac.get_mut(j), lambda.get(j), v.get(j), d.get(j))
+        else {
+            return;
         };
-        let mut col = -F::ZERO;
-        for (u, wi) in u_col.iter_mut().zip(work.iter_mut()) {
-            let uij = *u;
-            let un = uij + *wi * *l;
-            *u = un;
-            *wi += uij * *vj;
-            col += un * un;
+        let Some((u_col, rest)) = row.split_at_mut_checked(j) else {
+            return;
+        };
+        let Some(work) = work.get_mut(..j) else {
+            return;
+        };
+        if guarded {
+            let mut col = -F::ZERO;
+            for (u, wi) in u_col.iter_mut().zip(work.iter_mut()) {
+                let uij = *u;
+                let un = uij + *wi * *l;
+                *u = un;
+                *wi += uij * *vj;
+                col += un * un;
+            }
+            col += F::ONE * F::ONE;
+            tr += *dj * col;
+        } else {
+            for (u, wi) in u_col.iter_mut().zip(work.iter_mut()) {
+                let uij = *u;
+                *u = uij + *wi * *l;
+                *wi += uij * *vj;
+            }
         }
-        col += F::ONE * F::ONE;
         if let Some(slot) = rest.first_mut() {
             *slot = *dj;
         }
-        tr += *dj * col;
-    }
-    if max_trace.is_finite() && tr > max_trace {
+    });
+    if guarded && tr > max_trace {
         let s = max_trace / tr;
         for (j, row) in fac.iter_mut().enumerate().take(m) {
             if let Some(dj) = row.get_mut(j) {

@@ -11,7 +11,8 @@
 //! ε = ((y − φ₀θ₀) − φ₁θ₁) − …; (Pφ)_i = Σ_j P_ij φ_j for j = 0, 1, …; ρ + Σ φ_i (Pφ)_i; 1/(ρ + φᵀPφ);
 //! L̃_i = (Pφ)_i · (1/(ρ + φᵀPφ)); θ̂_i += L̃_i ε; P_ij ← (P_ij − (Pφ)_min(i,j) L̃_max(i,j)) · (1/ρ), the
 //! scaling skipped for ρ = 1. So with f64 the results are bit-for-bit those of `sysid`, and P stays
-//! exactly symmetric.
+//! exactly symmetric. (Pφ is accumulated one row of P at a time, across i: row j of the symmetric P is
+//! column j, so every (Pφ)_i still adds its terms in the order j = 0, 1, ….)
 //!
 //! # UD form (optional)
 //!
@@ -22,21 +23,35 @@
 //! in f32, where eq. 12 loses definiteness on IPA data (docs/embedded.md). The factors live in the same
 //! N × N array (row j: U_0j..U_(j−1)j, then d_j on the diagonal), so the state has the same size.
 //! Cost ([`flops_per_update_ud`]): ε 2n + 1; f = Uᵀφ n² + n; v = D f n; per column of Bierman's
-//! update 6, plus 4 per entry above the diagonal (2 n(n − 1) in all); D/ρ n (ρ < 1); θ̂ 3n. Total
-//! 3 n² + 12 n + 1 for ρ < 1 (3 n² + 11 n + 1 for ρ = 1): 232 for n = 7, the cost of eq. 12 (233).
+//! update 6, plus 4 per entry above the diagonal (2 n(n − 1) in all); D/ρ n (also for ρ = 1: x / 1 is
+//! exact and keeps the loop branch-free); θ̂ 3n. Total 3 n² + 12 n + 1: 232 for n = 7, 352 for n = 9.
+//! The factors are updated in a copy that is committed only when every check passed.
 //!
 //! # Windup guard (optional)
 //!
 //! With ρ < 1 and no excitation P grows like ρ^(−k) (covariance windup). With a trace bound T
-//! ([`Rls::with_max_trace`]), after every update P is scaled by T / tr P whenever tr P > T, as
-//! `identify --windup trace --max-trace T` does (with eq. 12 its guarded update is written in a
-//! different operation order, so results agree to rounding, not bit for bit; with the UD form they are
-//! bit for bit).
+//! ([`Rls::with_max_trace`]), P is scaled by T / tr P whenever tr P > T after an update, as
+//! `identify --windup trace --max-trace T` does. With eq. 12 tr P(k) is summed first from the new
+//! diagonal (the values the update is about to write) and the factor T / tr P(k) is folded into the
+//! multiplication by 1/ρ, so the guard costs 4n flops (3n for ρ = 1) and 2 more when it acts, never a
+//! second pass over P (`sysid` writes its guarded update in a different operation order, so results
+//! agree to rounding, not bit for bit). In the UD form tr P = Σ_j d_j (Σ_(i<j) U_ij² + 1) is summed
+//! after the update (n² + 3n flops, sysid's order: bit for bit) and D is scaled (n + 1) when it acts.
 //!
 //! # Cost per update, n parameters (each +, −, ×, ÷ one flop)
 //!
 //! 3.5 n² + 8.5 n + 2 for ρ < 1, 3 n² + 8 n + 1 for ρ = 1 ([`flops_per_update`], the same count as
-//! `sysid`), plus n for tr P when the guard is on (and n² + 1 when it scales P).
+//! `sysid`), counting the symmetric P update over its n(n + 1)/2 distinct entries. The code computes
+//! all n² entries (each from the upper-triangle operands, so both halves are equal bit for bit): on a
+//! SIMD host two contiguous half-rows are faster than mirroring a triangle. Executed: 5 n² + 7 n + 2
+//! (ρ < 1), 4 n² + 7 n + 1 (ρ = 1).
+//!
+//! # Speed
+//!
+//! With n = N (the state sized exactly, N ≤ 16) every loop has a constant trip count: the columns of
+//! the triangular loops are written out with literal indices (`for_columns!`), so the compiler unrolls
+//! and vectorises them and no bounds check remains; nothing branches on the data except the checks and
+//! the guard's one comparison. With n < N the same code runs with run-time loop bounds.
 
 use crate::{Error, Float};
 
@@ -287,7 +302,8 @@ fn update_standard<F: Float, const N: usize, const FULL: bool>(
         return Err(Error::Numerical);
     }
     let inv = F::ONE / denom;
-    let inv_rho = F::ONE / rho;
+    let mut scale = rho != F::ONE;
+    let inv_rho = if scale { F::ONE / rho } else { F::ONE };
     for ((g, q), t) in gain.iter_mut().zip(pphi.iter()).zip(theta.iter_mut()) {
         *g = *q * inv;
         *t += *g * eps;
@@ -295,7 +311,6 @@ fn update_standard<F: Float, const N: usize, const FULL: bool>(
     // P ← (P − (Pφ) L̃ᵀ) · s with s = 1/ρ (no multiplication for ρ = 1), or, when the guard is on and
     // the new trace exceeds T, s = (1/ρ) · T / tr P(k): the trace is summed first from the new
     // diagonal (the values the update writes), so the guard costs n flops, not a second pass over P.
-    let mut scale = rho != F::ONE;
     let mut s = inv_rho;
     if max_trace.is_finite() {
         let mut tr = F::ZERO;
@@ -357,16 +372,13 @@ fn symmetric_update<F: Float, const N: usize, const SCALE: bool>(
 }
 
 /// Bierman's UD update with forgetting on the leading m × m block (m = N when `FULL`), in the operation
-/// order of `sysid::rls_ud::RobustRls` (sums start at −0, as `Iterator::sum` of floats does).
-///
-/// Two passes over the factors: the first only reads them and computes f = Uᵀφ, v = D f, the α_j of
-/// the recursion, the new d_j, the gain numerator U v and θ̂(k), and checks them; the second, reached
-/// only when every check passed, writes U, D and θ̂ (and sums tr P for the guard on the way). So a
-/// failed update leaves the state unchanged without copying the factors.
+/// order of `sysid::rls_ud::RobustRls` (sums start at −0, as `Iterator::sum` of floats does). The
+/// factors and θ̂ are updated in copies and committed only when every check passed, so a failed update
+/// leaves the state unchanged.
 #[inline(always)]
 fn update_ud<F: Float, const N: usize, const FULL: bool>(
     theta: &mut [F; N],
-    fac: &mut [[F; N]; N],
+    fac_state: &mut [[F; N]; N],
     phi: &[F],
     y: F,
     rho: F,
@@ -383,17 +395,15 @@ fn update_ud<F: Float, const N: usize, const FULL: bool>(
     if !eps.is_finite() {
         return Err(Error::Numerical);
     }
-    // Pass 1. Column j of U is row j of `fac` (U_0j..U_(j−1)j, then d_j).
-    let mut f = [F::ZERO; N]; // f_j = Σ_(i<j) U_ij φ_i + φ_j
-    let mut v = [F::ZERO; N]; // v_j = d_j f_j
-    let mut w = [F::ZERO; N]; // w_i = v_i + Σ_(j>i) U_ij v_j: the gain numerator after the last column
-    let mut a_before = [F::ZERO; N]; // α before column j
-    let mut a_after = [F::ZERO; N]; // α after column j
-    let mut d = [F::ZERO; N];
-    let mut alpha = rho;
     let full = FULL;
+    let mut fac = *fac_state;
+    // f = Uᵀφ (f_j = Σ_(i<j) U_ij φ_i + φ_j) and v = D f (in `work`); column j of U is row j of `fac`.
+    let mut f = [F::ZERO; N];
+    let mut work = [F::ZERO; N];
     for_columns!(full, m, |j: usize| {
-        let (Some(row), Some(ph)) = (fac.get(j), phi.get(j)) else {
+        let (Some(row), Some(ph), Some(fj), Some(wj)) =
+            (fac.get(j), phi.get(j), f.get_mut(j), work.get_mut(j))
+        else {
             return;
         };
         let (Some(u_col), Some(dj)) = (row.get(..j), row.get(j)) else {
@@ -404,105 +414,64 @@ fn update_ud<F: Float, const N: usize, const FULL: bool>(
             acc += *u * *x;
         }
         acc += F::ONE * *ph;
-        let vj = *dj * acc;
-        if let Some(w_lo) = w.get_mut(..j) {
-            for (wi, u) in w_lo.iter_mut().zip(u_col) {
-                *wi += *u * vj;
-            }
-        }
-        if let (Some(wj), Some(fj), Some(vv), Some(dd), Some(ab), Some(aa)) = (
-            w.get_mut(j),
-            f.get_mut(j),
-            v.get_mut(j),
-            d.get_mut(j),
-            a_before.get_mut(j),
-            a_after.get_mut(j),
-        ) {
-            *wj = vj;
-            *fj = acc;
-            *vv = vj;
-            *dd = *dj;
-            *ab = alpha;
-            alpha += acc * vj;
-            *aa = alpha;
-        }
+        *fj = acc;
+        *wj = *dj * acc;
     });
-    if !(alpha.is_finite() && alpha > F::ZERO) {
-        return Err(Error::Numerical);
-    }
-    // d_j ← d_j α_(j−1)/α_j / ρ and λ_j = −f_j / α_(j−1): independent divisions, vectorised.
-    let mut lambda = [F::ZERO; N];
-    let mut d_ok = true;
-    for ((((dj, l), fj), ab), aa) in d
-        .iter_mut()
-        .zip(lambda.iter_mut())
-        .zip(f.iter())
-        .zip(a_before.iter())
-        .zip(a_after.iter())
-        .take(m)
-    {
-        // x / 1 = x exactly: no branch for ρ = 1, so the loop vectorises.
-        let x = *dj * (*ab / *aa) / rho;
-        d_ok &= x.is_finite() && x >= F::ZERO;
-        *dj = x;
-        *l = -*fj / *ab;
-    }
-    let mut theta_new = *theta;
-    let mut theta_ok = true;
-    for (t, wi) in theta_new.iter_mut().zip(w.iter()).take(m) {
-        *t += *wi / alpha * eps;
-        theta_ok &= t.is_finite();
-    }
-    if !(d_ok && theta_ok) {
-        return Err(Error::Numerical);
-    }
-    // Pass 2: U_ij ← U_ij + w_i λ_j with w the partial gain numerator before column j (w_i += U_ij v_j
-    // after), d_j ← its new value; tr P = Σ_j d_j (Σ_(i<j) U_ij² + 1) summed on the way.
-    let mut work = v;
-    let mut tr = -F::ZERO;
+    // Bierman: after column j, work[0..=j] holds the unnormalised gain.
+    let mut alpha = rho;
     let guarded = max_trace.is_finite();
     for_columns!(full, m, |j: usize| {
-        let (Some(row), Some(l), Some(vj), Some(dj)) =
-            (fac.get_mut(j), lambda.get(j), v.get(j), d.get(j))
-        else {
+        let (Some(row), Some(fj), Some(v)) = (fac.get_mut(j), f.get(j), work.get(j).copied()) else {
             return;
         };
+        let alpha_prev = alpha;
+        alpha += *fj * v;
         let Some((u_col, rest)) = row.split_at_mut_checked(j) else {
             return;
         };
-        let Some(work) = work.get_mut(..j) else {
+        if let Some(dj) = rest.first_mut() {
+            *dj *= alpha_prev / alpha;
+        }
+        let lambda = -*fj / alpha_prev;
+        let Some(w) = work.get_mut(..j) else {
             return;
         };
-        if guarded {
-            let mut col = -F::ZERO;
-            for (u, wi) in u_col.iter_mut().zip(work.iter_mut()) {
-                let uij = *u;
-                let un = uij + *wi * *l;
-                *u = un;
-                *wi += uij * *vj;
-                col += un * un;
-            }
-            col += F::ONE * F::ONE;
-            tr += *dj * col;
-        } else {
-            for (u, wi) in u_col.iter_mut().zip(work.iter_mut()) {
-                let uij = *u;
-                *u = uij + *wi * *l;
-                *wi += uij * *vj;
-            }
-        }
-        if let Some(slot) = rest.first_mut() {
-            *slot = *dj;
+        for (u, w) in u_col.iter_mut().zip(w.iter_mut()) {
+            let uij = *u;
+            *u = uij + *w * lambda;
+            *w += uij * v;
         }
     });
-    if guarded && tr > max_trace {
-        let s = max_trace / tr;
-        for (j, row) in fac.iter_mut().enumerate().take(m) {
-            if let Some(dj) = row.get_mut(j) {
-                *dj *= s;
+    let mut d_ok = true;
+    for (j, row) in fac.iter_mut().enumerate().take(m) {
+        if let Some(d) = row.get_mut(j) {
+            // x / 1 = x exactly: no branch for ρ = 1.
+            *d = *d / rho;
+            d_ok &= d.is_finite() && *d >= F::ZERO;
+        }
+    }
+    if !(alpha.is_finite() && alpha > F::ZERO && d_ok) {
+        return Err(Error::Numerical);
+    }
+    let mut theta_new = *theta;
+    for (t, w) in theta_new.iter_mut().zip(work.iter()).take(m) {
+        *t += *w / alpha * eps;
+    }
+    if guarded {
+        let tr = ud_trace(&fac, m);
+        if tr > max_trace {
+            let s = max_trace / tr;
+            for (j, row) in fac.iter_mut().enumerate().take(m) {
+                if let Some(d) = row.get_mut(j) {
+                    *d *= s;
+                }
             }
         }
     }
+    if theta_new.iter().any(|t| !t.is_finite()) {
+        return Err(Error::Numerical);
+    }
+    *fac_state = fac;
     *theta = theta_new;
     Ok(eps)
 }
@@ -522,11 +491,11 @@ fn ud_trace<F: Float, const N: usize>(fac: &[[F; N]; N], n: usize) -> F {
     tr
 }
 
-/// Flops of one UD-form update for `n` parameters (no guard): 3 n² + 12 n + 1 for ρ < 1,
-/// 3 n² + 11 n + 1 for ρ = 1 (breakdown in the module documentation).
-pub fn flops_per_update_ud(n: usize, rho_is_one: bool) -> usize {
-    let unscale = if rho_is_one { 0 } else { n };
-    3 * n * n + 11 * n + 1 + unscale
+/// Flops of one UD-form update for `n` parameters (no guard): 3 n² + 12 n + 1, for ρ < 1 and ρ = 1
+/// alike (the division by ρ = 1 is executed: it is exact and keeps the loop branch-free). Breakdown in
+/// the module documentation.
+pub fn flops_per_update_ud(n: usize, _rho_is_one: bool) -> usize {
+    3 * n * n + 12 * n + 1
 }
 
 /// Flops of one update for `n` parameters (no guard): 3.5 n² + 8.5 n + 2 for ρ < 1, 3 n² + 8 n + 1
@@ -660,8 +629,9 @@ mod tests {
         assert_eq!(flops_per_update(9, false), 362);
         assert_eq!(flops_per_update(9, true), 316);
         assert_eq!(flops_per_update(7, false), 233);
-        // UD: 3·49 + 12·7 + 1 = 232; ρ = 1: 3·49 + 11·7 + 1 = 225.
+        // UD: 3·49 + 12·7 + 1 = 232 for either ρ; 3·81 + 12·9 + 1 = 352.
         assert_eq!(flops_per_update_ud(7, false), 232);
-        assert_eq!(flops_per_update_ud(7, true), 225);
+        assert_eq!(flops_per_update_ud(7, true), 232);
+        assert_eq!(flops_per_update_ud(9, false), 352);
     }
 }

@@ -2,17 +2,19 @@
 //! UD form: plain and guarded) and of the Hammerstein RLS, in f32 and f64, beside the no_std peer
 //! `oxictl` 0.1.1 (`sysid::arx::RecursiveArx`) measured in the same run on the same data.
 //!
-//! Data: 1e6 samples of the second-order ARX system y(t) = 1.5 y(t−1) − 0.7 y(t−2) + u(t−1) + 0.5 u(t−2)
-//! + 0.1 e(t) with u, e white N(0, 1). Regressors φ(t) = [−y(t−1), …, −y(t−na), u(t−1), …, u(t−nb)], the
-//! peer's own regressor for (NA, NB, NK = 1): n = 4 is (na, nb) = (2, 2), n = 9 is (4, 5). λ = 0.98,
-//! P(0) = 1000 I for both. The peer builds φ itself from its delay lines; ours gets it from the benchmark
+//! Data: 1e6 samples of the second-order ARX system
+//! y(t) = 1.5 y(t−1) − 0.7 y(t−2) + u(t−1) + 0.5 u(t−2) + 0.1 e(t), with u, e white N(0, 1). Regressors
+//! φ(t) = [−y(t−1), …, −y(t−na), u(t−1), …, u(t−nb)], the peer's own regressor for (NA, NB, NK = 1):
+//! n = 4 is (na, nb) = (2, 2), n = 9 is (4, 5). λ = 0.98, P(0) = 1000 I for both. The peer builds φ
+//! itself from its delay lines; ours gets it from the benchmark
 //! loop, which builds it from the record (comparable work: n moves).
 //!
 //! Guard cases: `guard` has T = p0 · n (the `identify --windup trace` default; on this data it is active
 //! only at the start), `guard-active` has T = ½ the trace the unguarded estimator reaches, so that it
 //! rescales P at every update (the guard's worst case).
 //!
-//! Run: `cargo bench -p ipa-embedded --bench rls -- --warm-up-time 1 --measurement-time 3`.
+//! Run: `cargo bench -p ipa-embedded --bench rls -- --warm-up-time 1 --measurement-time 3`, then
+//! `python3 crates/embedded/benches/best_of.py` for the best and median sample of each benchmark.
 
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // benches may panic
 
@@ -84,7 +86,11 @@ fn regressor<F: Float, const NA: usize, const NB: usize, const P: usize>(
 ) -> [F; P] {
     let mut phi = [F::ZERO; P];
     for (i, v) in phi.iter_mut().enumerate() {
-        *v = if i < NA { -y[t - 1 - i] } else { u[t - 1 - (i - NA)] };
+        *v = if i < NA {
+            -y[t - 1 - i]
+        } else {
+            u[t - 1 - (i - NA)]
+        };
     }
     phi
 }
@@ -157,6 +163,31 @@ fn arx_case<F, const NA: usize, const NB: usize, const P: usize, const UBN: usiz
         &theirs,
         back(ours.trace())
     );
+    // Subnormal operands slow floating point down on many cores: the smallest nonzero magnitude in
+    // θ̂ and P over the rest of the record, against the type's smallest normal number.
+    let mut smallest = f64::INFINITY;
+    for t in 100_000..SAMPLES {
+        ours.update(&regressor::<F, NA, NB, P>(&u, &y, t), y[t])
+            .unwrap();
+        let p_entries = (0..P * P).map(|k| ours.p(k / P, k % P));
+        smallest = ours
+            .theta()
+            .iter()
+            .copied()
+            .chain(p_entries)
+            .map(|v| back(v).abs())
+            .filter(|v| *v > 0.0)
+            .fold(smallest, f64::min);
+    }
+    let min_normal = if core::mem::size_of::<F>() == 4 {
+        f64::from(f32::MIN_POSITIVE)
+    } else {
+        f64::MIN_POSITIVE
+    };
+    eprintln!(
+        "{name}: smallest nonzero |θ̂_i|, |P_ij| over the record {smallest:.2e} (smallest normal {min_normal:.2e}): {}",
+        if smallest < min_normal { "SUBNORMAL" } else { "no subnormals" }
+    );
 
     let mut g = c.benchmark_group(name);
     for (label, form, trace) in variants(P, active) {
@@ -175,8 +206,7 @@ fn arx_case<F, const NA: usize, const NB: usize, const P: usize, const UBN: usiz
         });
     }
     g.bench_function(BenchmarkId::new("oxictl", "plain"), |b| {
-        let mut est =
-            RecursiveArx::<F, NA, NB, P, 1, UBN>::new(cv::<F>(LAMBDA), cv::<F>(P0));
+        let mut est = RecursiveArx::<F, NA, NB, P, 1, UBN>::new(cv::<F>(LAMBDA), cv::<F>(P0));
         let mut t = 0;
         b.iter(|| {
             let r = est.update(black_box(y[t]), u[t]);
@@ -184,7 +214,7 @@ fn arx_case<F, const NA: usize, const NB: usize, const P: usize, const UBN: usiz
             if t == SAMPLES {
                 t = 0;
             }
-            black_box(r.unwrap())
+            r.unwrap();
         })
     });
     g.finish();

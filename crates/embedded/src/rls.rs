@@ -421,7 +421,8 @@ fn update_ud<F: Float, const N: usize, const FULL: bool>(
     let mut alpha = rho;
     let guarded = max_trace.is_finite();
     for_columns!(full, m, |j: usize| {
-        let (Some(row), Some(fj), Some(v)) = (fac.get_mut(j), f.get(j), work.get(j).copied()) else {
+        let (Some(row), Some(fj), Some(v)) = (fac.get_mut(j), f.get(j), work.get(j).copied())
+        else {
             return;
         };
         let alpha_prev = alpha;

@@ -216,19 +216,11 @@ impl<F: Float, const N: usize> Rls<F, N> {
         // n = N (the state sized exactly) runs kernels whose loops all have the constant trip count N:
         // fully unrolled and vectorised, no bounds checks. n < N runs the same code with the loop
         // bounds read at run time.
-        let full = self.n == N;
-        let (theta, p, rho, t, n) = (
-            &mut self.theta,
-            &mut self.p,
-            self.forgetting,
-            self.max_trace,
-            self.n,
-        );
-        match (self.form, full) {
-            (Form::Standard, true) => update_standard::<F, N, true>(theta, p, phi, y, rho, t, n),
-            (Form::Standard, false) => update_standard::<F, N, false>(theta, p, phi, y, rho, t, n),
-            (Form::Ud, true) => update_ud::<F, N, true>(theta, p, phi, y, rho, t, n),
-            (Form::Ud, false) => update_ud::<F, N, false>(theta, p, phi, y, rho, t, n),
+        match (self.form, self.n == N) {
+            (Form::Standard, true) => update_standard::<F, N, true>(self, phi, y),
+            (Form::Standard, false) => update_standard::<F, N, false>(self, phi, y),
+            (Form::Ud, true) => update_ud::<F, N, true>(self, phi, y),
+            (Form::Ud, false) => update_ud::<F, N, false>(self, phi, y),
         }
     }
 }
@@ -263,15 +255,13 @@ macro_rules! for_columns {
 /// the state unchanged.
 #[inline(always)]
 fn update_standard<F: Float, const N: usize, const FULL: bool>(
-    theta: &mut [F; N],
-    p: &mut [[F; N]; N],
+    est: &mut Rls<F, N>,
     phi: &[F],
     y: F,
-    rho: F,
-    max_trace: F,
-    n: usize,
 ) -> Result<F, Error> {
-    let m = if FULL { N } else { n };
+    let (rho, max_trace) = (est.forgetting, est.max_trace);
+    let m = if FULL { N } else { est.n };
+    let (theta, p) = (&mut est.theta, &mut est.p);
     // Exact-length slices: every loop below is a zip of slices of length m (for n = N a constant), so
     // there is no bounds check and nothing depends on the data but the guard's one branch.
     let phi = phi.get(..m).ok_or(Error::Length)?;
@@ -377,15 +367,13 @@ fn symmetric_update<F: Float, const N: usize, const SCALE: bool>(
 /// leaves the state unchanged.
 #[inline(always)]
 fn update_ud<F: Float, const N: usize, const FULL: bool>(
-    theta: &mut [F; N],
-    fac_state: &mut [[F; N]; N],
+    est: &mut Rls<F, N>,
     phi: &[F],
     y: F,
-    rho: F,
-    max_trace: F,
-    n: usize,
 ) -> Result<F, Error> {
-    let m = if FULL { N } else { n };
+    let (rho, max_trace) = (est.forgetting, est.max_trace);
+    let m = if FULL { N } else { est.n };
+    let (theta, fac_state) = (&mut est.theta, &mut est.p);
     let phi = phi.get(..m).ok_or(Error::Length)?;
     let mut dot = -F::ZERO;
     for (f, t) in phi.iter().zip(theta.iter()) {

@@ -66,6 +66,10 @@ fn main() -> ExitCode {
         Ok(cli) => cli,
         Err(e) => e.exit(),
     };
+    // An interrupted write (Ctrl-C, SIGTERM) leaves no `.ipa-sysid-*.tmp` file behind.
+    if let Err(e) = sysid_io::remove_temporaries_on_signals() {
+        eprintln!("warning: cannot watch for signals ({e}); an interrupted write may leave a temporary file");
+    }
     let result = match cli.command {
         Command::Identify(a) => cmd::identify::run(a),
         Command::Validate(a) => cmd::validate::run(a),

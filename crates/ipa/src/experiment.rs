@@ -68,8 +68,19 @@ pub struct Record {
 }
 
 impl Experiment {
-    /// Checks the settings that do not need the plant (x0, noise).
+    /// Checks the settings that do not need the plant (samples, x0, noise), before anything is
+    /// allocated.
     pub fn check(&self) -> Result<(), IpaError> {
+        if let Some(n) = self.samples {
+            if n == 0 || n > sysid_core::data::MAX_SAMPLES {
+                return Err(SysidError::setting(
+                    Setting::Other("--samples"),
+                    n,
+                    &format!("1..={} samples", sysid_core::data::MAX_SAMPLES),
+                )
+                .into());
+            }
+        }
         if !self.x0.is_finite() {
             return Err(SysidError::setting(
                 Setting::Other("--y0"),

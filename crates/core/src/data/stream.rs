@@ -114,7 +114,70 @@ pub struct CsvStream {
     rows: Option<super::RowRange>,
     rows_flag: &'static str,
     shape: Option<Shape>,
+    /// The file as the first pass found it: a later pass over a changed or replaced file is refused.
+    first_pass: Option<Fingerprint>,
 }
+
+/// What identifies the content of one pass: the file (device, inode, size, modification time) when it
+/// was opened, and a checksum (FNV-1a over the bits of every u and y read).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Fingerprint {
+    file: FileId,
+    checksum: u64,
+}
+
+/// A file's identity and version as its metadata tells them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct FileId {
+    dev: u64,
+    ino: u64,
+    len: u64,
+    modified: Option<std::time::SystemTime>,
+}
+
+impl FileId {
+    fn of(meta: &std::fs::Metadata) -> Self {
+        #[cfg(unix)]
+        let (dev, ino) = {
+            use std::os::unix::fs::MetadataExt;
+            (meta.dev(), meta.ino())
+        };
+        #[cfg(not(unix))]
+        let (dev, ino) = (0, 0);
+        FileId {
+            dev,
+            ino,
+            len: meta.len(),
+            modified: meta.modified().ok(),
+        }
+    }
+
+    /// How `self` differs from the `first` pass's file, in words (`None`: it does not).
+    fn change_from(&self, first: &FileId) -> Option<String> {
+        if (self.dev, self.ino) != (first.dev, first.ino) {
+            Some("it was replaced by another file (a different inode)".into())
+        } else if self.len != first.len {
+            Some(format!(
+                "its size changed from {} to {} bytes",
+                first.len, self.len
+            ))
+        } else if self.modified != first.modified {
+            Some("it was modified (a different modification time)".into())
+        } else {
+            None
+        }
+    }
+}
+
+/// FNV-1a, 64 bits, folded over the bits of `v`.
+fn fnv(hash: u64, v: f64) -> u64 {
+    v.to_bits()
+        .to_le_bytes()
+        .iter()
+        .fold(hash, |h, &b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3))
+}
+
+const FNV_OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
 
 /// Time steps seen in a pass: the first and last time, the smallest and largest step with their lines.
 #[derive(Debug, Clone, Copy)]
@@ -225,12 +288,24 @@ impl CsvStream {
             rows: opts.rows,
             rows_flag: opts.rows_flag,
             shape: None,
+            first_pass: None,
         })
     }
 
     /// The shape found by the first complete pass (`None` before it).
     pub fn shape(&self) -> Option<Shape> {
         self.shape
+    }
+
+    /// The error of a file that changed between passes (`how`, in words).
+    fn changed(&self, how: &str) -> SysidError {
+        SysidError::File {
+            file: self.name.clone(),
+            message: format!(
+                "the file changed between the passes of --stream ({how}): the model would come from \
+                 one version and the metrics from another; run again on a file that is not being written"
+            ),
+        }
     }
 
     /// The error at line `line`, column `col` (0-based) of the file.
@@ -290,6 +365,14 @@ impl RecordSource for CsvStream {
             source,
         };
         let mut file = std::fs::File::open(&self.path).map_err(io)?;
+        let file_id = FileId::of(&file.metadata().map_err(io)?);
+        if let Some(change) = self
+            .first_pass
+            .and_then(|f| file_id.change_from(&f.file))
+        {
+            return Err(self.changed(&change));
+        }
+        let mut checksum = FNV_OFFSET;
         if self.bom {
             let mut skip = [0u8; 3];
             file.read_exact(&mut skip).map_err(io)?;
@@ -361,8 +444,10 @@ impl RecordSource for CsvStream {
                 )
                 .map_err(|m| self.at(line, col, m))
             };
-            u.push(value(self.ucol)?);
-            y.push(value(self.ycol)?);
+            let (uk, yk) = (value(self.ucol)?, value(self.ycol)?);
+            checksum = fnv(fnv(checksum, uk), yk);
+            u.push(uk);
+            y.push(yk);
             if let Some(tc) = tcol {
                 let t = value(tc)? * self.time_scale;
                 scan = Some(match scan {
@@ -443,6 +528,18 @@ impl RecordSource for CsvStream {
                 },
             },
         };
+        match self.first_pass {
+            Some(f) if f.checksum != checksum => {
+                return Err(self.changed("its u and y values differ from the first pass's"))
+            }
+            Some(_) => {}
+            None => {
+                self.first_pass = Some(Fingerprint {
+                    file: file_id,
+                    checksum,
+                })
+            }
+        }
         self.shape = Some(shape);
         Ok(shape)
     }

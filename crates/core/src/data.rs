@@ -174,11 +174,11 @@ pub fn read_csv(path: &Path, opts: &CsvOptions) -> Result<Dataset, SysidError> {
 
 /// Reads a record from a CSV file, with the reader's warnings (how non-uniform a resampled record was).
 pub fn read_record(path: &Path, opts: &CsvOptions) -> Result<Record, SysidError> {
-    let bytes = bounded::read_bounded(path, MAX_FILE_BYTES, "a data file", "split the record")?;
     let name = path.display().to_string();
     let is_mat_name = path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("mat"));
+    let bytes = bounded::read_data_file(path, "a data file")?;
     if is_mat_name || mat::is_mat(&bytes) {
         return mat::read_mat_bytes(&bytes, &name, opts);
     }
@@ -468,7 +468,7 @@ pub(crate) fn csv_err(name: &str, e: csv::Error) -> SysidError {
     }
 }
 
-fn line_col(bytes: &[u8], offset: usize) -> (usize, usize) {
+pub(crate) fn line_col(bytes: &[u8], offset: usize) -> (usize, usize) {
     let before = &bytes[..offset.min(bytes.len())];
     let line = before.iter().filter(|&&b| b == b'\n').count() + 1;
     let column = offset

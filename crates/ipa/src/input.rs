@@ -210,12 +210,7 @@ pub fn read_input_file(path: &Path) -> Result<Vec<f64>, IpaError> {
 /// Reads the columns `names` of a CSV file (header row required), every cell a finite number: the
 /// commands of a model with several inputs, one column per input.
 pub fn read_input_columns(path: &Path, names: &[&str]) -> Result<Vec<Vec<f64>>, IpaError> {
-    let bytes = sysid_core::data::bounded::read_bounded(
-        path,
-        sysid_core::data::MAX_FILE_BYTES,
-        "an input file",
-        "split the record",
-    )?;
+    let bytes = sysid_core::data::bounded::read_data_file(path, "an input file")?;
     let table = sysid_core::data::read_table(&bytes, &path.display().to_string())?;
     let mut cols = Vec::with_capacity(names.len());
     for name in names {

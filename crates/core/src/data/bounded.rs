@@ -13,6 +13,22 @@ use crate::SysidError;
 /// The bytes of `path`, at most `max` of them; `what` names the kind of file in the error (e.g.
 /// "a data file") and `advice` says what to do (e.g. "split the record").
 pub fn read_bounded(path: &Path, max: u64, what: &str, advice: &str) -> Result<Vec<u8>, SysidError> {
+    read_bounded_checked(path, max, what, advice, |_| Ok(()))
+}
+
+/// Bytes looked at by the `check` of [`read_bounded_checked`] before the rest is read.
+pub const PREFIX_BYTES: usize = 1 << 16;
+
+/// [`read_bounded`] that first reads up to [`PREFIX_BYTES`] and passes them to `check`, which can refuse
+/// the file before the rest is read (binary data where text is expected: `--data /dev/zero` is refused
+/// after 64 KiB, not after the size bound).
+pub fn read_bounded_checked(
+    path: &Path,
+    max: u64,
+    what: &str,
+    advice: &str,
+    check: impl FnOnce(&[u8]) -> Result<(), SysidError>,
+) -> Result<Vec<u8>, SysidError> {
     let io = |source| SysidError::Io {
         path: path.to_path_buf(),
         source,
@@ -24,19 +40,52 @@ pub fn read_bounded(path: &Path, max: u64, what: &str, advice: &str) -> Result<V
         return Err(too_large(path, max, what, advice, &format!("{size} bytes")));
     }
     let mut bytes = Vec::with_capacity(known.unwrap_or(0).min(max) as usize);
-    file.take(max.saturating_add(1))
+    let mut file = file.take(max.saturating_add(1));
+    (&mut file)
+        .take(PREFIX_BYTES as u64)
         .read_to_end(&mut bytes)
         .map_err(io)?;
+    check(&bytes)?;
+    file.read_to_end(&mut bytes).map_err(io)?;
     if bytes.len() as u64 > max {
         return Err(too_large(
             path,
             max,
             what,
             advice,
-            "more bytes (a device or a stream that did not end)",
+            &format!("it did not end within {max} bytes (a device or a stream)"),
         ));
     }
     Ok(bytes)
+}
+
+/// The bytes of a record file (CSV text or a MAT-file; `what` names it in messages), at most
+/// [`super::MAX_FILE_BYTES`]: binary bytes that are not a MAT-file are refused after the first 64 KiB
+/// (`/dev/zero` would otherwise be read up to the size bound before the CSV reader refused its first
+/// NUL byte).
+pub fn read_data_file(path: &Path, what: &str) -> Result<Vec<u8>, SysidError> {
+    let is_mat_name = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("mat"));
+    read_bounded_checked(
+        path,
+        super::MAX_FILE_BYTES,
+        what,
+        "split the record",
+        |prefix| match prefix.iter().position(|&b| b == 0) {
+            Some(at) if !is_mat_name && !super::mat::is_mat(prefix) => {
+                let (line, column) = super::line_col(prefix, at);
+                Err(SysidError::Parse {
+                    file: path.display().to_string(),
+                    line,
+                    column,
+                    message: "NUL byte: the file is binary, not CSV text (nor a MATLAB .mat file)"
+                        .into(),
+                })
+            }
+            _ => Ok(()),
+        },
+    )
 }
 
 /// [`read_bounded`] as UTF-8 text (a TOML or JSON file); the error names the first byte that is not.
@@ -59,7 +108,7 @@ pub fn read_bounded_text(
 fn too_large(path: &Path, max: u64, what: &str, advice: &str, got: &str) -> SysidError {
     SysidError::File {
         file: path.display().to_string(),
-        message: format!("{got} is more than the {max} bytes {what} may have; {advice}"),
+        message: format!("{got}: {what} may have at most {max} bytes; {advice}"),
     }
 }
 
@@ -73,7 +122,7 @@ mod tests {
     #[test]
     fn an_endless_device_is_refused_after_the_bound() {
         let e = read_bounded(Path::new("/dev/zero"), 1000, "a data file", "split it").unwrap_err();
-        assert!(e.to_string().contains("more than the 1000 bytes"), "{e}");
+        assert!(e.to_string().contains("at most 1000 bytes"), "{e}");
     }
 
     // A file of exactly max bytes is read whole; one byte more is refused.

@@ -50,10 +50,28 @@ fn temporaries(dir: &Path) -> Vec<String> {
 fn devices_are_written_into_not_replaced() {
     use std::os::unix::fs::FileTypeExt;
     let dir = tempfile::tempdir().unwrap();
-    let out = run("simulate --plant paper --samples 50 --out /dev/null", dir.path());
+    // As root, a private null device (the machine's /dev/null is shared with other programs); else
+    // /dev/null itself, which a non-root user could not replace anyway.
+    let private = dir.path().join("null");
+    let null = if Command::new("mknod")
+        .args(["-m", "666"])
+        .arg(&private)
+        .args(["c", "1", "3"])
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success())
+    {
+        private
+    } else {
+        PathBuf::from("/dev/null")
+    };
+    let out = run(
+        &format!("simulate --plant paper --samples 50 --out {}", null.display()),
+        dir.path(),
+    );
     assert!(out.status.success(), "{}", stderr(&out));
-    let kind = std::fs::metadata("/dev/null").unwrap().file_type();
-    assert!(kind.is_char_device(), "/dev/null is still a device");
+    let kind = std::fs::metadata(&null).unwrap().file_type();
+    assert!(kind.is_char_device(), "{} is still a device", null.display());
     let out = run(
         "identify --data {c}/good.csv --method ls --json /dev/full",
         dir.path(),
@@ -332,4 +350,91 @@ fn track_checks_every_time_step() {
         .unwrap()
         .iter()
         .any(|w| w.as_str().unwrap().contains("time jumps")));
+}
+
+/// `good_model.json` with `edit` applied to its JSON, written to `dir/name`.
+fn edited_model(dir: &Path, name: &str, edit: impl FnOnce(&mut serde_json::Value)) {
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(corpus().join("good_model.json")).unwrap())
+            .unwrap();
+    edit(&mut v);
+    std::fs::write(dir.join(name), serde_json::to_string(&v).unwrap()).unwrap();
+}
+
+// A model file whose breakpoints cross (b_l > b_r) is loaded with a warning by validate (text and
+// JSON) and simulate; an unstable model's simulation is announced; a Ts whose sample times overflow is
+// refused instead of writing t = inf.
+#[test]
+fn suspicious_model_files_are_announced() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    edited_model(d, "crossed.json", |v| {
+        v["model"]["deadzone"]["b_l"] = 5.0.into();
+        v["model"]["deadzone"]["b_r"] = (-5.0).into();
+    });
+    edited_model(d, "huge_ts.json", |v| v["model"]["ts"] = 1.7e308.into());
+    let out = run(
+        "validate --model {t}/crossed.json --data {c}/good.csv --ts 0.01 --json {t}/v.json",
+        d,
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("v.json")).unwrap()).unwrap();
+    assert!(
+        v["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|w| w.as_str().unwrap().contains("b_l = 5 > b_r = -5")),
+        "{v}"
+    );
+    let out = run(
+        "simulate --plant model:{t}/crossed.json --input prbs --samples 20 --out {t}/s.csv",
+        d,
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(stderr(&out).contains("b_l = 5 > b_r = -5"), "{}", stderr(&out));
+
+    let out = run(
+        "simulate --plant model:{c}/model/unstable.json --input prbs --samples 20 --out {t}/u.csv",
+        d,
+    );
+    assert!(
+        stderr(&out).contains("unstable model"),
+        "{}",
+        stderr(&out)
+    );
+
+    let out = run(
+        "simulate --plant model:{t}/huge_ts.json --input prbs --samples 20 --out {t}/h.csv",
+        d,
+    );
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("finite time"), "{}", stderr(&out));
+    assert!(!d.join("h.csv").exists());
+}
+
+// A Monte Carlo study in which every run of a method fails is an error (non-zero exit) after the table
+// is shown; a study beyond the work bound is refused before it starts, and --max-work raises the bound.
+#[test]
+fn montecarlo_failures_and_work_are_bounded() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = run("montecarlo --plant paper --samples 5 --runs 3 --method ls", dir.path());
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    assert!(stderr(&out).contains("every run failed for ls"), "{}", stderr(&out));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("0 ok, 3 failed"));
+
+    let out = run("montecarlo --runs 10000 --samples 50000000", dir.path());
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("--max-work"), "{}", stderr(&out));
+    let out = run(
+        "montecarlo --plant paper --runs 3 --samples 300 --method ls --max-work 800",
+        dir.path(),
+    );
+    assert_eq!(out.status.code(), Some(2), "900 > 800: {}", stderr(&out));
+    let out = run(
+        "montecarlo --plant paper --runs 3 --samples 300 --method ls --max-work 900",
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
 }

@@ -552,3 +552,58 @@ fn unreachable_ts(name: &str) -> Result<f64, SysidError> {
         message: "no sampling period: pass --ts".into(),
     })
 }
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    fn write_record(path: &Path, offset: f64) {
+        let mut text = String::from("t,u,y\n");
+        for k in 0..50 {
+            text.push_str(&format!("{},{},{}\n", k as f64 * 0.01, k % 3, offset + k as f64));
+        }
+        std::fs::write(path, text).unwrap();
+    }
+
+    fn pass(s: &mut CsvStream) -> Result<Shape, SysidError> {
+        s.pass(&mut |_, _, _| Ok(()))
+    }
+
+    // A file replaced between two passes by another of the same length and shape is refused on the
+    // second pass (a model from one file and metrics from another would be silently wrong).
+    #[test]
+    fn a_file_replaced_between_passes_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("r.csv");
+        write_record(&path, 0.0);
+        let mut s = CsvStream::open(&path, &CsvOptions::default()).unwrap();
+        pass(&mut s).unwrap();
+        pass(&mut s).unwrap(); // an unchanged file passes again
+        let other = dir.path().join("other.csv");
+        write_record(&other, 1.0);
+        std::fs::rename(&other, &path).unwrap();
+        let e = pass(&mut s).unwrap_err().to_string();
+        assert!(e.contains("changed between the passes"), "{e}");
+    }
+
+    // Rewritten in place with the same size and different values: the checksum of the values differs,
+    // whatever the modification time says.
+    #[test]
+    fn a_file_rewritten_in_place_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("r.csv");
+        write_record(&path, 0.0);
+        let mut s = CsvStream::open(&path, &CsvOptions::default()).unwrap();
+        pass(&mut s).unwrap();
+        let modified = std::fs::metadata(&path).unwrap().modified().unwrap();
+        let text = std::fs::read_to_string(&path).unwrap().replace(",2\n", ",7\n");
+        let f = std::fs::OpenOptions::new().write(true).open(&path).unwrap();
+        use std::io::Write as _;
+        (&f).write_all(text.as_bytes()).unwrap();
+        f.set_modified(modified).unwrap();
+        drop(f);
+        let e = pass(&mut s).unwrap_err().to_string();
+        assert!(e.contains("changed between the passes"), "{e}");
+    }
+}

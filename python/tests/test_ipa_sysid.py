@@ -375,3 +375,24 @@ def test_example_script_runs(tmp_path):
     r = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     assert "fit % (simulation, validation)" in r.stdout
+
+
+# --- hostile sizes and reads (issue 21): the same bounds as the command line ---------------------
+
+
+def test_simulate_plant_refuses_a_sample_count_beyond_the_bound():
+    # 10**10 samples would need 80 GB per signal: refused before anything is allocated, and the
+    # interpreter survives to run the next call.
+    with pytest.raises(ValueError, match="samples"):
+        ipa_sysid.simulate_plant("ipa", samples=10**10)
+    with pytest.raises(ValueError, match="samples"):
+        ipa_sysid.simulate_plant("paper", samples=0)
+    t, u, y, _ = ipa_sysid.simulate_plant("paper", samples=10)
+    assert len(t) == len(u) == len(y) == 10
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/zero"), reason="no /dev/zero on this system")
+def test_load_model_bounds_an_endless_read():
+    # /dev/zero reports a size of 0 and never ends: the read is bounded as it goes.
+    with pytest.raises(ValueError, match="at most"):
+        ipa_sysid.load_model("/dev/zero")

@@ -72,14 +72,7 @@ impl Experiment {
     /// allocated.
     pub fn check(&self) -> Result<(), IpaError> {
         if let Some(n) = self.samples {
-            if n == 0 || n > sysid_core::data::MAX_SAMPLES {
-                return Err(SysidError::setting(
-                    Setting::Other("--samples"),
-                    n,
-                    &format!("1..={} samples", sysid_core::data::MAX_SAMPLES),
-                )
-                .into());
-            }
+            crate::input::check_samples(n)?;
         }
         if !self.x0.is_finite() {
             return Err(SysidError::setting(

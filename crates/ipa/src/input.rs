@@ -176,7 +176,8 @@ pub fn add_noise(y: &[f64], std_mm: f64, seed: u64) -> Vec<f64> {
         .collect()
 }
 
-fn check_settings(samples: usize, ts_s: f64, amplitude: f64) -> Result<(), IpaError> {
+/// Checks a number of samples N (`--samples`) against the bound, before anything is allocated.
+pub fn check_samples(samples: usize) -> Result<(), IpaError> {
     if samples == 0 || samples > sysid_core::data::MAX_SAMPLES {
         return Err(IpaError::setting(
             IpaSetting::Samples,
@@ -184,6 +185,11 @@ fn check_settings(samples: usize, ts_s: f64, amplitude: f64) -> Result<(), IpaEr
             format!("expected 1..={}", sysid_core::data::MAX_SAMPLES),
         ));
     }
+    Ok(())
+}
+
+fn check_settings(samples: usize, ts_s: f64, amplitude: f64) -> Result<(), IpaError> {
+    check_samples(samples)?;
     if !(ts_s.is_finite() && ts_s > 0.0) {
         return Err(IpaError::setting(
             IpaSetting::Ts,

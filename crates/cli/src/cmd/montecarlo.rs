@@ -100,22 +100,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .map(|m| parse_method(m))
         .collect::<anyhow::Result<Vec<_>>>()?;
     let spec: InputSpec = args.input.parse()?;
-    // The total work, bounded before anything runs (10 000 runs of 5 x 10^7 samples would take days).
-    let work = (args.runs as u128) * (args.samples as u128) * (methods.len() as u128);
-    if args.runs == 0 || work > u128::from(args.max_work) {
-        anyhow::bail!(sysid::SysidError::setting(
-            sysid::Setting::Other("--runs"),
-            args.runs,
-            &format!(
-                "at least 1 run, and runs x samples x methods ({} x {} x {} = {work}) at most --max-work \
-                 {}; fewer runs or samples, or raise --max-work for a study meant to run that long",
-                args.runs,
-                args.samples,
-                methods.len(),
-                args.max_work
-            )
-        ));
-    }
     let mut inputs: Vec<&Path> =
         ipa::spec::spec_input_files(&args.plant, args.plant_config.as_deref());
     inputs.extend(spec.file());
@@ -136,6 +120,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // Check the input design (samples, amplitude, file) once, before any run: a bad flag is an error,
     // not a study in which every run failed.
     generate(&spec, args.samples, ts_s, args.amplitude, args.seed)?;
+    // The total work, bounded before anything runs (10 000 runs of 5 x 10^7 samples would take days).
+    let work = (args.runs as u128) * (args.samples as u128) * (methods.len() as u128);
+    if work > u128::from(args.max_work) {
+        anyhow::bail!(sysid::SysidError::setting(
+            sysid::Setting::Other("--runs"),
+            args.runs,
+            &format!(
+                "runs x samples x methods ({} x {} x {} = {work}) at most --max-work \
+                 {}; fewer runs or samples, or raise --max-work for a study meant to run that long",
+                args.runs,
+                args.samples,
+                methods.len(),
+                args.max_work
+            )
+        ));
+    }
     let (kind, orders, offset) = match &truth_model {
         Some(m) => (m.kind(), m.orders(), m.offset().is_some()),
         None => (ModelKind::Hammerstein, Orders::PAPER, false),

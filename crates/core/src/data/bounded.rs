@@ -72,18 +72,37 @@ pub fn read_data_file(path: &Path, what: &str) -> Result<Vec<u8>, SysidError> {
         super::MAX_FILE_BYTES,
         what,
         "split the record",
-        |prefix| match prefix.iter().position(|&b| b == 0) {
-            Some(at) if !is_mat_name && !super::mat::is_mat(prefix) => {
-                let (line, column) = super::line_col(prefix, at);
+        |prefix| {
+            if is_mat_name || super::mat::is_mat(prefix) {
+                return Ok(());
+            }
+            // The CSV reader's own first checks (and messages), on the first bytes only.
+            let at = |offset: usize, body: &[u8], message: &str| {
+                let (line, column) = super::line_col(body, offset);
                 Err(SysidError::Parse {
                     file: path.display().to_string(),
                     line,
                     column,
-                    message: "NUL byte: the file is binary, not CSV text (nor a MATLAB .mat file)"
-                        .into(),
+                    message: message.into(),
                 })
+            };
+            let body = prefix.strip_prefix(b"\xef\xbb\xbf").unwrap_or(prefix);
+            let valid = match std::str::from_utf8(body) {
+                Ok(_) => body.len(),
+                // A character cut by the end of the prefix is not an error.
+                Err(e) if e.error_len().is_none() => e.valid_up_to(),
+                Err(e) => {
+                    return at(
+                        e.valid_up_to(),
+                        body,
+                        "the file is not UTF-8 text (binary data?); expected CSV",
+                    )
+                }
+            };
+            match body[..valid].iter().position(|&b| b == 0) {
+                Some(nul) => at(nul, body, "NUL byte: the file is binary, not CSV text"),
+                None => Ok(()),
             }
-            _ => Ok(()),
         },
     )
 }

@@ -65,7 +65,10 @@ fn check_all(cases: &[Case]) {
             wrong.push("panicked".to_string());
         }
         // Warnings about the input (an unstable model...) may come before the error.
-        let first = stderr.lines().find(|l| !l.starts_with("warning:")).unwrap_or("");
+        let first = stderr
+            .lines()
+            .find(|l| !l.starts_with("warning:"))
+            .unwrap_or("");
         if !first.starts_with("error:") {
             wrong.push("stderr does not start with `error:`".to_string());
         }

@@ -20,7 +20,10 @@ fn run(args: &str, dir: &Path) -> Output {
     let c = corpus().display().to_string();
     let argv: Vec<String> = args
         .split_whitespace()
-        .map(|a| a.replace("{c}", &c).replace("{t}", &dir.display().to_string()))
+        .map(|a| {
+            a.replace("{c}", &c)
+                .replace("{t}", &dir.display().to_string())
+        })
         .collect();
     bin()
         .args(&argv)
@@ -66,24 +69,29 @@ fn devices_are_written_into_not_replaced() {
         PathBuf::from("/dev/null")
     };
     let out = run(
-        &format!("simulate --plant paper --samples 50 --out {}", null.display()),
+        &format!(
+            "simulate --plant paper --samples 50 --out {}",
+            null.display()
+        ),
         dir.path(),
     );
     assert!(out.status.success(), "{}", stderr(&out));
     let kind = std::fs::metadata(&null).unwrap().file_type();
-    assert!(kind.is_char_device(), "{} is still a device", null.display());
+    assert!(
+        kind.is_char_device(),
+        "{} is still a device",
+        null.display()
+    );
     let out = run(
         "identify --data {c}/good.csv --method ls --json /dev/full",
         dir.path(),
     );
     assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
     assert!(stderr(&out).contains("/dev/full"), "{}", stderr(&out));
-    assert!(
-        std::fs::metadata("/dev/full")
-            .unwrap()
-            .file_type()
-            .is_char_device()
-    );
+    assert!(std::fs::metadata("/dev/full")
+        .unwrap()
+        .file_type()
+        .is_char_device());
 }
 
 // A FIFO is written into (streamed to whoever reads it), not replaced.
@@ -100,7 +108,10 @@ fn a_fifo_is_streamed_into() {
     }
     let f = fifo.clone();
     let reader = std::thread::spawn(move || std::fs::read_to_string(f).unwrap());
-    let out = run("simulate --plant paper --samples 20 --out {t}/pipe", dir.path());
+    let out = run(
+        "simulate --plant paper --samples 20 --out {t}/pipe",
+        dir.path(),
+    );
     assert!(out.status.success(), "{}", stderr(&out));
     let text = reader.join().unwrap();
     assert!(text.starts_with("t,u,y\n"), "{text}");
@@ -115,13 +126,22 @@ fn a_dash_is_standard_output_for_every_output_flag() {
     std::fs::copy(corpus().join("good_model.json"), dir.path().join("m.json")).unwrap();
     let cases = [
         ("simulate --plant paper --samples 10 --out -", "t,u,y"),
-        ("identify --data {c}/good.csv --method ls --json -", "\"model\""),
+        (
+            "identify --data {c}/good.csv --method ls --json -",
+            "\"model\"",
+        ),
         (
             "identify --data {c}/good.csv --method ls --save-model -",
             "\"format\"",
         ),
-        ("validate --model {t}/m.json --data {c}/good.csv --out -", "y_sim"),
-        ("validate --model {t}/m.json --data {c}/good.csv --json -", "{"),
+        (
+            "validate --model {t}/m.json --data {c}/good.csv --out -",
+            "y_sim",
+        ),
+        (
+            "validate --model {t}/m.json --data {c}/good.csv --json -",
+            "{",
+        ),
         ("delay --data {c}/good.csv --json -", "{"),
     ];
     for (args, needle) in cases {
@@ -129,7 +149,10 @@ fn a_dash_is_standard_output_for_every_output_flag() {
         assert!(out.status.success(), "{args}: {}", stderr(&out));
         let text = String::from_utf8_lossy(&out.stdout);
         assert!(text.contains(needle), "{args}: {text}");
-        assert!(!dir.path().join("-").exists(), "{args} wrote a file named -");
+        assert!(
+            !dir.path().join("-").exists(),
+            "{args} wrote a file named -"
+        );
     }
 }
 
@@ -187,7 +210,10 @@ fn a_replaced_file_keeps_its_owner() {
         eprintln!("SKIPPED: not root, cannot give a file to another user");
         return;
     }
-    let out = run("simulate --plant paper --samples 10 --out {t}/owned.csv", dir.path());
+    let out = run(
+        "simulate --plant paper --samples 10 --out {t}/owned.csv",
+        dir.path(),
+    );
     assert!(out.status.success(), "{}", stderr(&out));
     let m = std::fs::metadata(&p).unwrap();
     assert_eq!((m.uid(), m.gid()), (4321, 4322));
@@ -221,7 +247,15 @@ fn sigterm_during_a_write_leaves_no_temporary_file() {
     let d = dir.path();
     // A record of some 90 MB: its write and sync take long enough to be seen and interrupted.
     let mut child = bin()
-        .args(["simulate", "--plant", "paper", "--samples", "3000000", "--out", "big.csv"])
+        .args([
+            "simulate",
+            "--plant",
+            "paper",
+            "--samples",
+            "3000000",
+            "--out",
+            "big.csv",
+        ])
         .current_dir(d)
         .stderr(Stdio::null())
         .spawn()
@@ -237,7 +271,10 @@ fn sigterm_during_a_write_leaves_no_temporary_file() {
         }
     }
     let status = child.wait().unwrap();
-    assert!(seen, "the write was never seen in progress (status {status})");
+    assert!(
+        seen,
+        "the write was never seen in progress (status {status})"
+    );
     assert!(!status.success());
     assert!(temporaries(d).is_empty(), "{:?}", temporaries(d));
     assert!(!d.join("big.csv").exists());
@@ -249,8 +286,14 @@ fn sigterm_during_a_write_leaves_no_temporary_file() {
 fn sizes_are_bounded_before_allocation() {
     let dir = tempfile::tempdir().unwrap();
     for (args, needle) in [
-        ("simulate --samples 10000000000 --out {t}/x.csv", "--samples"),
-        ("simulate --plant paper --samples 0 --out {t}/x.csv", "--samples"),
+        (
+            "simulate --samples 10000000000 --out {t}/x.csv",
+            "--samples",
+        ),
+        (
+            "simulate --plant paper --samples 0 --out {t}/x.csv",
+            "--samples",
+        ),
         ("identify --data {c}/good.csv --resample 1e-9", "--resample"),
         ("delay --data {c}/good.csv --resample 1e-12", "--resample"),
         ("order --data {c}/good.csv --resample 1e-12", "--resample"),
@@ -271,8 +314,14 @@ fn endless_devices_are_refused() {
     for (args, needle) in [
         ("identify --data /dev/zero", "NUL byte"),
         ("validate --model /dev/zero --data {c}/good.csv", "at most"),
-        ("simulate --plant-config /dev/zero --out {t}/x.csv", "at most"),
-        ("simulate --input file:/dev/zero --out {t}/x.csv", "NUL byte"),
+        (
+            "simulate --plant-config /dev/zero --out {t}/x.csv",
+            "at most",
+        ),
+        (
+            "simulate --input file:/dev/zero --out {t}/x.csv",
+            "NUL byte",
+        ),
     ] {
         let out = run(args, dir.path());
         assert_eq!(out.status.code(), Some(2), "{args}: {}", stderr(&out));
@@ -321,7 +370,12 @@ fn track_checks_every_time_step() {
     let d = dir.path();
     let mut rows = String::from("t,u,y\n");
     for k in 0..40 {
-        rows.push_str(&format!("{},{},{}\n", k as f64 * 0.01, (k % 7) as f64, k as f64 * 0.1));
+        rows.push_str(&format!(
+            "{},{},{}\n",
+            k as f64 * 0.01,
+            (k % 7) as f64,
+            k as f64 * 0.1
+        ));
     }
     let mut back = rows.clone();
     back.push_str("0.2,1,1\n");
@@ -333,7 +387,12 @@ fn track_checks_every_time_step() {
 
     let mut jump = rows;
     for k in 0..20 {
-        jump.push_str(&format!("{},{},{}\n", 5.0 + k as f64 * 0.01, (k % 5) as f64, 1.0));
+        jump.push_str(&format!(
+            "{},{},{}\n",
+            5.0 + k as f64 * 0.01,
+            (k % 5) as f64,
+            1.0
+        ));
     }
     std::fs::write(d.join("jump.csv"), jump).unwrap();
     let out = run(
@@ -393,17 +452,17 @@ fn suspicious_model_files_are_announced() {
         d,
     );
     assert!(out.status.success(), "{}", stderr(&out));
-    assert!(stderr(&out).contains("b_l = 5 > b_r = -5"), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("b_l = 5 > b_r = -5"),
+        "{}",
+        stderr(&out)
+    );
 
     let out = run(
         "simulate --plant model:{c}/model/unstable.json --input prbs --samples 20 --out {t}/u.csv",
         d,
     );
-    assert!(
-        stderr(&out).contains("unstable model"),
-        "{}",
-        stderr(&out)
-    );
+    assert!(stderr(&out).contains("unstable model"), "{}", stderr(&out));
 
     let out = run(
         "simulate --plant model:{t}/huge_ts.json --input prbs --samples 20 --out {t}/h.csv",
@@ -419,9 +478,16 @@ fn suspicious_model_files_are_announced() {
 #[test]
 fn montecarlo_failures_and_work_are_bounded() {
     let dir = tempfile::tempdir().unwrap();
-    let out = run("montecarlo --plant paper --samples 5 --runs 3 --method ls", dir.path());
+    let out = run(
+        "montecarlo --plant paper --samples 5 --runs 3 --method ls",
+        dir.path(),
+    );
     assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
-    assert!(stderr(&out).contains("every run failed for ls"), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("every run failed for ls"),
+        "{}",
+        stderr(&out)
+    );
     assert!(String::from_utf8_lossy(&out.stdout).contains("0 ok, 3 failed"));
 
     let out = run("montecarlo --runs 10000 --samples 50000000", dir.path());
@@ -451,7 +517,14 @@ fn mat_header() -> Vec<u8> {
 /// A miMATRIX element: array class `class`, dimensions 1 x n, name, and the values as stored with
 /// data type `storage` (`values`: their little-endian bytes); `declared` overrides the element's byte
 /// count (a damaged or hostile file).
-fn mat_matrix(class: u32, n: usize, name: &str, storage: u32, values: &[u8], declared: Option<u32>) -> Vec<u8> {
+fn mat_matrix(
+    class: u32,
+    n: usize,
+    name: &str,
+    storage: u32,
+    values: &[u8],
+    declared: Option<u32>,
+) -> Vec<u8> {
     let tag = |out: &mut Vec<u8>, ty: u32, len: usize| {
         out.extend_from_slice(&ty.to_le_bytes());
         out.extend_from_slice(&(len as u32).to_le_bytes());
@@ -517,11 +590,19 @@ fn mat_files_of_any_numeric_class_and_damaged_ones() {
         d,
     );
     assert!(out.status.success(), "{}", stderr(&out));
-    let j: serde_json::Value = serde_json::from_slice(&out.stdout).expect("stdout is the JSON only");
+    let j: serde_json::Value =
+        serde_json::from_slice(&out.stdout).expect("stdout is the JSON only");
     // The rounding makes y only nearly ARX: the estimate is close to a = -0.5, b = 1/8.
-    assert!((j["model"]["a"][0].as_f64().unwrap() + 0.5).abs() < 0.1, "{}", j["model"]);
+    assert!(
+        (j["model"]["a"][0].as_f64().unwrap() + 0.5).abs() < 0.1,
+        "{}",
+        j["model"]
+    );
 
-    let out = run("identify --data {t}/good.mat --ts 1 --u-col note --json -", d);
+    let out = run(
+        "identify --data {t}/good.mat --ts 1 --u-col note --json -",
+        d,
+    );
     assert_eq!(out.status.code(), Some(2));
     assert!(stderr(&out).contains("char array"), "{}", stderr(&out));
     assert!(out.stdout.is_empty());
@@ -549,11 +630,24 @@ fn mat_files_of_any_numeric_class_and_damaged_ones() {
     assert_eq!(stderr(&out).lines().count(), 1, "{}", stderr(&out));
 
     // A compressed 'u' of 10 000 doubles whose element claims 4 GB once inflated.
-    let big: Vec<u8> = (0..10_000).flat_map(|k| f64::from(k).to_le_bytes()).collect();
+    let big: Vec<u8> = (0..10_000)
+        .flat_map(|k| f64::from(k).to_le_bytes())
+        .collect();
     let mut bomb = mat_header();
-    bomb.extend(mat_compressed(&mat_matrix(6, 10_000, "u", 9, &big, Some(u32::MAX - 7))));
+    bomb.extend(mat_compressed(&mat_matrix(
+        6,
+        10_000,
+        "u",
+        9,
+        &big,
+        Some(u32::MAX - 7),
+    )));
     std::fs::write(d.join("bomb.mat"), &bomb).unwrap();
     let out = run("identify --data {t}/bomb.mat --ts 1", d);
     assert_eq!(out.status.code(), Some(2));
-    assert!(stderr(&out).contains("inflates to 4294967288 bytes"), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("inflates to 4294967288 bytes"),
+        "{}",
+        stderr(&out)
+    );
 }

@@ -84,7 +84,8 @@ impl Watch {
         let meta = now.metadata()?;
         if self.id.is_some() && identity(&meta) != self.id {
             return Err(stop(
-                "the followed file was replaced (deleted and created again, or renamed over)".into(),
+                "the followed file was replaced (deleted and created again, or renamed over)"
+                    .into(),
             ));
         }
         if meta.len() < self.read {
@@ -226,7 +227,12 @@ mod tests {
             std::thread::sleep(Duration::from_millis(100));
             std::fs::write(&p, "t,u\n").unwrap(); // shorter than what was read
         });
-        let reader = Follow::file(&path, Some(Duration::from_secs(5)), Duration::from_millis(10)).unwrap();
+        let reader = Follow::file(
+            &path,
+            Some(Duration::from_secs(5)),
+            Duration::from_millis(10),
+        )
+        .unwrap();
         let mut lines = BufReader::new(reader).lines();
         let mut err = None;
         for l in &mut lines {
@@ -255,7 +261,12 @@ mod tests {
             std::fs::write(&other, "t,u,y\n0,1,2\n0.01,1,2\n0.02,1,2\n").unwrap();
             std::fs::rename(&other, &p).unwrap();
         });
-        let reader = Follow::file(&path, Some(Duration::from_secs(5)), Duration::from_millis(10)).unwrap();
+        let reader = Follow::file(
+            &path,
+            Some(Duration::from_secs(5)),
+            Duration::from_millis(10),
+        )
+        .unwrap();
         let mut out = String::new();
         let e = BufReader::new(reader).read_to_string(&mut out).unwrap_err();
         writer.join().unwrap();
@@ -272,10 +283,19 @@ mod tests {
         let p = path.clone();
         let writer = std::thread::spawn(move || {
             std::thread::sleep(Duration::from_millis(100));
-            let mut f = std::fs::OpenOptions::new().write(true).truncate(true).open(&p).unwrap();
+            let mut f = std::fs::OpenOptions::new()
+                .write(true)
+                .truncate(true)
+                .open(&p)
+                .unwrap();
             f.write_all(b"t,u,y\n5,1,2\n5.01,1,2\n5.02,1,2\n").unwrap();
         });
-        let reader = Follow::file(&path, Some(Duration::from_secs(5)), Duration::from_millis(10)).unwrap();
+        let reader = Follow::file(
+            &path,
+            Some(Duration::from_secs(5)),
+            Duration::from_millis(10),
+        )
+        .unwrap();
         let mut out = String::new();
         let e = BufReader::new(reader).read_to_string(&mut out).unwrap_err();
         writer.join().unwrap();

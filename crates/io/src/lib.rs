@@ -507,9 +507,7 @@ pub fn claim_folder(dir: &Path, flag: &str, tool: &str) -> Result<(), OutputErro
     }
     write_atomic(
         &marker,
-        format!(
-            "This folder was written by `{tool}`; the next run into it replaces its files.\n"
-        )
-        .as_bytes(),
+        format!("This folder was written by `{tool}`; the next run into it replaces its files.\n")
+            .as_bytes(),
     )
 }

@@ -880,7 +880,8 @@ pub fn track_stream<R: BufRead, W: Write>(
     let mut pending_change = false;
     let mut change_points = Vec::new();
     // Time that jumps (samples missing, a clock reset forwards): warnings for the next line and the end.
-    let (mut time_jumps, mut new_time_warnings, mut time_warnings) = (0usize, Vec::new(), Vec::new());
+    let (mut time_jumps, mut new_time_warnings, mut time_warnings) =
+        (0usize, Vec::new(), Vec::new());
     loop {
         buf.clear();
         if input.read_until(b'\n', &mut buf).map_err(io_err)? == 0 {
@@ -991,7 +992,7 @@ fn check_time_step(
     name: &str,
 ) -> Result<Option<String>, SysidError> {
     let d = t - prev;
-    if !(d > 0.0) {
+    if d.is_nan() || d <= 0.0 {
         return Err(SysidError::Parse {
             file: name.to_string(),
             line: line_no,

@@ -191,7 +191,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let y = sysid::plant::run_open_loop(plant.as_mut(), &u).map_err(|e| e.to_string())?;
         Ok((u, y))
     };
-    let bar = progress_bar(args.runs as u64, "{bar:40} {pos}/{len} runs {elapsed} elapsed, about {eta} left");
+    let bar = progress_bar(
+        args.runs as u64,
+        "{bar:40} {pos}/{len} runs {elapsed} elapsed, about {eta} left",
+    );
     let report = study(&settings, truth.as_deref(), &experiment, &|| bar.inc(1))
         .context("Monte Carlo study")?;
     bar.finish_and_clear();

@@ -60,7 +60,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 path.display()
             );
         }
-        check_time_span(args.samples.unwrap_or(ipa::experiment::DEFAULT_SAMPLES), model.ts())?;
+        check_time_span(
+            args.samples.unwrap_or(ipa::experiment::DEFAULT_SAMPLES),
+            model.ts(),
+        )?;
         if model.inputs().len() > 1 {
             return run_miso(&args, &model, path);
         }

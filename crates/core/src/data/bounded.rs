@@ -12,7 +12,12 @@ use crate::SysidError;
 
 /// The bytes of `path`, at most `max` of them; `what` names the kind of file in the error (e.g.
 /// "a data file") and `advice` says what to do (e.g. "split the record").
-pub fn read_bounded(path: &Path, max: u64, what: &str, advice: &str) -> Result<Vec<u8>, SysidError> {
+pub fn read_bounded(
+    path: &Path,
+    max: u64,
+    what: &str,
+    advice: &str,
+) -> Result<Vec<u8>, SysidError> {
     read_bounded_checked(path, max, what, advice, |_| Ok(()))
 }
 
@@ -35,7 +40,11 @@ pub fn read_bounded_checked(
     };
     let file = std::fs::File::open(path).map_err(io)?;
     // The metadata length, when there is one, refuses a large regular file before it is read.
-    let known = file.metadata().ok().filter(|m| m.is_file()).map(|m| m.len());
+    let known = file
+        .metadata()
+        .ok()
+        .filter(|m| m.is_file())
+        .map(|m| m.len());
     if let Some(size) = known.filter(|&s| s > max) {
         return Err(too_large(path, max, what, advice, &format!("{size} bytes")));
     }

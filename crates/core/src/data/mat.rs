@@ -44,7 +44,11 @@ pub fn read_mat_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Rec
                 .into(),
         ));
     }
-    let wanted = [opts.u_col.as_str(), opts.y_col.as_str(), opts.t_col.as_str()];
+    let wanted = [
+        opts.u_col.as_str(),
+        opts.y_col.as_str(),
+        opts.t_col.as_str(),
+    ];
     let vars = parse(bytes, name, &wanted)?;
     let find = |var: &str| vars.iter().find(|v| v.name == var);
     let names = || {
@@ -312,7 +316,10 @@ impl<'a> Cursor<'a> {
                     "a small data element of {n} bytes (at most 4)"
                 )));
             }
-            let data = self.bytes.get(self.at..self.at + n).ok_or(Stop::Truncated)?;
+            let data = self
+                .bytes
+                .get(self.at..self.at + n)
+                .ok_or(Stop::Truncated)?;
             self.at += 4;
             return Ok((ty, data));
         }
@@ -471,7 +478,11 @@ fn compressed(
 
 /// A miMATRIX element (its tag included in `bytes`, which may end early): the array flags, dimensions
 /// and name, and the values when the name is in `wanted`. The error carries the name when it was read.
-fn matrix(bytes: &[u8], endian: Endian, wanted: &[&str]) -> Result<Variable, (Option<String>, Stop)> {
+fn matrix(
+    bytes: &[u8],
+    endian: Endian,
+    wanted: &[&str],
+) -> Result<Variable, (Option<String>, Stop)> {
     let mut outer = Cursor {
         bytes,
         at: 0,
@@ -482,7 +493,9 @@ fn matrix(bytes: &[u8], endian: Endian, wanted: &[&str]) -> Result<Variable, (Op
     if ty != MI_MATRIX {
         return Err((
             None,
-            Stop::Damaged(format!("an element of type {ty} where a matrix (14) was expected")),
+            Stop::Damaged(format!(
+                "an element of type {ty} where a matrix (14) was expected"
+            )),
         ));
     }
     let body = &bytes[8..bytes.len().min(8usize.saturating_add(n))];
@@ -562,7 +575,11 @@ fn matrix(bytes: &[u8], endian: Endian, wanted: &[&str]) -> Result<Variable, (Op
 
 /// The values of a numeric data element of storage type `ty` as f64 (`None`: not a numeric type).
 fn numbers(ty: u32, data: &[u8], endian: Endian) -> Option<Vec<f64>> {
-    fn conv<const N: usize>(data: &[u8], endian: Endian, f: impl Fn([u8; N], Endian) -> f64) -> Vec<f64> {
+    fn conv<const N: usize>(
+        data: &[u8],
+        endian: Endian,
+        f: impl Fn([u8; N], Endian) -> f64,
+    ) -> Vec<f64> {
         data.chunks_exact(N)
             .map(|c| {
                 let mut a = [0u8; N];

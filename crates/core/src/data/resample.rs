@@ -133,7 +133,7 @@ pub fn resample_record(
     // The grid size, bounded before anything is allocated (a tiny TS over a long record).
     if let (Some(&t0), Some(&tl)) = (t.first(), t.last()) {
         let m = ((tl - t0) / ts).floor() + 1.0;
-        if !(m <= super::MAX_SAMPLES as f64) {
+        if m.is_nan() || m > super::MAX_SAMPLES as f64 {
             return Err(SysidError::setting(
                 Setting::Other("--resample"),
                 ts,

@@ -171,10 +171,9 @@ impl FileId {
 
 /// FNV-1a, 64 bits, folded over the bits of `v`.
 fn fnv(hash: u64, v: f64) -> u64 {
-    v.to_bits()
-        .to_le_bytes()
-        .iter()
-        .fold(hash, |h, &b| (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3))
+    v.to_bits().to_le_bytes().iter().fold(hash, |h, &b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+    })
 }
 
 const FNV_OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
@@ -366,10 +365,7 @@ impl RecordSource for CsvStream {
         };
         let mut file = std::fs::File::open(&self.path).map_err(io)?;
         let file_id = FileId::of(&file.metadata().map_err(io)?);
-        if let Some(change) = self
-            .first_pass
-            .and_then(|f| file_id.change_from(&f.file))
-        {
+        if let Some(change) = self.first_pass.and_then(|f| file_id.change_from(&f.file)) {
             return Err(self.changed(&change));
         }
         let mut checksum = FNV_OFFSET;
@@ -561,7 +557,12 @@ mod tests {
     fn write_record(path: &Path, offset: f64) {
         let mut text = String::from("t,u,y\n");
         for k in 0..50 {
-            text.push_str(&format!("{},{},{}\n", k as f64 * 0.01, k % 3, offset + k as f64));
+            text.push_str(&format!(
+                "{},{},{}\n",
+                k as f64 * 0.01,
+                k % 3,
+                offset + k as f64
+            ));
         }
         std::fs::write(path, text).unwrap();
     }
@@ -597,7 +598,9 @@ mod tests {
         let mut s = CsvStream::open(&path, &CsvOptions::default()).unwrap();
         pass(&mut s).unwrap();
         let modified = std::fs::metadata(&path).unwrap().modified().unwrap();
-        let text = std::fs::read_to_string(&path).unwrap().replace(",2\n", ",7\n");
+        let text = std::fs::read_to_string(&path)
+            .unwrap()
+            .replace(",2\n", ",7\n");
         let f = std::fs::OpenOptions::new().write(true).open(&path).unwrap();
         use std::io::Write as _;
         (&f).write_all(text.as_bytes()).unwrap();

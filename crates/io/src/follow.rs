@@ -215,17 +215,19 @@ mod tests {
         assert!(start.elapsed() >= Duration::from_millis(600));
     }
 
-    // A file truncated and written again (log rotation by copy-truncate) stops the reader with an error
-    // that says so, instead of reading the new content from the old position.
-    #[test]
-    fn a_truncated_file_stops_the_reader() {
+    /// Follows a file holding `initial` while another thread applies `change` to it after 100 ms;
+    /// returns what was read and the error that stopped the reader.
+    fn follow_through(
+        initial: &str,
+        change: impl FnOnce(&std::path::Path) + Send + 'static,
+    ) -> (String, std::io::Error) {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("log.csv");
-        std::fs::write(&path, "t,u,y\n0,1,2\n0.01,1,2\n").unwrap();
+        std::fs::write(&path, initial).unwrap();
         let p = path.clone();
         let writer = std::thread::spawn(move || {
             std::thread::sleep(Duration::from_millis(100));
-            std::fs::write(&p, "t,u\n").unwrap(); // shorter than what was read
+            change(&p);
         });
         let reader = Follow::file(
             &path,
@@ -233,16 +235,19 @@ mod tests {
             Duration::from_millis(10),
         )
         .unwrap();
-        let mut lines = BufReader::new(reader).lines();
-        let mut err = None;
-        for l in &mut lines {
-            if let Err(e) = l {
-                err = Some(e);
-                break;
-            }
-        }
+        let mut out = String::new();
+        let e = BufReader::new(reader).read_to_string(&mut out).unwrap_err();
         writer.join().unwrap();
-        let e = err.expect("the truncation is an error");
+        (out, e)
+    }
+
+    // A file truncated and written again (log rotation by copy-truncate) stops the reader with an error
+    // that says so, instead of reading the new content from the old position.
+    #[test]
+    fn a_truncated_file_stops_the_reader() {
+        let (_, e) = follow_through("t,u,y\n0,1,2\n0.01,1,2\n", |p| {
+            std::fs::write(p, "t,u\n").unwrap(); // shorter than what was read
+        });
         assert_eq!(e.kind(), ErrorKind::InvalidData);
         assert!(e.to_string().contains("truncated"), "{e}");
     }
@@ -251,25 +256,11 @@ mod tests {
     #[cfg(unix)]
     #[test]
     fn a_recreated_file_stops_the_reader() {
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("log.csv");
-        std::fs::write(&path, "t,u,y\n0,1,2\n").unwrap();
-        let p = path.clone();
-        let writer = std::thread::spawn(move || {
-            std::thread::sleep(Duration::from_millis(100));
+        let (out, e) = follow_through("t,u,y\n0,1,2\n", |p| {
             let other = p.with_extension("new");
             std::fs::write(&other, "t,u,y\n0,1,2\n0.01,1,2\n0.02,1,2\n").unwrap();
-            std::fs::rename(&other, &p).unwrap();
+            std::fs::rename(&other, p).unwrap();
         });
-        let reader = Follow::file(
-            &path,
-            Some(Duration::from_secs(5)),
-            Duration::from_millis(10),
-        )
-        .unwrap();
-        let mut out = String::new();
-        let e = BufReader::new(reader).read_to_string(&mut out).unwrap_err();
-        writer.join().unwrap();
         assert!(e.to_string().contains("replaced"), "{e}");
         assert_eq!(out, "t,u,y\n0,1,2\n");
     }
@@ -277,28 +268,14 @@ mod tests {
     // Rewritten in place with new, longer content (same inode, larger size): the first bytes differ.
     #[test]
     fn a_rewritten_file_stops_the_reader() {
-        let dir = tempfile::tempdir().unwrap();
-        let path = dir.path().join("log.csv");
-        std::fs::write(&path, "t,u,y\n0,1,2\n").unwrap();
-        let p = path.clone();
-        let writer = std::thread::spawn(move || {
-            std::thread::sleep(Duration::from_millis(100));
+        let (_, e) = follow_through("t,u,y\n0,1,2\n", |p| {
             let mut f = std::fs::OpenOptions::new()
                 .write(true)
                 .truncate(true)
-                .open(&p)
+                .open(p)
                 .unwrap();
             f.write_all(b"t,u,y\n5,1,2\n5.01,1,2\n5.02,1,2\n").unwrap();
         });
-        let reader = Follow::file(
-            &path,
-            Some(Duration::from_secs(5)),
-            Duration::from_millis(10),
-        )
-        .unwrap();
-        let mut out = String::new();
-        let e = BufReader::new(reader).read_to_string(&mut out).unwrap_err();
-        writer.join().unwrap();
         // Between the truncation and the write the file may be seen empty (truncated): either is right.
         let m = e.to_string();
         assert!(m.contains("rewritten") || m.contains("truncated"), "{m}");

@@ -511,3 +511,32 @@ pub fn claim_folder(dir: &Path, flag: &str, tool: &str) -> Result<(), OutputErro
             .as_bytes(),
     )
 }
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod folder_tests {
+    use super::*;
+
+    // A missing folder is created and marked; a marked folder is accepted again (a second run replaces
+    // its own files); a folder of other files is refused and left as it was.
+    #[test]
+    fn only_new_empty_or_marked_folders_are_claimed() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("out");
+        claim_folder(&out, "--out", "test").unwrap();
+        assert!(out.join(FOLDER_MARKER).is_file());
+        std::fs::write(out.join("report.html"), "ours").unwrap();
+        claim_folder(&out, "--out", "test").unwrap();
+        let theirs = dir.path().join("theirs");
+        std::fs::create_dir(&theirs).unwrap();
+        std::fs::write(theirs.join("report.html"), "mine").unwrap();
+        let e = claim_folder(&theirs, "--out", "test")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("report.html"), "{e}");
+        assert!(!theirs.join(FOLDER_MARKER).exists());
+        let empty = dir.path().join("empty");
+        std::fs::create_dir(&empty).unwrap();
+        claim_folder(&empty, "--out", "test").unwrap();
+    }
+}

@@ -1,5 +1,23 @@
 //! MATLAB `.mat` records (`--data rec.mat`): Level 5 MAT-files, as written by MATLAB's `save` (default
-//! `-v7`, compressed, and `-v6`) and by `scipy.io.savemat`, read with the `matfile` crate.
+//! `-v7`, compressed, and `-v6`) and by `scipy.io.savemat`.
+//!
+//! The reader is this module's own: the subset of the MAT-File Format (MathWorks, "MAT-File Format",
+//! chapter 1, Level 5) that a record needs. It replaced the `matfile` crate (0.5, unmaintained), which
+//! printed to standard output on an unsupported element (so `--json -` emitted invalid JSON), printed
+//! raw debug lines on a damaged compressed element, inflated compressed elements without a bound (a 1 MB
+//! file could inflate to 1 GiB) and refused some integer classes. What is read:
+//! - a 128-byte header (text, version, the endian indicator `IM` or `MI`), then data elements, each an
+//!   8-byte tag (type, byte count; or the 4-byte "small element" form) and its data, padded to 8 bytes
+//!   except a compressed element;
+//! - a variable is a `miMATRIX` element (array flags with the class, dimensions, name, real part,
+//!   imaginary part when complex), or a zlib-compressed `miCOMPRESSED` element holding one;
+//! - the numeric classes (double, single, int8..uint64, logical) whatever storage type holds the values
+//!   (MATLAB stores doubles as small integers when they fit), converted to f64; other classes (char,
+//!   cell, struct, sparse, objects) are listed by name and refused when chosen;
+//! - only the variables asked for are inflated in full, after the size their element announces is
+//!   checked against [`super::MAX_SAMPLES`]; the others are inflated only far enough (64 KiB) to learn
+//!   their name;
+//! - a file that ends inside an element is reported as truncated, naming the variable when it is known.
 //!
 //! `--u-col` / `--y-col` / `--t-col` name variables: real numeric vectors (row or column, any numeric
 //! class, converted to f64). Ts comes from `--ts`, or from the time variable (uniform within 0.1 %, or

@@ -269,6 +269,7 @@ fn sigterm_during_a_write_leaves_no_temporary_file() {
                 .status();
             break;
         }
+        std::thread::sleep(std::time::Duration::from_millis(1));
     }
     let status = child.wait().unwrap();
     assert!(

@@ -117,9 +117,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let probe = ipa::plant_from_spec(&plant_spec, args.plant_config.as_deref())?;
     let ts_s = probe.ts();
     drop(probe);
-    // Check the input design (samples, amplitude, file) once, before any run: a bad flag is an error,
-    // not a study in which every run failed.
-    generate(&spec, args.samples, ts_s, args.amplitude, args.seed)?;
+    ipa::input::check_samples(args.samples)?;
     // The total work, bounded before anything runs (10 000 runs of 5 x 10^7 samples would take days).
     let work = (args.runs as u128) * (args.samples as u128) * (methods.len() as u128);
     if work > u128::from(args.max_work) {
@@ -136,6 +134,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             )
         ));
     }
+    // Check the input design (samples, amplitude, file) once, before any run: a bad flag is an error,
+    // not a study in which every run failed.
+    generate(&spec, args.samples, ts_s, args.amplitude, args.seed)?;
     let (kind, orders, offset) = match &truth_model {
         Some(m) => (m.kind(), m.orders(), m.offset().is_some()),
         None => (ModelKind::Hammerstein, Orders::PAPER, false),

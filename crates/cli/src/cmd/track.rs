@@ -1,19 +1,19 @@
 //! `ipa-sysid track`: the recursive estimator on samples as they arrive (standard input, a file being
 //! appended, a serial port), one JSON line every `--every` samples; change detection on the prediction
-//! errors. The logic is `sysid::online`; this module opens the source and maps flags.
+//! errors. The estimator is `sysid::online`; this module opens the source and maps flags, and
+//! `track_stream` reads the lines by `identify`'s CSV rules.
 
 use std::io::{BufReader, Write};
 use std::path::PathBuf;
 use std::time::Duration;
 
 use anyhow::Context;
-use sysid::online::{
-    track_stream, DeadzoneStart, DetectorSettings, StreamOptions, TrackSettings, Tracker,
-};
+use sysid::online::{DeadzoneStart, DetectorSettings, TrackSettings, Tracker};
 use sysid::windup::Windup;
 use sysid::{ModelKind, Orders};
 
 use super::common::check_outputs;
+use super::track_stream::{track_stream, StreamOptions};
 
 /// Flags of `track`.
 #[derive(Debug, clap::Args)]
@@ -126,9 +126,10 @@ pub struct Args {
     /// not alarm; 0 keeps H alone (docs/online.md).
     #[arg(long, value_name = "C", default_value_t = DetectorSettings::default().excursion_factor)]
     pub detect_excursion_factor: f64,
-    /// Write a summary at the end: final model, samples, change points.
-    #[arg(long, value_name = "FILE")]
-    pub json_summary: Option<PathBuf>,
+    /// Write a summary at the end as JSON (final model, samples, change points; `-` for standard
+    /// output). `--json-summary`, its former name, is still accepted.
+    #[arg(long = "json", alias = "json-summary", value_name = "FILE")]
+    pub json: Option<PathBuf>,
 }
 
 impl Args {
@@ -217,13 +218,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "give a source: --data FILE (- for standard input), --follow FILE or --serial PATH"
         );
     };
-    check_outputs(&[(&args.json_summary, "--json-summary")], &inputs)?;
+    check_outputs(&[(&args.json, "--json")], &inputs)?;
     let options = StreamOptions {
         name,
-        u_col: args.u_col.clone(),
-        y_col: args.y_col.clone(),
-        t_col: args.t_col.clone(),
-        ts: args.ts,
+        csv: sysid::data::CsvOptions {
+            u_col: args.u_col.clone(),
+            y_col: args.y_col.clone(),
+            t_col: args.t_col.clone(),
+            ts: args.ts,
+            ..sysid::data::CsvOptions::default()
+        },
         every: args.every,
     };
     let mut out = std::io::BufWriter::new(std::io::stdout().lock());
@@ -244,10 +248,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .collect::<Vec<_>>()
             .join(",")
     );
-    if let Some(path) = &args.json_summary {
+    if let Some(path) = &args.json {
         let mut text = serde_json::to_string_pretty(&summary).context("serialising the summary")?;
         text.push('\n');
-        super::common::write_output(path, text.as_bytes(), &inputs, "--json-summary")?;
+        super::common::write_output(path, text.as_bytes(), &inputs, "--json")?;
     }
     Ok(())
 }

@@ -23,12 +23,17 @@ pub(crate) struct Pending {
 }
 
 impl Pending {
-    /// Lists `path`.
-    pub(crate) fn register(path: &Path) -> Self {
-        pending().push(path.to_path_buf());
-        Pending {
-            path: path.to_path_buf(),
-        }
+    /// Creates a temporary file in `dir` with `builder` and lists it, with the list locked so that a
+    /// signal cannot come between the creation and the listing.
+    pub(crate) fn create(
+        builder: &tempfile::Builder<'_, '_>,
+        dir: &Path,
+    ) -> std::io::Result<(tempfile::NamedTempFile, Self)> {
+        let mut list = pending();
+        let tmp = builder.tempfile_in(dir)?;
+        list.push(tmp.path().to_path_buf());
+        let path = tmp.path().to_path_buf();
+        Ok((tmp, Pending { path }))
     }
 
     /// Renames `tmp` to `to` and unlists it, with the list locked so that a signal cannot come between.

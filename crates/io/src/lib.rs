@@ -186,9 +186,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
     if let Some(p) = permissions {
         builder.permissions(p);
     }
-    let tmp = builder.tempfile_in(dir).map_err(io)?;
-    let pending = cleanup::Pending::register(tmp.path());
-    let mut tmp = tmp;
+    let (mut tmp, pending) = cleanup::Pending::create(&builder, dir).map_err(io)?;
     if let Some(m) = &existing {
         keep_owner(tmp.as_file(), m).map_err(io)?;
     }

@@ -3,10 +3,16 @@ use ipa::calibrate::study::Study;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let seed: u64 = std::env::args().nth(1).map_or(Ok(1), |s| s.parse())?;
-    let study = Study {
+    let mut study = Study {
         seed,
         ..Study::default()
     };
+    if let Some(seg) = std::env::args().nth(2) {
+        study.calibration.segment_s = seg.parse()?;
+    }
+    if let Some(it) = std::env::args().nth(3) {
+        study.calibration.max_iterations = it.parse()?;
+    }
     let t = std::time::Instant::now();
     let c = study.case(0)?;
     let cal = &c.calibrated;

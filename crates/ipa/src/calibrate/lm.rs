@@ -3,6 +3,7 @@
 //! Minimises V(θ) = ½ ‖r(θ)‖² over lo <= θ <= hi (Moré 1978, Nocedal & Wright §10.3): the Jacobian J
 //! by forward differences, one column per parameter, computed in parallel (rayon); the step solves
 //! (JᵀJ + λ D) δ = −Jᵀr with D = diag(JᵀJ) (scale invariant, floored), is projected onto the box, and
+//! is scaled so that no coordinate moves by more than `max_step`,
 //! is accepted only when V decreases (λ / 3), else λ × 4 and the step is solved again with the same J.
 //! A failed simulation (NaN, numerical error) counts as an infinite V. The returned θ is never worse
 //! than the start.
@@ -67,6 +68,8 @@ pub struct Settings {
     pub tolerance: f64,
     /// Forward-difference step in θ.
     pub fd_step: f64,
+    /// Largest change of any coordinate of θ in one iteration.
+    pub max_step: f64,
 }
 
 fn cost(r: &[f64]) -> f64 {
@@ -156,10 +159,17 @@ where
             for i in 0..p {
                 a[(i, i)] += lambda * d[i];
             }
-            let Some(delta) = a.cholesky().map(|c| c.solve(&(-&g))) else {
+            let Some(mut delta) = a.cholesky().map(|c| c.solve(&(-&g))) else {
                 lambda *= 4.0;
                 continue;
             };
+            // Trust region in θ: no coordinate moves by more than `max_step` in one iteration (a
+            // step of 0.3 in ln is 35 %), so the search cannot jump into a far basin of the
+            // stick-slip cost.
+            let longest = delta.amax();
+            if longest > s.max_step {
+                delta *= s.max_step / longest;
+            }
             let trial: Vec<f64> = (0..p)
                 .map(|i| (theta[i] + delta[i]).clamp(lo[i], hi[i]))
                 .collect();
@@ -225,6 +235,7 @@ mod tests {
             max_iterations: 200,
             tolerance: 1e-14,
             fd_step: 1e-7,
+            max_step: 10.0,
         };
         let sol = minimise(&f, &[-1.2, 1.0], &[-5.0, -5.0], &[5.0, 5.0], &s);
         assert!((sol.theta[0] - 1.0).abs() < 1e-4 && (sol.theta[1] - 1.0).abs() < 1e-4, "{sol:?}");
@@ -238,6 +249,7 @@ mod tests {
             max_iterations: 50,
             tolerance: 1e-14,
             fd_step: 1e-7,
+            max_step: 10.0,
         };
         let sol = minimise(&f, &[0.5], &[0.0], &[2.0], &s);
         assert!((sol.theta[0] - 2.0).abs() < 1e-12, "{sol:?}");

@@ -74,6 +74,16 @@ impl Default for Columns {
     }
 }
 
+/// RMS position error over the segments, in encoder counts, above which the fit is called poor.
+const POOR_FIT_COUNTS: f64 = 10.0;
+
+/// Parameters held at their start in the first stage of the search.
+const SHAPE_PARAMETERS: [Parameter; 3] = [
+    Parameter::StribeckVelocity,
+    Parameter::OpeningDelay,
+    Parameter::ClosingDelay,
+];
+
 /// Fewest samples a record must have for calibration.
 pub const MIN_SAMPLES: usize = 50;
 
@@ -147,7 +157,7 @@ pub struct Calibration {
     pub start: PlantConfig,
     /// The parameters to estimate (default: [`Parameter::ALL`]).
     pub free: Vec<Parameter>,
-    /// Nominal length of a shooting segment, s (default 2 s); 0: one free run over the whole record.
+    /// Nominal length of a shooting segment, s (default 0.5 s); 0: one free run over the whole record.
     pub segment_s: f64,
     /// Scale s_y of the position error, mm (default 0.01, one encoder count).
     pub position_scale_mm: f64,
@@ -166,7 +176,7 @@ impl Default for Calibration {
         Calibration {
             start: PlantConfig::default(),
             free: Parameter::ALL.to_vec(),
-            segment_s: 2.0,
+            segment_s: 0.5,
             position_scale_mm: 0.01,
             pressure_scale_pa: 5000.0,
             max_iterations: 40,
@@ -239,6 +249,14 @@ pub enum CalibrationWarning {
     },
     /// Without pressures the record could not be cut into segments: one free run over the record.
     SingleSegment,
+    /// The twin's position error over the segments is far above the encoder resolution: the plant
+    /// does not reproduce the record (model mismatch, or the search stopped in a local minimum).
+    PoorFit {
+        /// RMS position error over the segments, mm.
+        rmse_mm: f64,
+        /// Encoder resolution, mm.
+        resolution_mm: f64,
+    },
 }
 
 impl std::fmt::Display for CalibrationWarning {
@@ -278,6 +296,13 @@ impl std::fmt::Display for CalibrationWarning {
             CalibrationWarning::SimulationFailed { record, message } => {
                 write!(f, "the twin's free run on the {record} record failed: {message}")
             }
+            CalibrationWarning::PoorFit { rmse_mm, resolution_mm } => write!(
+                f,
+                "the twin's RMS position error over the segments is {rmse_mm:.3} mm, more than {POOR_FIT_COUNTS} \
+                 encoder counts ({resolution_mm} mm): the plant does not reproduce the record (a mechanism the \
+                 model lacks, wrong fixed parameters, or a local minimum: start closer with --plant-config); \
+                 the standard deviations assume the model fits"
+            ),
             CalibrationWarning::SingleSegment => f.write_str(
                 "no rest states with known pressures to start segments from (record without pressure \
                  columns and no rest at u = 0): calibrated on one free run, which is less robust",
@@ -445,24 +470,32 @@ impl Calibration {
         if self.physical_start && self.free.contains(&Parameter::SupplyConductance) {
             start = self.scale_supply_conductance(start, rec, &segs);
         }
-        let coords = Coordinates::new(&self.free, &start);
-        let theta0 = coords.theta(&start);
-        let residual = |theta: &[f64]| -> Option<Vec<f64>> {
-            let cfg = coords.config(&start, theta);
-            cfg.validate().ok()?;
-            self.residuals(&cfg, rec, &segs).ok()
-        };
-        let sol = lm::minimise(
-            &residual,
-            &theta0,
-            &coords.lo,
-            &coords.hi,
-            &lm::Settings {
-                max_iterations: self.max_iterations,
-                tolerance: 1e-9,
-                fd_step: 1e-5,
-            },
-        );
+        // Stage 1: the friction shape (Stribeck velocity) and the valve delays stay at the start
+        // while the parameters that set speeds, forces and pressures settle; stage 2: every free
+        // parameter. The shape parameters matter only near rest, and moving them first lets the
+        // search run into a basin where a wrong breakaway force is compensated by a wrong shape.
+        let stage1: Vec<Parameter> = self
+            .free
+            .iter()
+            .copied()
+            .filter(|p| !SHAPE_PARAMETERS.contains(p))
+            .collect();
+        let mut stage_start = start.clone();
+        let mut first: Option<lm::Solution> = None;
+        if !stage1.is_empty() && stage1.len() < self.free.len() {
+            let (c1, s1) = self.search(&stage1, &start, rec, &segs, self.max_iterations.div_ceil(2));
+            stage_start = c1.config(&start, &s1.theta);
+            first = Some(s1);
+        }
+        let coords = Coordinates::new(&self.free, &stage_start);
+        let (_, mut sol) = self.search(&self.free, &stage_start, rec, &segs, self.max_iterations);
+        if let Some(s1) = first {
+            sol.iterations += s1.iterations;
+            sol.evaluations += s1.evaluations;
+            sol.start_cost = s1.start_cost;
+        }
+        let start_values_from = start.clone();
+        let start = stage_start;
         if sol.termination == Termination::StartFailed {
             return Err(IpaError::Numerical(
                 "the start plant cannot be simulated on the record (check the columns, units and --plant-config)"
@@ -470,7 +503,11 @@ impl Calibration {
             ));
         }
         let config = coords.config(&start, &sol.theta);
-        let (estimates, correlation) = self.uncertainty(&coords, &start, &sol);
+        let (mut estimates, correlation) = self.uncertainty(&coords, &start, &sol);
+        for e in &mut estimates {
+            e.start = e.parameter.get(&start_values_from);
+        }
+        let start = start_values_from;
         let per_sample = if rec.pressures.is_some() { 3 } else { 1 };
         let segment_rmse_mm = self
             .residuals(&config, rec, &segs)
@@ -479,6 +516,13 @@ impl Calibration {
                 self.position_scale_mm * (pos.iter().map(|x| x * x).sum::<f64>() / pos.len().max(1) as f64).sqrt()
             })
             .unwrap_or(f64::NAN);
+        let resolution_mm = config.encoder.resolution_mm;
+        if !(segment_rmse_mm <= POOR_FIT_COUNTS * resolution_mm) {
+            warnings.push(CalibrationWarning::PoorFit {
+                rmse_mm: segment_rmse_mm,
+                resolution_mm,
+            });
+        }
         // Warnings on the estimates.
         for e in &estimates {
             let rel = e.std.map(|s| s / e.value.abs().max(1e-12));
@@ -565,6 +609,37 @@ impl Calibration {
             validation: validation_twin,
             warnings,
         })
+    }
+
+    /// One Levenberg–Marquardt search over `free` from `start`.
+    fn search(
+        &self,
+        free: &[Parameter],
+        start: &PlantConfig,
+        rec: &Record,
+        segs: &[(usize, usize)],
+        max_iterations: usize,
+    ) -> (Coordinates, lm::Solution) {
+        let coords = Coordinates::new(free, start);
+        let theta0 = coords.theta(start);
+        let residual = |theta: &[f64]| -> Option<Vec<f64>> {
+            let cfg = coords.config(start, theta);
+            cfg.validate().ok()?;
+            self.residuals(&cfg, rec, segs).ok()
+        };
+        let sol = lm::minimise(
+            &residual,
+            &theta0,
+            &coords.lo,
+            &coords.hi,
+            &lm::Settings {
+                max_iterations,
+                tolerance: 1e-9,
+                fd_step: 1e-5,
+                max_step: 0.3,
+            },
+        );
+        (coords, sol)
     }
 
     fn check(&self, rec: &Record) -> Result<(), IpaError> {

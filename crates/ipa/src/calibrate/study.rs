@@ -54,6 +54,8 @@ pub struct StudyCase {
     pub relative_errors: Vec<f64>,
     /// Whether the calibration reported each free parameter as determined (no warning naming it).
     pub determined: Vec<bool>,
+    /// Wall-clock time of the calibration, s.
+    pub seconds: f64,
 }
 
 /// A plant with the free parameters of the default drawn uniformly within ±spread of their defaults
@@ -102,7 +104,9 @@ impl Study {
         let truth = perturbed_plant(seed, self.spread);
         let est = record(&truth, InputSpec::Calibration, self.estimation_samples, seed)?;
         let val = record(&truth, InputSpec::Staircase, self.validation_samples, seed + 1000)?;
+        let started = std::time::Instant::now();
         let calibrated = self.calibration.fit(&est, Some(&val))?;
+        let seconds = started.elapsed().as_secs_f64();
         let relative_errors = calibrated
             .estimates
             .iter()
@@ -128,6 +132,12 @@ impl Study {
             calibrated,
             relative_errors,
             determined,
+            seconds,
         })
+    }
+
+    /// Runs every plant of the study, in order.
+    pub fn run(&self) -> Result<Vec<StudyCase>, IpaError> {
+        (0..self.plants).map(|i| self.case(i)).collect()
     }
 }

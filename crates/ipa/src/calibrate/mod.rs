@@ -74,6 +74,16 @@ impl Default for Columns {
     }
 }
 
+/// Parameters of the first stage of plan C: those that set speeds, forces and pressures.
+const CORE_PARAMETERS: [Parameter; 6] = [
+    Parameter::SupplyConductance,
+    Parameter::ExhaustConductance,
+    Parameter::MovingMass,
+    Parameter::DeadVolumeCap,
+    Parameter::DeadVolumeRod,
+    Parameter::ExternalForce,
+];
+
 /// RMS position error over the segments, in encoder counts, above which the fit is called poor.
 const POOR_FIT_COUNTS: f64 = 10.0;
 
@@ -470,30 +480,75 @@ impl Calibration {
         if self.physical_start && self.free.contains(&Parameter::SupplyConductance) {
             start = self.scale_supply_conductance(start, rec, &segs);
         }
-        // Stage 1: the friction shape (Stribeck velocity) and the valve delays stay at the start
-        // while the parameters that set speeds, forces and pressures settle; stage 2: every free
-        // parameter. The shape parameters matter only near rest, and moving them first lets the
+        // Plan A. Stage 1: the friction shape (Stribeck velocity) and the valve delays stay at the
+        // start while the parameters that set speeds, forces and pressures settle; stage 2: every
+        // free parameter. The shape parameters matter only near rest, and moving them first lets the
         // search run into a basin where a wrong breakaway force is compensated by a wrong shape.
-        let stage1: Vec<Parameter> = self
+        // When the cost stays above 10 times the quantisation floor (a local minimum, or a plant
+        // that does not fit), plan B restarts from the best point with the shape parameters back at
+        // their start, and plan C stages from the start again with first only the conductances,
+        // mass, dead volumes and external force. The lowest cost wins.
+        let without_shape: Vec<Parameter> = self
             .free
             .iter()
             .copied()
             .filter(|p| !SHAPE_PARAMETERS.contains(p))
             .collect();
-        let mut stage_start = start.clone();
-        let mut first: Option<lm::Solution> = None;
-        if !stage1.is_empty() && stage1.len() < self.free.len() {
-            let (c1, s1) = self.search(&stage1, &start, rec, &segs, self.max_iterations.div_ceil(2));
-            stage_start = c1.config(&start, &s1.theta);
-            first = Some(s1);
+        let core: Vec<Parameter> = self
+            .free
+            .iter()
+            .copied()
+            .filter(|p| CORE_PARAMETERS.contains(p))
+            .collect();
+        let floor = self.cost_floor(&segs);
+        let (mut iterations, mut evaluations) = (0, 0);
+        // Runs the stages `first` (each skipped when empty or the whole free set), then one search
+        // over every free parameter; V at the plan's start is kept as start_cost.
+        let mut run_plan = |first: &[&[Parameter]], from: &PlantConfig| -> lm::Solution {
+            let mut cfg = from.clone();
+            let mut first_cost = None;
+            for stage in first {
+                if stage.is_empty() || stage.len() == self.free.len() {
+                    continue;
+                }
+                let (c, sol) =
+                    self.search(stage, &cfg, rec, &segs, self.max_iterations.div_ceil(2));
+                iterations += sol.iterations;
+                evaluations += sol.evaluations;
+                first_cost.get_or_insert(sol.start_cost);
+                cfg = c.config(&cfg, &sol.theta);
+            }
+            let (_, mut sol) = self.search(&self.free, &cfg, rec, &segs, self.max_iterations);
+            iterations += sol.iterations;
+            evaluations += sol.evaluations;
+            sol.start_cost = first_cost.unwrap_or(sol.start_cost);
+            sol
+        };
+        let mut sol = run_plan(&[&without_shape], &start);
+        let start_cost = sol.start_cost;
+        if sol.termination != Termination::StartFailed && sol.cost > 10.0 * floor {
+            let coords = Coordinates::new(&self.free, &start);
+            let mut from = coords.config(&start, &sol.theta);
+            for p in SHAPE_PARAMETERS.iter().filter(|p| self.free.contains(p)) {
+                p.set(&mut from, p.get(&start));
+            }
+            from.friction.coulomb_n = from.friction.coulomb_n.min(from.friction.static_n);
+            let b = run_plan(&[], &from);
+            if b.cost < sol.cost {
+                sol = b;
+            }
         }
-        let coords = Coordinates::new(&self.free, &stage_start);
-        let (_, mut sol) = self.search(&self.free, &stage_start, rec, &segs, self.max_iterations);
-        if let Some(s1) = first {
-            sol.iterations += s1.iterations;
-            sol.evaluations += s1.evaluations;
-            sol.start_cost = s1.start_cost;
+        if sol.termination != Termination::StartFailed && sol.cost > 10.0 * floor {
+            let c = run_plan(&[&core, &without_shape], &start);
+            if c.cost < sol.cost {
+                sol = c;
+            }
         }
+        sol.start_cost = start_cost;
+        sol.iterations = iterations;
+        sol.evaluations = evaluations;
+        let coords = Coordinates::new(&self.free, &start);
+        let stage_start = start.clone();
         let start_values_from = start.clone();
         let start = stage_start;
         if sol.termination == Termination::StartFailed {
@@ -609,6 +664,14 @@ impl Calibration {
             validation: validation_twin,
             warnings,
         })
+    }
+
+    /// V of a plant that reproduces the record up to the encoder quantisation alone: ½ Σ (q²/12) / s_y²
+    /// over the position residuals (pressure noise unknown, not counted).
+    fn cost_floor(&self, segs: &[(usize, usize)]) -> f64 {
+        let m: usize = segs.iter().map(|(a, b)| b - a - 1).sum();
+        let q = self.start.encoder.resolution_mm / self.position_scale_mm;
+        0.5 * m as f64 * q * q / 12.0
     }
 
     /// One Levenberg–Marquardt search over `free` from `start`.

@@ -1,4 +1,5 @@
-//! One plant of the calibration study, printed: `cargo run --release -p ipa --example calibrate_one -- SEED`.
+//! One plant of the calibration study, printed (estimates against the truth, time, fits):
+//! `cargo run --release -p ipa --example calibrate_one -- SEED [SEGMENT_S [MAX_ITERATIONS [SAMPLES]]]`.
 use ipa::calibrate::study::Study;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
@@ -12,6 +13,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     if let Some(it) = std::env::args().nth(3) {
         study.calibration.max_iterations = it.parse()?;
+    }
+    if let Some(n) = std::env::args().nth(4) {
+        study.estimation_samples = n.parse()?;
     }
     let t = std::time::Instant::now();
     let c = study.case(0)?;

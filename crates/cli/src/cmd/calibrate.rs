@@ -311,6 +311,7 @@ fn report_json(t: &Calibrated, b: Option<&Baseline>, seconds: f64) -> serde_json
         "termination": t.termination.to_string(),
         "cost_start": t.cost_start,
         "cost": t.cost,
+        "cost_floor": t.cost_floor,
         "segment_rmse_mm": nan_to_null(t.segment_rmse_mm),
         "fit_estimation_start_percent": fit(&t.estimation_start),
         "fit_estimation_percent": fit(&t.estimation),
@@ -379,7 +380,7 @@ fn study_table(study: &Study, rows: &[ipa::calibrate::study::StudyCase]) -> Stri
         study.estimation_samples,
         study.validation_samples
     );
-    s.push_str("seed  val.fit start  val.fit twin  max err (determined)  undetermined  seconds\n");
+    s.push_str("seed  val.fit start  val.fit twin  V/floor  max err (determined)  undetermined  seconds\n");
     for c in rows {
         let max_det = c
             .relative_errors
@@ -397,10 +398,11 @@ fn study_table(study: &Study, rows: &[ipa::calibrate::study::StudyCase]) -> Stri
             .map(|(e, _)| e.parameter.name())
             .collect();
         s.push_str(&format!(
-            "{:>4}  {:>13}  {:>12}  {:>19.3} %  {}  {:.1}\n",
+            "{:>4}  {:>13}  {:>12}  {:>7.1}  {:>18.3} %  {}  {:.1}\n",
             c.seed,
             fmt_fit(fit(&c.calibrated.validation_start)),
             fmt_fit(fit(&c.calibrated.validation)),
+            c.calibrated.cost / c.calibrated.cost_floor,
             100.0 * max_det,
             if undetermined.is_empty() { "-".to_string() } else { undetermined.join(",") },
             c.seconds

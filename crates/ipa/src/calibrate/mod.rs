@@ -84,6 +84,9 @@ const CORE_PARAMETERS: [Parameter; 6] = [
     Parameter::ExternalForce,
 ];
 
+/// V above this many quantisation floors starts the restarts (plans B, C) and, at the end, a warning.
+const RESTART_FLOOR_RATIO: f64 = 3.0;
+
 /// RMS position error over the segments, in encoder counts, above which the fit is called poor.
 const POOR_FIT_COUNTS: f64 = 10.0;
 
@@ -259,6 +262,12 @@ pub enum CalibrationWarning {
     },
     /// Without pressures the record could not be cut into segments: one free run over the record.
     SingleSegment,
+    /// V stayed above 3 times the quantisation floor after the restarts: measurement noise, a mechanism
+    /// the plant lacks, or a local minimum; the standard deviations are then optimistic.
+    AboveFloor {
+        /// V / floor.
+        ratio: f64,
+    },
     /// The twin's position error over the segments is far above the encoder resolution: the plant
     /// does not reproduce the record (model mismatch, or the search stopped in a local minimum).
     PoorFit {
@@ -306,6 +315,12 @@ impl std::fmt::Display for CalibrationWarning {
             CalibrationWarning::SimulationFailed { record, message } => {
                 write!(f, "the twin's free run on the {record} record failed: {message}")
             }
+            CalibrationWarning::AboveFloor { ratio } => write!(
+                f,
+                "the simulation error is {ratio:.1} times what encoder quantisation alone gives: measurement \
+                 noise, a mechanism the plant lacks, or a local minimum of the search; the standard \
+                 deviations are optimistic"
+            ),
             CalibrationWarning::PoorFit { rmse_mm, resolution_mm } => write!(
                 f,
                 "the twin's RMS position error over the segments is {rmse_mm:.3} mm, more than {POOR_FIT_COUNTS} \
@@ -351,6 +366,8 @@ pub struct Calibrated {
     pub cost_start: f64,
     /// V at the estimate.
     pub cost: f64,
+    /// V of a twin that reproduces the record up to the encoder quantisation alone.
+    pub cost_floor: f64,
     /// RMS position error over the segments at the estimate, mm.
     pub segment_rmse_mm: f64,
     /// Levenberg–Marquardt iterations and simulations of the record.
@@ -484,7 +501,7 @@ impl Calibration {
         // start while the parameters that set speeds, forces and pressures settle; stage 2: every
         // free parameter. The shape parameters matter only near rest, and moving them first lets the
         // search run into a basin where a wrong breakaway force is compensated by a wrong shape.
-        // When the cost stays above 10 times the quantisation floor (a local minimum, or a plant
+        // When the cost stays above 3 times the quantisation floor (a local minimum, or a plant
         // that does not fit), plan B restarts from the best point with the shape parameters back at
         // their start, and plan C stages from the start again with first only the conductances,
         // mass, dead volumes and external force. The lowest cost wins.
@@ -526,7 +543,7 @@ impl Calibration {
         };
         let mut sol = run_plan(&[&without_shape], &start);
         let start_cost = sol.start_cost;
-        if sol.termination != Termination::StartFailed && sol.cost > 10.0 * floor {
+        if sol.termination != Termination::StartFailed && sol.cost > RESTART_FLOOR_RATIO * floor {
             let coords = Coordinates::new(&self.free, &start);
             let mut from = coords.config(&start, &sol.theta);
             for p in SHAPE_PARAMETERS.iter().filter(|p| self.free.contains(p)) {
@@ -538,7 +555,7 @@ impl Calibration {
                 sol = b;
             }
         }
-        if sol.termination != Termination::StartFailed && sol.cost > 10.0 * floor {
+        if sol.termination != Termination::StartFailed && sol.cost > RESTART_FLOOR_RATIO * floor {
             let c = run_plan(&[&core, &without_shape], &start);
             if c.cost < sol.cost {
                 sol = c;
@@ -571,6 +588,11 @@ impl Calibration {
                 self.position_scale_mm * (pos.iter().map(|x| x * x).sum::<f64>() / pos.len().max(1) as f64).sqrt()
             })
             .unwrap_or(f64::NAN);
+        if sol.cost > RESTART_FLOOR_RATIO * floor {
+            warnings.push(CalibrationWarning::AboveFloor {
+                ratio: sol.cost / floor.max(1e-300),
+            });
+        }
         let resolution_mm = config.encoder.resolution_mm;
         if !(segment_rmse_mm <= POOR_FIT_COUNTS * resolution_mm) {
             warnings.push(CalibrationWarning::PoorFit {
@@ -654,6 +676,7 @@ impl Calibration {
             used_pressures: rec.pressures.is_some(),
             cost_start: sol.start_cost,
             cost: sol.cost,
+            cost_floor: floor,
             segment_rmse_mm,
             iterations: sol.iterations,
             evaluations: sol.evaluations,

@@ -52,7 +52,8 @@ pub struct StudyCase {
     /// Relative error |estimate − truth| / |truth| of every free parameter (external force: relative
     /// to the true static friction, as it may be near 0), in the order of the free set.
     pub relative_errors: Vec<f64>,
-    /// Whether the calibration reported each free parameter as determined (no warning naming it).
+    /// Whether the calibration reported each free parameter as determined (no warning naming it, and
+    /// no warning that the search stayed above the quantisation floor).
     pub determined: Vec<bool>,
     /// Wall-clock time of the calibration, s.
     pub seconds: f64,
@@ -122,6 +123,7 @@ impl Study {
                     CalibrationWarning::Correlated { a, b, .. } => {
                         *a == e.parameter || *b == e.parameter
                     }
+                    CalibrationWarning::AboveFloor { .. } | CalibrationWarning::PoorFit { .. } => true,
                     _ => false,
                 })
             })

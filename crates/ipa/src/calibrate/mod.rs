@@ -291,13 +291,18 @@ impl std::fmt::Display for CalibrationWarning {
                 )),
                 parameter.experiment()
             ),
-            CalibrationWarning::Correlated { a, b, rho } => write!(
-                f,
-                "{a} and {b} are correlated (rho = {rho:.3}): the record determines a combination of them, \
-                 not each. Experiment that separates them: {}; {}",
-                a.experiment(),
-                b.experiment()
-            ),
+            CalibrationWarning::Correlated { a, b, rho } => {
+                write!(
+                    f,
+                    "{a} and {b} are correlated (rho = {rho:.3}): the record determines a combination of \
+                     them, not each. Experiment that separates them: {}",
+                    a.experiment()
+                )?;
+                if b.experiment() != a.experiment() {
+                    write!(f, "; {}", b.experiment())?;
+                }
+                Ok(())
+            }
             CalibrationWarning::AtBound { parameter } => write!(
                 f,
                 "{parameter} stopped at a bound of its physical range ({}); the record may not determine it \

@@ -495,3 +495,19 @@ fn bode_matches_the_closed_form_of_a_first_order_model() {
         );
     }
 }
+
+// The residual figure: the 99 % band is one legend entry (both bounds one series), the legend sits once
+// (bottom panel), and no model label is listed twice.
+#[test]
+fn the_residual_band_has_one_legend_entry_and_one_style() {
+    let (dir, _) = run_once("ipa");
+    let svg = std::fs::read_to_string(dir.join("figures/residuals.svg")).unwrap();
+    let entries = legend_entries(&svg);
+    let band = entries.iter().filter(|(l, _)| l.contains("99 %")).count();
+    assert_eq!(band, 1, "legend entries: {entries:?}");
+    let mut labels: Vec<&String> = entries.iter().map(|(l, _)| l).collect();
+    let n = labels.len();
+    labels.sort();
+    labels.dedup();
+    assert_eq!(labels.len(), n, "a label listed twice: {entries:?}");
+}

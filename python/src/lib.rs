@@ -1038,7 +1038,10 @@ fn calibrate<'py>(
     out.set_item("fit_validation_percent", fit(&twin.validation))?;
     out.set_item(
         "warnings",
-        twin.warnings.iter().map(ToString::to_string).collect::<Vec<_>>(),
+        twin.warnings
+            .iter()
+            .map(ToString::to_string)
+            .collect::<Vec<_>>(),
     )?;
     out.set_item("toml", twin.config.to_commented_toml())?;
     Ok(out)

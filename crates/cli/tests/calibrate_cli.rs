@@ -27,12 +27,24 @@ fn calibrate_recovers_a_known_plant_and_writes_a_usable_plant_config() {
         "[load]\nmoving_mass_kg = 0.72\n[valve]\nsupply_conductance_dm3_s_bar = 0.12\n",
     )
     .unwrap();
-    for (input, seed, out) in [("calibration", "1", "est.csv"), ("staircase", "2", "val.csv")] {
+    for (input, seed, out) in [
+        ("calibration", "1", "est.csv"),
+        ("staircase", "2", "val.csv"),
+    ] {
         let o = run(
             p,
             &[
-                "simulate", "--plant-config", "truth.toml", "--input", input, "--samples", "1000",
-                "--seed", seed, "--out", out,
+                "simulate",
+                "--plant-config",
+                "truth.toml",
+                "--input",
+                input,
+                "--samples",
+                "1000",
+                "--seed",
+                seed,
+                "--out",
+                out,
             ],
         );
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -40,15 +52,27 @@ fn calibrate_recovers_a_known_plant_and_writes_a_usable_plant_config() {
     let o = run(
         p,
         &[
-            "calibrate", "--data", "est.csv", "--validation", "val.csv", "--free",
-            "moving_mass,supply_conductance", "--out", "twin.toml", "--json", "twin.json",
+            "calibrate",
+            "--data",
+            "est.csv",
+            "--validation",
+            "val.csv",
+            "--free",
+            "moving_mass,supply_conductance",
+            "--out",
+            "twin.toml",
+            "--json",
+            "twin.json",
         ],
     );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let text = String::from_utf8_lossy(&o.stdout);
     assert!(text.contains("best Hammerstein model"), "{text}");
     let cfg = ipa::PlantConfig::from_toml_file(&p.join("twin.toml")).unwrap();
-    assert!((cfg.load.moving_mass_kg / 0.72 - 1.0).abs() < 0.02, "{cfg:?}");
+    assert!(
+        (cfg.load.moving_mass_kg / 0.72 - 1.0).abs() < 0.02,
+        "{cfg:?}"
+    );
     assert!((cfg.valve.supply_conductance_dm3_s_bar / 0.12 - 1.0).abs() < 0.02);
     let j: serde_json::Value =
         serde_json::from_slice(&std::fs::read(p.join("twin.json")).unwrap()).unwrap();
@@ -58,7 +82,15 @@ fn calibrate_recovers_a_known_plant_and_writes_a_usable_plant_config() {
     assert!(j["warnings"].is_array());
     let o = run(
         p,
-        &["simulate", "--plant-config", "twin.toml", "--samples", "50", "--out", "s.csv"],
+        &[
+            "simulate",
+            "--plant-config",
+            "twin.toml",
+            "--samples",
+            "50",
+            "--out",
+            "s.csv",
+        ],
     );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
@@ -70,7 +102,18 @@ fn bad_calibrate_input_is_refused_clearly() {
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path();
     std::fs::write(p.join("r.csv"), "t,u,pos\n0,0,1\n").unwrap();
-    let o = run(p, &["calibrate", "--data", "r.csv", "--free", "mass", "--out", "o.toml"]);
+    let o = run(
+        p,
+        &[
+            "calibrate",
+            "--data",
+            "r.csv",
+            "--free",
+            "mass",
+            "--out",
+            "o.toml",
+        ],
+    );
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("moving_mass"));
     let o = run(p, &["calibrate", "--data", "r.csv", "--out", "o.toml"]);
@@ -80,5 +123,8 @@ fn bad_calibrate_input_is_refused_clearly() {
     let o = run(p, &["calibrate", "--data", "r.csv", "--out", "r.csv"]);
     assert_eq!(o.status.code(), Some(2));
     assert!(!p.join("o.toml").exists());
-    assert_eq!(std::fs::read_to_string(p.join("r.csv")).unwrap(), "t,u,pos\n0,0,1\n");
+    assert_eq!(
+        std::fs::read_to_string(p.join("r.csv")).unwrap(),
+        "t,u,pos\n0,0,1\n"
+    );
 }

@@ -43,7 +43,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             c.determined[i]
         );
     }
-    let f = |r: &Option<ipa::calibrate::FreeRun>| r.as_ref().and_then(|r| r.fit_percent).unwrap_or(f64::NAN);
+    let f = |r: &Option<ipa::calibrate::FreeRun>| {
+        r.as_ref().and_then(|r| r.fit_percent).unwrap_or(f64::NAN)
+    };
     println!(
         "fit est start {:.2} twin {:.2}; val start {:.2} twin {:.2}",
         f(&cal.estimation_start),

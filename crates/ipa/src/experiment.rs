@@ -8,8 +8,8 @@ use std::path::PathBuf;
 use sysid_core::{Plant, Setting, SysidError};
 
 use crate::input::{
-    calibration_experiment_observed, staircase_experiment, staircase_experiment_observed, InputSpec,
-    StaircaseDesign,
+    calibration_experiment_observed, staircase_experiment, staircase_experiment_observed,
+    InputSpec, StaircaseDesign,
 };
 use crate::{Ipa, IpaError, PlantConfig, PlantSpec};
 

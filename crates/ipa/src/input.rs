@@ -50,7 +50,8 @@ pub enum InputSpec {
 /// Sample at which `step:LEVEL` steps when no `@K` is given.
 pub const DEFAULT_STEP_ONSET: usize = 10;
 
-const SPEC_HELP: &str = "staircase, calibration, prbs, aprbs, multisine, step:LEVEL[@SAMPLE] or file:CSV";
+const SPEC_HELP: &str =
+    "staircase, calibration, prbs, aprbs, multisine, step:LEVEL[@SAMPLE] or file:CSV";
 
 impl FromStr for InputSpec {
     type Err = IpaError;

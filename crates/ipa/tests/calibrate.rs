@@ -38,8 +38,16 @@ fn reduced_study_recovers_every_determined_parameter_within_two_percent() {
             }
         }
         let twin = cal.validation.as_ref().and_then(|r| r.fit_percent).unwrap();
-        let start = cal.validation_start.as_ref().and_then(|r| r.fit_percent).unwrap();
-        assert!(twin > start, "seed {}: twin {twin} vs start {start}", case.seed);
+        let start = cal
+            .validation_start
+            .as_ref()
+            .and_then(|r| r.fit_percent)
+            .unwrap();
+        assert!(
+            twin > start,
+            "seed {}: twin {twin} vs start {start}",
+            case.seed
+        );
         // Most of the parameters are determined (all but the delay pair at most).
         assert!(
             case.determined.iter().filter(|d| **d).count() >= 10,
@@ -69,8 +77,15 @@ fn a_twin_worse_than_its_start_is_never_silent() {
     .unwrap();
     assert!(cal.cost <= cal.cost_start);
     let twin = cal.validation.as_ref().and_then(|r| r.fit_percent).unwrap();
-    let start = cal.validation_start.as_ref().and_then(|r| r.fit_percent).unwrap();
-    assert!(start > 99.9, "the start is the plant of the validation record: {start}");
+    let start = cal
+        .validation_start
+        .as_ref()
+        .and_then(|r| r.fit_percent)
+        .unwrap();
+    assert!(
+        start > 99.9,
+        "the start is the plant of the validation record: {start}"
+    );
     assert!(twin < start);
     assert!(
         cal.warnings.iter().any(|w| matches!(
@@ -106,7 +121,12 @@ fn the_truth_is_a_fixed_point() {
     .unwrap();
     for e in &cal.estimates {
         let t = e.parameter.get(&truth);
-        assert!((e.value - t).abs() < 2e-3 * t, "{}: {} vs {t}", e.parameter, e.value);
+        assert!(
+            (e.value - t).abs() < 2e-3 * t,
+            "{}: {} vs {t}",
+            e.parameter,
+            e.value
+        );
     }
 }
 

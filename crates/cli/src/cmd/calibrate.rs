@@ -380,7 +380,9 @@ fn study_table(study: &Study, rows: &[ipa::calibrate::study::StudyCase]) -> Stri
         study.estimation_samples,
         study.validation_samples
     );
-    s.push_str("seed  val.fit start  val.fit twin  V/floor  max err (determined)  undetermined  seconds\n");
+    s.push_str(
+        "seed  val.fit start  val.fit twin  V/floor  max err (determined)  undetermined  seconds\n",
+    );
     for c in rows {
         let max_det = c
             .relative_errors
@@ -404,18 +406,27 @@ fn study_table(study: &Study, rows: &[ipa::calibrate::study::StudyCase]) -> Stri
             fmt_fit(fit(&c.calibrated.validation)),
             c.calibrated.cost / c.calibrated.cost_floor,
             100.0 * max_det,
-            if undetermined.is_empty() { "-".to_string() } else { undetermined.join(",") },
+            if undetermined.is_empty() {
+                "-".to_string()
+            } else {
+                undetermined.join(",")
+            },
             c.seconds
         ));
     }
-    s.push_str("\nparameter              determined in  max error when determined  max error overall\n");
+    s.push_str(
+        "\nparameter              determined in  max error when determined  max error overall\n",
+    );
     for (i, p) in free.iter().enumerate() {
         let det: Vec<f64> = rows
             .iter()
             .filter(|c| c.determined[i])
             .map(|c| c.relative_errors[i])
             .collect();
-        let all = rows.iter().map(|c| c.relative_errors[i]).fold(0.0f64, f64::max);
+        let all = rows
+            .iter()
+            .map(|c| c.relative_errors[i])
+            .fold(0.0f64, f64::max);
         s.push_str(&format!(
             "{:<22} {:>6} of {:<4}  {:>23}  {:>16.3} %\n",
             p.name(),
@@ -429,7 +440,10 @@ fn study_table(study: &Study, rows: &[ipa::calibrate::study::StudyCase]) -> Stri
             100.0 * all
         ));
     }
-    let fits: Vec<f64> = rows.iter().filter_map(|c| fit(&c.calibrated.validation)).collect();
+    let fits: Vec<f64> = rows
+        .iter()
+        .filter_map(|c| fit(&c.calibrated.validation))
+        .collect();
     if !fits.is_empty() {
         let min = fits.iter().fold(f64::INFINITY, |a, &b| a.min(b));
         let mut sorted = fits.clone();

@@ -151,7 +151,9 @@ where
         let jtj = &jt * &j;
         let g = &jt * DVector::from_column_slice(&r);
         let dmax = (0..p).map(|i| jtj[(i, i)]).fold(0.0f64, f64::max);
-        let d: Vec<f64> = (0..p).map(|i| jtj[(i, i)].max(1e-9 * dmax).max(1e-300)).collect();
+        let d: Vec<f64> = (0..p)
+            .map(|i| jtj[(i, i)].max(1e-9 * dmax).max(1e-300))
+            .collect();
         jac = Some(j);
         let mut accepted = false;
         while lambda < 1e12 {
@@ -173,7 +175,9 @@ where
             let trial: Vec<f64> = (0..p)
                 .map(|i| (theta[i] + delta[i]).clamp(lo[i], hi[i]))
                 .collect();
-            let step = (0..p).map(|i| (trial[i] - theta[i]).abs()).fold(0.0, f64::max);
+            let step = (0..p)
+                .map(|i| (trial[i] - theta[i]).abs())
+                .fold(0.0, f64::max);
             if step < 1e-9 {
                 termination = Termination::SmallStep;
                 break;
@@ -238,7 +242,10 @@ mod tests {
             max_step: 10.0,
         };
         let sol = minimise(&f, &[-1.2, 1.0], &[-5.0, -5.0], &[5.0, 5.0], &s);
-        assert!((sol.theta[0] - 1.0).abs() < 1e-4 && (sol.theta[1] - 1.0).abs() < 1e-4, "{sol:?}");
+        assert!(
+            (sol.theta[0] - 1.0).abs() < 1e-4 && (sol.theta[1] - 1.0).abs() < 1e-4,
+            "{sol:?}"
+        );
     }
 
     // With the unconstrained minimum (3) outside the box [0, 2], the bounded minimum is the bound 2.

@@ -47,8 +47,8 @@ use nalgebra::DMatrix;
 use rayon::prelude::*;
 
 pub use lm::Termination;
-pub use parameter::{parse_list, Parameter};
 use parameter::Coordinates;
+pub use parameter::{parse_list, Parameter};
 
 use crate::{Ipa, IpaError, PlantConfig, Record};
 
@@ -145,7 +145,7 @@ pub fn read_record(path: &Path, cols: &Columns, ts_s: Option<f64>) -> Result<Rec
     }
     let pressures = match pressures {
         Some((a, b)) => {
-            if let Some(k) = a.iter().chain(&b).position(|p| !(*p > 0.0)) {
+            if let Some(k) = a.iter().chain(&b).position(|p| p.is_nan() || *p <= 0.0) {
                 return Err(IpaError::Config(format!(
                     "{name}: data row {}: a chamber pressure must be an absolute pressure > 0 Pa",
                     k % a.len() + 1
@@ -433,7 +433,9 @@ pub fn free_run(cfg: &PlantConfig, rec: &Record) -> Result<FreeRun, IpaError> {
 
 /// Samples 2 apart with y unchanged (within half an encoder count) count as rest.
 fn at_rest(rec: &Record, k: usize, band_mm: f64) -> bool {
-    k >= 2 && (rec.y[k] - rec.y[k - 1]).abs() <= band_mm && (rec.y[k - 1] - rec.y[k - 2]).abs() <= band_mm
+    k >= 2
+        && (rec.y[k] - rec.y[k - 1]).abs() <= band_mm
+        && (rec.y[k - 1] - rec.y[k - 2]).abs() <= band_mm
 }
 
 /// Samples with u = 0 before a start without pressures (both chambers exhausted to p_atm).
@@ -485,7 +487,11 @@ fn full_command_speed(u: &[f64], y: &[f64], ts: f64, stroke_mm: f64, dir: f64) -
 impl Calibration {
     /// The twin: estimates the free parameters on `estimation` and, when given, reports the free-run fit
     /// on `validation`.
-    pub fn fit(&self, estimation: &Record, validation: Option<&Record>) -> Result<Calibrated, IpaError> {
+    pub fn fit(
+        &self,
+        estimation: &Record,
+        validation: Option<&Record>,
+    ) -> Result<Calibrated, IpaError> {
         self.check(estimation)?;
         if let Some(v) = validation {
             self.check(v)?;
@@ -590,7 +596,8 @@ impl Calibration {
             .residuals(&config, rec, &segs)
             .map(|r| {
                 let pos: Vec<f64> = r.iter().step_by(per_sample).copied().collect();
-                self.position_scale_mm * (pos.iter().map(|x| x * x).sum::<f64>() / pos.len().max(1) as f64).sqrt()
+                self.position_scale_mm
+                    * (pos.iter().map(|x| x * x).sum::<f64>() / pos.len().max(1) as f64).sqrt()
             })
             .unwrap_or(f64::NAN);
         if sol.cost > RESTART_FLOOR_RATIO * floor {
@@ -599,7 +606,7 @@ impl Calibration {
             });
         }
         let resolution_mm = config.encoder.resolution_mm;
-        if !(segment_rmse_mm <= POOR_FIT_COUNTS * resolution_mm) {
+        if segment_rmse_mm.is_nan() || segment_rmse_mm > POOR_FIT_COUNTS * resolution_mm {
             warnings.push(CalibrationWarning::PoorFit {
                 rmse_mm: segment_rmse_mm,
                 resolution_mm,
@@ -614,14 +621,16 @@ impl Calibration {
             } else {
                 rel
             };
-            if rel.is_none_or(|r| !(r <= self.determined_rel_std)) {
+            if rel.is_none_or(|r| r.is_nan() || r > self.determined_rel_std) {
                 warnings.push(CalibrationWarning::NotDetermined {
                     parameter: e.parameter,
                     relative_std: rel,
                 });
             }
             if e.at_bound {
-                warnings.push(CalibrationWarning::AtBound { parameter: e.parameter });
+                warnings.push(CalibrationWarning::AtBound {
+                    parameter: e.parameter,
+                });
             }
         }
         for i in 0..correlation.len() {
@@ -742,10 +751,15 @@ impl Calibration {
             )));
         }
         if rec.y.len() != n || rec.pressures.as_ref().is_some_and(|p| p.len() != n) {
-            return Err(IpaError::Config("u, y and the pressures must have the same length".into()));
+            return Err(IpaError::Config(
+                "u, y and the pressures must have the same length".into(),
+            ));
         }
         if let Some(k) = rec.u.iter().chain(&rec.y).position(|x| !x.is_finite()) {
-            return Err(IpaError::Config(format!("sample {}: u and y must be finite", k % n)));
+            return Err(IpaError::Config(format!(
+                "sample {}: u and y must be finite",
+                k % n
+            )));
         }
         if !(self.segment_s >= 0.0 && self.segment_s.is_finite()) {
             return Err(IpaError::Config(format!(
@@ -763,7 +777,12 @@ impl Calibration {
     }
 
     /// Scaled residuals of `cfg` on the segments (position, then the pressures, per sample).
-    fn residuals(&self, cfg: &PlantConfig, rec: &Record, segs: &[(usize, usize)]) -> Result<Vec<f64>, IpaError> {
+    fn residuals(
+        &self,
+        cfg: &PlantConfig,
+        rec: &Record,
+        segs: &[(usize, usize)],
+    ) -> Result<Vec<f64>, IpaError> {
         let parts: Vec<Result<Vec<f64>, IpaError>> = segs
             .par_iter()
             .map(|&(a, b)| {
@@ -790,7 +809,12 @@ impl Calibration {
 
     /// The start plant with C_s scaled by the ratio of measured to simulated full-command speeds
     /// (geometric mean over the directions both records have), the ratio clamped to [1/3, 3].
-    fn scale_supply_conductance(&self, cfg: PlantConfig, rec: &Record, segs: &[(usize, usize)]) -> PlantConfig {
+    fn scale_supply_conductance(
+        &self,
+        cfg: PlantConfig,
+        rec: &Record,
+        segs: &[(usize, usize)],
+    ) -> PlantConfig {
         let mut sim = vec![f64::NAN; rec.u.len()];
         for &(a, b) in segs {
             if simulate_segment(&cfg, rec, a, b, |k, x, _| sim[k] = x).is_err() {
@@ -853,7 +877,10 @@ impl Calibration {
                 parameter: coords.free[i],
                 start: start_values[i],
                 value: values[i],
-                std: cov.as_ref().map(|c| c[(i, i)].max(0.0).sqrt()).filter(|s| s.is_finite()),
+                std: cov
+                    .as_ref()
+                    .map(|c| c[(i, i)].max(0.0).sqrt())
+                    .filter(|s| s.is_finite()),
                 at_bound: {
                     let w = (coords.hi[i] - coords.lo[i]) * 1e-6;
                     sol.theta[i] <= coords.lo[i] + w || sol.theta[i] >= coords.hi[i] - w

@@ -110,7 +110,9 @@ impl Parameter {
         match self {
             Parameter::SupplyConductance | Parameter::ExhaustConductance => "dm^3/(s bar)",
             Parameter::OpeningDelay | Parameter::ClosingDelay => "ms",
-            Parameter::StaticFriction | Parameter::CoulombFriction | Parameter::ExternalForce => "N",
+            Parameter::StaticFriction | Parameter::CoulombFriction | Parameter::ExternalForce => {
+                "N"
+            }
             Parameter::StribeckVelocity => "mm/s",
             Parameter::ViscousFriction => "N s/m",
             Parameter::MovingMass => "kg",

@@ -78,7 +78,12 @@ pub fn perturbed_plant(seed: u64, spread: f64) -> PlantConfig {
 
 /// Simulates `samples` of `input` on `cfg` with `seed` (mid-stroke start, encoder quantisation of
 /// the plant, no added noise).
-pub fn record(cfg: &PlantConfig, input: InputSpec, samples: usize, seed: u64) -> Result<Record, IpaError> {
+pub fn record(
+    cfg: &PlantConfig,
+    input: InputSpec,
+    samples: usize,
+    seed: u64,
+) -> Result<Record, IpaError> {
     Experiment {
         input,
         samples: Some(samples),
@@ -103,8 +108,18 @@ impl Study {
     pub fn case(&self, i: usize) -> Result<StudyCase, IpaError> {
         let seed = self.seed + i as u64;
         let truth = perturbed_plant(seed, self.spread);
-        let est = record(&truth, InputSpec::Calibration, self.estimation_samples, seed)?;
-        let val = record(&truth, InputSpec::Staircase, self.validation_samples, seed + 1000)?;
+        let est = record(
+            &truth,
+            InputSpec::Calibration,
+            self.estimation_samples,
+            seed,
+        )?;
+        let val = record(
+            &truth,
+            InputSpec::Staircase,
+            self.validation_samples,
+            seed + 1000,
+        )?;
         let started = std::time::Instant::now();
         let calibrated = self.calibration.fit(&est, Some(&val))?;
         let seconds = started.elapsed().as_secs_f64();
@@ -123,7 +138,9 @@ impl Study {
                     CalibrationWarning::Correlated { a, b, .. } => {
                         *a == e.parameter || *b == e.parameter
                     }
-                    CalibrationWarning::AboveFloor { .. } | CalibrationWarning::PoorFit { .. } => true,
+                    CalibrationWarning::AboveFloor { .. } | CalibrationWarning::PoorFit { .. } => {
+                        true
+                    }
                     _ => false,
                 })
             })

@@ -2,9 +2,17 @@
 //! parameters: recovery (a reduced study; the full 20-plant study is `ipa-sysid calibrate --study 20`,
 //! docs/twin.md) and the promise never to return a twin worse than its start without saying so.
 
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests may panic
+
 use ipa::calibrate::study::{perturbed_plant, record, Study};
 use ipa::calibrate::{Calibration, CalibrationWarning, Parameter};
 use ipa::{InputSpec, PlantConfig};
+
+/// Free-run fit % of the twin and of its start on the validation record.
+fn validation_fits(cal: &ipa::calibrate::Calibrated) -> (f64, f64) {
+    let fit = |r: &Option<ipa::calibrate::FreeRun>| r.as_ref().and_then(|r| r.fit_percent).unwrap();
+    (fit(&cal.validation), fit(&cal.validation_start))
+}
 
 // Reduced study: 3 plants drawn ±30 % around the defaults, 2000-sample calibration-design records.
 // Expectations from the known truth of each draw: every parameter the calibration reports as
@@ -37,12 +45,7 @@ fn reduced_study_recovers_every_determined_parameter_within_two_percent() {
                 );
             }
         }
-        let twin = cal.validation.as_ref().and_then(|r| r.fit_percent).unwrap();
-        let start = cal
-            .validation_start
-            .as_ref()
-            .and_then(|r| r.fit_percent)
-            .unwrap();
+        let (twin, start) = validation_fits(cal);
         assert!(
             twin > start,
             "seed {}: twin {twin} vs start {start}",
@@ -76,12 +79,7 @@ fn a_twin_worse_than_its_start_is_never_silent() {
     .fit(&est, Some(&val))
     .unwrap();
     assert!(cal.cost <= cal.cost_start);
-    let twin = cal.validation.as_ref().and_then(|r| r.fit_percent).unwrap();
-    let start = cal
-        .validation_start
-        .as_ref()
-        .and_then(|r| r.fit_percent)
-        .unwrap();
+    let (twin, start) = validation_fits(&cal);
     assert!(
         start > 99.9,
         "the start is the plant of the validation record: {start}"

@@ -511,3 +511,22 @@ fn the_residual_band_has_one_legend_entry_and_one_style() {
     labels.dedup();
     assert_eq!(labels.len(), n, "a label listed twice: {entries:?}");
 }
+
+// Table V's data columns hold measurements of their own source; a threshold (the paper's acceptance)
+// sits in the criterion's label, never in a data cell.
+#[test]
+fn table_five_has_no_threshold_in_a_data_column() {
+    let (dir, _) = run_once("ipa");
+    let page = html(dir);
+    let start = page.find("Table V").expect("Table V");
+    let table = &page[start..start + page[start..].find("</table>").unwrap()];
+    for row in table.split("<tr").skip(1) {
+        let cells: Vec<&str> = row.split("<td").skip(1).collect();
+        for cell in cells.iter().skip(1) {
+            assert!(
+                !cell.contains("acceptance"),
+                "a threshold in a data cell: {row}"
+            );
+        }
+    }
+}

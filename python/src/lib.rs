@@ -960,6 +960,93 @@ fn control_loop<'py>(
 
 /// ipa-sysid from Python: identification (Hammerstein/ARX by LS, RLS, OE, IV), recursive least
 /// squares, the physics IPA simulator and PI control, computed in Rust.
+/// Calibrates the physics plant to a record, as `ipa-sysid calibrate` (without the Hammerstein
+/// baseline, which `identify` gives): `data` and `validation` are CSV paths (columns u, y and, when
+/// present, p_a_pa, p_b_pa); returns a dict with "estimates" (parameter, key, unit, start, value, std,
+/// at_bound), "correlation", "segments", "iterations", "simulations", "termination", "cost_start",
+/// "cost", the free-run fits "fit_estimation_start_percent", "fit_estimation_percent",
+/// "fit_validation_start_percent", "fit_validation_percent", "warnings" and "toml" (the plant-config
+/// of the twin, as `--out` writes it, without its first comment line).
+#[pyfunction]
+#[pyo3(signature = (data, validation=None, free=None, fixed=None, plant_config=None, segment=0.5,
+    max_iterations=40, ts=None))]
+#[allow(clippy::too_many_arguments)]
+fn calibrate<'py>(
+    py: Python<'py>,
+    data: PathBuf,
+    validation: Option<PathBuf>,
+    free: Option<&str>,
+    fixed: Option<&str>,
+    plant_config: Option<PathBuf>,
+    segment: f64,
+    max_iterations: usize,
+    ts: Option<f64>,
+) -> PyResult<Bound<'py, PyDict>> {
+    use ipa::calibrate::{Calibration, Columns, Parameter};
+    let start = match &plant_config {
+        Some(p) => ipa::PlantConfig::from_toml_file(p).map_err(ipa_err)?,
+        None => ipa::PlantConfig::default(),
+    };
+    let mut free_set = match free {
+        Some(l) => ipa::calibrate::parse_list(l).map_err(ipa_err)?,
+        None => Parameter::ALL.to_vec(),
+    };
+    if let Some(l) = fixed {
+        let f = ipa::calibrate::parse_list(l).map_err(ipa_err)?;
+        free_set.retain(|p| !f.contains(p));
+    }
+    let cal = Calibration {
+        start,
+        free: free_set,
+        segment_s: segment,
+        max_iterations,
+        ..Calibration::default()
+    };
+    let cols = Columns::default();
+    let est = ipa::calibrate::read_record(&data, &cols, ts).map_err(ipa_err)?;
+    let val = validation
+        .as_ref()
+        .map(|v| ipa::calibrate::read_record(v, &cols, ts))
+        .transpose()
+        .map_err(ipa_err)?;
+    let twin = py.detach(|| cal.fit(&est, val.as_ref())).map_err(ipa_err)?;
+    let fit = |r: &Option<ipa::calibrate::FreeRun>| r.as_ref().and_then(|r| r.fit_percent);
+    let out = PyDict::new(py);
+    let estimates = PyList::empty(py);
+    for e in &twin.estimates {
+        let d = PyDict::new(py);
+        d.set_item("parameter", e.parameter.name())?;
+        d.set_item("key", e.parameter.key())?;
+        d.set_item("unit", e.parameter.unit())?;
+        d.set_item("start", e.start)?;
+        d.set_item("value", e.value)?;
+        d.set_item("std", e.std)?;
+        d.set_item("at_bound", e.at_bound)?;
+        estimates.append(d)?;
+    }
+    out.set_item("estimates", estimates)?;
+    out.set_item("correlation", twin.correlation.clone())?;
+    out.set_item("segments", twin.segments)?;
+    out.set_item("iterations", twin.iterations)?;
+    out.set_item("simulations", twin.evaluations)?;
+    out.set_item("termination", twin.termination.to_string())?;
+    out.set_item("cost_start", twin.cost_start)?;
+    out.set_item("cost", twin.cost)?;
+    out.set_item("fit_estimation_start_percent", fit(&twin.estimation_start))?;
+    out.set_item("fit_estimation_percent", fit(&twin.estimation))?;
+    out.set_item("fit_validation_start_percent", fit(&twin.validation_start))?;
+    out.set_item("fit_validation_percent", fit(&twin.validation))?;
+    out.set_item(
+        "warnings",
+        twin.warnings
+            .iter()
+            .map(ToString::to_string)
+            .collect::<Vec<_>>(),
+    )?;
+    out.set_item("toml", twin.config.to_commented_toml())?;
+    Ok(out)
+}
+
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyModel>()?;
@@ -969,6 +1056,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(load_model, m)?)?;
     m.add_function(wrap_pyfunction!(paper_model, m)?)?;
     m.add_function(wrap_pyfunction!(simulate_plant, m)?)?;
+    m.add_function(wrap_pyfunction!(calibrate, m)?)?;
     m.add_function(wrap_pyfunction!(control_loop, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

@@ -377,6 +377,32 @@ def test_example_script_runs(tmp_path):
     assert "fit % (simulation, validation)" in r.stdout
 
 
+def test_calibrate_matches_cli(tmp_path):
+    truth = tmp_path / "truth.toml"
+    truth.write_text("[load]\nmoving_mass_kg = 0.7\n")
+    est, val = tmp_path / "est.csv", tmp_path / "val.csv"
+    cli("simulate", "--plant-config", truth, "--input", "calibration", "--samples", 600, "--seed", 3,
+        "--out", est)
+    cli("simulate", "--plant-config", truth, "--samples", 600, "--seed", 4, "--out", val)
+    js, out = tmp_path / "c.json", tmp_path / "twin.toml"
+    cli("calibrate", "--data", est, "--validation", val, "--free", "moving_mass,static_friction",
+        "--no-baseline", "--out", out, "--json", js)
+    doc = json.loads(js.read_text())
+    c = ipa_sysid.calibrate(est, validation=val, free="moving_mass,static_friction")
+    assert [e["parameter"] for e in c["estimates"]] == ["moving_mass", "static_friction"]
+    for a, b in zip(c["estimates"], doc["estimates"]):
+        assert a["parameter"] == b["parameter"]
+        assert a["value"] == pytest.approx(b["value"], rel=1e-12)
+    assert c["fit_validation_percent"] == pytest.approx(doc["fit_validation_percent"], rel=1e-12)
+    assert c["warnings"] == doc["warnings"]
+    # The truth (independent of the program): M = 0.7 kg within 2 %.
+    mass = next(e["value"] for e in c["estimates"] if e["parameter"] == "moving_mass")
+    assert abs(mass / 0.7 - 1) < 0.02
+    assert "moving_mass_kg" in c["toml"]
+    with pytest.raises(ValueError, match="moving_mass"):
+        ipa_sysid.calibrate(est, free="mass")
+
+
 def test_warnings_of_identify_are_python_warnings():
     # The paper's single RLS pass on the physics IPA gives an unstable model (a pole of modulus >= 1, as
     # `identify --json` says): the same words arrive as IpaSysidWarning.

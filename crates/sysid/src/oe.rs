@@ -86,6 +86,8 @@ pub struct OeFit<P = Param> {
     pub initial_outputs: Vec<f64>,
     /// The start had to be stabilised.
     pub stabilised_start: bool,
+    /// Why no standard deviation could be computed (`None` when they were).
+    pub std_unavailable: Option<String>,
 }
 
 /// Why the output-error search stopped.
@@ -590,6 +592,7 @@ struct Searched {
     /// n_params: where the initial outputs start in `full`.
     np: usize,
     cov: Option<DMatrix<f64>>,
+    std_unavailable: Option<String>,
     stop: OeStop,
     iterations: usize,
     evaluations: usize,
@@ -649,14 +652,16 @@ fn run(
     let rss = resid.norm_squared();
     let jac = problem.sensitivities(&d, &yh, &x);
     let sigma2 = rss / (n - free.len()) as f64;
-    let cov = ls::solve(&jac, &resid, &[])
-        .ok()
-        .map(|sol| sol.inv_gram * sigma2);
+    let (cov, std_unavailable) = match ls::solve(&jac, &resid, &[]) {
+        Ok(sol) => (Some(sol.inv_gram * sigma2), None),
+        Err(e) => (None, Some(why_no_covariance(&problem, &e))),
+    };
     Ok(Searched {
         full: problem.full,
         free,
         np,
         cov,
+        std_unavailable,
         stop,
         iterations,
         evaluations,
@@ -666,6 +671,28 @@ fn run(
         noise_variance: sigma2,
         stabilised_start,
     })
+}
+
+/// Why σ̂² (JᵀJ)⁻¹ could not be formed at the end of the search, in words: the solver's reason (a
+/// Jacobian column that is zero or dependent on the others: a singular information matrix JᵀJ) and,
+/// when a pole sits on the stability boundary the search holds it to, that pinned pole.
+fn why_no_covariance(problem: &Problem, e: &SysidError) -> String {
+    let ia = problem.ia();
+    let pinned = poles_of(&problem.full[ia..ia + problem.na])
+        .iter()
+        .map(|p| p.norm())
+        .fold(0.0, f64::max);
+    let mut why = format!(
+        "the information matrix JᵀJ of the output-error fit is singular ({})",
+        e.to_string().replace("column", "free parameter")
+    );
+    if pinned >= MAX_POLE_MODULUS - 1e-9 {
+        why.push_str(&format!(
+            "; a pole is pinned on the stability boundary (|p| = {pinned:.7}), where the loss is not \
+             quadratic"
+        ));
+    }
+    why
 }
 
 impl Searched {
@@ -691,6 +718,7 @@ impl Searched {
             rss: self.rss,
             noise_variance: self.noise_variance,
             stabilised_start: self.stabilised_start,
+            std_unavailable: self.std_unavailable,
         }
     }
 }

@@ -210,6 +210,22 @@ impl Triangular {
         Ok(delta)
     }
 
+    /// The reduction of ‖y − Φ δ‖² that the linear model predicts for the step `delta`:
+    /// ‖y‖² − ‖y − Φ δ‖² = ‖z‖² − ‖z − R D δ‖² (the rows below R are untouched by δ). A
+    /// Levenberg–Marquardt search compares it with the actual reduction of its loss.
+    pub fn predicted_reduction(&self, delta: &[f64]) -> f64 {
+        let (p, cols) = (self.p, self.p + 1);
+        let w: Vec<f64> = delta.iter().zip(&self.scale).map(|(d, s)| d * s).collect();
+        let (mut zz, mut left) = (0.0, 0.0);
+        for k in 0..p {
+            let z = self.r[k * cols + p];
+            let rw: f64 = (k..p).map(|c| self.r[k * cols + c] * w[c]).sum();
+            zz += z * z;
+            left += (z - rw) * (z - rw);
+        }
+        zz - left
+    }
+
     /// The least-squares solution θ̂, (ΦᵀΦ)⁻¹ and the RSS.
     pub fn solution(&self) -> Result<LsSolution, SysidError> {
         let (p, cols, r, scale, rss) = (self.p, self.p + 1, &self.r, &self.scale, self.rss);

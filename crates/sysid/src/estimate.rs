@@ -741,7 +741,7 @@ fn safeguard(
     let data = p.data;
     let s = &p.structure;
     let mut est = sysid_core::metrics::metrics(&fit.model, data).ok();
-    let mut fit_sim = est.as_ref().and_then(|m| m.fit_sim_percent);
+    let fit_sim = est.as_ref().and_then(|m| m.fit_sim_percent);
     let mut fell_back = false;
     // The plain linear least-squares ARX of the same orders on the same data: the Hammerstein guard's
     // start and every model's baseline (not computed for the baseline itself).

@@ -483,12 +483,23 @@ fn search(
                     .sqrt();
                 let size = theta.iter().map(|t| t * t).sum::<f64>().sqrt();
                 let decrease = (cost - new_cost) / cost.max(f64::MIN_POSITIVE);
+                // MINPACK's test: the cost has converged only when the linear model also predicts
+                // no further decrease for this step; a heavily damped step that gains little while
+                // much more is predicted is not convergence.
+                let taken: Vec<f64> = problem
+                    .free_values()
+                    .iter()
+                    .zip(&theta)
+                    .map(|(a, b)| a - b)
+                    .collect();
+                let predicted =
+                    tri.predicted_reduction(&taken) / cost.max(f64::MIN_POSITIVE);
                 cost = new_cost;
                 // No floor: on ill-conditioned problems (a near-integrator's poles and its initial
                 // outputs) any fixed damping would shorten the Gauss–Newton step along the weak
                 // directions and slow the search to a crawl.
                 lambda /= 3.0;
-                if decrease < FTOL {
+                if decrease < FTOL && predicted <= FTOL {
                     return Ok((OeStop::CostConverged, iteration, evaluations, projected));
                 }
                 if on_boundary && decrease < FTOL_BOUNDARY {

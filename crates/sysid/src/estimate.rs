@@ -748,7 +748,10 @@ fn safeguard(
     let start = (s.kind == ModelKind::Hammerstein || fit.method != Method::Ls)
         .then(|| linear_start(p))
         .flatten();
-    let baseline = start.as_ref().map(|(_, m)| crate::trust::guarded_fit(m));
+    let baseline = start
+        .as_ref()
+        .filter(|(l, _)| l.model.is_stable())
+        .map(|(_, m)| crate::trust::guarded_fit(m));
     if s.kind == ModelKind::Hammerstein {
         if let Some((linear, linear_metrics)) = start {
             let linear_fit = linear_metrics.fit_sim_percent.unwrap_or(f64::NAN);
@@ -791,7 +794,12 @@ fn safeguard(
         Some(m) => {
             fit.warnings
                 .extend(crate::trust::metric_warnings(Record::Estimation, m));
-            if !fell_back {
+            // The Hammerstein guard has already said it (against the same baseline).
+            let said = fit
+                .warnings
+                .iter()
+                .any(|w| matches!(w, Warning::LinearStartBetter { .. }));
+            if !fell_back && !said {
                 fit.warnings.extend(crate::trust::below_baseline(
                     Record::Estimation,
                     crate::trust::guarded_fit(m),

@@ -623,6 +623,7 @@ fn run(
     model_free: Vec<usize>,
     max_iterations: usize,
     name: &str,
+    param_names: &[String],
 ) -> Result<Searched, SysidError> {
     let (n, k0, np) = (problem.y.len(), problem.k0, problem.n_params());
     if model_part.len() != np {
@@ -663,7 +664,17 @@ fn run(
     let rss = resid.norm_squared();
     let jac = problem.sensitivities(&d, &yh, &x);
     let sigma2 = rss / (n - free.len()) as f64;
-    let (cov, std_unavailable) = match ls::solve(&jac, &resid, &[]) {
+    // Columns named as the parameters they belong to (η_j: the initial output y0(j)).
+    let columns: Vec<String> = free
+        .iter()
+        .map(|&i| {
+            param_names
+                .get(i)
+                .cloned()
+                .unwrap_or_else(|| format!("y0({})", i.saturating_sub(np)))
+        })
+        .collect();
+    let (cov, std_unavailable) = match ls::solve(&jac, &resid, &columns) {
         Ok(sol) => (Some(sol.inv_gram * sigma2), None),
         Err(e) => (None, Some(why_no_covariance(&problem, &e))),
     };
@@ -694,10 +705,9 @@ fn why_no_covariance(problem: &Problem, e: &SysidError) -> String {
         .map(|p| p.norm())
         .fold(0.0, f64::max);
     let mut why = format!(
-        "the information matrix JᵀJ of the output-error fit is singular ({})",
-        e.to_string().replace("column", "free parameter")
+        "the information matrix JᵀJ of the output-error fit is singular ({e})"
     );
-    if pinned >= MAX_POLE_MODULUS - 1e-9 {
+    if pinned >= MAX_POLE_MODULUS - 1e-7 {
         why.push_str(&format!(
             "; a pole is pinned on the stability boundary (|p| = {pinned:.7}), where the loss is not \
              quadratic"
@@ -782,14 +792,16 @@ pub fn refine(
         ));
     }
     let problem = problem(vec![channel], &data.y, s.orders.na, s.offset);
+    let names = physical.names();
+    let labels: Vec<String> = names.iter().map(ToString::to_string).collect();
     let found = run(
         problem,
         full,
         physical.free_indices(),
         max_iterations,
         &data.name,
+        &labels,
     )?;
-    let names = physical.names();
     let b1 = || Param {
         name: ParamName::B(1),
         value: 1.0,
@@ -972,7 +984,7 @@ pub fn refine_miso(
     let (full, names) = miso_vector(start);
     let free = (0..full.len()).collect();
     let problem = problem(channels, y, start.na(), start.offset().is_some());
-    let found = run(problem, full, free, max_iterations, name)?;
+    let found = run(problem, full, free, max_iterations, name, &names)?;
     let model = miso_model_of(&found.full[..found.np], start)
         .map_err(|e| SysidError::Numerical(format!("{name}: {e}")))?;
     let params = miso_params(start, &names, |i| found.full[i], |i| found.std(i));

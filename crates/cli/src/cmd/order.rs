@@ -218,9 +218,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             id.structure.orders = c.orders;
             let fit = sysid::estimate::identify(&data, &id)?;
             let m = sysid::metrics::metrics(&fit.model, t)?;
+            let record = sysid::warnings::Record::Validation;
             warnings.extend(
-                sysid::trust::metric_warnings(sysid::warnings::Record::Validation, &m)
-                    .iter()
+                sysid::trust::metric_warnings(record, &m)
+                    .into_iter()
+                    .chain(sysid::trust::baseline_warning(
+                        record, &fit, &id, &data, t, &m,
+                    ))
                     .map(|w| format!("test record: {w}")),
             );
             Some(TestResult {

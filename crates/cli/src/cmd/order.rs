@@ -199,8 +199,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let ranked_by = "selection fit % (simulation, the worse of estimated and measured initial outputs); \
                      structures a warning disqualifies (unstable, negative fit) last";
     let mut warnings = sysid::order::search_warnings(&ranked, &na, &nb, &nk);
-    if let Some(n) = delay.as_ref().and_then(|d| d.note.as_ref()) {
-        warnings.push(format!("--nk auto: {n}"));
+    for w in delay.iter().flat_map(|d| &d.warnings) {
+        warnings.push(format!("--nk auto: {w}"));
     }
     // The chosen structure on the test record, re-estimated on the whole estimation record.
     let chosen = sysid::order::recommended(&ranked);
@@ -253,7 +253,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "--nk auto: estimated delay nk = {} (ARX(2, 2) fits over nk = 0..10), trying nk = {:?}{}\n",
             d.nk,
             nk,
-            d.note.as_ref().map(|n| format!("; warning: {n}")).unwrap_or_default()
+            if d.warnings.is_empty() {
+                ""
+            } else {
+                " (see the warnings below)"
+            }
         ));
     }
     text.push('\n');

@@ -190,6 +190,7 @@ mod tests {
             rmse_sim_measured: None,
             rmse_pred: 0.0,
             loss: 0.0,
+            loss_sim: None,
             fpe: None,
             aic: None,
             n: 10,

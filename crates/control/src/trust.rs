@@ -22,7 +22,7 @@ pub struct LoopFacts {
     pub u_max: f64,
     /// The outputs the plant can reach, in mm (the IPA: 0..stroke); `None` when unknown.
     pub range_mm: Option<(f64, f64)>,
-    /// The largest pole modulus of a model plant when it is >= 1 (unstable); `None` otherwise.
+    /// The largest pole modulus of a model plant when it exceeds 1 (unstable); `None` otherwise.
     pub unstable_pole: Option<f64>,
     /// True for a fixed set-point (one step), judged against the paper's acceptance.
     pub fixed_step: bool,
@@ -33,7 +33,7 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
     let mut w = Vec::new();
     if let Some(p) = facts.unstable_pole {
         w.push(format!(
-            "the plant model is unstable (a pole has modulus {p:.6} >= 1): its closed-loop response \
+            "the plant model is unstable (a pole has modulus {p:.6} > 1): its closed-loop response \
              describes a diverging model, not the actuator"
         ));
     }

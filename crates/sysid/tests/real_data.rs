@@ -3,25 +3,10 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
 
-use std::path::PathBuf;
-
 use sysid::data::{read_csv, CsvOptions};
 use sysid::estimate::{identify, Identification, Method};
 use sysid::metrics::metrics;
 use sysid::{Dataset, ModelKind};
-
-fn data_dir() -> Option<PathBuf> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        println!(
-            "SKIPPED: the shared data folder {} is absent",
-            dir.display()
-        );
-        None
-    }
-}
 
 fn tanks(dir: &std::path::Path, u: &str, y: &str) -> Dataset {
     let opts = CsvOptions {
@@ -38,7 +23,9 @@ fn tanks(dir: &std::path::Path, u: &str, y: &str) -> Dataset {
 // record with an RMSE below the published best linear approximation (0.75 V); LS ARX is above OE.
 #[test]
 fn cascaded_tanks_output_error_arx_beats_the_published_bla() {
-    let Some(dir) = data_dir() else { return };
+    let Some(dir) = ipa_testdata::shared_data() else {
+        return;
+    };
     let (est, val) = (tanks(&dir, "uEst", "yEst"), tanks(&dir, "uVal", "yVal"));
     let s = Identification::default()
         .with_kind(ModelKind::Arx)
@@ -56,7 +43,9 @@ fn cascaded_tanks_output_error_arx_beats_the_published_bla() {
 // dropped and the fixed parameters reported without a standard deviation.
 #[test]
 fn cascaded_tanks_one_sided_hammerstein_is_estimated_with_a_note() {
-    let Some(dir) = data_dir() else { return };
+    let Some(dir) = ipa_testdata::shared_data() else {
+        return;
+    };
     let est = tanks(&dir, "uEst", "yEst");
     let mut s = Identification::default()
         .with_orders(2, 2, 1)

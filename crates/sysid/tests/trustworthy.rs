@@ -6,7 +6,7 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests may panic
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -15,19 +15,6 @@ use sysid::estimate::{identify, Identification, Method};
 use sysid::metrics::metrics;
 use sysid::summary::{residual_analysis, ResidualEntry};
 use sysid::{Dataset, Model, ModelKind, Warning};
-
-fn data_dir() -> Option<PathBuf> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        println!(
-            "SKIPPED: the shared data folder {} is absent",
-            dir.display()
-        );
-        None
-    }
-}
 
 fn read(path: &Path, u: &str, y: &str, ts: f64) -> Dataset {
     let opts = CsvOptions {
@@ -102,7 +89,9 @@ fn table_cases(dir: &Path) -> Vec<(&'static str, Dataset, (usize, usize, usize))
 // simulation RMSE (the reported criterion) is not above least squares'; it converges within its cap.
 #[test]
 fn output_error_is_stable_and_never_worse_than_least_squares_on_real_records() {
-    let Some(dir) = data_dir() else { return };
+    let Some(dir) = ipa_testdata::shared_data() else {
+        return;
+    };
     for (name, est, (na, nb, nk)) in table_cases(&dir) {
         let ls = identify(&est, &arx(na, nb, nk, Method::Ls)).unwrap();
         let oe = identify(&est, &arx(na, nb, nk, Method::Oe)).unwrap();
@@ -136,7 +125,9 @@ fn output_error_is_stable_and_never_worse_than_least_squares_on_real_records() {
 // fallback on, the result simulates at least as well as the linear ARX start minus the margin.
 #[test]
 fn blown_up_hammerstein_estimates_are_never_silent() {
-    let Some(dir) = data_dir() else { return };
+    let Some(dir) = ipa_testdata::shared_data() else {
+        return;
+    };
     let arm = read(&dir.join("robot_arm_flexible/robot_arm.csv"), "u", "y", 1.0);
     let gas = read(
         &dir.join("gas_furnace_box_jenkins/gas_furnace.csv"),
@@ -361,7 +352,9 @@ fn a_negative_simulation_fit_is_flagged() {
 // stable model, never simulating the estimation data worse than its (stable) key-term LS start.
 #[test]
 fn hammerstein_output_error_is_stable_and_never_worse_than_its_start() {
-    let Some(dir) = data_dir() else { return };
+    let Some(dir) = ipa_testdata::shared_data() else {
+        return;
+    };
     let hydraulic = read(&dir.join("hydraulic_actuator/actuator.csv"), "u", "p", 1.0);
     let bb = read(&dir.join("ball_and_beam/ballbeam.csv"), "u", "y", 1.0);
     let cases = [

@@ -159,26 +159,7 @@ struct PlantOut<'a> {
 
 /// Runs `ipa-sysid control`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let profile = match (&args.setpoint, &args.profile) {
-        (Some(r), None) => {
-            if !r.is_finite() {
-                bail!(sysid::SysidError::setting(
-                    sysid::Setting::Other("--setpoint"),
-                    r,
-                    "a finite position in mm"
-                ));
-            }
-            Profile::Fixed { setpoint_mm: *r }
-        }
-        (None, Some(spec)) => Profile::parse(spec).context("invalid --profile")?,
-        _ => bail!(sysid::SysidError::setting(
-            sysid::Setting::Other("--setpoint/--profile"),
-            "",
-            "exactly one of --setpoint MM or --profile SPEC"
-        )),
-    };
-
-    let integral = args.integral;
+    let profile = profile_of(&args)?;
     if args.tracking_time.is_some() && args.anti_windup != AntiWindupScheme::BackCalculation {
         bail!(sysid::SysidError::setting(
             sysid::Setting::Other("--tracking-time"),
@@ -205,148 +186,28 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let ts = plant.ts();
 
-    let anti_windup = match args.anti_windup {
-        AntiWindupScheme::None => AntiWindup::None,
-        AntiWindupScheme::Clamping => AntiWindup::Clamping,
-        AntiWindupScheme::BackCalculation => {
-            let default_tt = || {
-                PiSettings::new(args.kp, args.ki)
-                    .with_integral(integral)
-                    .integral_time_s(ts)
-            };
-            let Some(tt_s) = args.tracking_time.or_else(default_tt) else {
-                bail!(sysid::SysidError::setting(
-                    sysid::Setting::Other("--tracking-time"),
-                    "(none)",
-                    "a tracking time in s (the default Ti = Kp/Ki needs Kp and Ki nonzero)"
-                ));
-            };
-            AntiWindup::BackCalculation { tt_s }
-        }
-    };
     let settings = PiSettings::new(args.kp, args.ki)
-        .with_integral(integral)
-        .with_anti_windup(anti_windup)
+        .with_integral(args.integral)
+        .with_anti_windup(anti_windup(&args, ts)?)
         .with_u_max(args.u_max);
     let mut controller = settings.build(ts)?;
-
-    let compensator = match &args.compensate_deadzone {
-        None => None,
-        Some(path) => {
-            let deadzone = if path.as_os_str() == "paper" {
-                sysid::Model::paper().deadzone().copied()
-            } else {
-                inputs.push(path.clone());
-                let m = sysid::model_file::read_model(path)
-                    .context("cannot read --compensate-deadzone")?;
-                if m.inputs().len() > 1 {
-                    bail!(sysid::SysidError::setting(
-                        sysid::Setting::Other("--compensate-deadzone"),
-                        path.display(),
-                        &format!(
-                            "a single-input Hammerstein model file (this model has {} inputs; the PI \
-                             controller drives one command)",
-                            m.inputs().len()
-                        )
-                    ));
-                }
-                // A detrended model's deadzone acts on u - u0: in the command's units its breakpoints
-                // are shifted by u0 (the slopes are unchanged).
-                let u0 = m
-                    .operating_point()
-                    .and_then(|o| o.u.first().copied())
-                    .unwrap_or(0.0);
-                m.deadzone().map(|d| sysid::Deadzone {
-                    b_l: d.b_l + u0,
-                    b_r: d.b_r + u0,
-                    ..*d
-                })
-            };
-            let Some(deadzone) = deadzone else {
-                bail!(sysid::SysidError::setting(
-                    sysid::Setting::Other("--compensate-deadzone"),
-                    path.display(),
-                    "a Hammerstein model file (this model is ARX and has no deadzone)"
-                ));
-            };
-            let slope_mode = args.compensator_slopes;
-            Some(
-                DeadzoneCompensator::new(deadzone, slope_mode, args.u_max)?
-                    .with_threshold(args.compensator_threshold)?,
-            )
-        }
-    };
+    let compensator = compensator(&args, &mut inputs)?;
 
     let duration_s = match (args.duration, profile.natural_duration_s()) {
         (Some(d), _) => d,
         (None, Some(d)) => d,
         (None, None) => DEFAULT_FIXED_DURATION_S,
     };
+    check_outputs(&args, &inputs)?;
 
-    // Output paths: never over an input, and not both to the same file.
-    let input_refs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
-    if let Some(out) = &args.out {
-        sysid_io::check_writable(out, "--out")?;
-        sysid_io::refuse_overwrite_input(out, &input_refs, "--out")?;
-    }
-    if let Some(json) = args.json.as_ref().filter(|j| j.as_os_str() != "-") {
-        sysid_io::check_writable(json, "--json")?;
-        sysid_io::refuse_overwrite_input(json, &input_refs, "--json")?;
-        if let Some(out) = &args.out {
-            if json == out {
-                bail!(sysid::SysidError::setting(
-                    sysid::Setting::Other("--json"),
-                    json.display(),
-                    "a path different from --out"
-                ));
-            }
-            sysid_io::refuse_overwrite_input(json, &[out.as_path()], "--json")?;
-        }
-    }
-
-    let (trace, adaptive) = match (&compensator, args.adaptive) {
-        (Some(initial), true) => {
-            let mut adaptive_settings = control::AdaptiveSettings {
-                min_updates: args.adaptive_min_updates,
-                max_breakpoint_sd_counts: args.adaptive_max_sd,
-                max_rate_counts_per_s: args.adaptive_max_rate,
-                ..control::AdaptiveSettings::default()
-            };
-            adaptive_settings.tracker.forgetting = args.adaptive_forgetting;
-            let run = control::run_adaptive(
-                plant.as_mut(),
-                &mut controller,
-                *initial,
-                &adaptive_settings,
-                &profile,
-                duration_s,
-                args.y0,
-            )?;
-            let summary = AdaptiveOut {
-                final_deadzone: run.deadzones.last().copied(),
-                change_points_s: run.change_points.iter().map(|&k| k as f64 * ts).collect(),
-                final_estimate: run.final_estimate,
-                final_estimate_sd: run.final_sd,
-                right: run.right,
-                left: run.left,
-                warnings: run.warnings().to_vec(),
-                forgetting: args.adaptive_forgetting,
-                min_updates: args.adaptive_min_updates,
-            };
-            (run.trace, Some(summary))
-        }
-        _ => (
-            closed_loop::run(
-                plant.as_mut(),
-                &mut controller,
-                compensator.as_ref(),
-                &profile,
-                duration_s,
-                args.y0,
-            )?,
-            None,
-        ),
-    };
+    let (trace, adaptive) = run_loop(
+        &args,
+        plant.as_mut(),
+        &mut controller,
+        compensator.as_ref(),
+        &profile,
+        duration_s,
+    )?;
     if trace.len() < 2 {
         bail!(sysid::SysidError::setting(
             sysid::Setting::Other("--duration"),
@@ -397,7 +258,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
 
-    let summary = summary_text(
+    let mut summary = summary_text(
         &plant.name(),
         &settings,
         ts,
@@ -409,39 +270,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &metrics,
         &steps,
     );
-    let summary = match &adaptive {
-        None => summary,
-        Some(a) => {
-            let dz = a.final_deadzone.map_or("n/a".to_string(), |d| {
-                format!(
-                    "b_l = {}, b_r = {}, m_l = {}, m_r = {}",
-                    d.b_l, d.b_r, d.m_l, d.m_r
-                )
-            });
-            let counts = |c: &control::BranchCounts| {
-                format!(
-                    "followed {} / frozen {} (implausible {}, undetermined {}, settling {}) / waiting {}",
-                    c.following,
-                    c.implausible + c.undetermined + c.settling,
-                    c.implausible,
-                    c.undetermined,
-                    c.settling,
-                    c.waiting
-                )
-            };
-            let mut text = format!(
-                "{summary}adaptive:     final compensator deadzone {dz}; changes detected at t = {:?} s\n\
-                 adaptive:     samples: right branch {}; left branch {}\n",
-                a.change_points_s,
-                counts(&a.right),
-                counts(&a.left)
-            );
-            for w in &a.warnings {
-                text += &format!("warning: {w}\n");
-            }
-            text
-        }
-    };
+    if let Some(a) = &adaptive {
+        summary += &adaptive_text(a);
+    }
     // Keep standard output clean JSON when the JSON goes there.
     if json_to_stdout {
         eprint!("{summary}");
@@ -449,6 +280,207 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         print!("{summary}");
     }
     Ok(())
+}
+
+/// The closed loop of `run`: with `--adaptive`, the compensator follows the online estimate and the run
+/// reports what the adaptation did; otherwise the fixed loop.
+fn run_loop(
+    args: &Args,
+    plant: &mut dyn sysid::Plant,
+    controller: &mut control::PiController,
+    compensator: Option<&DeadzoneCompensator>,
+    profile: &Profile,
+    duration_s: f64,
+) -> anyhow::Result<(Trace, Option<AdaptiveOut>)> {
+    let ts = plant.ts();
+    Ok(match (compensator, args.adaptive) {
+        (Some(initial), true) => {
+            let mut adaptive_settings = control::AdaptiveSettings {
+                min_updates: args.adaptive_min_updates,
+                max_breakpoint_sd_counts: args.adaptive_max_sd,
+                max_rate_counts_per_s: args.adaptive_max_rate,
+                ..control::AdaptiveSettings::default()
+            };
+            adaptive_settings.tracker.forgetting = args.adaptive_forgetting;
+            let run = control::run_adaptive(
+                plant,
+                controller,
+                *initial,
+                &adaptive_settings,
+                profile,
+                duration_s,
+                args.y0,
+            )?;
+            let summary = AdaptiveOut {
+                final_deadzone: run.deadzones.last().copied(),
+                change_points_s: run.change_points.iter().map(|&k| k as f64 * ts).collect(),
+                final_estimate: run.final_estimate,
+                final_estimate_sd: run.final_sd,
+                right: run.right,
+                left: run.left,
+                warnings: run.warnings().to_vec(),
+                forgetting: args.adaptive_forgetting,
+                min_updates: args.adaptive_min_updates,
+            };
+            (run.trace, Some(summary))
+        }
+        _ => (
+            closed_loop::run(plant, controller, compensator, profile, duration_s, args.y0)?,
+            None,
+        ),
+    })
+}
+
+/// The set-point profile of `--setpoint` or `--profile` (exactly one).
+fn profile_of(args: &Args) -> anyhow::Result<Profile> {
+    Ok(match (&args.setpoint, &args.profile) {
+        (Some(r), None) => {
+            if !r.is_finite() {
+                bail!(sysid::SysidError::setting(
+                    sysid::Setting::Other("--setpoint"),
+                    r,
+                    "a finite position in mm"
+                ));
+            }
+            Profile::Fixed { setpoint_mm: *r }
+        }
+        (None, Some(spec)) => Profile::parse(spec).context("invalid --profile")?,
+        _ => bail!(sysid::SysidError::setting(
+            sysid::Setting::Other("--setpoint/--profile"),
+            "",
+            "exactly one of --setpoint MM or --profile SPEC"
+        )),
+    })
+}
+
+/// The anti-windup of `--anti-windup` (and `--tracking-time`, default Ti = Kp/Ki) at sampling period `ts`.
+fn anti_windup(args: &Args, ts: f64) -> anyhow::Result<AntiWindup> {
+    Ok(match args.anti_windup {
+        AntiWindupScheme::None => AntiWindup::None,
+        AntiWindupScheme::Clamping => AntiWindup::Clamping,
+        AntiWindupScheme::BackCalculation => {
+            let default_tt = || {
+                PiSettings::new(args.kp, args.ki)
+                    .with_integral(args.integral)
+                    .integral_time_s(ts)
+            };
+            let Some(tt_s) = args.tracking_time.or_else(default_tt) else {
+                bail!(sysid::SysidError::setting(
+                    sysid::Setting::Other("--tracking-time"),
+                    "(none)",
+                    "a tracking time in s (the default Ti = Kp/Ki needs Kp and Ki nonzero)"
+                ));
+            };
+            AntiWindup::BackCalculation { tt_s }
+        }
+    })
+}
+
+/// The deadzone-inverse compensator of `--compensate-deadzone`, if any; a model file read is added to
+/// `inputs` (so that no output replaces it).
+fn compensator(
+    args: &Args,
+    inputs: &mut Vec<PathBuf>,
+) -> anyhow::Result<Option<DeadzoneCompensator>> {
+    let Some(path) = &args.compensate_deadzone else {
+        return Ok(None);
+    };
+    let deadzone = if path.as_os_str() == "paper" {
+        sysid::Model::paper().deadzone().copied()
+    } else {
+        inputs.push(path.clone());
+        let m = sysid::model_file::read_model(path).context("cannot read --compensate-deadzone")?;
+        if m.inputs().len() > 1 {
+            bail!(sysid::SysidError::setting(
+                sysid::Setting::Other("--compensate-deadzone"),
+                path.display(),
+                &format!(
+                    "a single-input Hammerstein model file (this model has {} inputs; the PI \
+                     controller drives one command)",
+                    m.inputs().len()
+                )
+            ));
+        }
+        // A detrended model's deadzone acts on u - u0: in the command's units its breakpoints
+        // are shifted by u0 (the slopes are unchanged).
+        let u0 = m
+            .operating_point()
+            .and_then(|o| o.u.first().copied())
+            .unwrap_or(0.0);
+        m.deadzone().map(|d| sysid::Deadzone {
+            b_l: d.b_l + u0,
+            b_r: d.b_r + u0,
+            ..*d
+        })
+    };
+    let Some(deadzone) = deadzone else {
+        bail!(sysid::SysidError::setting(
+            sysid::Setting::Other("--compensate-deadzone"),
+            path.display(),
+            "a Hammerstein model file (this model is ARX and has no deadzone)"
+        ));
+    };
+    Ok(Some(
+        DeadzoneCompensator::new(deadzone, args.compensator_slopes, args.u_max)?
+            .with_threshold(args.compensator_threshold)?,
+    ))
+}
+
+/// Output paths: never over an input, and not both to the same file.
+fn check_outputs(args: &Args, inputs: &[PathBuf]) -> anyhow::Result<()> {
+    let input_refs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
+    if let Some(out) = &args.out {
+        sysid_io::check_writable(out, "--out")?;
+        sysid_io::refuse_overwrite_input(out, &input_refs, "--out")?;
+    }
+    if let Some(json) = args.json.as_ref().filter(|j| j.as_os_str() != "-") {
+        sysid_io::check_writable(json, "--json")?;
+        sysid_io::refuse_overwrite_input(json, &input_refs, "--json")?;
+        if let Some(out) = &args.out {
+            if json == out {
+                bail!(sysid::SysidError::setting(
+                    sysid::Setting::Other("--json"),
+                    json.display(),
+                    "a path different from --out"
+                ));
+            }
+            sysid_io::refuse_overwrite_input(json, &[out.as_path()], "--json")?;
+        }
+    }
+    Ok(())
+}
+
+/// The lines `--adaptive` adds to the text summary: the final compensator, the detected changes, what
+/// each branch did, and the warnings.
+fn adaptive_text(a: &AdaptiveOut) -> String {
+    let dz = a.final_deadzone.map_or("n/a".to_string(), |d| {
+        format!(
+            "b_l = {}, b_r = {}, m_l = {}, m_r = {}",
+            d.b_l, d.b_r, d.m_l, d.m_r
+        )
+    });
+    let counts = |c: &control::BranchCounts| {
+        format!(
+            "followed {} / frozen {} (implausible {}, undetermined {}, settling {}) / waiting {}",
+            c.following,
+            c.implausible + c.undetermined + c.settling,
+            c.implausible,
+            c.undetermined,
+            c.settling,
+            c.waiting
+        )
+    };
+    let mut text = format!(
+        "adaptive:     final compensator deadzone {dz}; changes detected at t = {:?} s\n\
+         adaptive:     samples: right branch {}; left branch {}\n",
+        a.change_points_s,
+        counts(&a.right),
+        counts(&a.left)
+    );
+    for w in &a.warnings {
+        text += &format!("warning: {w}\n");
+    }
+    text
 }
 
 fn fmt_opt(v: Option<f64>, unit: &str) -> String {

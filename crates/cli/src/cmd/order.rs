@@ -13,7 +13,7 @@ use report::format::num;
 use sysid::estimate::{Identification, Method};
 use sysid::model::MAX_ORDER;
 use sysid::order::{grid_size, search, Candidate};
-use sysid::ModelKind;
+use sysid::{Dataset, ModelKind};
 
 use super::common::{
     check_outputs, parse_rows, print_notes, print_report, progress_bar, write_output, ColumnArgs,
@@ -154,32 +154,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let records = args.val.records(&args.data, &opts)?;
     let (data, test) = (records.est, records.val);
     let mut notes = records.notes;
-    // The estimation part and the selection part.
-    let (fit_part, selection) = match &args.selection_rows {
-        Some(r) => {
-            let sopts = sysid::data::CsvOptions {
-                rows: Some(*r),
-                rows_flag: "--selection-rows",
-                ..opts.clone()
-            };
-            let sel = sysid::data::read_record(&args.data, &sopts)?;
-            notes.extend(sel.notes);
-            (data.clone(), sel.data)
-        }
-        None => {
-            let n = data.len();
-            let k = sysid::data::split_rows(n, args.selection_split).map_err(|_| {
-                sysid::SysidError::setting(
-                    sysid::Setting::Other("--selection-split"),
-                    args.selection_split,
-                    &format!(
-                        "a fraction F with 0 < F < 1 of the {n} estimation rows, leaving rows to rank on"
-                    ),
-                )
-            })?;
-            (data.rows(0..k), data.rows(k..n))
-        }
-    };
+    let (fit_part, selection) = selection_parts(&args, &data, &opts, &mut notes)?;
     print_notes(&notes);
     let delay = if auto_nk {
         let d = sysid::delay::estimate_delay(&fit_part, 2, 2, 10)?;
@@ -261,31 +236,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ));
     }
     text.push('\n');
-    text.push_str(&format!(
-        "{:>4} {:>3} {:>3} {:>3} {:>4} {:>12} {:>12} {:>12} {:>12} {:>12} {:>7}\n",
-        "rank", "na", "nb", "nk", "p", "fit est %", "fit sel %", "ranked on %", "AIC", "FPE", "stable"
-    ));
+    text.push_str(&candidate_rows(&ranked, args.top));
     let o = |v: Option<f64>| v.map_or_else(|| "n/a".to_string(), num);
-    for (i, c) in ranked.iter().take(args.top).enumerate() {
-        text.push_str(&format!(
-            "{:>4} {:>3} {:>3} {:>3} {:>4} {:>12} {:>12} {:>12} {:>12} {:>12} {:>7}{}\n",
-            i + 1,
-            c.orders.na,
-            c.orders.nb,
-            c.orders.nk,
-            c.p,
-            o(c.fit_estimation),
-            o(c.fit_validation),
-            o(c.ranking_fit()),
-            o(c.aic),
-            o(c.fpe),
-            if c.stable { "yes" } else { "no" },
-            c.error
-                .as_ref()
-                .map(|e| format!("  ({e})"))
-                .unwrap_or_default()
-        ));
-    }
     match (&test_result, &test) {
         (Some(t), _) => text.push_str(&format!(
             "\nChosen structure (na, nb, nk) = ({}, {}, {}), re-estimated on {}: test fit {} % (simulation) \
@@ -322,4 +274,70 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         write_output(path, json.as_bytes(), &inputs, "--json")?;
     }
     Ok(())
+}
+
+/// The estimation part and the selection part of the estimation record: `--selection-rows` of the data
+/// file, or the `--selection-split` fraction of `data`.
+fn selection_parts(
+    args: &Args,
+    data: &Dataset,
+    opts: &sysid::data::CsvOptions,
+    notes: &mut Vec<String>,
+) -> anyhow::Result<(Dataset, Dataset)> {
+    Ok(match &args.selection_rows {
+        Some(r) => {
+            let sopts = sysid::data::CsvOptions {
+                rows: Some(*r),
+                rows_flag: "--selection-rows",
+                ..opts.clone()
+            };
+            let sel = sysid::data::read_record(&args.data, &sopts)?;
+            notes.extend(sel.notes);
+            (data.clone(), sel.data)
+        }
+        None => {
+            let n = data.len();
+            let k = sysid::data::split_rows(n, args.selection_split).map_err(|_| {
+                sysid::SysidError::setting(
+                    sysid::Setting::Other("--selection-split"),
+                    args.selection_split,
+                    &format!(
+                        "a fraction F with 0 < F < 1 of the {n} estimation rows, leaving rows to rank on"
+                    ),
+                )
+            })?;
+            (data.rows(0..k), data.rows(k..n))
+        }
+    })
+}
+
+/// The ranking table: a header and the first `top` candidates.
+fn candidate_rows(ranked: &[Candidate], top: usize) -> String {
+    let mut text = String::new();
+    text.push_str(&format!(
+        "{:>4} {:>3} {:>3} {:>3} {:>4} {:>12} {:>12} {:>12} {:>12} {:>12} {:>7}\n",
+        "rank", "na", "nb", "nk", "p", "fit est %", "fit sel %", "ranked on %", "AIC", "FPE", "stable"
+    ));
+    let o = |v: Option<f64>| v.map_or_else(|| "n/a".to_string(), num);
+    for (i, c) in ranked.iter().take(top).enumerate() {
+        text.push_str(&format!(
+            "{:>4} {:>3} {:>3} {:>3} {:>4} {:>12} {:>12} {:>12} {:>12} {:>12} {:>7}{}\n",
+            i + 1,
+            c.orders.na,
+            c.orders.nb,
+            c.orders.nk,
+            c.p,
+            o(c.fit_estimation),
+            o(c.fit_validation),
+            o(c.ranking_fit()),
+            o(c.aic),
+            o(c.fpe),
+            if c.stable { "yes" } else { "no" },
+            c.error
+                .as_ref()
+                .map(|e| format!("  ({e})"))
+                .unwrap_or_default()
+        ));
+    }
+    text
 }

@@ -1,0 +1,84 @@
+//! Stage 3: the closed-loop PI tests on the plant and on the chosen identified model, fixed and unfixed
+//! set-point, and the deadzone-compensated run.
+
+use control::{
+    closed_loop, metrics_for_steps, DeadzoneCompensator, PiSettings, Profile, SlopeMode,
+    StepMetrics, Trace,
+};
+use sysid::estimate::Fitted as FittedModel;
+use sysid::{ModelPlant, Plant};
+
+use crate::ReproduceError;
+
+/// The PI loop on the plant and, when there is a stable identified model, on that model.
+pub(crate) fn closed_loop_pair(
+    plant: &mut dyn Plant,
+    model: Option<&mut ModelPlant>,
+    pi: &PiSettings,
+    profile: &Profile,
+    duration_s: f64,
+    y0_mm: f64,
+) -> Result<(Trace, Option<Trace>), ReproduceError> {
+    let mut c1 = pi.build(plant.ts())?;
+    let tp = closed_loop::run(plant, &mut c1, None, profile, duration_s, y0_mm)?;
+    let tm = match model {
+        Some(model) => {
+            let mut c2 = pi.build(model.ts())?;
+            Some(closed_loop::run(
+                model, &mut c2, None, profile, duration_s, y0_mm,
+            )?)
+        }
+        None => None,
+    };
+    Ok((tp, tm))
+}
+
+/// The fixed set-point run on the plant with a deadzone-inverse compensator built from the key-term LS
+/// deadzone; `Ok(Err(reason))` when that deadzone cannot be inverted (e.g. b_l > 0 or a slope <= 0).
+pub(crate) fn compensated_run(
+    plant: &mut dyn Plant,
+    fit: &FittedModel,
+    pi: &PiSettings,
+    profile: &Profile,
+    duration_s: f64,
+    y0_mm: f64,
+) -> Result<Result<Trace, String>, ReproduceError> {
+    let Some(&dz) = fit.model.deadzone() else {
+        return Ok(Err("the model has no deadzone".into()));
+    };
+    let comp = match DeadzoneCompensator::new(dz, SlopeMode::Shift, pi.u_max) {
+        Ok(c) => c,
+        Err(e) => return Ok(Err(e.to_string())),
+    };
+    let mut c = pi.build(plant.ts())?;
+    Ok(Ok(closed_loop::run(
+        plant,
+        &mut c,
+        Some(&comp),
+        profile,
+        duration_s,
+        y0_mm,
+    )?))
+}
+
+pub(crate) fn step_metrics(
+    trace: &Trace,
+    y0_mm: f64,
+    r_mm: f64,
+) -> Result<StepMetrics, ReproduceError> {
+    Ok(StepMetrics::compute(&trace.t, &trace.y, y0_mm, r_mm)?)
+}
+
+pub(crate) fn unfixed_metrics(
+    trace: &Trace,
+) -> Result<(StepMetrics, Vec<control::StepSegment>), ReproduceError> {
+    let steps = metrics_for_steps(trace)?;
+    let worst = StepMetrics::worst(steps.iter().map(|s| &s.metrics)).unwrap_or(StepMetrics {
+        overshoot_mm: None,
+        overshoot_percent: None,
+        steady_state_error_mm: None,
+        rise_time_s: None,
+        settling_time_s: None,
+    });
+    Ok((worst, steps))
+}

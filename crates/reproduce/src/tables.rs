@@ -1,0 +1,352 @@
+//! Stage 5: the paper's Tables III–V (and the known-truth and residual tables), as HTML tables and as
+//! plain text for the terminal.
+
+use report::format::{estimate, opt, pm};
+use report::html::Table;
+use sysid::estimate::Fitted as FittedModel;
+use sysid::summary::IdentifyReport;
+use sysid::{Model, ParamName};
+use sysid_core::param::{Layout, Parameterisation};
+
+use crate::paper::{self, paper_normalised};
+use crate::study::{Loop, Study, CLOSED_LOOP_RULE};
+use crate::ReproduceSettings;
+
+pub(crate) fn param_cell(fit: &FittedModel, name: ParamName) -> String {
+    match fit.params.iter().find(|p| p.name == name) {
+        Some(p) => pm(p.value, p.std),
+        None => "—".into(),
+    }
+}
+
+/// The rows of Table III, in the paper's order.
+pub(crate) const TABLE3_NAMES: [ParamName; 8] = [
+    ParamName::BR,
+    ParamName::BL,
+    ParamName::MR,
+    ParamName::ML,
+    ParamName::A(1),
+    ParamName::A(2),
+    ParamName::A(3),
+    ParamName::B(1),
+];
+
+/// The plant's true value of a parameter when the plant is the paper's model (b1 = 1: the model is
+/// normalised), from the physical parameterisation of [`Model::paper`].
+fn truth(s: &ReproduceSettings, name: ParamName) -> Option<f64> {
+    if s.plant != "paper" {
+        return None;
+    }
+    if name == ParamName::B(1) {
+        return Some(1.0);
+    }
+    let m = Model::paper();
+    Parameterisation::of_model(&m, Layout::Physical)
+        .named_vector_of(&m)
+        .into_iter()
+        .find_map(|(n, v)| (n == name).then_some(v))
+}
+
+pub(crate) fn table3(s: &ReproduceSettings, st: &Study) -> Table {
+    let mut header: Vec<String> = vec!["parameter".into()];
+    header.extend(
+        st.hammersteins()
+            .iter()
+            .map(|m| format!("ours: {}", m.short)),
+    );
+    if s.plant == "paper" {
+        header.push("this plant's actual value".into());
+    }
+    header.extend(["paper: estimated".to_string(), "paper: actual".to_string()]);
+    let ncols = header.len();
+    let mut t = Table::new(header);
+    for name in TABLE3_NAMES {
+        let mut row = vec![name.to_string()];
+        row.extend(st.hammersteins().iter().map(|m| param_cell(&m.fit, name)));
+        if s.plant == "paper" {
+            row.push(opt(truth(s, name)));
+        }
+        row.push(opt(paper_normalised(&paper::ESTIMATED, name)));
+        row.push(opt(paper_normalised(&paper::ACTUAL, name)));
+        t.push_row(row);
+    }
+    t.caption(
+        "The paper's Table III: Hammerstein parameter estimates (± one standard deviation), normalised to b1 = 1 \
+         (the paper's slopes are multiplied by its b1 so that they compare; see docs/paper.md)",
+    )
+    .paper_column(ncols - 2)
+    .paper_column(ncols - 1)
+}
+
+pub(crate) fn metrics_row(label: &str, rep: &IdentifyReport) -> [String; 5] {
+    let v = rep.metrics.validation.as_ref();
+    [
+        label.to_string(),
+        opt(v.and_then(|m| m.fit_sim_percent)),
+        opt(v.map(|m| m.loss)),
+        opt(v.and_then(|m| m.fpe)),
+        if rep.stable {
+            "stable".into()
+        } else {
+            "UNSTABLE".into()
+        },
+    ]
+}
+
+/// A Table V row: criterion, the paper's simulation and experiment values, ours on model and plant.
+pub(crate) type ClosedLoopRow = (&'static str, f64, f64, Option<f64>, Option<f64>);
+
+pub(crate) fn closed_loop_rows(lp: &Loop) -> [ClosedLoopRow; 4] {
+    let [a, b, c, d] = paper::CLOSED_LOOP;
+    let (m, p) = (lp.m_model.as_ref(), &lp.m_plant);
+    [
+        (
+            a.0,
+            a.1,
+            a.2,
+            m.and_then(|m| m.overshoot_mm),
+            p.overshoot_mm,
+        ),
+        (
+            b.0,
+            b.1,
+            b.2,
+            m.and_then(|m| m.steady_state_error_mm),
+            p.steady_state_error_mm,
+        ),
+        (c.0, c.1, c.2, m.and_then(|m| m.rise_time_s), p.rise_time_s),
+        (
+            d.0,
+            d.1,
+            d.2,
+            m.and_then(|m| m.settling_time_s),
+            p.settling_time_s,
+        ),
+    ]
+}
+
+/// The whiteness and independence verdicts of a residual analysis, in words.
+fn resid_verdict(r: &Result<sysid::residuals::ResidualAnalysis, String>) -> String {
+    match r {
+        Ok(a) => format!(
+            "{} (Ljung–Box p = {}), {} (p = {})",
+            if a.white { "white" } else { "NOT white" },
+            report::format::sig(a.ljung_box_p, 2),
+            if a.independent {
+                "independent of u"
+            } else {
+                "NOT independent of u"
+            },
+            report::format::sig(a.cross_p, 2)
+        ),
+        Err(e) => format!("not computed: {e}"),
+    }
+}
+
+pub(crate) fn tables_text(s: &ReproduceSettings, st: &Study) -> String {
+    use std::fmt::Write;
+    let mut o = String::new();
+    let hs = st.hammersteins();
+    let _ = writeln!(o, "Table III — Hammerstein estimates (normalised b1 = 1): RLS (paper's method), key-term LS, output error");
+    let _ = write!(o, "{:<6}", "param");
+    for m in hs {
+        let _ = write!(o, "{:>26}", m.short);
+    }
+    let _ = writeln!(o, "{:>13}{:>13}", "paper est.", "paper act.");
+    for name in TABLE3_NAMES {
+        let _ = write!(o, "{name:<6}");
+        for m in hs {
+            let _ = write!(o, "{:>26}", param_cell(&m.fit, name));
+        }
+        let _ = writeln!(
+            o,
+            "{:>13}{:>13}",
+            opt(paper_normalised(&paper::ESTIMATED, name)),
+            opt(paper_normalised(&paper::ACTUAL, name))
+        );
+    }
+    let _ = writeln!(
+        o,
+        "\nTable IV — validation record (free-run fit %, loss V, FPE)"
+    );
+    let _ = writeln!(
+        o,
+        "{:<40}{:>10}{:>12}{:>12}{:>10}",
+        "model", "fit %", "loss", "FPE", "poles"
+    );
+    for m in &st.models {
+        let r = metrics_row(m.label, &m.rep);
+        let _ = writeln!(
+            o,
+            "{:<40}{:>10}{:>12}{:>12}{:>10}",
+            r[0], r[1], r[2], r[3], r[4]
+        );
+    }
+    for (label, i) in [("paper: linear ARX", 0), ("paper: Hammerstein", 1)] {
+        let pick = |p: (f64, f64)| if i == 0 { p.0 } else { p.1 };
+        let _ = writeln!(
+            o,
+            "{label:<40}{:>10}{:>12}{:>12}",
+            estimate(pick(paper::FIT)),
+            estimate(pick(paper::LOSS)),
+            estimate(pick(paper::FPE))
+        );
+    }
+    let _ = writeln!(
+        o,
+        "\nTable V — PI (Kp = {}, Ki = {}) fixed set-point {} → {} mm, {} s",
+        s.pi.kp, s.pi.ki, s.fixed_start_mm, s.fixed_setpoint_mm, s.fixed_duration_s
+    );
+    let _ = writeln!(
+        o,
+        "{:<26}{:>14}{:>14}{:>14}{:>14}",
+        "criterion", "model (sim.)", "plant", "paper sim.", "paper exp."
+    );
+    for (label, ps, pe, a, b) in closed_loop_rows(&st.fixed) {
+        let _ = writeln!(
+            o,
+            "{label:<26}{:>14}{:>14}{:>14}{:>14}",
+            opt(a),
+            opt(b),
+            estimate(ps),
+            estimate(pe)
+        );
+    }
+    let _ = writeln!(
+        o,
+        "Model simulated: {} (rule: {CLOSED_LOOP_RULE})",
+        st.cl()
+            .map_or("none (no identified model is stable)", |m| m.label)
+    );
+    let _ = writeln!(
+        o,
+        "\nThe method on the paper's model (known truth, b1 = 1): parameter, actual, then each record's estimate"
+    );
+    let _ = write!(o, "{:<6}{:>13}", "param", "actual");
+    for r in &st.paper_check.runs {
+        let _ = write!(o, "{:>24}", r.label);
+    }
+    let _ = writeln!(o);
+    for name in TABLE3_NAMES {
+        let _ = write!(
+            o,
+            "{name:<6}{:>13}",
+            opt(paper_normalised(&paper::ACTUAL, name))
+        );
+        for r in &st.paper_check.runs {
+            let _ = write!(o, "{:>24}", param_cell(&r.fit, name));
+        }
+        let _ = writeln!(o);
+    }
+    let _ = writeln!(o, "\nResiduals (validation record, 99 % level)");
+    for r in &st.residuals {
+        let _ = writeln!(o, "  {:<38} {}", r.key, resid_verdict(&r.validation));
+    }
+    let _ = writeln!(o, "\nAcceptance");
+    for c in &st.verdicts {
+        let _ = writeln!(
+            o,
+            "  [{}] {}: {}",
+            if c.met { "met" } else { "NOT met" },
+            c.id,
+            c.text
+        );
+    }
+    o
+}
+
+/// Table of the known-truth check: the paper's actual values beside the estimates from its model.
+pub(crate) fn paper_model_table(st: &Study) -> Table {
+    let mut header = vec![
+        "parameter".to_string(),
+        "paper: actual (the plant here)".to_string(),
+    ];
+    header.extend(
+        st.paper_check
+            .runs
+            .iter()
+            .map(|r| format!("RLS estimate, {}", r.label)),
+    );
+    header.push("paper: its estimate".into());
+    let n = header.len();
+    let mut t = Table::new(header)
+        .caption(
+            "The paper's method (Hammerstein RLS, na = 3, nb = 1, nk = 1, the same settings and input as below) run \
+             on the paper's Table III actual model as the plant; estimates ± one standard deviation, normalised to \
+             b1 = 1 (slopes in mm per count and sample)",
+        )
+        .paper_column(1)
+        .paper_column(n - 1);
+    for name in TABLE3_NAMES {
+        let mut row = vec![
+            name.to_string(),
+            opt(paper_normalised(&paper::ACTUAL, name)),
+        ];
+        row.extend(st.paper_check.runs.iter().map(|r| param_cell(&r.fit, name)));
+        row.push(opt(paper_normalised(&paper::ESTIMATED, name)));
+        t.push_row(row);
+    }
+    let mut row = vec!["validation fit (%)".to_string(), "100".to_string()];
+    row.extend(st.paper_check.runs.iter().map(|r| opt(r.fit_val)));
+    row.push(estimate(paper::FIT.1));
+    t.push_row(row);
+    t
+}
+
+pub(crate) fn residual_table(st: &Study) -> Table {
+    let n = st
+        .residuals
+        .iter()
+        .find_map(|r| r.validation.as_ref().ok().map(|a| (a.n, a.max_lag)));
+    let mut t = Table::new([
+        "model",
+        "record",
+        "residual std (mm)",
+        "lags outside ±2.58/√N (auto / cross)",
+        "whiteness: Ljung–Box Q (p)",
+        "independence of u: S (p)",
+    ])
+    .caption(format!(
+        "Residual tests at the 1 % level on the one-step prediction errors{}: whiteness by Ljung–Box against \
+         χ²(M), independence of the input by the input-whitened statistic against χ²(2M+1)",
+        n.map_or(String::new(), |(n, m)| format!(" (N = {n} samples per record, M = {m} lags)"))
+    ));
+    for r in &st.residuals {
+        let label = st.model(r.key).map_or(r.key, |m| m.label);
+        for (record, res) in [("estimation", &r.estimation), ("validation", &r.validation)] {
+            match res {
+                Ok(a) => t.push_row([
+                    label.to_string(),
+                    record.to_string(),
+                    estimate(a.residual_std),
+                    format!(
+                        "{} / {}",
+                        a.autocorrelation_outside, a.cross_correlation_outside
+                    ),
+                    format!(
+                        "{}: {} ({})",
+                        if a.white { "white" } else { "NOT white" },
+                        estimate(a.ljung_box_q),
+                        report::format::sig(a.ljung_box_p, 2)
+                    ),
+                    format!(
+                        "{}: {} ({})",
+                        if a.independent {
+                            "independent"
+                        } else {
+                            "NOT independent"
+                        },
+                        estimate(a.cross_statistic),
+                        report::format::sig(a.cross_p, 2)
+                    ),
+                ]),
+                Err(e) => t.push_row([
+                    label.to_string(),
+                    record.to_string(),
+                    format!("not computed: {e}"),
+                ]),
+            }
+        }
+    }
+    t
+}

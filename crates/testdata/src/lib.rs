@@ -1,0 +1,76 @@
+//! Where the tests find the real measured records of `../shared/data`, and how a test that cannot run
+//! says so visibly.
+//!
+//! The records are read at run time from the folder beside the repository (`../shared/data`, or the
+//! folder named by `IPA_SYSID_SHARED_DATA`), never copied into it. A test that needs a record it cannot
+//! find calls [`shared_data`] or [`record`], gets `None` and returns early: the test harness would then
+//! print `ok`, so the skip is also appended, one line per test, to the file named by
+//! `IPA_SYSID_SKIP_LOG`. `scripts/test` sets that variable, prints the skipped tests at the end, and
+//! fails when the data folder is present but a test skipped anyway (a record renamed or moved).
+//!
+//! Hand-written because it is twenty lines: no test-support crate knows this project's data folder.
+
+use std::io::Write;
+use std::path::PathBuf;
+
+/// The environment variable naming the shared data folder (default: `../shared/data` beside the
+/// repository root).
+pub const DATA_ENV: &str = "IPA_SYSID_SHARED_DATA";
+/// The environment variable naming the file that collects skipped tests (set by `scripts/test`).
+pub const SKIP_LOG_ENV: &str = "IPA_SYSID_SKIP_LOG";
+
+/// The shared data folder if it exists; otherwise the skip is recorded and `None` returned.
+pub fn shared_data() -> Option<PathBuf> {
+    let dir = data_folder();
+    if dir.is_dir() {
+        Some(dir)
+    } else {
+        skip(&format!(
+            "the shared data folder {} is absent",
+            dir.display()
+        ));
+        None
+    }
+}
+
+/// One record of the shared data folder (`rel` is relative to it, e.g. `"silverbox/SNLS80mV.csv"`) if it
+/// exists; otherwise the skip is recorded and `None` returned.
+pub fn record(rel: &str) -> Option<PathBuf> {
+    let path = data_folder().join(rel);
+    if path.is_file() {
+        Some(path)
+    } else {
+        skip(&format!("the record {} is absent", path.display()));
+        None
+    }
+}
+
+/// Records that the running test is skipped, with the reason: printed (seen with `--nocapture` and in
+/// failures) and appended to the skip log when `IPA_SYSID_SKIP_LOG` names one.
+pub fn skip(reason: &str) {
+    // libtest names each test's thread after the test.
+    let current = std::thread::current();
+    let test = current.name().unwrap_or("<unnamed test>");
+    println!("SKIPPED {test}: {reason}");
+    eprintln!("SKIPPED {test}: {reason}");
+    if let Some(log) = std::env::var_os(SKIP_LOG_ENV) {
+        let written = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(&log)
+            .and_then(|mut f| writeln!(f, "{test}: {reason}"));
+        if let Err(e) = written {
+            eprintln!(
+                "could not append to the skip log {}: {e}",
+                log.to_string_lossy()
+            );
+        }
+    }
+}
+
+fn data_folder() -> PathBuf {
+    match std::env::var_os(DATA_ENV) {
+        Some(dir) => PathBuf::from(dir),
+        None => PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"),
+    }
+}

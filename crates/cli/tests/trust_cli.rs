@@ -15,16 +15,7 @@ fn bin() -> Command {
 }
 
 fn data_dir() -> Option<PathBuf> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data");
-    if dir.is_dir() {
-        Some(dir)
-    } else {
-        println!(
-            "SKIPPED: the shared data folder {} is absent",
-            dir.display()
-        );
-        None
-    }
+    testdata::shared_data()
 }
 
 /// Runs `ipa-sysid ARGS --json F` in `dir` and returns the JSON document (the command must succeed).

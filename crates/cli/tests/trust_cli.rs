@@ -15,7 +15,7 @@ fn bin() -> Command {
 }
 
 fn data_dir() -> Option<PathBuf> {
-    testdata::shared_data()
+    ipa_testdata::shared_data()
 }
 
 /// Runs `ipa-sysid ARGS --json F` in `dir` and returns the JSON document (the command must succeed).

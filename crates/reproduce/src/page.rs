@@ -15,6 +15,24 @@ use crate::tables::{
 };
 use crate::{ReproduceError, ReproduceSettings};
 
+/// Each step of a changing set-point with its own metrics, in words.
+fn step_list(steps: &[control::StepSegment]) -> String {
+    steps
+        .iter()
+        .map(|g| {
+            format!(
+                "r = {} mm at {} s: overshoot {} mm, e_ss {} mm, settling {} s",
+                estimate(g.setpoint_mm),
+                estimate(g.start_s),
+                opt(g.metrics.overshoot_mm),
+                opt(g.metrics.steady_state_error_mm),
+                opt(g.metrics.settling_time_s)
+            )
+        })
+        .collect::<Vec<_>>()
+        .join("; ")
+}
+
 fn colour_key(st: &Study) -> String {
     let mut parts = vec![format!(
         "plant and measured signals: {}",
@@ -72,11 +90,31 @@ pub(crate) fn build_report(
             estimate(st.ts)
         ))
         .intro(colour_key(st));
-    let mut acc = Section::new("Verdict").id("verdict");
+    let mut acc = Section::new("Verdict")
+        .id("verdict")
+        .list(crate::acceptance::headline(s, st));
     for c in &st.verdicts {
         acc = acc.callout(
-            if c.met { Verdict::Pass } else { Verdict::Fail },
-            c.text.clone(),
+            match (c.judged, c.met) {
+                (false, _) => Verdict::Note,
+                (true, true) => Verdict::Pass,
+                (true, false) => Verdict::Fail,
+            },
+            if c.judged {
+                c.text.clone()
+            } else {
+                format!("Not judged: {}", c.text)
+            },
+        );
+    }
+    for c in &st.checks {
+        acc = acc.callout(
+            Verdict::Note,
+            format!(
+                "Process check ({}): {}",
+                if c.met { "ok" } else { "not ok" },
+                c.text
+            ),
         );
     }
     r.push_section(acc);
@@ -295,19 +333,17 @@ pub(crate) fn build_report(
             .paragraph(comp_text),
         "fig7a_closed_loop_fixed",
     )?;
-    let up = &st.unfixed.m_plant;
-    let um = st.unfixed.m_model.as_ref();
     let cl = with_fig(
         cl.paragraph(format!(
-            "Changing set-point ({}): worst step on the plant — overshoot {} mm, steady-state error {} mm, settling {} s; \
-             on the model — overshoot {} mm, steady-state error {} mm, settling {} s.",
+            "Changing set-point ({}), step by step (each step's own overshoot, steady-state error and settling \
+             time; a settling time of n/a means not settled before the next step). On the plant: {}. On the model: {}.",
             s.unfixed_profile,
-            opt(up.overshoot_mm),
-            opt(up.steady_state_error_mm),
-            opt(up.settling_time_s),
-            opt(um.and_then(|m| m.overshoot_mm)),
-            opt(um.and_then(|m| m.steady_state_error_mm)),
-            opt(um.and_then(|m| m.settling_time_s)),
+            step_list(&st.steps_plant),
+            if st.steps_model.is_empty() {
+                "not run (no stable model)".to_string()
+            } else {
+                step_list(&st.steps_model)
+            },
         )),
         "fig7b_closed_loop_unfixed",
     )?;

@@ -247,10 +247,14 @@ pub(crate) fn tables_text(s: &ReproduceSettings, st: &Study) -> String {
     }
     let _ = writeln!(o, "\nAcceptance");
     for c in &st.verdicts {
+        let _ = writeln!(o, "  [{}] {}: {}", c.status(), c.id, c.text);
+    }
+    let _ = writeln!(o, "\nProcess checks");
+    for c in &st.checks {
         let _ = writeln!(
             o,
             "  [{}] {}: {}",
-            if c.met { "met" } else { "NOT met" },
+            if c.met { "ok" } else { "NO" },
             c.id,
             c.text
         );

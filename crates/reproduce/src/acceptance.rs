@@ -155,7 +155,7 @@ pub(crate) fn loop_verdicts(s: &ReproduceSettings, st: &Study) -> Vec<Criterion>
             met: per_step.iter().all(|(_, p)| p.is_some_and(|p| p < 2.0)),
             judged: true,
             text: format!(
-                "PI on the plant, changing set-point ({}): |steady-state error| of each step as % of that step — {}                  (paper's acceptance: < 2 %)",
+                "PI on the plant, changing set-point ({}): |steady-state error| of each step as % of that step — {} (paper's acceptance: < 2 %)",
                 s.unfixed_profile,
                 per_step
                     .iter()

@@ -78,10 +78,11 @@ pub(crate) fn verdicts(s: &ReproduceSettings, st: &Study) -> Vec<Criterion> {
                 && matches!((fa, fo), (Some(a), Some(o)) if o > 0.0 && o > a),
             judged: !oe.rep.stable || st.arx().rep.stable,
             text: format!(
-                "Addition: Hammerstein by output error is {} and fits the validation record by {} % (linear ARX: {} %)",
+                "Addition: Hammerstein by output error is {} and fits the validation record by {} % (linear ARX: {} %){}",
                 if oe.rep.stable { "stable" } else { "UNSTABLE" },
                 opt(fo),
-                opt(fa)
+                opt(fa),
+                unstable_caveat(&[("Hammerstein (output error)", oe.rep.stable), ("ARX", st.arx().rep.stable)]),
             ),
         });
     }

@@ -873,9 +873,7 @@ fn control_loop<'py>(
     };
     let spec = plant_spec(plant)?;
     let limits = spec.limits(plant_config.as_deref()).map_err(ipa_err)?;
-    let mut plant = spec
-        .build(plant_config.as_deref(), None)
-        .map_err(ipa_err)?;
+    let mut plant = spec.build(plant_config.as_deref(), None).map_err(ipa_err)?;
     let ts = plant.ts();
     let settings = ::control::PiSettings::new(kp, ki)
         .with_integral(integral)

@@ -194,7 +194,10 @@ fn hair_dryer_output_error_is_not_flattered_by_its_initial_state() {
     assert_headline_not_flattered_silently(&oe, "dryer OE (5,6,3)");
     let fit = guarded(&oe["metrics"]["estimation"]).unwrap();
     let baseline = guarded(&base["metrics"]["estimation"]).unwrap();
-    assert!(fit >= baseline - 1e-9, "OE {fit} % against ARX LS {baseline} %");
+    assert!(
+        fit >= baseline - 1e-9,
+        "OE {fit} % against ARX LS {baseline} %"
+    );
 }
 
 // Issue 22 item 1: the pneumatic 5 bar OE (8, 9, 0) headline was 91 % against −214 % from the measured
@@ -247,7 +250,12 @@ fn delay_on_the_ball_beam_keeps_every_warning() {
         .unwrap()
         .iter()
         .filter(|c| c["loss"].is_f64())
-        .min_by(|a, b| a["loss"].as_f64().unwrap().total_cmp(&b["loss"].as_f64().unwrap()))
+        .min_by(|a, b| {
+            a["loss"]
+                .as_f64()
+                .unwrap()
+                .total_cmp(&b["loss"].as_f64().unwrap())
+        })
         .unwrap()["nk"]
         .as_u64()
         .unwrap();
@@ -303,7 +311,9 @@ fn order_never_recommends_a_disqualified_structure_on_the_hydraulic_record() {
             assert!(chosen["ranking_fit"].as_f64().unwrap() >= 0.0, "{chosen}");
         }
         None => assert!(
-            warnings(&doc).iter().any(|w| w.contains("none is recommended")),
+            warnings(&doc)
+                .iter()
+                .any(|w| w.contains("none is recommended")),
             "{:?}",
             warnings(&doc)
         ),
@@ -389,7 +399,10 @@ fn control_says_when_the_step_has_not_settled() {
 fn control_warns_about_an_unreachable_set_point_and_saturation() {
     let (doc, text) = control(&["--plant", "ipa", "--setpoint", "300", "--duration", "2"]);
     let w = warnings(&doc);
-    assert!(w.iter().any(|w| w.contains("outside the reachable range")), "{w:?}");
+    assert!(
+        w.iter().any(|w| w.contains("outside the reachable range")),
+        "{w:?}"
+    );
     assert!(text.contains("warning: set-point r = 300 mm"), "{text}");
     assert!(w.iter().any(|w| w.contains("saturated")), "{w:?}");
 }

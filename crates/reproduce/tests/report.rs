@@ -96,10 +96,13 @@ fn every_criterion_has_an_id_and_the_verdicts_follow_from_the_numbers() {
             }
         );
         // The changing set-point's steps, each against 2 % of its own step.
-        let steps = s["closed_loop"]["unfixed"]["steps_plant"].as_array().unwrap();
+        let steps = s["closed_loop"]["unfixed"]["steps_plant"]
+            .as_array()
+            .unwrap();
         if !steps.is_empty() {
             let all_within = steps.iter().all(|g| {
-                let size = (g["setpoint_mm"].as_f64().unwrap() - g["y0_mm"].as_f64().unwrap()).abs();
+                let size =
+                    (g["setpoint_mm"].as_f64().unwrap() - g["y0_mm"].as_f64().unwrap()).abs();
                 g["metrics"]["steady_state_error_mm"]
                     .as_f64()
                     .is_some_and(|e| size > 0.0 && 100.0 * e.abs() / size < 2.0)

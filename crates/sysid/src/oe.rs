@@ -492,8 +492,7 @@ fn search(
                     .zip(&theta)
                     .map(|(a, b)| a - b)
                     .collect();
-                let predicted =
-                    tri.predicted_reduction(&taken) / cost.max(f64::MIN_POSITIVE);
+                let predicted = tri.predicted_reduction(&taken) / cost.max(f64::MIN_POSITIVE);
                 cost = new_cost;
                 // No floor: on ill-conditioned problems (a near-integrator's poles and its initial
                 // outputs) any fixed damping would shorten the Gauss–Newton step along the weak
@@ -704,9 +703,7 @@ fn why_no_covariance(problem: &Problem, e: &SysidError) -> String {
         .iter()
         .map(|p| p.norm())
         .fold(0.0, f64::max);
-    let mut why = format!(
-        "the information matrix JᵀJ of the output-error fit is singular ({e})"
-    );
+    let mut why = format!("the information matrix JᵀJ of the output-error fit is singular ({e})");
     if pinned >= MAX_POLE_MODULUS - 1e-7 {
         why.push_str(&format!(
             "; a pole is pinned on the stability boundary (|p| = {pinned:.7}), where the loss is not \

@@ -143,10 +143,10 @@ pub fn search(
             .then(key(y).total_cmp(&key(x)))
             .then(x.p.cmp(&y.p))
             .then_with(|| {
-            x.aic
-                .unwrap_or(f64::INFINITY)
-                .total_cmp(&y.aic.unwrap_or(f64::INFINITY))
-        })
+                x.aic
+                    .unwrap_or(f64::INFINITY)
+                    .total_cmp(&y.aic.unwrap_or(f64::INFINITY))
+            })
     });
     out
 }

@@ -165,14 +165,9 @@ impl IdentifyReport {
             validation: val_data.map(|v| residual_analysis(&fit.model, v, max_lag)),
         };
         let below = match (val_data, &val) {
-            (Some(v), Some(m)) => crate::trust::baseline_warning(
-                Record::Validation,
-                fit,
-                settings,
-                est_data,
-                v,
-                m,
-            ),
+            (Some(v), Some(m)) => {
+                crate::trust::baseline_warning(Record::Validation, fit, settings, est_data, v, m)
+            }
             _ => None,
         };
         let mut report = Self::from_parts(fit, settings, est, val, residuals);

@@ -202,7 +202,10 @@ mod tests {
     // The guarded fit is the lower of the two: min(91, −206) = −206.
     #[test]
     fn the_guarded_fit_is_the_worse_of_both_initial_states() {
-        assert_eq!(guarded_fit(&metrics(Some(91.0), Some(-206.0))), Some(-206.0));
+        assert_eq!(
+            guarded_fit(&metrics(Some(91.0), Some(-206.0))),
+            Some(-206.0)
+        );
         assert_eq!(guarded_fit(&metrics(Some(80.0), None)), None);
     }
 
@@ -211,7 +214,9 @@ mod tests {
     fn a_gap_of_more_than_five_points_between_initial_states_is_warned() {
         let w = initial_state_warning(Record::Estimation, &metrics(Some(91.0), Some(85.4)));
         assert!(w.unwrap().to_string().contains("85.40 %"));
-        assert!(initial_state_warning(Record::Estimation, &metrics(Some(87.74), Some(87.7))).is_none());
+        assert!(
+            initial_state_warning(Record::Estimation, &metrics(Some(87.74), Some(87.7))).is_none()
+        );
     }
 
     // 4.6 % against 40 %: 35.4 points below, more than 20: warned; 25 against 40 is not.

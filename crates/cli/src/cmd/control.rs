@@ -575,10 +575,7 @@ fn summary_text(
         fmt_opt(m.steady_state_error_mm, "mm")
     );
     o += &format!("  rise time 10-90 %    {}\n", fmt_opt(m.rise_time_s, "s"));
-    o += &format!(
-        "  settling time 2 %    {}\n",
-        fmt_settling(m, duration)
-    );
+    o += &format!("  settling time 2 %    {}\n", fmt_settling(m, duration));
     if steps.len() > 1 {
         o += "steps:\n    start_s   r_mm      y0_mm     OS_%      e_ss_mm   t_r_s     t_s_s\n";
         for st in steps {

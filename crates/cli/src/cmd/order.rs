@@ -171,7 +171,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         bar.inc(1)
     });
     bar.finish_and_clear();
-    let ranked_by = "selection fit % (simulation, the worse of estimated and measured initial outputs); \
+    let ranked_by =
+        "selection fit % (simulation, the worse of estimated and measured initial outputs); \
                      structures a warning disqualifies (unstable, negative fit) last";
     let mut warnings = sysid::order::search_warnings(&ranked, &na, &nb, &nk);
     for w in delay.iter().flat_map(|d| &d.warnings) {
@@ -316,7 +317,17 @@ fn candidate_rows(ranked: &[Candidate], top: usize) -> String {
     let mut text = String::new();
     text.push_str(&format!(
         "{:>4} {:>3} {:>3} {:>3} {:>4} {:>12} {:>12} {:>12} {:>12} {:>12} {:>7}\n",
-        "rank", "na", "nb", "nk", "p", "fit est %", "fit sel %", "ranked on %", "AIC", "FPE", "stable"
+        "rank",
+        "na",
+        "nb",
+        "nk",
+        "p",
+        "fit est %",
+        "fit sel %",
+        "ranked on %",
+        "AIC",
+        "FPE",
+        "stable"
     ));
     let o = |v: Option<f64>| v.map_or_else(|| "n/a".to_string(), num);
     for (i, c) in ranked.iter().take(top).enumerate() {

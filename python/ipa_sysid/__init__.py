@@ -12,23 +12,53 @@ same data and options.
 - ``simulate_plant(plant, ...)`` -> ``(t, u, y, pressures)``; ``control(plant, setpoint=...)`` -> dict
 
 Bad input raises ``ValueError`` with the command line's message; a numerical failure raises
-``ArithmeticError``. See docs/python.md in the repository.
+``ArithmeticError``. Every doubt the command line prints as a ``warning:`` line (an unstable model, a
+loop that has not settled, ...) is also issued as a Python warning of class ``IpaSysidWarning`` (and kept
+in ``Fit.warnings`` / the result's ``"warnings"``); ``warnings.simplefilter("error", IpaSysidWarning)``
+makes them exceptions, as ``--strict`` makes them exit code 1. See docs/python.md in the repository.
 """
 
+import functools
+import warnings as _warnings
+
+from . import _core
 from ._core import (
     Fit,
     Model,
     Rls,
     __version__,
-    control,
-    identify,
     load_model,
     paper_model,
     simulate_plant,
 )
 
+
+class IpaSysidWarning(UserWarning):
+    """A reason not to trust a result (the command line's ``warning:`` lines)."""
+
+
+def _warn_all(messages, stacklevel=3):
+    for message in messages or ():
+        _warnings.warn(str(message), IpaSysidWarning, stacklevel=stacklevel)
+
+
+@functools.wraps(_core.identify)
+def identify(*args, **kwargs):
+    fit = _core.identify(*args, **kwargs)
+    _warn_all(fit.warnings)
+    return fit
+
+
+@functools.wraps(_core.control)
+def control(*args, **kwargs):
+    result = _core.control(*args, **kwargs)
+    _warn_all(result.get("warnings"))
+    return result
+
+
 __all__ = [
     "Fit",
+    "IpaSysidWarning",
     "Model",
     "Rls",
     "__version__",

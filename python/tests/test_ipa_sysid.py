@@ -384,3 +384,32 @@ def test_example_script_runs(tmp_path):
     r = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     assert "fit % (simulation, validation)" in r.stdout
+
+
+def test_warnings_of_identify_are_python_warnings():
+    # The paper's single RLS pass on the physics IPA gives an unstable model (a pole of modulus >= 1, as
+    # `identify --json` says): the same words arrive as IpaSysidWarning.
+    t, u, y, _ = ipa_sysid.simulate_plant("ipa", seed=1)
+    with pytest.warns(ipa_sysid.IpaSysidWarning) as caught:
+        fit = ipa_sysid.identify(u, y, 0.01, method="rls", passes=1)
+    assert fit.warnings, "expected the unstable-model warning"
+    assert [str(w.message) for w in caught] == [str(w) for w in fit.warnings]
+    with _warnings_as_errors():
+        with pytest.raises(ipa_sysid.IpaSysidWarning):
+            ipa_sysid.identify(u, y, 0.01, method="rls", passes=1)
+
+
+def _warnings_as_errors():
+    import warnings
+
+    cm = warnings.catch_warnings()
+
+    class _Ctx:
+        def __enter__(self):
+            cm.__enter__()
+            warnings.simplefilter("error", ipa_sysid.IpaSysidWarning)
+
+        def __exit__(self, *exc):
+            return cm.__exit__(*exc)
+
+    return _Ctx()

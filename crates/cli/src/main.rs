@@ -31,7 +31,8 @@ enum Command {
     Control(cmd::control::Args),
     /// Reproduce the paper end to end: experiment, identification, validation, control, report.
     Reproduce(cmd::reproduce::Args),
-    /// Rank model orders and delays by validation fit (estimation fit without --validation), AIC and FPE.
+    /// Rank model orders and delays by free-run fit on a selection part of the estimation record (never the
+    /// test record), with AIC and FPE; the chosen structure is then re-estimated and its test fit printed.
     Order(cmd::order::Args),
     /// Estimate the input delay nk by comparing ARX fits over nk (MATLAB `delayest`).
     Delay(cmd::delay::Args),

@@ -254,11 +254,6 @@ impl Profile {
         }
     }
 
-    /// True for the paper's fixed set-point.
-    pub fn is_fixed(&self) -> bool {
-        matches!(self, Profile::Fixed { .. })
-    }
-
     /// A short description for summaries ("fixed 50 mm", "staircase 20, 60 mm, 3 s each", "file x.csv").
     pub fn describe(&self) -> String {
         match self {

@@ -19,6 +19,7 @@
 
 use std::path::Path;
 
+pub mod lines;
 pub mod mat;
 pub mod ranges;
 pub mod resample;
@@ -237,17 +238,7 @@ pub fn read_record_bytes(
             ts
         }
         None => {
-            let tc = table
-                .column_index(&opts.t_col, Setting::TCol)
-                .map_err(|_| SysidError::File {
-                    file: name.to_string(),
-                    message: format!(
-                        "no time column '{}' and no --ts: pass --ts SECONDS or name the time column with \
-                         --t-col (columns are: {})",
-                        opts.t_col,
-                        table.header_list()
-                    ),
-                })?;
+            let tc = table.time_column(opts, name)?;
             let t: Vec<f64> = table
                 .numbers(tc)?
                 .iter()
@@ -281,6 +272,17 @@ pub fn read_table(bytes: &[u8], name: &str) -> Result<Table, SysidError> {
 /// [`read_table`], or with `has_header = false` a file without a header row (`--no-header`), whose columns
 /// are then named by their position, 1-based (`"1"`, `"2"`, ...).
 pub fn read_table_with(bytes: &[u8], name: &str, has_header: bool) -> Result<Table, SysidError> {
+    table_of(bytes, name, has_header, true)
+}
+
+/// [`read_table_with`]; with `need_rows = false` a header without data rows is accepted (the header line
+/// of a stream read line by line, [`lines::CsvLines`]).
+fn table_of(
+    bytes: &[u8],
+    name: &str,
+    has_header: bool,
+    need_rows: bool,
+) -> Result<Table, SysidError> {
     let file_err = |message: String| SysidError::File {
         file: name.to_string(),
         message,
@@ -399,7 +401,7 @@ pub fn read_table_with(bytes: &[u8], name: &str, has_header: bool) -> Result<Tab
         }
         rows.push((line, rec));
     }
-    if rows.is_empty() {
+    if rows.is_empty() && need_rows {
         return Err(file_err("the file has a header but no data rows".into()));
     }
     Ok(Table {
@@ -499,6 +501,21 @@ impl Table {
             ycol,
             opts.ts.or(if has_t { None } else { opts.fallback_ts }),
         ))
+    }
+
+    /// The 0-based index of the time column `opts.t_col`, needed because `opts` gives no Ts; `name` is the
+    /// record's name in the message.
+    pub(crate) fn time_column(&self, opts: &CsvOptions, name: &str) -> Result<usize, SysidError> {
+        self.column_index(&opts.t_col, Setting::TCol)
+            .map_err(|_| SysidError::File {
+                file: name.to_string(),
+                message: format!(
+                    "no time column '{}' and no --ts: pass --ts SECONDS or name the time column with \
+                     --t-col (columns are: {})",
+                    opts.t_col,
+                    self.header_list()
+                ),
+            })
     }
 
     /// The 0-based index of the column called `col`; `setting` is the option that chose it.

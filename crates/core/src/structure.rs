@@ -2,8 +2,9 @@
 //! current deadzone estimate) into rows φ(k) of a linear regression y(k) = φᵀ(k) θ + ε(k). Every estimator
 //! works on every structure through this.
 
+use crate::model::MAX_ORDER;
 use crate::param::{Layout, Parameterisation};
-use crate::{Deadzone, ModelKind, Orders};
+use crate::{Deadzone, ModelKind, Orders, Setting, SysidError};
 
 /// A linear-in-parameters structure: ARX, or Hammerstein by key-term separation (docs/paper.md, eq. 8).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -17,6 +18,39 @@ pub struct Structure {
 }
 
 impl Structure {
+    /// The structure every estimator accepts (`identify`, `order`, `track`): orders at most
+    /// [`MAX_ORDER`], nb ≥ 1 for a Hammerstein model (b1 = 1 is its key term), at least one parameter; or
+    /// the error naming the setting.
+    pub fn check(&self) -> Result<(), SysidError> {
+        let o = self.orders;
+        for (setting, v) in [
+            (Setting::Na, o.na),
+            (Setting::Nb, o.nb),
+            (Setting::Nk, o.nk),
+        ] {
+            if v > MAX_ORDER {
+                return Err(SysidError::setting(
+                    setting,
+                    v,
+                    &format!("an order of at most {MAX_ORDER}"),
+                ));
+            }
+        }
+        if self.kind == ModelKind::Hammerstein && o.nb == 0 {
+            return Err(SysidError::setting(
+                Setting::Nb,
+                0,
+                "nb >= 1 for a Hammerstein model (b1 = 1 is the key term)",
+            ));
+        }
+        if self.n_params() == 0 {
+            return Err(SysidError::Data(
+                "the model has no parameter to estimate (na = nb = 0)".into(),
+            ));
+        }
+        Ok(())
+    }
+
     /// Number of entries of θ.
     ///
     /// ARX: θ = [a1..a_na, b1..b_nb, (c)].

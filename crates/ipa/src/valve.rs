@@ -55,11 +55,6 @@ impl FlowPath {
         }
     }
 
-    /// Choked mass flow at upstream pressure `p1_pa`, kg/s.
-    pub fn choked_kg_s(&self, p1_pa: f64) -> f64 {
-        self.choked_per_pa * p1_pa
-    }
-
     /// Mass flow from `p1_pa` to `p2_pa`, kg/s; negative when p2 > p1 (the flow reverses).
     #[inline(always)]
     pub fn mass_flow_kg_s(&self, p1_pa: f64, p2_pa: f64) -> f64 {

@@ -130,18 +130,48 @@ pub(crate) fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
     let tv = sysid::data::sample_times(st.val.len(), ts);
     let mut fit_panel = Panel::new("time (s)", "y (mm)")
         .series(Series::line("measured", tv.clone(), st.val.y.clone()).colour(plant_c));
+    // The axis is the measured range with a quarter of its span on each side: a diverging simulation
+    // would otherwise scale the figure so that the measured record is a flat line. Where a model leaves
+    // that range, it is clipped at the edge and a point marks the first sample outside.
+    let view = settled_range(&st.val.y, 0).map(|(lo, hi)| {
+        let pad = (hi - lo) * 0.25 / 1.2;
+        (lo - pad, hi + pad)
+    });
+    let mut leaving = Vec::new();
     for key in ["arx", "hammerstein", "hammerstein_oe"] {
         if let Some(m) = st.model(key) {
-            fit_panel = fit_panel.series(
-                Series::dashed(m.label, tv.clone(), sim_or_nan(&m.fit.model, &st.val))
-                    .colour(colours::model(key)),
-            );
+            let y = sim_or_nan(&m.fit.model, &st.val);
+            if let Some((lo, hi)) = view {
+                if let Some(k) = y.iter().position(|v| !(lo..=hi).contains(v) && !v.is_nan()) {
+                    let edge = if y[k] > hi { hi } else { lo };
+                    leaving.push(format!("{} at t = {} s", m.label, estimate(tv[k])));
+                    fit_panel = fit_panel.series(
+                        Series::points("", vec![tv[k]], vec![edge]).colour(colours::model(key)),
+                    );
+                }
+            }
+            fit_panel = fit_panel
+                .series(Series::dashed(m.label, tv.clone(), y).colour(colours::model(key)));
         }
+    }
+    if let Some((lo, hi)) = view {
+        fit_panel = fit_panel.y_range(lo, hi);
+    }
+    let mut caption =
+        "Free-run simulation of the models on the validation record (which was not used for estimation)."
+            .to_string();
+    if !leaving.is_empty() {
+        caption.push_str(&format!(
+            " The y axis spans the measured range and a quarter of its span on each side; leaving it (marked by \
+             a point, then clipped at the edge): {}.",
+            leaving.join("; ")
+        ));
     }
     figs.push((
         "fig5_fit",
-        Figure::new("Validation record: measured vs simulated output (paper's Fig. 5)").panel(fit_panel),
-        "Free-run simulation of the models on the validation record (which was not used for estimation).".into(),
+        Figure::new("Validation record: measured vs simulated output (paper's Fig. 5)")
+            .panel(fit_panel),
+        caption,
     ));
 
     let t_ol = sysid::data::sample_times(st.u_ol.len(), ts);
@@ -249,11 +279,11 @@ pub(crate) fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
         for (name, unit) in [
             ("b_r", "b_r (counts)"),
             ("b_l", "b_l (counts)"),
-            ("m_r", "m_r"),
-            ("m_l", "m_l"),
-            ("a1", "a1"),
-            ("a2", "a2"),
-            ("a3", "a3"),
+            ("m_r", "m_r (mm/count)"),
+            ("m_l", "m_l (mm/count)"),
+            ("a1", "a1 (dimensionless)"),
+            ("a2", "a2 (dimensionless)"),
+            ("a3", "a3 (dimensionless)"),
         ] {
             let Some(i) = ham.params.iter().position(|p| p.name == name) else {
                 continue;
@@ -298,9 +328,10 @@ pub(crate) fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
         } else {
             SeriesStyle::Line
         };
+        // One legend, in the bottom panel: the autocorrelation of an output-error model's residuals stays
+        // near 1, so a legend in the top panel would either hide data or stretch the axis past |r| = 1.
         acf = acf.series(
-            Series::new(label, lags, a.autocorrelation.clone(), style)
-                .colour(colours::model(r.key)),
+            Series::new("", lags, a.autocorrelation.clone(), style).colour(colours::model(r.key)),
         );
         let m = a.max_lag as f64;
         let lags: Vec<f64> = (0..a.cross_correlation.len())
@@ -313,16 +344,18 @@ pub(crate) fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
         bound = Some((a.bound, a.max_lag as f64));
     }
     if let Some((b, m)) = bound {
-        let band = |panel: Panel, from: f64| {
-            panel
-                .series(
-                    Series::dashed("99 % bound ±2.58/√N", vec![from, m], vec![b, b])
-                        .colour(colours::BOUND),
-                )
-                .series(Series::dashed("", vec![from, m], vec![-b, -b]).colour(colours::BOUND))
+        // Both bounds are one series (a NaN breaks the line), so they share one dash pattern and one
+        // legend entry.
+        let band = |label: &str, from: f64| {
+            Series::dashed(
+                label,
+                vec![from, m, f64::NAN, from, m],
+                vec![b, b, f64::NAN, -b, -b],
+            )
+            .colour(colours::BOUND)
         };
-        acf = band(acf, 1.0);
-        ccf = band(ccf, -m);
+        acf = acf.series(band("", 1.0));
+        ccf = ccf.series(band("99 % bounds ±2.58/√N", -m));
     }
     figs.push((
         "residuals",
@@ -330,8 +363,9 @@ pub(crate) fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
             .panel(acf)
             .panel(ccf),
         "Autocorrelation of each model's one-step prediction residuals ε (top) and their cross-correlation with \
-         the input u (bottom; ε(t) against u(t − τ)), on the validation record, with the 99 % bounds ±2.58/√N. A \
-         model that has captured the dynamics leaves residuals inside both bands."
+         the input u (bottom; ε(t) against u(t − τ)), on the validation record, with the 99 % bounds ±2.58/√N (dashed grey). The \
+         legend of the bottom panel holds for both. A model that has captured the dynamics leaves residuals \
+         inside both bands."
             .into(),
     ));
 

@@ -527,3 +527,38 @@ fn bode_matches_the_closed_form_of_a_first_order_model() {
         );
     }
 }
+
+// The residual figure: the 99 % band is one legend entry (both bounds one series), the legend sits once
+// (bottom panel), and no model label is listed twice.
+#[test]
+fn the_residual_band_has_one_legend_entry_and_one_style() {
+    let (dir, _) = run_once("ipa");
+    let svg = std::fs::read_to_string(dir.join("figures/residuals.svg")).unwrap();
+    let entries = legend_entries(&svg);
+    let band = entries.iter().filter(|(l, _)| l.contains("99 %")).count();
+    assert_eq!(band, 1, "legend entries: {entries:?}");
+    let mut labels: Vec<&String> = entries.iter().map(|(l, _)| l).collect();
+    let n = labels.len();
+    labels.sort();
+    labels.dedup();
+    assert_eq!(labels.len(), n, "a label listed twice: {entries:?}");
+}
+
+// Table V's data columns hold measurements of their own source; a threshold (the paper's acceptance)
+// sits in the criterion's label, never in a data cell.
+#[test]
+fn table_five_has_no_threshold_in_a_data_column() {
+    let (dir, _) = run_once("ipa");
+    let page = html(dir);
+    let start = page.find("Table V").expect("Table V");
+    let table = &page[start..start + page[start..].find("</table>").unwrap()];
+    for row in table.split("<tr").skip(1) {
+        let cells: Vec<&str> = row.split("<td").skip(1).collect();
+        for cell in cells.iter().skip(1) {
+            assert!(
+                !cell.contains("acceptance"),
+                "a threshold in a data cell: {row}"
+            );
+        }
+    }
+}

@@ -19,7 +19,6 @@ use crate::rls_ud::RlsForm;
 use crate::warnings::{deadzone_warnings, Record, Warning};
 use crate::windup::Windup;
 use crate::{iv, oe};
-use sysid_core::model::MAX_ORDER;
 use sysid_core::param::{deadzone_from_theta, Layout, Parameterisation, ZERO_DEADZONE};
 use sysid_core::{Dataset, Model, ModelKind, Orders, ParamName, Setting, Structure, SysidError};
 
@@ -196,7 +195,7 @@ impl<'a> Problem<'a> {
         structure: Structure,
         drop_unexcited_branch: bool,
     ) -> Result<Self, SysidError> {
-        check_structure(&structure)?;
+        structure.check()?;
         let k0 = structure.orders.k0();
         let p = structure.n_params();
         let n = data.len();
@@ -239,36 +238,6 @@ impl<'a> Problem<'a> {
         self.branches
             .parameterisation(&self.structure, Layout::KeyTerm)
     }
-}
-
-fn check_structure(s: &Structure) -> Result<(), SysidError> {
-    let o = s.orders;
-    for (setting, v) in [
-        (Setting::Na, o.na),
-        (Setting::Nb, o.nb),
-        (Setting::Nk, o.nk),
-    ] {
-        if v > MAX_ORDER {
-            return Err(SysidError::setting(
-                setting,
-                v,
-                &format!("an order of at most {MAX_ORDER}"),
-            ));
-        }
-    }
-    if s.kind == ModelKind::Hammerstein && o.nb == 0 {
-        return Err(SysidError::setting(
-            Setting::Nb,
-            0,
-            "nb >= 1 for a Hammerstein model (b1 = 1 is the key term)",
-        ));
-    }
-    if s.n_params() == 0 {
-        return Err(SysidError::Data(
-            "the model has no parameter to estimate (na = nb = 0)".into(),
-        ));
-    }
-    Ok(())
 }
 
 /// An estimation method: checks its settings and fits a [`Problem`].
@@ -355,7 +324,7 @@ impl Default for Identification {
 impl Identification {
     /// Checks the structure and the estimator's settings, without data.
     pub fn check(&self) -> Result<(), SysidError> {
-        check_structure(&self.structure)?;
+        self.structure.check()?;
         self.estimator.check()
     }
 

@@ -28,16 +28,12 @@
 //! during that warm-up and calibration. Without the restart (the default) the alarm changes nothing in
 //! the estimate.
 
-use std::io::{BufRead, Write};
-
 use serde::Serialize;
 
 use crate::rls::{RecursiveUpdate, Rls};
 use crate::rls_ud::{RlsForm, RobustRls};
-use crate::summary::{poles, Pole};
 use crate::windup::Windup;
 use ipa_embedded::cusum::{Cusum, CusumStatus};
-use sysid_core::error::ColumnHint;
 use sysid_core::param::{deadzone_from_theta, Layout, Parameterisation, ZERO_DEADZONE};
 use sysid_core::{Deadzone, Model, ModelKind, Orders, Setting, Structure, SysidError};
 
@@ -85,6 +81,13 @@ impl DeadzoneStart {
     }
 }
 
+/// Upper bound on the windows a tracker keeps, samples ([`TrackSettings::pe_window`],
+/// [`DetectorSettings::calibration`]): a record's limit, [`sysid_core::data::MAX_SAMPLES`].
+pub const MAX_WINDOW: usize = sysid_core::data::MAX_SAMPLES;
+
+/// Samples reserved for a window at the start; it grows with the samples that come, up to its length.
+const RESERVE: usize = 4096;
+
 /// Settings of the change detector (see the module documentation).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DetectorSettings {
@@ -124,6 +127,13 @@ impl Default for DetectorSettings {
 
 impl DetectorSettings {
     fn detector(&self) -> Result<Detector, SysidError> {
+        if self.calibration > MAX_WINDOW {
+            return Err(SysidError::setting(
+                Setting::Other("--detect-calibration"),
+                self.calibration,
+                &format!("at most {MAX_WINDOW} samples"),
+            ));
+        }
         let valid = Cusum::<f64>::new(self.warmup, self.calibration, self.drift, self.threshold)
             .is_ok()
             && self.excursion_factor.is_finite()
@@ -143,7 +153,7 @@ impl DetectorSettings {
         Ok(Detector {
             settings: *self,
             seen: 0,
-            calibration: Vec::with_capacity(self.calibration),
+            calibration: Vec::with_capacity(self.calibration.min(RESERVE)),
             cusum: None,
             threshold: self.threshold,
         })
@@ -338,14 +348,8 @@ impl Tracker {
             orders: settings.orders,
             offset: false,
         };
+        structure.check()?;
         if settings.kind == ModelKind::Hammerstein {
-            if settings.orders.nb == 0 {
-                return Err(SysidError::setting(
-                    Setting::Nb,
-                    0,
-                    "nb >= 1 for a Hammerstein model (b1 = 1 is its key term)",
-                ));
-            }
             let s = settings.start;
             if !(s.b_l0.is_finite() && s.b_l0 < 0.0 && s.b_r0.is_finite() && s.b_r0 > 0.0) {
                 return Err(SysidError::setting(
@@ -362,11 +366,11 @@ impl Tracker {
                 ));
             }
         }
-        if settings.pe_window == 0 {
+        if settings.pe_window == 0 || settings.pe_window > MAX_WINDOW {
             return Err(SysidError::setting(
                 Setting::Other("--pe-window"),
-                0,
-                "at least 1 sample",
+                settings.pe_window,
+                &format!("at least 1 and at most {MAX_WINDOW} samples"),
             ));
         }
         let detector = settings.detector.map(|d| d.detector()).transpose()?;
@@ -396,7 +400,7 @@ impl Tracker {
             k0,
             updates: 0,
             updates_total: 0,
-            errors: Vec::with_capacity(settings.pe_window),
+            errors: Vec::with_capacity(settings.pe_window.min(RESERVE)),
             detector,
             changes: Vec::new(),
             guard_hits: 0,
@@ -535,6 +539,11 @@ impl Tracker {
         Some((ss / self.errors.len() as f64).sqrt())
     }
 
+    /// Number of errors in [`Tracker::pe_rms`]: the last [`TrackSettings::pe_window`] or fewer.
+    pub fn pe_count(&self) -> usize {
+        self.errors.len()
+    }
+
     /// The detector's statistic g(k) and σ̂² (mm²); `None` while warming up or calibrating, or without
     /// a detector.
     pub fn detector_state(&self) -> Option<(f64, f64)> {
@@ -638,374 +647,4 @@ impl Tracker {
         }
         w
     }
-}
-
-/// Where the columns of a streamed CSV are, and how often to report.
-#[derive(Debug, Clone, PartialEq)]
-pub struct StreamOptions {
-    /// The source's name in messages (`<stdin>`, a path).
-    pub name: String,
-    /// Column of u.
-    pub u_col: String,
-    /// Column of y.
-    pub y_col: String,
-    /// Column of t (s); optional when `ts` is given (then t = k Ts).
-    pub t_col: String,
-    /// Sampling period Ts (s); `None`: the difference of the first two times.
-    pub ts: Option<f64>,
-    /// Print a line every `every` samples (≥ 1), and at every detected change.
-    pub every: usize,
-}
-
-/// One JSON line of `track`.
-#[derive(Debug, Clone, Serialize)]
-pub struct TrackLine {
-    /// Sample index k (0-based data row).
-    pub k: usize,
-    /// Time t(k) (s).
-    pub t: f64,
-    /// The current estimate (the `model` object of `identify --json`).
-    pub model: Model,
-    /// Its poles.
-    pub poles: Vec<Pole>,
-    /// All poles inside the unit circle.
-    pub stable: bool,
-    /// A change was detected at this sample or since the previous line.
-    pub change: bool,
-    /// RMS of the last `pe_window` a-priori prediction errors (mm).
-    pub pe_rms: Option<f64>,
-    /// Number of errors in `pe_rms`.
-    pub pe_window: usize,
-    /// The CUSUM statistic g(k) (`null` while the detector warms up or calibrates).
-    pub cusum: Option<f64>,
-    /// Reasons not to trust this line, in words.
-    pub warnings: Vec<String>,
-}
-
-/// A detected change.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct ChangePoint {
-    /// Sample index.
-    pub k: usize,
-    /// Time (s).
-    pub t: f64,
-}
-
-/// The end of a `track` run (`--json-summary`).
-#[derive(Debug, Clone, Serialize)]
-pub struct TrackSummary {
-    /// Samples read.
-    pub samples: usize,
-    /// Time of the last sample (s).
-    pub t_end: Option<f64>,
-    /// The final estimate (`None` when fewer than k0 + 1 samples came).
-    pub model: Option<Model>,
-    /// Its poles.
-    pub poles: Vec<Pole>,
-    /// All poles inside the unit circle.
-    pub stable: Option<bool>,
-    /// RMS of the last prediction errors (mm).
-    pub pe_rms: Option<f64>,
-    /// Detected changes.
-    pub change_points: Vec<ChangePoint>,
-    /// The CUSUM threshold in use at the end ([`Tracker::detector_threshold`]; `None` without a detector).
-    pub detector_threshold: Option<f64>,
-    /// Samples at which the deadzone guard replaced an implausible branch ([`TrackSettings::guard`]).
-    pub guard_interventions: usize,
-    /// Reasons not to trust the final model, in words.
-    pub warnings: Vec<String>,
-}
-
-/// Which fields of a line hold u, y and t.
-#[derive(Debug, Clone, Copy)]
-struct Columns {
-    u: usize,
-    y: usize,
-    t: Option<usize>,
-}
-
-impl Columns {
-    /// The columns named in the header `line` (comma-separated names, optionally quoted, a UTF-8
-    /// byte-order mark allowed); also returns the names.
-    fn of_header(
-        line: &[u8],
-        o: &StreamOptions,
-        line_no: usize,
-    ) -> Result<(Self, Vec<String>), SysidError> {
-        let line = line.strip_prefix(b"\xef\xbb\xbf").unwrap_or(line);
-        let text = std::str::from_utf8(line).map_err(|e| SysidError::Parse {
-            file: o.name.clone(),
-            line: line_no,
-            column: e.valid_up_to() + 1,
-            message: "the header is not UTF-8 text; expected a header such as t,u,y".into(),
-        })?;
-        let header: Vec<String> = text
-            .split(',')
-            .map(|h| {
-                let h = h.trim();
-                h.strip_prefix('"')
-                    .and_then(|x| x.strip_suffix('"'))
-                    .map_or(h, str::trim)
-                    .to_string()
-            })
-            .collect();
-        let find = |col: &str, setting: Setting| {
-            header.iter().position(|h| h == col).ok_or_else(|| {
-                let hint = if header.iter().all(|h| h.parse::<f64>().is_ok()) {
-                    Some(ColumnHint::NoHeader)
-                } else {
-                    header
-                        .iter()
-                        .find(|h| h.eq_ignore_ascii_case(col))
-                        .map(|h| ColumnHint::Case(h.clone()))
-                };
-                SysidError::MissingColumn {
-                    file: o.name.clone(),
-                    column: col.to_string(),
-                    setting,
-                    header: header.clone(),
-                    hint,
-                }
-            })
-        };
-        let u = find(&o.u_col, Setting::UCol)?;
-        let y = find(&o.y_col, Setting::YCol)?;
-        let t = match find(&o.t_col, Setting::TCol) {
-            Ok(t) => Some(t),
-            Err(_) if o.ts.is_some() => None,
-            Err(e) => return Err(e),
-        };
-        Ok((Columns { u, y, t }, header))
-    }
-
-    /// u, y and t (when there is a t column) of a data line.
-    fn parse(
-        &self,
-        line: &[u8],
-        line_no: usize,
-        name: &str,
-        header: &[String],
-    ) -> Result<(f64, f64, f64), SysidError> {
-        let mut out = [f64::NAN; 3];
-        let wanted = [Some(self.u), Some(self.y), self.t];
-        let last = wanted.iter().flatten().copied().max().unwrap_or(0);
-        let mut found = 0;
-        for (i, field) in line.split(|&b| b == b',').enumerate().take(last + 1) {
-            found = i + 1;
-            for (slot, w) in out.iter_mut().zip(wanted) {
-                if w == Some(i) {
-                    *slot = parse_field(field).ok_or_else(|| {
-                        let cname = header.get(i).map_or("?", String::as_str);
-                        SysidError::Parse {
-                            file: name.to_string(),
-                            line: line_no,
-                            column: i + 1,
-                            message: format!(
-                                "'{}' in column '{cname}' is not a finite number; expected a decimal \
-                                 number such as -1.5 or 2e-3",
-                                String::from_utf8_lossy(field).trim()
-                            ),
-                        }
-                    })?;
-                }
-            }
-        }
-        if found <= last {
-            return Err(SysidError::Parse {
-                file: name.to_string(),
-                line: line_no,
-                column: found + 1,
-                message: format!(
-                    "the line has only {found} field(s); expected {} (the header's columns)",
-                    header.len()
-                ),
-            });
-        }
-        Ok((out[0], out[1], out[2]))
-    }
-}
-
-/// A finite f64 from a CSV field (surrounding spaces and quotes allowed).
-#[inline]
-fn parse_field(field: &[u8]) -> Option<f64> {
-    let s = std::str::from_utf8(field).ok()?.trim();
-    let s = s
-        .strip_prefix('"')
-        .and_then(|x| x.strip_suffix('"'))
-        .map_or(s, str::trim);
-    s.parse::<f64>().ok().filter(|v| v.is_finite())
-}
-
-/// Runs `tracker` over CSV lines from `input` (a header row, then `t,u,y` rows; blank lines skipped),
-/// writing a [`TrackLine`] as one JSON line to `out` every `options.every` samples and at every detected
-/// change, each flushed at once. Returns the summary at the end of the input. A malformed line stops the
-/// run with an error naming its line and column.
-pub fn track_stream<R: BufRead, W: Write>(
-    mut input: R,
-    out: &mut W,
-    tracker: &mut Tracker,
-    options: &StreamOptions,
-) -> Result<TrackSummary, SysidError> {
-    if options.every == 0 {
-        return Err(SysidError::setting(
-            Setting::Other("--every"),
-            0,
-            "at least 1 sample",
-        ));
-    }
-    if let Some(ts) = options.ts {
-        if !(ts.is_finite() && ts > 0.0) {
-            return Err(SysidError::setting(
-                Setting::Ts,
-                ts,
-                "a positive sampling period in seconds",
-            ));
-        }
-    }
-    let io_err = |e: std::io::Error| SysidError::Io {
-        path: options.name.clone().into(),
-        source: e,
-    };
-    let write_err = |e: std::io::Error| SysidError::Io {
-        path: "<output>".into(),
-        source: e,
-    };
-    let mut buf = Vec::with_capacity(256);
-    let mut line_no = 0;
-    let mut columns = None;
-    let mut header = Vec::new();
-    let mut ts = options.ts;
-    let mut t0 = None;
-    let mut t_last = None;
-    let mut pending_change = false;
-    let mut change_points = Vec::new();
-    loop {
-        buf.clear();
-        if input.read_until(b'\n', &mut buf).map_err(io_err)? == 0 {
-            break;
-        }
-        line_no += 1;
-        let mut line = buf.as_slice();
-        while let [rest @ .., b'\n' | b'\r'] = line {
-            line = rest;
-        }
-        if line.iter().all(u8::is_ascii_whitespace) {
-            continue;
-        }
-        let Some(cols) = columns else {
-            let (c, names) = Columns::of_header(line, options, line_no)?;
-            header = names;
-            columns = Some(c);
-            continue;
-        };
-        let (u, y, t_read) = cols.parse(line, line_no, &options.name, &header)?;
-        let k = tracker.samples();
-        let t = match (cols.t, ts) {
-            (Some(_), _) => t_read,
-            (None, Some(ts)) => k as f64 * ts,
-            (None, None) => f64::NAN, // not reached: a missing t column needs `ts`
-        };
-        match (ts, t0) {
-            (None, None) => t0 = Some(t),
-            (None, Some(first)) => {
-                let d = t - first;
-                if !(d.is_finite() && d > 0.0) {
-                    return Err(SysidError::Parse {
-                        file: options.name.clone(),
-                        line: line_no,
-                        column: cols.t.map_or(1, |c| c + 1),
-                        message: format!(
-                            "t = {t} after t = {first}: the time must increase (or give --ts)"
-                        ),
-                    });
-                }
-                ts = Some(d);
-            }
-            _ => {}
-        }
-        t_last = Some(t);
-        let step = tracker.push(u, y).map_err(|e| match e {
-            SysidError::Numerical(m) => {
-                SysidError::Numerical(format!("{}:{line_no}: {m}", options.name))
-            }
-            e => e,
-        })?;
-        if step.change {
-            change_points.push(ChangePoint { k, t });
-            pending_change = true;
-        }
-        if step.error.is_some() && (step.change || (k + 1) % options.every == 0) {
-            if let Some(ts) = ts {
-                let line = track_line(tracker, k, t, ts, pending_change)?;
-                serde_json::to_writer(&mut *out, &line).map_err(|e| {
-                    SysidError::Numerical(format!("a track line could not be written: {e}"))
-                })?;
-                out.write_all(b"\n").map_err(write_err)?;
-                out.flush().map_err(write_err)?;
-                pending_change = false;
-            }
-        }
-    }
-    if columns.is_none() {
-        return Err(SysidError::File {
-            file: options.name.clone(),
-            message: "no header row arrived; expected a header such as t,u,y and data rows".into(),
-        });
-    }
-    summary(tracker, ts, t_last, change_points)
-}
-
-fn track_line(
-    tracker: &Tracker,
-    k: usize,
-    t: f64,
-    ts: f64,
-    change: bool,
-) -> Result<TrackLine, SysidError> {
-    let model = tracker.model(ts)?;
-    Ok(TrackLine {
-        k,
-        t,
-        poles: poles(&model),
-        stable: model.is_stable(),
-        change,
-        pe_rms: tracker.pe_rms(),
-        pe_window: tracker.errors.len(),
-        cusum: tracker.detector_state().map(|(g, _)| g),
-        warnings: tracker.warnings(&model),
-        model,
-    })
-}
-
-fn summary(
-    tracker: &Tracker,
-    ts: Option<f64>,
-    t_end: Option<f64>,
-    change_points: Vec<ChangePoint>,
-) -> Result<TrackSummary, SysidError> {
-    let model = match ts {
-        Some(ts) if tracker.samples() > tracker.k0() => Some(tracker.model(ts)?),
-        _ => None,
-    };
-    let mut warnings = match &model {
-        Some(m) => tracker.warnings(m),
-        None => vec![format!(
-            "{} sample(s): no regression update was made (k0 = {}), so there is no model",
-            tracker.samples(),
-            tracker.k0()
-        )],
-    };
-    warnings.retain(|w| !w.starts_with("the change detector"));
-    Ok(TrackSummary {
-        samples: tracker.samples(),
-        t_end,
-        poles: model.as_ref().map(poles).unwrap_or_default(),
-        stable: model.as_ref().map(Model::is_stable),
-        model,
-        pe_rms: tracker.pe_rms(),
-        change_points,
-        detector_threshold: tracker.detector_threshold(),
-        guard_interventions: tracker.guard_interventions(),
-        warnings,
-    })
 }

@@ -72,6 +72,7 @@
     deny(clippy::unwrap_used, clippy::expect_used, clippy::panic)
 )]
 
+use nalgebra::{linalg::Cholesky, DMatrix, DVector};
 use serde::{Deserialize, Serialize};
 use std::fmt;
 
@@ -718,16 +719,16 @@ fn lagged_gram(sums: &CovarianceSums, scale: f64) -> Vec<f64> {
     g
 }
 
-/// cᵀ G⁻¹ c for a symmetric positive definite row-major G, by Cholesky G = L Lᵀ and forward
-/// substitution L y = c: cᵀ G⁻¹ c = |y|². A pivot below [`MIN_PIVOT`] is an error.
+/// cᵀ G⁻¹ c for a symmetric positive definite row-major G, by nalgebra's Cholesky G = L Lᵀ and forward
+/// substitution L y = c: cᵀ G⁻¹ c = |y|². A pivot d_j = G_jj − Σ_{k<j} L_jk² (= L_jj²) below
+/// [`MIN_PIVOT`] is an error.
 fn quadratic_form_inverse(g: &[f64], c: &[f64]) -> Result<f64, ResidError> {
     let p = c.len();
-    let mut l = vec![0.0; p * p];
+    let g = DMatrix::from_row_slice(p, p, g);
+    // Unchecked: a failed pivot is found below, with its value, instead of a bare `None`.
+    let l = Cholesky::new_unchecked(g.clone()).l_dirty().clone_owned();
     for j in 0..p {
-        let mut d = g[j * p + j];
-        for k in 0..j {
-            d -= l[j * p + k] * l[j * p + k];
-        }
+        let d = g[(j, j)] - l.view((j, 0), (1, j)).norm_squared();
         if d.is_nan() || d <= MIN_PIVOT {
             return Err(ResidError::InputNotExciting {
                 order: p,
@@ -735,27 +736,15 @@ fn quadratic_form_inverse(g: &[f64], c: &[f64]) -> Result<f64, ResidError> {
                 pivot: d,
             });
         }
-        let djj = d.sqrt();
-        l[j * p + j] = djj;
-        for i in j + 1..p {
-            let mut s = g[i * p + j];
-            for k in 0..j {
-                s -= l[i * p + k] * l[j * p + k];
-            }
-            l[i * p + j] = s / djj;
-        }
     }
-    let mut y = vec![0.0; p];
-    let mut q = 0.0;
-    for i in 0..p {
-        let mut s = c[i];
-        for k in 0..i {
-            s -= l[i * p + k] * y[k];
-        }
-        y[i] = s / l[i * p + i];
-        q += y[i] * y[i];
-    }
-    Ok(q)
+    let y = l
+        .solve_lower_triangular(&DVector::from_column_slice(c))
+        .ok_or(ResidError::InputNotExciting {
+            order: p,
+            at: 0,
+            pivot: f64::NAN,
+        })?;
+    Ok(y.norm_squared())
 }
 
 /// Survival function of the χ² distribution with `dof` degrees of freedom:
@@ -900,6 +889,26 @@ mod tests {
     }
 
     // ---------- hand-computed case ----------
+
+    // G = [[2, 1], [1, 2]] has G⁻¹ = (1/3) [[2, −1], [−1, 2]], so cᵀ G⁻¹ c = (2 − 1 − 1 + 2)/3 = 2/3 for
+    // c = (1, 1); [[1, 1], [1, 1]] has the pivot 1 − 1² = 0 at index 1 and [[1, 2], [2, 1]] the pivot
+    // 1 − 2² = −3 there.
+    #[test]
+    fn quadratic_form_of_the_inverse_by_hand_and_its_failed_pivots() {
+        let q = quadratic_form_inverse(&[2.0, 1.0, 1.0, 2.0], &[1.0, 1.0]).unwrap();
+        assert!((q - 2.0 / 3.0).abs() < 1e-15, "{q}");
+        for (g, pivot) in [([1.0, 1.0, 1.0, 1.0], 0.0), ([1.0, 2.0, 2.0, 1.0], -3.0)] {
+            let e = quadratic_form_inverse(&g, &[1.0, 1.0]).unwrap_err();
+            assert_eq!(
+                e,
+                ResidError::InputNotExciting {
+                    order: 2,
+                    at: 1,
+                    pivot
+                }
+            );
+        }
+    }
 
     #[test]
     fn alternating_residual_against_impulse_input_by_hand() {

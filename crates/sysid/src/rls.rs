@@ -307,11 +307,6 @@ impl<const N: usize> RlsN<N> {
         &self.theta
     }
 
-    /// Sets θ̂ (for example to start from a previous estimate).
-    pub fn set_theta(&mut self, theta: [f64; N]) {
-        self.theta = theta;
-    }
-
     /// P_ij.
     pub fn p(&self, i: usize, j: usize) -> f64 {
         self.p[j][i]

@@ -10,7 +10,7 @@ use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use sysid::data::Signals;
 use sysid::estimate::{identify, Identification, Passes};
-use sysid::online::{DeadzoneStart, StreamOptions, TrackSettings, Tracker};
+use sysid::online::{DeadzoneStart, TrackSettings, Tracker};
 use sysid::windup::Windup;
 use sysid::{Dataset, Deadzone, EstimatorSettings, ModelKind, RecursiveLeastSquares};
 
@@ -238,28 +238,6 @@ fn without_detection_the_estimate_lags_behind_the_new_valve() {
     );
     let (a, b) = (with.pe_rms().unwrap(), without.pe_rms().unwrap());
     assert!(a < 0.8 * b, "pe_rms with restart {a}, without {b}");
-}
-
-// The stream front end: a malformed field is reported at its line and column.
-#[test]
-fn a_malformed_line_is_reported_with_its_line_and_column() {
-    let text = "t,u,y\n0,1,2\n0.01,1,x\n";
-    let mut t = Tracker::new(TrackSettings::default()).unwrap();
-    let options = StreamOptions {
-        name: "<test>".into(),
-        u_col: "u".into(),
-        y_col: "y".into(),
-        t_col: "t".into(),
-        ts: None,
-        every: 1,
-    };
-    let mut out = Vec::new();
-    let e = sysid::online::track_stream(text.as_bytes(), &mut out, &mut t, &options).unwrap_err();
-    assert_eq!(
-        e.to_string().split(": ").next().unwrap(),
-        "<test>:3:3",
-        "{e}"
-    );
 }
 
 // The paper's one-pass method evaluates the switching functions at the latest estimate; early on, a

@@ -13,4 +13,5 @@ pub mod plant_config;
 pub mod reproduce;
 pub mod simulate;
 pub mod track;
+pub mod track_stream;
 pub mod validate;

@@ -1,19 +1,19 @@
 //! `ipa-sysid track`: the recursive estimator on samples as they arrive (standard input, a file being
 //! appended, a serial port), one JSON line every `--every` samples; change detection on the prediction
-//! errors. The logic is `sysid::online`; this module opens the source and maps flags.
+//! errors. The estimator is `sysid::online`; this module opens the source and maps flags, and
+//! `track_stream` reads the lines by `identify`'s CSV rules.
 
 use std::io::{BufReader, Write};
 use std::path::PathBuf;
 use std::time::Duration;
 
 use anyhow::Context;
-use sysid::online::{
-    track_stream, DeadzoneStart, DetectorSettings, StreamOptions, TrackSettings, Tracker,
-};
+use sysid::online::{DeadzoneStart, DetectorSettings, TrackSettings, Tracker};
 use sysid::windup::Windup;
 use sysid::{ModelKind, Orders};
 
 use super::common::check_outputs;
+use super::track_stream::{track_stream, StreamOptions};
 
 /// Flags of `track`.
 #[derive(Debug, clap::Args)]
@@ -221,10 +221,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     check_outputs(&[(&args.json_summary, "--json-summary")], &inputs)?;
     let options = StreamOptions {
         name,
-        u_col: args.u_col.clone(),
-        y_col: args.y_col.clone(),
-        t_col: args.t_col.clone(),
-        ts: args.ts,
+        csv: sysid::data::CsvOptions {
+            u_col: args.u_col.clone(),
+            y_col: args.y_col.clone(),
+            t_col: args.t_col.clone(),
+            ts: args.ts,
+            ..sysid::data::CsvOptions::default()
+        },
         every: args.every,
     };
     let mut out = std::io::BufWriter::new(std::io::stdout().lock());

@@ -192,19 +192,7 @@ impl CsvStream {
                 check_ts(ts)?;
                 None
             }
-            None => Some(
-                table
-                    .column_index(&opts.t_col, Setting::TCol)
-                    .map_err(|_| SysidError::File {
-                        file: name.clone(),
-                        message: format!(
-                            "no time column '{}' and no --ts: pass --ts SECONDS or name the time column \
-                             with --t-col (columns are: {})",
-                            opts.t_col,
-                            table.header_list()
-                        ),
-                    })?,
-            ),
+            None => Some(table.time_column(opts, &name)?),
         };
         let bom = prefix.starts_with(b"\xef\xbb\xbf");
         let text = std::str::from_utf8(&checked[usize::from(bom) * 3..]).unwrap_or("");

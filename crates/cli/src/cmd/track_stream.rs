@@ -1,0 +1,342 @@
+//! `track`'s stream: CSV lines as they arrive, read by the CSV rules of `identify`
+//! ([`sysid::data::lines::CsvLines`]: the same header, delimiter, quoting and number rules), each sample
+//! pushed to the [`Tracker`], a [`TrackLine`] written as one JSON line every `every` samples and at every
+//! detected change, and the [`TrackSummary`] at the end.
+//!
+//! A line is read into a buffer of at most [`MAX_LINE_BYTES`] bytes: a stream that stops sending line ends
+//! (`/dev/zero`, a wrong baud rate) is an error naming the line, not a buffer that grows until memory runs
+//! out.
+
+use std::io::{BufRead, Write};
+
+use serde::Serialize;
+use sysid::data::lines::CsvLines;
+use sysid::data::CsvOptions;
+use sysid::online::Tracker;
+use sysid::summary::{poles, Pole};
+use sysid::{Model, Setting, SysidError};
+
+/// Upper bound on the length of one line of a tracked stream, bytes (a line of t,u,y is under 100).
+pub const MAX_LINE_BYTES: usize = 1 << 20;
+
+/// Where the columns of a streamed CSV are, and how often to report.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StreamOptions {
+    /// The source's name in messages (`<stdin>`, a path).
+    pub name: String,
+    /// The columns u, y and t (s) and Ts (`--ts`; `None`: the difference of the first two times; with
+    /// it the t column is optional, then t = k Ts). The other reader options do not apply to a stream.
+    pub csv: CsvOptions,
+    /// Print a line every `every` samples (≥ 1), and at every detected change.
+    pub every: usize,
+}
+
+/// One JSON line of `track`.
+#[derive(Debug, Clone, Serialize)]
+pub struct TrackLine {
+    /// Sample index k (0-based data row).
+    pub k: usize,
+    /// Time t(k) (s).
+    pub t: f64,
+    /// The current estimate (the `model` object of `identify --json`).
+    pub model: Model,
+    /// Its poles.
+    pub poles: Vec<Pole>,
+    /// All poles inside the unit circle.
+    pub stable: bool,
+    /// A change was detected at this sample or since the previous line.
+    pub change: bool,
+    /// RMS of the last `pe_window` a-priori prediction errors (mm).
+    pub pe_rms: Option<f64>,
+    /// Number of errors in `pe_rms`.
+    pub pe_window: usize,
+    /// The CUSUM statistic g(k) (`null` while the detector warms up or calibrates).
+    pub cusum: Option<f64>,
+    /// Reasons not to trust this line, in words.
+    pub warnings: Vec<String>,
+}
+
+/// A detected change.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct ChangePoint {
+    /// Sample index.
+    pub k: usize,
+    /// Time (s).
+    pub t: f64,
+}
+
+/// The end of a `track` run (`--json-summary`).
+#[derive(Debug, Clone, Serialize)]
+pub struct TrackSummary {
+    /// Samples read.
+    pub samples: usize,
+    /// Time of the last sample (s).
+    pub t_end: Option<f64>,
+    /// The final estimate (`None` when fewer than k0 + 1 samples came).
+    pub model: Option<Model>,
+    /// Its poles.
+    pub poles: Vec<Pole>,
+    /// All poles inside the unit circle.
+    pub stable: Option<bool>,
+    /// RMS of the last prediction errors (mm).
+    pub pe_rms: Option<f64>,
+    /// Detected changes.
+    pub change_points: Vec<ChangePoint>,
+    /// The CUSUM threshold in use at the end ([`Tracker::detector_threshold`]; `None` without a detector).
+    pub detector_threshold: Option<f64>,
+    /// Samples at which the deadzone guard replaced an implausible branch.
+    pub guard_interventions: usize,
+    /// Reasons not to trust the final model, in words.
+    pub warnings: Vec<String>,
+}
+
+/// The columns of u, y and (when there is one) t.
+type Columns = (usize, usize, Option<usize>);
+
+/// Reads one line of `input` into `buf` (cleared first; the line end stays), at most `max` bytes;
+/// `Ok(false)` at the end of the input. A longer line is an error of kind `InvalidData`, raised once
+/// `max` bytes have come without a line end (nothing more is buffered).
+fn read_line_bounded<R: BufRead>(
+    input: &mut R,
+    buf: &mut Vec<u8>,
+    max: usize,
+) -> std::io::Result<bool> {
+    buf.clear();
+    loop {
+        let available = match input.fill_buf() {
+            Ok(a) => a,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(e),
+        };
+        if available.is_empty() {
+            return Ok(!buf.is_empty());
+        }
+        let (take, done) = match available.iter().position(|&b| b == b'\n') {
+            Some(i) => (i + 1, true),
+            None => (available.len(), false),
+        };
+        if buf.len() + take > max + 1 {
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::InvalidData,
+                "line too long",
+            ));
+        }
+        buf.extend_from_slice(&available[..take]);
+        input.consume(take);
+        if done {
+            return Ok(true);
+        }
+    }
+}
+
+/// Runs `tracker` over CSV lines from `input` (a header row, then data rows; blank lines skipped),
+/// writing a [`TrackLine`] as one JSON line to `out` every `options.every` samples and at every detected
+/// change, each flushed at once. Returns the summary at the end of the input. A malformed line stops the
+/// run with an error naming its line and column.
+pub fn track_stream<R: BufRead, W: Write>(
+    mut input: R,
+    out: &mut W,
+    tracker: &mut Tracker,
+    options: &StreamOptions,
+) -> Result<TrackSummary, SysidError> {
+    if options.every == 0 {
+        return Err(SysidError::setting(
+            Setting::Other("--every"),
+            0,
+            "at least 1 sample",
+        ));
+    }
+    if let Some(ts) = options.csv.ts {
+        if !(ts.is_finite() && ts > 0.0) {
+            return Err(SysidError::setting(
+                Setting::Ts,
+                ts,
+                "a positive sampling period in seconds",
+            ));
+        }
+    }
+    let write_err = |e: std::io::Error| SysidError::Io {
+        path: "<output>".into(),
+        source: e,
+    };
+    let mut buf = Vec::with_capacity(256);
+    let mut line_no = 0;
+    // The reader, once the header has come, and the columns of u, y and t.
+    let mut reader: Option<(CsvLines, Columns)> = None;
+    let mut ts = options.csv.ts;
+    let mut t0 = None;
+    let mut t_last = None;
+    let mut pending_change = false;
+    let mut change_points = Vec::new();
+    loop {
+        match read_line_bounded(&mut input, &mut buf, MAX_LINE_BYTES) {
+            Ok(true) => {}
+            Ok(false) => break,
+            Err(e) if e.kind() == std::io::ErrorKind::InvalidData => {
+                return Err(SysidError::Parse {
+                    file: options.name.clone(),
+                    line: line_no + 1,
+                    column: 1,
+                    message: format!(
+                        "the line is longer than {MAX_LINE_BYTES} bytes (no line end: binary data, or a \
+                         wrong baud rate?); expected CSV lines such as 0.01,12,3.5"
+                    ),
+                })
+            }
+            Err(source) => {
+                return Err(SysidError::Io {
+                    path: options.name.clone().into(),
+                    source,
+                })
+            }
+        }
+        line_no += 1;
+        let mut line = buf.as_slice();
+        while let [rest @ .., b'\n' | b'\r'] = line {
+            line = rest;
+        }
+        if line.iter().all(u8::is_ascii_whitespace) {
+            continue;
+        }
+        let Some((csv, (ucol, ycol, tcol))) = &mut reader else {
+            let csv = CsvLines::from_header(line, &options.name)?;
+            let cols = csv.columns(&options.csv)?;
+            reader = Some((csv, cols));
+            continue;
+        };
+        if !csv.read_line(line, line_no)? {
+            continue;
+        }
+        let (u, y) = (csv.value(*ucol, line_no)?, csv.value(*ycol, line_no)?);
+        let k = tracker.samples();
+        let t = match (*tcol, ts) {
+            (Some(c), _) => csv.value(c, line_no)?,
+            (None, Some(ts)) => k as f64 * ts,
+            (None, None) => f64::NAN, // not reached: a missing t column needs `ts`
+        };
+        match (ts, t0) {
+            (None, None) => t0 = Some(t),
+            (None, Some(first)) => {
+                let d = t - first;
+                if !(d.is_finite() && d > 0.0) {
+                    return Err(SysidError::Parse {
+                        file: options.name.clone(),
+                        line: line_no,
+                        column: tcol.map_or(1, |c| c + 1),
+                        message: format!(
+                            "t = {t} after t = {first}: the time must increase (or give --ts)"
+                        ),
+                    });
+                }
+                ts = Some(d);
+            }
+            _ => {}
+        }
+        t_last = Some(t);
+        let step = tracker.push(u, y).map_err(|e| match e {
+            SysidError::Numerical(m) => {
+                SysidError::Numerical(format!("{}:{line_no}: {m}", options.name))
+            }
+            e => e,
+        })?;
+        if step.change {
+            change_points.push(ChangePoint { k, t });
+            pending_change = true;
+        }
+        if step.error.is_some() && (step.change || (k + 1) % options.every == 0) {
+            if let Some(ts) = ts {
+                let line = track_line(tracker, k, t, ts, pending_change)?;
+                serde_json::to_writer(&mut *out, &line).map_err(|e| {
+                    SysidError::Numerical(format!("a track line could not be written: {e}"))
+                })?;
+                out.write_all(b"\n").map_err(write_err)?;
+                out.flush().map_err(write_err)?;
+                pending_change = false;
+            }
+        }
+    }
+    if reader.is_none() {
+        return Err(SysidError::File {
+            file: options.name.clone(),
+            message: "no header row arrived; expected a header such as t,u,y and data rows".into(),
+        });
+    }
+    summary(tracker, ts, t_last, change_points)
+}
+
+fn track_line(
+    tracker: &Tracker,
+    k: usize,
+    t: f64,
+    ts: f64,
+    change: bool,
+) -> Result<TrackLine, SysidError> {
+    let model = tracker.model(ts)?;
+    Ok(TrackLine {
+        k,
+        t,
+        poles: poles(&model),
+        stable: model.is_stable(),
+        change,
+        pe_rms: tracker.pe_rms(),
+        pe_window: tracker.pe_count(),
+        cusum: tracker.detector_state().map(|(g, _)| g),
+        warnings: tracker.warnings(&model),
+        model,
+    })
+}
+
+fn summary(
+    tracker: &Tracker,
+    ts: Option<f64>,
+    t_end: Option<f64>,
+    change_points: Vec<ChangePoint>,
+) -> Result<TrackSummary, SysidError> {
+    let model = match ts {
+        Some(ts) if tracker.samples() > tracker.k0() => Some(tracker.model(ts)?),
+        _ => None,
+    };
+    let mut warnings = match &model {
+        Some(m) => tracker.warnings(m),
+        None => vec![format!(
+            "{} sample(s): no regression update was made (k0 = {}), so there is no model",
+            tracker.samples(),
+            tracker.k0()
+        )],
+    };
+    warnings.retain(|w| !w.starts_with("the change detector"));
+    Ok(TrackSummary {
+        samples: tracker.samples(),
+        t_end,
+        poles: model.as_ref().map(poles).unwrap_or_default(),
+        stable: model.as_ref().map(Model::is_stable),
+        model,
+        pe_rms: tracker.pe_rms(),
+        change_points,
+        detector_threshold: tracker.detector_threshold(),
+        guard_interventions: tracker.guard_interventions(),
+        warnings,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    // A line of `max` bytes plus its line end is read whole; one byte more without a line end is refused
+    // after max + 1 bytes, whatever follows.
+    #[test]
+    fn a_line_is_read_up_to_its_bound() {
+        let mut buf = Vec::new();
+        let mut ok: &[u8] = b"abcd\nrest";
+        assert!(read_line_bounded(&mut ok, &mut buf, 4).unwrap());
+        assert_eq!(buf, b"abcd\n");
+        assert!(read_line_bounded(&mut ok, &mut buf, 4).unwrap());
+        assert_eq!(buf, b"rest");
+        assert!(!read_line_bounded(&mut ok, &mut buf, 4).unwrap());
+        let mut long = std::io::BufReader::with_capacity(2, std::io::repeat(b'x'));
+        let e = read_line_bounded(&mut long, &mut buf, 4).unwrap_err();
+        assert_eq!(e.kind(), std::io::ErrorKind::InvalidData);
+        assert!(buf.len() <= 5, "{}", buf.len());
+    }
+}

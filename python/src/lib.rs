@@ -792,8 +792,8 @@ fn simulate_plant<'py>(
 /// Closed-loop PI position control, as `ipa-sysid control`: returns a dict with the trace ("t" s,
 /// "r" mm, "u" counts, "y" mm as arrays), "metrics" (overshoot, rise and settling time, steady-state
 /// error: MATLAB `stepinfo`), "metrics_kind" ("fixed" or "worst-step"), "steps", "ts" and "warnings"
-/// (each also issued by `warnings.warn`: not settled, saturated, unreachable set-point, unstable model,
-/// the paper's acceptance missed; `control::loop_warnings`). Give exactly
+/// (not settled, saturated, unreachable set-point, unstable model, the paper's acceptance missed:
+/// `control::loop_warnings`; the package's `control` issues each as an `IpaSysidWarning`). Give exactly
 /// one of `setpoint` (mm) or `profile` ("fixed:MM", "staircase:L1,L2,...@HOLD_S", "file:PATH.csv").
 /// `anti_windup`: "none" or "clamping" ("back-calculation" needs `tracking_time` in s).
 /// `compensate_deadzone`: a Hammerstein `Model` or "paper" adds a deadzone-inverse compensator.
@@ -958,11 +958,6 @@ fn control_loop<'py>(
             fixed_step: matches!(profile, Profile::Fixed { .. }),
         },
     );
-    // Each also as a Python warning, so that a script that ignores the dict still hears it.
-    let warn = py.import("warnings")?.getattr("warn")?;
-    for w in &warnings {
-        warn.call1((w.as_str(),))?;
-    }
     let out = PyDict::new(py);
     out.set_item("t", trace.t.into_pyarray(py))?;
     out.set_item("r", trace.r.into_pyarray(py))?;

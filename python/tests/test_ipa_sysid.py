@@ -358,7 +358,7 @@ def test_control_matches_cli(tmp_path):
 def test_control_warns_about_an_unreachable_set_point():
     # The physics plant's stroke is 0..200 mm (Table II): 300 mm cannot be reached; said in the
     # result and as a Python warning.
-    with pytest.warns(UserWarning, match="outside the reachable range"):
+    with pytest.warns(ipa_sysid.IpaSysidWarning, match="outside the reachable range"):
         c = ipa_sysid.control("ipa", setpoint=300, duration=1)
     assert any("outside the reachable range" in w for w in c["warnings"])
 

@@ -111,7 +111,7 @@ fn track_from_stdin_ends_at_the_model_of_the_one_pass_recursive_identification()
             &b_r0.to_string(),
             "--breakpoint-limit",
             &limit.to_string(),
-            "--json-summary",
+            "--json",
             summary.to_str().unwrap(),
         ],
         &text,
@@ -171,7 +171,7 @@ fn a_stationary_simulated_record_gives_no_change_point() {
     assert_eq!(s["change_points"], serde_json::json!([]));
 }
 
-/// `track --data FILE EXTRA...` with one JSON line at most and `--json-summary`: the summary.
+/// `track --data FILE EXTRA...` with one JSON line at most and `--json`: the summary.
 fn track_summary(data: &Path, extra: &[&str]) -> serde_json::Value {
     let summary = data.with_extension(format!("summary{}.json", extra.join("")));
     let mut args = vec![
@@ -180,7 +180,7 @@ fn track_summary(data: &Path, extra: &[&str]) -> serde_json::Value {
         data.to_str().unwrap(),
         "--every",
         "100000",
-        "--json-summary",
+        "--json",
         summary.to_str().unwrap(),
     ];
     args.extend_from_slice(extra);
@@ -262,7 +262,7 @@ fn spawn_track(source: &[&str], every: &str, summary: &Path) -> std::process::Ch
         .arg("track")
         .args(source)
         .args(["--idle-timeout", "1.5", "--no-detect", "--every", every])
-        .args(["--json-summary", summary.to_str().unwrap()])
+        .args(["--json", summary.to_str().unwrap()])
         .stdout(Stdio::piped())
         .stderr(Stdio::piped())
         .spawn()

@@ -11,7 +11,8 @@
 //! ε = ((y − φ₀θ₀) − φ₁θ₁) − …; (Pφ)_i = Σ_j P_ij φ_j for j = 0, 1, …; ρ + Σ φ_i (Pφ)_i; 1/(ρ + φᵀPφ);
 //! L̃_i = (Pφ)_i · (1/(ρ + φᵀPφ)); θ̂_i += L̃_i ε; P_ij ← (P_ij − (Pφ)_min(i,j) L̃_max(i,j)) · (1/ρ), the
 //! scaling skipped for ρ = 1. So with f64 the results are bit-for-bit those of `sysid`, and P stays
-//! exactly symmetric.
+//! exactly symmetric. (Pφ is accumulated one row of P at a time, across i: row j of the symmetric P is
+//! column j, so every (Pφ)_i still adds its terms in the order j = 0, 1, ….)
 //!
 //! # UD form (optional)
 //!
@@ -22,21 +23,35 @@
 //! in f32, where eq. 12 loses definiteness on IPA data (docs/embedded.md). The factors live in the same
 //! N × N array (row j: U_0j..U_(j−1)j, then d_j on the diagonal), so the state has the same size.
 //! Cost ([`flops_per_update_ud`]): ε 2n + 1; f = Uᵀφ n² + n; v = D f n; per column of Bierman's
-//! update 6, plus 4 per entry above the diagonal (2 n(n − 1) in all); D/ρ n (ρ < 1); θ̂ 3n. Total
-//! 3 n² + 12 n + 1 for ρ < 1 (3 n² + 11 n + 1 for ρ = 1): 232 for n = 7, the cost of eq. 12 (233).
+//! update 6, plus 4 per entry above the diagonal (2 n(n − 1) in all); D/ρ n (also for ρ = 1: x / 1 is
+//! exact and keeps the loop branch-free); θ̂ 3n. Total 3 n² + 12 n + 1: 232 for n = 7, 352 for n = 9.
+//! The factors are updated in a copy that is committed only when every check passed.
 //!
 //! # Windup guard (optional)
 //!
 //! With ρ < 1 and no excitation P grows like ρ^(−k) (covariance windup). With a trace bound T
-//! ([`Rls::with_max_trace`]), after every update P is scaled by T / tr P whenever tr P > T, as
-//! `identify --windup trace --max-trace T` does (with eq. 12 its guarded update is written in a
-//! different operation order, so results agree to rounding, not bit for bit; with the UD form they are
-//! bit for bit).
+//! ([`Rls::with_max_trace`]), P is scaled by T / tr P whenever tr P > T after an update, as
+//! `identify --windup trace --max-trace T` does. With eq. 12 tr P(k) is summed first from the new
+//! diagonal (the values the update is about to write) and the factor T / tr P(k) is folded into the
+//! multiplication by 1/ρ, so the guard costs 4n flops (3n for ρ = 1) and 2 more when it acts, never a
+//! second pass over P (`sysid` writes its guarded update in a different operation order, so results
+//! agree to rounding, not bit for bit). In the UD form tr P = Σ_j d_j (Σ_(i<j) U_ij² + 1) is summed
+//! after the update (n² + 3n flops, sysid's order: bit for bit) and D is scaled (n + 1) when it acts.
 //!
 //! # Cost per update, n parameters (each +, −, ×, ÷ one flop)
 //!
 //! 3.5 n² + 8.5 n + 2 for ρ < 1, 3 n² + 8 n + 1 for ρ = 1 ([`flops_per_update`], the same count as
-//! `sysid`), plus n for tr P when the guard is on (and n² + 1 when it scales P).
+//! `sysid`), counting the symmetric P update over its n(n + 1)/2 distinct entries. The code computes
+//! all n² entries (each from the upper-triangle operands, so both halves are equal bit for bit): on a
+//! SIMD host two contiguous half-rows are faster than mirroring a triangle. Executed: 5 n² + 7 n + 2
+//! (ρ < 1), 4 n² + 7 n + 1 (ρ = 1).
+//!
+//! # Speed
+//!
+//! With n = N (the state sized exactly, N ≤ 16) every loop has a constant trip count: the columns of
+//! the triangular loops are written out with literal indices (`for_columns!`), so the compiler unrolls
+//! and vectorises them and no bounds check remains; nothing branches on the data except the checks and
+//! the guard's one comparison. With n < N the same code runs with run-time loop bounds.
 
 use crate::{Error, Float};
 
@@ -198,173 +213,256 @@ impl<F: Float, const N: usize> Rls<F, N> {
     /// has fewer than n entries, [`Error::Numerical`] when ρ + φᵀPφ is not finite and positive or ε is
     /// not finite.
     pub fn update(&mut self, phi: &[F], y: F) -> Result<F, Error> {
-        match self.form {
-            Form::Standard => self.update_standard(phi, y),
-            Form::Ud => self.update_ud(phi, y),
+        // n = N (the state sized exactly) runs kernels whose loops all have the constant trip count N:
+        // fully unrolled and vectorised, no bounds checks. n < N runs the same code with the loop
+        // bounds read at run time.
+        match (self.form, self.n == N) {
+            (Form::Standard, true) => update_standard::<F, N, true>(self, phi, y),
+            (Form::Standard, false) => update_standard::<F, N, false>(self, phi, y),
+            (Form::Ud, true) => update_ud::<F, N, true>(self, phi, y),
+            (Form::Ud, false) => update_ud::<F, N, false>(self, phi, y),
         }
     }
+}
 
-    /// The paper's eq. 12 (see the module documentation for the operation order).
-    fn update_standard(&mut self, phi: &[F], y: F) -> Result<F, Error> {
-        let n = self.n;
-        let phi = phi.get(..n).ok_or(Error::Length)?;
-        let mut eps = y;
-        for (f, t) in phi.iter().zip(self.theta.iter()) {
-            eps -= *f * *t;
-        }
-        let mut pphi = [F::ZERO; N];
-        for (acc, row) in pphi.iter_mut().zip(self.p.iter()).take(n) {
-            let mut s = F::ZERO;
-            for (pij, f) in row.iter().zip(phi) {
-                s += *pij * *f;
-            }
-            *acc = s;
-        }
-        let mut denom = self.forgetting;
-        for (f, q) in phi.iter().zip(pphi.iter()) {
-            denom += *f * *q;
-        }
-        if !(denom.is_finite() && denom > F::ZERO && eps.is_finite()) {
-            return Err(Error::Numerical);
-        }
-        let inv = F::ONE / denom;
-        let mut gain = [F::ZERO; N];
-        for ((g, q), t) in gain
-            .iter_mut()
-            .zip(pphi.iter())
-            .zip(self.theta.iter_mut())
-            .take(n)
-        {
-            *g = *q * inv;
-            *t += *g * eps;
-        }
-        let scale = self.forgetting != F::ONE;
-        let inv_rho = F::ONE / self.forgetting;
-        for (i, ((row, pi), gi)) in self
-            .p
-            .iter_mut()
-            .zip(pphi.iter())
-            .zip(gain.iter())
-            .enumerate()
-            .take(n)
-        {
-            for (j, ((c, pj), gj)) in row
-                .iter_mut()
-                .zip(pphi.iter())
-                .zip(gain.iter())
-                .enumerate()
-                .take(n)
-            {
-                // Upper-triangle operands for both (i, j) and (j, i): P stays exactly symmetric.
-                let v = if i <= j {
-                    *c - *pi * *gj
-                } else {
-                    *c - *pj * *gi
-                };
-                *c = if scale { v * inv_rho } else { v };
+/// Runs the closure `$f` for the columns j = 0, 1, …, m − 1 in order. With `$full` (m = N) and N ≤ 16
+/// the calls are written out with literal j, so that once the closure is inlined every loop inside it
+/// has a constant trip count (unrolled, vectorised, no bounds check); otherwise a plain loop.
+macro_rules! for_columns {
+    ($full:expr, $m:expr, $f:expr) => {{
+        #[allow(unused_mut)]
+        let mut f = $f;
+        if $full && N <= 16 {
+            for_columns!(@each f; 0 1 2 3 4 5 6 7 8 9 10 11 12 13 14 15);
+        } else {
+            for j in 0..$m {
+                f(j);
             }
         }
-        if self.max_trace.is_finite() {
-            let tr = self.trace();
-            if tr > self.max_trace {
-                let s = self.max_trace / tr;
-                for row in self.p.iter_mut().take(n) {
-                    for c in row.iter_mut().take(n) {
-                        *c *= s;
-                    }
-                }
+    }};
+    (@each $f:ident; $($j:literal)*) => {
+        $(
+            if $j < N {
+                $f($j);
             }
-        }
-        Ok(eps)
+        )*
+    };
+}
+
+/// The paper's eq. 12 on the leading m × m block of `p` (m = N when `FULL`, else `n`), in the operation
+/// order of the module documentation; with a finite trace bound T the guard's scaling is folded into
+/// the division by ρ (see [`Rls::with_max_trace`]). Errors before any write, so a failed update leaves
+/// the state unchanged.
+#[inline(always)]
+fn update_standard<F: Float, const N: usize, const FULL: bool>(
+    est: &mut Rls<F, N>,
+    phi: &[F],
+    y: F,
+) -> Result<F, Error> {
+    let (rho, max_trace) = (est.forgetting, est.max_trace);
+    let m = if FULL { N } else { est.n };
+    let (theta, p) = (&mut est.theta, &mut est.p);
+    // Exact-length slices: every loop below is a zip of slices of length m (for n = N a constant), so
+    // there is no bounds check and nothing depends on the data but the guard's one branch.
+    let phi = phi.get(..m).ok_or(Error::Length)?;
+    let theta = theta.get_mut(..m).ok_or(Error::Capacity)?;
+    let p = p.get_mut(..m).ok_or(Error::Capacity)?;
+    let mut pphi_buf = [F::ZERO; N];
+    let mut gain_buf = [F::ZERO; N];
+    let pphi = pphi_buf.get_mut(..m).ok_or(Error::Capacity)?;
+    let gain = gain_buf.get_mut(..m).ok_or(Error::Capacity)?;
+    let mut eps = y;
+    for (f, t) in phi.iter().zip(theta.iter()) {
+        eps -= *f * *t;
     }
-
-    /// Bierman's UD update with forgetting, in the operation order of `sysid::rls_ud::RobustRls`
-    /// (sums start at −0, as `Iterator::sum` of floats does). The factors and θ̂ are updated in copies
-    /// and committed only on success.
-    fn update_ud(&mut self, phi: &[F], y: F) -> Result<F, Error> {
-        let n = self.n;
-        let phi = phi.get(..n).ok_or(Error::Length)?;
-        let mut dot = -F::ZERO;
-        for (f, t) in phi.iter().zip(self.theta.iter()) {
-            dot += *f * *t;
-        }
-        let eps = y - dot;
-        if !eps.is_finite() {
-            return Err(Error::Numerical);
-        }
-        let rho = self.forgetting;
-        let mut fac = self.p;
-        // f = Uᵀφ (f_j = Σ_(i≤j) U_ij φ_i, U_jj = 1) and v = D f (in `work`).
-        let mut f = [F::ZERO; N];
-        let mut work = [F::ZERO; N];
-        for (j, ((row, fj), wj)) in fac
-            .iter()
-            .zip(f.iter_mut())
-            .zip(work.iter_mut())
-            .enumerate()
-            .take(n)
-        {
-            let mut acc = -F::ZERO;
-            for (u, ph) in row.iter().take(j).zip(phi) {
-                acc += *u * *ph;
+    // (Pφ)_i = Σ_j P_ij φ_j for j = 0, 1, …, accumulated one row of P at a time (P is exactly
+    // symmetric, so row j is column j): the inner loop runs along contiguous memory, across i.
+    for (row, f) in p.iter().zip(phi) {
+        if let Some(row) = row.get(..m) {
+            for (acc, c) in pphi.iter_mut().zip(row) {
+                *acc += *c * *f;
             }
-            acc += F::ONE * phi.get(j).copied().unwrap_or(F::ZERO);
-            *fj = acc;
-            *wj = row.get(j).copied().unwrap_or(F::ZERO) * acc;
         }
-        // Bierman: after column j, work[0..=j] holds the unnormalised gain.
-        let mut alpha = rho;
-        for (j, (row, fj)) in fac.iter_mut().zip(f.iter()).enumerate().take(n) {
-            let v = work.get(j).copied().unwrap_or(F::ZERO);
-            let alpha_prev = alpha;
-            alpha += *fj * v;
-            let Some((u_col, rest)) = row.split_at_mut_checked(j) else {
-                return Err(Error::Capacity);
+    }
+    let mut denom = rho;
+    for (f, q) in phi.iter().zip(pphi.iter()) {
+        denom += *f * *q;
+    }
+    if !(denom.is_finite() && denom > F::ZERO && eps.is_finite()) {
+        return Err(Error::Numerical);
+    }
+    let inv = F::ONE / denom;
+    let mut scale = rho != F::ONE;
+    let inv_rho = if scale { F::ONE / rho } else { F::ONE };
+    for ((g, q), t) in gain.iter_mut().zip(pphi.iter()).zip(theta.iter_mut()) {
+        *g = *q * inv;
+        *t += *g * eps;
+    }
+    // P ← (P − (Pφ) L̃ᵀ) · s with s = 1/ρ (no multiplication for ρ = 1), or, when the guard is on and
+    // the new trace exceeds T, s = (1/ρ) · T / tr P(k): the trace is summed first from the new
+    // diagonal (the values the update writes), so the guard costs n flops, not a second pass over P.
+    let mut s = inv_rho;
+    if max_trace.is_finite() {
+        let mut tr = F::ZERO;
+        for (i, ((row, q), g)) in p.iter().zip(pphi.iter()).zip(gain.iter()).enumerate() {
+            let v = row.get(i).copied().unwrap_or(F::ZERO) - *q * *g;
+            tr += if scale { v * inv_rho } else { v };
+        }
+        if tr > max_trace {
+            s = if scale {
+                inv_rho * (max_trace / tr)
+            } else {
+                max_trace / tr
             };
-            if let Some(dj) = rest.first_mut() {
-                *dj *= alpha_prev / alpha;
-            }
-            let lambda = -*fj / alpha_prev;
-            for (u, w) in u_col.iter_mut().zip(work.iter_mut()) {
-                let uij = *u;
-                *u = uij + *w * lambda;
-                *w += uij * v;
-            }
+            scale = true;
         }
-        let mut d_ok = true;
-        for (j, row) in fac.iter_mut().enumerate().take(n) {
-            if let Some(d) = row.get_mut(j) {
-                if rho < F::ONE {
-                    *d = *d / rho;
-                }
-                d_ok &= d.is_finite() && *d >= F::ZERO;
-            }
-        }
-        if !(alpha.is_finite() && alpha > F::ZERO && d_ok) {
-            return Err(Error::Numerical);
-        }
-        let mut theta = self.theta;
-        for (t, w) in theta.iter_mut().zip(work.iter()).take(n) {
-            *t += *w / alpha * eps;
-        }
-        if self.max_trace.is_finite() {
-            let tr = ud_trace(&fac, n);
-            if tr > self.max_trace {
-                let s = self.max_trace / tr;
-                for (j, row) in fac.iter_mut().enumerate().take(n) {
-                    if let Some(d) = row.get_mut(j) {
-                        *d *= s;
-                    }
-                }
-            }
-        }
-        if theta.iter().any(|t| !t.is_finite()) {
-            return Err(Error::Numerical);
-        }
-        self.p = fac;
-        self.theta = theta;
-        Ok(eps)
     }
+    if scale {
+        symmetric_update::<F, N, true>(p, pphi, gain, s);
+    } else {
+        symmetric_update::<F, N, false>(p, pphi, gain, s);
+    }
+    Ok(eps)
+}
+
+/// P ← (P − (Pφ) L̃ᵀ) · s (· s only when `SCALE`) on the leading m × m block (m = `pphi.len()`), entry
+/// (r, c) computed as (P_rc − (Pφ)_min(r,c) L̃_max(r,c)) · s: row r splits at the diagonal into c < r
+/// (operands (Pφ)_c L̃_r) and c ≥ r ((Pφ)_r L̃_c), both contiguous, and P stays exactly symmetric.
+#[inline(always)]
+fn symmetric_update<F: Float, const N: usize, const SCALE: bool>(
+    p: &mut [[F; N]],
+    pphi: &[F],
+    gain: &[F],
+    s: F,
+) {
+    let m = pphi.len();
+    let full = m == N;
+    for_columns!(full, m, |r: usize| {
+        let (Some(row), Some(pr), Some(gr), Some(q_lo), Some(g_hi)) = (
+            p.get_mut(r).and_then(|row| row.get_mut(..m)),
+            pphi.get(r),
+            gain.get(r),
+            pphi.get(..r),
+            gain.get(r..),
+        ) else {
+            return;
+        };
+        let Some((lo, hi)) = row.split_at_mut_checked(r) else {
+            return;
+        };
+        for (c, q) in lo.iter_mut().zip(q_lo) {
+            let v = *c - *q * *gr;
+            *c = if SCALE { v * s } else { v };
+        }
+        for (c, g) in hi.iter_mut().zip(g_hi) {
+            let v = *c - *pr * *g;
+            *c = if SCALE { v * s } else { v };
+        }
+    });
+}
+
+/// Bierman's UD update with forgetting on the leading m × m block (m = N when `FULL`), in the operation
+/// order of `sysid::rls_ud::RobustRls` (sums start at −0, as `Iterator::sum` of floats does). The
+/// factors and θ̂ are updated in copies and committed only when every check passed, so a failed update
+/// leaves the state unchanged.
+#[inline(always)]
+fn update_ud<F: Float, const N: usize, const FULL: bool>(
+    est: &mut Rls<F, N>,
+    phi: &[F],
+    y: F,
+) -> Result<F, Error> {
+    let (rho, max_trace) = (est.forgetting, est.max_trace);
+    let m = if FULL { N } else { est.n };
+    let (theta, fac_state) = (&mut est.theta, &mut est.p);
+    let phi = phi.get(..m).ok_or(Error::Length)?;
+    let mut dot = -F::ZERO;
+    for (f, t) in phi.iter().zip(theta.iter()) {
+        dot += *f * *t;
+    }
+    let eps = y - dot;
+    if !eps.is_finite() {
+        return Err(Error::Numerical);
+    }
+    let full = FULL;
+    let mut fac = *fac_state;
+    // f = Uᵀφ (f_j = Σ_(i<j) U_ij φ_i + φ_j) and v = D f (in `work`); column j of U is row j of `fac`.
+    let mut f = [F::ZERO; N];
+    let mut work = [F::ZERO; N];
+    for_columns!(full, m, |j: usize| {
+        let (Some(row), Some(ph), Some(fj), Some(wj)) =
+            (fac.get(j), phi.get(j), f.get_mut(j), work.get_mut(j))
+        else {
+            return;
+        };
+        let (Some(u_col), Some(dj)) = (row.get(..j), row.get(j)) else {
+            return;
+        };
+        let mut acc = -F::ZERO;
+        for (u, x) in u_col.iter().zip(phi) {
+            acc += *u * *x;
+        }
+        acc += F::ONE * *ph;
+        *fj = acc;
+        *wj = *dj * acc;
+    });
+    // Bierman: after column j, work[0..=j] holds the unnormalised gain.
+    let mut alpha = rho;
+    let guarded = max_trace.is_finite();
+    for_columns!(full, m, |j: usize| {
+        let (Some(row), Some(fj), Some(v)) = (fac.get_mut(j), f.get(j), work.get(j).copied())
+        else {
+            return;
+        };
+        let alpha_prev = alpha;
+        alpha += *fj * v;
+        let Some((u_col, rest)) = row.split_at_mut_checked(j) else {
+            return;
+        };
+        if let Some(dj) = rest.first_mut() {
+            *dj *= alpha_prev / alpha;
+        }
+        let lambda = -*fj / alpha_prev;
+        let Some(w) = work.get_mut(..j) else {
+            return;
+        };
+        for (u, w) in u_col.iter_mut().zip(w.iter_mut()) {
+            let uij = *u;
+            *u = uij + *w * lambda;
+            *w += uij * v;
+        }
+    });
+    let mut d_ok = true;
+    for (j, row) in fac.iter_mut().enumerate().take(m) {
+        if let Some(d) = row.get_mut(j) {
+            // x / 1 = x exactly: no branch for ρ = 1.
+            *d = *d / rho;
+            d_ok &= d.is_finite() && *d >= F::ZERO;
+        }
+    }
+    if !(alpha.is_finite() && alpha > F::ZERO && d_ok) {
+        return Err(Error::Numerical);
+    }
+    let mut theta_new = *theta;
+    for (t, w) in theta_new.iter_mut().zip(work.iter()).take(m) {
+        *t += *w / alpha * eps;
+    }
+    if guarded {
+        let tr = ud_trace(&fac, m);
+        if tr > max_trace {
+            let s = max_trace / tr;
+            for (j, row) in fac.iter_mut().enumerate().take(m) {
+                if let Some(d) = row.get_mut(j) {
+                    *d *= s;
+                }
+            }
+        }
+    }
+    if theta_new.iter().any(|t| !t.is_finite()) {
+        return Err(Error::Numerical);
+    }
+    *fac_state = fac;
+    *theta = theta_new;
+    Ok(eps)
 }
 
 /// tr P = Σ_j d_j Σ_(i≤j) U_ij² of UD factors stored by rows (row j: U_0j..U_(j−1)j, d_j), summed as
@@ -382,11 +480,11 @@ fn ud_trace<F: Float, const N: usize>(fac: &[[F; N]; N], n: usize) -> F {
     tr
 }
 
-/// Flops of one UD-form update for `n` parameters (no guard): 3 n² + 12 n + 1 for ρ < 1,
-/// 3 n² + 11 n + 1 for ρ = 1 (breakdown in the module documentation).
-pub fn flops_per_update_ud(n: usize, rho_is_one: bool) -> usize {
-    let unscale = if rho_is_one { 0 } else { n };
-    3 * n * n + 11 * n + 1 + unscale
+/// Flops of one UD-form update for `n` parameters (no guard): 3 n² + 12 n + 1, for ρ < 1 and ρ = 1
+/// alike (the division by ρ = 1 is executed: it is exact and keeps the loop branch-free). Breakdown in
+/// the module documentation.
+pub fn flops_per_update_ud(n: usize, _rho_is_one: bool) -> usize {
+    3 * n * n + 12 * n + 1
 }
 
 /// Flops of one update for `n` parameters (no guard): 3.5 n² + 8.5 n + 2 for ρ < 1, 3 n² + 8 n + 1
@@ -520,8 +618,9 @@ mod tests {
         assert_eq!(flops_per_update(9, false), 362);
         assert_eq!(flops_per_update(9, true), 316);
         assert_eq!(flops_per_update(7, false), 233);
-        // UD: 3·49 + 12·7 + 1 = 232; ρ = 1: 3·49 + 11·7 + 1 = 225.
+        // UD: 3·49 + 12·7 + 1 = 232 for either ρ; 3·81 + 12·9 + 1 = 352.
         assert_eq!(flops_per_update_ud(7, false), 232);
-        assert_eq!(flops_per_update_ud(7, true), 225);
+        assert_eq!(flops_per_update_ud(7, true), 232);
+        assert_eq!(flops_per_update_ud(9, false), 352);
     }
 }

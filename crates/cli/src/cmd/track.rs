@@ -126,9 +126,10 @@ pub struct Args {
     /// not alarm; 0 keeps H alone (docs/online.md).
     #[arg(long, value_name = "C", default_value_t = DetectorSettings::default().excursion_factor)]
     pub detect_excursion_factor: f64,
-    /// Write a summary at the end: final model, samples, change points.
-    #[arg(long, value_name = "FILE")]
-    pub json_summary: Option<PathBuf>,
+    /// Write a summary at the end as JSON (final model, samples, change points; `-` for standard
+    /// output). `--json-summary`, its former name, is still accepted.
+    #[arg(long = "json", alias = "json-summary", value_name = "FILE")]
+    pub json: Option<PathBuf>,
 }
 
 impl Args {
@@ -218,7 +219,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "give a source: --data FILE (- for standard input), --follow FILE or --serial PATH"
         );
     };
-    check_outputs(&[(&args.json_summary, "--json-summary")], &inputs)?;
+    check_outputs(&[(&args.json, "--json")], &inputs)?;
     let options = StreamOptions {
         name,
         csv: sysid::data::CsvOptions {
@@ -248,10 +249,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .collect::<Vec<_>>()
             .join(",")
     );
-    if let Some(path) = &args.json_summary {
+    if let Some(path) = &args.json {
         let mut text = serde_json::to_string_pretty(&summary).context("serialising the summary")?;
         text.push('\n');
-        super::common::write_output(path, text.as_bytes(), &inputs, "--json-summary")?;
+        super::common::write_output(path, text.as_bytes(), &inputs, "--json")?;
     }
     Ok(())
 }

@@ -65,7 +65,7 @@ pub struct ChangePoint {
     pub t: f64,
 }
 
-/// The end of a `track` run (`--json-summary`).
+/// The end of a `track` run (`--json`).
 #[derive(Debug, Clone, Serialize)]
 pub struct TrackSummary {
     /// Samples read.

@@ -791,7 +791,9 @@ fn simulate_plant<'py>(
 
 /// Closed-loop PI position control, as `ipa-sysid control`: returns a dict with the trace ("t" s,
 /// "r" mm, "u" counts, "y" mm as arrays), "metrics" (overshoot, rise and settling time, steady-state
-/// error: MATLAB `stepinfo`), "metrics_kind" ("fixed" or "worst-step"), "steps" and "ts". Give exactly
+/// error: MATLAB `stepinfo`), "metrics_kind" ("fixed" or "worst-step"), "steps", "ts" and "warnings"
+/// (not settled, saturated, unreachable set-point, unstable model, the paper's acceptance missed:
+/// `control::loop_warnings`; the package's `control` issues each as an `IpaSysidWarning`). Give exactly
 /// one of `setpoint` (mm) or `profile` ("fixed:MM", "staircase:L1,L2,...@HOLD_S", "file:PATH.csv").
 /// `anti_windup`: "none" or "clamping" ("back-calculation" needs `tracking_time` in s).
 /// `compensate_deadzone`: a Hammerstein `Model` or "paper" adds a deadzone-inverse compensator.
@@ -869,9 +871,9 @@ fn control_loop<'py>(
             ))
         }
     };
-    let mut plant = plant_spec(plant)?
-        .build(plant_config.as_deref(), None)
-        .map_err(ipa_err)?;
+    let spec = plant_spec(plant)?;
+    let limits = spec.limits(plant_config.as_deref()).map_err(ipa_err)?;
+    let mut plant = spec.build(plant_config.as_deref(), None).map_err(ipa_err)?;
     let ts = plant.ts();
     let settings = ::control::PiSettings::new(kp, ki)
         .with_integral(integral)
@@ -946,6 +948,16 @@ fn control_loop<'py>(
             Ok((trace, run))
         })
         .map_err(control_err)?;
+    let warnings = ::control::loop_warnings(
+        &trace,
+        &run.steps,
+        &::control::LoopFacts {
+            u_max,
+            range_mm: limits.range_mm,
+            unstable_pole: limits.unstable_pole,
+            fixed_step: matches!(profile, Profile::Fixed { .. }),
+        },
+    );
     let out = PyDict::new(py);
     out.set_item("t", trace.t.into_pyarray(py))?;
     out.set_item("r", trace.r.into_pyarray(py))?;
@@ -955,6 +967,7 @@ fn control_loop<'py>(
     out.set_item("metrics_kind", run.kind.as_str())?;
     out.set_item("metrics", to_py(py, &run.metrics)?)?;
     out.set_item("steps", to_py(py, &run.steps)?)?;
+    out.set_item("warnings", warnings)?;
     Ok(out)
 }
 

@@ -350,8 +350,17 @@ def test_control_matches_cli(tmp_path):
     assert_same(c["metrics"], doc["metrics"])
     assert c["metrics_kind"] == doc["metrics_kind"]
     assert_same(c["steps"], doc["steps"])
+    assert c["warnings"] == doc["warnings"]
     with pytest.raises(ValueError, match="exactly one of"):
         ipa_sysid.control("paper")
+
+
+def test_control_warns_about_an_unreachable_set_point():
+    # The physics plant's stroke is 0..200 mm (Table II): 300 mm cannot be reached; said in the
+    # result and as a Python warning.
+    with pytest.warns(ipa_sysid.IpaSysidWarning, match="outside the reachable range"):
+        c = ipa_sysid.control("ipa", setpoint=300, duration=1)
+    assert any("outside the reachable range" in w for w in c["warnings"])
 
 
 def test_to_control_transfer_function():

@@ -30,4 +30,4 @@ pub use error::{IpaError, IpaSetting};
 pub use experiment::{Experiment, Record};
 pub use input::{generate, InputSpec};
 pub use plant::Ipa;
-pub use spec::{plant_from_spec, plant_from_spec_with_ts, PlantSpec, DEFAULT_TS_S};
+pub use spec::{plant_from_spec, plant_from_spec_with_ts, PlantLimits, PlantSpec, DEFAULT_TS_S};

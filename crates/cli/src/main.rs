@@ -25,6 +25,9 @@ enum Command {
     Validate(cmd::validate::Args),
     /// Simulate a plant (physics IPA, the paper's model, or a saved model) and write t,u,y to CSV.
     Simulate(cmd::simulate::Args),
+    /// Calibrate the physics plant to a measured record (a digital twin, MATLAB `nlgreyest`): writes a
+    /// plant-config TOML.
+    Calibrate(cmd::calibrate::Args),
     /// Print the physics plant's default parameters as TOML (edit and pass with --plant-config).
     PlantConfig(cmd::plant_config::Args),
     /// Closed-loop PI position control on a plant, with step metrics (MATLAB `stepinfo`).
@@ -76,6 +79,7 @@ fn main() -> ExitCode {
         Command::Validate(a) => cmd::validate::run(a),
         Command::Simulate(a) => cmd::simulate::run(a),
         Command::PlantConfig(a) => cmd::plant_config::run(a),
+        Command::Calibrate(a) => cmd::calibrate::run(a),
         Command::Control(a) => cmd::control::run(a),
         Command::Reproduce(a) => cmd::reproduce::run(a),
         Command::Order(a) => cmd::order::run(a),

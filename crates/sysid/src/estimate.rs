@@ -473,7 +473,8 @@ pub enum Note {
     KeptCandidate {
         /// The candidate kept.
         kept: &'static str,
-        /// Its estimation simulation RMSE (initial outputs estimated, as MATLAB `compare`).
+        /// Its estimation simulation RMSE, the worse of estimated and measured initial outputs
+        /// ([`crate::trust::guarded_rmse`]).
         rmse: f64,
         /// The other candidates and their RMSE (`None`: the simulation diverged or the model is unstable).
         others: Vec<(&'static str, Option<f64>)>,
@@ -552,7 +553,8 @@ impl std::fmt::Display for Note {
             Note::KeptCandidate { kept, rmse, others } => {
                 write!(
                     f,
-                    "kept the {kept} (estimation simulation RMSE {rmse:.6e}, initial outputs estimated"
+                    "kept the {kept} (estimation simulation RMSE {rmse:.6e}, the worse of estimated and \
+                     measured initial outputs"
                 )?;
                 for (name, r) in others {
                     match r {
@@ -693,14 +695,6 @@ pub fn identify(data: &Dataset, settings: &Identification) -> Result<Fitted, Sys
     safeguard(&problem, settings, fit)
 }
 
-/// Fit % of the free-run simulation from the measured initial outputs on `data`; `None` when the
-/// simulation diverges or the output is constant.
-fn simulation_fit(model: &Model, data: &Dataset) -> Option<f64> {
-    sysid_core::metrics::metrics(model, data)
-        .ok()
-        .and_then(|m| m.fit_sim_percent)
-}
-
 /// Percentage points of estimation simulation fit by which a Hammerstein estimate may trail the linear
 /// ARX start before the linear model replaces it.
 pub const FALLBACK_FIT_MARGIN: f64 = 10.0;
@@ -715,10 +709,21 @@ fn safeguard(
 ) -> Result<Fitted, SysidError> {
     let data = p.data;
     let s = &p.structure;
-    let mut fit_sim = simulation_fit(&fit.model, data);
+    let mut est = sysid_core::metrics::metrics(&fit.model, data).ok();
+    let fit_sim = est.as_ref().and_then(|m| m.fit_sim_percent);
     let mut fell_back = false;
+    // The plain linear least-squares ARX of the same orders on the same data: the Hammerstein guard's
+    // start and every model's baseline (not computed for the baseline itself).
+    let start = (s.kind == ModelKind::Hammerstein || fit.method != Method::Ls)
+        .then(|| linear_start(p))
+        .flatten();
+    let baseline = start
+        .as_ref()
+        .filter(|(l, _)| l.model.is_stable())
+        .map(|(_, m)| crate::trust::guarded_fit(m));
     if s.kind == ModelKind::Hammerstein {
-        if let Some((linear, linear_fit)) = linear_start(p) {
+        if let Some((linear, linear_metrics)) = start {
+            let linear_fit = linear_metrics.fit_sim_percent.unwrap_or(f64::NAN);
             if let Some(why) = hammerstein_guard(
                 fit.method,
                 fit_sim,
@@ -740,7 +745,7 @@ fn safeguard(
                         termination: fit.termination,
                         ..linear
                     };
-                    fit_sim = Some(linear_fit);
+                    est = Some(linear_metrics);
                     fell_back = true;
                 } else {
                     fit.warnings.push(Warning::LinearStartBetter { why });
@@ -754,8 +759,27 @@ fn safeguard(
         });
     }
     fit.warnings.extend(Warning::if_unstable(&fit.model));
-    fit.warnings
-        .extend(Warning::if_poor_simulation(Record::Estimation, fit_sim));
+    match &est {
+        Some(m) => {
+            fit.warnings
+                .extend(crate::trust::metric_warnings(Record::Estimation, m));
+            // The Hammerstein guard has already said it (against the same baseline).
+            let said = fit
+                .warnings
+                .iter()
+                .any(|w| matches!(w, Warning::LinearStartBetter { .. }));
+            if !fell_back && !said {
+                fit.warnings.extend(crate::trust::below_baseline(
+                    Record::Estimation,
+                    crate::trust::guarded_fit(m),
+                    baseline.flatten(),
+                ));
+            }
+        }
+        None => fit
+            .warnings
+            .extend(Warning::if_poor_simulation(Record::Estimation, None)),
+    }
     // The fallback's breakpoints are fixed at 0 by construction, not estimated: nothing to check.
     if let (Some(d), false) = (fit.model.deadzone().copied(), fell_back) {
         let br = &p.branches;
@@ -799,7 +823,7 @@ pub(crate) fn hammerstein_guard(
         ))
     } else {
         fit_sim
-            .filter(|f| *f < linear_fit - FALLBACK_FIT_MARGIN)
+            .filter(|f| crate::trust::trails(Some(*f), linear_fit, FALLBACK_FIT_MARGIN))
             .map(|f| {
                 format!(
                     "the {method} estimate simulates the estimation data far worse than the linear start \
@@ -838,15 +862,20 @@ fn termination_words(t: &Termination, method: Method) -> String {
 }
 
 /// The linear ARX least-squares model of the same orders and offset, written as a Hammerstein model
-/// (b_l = b_r = 0, m_l = m_r = b1, B/b1), with its estimation simulation fit; `None` when it cannot be
-/// estimated, b1 = 0, or its simulation diverges.
-fn linear_start(p: &Problem) -> Option<(Fitted, f64)> {
+/// (b_l = b_r = 0, m_l = m_r = b1, B/b1) when the structure is Hammerstein, with its estimation
+/// metrics; `None` when it cannot be estimated, b1 = 0, or its simulation diverges.
+fn linear_start(p: &Problem) -> Option<(Fitted, sysid_core::metrics::Metrics)> {
     let s = Structure {
         kind: ModelKind::Arx,
         ..p.structure
     };
     let lp = Problem::new(p.data, s, true).ok()?;
     let arx = arx_ls(&lp).ok()?;
+    if p.structure.kind == ModelKind::Arx {
+        let m = sysid_core::metrics::metrics(&arx.model, p.data).ok()?;
+        m.fit_sim_percent?;
+        return Some((arx, m));
+    }
     let m = &arx.model;
     let b1 = *m.b().first()?;
     if b1 == 0.0 || !b1.is_finite() {
@@ -860,7 +889,8 @@ fn linear_start(p: &Problem) -> Option<(Fitted, f64)> {
         m_r: b1,
     };
     let model = Model::hammerstein(m.ts(), m.a().to_vec(), b, m.nk(), d, m.offset()).ok()?;
-    let fit_sim = simulation_fit(&model, p.data)?;
+    let metrics = sysid_core::metrics::metrics(&model, p.data).ok()?;
+    metrics.fit_sim_percent?;
     let mut params = vec![
         Param {
             name: ParamName::BL,
@@ -905,7 +935,7 @@ fn linear_start(p: &Problem) -> Option<(Fitted, f64)> {
             params,
             ..Fitted::new(model, Vec::new(), Method::Ls, arx.noise_variance)
         },
-        fit_sim,
+        metrics,
     ))
 }
 
@@ -1095,15 +1125,17 @@ fn params_with_branches(
     params
 }
 
-/// The reported estimation criterion: the RMSE of the free-run simulation with estimated initial
-/// outputs (MATLAB `compare`'s default), `None` when the model is unstable or its simulation diverges.
+/// The criterion an output-error search's candidates are judged on: the RMSE of the free-run
+/// simulation that the initial state cannot flatter ([`crate::trust::guarded_rmse`]: the larger of
+/// the RMSEs from estimated and from measured initial outputs), `None` when the model is unstable or
+/// its simulation diverges.
 fn reported_rmse(model: &Model, data: &Dataset) -> Option<f64> {
     if !model.is_stable() {
         return None;
     }
     sysid_core::metrics::metrics(model, data)
         .ok()
-        .and_then(|m| m.rmse_sim)
+        .and_then(|m| crate::trust::guarded_rmse(&m))
 }
 
 /// Output-error refinement from the LS (key-term) estimate. The search minimises the simulation error
@@ -1125,6 +1157,9 @@ fn output_error(p: &Problem, st: &OutputError) -> Result<Fitted, SysidError> {
             iterations: fit.iterations,
             termination: verdict.termination,
             notes: verdict.notes,
+            warnings: crate::trust::std_warning(fit.std_unavailable.clone())
+                .into_iter()
+                .collect(),
             ..Fitted::new(fit.model, fit.params, Method::Oe, fit.noise_variance)
         });
     }
@@ -1151,8 +1186,8 @@ pub struct OeVerdict {
 }
 
 impl OeVerdict {
-    /// Judges both candidates on the reported criterion (the estimation simulation RMSE with estimated
-    /// initial outputs, `None` for an unstable or diverging model): the better stable one is kept; when
+    /// Judges both candidates on the guarded criterion (the estimation simulation RMSE, the worse of
+    /// estimated and measured initial outputs, `None` for an unstable or diverging model): the better stable one is kept; when
     /// neither simulates stably the refinement (stable by construction) is kept and the warnings say
     /// what is wrong.
     pub fn judge<P>(

@@ -24,6 +24,7 @@ pub mod rls;
 pub mod rls_ud;
 pub mod stream;
 pub mod summary;
+pub mod trust;
 pub mod warnings;
 pub mod windup;
 

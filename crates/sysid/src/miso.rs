@@ -475,7 +475,7 @@ impl MisoProblem<'_> {
             }
             sysid_core::metrics::metrics_miso(m, &us, self.y, name)
                 .ok()
-                .and_then(|m| m.rmse_sim)
+                .and_then(|m| crate::trust::guarded_rmse(&m))
         };
         let verdict = OeVerdict::judge(&fit, &start.notes, rmse(&fit.model), rmse(&start.model));
         let converged = verdict.termination.converged();
@@ -487,7 +487,9 @@ impl MisoProblem<'_> {
                 iterations: fit.iterations,
                 converged,
                 notes: verdict.notes,
-                warnings: Vec::new(),
+                warnings: crate::trust::std_warning(fit.std_unavailable.clone())
+                    .into_iter()
+                    .collect(),
             });
         }
         Ok(MisoFit {

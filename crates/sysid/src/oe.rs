@@ -86,6 +86,8 @@ pub struct OeFit<P = Param> {
     pub initial_outputs: Vec<f64>,
     /// The start had to be stabilised.
     pub stabilised_start: bool,
+    /// Why no standard deviation could be computed (`None` when they were).
+    pub std_unavailable: Option<String>,
 }
 
 /// Why the output-error search stopped.
@@ -481,12 +483,22 @@ fn search(
                     .sqrt();
                 let size = theta.iter().map(|t| t * t).sum::<f64>().sqrt();
                 let decrease = (cost - new_cost) / cost.max(f64::MIN_POSITIVE);
+                // MINPACK's test: the cost has converged only when the linear model also predicts
+                // no further decrease for this step; a heavily damped step that gains little while
+                // much more is predicted is not convergence.
+                let taken: Vec<f64> = problem
+                    .free_values()
+                    .iter()
+                    .zip(&theta)
+                    .map(|(a, b)| a - b)
+                    .collect();
+                let predicted = tri.predicted_reduction(&taken) / cost.max(f64::MIN_POSITIVE);
                 cost = new_cost;
                 // No floor: on ill-conditioned problems (a near-integrator's poles and its initial
                 // outputs) any fixed damping would shorten the Gauss–Newton step along the weak
                 // directions and slow the search to a crawl.
                 lambda /= 3.0;
-                if decrease < FTOL {
+                if decrease < FTOL && predicted <= FTOL {
                     return Ok((OeStop::CostConverged, iteration, evaluations, projected));
                 }
                 if on_boundary && decrease < FTOL_BOUNDARY {
@@ -590,6 +602,7 @@ struct Searched {
     /// n_params: where the initial outputs start in `full`.
     np: usize,
     cov: Option<DMatrix<f64>>,
+    std_unavailable: Option<String>,
     stop: OeStop,
     iterations: usize,
     evaluations: usize,
@@ -609,6 +622,7 @@ fn run(
     model_free: Vec<usize>,
     max_iterations: usize,
     name: &str,
+    param_names: &[String],
 ) -> Result<Searched, SysidError> {
     let (n, k0, np) = (problem.y.len(), problem.k0, problem.n_params());
     if model_part.len() != np {
@@ -649,14 +663,26 @@ fn run(
     let rss = resid.norm_squared();
     let jac = problem.sensitivities(&d, &yh, &x);
     let sigma2 = rss / (n - free.len()) as f64;
-    let cov = ls::solve(&jac, &resid, &[])
-        .ok()
-        .map(|sol| sol.inv_gram * sigma2);
+    // Columns named as the parameters they belong to (η_j: the initial output y0(j)).
+    let columns: Vec<String> = free
+        .iter()
+        .map(|&i| {
+            param_names
+                .get(i)
+                .cloned()
+                .unwrap_or_else(|| format!("y0({})", i.saturating_sub(np)))
+        })
+        .collect();
+    let (cov, std_unavailable) = match ls::solve(&jac, &resid, &columns) {
+        Ok(sol) => (Some(sol.inv_gram * sigma2), None),
+        Err(e) => (None, Some(why_no_covariance(&problem, &e))),
+    };
     Ok(Searched {
         full: problem.full,
         free,
         np,
         cov,
+        std_unavailable,
         stop,
         iterations,
         evaluations,
@@ -666,6 +692,25 @@ fn run(
         noise_variance: sigma2,
         stabilised_start,
     })
+}
+
+/// Why σ̂² (JᵀJ)⁻¹ could not be formed at the end of the search, in words: the solver's reason (a
+/// Jacobian column that is zero or dependent on the others: a singular information matrix JᵀJ) and,
+/// when a pole sits on the stability boundary the search holds it to, that pinned pole.
+fn why_no_covariance(problem: &Problem, e: &SysidError) -> String {
+    let ia = problem.ia();
+    let pinned = poles_of(&problem.full[ia..ia + problem.na])
+        .iter()
+        .map(|p| p.norm())
+        .fold(0.0, f64::max);
+    let mut why = format!("the information matrix JᵀJ of the output-error fit is singular ({e})");
+    if pinned >= MAX_POLE_MODULUS - 1e-7 {
+        why.push_str(&format!(
+            "; a pole is pinned on the stability boundary (|p| = {pinned:.7}), where the loss is not \
+             quadratic"
+        ));
+    }
+    why
 }
 
 impl Searched {
@@ -691,6 +736,7 @@ impl Searched {
             rss: self.rss,
             noise_variance: self.noise_variance,
             stabilised_start: self.stabilised_start,
+            std_unavailable: self.std_unavailable,
         }
     }
 }
@@ -743,14 +789,16 @@ pub fn refine(
         ));
     }
     let problem = problem(vec![channel], &data.y, s.orders.na, s.offset);
+    let names = physical.names();
+    let labels: Vec<String> = names.iter().map(ToString::to_string).collect();
     let found = run(
         problem,
         full,
         physical.free_indices(),
         max_iterations,
         &data.name,
+        &labels,
     )?;
-    let names = physical.names();
     let b1 = || Param {
         name: ParamName::B(1),
         value: 1.0,
@@ -933,7 +981,7 @@ pub fn refine_miso(
     let (full, names) = miso_vector(start);
     let free = (0..full.len()).collect();
     let problem = problem(channels, y, start.na(), start.offset().is_some());
-    let found = run(problem, full, free, max_iterations, name)?;
+    let found = run(problem, full, free, max_iterations, name, &names)?;
     let model = miso_model_of(&found.full[..found.np], start)
         .map_err(|e| SysidError::Numerical(format!("{name}: {e}")))?;
     let params = miso_params(start, &names, |i| found.full[i], |i| found.std(i));

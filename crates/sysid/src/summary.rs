@@ -164,7 +164,15 @@ impl IdentifyReport {
             estimation: residual_analysis(&fit.model, est_data, max_lag),
             validation: val_data.map(|v| residual_analysis(&fit.model, v, max_lag)),
         };
-        Ok(Self::from_parts(fit, settings, est, val, residuals))
+        let below = match (val_data, &val) {
+            (Some(v), Some(m)) => {
+                crate::trust::baseline_warning(Record::Validation, fit, settings, est_data, v, m)
+            }
+            _ => None,
+        };
+        let mut report = Self::from_parts(fit, settings, est, val, residuals);
+        report.warnings.extend(below.map(|w| w.to_string()));
+        Ok(report)
     }
 
     /// The report from metrics and residual analyses computed elsewhere (the streaming path,
@@ -180,8 +188,9 @@ impl IdentifyReport {
         report.residuals = residuals;
         if let Some(m) = &report.metrics.validation {
             report.warnings.extend(
-                Warning::if_poor_simulation(Record::Validation, m.fit_sim_percent)
-                    .map(|w| w.to_string()),
+                crate::trust::metric_warnings(Record::Validation, m)
+                    .iter()
+                    .map(ToString::to_string),
             );
         }
         report
@@ -298,10 +307,7 @@ impl ValidationReport {
     pub fn from_parts(model: &Model, m: Metrics, residuals: ResidualEntry) -> Self {
         let warnings: Vec<String> = Warning::if_unstable(model)
             .into_iter()
-            .chain(Warning::if_poor_simulation(
-                Record::Validation,
-                m.fit_sim_percent,
-            ))
+            .chain(crate::trust::metric_warnings(Record::Validation, &m))
             .map(|w| w.to_string())
             .collect();
         ValidationReport {

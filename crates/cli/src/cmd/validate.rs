@@ -183,11 +183,15 @@ fn report_text(
 ) -> String {
     let m = &report.metrics.validation;
     let mut text = format!(
-        "{} on {} ({} samples): fit {} % (simulation), {} % (1-step prediction){}; loss {}, FPE {}; {}\n",
+        "{} on {} ({} samples): fit {} % (simulation, initial outputs estimated), {} % (simulation, \
+         initial outputs measured), {} % (1-step prediction){}; loss V {} (one-step equation error), \
+         V_sim {} (simulation error), FPE {}; {}\n",
         args.model.display(),
         name,
         len,
         m.fit_sim_percent.map_or("n/a".into(), |v| format!("{v:.2}")),
+        m.fit_sim_measured_percent
+            .map_or("n/a".into(), |v| format!("{v:.2}")),
         m.fit_pred_percent.map_or("n/a".into(), |v| format!("{v:.2}")),
         if args.horizon > 1 {
             format!(
@@ -199,6 +203,7 @@ fn report_text(
             String::new()
         },
         report::format::num(m.loss),
+        m.loss_sim.map_or("n/a".into(), report::format::num),
         m.fpe.map_or("n/a".into(), report::format::num),
         if report.stable { "stable" } else { "UNSTABLE" }
     );

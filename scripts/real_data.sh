@@ -47,15 +47,24 @@ header() {
     echo "|---|---|---|---|---|---|---|"
 }
 
-# order_line ARGS...: `order ARGS`, the chosen structure, its selection fit and test fit; sets CHOSEN.
+# order_line ARGS...: `order ARGS`, the recommended structure, its ranking fit (the worse of estimated and
+# measured initial outputs on the selection part) and test fit, and the search's warnings; sets CHOSEN
+# (empty when no structure qualifies).
 order_line() {
     "$bin" order "$@" --json "$tmp/o.json" >/dev/null 2>&1
     local o=$tmp/o.json
-    CHOSEN=$(jq -r '.test.orders | "\(.na) \(.nb) \(.nk)"' "$o")
-    printf '`ipa-sysid order %s`\n: chosen (na, nb, nk) = (%s), selection fit %s %% on %s; test fit %s %% (simulation), test RMSE %s\n\n' \
-        "$*" "$(echo "$CHOSEN" | tr ' ' ',')" "$(pct '.candidates[0].fit_validation' "$o")" \
+    CHOSEN=$(jq -r '.test.orders // empty | "\(.na) \(.nb) \(.nk)"' "$o")
+    local warn
+    warn=$(jq -r 'if (.warnings | length) > 0 then "; warning: " + (.warnings | join("; ")) else "" end' "$o")
+    if [ -z "$CHOSEN" ]; then
+        printf '`ipa-sysid order %s`\n: none recommended%s\n\n' "$*" "$warn"
+        return
+    fi
+    printf '`ipa-sysid order %s`\n: chosen (na, nb, nk) = (%s), selection fit %s %% on %s; test fit %s %% (simulation), test RMSE %s%s\n\n' \
+        "$*" "$(echo "$CHOSEN" | tr ' ' ',')" \
+        "$(pct '. as $d | [$d.candidates[] | select(.orders == $d.test.orders)][0].ranking_fit' "$o")" \
         "$(jq -r .selection "$o" | sed 's|.*/||')" "$(pct .test.fit_sim_percent "$o")" \
-        "$(sig .test.metrics.rmse_sim "$o")"
+        "$(sig .test.metrics.rmse_sim "$o")" "$warn"
 }
 
 delay_line() {

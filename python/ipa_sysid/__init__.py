@@ -9,6 +9,8 @@ same data and options.
 - ``Model`` (``.a``, ``.b``, ``.deadzone``, ``.ts``, ``.simulate``, ``.predict``, ``.save``,
   ``.to_control``), ``load_model(path)``, ``paper_model()``
 - ``Rls(n, forgetting, p0)`` (``.update``, ``.update_many``, ``.theta``, ``.P``)
+- ``calibrate(data, validation=None, free=None, ...)`` -> dict: the physics plant fitted to a record
+  (a digital twin, as ``ipa-sysid calibrate``)
 - ``simulate_plant(plant, ...)`` -> ``(t, u, y, pressures)``; ``control(plant, setpoint=...)`` -> dict
 
 Bad input raises ``ValueError`` with the command line's message; a numerical failure raises
@@ -56,12 +58,20 @@ def control(*args, **kwargs):
     return result
 
 
+@functools.wraps(_core.calibrate)
+def calibrate(*args, **kwargs):
+    result = _core.calibrate(*args, **kwargs)
+    _warn_all(result.get("warnings"))
+    return result
+
+
 __all__ = [
     "Fit",
     "IpaSysidWarning",
     "Model",
     "Rls",
     "__version__",
+    "calibrate",
     "control",
     "identify",
     "load_model",

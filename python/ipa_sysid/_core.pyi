@@ -173,6 +173,18 @@ def simulate_plant(
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray | None]:
     """One open-loop experiment as `ipa-sysid simulate`: (t, u, y, pressures)."""
 
+def calibrate(
+    data: str | PathLike[str],
+    validation: str | PathLike[str] | None = None,
+    free: str | None = None,
+    fixed: str | None = None,
+    plant_config: str | PathLike[str] | None = None,
+    segment: float = 0.5,
+    max_iterations: int = 40,
+    ts: float | None = None,
+) -> dict[str, Any]:
+    """The physics plant calibrated to a record as `ipa-sysid calibrate`: estimates, fits, warnings, toml."""
+
 def control(
     plant: str = "ipa",
     setpoint: float | None = None,

@@ -813,7 +813,9 @@ fn simulate_plant<'py>(
 
 /// Closed-loop PI position control, as `ipa-sysid control`: returns a dict with the trace ("t" s,
 /// "r" mm, "u" counts, "y" mm as arrays), "metrics" (overshoot, rise and settling time, steady-state
-/// error: MATLAB `stepinfo`), "metrics_kind" ("fixed" or "worst-step"), "steps" and "ts". Give exactly
+/// error: MATLAB `stepinfo`), "metrics_kind" ("fixed" or "worst-step"), "steps", "ts" and "warnings"
+/// (not settled, saturated, unreachable set-point, unstable model, the paper's acceptance missed:
+/// `control::loop_warnings`; the package's `control` issues each as an `IpaSysidWarning`). Give exactly
 /// one of `setpoint` (mm) or `profile` ("fixed:MM", "staircase:L1,L2,...@HOLD_S", "file:PATH.csv").
 /// `anti_windup`: "none" or "clamping" ("back-calculation" needs `tracking_time` in s).
 /// `compensate_deadzone`: a Hammerstein `Model` or "paper" adds a deadzone-inverse compensator.
@@ -891,9 +893,9 @@ fn control_loop<'py>(
             ))
         }
     };
-    let mut plant = plant_spec(plant)?
-        .build(plant_config.as_deref(), None)
-        .map_err(ipa_err)?;
+    let spec = plant_spec(plant)?;
+    let limits = spec.limits(plant_config.as_deref()).map_err(ipa_err)?;
+    let mut plant = spec.build(plant_config.as_deref(), None).map_err(ipa_err)?;
     let ts = plant.ts();
     let settings = ::control::PiSettings::new(kp, ki)
         .with_integral(integral)
@@ -968,6 +970,16 @@ fn control_loop<'py>(
             Ok((trace, run))
         })
         .map_err(control_err)?;
+    let warnings = ::control::loop_warnings(
+        &trace,
+        &run.steps,
+        &::control::LoopFacts {
+            u_max,
+            range_mm: limits.range_mm,
+            unstable_pole: limits.unstable_pole,
+            fixed_step: matches!(profile, Profile::Fixed { .. }),
+        },
+    );
     let out = PyDict::new(py);
     out.set_item("t", trace.t.into_pyarray(py))?;
     out.set_item("r", trace.r.into_pyarray(py))?;
@@ -977,11 +989,99 @@ fn control_loop<'py>(
     out.set_item("metrics_kind", run.kind.as_str())?;
     out.set_item("metrics", to_py(py, &run.metrics)?)?;
     out.set_item("steps", to_py(py, &run.steps)?)?;
+    out.set_item("warnings", warnings)?;
     Ok(out)
 }
 
 /// ipa-sysid from Python: identification (Hammerstein/ARX by LS, RLS, OE, IV), recursive least
 /// squares, the physics IPA simulator and PI control, computed in Rust.
+/// Calibrates the physics plant to a record, as `ipa-sysid calibrate` (without the Hammerstein
+/// baseline, which `identify` gives): `data` and `validation` are CSV paths (columns u, y and, when
+/// present, p_a_pa, p_b_pa); returns a dict with "estimates" (parameter, key, unit, start, value, std,
+/// at_bound), "correlation", "segments", "iterations", "simulations", "termination", "cost_start",
+/// "cost", the free-run fits "fit_estimation_start_percent", "fit_estimation_percent",
+/// "fit_validation_start_percent", "fit_validation_percent", "warnings" and "toml" (the plant-config
+/// of the twin, as `--out` writes it, without its first comment line).
+#[pyfunction]
+#[pyo3(signature = (data, validation=None, free=None, fixed=None, plant_config=None, segment=0.5,
+    max_iterations=40, ts=None))]
+#[allow(clippy::too_many_arguments)]
+fn calibrate<'py>(
+    py: Python<'py>,
+    data: PathBuf,
+    validation: Option<PathBuf>,
+    free: Option<&str>,
+    fixed: Option<&str>,
+    plant_config: Option<PathBuf>,
+    segment: f64,
+    max_iterations: usize,
+    ts: Option<f64>,
+) -> PyResult<Bound<'py, PyDict>> {
+    use ipa::calibrate::{Calibration, Columns, Parameter};
+    let start = match &plant_config {
+        Some(p) => ipa::PlantConfig::from_toml_file(p).map_err(ipa_err)?,
+        None => ipa::PlantConfig::default(),
+    };
+    let mut free_set = match free {
+        Some(l) => ipa::calibrate::parse_list(l).map_err(ipa_err)?,
+        None => Parameter::ALL.to_vec(),
+    };
+    if let Some(l) = fixed {
+        let f = ipa::calibrate::parse_list(l).map_err(ipa_err)?;
+        free_set.retain(|p| !f.contains(p));
+    }
+    let cal = Calibration {
+        start,
+        free: free_set,
+        segment_s: segment,
+        max_iterations,
+        ..Calibration::default()
+    };
+    let cols = Columns::default();
+    let est = ipa::calibrate::read_record(&data, &cols, ts).map_err(ipa_err)?;
+    let val = validation
+        .as_ref()
+        .map(|v| ipa::calibrate::read_record(v, &cols, ts))
+        .transpose()
+        .map_err(ipa_err)?;
+    let twin = py.detach(|| cal.fit(&est, val.as_ref())).map_err(ipa_err)?;
+    let fit = |r: &Option<ipa::calibrate::FreeRun>| r.as_ref().and_then(|r| r.fit_percent);
+    let out = PyDict::new(py);
+    let estimates = PyList::empty(py);
+    for e in &twin.estimates {
+        let d = PyDict::new(py);
+        d.set_item("parameter", e.parameter.name())?;
+        d.set_item("key", e.parameter.key())?;
+        d.set_item("unit", e.parameter.unit())?;
+        d.set_item("start", e.start)?;
+        d.set_item("value", e.value)?;
+        d.set_item("std", e.std)?;
+        d.set_item("at_bound", e.at_bound)?;
+        estimates.append(d)?;
+    }
+    out.set_item("estimates", estimates)?;
+    out.set_item("correlation", twin.correlation.clone())?;
+    out.set_item("segments", twin.segments)?;
+    out.set_item("iterations", twin.iterations)?;
+    out.set_item("simulations", twin.evaluations)?;
+    out.set_item("termination", twin.termination.to_string())?;
+    out.set_item("cost_start", twin.cost_start)?;
+    out.set_item("cost", twin.cost)?;
+    out.set_item("fit_estimation_start_percent", fit(&twin.estimation_start))?;
+    out.set_item("fit_estimation_percent", fit(&twin.estimation))?;
+    out.set_item("fit_validation_start_percent", fit(&twin.validation_start))?;
+    out.set_item("fit_validation_percent", fit(&twin.validation))?;
+    out.set_item(
+        "warnings",
+        twin.warnings
+            .iter()
+            .map(ToString::to_string)
+            .collect::<Vec<_>>(),
+    )?;
+    out.set_item("toml", twin.config.to_commented_toml())?;
+    Ok(out)
+}
+
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyModel>()?;
@@ -991,6 +1091,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(load_model, m)?)?;
     m.add_function(wrap_pyfunction!(paper_model, m)?)?;
     m.add_function(wrap_pyfunction!(simulate_plant, m)?)?;
+    m.add_function(wrap_pyfunction!(calibrate, m)?)?;
     m.add_function(wrap_pyfunction!(control_loop, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

@@ -367,8 +367,17 @@ def test_control_matches_cli(tmp_path):
     assert_same(c["metrics"], doc["metrics"])
     assert c["metrics_kind"] == doc["metrics_kind"]
     assert_same(c["steps"], doc["steps"])
+    assert c["warnings"] == doc["warnings"]
     with pytest.raises(ValueError, match="exactly one of"):
         ipa_sysid.control("paper")
+
+
+def test_control_warns_about_an_unreachable_set_point():
+    # The physics plant's stroke is 0..200 mm (Table II): 300 mm cannot be reached; said in the
+    # result and as a Python warning.
+    with pytest.warns(ipa_sysid.IpaSysidWarning, match="outside the reachable range"):
+        c = ipa_sysid.control("ipa", setpoint=300, duration=1)
+    assert any("outside the reachable range" in w for w in c["warnings"])
 
 
 def test_to_control_transfer_function():
@@ -392,6 +401,32 @@ def test_example_script_runs(tmp_path):
     r = subprocess.run([sys.executable, str(script)], capture_output=True, text=True, cwd=tmp_path)
     assert r.returncode == 0, r.stderr
     assert "fit % (simulation, validation)" in r.stdout
+
+
+def test_calibrate_matches_cli(tmp_path):
+    truth = tmp_path / "truth.toml"
+    truth.write_text("[load]\nmoving_mass_kg = 0.7\n")
+    est, val = tmp_path / "est.csv", tmp_path / "val.csv"
+    cli("simulate", "--plant-config", truth, "--input", "calibration", "--samples", 600, "--seed", 3,
+        "--out", est)
+    cli("simulate", "--plant-config", truth, "--samples", 600, "--seed", 4, "--out", val)
+    js, out = tmp_path / "c.json", tmp_path / "twin.toml"
+    cli("calibrate", "--data", est, "--validation", val, "--free", "moving_mass,static_friction",
+        "--no-baseline", "--out", out, "--json", js)
+    doc = json.loads(js.read_text())
+    c = ipa_sysid.calibrate(est, validation=val, free="moving_mass,static_friction")
+    assert [e["parameter"] for e in c["estimates"]] == ["moving_mass", "static_friction"]
+    for a, b in zip(c["estimates"], doc["estimates"]):
+        assert a["parameter"] == b["parameter"]
+        assert a["value"] == pytest.approx(b["value"], rel=1e-12)
+    assert c["fit_validation_percent"] == pytest.approx(doc["fit_validation_percent"], rel=1e-12)
+    assert c["warnings"] == doc["warnings"]
+    # The truth (independent of the program): M = 0.7 kg within 2 %.
+    mass = next(e["value"] for e in c["estimates"] if e["parameter"] == "moving_mass")
+    assert abs(mass / 0.7 - 1) < 0.02
+    assert "moving_mass_kg" in c["toml"]
+    with pytest.raises(ValueError, match="moving_mass"):
+        ipa_sysid.calibrate(est, free="mass")
 
 
 def test_warnings_of_identify_are_python_warnings():
@@ -421,3 +456,24 @@ def _warnings_as_errors():
             return cm.__exit__(*exc)
 
     return _Ctx()
+
+
+# --- hostile sizes and reads (issue 21): the same bounds as the command line ---------------------
+
+
+def test_simulate_plant_refuses_a_sample_count_beyond_the_bound():
+    # 10**10 samples would need 80 GB per signal: refused before anything is allocated, and the
+    # interpreter survives to run the next call.
+    with pytest.raises(ValueError, match="samples"):
+        ipa_sysid.simulate_plant("ipa", samples=10**10)
+    with pytest.raises(ValueError, match="samples"):
+        ipa_sysid.simulate_plant("paper", samples=0)
+    t, u, y, _ = ipa_sysid.simulate_plant("paper", samples=10)
+    assert len(t) == len(u) == len(y) == 10
+
+
+@pytest.mark.skipif(not os.path.exists("/dev/zero"), reason="no /dev/zero on this system")
+def test_load_model_bounds_an_endless_read():
+    # /dev/zero reports a size of 0 and never ends: the read is bounded as it goes.
+    with pytest.raises(ValueError, match="at most"):
+        ipa_sysid.load_model("/dev/zero")

@@ -25,6 +25,9 @@ enum Command {
     Validate(cmd::validate::Args),
     /// Simulate a plant (physics IPA, the paper's model, or a saved model) and write t,u,y to CSV.
     Simulate(cmd::simulate::Args),
+    /// Calibrate the physics plant to a measured record (a digital twin, MATLAB `nlgreyest`): writes a
+    /// plant-config TOML.
+    Calibrate(cmd::calibrate::Args),
     /// Print the physics plant's default parameters as TOML (edit and pass with --plant-config).
     PlantConfig(cmd::plant_config::Args),
     /// Closed-loop PI position control on a plant, with step metrics (MATLAB `stepinfo`).
@@ -67,11 +70,16 @@ fn main() -> ExitCode {
         Ok(cli) => cli,
         Err(e) => e.exit(),
     };
+    // An interrupted write (Ctrl-C, SIGTERM) leaves no `.ipa-sysid-*.tmp` file behind.
+    if let Err(e) = sysid_io::remove_temporaries_on_signals() {
+        eprintln!("warning: cannot watch for signals ({e}); an interrupted write may leave a temporary file");
+    }
     let result = match cli.command {
         Command::Identify(a) => cmd::identify::run(a),
         Command::Validate(a) => cmd::validate::run(a),
         Command::Simulate(a) => cmd::simulate::run(a),
         Command::PlantConfig(a) => cmd::plant_config::run(a),
+        Command::Calibrate(a) => cmd::calibrate::run(a),
         Command::Control(a) => cmd::control::run(a),
         Command::Reproduce(a) => cmd::reproduce::run(a),
         Command::Order(a) => cmd::order::run(a),

@@ -124,7 +124,7 @@ impl ToText for IdentifyReport {
             "estimation",
             if val.is_some() { "validation" } else { "" }
         );
-        let rows: [MetricRow; 11] = [
+        let rows: [MetricRow; 12] = [
             ("fit % (simulation)", |m| opt(m.fit_sim_percent)),
             (
                 "fit % (sim., y0 meas.)",
@@ -135,6 +135,7 @@ impl ToText for IdentifyReport {
             ("RMSE (sim., y0 meas.)", |m| opt(m.rmse_sim_measured)),
             ("RMSE (1-step pred.)", |m| num(m.rmse_pred)),
             ("loss V (eq. 14)", |m| num(m.loss)),
+            ("loss V_sim (sim.)", |m| opt(m.loss_sim)),
             ("FPE (eq. 15)", |m| opt(m.fpe)),
             ("AIC (normalised)", |m| opt(m.aic)),
             ("N (rows used)", |m| m.n.to_string()),

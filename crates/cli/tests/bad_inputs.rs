@@ -64,7 +64,12 @@ fn check_all(cases: &[Case]) {
         if stderr.contains("panicked") || stderr.contains("RUST_BACKTRACE") {
             wrong.push("panicked".to_string());
         }
-        if !stderr.starts_with("error:") {
+        // Warnings about the input (an unstable model...) may come before the error.
+        let first = stderr
+            .lines()
+            .find(|l| !l.starts_with("warning:"))
+            .unwrap_or("");
+        if !first.starts_with("error:") {
             wrong.push("stderr does not start with `error:`".to_string());
         }
         for n in c.needles {

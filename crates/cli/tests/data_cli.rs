@@ -711,7 +711,7 @@ fn delay_finds_the_generating_delay() {
         j["warnings"][0].as_str().unwrap().contains("--max-delay"),
         "{j}"
     );
-    assert!(String::from_utf8_lossy(&o.stdout).contains("Warning"));
+    assert!(String::from_utf8_lossy(&o.stdout).contains("warning: "));
 }
 
 #[test]

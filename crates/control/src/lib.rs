@@ -24,6 +24,7 @@ pub mod error;
 pub mod metrics;
 pub mod pi;
 pub mod profile;
+pub mod trust;
 pub mod widening;
 
 pub use adaptive::{run_adaptive, AdaptiveRun, AdaptiveSettings, BranchCounts};
@@ -33,4 +34,5 @@ pub use error::{ControlError, ControlSetting};
 pub use metrics::{metrics_for_steps, run_metrics, RunMetrics, StepMetrics, StepSegment};
 pub use pi::{AntiWindup, AntiWindupScheme, IntegralForm, PiController, PiSettings};
 pub use profile::Profile;
+pub use trust::{loop_warnings, LoopFacts};
 pub use widening::{DeadzoneChange, Widened};

@@ -11,7 +11,10 @@
 //!   interpolation between the two samples around the crossing (MATLAB `RiseTime`, limits 10 %-90 %).
 //! * **settling time** t_s = the time, from t_0, after which |y - y_f| stays within 2 % of |Δ|; the
 //!   crossing into the band after the last sample outside it is linearly interpolated. 0 if no sample is
-//!   ever outside the band.
+//!   ever outside the band. `None` ("not settled within the run") when the response is still moving at
+//!   its end ([`still_moving`]) while its last sample is outside the set-point's 2 % band: y_f is then
+//!   not a final value, and a settling time measured against it would be an artefact of where the run
+//!   stopped.
 //!
 //! When Δ = 0 (the response never left y0) the step-relative metrics are `None` (JSON `null`): there is no
 //! step to measure, and a made-up number would be misleading.
@@ -129,6 +132,9 @@ impl StepMetrics {
 
         let band = SETTLING_BAND * step;
         let settling = match (0..n).rev().find(|&k| (y_mm[k] - y_f).abs() > band) {
+            // Still moving while outside the set-point's band: no final value yet. (Creeping within
+            // the band towards the set-point cannot leave it.)
+            _ if still_moving(t_s, y_mm, band) && (r_mm - y_f).abs() > band => None,
             None => Some(0.0),
             Some(k) if k + 1 >= n => None,
             Some(k) => {
@@ -170,6 +176,32 @@ impl StepMetrics {
             settling_time_s: pick(a.settling_time_s, b.settling_time_s),
         })
     }
+}
+
+/// Fraction of a run, at its end, over which [`still_moving`] measures the drift.
+pub const TAIL_FRACTION: f64 = 0.2;
+
+/// Fraction of the settling band by which the output may still drift over the run's tail.
+pub const DRIFT_FRACTION: f64 = 0.1;
+
+/// True when the response `y_mm` is still moving at the end of the run: over the last
+/// [`TAIL_FRACTION`] of its samples it drifts by more than [`DRIFT_FRACTION`] of the settling band
+/// `band_mm` (the drift is twice the difference between the means of the tail's two halves, so that
+/// sample noise and quantisation average out). A response that creeps towards its set-point (friction,
+/// a slow pole) then has no final value within the run, so neither a settling time nor a steady-state
+/// error measured at its last sample is final: at that rate it would cross the band within a few
+/// more such tails.
+pub fn still_moving(t_s: &[f64], y_mm: &[f64], band_mm: f64) -> bool {
+    let n = t_s.len().min(y_mm.len());
+    let m = (n as f64 * TAIL_FRACTION) as usize;
+    if m < 4 {
+        return false;
+    }
+    let tail = &y_mm[n - m..n];
+    let half = m / 2;
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    let drift = 2.0 * (mean(&tail[half..]) - mean(&tail[..half])).abs();
+    drift > DRIFT_FRACTION * band_mm
 }
 
 /// One step of an unfixed set-point profile and its metrics.

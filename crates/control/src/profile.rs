@@ -106,11 +106,20 @@ impl Profile {
     /// Reads a profile file: CSV with a header naming columns `t` (s) and `r` (mm) (also accepted: `t_s`,
     /// `r_mm`; other columns are ignored), at least one row, finite values, strictly increasing t.
     pub fn from_csv_file(path: &Path) -> Result<Profile, ControlError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ControlError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
         let file = path.display().to_string();
+        let text = sysid_core::data::bounded::read_bounded_text(
+            path,
+            sysid_core::data::MAX_FILE_BYTES,
+            "a profile file",
+            "expected a CSV of t,r rows",
+        )
+        .map_err(|e| match e {
+            sysid_core::SysidError::Io { path, source } => ControlError::Io { path, source },
+            other => ControlError::Profile {
+                spec: format!("file:{file}"),
+                message: other.to_string(),
+            },
+        })?;
         let err = |message: String| ControlError::Profile {
             spec: format!("file:{file}"),
             message,

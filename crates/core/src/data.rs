@@ -19,6 +19,7 @@
 
 use std::path::Path;
 
+pub mod bounded;
 pub mod lines;
 pub mod mat;
 pub mod ranges;
@@ -34,7 +35,11 @@ pub use resample::TimeUnit;
 /// Upper bound on the number of samples read from one file (keeps hostile inputs from exhausting memory).
 pub const MAX_SAMPLES: usize = 50_000_000;
 
-/// Upper bound on the size of a CSV file, checked before the file is read (2 GiB).
+/// Upper bound on the number of columns of a CSV file (a header of hundreds of thousands of names is
+/// damage, not a record).
+pub const MAX_COLUMNS: usize = 10_000;
+
+/// Upper bound on the size of a data file, checked as it is read (2 GiB; a device or a pipe too).
 pub const MAX_FILE_BYTES: u64 = 2 * 1024 * 1024 * 1024;
 
 /// A uniformly sampled record: one or several named inputs u^(m)(k) and the output y(k), k = 0..N-1,
@@ -296,24 +301,11 @@ pub fn read_csv(path: &Path, opts: &CsvOptions) -> Result<Dataset, SysidError> {
 
 /// Reads a record from a CSV file, with the reader's warnings (how non-uniform a resampled record was).
 pub fn read_record(path: &Path, opts: &CsvOptions) -> Result<Record, SysidError> {
-    let io = |source| SysidError::Io {
-        path: path.to_path_buf(),
-        source,
-    };
-    let size = std::fs::metadata(path).map_err(io)?.len();
-    if size > MAX_FILE_BYTES {
-        return Err(SysidError::File {
-            file: path.display().to_string(),
-            message: format!(
-                "{size} bytes is more than the {MAX_FILE_BYTES} bytes a data file may have; split the record"
-            ),
-        });
-    }
-    let bytes = std::fs::read(path).map_err(io)?;
     let name = path.display().to_string();
     let is_mat_name = path
         .extension()
         .is_some_and(|e| e.eq_ignore_ascii_case("mat"));
+    let bytes = bounded::read_data_file(path, "a data file")?;
     if is_mat_name || mat::is_mat(&bytes) {
         return mat::read_mat_bytes(&bytes, &name, opts);
     }
@@ -461,6 +453,19 @@ fn table_of(
             message: "NUL byte: the file is binary, not CSV text".into(),
         });
     }
+    // Rows are counted before they are parsed: a parsed row costs far more memory than its text, so a
+    // file of many short rows would otherwise exhaust memory before reaching the limit.
+    let lines = text
+        .as_bytes()
+        .split(|&b| b == b'\n')
+        .filter(|l| !l.trim_ascii().is_empty())
+        .count();
+    if lines > MAX_SAMPLES + usize::from(has_header) {
+        return Err(file_err(format!(
+            "{lines} non-blank lines: more than the {MAX_SAMPLES} data rows a record may have; split the \
+             record (or read it with --stream, which has no row limit)"
+        )));
+    }
     let delimiter = sniff_delimiter(text);
     let mut rdr = csv::ReaderBuilder::new()
         .delimiter(delimiter)
@@ -495,6 +500,16 @@ fn table_of(
             "the header row is empty; expected column names such as u,y".into(),
         ));
     }
+    if headers.len() > MAX_COLUMNS {
+        return Err(file_err(format!(
+            "{} columns is more than the {MAX_COLUMNS} a record may have; expected a header naming the \
+             columns (t, u, y, ...)",
+            headers.len()
+        )));
+    }
+    // Each name's first column, so that a duplicate is found in one pass (O(n), not O(n^2)).
+    let mut first_column: std::collections::HashMap<&str, usize> =
+        std::collections::HashMap::with_capacity(headers.len());
     for (i, h) in headers.iter().enumerate() {
         if h.is_empty() {
             return Err(SysidError::Parse {
@@ -504,7 +519,8 @@ fn table_of(
                 message: "empty column name in the header row".into(),
             });
         }
-        if let Some(j) = headers[..i].iter().position(|g| g == h) {
+        if let Some(&j) = first_column.get(h.as_str()) {
+            let h = shorten(h);
             return Err(SysidError::Parse {
                 file: name.to_string(),
                 line: 1,
@@ -515,6 +531,7 @@ fn table_of(
                 ),
             });
         }
+        first_column.insert(h, i);
     }
     let mut rows = Vec::new();
     // Line numbers from byte offsets (the csv crate's own line count is one short after CRLF line ends).
@@ -598,7 +615,7 @@ pub(crate) fn csv_err(name: &str, e: csv::Error) -> SysidError {
     }
 }
 
-fn line_col(bytes: &[u8], offset: usize) -> (usize, usize) {
+pub(crate) fn line_col(bytes: &[u8], offset: usize) -> (usize, usize) {
     let before = &bytes[..offset.min(bytes.len())];
     let line = before.iter().filter(|&&b| b == b'\n').count() + 1;
     let column = offset
@@ -621,8 +638,13 @@ impl Table {
         self.rows.is_empty()
     }
 
+    /// The column names for a message: at most 50, each shortened to 40 characters.
     fn header_list(&self) -> String {
-        self.headers.join(", ")
+        let mut names: Vec<String> = self.headers.iter().take(50).map(|h| shorten(h)).collect();
+        if self.headers.len() > 50 {
+            names.push(format!("... ({} columns in all)", self.headers.len()));
+        }
+        names.join(", ")
     }
 
     /// The indices of the u and y columns of `opts` (different columns), and Ts when it is given
@@ -801,7 +823,7 @@ pub(crate) fn sig6(x: f64) -> String {
         .map_or_else(|_| x.to_string(), |v| v.to_string())
 }
 
-fn shorten(s: &str) -> String {
+pub(crate) fn shorten(s: &str) -> String {
     if s.chars().count() > 40 {
         format!("{}...", s.chars().take(40).collect::<String>())
     } else {

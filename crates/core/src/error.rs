@@ -199,9 +199,20 @@ impl SysidError {
                         format!(" (names are case-sensitive: did you mean {flag} {h}?)")
                     }
                 };
+                // A damaged header can hold huge or countless names: echo a bounded part of it.
+                const SHOWN: usize = 50;
+                let mut names: Vec<String> = header
+                    .iter()
+                    .take(SHOWN)
+                    .map(|h| crate::data::shorten(h))
+                    .collect();
+                if header.len() > SHOWN {
+                    names.push(format!("... ({} columns in all)", header.len()));
+                }
                 format!(
-                    "{file}: no column named '{column}' (chosen by {flag}); the header has: {}{hint}",
-                    header.join(", ")
+                    "{file}: no column named '{}' (chosen by {flag}); the header has: {}{hint}",
+                    crate::data::shorten(column),
+                    names.join(", ")
                 )
             }
             SysidError::Setting {

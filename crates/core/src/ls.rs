@@ -114,6 +114,10 @@ impl LsWorkspace {
             let src = phi.column(j);
             let src = src.as_slice();
             let norm = scaled_norm(src);
+            // Without the rank test (a damped step) a column that is zero over the record (a
+            // parameter the current iterate does not excite, e.g. a breakpoint beyond every command)
+            // takes the scale 1, as MINPACK's `lmder` does: its step is then 0, the others are found.
+            let norm = if !rank_test && norm == 0.0 { 1.0 } else { norm };
             check_norm(norm, || name(j))?;
             *scale_j = norm;
             let inv = 1.0 / norm;
@@ -128,6 +132,14 @@ impl LsWorkspace {
             // |R_kk| = ‖column k below the diagonal‖; the rank test of ls::solve.
             if rank_test && sigma < RANK_TOLERANCE {
                 return Err(dependent(&name(k)));
+            }
+            if sigma == 0.0 {
+                // Nothing to reflect (H = I): row k of R is what stands in row k.
+                r[k * cols + k] = 0.0;
+                for c in k + 1..cols {
+                    r[k * cols + c] = right[(c - k - 1) * n + k];
+                }
+                continue;
             }
             let alpha = if v[0] > 0.0 { -sigma } else { sigma };
             // v = x − α e₁; H = I − 2 v vᵀ / vᵀv with vᵀv = 2 σ (σ + |x₀|).
@@ -196,6 +208,22 @@ impl Triangular {
             ));
         }
         Ok(delta)
+    }
+
+    /// The reduction of ‖y − Φ δ‖² that the linear model predicts for the step `delta`:
+    /// ‖y‖² − ‖y − Φ δ‖² = ‖z‖² − ‖z − R D δ‖² (the rows below R are untouched by δ). A
+    /// Levenberg–Marquardt search compares it with the actual reduction of its loss.
+    pub fn predicted_reduction(&self, delta: &[f64]) -> f64 {
+        let (p, cols) = (self.p, self.p + 1);
+        let w: Vec<f64> = delta.iter().zip(&self.scale).map(|(d, s)| d * s).collect();
+        let (mut zz, mut left) = (0.0, 0.0);
+        for k in 0..p {
+            let z = self.r[k * cols + p];
+            let rw: f64 = (k..p).map(|c| self.r[k * cols + c] * w[c]).sum();
+            zz += z * z;
+            left += (z - rw) * (z - rw);
+        }
+        zz - left
     }
 
     /// The least-squares solution θ̂, (ΦᵀΦ)⁻¹ and the RSS.

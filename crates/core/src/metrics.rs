@@ -4,8 +4,11 @@
 //! - fit % = 100 (1 − ‖y − ŷ‖ / ‖y − ȳ‖) (paper eq. 13, MATLAB `compare`), ȳ the mean over the same rows,
 //!   for the free-run simulation (`fit_sim_percent`) and the one-step prediction (`fit_pred_percent`);
 //! - RMSE = √(Σ (y − ŷ)² / N), both;
-//! - loss V = (1/N) Σ ½ ε² over the one-step prediction errors ε (paper eq. 14 — note the ½, which MATLAB's
-//!   loss function does not have);
+//! - loss V = (1/N) Σ ½ ε² over the one-step *equation-error* prediction errors ε (the ARX predictor
+//!   from the measured outputs, paper eq. 14 — note the ½, which MATLAB's loss function does not have),
+//!   for every model, so that models estimated by different methods compare in one column; an
+//!   output-error model's own criterion, the simulation-error loss (1/N) Σ ½ (y − ŷ_sim)², is reported
+//!   apart as `loss_sim` (for every model, from the estimated initial outputs);
 //! - FPE = (N + p)/(N − p) · V (paper eq. 15);
 //! - AIC = ln(mean ε²) + 2p/N (MATLAB's normalised AIC);
 //!
@@ -37,8 +40,13 @@ pub struct Metrics {
     pub rmse_sim_measured: Option<f64>,
     /// RMSE of the one-step prediction (units of y).
     pub rmse_pred: f64,
-    /// Loss V = (1/N) Σ ½ ε² (paper eq. 14).
+    /// Loss V = (1/N) Σ ½ ε² of the one-step equation-error prediction (paper eq. 14), whatever the
+    /// model's noise model.
     pub loss: f64,
+    /// Simulation-error loss (1/N) Σ ½ (y − ŷ_sim)², ŷ_sim from the estimated initial outputs (what an
+    /// output-error fit minimises); `None` when the simulation diverged.
+    #[serde(default)]
+    pub loss_sim: Option<f64>,
     /// FPE = (N + p)/(N − p) V (paper eq. 15).
     pub fpe: Option<f64>,
     /// Normalised AIC = ln(mean ε²) + 2p/N.
@@ -198,6 +206,7 @@ pub fn pooled_metrics(model: &Model, records: &[Dataset]) -> Result<Metrics, Sys
         p: model.parameter_count(),
         y_deviation: 0.0,
         sse_pred: 0.0,
+        sse_equation: 0.0,
         sse_sim: Some(0.0),
         sse_sim_measured: Some(0.0),
         note: None,
@@ -207,6 +216,7 @@ pub fn pooled_metrics(model: &Model, records: &[Dataset]) -> Result<Metrics, Sys
         let s = record_sums(model, r)?;
         pooled.n += s.n;
         pooled.sse_pred += s.sse_pred;
+        pooled.sse_equation += s.sse_equation;
         pooled.sse_sim = pooled.sse_sim.zip(s.sse_sim).map(|(a, b)| a + b);
         pooled.sse_sim_measured = pooled
             .sse_sim_measured
@@ -247,6 +257,18 @@ fn record_sums(model: &Model, data: &Dataset) -> Result<MetricSums, SysidError> 
         _ => one_step_prediction(model, data)?,
     };
     let pred = &pred[k0..];
+    // The one-step equation-error prediction (the ARX predictor from the measured outputs) for the
+    // loss V of every model; for an equation-error model it is `pred` itself.
+    let sse_equation = match model.noise_model() {
+        crate::NoiseModel::EquationError => sse(y, pred),
+        crate::NoiseModel::OutputError => {
+            let eq = model
+                .clone()
+                .with_noise_model(crate::NoiseModel::EquationError)
+                .predict_k(u, y_all, 1)?;
+            sse(y, &eq[k0..])
+        }
+    };
     let (sim_measured, note) = match measured {
         Ok(s) => (Some(s), None),
         Err(e) => (None, Some(e.to_string())),
@@ -261,6 +283,7 @@ fn record_sums(model: &Model, data: &Dataset) -> Result<MetricSums, SysidError> 
         p,
         y_deviation: y.iter().map(|a| (a - mean) * (a - mean)).sum(),
         sse_pred: sse(y, pred),
+        sse_equation,
         sse_sim: sim.as_ref().map(|s| sse(y, &s[k0..])),
         sse_sim_measured: sim_measured.as_ref().map(|s| sse(y, &s[k0..])),
         note,
@@ -283,8 +306,11 @@ pub struct MetricSums {
     pub p: usize,
     /// Σ (y − ȳ)², ȳ the mean over the same rows.
     pub y_deviation: f64,
-    /// Σ ε² of the one-step prediction errors.
+    /// Σ ε² of the one-step prediction errors (an output-error model predicts by simulation).
     pub sse_pred: f64,
+    /// Σ ε² of the one-step equation-error prediction errors (the ARX predictor; for an
+    /// equation-error model the same as `sse_pred`).
+    pub sse_equation: f64,
     /// Σ (y − ŷ_sim)² of the simulation from estimated initial outputs (`None`: it failed).
     pub sse_sim: Option<f64>,
     /// Σ (y − ŷ_sim)² of the simulation from the measured initial outputs (`None`: it failed).
@@ -309,9 +335,16 @@ pub fn metrics_from_sums(s: &MetricSums, name: &str) -> Result<Metrics, SysidErr
             name
         )));
     }
+    if !s.sse_equation.is_finite() {
+        return Err(SysidError::Numerical(format!(
+            "{}: the squared equation-error prediction errors overflow f64 (values too large? rescale \
+             the data)",
+            name
+        )));
+    }
     let nf = n.max(1) as f64;
     let mse = s.sse_pred / n as f64;
-    let loss = 0.5 * mse;
+    let loss = 0.5 * s.sse_equation / nf;
     let fpe = (n > p)
         .then(|| (n + p) as f64 / (n - p) as f64 * loss)
         .filter(|v| v.is_finite());
@@ -327,6 +360,7 @@ pub fn metrics_from_sums(s: &MetricSums, name: &str) -> Result<Metrics, SysidErr
         rmse_sim_measured: s.sse_sim_measured.and_then(rmse_of),
         rmse_pred: mse.sqrt(),
         loss,
+        loss_sim: s.sse_sim.map(|e| 0.5 * e / nf).filter(|v| v.is_finite()),
         fpe,
         aic,
         n,

@@ -47,22 +47,48 @@ pub fn to_json(model: &Model) -> Result<String, SysidError> {
 
 /// Reads and checks a model file.
 pub fn read_model(path: &Path) -> Result<Model, SysidError> {
-    let io = |source| SysidError::Io {
-        path: path.to_path_buf(),
-        source,
-    };
-    let size = std::fs::metadata(path).map_err(io)?.len();
-    if size > MAX_MODEL_FILE_BYTES {
-        return Err(SysidError::File {
-            file: path.display().to_string(),
-            message: format!(
-                "{size} bytes is too large for a model file (at most {MAX_MODEL_FILE_BYTES}); \
-                 expected a file written by identify --save-model"
-            ),
-        });
-    }
-    let text = std::fs::read(path).map_err(io)?;
+    let text = crate::data::bounded::read_bounded(
+        path,
+        MAX_MODEL_FILE_BYTES,
+        "a model file",
+        "expected a file written by identify --save-model",
+    )?;
     parse_model(&text, &path.display().to_string())
+}
+
+/// What a model file holds that a reader must be told about, in words: a deadzone that is not
+/// physical (b_l > b_r: the breakpoints crossed; slopes of opposite signs). `identify` saves such a
+/// model with the same warning; `validate`, `simulate` and `control` repeat it when they load the file
+/// (`control --compensate-deadzone` refuses it, as it cannot invert it).
+pub fn load_warnings(model: &Model) -> Vec<String> {
+    let several = model.inputs().len() > 1;
+    model
+        .inputs()
+        .iter()
+        .filter_map(|input| Some((input.name(), input.deadzone()?)))
+        .flat_map(|(name, d)| {
+            let of = if several {
+                format!(" (input {name})")
+            } else {
+                String::new()
+            };
+            let mut w = Vec::new();
+            if d.b_l > d.b_r {
+                w.push(format!(
+                    "non-physical deadzone{of}: b_l = {} > b_r = {} (the breakpoints cross); the model's \
+                     input map is not the valve's deadzone, use its results with care",
+                    d.b_l, d.b_r
+                ));
+            }
+            if d.m_l * d.m_r < 0.0 {
+                w.push(format!(
+                    "non-physical deadzone{of}: the slopes have opposite signs (m_l = {}, m_r = {})",
+                    d.m_l, d.m_r
+                ));
+            }
+            w
+        })
+        .collect()
 }
 
 /// Parses model-file bytes; `name` is used in messages.

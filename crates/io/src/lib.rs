@@ -7,6 +7,7 @@ use std::fmt::Write as _;
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
+mod cleanup;
 pub mod follow;
 pub use follow::Follow;
 
@@ -41,47 +42,196 @@ fn refused(flag: &str, path: &Path, expected: impl Into<String>) -> OutputError 
     }
 }
 
-/// Writes `bytes` to `path` atomically: the content goes to a temporary file beside `path` (flushed to
-/// disk), which is then renamed over it, so a crash or a failed run never leaves a half-written file and
-/// an existing file is either untouched or entirely replaced.
+/// Where an output goes once its path has been looked at ([`resolve_output`]).
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum OutputTarget {
+    /// `-`: standard output.
+    Stdout,
+    /// A character or block device or a FIFO (or a link to one): written directly, never replaced.
+    Stream(PathBuf),
+    /// A regular file, new or existing, replaced atomically; a symbolic link is resolved to its target.
+    File(PathBuf),
+}
+
+/// Looks at the output path `path` (chosen by option `flag`) before anything is written: `-` is standard
+/// output; a symbolic link is followed (the file it names is replaced, the link stays); a device or a
+/// FIFO is written directly; a folder, a socket, a link to nothing and a read-only file are refused.
+pub fn resolve_output(path: &Path, flag: &str) -> Result<OutputTarget, OutputError> {
+    if path.as_os_str() == "-" {
+        return Ok(OutputTarget::Stdout);
+    }
+    let link = match std::fs::symlink_metadata(path) {
+        Ok(m) => m,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            return Ok(OutputTarget::File(path.to_path_buf()))
+        }
+        Err(source) => {
+            return Err(OutputError::Io {
+                path: path.to_path_buf(),
+                source,
+            })
+        }
+    };
+    // `metadata` follows links: what the link names decides.
+    let is_link = link.file_type().is_symlink();
+    let meta = if is_link {
+        std::fs::metadata(path).map_err(|_| {
+            refused(
+                flag,
+                path,
+                "a file name, or a symbolic link to an existing file or device (this link names nothing)",
+            )
+        })?
+    } else {
+        link
+    };
+    let kind = meta.file_type();
+    if kind.is_dir() {
+        return Err(refused(flag, path, "a file name (this is a folder)"));
+    }
+    if kind.is_file() {
+        if meta.permissions().readonly() {
+            return Err(refused(
+                flag,
+                path,
+                "a writable file (this one is read-only; make it writable with chmod u+w, or choose another \
+                 path)",
+            ));
+        }
+        let real = if is_link {
+            std::fs::canonicalize(path).map_err(|source| OutputError::Io {
+                path: path.to_path_buf(),
+                source,
+            })?
+        } else {
+            path.to_path_buf()
+        };
+        return Ok(OutputTarget::File(real));
+    }
+    if is_socket(&kind) {
+        return Err(refused(
+            flag,
+            path,
+            "a file, a device or a FIFO (this is a socket, which cannot be opened as a file)",
+        ));
+    }
+    Ok(OutputTarget::Stream(path.to_path_buf()))
+}
+
+#[cfg(unix)]
+fn is_socket(kind: &std::fs::FileType) -> bool {
+    use std::os::unix::fs::FileTypeExt;
+    kind.is_socket()
+}
+
+#[cfg(not(unix))]
+fn is_socket(_kind: &std::fs::FileType) -> bool {
+    false
+}
+
+/// Writes `bytes` to `path`, as [`resolve_output`] decides: standard output for `-`, directly into a
+/// device or FIFO (`/dev/null`, a named pipe; never replaced by a file), and atomically into a regular
+/// file: the content goes to a temporary file beside it (flushed to disk), which is then renamed over
+/// it, so a crash or a failed run never leaves a half-written file and an existing file is either
+/// untouched or entirely replaced. A symbolic link is followed: the file it names is replaced, the link
+/// stays.
 ///
-/// The new file gets the permissions of the file it replaces, or the usual ones for a new file (0o666
-/// less the umask) — not the 0o600 of a bare temporary file. A symbolic link at `path` is replaced by
-/// the file, not followed.
+/// The new file gets the permissions and the owner of the file it replaces (when the owner cannot be
+/// kept, e.g. a file of another user, nothing is written and the error says why), or the usual
+/// permissions for a new file (0o666 less the umask) — not the 0o600 of a bare temporary file. While
+/// the temporary file exists it is listed for [`remove_temporaries_on_signals`].
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
     let io = |source| OutputError::Io {
         path: path.to_path_buf(),
         source,
     };
-    if path.is_dir() {
-        return Err(io(std::io::Error::new(
-            std::io::ErrorKind::IsADirectory,
-            "is a folder; expected a file name",
-        )));
-    }
+    let target = match resolve_output(path, "output") {
+        Ok(t) => t,
+        Err(OutputError::Refused { expected, .. }) => {
+            return Err(io(std::io::Error::other(format!("expected {expected}"))))
+        }
+        Err(e) => return Err(e),
+    };
+    let path = match target {
+        OutputTarget::Stdout => {
+            let mut out = std::io::stdout().lock();
+            return out
+                .write_all(bytes)
+                .and_then(|()| out.flush())
+                .map_err(|source| OutputError::Io {
+                    path: PathBuf::from("<standard output>"),
+                    source,
+                });
+        }
+        OutputTarget::Stream(p) => {
+            let mut f = std::fs::OpenOptions::new()
+                .write(true)
+                .open(&p)
+                .map_err(io)?;
+            return f.write_all(bytes).and_then(|()| f.flush()).map_err(io);
+        }
+        OutputTarget::File(p) => p,
+    };
     let dir = match path.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
     };
     let mut builder = tempfile::Builder::new();
-    builder.prefix(".ipa-sysid-").suffix(".tmp");
-    let permissions = match std::fs::symlink_metadata(path) {
-        Ok(m) if m.is_file() => Some(m.permissions()),
-        _ => default_permissions(),
+    builder.prefix(TEMP_PREFIX).suffix(".tmp");
+    let existing = std::fs::metadata(&path).ok().filter(|m| m.is_file());
+    let permissions = match &existing {
+        Some(m) => Some(m.permissions()),
+        None => default_permissions(),
     };
     if let Some(p) = permissions {
         builder.permissions(p);
     }
-    let mut tmp = builder.tempfile_in(dir).map_err(io)?;
+    let (mut tmp, pending) = cleanup::Pending::create(&builder, dir).map_err(io)?;
+    if let Some(m) = &existing {
+        keep_owner(tmp.as_file(), m).map_err(io)?;
+    }
     tmp.write_all(bytes).map_err(io)?;
     tmp.as_file().sync_all().map_err(io)?;
-    tmp.persist(path).map_err(|e| io(e.error))?;
+    pending.persist(tmp, &path).map_err(io)?;
     // Make the rename itself durable; not every platform or file system can sync a folder.
     if let Ok(d) = std::fs::File::open(dir) {
         let _ = d.sync_all();
     }
     Ok(())
 }
+
+/// The prefix of the temporary files [`write_atomic`] creates beside its outputs (`.ipa-sysid-*.tmp`).
+pub const TEMP_PREFIX: &str = ".ipa-sysid-";
+
+/// Gives the new file `file` the owner and group of the file it replaces (`old`), or says why it cannot.
+#[cfg(unix)]
+fn keep_owner(file: &std::fs::File, old: &std::fs::Metadata) -> std::io::Result<()> {
+    use std::os::unix::fs::MetadataExt;
+    let new = file.metadata()?;
+    if new.uid() == old.uid() && new.gid() == old.gid() {
+        return Ok(());
+    }
+    std::os::unix::fs::fchown(file, Some(old.uid()), Some(old.gid())).map_err(|e| {
+        std::io::Error::new(
+            e.kind(),
+            format!(
+                "the file belongs to user {} group {} and replacing it would give it to user {} group {} \
+                 ({e}); write elsewhere, or as its owner",
+                old.uid(),
+                old.gid(),
+                new.uid(),
+                new.gid()
+            ),
+        )
+    })
+}
+
+#[cfg(not(unix))]
+fn keep_owner(_file: &std::fs::File, _old: &std::fs::Metadata) -> std::io::Result<()> {
+    Ok(())
+}
+
+pub use cleanup::remove_temporaries_on_signals;
 
 /// Writes a CSV table to `path` atomically ([`write_atomic`]) through `csv::Writer` (fields quoted
 /// only where needed, `\n` line ends): the `header` row, then every row of `rows`, whose cells the
@@ -258,12 +408,16 @@ fn default_permissions() -> Option<std::fs::Permissions> {
 }
 
 /// Refuses to write `output` when it is the same file as any of `inputs` (compared after resolving
-/// links, so `./a.csv` and `a.csv` are the same file).
+/// links, so `./a.csv` and `a.csv` are the same file). A device or FIFO output (`/dev/null`) is written,
+/// not replaced, so it is never refused.
 pub fn refuse_overwrite_input(
     output: &Path,
     inputs: &[&Path],
     flag: &str,
 ) -> Result<(), OutputError> {
+    if std::fs::metadata(output).is_ok_and(|m| !m.is_file()) {
+        return Ok(());
+    }
     let canon = |p: &Path| std::fs::canonicalize(p).ok();
     if let Some(out) = canon(output) {
         for input in inputs {
@@ -279,13 +433,13 @@ pub fn refuse_overwrite_input(
     Ok(())
 }
 
-/// Checks before any work that `output` can be written: its folder exists and it is not itself a
-/// folder; `flag` names the option in messages.
+/// Checks before any work that `output` can be written ([`resolve_output`]): `-`, a device or FIFO, or a
+/// writable file (or link to one) in an existing folder; `flag` names the option in messages.
 pub fn check_writable(output: &Path, flag: &str) -> Result<(), OutputError> {
-    if output.is_dir() {
-        return Err(refused(flag, output, "a file name (this is a folder)"));
-    }
-    let dir = match output.parent() {
+    let OutputTarget::File(file) = resolve_output(output, flag)? else {
+        return Ok(());
+    };
+    let dir = match file.parent() {
         Some(p) if !p.as_os_str().is_empty() => p,
         _ => Path::new("."),
     };
@@ -300,4 +454,87 @@ pub fn check_writable(output: &Path, flag: &str) -> Result<(), OutputError> {
         ));
     }
     Ok(())
+}
+
+/// The file that marks a folder as written by `reproduce` ([`claim_folder`]).
+pub const FOLDER_MARKER: &str = ".ipa-sysid-output";
+
+/// Makes `dir` (chosen by option `flag`) a folder this tool may fill: creates it when missing and leaves
+/// the marker file [`FOLDER_MARKER`] in it. An existing folder is accepted when it is empty or holds
+/// the marker (written by a previous run, whose files are replaced); any other folder is refused, naming
+/// what it holds, so that a user's own files are never replaced.
+pub fn claim_folder(dir: &Path, flag: &str, tool: &str) -> Result<(), OutputError> {
+    let io = |source| OutputError::Io {
+        path: dir.to_path_buf(),
+        source,
+    };
+    let marker = dir.join(FOLDER_MARKER);
+    match std::fs::read_dir(dir) {
+        Ok(entries) => {
+            let mut names: Vec<String> = Vec::new();
+            let mut count = 0usize;
+            for e in entries {
+                let e = e.map_err(io)?;
+                if e.file_name() == FOLDER_MARKER {
+                    return Ok(());
+                }
+                count += 1;
+                if names.len() < 5 {
+                    names.push(e.file_name().to_string_lossy().into_owned());
+                }
+            }
+            if count > 0 {
+                names.sort();
+                return Err(refused(
+                    flag,
+                    dir,
+                    format!(
+                        "a new or empty folder, or one written by a previous `{tool}` (holding {FOLDER_MARKER}); \
+                         this one holds {count} other entr{} ({}{}) that the run could replace",
+                        if count == 1 { "y" } else { "ies" },
+                        names.join(", "),
+                        if count > names.len() { ", ..." } else { "" }
+                    ),
+                ));
+            }
+        }
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            std::fs::create_dir_all(dir).map_err(io)?;
+        }
+        Err(e) => return Err(io(e)),
+    }
+    write_atomic(
+        &marker,
+        format!("This folder was written by `{tool}`; the next run into it replaces its files.\n")
+            .as_bytes(),
+    )
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod folder_tests {
+    use super::*;
+
+    // A missing folder is created and marked; a marked folder is accepted again (a second run replaces
+    // its own files); a folder of other files is refused and left as it was.
+    #[test]
+    fn only_new_empty_or_marked_folders_are_claimed() {
+        let dir = tempfile::tempdir().unwrap();
+        let out = dir.path().join("out");
+        claim_folder(&out, "--out", "test").unwrap();
+        assert!(out.join(FOLDER_MARKER).is_file());
+        std::fs::write(out.join("report.html"), "ours").unwrap();
+        claim_folder(&out, "--out", "test").unwrap();
+        let theirs = dir.path().join("theirs");
+        std::fs::create_dir(&theirs).unwrap();
+        std::fs::write(theirs.join("report.html"), "mine").unwrap();
+        let e = claim_folder(&theirs, "--out", "test")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("report.html"), "{e}");
+        assert!(!theirs.join(FOLDER_MARKER).exists());
+        let empty = dir.path().join("empty");
+        std::fs::create_dir(&empty).unwrap();
+        claim_folder(&empty, "--out", "test").unwrap();
+    }
 }

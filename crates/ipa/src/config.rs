@@ -236,13 +236,21 @@ struct Entry {
     doc: &'static str,
 }
 
+/// Upper bound on the size of a plant configuration file, checked as it is read (1 MiB; the default
+/// configuration is about 3 KB).
+pub const MAX_CONFIG_BYTES: u64 = 1 << 20;
+
 impl PlantConfig {
     /// Reads a TOML file: keys not given keep their defaults, unknown keys are an error naming the key,
     /// and the values are checked with [`PlantConfig::validate`].
     pub fn from_toml_file(path: &Path) -> Result<Self, IpaError> {
-        let text = std::fs::read_to_string(path).map_err(|e| {
-            IpaError::Config(format!("cannot read plant config {}: {e}", path.display()))
-        })?;
+        let text = sysid_core::data::bounded::read_bounded_text(
+            path,
+            MAX_CONFIG_BYTES,
+            "a plant configuration",
+            "expected a TOML file such as `ipa-sysid plant-config` prints",
+        )
+        .map_err(|e| IpaError::Config(format!("cannot read plant config: {e}")))?;
         Self::from_toml_str(&text, &path.display().to_string())
     }
 

@@ -8,7 +8,8 @@ use std::path::PathBuf;
 use sysid_core::{Plant, Setting, SysidError};
 
 use crate::input::{
-    staircase_experiment, staircase_experiment_observed, InputSpec, StaircaseDesign,
+    calibration_experiment_observed, staircase_experiment, staircase_experiment_observed,
+    InputSpec, StaircaseDesign,
 };
 use crate::{Ipa, IpaError, PlantConfig, PlantSpec};
 
@@ -68,8 +69,12 @@ pub struct Record {
 }
 
 impl Experiment {
-    /// Checks the settings that do not need the plant (x0, noise).
+    /// Checks the settings that do not need the plant (samples, x0, noise), before anything is
+    /// allocated.
     pub fn check(&self) -> Result<(), IpaError> {
+        if let Some(n) = self.samples {
+            crate::input::check_samples(n)?;
+        }
         if !self.x0.is_finite() {
             return Err(SysidError::setting(
                 Setting::Other("--y0"),
@@ -92,16 +97,64 @@ impl Experiment {
     /// Runs the experiment: y(k) is the plant's output before u(k) is applied.
     pub fn run(&self) -> Result<Record, IpaError> {
         self.check()?;
-        let samples = match (self.samples, self.input.file()) {
-            (Some(n), _) => n,
-            (None, Some(f)) => crate::input::read_input_file(f)?.len(),
-            (None, None) => DEFAULT_SAMPLES,
-        };
-        let rec = if self.plant == PlantSpec::Ipa {
+        let samples = self.sample_count()?;
+        if self.plant == PlantSpec::Ipa {
             let cfg = match &self.plant_config {
                 Some(p) => PlantConfig::from_toml_file(p)?,
                 None => PlantConfig::default(),
             };
+            return self.run_ipa(cfg, samples);
+        }
+        let rec = {
+            let mut plant = self.plant.build(self.plant_config.as_deref(), self.ts)?;
+            plant.reset(self.x0);
+            let ts = plant.ts();
+            let (u, y) = match self.input {
+                InputSpec::Staircase => staircase_experiment(
+                    plant.as_mut(),
+                    &StaircaseDesign::default(),
+                    samples,
+                    self.amplitude,
+                    self.seed,
+                )?,
+                _ => {
+                    let u = crate::generate(&self.input, samples, ts, self.amplitude, self.seed)?;
+                    let y = sysid_core::plant::run_open_loop(plant.as_mut(), &u)?;
+                    (u, y)
+                }
+            };
+            Record {
+                u,
+                y,
+                pressures: None,
+                ts,
+            }
+        };
+        Ok(Record {
+            y: crate::input::add_noise(&rec.y, self.noise_std, self.seed),
+            ..rec
+        })
+    }
+
+    /// Runs the experiment on the physics plant with the configuration `cfg` in memory (the plant
+    /// and `plant_config` fields are not used): what [`Experiment::run`] does for `--plant ipa`.
+    pub fn run_with_config(&self, cfg: PlantConfig) -> Result<Record, IpaError> {
+        self.check()?;
+        let samples = self.sample_count()?;
+        self.run_ipa(cfg, samples)
+    }
+
+    /// N: `--samples`, else the length of a file input, else [`DEFAULT_SAMPLES`].
+    fn sample_count(&self) -> Result<usize, IpaError> {
+        Ok(match (self.samples, self.input.file()) {
+            (Some(n), _) => n,
+            (None, Some(f)) => crate::input::read_input_file(f)?.len(),
+            (None, None) => DEFAULT_SAMPLES,
+        })
+    }
+
+    fn run_ipa(&self, cfg: PlantConfig, samples: usize) -> Result<Record, IpaError> {
+        let rec = {
             let mut plant = Ipa::with_ts(cfg, self.ts.unwrap_or(crate::DEFAULT_TS_S))?;
             plant.reset(self.x0);
             let mut p = Vec::with_capacity(samples);
@@ -111,6 +164,13 @@ impl Experiment {
                 InputSpec::Staircase => staircase_experiment_observed(
                     &mut plant,
                     &StaircaseDesign::default(),
+                    samples,
+                    self.amplitude,
+                    self.seed,
+                    |ipa: &Ipa| p.push(ipa.pressures_pa()),
+                )?,
+                InputSpec::Calibration => calibration_experiment_observed(
+                    &mut plant,
                     samples,
                     self.amplitude,
                     self.seed,
@@ -142,30 +202,6 @@ impl Experiment {
                 y,
                 pressures: Some(p),
                 ts: plant.ts(),
-            }
-        } else {
-            let mut plant = self.plant.build(self.plant_config.as_deref(), self.ts)?;
-            plant.reset(self.x0);
-            let ts = plant.ts();
-            let (u, y) = match self.input {
-                InputSpec::Staircase => staircase_experiment(
-                    plant.as_mut(),
-                    &StaircaseDesign::default(),
-                    samples,
-                    self.amplitude,
-                    self.seed,
-                )?,
-                _ => {
-                    let u = crate::generate(&self.input, samples, ts, self.amplitude, self.seed)?;
-                    let y = sysid_core::plant::run_open_loop(plant.as_mut(), &u)?;
-                    (u, y)
-                }
-            };
-            Record {
-                u,
-                y,
-                pressures: None,
-                ts,
             }
         };
         Ok(Record {

@@ -6,6 +6,7 @@
 //! | spec          | signal |
 //! |---------------|--------|
 //! | `staircase`   | the paper's "continuous step signal": random integer levels in [-A, A] held 0.1..0.5 s, with the sign chosen by an experimenter's rule that keeps the piston inside the stroke (see [`staircase`]) |
+//! | `calibration` | full, medium, small (5..60 counts, around the deadzone) and zero commands for calibrating the physics plant, kept inside the stroke by the staircase's rule (see [`calibration_experiment_observed`]) |
 //! | `prbs`        | maximum-length PRBS (10-bit LFSR), levels +-A, clock 50 ms |
 //! | `aprbs`       | amplitude-modulated PRBS: a new level uniform in [-A, A] at every switch of the PRBS |
 //! | `multisine`   | sum of sines at the record's harmonics between 1 and 10 Hz, random phases, peak A |
@@ -26,6 +27,9 @@ use crate::{IpaError, IpaSetting};
 pub enum InputSpec {
     /// Random levels held for random durations, kept inside the stroke by an experimenter's rule.
     Staircase,
+    /// The calibration design: full, medium, small (near the deadzone) and zero commands, kept inside
+    /// the stroke by the staircase's rule ([`calibration_experiment_observed`]).
+    Calibration,
     /// Maximum-length pseudo-random binary sequence, levels +-A.
     Prbs,
     /// Amplitude-modulated PRBS, levels uniform in [-A, A].
@@ -46,7 +50,8 @@ pub enum InputSpec {
 /// Sample at which `step:LEVEL` steps when no `@K` is given.
 pub const DEFAULT_STEP_ONSET: usize = 10;
 
-const SPEC_HELP: &str = "staircase, prbs, aprbs, multisine, step:LEVEL[@SAMPLE] or file:CSV";
+const SPEC_HELP: &str =
+    "staircase, calibration, prbs, aprbs, multisine, step:LEVEL[@SAMPLE] or file:CSV";
 
 impl FromStr for InputSpec {
     type Err = IpaError;
@@ -63,6 +68,7 @@ impl FromStr for InputSpec {
         match t {
             "staircase" => return Ok(InputSpec::Staircase),
             "prbs" => return Ok(InputSpec::Prbs),
+            "calibration" => return Ok(InputSpec::Calibration),
             "aprbs" => return Ok(InputSpec::Aprbs),
             "multisine" => return Ok(InputSpec::Multisine),
             _ => {}
@@ -102,6 +108,7 @@ impl std::fmt::Display for InputSpec {
         match self {
             InputSpec::Staircase => f.write_str("staircase"),
             InputSpec::Prbs => f.write_str("prbs"),
+            InputSpec::Calibration => f.write_str("calibration"),
             InputSpec::Aprbs => f.write_str("aprbs"),
             InputSpec::Multisine => f.write_str("multisine"),
             InputSpec::Step { level, onset } => write!(f, "step:{level}@{onset}"),
@@ -140,6 +147,11 @@ pub fn generate(
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     Ok(match spec {
         InputSpec::Staircase => staircase(samples, ts_s, amplitude, seed)?,
+        InputSpec::Calibration => {
+            let mut nominal = crate::Ipa::with_ts(crate::PlantConfig::default(), ts_s)?;
+            sysid_core::Plant::reset(&mut nominal, 0.5 * StaircaseDesign::default().stroke_mm);
+            calibration_experiment_observed(&mut nominal, samples, amplitude, seed, |_| ())?.0
+        }
         InputSpec::Prbs => prbs(samples, clock_samples(ts_s), seed)
             .into_iter()
             .map(|b| if b { amplitude } else { -amplitude })
@@ -176,7 +188,8 @@ pub fn add_noise(y: &[f64], std_mm: f64, seed: u64) -> Vec<f64> {
         .collect()
 }
 
-fn check_settings(samples: usize, ts_s: f64, amplitude: f64) -> Result<(), IpaError> {
+/// Checks a number of samples N (`--samples`) against the bound, before anything is allocated.
+pub fn check_samples(samples: usize) -> Result<(), IpaError> {
     if samples == 0 || samples > sysid_core::data::MAX_SAMPLES {
         return Err(IpaError::setting(
             IpaSetting::Samples,
@@ -184,6 +197,11 @@ fn check_settings(samples: usize, ts_s: f64, amplitude: f64) -> Result<(), IpaEr
             format!("expected 1..={}", sysid_core::data::MAX_SAMPLES),
         ));
     }
+    Ok(())
+}
+
+fn check_settings(samples: usize, ts_s: f64, amplitude: f64) -> Result<(), IpaError> {
+    check_samples(samples)?;
     if !(ts_s.is_finite() && ts_s > 0.0) {
         return Err(IpaError::setting(
             IpaSetting::Ts,
@@ -210,10 +228,7 @@ pub fn read_input_file(path: &Path) -> Result<Vec<f64>, IpaError> {
 /// Reads the columns `names` of a CSV file (header row required), every cell a finite number: the
 /// commands of a model with several inputs, one column per input.
 pub fn read_input_columns(path: &Path, names: &[&str]) -> Result<Vec<Vec<f64>>, IpaError> {
-    let bytes = std::fs::read(path).map_err(|source| sysid_core::SysidError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let bytes = sysid_core::data::bounded::read_data_file(path, "an input file")?;
     let table = sysid_core::data::read_table(&bytes, &path.display().to_string())?;
     let mut cols = Vec::with_capacity(names.len());
     for name in names {
@@ -287,23 +302,41 @@ pub fn staircase_experiment_observed<P: sysid_core::Plant + ?Sized>(
     samples: usize,
     amplitude: f64,
     seed: u64,
-    mut observe: impl FnMut(&P),
+    observe: impl FnMut(&P),
 ) -> Result<(Vec<f64>, Vec<f64>), IpaError> {
     let ts_s = plant.ts();
     check_settings(samples, ts_s, amplitude)?;
-    let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let mut u = Vec::with_capacity(samples);
-    let mut y = Vec::with_capacity(samples);
     let a = amplitude.floor();
-    let mid = 0.5 * design.stroke_mm;
     let hold_max_s = design.hold_max_s.max(design.hold_min_s);
-    while u.len() < samples {
+    supervised_experiment(plant, design, samples, seed, observe, |rng| {
         let magnitude = if a >= 1.0 {
             rng.gen_range(0..=a as u64) as f64
         } else {
             amplitude
         };
         let hold_s = rng.gen_range(design.hold_min_s..=hold_max_s);
+        (magnitude, hold_s)
+    })
+}
+
+/// The experimenter's loop shared by the supervised designs: `draw` gives each level's magnitude
+/// (counts) and hold (s); the sign is + with probability (1 - (y - L/2)/band)/2 and a level ends
+/// early within `margin_mm` of the end stop it moves towards (see [`StaircaseDesign`]).
+fn supervised_experiment<P: sysid_core::Plant + ?Sized>(
+    plant: &mut P,
+    design: &StaircaseDesign,
+    samples: usize,
+    seed: u64,
+    mut observe: impl FnMut(&P),
+    mut draw: impl FnMut(&mut ChaCha8Rng) -> (f64, f64),
+) -> Result<(Vec<f64>, Vec<f64>), IpaError> {
+    let ts_s = plant.ts();
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let mut u = Vec::with_capacity(samples);
+    let mut y = Vec::with_capacity(samples);
+    let mid = 0.5 * design.stroke_mm;
+    while u.len() < samples {
+        let (magnitude, hold_s) = draw(&mut rng);
         let hold = ((hold_s / ts_s).round() as usize).max(1);
         let p_plus = (0.5 - 0.5 * (plant.output() - mid) / design.band_mm).clamp(0.0, 1.0);
         let level = if rng.gen_bool(p_plus) {
@@ -331,6 +364,54 @@ pub fn staircase_experiment_observed<P: sysid_core::Plant + ?Sized>(
     }
     Ok((u, y))
 }
+
+/// The calibration design (`--input calibration`): the experimenter's loop of [`StaircaseDesign`]
+/// (sign towards mid-stroke, a level ends 25 mm before an end stop, so the piston never stays at a
+/// stop) with levels drawn to excite every parameter of the physics plant ([`crate::calibrate`]):
+///
+/// | share | level | hold | determines |
+/// |---|---|---|---|
+/// | 25 % | full command, 255 counts | 0.1..0.4 s | supply/exhaust conductances (speed), mass (hard starts and reversals) |
+/// | 25 % | medium, 60..200 counts | 0.2..0.5 s | viscous friction (speeds between), conductances |
+/// | 30 % | small, 5..60 counts (around the deadzone) | 0.3..0.6 s | valve delays, static/Coulomb friction, Stribeck velocity (breakaway and slow creep) |
+/// | 20 % | rest, 0 counts | 0.2..0.4 s | rest states with exhausted chambers (segment starts), dead volumes (pressure decay) |
+///
+/// `amplitude` scales the full and medium levels (255 by default); the small levels stay in 5..60.
+pub fn calibration_experiment_observed<P: sysid_core::Plant + ?Sized>(
+    plant: &mut P,
+    samples: usize,
+    amplitude: f64,
+    seed: u64,
+    observe: impl FnMut(&P),
+) -> Result<(Vec<f64>, Vec<f64>), IpaError> {
+    check_settings(samples, plant.ts(), amplitude)?;
+    let scale = (amplitude / U_MAX_COUNTS).min(1.0);
+    supervised_experiment(
+        plant,
+        &StaircaseDesign::default(),
+        samples,
+        seed,
+        observe,
+        |rng| {
+            let kind: f64 = rng.gen();
+            if kind < 0.25 {
+                ((U_MAX_COUNTS * scale).round(), rng.gen_range(0.1..=0.4))
+            } else if kind < 0.5 {
+                (
+                    (rng.gen_range(60.0..=200.0) * scale).round(),
+                    rng.gen_range(0.2..=0.5),
+                )
+            } else if kind < 0.8 {
+                (rng.gen_range(5..=60) as f64, rng.gen_range(0.3..=0.6))
+            } else {
+                (0.0, rng.gen_range(0.2..=0.4))
+            }
+        },
+    )
+}
+
+/// Full PWM command, counts.
+const U_MAX_COUNTS: f64 = 255.0;
 
 /// The open-loop staircase: [`staircase_experiment`] on the default physics plant at mid-stroke.
 fn staircase(samples: usize, ts_s: f64, amplitude: f64, seed: u64) -> Result<Vec<f64>, IpaError> {

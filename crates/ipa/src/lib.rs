@@ -7,10 +7,12 @@
 //!   earlier classical RK4 is kept as the reference). Parameters in [`PlantConfig`] ([`config`], TOML).
 //! - [`spec::plant_from_spec`]: `ipa`, `paper` or `model:FILE` behind [`sysid_core::Plant`].
 //! - [`experiment`]: one open-loop experiment (input design, plant, noise) as `simulate` runs it.
+//! - [`calibrate`]: the physics plant fitted to a measured record (a digital twin, `ipa-sysid calibrate`).
 //! - [`input`]: staircase, PRBS, APRBS, multisine, step and file inputs.
 //!
 //! See `docs/plant.md` for the equations, the parameters and their sources.
 
+pub mod calibrate;
 pub mod config;
 pub mod cylinder;
 pub mod dynamics;
@@ -28,4 +30,4 @@ pub use error::{IpaError, IpaSetting};
 pub use experiment::{Experiment, Record};
 pub use input::{generate, InputSpec};
 pub use plant::Ipa;
-pub use spec::{plant_from_spec, plant_from_spec_with_ts, PlantSpec, DEFAULT_TS_S};
+pub use spec::{plant_from_spec, plant_from_spec_with_ts, PlantLimits, PlantSpec, DEFAULT_TS_S};

@@ -103,6 +103,43 @@ impl PlantSpec {
     }
 }
 
+/// What a closed loop around a plant can be checked against ([`PlantSpec::limits`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct PlantLimits {
+    /// The outputs the plant can reach, in mm: the IPA's stroke 0..L (its end stops); `None` for a
+    /// model, which has no stroke.
+    pub range_mm: Option<(f64, f64)>,
+    /// The largest pole modulus of a model plant when it exceeds 1 (an unstable model; an integrator's
+    /// pole at 1 is a position actuator's normal dynamics); `None` otherwise.
+    pub unstable_pole: Option<f64>,
+}
+
+impl PlantSpec {
+    /// The limits of this plant: the stroke of `ipa` (from `config` or the defaults), the stability of
+    /// a model.
+    pub fn limits(&self, config: Option<&Path>) -> Result<PlantLimits, IpaError> {
+        let model = match self {
+            PlantSpec::Ipa => {
+                let cfg = match config {
+                    Some(path) => PlantConfig::from_toml_file(path)?,
+                    None => PlantConfig::default(),
+                };
+                return Ok(PlantLimits {
+                    range_mm: Some((0.0, cfg.cylinder.stroke_mm)),
+                    unstable_pole: None,
+                });
+            }
+            PlantSpec::Paper => sysid_core::Model::paper(),
+            PlantSpec::ModelFile(path) => sysid_core::model_file::read_model(path)?,
+        };
+        let pole = model.poles().iter().map(|z| z.norm()).fold(0.0, f64::max);
+        Ok(PlantLimits {
+            range_mm: None,
+            unstable_pole: (pole > 1.0 + 1e-9).then_some(pole),
+        })
+    }
+}
+
 /// The plant named by `spec` with the default sampling period (see [`plant_from_spec_with_ts`]).
 pub fn plant_from_spec(
     spec: &str,

@@ -361,9 +361,11 @@ pub fn run(
         paper_check,
         residuals,
         verdicts: Vec::new(),
+        checks: Vec::new(),
     };
     study.verdicts = acceptance::verdicts(s, &study);
-    let accepted = study.verdicts.iter().all(|v| v.met);
+    study.checks = acceptance::process_checks(&study);
+    let accepted = study.verdicts.iter().all(|v| v.judged && v.met);
 
     // 4. Figures.
     progress("figures", 0.7);

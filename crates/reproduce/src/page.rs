@@ -15,6 +15,24 @@ use crate::tables::{
 };
 use crate::{ReproduceError, ReproduceSettings};
 
+/// Each step of a changing set-point with its own metrics, in words.
+fn step_list(steps: &[control::StepSegment]) -> String {
+    steps
+        .iter()
+        .map(|g| {
+            format!(
+                "r = {} mm at {} s: overshoot {} mm, e_ss {} mm, settling {} s",
+                estimate(g.setpoint_mm),
+                estimate(g.start_s),
+                opt(g.metrics.overshoot_mm),
+                opt(g.metrics.steady_state_error_mm),
+                opt(g.metrics.settling_time_s)
+            )
+        })
+        .collect::<Vec<_>>()
+        .join("; ")
+}
+
 fn colour_key(st: &Study) -> String {
     let mut parts = vec![format!(
         "plant and measured signals: {}",
@@ -72,11 +90,31 @@ pub(crate) fn build_report(
             estimate(st.ts)
         ))
         .intro(colour_key(st));
-    let mut acc = Section::new("Verdict").id("verdict");
+    let mut acc = Section::new("Verdict")
+        .id("verdict")
+        .list(crate::acceptance::headline(s, st));
     for c in &st.verdicts {
         acc = acc.callout(
-            if c.met { Verdict::Pass } else { Verdict::Fail },
-            c.text.clone(),
+            match (c.judged, c.met) {
+                (false, _) => Verdict::Note,
+                (true, true) => Verdict::Pass,
+                (true, false) => Verdict::Fail,
+            },
+            if c.judged {
+                c.text.clone()
+            } else {
+                format!("Not judged: {}", c.text)
+            },
+        );
+    }
+    for c in &st.checks {
+        acc = acc.callout(
+            Verdict::Note,
+            format!(
+                "Process check ({}): {}",
+                if c.met { "ok" } else { "not ok" },
+                c.text
+            ),
         );
     }
     r.push_section(acc);
@@ -146,9 +184,18 @@ pub(crate) fn build_report(
         with_fig(est_sec, "fig4_deadzone")?,
         "rls_convergence",
     )?);
-    let mut t4 = Table::new(["model", "best fit (%)", "loss V (mm²)", "FPE (mm²)", "poles"]).caption(
+    let mut t4 = Table::new([
+        "model",
+        "best fit (%)",
+        "loss V (mm²)",
+        "simulation-error loss (mm²)",
+        "FPE (mm²)",
+        "poles",
+    ])
+    .caption(
         "The paper's Table IV: validation record, free-run fit % (eq. 13), loss V = (1/N) Σ ½ ε² (eq. 14) and FPE (eq. 15) of \
-         the one-step errors",
+         the one-step equation errors (every model, so that the column compares), and the simulation-error loss \
+         (1/N) Σ ½ (y − ŷ_sim)² apart",
     );
     for m in &st.models {
         t4.push_row(metrics_row(m.label, &m.rep));
@@ -159,6 +206,7 @@ pub(crate) fn build_report(
             label.to_string(),
             estimate(pick(paper::FIT)),
             estimate(pick(paper::LOSS)),
+            "n/a".into(),
             estimate(pick(paper::FPE)),
             "stable".into(),
         ]);
@@ -169,9 +217,9 @@ pub(crate) fn build_report(
             .paragraph(
                 "The fit is computed on the validation record by free-run simulation from initial outputs estimated \
                  to fit the record (the model sees only u after its first na samples), as MATLAB's compare does; \
-                 loss and FPE use the one-step prediction errors, as in the paper's equations. The output-error \
-                 model's predictor is its simulation (its noise model is white output error), so its loss and FPE \
-                 are simulation errors and are not comparable with the equation-error losses of the other rows. A \
+                 loss and FPE use the one-step equation-error prediction errors ε(k) = A(q) y(k) − B(q) x(k) − c, as \
+                 in the paper's equations, for every model (the output-error model too, so that the column compares); \
+                 the simulation-error loss, which the output-error model minimises, is its own column. A \
                  free-run fit is demanding for a plant that integrates: a small error in a gain or in the \
                  integrating pole accumulates into a drift of the position. A fit of 0 % or less is no better than \
                  the record's mean.",
@@ -287,19 +335,17 @@ pub(crate) fn build_report(
             .paragraph(comp_text),
         "fig7a_closed_loop_fixed",
     )?;
-    let up = &st.unfixed.m_plant;
-    let um = st.unfixed.m_model.as_ref();
     let cl = with_fig(
         cl.paragraph(format!(
-            "Changing set-point ({}): worst step on the plant — overshoot {} mm, steady-state error {} mm, settling {} s; \
-             on the model — overshoot {} mm, steady-state error {} mm, settling {} s.",
+            "Changing set-point ({}), step by step (each step's own overshoot, steady-state error and settling \
+             time; a settling time of n/a means not settled before the next step). On the plant: {}. On the model: {}.",
             s.unfixed_profile,
-            opt(up.overshoot_mm),
-            opt(up.steady_state_error_mm),
-            opt(up.settling_time_s),
-            opt(um.and_then(|m| m.overshoot_mm)),
-            opt(um.and_then(|m| m.steady_state_error_mm)),
-            opt(um.and_then(|m| m.settling_time_s)),
+            step_list(&st.steps_plant),
+            if st.steps_model.is_empty() {
+                "not run (no stable model)".to_string()
+            } else {
+                step_list(&st.steps_model)
+            },
         )),
         "fig7b_closed_loop_unfixed",
     )?;

@@ -34,7 +34,21 @@ pub(crate) struct Loop {
 pub(crate) struct Criterion {
     pub(crate) id: &'static str,
     pub(crate) met: bool,
+    /// False when the criterion cannot be judged (a fit comparison between models of which one is
+    /// unstable): shown as "not judged", never as a pass.
+    pub(crate) judged: bool,
     pub(crate) text: String,
+}
+
+impl Criterion {
+    /// The plain status: "met", "not met" or "not judged".
+    pub(crate) fn status(&self) -> &'static str {
+        match (self.judged, self.met) {
+            (false, _) => "not judged",
+            (true, true) => "met",
+            (true, false) => "not met",
+        }
+    }
 }
 
 /// Everything a run computed; the tables, figures, report and summary are views of it.
@@ -60,6 +74,8 @@ pub(crate) struct Study {
     pub(crate) paper_check: analysis::PaperCheck,
     pub(crate) residuals: Vec<analysis::ModelResiduals>,
     pub(crate) verdicts: Vec<Criterion>,
+    /// Checks of the process (not the paper's criteria): e.g. a stable model was available to control.
+    pub(crate) checks: Vec<Criterion>,
 }
 
 impl Study {

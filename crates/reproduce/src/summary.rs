@@ -82,7 +82,8 @@ pub(crate) fn summary_json(
         },
         "acceptance": {
             "accepted": accepted,
-            "criteria": st.verdicts.iter().map(|c| json!({"id": c.id, "met": c.met, "criterion": c.text})).collect::<Vec<_>>(),
+            "criteria": st.verdicts.iter().map(|c| json!({"id": c.id, "met": c.met, "status": c.status(), "criterion": c.text})).collect::<Vec<_>>(),
+            "process_checks": st.checks.iter().map(|c| json!({"id": c.id, "met": c.met, "check": c.text})).collect::<Vec<_>>(),
         },
         "elapsed_s": elapsed_s,
     })

@@ -78,12 +78,13 @@ pub(crate) fn table3(s: &ReproduceSettings, st: &Study) -> Table {
     .paper_column(ncols - 1)
 }
 
-pub(crate) fn metrics_row(label: &str, rep: &IdentifyReport) -> [String; 5] {
+pub(crate) fn metrics_row(label: &str, rep: &IdentifyReport) -> [String; 6] {
     let v = rep.metrics.validation.as_ref();
     [
         label.to_string(),
         opt(v.and_then(|m| m.fit_sim_percent)),
         opt(v.map(|m| m.loss)),
+        opt(v.and_then(|m| m.loss_sim)),
         opt(v.and_then(|m| m.fpe)),
         if rep.stable {
             "stable".into()
@@ -167,28 +168,30 @@ pub(crate) fn tables_text(s: &ReproduceSettings, st: &Study) -> String {
     }
     let _ = writeln!(
         o,
-        "\nTable IV — validation record (free-run fit %, loss V, FPE)"
+        "\nTable IV — validation record (free-run fit %, loss V of the one-step equation errors, \
+         simulation-error loss, FPE)"
     );
     let _ = writeln!(
         o,
-        "{:<40}{:>10}{:>12}{:>12}{:>10}",
-        "model", "fit %", "loss", "FPE", "poles"
+        "{:<40}{:>10}{:>12}{:>12}{:>12}{:>10}",
+        "model", "fit %", "loss V", "sim. loss", "FPE", "poles"
     );
     for m in &st.models {
         let r = metrics_row(m.label, &m.rep);
         let _ = writeln!(
             o,
-            "{:<40}{:>10}{:>12}{:>12}{:>10}",
-            r[0], r[1], r[2], r[3], r[4]
+            "{:<40}{:>10}{:>12}{:>12}{:>12}{:>10}",
+            r[0], r[1], r[2], r[3], r[4], r[5]
         );
     }
     for (label, i) in [("paper: linear ARX", 0), ("paper: Hammerstein", 1)] {
         let pick = |p: (f64, f64)| if i == 0 { p.0 } else { p.1 };
         let _ = writeln!(
             o,
-            "{label:<40}{:>10}{:>12}{:>12}",
+            "{label:<40}{:>10}{:>12}{:>12}{:>12}",
             estimate(pick(paper::FIT)),
             estimate(pick(paper::LOSS)),
+            "n/a",
             estimate(pick(paper::FPE))
         );
     }
@@ -244,10 +247,14 @@ pub(crate) fn tables_text(s: &ReproduceSettings, st: &Study) -> String {
     }
     let _ = writeln!(o, "\nAcceptance");
     for c in &st.verdicts {
+        let _ = writeln!(o, "  [{}] {}: {}", c.status(), c.id, c.text);
+    }
+    let _ = writeln!(o, "\nProcess checks");
+    for c in &st.checks {
         let _ = writeln!(
             o,
             "  [{}] {}: {}",
-            if c.met { "met" } else { "NOT met" },
+            if c.met { "ok" } else { "NO" },
             c.id,
             c.text
         );

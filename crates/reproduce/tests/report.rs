@@ -75,13 +75,45 @@ fn every_criterion_has_an_id_and_the_verdicts_follow_from_the_numbers() {
         ids.dedup();
         assert_eq!(ids.len(), n, "ids must be unique");
 
-        // "Hammerstein beats ARX" needs a positive Hammerstein fit above the ARX's.
+        // "Hammerstein beats ARX" needs a positive Hammerstein fit above the ARX's, and both models
+        // stable: a comparison with an unstable model is "not judged", never met.
         let (h, a) = (fit(s, "hammerstein"), fit(s, "arx"));
+        let both_stable =
+            stable_by_poles(&s["models"]["hammerstein"]) && stable_by_poles(&s["models"]["arx"]);
         assert_eq!(
             criterion(s, "hammerstein_beats_arx")["met"],
-            h > 0.0 && h > a,
+            both_stable && h > 0.0 && h > a,
             "{plant}: {h} vs {a}"
         );
+        assert_eq!(
+            criterion(s, "hammerstein_beats_arx")["status"],
+            if !both_stable {
+                "not judged"
+            } else if h > 0.0 && h > a {
+                "met"
+            } else {
+                "not met"
+            }
+        );
+        // The changing set-point's steps, each against 2 % of its own step.
+        let steps = s["closed_loop"]["unfixed"]["steps_plant"]
+            .as_array()
+            .unwrap();
+        if !steps.is_empty() {
+            let all_within = steps.iter().all(|g| {
+                let size =
+                    (g["setpoint_mm"].as_f64().unwrap() - g["y0_mm"].as_f64().unwrap()).abs();
+                g["metrics"]["steady_state_error_mm"]
+                    .as_f64()
+                    .is_some_and(|e| size > 0.0 && 100.0 * e.abs() / size < 2.0)
+            });
+            assert_eq!(
+                criterion(s, "pi_changing_setpoint_steady_state_error")["met"],
+                all_within
+            );
+        }
+        // A process check is not a criterion.
+        assert!(!ids.contains(&"closed_loop_model_stable"));
         assert_eq!(
             criterion(s, "hammerstein_stable")["met"],
             stable_by_poles(&s["models"]["hammerstein"])

@@ -41,9 +41,9 @@ pub struct DelayEstimate {
     pub candidates: Vec<DelayCandidate>,
     /// Ratio of the runner-up's loss to the winner's (≥ 1; `None` with a single candidate).
     pub margin: Option<f64>,
-    /// A warning in words when the delay is poorly determined.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub note: Option<String>,
+    /// Reasons not to trust the estimate, in words (empty when all is well): the delay is poorly
+    /// determined, or it is the largest one tried (the optimum may lie beyond).
+    pub warnings: Vec<String>,
 }
 
 /// Ratio of runner-up to best loss below which the delay counts as poorly determined.
@@ -153,18 +153,24 @@ pub fn estimate_delay(
             1.0
         }
     });
-    let note = match (margin, order.get(1)) {
-        (Some(m), Some(r)) if m < CLEAR_MARGIN => Some(format!(
-            "the delay is poorly determined: nk = {} fits almost as well (loss {:.3} % higher); the input \
-             may not excite the system enough, or the system responds gradually",
-            r.0,
-            100.0 * (m - 1.0)
-        )),
-        _ if best_nk == max_delay && max_delay > 0 => Some(format!(
-            "the best delay is the largest one tried ({max_delay}); try a larger --max-delay"
-        )),
-        _ => None,
-    };
+    // Every reason is kept (one used to hide the other).
+    let mut warnings = Vec::new();
+    if let (Some(m), Some(r)) = (margin, order.get(1)) {
+        if m < CLEAR_MARGIN {
+            warnings.push(format!(
+                "the delay is poorly determined: nk = {} fits almost as well (loss {:.3} % higher); the \
+                 input may not excite the system enough, or the system responds gradually",
+                r.0,
+                100.0 * (m - 1.0)
+            ));
+        }
+    }
+    if best_nk == max_delay && max_delay > 0 {
+        warnings.push(format!(
+            "the best delay is the largest one tried ({max_delay}): the optimum may lie beyond the \
+             searched range; try a larger --max-delay"
+        ));
+    }
     Ok(DelayEstimate {
         nk: best_nk,
         na,
@@ -172,6 +178,6 @@ pub fn estimate_delay(
         n: data.len() - k0,
         candidates,
         margin: margin.filter(|m| m.is_finite()),
-        note,
+        warnings,
     })
 }

@@ -19,6 +19,7 @@ pub use crate::problem::{Estimator, Problem, Records};
 use crate::regression::{Channel, Regression};
 use crate::warnings::{Record, Warning, LINEAR_START_USED};
 use sysid_core::data::SINGLE_INPUT;
+use sysid_core::metrics::Metrics;
 use sysid_core::{
     Dataset, InputChannel, Model, ModelKind, Orders, ParamName, Structure, SysidError,
 };
@@ -294,11 +295,22 @@ pub fn safeguard(
     settings: &Identification,
     mut fit: Fitted,
 ) -> Result<Fitted, SysidError> {
-    let mut fit_sim = p.simulation_fit(&fit.model);
+    let mut est = p.metrics(&fit.model);
+    let fit_sim = est.as_ref().and_then(|m| m.fit_sim_percent);
     let mut fell_back = false;
     let several = p.regression().channels().len() > 1;
+    // The plain linear least-squares ARX of the same orders on the same data: the guard's start and
+    // every model's baseline (not computed for the baseline itself).
+    let start = (p.regression().nonlinear() || fit.method != Method::Ls)
+        .then(|| linear_start(p))
+        .flatten();
+    let baseline = start
+        .as_ref()
+        .filter(|(l, _)| l.model.is_stable())
+        .map(|(_, m)| crate::trust::guarded_fit(m));
     if p.regression().nonlinear() {
-        if let Some((linear, linear_fit)) = linear_start(p) {
+        if let Some((linear, linear_metrics)) = start {
+            let linear_fit = linear_metrics.fit_sim_percent.unwrap_or(f64::NAN);
             if let Some(why) = hammerstein_guard(
                 fit.method,
                 fit_sim,
@@ -322,7 +334,7 @@ pub fn safeguard(
                         termination: fit.termination,
                         ..linear
                     };
-                    fit_sim = Some(linear_fit);
+                    est = Some(linear_metrics);
                     fell_back = true;
                 } else {
                     fit.warnings.push(Warning::LinearStartBetter { why });
@@ -336,8 +348,27 @@ pub fn safeguard(
         });
     }
     fit.warnings.extend(Warning::if_unstable(&fit.model));
-    fit.warnings
-        .extend(Warning::if_poor_simulation(Record::Estimation, fit_sim));
+    match &est {
+        Some(m) => {
+            fit.warnings
+                .extend(crate::trust::metric_warnings(Record::Estimation, m));
+            // The Hammerstein guard has already said it (against the same baseline).
+            let said = fit
+                .warnings
+                .iter()
+                .any(|w| matches!(w, Warning::LinearStartBetter { .. }));
+            if !fell_back && !said {
+                fit.warnings.extend(crate::trust::below_baseline(
+                    Record::Estimation,
+                    crate::trust::guarded_fit(m),
+                    baseline.flatten(),
+                ));
+            }
+        }
+        None => fit
+            .warnings
+            .extend(Warning::if_poor_simulation(Record::Estimation, None)),
+    }
     // The fallback's nonlinearities are fixed by construction, not estimated: nothing to check.
     if !fell_back {
         for (m, ((ch, start), fitted)) in p
@@ -395,7 +426,7 @@ fn hammerstein_guard(
         ))
     } else {
         fit_sim
-            .filter(|f| *f < linear_fit - FALLBACK_FIT_MARGIN)
+            .filter(|f| crate::trust::trails(Some(*f), linear_fit, FALLBACK_FIT_MARGIN))
             .map(|f| {
                 format!(
                     "the {method} estimate simulates the estimation data far worse than the linear start \
@@ -433,12 +464,17 @@ fn termination_words(t: &Termination, method: Method) -> String {
 
 /// The linear ARX least-squares model of the same orders and offset, written with each nonlinear
 /// input's linear equivalent (a deadzone with b_l = b_r = 0, m_l = m_r = b1, and B/b1), with its
-/// estimation simulation fit; `None` when it cannot be estimated, a nonlinear input's b1 is 0, or its
+/// estimation metrics (pooled over several records); `None` when it cannot be estimated, a nonlinear input's b1 is 0, or its
 /// simulation diverges. Standard deviations where the ARX regression gives them (a, linear inputs' B,
 /// c; the slopes from b1).
-fn linear_start(p: &Problem) -> Option<(Fitted, f64)> {
+fn linear_start(p: &Problem) -> Option<(Fitted, Metrics)> {
     let lp = p.linear().ok()?;
     let arx = methods::arx_ls(&lp).ok()?;
+    if !p.regression().nonlinear() {
+        let m = p.metrics(&arx.model)?;
+        m.fit_sim_percent?;
+        return Some((arx, m));
+    }
     let m = &arx.model;
     let reg = p.regression();
     let several = reg.channels().len() > 1;
@@ -479,7 +515,8 @@ fn linear_start(p: &Problem) -> Option<(Fitted, f64)> {
     if let Some(c) = model.offset() {
         tail.push((c, std_of(&arx.params, ParamName::C, None)));
     }
-    let fit_sim = p.simulation_fit(&model)?;
+    let metrics = p.metrics(&model)?;
+    metrics.fit_sim_percent?;
     let n_blocks = blocks.len();
     let params = reg.params_from(|i| {
         if i < n_blocks {
@@ -493,6 +530,6 @@ fn linear_start(p: &Problem) -> Option<(Fitted, f64)> {
             params,
             ..Fitted::new(model, Vec::new(), Method::Ls, arx.noise_variance)
         },
-        fit_sim,
+        metrics,
     ))
 }

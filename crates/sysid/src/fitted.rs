@@ -117,7 +117,8 @@ pub enum Note {
     KeptCandidate {
         /// The candidate kept.
         kept: &'static str,
-        /// Its estimation simulation RMSE (initial outputs estimated, as MATLAB `compare`).
+        /// Its estimation simulation RMSE, the worse of estimated and measured initial outputs
+        /// ([`crate::trust::guarded_rmse`]).
         rmse: f64,
         /// The other candidates and their RMSE (`None`: the simulation diverged or the model is unstable).
         others: Vec<(&'static str, Option<f64>)>,
@@ -196,7 +197,8 @@ impl std::fmt::Display for Note {
             Note::KeptCandidate { kept, rmse, others } => {
                 write!(
                     f,
-                    "kept the {kept} (estimation simulation RMSE {rmse:.6e}, initial outputs estimated"
+                    "kept the {kept} (estimation simulation RMSE {rmse:.6e}, the worse of estimated and \
+                     measured initial outputs"
                 )?;
                 for (name, r) in others {
                     match r {

@@ -36,6 +36,7 @@ pub mod rls;
 pub mod rls_ud;
 pub mod stream;
 pub mod summary;
+pub mod trust;
 pub mod warnings;
 pub mod windup;
 

@@ -617,15 +617,17 @@ pub(crate) fn instrumental(p: &Problem, st: &InstrumentalVariables) -> Result<Fi
     })
 }
 
-/// The reported estimation criterion: the RMSE of the free-run simulation with estimated initial
-/// outputs (MATLAB `compare`'s default), `None` when the model is unstable or its simulation diverges.
+/// The criterion an output-error search's candidates are judged on: the RMSE of the free-run
+/// simulation that the initial state cannot flatter ([`crate::trust::guarded_rmse`]: the larger of
+/// the RMSEs from estimated and from measured initial outputs), `None` when the model is unstable or
+/// its simulation diverges.
 fn reported_rmse(model: &Model, data: &Dataset) -> Option<f64> {
     if !model.is_stable() {
         return None;
     }
     sysid_core::metrics::metrics(model, data)
         .ok()
-        .and_then(|m| m.rmse_sim)
+        .and_then(|m| crate::trust::guarded_rmse(&m))
 }
 
 /// Output-error refinement from the LS (key-term) estimate. The search minimises the simulation error
@@ -649,6 +651,9 @@ pub(crate) fn output_error(p: &Problem, st: &OutputError) -> Result<Fitted, Sysi
             iterations: fit.iterations,
             termination: verdict.termination,
             notes: verdict.notes,
+            warnings: crate::trust::std_warning(fit.std_unavailable.clone())
+                .into_iter()
+                .collect(),
             ..Fitted::new(fit.model, fit.params, Method::Oe, fit.noise_variance)
         });
     }
@@ -675,8 +680,9 @@ pub struct OeVerdict {
 }
 
 impl OeVerdict {
-    /// Judges both candidates on the reported criterion (the estimation simulation RMSE with estimated
-    /// initial outputs, `None` for an unstable or diverging model): the better stable one is kept; when
+    /// Judges both candidates on the guarded criterion (the estimation simulation RMSE, the worse of
+    /// estimated and measured initial outputs, `None` for an unstable or diverging model): the better
+    /// stable one is kept; when
     /// neither simulates stably the refinement (stable by construction) is kept and the warnings say
     /// what is wrong.
     pub fn judge(

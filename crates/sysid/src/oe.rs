@@ -84,6 +84,8 @@ pub struct OeFit {
     pub initial_outputs: Vec<f64>,
     /// The start had to be stabilised.
     pub stabilised_start: bool,
+    /// Why no standard deviation could be computed (`None` when they were).
+    pub std_unavailable: Option<String>,
 }
 
 /// Why the output-error search stopped.
@@ -471,12 +473,22 @@ fn search(
                     .sqrt();
                 let size = theta.iter().map(|t| t * t).sum::<f64>().sqrt();
                 let decrease = (cost - new_cost) / cost.max(f64::MIN_POSITIVE);
+                // MINPACK's test: the cost has converged only when the linear model also predicts
+                // no further decrease for this step; a heavily damped step that gains little while
+                // much more is predicted is not convergence.
+                let taken: Vec<f64> = problem
+                    .free_values()
+                    .iter()
+                    .zip(&theta)
+                    .map(|(a, b)| a - b)
+                    .collect();
+                let predicted = tri.predicted_reduction(&taken) / cost.max(f64::MIN_POSITIVE);
                 cost = new_cost;
                 // No floor: on ill-conditioned problems (a near-integrator's poles and its initial
                 // outputs) any fixed damping would shorten the Gauss–Newton step along the weak
                 // directions and slow the search to a crawl.
                 lambda /= 3.0;
-                if decrease < FTOL {
+                if decrease < FTOL && predicted <= FTOL {
                     return Ok((OeStop::CostConverged, iteration, evaluations, projected));
                 }
                 if on_boundary && decrease < FTOL_BOUNDARY {
@@ -570,6 +582,7 @@ struct Searched {
     /// n_params: where the initial outputs start in `full`.
     np: usize,
     cov: Option<DMatrix<f64>>,
+    std_unavailable: Option<String>,
     stop: OeStop,
     iterations: usize,
     evaluations: usize,
@@ -589,6 +602,7 @@ fn run(
     model_free: Vec<usize>,
     max_iterations: usize,
     name: &str,
+    param_names: &[String],
 ) -> Result<Searched, SysidError> {
     let (n, k0, np) = (problem.y.len(), problem.k0, problem.n_params());
     if model_part.len() != np {
@@ -629,14 +643,26 @@ fn run(
     let rss = resid.norm_squared();
     let jac = problem.sensitivities(&d, &yh, &x);
     let sigma2 = rss / (n - free.len()) as f64;
-    let cov = ls::solve(&jac, &resid, &[])
-        .ok()
-        .map(|sol| sol.inv_gram * sigma2);
+    // Columns named as the parameters they belong to (η_j: the initial output y0(j)).
+    let columns: Vec<String> = free
+        .iter()
+        .map(|&i| {
+            param_names
+                .get(i)
+                .cloned()
+                .unwrap_or_else(|| format!("y0({})", i.saturating_sub(np)))
+        })
+        .collect();
+    let (cov, std_unavailable) = match ls::solve(&jac, &resid, &columns) {
+        Ok(sol) => (Some(sol.inv_gram * sigma2), None),
+        Err(e) => (None, Some(why_no_covariance(&problem, &e))),
+    };
     Ok(Searched {
         full: problem.full,
         free,
         np,
         cov,
+        std_unavailable,
         stop,
         iterations,
         evaluations,
@@ -646,6 +672,25 @@ fn run(
         noise_variance: sigma2,
         stabilised_start,
     })
+}
+
+/// Why σ̂² (JᵀJ)⁻¹ could not be formed at the end of the search, in words: the solver's reason (a
+/// Jacobian column that is zero or dependent on the others: a singular information matrix JᵀJ) and,
+/// when a pole sits on the stability boundary the search holds it to, that pinned pole.
+fn why_no_covariance(problem: &Problem, e: &SysidError) -> String {
+    let ia = problem.ia();
+    let pinned = poles_of(&problem.full[ia..ia + problem.na])
+        .iter()
+        .map(|p| p.norm())
+        .fold(0.0, f64::max);
+    let mut why = format!("the information matrix JᵀJ of the output-error fit is singular ({e})");
+    if pinned >= MAX_POLE_MODULUS - 1e-7 {
+        why.push_str(&format!(
+            "; a pole is pinned on the stability boundary (|p| = {pinned:.7}), where the loss is not \
+             quadratic"
+        ));
+    }
+    why
 }
 
 impl Searched {
@@ -671,6 +716,7 @@ impl Searched {
             rss: self.rss,
             noise_variance: self.noise_variance,
             stabilised_start: self.stabilised_start,
+            std_unavailable: self.std_unavailable,
         }
     }
 }
@@ -733,7 +779,14 @@ pub fn refine(
     }
     let problem = problem(channels, data.y(), reg.na(), reg.offset());
     let model_free = (0..free.len()).filter(|&i| free[i]).collect();
-    let found = run(problem, full, model_free, max_iterations, name)?;
+    let found = run(
+        problem,
+        full,
+        model_free,
+        max_iterations,
+        name,
+        &reg.physical_labels(),
+    )?;
     let params = reg.params_from(|i| (found.full[i], found.std(i)));
     let model = reg
         .model_of_physical(&found.full[..found.np], data.ts())

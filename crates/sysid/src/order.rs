@@ -3,14 +3,20 @@
 //! record when none is given), with the normalised AIC and the FPE (paper eq. 15) of the estimation record
 //! beside it. The structures are estimated in parallel (rayon).
 //!
-//! Ranking: fit % descending (to 1e-6 %); a structure whose estimation failed or whose simulation diverged
-//! (no fit) comes last; ties go to fewer parameters, then to the smaller AIC.
+//! Ranking: the selection fit a spurious slow pole cannot game ([`crate::trust::guarded_fit`]: the worse
+//! of the fits from estimated and from measured initial outputs), descending (to 1e-6 %); a structure
+//! that a warning disqualifies (unstable, negative or diverging simulation fit, estimation failed) comes
+//! after every qualified one; ties go to fewer parameters, then to the smaller AIC. [`recommended`] is
+//! the best qualified structure, and [`search_warnings`] says when there is none or when it lies on the
+//! edge of the searched grid.
 
 #[cfg(feature = "parallel")]
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 
 use crate::estimate::{identify, Identification};
+use crate::trust::{guarded_fit, metric_warnings};
+use crate::warnings::Record;
 use sysid_core::metrics::metrics;
 use sysid_core::{Dataset, Orders};
 
@@ -31,16 +37,64 @@ pub struct Candidate {
     pub fpe: Option<f64>,
     /// All poles inside the unit circle.
     pub stable: bool,
+    /// The fit the ranking uses: on the validation record when given, else on the estimation record,
+    /// the worse of estimated and measured initial outputs ([`crate::trust::guarded_fit`]).
+    #[serde(default)]
+    pub ranking_fit: Option<f64>,
+    /// The identification's warnings and those of the selection record (initial state, negative fit).
+    #[serde(default)]
+    pub warnings: Vec<String>,
     /// Why the structure could not be estimated.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub error: Option<String>,
 }
 
 impl Candidate {
-    /// The fit the ranking uses: validation when available, else estimation.
+    /// The fit the ranking uses (see [`Candidate::ranking_fit`]).
     pub fn ranking_fit(&self) -> Option<f64> {
-        self.fit_validation.or(self.fit_estimation)
+        self.ranking_fit
     }
+
+    /// True when the structure may be recommended: estimated, stable, with a non-negative ranking fit.
+    pub fn qualified(&self) -> bool {
+        self.error.is_none() && self.stable && self.ranking_fit.is_some_and(|f| f >= 0.0)
+    }
+}
+
+/// The recommended structure: the best-ranked qualified one ([`Candidate::qualified`]).
+pub fn recommended(ranked: &[Candidate]) -> Option<&Candidate> {
+    ranked.iter().find(|c| c.qualified())
+}
+
+/// Warnings about a ranking over the grid `na` × `nb` × `nk`: no structure qualifies, or the
+/// recommended one has an order at the largest value searched (the optimum may lie beyond the grid).
+pub fn search_warnings(
+    ranked: &[Candidate],
+    na: &[usize],
+    nb: &[usize],
+    nk: &[usize],
+) -> Vec<String> {
+    let Some(best) = recommended(ranked) else {
+        return vec![
+            "no structure of the grid qualifies (every one is unstable, simulates worse than the mean \
+             of the selection record, or failed): none is recommended"
+                .to_string(),
+        ];
+    };
+    let o = best.orders;
+    let mut w = Vec::new();
+    for (name, v, grid) in [("na", o.na, na), ("nb", o.nb, nb), ("nk", o.nk, nk)] {
+        let (lo, hi) = (grid.iter().min(), grid.iter().max());
+        if let (Some(&lo), Some(&hi)) = (lo, hi) {
+            if hi > lo && v == hi {
+                w.push(format!(
+                    "the recommended {name} = {v} is the largest searched ({name} {lo}..{hi}): the optimum \
+                     may lie beyond the grid; widen --{name}"
+                ));
+            }
+        }
+    }
+    w
 }
 
 /// Estimates every (na, nb, nk) of the grid with the identification `base` (its orders are
@@ -84,11 +138,15 @@ pub fn search(
             .map_or(f64::NEG_INFINITY, |f| (f * 1e6).round())
     };
     out.sort_by(|x, y| {
-        key(y).total_cmp(&key(x)).then(x.p.cmp(&y.p)).then_with(|| {
-            x.aic
-                .unwrap_or(f64::INFINITY)
-                .total_cmp(&y.aic.unwrap_or(f64::INFINITY))
-        })
+        y.qualified()
+            .cmp(&x.qualified())
+            .then(key(y).total_cmp(&key(x)))
+            .then(x.p.cmp(&y.p))
+            .then_with(|| {
+                x.aic
+                    .unwrap_or(f64::INFINITY)
+                    .total_cmp(&y.aic.unwrap_or(f64::INFINITY))
+            })
     });
     out
 }
@@ -107,6 +165,8 @@ fn evaluate(est: &Dataset, val: Option<&Dataset>, o: Orders, base: &Identificati
         aic: None,
         fpe: None,
         stable: false,
+        ranking_fit: None,
+        warnings: Vec::new(),
         error: None,
     };
     let settings = Identification {
@@ -125,17 +185,27 @@ fn evaluate(est: &Dataset, val: Option<&Dataset>, o: Orders, base: &Identificati
     };
     c.p = fit.model.parameter_count();
     c.stable = fit.model.is_stable();
+    c.warnings = fit.warnings.iter().map(ToString::to_string).collect();
     match metrics(&fit.model, est) {
         Ok(m) => {
             c.fit_estimation = m.fit_sim_percent;
             c.aic = m.aic;
             c.fpe = m.fpe;
+            c.ranking_fit = guarded_fit(&m);
         }
         Err(e) => c.error = Some(e.to_string()),
     }
     if let Some(v) = val {
         match metrics(&fit.model, v) {
-            Ok(m) => c.fit_validation = m.fit_sim_percent,
+            Ok(m) => {
+                c.fit_validation = m.fit_sim_percent;
+                c.ranking_fit = guarded_fit(&m);
+                c.warnings.extend(
+                    metric_warnings(Record::Validation, &m)
+                        .iter()
+                        .map(ToString::to_string),
+                );
+            }
             Err(e) => c.error = Some(format!("validation: {e}")),
         }
     }

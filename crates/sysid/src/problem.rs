@@ -202,13 +202,10 @@ impl<'a> Problem<'a> {
             .collect()
     }
 
-    /// Fit % of the free-run simulation (initial outputs estimated, as MATLAB `compare`) on the
-    /// estimation records (pooled over several: every record's rows k ≥ k0 with one mean); `None` when
-    /// the simulation diverges or the output is constant.
-    pub(crate) fn simulation_fit(&self, model: &Model) -> Option<f64> {
-        sysid_core::metrics::pooled_metrics(model, self.records)
-            .ok()
-            .and_then(|m| m.fit_sim_percent)
+    /// The metrics of `model` on the estimation records (pooled over several); `None` when they cannot
+    /// be computed.
+    pub(crate) fn metrics(&self, model: &Model) -> Option<sysid_core::metrics::Metrics> {
+        sysid_core::metrics::pooled_metrics(model, self.records).ok()
     }
 }
 

@@ -195,6 +195,22 @@ impl Regression {
         out
     }
 
+    /// The names of the physical layout's entries (`b_l (u1)` with several inputs), for messages.
+    pub fn physical_labels(&self) -> Vec<String> {
+        self.params_from(|_| (0.0, None))
+            .iter()
+            .filter(|p| {
+                // b1 = 1 of a keyed input is reported but is not an entry.
+                !(p.name == ParamName::B(1)
+                    && self
+                        .channels
+                        .iter()
+                        .any(|c| c.keyed() && p.input.as_deref().is_none_or(|i| i == c.name)))
+            })
+            .map(Param::label)
+            .collect()
+    }
+
     /// Fills `row` with φ(k) from the inputs `u` (one per channel), the output sequence `ys` (the
     /// measured y, or an auxiliary simulation for the IV instruments) and the current nonlinearities
     /// `f`. Requires k ≥ k0.

@@ -494,7 +494,7 @@ pub fn record_metrics(
     let mut eta = QrAccumulator::new(k0);
     let mut s_row = vec![0.0; k0];
     let (mut sum_y, mut sum_u, mut sum_eps) = (0.0, 0.0, 0.0);
-    let (mut sse_pred, mut sse_measured) = (0.0, 0.0);
+    let (mut sse_pred, mut sse_measured, mut sse_equation) = (0.0, 0.0, 0.0);
     let shape = src.pass(&mut |start, u, y| {
         for (i, (uk, yk)) in u.iter().zip(y).enumerate() {
             let k = start + i;
@@ -511,8 +511,9 @@ pub fn record_metrics(
             if let Some(sim) = step.sim {
                 sse_measured += (yk - sim) * (yk - sim);
             }
+            let e = yk - step.pred;
+            sse_equation += e * e;
             if !output_error {
-                let e = yk - step.pred;
                 sse_pred += e * e;
                 sum_eps += e;
             }
@@ -638,6 +639,7 @@ pub fn record_metrics(
             p,
             y_deviation: deviation,
             sse_pred,
+            sse_equation,
             sse_sim: estimated.is_ok().then_some(sse_est),
             sse_sim_measured: measured.is_ok().then_some(sse_measured),
             note,

@@ -198,8 +198,15 @@ impl IdentifyReport {
             estimation,
             validation: val_data.map(|v| residual_analysis(m, v, max_lag)),
         };
+        let below = match (val_data, &val) {
+            (Some(v), Some(vm)) => {
+                crate::trust::baseline_warning(Record::Validation, fit, settings, est_data, v, vm)
+            }
+            _ => None,
+        };
         let mut report = Self::from_parts(fit, settings, est, val, residuals);
         report.records = records;
+        report.warnings.extend(below.map(|w| w.to_string()));
         Ok(report)
     }
 
@@ -216,8 +223,9 @@ impl IdentifyReport {
         report.residuals = residuals;
         if let Some(m) = &report.metrics.validation {
             report.warnings.extend(
-                Warning::if_poor_simulation(Record::Validation, m.fit_sim_percent)
-                    .map(|w| w.to_string()),
+                crate::trust::metric_warnings(Record::Validation, m)
+                    .iter()
+                    .map(ToString::to_string),
             );
         }
         report
@@ -332,10 +340,7 @@ impl ValidationReport {
     pub fn from_parts(model: &Model, m: Metrics, residuals: ResidualEntry) -> Self {
         let warnings: Vec<String> = Warning::if_unstable(model)
             .into_iter()
-            .chain(Warning::if_poor_simulation(
-                Record::Validation,
-                m.fit_sim_percent,
-            ))
+            .chain(crate::trust::metric_warnings(Record::Validation, &m))
             .map(|w| w.to_string())
             .collect();
         ValidationReport {

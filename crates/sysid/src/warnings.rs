@@ -116,6 +116,8 @@ pub enum Warning {
         /// Distinct levels beyond the breakpoint.
         levels: usize,
     },
+    /// A trust check of [`crate::trust`] (initial state, baseline, standard deviations).
+    Trust(crate::trust::Concern),
 }
 
 impl std::fmt::Display for Warning {
@@ -168,6 +170,7 @@ impl std::fmt::Display for Warning {
                 "too few distinct input levels on the {branch} deadzone branch ({levels} beyond its \
                  breakpoint; at least 2 are needed to separate slope and breakpoint)"
             ),
+            Warning::Trust(c) => c.fmt(f),
         }
     }
 }

@@ -85,8 +85,16 @@ fn table_cases(dir: &Path) -> Vec<(&'static str, Dataset, (usize, usize, usize))
     ]
 }
 
-// On every record of the table, output error with an offset returns a stable model whose estimation
-// simulation RMSE (the reported criterion) is not above least squares'; it converges within its cap.
+/// The simulation RMSE neither initial state flatters: the larger of the RMSEs from estimated and from
+/// measured initial outputs (the criterion output error judges its candidates on, issue 22).
+fn guarded_rmse(model: &Model, data: &Dataset) -> Option<f64> {
+    let m = metrics(model, data).ok()?;
+    Some(m.rmse_sim?.max(m.rmse_sim_measured?))
+}
+
+// On every record of the table, output error with an offset returns a stable model whose guarded
+// estimation simulation RMSE (the criterion it keeps its candidates on) is not above least squares';
+// it converges within its cap.
 #[test]
 fn output_error_is_stable_and_never_worse_than_least_squares_on_real_records() {
     let Some(dir) = ipa_testdata::shared_data() else {
@@ -95,8 +103,8 @@ fn output_error_is_stable_and_never_worse_than_least_squares_on_real_records() {
     for (name, est, (na, nb, nk)) in table_cases(&dir) {
         let ls = identify(&est, &arx(na, nb, nk, Method::Ls)).unwrap();
         let oe = identify(&est, &arx(na, nb, nk, Method::Oe)).unwrap();
-        let rmse_ls = metrics(&ls.model, &est).unwrap().rmse_sim.unwrap();
-        let rmse_oe = metrics(&oe.model, &est).unwrap().rmse_sim.unwrap();
+        let rmse_ls = guarded_rmse(&ls.model, &est).unwrap();
+        let rmse_oe = guarded_rmse(&oe.model, &est).unwrap();
         // The poles, computed independently of the search's stability test.
         let max_pole = oe
             .model
@@ -384,9 +392,9 @@ fn hammerstein_output_error_is_stable_and_never_worse_than_its_start() {
             .map(|p| p.norm())
             .fold(0.0, f64::max);
         assert!(max_pole < 1.0, "{name}: OE pole modulus {max_pole}");
-        let rmse_oe = metrics(&oe.model, &est).unwrap().rmse_sim.unwrap();
+        let rmse_oe = guarded_rmse(&oe.model, &est).unwrap();
         if ls.model.is_stable() {
-            if let Some(rmse_ls) = metrics(&ls.model, &est).unwrap().rmse_sim {
+            if let Some(rmse_ls) = guarded_rmse(&ls.model, &est) {
                 assert!(
                     rmse_oe <= rmse_ls * (1.0 + 1e-12),
                     "{name}: {rmse_oe} > {rmse_ls}"

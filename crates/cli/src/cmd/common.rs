@@ -1,9 +1,7 @@
 //! Flags and output helpers shared by several subcommands.
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
-use anyhow::Context;
 use sysid::data::{CsvOptions, Record, RowRange, TimeUnit};
 
 /// Parses `--rows A..B`.
@@ -131,7 +129,8 @@ pub fn print_notes(notes: &[String]) {
     }
 }
 
-/// Writes `content` to `path` atomically, or to standard output when `path` is `-`. Refuses to write over
+/// Writes `content` to `path` ([`sysid_io::write_atomic`]: atomically, or straight into a device or FIFO,
+/// or to standard output when `path` is `-`). Refuses to write over
 /// any of `inputs`; `flag` names the option in messages.
 pub fn write_output(
     path: &Path,
@@ -139,12 +138,6 @@ pub fn write_output(
     inputs: &[&Path],
     flag: &str,
 ) -> anyhow::Result<()> {
-    if path.as_os_str() == "-" {
-        let mut out = std::io::stdout().lock();
-        out.write_all(content)
-            .context("writing to standard output")?;
-        return Ok(());
-    }
     sysid_io::refuse_overwrite_input(path, inputs, flag)?;
     sysid_io::write_atomic(path, content)?;
     Ok(())

@@ -122,6 +122,9 @@ struct ControlOut<'a> {
     steps: &'a [StepSegment],
     samples: usize,
     trace: Option<String>,
+    /// Reasons not to trust the step metrics, in words (always present; empty when all is well):
+    /// `control::loop_warnings`.
+    warnings: &'a [String],
     /// With --adaptive: what the adaptation did.
     #[serde(skip_serializing_if = "Option::is_none")]
     adaptive: Option<&'a AdaptiveOut>,
@@ -221,6 +224,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         steps,
     } = run_metrics(&trace, &profile)?;
     let metrics_kind = kind.as_str();
+    let limits = args
+        .plant
+        .parse::<ipa::PlantSpec>()
+        .and_then(|spec| spec.limits(args.plant_config.as_deref()))
+        .with_context(|| format!("cannot read the plant for --plant {}", args.plant))?;
+    let warnings = control::loop_warnings(
+        &trace,
+        &steps,
+        &control::LoopFacts {
+            u_max: args.u_max,
+            range_mm: limits.range_mm,
+            unstable_pole: limits.unstable_pole,
+            fixed_step: matches!(profile, Profile::Fixed { .. }),
+        },
+    );
 
     if let Some(out) = &args.out {
         sysid_io::write_columns_csv(out, &Trace::COLUMNS, &trace.columns())?;
@@ -245,6 +263,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             steps: &steps,
             samples: trace.len(),
             trace: args.out.as_ref().map(|p| p.display().to_string()),
+            warnings: &warnings,
             adaptive: adaptive.as_ref(),
         };
         let text =
@@ -272,6 +291,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     if let Some(a) = &adaptive {
         summary += &adaptive_text(a);
+    }
+    for w in &warnings {
+        summary += &format!("warning: {w}\n");
     }
     // Keep standard output clean JSON when the JSON goes there.
     if json_to_stdout {
@@ -490,6 +512,15 @@ fn fmt_opt(v: Option<f64>, unit: &str) -> String {
     }
 }
 
+/// The settling time, or why there is none: no step, or not settled within the run.
+fn fmt_settling(m: &StepMetrics, run_s: f64) -> String {
+    match (m.settling_time_s, m.overshoot_mm) {
+        (Some(x), _) => format!("{x:.4} s"),
+        (None, Some(_)) => format!("not settled within {run_s} s (see the warnings)"),
+        (None, None) => "n/a (no step)".to_string(),
+    }
+}
+
 #[allow(clippy::too_many_arguments)]
 fn summary_text(
     plant: &str,
@@ -544,10 +575,7 @@ fn summary_text(
         fmt_opt(m.steady_state_error_mm, "mm")
     );
     o += &format!("  rise time 10-90 %    {}\n", fmt_opt(m.rise_time_s, "s"));
-    o += &format!(
-        "  settling time 2 %    {}\n",
-        fmt_opt(m.settling_time_s, "s")
-    );
+    o += &format!("  settling time 2 %    {}\n", fmt_settling(m, duration));
     if steps.len() > 1 {
         o += "steps:\n    start_s   r_mm      y0_mm     OS_%      e_ss_mm   t_r_s     t_s_s\n";
         for st in steps {

@@ -61,8 +61,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             }
         ));
     }
-    if let Some(n) = &est.note {
-        text.push_str(&format!("\nWarning: {n}\n"));
+    if !est.warnings.is_empty() {
+        text.push('\n');
+    }
+    for w in &est.warnings {
+        text.push_str(&format!("warning: {w}\n"));
     }
     print_report(&text, args.json.as_deref());
     if let Some(path) = &args.json {
@@ -76,7 +79,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "n": est.n,
             "margin": est.margin,
             "candidates": est.candidates,
-            "warnings": est.note.iter().chain(&record.notes).collect::<Vec<_>>(),
+            "warnings": est.warnings.iter().chain(&record.notes).collect::<Vec<_>>(),
         });
         let json = serde_json::to_string_pretty(&value)? + "\n";
         write_output(path, json.as_bytes(), &inputs, "--json")?;

@@ -2,6 +2,7 @@
 
 pub mod bench;
 pub mod bench_oe;
+pub mod calibrate;
 pub mod common;
 pub mod control;
 pub mod delay;

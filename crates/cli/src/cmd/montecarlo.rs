@@ -70,7 +70,15 @@ pub struct Args {
     /// Write the study as JSON here (`-` for standard output).
     #[arg(long, value_name = "OUT")]
     pub json: Option<PathBuf>,
+    /// Largest total work accepted, in samples estimated: runs x samples x methods (raise it for a
+    /// study that is meant to run for hours).
+    #[arg(long, value_name = "SAMPLES", default_value_t = DEFAULT_MAX_WORK)]
+    pub max_work: u64,
 }
+
+/// Default bound on runs x samples x methods: 10^9 samples estimated (about an hour on one core with
+/// the default estimators; the default study is 8 x 10^5).
+pub const DEFAULT_MAX_WORK: u64 = 1_000_000_000;
 
 fn parse_method(m: &str) -> anyhow::Result<Method> {
     Ok(match m.trim() {
@@ -109,6 +117,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let probe = ipa::plant_from_spec(&plant_spec, args.plant_config.as_deref())?;
     let ts_s = probe.ts();
     drop(probe);
+    ipa::input::check_samples(args.samples)?;
+    // The total work, bounded before anything runs (10 000 runs of 5 x 10^7 samples would take days).
+    let work = (args.runs as u128) * (args.samples as u128) * (methods.len() as u128);
+    if work > u128::from(args.max_work) {
+        anyhow::bail!(sysid::SysidError::setting(
+            sysid::Setting::Other("--runs"),
+            args.runs,
+            &format!(
+                "runs x samples x methods ({} x {} x {} = {work}) at most --max-work \
+                 {}; fewer runs or samples, or raise --max-work for a study meant to run that long",
+                args.runs,
+                args.samples,
+                methods.len(),
+                args.max_work
+            )
+        ));
+    }
     // Check the input design (samples, amplitude, file) once, before any run: a bad flag is an error,
     // not a study in which every run failed.
     generate(&spec, args.samples, ts_s, args.amplitude, args.seed)?;
@@ -168,7 +193,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let y = sysid::plant::run_open_loop(plant.as_mut(), &u).map_err(|e| e.to_string())?;
         Ok((u, y))
     };
-    let bar = progress_bar(args.runs as u64, "{bar:40} {pos}/{len} runs {elapsed}");
+    let bar = progress_bar(
+        args.runs as u64,
+        "{bar:40} {pos}/{len} runs {elapsed} elapsed, about {eta} left",
+    );
     let report = study(&settings, truth.as_deref(), &experiment, &|| bar.inc(1))
         .context("Monte Carlo study")?;
     bar.finish_and_clear();
@@ -196,6 +224,26 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(path) = &args.json {
         let json = serde_json::to_string_pretty(&report)? + "\n";
         write_output(path, json.as_bytes(), &inputs, "--json")?;
+    }
+    // A study in which a method never succeeded has no statistics for it: an error, not a result.
+    let failed: Vec<String> = report
+        .methods
+        .iter()
+        .filter(|m| m.ok_runs == 0)
+        .map(|m| {
+            format!(
+                "{} ({})",
+                m.method,
+                m.first_error.as_deref().unwrap_or("no run")
+            )
+        })
+        .collect();
+    if !failed.is_empty() {
+        anyhow::bail!(sysid::SysidError::Numerical(format!(
+            "every run failed for {}: the study has no estimates for {}",
+            failed.join("; "),
+            if failed.len() == 1 { "it" } else { "them" }
+        )));
     }
     Ok(())
 }

@@ -113,6 +113,8 @@ struct OrderReport<'a> {
     delay: Option<sysid::delay::DelayEstimate>,
     /// The chosen structure, re-estimated on the whole estimation record, on the test record.
     test: Option<TestResult>,
+    /// Reasons not to trust the recommendation (always present; empty when all is well).
+    warnings: Vec<String>,
     candidates: &'a [Candidate],
 }
 
@@ -168,17 +170,43 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         bar.inc(1)
     });
     bar.finish_and_clear();
-    let ranked_by = "selection fit % (simulation)";
+    let ranked_by =
+        "selection fit % (simulation, the worse of estimated and measured initial outputs); \
+                     structures a warning disqualifies (unstable, negative fit) last";
+    let mut warnings = sysid::order::search_warnings(&ranked, &na, &nb, &nk);
+    for w in delay.iter().flat_map(|d| &d.warnings) {
+        warnings.push(format!("--nk auto: {w}"));
+    }
     // The chosen structure on the test record, re-estimated on the whole estimation record.
-    let chosen = ranked
-        .iter()
-        .find(|c| c.error.is_none() && c.fit_validation.is_some());
+    let chosen = sysid::order::recommended(&ranked);
+    if let Some(c) = chosen {
+        warnings.extend(c.warnings.iter().map(|w| {
+            format!(
+                "recommended ({}, {}, {}): {w}",
+                c.orders.na, c.orders.nb, c.orders.nk
+            )
+        }));
+    }
     let test_result = match (chosen, &test) {
         (Some(c), Some(t)) => {
             let mut id = base.clone();
             id.structure.orders = c.orders;
             let fit = sysid::estimate::identify(&data, &id)?;
             let m = sysid::metrics::metrics(&fit.model, t)?;
+            let record = sysid::warnings::Record::Validation;
+            warnings.extend(
+                sysid::trust::metric_warnings(record, &m)
+                    .into_iter()
+                    .chain(sysid::trust::baseline_warning(
+                        record,
+                        &fit,
+                        &id,
+                        std::slice::from_ref(&data),
+                        t,
+                        &m,
+                    ))
+                    .map(|w| format!("test record: {w}")),
+            );
             Some(TestResult {
                 orders: c.orders,
                 estimated_on: data.name().to_string(),
@@ -205,7 +233,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "--nk auto: estimated delay nk = {} (ARX(2, 2) fits over nk = 0..10), trying nk = {:?}{}\n",
             d.nk,
             nk,
-            d.note.as_ref().map(|n| format!("; warning: {n}")).unwrap_or_default()
+            if d.warnings.is_empty() {
+                ""
+            } else {
+                " (see the warnings below)"
+            }
         ));
     }
     text.push('\n');
@@ -222,15 +254,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             o(t.fit_sim_percent),
             t.data
         )),
-        (None, Some(_)) => text.push_str("\nNo structure could be estimated: no test fit.\n"),
+        (None, Some(_)) => text.push_str("\nNo structure qualifies: no test fit.\n"),
         (None, None) => text.push_str(
             "\nNo test record (--validation, --val-rows or --split): the selection fit of the chosen \
              structure is optimistic; check it on data it has not seen.\n",
         ),
     }
+    for w in &warnings {
+        text.push_str(&format!("warning: {w}\n"));
+    }
     print_report(&text, args.json.as_deref());
     if let Some(path) = &args.json {
         let doc = OrderReport {
+            warnings,
             data: fit_part.name().to_string(),
             selection: selection.name().to_string(),
             validation: test.as_ref().map(|v| v.name().to_string()),
@@ -284,13 +320,23 @@ fn selection_parts(
 fn candidate_rows(ranked: &[Candidate], top: usize) -> String {
     let mut text = String::new();
     text.push_str(&format!(
-        "{:>4} {:>3} {:>3} {:>3} {:>4} {:>12} {:>12} {:>12} {:>12} {:>7}\n",
-        "rank", "na", "nb", "nk", "p", "fit est %", "fit sel %", "AIC", "FPE", "stable"
+        "{:>4} {:>3} {:>3} {:>3} {:>4} {:>12} {:>12} {:>12} {:>12} {:>12} {:>7}\n",
+        "rank",
+        "na",
+        "nb",
+        "nk",
+        "p",
+        "fit est %",
+        "fit sel %",
+        "ranked on %",
+        "AIC",
+        "FPE",
+        "stable"
     ));
     let o = |v: Option<f64>| v.map_or_else(|| "n/a".to_string(), num);
     for (i, c) in ranked.iter().take(top).enumerate() {
         text.push_str(&format!(
-            "{:>4} {:>3} {:>3} {:>3} {:>4} {:>12} {:>12} {:>12} {:>12} {:>7}{}\n",
+            "{:>4} {:>3} {:>3} {:>3} {:>4} {:>12} {:>12} {:>12} {:>12} {:>12} {:>7}{}\n",
             i + 1,
             c.orders.na,
             c.orders.nb,
@@ -298,6 +344,7 @@ fn candidate_rows(ranked: &[Candidate], top: usize) -> String {
             c.p,
             o(c.fit_estimation),
             o(c.fit_validation),
+            o(c.ranking_fit()),
             o(c.aic),
             o(c.fpe),
             if c.stable { "yes" } else { "no" },

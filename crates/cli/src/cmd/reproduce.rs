@@ -8,7 +8,8 @@ use ipa_reproduce::{run as reproduce, ReproduceSettings};
 /// Flags of `reproduce`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Output folder (created if missing): report.html, summary.json, figures/, data/.
+    /// Output folder (created if missing): report.html, summary.json, figures/, data/. An existing folder
+    /// must be empty or written by a previous `reproduce` (it holds the marker file .ipa-sysid-output).
     #[arg(long, value_name = "DIR", default_value = "reproduce-out")]
     pub out: PathBuf,
     /// Plant: the physics simulator `ipa`, the paper's model `paper`, or `model:FILE`.
@@ -51,6 +52,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     ipa::plant_from_spec(&args.plant, args.plant_config.as_deref())?;
     sysid::rls::check_settings(args.forgetting, 1.0)?;
+    // Never replace a user's own files: the folder must be new, empty, or written by `reproduce`.
+    sysid_io::claim_folder(&args.out, "--out", "ipa-sysid reproduce")?;
     let settings = ReproduceSettings {
         plant: args.plant.clone(),
         plant_config: args.plant_config.clone(),

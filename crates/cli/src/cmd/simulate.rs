@@ -49,6 +49,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let plant: ipa::spec::PlantSpec = args.plant.parse()?;
     if let ipa::spec::PlantSpec::ModelFile(path) = &plant {
         let model = sysid::model_file::read_model(path)?;
+        // What validate would say of this model, said before its simulation is written.
+        for w in sysid::model_file::load_warnings(&model) {
+            eprintln!("warning: {}: {w}", path.display());
+        }
+        if !model.is_stable() {
+            eprintln!(
+                "warning: {}: unstable model (a pole on or outside the unit circle): its simulation \
+                 diverges",
+                path.display()
+            );
+        }
+        check_time_span(
+            args.samples.unwrap_or(ipa::experiment::DEFAULT_SAMPLES),
+            model.ts(),
+        )?;
         if model.inputs().len() > 1 {
             return run_miso(&args, &model, path);
         }
@@ -83,10 +98,28 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// Refuses a record whose last sample time (N - 1) Ts is not a finite number of seconds (a model with
+/// Ts = 1.7e308 would write t = inf).
+fn check_time_span(samples: usize, ts: f64) -> anyhow::Result<()> {
+    let span = samples.saturating_sub(1) as f64 * ts;
+    if !span.is_finite() {
+        anyhow::bail!(sysid::SysidError::setting(
+            sysid::Setting::Ts,
+            ts,
+            &format!(
+                "a sampling period whose {samples} samples span a finite time (the last would be at t = \
+                 {span} s)"
+            )
+        ));
+    }
+    Ok(())
+}
+
 /// Writes the record as CSV (t, u, y in Rust's shortest round-trip decimals; pressures, when simulated,
 /// to 0.1 Pa).
 fn write_csv(out: &Path, rec: &Record) -> anyhow::Result<()> {
     use sysid_io::NumberFormat::{OneDecimal, Shortest};
+    check_time_span(rec.u.len(), rec.ts)?;
     let times = sysid::data::sample_times(rec.u.len(), rec.ts);
     let mut header = vec!["t", "u", "y"];
     let mut columns: Vec<(&[f64], sysid_io::NumberFormat)> =
@@ -149,6 +182,7 @@ fn run_miso(args: &Args, model: &sysid::Model, model_path: &Path) -> anyhow::Res
     let mut header = vec!["t"];
     header.extend(&names);
     header.push("y");
+    check_time_span(y.len(), model.ts())?;
     let times = sysid::data::sample_times(y.len(), model.ts());
     let rows = times.iter().enumerate().map(|(k, t)| {
         let mut row = vec![t.to_string()];

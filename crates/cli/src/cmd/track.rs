@@ -198,8 +198,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     } else if let Some(p) = &args.follow {
         inputs.push(p.as_path());
-        let f = std::fs::File::open(p).with_context(|| p.display().to_string())?;
-        let r = sysid_io::Follow::new(f, idle, POLL);
+        let r = sysid_io::Follow::file(p, idle, POLL).with_context(|| p.display().to_string())?;
         (
             Box::new(BufReader::with_capacity(1 << 16, r)),
             p.display().to_string(),

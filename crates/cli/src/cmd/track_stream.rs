@@ -168,6 +168,9 @@ pub fn track_stream<R: BufRead, W: Write>(
     let mut t_last = None;
     let mut pending_change = false;
     let mut change_points = Vec::new();
+    // Time that jumps (samples missing, a clock reset forwards): warnings for the next line and the end.
+    let (mut time_jumps, mut new_time_warnings, mut time_warnings) =
+        (0usize, Vec::new(), Vec::new());
     loop {
         match read_line_bounded(&mut input, &mut buf, MAX_LINE_BYTES) {
             Ok(true) => {}
@@ -230,7 +233,16 @@ pub fn track_stream<R: BufRead, W: Write>(
                 }
                 ts = Some(d);
             }
-            _ => {}
+            (Some(ts), _) => {
+                if let (Some(tc), Some(prev)) = (*tcol, t_last) {
+                    if let Some(w) = check_time_step(prev, t, ts, line_no, tc, &options.name)? {
+                        time_jumps += 1;
+                        if time_jumps <= 10 {
+                            new_time_warnings.push(w);
+                        }
+                    }
+                }
+            }
         }
         t_last = Some(t);
         let step = tracker.push(u, y).map_err(|e| match e {
@@ -245,7 +257,9 @@ pub fn track_stream<R: BufRead, W: Write>(
         }
         if step.error.is_some() && (step.change || (k + 1) % options.every == 0) {
             if let Some(ts) = ts {
-                let line = track_line(tracker, k, t, ts, pending_change)?;
+                let mut line = track_line(tracker, k, t, ts, pending_change)?;
+                line.warnings.extend(new_time_warnings.iter().cloned());
+                time_warnings.append(&mut new_time_warnings);
                 serde_json::to_writer(&mut *out, &line).map_err(|e| {
                     SysidError::Numerical(format!("a track line could not be written: {e}"))
                 })?;
@@ -261,7 +275,49 @@ pub fn track_stream<R: BufRead, W: Write>(
             message: "no header row arrived; expected a header such as t,u,y and data rows".into(),
         });
     }
-    summary(tracker, ts, t_last, change_points)
+    let mut summary = summary(tracker, ts, t_last, change_points)?;
+    time_warnings.append(&mut new_time_warnings);
+    if time_jumps > time_warnings.len() {
+        time_warnings.push(format!(
+            "{} time jumps in all (the first {} are listed)",
+            time_jumps,
+            time_warnings.len()
+        ));
+    }
+    summary.warnings.extend(time_warnings);
+    Ok(summary)
+}
+
+/// Checks the time t of a sample after `prev` (line `line_no`, 0-based column `col` of `name`) against
+/// Ts: time that does not increase is an error (a logger restarted, a file rotated); a step more than
+/// 50 % away from Ts is returned as a warning (samples missing, or the clock jumped), because the
+/// estimator treats the samples as Ts apart.
+fn check_time_step(
+    prev: f64,
+    t: f64,
+    ts: f64,
+    line_no: usize,
+    col: usize,
+    name: &str,
+) -> Result<Option<String>, SysidError> {
+    let d = t - prev;
+    if d.is_nan() || d <= 0.0 {
+        return Err(SysidError::Parse {
+            file: name.to_string(),
+            line: line_no,
+            column: col + 1,
+            message: format!(
+                "t = {t} after t = {prev}: time went backwards or stood still; expected strictly \
+                 increasing time (a restarted logger or a rotated file: start track again on the new record)"
+            ),
+        });
+    }
+    Ok(((d - ts).abs() > 0.5 * ts).then(|| {
+        format!(
+            "{name}:{line_no}: time jumps from {prev} to {t} s (a step of {d} s where Ts = {ts} s): samples \
+             missing or the clock jumped; the estimate treats the samples as Ts apart"
+        )
+    }))
 }
 
 fn track_line(

@@ -86,6 +86,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     report
         .warnings
         .extend(record.notes.iter().map(|n| format!("data: {n}")));
+    model_warnings(&mut report, &model);
     let out = sysid::metrics::model_output(&model, &us, data.y(), args.horizon)?;
     let value = report_json(&report, args.horizon, out.fit_pred_percent, &record.notes)?;
     let text = report_text(
@@ -163,11 +164,15 @@ fn report_text(
 ) -> String {
     let m = &report.metrics.validation;
     let mut text = format!(
-        "{} on {} ({} samples): fit {} % (simulation), {} % (1-step prediction){}; loss {}, FPE {}; {}\n",
+        "{} on {} ({} samples): fit {} % (simulation, initial outputs estimated), {} % (simulation, \
+         initial outputs measured), {} % (1-step prediction){}; loss V {} (one-step equation error), \
+         V_sim {} (simulation error), FPE {}; {}\n",
         args.model.display(),
         name,
         len,
         m.fit_sim_percent.map_or("n/a".into(), |v| format!("{v:.2}")),
+        m.fit_sim_measured_percent
+            .map_or("n/a".into(), |v| format!("{v:.2}")),
         m.fit_pred_percent.map_or("n/a".into(), |v| format!("{v:.2}")),
         if args.horizon > 1 {
             format!(
@@ -179,6 +184,7 @@ fn report_text(
             String::new()
         },
         report::format::num(m.loss),
+        m.loss_sim.map_or("n/a".into(), report::format::num),
         m.fpe.map_or("n/a".into(), report::format::num),
         if report.stable { "stable" } else { "UNSTABLE" }
     );
@@ -232,7 +238,8 @@ fn run_streamed(
     let name = sysid::data::stream::RecordSource::name(&src).to_string();
     check_ts(&name, shape.ts, model.ts())?;
     stream_note(&name, streamed.passes, shape.rows, args.stream);
-    let report = streamed.result;
+    let mut report = streamed.result;
+    model_warnings(&mut report, model);
     // The 1-step prediction of `model_output`: the ARX predictor, or for an output-error model the
     // simulation from the measured initial outputs.
     let m = &report.metrics.validation;
@@ -244,6 +251,15 @@ fn run_streamed(
     let text = report_text(args, &report, &name, shape.rows, fit_horizon);
     print_report(&text, args.json.as_deref());
     finish(args, &report, &value, inputs)
+}
+
+/// Adds what the model file itself deserves a warning for (a non-physical deadzone) to the report.
+fn model_warnings(report: &mut ValidationReport, model: &sysid::Model) {
+    report.warnings.extend(
+        sysid::model_file::load_warnings(model)
+            .into_iter()
+            .map(|w| format!("model: {w}")),
+    );
 }
 
 /// The record's Ts must be the model's (within 0.1 %).

@@ -1,12 +1,30 @@
 //! MATLAB `.mat` records (`--data rec.mat`): Level 5 MAT-files, as written by MATLAB's `save` (default
-//! `-v7`, compressed, and `-v6`) and by `scipy.io.savemat`, read with the `matfile` crate.
+//! `-v7`, compressed, and `-v6`) and by `scipy.io.savemat`.
+//!
+//! The reader is this module's own: the subset of the MAT-File Format (MathWorks, "MAT-File Format",
+//! chapter 1, Level 5) that a record needs. It replaced the `matfile` crate (0.5, unmaintained), which
+//! printed to standard output on an unsupported element (so `--json -` emitted invalid JSON), printed
+//! raw debug lines on a damaged compressed element, inflated compressed elements without a bound (a 1 MB
+//! file could inflate to 1 GiB) and refused some integer classes. What is read:
+//! - a 128-byte header (text, version, the endian indicator `IM` or `MI`), then data elements, each an
+//!   8-byte tag (type, byte count; or the 4-byte "small element" form) and its data, padded to 8 bytes
+//!   except a compressed element;
+//! - a variable is a `miMATRIX` element (array flags with the class, dimensions, name, real part,
+//!   imaginary part when complex), or a zlib-compressed `miCOMPRESSED` element holding one;
+//! - the numeric classes (double, single, int8..uint64, logical) whatever storage type holds the values
+//!   (MATLAB stores doubles as small integers when they fit), converted to f64; other classes (char,
+//!   cell, struct, sparse, objects) are listed by name and refused when chosen;
+//! - only the variables asked for are inflated in full, after the size their element announces is
+//!   checked against [`super::MAX_SAMPLES`]; the others are inflated only far enough (64 KiB) to learn
+//!   their name;
+//! - a file that ends inside an element is reported as truncated, naming the variable when it is known.
 //!
 //! `--u-col` / `--y-col` / `--t-col` name variables: real numeric vectors (row or column, any numeric
 //! class, converted to f64). Ts comes from `--ts`, or from the time variable (uniform within 0.1 %, or
 //! resampled with `--resample`); `--rows` and `--time-unit` apply as for CSV. MATLAB v7.3 files (HDF5)
 //! and Level 4 files are refused with the way out: save with `-v7`.
 
-use matfile::{MatFile, NumericData};
+use std::io::Read;
 
 use super::{check_ts, resample, CsvOptions, Record, Signals};
 use crate::error::Setting;
@@ -44,14 +62,15 @@ pub fn read_mat_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Rec
                 .into(),
         ));
     }
-    let mat = MatFile::parse(bytes).map_err(|e| {
-        file_err(
-            name,
-            format!("the MAT-file could not be read ({e}); truncated or damaged? expected a file saved with -v7"),
-        )
-    })?;
+    let wanted = [
+        opts.u_col.as_str(),
+        opts.y_col.as_str(),
+        opts.t_col.as_str(),
+    ];
+    let vars = parse(bytes, name, &wanted)?;
+    let find = |var: &str| vars.iter().find(|v| v.name == var);
     let names = || {
-        let v: Vec<&str> = mat.arrays().iter().map(|a| a.name()).collect();
+        let v: Vec<&str> = vars.iter().map(|a| a.name.as_str()).collect();
         if v.is_empty() {
             "none readable".to_string()
         } else {
@@ -59,35 +78,53 @@ pub fn read_mat_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Rec
         }
     };
     let vector = |var: &str, setting: Setting| -> Result<Vec<f64>, SysidError> {
-        let Some(a) = mat.find_by_name(var) else {
+        let Some(a) = find(var) else {
             return Err(SysidError::MissingColumn {
                 file: name.to_string(),
                 column: var.to_string(),
                 setting,
-                header: mat.arrays().iter().map(|a| a.name().to_string()).collect(),
+                header: vars.iter().map(|a| a.name.clone()).collect(),
                 hint: None,
             });
         };
-        let size = a.size();
-        let long = size.iter().filter(|&&d| d > 1).count();
+        let long = a.dims.iter().filter(|&&d| d > 1).count();
         if long > 1 {
             return Err(file_err(
                 name,
                 format!(
                     "variable '{var}' is a {} array; expected a vector (one row or one column)",
-                    size.iter()
+                    a.dims
+                        .iter()
                         .map(usize::to_string)
                         .collect::<Vec<_>>()
                         .join("x")
                 ),
             ));
         }
-        let v = real_f64(a.data()).ok_or_else(|| {
-            file_err(
-                name,
-                format!("variable '{var}' is complex; expected a real vector"),
-            )
-        })?;
+        let v = match &a.values {
+            Values::Real(v) => v.clone(),
+            Values::Complex => {
+                return Err(file_err(
+                    name,
+                    format!("variable '{var}' is complex; expected a real vector"),
+                ))
+            }
+            Values::Class(class) => {
+                return Err(file_err(
+                    name,
+                    format!(
+                        "variable '{var}' is a {class} array; expected a numeric vector (double, single or \
+                         an integer class)"
+                    ),
+                ))
+            }
+            Values::NotRead => {
+                return Err(file_err(
+                    name,
+                    format!("variable '{var}' was not read (internal: not asked for)"),
+                ))
+            }
+        };
         if let Some(k) = v.iter().position(|x| !x.is_finite()) {
             return Err(file_err(
                 name,
@@ -115,7 +152,7 @@ pub fn read_mat_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Rec
             ),
         ));
     }
-    let has_t = mat.find_by_name(&opts.t_col).is_some();
+    let has_t = find(&opts.t_col).is_some();
     let mut t = if has_t && opts.ts.is_none() {
         let t = vector(&opts.t_col, Setting::TCol)?;
         if t.len() != u.len() {
@@ -214,27 +251,381 @@ fn increasing(t: &[f64], name: &str, var: &str) -> Result<(), SysidError> {
     }
 }
 
-/// The real part of a numeric array as f64, `None` when it has an imaginary part.
-fn real_f64(d: &NumericData) -> Option<Vec<f64>> {
-    fn conv<T: Copy + Into<f64>, I>(real: &[T], imag: &Option<I>) -> Option<Vec<f64>> {
-        imag.is_none()
-            .then(|| real.iter().map(|&v| v.into()).collect())
+/// A variable of a MAT-file: its name, dimensions and (when asked for and numeric) its values.
+#[derive(Debug)]
+struct Variable {
+    name: String,
+    dims: Vec<usize>,
+    values: Values,
+}
+
+/// What was read of a variable's values.
+#[derive(Debug)]
+enum Values {
+    /// The real values, column-major, as f64.
+    Real(Vec<f64>),
+    /// A complex numeric array (refused when chosen).
+    Complex,
+    /// A class that is not numeric (named for the message).
+    Class(&'static str),
+    /// A numeric variable that was not asked for: its data were not read (nor inflated).
+    NotRead,
+}
+
+/// A byte order.
+#[derive(Debug, Clone, Copy)]
+enum Endian {
+    Little,
+    Big,
+}
+
+/// A cursor over the bytes of one element, with the file name and the variable for messages.
+struct Cursor<'a> {
+    bytes: &'a [u8],
+    at: usize,
+    endian: Endian,
+}
+
+/// Why a parse stopped: the data end too early, or they are not what the format says.
+enum Stop {
+    Truncated,
+    Damaged(String),
+}
+
+const MI_INT8: u32 = 1;
+const MI_UINT8: u32 = 2;
+const MI_INT16: u32 = 3;
+const MI_UINT16: u32 = 4;
+const MI_INT32: u32 = 5;
+const MI_UINT32: u32 = 6;
+const MI_SINGLE: u32 = 7;
+const MI_DOUBLE: u32 = 9;
+const MI_INT64: u32 = 12;
+const MI_UINT64: u32 = 13;
+const MI_MATRIX: u32 = 14;
+const MI_COMPRESSED: u32 = 15;
+const MI_UTF8: u32 = 16;
+
+/// Inflated bytes looked at to learn a compressed variable's name and size before it is inflated whole.
+const PEEK_BYTES: u64 = 1 << 16;
+
+impl<'a> Cursor<'a> {
+    fn u32(&mut self) -> Result<u32, Stop> {
+        let b: [u8; 4] = self
+            .bytes
+            .get(self.at..self.at + 4)
+            .and_then(|s| s.try_into().ok())
+            .ok_or(Stop::Truncated)?;
+        self.at += 4;
+        Ok(match self.endian {
+            Endian::Little => u32::from_le_bytes(b),
+            Endian::Big => u32::from_be_bytes(b),
+        })
     }
-    match d {
-        NumericData::Double { real, imag } => conv(real, imag),
-        NumericData::Single { real, imag } => conv(real, imag),
-        NumericData::Int8 { real, imag } => conv(real, imag),
-        NumericData::UInt8 { real, imag } => conv(real, imag),
-        NumericData::Int16 { real, imag } => conv(real, imag),
-        NumericData::UInt16 { real, imag } => conv(real, imag),
-        NumericData::Int32 { real, imag } => conv(real, imag),
-        NumericData::UInt32 { real, imag } => conv(real, imag),
+
+    /// A tag and its data: (type, data); moves past the padding to 8 bytes unless `packed`.
+    fn element(&mut self, packed: bool) -> Result<(u32, &'a [u8]), Stop> {
+        let first = self.u32()?;
+        if first >> 16 != 0 {
+            // The small data element: byte count in the upper half, data in the next 4 bytes.
+            let (ty, n) = (first & 0xffff, (first >> 16) as usize);
+            if n > 4 {
+                return Err(Stop::Damaged(format!(
+                    "a small data element of {n} bytes (at most 4)"
+                )));
+            }
+            let data = self
+                .bytes
+                .get(self.at..self.at + n)
+                .ok_or(Stop::Truncated)?;
+            self.at += 4;
+            return Ok((ty, data));
+        }
+        let n = self.u32()? as usize;
+        let end = self.at.checked_add(n).ok_or(Stop::Truncated)?;
+        let data = self.bytes.get(self.at..end).ok_or(Stop::Truncated)?;
+        self.at = if packed { end } else { end.div_ceil(8) * 8 };
+        Ok((first, data))
+    }
+}
+
+/// The variables of a Level 5 MAT-file (`bytes`, named `name` in messages); the values of those named
+/// in `wanted` are read (see the module documentation).
+fn parse(bytes: &[u8], name: &str, wanted: &[&str]) -> Result<Vec<Variable>, SysidError> {
+    let endian = match bytes.get(126..128) {
+        Some(b"IM") => Endian::Little,
+        Some(b"MI") => Endian::Big,
+        Some(_) => {
+            return Err(file_err(
+                name,
+                "the MAT-file header has no endian indicator (IM or MI at byte 126); damaged? expected \
+                 a file saved with -v7"
+                    .into(),
+            ))
+        }
+        None => {
+            return Err(file_err(
+                name,
+                format!(
+                    "the file ends within the 128-byte MAT-file header ({} bytes; truncated?)",
+                    bytes.len()
+                ),
+            ))
+        }
+    };
+    let mut top = Cursor {
+        bytes,
+        at: 128,
+        endian,
+    };
+    let mut vars = Vec::new();
+    while top.at < bytes.len() {
+        let start = top.at;
+        let at_var = |vars: &Vec<Variable>| match vars.last() {
+            Some(v) => format!("after variable '{}'", v.name),
+            None => "in the first variable".to_string(),
+        };
+        // Only whole 8-byte tags start an element; a few trailing bytes are padding.
+        if bytes.len() - start < 8 && bytes[start..].iter().all(|&b| b == 0) {
+            break;
+        }
+        let (ty, data) = match top.element(true) {
+            Ok(e) => e,
+            Err(Stop::Truncated) => {
+                return Err(file_err(
+                    name,
+                    format!(
+                        "the file ends in the middle of a data element at byte {start}, {} (truncated?)",
+                        at_var(&vars)
+                    ),
+                ))
+            }
+            Err(Stop::Damaged(m)) => {
+                return Err(file_err(
+                    name,
+                    format!("damaged data element at byte {start}: {m}"),
+                ))
+            }
+        };
+        let var = match ty {
+            MI_MATRIX => {
+                let end = top.at;
+                // Uncompressed elements are padded to 8 bytes.
+                top.at = top.at.div_ceil(8) * 8;
+                matrix(&bytes[start..end], endian, wanted)
+            }
+            MI_COMPRESSED => compressed(data, endian, wanted),
+            // Other top-level elements (e.g. subsystem data) hold no variable.
+            _ => continue,
+        };
+        match var {
+            Ok(v) => vars.push(v),
+            Err((var, Stop::Truncated)) => {
+                return Err(file_err(
+                    name,
+                    format!(
+                        "the file ends in the middle of variable {} at byte {start} (truncated?)",
+                        var.map_or_else(|| "?".to_string(), |v| format!("'{v}'"))
+                    ),
+                ))
+            }
+            Err((var, Stop::Damaged(m))) => {
+                return Err(file_err(
+                    name,
+                    format!(
+                        "variable {} at byte {start} is damaged: {m}",
+                        var.map_or_else(|| "?".to_string(), |v| format!("'{v}'"))
+                    ),
+                ))
+            }
+        }
+    }
+    Ok(vars)
+}
+
+/// A compressed variable: its name and size from the first inflated bytes, its values (inflated in
+/// full, within the bound) only when it is wanted.
+fn compressed(
+    zipped: &[u8],
+    endian: Endian,
+    wanted: &[&str],
+) -> Result<Variable, (Option<String>, Stop)> {
+    let inflate = |limit: u64| -> Result<Vec<u8>, (Option<String>, Stop)> {
+        let mut out = Vec::new();
+        flate2::read::ZlibDecoder::new(zipped)
+            .take(limit)
+            .read_to_end(&mut out)
+            .map_err(|e| {
+                (
+                    None,
+                    Stop::Damaged(format!("its compressed data cannot be inflated ({e})")),
+                )
+            })?;
+        Ok(out)
+    };
+    let peek = inflate(PEEK_BYTES)?;
+    if (peek.len() as u64) < PEEK_BYTES {
+        // The whole variable was inflated.
+        return matrix(&peek, endian, wanted);
+    }
+    let head = matrix(&peek, endian, &[])?;
+    if !wanted.contains(&head.name.as_str()) || !matches!(head.values, Values::NotRead) {
+        return Ok(head);
+    }
+    let mut c = Cursor {
+        bytes: &peek,
+        at: 4,
+        endian,
+    };
+    let declared = u64::from(c.u32().map_err(|s| (Some(head.name.clone()), s))?);
+    // A vector of MAX_SAMPLES values of 8 bytes, a second part of as many, and its headers.
+    let limit = 16 * super::MAX_SAMPLES as u64 + PEEK_BYTES;
+    if declared > limit {
+        return Err((
+            Some(head.name),
+            Stop::Damaged(format!(
+                "it inflates to {declared} bytes, more than the {limit} a vector of at most {} samples \
+                 needs",
+                super::MAX_SAMPLES
+            )),
+        ));
+    }
+    let whole = inflate(declared + 8)?;
+    matrix(&whole, endian, wanted)
+}
+
+/// A miMATRIX element (its tag included in `bytes`, which may end early): the array flags, dimensions
+/// and name, and the values when the name is in `wanted`. The error carries the name when it was read.
+fn matrix(
+    bytes: &[u8],
+    endian: Endian,
+    wanted: &[&str],
+) -> Result<Variable, (Option<String>, Stop)> {
+    let mut outer = Cursor {
+        bytes,
+        at: 0,
+        endian,
+    };
+    let ty = outer.u32().map_err(|s| (None, s))?;
+    let n = outer.u32().map_err(|s| (None, s))? as usize;
+    if ty != MI_MATRIX {
+        return Err((
+            None,
+            Stop::Damaged(format!(
+                "an element of type {ty} where a matrix (14) was expected"
+            )),
+        ));
+    }
+    let body = &bytes[8..bytes.len().min(8usize.saturating_add(n))];
+    let mut c = Cursor {
+        bytes: body,
+        at: 0,
+        endian,
+    };
+    let (_, flags) = c.element(false).map_err(|s| (None, s))?;
+    let word = |b: &[u8]| -> u32 {
+        let a: [u8; 4] = b.get(..4).and_then(|s| s.try_into().ok()).unwrap_or([0; 4]);
+        match endian {
+            Endian::Little => u32::from_le_bytes(a),
+            Endian::Big => u32::from_be_bytes(a),
+        }
+    };
+    let flags = word(flags);
+    let class = flags & 0xff;
+    let complex = flags & 0x0800 != 0;
+    let (_, dims_raw) = c.element(false).map_err(|s| (None, s))?;
+    let dims: Vec<usize> = dims_raw
+        .chunks_exact(4)
+        .map(|d| word(d) as i32)
+        .map(|d| usize::try_from(d).unwrap_or(0))
+        .collect();
+    let (_, name_raw) = c.element(false).map_err(|s| (None, s))?;
+    let name = String::from_utf8_lossy(name_raw).into_owned();
+    let class_name = match class {
+        1 => Some("cell"),
+        2 => Some("struct"),
+        3 => Some("object"),
+        4 => Some("char"),
+        5 => Some("sparse"),
+        6..=15 => None,
+        _ => Some("non-numeric"),
+    };
+    let values = if let Some(cn) = class_name {
+        Values::Class(cn)
+    } else if complex {
+        Values::Complex
+    } else if !wanted.contains(&name.as_str()) {
+        Values::NotRead
+    } else {
+        let count = dims.iter().try_fold(1usize, |a, &d| a.checked_mul(d));
+        let count = match count {
+            Some(n) if n <= super::MAX_SAMPLES => n,
+            _ => {
+                return Err((
+                    Some(name),
+                    Stop::Damaged(format!(
+                        "dimensions {dims:?} give more than the {} samples a record may have",
+                        super::MAX_SAMPLES
+                    )),
+                ))
+            }
+        };
+        let (ty, data) = c.element(false).map_err(|s| (Some(name.clone()), s))?;
+        let v = numbers(ty, data, endian).ok_or_else(|| {
+            (
+                Some(name.clone()),
+                Stop::Damaged(format!("its values have the unknown storage type {ty}")),
+            )
+        })?;
+        if v.len() != count {
+            return Err((
+                Some(name),
+                Stop::Damaged(format!(
+                    "{} values where its dimensions {dims:?} need {count}",
+                    v.len()
+                )),
+            ));
+        }
+        Values::Real(v)
+    };
+    Ok(Variable { name, dims, values })
+}
+
+/// The values of a numeric data element of storage type `ty` as f64 (`None`: not a numeric type).
+fn numbers(ty: u32, data: &[u8], endian: Endian) -> Option<Vec<f64>> {
+    fn conv<const N: usize>(
+        data: &[u8],
+        endian: Endian,
+        f: impl Fn([u8; N], Endian) -> f64,
+    ) -> Vec<f64> {
+        data.chunks_exact(N)
+            .map(|c| {
+                let mut a = [0u8; N];
+                a.copy_from_slice(c);
+                f(a, endian)
+            })
+            .collect()
+    }
+    macro_rules! num {
+        ($t:ty) => {
+            conv(data, endian, |a, e| match e {
+                Endian::Little => <$t>::from_le_bytes(a) as f64,
+                Endian::Big => <$t>::from_be_bytes(a) as f64,
+            })
+        };
+    }
+    Some(match ty {
+        MI_INT8 => num!(i8),
+        MI_UINT8 | MI_UTF8 => num!(u8),
+        MI_INT16 => num!(i16),
+        MI_UINT16 => num!(u16),
+        MI_INT32 => num!(i32),
+        MI_UINT32 => num!(u32),
+        MI_SINGLE => num!(f32),
+        MI_DOUBLE => num!(f64),
         // 64-bit integers have no lossless f64 conversion; sample values fit in 2^53.
-        NumericData::Int64 { real, imag } => imag
-            .is_none()
-            .then(|| real.iter().map(|&v| v as f64).collect()),
-        NumericData::UInt64 { real, imag } => imag
-            .is_none()
-            .then(|| real.iter().map(|&v| v as f64).collect()),
-    }
+        MI_INT64 => num!(i64),
+        MI_UINT64 => num!(u64),
+        _ => return None,
+    })
 }

@@ -130,6 +130,23 @@ pub fn resample_record(
             "a positive, finite sampling period in seconds",
         ));
     }
+    // The grid size, bounded before anything is allocated (a tiny TS over a long record).
+    if let (Some(&t0), Some(&tl)) = (t.first(), t.last()) {
+        let m = ((tl - t0) / ts).floor() + 1.0;
+        if m.is_nan() || m > super::MAX_SAMPLES as f64 {
+            return Err(SysidError::setting(
+                Setting::Other("--resample"),
+                ts,
+                &format!(
+                    "a sampling period giving at most {} samples over the record's {} s (this one gives {}); \
+                     a larger TS",
+                    super::MAX_SAMPLES,
+                    super::sig6(tl - t0),
+                    super::sig6(m)
+                ),
+            ));
+        }
+    }
     let sp = spacing(t);
     let mut out = linear(t, &[u, y], ts).into_iter();
     let (Some(ru), Some(ry)) = (out.next(), out.next()) else {

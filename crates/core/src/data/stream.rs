@@ -114,7 +114,69 @@ pub struct CsvStream {
     rows: Option<super::RowRange>,
     rows_flag: &'static str,
     shape: Option<Shape>,
+    /// The file as the first pass found it: a later pass over a changed or replaced file is refused.
+    first_pass: Option<Fingerprint>,
 }
+
+/// What identifies the content of one pass: the file (device, inode, size, modification time) when it
+/// was opened, and a checksum (FNV-1a over the bits of every u and y read).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct Fingerprint {
+    file: FileId,
+    checksum: u64,
+}
+
+/// A file's identity and version as its metadata tells them.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct FileId {
+    dev: u64,
+    ino: u64,
+    len: u64,
+    modified: Option<std::time::SystemTime>,
+}
+
+impl FileId {
+    fn of(meta: &std::fs::Metadata) -> Self {
+        #[cfg(unix)]
+        let (dev, ino) = {
+            use std::os::unix::fs::MetadataExt;
+            (meta.dev(), meta.ino())
+        };
+        #[cfg(not(unix))]
+        let (dev, ino) = (0, 0);
+        FileId {
+            dev,
+            ino,
+            len: meta.len(),
+            modified: meta.modified().ok(),
+        }
+    }
+
+    /// How `self` differs from the `first` pass's file, in words (`None`: it does not).
+    fn change_from(&self, first: &FileId) -> Option<String> {
+        if (self.dev, self.ino) != (first.dev, first.ino) {
+            Some("it was replaced by another file (a different inode)".into())
+        } else if self.len != first.len {
+            Some(format!(
+                "its size changed from {} to {} bytes",
+                first.len, self.len
+            ))
+        } else if self.modified != first.modified {
+            Some("it was modified (a different modification time)".into())
+        } else {
+            None
+        }
+    }
+}
+
+/// FNV-1a, 64 bits, folded over the bits of `v`.
+fn fnv(hash: u64, v: f64) -> u64 {
+    v.to_bits().to_le_bytes().iter().fold(hash, |h, &b| {
+        (h ^ u64::from(b)).wrapping_mul(0x0100_0000_01b3)
+    })
+}
+
+const FNV_OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
 
 /// Time steps seen in a pass: the first and last time, the smallest and largest step with their lines.
 #[derive(Debug, Clone, Copy)]
@@ -213,12 +275,24 @@ impl CsvStream {
             rows: opts.rows,
             rows_flag: opts.rows_flag,
             shape: None,
+            first_pass: None,
         })
     }
 
     /// The shape found by the first complete pass (`None` before it).
     pub fn shape(&self) -> Option<Shape> {
         self.shape
+    }
+
+    /// The error of a file that changed between passes (`how`, in words).
+    fn changed(&self, how: &str) -> SysidError {
+        SysidError::File {
+            file: self.name.clone(),
+            message: format!(
+                "the file changed between the passes of --stream ({how}): the model would come from \
+                 one version and the metrics from another; run again on a file that is not being written"
+            ),
+        }
     }
 
     /// The error at line `line`, column `col` (0-based) of the file.
@@ -278,6 +352,11 @@ impl RecordSource for CsvStream {
             source,
         };
         let mut file = std::fs::File::open(&self.path).map_err(io)?;
+        let file_id = FileId::of(&file.metadata().map_err(io)?);
+        if let Some(change) = self.first_pass.and_then(|f| file_id.change_from(&f.file)) {
+            return Err(self.changed(&change));
+        }
+        let mut checksum = FNV_OFFSET;
         if self.bom {
             let mut skip = [0u8; 3];
             file.read_exact(&mut skip).map_err(io)?;
@@ -349,8 +428,10 @@ impl RecordSource for CsvStream {
                 )
                 .map_err(|m| self.at(line, col, m))
             };
-            u.push(value(self.ucol)?);
-            y.push(value(self.ycol)?);
+            let (uk, yk) = (value(self.ucol)?, value(self.ycol)?);
+            checksum = fnv(fnv(checksum, uk), yk);
+            u.push(uk);
+            y.push(yk);
             if let Some(tc) = tcol {
                 let t = value(tc)? * self.time_scale;
                 scan = Some(match scan {
@@ -431,6 +512,18 @@ impl RecordSource for CsvStream {
                 },
             },
         };
+        match self.first_pass {
+            Some(f) if f.checksum != checksum => {
+                return Err(self.changed("its u and y values differ from the first pass's"))
+            }
+            Some(_) => {}
+            None => {
+                self.first_pass = Some(Fingerprint {
+                    file: file_id,
+                    checksum,
+                })
+            }
+        }
         self.shape = Some(shape);
         Ok(shape)
     }
@@ -442,4 +535,66 @@ fn unreachable_ts(name: &str) -> Result<f64, SysidError> {
         file: name.to_string(),
         message: "no sampling period: pass --ts".into(),
     })
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    fn write_record(path: &Path, offset: f64) {
+        let mut text = String::from("t,u,y\n");
+        for k in 0..50 {
+            text.push_str(&format!(
+                "{},{},{}\n",
+                k as f64 * 0.01,
+                k % 3,
+                offset + k as f64
+            ));
+        }
+        std::fs::write(path, text).unwrap();
+    }
+
+    fn pass(s: &mut CsvStream) -> Result<Shape, SysidError> {
+        s.pass(&mut |_, _, _| Ok(()))
+    }
+
+    // A file replaced between two passes by another of the same length and shape is refused on the
+    // second pass (a model from one file and metrics from another would be silently wrong).
+    #[test]
+    fn a_file_replaced_between_passes_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("r.csv");
+        write_record(&path, 0.0);
+        let mut s = CsvStream::open(&path, &CsvOptions::default()).unwrap();
+        pass(&mut s).unwrap();
+        pass(&mut s).unwrap(); // an unchanged file passes again
+        let other = dir.path().join("other.csv");
+        write_record(&other, 1.0);
+        std::fs::rename(&other, &path).unwrap();
+        let e = pass(&mut s).unwrap_err().to_string();
+        assert!(e.contains("changed between the passes"), "{e}");
+    }
+
+    // Rewritten in place with the same size and different values: the checksum of the values differs,
+    // whatever the modification time says.
+    #[test]
+    fn a_file_rewritten_in_place_is_refused() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("r.csv");
+        write_record(&path, 0.0);
+        let mut s = CsvStream::open(&path, &CsvOptions::default()).unwrap();
+        pass(&mut s).unwrap();
+        let modified = std::fs::metadata(&path).unwrap().modified().unwrap();
+        let text = std::fs::read_to_string(&path)
+            .unwrap()
+            .replace(",2\n", ",7\n");
+        let f = std::fs::OpenOptions::new().write(true).open(&path).unwrap();
+        use std::io::Write as _;
+        (&f).write_all(text.as_bytes()).unwrap();
+        f.set_modified(modified).unwrap();
+        drop(f);
+        let e = pass(&mut s).unwrap_err().to_string();
+        assert!(e.contains("changed between the passes"), "{e}");
+    }
 }

@@ -1,0 +1,460 @@
+//! `ipa-sysid calibrate`: the physics plant fitted to a measured record (a digital twin, MATLAB
+//! `nlgreyest` for this one model), written as a plant-config TOML that every command takes
+//! (`--plant ipa --plant-config PLANT.toml`); the report sets the twin's free-run fit beside the best
+//! Hammerstein model (output error) identified on the same records. `--study N` runs the recovery
+//! study on N plants drawn around the defaults instead. All computing is in `ipa::calibrate`.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use ipa::calibrate::study::Study;
+use ipa::calibrate::{Calibrated, Calibration, Columns, Parameter};
+use serde_json::json;
+
+use super::common::{check_outputs, print_report, write_output};
+
+/// Flags of `calibrate`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Estimation record (CSV with columns u, y and, when measured, p_a_pa, p_b_pa in Pa absolute).
+    #[arg(long, value_name = "REC.csv", required_unless_present = "study")]
+    pub data: Option<PathBuf>,
+    /// Validation record (same columns): the free-run fit of the twin and of the Hammerstein model.
+    #[arg(long, value_name = "VAL.csv")]
+    pub validation: Option<PathBuf>,
+    /// Parameters to estimate, comma-separated (names or TOML keys; `all`). Default: all of
+    /// supply_conductance, exhaust_conductance, opening_delay, closing_delay, static_friction,
+    /// coulomb_friction, stribeck_velocity, viscous_friction, moving_mass, dead_volume_cap,
+    /// dead_volume_rod, external_force.
+    #[arg(long, value_name = "LIST")]
+    pub free: Option<String>,
+    /// Parameters to keep at their start value (removed from the free set), comma-separated.
+    #[arg(long, value_name = "LIST")]
+    pub fixed: Option<String>,
+    /// The start plant (default: the built-in defaults); its parameters that are not free are kept.
+    #[arg(long, value_name = "START.toml")]
+    pub plant_config: Option<PathBuf>,
+    /// Output plant-config TOML of the twin.
+    #[arg(long, value_name = "PLANT.toml", required_unless_present = "study")]
+    pub out: Option<PathBuf>,
+    /// Write the report as JSON here (`-` for standard output).
+    #[arg(long, value_name = "FILE")]
+    pub json: Option<PathBuf>,
+    /// Name of the command column u (counts).
+    #[arg(long, default_value = "u", value_name = "NAME")]
+    pub u_col: String,
+    /// Name of the position column y (mm).
+    #[arg(long, default_value = "y", value_name = "NAME")]
+    pub y_col: String,
+    /// Name of the cap-side pressure column p_a (Pa, absolute); default p_a_pa when present.
+    #[arg(long, value_name = "NAME", requires = "pb_col")]
+    pub pa_col: Option<String>,
+    /// Name of the rod-side pressure column p_b (Pa, absolute); default p_b_pa when present.
+    #[arg(long, value_name = "NAME", requires = "pa_col")]
+    pub pb_col: Option<String>,
+    /// Sampling period Ts in s (default: from the t column, else 0.01).
+    #[arg(long, value_name = "SECONDS")]
+    pub ts: Option<f64>,
+    /// Nominal length of a shooting segment in s (0: one free run over the record).
+    #[arg(long, default_value_t = 0.5, value_name = "SECONDS")]
+    pub segment: f64,
+    /// Largest number of Levenberg-Marquardt iterations.
+    #[arg(long, default_value_t = 40)]
+    pub max_iterations: usize,
+    /// Do not identify the Hammerstein models for comparison.
+    #[arg(long)]
+    pub no_baseline: bool,
+    /// Exit with code 1 when the report has warnings.
+    #[arg(long)]
+    pub strict: bool,
+    /// Run the recovery study on N plants drawn ±30 % around the defaults instead (docs/twin.md).
+    #[arg(long, value_name = "N", conflicts_with_all = ["data", "out", "validation"])]
+    pub study: Option<usize>,
+    /// First seed of the study (plant i uses SEED + i).
+    #[arg(long, default_value_t = 1, requires = "study")]
+    pub seed: u64,
+}
+
+/// The Hammerstein output-error structures tried for the comparison (na, nb, nk).
+const BASELINE_ORDERS: [(usize, usize, usize); 4] = [(1, 1, 1), (2, 2, 1), (3, 1, 1), (3, 3, 1)];
+
+/// Runs `calibrate`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let calibration = settings(&args)?;
+    if let Some(n) = args.study {
+        return run_study(&args, calibration, n);
+    }
+    let (Some(data), Some(out)) = (&args.data, &args.out) else {
+        anyhow::bail!("--data and --out are required (or --study N)");
+    };
+    let mut inputs: Vec<&Path> = vec![data];
+    inputs.extend(args.validation.as_deref());
+    inputs.extend(args.plant_config.as_deref());
+    check_outputs(&[(&args.out, "--out"), (&args.json, "--json")], &inputs)?;
+    let cols = Columns {
+        u: args.u_col.clone(),
+        y: args.y_col.clone(),
+        pressures: args.pa_col.clone().zip(args.pb_col.clone()),
+    };
+    let est = ipa::calibrate::read_record(data, &cols, args.ts)?;
+    let val = match &args.validation {
+        Some(v) => Some(ipa::calibrate::read_record(v, &cols, args.ts)?),
+        None => None,
+    };
+    let started = std::time::Instant::now();
+    let twin = calibration.fit(&est, val.as_ref())?;
+    let seconds = started.elapsed().as_secs_f64();
+    let baseline = if args.no_baseline {
+        None
+    } else {
+        Some(best_hammerstein(&args, data, args.validation.as_deref())?)
+    };
+    let toml = format!(
+        "# Digital twin calibrated by `ipa-sysid calibrate` on {}.\n{}",
+        data.display(),
+        twin.config.to_commented_toml()
+    );
+    write_output(out, toml.as_bytes(), &inputs, "--out")?;
+    let text = report_text(&twin, baseline.as_ref(), seconds, out);
+    print_report(&text, args.json.as_deref());
+    if let Some(path) = &args.json {
+        let value = report_json(&twin, baseline.as_ref(), seconds);
+        let s = serde_json::to_string_pretty(&value)? + "\n";
+        write_output(path, s.as_bytes(), &inputs, "--json")?;
+    }
+    crate::exit::strict(args.strict, twin.warnings.len())
+}
+
+/// The calibration settings from the flags.
+fn settings(args: &Args) -> anyhow::Result<Calibration> {
+    let start = match &args.plant_config {
+        Some(p) => ipa::PlantConfig::from_toml_file(p)?,
+        None => ipa::PlantConfig::default(),
+    };
+    let mut free = match &args.free {
+        Some(list) => ipa::calibrate::parse_list(list).context("--free")?,
+        None => Parameter::ALL.to_vec(),
+    };
+    if let Some(list) = &args.fixed {
+        let fixed = ipa::calibrate::parse_list(list).context("--fixed")?;
+        free.retain(|p| !fixed.contains(p));
+    }
+    if free.is_empty() {
+        anyhow::bail!("--free/--fixed leave no parameter to calibrate");
+    }
+    if !(args.segment.is_finite() && args.segment >= 0.0) {
+        anyhow::bail!(
+            "invalid --segment {}: expected a length in s >= 0",
+            args.segment
+        );
+    }
+    if args.max_iterations == 0 || args.max_iterations > 10_000 {
+        anyhow::bail!(
+            "invalid --max-iterations {}: expected 1..=10000",
+            args.max_iterations
+        );
+    }
+    Ok(Calibration {
+        start,
+        free,
+        segment_s: args.segment,
+        max_iterations: args.max_iterations,
+        ..Calibration::default()
+    })
+}
+
+/// The best Hammerstein output-error model of [`BASELINE_ORDERS`] on the same records.
+struct Baseline {
+    orders: (usize, usize, usize),
+    /// Free-run fit % (measured initial outputs) on the validation record, else the estimation record.
+    fit_percent: f64,
+    on_validation: bool,
+}
+
+fn best_hammerstein(args: &Args, data: &Path, val: Option<&Path>) -> anyhow::Result<Baseline> {
+    let opts = sysid::data::CsvOptions {
+        u_col: args.u_col.clone(),
+        y_col: args.y_col.clone(),
+        ts: args.ts,
+        fallback_ts: Some(ipa::DEFAULT_TS_S),
+        ..Default::default()
+    };
+    let est = sysid::data::read_csv(data, &opts)?;
+    let val = match val {
+        Some(v) => Some(sysid::data::read_csv(v, &opts)?),
+        None => None,
+    };
+    let mut best: Option<Baseline> = None;
+    for (na, nb, nk) in BASELINE_ORDERS {
+        let settings = sysid::Identification::default()
+            .with_kind(sysid::ModelKind::Hammerstein)
+            .with_orders(na, nb, nk)
+            .with_estimator(sysid::EstimatorSettings::Oe(sysid::OutputError::default()));
+        let settings = sysid::Identification {
+            drop_unexcited_branch: true,
+            ..settings
+        };
+        let Ok(fit) = sysid::identify(&est, &settings) else {
+            continue;
+        };
+        let on = val.as_ref().unwrap_or(&est);
+        let Some(f) = sysid::metrics::metrics(&fit.model, on)
+            .ok()
+            .and_then(|m| m.fit_sim_measured_percent)
+        else {
+            continue;
+        };
+        if best.as_ref().is_none_or(|b| f > b.fit_percent) {
+            best = Some(Baseline {
+                orders: (na, nb, nk),
+                fit_percent: f,
+                on_validation: val.is_some(),
+            });
+        }
+    }
+    best.context("no Hammerstein model could be identified on the record for the comparison")
+}
+
+fn fit(r: &Option<ipa::calibrate::FreeRun>) -> Option<f64> {
+    r.as_ref().and_then(|r| r.fit_percent)
+}
+
+fn fmt_fit(f: Option<f64>) -> String {
+    f.map_or("-".into(), |f| format!("{f:.2} %"))
+}
+
+fn report_text(t: &Calibrated, b: Option<&Baseline>, seconds: f64, out: &Path) -> String {
+    let mut s = format!(
+        "Calibrated twin of the physics IPA ({} segments, {} pressures; {} iterations, {} simulations, {}; {:.2} s)\n",
+        t.segments,
+        if t.used_pressures { "with" } else { "without" },
+        t.iterations,
+        t.evaluations,
+        t.termination,
+        seconds
+    );
+    s.push_str(&format!(
+        "{:<22} {:>12} {:>12} {:>11}  unit\n",
+        "parameter", "start", "estimate", "std"
+    ));
+    for e in &t.estimates {
+        s.push_str(&format!(
+            "{:<22} {:>12.5} {:>12.5} {:>11}  {}\n",
+            e.parameter.name(),
+            e.start,
+            e.value,
+            e.std.map_or("-".into(), |v| format!("{v:.2e}")),
+            e.parameter.unit()
+        ));
+    }
+    s.push_str(&format!(
+        "segment RMS position error {:.4} mm (cost {:.4e} -> {:.4e})\n",
+        t.segment_rmse_mm, t.cost_start, t.cost
+    ));
+    s.push_str(&format!(
+        "free-run fit, estimation: start {} twin {}\n",
+        fmt_fit(fit(&t.estimation_start)),
+        fmt_fit(fit(&t.estimation))
+    ));
+    if t.validation.is_some() || t.validation_start.is_some() {
+        s.push_str(&format!(
+            "free-run fit, validation: start {} twin {}\n",
+            fmt_fit(fit(&t.validation_start)),
+            fmt_fit(fit(&t.validation))
+        ));
+    }
+    if let Some(b) = b {
+        s.push_str(&format!(
+            "best Hammerstein model (output error, na nb nk = {} {} {}): free-run fit {:.2} % on the {} record\n",
+            b.orders.0,
+            b.orders.1,
+            b.orders.2,
+            b.fit_percent,
+            if b.on_validation { "validation" } else { "estimation" }
+        ));
+    }
+    for w in &t.warnings {
+        s.push_str(&format!("warning: {w}\n"));
+    }
+    s.push_str(&format!(
+        "wrote {} (use: --plant ipa --plant-config {})\n",
+        out.display(),
+        out.display()
+    ));
+    s
+}
+
+fn report_json(t: &Calibrated, b: Option<&Baseline>, seconds: f64) -> serde_json::Value {
+    let estimates: Vec<serde_json::Value> = t
+        .estimates
+        .iter()
+        .map(|e| {
+            json!({
+                "parameter": e.parameter.name(),
+                "key": e.parameter.key(),
+                "unit": e.parameter.unit(),
+                "start": e.start,
+                "value": e.value,
+                "std": e.std,
+                "at_bound": e.at_bound,
+            })
+        })
+        .collect();
+    let nan_to_null = |v: f64| if v.is_finite() { Some(v) } else { None };
+    json!({
+        "estimates": estimates,
+        "correlation": t.correlation.iter().map(|r| r.iter().map(|&v| nan_to_null(v)).collect::<Vec<_>>()).collect::<Vec<_>>(),
+        "segments": t.segments,
+        "used_pressures": t.used_pressures,
+        "iterations": t.iterations,
+        "simulations": t.evaluations,
+        "termination": t.termination.to_string(),
+        "cost_start": t.cost_start,
+        "cost": t.cost,
+        "cost_floor": t.cost_floor,
+        "segment_rmse_mm": nan_to_null(t.segment_rmse_mm),
+        "fit_estimation_start_percent": fit(&t.estimation_start),
+        "fit_estimation_percent": fit(&t.estimation),
+        "fit_validation_start_percent": fit(&t.validation_start),
+        "fit_validation_percent": fit(&t.validation),
+        "hammerstein": b.map(|b| json!({
+            "na": b.orders.0, "nb": b.orders.1, "nk": b.orders.2,
+            "method": "oe",
+            "fit_percent": b.fit_percent,
+            "record": if b.on_validation { "validation" } else { "estimation" },
+        })),
+        "seconds": seconds,
+        "warnings": t.warnings.iter().map(ToString::to_string).collect::<Vec<_>>(),
+    })
+}
+
+/// `--study N`: the recovery study, one line per plant and the largest error per parameter.
+fn run_study(args: &Args, calibration: Calibration, n: usize) -> anyhow::Result<()> {
+    if n == 0 || n > 1000 {
+        anyhow::bail!("invalid --study {n}: expected 1..=1000 plants");
+    }
+    check_outputs(&[(&args.json, "--json")], &[])?;
+    let study = Study {
+        plants: n,
+        seed: args.seed,
+        calibration,
+        ..Study::default()
+    };
+    let rows = study.run()?;
+    let text = study_table(&study, &rows);
+    print_report(&text, args.json.as_deref());
+    if let Some(path) = &args.json {
+        let value = json!({
+            "plants": rows.iter().map(|c| json!({
+                "seed": c.seed,
+                "seconds": c.seconds,
+                "fit_validation_percent": fit(&c.calibrated.validation),
+                "fit_validation_start_percent": fit(&c.calibrated.validation_start),
+                "parameters": c.calibrated.estimates.iter().zip(&c.relative_errors).zip(&c.determined).map(|((e, r), d)| json!({
+                    "parameter": e.parameter.name(),
+                    "truth": e.parameter.get(&c.truth),
+                    "estimate": e.value,
+                    "relative_error": r,
+                    "determined": d,
+                })).collect::<Vec<_>>(),
+                "warnings": c.calibrated.warnings.iter().map(ToString::to_string).collect::<Vec<_>>(),
+            })).collect::<Vec<_>>(),
+        });
+        let s = serde_json::to_string_pretty(&value)? + "\n";
+        write_output(path, s.as_bytes(), &[], "--json")?;
+    }
+    Ok(())
+}
+
+/// The study as text: one line per plant, then the largest relative error of each parameter over the
+/// plants where the calibration reported it determined, and how many those were.
+fn study_table(study: &Study, rows: &[ipa::calibrate::study::StudyCase]) -> String {
+    let free = &study.calibration.free;
+    let mut s = format!(
+        "Recovery study: {} plants drawn ±{:.0} % around the defaults (seeds {}..{}), estimation {} samples of \
+         --input calibration, validation {} samples of --input staircase (seed + 1000)\n",
+        study.plants,
+        100.0 * study.spread,
+        study.seed,
+        study.seed + study.plants as u64 - 1,
+        study.estimation_samples,
+        study.validation_samples
+    );
+    s.push_str(
+        "seed  val.fit start  val.fit twin  V/floor  max err (determined)  undetermined  seconds\n",
+    );
+    for c in rows {
+        let max_det = c
+            .relative_errors
+            .iter()
+            .zip(&c.determined)
+            .filter(|(_, d)| **d)
+            .map(|(e, _)| *e)
+            .fold(0.0f64, f64::max);
+        let undetermined: Vec<&str> = c
+            .calibrated
+            .estimates
+            .iter()
+            .zip(&c.determined)
+            .filter(|(_, d)| !**d)
+            .map(|(e, _)| e.parameter.name())
+            .collect();
+        s.push_str(&format!(
+            "{:>4}  {:>13}  {:>12}  {:>7.1}  {:>18.3} %  {}  {:.1}\n",
+            c.seed,
+            fmt_fit(fit(&c.calibrated.validation_start)),
+            fmt_fit(fit(&c.calibrated.validation)),
+            c.calibrated.cost / c.calibrated.cost_floor,
+            100.0 * max_det,
+            if undetermined.is_empty() {
+                "-".to_string()
+            } else {
+                undetermined.join(",")
+            },
+            c.seconds
+        ));
+    }
+    s.push_str(
+        "\nparameter              determined in  max error when determined  max error overall\n",
+    );
+    for (i, p) in free.iter().enumerate() {
+        let det: Vec<f64> = rows
+            .iter()
+            .filter(|c| c.determined[i])
+            .map(|c| c.relative_errors[i])
+            .collect();
+        let all = rows
+            .iter()
+            .map(|c| c.relative_errors[i])
+            .fold(0.0f64, f64::max);
+        s.push_str(&format!(
+            "{:<22} {:>6} of {:<4}  {:>23}  {:>16.3} %\n",
+            p.name(),
+            det.len(),
+            rows.len(),
+            if det.is_empty() {
+                "-".to_string()
+            } else {
+                format!("{:.3} %", 100.0 * det.iter().fold(0.0f64, |a, &b| a.max(b)))
+            },
+            100.0 * all
+        ));
+    }
+    let fits: Vec<f64> = rows
+        .iter()
+        .filter_map(|c| fit(&c.calibrated.validation))
+        .collect();
+    if !fits.is_empty() {
+        let min = fits.iter().fold(f64::INFINITY, |a, &b| a.min(b));
+        let mut sorted = fits.clone();
+        sorted.sort_by(f64::total_cmp);
+        s.push_str(&format!(
+            "validation free-run fit of the twin: median {:.2} %, worst {:.2} %, >= 98 % in {} of {}\n",
+            sorted[sorted.len() / 2],
+            min,
+            fits.iter().filter(|f| **f >= 98.0).count(),
+            rows.len()
+        ));
+    }
+    s
+}

@@ -1,0 +1,654 @@
+//! Hostile inputs and faults through the binary (issue 21): outputs that are not regular files, signals
+//! during a write, sizes that would exhaust memory, reads that never end, and damaged headers. Each
+//! test states the class it covers; docs/reliability.md lists the limits.
+
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output, Stdio};
+
+fn corpus() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("../../tests/corpus")
+}
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
+}
+
+/// Runs the binary in `dir` with `args` (split on spaces; `{c}` is the corpus folder, `{t}` is `dir`).
+fn run(args: &str, dir: &Path) -> Output {
+    let c = corpus().display().to_string();
+    let argv: Vec<String> = args
+        .split_whitespace()
+        .map(|a| {
+            a.replace("{c}", &c)
+                .replace("{t}", &dir.display().to_string())
+        })
+        .collect();
+    bin()
+        .args(&argv)
+        .current_dir(dir)
+        .stdin(Stdio::null())
+        .output()
+        .expect("the binary runs")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn temporaries(dir: &Path) -> Vec<String> {
+    std::fs::read_dir(dir)
+        .unwrap()
+        .filter_map(|e| e.ok())
+        .map(|e| e.file_name().to_string_lossy().into_owned())
+        .filter(|n| n.starts_with(".ipa-sysid-") && n.ends_with(".tmp"))
+        .collect()
+}
+
+// A character device is written into, never replaced by a regular file: `/dev/null` discards the
+// output and stays a device; `/dev/full` gives a clear error (no space) and exit 2.
+#[cfg(unix)]
+#[test]
+fn devices_are_written_into_not_replaced() {
+    use std::os::unix::fs::FileTypeExt;
+    let dir = tempfile::tempdir().unwrap();
+    // As root, a private null device (the machine's /dev/null is shared with other programs); else
+    // /dev/null itself, which a non-root user could not replace anyway.
+    let private = dir.path().join("null");
+    let null = if Command::new("mknod")
+        .args(["-m", "666"])
+        .arg(&private)
+        .args(["c", "1", "3"])
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success())
+    {
+        private
+    } else {
+        PathBuf::from("/dev/null")
+    };
+    let out = run(
+        &format!(
+            "simulate --plant paper --samples 50 --out {}",
+            null.display()
+        ),
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let kind = std::fs::metadata(&null).unwrap().file_type();
+    assert!(
+        kind.is_char_device(),
+        "{} is still a device",
+        null.display()
+    );
+    let out = run(
+        "identify --data {c}/good.csv --method ls --json /dev/full",
+        dir.path(),
+    );
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("/dev/full"), "{}", stderr(&out));
+    assert!(std::fs::metadata("/dev/full")
+        .unwrap()
+        .file_type()
+        .is_char_device());
+}
+
+// A FIFO is written into (streamed to whoever reads it), not replaced.
+#[cfg(unix)]
+#[test]
+fn a_fifo_is_streamed_into() {
+    use std::os::unix::fs::FileTypeExt;
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("pipe");
+    let made = Command::new("mkfifo").arg(&fifo).status();
+    if !made.is_ok_and(|s| s.success()) {
+        eprintln!("SKIPPED: mkfifo is not available");
+        return;
+    }
+    let f = fifo.clone();
+    let reader = std::thread::spawn(move || std::fs::read_to_string(f).unwrap());
+    let out = run(
+        "simulate --plant paper --samples 20 --out {t}/pipe",
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let text = reader.join().unwrap();
+    assert!(text.starts_with("t,u,y\n"), "{text}");
+    assert_eq!(text.lines().count(), 21);
+    assert!(std::fs::metadata(&fifo).unwrap().file_type().is_fifo());
+}
+
+// `-` is standard output for every output flag (the text report then goes to standard error).
+#[test]
+fn a_dash_is_standard_output_for_every_output_flag() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::copy(corpus().join("good_model.json"), dir.path().join("m.json")).unwrap();
+    let cases = [
+        ("simulate --plant paper --samples 10 --out -", "t,u,y"),
+        (
+            "identify --data {c}/good.csv --method ls --json -",
+            "\"model\"",
+        ),
+        (
+            "identify --data {c}/good.csv --method ls --save-model -",
+            "\"format\"",
+        ),
+        (
+            "validate --model {t}/m.json --data {c}/good.csv --out -",
+            "y_sim",
+        ),
+        (
+            "validate --model {t}/m.json --data {c}/good.csv --json -",
+            "{",
+        ),
+        ("delay --data {c}/good.csv --json -", "{"),
+    ];
+    for (args, needle) in cases {
+        let out = run(args, dir.path());
+        assert!(out.status.success(), "{args}: {}", stderr(&out));
+        let text = String::from_utf8_lossy(&out.stdout);
+        assert!(text.contains(needle), "{args}: {text}");
+        assert!(
+            !dir.path().join("-").exists(),
+            "{args} wrote a file named -"
+        );
+    }
+}
+
+// A symbolic link is followed: the file it names is replaced atomically, the link stays a link. A link
+// to nothing, a read-only file, a socket and a folder are refused before any work, and left as they are.
+#[cfg(unix)]
+#[test]
+fn links_are_followed_and_unwritable_targets_refused() {
+    use std::os::unix::fs::PermissionsExt;
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("real.csv"), "old\n").unwrap();
+    std::os::unix::fs::symlink("real.csv", d.join("link.csv")).unwrap();
+    let out = run("simulate --plant paper --samples 10 --out {t}/link.csv", d);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(std::fs::symlink_metadata(d.join("link.csv"))
+        .unwrap()
+        .file_type()
+        .is_symlink());
+    assert!(std::fs::read_to_string(d.join("real.csv"))
+        .unwrap()
+        .starts_with("t,u,y"));
+
+    std::os::unix::fs::symlink("nothing.csv", d.join("dangling.csv")).unwrap();
+    std::fs::write(d.join("ro.csv"), "keep\n").unwrap();
+    std::fs::set_permissions(d.join("ro.csv"), std::fs::Permissions::from_mode(0o444)).unwrap();
+    let _socket = std::os::unix::net::UnixListener::bind(d.join("sock")).unwrap();
+    for (target, needle) in [
+        ("dangling.csv", "names nothing"),
+        ("ro.csv", "read-only"),
+        ("sock", "socket"),
+    ] {
+        let out = run(
+            &format!("simulate --plant paper --samples 10 --out {{t}}/{target}"),
+            d,
+        );
+        assert_eq!(out.status.code(), Some(2), "{target}: {}", stderr(&out));
+        assert!(stderr(&out).contains(needle), "{target}: {}", stderr(&out));
+    }
+    assert_eq!(std::fs::read_to_string(d.join("ro.csv")).unwrap(), "keep\n");
+    assert!(!d.join("nothing.csv").exists());
+    assert!(temporaries(d).is_empty());
+}
+
+// Replacing an existing file keeps its owner and group (checked as root, the only user who can give a
+// file to someone else).
+#[cfg(unix)]
+#[test]
+fn a_replaced_file_keeps_its_owner() {
+    use std::os::unix::fs::MetadataExt;
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("owned.csv");
+    std::fs::write(&p, "old\n").unwrap();
+    if std::os::unix::fs::chown(&p, Some(4321), Some(4322)).is_err() {
+        eprintln!("SKIPPED: not root, cannot give a file to another user");
+        return;
+    }
+    let out = run(
+        "simulate --plant paper --samples 10 --out {t}/owned.csv",
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let m = std::fs::metadata(&p).unwrap();
+    assert_eq!((m.uid(), m.gid()), (4321, 4322));
+    assert!(std::fs::read_to_string(&p).unwrap().starts_with("t,u,y"));
+}
+
+// `reproduce --out DIR` refuses a folder holding files it did not write, before any work, and leaves
+// them untouched.
+#[test]
+fn reproduce_refuses_a_folder_of_other_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let out_dir = dir.path().join("mine");
+    std::fs::create_dir(&out_dir).unwrap();
+    std::fs::write(out_dir.join("report.html"), "my own report").unwrap();
+    let out = run("reproduce --plant paper --out {t}/mine", dir.path());
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("report.html"), "{}", stderr(&out));
+    assert_eq!(
+        std::fs::read_to_string(out_dir.join("report.html")).unwrap(),
+        "my own report"
+    );
+    assert_eq!(std::fs::read_dir(&out_dir).unwrap().count(), 1);
+}
+
+// SIGTERM during a long write removes the temporary file: nothing `.ipa-sysid-*.tmp` is left, and the
+// output was not created.
+#[cfg(unix)]
+#[test]
+fn sigterm_during_a_write_leaves_no_temporary_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // A record of some 90 MB: its write and sync take long enough to be seen and interrupted.
+    let mut child = bin()
+        .args([
+            "simulate",
+            "--plant",
+            "paper",
+            "--samples",
+            "3000000",
+            "--out",
+            "big.csv",
+        ])
+        .current_dir(d)
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut seen = false;
+    while child.try_wait().unwrap().is_none() {
+        if !temporaries(d).is_empty() {
+            seen = true;
+            let _ = Command::new("kill")
+                .args(["-TERM", &child.id().to_string()])
+                .status();
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+    let status = child.wait().unwrap();
+    assert!(
+        seen,
+        "the write was never seen in progress (status {status})"
+    );
+    assert!(!status.success());
+    assert!(temporaries(d).is_empty(), "{:?}", temporaries(d));
+    assert!(!d.join("big.csv").exists());
+}
+
+// Sizes that input drives are checked before anything is allocated: a sample count beyond the bound,
+// and a --resample period that would make billions of samples, are errors (exit 2), not aborts.
+#[test]
+fn sizes_are_bounded_before_allocation() {
+    let dir = tempfile::tempdir().unwrap();
+    for (args, needle) in [
+        (
+            "simulate --samples 10000000000 --out {t}/x.csv",
+            "--samples",
+        ),
+        (
+            "simulate --plant paper --samples 0 --out {t}/x.csv",
+            "--samples",
+        ),
+        ("identify --data {c}/good.csv --resample 1e-9", "--resample"),
+        ("delay --data {c}/good.csv --resample 1e-12", "--resample"),
+        ("order --data {c}/good.csv --resample 1e-12", "--resample"),
+    ] {
+        let out = run(args, dir.path());
+        assert_eq!(out.status.code(), Some(2), "{args}: {}", stderr(&out));
+        assert!(stderr(&out).contains(needle), "{args}: {}", stderr(&out));
+    }
+    assert!(!dir.path().join("x.csv").exists());
+}
+
+// A read is bounded as it goes, not by the file's metadata (0 for a device or a pipe): /dev/zero is
+// refused at its first bytes (binary), for every file flag.
+#[cfg(unix)]
+#[test]
+fn endless_devices_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    for (args, needle) in [
+        ("identify --data /dev/zero", "NUL byte"),
+        ("validate --model /dev/zero --data {c}/good.csv", "at most"),
+        (
+            "simulate --plant-config /dev/zero --out {t}/x.csv",
+            "at most",
+        ),
+        (
+            "simulate --input file:/dev/zero --out {t}/x.csv",
+            "NUL byte",
+        ),
+    ] {
+        let out = run(args, dir.path());
+        assert_eq!(out.status.code(), Some(2), "{args}: {}", stderr(&out));
+        assert!(stderr(&out).contains(needle), "{args}: {}", stderr(&out));
+    }
+}
+
+// A header of many columns is refused at once with the bound; a duplicate name among thousands is
+// found (the check is one pass); a huge cell or column name is not echoed whole into the message.
+#[test]
+fn damaged_headers_get_short_clear_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let wide: Vec<String> = (0..200_000).map(|i| format!("c{i}")).collect();
+    std::fs::write(d.join("wide.csv"), format!("{}\n", wide.join(","))).unwrap();
+    let out = run("identify --data {t}/wide.csv", d);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("200000 columns"), "{}", stderr(&out));
+
+    let mut names: Vec<String> = (0..9_000).map(|i| format!("c{i}")).collect();
+    names.push("c17".into());
+    std::fs::write(d.join("dup.csv"), format!("{}\n", names.join(","))).unwrap();
+    let out = run("identify --data {t}/dup.csv", d);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        stderr(&out).contains("duplicate column name 'c17' (also column 18)"),
+        "{}",
+        stderr(&out)
+    );
+
+    let big = "9".repeat(1_000_000);
+    std::fs::write(d.join("cell.csv"), format!("t,u,y\n0,{big}x,1\n0.01,1,2\n")).unwrap();
+    std::fs::write(d.join("name.csv"), format!("t,{big},y\n0,1,1\n0.01,1,2\n")).unwrap();
+    for f in ["cell.csv", "name.csv"] {
+        let out = run(&format!("identify --data {{t}}/{f}"), d);
+        assert_eq!(out.status.code(), Some(2));
+        assert!(out.stderr.len() < 2000, "{f}: {} bytes", out.stderr.len());
+    }
+}
+
+// Time that goes backwards after the first samples stops `track` with the line; a jump is a warning in
+// the JSON lines and in the summary.
+#[test]
+fn track_checks_every_time_step() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut rows = String::from("t,u,y\n");
+    for k in 0..40 {
+        rows.push_str(&format!(
+            "{},{},{}\n",
+            k as f64 * 0.01,
+            (k % 7) as f64,
+            k as f64 * 0.1
+        ));
+    }
+    let mut back = rows.clone();
+    back.push_str("0.2,1,1\n");
+    std::fs::write(d.join("back.csv"), back).unwrap();
+    let out = run("track --data {t}/back.csv --na 1 --nb 1", d);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("back.csv:42"), "{}", stderr(&out));
+    assert!(stderr(&out).contains("backwards"), "{}", stderr(&out));
+
+    let mut jump = rows;
+    for k in 0..20 {
+        jump.push_str(&format!(
+            "{},{},{}\n",
+            5.0 + k as f64 * 0.01,
+            (k % 5) as f64,
+            1.0
+        ));
+    }
+    std::fs::write(d.join("jump.csv"), jump).unwrap();
+    let out = run(
+        "track --data {t}/jump.csv --na 1 --nb 1 --every 1 --json-summary {t}/s.json",
+        d,
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let lines = String::from_utf8_lossy(&out.stdout);
+    assert!(lines.contains("time jumps from 0.39 to 5 s"), "{lines}");
+    let summary: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("s.json")).unwrap()).unwrap();
+    assert!(summary["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .any(|w| w.as_str().unwrap().contains("time jumps")));
+}
+
+/// `good_model.json` with `edit` applied to its JSON, written to `dir/name`.
+fn edited_model(dir: &Path, name: &str, edit: impl FnOnce(&mut serde_json::Value)) {
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(corpus().join("good_model.json")).unwrap())
+            .unwrap();
+    edit(&mut v);
+    std::fs::write(dir.join(name), serde_json::to_string(&v).unwrap()).unwrap();
+}
+
+// A model file whose breakpoints cross (b_l > b_r) is loaded with a warning by validate (text and
+// JSON) and simulate; an unstable model's simulation is announced; a Ts whose sample times overflow is
+// refused instead of writing t = inf.
+#[test]
+fn suspicious_model_files_are_announced() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    edited_model(d, "crossed.json", |v| {
+        v["model"]["deadzone"]["b_l"] = 5.0.into();
+        v["model"]["deadzone"]["b_r"] = (-5.0).into();
+    });
+    edited_model(d, "huge_ts.json", |v| v["model"]["ts"] = 1.7e308.into());
+    let out = run(
+        "validate --model {t}/crossed.json --data {c}/good.csv --ts 0.01 --json {t}/v.json",
+        d,
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("v.json")).unwrap()).unwrap();
+    assert!(
+        v["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|w| w.as_str().unwrap().contains("b_l = 5 > b_r = -5")),
+        "{v}"
+    );
+    let out = run(
+        "simulate --plant model:{t}/crossed.json --input prbs --samples 20 --out {t}/s.csv",
+        d,
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("b_l = 5 > b_r = -5"),
+        "{}",
+        stderr(&out)
+    );
+
+    let out = run(
+        "simulate --plant model:{c}/model/unstable.json --input prbs --samples 20 --out {t}/u.csv",
+        d,
+    );
+    assert!(stderr(&out).contains("unstable model"), "{}", stderr(&out));
+
+    let out = run(
+        "simulate --plant model:{t}/huge_ts.json --input prbs --samples 20 --out {t}/h.csv",
+        d,
+    );
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("finite time"), "{}", stderr(&out));
+    assert!(!d.join("h.csv").exists());
+}
+
+// A Monte Carlo study in which every run of a method fails is an error (non-zero exit) after the table
+// is shown; a study beyond the work bound is refused before it starts, and --max-work raises the bound.
+#[test]
+fn montecarlo_failures_and_work_are_bounded() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = run(
+        "montecarlo --plant paper --samples 5 --runs 3 --method ls",
+        dir.path(),
+    );
+    assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("every run failed for ls"),
+        "{}",
+        stderr(&out)
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("0 ok, 3 failed"));
+
+    let out = run("montecarlo --runs 10000 --samples 50000000", dir.path());
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("--max-work"), "{}", stderr(&out));
+    let out = run(
+        "montecarlo --plant paper --runs 3 --samples 300 --method ls --max-work 800",
+        dir.path(),
+    );
+    assert_eq!(out.status.code(), Some(2), "900 > 800: {}", stderr(&out));
+    let out = run(
+        "montecarlo --plant paper --runs 3 --samples 300 --method ls --max-work 900",
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+}
+
+/// The 128-byte header of a little-endian Level 5 MAT-file (MAT-File Format, MathWorks, ch. 1).
+fn mat_header() -> Vec<u8> {
+    let mut h = b"MATLAB 5.0 MAT-file, hostile-input tests".to_vec();
+    h.resize(124, b' ');
+    h.extend_from_slice(&0x0100u16.to_le_bytes());
+    h.extend_from_slice(b"IM");
+    h
+}
+
+/// A miMATRIX element: array class `class`, dimensions 1 x n, name, and the values as stored with
+/// data type `storage` (`values`: their little-endian bytes); `declared` overrides the element's byte
+/// count (a damaged or hostile file).
+fn mat_matrix(
+    class: u32,
+    n: usize,
+    name: &str,
+    storage: u32,
+    values: &[u8],
+    declared: Option<u32>,
+) -> Vec<u8> {
+    let tag = |out: &mut Vec<u8>, ty: u32, len: usize| {
+        out.extend_from_slice(&ty.to_le_bytes());
+        out.extend_from_slice(&(len as u32).to_le_bytes());
+    };
+    let pad = |out: &mut Vec<u8>| out.resize(out.len().div_ceil(8) * 8, 0);
+    let mut body = Vec::new();
+    tag(&mut body, 6, 8);
+    body.extend_from_slice(&class.to_le_bytes());
+    body.extend_from_slice(&0u32.to_le_bytes());
+    tag(&mut body, 5, 8);
+    body.extend_from_slice(&1i32.to_le_bytes());
+    body.extend_from_slice(&(n as i32).to_le_bytes());
+    tag(&mut body, 1, name.len());
+    body.extend_from_slice(name.as_bytes());
+    pad(&mut body);
+    tag(&mut body, storage, values.len());
+    body.extend_from_slice(values);
+    pad(&mut body);
+    let mut e = Vec::new();
+    tag(&mut e, 14, declared.map_or(body.len(), |d| d as usize));
+    e.extend_from_slice(&body);
+    e
+}
+
+/// `element` wrapped in a zlib-compressed miCOMPRESSED element.
+fn mat_compressed(element: &[u8]) -> Vec<u8> {
+    use std::io::Write;
+    let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::default());
+    z.write_all(element).unwrap();
+    let zipped = z.finish().unwrap();
+    let mut out = 15u32.to_le_bytes().to_vec();
+    out.extend_from_slice(&(zipped.len() as u32).to_le_bytes());
+    out.extend_from_slice(&zipped);
+    out
+}
+
+// Any numeric class is read, whatever storage type holds the values (MATLAB stores doubles as small
+// integers when they fit); a variable of another class, a damaged compressed element, a truncated file
+// and a compressed variable announcing a huge size get clear errors; nothing but the tool's JSON ever
+// reaches standard output.
+#[test]
+fn mat_files_of_any_numeric_class_and_damaged_ones() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let n = 60;
+    // u: int32 class stored as miINT32; y: double class stored as miUINT8 (small whole numbers).
+    let u: Vec<i32> = (0..n).map(|k| [0, 120, 40, 80][(k / 5) % 4]).collect();
+    let u_bytes: Vec<u8> = u.iter().flat_map(|v| v.to_le_bytes()).collect();
+    // y(k) = 0.5 y(k-1) + u(k-1) / 8, rounded to whole numbers (0..30, stored as bytes).
+    let mut y = vec![0.0f64; n];
+    for k in 1..n {
+        y[k] = (0.5 * y[k - 1] + f64::from(u[k - 1]) / 8.0).round();
+    }
+    let y_bytes: Vec<u8> = y.iter().map(|&v| v as u8).collect();
+    let mut good = mat_header();
+    good.extend(mat_matrix(12, n, "u", 5, &u_bytes, None));
+    good.extend(mat_compressed(&mat_matrix(6, n, "y", 2, &y_bytes, None)));
+    // A char variable: listed, not read, and no print from the reader.
+    good.extend(mat_matrix(4, 3, "note", 4, &[104, 0, 105, 0, 33, 0], None));
+    std::fs::write(d.join("good.mat"), &good).unwrap();
+    let out = run(
+        "identify --data {t}/good.mat --ts 1 --structure arx --method ls --na 1 --nb 1 --nk 1 --json -",
+        d,
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let j: serde_json::Value =
+        serde_json::from_slice(&out.stdout).expect("stdout is the JSON only");
+    // The rounding makes y only nearly ARX: the estimate is close to a = -0.5, b = 1/8.
+    assert!(
+        (j["model"]["a"][0].as_f64().unwrap() + 0.5).abs() < 0.1,
+        "{}",
+        j["model"]
+    );
+
+    let out = run(
+        "identify --data {t}/good.mat --ts 1 --u-col note --json -",
+        d,
+    );
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("char array"), "{}", stderr(&out));
+    assert!(out.stdout.is_empty());
+
+    let mut truncated = good.clone();
+    truncated.truncate(128 + 100);
+    std::fs::write(d.join("cut.mat"), &truncated).unwrap();
+    let out = run("identify --data {t}/cut.mat --ts 1 --json -", d);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("truncated"), "{}", stderr(&out));
+    assert!(out.stdout.is_empty());
+
+    let mut damaged = mat_header();
+    damaged.extend(mat_matrix(12, n, "u", 5, &u_bytes, None));
+    let mut z = mat_compressed(&mat_matrix(6, n, "y", 2, &y_bytes, None));
+    for b in &mut z[10..30] {
+        *b ^= 0x5a;
+    }
+    damaged.extend(z);
+    std::fs::write(d.join("bad.mat"), &damaged).unwrap();
+    let out = run("identify --data {t}/bad.mat --ts 1 --json -", d);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(stderr(&out).contains("damaged"), "{}", stderr(&out));
+    assert!(out.stdout.is_empty());
+    assert_eq!(stderr(&out).lines().count(), 1, "{}", stderr(&out));
+
+    // A compressed 'u' of 10 000 doubles whose element claims 4 GB once inflated.
+    let big: Vec<u8> = (0..10_000)
+        .flat_map(|k| f64::from(k).to_le_bytes())
+        .collect();
+    let mut bomb = mat_header();
+    bomb.extend(mat_compressed(&mat_matrix(
+        6,
+        10_000,
+        "u",
+        9,
+        &big,
+        Some(u32::MAX - 7),
+    )));
+    std::fs::write(d.join("bomb.mat"), &bomb).unwrap();
+    let out = run("identify --data {t}/bomb.mat --ts 1", d);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        stderr(&out).contains("inflates to 4294967288 bytes"),
+        "{}",
+        stderr(&out)
+    );
+}

@@ -1,0 +1,174 @@
+//! Warnings about a closed-loop run: when its step metrics may not deserve trust, say so in words
+//! (the `warnings` list of `ipa-sysid control --json`, `warning:` lines in the text, Python's
+//! `control()`).
+//!
+//! - a step that has not settled within the run ([`crate::metrics::still_moving`]);
+//! - a command saturated at ±u_max for more than [`SATURATION_WARN`] of the samples (the loop is not
+//!   in its linear range: the metrics describe a saturated response);
+//! - a set-point outside the plant's reachable range (the IPA's stroke, 0..L mm);
+//! - an unstable plant model (its metrics describe a diverging simulation);
+//! - a fixed step that misses the paper's acceptance (overshoot < 10 %, |e_ss| < 2 % of the step).
+
+use crate::metrics::{still_moving, StepSegment, SETTLING_BAND};
+use crate::Trace;
+
+/// Fraction of samples at the command limit above which the run is reported as saturated.
+pub const SATURATION_WARN: f64 = 0.2;
+
+/// What the caller knows about the plant beyond the trace.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct LoopFacts {
+    /// |u| <= u_max: the command limit in counts.
+    pub u_max: f64,
+    /// The outputs the plant can reach, in mm (the IPA: 0..stroke); `None` when unknown.
+    pub range_mm: Option<(f64, f64)>,
+    /// The largest pole modulus of a model plant when it exceeds 1 (unstable); `None` otherwise.
+    pub unstable_pole: Option<f64>,
+    /// True for a fixed set-point (one step), judged against the paper's acceptance.
+    pub fixed_step: bool,
+}
+
+/// The warnings of a run `trace` with its `steps` (from [`crate::metrics_for_steps`]).
+pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) -> Vec<String> {
+    let mut w = Vec::new();
+    if let Some(p) = facts.unstable_pole {
+        w.push(format!(
+            "the plant model is unstable (a pole has modulus {p:.6} > 1): its closed-loop response \
+             describes a diverging model, not the actuator"
+        ));
+    }
+    if let Some((lo, hi)) = facts.range_mm {
+        let outside: Vec<f64> = steps
+            .iter()
+            .map(|s| s.setpoint_mm)
+            .filter(|r| *r < lo || *r > hi)
+            .collect();
+        if let Some(r) = outside.first() {
+            w.push(format!(
+                "set-point r = {r} mm is outside the reachable range {lo}..{hi} mm (the stroke): the \
+                 piston cannot follow it, and the step metrics describe the end stop"
+            ));
+        }
+    }
+    let n = trace.len();
+    if n > 0 && facts.u_max > 0.0 {
+        let at_limit = trace
+            .u
+            .iter()
+            .filter(|u| u.abs() >= facts.u_max * (1.0 - 1e-9))
+            .count();
+        let fraction = at_limit as f64 / n as f64;
+        if fraction > SATURATION_WARN {
+            w.push(format!(
+                "the command is saturated at ±{} counts for {:.1} % of the samples ({at_limit} of {n}): \
+                 the loop is not in its linear range, so the step metrics describe a saturated response",
+                facts.u_max,
+                100.0 * fraction
+            ));
+        }
+    }
+    for s in steps {
+        let (Some(_), None) = (s.metrics.overshoot_mm, s.metrics.settling_time_s) else {
+            continue;
+        };
+        let k: Vec<usize> = (0..n)
+            .filter(|&k| trace.t[k] >= s.start_s && trace.t[k] <= s.end_s)
+            .collect();
+        let (t, y): (Vec<f64>, Vec<f64>) = k.iter().map(|&k| (trace.t[k], trace.y[k])).unzip();
+        let step = (y.last().copied().unwrap_or(s.y0_mm) - s.y0_mm).abs();
+        if still_moving(&t, &y, SETTLING_BAND * step) {
+            w.push(format!(
+                "the step to r = {} mm at t = {:.3} s has not settled within {:.3} s: the output is \
+                 still moving at the end of the run, so its settling time is unknown (null) and its \
+                 steady-state error of {:.4} mm is not final (run longer: --duration)",
+                s.setpoint_mm,
+                s.start_s,
+                s.end_s - s.start_s,
+                s.metrics.steady_state_error_mm.unwrap_or(f64::NAN)
+            ));
+        }
+    }
+    if facts.fixed_step {
+        if let Some(s) = steps.first() {
+            let step = (s.setpoint_mm - s.y0_mm).abs();
+            let (os, ess) = (s.metrics.overshoot_percent, s.metrics.steady_state_error_mm);
+            let mut missed = Vec::new();
+            if let Some(os) = os.filter(|os| *os >= 10.0) {
+                missed.push(format!("overshoot {os:.2} % >= 10 %"));
+            }
+            if let Some(e) = ess.filter(|e| step > 0.0 && e.abs() >= 0.02 * step) {
+                missed.push(format!(
+                    "|e_ss| = {:.4} mm >= 2 % of the {step} mm step ({:.4} mm)",
+                    e.abs(),
+                    0.02 * step
+                ));
+            }
+            if !missed.is_empty() {
+                w.push(format!(
+                    "the step misses the paper's acceptance: {}",
+                    missed.join("; ")
+                ));
+            }
+        }
+    }
+    w
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::metrics_for_steps;
+
+    fn trace(y: Vec<f64>, u: Vec<f64>, r: f64) -> Trace {
+        let n = y.len();
+        Trace {
+            t: (0..n).map(|k| k as f64 * 0.01).collect(),
+            r: vec![r; n],
+            u,
+            y,
+        }
+    }
+
+    // y = 50 (1 − e^{−t/τ}) with τ = 5 s over 2 s: at the end it still climbs 50/5 e^{−0.4} ≈ 6.7 mm/s,
+    // 1.3 mm over the last 0.2 s, i.e. 13 mm over the run ≫ the 2 % band: not settled, and said.
+    #[test]
+    fn a_creeping_response_has_no_settling_time_and_a_warning() {
+        let y: Vec<f64> = (0..201)
+            .map(|k| 50.0 * (1.0 - (-(k as f64 * 0.01) / 5.0).exp()))
+            .collect();
+        let tr = trace(y, vec![10.0; 201], 50.0);
+        let steps = metrics_for_steps(&tr).unwrap();
+        assert_eq!(steps[0].metrics.settling_time_s, None);
+        let w = loop_warnings(
+            &tr,
+            &steps,
+            &LoopFacts {
+                u_max: 255.0,
+                ..LoopFacts::default()
+            },
+        );
+        assert!(w.iter().any(|w| w.contains("has not settled")), "{w:?}");
+    }
+
+    // 1000 of 1001 samples at −255: 99.9 % saturated; r = 300 mm beyond a 200 mm stroke.
+    #[test]
+    fn saturation_and_an_unreachable_set_point_are_warned() {
+        let mut u = vec![-255.0; 1001];
+        u[0] = 3.0;
+        let tr = trace(vec![0.0; 1001], u, 300.0);
+        let steps = metrics_for_steps(&tr).unwrap();
+        let w = loop_warnings(
+            &tr,
+            &steps,
+            &LoopFacts {
+                u_max: 255.0,
+                range_mm: Some((0.0, 200.0)),
+                unstable_pole: Some(1.02),
+                fixed_step: true,
+            },
+        );
+        assert!(w.iter().any(|w| w.contains("99.9 %")), "{w:?}");
+        assert!(w.iter().any(|w| w.contains("outside the reachable range")));
+        assert!(w.iter().any(|w| w.contains("unstable")));
+    }
+}

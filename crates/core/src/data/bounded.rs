@@ -1,0 +1,165 @@
+//! Reading a whole input file with a bound on the bytes read *as they are read*.
+//!
+//! A size taken from the file's metadata is 0 for a device, a pipe or `/proc` files, so it cannot bound
+//! `--data /dev/zero` or a FIFO that never ends; [`read_bounded`] reads through `Read::take(max + 1)`
+//! and refuses the file as soon as one byte more than `max` has come. Every reader of a whole input file
+//! (data, model, plant configuration, input and profile files) goes through it.
+
+use std::io::Read;
+use std::path::Path;
+
+use crate::SysidError;
+
+/// The bytes of `path`, at most `max` of them; `what` names the kind of file in the error (e.g.
+/// "a data file") and `advice` says what to do (e.g. "split the record").
+pub fn read_bounded(
+    path: &Path,
+    max: u64,
+    what: &str,
+    advice: &str,
+) -> Result<Vec<u8>, SysidError> {
+    read_bounded_checked(path, max, what, advice, |_| Ok(()))
+}
+
+/// Bytes looked at by the `check` of [`read_bounded_checked`] before the rest is read.
+pub const PREFIX_BYTES: usize = 1 << 16;
+
+/// [`read_bounded`] that first reads up to [`PREFIX_BYTES`] and passes them to `check`, which can refuse
+/// the file before the rest is read (binary data where text is expected: `--data /dev/zero` is refused
+/// after 64 KiB, not after the size bound).
+pub fn read_bounded_checked(
+    path: &Path,
+    max: u64,
+    what: &str,
+    advice: &str,
+    check: impl FnOnce(&[u8]) -> Result<(), SysidError>,
+) -> Result<Vec<u8>, SysidError> {
+    let io = |source| SysidError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let file = std::fs::File::open(path).map_err(io)?;
+    // The metadata length, when there is one, refuses a large regular file before it is read.
+    let known = file
+        .metadata()
+        .ok()
+        .filter(|m| m.is_file())
+        .map(|m| m.len());
+    if let Some(size) = known.filter(|&s| s > max) {
+        return Err(too_large(path, max, what, advice, &format!("{size} bytes")));
+    }
+    let mut bytes = Vec::with_capacity(known.unwrap_or(0).min(max) as usize);
+    let mut file = file.take(max.saturating_add(1));
+    (&mut file)
+        .take(PREFIX_BYTES as u64)
+        .read_to_end(&mut bytes)
+        .map_err(io)?;
+    check(&bytes)?;
+    file.read_to_end(&mut bytes).map_err(io)?;
+    if bytes.len() as u64 > max {
+        return Err(too_large(
+            path,
+            max,
+            what,
+            advice,
+            &format!("it did not end within {max} bytes (a device or a stream)"),
+        ));
+    }
+    Ok(bytes)
+}
+
+/// The bytes of a record file (CSV text or a MAT-file; `what` names it in messages), at most
+/// [`super::MAX_FILE_BYTES`]: binary bytes that are not a MAT-file are refused after the first 64 KiB
+/// (`/dev/zero` would otherwise be read up to the size bound before the CSV reader refused its first
+/// NUL byte).
+pub fn read_data_file(path: &Path, what: &str) -> Result<Vec<u8>, SysidError> {
+    let is_mat_name = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("mat"));
+    read_bounded_checked(
+        path,
+        super::MAX_FILE_BYTES,
+        what,
+        "split the record",
+        |prefix| {
+            if is_mat_name || super::mat::is_mat(prefix) {
+                return Ok(());
+            }
+            // The CSV reader's own first checks (and messages), on the first bytes only.
+            let at = |offset: usize, body: &[u8], message: &str| {
+                let (line, column) = super::line_col(body, offset);
+                Err(SysidError::Parse {
+                    file: path.display().to_string(),
+                    line,
+                    column,
+                    message: message.into(),
+                })
+            };
+            let body = prefix.strip_prefix(b"\xef\xbb\xbf").unwrap_or(prefix);
+            let valid = match std::str::from_utf8(body) {
+                Ok(_) => body.len(),
+                // A character cut by the end of the prefix is not an error.
+                Err(e) if e.error_len().is_none() => e.valid_up_to(),
+                Err(e) => {
+                    return at(
+                        e.valid_up_to(),
+                        body,
+                        "the file is not UTF-8 text (binary data?); expected CSV",
+                    )
+                }
+            };
+            match body[..valid].iter().position(|&b| b == 0) {
+                Some(nul) => at(nul, body, "NUL byte: the file is binary, not CSV text"),
+                None => Ok(()),
+            }
+        },
+    )
+}
+
+/// [`read_bounded`] as UTF-8 text (a TOML or JSON file); the error names the first byte that is not.
+pub fn read_bounded_text(
+    path: &Path,
+    max: u64,
+    what: &str,
+    advice: &str,
+) -> Result<String, SysidError> {
+    let bytes = read_bounded(path, max, what, advice)?;
+    String::from_utf8(bytes).map_err(|e| SysidError::File {
+        file: path.display().to_string(),
+        message: format!(
+            "byte {} is not UTF-8 text; expected {what} in text form",
+            e.utf8_error().valid_up_to()
+        ),
+    })
+}
+
+fn too_large(path: &Path, max: u64, what: &str, advice: &str, got: &str) -> SysidError {
+    SysidError::File {
+        file: path.display().to_string(),
+        message: format!("{got}: {what} may have at most {max} bytes; {advice}"),
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    // /dev/zero never ends and its metadata length is 0: the bound stops the read after max + 1 bytes.
+    #[cfg(unix)]
+    #[test]
+    fn an_endless_device_is_refused_after_the_bound() {
+        let e = read_bounded(Path::new("/dev/zero"), 1000, "a data file", "split it").unwrap_err();
+        assert!(e.to_string().contains("at most 1000 bytes"), "{e}");
+    }
+
+    // A file of exactly max bytes is read whole; one byte more is refused.
+    #[test]
+    fn the_bound_is_inclusive() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("f");
+        std::fs::write(&p, [b'x'; 10]).unwrap();
+        assert_eq!(read_bounded(&p, 10, "a file", "").unwrap().len(), 10);
+        assert!(read_bounded(&p, 9, "a file", "").is_err());
+    }
+}

@@ -1,0 +1,911 @@
+//! Calibration of the physics plant to a measured record (grey-box identification, MATLAB's
+//! `nlgreyest` for this one model): a *digital twin* of the user's actuator.
+//!
+//! Given a record of the command u(k) (counts), the position y(k) (mm) and, when measured, the chamber
+//! pressures p_a(k), p_b(k) (Pa), [`Calibration::fit`] estimates the free [`Parameter`]s θ of the
+//! [`PlantConfig`] by minimising the simulation error
+//!
+//! ```text
+//! V(θ) = ½ Σ_segments Σ_k [ ((x̂_k(θ) − y_k) / s_y)² + ((p̂_a,k(θ) − p_a,k) / s_p)² + ((p̂_b,k(θ) − p_b,k) / s_p)² ]
+//! ```
+//!
+//! where x̂ is the simulated (unquantised) position and s_y, s_p are scales (0.01 mm, 5 kPa).
+//!
+//! **Segments (multiple shooting from measured states).** A free run of a stick-slip plant over a long
+//! record is a very nonlinear function of θ: a breakaway that happens one sample late shifts every
+//! later sample. The record is therefore cut into segments of about `segment_s` seconds, each started
+//! where the piston is measured at rest (y unchanged over the previous two samples), from the measured
+//! state: position y_k, velocity 0 and the measured pressures (without pressure columns, a segment can
+//! only start where u has been 0 long enough for both chambers to have exhausted to p_atm, or at the
+//! start of the record, taken at rest at p_atm like `simulate`). Errors cannot accumulate beyond a
+//! segment, so V is smooth enough in θ for a local search from the plant's defaults.
+//!
+//! **Start.** The start plant (defaults or `--plant-config`), with the supply conductance scaled by the
+//! ratio of the measured to the simulated speed at full command (the choked flow through the supply
+//! path sets that speed, proportional to C_s).
+//!
+//! **Search.** Levenberg–Marquardt with box bounds ([`lm`]) in log coordinates (Coulomb friction as the
+//! ratio F_c / F_s in (0, 1]), forward-difference Jacobian with columns in parallel.
+//!
+//! **Uncertainty.** cov θ ≈ σ² (JᵀJ)⁺ with σ² = 2V / (m − p) (m residuals), mapped to the physical
+//! values by the derivative of the coordinates; the correlation matrix from it. A parameter with a
+//! relative standard deviation above `determined_rel_std`, strongly correlated with another
+//! (|ρ| > 0.99) or at a bound gets a warning naming the experiment that would determine it.
+//!
+//! **Never worse without saying so.** The search only accepts steps that lower V, so the twin is never
+//! worse than its start on the estimation segments; the free-run fit of start and twin are also
+//! compared on the whole estimation record and, when given, on a validation record, and a warning says
+//! when the twin is worse on either.
+
+pub mod lm;
+pub mod parameter;
+pub mod study;
+
+use std::path::Path;
+
+use nalgebra::DMatrix;
+use rayon::prelude::*;
+
+pub use lm::Termination;
+use parameter::Coordinates;
+pub use parameter::{parse_list, Parameter};
+
+use crate::{Ipa, IpaError, PlantConfig, Record};
+
+/// Column names of a record CSV (`--u-column`, `--y-column`, `--pa-column`, `--pb-column`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Columns {
+    /// Command u, counts.
+    pub u: String,
+    /// Position y, mm.
+    pub y: String,
+    /// Cap-side absolute pressure p_a, Pa, and rod-side p_b; `None`: the plant's own `p_a_pa`, `p_b_pa`
+    /// when the file has both, else no pressures.
+    pub pressures: Option<(String, String)>,
+}
+
+impl Default for Columns {
+    fn default() -> Self {
+        Columns {
+            u: "u".into(),
+            y: "y".into(),
+            pressures: None,
+        }
+    }
+}
+
+/// Parameters of the first stage of plan C: those that set speeds, forces and pressures.
+const CORE_PARAMETERS: [Parameter; 6] = [
+    Parameter::SupplyConductance,
+    Parameter::ExhaustConductance,
+    Parameter::MovingMass,
+    Parameter::DeadVolumeCap,
+    Parameter::DeadVolumeRod,
+    Parameter::ExternalForce,
+];
+
+/// V above this many quantisation floors starts the restarts (plans B, C) and, at the end, a warning.
+const RESTART_FLOOR_RATIO: f64 = 3.0;
+
+/// RMS position error over the segments, in encoder counts, above which the fit is called poor.
+const POOR_FIT_COUNTS: f64 = 10.0;
+
+/// Parameters held at their start in the first stage of the search.
+const SHAPE_PARAMETERS: [Parameter; 3] = [
+    Parameter::StribeckVelocity,
+    Parameter::OpeningDelay,
+    Parameter::ClosingDelay,
+];
+
+/// Fewest samples a record must have for calibration.
+pub const MIN_SAMPLES: usize = 50;
+
+/// Reads a record from CSV: columns u and y (names in `cols`), the pressures when present, Ts from
+/// `ts_s` or else from the `t` column ((t_last − t_first)/(N − 1)), else 0.01 s.
+pub fn read_record(path: &Path, cols: &Columns, ts_s: Option<f64>) -> Result<Record, IpaError> {
+    let bytes = std::fs::read(path).map_err(|source| sysid_core::SysidError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let name = path.display().to_string();
+    let table = sysid_core::data::read_table(&bytes, &name)?;
+    let col = |c: &str, flag: &'static str| -> Result<Vec<f64>, IpaError> {
+        let i = table.column_index(c, sysid_core::Setting::Other(flag))?;
+        Ok(table.numbers(i)?)
+    };
+    let u = col(&cols.u, "--u-column")?;
+    let y = col(&cols.y, "--y-column")?;
+    let pressures = match &cols.pressures {
+        Some((a, b)) => Some((col(a, "--pa-column")?, col(b, "--pb-column")?)),
+        None if table.headers.iter().any(|h| h == "p_a_pa")
+            && table.headers.iter().any(|h| h == "p_b_pa") =>
+        {
+            Some((col("p_a_pa", "--pa-column")?, col("p_b_pa", "--pb-column")?))
+        }
+        None => None,
+    };
+    let ts = match ts_s {
+        Some(ts) => ts,
+        None if table.headers.iter().any(|h| h == "t") && u.len() >= 2 => {
+            let t = col("t", "--ts")?;
+            (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64
+        }
+        None => crate::DEFAULT_TS_S,
+    };
+    if !(ts.is_finite() && ts > 0.0 && ts <= 10.0) {
+        return Err(IpaError::Config(format!(
+            "{name}: sampling period {ts} s (from the t column or --ts): expected a value in (0, 10] s"
+        )));
+    }
+    if u.len() < MIN_SAMPLES {
+        return Err(IpaError::Config(format!(
+            "{name}: {} samples: calibration needs at least {MIN_SAMPLES}",
+            u.len()
+        )));
+    }
+    let pressures = match pressures {
+        Some((a, b)) => {
+            if let Some(k) = a.iter().chain(&b).position(|p| p.is_nan() || *p <= 0.0) {
+                return Err(IpaError::Config(format!(
+                    "{name}: data row {}: a chamber pressure must be an absolute pressure > 0 Pa",
+                    k % a.len() + 1
+                )));
+            }
+            Some(a.into_iter().zip(b).map(|(a, b)| [a, b]).collect())
+        }
+        None => None,
+    };
+    Ok(Record {
+        u,
+        y,
+        pressures,
+        ts,
+    })
+}
+
+/// Settings of a calibration (unfitted); [`Calibration::fit`] returns a [`Calibrated`] twin.
+#[derive(Debug, Clone)]
+pub struct Calibration {
+    /// The start plant; its non-free parameters are kept.
+    pub start: PlantConfig,
+    /// The parameters to estimate (default: [`Parameter::ALL`]).
+    pub free: Vec<Parameter>,
+    /// Nominal length of a shooting segment, s (default 0.5 s); 0: one free run over the whole record.
+    pub segment_s: f64,
+    /// Scale s_y of the position error, mm (default 0.01, one encoder count).
+    pub position_scale_mm: f64,
+    /// Scale s_p of the pressure errors, Pa (default 5000).
+    pub pressure_scale_pa: f64,
+    /// Largest Levenberg–Marquardt iterations (default 40).
+    pub max_iterations: usize,
+    /// Relative standard deviation above which a parameter is reported as not determined (default 0.05).
+    pub determined_rel_std: f64,
+    /// Scale the supply conductance by the full-command speed ratio before the search (default true).
+    pub physical_start: bool,
+}
+
+impl Default for Calibration {
+    fn default() -> Self {
+        Calibration {
+            start: PlantConfig::default(),
+            free: Parameter::ALL.to_vec(),
+            segment_s: 0.5,
+            position_scale_mm: 0.01,
+            pressure_scale_pa: 5000.0,
+            max_iterations: 40,
+            determined_rel_std: 0.05,
+            physical_start: true,
+        }
+    }
+}
+
+/// One estimated parameter.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Estimate {
+    /// Which parameter.
+    pub parameter: Parameter,
+    /// Value at the start of the search (after the physical start estimate).
+    pub start: f64,
+    /// Estimated value.
+    pub value: f64,
+    /// Standard deviation from the Jacobian (`None` when J is not available).
+    pub std: Option<f64>,
+    /// True when the estimate sits at a bound of the search box.
+    pub at_bound: bool,
+}
+
+/// A reason not to trust (part of) a calibration.
+#[derive(Debug, Clone, PartialEq)]
+pub enum CalibrationWarning {
+    /// The record does not determine the parameter (relative standard deviation above the limit, or
+    /// no standard deviation).
+    NotDetermined {
+        /// The parameter.
+        parameter: Parameter,
+        /// Its relative standard deviation (None: not computable).
+        relative_std: Option<f64>,
+    },
+    /// Two estimates are so correlated that the record determines only a combination of them.
+    Correlated {
+        /// First parameter.
+        a: Parameter,
+        /// Second parameter.
+        b: Parameter,
+        /// Correlation coefficient.
+        rho: f64,
+    },
+    /// An estimate sits at a bound of the search box.
+    AtBound {
+        /// The parameter.
+        parameter: Parameter,
+    },
+    /// The search stopped before converging.
+    NotConverged {
+        /// Why it stopped.
+        termination: Termination,
+    },
+    /// The twin simulates a record worse than the start plant did.
+    WorseThanStart {
+        /// Which record (`estimation` or `validation`).
+        record: &'static str,
+        /// Free-run fit % of the start plant.
+        start_fit: f64,
+        /// Free-run fit % of the twin.
+        twin_fit: f64,
+    },
+    /// The free run of the twin failed on a record.
+    SimulationFailed {
+        /// Which record.
+        record: &'static str,
+        /// The error.
+        message: String,
+    },
+    /// Without pressures the record could not be cut into segments: one free run over the record.
+    SingleSegment,
+    /// V stayed above 3 times the quantisation floor after the restarts: measurement noise, a mechanism
+    /// the plant lacks, or a local minimum; the standard deviations are then optimistic.
+    AboveFloor {
+        /// V / floor.
+        ratio: f64,
+    },
+    /// The twin's position error over the segments is far above the encoder resolution: the plant
+    /// does not reproduce the record (model mismatch, or the search stopped in a local minimum).
+    PoorFit {
+        /// RMS position error over the segments, mm.
+        rmse_mm: f64,
+        /// Encoder resolution, mm.
+        resolution_mm: f64,
+    },
+}
+
+impl std::fmt::Display for CalibrationWarning {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            CalibrationWarning::NotDetermined { parameter, relative_std } => write!(
+                f,
+                "{parameter} is not determined by this record ({}); it keeps an uncertain value. \
+                 Experiment that determines it: {}",
+                relative_std.map_or("no standard deviation".to_string(), |r| format!(
+                    "relative standard deviation {:.1} %",
+                    100.0 * r
+                )),
+                parameter.experiment()
+            ),
+            CalibrationWarning::Correlated { a, b, rho } => {
+                write!(
+                    f,
+                    "{a} and {b} are correlated (rho = {rho:.3}): the record determines a combination of \
+                     them, not each. Experiment that separates them: {}",
+                    a.experiment()
+                )?;
+                if b.experiment() != a.experiment() {
+                    write!(f, "; {}", b.experiment())?;
+                }
+                Ok(())
+            }
+            CalibrationWarning::AtBound { parameter } => write!(
+                f,
+                "{parameter} stopped at a bound of its physical range ({}); the record may not determine it \
+                 or the plant may not fit the record",
+                parameter.key()
+            ),
+            CalibrationWarning::NotConverged { termination } => {
+                write!(f, "the search did not converge ({termination})")
+            }
+            CalibrationWarning::WorseThanStart { record, start_fit, twin_fit } => write!(
+                f,
+                "the twin simulates the {record} record WORSE than its start (free-run fit {twin_fit:.2} % vs \
+                 {start_fit:.2} %): do not use it without checking"
+            ),
+            CalibrationWarning::SimulationFailed { record, message } => {
+                write!(f, "the twin's free run on the {record} record failed: {message}")
+            }
+            CalibrationWarning::AboveFloor { ratio } => write!(
+                f,
+                "the simulation error is {ratio:.1} times what encoder quantisation alone gives: measurement \
+                 noise, a mechanism the plant lacks, or a local minimum of the search; the standard \
+                 deviations are optimistic"
+            ),
+            CalibrationWarning::PoorFit { rmse_mm, resolution_mm } => write!(
+                f,
+                "the twin's RMS position error over the segments is {rmse_mm:.3} mm, more than {POOR_FIT_COUNTS} \
+                 encoder counts ({resolution_mm} mm): the plant does not reproduce the record (a mechanism the \
+                 model lacks, wrong fixed parameters, or a local minimum: start closer with --plant-config); \
+                 the standard deviations assume the model fits"
+            ),
+            CalibrationWarning::SingleSegment => f.write_str(
+                "no rest states with known pressures to start segments from (record without pressure \
+                 columns and no rest at u = 0): calibrated on one free run, which is less robust",
+            ),
+        }
+    }
+}
+
+/// The free-run simulation of a plant on a record from its first sample.
+#[derive(Debug, Clone, PartialEq)]
+pub struct FreeRun {
+    /// Simulated position (unquantised), mm, at every sample.
+    pub y_mm: Vec<f64>,
+    /// Fit % = 100 (1 − ‖y − ŷ‖ / ‖y − ȳ‖) of the position (`None` for a constant record).
+    pub fit_percent: Option<f64>,
+    /// RMS position error, mm.
+    pub rmse_mm: f64,
+}
+
+/// A calibrated twin with its report.
+#[derive(Debug, Clone)]
+pub struct Calibrated {
+    /// The calibrated plant (start plant with the estimates).
+    pub config: PlantConfig,
+    /// The start of the search (start plant after the physical start estimate).
+    pub start_config: PlantConfig,
+    /// The estimates, in the order of the free set.
+    pub estimates: Vec<Estimate>,
+    /// Correlation matrix of the estimates (rows and columns in the order of `estimates`).
+    pub correlation: Vec<Vec<f64>>,
+    /// Number of shooting segments.
+    pub segments: usize,
+    /// Whether the pressures were used.
+    pub used_pressures: bool,
+    /// V at the start and at the estimate.
+    pub cost_start: f64,
+    /// V at the estimate.
+    pub cost: f64,
+    /// V of a twin that reproduces the record up to the encoder quantisation alone.
+    pub cost_floor: f64,
+    /// RMS position error over the segments at the estimate, mm.
+    pub segment_rmse_mm: f64,
+    /// Levenberg–Marquardt iterations and simulations of the record.
+    pub iterations: usize,
+    /// Simulations of the (segmented) record.
+    pub evaluations: usize,
+    /// Why the search stopped.
+    pub termination: Termination,
+    /// Free run of the start plant and of the twin on the estimation record.
+    pub estimation_start: Option<FreeRun>,
+    /// Free run of the twin on the estimation record.
+    pub estimation: Option<FreeRun>,
+    /// Free run of the start and of the twin on the validation record, when given.
+    pub validation_start: Option<FreeRun>,
+    /// Free run of the twin on the validation record.
+    pub validation: Option<FreeRun>,
+    /// Every reason not to trust the result.
+    pub warnings: Vec<CalibrationWarning>,
+}
+
+/// Simulates `cfg` on samples start..end of `rec` from the measured state at `start` (at rest at
+/// y_start; pressures measured, or p_atm), calling `out(k, x_mm, [p_a, p_b])` for every sample k in
+/// start..end before u_k is applied.
+fn simulate_segment(
+    cfg: &PlantConfig,
+    rec: &Record,
+    start: usize,
+    end: usize,
+    mut out: impl FnMut(usize, f64, [f64; 2]),
+) -> Result<(), IpaError> {
+    let mut plant = Ipa::with_ts(cfg.clone(), rec.ts)?;
+    let patm = cfg.air.atmosphere_pa;
+    let [pa, pb] = rec.pressures.as_ref().map_or([patm, patm], |p| p[start]);
+    plant.set_state(rec.y[start], pa, pb);
+    for k in start..end {
+        out(k, plant.position_mm(), plant.pressures_pa());
+        plant.advance(rec.u[k]).map_err(|e| match e {
+            IpaError::Numerical(m) => IpaError::Numerical(format!("sample {k}: {m}")),
+            other => other,
+        })?;
+    }
+    Ok(())
+}
+
+/// The free run of `cfg` over the whole record from its first sample (at rest at y_0, the measured
+/// pressures or p_atm).
+pub fn free_run(cfg: &PlantConfig, rec: &Record) -> Result<FreeRun, IpaError> {
+    let mut y_mm = vec![0.0; rec.u.len()];
+    simulate_segment(cfg, rec, 0, rec.u.len(), |k, x, _| y_mm[k] = x)?;
+    let fit_percent = sysid_core::metrics::fit_percent(&rec.y, &y_mm);
+    let rmse_mm = sysid_core::metrics::rmse(&rec.y, &y_mm);
+    Ok(FreeRun {
+        y_mm,
+        fit_percent,
+        rmse_mm,
+    })
+}
+
+/// Samples 2 apart with y unchanged (within half an encoder count) count as rest.
+fn at_rest(rec: &Record, k: usize, band_mm: f64) -> bool {
+    k >= 2
+        && (rec.y[k] - rec.y[k - 1]).abs() <= band_mm
+        && (rec.y[k - 1] - rec.y[k - 2]).abs() <= band_mm
+}
+
+/// Samples with u = 0 before a start without pressures (both chambers exhausted to p_atm).
+const EXHAUSTED_SAMPLES: usize = 30;
+
+/// Cuts the record into shooting segments [start, end) of about `nominal` samples, each starting at a
+/// measured rest state with known pressures.
+fn segments(rec: &Record, nominal: usize, band_mm: f64) -> Vec<(usize, usize)> {
+    let n = rec.u.len();
+    if nominal == 0 || nominal >= n {
+        return vec![(0, n)];
+    }
+    let known = |k: usize| {
+        rec.pressures.is_some()
+            || (k >= EXHAUSTED_SAMPLES && rec.u[k - EXHAUSTED_SAMPLES..k].iter().all(|&u| u == 0.0))
+    };
+    let mut out = Vec::new();
+    let mut start = 0;
+    let mut k = nominal;
+    while k < n {
+        if at_rest(rec, k, band_mm) && known(k) {
+            out.push((start, k));
+            start = k;
+            k += nominal;
+        } else {
+            k += 1;
+        }
+    }
+    out.push((start, n));
+    out
+}
+
+/// Median of the magnitude of the speed (mm/s) over samples held at full command (|u| >= 250 for the
+/// last 5 samples, 10 mm away from the end stops) in direction `dir`; `None` with fewer than 5 such samples.
+fn full_command_speed(u: &[f64], y: &[f64], ts: f64, stroke_mm: f64, dir: f64) -> Option<f64> {
+    let mut v: Vec<f64> = (5..y.len().saturating_sub(1))
+        .filter(|&k| u[k - 5..=k].iter().all(|&uk| dir * uk >= 250.0))
+        .filter(|&k| y[k] > 10.0 && y[k] < stroke_mm - 10.0)
+        .map(|k| dir * (y[k + 1] - y[k - 1]) / (2.0 * ts))
+        .filter(|v| *v > 0.0)
+        .collect();
+    if v.len() < 5 {
+        return None;
+    }
+    v.sort_by(f64::total_cmp);
+    Some(v[v.len() / 2])
+}
+
+impl Calibration {
+    /// The twin: estimates the free parameters on `estimation` and, when given, reports the free-run fit
+    /// on `validation`.
+    pub fn fit(
+        &self,
+        estimation: &Record,
+        validation: Option<&Record>,
+    ) -> Result<Calibrated, IpaError> {
+        self.check(estimation)?;
+        if let Some(v) = validation {
+            self.check(v)?;
+        }
+        let rec = estimation;
+        let nominal = (self.segment_s / rec.ts).round() as usize;
+        let band = 0.5 * self.start.encoder.resolution_mm;
+        let segs = segments(rec, nominal, band);
+        let mut warnings = Vec::new();
+        if segs.len() == 1 && nominal > 0 && nominal < rec.u.len() {
+            warnings.push(CalibrationWarning::SingleSegment);
+        }
+        let mut start = self.start.clone();
+        if self.physical_start && self.free.contains(&Parameter::SupplyConductance) {
+            start = self.scale_supply_conductance(start, rec, &segs);
+        }
+        // Plan A. Stage 1: the friction shape (Stribeck velocity) and the valve delays stay at the
+        // start while the parameters that set speeds, forces and pressures settle; stage 2: every
+        // free parameter. The shape parameters matter only near rest, and moving them first lets the
+        // search run into a basin where a wrong breakaway force is compensated by a wrong shape.
+        // When the cost stays above 3 times the quantisation floor (a local minimum, or a plant
+        // that does not fit), plan B restarts from the best point with the shape parameters back at
+        // their start, and plan C stages from the start again with first only the conductances,
+        // mass, dead volumes and external force. The lowest cost wins.
+        let without_shape: Vec<Parameter> = self
+            .free
+            .iter()
+            .copied()
+            .filter(|p| !SHAPE_PARAMETERS.contains(p))
+            .collect();
+        let core: Vec<Parameter> = self
+            .free
+            .iter()
+            .copied()
+            .filter(|p| CORE_PARAMETERS.contains(p))
+            .collect();
+        let floor = self.cost_floor(&segs);
+        let (mut iterations, mut evaluations) = (0, 0);
+        // Runs the stages `first` (each skipped when empty or the whole free set), then one search
+        // over every free parameter; V at the plan's start is kept as start_cost.
+        let mut run_plan = |first: &[&[Parameter]], from: &PlantConfig| -> lm::Solution {
+            let mut cfg = from.clone();
+            let mut first_cost = None;
+            for stage in first {
+                if stage.is_empty() || stage.len() == self.free.len() {
+                    continue;
+                }
+                let (c, sol) =
+                    self.search(stage, &cfg, rec, &segs, self.max_iterations.div_ceil(2));
+                iterations += sol.iterations;
+                evaluations += sol.evaluations;
+                first_cost.get_or_insert(sol.start_cost);
+                cfg = c.config(&cfg, &sol.theta);
+            }
+            let (_, mut sol) = self.search(&self.free, &cfg, rec, &segs, self.max_iterations);
+            iterations += sol.iterations;
+            evaluations += sol.evaluations;
+            sol.start_cost = first_cost.unwrap_or(sol.start_cost);
+            sol
+        };
+        let mut sol = run_plan(&[&without_shape], &start);
+        let start_cost = sol.start_cost;
+        if sol.termination != Termination::StartFailed && sol.cost > RESTART_FLOOR_RATIO * floor {
+            let coords = Coordinates::new(&self.free, &start);
+            let mut from = coords.config(&start, &sol.theta);
+            for p in SHAPE_PARAMETERS.iter().filter(|p| self.free.contains(p)) {
+                p.set(&mut from, p.get(&start));
+            }
+            from.friction.coulomb_n = from.friction.coulomb_n.min(from.friction.static_n);
+            let b = run_plan(&[], &from);
+            if b.cost < sol.cost {
+                sol = b;
+            }
+        }
+        if sol.termination != Termination::StartFailed && sol.cost > RESTART_FLOOR_RATIO * floor {
+            let c = run_plan(&[&core, &without_shape], &start);
+            if c.cost < sol.cost {
+                sol = c;
+            }
+        }
+        sol.start_cost = start_cost;
+        sol.iterations = iterations;
+        sol.evaluations = evaluations;
+        let coords = Coordinates::new(&self.free, &start);
+        let stage_start = start.clone();
+        let start_values_from = start.clone();
+        let start = stage_start;
+        if sol.termination == Termination::StartFailed {
+            return Err(IpaError::Numerical(
+                "the start plant cannot be simulated on the record (check the columns, units and --plant-config)"
+                    .into(),
+            ));
+        }
+        let config = coords.config(&start, &sol.theta);
+        let (mut estimates, correlation) = self.uncertainty(&coords, &start, &sol);
+        for e in &mut estimates {
+            e.start = e.parameter.get(&start_values_from);
+        }
+        let start = start_values_from;
+        let per_sample = if rec.pressures.is_some() { 3 } else { 1 };
+        let segment_rmse_mm = self
+            .residuals(&config, rec, &segs)
+            .map(|r| {
+                let pos: Vec<f64> = r.iter().step_by(per_sample).copied().collect();
+                self.position_scale_mm
+                    * (pos.iter().map(|x| x * x).sum::<f64>() / pos.len().max(1) as f64).sqrt()
+            })
+            .unwrap_or(f64::NAN);
+        if sol.cost > RESTART_FLOOR_RATIO * floor {
+            warnings.push(CalibrationWarning::AboveFloor {
+                ratio: sol.cost / floor.max(1e-300),
+            });
+        }
+        let resolution_mm = config.encoder.resolution_mm;
+        if segment_rmse_mm.is_nan() || segment_rmse_mm > POOR_FIT_COUNTS * resolution_mm {
+            warnings.push(CalibrationWarning::PoorFit {
+                rmse_mm: segment_rmse_mm,
+                resolution_mm,
+            });
+        }
+        // Warnings on the estimates.
+        for e in &estimates {
+            let rel = e.std.map(|s| s / e.value.abs().max(1e-12));
+            let rel = if e.parameter == Parameter::ExternalForce {
+                // F_ext may be 0: relative to the friction scale instead.
+                e.std.map(|s| s / config.friction.static_n.max(1.0))
+            } else {
+                rel
+            };
+            if rel.is_none_or(|r| r.is_nan() || r > self.determined_rel_std) {
+                warnings.push(CalibrationWarning::NotDetermined {
+                    parameter: e.parameter,
+                    relative_std: rel,
+                });
+            }
+            if e.at_bound {
+                warnings.push(CalibrationWarning::AtBound {
+                    parameter: e.parameter,
+                });
+            }
+        }
+        for i in 0..correlation.len() {
+            for j in i + 1..correlation.len() {
+                let rho = correlation[i][j];
+                if rho.abs() > 0.99 {
+                    warnings.push(CalibrationWarning::Correlated {
+                        a: estimates[i].parameter,
+                        b: estimates[j].parameter,
+                        rho,
+                    });
+                }
+            }
+        }
+        if matches!(sol.termination, Termination::MaxIterations) {
+            warnings.push(CalibrationWarning::NotConverged {
+                termination: sol.termination,
+            });
+        }
+        let mut compare = |name: &'static str, r: &Record| -> (Option<FreeRun>, Option<FreeRun>) {
+            let s = free_run(&start, r).ok();
+            let t = match free_run(&config, r) {
+                Ok(t) => Some(t),
+                Err(e) => {
+                    warnings.push(CalibrationWarning::SimulationFailed {
+                        record: name,
+                        message: e.to_string(),
+                    });
+                    None
+                }
+            };
+            if let (Some(sf), Some(tf)) = (
+                s.as_ref().and_then(|s| s.fit_percent),
+                t.as_ref().and_then(|t| t.fit_percent),
+            ) {
+                if tf < sf {
+                    warnings.push(CalibrationWarning::WorseThanStart {
+                        record: name,
+                        start_fit: sf,
+                        twin_fit: tf,
+                    });
+                }
+            }
+            (s, t)
+        };
+        let (estimation_start, estimation_twin) = compare("estimation", rec);
+        let (validation_start, validation_twin) = match validation {
+            Some(v) => compare("validation", v),
+            None => (None, None),
+        };
+        Ok(Calibrated {
+            config,
+            start_config: start,
+            estimates,
+            correlation,
+            segments: segs.len(),
+            used_pressures: rec.pressures.is_some(),
+            cost_start: sol.start_cost,
+            cost: sol.cost,
+            cost_floor: floor,
+            segment_rmse_mm,
+            iterations: sol.iterations,
+            evaluations: sol.evaluations,
+            termination: sol.termination,
+            estimation_start,
+            estimation: estimation_twin,
+            validation_start,
+            validation: validation_twin,
+            warnings,
+        })
+    }
+
+    /// V of a plant that reproduces the record up to the encoder quantisation alone: ½ Σ (q²/12) / s_y²
+    /// over the position residuals (pressure noise unknown, not counted).
+    fn cost_floor(&self, segs: &[(usize, usize)]) -> f64 {
+        let m: usize = segs.iter().map(|(a, b)| b - a - 1).sum();
+        let q = self.start.encoder.resolution_mm / self.position_scale_mm;
+        0.5 * m as f64 * q * q / 12.0
+    }
+
+    /// One Levenberg–Marquardt search over `free` from `start`.
+    fn search(
+        &self,
+        free: &[Parameter],
+        start: &PlantConfig,
+        rec: &Record,
+        segs: &[(usize, usize)],
+        max_iterations: usize,
+    ) -> (Coordinates, lm::Solution) {
+        let coords = Coordinates::new(free, start);
+        let theta0 = coords.theta(start);
+        let residual = |theta: &[f64]| -> Option<Vec<f64>> {
+            let cfg = coords.config(start, theta);
+            cfg.validate().ok()?;
+            self.residuals(&cfg, rec, segs).ok()
+        };
+        let sol = lm::minimise(
+            &residual,
+            &theta0,
+            &coords.lo,
+            &coords.hi,
+            &lm::Settings {
+                max_iterations,
+                tolerance: 1e-9,
+                fd_step: 1e-5,
+                max_step: 0.3,
+            },
+        );
+        (coords, sol)
+    }
+
+    fn check(&self, rec: &Record) -> Result<(), IpaError> {
+        self.start.validate()?;
+        let n = rec.u.len();
+        if n < MIN_SAMPLES {
+            return Err(IpaError::Config(format!(
+                "{n} samples: calibration needs at least {MIN_SAMPLES}"
+            )));
+        }
+        if rec.y.len() != n || rec.pressures.as_ref().is_some_and(|p| p.len() != n) {
+            return Err(IpaError::Config(
+                "u, y and the pressures must have the same length".into(),
+            ));
+        }
+        if let Some(k) = rec.u.iter().chain(&rec.y).position(|x| !x.is_finite()) {
+            return Err(IpaError::Config(format!(
+                "sample {}: u and y must be finite",
+                k % n
+            )));
+        }
+        if !(self.segment_s >= 0.0 && self.segment_s.is_finite()) {
+            return Err(IpaError::Config(format!(
+                "segment length {} s: expected a finite length >= 0",
+                self.segment_s
+            )));
+        }
+        if !(self.position_scale_mm > 0.0 && self.pressure_scale_pa > 0.0) {
+            return Err(IpaError::Config("error scales must be positive".into()));
+        }
+        if self.free.is_empty() {
+            return Err(IpaError::Config("no free parameter to calibrate".into()));
+        }
+        Ok(())
+    }
+
+    /// Scaled residuals of `cfg` on the segments (position, then the pressures, per sample).
+    fn residuals(
+        &self,
+        cfg: &PlantConfig,
+        rec: &Record,
+        segs: &[(usize, usize)],
+    ) -> Result<Vec<f64>, IpaError> {
+        let parts: Vec<Result<Vec<f64>, IpaError>> = segs
+            .par_iter()
+            .map(|&(a, b)| {
+                let mut r = Vec::with_capacity(3 * (b - a));
+                simulate_segment(cfg, rec, a, b, |k, x, p| {
+                    if k == a {
+                        return;
+                    }
+                    r.push((x - rec.y[k]) / self.position_scale_mm);
+                    if let Some(pm) = &rec.pressures {
+                        r.push((p[0] - pm[k][0]) / self.pressure_scale_pa);
+                        r.push((p[1] - pm[k][1]) / self.pressure_scale_pa);
+                    }
+                })?;
+                Ok(r)
+            })
+            .collect();
+        let mut out = Vec::new();
+        for p in parts {
+            out.extend(p?);
+        }
+        Ok(out)
+    }
+
+    /// The start plant with C_s scaled by the ratio of measured to simulated full-command speeds
+    /// (geometric mean over the directions both records have), the ratio clamped to [1/3, 3].
+    fn scale_supply_conductance(
+        &self,
+        cfg: PlantConfig,
+        rec: &Record,
+        segs: &[(usize, usize)],
+    ) -> PlantConfig {
+        let mut sim = vec![f64::NAN; rec.u.len()];
+        for &(a, b) in segs {
+            if simulate_segment(&cfg, rec, a, b, |k, x, _| sim[k] = x).is_err() {
+                return cfg;
+            }
+        }
+        let stroke = cfg.cylinder.stroke_mm;
+        let mut log_ratio = Vec::new();
+        for dir in [1.0, -1.0] {
+            let m = full_command_speed(&rec.u, &rec.y, rec.ts, stroke, dir);
+            let s = full_command_speed(&rec.u, &sim, rec.ts, stroke, dir);
+            if let (Some(m), Some(s)) = (m, s) {
+                log_ratio.push((m / s).ln());
+            }
+        }
+        if log_ratio.is_empty() {
+            return cfg;
+        }
+        let ratio = (log_ratio.iter().sum::<f64>() / log_ratio.len() as f64)
+            .exp()
+            .clamp(1.0 / 3.0, 3.0);
+        let mut out = cfg;
+        out.valve.supply_conductance_dm3_s_bar *= ratio;
+        out
+    }
+
+    /// Estimates with standard deviations, and the correlation matrix.
+    fn uncertainty(
+        &self,
+        coords: &Coordinates,
+        start: &PlantConfig,
+        sol: &lm::Solution,
+    ) -> (Vec<Estimate>, Vec<Vec<f64>>) {
+        let p = coords.free.len();
+        let values = coords.values(start, &sol.theta);
+        let start_values = coords.values(start, &coords.theta(start));
+        let cov_theta = sol.jacobian.as_ref().and_then(|j| {
+            let m = j.nrows();
+            if m <= p {
+                return None;
+            }
+            let sigma2 = 2.0 * sol.cost / (m - p) as f64;
+            let jtj = j.transpose() * j;
+            let eps = 1e-14 * jtj.norm();
+            let inv = jtj.pseudo_inverse(eps).ok()?;
+            Some(inv * sigma2)
+        });
+        // G = d(values)/dθ by central differences of the coordinate map (no simulation).
+        let g = DMatrix::from_fn(p, p, |i, j| {
+            let h = 1e-6;
+            let mut tp = sol.theta.clone();
+            let mut tm = sol.theta.clone();
+            tp[j] += h;
+            tm[j] -= h;
+            (coords.values(start, &tp)[i] - coords.values(start, &tm)[i]) / (2.0 * h)
+        });
+        let cov = cov_theta.map(|c| &g * c * g.transpose());
+        let estimates = (0..p)
+            .map(|i| Estimate {
+                parameter: coords.free[i],
+                start: start_values[i],
+                value: values[i],
+                std: cov
+                    .as_ref()
+                    .map(|c| c[(i, i)].max(0.0).sqrt())
+                    .filter(|s| s.is_finite()),
+                at_bound: {
+                    let w = (coords.hi[i] - coords.lo[i]) * 1e-6;
+                    sol.theta[i] <= coords.lo[i] + w || sol.theta[i] >= coords.hi[i] - w
+                },
+            })
+            .collect();
+        let correlation = (0..p)
+            .map(|i| {
+                (0..p)
+                    .map(|j| match &cov {
+                        Some(c) => {
+                            let d = (c[(i, i)] * c[(j, j)]).sqrt();
+                            if d > 0.0 && d.is_finite() {
+                                c[(i, j)] / d
+                            } else if i == j {
+                                1.0
+                            } else {
+                                0.0
+                            }
+                        }
+                        None => f64::NAN,
+                    })
+                    .collect()
+            })
+            .collect();
+        (estimates, correlation)
+    }
+}

@@ -1,0 +1,239 @@
+//! Trust checks shared by every identification and validation: when a figure may flatter a model, the
+//! tool says so ([`Concern`], carried as [`Warning::Trust`]).
+//!
+//! - **Initial state.** The headline simulation fit starts from initial outputs η estimated to fit the
+//!   record (MATLAB `compare`'s default). A model with a spurious slow pole can spend that freedom on a
+//!   slow mode that cancels its own error over the record; started from the measured outputs it then
+//!   drifts away. [`guarded_fit`] is the fit the initial state cannot buy: the worse of the fit from
+//!   estimated and from measured initial outputs. Decisions (which candidate an output-error search
+//!   keeps, which structure `order` recommends, the baseline check) use it, and
+//!   [`initial_state_warning`] speaks when the two fits differ by more than
+//!   [`INITIAL_STATE_MARGIN`] points.
+//! - **Baseline.** A model far below the plain linear least-squares ARX of the same orders on the same
+//!   data ([`below_baseline`], [`BASELINE_MARGIN`] points) is worse than the simplest thing that could
+//!   have been done.
+//! - **Standard deviations.** When none can be computed, the reason is a warning.
+
+use sysid_core::metrics::Metrics;
+
+use crate::warnings::{Record, Warning};
+
+/// Percentage points by which the fits from estimated and from measured initial outputs may differ
+/// before a warning says that the initial state flatters the headline.
+pub const INITIAL_STATE_MARGIN: f64 = 5.0;
+
+/// Percentage points by which a model's guarded simulation fit may trail the linear least-squares ARX
+/// of the same orders on the same data before a warning says so.
+pub const BASELINE_MARGIN: f64 = 20.0;
+
+/// A reason not to trust a figure, in words by `Display`.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Concern {
+    /// The fit from estimated initial outputs exceeds the fit from the measured ones by more than
+    /// [`INITIAL_STATE_MARGIN`] points (or the other way round).
+    InitialStateFlatters {
+        /// Which record.
+        record: Record,
+        /// Fit % from estimated initial outputs (the headline).
+        estimated: f64,
+        /// Fit % from the measured initial outputs.
+        measured: f64,
+    },
+    /// The model's guarded fit trails the linear least-squares ARX baseline by more than the margin.
+    BelowBaseline {
+        /// Which record.
+        record: Record,
+        /// The model's guarded fit %.
+        fit: f64,
+        /// The baseline's guarded fit %.
+        baseline: f64,
+    },
+    /// No standard deviation could be computed.
+    NoStandardDeviations {
+        /// Why (a singular information matrix, a pole pinned on the stability boundary, ...).
+        why: String,
+    },
+}
+
+impl std::fmt::Display for Concern {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Concern::InitialStateFlatters {
+                record,
+                estimated,
+                measured,
+            } => write!(
+                f,
+                "the simulation fit on the {record} data depends on the initial state: {estimated:.2} % \
+                 from estimated initial outputs against {measured:.2} % from the measured ones (more than \
+                 {INITIAL_STATE_MARGIN} points apart; a slow or spurious mode is being fitted by the initial \
+                 state): trust the lower figure"
+            ),
+            Concern::BelowBaseline {
+                record,
+                fit,
+                baseline,
+            } => write!(
+                f,
+                "the model simulates the {record} data far worse than the plain linear least-squares ARX of \
+                 the same orders (fit {fit:.2} % against {baseline:.2} %, the worse of both initial states)"
+            ),
+            Concern::NoStandardDeviations { why } => {
+                write!(f, "no standard deviation could be computed: {why}")
+            }
+        }
+    }
+}
+
+/// The simulation fit % that the initial state cannot flatter: the worse of the fits from estimated and
+/// from measured initial outputs; `None` when either simulation diverges or the output is constant.
+pub fn guarded_fit(m: &Metrics) -> Option<f64> {
+    match (m.fit_sim_percent, m.fit_sim_measured_percent) {
+        (Some(a), Some(b)) => Some(a.min(b)),
+        _ => None,
+    }
+}
+
+/// The simulation RMSE that the initial state cannot flatter: the larger of the RMSEs from estimated
+/// and from measured initial outputs; `None` when either simulation diverges.
+pub fn guarded_rmse(m: &Metrics) -> Option<f64> {
+    match (m.rmse_sim, m.rmse_sim_measured) {
+        (Some(a), Some(b)) => Some(a.max(b)),
+        _ => None,
+    }
+}
+
+/// [`Concern::InitialStateFlatters`] when the two simulation fits of `m` differ by more than
+/// [`INITIAL_STATE_MARGIN`] points.
+pub fn initial_state_warning(record: Record, m: &Metrics) -> Option<Warning> {
+    let (estimated, measured) = (m.fit_sim_percent?, m.fit_sim_measured_percent?);
+    ((estimated - measured).abs() > INITIAL_STATE_MARGIN).then_some(Warning::Trust(
+        Concern::InitialStateFlatters {
+            record,
+            estimated,
+            measured,
+        },
+    ))
+}
+
+/// True when `fit` trails `baseline` by more than `margin` percentage points (a diverging model,
+/// `fit` = `None`, trails any baseline).
+pub fn trails(fit: Option<f64>, baseline: f64, margin: f64) -> bool {
+    fit.is_none_or(|f| f < baseline - margin)
+}
+
+/// [`Concern::BelowBaseline`] when the guarded `fit` trails the `baseline` fit by more than
+/// [`BASELINE_MARGIN`] points (a diverging model is reported by its own warning).
+pub fn below_baseline(record: Record, fit: Option<f64>, baseline: Option<f64>) -> Option<Warning> {
+    let (fit, baseline) = (fit?, baseline?);
+    trails(Some(fit), baseline, BASELINE_MARGIN).then_some(Warning::Trust(Concern::BelowBaseline {
+        record,
+        fit,
+        baseline,
+    }))
+}
+
+/// The warnings a record's metrics raise: a negative or diverging simulation, and an initial state
+/// that flatters the headline fit. The one place where metrics become warnings.
+pub fn metric_warnings(record: Record, m: &Metrics) -> Vec<Warning> {
+    Warning::if_poor_simulation(record, m.fit_sim_percent)
+        .into_iter()
+        .chain(initial_state_warning(record, m))
+        .collect()
+}
+
+/// [`Concern::BelowBaseline`] for a fitted model on a record other than its estimation record
+/// (`data`, whose metrics `m` are given): the baseline is the plain linear least-squares ARX of the
+/// same orders and offset (every input linear) estimated on the records `est` (as
+/// `identify --structure arx --method ls` would), judged
+/// on `data`. `None` for that baseline itself, or when the baseline cannot be estimated, is unstable
+/// (no yardstick) or cannot be simulated.
+pub fn baseline_warning(
+    record: Record,
+    fit: &crate::Fitted,
+    settings: &crate::Identification,
+    est: &[sysid_core::Dataset],
+    data: &sysid_core::Dataset,
+    m: &Metrics,
+) -> Option<Warning> {
+    let s = settings.structure;
+    if fit.model.kind() == sysid_core::ModelKind::Arx && fit.method == crate::Method::Ls {
+        return None;
+    }
+    let linear = settings
+        .inputs
+        .iter()
+        .map(|i| crate::InputSpec {
+            nonlinearity: crate::NonlinearityKind::Linear,
+            ..*i
+        })
+        .collect();
+    let base = crate::Identification::default()
+        .with_kind(sysid_core::ModelKind::Arx)
+        .with_orders(s.orders.na, s.orders.nb, s.orders.nk)
+        .with_inputs(linear)
+        .with_offset(s.offset)
+        .with_method(crate::Method::Ls);
+    let baseline = crate::identify(est, &base).ok()?;
+    if !baseline.model.is_stable() {
+        return None;
+    }
+    let bm = sysid_core::metrics::metrics(&baseline.model, data).ok()?;
+    below_baseline(record, guarded_fit(m), guarded_fit(&bm))
+}
+
+/// [`Concern::NoStandardDeviations`] with the reason, when there is one.
+pub fn std_warning(why: Option<String>) -> Option<Warning> {
+    why.map(|why| Warning::Trust(Concern::NoStandardDeviations { why }))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn metrics(est: Option<f64>, meas: Option<f64>) -> Metrics {
+        Metrics {
+            fit_sim_percent: est,
+            fit_pred_percent: None,
+            rmse_sim: None,
+            fit_sim_measured_percent: meas,
+            rmse_sim_measured: None,
+            rmse_pred: 0.0,
+            loss: 0.0,
+            loss_sim: None,
+            fpe: None,
+            aic: None,
+            n: 10,
+            p: 1,
+            note: None,
+        }
+    }
+
+    // The guarded fit is the lower of the two: min(91, −206) = −206.
+    #[test]
+    fn the_guarded_fit_is_the_worse_of_both_initial_states() {
+        assert_eq!(
+            guarded_fit(&metrics(Some(91.0), Some(-206.0))),
+            Some(-206.0)
+        );
+        assert_eq!(guarded_fit(&metrics(Some(80.0), None)), None);
+    }
+
+    // 91 − 85.4 = 5.6 > 5 points: warned; 87.74 against 87.70 is not.
+    #[test]
+    fn a_gap_of_more_than_five_points_between_initial_states_is_warned() {
+        let w = initial_state_warning(Record::Estimation, &metrics(Some(91.0), Some(85.4)));
+        assert!(w.unwrap().to_string().contains("85.40 %"));
+        assert!(
+            initial_state_warning(Record::Estimation, &metrics(Some(87.74), Some(87.7))).is_none()
+        );
+    }
+
+    // 4.6 % against 40 %: 35.4 points below, more than 20: warned; 25 against 40 is not.
+    #[test]
+    fn a_fit_twenty_points_below_the_baseline_is_warned() {
+        assert!(below_baseline(Record::Estimation, Some(4.6), Some(40.0)).is_some());
+        assert!(below_baseline(Record::Estimation, Some(25.0), Some(40.0)).is_none());
+        assert!(trails(None, 40.0, 10.0));
+    }
+}

@@ -16,74 +16,13 @@
 
 use sysid_core::metrics::Metrics;
 
-use crate::warnings::{Record, Warning};
+use crate::warnings::{Concern, Record, Warning};
 
-/// Percentage points by which the fits from estimated and from measured initial outputs may differ
-/// before a warning says that the initial state flatters the headline.
-pub const INITIAL_STATE_MARGIN: f64 = 5.0;
+pub use crate::warnings::INITIAL_STATE_MARGIN;
 
 /// Percentage points by which a model's guarded simulation fit may trail the linear least-squares ARX
 /// of the same orders on the same data before a warning says so.
 pub const BASELINE_MARGIN: f64 = 20.0;
-
-/// A reason not to trust a figure, in words by `Display`.
-#[derive(Debug, Clone, PartialEq)]
-pub enum Concern {
-    /// The fit from estimated initial outputs exceeds the fit from the measured ones by more than
-    /// [`INITIAL_STATE_MARGIN`] points (or the other way round).
-    InitialStateFlatters {
-        /// Which record.
-        record: Record,
-        /// Fit % from estimated initial outputs (the headline).
-        estimated: f64,
-        /// Fit % from the measured initial outputs.
-        measured: f64,
-    },
-    /// The model's guarded fit trails the linear least-squares ARX baseline by more than the margin.
-    BelowBaseline {
-        /// Which record.
-        record: Record,
-        /// The model's guarded fit %.
-        fit: f64,
-        /// The baseline's guarded fit %.
-        baseline: f64,
-    },
-    /// No standard deviation could be computed.
-    NoStandardDeviations {
-        /// Why (a singular information matrix, a pole pinned on the stability boundary, ...).
-        why: String,
-    },
-}
-
-impl std::fmt::Display for Concern {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            Concern::InitialStateFlatters {
-                record,
-                estimated,
-                measured,
-            } => write!(
-                f,
-                "the simulation fit on the {record} data depends on the initial state: {estimated:.2} % \
-                 from estimated initial outputs against {measured:.2} % from the measured ones (more than \
-                 {INITIAL_STATE_MARGIN} points apart; a slow or spurious mode is being fitted by the initial \
-                 state): trust the lower figure"
-            ),
-            Concern::BelowBaseline {
-                record,
-                fit,
-                baseline,
-            } => write!(
-                f,
-                "the model simulates the {record} data far worse than the plain linear least-squares ARX of \
-                 the same orders (fit {fit:.2} % against {baseline:.2} %, the worse of both initial states)"
-            ),
-            Concern::NoStandardDeviations { why } => {
-                write!(f, "no standard deviation could be computed: {why}")
-            }
-        }
-    }
-}
 
 /// The simulation fit % that the initial state cannot flatter: the worse of the fits from estimated and
 /// from measured initial outputs; `None` when either simulation diverges or the output is constant.
@@ -140,46 +79,6 @@ pub fn metric_warnings(record: Record, m: &Metrics) -> Vec<Warning> {
         .into_iter()
         .chain(initial_state_warning(record, m))
         .collect()
-}
-
-/// [`Concern::BelowBaseline`] for a fitted model on a record other than its estimation record
-/// (`data`, whose metrics `m` are given): the baseline is the plain linear least-squares ARX of the
-/// same orders and offset (every input linear) estimated on the records `est` (as
-/// `identify --structure arx --method ls` would), judged
-/// on `data`. `None` for that baseline itself, or when the baseline cannot be estimated, is unstable
-/// (no yardstick) or cannot be simulated.
-pub fn baseline_warning(
-    record: Record,
-    fit: &crate::Fitted,
-    settings: &crate::Identification,
-    est: &[sysid_core::Dataset],
-    data: &sysid_core::Dataset,
-    m: &Metrics,
-) -> Option<Warning> {
-    let s = settings.structure;
-    if fit.model.kind() == sysid_core::ModelKind::Arx && fit.method == crate::Method::Ls {
-        return None;
-    }
-    let linear = settings
-        .inputs
-        .iter()
-        .map(|i| crate::InputSpec {
-            nonlinearity: crate::NonlinearityKind::Linear,
-            ..*i
-        })
-        .collect();
-    let base = crate::Identification::default()
-        .with_kind(sysid_core::ModelKind::Arx)
-        .with_orders(s.orders.na, s.orders.nb, s.orders.nk)
-        .with_inputs(linear)
-        .with_offset(s.offset)
-        .with_method(crate::Method::Ls);
-    let baseline = crate::identify(est, &base).ok()?;
-    if !baseline.model.is_stable() {
-        return None;
-    }
-    let bm = sysid_core::metrics::metrics(&baseline.model, data).ok()?;
-    below_baseline(record, guarded_fit(m), guarded_fit(&bm))
 }
 
 /// [`Concern::NoStandardDeviations`] with the reason, when there is one.

@@ -117,7 +117,7 @@ pub enum Warning {
         levels: usize,
     },
     /// A trust check of [`crate::trust`] (initial state, baseline, standard deviations).
-    Trust(crate::trust::Concern),
+    Trust(Concern),
 }
 
 impl std::fmt::Display for Warning {
@@ -222,3 +222,66 @@ impl Serialize for Warning {
         s.collect_str(self)
     }
 }
+
+/// A reason not to trust a figure, in words by `Display`.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Concern {
+    /// The fit from estimated initial outputs exceeds the fit from the measured ones by more than
+    /// [`INITIAL_STATE_MARGIN`] points (or the other way round).
+    InitialStateFlatters {
+        /// Which record.
+        record: Record,
+        /// Fit % from estimated initial outputs (the headline).
+        estimated: f64,
+        /// Fit % from the measured initial outputs.
+        measured: f64,
+    },
+    /// The model's guarded fit trails the linear least-squares ARX baseline by more than the margin.
+    BelowBaseline {
+        /// Which record.
+        record: Record,
+        /// The model's guarded fit %.
+        fit: f64,
+        /// The baseline's guarded fit %.
+        baseline: f64,
+    },
+    /// No standard deviation could be computed.
+    NoStandardDeviations {
+        /// Why (a singular information matrix, a pole pinned on the stability boundary, ...).
+        why: String,
+    },
+}
+
+impl std::fmt::Display for Concern {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Concern::InitialStateFlatters {
+                record,
+                estimated,
+                measured,
+            } => write!(
+                f,
+                "the simulation fit on the {record} data depends on the initial state: {estimated:.2} % \
+                 from estimated initial outputs against {measured:.2} % from the measured ones (more than \
+                 {INITIAL_STATE_MARGIN} points apart; a slow or spurious mode is being fitted by the initial \
+                 state): trust the lower figure"
+            ),
+            Concern::BelowBaseline {
+                record,
+                fit,
+                baseline,
+            } => write!(
+                f,
+                "the model simulates the {record} data far worse than the plain linear least-squares ARX of \
+                 the same orders (fit {fit:.2} % against {baseline:.2} %, the worse of both initial states)"
+            ),
+            Concern::NoStandardDeviations { why } => {
+                write!(f, "no standard deviation could be computed: {why}")
+            }
+        }
+    }
+}
+
+/// Percentage points by which the fits from estimated and from measured initial outputs may differ
+/// before a warning says that the initial state flatters the headline.
+pub const INITIAL_STATE_MARGIN: f64 = 5.0;

@@ -116,7 +116,7 @@ pub enum Warning {
         /// Distinct levels beyond the breakpoint.
         levels: usize,
     },
-    /// A trust check of [`crate::trust`] (initial state, baseline, standard deviations).
+    /// A trust check (module `trust`: initial state, baseline, standard deviations).
     Trust(Concern),
 }
 

@@ -1,4 +1,4 @@
-//! The estimators, each over the one [`Regression`] of a [`Problem`] (one or several inputs, one or
+//! The estimators, each over the one [`Regression`](crate::regression::Regression) of a [`Problem`] (one or several inputs, one or
 //! several records) and the nonlinearity blocks of its inputs ([`crate::blocks`]):
 //! - least squares: one QR solve without key terms (ARX); otherwise the key-term iteration
 //!   (docs/paper.md, eq. 8): the switching and x̂ of every input rebuilt from the current estimate, the

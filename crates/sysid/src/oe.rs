@@ -6,7 +6,7 @@
 //! encoder's quantisation and noise). The simulation error does not regress on noisy past outputs, so its
 //! minimiser is consistent under white output noise (Ljung, *System Identification*, ch. 7–8).
 //!
-//! Parameter vector (the physical layout of [`Parameterisation`]):
+//! Parameter vector (the physical layout of [`Regression`]; with one input that of `sysid_core::param`):
 //! - Hammerstein: θ = [b_l, b_r, m_l, m_r, a1..a_na, b2..b_nb, (c)], b1 = 1 fixed (normalisation);
 //! - ARX: θ = [a1..a_na, b1..b_nb, (c)].
 //!

@@ -7,7 +7,7 @@ use crate::fitted::{Fitted, Method};
 use crate::regression::{Channel, Regression};
 use sysid_core::{Dataset, Model, SysidError};
 
-/// One record or several (merged experiments, MATLAB `merge`): what [`identify`] accepts.
+/// One record or several (merged experiments, MATLAB `merge`): what [`identify`](crate::identify) accepts.
 pub trait Records {
     /// The records.
     fn records(&self) -> &[Dataset];
@@ -213,9 +213,9 @@ impl<'a> Problem<'a> {
 pub trait Estimator {
     /// Which method this is (reported in the fitted result).
     fn method(&self) -> Method;
-    /// Checks the settings (each error names the [`Setting`] at fault).
+    /// Checks the settings (each error names the [`Setting`](sysid_core::Setting) at fault).
     fn check(&self) -> Result<(), SysidError>;
-    /// Fits the problem. Called by [`identify`], which checks the settings first and applies the common
+    /// Fits the problem. Called by [`identify`](crate::identify), which checks the settings first and applies the common
     /// safeguards after.
     fn fit(&self, problem: &Problem) -> Result<Fitted, SysidError>;
 }

@@ -970,7 +970,9 @@ fn control_loop<'py>(
             Ok((trace, run))
         })
         .map_err(control_err)?;
-    let warnings = ::control::loop_warnings(
+    // The model file's own doubts (a crossed deadzone), then the loop's.
+    let mut warnings = limits.model_warnings.clone();
+    warnings.extend(::control::loop_warnings(
         &trace,
         &run.steps,
         &::control::LoopFacts {
@@ -979,7 +981,7 @@ fn control_loop<'py>(
             unstable_pole: limits.unstable_pole,
             fixed_step: matches!(profile, Profile::Fixed { .. }),
         },
-    );
+    ));
     let out = PyDict::new(py);
     out.set_item("t", trace.t.into_pyarray(py))?;
     out.set_item("r", trace.r.into_pyarray(py))?;

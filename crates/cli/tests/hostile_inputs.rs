@@ -458,6 +458,22 @@ fn suspicious_model_files_are_announced() {
         "{}",
         stderr(&out)
     );
+    // control: in its warnings list (JSON) like validate's.
+    let out = run(
+        "control --plant model:{t}/crossed.json --setpoint 10 --duration 1 --json {t}/c.json",
+        d,
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let c: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("c.json")).unwrap()).unwrap();
+    assert!(
+        c["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|w| w.as_str().unwrap().contains("b_l = 5 > b_r = -5")),
+        "{c}"
+    );
 
     let out = run(
         "simulate --plant model:{c}/model/unstable.json --input prbs --samples 20 --out {t}/u.csv",

@@ -104,7 +104,7 @@ impl PlantSpec {
 }
 
 /// What a closed loop around a plant can be checked against ([`PlantSpec::limits`]).
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
+#[derive(Debug, Clone, Default, PartialEq)]
 pub struct PlantLimits {
     /// The outputs the plant can reach, in mm: the IPA's stroke 0..L (its end stops); `None` for a
     /// model, which has no stroke.
@@ -112,6 +112,9 @@ pub struct PlantLimits {
     /// The largest pole modulus of a model plant when it exceeds 1 (an unstable model; an integrator's
     /// pole at 1 is a position actuator's normal dynamics); `None` otherwise.
     pub unstable_pole: Option<f64>,
+    /// What the model file holds that the user must be told (a deadzone whose breakpoints cross, slopes
+    /// of opposite signs: [`sysid_core::model_file::load_warnings`]); empty for `ipa` and `paper`.
+    pub model_warnings: Vec<String>,
 }
 
 impl PlantSpec {
@@ -127,6 +130,7 @@ impl PlantSpec {
                 return Ok(PlantLimits {
                     range_mm: Some((0.0, cfg.cylinder.stroke_mm)),
                     unstable_pole: None,
+                    model_warnings: Vec::new(),
                 });
             }
             PlantSpec::Paper => sysid_core::Model::paper(),
@@ -136,6 +140,7 @@ impl PlantSpec {
         Ok(PlantLimits {
             range_mm: None,
             unstable_pole: (pole > 1.0 + 1e-9).then_some(pole),
+            model_warnings: sysid_core::model_file::load_warnings(&model),
         })
     }
 }

@@ -123,7 +123,7 @@ struct ControlOut<'a> {
     samples: usize,
     trace: Option<String>,
     /// Reasons not to trust the step metrics, in words (always present; empty when all is well):
-    /// `control::loop_warnings`.
+    /// the model file's load warnings and `control::loop_warnings`.
     warnings: &'a [String],
     /// With --adaptive: what the adaptation did.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -229,7 +229,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .parse::<ipa::PlantSpec>()
         .and_then(|spec| spec.limits(args.plant_config.as_deref()))
         .with_context(|| format!("cannot read the plant for --plant {}", args.plant))?;
-    let warnings = control::loop_warnings(
+    // The model file's own doubts (a crossed deadzone), then the loop's.
+    let mut warnings = limits.model_warnings.clone();
+    warnings.extend(control::loop_warnings(
         &trace,
         &steps,
         &control::LoopFacts {
@@ -238,7 +240,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             unstable_pole: limits.unstable_pole,
             fixed_step: matches!(profile, Profile::Fixed { .. }),
         },
-    );
+    ));
 
     if let Some(out) = &args.out {
         sysid_io::write_columns_csv(out, &Trace::COLUMNS, &trace.columns())?;

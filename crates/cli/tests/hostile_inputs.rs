@@ -154,6 +154,25 @@ fn a_dash_is_standard_output_for_every_output_flag() {
             "{args} wrote a file named -"
         );
     }
+    // control: the trace alone on standard output (its text report goes to standard error); both the
+    // trace and the JSON cannot go there; reproduce writes a folder, so `-` is refused.
+    let out = run(
+        "control --plant paper --setpoint 10 --duration 1 --out -",
+        dir.path(),
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(text.starts_with("t,r,u,y\n"), "{text}");
+    assert_eq!(text.lines().count(), 1 + 101, "{text}");
+    let out = run(
+        "control --plant paper --setpoint 10 --duration 1 --out - --json -",
+        dir.path(),
+    );
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(stderr(&out).contains("standard output"), "{}", stderr(&out));
+    let out = run("reproduce --plant paper --out -", dir.path());
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(!dir.path().join("-").exists());
 }
 
 // A symbolic link is followed: the file it names is replaced atomically, the link stays a link. A link

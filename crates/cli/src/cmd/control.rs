@@ -202,6 +202,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         (None, None) => DEFAULT_FIXED_DURATION_S,
     };
     check_outputs(&args, &inputs)?;
+    let to_stdout = |p: &Option<PathBuf>| p.as_ref().is_some_and(|p| p.as_os_str() == "-");
+    if to_stdout(&args.out) && to_stdout(&args.json) {
+        bail!("--out - and --json - would both write to standard output: give one of them a file");
+    }
 
     let (trace, adaptive) = run_loop(
         &args,
@@ -245,7 +249,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(out) = &args.out {
         sysid_io::write_columns_csv(out, &Trace::COLUMNS, &trace.columns())?;
     }
-    let json_to_stdout = args.json.as_ref().is_some_and(|j| j.as_os_str() == "-");
+    let json_to_stdout = to_stdout(&args.json);
     if let Some(json) = &args.json {
         let doc = ControlOut {
             plant: PlantOut {
@@ -297,8 +301,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     for w in &warnings {
         summary += &format!("warning: {w}\n");
     }
-    // Keep standard output clean JSON when the JSON goes there.
-    if json_to_stdout {
+    // Keep standard output clean JSON (or CSV) when the JSON (or the trace) goes there.
+    if json_to_stdout || to_stdout(&args.out) {
         eprint!("{summary}");
     } else {
         print!("{summary}");

@@ -28,6 +28,11 @@ pub struct Args {
 
 /// Runs `reproduce`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.out.as_os_str() == "-" {
+        anyhow::bail!(
+            "--out -: reproduce writes a folder of files (report, figures, data); name a folder"
+        );
+    }
     if args.out.is_file() {
         anyhow::bail!(
             "--out {}: is a file; expected a folder (it is created if missing)",

@@ -1412,19 +1412,6 @@ fn several_inputs_by_rls_reach_the_least_squares_solution() {
     assert_eq!(j["estimation"]["method"], "iv");
 }
 
-/// A deterministic stand-in for white noise of unit variance: a 64-bit LCG, uniform on (−√3, √3).
-fn white(n: usize, seed: u64) -> Vec<f64> {
-    let mut x = seed;
-    (0..n)
-        .map(|_| {
-            x = x
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((x >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 2.0 * 3f64.sqrt()
-        })
-        .collect()
-}
-
 /// Writes columns u1, u2, y.
 fn write_u1u2y(path: &Path, u1: &[f64], u2: &[f64], y: &[f64]) {
     let mut text = String::from("u1,u2,y\n");
@@ -1441,8 +1428,8 @@ fn write_u1u2y(path: &Path, u1: &[f64], u2: &[f64], y: &[f64]) {
 fn noisy_miso(dir: &Path, f1: &dyn Fn(f64) -> f64, noise: f64, name: &str) -> PathBuf {
     let n = 3000;
     let u1: Vec<f64> = input(n).iter().map(|v| 3.0 * (v - 1.0)).collect();
-    let u2: Vec<f64> = white(n, 7).iter().map(|v| 2.0 * v).collect();
-    let e = white(n, 99);
+    let u2: Vec<f64> = ipa_testdata::white(n, 7).iter().map(|v| 2.0 * v).collect();
+    let e = ipa_testdata::white(n, 99);
     let mut x = vec![0.0; n];
     for k in 2..n {
         x[k] = 0.9 * x[k - 1] + f1(u1[k - 1]) + 0.5 * f1(u1[k - 2]) + 0.4 * u2[k - 2];
@@ -1937,14 +1924,14 @@ fn several_input_deadzone_warnings_name_the_input() {
     let dir = tempfile::tempdir().unwrap();
     let levels = [-3.0, -2.0, -1.5, 0.0, 1.0, 2.0, 3.0];
     let n = 700;
-    let pick = white(n / 5 + 1, 17);
+    let pick = ipa_testdata::white(n / 5 + 1, 17);
     let u1: Vec<f64> = (0..n)
         .map(|k| {
             let r = (pick[k / 5] / (2.0 * 3f64.sqrt()) + 0.5) * levels.len() as f64;
             levels[(r as usize).min(levels.len() - 1)]
         })
         .collect();
-    let u2 = white(n, 23);
+    let u2 = ipa_testdata::white(n, 23);
     let f = |v: f64| {
         if v >= 1.0 {
             1.2 * (v - 1.0)

@@ -44,19 +44,6 @@ fn warnings(j: &serde_json::Value) -> Vec<String> {
         .unwrap_or_default()
 }
 
-/// A deterministic stand-in for white noise of unit variance: a 64-bit LCG, uniform on (−√3, √3).
-fn white(n: usize, seed: u64) -> Vec<f64> {
-    let mut x = seed;
-    (0..n)
-        .map(|_| {
-            x = x
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((x >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 2.0 * 3f64.sqrt()
-        })
-        .collect()
-}
-
 /// Writes columns `names` (each a signal) with a time column at Ts = 0.1 s.
 fn write(path: &Path, names: &[&str], cols: &[&[f64]]) {
     let mut text = format!("t,{}\n", names.join(","));
@@ -84,7 +71,7 @@ fn readme_record(dir: &Path) -> PathBuf {
 
 /// Noise-free y(k) = 0.6 y(k−1) + u1(k−1) − 0.8 u2(k−1).
 fn two_input_record(n: usize) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
-    let (u1, u2) = (white(n, 3), white(n, 5));
+    let (u1, u2) = (ipa_testdata::white(n, 3), ipa_testdata::white(n, 5));
     let mut y = vec![0.0; n];
     for k in 1..n {
         y[k] = 0.6 * y[k - 1] + u1[k - 1] - 0.8 * u2[k - 1];
@@ -246,9 +233,12 @@ fn plain_merged_and_several_input_identifications_share_one_json_shape() {
 fn a_one_sided_input_drops_its_unexcited_branch_with_several_inputs_too() {
     let dir = tempfile::tempdir().unwrap();
     let n = 600;
-    let u1: Vec<f64> = white(n, 3).iter().map(|v| 2.0 * (v + 1.8)).collect();
+    let u1: Vec<f64> = ipa_testdata::white(n, 3)
+        .iter()
+        .map(|v| 2.0 * (v + 1.8))
+        .collect();
     assert!(u1.iter().all(|v| *v > 0.0));
-    let u2 = white(n, 5);
+    let u2 = ipa_testdata::white(n, 5);
     let x = |u: f64| if u >= 0.5 { 1.2 * (u - 0.5) } else { 0.0 };
     let mut y = vec![0.0; n];
     for k in 1..n {

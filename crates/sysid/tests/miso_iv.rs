@@ -8,19 +8,6 @@ use sysid::{
     LeastSquares, Method, ModelKind, NonlinearityKind,
 };
 
-/// A deterministic stand-in for white noise of unit variance: a 64-bit LCG, uniform on (−√3, √3).
-fn white(n: usize, seed: u64) -> Vec<f64> {
-    let mut x = seed;
-    (0..n)
-        .map(|_| {
-            x = x
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            ((x >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 2.0 * 3f64.sqrt()
-        })
-        .collect()
-}
-
 /// The generating coefficients: a1, a2, b(u1) = (1, 0.5), b(u2) = −0.8 (nk = 1, 2).
 const A: [f64; 2] = [-1.2, 0.5];
 const B1: [f64; 2] = [1.0, 0.5];
@@ -29,9 +16,9 @@ const B2: f64 = -0.8;
 /// y(k) = −a1 y(k−1) − a2 y(k−2) + u1(k−1) + 0.5 u1(k−2) − 0.8 u2(k−2) + v(k), with the ARMA(1,1)
 /// equation noise v(k) = 0.6 v(k−1) + σ (e(k) + 0.5 e(k−1)).
 fn record(n: usize, sigma: f64) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
-    let u1 = white(n, 3);
-    let u2 = white(n, 5);
-    let e = white(n, 11);
+    let u1 = ipa_testdata::white(n, 3);
+    let u2 = ipa_testdata::white(n, 5);
+    let e = ipa_testdata::white(n, 11);
     let mut v = vec![0.0; n];
     let mut y = vec![0.0; n];
     for k in 2..n {
@@ -138,8 +125,8 @@ fn iv_with_two_inputs_is_exact_on_noise_free_data() {
 #[test]
 fn iv_with_a_deadzone_input_and_a_linear_one_is_exact_on_noise_free_data() {
     let n = 600;
-    let u1: Vec<f64> = white(n, 3).iter().map(|v| 2.0 * v).collect();
-    let u2 = white(n, 5);
+    let u1: Vec<f64> = ipa_testdata::white(n, 3).iter().map(|v| 2.0 * v).collect();
+    let u2 = ipa_testdata::white(n, 5);
     let f = |u: f64| {
         if u >= 0.4 {
             1.3 * (u - 0.4)
@@ -184,7 +171,7 @@ fn iv_with_a_deadzone_input_and_a_linear_one_is_exact_on_noise_free_data() {
 #[test]
 fn an_unstable_several_input_hammerstein_estimate_gives_way_to_the_linear_start() {
     let n = 400;
-    let (u1, u2) = (white(n, 3), white(n, 5));
+    let (u1, u2) = (ipa_testdata::white(n, 3), ipa_testdata::white(n, 5));
     let mut y = vec![0.0; n];
     for k in 2..n {
         y[k] = 0.7 * y[k - 1] + 1.5 * u1[k - 1] - 0.8 * u2[k - 2];

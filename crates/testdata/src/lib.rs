@@ -1,5 +1,5 @@
-//! Where the tests find the real measured records of `../shared/data`, and how a test that cannot run
-//! says so visibly.
+//! Where the tests find the real measured records of `../shared/data`, how a test that cannot run says
+//! so visibly, and the deterministic test noise [`white`] that several test files share.
 //!
 //! The records are read at run time from the folder beside the repository (`../shared/data`, or the
 //! folder named by `IPA_SYSID_SHARED_DATA`), never copied into it. A test that needs a record it cannot
@@ -73,4 +73,19 @@ fn data_folder() -> PathBuf {
         Some(dir) => PathBuf::from(dir),
         None => PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../../shared/data"),
     }
+}
+
+/// A deterministic stand-in for white noise of unit variance: `n` draws of a 64-bit LCG (Knuth's MMIX
+/// constants) from `seed`, uniform on (−√3, √3). The same `(n, seed)` gives the same samples on every
+/// machine, so test expectations computed from it are reproducible.
+pub fn white(n: usize, seed: u64) -> Vec<f64> {
+    let mut x = seed;
+    (0..n)
+        .map(|_| {
+            x = x
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            ((x >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 2.0 * 3f64.sqrt()
+        })
+        .collect()
 }

@@ -80,8 +80,10 @@ pub struct Args {
         value_enum,
         default_value = "hammerstein"
     )]
-    pub model: ModelKind,
-    /// na: number of poles (order of A).
+    pub model: StructureArg,
+    #[command(flatten)]
+    pub narx: super::identify_narx::NarxArgs,
+    /// na: number of poles (order of A); for narx the largest output lag.
     #[arg(long, default_value_t = 3, value_parser = parse_order)]
     pub na: usize,
     /// nb: number of B coefficients (>= 1 for Hammerstein); with several inputs one per input (2,1) or
@@ -167,6 +169,27 @@ pub struct Args {
     pub stream: StreamMode,
 }
 
+/// `--structure`: a linear or Hammerstein model (sysid's [`ModelKind`]) or a polynomial NARX model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum StructureArg {
+    /// Linear ARX: x = u.
+    Arx,
+    /// Hammerstein: static nonlinearity x = f(u) of each input (default deadzone), then ARX on x.
+    Hammerstein,
+    /// Polynomial NARX: y(k) = Σ θ_i · monomials up to --degree of y(k−1..k−na), u(k−nk..k−nk−nb+1).
+    Narx,
+}
+
+impl StructureArg {
+    /// The linear or Hammerstein structure (NARX is identified on its own path).
+    pub fn kind(self) -> ModelKind {
+        match self {
+            StructureArg::Hammerstein => ModelKind::Hammerstein,
+            StructureArg::Arx | StructureArg::Narx => ModelKind::Arx,
+        }
+    }
+}
+
 /// `--nonlinearity`: one kind for every input, or one per named input.
 #[derive(Debug, Clone, PartialEq)]
 pub enum NonlinearityArg {
@@ -209,7 +232,7 @@ impl Args {
     pub fn settings(&self) -> anyhow::Result<Identification> {
         let names = self.columns.csv_options().input_names();
         let options = IdentifyOptions {
-            model: self.model,
+            model: self.model.kind(),
             na: self.na,
             nb: self.nb.first(),
             nk: self.nk.first(),
@@ -307,6 +330,9 @@ impl Args {
 /// Runs `identify`: one record or several merged (`--merge`), one input or several, by any method;
 /// several files without `--merge` are batch mode ([`super::identify_batch`]).
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.model == StructureArg::Narx {
+        return super::identify_narx::run(&args);
+    }
     let several_inputs = args.columns.u_col.contains(',');
     let batch = super::identify_batch::is_batch(&args.data);
     if args.stream == StreamMode::On && (several_inputs || args.merge || batch) {

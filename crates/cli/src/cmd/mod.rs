@@ -8,6 +8,7 @@ pub mod control;
 pub mod delay;
 pub mod identify;
 pub mod identify_batch;
+pub mod identify_narx;
 pub mod montecarlo;
 pub mod order;
 pub mod plant_config;

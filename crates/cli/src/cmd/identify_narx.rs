@@ -1,0 +1,187 @@
+//! `ipa-sysid identify --structure narx`: a polynomial NARX model, its terms chosen by orthogonal
+//! forward regression (FROLS) with an honest stopping rule (`sysid::narx`).
+
+use std::path::Path;
+
+use sysid::narx::{identify_narx, NarxReport, NarxSettings, StopRule};
+
+use super::common::{check_outputs, print_notes, write_output};
+use super::identify::Args;
+
+/// Flags that only polynomial NARX models use.
+#[derive(Debug, Clone, clap::Args)]
+pub struct NarxArgs {
+    /// Polynomial NARX (--structure narx): the largest degree D of a monomial of the lagged y and u.
+    #[arg(long, value_name = "D", default_value_t = 2)]
+    pub degree: usize,
+    /// Polynomial NARX: how many FROLS-ordered terms to keep: `sim` (default) the least free-run
+    /// simulation RMSE on the selection part (the last --selection fraction of the estimation record,
+    /// terms ordered on the rest), `aic` or `bic` on the one-step residuals of the estimation record.
+    #[arg(long, value_enum, default_value = "sim")]
+    pub stop: StopRule,
+    /// Polynomial NARX: at most this many terms are ordered by FROLS.
+    #[arg(long, value_name = "N", default_value_t = 30)]
+    pub max_terms: usize,
+    /// Polynomial NARX with --stop sim: the fraction of the estimation record (its end) that chooses
+    /// the number of terms.
+    #[arg(long, value_name = "F", default_value_t = 1.0 / 3.0)]
+    pub selection: f64,
+    /// Polynomial NARX: keep the least-squares (one-step) coefficients; by default they are refined on
+    /// the free-run simulation error of the estimation record (Levenberg–Marquardt).
+    #[arg(long)]
+    pub no_refine: bool,
+}
+
+impl NarxArgs {
+    /// The NARX settings of these flags with the lags of `identify` (`--offset` offers the constant).
+    pub fn settings(
+        &self,
+        na: usize,
+        nb: usize,
+        nk: usize,
+        offset: bool,
+        max_iterations: usize,
+    ) -> NarxSettings {
+        NarxSettings {
+            na,
+            nb,
+            nk,
+            degree: self.degree,
+            constant: offset,
+            max_terms: self.max_terms,
+            stop: self.stop,
+            selection: self.selection,
+            refine: !self.no_refine,
+            max_iterations,
+        }
+    }
+}
+
+/// Runs `identify --structure narx`.
+pub fn run(args: &Args) -> anyhow::Result<()> {
+    if args.columns.u_col.contains(',') || args.merge || args.data.len() > 1 {
+        anyhow::bail!(
+            "--structure narx identifies one record with one input (no --merge, no input list, one --data file)"
+        );
+    }
+    if args.detrend != sysid::detrend::Detrend::None {
+        anyhow::bail!(
+            "--structure narx takes no --detrend: offer the constant term with --offset instead"
+        );
+    }
+    if args.nb.0.len() > 1 || args.nk.0.len() > 1 {
+        anyhow::bail!("--nb/--nk lists are for several inputs; --structure narx has one");
+    }
+    let settings = args.narx.settings(
+        args.na,
+        args.nb.first(),
+        args.nk.first(),
+        args.offset,
+        args.max_iterations.min(200),
+    );
+    settings.check()?;
+    let data_path = &args.data[0];
+    let mut inputs: Vec<&Path> = vec![data_path];
+    inputs.extend(args.val.validation.as_deref());
+    check_outputs(
+        &[(&args.json, "--json"), (&args.save_model, "--save-model")],
+        &inputs,
+    )?;
+    let records = args.val.records(data_path, &args.columns.csv_options())?;
+    print_notes(&records.notes);
+    let fit = identify_narx(&records.est, &settings)?;
+    let mut report = NarxReport::assemble(fit, &settings, &records.est, records.val.as_ref())?;
+    report
+        .warnings
+        .extend(records.notes.iter().map(|n| format!("data: {n}")));
+    let text = render(&report, &settings);
+    if args.json.as_deref().is_some_and(|p| p.as_os_str() == "-") {
+        eprint!("{text}");
+    } else {
+        print!("{text}");
+    }
+    if let Some(path) = &args.json {
+        let json = serde_json::to_string_pretty(&report)? + "\n";
+        write_output(path, json.as_bytes(), &inputs, "--json")?;
+    }
+    if let Some(path) = &args.save_model {
+        let json = sysid::model_file::narx_to_json(&report.model)?;
+        write_output(path, json.as_bytes(), &inputs, "--save-model")?;
+    }
+    crate::exit::strict(args.strict, report.warnings.len())
+}
+
+fn opt(v: Option<f64>, unit: &str) -> String {
+    v.map_or("n/a (the simulation blew up)".into(), |v| {
+        format!("{}{unit}", report::format::num(v))
+    })
+}
+
+/// The text summary of a NARX identification.
+fn render(r: &NarxReport, s: &NarxSettings) -> String {
+    use std::fmt::Write;
+    let m = &r.model;
+    let mut t = String::new();
+    let _ = writeln!(
+        t,
+        "Polynomial NARX: na = {}, nb = {}, nk = {}, degree {}{}; {} of {} candidate terms chosen by FROLS \
+         (stopping rule {}{}), Σ ERR = {:.6}",
+        m.na(),
+        m.nb(),
+        m.nk(),
+        m.degree(),
+        if s.constant { ", constant offered" } else { "" },
+        r.terms.len(),
+        r.selection.candidates,
+        r.selection.stop.rule,
+        r.selection
+            .selection_fraction
+            .map(|f| format!(" on the last {:.0} % of the estimation record", 100.0 * f))
+            .unwrap_or_default(),
+        r.selection.err_sum
+    );
+    let _ = writeln!(
+        t,
+        "  {:<28} {:>14} {:>12} {:>10}",
+        "term", "coefficient", "std", "ERR"
+    );
+    for term in &r.terms {
+        let _ = writeln!(
+            t,
+            "  {:<28} {:>14} {:>12} {:>10.6}",
+            term.term,
+            report::format::num(term.coefficient),
+            term.std.map_or("n/a".into(), report::format::num),
+            term.err
+        );
+    }
+    if let Some(f) = &r.refinement {
+        let _ = writeln!(
+            t,
+            "Simulation-error refinement: estimation RMSE {} -> {} in {} iteration(s){}",
+            report::format::num(f.rmse_before),
+            report::format::num(f.rmse_after),
+            f.iterations,
+            if f.converged { "" } else { " (not converged)" }
+        );
+    }
+    let mut line = |name: &str, x: &sysid::narx::NarxMetrics| {
+        let _ = writeln!(
+            t,
+            "{name} ({}, {} rows): simulation RMSE {}, fit {}; one-step RMSE {}",
+            x.data,
+            x.n,
+            opt(x.rmse_sim, ""),
+            opt(x.fit_sim_percent, " %"),
+            report::format::num(x.rmse_pred)
+        );
+    };
+    line("Estimation", &r.metrics.estimation);
+    if let Some(v) = &r.metrics.validation {
+        line("Validation", v);
+    }
+    for w in &r.warnings {
+        let _ = writeln!(t, "warning: {w}");
+    }
+    t
+}

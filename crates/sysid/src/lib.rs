@@ -33,6 +33,7 @@ pub mod order;
 pub mod problem;
 pub mod regression;
 pub mod residuals;
+pub mod search;
 pub mod rls;
 pub mod rls_ud;
 pub mod stream;

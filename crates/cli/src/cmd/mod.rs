@@ -11,6 +11,7 @@ pub mod identify_batch;
 pub mod identify_narx;
 pub mod montecarlo;
 pub mod order;
+pub mod order_classes;
 pub mod plant_config;
 pub mod reproduce;
 pub mod simulate;

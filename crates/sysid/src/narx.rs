@@ -174,6 +174,9 @@ pub struct StopCurve {
     pub rule: StopRule,
     /// Its value for n = 1..: the criterion, or the selection part's simulation RMSE (`None`: blew up).
     pub values: Vec<Option<f64>>,
+    /// Rule `sim`: the selection part's simulation fit % for n = 1.. (empty for the criteria).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub fits: Vec<Option<f64>>,
     /// The chosen n.
     pub chosen: usize,
 }
@@ -337,24 +340,20 @@ pub fn frols(p: &[Vec<f64>], y: &[f64], max_terms: usize) -> Frols {
     out
 }
 
-/// Free-run simulation RMSE over rows k0.. of (u, y) of the terms with coefficients θ; `None` on a
-/// blow-up.
-fn sim_rmse(model: &NarxModel, u: &[f64], y: &[f64]) -> Option<f64> {
+/// Free-run simulation RMSE and fit % over rows k0.. of (u, y) of `model`; `None` on a blow-up.
+fn sim_rmse_fit(model: &NarxModel, u: &[f64], y: &[f64]) -> Option<(f64, Option<f64>)> {
     let s = model.simulate(u, y).ok()?;
     if s.blew_up_at.is_some() {
         return None;
     }
     let k0 = model.k0().min(y.len());
-    let n = y.len() - k0;
-    if n == 0 {
+    if y.len() == k0 {
         return None;
     }
-    let ss: f64 = y[k0..]
-        .iter()
-        .zip(&s.y[k0..])
-        .map(|(a, b)| (a - b) * (a - b))
-        .sum();
-    Some((ss / n as f64).sqrt())
+    Some((
+        sysid_core::metrics::rmse(&y[k0..], &s.y[k0..]),
+        sysid_core::metrics::fit_percent(&y[k0..], &s.y[k0..]),
+    ))
 }
 
 /// Identifies a polynomial NARX model of `data` (its first input) with `settings`.
@@ -421,6 +420,7 @@ pub fn identify_narx(data: &Dataset, settings: &NarxSettings) -> Result<NarxFit,
                 StopCurve {
                     rule: s.stop,
                     values,
+                    fits: Vec::new(),
                     chosen,
                 },
             )
@@ -436,6 +436,7 @@ pub fn identify_narx(data: &Dataset, settings: &NarxSettings) -> Result<NarxFit,
             let f = frols(&p, &y_fit[k0..], s.max_terms);
             let mut best = (f64::INFINITY, 0usize);
             let mut values: Vec<Option<f64>> = Vec::new();
+            let mut fits: Vec<Option<f64>> = Vec::new();
             for n in 1..=f.order.len() {
                 if best.1 > 0 && n > best.1 + SIM_PATIENCE {
                     break;
@@ -448,12 +449,14 @@ pub fn identify_narx(data: &Dataset, settings: &NarxSettings) -> Result<NarxFit,
                     } else {
                         m
                     };
-                    sim_rmse(&m, u_sel, y_sel)
+                    sim_rmse_fit(&m, u_sel, y_sel)
                 });
+                let (v, fit) = (v.map(|x| x.0), v.and_then(|x| x.1));
                 if let Some(x) = v.filter(|x| *x < best.0) {
                     best = (x, n);
                 }
                 values.push(v);
+                fits.push(fit);
             }
             // Parsimony: the fewest terms within 0.1 % (plus rounding) of the least RMSE.
             let (lo, hi) = y
@@ -471,6 +474,7 @@ pub fn identify_narx(data: &Dataset, settings: &NarxSettings) -> Result<NarxFit,
                 StopCurve {
                     rule: s.stop,
                     values,
+                    fits,
                     chosen,
                 },
             )
@@ -675,6 +679,59 @@ fn simulate_with_sensitivity(
     Some((resid, jac))
 }
 
+/// The normal equations of a Gauss–Newton step in Marquardt's scaling: S = D⁻¹ JᵀJ D⁻¹ (unit
+/// diagonal, D = the column norms of J) and b = D⁻¹ Jᵀ r. Forming JᵀJ costs N p²/2 multiply-adds, a
+/// quarter of a QR of J, which is what makes the refinement of long records (silverbox, N = 65 000)
+/// affordable; the scaling keeps S well conditioned enough for a Cholesky factor of S + λ I.
+struct ScaledNormal {
+    s: DMatrix<f64>,
+    b: DVector<f64>,
+    d: Vec<f64>,
+}
+
+impl ScaledNormal {
+    fn new(jac: &DMatrix<f64>, r: &[f64]) -> Self {
+        let jtj = jac.tr_mul(jac);
+        let jtr = jac.tr_mul(&DVector::from_column_slice(r));
+        let p = jtj.nrows();
+        // A column that is zero over the record keeps the scale 1 (its step is then 0).
+        let d: Vec<f64> = (0..p)
+            .map(|i| {
+                let v = jtj[(i, i)].sqrt();
+                if v > 0.0 && v.is_finite() {
+                    v
+                } else {
+                    1.0
+                }
+            })
+            .collect();
+        let s = DMatrix::from_fn(p, p, |i, j| jtj[(i, j)] / (d[i] * d[j]));
+        let b = DVector::from_fn(p, |i, _| jtr[i] / d[i]);
+        ScaledNormal { s, b, d }
+    }
+
+    /// δ = D⁻¹ (S + λ I)⁻¹ b, or `None` when the damped matrix is not positive definite.
+    fn damped_step(&self, lambda: f64) -> Option<DVector<f64>> {
+        let mut a = self.s.clone();
+        for i in 0..a.nrows() {
+            a[(i, i)] += lambda;
+        }
+        let w = a.cholesky()?.solve(&self.b);
+        let delta = DVector::from_fn(w.len(), |i, _| w[i] / self.d[i]);
+        delta.iter().all(|v| v.is_finite()).then_some(delta)
+    }
+
+    /// diag((JᵀJ)⁻¹) = diag(S⁻¹) / d², or `None` when S is singular.
+    fn inverse_diagonal(&self) -> Option<Vec<f64>> {
+        let inv = self.s.clone().cholesky()?.inverse();
+        Some(
+            (0..inv.nrows())
+                .map(|i| inv[(i, i)] / (self.d[i] * self.d[i]))
+                .collect(),
+        )
+    }
+}
+
 /// Levenberg–Marquardt on the free-run simulation error from `start`: the refined model, what it did,
 /// and the standard deviations σ̂ √[(JᵀJ)⁻¹]_ii at the end. Fails when the start's simulation blows up.
 pub fn refine(
@@ -694,15 +751,15 @@ pub fn refine(
     let rmse_before = (v / n).sqrt();
     let mut model = start.clone();
     let mut lambda = 1e-3;
-    let mut ws = sysid_core::ls::LsWorkspace::new();
     let mut iterations = 0;
     let mut converged = false;
+    let p = model.terms().len();
     while iterations < max_iterations {
         iterations += 1;
-        let tri = ws.triangularise(&jac, &DVector::from_column_slice(&r), &[], false)?;
+        let normal = ScaledNormal::new(&jac, &r);
         let mut improved = false;
         for _ in 0..12 {
-            let Ok(delta) = tri.damped_step(lambda) else {
+            let Some(delta) = normal.damped_step(lambda) else {
                 lambda *= 10.0;
                 continue;
             };
@@ -745,20 +802,17 @@ pub fn refine(
             break;
         }
     }
-    let p = model.terms().len();
     let dof = (r.len().saturating_sub(p)).max(1) as f64;
     let sigma2 = v / dof;
-    let std = match ws.triangularise(&jac, &DVector::from_column_slice(&r), &[], true) {
-        Ok(t) => match t.solution() {
-            Ok(sol) => (0..p)
-                .map(|i| {
-                    let s = sigma2 * sol.inv_gram[(i, i)];
-                    (s.is_finite() && s >= 0.0).then(|| s.sqrt())
-                })
-                .collect(),
-            Err(_) => vec![None; p],
-        },
-        Err(_) => vec![None; p],
+    let std = match ScaledNormal::new(&jac, &r).inverse_diagonal() {
+        Some(d) => d
+            .iter()
+            .map(|g| {
+                let s = sigma2 * g;
+                (s.is_finite() && s >= 0.0).then(|| s.sqrt())
+            })
+            .collect(),
+        None => vec![None; p],
     };
     Ok((
         model,

@@ -1,10 +1,13 @@
 //! Structure search over model classes (the class-level `order`): ARX, Hammerstein with any input
 //! nonlinearity kind ([`NonlinearityKind`]), polynomial NARX of a given degree, each over a grid of
-//! (na, nb, nk). Every candidate is estimated on the **estimation part** only and ranked by its free-run
-//! simulation RMSE on the **selection part** (a later stretch of the estimation record, never the test
-//! record), the simulation starting from the selection part's measured initial outputs so that every
-//! class is judged alike. Beside it: the normalised AIC ln(mean ε²) + 2p/N of the one-step residuals on
-//! the estimation part.
+//! (na, nb, nk). Every candidate is estimated on the **estimation part** (the first rows of the
+//! estimation record) only and ranked by its free-run simulation RMSE on the **selection part** (the
+//! rest of the estimation record, never the test record), the simulation starting from measured
+//! initial outputs so that every class is judged alike. A NARX candidate is exactly what
+//! `identify --structure narx --stop sim` does with that split: its terms are ordered and fitted on
+//! the estimation part, its number of terms is the one of least selection RMSE, and that RMSE is its
+//! rank. Beside it: the normalised AIC ln(mean ε²) + 2p/N of the one-step residuals on the estimation
+//! part.
 
 use serde::Serialize;
 
@@ -120,10 +123,11 @@ fn judge(
     (rm, fit, aic.filter(|v| v.is_finite()))
 }
 
-/// Estimates one class at one set of orders on `est` and judges it on `sel`.
+/// Estimates one class at one set of orders on the first `split` rows of `whole` and judges it on the
+/// rest.
 pub fn evaluate(
-    est: &Dataset,
-    sel: &Dataset,
+    whole: &Dataset,
+    split: usize,
     class: Class,
     orders: Orders,
     base: &Identification,
@@ -139,6 +143,8 @@ pub fn evaluate(
         warnings: Vec::new(),
         error: None,
     };
+    let est = &whole.rows(0..split);
+    let sel = &whole.rows(split..whole.len());
     let result: Result<(), SysidError> = (|| {
         match class {
             Class::Input(kind) => {
@@ -165,18 +171,19 @@ pub fn evaluate(
                     nb: orders.nb,
                     nk: orders.nk,
                     degree,
+                    stop: crate::narx::StopRule::Sim,
+                    selection: sel.len() as f64 / whole.len() as f64,
                     ..*narx
                 };
-                let fit = identify_narx(est, &s)?;
+                let fit = identify_narx(whole, &s)?;
                 let m = &fit.model;
                 c.p = m.parameter_count();
                 c.warnings = fit.warnings;
-                let k0 = m.k0();
-                let sim = m.simulate(sel.u(), sel.y())?;
+                let i = fit.stop.chosen - 1;
+                c.selection_rmse = fit.stop.values.get(i).copied().flatten();
+                c.selection_fit_percent = fit.stop.fits.get(i).copied().flatten();
                 let pred = m.predict(est.u(), est.y())?;
-                let sim = sim.blew_up_at.is_none().then_some(sim.y);
-                (c.selection_rmse, c.selection_fit_percent, c.aic) =
-                    judge(sel.y(), sim.as_deref(), est.y(), &pred, k0, c.p);
+                (_, _, c.aic) = judge(est.y(), None, est.y(), &pred, m.k0(), c.p);
             }
         }
         Ok(())
@@ -187,12 +194,12 @@ pub fn evaluate(
     c
 }
 
-/// Every class at every orders of `grid`, estimated on `est` and ranked on `sel`: least selection RMSE
-/// first (a candidate without one last), ties to fewer parameters. `progress` is called once per
-/// candidate (from worker threads with the `parallel` feature).
+/// Every class at every orders of `grid`, estimated on the first `split` rows of `whole` and ranked
+/// on the rest: least selection RMSE first (a candidate without one last), ties to fewer parameters.
+/// `progress` is called once per candidate (from worker threads with the `parallel` feature).
 pub fn structure_search(
-    est: &Dataset,
-    sel: &Dataset,
+    whole: &Dataset,
+    split: usize,
     classes: &[Class],
     grid: &[Orders],
     base: &Identification,
@@ -204,7 +211,7 @@ pub fn structure_search(
         .flat_map(|&c| grid.iter().map(move |&o| (c, o)))
         .collect();
     let run = |&(c, o): &(Class, Orders)| {
-        let r = evaluate(est, sel, c, o, base, narx);
+        let r = evaluate(whole, split, c, o, base, narx);
         progress();
         r
     };

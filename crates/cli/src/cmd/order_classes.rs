@@ -55,7 +55,13 @@ pub fn run(
         (orders.len() * args.classes.len()) as u64,
         "{bar:40} {pos}/{len} structures {elapsed}",
     );
-    let ranked = structure_search(fit_part, selection, &args.classes, &orders, base, &narx, &|| {
+    if args.selection_rows.is_some() {
+        anyhow::bail!(
+            "--classes ranks on the last part of the estimation record (--selection-split), not on --selection-rows"
+        );
+    }
+    let split = fit_part.len();
+    let ranked = structure_search(data, split, &args.classes, &orders, base, &narx, &|| {
         bar.inc(1)
     });
     bar.finish_and_clear();
@@ -68,7 +74,7 @@ pub fn run(
         }
         Some(c) => {
             warnings.extend(c.warnings.iter().map(|w| format!("recommended {} {:?}: {w}", c.class, c.orders)));
-            Some(chosen_on_test(c, base, &narx, data, test)?)
+            Some(chosen_on_test(c, base, &narx, data, test, split as f64 / data.len() as f64)?)
         }
     };
     let ranked_by = "free-run RMSE on the selection part (from its measured initial outputs), then fewer parameters";
@@ -160,16 +166,20 @@ fn chosen_on_test(
     narx: &sysid::narx::NarxSettings,
     data: &Dataset,
     test: Option<&Dataset>,
+    split_fraction: f64,
 ) -> anyhow::Result<Chosen> {
     let class: Class = c.class.parse().map_err(anyhow::Error::msg)?;
     let o = c.orders;
     let (rmse_sim, fit) = match class {
         Class::Narx(degree) => {
+            // What the search ranked: the sim rule on the same split (the same computation).
             let s = sysid::narx::NarxSettings {
                 na: o.na,
                 nb: o.nb,
                 nk: o.nk,
                 degree,
+                stop: sysid::narx::StopRule::Sim,
+                selection: 1.0 - split_fraction,
                 ..*narx
             };
             let fit = sysid::narx::identify_narx(data, &s)?;

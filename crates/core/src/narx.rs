@@ -431,18 +431,40 @@ impl NarxModel {
         )
     }
 
-    /// The output at sample k from the past outputs `y_past(lag)` = y(k − lag) and inputs `u`.
-    #[inline]
-    fn output_at(&self, k: usize, u: &[f64], y_past: impl Fn(usize) -> f64) -> f64 {
+    /// The position of a lagged variable in the vector v = (y(k−1..k−na), u(k−nk..k−nk−nb+1)) that
+    /// [`NarxModel::lagged_values`] fills.
+    pub fn variable_index(&self, v: Lagged) -> usize {
+        match v {
+            Lagged::Y(l) => l - 1,
+            Lagged::U(l) => self.na + l - self.nk,
+        }
+    }
+
+    /// Each term as the positions of its factors in v (repeated for powers).
+    pub fn term_indices(&self) -> Vec<Vec<usize>> {
         self.terms
             .iter()
+            .map(|t| t.factors().iter().map(|&v| self.variable_index(v)).collect())
+            .collect()
+    }
+
+    /// Fills `v` (length na + nb) with y(k−1..k−na) from `y_past(lag)` and u(k−nk..k−nk−nb+1).
+    #[inline]
+    pub fn lagged_values(&self, k: usize, u: &[f64], y_past: impl Fn(usize) -> f64, v: &mut [f64]) {
+        for l in 1..=self.na {
+            v[l - 1] = y_past(l);
+        }
+        for j in 0..self.nb {
+            v[self.na + j] = u[k - self.nk - j];
+        }
+    }
+
+    /// Σ θ_i m_i given the lagged values `v` and the terms' factor positions `idx`.
+    #[inline]
+    fn output_of(&self, idx: &[Vec<usize>], v: &[f64]) -> f64 {
+        idx.iter()
             .zip(&self.theta)
-            .map(|(t, c)| {
-                c * t.eval(|v| match v {
-                    Lagged::Y(l) => y_past(l),
-                    Lagged::U(l) => u[k - l],
-                })
-            })
+            .map(|(ix, c)| c * ix.iter().map(|&i| v[i]).product::<f64>())
             .sum()
     }
 
@@ -452,8 +474,11 @@ impl NarxModel {
         check_lengths(u, y)?;
         let k0 = self.k0().min(y.len());
         let mut out = y[..k0].to_vec();
+        let idx = self.term_indices();
+        let mut vals = vec![0.0; self.na + self.nb];
         for k in k0..y.len() {
-            let v = self.output_at(k, u, |l| y[k - l]);
+            self.lagged_values(k, u, |l| y[k - l], &mut vals);
+            let v = self.output_of(&idx, &vals);
             if !v.is_finite() {
                 return Err(SysidError::Numerical(format!(
                     "the prediction of the NARX model became non-finite at sample {k}"
@@ -484,8 +509,11 @@ impl NarxModel {
         let k0 = self.k0().min(n);
         let mut out = Vec::with_capacity(n);
         out.extend_from_slice(&y[..k0]);
+        let idx = self.term_indices();
+        let mut vals = vec![0.0; self.na + self.nb];
         for k in k0..n {
-            let v = self.output_at(k, u, |l| out[k - l]);
+            self.lagged_values(k, u, |l| out[k - l], &mut vals);
+            let v = self.output_of(&idx, &vals);
             if !v.is_finite() || (v - mid).abs() > band {
                 out.resize(n, f64::NAN);
                 return Ok(NarxSimulation {

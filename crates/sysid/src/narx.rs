@@ -185,8 +185,12 @@ pub struct StopCurve {
 pub const REFINE_TOLERANCE: f64 = 1e-7;
 
 /// The stopping rule `sim` stops evaluating more terms after this many numbers of terms in a row
-/// without a better selection RMSE than the best so far.
+/// without a selection RMSE better than the best so far by more than [`SIM_TOLERANCE`].
 pub const SIM_PATIENCE: usize = 6;
+
+/// The stopping rule `sim` keeps the fewest terms whose selection RMSE is within this fraction of the
+/// least one (parsimony: a gain below it is not worth a term).
+pub const SIM_TOLERANCE: f64 = 2e-3;
 
 /// What the simulation-error refinement did.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -452,22 +456,22 @@ pub fn identify_narx(data: &Dataset, settings: &NarxSettings) -> Result<NarxFit,
                     sim_rmse_fit(&m, u_sel, y_sel)
                 });
                 let (v, fit) = (v.map(|x| x.0), v.and_then(|x| x.1));
-                if let Some(x) = v.filter(|x| *x < best.0) {
+                // Only a gain beyond the parsimony tolerance resets the patience.
+                if let Some(x) = v.filter(|x| *x < best.0 * (1.0 - SIM_TOLERANCE)) {
                     best = (x, n);
                 }
                 values.push(v);
                 fits.push(fit);
             }
-            // Parsimony: the fewest terms within 0.1 % (plus rounding) of the least RMSE.
-            let (lo, hi) = y
-                .iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
-                    (a.min(v), b.max(v))
-                });
-            let tol = 1e-3 * best.0 + 1e-10 * (hi - lo);
+            // Parsimony: the fewest terms within SIM_TOLERANCE (plus rounding) of the least RMSE.
+            let (lo, hi) = y.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+                (a.min(v), b.max(v))
+            });
+            let least = values.iter().flatten().fold(f64::INFINITY, |a, &b| a.min(b));
+            let tol = SIM_TOLERANCE * least + 1e-10 * (hi - lo);
             let chosen = values
                 .iter()
-                .position(|v| v.is_some_and(|x| x <= best.0 + tol))
+                .position(|v| v.is_some_and(|x| x <= least + tol))
                 .map_or(0, |i| i + 1);
             (
                 f,
@@ -605,13 +609,15 @@ fn simulation_cost(model: &NarxModel, u: &[f64], y: &[f64]) -> Option<f64> {
     v.is_finite().then_some(v)
 }
 
-/// ∂m/∂y(k − l) of each term as (l, power, the other factors): the power rule on a monomial.
-fn output_derivatives(terms: &[Term]) -> Vec<Vec<(usize, f64, Vec<Lagged>)>> {
-    terms
+/// ∂m/∂y(k − l) of each term as (l, power, the positions of the other factors in v): the power rule
+/// on a monomial.
+fn output_derivatives(model: &NarxModel) -> Vec<Vec<(usize, f64, Vec<usize>)>> {
+    model
+        .terms()
         .iter()
         .map(|t| {
             let f = t.factors();
-            let mut out: Vec<(usize, f64, Vec<Lagged>)> = Vec::new();
+            let mut out = Vec::new();
             for (i, v) in f.iter().enumerate() {
                 if let Lagged::Y(l) = *v {
                     if i > 0 && f[i - 1] == *v {
@@ -620,6 +626,7 @@ fn output_derivatives(terms: &[Term]) -> Vec<Vec<(usize, f64, Vec<Lagged>)>> {
                     let power = f.iter().filter(|w| *w == v).count();
                     let mut rest = f.to_vec();
                     rest.remove(i);
+                    let rest = rest.iter().map(|&w| model.variable_index(w)).collect();
                     out.push((l, power as f64, rest));
                 }
             }
@@ -628,13 +635,17 @@ fn output_derivatives(terms: &[Term]) -> Vec<Vec<(usize, f64, Vec<Lagged>)>> {
         .collect()
 }
 
-/// The simulation of `model` on (u, y) with its sensitivities ∂ŷ(k)/∂θ over rows k0..: (residuals
-/// y − ŷ, Jacobian of ŷ by rows), or `None` on a blow-up.
-fn simulate_with_sensitivity(
-    model: &NarxModel,
-    u: &[f64],
-    y: &[f64],
-) -> Option<(Vec<f64>, DMatrix<f64>)> {
+/// A free run with its sensitivities: residuals y − ŷ over rows k0.. and J = ∂ŷ/∂θ by rows (row-major,
+/// p numbers per row).
+struct Sensitivity {
+    resid: Vec<f64>,
+    rows: Vec<f64>,
+    p: usize,
+}
+
+/// The simulation of `model` on (u, y) with its sensitivities ∂ŷ(k)/∂θ over rows k0.., or `None` on
+/// a blow-up.
+fn simulate_with_sensitivity(model: &NarxModel, u: &[f64], y: &[f64]) -> Option<Sensitivity> {
     let sim = model.simulate(u, y).ok()?;
     if sim.blew_up_at.is_some() {
         return None;
@@ -644,39 +655,43 @@ fn simulate_with_sensitivity(
     let n = y.len();
     let p = model.terms().len();
     let na = model.na();
-    let derivs = output_derivatives(model.terms());
+    let derivs = output_derivatives(model);
+    let idx = model.term_indices();
     // sens[k][j] = ∂ŷ(k)/∂θ_j, zero for k < k0.
     let mut sens = vec![0.0; n * p];
-    let mut jac = DMatrix::<f64>::zeros(n - k0, p);
     let mut gl = vec![0.0; na + 1];
-    let value = |k: usize, v: Lagged| match v {
-        Lagged::Y(l) => yh[k - l],
-        Lagged::U(l) => u[k - l],
-    };
+    let mut vals = vec![0.0; model.na() + model.nb()];
     for k in k0..n {
+        model.lagged_values(k, u, |l| yh[k - l], &mut vals);
         // g_l = Σ_i θ_i ∂m_i/∂y(k − l).
         gl.iter_mut().for_each(|g| *g = 0.0);
         for (d, th) in derivs.iter().zip(model.theta()) {
             for (l, power, rest) in d {
-                gl[*l] += th * power * rest.iter().map(|w| value(k, *w)).product::<f64>();
+                gl[*l] += th * power * rest.iter().map(|&i| vals[i]).product::<f64>();
             }
         }
-        for (j, t) in model.terms().iter().enumerate() {
-            let mut d = t.factors().iter().map(|v| value(k, *v)).product::<f64>();
-            for (l, g) in gl.iter().enumerate().skip(1) {
-                if *g != 0.0 {
-                    d += g * sens[(k - l) * p + j];
-                }
+        let (past, now) = sens.split_at_mut(k * p);
+        let row = &mut now[..p];
+        for (j, ix) in idx.iter().enumerate() {
+            row[j] = ix.iter().map(|&i| vals[i]).product::<f64>();
+        }
+        for (l, g) in gl.iter().enumerate().skip(1) {
+            if *g != 0.0 {
+                let prev = &past[(k - l) * p..(k - l + 1) * p];
+                row.iter_mut().zip(prev).for_each(|(r, s)| *r += g * s);
             }
-            sens[k * p + j] = d;
-            jac[(k - k0, j)] = d;
         }
     }
     let resid: Vec<f64> = (k0..n).map(|k| y[k] - yh[k]).collect();
-    if resid.iter().any(|v| !v.is_finite()) || jac.iter().any(|v| !v.is_finite()) {
+    sens.drain(..k0 * p);
+    if resid.iter().any(|v| !v.is_finite()) || sens.iter().any(|v| !v.is_finite()) {
         return None;
     }
-    Some((resid, jac))
+    Some(Sensitivity {
+        resid,
+        rows: sens,
+        p,
+    })
 }
 
 /// The normal equations of a Gauss–Newton step in Marquardt's scaling: S = D⁻¹ JᵀJ D⁻¹ (unit
@@ -690,10 +705,26 @@ struct ScaledNormal {
 }
 
 impl ScaledNormal {
-    fn new(jac: &DMatrix<f64>, r: &[f64]) -> Self {
-        let jtj = jac.tr_mul(jac);
-        let jtr = jac.tr_mul(&DVector::from_column_slice(r));
-        let p = jtj.nrows();
+    fn new(sens: &Sensitivity) -> Self {
+        let p = sens.p;
+        // JᵀJ (upper triangle, then mirrored) and Jᵀr, row by row.
+        let mut jtj = DMatrix::<f64>::zeros(p, p);
+        let mut jtr = vec![0.0; p];
+        let mut acc = vec![0.0; p * p];
+        for (row, r) in sens.rows.chunks_exact(p).zip(&sens.resid) {
+            for i in 0..p {
+                let ri = row[i];
+                jtr[i] += ri * r;
+                let a = &mut acc[i * p + i..(i + 1) * p];
+                a.iter_mut().zip(&row[i..]).for_each(|(x, rj)| *x += ri * rj);
+            }
+        }
+        for i in 0..p {
+            for j in i..p {
+                jtj[(i, j)] = acc[i * p + j];
+                jtj[(j, i)] = acc[i * p + j];
+            }
+        }
         // A column that is zero over the record keeps the scale 1 (its step is then 0).
         let d: Vec<f64> = (0..p)
             .map(|i| {
@@ -740,14 +771,14 @@ pub fn refine(
     y: &[f64],
     max_iterations: usize,
 ) -> Result<(NarxModel, Refinement, Vec<Option<f64>>), SysidError> {
-    let (mut r, mut jac) = simulate_with_sensitivity(start, u, y).ok_or_else(|| {
+    let mut sens = simulate_with_sensitivity(start, u, y).ok_or_else(|| {
         SysidError::Numerical(
             "the least-squares model's free-run simulation blows up on the estimation record"
                 .into(),
         )
     })?;
-    let n = r.len() as f64;
-    let mut v = dot(&r, &r);
+    let n = sens.resid.len() as f64;
+    let mut v = dot(&sens.resid, &sens.resid);
     let rmse_before = (v / n).sqrt();
     let mut model = start.clone();
     let mut lambda = 1e-3;
@@ -756,7 +787,7 @@ pub fn refine(
     let p = model.terms().len();
     while iterations < max_iterations {
         iterations += 1;
-        let normal = ScaledNormal::new(&jac, &r);
+        let normal = ScaledNormal::new(&sens);
         let mut improved = false;
         for _ in 0..12 {
             let Some(delta) = normal.damped_step(lambda) else {
@@ -777,12 +808,11 @@ pub fn refine(
                 .filter(|v2| *v2 < v)
                 .and_then(|_| simulate_with_sensitivity(&trial, u, y))
             {
-                Some((r2, j2)) => {
-                    let v2 = dot(&r2, &r2);
+                Some(s2) => {
+                    let v2 = dot(&s2.resid, &s2.resid);
                     let rel = (v - v2) / v.max(f64::MIN_POSITIVE);
                     model = trial;
-                    r = r2;
-                    jac = j2;
+                    sens = s2;
                     v = v2;
                     lambda = (lambda / 3.0).max(1e-12);
                     improved = true;
@@ -802,9 +832,9 @@ pub fn refine(
             break;
         }
     }
-    let dof = (r.len().saturating_sub(p)).max(1) as f64;
+    let dof = (sens.resid.len().saturating_sub(p)).max(1) as f64;
     let sigma2 = v / dof;
-    let std = match ScaledNormal::new(&jac, &r).inverse_diagonal() {
+    let std = match ScaledNormal::new(&sens).inverse_diagonal() {
         Some(d) => d
             .iter()
             .map(|g| {

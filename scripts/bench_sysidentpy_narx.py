@@ -91,13 +91,13 @@ def run_case(case, reps):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    ap.add_argument("--cases", required=True, help="the cases as JSON (a file)")
+    ap.add_argument("--cases", required=True, help="the cases as JSON (a file, or - for standard input)")
     ap.add_argument("--repetitions", type=int, default=3)
     ap.add_argument("--json", help="write the result as JSON here ('-' for standard output)")
     a = ap.parse_args()
     import sysidentpy
 
-    cases = json.loads(Path(a.cases).read_text())
+    cases = json.loads(sys.stdin.read() if a.cases == "-" else Path(a.cases).read_text())
     out = {
         "peer": "SysIdentPy FROLS (Polynomial, LeastSquares, AIC)",
         "versions": {

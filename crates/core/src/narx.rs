@@ -444,7 +444,12 @@ impl NarxModel {
     pub fn term_indices(&self) -> Vec<Vec<usize>> {
         self.terms
             .iter()
-            .map(|t| t.factors().iter().map(|&v| self.variable_index(v)).collect())
+            .map(|t| {
+                t.factors()
+                    .iter()
+                    .map(|&v| self.variable_index(v))
+                    .collect()
+            })
             .collect()
     }
 

@@ -464,10 +464,15 @@ pub fn identify_narx(data: &Dataset, settings: &NarxSettings) -> Result<NarxFit,
                 fits.push(fit);
             }
             // Parsimony: the fewest terms within SIM_TOLERANCE (plus rounding) of the least RMSE.
-            let (lo, hi) = y.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
-                (a.min(v), b.max(v))
-            });
-            let least = values.iter().flatten().fold(f64::INFINITY, |a, &b| a.min(b));
+            let (lo, hi) = y
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+                    (a.min(v), b.max(v))
+                });
+            let least = values
+                .iter()
+                .flatten()
+                .fold(f64::INFINITY, |a, &b| a.min(b));
             let tol = SIM_TOLERANCE * least + 1e-10 * (hi - lo);
             let chosen = values
                 .iter()
@@ -542,15 +547,19 @@ pub fn identify_narx(data: &Dataset, settings: &NarxSettings) -> Result<NarxFit,
             warnings.push(blow_up_warning("estimation", data.name(), k));
         }
     }
-    for ((t, &c), sd) in chosen_terms.iter().zip(model.theta()).zip(&std) {
-        if let Some(sd) = sd {
-            if c.abs() < 2.0 * sd {
-                warnings.push(format!(
-                    "term {t}: coefficient {c:.4e} is within two standard deviations ({sd:.2e}) of zero \
-                     (poorly determined)"
-                ));
-            }
-        }
+    let weak: Vec<String> = chosen_terms
+        .iter()
+        .zip(model.theta())
+        .zip(&std)
+        .filter(|((_, c), sd)| sd.is_some_and(|sd| c.abs() < 2.0 * sd))
+        .map(|((t, _), _)| t.to_string())
+        .collect();
+    if !weak.is_empty() {
+        warnings.push(format!(
+            "{} term(s) have a coefficient within two standard deviations of zero (poorly determined): {}",
+            weak.len(),
+            weak.join(", ")
+        ));
     }
     let terms = chosen_terms
         .iter()
@@ -716,7 +725,9 @@ impl ScaledNormal {
                 let ri = row[i];
                 jtr[i] += ri * r;
                 let a = &mut acc[i * p + i..(i + 1) * p];
-                a.iter_mut().zip(&row[i..]).for_each(|(x, rj)| *x += ri * rj);
+                a.iter_mut()
+                    .zip(&row[i..])
+                    .for_each(|(x, rj)| *x += ri * rj);
             }
         }
         for i in 0..p {

@@ -1,6 +1,7 @@
 //! One module per subcommand: its flags (`Args`) and its `run`.
 
 pub mod bench;
+pub mod bench_narx;
 pub mod bench_oe;
 pub mod calibrate;
 pub mod common;

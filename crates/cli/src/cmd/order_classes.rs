@@ -42,14 +42,12 @@ pub fn run(
         .0
         .iter()
         .flat_map(|&na| {
-            grid.1.iter().flat_map(move |&nb| {
-                grid.2.iter().map(move |&nk| Orders { na, nb, nk })
-            })
+            grid.1
+                .iter()
+                .flat_map(move |&nb| grid.2.iter().map(move |&nk| Orders { na, nb, nk }))
         })
         .collect();
-    let narx = args
-        .narx
-        .settings(2, 2, 1, args.offset, 100);
+    let narx = args.narx.settings(2, 2, 1, args.offset, 100);
     narx.check()?;
     let bar = progress_bar(
         (orders.len() * args.classes.len()) as u64,
@@ -66,15 +64,30 @@ pub fn run(
     });
     bar.finish_and_clear();
     let mut warnings = Vec::new();
-    let best = ranked.iter().find(|c| c.selection_rmse.is_some() && c.error.is_none());
+    let best = ranked
+        .iter()
+        .find(|c| c.selection_rmse.is_some() && c.error.is_none());
     let chosen = match best {
         None => {
             warnings.push("no candidate simulates the selection part (every one failed or blew up): none is recommended".to_string());
             None
         }
         Some(c) => {
-            warnings.extend(c.warnings.iter().map(|w| format!("recommended {} {:?}: {w}", c.class, c.orders)));
-            Some(chosen_on_test(c, base, &narx, data, test, split as f64 / data.len() as f64)?)
+            warnings.extend(c.warnings.iter().map(|w| {
+                format!(
+                    "recommended {} ({}, {}, {}): {w}",
+                    c.class, c.orders.na, c.orders.nb, c.orders.nk
+                )
+            }));
+            let chosen =
+                chosen_on_test(c, base, &narx, data, test, split as f64 / data.len() as f64)?;
+            if let (Some(t), None) = (&chosen.data, chosen.rmse_sim) {
+                warnings.push(format!(
+                    "the chosen structure's free-run simulation diverged or blew up on the test record {t}: \
+                     the selection part did not reveal it; try the next candidates or a lower degree"
+                ));
+            }
+            Some(chosen)
         }
     };
     let ranked_by = "free-run RMSE on the selection part (from its measured initial outputs), then fewer parameters";
@@ -106,7 +119,10 @@ pub fn run(
             o(c.selection_rmse),
             o(c.selection_fit_percent),
             o(c.aic),
-            c.error.as_ref().map(|e| format!("  ({e})")).unwrap_or_default()
+            c.error
+                .as_ref()
+                .map(|e| format!("  ({e})"))
+                .unwrap_or_default()
         ));
     }
     if let Some(c) = &chosen {

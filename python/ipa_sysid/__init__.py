@@ -27,6 +27,7 @@ from . import _core
 from ._core import (
     Fit,
     Model,
+    NarxFit,
     Rls,
     __version__,
     load_model,
@@ -69,6 +70,7 @@ __all__ = [
     "Fit",
     "IpaSysidWarning",
     "Model",
+    "NarxFit",
     "Rls",
     "__version__",
     "calibrate",

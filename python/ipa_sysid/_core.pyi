@@ -102,6 +102,25 @@ class Fit:
     def to_json(self) -> str:
         """The identify --json document as text."""
 
+class NarxFit:
+    """The result of identify(..., structure="narx"): a polynomial NARX model."""
+
+    @property
+    def terms(self) -> list[dict[str, Any]]:
+        """[{"term", "coefficient", "std", "err"}] in FROLS order."""
+    @property
+    def metrics(self) -> dict[str, Any]:
+        """{"estimation": {...}, "validation": {...}} as in identify --json."""
+    @property
+    def warnings(self) -> list[str]:
+        """Reasons not to trust the model."""
+    def to_dict(self) -> dict[str, Any]:
+        """The identify --structure narx --json document."""
+    def to_json(self) -> str:
+        """The identify --structure narx --json document as text."""
+    def model_file(self) -> str:
+        """The model file text (identify --save-model format)."""
+
 class Rls:
     """Recursive least squares (paper eqs. 9-12) on n parameters."""
 
@@ -151,8 +170,15 @@ def identify(
     validation_name: str = "validation",
     resid_lags: int = 25,
     fallback: bool = False,
-) -> Fit:
-    """Identifies a model as `ipa-sysid identify` does with the same options."""
+    nonlinearity: str | None = None,
+    structure: Literal["hammerstein", "arx", "narx"] | None = None,
+    degree: int = 2,
+    stop: Literal["sim", "aic", "bic"] = "sim",
+    max_terms: int = 30,
+    refine: bool = True,
+) -> Fit | NarxFit:
+    """Identifies a model as `ipa-sysid identify` does with the same options (structure="narx":
+    a polynomial NARX model of degree `degree`, a NarxFit)."""
 
 def load_model(path: str | PathLike[str]) -> Model:
     """Reads a model file of `identify --save-model`."""

@@ -123,7 +123,7 @@ pub(crate) fn paragraph(twin: &Result<Twin, String>) -> String {
     match twin {
         Ok(t) => format!(
             "The paper's model class (a static deadzone followed by a linear block) against a calibrated twin: the \
-             physics plant's {} parameters fitted by `ipa-sysid calibrate` to the estimation record with the chamber \
+             physics plant's {} parameters fitted (as ipa-sysid calibrate does) to the estimation record with the chamber \
              pressures the IPA measures ({} shooting segments, {} iterations, {}). Both are then simulated from the \
              measured initial state on the validation record and on the fresh open-loop record; the fit is eq. (13). \
              {}",

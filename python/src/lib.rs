@@ -495,12 +495,14 @@ fn py_float(v: Option<f64>) -> String {
 /// (mm) sampled every `ts` s, as `ipa-sysid identify` does with the same options; `validation` =
 /// (u_val, y_val) adds validation metrics. `name` and `validation_name` name the records in messages
 /// (the command line uses the file names). `nonlinearity` ("deadzone" or "linear", the command line's
-/// `--nonlinearity`) chooses the input's static nonlinearity instead of `model`.
+/// `--nonlinearity`: "linear", "deadzone", "saturation", "deadzone-saturation", "piecewise-linear" with
+/// `breakpoints` K, "polynomial" with `degree` D) chooses the input's static nonlinearity instead of
+/// `model`.
 #[pyfunction]
 #[pyo3(signature = (u, y, ts, model="hammerstein", method="rls", na=3, nb=1, nk=1, forgetting=1.0,
     p0=1e6, offset=false, validation=None, passes=None, max_iterations=100, rls_form="standard",
     windup="none", max_trace=None, iv_stages=10, name="data", validation_name="validation",
-    resid_lags=25, fallback=false, nonlinearity=None))]
+    resid_lags=25, fallback=false, nonlinearity=None, breakpoints=None, degree=None))]
 #[allow(clippy::too_many_arguments)]
 fn identify(
     py: Python<'_>,
@@ -527,11 +529,31 @@ fn identify(
     resid_lags: usize,
     fallback: bool,
     nonlinearity: Option<&str>,
+    breakpoints: Option<usize>,
+    degree: Option<usize>,
 ) -> PyResult<PyFit> {
     let nonlinearity = nonlinearity
         .map(str::parse::<sysid::NonlinearityKind>)
         .transpose()
-        .map_err(|e| PyValueError::new_err(format!("nonlinearity: {e}")))?;
+        .map_err(|e| PyValueError::new_err(format!("nonlinearity: {e}")))?
+        .map(|k| match breakpoints {
+            Some(n) => k.with_breakpoints(n),
+            None => k,
+        })
+        .map(|k| match degree {
+            Some(d) => k.with_degree(d),
+            None => k,
+        });
+    if breakpoints.is_some()
+        && !matches!(
+            nonlinearity,
+            Some(sysid::NonlinearityKind::PiecewiseLinear { .. })
+        )
+    {
+        return Err(PyValueError::new_err(
+            "breakpoints: is for nonlinearity=\"piecewise-linear\" (it sets its number of breakpoints)",
+        ));
+    }
     let options = IdentifyOptions {
         model: choice("--model", model)?,
         na,

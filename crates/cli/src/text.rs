@@ -30,7 +30,13 @@ impl ToText for IdentifyReport {
         let mut s = String::new();
         let kind = match m.kind() {
             sysid::ModelKind::Arx => "Linear ARX".to_string(),
-            sysid::ModelKind::Hammerstein => "Hammerstein (deadzone + ARX)".to_string(),
+            sysid::ModelKind::Hammerstein if m.inputs().len() == 1 => format!(
+                "Hammerstein ({} + ARX)",
+                sysid::NonlinearityKind::of(m.input().nonlinearity())
+            ),
+            sysid::ModelKind::Hammerstein => {
+                "Hammerstein (static nonlinearities + ARX)".to_string()
+            }
         };
         let several = m.inputs().len() > 1;
         let orders = if several {

@@ -12,7 +12,10 @@ use nalgebra::{Complex, DMatrix};
 use serde::{Deserialize, Serialize};
 
 use crate::detrend::OperatingPoint;
-use crate::{Deadzone, StaticNonlinearity, SysidError};
+use crate::{
+    Deadzone, DeadzoneSaturation, PiecewiseLinear, Polynomial, Saturation, StaticNonlinearity,
+    SysidError,
+};
 
 /// Model orders of a single-input model: na poles, nb coefficients in B, nk samples of pure delay.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -573,7 +576,8 @@ impl Model {
     }
 
     /// Number of estimated parameters p: na (+1 with offset) plus, per input, nb for a linear input and
-    /// 4 + (nb - 1) for a deadzone input (b1 = 1 is fixed by normalisation).
+    /// the nonlinearity's parameters + (nb - 1) for a nonlinear input, e.g. 4 + (nb - 1) for a deadzone
+    /// (b1 = 1 is fixed by normalisation).
     pub fn parameter_count(&self) -> usize {
         let lin = self.na() + self.offset.map_or(0, |_| 1);
         lin + self
@@ -581,7 +585,7 @@ impl Model {
             .iter()
             .map(|ch| match ch.nonlinearity {
                 StaticNonlinearity::Linear => ch.nb(),
-                StaticNonlinearity::Deadzone(_) => 4 + ch.nb().saturating_sub(1),
+                f => f.parameter_count() + ch.nb().saturating_sub(1),
             })
             .sum::<usize>()
     }
@@ -597,6 +601,96 @@ struct InputRepr {
     b: Vec<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     deadzone: Option<Deadzone>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    nonlinearity: Option<NonlinearityRepr>,
+}
+
+/// The file form of an input nonlinearity other than the deadzone (which keeps its `deadzone` key, so
+/// that older files load and older readers read deadzone models): `{"kind": "saturation", ...}`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+enum NonlinearityRepr {
+    Saturation {
+        s_l: f64,
+        s_r: f64,
+        m: f64,
+    },
+    DeadzoneSaturation {
+        b_l: f64,
+        b_r: f64,
+        s_l: f64,
+        s_r: f64,
+        m_l: f64,
+        m_r: f64,
+    },
+    PiecewiseLinear {
+        breakpoints: Vec<f64>,
+        slopes: Vec<f64>,
+    },
+    Polynomial {
+        coefficients: Vec<f64>,
+    },
+}
+
+impl NonlinearityRepr {
+    /// The file form of `f`; `None` for the identity and the deadzone (their own keys).
+    fn of(f: &StaticNonlinearity) -> Option<Self> {
+        Some(match *f {
+            StaticNonlinearity::Linear | StaticNonlinearity::Deadzone(_) => return None,
+            StaticNonlinearity::Saturation(Saturation { s_l, s_r, m }) => {
+                NonlinearityRepr::Saturation { s_l, s_r, m }
+            }
+            StaticNonlinearity::DeadzoneSaturation(d) => NonlinearityRepr::DeadzoneSaturation {
+                b_l: d.b_l,
+                b_r: d.b_r,
+                s_l: d.s_l,
+                s_r: d.s_r,
+                m_l: d.m_l,
+                m_r: d.m_r,
+            },
+            StaticNonlinearity::PiecewiseLinear(p) => NonlinearityRepr::PiecewiseLinear {
+                breakpoints: p.breakpoints().to_vec(),
+                slopes: p.slopes().to_vec(),
+            },
+            StaticNonlinearity::Polynomial(p) => NonlinearityRepr::Polynomial {
+                coefficients: p.coefficients().to_vec(),
+            },
+        })
+    }
+
+    fn nonlinearity(&self) -> Result<StaticNonlinearity, SysidError> {
+        Ok(match self {
+            NonlinearityRepr::Saturation { s_l, s_r, m } => {
+                StaticNonlinearity::Saturation(Saturation {
+                    s_l: *s_l,
+                    s_r: *s_r,
+                    m: *m,
+                })
+            }
+            NonlinearityRepr::DeadzoneSaturation {
+                b_l,
+                b_r,
+                s_l,
+                s_r,
+                m_l,
+                m_r,
+            } => StaticNonlinearity::DeadzoneSaturation(DeadzoneSaturation {
+                b_l: *b_l,
+                b_r: *b_r,
+                s_l: *s_l,
+                s_r: *s_r,
+                m_l: *m_l,
+                m_r: *m_r,
+            }),
+            NonlinearityRepr::PiecewiseLinear {
+                breakpoints,
+                slopes,
+            } => StaticNonlinearity::PiecewiseLinear(PiecewiseLinear::new(breakpoints, slopes)?),
+            NonlinearityRepr::Polynomial { coefficients } => {
+                StaticNonlinearity::Polynomial(Polynomial::new(coefficients)?)
+            }
+        })
+    }
 }
 
 /// The serialised form of a [`Model`]: the keys of model files and of `identify --json`'s `model`.
@@ -615,6 +709,9 @@ pub(crate) struct ModelRepr {
     offset: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     deadzone: Option<Deadzone>,
+    /// Another input nonlinearity of the first input (saturation, piecewise-linear...).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    nonlinearity: Option<NonlinearityRepr>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     inputs: Option<Vec<InputRepr>>,
     /// (u0, y0) of a detrended identification; absent otherwise (model file version 2).
@@ -634,8 +731,18 @@ fn channel_of(
     nk: usize,
     b: Vec<f64>,
     dz: Option<Deadzone>,
+    nl: Option<&NonlinearityRepr>,
 ) -> Result<InputChannel, SysidError> {
-    let f = dz.map_or(StaticNonlinearity::Linear, StaticNonlinearity::Deadzone);
+    let f = match (dz, nl) {
+        (Some(_), Some(_)) => {
+            return Err(SysidError::Data(format!(
+                "invalid model: input {name} has both a deadzone and a nonlinearity key (one nonlinearity per input)"
+            )))
+        }
+        (Some(d), None) => StaticNonlinearity::Deadzone(d),
+        (None, Some(n)) => n.nonlinearity()?,
+        (None, None) => StaticNonlinearity::Linear,
+    };
     InputChannel::new(name, nk, b, f)
 }
 
@@ -666,22 +773,34 @@ impl TryFrom<ModelRepr> for Model {
                 r.ts
             ));
         }
-        match (r.kind, &r.deadzone) {
-            (ModelKind::Hammerstein, None) => {
-                return bad("a hammerstein model needs a deadzone".into())
+        let nonlinear_first = r.deadzone.is_some() || r.nonlinearity.is_some();
+        match (r.kind, nonlinear_first) {
+            (ModelKind::Hammerstein, false) if r.inputs.is_none() => {
+                return bad("a hammerstein model needs a deadzone (or another nonlinearity)".into())
             }
-            (ModelKind::Arx, Some(_)) => return bad("an arx model has no deadzone".into()),
+            (ModelKind::Arx, true) => return bad("an arx model has no deadzone".into()),
             _ => {}
         }
         let inputs = match r.inputs {
-            None => vec![channel_of("u".into(), r.nk, r.b, r.deadzone)?],
+            None => vec![channel_of(
+                "u".into(),
+                r.nk,
+                r.b,
+                r.deadzone,
+                r.nonlinearity.as_ref(),
+            )?],
             Some(list) => {
                 let first_matches = list.first().is_some_and(|f| {
-                    f.nb == r.nb && f.nk == r.nk && f.b == r.b && f.deadzone == r.deadzone
+                    f.nb == r.nb
+                        && f.nk == r.nk
+                        && f.b == r.b
+                        && f.deadzone == r.deadzone
+                        && f.nonlinearity == r.nonlinearity
                 });
                 if !first_matches {
                     return bad(
-                        "the first entry of inputs must repeat nb, nk, b and deadzone".into(),
+                        "the first entry of inputs must repeat nb, nk, b and deadzone (or nonlinearity)"
+                            .into(),
                     );
                 }
                 let mut v = Vec::with_capacity(list.len());
@@ -694,7 +813,13 @@ impl TryFrom<ModelRepr> for Model {
                             i.b.len()
                         ));
                     }
-                    v.push(channel_of(i.name, i.nk, i.b, i.deadzone)?);
+                    v.push(channel_of(
+                        i.name,
+                        i.nk,
+                        i.b,
+                        i.deadzone,
+                        i.nonlinearity.as_ref(),
+                    )?);
                 }
                 v
             }
@@ -725,6 +850,7 @@ impl From<Model> for ModelRepr {
                     nk: i.nk,
                     b: i.b.clone(),
                     deadzone: i.deadzone().copied(),
+                    nonlinearity: NonlinearityRepr::of(i.nonlinearity()),
                 })
                 .collect()
         });
@@ -735,6 +861,7 @@ impl From<Model> for ModelRepr {
             nb: first.nb(),
             nk: first.nk,
             deadzone: first.deadzone().copied(),
+            nonlinearity: NonlinearityRepr::of(first.nonlinearity()),
             a: m.a,
             b: first.b,
             offset: m.offset,

@@ -91,11 +91,17 @@ pub struct Args {
     /// nk: input delay in samples; with several inputs one per input (1,2) or one for all.
     #[arg(long, default_value = "1", value_parser = parse_order_list)]
     pub nk: OrderList,
-    /// The static nonlinearity of every input (`deadzone`, `linear`), or of each input by name
-    /// (`u1=deadzone,u2=linear`, MATLAB idnlhw's InputNonlinearity); default: --structure's (hammerstein:
-    /// deadzone, arx: linear).
+    /// The static nonlinearity of every input (`linear`, `deadzone`, `saturation`, `deadzone-saturation`,
+    /// `piecewise-linear`, `polynomial`), or of each input by name (`u1=deadzone,u2=linear`, MATLAB
+    /// idnlhw's InputNonlinearity); default: --structure's (hammerstein: deadzone, arx: linear).
     #[arg(long, value_name = "KIND|NAME=KIND,...", value_parser = parse_nonlinearity)]
     pub nonlinearity: Option<NonlinearityArg>,
+    /// K: breakpoints of every `piecewise-linear` input nonlinearity (1..8; default 2).
+    #[arg(long, value_name = "K")]
+    pub breakpoints: Option<usize>,
+    /// D: degree of every `polynomial` input nonlinearity (1..8; default 3).
+    #[arg(long, value_name = "D")]
+    pub degree: Option<usize>,
     /// Several inputs (--u-col u1,u2) with --structure hammerstein: these inputs are linear (no deadzone);
     /// the same as --nonlinearity NAME=linear.
     #[arg(long, value_name = "NAME,...", value_delimiter = ',')]
@@ -208,6 +214,20 @@ impl Args {
     /// `--linear-inputs` or `--structure`).
     pub fn settings(&self) -> anyhow::Result<Identification> {
         let names = self.columns.csv_options().input_names();
+        let piecewise =
+            |k: &NonlinearityKind| matches!(k, NonlinearityKind::PiecewiseLinear { .. });
+        let uses_breakpoints = match &self.nonlinearity {
+            Some(NonlinearityArg::All(k)) => piecewise(k),
+            Some(NonlinearityArg::PerInput(list)) => list.iter().any(|(_, k)| piecewise(k)),
+            None => false,
+        };
+        if self.breakpoints.is_some() && !uses_breakpoints {
+            anyhow::bail!(sysid::SysidError::setting(
+                sysid::Setting::Other("--breakpoints"),
+                self.breakpoints.unwrap_or_default(),
+                "--nonlinearity piecewise-linear (it sets the number of breakpoints of that kind)"
+            ));
+        }
         let options = IdentifyOptions {
             model: self.model,
             na: self.na,
@@ -280,6 +300,19 @@ impl Args {
     /// The nonlinearity `--nonlinearity` gives input `name` (every input named in a per-input list must
     /// be an input, and every input must be named).
     fn kind_of(&self, arg: &NonlinearityArg, name: &str) -> anyhow::Result<NonlinearityKind> {
+        let kind = self.kind_named(arg, name)?;
+        let kind = match self.breakpoints {
+            Some(k) => kind.with_breakpoints(k),
+            None => kind,
+        };
+        Ok(match self.degree {
+            Some(d) => kind.with_degree(d),
+            None => kind,
+        })
+    }
+
+    /// [`Args::kind_of`] before `--breakpoints` and `--degree`.
+    fn kind_named(&self, arg: &NonlinearityArg, name: &str) -> anyhow::Result<NonlinearityKind> {
         let names = self.columns.csv_options().input_names();
         match arg {
             NonlinearityArg::All(kind) => Ok(*kind),

@@ -497,12 +497,14 @@ fn py_float(v: Option<f64>) -> String {
 /// (the command line uses the file names). `nonlinearity` ("deadzone" or "linear", the command line's
 /// `--nonlinearity`: "linear", "deadzone", "saturation", "deadzone-saturation", "piecewise-linear" with
 /// `breakpoints` K, "polynomial" with `degree` D) chooses the input's static nonlinearity instead of
-/// `model`.
+/// `model`; `output_nonlinearity` ("saturation", "piecewise-linear", "polynomial", the command line's
+/// `--output-nonlinearity`) adds y = g(v) after the linear block, fitted by output error.
 #[pyfunction]
 #[pyo3(signature = (u, y, ts, model="hammerstein", method="rls", na=3, nb=1, nk=1, forgetting=1.0,
     p0=1e6, offset=false, validation=None, passes=None, max_iterations=100, rls_form="standard",
     windup="none", max_trace=None, iv_stages=10, name="data", validation_name="validation",
-    resid_lags=25, fallback=false, nonlinearity=None, breakpoints=None, degree=None))]
+    resid_lags=25, fallback=false, nonlinearity=None, breakpoints=None, degree=None,
+    output_nonlinearity=None))]
 #[allow(clippy::too_many_arguments)]
 fn identify(
     py: Python<'_>,
@@ -531,27 +533,28 @@ fn identify(
     nonlinearity: Option<&str>,
     breakpoints: Option<usize>,
     degree: Option<usize>,
+    output_nonlinearity: Option<&str>,
 ) -> PyResult<PyFit> {
+    let sized = |k: sysid::NonlinearityKind| {
+        let k = breakpoints.map_or(k, |n| k.with_breakpoints(n));
+        degree.map_or(k, |d| k.with_degree(d))
+    };
+    let output = output_nonlinearity
+        .map(str::parse::<sysid::NonlinearityKind>)
+        .transpose()
+        .map_err(|e| PyValueError::new_err(format!("output_nonlinearity: {e}")))?
+        .map(sized);
     let nonlinearity = nonlinearity
         .map(str::parse::<sysid::NonlinearityKind>)
         .transpose()
         .map_err(|e| PyValueError::new_err(format!("nonlinearity: {e}")))?
-        .map(|k| match breakpoints {
-            Some(n) => k.with_breakpoints(n),
-            None => k,
-        })
-        .map(|k| match degree {
-            Some(d) => k.with_degree(d),
-            None => k,
-        });
-    if breakpoints.is_some()
-        && !matches!(
-            nonlinearity,
-            Some(sysid::NonlinearityKind::PiecewiseLinear { .. })
-        )
-    {
+        .map(sized);
+    let piecewise = |k: &Option<sysid::NonlinearityKind>| {
+        matches!(k, Some(sysid::NonlinearityKind::PiecewiseLinear { .. }))
+    };
+    if breakpoints.is_some() && !piecewise(&nonlinearity) && !piecewise(&output) {
         return Err(PyValueError::new_err(
-            "breakpoints: is for nonlinearity=\"piecewise-linear\" (it sets its number of breakpoints)",
+            "breakpoints: is for nonlinearity= or output_nonlinearity=\"piecewise-linear\" (it sets its number of breakpoints)",
         ));
     }
     let options = IdentifyOptions {
@@ -580,6 +583,7 @@ fn identify(
             nonlinearity,
         }]);
     }
+    settings = settings.with_output_nonlinearity(output);
     settings.check().map_err(sysid_err)?;
     let data = dataset(u, y, ts, name)?;
     let val = validation

@@ -156,6 +156,22 @@ def test_input_nonlinearity_words_match_cli(records, tmp_path, words, flags):
     assert expected["model"]["nonlinearity"]["kind"] == words["nonlinearity"]
 
 
+def test_output_nonlinearity_keyword_matches_cli(records, tmp_path):
+    # output_nonlinearity= is --output-nonlinearity: y = g(v) after the linear block, fitted by output error.
+    est, _ = records
+    out = tmp_path / "fit.json"
+    cli("identify", "--data", est, "--ts", 0.01, "--method", "ls", "--output-nonlinearity", "polynomial",
+        "--degree", 2, "--json", out)
+    expected = json.loads(out.read_text())
+    e = read_csv(est)
+    fit = ipa_sysid.identify(e["u"], e["y"], 0.01, method="ls", output_nonlinearity="polynomial", degree=2,
+                             name=str(est))
+    assert_same({k: fit.to_dict()[k] for k in expected}, expected)
+    assert expected["model"]["output_nonlinearity"]["kind"] == "polynomial"
+    with pytest.raises(ValueError, match="output-nonlinearity"):
+        ipa_sysid.identify(e["u"], e["y"], 0.01, output_nonlinearity="deadzone")
+
+
 def test_breakpoints_keyword_needs_a_piecewise_input(records):
     est, _ = records
     e = read_csv(est)

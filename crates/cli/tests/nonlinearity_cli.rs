@@ -178,3 +178,103 @@ fn breakpoints_without_a_piecewise_input_and_out_of_range_are_refused() {
         assert!(err.contains(flag), "{flags:?}: {err}");
     }
 }
+
+// --output-nonlinearity: a Wiener record (y = clamp(v, −0.4, 0.5) of v(k) = 0.6 v(k−1) + u1(k−1) −
+// 0.8 u2(k−1)) identified with the saturation on the output; the JSON and the model file carry it,
+// `validate` and `simulate --plant model:FILE` run it.
+#[test]
+fn an_output_saturation_through_the_command_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let n = 600;
+    let (u1, u2) = (ipa_testdata::white(n, 3), ipa_testdata::white(n, 5));
+    let mut v = vec![0.0; n];
+    for k in 1..n {
+        v[k] = 0.6 * v[k - 1] + u1[k - 1] - 0.8 * u2[k - 1];
+    }
+    assert!(v.iter().any(|x| *x < -0.4) && v.iter().any(|x| *x > 0.5));
+    let mut text = String::from("t,u1,u2,y\n");
+    for k in 0..n {
+        let y = v[k].clamp(-0.4, 0.5);
+        text.push_str(&format!("{},{},{},{}\n", k as f64 * 0.1, u1[k], u2[k], y));
+    }
+    let data = dir.path().join("w.csv");
+    std::fs::write(&data, text).unwrap();
+    let (out, model) = (dir.path().join("w.json"), dir.path().join("w.model.json"));
+    let o = run(&[
+        "identify",
+        "--data",
+        s(&data),
+        "--u-col",
+        "u1,u2",
+        "--structure",
+        "arx",
+        "--na",
+        "1",
+        "--method",
+        "ls",
+        "--output-nonlinearity",
+        "saturation",
+        "--json",
+        s(&out),
+        "--save-model",
+        s(&model),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&out).unwrap()).unwrap();
+    let g = &doc["model"]["output_nonlinearity"];
+    assert_eq!(g["kind"], "saturation");
+    // Scale-free: m·s_l and m·s_r are the limits of y.
+    let m = g["m"].as_f64().unwrap();
+    assert!((m * g["s_l"].as_f64().unwrap() + 0.4).abs() < 1e-8, "{g}");
+    assert!((m * g["s_r"].as_f64().unwrap() - 0.5).abs() < 1e-8, "{g}");
+    assert_eq!(
+        doc["warnings"].as_array().unwrap().len(),
+        0,
+        "{}",
+        doc["warnings"]
+    );
+    let o = run(&[
+        "validate",
+        "--model",
+        s(&model),
+        "--data",
+        s(&data),
+        "--u-col",
+        "u1,u2",
+    ]);
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        o.status.success() && text.contains("fit 100.00 %"),
+        "{text}"
+    );
+    let inputs = dir.path().join("in.csv");
+    std::fs::write(
+        &inputs,
+        "u1,u2\n1,0\n1,0\n1,0\n1,0\n1,0\n1,0\n1,0\n1,0\n1,0\n1,0\n",
+    )
+    .unwrap();
+    let sim = dir.path().join("sim.csv");
+    let o = run(&[
+        "simulate",
+        "--plant",
+        &format!("model:{}", s(&model)),
+        "--input",
+        &format!("file:{}", s(&inputs)),
+        "--out",
+        s(&sim),
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // v → 1/(1 − 0.6) = 2.5 under u1 = 1: the output settles at the upper limit 0.5.
+    let last = std::fs::read_to_string(&sim).unwrap();
+    let y: f64 = last
+        .lines()
+        .last()
+        .unwrap()
+        .rsplit(',')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!((y - 0.5).abs() < 1e-8, "{last}");
+}

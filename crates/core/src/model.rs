@@ -169,6 +169,8 @@ pub struct Model {
     offset: Option<f64>,
     noise: NoiseModel,
     operating_point: Option<OperatingPoint>,
+    /// g of y = g(v), v the linear block's output (Wiener / Hammerstein–Wiener); `None`: y = v.
+    output: Option<StaticNonlinearity>,
 }
 
 impl Model {
@@ -200,7 +202,46 @@ impl Model {
             offset,
             noise: NoiseModel::EquationError,
             operating_point: None,
+            output: None,
         })
+    }
+
+    /// The same model with the output nonlinearity y = g(v) (MATLAB idnlhw's OutputNonlinearity): a
+    /// saturation, piecewise-linear map or polynomial on the output v of the linear block, or none.
+    /// Such a model predicts by simulation (its noise model is output error). Fails on another kind or a
+    /// non-finite parameter.
+    pub fn with_output_nonlinearity(
+        mut self,
+        g: Option<StaticNonlinearity>,
+    ) -> Result<Self, SysidError> {
+        if let Some(g) = &g {
+            let allowed = matches!(
+                g,
+                StaticNonlinearity::Saturation(_)
+                    | StaticNonlinearity::PiecewiseLinear(_)
+                    | StaticNonlinearity::Polynomial(_)
+            );
+            if !allowed {
+                return Err(SysidError::Data(
+                    "invalid model: the output nonlinearity must be a saturation, piecewise-linear map or polynomial"
+                        .into(),
+                ));
+            }
+            if !g.is_finite() {
+                return Err(SysidError::Data(
+                    "invalid model: a coefficient of the output nonlinearity is NaN or infinite"
+                        .into(),
+                ));
+            }
+            self.noise = NoiseModel::OutputError;
+        }
+        self.output = g;
+        Ok(self)
+    }
+
+    /// The output nonlinearity g of y = g(v), if any.
+    pub fn output_nonlinearity(&self) -> Option<&StaticNonlinearity> {
+        self.output.as_ref()
     }
 
     /// A single-input ARX model: A(q) y = B(q) u + c.
@@ -273,12 +314,16 @@ impl Model {
             offset: None,
             noise: NoiseModel::EquationError,
             operating_point: None,
+            output: None,
         }
     }
 
-    /// The same model with the noise model `noise` (what its one-step predictor is).
+    /// The same model with the noise model `noise` (what its one-step predictor is); a model with an
+    /// output nonlinearity keeps output error.
     pub fn with_noise_model(mut self, noise: NoiseModel) -> Self {
-        self.noise = noise;
+        if self.output.is_none() {
+            self.noise = noise;
+        }
         self
     }
 
@@ -490,6 +535,39 @@ impl Model {
         y: &[f64],
         horizon: Option<usize>,
     ) -> Result<Vec<f64>, SysidError> {
+        if let Some(g) = &self.output {
+            // y = g(v): every prediction is the simulation of v from the measured initial outputs.
+            let mut out = self.run_linear(u, y, None)?;
+            let k0 = self.k0().min(out.len());
+            out[k0..].iter_mut().for_each(|v| *v = g.apply(*v));
+            return Ok(out);
+        }
+        self.run_linear(u, y, horizon)
+    }
+
+    /// The output v of the linear block (before any output nonlinearity): free run from the measured
+    /// initial outputs (v(k) = y(k) for k < k0), in deviation units.
+    pub fn simulate_linear_part(&self, u: &[&[f64]], y: &[f64]) -> Result<Vec<f64>, SysidError> {
+        let Some(op) = &self.operating_point else {
+            return self.run_linear(u, y, None);
+        };
+        let dy: Vec<f64> = y.iter().map(|v| v - op.y).collect();
+        let du: Vec<Vec<f64>> = u
+            .iter()
+            .zip(&op.u)
+            .map(|(s, u0)| s.iter().map(|v| v - u0).collect())
+            .collect();
+        let du: Vec<&[f64]> = du.iter().map(Vec::as_slice).collect();
+        self.run_linear(&du, &dy, None)
+    }
+
+    /// [`Model::run_deviation`] of the linear block alone.
+    fn run_linear(
+        &self,
+        u: &[&[f64]],
+        y: &[f64],
+        horizon: Option<usize>,
+    ) -> Result<Vec<f64>, SysidError> {
         if u.len() != self.inputs.len() {
             return Err(SysidError::Data(format!(
                 "the model has {} input(s) but {} input record(s) were given",
@@ -577,9 +655,14 @@ impl Model {
 
     /// Number of estimated parameters p: na (+1 with offset) plus, per input, nb for a linear input and
     /// the nonlinearity's parameters + (nb - 1) for a nonlinear input, e.g. 4 + (nb - 1) for a deadzone
-    /// (b1 = 1 is fixed by normalisation).
+    /// (b1 = 1 is fixed by normalisation), and the output nonlinearity's parameters but its unit
+    /// gain (normalisation).
     pub fn parameter_count(&self) -> usize {
-        let lin = self.na() + self.offset.map_or(0, |_| 1);
+        let lin = self.na()
+            + self.offset.map_or(0, |_| 1)
+            + self
+                .output
+                .map_or(0, |g| g.parameter_count().saturating_sub(1));
         lin + self
             .inputs
             .iter()
@@ -720,6 +803,9 @@ pub(crate) struct ModelRepr {
     /// Absent for the equation-error (ARX) noise model, so that such models keep their keys.
     #[serde(default, skip_serializing_if = "is_equation_error")]
     noise_model: NoiseModel,
+    /// g of y = g(v) (Wiener / Hammerstein–Wiener); absent without one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    output_nonlinearity: Option<NonlinearityRepr>,
 }
 
 fn is_equation_error(n: &NoiseModel) -> bool {
@@ -824,9 +910,15 @@ impl TryFrom<ModelRepr> for Model {
                 v
             }
         };
+        let output = r
+            .output_nonlinearity
+            .as_ref()
+            .map(NonlinearityRepr::nonlinearity)
+            .transpose()?;
         let m = Model::new(r.ts, r.a, inputs, r.offset)?
             .with_operating_point(r.operating_point)?
-            .with_noise_model(r.noise_model);
+            .with_noise_model(r.noise_model)
+            .with_output_nonlinearity(output)?;
         if m.kind() != r.kind {
             return bad(format!(
                 "kind = {} does not match the inputs' nonlinearities",
@@ -868,6 +960,7 @@ impl From<Model> for ModelRepr {
             inputs,
             noise_model: m.noise,
             operating_point: m.operating_point,
+            output_nonlinearity: m.output.as_ref().and_then(NonlinearityRepr::of),
         }
     }
 }
@@ -975,7 +1068,8 @@ fn durand_kerner(c: &[f64]) -> Vec<Complex<f64>> {
 #[derive(Debug, Clone)]
 pub struct ModelPlant {
     model: Model,
-    /// y(k), y(k-1), ..., newest first (length max(na, 1)).
+    /// y(k), y(k-1), ..., newest first (length max(na, 1)); with an output nonlinearity the linear
+    /// block's output v (y = g(v)), reset to the rest output as if g(v) = v there.
     y_hist: Vec<f64>,
     /// Per input: x(k-1), x(k-2), ... newest first (length nk + nb - 1).
     x_hist: Vec<Vec<f64>>,
@@ -1031,6 +1125,11 @@ impl ModelPlant {
         self.model.operating_point.as_ref().map_or(0.0, |o| o.y)
     }
 
+    /// y = g(v) of the linear block's output v (v itself without an output nonlinearity).
+    fn out_of(&self, v: f64) -> f64 {
+        self.model.output.as_ref().map_or(v, |g| g.apply(v))
+    }
+
     /// Applies one command per input (`u[m]` to input m) for one sampling period; returns y(k+1).
     fn advance(&mut self, u: &[f64]) -> Result<f64, crate::PlantError> {
         let y0 = self.y0();
@@ -1063,7 +1162,7 @@ impl ModelPlant {
         }
         self.y_hist.rotate_right(1);
         self.y_hist[0] = v;
-        Ok(v + y0)
+        Ok(self.out_of(v) + y0)
     }
 }
 
@@ -1110,7 +1209,7 @@ impl crate::Plant for ModelPlant {
     }
 
     fn output(&self) -> f64 {
-        self.y_hist[0] + self.y0()
+        self.out_of(self.y_hist[0]) + self.y0()
     }
 
     fn step(&mut self, u: f64) -> Result<f64, crate::PlantError> {

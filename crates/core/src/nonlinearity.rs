@@ -335,6 +335,51 @@ impl StaticNonlinearity {
         }
     }
 
+    /// df/du at u (the derivative of the branch u lies on, as [`StaticNonlinearity::apply`] assigns a
+    /// kink); used for an output nonlinearity's sensitivities and invertibility checks.
+    pub fn slope(&self, u: f64) -> f64 {
+        match self {
+            StaticNonlinearity::Linear => 1.0,
+            StaticNonlinearity::Deadzone(d) => {
+                if u >= d.b_r {
+                    d.m_r
+                } else if u <= d.b_l {
+                    d.m_l
+                } else {
+                    0.0
+                }
+            }
+            StaticNonlinearity::Saturation(s) => {
+                if u <= s.s_l || u >= s.s_r {
+                    0.0
+                } else {
+                    s.m
+                }
+            }
+            StaticNonlinearity::DeadzoneSaturation(d) => {
+                if u >= d.s_r || u <= d.s_l {
+                    0.0
+                } else if u >= d.b_r {
+                    d.m_r
+                } else if u <= d.b_l {
+                    d.m_l
+                } else {
+                    0.0
+                }
+            }
+            StaticNonlinearity::PiecewiseLinear(p) => {
+                let i = p.breakpoints().iter().filter(|b| u >= **b).count();
+                p.slopes()[i]
+            }
+            StaticNonlinearity::Polynomial(p) => p
+                .coefficients()
+                .iter()
+                .enumerate()
+                .rev()
+                .fold(0.0, |acc, (i, g)| acc * u + (i + 1) as f64 * g),
+        }
+    }
+
     /// True for the identity.
     pub fn is_linear(&self) -> bool {
         matches!(self, StaticNonlinearity::Linear)

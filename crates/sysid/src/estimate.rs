@@ -91,6 +91,9 @@ pub struct Identification {
     /// b_l = b_r = 0 (a warning says so). Default `false`: the method's own estimate is returned and a
     /// warning says that the linear start is better.
     pub fallback: bool,
+    /// The output nonlinearity y = g(v) (saturation, piecewise-linear, polynomial; `None`: y = v),
+    /// fitted by output error from the method's model ([`crate::wiener`]).
+    pub output: Option<NonlinearityKind>,
 }
 
 impl Default for Identification {
@@ -106,6 +109,7 @@ impl Default for Identification {
             estimator: EstimatorSettings::Rls(RecursiveLeastSquares::default()),
             drop_unexcited_branch: false,
             fallback: false,
+            output: None,
         }
     }
 }
@@ -117,6 +121,9 @@ impl Identification {
         let names: Vec<String> = (1..=n).map(|i| format!("u{i}")).collect();
         let names: Vec<&str> = names.iter().map(String::as_str).collect();
         self.regression(&names)?;
+        if let Some(kind) = self.output {
+            crate::wiener::check_output_kind(kind)?;
+        }
         self.estimator.check()
     }
 
@@ -185,6 +192,12 @@ impl Identification {
     /// Builder: one input specification per input of the data.
     pub fn with_inputs(mut self, inputs: Vec<InputSpec>) -> Self {
         self.inputs = inputs;
+        self
+    }
+
+    /// Builder: the output nonlinearity y = g(v).
+    pub fn with_output_nonlinearity(mut self, output: Option<NonlinearityKind>) -> Self {
+        self.output = output;
         self
     }
 
@@ -271,6 +284,13 @@ pub fn identify<R: Records + ?Sized>(
     settings.check()?;
     let problem = settings.problem(records.records())?;
     let mut fit = settings.estimator.fit(&problem)?;
+    if let Some(kind) = settings.output {
+        let max_iterations = match settings.estimator {
+            EstimatorSettings::Oe(st) => st.max_iterations,
+            _ => OutputError::default().max_iterations,
+        };
+        fit = crate::wiener::refine(&problem, kind, fit, max_iterations)?;
+    }
     let mut notes: Vec<crate::fitted::Note> = problem
         .notes()
         .into_iter()

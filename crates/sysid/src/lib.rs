@@ -38,6 +38,7 @@ pub mod stream;
 pub mod summary;
 pub mod trust;
 pub mod warnings;
+pub mod wiener;
 pub mod windup;
 
 pub use blocks::NonlinearityKind;

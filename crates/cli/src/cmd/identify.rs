@@ -102,6 +102,12 @@ pub struct Args {
     /// D: degree of every `polynomial` input nonlinearity (1..8; default 3).
     #[arg(long, value_name = "D")]
     pub degree: Option<usize>,
+    /// A static nonlinearity y = g(v) on the output v of the linear block (Wiener; Hammerstein–Wiener
+    /// with --nonlinearity): `saturation`, `piecewise-linear` (--breakpoints K) or `polynomial`
+    /// (--degree D), fitted by output error from the method's model (MATLAB idnlhw's
+    /// OutputNonlinearity).
+    #[arg(long, value_name = "KIND")]
+    pub output_nonlinearity: Option<NonlinearityKind>,
     /// Several inputs (--u-col u1,u2) with --structure hammerstein: these inputs are linear (no deadzone);
     /// the same as --nonlinearity NAME=linear.
     #[arg(long, value_name = "NAME,...", value_delimiter = ',')]
@@ -213,21 +219,28 @@ impl Args {
     /// `--u-col u1,u2` (orders from `--nb`/`--nk` lists, nonlinearity from `--nonlinearity`,
     /// `--linear-inputs` or `--structure`).
     pub fn settings(&self) -> anyhow::Result<Identification> {
-        let names = self.columns.csv_options().input_names();
         let piecewise =
             |k: &NonlinearityKind| matches!(k, NonlinearityKind::PiecewiseLinear { .. });
         let uses_breakpoints = match &self.nonlinearity {
             Some(NonlinearityArg::All(k)) => piecewise(k),
             Some(NonlinearityArg::PerInput(list)) => list.iter().any(|(_, k)| piecewise(k)),
             None => false,
-        };
+        } || self.output_nonlinearity.as_ref().is_some_and(piecewise);
         if self.breakpoints.is_some() && !uses_breakpoints {
             anyhow::bail!(sysid::SysidError::setting(
                 sysid::Setting::Other("--breakpoints"),
                 self.breakpoints.unwrap_or_default(),
-                "--nonlinearity piecewise-linear (it sets the number of breakpoints of that kind)"
+                "--nonlinearity or --output-nonlinearity piecewise-linear (it sets the number of breakpoints of that kind)"
             ));
         }
+        Ok(self
+            .settings_inputs()?
+            .with_output_nonlinearity(self.output_nonlinearity.map(|k| self.sized(k))))
+    }
+
+    /// [`Args::settings`] without the output nonlinearity.
+    fn settings_inputs(&self) -> anyhow::Result<Identification> {
+        let names = self.columns.csv_options().input_names();
         let options = IdentifyOptions {
             model: self.model,
             na: self.na,
@@ -300,15 +313,19 @@ impl Args {
     /// The nonlinearity `--nonlinearity` gives input `name` (every input named in a per-input list must
     /// be an input, and every input must be named).
     fn kind_of(&self, arg: &NonlinearityArg, name: &str) -> anyhow::Result<NonlinearityKind> {
-        let kind = self.kind_named(arg, name)?;
+        Ok(self.sized(self.kind_named(arg, name)?))
+    }
+
+    /// `kind` with `--breakpoints` and `--degree` applied.
+    fn sized(&self, kind: NonlinearityKind) -> NonlinearityKind {
         let kind = match self.breakpoints {
             Some(k) => kind.with_breakpoints(k),
             None => kind,
         };
-        Ok(match self.degree {
+        match self.degree {
             Some(d) => kind.with_degree(d),
             None => kind,
-        })
+        }
     }
 
     /// [`Args::kind_of`] before `--breakpoints` and `--degree`.

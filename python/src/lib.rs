@@ -531,10 +531,22 @@ fn identify(
     resid_lags: usize,
     fallback: bool,
     nonlinearity: Option<&str>,
-    breakpoints: Option<usize>,
+    breakpoints: Option<Bound<'_, PyAny>>,
     degree: Option<usize>,
     output_nonlinearity: Option<&str>,
 ) -> PyResult<PyFit> {
+    // K >= 1, or "auto" (the command line's --breakpoints auto).
+    let breakpoints = breakpoints
+        .map(|b| match b.extract::<String>() {
+            Ok(t) if t == "auto" => Ok(sysid::blocks::AUTO_BREAKPOINTS),
+            _ => match b.extract::<usize>() {
+                Ok(k) if k >= 1 => Ok(k),
+                _ => Err(PyValueError::new_err(
+                    "breakpoints: expected a whole number of breakpoints from 1, or \"auto\"",
+                )),
+            },
+        })
+        .transpose()?;
     let sized = |k: sysid::NonlinearityKind| {
         let k = breakpoints.map_or(k, |n| k.with_breakpoints(n));
         degree.map_or(k, |d| k.with_degree(d))

@@ -162,6 +162,7 @@ fn breakpoints_without_a_piecewise_input_and_out_of_range_are_refused() {
     for flags in [
         &["--nonlinearity", "saturation", "--breakpoints", "3"][..],
         &["--nonlinearity", "piecewise-linear", "--breakpoints", "9"][..],
+        &["--nonlinearity", "piecewise-linear", "--breakpoints", "0"][..],
         &["--nonlinearity", "polynomial", "--degree", "0"][..],
         &["--nonlinearity", "sigmoid"][..],
     ] {

@@ -51,6 +51,11 @@ pub enum NonlinearityKind {
 
 /// K of `piecewise-linear` when `--breakpoints` is not given.
 pub const DEFAULT_BREAKPOINTS: usize = 2;
+/// K = 0 stands for `--breakpoints auto`: [`crate::identify`] tries K = 1..=[`MAX_AUTO_BREAKPOINTS`]
+/// and keeps the smallest AIC on the estimation data.
+pub const AUTO_BREAKPOINTS: usize = 0;
+/// The largest K `--breakpoints auto` tries.
+pub const MAX_AUTO_BREAKPOINTS: usize = 4;
 /// D of `polynomial` when `--degree` is not given.
 pub const DEFAULT_DEGREE: usize = 3;
 
@@ -144,12 +149,12 @@ impl NonlinearityKind {
     pub fn check(&self) -> Result<(), SysidError> {
         match *self {
             NonlinearityKind::PiecewiseLinear { breakpoints: k }
-                if !(1..=MAX_BREAKPOINTS).contains(&k) =>
+                if k != AUTO_BREAKPOINTS && !(1..=MAX_BREAKPOINTS).contains(&k) =>
             {
                 Err(SysidError::setting(
                     Setting::Other("--breakpoints"),
                     k,
-                    &format!("a number of breakpoints from 1 to {MAX_BREAKPOINTS}"),
+                    &format!("a number of breakpoints from 1 to {MAX_BREAKPOINTS}, or auto"),
                 ))
             }
             NonlinearityKind::Polynomial { degree: d } if !(1..=MAX_DEGREE).contains(&d) => {

@@ -9,7 +9,7 @@
 //! recursive instrumental variables, [`crate::iv`]); they see a [`Regression`] and the nonlinearity
 //! [`crate::blocks`], never a deadzone.
 
-use crate::blocks::NonlinearityKind;
+use crate::blocks::{NonlinearityKind, AUTO_BREAKPOINTS, MAX_AUTO_BREAKPOINTS};
 use crate::fitted::{check_finite, Fitted, Method, Param, Termination};
 use crate::methods;
 pub use crate::methods::{
@@ -195,6 +195,26 @@ impl Identification {
         self
     }
 
+    /// True when a piecewise-linear block has `--breakpoints auto` (K to be chosen).
+    pub fn auto_breakpoints(&self) -> bool {
+        let auto = |k: &NonlinearityKind| {
+            *k == NonlinearityKind::PiecewiseLinear {
+                breakpoints: AUTO_BREAKPOINTS,
+            }
+        };
+        self.inputs.iter().any(|i| auto(&i.nonlinearity)) || self.output.as_ref().is_some_and(auto)
+    }
+
+    /// The same with K breakpoints in every piecewise-linear block (inputs and output).
+    pub fn with_breakpoints(&self, k: usize) -> Identification {
+        let mut s = self.clone();
+        for i in &mut s.inputs {
+            i.nonlinearity = i.nonlinearity.with_breakpoints(k);
+        }
+        s.output = s.output.map(|o| o.with_breakpoints(k));
+        s
+    }
+
     /// Builder: the output nonlinearity y = g(v).
     pub fn with_output_nonlinearity(mut self, output: Option<NonlinearityKind>) -> Self {
         self.output = output;
@@ -282,6 +302,9 @@ pub fn identify<R: Records + ?Sized>(
     settings: &Identification,
 ) -> Result<Fitted, SysidError> {
     settings.check()?;
+    if settings.auto_breakpoints() {
+        return identify_breakpoints(records, settings);
+    }
     let problem = settings.problem(records.records())?;
     let mut fit = settings.estimator.fit(&problem)?;
     if let Some(kind) = settings.output {
@@ -300,6 +323,52 @@ pub fn identify<R: Records + ?Sized>(
     fit.notes = notes;
     check_finite(problem.name(), &fit.params)?;
     safeguard(&problem, settings, fit)
+}
+
+/// `--breakpoints auto`: the identification with K = 1..=[`MAX_AUTO_BREAKPOINTS`] breakpoints in every
+/// piecewise-linear block, the one with the smallest AIC on the estimation data kept (a note lists
+/// them all).
+fn identify_breakpoints<R: Records + ?Sized>(
+    records: &R,
+    settings: &Identification,
+) -> Result<Fitted, SysidError> {
+    let mut best: Option<(f64, usize, Fitted)> = None;
+    let mut candidates = Vec::with_capacity(MAX_AUTO_BREAKPOINTS);
+    let mut first_error = None;
+    for k in 1..=MAX_AUTO_BREAKPOINTS {
+        let s = settings.with_breakpoints(k);
+        let aic = match identify(records, &s) {
+            Ok(fit) => {
+                let aic = s
+                    .problem(records.records())
+                    .ok()
+                    .and_then(|p| p.metrics(&fit.model))
+                    .and_then(|m| m.aic)
+                    .filter(|a| a.is_finite());
+                if let Some(a) = aic {
+                    if best.as_ref().is_none_or(|b| a < b.0) {
+                        best = Some((a, k, fit));
+                    }
+                }
+                aic
+            }
+            Err(e) => {
+                first_error.get_or_insert(e);
+                None
+            }
+        };
+        candidates.push((k, aic));
+    }
+    let Some((_, k, mut fit)) = best else {
+        return Err(first_error.unwrap_or_else(|| {
+            SysidError::Numerical(format!(
+                "--breakpoints auto: no K from 1 to {MAX_AUTO_BREAKPOINTS} gave a model with a finite AIC"
+            ))
+        }));
+    };
+    fit.notes
+        .push(crate::fitted::Note::BreakpointsChosen { k, candidates });
+    Ok(fit)
 }
 
 /// Percentage points of estimation simulation fit by which a Hammerstein estimate may trail the linear

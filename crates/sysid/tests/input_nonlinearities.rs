@@ -411,14 +411,51 @@ fn model_files_round_trip_every_kind() {
     ));
 }
 
-// K and D out of range are refused by name before any data are read.
+// `--breakpoints auto` (K = 0): on the piecewise-linear case (K = 2 true) with white output noise of
+// σ = 0.05, K = 1 cannot fit the two kinks and K = 3, 4 add parameters the data do not need; the smallest
+// AIC is K = 2, and the note lists every K tried.
+#[test]
+fn auto_breakpoints_choose_k_by_the_estimation_aic() {
+    let case = &cases()[2];
+    let clean = data(case, 0.0, 11);
+    let mut rng = ChaCha8Rng::seed_from_u64(4);
+    let y: Vec<f64> = clean
+        .y()
+        .iter()
+        .map(|v| v + 0.05 * (rng.gen::<f64>() + rng.gen::<f64>() + rng.gen::<f64>() - 1.5) * 2.0)
+        .collect();
+    let noisy = Dataset::new(
+        Signals {
+            u: clean.u().to_vec(),
+            y,
+        },
+        0.01,
+        "noisy",
+    )
+    .unwrap();
+    let auto = Case {
+        kind: NonlinearityKind::PiecewiseLinear {
+            breakpoints: sysid::blocks::AUTO_BREAKPOINTS,
+        },
+        f: piecewise,
+        want: Vec::new(),
+    };
+    let fit = identify(&noisy, &settings(&auto, Method::Ls, false)).unwrap();
+    let StaticNonlinearity::PiecewiseLinear(p) = fit.model.input().nonlinearity() else {
+        panic!("{:?}", fit.model);
+    };
+    assert_eq!(p.breakpoints().len(), 2, "{:?}", fit.notes);
+    let note = fit.note().unwrap();
+    assert!(note.contains("K = 2 chosen by the smallest AIC"), "{note}");
+    for k in 1..=4 {
+        assert!(note.contains(&format!("K = {k}: ")), "{note}");
+    }
+}
+
+// K and D out of range are refused by name before any data are read (K = 0 is `auto`).
 #[test]
 fn breakpoints_and_degree_out_of_range_are_refused() {
     let bad = [
-        (
-            NonlinearityKind::PiecewiseLinear { breakpoints: 0 },
-            "--breakpoints",
-        ),
         (
             NonlinearityKind::PiecewiseLinear { breakpoints: 9 },
             "--breakpoints",

@@ -96,8 +96,9 @@ pub struct Args {
     /// idnlhw's InputNonlinearity); default: --structure's (hammerstein: deadzone, arx: linear).
     #[arg(long, value_name = "KIND|NAME=KIND,...", value_parser = parse_nonlinearity)]
     pub nonlinearity: Option<NonlinearityArg>,
-    /// K: breakpoints of every `piecewise-linear` input nonlinearity (1..8; default 2).
-    #[arg(long, value_name = "K")]
+    /// K: breakpoints of every `piecewise-linear` nonlinearity (1..8; default 2), or `auto`: K = 1..4 tried,
+    /// the smallest AIC on the estimation data kept.
+    #[arg(long, value_name = "K|auto", value_parser = parse_breakpoints)]
     pub breakpoints: Option<usize>,
     /// D: degree of every `polynomial` input nonlinearity (1..8; default 3).
     #[arg(long, value_name = "D")]
@@ -202,6 +203,20 @@ fn parse_nonlinearity(text: &str) -> Result<NonlinearityArg, String> {
         })
         .collect::<Result<_, _>>()
         .map(NonlinearityArg::PerInput)
+}
+
+/// `--breakpoints`: a number of breakpoints from 1, or `auto` ([`sysid::blocks::AUTO_BREAKPOINTS`]).
+fn parse_breakpoints(text: &str) -> Result<usize, String> {
+    match text.trim() {
+        "auto" => Ok(sysid::blocks::AUTO_BREAKPOINTS),
+        t => match t.parse::<usize>() {
+            Ok(k) if k >= 1 => Ok(k),
+            _ => Err(format!(
+                "'{t}' is not a number of breakpoints; expected a whole number from 1 to {}, or auto",
+                sysid::nonlinearity::MAX_BREAKPOINTS
+            )),
+        },
+    }
 }
 
 /// `--passes`: a whole number of passes, or `auto`.

@@ -26,8 +26,13 @@ fn record(path: &Path, f1: fn(f64) -> f64) {
     for k in 1..n {
         y[k] = 0.6 * y[k - 1] + f1(u1[k - 1]) - 0.8 * u2[k - 1];
     }
+    write_record(path, &u1, &u2, &y);
+}
+
+/// Writes t,u1,u2,y at Ts = 0.1 s.
+fn write_record(path: &Path, u1: &[f64], u2: &[f64], y: &[f64]) {
     let mut text = String::from("t,u1,u2,y\n");
-    for k in 0..n {
+    for k in 0..y.len() {
         text.push_str(&format!(
             "{},{},{},{}\n",
             k as f64 * 0.1,
@@ -193,13 +198,9 @@ fn an_output_saturation_through_the_command_line() {
         v[k] = 0.6 * v[k - 1] + u1[k - 1] - 0.8 * u2[k - 1];
     }
     assert!(v.iter().any(|x| *x < -0.4) && v.iter().any(|x| *x > 0.5));
-    let mut text = String::from("t,u1,u2,y\n");
-    for k in 0..n {
-        let y = v[k].clamp(-0.4, 0.5);
-        text.push_str(&format!("{},{},{},{}\n", k as f64 * 0.1, u1[k], u2[k], y));
-    }
+    let y: Vec<f64> = v.iter().map(|v| v.clamp(-0.4, 0.5)).collect();
     let data = dir.path().join("w.csv");
-    std::fs::write(&data, text).unwrap();
+    write_record(&data, &u1, &u2, &y);
     let (out, model) = (dir.path().join("w.json"), dir.path().join("w.model.json"));
     let o = run(&[
         "identify",

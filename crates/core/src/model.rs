@@ -506,19 +506,10 @@ impl Model {
     /// [`Model::run_deviation`] in the user's units: with an operating point (u0, y0), the model runs on
     /// u − u0 and y − y0 and y0 is added back to its output.
     fn run(&self, u: &[&[f64]], y: &[f64], horizon: Option<usize>) -> Result<Vec<f64>, SysidError> {
-        let Some(op) = &self.operating_point else {
-            return self.run_deviation(u, y, horizon);
+        let (Some(op), Some((du, dy))) = (&self.operating_point, self.deviations(u, y)) else {
+            return self.run_deviation(u, y, horizon); // no operating point, or reports the mismatch
         };
-        if u.len() != op.u.len() {
-            return self.run_deviation(u, y, horizon); // reports the mismatch
-        }
-        let du: Vec<Vec<f64>> = u
-            .iter()
-            .zip(&op.u)
-            .map(|(s, u0)| s.iter().map(|v| v - u0).collect())
-            .collect();
         let du: Vec<&[f64]> = du.iter().map(Vec::as_slice).collect();
-        let dy: Vec<f64> = y.iter().map(|v| v - op.y).collect();
         let mut out = self.run_deviation(&du, &dy, horizon)?;
         // The first k0 entries are the measured outputs themselves.
         let k0 = self.k0().min(out.len());
@@ -548,17 +539,27 @@ impl Model {
     /// The output v of the linear block (before any output nonlinearity): free run from the measured
     /// initial outputs (v(k) = y(k) for k < k0), in deviation units.
     pub fn simulate_linear_part(&self, u: &[&[f64]], y: &[f64]) -> Result<Vec<f64>, SysidError> {
-        let Some(op) = &self.operating_point else {
+        let Some((du, dy)) = self.deviations(u, y) else {
             return self.run_linear(u, y, None);
         };
-        let dy: Vec<f64> = y.iter().map(|v| v - op.y).collect();
-        let du: Vec<Vec<f64>> = u
+        let du: Vec<&[f64]> = du.iter().map(Vec::as_slice).collect();
+        self.run_linear(&du, &dy, None)
+    }
+
+    /// u − u0 (per input) and y − y0 with the operating point; `None` without one or when the number
+    /// of inputs does not match it (the run then reports the mismatch).
+    #[allow(clippy::type_complexity)]
+    fn deviations(&self, u: &[&[f64]], y: &[f64]) -> Option<(Vec<Vec<f64>>, Vec<f64>)> {
+        let op = self.operating_point.as_ref()?;
+        if u.len() != op.u.len() {
+            return None;
+        }
+        let du = u
             .iter()
             .zip(&op.u)
             .map(|(s, u0)| s.iter().map(|v| v - u0).collect())
             .collect();
-        let du: Vec<&[f64]> = du.iter().map(Vec::as_slice).collect();
-        self.run_linear(&du, &dy, None)
+        Some((du, y.iter().map(|v| v - op.y).collect()))
     }
 
     /// [`Model::run_deviation`] of the linear block alone.

@@ -21,11 +21,12 @@
 use crate::blocks::{monotonicity_change, Block, NonlinearityKind};
 use crate::fitted::{Fitted, Method, Note, Termination};
 use crate::ls;
+use crate::methods::reported_rmse;
 use crate::oe::{self, OutputStart};
 use crate::problem::Problem;
 use crate::warnings::Warning;
 use nalgebra::{DMatrix, DVector};
-use sysid_core::{Dataset, Model, Setting, StaticNonlinearity, SysidError};
+use sysid_core::{Setting, StaticNonlinearity, SysidError};
 
 /// True for the kinds an output nonlinearity can be.
 pub fn is_output_kind(kind: NonlinearityKind) -> bool {
@@ -105,16 +106,6 @@ fn static_fit(
     Ok(best.map_or(start.initial, |b| b.1))
 }
 
-/// The guarded estimation RMSE of `model` on `data` (`None`: unstable or diverging).
-fn guarded_rmse(model: &Model, data: &Dataset) -> Option<f64> {
-    if !model.is_stable() {
-        return None;
-    }
-    sysid_core::metrics::metrics(model, data)
-        .ok()
-        .and_then(|m| crate::trust::guarded_rmse(&m))
-}
-
 /// Adds the output nonlinearity `kind` to the fitted `start` of problem `p` (module docs), in at most
 /// `max_iterations` output-error iterations.
 pub(crate) fn refine(
@@ -157,8 +148,8 @@ pub(crate) fn refine(
         }),
         max_iterations,
     )?;
-    let refined = guarded_rmse(&fit.model, data);
-    let before = guarded_rmse(&start.model, data);
+    let refined = reported_rmse(&fit.model, data);
+    let before = reported_rmse(&start.model, data);
     let mut notes: Vec<Note> = start
         .notes
         .iter()

@@ -37,6 +37,7 @@ pub mod rls_ud;
 pub mod stream;
 pub mod trust;
 pub mod warnings;
+pub mod wiener;
 pub mod windup;
 
 pub use blocks::NonlinearityKind;

@@ -57,6 +57,11 @@ pub struct Streamed<T> {
 /// Why an identification cannot be streamed, or `None` when it can: ARX by least squares (any
 /// orders, `offset`), one input.
 pub fn unsupported(settings: &Identification) -> Option<String> {
+    if settings.output.is_some() {
+        return Some(
+            "an output nonlinearity (--output-nonlinearity) is fitted by output error on the whole record".into(),
+        );
+    }
     if !settings.inputs.is_empty() {
         return Some(
             "a structure given per input (--nonlinearity) is identified in memory; for streaming use \

@@ -37,9 +37,9 @@ pub mod rls;
 pub mod rls_ud;
 pub mod search;
 pub mod stream;
-pub mod summary;
 pub mod trust;
 pub mod warnings;
+pub mod wiener;
 pub mod windup;
 
 pub use blocks::NonlinearityKind;

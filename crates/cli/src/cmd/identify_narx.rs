@@ -11,9 +11,6 @@ use super::identify::Args;
 /// Flags that only polynomial NARX models use.
 #[derive(Debug, Clone, clap::Args)]
 pub struct NarxArgs {
-    /// Polynomial NARX (--structure narx): the largest degree D of a monomial of the lagged y and u.
-    #[arg(long, value_name = "D", default_value_t = 2)]
-    pub degree: usize,
     /// Polynomial NARX: how many FROLS-ordered terms to keep: `sim` (default) the least free-run
     /// simulation RMSE on the selection part (the last --selection fraction of the estimation record,
     /// terms ordered on the rest), `aic` or `bic` on the one-step residuals of the estimation record.
@@ -34,11 +31,13 @@ pub struct NarxArgs {
 
 impl NarxArgs {
     /// The NARX settings of these flags with the lags of `identify` (`--offset` offers the constant).
+    ///
+    /// `degree` is `identify --degree` (the NARX default 2 when absent); `order --classes` names it in
+    /// each class.
     pub fn settings(
         &self,
-        na: usize,
-        nb: usize,
-        nk: usize,
+        (na, nb, nk): (usize, usize, usize),
+        degree: usize,
         offset: bool,
         max_iterations: usize,
     ) -> NarxSettings {
@@ -46,7 +45,7 @@ impl NarxArgs {
             na,
             nb,
             nk,
-            degree: self.degree,
+            degree,
             constant: offset,
             max_terms: self.max_terms,
             stop: self.stop,
@@ -72,10 +71,15 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     if args.nb.0.len() > 1 || args.nk.0.len() > 1 {
         anyhow::bail!("--nb/--nk lists are for several inputs; --structure narx has one");
     }
+    if args.nonlinearity.is_some() || args.output_nonlinearity.is_some() {
+        anyhow::bail!(
+            "--structure narx has no static blocks: its polynomial terms are the nonlinearity \
+             (leave out --nonlinearity and --output-nonlinearity)"
+        );
+    }
     let settings = args.narx.settings(
-        args.na,
-        args.nb.first(),
-        args.nk.first(),
+        (args.na, args.nb.first(), args.nk.first()),
+        args.degree.unwrap_or(2),
         args.offset,
         args.max_iterations.min(200),
     );

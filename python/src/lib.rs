@@ -665,9 +665,9 @@ fn identify<'py>(
             .map(|(uv, yv)| dataset(&uv, &yv, ts, validation_name))
             .transpose()?;
         let report = py
-            .detach(|| -> Result<sysid::narx::NarxReport, SysidError> {
+            .detach(|| -> Result<sysid_summary::narx::NarxReport, SysidError> {
                 let fit = sysid::narx::identify_narx(&data, &settings)?;
-                sysid::narx::NarxReport::assemble(fit, &settings, &data, val.as_ref())
+                sysid_summary::narx::NarxReport::assemble(fit, &settings, &data, val.as_ref())
             })
             .map_err(sysid_err)?;
         let json = serde_json::to_string_pretty(&report)

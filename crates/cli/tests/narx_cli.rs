@@ -114,14 +114,11 @@ fn narx_identifies_saves_validates_and_runs_as_a_plant() {
     let sim = sysid::data::read_csv(&d.join("sim.csv"), &Default::default()).unwrap();
     let mut y = 0.0;
     let mut u_prev = 0.0;
-    for k in 0..u.len() {
-        assert!(
-            (sim.y()[k] - y).abs() < 1e-8,
-            "k = {k}: {} vs {y}",
-            sim.y()[k]
-        );
-        let next = 0.2 * y + 0.1 * y * u[k] + 0.9 * u_prev;
-        u_prev = u[k];
+    assert_eq!(sim.y().len(), u.len());
+    for (k, (&uk, &yk)) in u.iter().zip(sim.y()).enumerate() {
+        assert!((yk - y).abs() < 1e-8, "k = {k}: {yk} vs {y}");
+        let next = 0.2 * y + 0.1 * y * uk + 0.9 * u_prev;
+        u_prev = uk;
         y = next;
     }
 }

@@ -267,11 +267,12 @@ impl Frols {
     pub fn theta(&self, n: usize) -> Vec<f64> {
         let mut th = vec![0.0; n];
         for s in (0..n).rev() {
-            let mut v = self.g[s];
-            for c in s + 1..n {
-                v -= self.a[s][c] * th[c];
-            }
-            th[s] = v;
+            let tail: f64 = self.a[s][s + 1..n]
+                .iter()
+                .zip(&th[s + 1..n])
+                .map(|(a, t)| a * t)
+                .sum();
+            th[s] = self.g[s] - tail;
         }
         th
     }
@@ -301,7 +302,8 @@ pub fn frols(p: &[Vec<f64>], y: &[f64], max_terms: usize) -> Frols {
                 continue;
             }
             let ww = dot(&w[m], &w[m]);
-            if !(ww > 1e-20 * norms[m]) || ww == 0.0 || yy == 0.0 {
+            // A NaN, a zero or a dependent column (orthogonal part below 1e-10 of its norm) is skipped.
+            if ww.is_nan() || ww <= 1e-20 * norms[m] || ww == 0.0 || yy == 0.0 {
                 continue;
             }
             let wy = dot(&w[m], y);
@@ -329,9 +331,8 @@ pub fn frols(p: &[Vec<f64>], y: &[f64], max_terms: usize) -> Frols {
         qs.push(q);
         // Row s of A over the chosen terms: coefficient of the s-th chosen term on every earlier q.
         let s = out.order.len() - 1;
-        for r in 0..s {
-            let v = coef[m][r];
-            out.a[r].push(v);
+        for (row, &v) in out.a.iter_mut().zip(&coef[m][..s]) {
+            row.push(v);
         }
         out.a.push(vec![0.0; s + 1]);
         out.a[s][s] = 1.0;
@@ -914,83 +915,4 @@ pub fn narx_metrics(model: &NarxModel, data: &Dataset) -> Result<NarxMetrics, Sy
         fit_pred_percent: sysid_core::metrics::fit_percent(&y[k0..], &pred[k0..]),
         blew_up_at: sim.blew_up_at,
     })
-}
-
-/// Estimation and (optional) validation metrics.
-#[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct NarxMetricsPair {
-    /// On the estimation record.
-    pub estimation: NarxMetrics,
-    /// On the validation record, if one was given.
-    pub validation: Option<NarxMetrics>,
-}
-
-/// The `identify --json` document of a polynomial NARX identification.
-#[derive(Debug, Clone, Serialize)]
-pub struct NarxReport {
-    /// Always `narx`.
-    pub structure: &'static str,
-    /// The model (the keys of its model file).
-    pub model: NarxModel,
-    /// The selected terms with coefficients, standard deviations and ERR, in FROLS order.
-    pub terms: Vec<TermReport>,
-    /// The selection: candidates, Σ ERR, the stopping rule's curve and chosen n.
-    pub selection: SelectionReport,
-    /// The simulation-error refinement, if run.
-    pub refinement: Option<Refinement>,
-    /// Metrics.
-    pub metrics: NarxMetricsPair,
-    /// Warnings in words (also printed).
-    pub warnings: Vec<String>,
-}
-
-/// How the terms were selected.
-#[derive(Debug, Clone, Serialize)]
-pub struct SelectionReport {
-    /// Number of candidate monomials.
-    pub candidates: usize,
-    /// Σ ERR of the selected terms.
-    pub err_sum: f64,
-    /// The stopping rule, its values and the chosen number of terms.
-    pub stop: StopCurve,
-    /// The selection part's fraction of the estimation record (rule `sim`).
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub selection_fraction: Option<f64>,
-}
-
-impl NarxReport {
-    /// Assembles the report of `fit` with metrics on `est` and `val`; a blow-up on either record adds a
-    /// warning.
-    pub fn assemble(
-        fit: NarxFit,
-        settings: &NarxSettings,
-        est: &Dataset,
-        val: Option<&Dataset>,
-    ) -> Result<Self, SysidError> {
-        let estimation = narx_metrics(&fit.model, est)?;
-        let validation = val.map(|v| narx_metrics(&fit.model, v)).transpose()?;
-        let mut warnings = fit.warnings;
-        if let Some(v) = &validation {
-            if let Some(k) = v.blew_up_at {
-                warnings.push(blow_up_warning("validation", &v.data, k));
-            }
-        }
-        Ok(NarxReport {
-            structure: "narx",
-            model: fit.model,
-            terms: fit.terms,
-            selection: SelectionReport {
-                candidates: fit.candidates,
-                err_sum: fit.err_sum,
-                stop: fit.stop,
-                selection_fraction: (settings.stop == StopRule::Sim).then_some(settings.selection),
-            },
-            refinement: fit.refinement,
-            metrics: NarxMetricsPair {
-                estimation,
-                validation,
-            },
-            warnings,
-        })
-    }
 }

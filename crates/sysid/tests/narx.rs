@@ -1,5 +1,7 @@
 //! Polynomial NARX identification: FROLS on a hand-computed case and on exact data of a known NARX.
 
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
+
 use sysid::data::Signals;
 use sysid::narx::{frols, identify_narx, NarxSettings, StopRule};
 use sysid::narx_model::{candidate_terms, NarxModel, Term};

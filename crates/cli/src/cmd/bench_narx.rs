@@ -58,7 +58,7 @@ fn rmse(v: Option<f64>) -> String {
 pub fn run(a: NarxArgs) -> anyhow::Result<()> {
     let reps = a.repetitions as usize;
     let mut text = format!(
-        "Polynomial NARX identification (FROLS, sim stopping rule, simulation-error refinement), best of {reps}:\n"
+        "Polynomial NARX identification (FROLS, the stopping rule of each case, simulation-error refinement), best of {reps}:\n"
     );
     let mut cases = Vec::new();
     let mut inputs: Vec<PathBuf> = Vec::new();
@@ -86,12 +86,13 @@ pub fn run(a: NarxArgs) -> anyhow::Result<()> {
         let r = bench_narx(&est, &test, &case.settings(), reps)
             .with_context(|| format!("bench narx: case {}", case.name))?;
         text.push_str(&format!(
-            "  {:<16} ({},{},{}) D={}, {} samples: {:.3} s (median {:.3} s), {} terms, test RMSE (simulation) {}\n",
+            "  {:<16} ({},{},{}) D={} --stop {}, {} samples: {:.3} s (median {:.3} s), {} terms, test RMSE (simulation) {}\n",
             case.name,
             case.na,
             case.nb,
             case.nk,
             case.degree,
+            case.stop,
             r.samples,
             r.seconds,
             r.median_seconds,

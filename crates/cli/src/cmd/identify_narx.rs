@@ -3,7 +3,8 @@
 
 use std::path::Path;
 
-use sysid::narx::{identify_narx, NarxReport, NarxSettings, StopRule};
+use sysid::narx::{identify_narx, NarxSettings, StopRule};
+use sysid_summary::narx::NarxReport;
 
 use super::common::{check_outputs, print_notes, write_output};
 use super::identify::Args;

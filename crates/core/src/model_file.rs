@@ -48,13 +48,7 @@ pub fn to_json(model: &Model) -> Result<String, SysidError> {
 
 /// Reads and checks a model file.
 pub fn read_model(path: &Path) -> Result<Model, SysidError> {
-    let text = crate::data::bounded::read_bounded(
-        path,
-        MAX_MODEL_FILE_BYTES,
-        "a model file",
-        "expected a file written by identify --save-model",
-    )?;
-    parse_model(&text, &path.display().to_string())
+    parse_model(&read_file(path)?, &path.display().to_string())
 }
 
 /// What a model file holds that a reader must be told about, in words: a deadzone that is not
@@ -121,13 +115,17 @@ pub fn parse_model(bytes: &[u8], name: &str) -> Result<Model, SysidError> {
 
 /// Reads and checks a model file of any kind.
 pub fn read_any_model(path: &Path) -> Result<AnyModel, SysidError> {
-    let text = crate::data::bounded::read_bounded(
+    parse_any_model(&read_file(path)?, &path.display().to_string())
+}
+
+/// The bytes of a model file, its size bounded by [`MAX_MODEL_FILE_BYTES`].
+fn read_file(path: &Path) -> Result<Vec<u8>, SysidError> {
+    crate::data::bounded::read_bounded(
         path,
         MAX_MODEL_FILE_BYTES,
         "a model file",
         "expected a file written by identify --save-model",
-    )?;
-    parse_any_model(&text, &path.display().to_string())
+    )
 }
 
 /// Writes a NARX model as a model file (pretty JSON, ending with a newline).

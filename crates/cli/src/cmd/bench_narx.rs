@@ -2,9 +2,7 @@
 //! (`sysid_studies::narx_bench`), and on request SysIdentPy's FROLS on the same records, splits, lags and
 //! degree in the same run (`scripts/bench_sysidentpy_narx.py`, with the Python given by `--peer`).
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Stdio};
 
 use anyhow::Context;
 use serde::Serialize;
@@ -157,37 +155,17 @@ fn run_peer(
             })
         })
         .collect();
-    let mut child = Command::new(python)
-        .arg(&a.peer_script)
-        .args(["--cases", "-", "--repetitions"])
-        .arg(a.repetitions.to_string())
-        .args(["--json", "-"])
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .with_context(|| {
-            format!(
-                "--peer {}: cannot run {}",
-                python.display(),
-                a.peer_script.display()
-            )
-        })?;
-    if let Some(mut stdin) = child.stdin.take() {
-        stdin.write_all(serde_json::to_string(&spec)?.as_bytes())?;
-    }
-    let output = child.wait_with_output()?;
-    if !output.status.success() {
-        anyhow::bail!(
-            "--peer: {} {} failed ({}): {}",
-            python.display(),
-            a.peer_script.display(),
-            output.status,
-            String::from_utf8_lossy(&output.stderr).trim()
-        );
-    }
-    let v: serde_json::Value = serde_json::from_slice(&output.stdout)
-        .with_context(|| format!("--peer: {} did not print JSON", a.peer_script.display()))?;
+    let v = super::bench_oe::peer_json(
+        python,
+        &a.peer_script,
+        &[
+            "--cases".into(),
+            "-".into(),
+            "--repetitions".into(),
+            a.repetitions.to_string(),
+        ],
+        Some(&serde_json::to_string(&spec)?),
+    )?;
     let versions = v
         .get("versions")
         .cloned()

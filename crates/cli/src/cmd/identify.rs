@@ -613,7 +613,10 @@ fn run_streamed(args: &Args, settings: &Identification, data_path: &Path) -> any
 
 /// The input files (the record and the validation file) after checking that the outputs can be written
 /// and name none of them.
-fn checked_inputs<'a>(args: &'a Args, data_path: &'a Path) -> anyhow::Result<Vec<&'a Path>> {
+pub(super) fn checked_inputs<'a>(
+    args: &'a Args,
+    data_path: &'a Path,
+) -> anyhow::Result<Vec<&'a Path>> {
     let mut inputs: Vec<&Path> = vec![data_path];
     inputs.extend(args.val.validation.as_deref());
     check_outputs(

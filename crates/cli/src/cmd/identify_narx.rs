@@ -1,12 +1,10 @@
 //! `ipa-sysid identify --structure narx`: a polynomial NARX model, its terms chosen by orthogonal
 //! forward regression (FROLS) with an honest stopping rule (`sysid::narx`).
 
-use std::path::Path;
-
 use sysid::narx::{identify_narx, NarxSettings, StopRule};
 use sysid_summary::narx::NarxReport;
 
-use super::common::{check_outputs, print_notes, write_output};
+use super::common::{print_notes, print_report, write_output};
 use super::identify::Args;
 
 /// Flags that only polynomial NARX models use.
@@ -86,12 +84,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     );
     settings.check()?;
     let data_path = &args.data[0];
-    let mut inputs: Vec<&Path> = vec![data_path];
-    inputs.extend(args.val.validation.as_deref());
-    check_outputs(
-        &[(&args.json, "--json"), (&args.save_model, "--save-model")],
-        &inputs,
-    )?;
+    let inputs = super::identify::checked_inputs(args, data_path)?;
     let records = args.val.records(data_path, &args.columns.csv_options())?;
     print_notes(&records.notes);
     let fit = identify_narx(&records.est, &settings)?;
@@ -99,12 +92,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     report
         .warnings
         .extend(records.notes.iter().map(|n| format!("data: {n}")));
-    let text = render(&report, &settings);
-    if args.json.as_deref().is_some_and(|p| p.as_os_str() == "-") {
-        eprint!("{text}");
-    } else {
-        print!("{text}");
-    }
+    print_report(&render(&report, &settings), args.json.as_deref());
     if let Some(path) = &args.json {
         let json = serde_json::to_string_pretty(&report)? + "\n";
         write_output(path, json.as_bytes(), &inputs, "--json")?;

@@ -123,6 +123,21 @@ fn judge(
     (rm, fit, aic.filter(|v| v.is_finite()))
 }
 
+/// The identification of an input class: `base` with the orders and the one input's nonlinearity.
+pub fn input_class(
+    base: &Identification,
+    kind: NonlinearityKind,
+    orders: Orders,
+) -> Identification {
+    let mut id = base.clone();
+    id.structure.orders = orders;
+    id.with_inputs(vec![InputSpec {
+        nb: orders.nb,
+        nk: orders.nk,
+        nonlinearity: kind,
+    }])
+}
+
 /// Estimates one class at one set of orders on the first `split` rows of `whole` and judges it on the
 /// rest.
 pub fn evaluate(
@@ -148,14 +163,7 @@ pub fn evaluate(
     let result: Result<(), SysidError> = (|| {
         match class {
             Class::Input(kind) => {
-                let mut id = base.clone();
-                id.structure.orders = orders;
-                let id = id.with_inputs(vec![InputSpec {
-                    nb: orders.nb,
-                    nk: orders.nk,
-                    nonlinearity: kind,
-                }]);
-                let fit = identify(est, &id)?;
+                let fit = identify(est, &input_class(base, kind, orders))?;
                 let m = &fit.model;
                 c.p = m.parameter_count();
                 c.warnings = fit.warnings.iter().map(ToString::to_string).collect();

@@ -6,7 +6,7 @@ use std::path::Path;
 
 use report::format::num;
 use sysid::search::{structure_search, Class, ClassCandidate};
-use sysid::{Dataset, Identification, InputSpec, Orders};
+use sysid::{Dataset, Identification, Orders};
 
 use super::common::{print_report, progress_bar, write_output};
 use super::order::Args;
@@ -208,13 +208,7 @@ fn chosen_on_test(
             }
         }
         Class::Input(kind) => {
-            let mut id = base.clone();
-            id.structure.orders = o;
-            let id = id.with_inputs(vec![InputSpec {
-                nb: o.nb,
-                nk: o.nk,
-                nonlinearity: kind,
-            }]);
+            let id = sysid::search::input_class(base, kind, o);
             let fit = sysid::estimate::identify(data, &id)?;
             match test {
                 Some(t) => {

@@ -8,7 +8,11 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 mod cleanup;
+mod folder;
 pub mod follow;
+#[cfg(feature = "parquet")]
+pub mod parquet;
+pub use folder::write_folder;
 pub use follow::Follow;
 
 /// Why an output could not be written. Options are named as the caller names them (`flag`).

@@ -12,9 +12,9 @@
 //!   `simulate`, a new random staircase each window, from rest at mid-stroke y0 = 100 mm, Ts = 10 ms).
 //!   Times run on across windows: window w, sample k is at t = (w N_w + k) Ts.
 //! - **Wear.** A worn actuator's valves change linearly with the window index w = 0 … W − 1, reaching at
-//!   the last window: the opening and closing delays lengthened by [`Wear::delay_added_ms`] (default
-//!   +1 ms on 0.4 ms: the shortest pulse that opens the valve grows, so the identified deadzone
-//!   widens by about 65 counts per ms) and both sonic conductances reduced by the fraction
+//!   the last window: the opening delay lengthened by [`Wear::delay_added_ms`] (default +1 ms on
+//!   0.4 ms, a spool that sticks: the shortest pulse that opens the valve grows and every pulse is
+//!   shortened by it, so the identified deadzone widens, by about 65 counts per ms) and both sonic conductances reduced by the fraction
 //!   [`Wear::conductance_loss`] (default 40 %: a clogged, sticking spool; the identified slopes m_l,
 //!   m_r drop). Wear is slow beside a window (days against 20 s), so it is constant within a window. A
 //!   healthy actuator keeps its parameters in every window.
@@ -39,7 +39,7 @@ pub const MAX_WINDOWS: usize = 1000;
 /// How a worn valve changes by the last window (linearly in the window index from none at window 0).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Wear {
-    /// Added to the opening and closing delays at the last window, ms.
+    /// Added to the opening delay at the last window, ms.
     pub delay_added_ms: f64,
     /// Fraction by which both sonic conductances have dropped at the last window, in [0, 1).
     pub conductance_loss: f64,
@@ -173,7 +173,6 @@ impl FleetDesign {
             let x = window as f64 / (self.windows - 1).max(1) as f64;
             let v = &mut cfg.valve;
             v.opening_delay_ms += x * self.wear.delay_added_ms;
-            v.closing_delay_ms += x * self.wear.delay_added_ms;
             let keep = 1.0 - x * self.wear.conductance_loss;
             v.supply_conductance_dm3_s_bar *= keep;
             v.exhaust_conductance_dm3_s_bar *= keep;

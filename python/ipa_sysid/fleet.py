@@ -167,7 +167,7 @@ def _typed(df):
         elif c == "stable":
             df[c] = df[c].astype(bool)
         elif c in ("warnings", "error"):
-            df[c] = df[c].astype(object)
+            df[c] = df[c].astype(str)
         elif c != "actuator_id":
             df[c] = df[c].astype("float64")
     return df

@@ -159,6 +159,15 @@ def identify_partition(
     return _typed(pd.DataFrame(out, columns=cols))
 
 
+def spark_schema(na=3, nb=1, id_type="long"):
+    """The Spark SQL schema (a DDL string) of ``identify_partition``'s result, for
+    ``applyInPandas(identify_partition, schema=spark_schema())``; ``id_type`` is the Spark type of
+    ``actuator_id`` (``long``, ``string``, ...)."""
+    types = {"window": "long", "samples": "long", "changes": "long", "stable": "boolean",
+             "warnings": "string", "error": "string", "actuator_id": id_type}
+    return ", ".join(f"{c} {types.get(c, 'double')}" for c in _columns(na, nb))
+
+
 def _typed(df):
     """Fixed dtypes, so that every partition (and the empty meta) has the same schema."""
     for c in df.columns:
@@ -453,6 +462,7 @@ __all__ = [
     "parameter_names",
     "report",
     "run",
+    "spark_schema",
     "student_t_sf",
     "trends",
     "worn",

@@ -631,7 +631,7 @@ fn fleet_windows<'py>(
             u.len()
         )));
     }
-    if window < 2 || window > sysid_core::data::MAX_SAMPLES {
+    if !(2..=sysid_core::data::MAX_SAMPLES).contains(&window) {
         return Err(setting_err(
             "window",
             window,

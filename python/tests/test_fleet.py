@@ -217,3 +217,12 @@ def test_the_report_holds_the_figure_and_the_flagged(results, tmp_path):
     assert "<svg" in text and "Fleet at a glance" in text
     for aid in flagged["actuator_id"]:
         assert f"<td>{aid}</td>" in text
+
+
+def test_the_spark_schema_names_every_column_with_its_type(results):
+    schema = [f.split(" ") for f in fleet.spark_schema().split(", ")]
+    assert [name for name, _ in schema] == list(results.columns)
+    spark_of = {"int64": "long", "float64": "double", "bool": "boolean"}
+    for name, spark in schema:
+        dtype = str(results[name].dtype)
+        assert spark_of.get(dtype, "string") == spark, (name, dtype, spark)

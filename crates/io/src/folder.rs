@@ -31,7 +31,10 @@ where
         return Err(refused(
             flag,
             dir,
-            format!("a folder in an existing folder ({} does not exist)", parent.display()),
+            format!(
+                "a folder in an existing folder ({} does not exist)",
+                parent.display()
+            ),
         )
         .into());
     }
@@ -102,7 +105,9 @@ mod tests {
         let dir = root.path().join("fleet");
         write_folder(&dir, "--out", false, fill_one("a")).unwrap();
         assert!(dir.join("a").is_file());
-        let e = write_folder(&dir, "--out", false, fill_one("b")).unwrap_err().to_string();
+        let e = write_folder(&dir, "--out", false, fill_one("b"))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("--overwrite") && e.contains("1 entry"), "{e}");
         assert!(dir.join("a").is_file() && !dir.join("b").exists());
         write_folder(&dir, "--out", true, fill_one("b")).unwrap();

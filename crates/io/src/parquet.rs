@@ -109,7 +109,8 @@ mod tests {
     fn columns_round_trip() {
         let ids = [7_i64, 7, 9];
         let y = [0.1, -2.5e-300, f64::MAX];
-        let bytes = parquet_bytes(&[Column::Int64("actuator_id", &ids), Column::Double("y", &y)]).unwrap();
+        let bytes =
+            parquet_bytes(&[Column::Int64("actuator_id", &ids), Column::Double("y", &y)]).unwrap();
         assert_eq!(&bytes[..4], b"PAR1");
         let reader = SerializedFileReader::new(bytes::Bytes::from(bytes)).unwrap();
         let rows: Vec<(i64, f64)> = reader

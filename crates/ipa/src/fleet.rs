@@ -147,7 +147,11 @@ impl FleetDesign {
             return Err(bad("wear delay", w.delay_added_ms, "0..=5 ms"));
         }
         if !(w.conductance_loss.is_finite() && (0.0..0.9).contains(&w.conductance_loss)) {
-            return Err(bad("wear conductance loss", w.conductance_loss, "a fraction in [0, 0.9)"));
+            return Err(bad(
+                "wear conductance loss",
+                w.conductance_loss,
+                "a fraction in [0, 0.9)",
+            ));
         }
         Ok(())
     }
@@ -234,7 +238,8 @@ mod tests {
         assert_eq!(first, healthy);
         let dv = last.valve.opening_delay_ms - first.valve.opening_delay_ms;
         assert!((dv - 1.0).abs() < 1e-12);
-        let ratio = last.valve.supply_conductance_dm3_s_bar / first.valve.supply_conductance_dm3_s_bar;
+        let ratio =
+            last.valve.supply_conductance_dm3_s_bar / first.valve.supply_conductance_dm3_s_bar;
         assert!((ratio - 0.6).abs() < 1e-12);
     }
 

@@ -51,7 +51,9 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     sysid_io::write_folder(&args.out, "--out", args.overwrite, |dir: &Path| {
         ids.chunks(args.per_file)
             .enumerate()
-            .try_for_each(|(f, chunk)| write_part(&design, &worn, chunk, &dir.join(part_name(f))))?;
+            .try_for_each(|(f, chunk)| {
+                write_part(&design, &worn, chunk, &dir.join(part_name(f)))
+            })?;
         let rows = worn
             .iter()
             .enumerate()

@@ -206,7 +206,10 @@ def run(input_dir, output_dir, client=None, **settings):
     import dask.dataframe as dd
 
     pd = _pandas()
-    ddf = dd.read_parquet(_parquet_files(input_dir), columns=list(INPUT_COLUMNS))
+    # One partition per file (never a file split by row groups: an actuator's record stays whole).
+    ddf = dd.read_parquet(
+        _parquet_files(input_dir), columns=list(INPUT_COLUMNS), split_row_groups=False
+    )
     meta = identify_partition(
         pd.DataFrame({c: pd.Series([], dtype=ddf[c].dtype) for c in INPUT_COLUMNS}), **settings
     )

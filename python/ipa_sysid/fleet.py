@@ -221,16 +221,23 @@ def run(input_dir, output_dir, client=None, **settings):
     results = results.sort_values(["actuator_id", "window"], kind="stable").reset_index(drop=True)
     os.makedirs(output_dir, exist_ok=True)
     target = os.path.join(os.fspath(output_dir), "results.parquet")
-    fd, tmp = tempfile.mkstemp(prefix=".ipa-sysid-", suffix=".tmp", dir=output_dir)
+    _write_atomic(target, lambda tmp: results.to_parquet(tmp, index=False))
+    return results
+
+
+def _write_atomic(path, write):
+    """Calls ``write(tmp)`` on a temporary file beside ``path``, then renames it to ``path``: ``path`` is
+    either untouched or wholly replaced (the temporary file is removed on failure)."""
+    directory = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(prefix=".ipa-sysid-", suffix=".tmp", dir=directory)
     os.close(fd)
     try:
-        results.to_parquet(tmp, index=False)
-        os.replace(tmp, target)
+        write(tmp)
+        os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
-    return results
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -444,16 +451,11 @@ def report(results, path, alpha=ALPHA):
         + f"<h2>{len(flagged)} flagged, most significant first</h2><table><tr>{head}</tr>{body}"
         "</table></body></html>"
     )
-    directory = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=".ipa-sysid-", suffix=".tmp", dir=directory)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as f:
+    def write(tmp):
+        with open(tmp, "w", encoding="utf-8") as f:
             f.write(doc)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
+
+    _write_atomic(path, write)
     return flagged
 
 

@@ -23,10 +23,7 @@ where
         path: dir.to_path_buf(),
         source,
     };
-    let parent = match dir.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
+    let parent = crate::parent_dir(dir);
     if !parent.is_dir() {
         return Err(refused(
             flag,

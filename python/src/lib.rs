@@ -17,8 +17,10 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
 use sysid::data::{Dataset, Signals};
-use sysid::summary::IdentifyReport;
 use sysid::{IdentifyOptions, Model, Setting, SysidError};
+use sysid_summary::IdentifyReport;
+
+mod text;
 
 /// Upper bound on the number of parameters of a stand-alone [`Rls`] (P has n² entries).
 const MAX_RLS_PARAMS: usize = 1000;
@@ -29,9 +31,19 @@ const DEFAULT_FIXED_DURATION_S: f64 = 10.0;
 // ---------------------------------------------------------------------------------------------------
 // Errors: input errors are ValueError, numerical failures ArithmeticError, file-system errors OSError.
 
-/// A library error as the Python exception of its kind, with the command line's message.
+/// The Python keyword of a command-line flag: `--max-iterations` -> `max_iterations` (each part of
+/// `--setpoint/--profile`); Python errors name the argument the caller wrote, not the flag.
+fn keyword(flag: &str) -> String {
+    flag.split('/')
+        .map(|f| f.trim().trim_start_matches("--").replace('-', "_"))
+        .collect::<Vec<_>>()
+        .join("/")
+}
+
+/// A library error as the Python exception of its kind, with the command line's message naming the
+/// Python keyword where the command line names its flag.
 fn sysid_err(e: SysidError) -> PyErr {
-    let msg = e.render_flags();
+    let msg = e.render(&|s| keyword(s.flag()));
     match e {
         SysidError::Numerical(_) => PyArithmeticError::new_err(msg),
         SysidError::Io { .. } => PyOSError::new_err(msg),
@@ -45,7 +57,7 @@ fn ipa_err(e: ipa::IpaError) -> PyErr {
         ipa::IpaError::Sysid(s) => sysid_err(s),
         ipa::IpaError::Numerical(_) => PyArithmeticError::new_err(e.to_string()),
         ipa::IpaError::Config(_) | ipa::IpaError::Setting { .. } => {
-            PyValueError::new_err(e.render(&|s| s.flag().to_string()))
+            PyValueError::new_err(e.render(&|s| keyword(s.flag())))
         }
     }
 }
@@ -55,7 +67,7 @@ fn control_err(e: ::control::ControlError) -> PyErr {
     match e {
         ::control::ControlError::Numerical(_) => PyArithmeticError::new_err(e.to_string()),
         ::control::ControlError::Io { .. } => PyOSError::new_err(e.to_string()),
-        _ => PyValueError::new_err(e.render(&|s| s.flag().to_string())),
+        _ => PyValueError::new_err(e.render(&|s| keyword(s.flag()))),
     }
 }
 
@@ -225,8 +237,10 @@ impl PyModel {
     }
 
     /// Free-run simulation (MATLAB `sim`) of the model driven by `u`: an array of len(u). The first k0
-    /// outputs are the initial conditions, taken from `y0` (at least k0 values; only the first k0 are
-    /// used, so a measured output record can be passed, exactly as `validate` does) or zeros when None.
+    /// outputs are the initial conditions, taken from `y0`: an array of at least k0 values (only the
+    /// first k0 are used, so a measured output record can be passed, exactly as `validate` does), or one
+    /// number (the output at rest before the record, e.g. 100.0 mm), or None: zeros, with an
+    /// `IpaSysidWarning` saying so.
     #[pyo3(signature = (u, y0=None))]
     fn simulate<'py>(
         &self,
@@ -237,13 +251,35 @@ impl PyModel {
         let u = floats(u, "u")?;
         let k0 = self.inner.k0();
         let mut y = vec![0.0; u.len()];
+        let y0 = match y0 {
+            None => {
+                if k0 > 0 {
+                    let category = py.import("ipa_sysid")?.getattr("IpaSysidWarning")?;
+                    PyErr::warn(
+                        py,
+                        &category,
+                        &std::ffi::CString::new(format!(
+                            "Model.simulate without y0 starts from y = 0 for the first k0 = {k0} samples; \
+                             a record that starts elsewhere (e.g. at 100 mm) then fits badly: pass y0 = the \
+                             record's output (its first k0 values are used) or its start position"
+                        ))?,
+                        1,
+                    )?;
+                }
+                None
+            }
+            Some(obj) => match obj.extract::<f64>() {
+                // One number: the output at rest there before the record (each of the first k0 samples).
+                Ok(v) => Some(vec![v; k0]),
+                Err(_) => Some(floats(obj, "y0")?),
+            },
+        };
         if let Some(y0) = y0 {
-            let y0 = floats(y0, "y0")?;
             if y0.len() < k0.min(u.len()) {
                 return Err(setting_err(
                     "y0",
                     format!("{} value(s)", y0.len()),
-                    &format!("at least k0 = {k0} initial output(s) (or None for zeros)"),
+                    &format!("at least k0 = {k0} initial output(s), one number, or None for zeros"),
                 ));
             }
             let k = k0.min(u.len());
@@ -352,6 +388,11 @@ impl PyModel {
         )
     }
 
+    /// The model as equations with units (`print(model)`); `repr(model)` gives the numbers in full.
+    fn __str__(&self) -> String {
+        text::equations(&self.inner)
+    }
+
     fn __eq__(&self, other: &Self) -> bool {
         self.inner == other.inner
     }
@@ -436,6 +477,62 @@ impl PyFit {
         to_py(py, &self.report.parameters)
     }
 
+    /// The estimates by name, `{"b_r": 30.97, ...}` (`"u2.b_r"` when the model has several inputs): a
+    /// mapping for `fit.params["b_r"]`; the standard deviations are in `parameters` and
+    /// `parameters_frame()`.
+    #[getter]
+    fn params<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let out = PyDict::new(py);
+        for p in &self.report.parameters {
+            out.set_item(param_key(p), p.value)?;
+        }
+        Ok(out)
+    }
+
+    /// The parameters as a pandas DataFrame indexed by name (columns `value`, `std`, and `input` when
+    /// the model has several inputs); needs pandas.
+    fn parameters_frame<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let pd = py.import("pandas").map_err(|e| {
+            PyImportError::new_err(format!(
+                "Fit.parameters_frame needs pandas: pip install pandas ({e})"
+            ))
+        })?;
+        let several = self.report.parameters.iter().any(|p| p.input.is_some());
+        let cols = PyDict::new(py);
+        let names: Vec<String> = self.report.parameters.iter().map(param_key).collect();
+        cols.set_item(
+            "value",
+            self.report
+                .parameters
+                .iter()
+                .map(|p| p.value)
+                .collect::<Vec<_>>(),
+        )?;
+        cols.set_item(
+            "std",
+            self.report
+                .parameters
+                .iter()
+                .map(|p| p.std.unwrap_or(f64::NAN))
+                .collect::<Vec<_>>(),
+        )?;
+        if several {
+            cols.set_item(
+                "input",
+                self.report
+                    .parameters
+                    .iter()
+                    .map(|p| p.input.clone().unwrap_or_default())
+                    .collect::<Vec<_>>(),
+            )?;
+        }
+        let kwargs = PyDict::new(py);
+        kwargs.set_item("index", pd.getattr("Index")?.call1((names,))?)?;
+        let frame = pd.getattr("DataFrame")?.call((cols,), Some(&kwargs))?;
+        frame.getattr("index")?.setattr("name", "name")?;
+        Ok(frame)
+    }
+
     /// How the model was estimated: the `estimation` object of `identify --json` (method, iterations,
     /// converged, noise_variance, note, ...).
     #[getter]
@@ -486,6 +583,14 @@ impl PyFit {
     }
 }
 
+/// The key of a parameter in `Fit.params`: its name, prefixed by its input with several inputs.
+fn param_key(p: &sysid::Param) -> String {
+    match &p.input {
+        Some(input) => format!("{input}.{}", p.name),
+        None => p.name.to_string(),
+    }
+}
+
 /// An optional number as Python prints it (`None` when absent).
 fn py_float(v: Option<f64>) -> String {
     v.map_or("None".to_string(), |x| format!("{x:?}"))
@@ -495,12 +600,16 @@ fn py_float(v: Option<f64>) -> String {
 /// (mm) sampled every `ts` s, as `ipa-sysid identify` does with the same options; `validation` =
 /// (u_val, y_val) adds validation metrics. `name` and `validation_name` name the records in messages
 /// (the command line uses the file names). `nonlinearity` ("deadzone" or "linear", the command line's
-/// `--nonlinearity`) chooses the input's static nonlinearity instead of `model`.
+/// `--nonlinearity`: "linear", "deadzone", "saturation", "deadzone-saturation", "piecewise-linear" with
+/// `breakpoints` K, "polynomial" with `degree` D) chooses the input's static nonlinearity instead of
+/// `model`; `output_nonlinearity` ("saturation", "piecewise-linear", "polynomial", the command line's
+/// `--output-nonlinearity`) adds y = g(v) after the linear block, fitted by output error.
 #[pyfunction]
 #[pyo3(signature = (u, y, ts, model="hammerstein", method="rls", na=3, nb=1, nk=1, forgetting=1.0,
     p0=1e6, offset=false, validation=None, passes=None, max_iterations=100, rls_form="standard",
     windup="none", max_trace=None, iv_stages=10, name="data", validation_name="validation",
-    resid_lags=25, fallback=false, nonlinearity=None))]
+    resid_lags=25, fallback=false, nonlinearity=None, breakpoints=None, degree=None,
+    output_nonlinearity=None))]
 #[allow(clippy::too_many_arguments)]
 fn identify(
     py: Python<'_>,
@@ -527,11 +636,44 @@ fn identify(
     resid_lags: usize,
     fallback: bool,
     nonlinearity: Option<&str>,
+    breakpoints: Option<Bound<'_, PyAny>>,
+    degree: Option<usize>,
+    output_nonlinearity: Option<&str>,
 ) -> PyResult<PyFit> {
+    // K >= 1, or "auto" (the command line's --breakpoints auto).
+    let breakpoints = breakpoints
+        .map(|b| match b.extract::<String>() {
+            Ok(t) if t == "auto" => Ok(sysid::blocks::AUTO_BREAKPOINTS),
+            _ => match b.extract::<usize>() {
+                Ok(k) if k >= 1 => Ok(k),
+                _ => Err(PyValueError::new_err(
+                    "breakpoints: expected a whole number of breakpoints from 1, or \"auto\"",
+                )),
+            },
+        })
+        .transpose()?;
+    let sized = |k: sysid::NonlinearityKind| {
+        let k = breakpoints.map_or(k, |n| k.with_breakpoints(n));
+        degree.map_or(k, |d| k.with_degree(d))
+    };
+    let output = output_nonlinearity
+        .map(str::parse::<sysid::NonlinearityKind>)
+        .transpose()
+        .map_err(|e| PyValueError::new_err(format!("output_nonlinearity: {e}")))?
+        .map(sized);
     let nonlinearity = nonlinearity
         .map(str::parse::<sysid::NonlinearityKind>)
         .transpose()
-        .map_err(|e| PyValueError::new_err(format!("nonlinearity: {e}")))?;
+        .map_err(|e| PyValueError::new_err(format!("nonlinearity: {e}")))?
+        .map(sized);
+    let piecewise = |k: &Option<sysid::NonlinearityKind>| {
+        matches!(k, Some(sysid::NonlinearityKind::PiecewiseLinear { .. }))
+    };
+    if breakpoints.is_some() && !piecewise(&nonlinearity) && !piecewise(&output) {
+        return Err(PyValueError::new_err(
+            "breakpoints: is for nonlinearity= or output_nonlinearity=\"piecewise-linear\" (it sets its number of breakpoints)",
+        ));
+    }
     let options = IdentifyOptions {
         model: choice("--model", model)?,
         na,
@@ -558,6 +700,7 @@ fn identify(
             nonlinearity,
         }]);
     }
+    settings = settings.with_output_nonlinearity(output);
     settings.check().map_err(sysid_err)?;
     let data = dataset(u, y, ts, name)?;
     let val = validation
@@ -586,7 +729,7 @@ fn identify(
 const MAX_FLEET_WINDOWS: usize = 10_000_000;
 
 /// Identification and tracking of every window of a partition of many actuators' records
-/// (`sysid::monitor::window` on each): `u`, `y` hold the actuators one after the other, actuator g in
+/// (`sysid_summary::monitor::window` on each): `u`, `y` hold the actuators one after the other, actuator g in
 /// rows offsets[g] .. offsets[g + 1]; each actuator's rows are cut into consecutive windows of `window`
 /// samples (an incomplete last window is left out). Returns a dict of columns, one entry per window:
 /// `group`, `window`, `start` (its first row), `names` (the parameters), `values` and `sds` (windows ×
@@ -657,7 +800,7 @@ fn fleet_windows<'py>(
         ..sysid::online::TrackSettings::default()
     };
     sysid::online::Tracker::new(track).map_err(sysid_err)?;
-    let settings = sysid::monitor::WindowSettings {
+    let settings = sysid_summary::monitor::WindowSettings {
         identification,
         resid_lags,
         track,
@@ -673,7 +816,7 @@ fn fleet_windows<'py>(
         }
         jobs.extend((0..count).map(|j| (g, j, w[0] + j * window)));
     }
-    let results: Vec<Result<sysid::monitor::WindowResult, String>> = py.detach(|| {
+    let results: Vec<Result<sysid_summary::monitor::WindowResult, String>> = py.detach(|| {
         jobs.iter()
             .map(|&(g, j, start)| {
                 let signals = Signals {
@@ -681,7 +824,7 @@ fn fleet_windows<'py>(
                     y: y[start..start + window].to_vec(),
                 };
                 Dataset::new(signals, ts, format!("group {g} window {j}"))
-                    .and_then(|d| sysid::monitor::window(&d, &settings))
+                    .and_then(|d| sysid_summary::monitor::window(&d, &settings))
                     .map_err(|e| e.render_flags())
             })
             .collect()
@@ -977,15 +1120,57 @@ fn simulate_plant<'py>(
 /// one of `setpoint` (mm) or `profile` ("fixed:MM", "staircase:L1,L2,...@HOLD_S", "file:PATH.csv").
 /// `anti_windup`: "none" or "clamping" ("back-calculation" needs `tracking_time` in s).
 /// `compensate_deadzone`: a Hammerstein `Model` or "paper" adds a deadzone-inverse compensator.
+/// A plant of `control`, boxed.
+type BoxedPlant = Box<dyn sysid::Plant + Send>;
+
+/// The plant of `control`: a spec string (`"ipa"`, the default, `"paper"`, `"model:FILE"`) or a `Model`
+/// object, with the limits its loop is checked against.
+fn plant_and_limits(
+    plant: Option<&Bound<'_, PyAny>>,
+    config: Option<&std::path::Path>,
+) -> PyResult<(ipa::PlantLimits, BoxedPlant)> {
+    let Some(plant) = plant else {
+        let spec = ipa::PlantSpec::Ipa;
+        return Ok((
+            spec.limits(config).map_err(ipa_err)?,
+            spec.build(config, None).map_err(ipa_err)?,
+        ));
+    };
+    if let Ok(m) = plant.cast::<PyModel>() {
+        if let Some(path) = config {
+            return Err(setting_err(
+                "plant_config",
+                path.display(),
+                "a plant-config only with plant=\"ipa\", not with a Model",
+            ));
+        }
+        let model = m.get().inner.clone();
+        let limits = ipa::PlantLimits::of_model(&model);
+        let plant = sysid::ModelPlant::new(model, "model").map_err(sysid_err)?;
+        return Ok((limits, Box::new(plant)));
+    }
+    let Ok(text) = plant.extract::<&str>() else {
+        return Err(setting_err(
+            "plant",
+            plant.to_string(),
+            "\"ipa\", \"paper\", \"model:FILE\" or a Model",
+        ));
+    };
+    let spec = plant_spec(text)?;
+    let limits = spec.limits(config).map_err(ipa_err)?;
+    let plant = spec.build(config, None).map_err(ipa_err)?;
+    Ok((limits, plant))
+}
+
 #[pyfunction]
-#[pyo3(signature = (plant="ipa", setpoint=None, profile=None, kp=14.0, ki=1.0, duration=None, y0=0.0,
+#[pyo3(signature = (plant=None, setpoint=None, profile=None, kp=14.0, ki=1.0, duration=None, y0=0.0,
     integral="scaled", anti_windup="none", tracking_time=None, u_max=255.0, compensate_deadzone=None,
     compensator_slopes="shift", compensator_threshold=0.0, plant_config=None))]
 #[pyo3(name = "control")]
 #[allow(clippy::too_many_arguments)]
 fn control_loop<'py>(
     py: Python<'py>,
-    plant: &str,
+    plant: Option<&Bound<'py, PyAny>>,
     setpoint: Option<f64>,
     profile: Option<&str>,
     kp: f64,
@@ -1010,7 +1195,7 @@ fn control_loop<'py>(
             return Err(setting_err(
                 "--setpoint/--profile",
                 "",
-                "exactly one of --setpoint MM or --profile SPEC",
+                "exactly one of setpoint=MM or profile=SPEC",
             ))
         }
     };
@@ -1033,14 +1218,14 @@ fn control_loop<'py>(
             return Err(setting_err(
                 "--tracking-time",
                 "(none)",
-                "a tracking time in s with --anti-windup back-calculation",
+                "a tracking time in s with anti_windup=\"back-calculation\"",
             ))
         }
         ("none" | "clamping", Some(t)) => {
             return Err(setting_err(
                 "--tracking-time",
                 t,
-                "only together with --anti-windup back-calculation",
+                "only together with anti_windup=\"back-calculation\"",
             ))
         }
         (other, _) => {
@@ -1051,9 +1236,7 @@ fn control_loop<'py>(
             ))
         }
     };
-    let spec = plant_spec(plant)?;
-    let limits = spec.limits(plant_config.as_deref()).map_err(ipa_err)?;
-    let mut plant = spec.build(plant_config.as_deref(), None).map_err(ipa_err)?;
+    let (limits, mut plant) = plant_and_limits(plant, plant_config.as_deref())?;
     let ts = plant.ts();
     let settings = ::control::PiSettings::new(kp, ki)
         .with_integral(integral)

@@ -3,8 +3,8 @@
 
 use report::format::num;
 use sysid::metrics::Metrics;
-use sysid::summary::{IdentifyReport, ResidualEntry};
 use sysid::{Method, ParamName};
+use sysid_summary::{IdentifyReport, ResidualEntry};
 
 /// A row of the text metrics table: label and how to format the value from a [`Metrics`].
 type MetricRow = (&'static str, fn(&Metrics) -> String);
@@ -30,7 +30,17 @@ impl ToText for IdentifyReport {
         let mut s = String::new();
         let kind = match m.kind() {
             sysid::ModelKind::Arx => "Linear ARX".to_string(),
-            sysid::ModelKind::Hammerstein => "Hammerstein (deadzone + ARX)".to_string(),
+            sysid::ModelKind::Hammerstein if m.inputs().len() == 1 => format!(
+                "Hammerstein ({} + ARX)",
+                sysid::NonlinearityKind::of(m.input().nonlinearity())
+            ),
+            sysid::ModelKind::Hammerstein => {
+                "Hammerstein (static nonlinearities + ARX)".to_string()
+            }
+        };
+        let kind = match m.output_nonlinearity() {
+            Some(g) => format!("{kind} + output {}", sysid::NonlinearityKind::of(g)),
+            None => kind,
         };
         let several = m.inputs().len() > 1;
         let orders = if several {
@@ -71,14 +81,24 @@ impl ToText for IdentifyReport {
             let _ = writeln!(s, "note: {note}");
         }
         let _ = writeln!(s, "\nParameters (estimate ± standard deviation)");
-        let width = if several { 14 } else { 6 };
+        let width = if several || m.output_nonlinearity().is_some() {
+            14
+        } else {
+            6
+        };
         for p in &self.parameters {
             // b1 = 1 of an input with a static nonlinearity is the key-term normalisation.
             let normalised = p.name == ParamName::B(1)
                 && m.inputs()
                     .iter()
                     .find(|c| p.input.as_deref().is_none_or(|i| i == c.name()))
-                    .is_some_and(|c| !c.nonlinearity().is_linear());
+                    .is_some_and(|c| !c.nonlinearity().is_linear())
+                // The output nonlinearity's gain is held fixed (its scale is the linear block's).
+                || (p.input.as_deref() == Some(sysid::oe::OUTPUT)
+                    && matches!(
+                        p.name,
+                        ParamName::M | ParamName::Slope(0) | ParamName::Poly(1)
+                    ));
             let sd = match p.std {
                 Some(v) => format!("± {}", num(v)),
                 None if normalised => "(fixed: normalisation)".into(),

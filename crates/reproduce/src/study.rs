@@ -3,9 +3,9 @@
 
 use control::{StepMetrics, Trace};
 use report::format::estimate;
-use sysid::summary::IdentifyReport;
 use sysid::Dataset;
 use sysid::Fitted as FittedModel;
+use sysid_summary::IdentifyReport;
 
 use crate::analysis;
 
@@ -73,6 +73,8 @@ pub(crate) struct Study {
     pub(crate) steps_model: Vec<control::StepSegment>,
     pub(crate) paper_check: analysis::PaperCheck,
     pub(crate) residuals: Vec<analysis::ModelResiduals>,
+    /// The calibrated twin beside the identified models, or why there is none.
+    pub(crate) twin: Result<crate::twin::Twin, String>,
     pub(crate) verdicts: Vec<Criterion>,
     /// Checks of the process (not the paper's criteria): e.g. a stable model was available to control.
     pub(crate) checks: Vec<Criterion>,

@@ -3,10 +3,10 @@
 
 use report::format::{estimate, opt, pm};
 use report::html::Table;
-use sysid::summary::IdentifyReport;
 use sysid::Fitted as FittedModel;
 use sysid::{Model, ParamName};
 use sysid_core::param::{Layout, Parameterisation};
+use sysid_summary::IdentifyReport;
 
 use crate::paper::{self, paper_normalised};
 use crate::study::{Loop, Study, CLOSED_LOOP_RULE};
@@ -240,6 +240,20 @@ pub(crate) fn tables_text(s: &ReproduceSettings, st: &Study) -> String {
             let _ = write!(o, "{:>24}", param_cell(&r.fit, name));
         }
         let _ = writeln!(o);
+    }
+    let _ = writeln!(o, "\nCalibrated twin: {}", crate::twin::paragraph(&st.twin));
+    if let Ok(t) = &st.twin {
+        let _ = writeln!(
+            o,
+            "{:<40}{:>14}{:>14}",
+            "free-run fit %", "validation", "open loop"
+        );
+        for [label, v, ol] in crate::twin::fit_rows(t) {
+            let _ = writeln!(o, "{label:<40}{v:>14}{ol:>14}");
+        }
+        for w in crate::twin::warnings(t) {
+            let _ = writeln!(o, "  warning: {w}");
+        }
     }
     let _ = writeln!(o, "\nResiduals (validation record, 99 % level)");
     for r in &st.residuals {

@@ -13,8 +13,7 @@
 //! - identification: [`problem`] (what is fitted, the [`Estimator`] trait), [`methods`] (each method's
 //!   settings and fit), [`estimate`] ([`Identification`], [`identify`], the safeguards), [`oe`], [`iv`], [`rls`], [`rls_ud`], [`windup`];
 //! - around it: [`order`], [`delay`], [`residuals`],
-//!   [`stream`] (records read in passes), [`online`] (tracking), [`monitor`] (one window of a fleet:
-//!   identification and tracker).
+//!   [`stream`] (records read in passes), [`online`] (tracking).
 //!
 //! The model structures, data records, simulation and validation metrics are those of `sysid-core`,
 //! re-exported here for convenience. Recursive updates share one abstraction ([`rls::RecursiveUpdate`]).
@@ -26,7 +25,6 @@ pub mod fitted;
 pub mod iv;
 pub use sysid_core::ls;
 pub mod methods;
-pub mod monitor;
 pub mod oe;
 pub mod online;
 pub mod options;
@@ -37,9 +35,9 @@ pub mod residuals;
 pub mod rls;
 pub mod rls_ud;
 pub mod stream;
-pub mod summary;
 pub mod trust;
 pub mod warnings;
+pub mod wiener;
 pub mod windup;
 
 pub use blocks::NonlinearityKind;

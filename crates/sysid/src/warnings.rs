@@ -84,6 +84,9 @@ pub enum Warning {
         value: f64,
         /// The level (counts).
         level: f64,
+        /// The standard deviation the estimate had (withheld from the report), when the breakpoint is
+        /// not on the level but within this standard deviation of it.
+        std: Option<f64>,
     },
     /// A breakpoint outside the range of the input: no data on one side of it.
     BreakpointNotBracketed {
@@ -98,6 +101,14 @@ pub enum Warning {
     },
     /// b_l > b_r, or slopes of opposite sign.
     NonPhysicalDeadzone {
+        /// What is wrong.
+        why: String,
+    },
+    /// A check of an input nonlinearity other than the deadzone failed: a shape that is not physical
+    /// (crossed limits, a non-monotone map), a segment without data.
+    NonlinearityShape {
+        /// The kind (`saturation`, `piecewise-linear`...).
+        kind: &'static str,
         /// What is wrong.
         why: String,
     },
@@ -147,10 +158,34 @@ impl std::fmt::Display for Warning {
                 "{why}; the linear ARX model of the same orders does better (the fallback option returns \
                  it as a Hammerstein model with b_l = b_r = 0)"
             ),
-            Warning::BreakpointOnInputLevel { name, value, level } => write!(
+            Warning::BreakpointOnInputLevel {
+                name,
+                value,
+                level,
+                std: None,
+            } => write!(
                 f,
-                "{name} = {value:.6} lies on the input level {level} (within its standard deviation): the \
-                 criterion has a kink there, so its standard deviation is not meaningful (not reported)"
+                "{name} = {value:.6} lies on the input level {level}: the criterion has a kink there, so \
+                 its standard deviation is not meaningful (not reported)"
+            ),
+            Warning::BreakpointOnInputLevel {
+                name,
+                value,
+                level,
+                std: Some(std),
+            } => write!(
+                f,
+                "{name} = {value:.6} is {} from the input level {level}, less than its standard deviation \
+                 {std:.3}: the criterion has a kink within that uncertainty, so the standard deviation is not \
+                 meaningful (not reported)",
+                {
+                    let d = (value - level).abs();
+                    if d >= 1e-3 {
+                        format!("{d:.3}")
+                    } else {
+                        format!("{d:.1e}")
+                    }
+                }
             ),
             Warning::BreakpointNotBracketed {
                 name,
@@ -164,6 +199,7 @@ impl std::fmt::Display for Warning {
                  meaningful (not reported)"
             ),
             Warning::NonPhysicalDeadzone { why } => write!(f, "deadzone not physical: {why}"),
+            Warning::NonlinearityShape { kind, why } => write!(f, "{kind} nonlinearity: {why}"),
             Warning::ForInput { input, warning } => write!(f, "input {input}: {warning}"),
             Warning::FewInputLevels { branch, levels } => write!(
                 f,

@@ -162,6 +162,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ..sysid::RecursiveLeastSquares::default()
         }),
         drop_unexcited_branch: true,
+        output: None,
         // A study of the estimators' bias and spread looks at their own estimates, never a fallback.
         fallback: false,
     };

@@ -4,9 +4,10 @@
 //! them ([`Tracker`]). A fleet is many such windows; the engine that maps them (Dask, Spark) is not
 //! this crate's business.
 
-use crate::online::{TrackSettings, Tracker};
-use crate::summary::IdentifyReport;
-use crate::{Dataset, Identification, SysidError};
+use sysid::online::{TrackSettings, Tracker};
+use sysid::{Dataset, Identification, SysidError};
+
+use crate::IdentifyReport;
 
 /// What to compute on each window.
 #[derive(Debug, Clone)]
@@ -31,7 +32,7 @@ pub struct WindowResult {
 
 /// Identifies the window `data` and runs the tracker over it.
 pub fn window(data: &Dataset, settings: &WindowSettings) -> Result<WindowResult, SysidError> {
-    let fit = crate::identify(data, &settings.identification)?;
+    let fit = sysid::identify(data, &settings.identification)?;
     let report = IdentifyReport::assemble(
         &fit,
         &settings.identification,

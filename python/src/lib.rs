@@ -17,8 +17,8 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
 use sysid::data::{Dataset, Signals};
-use sysid::summary::IdentifyReport;
 use sysid::{IdentifyOptions, Model, Setting, SysidError};
+use sysid_summary::IdentifyReport;
 
 mod text;
 

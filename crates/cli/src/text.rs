@@ -3,8 +3,8 @@
 
 use report::format::num;
 use sysid::metrics::Metrics;
-use sysid::summary::{IdentifyReport, ResidualEntry};
 use sysid::{Method, ParamName};
+use sysid_summary::{IdentifyReport, ResidualEntry};
 
 /// A row of the text metrics table: label and how to format the value from a [`Metrics`].
 type MetricRow = (&'static str, fn(&Metrics) -> String);

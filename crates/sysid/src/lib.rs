@@ -35,7 +35,6 @@ pub mod residuals;
 pub mod rls;
 pub mod rls_ud;
 pub mod stream;
-pub mod summary;
 pub mod trust;
 pub mod warnings;
 pub mod wiener;

@@ -4,10 +4,10 @@ use std::path::{Path, PathBuf};
 
 use sysid::data::stream::{CsvStream, RecordSource};
 use sysid::rls_ud::RlsForm;
-use sysid::summary::IdentifyReport;
 use sysid::windup::Windup;
 use sysid::{identify, Dataset, Identification, InputSpec, Method, NonlinearityKind, Passes};
 use sysid::{IdentifyOptions, ModelKind};
+use sysid_summary::IdentifyReport;
 
 use super::common::{
     check_outputs, print_notes, stream_note, write_output, ColumnArgs, StreamMode, ValidationArgs,
@@ -555,7 +555,7 @@ fn run_streamed(args: &Args, settings: &Identification, data_path: &Path) -> any
         Some((path, vopts)) => Some(CsvStream::open(path, &vopts)?),
         None => None,
     };
-    let streamed = sysid::stream::identify_report(
+    let streamed = sysid_summary::stream::identify_report(
         &mut est,
         val.as_mut().map(|v| v as &mut dyn RecordSource),
         settings,

@@ -241,3 +241,19 @@ def control(
     plant_config: str | PathLike[str] | None = None,
 ) -> dict[str, Any]:
     """Closed-loop PI control as `ipa-sysid control`: trace arrays, metrics, steps."""
+
+def fleet_windows(
+    u: ArrayLike,
+    y: ArrayLike,
+    offsets: list[int],
+    ts: float,
+    window: int,
+    method: str = "ls",
+    na: int = 3,
+    nb: int = 1,
+    nk: int = 1,
+    detect_warmup: int = 200,
+    detect_calibration: int = 800,
+    resid_lags: int = 25,
+) -> dict[str, Any]:
+    """Every window of a partition identified (LS) and tracked: the columns `ipa_sysid.fleet.identify_partition` builds its frame from."""

@@ -65,6 +65,26 @@ pub fn line_fit(s: &[f64]) -> (f64, f64) {
     (mean, slope)
 }
 
+impl OperatingPoint {
+    /// `data` with this operating point subtracted: u_i − u0_i for each input (in order), y − y0. A
+    /// record of another experiment judged around the estimation record's operating point (what a model
+    /// carrying it does to any record); an input without its u0 is left as it is.
+    pub fn remove_from(&self, data: &Dataset) -> Dataset {
+        let inputs = data
+            .inputs()
+            .iter()
+            .enumerate()
+            .map(|(m, i)| {
+                let u0 = self.u.get(m).copied().unwrap_or(0.0);
+                (i.name().to_string(), i.u().iter().map(|v| v - u0).collect())
+            })
+            .collect();
+        let y = data.y().iter().map(|v| v - self.y).collect();
+        // Shifted signals of a valid record are finite (a finite shift) and as long as y.
+        Dataset::with_inputs(inputs, y, data.ts(), data.name()).unwrap_or_else(|_| data.clone())
+    }
+}
+
 fn remove(s: &[f64], how: Detrend) -> Vec<f64> {
     let (mean, slope) = line_fit(s);
     let slope = if how == Detrend::Linear { slope } else { 0.0 };

@@ -151,6 +151,46 @@ pub fn search(
     out
 }
 
+/// Percentage points by which the same structure with a constant term must beat the recommended one
+/// without it on the selection part before [`offset_hint`] speaks.
+pub const OFFSET_HINT_MARGIN: f64 = 5.0;
+
+/// When the search ran without a constant term: the recommended structure `chosen` estimated again
+/// with `--offset` on `est` and ranked on `val` the same way. A hint (in words) when that fits the
+/// selection part by more than [`OFFSET_HINT_MARGIN`] points better: the output has a non-zero
+/// operating point (ȳ, and ū, far from 0) that a model without c can only mimic through its
+/// dynamics. `None` with an offset already, without a selection part, or when c does not help (an
+/// integrating plant, a record about 0).
+pub fn offset_hint(
+    est: &Dataset,
+    val: Option<&Dataset>,
+    base: &Identification,
+    chosen: &Candidate,
+) -> Option<String> {
+    if base.structure.offset {
+        return None;
+    }
+    let val = val?;
+    let without = chosen.ranking_fit?;
+    let with = evaluate(
+        est,
+        Some(val),
+        chosen.orders,
+        &base.clone().with_offset(true),
+    );
+    let with_fit = with.ranking_fit.filter(|_| with.qualified())?;
+    (with_fit > without + OFFSET_HINT_MARGIN).then(|| {
+        let y = est.y();
+        let mean = y.iter().sum::<f64>() / y.len().max(1) as f64;
+        format!(
+            "the output has a non-zero operating point (mean {mean:.4} over the estimation part): the \
+             recommended ({}, {}, {}) with a constant term (--offset) fits the selection part by {with_fit:.1} % \
+             instead of {without:.1} %; search again with --offset (or --detrend mean)",
+            chosen.orders.na, chosen.orders.nb, chosen.orders.nk
+        )
+    })
+}
+
 /// The number of structures in a grid.
 pub fn grid_size(na: &[usize], nb: &[usize], nk: &[usize]) -> usize {
     na.len() * nb.len() * nk.len()

@@ -64,6 +64,12 @@ pub struct Args {
     /// Estimate a constant term c in the linear block.
     #[arg(long)]
     pub offset: bool,
+    /// Judge every part around the estimation record's operating point (MATLAB `detrend`): `mean`
+    /// subtracts its means ū, ȳ from the estimation, selection and test records alike (what a model
+    /// identified with `identify --detrend mean` does); `linear` is refused here (a line fitted to one
+    /// part does not extend to another).
+    #[arg(long, value_enum, default_value = "none")]
+    pub detrend: sysid::detrend::Detrend,
     /// How many ranked structures to print (all go to --json).
     #[arg(long, default_value_t = 15)]
     pub top: usize,
@@ -167,6 +173,33 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let (data, test) = (records.est, records.val);
     let mut notes = records.notes;
     let (fit_part, selection) = selection_parts(&args, &data, &opts, &mut notes)?;
+    let (data, test, fit_part, selection) = match args.detrend {
+        sysid::detrend::Detrend::None => (data, test, fit_part, selection),
+        sysid::detrend::Detrend::Linear => anyhow::bail!(sysid::SysidError::setting(
+            sysid::Setting::Other("--detrend"),
+            "linear",
+            "none or mean for order (a line fitted to the estimation part does not extend to the \
+             selection and test parts); detrend the file first, or use identify --detrend linear",
+        )),
+        sysid::detrend::Detrend::Mean => {
+            let (_, op) = sysid::detrend::detrend(&data, sysid::detrend::Detrend::Mean);
+            match op {
+                Some(op) => {
+                    notes.push(format!(
+                        "--detrend mean: every part minus the estimation record's means (u0 = {:?}, y0 = {})",
+                        op.u, op.y
+                    ));
+                    (
+                        op.remove_from(&data),
+                        test.map(|t| op.remove_from(&t)),
+                        op.remove_from(&fit_part),
+                        op.remove_from(&selection),
+                    )
+                }
+                None => (data, test, fit_part, selection),
+            }
+        }
+    };
     print_notes(&notes);
     if !args.classes.is_empty() {
         if auto_nk {
@@ -204,6 +237,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     // The chosen structure on the test record, re-estimated on the whole estimation record.
     let chosen = sysid::order::recommended(&ranked);
+    if args.detrend == sysid::detrend::Detrend::None {
+        warnings.extend(
+            chosen.and_then(|c| sysid::order::offset_hint(&fit_part, Some(&selection), &base, c)),
+        );
+    }
     if let Some(c) = chosen {
         warnings.extend(c.warnings.iter().map(|w| {
             format!(

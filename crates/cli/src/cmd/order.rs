@@ -78,7 +78,8 @@ pub struct Args {
     pub json: Option<PathBuf>,
     /// Structure search over model classes instead of orders of one structure: a list of `arx`,
     /// `hammerstein` (the deadzone) or `hammerstein:KIND` / `KIND` (an input nonlinearity kind of
-    /// --nonlinearity), `narxD` (polynomial NARX of degree D), each tried at every (na, nb, nk) of the
+    /// --nonlinearity), `narxD` (polynomial NARX of degree D), `wiener:KIND[:N]` (a linear block and an
+    /// output nonlinearity, e.g. `wiener:polynomial:2`), each tried at every (na, nb, nk) of the
     /// grid and ranked by free-run RMSE on the selection part (docs/models.md).
     #[arg(long, value_name = "CLASS,...", value_delimiter = ',', value_parser = parse_class)]
     pub classes: Vec<sysid::search::Class>,

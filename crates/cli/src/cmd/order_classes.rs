@@ -207,8 +207,10 @@ fn chosen_on_test(
                 None => (None, None),
             }
         }
-        Class::Input(kind) => {
-            let id = sysid::search::input_class(base, kind, o);
+        Class::Input(_) | Class::Wiener(_) => {
+            let id = class
+                .identification(base, o)
+                .ok_or_else(|| anyhow::anyhow!("no identification for {class}"))?;
             let fit = sysid::estimate::identify(data, &id)?;
             match test {
                 Some(t) => {

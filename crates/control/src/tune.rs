@@ -52,6 +52,13 @@ pub struct Spec {
     pub high_mm: f64,
     /// Length of each run, s.
     pub run_s: f64,
+    /// Target for the 2 % settling time, s: reported (how many steps meet it), while the cost
+    /// minimises the settling time itself.
+    pub settling_s: f64,
+    /// Share of the steps whose |e_ss| must be within `ess_mm` (issue 25: 90 %), reported.
+    pub ess_share: f64,
+    /// Largest |e_ss| allowed in every step, mm (issue 25: 0.05 mm), reported.
+    pub ess_all_mm: f64,
 }
 
 impl Default for Spec {
@@ -64,7 +71,10 @@ impl Default for Spec {
             steps_mm: vec![10.0, 30.0, 70.0, 150.0],
             low_mm: 25.0,
             high_mm: 175.0,
-            run_s: 2.0,
+            run_s: 3.0,
+            settling_s: 0.5,
+            ess_share: 0.9,
+            ess_all_mm: 0.05,
         }
     }
 }
@@ -80,7 +90,8 @@ pub struct StepCase {
 
 impl Spec {
     /// Parses `key=value` pairs separated by commas over the defaults: `overshoot` (%), `ess` (mm),
-    /// `limit-cycle` (mm), `u-max` (counts), `steps` (mm, separated by `/`), `low`, `high` (mm), `run` (s).
+    /// `limit-cycle` (mm), `u-max` (counts), `steps` (mm, separated by `/`), `low`, `high` (mm), `run` (s),
+    /// and the reported targets `settling` (s), `ess-share` (fraction), `ess-all` (mm).
     ///
     /// ```
     /// let s = control::tune::Spec::parse("overshoot=2,steps=10/50").unwrap();
@@ -110,6 +121,9 @@ impl Spec {
                 "low" => s.low_mm = num(value)?,
                 "high" => s.high_mm = num(value)?,
                 "run" => s.run_s = num(value)?,
+                "settling" => s.settling_s = num(value)?,
+                "ess-share" => s.ess_share = num(value)?.min(1.0),
+                "ess-all" => s.ess_all_mm = num(value)?,
                 "steps" => {
                     s.steps_mm = value.split('/').map(num).collect::<Result<_, _>>()?;
                     if s.steps_mm.len() > 64 {
@@ -119,7 +133,7 @@ impl Spec {
                 _ => {
                     return Err(bad(
                         item,
-                        "keys overshoot, ess, limit-cycle, u-max, steps, low, high, run",
+                        "keys overshoot, ess, limit-cycle, u-max, steps, low, high, run, settling, ess-share, ess-all",
                     ))
                 }
             }
@@ -234,6 +248,12 @@ pub struct Evaluation {
     pub met: usize,
     /// Runs whose |e_ss| <= e_max.
     pub ess_met: usize,
+    /// Runs whose overshoot <= OS_max.
+    pub overshoot_met: usize,
+    /// Runs settled within the target `settling_s`.
+    pub settling_met: usize,
+    /// Largest |e_ss| over the runs, mm.
+    pub max_abs_ess_mm: f64,
     /// J: max + mean of the run costs.
     pub cost: f64,
 }
@@ -294,6 +314,18 @@ fn summarise(runs: Vec<RunResult>, spec: &Spec) -> Evaluation {
                     .is_some_and(|e| e.abs() <= spec.ess_mm)
             })
             .count(),
+        overshoot_met: runs
+            .iter()
+            .filter(|r| r.metrics.overshoot_percent.unwrap_or(0.0) <= spec.overshoot_percent)
+            .count(),
+        settling_met: runs
+            .iter()
+            .filter(|r| r.metrics.settling_time_s.is_some_and(|t| t <= spec.settling_s))
+            .count(),
+        max_abs_ess_mm: runs
+            .iter()
+            .map(|r| r.metrics.steady_state_error_mm.map_or(f64::INFINITY, f64::abs))
+            .fold(0.0, f64::max),
         cost: max + mean,
         runs,
     }
@@ -646,4 +678,91 @@ pub fn margins(model: &Model, s: &ControllerSettings) -> Margins {
         phase_margin_deg: pm.map(|p| p.0),
         gain_crossover_rad_s: pm.map(|p| p.1),
     }
+}
+
+impl Evaluation {
+    /// Why these runs (on `what`, e.g. "the physics plant (nominal + 20 variants)") do not meet `spec`,
+    /// in words; empty when they do.
+    pub fn spec_warnings(&self, spec: &Spec, what: &str) -> Vec<String> {
+        let n = self.runs.len();
+        let mut w = Vec::new();
+        if n == 0 {
+            return w;
+        }
+        let pct = |k: usize| 100.0 * k as f64 / n as f64;
+        if self.overshoot_met < n {
+            w.push(format!(
+                "not met on {what}: overshoot <= {} % in {} of {n} steps ({:.0} %); worst {:.2} %",
+                spec.overshoot_percent,
+                self.overshoot_met,
+                pct(self.overshoot_met),
+                self.worst.and_then(|m| m.overshoot_percent).unwrap_or(f64::NAN)
+            ));
+        }
+        if self.settling_met < n {
+            w.push(format!(
+                "not met on {what}: 2 % settling <= {} s in {} of {n} steps ({:.0} %)",
+                spec.settling_s,
+                self.settling_met,
+                pct(self.settling_met)
+            ));
+        }
+        if (self.ess_met as f64) < spec.ess_share * n as f64 {
+            w.push(format!(
+                "not met on {what}: |e_ss| <= {} mm in {} of {n} steps ({:.0} % < {:.0} %)",
+                spec.ess_mm,
+                self.ess_met,
+                pct(self.ess_met),
+                100.0 * spec.ess_share
+            ));
+        }
+        if self.max_abs_ess_mm > spec.ess_all_mm {
+            w.push(format!(
+                "not met on {what}: |e_ss| <= {} mm in every step (largest {:.3} mm)",
+                spec.ess_all_mm, self.max_abs_ess_mm
+            ));
+        }
+        if self.worst_limit_cycle_mm > spec.limit_cycle_mm + 1e-9 {
+            let k = self
+                .runs
+                .iter()
+                .filter(|r| r.limit_cycle_mm > spec.limit_cycle_mm + 1e-9)
+                .count();
+            w.push(format!(
+                "not met on {what}: a limit cycle larger than {} mm peak to peak in {k} of {n} steps \
+                 (largest {:.3} mm): the piston hunts around the set-point (stick-slip)",
+                spec.limit_cycle_mm, self.worst_limit_cycle_mm
+            ));
+        }
+        w
+    }
+}
+
+/// The tuned controller and the paper's PI (Kp = 14, Ki = 1, scaled integral, no anti-windup, no
+/// compensator) on the same plants and steps.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Comparison {
+    /// The tuned controller.
+    pub tuned: Evaluation,
+    /// The paper's PI.
+    pub paper_pi: Evaluation,
+}
+
+/// Runs the tuned controller `settings` and the paper's PI on plants `0..plants` of `make_plant`.
+pub fn compare(
+    plants: usize,
+    make_plant: &PlantFactory,
+    settings: &ControllerSettings,
+    spec: &Spec,
+) -> Result<Comparison, ControlError> {
+    let s = *settings;
+    let tuned = evaluate(plants, make_plant, &move || Ok(Box::new(s.build()?)), spec)?;
+    let ts = s.ts_s;
+    let paper_pi = evaluate(
+        plants,
+        make_plant,
+        &move || Ok(Box::new(crate::PiSettings::paper().build(ts)?)),
+        spec,
+    )?;
+    Ok(Comparison { tuned, paper_pi })
 }

@@ -30,6 +30,7 @@ pub mod tune;
 pub mod widening;
 
 pub use adaptive::{run_adaptive, AdaptiveRun, AdaptiveSettings, BranchCounts};
+pub use closed_loop::Controller;
 pub use closed_loop::Trace;
 pub use compensator::{DeadzoneCompensator, SlopeMode};
 pub use error::{ControlError, ControlSetting};
@@ -37,6 +38,5 @@ pub use metrics::{metrics_for_steps, run_metrics, RunMetrics, StepMetrics, StepS
 pub use pi::{AntiWindup, AntiWindupScheme, IntegralForm, PiController, PiSettings};
 pub use position::{ControllerFile, ControllerSettings, PositionController};
 pub use profile::Profile;
-pub use closed_loop::Controller;
 pub use trust::{loop_warnings, LoopFacts};
 pub use widening::{DeadzoneChange, Widened};

@@ -87,7 +87,11 @@ impl ControllerSettings {
         nonneg(ControlSetting::Kp, self.kp, "counts/mm")?;
         nonneg(ControlSetting::Ki, self.ki, "counts/(mm·s)")?;
         nonneg(ControlSetting::Kd, self.kd, "counts·s/mm")?;
-        nonneg(ControlSetting::DerivativeFilter, self.derivative_filter_s, "s")?;
+        nonneg(
+            ControlSetting::DerivativeFilter,
+            self.derivative_filter_s,
+            "s",
+        )?;
         nonneg(ControlSetting::HoldBand, self.hold_band_mm, "mm")?;
         nonneg(ControlSetting::FineBand, self.fine_band_mm, "mm")?;
         if !(self.u_max.is_finite() && self.u_max > 0.0) {

@@ -101,7 +101,9 @@ impl Spec {
     /// ```
     pub fn parse(text: &str) -> Result<Spec, ControlError> {
         let mut s = Spec::default();
-        let bad = |what: &str, expected: &str| ControlError::setting(ControlSetting::Spec, what, expected);
+        let bad = |what: &str, expected: &str| {
+            ControlError::setting(ControlSetting::Spec, what, expected)
+        };
         for item in text.split(',').map(str::trim).filter(|i| !i.is_empty()) {
             let (key, value) = item
                 .split_once('=')
@@ -150,7 +152,10 @@ impl Spec {
         if let Some(big) = s.steps_mm.iter().find(|d| **d > s.high_mm - s.low_mm) {
             return Err(bad(
                 &format!("steps={big}"),
-                &format!("steps no longer than high − low = {} mm", s.high_mm - s.low_mm),
+                &format!(
+                    "steps no longer than high − low = {} mm",
+                    s.high_mm - s.low_mm
+                ),
             ));
         }
         Ok(s)
@@ -194,9 +199,10 @@ impl RunResult {
         let mut w = Vec::new();
         let m = &self.metrics;
         match m.overshoot_percent {
-            Some(os) if os > spec.overshoot_percent => {
-                w.push(format!("overshoot {os:.2} % > {} %", spec.overshoot_percent))
-            }
+            Some(os) if os > spec.overshoot_percent => w.push(format!(
+                "overshoot {os:.2} % > {} %",
+                spec.overshoot_percent
+            )),
             _ => {}
         }
         if let Some(e) = m.steady_state_error_mm.filter(|e| e.abs() > spec.ess_mm) {
@@ -230,7 +236,8 @@ impl RunResult {
 }
 
 /// Builds plant variant i (0 = nominal) for the simulations; must be callable from several threads.
-pub type PlantFactory<'a> = dyn Fn(usize) -> Result<Box<dyn Plant + Send>, ControlError> + Sync + 'a;
+pub type PlantFactory<'a> =
+    dyn Fn(usize) -> Result<Box<dyn Plant + Send>, ControlError> + Sync + 'a;
 /// Builds a fresh controller for one run.
 pub type ControllerFactory<'a> =
     dyn Fn() -> Result<Box<dyn Controller + Send>, ControlError> + Sync + 'a;
@@ -278,8 +285,14 @@ pub fn evaluate(
             let profile = Profile::Fixed {
                 setpoint_mm: case.r_mm,
             };
-            let trace =
-                closed_loop::run(plant.as_mut(), c.as_mut(), None, &profile, spec.run_s, case.y0_mm)?;
+            let trace = closed_loop::run(
+                plant.as_mut(),
+                c.as_mut(),
+                None,
+                &profile,
+                spec.run_s,
+                case.y0_mm,
+            )?;
             let metrics = StepMetrics::compute(&trace.t, &trace.y, case.y0_mm, case.r_mm)?;
             let tail = &trace.y[trace.len() - trace.len() / 5..];
             let hi = tail.iter().copied().fold(f64::NEG_INFINITY, f64::max);
@@ -320,11 +333,19 @@ fn summarise(runs: Vec<RunResult>, spec: &Spec) -> Evaluation {
             .count(),
         settling_met: runs
             .iter()
-            .filter(|r| r.metrics.settling_time_s.is_some_and(|t| t <= spec.settling_s))
+            .filter(|r| {
+                r.metrics
+                    .settling_time_s
+                    .is_some_and(|t| t <= spec.settling_s)
+            })
             .count(),
         max_abs_ess_mm: runs
             .iter()
-            .map(|r| r.metrics.steady_state_error_mm.map_or(f64::INFINITY, f64::abs))
+            .map(|r| {
+                r.metrics
+                    .steady_state_error_mm
+                    .map_or(f64::INFINITY, f64::abs)
+            })
             .fold(0.0, f64::max),
         cost: max + mean,
         runs,
@@ -418,8 +439,8 @@ pub fn tune(
     let mut used = 0usize;
     let mut best: Option<([f64; P], Evaluation)> = None;
     let eval = |theta: [f64; P],
-                    used: &mut usize,
-                    best: &mut Option<([f64; P], Evaluation)>|
+                used: &mut usize,
+                best: &mut Option<([f64; P], Evaluation)>|
      -> Result<f64, ControlError> {
         *used += 1;
         let s = settings_of(&theta, deadzone, ts_s, spec)?;
@@ -447,7 +468,10 @@ pub fn tune(
             }
         }
     }
-    let start = best.as_ref().map(|(t, _)| *t).unwrap_or([2.6, 4.6, 0.0, 1.0, 0.0]);
+    let start = best
+        .as_ref()
+        .map(|(t, _)| *t)
+        .unwrap_or([2.6, 4.6, 0.0, 1.0, 0.0]);
     // Nelder–Mead from the best grid point.
     let steps = [0.5, 1.0, 0.2, 0.1, 0.7];
     let clamp = |mut x: [f64; P]| {
@@ -464,7 +488,11 @@ pub fn tune(
             break;
         }
         let mut x = start;
-        x[i] += if x[i] + step <= UPPER[i] { *step } else { -*step };
+        x[i] += if x[i] + step <= UPPER[i] {
+            *step
+        } else {
+            -*step
+        };
         let x = clamp(x);
         let f = eval(x, &mut used, &mut best)?;
         simplex.push((x, f));
@@ -517,7 +545,9 @@ pub fn tune(
         // Converged: the simplex's costs agree to 1e-3 s.
         let (lo, hi) = simplex
             .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), (_, f)| (lo.min(*f), hi.max(*f)));
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), (_, f)| {
+                (lo.min(*f), hi.max(*f))
+            });
         if hi - lo < 1e-3 {
             break;
         }
@@ -613,7 +643,10 @@ pub fn margins(model: &Model, s: &ControllerSettings) -> Margins {
         let one_minus = (1.0 - zi(1.0).0, -zi(1.0).1);
         let integ = div((s.ki * ts, 0.0), one_minus);
         let deriv = div(
-            (s.kd * (1.0 - alpha) * one_minus.0 / ts, s.kd * (1.0 - alpha) * one_minus.1 / ts),
+            (
+                s.kd * (1.0 - alpha) * one_minus.0 / ts,
+                s.kd * (1.0 - alpha) * one_minus.1 / ts,
+            ),
             (1.0 - alpha * zi(1.0).0, -alpha * zi(1.0).1),
         );
         let c = (s.kp + integ.0 + deriv.0, integ.1 + deriv.1);
@@ -639,7 +672,11 @@ pub fn margins(model: &Model, s: &ControllerSettings) -> Margins {
         *p -= shift;
     }
     let interp = |k: usize, a: f64, b: f64, level: f64| {
-        let f = if (b - a).abs() > 0.0 { (level - a) / (b - a) } else { 0.0 };
+        let f = if (b - a).abs() > 0.0 {
+            (level - a) / (b - a)
+        } else {
+            0.0
+        };
         (ws[k - 1].ln() + f * (ws[k].ln() - ws[k - 1].ln())).exp()
     };
     let first_above = (0..n).find(|&k| phases[k] > -180.0).unwrap_or(n);
@@ -667,7 +704,11 @@ pub fn margins(model: &Model, s: &ControllerSettings) -> Margins {
             let f = (1.0 - mags[k - 1]) / (mags[k] - mags[k - 1]);
             let ph = phases[k - 1] + f * (phases[k] - phases[k - 1]);
             let margin = 180.0 + ph - 360.0 * ((180.0 + ph) / 360.0).floor();
-            let margin = if margin > 180.0 { margin - 360.0 } else { margin };
+            let margin = if margin > 180.0 {
+                margin - 360.0
+            } else {
+                margin
+            };
             pm = Some((margin, w));
             break;
         }
@@ -696,7 +737,9 @@ impl Evaluation {
                 spec.overshoot_percent,
                 self.overshoot_met,
                 pct(self.overshoot_met),
-                self.worst.and_then(|m| m.overshoot_percent).unwrap_or(f64::NAN)
+                self.worst
+                    .and_then(|m| m.overshoot_percent)
+                    .unwrap_or(f64::NAN)
             ));
         }
         if self.settling_met < n {

@@ -601,12 +601,14 @@ fn pi_line(s: &PiSettings) -> String {
 
 /// The `controller:` line of the summary for a tuned controller (--controller).
 pub fn tuned_line(s: &control::ControllerSettings) -> String {
-    let comp = s.compensator.map_or("no deadzone inverse".to_string(), |c| {
-        format!(
-            "deadzone inverse b_l = {:.3}, b_r = {:.3} (fine band {:.3} mm)",
-            c.deadzone.b_l, c.deadzone.b_r, s.fine_band_mm
-        )
-    });
+    let comp = s
+        .compensator
+        .map_or("no deadzone inverse".to_string(), |c| {
+            format!(
+                "deadzone inverse b_l = {:.3}, b_r = {:.3} (fine band {:.3} mm)",
+                c.deadzone.b_l, c.deadzone.b_r, s.fine_band_mm
+            )
+        });
     format!(
         "tuned PID Kp = {:.4}, Ki = {:.4}, Kd = {:.4} (Tf = {} s), clamping anti-windup, {comp}, hold band {} mm, |u| <= {} counts",
         s.kp, s.ki, s.kd, s.derivative_filter_s, s.hold_band_mm, s.u_max

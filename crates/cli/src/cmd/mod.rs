@@ -14,6 +14,6 @@ pub mod plant_config;
 pub mod reproduce;
 pub mod simulate;
 pub mod track;
-pub mod tune;
 pub mod track_stream;
+pub mod tune;
 pub mod validate;

@@ -19,7 +19,12 @@ use sysid::Plant;
 pub struct Args {
     /// Tune on this identified Hammerstein model (`identify --save-model`): the simulations run on it
     /// and on variants of its deadzone (gain and breakpoints ±30 %); its deadzone sets the compensator.
-    #[arg(long, value_name = "M.json", required_unless_present = "plant_config", conflicts_with = "plant_config")]
+    #[arg(
+        long,
+        value_name = "M.json",
+        required_unless_present = "plant_config",
+        conflicts_with = "plant_config"
+    )]
     pub model: Option<PathBuf>,
     /// Tune on this physics-plant TOML (a twin from `ipa-sysid calibrate`): the simulations run on the
     /// twin and its variants (±30 %); the compensator's deadzone comes from a Hammerstein model
@@ -139,7 +144,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             (m, format!("model {}", path.display()), None)
         }
         (None, Some(path)) => {
-            let cfg = ipa::PlantConfig::from_toml_file(path).context("cannot read --plant-config")?;
+            let cfg =
+                ipa::PlantConfig::from_toml_file(path).context("cannot read --plant-config")?;
             let m = twin_model(&cfg).with_context(|| {
                 format!(
                     "cannot identify a Hammerstein model on a record of --plant-config {}",
@@ -191,9 +197,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &spec,
     )?;
     let on_physics = if twin.is_some() || args.check_physics {
-        let what = if twin.is_some() { "the twin" } else { "the physics plant" };
+        let what = if twin.is_some() {
+            "the twin"
+        } else {
+            "the physics plant"
+        };
         Some(verify(
-            &format!("{what} (nominal + {} variants ±30 %)", args.physics_variants),
+            &format!(
+                "{what} (nominal + {} variants ±30 %)",
+                args.physics_variants
+            ),
             args.physics_variants + 1,
             &physics_plants,
             &settings,
@@ -260,7 +273,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             controller_file: args.out.display().to_string(),
             warnings: &warnings,
         };
-        let text = serde_json::to_string_pretty(&doc).context("serialising the JSON output")? + "\n";
+        let text =
+            serde_json::to_string_pretty(&doc).context("serialising the JSON output")? + "\n";
         if json_to_stdout {
             std::io::stdout()
                 .write_all(text.as_bytes())
@@ -346,7 +360,17 @@ fn block(v: &Verification, spec: &Spec) -> String {
     );
     o += &format!(
         "  {:<16} {:>9} {:>8} {:>10} {:>8} {:>9} {:>9}   {:>5} {:>5} {:>5} {:>5}\n",
-        "controller", "OS mm", "OS %", "|e_ss| mm", "t_r s", "t_s s", "cycle mm", "OS", "t_s", "e_ss", "all"
+        "controller",
+        "OS mm",
+        "OS %",
+        "|e_ss| mm",
+        "t_r s",
+        "t_s s",
+        "cycle mm",
+        "OS",
+        "t_s",
+        "e_ss",
+        "all"
     );
     o += &rows("tuned", &v.comparison.tuned);
     o += &rows("paper PI 14/1", &v.comparison.paper_pi);

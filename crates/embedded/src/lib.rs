@@ -40,12 +40,14 @@ pub mod ffi;
 pub mod float;
 pub mod hammerstein;
 pub mod pi;
+pub mod position;
 pub mod rls;
 
 pub use deadzone::{Compensator, Deadzone, SlopeMode};
 pub use float::Float;
 pub use hammerstein::{HammersteinRls, HammersteinSettings};
 pub use pi::{AntiWindup, Pi};
+pub use position::{PositionController, PositionSettings};
 pub use rls::{Form, Rls};
 
 /// A failure of an embedded routine. In the C interface each is a negative return code

@@ -637,6 +637,9 @@ fn summary_text(
     o += &format!("controller:   {controller_line}\n");
     o += &format!("set-point:    {} from y0 = {y0} mm\n", profile.describe());
     match compensator {
+        None if controller_line.starts_with("tuned") => {
+            o += "compensator:  the tuned controller's own (above)\n"
+        }
         None => o += "compensator:  none\n",
         Some(c) => {
             let d = c.deadzone;

@@ -27,6 +27,7 @@ pub mod position;
 pub mod profile;
 pub mod trust;
 pub mod tune;
+pub mod tuning;
 pub mod widening;
 
 pub use adaptive::{run_adaptive, AdaptiveRun, AdaptiveSettings, BranchCounts};

@@ -6,13 +6,12 @@
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
-use std::time::Instant;
 
 use anyhow::{bail, Context};
-use control::tune::{self, Comparison, Evaluation, Margins, Spec, TuneSettings};
-use control::{ControlError, ControllerFile, ControllerSettings};
+use control::tune::{Evaluation, Spec, TuneSettings};
+use control::tuning::{self, Request, Source, TuneReport, Verification};
+use control::ControllerFile;
 use serde::Serialize;
-use sysid::Plant;
 
 /// Flags of `ipa-sysid tune`.
 #[derive(Debug, clap::Args)]
@@ -57,46 +56,29 @@ pub struct Args {
     pub json: Option<PathBuf>,
 }
 
-/// Largest number of plant variants (bounds the work a flag can ask for).
-const MAX_VARIANTS: usize = 200;
-/// Largest number of evaluations.
-const MAX_EVALUATIONS: usize = 10_000;
-/// Spread of the plant variants: ±30 %.
-const SPREAD: f64 = 0.3;
-
-/// One verification: a plant set, the tuned controller and the paper's PI on it, and why the spec is missed.
-#[derive(Debug, Serialize)]
-struct Verification {
-    plant: String,
-    plants: usize,
-    #[serde(flatten)]
-    comparison: Comparison,
-    warnings: Vec<String>,
-}
-
+/// The JSON of `ipa-sysid tune --json`: the report and the controller file written.
 #[derive(Debug, Serialize)]
 struct TuneOut<'a> {
-    source: String,
-    spec: &'a Spec,
-    search: &'a TuneSettings,
-    evaluations: usize,
-    seconds: f64,
-    controller: &'a ControllerSettings,
-    margins: Margins,
-    on_model: &'a Verification,
-    #[serde(skip_serializing_if = "Option::is_none")]
-    on_physics: Option<&'a Verification>,
+    #[serde(flatten)]
+    report: &'a TuneReport,
     controller_file: String,
-    warnings: &'a [String],
 }
 
 /// Runs `ipa-sysid tune`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let spec = Spec::parse(&args.spec).context("invalid --spec")?;
     for (flag, v, max) in [
-        ("--variants", args.variants, MAX_VARIANTS),
-        ("--physics-variants", args.physics_variants, MAX_VARIANTS),
-        ("--max-evaluations", args.max_evaluations, MAX_EVALUATIONS),
+        ("--variants", args.variants, tuning::MAX_VARIANTS),
+        (
+            "--physics-variants",
+            args.physics_variants,
+            tuning::MAX_VARIANTS,
+        ),
+        (
+            "--max-evaluations",
+            args.max_evaluations,
+            tuning::MAX_EVALUATIONS,
+        ),
     ] {
         if v > max {
             bail!(sysid::SysidError::setting(
@@ -130,148 +112,49 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ));
         }
     }
-
-    let started = Instant::now();
-    let search = TuneSettings {
-        plants: args.variants,
-        max_evaluations: args.max_evaluations,
-    };
-    // The model (for the compensator's deadzone and the margins) and the plants searched over.
-    let (model, source, twin) = match (&args.model, &args.plant_config) {
+    let source = match (&args.model, &args.plant_config) {
         (Some(path), None) => {
-            let m = sysid::model_file::read_model(path).context("cannot read --model")?;
-            super::control::command_deadzone(&m, path, "--model")?;
-            (m, format!("model {}", path.display()), None)
+            let model = sysid::model_file::read_model(path).context("cannot read --model")?;
+            let deadzone = super::control::command_deadzone(&model, path, "--model")?;
+            Source::Model {
+                model,
+                deadzone,
+                label: format!("model {}", path.display()),
+            }
         }
-        (None, Some(path)) => {
-            let cfg =
-                ipa::PlantConfig::from_toml_file(path).context("cannot read --plant-config")?;
-            let m = twin_model(&cfg).with_context(|| {
-                format!(
-                    "cannot identify a Hammerstein model on a record of --plant-config {}",
-                    path.display()
-                )
-            })?;
-            (m, format!("twin {}", path.display()), Some(cfg))
-        }
+        (None, Some(path)) => Source::Twin {
+            config: ipa::PlantConfig::from_toml_file(path).context("cannot read --plant-config")?,
+            label: format!("twin {}", path.display()),
+        },
         _ => bail!("give exactly one of --model M.json or --plant-config TWIN.toml"),
     };
-    let deadzone = match &args.model {
-        Some(path) => super::control::command_deadzone(&model, path, "--model")?,
-        None => *model
-            .deadzone()
-            .context("the twin's identified model has no deadzone")?,
-    };
-    let ts = model.ts();
-    let model_plants = |i: usize| -> Result<Box<dyn Plant + Send>, ControlError> {
-        let m = tune::model_variant(&model, i, SPREAD)?;
-        Ok(Box::new(
-            sysid::ModelPlant::new(m, format!("model variant {i}"))
-                .map_err(|e| ControlError::Config(e.to_string()))?,
-        ))
-    };
-    let physics_base = twin.clone().unwrap_or_default();
-    let physics_plants = |i: usize| -> Result<Box<dyn Plant + Send>, ControlError> {
-        let cfg = if i == 0 {
-            physics_base.clone()
-        } else {
-            ipa::calibrate::study::perturbed_from(&physics_base, i as u64, SPREAD)
-        };
-        Ok(Box::new(
-            ipa::Ipa::with_ts(cfg, ts).map_err(|e| ControlError::Config(e.to_string()))?,
-        ))
-    };
-    let tuned = if twin.is_some() {
-        tune::tune(&physics_plants, Some(deadzone), ts, &spec, &search)?
-    } else {
-        tune::tune(&model_plants, Some(deadzone), ts, &spec, &search)?
-    };
-    let settings = tuned.settings;
-    let margins = tune::margins(&model, &settings);
-
-    let on_model = verify(
-        &format!("the model (nominal + {} variants)", args.variants - 1),
-        args.variants,
-        &model_plants,
-        &settings,
-        &spec,
-    )?;
-    let on_physics = if twin.is_some() || args.check_physics {
-        let what = if twin.is_some() {
-            "the twin"
-        } else {
-            "the physics plant"
-        };
-        Some(verify(
-            &format!(
-                "{what} (nominal + {} variants ±30 %)",
-                args.physics_variants
-            ),
-            args.physics_variants + 1,
-            &physics_plants,
-            &settings,
-            &spec,
-        )?)
-    } else {
-        None
-    };
-    let seconds = started.elapsed().as_secs_f64();
-    let mut warnings = Vec::new();
-    if twin.is_none() && !args.check_physics {
-        warnings.push(
-            "verified on the model only: a model without the plant's static friction cannot show \
-             stick-slip hunting; verify on the plant (--check-physics for the built-in one, or \
-             `control --controller` on yours)"
-                .to_string(),
-        );
-    }
-    warnings.extend(on_model.warnings.iter().cloned());
-    if let Some(p) = &on_physics {
-        warnings.extend(p.warnings.iter().cloned());
-    }
-    if margins.phase_margin_deg.is_some_and(|pm| pm < 30.0) {
-        warnings.push(format!(
-            "the linear part's phase margin is {:.1}° (< 30°): the loop is close to oscillating",
-            margins.phase_margin_deg.unwrap_or(f64::NAN)
-        ));
-    }
+    let report = tuning::run(&Request {
+        source,
+        spec,
+        search: TuneSettings {
+            plants: args.variants,
+            max_evaluations: args.max_evaluations,
+        },
+        check_physics: args.check_physics,
+        physics_variants: args.physics_variants,
+    })?;
 
     let provenance = serde_json::json!({
         "tuned_by": "ipa-sysid tune",
-        "source": source,
-        "spec": spec,
-        "meets_spec": warnings.iter().all(|w| !w.starts_with("not met")),
+        "source": report.source,
+        "spec": report.spec,
+        "meets_spec": report.meets_spec(),
     });
-    let file = ControllerFile::new(settings, Some(provenance));
+    let file = ControllerFile::new(report.controller, Some(provenance));
     let text = serde_json::to_string_pretty(&file).context("serialising the controller")? + "\n";
     sysid_io::write_atomic(&args.out, text.as_bytes())?;
 
-    let summary = summary_text(
-        &spec,
-        &source,
-        &settings,
-        &margins,
-        &on_model,
-        on_physics.as_ref(),
-        tuned.evaluations,
-        seconds,
-        &args.out,
-        &warnings,
-    );
+    let summary = summary_text(&report, &args.out);
     let json_to_stdout = args.json.as_ref().is_some_and(|j| j.as_os_str() == "-");
     if let Some(json) = &args.json {
         let doc = TuneOut {
-            source: source.clone(),
-            spec: &spec,
-            search: &search,
-            evaluations: tuned.evaluations,
-            seconds,
-            controller: &settings,
-            margins,
-            on_model: &on_model,
-            on_physics: on_physics.as_ref(),
+            report: &report,
             controller_file: args.out.display().to_string(),
-            warnings: &warnings,
         };
         let text =
             serde_json::to_string_pretty(&doc).context("serialising the JSON output")? + "\n";
@@ -289,42 +172,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         print!("{summary}");
     }
     Ok(())
-}
-
-/// A Hammerstein model of a twin: output error, orders (3, 1, 1), on 3000 samples of the staircase
-/// input simulated on it (seed 1, mid-stroke start), as a user would identify one from a record.
-fn twin_model(cfg: &ipa::PlantConfig) -> anyhow::Result<sysid::Model> {
-    let rec = ipa::calibrate::study::record(cfg, ipa::InputSpec::Staircase, 3000, 1)?;
-    let data = sysid::Dataset::new(
-        sysid::data::Signals {
-            u: rec.u.clone(),
-            y: rec.y.clone(),
-        },
-        rec.ts,
-        "twin record",
-    )?;
-    let settings = sysid::Identification::default()
-        .with_kind(sysid::ModelKind::Hammerstein)
-        .with_orders(3, 1, 1)
-        .with_estimator(sysid::EstimatorSettings::Oe(sysid::OutputError::default()));
-    Ok(sysid::identify(&data, &settings)?.model)
-}
-
-fn verify(
-    what: &str,
-    plants: usize,
-    make: &tune::PlantFactory,
-    settings: &ControllerSettings,
-    spec: &Spec,
-) -> anyhow::Result<Verification> {
-    let comparison = tune::compare(plants, make, settings, spec)?;
-    let warnings = comparison.tuned.spec_warnings(spec, what);
-    Ok(Verification {
-        plant: what.to_string(),
-        plants,
-        comparison,
-        warnings,
-    })
 }
 
 fn f(v: Option<f64>, digits: usize) -> String {
@@ -377,20 +224,12 @@ fn block(v: &Verification, spec: &Spec) -> String {
     o
 }
 
-#[allow(clippy::too_many_arguments)]
-fn summary_text(
-    spec: &Spec,
-    source: &str,
-    s: &ControllerSettings,
-    m: &Margins,
-    on_model: &Verification,
-    on_physics: Option<&Verification>,
-    evaluations: usize,
-    seconds: f64,
-    out: &Path,
-    warnings: &[String],
-) -> String {
-    let mut o = format!("tuned on:     {source} ({evaluations} evaluations, {seconds:.2} s)\n");
+fn summary_text(r: &TuneReport, out: &Path) -> String {
+    let (s, m) = (&r.controller, &r.margins);
+    let mut o = format!(
+        "tuned on:     {} ({} evaluations, {:.2} s)\n",
+        r.source, r.evaluations, r.seconds
+    );
     o += &format!("controller:   {}\n", super::control::tuned_line(s));
     o += &format!(
         "margins:      gain {} dB at {} rad/s, phase {}° at {} rad/s (linear part: model with the deadzone's slope)\n",
@@ -399,13 +238,13 @@ fn summary_text(
         f(m.phase_margin_deg, 1),
         f(m.gain_crossover_rad_s, 2)
     );
-    o += &block(on_model, spec);
-    if let Some(p) = on_physics {
-        o += &block(p, spec);
+    o += &block(&r.on_model, &r.spec);
+    if let Some(p) = &r.on_physics {
+        o += &block(p, &r.spec);
     }
     o += "  (columns OS..all: steps meeting overshoot, settling-time target, |e_ss| and the whole spec)\n";
     o += &format!("wrote {}\n", out.display());
-    for w in warnings {
+    for w in &r.warnings {
         o += &format!("warning: {w}\n");
     }
     o

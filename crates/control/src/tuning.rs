@@ -103,6 +103,48 @@ impl TuneReport {
     }
 }
 
+/// Why a model cannot give the controller's deadzone ([`command_deadzone`]).
+#[derive(Debug, Clone, PartialEq)]
+pub enum DeadzoneProblem {
+    /// A model with several inputs (the controller drives one command).
+    SeveralInputs(usize),
+    /// An ARX model (no deadzone).
+    NoDeadzone,
+}
+
+impl std::fmt::Display for DeadzoneProblem {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            DeadzoneProblem::SeveralInputs(n) => write!(
+                f,
+                "a single-input Hammerstein model file (this model has {n} inputs; the controller \
+                 drives one command)"
+            ),
+            DeadzoneProblem::NoDeadzone => {
+                f.write_str("a Hammerstein model file (this model is ARX and has no deadzone)")
+            }
+        }
+    }
+}
+
+/// The deadzone of a single-input Hammerstein model in the command's units: a detrended model's
+/// deadzone acts on u − u0, so its breakpoints are shifted by u0 (the slopes are unchanged).
+pub fn command_deadzone(m: &Model) -> Result<Deadzone, DeadzoneProblem> {
+    if m.inputs().len() > 1 {
+        return Err(DeadzoneProblem::SeveralInputs(m.inputs().len()));
+    }
+    let u0 = m
+        .operating_point()
+        .and_then(|o| o.u.first().copied())
+        .unwrap_or(0.0);
+    let d = m.deadzone().ok_or(DeadzoneProblem::NoDeadzone)?;
+    Ok(Deadzone {
+        b_l: d.b_l + u0,
+        b_r: d.b_r + u0,
+        ..*d
+    })
+}
+
 /// A Hammerstein model of a twin: output error, orders (3, 1, 1), on 3000 samples of the staircase
 /// input simulated on it (seed 1, mid-stroke start), as a user would identify one from a record.
 pub fn twin_model(cfg: &ipa::PlantConfig) -> Result<Model, ControlError> {

@@ -478,39 +478,18 @@ fn compensator(
 }
 
 /// The deadzone of a single-input Hammerstein model `m` (read from `path`, given with `flag`) in the
-/// command's units: a detrended model's deadzone acts on u − u0, so its breakpoints are shifted by u0
-/// (the slopes are unchanged). Errors name the file and the flag.
+/// command's units (`control::tuning::command_deadzone`); errors name the file and the flag.
 pub fn command_deadzone(
     m: &sysid::Model,
     path: &Path,
     flag: &'static str,
 ) -> anyhow::Result<sysid::Deadzone> {
-    if m.inputs().len() > 1 {
-        bail!(sysid::SysidError::setting(
+    control::tuning::command_deadzone(m).map_err(|problem| {
+        anyhow::Error::new(sysid::SysidError::setting(
             sysid::Setting::Other(flag),
             path.display(),
-            &format!(
-                "a single-input Hammerstein model file (this model has {} inputs; the controller \
-                 drives one command)",
-                m.inputs().len()
-            )
-        ));
-    }
-    let u0 = m
-        .operating_point()
-        .and_then(|o| o.u.first().copied())
-        .unwrap_or(0.0);
-    let Some(d) = m.deadzone() else {
-        bail!(sysid::SysidError::setting(
-            sysid::Setting::Other(flag),
-            path.display(),
-            "a Hammerstein model file (this model is ARX and has no deadzone)"
-        ));
-    };
-    Ok(sysid::Deadzone {
-        b_l: d.b_l + u0,
-        b_r: d.b_r + u0,
-        ..*d
+            &problem.to_string(),
+        ))
     })
 }
 

@@ -15,6 +15,7 @@ print(f"{len(u)} samples, Ts = {t[1] - t[0]} s, y from {y.min():.2f} to {y.max()
 # %% Identify (output error; the paper's own method is method="rls") and validate.
 fit = ipa_sysid.identify(u, y, 0.01, method="oe", validation=(u_val, y_val))
 print(fit)
+print(fit.model)  # the model as equations with units
 print("deadzone:", {k: round(v, 6) for k, v in fit.model.deadzone.items()})
 print("a:", np.round(fit.model.a, 6), " poles:", np.round(fit.poles, 6), " stable:", fit.stable)
 m = fit.metrics
@@ -22,7 +23,7 @@ print(
     "fit % (simulation, validation): "
     f"{m['estimation']['fit_sim_percent']:.4f}, {m['validation']['fit_sim_percent']:.4f}"
 )
-# Remarks on trust (until the library reports `warnings`, the estimator's note).
+# Reasons not to trust the model blindly (also issued as IpaSysidWarning).
 for w in fit.warnings:
     print("remark:", w)
 
@@ -36,6 +37,6 @@ print(f"RMSE simulation {np.sqrt(np.mean((y_sim - y_val) ** 2)):.4f} mm, "
 fit.model.save("model.json")
 assert ipa_sysid.load_model("model.json") == fit.model
 
-# %% PI control (Kp = 14, Ki = 1) of the identified model to 50 mm.
-c = ipa_sysid.control("model:model.json", setpoint=50, duration=10)
+# %% PI control (Kp = 14, Ki = 1) of the identified model to 50 mm (a Model object or "model:model.json").
+c = ipa_sysid.control(fit.model, setpoint=50, duration=10)
 print("step metrics:", {k: round(v, 4) for k, v in c["metrics"].items() if v is not None})

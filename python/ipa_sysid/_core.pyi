@@ -54,8 +54,9 @@ class Model:
     @property
     def parameter_count(self) -> int:
         """p: number of estimated parameters."""
-    def simulate(self, u: ArrayLike, y0: ArrayLike | None = None) -> FloatArray:
-        """Free-run simulation of len(u) samples; the first k0 outputs from y0 (zeros when None)."""
+    def simulate(self, u: ArrayLike, y0: ArrayLike | float | None = None) -> FloatArray:
+        """Free-run simulation of len(u) samples; the first k0 outputs from y0 (an output record, or one
+        number: at rest there), zeros with an IpaSysidWarning when None."""
     def predict(self, u: ArrayLike, y: ArrayLike, horizon: int = 1) -> FloatArray:
         """k-step-ahead prediction from measured u and y."""
     def metrics(self, u: ArrayLike, y: ArrayLike, name: str = "data") -> dict[str, Any]:
@@ -68,6 +69,8 @@ class Model:
         """The linear block as a python-control TransferFunction (ImportError without python-control)."""
     def transfer_polynomials(self) -> tuple[list[float], list[float]]:
         """(num, den) of the linear block in descending powers of z."""
+    def __str__(self) -> str:
+        """The model as equations with units."""
     def __eq__(self, other: object) -> bool: ...
 
 class Fit:
@@ -88,6 +91,11 @@ class Fit:
     @property
     def parameters(self) -> list[dict[str, Any]]:
         """[{"name", "value", "std"}] as in identify --json."""
+    @property
+    def params(self) -> dict[str, float]:
+        """The estimates by name ("input.name" with several inputs)."""
+    def parameters_frame(self) -> Any:
+        """The parameters as a pandas DataFrame indexed by name (value, std[, input])."""
     @property
     def estimation(self) -> dict[str, Any]:
         """The `estimation` object of identify --json."""
@@ -186,7 +194,7 @@ def calibrate(
     """The physics plant calibrated to a record as `ipa-sysid calibrate`: estimates, fits, warnings, toml."""
 
 def control(
-    plant: str = "ipa",
+    plant: str | Model | None = None,
     setpoint: float | None = None,
     profile: str | None = None,
     kp: float = 14.0,

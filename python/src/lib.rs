@@ -20,6 +20,8 @@ use sysid::data::{Dataset, Signals};
 use sysid::summary::IdentifyReport;
 use sysid::{IdentifyOptions, Model, Setting, SysidError};
 
+mod text;
+
 /// Upper bound on the number of parameters of a stand-alone [`Rls`] (P has n² entries).
 const MAX_RLS_PARAMS: usize = 1000;
 
@@ -29,9 +31,19 @@ const DEFAULT_FIXED_DURATION_S: f64 = 10.0;
 // ---------------------------------------------------------------------------------------------------
 // Errors: input errors are ValueError, numerical failures ArithmeticError, file-system errors OSError.
 
-/// A library error as the Python exception of its kind, with the command line's message.
+/// The Python keyword of a command-line flag: `--max-iterations` -> `max_iterations` (each part of
+/// `--setpoint/--profile`); Python errors name the argument the caller wrote, not the flag.
+fn keyword(flag: &str) -> String {
+    flag.split('/')
+        .map(|f| f.trim().trim_start_matches("--").replace('-', "_"))
+        .collect::<Vec<_>>()
+        .join("/")
+}
+
+/// A library error as the Python exception of its kind, with the command line's message naming the
+/// Python keyword where the command line names its flag.
 fn sysid_err(e: SysidError) -> PyErr {
-    let msg = e.render_flags();
+    let msg = e.render(&|s| keyword(s.flag()));
     match e {
         SysidError::Numerical(_) => PyArithmeticError::new_err(msg),
         SysidError::Io { .. } => PyOSError::new_err(msg),
@@ -45,7 +57,7 @@ fn ipa_err(e: ipa::IpaError) -> PyErr {
         ipa::IpaError::Sysid(s) => sysid_err(s),
         ipa::IpaError::Numerical(_) => PyArithmeticError::new_err(e.to_string()),
         ipa::IpaError::Config(_) | ipa::IpaError::Setting { .. } => {
-            PyValueError::new_err(e.render(&|s| s.flag().to_string()))
+            PyValueError::new_err(e.render(&|s| keyword(s.flag())))
         }
     }
 }
@@ -55,7 +67,7 @@ fn control_err(e: ::control::ControlError) -> PyErr {
     match e {
         ::control::ControlError::Numerical(_) => PyArithmeticError::new_err(e.to_string()),
         ::control::ControlError::Io { .. } => PyOSError::new_err(e.to_string()),
-        _ => PyValueError::new_err(e.render(&|s| s.flag().to_string())),
+        _ => PyValueError::new_err(e.render(&|s| keyword(s.flag()))),
     }
 }
 
@@ -225,8 +237,10 @@ impl PyModel {
     }
 
     /// Free-run simulation (MATLAB `sim`) of the model driven by `u`: an array of len(u). The first k0
-    /// outputs are the initial conditions, taken from `y0` (at least k0 values; only the first k0 are
-    /// used, so a measured output record can be passed, exactly as `validate` does) or zeros when None.
+    /// outputs are the initial conditions, taken from `y0`: an array of at least k0 values (only the
+    /// first k0 are used, so a measured output record can be passed, exactly as `validate` does), or one
+    /// number (the output at rest before the record, e.g. 100.0 mm), or None: zeros, with an
+    /// `IpaSysidWarning` saying so.
     #[pyo3(signature = (u, y0=None))]
     fn simulate<'py>(
         &self,
@@ -237,13 +251,35 @@ impl PyModel {
         let u = floats(u, "u")?;
         let k0 = self.inner.k0();
         let mut y = vec![0.0; u.len()];
+        let y0 = match y0 {
+            None => {
+                if k0 > 0 {
+                    let category = py.import("ipa_sysid")?.getattr("IpaSysidWarning")?;
+                    PyErr::warn(
+                        py,
+                        &category,
+                        &std::ffi::CString::new(format!(
+                            "Model.simulate without y0 starts from y = 0 for the first k0 = {k0} samples; \
+                             a record that starts elsewhere (e.g. at 100 mm) then fits badly: pass y0 = the \
+                             record's output (its first k0 values are used) or its start position"
+                        ))?,
+                        1,
+                    )?;
+                }
+                None
+            }
+            Some(obj) => match obj.extract::<f64>() {
+                // One number: the output at rest there before the record (each of the first k0 samples).
+                Ok(v) => Some(vec![v; k0]),
+                Err(_) => Some(floats(obj, "y0")?),
+            },
+        };
         if let Some(y0) = y0 {
-            let y0 = floats(y0, "y0")?;
             if y0.len() < k0.min(u.len()) {
                 return Err(setting_err(
                     "y0",
                     format!("{} value(s)", y0.len()),
-                    &format!("at least k0 = {k0} initial output(s) (or None for zeros)"),
+                    &format!("at least k0 = {k0} initial output(s), one number, or None for zeros"),
                 ));
             }
             let k = k0.min(u.len());
@@ -352,6 +388,11 @@ impl PyModel {
         )
     }
 
+    /// The model as equations with units (`print(model)`); `repr(model)` gives the numbers in full.
+    fn __str__(&self) -> String {
+        text::equations(&self.inner)
+    }
+
     fn __eq__(&self, other: &Self) -> bool {
         self.inner == other.inner
     }
@@ -436,6 +477,62 @@ impl PyFit {
         to_py(py, &self.report.parameters)
     }
 
+    /// The estimates by name, `{"b_r": 30.97, ...}` (`"u2.b_r"` when the model has several inputs): a
+    /// mapping for `fit.params["b_r"]`; the standard deviations are in `parameters` and
+    /// `parameters_frame()`.
+    #[getter]
+    fn params<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let out = PyDict::new(py);
+        for p in &self.report.parameters {
+            out.set_item(param_key(p), p.value)?;
+        }
+        Ok(out)
+    }
+
+    /// The parameters as a pandas DataFrame indexed by name (columns `value`, `std`, and `input` when
+    /// the model has several inputs); needs pandas.
+    fn parameters_frame<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        let pd = py.import("pandas").map_err(|e| {
+            PyImportError::new_err(format!(
+                "Fit.parameters_frame needs pandas: pip install pandas ({e})"
+            ))
+        })?;
+        let several = self.report.parameters.iter().any(|p| p.input.is_some());
+        let cols = PyDict::new(py);
+        let names: Vec<String> = self.report.parameters.iter().map(param_key).collect();
+        cols.set_item(
+            "value",
+            self.report
+                .parameters
+                .iter()
+                .map(|p| p.value)
+                .collect::<Vec<_>>(),
+        )?;
+        cols.set_item(
+            "std",
+            self.report
+                .parameters
+                .iter()
+                .map(|p| p.std.unwrap_or(f64::NAN))
+                .collect::<Vec<_>>(),
+        )?;
+        if several {
+            cols.set_item(
+                "input",
+                self.report
+                    .parameters
+                    .iter()
+                    .map(|p| p.input.clone().unwrap_or_default())
+                    .collect::<Vec<_>>(),
+            )?;
+        }
+        let kwargs = PyDict::new(py);
+        kwargs.set_item("index", pd.getattr("Index")?.call1((names,))?)?;
+        let frame = pd.getattr("DataFrame")?.call((cols,), Some(&kwargs))?;
+        frame.getattr("index")?.setattr("name", "name")?;
+        Ok(frame)
+    }
+
     /// How the model was estimated: the `estimation` object of `identify --json` (method, iterations,
     /// converged, noise_variance, note, ...).
     #[getter]
@@ -483,6 +580,14 @@ impl PyFit {
             py_float(m.fit_sim_percent),
             py_float(m.fit_pred_percent)
         )
+    }
+}
+
+/// The key of a parameter in `Fit.params`: its name, prefixed by its input with several inputs.
+fn param_key(p: &sysid::Param) -> String {
+    match &p.input {
+        Some(input) => format!("{input}.{}", p.name),
+        None => p.name.to_string(),
     }
 }
 
@@ -819,15 +924,57 @@ fn simulate_plant<'py>(
 /// one of `setpoint` (mm) or `profile` ("fixed:MM", "staircase:L1,L2,...@HOLD_S", "file:PATH.csv").
 /// `anti_windup`: "none" or "clamping" ("back-calculation" needs `tracking_time` in s).
 /// `compensate_deadzone`: a Hammerstein `Model` or "paper" adds a deadzone-inverse compensator.
+/// A plant of `control`, boxed.
+type BoxedPlant = Box<dyn sysid::Plant + Send>;
+
+/// The plant of `control`: a spec string (`"ipa"`, the default, `"paper"`, `"model:FILE"`) or a `Model`
+/// object, with the limits its loop is checked against.
+fn plant_and_limits(
+    plant: Option<&Bound<'_, PyAny>>,
+    config: Option<&std::path::Path>,
+) -> PyResult<(ipa::PlantLimits, BoxedPlant)> {
+    let Some(plant) = plant else {
+        let spec = ipa::PlantSpec::Ipa;
+        return Ok((
+            spec.limits(config).map_err(ipa_err)?,
+            spec.build(config, None).map_err(ipa_err)?,
+        ));
+    };
+    if let Ok(m) = plant.cast::<PyModel>() {
+        if let Some(path) = config {
+            return Err(setting_err(
+                "plant_config",
+                path.display(),
+                "a plant-config only with plant=\"ipa\", not with a Model",
+            ));
+        }
+        let model = m.get().inner.clone();
+        let limits = ipa::PlantLimits::of_model(&model);
+        let plant = sysid::ModelPlant::new(model, "model").map_err(sysid_err)?;
+        return Ok((limits, Box::new(plant)));
+    }
+    let Ok(text) = plant.extract::<&str>() else {
+        return Err(setting_err(
+            "plant",
+            plant.to_string(),
+            "\"ipa\", \"paper\", \"model:FILE\" or a Model",
+        ));
+    };
+    let spec = plant_spec(text)?;
+    let limits = spec.limits(config).map_err(ipa_err)?;
+    let plant = spec.build(config, None).map_err(ipa_err)?;
+    Ok((limits, plant))
+}
+
 #[pyfunction]
-#[pyo3(signature = (plant="ipa", setpoint=None, profile=None, kp=14.0, ki=1.0, duration=None, y0=0.0,
+#[pyo3(signature = (plant=None, setpoint=None, profile=None, kp=14.0, ki=1.0, duration=None, y0=0.0,
     integral="scaled", anti_windup="none", tracking_time=None, u_max=255.0, compensate_deadzone=None,
     compensator_slopes="shift", compensator_threshold=0.0, plant_config=None, controller=None))]
 #[pyo3(name = "control")]
 #[allow(clippy::too_many_arguments)]
 fn control_loop<'py>(
     py: Python<'py>,
-    plant: &str,
+    plant: Option<&Bound<'py, PyAny>>,
     setpoint: Option<f64>,
     profile: Option<&str>,
     kp: f64,
@@ -866,7 +1013,7 @@ fn control_loop<'py>(
             return Err(setting_err(
                 "--setpoint/--profile",
                 "",
-                "exactly one of --setpoint MM or --profile SPEC",
+                "exactly one of setpoint=MM or profile=SPEC",
             ))
         }
     };
@@ -889,14 +1036,14 @@ fn control_loop<'py>(
             return Err(setting_err(
                 "--tracking-time",
                 "(none)",
-                "a tracking time in s with --anti-windup back-calculation",
+                "a tracking time in s with anti_windup=\"back-calculation\"",
             ))
         }
         ("none" | "clamping", Some(t)) => {
             return Err(setting_err(
                 "--tracking-time",
                 t,
-                "only together with --anti-windup back-calculation",
+                "only together with anti_windup=\"back-calculation\"",
             ))
         }
         (other, _) => {
@@ -907,9 +1054,7 @@ fn control_loop<'py>(
             ))
         }
     };
-    let spec = plant_spec(plant)?;
-    let limits = spec.limits(plant_config.as_deref()).map_err(ipa_err)?;
-    let mut plant = spec.build(plant_config.as_deref(), None).map_err(ipa_err)?;
+    let (limits, mut plant) = plant_and_limits(plant, plant_config.as_deref())?;
     let ts = plant.ts();
     let settings = ::control::PiSettings::new(kp, ki)
         .with_integral(integral)

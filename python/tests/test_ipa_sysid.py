@@ -267,7 +267,7 @@ def test_rls_update_many_equals_closed_form():
 
 
 def test_rls_errors():
-    with pytest.raises(ValueError, match="--forgetting"):
+    with pytest.raises(ValueError, match=r"\bforgetting\b"):
         ipa_sysid.Rls(3, forgetting=1.5)
     with pytest.raises(ValueError, match="n = 0"):
         ipa_sysid.Rls(0)
@@ -292,15 +292,19 @@ def cli_error(*args):
     return first[len("error: "):]
 
 
-def test_setting_errors_have_the_cli_message(records):
+def test_setting_errors_have_the_cli_message_with_the_keyword(records):
+    # The command line's message, naming the Python keyword where the command line names its flag.
     est, _ = records
     e = read_csv(est)
     for flag, kw in [("--na", dict(na=200)), ("--forgetting", dict(forgetting=0.0)),
-                     ("--p0", dict(p0=-1.0))]:
+                     ("--p0", dict(p0=-1.0)), ("--nb", dict(nb=0))]:
         msg = cli_error("identify", "--data", est, "--ts", 0.01, flag, list(kw.values())[0])
+        assert flag in msg
+        keyword = next(iter(kw))
         with pytest.raises(ValueError) as info:
             ipa_sysid.identify(e["u"], e["y"], 0.01, **kw)
-        assert str(info.value) == msg
+        assert str(info.value) == msg.replace(flag, keyword)
+        assert "--" not in str(info.value)
 
 
 def test_bad_data_raises_value_error(records):
@@ -314,10 +318,11 @@ def test_bad_data_raises_value_error(records):
         ipa_sysid.identify(e["u"], e["y"][:10], 0.01)
     with pytest.raises(ValueError, match="1-D"):
         ipa_sysid.identify(np.zeros((3, 3)), np.zeros(3), 0.01)
-    with pytest.raises(ValueError, match="--method"):
+    with pytest.raises(ValueError, match="invalid method 'magic'|method"):
         ipa_sysid.identify(e["u"], e["y"], 0.01, method="magic")
-    with pytest.raises(ValueError, match="--ts"):
+    with pytest.raises(ValueError, match=r"\bts\b") as info:
         ipa_sysid.identify(e["u"], e["y"], -1.0)
+    assert "--ts" not in str(info.value)
     with pytest.raises(ValueError):
         ipa_sysid.identify(["a", "b"], [1.0, 2.0], 0.01)
 
@@ -352,7 +357,7 @@ def test_simulate_plant_matches_cli(records, tmp_path):
     t, u, y, p = ipa_sysid.simulate_plant("paper", input="prbs", samples=300, seed=4, noise_std=0.1)
     c = read_csv(out)
     assert p is None and np.array_equal(u, c["u"]) and np.array_equal(y, c["y"])
-    with pytest.raises(ValueError, match="--plant"):
+    with pytest.raises(ValueError, match=r"\bplant\b"):
         ipa_sysid.simulate_plant("model:")
 
 
@@ -515,3 +520,76 @@ def test_load_model_bounds_an_endless_read():
     # /dev/zero reports a size of 0 and never ends: the read is bounded as it goes.
     with pytest.raises(ValueError, match="at most"):
         ipa_sysid.load_model("/dev/zero")
+
+
+# --- a Pythonic package (issue 27 item 3) --------------------------------------------------------
+
+
+def test_str_of_a_model_is_its_equations():
+    # The difference equation printed by str(model), parsed back here, gives the model's a and b to the
+    # 4 significant digits printed; the deadzone lines carry b_l, b_r, m_l, m_r.
+    import re
+
+    m = ipa_sysid.paper_model()
+    text = str(m)
+    assert text != repr(m)
+    assert "Hammerstein" in text and "Ts = 0.01 s" in text and "mm" in text
+    line = next(l for l in text.splitlines() if l.strip().startswith("y(k) ="))
+    rhs = line.split("=", 1)[1].replace("−", "-").replace(" ", "")
+    terms = dict()
+    for sign, coef, sig, lag in re.findall(r"([+-]?)([0-9.e+-]+?)(y|x)\(k-(\d+)\)", rhs):
+        terms[(sig, int(lag))] = (-1.0 if sign == "-" else 1.0) * float(coef)
+    for i, a in enumerate(m.a):
+        assert math.isclose(terms[("y", i + 1)], -a, rel_tol=5e-4), (i, a, line)
+    for j, b in enumerate(m.b):
+        assert math.isclose(terms[("x", m.nk + j)], b, rel_tol=5e-4), (j, b, line)
+    dz = m.deadzone
+    plain = text.replace("−", "-")
+    for key in ("b_l", "b_r"):
+        printed = float(re.search(key + r" = (-?[0-9.e+-]+) counts", plain).group(1))
+        assert math.isclose(printed, dz[key], rel_tol=5e-4), (key, text)
+
+
+def test_simulate_without_y0_warns_and_a_number_is_a_start_at_rest():
+    m = ipa_sysid.paper_model()
+    u = np.full(50, 120.0)
+    with pytest.warns(ipa_sysid.IpaSysidWarning, match="y0"):
+        m.simulate(u)
+    a = m.simulate(u, 100.0)
+    b = m.simulate(u, [100.0] * m.k0)
+    assert np.array_equal(a, b) and a[0] == 100.0
+
+
+def test_control_takes_a_model_object(tmp_path):
+    m = ipa_sysid.paper_model()
+    path = tmp_path / "paper.json"
+    m.save(path)
+    by_object = ipa_sysid.control(m, setpoint=50, duration=3)
+    by_file = ipa_sysid.control(f"model:{path}", setpoint=50, duration=3)
+    for k in ("t", "r", "u", "y"):
+        assert np.array_equal(by_object[k], by_file[k]), k
+    assert by_object["warnings"] == by_file["warnings"]
+    with pytest.raises(ValueError, match="plant_config"):
+        ipa_sysid.control(m, setpoint=50, plant_config=path)
+    with pytest.raises(ValueError, match=r"\bplant\b"):
+        ipa_sysid.control(3.0, setpoint=50)
+
+
+def test_fit_parameters_by_name_and_as_a_data_frame(records):
+    est, _ = records
+    e = read_csv(est)
+    import warnings
+
+    with warnings.catch_warnings():  # the model's doubts are not what this test is about
+        warnings.simplefilter("ignore", ipa_sysid.IpaSysidWarning)
+        fit = ipa_sysid.identify(e["u"], e["y"], 0.01, method="ls")
+    listed = fit.parameters
+    assert fit.params == {p["name"]: p["value"] for p in listed}
+    pd = pytest.importorskip("pandas")
+    frame = fit.parameters_frame()
+    assert isinstance(frame, pd.DataFrame) and frame.index.name == "name"
+    assert list(frame.index) == [p["name"] for p in listed]
+    for p in listed:
+        assert frame.loc[p["name"], "value"] == p["value"]
+        std = frame.loc[p["name"], "std"]
+        assert (p["std"] is None and math.isnan(std)) or std == p["std"]

@@ -184,17 +184,9 @@ impl Experiment {
                         self.amplitude,
                         self.seed,
                     )?;
-                    let mut y = Vec::with_capacity(u.len());
-                    for (k, &uk) in u.iter().enumerate() {
-                        y.push(plant.output());
-                        p.push(plant.pressures_pa());
-                        plant.step(uk).map_err(|e| {
-                            IpaError::Sysid(
-                                SysidError::from(e).context(&format!("simulating sample {k}")),
-                            )
-                        })?;
-                    }
-                    (u, y)
+                    let rec = record_input(&mut plant, u)?;
+                    p = rec.pressures.unwrap_or_default();
+                    (rec.u, rec.y)
                 }
             };
             Record {
@@ -209,4 +201,26 @@ impl Experiment {
             ..rec
         })
     }
+}
+
+/// Applies the command u(k) to the physics plant from its current state, recording the position y(k)
+/// (mm, encoder-quantised) and the chamber pressures [p_a, p_b] (Pa) at each sample before u(k) is
+/// applied: one open-loop run with everything the IPA measures (`simulate`, the calibrated twin of
+/// `reproduce`).
+pub fn record_input(plant: &mut Ipa, u: Vec<f64>) -> Result<Record, IpaError> {
+    let mut y = Vec::with_capacity(u.len());
+    let mut p = Vec::with_capacity(u.len());
+    for (k, &uk) in u.iter().enumerate() {
+        y.push(plant.output());
+        p.push(plant.pressures_pa());
+        plant.step(uk).map_err(|e| {
+            IpaError::Sysid(SysidError::from(e).context(&format!("simulating sample {k}")))
+        })?;
+    }
+    Ok(Record {
+        u,
+        y,
+        pressures: Some(p),
+        ts: plant.ts(),
+    })
 }

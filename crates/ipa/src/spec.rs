@@ -136,12 +136,20 @@ impl PlantSpec {
             PlantSpec::Paper => sysid_core::Model::paper(),
             PlantSpec::ModelFile(path) => sysid_core::model_file::read_model(path)?,
         };
+        Ok(PlantLimits::of_model(&model))
+    }
+}
+
+impl PlantLimits {
+    /// The limits of a model used as the plant: no stroke, its largest pole modulus when above 1, and
+    /// the doubts its parameters raise ([`sysid_core::model_file::load_warnings`]).
+    pub fn of_model(model: &sysid_core::Model) -> PlantLimits {
         let pole = model.poles().iter().map(|z| z.norm()).fold(0.0, f64::max);
-        Ok(PlantLimits {
+        PlantLimits {
             range_mm: None,
             unstable_pole: (pole > 1.0 + 1e-9).then_some(pole),
-            model_warnings: sysid_core::model_file::load_warnings(&model),
-        })
+            model_warnings: sysid_core::model_file::load_warnings(model),
+        }
     }
 }
 

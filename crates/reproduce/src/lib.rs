@@ -7,7 +7,8 @@
 //!    this project's addition).
 //! 3. Tables III (estimates), IV (validation fit, loss, FPE), V (closed-loop metrics, model vs plant), with
 //!    the paper's numbers beside ours.
-//! 4. Figures (SVG and PNG) and `report.html`, `summary.json`, `data/*.csv`.
+//! 4. On the physics plant, the calibrated twin (`twin.rs`, docs/twin.md) beside the paper's model class.
+//! 5. Figures (SVG and PNG) and `report.html`, `summary.json`, `data/*.csv`.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -33,6 +34,7 @@ pub mod paper;
 mod study;
 mod summary;
 mod tables;
+mod twin;
 pub use error::ReproduceError;
 pub use study::CLOSED_LOOP_RULE;
 
@@ -264,6 +266,10 @@ pub fn run(
         &[&t_ol, &u_ol, ol.y(), y_ol_model.as_ref().unwrap_or(&nan)],
     )?;
 
+    // The calibrated twin on the same records (physics plant only).
+    progress("calibrated twin", 0.5);
+    let twin = twin::calibrated_twin(s, ts, [est.u(), val.u(), &u_ol], &models);
+
     // 3. Closed loop, fixed and unfixed set-point, model vs plant.
     progress("closed-loop PI control", 0.55);
     let fixed_profile = Profile::Fixed {
@@ -383,6 +389,7 @@ pub fn run(
         steps_model,
         paper_check,
         residuals,
+        twin,
         verdicts: Vec::new(),
         checks: Vec::new(),
     };

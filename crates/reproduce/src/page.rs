@@ -268,6 +268,33 @@ pub(crate) fn build_report(
         }),
         "fig6_open_loop",
     )?);
+    let mut twin_sec = Section::new("Calibrated twin")
+        .id("twin")
+        .paragraph(crate::twin::paragraph(&st.twin));
+    if let Ok(t) = &st.twin {
+        let mut fits = Table::new([
+            "model",
+            "validation record: fit (%)",
+            "open-loop record: fit (%)",
+        ])
+        .caption(
+            "Free-run fit % (eq. 13) from the measured initial state, the twin beside the identified models on the \
+             same records",
+        );
+        for row in crate::twin::fit_rows(t) {
+            fits.push_row(row);
+        }
+        let mut params = Table::new(["parameter", "start", "estimate", "std", "unit"])
+            .caption("The twin's parameters: start of the search, estimate, standard deviation");
+        for row in crate::twin::parameter_rows(t) {
+            params.push_row(row);
+        }
+        twin_sec = twin_sec.table(fits).table(params);
+        for w in crate::twin::warnings(t) {
+            twin_sec = twin_sec.callout(Verdict::Note, w);
+        }
+    }
+    r.push_section(twin_sec);
     let model_col = format!(
         "model: {} (simulation)",
         st.cl().map_or("none stable", |m| m.short)

@@ -83,6 +83,8 @@ pub(crate) struct Study {
     pub(crate) steps_model: Vec<control::StepSegment>,
     pub(crate) paper_check: analysis::PaperCheck,
     pub(crate) residuals: Vec<analysis::ModelResiduals>,
+    /// The calibrated twin beside the identified models, or why there is none.
+    pub(crate) twin: Result<crate::twin::Twin, String>,
     pub(crate) verdicts: Vec<Criterion>,
     /// Checks of the process (not the paper's criteria): e.g. a stable model was available to control.
     pub(crate) checks: Vec<Criterion>,

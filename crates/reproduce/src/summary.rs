@@ -65,6 +65,7 @@ pub(crate) fn summary_json(
             "paper": d.paper.iter().map(|(l, v)| (l.to_string(), json!(v))).collect::<serde_json::Map<_, _>>(),
             "reason": d.reason,
         })).collect::<Vec<_>>(),
+        "twin": crate::twin::json(&st.twin),
         "open_loop": { "fit_percent": st.fit_ol, "samples": st.u_ol.len(),
                        "model": st.cl().map(|m| m.key) },
         "closed_loop": {

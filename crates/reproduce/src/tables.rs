@@ -299,6 +299,20 @@ pub(crate) fn tables_text(s: &ReproduceSettings, st: &Study) -> String {
         }
         let _ = writeln!(o);
     }
+    let _ = writeln!(o, "\nCalibrated twin: {}", crate::twin::paragraph(&st.twin));
+    if let Ok(t) = &st.twin {
+        let _ = writeln!(
+            o,
+            "{:<40}{:>14}{:>14}",
+            "free-run fit %", "validation", "open loop"
+        );
+        for [label, v, ol] in crate::twin::fit_rows(t) {
+            let _ = writeln!(o, "{label:<40}{v:>14}{ol:>14}");
+        }
+        for w in crate::twin::warnings(t) {
+            let _ = writeln!(o, "  warning: {w}");
+        }
+    }
     let _ = writeln!(o, "\nResiduals (validation record, 99 % level)");
     for r in &st.residuals {
         let _ = writeln!(o, "  {:<38} {}", r.key, resid_verdict(&r.validation));

@@ -560,12 +560,15 @@ pub fn deadzone_warnings(
         if !estimated {
             continue;
         }
-        let reach = |l: f64| (1e-9 * l.abs().max(1.0)).max(std.unwrap_or(0.0));
+        let on = |l: f64| 1e-9 * l.abs().max(1.0);
+        let reach = |l: f64| on(l).max(std.unwrap_or(0.0));
         if let Some(level) = levels.iter().find(|l| (b - **l).abs() <= reach(**l)) {
             w.push(Warning::BreakpointOnInputLevel {
                 name,
                 value: b,
                 level: *level,
+                // On the level itself the deviation says nothing; near it, the withheld value is named.
+                std: std.filter(|_| (b - *level).abs() > on(*level)),
             });
             no_std.push(name);
         } else if b <= u_min || b >= u_max {
@@ -684,6 +687,23 @@ mod tests {
         assert!(
             matches!(w[..], [Warning::BreakpointOnInputLevel { .. }]),
             "{w:?}"
+        );
+        // The words say how far it is and which deviation was withheld, never "lies on" (issue 27
+        // item 5): 4e-5 from -48, deviation 0.5.
+        let text = w[0].to_string();
+        assert!(
+            text.contains(
+                "is 4.0e-5 from the input level -48, less than its standard deviation 0.500"
+            ),
+            "{text}"
+        );
+        assert!(!text.contains("lies on"), "{text}");
+        let far = Deadzone { b_l: -47.78, ..dz };
+        let (w, _) = deadzone_warnings(&far, d.u(), (true, true), (Some(0.3), Some(0.1)));
+        let text = w[0].to_string();
+        assert!(
+            text.contains("b_l = -47.780000 is 0.220 from the input level -48, less than its standard deviation 0.300"),
+            "{text}"
         );
         let apart = Deadzone { b_l: -47.6, ..dz };
         let (w, no_std) = deadzone_warnings(&apart, d.u(), (true, true), (Some(0.1), Some(0.1)));

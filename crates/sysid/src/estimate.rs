@@ -449,9 +449,14 @@ fn termination_words(t: &Termination, method: Method) -> String {
     match (t, method) {
         (Termination::LimitCycle, _) => "the key-term iteration entered a limit cycle".into(),
         (Termination::IterationLimit, Method::Oe) => {
-            "the output-error search reached its iteration limit".into()
+            "the output-error search reached its iteration limit (raise it with --max-iterations; \
+             max_iterations= in Python)"
+                .into()
         }
-        (Termination::IterationLimit, _) => "the iteration limit was reached".into(),
+        (Termination::IterationLimit, _) => {
+            "the iteration limit was reached (raise it with --max-iterations; max_iterations= in Python)"
+                .into()
+        }
         (Termination::NotSettled, Method::Rls) => {
             "the recursive estimate was still moving at the end of the data (more passes or a \
              forgetting factor below 1 may settle it)"

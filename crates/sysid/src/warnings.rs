@@ -84,6 +84,9 @@ pub enum Warning {
         value: f64,
         /// The level (counts).
         level: f64,
+        /// The standard deviation the estimate had (withheld from the report), when the breakpoint is
+        /// not on the level but within this standard deviation of it.
+        std: Option<f64>,
     },
     /// A breakpoint outside the range of the input: no data on one side of it.
     BreakpointNotBracketed {
@@ -147,10 +150,34 @@ impl std::fmt::Display for Warning {
                 "{why}; the linear ARX model of the same orders does better (the fallback option returns \
                  it as a Hammerstein model with b_l = b_r = 0)"
             ),
-            Warning::BreakpointOnInputLevel { name, value, level } => write!(
+            Warning::BreakpointOnInputLevel {
+                name,
+                value,
+                level,
+                std: None,
+            } => write!(
                 f,
-                "{name} = {value:.6} lies on the input level {level} (within its standard deviation): the \
-                 criterion has a kink there, so its standard deviation is not meaningful (not reported)"
+                "{name} = {value:.6} lies on the input level {level}: the criterion has a kink there, so \
+                 its standard deviation is not meaningful (not reported)"
+            ),
+            Warning::BreakpointOnInputLevel {
+                name,
+                value,
+                level,
+                std: Some(std),
+            } => write!(
+                f,
+                "{name} = {value:.6} is {} from the input level {level}, less than its standard deviation \
+                 {std:.3}: the criterion has a kink within that uncertainty, so the standard deviation is not \
+                 meaningful (not reported)",
+                {
+                    let d = (value - level).abs();
+                    if d >= 1e-3 {
+                        format!("{d:.3}")
+                    } else {
+                        format!("{d:.1e}")
+                    }
+                }
             ),
             Warning::BreakpointNotBracketed {
                 name,

@@ -354,6 +354,7 @@ fn run_study(args: &Args, calibration: Calibration, n: usize) -> anyhow::Result<
                     "parameter": e.parameter.name(),
                     "truth": e.parameter.get(&c.truth),
                     "estimate": e.value,
+                    "std": e.std,
                     "relative_error": r,
                     "determined": d,
                 })).collect::<Vec<_>>(),

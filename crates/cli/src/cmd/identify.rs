@@ -113,7 +113,8 @@ pub struct Args {
     /// 100); `1` is the paper's single pass; N runs exactly N (later passes restart P and refine).
     #[arg(long, default_value = "auto", value_parser = parse_passes)]
     pub passes: Passes,
-    /// Maximum key-term iterations (Hammerstein with --method ls).
+    /// Maximum iterations of the key-term iteration (Hammerstein with --method ls) and of the
+    /// output-error search (--method oe).
     #[arg(long, default_value_t = 100)]
     pub max_iterations: usize,
     /// RLS covariance form.

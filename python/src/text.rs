@@ -1,0 +1,124 @@
+//! `str(model)`: a model as the equations it stands for, with units (paper eqs. 1 and 5–7), for the
+//! Python package's `Model.__str__`. Rendering only; the numbers are the model's.
+
+use std::fmt::Write;
+
+use sysid::{Model, StaticNonlinearity};
+
+/// A number with 4 significant digits (scientific notation outside 1e-3..1e5).
+fn num(v: f64) -> String {
+    if v == 0.0 || !v.is_finite() {
+        return format!("{v}");
+    }
+    let mag = v.abs().log10().floor();
+    if !(-3.0..5.0).contains(&mag) {
+        return format!("{v:.3e}");
+    }
+    let decimals = (3.0 - mag).max(0.0) as usize;
+    let s = format!("{v:.decimals$}");
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    }
+}
+
+/// `s(k)` or `s(k−lag)`.
+fn lagged(signal: &str, lag: usize) -> String {
+    if lag == 0 {
+        format!("{signal}(k)")
+    } else {
+        format!("{signal}(k−{lag})")
+    }
+}
+
+/// `+ c·s` / `− c·s` for the next term of a sum.
+fn term(out: &mut String, first: &mut bool, coefficient: f64, signal: &str) {
+    let sign = if coefficient < 0.0 { "−" } else { "+" };
+    if *first {
+        let lead = if coefficient < 0.0 { "−" } else { "" };
+        let _ = write!(out, "{lead}{} {signal}", num(coefficient.abs()));
+        *first = false;
+    } else {
+        let _ = write!(out, " {sign} {} {signal}", num(coefficient.abs()));
+    }
+}
+
+/// The model as equations: the static nonlinearity of each input, then the difference equation
+/// y(k) = −a1 y(k−1) − … + Σ b_j x(k−nk−j+1) + c, with Ts and the units (u in PWM counts, y in mm for the
+/// IPA; the slopes carry the gain since b1 = 1 for a nonlinear input).
+pub(crate) fn equations(m: &Model) -> String {
+    let mut o = String::new();
+    let several = m.inputs().len() > 1;
+    let _ = writeln!(
+        o,
+        "{} model, Ts = {} s (u in PWM counts, y in mm; {} parameters)",
+        match m.kind().to_string().as_str() {
+            "arx" => "ARX".to_string(),
+            "hammerstein" => "Hammerstein".to_string(),
+            other => other.to_string(),
+        },
+        num(m.ts()),
+        m.parameter_count()
+    );
+    if let Some(op) = m.operating_point() {
+        let _ = writeln!(
+            o,
+            "  signals are deviations from the operating point u0 = {:?}, y0 = {} mm",
+            op.u.iter().map(|v| num(*v)).collect::<Vec<_>>(),
+            num(op.y)
+        );
+    }
+    let mut rhs = String::new();
+    let mut first = true;
+    for (i, a) in m.a().iter().enumerate() {
+        term(&mut rhs, &mut first, -a, &lagged("y", i + 1));
+    }
+    for ch in m.inputs() {
+        let (u, x) = if several {
+            (format!("{}(k)", ch.name()), format!("x_{}", ch.name()))
+        } else {
+            ("u(k)".to_string(), "x".to_string())
+        };
+        match ch.nonlinearity() {
+            StaticNonlinearity::Linear => {
+                let _ = writeln!(o, "  {x}(k) = {u}");
+            }
+            StaticNonlinearity::Deadzone(d) => {
+                // u − b written as u + |b| for a negative breakpoint.
+                let shifted = |b: f64| {
+                    if b < 0.0 {
+                        format!("{u} + {}", num(-b))
+                    } else {
+                        format!("{u} − {}", num(b))
+                    }
+                };
+                let _ = writeln!(
+                    o,
+                    "  {x}(k) = {} ({})  if {u} ≥ b_r = {} counts\n  {x}(k) = 0  if b_l < {u} < b_r\n  {x}(k) = {} ({})  if {u} ≤ b_l = {} counts",
+                    num(d.m_r),
+                    shifted(d.b_r),
+                    num(d.b_r),
+                    num(d.m_l),
+                    shifted(d.b_l),
+                    num(d.b_l)
+                );
+            }
+            #[allow(unreachable_patterns)] // kinds added later print their own Debug form
+            other => {
+                let _ = writeln!(o, "  {x}(k) = f({u}), f = {other:?}");
+            }
+        }
+        for (j, b) in ch.b().iter().enumerate() {
+            term(&mut rhs, &mut first, *b, &lagged(&x, ch.nk() + j));
+        }
+    }
+    if let Some(c) = m.offset() {
+        term(&mut rhs, &mut first, c, "");
+    }
+    if first {
+        rhs.push('0');
+    }
+    let _ = write!(o, "  y(k) = {}", rhs.trim_end());
+    o
+}

@@ -499,17 +499,17 @@ pub fn tune(
     }
     while simplex.len() == P + 1 && used + 2 <= settings.max_evaluations {
         simplex.sort_by(|a, b| a.1.total_cmp(&b.1));
-        let worst = simplex[4];
-        let mut centroid = [0.0; 4];
-        for (x, _) in &simplex[..4] {
-            for i in 0..4 {
-                centroid[i] += x[i] / 4.0;
+        let worst = simplex[P];
+        let mut centroid = [0.0; P];
+        for (x, _) in &simplex[..P] {
+            for (c, xi) in centroid.iter_mut().zip(x) {
+                *c += xi / P as f64;
             }
         }
         let along = |t: f64| {
             let mut x = [0.0; P];
-            for i in 0..4 {
-                x[i] = centroid[i] + t * (worst.0[i] - centroid[i]);
+            for ((xi, c), w) in x.iter_mut().zip(&centroid).zip(&worst.0) {
+                *xi = c + t * (w - c);
             }
             clamp(x)
         };
@@ -529,16 +529,16 @@ pub fn tune(
             } else {
                 // Shrink towards the best.
                 let b = simplex[0].0;
-                for j in 1..5 {
+                for vertex in simplex.iter_mut().skip(1) {
                     if used >= settings.max_evaluations {
                         break;
                     }
                     let mut x = [0.0; P];
-                    for i in 0..4 {
-                        x[i] = b[i] + 0.5 * (simplex[j].0[i] - b[i]);
+                    for ((xi, bi), vi) in x.iter_mut().zip(&b).zip(&vertex.0) {
+                        *xi = bi + 0.5 * (vi - bi);
                     }
                     let f = eval(x, &mut used, &mut best)?;
-                    simplex[j] = (x, f);
+                    *vertex = (x, f);
                 }
             }
         }

@@ -1,6 +1,8 @@
 //! The tuner (`control::tune`): specification, evaluation, margins against closed forms, and a search
 //! that reaches the specification on a plant where it is reachable.
 
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests may panic
+
 use control::tune::{self, Spec, TuneSettings};
 use control::{ControlError, ControlSetting, Controller, ControllerSettings};
 use sysid_core::{Deadzone, Model, ModelPlant, Plant};

@@ -64,6 +64,23 @@ pub struct ControllerSettings {
 }
 
 impl ControllerSettings {
+    /// A plain PI with clamping anti-windup at Ts = `ts_s`: Kp, Ki, no derivative, u_max = 255 counts, no
+    /// hold or fine band, no integral reset, no compensator (the other fields are public to set).
+    pub fn pi(ts_s: f64, kp: f64, ki: f64) -> Self {
+        ControllerSettings {
+            ts_s,
+            kp,
+            ki,
+            kd: 0.0,
+            derivative_filter_s: 0.0,
+            u_max: crate::PiSettings::U_MAX_PWM,
+            hold_band_mm: 0.0,
+            fine_band_mm: 0.0,
+            reset_on_crossing: false,
+            compensator: None,
+        }
+    }
+
     /// Checks every field; errors name the [`ControlSetting`] at fault.
     pub fn validate(&self) -> Result<(), ControlError> {
         let nonneg = |setting: ControlSetting, v: f64, unit: &str| {
@@ -275,18 +292,7 @@ mod tests {
     use sysid_core::Deadzone;
 
     fn plain(kp: f64, ki: f64) -> ControllerSettings {
-        ControllerSettings {
-            ts_s: 0.01,
-            kp,
-            ki,
-            kd: 0.0,
-            derivative_filter_s: 0.0,
-            u_max: 255.0,
-            hold_band_mm: 0.0,
-            fine_band_mm: 0.0,
-            reset_on_crossing: false,
-            compensator: None,
-        }
+        ControllerSettings::pi(0.01, kp, ki)
     }
 
     // Without D, hold or compensator it is the PI with clamping: u(0) = Kp e + Ki Ts e.

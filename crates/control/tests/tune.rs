@@ -26,18 +26,7 @@ fn integrator(nk: usize, m: f64, dz: (f64, f64)) -> Model {
 }
 
 fn p_only(kp: f64) -> ControllerSettings {
-    ControllerSettings {
-        ts_s: 0.01,
-        kp,
-        ki: 0.0,
-        kd: 0.0,
-        derivative_filter_s: 0.0,
-        u_max: 255.0,
-        hold_band_mm: 0.0,
-        fine_band_mm: 0.0,
-        reset_on_crossing: false,
-        compensator: None,
-    }
+    ControllerSettings::pi(0.01, kp, 0.0)
 }
 
 // L(e^{jθ}) = Kp m e^{-jθ}/(1 - e^{-jθ}): |L| = Kp m / (2 sin(θ/2)), arg L = -90° - θ/2.

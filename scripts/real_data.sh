@@ -96,6 +96,9 @@ CH_OE=("$na" "$nb" "$nk")
 header
 row "ARX + offset, ls, chosen by \`order\`" "${TANKS[@]}" --na "${CH_LS[0]}" --nb "${CH_LS[1]}" --nk "${CH_LS[2]}" --structure arx --method ls
 row "ARX + offset, oe, chosen by \`order --method oe\`" "${TANKS[@]}" --na "${CH_OE[0]}" --nb "${CH_OE[1]}" --nk "${CH_OE[2]}" --structure arx --method oe
+row "ARX + offset + output saturation (Wiener)" "${TANKS[@]}" --na 2 --nb 2 --nk 1 --structure arx --method ls --output-nonlinearity saturation
+row "ARX + offset + output piecewise-linear K = 2 (Wiener), smallest estimation AIC of 27" "${TANKS[@]}" --na 4 --nb 4 --nk 1 --structure arx --method ls --output-nonlinearity piecewise-linear --breakpoints 2
+row "polynomial D = 2 + ARX + offset + output saturation (Hammerstein–Wiener)" "${TANKS[@]}" --na 2 --nb 2 --nk 1 --nonlinearity polynomial --degree 2 --method ls --output-nonlinearity saturation
 echo
 delay_line --data $T --u-col uEst --y-col yEst --ts 4
 

@@ -159,6 +159,12 @@ def identify(
     validation_name: str = "validation",
     resid_lags: int = 25,
     fallback: bool = False,
+    nonlinearity: Literal[
+        "linear", "deadzone", "saturation", "deadzone-saturation", "piecewise-linear", "polynomial"
+    ] | None = None,
+    breakpoints: int | Literal["auto"] | None = None,
+    degree: int | None = None,
+    output_nonlinearity: Literal["saturation", "piecewise-linear", "polynomial"] | None = None,
 ) -> Fit:
     """Identifies a model as `ipa-sysid identify` does with the same options."""
 

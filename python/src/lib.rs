@@ -17,8 +17,8 @@ use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
 use sysid::data::{Dataset, Signals};
-use sysid::summary::IdentifyReport;
 use sysid::{IdentifyOptions, Model, Setting, SysidError};
+use sysid_summary::IdentifyReport;
 
 mod text;
 
@@ -600,12 +600,16 @@ fn py_float(v: Option<f64>) -> String {
 /// (mm) sampled every `ts` s, as `ipa-sysid identify` does with the same options; `validation` =
 /// (u_val, y_val) adds validation metrics. `name` and `validation_name` name the records in messages
 /// (the command line uses the file names). `nonlinearity` ("deadzone" or "linear", the command line's
-/// `--nonlinearity`) chooses the input's static nonlinearity instead of `model`.
+/// `--nonlinearity`: "linear", "deadzone", "saturation", "deadzone-saturation", "piecewise-linear" with
+/// `breakpoints` K, "polynomial" with `degree` D) chooses the input's static nonlinearity instead of
+/// `model`; `output_nonlinearity` ("saturation", "piecewise-linear", "polynomial", the command line's
+/// `--output-nonlinearity`) adds y = g(v) after the linear block, fitted by output error.
 #[pyfunction]
 #[pyo3(signature = (u, y, ts, model="hammerstein", method="rls", na=3, nb=1, nk=1, forgetting=1.0,
     p0=1e6, offset=false, validation=None, passes=None, max_iterations=100, rls_form="standard",
     windup="none", max_trace=None, iv_stages=10, name="data", validation_name="validation",
-    resid_lags=25, fallback=false, nonlinearity=None))]
+    resid_lags=25, fallback=false, nonlinearity=None, breakpoints=None, degree=None,
+    output_nonlinearity=None))]
 #[allow(clippy::too_many_arguments)]
 fn identify(
     py: Python<'_>,
@@ -632,11 +636,44 @@ fn identify(
     resid_lags: usize,
     fallback: bool,
     nonlinearity: Option<&str>,
+    breakpoints: Option<Bound<'_, PyAny>>,
+    degree: Option<usize>,
+    output_nonlinearity: Option<&str>,
 ) -> PyResult<PyFit> {
+    // K >= 1, or "auto" (the command line's --breakpoints auto).
+    let breakpoints = breakpoints
+        .map(|b| match b.extract::<String>() {
+            Ok(t) if t == "auto" => Ok(sysid::blocks::AUTO_BREAKPOINTS),
+            _ => match b.extract::<usize>() {
+                Ok(k) if k >= 1 => Ok(k),
+                _ => Err(PyValueError::new_err(
+                    "breakpoints: expected a whole number of breakpoints from 1, or \"auto\"",
+                )),
+            },
+        })
+        .transpose()?;
+    let sized = |k: sysid::NonlinearityKind| {
+        let k = breakpoints.map_or(k, |n| k.with_breakpoints(n));
+        degree.map_or(k, |d| k.with_degree(d))
+    };
+    let output = output_nonlinearity
+        .map(str::parse::<sysid::NonlinearityKind>)
+        .transpose()
+        .map_err(|e| PyValueError::new_err(format!("output_nonlinearity: {e}")))?
+        .map(sized);
     let nonlinearity = nonlinearity
         .map(str::parse::<sysid::NonlinearityKind>)
         .transpose()
-        .map_err(|e| PyValueError::new_err(format!("nonlinearity: {e}")))?;
+        .map_err(|e| PyValueError::new_err(format!("nonlinearity: {e}")))?
+        .map(sized);
+    let piecewise = |k: &Option<sysid::NonlinearityKind>| {
+        matches!(k, Some(sysid::NonlinearityKind::PiecewiseLinear { .. }))
+    };
+    if breakpoints.is_some() && !piecewise(&nonlinearity) && !piecewise(&output) {
+        return Err(PyValueError::new_err(
+            "breakpoints: is for nonlinearity= or output_nonlinearity=\"piecewise-linear\" (it sets its number of breakpoints)",
+        ));
+    }
     let options = IdentifyOptions {
         model: choice("--model", model)?,
         na,
@@ -663,6 +700,7 @@ fn identify(
             nonlinearity,
         }]);
     }
+    settings = settings.with_output_nonlinearity(output);
     settings.check().map_err(sysid_err)?;
     let data = dataset(u, y, ts, name)?;
     let val = validation

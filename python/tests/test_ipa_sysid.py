@@ -134,7 +134,49 @@ def test_nonlinearity_keyword_matches_cli(records, tmp_path, nonlinearity, model
     assert_same({k: fit.to_dict()[k] for k in expected}, expected)
     assert fit.model.kind == model
     with pytest.raises(ValueError, match="nonlinearity"):
-        ipa_sysid.identify(e["u"], e["y"], 0.01, nonlinearity="saturation")
+        ipa_sysid.identify(e["u"], e["y"], 0.01, nonlinearity="sigmoid")
+
+
+@pytest.mark.parametrize("words,flags", [
+    ({"nonlinearity": "saturation"}, ["--nonlinearity", "saturation"]),
+    ({"nonlinearity": "deadzone-saturation"}, ["--nonlinearity", "deadzone-saturation"]),
+    ({"nonlinearity": "piecewise-linear", "breakpoints": 3},
+     ["--nonlinearity", "piecewise-linear", "--breakpoints", 3]),
+    ({"nonlinearity": "polynomial", "degree": 2}, ["--nonlinearity", "polynomial", "--degree", 2]),
+])
+def test_input_nonlinearity_words_match_cli(records, tmp_path, words, flags):
+    # The same words as keyword arguments: nonlinearity=, breakpoints=, degree= give the CLI's fit.
+    est, _ = records
+    out = tmp_path / "fit.json"
+    cli("identify", "--data", est, "--ts", 0.01, "--method", "ls", *flags, "--json", out)
+    expected = json.loads(out.read_text())
+    e = read_csv(est)
+    fit = ipa_sysid.identify(e["u"], e["y"], 0.01, method="ls", name=str(est), **words)
+    assert_same({k: fit.to_dict()[k] for k in expected}, expected)
+    assert expected["model"]["nonlinearity"]["kind"] == words["nonlinearity"]
+
+
+def test_output_nonlinearity_keyword_matches_cli(records, tmp_path):
+    # output_nonlinearity= is --output-nonlinearity: y = g(v) after the linear block, fitted by output error.
+    est, _ = records
+    out = tmp_path / "fit.json"
+    cli("identify", "--data", est, "--ts", 0.01, "--method", "ls", "--output-nonlinearity", "polynomial",
+        "--degree", 2, "--json", out)
+    expected = json.loads(out.read_text())
+    e = read_csv(est)
+    fit = ipa_sysid.identify(e["u"], e["y"], 0.01, method="ls", output_nonlinearity="polynomial", degree=2,
+                             name=str(est))
+    assert_same({k: fit.to_dict()[k] for k in expected}, expected)
+    assert expected["model"]["output_nonlinearity"]["kind"] == "polynomial"
+    with pytest.raises(ValueError, match="output_nonlinearity"):
+        ipa_sysid.identify(e["u"], e["y"], 0.01, output_nonlinearity="deadzone")
+
+
+def test_breakpoints_keyword_needs_a_piecewise_input(records):
+    est, _ = records
+    e = read_csv(est)
+    with pytest.raises(ValueError, match="breakpoints"):
+        ipa_sysid.identify(e["u"], e["y"], 0.01, nonlinearity="saturation", breakpoints=2)
 
 
 def test_inputs_lists_and_pandas_give_the_same_fit(records):

@@ -3,8 +3,8 @@
 
 use report::format::num;
 use sysid::metrics::Metrics;
-use sysid::summary::{IdentifyReport, ResidualEntry};
 use sysid::{Method, ParamName};
+use sysid_summary::{IdentifyReport, ResidualEntry};
 
 /// A row of the text metrics table: label and how to format the value from a [`Metrics`].
 type MetricRow = (&'static str, fn(&Metrics) -> String);
@@ -26,174 +26,218 @@ trait ToText {
 impl ToText for IdentifyReport {
     fn to_text(&self) -> String {
         use std::fmt::Write;
-        let m = &self.model;
         let mut s = String::new();
-        let kind = match m.kind() {
-            sysid::ModelKind::Arx => "Linear ARX".to_string(),
-            sysid::ModelKind::Hammerstein => "Hammerstein (deadzone + ARX)".to_string(),
-        };
-        let several = m.inputs().len() > 1;
-        let orders = if several {
-            format!("{} inputs, na = {}", m.inputs().len(), m.na())
-        } else {
-            format!("na = {} nb = {} nk = {}", m.na(), m.nb(), m.nk())
-        };
-        let _ = writeln!(
-            s,
-            "{kind} model, {orders}, Ts = {} s, estimated by {} ({} {}, {})",
-            num(m.ts()),
-            self.estimation.method,
-            self.estimation.iterations,
-            match self.estimation.method {
-                Method::Ls | Method::Oe => "iteration(s)",
-                Method::Rls => "pass(es)",
-                Method::Iv => "stage(s)",
-            },
-            if self.estimation.converged {
-                "converged"
-            } else {
-                "NOT converged"
-            }
-        );
-        if several {
-            for ch in m.inputs() {
-                let _ = writeln!(
-                    s,
-                    "  input {}: nb = {}, nk = {}, {}",
-                    ch.name(),
-                    ch.nb(),
-                    ch.nk(),
-                    sysid::NonlinearityKind::of(ch.nonlinearity())
-                );
-            }
-        }
-        if let Some(note) = &self.estimation.note {
-            let _ = writeln!(s, "note: {note}");
-        }
-        let _ = writeln!(s, "\nParameters (estimate ± standard deviation)");
-        let width = if several { 14 } else { 6 };
-        for p in &self.parameters {
-            // b1 = 1 of an input with a static nonlinearity is the key-term normalisation.
-            let normalised = p.name == ParamName::B(1)
-                && m.inputs()
-                    .iter()
-                    .find(|c| p.input.as_deref().is_none_or(|i| i == c.name()))
-                    .is_some_and(|c| !c.nonlinearity().is_linear());
-            let sd = match p.std {
-                Some(v) => format!("± {}", num(v)),
-                None if normalised => "(fixed: normalisation)".into(),
-                None => "± n/a".into(),
-            };
-            let _ = writeln!(s, "  {:<width$} = {:>14}  {sd}", p.label(), num(p.value));
-        }
-        let poles: Vec<String> = self
-            .poles
-            .iter()
-            .map(|p| {
-                if p.im.abs() < 1e-12 {
-                    num(p.re)
-                } else {
-                    format!(
-                        "{} {} {}i",
-                        num(p.re),
-                        if p.im < 0.0 { "-" } else { "+" },
-                        num(p.im.abs())
-                    )
-                }
-            })
-            .collect();
-        let _ = writeln!(
-            s,
-            "\nPoles: {}  → {}",
-            if poles.is_empty() {
-                "none".to_string()
-            } else {
-                poles.join(", ")
-            },
-            if self.stable {
-                "stable (all inside the unit circle)"
-            } else {
-                "UNSTABLE (a pole on or outside the unit circle)"
-            }
-        );
-        let val = self.metrics.validation.as_ref();
-        let _ = writeln!(
-            s,
-            "\n{:<22}{:>16}{:>16}",
-            "Metric",
-            "estimation",
-            if val.is_some() { "validation" } else { "" }
-        );
-        let rows: [MetricRow; 12] = [
-            ("fit % (simulation)", |m| opt(m.fit_sim_percent)),
-            (
-                "fit % (sim., y0 meas.)",
-                |m| opt(m.fit_sim_measured_percent),
-            ),
-            ("fit % (1-step pred.)", |m| opt(m.fit_pred_percent)),
-            ("RMSE (simulation)", |m| opt(m.rmse_sim)),
-            ("RMSE (sim., y0 meas.)", |m| opt(m.rmse_sim_measured)),
-            ("RMSE (1-step pred.)", |m| num(m.rmse_pred)),
-            ("loss V (eq. 14)", |m| num(m.loss)),
-            ("loss V_sim (sim.)", |m| opt(m.loss_sim)),
-            ("FPE (eq. 15)", |m| opt(m.fpe)),
-            ("AIC (normalised)", |m| opt(m.aic)),
-            ("N (rows used)", |m| m.n.to_string()),
-            ("p (parameters)", |m| m.p.to_string()),
-        ];
-        for (label, f) in rows {
-            let _ = writeln!(
-                s,
-                "{label:<22}{:>16}{:>16}",
-                f(&self.metrics.estimation),
-                val.map(f).unwrap_or_default()
-            );
-        }
-        if let Some(records) = &self.records {
-            let _ = writeln!(
-                s,
-                "\nEstimation records (each simulated from its own estimated initial outputs; the \
-                 estimation column above pools their rows)\n{:<50} {:>8} {:>14} {:>14}",
-                "record", "N", "fit sim %", "fit pred %"
-            );
-            for r in records {
-                let _ = writeln!(
-                    s,
-                    "{:<50} {:>8} {:>14} {:>14}",
-                    r.data,
-                    r.metrics.n,
-                    opt(r.metrics.fit_sim_percent),
-                    opt(r.metrics.fit_pred_percent)
-                );
-            }
-        }
-        for (which, mm) in [
-            ("estimation", Some(&self.metrics.estimation)),
-            ("validation", val),
-        ] {
-            if let Some(note) = mm.and_then(|m| m.note.as_ref()) {
-                let _ = writeln!(s, "note ({which}): {note}");
-            }
-        }
-        let mut entries = match &self.records {
-            Some(records) => records
-                .iter()
-                .map(|r| (r.data.as_str(), &r.residuals))
-                .collect(),
-            None => vec![("estimation", &self.residuals.estimation)],
-        };
-        entries.extend(
-            self.residuals
-                .validation
-                .as_ref()
-                .map(|v| ("validation", v)),
-        );
-        s.push_str(&residuals_text(&entries));
+        header_text(self, &mut s);
+        parameters_text(self, &mut s);
+        poles_text(self, &mut s);
+        metrics_text(self, &mut s);
+        residuals_of(self, &mut s);
         for w in &self.warnings {
             let _ = writeln!(s, "warning: {w}");
         }
         s
     }
+}
+
+/// The model, its orders, how it was estimated, each input, the estimator's note.
+fn header_text(r: &IdentifyReport, s: &mut String) {
+    use std::fmt::Write;
+    let m = &r.model;
+    let kind = match m.kind() {
+        sysid::ModelKind::Arx => "Linear ARX".to_string(),
+        sysid::ModelKind::Hammerstein if m.inputs().len() == 1 => format!(
+            "Hammerstein ({} + ARX)",
+            sysid::NonlinearityKind::of(m.input().nonlinearity())
+        ),
+        sysid::ModelKind::Hammerstein => "Hammerstein (static nonlinearities + ARX)".to_string(),
+    };
+    let kind = match m.output_nonlinearity() {
+        Some(g) => format!("{kind} + output {}", sysid::NonlinearityKind::of(g)),
+        None => kind,
+    };
+    let several = m.inputs().len() > 1;
+    let orders = if several {
+        format!("{} inputs, na = {}", m.inputs().len(), m.na())
+    } else {
+        format!("na = {} nb = {} nk = {}", m.na(), m.nb(), m.nk())
+    };
+    let _ = writeln!(
+        s,
+        "{kind} model, {orders}, Ts = {} s, estimated by {} ({} {}, {})",
+        num(m.ts()),
+        r.estimation.method,
+        r.estimation.iterations,
+        match r.estimation.method {
+            Method::Ls | Method::Oe => "iteration(s)",
+            Method::Rls => "pass(es)",
+            Method::Iv => "stage(s)",
+        },
+        if r.estimation.converged {
+            "converged"
+        } else {
+            "NOT converged"
+        }
+    );
+    if several {
+        for ch in m.inputs() {
+            let _ = writeln!(
+                s,
+                "  input {}: nb = {}, nk = {}, {}",
+                ch.name(),
+                ch.nb(),
+                ch.nk(),
+                sysid::NonlinearityKind::of(ch.nonlinearity())
+            );
+        }
+    }
+    if let Some(note) = &r.estimation.note {
+        let _ = writeln!(s, "note: {note}");
+    }
+}
+
+/// The parameters with their standard deviations (or why there is none).
+fn parameters_text(r: &IdentifyReport, s: &mut String) {
+    use std::fmt::Write;
+    let m = &r.model;
+    let _ = writeln!(s, "\nParameters (estimate ± standard deviation)");
+    let several = m.inputs().len() > 1;
+    let width = if several || m.output_nonlinearity().is_some() {
+        14
+    } else {
+        6
+    };
+    for p in &r.parameters {
+        // b1 = 1 of an input with a static nonlinearity is the key-term normalisation.
+        let normalised = p.name == ParamName::B(1)
+            && m.inputs()
+                .iter()
+                .find(|c| p.input.as_deref().is_none_or(|i| i == c.name()))
+                .is_some_and(|c| !c.nonlinearity().is_linear())
+            // The output nonlinearity's gain is held fixed (its scale is the linear block's).
+            || (p.input.as_deref() == Some(sysid::oe::OUTPUT)
+                && matches!(
+                    p.name,
+                    ParamName::M | ParamName::Slope(0) | ParamName::Poly(1)
+                ));
+        let sd = match p.std {
+            Some(v) => format!("± {}", num(v)),
+            None if normalised => "(fixed: normalisation)".into(),
+            None => "± n/a".into(),
+        };
+        let _ = writeln!(s, "  {:<width$} = {:>14}  {sd}", p.label(), num(p.value));
+    }
+}
+
+/// The poles and the stability verdict.
+fn poles_text(r: &IdentifyReport, s: &mut String) {
+    use std::fmt::Write;
+    let poles: Vec<String> = r
+        .poles
+        .iter()
+        .map(|p| {
+            if p.im.abs() < 1e-12 {
+                num(p.re)
+            } else {
+                format!(
+                    "{} {} {}i",
+                    num(p.re),
+                    if p.im < 0.0 { "-" } else { "+" },
+                    num(p.im.abs())
+                )
+            }
+        })
+        .collect();
+    let _ = writeln!(
+        s,
+        "\nPoles: {}  → {}",
+        if poles.is_empty() {
+            "none".to_string()
+        } else {
+            poles.join(", ")
+        },
+        if r.stable {
+            "stable (all inside the unit circle)"
+        } else {
+            "UNSTABLE (a pole on or outside the unit circle)"
+        }
+    );
+}
+
+/// The metrics table (estimation, validation), each record's fits, the metrics' notes.
+fn metrics_text(r: &IdentifyReport, s: &mut String) {
+    use std::fmt::Write;
+    let val = r.metrics.validation.as_ref();
+    let _ = writeln!(
+        s,
+        "\n{:<22}{:>16}{:>16}",
+        "Metric",
+        "estimation",
+        if val.is_some() { "validation" } else { "" }
+    );
+    let rows: [MetricRow; 12] = [
+        ("fit % (simulation)", |m| opt(m.fit_sim_percent)),
+        (
+            "fit % (sim., y0 meas.)",
+            |m| opt(m.fit_sim_measured_percent),
+        ),
+        ("fit % (1-step pred.)", |m| opt(m.fit_pred_percent)),
+        ("RMSE (simulation)", |m| opt(m.rmse_sim)),
+        ("RMSE (sim., y0 meas.)", |m| opt(m.rmse_sim_measured)),
+        ("RMSE (1-step pred.)", |m| num(m.rmse_pred)),
+        ("loss V (eq. 14)", |m| num(m.loss)),
+        ("loss V_sim (sim.)", |m| opt(m.loss_sim)),
+        ("FPE (eq. 15)", |m| opt(m.fpe)),
+        ("AIC (normalised)", |m| opt(m.aic)),
+        ("N (rows used)", |m| m.n.to_string()),
+        ("p (parameters)", |m| m.p.to_string()),
+    ];
+    for (label, f) in rows {
+        let _ = writeln!(
+            s,
+            "{label:<22}{:>16}{:>16}",
+            f(&r.metrics.estimation),
+            val.map(f).unwrap_or_default()
+        );
+    }
+    if let Some(records) = &r.records {
+        let _ = writeln!(
+            s,
+            "\nEstimation records (each simulated from its own estimated initial outputs; the \
+             estimation column above pools their rows)\n{:<50} {:>8} {:>14} {:>14}",
+            "record", "N", "fit sim %", "fit pred %"
+        );
+        for r in records {
+            let _ = writeln!(
+                s,
+                "{:<50} {:>8} {:>14} {:>14}",
+                r.data,
+                r.metrics.n,
+                opt(r.metrics.fit_sim_percent),
+                opt(r.metrics.fit_pred_percent)
+            );
+        }
+    }
+    for (which, mm) in [
+        ("estimation", Some(&r.metrics.estimation)),
+        ("validation", val),
+    ] {
+        if let Some(note) = mm.and_then(|m| m.note.as_ref()) {
+            let _ = writeln!(s, "note ({which}): {note}");
+        }
+    }
+}
+
+/// The residual analysis of each record.
+fn residuals_of(r: &IdentifyReport, s: &mut String) {
+    let mut entries = match &r.records {
+        Some(records) => records
+            .iter()
+            .map(|r| (r.data.as_str(), &r.residuals))
+            .collect(),
+        None => vec![("estimation", &r.residuals.estimation)],
+    };
+    entries.extend(r.residuals.validation.as_ref().map(|v| ("validation", v)));
+    s.push_str(&residuals_text(&entries));
 }
 
 /// The residual analysis of each labelled record as text: verdicts, statistics and the worst lags.

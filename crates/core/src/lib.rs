@@ -24,7 +24,9 @@ pub mod structure;
 pub use data::Dataset;
 pub use error::{PlantError, Setting, SysidError};
 pub use model::{InputChannel, Model, ModelKind, ModelPlant, NoiseModel, Orders};
-pub use nonlinearity::{Deadzone, StaticNonlinearity};
+pub use nonlinearity::{
+    Deadzone, DeadzoneSaturation, PiecewiseLinear, Polynomial, Saturation, StaticNonlinearity,
+};
 pub use param::{ParamName, Parameterisation};
 pub use plant::{run_open_loop, Plant};
 pub use structure::Structure;

@@ -112,13 +112,14 @@ pub fn simulate_estimated_initial_signals(
     u: &[&[f64]],
     y: &[f64],
 ) -> Result<(Vec<f64>, Vec<f64>), SysidError> {
-    estimate_initial_from(model, y, model.simulate(u, y)?)
+    estimate_initial_from(model, u, y, model.simulate(u, y)?)
 }
 
 /// The estimated-initial-output simulation from `base`, the simulation from the measured initial
 /// outputs (see [`simulate_estimated_initial`]).
 fn estimate_initial_from(
     model: &Model,
+    u: &[&[f64]],
     y: &[f64],
     base: Vec<f64>,
 ) -> Result<(Vec<f64>, Vec<f64>), SysidError> {
@@ -128,10 +129,126 @@ fn estimate_initial_from(
     if k0 == 0 || n <= k0 {
         return Ok((base, y0));
     }
+    let phi = free_responses(model, n, k0)?;
+    if let Some(g) = model.output_nonlinearity() {
+        return estimate_initial_through_output(model, g, u, y, base, &phi);
+    }
+    let mut target = nalgebra::DVector::<f64>::zeros(n);
+    for k in k0..n {
+        target[k] = y[k] - base[k];
+    }
+    // A free response that is identically zero after k0 (a pole at 0) still has its unit row below
+    // k0, so the problem is never rank deficient.
+    let sol = crate::ls::solve(&phi, &target, &[])?;
+    let eta: Vec<f64> = (0..k0).map(|j| y0[j] + sol.theta[j]).collect();
+    let mut out = base;
+    for (k, o) in out.iter_mut().enumerate() {
+        let shift: f64 = (0..k0).map(|j| phi[(k, j)] * sol.theta[j]).sum();
+        *o += shift;
+    }
+    if out.iter().any(|v| !v.is_finite()) {
+        return Err(SysidError::Numerical(
+            "simulation of the model became non-finite (unstable model?)".into(),
+        ));
+    }
+    Ok((out, eta))
+}
+
+/// With an output nonlinearity y = g(v): v(η) = v_m + Φ δ is linear in the initial outputs (Φ the
+/// free responses, v_m the linear block's simulation from the measured ones) but y is not, so δ
+/// minimises Σ (y − g(v_m + Φ δ))² by Gauss–Newton (J = diag g'(v) Φ; at most 20 steps, each halved
+/// until the loss falls). η is returned as the linear block's initial outputs v(0..k0−1).
+fn estimate_initial_through_output(
+    model: &Model,
+    g: &crate::StaticNonlinearity,
+    u: &[&[f64]],
+    y: &[f64],
+    base: Vec<f64>,
+    phi: &nalgebra::DMatrix<f64>,
+) -> Result<(Vec<f64>, Vec<f64>), SysidError> {
+    let n = base.len();
+    let k0 = phi.ncols();
+    let y0 = model.operating_point().map_or(0.0, |o| o.y);
+    let v_m = model.simulate_linear_part(u, y)?;
+    let dy: Vec<f64> = y.iter().map(|v| v - y0).collect();
+    let v_of = |d: &[f64]| -> Vec<f64> {
+        (0..n)
+            .map(|k| v_m[k] + (0..k0).map(|j| phi[(k, j)] * d[j]).sum::<f64>())
+            .collect()
+    };
+    let loss = |v: &[f64]| -> f64 {
+        (0..n)
+            .map(|k| {
+                let yk = if k < k0 { v[k] } else { g.apply(v[k]) };
+                (dy[k] - yk).powi(2)
+            })
+            .sum()
+    };
+    let mut delta = vec![0.0; k0];
+    let mut v = v_of(&delta);
+    let mut cost = loss(&v);
+    for _ in 0..20 {
+        let mut jac = phi.clone();
+        let mut r = nalgebra::DVector::<f64>::zeros(n);
+        for k in 0..n {
+            let (yk, slope) = if k < k0 {
+                (v[k], 1.0)
+            } else {
+                (g.apply(v[k]), g.slope(v[k]))
+            };
+            r[k] = dy[k] - yk;
+            for j in 0..k0 {
+                jac[(k, j)] *= slope;
+            }
+        }
+        let Ok(step) = crate::ls::solve(&jac, &r, &[]) else {
+            break;
+        };
+        let mut scale = 1.0;
+        let mut improved = false;
+        while scale > 1e-4 {
+            let trial: Vec<f64> = delta
+                .iter()
+                .zip(step.theta.iter())
+                .map(|(d, s)| d + scale * s)
+                .collect();
+            let tv = v_of(&trial);
+            let tc = loss(&tv);
+            if tc < cost {
+                let gain = (cost - tc) / cost.max(f64::MIN_POSITIVE);
+                delta = trial;
+                v = tv;
+                cost = tc;
+                improved = gain > 1e-12;
+                break;
+            }
+            scale *= 0.5;
+        }
+        if !improved {
+            break;
+        }
+    }
+    let mut out = base;
+    for (k, o) in out.iter_mut().enumerate().skip(k0) {
+        *o = g.apply(v[k]) + y0;
+    }
+    if out.iter().any(|v| !v.is_finite()) {
+        return Err(SysidError::Numerical(
+            "simulation of the model became non-finite (unstable model?)".into(),
+        ));
+    }
+    Ok((out, v[..k0].iter().map(|v| v + y0).collect()))
+}
+
+/// The k0 free responses s_j of 1/A(q) to a unit initial output j (rows k = 0..n−1).
+fn free_responses(
+    model: &Model,
+    n: usize,
+    k0: usize,
+) -> Result<nalgebra::DMatrix<f64>, SysidError> {
     let a = model.a();
     // Rows: k < k0 (the initial outputs themselves) then k ≥ k0; columns: the k0 free responses.
     let mut phi = nalgebra::DMatrix::<f64>::zeros(n, k0);
-    let mut target = nalgebra::DVector::<f64>::zeros(n);
     for j in 0..k0 {
         let mut s = vec![0.0; n];
         s[j] = 1.0;
@@ -151,24 +268,7 @@ fn estimate_initial_from(
             phi[(k, j)] = *v;
         }
     }
-    for k in k0..n {
-        target[k] = y[k] - base[k];
-    }
-    // A free response that is identically zero after k0 (a pole at 0) still has its unit row below
-    // k0, so the problem is never rank deficient.
-    let sol = crate::ls::solve(&phi, &target, &[])?;
-    let eta: Vec<f64> = (0..k0).map(|j| y0[j] + sol.theta[j]).collect();
-    let mut out = base;
-    for (k, o) in out.iter_mut().enumerate() {
-        let shift: f64 = (0..k0).map(|j| phi[(k, j)] * sol.theta[j]).sum();
-        *o += shift;
-    }
-    if out.iter().any(|v| !v.is_finite()) {
-        return Err(SysidError::Numerical(
-            "simulation of the model became non-finite (unstable model?)".into(),
-        ));
-    }
-    Ok((out, eta))
+    Ok(phi)
 }
 
 /// The one-step prediction ŷ(k|k−1) of `model` (MATLAB `predict(m, data, 1)` with estimated initial
@@ -248,7 +348,7 @@ fn record_sums(model: &Model, data: &Dataset) -> Result<MetricSums, SysidError> 
     // output-error predictor).
     let measured = model.simulate(u, y_all);
     let estimated = match &measured {
-        Ok(s) => estimate_initial_from(model, y_all, s.clone()).map_err(|e| e.to_string()),
+        Ok(s) => estimate_initial_from(model, u, y_all, s.clone()).map_err(|e| e.to_string()),
         Err(e) => Err(e.to_string()),
     };
     let pred = match (model.noise_model(), &estimated) {

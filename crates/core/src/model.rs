@@ -12,7 +12,10 @@ use nalgebra::{Complex, DMatrix};
 use serde::{Deserialize, Serialize};
 
 use crate::detrend::OperatingPoint;
-use crate::{Deadzone, StaticNonlinearity, SysidError};
+use crate::{
+    Deadzone, DeadzoneSaturation, PiecewiseLinear, Polynomial, Saturation, StaticNonlinearity,
+    SysidError,
+};
 
 /// Model orders of a single-input model: na poles, nb coefficients in B, nk samples of pure delay.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -166,6 +169,8 @@ pub struct Model {
     offset: Option<f64>,
     noise: NoiseModel,
     operating_point: Option<OperatingPoint>,
+    /// g of y = g(v), v the linear block's output (Wiener / Hammerstein–Wiener); `None`: y = v.
+    output: Option<StaticNonlinearity>,
 }
 
 impl Model {
@@ -197,7 +202,46 @@ impl Model {
             offset,
             noise: NoiseModel::EquationError,
             operating_point: None,
+            output: None,
         })
+    }
+
+    /// The same model with the output nonlinearity y = g(v) (MATLAB idnlhw's OutputNonlinearity): a
+    /// saturation, piecewise-linear map or polynomial on the output v of the linear block, or none.
+    /// Such a model predicts by simulation (its noise model is output error). Fails on another kind or a
+    /// non-finite parameter.
+    pub fn with_output_nonlinearity(
+        mut self,
+        g: Option<StaticNonlinearity>,
+    ) -> Result<Self, SysidError> {
+        if let Some(g) = &g {
+            let allowed = matches!(
+                g,
+                StaticNonlinearity::Saturation(_)
+                    | StaticNonlinearity::PiecewiseLinear(_)
+                    | StaticNonlinearity::Polynomial(_)
+            );
+            if !allowed {
+                return Err(SysidError::Data(
+                    "invalid model: the output nonlinearity must be a saturation, piecewise-linear map or polynomial"
+                        .into(),
+                ));
+            }
+            if !g.is_finite() {
+                return Err(SysidError::Data(
+                    "invalid model: a coefficient of the output nonlinearity is NaN or infinite"
+                        .into(),
+                ));
+            }
+            self.noise = NoiseModel::OutputError;
+        }
+        self.output = g;
+        Ok(self)
+    }
+
+    /// The output nonlinearity g of y = g(v), if any.
+    pub fn output_nonlinearity(&self) -> Option<&StaticNonlinearity> {
+        self.output.as_ref()
     }
 
     /// A single-input ARX model: A(q) y = B(q) u + c.
@@ -270,12 +314,16 @@ impl Model {
             offset: None,
             noise: NoiseModel::EquationError,
             operating_point: None,
+            output: None,
         }
     }
 
-    /// The same model with the noise model `noise` (what its one-step predictor is).
+    /// The same model with the noise model `noise` (what its one-step predictor is); a model with an
+    /// output nonlinearity keeps output error.
     pub fn with_noise_model(mut self, noise: NoiseModel) -> Self {
-        self.noise = noise;
+        if self.output.is_none() {
+            self.noise = noise;
+        }
         self
     }
 
@@ -458,19 +506,10 @@ impl Model {
     /// [`Model::run_deviation`] in the user's units: with an operating point (u0, y0), the model runs on
     /// u − u0 and y − y0 and y0 is added back to its output.
     fn run(&self, u: &[&[f64]], y: &[f64], horizon: Option<usize>) -> Result<Vec<f64>, SysidError> {
-        let Some(op) = &self.operating_point else {
-            return self.run_deviation(u, y, horizon);
+        let (Some(op), Some((du, dy))) = (&self.operating_point, self.deviations(u, y)) else {
+            return self.run_deviation(u, y, horizon); // no operating point, or reports the mismatch
         };
-        if u.len() != op.u.len() {
-            return self.run_deviation(u, y, horizon); // reports the mismatch
-        }
-        let du: Vec<Vec<f64>> = u
-            .iter()
-            .zip(&op.u)
-            .map(|(s, u0)| s.iter().map(|v| v - u0).collect())
-            .collect();
         let du: Vec<&[f64]> = du.iter().map(Vec::as_slice).collect();
-        let dy: Vec<f64> = y.iter().map(|v| v - op.y).collect();
         let mut out = self.run_deviation(&du, &dy, horizon)?;
         // The first k0 entries are the measured outputs themselves.
         let k0 = self.k0().min(out.len());
@@ -482,6 +521,49 @@ impl Model {
     /// `horizon = None`: free run; `Some(h)`: each y_hat(k) is the h-step prediction from the measured
     /// outputs up to k - h. Signals are deviations from the operating point (if any).
     fn run_deviation(
+        &self,
+        u: &[&[f64]],
+        y: &[f64],
+        horizon: Option<usize>,
+    ) -> Result<Vec<f64>, SysidError> {
+        if let Some(g) = &self.output {
+            // y = g(v): every prediction is the simulation of v from the measured initial outputs.
+            let mut out = self.run_linear(u, y, None)?;
+            let k0 = self.k0().min(out.len());
+            out[k0..].iter_mut().for_each(|v| *v = g.apply(*v));
+            return Ok(out);
+        }
+        self.run_linear(u, y, horizon)
+    }
+
+    /// The output v of the linear block (before any output nonlinearity): free run from the measured
+    /// initial outputs (v(k) = y(k) for k < k0), in deviation units.
+    pub fn simulate_linear_part(&self, u: &[&[f64]], y: &[f64]) -> Result<Vec<f64>, SysidError> {
+        let Some((du, dy)) = self.deviations(u, y) else {
+            return self.run_linear(u, y, None);
+        };
+        let du: Vec<&[f64]> = du.iter().map(Vec::as_slice).collect();
+        self.run_linear(&du, &dy, None)
+    }
+
+    /// u − u0 (per input) and y − y0 with the operating point; `None` without one or when the number
+    /// of inputs does not match it (the run then reports the mismatch).
+    #[allow(clippy::type_complexity)]
+    fn deviations(&self, u: &[&[f64]], y: &[f64]) -> Option<(Vec<Vec<f64>>, Vec<f64>)> {
+        let op = self.operating_point.as_ref()?;
+        if u.len() != op.u.len() {
+            return None;
+        }
+        let du = u
+            .iter()
+            .zip(&op.u)
+            .map(|(s, u0)| s.iter().map(|v| v - u0).collect())
+            .collect();
+        Some((du, y.iter().map(|v| v - op.y).collect()))
+    }
+
+    /// [`Model::run_deviation`] of the linear block alone.
+    fn run_linear(
         &self,
         u: &[&[f64]],
         y: &[f64],
@@ -573,15 +655,21 @@ impl Model {
     }
 
     /// Number of estimated parameters p: na (+1 with offset) plus, per input, nb for a linear input and
-    /// 4 + (nb - 1) for a deadzone input (b1 = 1 is fixed by normalisation).
+    /// the nonlinearity's parameters + (nb - 1) for a nonlinear input, e.g. 4 + (nb - 1) for a deadzone
+    /// (b1 = 1 is fixed by normalisation), and the output nonlinearity's parameters but its unit
+    /// gain (normalisation).
     pub fn parameter_count(&self) -> usize {
-        let lin = self.na() + self.offset.map_or(0, |_| 1);
+        let lin = self.na()
+            + self.offset.map_or(0, |_| 1)
+            + self
+                .output
+                .map_or(0, |g| g.parameter_count().saturating_sub(1));
         lin + self
             .inputs
             .iter()
             .map(|ch| match ch.nonlinearity {
                 StaticNonlinearity::Linear => ch.nb(),
-                StaticNonlinearity::Deadzone(_) => 4 + ch.nb().saturating_sub(1),
+                f => f.parameter_count() + ch.nb().saturating_sub(1),
             })
             .sum::<usize>()
     }
@@ -597,6 +685,96 @@ struct InputRepr {
     b: Vec<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     deadzone: Option<Deadzone>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    nonlinearity: Option<NonlinearityRepr>,
+}
+
+/// The file form of an input nonlinearity other than the deadzone (which keeps its `deadzone` key, so
+/// that older files load and older readers read deadzone models): `{"kind": "saturation", ...}`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "kebab-case", deny_unknown_fields)]
+enum NonlinearityRepr {
+    Saturation {
+        s_l: f64,
+        s_r: f64,
+        m: f64,
+    },
+    DeadzoneSaturation {
+        b_l: f64,
+        b_r: f64,
+        s_l: f64,
+        s_r: f64,
+        m_l: f64,
+        m_r: f64,
+    },
+    PiecewiseLinear {
+        breakpoints: Vec<f64>,
+        slopes: Vec<f64>,
+    },
+    Polynomial {
+        coefficients: Vec<f64>,
+    },
+}
+
+impl NonlinearityRepr {
+    /// The file form of `f`; `None` for the identity and the deadzone (their own keys).
+    fn of(f: &StaticNonlinearity) -> Option<Self> {
+        Some(match *f {
+            StaticNonlinearity::Linear | StaticNonlinearity::Deadzone(_) => return None,
+            StaticNonlinearity::Saturation(Saturation { s_l, s_r, m }) => {
+                NonlinearityRepr::Saturation { s_l, s_r, m }
+            }
+            StaticNonlinearity::DeadzoneSaturation(d) => NonlinearityRepr::DeadzoneSaturation {
+                b_l: d.b_l,
+                b_r: d.b_r,
+                s_l: d.s_l,
+                s_r: d.s_r,
+                m_l: d.m_l,
+                m_r: d.m_r,
+            },
+            StaticNonlinearity::PiecewiseLinear(p) => NonlinearityRepr::PiecewiseLinear {
+                breakpoints: p.breakpoints().to_vec(),
+                slopes: p.slopes().to_vec(),
+            },
+            StaticNonlinearity::Polynomial(p) => NonlinearityRepr::Polynomial {
+                coefficients: p.coefficients().to_vec(),
+            },
+        })
+    }
+
+    fn nonlinearity(&self) -> Result<StaticNonlinearity, SysidError> {
+        Ok(match self {
+            NonlinearityRepr::Saturation { s_l, s_r, m } => {
+                StaticNonlinearity::Saturation(Saturation {
+                    s_l: *s_l,
+                    s_r: *s_r,
+                    m: *m,
+                })
+            }
+            NonlinearityRepr::DeadzoneSaturation {
+                b_l,
+                b_r,
+                s_l,
+                s_r,
+                m_l,
+                m_r,
+            } => StaticNonlinearity::DeadzoneSaturation(DeadzoneSaturation {
+                b_l: *b_l,
+                b_r: *b_r,
+                s_l: *s_l,
+                s_r: *s_r,
+                m_l: *m_l,
+                m_r: *m_r,
+            }),
+            NonlinearityRepr::PiecewiseLinear {
+                breakpoints,
+                slopes,
+            } => StaticNonlinearity::PiecewiseLinear(PiecewiseLinear::new(breakpoints, slopes)?),
+            NonlinearityRepr::Polynomial { coefficients } => {
+                StaticNonlinearity::Polynomial(Polynomial::new(coefficients)?)
+            }
+        })
+    }
 }
 
 /// The serialised form of a [`Model`]: the keys of model files and of `identify --json`'s `model`.
@@ -615,6 +793,9 @@ pub(crate) struct ModelRepr {
     offset: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     deadzone: Option<Deadzone>,
+    /// Another input nonlinearity of the first input (saturation, piecewise-linear...).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    nonlinearity: Option<NonlinearityRepr>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     inputs: Option<Vec<InputRepr>>,
     /// (u0, y0) of a detrended identification; absent otherwise (model file version 2).
@@ -623,6 +804,9 @@ pub(crate) struct ModelRepr {
     /// Absent for the equation-error (ARX) noise model, so that such models keep their keys.
     #[serde(default, skip_serializing_if = "is_equation_error")]
     noise_model: NoiseModel,
+    /// g of y = g(v) (Wiener / Hammerstein–Wiener); absent without one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    output_nonlinearity: Option<NonlinearityRepr>,
 }
 
 fn is_equation_error(n: &NoiseModel) -> bool {
@@ -634,8 +818,18 @@ fn channel_of(
     nk: usize,
     b: Vec<f64>,
     dz: Option<Deadzone>,
+    nl: Option<&NonlinearityRepr>,
 ) -> Result<InputChannel, SysidError> {
-    let f = dz.map_or(StaticNonlinearity::Linear, StaticNonlinearity::Deadzone);
+    let f = match (dz, nl) {
+        (Some(_), Some(_)) => {
+            return Err(SysidError::Data(format!(
+                "invalid model: input {name} has both a deadzone and a nonlinearity key (one nonlinearity per input)"
+            )))
+        }
+        (Some(d), None) => StaticNonlinearity::Deadzone(d),
+        (None, Some(n)) => n.nonlinearity()?,
+        (None, None) => StaticNonlinearity::Linear,
+    };
     InputChannel::new(name, nk, b, f)
 }
 
@@ -666,22 +860,34 @@ impl TryFrom<ModelRepr> for Model {
                 r.ts
             ));
         }
-        match (r.kind, &r.deadzone) {
-            (ModelKind::Hammerstein, None) => {
-                return bad("a hammerstein model needs a deadzone".into())
+        let nonlinear_first = r.deadzone.is_some() || r.nonlinearity.is_some();
+        match (r.kind, nonlinear_first) {
+            (ModelKind::Hammerstein, false) if r.inputs.is_none() => {
+                return bad("a hammerstein model needs a deadzone (or another nonlinearity)".into())
             }
-            (ModelKind::Arx, Some(_)) => return bad("an arx model has no deadzone".into()),
+            (ModelKind::Arx, true) => return bad("an arx model has no deadzone".into()),
             _ => {}
         }
         let inputs = match r.inputs {
-            None => vec![channel_of("u".into(), r.nk, r.b, r.deadzone)?],
+            None => vec![channel_of(
+                "u".into(),
+                r.nk,
+                r.b,
+                r.deadzone,
+                r.nonlinearity.as_ref(),
+            )?],
             Some(list) => {
                 let first_matches = list.first().is_some_and(|f| {
-                    f.nb == r.nb && f.nk == r.nk && f.b == r.b && f.deadzone == r.deadzone
+                    f.nb == r.nb
+                        && f.nk == r.nk
+                        && f.b == r.b
+                        && f.deadzone == r.deadzone
+                        && f.nonlinearity == r.nonlinearity
                 });
                 if !first_matches {
                     return bad(
-                        "the first entry of inputs must repeat nb, nk, b and deadzone".into(),
+                        "the first entry of inputs must repeat nb, nk, b and deadzone (or nonlinearity)"
+                            .into(),
                     );
                 }
                 let mut v = Vec::with_capacity(list.len());
@@ -694,14 +900,26 @@ impl TryFrom<ModelRepr> for Model {
                             i.b.len()
                         ));
                     }
-                    v.push(channel_of(i.name, i.nk, i.b, i.deadzone)?);
+                    v.push(channel_of(
+                        i.name,
+                        i.nk,
+                        i.b,
+                        i.deadzone,
+                        i.nonlinearity.as_ref(),
+                    )?);
                 }
                 v
             }
         };
+        let output = r
+            .output_nonlinearity
+            .as_ref()
+            .map(NonlinearityRepr::nonlinearity)
+            .transpose()?;
         let m = Model::new(r.ts, r.a, inputs, r.offset)?
             .with_operating_point(r.operating_point)?
-            .with_noise_model(r.noise_model);
+            .with_noise_model(r.noise_model)
+            .with_output_nonlinearity(output)?;
         if m.kind() != r.kind {
             return bad(format!(
                 "kind = {} does not match the inputs' nonlinearities",
@@ -725,6 +943,7 @@ impl From<Model> for ModelRepr {
                     nk: i.nk,
                     b: i.b.clone(),
                     deadzone: i.deadzone().copied(),
+                    nonlinearity: NonlinearityRepr::of(i.nonlinearity()),
                 })
                 .collect()
         });
@@ -735,12 +954,14 @@ impl From<Model> for ModelRepr {
             nb: first.nb(),
             nk: first.nk,
             deadzone: first.deadzone().copied(),
+            nonlinearity: NonlinearityRepr::of(first.nonlinearity()),
             a: m.a,
             b: first.b,
             offset: m.offset,
             inputs,
             noise_model: m.noise,
             operating_point: m.operating_point,
+            output_nonlinearity: m.output.as_ref().and_then(NonlinearityRepr::of),
         }
     }
 }
@@ -848,7 +1069,8 @@ fn durand_kerner(c: &[f64]) -> Vec<Complex<f64>> {
 #[derive(Debug, Clone)]
 pub struct ModelPlant {
     model: Model,
-    /// y(k), y(k-1), ..., newest first (length max(na, 1)).
+    /// y(k), y(k-1), ..., newest first (length max(na, 1)); with an output nonlinearity the linear
+    /// block's output v (y = g(v)), reset to the rest output as if g(v) = v there.
     y_hist: Vec<f64>,
     /// Per input: x(k-1), x(k-2), ... newest first (length nk + nb - 1).
     x_hist: Vec<Vec<f64>>,
@@ -904,6 +1126,11 @@ impl ModelPlant {
         self.model.operating_point.as_ref().map_or(0.0, |o| o.y)
     }
 
+    /// y = g(v) of the linear block's output v (v itself without an output nonlinearity).
+    fn out_of(&self, v: f64) -> f64 {
+        self.model.output.as_ref().map_or(v, |g| g.apply(v))
+    }
+
     /// Applies one command per input (`u[m]` to input m) for one sampling period; returns y(k+1).
     fn advance(&mut self, u: &[f64]) -> Result<f64, crate::PlantError> {
         let y0 = self.y0();
@@ -936,7 +1163,7 @@ impl ModelPlant {
         }
         self.y_hist.rotate_right(1);
         self.y_hist[0] = v;
-        Ok(v + y0)
+        Ok(self.out_of(v) + y0)
     }
 }
 
@@ -983,7 +1210,7 @@ impl crate::Plant for ModelPlant {
     }
 
     fn output(&self) -> f64 {
-        self.y_hist[0] + self.y0()
+        self.out_of(self.y_hist[0]) + self.y0()
     }
 
     fn step(&mut self, u: f64) -> Result<f64, crate::PlantError> {

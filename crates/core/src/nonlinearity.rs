@@ -1,8 +1,11 @@
 //! Static nonlinearities x = f(u) of a Hammerstein model's inputs: the identity (a linear input) and the
-//! asymmetric valve deadzone of paper eq. (1). To add one (saturation, backlash...), add a variant to
+//! asymmetric valve deadzone of paper eq. (1), saturation, deadzone with saturation, piecewise-linear and
+//! polynomial maps (MATLAB `idnlhw`'s input nonlinearities). To add one, add a variant to
 //! [`StaticNonlinearity`] and follow docs/architecture.md.
 
 use serde::{Deserialize, Serialize};
+
+use crate::SysidError;
 
 /// Asymmetric deadzone x = f(u) (paper eq. 1):
 ///
@@ -89,6 +92,218 @@ impl Deadzone {
     }
 }
 
+/// The largest number of breakpoints K of a piecewise-linear nonlinearity (bounds what a file or flag
+/// can make the tool allocate).
+pub const MAX_BREAKPOINTS: usize = 8;
+
+/// The largest degree D of a polynomial nonlinearity.
+pub const MAX_DEGREE: usize = 8;
+
+/// Asymmetric saturation x = m · clamp(u, s_l, s_r) (MATLAB `idSaturation` with gain m):
+///
+/// ```text
+/// x = m s_l   for u <= s_l
+/// x = m u     for s_l < u < s_r
+/// x = m s_r   for u >= s_r
+/// ```
+///
+/// ```
+/// use sysid_core::Saturation;
+/// let s = Saturation { s_l: -1.0, s_r: 2.0, m: 3.0 };
+/// assert_eq!((s.apply(-5.0), s.apply(1.0), s.apply(7.0)), (-3.0, 3.0, 6.0));
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct Saturation {
+    /// s_l: lower limit of the linear interval (units of u).
+    pub s_l: f64,
+    /// s_r: upper limit of the linear interval (units of u).
+    pub s_r: f64,
+    /// m: slope inside the interval (units of x per unit of u).
+    pub m: f64,
+}
+
+impl Saturation {
+    /// x = f(u).
+    #[inline]
+    pub fn apply(&self, u: f64) -> f64 {
+        if u <= self.s_l {
+            self.m * self.s_l
+        } else if u >= self.s_r {
+            self.m * self.s_r
+        } else {
+            self.m * u
+        }
+    }
+    fn values(&self) -> [f64; 3] {
+        [self.s_l, self.s_r, self.m]
+    }
+}
+
+/// A valve that opens late and saturates: a deadzone (b_l, b_r) whose branches saturate at s_l < b_l
+/// and s_r > b_r:
+///
+/// ```text
+/// x = m_l (s_l − b_l)   for u <= s_l
+/// x = m_l (u − b_l)     for s_l < u <= b_l
+/// x = 0                 for b_l < u < b_r
+/// x = m_r (u − b_r)     for b_r <= u < s_r
+/// x = m_r (s_r − b_r)   for u >= s_r
+/// ```
+///
+/// ```
+/// use sysid_core::DeadzoneSaturation;
+/// let d = DeadzoneSaturation { b_l: -1.0, b_r: 1.0, s_l: -3.0, s_r: 4.0, m_l: 2.0, m_r: 0.5 };
+/// assert_eq!((d.apply(0.0), d.apply(3.0), d.apply(9.0)), (0.0, 1.0, 1.5));
+/// assert_eq!((d.apply(-2.0), d.apply(-9.0)), (-2.0, -4.0));
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct DeadzoneSaturation {
+    /// b_l: left deadzone breakpoint.
+    pub b_l: f64,
+    /// b_r: right deadzone breakpoint.
+    pub b_r: f64,
+    /// s_l: left saturation breakpoint (below b_l).
+    pub s_l: f64,
+    /// s_r: right saturation breakpoint (above b_r).
+    pub s_r: f64,
+    /// m_l: slope of the left branch.
+    pub m_l: f64,
+    /// m_r: slope of the right branch.
+    pub m_r: f64,
+}
+
+impl DeadzoneSaturation {
+    /// x = f(u); the sloped branches include their deadzone breakpoints, the saturated parts theirs.
+    #[inline]
+    pub fn apply(&self, u: f64) -> f64 {
+        if u >= self.s_r {
+            self.m_r * (self.s_r - self.b_r)
+        } else if u >= self.b_r {
+            self.m_r * (u - self.b_r)
+        } else if u <= self.s_l {
+            self.m_l * (self.s_l - self.b_l)
+        } else if u <= self.b_l {
+            self.m_l * (u - self.b_l)
+        } else {
+            0.0
+        }
+    }
+    fn values(&self) -> [f64; 6] {
+        [self.b_l, self.b_r, self.s_l, self.s_r, self.m_l, self.m_r]
+    }
+}
+
+/// A continuous piecewise-linear map through the origin with K breakpoints p_1..p_K (MATLAB
+/// `idPiecewiseLinear`, with f(0) = 0 since the offset c carries any constant): slope s_0 below p_1,
+/// s_i between p_i and p_{i+1}, s_K above p_K:
+///
+/// ```text
+/// x = s_0 u + Σ_i (s_i − s_{i−1}) [ (u − p_i)_+ − (−p_i)_+ ]
+/// ```
+///
+/// ```
+/// use sysid_core::PiecewiseLinear;
+/// let f = PiecewiseLinear::new(&[1.0], &[2.0, 0.5]).unwrap();
+/// assert_eq!((f.apply(0.5), f.apply(3.0), f.apply(-1.0)), (1.0, 3.0, -2.0));
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PiecewiseLinear {
+    k: usize,
+    p: [f64; MAX_BREAKPOINTS],
+    s: [f64; MAX_BREAKPOINTS + 1],
+}
+
+impl PiecewiseLinear {
+    /// Breakpoints `p` (any order: they are sorted, each with its slope change) and the K + 1 segment
+    /// slopes `s` in the order of the given breakpoints' sorted positions. Fails on K = 0, K above
+    /// [`MAX_BREAKPOINTS`] or `s.len() != K + 1`.
+    pub fn new(p: &[f64], s: &[f64]) -> Result<Self, SysidError> {
+        let k = p.len();
+        if k == 0 || k > MAX_BREAKPOINTS || s.len() != k + 1 {
+            return Err(SysidError::Data(format!(
+                "invalid model: a piecewise-linear nonlinearity needs 1 to {MAX_BREAKPOINTS} breakpoints and one \
+                 slope more than breakpoints (got {k} breakpoints, {} slopes)",
+                s.len()
+            )));
+        }
+        let mut out = PiecewiseLinear {
+            k,
+            p: [0.0; MAX_BREAKPOINTS],
+            s: [0.0; MAX_BREAKPOINTS + 1],
+        };
+        out.p[..k].copy_from_slice(p);
+        out.s[..=k].copy_from_slice(s);
+        Ok(out)
+    }
+    /// K: number of breakpoints.
+    pub fn breakpoints(&self) -> &[f64] {
+        &self.p[..self.k]
+    }
+    /// s_0..s_K: the segment slopes.
+    pub fn slopes(&self) -> &[f64] {
+        &self.s[..=self.k]
+    }
+    /// g_i(u) = (u − p_i)_+ − (−p_i)_+ (i from 1), the hinge through the origin.
+    #[inline]
+    pub fn hinge(&self, i: usize, u: f64) -> f64 {
+        let p = self.p[i - 1];
+        (u - p).max(0.0) - (-p).max(0.0)
+    }
+    /// x = f(u).
+    #[inline]
+    pub fn apply(&self, u: f64) -> f64 {
+        let mut x = self.s[0] * u;
+        for i in 1..=self.k {
+            x += (self.s[i] - self.s[i - 1]) * self.hinge(i, u);
+        }
+        x
+    }
+}
+
+/// A polynomial through the origin x = g_1 u + g_2 u² + … + g_D u^D (MATLAB `idPolynomial1D`; the
+/// constant is the offset c's).
+///
+/// ```
+/// use sysid_core::Polynomial;
+/// let f = Polynomial::new(&[1.0, 0.0, -0.5]).unwrap();
+/// assert_eq!(f.apply(2.0), 2.0 - 4.0);
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Polynomial {
+    d: usize,
+    g: [f64; MAX_DEGREE],
+}
+
+impl Polynomial {
+    /// Coefficients g_1..g_D; fails on D = 0 or D above [`MAX_DEGREE`].
+    pub fn new(g: &[f64]) -> Result<Self, SysidError> {
+        let d = g.len();
+        if d == 0 || d > MAX_DEGREE {
+            return Err(SysidError::Data(format!(
+                "invalid model: a polynomial nonlinearity needs a degree from 1 to {MAX_DEGREE} (got {d})"
+            )));
+        }
+        let mut out = Polynomial {
+            d,
+            g: [0.0; MAX_DEGREE],
+        };
+        out.g[..d].copy_from_slice(g);
+        Ok(out)
+    }
+    /// g_1..g_D.
+    pub fn coefficients(&self) -> &[f64] {
+        &self.g[..self.d]
+    }
+    /// x = f(u) (Horner).
+    #[inline]
+    pub fn apply(&self, u: f64) -> f64 {
+        self.coefficients()
+            .iter()
+            .rev()
+            .fold(0.0, |acc, g| (acc + g) * u)
+    }
+}
+
 /// The static nonlinearity f of one model input: x = f(u).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum StaticNonlinearity {
@@ -96,6 +311,14 @@ pub enum StaticNonlinearity {
     Linear,
     /// The asymmetric deadzone of paper eq. (1).
     Deadzone(Deadzone),
+    /// Asymmetric saturation.
+    Saturation(Saturation),
+    /// A deadzone whose branches saturate.
+    DeadzoneSaturation(DeadzoneSaturation),
+    /// A continuous piecewise-linear map with K breakpoints.
+    PiecewiseLinear(PiecewiseLinear),
+    /// A polynomial of degree D.
+    Polynomial(Polynomial),
 }
 
 impl StaticNonlinearity {
@@ -105,6 +328,55 @@ impl StaticNonlinearity {
         match self {
             StaticNonlinearity::Linear => u,
             StaticNonlinearity::Deadzone(d) => d.apply(u),
+            StaticNonlinearity::Saturation(s) => s.apply(u),
+            StaticNonlinearity::DeadzoneSaturation(d) => d.apply(u),
+            StaticNonlinearity::PiecewiseLinear(p) => p.apply(u),
+            StaticNonlinearity::Polynomial(p) => p.apply(u),
+        }
+    }
+
+    /// df/du at u (the derivative of the branch u lies on, as [`StaticNonlinearity::apply`] assigns a
+    /// kink); used for an output nonlinearity's sensitivities and invertibility checks.
+    pub fn slope(&self, u: f64) -> f64 {
+        match self {
+            StaticNonlinearity::Linear => 1.0,
+            StaticNonlinearity::Deadzone(d) => {
+                if u >= d.b_r {
+                    d.m_r
+                } else if u <= d.b_l {
+                    d.m_l
+                } else {
+                    0.0
+                }
+            }
+            StaticNonlinearity::Saturation(s) => {
+                if u <= s.s_l || u >= s.s_r {
+                    0.0
+                } else {
+                    s.m
+                }
+            }
+            StaticNonlinearity::DeadzoneSaturation(d) => {
+                if u >= d.s_r || u <= d.s_l {
+                    0.0
+                } else if u >= d.b_r {
+                    d.m_r
+                } else if u <= d.b_l {
+                    d.m_l
+                } else {
+                    0.0
+                }
+            }
+            StaticNonlinearity::PiecewiseLinear(p) => {
+                let i = p.breakpoints().iter().filter(|b| u >= **b).count();
+                p.slopes()[i]
+            }
+            StaticNonlinearity::Polynomial(p) => p
+                .coefficients()
+                .iter()
+                .enumerate()
+                .rev()
+                .fold(0.0, |acc, (i, g)| acc * u + (i + 1) as f64 * g),
         }
     }
 
@@ -117,15 +389,33 @@ impl StaticNonlinearity {
     pub fn deadzone(&self) -> Option<&Deadzone> {
         match self {
             StaticNonlinearity::Deadzone(d) => Some(d),
-            StaticNonlinearity::Linear => None,
+            _ => None,
         }
+    }
+
+    /// The parameters of the nonlinearity (empty for the identity), in the order of its block's
+    /// physical parameters.
+    pub fn values(&self) -> Vec<f64> {
+        match self {
+            StaticNonlinearity::Linear => Vec::new(),
+            StaticNonlinearity::Deadzone(d) => vec![d.b_l, d.b_r, d.m_l, d.m_r],
+            StaticNonlinearity::Saturation(s) => s.values().to_vec(),
+            StaticNonlinearity::DeadzoneSaturation(d) => d.values().to_vec(),
+            StaticNonlinearity::PiecewiseLinear(p) => {
+                p.breakpoints().iter().chain(p.slopes()).copied().collect()
+            }
+            StaticNonlinearity::Polynomial(p) => p.coefficients().to_vec(),
+        }
+    }
+
+    /// Number of parameters (what an information criterion counts; b1 = 1 of the linear block is not
+    /// one of them).
+    pub fn parameter_count(&self) -> usize {
+        self.values().len()
     }
 
     /// True when every parameter is finite.
     pub fn is_finite(&self) -> bool {
-        match self {
-            StaticNonlinearity::Linear => true,
-            StaticNonlinearity::Deadzone(d) => d.is_finite(),
-        }
+        self.values().iter().all(|v| v.is_finite())
     }
 }

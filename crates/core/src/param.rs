@@ -33,6 +33,30 @@ pub enum ParamName {
     B(usize),
     /// c: constant offset of the linear block.
     C,
+    /// s_l: lower saturation breakpoint.
+    SL,
+    /// s_r: upper saturation breakpoint.
+    SR,
+    /// m: slope of a saturation.
+    M,
+    /// m s_l: key-term product of a saturation.
+    MSl,
+    /// m s_r: key-term product of a saturation.
+    MSr,
+    /// m_l s_l: key-term product of a deadzone with saturation.
+    MlSl,
+    /// m_r s_r: key-term product of a deadzone with saturation.
+    MrSr,
+    /// p_i: breakpoint i of a piecewise-linear map (1-based).
+    Knot(usize),
+    /// s_i: slope of segment i of a piecewise-linear map (0-based: s0 below p1).
+    Slope(usize),
+    /// d_i = s_i − s_{i−1}: slope change at p_i (key term, 1-based).
+    Kink(usize),
+    /// d_i p_i: key-term product (1-based).
+    KinkKnot(usize),
+    /// g_i: coefficient of u^i of a polynomial (1-based).
+    Poly(usize),
 }
 
 impl std::fmt::Display for ParamName {
@@ -48,6 +72,18 @@ impl std::fmt::Display for ParamName {
             ParamName::A(i) => format!("a{i}"),
             ParamName::B(j) => format!("b{j}"),
             ParamName::C => "c".to_string(),
+            ParamName::SL => "s_l".to_string(),
+            ParamName::SR => "s_r".to_string(),
+            ParamName::M => "m".to_string(),
+            ParamName::MSl => "m*s_l".to_string(),
+            ParamName::MSr => "m*s_r".to_string(),
+            ParamName::MlSl => "m_l*s_l".to_string(),
+            ParamName::MrSr => "m_r*s_r".to_string(),
+            ParamName::Knot(i) => format!("p{i}"),
+            ParamName::Slope(i) => format!("s{i}"),
+            ParamName::Kink(i) => format!("d{i}"),
+            ParamName::KinkKnot(i) => format!("d{i}*p{i}"),
+            ParamName::Poly(i) => format!("g{i}"),
         };
         f.pad(&text)
     }
@@ -85,18 +121,39 @@ impl std::str::FromStr for ParamName {
             "m_r*b_r" => ParamName::MrBr,
             "m_l*b_l" => ParamName::MlBl,
             "c" => ParamName::C,
-            _ => match (
-                t.strip_prefix('a').and_then(index),
-                t.strip_prefix('b').and_then(index),
-            ) {
-                (Some(i), _) => ParamName::A(i),
-                (_, Some(j)) => ParamName::B(j),
-                _ => {
+            "s_l" => ParamName::SL,
+            "s_r" => ParamName::SR,
+            "m" => ParamName::M,
+            "m*s_l" => ParamName::MSl,
+            "m*s_r" => ParamName::MSr,
+            "m_l*s_l" => ParamName::MlSl,
+            "m_r*s_r" => ParamName::MrSr,
+            _ => {
+                let indexed = |prefix: char| t.strip_prefix(prefix).and_then(index);
+                let kink_knot = t
+                    .strip_prefix('d')
+                    .and_then(|r| r.split_once("*p"))
+                    .and_then(|(i, j)| (index(i).is_some() && i == j).then(|| index(i)).flatten());
+                if let Some(i) = indexed('a') {
+                    ParamName::A(i)
+                } else if let Some(j) = indexed('b') {
+                    ParamName::B(j)
+                } else if let Some(i) = indexed('p') {
+                    ParamName::Knot(i)
+                } else if let Some(i) = t.strip_prefix('s').and_then(|r| r.parse::<usize>().ok()) {
+                    ParamName::Slope(i)
+                } else if let Some(i) = indexed('d') {
+                    ParamName::Kink(i)
+                } else if let Some(i) = kink_knot {
+                    ParamName::KinkKnot(i)
+                } else if let Some(i) = indexed('g') {
+                    ParamName::Poly(i)
+                } else {
                     return Err(SysidError::Data(format!(
-                        "'{t}' is not a parameter name (b_l, b_r, m_l, m_r, a1.., b1.., c)"
-                    )))
+                        "'{t}' is not a parameter name (b_l, b_r, m_l, m_r, s_l, s_r, m, p1.., s0.., g1.., a1.., b1.., c)"
+                    )));
                 }
-            },
+            }
         })
     }
 }

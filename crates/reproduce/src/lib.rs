@@ -17,9 +17,9 @@ use control::{PiSettings, Profile, Trace};
 use ipa::input::{generate, InputSpec};
 use report::plot::save_figure;
 use sysid::metrics::{fit_percent, metrics};
-use sysid::summary::IdentifyReport;
 use sysid::{identify, EstimatorSettings, Identification, Method, RecursiveLeastSquares};
 use sysid::{ModelKind, ModelPlant, Plant};
+use sysid_summary::IdentifyReport;
 
 mod acceptance;
 pub mod analysis;

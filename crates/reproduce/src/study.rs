@@ -3,9 +3,9 @@
 
 use control::{StepMetrics, Trace};
 use report::format::estimate;
-use sysid::summary::IdentifyReport;
 use sysid::Dataset;
 use sysid::Fitted as FittedModel;
+use sysid_summary::IdentifyReport;
 
 use crate::analysis;
 

@@ -3,10 +3,10 @@
 
 use report::format::{estimate, opt, pm};
 use report::html::Table;
-use sysid::summary::IdentifyReport;
 use sysid::Fitted as FittedModel;
 use sysid::{Model, ParamName};
 use sysid_core::param::{Layout, Parameterisation};
+use sysid_summary::IdentifyReport;
 
 use crate::paper::{self, paper_normalised};
 use crate::study::{Loop, Study, CLOSED_LOOP_RULE};

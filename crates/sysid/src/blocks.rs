@@ -19,36 +19,78 @@
 use nalgebra::DMatrix;
 
 use crate::warnings::{Branch, Warning};
+use sysid_core::nonlinearity::{MAX_BREAKPOINTS, MAX_DEGREE};
 use sysid_core::param::deadzone_from_theta;
-use sysid_core::{Deadzone, ParamName, StaticNonlinearity, SysidError};
+use sysid_core::{
+    Deadzone, DeadzoneSaturation, ParamName, PiecewiseLinear, Polynomial, Saturation, Setting,
+    StaticNonlinearity, SysidError,
+};
 
 /// The kind of static nonlinearity of one input (the `--nonlinearity` values).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
-#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
 pub enum NonlinearityKind {
     /// x = u (an ARX input).
     Linear,
     /// The asymmetric valve deadzone of paper eq. (1): b_l, b_r, m_l, m_r.
     Deadzone,
+    /// Asymmetric saturation x = m clamp(u, s_l, s_r).
+    Saturation,
+    /// A deadzone whose branches saturate: b_l, b_r, s_l, s_r, m_l, m_r.
+    DeadzoneSaturation,
+    /// A continuous piecewise-linear map through the origin with K breakpoints (`--breakpoints K`).
+    PiecewiseLinear {
+        /// K: number of breakpoints, 1..=[`MAX_BREAKPOINTS`].
+        breakpoints: usize,
+    },
+    /// A polynomial through the origin of degree D (`--degree D`).
+    Polynomial {
+        /// D: degree, 1..=[`MAX_DEGREE`].
+        degree: usize,
+    },
 }
+
+/// K of `piecewise-linear` when `--breakpoints` is not given.
+pub const DEFAULT_BREAKPOINTS: usize = 2;
+/// K = 0 stands for `--breakpoints auto`: [`crate::identify`] tries K = 1..=[`MAX_AUTO_BREAKPOINTS`]
+/// and keeps the smallest AIC on the estimation data.
+pub const AUTO_BREAKPOINTS: usize = 0;
+/// The largest K `--breakpoints auto` tries.
+pub const MAX_AUTO_BREAKPOINTS: usize = 4;
+/// D of `polynomial` when `--degree` is not given.
+pub const DEFAULT_DEGREE: usize = 3;
 
 impl std::fmt::Display for NonlinearityKind {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(match self {
             NonlinearityKind::Linear => "linear",
             NonlinearityKind::Deadzone => "deadzone",
+            NonlinearityKind::Saturation => "saturation",
+            NonlinearityKind::DeadzoneSaturation => "deadzone-saturation",
+            NonlinearityKind::PiecewiseLinear { .. } => "piecewise-linear",
+            NonlinearityKind::Polynomial { .. } => "polynomial",
         })
     }
 }
 
 impl std::str::FromStr for NonlinearityKind {
     type Err = String;
+    /// The kind's word; `piecewise-linear` has [`DEFAULT_BREAKPOINTS`] and `polynomial`
+    /// [`DEFAULT_DEGREE`] until [`NonlinearityKind::with_breakpoints`] / `with_degree` say otherwise.
     fn from_str(t: &str) -> Result<Self, String> {
         match t.trim() {
             "linear" => Ok(NonlinearityKind::Linear),
             "deadzone" => Ok(NonlinearityKind::Deadzone),
+            "saturation" => Ok(NonlinearityKind::Saturation),
+            "deadzone-saturation" => Ok(NonlinearityKind::DeadzoneSaturation),
+            "piecewise-linear" => Ok(NonlinearityKind::PiecewiseLinear {
+                breakpoints: DEFAULT_BREAKPOINTS,
+            }),
+            "polynomial" => Ok(NonlinearityKind::Polynomial {
+                degree: DEFAULT_DEGREE,
+            }),
             other => Err(format!(
-                "'{other}' is not a static nonlinearity; expected linear or deadzone"
+                "'{other}' is not a static nonlinearity; expected linear, deadzone, saturation, \
+                 deadzone-saturation, piecewise-linear or polynomial"
             )),
         }
     }
@@ -57,9 +99,15 @@ impl std::str::FromStr for NonlinearityKind {
 impl NonlinearityKind {
     /// The block that estimates this kind.
     pub fn block(&self) -> &'static dyn Block {
-        match self {
+        match *self {
             NonlinearityKind::Linear => &LinearBlock,
             NonlinearityKind::Deadzone => &DeadzoneBlock,
+            NonlinearityKind::Saturation => &SaturationBlock,
+            NonlinearityKind::DeadzoneSaturation => &DeadzoneSaturationBlock,
+            NonlinearityKind::PiecewiseLinear { breakpoints } => {
+                &PIECEWISE[breakpoints.min(MAX_BREAKPOINTS)]
+            }
+            NonlinearityKind::Polynomial { degree } => &POLYNOMIAL[degree.min(MAX_DEGREE)],
         }
     }
 
@@ -68,6 +116,55 @@ impl NonlinearityKind {
         match f {
             StaticNonlinearity::Linear => NonlinearityKind::Linear,
             StaticNonlinearity::Deadzone(_) => NonlinearityKind::Deadzone,
+            StaticNonlinearity::Saturation(_) => NonlinearityKind::Saturation,
+            StaticNonlinearity::DeadzoneSaturation(_) => NonlinearityKind::DeadzoneSaturation,
+            StaticNonlinearity::PiecewiseLinear(p) => NonlinearityKind::PiecewiseLinear {
+                breakpoints: p.breakpoints().len(),
+            },
+            StaticNonlinearity::Polynomial(p) => NonlinearityKind::Polynomial {
+                degree: p.coefficients().len(),
+            },
+        }
+    }
+
+    /// The same kind with K breakpoints if it is piecewise-linear.
+    pub fn with_breakpoints(self, k: usize) -> Self {
+        match self {
+            NonlinearityKind::PiecewiseLinear { .. } => {
+                NonlinearityKind::PiecewiseLinear { breakpoints: k }
+            }
+            other => other,
+        }
+    }
+
+    /// The same kind with degree D if it is a polynomial.
+    pub fn with_degree(self, d: usize) -> Self {
+        match self {
+            NonlinearityKind::Polynomial { .. } => NonlinearityKind::Polynomial { degree: d },
+            other => other,
+        }
+    }
+
+    /// Fails when K or D is out of range (naming `--breakpoints` / `--degree`).
+    pub fn check(&self) -> Result<(), SysidError> {
+        match *self {
+            NonlinearityKind::PiecewiseLinear { breakpoints: k }
+                if k != AUTO_BREAKPOINTS && !(1..=MAX_BREAKPOINTS).contains(&k) =>
+            {
+                Err(SysidError::setting(
+                    Setting::Other("--breakpoints"),
+                    k,
+                    &format!("a number of breakpoints from 1 to {MAX_BREAKPOINTS}, or auto"),
+                ))
+            }
+            NonlinearityKind::Polynomial { degree: d } if !(1..=MAX_DEGREE).contains(&d) => {
+                Err(SysidError::setting(
+                    Setting::Other("--degree"),
+                    d,
+                    &format!("a degree from 1 to {MAX_DEGREE}"),
+                ))
+            }
+            _ => Ok(()),
         }
     }
 }
@@ -401,6 +498,876 @@ impl Block for DeadzoneBlock {
     }
 }
 
+/// The standard deviation of Σ_i w_i θ_{idx_i} from Cov(θ̂) (a linear combination of estimates).
+fn combination_std(cov: Option<&DMatrix<f64>>, terms: &[(usize, f64)]) -> Option<f64> {
+    let c = cov?;
+    let mut v = 0.0;
+    for &(i, wi) in terms {
+        for &(j, wj) in terms {
+            v += wi * wj * c[(i, j)];
+        }
+    }
+    (v.is_finite() && v >= 0.0).then(|| v.sqrt())
+}
+
+/// `num / den` clamped to ±`limit`, or `prev` when not finite (a breakpoint from its key-term product).
+fn ratio_or(num: f64, den: f64, prev: f64, limit: f64) -> f64 {
+    let r = num / den;
+    if r.is_finite() {
+        r.clamp(-limit, limit)
+    } else {
+        prev
+    }
+}
+
+/// The q-quantile (0..1) of `v` (sorted copy; empty: 0).
+fn quantile(v: &[f64], q: f64) -> f64 {
+    let mut s: Vec<f64> = v.iter().copied().filter(|x| x.is_finite()).collect();
+    if s.is_empty() {
+        return 0.0;
+    }
+    s.sort_by(f64::total_cmp);
+    s[((s.len() - 1) as f64 * q).round() as usize]
+}
+
+/// Refuses an input with fewer than `need` distinct levels for a block of `kind`.
+fn need_levels(u: &[f64], need: usize, kind: &str, name: &str) -> Result<Vec<f64>, SysidError> {
+    let levels = levels_of(u);
+    if levels.len() < need {
+        return Err(SysidError::Data(format!(
+            "{name}: the input has {} distinct level(s); a {kind} input nonlinearity needs at least {need} \
+             (not persistently exciting)",
+            levels.len()
+        )));
+    }
+    Ok(levels)
+}
+
+/// Magnitude standing for "no limit" in the linear equivalent of a saturating kind (finite, so that
+/// m s_r stays finite; far outside any record).
+const NO_LIMIT: f64 = 1e100;
+
+/// Asymmetric saturation x = m clamp(u, s_l, s_r). Physical [s_l, s_r, m]; key terms [m, m s_l, m s_r]
+/// with regressors [h u, h_lo, h_hi] at u(k − nk) (h_lo = [u ≤ s_l], h_hi = [u ≥ s_r], h = 1 − h_lo − h_hi).
+pub struct SaturationBlock;
+
+fn sat(f: &StaticNonlinearity) -> Saturation {
+    match f {
+        StaticNonlinearity::Saturation(s) => *s,
+        _ => Saturation {
+            s_l: 0.0,
+            s_r: 0.0,
+            m: 0.0,
+        },
+    }
+}
+
+impl Block for SaturationBlock {
+    fn physical_names(&self) -> &'static [ParamName] {
+        &[ParamName::SL, ParamName::SR, ParamName::M]
+    }
+    fn key_names(&self) -> &'static [ParamName] {
+        &[ParamName::M, ParamName::MSl, ParamName::MSr]
+    }
+    fn physical(&self, f: &StaticNonlinearity) -> Vec<f64> {
+        let s = sat(f);
+        vec![s.s_l, s.s_r, s.m]
+    }
+    fn of_physical(&self, v: &[f64]) -> StaticNonlinearity {
+        StaticNonlinearity::Saturation(Saturation {
+            s_l: v[0],
+            s_r: v[1],
+            m: v[2],
+        })
+    }
+    fn key_terms(&self, f: &StaticNonlinearity) -> Vec<f64> {
+        let s = sat(f);
+        vec![s.m, s.m * s.s_l, s.m * s.s_r]
+    }
+    fn fill_key_terms(&self, f: &StaticNonlinearity, u: f64, out: &mut [f64]) {
+        let s = sat(f);
+        let (lo, hi) = if u <= s.s_l {
+            (1.0, 0.0)
+        } else if u >= s.s_r {
+            (0.0, 1.0)
+        } else {
+            (0.0, 0.0)
+        };
+        out[0] = (1.0 - lo - hi) * u;
+        out[1] = lo;
+        out[2] = hi;
+    }
+    fn of_key_terms(
+        &self,
+        key: &[f64],
+        prev: &StaticNonlinearity,
+        limit: f64,
+    ) -> StaticNonlinearity {
+        let p = sat(prev);
+        StaticNonlinearity::Saturation(Saturation {
+            s_l: ratio_or(key[1], key[0], p.s_l, limit),
+            s_r: ratio_or(key[2], key[0], p.s_r, limit),
+            m: key[0],
+        })
+    }
+    fn physical_with_std(
+        &self,
+        theta: &[f64],
+        cov: Option<&DMatrix<f64>>,
+        at: usize,
+    ) -> Vec<(f64, Option<f64>)> {
+        vec![
+            ratio_with_std(theta, cov, at, at + 1),
+            ratio_with_std(theta, cov, at, at + 2),
+            (theta[at], sd(cov, at)),
+        ]
+    }
+    fn derivative(&self, f: &StaticNonlinearity, which: usize, u: f64) -> f64 {
+        let s = sat(f);
+        let lo = u <= s.s_l;
+        let hi = !lo && u >= s.s_r;
+        match which {
+            0 => f64::from(u8::from(lo)) * s.m,
+            1 => f64::from(u8::from(hi)) * s.m,
+            _ => {
+                if lo {
+                    s.s_l
+                } else if hi {
+                    s.s_r
+                } else {
+                    u
+                }
+            }
+        }
+    }
+    fn is_degenerate(&self, f: &StaticNonlinearity) -> bool {
+        sat(f).m == 0.0
+    }
+    fn start(&self, u: &[f64], _: bool, _: bool, name: &str) -> Result<BlockStart, SysidError> {
+        let levels = need_levels(u, 3, "saturation", name)?;
+        // Limits at the 10 % and 90 % quantiles: some samples on each saturated part and inside.
+        let (mut s_l, mut s_r) = (quantile(u, 0.1), quantile(u, 0.9));
+        if s_l >= s_r || s_l <= levels[0] && s_r >= levels[levels.len() - 1] {
+            s_l = levels[0];
+            s_r = levels[levels.len() - 1];
+        }
+        let limit = levels[0].abs().max(levels[levels.len() - 1].abs());
+        Ok(BlockStart {
+            initial: StaticNonlinearity::Saturation(Saturation { s_l, s_r, m: 1.0 }),
+            free_key: vec![true; 3],
+            free_physical: vec![true; 3],
+            limit,
+            notes: Vec::new(),
+        })
+    }
+    fn linear_equivalent(
+        &self,
+        b1: f64,
+        b1_std: Option<f64>,
+    ) -> (StaticNonlinearity, Vec<Option<f64>>) {
+        let s = Saturation {
+            s_l: -NO_LIMIT,
+            s_r: NO_LIMIT,
+            m: b1,
+        };
+        (StaticNonlinearity::Saturation(s), vec![None, None, b1_std])
+    }
+    fn warnings(
+        &self,
+        f: &StaticNonlinearity,
+        u: &[f64],
+        _: &BlockStart,
+        std: &[Option<f64>],
+    ) -> (Vec<Warning>, Vec<ParamName>) {
+        let s = sat(f);
+        let (mut w, mut no_std) = (Vec::new(), Vec::new());
+        let levels = levels_of(u);
+        if s.s_l >= s.s_r {
+            w.push(Warning::NonlinearityShape {
+                kind: "saturation",
+                why: format!(
+                    "not physical: s_l = {} >= s_r = {} (no linear interval)",
+                    s.s_l, s.s_r
+                ),
+            });
+        }
+        check_breakpoint(ParamName::SL, s.s_l, std[0], &levels, &mut w, &mut no_std);
+        check_breakpoint(ParamName::SR, s.s_r, std[1], &levels, &mut w, &mut no_std);
+        let inside = levels.iter().filter(|l| **l > s.s_l && **l < s.s_r).count();
+        if inside < 2 {
+            w.push(Warning::NonlinearityShape {
+                kind: "saturation",
+                why: format!(
+                    "{inside} distinct input level(s) inside the linear interval: its slope m is not determined"
+                ),
+            });
+        }
+        (w, no_std)
+    }
+}
+
+/// A deadzone whose branches saturate. Physical [b_l, b_r, s_l, s_r, m_l, m_r]; key terms
+/// [m_r, m_r b_r, m_r s_r, m_l, m_l b_l, m_l s_l] with regressors [h_r u, −(h_r + H_r), H_r, h_l u,
+/// −(h_l + H_l), H_l] (H_r = [u ≥ s_r], h_r = [b_r ≤ u < s_r], H_l = [u ≤ s_l], h_l = [s_l < u ≤ b_l]).
+pub struct DeadzoneSaturationBlock;
+
+fn dzs(f: &StaticNonlinearity) -> DeadzoneSaturation {
+    match f {
+        StaticNonlinearity::DeadzoneSaturation(d) => *d,
+        _ => DeadzoneSaturation {
+            b_l: 0.0,
+            b_r: 0.0,
+            s_l: 0.0,
+            s_r: 0.0,
+            m_l: 0.0,
+            m_r: 0.0,
+        },
+    }
+}
+
+/// The regions of u for a deadzone with saturation: (h_r, H_r, h_l, H_l), in the order of
+/// [`DeadzoneSaturation::apply`].
+fn dzs_regions(d: &DeadzoneSaturation, u: f64) -> (f64, f64, f64, f64) {
+    if u >= d.s_r {
+        (0.0, 1.0, 0.0, 0.0)
+    } else if u >= d.b_r {
+        (1.0, 0.0, 0.0, 0.0)
+    } else if u <= d.s_l {
+        (0.0, 0.0, 0.0, 1.0)
+    } else if u <= d.b_l {
+        (0.0, 0.0, 1.0, 0.0)
+    } else {
+        (0.0, 0.0, 0.0, 0.0)
+    }
+}
+
+impl Block for DeadzoneSaturationBlock {
+    fn physical_names(&self) -> &'static [ParamName] {
+        &[
+            ParamName::BL,
+            ParamName::BR,
+            ParamName::SL,
+            ParamName::SR,
+            ParamName::ML,
+            ParamName::MR,
+        ]
+    }
+    fn key_names(&self) -> &'static [ParamName] {
+        &[
+            ParamName::MR,
+            ParamName::MrBr,
+            ParamName::MrSr,
+            ParamName::ML,
+            ParamName::MlBl,
+            ParamName::MlSl,
+        ]
+    }
+    fn physical(&self, f: &StaticNonlinearity) -> Vec<f64> {
+        let d = dzs(f);
+        vec![d.b_l, d.b_r, d.s_l, d.s_r, d.m_l, d.m_r]
+    }
+    fn of_physical(&self, v: &[f64]) -> StaticNonlinearity {
+        StaticNonlinearity::DeadzoneSaturation(DeadzoneSaturation {
+            b_l: v[0],
+            b_r: v[1],
+            s_l: v[2],
+            s_r: v[3],
+            m_l: v[4],
+            m_r: v[5],
+        })
+    }
+    fn key_terms(&self, f: &StaticNonlinearity) -> Vec<f64> {
+        let d = dzs(f);
+        vec![
+            d.m_r,
+            d.m_r * d.b_r,
+            d.m_r * d.s_r,
+            d.m_l,
+            d.m_l * d.b_l,
+            d.m_l * d.s_l,
+        ]
+    }
+    fn fill_key_terms(&self, f: &StaticNonlinearity, u: f64, out: &mut [f64]) {
+        let (hr, sr, hl, sl) = dzs_regions(&dzs(f), u);
+        out[0] = hr * u;
+        out[1] = -(hr + sr);
+        out[2] = sr;
+        out[3] = hl * u;
+        out[4] = -(hl + sl);
+        out[5] = sl;
+    }
+    fn of_key_terms(
+        &self,
+        key: &[f64],
+        prev: &StaticNonlinearity,
+        limit: f64,
+    ) -> StaticNonlinearity {
+        let p = dzs(prev);
+        StaticNonlinearity::DeadzoneSaturation(DeadzoneSaturation {
+            b_r: ratio_or(key[1], key[0], p.b_r, limit),
+            s_r: ratio_or(key[2], key[0], p.s_r, limit),
+            m_r: key[0],
+            b_l: ratio_or(key[4], key[3], p.b_l, limit),
+            s_l: ratio_or(key[5], key[3], p.s_l, limit),
+            m_l: key[3],
+        })
+    }
+    fn physical_with_std(
+        &self,
+        theta: &[f64],
+        cov: Option<&DMatrix<f64>>,
+        at: usize,
+    ) -> Vec<(f64, Option<f64>)> {
+        vec![
+            ratio_with_std(theta, cov, at + 3, at + 4),
+            ratio_with_std(theta, cov, at, at + 1),
+            ratio_with_std(theta, cov, at + 3, at + 5),
+            ratio_with_std(theta, cov, at, at + 2),
+            (theta[at + 3], sd(cov, at + 3)),
+            (theta[at], sd(cov, at)),
+        ]
+    }
+    fn derivative(&self, f: &StaticNonlinearity, which: usize, u: f64) -> f64 {
+        let d = dzs(f);
+        let (hr, sr, hl, sl) = dzs_regions(&d, u);
+        match which {
+            0 => -d.m_l * (hl + sl),
+            1 => -d.m_r * (hr + sr),
+            2 => d.m_l * sl,
+            3 => d.m_r * sr,
+            4 => hl * (u - d.b_l) + sl * (d.s_l - d.b_l),
+            _ => hr * (u - d.b_r) + sr * (d.s_r - d.b_r),
+        }
+    }
+    fn is_degenerate(&self, f: &StaticNonlinearity) -> bool {
+        let d = dzs(f);
+        d.m_r == 0.0 && d.m_l == 0.0
+    }
+    fn start(
+        &self,
+        u: &[f64],
+        offset: bool,
+        allow_one_sided: bool,
+        name: &str,
+    ) -> Result<BlockStart, SysidError> {
+        let b = Branches::of(u, offset, allow_one_sided, name)?;
+        let dz = b.initial_deadzone();
+        // Saturation breakpoints at the 90 % quantile of |u| on each excited side.
+        let pos: Vec<f64> = u.iter().copied().filter(|v| *v > 0.0).collect();
+        let neg: Vec<f64> = u.iter().filter(|v| **v < 0.0).map(|v| -v).collect();
+        let s_r = if b.right { quantile(&pos, 0.9) } else { 0.0 };
+        let s_l = if b.left { -quantile(&neg, 0.9) } else { 0.0 };
+        let (l, r) = (b.left, b.right);
+        Ok(BlockStart {
+            initial: StaticNonlinearity::DeadzoneSaturation(DeadzoneSaturation {
+                b_l: dz.b_l,
+                b_r: dz.b_r,
+                s_l,
+                s_r,
+                m_l: dz.m_l,
+                m_r: dz.m_r,
+            }),
+            free_key: vec![r, r && !b.b_r_fixed, r, l, l && !b.b_l_fixed, l],
+            free_physical: vec![l && !b.b_l_fixed, r && !b.b_r_fixed, l, r, l, r],
+            limit: b.limit,
+            notes: b.notes(),
+        })
+    }
+    fn linear_equivalent(
+        &self,
+        b1: f64,
+        b1_std: Option<f64>,
+    ) -> (StaticNonlinearity, Vec<Option<f64>>) {
+        let d = DeadzoneSaturation {
+            b_l: 0.0,
+            b_r: 0.0,
+            s_l: -NO_LIMIT,
+            s_r: NO_LIMIT,
+            m_l: b1,
+            m_r: b1,
+        };
+        (
+            StaticNonlinearity::DeadzoneSaturation(d),
+            vec![None, None, None, None, b1_std, b1_std],
+        )
+    }
+    fn warnings(
+        &self,
+        f: &StaticNonlinearity,
+        u: &[f64],
+        start: &BlockStart,
+        std: &[Option<f64>],
+    ) -> (Vec<Warning>, Vec<ParamName>) {
+        let d = dzs(f);
+        let (left, right) = (start.free_physical[4], start.free_physical[5]);
+        let as_dz = Deadzone {
+            b_l: d.b_l,
+            b_r: d.b_r,
+            m_l: d.m_l,
+            m_r: d.m_r,
+        };
+        let (mut w, mut no_std) = deadzone_warnings(&as_dz, u, (left, right), (std[0], std[1]));
+        let levels = levels_of(u);
+        let sides = [
+            (
+                left,
+                ParamName::SL,
+                d.s_l,
+                std[2],
+                d.s_l >= d.b_l,
+                "s_l >= b_l",
+            ),
+            (
+                right,
+                ParamName::SR,
+                d.s_r,
+                std[3],
+                d.s_r <= d.b_r,
+                "s_r <= b_r",
+            ),
+        ];
+        for (estimated, name, value, s, crossed, what) in sides {
+            if !estimated {
+                continue;
+            }
+            if crossed {
+                w.push(Warning::NonlinearityShape {
+                    kind: "deadzone-saturation",
+                    why: format!("not physical: {what} ({name} = {value}): the branch saturates before it opens"),
+                });
+            }
+            check_breakpoint(name, value, s, &levels, &mut w, &mut no_std);
+        }
+        (w, no_std)
+    }
+}
+
+/// A piecewise-linear map through the origin with K breakpoints ([`PiecewiseLinear`]). Physical
+/// [p_1..p_K, s_0..s_K]; key terms [s_0, d_1, d_1 p_1, …, d_K, d_K p_K] (d_i = s_i − s_{i−1}) with
+/// regressors [u, h_1 u, −(h_1 − [p_1 < 0]), …] (h_i = [u ≥ p_i]): d_i (h_i u − p_i (h_i − [p_i < 0]))
+/// = d_i [(u − p_i)_+ − (−p_i)_+].
+pub struct PiecewiseBlock {
+    k: usize,
+}
+
+const PWL_NAMES: usize = 2 * MAX_BREAKPOINTS + 1;
+
+/// The physical (`key` false) or key-term names of K breakpoints, in the first 2K + 1 entries.
+const fn pwl_names(k: usize, key: bool) -> [ParamName; PWL_NAMES] {
+    let mut a = [ParamName::C; PWL_NAMES];
+    if key {
+        a[0] = ParamName::Slope(0);
+        let mut i = 1;
+        while i <= k {
+            a[2 * i - 1] = ParamName::Kink(i);
+            a[2 * i] = ParamName::KinkKnot(i);
+            i += 1;
+        }
+    } else {
+        let mut i = 0;
+        while i < k {
+            a[i] = ParamName::Knot(i + 1);
+            i += 1;
+        }
+        let mut j = 0;
+        while j <= k {
+            a[k + j] = ParamName::Slope(j);
+            j += 1;
+        }
+    }
+    a
+}
+
+const fn pwl_table(key: bool) -> [[ParamName; PWL_NAMES]; MAX_BREAKPOINTS + 1] {
+    let mut t = [[ParamName::C; PWL_NAMES]; MAX_BREAKPOINTS + 1];
+    let mut k = 0;
+    while k <= MAX_BREAKPOINTS {
+        t[k] = pwl_names(k, key);
+        k += 1;
+    }
+    t
+}
+
+static PWL_PHYSICAL: [[ParamName; PWL_NAMES]; MAX_BREAKPOINTS + 1] = pwl_table(false);
+static PWL_KEY: [[ParamName; PWL_NAMES]; MAX_BREAKPOINTS + 1] = pwl_table(true);
+
+static PIECEWISE: [PiecewiseBlock; MAX_BREAKPOINTS + 1] = [
+    PiecewiseBlock { k: 0 },
+    PiecewiseBlock { k: 1 },
+    PiecewiseBlock { k: 2 },
+    PiecewiseBlock { k: 3 },
+    PiecewiseBlock { k: 4 },
+    PiecewiseBlock { k: 5 },
+    PiecewiseBlock { k: 6 },
+    PiecewiseBlock { k: 7 },
+    PiecewiseBlock { k: 8 },
+];
+
+impl PiecewiseBlock {
+    /// The map of `f`, or the identity-like map of K breakpoints at 0 with zero slopes.
+    fn pwl(&self, f: &StaticNonlinearity) -> PiecewiseLinear {
+        match f {
+            StaticNonlinearity::PiecewiseLinear(p) if p.breakpoints().len() == self.k => *p,
+            _ => PiecewiseLinear::new(&vec![0.0; self.k], &vec![0.0; self.k + 1])
+                .unwrap_or_else(|_| unreachable_pwl()),
+        }
+    }
+
+    /// The map from breakpoints and slope changes (pairs sorted by breakpoint) and s_0.
+    fn from_kinks(s0: f64, mut kinks: Vec<(f64, f64)>) -> StaticNonlinearity {
+        kinks.sort_by(|a, b| a.0.total_cmp(&b.0));
+        let p: Vec<f64> = kinks.iter().map(|k| k.0).collect();
+        let mut s = Vec::with_capacity(p.len() + 1);
+        s.push(s0);
+        for (_, d) in &kinks {
+            s.push(s[s.len() - 1] + d);
+        }
+        match PiecewiseLinear::new(&p, &s) {
+            Ok(f) => StaticNonlinearity::PiecewiseLinear(f),
+            Err(_) => StaticNonlinearity::Linear,
+        }
+    }
+}
+
+/// A K = 1 map of zeros (the blocks are only built for K in 1..=MAX_BREAKPOINTS, checked by
+/// [`NonlinearityKind::check`]; this keeps a bad K from panicking).
+fn unreachable_pwl() -> PiecewiseLinear {
+    match PiecewiseLinear::new(&[0.0], &[0.0, 0.0]) {
+        Ok(p) => p,
+        Err(_) => unreachable!("one breakpoint and two slopes are a valid piecewise-linear map"),
+    }
+}
+
+impl Block for PiecewiseBlock {
+    fn physical_names(&self) -> &'static [ParamName] {
+        &PWL_PHYSICAL[self.k][..2 * self.k + 1]
+    }
+    fn key_names(&self) -> &'static [ParamName] {
+        &PWL_KEY[self.k][..2 * self.k + 1]
+    }
+    fn physical(&self, f: &StaticNonlinearity) -> Vec<f64> {
+        let p = self.pwl(f);
+        p.breakpoints().iter().chain(p.slopes()).copied().collect()
+    }
+    fn of_physical(&self, v: &[f64]) -> StaticNonlinearity {
+        let k = self.k;
+        match PiecewiseLinear::new(&v[..k], &v[k..=2 * k]) {
+            Ok(p) => StaticNonlinearity::PiecewiseLinear(p),
+            Err(_) => StaticNonlinearity::Linear,
+        }
+    }
+    fn key_terms(&self, f: &StaticNonlinearity) -> Vec<f64> {
+        let p = self.pwl(f);
+        let s = p.slopes();
+        let mut v = vec![s[0]];
+        for (i, pi) in p.breakpoints().iter().enumerate() {
+            let d = s[i + 1] - s[i];
+            v.extend([d, d * pi]);
+        }
+        v
+    }
+    fn fill_key_terms(&self, f: &StaticNonlinearity, u: f64, out: &mut [f64]) {
+        let p = self.pwl(f);
+        out[0] = u;
+        for (i, pi) in p.breakpoints().iter().enumerate() {
+            let h = if u >= *pi { 1.0 } else { 0.0 };
+            let neg = if *pi < 0.0 { 1.0 } else { 0.0 };
+            out[2 * i + 1] = h * u;
+            out[2 * i + 2] = -(h - neg);
+        }
+    }
+    fn of_key_terms(
+        &self,
+        key: &[f64],
+        prev: &StaticNonlinearity,
+        limit: f64,
+    ) -> StaticNonlinearity {
+        let old = self.pwl(prev);
+        let kinks = (0..self.k)
+            .map(|i| {
+                let d = key[2 * i + 1];
+                (ratio_or(key[2 * i + 2], d, old.breakpoints()[i], limit), d)
+            })
+            .collect();
+        Self::from_kinks(key[0], kinks)
+    }
+    fn physical_with_std(
+        &self,
+        theta: &[f64],
+        cov: Option<&DMatrix<f64>>,
+        at: usize,
+    ) -> Vec<(f64, Option<f64>)> {
+        // Breakpoints p_i = (d_i p_i) / d_i by the delta method, then sorted with their kinks; the
+        // slopes s_j = s_0 + Σ_{sorted i ≤ j} d_i are linear in θ.
+        let mut kinks: Vec<(usize, (f64, Option<f64>))> = (0..self.k)
+            .map(|i| {
+                let d = at + 2 * i + 1;
+                (d, ratio_with_std(theta, cov, d, d + 1))
+            })
+            .collect();
+        kinks.sort_by(|a, b| a.1 .0.total_cmp(&b.1 .0));
+        let mut out: Vec<(f64, Option<f64>)> = kinks.iter().map(|k| k.1).collect();
+        let mut terms = vec![(at, 1.0)];
+        let mut s = theta[at];
+        out.push((s, sd(cov, at)));
+        for (d, _) in &kinks {
+            terms.push((*d, 1.0));
+            s += theta[*d];
+            out.push((s, combination_std(cov, &terms)));
+        }
+        out
+    }
+    fn derivative(&self, f: &StaticNonlinearity, which: usize, u: f64) -> f64 {
+        let p = self.pwl(f);
+        let (k, s) = (self.k, p.slopes());
+        if which < k {
+            let pi = p.breakpoints()[which];
+            let h = if u >= pi { 1.0 } else { 0.0 };
+            let neg = if pi < 0.0 { 1.0 } else { 0.0 };
+            return -(s[which + 1] - s[which]) * (h - neg);
+        }
+        let j = which - k;
+        let mut v = if j == 0 { u } else { p.hinge(j, u) };
+        if j < k {
+            v -= p.hinge(j + 1, u);
+        }
+        v
+    }
+    fn is_degenerate(&self, f: &StaticNonlinearity) -> bool {
+        self.pwl(f).slopes().iter().all(|s| *s == 0.0)
+    }
+    fn start(&self, u: &[f64], _: bool, _: bool, name: &str) -> Result<BlockStart, SysidError> {
+        let k = self.k;
+        let levels = need_levels(u, k + 2, "piecewise-linear", name)?;
+        // Breakpoints at the quantiles i/(K+1) of u, moved to distinct levels strictly inside the range.
+        let inner = &levels[1..levels.len() - 1];
+        let mut p: Vec<f64> = (1..=k)
+            .map(|i| quantile(u, i as f64 / (k + 1) as f64))
+            .collect();
+        p.dedup();
+        if p.len() < k || p[0] <= levels[0] || p[p.len() - 1] >= levels[levels.len() - 1] {
+            p = (1..=k)
+                .map(|i| inner[(i * inner.len()) / (k + 1)])
+                .collect();
+            p.dedup();
+            if p.len() < k {
+                p = inner[..k].to_vec();
+            }
+        }
+        let initial = PiecewiseLinear::new(&p, &vec![1.0; k + 1])?;
+        let limit = levels[0].abs().max(levels[levels.len() - 1].abs());
+        Ok(BlockStart {
+            initial: StaticNonlinearity::PiecewiseLinear(initial),
+            free_key: vec![true; 2 * k + 1],
+            free_physical: vec![true; 2 * k + 1],
+            limit,
+            notes: Vec::new(),
+        })
+    }
+    fn linear_equivalent(
+        &self,
+        b1: f64,
+        b1_std: Option<f64>,
+    ) -> (StaticNonlinearity, Vec<Option<f64>>) {
+        let k = self.k;
+        let f = PiecewiseLinear::new(&vec![0.0; k], &vec![b1; k + 1])
+            .map(StaticNonlinearity::PiecewiseLinear)
+            .unwrap_or(StaticNonlinearity::Linear);
+        let mut std = vec![None; k];
+        std.extend(vec![b1_std; k + 1]);
+        (f, std)
+    }
+    fn warnings(
+        &self,
+        f: &StaticNonlinearity,
+        u: &[f64],
+        _: &BlockStart,
+        std: &[Option<f64>],
+    ) -> (Vec<Warning>, Vec<ParamName>) {
+        let p = self.pwl(f);
+        let (mut w, mut no_std) = (Vec::new(), Vec::new());
+        let levels = levels_of(u);
+        let bp = p.breakpoints();
+        for (i, pi) in bp.iter().enumerate() {
+            check_breakpoint(
+                ParamName::Knot(i + 1),
+                *pi,
+                std[i],
+                &levels,
+                &mut w,
+                &mut no_std,
+            );
+        }
+        // Each segment needs two distinct levels to determine its slope.
+        for j in 0..=bp.len() {
+            let lo = if j == 0 { f64::NEG_INFINITY } else { bp[j - 1] };
+            let hi = bp.get(j).copied().unwrap_or(f64::INFINITY);
+            let n = levels.iter().filter(|l| **l >= lo && **l <= hi).count();
+            if n < 2 {
+                w.push(Warning::NonlinearityShape {
+                    kind: "piecewise-linear",
+                    why: format!(
+                        "segment {j} ({lo} .. {hi}) holds {n} distinct input level(s): its slope s{j} is not determined"
+                    ),
+                });
+            }
+        }
+        (w, no_std)
+    }
+}
+
+/// A polynomial through the origin of degree D ([`Polynomial`]): physical parameters and key terms
+/// [g_1..g_D] with regressors [u, u², …, u^D] (linear in its parameters: no iteration on the block).
+pub struct PolynomialBlock {
+    d: usize,
+}
+
+static POLY_NAMES: [ParamName; MAX_DEGREE] = [
+    ParamName::Poly(1),
+    ParamName::Poly(2),
+    ParamName::Poly(3),
+    ParamName::Poly(4),
+    ParamName::Poly(5),
+    ParamName::Poly(6),
+    ParamName::Poly(7),
+    ParamName::Poly(8),
+];
+
+static POLYNOMIAL: [PolynomialBlock; MAX_DEGREE + 1] = [
+    PolynomialBlock { d: 0 },
+    PolynomialBlock { d: 1 },
+    PolynomialBlock { d: 2 },
+    PolynomialBlock { d: 3 },
+    PolynomialBlock { d: 4 },
+    PolynomialBlock { d: 5 },
+    PolynomialBlock { d: 6 },
+    PolynomialBlock { d: 7 },
+    PolynomialBlock { d: 8 },
+];
+
+impl PolynomialBlock {
+    fn coefficients(&self, f: &StaticNonlinearity) -> Vec<f64> {
+        match f {
+            StaticNonlinearity::Polynomial(p) if p.coefficients().len() == self.d => {
+                p.coefficients().to_vec()
+            }
+            _ => vec![0.0; self.d],
+        }
+    }
+}
+
+impl Block for PolynomialBlock {
+    fn physical_names(&self) -> &'static [ParamName] {
+        &POLY_NAMES[..self.d]
+    }
+    fn key_names(&self) -> &'static [ParamName] {
+        &POLY_NAMES[..self.d]
+    }
+    fn physical(&self, f: &StaticNonlinearity) -> Vec<f64> {
+        self.coefficients(f)
+    }
+    fn of_physical(&self, v: &[f64]) -> StaticNonlinearity {
+        Polynomial::new(&v[..self.d])
+            .map(StaticNonlinearity::Polynomial)
+            .unwrap_or(StaticNonlinearity::Linear)
+    }
+    fn key_terms(&self, f: &StaticNonlinearity) -> Vec<f64> {
+        self.coefficients(f)
+    }
+    fn fill_key_terms(&self, _: &StaticNonlinearity, u: f64, out: &mut [f64]) {
+        let mut p = u;
+        for o in out.iter_mut().take(self.d) {
+            *o = p;
+            p *= u;
+        }
+    }
+    fn of_key_terms(&self, key: &[f64], _: &StaticNonlinearity, _: f64) -> StaticNonlinearity {
+        self.of_physical(key)
+    }
+    fn physical_with_std(
+        &self,
+        theta: &[f64],
+        cov: Option<&DMatrix<f64>>,
+        at: usize,
+    ) -> Vec<(f64, Option<f64>)> {
+        (at..at + self.d).map(|i| (theta[i], sd(cov, i))).collect()
+    }
+    fn derivative(&self, _: &StaticNonlinearity, which: usize, u: f64) -> f64 {
+        u.powi(which as i32 + 1)
+    }
+    fn is_degenerate(&self, f: &StaticNonlinearity) -> bool {
+        self.coefficients(f).iter().all(|g| *g == 0.0)
+    }
+    fn start(&self, u: &[f64], _: bool, _: bool, name: &str) -> Result<BlockStart, SysidError> {
+        let levels = need_levels(u, self.d + 1, "polynomial", name)?;
+        let mut g = vec![0.0; self.d];
+        g[0] = 1.0;
+        Ok(BlockStart {
+            initial: self.of_physical(&g),
+            free_key: vec![true; self.d],
+            free_physical: vec![true; self.d],
+            limit: levels[0].abs().max(levels[levels.len() - 1].abs()),
+            notes: Vec::new(),
+        })
+    }
+    fn linear_equivalent(
+        &self,
+        b1: f64,
+        b1_std: Option<f64>,
+    ) -> (StaticNonlinearity, Vec<Option<f64>>) {
+        let mut g = vec![0.0; self.d];
+        g[0] = b1;
+        let mut std = vec![None; self.d];
+        std[0] = b1_std;
+        (self.of_physical(&g), std)
+    }
+    fn warnings(
+        &self,
+        f: &StaticNonlinearity,
+        u: &[f64],
+        _: &BlockStart,
+        _: &[Option<f64>],
+    ) -> (Vec<Warning>, Vec<ParamName>) {
+        let mut w = Vec::new();
+        let levels = levels_of(u);
+        if let (Some(&lo), Some(&hi)) = (levels.first(), levels.last()) {
+            if let Some(at) = monotonicity_change(|v| f.apply(v), lo, hi) {
+                w.push(Warning::NonlinearityShape {
+                    kind: "polynomial",
+                    why: format!(
+                        "not monotone over the input range {lo} .. {hi} (it turns near u = {at:.6}): a larger \
+                         command does not always give a larger x, which an actuator map rarely does"
+                    ),
+                });
+            }
+        }
+        (w, Vec::new())
+    }
+}
+
+/// Where f changes direction on [lo, hi] (sampled at 512 points, ignoring steps below 1e-12 of its
+/// range), if it does.
+pub(crate) fn monotonicity_change(f: impl Fn(f64) -> f64, lo: f64, hi: f64) -> Option<f64> {
+    const N: usize = 512;
+    let xs: Vec<f64> = (0..=N)
+        .map(|i| lo + (hi - lo) * i as f64 / N as f64)
+        .collect();
+    let ys: Vec<f64> = xs.iter().map(|x| f(*x)).collect();
+    let span = ys.iter().fold(0.0_f64, |m, y| m.max(y.abs())).max(1e-300);
+    let mut dir = 0.0;
+    for i in 1..=N {
+        let step = ys[i] - ys[i - 1];
+        if step.abs() <= 1e-12 * span {
+            continue;
+        }
+        if dir * step < 0.0 {
+            return Some(xs[i - 1]);
+        }
+        dir = step.signum();
+    }
+    None
+}
+
 /// Which parts of the deadzone a record can determine: the left branch (u <= b_l) is only seen when the
 /// input goes below zero, the right branch (u >= b_r) only when it goes above.
 ///
@@ -532,13 +1499,10 @@ pub fn deadzone_warnings(
 ) -> (Vec<Warning>, Vec<ParamName>) {
     let mut w = Vec::new();
     let mut no_std = Vec::new();
-    let mut levels: Vec<f64> = u.to_vec();
-    levels.sort_by(f64::total_cmp);
-    levels.dedup();
-    let (u_min, u_max) = match (levels.first(), levels.last()) {
-        (Some(a), Some(b)) => (*a, *b),
-        _ => return (w, no_std),
-    };
+    let levels = levels_of(u);
+    if levels.is_empty() {
+        return (w, no_std);
+    }
     if left && right && d.b_l > d.b_r {
         w.push(Warning::NonPhysicalDeadzone {
             why: format!("b_l = {} > b_r = {}", d.b_l, d.b_r),
@@ -560,26 +1524,7 @@ pub fn deadzone_warnings(
         if !estimated {
             continue;
         }
-        let on = |l: f64| 1e-9 * l.abs().max(1.0);
-        let reach = |l: f64| on(l).max(std.unwrap_or(0.0));
-        if let Some(level) = levels.iter().find(|l| (b - **l).abs() <= reach(**l)) {
-            w.push(Warning::BreakpointOnInputLevel {
-                name,
-                value: b,
-                level: *level,
-                // On the level itself the deviation says nothing; near it, the withheld value is named.
-                std: std.filter(|_| (b - *level).abs() > on(*level)),
-            });
-            no_std.push(name);
-        } else if b <= u_min || b >= u_max {
-            w.push(Warning::BreakpointNotBracketed {
-                name,
-                value: b,
-                u_min,
-                u_max,
-            });
-            no_std.push(name);
-        }
+        check_breakpoint(name, b, std, &levels, &mut w, &mut no_std);
         let beyond = levels
             .iter()
             .filter(|l| match branch {
@@ -595,6 +1540,50 @@ pub fn deadzone_warnings(
         }
     }
     (w, no_std)
+}
+
+/// The distinct values of `u`, sorted.
+pub(crate) fn levels_of(u: &[f64]) -> Vec<f64> {
+    let mut levels: Vec<f64> = u.iter().copied().filter(|v| v.is_finite()).collect();
+    levels.sort_by(f64::total_cmp);
+    levels.dedup();
+    levels
+}
+
+/// Checks breakpoint `name` = `b` against the sorted distinct input `levels`: on a level (within 1e-9
+/// relative, or within its standard deviation `std`) or not bracketed by the data. Pushes the warning
+/// and, when its standard deviation is not meaningful, the name to `no_std`.
+pub(crate) fn check_breakpoint(
+    name: ParamName,
+    b: f64,
+    std: Option<f64>,
+    levels: &[f64],
+    w: &mut Vec<Warning>,
+    no_std: &mut Vec<ParamName>,
+) {
+    let (Some(&u_min), Some(&u_max)) = (levels.first(), levels.last()) else {
+        return;
+    };
+    let on = |l: f64| 1e-9 * l.abs().max(1.0);
+    let reach = |l: f64| on(l).max(std.unwrap_or(0.0));
+    if let Some(level) = levels.iter().find(|l| (b - **l).abs() <= reach(**l)) {
+        w.push(Warning::BreakpointOnInputLevel {
+            name,
+            value: b,
+            level: *level,
+            // On the level itself the deviation says nothing; near it, the withheld value is named.
+            std: std.filter(|_| (b - *level).abs() > on(*level)),
+        });
+        no_std.push(name);
+    } else if b <= u_min || b >= u_max {
+        w.push(Warning::BreakpointNotBracketed {
+            name,
+            value: b,
+            u_min,
+            u_max,
+        });
+        no_std.push(name);
+    }
 }
 
 #[cfg(test)]

@@ -9,7 +9,7 @@
 //! recursive instrumental variables, [`crate::iv`]); they see a [`Regression`] and the nonlinearity
 //! [`crate::blocks`], never a deadzone.
 
-use crate::blocks::NonlinearityKind;
+use crate::blocks::{NonlinearityKind, AUTO_BREAKPOINTS, MAX_AUTO_BREAKPOINTS};
 use crate::fitted::{check_finite, Fitted, Method, Param, Termination};
 use crate::methods;
 pub use crate::methods::{
@@ -91,6 +91,9 @@ pub struct Identification {
     /// b_l = b_r = 0 (a warning says so). Default `false`: the method's own estimate is returned and a
     /// warning says that the linear start is better.
     pub fallback: bool,
+    /// The output nonlinearity y = g(v) (saturation, piecewise-linear, polynomial; `None`: y = v),
+    /// fitted by output error from the method's model ([`crate::wiener`]).
+    pub output: Option<NonlinearityKind>,
 }
 
 impl Default for Identification {
@@ -106,6 +109,7 @@ impl Default for Identification {
             estimator: EstimatorSettings::Rls(RecursiveLeastSquares::default()),
             drop_unexcited_branch: false,
             fallback: false,
+            output: None,
         }
     }
 }
@@ -117,6 +121,9 @@ impl Identification {
         let names: Vec<String> = (1..=n).map(|i| format!("u{i}")).collect();
         let names: Vec<&str> = names.iter().map(String::as_str).collect();
         self.regression(&names)?;
+        if let Some(kind) = self.output {
+            crate::wiener::check_output_kind(kind)?;
+        }
         self.estimator.check()
     }
 
@@ -185,6 +192,32 @@ impl Identification {
     /// Builder: one input specification per input of the data.
     pub fn with_inputs(mut self, inputs: Vec<InputSpec>) -> Self {
         self.inputs = inputs;
+        self
+    }
+
+    /// True when a piecewise-linear block has `--breakpoints auto` (K to be chosen).
+    pub fn auto_breakpoints(&self) -> bool {
+        let auto = |k: &NonlinearityKind| {
+            *k == NonlinearityKind::PiecewiseLinear {
+                breakpoints: AUTO_BREAKPOINTS,
+            }
+        };
+        self.inputs.iter().any(|i| auto(&i.nonlinearity)) || self.output.as_ref().is_some_and(auto)
+    }
+
+    /// The same with K breakpoints in every piecewise-linear block (inputs and output).
+    pub fn with_breakpoints(&self, k: usize) -> Identification {
+        let mut s = self.clone();
+        for i in &mut s.inputs {
+            i.nonlinearity = i.nonlinearity.with_breakpoints(k);
+        }
+        s.output = s.output.map(|o| o.with_breakpoints(k));
+        s
+    }
+
+    /// Builder: the output nonlinearity y = g(v).
+    pub fn with_output_nonlinearity(mut self, output: Option<NonlinearityKind>) -> Self {
+        self.output = output;
         self
     }
 
@@ -269,8 +302,18 @@ pub fn identify<R: Records + ?Sized>(
     settings: &Identification,
 ) -> Result<Fitted, SysidError> {
     settings.check()?;
+    if settings.auto_breakpoints() {
+        return identify_breakpoints(records, settings);
+    }
     let problem = settings.problem(records.records())?;
     let mut fit = settings.estimator.fit(&problem)?;
+    if let Some(kind) = settings.output {
+        let max_iterations = match settings.estimator {
+            EstimatorSettings::Oe(st) => st.max_iterations,
+            _ => OutputError::default().max_iterations,
+        };
+        fit = crate::wiener::refine(&problem, kind, fit, max_iterations)?;
+    }
     let mut notes: Vec<crate::fitted::Note> = problem
         .notes()
         .into_iter()
@@ -280,6 +323,52 @@ pub fn identify<R: Records + ?Sized>(
     fit.notes = notes;
     check_finite(problem.name(), &fit.params)?;
     safeguard(&problem, settings, fit)
+}
+
+/// `--breakpoints auto`: the identification with K = 1..=[`MAX_AUTO_BREAKPOINTS`] breakpoints in every
+/// piecewise-linear block, the one with the smallest AIC on the estimation data kept (a note lists
+/// them all).
+fn identify_breakpoints<R: Records + ?Sized>(
+    records: &R,
+    settings: &Identification,
+) -> Result<Fitted, SysidError> {
+    let mut best: Option<(f64, usize, Fitted)> = None;
+    let mut candidates = Vec::with_capacity(MAX_AUTO_BREAKPOINTS);
+    let mut first_error = None;
+    for k in 1..=MAX_AUTO_BREAKPOINTS {
+        let s = settings.with_breakpoints(k);
+        let aic = match identify(records, &s) {
+            Ok(fit) => {
+                let aic = s
+                    .problem(records.records())
+                    .ok()
+                    .and_then(|p| p.metrics(&fit.model))
+                    .and_then(|m| m.aic)
+                    .filter(|a| a.is_finite());
+                if let Some(a) = aic {
+                    if best.as_ref().is_none_or(|b| a < b.0) {
+                        best = Some((a, k, fit));
+                    }
+                }
+                aic
+            }
+            Err(e) => {
+                first_error.get_or_insert(e);
+                None
+            }
+        };
+        candidates.push((k, aic));
+    }
+    let Some((_, k, mut fit)) = best else {
+        return Err(first_error.unwrap_or_else(|| {
+            SysidError::Numerical(format!(
+                "--breakpoints auto: no K from 1 to {MAX_AUTO_BREAKPOINTS} gave a model with a finite AIC"
+            ))
+        }));
+    };
+    fit.notes
+        .push(crate::fitted::Note::BreakpointsChosen { k, candidates });
+    Ok(fit)
 }
 
 /// Percentage points of estimation simulation fit by which a Hammerstein estimate may trail the linear

@@ -157,6 +157,14 @@ pub enum Note {
         /// Stages run.
         stages: usize,
     },
+    /// `--breakpoints auto`: K of the piecewise-linear blocks chosen by the smallest AIC on the
+    /// estimation data.
+    BreakpointsChosen {
+        /// The K kept.
+        k: usize,
+        /// Every K tried with its AIC (`None`: the fit failed or its AIC is not finite).
+        candidates: Vec<(usize, Option<f64>)>,
+    },
 }
 
 impl std::fmt::Display for Note {
@@ -236,6 +244,20 @@ impl std::fmt::Display for Note {
                 "IV stages had not settled after {stages} stages (relative change >= {:e})",
                 IV_SETTLED
             ),
+            Note::BreakpointsChosen { k, candidates } => {
+                let list: Vec<String> = candidates
+                    .iter()
+                    .map(|(k, aic)| match aic {
+                        Some(a) => format!("K = {k}: {a:.4}"),
+                        None => format!("K = {k}: failed"),
+                    })
+                    .collect();
+                write!(
+                    f,
+                    "piecewise-linear breakpoints K = {k} chosen by the smallest AIC on the estimation data ({})",
+                    list.join(", ")
+                )
+            }
         }
     }
 }

@@ -35,9 +35,9 @@ pub mod residuals;
 pub mod rls;
 pub mod rls_ud;
 pub mod stream;
-pub mod summary;
 pub mod trust;
 pub mod warnings;
+pub mod wiener;
 pub mod windup;
 
 pub use blocks::NonlinearityKind;

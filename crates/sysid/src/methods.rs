@@ -621,7 +621,7 @@ pub(crate) fn instrumental(p: &Problem, st: &InstrumentalVariables) -> Result<Fi
 /// simulation that the initial state cannot flatter ([`crate::trust::guarded_rmse`]: the larger of
 /// the RMSEs from estimated and from measured initial outputs), `None` when the model is unstable or
 /// its simulation diverges.
-fn reported_rmse(model: &Model, data: &Dataset) -> Option<f64> {
+pub(crate) fn reported_rmse(model: &Model, data: &Dataset) -> Option<f64> {
     if !model.is_stable() {
         return None;
     }

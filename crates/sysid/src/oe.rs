@@ -59,6 +59,9 @@ use crate::regression::Regression;
 use sysid_core::model::{is_stable_polynomial_within, poles_of};
 use sysid_core::{Dataset, Model, NoiseModel, StaticNonlinearity, SysidError};
 
+/// The `input` label of the output nonlinearity's parameters (`s_r (output)`).
+pub const OUTPUT: &str = "output";
+
 /// The result of an output-error refinement.
 #[derive(Debug, Clone)]
 pub struct OeFit {
@@ -209,6 +212,8 @@ impl Channel<'_> {
 /// outputs η_0..η_{k0−1}.
 struct Problem<'a> {
     channels: Vec<Channel<'a>>,
+    /// The output nonlinearity's block (y = g(v)); its parameters follow c in `full`.
+    output: Option<&'static dyn Block>,
     y: &'a [f64],
     na: usize,
     offset: bool,
@@ -230,6 +235,8 @@ enum Role {
     B { ch: usize, j: usize },
     /// The constant c.
     C,
+    /// Parameter `which` of the output nonlinearity.
+    Out(usize),
     /// The initial output η_j.
     Eta(usize),
 }
@@ -241,6 +248,8 @@ struct Decoded {
     /// The whole B of each input (b1 = 1 included for a nonlinear one).
     b: Vec<Vec<f64>>,
     c: f64,
+    /// The output nonlinearity g (y = g(v)).
+    g: Option<StaticNonlinearity>,
 }
 
 impl Problem<'_> {
@@ -252,7 +261,12 @@ impl Problem<'_> {
     /// Number of model parameters (the initial outputs follow them in `full`).
     fn n_params(&self) -> usize {
         let nb: usize = self.channels.iter().map(|c| c.nb - c.b_from()).sum();
-        self.ia() + self.na + nb + usize::from(self.offset)
+        self.ia() + self.na + nb + usize::from(self.offset) + self.n_out()
+    }
+
+    /// Number of the output nonlinearity's parameters.
+    fn n_out(&self) -> usize {
+        self.output.map_or(0, |b| b.physical_names().len())
     }
 
     /// The role of entry `q` of the full vector.
@@ -281,7 +295,10 @@ impl Problem<'_> {
             }
             i -= 1;
         }
-        Role::Eta(i)
+        if i < self.n_out() {
+            return Role::Out(i);
+        }
+        Role::Eta(i - self.n_out())
     }
 
     /// The parts of the model in the full vector (no validation: an iterate may be non-finite, which the
@@ -308,7 +325,11 @@ impl Problem<'_> {
             b.push(bc);
         }
         let c = if self.offset { v[i] } else { 0.0 };
-        Decoded { f, a, b, c }
+        i += usize::from(self.offset);
+        let g = self
+            .output
+            .map(|block| block.of_physical(&v[i..i + self.n_out()]));
+        Decoded { f, a, b, c, g }
     }
 
     /// ŷ over the record and x = f(u) of each input; `None` when the simulation leaves ±bound or is not
@@ -344,12 +365,24 @@ impl Problem<'_> {
         Some((yh, x))
     }
 
-    /// Residuals y − ŷ over every sample; `None` when the simulation diverges.
+    /// Residuals y − ŷ over every sample (ŷ = g(v) after k0 with an output nonlinearity); `None`
+    /// when the simulation diverges.
     fn residuals(&self) -> Option<DVector<f64>> {
-        let m = self.y.len();
         let d = self.decode();
         let (yh, _) = self.simulate(&d)?;
-        Some(DVector::from_iterator(m, (0..m).map(|k| self.y[k] - yh[k])))
+        Some(self.residuals_of(&d, &yh))
+    }
+
+    /// y − ŷ of the linear block's simulation `v`.
+    fn residuals_of(&self, d: &Decoded, v: &[f64]) -> DVector<f64> {
+        let m = self.y.len();
+        DVector::from_iterator(
+            m,
+            (0..m).map(|k| match &d.g {
+                Some(g) if k >= self.k0 => self.y[k] - g.apply(v[k]),
+                _ => self.y[k] - v[k],
+            }),
+        )
     }
 
     /// Loss Σ r² (infinite when the simulation diverges).
@@ -557,6 +590,20 @@ impl Problem<'_> {
                     }
                 }
                 Role::C => g[k0..n].fill(1.0),
+                Role::Out(which) => {
+                    // ∂ŷ/∂p = ∂g/∂p at v(k), no dynamics.
+                    let (Some(block), Some(gf)) = (self.output, &d.g) else {
+                        continue;
+                    };
+                    for k in 0..n {
+                        jac[(k, col)] = if k < k0 {
+                            0.0
+                        } else {
+                            block.derivative(gf, which, yh[k])
+                        };
+                    }
+                    continue;
+                }
             }
             // A(q⁻¹) s = g with s given before k0.
             for k in k0..n {
@@ -567,7 +614,12 @@ impl Problem<'_> {
                 s[k] = v;
             }
             for k in 0..n {
-                jac[(k, col)] = s[k];
+                // ∂g(v)/∂q = g'(v) ∂v/∂q after k0.
+                let slope = match &d.g {
+                    Some(gf) if k >= k0 => gf.slope(yh[k]),
+                    _ => 1.0,
+                };
+                jac[(k, col)] = slope * s[k];
             }
         }
         jac
@@ -639,7 +691,7 @@ fn run(
             "{name}: output-error refinement ended on a diverging model"
         ))
     })?;
-    let resid = DVector::from_iterator(n, (0..n).map(|k| problem.y[k] - yh[k]));
+    let resid = problem.residuals_of(&d, &yh);
     let rss = resid.norm_squared();
     let jac = problem.sensitivities(&d, &yh, &x);
     let sigma2 = rss / (n - free.len()) as f64;
@@ -730,6 +782,7 @@ fn problem<'a>(channels: Vec<Channel<'a>>, y: &'a [f64], na: usize, offset: bool
     let ymax = y.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     Problem {
         channels,
+        output: None,
         y,
         na,
         offset,
@@ -750,6 +803,32 @@ pub fn refine(
     reg: &Regression,
     free: &[bool],
     start: &Model,
+    max_iterations: usize,
+) -> Result<OeFit, SysidError> {
+    refine_with_output(data, reg, free, start, None, max_iterations)
+}
+
+/// The output nonlinearity y = g(v) of an output-error problem: its block, its start and which of its
+/// physical parameters are moved (one is held fixed: the scale normalisation against the linear block).
+#[derive(Clone, Copy)]
+pub struct OutputStart<'s> {
+    /// The block of g's kind.
+    pub block: &'static dyn Block,
+    /// g at the start.
+    pub start: StaticNonlinearity,
+    /// Which of g's physical parameters the search moves.
+    pub free: &'s [bool],
+}
+
+/// [`refine`] of a model with the output nonlinearity `output` (Wiener / Hammerstein–Wiener): the
+/// simulation is ŷ = g(v) with v the linear block's output, the sensitivities g'(v) ∂v/∂θ and ∂g/∂p.
+/// The parameters of g follow the model's in the reported list, marked with the input name `output`.
+pub fn refine_with_output(
+    data: &Dataset,
+    reg: &Regression,
+    free: &[bool],
+    start: &Model,
+    output: Option<OutputStart>,
     max_iterations: usize,
 ) -> Result<OeFit, SysidError> {
     let name = data.name();
@@ -777,20 +856,45 @@ pub fn refine(
             "output-error refinement: the start model does not match the structure".into(),
         ));
     }
-    let problem = problem(channels, data.y(), reg.na(), reg.offset());
-    let model_free = (0..free.len()).filter(|&i| free[i]).collect();
-    let found = run(
-        problem,
-        full,
-        model_free,
-        max_iterations,
-        name,
-        &reg.physical_labels(),
-    )?;
-    let params = reg.params_from(|i| (found.full[i], found.std(i)));
-    let model = reg
-        .model_of_physical(&found.full[..found.np], data.ts())
+    let mut problem = problem(channels, data.y(), reg.na(), reg.offset());
+    let n_model = full.len();
+    let mut full = full;
+    let mut model_free: Vec<usize> = (0..free.len()).filter(|&i| free[i]).collect();
+    let mut labels = reg.physical_labels();
+    if let Some(o) = &output {
+        problem.output = Some(o.block);
+        full.extend(o.block.physical(&o.start));
+        model_free.extend(
+            (0..o.free.len())
+                .filter(|&i| o.free[i])
+                .map(|i| n_model + i),
+        );
+        labels.extend(
+            o.block
+                .physical_names()
+                .iter()
+                .map(|n| format!("{n} (output)")),
+        );
+    }
+    let found = run(problem, full, model_free, max_iterations, name, &labels)?;
+    let mut params = reg.params_from(|i| (found.full[i], found.std(i)));
+    let mut model = reg
+        .model_of_physical(&found.full[..n_model], data.ts())
         .map_err(|e| SysidError::Numerical(format!("{name}: {e}")))?;
+    if let Some(o) = &output {
+        let v = &found.full[n_model..found.np];
+        model = model
+            .with_output_nonlinearity(Some(o.block.of_physical(v)))
+            .map_err(|e| SysidError::Numerical(format!("{name}: {e}")))?;
+        for (i, n) in o.block.physical_names().iter().enumerate() {
+            params.push(Param {
+                name: *n,
+                input: Some(OUTPUT.to_string()),
+                value: v[i],
+                std: found.std(n_model + i),
+            });
+        }
+    }
     Ok(found.into_fit(model, params))
 }
 
@@ -883,6 +987,50 @@ mod tests {
         let full = vec![
             -1.4, 1.3, 0.02, 0.03, -1.2, 0.4, 0.5, 0.3, -0.2, 0.1, 0.3, -0.2, 0.1,
         ];
+        assert_jacobian_matches_central_differences(&mut p, &full);
+    }
+
+    // An output nonlinearity y = g(v) (a polynomial, smooth; a piecewise-linear map away from its
+    // breakpoints): the sensitivities g'(v) ∂v/∂θ and ∂g/∂p match central differences.
+    #[test]
+    fn analytic_jacobian_with_an_output_nonlinearity_matches_central_differences() {
+        let u: Vec<f64> = (0..120)
+            .map(|k| ((k * 37) % 17) as f64 * 0.1 - 0.8 + 0.025)
+            .collect();
+        let y: Vec<f64> = (0..120).map(|k| (k as f64 * 0.05).sin()).collect();
+        let channel = Channel {
+            u: &u,
+            nb: 2,
+            nk: 1,
+            block: &crate::blocks::LinearBlock,
+        };
+        let poly = crate::blocks::NonlinearityKind::Polynomial { degree: 3 }.block();
+        let mut p = problem(vec![channel], &y, 2, true);
+        p.output = Some(poly);
+        assert_eq!((p.k0, p.n_params()), (2, 8));
+        // [a1, a2, b1, b2, c, g1, g2, g3, η0, η1]
+        let full = vec![-1.2, 0.4, 0.5, 0.2, 0.1, 1.1, 0.3, -0.05, 0.3, -0.2];
+        assert_jacobian_matches_central_differences(&mut p, &full);
+        let pwl = crate::blocks::NonlinearityKind::PiecewiseLinear { breakpoints: 1 }.block();
+        let channel = Channel {
+            u: &u,
+            nb: 2,
+            nk: 1,
+            block: &crate::blocks::LinearBlock,
+        };
+        let mut p = problem(vec![channel], &y, 2, true);
+        p.output = Some(pwl);
+        // [a1, a2, b1, b2, c, p1, s0, s1, η0, η1]; the breakpoint 0.613 is away from every v(k) by
+        // more than the finite-difference step.
+        let full = vec![-1.2, 0.4, 0.5, 0.2, 0.1, 0.613, 1.0, 0.4, 0.3, -0.2];
+        p.full = full.clone();
+        let d = p.decode();
+        let (v, _) = p.simulate(&d).unwrap();
+        assert!(
+            v.iter().all(|x| (x - 0.613).abs() > 1e-4),
+            "a v(k) near the breakpoint"
+        );
+        assert!(v.iter().any(|x| *x > 0.613) && v.iter().any(|x| *x < 0.613));
         assert_jacobian_matches_central_differences(&mut p, &full);
     }
 }

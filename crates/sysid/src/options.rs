@@ -116,6 +116,7 @@ impl IdentifyOptions {
             // and says so in the report's note.
             drop_unexcited_branch: true,
             fallback: self.fallback,
+            output: None,
         }
     }
 }

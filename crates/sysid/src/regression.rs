@@ -83,6 +83,7 @@ impl Regression {
             ));
         }
         for c in &channels {
+            c.kind.check()?;
             for (setting, v) in [(Setting::Nb, c.nb), (Setting::Nk, c.nk)] {
                 if v > MAX_ORDER {
                     return Err(SysidError::setting(

@@ -849,6 +849,41 @@ fn ln_gamma(x: f64) -> f64 {
     0.5 * (2.0 * std::f64::consts::PI).ln() + (x + 0.5) * t.ln() - t + s.ln()
 }
 
+/// The residual analysis of `model` on `data`: the one-step prediction residuals
+/// ε(k) = y(k) − ŷ(k|k−1) (the model's own predictor: equation error for ARX-type estimates, output
+/// error for the output-error method), rows k ≥ k0, analysed against the input of the same rows with
+/// `max_lag` lags ([`analyze`]). The top-level cross-correlation is with the first input; with several
+/// inputs `inputs` holds the cross-correlation and independence test with each input. `Err` says why
+/// there is none (record too short for the lags, constant residuals...).
+pub fn residual_analysis(
+    model: &sysid_core::Model,
+    data: &sysid_core::Dataset,
+    max_lag: usize,
+) -> Result<ResidualAnalysis, String> {
+    let k0 = model.k0();
+    let options = ResidOptions {
+        max_lag,
+        ..ResidOptions::default()
+    };
+    let (u, y) = (data.input_signals(), data.y());
+    let pred = sysid_core::metrics::one_step_prediction(model, data).map_err(|e| e.to_string())?;
+    let eps: Vec<f64> = y[k0..]
+        .iter()
+        .zip(&pred[k0..])
+        .map(|(y, p)| y - p)
+        .collect();
+    let u0 = u.first().map_or(&[][..], |u| &u[k0..]);
+    let mut a = analyze(&eps, u0, &options).map_err(|e| e.to_string())?;
+    if u.len() > 1 {
+        for (ui, ch) in u.iter().zip(model.inputs()) {
+            let ai = analyze(&eps, &ui[k0..], &options)
+                .map_err(|e| format!("input {}: {e}", ch.name()))?;
+            a.inputs.push(InputCorrelation::of(ch.name(), &ai));
+        }
+    }
+    Ok(a)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -28,8 +28,7 @@
 use crate::estimate::{Estimator, EstimatorSettings, Identification};
 use crate::fitted::check_finite;
 use crate::fitted::{Fitted, Method};
-use crate::residuals::{CovarianceAccumulator, ResidOptions};
-use crate::summary::{IdentifyReport, ResidualEntry, ResidualsPair, ValidationReport};
+use crate::residuals::{CovarianceAccumulator, ResidOptions, ResidualAnalysis};
 use crate::warnings::{Record, Warning};
 use sysid_core::data::stream::{RecordSource, Shape};
 use sysid_core::detrend::{Detrend, OperatingPoint};
@@ -58,6 +57,11 @@ pub struct Streamed<T> {
 /// Why an identification cannot be streamed, or `None` when it can: ARX by least squares (any
 /// orders, `offset`), one input.
 pub fn unsupported(settings: &Identification) -> Option<String> {
+    if settings.output.is_some() {
+        return Some(
+            "an output nonlinearity (--output-nonlinearity) is fitted by output error on the whole record".into(),
+        );
+    }
     if !settings.inputs.is_empty() {
         return Some(
             "a structure given per input (--nonlinearity) is identified in memory; for streaming use \
@@ -92,16 +96,32 @@ pub fn refused(why: &str) -> SysidError {
     )
 }
 
-/// Identifies an ARX model by least squares from `est` in passes, and makes the whole `identify --json`
-/// report (metrics and residual analysis with `max_lag` lags on `est` and, when given, on `val`): the
-/// same document as [`IdentifyReport::assemble`] on the same records held in memory, to rounding.
-pub fn identify_report(
+/// The residual analysis of a record read in passes, or why there is none.
+pub type StreamedResiduals = Result<ResidualAnalysis, String>;
+
+/// An ARX least-squares fit of records read in passes, with the metrics and residual analysis of the
+/// estimation record and, when given, of the validation record.
+#[derive(Debug, Clone)]
+pub struct StreamedFit {
+    /// The fit, with the safeguards of `estimate::identify` that concern an ARX least-squares fit.
+    pub fit: Fitted,
+    /// Metrics and residual analysis on the estimation record.
+    pub estimation: (Metrics, StreamedResiduals),
+    /// The same on the validation record, when given.
+    pub validation: Option<(Metrics, StreamedResiduals)>,
+}
+
+/// Identifies an ARX model by least squares from `est` in passes, then its metrics and residual
+/// analysis with `max_lag` lags on `est` and, when given, on `val`: what `estimate::identify`,
+/// `metrics::metrics` and `residuals::residual_analysis` give on the same records held in memory, to
+/// rounding (the `identify --json` document of it: `sysid_summary::stream::identify_report`).
+pub fn identify_checked(
     est: &mut dyn RecordSource,
     val: Option<&mut dyn RecordSource>,
     settings: &Identification,
     detrend: Detrend,
     max_lag: usize,
-) -> Result<Streamed<(Fitted, IdentifyReport)>, SysidError> {
+) -> Result<Streamed<StreamedFit>, SysidError> {
     let Streamed {
         result: mut fit,
         mut passes,
@@ -116,46 +136,23 @@ pub fn identify_report(
         Record::Estimation,
         est_metrics.fit_sim_percent,
     ));
-    let (val_metrics, val_resid, val_shape) = match val {
+    let (validation, val_shape) = match val {
         Some(v) => {
             let on_val = record_metrics(&fit.model, v, max_lag)?;
             passes += on_val.passes;
-            let (m, r) = on_val.result;
-            (Some(m), Some(r), Some(on_val.shape))
+            (Some(on_val.result), Some(on_val.shape))
         }
-        None => (None, None, None),
+        None => (None, None),
     };
-    let report = IdentifyReport::from_parts(
-        &fit,
-        settings,
-        est_metrics,
-        val_metrics,
-        ResidualsPair {
-            estimation: est_resid,
-            validation: val_resid,
-        },
-    );
     Ok(Streamed {
-        result: (fit, report),
+        result: StreamedFit {
+            fit,
+            estimation: (est_metrics, est_resid),
+            validation,
+        },
         shape: on_est.shape,
         val_shape,
         passes,
-    })
-}
-
-/// The `validate --json` report of `model` on `data` read in passes (as [`ValidationReport::assemble`]).
-pub fn validation_report(
-    model: &Model,
-    data: &mut dyn RecordSource,
-    max_lag: usize,
-) -> Result<Streamed<ValidationReport>, SysidError> {
-    let on = record_metrics(model, data, max_lag)?;
-    let (m, r) = on.result;
-    Ok(Streamed {
-        result: ValidationReport::from_parts(model, m, r),
-        shape: on.shape,
-        val_shape: None,
-        passes: on.passes,
     })
 }
 
@@ -217,7 +214,7 @@ fn trend_of(src: &mut dyn RecordSource, how: Detrend) -> Result<(Trend, usize), 
 
 /// ARX by least squares in passes (see the module documentation); the model carries the operating
 /// point of `detrend`. The fit's notes and warnings are those of the in-memory `arx_ls`; the
-/// safeguards that need the metrics are added by [`identify_report`].
+/// safeguards that need the metrics are added by [`identify_checked`].
 pub fn identify_arx(
     src: &mut dyn RecordSource,
     settings: &Identification,
@@ -478,12 +475,12 @@ impl<'m> FreeResponses<'m> {
 }
 
 /// The metrics and residual analysis of `model` on a record read in passes (as
-/// `metrics::metrics` and `summary::residual_analysis`).
+/// `metrics::metrics` and `residuals::residual_analysis`).
 pub fn record_metrics(
     model: &Model,
     src: &mut dyn RecordSource,
     max_lag: usize,
-) -> Result<Streamed<(Metrics, ResidualEntry)>, SysidError> {
+) -> Result<Streamed<(Metrics, StreamedResiduals)>, SysidError> {
     let k0 = model.k0();
     let p = model.parameter_count();
     let output_error = model.noise_model() == NoiseModel::OutputError;
@@ -647,13 +644,9 @@ pub fn record_metrics(
         &name,
     )?;
     let entry = match resid.map(CovarianceAccumulator::finish) {
-        Some(Ok(a)) => ResidualEntry::Analysis(Box::new(a)),
-        Some(Err(e)) => ResidualEntry::Unavailable {
-            error: e.to_string(),
-        },
-        None => ResidualEntry::Unavailable {
-            error: "not computed".into(),
-        },
+        Some(Ok(a)) => Ok(a),
+        Some(Err(e)) => Err(e.to_string()),
+        None => Err("not computed".to_string()),
     };
     Ok(Streamed {
         result: (metrics, entry),

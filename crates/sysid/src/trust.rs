@@ -86,6 +86,45 @@ pub fn std_warning(why: Option<String>) -> Option<Warning> {
     why.map(|why| Warning::Trust(Concern::NoStandardDeviations { why }))
 }
 
+/// [`Concern::BelowBaseline`] for a fitted model on a record other than its estimation record (`data`,
+/// whose metrics `m` are given): the baseline is the plain linear least-squares ARX of the same orders
+/// and offset (every input linear) estimated on the records `est` (as `identify --structure arx
+/// --method ls` would), judged on `data`. `None` for that baseline itself, or when the baseline cannot
+/// be estimated, is unstable (no yardstick) or cannot be simulated.
+pub fn baseline_warning(
+    record: Record,
+    fit: &crate::Fitted,
+    settings: &crate::Identification,
+    est: &[sysid_core::Dataset],
+    data: &sysid_core::Dataset,
+    m: &Metrics,
+) -> Option<Warning> {
+    let s = settings.structure;
+    if fit.model.kind() == sysid_core::ModelKind::Arx && fit.method == crate::Method::Ls {
+        return None;
+    }
+    let linear = settings
+        .inputs
+        .iter()
+        .map(|i| crate::InputSpec {
+            nonlinearity: crate::NonlinearityKind::Linear,
+            ..*i
+        })
+        .collect();
+    let base = crate::Identification::default()
+        .with_kind(sysid_core::ModelKind::Arx)
+        .with_orders(s.orders.na, s.orders.nb, s.orders.nk)
+        .with_inputs(linear)
+        .with_offset(s.offset)
+        .with_method(crate::Method::Ls);
+    let baseline = crate::identify(est, &base).ok()?;
+    if !baseline.model.is_stable() {
+        return None;
+    }
+    let bm = sysid_core::metrics::metrics(&baseline.model, data).ok()?;
+    below_baseline(record, guarded_fit(m), guarded_fit(&bm))
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

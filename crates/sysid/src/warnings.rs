@@ -104,6 +104,14 @@ pub enum Warning {
         /// What is wrong.
         why: String,
     },
+    /// A check of an input nonlinearity other than the deadzone failed: a shape that is not physical
+    /// (crossed limits, a non-monotone map), a segment without data.
+    NonlinearityShape {
+        /// The kind (`saturation`, `piecewise-linear`...).
+        kind: &'static str,
+        /// What is wrong.
+        why: String,
+    },
     /// A warning about the deadzone of one input of a several-input model.
     ForInput {
         /// The input's name.
@@ -191,6 +199,7 @@ impl std::fmt::Display for Warning {
                  meaningful (not reported)"
             ),
             Warning::NonPhysicalDeadzone { why } => write!(f, "deadzone not physical: {why}"),
+            Warning::NonlinearityShape { kind, why } => write!(f, "{kind} nonlinearity: {why}"),
             Warning::ForInput { input, warning } => write!(f, "input {input}: {warning}"),
             Warning::FewInputLevels { branch, levels } => write!(
                 f,

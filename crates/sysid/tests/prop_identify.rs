@@ -86,6 +86,7 @@ fn settings(
         estimator,
         drop_unexcited_branch: true,
         fallback: true,
+        output: None,
     }
 }
 

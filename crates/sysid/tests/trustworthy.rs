@@ -12,7 +12,7 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sysid::data::{read_csv, CsvOptions, Signals};
 use sysid::metrics::metrics;
-use sysid::summary::{residual_analysis, ResidualEntry};
+use sysid::residuals::residual_analysis;
 use sysid::{identify, Identification, Method};
 use sysid::{Dataset, Model, ModelKind, Warning};
 
@@ -216,8 +216,8 @@ fn oe_system(seed: u64) -> Dataset {
 
 fn verdicts(model: &Model, data: &Dataset) -> (bool, bool) {
     match residual_analysis(model, data, 25) {
-        ResidualEntry::Analysis(a) => (a.white, a.independent),
-        ResidualEntry::Unavailable { error } => panic!("{error}"),
+        Ok(a) => (a.white, a.independent),
+        Err(error) => panic!("{error}"),
     }
 }
 

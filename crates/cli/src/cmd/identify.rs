@@ -4,10 +4,10 @@ use std::path::{Path, PathBuf};
 
 use sysid::data::stream::{CsvStream, RecordSource};
 use sysid::rls_ud::RlsForm;
-use sysid::summary::IdentifyReport;
 use sysid::windup::Windup;
 use sysid::{identify, Dataset, Identification, InputSpec, Method, NonlinearityKind, Passes};
 use sysid::{IdentifyOptions, ModelKind};
+use sysid_summary::IdentifyReport;
 
 use super::common::{
     check_outputs, print_notes, stream_note, write_output, ColumnArgs, StreamMode, ValidationArgs,
@@ -91,11 +91,24 @@ pub struct Args {
     /// nk: input delay in samples; with several inputs one per input (1,2) or one for all.
     #[arg(long, default_value = "1", value_parser = parse_order_list)]
     pub nk: OrderList,
-    /// The static nonlinearity of every input (`deadzone`, `linear`), or of each input by name
-    /// (`u1=deadzone,u2=linear`, MATLAB idnlhw's InputNonlinearity); default: --structure's (hammerstein:
-    /// deadzone, arx: linear).
+    /// The static nonlinearity of every input (`linear`, `deadzone`, `saturation`, `deadzone-saturation`,
+    /// `piecewise-linear`, `polynomial`), or of each input by name (`u1=deadzone,u2=linear`, MATLAB
+    /// idnlhw's InputNonlinearity); default: --structure's (hammerstein: deadzone, arx: linear).
     #[arg(long, value_name = "KIND|NAME=KIND,...", value_parser = parse_nonlinearity)]
     pub nonlinearity: Option<NonlinearityArg>,
+    /// K: breakpoints of every `piecewise-linear` nonlinearity (1..8; default 2), or `auto`: K = 1..4 tried,
+    /// the smallest AIC on the estimation data kept.
+    #[arg(long, value_name = "K|auto", value_parser = parse_breakpoints)]
+    pub breakpoints: Option<usize>,
+    /// D: degree of every `polynomial` input nonlinearity (1..8; default 3).
+    #[arg(long, value_name = "D")]
+    pub degree: Option<usize>,
+    /// A static nonlinearity y = g(v) on the output v of the linear block (Wiener; Hammerstein–Wiener
+    /// with --nonlinearity): `saturation`, `piecewise-linear` (--breakpoints K) or `polynomial`
+    /// (--degree D), fitted by output error from the method's model (MATLAB idnlhw's
+    /// OutputNonlinearity).
+    #[arg(long, value_name = "KIND")]
+    pub output_nonlinearity: Option<NonlinearityKind>,
     /// Several inputs (--u-col u1,u2) with --structure hammerstein: these inputs are linear (no deadzone);
     /// the same as --nonlinearity NAME=linear.
     #[arg(long, value_name = "NAME,...", value_delimiter = ',')]
@@ -193,6 +206,20 @@ fn parse_nonlinearity(text: &str) -> Result<NonlinearityArg, String> {
         .map(NonlinearityArg::PerInput)
 }
 
+/// `--breakpoints`: a number of breakpoints from 1, or `auto` ([`sysid::blocks::AUTO_BREAKPOINTS`]).
+fn parse_breakpoints(text: &str) -> Result<usize, String> {
+    match text.trim() {
+        "auto" => Ok(sysid::blocks::AUTO_BREAKPOINTS),
+        t => match t.parse::<usize>() {
+            Ok(k) if k >= 1 => Ok(k),
+            _ => Err(format!(
+                "'{t}' is not a number of breakpoints; expected a whole number from 1 to {}, or auto",
+                sysid::nonlinearity::MAX_BREAKPOINTS
+            )),
+        },
+    }
+}
+
 /// `--passes`: a whole number of passes, or `auto`.
 fn parse_passes(text: &str) -> Result<Passes, String> {
     match text.trim() {
@@ -208,6 +235,27 @@ impl Args {
     /// `--u-col u1,u2` (orders from `--nb`/`--nk` lists, nonlinearity from `--nonlinearity`,
     /// `--linear-inputs` or `--structure`).
     pub fn settings(&self) -> anyhow::Result<Identification> {
+        let piecewise =
+            |k: &NonlinearityKind| matches!(k, NonlinearityKind::PiecewiseLinear { .. });
+        let uses_breakpoints = match &self.nonlinearity {
+            Some(NonlinearityArg::All(k)) => piecewise(k),
+            Some(NonlinearityArg::PerInput(list)) => list.iter().any(|(_, k)| piecewise(k)),
+            None => false,
+        } || self.output_nonlinearity.as_ref().is_some_and(piecewise);
+        if self.breakpoints.is_some() && !uses_breakpoints {
+            anyhow::bail!(sysid::SysidError::setting(
+                sysid::Setting::Other("--breakpoints"),
+                self.breakpoints.unwrap_or_default(),
+                "--nonlinearity or --output-nonlinearity piecewise-linear (it sets the number of breakpoints of that kind)"
+            ));
+        }
+        Ok(self
+            .settings_inputs()?
+            .with_output_nonlinearity(self.output_nonlinearity.map(|k| self.sized(k))))
+    }
+
+    /// [`Args::settings`] without the output nonlinearity.
+    fn settings_inputs(&self) -> anyhow::Result<Identification> {
         let names = self.columns.csv_options().input_names();
         let options = IdentifyOptions {
             model: self.model,
@@ -281,6 +329,23 @@ impl Args {
     /// The nonlinearity `--nonlinearity` gives input `name` (every input named in a per-input list must
     /// be an input, and every input must be named).
     fn kind_of(&self, arg: &NonlinearityArg, name: &str) -> anyhow::Result<NonlinearityKind> {
+        Ok(self.sized(self.kind_named(arg, name)?))
+    }
+
+    /// `kind` with `--breakpoints` and `--degree` applied.
+    fn sized(&self, kind: NonlinearityKind) -> NonlinearityKind {
+        let kind = match self.breakpoints {
+            Some(k) => kind.with_breakpoints(k),
+            None => kind,
+        };
+        match self.degree {
+            Some(d) => kind.with_degree(d),
+            None => kind,
+        }
+    }
+
+    /// [`Args::kind_of`] before `--breakpoints` and `--degree`.
+    fn kind_named(&self, arg: &NonlinearityArg, name: &str) -> anyhow::Result<NonlinearityKind> {
         let names = self.columns.csv_options().input_names();
         match arg {
             NonlinearityArg::All(kind) => Ok(*kind),
@@ -490,7 +555,7 @@ fn run_streamed(args: &Args, settings: &Identification, data_path: &Path) -> any
         Some((path, vopts)) => Some(CsvStream::open(path, &vopts)?),
         None => None,
     };
-    let streamed = sysid::stream::identify_report(
+    let streamed = sysid_summary::stream::identify_report(
         &mut est,
         val.as_mut().map(|v| v as &mut dyn RecordSource),
         settings,

@@ -10,9 +10,9 @@ use std::time::Instant;
 use anyhow::Context;
 use rayon::prelude::*;
 use serde::Serialize;
-use sysid::summary::IdentifyReport;
 use sysid::{identify, Identification};
 use sysid::{Dataset, SysidError};
+use sysid_summary::IdentifyReport;
 
 use super::common::{check_outputs, progress_bar, write_output};
 use super::identify::Args;

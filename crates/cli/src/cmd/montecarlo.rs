@@ -118,53 +118,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let ts_s = probe.ts();
     drop(probe);
     ipa::input::check_samples(args.samples)?;
-    // The total work, bounded before anything runs (10 000 runs of 5 x 10^7 samples would take days).
-    let work = (args.runs as u128) * (args.samples as u128) * (methods.len() as u128);
-    if work > u128::from(args.max_work) {
-        anyhow::bail!(sysid::SysidError::setting(
-            sysid::Setting::Other("--runs"),
-            args.runs,
-            &format!(
-                "runs x samples x methods ({} x {} x {} = {work}) at most --max-work \
-                 {}; fewer runs or samples, or raise --max-work for a study meant to run that long",
-                args.runs,
-                args.samples,
-                methods.len(),
-                args.max_work
-            )
-        ));
-    }
+    check_work(&args, methods.len())?;
     // Check the input design (samples, amplitude, file) once, before any run: a bad flag is an error,
     // not a study in which every run failed.
     generate(&spec, args.samples, ts_s, args.amplitude, args.seed)?;
-    let (kind, orders, offset) = match &truth_model {
-        Some(m) => (m.kind(), m.orders(), m.offset().is_some()),
-        None => (ModelKind::Hammerstein, Orders::PAPER, false),
-    };
-    let kind = match args.model {
-        Some(k) => k,
-        None => kind,
-    };
-    let orders = Orders {
-        na: args.na.unwrap_or(orders.na),
-        nb: args.nb.unwrap_or(orders.nb),
-        nk: args.nk.unwrap_or(orders.nk),
-    };
-    let base = Identification {
-        structure: sysid::Structure {
-            kind,
-            orders,
-            offset: offset || args.offset,
-        },
-        inputs: Vec::new(),
-        estimator: sysid::EstimatorSettings::Rls(sysid::RecursiveLeastSquares {
-            forgetting: args.forgetting,
-            ..sysid::RecursiveLeastSquares::default()
-        }),
-        drop_unexcited_branch: true,
-        // A study of the estimators' bias and spread looks at their own estimates, never a fallback.
-        fallback: false,
-    };
+    let base = base_identification(&args, truth_model.as_ref());
+    let (kind, orders) = (base.structure.kind, base.structure.orders);
     // The truth is comparable only when the estimated structure is the plant model's own.
     let truth = truth_model
         .as_ref()
@@ -246,4 +205,56 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         )));
     }
     Ok(())
+}
+
+/// The total work runs × samples × methods, bounded before anything runs (10 000 runs of 5 × 10^7
+/// samples would take days).
+fn check_work(args: &Args, methods: usize) -> anyhow::Result<()> {
+    let work = (args.runs as u128) * (args.samples as u128) * (methods as u128);
+    if work > u128::from(args.max_work) {
+        anyhow::bail!(sysid::SysidError::setting(
+            sysid::Setting::Other("--runs"),
+            args.runs,
+            &format!(
+                "runs x samples x methods ({} x {} x {} = {work}) at most --max-work \
+                 {}; fewer runs or samples, or raise --max-work for a study meant to run that long",
+                args.runs, args.samples, methods, args.max_work
+            )
+        ));
+    }
+    Ok(())
+}
+
+/// The estimated structure: the model plant's own (its kind, orders, offset) unless overridden by
+/// the flags; the paper's Hammerstein orders for the physics plant. RLS with the given forgetting.
+fn base_identification(args: &Args, truth_model: Option<&Model>) -> Identification {
+    let (kind, orders, offset) = match truth_model {
+        Some(m) => (m.kind(), m.orders(), m.offset().is_some()),
+        None => (ModelKind::Hammerstein, Orders::PAPER, false),
+    };
+    let kind = match args.model {
+        Some(k) => k,
+        None => kind,
+    };
+    let orders = Orders {
+        na: args.na.unwrap_or(orders.na),
+        nb: args.nb.unwrap_or(orders.nb),
+        nk: args.nk.unwrap_or(orders.nk),
+    };
+    Identification {
+        structure: sysid::Structure {
+            kind,
+            orders,
+            offset: offset || args.offset,
+        },
+        inputs: Vec::new(),
+        estimator: sysid::EstimatorSettings::Rls(sysid::RecursiveLeastSquares {
+            forgetting: args.forgetting,
+            ..sysid::RecursiveLeastSquares::default()
+        }),
+        drop_unexcited_branch: true,
+        output: None,
+        // A study of the estimators' bias and spread looks at their own estimates, never a fallback.
+        fallback: false,
+    }
 }

@@ -197,7 +197,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             warnings.extend(
                 sysid::trust::metric_warnings(record, &m)
                     .into_iter()
-                    .chain(sysid::summary::baseline_warning(
+                    .chain(sysid::trust::baseline_warning(
                         record,
                         &fit,
                         &id,

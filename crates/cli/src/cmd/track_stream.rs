@@ -13,8 +13,8 @@ use serde::Serialize;
 use sysid::data::lines::CsvLines;
 use sysid::data::CsvOptions;
 use sysid::online::Tracker;
-use sysid::summary::{poles, Pole};
 use sysid::{Model, Setting, SysidError};
+use sysid_summary::{poles, Pole};
 
 /// Upper bound on the length of one line of a tracked stream, bytes (a line of t,u,y is under 100).
 pub const MAX_LINE_BYTES: usize = 1 << 20;

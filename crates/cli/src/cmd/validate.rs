@@ -2,7 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
-use sysid::summary::ValidationReport;
+use sysid_summary::ValidationReport;
 
 use super::common::{
     check_outputs, print_notes, print_report, stream_note, write_output, ColumnArgs, StreamMode,
@@ -233,7 +233,7 @@ fn run_streamed(
     inputs: &[&Path],
 ) -> anyhow::Result<()> {
     let mut src = sysid::data::stream::CsvStream::open(&args.data, opts)?;
-    let streamed = sysid::stream::validation_report(model, &mut src, args.resid_lags)?;
+    let streamed = sysid_summary::stream::validation_report(model, &mut src, args.resid_lags)?;
     let shape = streamed.shape;
     let name = sysid::data::stream::RecordSource::name(&src).to_string();
     check_ts(&name, shape.ts, model.ts())?;

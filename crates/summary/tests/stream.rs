@@ -9,9 +9,9 @@ use sysid::data::Signals;
 use sysid::detrend::{detrend, Detrend};
 use sysid::metrics::Metrics;
 use sysid::model::NoiseModel;
-use sysid::stream::{identify_report, validation_report};
-use sysid::summary::{IdentifyReport, ResidualEntry, ValidationReport};
 use sysid::{identify, Dataset, Identification, Method, Model, ModelKind};
+use sysid_summary::stream::{identify_report, validation_report};
+use sysid_summary::{IdentifyReport, ResidualEntry, ValidationReport};
 
 /// A staircase of random levels in [-100, 100] held 5..30 samples.
 fn staircase(rng: &mut ChaCha8Rng, n: usize) -> Vec<f64> {

@@ -1,14 +1,21 @@
-//! The JSON summary of an identification (`identify --json`), also embedded by `reproduce` in
-//! `summary.json` (`models.arx`, `models.hammerstein`).
+//! The documents an identification is reported in: `identify --json` ([`IdentifyReport`], also
+//! embedded by `reproduce` in `summary.json` `models.*`) and `validate --json` ([`ValidationReport`]).
+//! One schema for the command line, the Python package (`Fit.to_dict()`) and `reproduce`.
+//!
+//! The application side of the identification: everything here is assembled from what the library
+//! `sysid` computed (the fit, its metrics, the residual analysis, the trust checks); nothing is
+//! estimated here. [`stream`] makes the same documents for records read in passes.
 
 use serde::{Deserialize, Serialize};
 
-use crate::estimate::{EstimatorSettings, Identification, Passes};
-use crate::fitted::{Fitted, Method, Param};
-use crate::residuals::{analyze, InputCorrelation, ResidOptions, ResidualAnalysis};
-use crate::warnings::{Record, Warning};
-use sysid_core::metrics::{metrics, pooled_metrics, Metrics};
-use sysid_core::{Dataset, Model, SysidError};
+use sysid::metrics::{metrics, pooled_metrics, Metrics};
+use sysid::residuals::ResidualAnalysis;
+use sysid::trust::{baseline_warning, metric_warnings};
+use sysid::warnings::{Record, Warning};
+use sysid::SysidError;
+use sysid::{Dataset, EstimatorSettings, Fitted, Identification, Method, Model, Param, Passes};
+
+pub mod stream;
 
 /// A pole p = re + i·im of the linear block.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -80,40 +87,18 @@ pub struct ResidualsPair {
     pub validation: Option<ResidualEntry>,
 }
 
-/// The one-step prediction residuals ε(k) = y(k) − ŷ(k|k−1) of `model` on `data` (the model's own
-/// predictor: equation error for ARX-type estimates, output error for the output-error method), rows
-/// k ≥ k0, analysed against the input of the same rows with `max_lag` lags. The top-level
-/// cross-correlation is with the first input; with several inputs `inputs` holds the cross-correlation
-/// and independence test with each input.
+/// The residual analysis of `model` on `data` with `max_lag` lags
+/// ([`sysid::residuals::residual_analysis`]), or why there is none, as the documents carry it.
 pub fn residual_analysis(model: &Model, data: &Dataset, max_lag: usize) -> ResidualEntry {
-    let k0 = model.k0();
-    let options = ResidOptions {
-        max_lag,
-        ..ResidOptions::default()
-    };
-    let (u, y) = (data.input_signals(), data.y());
-    let result = sysid_core::metrics::one_step_prediction(model, data)
-        .map_err(|e| e.to_string())
-        .and_then(|pred| {
-            let eps: Vec<f64> = y[k0..]
-                .iter()
-                .zip(&pred[k0..])
-                .map(|(y, p)| y - p)
-                .collect();
-            let u0 = u.first().map_or(&[][..], |u| &u[k0..]);
-            let mut a = analyze(&eps, u0, &options).map_err(|e| e.to_string())?;
-            if u.len() > 1 {
-                for (ui, ch) in u.iter().zip(model.inputs()) {
-                    let ai = analyze(&eps, &ui[k0..], &options)
-                        .map_err(|e| format!("input {}: {e}", ch.name()))?;
-                    a.inputs.push(InputCorrelation::of(ch.name(), &ai));
-                }
-            }
-            Ok(a)
-        });
-    match result {
-        Ok(a) => ResidualEntry::Analysis(Box::new(a)),
-        Err(error) => ResidualEntry::Unavailable { error },
+    ResidualEntry::from(sysid::residuals::residual_analysis(model, data, max_lag))
+}
+
+impl From<Result<ResidualAnalysis, String>> for ResidualEntry {
+    fn from(r: Result<ResidualAnalysis, String>) -> Self {
+        match r {
+            Ok(a) => ResidualEntry::Analysis(Box::new(a)),
+            Err(error) => ResidualEntry::Unavailable { error },
+        }
     }
 }
 
@@ -223,7 +208,7 @@ impl IdentifyReport {
         report.residuals = residuals;
         if let Some(m) = &report.metrics.validation {
             report.warnings.extend(
-                crate::trust::metric_warnings(Record::Validation, m)
+                metric_warnings(Record::Validation, m)
                     .iter()
                     .map(ToString::to_string),
             );
@@ -340,7 +325,7 @@ impl ValidationReport {
     pub fn from_parts(model: &Model, m: Metrics, residuals: ResidualEntry) -> Self {
         let warnings: Vec<String> = Warning::if_unstable(model)
             .into_iter()
-            .chain(crate::trust::metric_warnings(Record::Validation, &m))
+            .chain(metric_warnings(Record::Validation, &m))
             .map(|w| w.to_string())
             .collect();
         ValidationReport {
@@ -374,48 +359,4 @@ pub fn poles(model: &Model) -> Vec<Pole> {
             abs: p.norm(),
         })
         .collect()
-}
-
-/// [`crate::warnings::Concern::BelowBaseline`] for a fitted model on a record other than its estimation record
-/// (`data`, whose metrics `m` are given): the baseline is the plain linear least-squares ARX of the
-/// same orders and offset (every input linear) estimated on the records `est` (as
-/// `identify --structure arx --method ls` would), judged
-/// on `data`. `None` for that baseline itself, or when the baseline cannot be estimated, is unstable
-/// (no yardstick) or cannot be simulated.
-pub fn baseline_warning(
-    record: Record,
-    fit: &crate::Fitted,
-    settings: &crate::Identification,
-    est: &[sysid_core::Dataset],
-    data: &sysid_core::Dataset,
-    m: &Metrics,
-) -> Option<Warning> {
-    let s = settings.structure;
-    if fit.model.kind() == sysid_core::ModelKind::Arx && fit.method == crate::Method::Ls {
-        return None;
-    }
-    let linear = settings
-        .inputs
-        .iter()
-        .map(|i| crate::InputSpec {
-            nonlinearity: crate::NonlinearityKind::Linear,
-            ..*i
-        })
-        .collect();
-    let base = crate::Identification::default()
-        .with_kind(sysid_core::ModelKind::Arx)
-        .with_orders(s.orders.na, s.orders.nb, s.orders.nk)
-        .with_inputs(linear)
-        .with_offset(s.offset)
-        .with_method(crate::Method::Ls);
-    let baseline = crate::identify(est, &base).ok()?;
-    if !baseline.model.is_stable() {
-        return None;
-    }
-    let bm = sysid_core::metrics::metrics(&baseline.model, data).ok()?;
-    crate::trust::below_baseline(
-        record,
-        crate::trust::guarded_fit(m),
-        crate::trust::guarded_fit(&bm),
-    )
 }

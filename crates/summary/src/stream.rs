@@ -1,0 +1,70 @@
+//! The `identify --json` and `validate --json` documents of records read in passes
+//! (`identify --stream`, `validate --stream`; the computing is `sysid::stream`): the same documents as
+//! [`IdentifyReport::assemble`] and [`ValidationReport::assemble`] on the same records held in memory,
+//! to rounding.
+
+use sysid::data::stream::RecordSource;
+use sysid::detrend::Detrend;
+use sysid::stream::{identify_checked, record_metrics, Streamed, StreamedFit};
+use sysid::{Fitted, Identification, Model, SysidError};
+
+use crate::{IdentifyReport, ResidualsPair, ValidationReport};
+
+/// Identifies an ARX model by least squares from `est` in passes ([`identify_checked`]) and makes the
+/// whole `identify --json` report (metrics and residual analysis with `max_lag` lags on `est` and, when
+/// given, on `val`).
+pub fn identify_report(
+    est: &mut dyn RecordSource,
+    val: Option<&mut dyn RecordSource>,
+    settings: &Identification,
+    detrend: Detrend,
+    max_lag: usize,
+) -> Result<Streamed<(Fitted, IdentifyReport)>, SysidError> {
+    let Streamed {
+        result:
+            StreamedFit {
+                fit,
+                estimation: (est_metrics, est_resid),
+                validation,
+            },
+        shape,
+        val_shape,
+        passes,
+    } = identify_checked(est, val, settings, detrend, max_lag)?;
+    let (val_metrics, val_resid) = match validation {
+        Some((m, r)) => (Some(m), Some(r.into())),
+        None => (None, None),
+    };
+    let report = IdentifyReport::from_parts(
+        &fit,
+        settings,
+        est_metrics,
+        val_metrics,
+        ResidualsPair {
+            estimation: est_resid.into(),
+            validation: val_resid,
+        },
+    );
+    Ok(Streamed {
+        result: (fit, report),
+        shape,
+        val_shape,
+        passes,
+    })
+}
+
+/// The `validate --json` report of `model` on `data` read in passes (as [`ValidationReport::assemble`]).
+pub fn validation_report(
+    model: &Model,
+    data: &mut dyn RecordSource,
+    max_lag: usize,
+) -> Result<Streamed<ValidationReport>, SysidError> {
+    let on = record_metrics(model, data, max_lag)?;
+    let (m, r) = on.result;
+    Ok(Streamed {
+        result: ValidationReport::from_parts(model, m, r.into()),
+        shape: on.shape,
+        val_shape: None,
+        passes: on.passes,
+    })
+}

@@ -230,3 +230,19 @@ def tune(
     physics_variants: int = 20,
 ) -> dict[str, Any]:
     """The position controller tuned as `ipa-sysid tune --json`, plus "controller_file" (its text)."""
+
+def fleet_windows(
+    u: ArrayLike,
+    y: ArrayLike,
+    offsets: list[int],
+    ts: float,
+    window: int,
+    method: str = "ls",
+    na: int = 3,
+    nb: int = 1,
+    nk: int = 1,
+    detect_warmup: int = 200,
+    detect_calibration: int = 800,
+    resid_lags: int = 25,
+) -> dict[str, Any]:
+    """Every window of a partition identified (LS) and tracked: the columns `ipa_sysid.fleet.identify_partition` builds its frame from."""

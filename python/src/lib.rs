@@ -723,6 +723,164 @@ fn identify(
 }
 
 // ---------------------------------------------------------------------------------------------------
+// fleet.
+
+/// Upper bound on the windows of one `fleet_windows` call (a partition), before anything is allocated.
+const MAX_FLEET_WINDOWS: usize = 10_000_000;
+
+/// Identification and tracking of every window of a partition of many actuators' records
+/// (`sysid_summary::monitor::window` on each): `u`, `y` hold the actuators one after the other, actuator g in
+/// rows offsets[g] .. offsets[g + 1]; each actuator's rows are cut into consecutive windows of `window`
+/// samples (an incomplete last window is left out). Returns a dict of columns, one entry per window:
+/// `group`, `window`, `start` (its first row), `names` (the parameters), `values` and `sds` (windows ×
+/// parameters; NaN where a window has no such parameter or no standard deviation), `fit_sim_percent`,
+/// `fit_pred_percent` (NaN when not computed), `stable`, `warnings` (one string, lines joined by "\n"),
+/// `change_points` (lists of samples within the window) and `error` ("" or the message of a window whose
+/// identification failed: a fleet goes on past one bad record). The GIL is released while computing.
+#[pyfunction]
+#[pyo3(signature = (u, y, offsets, ts, window, method="ls", na=3, nb=1, nk=1, detect_warmup=200,
+    detect_calibration=800, resid_lags=25))]
+#[allow(clippy::too_many_arguments)]
+fn fleet_windows<'py>(
+    py: Python<'py>,
+    u: &Bound<'py, PyAny>,
+    y: &Bound<'py, PyAny>,
+    offsets: Vec<usize>,
+    ts: f64,
+    window: usize,
+    method: &str,
+    na: usize,
+    nb: usize,
+    nk: usize,
+    detect_warmup: usize,
+    detect_calibration: usize,
+    resid_lags: usize,
+) -> PyResult<Bound<'py, PyDict>> {
+    let u = floats(u, "u")?;
+    let y = floats(y, "y")?;
+    if u.len() != y.len() {
+        return Err(PyValueError::new_err(format!(
+            "u has {} samples but y has {}",
+            u.len(),
+            y.len()
+        )));
+    }
+    if offsets.first() != Some(&0)
+        || offsets.last() != Some(&u.len())
+        || offsets.windows(2).any(|w| w[1] < w[0])
+    {
+        return Err(PyValueError::new_err(format!(
+            "offsets: expected non-decreasing row offsets from 0 to {} (the number of samples)",
+            u.len()
+        )));
+    }
+    if !(2..=sysid_core::data::MAX_SAMPLES).contains(&window) {
+        return Err(setting_err(
+            "window",
+            window,
+            &format!("2..={} samples", sysid_core::data::MAX_SAMPLES),
+        ));
+    }
+    let options = IdentifyOptions {
+        method: choice("--method", method)?,
+        na,
+        nb,
+        nk,
+        ..IdentifyOptions::default()
+    };
+    let identification = options.settings();
+    identification.check().map_err(sysid_err)?;
+    let track = sysid::online::TrackSettings {
+        orders: sysid::Orders { na, nb, nk },
+        detector: Some(sysid::online::DetectorSettings {
+            warmup: detect_warmup,
+            calibration: detect_calibration,
+            ..sysid::online::DetectorSettings::default()
+        }),
+        ..sysid::online::TrackSettings::default()
+    };
+    sysid::online::Tracker::new(track).map_err(sysid_err)?;
+    let settings = sysid_summary::monitor::WindowSettings {
+        identification,
+        resid_lags,
+        track,
+    };
+    // (group, window index, first row) of every complete window.
+    let mut jobs = Vec::new();
+    for (g, w) in offsets.windows(2).enumerate() {
+        let count = (w[1] - w[0]) / window;
+        if jobs.len() + count > MAX_FLEET_WINDOWS {
+            return Err(PyValueError::new_err(format!(
+                "more than {MAX_FLEET_WINDOWS} windows in one partition: use smaller partitions"
+            )));
+        }
+        jobs.extend((0..count).map(|j| (g, j, w[0] + j * window)));
+    }
+    let results: Vec<Result<sysid_summary::monitor::WindowResult, String>> = py.detach(|| {
+        jobs.iter()
+            .map(|&(g, j, start)| {
+                let signals = Signals {
+                    u: u[start..start + window].to_vec(),
+                    y: y[start..start + window].to_vec(),
+                };
+                Dataset::new(signals, ts, format!("group {g} window {j}"))
+                    .and_then(|d| sysid_summary::monitor::window(&d, &settings))
+                    .map_err(|e| e.render_flags())
+            })
+            .collect()
+    });
+    let mut names: Vec<String> = Vec::new();
+    for r in results.iter().flatten() {
+        for p in &r.report.parameters {
+            let n = p.name.to_string();
+            if !names.contains(&n) {
+                names.push(n);
+            }
+        }
+    }
+    let rows = results.len();
+    let mut values = numpy::ndarray::Array2::<f64>::from_elem((rows, names.len()), f64::NAN);
+    let mut sds = values.clone();
+    let (mut fit_sim, mut fit_pred) = (vec![f64::NAN; rows], vec![f64::NAN; rows]);
+    let mut stable = vec![false; rows];
+    let (mut warnings, mut errors) = (vec![String::new(); rows], vec![String::new(); rows]);
+    let mut changes: Vec<Vec<usize>> = vec![Vec::new(); rows];
+    for (i, r) in results.into_iter().enumerate() {
+        match r {
+            Ok(r) => {
+                for p in &r.report.parameters {
+                    if let Some(c) = names.iter().position(|n| *n == p.name.to_string()) {
+                        values[(i, c)] = p.value;
+                        sds[(i, c)] = p.std.unwrap_or(f64::NAN);
+                    }
+                }
+                let m = &r.report.metrics.estimation;
+                fit_sim[i] = m.fit_sim_percent.unwrap_or(f64::NAN);
+                fit_pred[i] = m.fit_pred_percent.unwrap_or(f64::NAN);
+                stable[i] = r.report.stable;
+                warnings[i] = r.report.warnings.join("\n");
+                changes[i] = r.change_points;
+            }
+            Err(e) => errors[i] = e,
+        }
+    }
+    let out = PyDict::new(py);
+    out.set_item("group", jobs.iter().map(|j| j.0).collect::<Vec<_>>())?;
+    out.set_item("window", jobs.iter().map(|j| j.1).collect::<Vec<_>>())?;
+    out.set_item("start", jobs.iter().map(|j| j.2).collect::<Vec<_>>())?;
+    out.set_item("names", names)?;
+    out.set_item("values", values.into_pyarray(py))?;
+    out.set_item("sds", sds.into_pyarray(py))?;
+    out.set_item("fit_sim_percent", fit_sim.into_pyarray(py))?;
+    out.set_item("fit_pred_percent", fit_pred.into_pyarray(py))?;
+    out.set_item("stable", stable)?;
+    out.set_item("warnings", warnings)?;
+    out.set_item("change_points", changes)?;
+    out.set_item("error", errors)?;
+    Ok(out)
+}
+
+// ---------------------------------------------------------------------------------------------------
 // Rls.
 
 /// Recursive least squares (paper eqs. 9–12) on n parameters: θ̂(0) = 0, P(0) = p0 · I, forgetting
@@ -1392,6 +1550,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(calibrate, m)?)?;
     m.add_function(wrap_pyfunction!(control_loop, m)?)?;
     m.add_function(wrap_pyfunction!(tune, m)?)?;
+    m.add_function(wrap_pyfunction!(fleet_windows, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -8,7 +8,11 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 mod cleanup;
+mod folder;
 pub mod follow;
+#[cfg(feature = "parquet")]
+pub mod parquet;
+pub use folder::write_folder;
 pub use follow::Follow;
 
 /// Why an output could not be written. Options are named as the caller names them (`flag`).
@@ -172,10 +176,7 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
         }
         OutputTarget::File(p) => p,
     };
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
+    let dir = parent_dir(&path);
     let mut builder = tempfile::Builder::new();
     builder.prefix(TEMP_PREFIX).suffix(".tmp");
     let existing = std::fs::metadata(&path).ok().filter(|m| m.is_file());
@@ -439,10 +440,7 @@ pub fn check_writable(output: &Path, flag: &str) -> Result<(), OutputError> {
     let OutputTarget::File(file) = resolve_output(output, flag)? else {
         return Ok(());
     };
-    let dir = match file.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
+    let dir = parent_dir(&file);
     if !dir.is_dir() {
         return Err(refused(
             flag,
@@ -454,6 +452,14 @@ pub fn check_writable(output: &Path, flag: &str) -> Result<(), OutputError> {
         ));
     }
     Ok(())
+}
+
+/// The folder that holds `path` (`.` for a bare file name).
+pub(crate) fn parent_dir(path: &Path) -> &Path {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    }
 }
 
 /// The file that marks a folder as written by `reproduce` ([`claim_folder`]).

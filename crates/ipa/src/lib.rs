@@ -7,6 +7,7 @@
 //!   earlier classical RK4 is kept as the reference). Parameters in [`PlantConfig`] ([`config`], TOML).
 //! - [`spec::plant_from_spec`]: `ipa`, `paper` or `model:FILE` behind [`sysid_core::Plant`].
 //! - [`experiment`]: one open-loop experiment (input design, plant, noise) as `simulate` runs it.
+//! - [`fleet`]: a fleet of actuators drawn around the defaults, some with wearing valves (`simulate --fleet`).
 //! - [`calibrate`]: the physics plant fitted to a measured record (a digital twin, `ipa-sysid calibrate`).
 //! - [`input`]: staircase, PRBS, APRBS, multisine, step and file inputs.
 //!
@@ -19,6 +20,7 @@ pub mod dynamics;
 pub mod encoder;
 pub mod error;
 pub mod experiment;
+pub mod fleet;
 pub mod friction;
 pub mod input;
 pub mod plant;

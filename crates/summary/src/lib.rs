@@ -4,7 +4,8 @@
 //!
 //! The application side of the identification: everything here is assembled from what the library
 //! `sysid` computed (the fit, its metrics, the residual analysis, the trust checks); nothing is
-//! estimated here. [`stream`] makes the same documents for records read in passes.
+//! estimated here. [`stream`] makes the same documents for records read in passes; [`monitor`] one
+//! window of a fleet (the report and the online tracker's change points).
 
 use serde::{Deserialize, Serialize};
 
@@ -15,6 +16,7 @@ use sysid::warnings::{Record, Warning};
 use sysid::SysidError;
 use sysid::{Dataset, EstimatorSettings, Fitted, Identification, Method, Model, Param, Passes};
 
+pub mod monitor;
 pub mod stream;
 
 /// A pole p = re + i·im of the linear block.

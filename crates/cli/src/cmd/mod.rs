@@ -13,6 +13,7 @@ pub mod order;
 pub mod plant_config;
 pub mod reproduce;
 pub mod simulate;
+pub mod simulate_fleet;
 pub mod track;
 pub mod track_stream;
 pub mod tune;

@@ -1,5 +1,7 @@
 //! `ipa-sysid simulate`: runs a plant (physics IPA, the paper's model or a saved model) on a designed
 //! input and writes the record `t,u,y` (plus the chamber pressures for the physics plant) as CSV.
+//! `--fleet N` simulates a fleet of physics IPAs instead, some with wearing valves (`ipa::fleet`), and
+//! writes a folder of Parquet files (module `simulate_fleet`).
 
 use std::path::{Path, PathBuf};
 
@@ -39,13 +41,32 @@ pub struct Args {
     /// Standard deviation of white Gaussian noise added to y, mm.
     #[arg(long, default_value_t = 0.0)]
     pub noise_std: f64,
-    /// Output CSV file.
+    /// Output CSV file (with --fleet: the output folder).
     #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
+    /// Simulate a fleet of N physics IPAs drawn around the defaults instead (docs/fleet.md): --out is then
+    /// a folder of Parquet files of long-format records (actuator_id, t, u, y) and truth.csv.
+    #[arg(long, value_name = "N")]
+    pub fleet: Option<usize>,
+    /// With --fleet: the fraction of actuators whose valves wear (deadzone widening, slopes dropping).
+    #[arg(long, value_name = "FRACTION", requires = "fleet", default_value_t = ipa::fleet::FleetDesign::default().worn_fraction)]
+    pub worn: f64,
+    /// With --fleet: monitoring windows per actuator (one staircase experiment of --samples each).
+    #[arg(long, value_name = "W", requires = "fleet", default_value_t = ipa::fleet::FleetDesign::default().windows)]
+    pub windows: usize,
+    /// With --fleet: actuators per Parquet file (a partition holds whole actuators).
+    #[arg(long, value_name = "K", requires = "fleet", default_value_t = 50)]
+    pub per_file: usize,
+    /// With --fleet: replace an existing --out folder that holds files (refused otherwise).
+    #[arg(long, requires = "fleet")]
+    pub overwrite: bool,
 }
 
 /// Runs the subcommand.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.fleet.is_some() {
+        return super::simulate_fleet::run(&args);
+    }
     let plant: ipa::spec::PlantSpec = args.plant.parse()?;
     if let ipa::spec::PlantSpec::ModelFile(path) = &plant {
         let model = sysid::model_file::read_model(path)?;

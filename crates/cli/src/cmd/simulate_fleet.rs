@@ -1,0 +1,116 @@
+//! `ipa-sysid simulate --fleet N --worn FRACTION --seed S --out DIR`: a fleet of physics IPAs, some with
+//! wearing valves (`ipa::fleet`), written as a folder of Parquet files of long-format records
+//! (`actuator_id` INT64, `t` s, `u` counts, `y` mm; `part-00000.parquet`, … each holding `--per-file`
+//! whole actuators, rows by actuator then time) and `truth.csv` (`actuator_id,worn`). The folder is
+//! written as a whole (`sysid_io::write_folder`): an existing folder with files is refused unless
+//! `--overwrite`. Actuators are simulated in parallel (rayon); the files do not depend on the threads.
+
+use std::path::Path;
+
+use rayon::prelude::*;
+use sysid_io::parquet::{write_parquet, Column};
+
+use super::simulate::Args;
+
+/// Runs `simulate --fleet`.
+pub fn run(args: &Args) -> anyhow::Result<()> {
+    let ignored = [
+        (args.plant != "ipa", "--plant"),
+        (args.plant_config.is_some(), "--plant-config"),
+        (args.input != "staircase", "--input"),
+        (args.ts.is_some(), "--ts"),
+        (args.noise_std != 0.0, "--noise-std"),
+        (args.amplitude != 255.0, "--amplitude"),
+        (args.y0 != 100.0, "--y0"),
+    ];
+    if let Some((_, flag)) = ignored.iter().find(|(on, _)| *on) {
+        anyhow::bail!(
+            "{flag} is not available with --fleet: each actuator runs the staircase experiment on its own \
+             physics plant (docs/fleet.md)"
+        );
+    }
+    let design = ipa::fleet::FleetDesign {
+        actuators: args.fleet.unwrap_or_default(),
+        worn_fraction: args.worn,
+        windows: args.windows,
+        samples_per_window: args.samples.unwrap_or(ipa::experiment::DEFAULT_SAMPLES),
+        seed: args.seed,
+        ..ipa::fleet::FleetDesign::default()
+    };
+    design.check()?;
+    if args.per_file == 0 || args.per_file > ipa::fleet::MAX_ACTUATORS {
+        anyhow::bail!(sysid::SysidError::setting(
+            sysid::Setting::Other("--per-file"),
+            args.per_file,
+            &format!("1..={} actuators per file", ipa::fleet::MAX_ACTUATORS)
+        ));
+    }
+    let worn = design.worn();
+    let ids: Vec<usize> = (0..design.actuators).collect();
+    let files = ids.chunks(args.per_file).count();
+    sysid_io::write_folder(&args.out, "--out", args.overwrite, |dir: &Path| {
+        ids.chunks(args.per_file)
+            .enumerate()
+            .try_for_each(|(f, chunk)| {
+                write_part(&design, &worn, chunk, &dir.join(part_name(f)))
+            })?;
+        let rows = worn
+            .iter()
+            .enumerate()
+            .map(|(i, w)| vec![i.to_string(), w.to_string()]);
+        sysid_io::write_csv(&dir.join("truth.csv"), &["actuator_id", "worn"], rows)?;
+        anyhow::Ok(())
+    })?;
+    eprintln!(
+        "wrote {} actuators ({} worn) × {} windows of {} samples to {} ({files} Parquet file(s) and truth.csv)",
+        design.actuators,
+        worn.iter().filter(|w| **w).count(),
+        design.windows,
+        design.samples_per_window,
+        args.out.display()
+    );
+    Ok(())
+}
+
+/// The name of Parquet file `f`.
+fn part_name(f: usize) -> String {
+    format!("part-{f:05}.parquet")
+}
+
+/// Simulates the actuators `ids` (in parallel) and writes them as one Parquet file.
+fn write_part(
+    design: &ipa::fleet::FleetDesign,
+    worn: &[bool],
+    ids: &[usize],
+    path: &Path,
+) -> anyhow::Result<()> {
+    let windows: Vec<Vec<ipa::fleet::FleetWindow>> = ids
+        .par_iter()
+        .map(|&i| design.actuator(i, worn[i]))
+        .collect::<Result<_, _>>()?;
+    let rows: usize = windows.iter().flatten().map(|w| w.record.u.len()).sum();
+    let (mut id, mut t, mut u, mut y) = (
+        Vec::with_capacity(rows),
+        Vec::with_capacity(rows),
+        Vec::with_capacity(rows),
+        Vec::with_capacity(rows),
+    );
+    for w in windows.iter().flatten() {
+        let n = w.record.u.len();
+        id.extend(std::iter::repeat_n(w.actuator_id as i64, n));
+        let k0 = w.window * design.samples_per_window;
+        t.extend((0..n).map(|k| (k0 + k) as f64 * w.record.ts));
+        u.extend_from_slice(&w.record.u);
+        y.extend_from_slice(&w.record.y);
+    }
+    write_parquet(
+        path,
+        &[
+            Column::Int64("actuator_id", &id),
+            Column::Double("t", &t),
+            Column::Double("u", &u),
+            Column::Double("y", &y),
+        ],
+    )?;
+    Ok(())
+}

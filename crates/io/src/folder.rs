@@ -1,0 +1,130 @@
+//! A folder of outputs written as a whole ([`write_folder`]): filled in a temporary folder beside it,
+//! then renamed into place, so a reader never sees half a data set and a failed run leaves nothing.
+
+use std::path::Path;
+
+use crate::{refused, OutputError, TEMP_PREFIX};
+
+/// Writes the folder `dir` (chosen by option `flag`) as a whole: `fill` writes every file into a new
+/// temporary folder beside `dir`, which is then renamed to `dir`. A missing or empty `dir` is replaced;
+/// an existing folder with entries is refused unless `overwrite` (then it is replaced by the new one and
+/// its old entries are removed, after the new folder is in place); a path that is not a folder is
+/// refused. When `fill` fails, the temporary folder is removed and `dir` is untouched.
+pub fn write_folder<E>(
+    dir: &Path,
+    flag: &str,
+    overwrite: bool,
+    fill: impl FnOnce(&Path) -> Result<(), E>,
+) -> Result<(), E>
+where
+    E: From<OutputError>,
+{
+    let io = |source| OutputError::Io {
+        path: dir.to_path_buf(),
+        source,
+    };
+    let parent = crate::parent_dir(dir);
+    if !parent.is_dir() {
+        return Err(refused(
+            flag,
+            dir,
+            format!(
+                "a folder in an existing folder ({} does not exist)",
+                parent.display()
+            ),
+        )
+        .into());
+    }
+    let existing = match std::fs::symlink_metadata(dir) {
+        Ok(m) if m.is_dir() => {
+            let count = std::fs::read_dir(dir).map_err(io)?.count();
+            if count > 0 && !overwrite {
+                return Err(refused(
+                    flag,
+                    dir,
+                    format!(
+                        "a new or empty folder (this one holds {count} entr{}; pass --overwrite to replace \
+                         it and everything in it)",
+                        if count == 1 { "y" } else { "ies" }
+                    ),
+                )
+                .into());
+            }
+            count > 0
+        }
+        Ok(_) => return Err(refused(flag, dir, "a folder (this is a file)").into()),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => false,
+        Err(e) => return Err(io(e).into()),
+    };
+    let tmp = tempfile::Builder::new()
+        .prefix(TEMP_PREFIX)
+        .tempdir_in(parent)
+        .map_err(io)?;
+    fill(tmp.path())?;
+    if existing {
+        let old = tempfile::Builder::new()
+            .prefix(TEMP_PREFIX)
+            .tempdir_in(parent)
+            .map_err(io)?;
+        // The old folder moves into a temporary name (removed when `old` is dropped), the new takes its place.
+        let old_dir = old.path().join("old");
+        std::fs::rename(dir, &old_dir).map_err(io)?;
+        if let Err(e) = std::fs::rename(tmp.path(), dir) {
+            // Put the old folder back; the new one is dropped with `tmp`.
+            let _ = std::fs::rename(&old_dir, dir);
+            return Err(io(e).into());
+        }
+        drop(old);
+    } else {
+        std::fs::rename(tmp.path(), dir).map_err(io)?;
+    }
+    let _ = tmp.keep();
+    Ok(())
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    fn fill_one(name: &'static str) -> impl FnOnce(&Path) -> Result<(), OutputError> {
+        move |d: &Path| {
+            std::fs::write(d.join(name), "x").unwrap();
+            Ok(())
+        }
+    }
+
+    // A new folder appears whole; a folder with entries is refused and left as it was unless asked;
+    // when asked it holds only the new entries.
+    #[test]
+    fn a_full_folder_is_replaced_only_when_asked() {
+        let root = tempfile::tempdir().unwrap();
+        let dir = root.path().join("fleet");
+        write_folder(&dir, "--out", false, fill_one("a")).unwrap();
+        assert!(dir.join("a").is_file());
+        let e = write_folder(&dir, "--out", false, fill_one("b"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("--overwrite") && e.contains("1 entry"), "{e}");
+        assert!(dir.join("a").is_file() && !dir.join("b").exists());
+        write_folder(&dir, "--out", true, fill_one("b")).unwrap();
+        assert!(dir.join("b").is_file() && !dir.join("a").exists());
+        // Nothing temporary is left beside it.
+        assert_eq!(std::fs::read_dir(root.path()).unwrap().count(), 1);
+    }
+
+    // A failing fill leaves no folder behind.
+    #[test]
+    fn a_failed_fill_leaves_nothing() {
+        let root = tempfile::tempdir().unwrap();
+        let dir = root.path().join("fleet");
+        let r = write_folder(&dir, "--out", false, |_: &Path| {
+            Err(OutputError::Io {
+                path: dir.clone(),
+                source: std::io::Error::other("boom"),
+            })
+        });
+        assert!(r.is_err());
+        assert_eq!(std::fs::read_dir(root.path()).unwrap().count(), 0);
+    }
+}

@@ -1,0 +1,474 @@
+"""Fleet monitoring: many actuators' records identified window by window, and worn valves flagged.
+
+The unit of work is a pandas-in, pandas-out function over a partition of long-format records
+(``actuator_id, t, u, y``, many actuators, every actuator's rows whole in one partition):
+
+- ``identify_partition(partition, ...)`` -> one row per actuator and window: the parameters with their
+  standard deviations (``b_l``, ``b_l_sd``, ...), the deadzone width ``b_r - b_l`` and slopes ``m_l``,
+  ``m_r``, the fit, the warnings, and the online tracker's change points — the numbers
+  ``ipa-sysid identify --method ls --ts TS --json`` and ``ipa-sysid track --ts TS --detect-warmup 200
+  --detect-calibration 800 --json`` give on the same window written as a CSV file.
+- ``run(input_dir, output_dir, client=None)``: the same function mapped over a folder of Parquet files
+  with ``dask.dataframe`` (``map_partitions``, one task per file), results written to
+  ``output_dir/results.parquet`` and returned as a pandas DataFrame.
+- ``trends(results)`` / ``worn(results)``: per actuator, the trend of the deadzone width and of the mean
+  slope across windows with its uncertainty, and the actuators whose wear is significant, ranked.
+- ``report(results, path)``: the worn-valve report (HTML: the fleet at a glance as an SVG figure, and the
+  table of flagged actuators).
+
+Needs the extra: ``pip install ipa-sysid[fleet]`` (pandas, pyarrow, dask[dataframe], distributed).
+See docs/fleet.md in the repository (one machine, a Dask cluster, Spark).
+"""
+
+import glob
+import html
+import math
+import os
+import tempfile
+
+import numpy as np
+
+from . import _core
+
+#: Columns of a partition.
+INPUT_COLUMNS = ("actuator_id", "t", "u", "y")
+
+#: Default family-wise false-flag level of ``worn`` (Bonferroni over the fleet's actuators).
+ALPHA = 0.01
+
+
+def _pandas():
+    try:
+        import pandas
+    except ImportError as e:  # pragma: no cover - the extra is documented
+        raise ImportError(
+            "ipa_sysid.fleet needs pandas: pip install 'ipa-sysid[fleet]'"
+        ) from e
+    return pandas
+
+
+def parameter_names(na=3, nb=1):
+    """The parameters of the Hammerstein (deadzone + ARX) model, in the ``identify --json`` order."""
+    return ["b_l", "b_r", "m_l", "m_r"] + [f"a{i}" for i in range(1, na + 1)] + [
+        f"b{i}" for i in range(1, nb + 1)
+    ]
+
+
+def _columns(na, nb):
+    cols = ["actuator_id", "window", "t_start", "t_end", "samples"]
+    for n in parameter_names(na, nb):
+        cols += [n, n + "_sd"]
+    cols += [
+        "deadzone_width",
+        "fit_sim_percent",
+        "fit_pred_percent",
+        "stable",
+        "warnings",
+        "changes",
+        "first_change_t",
+        "error",
+    ]
+    return cols
+
+
+def identify_partition(
+    partition,
+    ts=0.01,
+    window=2000,
+    na=3,
+    nb=1,
+    nk=1,
+    detect_warmup=200,
+    detect_calibration=800,
+    resid_lags=25,
+):
+    """One row per actuator and window of ``partition`` (a pandas DataFrame with columns ``actuator_id,
+    t, u, y``; any other columns are ignored).
+
+    Each actuator's rows are sorted by ``t`` and cut into consecutive windows of ``window`` samples
+    (``window`` counts from 0 within the partition, so a partition must hold an actuator's whole
+    record; an incomplete last window is left out). Ts is the setting ``ts`` (s): ``t`` orders the
+    samples and dates the windows. Every window is identified by least squares (Hammerstein, ``na``,
+    ``nb``, ``nk``; as ``identify --method ls``) and run through the online tracker (``track``'s
+    defaults, detector warm-up ``detect_warmup`` and calibration ``detect_calibration`` samples, so
+    that it monitors within a window). Columns: ``actuator_id, window, t_start, t_end, samples``, each
+    parameter and its standard deviation ``<name>_sd`` (NaN where ``identify`` reports none),
+    ``deadzone_width`` (b_r - b_l, counts), ``fit_sim_percent``, ``fit_pred_percent``, ``stable``,
+    ``warnings`` (the ``identify --json`` warnings joined by newlines), ``changes`` (number of change
+    points the tracker found), ``first_change_t`` (time of the first, s, or NaN) and ``error`` (empty,
+    or why the window could not be identified: the other windows go on).
+    """
+    pd = _pandas()
+    missing = [c for c in INPUT_COLUMNS if c not in partition.columns]
+    if missing:
+        raise ValueError(
+            f"partition: missing column(s) {', '.join(missing)} (expected long-format records "
+            f"{', '.join(INPUT_COLUMNS)})"
+        )
+    cols = _columns(na, nb)
+    if len(partition) == 0:
+        return _typed(pd.DataFrame({c: [] for c in cols}))
+    df = partition.sort_values(["actuator_id", "t"], kind="stable")
+    ids = df["actuator_id"].to_numpy()
+    t = df["t"].to_numpy(dtype=np.float64)
+    change = np.flatnonzero(ids[1:] != ids[:-1]) + 1
+    offsets = np.concatenate(([0], change, [len(ids)])).tolist()
+    r = _core.fleet_windows(
+        df["u"].to_numpy(dtype=np.float64),
+        df["y"].to_numpy(dtype=np.float64),
+        offsets,
+        ts,
+        window,
+        "ls",
+        na,
+        nb,
+        nk,
+        detect_warmup,
+        detect_calibration,
+        resid_lags,
+    )
+    group = np.asarray(r["group"], dtype=np.int64)
+    start = np.asarray(r["start"], dtype=np.int64)
+    out = {
+        "actuator_id": ids[np.asarray(offsets[:-1], dtype=np.int64)[group]] if len(group) else [],
+        "window": np.asarray(r["window"], dtype=np.int64),
+        "t_start": t[start] if len(start) else [],
+        "t_end": t[start + window - 1] if len(start) else [],
+        "samples": np.full(len(start), window, dtype=np.int64),
+    }
+    names = r["names"]
+    for n in parameter_names(na, nb):
+        if n in names:
+            j = names.index(n)
+            out[n] = r["values"][:, j]
+            out[n + "_sd"] = r["sds"][:, j]
+        else:
+            out[n] = np.full(len(start), np.nan)
+            out[n + "_sd"] = np.full(len(start), np.nan)
+    out["deadzone_width"] = np.asarray(out["b_r"]) - np.asarray(out["b_l"])
+    out["fit_sim_percent"] = r["fit_sim_percent"]
+    out["fit_pred_percent"] = r["fit_pred_percent"]
+    out["stable"] = np.asarray(r["stable"], dtype=bool)
+    out["warnings"] = r["warnings"]
+    out["changes"] = np.asarray([len(c) for c in r["change_points"]], dtype=np.int64)
+    out["first_change_t"] = np.asarray(
+        [t[s + c[0]] if c else np.nan for s, c in zip(start, r["change_points"])],
+        dtype=np.float64,
+    )
+    out["error"] = r["error"]
+    return _typed(pd.DataFrame(out, columns=cols))
+
+
+def spark_schema(na=3, nb=1, id_type="long"):
+    """The Spark SQL schema (a DDL string) of ``identify_partition``'s result, for
+    ``applyInPandas(identify_partition, schema=spark_schema())``; ``id_type`` is the Spark type of
+    ``actuator_id`` (``long``, ``string``, ...)."""
+    types = {"window": "long", "samples": "long", "changes": "long", "stable": "boolean",
+             "warnings": "string", "error": "string", "actuator_id": id_type}
+    return ", ".join(f"{c} {types.get(c, 'double')}" for c in _columns(na, nb))
+
+
+def _typed(df):
+    """Fixed dtypes, so that every partition (and the empty meta) has the same schema."""
+    for c in df.columns:
+        if c in ("window", "samples", "changes"):
+            df[c] = df[c].astype("int64")
+        elif c == "stable":
+            df[c] = df[c].astype(bool)
+        elif c in ("warnings", "error"):
+            df[c] = df[c].astype(str)
+        elif c != "actuator_id":
+            df[c] = df[c].astype("float64")
+    return df
+
+
+def _parquet_files(input_dir):
+    files = sorted(glob.glob(os.path.join(os.fspath(input_dir), "**", "*.parquet"), recursive=True))
+    files = [f for f in files if not os.path.basename(f).startswith((".", "_"))]
+    if not files:
+        raise ValueError(f"{input_dir}: no *.parquet files (expected a folder of long-format records)")
+    return files
+
+
+def run(input_dir, output_dir, client=None, **settings):
+    """Identifies every actuator and window of the Parquet files under ``input_dir`` on Dask, writes the
+    results to ``output_dir/results.parquet`` and returns them (a pandas DataFrame sorted by
+    ``actuator_id, window``).
+
+    Each Parquet file is one partition (``dask.dataframe.read_parquet``) and must hold whole actuators
+    (``ipa-sysid simulate --fleet`` writes them so); ``identify_partition`` (with ``settings``) is mapped
+    over the partitions (``map_partitions``: one task per file, so that Dask's overhead per actuator is a
+    fraction of the identification's own time). ``client``: a ``dask.distributed.Client`` to compute on;
+    None uses Dask's default (the client created last, else threads in this process). A worker lost
+    mid-run loses no actuator: the scheduler runs its tasks again elsewhere. ``output_dir`` is created;
+    ``results.parquet`` in it is replaced atomically (written beside it, then renamed).
+    """
+    import dask.dataframe as dd
+
+    pd = _pandas()
+    # One partition per file (never a file split by row groups: an actuator's record stays whole).
+    ddf = dd.read_parquet(
+        _parquet_files(input_dir), columns=list(INPUT_COLUMNS), split_row_groups=False
+    )
+    meta = identify_partition(
+        pd.DataFrame({c: pd.Series([], dtype=ddf[c].dtype) for c in INPUT_COLUMNS}), **settings
+    )
+    lazy = ddf.map_partitions(identify_partition, meta=meta, **settings)
+    if client is not None:
+        results = client.compute(lazy).result()
+    else:
+        results = lazy.compute()
+    results = results.sort_values(["actuator_id", "window"], kind="stable").reset_index(drop=True)
+    os.makedirs(output_dir, exist_ok=True)
+    target = os.path.join(os.fspath(output_dir), "results.parquet")
+    _write_atomic(target, lambda tmp: results.to_parquet(tmp, index=False))
+    return results
+
+
+def _write_atomic(path, write):
+    """Calls ``write(tmp)`` on a temporary file beside ``path``, then renames it to ``path``: ``path`` is
+    either untouched or wholly replaced (the temporary file is removed on failure)."""
+    directory = os.path.dirname(os.path.abspath(path))
+    fd, tmp = tempfile.mkstemp(prefix=".ipa-sysid-", suffix=".tmp", dir=directory)
+    os.close(fd)
+    try:
+        write(tmp)
+        os.replace(tmp, path)
+    except BaseException:
+        if os.path.exists(tmp):
+            os.unlink(tmp)
+        raise
+
+
+# ---------------------------------------------------------------------------------------------------
+# Trends and the significance test.
+
+
+def student_t_sf(t, dof):
+    """P(T > t) for Student's t with an integer number of degrees of freedom ``dof`` >= 1, in closed
+    form (Abramowitz & Stegun 26.7.3 and 26.7.4, with theta = atan(t / sqrt(dof)))."""
+    if dof < 1 or dof != int(dof):
+        raise ValueError(f"dof = {dof}: expected an integer >= 1")
+    if math.isnan(t):
+        return math.nan
+    if math.isinf(t):
+        return 0.0 if t > 0 else 1.0
+    dof = int(dof)
+    theta = math.atan(abs(t) / math.sqrt(dof))
+    s, c = math.sin(theta), math.cos(theta)
+    if dof % 2 == 1:
+        total, term = 0.0, 0.0
+        if dof > 1:
+            term, total = c, c
+            for k in range(3, dof - 1, 2):
+                term *= c * c * (k - 1) / k
+                total += term
+        a = 2.0 / math.pi * (theta + s * total)
+    else:
+        term, total = 1.0, 1.0
+        for k in range(2, dof - 1, 2):
+            term *= c * c * (k - 1) / k
+            total += term
+        a = s * total
+    upper = 0.5 * (1.0 - a)  # P(T > |t|)
+    return upper if t >= 0 else 1.0 - upper
+
+
+def _trend(x, v):
+    """Ordinary least squares slope of v on x, its standard error from the residual scatter (n - 2
+    degrees of freedom) and t = slope / se."""
+    n = len(x)
+    xm = x - x.mean()
+    sxx = float(xm @ xm)
+    if n < 3 or sxx <= 0.0:
+        return math.nan, math.nan, math.nan
+    slope = float(xm @ (v - v.mean())) / sxx
+    resid = v - v.mean() - slope * xm
+    s2 = float(resid @ resid) / (n - 2)
+    se = math.sqrt(s2 / sxx)
+    if se == 0.0:
+        t = math.copysign(math.inf, slope) if slope != 0 else 0.0
+    else:
+        t = slope / se
+    return slope, se, t
+
+
+def trends(results, alpha=ALPHA):
+    """Per actuator, the wear trends across its windows and their significance (one row per actuator).
+
+    For the deadzone width w = b_r - b_l (counts) and the mean slope m = (m_l + m_r) / 2, regressed on the
+    window's start time t_start by ordinary least squares over the actuator's identified windows (n >= 3;
+    windows with an ``error`` or a non-finite value left out): the slope in units per hour with its
+    standard error from the scatter of the windows about the line (Student's t, n - 2 degrees of
+    freedom). The test: one-sided p-values for a widening deadzone (p_width = P(T > t_width)) and for
+    dropping slopes (p_slope = P(T < t_slope)), combined by Fisher's method, X = -2 (ln p_width + ln
+    p_slope), p = P(chi2_4 > X) = exp(-X/2) (1 + X/2). An actuator is flagged ``worn`` when p < alpha / N
+    (Bonferroni over the N actuators tested): the chance of any false flag in a healthy fleet is then
+    at most alpha (default 0.01), if the windows' estimates scatter independently about a line.
+
+    Columns: ``actuator_id, windows, width_mean, width_trend_per_h, width_trend_sd, width_t,
+    slope_mean, slope_trend_per_h, slope_trend_sd, slope_t, p_width, p_slope, p_value, threshold,
+    worn``; sorted by p_value.
+    """
+    pd = _pandas()
+    ok = results[(results["error"].fillna("") == "")]
+    rows = []
+    for aid, g in ok.groupby("actuator_id", sort=True):
+        x = g["t_start"].to_numpy(dtype=np.float64) / 3600.0
+        w = g["deadzone_width"].to_numpy(dtype=np.float64)
+        m = 0.5 * (g["m_l"].to_numpy(dtype=np.float64) + g["m_r"].to_numpy(dtype=np.float64))
+        keep = np.isfinite(x) & np.isfinite(w) & np.isfinite(m)
+        x, w, m = x[keep], w[keep], m[keep]
+        n = len(x)
+        bw, sw, tw = _trend(x, w)
+        bm, sm, tm = _trend(x, m)
+        if n >= 3 and not (math.isnan(tw) or math.isnan(tm)):
+            pw = student_t_sf(tw, n - 2)
+            pm = 1.0 - student_t_sf(tm, n - 2)
+            pw, pm = max(pw, 1e-300), max(pm, 1e-300)
+            chi = -2.0 * (math.log(pw) + math.log(pm))
+            p = math.exp(-chi / 2.0) * (1.0 + chi / 2.0)
+        else:
+            pw = pm = p = math.nan
+        rows.append(
+            {
+                "actuator_id": aid,
+                "windows": n,
+                "width_mean": float(w.mean()) if n else math.nan,
+                "width_trend_per_h": bw,
+                "width_trend_sd": sw,
+                "width_t": tw,
+                "slope_mean": float(m.mean()) if n else math.nan,
+                "slope_trend_per_h": bm,
+                "slope_trend_sd": sm,
+                "slope_t": tm,
+                "p_width": pw,
+                "p_slope": pm,
+                "p_value": p,
+            }
+        )
+    out = pd.DataFrame(rows)
+    if out.empty:
+        return out
+    tested = int(out["p_value"].notna().sum())
+    out["threshold"] = alpha / max(tested, 1)
+    out["worn"] = out["p_value"] < out["threshold"]
+    return out.sort_values(["p_value", "actuator_id"], kind="stable", na_position="last").reset_index(
+        drop=True
+    )
+
+
+def worn(results, alpha=ALPHA):
+    """The actuators flagged worn by ``trends`` (p < alpha / N), most significant first, with a
+    ``rank`` column (1 = most significant) and the trend columns of ``trends``."""
+    tr = trends(results, alpha)
+    if tr.empty:
+        return tr
+    flagged = tr[tr["worn"]].reset_index(drop=True)
+    flagged.insert(0, "rank", np.arange(1, len(flagged) + 1))
+    return flagged
+
+
+# ---------------------------------------------------------------------------------------------------
+# The worn-valve report.
+
+
+def glance_svg(trend_table, width=640, height=420):
+    """The fleet at a glance: one dot per actuator, the t statistic of its deadzone-width trend against
+    that of its slope trend (widening to the right, dropping slopes downwards); flagged actuators in
+    red, the others grey. An SVG document (a string)."""
+    tt = trend_table.dropna(subset=["width_t", "slope_t"])
+    pad = 56
+    clip = lambda v: float(np.clip(v, -40.0, 40.0))  # noqa: E731 - a short local scale helper
+    xs = [clip(v) for v in tt["width_t"]]
+    ys = [clip(v) for v in tt["slope_t"]]
+    x0, x1 = min(xs + [-3.0]) - 1, max(xs + [3.0]) + 1
+    y0, y1 = min(ys + [-3.0]) - 1, max(ys + [3.0]) + 1
+    sx = lambda v: pad + (v - x0) / (x1 - x0) * (width - 2 * pad)  # noqa: E731
+    sy = lambda v: height - pad - (v - y0) / (y1 - y0) * (height - 2 * pad)  # noqa: E731
+    parts = [
+        f'<svg xmlns="http://www.w3.org/2000/svg" width="{width}" height="{height}" '
+        f'viewBox="0 0 {width} {height}" font-family="sans-serif" font-size="12">',
+        f'<rect width="{width}" height="{height}" fill="white"/>',
+        f'<line x1="{sx(0):.1f}" y1="{pad - 10}" x2="{sx(0):.1f}" y2="{height - pad}" stroke="#bbb"/>',
+        f'<line x1="{pad}" y1="{sy(0):.1f}" x2="{width - pad + 10}" y2="{sy(0):.1f}" stroke="#bbb"/>',
+        f'<rect x="{pad}" y="{pad - 10}" width="{width - 2 * pad + 10}" height="{height - 2 * pad + 10}" '
+        'fill="none" stroke="#333"/>',
+    ]
+    for v in range(int(math.ceil(x0 / 5)) * 5, int(x1) + 1, 5):
+        parts.append(f'<text x="{sx(v):.1f}" y="{height - pad + 16}" text-anchor="middle">{v}</text>')
+    for v in range(int(math.ceil(y0 / 5)) * 5, int(y1) + 1, 5):
+        parts.append(f'<text x="{pad - 6}" y="{sy(v) + 4:.1f}" text-anchor="end">{v}</text>')
+    for (x, y, w) in sorted(zip(xs, ys, tt["worn"]), key=lambda r: r[2]):
+        colour, r = ("#d62728", 4) if w else ("#888888", 2.5)
+        parts.append(f'<circle cx="{sx(x):.1f}" cy="{sy(y):.1f}" r="{r}" fill="{colour}" fill-opacity="0.8"/>')
+    n, k = len(tt), int(tt["worn"].sum())
+    parts += [
+        f'<text x="{width / 2}" y="{height - 14}" text-anchor="middle">t of the deadzone-width trend '
+        "(widening →)</text>",
+        f'<text x="16" y="{height / 2}" text-anchor="middle" transform="rotate(-90 16 {height / 2})">'
+        "t of the slope trend (dropping ↓)</text>",
+        f'<text x="{width / 2}" y="22" text-anchor="middle" font-size="14">Fleet at a glance: {n} '
+        f"actuators, {k} flagged worn (red; values beyond ±40 drawn at ±40)</text>",
+        "</svg>",
+    ]
+    return "\n".join(parts)
+
+
+def report(results, path, alpha=ALPHA):
+    """Writes the worn-valve report to ``path`` (HTML, written atomically): the fleet at a glance
+    (``glance_svg``) and the table of flagged actuators (``worn``), with the test and its threshold in
+    words. Returns the table of flagged actuators."""
+    tr = trends(results, alpha)
+    flagged = worn(results, alpha)
+    head = (
+        "<th>rank</th><th>actuator</th><th>windows</th><th>width mean (counts)</th>"
+        "<th>width trend (counts/h ± sd)</th><th>slope mean</th><th>slope trend (1/h ± sd)</th>"
+        "<th>p</th>"
+    )
+    body = "".join(
+        "<tr>"
+        f"<td>{r['rank']}</td><td>{html.escape(str(r['actuator_id']))}</td><td>{r['windows']}</td>"
+        f"<td>{r['width_mean']:.1f}</td>"
+        f"<td>{r['width_trend_per_h']:+.2f} ± {r['width_trend_sd']:.2f}</td>"
+        f"<td>{r['slope_mean']:.5f}</td>"
+        f"<td>{r['slope_trend_per_h']:+.3g} ± {r['slope_trend_sd']:.2g}</td>"
+        f"<td>{r['p_value']:.2e}</td></tr>"
+        for _, r in flagged.iterrows()
+    )
+    threshold = float(tr["threshold"].iloc[0]) if not tr.empty else math.nan
+    failed = int((results["error"].fillna("") != "").sum())
+    doc = (
+        "<!DOCTYPE html><html><head><meta charset='utf-8'><title>Worn valves</title>"
+        "<style>body{font-family:sans-serif;max-width:60em;margin:2em auto}table{border-collapse:"
+        "collapse}td,th{border:1px solid #ccc;padding:2px 8px;text-align:right}</style></head><body>"
+        f"<h1>Worn valves</h1><p>{len(tr)} actuators, {len(results)} windows"
+        f"{f', {failed} window(s) not identified' if failed else ''}. An actuator is flagged when the "
+        "trends of its deadzone width (widening) and mean slope (dropping) across windows, combined "
+        f"(Fisher), have p &lt; {alpha:g} / {len(tr)} = {threshold:.2e} (Bonferroni: at most a "
+        f"{alpha:g} chance of any false flag in a healthy fleet).</p>"
+        + glance_svg(tr)
+        + f"<h2>{len(flagged)} flagged, most significant first</h2><table><tr>{head}</tr>{body}"
+        "</table></body></html>"
+    )
+    def write(tmp):
+        with open(tmp, "w", encoding="utf-8") as f:
+            f.write(doc)
+
+    _write_atomic(path, write)
+    return flagged
+
+
+__all__ = [
+    "ALPHA",
+    "INPUT_COLUMNS",
+    "glance_svg",
+    "identify_partition",
+    "parameter_names",
+    "report",
+    "run",
+    "spark_schema",
+    "student_t_sf",
+    "trends",
+    "worn",
+]

@@ -1,0 +1,228 @@
+"""Tests of ipa_sysid.fleet: a small simulated fleet (`ipa-sysid simulate --fleet`) identified on a
+Dask LocalCluster of 2 worker processes, compared with the command line on the same windows (1e-12), the
+worn actuators found against the simulator's truth, a worker killed mid-run, and the statistics
+against hand-derived values.
+
+Needs the extra (`pip install ipa-sysid[fleet]`; scripts/test installs it): without dask, distributed
+or pyarrow the module is skipped with the reason shown by `pytest -rs`."""
+
+import csv
+import json
+import math
+import os
+import re
+import signal
+import threading
+import time
+
+import numpy as np
+import pytest
+
+pd = pytest.importorskip("pandas", reason="ipa_sysid.fleet needs pandas: pip install 'ipa-sysid[fleet]'")
+pytest.importorskip("pyarrow", reason="ipa_sysid.fleet needs pyarrow: pip install 'ipa-sysid[fleet]'")
+pytest.importorskip("dask.dataframe", reason="ipa_sysid.fleet needs dask[dataframe]: pip install 'ipa-sysid[fleet]'")
+distributed = pytest.importorskip("distributed", reason="ipa_sysid.fleet needs distributed: pip install 'ipa-sysid[fleet]'")
+
+from ipa_sysid import fleet  # noqa: E402
+
+from test_ipa_sysid import cli  # noqa: E402
+
+TOL = 1e-12
+ACTUATORS, WORN, WINDOWS, PER_FILE = 10, 0.2, 8, 2
+
+
+@pytest.fixture(scope="module")
+def fleet_dir(tmp_path_factory):
+    d = tmp_path_factory.mktemp("fleet") / "records"
+    cli(
+        "simulate", "--fleet", ACTUATORS, "--worn", WORN, "--windows", WINDOWS, "--seed", 5,
+        "--per-file", PER_FILE, "--out", d,
+    )
+    return d
+
+
+@pytest.fixture(scope="module")
+def client():
+    with distributed.LocalCluster(
+        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0"
+    ) as cluster, distributed.Client(cluster) as c:
+        yield c
+
+
+@pytest.fixture(scope="module")
+def results(fleet_dir, client, tmp_path_factory):
+    out = tmp_path_factory.mktemp("results")
+    r = fleet.run(fleet_dir, out, client=client)
+    written = pd.read_parquet(out / "results.parquet")
+    pd.testing.assert_frame_equal(written, r)
+    return r
+
+
+def test_the_simulated_fleet_is_long_format_parquet_with_its_truth(fleet_dir):
+    files = sorted(fleet_dir.glob("*.parquet"))
+    assert len(files) == ACTUATORS // PER_FILE
+    df = pd.read_parquet(files[0])
+    assert list(df.columns) == ["actuator_id", "t", "u", "y"]
+    assert len(df) == PER_FILE * WINDOWS * 2000
+    truth = pd.read_csv(fleet_dir / "truth.csv")
+    assert list(truth.columns) == ["actuator_id", "worn"]
+    assert truth["worn"].sum() == round(ACTUATORS * WORN)
+    # The folder is not overwritten unless asked.
+    r = cli("simulate", "--fleet", 2, "--out", fleet_dir, check=False)
+    assert r.returncode == 2 and "--overwrite" in r.stderr
+
+
+def test_one_row_per_actuator_and_window(results):
+    assert len(results) == ACTUATORS * WINDOWS
+    assert (results.groupby("actuator_id").size() == WINDOWS).all()
+    assert (results["error"] == "").all()
+
+
+def write_window(path, df):
+    with open(path, "w", newline="") as f:
+        w = csv.writer(f)
+        w.writerow(["t", "u", "y"])
+        for t, u, y in zip(df["t"], df["u"], df["y"]):
+            w.writerow([repr(float(t)), repr(float(u)), repr(float(y))])
+
+
+def close(a, b):
+    if a is None or (isinstance(a, float) and math.isnan(a)):
+        return b is None or (isinstance(b, float) and math.isnan(b))
+    return abs(a - b) <= TOL * max(1.0, abs(a))
+
+
+@pytest.mark.parametrize("which", ["worn", "healthy"])
+def test_each_window_equals_the_command_line(fleet_dir, results, tmp_path, which):
+    truth = pd.read_csv(fleet_dir / "truth.csv")
+    aid = int(truth[truth["worn"] == (which == "worn")]["actuator_id"].iloc[0])
+    records = pd.concat(pd.read_parquet(f) for f in sorted(fleet_dir.glob("*.parquet")))
+    rec = records[records["actuator_id"] == aid].sort_values("t")
+    for window in (0, WINDOWS - 1):
+        part = rec.iloc[window * 2000 : (window + 1) * 2000]
+        path = tmp_path / f"a{aid}w{window}.csv"
+        write_window(path, part)
+        ident = json.loads(cli("identify", "--data", path, "--method", "ls", "--ts", 0.01, "--json", "-").stdout)
+        summary = tmp_path / "track.json"
+        cli(
+            "track", "--data", path, "--ts", 0.01, "--detect-warmup", 200, "--detect-calibration", 800,
+            "--json", summary,
+        )
+        track = json.loads(summary.read_text())
+        row = results[(results["actuator_id"] == aid) & (results["window"] == window)].iloc[0]
+        for p in ident["parameters"]:
+            assert close(p["value"], row[p["name"]]), (p, row[p["name"]])
+            assert close(p["std"], row[p["name"] + "_sd"]), (p, row[p["name"] + "_sd"])
+        est = ident["metrics"]["estimation"]
+        assert close(est["fit_sim_percent"], row["fit_sim_percent"])
+        assert close(est["fit_pred_percent"], row["fit_pred_percent"])
+        assert row["stable"] == ident["stable"]
+        # Warnings that name the record name it by file here and by actuator and window there.
+        norm = lambda w: re.sub(r"group \d+ window \d+", "<data>", w.replace(str(path), "<data>"))  # noqa: E731
+        assert [norm(w) for w in row["warnings"].split("\n") if w] == [norm(w) for w in ident["warnings"]]
+        assert row["changes"] == len(track["change_points"])
+        if track["change_points"]:
+            k = track["change_points"][0]["k"]
+            assert row["first_change_t"] == part["t"].iloc[k]
+
+
+def test_every_worn_actuator_is_flagged_and_no_healthy_one(fleet_dir, results):
+    truth = pd.read_csv(fleet_dir / "truth.csv")
+    flagged = fleet.worn(results)
+    assert list(flagged["rank"]) == list(range(1, len(flagged) + 1))
+    assert (np.diff(flagged["p_value"]) >= 0).all()
+    expected = set(truth[truth["worn"]]["actuator_id"])
+    assert set(flagged["actuator_id"]) == expected
+    tr = fleet.trends(results)
+    assert (tr["threshold"] == fleet.ALPHA / ACTUATORS).all()
+
+
+def test_a_worker_killed_mid_run_loses_no_actuator(fleet_dir, results, client, tmp_path):
+    done = {}
+
+    def go():
+        try:
+            done["results"] = fleet.run(fleet_dir, tmp_path, client=client)
+        except BaseException as e:  # reported below
+            done["error"] = e
+
+    runner = threading.Thread(target=go)
+    runner.start()
+    killed = None
+    deadline = time.monotonic() + 60
+    while killed is None and time.monotonic() < deadline and runner.is_alive():
+        busy = [w for w, keys in client.processing().items() if keys]
+        if busy:
+            pid = client.run(os.getpid, workers=[busy[0]])[busy[0]]
+            os.kill(pid, signal.SIGKILL)
+            killed = pid
+        else:
+            time.sleep(0.05)
+    runner.join(120)
+    assert killed is not None, "no worker was ever busy: the run could not be interrupted"
+    assert "error" not in done, done.get("error")
+    pd.testing.assert_frame_equal(done["results"], results)
+
+
+def test_student_t_tail_matches_the_tables():
+    # Upper percentage points of Student's t (Abramowitz & Stegun Table 26.10; Fisher & Yates).
+    for t, dof, p in [
+        (12.706205, 1, 0.025),
+        (4.302653, 2, 0.025),
+        (2.570582, 5, 0.025),
+        (2.306004, 8, 0.025),
+        (3.169273, 10, 0.005),
+        (4.604095, 4, 0.005),
+        (3.707428, 6, 0.005),
+    ]:
+        assert abs(fleet.student_t_sf(t, dof) - p) < 1e-7, (t, dof)
+        assert abs(fleet.student_t_sf(-t, dof) - (1 - p)) < 1e-7
+    assert fleet.student_t_sf(0.0, 7) == 0.5
+
+
+def test_a_trend_with_hand_made_residuals():
+    # width = 50 + 2 x + e with e = (1, -1, -1, 1) orthogonal to 1 and x (x = 0, 1, 2, 3 hours): slope 2,
+    # s^2 = 4 / (4 - 2) = 2, Sxx = 5, se = sqrt(2 / 5), t = 2 / sqrt(0.4); slopes without a trend.
+    x = np.arange(4.0)
+    e = np.array([1.0, -1.0, -1.0, 1.0])
+    res = pd.DataFrame(
+        {
+            "actuator_id": 7,
+            "t_start": 3600.0 * x,
+            "deadzone_width": 50 + 2 * x + e,
+            "m_l": 0.004 + 1e-5 * e,
+            "m_r": 0.004 + 1e-5 * e,
+            "error": "",
+        }
+    )
+    tr = fleet.trends(res).iloc[0]
+    assert abs(tr["width_trend_per_h"] - 2.0) < 1e-12
+    assert abs(tr["width_trend_sd"] - math.sqrt(0.4)) < 1e-12
+    assert abs(tr["width_t"] - 2.0 / math.sqrt(0.4)) < 1e-12
+    assert abs(tr["slope_trend_per_h"]) < 1e-15
+    # Fisher: X = -2 (ln p_w + ln p_s), p = exp(-X / 2) (1 + X / 2).
+    chi = -2 * (math.log(tr["p_width"]) + math.log(tr["p_slope"]))
+    assert abs(tr["p_value"] - math.exp(-chi / 2) * (1 + chi / 2)) < 1e-15
+    assert abs(tr["p_slope"] - 0.5) < 1e-12
+
+
+def test_a_partition_without_the_columns_is_refused():
+    with pytest.raises(ValueError, match="missing column.*actuator_id"):
+        fleet.identify_partition(pd.DataFrame({"t": [0.0], "u": [1.0], "y": [0.0]}))
+
+
+def test_the_report_holds_the_figure_and_the_flagged(results, tmp_path):
+    flagged = fleet.report(results, tmp_path / "worn.html")
+    text = (tmp_path / "worn.html").read_text()
+    assert "<svg" in text and "Fleet at a glance" in text
+    for aid in flagged["actuator_id"]:
+        assert f"<td>{aid}</td>" in text
+
+
+def test_the_spark_schema_names_every_column_with_its_type(results):
+    schema = [f.split(" ") for f in fleet.spark_schema().split(", ")]
+    assert [name for name, _ in schema] == list(results.columns)
+    spark_of = {"int64": "long", "float64": "double", "bool": "boolean"}
+    for name, spark in schema:
+        dtype = str(results[name].dtype)
+        assert spark_of.get(dtype, "string") == spark, (name, dtype, spark)

@@ -67,6 +67,20 @@ order_line() {
         "$(sig .test.metrics.rmse_sim "$o")" "$warn"
 }
 
+# classes_line ARGS...: `order --classes ARGS` (structure search over model classes on the selection part
+# of the estimation record), the chosen class and structure and its test RMSE; sets CLASS and CHOSEN.
+classes_line() {
+    "$bin" order "$@" --json "$tmp/c.json" >/dev/null 2>&1
+    local c=$tmp/c.json
+    CLASS=$(jq -r '.chosen.class // empty' "$c")
+    CHOSEN=$(jq -r '.chosen.orders // empty | "\(.na) \(.nb) \(.nk)"' "$c")
+    printf '`ipa-sysid order %s`\n: chosen %s (na, nb, nk) = (%s), selection RMSE %s on %s; test RMSE %s (simulation from measured initial outputs), %s candidates%s\n\n' \
+        "$*" "$CLASS" "$(echo "$CHOSEN" | tr ' ' ',')" \
+        "$(sig '.candidates[0].selection_rmse' "$c")" "$(jq -r .selection "$c" | sed 's|.*/||')" \
+        "$(sig .chosen.rmse_sim "$c")" "$(jq -r '.candidates | length' "$c")" \
+        "$(jq -r 'if (.warnings | length) > 0 then "; warnings: " + (.warnings | length | tostring) else "" end' "$c")"
+}
+
 delay_line() {
     "$bin" delay "$@" --json "$tmp/d.json" >/dev/null 2>&1
     printf '`ipa-sysid delay %s`\n: nk = %s (%s s)%s\n\n' "$*" "$(jq -r .nk "$tmp/d.json")" \
@@ -101,6 +115,12 @@ row "ARX + offset + output piecewise-linear K = 2 (Wiener), smallest estimation 
 row "polynomial D = 2 + ARX + offset + output saturation (Hammerstein–Wiener)" "${TANKS[@]}" --na 2 --nb 2 --nk 1 --nonlinearity polynomial --degree 2 --method ls --output-nonlinearity saturation
 echo
 delay_line --data $T --u-col uEst --y-col yEst --ts 4
+classes_line "${TANKS[@]}" --classes arx,hammerstein,narx2,narx3 --na 1..4 --nb 1..4 --nk 0..1
+read -r na nb nk <<<"$CHOSEN"
+header
+row "Polynomial NARX, degree 3 + constant, chosen by \`order --classes\`" "${TANKS[@]}" --structure narx --degree "${CLASS#narx}" --na "$na" --nb "$nb" --nk "$nk"
+row "the same, number of terms by BIC" "${TANKS[@]}" --structure narx --degree 3 --na 2 --nb 2 --nk 0 --stop bic
+row "the same, no simulation-error refinement" "${TANKS[@]}" --structure narx --degree 3 --na 2 --nb 2 --nk 0 --no-refine
 
 echo
 echo "## Hair dryer"
@@ -135,6 +155,10 @@ row "Hammerstein + offset, rls" "${HYD[@]}" --na 3 --nb 2 --nk 1 --structure ham
 row "Hammerstein + offset, oe" "${HYD[@]}" --na 3 --nb 2 --nk 1 --structure hammerstein --method oe
 echo
 order_line "${HYD[@]}"
+classes_line "${HYD[@]}" --classes arx,hammerstein,narx2,narx3 --na 1..4 --nb 1..4 --nk 0..2
+read -r na nb nk <<<"$CHOSEN"
+header
+row "Polynomial NARX + constant, chosen by \`order --classes\`" "${HYD[@]}" --structure narx --degree "${CLASS#narx}" --na "$na" --nb "$nb" --nk "$nk"
 delay_line --data $A --rows 0..512 --y-col p --ts 1
 
 echo
@@ -153,6 +177,27 @@ S=silverbox/SNLS80mV.csv
 header
 row "ARX, --detrend mean, ls" --data $S --u-col V1 --y-col V2 --ts 0.0016384 --rows 40650..105712 --validation $S --val-rows 105712..127400 --detrend mean --na 2 --nb 2 --nk 0 --structure arx --method ls
 row "ARX, --detrend mean, oe" --data $S --u-col V1 --y-col V2 --ts 0.0016384 --rows 40650..105712 --validation $S --val-rows 105712..127400 --detrend mean --na 2 --nb 2 --nk 0 --structure arx --method oe
+SB=(--data $S --u-col V1 --y-col V2 --ts 0.0016384 --rows 40650..105712 --validation $S --val-rows 105712..127400 --offset)
+echo
+classes_line "${SB[@]}" --classes arx,narx2,narx3 --na 2..3 --nb 2..3 --nk 0..1
+read -r na nb nk <<<"$CHOSEN"
+header
+row "Polynomial NARX + constant, chosen by \`order --classes\`" "${SB[@]}" --structure narx --degree "${CLASS#narx}" --na "$na" --nb "$nb" --nk "$nk"
+row "the same, number of terms by BIC" "${SB[@]}" --structure narx --degree "${CLASS#narx}" --na "$na" --nb "$nb" --nk "$nk" --stop bic
+row "Polynomial NARX (2, 2, 0), degree 3 + constant" "${SB[@]}" --structure narx --degree 3 --na 2 --nb 2 --nk 0
+
+echo
+echo "## Coupled electric drives (PRBS record u1 -> z1, first 250 / last 250 samples)"
+CE=coupled_electric_drives_prbs/DATAPRBS.csv
+CED=(--data $CE --u-col u1 --y-col z1 --ts 0.02 --rows 0..250 --val-rows 250..500 --offset)
+header
+row "ARX + offset, oe" "${CED[@]}" --na 2 --nb 2 --nk 1 --structure arx --method oe
+echo
+classes_line "${CED[@]}" --classes arx,hammerstein,narx2,narx3 --na 1..4 --nb 1..4 --nk 0..2
+read -r na nb nk <<<"$CHOSEN"
+header
+row "Polynomial NARX + constant, chosen by \`order --classes\`" "${CED[@]}" --structure narx --degree "${CLASS#narx}" --na "$na" --nb "$nb" --nk "$nk"
+row "Polynomial NARX (2, 3, 1), degree 2 + constant" "${CED[@]}" --structure narx --degree 2 --na 2 --nb 3 --nk 1
 
 echo
 echo "## EMPS: two experiments, one model (--merge)"

@@ -31,6 +31,7 @@ from . import _core
 from ._core import (
     Fit,
     Model,
+    NarxFit,
     Rls,
     __version__,
     load_model,
@@ -95,6 +96,7 @@ __all__ = [
     "Fit",
     "IpaSysidWarning",
     "Model",
+    "NarxFit",
     "Rls",
     "__version__",
     "calibrate",

@@ -110,6 +110,25 @@ class Fit:
     def to_json(self) -> str:
         """The identify --json document as text."""
 
+class NarxFit:
+    """The result of identify(..., structure="narx"): a polynomial NARX model."""
+
+    @property
+    def terms(self) -> list[dict[str, Any]]:
+        """[{"term", "coefficient", "std", "err"}] in FROLS order."""
+    @property
+    def metrics(self) -> dict[str, Any]:
+        """{"estimation": {...}, "validation": {...}} as in identify --json."""
+    @property
+    def warnings(self) -> list[str]:
+        """Reasons not to trust the model."""
+    def to_dict(self) -> dict[str, Any]:
+        """The identify --structure narx --json document."""
+    def to_json(self) -> str:
+        """The identify --structure narx --json document as text."""
+    def model_file(self) -> str:
+        """The model file text (identify --save-model format)."""
+
 class Rls:
     """Recursive least squares (paper eqs. 9-12) on n parameters."""
 
@@ -165,8 +184,13 @@ def identify(
     breakpoints: int | Literal["auto"] | None = None,
     degree: int | None = None,
     output_nonlinearity: Literal["saturation", "piecewise-linear", "polynomial"] | None = None,
-) -> Fit:
-    """Identifies a model as `ipa-sysid identify` does with the same options."""
+    structure: Literal["hammerstein", "arx", "narx"] | None = None,
+    stop: Literal["sim", "aic", "bic"] = "sim",
+    max_terms: int = 30,
+    refine: bool = True,
+) -> Fit | NarxFit:
+    """Identifies a model as `ipa-sysid identify` does with the same options (structure="narx":
+    a polynomial NARX model of degree `degree`, default 2, a NarxFit)."""
 
 def load_model(path: str | PathLike[str]) -> Model:
     """Reads a model file of `identify --save-model`."""

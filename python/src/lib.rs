@@ -609,10 +609,10 @@ fn py_float(v: Option<f64>) -> String {
     p0=1e6, offset=false, validation=None, passes=None, max_iterations=100, rls_form="standard",
     windup="none", max_trace=None, iv_stages=10, name="data", validation_name="validation",
     resid_lags=25, fallback=false, nonlinearity=None, breakpoints=None, degree=None,
-    output_nonlinearity=None))]
+    output_nonlinearity=None, structure=None, stop="sim", max_terms=30, refine=true))]
 #[allow(clippy::too_many_arguments)]
-fn identify(
-    py: Python<'_>,
+fn identify<'py>(
+    py: Python<'py>,
     u: &Bound<'_, PyAny>,
     y: &Bound<'_, PyAny>,
     ts: f64,
@@ -639,7 +639,43 @@ fn identify(
     breakpoints: Option<Bound<'_, PyAny>>,
     degree: Option<usize>,
     output_nonlinearity: Option<&str>,
-) -> PyResult<PyFit> {
+    structure: Option<&str>,
+    stop: &str,
+    max_terms: usize,
+    refine: bool,
+) -> PyResult<Bound<'py, PyAny>> {
+    // `structure` is the command line's --structure (`model` its older spelling).
+    let model = structure.unwrap_or(model);
+    if model == "narx" {
+        let settings = sysid::narx::NarxSettings {
+            na,
+            nb,
+            nk,
+            degree: degree.unwrap_or(2),
+            constant: offset,
+            max_terms,
+            stop: choice("--stop", stop)?,
+            refine,
+            max_iterations: max_iterations.min(200),
+            ..sysid::narx::NarxSettings::default()
+        };
+        settings.check().map_err(sysid_err)?;
+        let data = dataset(u, y, ts, name)?;
+        let val = validation
+            .map(|(uv, yv)| dataset(&uv, &yv, ts, validation_name))
+            .transpose()?;
+        let report = py
+            .detach(|| -> Result<sysid_summary::narx::NarxReport, SysidError> {
+                let fit = sysid::narx::identify_narx(&data, &settings)?;
+                sysid_summary::narx::NarxReport::assemble(fit, &settings, &data, val.as_ref())
+            })
+            .map_err(sysid_err)?;
+        let json = serde_json::to_string_pretty(&report)
+            .map_err(|e| PyValueError::new_err(e.to_string()))?
+            + "\n";
+        let model_file = sysid::model_file::narx_to_json(&report.model).map_err(sysid_err)?;
+        return Ok(Bound::new(py, PyNarxFit { json, model_file })?.into_any());
+    }
     // K >= 1, or "auto" (the command line's --breakpoints auto).
     let breakpoints = breakpoints
         .map(|b| match b.extract::<String>() {
@@ -719,7 +755,56 @@ fn identify(
         })
         .map_err(sysid_err)?;
     let json = report.to_json().map_err(sysid_err)?;
-    Ok(PyFit { report, json })
+    Ok(Bound::new(py, PyFit { report, json })?.into_any())
+}
+
+/// The result of `identify(..., structure="narx")`: a polynomial NARX model, its terms and metrics
+/// (the `identify --structure narx --json` document).
+#[pyclass(name = "NarxFit", module = "ipa_sysid")]
+struct PyNarxFit {
+    json: String,
+    model_file: String,
+}
+
+#[pymethods]
+impl PyNarxFit {
+    /// The selected terms: [{"term", "coefficient", "std", "err"}] in FROLS order.
+    #[getter]
+    fn terms<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.to_dict(py)?.get_item("terms")
+    }
+
+    /// {"estimation": {...}, "validation": {...}} as in identify --json.
+    #[getter]
+    fn metrics<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.to_dict(py)?.get_item("metrics")
+    }
+
+    /// Reasons not to trust the model, in words (a blow-up of its simulation, weak terms, ...).
+    #[getter]
+    fn warnings<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        self.to_dict(py)?.get_item("warnings")
+    }
+
+    /// The whole `identify --structure narx --json` document as Python objects.
+    fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+        json_loads(py, &self.json)
+    }
+
+    /// The `identify --json` document as text.
+    fn to_json(&self) -> String {
+        self.json.clone()
+    }
+
+    /// The model file text (`identify --save-model`), readable by `validate --model` and
+    /// `--plant model:FILE`.
+    fn model_file(&self) -> String {
+        self.model_file.clone()
+    }
+
+    fn __repr__(&self) -> String {
+        format!("NarxFit({} bytes of JSON)", self.json.len())
+    }
 }
 
 // ---------------------------------------------------------------------------------------------------
@@ -1542,6 +1627,7 @@ fn calibrate<'py>(
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyModel>()?;
     m.add_class::<PyFit>()?;
+    m.add_class::<PyNarxFit>()?;
     m.add_class::<PyRls>()?;
     m.add_function(wrap_pyfunction!(identify, m)?)?;
     m.add_function(wrap_pyfunction!(load_model, m)?)?;

@@ -636,3 +636,19 @@ def test_fit_parameters_by_name_and_as_a_data_frame(records):
         assert frame.loc[p["name"], "value"] == p["value"]
         std = frame.loc[p["name"], "std"]
         assert (p["std"] is None and math.isnan(std)) or std == p["std"]
+
+
+def test_narx_structure_recovers_a_known_polynomial_narx():
+    # SysIdentPy's example system, noise free: y(k) = 0.2 y(k-1) + 0.1 y(k-1) u(k-1) + 0.9 u(k-2).
+    rng = np.random.default_rng(3)
+    u = rng.uniform(-1.0, 1.0, 800)
+    y = np.zeros_like(u)
+    for k in range(2, len(u)):
+        y[k] = 0.2 * y[k - 1] + 0.1 * y[k - 1] * u[k - 1] + 0.9 * u[k - 2]
+    fit = ipa_sysid.identify(u, y, 1.0, structure="narx", degree=2, na=2, nb=2, nk=1, offset=True)
+    terms = {t["term"]: t["coefficient"] for t in fit.terms}
+    assert set(terms) == {"y(k-1)", "y(k-1)*u(k-1)", "u(k-2)"}
+    assert abs(terms["y(k-1)"] - 0.2) < 1e-8
+    assert abs(terms["y(k-1)*u(k-1)"] - 0.1) < 1e-8
+    assert abs(terms["u(k-2)"] - 0.9) < 1e-8
+    assert '"kind": "narx"' in fit.model_file()

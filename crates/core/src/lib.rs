@@ -16,6 +16,7 @@ pub mod ls;
 pub mod metrics;
 pub mod model;
 pub mod model_file;
+pub mod narx;
 pub mod nonlinearity;
 pub mod param;
 pub mod plant;

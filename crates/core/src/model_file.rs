@@ -9,6 +9,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use crate::model::ModelRepr;
+use crate::narx::NarxModel;
 use crate::{Model, SysidError};
 
 /// Value of the `format` key of a model file.
@@ -47,13 +48,7 @@ pub fn to_json(model: &Model) -> Result<String, SysidError> {
 
 /// Reads and checks a model file.
 pub fn read_model(path: &Path) -> Result<Model, SysidError> {
-    let text = crate::data::bounded::read_bounded(
-        path,
-        MAX_MODEL_FILE_BYTES,
-        "a model file",
-        "expected a file written by identify --save-model",
-    )?;
-    parse_model(&text, &path.display().to_string())
+    parse_model(&read_file(path)?, &path.display().to_string())
 }
 
 /// What a model file holds that a reader must be told about, in words: a deadzone that is not
@@ -91,11 +86,67 @@ pub fn load_warnings(model: &Model) -> Vec<String> {
         .collect()
 }
 
-/// Parses model-file bytes; `name` is used in messages.
+/// What a model file holds: a linear or Hammerstein [`Model`], or a polynomial [`NarxModel`].
+#[derive(Debug, Clone, PartialEq)]
+pub enum AnyModel {
+    /// ARX or Hammerstein (`kind` `arx` or `hammerstein`).
+    Linear(Model),
+    /// Polynomial NARX (`kind` `narx`).
+    Narx(NarxModel),
+}
+
+/// Parses model-file bytes; `name` is used in messages. A NARX model is refused, naming the commands
+/// that take one ([`parse_any_model`]).
 ///
 /// Errors name the file, and the line and column for malformed JSON or a value of the wrong type, and
 /// say what was expected. A UTF-8 byte-order mark is skipped. Never panics, whatever the bytes.
 pub fn parse_model(bytes: &[u8], name: &str) -> Result<Model, SysidError> {
+    match parse_any_model(bytes, name)? {
+        AnyModel::Linear(m) => Ok(m),
+        AnyModel::Narx(_) => Err(SysidError::File {
+            file: name.to_string(),
+            message: "the file holds a polynomial NARX model; this use needs an ARX or Hammerstein \
+                      model (validate, simulate --plant model:FILE and control --plant model:FILE take \
+                      NARX models)"
+                .into(),
+        }),
+    }
+}
+
+/// Reads and checks a model file of any kind.
+pub fn read_any_model(path: &Path) -> Result<AnyModel, SysidError> {
+    parse_any_model(&read_file(path)?, &path.display().to_string())
+}
+
+/// The bytes of a model file, its size bounded by [`MAX_MODEL_FILE_BYTES`].
+fn read_file(path: &Path) -> Result<Vec<u8>, SysidError> {
+    crate::data::bounded::read_bounded(
+        path,
+        MAX_MODEL_FILE_BYTES,
+        "a model file",
+        "expected a file written by identify --save-model",
+    )
+}
+
+/// Writes a NARX model as a model file (pretty JSON, ending with a newline).
+pub fn narx_to_json(model: &NarxModel) -> Result<String, SysidError> {
+    #[derive(Serialize)]
+    struct Out<'a> {
+        format: &'static str,
+        version: u32,
+        model: &'a NarxModel,
+    }
+    serde_json::to_string_pretty(&Out {
+        format: FORMAT,
+        version: VERSION,
+        model,
+    })
+    .map(|s| s + "\n")
+    .map_err(|e| SysidError::Numerical(format!("the model could not be serialised: {e}")))
+}
+
+/// [`parse_model`] for a file of any kind (`kind: "narx"` gives a [`NarxModel`]).
+pub fn parse_any_model(bytes: &[u8], name: &str) -> Result<AnyModel, SysidError> {
     let file_err = |message: String| SysidError::File {
         file: name.to_string(),
         message,
@@ -147,6 +198,25 @@ pub fn parse_model(bytes: &[u8], name: &str) -> Result<Model, SysidError> {
                 .into(),
         ));
     }
+    if obj
+        .get("model")
+        .and_then(|m| m.get("kind"))
+        .is_some_and(|k| k == "narx")
+    {
+        #[derive(Deserialize)]
+        struct NarxIn {
+            model: NarxModel,
+        }
+        let typed: NarxIn = serde_json::from_slice(bytes).map_err(|e| {
+            json_err(
+                bytes,
+                name,
+                &e,
+                "the \"model\" object does not match the NARX model schema",
+            )
+        })?;
+        return Ok(AnyModel::Narx(typed.model));
+    }
     // Parse again, typed, so that a value of the wrong type is reported with its line and column.
     let typed: ModelFileIn = serde_json::from_slice(bytes).map_err(|e| {
         json_err(
@@ -156,7 +226,9 @@ pub fn parse_model(bytes: &[u8], name: &str) -> Result<Model, SysidError> {
             "the \"model\" object does not match the model schema",
         )
     })?;
-    Model::try_from(typed.model).map_err(|e| file_err(e.to_string()))
+    Model::try_from(typed.model)
+        .map(AnyModel::Linear)
+        .map_err(|e| file_err(e.to_string()))
 }
 
 /// A positioned error for malformed JSON, with a hint for the usual causes.

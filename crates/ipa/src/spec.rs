@@ -84,22 +84,32 @@ impl PlantSpec {
                 path.display()
             )));
         }
+        use sysid_core::model_file::AnyModel;
         let (model, label) = match self {
             PlantSpec::ModelFile(path) => (
-                sysid_core::model_file::read_model(path)?,
+                sysid_core::model_file::read_any_model(path)?,
                 format!("model {}", path.display()),
             ),
-            _ => (sysid_core::Model::paper(), "paper model".to_string()),
+            _ => (
+                AnyModel::Linear(sysid_core::Model::paper()),
+                "paper model".to_string(),
+            ),
+        };
+        let model_ts = match &model {
+            AnyModel::Linear(m) => m.ts(),
+            AnyModel::Narx(m) => m.ts(),
         };
         if let Some(ts) = ts_s {
-            if (ts - model.ts()).abs() > 1e-9 * model.ts() {
+            if (ts - model_ts).abs() > 1e-9 * model_ts {
                 return Err(IpaError::Config(format!(
-                    "invalid --ts {ts}: the {label} is sampled at Ts = {} s; leave --ts out or pass that value",
-                    model.ts()
+                    "invalid --ts {ts}: the {label} is sampled at Ts = {model_ts} s; leave --ts out or pass that value"
                 )));
             }
         }
-        Ok(Box::new(sysid_core::ModelPlant::new(model, label)?))
+        Ok(match model {
+            AnyModel::Linear(m) => Box::new(sysid_core::ModelPlant::new(m, label)?),
+            AnyModel::Narx(m) => Box::new(sysid_core::narx::NarxPlant::new(m, label)?),
+        })
     }
 }
 
@@ -134,7 +144,11 @@ impl PlantSpec {
                 });
             }
             PlantSpec::Paper => sysid_core::Model::paper(),
-            PlantSpec::ModelFile(path) => sysid_core::model_file::read_model(path)?,
+            PlantSpec::ModelFile(path) => match sysid_core::model_file::read_any_model(path)? {
+                sysid_core::model_file::AnyModel::Linear(m) => m,
+                // A NARX model has no poles; its blow-up is caught as the closed loop runs.
+                sysid_core::model_file::AnyModel::Narx(_) => return Ok(PlantLimits::default()),
+            },
         };
         Ok(PlantLimits::of_model(&model))
     }

@@ -5,5 +5,6 @@
 pub mod bench;
 pub mod long;
 pub mod montecarlo;
+pub mod narx_bench;
 pub mod oe_bench;
 pub mod rng;

@@ -5,7 +5,8 @@
 //! The application side of the identification: everything here is assembled from what the library
 //! `sysid` computed (the fit, its metrics, the residual analysis, the trust checks); nothing is
 //! estimated here. [`stream`] makes the same documents for records read in passes; [`monitor`] one
-//! window of a fleet (the report and the online tracker's change points).
+//! window of a fleet (the report and the online tracker's change points); [`narx`] the document of a
+//! polynomial NARX identification.
 
 use serde::{Deserialize, Serialize};
 
@@ -17,6 +18,7 @@ use sysid::SysidError;
 use sysid::{Dataset, EstimatorSettings, Fitted, Identification, Method, Model, Param, Passes};
 
 pub mod monitor;
+pub mod narx;
 pub mod stream;
 
 /// A pole p = re + i·im of the linear block.

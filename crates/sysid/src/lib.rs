@@ -25,6 +25,7 @@ pub mod fitted;
 pub mod iv;
 pub use sysid_core::ls;
 pub mod methods;
+pub mod narx;
 pub mod oe;
 pub mod online;
 pub mod options;
@@ -34,6 +35,7 @@ pub mod regression;
 pub mod residuals;
 pub mod rls;
 pub mod rls_ud;
+pub mod search;
 pub mod stream;
 pub mod trust;
 pub mod warnings;
@@ -48,8 +50,8 @@ pub use estimate::{
 pub use fitted::{Fitted, Method, Note, Param, Termination};
 pub use options::IdentifyOptions;
 pub use sysid_core::{
-    data, detrend, metrics, model, model_file, nonlinearity, param, plant, structure, Dataset,
-    Deadzone, InputChannel, Model, ModelKind, ModelPlant, Orders, ParamName, Parameterisation,
-    Plant, PlantError, Setting, StaticNonlinearity, Structure, SysidError,
+    data, detrend, metrics, model, model_file, narx as narx_model, nonlinearity, param, plant,
+    structure, Dataset, Deadzone, InputChannel, Model, ModelKind, ModelPlant, Orders, ParamName,
+    Parameterisation, Plant, PlantError, Setting, StaticNonlinearity, Structure, SysidError,
 };
 pub use warnings::Warning;

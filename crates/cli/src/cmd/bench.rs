@@ -32,6 +32,9 @@ pub enum What {
     /// Seconds, iterations and fit of output-error identification on the EMPS and silverbox records
     /// (`--peer PYTHON`: SysIdentPy's FROLS on the same records in the same run).
     Oe(super::bench_oe::OeArgs),
+    /// Seconds and test RMSE of polynomial NARX identification on real records (cascaded tanks,
+    /// silverbox, coupled drives, hydraulic actuator; `--peer PYTHON`: SysIdentPy's FROLS in the same run).
+    Narx(super::bench_narx::NarxArgs),
     /// Rows per second and peak memory of the streaming identification of long records (child
     /// processes), beside the in-memory path and a numpy least-squares peer in the same run.
     Long(LongArgs),
@@ -165,6 +168,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         What::Identify(a) => identify(a),
         What::Plant(a) => plant(a),
         What::Oe(a) => super::bench_oe::run(a),
+        What::Narx(a) => super::bench_narx::run(a),
         What::Long(a) => long(a),
     }
 }

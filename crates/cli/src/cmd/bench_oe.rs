@@ -152,33 +152,17 @@ fn run_peer(
     cases: &mut [Case],
     text: &mut String,
 ) -> anyhow::Result<serde_json::Value> {
-    let output = Command::new(python)
-        .arg(&a.peer_script)
-        .arg("--data-dir")
-        .arg(&a.data_dir)
-        .arg("--repetitions")
-        .arg(a.repetitions.to_string())
-        .arg("--json")
-        .arg("-")
-        .output()
-        .with_context(|| {
-            format!(
-                "--peer {}: cannot run {}",
-                python.display(),
-                a.peer_script.display()
-            )
-        })?;
-    if !output.status.success() {
-        anyhow::bail!(
-            "--peer: {} {} failed ({}): {}",
-            python.display(),
-            a.peer_script.display(),
-            output.status,
-            String::from_utf8_lossy(&output.stderr).trim()
-        );
-    }
-    let v: serde_json::Value = serde_json::from_slice(&output.stdout)
-        .with_context(|| format!("--peer: {} did not print JSON", a.peer_script.display()))?;
+    let v = peer_json(
+        python,
+        &a.peer_script,
+        &[
+            "--data-dir".into(),
+            a.data_dir.display().to_string(),
+            "--repetitions".into(),
+            a.repetitions.to_string(),
+        ],
+        None,
+    )?;
     let versions = v
         .get("versions")
         .cloned()
@@ -210,4 +194,50 @@ fn run_peer(
         case.peer = Some(p.clone());
     }
     Ok(versions)
+}
+
+/// Runs a peer benchmark script (`python script ARGS --json -`, with `stdin` on its standard input if
+/// given) and returns the JSON it prints; its failure is an error naming it.
+pub(super) fn peer_json(
+    python: &Path,
+    script: &Path,
+    args: &[String],
+    stdin: Option<&str>,
+) -> anyhow::Result<serde_json::Value> {
+    use std::io::Write;
+    use std::process::Stdio;
+    let mut child = Command::new(python)
+        .arg(script)
+        .args(args)
+        .args(["--json", "-"])
+        .stdin(if stdin.is_some() {
+            Stdio::piped()
+        } else {
+            Stdio::null()
+        })
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .with_context(|| {
+            format!(
+                "--peer {}: cannot run {}",
+                python.display(),
+                script.display()
+            )
+        })?;
+    if let (Some(text), Some(mut pipe)) = (stdin, child.stdin.take()) {
+        pipe.write_all(text.as_bytes())?;
+    }
+    let output = child.wait_with_output()?;
+    if !output.status.success() {
+        anyhow::bail!(
+            "--peer: {} {} failed ({}): {}",
+            python.display(),
+            script.display(),
+            output.status,
+            String::from_utf8_lossy(&output.stderr).trim()
+        );
+    }
+    serde_json::from_slice(&output.stdout)
+        .with_context(|| format!("--peer: {} did not print JSON", script.display()))
 }

@@ -80,8 +80,10 @@ pub struct Args {
         value_enum,
         default_value = "hammerstein"
     )]
-    pub model: ModelKind,
-    /// na: number of poles (order of A).
+    pub model: StructureArg,
+    #[command(flatten)]
+    pub narx: super::identify_narx::NarxArgs,
+    /// na: number of poles (order of A); for narx the largest output lag.
     #[arg(long, default_value_t = 3, value_parser = parse_order)]
     pub na: usize,
     /// nb: number of B coefficients (>= 1 for Hammerstein); with several inputs one per input (2,1) or
@@ -100,7 +102,8 @@ pub struct Args {
     /// the smallest AIC on the estimation data kept.
     #[arg(long, value_name = "K|auto", value_parser = parse_breakpoints)]
     pub breakpoints: Option<usize>,
-    /// D: degree of every `polynomial` input nonlinearity (1..8; default 3).
+    /// D: degree of every `polynomial` input nonlinearity (1..8; default 3); with --structure narx the
+    /// largest degree of a NARX monomial (1..5; default 2).
     #[arg(long, value_name = "D")]
     pub degree: Option<usize>,
     /// A static nonlinearity y = g(v) on the output v of the linear block (Wiener; Hammerstein–Wiener
@@ -181,6 +184,27 @@ pub struct Args {
     pub stream: StreamMode,
 }
 
+/// `--structure`: a linear or Hammerstein model (sysid's [`ModelKind`]) or a polynomial NARX model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum StructureArg {
+    /// Linear ARX: x = u.
+    Arx,
+    /// Hammerstein: static nonlinearity x = f(u) of each input (default deadzone), then ARX on x.
+    Hammerstein,
+    /// Polynomial NARX: y(k) = Σ θ_i · monomials up to --degree of y(k−1..k−na), u(k−nk..k−nk−nb+1).
+    Narx,
+}
+
+impl StructureArg {
+    /// The linear or Hammerstein structure (NARX is identified on its own path).
+    pub fn kind(self) -> ModelKind {
+        match self {
+            StructureArg::Hammerstein => ModelKind::Hammerstein,
+            StructureArg::Arx | StructureArg::Narx => ModelKind::Arx,
+        }
+    }
+}
+
 /// `--nonlinearity`: one kind for every input, or one per named input.
 #[derive(Debug, Clone, PartialEq)]
 pub enum NonlinearityArg {
@@ -258,7 +282,7 @@ impl Args {
     fn settings_inputs(&self) -> anyhow::Result<Identification> {
         let names = self.columns.csv_options().input_names();
         let options = IdentifyOptions {
-            model: self.model,
+            model: self.model.kind(),
             na: self.na,
             nb: self.nb.first(),
             nk: self.nk.first(),
@@ -373,6 +397,9 @@ impl Args {
 /// Runs `identify`: one record or several merged (`--merge`), one input or several, by any method;
 /// several files without `--merge` are batch mode ([`super::identify_batch`]).
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.model == StructureArg::Narx {
+        return super::identify_narx::run(&args);
+    }
     let several_inputs = args.columns.u_col.contains(',');
     let batch = super::identify_batch::is_batch(&args.data);
     if args.stream == StreamMode::On && (several_inputs || args.merge || batch) {
@@ -586,7 +613,10 @@ fn run_streamed(args: &Args, settings: &Identification, data_path: &Path) -> any
 
 /// The input files (the record and the validation file) after checking that the outputs can be written
 /// and name none of them.
-fn checked_inputs<'a>(args: &'a Args, data_path: &'a Path) -> anyhow::Result<Vec<&'a Path>> {
+pub(super) fn checked_inputs<'a>(
+    args: &'a Args,
+    data_path: &'a Path,
+) -> anyhow::Result<Vec<&'a Path>> {
     let mut inputs: Vec<&Path> = vec![data_path];
     inputs.extend(args.val.validation.as_deref());
     check_outputs(

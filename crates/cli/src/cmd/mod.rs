@@ -1,6 +1,7 @@
 //! One module per subcommand: its flags (`Args`) and its `run`.
 
 pub mod bench;
+pub mod bench_narx;
 pub mod bench_oe;
 pub mod calibrate;
 pub mod common;
@@ -8,8 +9,10 @@ pub mod control;
 pub mod delay;
 pub mod identify;
 pub mod identify_batch;
+pub mod identify_narx;
 pub mod montecarlo;
 pub mod order;
+pub mod order_classes;
 pub mod plant_config;
 pub mod reproduce;
 pub mod simulate;

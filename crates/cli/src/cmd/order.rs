@@ -70,6 +70,19 @@ pub struct Args {
     /// Write the ranking as JSON here (`-` for standard output).
     #[arg(long, value_name = "OUT")]
     pub json: Option<PathBuf>,
+    /// Structure search over model classes instead of orders of one structure: a list of `arx`,
+    /// `hammerstein` (the deadzone) or `hammerstein:KIND` / `KIND` (an input nonlinearity kind of
+    /// --nonlinearity), `narxD` (polynomial NARX of degree D), each tried at every (na, nb, nk) of the
+    /// grid and ranked by free-run RMSE on the selection part (docs/models.md).
+    #[arg(long, value_name = "CLASS,...", value_delimiter = ',', value_parser = parse_class)]
+    pub classes: Vec<sysid::search::Class>,
+    #[command(flatten)]
+    pub narx: super::identify_narx::NarxArgs,
+}
+
+/// Parses one class of `--classes`.
+fn parse_class(text: &str) -> Result<sysid::search::Class, String> {
+    text.parse()
 }
 
 /// Parses `a..b` (inclusive) or a single value `a`; `flag` names the option in errors.
@@ -155,6 +168,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut notes = records.notes;
     let (fit_part, selection) = selection_parts(&args, &data, &opts, &mut notes)?;
     print_notes(&notes);
+    if !args.classes.is_empty() {
+        if auto_nk {
+            anyhow::bail!("--classes takes a --nk range, not auto");
+        }
+        return super::order_classes::run(
+            &args,
+            &base,
+            (&data, &fit_part, &selection, test.as_ref()),
+            (&na, &nb, &nk),
+            &inputs,
+        );
+    }
     let delay = if auto_nk {
         let d = sysid::delay::estimate_delay(&fit_part, 2, 2, 10)?;
         nk = (d.nk.saturating_sub(1)..=d.nk + 1).collect();

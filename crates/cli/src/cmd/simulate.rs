@@ -69,7 +69,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let plant: ipa::spec::PlantSpec = args.plant.parse()?;
     if let ipa::spec::PlantSpec::ModelFile(path) = &plant {
-        let model = sysid::model_file::read_model(path)?;
+        let model = match sysid::model_file::read_any_model(path)? {
+            sysid::model_file::AnyModel::Linear(m) => m,
+            sysid::model_file::AnyModel::Narx(m) => {
+                check_time_span(
+                    args.samples.unwrap_or(ipa::experiment::DEFAULT_SAMPLES),
+                    m.ts(),
+                )?;
+                return run_plant(&args, plant);
+            }
+        };
         // What validate would say of this model, said before its simulation is written.
         for w in sysid::model_file::load_warnings(&model) {
             eprintln!("warning: {}: {w}", path.display());
@@ -89,6 +98,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             return run_miso(&args, &model, path);
         }
     }
+    run_plant(&args, plant)
+}
+
+/// Runs the plant of `--plant` on the designed input and writes the record.
+fn run_plant(args: &Args, plant: ipa::spec::PlantSpec) -> anyhow::Result<()> {
     let exp = Experiment {
         plant,
         plant_config: args.plant_config.clone(),

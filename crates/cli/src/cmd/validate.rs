@@ -54,7 +54,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "a prediction horizon K >= 1 in samples"
         ));
     }
-    let model = sysid::model_file::read_model(&args.model)?;
+    let model = match sysid::model_file::read_any_model(&args.model)? {
+        sysid::model_file::AnyModel::Linear(m) => m,
+        sysid::model_file::AnyModel::Narx(m) => return run_narx(&args, &m, &inputs),
+    };
     let mut opts = args.columns.csv_options();
     opts.fallback_ts = Some(model.ts());
     // A model with several inputs reads one column per input: --u-col u1,u2 or the model's input names.
@@ -118,6 +121,87 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         write_output(path, &bytes, &inputs, "--out")?;
     }
     finish(&args, &report, &value, &inputs)
+}
+
+/// `validate` of a polynomial NARX model: simulation (from the measured initial outputs) and one-step
+/// metrics, a blow-up warning, `--out` with the columns of a linear model's.
+fn run_narx(
+    args: &Args,
+    model: &sysid::narx_model::NarxModel,
+    inputs: &[&Path],
+) -> anyhow::Result<()> {
+    if args.horizon != 1 {
+        anyhow::bail!(sysid::SysidError::setting(
+            sysid::Setting::Other("--horizon"),
+            args.horizon,
+            "1 for a polynomial NARX model (its k-step prediction is not implemented; the simulation is in y_sim)"
+        ));
+    }
+    let mut opts = args.columns.csv_options();
+    opts.fallback_ts = Some(model.ts());
+    let record = sysid::data::read_record(&args.data, &opts)?;
+    print_notes(&record.notes);
+    let data = record.data;
+    check_ts(data.name(), data.ts(), model.ts())?;
+    let metrics = sysid::narx::narx_metrics(model, &data)?;
+    let mut warnings: Vec<String> = record.notes.iter().map(|n| format!("data: {n}")).collect();
+    if let Some(k) = metrics.blew_up_at {
+        warnings.insert(
+            0,
+            sysid::narx::blow_up_warning("validation", data.name(), k),
+        );
+    }
+    let fmt = |v: Option<f64>| v.map_or("n/a (the simulation blew up)".into(), report::format::num);
+    let mut text = format!(
+        "{} (polynomial NARX, {} terms) on {} ({} samples): simulation RMSE {}, fit {} % (initial \
+         outputs measured); one-step RMSE {}, fit {} %\n",
+        args.model.display(),
+        model.terms().len(),
+        data.name(),
+        data.len(),
+        fmt(metrics.rmse_sim),
+        fmt(metrics.fit_sim_percent),
+        report::format::num(metrics.rmse_pred),
+        fmt(metrics.fit_pred_percent),
+    );
+    for w in &warnings {
+        text.push_str(&format!("warning: {w}\n"));
+    }
+    print_report(&text, args.json.as_deref());
+    if let Some(path) = &args.out {
+        let sim = model.simulate(data.u(), data.y())?.y;
+        let pred = model.predict(data.u(), data.y())?;
+        let t = sysid::data::sample_times(data.len(), data.ts());
+        let mut w = csv::Writer::from_writer(Vec::new());
+        w.write_record(["t", "y", "y_sim", "y_pred", "residual"])?;
+        for k in 0..data.len() {
+            let s = if sim[k].is_finite() {
+                sim[k].to_string()
+            } else {
+                String::new()
+            };
+            w.write_record([
+                t[k].to_string(),
+                data.y()[k].to_string(),
+                s,
+                pred[k].to_string(),
+                (data.y()[k] - pred[k]).to_string(),
+            ])?;
+        }
+        let bytes = w.into_inner().map_err(|e| anyhow::anyhow!("{e}"))?;
+        write_output(path, &bytes, inputs, "--out")?;
+    }
+    if let Some(path) = &args.json {
+        let value = serde_json::json!({
+            "model": model,
+            "metrics": { "validation": metrics },
+            "warnings": warnings,
+            "data_notes": record.notes,
+        });
+        let json = serde_json::to_string_pretty(&value)? + "\n";
+        write_output(path, json.as_bytes(), inputs, "--json")?;
+    }
+    crate::exit::strict(args.strict, warnings.len())
 }
 
 /// Writes `--json` and applies `--strict`.

@@ -1,0 +1,180 @@
+//! `ipa-sysid identify --structure narx`: a polynomial NARX model, its terms chosen by orthogonal
+//! forward regression (FROLS) with an honest stopping rule (`sysid::narx`).
+
+use sysid::narx::{identify_narx, NarxSettings, StopRule};
+use sysid_summary::narx::NarxReport;
+
+use super::common::{print_notes, print_report, write_output};
+use super::identify::Args;
+
+/// Flags that only polynomial NARX models use.
+#[derive(Debug, Clone, clap::Args)]
+pub struct NarxArgs {
+    /// Polynomial NARX: how many FROLS-ordered terms to keep: `sim` (default) the least free-run
+    /// simulation RMSE on the selection part (the last --selection fraction of the estimation record,
+    /// terms ordered on the rest), `aic` or `bic` on the one-step residuals of the estimation record.
+    #[arg(long, value_enum, default_value = "sim")]
+    pub stop: StopRule,
+    /// Polynomial NARX: at most this many terms are ordered by FROLS.
+    #[arg(long, value_name = "N", default_value_t = 30)]
+    pub max_terms: usize,
+    /// Polynomial NARX with --stop sim: the fraction of the estimation record (its end) that chooses
+    /// the number of terms.
+    #[arg(long, value_name = "F", default_value_t = 1.0 / 3.0)]
+    pub selection: f64,
+    /// Polynomial NARX: keep the least-squares (one-step) coefficients; by default they are refined on
+    /// the free-run simulation error of the estimation record (Levenberg–Marquardt).
+    #[arg(long)]
+    pub no_refine: bool,
+}
+
+impl NarxArgs {
+    /// The NARX settings of these flags with the lags of `identify` (`--offset` offers the constant).
+    ///
+    /// `degree` is `identify --degree` (the NARX default 2 when absent); `order --classes` names it in
+    /// each class.
+    pub fn settings(
+        &self,
+        (na, nb, nk): (usize, usize, usize),
+        degree: usize,
+        offset: bool,
+        max_iterations: usize,
+    ) -> NarxSettings {
+        NarxSettings {
+            na,
+            nb,
+            nk,
+            degree,
+            constant: offset,
+            max_terms: self.max_terms,
+            stop: self.stop,
+            selection: self.selection,
+            refine: !self.no_refine,
+            max_iterations,
+        }
+    }
+}
+
+/// Runs `identify --structure narx`.
+pub fn run(args: &Args) -> anyhow::Result<()> {
+    if args.columns.u_col.contains(',') || args.merge || args.data.len() > 1 {
+        anyhow::bail!(
+            "--structure narx identifies one record with one input (no --merge, no input list, one --data file)"
+        );
+    }
+    if args.detrend != sysid::detrend::Detrend::None {
+        anyhow::bail!(
+            "--structure narx takes no --detrend: offer the constant term with --offset instead"
+        );
+    }
+    if args.nb.0.len() > 1 || args.nk.0.len() > 1 {
+        anyhow::bail!("--nb/--nk lists are for several inputs; --structure narx has one");
+    }
+    if args.nonlinearity.is_some() || args.output_nonlinearity.is_some() {
+        anyhow::bail!(
+            "--structure narx has no static blocks: its polynomial terms are the nonlinearity \
+             (leave out --nonlinearity and --output-nonlinearity)"
+        );
+    }
+    let settings = args.narx.settings(
+        (args.na, args.nb.first(), args.nk.first()),
+        args.degree.unwrap_or(2),
+        args.offset,
+        args.max_iterations.min(200),
+    );
+    settings.check()?;
+    let data_path = &args.data[0];
+    let inputs = super::identify::checked_inputs(args, data_path)?;
+    let records = args.val.records(data_path, &args.columns.csv_options())?;
+    print_notes(&records.notes);
+    let fit = identify_narx(&records.est, &settings)?;
+    let mut report = NarxReport::assemble(fit, &settings, &records.est, records.val.as_ref())?;
+    report
+        .warnings
+        .extend(records.notes.iter().map(|n| format!("data: {n}")));
+    print_report(&render(&report, &settings), args.json.as_deref());
+    if let Some(path) = &args.json {
+        let json = serde_json::to_string_pretty(&report)? + "\n";
+        write_output(path, json.as_bytes(), &inputs, "--json")?;
+    }
+    if let Some(path) = &args.save_model {
+        let json = sysid::model_file::narx_to_json(&report.model)?;
+        write_output(path, json.as_bytes(), &inputs, "--save-model")?;
+    }
+    crate::exit::strict(args.strict, report.warnings.len())
+}
+
+fn opt(v: Option<f64>, unit: &str) -> String {
+    v.map_or("n/a (the simulation blew up)".into(), |v| {
+        format!("{}{unit}", report::format::num(v))
+    })
+}
+
+/// The text summary of a NARX identification.
+fn render(r: &NarxReport, s: &NarxSettings) -> String {
+    use std::fmt::Write;
+    let m = &r.model;
+    let mut t = String::new();
+    let _ = writeln!(
+        t,
+        "Polynomial NARX: na = {}, nb = {}, nk = {}, degree {}{}; {} of {} candidate terms chosen by FROLS \
+         (stopping rule {}{}), Σ ERR = {:.6}",
+        m.na(),
+        m.nb(),
+        m.nk(),
+        m.degree(),
+        if s.constant { ", constant offered" } else { "" },
+        r.terms.len(),
+        r.selection.candidates,
+        r.selection.stop.rule,
+        r.selection
+            .selection_fraction
+            .map(|f| format!(" on the last {:.0} % of the estimation record", 100.0 * f))
+            .unwrap_or_default(),
+        r.selection.err_sum
+    );
+    let _ = writeln!(
+        t,
+        "  {:<28} {:>14} {:>12} {:>10}",
+        "term", "coefficient", "std", "ERR"
+    );
+    for term in &r.terms {
+        let _ = writeln!(
+            t,
+            "  {:<28} {:>14} {:>12} {:>10.6}",
+            term.term,
+            report::format::num(term.coefficient),
+            term.std.map_or("n/a".into(), report::format::num),
+            term.err
+        );
+    }
+    if let Some(f) = &r.refinement {
+        let _ = writeln!(
+            t,
+            "Simulation-error refinement: estimation RMSE {} -> {} in {} iteration(s){}",
+            report::format::num(f.rmse_before),
+            report::format::num(f.rmse_after),
+            f.iterations,
+            if f.converged { "" } else { " (not converged)" }
+        );
+    }
+    let mut line = |name: &str, x: &sysid::narx::NarxMetrics| {
+        let _ = writeln!(
+            t,
+            "{name} ({}, {} rows): simulation RMSE {}, fit {}; one-step RMSE {}",
+            x.data,
+            x.n,
+            opt(x.rmse_sim, ""),
+            opt(x.fit_sim_percent, " %"),
+            report::format::num(x.rmse_pred)
+        );
+    };
+    line("Estimation", &r.metrics.estimation);
+    if let Some(v) = &r.metrics.validation {
+        line("Validation", v);
+    }
+    for w in &r.warnings {
+        let _ = writeln!(t, "warning: {w}");
+    }
+    t
+}

@@ -1,0 +1,230 @@
+//! `ipa-sysid order --classes ...`: the structure search over model classes (`sysid::search`), ranked on
+//! the selection part of the estimation record; the chosen one re-estimated on the whole estimation
+//! record and reported on the test record, which the ranking never sees.
+
+use std::path::Path;
+
+use report::format::num;
+use sysid::search::{structure_search, Class, ClassCandidate};
+use sysid::{Dataset, Identification, Orders};
+
+use super::common::{print_report, progress_bar, write_output};
+use super::order::Args;
+
+/// The chosen candidate on the test record.
+#[derive(Debug, serde::Serialize)]
+struct Chosen {
+    class: String,
+    orders: Orders,
+    /// Re-estimated on this record (estimation and selection parts together).
+    estimated_on: String,
+    /// The test record, if given.
+    data: Option<String>,
+    /// Free-run RMSE on the test record from its measured initial outputs.
+    rmse_sim: Option<f64>,
+    fit_sim_percent: Option<f64>,
+}
+
+/// Runs the class search: `records` = (whole estimation record, estimation part, selection part,
+/// test record), `grid` = (na, nb, nk) values.
+pub fn run(
+    args: &Args,
+    base: &Identification,
+    records: (&Dataset, &Dataset, &Dataset, Option<&Dataset>),
+    grid: (&[usize], &[usize], &[usize]),
+    inputs: &[&Path],
+) -> anyhow::Result<()> {
+    let (data, fit_part, selection, test) = records;
+    if data.inputs().len() != 1 {
+        anyhow::bail!("--classes searches single-input structures; choose one input with --u-col");
+    }
+    let orders: Vec<Orders> = grid
+        .0
+        .iter()
+        .flat_map(|&na| {
+            grid.1
+                .iter()
+                .flat_map(move |&nb| grid.2.iter().map(move |&nk| Orders { na, nb, nk }))
+        })
+        .collect();
+    let narx = args.narx.settings((2, 2, 1), 2, args.offset, 100);
+    narx.check()?;
+    let bar = progress_bar(
+        (orders.len() * args.classes.len()) as u64,
+        "{bar:40} {pos}/{len} structures {elapsed}",
+    );
+    if args.selection_rows.is_some() {
+        anyhow::bail!(
+            "--classes ranks on the last part of the estimation record (--selection-split), not on --selection-rows"
+        );
+    }
+    let split = fit_part.len();
+    let ranked = structure_search(data, split, &args.classes, &orders, base, &narx, &|| {
+        bar.inc(1)
+    });
+    bar.finish_and_clear();
+    let mut warnings = Vec::new();
+    let best = ranked
+        .iter()
+        .find(|c| c.selection_rmse.is_some() && c.error.is_none());
+    let chosen = match best {
+        None => {
+            warnings.push("no candidate simulates the selection part (every one failed or blew up): none is recommended".to_string());
+            None
+        }
+        Some(c) => {
+            warnings.extend(c.warnings.iter().map(|w| {
+                format!(
+                    "recommended {} ({}, {}, {}): {w}",
+                    c.class, c.orders.na, c.orders.nb, c.orders.nk
+                )
+            }));
+            let chosen =
+                chosen_on_test(c, base, &narx, data, test, split as f64 / data.len() as f64)?;
+            if let (Some(t), None) = (&chosen.data, chosen.rmse_sim) {
+                warnings.push(format!(
+                    "the chosen structure's free-run simulation diverged or blew up on the test record {t}: \
+                     the selection part did not reveal it; try the next candidates or a lower degree"
+                ));
+            }
+            Some(chosen)
+        }
+    };
+    let ranked_by = "free-run RMSE on the selection part (from its measured initial outputs), then fewer parameters";
+    let o = |v: Option<f64>| v.map_or_else(|| "n/a".to_string(), num);
+    let mut text = format!(
+        "Structure search: {} candidates ({} classes x {} orders) estimated on {} ({} samples), ranked on \
+         {} ({} samples) by {ranked_by}\n\n",
+        ranked.len(),
+        args.classes.len(),
+        orders.len(),
+        fit_part.name(),
+        fit_part.len(),
+        selection.name(),
+        selection.len()
+    );
+    text.push_str(&format!(
+        "{:>4} {:<24} {:>3} {:>3} {:>3} {:>4} {:>12} {:>10} {:>10}\n",
+        "rank", "class", "na", "nb", "nk", "p", "RMSE sel", "fit sel %", "AIC"
+    ));
+    for (i, c) in ranked.iter().take(args.top).enumerate() {
+        text.push_str(&format!(
+            "{:>4} {:<24} {:>3} {:>3} {:>3} {:>4} {:>12} {:>10} {:>10}{}\n",
+            i + 1,
+            c.class,
+            c.orders.na,
+            c.orders.nb,
+            c.orders.nk,
+            c.p,
+            o(c.selection_rmse),
+            o(c.selection_fit_percent),
+            o(c.aic),
+            c.error
+                .as_ref()
+                .map(|e| format!("  ({e})"))
+                .unwrap_or_default()
+        ));
+    }
+    if let Some(c) = &chosen {
+        text.push_str(&format!(
+            "\nChosen: {} (na, nb, nk) = ({}, {}, {}), re-estimated on {}{}\n",
+            c.class,
+            c.orders.na,
+            c.orders.nb,
+            c.orders.nk,
+            c.estimated_on,
+            match &c.data {
+                Some(d) => format!(
+                    ": test RMSE {} (simulation from measured initial outputs), fit {} % on {d} (never used for ranking)",
+                    o(c.rmse_sim),
+                    o(c.fit_sim_percent)
+                ),
+                None => "; no test record: the selection figures are optimistic".into(),
+            }
+        ));
+    }
+    for w in &warnings {
+        text.push_str(&format!("warning: {w}\n"));
+    }
+    print_report(&text, args.json.as_deref());
+    if let Some(path) = &args.json {
+        #[derive(serde::Serialize)]
+        struct Doc<'a> {
+            search: &'static str,
+            data: &'a str,
+            selection: &'a str,
+            validation: Option<&'a str>,
+            ranked_by: &'static str,
+            chosen: Option<Chosen>,
+            warnings: Vec<String>,
+            candidates: &'a [ClassCandidate],
+        }
+        let doc = Doc {
+            search: "classes",
+            data: fit_part.name(),
+            selection: selection.name(),
+            validation: test.map(Dataset::name),
+            ranked_by,
+            chosen,
+            warnings,
+            candidates: &ranked,
+        };
+        let json = serde_json::to_string_pretty(&doc)? + "\n";
+        write_output(path, json.as_bytes(), inputs, "--json")?;
+    }
+    Ok(())
+}
+
+/// The chosen candidate re-estimated on the whole estimation record, with its test figures.
+fn chosen_on_test(
+    c: &ClassCandidate,
+    base: &Identification,
+    narx: &sysid::narx::NarxSettings,
+    data: &Dataset,
+    test: Option<&Dataset>,
+    split_fraction: f64,
+) -> anyhow::Result<Chosen> {
+    let class: Class = c.class.parse().map_err(anyhow::Error::msg)?;
+    let o = c.orders;
+    let (rmse_sim, fit) = match class {
+        Class::Narx(degree) => {
+            // What the search ranked: the sim rule on the same split (the same computation).
+            let s = sysid::narx::NarxSettings {
+                na: o.na,
+                nb: o.nb,
+                nk: o.nk,
+                degree,
+                stop: sysid::narx::StopRule::Sim,
+                selection: 1.0 - split_fraction,
+                ..*narx
+            };
+            let fit = sysid::narx::identify_narx(data, &s)?;
+            match test {
+                Some(t) => {
+                    let m = sysid::narx::narx_metrics(&fit.model, t)?;
+                    (m.rmse_sim, m.fit_sim_percent)
+                }
+                None => (None, None),
+            }
+        }
+        Class::Input(kind) => {
+            let id = sysid::search::input_class(base, kind, o);
+            let fit = sysid::estimate::identify(data, &id)?;
+            match test {
+                Some(t) => {
+                    let m = sysid::metrics::metrics(&fit.model, t)?;
+                    (m.rmse_sim_measured, m.fit_sim_measured_percent)
+                }
+                None => (None, None),
+            }
+        }
+    };
+    Ok(Chosen {
+        class: c.class.clone(),
+        orders: o,
+        estimated_on: data.name().to_string(),
+        data: test.map(|t| t.name().to_string()),
+        rmse_sim,
+        fit_sim_percent: fit,
+    })
+}

@@ -1,0 +1,710 @@
+//! Polynomial NARX models (nonlinear ARX with polynomial terms; Billings 2013, ch. 3; SysIdentPy):
+//!
+//! ```text
+//! y(k) = Σ_i θ_i · m_i(k) + e(k),   m_i(k) = Π_j v_j(k)^{p_ij},   Σ_j p_ij ≤ D
+//! ```
+//!
+//! with the lagged variables v = (y(k−1), …, y(k−na), u(k−nk), …, u(k−nk−nb+1)), D the degree and, when
+//! the model has one, the constant monomial m = 1. A model keeps only the monomials (terms) that its
+//! structure selection chose (orthogonal forward regression, crate `sysid`). Its free-run simulation
+//! feeds back its own outputs; a polynomial feedback can blow up, which [`NarxModel::simulate`] detects
+//! (a non-finite output, or one farther from the data than [`BLOW_UP_SPANS`] times their range) and
+//! reports instead of returning silent nonsense.
+
+use std::fmt;
+use std::str::FromStr;
+
+use serde::{Deserialize, Serialize};
+
+use crate::model::MAX_ORDER;
+use crate::{PlantError, SysidError};
+
+/// Largest polynomial degree D accepted anywhere (the number of candidate terms grows as C(n + D, D)).
+pub const MAX_DEGREE: usize = 5;
+/// Largest number of terms a model may hold (bounds what a model file makes the reader allocate).
+pub const MAX_TERMS: usize = 10_000;
+/// A free-run output farther than this many ranges of the data from the data's middle counts as a
+/// blow-up of the simulation (the polynomial feedback escaped; see [`NarxModel::simulate`]).
+pub const BLOW_UP_SPANS: f64 = 10.0;
+
+/// One lagged variable of a NARX regressor: y(k − lag) (lag ≥ 1) or u(k − lag) (lag ≥ 0).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub enum Lagged {
+    /// y(k − lag), lag ≥ 1.
+    Y(usize),
+    /// u(k − lag), lag ≥ 0.
+    U(usize),
+}
+
+impl fmt::Display for Lagged {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let (s, lag) = match self {
+            Lagged::Y(l) => ("y", *l),
+            Lagged::U(l) => ("u", *l),
+        };
+        if lag == 0 {
+            write!(f, "{s}(k)")
+        } else {
+            write!(f, "{s}(k-{lag})")
+        }
+    }
+}
+
+/// A monomial term Π v_j^{p_j} of lagged variables; the empty product is the constant term `1`.
+/// Factors are kept sorted (y before u, smaller lag first), so equal monomials compare equal.
+#[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord, Hash)]
+pub struct Term {
+    factors: Vec<Lagged>,
+}
+
+impl Term {
+    /// The constant term 1.
+    pub fn constant() -> Self {
+        Term {
+            factors: Vec::new(),
+        }
+    }
+    /// The product of `factors` (repetitions are powers), in canonical order.
+    pub fn new(mut factors: Vec<Lagged>) -> Self {
+        factors.sort();
+        Term { factors }
+    }
+    /// The factors, with repetitions for powers, in canonical order.
+    pub fn factors(&self) -> &[Lagged] {
+        &self.factors
+    }
+    /// The degree Σ p_j (0 for the constant).
+    pub fn degree(&self) -> usize {
+        self.factors.len()
+    }
+    /// True for the constant term.
+    pub fn is_constant(&self) -> bool {
+        self.factors.is_empty()
+    }
+    /// The value of the monomial given the value of each factor.
+    #[inline]
+    fn eval(&self, value: impl Fn(Lagged) -> f64) -> f64 {
+        self.factors.iter().fold(1.0, |acc, &v| acc * value(v))
+    }
+}
+
+impl fmt::Display for Term {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        if self.factors.is_empty() {
+            return f.write_str("1");
+        }
+        let mut first = true;
+        let mut i = 0;
+        while i < self.factors.len() {
+            let v = self.factors[i];
+            let power = self.factors[i..].iter().take_while(|&&w| w == v).count();
+            if !first {
+                f.write_str("*")?;
+            }
+            first = false;
+            write!(f, "{v}")?;
+            if power > 1 {
+                write!(f, "^{power}")?;
+            }
+            i += power;
+        }
+        Ok(())
+    }
+}
+
+impl FromStr for Term {
+    type Err = String;
+    /// Parses `1`, `y(k-1)`, `u(k)`, `y(k-1)^2*u(k-2)`.
+    fn from_str(text: &str) -> Result<Self, String> {
+        let text = text.trim();
+        if text == "1" {
+            return Ok(Term::constant());
+        }
+        let mut factors = Vec::new();
+        for part in text.split('*') {
+            let part = part.trim();
+            let (var, power) = match part.split_once('^') {
+                Some((v, p)) => (
+                    v.trim(),
+                    p.trim().parse::<usize>().map_err(|_| {
+                        format!("'{part}': the power after ^ must be a whole number")
+                    })?,
+                ),
+                None => (part, 1),
+            };
+            if power == 0 || power > MAX_DEGREE {
+                return Err(format!("'{part}': a power must be 1..{MAX_DEGREE}"));
+            }
+            let lagged = parse_lagged(var).ok_or_else(|| {
+                format!("'{var}' is not a lagged variable; expected y(k-L) with L >= 1 or u(k-L) with L >= 0")
+            })?;
+            factors.extend(std::iter::repeat_n(lagged, power));
+            if factors.len() > MAX_DEGREE {
+                return Err(format!("'{text}': degree above {MAX_DEGREE}"));
+            }
+        }
+        Ok(Term::new(factors))
+    }
+}
+
+fn parse_lagged(text: &str) -> Option<Lagged> {
+    let (name, rest) = text.split_at(1.min(text.len()));
+    let inner = rest.strip_prefix("(k")?.strip_suffix(')')?;
+    let lag = if inner.is_empty() {
+        0
+    } else {
+        inner.strip_prefix('-')?.parse::<usize>().ok()?
+    };
+    if lag > 2 * MAX_ORDER {
+        return None;
+    }
+    match name {
+        "y" if lag >= 1 => Some(Lagged::Y(lag)),
+        "u" => Some(Lagged::U(lag)),
+        _ => None,
+    }
+}
+
+/// Every monomial of degree 1..=`degree` in the lagged variables of (na, nb, nk), plus the constant
+/// when `constant`: the candidate terms of a structure selection, C(na + nb + D, D) − 1 (+ 1) of them,
+/// constant first, then by degree, then in the variables' order.
+pub fn candidate_terms(
+    na: usize,
+    nb: usize,
+    nk: usize,
+    degree: usize,
+    constant: bool,
+) -> Vec<Term> {
+    let vars: Vec<Lagged> = (1..=na)
+        .map(Lagged::Y)
+        .chain((0..nb).map(|j| Lagged::U(nk + j)))
+        .collect();
+    let mut out = Vec::new();
+    if constant {
+        out.push(Term::constant());
+    }
+    // Multisets of size d drawn from vars, by non-decreasing indices.
+    for d in 1..=degree {
+        let mut idx = vec![0usize; d];
+        if vars.is_empty() {
+            break;
+        }
+        loop {
+            out.push(Term::new(idx.iter().map(|&i| vars[i]).collect()));
+            // Next non-decreasing index vector.
+            let mut pos = d;
+            while pos > 0 && idx[pos - 1] == vars.len() - 1 {
+                pos -= 1;
+            }
+            if pos == 0 {
+                break;
+            }
+            idx[pos - 1] += 1;
+            let v = idx[pos - 1];
+            idx[pos..].iter_mut().for_each(|i| *i = v);
+        }
+    }
+    out
+}
+
+/// The number of candidate terms [`candidate_terms`] makes, computed without building them (to bound
+/// the work a flag asks for before allocating); saturates at `usize::MAX`.
+pub fn candidate_count(na: usize, nb: usize, degree: usize, constant: bool) -> usize {
+    // C(n + D, D) − 1 monomials of degree 1..=D in n variables.
+    let n = na + nb;
+    let mut c: u128 = 1;
+    for i in 1..=degree as u128 {
+        c = c.saturating_mul(n as u128 + i) / i;
+    }
+    let c = c.saturating_sub(1) + u128::from(constant);
+    usize::try_from(c).unwrap_or(usize::MAX)
+}
+
+/// A fitted polynomial NARX model: the selected terms and their coefficients θ.
+///
+/// Fields are private; the constructor checks that every term uses lags inside (na, nb, nk), that the
+/// degree is at most D and that every coefficient is finite.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(try_from = "NarxRepr", into = "NarxRepr")]
+pub struct NarxModel {
+    ts: f64,
+    na: usize,
+    nb: usize,
+    nk: usize,
+    degree: usize,
+    terms: Vec<Term>,
+    theta: Vec<f64>,
+}
+
+/// The serialised form: `kind: "narx"`, Ts, the lags, the degree and the terms with their coefficients.
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct NarxRepr {
+    kind: NarxKind,
+    ts: f64,
+    na: usize,
+    nb: usize,
+    nk: usize,
+    degree: usize,
+    terms: Vec<TermRepr>,
+}
+
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+enum NarxKind {
+    Narx,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TermRepr {
+    term: String,
+    coefficient: f64,
+}
+
+impl TryFrom<NarxRepr> for NarxModel {
+    type Error = SysidError;
+    fn try_from(r: NarxRepr) -> Result<Self, SysidError> {
+        if r.terms.len() > MAX_TERMS {
+            return Err(SysidError::Data(format!(
+                "invalid model: more than {MAX_TERMS} terms"
+            )));
+        }
+        let mut terms = Vec::with_capacity(r.terms.len());
+        let mut theta = Vec::with_capacity(r.terms.len());
+        for t in r.terms {
+            terms.push(
+                t.term
+                    .parse::<Term>()
+                    .map_err(|e| SysidError::Data(format!("invalid model: term {e}")))?,
+            );
+            theta.push(t.coefficient);
+        }
+        NarxModel::new(r.ts, r.na, r.nb, r.nk, r.degree, terms, theta)
+    }
+}
+
+impl From<NarxModel> for NarxRepr {
+    fn from(m: NarxModel) -> Self {
+        NarxRepr {
+            kind: NarxKind::Narx,
+            ts: m.ts,
+            na: m.na,
+            nb: m.nb,
+            nk: m.nk,
+            degree: m.degree,
+            terms: m
+                .terms
+                .iter()
+                .zip(&m.theta)
+                .map(|(t, c)| TermRepr {
+                    term: t.to_string(),
+                    coefficient: *c,
+                })
+                .collect(),
+        }
+    }
+}
+
+/// A free-run simulation of a NARX model ([`NarxModel::simulate`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct NarxSimulation {
+    /// ŷ(k): the measured y(k) for k < k0, then the model's own outputs; NaN from the blow-up on.
+    pub y: Vec<f64>,
+    /// The first sample at which the output was non-finite or left the band of [`BLOW_UP_SPANS`]
+    /// ranges of the data around their middle, if it did.
+    pub blew_up_at: Option<usize>,
+}
+
+impl NarxModel {
+    /// A model from its parts: Ts (s), the lags na, nb, nk, the degree D, the terms and their
+    /// coefficients θ (one per term). Fails on lags above [`MAX_ORDER`], D above [`MAX_DEGREE`], a term
+    /// outside the lags or above D, a repeated term, or a non-finite number.
+    pub fn new(
+        ts: f64,
+        na: usize,
+        nb: usize,
+        nk: usize,
+        degree: usize,
+        terms: Vec<Term>,
+        theta: Vec<f64>,
+    ) -> Result<Self, SysidError> {
+        let bad = |m: String| Err(SysidError::Data(format!("invalid model: {m}")));
+        if na > MAX_ORDER || nb > MAX_ORDER || nk > MAX_ORDER {
+            return bad(format!("orders above {MAX_ORDER} are not supported"));
+        }
+        if degree == 0 || degree > MAX_DEGREE {
+            return bad(format!("degree = {degree}; expected 1..{MAX_DEGREE}"));
+        }
+        if !(ts.is_finite() && ts > 0.0) {
+            return bad(format!("ts = {ts} must be a positive number of seconds"));
+        }
+        if terms.len() != theta.len() {
+            return bad(format!(
+                "{} terms but {} coefficients",
+                terms.len(),
+                theta.len()
+            ));
+        }
+        if terms.is_empty() {
+            return bad("a NARX model needs at least one term".into());
+        }
+        if theta.iter().any(|v| !v.is_finite()) {
+            return bad("a coefficient is NaN or infinite".into());
+        }
+        for (i, t) in terms.iter().enumerate() {
+            if t.degree() > degree {
+                return bad(format!("term {t} has a degree above {degree}"));
+            }
+            let outside = t.factors().iter().any(|v| match *v {
+                Lagged::Y(l) => l == 0 || l > na,
+                Lagged::U(l) => l < nk || l >= nk + nb,
+            });
+            if outside {
+                return bad(format!(
+                    "term {t} uses a lag outside na = {na}, nb = {nb}, nk = {nk}"
+                ));
+            }
+            if terms[..i].contains(t) {
+                return bad(format!("term {t} appears twice"));
+            }
+        }
+        Ok(NarxModel {
+            ts,
+            na,
+            nb,
+            nk,
+            degree,
+            terms,
+            theta,
+        })
+    }
+
+    /// Sampling period Ts in s.
+    pub fn ts(&self) -> f64 {
+        self.ts
+    }
+    /// na: largest output lag.
+    pub fn na(&self) -> usize {
+        self.na
+    }
+    /// nb: number of input lags.
+    pub fn nb(&self) -> usize {
+        self.nb
+    }
+    /// nk: input delay in samples.
+    pub fn nk(&self) -> usize {
+        self.nk
+    }
+    /// D: the largest degree of a term.
+    pub fn degree(&self) -> usize {
+        self.degree
+    }
+    /// The selected terms.
+    pub fn terms(&self) -> &[Term] {
+        &self.terms
+    }
+    /// θ: one coefficient per term.
+    pub fn theta(&self) -> &[f64] {
+        &self.theta
+    }
+    /// The number of estimated parameters (terms).
+    pub fn parameter_count(&self) -> usize {
+        self.terms.len()
+    }
+    /// k0 = max(na, nk + nb − 1): the first sample every regressor exists at.
+    pub fn k0(&self) -> usize {
+        self.na.max((self.nk + self.nb).saturating_sub(1))
+    }
+
+    /// The same model with coefficients `theta` (same terms); fails on a length mismatch or a
+    /// non-finite value.
+    pub fn with_theta(&self, theta: Vec<f64>) -> Result<Self, SysidError> {
+        NarxModel::new(
+            self.ts,
+            self.na,
+            self.nb,
+            self.nk,
+            self.degree,
+            self.terms.clone(),
+            theta,
+        )
+    }
+
+    /// The position of a lagged variable in the vector v = (y(k−1..k−na), u(k−nk..k−nk−nb+1)) that
+    /// [`NarxModel::lagged_values`] fills.
+    pub fn variable_index(&self, v: Lagged) -> usize {
+        match v {
+            Lagged::Y(l) => l - 1,
+            Lagged::U(l) => self.na + l - self.nk,
+        }
+    }
+
+    /// Each term as the positions of its factors in v (repeated for powers).
+    pub fn term_indices(&self) -> Vec<Vec<usize>> {
+        self.terms
+            .iter()
+            .map(|t| {
+                t.factors()
+                    .iter()
+                    .map(|&v| self.variable_index(v))
+                    .collect()
+            })
+            .collect()
+    }
+
+    /// Fills `v` (length na + nb) with y(k−1..k−na) from `y_past(lag)` and u(k−nk..k−nk−nb+1).
+    #[inline]
+    pub fn lagged_values(&self, k: usize, u: &[f64], y_past: impl Fn(usize) -> f64, v: &mut [f64]) {
+        for l in 1..=self.na {
+            v[l - 1] = y_past(l);
+        }
+        for j in 0..self.nb {
+            v[self.na + j] = u[k - self.nk - j];
+        }
+    }
+
+    /// Σ θ_i m_i given the lagged values `v` and the terms' factor positions `idx`.
+    #[inline]
+    fn output_of(&self, idx: &[Vec<usize>], v: &[f64]) -> f64 {
+        idx.iter()
+            .zip(&self.theta)
+            .map(|(ix, c)| c * ix.iter().map(|&i| v[i]).product::<f64>())
+            .sum()
+    }
+
+    /// One-step-ahead prediction ŷ(k|k−1) from the measured past outputs (the regression's fit);
+    /// entries k < k0 are copies of y. Fails on records of different lengths or a non-finite value.
+    pub fn predict(&self, u: &[f64], y: &[f64]) -> Result<Vec<f64>, SysidError> {
+        check_lengths(u, y)?;
+        let k0 = self.k0().min(y.len());
+        let mut out = y[..k0].to_vec();
+        let idx = self.term_indices();
+        let mut vals = vec![0.0; self.na + self.nb];
+        for k in k0..y.len() {
+            self.lagged_values(k, u, |l| y[k - l], &mut vals);
+            let v = self.output_of(&idx, &vals);
+            if !v.is_finite() {
+                return Err(SysidError::Numerical(format!(
+                    "the prediction of the NARX model became non-finite at sample {k}"
+                )));
+            }
+            out.push(v);
+        }
+        Ok(out)
+    }
+
+    /// Free-run simulation (MATLAB `sim`/`compare`, infinite horizon) from the measured initial outputs
+    /// y(0..k0): ŷ(k) = Σ θ_i m_i(k) with the model's own past outputs in the monomials.
+    ///
+    /// A polynomial feedback can escape to infinity. The run stops at the first sample whose output is
+    /// non-finite or farther than [`BLOW_UP_SPANS`] ranges of y from the middle of y's range, and says so
+    /// in [`NarxSimulation::blew_up_at`] (the rest of ŷ is NaN); callers warn. Fails only on records of
+    /// different lengths.
+    pub fn simulate(&self, u: &[f64], y: &[f64]) -> Result<NarxSimulation, SysidError> {
+        check_lengths(u, y)?;
+        let (lo, hi) = y
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+                (a.min(v), b.max(v))
+            });
+        let mid = 0.5 * (lo + hi);
+        let band = BLOW_UP_SPANS * (hi - lo).max(f64::MIN_POSITIVE) + 0.5 * (hi - lo);
+        let n = y.len();
+        let k0 = self.k0().min(n);
+        let mut out = Vec::with_capacity(n);
+        out.extend_from_slice(&y[..k0]);
+        let idx = self.term_indices();
+        let mut vals = vec![0.0; self.na + self.nb];
+        for k in k0..n {
+            self.lagged_values(k, u, |l| out[k - l], &mut vals);
+            let v = self.output_of(&idx, &vals);
+            if !v.is_finite() || (v - mid).abs() > band {
+                out.resize(n, f64::NAN);
+                return Ok(NarxSimulation {
+                    y: out,
+                    blew_up_at: Some(k),
+                });
+            }
+            out.push(v);
+        }
+        Ok(NarxSimulation {
+            y: out,
+            blew_up_at: None,
+        })
+    }
+}
+
+fn check_lengths(u: &[f64], y: &[f64]) -> Result<(), SysidError> {
+    if u.len() != y.len() {
+        return Err(SysidError::Data(format!(
+            "the input record has {} samples but the output record {}",
+            u.len(),
+            y.len()
+        )));
+    }
+    Ok(())
+}
+
+/// A NARX model run as a [`Plant`](crate::Plant), sample by sample from rest: every past output equal
+/// to y0 and every past input 0. Needs nk ≥ 1 (y(k+1) cannot depend on a u(k+1) not yet applied).
+#[derive(Debug, Clone)]
+pub struct NarxPlant {
+    model: NarxModel,
+    /// y(k), y(k−1), …, newest first (length max(na, 1)).
+    y_hist: Vec<f64>,
+    /// u(k), u(k−1), …, newest first (length nk + nb), filled as commands are applied.
+    u_hist: Vec<f64>,
+    label: String,
+}
+
+impl NarxPlant {
+    /// Wraps `model`; fails for nk = 0 (direct feed-through).
+    pub fn new(model: NarxModel, label: impl Into<String>) -> Result<Self, SysidError> {
+        if model.nk == 0 {
+            return Err(SysidError::Data(
+                "a model with nk = 0 (direct feed-through) cannot be used as a plant; nk >= 1 is needed".into(),
+            ));
+        }
+        let y_hist = vec![0.0; model.na.max(1)];
+        let u_hist = vec![0.0; model.nk + model.nb];
+        Ok(NarxPlant {
+            model,
+            y_hist,
+            u_hist,
+            label: label.into(),
+        })
+    }
+    /// The wrapped model.
+    pub fn model(&self) -> &NarxModel {
+        &self.model
+    }
+}
+
+impl crate::Plant for NarxPlant {
+    fn ts(&self) -> f64 {
+        self.model.ts
+    }
+    fn output(&self) -> f64 {
+        self.y_hist[0]
+    }
+    fn step(&mut self, u: f64) -> Result<f64, PlantError> {
+        // u(k) enters; y(k+1) uses y(k+1−l) = y_hist[l−1] and u(k+1−l) = u_hist[l−1].
+        self.u_hist.rotate_right(1);
+        self.u_hist[0] = u;
+        let (yh, uh) = (&self.y_hist, &self.u_hist);
+        let v: f64 = self
+            .model
+            .terms
+            .iter()
+            .zip(&self.model.theta)
+            .map(|(t, c)| {
+                c * t.eval(|var| match var {
+                    Lagged::Y(l) => yh[l - 1],
+                    Lagged::U(l) => uh[l - 1],
+                })
+            })
+            .sum();
+        if !v.is_finite() {
+            return Err(PlantError::Diverged(format!(
+                "{} output became non-finite",
+                self.label
+            )));
+        }
+        self.y_hist.rotate_right(1);
+        self.y_hist[0] = v;
+        Ok(v)
+    }
+    fn reset(&mut self, y0_mm: f64) {
+        self.y_hist.iter_mut().for_each(|v| *v = y0_mm);
+        self.u_hist.iter_mut().for_each(|v| *v = 0.0);
+    }
+    fn name(&self) -> String {
+        self.label.clone()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    // Terms print and parse back; powers group repeated factors.
+    #[test]
+    fn terms_print_and_parse_back() {
+        let t = Term::new(vec![Lagged::U(2), Lagged::Y(1), Lagged::Y(1)]);
+        assert_eq!(t.to_string(), "y(k-1)^2*u(k-2)");
+        assert_eq!("y(k-1)^2*u(k-2)".parse::<Term>().unwrap(), t);
+        assert_eq!("u(k)".parse::<Term>().unwrap().to_string(), "u(k)");
+        assert_eq!("1".parse::<Term>().unwrap(), Term::constant());
+        assert!("y(k)".parse::<Term>().is_err());
+        assert!("x(k-1)".parse::<Term>().is_err());
+    }
+
+    // C(n + D, D) − 1 monomials of degree 1..D in n variables: n = 3, D = 2 gives 9, + the constant.
+    #[test]
+    fn candidate_terms_count_the_multisets() {
+        let c = candidate_terms(2, 1, 1, 2, true);
+        assert_eq!(c.len(), 10);
+        assert_eq!(candidate_count(2, 1, 2, true), 10);
+        assert_eq!(candidate_count(4, 4, 3, false), 164);
+        assert_eq!(candidate_terms(4, 4, 0, 3, false).len(), 164);
+        let mut sorted = c.clone();
+        sorted.sort();
+        sorted.dedup();
+        assert_eq!(sorted.len(), c.len());
+    }
+
+    // y(k) = 0.5 y(k−1) + u(k−1)²: simulation by hand, and a plant run agrees.
+    #[test]
+    fn simulation_and_plant_follow_the_equation() {
+        let m = NarxModel::new(
+            1.0,
+            1,
+            1,
+            1,
+            2,
+            vec!["y(k-1)".parse().unwrap(), "u(k-1)^2".parse().unwrap()],
+            vec![0.5, 1.0],
+        )
+        .unwrap();
+        let u = [2.0, 1.0, 0.0, 0.0];
+        let y = [0.0, 9.0, 9.0, 9.0];
+        let s = m.simulate(&u, &y).unwrap();
+        assert_eq!(s.y, vec![0.0, 4.0, 3.0, 1.5]);
+        assert_eq!(s.blew_up_at, None);
+        let mut p = NarxPlant::new(m, "m").unwrap();
+        crate::Plant::reset(&mut p, 0.0);
+        let run = crate::run_open_loop(&mut p, &u).unwrap();
+        assert_eq!(run, vec![0.0, 4.0, 3.0, 1.5]);
+    }
+
+    // y(k) = y(k−1)² from y(0) = 2 escapes: the blow-up is reported, not returned as numbers.
+    #[test]
+    fn a_blow_up_is_reported() {
+        let m = NarxModel::new(
+            1.0,
+            1,
+            1,
+            1,
+            2,
+            vec!["y(k-1)^2".parse().unwrap()],
+            vec![1.0],
+        )
+        .unwrap();
+        let y = [2.0, 4.0, 16.0, 0.0, 0.0, 0.0, 0.0, 0.0];
+        let s = m.simulate(&[0.0; 8], &y).unwrap();
+        // Range 16, band 10 · 16 + 8 around 8: 256 at k = 3 escapes.
+        assert_eq!(s.blew_up_at, Some(3));
+        assert!(s.y[3].is_nan());
+    }
+
+    #[test]
+    fn invalid_models_are_refused() {
+        let t: Term = "y(k-3)".parse().unwrap();
+        assert!(NarxModel::new(1.0, 2, 1, 1, 2, vec![t], vec![1.0]).is_err());
+        let t: Term = "u(k)".parse().unwrap();
+        assert!(NarxModel::new(1.0, 2, 1, 1, 2, vec![t], vec![1.0]).is_err());
+        let t: Term = "y(k-1)^3".parse().unwrap();
+        assert!(NarxModel::new(1.0, 2, 1, 1, 2, vec![t], vec![1.0]).is_err());
+    }
+}

@@ -1,0 +1,918 @@
+//! Polynomial NARX identification: structure selection by orthogonal forward regression with the
+//! error-reduction ratio (FROLS; Billings, *Nonlinear System Identification*, Wiley 2013, §3.2;
+//! SysIdentPy's `FROLS`), an honest stopping rule, and an optional refinement of the selected terms on
+//! the free-run simulation error.
+//!
+//! **FROLS.** With the candidate monomials p_m (columns over the rows k ≥ k0 of the record) and the
+//! output y, step s picks, among the candidates not yet chosen, the one whose part orthogonal to the
+//! chosen q_1..q_{s−1},
+//! w_m = p_m − Σ_r (q_rᵀ p_m / q_rᵀ q_r) q_r,
+//! explains most of y: the error-reduction ratio ERR_m = (w_mᵀ y)² / ((w_mᵀ w_m)(yᵀ y)). It becomes
+//! q_s with g_s = q_sᵀ y / q_sᵀ q_s; Σ_s ERR_s is the fraction of yᵀy the first terms explain, and
+//! the coefficients of the first n terms solve A_n θ = g_n with A the unit upper-triangular matrix of
+//! the Gram–Schmidt coefficients (computed here by modified Gram–Schmidt).
+//!
+//! **Stopping.** FROLS orders the terms; how many to keep is decided without the validation record:
+//! - an information criterion on the one-step residuals of the estimation record,
+//!   AIC(n) = N ln(σ̂²_n) + 2n or BIC(n) = N ln(σ̂²_n) + n ln N, σ̂²_n = yᵀy (1 − Σ_{s ≤ n} ERR_s)/N
+//!   (SysIdentPy's `info_criteria`);
+//! - or the free-run simulation error on a **selection part** (the last fraction of the estimation
+//!   record): the terms are ordered and fitted on the first part only, each n is simulated over the
+//!   selection part from its measured initial outputs, the n of least RMSE wins, and the chosen terms
+//!   are then fitted on the whole estimation record.
+//!
+//! **Refinement** (optional): Levenberg–Marquardt on V(θ) = Σ_k (y(k) − ŷ_sim(k, θ))² over the
+//! estimation record, ŷ_sim the free run from the measured initial outputs, with the sensitivities
+//! ∂ŷ(k)/∂θ_j = m_j(k) + Σ_l (Σ_i θ_i ∂m_i/∂y(k−l)) ∂ŷ(k−l)/∂θ_j computed alongside the simulation.
+//! A trial point whose simulation blows up is rejected like any step that raises V.
+
+use nalgebra::{DMatrix, DVector};
+use serde::Serialize;
+
+use sysid_core::narx::{candidate_count, candidate_terms, Lagged, NarxModel, Term, MAX_DEGREE};
+use sysid_core::{Dataset, Setting, SysidError};
+
+/// How many of the FROLS-ordered terms to keep.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
+#[serde(rename_all = "lowercase")]
+pub enum StopRule {
+    /// Akaike's criterion N ln σ̂² + 2n on the estimation record's one-step residuals.
+    Aic,
+    /// Schwarz's criterion N ln σ̂² + n ln N (prefers fewer terms than AIC).
+    Bic,
+    /// Free-run simulation RMSE on the selection part (the last `selection` fraction of the estimation
+    /// record; terms ordered and fitted on the rest).
+    Sim,
+}
+
+impl std::fmt::Display for StopRule {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            StopRule::Aic => "aic",
+            StopRule::Bic => "bic",
+            StopRule::Sim => "sim",
+        })
+    }
+}
+
+/// Settings of a polynomial NARX identification.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NarxSettings {
+    /// na: output lags y(k−1)..y(k−na).
+    pub na: usize,
+    /// nb: input lags u(k−nk)..u(k−nk−nb+1).
+    pub nb: usize,
+    /// nk: input delay in samples.
+    pub nk: usize,
+    /// D: largest degree of a monomial (1..=5).
+    pub degree: usize,
+    /// Offer the constant term 1 to the selection (`--offset`).
+    pub constant: bool,
+    /// At most this many terms are ordered by FROLS.
+    pub max_terms: usize,
+    /// How many ordered terms to keep.
+    pub stop: StopRule,
+    /// Fraction of the estimation record (its end) used as the selection part of [`StopRule::Sim`].
+    pub selection: f64,
+    /// Refine the selected terms' coefficients on the free-run simulation error.
+    pub refine: bool,
+    /// Iteration cap of the refinement.
+    pub max_iterations: usize,
+}
+
+impl Default for NarxSettings {
+    /// na = 2, nb = 2, nk = 1, D = 2, with a constant, up to 30 terms, stopped by the simulation error
+    /// on the last third, refined.
+    fn default() -> Self {
+        NarxSettings {
+            na: 2,
+            nb: 2,
+            nk: 1,
+            degree: 2,
+            constant: true,
+            max_terms: 30,
+            stop: StopRule::Sim,
+            selection: 1.0 / 3.0,
+            refine: true,
+            max_iterations: 50,
+        }
+    }
+}
+
+/// Largest number of candidate monomials a selection accepts (C(na + nb + D, D)); bounds memory.
+pub const MAX_CANDIDATES: usize = 2000;
+
+impl NarxSettings {
+    /// Refuses settings that cannot be run, naming the setting.
+    pub fn check(&self) -> Result<(), SysidError> {
+        if self.degree == 0 || self.degree > MAX_DEGREE {
+            return Err(SysidError::setting(
+                Setting::Other("--degree"),
+                self.degree,
+                &format!("a degree D in 1..={MAX_DEGREE}"),
+            ));
+        }
+        if self.na + self.nb == 0 {
+            return Err(SysidError::setting(
+                Setting::Na,
+                self.na,
+                "na + nb >= 1 (a NARX model needs a lagged variable)",
+            ));
+        }
+        let m = candidate_count(self.na, self.nb, self.degree, self.constant);
+        if m > MAX_CANDIDATES {
+            return Err(SysidError::setting(
+                Setting::Other("--degree"),
+                self.degree,
+                &format!(
+                    "at most {MAX_CANDIDATES} candidate terms; na = {}, nb = {}, D = {} give {m}: lower the lags or the degree",
+                    self.na, self.nb, self.degree
+                ),
+            ));
+        }
+        if self.max_terms == 0 {
+            return Err(SysidError::setting(
+                Setting::Other("--max-terms"),
+                0,
+                "at least 1 term",
+            ));
+        }
+        if !(self.selection > 0.05 && self.selection < 0.95) {
+            return Err(SysidError::setting(
+                Setting::Other("--selection"),
+                self.selection,
+                "a fraction of the estimation record in (0.05, 0.95)",
+            ));
+        }
+        Ok(())
+    }
+
+    fn k0(&self) -> usize {
+        self.na.max((self.nk + self.nb).saturating_sub(1))
+    }
+}
+
+/// One selected term with its coefficient, standard deviation and error-reduction ratio.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct TermReport {
+    /// The monomial, e.g. `y(k-1)^2*u(k-2)`.
+    pub term: String,
+    /// θ_i.
+    pub coefficient: f64,
+    /// Standard deviation of θ_i (σ̂ √[(ΦᵀΦ)⁻¹]_ii with Φ the regressors, or the simulation
+    /// sensitivities after refinement); `None` when not determined.
+    pub std: Option<f64>,
+    /// ERR of the term when FROLS chose it (fraction of yᵀy it explains).
+    pub err: f64,
+}
+
+/// The stopping rule's value for each number of terms n = 1, 2, ….
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct StopCurve {
+    /// The rule.
+    pub rule: StopRule,
+    /// Its value for n = 1..: the criterion, or the selection part's simulation RMSE (`None`: blew up).
+    pub values: Vec<Option<f64>>,
+    /// Rule `sim`: the selection part's simulation fit % for n = 1.. (empty for the criteria).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub fits: Vec<Option<f64>>,
+    /// The chosen n.
+    pub chosen: usize,
+}
+
+/// The refinement stops when an accepted step lowers V by less than this fraction.
+pub const REFINE_TOLERANCE: f64 = 1e-7;
+
+/// The stopping rule `sim` stops evaluating more terms after this many numbers of terms in a row
+/// without a selection RMSE better than the best so far by more than [`SIM_TOLERANCE`].
+pub const SIM_PATIENCE: usize = 6;
+
+/// The stopping rule `sim` keeps the fewest terms whose selection RMSE is within this fraction of the
+/// least one (parsimony: a gain below it is not worth a term).
+pub const SIM_TOLERANCE: f64 = 2e-3;
+
+/// What the simulation-error refinement did.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Refinement {
+    /// Free-run RMSE of the estimation record before.
+    pub rmse_before: f64,
+    /// After.
+    pub rmse_after: f64,
+    /// Levenberg–Marquardt iterations.
+    pub iterations: usize,
+    /// True when the relative decrease of V fell below [`REFINE_TOLERANCE`] or no damped step lowered
+    /// it (else the iteration cap stopped it).
+    pub converged: bool,
+}
+
+/// A fitted polynomial NARX model with what its selection computed.
+#[derive(Debug, Clone)]
+pub struct NarxFit {
+    /// The model.
+    pub model: NarxModel,
+    /// The selected terms in the order FROLS chose them.
+    pub terms: Vec<TermReport>,
+    /// Σ ERR of the selected terms (on the record FROLS ran on).
+    pub err_sum: f64,
+    /// The stopping rule's curve.
+    pub stop: StopCurve,
+    /// The refinement, when asked for and started.
+    pub refinement: Option<Refinement>,
+    /// Number of candidate monomials.
+    pub candidates: usize,
+    /// Warnings in words (a blow-up, a refinement that did not start or converge, …).
+    pub warnings: Vec<String>,
+}
+
+/// The candidate matrix over the rows k ≥ k0 of (u, y): one column per term, by columns.
+fn columns(terms: &[Term], u: &[f64], y: &[f64], k0: usize) -> Vec<Vec<f64>> {
+    terms
+        .iter()
+        .map(|t| {
+            (k0..y.len())
+                .map(|k| {
+                    t.factors().iter().fold(1.0, |acc, v| {
+                        acc * match *v {
+                            Lagged::Y(l) => y[k - l],
+                            Lagged::U(l) => u[k - l],
+                        }
+                    })
+                })
+                .collect()
+        })
+        .collect()
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// The result of FROLS: the chosen candidate indices in order, their ERR, and the triangular system
+/// A θ = g (A[r][s] for r < s, unit diagonal) of the chosen terms.
+#[derive(Debug, Clone)]
+pub struct Frols {
+    /// Indices of the chosen candidates, in the order chosen.
+    pub order: Vec<usize>,
+    /// ERR of each chosen term.
+    pub err: Vec<f64>,
+    /// A[r][s]: q_rᵀ p_s / q_rᵀ q_r for r < s.
+    a: Vec<Vec<f64>>,
+    /// g_s = q_sᵀ y / q_sᵀ q_s.
+    g: Vec<f64>,
+}
+
+impl Frols {
+    /// θ of the first `n` chosen terms (back substitution in A_n θ = g_n).
+    pub fn theta(&self, n: usize) -> Vec<f64> {
+        let mut th = vec![0.0; n];
+        for s in (0..n).rev() {
+            let tail: f64 = self.a[s][s + 1..n]
+                .iter()
+                .zip(&th[s + 1..n])
+                .map(|(a, t)| a * t)
+                .sum();
+            th[s] = self.g[s] - tail;
+        }
+        th
+    }
+}
+
+/// Orthogonal forward regression with the error-reduction ratio over the candidate columns `p` (each
+/// of the length of `y`), choosing at most `max_terms`. A candidate whose orthogonal part is below
+/// 1e-10 of its norm (dependent on the chosen ones) is never chosen.
+pub fn frols(p: &[Vec<f64>], y: &[f64], max_terms: usize) -> Frols {
+    let yy = dot(y, y);
+    let mut w: Vec<Vec<f64>> = p.to_vec();
+    let norms: Vec<f64> = p.iter().map(|c| dot(c, c)).collect();
+    let mut chosen = vec![false; p.len()];
+    let mut out = Frols {
+        order: Vec::new(),
+        err: Vec::new(),
+        a: Vec::new(),
+        g: Vec::new(),
+    };
+    // coef[m][r]: the Gram–Schmidt coefficient of candidate m on q_r.
+    let mut coef: Vec<Vec<f64>> = vec![Vec::new(); p.len()];
+    let mut qs: Vec<Vec<f64>> = Vec::new();
+    while out.order.len() < max_terms.min(p.len()) {
+        let mut best: Option<(usize, f64)> = None;
+        for m in 0..p.len() {
+            if chosen[m] {
+                continue;
+            }
+            let ww = dot(&w[m], &w[m]);
+            // A NaN, a zero or a dependent column (orthogonal part below 1e-10 of its norm) is skipped.
+            if ww.is_nan() || ww <= 1e-20 * norms[m] || ww == 0.0 || yy == 0.0 {
+                continue;
+            }
+            let wy = dot(&w[m], y);
+            let err = wy * wy / (ww * yy);
+            if best.is_none_or(|(_, b)| err > b) {
+                best = Some((m, err));
+            }
+        }
+        let Some((m, err)) = best else { break };
+        chosen[m] = true;
+        let q = w[m].clone();
+        let qq = dot(&q, &q);
+        out.g.push(dot(&q, y) / qq);
+        out.err.push(err);
+        out.order.push(m);
+        // Deflate the others by q (modified Gram–Schmidt), recording their coefficients.
+        for (j, wj) in w.iter_mut().enumerate() {
+            if chosen[j] {
+                continue;
+            }
+            let c = dot(&q, wj) / qq;
+            coef[j].push(c);
+            wj.iter_mut().zip(&q).for_each(|(v, qv)| *v -= c * qv);
+        }
+        qs.push(q);
+        // Row s of A over the chosen terms: coefficient of the s-th chosen term on every earlier q.
+        let s = out.order.len() - 1;
+        for (row, &v) in out.a.iter_mut().zip(&coef[m][..s]) {
+            row.push(v);
+        }
+        out.a.push(vec![0.0; s + 1]);
+        out.a[s][s] = 1.0;
+    }
+    // Make every row of A full width (s-th row holds entries 0..n).
+    let n = out.order.len();
+    for row in &mut out.a {
+        row.resize(n, 0.0);
+    }
+    out
+}
+
+/// Free-run simulation RMSE and fit % over rows k0.. of (u, y) of `model`; `None` on a blow-up.
+fn sim_rmse_fit(model: &NarxModel, u: &[f64], y: &[f64]) -> Option<(f64, Option<f64>)> {
+    let s = model.simulate(u, y).ok()?;
+    if s.blew_up_at.is_some() {
+        return None;
+    }
+    let k0 = model.k0().min(y.len());
+    if y.len() == k0 {
+        return None;
+    }
+    Some((
+        sysid_core::metrics::rmse(&y[k0..], &s.y[k0..]),
+        sysid_core::metrics::fit_percent(&y[k0..], &s.y[k0..]),
+    ))
+}
+
+/// Identifies a polynomial NARX model of `data` (its first input) with `settings`.
+pub fn identify_narx(data: &Dataset, settings: &NarxSettings) -> Result<NarxFit, SysidError> {
+    settings.check()?;
+    if data.inputs().len() != 1 {
+        return Err(SysidError::Data(
+            "polynomial NARX models have one input; choose it with --u-col".into(),
+        ));
+    }
+    let (u, y) = (data.u(), data.y());
+    let s = settings;
+    let k0 = s.k0();
+    let cands = candidate_terms(s.na, s.nb, s.nk, s.degree, s.constant);
+    let n_rows = y.len().saturating_sub(k0);
+    if n_rows < 2 * cands.len().min(s.max_terms) + 10 {
+        return Err(SysidError::Data(format!(
+            "{} samples are too few for a NARX model with up to {} terms (k0 = {k0})",
+            y.len(),
+            cands.len().min(s.max_terms)
+        )));
+    }
+    let model_of = |order: &[usize], theta: Vec<f64>| {
+        NarxModel::new(
+            data.ts(),
+            s.na,
+            s.nb,
+            s.nk,
+            s.degree,
+            order.iter().map(|&i| cands[i].clone()).collect(),
+            theta,
+        )
+    };
+    let mut warnings = Vec::new();
+    // Order the terms (on the fitting part for Sim, on the whole record otherwise) and choose n.
+    let (frols_result, stop) = match s.stop {
+        StopRule::Aic | StopRule::Bic => {
+            let p = columns(&cands, u, y, k0);
+            let f = frols(&p, &y[k0..], s.max_terms);
+            let yy = dot(&y[k0..], &y[k0..]);
+            let nn = n_rows as f64;
+            let mut err_sum = 0.0;
+            let values: Vec<Option<f64>> = f
+                .err
+                .iter()
+                .enumerate()
+                .map(|(i, e)| {
+                    err_sum += e;
+                    // σ̂² is floored at 1e-14 of the output's mean square: below it the residual is
+                    // rounding, and a criterion on rounding would keep adding terms to exact data.
+                    let var = (yy * (1.0 - err_sum) / nn)
+                        .max(1e-14 * yy / nn)
+                        .max(f64::MIN_POSITIVE);
+                    let pen = match s.stop {
+                        StopRule::Aic => 2.0,
+                        _ => nn.ln(),
+                    };
+                    Some(nn * var.ln() + pen * (i + 1) as f64)
+                })
+                .collect();
+            let chosen = argmin(&values).map_or(0, |i| i + 1);
+            (
+                f,
+                StopCurve {
+                    rule: s.stop,
+                    values,
+                    fits: Vec::new(),
+                    chosen,
+                },
+            )
+        }
+        StopRule::Sim => {
+            let n = y.len();
+            let split = ((n as f64) * (1.0 - s.selection)).round() as usize;
+            let (u_fit, y_fit) = (&u[..split], &y[..split]);
+            // The selection part starts k0 samples early: its initial outputs are measured ones.
+            let start = split.saturating_sub(k0);
+            let (u_sel, y_sel) = (&u[start..], &y[start..]);
+            let p = columns(&cands, u_fit, y_fit, k0);
+            let f = frols(&p, &y_fit[k0..], s.max_terms);
+            let mut best = (f64::INFINITY, 0usize);
+            let mut values: Vec<Option<f64>> = Vec::new();
+            let mut fits: Vec<Option<f64>> = Vec::new();
+            for n in 1..=f.order.len() {
+                if best.1 > 0 && n > best.1 + SIM_PATIENCE {
+                    break;
+                }
+                let v = model_of(&f.order[..n], f.theta(n)).ok().and_then(|m| {
+                    // With refinement the candidate is judged as it will be used: refined (on the
+                    // fitting part only), then simulated over the selection part.
+                    let m = if s.refine {
+                        refine(&m, u_fit, y_fit, s.max_iterations).map_or(m, |(r, _, _)| r)
+                    } else {
+                        m
+                    };
+                    sim_rmse_fit(&m, u_sel, y_sel)
+                });
+                let (v, fit) = (v.map(|x| x.0), v.and_then(|x| x.1));
+                // Only a gain beyond the parsimony tolerance resets the patience.
+                if let Some(x) = v.filter(|x| *x < best.0 * (1.0 - SIM_TOLERANCE)) {
+                    best = (x, n);
+                }
+                values.push(v);
+                fits.push(fit);
+            }
+            // Parsimony: the fewest terms within SIM_TOLERANCE (plus rounding) of the least RMSE.
+            let (lo, hi) = y
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+                    (a.min(v), b.max(v))
+                });
+            let least = values
+                .iter()
+                .flatten()
+                .fold(f64::INFINITY, |a, &b| a.min(b));
+            let tol = SIM_TOLERANCE * least + 1e-10 * (hi - lo);
+            let chosen = values
+                .iter()
+                .position(|v| v.is_some_and(|x| x <= least + tol))
+                .map_or(0, |i| i + 1);
+            (
+                f,
+                StopCurve {
+                    rule: s.stop,
+                    values,
+                    fits,
+                    chosen,
+                },
+            )
+        }
+    };
+    if stop.chosen == 0 {
+        return Err(SysidError::Numerical(format!(
+            "no number of terms gave a usable model ({}); every simulation of the selection part blew up \
+             — lower the degree or the lags",
+            s.stop
+        )));
+    }
+    if stop.chosen == frols_result.order.len() && frols_result.order.len() < cands.len() {
+        warnings.push(format!(
+            "the stopping rule ({}) chose the largest number of terms searched ({}): more terms may fit \
+             better; raise --max-terms",
+            s.stop, stop.chosen
+        ));
+    }
+    let order = &frols_result.order[..stop.chosen];
+    let errs = &frols_result.err[..stop.chosen];
+    // Coefficients of the chosen terms on the whole estimation record, with standard deviations.
+    let chosen_terms: Vec<Term> = order.iter().map(|&i| cands[i].clone()).collect();
+    let p = columns(&chosen_terms, u, y, k0);
+    let phi = DMatrix::from_fn(n_rows, p.len(), |r, c| p[c][r]);
+    let target = DVector::from_column_slice(&y[k0..]);
+    let names: Vec<String> = chosen_terms.iter().map(Term::to_string).collect();
+    let sol = sysid_core::ls::solve(&phi, &target, &names)?;
+    let dof = n_rows.saturating_sub(p.len()).max(1) as f64;
+    let sigma2 = sol.rss / dof;
+    let mut model = model_of(order, sol.theta.iter().copied().collect())?;
+    let mut std: Vec<Option<f64>> = (0..p.len())
+        .map(|i| {
+            let v = sigma2 * sol.inv_gram[(i, i)];
+            (v.is_finite() && v >= 0.0).then(|| v.sqrt())
+        })
+        .collect();
+    let mut refinement = None;
+    if s.refine {
+        match refine(&model, u, y, s.max_iterations) {
+            Ok((m, r, st)) => {
+                if !r.converged {
+                    warnings.push(format!(
+                        "the simulation-error refinement reached its iteration limit ({}) before it \
+                         settled",
+                        s.max_iterations
+                    ));
+                }
+                model = m;
+                std = st;
+                refinement = Some(r);
+            }
+            Err(e) => warnings.push(format!(
+                "the simulation-error refinement did not start: {e}; the one-step (least-squares) \
+                 coefficients are kept"
+            )),
+        }
+    }
+    if let Ok(sim) = model.simulate(u, y) {
+        if let Some(k) = sim.blew_up_at {
+            warnings.push(blow_up_warning("estimation", data.name(), k));
+        }
+    }
+    let weak: Vec<String> = chosen_terms
+        .iter()
+        .zip(model.theta())
+        .zip(&std)
+        .filter(|((_, c), sd)| sd.is_some_and(|sd| c.abs() < 2.0 * sd))
+        .map(|((t, _), _)| t.to_string())
+        .collect();
+    if !weak.is_empty() {
+        warnings.push(format!(
+            "{} term(s) have a coefficient within two standard deviations of zero (poorly determined): {}",
+            weak.len(),
+            weak.join(", ")
+        ));
+    }
+    let terms = chosen_terms
+        .iter()
+        .zip(model.theta())
+        .zip(&std)
+        .zip(errs)
+        .map(|(((t, c), sd), e)| TermReport {
+            term: t.to_string(),
+            coefficient: *c,
+            std: *sd,
+            err: *e,
+        })
+        .collect();
+    Ok(NarxFit {
+        model,
+        terms,
+        err_sum: errs.iter().sum(),
+        stop,
+        refinement,
+        candidates: cands.len(),
+        warnings,
+    })
+}
+
+/// The warning for a free run that blew up at sample `k` of record `name` (`which`: estimation,
+/// validation).
+pub fn blow_up_warning(which: &str, name: &str, k: usize) -> String {
+    format!(
+        "the free-run simulation of the NARX model blew up on the {which} record {name} at sample {k} \
+         (output non-finite or beyond {} ranges of the data): its simulation metrics there are not \
+         available; the polynomial feedback is unstable for this input — lower the degree or the lags",
+        sysid_core::narx::BLOW_UP_SPANS
+    )
+}
+
+fn argmin(v: &[Option<f64>]) -> Option<usize> {
+    v.iter()
+        .enumerate()
+        .filter_map(|(i, x)| x.filter(|x| x.is_finite()).map(|x| (i, x)))
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+        .map(|(i, _)| i)
+}
+
+/// Σ (y(k) − ŷ_sim(k))² over rows k0.. of the free run of `model`, or `None` on a blow-up.
+fn simulation_cost(model: &NarxModel, u: &[f64], y: &[f64]) -> Option<f64> {
+    let sim = model.simulate(u, y).ok()?;
+    if sim.blew_up_at.is_some() {
+        return None;
+    }
+    let k0 = model.k0().min(y.len());
+    let v: f64 = y[k0..]
+        .iter()
+        .zip(&sim.y[k0..])
+        .map(|(a, b)| (a - b) * (a - b))
+        .sum();
+    v.is_finite().then_some(v)
+}
+
+/// ∂m/∂y(k − l) of each term as (l, power, the positions of the other factors in v): the power rule
+/// on a monomial.
+fn output_derivatives(model: &NarxModel) -> Vec<Vec<(usize, f64, Vec<usize>)>> {
+    model
+        .terms()
+        .iter()
+        .map(|t| {
+            let f = t.factors();
+            let mut out = Vec::new();
+            for (i, v) in f.iter().enumerate() {
+                if let Lagged::Y(l) = *v {
+                    if i > 0 && f[i - 1] == *v {
+                        continue;
+                    }
+                    let power = f.iter().filter(|w| *w == v).count();
+                    let mut rest = f.to_vec();
+                    rest.remove(i);
+                    let rest = rest.iter().map(|&w| model.variable_index(w)).collect();
+                    out.push((l, power as f64, rest));
+                }
+            }
+            out
+        })
+        .collect()
+}
+
+/// A free run with its sensitivities: residuals y − ŷ over rows k0.. and J = ∂ŷ/∂θ by rows (row-major,
+/// p numbers per row).
+struct Sensitivity {
+    resid: Vec<f64>,
+    rows: Vec<f64>,
+    p: usize,
+}
+
+/// The simulation of `model` on (u, y) with its sensitivities ∂ŷ(k)/∂θ over rows k0.., or `None` on
+/// a blow-up.
+fn simulate_with_sensitivity(model: &NarxModel, u: &[f64], y: &[f64]) -> Option<Sensitivity> {
+    let sim = model.simulate(u, y).ok()?;
+    if sim.blew_up_at.is_some() {
+        return None;
+    }
+    let yh = &sim.y;
+    let k0 = model.k0();
+    let n = y.len();
+    let p = model.terms().len();
+    let na = model.na();
+    let derivs = output_derivatives(model);
+    let idx = model.term_indices();
+    // sens[k][j] = ∂ŷ(k)/∂θ_j, zero for k < k0.
+    let mut sens = vec![0.0; n * p];
+    let mut gl = vec![0.0; na + 1];
+    let mut vals = vec![0.0; model.na() + model.nb()];
+    for k in k0..n {
+        model.lagged_values(k, u, |l| yh[k - l], &mut vals);
+        // g_l = Σ_i θ_i ∂m_i/∂y(k − l).
+        gl.iter_mut().for_each(|g| *g = 0.0);
+        for (d, th) in derivs.iter().zip(model.theta()) {
+            for (l, power, rest) in d {
+                gl[*l] += th * power * rest.iter().map(|&i| vals[i]).product::<f64>();
+            }
+        }
+        let (past, now) = sens.split_at_mut(k * p);
+        let row = &mut now[..p];
+        for (j, ix) in idx.iter().enumerate() {
+            row[j] = ix.iter().map(|&i| vals[i]).product::<f64>();
+        }
+        for (l, g) in gl.iter().enumerate().skip(1) {
+            if *g != 0.0 {
+                let prev = &past[(k - l) * p..(k - l + 1) * p];
+                row.iter_mut().zip(prev).for_each(|(r, s)| *r += g * s);
+            }
+        }
+    }
+    let resid: Vec<f64> = (k0..n).map(|k| y[k] - yh[k]).collect();
+    sens.drain(..k0 * p);
+    if resid.iter().any(|v| !v.is_finite()) || sens.iter().any(|v| !v.is_finite()) {
+        return None;
+    }
+    Some(Sensitivity {
+        resid,
+        rows: sens,
+        p,
+    })
+}
+
+/// The normal equations of a Gauss–Newton step in Marquardt's scaling: S = D⁻¹ JᵀJ D⁻¹ (unit
+/// diagonal, D = the column norms of J) and b = D⁻¹ Jᵀ r. Forming JᵀJ costs N p²/2 multiply-adds, a
+/// quarter of a QR of J, which is what makes the refinement of long records (silverbox, N = 65 000)
+/// affordable; the scaling keeps S well conditioned enough for a Cholesky factor of S + λ I.
+struct ScaledNormal {
+    s: DMatrix<f64>,
+    b: DVector<f64>,
+    d: Vec<f64>,
+}
+
+impl ScaledNormal {
+    fn new(sens: &Sensitivity) -> Self {
+        let p = sens.p;
+        // JᵀJ (upper triangle, then mirrored) and Jᵀr, row by row.
+        let mut jtj = DMatrix::<f64>::zeros(p, p);
+        let mut jtr = vec![0.0; p];
+        let mut acc = vec![0.0; p * p];
+        for (row, r) in sens.rows.chunks_exact(p).zip(&sens.resid) {
+            for i in 0..p {
+                let ri = row[i];
+                jtr[i] += ri * r;
+                let a = &mut acc[i * p + i..(i + 1) * p];
+                a.iter_mut()
+                    .zip(&row[i..])
+                    .for_each(|(x, rj)| *x += ri * rj);
+            }
+        }
+        for i in 0..p {
+            for j in i..p {
+                jtj[(i, j)] = acc[i * p + j];
+                jtj[(j, i)] = acc[i * p + j];
+            }
+        }
+        // A column that is zero over the record keeps the scale 1 (its step is then 0).
+        let d: Vec<f64> = (0..p)
+            .map(|i| {
+                let v = jtj[(i, i)].sqrt();
+                if v > 0.0 && v.is_finite() {
+                    v
+                } else {
+                    1.0
+                }
+            })
+            .collect();
+        let s = DMatrix::from_fn(p, p, |i, j| jtj[(i, j)] / (d[i] * d[j]));
+        let b = DVector::from_fn(p, |i, _| jtr[i] / d[i]);
+        ScaledNormal { s, b, d }
+    }
+
+    /// δ = D⁻¹ (S + λ I)⁻¹ b, or `None` when the damped matrix is not positive definite.
+    fn damped_step(&self, lambda: f64) -> Option<DVector<f64>> {
+        let mut a = self.s.clone();
+        for i in 0..a.nrows() {
+            a[(i, i)] += lambda;
+        }
+        let w = a.cholesky()?.solve(&self.b);
+        let delta = DVector::from_fn(w.len(), |i, _| w[i] / self.d[i]);
+        delta.iter().all(|v| v.is_finite()).then_some(delta)
+    }
+
+    /// diag((JᵀJ)⁻¹) = diag(S⁻¹) / d², or `None` when S is singular.
+    fn inverse_diagonal(&self) -> Option<Vec<f64>> {
+        let inv = self.s.clone().cholesky()?.inverse();
+        Some(
+            (0..inv.nrows())
+                .map(|i| inv[(i, i)] / (self.d[i] * self.d[i]))
+                .collect(),
+        )
+    }
+}
+
+/// Levenberg–Marquardt on the free-run simulation error from `start`: the refined model, what it did,
+/// and the standard deviations σ̂ √[(JᵀJ)⁻¹]_ii at the end. Fails when the start's simulation blows up.
+pub fn refine(
+    start: &NarxModel,
+    u: &[f64],
+    y: &[f64],
+    max_iterations: usize,
+) -> Result<(NarxModel, Refinement, Vec<Option<f64>>), SysidError> {
+    let mut sens = simulate_with_sensitivity(start, u, y).ok_or_else(|| {
+        SysidError::Numerical(
+            "the least-squares model's free-run simulation blows up on the estimation record"
+                .into(),
+        )
+    })?;
+    let n = sens.resid.len() as f64;
+    let mut v = dot(&sens.resid, &sens.resid);
+    let rmse_before = (v / n).sqrt();
+    let mut model = start.clone();
+    let mut lambda = 1e-3;
+    let mut iterations = 0;
+    let mut converged = false;
+    let p = model.terms().len();
+    while iterations < max_iterations {
+        iterations += 1;
+        let normal = ScaledNormal::new(&sens);
+        let mut improved = false;
+        for _ in 0..12 {
+            let Some(delta) = normal.damped_step(lambda) else {
+                lambda *= 10.0;
+                continue;
+            };
+            let theta: Vec<f64> = model
+                .theta()
+                .iter()
+                .zip(delta.iter())
+                .map(|(a, d)| a + d)
+                .collect();
+            let Ok(trial) = model.with_theta(theta) else {
+                lambda *= 10.0;
+                continue;
+            };
+            match simulation_cost(&trial, u, y)
+                .filter(|v2| *v2 < v)
+                .and_then(|_| simulate_with_sensitivity(&trial, u, y))
+            {
+                Some(s2) => {
+                    let v2 = dot(&s2.resid, &s2.resid);
+                    let rel = (v - v2) / v.max(f64::MIN_POSITIVE);
+                    model = trial;
+                    sens = s2;
+                    v = v2;
+                    lambda = (lambda / 3.0).max(1e-12);
+                    improved = true;
+                    if rel < REFINE_TOLERANCE {
+                        converged = true;
+                    }
+                    break;
+                }
+                _ => lambda *= 10.0,
+            }
+        }
+        if !improved {
+            // No step lowers V even heavily damped: a (local) minimum.
+            converged = true;
+        }
+        if converged {
+            break;
+        }
+    }
+    let dof = (sens.resid.len().saturating_sub(p)).max(1) as f64;
+    let sigma2 = v / dof;
+    let std = match ScaledNormal::new(&sens).inverse_diagonal() {
+        Some(d) => d
+            .iter()
+            .map(|g| {
+                let s = sigma2 * g;
+                (s.is_finite() && s >= 0.0).then(|| s.sqrt())
+            })
+            .collect(),
+        None => vec![None; p],
+    };
+    Ok((
+        model,
+        Refinement {
+            rmse_before,
+            rmse_after: (v / n).sqrt(),
+            iterations,
+            converged,
+        },
+        std,
+    ))
+}
+
+/// Metrics of a NARX model on one record: free run from the measured initial outputs and one-step
+/// prediction, over the rows k ≥ k0.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct NarxMetrics {
+    /// The record's name.
+    pub data: String,
+    /// Rows k ≥ k0 the metrics are over.
+    pub n: usize,
+    /// Free-run simulation RMSE (units of y), from the measured initial outputs; `None` after a blow-up.
+    pub rmse_sim: Option<f64>,
+    /// The same number: a NARX simulation always starts from the measured initial outputs (kept under
+    /// this name so that tables of linear and NARX models read alike).
+    pub rmse_sim_measured: Option<f64>,
+    /// MATLAB `compare` fit % of the simulation.
+    pub fit_sim_percent: Option<f64>,
+    /// One-step-ahead prediction RMSE.
+    pub rmse_pred: f64,
+    /// Fit % of the one-step prediction.
+    pub fit_pred_percent: Option<f64>,
+    /// The sample at which the simulation blew up, if it did.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub blew_up_at: Option<usize>,
+}
+
+/// The metrics of `model` on `data` (its first input).
+pub fn narx_metrics(model: &NarxModel, data: &Dataset) -> Result<NarxMetrics, SysidError> {
+    let (u, y) = (data.u(), data.y());
+    let k0 = model.k0().min(y.len());
+    let pred = model.predict(u, y)?;
+    let sim = model.simulate(u, y)?;
+    let (rmse_sim, fit_sim) = match sim.blew_up_at {
+        Some(_) => (None, None),
+        None => (
+            Some(sysid_core::metrics::rmse(&y[k0..], &sim.y[k0..])),
+            sysid_core::metrics::fit_percent(&y[k0..], &sim.y[k0..]),
+        ),
+    };
+    Ok(NarxMetrics {
+        data: data.name().to_string(),
+        n: y.len() - k0,
+        rmse_sim,
+        rmse_sim_measured: rmse_sim,
+        fit_sim_percent: fit_sim,
+        rmse_pred: sysid_core::metrics::rmse(&y[k0..], &pred[k0..]),
+        fit_pred_percent: sysid_core::metrics::fit_percent(&y[k0..], &pred[k0..]),
+        blew_up_at: sim.blew_up_at,
+    })
+}

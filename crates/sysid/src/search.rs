@@ -1,0 +1,238 @@
+//! Structure search over model classes (the class-level `order`): ARX, Hammerstein with any input
+//! nonlinearity kind ([`NonlinearityKind`]), polynomial NARX of a given degree, each over a grid of
+//! (na, nb, nk). Every candidate is estimated on the **estimation part** (the first rows of the
+//! estimation record) only and ranked by its free-run simulation RMSE on the **selection part** (the
+//! rest of the estimation record, never the test record), the simulation starting from measured
+//! initial outputs so that every class is judged alike. A NARX candidate is exactly what
+//! `identify --structure narx --stop sim` does with that split: its terms are ordered and fitted on
+//! the estimation part, its number of terms is the one of least selection RMSE, and that RMSE is its
+//! rank. Beside it: the normalised AIC ln(mean ε²) + 2p/N of the one-step residuals on the estimation
+//! part.
+
+use serde::Serialize;
+
+use crate::blocks::NonlinearityKind;
+use crate::estimate::{identify, Identification, InputSpec};
+use crate::narx::{identify_narx, NarxSettings};
+use sysid_core::metrics::{fit_percent, rmse};
+use sysid_core::{Dataset, Orders, SysidError};
+
+/// A model class of the search.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Class {
+    /// A linear-in-the-lags model whose input passes through a static nonlinearity of this kind
+    /// (`linear`: ARX; `deadzone`: the paper's Hammerstein model; any other kind of [`NonlinearityKind`]).
+    Input(NonlinearityKind),
+    /// Polynomial NARX of this degree.
+    Narx(usize),
+}
+
+impl std::fmt::Display for Class {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            Class::Input(NonlinearityKind::Linear) => f.write_str("arx"),
+            Class::Input(k) => write!(f, "hammerstein:{k}"),
+            Class::Narx(d) => write!(f, "narx{d}"),
+        }
+    }
+}
+
+impl std::str::FromStr for Class {
+    type Err = String;
+    /// `arx`, `hammerstein` (the deadzone), `hammerstein:KIND` or a bare input kind (`deadzone`, …),
+    /// `narxD` or `narx:D` (degree D).
+    fn from_str(t: &str) -> Result<Self, String> {
+        let t = t.trim();
+        if t == "arx" {
+            return Ok(Class::Input(NonlinearityKind::Linear));
+        }
+        if t == "hammerstein" {
+            return Ok(Class::Input(NonlinearityKind::Deadzone));
+        }
+        if let Some(d) = t.strip_prefix("narx") {
+            let d = d.trim_start_matches(':');
+            return d
+                .parse::<usize>()
+                .ok()
+                .filter(|d| (1..=sysid_core::narx::MAX_DEGREE).contains(d))
+                .map(Class::Narx)
+                .ok_or_else(|| {
+                    format!(
+                        "'{t}': a NARX class names its degree, narx1..narx{}",
+                        sysid_core::narx::MAX_DEGREE
+                    )
+                });
+        }
+        let kind = t.strip_prefix("hammerstein:").unwrap_or(t);
+        kind.parse::<NonlinearityKind>().map(Class::Input).map_err(|e| {
+            format!("'{t}' is not a model class ({e}); expected arx, hammerstein[:KIND], KIND or narxD")
+        })
+    }
+}
+
+/// One evaluated (class, orders) pair.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ClassCandidate {
+    /// The class, as written on the command line (`arx`, `hammerstein:deadzone`, `narx3`).
+    pub class: String,
+    /// na, nb, nk (for NARX: the lags).
+    pub orders: Orders,
+    /// Number of estimated parameters (NARX: selected terms).
+    pub p: usize,
+    /// Free-run RMSE on the selection part from its measured initial outputs; `None` when the
+    /// simulation diverged or blew up.
+    pub selection_rmse: Option<f64>,
+    /// Fit % of that simulation.
+    pub selection_fit_percent: Option<f64>,
+    /// Normalised AIC ln(mean ε²) + 2p/N of the one-step residuals on the estimation part.
+    pub aic: Option<f64>,
+    /// The identification's warnings.
+    pub warnings: Vec<String>,
+    /// Why the candidate could not be estimated.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub error: Option<String>,
+}
+
+/// Σ-free metrics of a one-step prediction and a simulation over rows k0..: (RMSE, fit %) of the
+/// simulation and the normalised AIC of the prediction with p parameters.
+fn judge(
+    y_sel: &[f64],
+    sim: Option<&[f64]>,
+    y_est: &[f64],
+    pred: &[f64],
+    k0: usize,
+    p: usize,
+) -> (Option<f64>, Option<f64>, Option<f64>) {
+    let (rm, fit) = match sim {
+        Some(s) if s[k0.min(s.len())..].iter().all(|v| v.is_finite()) => (
+            Some(rmse(&y_sel[k0..], &s[k0..])),
+            fit_percent(&y_sel[k0..], &s[k0..]),
+        ),
+        _ => (None, None),
+    };
+    let n = y_est.len().saturating_sub(k0);
+    let aic = (n > 0).then(|| {
+        let mse = y_est[k0..]
+            .iter()
+            .zip(&pred[k0..])
+            .map(|(a, b)| (a - b) * (a - b))
+            .sum::<f64>()
+            / n as f64;
+        mse.max(f64::MIN_POSITIVE).ln() + 2.0 * p as f64 / n as f64
+    });
+    (rm, fit, aic.filter(|v| v.is_finite()))
+}
+
+/// The identification of an input class: `base` with the orders and the one input's nonlinearity.
+pub fn input_class(
+    base: &Identification,
+    kind: NonlinearityKind,
+    orders: Orders,
+) -> Identification {
+    let mut id = base.clone();
+    id.structure.orders = orders;
+    id.with_inputs(vec![InputSpec {
+        nb: orders.nb,
+        nk: orders.nk,
+        nonlinearity: kind,
+    }])
+}
+
+/// Estimates one class at one set of orders on the first `split` rows of `whole` and judges it on the
+/// rest.
+pub fn evaluate(
+    whole: &Dataset,
+    split: usize,
+    class: Class,
+    orders: Orders,
+    base: &Identification,
+    narx: &NarxSettings,
+) -> ClassCandidate {
+    let mut c = ClassCandidate {
+        class: class.to_string(),
+        orders,
+        p: 0,
+        selection_rmse: None,
+        selection_fit_percent: None,
+        aic: None,
+        warnings: Vec::new(),
+        error: None,
+    };
+    let est = &whole.rows(0..split);
+    let sel = &whole.rows(split..whole.len());
+    let result: Result<(), SysidError> = (|| {
+        match class {
+            Class::Input(kind) => {
+                let fit = identify(est, &input_class(base, kind, orders))?;
+                let m = &fit.model;
+                c.p = m.parameter_count();
+                c.warnings = fit.warnings.iter().map(ToString::to_string).collect();
+                let k0 = m.k0();
+                let sim = m.simulate(&sel.input_signals(), sel.y()).ok();
+                let pred = m.predict_equation_error(&est.input_signals(), est.y())?;
+                (c.selection_rmse, c.selection_fit_percent, c.aic) =
+                    judge(sel.y(), sim.as_deref(), est.y(), &pred, k0, c.p);
+            }
+            Class::Narx(degree) => {
+                let s = NarxSettings {
+                    na: orders.na,
+                    nb: orders.nb,
+                    nk: orders.nk,
+                    degree,
+                    stop: crate::narx::StopRule::Sim,
+                    selection: sel.len() as f64 / whole.len() as f64,
+                    ..*narx
+                };
+                let fit = identify_narx(whole, &s)?;
+                let m = &fit.model;
+                c.p = m.parameter_count();
+                c.warnings = fit.warnings;
+                let i = fit.stop.chosen - 1;
+                c.selection_rmse = fit.stop.values.get(i).copied().flatten();
+                c.selection_fit_percent = fit.stop.fits.get(i).copied().flatten();
+                let pred = m.predict(est.u(), est.y())?;
+                (_, _, c.aic) = judge(est.y(), None, est.y(), &pred, m.k0(), c.p);
+            }
+        }
+        Ok(())
+    })();
+    if let Err(e) = result {
+        c.error = Some(e.to_string());
+    }
+    c
+}
+
+/// Every class at every orders of `grid`, estimated on the first `split` rows of `whole` and ranked
+/// on the rest: least selection RMSE first (a candidate without one last), ties to fewer parameters.
+/// `progress` is called once per candidate (from worker threads with the `parallel` feature).
+pub fn structure_search(
+    whole: &Dataset,
+    split: usize,
+    classes: &[Class],
+    grid: &[Orders],
+    base: &Identification,
+    narx: &NarxSettings,
+    progress: &(dyn Fn() + Sync),
+) -> Vec<ClassCandidate> {
+    let jobs: Vec<(Class, Orders)> = classes
+        .iter()
+        .flat_map(|&c| grid.iter().map(move |&o| (c, o)))
+        .collect();
+    let run = |&(c, o): &(Class, Orders)| {
+        let r = evaluate(whole, split, c, o, base, narx);
+        progress();
+        r
+    };
+    #[cfg(feature = "parallel")]
+    let mut out: Vec<ClassCandidate> = {
+        use rayon::prelude::*;
+        jobs.par_iter().map(run).collect()
+    };
+    #[cfg(not(feature = "parallel"))]
+    let mut out: Vec<ClassCandidate> = jobs.iter().map(run).collect();
+    out.sort_by(|a, b| {
+        let key = |c: &ClassCandidate| c.selection_rmse.unwrap_or(f64::INFINITY);
+        key(a).total_cmp(&key(b)).then(a.p.cmp(&b.p))
+    });
+    out
+}

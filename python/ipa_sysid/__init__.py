@@ -12,6 +12,8 @@ same data and options.
 - ``calibrate(data, validation=None, free=None, ...)`` -> dict: the physics plant fitted to a record
   (a digital twin, as ``ipa-sysid calibrate``)
 - ``simulate_plant(plant, ...)`` -> ``(t, u, y, pressures)``; ``control(plant, setpoint=...)`` -> dict
+- ``tune(model=... | plant_config=..., spec="")`` -> dict (as ``ipa-sysid tune --json``); its result, its
+  ``"controller"`` or a CONTROLLER.json path goes to ``control(..., controller=...)``
 
 Bad input raises ``ValueError`` with the command line's message; a numerical failure raises
 ``ArithmeticError``. Every doubt the command line prints as a ``warning:`` line (an unstable model, a
@@ -21,6 +23,8 @@ makes them exceptions, as ``--strict`` makes them exit code 1. See docs/python.m
 """
 
 import functools
+import json as _json
+import os as _os
 import warnings as _warnings
 
 from . import _core
@@ -52,9 +56,31 @@ def identify(*args, **kwargs):
     return fit
 
 
+def _controller_text(controller):
+    """The JSON text of a controller file from tune()'s result, its "controller" dict, a file's
+    text or a path."""
+    if controller is None or isinstance(controller, str) and controller.lstrip().startswith("{"):
+        return controller
+    if isinstance(controller, dict):
+        if "controller_file" in controller:
+            return controller["controller_file"]
+        if "format" in controller:
+            return _json.dumps(controller)
+        return _json.dumps({"format": "ipa-sysid-controller", "version": 1, "controller": controller})
+    with open(_os.fspath(controller), encoding="utf-8") as f:
+        return f.read()
+
+
 @functools.wraps(_core.control)
-def control(*args, **kwargs):
-    result = _core.control(*args, **kwargs)
+def control(*args, controller=None, **kwargs):
+    result = _core.control(*args, controller=_controller_text(controller), **kwargs)
+    _warn_all(result.get("warnings"))
+    return result
+
+
+@functools.wraps(_core.tune)
+def tune(*args, **kwargs):
+    result = _core.tune(*args, **kwargs)
     _warn_all(result.get("warnings"))
     return result
 
@@ -79,4 +105,5 @@ __all__ = [
     "load_model",
     "paper_model",
     "simulate_plant",
+    "tune",
 ]

@@ -239,8 +239,21 @@ def control(
     compensator_slopes: Literal["shift", "equalise"] = "shift",
     compensator_threshold: float = 0.0,
     plant_config: str | PathLike[str] | None = None,
+    controller: str | None = None,
 ) -> dict[str, Any]:
-    """Closed-loop PI control as `ipa-sysid control`: trace arrays, metrics, steps."""
+    """Closed-loop PI control as `ipa-sysid control`: trace arrays, metrics, steps. `controller`: the
+    JSON text of a controller file (the wrapper also takes tune()'s dict or a path)."""
+
+def tune(
+    model: Model | str | PathLike[str] | None = None,
+    plant_config: str | PathLike[str] | None = None,
+    spec: str = "",
+    variants: int = 5,
+    max_evaluations: int = 150,
+    check_physics: bool = False,
+    physics_variants: int = 20,
+) -> dict[str, Any]:
+    """The position controller tuned as `ipa-sysid tune --json`, plus "controller_file" (its text)."""
 
 def fleet_windows(
     u: ArrayLike,

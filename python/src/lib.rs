@@ -1250,7 +1250,7 @@ fn plant_and_limits(
 #[pyfunction]
 #[pyo3(signature = (plant=None, setpoint=None, profile=None, kp=14.0, ki=1.0, duration=None, y0=0.0,
     integral="scaled", anti_windup="none", tracking_time=None, u_max=255.0, compensate_deadzone=None,
-    compensator_slopes="shift", compensator_threshold=0.0, plant_config=None))]
+    compensator_slopes="shift", compensator_threshold=0.0, plant_config=None, controller=None))]
 #[pyo3(name = "control")]
 #[allow(clippy::too_many_arguments)]
 fn control_loop<'py>(
@@ -1270,8 +1270,22 @@ fn control_loop<'py>(
     compensator_slopes: &str,
     compensator_threshold: f64,
     plant_config: Option<PathBuf>,
+    controller: Option<&str>,
 ) -> PyResult<Bound<'py, PyDict>> {
     use ::control::{AntiWindup, IntegralForm, Profile, SlopeMode};
+    // A tuned controller (the JSON of a controller file; the Python wrapper turns the "controller" of
+    // tune()'s result into it).
+    let tuned = controller
+        .map(|text| ::control::ControllerFile::parse(text, "controller"))
+        .transpose()
+        .map_err(control_err)?;
+    if tuned.is_some() && compensate_deadzone.is_some() {
+        return Err(setting_err(
+            "--controller",
+            "(given)",
+            "not together with compensate_deadzone (the tuned controller has its own)",
+        ));
+    }
     let profile = match (setpoint, profile) {
         (Some(r), None) if r.is_finite() => Profile::Fixed { setpoint_mm: r },
         (Some(r), None) => return Err(setting_err("--setpoint", r, "a finite position in mm")),
@@ -1327,7 +1341,18 @@ fn control_loop<'py>(
         .with_integral(integral)
         .with_anti_windup(anti_windup)
         .with_u_max(u_max);
-    let mut controller = settings.build(ts).map_err(control_err)?;
+    if let Some(t) = &tuned {
+        if (t.ts_s - ts).abs() > 1e-9 * ts {
+            return Err(setting_err(
+                "--controller",
+                t.ts_s,
+                &format!("a controller for the plant's Ts = {ts} s"),
+            ));
+        }
+    }
+    let mut pi = settings.build(ts).map_err(control_err)?;
+    let mut position = tuned.map(|t| t.build()).transpose().map_err(control_err)?;
+    let u_max = tuned.map_or(u_max, |t| t.u_max);
     let compensator = match compensate_deadzone {
         None => None,
         Some(obj) => {
@@ -1377,9 +1402,13 @@ fn control_loop<'py>(
         .unwrap_or(DEFAULT_FIXED_DURATION_S);
     let (trace, run) = py
         .detach(|| -> Result<_, ::control::ControlError> {
+            let controller: &mut dyn ::control::Controller = match position.as_mut() {
+                Some(p) => p,
+                None => &mut pi,
+            };
             let trace = ::control::closed_loop::run(
                 plant.as_mut(),
-                &mut controller,
+                controller,
                 compensator.as_ref(),
                 &profile,
                 duration_s,
@@ -1418,6 +1447,90 @@ fn control_loop<'py>(
     out.set_item("metrics", to_py(py, &run.metrics)?)?;
     out.set_item("steps", to_py(py, &run.steps)?)?;
     out.set_item("warnings", warnings)?;
+    Ok(out)
+}
+
+/// Tunes the position controller as `ipa-sysid tune`: on `model` (a Hammerstein Model, or the path
+/// of a model file) or on `plant_config` (the path of a physics-plant TOML, a twin); `spec` as
+/// `--spec`. Returns a dict: the `ipa-sysid tune --json` document ("controller", "margins",
+/// "on_model", "on_physics", "warnings", ...) and "controller_file" (the text `--out` writes), whose
+/// "controller" control() accepts as `controller=`.
+#[pyfunction]
+#[pyo3(signature = (model=None, plant_config=None, spec="", variants=5, max_evaluations=150,
+    check_physics=false, physics_variants=20))]
+#[allow(clippy::too_many_arguments)]
+fn tune<'py>(
+    py: Python<'py>,
+    model: Option<&Bound<'py, PyAny>>,
+    plant_config: Option<PathBuf>,
+    spec: &str,
+    variants: usize,
+    max_evaluations: usize,
+    check_physics: bool,
+    physics_variants: usize,
+) -> PyResult<Bound<'py, PyAny>> {
+    use ::control::tuning::{self, Request, Source};
+    let spec = ::control::tune::Spec::parse(spec).map_err(control_err)?;
+    if variants == 0 {
+        return Err(setting_err(
+            "--variants",
+            0,
+            "at least 1 (the nominal plant)",
+        ));
+    }
+    let source = match (model, plant_config) {
+        (Some(obj), None) => {
+            let (m, label) = match obj.cast::<PyModel>() {
+                Ok(pm) => (pm.get().inner.clone(), "model (Python)".to_string()),
+                Err(_) => {
+                    let path: PathBuf = obj.extract().map_err(|_| {
+                        setting_err(
+                            "--model",
+                            obj.to_string(),
+                            "a Model or the path of a model file",
+                        )
+                    })?;
+                    let m = sysid::model_file::read_model(&path)
+                        .map_err(|e| PyValueError::new_err(format!("cannot read --model: {e}")))?;
+                    (m, format!("model {}", path.display()))
+                }
+            };
+            let deadzone = tuning::command_deadzone(&m)
+                .map_err(|p| setting_err("--model", &label, &p.to_string()))?;
+            Source::Model {
+                model: m,
+                deadzone,
+                label,
+            }
+        }
+        (None, Some(path)) => Source::Twin {
+            config: ipa::PlantConfig::from_toml_file(&path).map_err(ipa_err)?,
+            label: format!("twin {}", path.display()),
+        },
+        _ => {
+            return Err(setting_err(
+                "--model/--plant-config",
+                "",
+                "exactly one of model or plant_config",
+            ))
+        }
+    };
+    let req = Request {
+        source,
+        spec,
+        search: ::control::tune::TuneSettings {
+            plants: variants,
+            max_evaluations,
+        },
+        check_physics,
+        physics_variants,
+    };
+    let report = py.detach(|| tuning::run(&req)).map_err(control_err)?;
+    let file = ::control::ControllerFile::new(report.controller, None);
+    let text = serde_json::to_string_pretty(&file)
+        .map_err(|e| PyArithmeticError::new_err(format!("serialising the controller: {e}")))?;
+    let out = to_py(py, &report)?;
+    out.set_item("controller_file", text + "\n")?;
     Ok(out)
 }
 
@@ -1522,6 +1635,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(simulate_plant, m)?)?;
     m.add_function(wrap_pyfunction!(calibrate, m)?)?;
     m.add_function(wrap_pyfunction!(control_loop, m)?)?;
+    m.add_function(wrap_pyfunction!(tune, m)?)?;
     m.add_function(wrap_pyfunction!(fleet_windows, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())

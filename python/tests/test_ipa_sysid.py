@@ -419,6 +419,45 @@ def test_control_matches_cli(tmp_path):
         ipa_sysid.control("paper")
 
 
+TUNE_MODEL = {
+    "format": "ipa-sysid-model",
+    "version": 2,
+    "model": {
+        "kind": "hammerstein", "ts": 0.01, "na": 1, "nb": 1, "nk": 1, "a": [-1.0], "b": [1.0],
+        "offset": None, "deadzone": {"b_l": -20.0, "b_r": 20.0, "m_l": 0.005, "m_r": 0.005},
+        "noise_model": "output-error",
+    },
+}
+
+
+def test_tune_matches_cli_and_control_takes_its_controller(tmp_path):
+    # The same model, spec and search give the same controller and verification as the command
+    # line; control() runs it (given as tune()'s result, its "controller" dict or the file's path)
+    # exactly as `control --controller` does.
+    m = tmp_path / "m.json"
+    m.write_text(json.dumps(TUNE_MODEL))
+    out, js, tr = tmp_path / "c.json", tmp_path / "t.json", tmp_path / "trace.csv"
+    cli("tune", "--model", m, "--out", out, "--json", js, "--max-evaluations", 30)
+    doc = json.loads(js.read_text())
+    with pytest.warns(ipa_sysid.IpaSysidWarning, match="verified on the model only"):
+        t = ipa_sysid.tune(model=str(m), max_evaluations=30)
+    assert_same(t["controller"], doc["controller"])
+    assert_same(t["on_model"]["tuned"]["runs"], doc["on_model"]["tuned"]["runs"])
+    assert t["warnings"] == doc["warnings"]
+    cli("control", "--plant", f"model:{m}", "--controller", out, "--setpoint", 60, "--duration", 2,
+        "--out", tr)
+    trace = read_csv(tr)
+    for given in (t, t["controller"], str(out)):
+        c = ipa_sysid.control(f"model:{m}", setpoint=60, duration=2, controller=given)
+        assert np.array_equal(c["u"], trace["u"])
+        assert np.array_equal(c["y"], trace["y"])
+    # Errors name the Python keyword where the command line names its flag (--spec).
+    with pytest.raises(ValueError, match="invalid setting spec = overshoot=fast"):
+        ipa_sysid.tune(model=str(m), spec="overshoot=fast")
+    with pytest.raises(ValueError, match="exactly one of"):
+        ipa_sysid.tune()
+
+
 def test_control_warns_about_an_unreachable_set_point():
     # The physics plant's stroke is 0..200 mm (Table II): 300 mm cannot be reached; said in the
     # result and as a Python warning.

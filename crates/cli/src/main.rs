@@ -32,6 +32,9 @@ enum Command {
     PlantConfig(cmd::plant_config::Args),
     /// Closed-loop PI position control on a plant, with step metrics (MATLAB `stepinfo`).
     Control(cmd::control::Args),
+    /// Tune the position controller (PID, deadzone inverse, hold band) on an identified model or a
+    /// calibrated twin against a specification; verify it beside the paper's PI; write CONTROLLER.json.
+    Tune(cmd::tune::Args),
     /// Reproduce the paper end to end: experiment, identification, validation, control, report.
     Reproduce(cmd::reproduce::Args),
     /// Rank model orders and delays by free-run fit on a selection part of the estimation record (never the
@@ -81,6 +84,7 @@ fn main() -> ExitCode {
         Command::PlantConfig(a) => cmd::plant_config::run(a),
         Command::Calibrate(a) => cmd::calibrate::run(a),
         Command::Control(a) => cmd::control::run(a),
+        Command::Tune(a) => cmd::tune::run(a),
         Command::Reproduce(a) => cmd::reproduce::run(a),
         Command::Order(a) => cmd::order::run(a),
         Command::Delay(a) => cmd::delay::run(a),

@@ -30,8 +30,14 @@ fn cli(args: &[&str]) -> String {
     String::from_utf8(out.stdout).unwrap()
 }
 
-/// Builds the static library and the C example once; returns the example's path.
+/// Builds the static library and the C example `track` once; returns the example's path.
 fn build_track(dir: &Path) -> PathBuf {
+    build_example(dir, "track")
+}
+
+/// Builds the static library and the C example `NAME` (crates/embedded/examples/c/NAME.c); returns
+/// the example's path.
+fn build_example(dir: &Path, name: &str) -> PathBuf {
     let target = dir.join("target");
     let cargo = std::env::var("CARGO").unwrap_or_else(|_| "cargo".into());
     let status = Command::new(cargo)
@@ -44,7 +50,7 @@ fn build_track(dir: &Path) -> PathBuf {
     assert!(status.success(), "cargo build -p ipa-embedded failed");
     let lib = target.join("release/libipa_embedded.a");
     assert!(lib.exists(), "{} was not built", lib.display());
-    let exe = dir.join("track");
+    let exe = dir.join(name);
     let ws = workspace();
     let out = Command::new("cc")
         .args(["-O2", "-std=c99"])
@@ -52,7 +58,7 @@ fn build_track(dir: &Path) -> PathBuf {
             "-I{}",
             ws.join("crates/embedded/include").display()
         ))
-        .arg(ws.join("crates/embedded/examples/c/track.c"))
+        .arg(ws.join(format!("crates/embedded/examples/c/{name}.c")))
         .arg(&lib)
         .args(["-lm", "-lpthread", "-ldl", "-o"])
         .arg(&exe)
@@ -64,6 +70,18 @@ fn build_track(dir: &Path) -> PathBuf {
         String::from_utf8_lossy(&out.stderr)
     );
     exe
+}
+
+fn no_cc() -> bool {
+    let missing = Command::new("cc")
+        .arg("--version")
+        .stdout(Stdio::null())
+        .status()
+        .is_err();
+    if missing {
+        eprintln!("SKIPPED: no C compiler `cc` on this machine; the C example was not checked");
+    }
+    missing
 }
 
 fn numbers(v: &serde_json::Value) -> Vec<f64> {
@@ -80,13 +98,7 @@ fn close(a: f64, b: f64) -> bool {
 
 #[test]
 fn c_example_matches_identify_rls_single_pass() {
-    if Command::new("cc")
-        .arg("--version")
-        .stdout(Stdio::null())
-        .status()
-        .is_err()
-    {
-        eprintln!("SKIPPED: no C compiler `cc` on this machine; the C example was not checked");
+    if no_cc() {
         return;
     }
     let tmp = tempfile::tempdir().unwrap();
@@ -182,4 +194,125 @@ fn c_example_matches_identify_rls_single_pass() {
         assert!(pairs.iter().take(4).all(|(_, v, _)| *v != 0.0), "{pairs:?}");
     }
     eprintln!("{bitwise} of {total} parameters bit for bit equal");
+}
+
+/// The tuned controller in C (examples/c/position.c, `ipa_ctl_step` once per sample) fed the set-point
+/// and position of a run recorded by `ipa-sysid control --controller` on the physics plant gives the
+/// recorded commands bit for bit (both sides print round-trip decimals; the CSV's r and y parse to the
+/// same doubles).
+#[test]
+fn c_controller_matches_control_bit_for_bit_on_a_recorded_run() {
+    if no_cc() {
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let exe = build_example(tmp.path(), "position");
+    // A model identified on a record of the physics plant, a controller tuned on it, a run on the plant.
+    let rec = tmp.path().join("rec.csv");
+    let model = tmp.path().join("m.json");
+    let ctl = tmp.path().join("c.json");
+    let trace = tmp.path().join("trace.csv");
+    let p = |x: &Path| x.to_str().unwrap().to_string();
+    cli(&[
+        "simulate",
+        "--plant",
+        "ipa",
+        "--seed",
+        "1",
+        "--samples",
+        "3000",
+        "--out",
+        &p(&rec),
+    ]);
+    cli(&[
+        "identify",
+        "--data",
+        &p(&rec),
+        "--method",
+        "oe",
+        "--save-model",
+        &p(&model),
+    ]);
+    cli(&[
+        "tune",
+        "--model",
+        &p(&model),
+        "--out",
+        &p(&ctl),
+        "--max-evaluations",
+        "30",
+    ]);
+    cli(&[
+        "control",
+        "--plant",
+        "ipa",
+        "--controller",
+        &p(&ctl),
+        "--profile",
+        "staircase:40,38,120,60@2",
+        "--out",
+        &p(&trace),
+    ]);
+    let doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&ctl).unwrap()).unwrap();
+    let c = &doc["controller"];
+    let g = |k: &str| format!("{:?}", c[k].as_f64().unwrap());
+    let mut args: Vec<String> = [
+        "ts_s",
+        "kp",
+        "ki",
+        "kd",
+        "derivative_filter_s",
+        "u_max",
+        "hold_band_mm",
+        "fine_band_mm",
+    ]
+    .iter()
+    .map(|k| g(k))
+    .collect();
+    args.push(
+        if c["reset_on_crossing"].as_bool().unwrap() {
+            "1"
+        } else {
+            "0"
+        }
+        .into(),
+    );
+    let dz = &c["compensator"]["deadzone"];
+    assert!(
+        dz.is_object(),
+        "the tuned controller has a deadzone inverse"
+    );
+    for k in ["b_l", "b_r", "m_l", "m_r"] {
+        args.push(format!("{:?}", dz[k].as_f64().unwrap()));
+    }
+    let out = Command::new(&exe)
+        .args(&args)
+        .stdin(std::fs::File::open(&trace).unwrap())
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let from_c: Vec<f64> = String::from_utf8(out.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| l.parse().unwrap())
+        .collect();
+    let recorded: Vec<f64> = std::fs::read_to_string(&trace)
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(2).unwrap().parse().unwrap())
+        .collect();
+    assert_eq!(from_c.len(), recorded.len());
+    assert_eq!(recorded.len(), 801);
+    for (k, (a, b)) in from_c.iter().zip(&recorded).enumerate() {
+        assert_eq!(a.to_bits(), b.to_bits(), "sample {k}: C {a} vs control {b}");
+    }
+    // The run exercises every branch: saturated, held (0) and in between.
+    assert!(recorded.iter().any(|u| u.abs() == 255.0));
+    assert!(recorded.contains(&0.0));
 }

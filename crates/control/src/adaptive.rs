@@ -39,7 +39,7 @@
 use sysid_core::Deadzone;
 
 use crate::closed_loop::{run_with, Trace};
-use crate::{ControlError, DeadzoneCompensator, PiController, Profile};
+use crate::{ControlError, DeadzoneCompensator, Profile};
 use sysid::online::{DeadzoneSd, DeadzoneStart, DetectorSettings, TrackSettings, Tracker};
 use sysid_core::Plant;
 
@@ -252,7 +252,7 @@ fn towards(current: f64, target: f64, step: f64) -> f64 {
 /// run (see the module documentation).
 pub fn run_adaptive(
     plant: &mut dyn Plant,
-    controller: &mut PiController,
+    controller: &mut dyn crate::Controller,
     initial: DeadzoneCompensator,
     settings: &AdaptiveSettings,
     profile: &Profile,

@@ -10,6 +10,30 @@ use sysid_core::{Plant, PlantError};
 
 use crate::{ControlError, ControlSetting, DeadzoneCompensator, PiController, Profile};
 
+/// A sampled position controller: from the set-point r(k) and the measured position y(k) (mm) it gives
+/// the command u(k) (counts) once per sampling period. The paper's PI ([`PiController`]) and the tuned
+/// controller ([`crate::PositionController`]) both run in the one loop [`run`] / [`run_with`].
+pub trait Controller {
+    /// Ts: the sampling period in s it was built for.
+    fn ts_s(&self) -> f64;
+    /// Back to rest (integral, filter and memory states to 0).
+    fn reset(&mut self);
+    /// One sample: r(k), y(k) in mm -> u(k) in counts.
+    fn step(&mut self, r_mm: f64, y_mm: f64) -> f64;
+}
+
+impl Controller for PiController {
+    fn ts_s(&self) -> f64 {
+        PiController::ts_s(self)
+    }
+    fn reset(&mut self) {
+        PiController::reset(self)
+    }
+    fn step(&mut self, r_mm: f64, y_mm: f64) -> f64 {
+        PiController::step(self, r_mm, y_mm)
+    }
+}
+
 /// Upper bound on the number of samples of one run (10^8: 11 days at Ts = 0.01 s), so that a typo in a
 /// duration cannot exhaust memory.
 pub const MAX_SAMPLES: usize = 100_000_000;
@@ -65,7 +89,7 @@ impl Trace {
 /// ```
 pub fn run(
     plant: &mut dyn Plant,
-    controller: &mut PiController,
+    controller: &mut dyn Controller,
     compensator: Option<&DeadzoneCompensator>,
     profile: &Profile,
     duration_s: f64,
@@ -85,7 +109,7 @@ pub fn run(
 /// and the measured y(k) (a compensator, possibly one that adapts; see [`crate::adaptive`]).
 pub fn run_with(
     plant: &mut dyn Plant,
-    controller: &mut PiController,
+    controller: &mut dyn Controller,
     profile: &Profile,
     duration_s: f64,
     y0_mm: f64,

@@ -24,6 +24,16 @@ pub enum ControlSetting {
     Deadzone,
     /// The compensator's threshold (counts).
     CompensatorThreshold,
+    /// Kd: derivative gain of the tuned controller (counts·s/mm).
+    Kd,
+    /// Tf: filter time constant of the derivative (s).
+    DerivativeFilter,
+    /// e_h: hold band of the tuned controller (mm).
+    HoldBand,
+    /// e_f: fine band of the tuned controller (mm).
+    FineBand,
+    /// The tuning specification (`--spec`).
+    Spec,
 }
 
 impl ControlSetting {
@@ -39,6 +49,11 @@ impl ControlSetting {
             ControlSetting::Y0 => "y0_mm",
             ControlSetting::Deadzone => "deadzone",
             ControlSetting::CompensatorThreshold => "threshold_counts",
+            ControlSetting::Kd => "kd",
+            ControlSetting::DerivativeFilter => "derivative_filter_s",
+            ControlSetting::HoldBand => "hold_band_mm",
+            ControlSetting::FineBand => "fine_band_mm",
+            ControlSetting::Spec => "spec",
         }
     }
 }
@@ -129,6 +144,11 @@ impl ControlSetting {
             ControlSetting::Y0 => "--y0",
             ControlSetting::Deadzone => "--compensate-deadzone",
             ControlSetting::CompensatorThreshold => "--compensator-threshold",
+            ControlSetting::Kd => "kd (controller file)",
+            ControlSetting::DerivativeFilter => "derivative_filter_s (controller file)",
+            ControlSetting::HoldBand => "hold_band_mm (controller file)",
+            ControlSetting::FineBand => "fine_band_mm (controller file)",
+            ControlSetting::Spec => "--spec",
         }
     }
 }

@@ -44,6 +44,11 @@
 #define IPA_PI_STATE_BYTES 80
 
 /**
+ * An upper bound, valid on every target, of [`ipa_ctl_state_size`] in bytes (the tuned controller).
+ */
+#define IPA_CTL_STATE_BYTES 256
+
+/**
  * `ipa_hrls_init` form: P itself, updated by the paper's eq. 12 (`identify --rls-form standard`).
  */
 #define IPA_FORM_STANDARD 0
@@ -135,6 +140,57 @@ typedef struct IpaDeadzone {
    */
   double m_r;
 } IpaDeadzone;
+
+/**
+ * The tuned position controller's settings: the `controller` object of CONTROLLER.json
+ * (`ipa-sysid tune --out`), field for field.
+ */
+typedef struct IpaController {
+  /**
+   * Ts: sampling period, s (`ts_s`).
+   */
+  double ts;
+  /**
+   * Kp, counts/mm.
+   */
+  double kp;
+  /**
+   * Ki, counts/(mm·s).
+   */
+  double ki;
+  /**
+   * Kd, counts·s/mm.
+   */
+  double kd;
+  /**
+   * Tf: derivative filter time constant, s (`derivative_filter_s`).
+   */
+  double tf;
+  /**
+   * u_max: command limit, counts.
+   */
+  double u_max;
+  /**
+   * e_h: hold band, mm (`hold_band_mm`).
+   */
+  double hold_band;
+  /**
+   * e_f: fine band, mm (`fine_band_mm`).
+   */
+  double fine_band;
+  /**
+   * 1: restart the integral when the error changes sign (`reset_on_crossing`); 0: not.
+   */
+  int32_t reset_on_crossing;
+  /**
+   * 1: a deadzone inverse with `deadzone` (shift mode, threshold 0, limit u_max); 0: none.
+   */
+  int32_t has_deadzone;
+  /**
+   * The deadzone the compensator inverts (`compensator.deadzone`).
+   */
+  IpaDeadzone deadzone;
+} IpaController;
 
 #ifdef __cplusplus
 extern "C" {
@@ -320,6 +376,38 @@ int32_t ipa_pi_init(void *mem,
  * `mem` storage of a successful [`ipa_pi_init`] (or null); `u` null or writable.
  */
 int32_t ipa_pi_step(void *mem, double r, double y, double *u);
+
+/**
+ * Size in bytes of the tuned position controller's state.
+ */
+size_t ipa_ctl_state_size(void);
+
+/**
+ * Initialises the tuned position controller (CONTROLLER.json) in `mem` from `settings`, at rest.
+ * Returns [`IPA_OK`] or a negative code (a setting out of range, bad storage).
+ *
+ * # Safety
+ * `mem` null or writable for `len` bytes, aligned to 8; `settings` null or readable.
+ */
+int32_t ipa_ctl_init(void *mem, size_t len, const IpaController *settings);
+
+/**
+ * One sample of the tuned controller: set-point r and position y in mm; writes the command (counts)
+ * to `*u`. Returns [`IPA_OK`] or a negative code (non-finite input: state unchanged).
+ *
+ * # Safety
+ * `mem` storage of a successful [`ipa_ctl_init`] (or null); `u` null or writable.
+ */
+int32_t ipa_ctl_step(void *mem, double r, double y, double *u);
+
+/**
+ * Puts the tuned controller back at rest (integral, derivative and memories to 0).
+ * Returns [`IPA_OK`] or a negative code.
+ *
+ * # Safety
+ * `mem` storage of a successful [`ipa_ctl_init`] (or null).
+ */
+int32_t ipa_ctl_reset(void *mem);
 
 /**
  * Deadzone-inverse compensation of a controller output `u` (counts): `*u_c` = f⁻¹(m_ref u) clamped to

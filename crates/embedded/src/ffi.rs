@@ -24,6 +24,7 @@ use crate::cusum::{Cusum, CusumStatus};
 use crate::deadzone::{Compensator, Deadzone, SlopeMode};
 use crate::hammerstein::{HammersteinRls, HammersteinSettings};
 use crate::pi::{AntiWindup, Pi};
+use crate::position::{PositionController, PositionSettings};
 use crate::rls::Form;
 use crate::Error;
 
@@ -37,6 +38,9 @@ pub const IPA_MAX_NK: u32 = 8;
 pub const IPA_HRLS_STATE_BYTES: usize = 3456;
 /// An upper bound, valid on every target, of [`ipa_pi_state_size`] in bytes.
 pub const IPA_PI_STATE_BYTES: usize = 80;
+
+/// An upper bound, valid on every target, of [`ipa_ctl_state_size`] in bytes (the tuned controller).
+pub const IPA_CTL_STATE_BYTES: usize = 256;
 
 /// `ipa_hrls_init` form: P itself, updated by the paper's eq. 12 (`identify --rls-form standard`).
 pub const IPA_FORM_STANDARD: u32 = 0;
@@ -74,6 +78,7 @@ const MAX_D: usize = IPA_MAX_NK as usize + IPA_MAX_NB as usize - 1;
 const HRLS_MAGIC: u64 = 0x4950_415f_4852_4c53; // "IPA_HRLS"
 const PI_MAGIC: u64 = 0x4950_415f_5049_4354; // "IPA_PICT"
 const CUSUM_MAGIC: u64 = 0x4950_415f_4355_534d; // "IPA_CUSM"
+const CTL_MAGIC: u64 = 0x4950_415f_4354_4c52; // "IPA_CTLR"
 
 #[repr(C)]
 struct HrlsState {
@@ -95,6 +100,42 @@ struct PiState {
 
 const _: () = assert!(size_of::<HrlsState>() <= IPA_HRLS_STATE_BYTES);
 const _: () = assert!(size_of::<PiState>() <= IPA_PI_STATE_BYTES);
+const _: () = assert!(size_of::<CtlState>() <= IPA_CTL_STATE_BYTES);
+
+#[repr(C)]
+struct CtlState {
+    magic: u64,
+    ctl: PositionController<f64>,
+}
+
+/// The tuned position controller's settings: the `controller` object of CONTROLLER.json
+/// (`ipa-sysid tune --out`), field for field.
+#[repr(C)]
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct IpaController {
+    /// Ts: sampling period, s (`ts_s`).
+    pub ts: f64,
+    /// Kp, counts/mm.
+    pub kp: f64,
+    /// Ki, counts/(mm·s).
+    pub ki: f64,
+    /// Kd, counts·s/mm.
+    pub kd: f64,
+    /// Tf: derivative filter time constant, s (`derivative_filter_s`).
+    pub tf: f64,
+    /// u_max: command limit, counts.
+    pub u_max: f64,
+    /// e_h: hold band, mm (`hold_band_mm`).
+    pub hold_band: f64,
+    /// e_f: fine band, mm (`fine_band_mm`).
+    pub fine_band: f64,
+    /// 1: restart the integral when the error changes sign (`reset_on_crossing`); 0: not.
+    pub reset_on_crossing: i32,
+    /// 1: a deadzone inverse with `deadzone` (shift mode, threshold 0, limit u_max); 0: none.
+    pub has_deadzone: i32,
+    /// The deadzone the compensator inverts (`compensator.deadzone`).
+    pub deadzone: IpaDeadzone,
+}
 const _: () = assert!(size_of::<CusumState>() <= IPA_CUSUM_STATE_BYTES);
 const _: () = assert!(MAX_D >= IPA_MAX_NA as usize);
 
@@ -553,6 +594,106 @@ pub unsafe extern "C" fn ipa_pi_step(mem: *mut c_void, r: f64, y: f64, u: *mut f
         unsafe { u.write(v) };
         IPA_OK
     }))
+}
+
+/// Size in bytes of the tuned position controller's state.
+#[no_mangle]
+pub extern "C" fn ipa_ctl_state_size() -> usize {
+    size_of::<CtlState>()
+}
+
+/// Initialises the tuned position controller (CONTROLLER.json) in `mem` from `settings`, at rest.
+/// Returns [`IPA_OK`] or a negative code (a setting out of range, bad storage).
+///
+/// # Safety
+/// `mem` null or writable for `len` bytes, aligned to 8; `settings` null or readable.
+#[no_mangle]
+pub unsafe extern "C" fn ipa_ctl_init(
+    mem: *mut c_void,
+    len: usize,
+    settings: *const IpaController,
+) -> i32 {
+    if settings.is_null() {
+        return IPA_ERR_NULL;
+    }
+    // SAFETY: non-null and readable per the contract.
+    let c = unsafe { settings.read() };
+    let compensator = match c.has_deadzone {
+        0 => Ok(None),
+        1 => {
+            let d = Deadzone {
+                b_l: c.deadzone.b_l,
+                b_r: c.deadzone.b_r,
+                m_l: c.deadzone.m_l,
+                m_r: c.deadzone.m_r,
+            };
+            Compensator::new(d, SlopeMode::Shift, 0.0, c.u_max).map(Some)
+        }
+        _ => Err(Error::Setting),
+    };
+    let reset_on_crossing = match c.reset_on_crossing {
+        0 => Ok(false),
+        1 => Ok(true),
+        _ => Err(Error::Setting),
+    };
+    let state = compensator.and_then(|comp| {
+        let s = PositionSettings {
+            ts: c.ts,
+            kp: c.kp,
+            ki: c.ki,
+            kd: c.kd,
+            tf: c.tf,
+            u_max: c.u_max,
+            hold_band: c.hold_band,
+            fine_band: c.fine_band,
+            reset_on_crossing: reset_on_crossing?,
+        };
+        PositionController::new(s, comp).map(|ctl| CtlState {
+            magic: CTL_MAGIC,
+            ctl,
+        })
+    });
+    // SAFETY: forwarded contract.
+    unsafe { init(mem, len, state) }
+}
+
+/// One sample of the tuned controller: set-point r and position y in mm; writes the command (counts)
+/// to `*u`. Returns [`IPA_OK`] or a negative code (non-finite input: state unchanged).
+///
+/// # Safety
+/// `mem` storage of a successful [`ipa_ctl_init`] (or null); `u` null or writable.
+#[no_mangle]
+pub unsafe extern "C" fn ipa_ctl_step(mem: *mut c_void, r: f64, y: f64, u: *mut f64) -> i32 {
+    // SAFETY: forwarded contract.
+    let st = match unsafe { state_mut::<CtlState>(mem, CTL_MAGIC) } {
+        Ok(st) => st,
+        Err(e) => return e.code(),
+    };
+    if u.is_null() {
+        return IPA_ERR_NULL;
+    }
+    code(st.ctl.step(r, y).map(|v| {
+        // SAFETY: non-null and writable per the contract.
+        unsafe { u.write(v) };
+        IPA_OK
+    }))
+}
+
+/// Puts the tuned controller back at rest (integral, derivative and memories to 0).
+/// Returns [`IPA_OK`] or a negative code.
+///
+/// # Safety
+/// `mem` storage of a successful [`ipa_ctl_init`] (or null).
+#[no_mangle]
+pub unsafe extern "C" fn ipa_ctl_reset(mem: *mut c_void) -> i32 {
+    // SAFETY: forwarded contract.
+    match unsafe { state_mut::<CtlState>(mem, CTL_MAGIC) } {
+        Ok(st) => {
+            st.ctl.reset();
+            IPA_OK
+        }
+        Err(e) => e.code(),
+    }
 }
 
 /// Deadzone-inverse compensation of a controller output `u` (counts): `*u_c` = f⁻¹(m_ref u) clamped to

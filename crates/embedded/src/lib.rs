@@ -40,12 +40,14 @@ pub mod ffi;
 pub mod float;
 pub mod hammerstein;
 pub mod pi;
+pub mod position;
 pub mod rls;
 
 pub use deadzone::{Compensator, Deadzone, SlopeMode};
 pub use float::Float;
 pub use hammerstein::{HammersteinRls, HammersteinSettings};
 pub use pi::{AntiWindup, Pi};
+pub use position::{PositionController, PositionSettings};
 pub use rls::{Form, Rls};
 
 /// A failure of an embedded routine. In the C interface each is a negative return code
@@ -117,6 +119,13 @@ mod tests {
         assert_eq!(size_of::<Deadzone<f64>>(), 32);
         assert_eq!(size_of::<Compensator<f64>>(), round(6 * 8 + 1, 8));
         assert_eq!(size_of::<Compensator<f32>>(), round(6 * 4 + 1, 4));
+        // PositionController: settings (eight floats, a bool), the optional compensator (the slope
+        // mode's spare values hold the `None`), five floats and a bool: 176 bytes for f64, 88 for f32.
+        let ctl = |f: usize| round(round(8 * f + 1, f) + round(6 * f + 1, f) + 5 * f + 1, f);
+        assert_eq!(size_of::<PositionController<f64>>(), ctl(8));
+        assert_eq!(size_of::<PositionController<f32>>(), ctl(4));
+        assert_eq!(ctl(8), 176);
+        assert!(ffi::ipa_ctl_state_size() <= ffi::IPA_CTL_STATE_BYTES);
         if w == 8 {
             // The numbers quoted in the documentation for a 64-bit host.
             assert_eq!(size_of::<Rls<f64, 7>>(), 488);

@@ -61,6 +61,47 @@ pub(crate) fn compensated_run(
     )?))
 }
 
+/// The tuned controller (issue 25) of the fixed set-point test: tuned on the identified model `fit`
+/// (a small search: 3 variants, 40 evaluations, so that `reproduce` stays quick), then run on the plant
+/// and on the model; `Ok(Err(reason))` when the model cannot be tuned on.
+pub(crate) fn tuned_run(
+    plant: &mut dyn Plant,
+    fit: &FittedModel,
+    profile: &Profile,
+    duration_s: f64,
+    y0_mm: f64,
+) -> Result<Result<(control::ControllerSettings, Trace, Trace), String>, ReproduceError> {
+    let deadzone = match control::tuning::command_deadzone(&fit.model) {
+        Ok(d) => d,
+        Err(p) => return Ok(Err(p.to_string())),
+    };
+    let req = control::tuning::Request {
+        source: control::tuning::Source::Model {
+            model: fit.model.clone(),
+            deadzone,
+            label: "output-error model".into(),
+        },
+        spec: control::tune::Spec::default(),
+        search: control::tune::TuneSettings {
+            plants: 3,
+            max_evaluations: 40,
+        },
+        check_physics: false,
+        physics_variants: 0,
+    };
+    let report = match control::tuning::run(&req) {
+        Ok(r) => r,
+        Err(e) if !e.is_numerical() => return Ok(Err(e.to_string())),
+        Err(e) => return Err(e.into()),
+    };
+    let s = report.controller;
+    let mut c = s.build()?;
+    let on_plant = closed_loop::run(plant, &mut c, None, profile, duration_s, y0_mm)?;
+    let mut model = ModelPlant::new(fit.model.clone(), "output-error model")?;
+    let on_model = closed_loop::run(&mut model, &mut c, None, profile, duration_s, y0_mm)?;
+    Ok(Ok((s, on_plant, on_model)))
+}
+
 pub(crate) fn step_metrics(
     trace: &Trace,
     y0_mm: f64,

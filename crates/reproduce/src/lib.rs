@@ -38,7 +38,7 @@ mod twin;
 pub use error::ReproduceError;
 pub use study::CLOSED_LOOP_RULE;
 
-use closed_loop::{closed_loop_pair, compensated_run, step_metrics, unfixed_metrics};
+use closed_loop::{closed_loop_pair, compensated_run, step_metrics, tuned_run, unfixed_metrics};
 use experiment::record;
 use study::{closed_loop_choice, Fitted, Loop, Study};
 
@@ -313,6 +313,28 @@ pub fn run(
         }
         Err(reason) => Err(reason),
     };
+    // Issue 25: the controller tuned on the same output-error model, on the plant and on the model.
+    let tuned = match tuned_run(
+        plant.as_mut(),
+        comp_source,
+        &fixed_profile,
+        s.fixed_duration_s,
+        s.fixed_start_mm,
+    )? {
+        Ok((settings, on_plant, on_model)) => {
+            sysid_io::write_columns_csv(
+                &data_dir.join("closed_loop_fixed_plant_tuned.csv"),
+                &Trace::COLUMNS,
+                &on_plant.columns(),
+            )?;
+            Ok(study::Tuned {
+                settings,
+                m_plant: step_metrics(&on_plant, s.fixed_start_mm, s.fixed_setpoint_mm)?,
+                m_model: step_metrics(&on_model, s.fixed_start_mm, s.fixed_setpoint_mm)?,
+            })
+        }
+        Err(reason) => Err(reason),
+    };
     let unfixed_profile = Profile::parse(&s.unfixed_profile)?;
     let uf_duration = unfixed_profile.natural_duration_s().unwrap_or(20.0);
     let (up, um) = closed_loop_pair(
@@ -361,6 +383,7 @@ pub fn run(
         fit_ol,
         fixed,
         compensated,
+        tuned,
         unfixed,
         steps_plant,
         steps_model,

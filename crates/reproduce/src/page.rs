@@ -335,6 +335,9 @@ pub(crate) fn build_report(
         "—".into(),
         "—".into(),
     ]);
+    for (label, a, b) in crate::tables::tuned_rows(st) {
+        t5.push_row([label, opt(a), opt(b), "—".into(), "—".into()]);
+    }
     let comp_text = match &st.compensated {
         Ok(m) => format!(
             "With the inverse of the identified (output-error) deadzone after the PI — the paper's suggested future \
@@ -359,7 +362,8 @@ pub(crate) fn build_report(
                 st.cl().map_or("no model (none is stable)", |m| m.label)
             ))
             .table(t5)
-            .paragraph(comp_text),
+            .paragraph(comp_text)
+            .paragraph(crate::tables::tuned_text(st)),
         "fig7a_closed_loop_fixed",
     )?;
     let cl = with_fig(

@@ -52,6 +52,13 @@ impl Criterion {
 }
 
 /// Everything a run computed; the tables, figures, report and summary are views of it.
+/// The tuned controller's fixed set-point runs.
+pub(crate) struct Tuned {
+    pub(crate) settings: control::ControllerSettings,
+    pub(crate) m_model: StepMetrics,
+    pub(crate) m_plant: StepMetrics,
+}
+
 pub(crate) struct Study {
     pub(crate) plant_name: String,
     pub(crate) ts: f64,
@@ -68,6 +75,9 @@ pub(crate) struct Study {
     pub(crate) fit_ol: Option<f64>,
     pub(crate) fixed: Loop,
     pub(crate) compensated: Result<StepMetrics, String>,
+    /// The tuned controller (issue 25) on the fixed set-point: its settings, metrics on the model and
+    /// on the plant; the reason when it was not run.
+    pub(crate) tuned: Result<Tuned, String>,
     pub(crate) unfixed: Loop,
     pub(crate) steps_plant: Vec<control::StepSegment>,
     pub(crate) steps_model: Vec<control::StepSegment>,

@@ -76,6 +76,11 @@ pub(crate) fn summary_json(
                        "plant_compensated": match &st.compensated {
                            Ok(m) => mj(m),
                            Err(reason) => json!({"not_applicable": reason}),
+                       },
+                       "tuned": match &st.tuned {
+                           Ok(t) => json!({"controller": t.settings, "model": mj(&t.m_model),
+                                           "plant": mj(&t.m_plant)}),
+                           Err(reason) => json!({"not_applicable": reason}),
                        } },
             "unfixed": { "profile": s.unfixed_profile,
                          "model": mjo(&st.unfixed.m_model), "plant": mj(&st.unfixed.m_plant),

@@ -126,6 +126,53 @@ pub(crate) fn closed_loop_rows(lp: &Loop) -> [ClosedLoopRow; 4] {
     ]
 }
 
+/// The "tuned controller" rows of Table V (issue 25): each criterion of the tuned controller on the
+/// model and on the plant (the paper has no such column: `None`).
+pub(crate) fn tuned_rows(st: &Study) -> Vec<(String, Option<f64>, Option<f64>)> {
+    let Ok(t) = &st.tuned else {
+        return Vec::new();
+    };
+    let (m, p) = (&t.m_model, &t.m_plant);
+    vec![
+        (
+            "tuned: overshoot (mm)".into(),
+            m.overshoot_mm,
+            p.overshoot_mm,
+        ),
+        (
+            "tuned: e_ss (mm)".into(),
+            m.steady_state_error_mm,
+            p.steady_state_error_mm,
+        ),
+        ("tuned: rise time (s)".into(), m.rise_time_s, p.rise_time_s),
+        (
+            "tuned: settling time (s)".into(),
+            m.settling_time_s,
+            p.settling_time_s,
+        ),
+    ]
+}
+
+/// The tuned controller in words (settings, or why it was not run).
+pub(crate) fn tuned_text(st: &Study) -> String {
+    match &st.tuned {
+        Ok(t) => {
+            let s = &t.settings;
+            format!(
+                "Tuned controller (ipa-sysid tune on the output-error model, 3 variants, 40 evaluations; \
+                 docs/control.md): Kp = {}, Ki = {}, Kd = {}, deadzone inverse with fine band {} mm, hold \
+                 band {} mm (data/closed_loop_fixed_plant_tuned.csv).",
+                report::format::sig(s.kp, 4),
+                report::format::sig(s.ki, 4),
+                report::format::sig(s.kd, 3),
+                report::format::sig(s.fine_band_mm, 3),
+                s.hold_band_mm
+            )
+        }
+        Err(reason) => format!("The tuned controller was not run: {reason}."),
+    }
+}
+
 /// The whiteness and independence verdicts of a residual analysis, in words.
 fn resid_verdict(r: &Result<sysid::residuals::ResidualAnalysis, String>) -> String {
     match r {
@@ -215,6 +262,17 @@ pub(crate) fn tables_text(s: &ReproduceSettings, st: &Study) -> String {
             estimate(pe)
         );
     }
+    for (label, a, b) in tuned_rows(st) {
+        let _ = writeln!(
+            o,
+            "{label:<26}{:>14}{:>14}{:>14}{:>14}",
+            opt(a),
+            opt(b),
+            "—",
+            "—"
+        );
+    }
+    let _ = writeln!(o, "{}", tuned_text(st));
     let _ = writeln!(
         o,
         "Model simulated: {} (rule: {CLOSED_LOOP_RULE})",

@@ -91,6 +91,10 @@ pub struct Args {
     /// t = 30 s every command loses 20 counts towards zero, i.e. b_r + 20 and b_l − 20).
     #[arg(long, value_name = "AT_S:COUNTS")]
     pub deadzone_change: Option<control::DeadzoneChange>,
+    /// Run the controller of this file (written by `ipa-sysid tune --out`) instead of the PI of --kp/--ki
+    /// (its gains, anti-windup, deadzone inverse and hold band are in the file).
+    #[arg(long, value_name = "CONTROLLER.json", conflicts_with_all = ["compensate_deadzone", "adaptive", "anti_windup", "tracking_time", "integral"])]
+    pub controller: Option<PathBuf>,
     /// Write the metrics and settings as JSON to this file (`-` = standard output).
     #[arg(long, value_name = "OUT")]
     pub json: Option<PathBuf>,
@@ -102,12 +106,24 @@ pub struct Args {
 /// The `settings` object of the JSON output.
 #[derive(Debug, Serialize)]
 struct SettingsOut<'a> {
-    controller: &'a PiSettings,
+    controller: ControllerOut<'a>,
     ts_s: f64,
     duration_s: f64,
     y0_mm: f64,
     profile: &'a Profile,
     compensator: Option<&'a DeadzoneCompensator>,
+}
+
+/// The controller of the JSON output: the PI of the flags, or the tuned controller of --controller
+/// (with the file it came from).
+#[derive(Debug, Serialize)]
+#[serde(untagged)]
+enum ControllerOut<'a> {
+    Pi(&'a PiSettings),
+    Tuned {
+        file: String,
+        tuned: &'a control::ControllerSettings,
+    },
 }
 
 /// The JSON output of `ipa-sysid control --json`.
@@ -193,7 +209,30 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .with_integral(args.integral)
         .with_anti_windup(anti_windup(&args, ts)?)
         .with_u_max(args.u_max);
-    let mut controller = settings.build(ts)?;
+    let tuned = match &args.controller {
+        Some(path) => {
+            inputs.push(path.clone());
+            let t = control::ControllerFile::read(path).context("cannot read --controller")?;
+            if (t.ts_s - ts).abs() > 1e-9 * ts {
+                bail!(sysid::SysidError::setting(
+                    sysid::Setting::Other("--controller"),
+                    path.display(),
+                    &format!(
+                        "a controller for the plant's Ts = {ts} s (this one was tuned for Ts = {} s)",
+                        t.ts_s
+                    )
+                ));
+            }
+            Some(t)
+        }
+        None => None,
+    };
+    let mut pi = settings.build(ts)?;
+    let mut position = tuned.map(|t| t.build()).transpose()?;
+    let controller: &mut dyn control::Controller = match position.as_mut() {
+        Some(p) => p,
+        None => &mut pi,
+    };
     let compensator = compensator(&args, &mut inputs)?;
 
     let duration_s = match (args.duration, profile.natural_duration_s()) {
@@ -210,7 +249,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let (trace, adaptive) = run_loop(
         &args,
         plant.as_mut(),
-        &mut controller,
+        controller,
         compensator.as_ref(),
         &profile,
         duration_s,
@@ -239,7 +278,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &trace,
         &steps,
         &control::LoopFacts {
-            u_max: args.u_max,
+            u_max: tuned.map_or(args.u_max, |t| t.u_max),
             range_mm: limits.range_mm,
             unstable_pole: limits.unstable_pole,
             fixed_step: matches!(profile, Profile::Fixed { .. }),
@@ -257,7 +296,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 spec: &args.plant,
             },
             settings: SettingsOut {
-                controller: &settings,
+                controller: match (&tuned, &args.controller) {
+                    (Some(t), Some(p)) => ControllerOut::Tuned {
+                        file: p.display().to_string(),
+                        tuned: t,
+                    },
+                    _ => ControllerOut::Pi(&settings),
+                },
                 ts_s: ts,
                 duration_s,
                 y0_mm: args.y0,
@@ -285,7 +330,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
     let mut summary = summary_text(
         &plant.name(),
-        &settings,
+        &match &tuned {
+            Some(t) => tuned_line(t),
+            None => pi_line(&settings),
+        },
         ts,
         &profile,
         args.y0,
@@ -315,7 +363,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 fn run_loop(
     args: &Args,
     plant: &mut dyn sysid::Plant,
-    controller: &mut control::PiController,
+    controller: &mut dyn control::Controller,
     compensator: Option<&DeadzoneCompensator>,
     profile: &Profile,
     duration_s: f64,
@@ -414,44 +462,35 @@ fn compensator(
         return Ok(None);
     };
     let deadzone = if path.as_os_str() == "paper" {
-        sysid::Model::paper().deadzone().copied()
+        sysid::Model::paper()
+            .deadzone()
+            .copied()
+            .context("the paper's model has a deadzone")?
     } else {
         inputs.push(path.clone());
         let m = sysid::model_file::read_model(path).context("cannot read --compensate-deadzone")?;
-        if m.inputs().len() > 1 {
-            bail!(sysid::SysidError::setting(
-                sysid::Setting::Other("--compensate-deadzone"),
-                path.display(),
-                &format!(
-                    "a single-input Hammerstein model file (this model has {} inputs; the PI \
-                     controller drives one command)",
-                    m.inputs().len()
-                )
-            ));
-        }
-        // A detrended model's deadzone acts on u - u0: in the command's units its breakpoints
-        // are shifted by u0 (the slopes are unchanged).
-        let u0 = m
-            .operating_point()
-            .and_then(|o| o.u.first().copied())
-            .unwrap_or(0.0);
-        m.deadzone().map(|d| sysid::Deadzone {
-            b_l: d.b_l + u0,
-            b_r: d.b_r + u0,
-            ..*d
-        })
-    };
-    let Some(deadzone) = deadzone else {
-        bail!(sysid::SysidError::setting(
-            sysid::Setting::Other("--compensate-deadzone"),
-            path.display(),
-            "a Hammerstein model file (this model is ARX and has no deadzone)"
-        ));
+        command_deadzone(&m, path, "--compensate-deadzone")?
     };
     Ok(Some(
         DeadzoneCompensator::new(deadzone, args.compensator_slopes, args.u_max)?
             .with_threshold(args.compensator_threshold)?,
     ))
+}
+
+/// The deadzone of a single-input Hammerstein model `m` (read from `path`, given with `flag`) in the
+/// command's units (`control::tuning::command_deadzone`); errors name the file and the flag.
+pub fn command_deadzone(
+    m: &sysid::Model,
+    path: &Path,
+    flag: &'static str,
+) -> anyhow::Result<sysid::Deadzone> {
+    control::tuning::command_deadzone(m).map_err(|problem| {
+        anyhow::Error::new(sysid::SysidError::setting(
+            sysid::Setting::Other(flag),
+            path.display(),
+            &problem.to_string(),
+        ))
+    })
 }
 
 /// Output paths: never over an input, and not both to the same file.
@@ -527,10 +566,38 @@ fn fmt_settling(m: &StepMetrics, run_s: f64) -> String {
     }
 }
 
+/// The `controller:` line of the summary for the PI of the flags.
+fn pi_line(s: &PiSettings) -> String {
+    let form = match s.integral {
+        IntegralForm::Scaled => "u = Kp e + Ki Ts Σe",
+        IntegralForm::PerSample => "u = Kp e + Ki Σe",
+    };
+    format!(
+        "PI Kp = {}, Ki = {} ({form}), anti-windup {}, |u| <= {} counts",
+        s.kp, s.ki, s.anti_windup, s.u_max
+    )
+}
+
+/// The `controller:` line of the summary for a tuned controller (--controller).
+pub fn tuned_line(s: &control::ControllerSettings) -> String {
+    let comp = s
+        .compensator
+        .map_or("no deadzone inverse".to_string(), |c| {
+            format!(
+                "deadzone inverse b_l = {:.3}, b_r = {:.3} (fine band {:.3} mm)",
+                c.deadzone.b_l, c.deadzone.b_r, s.fine_band_mm
+            )
+        });
+    format!(
+        "tuned PID Kp = {:.4}, Ki = {:.4}, Kd = {:.4} (Tf = {} s), clamping anti-windup, {comp}, hold band {} mm, |u| <= {} counts",
+        s.kp, s.ki, s.kd, s.derivative_filter_s, s.hold_band_mm, s.u_max
+    )
+}
+
 #[allow(clippy::too_many_arguments)]
 fn summary_text(
     plant: &str,
-    s: &PiSettings,
+    controller_line: &str,
     ts: f64,
     profile: &Profile,
     y0: f64,
@@ -541,21 +608,17 @@ fn summary_text(
     steps: &[StepSegment],
 ) -> String {
     let mut o = String::new();
-    let form = match s.integral {
-        IntegralForm::Scaled => "u = Kp e + Ki Ts Σe",
-        IntegralForm::PerSample => "u = Kp e + Ki Σe",
-    };
     let duration = trace.t.last().copied().unwrap_or(0.0);
     o += &format!(
         "plant:        {plant} (Ts = {ts} s), {} samples over {duration} s\n",
         trace.len()
     );
-    o += &format!(
-        "controller:   PI Kp = {}, Ki = {} ({form}), anti-windup {}, |u| <= {} counts\n",
-        s.kp, s.ki, s.anti_windup, s.u_max
-    );
+    o += &format!("controller:   {controller_line}\n");
     o += &format!("set-point:    {} from y0 = {y0} mm\n", profile.describe());
     match compensator {
+        None if controller_line.starts_with("tuned") => {
+            o += "compensator:  the tuned controller's own (above)\n"
+        }
         None => o += "compensator:  none\n",
         Some(c) => {
             let d = c.deadzone;

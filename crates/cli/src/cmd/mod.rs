@@ -19,4 +19,5 @@ pub mod simulate;
 pub mod simulate_fleet;
 pub mod track;
 pub mod track_stream;
+pub mod tune;
 pub mod validate;

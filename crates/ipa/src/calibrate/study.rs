@@ -62,11 +62,19 @@ pub struct StudyCase {
 /// A plant with the free parameters of the default drawn uniformly within ±spread of their defaults
 /// (the external force, 0 by default, uniformly in ±10 spread N), F_c kept at most 0.95 F_s.
 pub fn perturbed_plant(seed: u64, spread: f64) -> PlantConfig {
+    perturbed_from(&PlantConfig::default(), seed, spread)
+}
+
+/// [`perturbed_plant`] around `base` instead of the defaults (a twin's variants for `ipa-sysid tune`):
+/// each free parameter of `base` drawn uniformly within ±spread of its value, the external force
+/// within ±10 spread N of it, F_c kept at most 0.95 F_s.
+pub fn perturbed_from(base: &PlantConfig, seed: u64, spread: f64) -> PlantConfig {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
-    let mut cfg = PlantConfig::default();
+    let mut cfg = base.clone();
     for p in Parameter::ALL {
         if p == Parameter::ExternalForce {
-            p.set(&mut cfg, rng.gen_range(-10.0 * spread..=10.0 * spread));
+            let f = p.get(&cfg) + rng.gen_range(-10.0 * spread..=10.0 * spread);
+            p.set(&mut cfg, f);
         } else {
             let v = p.get(&cfg) * (1.0 + rng.gen_range(-spread..=spread));
             p.set(&mut cfg, v);

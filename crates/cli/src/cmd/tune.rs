@@ -1,0 +1,251 @@
+//! `ipa-sysid tune`: tune the position controller on an identified model or on a calibrated twin,
+//! verify it beside the paper's PI, and write CONTROLLER.json.
+//!
+//! Thin: flags -> `control::tune` (search, evaluation, margins) -> text, JSON and the controller file.
+//! Method and definitions: docs/control.md, section "Tuning".
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use anyhow::{bail, Context};
+use control::tune::{Evaluation, Spec, TuneSettings};
+use control::tuning::{self, Request, Source, TuneReport, Verification};
+use control::ControllerFile;
+use serde::Serialize;
+
+/// Flags of `ipa-sysid tune`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Tune on this identified Hammerstein model (`identify --save-model`): the simulations run on it
+    /// and on variants of its deadzone (gain and breakpoints ±30 %); its deadzone sets the compensator.
+    #[arg(
+        long,
+        value_name = "M.json",
+        required_unless_present = "plant_config",
+        conflicts_with = "plant_config"
+    )]
+    pub model: Option<PathBuf>,
+    /// Tune on this physics-plant TOML (a twin from `ipa-sysid calibrate`): the simulations run on the
+    /// twin and its variants (±30 %); the compensator's deadzone comes from a Hammerstein model
+    /// identified (output error) on a simulated record of the twin.
+    #[arg(long, value_name = "TWIN.toml")]
+    pub plant_config: Option<PathBuf>,
+    /// Specification, `KEY=VALUE,...` over the defaults overshoot=1 (%), ess=0.02 (mm), limit-cycle=0.02
+    /// (mm), u-max=255, steps=10/30/70/150 (mm, each up from `low` and down from `high`), low=25, high=175
+    /// (mm), run=3 (s per step), settling=0.5 (s), ess-share=0.9, ess-all=0.05 (mm).
+    #[arg(long, value_name = "SPEC", default_value = "")]
+    pub spec: String,
+    /// Write the tuned controller here (JSON; `control --controller` and the C interface read it).
+    #[arg(long, value_name = "CONTROLLER.json")]
+    pub out: PathBuf,
+    /// Plant variants searched over (variant 0 is the nominal model or twin).
+    #[arg(long, value_name = "N", default_value_t = 5)]
+    pub variants: usize,
+    /// Largest number of cost evaluations of the search (each simulates every variant and step).
+    #[arg(long, value_name = "N", default_value_t = 150)]
+    pub max_evaluations: usize,
+    /// Also verify on the built-in physics plant (with --model: for a model identified on a record of
+    /// it); with --plant-config the twin is always verified.
+    #[arg(long)]
+    pub check_physics: bool,
+    /// Variants of the physics plant (±30 %, seeds 1..N) in the verification, beside the nominal one.
+    #[arg(long, value_name = "N", default_value_t = 20)]
+    pub physics_variants: usize,
+    /// Write the results as JSON to this file (`-` = standard output).
+    #[arg(long, value_name = "OUT")]
+    pub json: Option<PathBuf>,
+}
+
+/// The JSON of `ipa-sysid tune --json`: the report and the controller file written.
+#[derive(Debug, Serialize)]
+struct TuneOut<'a> {
+    #[serde(flatten)]
+    report: &'a TuneReport,
+    controller_file: String,
+}
+
+/// Runs `ipa-sysid tune`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let spec = Spec::parse(&args.spec).context("invalid --spec")?;
+    for (flag, v, max) in [
+        ("--variants", args.variants, tuning::MAX_VARIANTS),
+        (
+            "--physics-variants",
+            args.physics_variants,
+            tuning::MAX_VARIANTS,
+        ),
+        (
+            "--max-evaluations",
+            args.max_evaluations,
+            tuning::MAX_EVALUATIONS,
+        ),
+    ] {
+        if v > max {
+            bail!(sysid::SysidError::setting(
+                sysid::Setting::Other(flag),
+                v,
+                &format!("at most {max}")
+            ));
+        }
+    }
+    if args.variants == 0 {
+        bail!(sysid::SysidError::setting(
+            sysid::Setting::Other("--variants"),
+            0,
+            "at least 1 (the nominal plant)"
+        ));
+    }
+    let inputs: Vec<&Path> = [args.model.as_deref(), args.plant_config.as_deref()]
+        .into_iter()
+        .flatten()
+        .collect();
+    sysid_io::check_writable(&args.out, "--out")?;
+    sysid_io::refuse_overwrite_input(&args.out, &inputs, "--out")?;
+    if let Some(j) = args.json.as_ref().filter(|j| j.as_os_str() != "-") {
+        sysid_io::check_writable(j, "--json")?;
+        sysid_io::refuse_overwrite_input(j, &inputs, "--json")?;
+        if *j == args.out {
+            bail!(sysid::SysidError::setting(
+                sysid::Setting::Other("--json"),
+                j.display(),
+                "a path different from --out"
+            ));
+        }
+    }
+    let source = match (&args.model, &args.plant_config) {
+        (Some(path), None) => {
+            let model = sysid::model_file::read_model(path).context("cannot read --model")?;
+            let deadzone = super::control::command_deadzone(&model, path, "--model")?;
+            Source::Model {
+                model,
+                deadzone,
+                label: format!("model {}", path.display()),
+            }
+        }
+        (None, Some(path)) => Source::Twin {
+            config: ipa::PlantConfig::from_toml_file(path).context("cannot read --plant-config")?,
+            label: format!("twin {}", path.display()),
+        },
+        _ => bail!("give exactly one of --model M.json or --plant-config TWIN.toml"),
+    };
+    let report = tuning::run(&Request {
+        source,
+        spec,
+        search: TuneSettings {
+            plants: args.variants,
+            max_evaluations: args.max_evaluations,
+        },
+        check_physics: args.check_physics,
+        physics_variants: args.physics_variants,
+    })?;
+
+    let provenance = serde_json::json!({
+        "tuned_by": "ipa-sysid tune",
+        "source": report.source,
+        "spec": report.spec,
+        "meets_spec": report.meets_spec(),
+    });
+    let file = ControllerFile::new(report.controller, Some(provenance));
+    let text = serde_json::to_string_pretty(&file).context("serialising the controller")? + "\n";
+    sysid_io::write_atomic(&args.out, text.as_bytes())?;
+
+    let summary = summary_text(&report, &args.out);
+    let json_to_stdout = args.json.as_ref().is_some_and(|j| j.as_os_str() == "-");
+    if let Some(json) = &args.json {
+        let doc = TuneOut {
+            report: &report,
+            controller_file: args.out.display().to_string(),
+        };
+        let text =
+            serde_json::to_string_pretty(&doc).context("serialising the JSON output")? + "\n";
+        if json_to_stdout {
+            std::io::stdout()
+                .write_all(text.as_bytes())
+                .context("writing JSON to standard output")?;
+        } else {
+            sysid_io::write_atomic(json, text.as_bytes())?;
+        }
+    }
+    if json_to_stdout {
+        eprint!("{summary}");
+    } else {
+        print!("{summary}");
+    }
+    Ok(())
+}
+
+fn f(v: Option<f64>, digits: usize) -> String {
+    v.map_or("n/a".to_string(), |x| format!("{x:.digits$}"))
+}
+
+/// The Table V criteria of an evaluation: worst over its runs, and how many runs meet the spec.
+fn rows(label: &str, e: &Evaluation) -> String {
+    let w = e.worst;
+    let n = e.runs.len();
+    format!(
+        "  {label:<16} {:>9} {:>8} {:>10} {:>8} {:>9} {:>9}   {:>3}/{n} {:>3}/{n} {:>3}/{n} {:>3}/{n}\n",
+        f(w.and_then(|m| m.overshoot_mm), 3),
+        f(w.and_then(|m| m.overshoot_percent), 2),
+        f(w.and_then(|m| m.steady_state_error_mm).map(f64::abs), 3),
+        f(w.and_then(|m| m.rise_time_s), 3),
+        f(w.and_then(|m| m.settling_time_s), 3),
+        format!("{:.3}", e.worst_limit_cycle_mm),
+        e.overshoot_met,
+        e.settling_met,
+        e.ess_met,
+        e.met,
+    )
+}
+
+fn block(v: &Verification, spec: &Spec) -> String {
+    let mut o = format!(
+        "on {} ({} runs: {} steps × {} plants; worst over the runs):\n",
+        v.plant,
+        v.comparison.tuned.runs.len(),
+        spec.cases().len(),
+        v.plants
+    );
+    o += &format!(
+        "  {:<16} {:>9} {:>8} {:>10} {:>8} {:>9} {:>9}   {:>5} {:>5} {:>5} {:>5}\n",
+        "controller",
+        "OS mm",
+        "OS %",
+        "|e_ss| mm",
+        "t_r s",
+        "t_s s",
+        "cycle mm",
+        "OS",
+        "t_s",
+        "e_ss",
+        "all"
+    );
+    o += &rows("tuned", &v.comparison.tuned);
+    o += &rows("paper PI 14/1", &v.comparison.paper_pi);
+    o
+}
+
+fn summary_text(r: &TuneReport, out: &Path) -> String {
+    let (s, m) = (&r.controller, &r.margins);
+    let mut o = format!(
+        "tuned on:     {} ({} evaluations, {:.2} s)\n",
+        r.source, r.evaluations, r.seconds
+    );
+    o += &format!("controller:   {}\n", super::control::tuned_line(s));
+    o += &format!(
+        "margins:      gain {} dB at {} rad/s, phase {}° at {} rad/s (linear part: model with the deadzone's slope)\n",
+        f(m.gain_margin_db, 2),
+        f(m.phase_crossover_rad_s, 2),
+        f(m.phase_margin_deg, 1),
+        f(m.gain_crossover_rad_s, 2)
+    );
+    o += &block(&r.on_model, &r.spec);
+    if let Some(p) = &r.on_physics {
+        o += &block(p, &r.spec);
+    }
+    o += "  (columns OS..all: steps meeting overshoot, settling-time target, |e_ss| and the whole spec)\n";
+    o += &format!("wrote {}\n", out.display());
+    for w in &r.warnings {
+        o += &format!("warning: {w}\n");
+    }
+    o
+}

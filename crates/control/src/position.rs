@@ -1,0 +1,365 @@
+//! The tuned position controller (`ipa-sysid tune`, CONTROLLER.json): a PID with clamping anti-windup,
+//! a deadzone inverse from the model's deadzone, and a hold band against stick-slip hunting.
+//!
+//! At sample k (Ts s), with e(k) = r(k) − y(k) in mm:
+//!
+//! ```text
+//! D(k)  = α D(k−1) − (1 − α) (y(k) − y(k−1)) / Ts,   α = Tf / (Tf + Ts)   (filtered −dy/dt, mm/s; D(0) = 0)
+//! |e(k)| ≤ e_h:  u(k) = 0, I(k) = I(k−1)                                    (hold: valve closed, integral frozen)
+//! otherwise:     v = Kp e + I(k−1) + Ki Ts e + Kd D(k)
+//!                I(k) = I(k−1) + Ki Ts e unless sat(v) ≠ v and e v > 0       (clamping anti-windup)
+//!                u_pi = sat(Kp e + I(k) + Kd D(k)) to ±u_max
+//!                u(k) = compensator(u_pi)                                    (deadzone inverse, docs/control.md)
+//! ```
+//!
+//! and, when the error changes sign outside the hold band, the integral restarts from 0
+//! (`reset_on_crossing`): after a stick-slip jump past the set-point the integral that broke the piston
+//! loose would otherwise push it further away while it unwinds.
+//!
+//! Why the hold band: a pneumatic piston with static friction cannot move by less than a stick-slip jump;
+//! a PI that integrates every residual error then hunts around the set-point in a limit cycle. Inside
+//! e_h the valves are closed (both chambers exhaust) and the piston stays where static friction holds it,
+//! so |e_ss| ≤ e_h once the band is reached. e_h = 0 turns the hold off.
+//!
+//! Derivative on the measurement (not on the error), so that a set-point step gives no derivative kick.
+//! Units: Kp counts/mm, Ki counts/(mm·s), Kd counts·s/mm, Tf s, e_h mm, u counts.
+
+use serde::{Deserialize, Serialize};
+
+use crate::closed_loop::Controller;
+use crate::{ControlError, ControlSetting, DeadzoneCompensator};
+
+/// The format name written in a controller file's `format` field.
+pub const CONTROLLER_FORMAT: &str = "ipa-sysid-controller";
+/// The version of the controller file format.
+pub const CONTROLLER_VERSION: u32 = 1;
+
+/// Settings of the tuned position controller (see the module documentation); the `controller` object
+/// of CONTROLLER.json.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ControllerSettings {
+    /// Ts: sampling period in s (> 0); the controller runs only on a plant with the same Ts.
+    pub ts_s: f64,
+    /// Kp: proportional gain, counts/mm (>= 0).
+    pub kp: f64,
+    /// Ki: integral gain, counts/(mm·s) (>= 0); I(k) = I(k−1) + Ki Ts e(k).
+    pub ki: f64,
+    /// Kd: derivative gain on the measured velocity, counts·s/mm (>= 0).
+    pub kd: f64,
+    /// Tf: time constant of the first-order filter on the derivative, s (>= 0; 0 = unfiltered).
+    pub derivative_filter_s: f64,
+    /// u_max: limit of the command, counts (> 0; 255 for the IPA's PWM).
+    pub u_max: f64,
+    /// e_h: hold band in mm (>= 0): |e| <= e_h closes the valves and freezes the integral.
+    pub hold_band_mm: f64,
+    /// e_f: fine band in mm (>= 0): for |e| < e_f the compensator's shift is scaled by |e|/e_f, so that
+    /// the command is continuous through e = 0 (no jump from b_l to b_r) and the last millimetres are
+    /// approached by the integral (0 = the full shift everywhere).
+    pub fine_band_mm: f64,
+    /// Restart the integral from 0 when e changes sign outside the hold band.
+    pub reset_on_crossing: bool,
+    /// The deadzone inverse between the PID and the valve (from the model's deadzone), if any.
+    pub compensator: Option<DeadzoneCompensator>,
+}
+
+impl ControllerSettings {
+    /// A plain PI with clamping anti-windup at Ts = `ts_s`: Kp, Ki, no derivative, u_max = 255 counts, no
+    /// hold or fine band, no integral reset, no compensator (the other fields are public to set).
+    pub fn pi(ts_s: f64, kp: f64, ki: f64) -> Self {
+        ControllerSettings {
+            ts_s,
+            kp,
+            ki,
+            kd: 0.0,
+            derivative_filter_s: 0.0,
+            u_max: crate::PiSettings::U_MAX_PWM,
+            hold_band_mm: 0.0,
+            fine_band_mm: 0.0,
+            reset_on_crossing: false,
+            compensator: None,
+        }
+    }
+
+    /// Checks every field; errors name the [`ControlSetting`] at fault.
+    pub fn validate(&self) -> Result<(), ControlError> {
+        let nonneg = |setting: ControlSetting, v: f64, unit: &str| {
+            if v.is_finite() && v >= 0.0 {
+                Ok(())
+            } else {
+                Err(ControlError::setting(
+                    setting,
+                    v,
+                    &format!("a finite number >= 0 ({unit})"),
+                ))
+            }
+        };
+        if !(self.ts_s.is_finite() && self.ts_s > 0.0) {
+            return Err(ControlError::setting(
+                ControlSetting::Ts,
+                self.ts_s,
+                "a finite sampling period in s > 0",
+            ));
+        }
+        nonneg(ControlSetting::Kp, self.kp, "counts/mm")?;
+        nonneg(ControlSetting::Ki, self.ki, "counts/(mm·s)")?;
+        nonneg(ControlSetting::Kd, self.kd, "counts·s/mm")?;
+        nonneg(
+            ControlSetting::DerivativeFilter,
+            self.derivative_filter_s,
+            "s",
+        )?;
+        nonneg(ControlSetting::HoldBand, self.hold_band_mm, "mm")?;
+        nonneg(ControlSetting::FineBand, self.fine_band_mm, "mm")?;
+        if !(self.u_max.is_finite() && self.u_max > 0.0) {
+            return Err(ControlError::setting(
+                ControlSetting::UMax,
+                self.u_max,
+                "a finite number of counts > 0",
+            ));
+        }
+        if let Some(c) = &self.compensator {
+            // Rebuilding checks the deadzone and the threshold as `DeadzoneCompensator::new` does.
+            DeadzoneCompensator::new(c.deadzone, c.slope_mode, c.u_max)?
+                .with_threshold(c.threshold_counts)?;
+        }
+        Ok(())
+    }
+
+    /// Validates the settings and builds the running controller.
+    pub fn build(self) -> Result<PositionController, ControlError> {
+        self.validate()?;
+        let alpha = self.derivative_filter_s / (self.derivative_filter_s + self.ts_s);
+        Ok(PositionController {
+            settings: self,
+            alpha,
+            integral: 0.0,
+            derivative: 0.0,
+            y_prev: None,
+            e_prev: 0.0,
+        })
+    }
+}
+
+/// A running tuned position controller (states: the integral I, the filtered derivative D, the previous
+/// measurement and error).
+#[derive(Debug, Clone)]
+pub struct PositionController {
+    settings: ControllerSettings,
+    /// α = Tf / (Tf + Ts).
+    alpha: f64,
+    /// I(k−1), counts.
+    integral: f64,
+    /// D(k−1), mm/s.
+    derivative: f64,
+    /// y(k−1), mm; `None` before the first sample.
+    y_prev: Option<f64>,
+    /// e(k−1), mm (0 before the first sample).
+    e_prev: f64,
+}
+
+impl PositionController {
+    /// The settings it was built from.
+    pub fn settings(&self) -> &ControllerSettings {
+        &self.settings
+    }
+
+    /// I(k) in counts after the last step.
+    pub fn integral_counts(&self) -> f64 {
+        self.integral
+    }
+}
+
+impl Controller for PositionController {
+    fn ts_s(&self) -> f64 {
+        self.settings.ts_s
+    }
+
+    fn reset(&mut self) {
+        self.integral = 0.0;
+        self.derivative = 0.0;
+        self.y_prev = None;
+        self.e_prev = 0.0;
+    }
+
+    fn step(&mut self, r_mm: f64, y_mm: f64) -> f64 {
+        let s = &self.settings;
+        let e = r_mm - y_mm;
+        let dy = match self.y_prev {
+            Some(prev) => (y_mm - prev) / s.ts_s,
+            None => 0.0,
+        };
+        self.y_prev = Some(y_mm);
+        self.derivative = self.alpha * self.derivative - (1.0 - self.alpha) * dy;
+        if e.abs() <= s.hold_band_mm {
+            self.e_prev = e;
+            return 0.0;
+        }
+        if s.reset_on_crossing && e * self.e_prev < 0.0 {
+            self.integral = 0.0;
+        }
+        self.e_prev = e;
+        let proportional = s.kp * e;
+        let integrated = self.integral + s.ki * s.ts_s * e;
+        let v = proportional + integrated;
+        let u = v.clamp(-s.u_max, s.u_max);
+        let u_pi = if u != v && e * v > 0.0 {
+            (proportional + self.integral).clamp(-s.u_max, s.u_max)
+        } else {
+            self.integral = integrated;
+            u
+        };
+        let compensated = match &s.compensator {
+            Some(c) if e.abs() < s.fine_band_mm => {
+                let w = e.abs() / s.fine_band_mm;
+                u_pi + w * (c.apply(u_pi) - u_pi)
+            }
+            Some(c) => c.apply(u_pi),
+            None => u_pi,
+        };
+        (compensated + s.kd * self.derivative).clamp(-s.u_max, s.u_max)
+    }
+}
+
+/// The contents of a controller file (CONTROLLER.json): format, version, the settings, and what the
+/// tuning knew (free-form provenance, not read back).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ControllerFile {
+    /// Always [`CONTROLLER_FORMAT`].
+    pub format: String,
+    /// [`CONTROLLER_VERSION`].
+    pub version: u32,
+    /// The controller.
+    pub controller: ControllerSettings,
+    /// Where it came from (the tuning's source, specification and worst case); ignored when read.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub provenance: Option<serde_json::Value>,
+}
+
+impl ControllerFile {
+    /// A file holding `controller` (with optional provenance).
+    pub fn new(controller: ControllerSettings, provenance: Option<serde_json::Value>) -> Self {
+        ControllerFile {
+            format: CONTROLLER_FORMAT.to_string(),
+            version: CONTROLLER_VERSION,
+            controller,
+            provenance,
+        }
+    }
+
+    /// Parses the JSON text of a controller file named `name` (for messages): errors give the line and
+    /// column, a wrong format or version, or the setting out of range.
+    pub fn parse(text: &str, name: &str) -> Result<ControllerSettings, ControlError> {
+        let f: ControllerFile = serde_json::from_str(text).map_err(|e| {
+            ControlError::Config(format!(
+                "{name}:{}:{}: not a controller file: {e} (expected the JSON that `ipa-sysid tune --out` writes)",
+                e.line(),
+                e.column()
+            ))
+        })?;
+        if f.format != CONTROLLER_FORMAT {
+            return Err(ControlError::Config(format!(
+                "{name}: format `{}` is not `{CONTROLLER_FORMAT}`",
+                f.format
+            )));
+        }
+        if f.version != CONTROLLER_VERSION {
+            return Err(ControlError::Config(format!(
+                "{name}: controller file version {} (this program reads version {CONTROLLER_VERSION})",
+                f.version
+            )));
+        }
+        f.controller
+            .validate()
+            .map_err(|e| ControlError::Config(format!("{name}: {e}")))?;
+        Ok(f.controller)
+    }
+
+    /// Reads and parses a controller file; errors name the file.
+    pub fn read(path: &std::path::Path) -> Result<ControllerSettings, ControlError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ControlError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::parse(&text, &path.display().to_string())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::SlopeMode;
+    use sysid_core::Deadzone;
+
+    fn plain(kp: f64, ki: f64) -> ControllerSettings {
+        ControllerSettings::pi(0.01, kp, ki)
+    }
+
+    // Without D, hold or compensator it is the PI with clamping: u(0) = Kp e + Ki Ts e.
+    #[test]
+    fn without_extras_it_is_the_clamped_pi() {
+        let mut c = plain(14.0, 1.0).build().unwrap();
+        let mut pi = crate::PiSettings::paper()
+            .with_anti_windup(crate::AntiWindup::Clamping)
+            .build(0.01)
+            .unwrap();
+        for (r, y) in [(1.0, 0.0), (1.0, 0.2), (50.0, 0.3), (50.0, 1.0), (0.0, 3.0)] {
+            assert_eq!(c.step(r, y), pi.step(r, y));
+        }
+    }
+
+    // Inside the band: u = 0 and I unchanged; a crossing outside it restarts I.
+    #[test]
+    fn hold_band_closes_the_valve_and_freezes_the_integral() {
+        let mut s = plain(10.0, 100.0);
+        s.hold_band_mm = 0.02;
+        s.reset_on_crossing = true;
+        let mut c = s.build().unwrap();
+        // e = 1: I = 100 * 0.01 * 1 = 1, u = 10 + 1.
+        assert_eq!(c.step(1.0, 0.0), 11.0);
+        assert_eq!(c.step(1.0, 0.99), 0.0);
+        assert_eq!(c.integral_counts(), 1.0);
+        // e = -0.5 (crossed): I restarts at 0, then -0.5: u = -5 - 0.5.
+        assert_eq!(c.step(1.0, 1.5), -5.5);
+    }
+
+    // D(k) = α D(k-1) - (1-α) Δy/Ts with α = Tf/(Tf+Ts) = 0.5 at Tf = Ts; Δy = 0.1 mm: -5 mm/s.
+    #[test]
+    fn derivative_acts_on_the_filtered_measured_velocity() {
+        let mut s = plain(0.0, 0.0);
+        s.kd = 2.0;
+        s.derivative_filter_s = 0.01;
+        let mut c = s.build().unwrap();
+        assert_eq!(c.step(10.0, 0.0), 0.0);
+        assert_eq!(c.step(10.0, 0.1), 2.0 * -5.0);
+        // Next: D = 0.5 * -5 - 0.5 * 0 = -2.5.
+        assert_eq!(c.step(10.0, 0.1), 2.0 * -2.5);
+    }
+
+    #[test]
+    fn compensator_shifts_the_command_past_the_deadzone() {
+        let mut s = plain(1.0, 0.0);
+        let dz = Deadzone {
+            b_l: -20.0,
+            b_r: 30.0,
+            m_l: 1.0,
+            m_r: 1.0,
+        };
+        s.compensator = Some(DeadzoneCompensator::new(dz, SlopeMode::Shift, 255.0).unwrap());
+        let mut c = s.build().unwrap();
+        assert_eq!(c.step(5.0, 0.0), 35.0);
+        assert_eq!(c.step(0.0, 5.0), -25.0);
+    }
+
+    #[test]
+    fn file_round_trips_and_bad_files_name_the_problem() {
+        let s = plain(14.0, 1.0);
+        let text = serde_json::to_string_pretty(&ControllerFile::new(s, None)).unwrap();
+        assert_eq!(ControllerFile::parse(&text, "c.json").unwrap(), s);
+        let e = ControllerFile::parse("{\n  \"format\": 3\n}", "c.json").unwrap_err();
+        assert!(e.to_string().contains("c.json:2:"), "{e}");
+        let bad = text.replace("\"kp\": 14.0", "\"kp\": -1.0");
+        let e = ControllerFile::parse(&bad, "c.json").unwrap_err();
+        assert!(e.to_string().contains("kp"), "{e}");
+    }
+}

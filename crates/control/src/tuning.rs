@@ -1,0 +1,298 @@
+//! `ipa-sysid tune` / `ipa_sysid.tune` from end to end (the command line and Python share it): the
+//! plants to tune over (an identified model and its variants, or a physics twin and its variants),
+//! the search ([`crate::tune::tune`]), the linear margins, and the verification beside the paper's PI
+//! on the model and, for a twin or on request, on the physics plant, with the specification's misses
+//! in words. docs/control.md, section "Tuning the position loop".
+
+use std::time::Instant;
+
+use serde::Serialize;
+use sysid_core::{Deadzone, Model, Plant};
+
+use crate::tune::{self, Comparison, Margins, PlantFactory, Spec, TuneSettings};
+use crate::{ControlError, ControllerSettings};
+
+/// Spread of the plant variants: ±30 %.
+pub const SPREAD: f64 = 0.3;
+/// Largest number of plant variants or evaluations a request may ask for (bounds the work).
+pub const MAX_VARIANTS: usize = 200;
+/// Largest number of cost evaluations of a request.
+pub const MAX_EVALUATIONS: usize = 10_000;
+
+/// What to tune on.
+#[derive(Debug, Clone)]
+pub enum Source {
+    /// An identified Hammerstein model, with its deadzone in the command's units.
+    Model {
+        /// The model.
+        model: Model,
+        /// Its deadzone (breakpoints shifted by a detrended model's u0).
+        deadzone: Deadzone,
+        /// How to name it (e.g. "model m.json").
+        label: String,
+    },
+    /// A physics plant (a calibrated twin).
+    Twin {
+        /// Its parameters.
+        config: ipa::PlantConfig,
+        /// How to name it (e.g. "twin twin.toml").
+        label: String,
+    },
+}
+
+/// A tuning request.
+#[derive(Debug, Clone)]
+pub struct Request {
+    /// The plant to tune on.
+    pub source: Source,
+    /// The specification.
+    pub spec: Spec,
+    /// Variants and evaluations of the search.
+    pub search: TuneSettings,
+    /// Also verify on the built-in physics plant (a twin is always verified).
+    pub check_physics: bool,
+    /// Physics variants in the verification, beside the nominal plant.
+    pub physics_variants: usize,
+}
+
+/// One verification: a set of plants, the tuned controller and the paper's PI on it, and the
+/// specification's misses in words.
+#[derive(Debug, Clone, Serialize)]
+pub struct Verification {
+    /// Which plants, in words.
+    pub plant: String,
+    /// How many.
+    pub plants: usize,
+    /// The runs of both controllers.
+    #[serde(flatten)]
+    pub comparison: Comparison,
+    /// `not met on ...` sentences.
+    pub warnings: Vec<String>,
+}
+
+/// What a tuning gave (the JSON of `ipa-sysid tune --json`, without the file name).
+#[derive(Debug, Clone, Serialize)]
+pub struct TuneReport {
+    /// What was tuned on, in words.
+    pub source: String,
+    /// The specification.
+    pub spec: Spec,
+    /// The search settings.
+    pub search: TuneSettings,
+    /// Cost evaluations used.
+    pub evaluations: usize,
+    /// Wall-clock time, s.
+    pub seconds: f64,
+    /// The tuned controller.
+    pub controller: ControllerSettings,
+    /// Gain and phase margins of the linear part.
+    pub margins: Margins,
+    /// On the model (or the twin's identified model) and its variants.
+    pub on_model: Verification,
+    /// On the physics plant (twin or built-in) and its variants.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub on_physics: Option<Verification>,
+    /// Every reason not to trust the controller, in words.
+    pub warnings: Vec<String>,
+}
+
+impl TuneReport {
+    /// True when no verification missed the specification.
+    pub fn meets_spec(&self) -> bool {
+        self.warnings.iter().all(|w| !w.starts_with("not met"))
+    }
+}
+
+/// Why a model cannot give the controller's deadzone ([`command_deadzone`]).
+#[derive(Debug, Clone, PartialEq)]
+pub enum DeadzoneProblem {
+    /// A model with several inputs (the controller drives one command).
+    SeveralInputs(usize),
+    /// An ARX model (no deadzone).
+    NoDeadzone,
+}
+
+impl std::fmt::Display for DeadzoneProblem {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            DeadzoneProblem::SeveralInputs(n) => write!(
+                f,
+                "a single-input Hammerstein model file (this model has {n} inputs; the controller \
+                 drives one command)"
+            ),
+            DeadzoneProblem::NoDeadzone => {
+                f.write_str("a Hammerstein model file (this model is ARX and has no deadzone)")
+            }
+        }
+    }
+}
+
+/// The deadzone of a single-input Hammerstein model in the command's units: a detrended model's
+/// deadzone acts on u − u0, so its breakpoints are shifted by u0 (the slopes are unchanged).
+pub fn command_deadzone(m: &Model) -> Result<Deadzone, DeadzoneProblem> {
+    if m.inputs().len() > 1 {
+        return Err(DeadzoneProblem::SeveralInputs(m.inputs().len()));
+    }
+    let u0 = m
+        .operating_point()
+        .and_then(|o| o.u.first().copied())
+        .unwrap_or(0.0);
+    let d = m.deadzone().ok_or(DeadzoneProblem::NoDeadzone)?;
+    Ok(Deadzone {
+        b_l: d.b_l + u0,
+        b_r: d.b_r + u0,
+        ..*d
+    })
+}
+
+/// A Hammerstein model of a twin: output error, orders (3, 1, 1), on 3000 samples of the staircase
+/// input simulated on it (seed 1, mid-stroke start), as a user would identify one from a record.
+pub fn twin_model(cfg: &ipa::PlantConfig) -> Result<Model, ControlError> {
+    let err = |e: &dyn std::fmt::Display| {
+        ControlError::Config(format!(
+            "cannot identify a Hammerstein model on a record of the twin: {e}"
+        ))
+    };
+    let rec = ipa::calibrate::study::record(cfg, ipa::InputSpec::Staircase, 3000, 1)
+        .map_err(|e| err(&e))?;
+    let data = sysid_core::Dataset::new(
+        sysid_core::data::Signals { u: rec.u, y: rec.y },
+        rec.ts,
+        "twin record",
+    )
+    .map_err(|e| err(&e))?;
+    let settings = sysid::Identification::default()
+        .with_kind(sysid::ModelKind::Hammerstein)
+        .with_orders(3, 1, 1)
+        .with_estimator(sysid::EstimatorSettings::Oe(sysid::OutputError::default()));
+    Ok(sysid::identify(&data, &settings)
+        .map_err(|e| err(&e))?
+        .model)
+}
+
+fn verify(
+    what: String,
+    plants: usize,
+    make: &PlantFactory,
+    settings: &ControllerSettings,
+    spec: &Spec,
+) -> Result<Verification, ControlError> {
+    let comparison = tune::compare(plants, make, settings, spec)?;
+    let warnings = comparison.tuned.spec_warnings(spec, &what);
+    Ok(Verification {
+        plant: what,
+        plants,
+        comparison,
+        warnings,
+    })
+}
+
+/// Runs a tuning request (module documentation).
+pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
+    for (what, v, max) in [
+        ("plant variants", req.search.plants, MAX_VARIANTS),
+        ("physics variants", req.physics_variants, MAX_VARIANTS),
+        ("evaluations", req.search.max_evaluations, MAX_EVALUATIONS),
+    ] {
+        if v > max {
+            return Err(ControlError::Config(format!("{v} {what}: at most {max}")));
+        }
+    }
+    let started = Instant::now();
+    let (model, deadzone, label, twin) = match &req.source {
+        Source::Model {
+            model,
+            deadzone,
+            label,
+        } => (model.clone(), *deadzone, label.clone(), None),
+        Source::Twin { config, label } => {
+            let m = twin_model(config)?;
+            let d = *m.deadzone().ok_or_else(|| {
+                ControlError::Config("the twin's identified model has no deadzone".into())
+            })?;
+            (m, d, label.clone(), Some(config.clone()))
+        }
+    };
+    let ts = model.ts();
+    let model_plants = |i: usize| -> Result<Box<dyn Plant + Send>, ControlError> {
+        let m = tune::model_variant(&model, i, SPREAD)?;
+        Ok(Box::new(
+            sysid_core::ModelPlant::new(m, format!("model variant {i}"))
+                .map_err(|e| ControlError::Config(e.to_string()))?,
+        ))
+    };
+    let physics_base = twin.clone().unwrap_or_default();
+    let physics_plants = |i: usize| -> Result<Box<dyn Plant + Send>, ControlError> {
+        let cfg = if i == 0 {
+            physics_base.clone()
+        } else {
+            ipa::calibrate::study::perturbed_from(&physics_base, i as u64, SPREAD)
+        };
+        Ok(Box::new(
+            ipa::Ipa::with_ts(cfg, ts).map_err(|e| ControlError::Config(e.to_string()))?,
+        ))
+    };
+    let tuned = if twin.is_some() {
+        tune::tune(&physics_plants, Some(deadzone), ts, &req.spec, &req.search)?
+    } else {
+        tune::tune(&model_plants, Some(deadzone), ts, &req.spec, &req.search)?
+    };
+    let settings = tuned.settings;
+    let margins = tune::margins(&model, &settings);
+    let on_model = verify(
+        format!(
+            "the model (nominal + {} variants)",
+            req.search.plants.saturating_sub(1)
+        ),
+        req.search.plants,
+        &model_plants,
+        &settings,
+        &req.spec,
+    )?;
+    let on_physics = if twin.is_some() || req.check_physics {
+        let what = if twin.is_some() {
+            "the twin"
+        } else {
+            "the physics plant"
+        };
+        Some(verify(
+            format!("{what} (nominal + {} variants ±30 %)", req.physics_variants),
+            req.physics_variants + 1,
+            &physics_plants,
+            &settings,
+            &req.spec,
+        )?)
+    } else {
+        None
+    };
+    let mut warnings = Vec::new();
+    if twin.is_none() && !req.check_physics {
+        warnings.push(
+            "verified on the model only: a model without the plant's static friction cannot show \
+             stick-slip hunting; verify on the plant (--check-physics for the built-in one, or \
+             `control --controller` on yours)"
+                .to_string(),
+        );
+    }
+    warnings.extend(on_model.warnings.iter().cloned());
+    if let Some(p) = &on_physics {
+        warnings.extend(p.warnings.iter().cloned());
+    }
+    if let Some(pm) = margins.phase_margin_deg.filter(|pm| *pm < 30.0) {
+        warnings.push(format!(
+            "the linear part's phase margin is {pm:.1}° (< 30°): the loop is close to oscillating"
+        ));
+    }
+    Ok(TuneReport {
+        source: label,
+        spec: req.spec.clone(),
+        search: req.search,
+        evaluations: tuned.evaluations,
+        seconds: started.elapsed().as_secs_f64(),
+        controller: settings,
+        margins,
+        on_model,
+        on_physics,
+        warnings,
+    })
+}

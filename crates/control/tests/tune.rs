@@ -1,0 +1,161 @@
+//! The tuner (`control::tune`): specification, evaluation, margins against closed forms, and a search
+//! that reaches the specification on a plant where it is reachable.
+
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests may panic
+
+use control::tune::{self, Spec, TuneSettings};
+use control::{ControlError, ControlSetting, Controller, ControllerSettings};
+use sysid_core::{Deadzone, Model, ModelPlant, Plant};
+
+fn integrator(nk: usize, m: f64, dz: (f64, f64)) -> Model {
+    // y(k) = y(k-1) + f(u(k-nk)): A = 1 - z^-1, B = 1, deadzone slopes m.
+    Model::hammerstein(
+        0.01,
+        vec![-1.0],
+        vec![1.0],
+        nk,
+        Deadzone {
+            b_l: dz.0,
+            b_r: dz.1,
+            m_l: m,
+            m_r: m,
+        },
+        None,
+    )
+    .unwrap()
+}
+
+fn p_only(kp: f64) -> ControllerSettings {
+    ControllerSettings::pi(0.01, kp, 0.0)
+}
+
+// L(e^{jθ}) = Kp m e^{-jθ}/(1 - e^{-jθ}): |L| = Kp m / (2 sin(θ/2)), arg L = -90° - θ/2.
+// |L| = 1 at θc = 2 asin(Kp m / 2), so PM = 90° - θc/2; with Kp m = 0.2, θc = 0.200335 rad.
+#[test]
+fn phase_margin_of_p_control_on_an_integrator_is_ninety_minus_half_the_crossover_angle() {
+    let m = tune::margins(&integrator(1, 0.01, (-1.0, 1.0)), &p_only(20.0));
+    let theta_c = 2.0 * (0.1f64).asin();
+    let pm = 90.0 - (theta_c / 2.0).to_degrees();
+    assert!(
+        (m.phase_margin_deg.unwrap() - pm).abs() < 0.05,
+        "{m:?} vs {pm}"
+    );
+    assert!((m.gain_crossover_rad_s.unwrap() - theta_c / 0.01).abs() < 0.05);
+}
+
+// With one more sample of delay arg L = -90° - 3θ/2 reaches -180° at θ = π/3, where
+// |L| = Kp m / (2 sin(π/6)) = Kp m: GM = -20 log10(Kp m) = 13.98 dB for Kp m = 0.2.
+#[test]
+fn gain_margin_with_a_delay_is_at_a_third_of_nyquist() {
+    let m = tune::margins(&integrator(2, 0.01, (-1.0, 1.0)), &p_only(20.0));
+    let gm = -20.0 * (0.2f64).log10();
+    assert!(
+        (m.gain_margin_db.unwrap() - gm).abs() < 0.02,
+        "{m:?} vs {gm}"
+    );
+    let w = std::f64::consts::PI / 3.0 / 0.01;
+    assert!((m.phase_crossover_rad_s.unwrap() - w).abs() < 0.5, "{m:?}");
+}
+
+#[test]
+fn spec_parses_over_the_defaults_and_names_a_bad_key() {
+    let s = Spec::parse("").unwrap();
+    assert_eq!(s, Spec::default());
+    // 4 sizes, each up from 25 mm and down from 175 mm.
+    let c = s.cases();
+    assert_eq!(c.len(), 8);
+    assert_eq!((c[0].y0_mm, c[0].r_mm), (25.0, 35.0));
+    assert_eq!((c[7].y0_mm, c[7].r_mm), (175.0, 25.0));
+    for bad in [
+        "speed=3",
+        "overshoot=-1",
+        "steps=10/x",
+        "steps=200",
+        "run=1000",
+        "nokey",
+    ] {
+        match Spec::parse(bad) {
+            Err(ControlError::Setting { setting, .. }) => assert_eq!(setting, ControlSetting::Spec),
+            other => panic!("{bad}: {other:?}"),
+        }
+    }
+}
+
+fn model_factory(
+    model: &Model,
+) -> impl Fn(usize) -> Result<Box<dyn Plant + Send>, ControlError> + Sync + '_ {
+    move |i| {
+        let m = tune::model_variant(model, i, 0.3)?;
+        Ok(Box::new(ModelPlant::new(m, "v").unwrap()) as Box<dyn Plant + Send>)
+    }
+}
+
+// Variant 1 scales the slopes and breakpoints by 1.3, variant 4 by 0.7; variant 0 is the model.
+#[test]
+fn model_variants_are_the_corners_of_plus_minus_spread() {
+    let m = integrator(1, 0.01, (-10.0, 20.0));
+    let v1 = tune::model_variant(&m, 1, 0.3).unwrap();
+    let d = v1.deadzone().unwrap();
+    assert!((d.m_r - 0.013).abs() < 1e-15 && (d.b_r - 26.0).abs() < 1e-12);
+    let v4 = tune::model_variant(&m, 4, 0.3).unwrap();
+    let d = v4.deadzone().unwrap();
+    assert!((d.m_l - 0.007).abs() < 1e-15 && (d.b_l + 7.0).abs() < 1e-12);
+    assert_eq!(tune::model_variant(&m, 0, 0.3).unwrap(), m);
+}
+
+// Every variant × step is run once; the summary counts agree with the runs.
+#[test]
+fn evaluation_runs_every_variant_and_step() {
+    let m = integrator(1, 0.005, (-20.0, 20.0));
+    let spec = Spec::parse("steps=10/50,run=2").unwrap();
+    let s = p_only(5.0);
+    let e = tune::evaluate(
+        3,
+        &model_factory(&m),
+        &move || Ok(Box::new(s.build()?) as Box<dyn Controller + Send>),
+        &spec,
+    )
+    .unwrap();
+    assert_eq!(e.runs.len(), 3 * 4);
+    assert_eq!(
+        e.met,
+        e.runs.iter().filter(|r| r.misses(&spec).is_empty()).count()
+    );
+    // A P controller without a deadzone inverse creeps towards the error where Kp |e| reaches the
+    // deadzone, |e| = b_r / Kp = 4 mm: e(k+1) = e(k) - m (Kp e(k) - b_r), i.e. e(k) - 4 = 0.975^k (e(0) - 4).
+    // No run meets |e_ss| <= 0.02 mm; the nominal 10 mm step ends (k = 200) at 4 + 6 * 0.975^200.
+    assert_eq!(e.ess_met, 0);
+    let nominal = e.runs.iter().find(|r| r.plant == 0).unwrap();
+    assert_eq!((nominal.case.y0_mm, nominal.case.r_mm), (25.0, 35.0));
+    let ess = nominal.metrics.steady_state_error_mm.unwrap();
+    let want = 4.0 + 6.0 * 0.975f64.powi(200);
+    assert!((ess - want).abs() < 1e-9, "{ess} vs {want}");
+}
+
+// On an integrator with a deadzone (no friction, first-order lag-free), the deadzone inverse and a PI
+// can meet the default specification; the search must find a controller that does, on every variant.
+#[test]
+fn tuning_meets_the_spec_where_it_is_reachable() {
+    let m = integrator(1, 0.005, (-20.0, 20.0));
+    let spec = Spec::default();
+    let f = model_factory(&m);
+    let t = tune::tune(
+        &f,
+        m.deadzone().copied(),
+        0.01,
+        &spec,
+        &TuneSettings {
+            plants: 5,
+            max_evaluations: 150,
+        },
+    )
+    .unwrap();
+    let e = &t.evaluation;
+    assert_eq!(e.runs.len(), 40);
+    assert_eq!(e.overshoot_met, 40, "{:?}", t.settings);
+    assert_eq!(e.ess_met, 40);
+    assert!(t.evaluations <= 150);
+    // The paper's PI on the same plants (no inverse: it waits for its slow integral) does worse.
+    let c = tune::compare(5, &f, &t.settings, &spec).unwrap();
+    assert!(c.paper_pi.cost > c.tuned.cost);
+}

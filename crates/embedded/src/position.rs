@@ -1,0 +1,211 @@
+//! The tuned position controller of `ipa-sysid tune` (CONTROLLER.json) for firmware: PID with clamping
+//! anti-windup, a deadzone inverse scaled in a fine band, and a hold band against stick-slip hunting.
+//!
+//! The same operations in the same order as `control::PositionController` (docs/control.md, section
+//! "The tuned controller"), so f64 commands are equal to it bit for bit:
+//!
+//! ```text
+//! D(k) = α D(k−1) − (1 − α) (y(k) − y(k−1)) / Ts          α = Tf / (Tf + Ts), D = 0 at the first sample
+//! |e| ≤ e_h:  u = 0, I held                                  e = r − y
+//! otherwise:  I = 0 if reset_on_crossing and e e(k−1) < 0
+//!             v = Kp e + (I + Ki Ts e);  I += Ki Ts e unless sat(v) ≠ v and e v > 0 (then u_pi = sat(Kp e + I))
+//!             u_c = compensator(u_pi), or u_pi + (|e|/e_f)(compensator(u_pi) − u_pi) for |e| < e_f
+//!             u = sat(u_c + Kd D)
+//! ```
+
+use crate::deadzone::Compensator;
+use crate::{Error, Float};
+
+/// The settings of a [`PositionController`] (the `controller` object of CONTROLLER.json).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PositionSettings<F: Float> {
+    /// Ts: sampling period, s (> 0).
+    pub ts: F,
+    /// Kp, counts/mm (≥ 0).
+    pub kp: F,
+    /// Ki, counts/(mm·s) (≥ 0).
+    pub ki: F,
+    /// Kd, counts·s/mm (≥ 0), on the measured velocity.
+    pub kd: F,
+    /// Tf: derivative filter time constant, s (≥ 0).
+    pub tf: F,
+    /// u_max: command limit, counts (> 0).
+    pub u_max: F,
+    /// e_h: hold band, mm (≥ 0).
+    pub hold_band: F,
+    /// e_f: fine band, mm (≥ 0).
+    pub fine_band: F,
+    /// Restart the integral when e changes sign outside the hold band.
+    pub reset_on_crossing: bool,
+}
+
+/// A running tuned controller: settings, the optional deadzone inverse and the states (I, D, y(k−1),
+/// e(k−1)). No allocation; `Copy`. Cost per sample: at most about 25 flops.
+///
+/// ```
+/// use ipa_embedded::{PositionController, PositionSettings};
+/// let s = PositionSettings { ts: 0.01, kp: 10.0, ki: 100.0, kd: 0.0, tf: 0.0, u_max: 255.0,
+///                            hold_band: 0.02, fine_band: 0.0, reset_on_crossing: true };
+/// let mut c = PositionController::new(s, None).unwrap();
+/// assert_eq!(c.step(1.0, 0.0).unwrap(), 11.0);  // Kp e + Ki Ts e
+/// assert_eq!(c.step(1.0, 0.99).unwrap(), 0.0);  // inside the hold band
+/// ```
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct PositionController<F: Float> {
+    s: PositionSettings<F>,
+    compensator: Option<Compensator<F>>,
+    alpha: F,
+    integral: F,
+    derivative: F,
+    y_prev: F,
+    started: bool,
+    e_prev: F,
+}
+
+impl<F: Float> PositionController<F> {
+    /// A controller at rest; settings out of range give [`Error::Setting`].
+    pub fn new(s: PositionSettings<F>, compensator: Option<Compensator<F>>) -> Result<Self, Error> {
+        let nonneg = |v: F| v.is_finite() && v >= F::ZERO;
+        let positive = |v: F| v.is_finite() && v > F::ZERO;
+        if !(positive(s.ts)
+            && positive(s.u_max)
+            && nonneg(s.kp)
+            && nonneg(s.ki)
+            && nonneg(s.kd)
+            && nonneg(s.tf)
+            && nonneg(s.hold_band)
+            && nonneg(s.fine_band))
+        {
+            return Err(Error::Setting);
+        }
+        Ok(PositionController {
+            s,
+            compensator,
+            alpha: s.tf / (s.tf + s.ts),
+            integral: F::ZERO,
+            derivative: F::ZERO,
+            y_prev: F::ZERO,
+            started: false,
+            e_prev: F::ZERO,
+        })
+    }
+
+    /// One sample: set-point r and position y (mm) → command u (counts). Non-finite inputs give
+    /// [`Error::NotFinite`] and leave the state unchanged.
+    pub fn step(&mut self, r: F, y: F) -> Result<F, Error> {
+        if !(r.is_finite() && y.is_finite()) {
+            return Err(Error::NotFinite);
+        }
+        let s = self.s;
+        let e = r - y;
+        let dy = if self.started {
+            (y - self.y_prev) / s.ts
+        } else {
+            F::ZERO
+        };
+        self.started = true;
+        self.y_prev = y;
+        self.derivative = self.alpha * self.derivative - (F::ONE - self.alpha) * dy;
+        if e.abs() <= s.hold_band {
+            self.e_prev = e;
+            return Ok(F::ZERO);
+        }
+        if s.reset_on_crossing && e * self.e_prev < F::ZERO {
+            self.integral = F::ZERO;
+        }
+        self.e_prev = e;
+        let proportional = s.kp * e;
+        let integrated = self.integral + s.ki * s.ts * e;
+        let v = proportional + integrated;
+        let u = v.clamp_to(-s.u_max, s.u_max);
+        let u_pi = if u != v && e * v > F::ZERO {
+            (proportional + self.integral).clamp_to(-s.u_max, s.u_max)
+        } else {
+            self.integral = integrated;
+            u
+        };
+        let compensated = match &self.compensator {
+            Some(c) if e.abs() < s.fine_band => {
+                let w = e.abs() / s.fine_band;
+                u_pi + w * (c.apply(u_pi) - u_pi)
+            }
+            Some(c) => c.apply(u_pi),
+            None => u_pi,
+        };
+        Ok((compensated + s.kd * self.derivative).clamp_to(-s.u_max, s.u_max))
+    }
+
+    /// The integral term I in counts.
+    pub fn integral(&self) -> F {
+        self.integral
+    }
+
+    /// Back to rest.
+    pub fn reset(&mut self) {
+        self.integral = F::ZERO;
+        self.derivative = F::ZERO;
+        self.y_prev = F::ZERO;
+        self.started = false;
+        self.e_prev = F::ZERO;
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+    use crate::{Deadzone, SlopeMode};
+
+    fn s() -> PositionSettings<f64> {
+        PositionSettings {
+            ts: 0.01,
+            kp: 10.0,
+            ki: 100.0,
+            kd: 0.0,
+            tf: 0.0,
+            u_max: 255.0,
+            hold_band: 0.02,
+            fine_band: 0.0,
+            reset_on_crossing: true,
+        }
+    }
+
+    // e = 1: u = 10 + 1; inside the band 0; crossing to e = -0.5 restarts I: -5 - 0.5.
+    #[test]
+    fn hold_band_and_reset_on_crossing() {
+        let mut c = PositionController::new(s(), None).unwrap();
+        assert_eq!(c.step(1.0, 0.0).unwrap(), 11.0);
+        assert_eq!(c.step(1.0, 0.99).unwrap(), 0.0);
+        assert_eq!(c.integral(), 1.0);
+        assert_eq!(c.step(1.0, 1.5).unwrap(), -5.5);
+    }
+
+    // In the fine band e_f = 2 mm, e = 1 mm: the shift b_r = 30 is halved: u = 11 + 15.
+    #[test]
+    fn fine_band_scales_the_deadzone_shift() {
+        let dz = Deadzone {
+            b_l: -20.0,
+            b_r: 30.0,
+            m_l: 1.0,
+            m_r: 1.0,
+        };
+        let comp = Compensator::new(dz, SlopeMode::Shift, 0.0, 255.0).unwrap();
+        let mut settings = s();
+        settings.fine_band = 2.0;
+        let mut c = PositionController::new(settings, Some(comp)).unwrap();
+        assert_eq!(c.step(1.0, 0.0).unwrap(), 26.0);
+    }
+
+    #[test]
+    fn bad_settings_and_inputs_are_errors() {
+        let mut bad = s();
+        bad.kp = -1.0;
+        assert_eq!(
+            PositionController::new(bad, None).unwrap_err(),
+            Error::Setting
+        );
+        let mut c = PositionController::new(s(), None).unwrap();
+        assert_eq!(c.step(f64::NAN, 0.0).unwrap_err(), Error::NotFinite);
+        assert_eq!(c.integral(), 0.0);
+    }
+}

@@ -306,15 +306,27 @@ mod tests {
     #[test]
     fn a_wiener_class_round_trips_and_sets_the_output_block() {
         for (text, out) in [
-            ("wiener:polynomial:2", NonlinearityKind::Polynomial { degree: 2 }),
-            ("wiener:piecewise-linear:3", NonlinearityKind::PiecewiseLinear { breakpoints: 3 }),
+            (
+                "wiener:polynomial:2",
+                NonlinearityKind::Polynomial { degree: 2 },
+            ),
+            (
+                "wiener:piecewise-linear:3",
+                NonlinearityKind::PiecewiseLinear { breakpoints: 3 },
+            ),
             ("wiener:saturation", NonlinearityKind::Saturation),
         ] {
             let c: Class = text.parse().unwrap();
             assert_eq!(c, Class::Wiener(out));
             assert_eq!(c.to_string(), text);
-            let orders = Orders { na: 2, nb: 1, nk: 1 };
-            let id = c.identification(&Identification::default(), orders).unwrap();
+            let orders = Orders {
+                na: 2,
+                nb: 1,
+                nk: 1,
+            };
+            let id = c
+                .identification(&Identification::default(), orders)
+                .unwrap();
             assert_eq!(id.output, Some(out));
             assert_eq!(id.inputs[0].nonlinearity, NonlinearityKind::Linear);
             assert_eq!(id.structure.orders, orders);

@@ -209,24 +209,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .with_integral(args.integral)
         .with_anti_windup(anti_windup(&args, ts)?)
         .with_u_max(args.u_max);
-    let tuned = match &args.controller {
-        Some(path) => {
-            inputs.push(path.clone());
-            let t = control::ControllerFile::read(path).context("cannot read --controller")?;
-            if (t.ts_s - ts).abs() > 1e-9 * ts {
-                bail!(sysid::SysidError::setting(
-                    sysid::Setting::Other("--controller"),
-                    path.display(),
-                    &format!(
-                        "a controller for the plant's Ts = {ts} s (this one was tuned for Ts = {} s)",
-                        t.ts_s
-                    )
-                ));
-            }
-            Some(t)
-        }
-        None => None,
-    };
+    let tuned = tuned_controller(&args, ts, &mut inputs)?;
     let mut pi = settings.build(ts)?;
     let mut position = tuned.map(|t| t.build()).transpose()?;
     let controller: &mut dyn control::Controller = match position.as_mut() {
@@ -678,4 +661,31 @@ fn summary_text(
         }
     }
     o
+}
+
+/// The tuned controller of `--controller FILE` (read, and its Ts checked against the plant's `ts`), its
+/// file added to `inputs`; `None` without the flag (the PI of --kp/--ki).
+fn tuned_controller(
+    args: &Args,
+    ts: f64,
+    inputs: &mut Vec<PathBuf>,
+) -> anyhow::Result<Option<control::ControllerSettings>> {
+    Ok(match &args.controller {
+        Some(path) => {
+            inputs.push(path.clone());
+            let t = control::ControllerFile::read(path).context("cannot read --controller")?;
+            if (t.ts_s - ts).abs() > 1e-9 * ts {
+                bail!(sysid::SysidError::setting(
+                    sysid::Setting::Other("--controller"),
+                    path.display(),
+                    &format!(
+                        "a controller for the plant's Ts = {ts} s (this one was tuned for Ts = {} s)",
+                        t.ts_s
+                    )
+                ));
+            }
+            Some(t)
+        }
+        None => None,
+    })
 }

@@ -174,33 +174,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let (data, test) = (records.est, records.val);
     let mut notes = records.notes;
     let (fit_part, selection) = selection_parts(&args, &data, &opts, &mut notes)?;
-    let (data, test, fit_part, selection) = match args.detrend {
-        sysid::detrend::Detrend::None => (data, test, fit_part, selection),
-        sysid::detrend::Detrend::Linear => anyhow::bail!(sysid::SysidError::setting(
-            sysid::Setting::Other("--detrend"),
-            "linear",
-            "none or mean for order (a line fitted to the estimation part does not extend to the \
-             selection and test parts); detrend the file first, or use identify --detrend linear",
-        )),
-        sysid::detrend::Detrend::Mean => {
-            let (_, op) = sysid::detrend::detrend(&data, sysid::detrend::Detrend::Mean);
-            match op {
-                Some(op) => {
-                    notes.push(format!(
-                        "--detrend mean: every part minus the estimation record's means (u0 = {:?}, y0 = {})",
-                        op.u, op.y
-                    ));
-                    (
-                        op.remove_from(&data),
-                        test.map(|t| op.remove_from(&t)),
-                        op.remove_from(&fit_part),
-                        op.remove_from(&selection),
-                    )
-                }
-                None => (data, test, fit_part, selection),
-            }
-        }
-    };
+    let (data, test, fit_part, selection) =
+        detrended(args.detrend, (data, test, fit_part, selection), &mut notes)?;
     print_notes(&notes);
     if !args.classes.is_empty() {
         if auto_nk {
@@ -252,33 +227,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }));
     }
     let test_result = match (chosen, &test) {
-        (Some(c), Some(t)) => {
-            let mut id = base.clone();
-            id.structure.orders = c.orders;
-            let fit = sysid::estimate::identify(&data, &id)?;
-            let m = sysid::metrics::metrics(&fit.model, t)?;
-            let record = sysid::warnings::Record::Validation;
-            warnings.extend(
-                sysid::trust::metric_warnings(record, &m)
-                    .into_iter()
-                    .chain(sysid::trust::baseline_warning(
-                        record,
-                        &fit,
-                        &id,
-                        std::slice::from_ref(&data),
-                        t,
-                        &m,
-                    ))
-                    .map(|w| format!("test record: {w}")),
-            );
-            Some(TestResult {
-                orders: c.orders,
-                estimated_on: data.name().to_string(),
-                data: t.name().to_string(),
-                fit_sim_percent: m.fit_sim_percent,
-                metrics: m,
-            })
-        }
+        (Some(c), Some(t)) => Some(chosen_on_test(c, &base, &data, t, &mut warnings)?),
         _ => None,
     };
     let mut text = format!(
@@ -419,4 +368,80 @@ fn candidate_rows(ranked: &[Candidate], top: usize) -> String {
         ));
     }
     text
+}
+
+/// The four parts of `order`: estimation record, test record, estimation part, selection part.
+type Parts = (Dataset, Option<Dataset>, Dataset, Dataset);
+
+/// The parts around the estimation record's operating point (`--detrend mean`), with a note saying so;
+/// unchanged for `none`; `linear` refused.
+fn detrended(
+    detrend: sysid::detrend::Detrend,
+    (data, test, fit_part, selection): Parts,
+    notes: &mut Vec<String>,
+) -> anyhow::Result<Parts> {
+    Ok(match detrend {
+        sysid::detrend::Detrend::None => (data, test, fit_part, selection),
+        sysid::detrend::Detrend::Linear => anyhow::bail!(sysid::SysidError::setting(
+            sysid::Setting::Other("--detrend"),
+            "linear",
+            "none or mean for order (a line fitted to the estimation part does not extend to the \
+             selection and test parts); detrend the file first, or use identify --detrend linear",
+        )),
+        sysid::detrend::Detrend::Mean => {
+            let (_, op) = sysid::detrend::detrend(&data, sysid::detrend::Detrend::Mean);
+            match op {
+                Some(op) => {
+                    notes.push(format!(
+                        "--detrend mean: every part minus the estimation record's means \
+                         (u0 = {:?}, y0 = {})",
+                        op.u, op.y
+                    ));
+                    (
+                        op.remove_from(&data),
+                        test.map(|t| op.remove_from(&t)),
+                        op.remove_from(&fit_part),
+                        op.remove_from(&selection),
+                    )
+                }
+                None => (data, test, fit_part, selection),
+            }
+        }
+    })
+}
+
+/// The chosen structure `c` re-estimated on the whole estimation record `data` and judged on the test
+/// record `t` (never used for ranking), with the test record's warnings added to `warnings`.
+fn chosen_on_test(
+    c: &Candidate,
+    base: &Identification,
+    data: &Dataset,
+    t: &Dataset,
+    warnings: &mut Vec<String>,
+) -> anyhow::Result<TestResult> {
+    let mut id = base.clone();
+    id.structure.orders = c.orders;
+    let fit = sysid::estimate::identify(data, &id)?;
+    let m = sysid::metrics::metrics(&fit.model, t)?;
+    let record = sysid::warnings::Record::Validation;
+    warnings.extend(
+        sysid::trust::metric_warnings(record, &m)
+            .into_iter()
+            .chain(sysid::trust::baseline_warning(
+                record,
+                &fit,
+                &id,
+                std::slice::from_ref(data),
+                t,
+                &m,
+            ))
+            .map(|w| format!("test record: {w}")),
+    );
+    Ok(TestResult {
+        orders: c.orders,
+        estimated_on: data.name().to_string(),
+        data: t.name().to_string(),
+        fit_sim_percent: m.fit_sim_percent,
+        metrics: m,
+    })
 }

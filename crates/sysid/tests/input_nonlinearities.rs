@@ -36,22 +36,7 @@ fn simulate(
     c: f64,
 ) -> Vec<f64> {
     let x: Vec<f64> = u.iter().map(|v| f(*v)).collect();
-    let mut y = vec![0.0; u.len()];
-    for k in 0..u.len() {
-        let mut v = c;
-        for (i, ai) in a.iter().enumerate() {
-            if k > i {
-                v -= ai * y[k - 1 - i];
-            }
-        }
-        for (j, bj) in b.iter().enumerate() {
-            if k >= nk + j {
-                v += bj * x[k - nk - j];
-            }
-        }
-        y[k] = v;
-    }
-    y
+    ipa_testdata::arx_response(&x, a, b, nk, c)
 }
 
 fn clamp(u: f64, lo: f64, hi: f64) -> f64 {

@@ -46,22 +46,7 @@ fn deadzone(u: f64, d: &Deadzone) -> f64 {
 /// y(k) = -Σ a_i y(k-i) + Σ_j b_j x(k-nk-j+1) + c with zero history before k = 0.
 fn simulate(u: &[f64], a: &[f64], b: &[f64], nk: usize, c: f64, d: Option<&Deadzone>) -> Vec<f64> {
     let x: Vec<f64> = u.iter().map(|&v| d.map_or(v, |d| deadzone(v, d))).collect();
-    let mut y = vec![0.0; u.len()];
-    for k in 0..u.len() {
-        let mut v = c;
-        for (i, ai) in a.iter().enumerate() {
-            if k > i {
-                v -= ai * y[k - 1 - i];
-            }
-        }
-        for (j, bj) in b.iter().enumerate() {
-            if k >= nk + j {
-                v += bj * x[k - nk - j];
-            }
-        }
-        y[k] = v;
-    }
-    y
+    ipa_testdata::arx_response(&x, a, b, nk, c)
 }
 
 fn close(got: f64, want: f64, rel: f64) -> bool {

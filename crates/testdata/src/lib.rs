@@ -89,3 +89,24 @@ pub fn white(n: usize, seed: u64) -> Vec<f64> {
         })
         .collect()
 }
+
+/// The response of A(q) y = B(q) x + c written out as a plain loop, the tests' independent reference:
+/// y(k) = −Σ a_i y(k−i) + Σ_j b_j x(k−nk−j+1) + c with zero history before k = 0.
+pub fn arx_response(x: &[f64], a: &[f64], b: &[f64], nk: usize, c: f64) -> Vec<f64> {
+    let mut y = vec![0.0; x.len()];
+    for k in 0..x.len() {
+        let mut v = c;
+        for (i, ai) in a.iter().enumerate() {
+            if k > i {
+                v -= ai * y[k - 1 - i];
+            }
+        }
+        for (j, bj) in b.iter().enumerate() {
+            if k >= nk + j {
+                v += bj * x[k - nk - j];
+            }
+        }
+        y[k] = v;
+    }
+    y
+}

@@ -81,6 +81,10 @@ impl Term {
     pub fn is_constant(&self) -> bool {
         self.factors.is_empty()
     }
+    /// True when a factor is a lagged input u(k−l): the term lets the model respond to the input.
+    pub fn has_input(&self) -> bool {
+        self.factors.iter().any(|f| matches!(f, Lagged::U(_)))
+    }
     /// The value of the monomial given the value of each factor.
     #[inline]
     fn eval(&self, value: impl Fn(Lagged) -> f64) -> f64 {

@@ -4,10 +4,11 @@
 use serde::Serialize;
 
 use sysid::narx::{
-    blow_up_warning, narx_metrics, NarxFit, NarxMetrics, NarxSettings, Refinement, StopCurve,
+    blow_up_warning, narx_metrics, narx_trust, NarxFit, NarxMetrics, NarxSettings, Refinement, StopCurve,
     StopRule, TermReport,
 };
 use sysid::narx_model::NarxModel;
+use sysid::warnings::Record;
 use sysid::{Dataset, SysidError};
 
 /// Estimation and (optional) validation metrics.
@@ -53,8 +54,9 @@ pub struct SelectionReport {
 }
 
 impl NarxReport {
-    /// Assembles the report of `fit` with metrics on `est` and `val`; a blow-up on either record adds a
-    /// warning.
+    /// Assembles the report of `fit` with metrics on `est` and `val`; a blow-up on either record, and
+    /// on the validation record a negative fit or one far below the linear least-squares ARX baseline
+    /// ([`narx_trust`]), add a warning.
     pub fn assemble(
         fit: NarxFit,
         settings: &NarxSettings,
@@ -64,10 +66,15 @@ impl NarxReport {
         let estimation = narx_metrics(&fit.model, est)?;
         let validation = val.map(|v| narx_metrics(&fit.model, v)).transpose()?;
         let mut warnings = fit.warnings;
-        if let Some(v) = &validation {
+        if let (Some(v), Some(vd)) = (&validation, val) {
             if let Some(k) = v.blew_up_at {
                 warnings.push(blow_up_warning("validation", &v.data, k));
             }
+            warnings.extend(
+                narx_trust(Record::Validation, &fit.model, settings.constant, est, vd, v)
+                    .iter()
+                    .map(ToString::to_string),
+            );
         }
         Ok(NarxReport {
             structure: "narx",

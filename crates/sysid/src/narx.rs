@@ -32,6 +32,8 @@ use serde::Serialize;
 use sysid_core::narx::{candidate_count, candidate_terms, Lagged, NarxModel, Term, MAX_DEGREE};
 use sysid_core::{Dataset, Setting, SysidError};
 
+use crate::warnings::{Record, Warning};
+
 /// How many of the FROLS-ordered terms to keep.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
@@ -221,8 +223,12 @@ pub struct NarxFit {
     pub refinement: Option<Refinement>,
     /// Number of candidate monomials.
     pub candidates: usize,
-    /// Warnings in words (a blow-up, a refinement that did not start or converge, …).
+    /// Warnings in words (a blow-up, a refinement that did not start or converge, a negative fit, a
+    /// fit far below the linear baseline, no input term, …).
     pub warnings: Vec<String>,
+    /// The first of the warnings that disqualifies the model from being recommended by `order
+    /// --classes` ([`crate::order::disqualifies`]; a blow-up of the estimation record's free run).
+    pub disqualified: Option<String>,
 }
 
 /// The candidate matrix over the rows k ≥ k0 of (u, y): one column per term, by columns.
@@ -394,7 +400,7 @@ pub fn identify_narx(data: &Dataset, settings: &NarxSettings) -> Result<NarxFit,
     };
     let mut warnings = Vec::new();
     // Order the terms (on the fitting part for Sim, on the whole record otherwise) and choose n.
-    let (frols_result, stop) = match s.stop {
+    let (frols_result, mut stop) = match s.stop {
         StopRule::Aic | StopRule::Bic => {
             let p = columns(&cands, u, y, k0);
             let f = frols(&p, &y[k0..], s.max_terms);
@@ -439,11 +445,15 @@ pub fn identify_narx(data: &Dataset, settings: &NarxSettings) -> Result<NarxFit,
             let (u_sel, y_sel) = (&u[start..], &y[start..]);
             let p = columns(&cands, u_fit, y_fit, k0);
             let f = frols(&p, &y_fit[k0..], s.max_terms);
+            // The patience runs out no earlier than the first term with an input (the fallback of an
+            // input-free choice needs its value).
+            let first_input = f.order.iter().position(|&i| cands[i].has_input());
             let mut best = (f64::INFINITY, 0usize);
             let mut values: Vec<Option<f64>> = Vec::new();
             let mut fits: Vec<Option<f64>> = Vec::new();
             for n in 1..=f.order.len() {
-                if best.1 > 0 && n > best.1 + SIM_PATIENCE {
+                if best.1 > 0 && n > best.1 + SIM_PATIENCE && first_input.is_none_or(|i| n > i + 1)
+                {
                     break;
                 }
                 let v = model_of(&f.order[..n], f.theta(n)).ok().and_then(|m| {
@@ -464,21 +474,7 @@ pub fn identify_narx(data: &Dataset, settings: &NarxSettings) -> Result<NarxFit,
                 values.push(v);
                 fits.push(fit);
             }
-            // Parsimony: the fewest terms within SIM_TOLERANCE (plus rounding) of the least RMSE.
-            let (lo, hi) = y
-                .iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
-                    (a.min(v), b.max(v))
-                });
-            let least = values
-                .iter()
-                .flatten()
-                .fold(f64::INFINITY, |a, &b| a.min(b));
-            let tol = SIM_TOLERANCE * least + 1e-10 * (hi - lo);
-            let chosen = values
-                .iter()
-                .position(|v| v.is_some_and(|x| x <= least + tol))
-                .map_or(0, |i| i + 1);
+            let chosen = sim_choice(&values, 0, y);
             (
                 f,
                 StopCurve {
@@ -490,6 +486,9 @@ pub fn identify_narx(data: &Dataset, settings: &NarxSettings) -> Result<NarxFit,
             )
         }
     };
+    if let Some(w) = input_fallback(&mut stop, &frols_result.order, &cands, y) {
+        warnings.push(w);
+    }
     if stop.chosen == 0 {
         return Err(SysidError::Numerical(format!(
             "no number of terms gave a usable model ({}); every simulation of the selection part blew up \
@@ -543,11 +542,31 @@ pub fn identify_narx(data: &Dataset, settings: &NarxSettings) -> Result<NarxFit,
             )),
         }
     }
-    if let Ok(sim) = model.simulate(u, y) {
-        if let Some(k) = sim.blew_up_at {
-            warnings.push(blow_up_warning("estimation", data.name(), k));
-        }
+    let est_metrics = narx_metrics(&model, data).ok();
+    let mut disqualified = None;
+    if let Some(k) = est_metrics.as_ref().and_then(|m| m.blew_up_at) {
+        let w = blow_up_warning("estimation", data.name(), k);
+        disqualified = Some(w.clone());
+        warnings.push(w);
     }
+    let mut trust: Vec<Warning> = Vec::new();
+    if !chosen_terms.iter().any(Term::has_input) {
+        trust.push(Warning::NoInputTerm {
+            terms: chosen_terms.len(),
+        });
+    }
+    if let Some(m) = &est_metrics {
+        trust.extend(narx_trust(
+            Record::Estimation,
+            &model,
+            s.constant,
+            data,
+            data,
+            m,
+        ));
+    }
+    disqualified = disqualified.or_else(|| crate::order::disqualification(&trust));
+    warnings.extend(trust.iter().map(ToString::to_string));
     let weak: Vec<String> = chosen_terms
         .iter()
         .zip(model.theta())
@@ -582,6 +601,94 @@ pub fn identify_narx(data: &Dataset, settings: &NarxSettings) -> Result<NarxFit,
         refinement,
         candidates: cands.len(),
         warnings,
+        disqualified,
+    })
+}
+
+/// The trust warnings of the NARX `model` on the record `data` (its metrics `m`), as `identify
+/// --structure arx|hammerstein` gives them ([`crate::trust`]): a negative simulation fit (a blow-up has
+/// its own warning, [`blow_up_warning`]), and a simulation far below the plain linear least-squares
+/// ARX of the same lags (na, nb, nk), with a constant when `constant`, estimated on `est`
+/// ([`crate::trust::baseline_fit`]). A NARX free run starts from the measured initial outputs, so its
+/// fit is the guarded fit.
+pub fn narx_trust(
+    record: Record,
+    model: &NarxModel,
+    constant: bool,
+    est: &Dataset,
+    data: &Dataset,
+    m: &NarxMetrics,
+) -> Vec<Warning> {
+    if m.blew_up_at.is_some() {
+        return Vec::new();
+    }
+    let orders = sysid_core::Orders {
+        na: model.na(),
+        nb: model.nb(),
+        nk: model.nk(),
+    };
+    let baseline = crate::trust::baseline_fit(orders, &[], constant, std::slice::from_ref(est), data);
+    Warning::if_poor_simulation(record, m.fit_sim_percent)
+        .into_iter()
+        .chain(crate::trust::below_baseline(record, m.fit_sim_percent, baseline))
+        .collect()
+}
+
+/// Rule `sim`'s choice among n = from + 1.. terms: the fewest whose selection RMSE is within
+/// [`SIM_TOLERANCE`] (plus rounding of the output's range of `y`) of the least one there (parsimony);
+/// 0 when none has a value.
+fn sim_choice(values: &[Option<f64>], from: usize, y: &[f64]) -> usize {
+    let (lo, hi) = y
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        });
+    let tail = values.get(from..).unwrap_or_default();
+    let least = tail.iter().flatten().fold(f64::INFINITY, |a, &b| a.min(b));
+    let tol = SIM_TOLERANCE * least + 1e-10 * (hi - lo);
+    tail.iter()
+        .position(|v| v.is_some_and(|x| x <= least + tol))
+        .map_or(0, |i| from + i + 1)
+}
+
+/// When the stopping rule chose only terms without an input (the model could not respond to it) and
+/// FROLS ordered a term with one: the choice among the numbers of terms that include it, by the same
+/// rule (the least criterion, or rule `sim`'s parsimonious least RMSE), with the warning that says so.
+fn input_fallback(
+    stop: &mut StopCurve,
+    order: &[usize],
+    cands: &[Term],
+    y: &[f64],
+) -> Option<String> {
+    if stop.chosen == 0 || order[..stop.chosen].iter().any(|&i| cands[i].has_input()) {
+        return None;
+    }
+    let first = order.iter().position(|&i| cands[i].has_input())?;
+    let n = match stop.rule {
+        StopRule::Sim => sim_choice(&stop.values, first, y),
+        StopRule::Aic | StopRule::Bic => stop
+            .values
+            .get(first..)
+            .and_then(argmin)
+            .map_or(0, |i| first + i + 1),
+    };
+    (n > 0).then(|| {
+        let w = format!(
+            "the stopping rule ({}) chose {} term(s) without an input term (a model that cannot respond \
+             to the input); kept instead the {n} terms of the best {} among those that include FROLS's \
+             first input term {} (term {})",
+            stop.rule,
+            stop.chosen,
+            if stop.rule == StopRule::Sim {
+                "selection RMSE"
+            } else {
+                "criterion"
+            },
+            cands[order[first]],
+            first + 1
+        );
+        stop.chosen = n;
+        w
     })
 }
 

@@ -5,8 +5,9 @@
 //!
 //! Ranking: the selection fit a spurious slow pole cannot game ([`crate::trust::guarded_fit`]: the worse
 //! of the fits from estimated and from measured initial outputs), descending (to 1e-6 %); a structure
-//! that a warning disqualifies (unstable, negative or diverging simulation fit, estimation failed) comes
-//! after every qualified one; ties go to fewer parameters, then to the smaller AIC. [`recommended`] is
+//! that a warning disqualifies ([`qualifies`], [`disqualifies`]: unstable, negative or diverging
+//! simulation fit, estimation failed, not converged, worse than its linear start or far below the
+//! linear baseline, a nonlinearity that is not physical) comes after every qualified one; ties go to fewer parameters, then to the smaller AIC. [`recommended`] is
 //! the best qualified structure, and [`search_warnings`] says when there is none or when it lies on the
 //! edge of the searched grid.
 
@@ -16,7 +17,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::estimate::{identify, Identification};
 use crate::trust::{guarded_fit, metric_warnings};
-use crate::warnings::Record;
+use crate::warnings::{Concern, Record, Warning};
 use sysid_core::metrics::metrics;
 use sysid_core::{Dataset, Orders};
 
@@ -47,6 +48,48 @@ pub struct Candidate {
     /// Why the structure could not be estimated.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub error: Option<String>,
+    /// The first of its warnings that disqualifies it ([`disqualifies`]), when one does.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub disqualified: Option<String>,
+}
+
+/// Whether the warning `w` disqualifies its model from being recommended (by `order` and by `order
+/// --classes`): an unstable model, a negative or diverging simulation, an estimator that did not
+/// converge, an estimate that simulates worse than its linear start or far below the plain linear
+/// least-squares baseline, a nonlinearity that is not physical, a NARX model without an input term.
+pub fn disqualifies(w: &Warning) -> bool {
+    match w {
+        Warning::Unstable { .. }
+        | Warning::PoorSimulation { .. }
+        | Warning::NotConverged { .. }
+        | Warning::LinearStartBetter { .. }
+        | Warning::NonPhysicalDeadzone { .. }
+        | Warning::NonlinearityShape { .. }
+        | Warning::NoInputTerm { .. }
+        | Warning::Trust(Concern::BelowBaseline { .. }) => true,
+        Warning::ForInput { warning, .. } => disqualifies(warning),
+        _ => false,
+    }
+}
+
+/// The first of `warnings` that disqualifies its model ([`disqualifies`]), in words.
+pub fn disqualification<'a>(warnings: impl IntoIterator<Item = &'a Warning>) -> Option<String> {
+    warnings
+        .into_iter()
+        .find(|w| disqualifies(w))
+        .map(ToString::to_string)
+}
+
+/// True when a candidate may be recommended: estimated (`failed` false), stable (for a NARX model: its
+/// simulation does not blow up), with a non-negative ranking fit and no disqualifying warning
+/// (`disqualified`, from [`disqualification`]). The one rule of `order` and `order --classes`.
+pub fn qualifies(
+    failed: bool,
+    stable: bool,
+    ranking_fit: Option<f64>,
+    disqualified: Option<&str>,
+) -> bool {
+    !failed && stable && ranking_fit.is_some_and(|f| f >= 0.0) && disqualified.is_none()
 }
 
 impl Candidate {
@@ -55,9 +98,14 @@ impl Candidate {
         self.ranking_fit
     }
 
-    /// True when the structure may be recommended: estimated, stable, with a non-negative ranking fit.
+    /// True when the structure may be recommended ([`qualifies`]).
     pub fn qualified(&self) -> bool {
-        self.error.is_none() && self.stable && self.ranking_fit.is_some_and(|f| f >= 0.0)
+        qualifies(
+            self.error.is_some(),
+            self.stable,
+            self.ranking_fit,
+            self.disqualified.as_deref(),
+        )
     }
 }
 
@@ -77,7 +125,8 @@ pub fn search_warnings(
     let Some(best) = recommended(ranked) else {
         return vec![
             "no structure of the grid qualifies (every one is unstable, simulates worse than the mean \
-             of the selection record, or failed): none is recommended"
+             of the selection record, failed, or carries another disqualifying warning): none is \
+             recommended"
                 .to_string(),
         ];
     };
@@ -208,6 +257,7 @@ fn evaluate(est: &Dataset, val: Option<&Dataset>, o: Orders, base: &Identificati
         ranking_fit: None,
         warnings: Vec::new(),
         error: None,
+        disqualified: None,
     };
     let settings = Identification {
         structure: sysid_core::Structure {
@@ -226,6 +276,7 @@ fn evaluate(est: &Dataset, val: Option<&Dataset>, o: Orders, base: &Identificati
     c.p = fit.model.parameter_count();
     c.stable = fit.model.is_stable();
     c.warnings = fit.warnings.iter().map(ToString::to_string).collect();
+    c.disqualified = disqualification(&fit.warnings);
     match metrics(&fit.model, est) {
         Ok(m) => {
             c.fit_estimation = m.fit_sim_percent;
@@ -240,11 +291,9 @@ fn evaluate(est: &Dataset, val: Option<&Dataset>, o: Orders, base: &Identificati
             Ok(m) => {
                 c.fit_validation = m.fit_sim_percent;
                 c.ranking_fit = guarded_fit(&m);
-                c.warnings.extend(
-                    metric_warnings(Record::Validation, &m)
-                        .iter()
-                        .map(ToString::to_string),
-                );
+                let w = metric_warnings(Record::Validation, &m);
+                c.disqualified = c.disqualified.take().or_else(|| disqualification(&w));
+                c.warnings.extend(w.iter().map(ToString::to_string));
             }
             Err(e) => c.error = Some(format!("validation: {e}")),
         }

@@ -7,7 +7,10 @@
 //! `identify --structure narx --stop sim` does with that split: its terms are ordered and fitted on
 //! the estimation part, its number of terms is the one of least selection RMSE, and that RMSE is its
 //! rank. Beside it: the normalised AIC ln(mean ε²) + 2p/N of the one-step residuals on the estimation
-//! part.
+//! part. A candidate that a warning disqualifies (the rule of plain `order`, [`crate::order::qualifies`]:
+//! unstable or blowing up, a negative selection fit, not converged, worse than its linear start or far
+//! below the linear baseline, a nonlinearity that is not physical, a NARX model without an input term)
+//! ranks after every qualified one and is never [`recommended`].
 
 use serde::Serialize;
 
@@ -148,6 +151,29 @@ pub struct ClassCandidate {
     /// Why the candidate could not be estimated.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub error: Option<String>,
+    /// All poles inside the unit circle (NARX: its simulation of the selection part did not blow up).
+    pub stable: bool,
+    /// The first of its warnings that disqualifies it from being recommended
+    /// ([`crate::order::disqualifies`], the rule of plain `order`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub disqualified: Option<String>,
+}
+
+impl ClassCandidate {
+    /// True when the candidate may be recommended ([`crate::order::qualifies`] with its selection fit).
+    pub fn qualified(&self) -> bool {
+        crate::order::qualifies(
+            self.error.is_some(),
+            self.stable,
+            self.selection_fit_percent,
+            self.disqualified.as_deref(),
+        )
+    }
+}
+
+/// The recommended candidate of a ranking: the best-ranked qualified one ([`ClassCandidate::qualified`]).
+pub fn recommended(ranked: &[ClassCandidate]) -> Option<&ClassCandidate> {
+    ranked.iter().find(|c| c.qualified())
 }
 
 /// Σ-free metrics of a one-step prediction and a simulation over rows k0..: (RMSE, fit %) of the
@@ -214,6 +240,8 @@ pub fn evaluate(
         aic: None,
         warnings: Vec::new(),
         error: None,
+        stable: false,
+        disqualified: None,
     };
     let est = &whole.rows(0..split);
     let sel = &whole.rows(split..whole.len());
@@ -227,6 +255,8 @@ pub fn evaluate(
                 let m = &fit.model;
                 c.p = m.parameter_count();
                 c.warnings = fit.warnings.iter().map(ToString::to_string).collect();
+                c.stable = m.is_stable();
+                c.disqualified = crate::order::disqualification(&fit.warnings);
                 let k0 = m.k0();
                 let sim = m.simulate(&sel.input_signals(), sel.y()).ok();
                 let pred = m.predict_equation_error(&est.input_signals(), est.y())?;
@@ -247,8 +277,10 @@ pub fn evaluate(
                 let m = &fit.model;
                 c.p = m.parameter_count();
                 c.warnings = fit.warnings;
+                c.disqualified = fit.disqualified;
                 let i = fit.stop.chosen - 1;
                 c.selection_rmse = fit.stop.values.get(i).copied().flatten();
+                c.stable = c.selection_rmse.is_some();
                 c.selection_fit_percent = fit.stop.fits.get(i).copied().flatten();
                 let pred = m.predict(est.u(), est.y())?;
                 (_, _, c.aic) = judge(est.y(), None, est.y(), &pred, m.k0(), c.p);
@@ -263,7 +295,9 @@ pub fn evaluate(
 }
 
 /// Every class at every orders of `grid`, estimated on the first `split` rows of `whole` and ranked
-/// on the rest: least selection RMSE first (a candidate without one last), ties to fewer parameters.
+/// on the rest: the qualified candidates ([`ClassCandidate::qualified`]) before the others, as plain
+/// `order` ranks; then least selection RMSE first (a candidate without one last), ties to fewer
+/// parameters.
 /// `progress` is called once per candidate (from worker threads with the `parallel` feature).
 pub fn structure_search(
     whole: &Dataset,
@@ -292,7 +326,10 @@ pub fn structure_search(
     let mut out: Vec<ClassCandidate> = jobs.iter().map(run).collect();
     out.sort_by(|a, b| {
         let key = |c: &ClassCandidate| c.selection_rmse.unwrap_or(f64::INFINITY);
-        key(a).total_cmp(&key(b)).then(a.p.cmp(&b.p))
+        b.qualified()
+            .cmp(&a.qualified())
+            .then(key(a).total_cmp(&key(b)))
+            .then(a.p.cmp(&b.p))
     });
     out
 }

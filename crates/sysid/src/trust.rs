@@ -87,10 +87,9 @@ pub fn std_warning(why: Option<String>) -> Option<Warning> {
 }
 
 /// [`Concern::BelowBaseline`] for a fitted model on a record other than its estimation record (`data`,
-/// whose metrics `m` are given): the baseline is the plain linear least-squares ARX of the same orders
-/// and offset (every input linear) estimated on the records `est` (as `identify --structure arx
-/// --method ls` would), judged on `data`. `None` for that baseline itself, or when the baseline cannot
-/// be estimated, is unstable (no yardstick) or cannot be simulated.
+/// whose metrics `m` are given): the baseline is [`baseline_fit`] of the same orders and offset
+/// estimated on the records `est`, judged on `data`. `None` for that baseline itself, or when the
+/// baseline has no fit.
 pub fn baseline_warning(
     record: Record,
     fit: &crate::Fitted,
@@ -99,12 +98,29 @@ pub fn baseline_warning(
     data: &sysid_core::Dataset,
     m: &Metrics,
 ) -> Option<Warning> {
-    let s = settings.structure;
     if fit.model.kind() == sysid_core::ModelKind::Arx && fit.method == crate::Method::Ls {
         return None;
     }
-    let linear = settings
-        .inputs
+    let s = settings.structure;
+    below_baseline(
+        record,
+        guarded_fit(m),
+        baseline_fit(s.orders, &settings.inputs, s.offset, est, data),
+    )
+}
+
+/// The baseline of every model: the plain linear least-squares ARX of the orders `orders` and the
+/// offset `offset`, every input of `inputs` linear (as `identify --structure arx --method ls` would),
+/// estimated on the records `est`; its guarded simulation fit % on `data` ([`guarded_fit`]). `None`
+/// when the baseline cannot be estimated, is unstable (no yardstick) or cannot be simulated.
+pub fn baseline_fit(
+    orders: sysid_core::Orders,
+    inputs: &[crate::InputSpec],
+    offset: bool,
+    est: &[sysid_core::Dataset],
+    data: &sysid_core::Dataset,
+) -> Option<f64> {
+    let linear = inputs
         .iter()
         .map(|i| crate::InputSpec {
             nonlinearity: crate::NonlinearityKind::Linear,
@@ -113,16 +129,15 @@ pub fn baseline_warning(
         .collect();
     let base = crate::Identification::default()
         .with_kind(sysid_core::ModelKind::Arx)
-        .with_orders(s.orders.na, s.orders.nb, s.orders.nk)
+        .with_orders(orders.na, orders.nb, orders.nk)
         .with_inputs(linear)
-        .with_offset(s.offset)
+        .with_offset(offset)
         .with_method(crate::Method::Ls);
     let baseline = crate::identify(est, &base).ok()?;
     if !baseline.model.is_stable() {
         return None;
     }
-    let bm = sysid_core::metrics::metrics(&baseline.model, data).ok()?;
-    below_baseline(record, guarded_fit(m), guarded_fit(&bm))
+    guarded_fit(&sysid_core::metrics::metrics(&baseline.model, data).ok()?)
 }
 
 #[cfg(test)]

@@ -127,6 +127,12 @@ pub enum Warning {
         /// Distinct levels beyond the breakpoint.
         levels: usize,
     },
+    /// A polynomial NARX model whose terms contain no input: it cannot respond to the input, and its
+    /// free run is only the decay of its initial outputs.
+    NoInputTerm {
+        /// Number of (output-only or constant) terms the model has.
+        terms: usize,
+    },
     /// A trust check (module `trust`: initial state, baseline, standard deviations).
     Trust(Concern),
 }
@@ -205,6 +211,12 @@ impl std::fmt::Display for Warning {
                 f,
                 "too few distinct input levels on the {branch} deadzone branch ({levels} beyond its \
                  breakpoint; at least 2 are needed to separate slope and breakpoint)"
+            ),
+            Warning::NoInputTerm { terms } => write!(
+                f,
+                "the model has no input term (its {terms} term(s) are lagged outputs or the constant): it \
+                 cannot respond to the input and its simulation is only the decay of its initial outputs \
+                 — do not use it; lower the degree, change the lags or the stopping rule"
             ),
             Warning::Trust(c) => c.fmt(f),
         }

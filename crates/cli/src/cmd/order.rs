@@ -206,7 +206,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     bar.finish_and_clear();
     let ranked_by =
         "selection fit % (simulation, the worse of estimated and measured initial outputs); \
-                     structures a warning disqualifies (unstable, negative fit) last";
+                     structures a warning disqualifies (unstable, negative fit, not converged, worse \
+                     than the linear start or baseline, nonlinearity not physical) last";
     let mut warnings = sysid::order::search_warnings(&ranked, &na, &nb, &nk);
     for w in delay.iter().flat_map(|d| &d.warnings) {
         warnings.push(format!("--nk auto: {w}"));
@@ -410,6 +411,37 @@ fn detrended(
     })
 }
 
+/// The warnings of a model `fit` (identified by `id` on `data`) on the test record `t` (its metrics
+/// `m`), each prefixed "test record: ": a negative or diverging simulation, an initial state that
+/// flatters the fit, a fit far below the linear least-squares baseline. Shared by `order` and `order
+/// --classes`.
+pub(super) fn test_record_warnings(
+    fit: &sysid::Fitted,
+    id: &Identification,
+    data: &Dataset,
+    t: &Dataset,
+    m: &sysid::metrics::Metrics,
+) -> Vec<String> {
+    let record = sysid::warnings::Record::Validation;
+    sysid::trust::metric_warnings(record, m)
+        .into_iter()
+        .chain(sysid::trust::baseline_warning(
+            record,
+            fit,
+            id,
+            std::slice::from_ref(data),
+            t,
+            m,
+        ))
+        .map(|w| test_record_words(&w))
+        .collect()
+}
+
+/// A warning about the test record, in words.
+pub(super) fn test_record_words(w: &impl std::fmt::Display) -> String {
+    format!("test record: {w}")
+}
+
 /// The chosen structure `c` re-estimated on the whole estimation record `data` and judged on the test
 /// record `t` (never used for ranking), with the test record's warnings added to `warnings`.
 fn chosen_on_test(
@@ -423,20 +455,7 @@ fn chosen_on_test(
     id.structure.orders = c.orders;
     let fit = sysid::estimate::identify(data, &id)?;
     let m = sysid::metrics::metrics(&fit.model, t)?;
-    let record = sysid::warnings::Record::Validation;
-    warnings.extend(
-        sysid::trust::metric_warnings(record, &m)
-            .into_iter()
-            .chain(sysid::trust::baseline_warning(
-                record,
-                &fit,
-                &id,
-                std::slice::from_ref(data),
-                t,
-                &m,
-            ))
-            .map(|w| format!("test record: {w}")),
-    );
+    warnings.extend(test_record_warnings(&fit, &id, data, t, &m));
     Ok(TestResult {
         orders: c.orders,
         estimated_on: data.name().to_string(),

@@ -5,7 +5,7 @@
 use std::path::Path;
 
 use report::format::num;
-use sysid::search::{structure_search, Class, ClassCandidate};
+use sysid::search::{recommended, structure_search, Class, ClassCandidate};
 use sysid::{Dataset, Identification, Orders};
 
 use super::common::{print_report, progress_bar, write_output};
@@ -64,23 +64,56 @@ pub fn run(
     });
     bar.finish_and_clear();
     let mut warnings = Vec::new();
-    let best = ranked
-        .iter()
-        .find(|c| c.selection_rmse.is_some() && c.error.is_none());
-    let chosen = match best {
+    let chosen = match recommended(&ranked) {
         None => {
-            warnings.push("no candidate simulates the selection part (every one failed or blew up): none is recommended".to_string());
+            warnings.push(
+                "no structure qualifies (every candidate failed, blew up, simulates the selection part \
+                 worse than its mean, or carries another disqualifying warning): none is recommended"
+                    .to_string(),
+            );
             None
         }
         Some(c) => {
-            warnings.extend(c.warnings.iter().map(|w| {
+            let name = |c: &ClassCandidate| {
                 format!(
-                    "recommended {} ({}, {}, {}): {w}",
+                    "{} ({}, {}, {})",
                     c.class, c.orders.na, c.orders.nb, c.orders.nk
                 )
-            }));
-            let chosen =
-                chosen_on_test(c, base, &narx, data, test, split as f64 / data.len() as f64)?;
+            };
+            // The candidate of least selection RMSE, when a warning passed it over.
+            let passed = ranked
+                .iter()
+                .filter(|d| d.selection_rmse.is_some() && d.error.is_none())
+                .min_by(|a, b| {
+                    let k = |c: &ClassCandidate| c.selection_rmse.unwrap_or(f64::INFINITY);
+                    k(a).total_cmp(&k(b)).then(a.p.cmp(&b.p))
+                })
+                .filter(|d| !d.qualified());
+            if let Some(d) = passed {
+                warnings.push(format!(
+                    "the candidate of least selection RMSE, {}, is not recommended because {}: \
+                     recommended instead the best qualifying candidate, {}",
+                    name(d),
+                    d.disqualified.as_deref().unwrap_or(
+                        "its selection fit is negative or it is unstable"
+                    ),
+                    name(c)
+                ));
+            }
+            warnings.extend(
+                c.warnings
+                    .iter()
+                    .map(|w| format!("recommended {}: {w}", name(c))),
+            );
+            let chosen = chosen_on_test(
+                c,
+                base,
+                &narx,
+                data,
+                test,
+                split as f64 / data.len() as f64,
+                &mut warnings,
+            )?;
             if let (Some(t), None) = (&chosen.data, chosen.rmse_sim) {
                 warnings.push(format!(
                     "the chosen structure's free-run simulation diverged or blew up on the test record {t}: \
@@ -90,7 +123,10 @@ pub fn run(
             Some(chosen)
         }
     };
-    let ranked_by = "free-run RMSE on the selection part (from its measured initial outputs), then fewer parameters";
+    let ranked_by = "free-run RMSE on the selection part (from its measured initial outputs), then fewer \
+                     parameters; candidates a warning disqualifies (unstable or blowing up, negative \
+                     selection fit, not converged, worse than the linear start or baseline, nonlinearity \
+                     not physical, no input term) last";
     let o = |v: Option<f64>| v.map_or_else(|| "n/a".to_string(), num);
     let mut text = format!(
         "Structure search: {} candidates ({} classes x {} orders) estimated on {} ({} samples), ranked on \
@@ -119,10 +155,11 @@ pub fn run(
             o(c.selection_rmse),
             o(c.selection_fit_percent),
             o(c.aic),
-            c.error
-                .as_ref()
-                .map(|e| format!("  ({e})"))
-                .unwrap_or_default()
+            match (&c.error, c.qualified()) {
+                (Some(e), _) => format!("  ({e})"),
+                (None, false) => "  (disqualified)".to_string(),
+                (None, true) => String::new(),
+            }
         ));
     }
     if let Some(c) = &chosen {
@@ -175,7 +212,8 @@ pub fn run(
     Ok(())
 }
 
-/// The chosen candidate re-estimated on the whole estimation record, with its test figures.
+/// The chosen candidate re-estimated on the whole estimation record, with its test figures; the test
+/// record's warnings (as plain `order` gives them) are added to `warnings`.
 fn chosen_on_test(
     c: &ClassCandidate,
     base: &Identification,
@@ -183,6 +221,7 @@ fn chosen_on_test(
     data: &Dataset,
     test: Option<&Dataset>,
     split_fraction: f64,
+    warnings: &mut Vec<String>,
 ) -> anyhow::Result<Chosen> {
     let class: Class = c.class.parse().map_err(anyhow::Error::msg)?;
     let o = c.orders;
@@ -202,6 +241,18 @@ fn chosen_on_test(
             match test {
                 Some(t) => {
                     let m = sysid::narx::narx_metrics(&fit.model, t)?;
+                    warnings.extend(
+                        sysid::narx::narx_trust(
+                            sysid::warnings::Record::Validation,
+                            &fit.model,
+                            s.constant,
+                            data,
+                            t,
+                            &m,
+                        )
+                        .iter()
+                        .map(super::order::test_record_words),
+                    );
                     (m.rmse_sim, m.fit_sim_percent)
                 }
                 None => (None, None),
@@ -215,6 +266,7 @@ fn chosen_on_test(
             match test {
                 Some(t) => {
                     let m = sysid::metrics::metrics(&fit.model, t)?;
+                    warnings.extend(super::order::test_record_warnings(&fit, &id, data, t, &m));
                     (m.rmse_sim_measured, m.fit_sim_measured_percent)
                 }
                 None => (None, None),

@@ -4,8 +4,8 @@
 use serde::Serialize;
 
 use sysid::narx::{
-    blow_up_warning, narx_metrics, narx_trust, NarxFit, NarxMetrics, NarxSettings, Refinement, StopCurve,
-    StopRule, TermReport,
+    blow_up_warning, narx_metrics, narx_trust, NarxFit, NarxMetrics, NarxSettings, Refinement,
+    StopCurve, StopRule, TermReport,
 };
 use sysid::narx_model::NarxModel;
 use sysid::warnings::Record;
@@ -71,9 +71,16 @@ impl NarxReport {
                 warnings.push(blow_up_warning("validation", &v.data, k));
             }
             warnings.extend(
-                narx_trust(Record::Validation, &fit.model, settings.constant, est, vd, v)
-                    .iter()
-                    .map(ToString::to_string),
+                narx_trust(
+                    Record::Validation,
+                    &fit.model,
+                    settings.constant,
+                    est,
+                    vd,
+                    v,
+                )
+                .iter()
+                .map(ToString::to_string),
             );
         }
         Ok(NarxReport {

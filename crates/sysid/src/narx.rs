@@ -627,10 +627,15 @@ pub fn narx_trust(
         nb: model.nb(),
         nk: model.nk(),
     };
-    let baseline = crate::trust::baseline_fit(orders, &[], constant, std::slice::from_ref(est), data);
+    let baseline =
+        crate::trust::baseline_fit(orders, &[], constant, std::slice::from_ref(est), data);
     Warning::if_poor_simulation(record, m.fit_sim_percent)
         .into_iter()
-        .chain(crate::trust::below_baseline(record, m.fit_sim_percent, baseline))
+        .chain(crate::trust::below_baseline(
+            record,
+            m.fit_sim_percent,
+            baseline,
+        ))
         .collect()
 }
 
@@ -653,7 +658,8 @@ fn sim_choice(values: &[Option<f64>], from: usize, y: &[f64]) -> usize {
 
 /// When the stopping rule chose only terms without an input (the model could not respond to it) and
 /// FROLS ordered a term with one: the choice among the numbers of terms that include it, by the same
-/// rule (the least criterion, or rule `sim`'s parsimonious least RMSE), with the warning that says so.
+/// rule (the least criterion, or rule `sim`'s parsimonious least RMSE), with the warning that says so;
+/// when none of those has a value, the choice is kept and the warning says why.
 fn input_fallback(
     stop: &mut StopCurve,
     order: &[usize],
@@ -672,24 +678,37 @@ fn input_fallback(
             .and_then(argmin)
             .map_or(0, |i| first + i + 1),
     };
-    (n > 0).then(|| {
-        let w = format!(
-            "the stopping rule ({}) chose {} term(s) without an input term (a model that cannot respond \
-             to the input); kept instead the {n} terms of the best {} among those that include FROLS's \
-             first input term {} (term {})",
-            stop.rule,
+    let rule = stop.rule;
+    if n == 0 {
+        return Some(format!(
+            "the stopping rule ({rule}) chose {} term(s) without an input term, and no number of terms \
+             that includes FROLS's first input term {} (term {}) gave a usable model ({})",
             stop.chosen,
-            if stop.rule == StopRule::Sim {
-                "selection RMSE"
-            } else {
-                "criterion"
-            },
             cands[order[first]],
-            first + 1
-        );
-        stop.chosen = n;
-        w
-    })
+            first + 1,
+            if rule == StopRule::Sim {
+                "every one blew up on the selection part"
+            } else {
+                "no finite criterion"
+            }
+        ));
+    }
+    let w = format!(
+        "the stopping rule ({}) chose {} term(s) without an input term (a model that cannot respond \
+         to the input); kept instead the {n} terms of the best {} among those that include FROLS's \
+         first input term {} (term {})",
+        rule,
+        stop.chosen,
+        if rule == StopRule::Sim {
+            "selection RMSE"
+        } else {
+            "criterion"
+        },
+        cands[order[first]],
+        first + 1
+    );
+    stop.chosen = n;
+    Some(w)
 }
 
 /// The warning for a free run that blew up at sample `k` of record `name` (`which`: estimation,

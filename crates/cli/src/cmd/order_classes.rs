@@ -94,9 +94,9 @@ pub fn run(
                     "the candidate of least selection RMSE, {}, is not recommended because {}: \
                      recommended instead the best qualifying candidate, {}",
                     name(d),
-                    d.disqualified.as_deref().unwrap_or(
-                        "its selection fit is negative or it is unstable"
-                    ),
+                    d.disqualified
+                        .as_deref()
+                        .unwrap_or("its selection fit is negative or it is unstable"),
                     name(c)
                 ));
             }

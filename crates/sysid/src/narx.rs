@@ -1042,3 +1042,162 @@ pub fn narx_metrics(model: &NarxModel, data: &Dataset) -> Result<NarxMetrics, Sy
         blew_up_at: sim.blew_up_at,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use sysid_core::data::Signals;
+
+    fn y1() -> Term {
+        Term::new(vec![Lagged::Y(1)])
+    }
+    fn u1() -> Term {
+        Term::new(vec![Lagged::U(1)])
+    }
+    fn y1sq() -> Term {
+        Term::new(vec![Lagged::Y(1), Lagged::Y(1)])
+    }
+
+    fn curve(rule: StopRule, values: Vec<Option<f64>>, chosen: usize) -> StopCurve {
+        StopCurve {
+            rule,
+            values,
+            fits: Vec::new(),
+            chosen,
+        }
+    }
+
+    // FROLS ordered y(k−1), y(k−1)², u(k−1), y(k−1)·… : the criterion's minimum at n = 2 has no input;
+    // among n >= 3 (the first input term is the third) the least value is at n = 4 (AIC 5.0 < 6.0).
+    #[test]
+    fn an_input_free_choice_falls_back_to_the_best_with_an_input() {
+        let cands = vec![y1(), y1sq(), u1(), Term::constant()];
+        let order = [0, 1, 2, 3];
+        let mut stop = curve(
+            StopRule::Aic,
+            vec![Some(9.0), Some(4.0), Some(6.0), Some(5.0)],
+            2,
+        );
+        let w = input_fallback(&mut stop, &order, &cands, &[0.0, 1.0]).unwrap();
+        assert_eq!(stop.chosen, 4);
+        assert!(w.contains("u(k-1)") && w.contains("term 3"), "{w}");
+        // Rule sim: the fewest within 0.2 % of the least selection RMSE among n >= 3: n = 3
+        // (1.001 <= 1.0 · 1.002).
+        let mut stop = curve(
+            StopRule::Sim,
+            vec![Some(2.0), Some(0.5), Some(1.001), Some(1.0)],
+            2,
+        );
+        input_fallback(&mut stop, &order, &cands, &[0.0, 1.0]).unwrap();
+        assert_eq!(stop.chosen, 3);
+        // A choice with an input term is left alone; so is one when no input term was ordered, and
+        // when every n with the input blew up the choice is kept with a warning.
+        let mut stop = curve(StopRule::Aic, vec![Some(1.0), Some(2.0), Some(0.5)], 3);
+        assert!(input_fallback(&mut stop, &order, &cands, &[0.0]).is_none());
+        let mut stop = curve(StopRule::Aic, vec![Some(1.0), Some(2.0)], 1);
+        assert!(input_fallback(&mut stop, &[0, 1], &cands, &[0.0]).is_none());
+        let mut stop = curve(StopRule::Sim, vec![Some(1.0), Some(2.0), None, None], 1);
+        let w = input_fallback(&mut stop, &order, &cands, &[0.0, 1.0]).unwrap();
+        assert_eq!(stop.chosen, 1);
+        assert!(w.contains("blew up"), "{w}");
+    }
+
+    // y(k) = 0.95 y(k−1) + 0.05 u(k−1) with u a ±1 sequence: y(k−1) explains almost all of yᵀy, so with
+    // one term allowed FROLS keeps y(k−1) alone — a model without an input, which must be said and
+    // disqualify the model.
+    #[test]
+    fn a_model_without_an_input_term_is_warned_and_disqualified() {
+        let n = 600;
+        let u: Vec<f64> = (0..n)
+            .map(|k| if (k * 7919 / 13) % 2 == 0 { 1.0 } else { -1.0 })
+            .collect();
+        let mut y = vec![5.0; n];
+        for k in 1..n {
+            y[k] = 0.95 * y[k - 1] + 0.05 * u[k - 1];
+        }
+        let data = Dataset::new(Signals { u, y }, 1.0, "ar").unwrap();
+        let s = NarxSettings {
+            na: 1,
+            nb: 1,
+            nk: 1,
+            degree: 1,
+            constant: false,
+            max_terms: 1,
+            stop: StopRule::Aic,
+            refine: false,
+            ..NarxSettings::default()
+        };
+        let fit = identify_narx(&data, &s).unwrap();
+        assert_eq!(fit.terms.len(), 1);
+        assert_eq!(fit.terms[0].term, "y(k-1)");
+        let said = Warning::NoInputTerm { terms: 1 }.to_string();
+        assert!(fit.warnings.contains(&said), "{:?}", fit.warnings);
+        assert!(fit.disqualified.is_some());
+        // With two terms allowed the input term comes in and nothing is said about it.
+        let fit = identify_narx(&data, &NarxSettings { max_terms: 2, ..s }).unwrap();
+        assert!(
+            fit.terms.iter().any(|t| t.term == "u(k-1)"),
+            "{:?}",
+            fit.terms
+        );
+        assert!(!fit.warnings.contains(&said));
+    }
+
+    // Data from the ARX y(k) = 0.5 y(k−1) + u(k−1); the NARX y(k) = −u(k−1) (wrong sign) simulates
+    // ŷ(k) = −u(k−1). Its fit, computed here by the definition 100 (1 − ‖y − ŷ‖/‖y − ȳ‖), is negative,
+    // and the least-squares ARX (1, 1, 1) reproduces the data (fit 100 %): both warnings.
+    #[test]
+    fn a_narx_model_with_a_negative_fit_far_below_the_linear_baseline_is_warned() {
+        let n = 300;
+        let u: Vec<f64> = (0..n).map(|k| ((k * 37 % 11) as f64 - 5.0) / 5.0).collect();
+        let mut y = vec![0.0; n];
+        for k in 1..n {
+            y[k] = 0.5 * y[k - 1] + u[k - 1];
+        }
+        let data = Dataset::new(
+            Signals {
+                u: u.clone(),
+                y: y.clone(),
+            },
+            1.0,
+            "arx",
+        )
+        .unwrap();
+        let model = NarxModel::new(1.0, 1, 1, 1, 1, vec![u1()], vec![-1.0]).unwrap();
+        let m = narx_metrics(&model, &data).unwrap();
+        let (num, den): (f64, f64) = {
+            let tail = &y[1..];
+            let mean = tail.iter().sum::<f64>() / tail.len() as f64;
+            (
+                (1..n)
+                    .map(|k| (y[k] + u[k - 1]).powi(2))
+                    .sum::<f64>()
+                    .sqrt(),
+                tail.iter().map(|v| (v - mean).powi(2)).sum::<f64>().sqrt(),
+            )
+        };
+        let fit = 100.0 * (1.0 - num / den);
+        assert!(fit < 0.0);
+        assert!((m.fit_sim_percent.unwrap() - fit).abs() < 1e-9);
+        let w = narx_trust(Record::Validation, &model, false, &data, &data, &m);
+        assert!(
+            w.contains(&Warning::PoorSimulation {
+                record: Record::Validation,
+                fit_percent: Some(m.fit_sim_percent.unwrap())
+            }),
+            "{w:?}"
+        );
+        assert!(
+            w.iter().any(|w| matches!(
+                w,
+                Warning::Trust(crate::warnings::Concern::BelowBaseline { baseline, .. })
+                    if *baseline > 99.999
+            )),
+            "{w:?}"
+        );
+        // The true structure itself draws neither.
+        let truth = NarxModel::new(1.0, 1, 1, 1, 1, vec![y1(), u1()], vec![0.5, 1.0]).unwrap();
+        let mt = narx_metrics(&truth, &data).unwrap();
+        assert!(narx_trust(Record::Validation, &truth, false, &data, &data, &mt).is_empty());
+    }
+}

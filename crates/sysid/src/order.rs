@@ -308,6 +308,59 @@ mod tests {
     use sysid_core::data::Signals;
     use sysid_core::ModelKind;
 
+    // The rule shared with `order --classes`: which warnings disqualify, and that any one of them, an
+    // instability, a failure or a negative fit does.
+    #[test]
+    fn disqualifying_warnings_are_the_ones_that_make_a_model_unusable() {
+        use crate::warnings::Concern;
+        let bad = [
+            Warning::Unstable {
+                max_pole_modulus: 1.01,
+            },
+            Warning::PoorSimulation {
+                record: Record::Validation,
+                fit_percent: Some(-3.0),
+            },
+            Warning::NotConverged { how: "cap".into() },
+            Warning::LinearStartBetter {
+                why: "worse".into(),
+            },
+            Warning::NonPhysicalDeadzone {
+                why: "b_l > b_r".into(),
+            },
+            Warning::NoInputTerm { terms: 1 },
+            Warning::Trust(Concern::BelowBaseline {
+                record: Record::Estimation,
+                fit: 4.6,
+                baseline: 40.0,
+            }),
+            Warning::ForInput {
+                input: "u1".into(),
+                warning: Box::new(Warning::NonPhysicalDeadzone { why: "x".into() }),
+            },
+        ];
+        for w in &bad {
+            assert!(disqualifies(w), "{w}");
+        }
+        let fine = [
+            Warning::Trust(Concern::NoStandardDeviations { why: "x".into() }),
+            Warning::Fallback {
+                used: "linear".into(),
+                why: "x".into(),
+            },
+        ];
+        assert!(fine.iter().all(|w| !disqualifies(w)));
+        assert_eq!(disqualification(&fine), None);
+        let mixed = [fine[0].clone(), bad[2].clone()];
+        assert_eq!(disqualification(&mixed), Some(bad[2].to_string()));
+        assert!(qualifies(false, true, Some(0.0), None));
+        assert!(!qualifies(true, true, Some(50.0), None));
+        assert!(!qualifies(false, false, Some(50.0), None));
+        assert!(!qualifies(false, true, Some(-0.1), None));
+        assert!(!qualifies(false, true, None, None));
+        assert!(!qualifies(false, true, Some(50.0), Some("not converged")));
+    }
+
     // Data from y(k) = 0.6 y(k−1) + u(k−2) − 0.3 u(k−3) (na = 1, nb = 2, nk = 2), noise-free: the true
     // structure fits 100 %, and so does every structure containing it; AIC then prefers the fewest parameters.
     #[test]

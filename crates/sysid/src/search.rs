@@ -338,6 +338,38 @@ pub fn structure_search(
 mod tests {
     use super::*;
 
+    fn candidate(class: &str, rmse: f64, fit: f64, disqualified: Option<&str>) -> ClassCandidate {
+        ClassCandidate {
+            class: class.into(),
+            orders: Orders {
+                na: 1,
+                nb: 1,
+                nk: 1,
+            },
+            p: 2,
+            selection_rmse: Some(rmse),
+            selection_fit_percent: Some(fit),
+            aic: None,
+            warnings: Vec::new(),
+            error: None,
+            stable: true,
+            disqualified: disqualified.map(Into::into),
+        }
+    }
+
+    // The least-RMSE candidate carries a disqualifying warning: the next qualified one is recommended;
+    // a negative selection fit disqualifies too; none when nothing qualifies.
+    #[test]
+    fn a_disqualified_candidate_is_never_recommended() {
+        let ranked = [
+            candidate("hammerstein:deadzone", 0.4, 60.0, Some("not converged")),
+            candidate("narx2", 0.5, -1.0, None),
+            candidate("arx", 0.6, 30.0, None),
+        ];
+        assert_eq!(recommended(&ranked).unwrap().class, "arx");
+        assert!(recommended(&ranked[..2]).is_none());
+    }
+
     // `order --classes wiener:KIND[:N]`: parsed with its size, written back the same way (the chosen
     // candidate is re-parsed from its text), and identified with the output block set and a linear input.
     #[test]

@@ -179,6 +179,57 @@ fn narx_negative_fit_is_warned_and_fails_strict_on_the_coupled_drives() {
     }
 }
 
+// `validate` of a saved NARX model says what `identify` says of its validation record: a negative fit,
+// and a model without an input term (the coupled drives (2, 2, 1) of degree 3 keeps output terms only,
+// every term set with an input blowing up on the selection part).
+#[test]
+fn validate_of_a_narx_model_warns_like_identify() {
+    let Some(dir) = ipa_testdata::shared_data() else {
+        return;
+    };
+    let tmp = tempfile::tempdir().unwrap();
+    let model = tmp.path().join("narx.json");
+    let model = model.to_str().unwrap();
+    let mut args = vec!["identify"];
+    args.extend(&DRIVES[..10]);
+    args.extend([
+        "--structure",
+        "narx",
+        "--na",
+        "2",
+        "--nb",
+        "2",
+        "--nk",
+        "1",
+        "--degree",
+        "3",
+        "--save-model",
+        model,
+    ]);
+    run_json(&dir, &args);
+    let text = std::fs::read_to_string(model).unwrap();
+    let file: Value = serde_json::from_str(&text).unwrap();
+    let has_input = file.to_string().contains("u(k");
+    let mut args = vec!["validate", "--model", model];
+    args.extend(&DRIVES[..8]);
+    args.extend(["--rows", "250..500"]);
+    let (code, doc) = run_json(&dir, &args);
+    assert_eq!(code, 0);
+    let w = warnings(&doc);
+    assert_eq!(
+        w.iter().any(|w| w.contains("the model has no input term")),
+        !has_input,
+        "{w:?}"
+    );
+    let fit = doc["metrics"]["validation"]["fit_sim_percent"].as_f64();
+    assert_eq!(
+        w.iter()
+            .any(|w| w.contains("negative simulation fit on the validation data")),
+        fit.is_some_and(|f| f < 0.0),
+        "{fit:?} {w:?}"
+    );
+}
+
 /// The candidate of `doc` (an `order --classes` document) that was chosen.
 fn chosen_candidate(doc: &Value) -> &Value {
     let c = &doc["chosen"];

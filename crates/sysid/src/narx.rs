@@ -549,12 +549,7 @@ pub fn identify_narx(data: &Dataset, settings: &NarxSettings) -> Result<NarxFit,
         disqualified = Some(w.clone());
         warnings.push(w);
     }
-    let mut trust: Vec<Warning> = Vec::new();
-    if !chosen_terms.iter().any(Term::has_input) {
-        trust.push(Warning::NoInputTerm {
-            terms: chosen_terms.len(),
-        });
-    }
+    let mut trust: Vec<Warning> = no_input_warning(model.terms()).into_iter().collect();
     if let Some(m) = &est_metrics {
         trust.extend(narx_trust(
             Record::Estimation,
@@ -637,6 +632,11 @@ pub fn narx_trust(
             baseline,
         ))
         .collect()
+}
+
+/// [`Warning::NoInputTerm`] when none of `terms` has a lagged input.
+pub fn no_input_warning(terms: &[Term]) -> Option<Warning> {
+    (!terms.iter().any(Term::has_input)).then_some(Warning::NoInputTerm { terms: terms.len() })
 }
 
 /// Rule `sim`'s choice among n = from + 1.. terms: the fewest whose selection RMSE is within

@@ -124,7 +124,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 }
 
 /// `validate` of a polynomial NARX model: simulation (from the measured initial outputs) and one-step
-/// metrics, a blow-up warning, `--out` with the columns of a linear model's.
+/// metrics, the warnings (a blow-up, a negative fit, no input term), `--out` with the columns of a
+/// linear model's.
 fn run_narx(
     args: &Args,
     model: &sysid::narx_model::NarxModel,
@@ -151,6 +152,23 @@ fn run_narx(
             sysid::narx::blow_up_warning("validation", data.name(), k),
         );
     }
+    // As for a linear model: a negative fit (a blow-up has said its own), and a model without an input.
+    let poor = metrics
+        .blew_up_at
+        .is_none()
+        .then(|| {
+            sysid::Warning::if_poor_simulation(
+                sysid::warnings::Record::Validation,
+                metrics.fit_sim_percent,
+            )
+        })
+        .flatten();
+    warnings.extend(
+        sysid::narx::no_input_warning(model.terms())
+            .into_iter()
+            .chain(poor)
+            .map(|w| w.to_string()),
+    );
     let fmt = |v: Option<f64>| v.map_or("n/a (the simulation blew up)".into(), report::format::num);
     let mut text = format!(
         "{} (polynomial NARX, {} terms) on {} ({} samples): simulation RMSE {}, fit {} % (initial \

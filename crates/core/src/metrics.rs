@@ -142,8 +142,10 @@ fn estimate_initial_from(
     let sol = crate::ls::solve(&phi, &target, &[])?;
     let eta: Vec<f64> = (0..k0).map(|j| y0[j] + sol.theta[j]).collect();
     let mut out = base;
+    let columns: Vec<&[f64]> = phi.as_slice().chunks_exact(n).collect();
+    let theta = sol.theta.as_slice();
     for (k, o) in out.iter_mut().enumerate() {
-        let shift: f64 = (0..k0).map(|j| phi[(k, j)] * sol.theta[j]).sum();
+        let shift: f64 = columns.iter().zip(theta).map(|(s, t)| s[k] * t).sum();
         *o += shift;
     }
     if out.iter().any(|v| !v.is_finite()) {
@@ -247,26 +249,27 @@ fn free_responses(
     k0: usize,
 ) -> Result<nalgebra::DMatrix<f64>, SysidError> {
     let a = model.a();
-    // Rows: k < k0 (the initial outputs themselves) then k ≥ k0; columns: the k0 free responses.
+    // Rows: k < k0 (the initial outputs themselves) then k ≥ k0; columns: the k0 free responses, by
+    // columns (entry (k, j) at j·n + k). The k0 recursions are independent: advancing them side by side,
+    // sample by sample, lets the processor overlap their chains of dependent operations.
     let mut phi = nalgebra::DMatrix::<f64>::zeros(n, k0);
+    let s = phi.as_mut_slice();
     for j in 0..k0 {
-        let mut s = vec![0.0; n];
-        s[j] = 1.0;
-        for k in k0..n {
+        s[j * n + j] = 1.0;
+    }
+    for k in k0..n {
+        for j in 0..k0 {
             let mut v = 0.0;
             for (i, ai) in a.iter().enumerate() {
-                v -= ai * s[k - 1 - i];
+                v -= ai * s[j * n + k - 1 - i];
             }
-            s[k] = v;
+            s[j * n + k] = v;
         }
-        if s.iter().any(|v| !v.is_finite()) {
-            return Err(SysidError::Numerical(
-                "the free response of the model is not finite (unstable model?)".into(),
-            ));
-        }
-        for (k, v) in s.iter().enumerate() {
-            phi[(k, j)] = *v;
-        }
+    }
+    if !crate::ls::all_finite(s) {
+        return Err(SysidError::Numerical(
+            "the free response of the model is not finite (unstable model?)".into(),
+        ));
     }
     Ok(phi)
 }

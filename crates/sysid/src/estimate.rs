@@ -491,6 +491,10 @@ pub fn safeguard(
             }));
         }
     }
+    // The report needs the same metrics: computed once, here.
+    if let Some(m) = est {
+        fit.keep_metrics(p.records(), m);
+    }
     Ok(fit)
 }
 

@@ -367,10 +367,29 @@ pub fn analyze(
     } else {
         (residuals.to_vec(), input.to_vec())
     };
-    // Σ_k a(k) b(k−τ), τ ≥ 0.
-    let sum = |a: &[f64], b: &[f64], tau: usize| -> f64 {
-        a[tau..].iter().zip(b).map(|(x, y)| x * y).sum::<f64>()
-    };
+    // Σ_k a(k) b(k−τ), τ ≥ 0, every lag at once, k ascending: each sum adds its products in the order
+    // of k (as [`CovarianceAccumulator`] does), and the 4M + 4 sums are independent chains the
+    // processor overlaps (one sum after the other would wait on each addition).
+    let (mut ee, mut ev, mut ve, mut vv) = (
+        vec![0.0; m + 1],
+        vec![0.0; m + 1],
+        vec![0.0; m + 1],
+        vec![0.0; 2 * m + 1],
+    );
+    for k in 0..n {
+        let (ek, vk) = (e[k], v[k]);
+        let lags = k.min(m);
+        let (ew, vw) = (&e[k - lags..=k], &v[k - lags..=k]);
+        for (tau, (ej, vj)) in ew.iter().rev().zip(vw.iter().rev()).enumerate() {
+            ee[tau] += ek * ej;
+            ev[tau] += ek * vj;
+            ve[tau] += vk * ej;
+        }
+        let lags = k.min(2 * m);
+        for (tau, vj) in v[k - lags..=k].iter().rev().enumerate() {
+            vv[tau] += vk * vj;
+        }
+    }
     let peak = |x: &[f64]| x.iter().fold(0.0_f64, |a, x| a.max(x.abs()));
     let (head, tail) = CovarianceSums::ends(n, m);
     finish(&CovarianceSums {
@@ -379,10 +398,10 @@ pub fn analyze(
         remove_mean: options.remove_mean,
         residual_mean,
         input_mean,
-        ee: (0..=m).map(|t| sum(&e, &e, t)).collect(),
-        ev: (0..=m).map(|t| sum(&e, &v, t)).collect(),
-        ve: (0..=m).map(|t| sum(&v, &e, t)).collect(),
-        vv: (0..=2 * m).map(|t| sum(&v, &v, t)).collect(),
+        ee,
+        ev,
+        ve,
+        vv,
         head: v[..head].to_vec(),
         tail: v[n - tail..].to_vec(),
         residual_peak: peak(residuals),

@@ -234,10 +234,35 @@ fn update_standard(
     work: &mut DVector<f64>,
     st: &Step<'_>,
 ) -> Result<(), SysidError> {
-    let (phi, rho, sample) = (st.phi, st.rho, st.sample);
     let n = theta.len();
-    for i in 0..n {
-        work[i] = (0..n).map(|j| p[(i, j)] * phi[j]).sum();
+    let (p, theta, work) = (p.as_mut_slice(), theta.as_mut_slice(), work.as_mut_slice());
+    // The online tracker runs this for every sample: the common sizes get a copy of the body compiled
+    // for their n (same operations in the same order, so the same numbers to the bit).
+    macro_rules! sized {
+        ($($k:literal)*) => {
+            match n {
+                $($k => standard_body($k, p, theta, work, st),)*
+                _ => standard_body(n, p, theta, work, st),
+            }
+        };
+    }
+    sized!(1 2 3 4 5 6 7 8 9 10 11 12)
+}
+
+/// [`update_standard`] on plain slices: P by columns (entry (i, j) at i + j·n), θ̂ and the work
+/// vector of n entries each.
+#[inline(always)]
+fn standard_body(
+    n: usize,
+    p: &mut [f64],
+    theta: &mut [f64],
+    work: &mut [f64],
+    st: &Step<'_>,
+) -> Result<(), SysidError> {
+    let (phi, rho, sample) = (st.phi, st.rho, st.sample);
+    let (p, theta, work, phi) = (&mut p[..n * n], &mut theta[..n], &mut work[..n], &phi[..n]);
+    for (i, w) in work.iter_mut().enumerate() {
+        *w = (0..n).map(|j| p[i + j * n] * phi[j]).sum();
     }
     let r: f64 = (0..n).map(|i| phi[i] * work[i]).sum();
     let denom = rho + r;
@@ -257,9 +282,9 @@ fn update_standard(
     };
     for j in 0..n {
         for i in 0..=j {
-            let v = (p[(i, j)] - gamma * work[i] * work[j]) * scale;
-            p[(i, j)] = v;
-            p[(j, i)] = v;
+            let v = (p[i + j * n] - gamma * work[i] * work[j]) * scale;
+            p[i + j * n] = v;
+            p[j + i * n] = v;
         }
     }
     Ok(())

@@ -403,3 +403,64 @@ fn hammerstein_output_error_is_stable_and_never_worse_than_its_start() {
         }
     }
 }
+
+// The estimation metrics `identify` computes once for its safeguards and hands to the report are the
+// metrics of the returned model on the same record, value for value (checked against
+// `metrics::metrics` run afresh); they are withheld for any other record (one sample changed, another
+// name) and once the model is changed, so that a report never shows another model's or record's figures.
+#[test]
+fn kept_estimation_metrics_are_the_models_on_its_own_record_only() {
+    let mut noisy = paper_record(2000, 11);
+    let y: Vec<f64> = noisy
+        .y()
+        .iter()
+        .zip(ipa_testdata::white(2000, 3))
+        .map(|(y, e)| y + 0.01 * e)
+        .collect();
+    noisy = Dataset::new(
+        Signals {
+            u: noisy.u().to_vec(),
+            y,
+        },
+        0.01,
+        "noisy",
+    )
+    .unwrap();
+    for method in [Method::Ls, Method::Rls] {
+        let s = Identification::default().with_method(method);
+        let fit = identify(&noisy, &s).unwrap();
+        let fresh = metrics(&fit.model, &noisy).unwrap();
+        assert_eq!(
+            fit.estimation_metrics(std::slice::from_ref(&noisy)),
+            Some(&fresh)
+        );
+        let mut y = noisy.y().to_vec();
+        y[1000] += 1e-9;
+        let other = Dataset::new(
+            Signals {
+                u: noisy.u().to_vec(),
+                y,
+            },
+            0.01,
+            "noisy",
+        )
+        .unwrap();
+        assert_eq!(fit.estimation_metrics(std::slice::from_ref(&other)), None);
+        let renamed = Dataset::new(
+            Signals {
+                u: noisy.u().to_vec(),
+                y: noisy.y().to_vec(),
+            },
+            0.01,
+            "renamed",
+        )
+        .unwrap();
+        assert_eq!(fit.estimation_metrics(std::slice::from_ref(&renamed)), None);
+        let mut changed = fit.clone();
+        changed.model = Model::paper();
+        assert_eq!(
+            changed.estimation_metrics(std::slice::from_ref(&noisy)),
+            None
+        );
+    }
+}

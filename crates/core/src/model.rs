@@ -588,14 +588,22 @@ impl Model {
         // One step from the outputs `past` (measured, simulated or scratch): c − Σ a_i past(k−i) + Σ b x,
         // summed in this order in every mode (a plain function, not a closure per sample: the loops
         // below are the hot path of every simulation metric).
+        let na = self.a.len();
         let one_step = |k: usize, past: &[f64]| {
             let mut v = c;
-            for (i, ai) in self.a.iter().enumerate() {
-                v -= ai * past[k - 1 - i];
+            // a_i · past(k − i), i = 1..na, over the window past(k − na..k) read backwards.
+            for (ai, p) in self.a.iter().zip(past[k - na..k].iter().rev()) {
+                v -= ai * p;
             }
             for (ch, xi) in self.inputs.iter().zip(&x) {
-                for (j, bj) in ch.b.iter().enumerate() {
-                    v += bj * xi[k - ch.nk - j];
+                if ch.b.is_empty() {
+                    continue;
+                }
+                // b_j · x(k − nk − j + 1), j = 1..nb, likewise.
+                let last = k - ch.nk;
+                let window = &xi[(last + 1).saturating_sub(ch.b.len())..=last];
+                for (bj, xv) in ch.b.iter().zip(window.iter().rev()) {
+                    v += bj * xv;
                 }
             }
             v

@@ -460,6 +460,7 @@ pub(crate) fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitte
     }
     let zeros = vec![0.0; reg.len()];
     let expand = |t: &[f64]| DVector::from_vec(scatter(&free, t, &zeros));
+    let mut full_theta = zeros.clone();
     let mut history = Vec::new();
     let mut history_samples = Vec::new();
     let mut pass_ends: Vec<DVector<f64>> = Vec::new();
@@ -481,7 +482,12 @@ pub(crate) fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitte
                     theta_tail.copy_from_slice(est.theta());
                 }
                 if hammer && pass == 0 && at > 0 {
-                    reg.update(expand(est.theta()).as_slice(), &mut f, p.starts());
+                    // θ̂ at full size in a buffer kept across samples (no allocation per sample).
+                    let mut t = est.theta().iter();
+                    for ((v, fr), z) in full_theta.iter_mut().zip(&free).zip(&zeros) {
+                        *v = if *fr { *t.next().unwrap_or(z) } else { *z };
+                    }
+                    reg.update(&full_theta, &mut f, p.starts());
                     for ((fm, start), ch) in f.iter_mut().zip(&initial_f).zip(reg.channels()) {
                         if ch.kind.block().is_degenerate(fm) {
                             *fm = *start;

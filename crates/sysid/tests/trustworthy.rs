@@ -410,52 +410,35 @@ fn hammerstein_output_error_is_stable_and_never_worse_than_its_start() {
 // name) and once the model is changed, so that a report never shows another model's or record's figures.
 #[test]
 fn kept_estimation_metrics_are_the_models_on_its_own_record_only() {
-    let mut noisy = paper_record(2000, 11);
-    let y: Vec<f64> = noisy
+    let clean = paper_record(2000, 11);
+    let record = |y: Vec<f64>, name: &str| {
+        Dataset::new(
+            Signals {
+                u: clean.u().to_vec(),
+                y,
+            },
+            0.01,
+            name,
+        )
+        .unwrap()
+    };
+    let y: Vec<f64> = clean
         .y()
         .iter()
         .zip(ipa_testdata::white(2000, 3))
         .map(|(y, e)| y + 0.01 * e)
         .collect();
-    noisy = Dataset::new(
-        Signals {
-            u: noisy.u().to_vec(),
-            y,
-        },
-        0.01,
-        "noisy",
-    )
-    .unwrap();
+    let noisy = record(y.clone(), "noisy");
     for method in [Method::Ls, Method::Rls] {
         let s = Identification::default().with_method(method);
         let fit = identify(&noisy, &s).unwrap();
         let fresh = metrics(&fit.model, &noisy).unwrap();
-        assert_eq!(
-            fit.estimation_metrics(std::slice::from_ref(&noisy)),
-            Some(&fresh)
-        );
-        let mut y = noisy.y().to_vec();
-        y[1000] += 1e-9;
-        let other = Dataset::new(
-            Signals {
-                u: noisy.u().to_vec(),
-                y,
-            },
-            0.01,
-            "noisy",
-        )
-        .unwrap();
-        assert_eq!(fit.estimation_metrics(std::slice::from_ref(&other)), None);
-        let renamed = Dataset::new(
-            Signals {
-                u: noisy.u().to_vec(),
-                y: noisy.y().to_vec(),
-            },
-            0.01,
-            "renamed",
-        )
-        .unwrap();
-        assert_eq!(fit.estimation_metrics(std::slice::from_ref(&renamed)), None);
+        let kept = |d: &Dataset| fit.estimation_metrics(std::slice::from_ref(d)).cloned();
+        assert_eq!(kept(&noisy), Some(fresh));
+        let mut other = y.clone();
+        other[1000] += 1e-9;
+        assert_eq!(kept(&record(other, "noisy")), None);
+        assert_eq!(kept(&record(y.clone(), "renamed")), None);
         let mut changed = fit.clone();
         changed.model = Model::paper();
         assert_eq!(

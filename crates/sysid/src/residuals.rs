@@ -445,14 +445,16 @@ impl CovarianceSums {
 }
 
 /// Σ_{k ≥ τ} a(k) b(k − τ) for τ = 0..=`max_lag`, each sum added in ascending k from 0.0 (the order
-/// [`CovarianceAccumulator`] adds them in, so both give the same numbers bit for bit). Four lags at a
-/// time in registers: four independent chains of additions instead of one sum after the other.
+/// [`CovarianceAccumulator`] adds them in, so both give the same numbers bit for bit). [`LAG_BLOCK`] lags
+/// at a time in registers: that many independent chains of additions, enough to keep the adders busy,
+/// instead of one sum after the other, each waiting on its previous addition.
 fn lagged_sums(a: &[f64], b: &[f64], max_lag: usize) -> Vec<f64> {
+    const W: usize = LAG_BLOCK;
     let n = a.len().min(b.len());
     let mut out = vec![0.0; max_lag + 1];
-    for t0 in (0..=max_lag).step_by(4) {
-        let w = (max_lag + 1 - t0).min(4);
-        let mut acc = [0.0f64; 4];
+    for t0 in (0..=max_lag).step_by(W) {
+        let w = (max_lag + 1 - t0).min(W);
+        let mut acc = [0.0f64; W];
         // k < t0 + w − 1: only the lags τ ≤ k have a term yet.
         let full = (t0 + w - 1).min(n);
         for k in t0..full {
@@ -462,13 +464,12 @@ fn lagged_sums(a: &[f64], b: &[f64], max_lag: usize) -> Vec<f64> {
                 }
             }
         }
-        if w == 4 {
+        if w == W {
             for k in full..n {
-                let (ak, j) = (a[k], k - t0);
-                acc[0] += ak * b[j];
-                acc[1] += ak * b[j - 1];
-                acc[2] += ak * b[j - 2];
-                acc[3] += ak * b[j - 3];
+                let (ak, back) = (a[k], &b[k - t0 + 1 - W..=k - t0]);
+                for (s, bv) in acc.iter_mut().zip(back.iter().rev()) {
+                    *s += ak * bv;
+                }
             }
         } else {
             for k in full..n {
@@ -481,6 +482,9 @@ fn lagged_sums(a: &[f64], b: &[f64], max_lag: usize) -> Vec<f64> {
     }
     out
 }
+
+/// Lags summed side by side in [`lagged_sums`].
+const LAG_BLOCK: usize = 8;
 
 /// The sums of a residual analysis accumulated sample by sample, for a record too long to hold: the
 /// means ε̄ and ū (when removed) come from an earlier pass. The sums are added in the order [`analyze`]

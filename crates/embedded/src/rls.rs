@@ -219,31 +219,36 @@ impl<F: Float, const N: usize> Rls<F, N> {
         match (self.form, self.n == N) {
             (Form::Standard, true) => update_standard::<F, N, true>(self, phi, y),
             (Form::Standard, false) => update_standard::<F, N, false>(self, phi, y),
-            (Form::Ud, true) => update_ud::<F, N, true>(self, phi, y),
-            (Form::Ud, false) => update_ud::<F, N, false>(self, phi, y),
+            (Form::Ud, full) => match (full, self.max_trace.is_finite()) {
+                (true, false) => update_ud::<F, N, true, false>(self, phi, y),
+                (true, true) => update_ud::<F, N, true, true>(self, phi, y),
+                (false, false) => update_ud::<F, N, false, false>(self, phi, y),
+                (false, true) => update_ud::<F, N, false, true>(self, phi, y),
+            },
         }
     }
 }
 
-/// Runs the closure `$f` for the columns j = 0, 1, …, m − 1 in order. With `$full` (m = N) and N ≤ 16
-/// the calls are written out with literal j, so that once the closure is inlined every loop inside it
-/// has a constant trip count (unrolled, vectorised, no bounds check); otherwise a plain loop.
+/// Runs the body for the columns j = 0, 1, …, m − 1 in order (`break 'label` in the body ends that
+/// column; the caller names the label). With `$full` (m = N) and N ≤ 16 the body is written out once per
+/// column with a literal j, so every loop inside it has a constant trip count (unrolled, vectorised, no
+/// bounds check); otherwise a plain loop. (Before, the body was a closure called once per column, and
+/// the compiler did not inline it: a call per column, with run-time j.)
 macro_rules! for_columns {
-    ($full:expr, $m:expr, $f:expr) => {{
-        #[allow(unused_mut)]
-        let mut f = $f;
+    ($full:expr, $m:expr, $label:lifetime, |$j:ident| $body:tt) => {{
         if $full && N <= 16 {
-            for_columns!(@each f; 0 1 2 3 4 5 6 7 8 9 10 11 12 13 14 15);
+            for_columns!(@each $label $j $body; 0 1 2 3 4 5 6 7 8 9 10 11 12 13 14 15);
         } else {
-            for j in 0..$m {
-                f(j);
+            for $j in 0..$m {
+                $label: $body
             }
         }
     }};
-    (@each $f:ident; $($j:literal)*) => {
+    (@each $label:lifetime $j:ident $body:tt; $($lit:literal)*) => {
         $(
-            if $j < N {
-                $f($j);
+            if $lit < N {
+                let $j: usize = $lit;
+                $label: $body
             }
         )*
     };
@@ -337,7 +342,7 @@ fn symmetric_update<F: Float, const N: usize, const SCALE: bool>(
 ) {
     let m = pphi.len();
     let full = m == N;
-    for_columns!(full, m, |r: usize| {
+    for_columns!(full, m, 'col, |r| {
         let (Some(row), Some(pr), Some(gr), Some(q_lo), Some(g_hi)) = (
             p.get_mut(r).and_then(|row| row.get_mut(..m)),
             pphi.get(r),
@@ -345,10 +350,10 @@ fn symmetric_update<F: Float, const N: usize, const SCALE: bool>(
             pphi.get(..r),
             gain.get(r..),
         ) else {
-            return;
+            break 'col;
         };
         let Some((lo, hi)) = row.split_at_mut_checked(r) else {
-            return;
+            break 'col;
         };
         for (c, q) in lo.iter_mut().zip(q_lo) {
             let v = *c - *q * *gr;
@@ -362,19 +367,28 @@ fn symmetric_update<F: Float, const N: usize, const SCALE: bool>(
 }
 
 /// Bierman's UD update with forgetting on the leading m × m block (m = N when `FULL`), in the operation
-/// order of `sysid::rls_ud::RobustRls` (sums start at −0, as `Iterator::sum` of floats does). The
-/// factors and θ̂ are updated in copies and committed only when every check passed, so a failed update
-/// leaves the state unchanged.
+/// order of `sysid::rls_ud::RobustRls` (sums start at −0, as `Iterator::sum` of floats does); with
+/// `GUARD` the trace bound of [`Rls::with_max_trace`]. Two passes over U and nothing copied:
+///
+/// 1. reading only: f = Uᵀφ, v = D f, the prefix sums α_j = ρ + Σ_(i≤j) f_i v_i, the gain numerator
+///    b = U v (accumulated column by column exactly as Bierman's loop builds it), the reciprocals 1/ρ and
+///    1/α_j (independent divisions: they pipeline), the new D and the new θ̂; every check is made here;
+/// 2. only when all passed: Bierman's column steps write U in place (re-accumulating the partial gain
+///    they need), then D and θ̂; with `GUARD`, tr P of the new factors is summed in the same pass.
+///
+/// So a failed update leaves the state unchanged, without a copy of the factors.
 #[inline(always)]
-fn update_ud<F: Float, const N: usize, const FULL: bool>(
+fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
     est: &mut Rls<F, N>,
     phi: &[F],
     y: F,
 ) -> Result<F, Error> {
     let (rho, max_trace) = (est.forgetting, est.max_trace);
     let m = if FULL { N } else { est.n };
-    let (theta, fac_state) = (&mut est.theta, &mut est.p);
+    let (theta, fac) = (&mut est.theta, &mut est.p);
     let phi = phi.get(..m).ok_or(Error::Length)?;
+    let theta = theta.get_mut(..m).ok_or(Error::Capacity)?;
+    let fac = fac.get_mut(..m).ok_or(Error::Capacity)?;
     let mut dot = -F::ZERO;
     for (f, t) in phi.iter().zip(theta.iter()) {
         dot += *f * *t;
@@ -384,84 +398,126 @@ fn update_ud<F: Float, const N: usize, const FULL: bool>(
         return Err(Error::Numerical);
     }
     let full = FULL;
-    let mut fac = *fac_state;
-    // f = Uᵀφ (f_j = Σ_(i<j) U_ij φ_i + φ_j) and v = D f (in `work`); column j of U is row j of `fac`.
+    // Pass 1. Column j of U is row j of `fac` (U_0j..U_(j−1)j, then d_j).
     let mut f = [F::ZERO; N];
-    let mut work = [F::ZERO; N];
-    for_columns!(full, m, |j: usize| {
-        let (Some(row), Some(ph), Some(fj), Some(wj)) =
-            (fac.get(j), phi.get(j), f.get_mut(j), work.get_mut(j))
-        else {
-            return;
+    let mut v = [F::ZERO; N];
+    let mut alpha = [F::ZERO; N];
+    let mut b = [F::ZERO; N];
+    let mut a = rho;
+    for_columns!(full, m, 'col, |j| {
+        let (Some(row), Some(ph), Some(fj), Some(vj), Some(aj), Some((b_col, b_rest))) = (
+            fac.get(j),
+            phi.get(j),
+            f.get_mut(j),
+            v.get_mut(j),
+            alpha.get_mut(j),
+            b.split_at_mut_checked(j),
+        ) else {
+            break 'col;
         };
-        let (Some(u_col), Some(dj)) = (row.get(..j), row.get(j)) else {
-            return;
+        let (Some(u_col), Some(dj), Some(bj)) = (row.get(..j), row.get(j), b_rest.first_mut())
+        else {
+            break 'col;
         };
         let mut acc = -F::ZERO;
         for (u, x) in u_col.iter().zip(phi) {
             acc += *u * *x;
         }
         acc += F::ONE * *ph;
+        let vv = *dj * acc;
         *fj = acc;
-        *wj = *dj * acc;
+        *vj = vv;
+        a += acc * vv;
+        *aj = a;
+        for (bi, u) in b_col.iter_mut().zip(u_col) {
+            *bi += *u * vv;
+        }
+        *bj = vv;
     });
-    // Bierman: after column j, work[0..=j] holds the unnormalised gain.
-    let mut alpha = rho;
-    let guarded = max_trace.is_finite();
-    for_columns!(full, m, |j: usize| {
-        let (Some(row), Some(fj), Some(v)) = (fac.get_mut(j), f.get(j), work.get(j).copied())
-        else {
-            return;
-        };
-        let alpha_prev = alpha;
-        alpha += *fj * v;
-        let Some((u_col, rest)) = row.split_at_mut_checked(j) else {
-            return;
-        };
-        if let Some(dj) = rest.first_mut() {
-            *dj *= alpha_prev / alpha;
-        }
-        let lambda = -*fj / alpha_prev;
-        let Some(w) = work.get_mut(..j) else {
-            return;
-        };
-        for (u, w) in u_col.iter_mut().zip(w.iter_mut()) {
-            let uij = *u;
-            *u = uij + *w * lambda;
-            *w += uij * v;
-        }
-    });
-    let mut d_ok = true;
-    for (j, row) in fac.iter_mut().enumerate().take(m) {
-        if let Some(d) = row.get_mut(j) {
-            // x / 1 = x exactly: no branch for ρ = 1.
-            *d = *d / rho;
-            d_ok &= d.is_finite() && *d >= F::ZERO;
-        }
-    }
-    if !(alpha.is_finite() && alpha > F::ZERO && d_ok) {
+    // α_(m−1) ≥ … ≥ α_0 ≥ ρ > 0 (D ≥ 0 makes every f_j v_j = d_j f_j² ≥ 0), so one check of the last
+    // covers them all.
+    if !(a.is_finite() && a > F::ZERO) {
         return Err(Error::Numerical);
     }
-    let mut theta_new = *theta;
-    for (t, w) in theta_new.iter_mut().zip(work.iter()).take(m) {
-        *t += *w / alpha * eps;
+    let inv_rho = F::ONE / rho;
+    let mut inv = [F::ZERO; N];
+    for (r, al) in inv.iter_mut().zip(alpha.iter()).take(m) {
+        *r = F::ONE / *al;
     }
-    if guarded {
-        let tr = ud_trace(&fac, m);
-        if tr > max_trace {
-            let s = max_trace / tr;
-            for (j, row) in fac.iter_mut().enumerate().take(m) {
-                if let Some(d) = row.get_mut(j) {
-                    *d *= s;
-                }
+    let inv_last = inv.get(m - 1).copied().unwrap_or(F::ZERO);
+    // The new D: d_j · (α_(j−1) · (1/α_j)) · (1/ρ) (x · 1 = x exactly: no branch for ρ = 1).
+    let mut d_new = [F::ZERO; N];
+    let mut ok = true;
+    let mut alpha_prev = rho;
+    for (j, ((dn, al), r)) in d_new.iter_mut().zip(alpha.iter()).zip(inv.iter()).take(m).enumerate() {
+        let d = fac.get(j).and_then(|row| row.get(j)).copied().unwrap_or(F::ZERO);
+        *dn = d * (alpha_prev * *r) * inv_rho;
+        ok &= dn.is_finite() && *dn >= F::ZERO;
+        alpha_prev = *al;
+    }
+    let mut theta_new = [F::ZERO; N];
+    for ((tn, t), bi) in theta_new.iter_mut().zip(theta.iter()).zip(b.iter()) {
+        *tn = *t + *bi * inv_last * eps;
+        ok &= tn.is_finite();
+    }
+    if !ok {
+        return Err(Error::Numerical);
+    }
+    // Pass 2: λ_j = −f_j · (1/α_(j−1)); U_ij ← U_ij + w_i λ_j, w_i ← w_i + U_ij v_j (old U_ij), w_j = v_j.
+    let mut w = [F::ZERO; N];
+    let mut tr = -F::ZERO;
+    for_columns!(full, m, 'col, |j| {
+        let (Some(row), Some(fj), Some(vj), Some(dn), Some((w_col, w_rest))) = (
+            fac.get_mut(j),
+            f.get(j),
+            v.get(j).copied(),
+            d_new.get(j).copied(),
+            w.split_at_mut_checked(j),
+        ) else {
+            break 'col;
+        };
+        let inv_prev = if j == 0 {
+            inv_rho
+        } else {
+            inv.get(j - 1).copied().unwrap_or(F::ZERO)
+        };
+        let lambda = -*fj * inv_prev;
+        let Some((u_col, rest)) = row.split_at_mut_checked(j) else {
+            break 'col;
+        };
+        let mut col = -F::ZERO;
+        for (u, wi) in u_col.iter_mut().zip(w_col.iter_mut()) {
+            let uij = *u;
+            let un = uij + *wi * lambda;
+            *u = un;
+            *wi += uij * vj;
+            if GUARD {
+                col += un * un;
+            }
+        }
+        if let Some(d) = rest.first_mut() {
+            *d = dn;
+        }
+        if let Some(wj) = w_rest.first_mut() {
+            *wj = vj;
+        }
+        if GUARD {
+            col += F::ONE * F::ONE;
+            tr += dn * col;
+        }
+    });
+    // The guard (sysid's order: tr P of the new factors, then D ← D · T / tr P).
+    if GUARD && tr > max_trace {
+        let s = max_trace / tr;
+        for (j, row) in fac.iter_mut().enumerate() {
+            if let Some(d) = row.get_mut(j) {
+                *d *= s;
             }
         }
     }
-    if theta_new.iter().any(|t| !t.is_finite()) {
-        return Err(Error::Numerical);
+    for (t, tn) in theta.iter_mut().zip(theta_new) {
+        *t = tn;
     }
-    *fac_state = fac;
-    *theta = theta_new;
     Ok(eps)
 }
 

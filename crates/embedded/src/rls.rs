@@ -17,26 +17,34 @@
 //! # UD form (optional)
 //!
 //! With [`Form::Ud`] ([`Rls::with_form`]) P = U D Uᵀ is kept as its factors (U unit upper triangular,
-//! D diagonal) and updated by Bierman's measurement update with variance ρ followed by D ← D/ρ, the
+//! D diagonal) and updated by Bierman's measurement update with variance ρ followed by D ← D · (1/ρ), the
 //! operations and order of `identify --rls-form ud` (`sysid::rls_ud`), so f64 results equal it bit for
 //! bit (up to the sign of zero). P is then positive semi-definite whatever the rounding: the form to use
 //! in f32, where eq. 12 loses definiteness on IPA data (docs/embedded.md). The factors live in the same
 //! N × N array (row j: U_0j..U_(j−1)j, then d_j on the diagonal), so the state has the same size.
-//! Cost ([`flops_per_update_ud`]): ε 2n + 1; f = Uᵀφ n² + n; v = D f n; per column of Bierman's
-//! update 6, plus 4 per entry above the diagonal (2 n(n − 1) in all); D/ρ n (also for ρ = 1: x / 1 is
-//! exact and keeps the loop branch-free); θ̂ 3n. Total 3 n² + 12 n + 1: 232 for n = 7, 352 for n = 9.
-//! The factors are updated in a copy that is committed only when every check passed.
+//! Divisions: the prefix sums α_j = ρ + Σ_(i≤j) f_i v_i are additions only, and each column divides
+//! once, 1/α_j (d_j ← d_j · (α_(j−1) · (1/α_j)), λ_j = −f_j · (1/α_(j−1)), θ̂ += b · (1/α) ε), plus
+//! 1/ρ: n + 1 independent divisions per update (4n before issue 28's second round).
+//! Cost ([`flops_per_update_ud`]): ε 2n + 1; f = Uᵀφ n² + n; v = D f n; α 2n; b = U v n(n − 1);
+//! reciprocals n + 1; new D 3n; new θ̂ 3n; Bierman's column steps 2 per column and 4 per entry above the
+//! diagonal (2 n(n − 1)). Total 4 n² + 12 n + 2: 282 for n = 7, 434 for n = 9, of which n + 1
+//! divisions. The update runs in two passes over U and copies nothing: the first only reads (f, v, α,
+//! b, the new D and θ̂, every check), the second writes U, D and θ̂ only when every check passed, so a
+//! failed update leaves the state unchanged.
 //!
 //! # Windup guard (optional)
 //!
 //! With ρ < 1 and no excitation P grows like ρ^(−k) (covariance windup). With a trace bound T
 //! ([`Rls::with_max_trace`]), P is scaled by T / tr P whenever tr P > T after an update, as
-//! `identify --windup trace --max-trace T` does. With eq. 12 tr P(k) is summed first from the new
-//! diagonal (the values the update is about to write) and the factor T / tr P(k) is folded into the
-//! multiplication by 1/ρ, so the guard costs 4n flops (3n for ρ = 1) and 2 more when it acts, never a
-//! second pass over P (`sysid` writes its guarded update in a different operation order, so results
-//! agree to rounding, not bit for bit). In the UD form tr P = Σ_j d_j (Σ_(i<j) U_ij² + 1) is summed
-//! after the update (n² + 3n flops, sysid's order: bit for bit) and D is scaled (n + 1) when it acts.
+//! `identify --windup trace --max-trace T` does. With eq. 12 and δ = ρ + φᵀPφ, tr P(k) = (tr P −
+//! (Pφ)ᵀ(Pφ)/δ)/ρ, so with ν = δ tr P − (Pφ)ᵀ(Pφ) the test tr P(k) > T is ν > T δ ρ and the factor,
+//! folded into the multiplication by 1/ρ, is (1/ρ) · T / tr P(k) = T δ / ν: the guard's one division runs
+//! beside 1/δ, not after it, and there is no second pass over P. The guard costs 3n + 4 flops and one
+//! division when it acts (if δ tr P or (Pφ)ᵀ(Pφ) overflows, possible in f32 with P ≳ 1e19, tr P(k) is
+//! summed from the new diagonal instead). `sysid` writes its guarded update in a different operation
+//! order, so results agree to rounding, not bit for bit. In the UD form tr P = Σ_j d_j (Σ_(i<j) U_ij² + 1)
+//! is summed from the new factors as the second pass writes them (n² + 3n flops, sysid's order: bit for
+//! bit) and D is scaled (n + 1) when it acts.
 //!
 //! # Cost per update, n parameters (each +, −, ×, ÷ one flop)
 //!
@@ -308,18 +316,33 @@ fn update_standard<F: Float, const N: usize, const FULL: bool>(
     // diagonal (the values the update writes), so the guard costs n flops, not a second pass over P.
     let mut s = inv_rho;
     if max_trace.is_finite() {
-        let mut tr = F::ZERO;
-        for (i, ((row, q), g)) in p.iter().zip(pphi.iter()).zip(gain.iter()).enumerate() {
-            let v = row.get(i).copied().unwrap_or(F::ZERO) - *q * *g;
-            tr += if scale { v * inv_rho } else { v };
+        // With δ = ρ + φᵀPφ: tr P(k) = (tr P − (Pφ)ᵀ(Pφ)/δ)/ρ, so with ν = δ tr P − (Pφ)ᵀ(Pφ) (= ρ δ tr P(k))
+        // tr P(k) > T ⇔ ν > T δ ρ, and the factor (1/ρ) · T / tr P(k) = T δ / ν. Neither needs 1/δ: the
+        // guard's one division runs beside 1/δ instead of after it and the trace sum.
+        let mut trp = F::ZERO;
+        let mut qq = F::ZERO;
+        for (i, (row, q)) in p.iter().zip(pphi.iter()).enumerate() {
+            trp += row.get(i).copied().unwrap_or(F::ZERO);
+            qq += *q * *q;
         }
-        if tr > max_trace {
-            s = if scale {
-                inv_rho * (max_trace / tr)
-            } else {
-                max_trace / tr
-            };
-            scale = true;
+        let td = max_trace * denom;
+        let nu = trp * denom - qq;
+        if nu.is_finite() && td.is_finite() {
+            if nu > td * rho {
+                s = td / nu;
+                scale = true;
+            }
+        } else {
+            // δ tr P or (Pφ)ᵀ(Pφ) overflowed (f32 with P ≳ 1e19): sum the new diagonal instead.
+            let mut tr = F::ZERO;
+            for (i, ((row, q), g)) in p.iter().zip(pphi.iter()).zip(gain.iter()).enumerate() {
+                let v = row.get(i).copied().unwrap_or(F::ZERO) - *q * *g;
+                tr += v * inv_rho;
+            }
+            if tr > max_trace {
+                s = inv_rho * (max_trace / tr);
+                scale = true;
+            }
         }
     }
     if scale {
@@ -536,11 +559,11 @@ fn ud_trace<F: Float, const N: usize>(fac: &[[F; N]; N], n: usize) -> F {
     tr
 }
 
-/// Flops of one UD-form update for `n` parameters (no guard): 3 n² + 12 n + 1, for ρ < 1 and ρ = 1
-/// alike (the division by ρ = 1 is executed: it is exact and keeps the loop branch-free). Breakdown in
-/// the module documentation.
+/// Flops of one UD-form update for `n` parameters (no guard): 4 n² + 12 n + 2, of which n + 1 are
+/// divisions, for ρ < 1 and ρ = 1 alike (the multiplication by 1/ρ = 1 is executed: it is exact and keeps
+/// the loop branch-free). Breakdown in the module documentation.
 pub fn flops_per_update_ud(n: usize, _rho_is_one: bool) -> usize {
-    3 * n * n + 12 * n + 1
+    4 * n * n + 12 * n + 2
 }
 
 /// Flops of one update for `n` parameters (no guard): 3.5 n² + 8.5 n + 2 for ρ < 1, 3 n² + 8 n + 1
@@ -595,6 +618,30 @@ mod tests {
         }
         assert_eq!(free.trace(), 2.0 * 1048576.0);
         assert!((guarded.trace() - 3.0).abs() < 1e-6);
+    }
+
+    // The guard's test and factor without 1/δ (ν = δ tr P − (Pφ)ᵀ(Pφ)), and its fallback when δ tr P
+    // overflows f32 (p0 = 1e20: δ tr P ≈ 2e40). One update with φ = (1, 0), ρ = 1 from P = p0 I gives
+    // P = diag(p0/(1 + p0), p0) (hand-derived), tr P = p0 + p0/(1 + p0) > T, scaled to tr P = T.
+    #[test]
+    fn trace_guard_acts_with_and_without_overflow_of_the_shortcut() {
+        for (p0, t) in [(100.0f32, 50.0f32), (1e20, 5e19)] {
+            let mut est = Rls::<f32, 2>::new(2, 1.0, p0)
+                .unwrap()
+                .with_max_trace(t)
+                .unwrap();
+            est.update(&[1.0, 0.0], 0.0).unwrap();
+            let tr = f64::from(p0) + f64::from(p0) / (1.0 + f64::from(p0));
+            let s = f64::from(t) / tr;
+            assert!((f64::from(est.trace()) / f64::from(t) - 1.0).abs() < 1e-6, "{p0}");
+            assert!((f64::from(est.p(1, 1)) / (f64::from(p0) * s) - 1.0).abs() < 1e-6);
+            if p0 < 1e6 {
+                // (With p0 = 1e20, P_00 = p0 − p0² / (1 + p0) cancels to 0 in f32: eq. 12's limit.)
+                let p00 = f64::from(p0) / (1.0 + f64::from(p0)) * s;
+                assert!((f64::from(est.p(0, 0)) / p00 - 1.0).abs() < 1e-6);
+            }
+            assert_eq!(est.p(0, 1), 0.0);
+        }
     }
 
     #[test]
@@ -674,9 +721,9 @@ mod tests {
         assert_eq!(flops_per_update(9, false), 362);
         assert_eq!(flops_per_update(9, true), 316);
         assert_eq!(flops_per_update(7, false), 233);
-        // UD: 3·49 + 12·7 + 1 = 232 for either ρ; 3·81 + 12·9 + 1 = 352.
-        assert_eq!(flops_per_update_ud(7, false), 232);
-        assert_eq!(flops_per_update_ud(7, true), 232);
-        assert_eq!(flops_per_update_ud(9, false), 352);
+        // UD: 4·49 + 12·7 + 2 = 282 for either ρ; 4·81 + 12·9 + 2 = 434.
+        assert_eq!(flops_per_update_ud(7, false), 282);
+        assert_eq!(flops_per_update_ud(7, true), 282);
+        assert_eq!(flops_per_update_ud(9, false), 434);
     }
 }

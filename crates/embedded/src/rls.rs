@@ -472,8 +472,18 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
     let mut d_new = [F::ZERO; N];
     let mut ok = true;
     let mut alpha_prev = rho;
-    for (j, ((dn, al), r)) in d_new.iter_mut().zip(alpha.iter()).zip(inv.iter()).take(m).enumerate() {
-        let d = fac.get(j).and_then(|row| row.get(j)).copied().unwrap_or(F::ZERO);
+    for (j, ((dn, al), r)) in d_new
+        .iter_mut()
+        .zip(alpha.iter())
+        .zip(inv.iter())
+        .take(m)
+        .enumerate()
+    {
+        let d = fac
+            .get(j)
+            .and_then(|row| row.get(j))
+            .copied()
+            .unwrap_or(F::ZERO);
         *dn = d * (alpha_prev * *r) * inv_rho;
         ok &= dn.is_finite() && *dn >= F::ZERO;
         alpha_prev = *al;
@@ -633,7 +643,10 @@ mod tests {
             est.update(&[1.0, 0.0], 0.0).unwrap();
             let tr = f64::from(p0) + f64::from(p0) / (1.0 + f64::from(p0));
             let s = f64::from(t) / tr;
-            assert!((f64::from(est.trace()) / f64::from(t) - 1.0).abs() < 1e-6, "{p0}");
+            assert!(
+                (f64::from(est.trace()) / f64::from(t) - 1.0).abs() < 1e-6,
+                "{p0}"
+            );
             assert!((f64::from(est.p(1, 1)) / (f64::from(p0) * s) - 1.0).abs() < 1e-6);
             if p0 < 1e6 {
                 // (With p0 = 1e20, P_00 = p0 − p0² / (1 + p0) cancels to 0 in f32: eq. 12's limit.)

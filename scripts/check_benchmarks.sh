@@ -18,15 +18,18 @@ tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 
 echo "machine: $(nproc) cores, load $(cut -d' ' -f1-3 /proc/loadavg), $("$bin" --version)"
-printf '%-62s %-24s %s\n' "figure" "now" "documented (docs/benchmarks.md)"
-row() { printf '%-62s %-24s %s\n' "$1" "$2" "$3"; }
+printf '%-62s %-30s %s\n' "figure" "now" "documented (docs/benchmarks.md)"
+row() { printf '%-62s %-30s %s\n' "$1" "$2" "$3"; }
 
 "$bin" bench identify --repetitions 9 --json "$tmp/id.json" >/dev/null
 us() { jq -r "$1 * 1e6 | . * 10 | round / 10" "$tmp/id.json"; }
-row "bench identify: Hammerstein 2000 samples, LS (key-term)" "$(us .ls.seconds_per_identification) µs" \
-    "168 µs (Results table); 686 µs (Python section's CLI column)"
-row "bench identify: Hammerstein 2000 samples, RLS" "$(us .rls.seconds_per_identification) µs" \
-    "239 µs (Results table); 785 µs (Python section's CLI column)"
+# Wall clock (best run), then the CPU time of the timing thread (best run), which the load inflates less.
+row "bench identify: Hammerstein 2000 samples, LS (key-term)" \
+    "$(us .ls.seconds_per_identification) µs, CPU $(us .ls.cpu_seconds_per_identification) µs" \
+    "365 µs, CPU 360 µs (26 Nov, load 10); 168 µs (Results table, estimator only); 686 µs (Python section)"
+row "bench identify: Hammerstein 2000 samples, RLS" \
+    "$(us .rls.seconds_per_identification) µs, CPU $(us .rls.cpu_seconds_per_identification) µs" \
+    "673 µs, CPU 646 µs (26 Nov, load 10, 3 passes); 239 µs (Results table, 1 pass); 785 µs (Python section)"
 
 if [ -f "$DATA/silverbox/SNLS80mV.csv" ] && [ -f "$DATA/emps/DATA_EMPS.csv" ]; then
     # The whole identify command, as the OE table times it (wall clock, best of 3).

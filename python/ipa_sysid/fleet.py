@@ -108,7 +108,12 @@ def identify_partition(
     cols = _columns(na, nb)
     if len(partition) == 0:
         return _typed(pd.DataFrame({c: [] for c in cols}))
-    df = partition.sort_values(["actuator_id", "t"], kind="stable")
+    # Sorting a partition of a million rows costs more than a tenth of its identification: skipped when
+    # the rows are already in (actuator_id, t) order (as `ipa-sysid simulate --fleet` writes them), where
+    # the stable sort would keep them as they are.
+    df = partition if _in_order(partition) else partition.sort_values(
+        ["actuator_id", "t"], kind="stable"
+    )
     ids = df["actuator_id"].to_numpy()
     t = df["t"].to_numpy(dtype=np.float64)
     change = np.flatnonzero(ids[1:] != ids[:-1]) + 1
@@ -157,6 +162,19 @@ def identify_partition(
     )
     out["error"] = r["error"]
     return _typed(pd.DataFrame(out, columns=cols))
+
+
+def _in_order(df):
+    """True when the rows of ``df`` are already sorted by ``actuator_id``, then ``t`` (ties kept)."""
+    ids = df["actuator_id"].to_numpy()
+    t = df["t"].to_numpy()
+    if len(ids) < 2:
+        return True
+    try:
+        same = ids[1:] == ids[:-1]
+        return bool(np.all((ids[1:] > ids[:-1]) | (same & (t[1:] >= t[:-1]))))
+    except TypeError:  # ids that do not compare (mixed types): let pandas sort them
+        return False
 
 
 def spark_schema(na=3, nb=1, id_type="long"):

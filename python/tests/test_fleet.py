@@ -211,6 +211,16 @@ def test_a_partition_without_the_columns_is_refused():
         fleet.identify_partition(pd.DataFrame({"t": [0.0], "u": [1.0], "y": [0.0]}))
 
 
+def test_rows_out_of_order_give_the_rows_of_the_ordered_partition(fleet_dir):
+    # identify_partition sorts a partition by (actuator_id, t) unless it is in that order already (the
+    # simulator's files are): the same records shuffled must give the same windows, to the bit.
+    part = pd.read_parquet(sorted(fleet_dir.glob("*.parquet"))[0])
+    ordered = fleet.identify_partition(part)
+    shuffled = part.sample(frac=1.0, random_state=3)
+    assert not fleet._in_order(shuffled) and fleet._in_order(part)
+    pd.testing.assert_frame_equal(fleet.identify_partition(shuffled), ordered)
+
+
 def test_the_report_holds_the_figure_and_the_flagged(results, tmp_path):
     flagged = fleet.report(results, tmp_path / "worn.html")
     text = (tmp_path / "worn.html").read_text()

@@ -102,7 +102,7 @@ impl LsWorkspace {
                 y.len()
             )));
         }
-        check_problem(n, p, phi.iter().chain(y.iter()).all(|v| v.is_finite()))?;
+        check_problem(n, p, all_finite(phi.as_slice()) && all_finite(y.as_slice()))?;
         let name = |j: usize| column_name(names, j);
         // Augmented matrix [Φ D⁻¹ | y], by columns; column scaling makes the rank test independent of
         // units (counts vs mm vs 0/1 switches).
@@ -496,21 +496,22 @@ fn dependent(name: &str) -> SysidError {
     ))
 }
 
-/// xᵀy with four independent accumulators (vectorisable; the order of summation differs from a plain
+/// xᵀy over the common length, with eight independent accumulators (vectorised into four chains of
+/// two-lane additions, enough to keep the adders busy; the order of summation differs from a plain
 /// loop only by rounding).
 #[inline]
-fn dot(x: &[f64], y: &[f64]) -> f64 {
+pub fn dot(x: &[f64], y: &[f64]) -> f64 {
     let n = x.len().min(y.len());
     let (x, y) = (&x[..n], &y[..n]);
-    let mut acc = [0.0; 4];
-    let mut xc = x.chunks_exact(4);
-    let mut yc = y.chunks_exact(4);
+    let mut acc = [0.0; 8];
+    let mut xc = x.chunks_exact(8);
+    let mut yc = y.chunks_exact(8);
     for (a, b) in (&mut xc).zip(&mut yc) {
-        for i in 0..4 {
+        for i in 0..8 {
             acc[i] += a[i] * b[i];
         }
     }
-    let mut s = (acc[0] + acc[1]) + (acc[2] + acc[3]);
+    let mut s = ((acc[0] + acc[1]) + (acc[2] + acc[3])) + ((acc[4] + acc[5]) + (acc[6] + acc[7]));
     for (a, b) in xc.remainder().iter().zip(yc.remainder()) {
         s += a * b;
     }
@@ -525,9 +526,49 @@ fn axpy(a: f64, x: &[f64], y: &mut [f64]) {
     }
 }
 
-/// ‖x‖₂ computed as m·‖x/m‖₂ with m = max |x_i|, so that columns of 1e160 or 1e-200 neither overflow nor
-/// underflow (the plain sum of squares would give inf or 0 and a false rank verdict).
+/// True when every entry of `x` is finite: Σ 0·x_i is ±0 for finite entries and NaN as soon as one is
+/// infinite or NaN (four independent sums, vectorisable; this check runs over the whole Φ of every
+/// solve).
+pub(crate) fn all_finite(x: &[f64]) -> bool {
+    let mut acc = [0.0f64; 4];
+    let mut chunks = x.chunks_exact(4);
+    for c in &mut chunks {
+        for i in 0..4 {
+            acc[i] += c[i] * 0.0;
+        }
+    }
+    let tail = chunks.remainder().iter().fold(0.0, |a, v| a + v * 0.0);
+    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail == 0.0
+}
+
+/// Σ x_i² with four independent accumulators (vectorisable).
+fn sum_of_squares(x: &[f64]) -> f64 {
+    let mut acc = [0.0f64; 4];
+    let mut chunks = x.chunks_exact(4);
+    for c in &mut chunks {
+        for i in 0..4 {
+            acc[i] += c[i] * c[i];
+        }
+    }
+    let tail = chunks.remainder().iter().fold(0.0, |a, v| a + v * v);
+    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
+}
+
+/// Below this sum of squares some squares may have lost digits to underflow (entries under ~1e−154);
+/// above it they are negligible against the sum.
+const PLAIN_NORM_MIN: f64 = 1e-250;
+/// Above this sum of squares (or when it overflows) the norm is computed with scaling.
+const PLAIN_NORM_MAX: f64 = 1e250;
+
+/// ‖x‖₂, so that columns of 1e160 or 1e-200 neither overflow nor underflow (the plain sum of squares
+/// would give inf or 0 and a false rank verdict): √(Σ x_i²) when that sum lies safely inside the range
+/// of f64 (one vectorised pass, the usual case), else m·‖x/m‖₂ with m = max |x_i|. The two agree to
+/// rounding.
 pub(crate) fn scaled_norm(x: &[f64]) -> f64 {
+    let plain = sum_of_squares(x);
+    if (PLAIN_NORM_MIN..=PLAIN_NORM_MAX).contains(&plain) {
+        return plain.sqrt();
+    }
     let m = x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     if m == 0.0 || !m.is_finite() {
         return m;

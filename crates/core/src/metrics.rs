@@ -10,7 +10,9 @@
 //!   output-error model's own criterion, the simulation-error loss (1/N) Σ ½ (y − ŷ_sim)², is reported
 //!   apart as `loss_sim` (for every model, from the estimated initial outputs);
 //! - FPE = (N + p)/(N − p) · V (paper eq. 15);
-//! - AIC = ln(mean ε²) + 2p/N (MATLAB's normalised AIC);
+//! - AIC = ln(2V) + 2p/N = ln(mean ε²) + 2p/N (MATLAB's normalised AIC) over the same one-step
+//!   equation-error ε as V and FPE, so that AIC, FPE and V of models estimated by different methods
+//!   compare in one column (an output-error model's own prediction errors are its simulation errors);
 //!
 //! p = number of estimated parameters. A value that cannot be computed (constant output for fit, N <= p for
 //! FPE, a simulation that diverges) is `None` (JSON `null`), never NaN.
@@ -49,7 +51,7 @@ pub struct Metrics {
     pub loss_sim: Option<f64>,
     /// FPE = (N + p)/(N − p) V (paper eq. 15).
     pub fpe: Option<f64>,
-    /// Normalised AIC = ln(mean ε²) + 2p/N.
+    /// Normalised AIC = ln(mean ε²) + 2p/N, ε the one-step equation-error prediction errors (as V).
     pub aic: Option<f64>,
     /// N: rows used (k >= k0).
     pub n: usize,
@@ -142,8 +144,10 @@ fn estimate_initial_from(
     let sol = crate::ls::solve(&phi, &target, &[])?;
     let eta: Vec<f64> = (0..k0).map(|j| y0[j] + sol.theta[j]).collect();
     let mut out = base;
+    let columns: Vec<&[f64]> = phi.as_slice().chunks_exact(n).collect();
+    let theta = sol.theta.as_slice();
     for (k, o) in out.iter_mut().enumerate() {
-        let shift: f64 = (0..k0).map(|j| phi[(k, j)] * sol.theta[j]).sum();
+        let shift: f64 = columns.iter().zip(theta).map(|(s, t)| s[k] * t).sum();
         *o += shift;
     }
     if out.iter().any(|v| !v.is_finite()) {
@@ -247,26 +251,27 @@ fn free_responses(
     k0: usize,
 ) -> Result<nalgebra::DMatrix<f64>, SysidError> {
     let a = model.a();
-    // Rows: k < k0 (the initial outputs themselves) then k ≥ k0; columns: the k0 free responses.
+    // Rows: k < k0 (the initial outputs themselves) then k ≥ k0; columns: the k0 free responses, by
+    // columns (entry (k, j) at j·n + k). The k0 recursions are independent: advancing them side by side,
+    // sample by sample, lets the processor overlap their chains of dependent operations.
     let mut phi = nalgebra::DMatrix::<f64>::zeros(n, k0);
+    let s = phi.as_mut_slice();
     for j in 0..k0 {
-        let mut s = vec![0.0; n];
-        s[j] = 1.0;
-        for k in k0..n {
+        s[j * n + j] = 1.0;
+    }
+    for k in k0..n {
+        for j in 0..k0 {
             let mut v = 0.0;
             for (i, ai) in a.iter().enumerate() {
-                v -= ai * s[k - 1 - i];
+                v -= ai * s[j * n + k - 1 - i];
             }
-            s[k] = v;
+            s[j * n + k] = v;
         }
-        if s.iter().any(|v| !v.is_finite()) {
-            return Err(SysidError::Numerical(
-                "the free response of the model is not finite (unstable model?)".into(),
-            ));
-        }
-        for (k, v) in s.iter().enumerate() {
-            phi[(k, j)] = *v;
-        }
+    }
+    if !crate::ls::all_finite(s) {
+        return Err(SysidError::Numerical(
+            "the free response of the model is not finite (unstable model?)".into(),
+        ));
     }
     Ok(phi)
 }
@@ -448,8 +453,9 @@ pub fn metrics_from_sums(s: &MetricSums, name: &str) -> Result<Metrics, SysidErr
     let fpe = (n > p)
         .then(|| (n + p) as f64 / (n - p) as f64 * loss)
         .filter(|v| v.is_finite());
-    let aic = (mse > 0.0)
-        .then(|| mse.ln() + 2.0 * p as f64 / n as f64)
+    let mse_equation = s.sse_equation / nf;
+    let aic = (mse_equation > 0.0)
+        .then(|| mse_equation.ln() + 2.0 * p as f64 / nf)
         .filter(|v| v.is_finite());
     let rmse_of = |sse: f64| Some((sse / nf).sqrt()).filter(|v| v.is_finite());
     Ok(Metrics {

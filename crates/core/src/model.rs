@@ -585,14 +585,25 @@ impl Model {
             .map(|(ch, s)| s[..n].iter().map(|&v| ch.map(v)).collect())
             .collect();
         let c = self.offset.unwrap_or(0.0);
-        let one_step = |k: usize, past: &dyn Fn(usize) -> f64| {
+        // One step from the outputs `past` (measured, simulated or scratch): c − Σ a_i past(k−i) + Σ b x,
+        // summed in this order in every mode (a plain function, not a closure per sample: the loops
+        // below are the hot path of every simulation metric).
+        let na = self.a.len();
+        let one_step = |k: usize, past: &[f64]| {
             let mut v = c;
-            for (i, ai) in self.a.iter().enumerate() {
-                v -= ai * past(k - 1 - i);
+            // a_i · past(k − i), i = 1..na, over the window past(k − na..k) read backwards.
+            for (ai, p) in self.a.iter().zip(past[k - na..k].iter().rev()) {
+                v -= ai * p;
             }
             for (ch, xi) in self.inputs.iter().zip(&x) {
-                for (j, bj) in ch.b.iter().enumerate() {
-                    v += bj * xi[k - ch.nk - j];
+                if ch.b.is_empty() {
+                    continue;
+                }
+                // b_j · x(k − nk − j + 1), j = 1..nb, likewise.
+                let last = k - ch.nk;
+                let window = &xi[(last + 1).saturating_sub(ch.b.len())..=last];
+                for (bj, xv) in ch.b.iter().zip(window.iter().rev()) {
+                    v += bj * xv;
                 }
             }
             v
@@ -602,12 +613,12 @@ impl Model {
                 "{what} of the model became non-finite at sample {k} (unstable model?)"
             )))
         };
-        let mut out: Vec<f64> = y[..n.min(k0)].to_vec();
-        out.reserve(n.saturating_sub(k0));
+        let mut out: Vec<f64> = Vec::with_capacity(n);
+        out.extend_from_slice(&y[..n.min(k0)]);
         match horizon {
             None => {
                 for k in k0..n {
-                    let v = one_step(k, &|i| out[i]);
+                    let v = one_step(k, &out);
                     if !v.is_finite() {
                         return fail(k, "simulation");
                     }
@@ -616,7 +627,7 @@ impl Model {
             }
             Some(1) => {
                 for k in k0..n {
-                    let v = one_step(k, &|i| y[i]);
+                    let v = one_step(k, y);
                     if !v.is_finite() {
                         return fail(k, "prediction");
                     }
@@ -630,8 +641,7 @@ impl Model {
                     let start = k.saturating_sub(h - 1).max(k0);
                     scratch[..start].copy_from_slice(&y[..start]);
                     for j in start..=k {
-                        let v = one_step(j, &|i| scratch[i]);
-                        scratch[j] = v;
+                        scratch[j] = one_step(j, &scratch);
                     }
                     let v = scratch[k];
                     if !v.is_finite() {

@@ -162,7 +162,12 @@ impl IdentifyReport {
         max_lag: usize,
     ) -> Result<Self, SysidError> {
         let m = &fit.model;
-        let est = pooled_metrics(m, est_data)?;
+        // The safeguards of `identify` computed them on the same records (checked), unless the model
+        // or the records changed since.
+        let est = match fit.estimation_metrics(est_data) {
+            Some(kept) => kept.clone(),
+            None => pooled_metrics(m, est_data)?,
+        };
         let val = val_data.map(|v| metrics(m, v)).transpose()?;
         let (estimation, records) = match est_data {
             [one] => (residual_analysis(m, one, max_lag), None),
@@ -327,7 +332,7 @@ impl ValidationReport {
     /// The report from metrics and a residual analysis computed elsewhere (the streaming path,
     /// `sysid::stream`), with the warnings [`ValidationReport::assemble`] gives.
     pub fn from_parts(model: &Model, m: Metrics, residuals: ResidualEntry) -> Self {
-        let warnings: Vec<String> = Warning::if_unstable(model)
+        let warnings: Vec<String> = Warning::if_unstable_or_integrating(model)
             .into_iter()
             .chain(metric_warnings(Record::Validation, &m))
             .map(|w| w.to_string())

@@ -1545,7 +1545,8 @@ pub fn deadzone_warnings(
 /// The distinct values of `u`, sorted.
 pub(crate) fn levels_of(u: &[f64]) -> Vec<f64> {
     let mut levels: Vec<f64> = u.iter().copied().filter(|v| v.is_finite()).collect();
-    levels.sort_by(f64::total_cmp);
+    // Entries equal under the total order are the same number: an unstable sort gives the same list.
+    levels.sort_unstable_by(f64::total_cmp);
     levels.dedup();
     levels
 }

@@ -8,7 +8,8 @@ use serde::{Deserialize, Serialize};
 use crate::rls_ud::RlsForm;
 use crate::warnings::Warning;
 use crate::windup::Windup;
-use sysid_core::{Model, ParamName};
+use sysid_core::metrics::Metrics;
+use sysid_core::{Dataset, Model, ParamName};
 
 /// Estimation method (the JSON `method`).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
@@ -285,6 +286,58 @@ pub struct Fitted {
     pub history: Vec<Vec<f64>>,
     /// Sample index of each `history` entry (pass-major, so passes > 1 repeat indices).
     pub history_samples: Vec<usize>,
+    /// The metrics of `model` on the estimation records, as the safeguards of
+    /// [`identify`](crate::identify) computed them (read through [`Fitted::estimation_metrics`]).
+    pub(crate) kept_metrics: Option<Box<KeptMetrics>>,
+}
+
+/// Metrics kept with the model and the records they were computed on.
+#[derive(Debug, Clone)]
+pub(crate) struct KeptMetrics {
+    model: Model,
+    records: RecordsKey,
+    metrics: Metrics,
+}
+
+/// What identifies a list of records: each one's name, Ts, length and the bits of every sample of its
+/// inputs and output, hashed (four independent FNV-style lanes over the 64-bit patterns).
+#[derive(Debug, Clone, PartialEq)]
+struct RecordsKey {
+    records: Vec<(String, u64, usize)>,
+    hash: [u64; 4],
+}
+
+impl RecordsKey {
+    fn of(records: &[Dataset]) -> Self {
+        const PRIME: u64 = 0x0000_0100_0000_01b3;
+        let mut hash = [0xcbf2_9ce4_8422_2325u64; 4];
+        let mut mix = |x: &[f64]| {
+            let mut chunks = x.chunks_exact(4);
+            for c in &mut chunks {
+                for i in 0..4 {
+                    hash[i] = (hash[i] ^ c[i].to_bits()).wrapping_mul(PRIME);
+                }
+            }
+            for (i, v) in chunks.remainder().iter().enumerate() {
+                hash[i] = (hash[i] ^ v.to_bits()).wrapping_mul(PRIME);
+            }
+            // The length separates one signal from the next.
+            hash[0] = (hash[0] ^ x.len() as u64).wrapping_mul(PRIME);
+        };
+        for r in records {
+            for input in r.inputs() {
+                mix(input.u());
+            }
+            mix(r.y());
+        }
+        RecordsKey {
+            records: records
+                .iter()
+                .map(|r| (r.name().to_string(), r.ts().to_bits(), r.len()))
+                .collect(),
+            hash,
+        }
+    }
 }
 
 impl Param {
@@ -314,6 +367,27 @@ impl Fitted {
         })
     }
 
+    /// The metrics of the fitted model on the estimation records (pooled over several, as
+    /// [`sysid_core::metrics::pooled_metrics`] gives them), computed once by the safeguards of
+    /// [`identify`](crate::identify); `None` when none were kept, or when the model has been changed since
+    /// or `records` are not the records it was estimated on (same names, Ts, lengths and samples). A
+    /// report then computes them itself.
+    pub fn estimation_metrics(&self, records: &[Dataset]) -> Option<&Metrics> {
+        let kept = self.kept_metrics.as_ref()?;
+        (kept.model == self.model && kept.records == RecordsKey::of(records))
+            .then_some(&kept.metrics)
+    }
+
+    /// Keeps `metrics`, the metrics of the current model on `records` (see
+    /// [`Fitted::estimation_metrics`]).
+    pub(crate) fn keep_metrics(&mut self, records: &[Dataset], metrics: Metrics) {
+        self.kept_metrics = Some(Box::new(KeptMetrics {
+            model: self.model.clone(),
+            records: RecordsKey::of(records),
+            metrics,
+        }));
+    }
+
     pub(crate) fn with_method(mut self, method: Method) -> Self {
         self.method = method;
         self
@@ -336,6 +410,7 @@ impl Fitted {
             noise_variance,
             history: Vec::new(),
             history_samples: Vec::new(),
+            kept_metrics: None,
         }
     }
 }

@@ -460,6 +460,7 @@ pub(crate) fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitte
     }
     let zeros = vec![0.0; reg.len()];
     let expand = |t: &[f64]| DVector::from_vec(scatter(&free, t, &zeros));
+    let mut full_theta = zeros.clone();
     let mut history = Vec::new();
     let mut history_samples = Vec::new();
     let mut pass_ends: Vec<DVector<f64>> = Vec::new();
@@ -481,7 +482,12 @@ pub(crate) fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitte
                     theta_tail.copy_from_slice(est.theta());
                 }
                 if hammer && pass == 0 && at > 0 {
-                    reg.update(expand(est.theta()).as_slice(), &mut f, p.starts());
+                    // θ̂ at full size in a buffer kept across samples (no allocation per sample).
+                    let mut t = est.theta().iter();
+                    for ((v, fr), z) in full_theta.iter_mut().zip(&free).zip(&zeros) {
+                        *v = if *fr { *t.next().unwrap_or(z) } else { *z };
+                    }
+                    reg.update(&full_theta, &mut f, p.starts());
                     for ((fm, start), ch) in f.iter_mut().zip(&initial_f).zip(reg.channels()) {
                         if ch.kind.block().is_degenerate(fm) {
                             *fm = *start;
@@ -608,11 +614,17 @@ pub(crate) fn instrumental(p: &Problem, st: &InstrumentalVariables) -> Result<Fi
     let rss = prediction_rss(&out.model, p.records())?;
     let sigma2 = rss / (data.len() - k0).saturating_sub(n_free).max(1) as f64;
     let cov = iv::covariance(&out.pass, sigma2).map(|c| scatter_matrix(&free, &c));
+    let why = cov.is_none().then(|| {
+        "the instrument cross-moment matrix ZᵀΦ of the kept IV stage is singular (or its covariance \
+         σ² (ZᵀΦ)⁻¹ ZᵀZ (ΦᵀZ)⁻¹ is not finite): the instruments do not determine every parameter"
+            .to_string()
+    });
     Ok(Fitted {
         params: reg.params(out.theta.as_slice(), cov.as_ref(), &out.model, p.starts()),
         iterations: out.stages,
         termination: out.termination,
         notes: out.notes,
+        warnings: crate::trust::std_warning(why).into_iter().collect(),
         ..Fitted::new(out.model, Vec::new(), Method::Iv, sigma2)
     })
 }

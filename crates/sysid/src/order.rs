@@ -68,6 +68,8 @@ pub fn disqualifies(w: &Warning) -> bool {
         | Warning::NoInputTerm { .. }
         | Warning::Trust(Concern::BelowBaseline { .. }) => true,
         Warning::ForInput { warning, .. } => disqualifies(warning),
+        // A pole near 1 may be a true integrator (EMPS); poorly determined parameters are said, not
+        // disqualifying.
         _ => false,
     }
 }

@@ -249,7 +249,8 @@ impl Regression {
     }
 
     /// Φ and y of every record's rows k ≥ k0 stacked (records one after the other: no row spans two),
-    /// with the nonlinearities `f`.
+    /// with the nonlinearities `f`. The same rows as [`Regression::fill_row`] gives, built column by
+    /// column (Φ is stored by columns; only the key terms need a call per row).
     pub fn stacked(
         &self,
         records: &[Dataset],
@@ -257,19 +258,53 @@ impl Regression {
     ) -> (DMatrix<f64>, DVector<f64>) {
         let rows = self.rows(records);
         let mut phi = DMatrix::<f64>::zeros(rows, self.len);
-        let mut row = vec![0.0; self.len];
         let mut y = DVector::<f64>::zeros(rows);
+        let data = phi.as_mut_slice();
+        let k0 = self.k0;
+        let mut key = vec![0.0; self.n_key];
         let mut at = 0;
         for r in records {
-            let u = r.input_signals();
-            for k in self.k0..r.len() {
-                self.fill_row(&u, r.y(), f, k, &mut row);
-                for (j, v) in row.iter().enumerate() {
-                    phi[(at, j)] = *v;
-                }
-                y[at] = r.y()[k];
-                at += 1;
+            let (u, ys) = (r.input_signals(), r.y());
+            let m = r.len().saturating_sub(k0);
+            if m == 0 {
+                continue; // a record no longer than k0 gives no row
             }
+            // Column c of this record's block of rows.
+            let mut col = 0;
+            let column = |c: usize| c * rows + at..c * rows + at + m;
+            for ((ch, u), f) in self.channels.iter().zip(&u).zip(f) {
+                let block = ch.block();
+                let n = block.key_names().len();
+                if n == 0 {
+                    continue;
+                }
+                for q in 0..m {
+                    block.fill_key_terms(f, u[k0 + q - ch.nk], &mut key[..n]);
+                    for (t, v) in key[..n].iter().enumerate() {
+                        data[(col + t) * rows + at + q] = *v;
+                    }
+                }
+                col += n;
+            }
+            for a in 1..=self.na {
+                for (d, v) in data[column(col)].iter_mut().zip(&ys[k0 - a..]) {
+                    *d = -v;
+                }
+                col += 1;
+            }
+            for ((ch, u), f) in self.channels.iter().zip(&u).zip(f) {
+                for j in ch.b_from()..ch.nb {
+                    for (d, v) in data[column(col)].iter_mut().zip(&u[k0 - ch.nk - j..]) {
+                        *d = f.apply(*v);
+                    }
+                    col += 1;
+                }
+            }
+            if self.offset {
+                data[column(col)].fill(1.0);
+            }
+            y.as_mut_slice()[at..at + m].copy_from_slice(&ys[k0..]);
+            at += m;
         }
         (phi, y)
     }

@@ -367,10 +367,12 @@ pub fn analyze(
     } else {
         (residuals.to_vec(), input.to_vec())
     };
-    // Σ_k a(k) b(k−τ), τ ≥ 0.
-    let sum = |a: &[f64], b: &[f64], tau: usize| -> f64 {
-        a[tau..].iter().zip(b).map(|(x, y)| x * y).sum::<f64>()
-    };
+    let (ee, ev, ve, vv) = (
+        lagged_sums(&e, &e, m),
+        lagged_sums(&e, &v, m),
+        lagged_sums(&v, &e, m),
+        lagged_sums(&v, &v, 2 * m),
+    );
     let peak = |x: &[f64]| x.iter().fold(0.0_f64, |a, x| a.max(x.abs()));
     let (head, tail) = CovarianceSums::ends(n, m);
     finish(&CovarianceSums {
@@ -379,10 +381,10 @@ pub fn analyze(
         remove_mean: options.remove_mean,
         residual_mean,
         input_mean,
-        ee: (0..=m).map(|t| sum(&e, &e, t)).collect(),
-        ev: (0..=m).map(|t| sum(&e, &v, t)).collect(),
-        ve: (0..=m).map(|t| sum(&v, &e, t)).collect(),
-        vv: (0..=2 * m).map(|t| sum(&v, &v, t)).collect(),
+        ee,
+        ev,
+        ve,
+        vv,
         head: v[..head].to_vec(),
         tail: v[n - tail..].to_vec(),
         residual_peak: peak(residuals),
@@ -441,6 +443,48 @@ impl CovarianceSums {
         }
     }
 }
+
+/// Σ_{k ≥ τ} a(k) b(k − τ) for τ = 0..=`max_lag`, each sum added in ascending k from 0.0 (the order
+/// [`CovarianceAccumulator`] adds them in, so both give the same numbers bit for bit). [`LAG_BLOCK`] lags
+/// at a time in registers: that many independent chains of additions, enough to keep the adders busy,
+/// instead of one sum after the other, each waiting on its previous addition.
+fn lagged_sums(a: &[f64], b: &[f64], max_lag: usize) -> Vec<f64> {
+    const W: usize = LAG_BLOCK;
+    let n = a.len().min(b.len());
+    let mut out = vec![0.0; max_lag + 1];
+    for t0 in (0..=max_lag).step_by(W) {
+        let w = (max_lag + 1 - t0).min(W);
+        let mut acc = [0.0f64; W];
+        // k < t0 + w − 1: only the lags τ ≤ k have a term yet.
+        let full = (t0 + w - 1).min(n);
+        for k in t0..full {
+            for (i, s) in acc.iter_mut().enumerate().take(w) {
+                if k >= t0 + i {
+                    *s += a[k] * b[k - t0 - i];
+                }
+            }
+        }
+        if w == W {
+            for k in full..n {
+                let (ak, back) = (a[k], &b[k - t0 + 1 - W..=k - t0]);
+                for (s, bv) in acc.iter_mut().zip(back.iter().rev()) {
+                    *s += ak * bv;
+                }
+            }
+        } else {
+            for k in full..n {
+                for (i, s) in acc.iter_mut().enumerate().take(w) {
+                    *s += a[k] * b[k - t0 - i];
+                }
+            }
+        }
+        out[t0..t0 + w].copy_from_slice(&acc[..w]);
+    }
+    out
+}
+
+/// Lags summed side by side in [`lagged_sums`].
+const LAG_BLOCK: usize = 8;
 
 /// The sums of a residual analysis accumulated sample by sample, for a record too long to hold: the
 /// means ε̄ and ū (when removed) come from an earlier pass. The sums are added in the order [`analyze`]

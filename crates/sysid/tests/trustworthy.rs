@@ -403,3 +403,47 @@ fn hammerstein_output_error_is_stable_and_never_worse_than_its_start() {
         }
     }
 }
+
+// The estimation metrics `identify` computes once for its safeguards and hands to the report are the
+// metrics of the returned model on the same record, value for value (checked against
+// `metrics::metrics` run afresh); they are withheld for any other record (one sample changed, another
+// name) and once the model is changed, so that a report never shows another model's or record's figures.
+#[test]
+fn kept_estimation_metrics_are_the_models_on_its_own_record_only() {
+    let clean = paper_record(2000, 11);
+    let record = |y: Vec<f64>, name: &str| {
+        Dataset::new(
+            Signals {
+                u: clean.u().to_vec(),
+                y,
+            },
+            0.01,
+            name,
+        )
+        .unwrap()
+    };
+    let y: Vec<f64> = clean
+        .y()
+        .iter()
+        .zip(ipa_testdata::white(2000, 3))
+        .map(|(y, e)| y + 0.01 * e)
+        .collect();
+    let noisy = record(y.clone(), "noisy");
+    for method in [Method::Ls, Method::Rls] {
+        let s = Identification::default().with_method(method);
+        let fit = identify(&noisy, &s).unwrap();
+        let fresh = metrics(&fit.model, &noisy).unwrap();
+        let kept = |d: &Dataset| fit.estimation_metrics(std::slice::from_ref(d)).cloned();
+        assert_eq!(kept(&noisy), Some(fresh));
+        let mut other = y.clone();
+        other[1000] += 1e-9;
+        assert_eq!(kept(&record(other, "noisy")), None);
+        assert_eq!(kept(&record(y.clone(), "renamed")), None);
+        let mut changed = fit.clone();
+        changed.model = Model::paper();
+        assert_eq!(
+            changed.estimation_metrics(std::slice::from_ref(&noisy)),
+            None
+        );
+    }
+}

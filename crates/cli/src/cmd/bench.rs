@@ -262,10 +262,11 @@ fn identify(a: IdentifyArgs) -> anyhow::Result<()> {
     let rls = bench_identify(&data, &paper_settings(Method::Rls), reps)?;
     let line = |b: &sysid_studies::bench::IdentifyBench| {
         format!(
-            "  {:<4} {:>10.1} µs per identification (median {:.1} µs), {} {}, converged: {}\n",
+            "  {:<4} {:>10.1} µs per identification (median {:.1} µs; CPU time {:.1} µs), {} {}, converged: {}\n",
             b.method.to_string(),
             b.seconds_per_identification * 1e6,
             b.median_seconds_per_identification * 1e6,
+            b.cpu_seconds_per_identification * 1e6,
             b.iterations,
             if b.method == Method::Ls {
                 "key-term iterations"

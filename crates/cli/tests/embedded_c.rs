@@ -286,6 +286,13 @@ fn c_controller_matches_control_bit_for_bit_on_a_recorded_run() {
     for k in ["b_l", "b_r", "m_l", "m_r"] {
         args.push(format!("{:?}", dz[k].as_f64().unwrap()));
     }
+    let nudge = &c["nudge"];
+    assert!(nudge.is_object(), "the tuned controller has a nudge mode");
+    for k in ["band_mm", "ramp_counts_s", "start_fraction"] {
+        args.push(format!("{:?}", nudge[k].as_f64().unwrap()));
+    }
+    args.push(nudge["rest_samples"].as_u64().unwrap().to_string());
+    args.push(format!("{:?}", nudge["cut_fraction"].as_f64().unwrap()));
     let out = Command::new(&exe)
         .args(&args)
         .stdin(std::fs::File::open(&trace).unwrap())

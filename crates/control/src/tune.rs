@@ -215,8 +215,12 @@ impl RunResult {
         if let Some(e) = m.steady_state_error_mm.filter(|e| e.abs() > spec.ess_mm) {
             w.push(format!("|e_ss| {:.3} mm > {} mm", e.abs(), spec.ess_mm));
         }
-        if m.settling_time_s.is_none() {
-            w.push(format!("not settled within {} s", spec.run_s));
+        match m.settling_time_s {
+            None => w.push(format!("not settled within {} s", spec.run_s)),
+            Some(t) if t > spec.settling_s => {
+                w.push(format!("2 % settling {t:.3} s > {} s", spec.settling_s))
+            }
+            Some(_) => {}
         }
         if self.limit_cycle_mm > spec.limit_cycle_mm + 1e-9 {
             w.push(format!(
@@ -260,7 +264,8 @@ pub struct Evaluation {
     pub worst: Option<StepMetrics>,
     /// Largest limit cycle, mm.
     pub worst_limit_cycle_mm: f64,
-    /// Runs that meet the whole specification.
+    /// Runs that meet the whole specification (overshoot, |e_ss|, limit cycle, settled within the
+    /// `settling` target).
     pub met: usize,
     /// Runs whose |e_ss| <= e_max.
     pub ess_met: usize,

@@ -193,7 +193,11 @@ fn reference_commands(c: &serde_json::Value, r: &[f64], y: &[f64]) -> Vec<f64> {
         // The inverse u_c = sat(u_pi + shift), and in the fine band u_pi + w (u_c − u_pi).
         let w = if e.abs() < fine { e.abs() / fine } else { 1.0 };
         let u_c = (u_pi + shift).clamp(-umax, umax);
-        let comp = if w < 1.0 { u_pi + w * (u_c - u_pi) } else { u_c };
+        let comp = if w < 1.0 {
+            u_pi + w * (u_c - u_pi)
+        } else {
+            u_c
+        };
         out.push((comp + kd * d).clamp(-umax, umax));
     }
     out

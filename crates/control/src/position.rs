@@ -541,7 +541,7 @@ mod tests {
         assert_eq!(c.step(r, 0.8), 0.0);
         assert_eq!(c.step(r, 0.8), 8.5);
         assert_eq!(c.step(r, 0.99), 0.0); // hold band
-        // Past the set-point: a nudge to the left from β |b_l| = 10 counts.
+                                          // Past the set-point: a nudge to the left from β |b_l| = 10 counts.
         assert_eq!(c.step(r, 1.3), 0.0);
         assert_eq!(c.step(r, 1.3), 0.0);
         assert_eq!(c.step(r, 1.3), -10.0);

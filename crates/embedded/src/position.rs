@@ -34,10 +34,10 @@ pub struct NudgeSettings<F: Float> {
     pub cut_fraction: F,
 }
 
-/// A nudge under way (side 1 = u > 0).
+/// A nudge under way (`right`: u > 0).
 #[derive(Debug, Clone, Copy, PartialEq)]
 struct Nudging<F: Float> {
-    side: usize,
+    right: bool,
     y0: F,
     e0: F,
     u_mag: F,
@@ -92,14 +92,15 @@ pub struct PositionController<F: Float> {
     e_prev: F,
     still: u32,
     nudging: Option<Nudging<F>>,
-    breakaway: [F; 2],
+    breakaway_left: F,
+    breakaway_right: F,
 }
 
 /// |b_l|, |b_r| of the compensator's deadzone, 0 without one.
-fn initial_breakaway<F: Float>(c: &Option<Compensator<F>>) -> [F; 2] {
+fn initial_breakaway<F: Float>(c: &Option<Compensator<F>>) -> (F, F) {
     match c {
-        Some(c) => [c.deadzone().b_l.abs(), c.deadzone().b_r.abs()],
-        None => [F::ZERO, F::ZERO],
+        Some(c) => (c.deadzone().b_l.abs(), c.deadzone().b_r.abs()),
+        None => (F::ZERO, F::ZERO),
     }
 }
 
@@ -143,7 +144,8 @@ impl<F: Float> PositionController<F> {
             e_prev: F::ZERO,
             still: 0,
             nudging: None,
-            breakaway: initial_breakaway(&compensator),
+            breakaway_left: initial_breakaway(&compensator).0,
+            breakaway_right: initial_breakaway(&compensator).1,
         })
     }
 
@@ -218,7 +220,11 @@ impl<F: Float> PositionController<F> {
                 if g.moving {
                     g
                 } else if y != g.y0 {
-                    self.breakaway[g.side] = g.u_mag;
+                    if g.right {
+                        self.breakaway_right = g.u_mag;
+                    } else {
+                        self.breakaway_left = g.u_mag;
+                    }
                     Nudging { moving: true, ..g }
                 } else {
                     let up = g.u_mag + n.ramp * s.ts;
@@ -230,10 +236,15 @@ impl<F: Float> PositionController<F> {
             }
             None if self.still < n.rest_samples => return F::ZERO,
             None => {
-                let side = usize::from(e > F::ZERO);
-                let start = n.start_fraction * self.breakaway[side];
+                let right = e > F::ZERO;
+                let last = if right {
+                    self.breakaway_right
+                } else {
+                    self.breakaway_left
+                };
+                let start = n.start_fraction * last;
                 Nudging {
-                    side,
+                    right,
                     y0: y,
                     e0: e,
                     u_mag: if start < s.u_max { start } else { s.u_max },
@@ -242,7 +253,7 @@ impl<F: Float> PositionController<F> {
             }
         };
         self.nudging = Some(g);
-        if g.side == 1 {
+        if g.right {
             g.u_mag
         } else {
             -g.u_mag
@@ -256,7 +267,7 @@ impl<F: Float> PositionController<F> {
 
     /// The learnt breakaway commands u_b (left, right), counts.
     pub fn breakaway(&self) -> [F; 2] {
-        self.breakaway
+        [self.breakaway_left, self.breakaway_right]
     }
 
     /// Back to rest.
@@ -268,7 +279,7 @@ impl<F: Float> PositionController<F> {
         self.e_prev = F::ZERO;
         self.still = 0;
         self.nudging = None;
-        self.breakaway = initial_breakaway(&self.compensator);
+        (self.breakaway_left, self.breakaway_right) = initial_breakaway(&self.compensator);
     }
 }
 

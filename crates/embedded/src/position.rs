@@ -314,16 +314,21 @@ mod tests {
         assert_eq!(c.step(1.0, 1.5).unwrap(), -5.5);
     }
 
-    // In the fine band e_f = 2 mm, e = 1 mm: the shift b_r = 30 is halved: u = 11 + 15.
-    #[test]
-    fn fine_band_scales_the_deadzone_shift() {
+    /// The shift inverse of the deadzone b_l = −20, b_r = 30 (unit slopes).
+    fn shift_inverse() -> Compensator<f64> {
         let dz = Deadzone {
             b_l: -20.0,
             b_r: 30.0,
             m_l: 1.0,
             m_r: 1.0,
         };
-        let comp = Compensator::new(dz, SlopeMode::Shift, 0.0, 255.0).unwrap();
+        Compensator::new(dz, SlopeMode::Shift, 0.0, 255.0).unwrap()
+    }
+
+    // In the fine band e_f = 2 mm, e = 1 mm: the shift b_r = 30 is halved: u = 11 + 15.
+    #[test]
+    fn fine_band_scales_the_deadzone_shift() {
+        let comp = shift_inverse();
         let mut settings = s();
         settings.fine_band = 2.0;
         let mut c = PositionController::new(settings, Some(comp)).unwrap();
@@ -336,13 +341,7 @@ mod tests {
     // once y has covered 0.25 mm; the next nudge starts at 0.5 × 17.
     #[test]
     fn nudge_ramps_from_the_last_breakaway_learns_it_and_cuts() {
-        let dz = Deadzone {
-            b_l: -20.0,
-            b_r: 30.0,
-            m_l: 1.0,
-            m_r: 1.0,
-        };
-        let comp = Compensator::new(dz, SlopeMode::Shift, 0.0, 255.0).unwrap();
+        let comp = shift_inverse();
         let mut settings = s();
         settings.ki = 0.0;
         settings.nudge = Some(NudgeSettings {

@@ -131,23 +131,33 @@ impl StepMetrics {
         };
 
         let band = SETTLING_BAND * step;
-        let settling = match (0..n).rev().find(|&k| (y_mm[k] - y_f).abs() > band) {
-            // Still moving while outside the set-point's band: no final value yet. (Creeping within
-            // the band towards the set-point cannot leave it.)
-            _ if still_moving(t_s, y_mm, band) && (r_mm - y_f).abs() > band => None,
-            None => Some(0.0),
-            Some(k) if k + 1 >= n => None,
-            Some(k) => {
-                // y_k is outside the band, y_(k+1) inside: interpolate the crossing of the violated edge.
-                let edge = if y_mm[k] > y_f {
-                    y_f + band
-                } else {
-                    y_f - band
-                };
-                let frac = (y_mm[k] - edge) / (y_mm[k] - y_mm[k + 1]);
-                Some(t_s[k] + frac * (t_s[k + 1] - t_s[k]) - t0)
+        // The band's centre: the final value y_f, unless the output still moves at the end of the run.
+        // Then y_f is not final: outside the set-point's band there is no settling time yet; inside it
+        // (creeping towards r, which cannot leave the band around r) it is measured against the band
+        // around the set-point r, 2 % of the commanded step |r − y0|, whatever the run's length.
+        let (centre, band) = if still_moving(t_s, y_mm, band) {
+            let r_band = SETTLING_BAND * (r_mm - y0_mm).abs();
+            if (r_mm - y_f).abs() > r_band {
+                (None, band)
+            } else {
+                (Some(r_mm), r_band)
             }
+        } else {
+            (Some(y_f), band)
         };
+        let settling = centre.and_then(|c| {
+            match (0..n).rev().find(|&k| (y_mm[k] - c).abs() > band) {
+                None => Some(0.0),
+                Some(k) if k + 1 >= n => None,
+                Some(k) => {
+                    // y_k is outside the band, y_(k+1) inside: interpolate the crossing of the violated
+                    // edge.
+                    let edge = if y_mm[k] > c { c + band } else { c - band };
+                    let frac = (y_mm[k] - edge) / (y_mm[k] - y_mm[k + 1]);
+                    Some(t_s[k] + frac * (t_s[k + 1] - t_s[k]) - t0)
+                }
+            }
+        });
 
         Ok(StepMetrics {
             overshoot_mm: Some(overshoot),

@@ -10,7 +10,9 @@
 //!   output-error model's own criterion, the simulation-error loss (1/N) Σ ½ (y − ŷ_sim)², is reported
 //!   apart as `loss_sim` (for every model, from the estimated initial outputs);
 //! - FPE = (N + p)/(N − p) · V (paper eq. 15);
-//! - AIC = ln(mean ε²) + 2p/N (MATLAB's normalised AIC);
+//! - AIC = ln(2V) + 2p/N = ln(mean ε²) + 2p/N (MATLAB's normalised AIC) over the same one-step
+//!   equation-error ε as V and FPE, so that AIC, FPE and V of models estimated by different methods
+//!   compare in one column (an output-error model's own prediction errors are its simulation errors);
 //!
 //! p = number of estimated parameters. A value that cannot be computed (constant output for fit, N <= p for
 //! FPE, a simulation that diverges) is `None` (JSON `null`), never NaN.
@@ -49,7 +51,7 @@ pub struct Metrics {
     pub loss_sim: Option<f64>,
     /// FPE = (N + p)/(N − p) V (paper eq. 15).
     pub fpe: Option<f64>,
-    /// Normalised AIC = ln(mean ε²) + 2p/N.
+    /// Normalised AIC = ln(mean ε²) + 2p/N, ε the one-step equation-error prediction errors (as V).
     pub aic: Option<f64>,
     /// N: rows used (k >= k0).
     pub n: usize,
@@ -448,8 +450,9 @@ pub fn metrics_from_sums(s: &MetricSums, name: &str) -> Result<Metrics, SysidErr
     let fpe = (n > p)
         .then(|| (n + p) as f64 / (n - p) as f64 * loss)
         .filter(|v| v.is_finite());
-    let aic = (mse > 0.0)
-        .then(|| mse.ln() + 2.0 * p as f64 / n as f64)
+    let mse_equation = s.sse_equation / nf;
+    let aic = (mse_equation > 0.0)
+        .then(|| mse_equation.ln() + 2.0 * p as f64 / nf)
         .filter(|v| v.is_finite());
     let rmse_of = |sse: f64| Some((sse / nf).sqrt()).filter(|v| v.is_finite());
     Ok(Metrics {

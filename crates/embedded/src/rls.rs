@@ -17,26 +17,34 @@
 //! # UD form (optional)
 //!
 //! With [`Form::Ud`] ([`Rls::with_form`]) P = U D Uᵀ is kept as its factors (U unit upper triangular,
-//! D diagonal) and updated by Bierman's measurement update with variance ρ followed by D ← D/ρ, the
+//! D diagonal) and updated by Bierman's measurement update with variance ρ followed by D ← D · (1/ρ), the
 //! operations and order of `identify --rls-form ud` (`sysid::rls_ud`), so f64 results equal it bit for
 //! bit (up to the sign of zero). P is then positive semi-definite whatever the rounding: the form to use
 //! in f32, where eq. 12 loses definiteness on IPA data (docs/embedded.md). The factors live in the same
 //! N × N array (row j: U_0j..U_(j−1)j, then d_j on the diagonal), so the state has the same size.
-//! Cost ([`flops_per_update_ud`]): ε 2n + 1; f = Uᵀφ n² + n; v = D f n; per column of Bierman's
-//! update 6, plus 4 per entry above the diagonal (2 n(n − 1) in all); D/ρ n (also for ρ = 1: x / 1 is
-//! exact and keeps the loop branch-free); θ̂ 3n. Total 3 n² + 12 n + 1: 232 for n = 7, 352 for n = 9.
-//! The factors are updated in a copy that is committed only when every check passed.
+//! Divisions: the prefix sums α_j = ρ + Σ_(i≤j) f_i v_i are additions only, and each column divides
+//! once, 1/α_j (d_j ← d_j · (α_(j−1) · (1/α_j)), λ_j = −f_j · (1/α_(j−1)), θ̂ += b · (1/α) ε), plus
+//! 1/ρ: n + 1 independent divisions per update (4n before issue 28's second round).
+//! Cost ([`flops_per_update_ud`]): ε 2n + 1; f = Uᵀφ n² + n; v = D f n; α 2n; b = U v n(n − 1);
+//! reciprocals n + 1; new D 3n; new θ̂ 3n; Bierman's column steps 2 per column and 4 per entry above the
+//! diagonal (2 n(n − 1)). Total 4 n² + 12 n + 2: 282 for n = 7, 434 for n = 9, of which n + 1
+//! divisions. The update runs in two passes over U and copies nothing: the first only reads (f, v, α,
+//! b, the new D and θ̂, every check), the second writes U, D and θ̂ only when every check passed, so a
+//! failed update leaves the state unchanged.
 //!
 //! # Windup guard (optional)
 //!
 //! With ρ < 1 and no excitation P grows like ρ^(−k) (covariance windup). With a trace bound T
 //! ([`Rls::with_max_trace`]), P is scaled by T / tr P whenever tr P > T after an update, as
-//! `identify --windup trace --max-trace T` does. With eq. 12 tr P(k) is summed first from the new
-//! diagonal (the values the update is about to write) and the factor T / tr P(k) is folded into the
-//! multiplication by 1/ρ, so the guard costs 4n flops (3n for ρ = 1) and 2 more when it acts, never a
-//! second pass over P (`sysid` writes its guarded update in a different operation order, so results
-//! agree to rounding, not bit for bit). In the UD form tr P = Σ_j d_j (Σ_(i<j) U_ij² + 1) is summed
-//! after the update (n² + 3n flops, sysid's order: bit for bit) and D is scaled (n + 1) when it acts.
+//! `identify --windup trace --max-trace T` does. With eq. 12 and δ = ρ + φᵀPφ, tr P(k) = (tr P −
+//! (Pφ)ᵀ(Pφ)/δ)/ρ, so with ν = δ tr P − (Pφ)ᵀ(Pφ) the test tr P(k) > T is ν > T δ ρ and the factor,
+//! folded into the multiplication by 1/ρ, is (1/ρ) · T / tr P(k) = T δ / ν: the guard's one division runs
+//! beside 1/δ, not after it, and there is no second pass over P. The guard costs 3n + 4 flops and one
+//! division when it acts (if δ tr P or (Pφ)ᵀ(Pφ) overflows, possible in f32 with P ≳ 1e19, tr P(k) is
+//! summed from the new diagonal instead). `sysid` writes its guarded update in a different operation
+//! order, so results agree to rounding, not bit for bit. In the UD form tr P = Σ_j d_j (Σ_(i<j) U_ij² + 1)
+//! is summed from the new factors as the second pass writes them (n² + 3n flops, sysid's order: bit for
+//! bit) and D is scaled (n + 1) when it acts.
 //!
 //! # Cost per update, n parameters (each +, −, ×, ÷ one flop)
 //!
@@ -219,31 +227,36 @@ impl<F: Float, const N: usize> Rls<F, N> {
         match (self.form, self.n == N) {
             (Form::Standard, true) => update_standard::<F, N, true>(self, phi, y),
             (Form::Standard, false) => update_standard::<F, N, false>(self, phi, y),
-            (Form::Ud, true) => update_ud::<F, N, true>(self, phi, y),
-            (Form::Ud, false) => update_ud::<F, N, false>(self, phi, y),
+            (Form::Ud, full) => match (full, self.max_trace.is_finite()) {
+                (true, false) => update_ud::<F, N, true, false>(self, phi, y),
+                (true, true) => update_ud::<F, N, true, true>(self, phi, y),
+                (false, false) => update_ud::<F, N, false, false>(self, phi, y),
+                (false, true) => update_ud::<F, N, false, true>(self, phi, y),
+            },
         }
     }
 }
 
-/// Runs the closure `$f` for the columns j = 0, 1, …, m − 1 in order. With `$full` (m = N) and N ≤ 16
-/// the calls are written out with literal j, so that once the closure is inlined every loop inside it
-/// has a constant trip count (unrolled, vectorised, no bounds check); otherwise a plain loop.
+/// Runs the body for the columns j = 0, 1, …, m − 1 in order (`break 'label` in the body ends that
+/// column; the caller names the label). With `$full` (m = N) and N ≤ 16 the body is written out once per
+/// column with a literal j, so every loop inside it has a constant trip count (unrolled, vectorised, no
+/// bounds check); otherwise a plain loop. (Before, the body was a closure called once per column, and
+/// the compiler did not inline it: a call per column, with run-time j.)
 macro_rules! for_columns {
-    ($full:expr, $m:expr, $f:expr) => {{
-        #[allow(unused_mut)]
-        let mut f = $f;
+    ($full:expr, $m:expr, $label:lifetime, |$j:ident| $body:tt) => {{
         if $full && N <= 16 {
-            for_columns!(@each f; 0 1 2 3 4 5 6 7 8 9 10 11 12 13 14 15);
+            for_columns!(@each $label $j $body; 0 1 2 3 4 5 6 7 8 9 10 11 12 13 14 15);
         } else {
-            for j in 0..$m {
-                f(j);
+            for $j in 0..$m {
+                $label: $body
             }
         }
     }};
-    (@each $f:ident; $($j:literal)*) => {
+    (@each $label:lifetime $j:ident $body:tt; $($lit:literal)*) => {
         $(
-            if $j < N {
-                $f($j);
+            if $lit < N {
+                let $j: usize = $lit;
+                $label: $body
             }
         )*
     };
@@ -303,18 +316,33 @@ fn update_standard<F: Float, const N: usize, const FULL: bool>(
     // diagonal (the values the update writes), so the guard costs n flops, not a second pass over P.
     let mut s = inv_rho;
     if max_trace.is_finite() {
-        let mut tr = F::ZERO;
-        for (i, ((row, q), g)) in p.iter().zip(pphi.iter()).zip(gain.iter()).enumerate() {
-            let v = row.get(i).copied().unwrap_or(F::ZERO) - *q * *g;
-            tr += if scale { v * inv_rho } else { v };
+        // With δ = ρ + φᵀPφ: tr P(k) = (tr P − (Pφ)ᵀ(Pφ)/δ)/ρ, so with ν = δ tr P − (Pφ)ᵀ(Pφ) (= ρ δ tr P(k))
+        // tr P(k) > T ⇔ ν > T δ ρ, and the factor (1/ρ) · T / tr P(k) = T δ / ν. Neither needs 1/δ: the
+        // guard's one division runs beside 1/δ instead of after it and the trace sum.
+        let mut trp = F::ZERO;
+        let mut qq = F::ZERO;
+        for (i, (row, q)) in p.iter().zip(pphi.iter()).enumerate() {
+            trp += row.get(i).copied().unwrap_or(F::ZERO);
+            qq += *q * *q;
         }
-        if tr > max_trace {
-            s = if scale {
-                inv_rho * (max_trace / tr)
-            } else {
-                max_trace / tr
-            };
-            scale = true;
+        let td = max_trace * denom;
+        let nu = trp * denom - qq;
+        if nu.is_finite() && td.is_finite() {
+            if nu > td * rho {
+                s = td / nu;
+                scale = true;
+            }
+        } else {
+            // δ tr P or (Pφ)ᵀ(Pφ) overflowed (f32 with P ≳ 1e19): sum the new diagonal instead.
+            let mut tr = F::ZERO;
+            for (i, ((row, q), g)) in p.iter().zip(pphi.iter()).zip(gain.iter()).enumerate() {
+                let v = row.get(i).copied().unwrap_or(F::ZERO) - *q * *g;
+                tr += v * inv_rho;
+            }
+            if tr > max_trace {
+                s = inv_rho * (max_trace / tr);
+                scale = true;
+            }
         }
     }
     if scale {
@@ -337,7 +365,7 @@ fn symmetric_update<F: Float, const N: usize, const SCALE: bool>(
 ) {
     let m = pphi.len();
     let full = m == N;
-    for_columns!(full, m, |r: usize| {
+    for_columns!(full, m, 'col, |r| {
         let (Some(row), Some(pr), Some(gr), Some(q_lo), Some(g_hi)) = (
             p.get_mut(r).and_then(|row| row.get_mut(..m)),
             pphi.get(r),
@@ -345,10 +373,10 @@ fn symmetric_update<F: Float, const N: usize, const SCALE: bool>(
             pphi.get(..r),
             gain.get(r..),
         ) else {
-            return;
+            break 'col;
         };
         let Some((lo, hi)) = row.split_at_mut_checked(r) else {
-            return;
+            break 'col;
         };
         for (c, q) in lo.iter_mut().zip(q_lo) {
             let v = *c - *q * *gr;
@@ -362,19 +390,28 @@ fn symmetric_update<F: Float, const N: usize, const SCALE: bool>(
 }
 
 /// Bierman's UD update with forgetting on the leading m × m block (m = N when `FULL`), in the operation
-/// order of `sysid::rls_ud::RobustRls` (sums start at −0, as `Iterator::sum` of floats does). The
-/// factors and θ̂ are updated in copies and committed only when every check passed, so a failed update
-/// leaves the state unchanged.
+/// order of `sysid::rls_ud::RobustRls` (sums start at −0, as `Iterator::sum` of floats does); with
+/// `GUARD` the trace bound of [`Rls::with_max_trace`]. Two passes over U and nothing copied:
+///
+/// 1. reading only: f = Uᵀφ, v = D f, the prefix sums α_j = ρ + Σ_(i≤j) f_i v_i, the gain numerator
+///    b = U v (accumulated column by column exactly as Bierman's loop builds it), the reciprocals 1/ρ and
+///    1/α_j (independent divisions: they pipeline), the new D and the new θ̂; every check is made here;
+/// 2. only when all passed: Bierman's column steps write U in place (re-accumulating the partial gain
+///    they need), then D and θ̂; with `GUARD`, tr P of the new factors is summed in the same pass.
+///
+/// So a failed update leaves the state unchanged, without a copy of the factors.
 #[inline(always)]
-fn update_ud<F: Float, const N: usize, const FULL: bool>(
+fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
     est: &mut Rls<F, N>,
     phi: &[F],
     y: F,
 ) -> Result<F, Error> {
     let (rho, max_trace) = (est.forgetting, est.max_trace);
     let m = if FULL { N } else { est.n };
-    let (theta, fac_state) = (&mut est.theta, &mut est.p);
+    let (theta, fac) = (&mut est.theta, &mut est.p);
     let phi = phi.get(..m).ok_or(Error::Length)?;
+    let theta = theta.get_mut(..m).ok_or(Error::Capacity)?;
+    let fac = fac.get_mut(..m).ok_or(Error::Capacity)?;
     let mut dot = -F::ZERO;
     for (f, t) in phi.iter().zip(theta.iter()) {
         dot += *f * *t;
@@ -384,84 +421,136 @@ fn update_ud<F: Float, const N: usize, const FULL: bool>(
         return Err(Error::Numerical);
     }
     let full = FULL;
-    let mut fac = *fac_state;
-    // f = Uᵀφ (f_j = Σ_(i<j) U_ij φ_i + φ_j) and v = D f (in `work`); column j of U is row j of `fac`.
+    // Pass 1. Column j of U is row j of `fac` (U_0j..U_(j−1)j, then d_j).
     let mut f = [F::ZERO; N];
-    let mut work = [F::ZERO; N];
-    for_columns!(full, m, |j: usize| {
-        let (Some(row), Some(ph), Some(fj), Some(wj)) =
-            (fac.get(j), phi.get(j), f.get_mut(j), work.get_mut(j))
-        else {
-            return;
+    let mut v = [F::ZERO; N];
+    let mut alpha = [F::ZERO; N];
+    let mut b = [F::ZERO; N];
+    let mut a = rho;
+    for_columns!(full, m, 'col, |j| {
+        let (Some(row), Some(ph), Some(fj), Some(vj), Some(aj), Some((b_col, b_rest))) = (
+            fac.get(j),
+            phi.get(j),
+            f.get_mut(j),
+            v.get_mut(j),
+            alpha.get_mut(j),
+            b.split_at_mut_checked(j),
+        ) else {
+            break 'col;
         };
-        let (Some(u_col), Some(dj)) = (row.get(..j), row.get(j)) else {
-            return;
+        let (Some(u_col), Some(dj), Some(bj)) = (row.get(..j), row.get(j), b_rest.first_mut())
+        else {
+            break 'col;
         };
         let mut acc = -F::ZERO;
         for (u, x) in u_col.iter().zip(phi) {
             acc += *u * *x;
         }
         acc += F::ONE * *ph;
+        let vv = *dj * acc;
         *fj = acc;
-        *wj = *dj * acc;
+        *vj = vv;
+        a += acc * vv;
+        *aj = a;
+        for (bi, u) in b_col.iter_mut().zip(u_col) {
+            *bi += *u * vv;
+        }
+        *bj = vv;
     });
-    // Bierman: after column j, work[0..=j] holds the unnormalised gain.
-    let mut alpha = rho;
-    let guarded = max_trace.is_finite();
-    for_columns!(full, m, |j: usize| {
-        let (Some(row), Some(fj), Some(v)) = (fac.get_mut(j), f.get(j), work.get(j).copied())
-        else {
-            return;
-        };
-        let alpha_prev = alpha;
-        alpha += *fj * v;
-        let Some((u_col, rest)) = row.split_at_mut_checked(j) else {
-            return;
-        };
-        if let Some(dj) = rest.first_mut() {
-            *dj *= alpha_prev / alpha;
-        }
-        let lambda = -*fj / alpha_prev;
-        let Some(w) = work.get_mut(..j) else {
-            return;
-        };
-        for (u, w) in u_col.iter_mut().zip(w.iter_mut()) {
-            let uij = *u;
-            *u = uij + *w * lambda;
-            *w += uij * v;
-        }
-    });
-    let mut d_ok = true;
-    for (j, row) in fac.iter_mut().enumerate().take(m) {
-        if let Some(d) = row.get_mut(j) {
-            // x / 1 = x exactly: no branch for ρ = 1.
-            *d = *d / rho;
-            d_ok &= d.is_finite() && *d >= F::ZERO;
-        }
-    }
-    if !(alpha.is_finite() && alpha > F::ZERO && d_ok) {
+    // α_(m−1) ≥ … ≥ α_0 ≥ ρ > 0 (D ≥ 0 makes every f_j v_j = d_j f_j² ≥ 0), so one check of the last
+    // covers them all.
+    if !(a.is_finite() && a > F::ZERO) {
         return Err(Error::Numerical);
     }
-    let mut theta_new = *theta;
-    for (t, w) in theta_new.iter_mut().zip(work.iter()).take(m) {
-        *t += *w / alpha * eps;
+    let inv_rho = F::ONE / rho;
+    let mut inv = [F::ZERO; N];
+    for (r, al) in inv.iter_mut().zip(alpha.iter()).take(m) {
+        *r = F::ONE / *al;
     }
-    if guarded {
-        let tr = ud_trace(&fac, m);
-        if tr > max_trace {
-            let s = max_trace / tr;
-            for (j, row) in fac.iter_mut().enumerate().take(m) {
-                if let Some(d) = row.get_mut(j) {
-                    *d *= s;
-                }
+    let inv_last = inv.get(m - 1).copied().unwrap_or(F::ZERO);
+    // The new D: d_j · (α_(j−1) · (1/α_j)) · (1/ρ) (x · 1 = x exactly: no branch for ρ = 1).
+    let mut d_new = [F::ZERO; N];
+    let mut ok = true;
+    let mut alpha_prev = rho;
+    for (j, ((dn, al), r)) in d_new
+        .iter_mut()
+        .zip(alpha.iter())
+        .zip(inv.iter())
+        .take(m)
+        .enumerate()
+    {
+        let d = fac
+            .get(j)
+            .and_then(|row| row.get(j))
+            .copied()
+            .unwrap_or(F::ZERO);
+        *dn = d * (alpha_prev * *r) * inv_rho;
+        ok &= dn.is_finite() && *dn >= F::ZERO;
+        alpha_prev = *al;
+    }
+    let mut theta_new = [F::ZERO; N];
+    for ((tn, t), bi) in theta_new.iter_mut().zip(theta.iter()).zip(b.iter()) {
+        *tn = *t + *bi * inv_last * eps;
+        ok &= tn.is_finite();
+    }
+    if !ok {
+        return Err(Error::Numerical);
+    }
+    // Pass 2: λ_j = −f_j · (1/α_(j−1)); U_ij ← U_ij + w_i λ_j, w_i ← w_i + U_ij v_j (old U_ij), w_j = v_j.
+    let mut w = [F::ZERO; N];
+    let mut tr = -F::ZERO;
+    for_columns!(full, m, 'col, |j| {
+        let (Some(row), Some(fj), Some(vj), Some(dn), Some((w_col, w_rest))) = (
+            fac.get_mut(j),
+            f.get(j),
+            v.get(j).copied(),
+            d_new.get(j).copied(),
+            w.split_at_mut_checked(j),
+        ) else {
+            break 'col;
+        };
+        let inv_prev = if j == 0 {
+            inv_rho
+        } else {
+            inv.get(j - 1).copied().unwrap_or(F::ZERO)
+        };
+        let lambda = -*fj * inv_prev;
+        let Some((u_col, rest)) = row.split_at_mut_checked(j) else {
+            break 'col;
+        };
+        let mut col = -F::ZERO;
+        for (u, wi) in u_col.iter_mut().zip(w_col.iter_mut()) {
+            let uij = *u;
+            let un = uij + *wi * lambda;
+            *u = un;
+            *wi += uij * vj;
+            if GUARD {
+                col += un * un;
+            }
+        }
+        if let Some(d) = rest.first_mut() {
+            *d = dn;
+        }
+        if let Some(wj) = w_rest.first_mut() {
+            *wj = vj;
+        }
+        if GUARD {
+            col += F::ONE * F::ONE;
+            tr += dn * col;
+        }
+    });
+    // The guard (sysid's order: tr P of the new factors, then D ← D · T / tr P).
+    if GUARD && tr > max_trace {
+        let s = max_trace / tr;
+        for (j, row) in fac.iter_mut().enumerate() {
+            if let Some(d) = row.get_mut(j) {
+                *d *= s;
             }
         }
     }
-    if theta_new.iter().any(|t| !t.is_finite()) {
-        return Err(Error::Numerical);
+    for (t, tn) in theta.iter_mut().zip(theta_new) {
+        *t = tn;
     }
-    *fac_state = fac;
-    *theta = theta_new;
     Ok(eps)
 }
 
@@ -480,11 +569,11 @@ fn ud_trace<F: Float, const N: usize>(fac: &[[F; N]; N], n: usize) -> F {
     tr
 }
 
-/// Flops of one UD-form update for `n` parameters (no guard): 3 n² + 12 n + 1, for ρ < 1 and ρ = 1
-/// alike (the division by ρ = 1 is executed: it is exact and keeps the loop branch-free). Breakdown in
-/// the module documentation.
+/// Flops of one UD-form update for `n` parameters (no guard): 4 n² + 12 n + 2, of which n + 1 are
+/// divisions, for ρ < 1 and ρ = 1 alike (the multiplication by 1/ρ = 1 is executed: it is exact and keeps
+/// the loop branch-free). Breakdown in the module documentation.
 pub fn flops_per_update_ud(n: usize, _rho_is_one: bool) -> usize {
-    3 * n * n + 12 * n + 1
+    4 * n * n + 12 * n + 2
 }
 
 /// Flops of one update for `n` parameters (no guard): 3.5 n² + 8.5 n + 2 for ρ < 1, 3 n² + 8 n + 1
@@ -539,6 +628,34 @@ mod tests {
         }
         assert_eq!(free.trace(), 2.0 * 1048576.0);
         assert!((guarded.trace() - 3.0).abs() < 1e-6);
+    }
+
+    // The guard's test and factor without 1/δ (ν = δ tr P − (Pφ)ᵀ(Pφ)), and its fallback when δ tr P
+    // overflows f32 (p0 = 1e20: δ tr P ≈ 2e40). One update with φ = (1, 0), ρ = 1 from P = p0 I gives
+    // P = diag(p0/(1 + p0), p0) (hand-derived), tr P = p0 + p0/(1 + p0) > T, scaled to tr P = T.
+    #[test]
+    fn trace_guard_acts_with_and_without_overflow_of_the_shortcut() {
+        for (p0, t) in [(100.0f32, 50.0f32), (1e20, 5e19)] {
+            let mut est = Rls::<f32, 2>::new(2, 1.0, p0)
+                .unwrap()
+                .with_max_trace(t)
+                .unwrap();
+            est.update(&[1.0, 0.0], 0.0).unwrap();
+            let tr = f64::from(p0) + f64::from(p0) / (1.0 + f64::from(p0));
+            let s = f64::from(t) / tr;
+            assert!(
+                (f64::from(est.trace()) / f64::from(t) - 1.0).abs() < 1e-6,
+                "{p0}"
+            );
+            assert!((f64::from(est.p(1, 1)) / (f64::from(p0) * s) - 1.0).abs() < 1e-6);
+            if p0 < 1e6 {
+                // P_00 = p0 − p0² / (1 + p0) cancels: f32 keeps about 1e-5 of it with p0 = 100, and nothing
+                // with p0 = 1e20 (eq. 12's limit, not the guard's).
+                let p00 = f64::from(p0) / (1.0 + f64::from(p0)) * s;
+                assert!((f64::from(est.p(0, 0)) / p00 - 1.0).abs() < 1e-4);
+            }
+            assert_eq!(est.p(0, 1), 0.0);
+        }
     }
 
     #[test]
@@ -618,9 +735,9 @@ mod tests {
         assert_eq!(flops_per_update(9, false), 362);
         assert_eq!(flops_per_update(9, true), 316);
         assert_eq!(flops_per_update(7, false), 233);
-        // UD: 3·49 + 12·7 + 1 = 232 for either ρ; 3·81 + 12·9 + 1 = 352.
-        assert_eq!(flops_per_update_ud(7, false), 232);
-        assert_eq!(flops_per_update_ud(7, true), 232);
-        assert_eq!(flops_per_update_ud(9, false), 352);
+        // UD: 4·49 + 12·7 + 2 = 282 for either ρ; 4·81 + 12·9 + 2 = 434.
+        assert_eq!(flops_per_update_ud(7, false), 282);
+        assert_eq!(flops_per_update_ud(7, true), 282);
+        assert_eq!(flops_per_update_ud(9, false), 434);
     }
 }

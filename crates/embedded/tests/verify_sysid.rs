@@ -268,31 +268,41 @@ fn ud_form_is_bit_for_bit_sysid_rls_form_ud() {
     }
 }
 
-// The UD form is the remedy in f32: on the same records, with the defaults p0 = 1e6 and ρ = 1 or 0.99
-// (where eq. 12 in f32 fails), it runs through and stays close to the f64 UD estimate: breakpoints within
-// 0.05 count, slopes within 3e-4 relative, a within 1e-4 (measured: 0.017 count, 7e-5, 1.2e-5).
+// The UD form is the remedy in f32: on 20 records (seeds 0–19), with the defaults p0 = 1e6 and ρ = 1 or
+// 0.99 (where eq. 12 in f32 fails), it runs through and stays close to the f64 UD estimate. f32 rounding
+// moves the breakpoints by a few thousandths of a count on most records and by a few tenths on a few
+// ill-conditioned ones (which records depends on the exact rounding sequence: over seeds 0–59, the median
+// |Δb| was 0.006 count both with Bierman's divisions and with the reciprocals used since issue 28, the
+// largest 0.35 and 0.62 count; here, seeds 0–19: median 0.006, all but one ≤ 0.04, the one (seed 3,
+// ρ = 0.99) 0.62 count with slopes 4e-3 relative and a 2e-4 off). So: every breakpoint within 1 count
+// (the command's resolution), slopes within 1e-2 relative, a within 1e-3, and the median breakpoint
+// difference below 0.02 count.
 #[test]
 fn f32_ud_form_works_where_the_standard_form_fails() {
-    for seed in [3, 4, 5] {
+    let mut db = Vec::new();
+    for seed in 0..20 {
         let (u, y) = record(3000, seed, 0.01, false);
         for rho in [1.0, 0.99] {
             let d = embedded_fit_p0::<f64>(&u, &y, (3, 1, 1), rho, None, 1e6, Form::Ud).unwrap();
             let s = embedded_fit_p0::<f32>(&u, &y, (3, 1, 1), rho, None, 1e6, Form::Ud).unwrap();
+            let diff = (d.dz[0] - s.dz[0]).abs().max((d.dz[1] - s.dz[1]).abs());
+            assert!(diff < 1.0, "seed {seed} ρ={rho}: {:?} {:?}", d.dz, s.dz);
+            db.push(diff);
             assert!(
-                (d.dz[0] - s.dz[0]).abs() < 0.05 && (d.dz[1] - s.dz[1]).abs() < 0.05,
-                "{:?} {:?}",
-                d.dz,
-                s.dz
-            );
-            assert!(
-                (d.dz[2] / s.dz[2] - 1.0).abs() < 3e-4 && (d.dz[3] / s.dz[3] - 1.0).abs() < 3e-4
+                (d.dz[2] / s.dz[2] - 1.0).abs() < 1e-2 && (d.dz[3] / s.dz[3] - 1.0).abs() < 1e-2
             );
             for (p, q) in d.a.iter().zip(&s.a) {
-                assert!((p - q).abs() < 1e-4, "{p} vs {q}");
+                assert!((p - q).abs() < 1e-3, "{p} vs {q}");
+            }
+            if !(3..=5).contains(&seed) {
+                continue; // eq. 12 in f32 is shown to fail on three of the records
             }
             let standard =
                 embedded_fit_p0::<f32>(&u, &y, (3, 1, 1), rho, None, 1e6, Form::Standard);
             assert_eq!(standard.err(), Some(ipa_embedded::Error::Numerical));
         }
     }
+    db.sort_by(f64::total_cmp);
+    let median = db[db.len() / 2];
+    assert!(median < 0.02, "median breakpoint difference {median} count");
 }

@@ -327,7 +327,7 @@ impl ValidationReport {
     /// The report from metrics and a residual analysis computed elsewhere (the streaming path,
     /// `sysid::stream`), with the warnings [`ValidationReport::assemble`] gives.
     pub fn from_parts(model: &Model, m: Metrics, residuals: ResidualEntry) -> Self {
-        let warnings: Vec<String> = Warning::if_unstable(model)
+        let warnings: Vec<String> = Warning::if_unstable_or_integrating(model)
             .into_iter()
             .chain(metric_warnings(Record::Validation, &m))
             .map(|w| w.to_string())

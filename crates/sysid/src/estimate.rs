@@ -306,6 +306,7 @@ pub fn identify<R: Records + ?Sized>(
         return identify_breakpoints(records, settings);
     }
     let problem = settings.problem(records.records())?;
+    check_input_levels(&problem)?;
     let mut fit = settings.estimator.fit(&problem)?;
     if let Some(kind) = settings.output {
         let max_iterations = match settings.estimator {
@@ -323,6 +324,34 @@ pub fn identify<R: Records + ?Sized>(
     fit.notes = notes;
     check_finite(problem.name(), &fit.params)?;
     safeguard(&problem, settings, fit)
+}
+
+/// An input with a static nonlinearity must take at least 3 distinct values: with two (a PRBS, a
+/// relay test) its nonlinearity's parameters and B cannot be separated (any static map through the two
+/// levels fits), which the least-squares solver would only report as an unexcited regressor.
+fn check_input_levels(problem: &crate::problem::Problem) -> Result<(), SysidError> {
+    for (m, ch) in problem.regression().channels().iter().enumerate() {
+        if ch.kind == NonlinearityKind::Linear {
+            continue;
+        }
+        let mut u = problem.input_samples(m);
+        u.sort_by(f64::total_cmp);
+        u.dedup();
+        // A constant input (one level) has its own error, from the regression.
+        if u.len() == 2 {
+            return Err(SysidError::Data(format!(
+                "{}: input {}: a {} nonlinearity needs an input with at least 3 distinct levels, but \
+                 it takes only 2 ({} and {}): a static map through 2 points is not determined (use a \
+                 linear input, --structure arx, or an input with several amplitudes)",
+                problem.name(),
+                ch.name,
+                ch.kind,
+                u[0],
+                u[1]
+            )));
+        }
+    }
+    Ok(())
 }
 
 /// `--breakpoints auto`: the identification with K = 1..=[`MAX_AUTO_BREAKPOINTS`] breakpoints in every
@@ -436,7 +465,8 @@ pub fn safeguard(
             how: termination_words(&fit.termination, fit.method),
         });
     }
-    fit.warnings.extend(Warning::if_unstable(&fit.model));
+    fit.warnings
+        .extend(Warning::if_unstable_or_integrating(&fit.model));
     match &est {
         Some(m) => {
             fit.warnings
@@ -491,7 +521,47 @@ pub fn safeguard(
             }));
         }
     }
+    fit.warnings.extend(unexplained_missing_std(&fit));
     Ok(fit)
+}
+
+/// A [`Concern::NoStandardDeviations`](crate::warnings::Concern) naming the estimated parameters
+/// that have no standard deviation while no warning says why (b1 = 1 of a keyed input is fixed, not
+/// estimated); `None` when every one is explained or a warning already speaks of them (LS, RLS and IV:
+/// the output-error search gives its own reason).
+fn unexplained_missing_std(fit: &Fitted) -> Option<Warning> {
+    // The output-error search (and the Wiener refinement, which ends in one) says why itself, and fixes
+    // parameters of its own (the output nonlinearity's unit gain).
+    if fit.method == Method::Oe {
+        return None;
+    }
+    let said = fit.warnings.iter().any(|w| {
+        matches!(
+            w,
+            Warning::Trust(crate::warnings::Concern::NoStandardDeviations { .. })
+                | Warning::Fallback { .. }
+        )
+    });
+    if said {
+        return None;
+    }
+    let missing: Vec<String> = fit
+        .params
+        .iter()
+        .filter(|q| q.std.is_none() && !(q.name == ParamName::B(1) && q.value == 1.0))
+        .map(|q| q.label())
+        .filter(|l| !fit.warnings.iter().any(|w| w.explains_missing_std(l)))
+        .collect();
+    if missing.is_empty() {
+        return None;
+    }
+    crate::trust::std_warning(Some(format!(
+        "{} of {} parameters have none ({}): the covariance gives them no positive finite variance (a \
+         singular or ill-conditioned information matrix: parameters the data do not separate)",
+        missing.len(),
+        fit.params.len(),
+        missing.join(", ")
+    )))
 }
 
 /// Why an estimate with a static nonlinearity by `method` should give way to the linear ARX start:

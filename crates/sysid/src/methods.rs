@@ -608,11 +608,17 @@ pub(crate) fn instrumental(p: &Problem, st: &InstrumentalVariables) -> Result<Fi
     let rss = prediction_rss(&out.model, p.records())?;
     let sigma2 = rss / (data.len() - k0).saturating_sub(n_free).max(1) as f64;
     let cov = iv::covariance(&out.pass, sigma2).map(|c| scatter_matrix(&free, &c));
+    let why = cov.is_none().then(|| {
+        "the instrument cross-moment matrix ZᵀΦ of the kept IV stage is singular (or its covariance \
+         σ² (ZᵀΦ)⁻¹ ZᵀZ (ΦᵀZ)⁻¹ is not finite): the instruments do not determine every parameter"
+            .to_string()
+    });
     Ok(Fitted {
         params: reg.params(out.theta.as_slice(), cov.as_ref(), &out.model, p.starts()),
         iterations: out.stages,
         termination: out.termination,
         notes: out.notes,
+        warnings: crate::trust::std_warning(why).into_iter().collect(),
         ..Fitted::new(out.model, Vec::new(), Method::Iv, sigma2)
     })
 }

@@ -127,7 +127,7 @@ impl std::fmt::Display for OeStop {
                 "converged (no step lowers the cost further: a local minimum or a kink of the deadzone)"
             }
             OeStop::StabilityBoundary => {
-                "converged on the stability boundary (a pole held at |p| = 1 - 1e-6: an integrating plant?)"
+                "converged on the stability boundary (a pole held at |p| = 1 - 1e-6: see the warnings)"
             }
             OeStop::IterationLimit => "stopped at the iteration limit (not converged)",
         })
@@ -404,6 +404,14 @@ impl Problem<'_> {
         is_stable_polynomial_within(&self.full[ia..ia + self.na], MAX_POLE_MODULUS)
     }
 
+    /// True when a pole of A is held at the stability boundary ([`MAX_POLE_MODULUS`], to rounding).
+    fn pinned(&self) -> bool {
+        let ia = self.ia();
+        poles_of(&self.full[ia..ia + self.na])
+            .iter()
+            .any(|p| p.norm() >= MAX_POLE_MODULUS - 1e-9)
+    }
+
     /// Reflects the unstable poles of A into the unit circle.
     fn project(&mut self) {
         let ia = self.ia();
@@ -521,14 +529,25 @@ fn search(
                 // outputs) any fixed damping would shorten the Gauss–Newton step along the weak
                 // directions and slow the search to a crawl.
                 lambda /= 3.0;
+                // A pole held at the boundary makes the tiny projected steps look like convergence:
+                // say where the search ended instead (the warnings then name the pole).
+                let converged = |stop| {
+                    if problem.pinned() {
+                        OeStop::StabilityBoundary
+                    } else {
+                        stop
+                    }
+                };
                 if decrease < FTOL && predicted <= FTOL {
-                    return Ok((OeStop::CostConverged, iteration, evaluations, projected));
+                    let stop = converged(OeStop::CostConverged);
+                    return Ok((stop, iteration, evaluations, projected));
                 }
                 if on_boundary && decrease < FTOL_BOUNDARY {
                     return Ok((OeStop::StabilityBoundary, iteration, evaluations, projected));
                 }
                 if moved <= XTOL * (size + XTOL) {
-                    return Ok((OeStop::StepConverged, iteration, evaluations, projected));
+                    let stop = converged(OeStop::StepConverged);
+                    return Ok((stop, iteration, evaluations, projected));
                 }
                 break;
             }

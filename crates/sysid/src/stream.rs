@@ -131,7 +131,8 @@ pub fn identify_checked(
     passes += on_est.passes;
     let (est_metrics, est_resid) = on_est.result;
     // The safeguards of `estimate::identify` that concern an ARX least-squares fit.
-    fit.warnings.extend(Warning::if_unstable(&fit.model));
+    fit.warnings
+        .extend(Warning::if_unstable_or_integrating(&fit.model));
     fit.warnings.extend(Warning::if_poor_simulation(
         Record::Estimation,
         est_metrics.fit_sim_percent,

@@ -72,10 +72,11 @@ pub fn below_baseline(record: Record, fit: Option<f64>, baseline: Option<f64>) -
     }))
 }
 
-/// The warnings a record's metrics raise: a negative or diverging simulation, and an initial state
-/// that flatters the headline fit. The one place where metrics become warnings.
+/// The warnings a record's metrics raise: a negative or diverging simulation (judged on the guarded
+/// fit, so that a model no better than the mean from the measured initial outputs is called so), and an
+/// initial state that flatters the headline fit. The one place where metrics become warnings.
 pub fn metric_warnings(record: Record, m: &Metrics) -> Vec<Warning> {
-    Warning::if_poor_simulation(record, m.fit_sim_percent)
+    Warning::if_poor_simulation(record, guarded_fit(m))
         .into_iter()
         .chain(initial_state_warning(record, m))
         .collect()

@@ -50,6 +50,13 @@ pub enum Warning {
         /// Largest pole modulus.
         max_pole_modulus: f64,
     },
+    /// A pole inside the unit circle but within [`INTEGRATOR_MARGIN`] of it: over any practical
+    /// record the model integrates, and the data rarely determine such a mode (an output-error search
+    /// holds it at the stability boundary to imitate a level or a drift).
+    NearIntegrator {
+        /// Largest pole modulus.
+        max_pole_modulus: f64,
+    },
     /// The free-run simulation does worse than the mean of the record (fit < 0 %), or diverges.
     PoorSimulation {
         /// Which record.
@@ -139,13 +146,22 @@ impl std::fmt::Display for Warning {
                 "unstable model: a pole has modulus {max_pole_modulus:.6} >= 1; its simulation diverges \
                  (do not use it for simulation or control)"
             ),
+            Warning::NearIntegrator { max_pole_modulus } => write!(
+                f,
+                "a pole at modulus {max_pole_modulus:.7}, on the stability boundary: the model integrates \
+                 (time constant {:.1e} samples); unless the plant integrates (a position driven by a \
+                 velocity), this is a spurious mode the data do not determine, so the static gain and \
+                 long simulations are not to be trusted (an output level the model cannot represent is the \
+                 usual cause: try --offset or --detrend mean)",
+                -1.0 / max_pole_modulus.ln()
+            ),
             Warning::PoorSimulation {
                 record,
                 fit_percent: Some(fit),
             } => write!(
                 f,
-                "negative simulation fit on the {record} data ({fit:.2} %): the model simulates worse than \
-                 the record's mean"
+                "negative simulation fit on the {record} data ({fit:.2} %, the worse of estimated and \
+                 measured initial outputs): the model simulates worse than the record's mean"
             ),
             Warning::PoorSimulation {
                 record,
@@ -219,6 +235,8 @@ impl Warning {
     pub fn explains_missing_std(&self, param: &str) -> bool {
         match self {
             Warning::Fallback { used, .. } => used.starts_with(LINEAR_START_USED),
+            Warning::BreakpointOnInputLevel { name, .. }
+            | Warning::BreakpointNotBracketed { name, .. } => *name == param,
             Warning::ForInput { input, warning } => match warning.as_ref() {
                 Warning::BreakpointOnInputLevel { name, .. }
                 | Warning::BreakpointNotBracketed { name, .. } => {
@@ -230,10 +248,17 @@ impl Warning {
         }
     }
 
-    /// [`Warning::Unstable`] when a pole of `model` has modulus >= 1.
-    pub fn if_unstable(model: &Model) -> Option<Warning> {
+    /// [`Warning::Unstable`] when a pole of `model` has modulus >= 1, [`Warning::NearIntegrator`]
+    /// when the largest is within [`INTEGRATOR_MARGIN`] of 1.
+    pub fn if_unstable_or_integrating(model: &Model) -> Option<Warning> {
         let max_pole_modulus = model.poles().iter().map(|z| z.norm()).fold(0.0, f64::max);
-        (max_pole_modulus >= 1.0).then_some(Warning::Unstable { max_pole_modulus })
+        if max_pole_modulus >= 1.0 {
+            Some(Warning::Unstable { max_pole_modulus })
+        } else if max_pole_modulus >= 1.0 - INTEGRATOR_MARGIN {
+            Some(Warning::NearIntegrator { max_pole_modulus })
+        } else {
+            None
+        }
     }
 
     /// [`Warning::PoorSimulation`] when the simulation fit % on `record` is negative or missing (the
@@ -248,6 +273,11 @@ impl Warning {
         }
     }
 }
+
+/// Distance from the unit circle within which a stable pole makes the model an integrator
+/// ([`Warning::NearIntegrator`]): a time constant of 10⁵ samples and more. The output-error search holds
+/// poles at 1 − 10⁻⁶ (`oe::MAX_POLE_MODULUS`), inside this margin.
+pub const INTEGRATOR_MARGIN: f64 = 1e-5;
 
 /// The words of the fallback warning: what replaced a Hammerstein estimate.
 pub(crate) const LINEAR_START_USED: &str =

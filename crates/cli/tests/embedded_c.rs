@@ -286,6 +286,13 @@ fn c_controller_matches_control_bit_for_bit_on_a_recorded_run() {
     for k in ["b_l", "b_r", "m_l", "m_r"] {
         args.push(format!("{:?}", dz[k].as_f64().unwrap()));
     }
+    let nudge = &c["nudge"];
+    assert!(nudge.is_object(), "the tuned controller has a nudge mode");
+    for k in ["band_mm", "ramp_counts_s", "start_fraction"] {
+        args.push(format!("{:?}", nudge[k].as_f64().unwrap()));
+    }
+    args.push(nudge["rest_samples"].as_u64().unwrap().to_string());
+    args.push(format!("{:?}", nudge["cut_fraction"].as_f64().unwrap()));
     let out = Command::new(&exe)
         .args(&args)
         .stdin(std::fs::File::open(&trace).unwrap())
@@ -312,7 +319,24 @@ fn c_controller_matches_control_bit_for_bit_on_a_recorded_run() {
     for (k, (a, b)) in from_c.iter().zip(&recorded).enumerate() {
         assert_eq!(a.to_bits(), b.to_bits(), "sample {k}: C {a} vs control {b}");
     }
-    // The run exercises every branch: saturated, held (0) and in between.
-    assert!(recorded.iter().any(|u| u.abs() == 255.0));
+    // The run exercises every branch: the PID outside the nudge band, the valve closed (0), and nudges
+    // (a command while e_h < |e| <= e_n).
+    let band = nudge["band_mm"].as_f64().unwrap();
+    let hold = c["hold_band_mm"].as_f64().unwrap();
+    let rows: Vec<(f64, f64)> = std::fs::read_to_string(&trace)
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| {
+            let v: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
+            (v[1] - v[3], v[2])
+        })
+        .collect();
+    assert!(rows.iter().any(|(e, u)| e.abs() > band && *u != 0.0));
     assert!(recorded.contains(&0.0));
+    let nudges = rows
+        .iter()
+        .filter(|(e, u)| e.abs() > hold && e.abs() <= band && *u != 0.0)
+        .count();
+    assert!(nudges > 0, "no nudge in the run");
 }

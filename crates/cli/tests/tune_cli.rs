@@ -87,8 +87,8 @@ fn tune_writes_a_controller_file_and_a_report_with_the_paper_pi_beside_it() {
 }
 
 /// The controller of docs/control.md, written again here: e = r - y, filtered derivative of -y, hold
-/// band, integral reset on a sign change, clamping, shift deadzone inverse scaled in the fine band,
-/// then Kd D added and clamped.
+/// band, nudge mode, integral reset on a sign change, clamping, shift deadzone inverse scaled in the
+/// fine band, then Kd D added and clamped.
 fn reference_commands(c: &serde_json::Value, r: &[f64], y: &[f64]) -> Vec<f64> {
     let g = |k: &str| c[k].as_f64().unwrap();
     let (ts, kp, ki, kd, tf, umax, hold, fine) = (
@@ -106,16 +106,72 @@ fn reference_commands(c: &serde_json::Value, r: &[f64], y: &[f64]) -> Vec<f64> {
     let (bl, br) = (dz["b_l"].as_f64().unwrap(), dz["b_r"].as_f64().unwrap());
     let alpha = tf / (tf + ts);
     let (mut i, mut d, mut e_prev) = (0.0f64, 0.0f64, 0.0f64);
+    // Nudge mode: (band, ρ, β, N_r, γ), the samples at rest, the learnt breakaway commands (left,
+    // right) and the nudge under way (side ±1, y_0, e_0, u_n, moving).
+    let nudge = &c["nudge"];
+    let n = nudge.is_object().then(|| {
+        let h = |k: &str| nudge[k].as_f64().unwrap();
+        (
+            h("band_mm"),
+            h("ramp_counts_s"),
+            h("start_fraction"),
+            h("rest_samples"),
+            h("cut_fraction"),
+        )
+    });
+    let mut still = 0.0f64;
+    let mut ub = [bl.abs(), br.abs()];
+    let mut under_way: Option<(f64, f64, f64, f64, bool)> = None;
     let mut out = Vec::new();
     for k in 0..r.len() {
         let e = r[k] - y[k];
         let dy = if k == 0 { 0.0 } else { (y[k] - y[k - 1]) / ts };
         d = alpha * d - (1.0 - alpha) * dy;
+        still = if k > 0 && y[k] == y[k - 1] {
+            still + 1.0
+        } else {
+            0.0
+        };
         if e.abs() <= hold {
             e_prev = e;
+            under_way = None;
             out.push(0.0);
             continue;
         }
+        if let Some((band, rho, beta, rest, gamma)) = n.filter(|n| e.abs() <= n.0) {
+            i = 0.0;
+            e_prev = e;
+            let idx = |side: f64| usize::from(side > 0.0);
+            let u = match under_way {
+                Some((side, y0, e0, un, moving)) => {
+                    if (y[k] - y0).abs() >= gamma * e0.abs() || e * e0 <= 0.0 {
+                        under_way = None;
+                        0.0
+                    } else if moving {
+                        side * un
+                    } else if y[k] != y0 {
+                        ub[idx(side)] = un;
+                        under_way = Some((side, y0, e0, un, true));
+                        side * un
+                    } else {
+                        let un = (un + rho * ts).min(umax);
+                        under_way = Some((side, y0, e0, un, false));
+                        side * un
+                    }
+                }
+                None if still < rest => 0.0,
+                None => {
+                    let side = if e > 0.0 { 1.0 } else { -1.0 };
+                    let un = (beta * ub[idx(side)]).min(umax);
+                    under_way = Some((side, y[k], e, un, false));
+                    side * un
+                }
+            };
+            let _ = band;
+            out.push(u);
+            continue;
+        }
+        under_way = None;
         if reset && e * e_prev < 0.0 {
             i = 0.0;
         }
@@ -134,8 +190,14 @@ fn reference_commands(c: &serde_json::Value, r: &[f64], y: &[f64]) -> Vec<f64> {
         } else {
             0.0
         };
+        // The inverse u_c = sat(u_pi + shift), and in the fine band u_pi + w (u_c − u_pi).
         let w = if e.abs() < fine { e.abs() / fine } else { 1.0 };
-        let comp = (u_pi + w * shift).clamp(-umax, umax);
+        let u_c = (u_pi + shift).clamp(-umax, umax);
+        let comp = if w < 1.0 {
+            u_pi + w * (u_c - u_pi)
+        } else {
+            u_c
+        };
         out.push((comp + kd * d).clamp(-umax, umax));
     }
     out

@@ -32,6 +32,8 @@ pub enum ControlSetting {
     HoldBand,
     /// e_f: fine band of the tuned controller (mm).
     FineBand,
+    /// The nudge mode of the tuned controller (band, ramp, start fraction, rest samples).
+    Nudge,
     /// The tuning specification (`--spec`).
     Spec,
 }
@@ -53,6 +55,7 @@ impl ControlSetting {
             ControlSetting::DerivativeFilter => "derivative_filter_s",
             ControlSetting::HoldBand => "hold_band_mm",
             ControlSetting::FineBand => "fine_band_mm",
+            ControlSetting::Nudge => "nudge",
             ControlSetting::Spec => "spec",
         }
     }
@@ -148,6 +151,7 @@ impl ControlSetting {
             ControlSetting::DerivativeFilter => "derivative_filter_s (controller file)",
             ControlSetting::HoldBand => "hold_band_mm (controller file)",
             ControlSetting::FineBand => "fine_band_mm (controller file)",
+            ControlSetting::Nudge => "nudge (controller file)",
             ControlSetting::Spec => "--spec",
         }
     }

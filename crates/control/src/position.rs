@@ -59,8 +59,55 @@ pub struct ControllerSettings {
     pub fine_band_mm: f64,
     /// Restart the integral from 0 when e changes sign outside the hold band.
     pub reset_on_crossing: bool,
+    /// The nudge mode near the set-point (module documentation); `None` = off (a version-1 file
+    /// without the field).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub nudge: Option<Nudge>,
     /// The deadzone inverse between the PID and the valve (from the model's deadzone), if any.
     pub compensator: Option<DeadzoneCompensator>,
+}
+
+/// The nudge mode: how the controller finishes a move against static friction (module documentation).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Nudge {
+    /// e_n: nudge band, mm (> e_h): for e_h < |e| <= e_n the PID is replaced by nudges.
+    pub band_mm: f64,
+    /// ρ: ramp rate of a nudge's command, counts/s (> 0).
+    pub ramp_counts_s: f64,
+    /// β: a nudge starts at β times the last breakaway command of its direction (0 <= β <= 1).
+    pub start_fraction: f64,
+    /// N_r: samples of unchanged y that count as rest (>= 1); a nudge starts only at rest.
+    pub rest_samples: u32,
+    /// γ: a nudge ends (valve closed) once the piston has covered γ |e_0| of the error e_0 it started
+    /// with, or e changed sign (0 < γ <= 1; the piston coasts on after the valve closes).
+    pub cut_fraction: f64,
+}
+
+impl Nudge {
+    /// Checks every field; errors name [`ControlSetting::Nudge`].
+    pub fn validate(&self, hold_band_mm: f64) -> Result<(), ControlError> {
+        let bad = |what: &str, v: f64| Err(ControlError::setting(ControlSetting::Nudge, v, what));
+        if !(self.band_mm.is_finite() && self.band_mm > hold_band_mm) {
+            return bad("a nudge band_mm finite and > hold_band_mm", self.band_mm);
+        }
+        if !(self.ramp_counts_s.is_finite() && self.ramp_counts_s > 0.0) {
+            return bad("a nudge ramp_counts_s finite and > 0", self.ramp_counts_s);
+        }
+        if !(self.start_fraction.is_finite() && (0.0..=1.0).contains(&self.start_fraction)) {
+            return bad("a nudge start_fraction in [0, 1]", self.start_fraction);
+        }
+        if !(self.cut_fraction.is_finite() && self.cut_fraction > 0.0 && self.cut_fraction <= 1.0) {
+            return bad("a nudge cut_fraction in (0, 1]", self.cut_fraction);
+        }
+        if self.rest_samples == 0 || self.rest_samples > 1000 {
+            return bad(
+                "nudge rest_samples from 1 to 1000",
+                f64::from(self.rest_samples),
+            );
+        }
+        Ok(())
+    }
 }
 
 impl ControllerSettings {
@@ -77,6 +124,7 @@ impl ControllerSettings {
             hold_band_mm: 0.0,
             fine_band_mm: 0.0,
             reset_on_crossing: false,
+            nudge: None,
             compensator: None,
         }
     }
@@ -118,6 +166,9 @@ impl ControllerSettings {
                 "a finite number of counts > 0",
             ));
         }
+        if let Some(n) = &self.nudge {
+            n.validate(self.hold_band_mm)?;
+        }
         if let Some(c) = &self.compensator {
             // Rebuilding checks the deadzone and the threshold as `DeadzoneCompensator::new` does.
             DeadzoneCompensator::new(c.deadzone, c.slope_mode, c.u_max)?
@@ -130,6 +181,7 @@ impl ControllerSettings {
     pub fn build(self) -> Result<PositionController, ControlError> {
         self.validate()?;
         let alpha = self.derivative_filter_s / (self.derivative_filter_s + self.ts_s);
+        let breakaway = initial_breakaway(&self);
         Ok(PositionController {
             settings: self,
             alpha,
@@ -137,12 +189,34 @@ impl ControllerSettings {
             derivative: 0.0,
             y_prev: None,
             e_prev: 0.0,
+            still: 0,
+            nudging: None,
+            breakaway,
         })
     }
 }
 
+/// The breakaway commands (left, right) a controller starts with: |b_l|, |b_r| of its compensator's
+/// deadzone (the model's deadzone is where the valve starts to move the piston), 0 without one.
+fn initial_breakaway(s: &ControllerSettings) -> [f64; 2] {
+    s.compensator
+        .as_ref()
+        .map_or([0.0, 0.0], |c| [c.deadzone.b_l.abs(), c.deadzone.b_r.abs()])
+}
+
+/// A nudge under way: its direction (0 = left, u < 0; 1 = right), the position and error it started
+/// from, its command's magnitude u_n, and whether the piston has broken loose.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Nudging {
+    side: usize,
+    y0_mm: f64,
+    e0_mm: f64,
+    u_mag: f64,
+    moving: bool,
+}
+
 /// A running tuned position controller (states: the integral I, the filtered derivative D, the previous
-/// measurement and error).
+/// measurement and error, the samples at rest, the nudge under way and the learnt breakaway commands).
 #[derive(Debug, Clone)]
 pub struct PositionController {
     settings: ControllerSettings,
@@ -156,6 +230,12 @@ pub struct PositionController {
     y_prev: Option<f64>,
     /// e(k−1), mm (0 before the first sample).
     e_prev: f64,
+    /// Consecutive samples with y(k) = y(k−1).
+    still: u32,
+    /// The nudge under way, if any.
+    nudging: Option<Nudging>,
+    /// u_b: the last breakaway command in each direction (left, right), counts.
+    breakaway: [f64; 2],
 }
 
 impl PositionController {
@@ -167,6 +247,57 @@ impl PositionController {
     /// I(k) in counts after the last step.
     pub fn integral_counts(&self) -> f64 {
         self.integral
+    }
+
+    /// The learnt breakaway commands u_b (left, right), counts.
+    pub fn breakaway_counts(&self) -> [f64; 2] {
+        self.breakaway
+    }
+
+    /// The nudge mode's command at |e| in (e_h, e_n] (module documentation).
+    fn nudge(&mut self, n: &Nudge, e: f64, y_mm: f64) -> f64 {
+        self.integral = 0.0;
+        let s = &self.settings;
+        let g = match self.nudging {
+            Some(g) => {
+                if (y_mm - g.y0_mm).abs() >= n.cut_fraction * g.e0_mm.abs() || e * g.e0_mm <= 0.0 {
+                    self.nudging = None;
+                    return 0.0;
+                }
+                if g.moving {
+                    g
+                } else if y_mm != g.y0_mm {
+                    // The piston broke loose: remember the command that did it and hold it.
+                    self.breakaway[g.side] = g.u_mag;
+                    Nudging { moving: true, ..g }
+                } else {
+                    // The same comparison as the no_std controller (bit for bit).
+                    let up = g.u_mag + n.ramp_counts_s * s.ts_s;
+                    Nudging {
+                        u_mag: if up < s.u_max { up } else { s.u_max },
+                        ..g
+                    }
+                }
+            }
+            None if self.still < n.rest_samples => return 0.0,
+            None => {
+                let side = usize::from(e > 0.0);
+                let start = n.start_fraction * self.breakaway[side];
+                Nudging {
+                    side,
+                    y0_mm: y_mm,
+                    e0_mm: e,
+                    u_mag: if start < s.u_max { start } else { s.u_max },
+                    moving: false,
+                }
+            }
+        };
+        self.nudging = Some(g);
+        if g.side == 1 {
+            g.u_mag
+        } else {
+            -g.u_mag
+        }
     }
 }
 
@@ -180,6 +311,9 @@ impl Controller for PositionController {
         self.derivative = 0.0;
         self.y_prev = None;
         self.e_prev = 0.0;
+        self.still = 0;
+        self.nudging = None;
+        self.breakaway = initial_breakaway(&self.settings);
     }
 
     fn step(&mut self, r_mm: f64, y_mm: f64) -> f64 {
@@ -189,12 +323,22 @@ impl Controller for PositionController {
             Some(prev) => (y_mm - prev) / s.ts_s,
             None => 0.0,
         };
+        self.still = match self.y_prev {
+            Some(prev) if prev == y_mm => self.still.saturating_add(1),
+            _ => 0,
+        };
         self.y_prev = Some(y_mm);
         self.derivative = self.alpha * self.derivative - (1.0 - self.alpha) * dy;
         if e.abs() <= s.hold_band_mm {
             self.e_prev = e;
+            self.nudging = None;
             return 0.0;
         }
+        if let Some(n) = s.nudge.filter(|n| e.abs() <= n.band_mm) {
+            self.e_prev = e;
+            return self.nudge(&n, e, y_mm);
+        }
+        self.nudging = None;
         if s.reset_on_crossing && e * self.e_prev < 0.0 {
             self.integral = 0.0;
         }
@@ -349,6 +493,86 @@ mod tests {
         let mut c = s.build().unwrap();
         assert_eq!(c.step(5.0, 0.0), 35.0);
         assert_eq!(c.step(0.0, 5.0), -25.0);
+    }
+
+    fn nudging() -> ControllerSettings {
+        let mut s = plain(10.0, 0.0);
+        s.hold_band_mm = 0.02;
+        s.compensator = Some(
+            DeadzoneCompensator::new(
+                Deadzone {
+                    b_l: -20.0,
+                    b_r: 30.0,
+                    m_l: 1.0,
+                    m_r: 1.0,
+                },
+                SlopeMode::Shift,
+                255.0,
+            )
+            .unwrap(),
+        );
+        s.nudge = Some(Nudge {
+            band_mm: 1.0,
+            ramp_counts_s: 100.0,
+            start_fraction: 0.5,
+            rest_samples: 2,
+            cut_fraction: 0.5,
+        });
+        s
+    }
+
+    // e = 0.5 mm is inside the nudge band (1 mm): the valve stays closed until y has been unchanged for
+    // N_r = 2 samples; the nudge then starts at β |b_r| = 0.5 * 30 = 15 counts and ramps by
+    // ρ Ts = 100 * 0.01 = 1 count per sample (15, 16, 17); y moves at 17 counts: u_b(right) = 17 is
+    // learnt and held; once y has covered γ |e_0| = 0.25 mm the valve closes. The next nudge starts
+    // at β u_b = 8.5 counts. Outside the band the PID and the inverse act: 10 e + b_r.
+    #[test]
+    fn nudge_ramps_from_the_last_breakaway_learns_it_and_cuts() {
+        let mut c = nudging().build().unwrap();
+        let r = 1.0;
+        assert_eq!(c.step(r, 0.5), 0.0); // first sample: not known to be at rest
+        assert_eq!(c.step(r, 0.5), 0.0); // at rest 1 sample
+        assert_eq!(c.step(r, 0.5), 15.0); // at rest 2 samples: the nudge starts
+        assert_eq!(c.step(r, 0.5), 16.0);
+        assert_eq!(c.step(r, 0.5), 17.0);
+        assert_eq!(c.step(r, 0.6), 17.0); // moved 0.1 < 0.25: held
+        assert_eq!(c.breakaway_counts(), [20.0, 17.0]);
+        assert_eq!(c.step(r, 0.8), 0.0); // moved 0.3 >= 0.25: cut
+        assert_eq!(c.step(r, 0.8), 0.0);
+        assert_eq!(c.step(r, 0.8), 8.5);
+        assert_eq!(c.step(r, 0.99), 0.0); // hold band
+                                          // Past the set-point: a nudge to the left from β |b_l| = 10 counts.
+        assert_eq!(c.step(r, 1.3), 0.0);
+        assert_eq!(c.step(r, 1.3), 0.0);
+        assert_eq!(c.step(r, 1.3), -10.0);
+        // e changes sign during a nudge: it ends.
+        assert_eq!(c.step(r, 0.9), 0.0);
+        // Outside the band: u = Kp e + b_r = 10 * 2 + 30.
+        assert_eq!(c.step(3.0, 1.0), 50.0);
+        c.reset();
+        assert_eq!(c.breakaway_counts(), [20.0, 30.0]);
+    }
+
+    #[test]
+    fn a_nudge_band_inside_the_hold_band_is_refused() {
+        let mut s = nudging();
+        s.nudge.as_mut().unwrap().band_mm = 0.01;
+        let e = s.build().unwrap_err();
+        assert!(e.to_string().contains("nudge"), "{e}");
+        let mut s = nudging();
+        s.nudge.as_mut().unwrap().cut_fraction = 0.0;
+        assert!(s.build().is_err());
+    }
+
+    // A version-1 file written before the nudge mode existed (no `nudge` field) still reads, without it.
+    #[test]
+    fn a_file_without_a_nudge_reads_as_none() {
+        let text = serde_json::to_string(&ControllerFile::new(plain(14.0, 1.0), None)).unwrap();
+        assert!(!text.contains("nudge"));
+        assert_eq!(ControllerFile::parse(&text, "c.json").unwrap().nudge, None);
+        let s = nudging();
+        let text = serde_json::to_string(&ControllerFile::new(s, None)).unwrap();
+        assert_eq!(ControllerFile::parse(&text, "c.json").unwrap(), s);
     }
 
     #[test]

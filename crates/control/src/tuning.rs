@@ -14,6 +14,9 @@ use crate::{ControlError, ControllerSettings};
 
 /// Spread of the plant variants: ±30 %.
 pub const SPREAD: f64 = 0.3;
+/// The twin's variants searched over are drawn with seeds from this offset + 1 (the verification's
+/// physics variants use seeds 1..).
+pub const TUNING_SEED_OFFSET: u64 = 1000;
 /// Largest number of plant variants or evaluations a request may ask for (bounds the work).
 pub const MAX_VARIANTS: usize = 200;
 /// Largest number of cost evaluations of a request.
@@ -49,7 +52,8 @@ pub struct Request {
     pub spec: Spec,
     /// Variants and evaluations of the search.
     pub search: TuneSettings,
-    /// Also verify on the built-in physics plant (a twin is always verified).
+    /// Verify on the built-in physics plant and its variants (for a model or twin estimated from a
+    /// record of it); otherwise a twin is verified on itself and its variants.
     pub check_physics: bool,
     /// Physics variants in the verification, beside the nominal plant.
     pub physics_variants: usize,
@@ -221,7 +225,24 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
                 .map_err(|e| ControlError::Config(e.to_string()))?,
         ))
     };
-    let physics_base = twin.clone().unwrap_or_default();
+    // The twin's variants searched over are drawn with other seeds than the physics variants of the
+    // verification, so that the verification's plants are not among those tuned on.
+    let twin_plants = |i: usize| -> Result<Box<dyn Plant + Send>, ControlError> {
+        let base = twin.clone().unwrap_or_default();
+        let cfg = if i == 0 {
+            base
+        } else {
+            ipa::calibrate::study::perturbed_from(&base, TUNING_SEED_OFFSET + i as u64, SPREAD)
+        };
+        Ok(Box::new(
+            ipa::Ipa::with_ts(cfg, ts).map_err(|e| ControlError::Config(e.to_string()))?,
+        ))
+    };
+    let physics_base = if req.check_physics {
+        ipa::PlantConfig::default()
+    } else {
+        twin.clone().unwrap_or_default()
+    };
     let physics_plants = |i: usize| -> Result<Box<dyn Plant + Send>, ControlError> {
         let cfg = if i == 0 {
             physics_base.clone()
@@ -233,7 +254,7 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
         ))
     };
     let tuned = if twin.is_some() {
-        tune::tune(&physics_plants, Some(deadzone), ts, &req.spec, &req.search)?
+        tune::tune(&twin_plants, Some(deadzone), ts, &req.spec, &req.search)?
     } else {
         tune::tune(&model_plants, Some(deadzone), ts, &req.spec, &req.search)?
     };
@@ -250,10 +271,10 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
         &req.spec,
     )?;
     let on_physics = if twin.is_some() || req.check_physics {
-        let what = if twin.is_some() {
-            "the twin"
-        } else {
+        let what = if req.check_physics {
             "the physics plant"
+        } else {
+            "the twin"
         };
         Some(verify(
             format!("{what} (nominal + {} variants ±30 %)", req.physics_variants),

@@ -159,3 +159,30 @@ fn tuning_meets_the_spec_where_it_is_reachable() {
     let c = tune::compare(5, &f, &t.settings, &spec).unwrap();
     assert!(c.paper_pi.cost > c.tuned.cost);
 }
+
+// A run's cost: t_s + PENALTY_S × (relative violations, each capped at PENALTY_CAP) + SETTLING_PENALTY_S
+// × the relative excess of t_s over the target. t_s = 1 s against 0.5 s: excess 1; |e_ss| = 0.03 mm
+// against 0.02: excess 0.5; |e_ss| = 2 mm: excess 99, capped at 5.
+#[test]
+fn run_cost_caps_each_violation() {
+    let spec = Spec::default();
+    let run = |ess: f64| control::tune::RunResult {
+        plant: 0,
+        case: control::tune::StepCase {
+            y0_mm: 25.0,
+            r_mm: 35.0,
+        },
+        metrics: control::StepMetrics {
+            overshoot_mm: Some(0.0),
+            overshoot_percent: Some(0.0),
+            steady_state_error_mm: Some(ess),
+            rise_time_s: Some(0.2),
+            settling_time_s: Some(1.0),
+        },
+        limit_cycle_mm: 0.0,
+        max_command: 100.0,
+    };
+    let base = 1.0 + tune::SETTLING_PENALTY_S * 1.0;
+    assert!((run(0.03).cost(&spec) - (base + tune::PENALTY_S * 0.5)).abs() < 1e-12);
+    assert!((run(-2.0).cost(&spec) - (base + tune::PENALTY_S * tune::PENALTY_CAP)).abs() < 1e-12);
+}

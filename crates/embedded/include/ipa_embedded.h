@@ -46,7 +46,7 @@
 /**
  * An upper bound, valid on every target, of [`ipa_ctl_state_size`] in bytes (the tuned controller).
  */
-#define IPA_CTL_STATE_BYTES 256
+#define IPA_CTL_STATE_BYTES 384
 
 /**
  * `ipa_hrls_init` form: P itself, updated by the paper's eq. 12 (`identify --rls-form standard`).
@@ -190,6 +190,30 @@ typedef struct IpaController {
    * The deadzone the compensator inverts (`compensator.deadzone`).
    */
   IpaDeadzone deadzone;
+  /**
+   * 1: the nudge mode with the `nudge_*` fields (`nudge`); 0: none (the fields are ignored).
+   */
+  int32_t has_nudge;
+  /**
+   * N_r: samples of unchanged y that count as rest (`nudge.rest_samples`).
+   */
+  uint32_t nudge_rest_samples;
+  /**
+   * e_n: nudge band, mm (`nudge.band_mm`).
+   */
+  double nudge_band;
+  /**
+   * ρ: ramp rate of a nudge, counts/s (`nudge.ramp_counts_s`).
+   */
+  double nudge_ramp;
+  /**
+   * β: start fraction of the last breakaway command (`nudge.start_fraction`).
+   */
+  double nudge_start_fraction;
+  /**
+   * γ: cut fraction of the starting error (`nudge.cut_fraction`).
+   */
+  double nudge_cut_fraction;
 } IpaController;
 
 #ifdef __cplusplus

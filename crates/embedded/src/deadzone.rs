@@ -138,6 +138,11 @@ impl<F: Float> Compensator<F> {
         })
     }
 
+    /// The deadzone it inverts.
+    pub fn deadzone(&self) -> Deadzone<F> {
+        self.deadzone
+    }
+
     /// The compensated valve command u_c (counts) for the controller output u (counts). A NaN u gives
     /// NaN.
     #[inline]

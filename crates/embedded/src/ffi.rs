@@ -24,7 +24,7 @@ use crate::cusum::{Cusum, CusumStatus};
 use crate::deadzone::{Compensator, Deadzone, SlopeMode};
 use crate::hammerstein::{HammersteinRls, HammersteinSettings};
 use crate::pi::{AntiWindup, Pi};
-use crate::position::{PositionController, PositionSettings};
+use crate::position::{NudgeSettings, PositionController, PositionSettings};
 use crate::rls::Form;
 use crate::Error;
 
@@ -40,7 +40,7 @@ pub const IPA_HRLS_STATE_BYTES: usize = 3456;
 pub const IPA_PI_STATE_BYTES: usize = 80;
 
 /// An upper bound, valid on every target, of [`ipa_ctl_state_size`] in bytes (the tuned controller).
-pub const IPA_CTL_STATE_BYTES: usize = 256;
+pub const IPA_CTL_STATE_BYTES: usize = 384;
 
 /// `ipa_hrls_init` form: P itself, updated by the paper's eq. 12 (`identify --rls-form standard`).
 pub const IPA_FORM_STANDARD: u32 = 0;
@@ -135,6 +135,18 @@ pub struct IpaController {
     pub has_deadzone: i32,
     /// The deadzone the compensator inverts (`compensator.deadzone`).
     pub deadzone: IpaDeadzone,
+    /// 1: the nudge mode with the `nudge_*` fields (`nudge`); 0: none (the fields are ignored).
+    pub has_nudge: i32,
+    /// N_r: samples of unchanged y that count as rest (`nudge.rest_samples`).
+    pub nudge_rest_samples: u32,
+    /// e_n: nudge band, mm (`nudge.band_mm`).
+    pub nudge_band: f64,
+    /// ρ: ramp rate of a nudge, counts/s (`nudge.ramp_counts_s`).
+    pub nudge_ramp: f64,
+    /// β: start fraction of the last breakaway command (`nudge.start_fraction`).
+    pub nudge_start_fraction: f64,
+    /// γ: cut fraction of the starting error (`nudge.cut_fraction`).
+    pub nudge_cut_fraction: f64,
 }
 const _: () = assert!(size_of::<CusumState>() <= IPA_CUSUM_STATE_BYTES);
 const _: () = assert!(MAX_D >= IPA_MAX_NA as usize);
@@ -636,6 +648,17 @@ pub unsafe extern "C" fn ipa_ctl_init(
         1 => Ok(true),
         _ => Err(Error::Setting),
     };
+    let nudge = match c.has_nudge {
+        0 => Ok(None),
+        1 => Ok(Some(NudgeSettings {
+            band: c.nudge_band,
+            ramp: c.nudge_ramp,
+            start_fraction: c.nudge_start_fraction,
+            rest_samples: c.nudge_rest_samples,
+            cut_fraction: c.nudge_cut_fraction,
+        })),
+        _ => Err(Error::Setting),
+    };
     let state = compensator.and_then(|comp| {
         let s = PositionSettings {
             ts: c.ts,
@@ -647,6 +670,7 @@ pub unsafe extern "C" fn ipa_ctl_init(
             hold_band: c.hold_band,
             fine_band: c.fine_band,
             reset_on_crossing: reset_on_crossing?,
+            nudge: nudge?,
         };
         PositionController::new(s, comp).map(|ctl| CtlState {
             magic: CTL_MAGIC,

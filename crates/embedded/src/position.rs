@@ -11,10 +11,38 @@
 //!             v = Kp e + (I + Ki Ts e);  I += Ki Ts e unless sat(v) ≠ v and e v > 0 (then u_pi = sat(Kp e + I))
 //!             u_c = compensator(u_pi), or u_pi + (|e|/e_f)(compensator(u_pi) − u_pi) for |e| < e_f
 //!             u = sat(u_c + Kd D)
+//! e_h < |e| ≤ e_n (nudge mode, when set): I = 0; at rest (y unchanged for N_r samples) a nudge starts
+//!             at u_n = β u_b(side) towards r, ramps by ρ Ts per sample until y changes (u_b(side) = u_n,
+//!             then u_n is held), and ends (u = 0) once |y − y_0| ≥ γ |e_0| or e changes sign
 //! ```
 
 use crate::deadzone::Compensator;
 use crate::{Error, Float};
+
+/// The nudge mode of a [`PositionController`] (`controller.nudge` of CONTROLLER.json).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct NudgeSettings<F: Float> {
+    /// e_n: nudge band, mm (> e_h).
+    pub band: F,
+    /// ρ: ramp rate, counts/s (> 0).
+    pub ramp: F,
+    /// β: start fraction of the last breakaway command, in [0, 1].
+    pub start_fraction: F,
+    /// N_r: samples of unchanged y that count as rest (1..=1000).
+    pub rest_samples: u32,
+    /// γ: cut fraction of the starting error, in (0, 1].
+    pub cut_fraction: F,
+}
+
+/// A nudge under way (`right`: u > 0).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Nudging<F: Float> {
+    right: bool,
+    y0: F,
+    e0: F,
+    u_mag: F,
+    moving: bool,
+}
 
 /// The settings of a [`PositionController`] (the `controller` object of CONTROLLER.json).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -37,6 +65,8 @@ pub struct PositionSettings<F: Float> {
     pub fine_band: F,
     /// Restart the integral when e changes sign outside the hold band.
     pub reset_on_crossing: bool,
+    /// The nudge mode, if any.
+    pub nudge: Option<NudgeSettings<F>>,
 }
 
 /// A running tuned controller: settings, the optional deadzone inverse and the states (I, D, y(k−1),
@@ -45,7 +75,7 @@ pub struct PositionSettings<F: Float> {
 /// ```
 /// use ipa_embedded::{PositionController, PositionSettings};
 /// let s = PositionSettings { ts: 0.01, kp: 10.0, ki: 100.0, kd: 0.0, tf: 0.0, u_max: 255.0,
-///                            hold_band: 0.02, fine_band: 0.0, reset_on_crossing: true };
+///                            hold_band: 0.02, fine_band: 0.0, reset_on_crossing: true, nudge: None };
 /// let mut c = PositionController::new(s, None).unwrap();
 /// assert_eq!(c.step(1.0, 0.0).unwrap(), 11.0);  // Kp e + Ki Ts e
 /// assert_eq!(c.step(1.0, 0.99).unwrap(), 0.0);  // inside the hold band
@@ -60,6 +90,18 @@ pub struct PositionController<F: Float> {
     y_prev: F,
     started: bool,
     e_prev: F,
+    still: u32,
+    nudging: Option<Nudging<F>>,
+    breakaway_left: F,
+    breakaway_right: F,
+}
+
+/// |b_l|, |b_r| of the compensator's deadzone, 0 without one.
+fn initial_breakaway<F: Float>(c: &Option<Compensator<F>>) -> (F, F) {
+    match c {
+        Some(c) => (c.deadzone().b_l.abs(), c.deadzone().b_r.abs()),
+        None => (F::ZERO, F::ZERO),
+    }
 }
 
 impl<F: Float> PositionController<F> {
@@ -78,6 +120,19 @@ impl<F: Float> PositionController<F> {
         {
             return Err(Error::Setting);
         }
+        if let Some(n) = s.nudge {
+            let fraction_ok = n.start_fraction >= F::ZERO && n.start_fraction <= F::ONE;
+            let cut_ok = n.cut_fraction > F::ZERO && n.cut_fraction <= F::ONE;
+            if !(n.band.is_finite()
+                && n.band > s.hold_band
+                && positive(n.ramp)
+                && fraction_ok
+                && cut_ok
+                && (1..=1000).contains(&n.rest_samples))
+            {
+                return Err(Error::Setting);
+            }
+        }
         Ok(PositionController {
             s,
             compensator,
@@ -87,6 +142,10 @@ impl<F: Float> PositionController<F> {
             y_prev: F::ZERO,
             started: false,
             e_prev: F::ZERO,
+            still: 0,
+            nudging: None,
+            breakaway_left: initial_breakaway(&compensator).0,
+            breakaway_right: initial_breakaway(&compensator).1,
         })
     }
 
@@ -103,13 +162,26 @@ impl<F: Float> PositionController<F> {
         } else {
             F::ZERO
         };
+        self.still = if self.started && self.y_prev == y {
+            self.still.saturating_add(1)
+        } else {
+            0
+        };
         self.started = true;
         self.y_prev = y;
         self.derivative = self.alpha * self.derivative - (F::ONE - self.alpha) * dy;
         if e.abs() <= s.hold_band {
             self.e_prev = e;
+            self.nudging = None;
             return Ok(F::ZERO);
         }
+        if let Some(n) = s.nudge {
+            if e.abs() <= n.band {
+                self.e_prev = e;
+                return Ok(self.nudge(&n, e, y));
+            }
+        }
+        self.nudging = None;
         if s.reset_on_crossing && e * self.e_prev < F::ZERO {
             self.integral = F::ZERO;
         }
@@ -135,9 +207,67 @@ impl<F: Float> PositionController<F> {
         Ok((compensated + s.kd * self.derivative).clamp_to(-s.u_max, s.u_max))
     }
 
+    /// The nudge mode's command (module documentation).
+    fn nudge(&mut self, n: &NudgeSettings<F>, e: F, y: F) -> F {
+        self.integral = F::ZERO;
+        let s = self.s;
+        let g = match self.nudging {
+            Some(g) => {
+                if (y - g.y0).abs() >= n.cut_fraction * g.e0.abs() || e * g.e0 <= F::ZERO {
+                    self.nudging = None;
+                    return F::ZERO;
+                }
+                if g.moving {
+                    g
+                } else if y != g.y0 {
+                    if g.right {
+                        self.breakaway_right = g.u_mag;
+                    } else {
+                        self.breakaway_left = g.u_mag;
+                    }
+                    Nudging { moving: true, ..g }
+                } else {
+                    let up = g.u_mag + n.ramp * s.ts;
+                    Nudging {
+                        u_mag: if up < s.u_max { up } else { s.u_max },
+                        ..g
+                    }
+                }
+            }
+            None if self.still < n.rest_samples => return F::ZERO,
+            None => {
+                let right = e > F::ZERO;
+                let last = if right {
+                    self.breakaway_right
+                } else {
+                    self.breakaway_left
+                };
+                let start = n.start_fraction * last;
+                Nudging {
+                    right,
+                    y0: y,
+                    e0: e,
+                    u_mag: if start < s.u_max { start } else { s.u_max },
+                    moving: false,
+                }
+            }
+        };
+        self.nudging = Some(g);
+        if g.right {
+            g.u_mag
+        } else {
+            -g.u_mag
+        }
+    }
+
     /// The integral term I in counts.
     pub fn integral(&self) -> F {
         self.integral
+    }
+
+    /// The learnt breakaway commands u_b (left, right), counts.
+    pub fn breakaway(&self) -> [F; 2] {
+        [self.breakaway_left, self.breakaway_right]
     }
 
     /// Back to rest.
@@ -147,6 +277,9 @@ impl<F: Float> PositionController<F> {
         self.y_prev = F::ZERO;
         self.started = false;
         self.e_prev = F::ZERO;
+        self.still = 0;
+        self.nudging = None;
+        (self.breakaway_left, self.breakaway_right) = initial_breakaway(&self.compensator);
     }
 }
 
@@ -167,6 +300,7 @@ mod tests {
             hold_band: 0.02,
             fine_band: 0.0,
             reset_on_crossing: true,
+            nudge: None,
         }
     }
 
@@ -180,20 +314,62 @@ mod tests {
         assert_eq!(c.step(1.0, 1.5).unwrap(), -5.5);
     }
 
-    // In the fine band e_f = 2 mm, e = 1 mm: the shift b_r = 30 is halved: u = 11 + 15.
-    #[test]
-    fn fine_band_scales_the_deadzone_shift() {
+    /// The shift inverse of the deadzone b_l = −20, b_r = 30 (unit slopes).
+    fn shift_inverse() -> Compensator<f64> {
         let dz = Deadzone {
             b_l: -20.0,
             b_r: 30.0,
             m_l: 1.0,
             m_r: 1.0,
         };
-        let comp = Compensator::new(dz, SlopeMode::Shift, 0.0, 255.0).unwrap();
+        Compensator::new(dz, SlopeMode::Shift, 0.0, 255.0).unwrap()
+    }
+
+    // In the fine band e_f = 2 mm, e = 1 mm: the shift b_r = 30 is halved: u = 11 + 15.
+    #[test]
+    fn fine_band_scales_the_deadzone_shift() {
+        let comp = shift_inverse();
         let mut settings = s();
         settings.fine_band = 2.0;
         let mut c = PositionController::new(settings, Some(comp)).unwrap();
         assert_eq!(c.step(1.0, 0.0).unwrap(), 26.0);
+    }
+
+    // The nudge mode by hand (the same case as control::position's test): deadzone b_l = −20, b_r = 30,
+    // band 1 mm, ρ Ts = 1 count per sample, β = 0.5, N_r = 2, γ = 0.5, e = 0.5 mm: closed until y has
+    // been still for 2 samples, then 15, 16, 17 counts; y moves at 17 (learnt, held) and the valve closes
+    // once y has covered 0.25 mm; the next nudge starts at 0.5 × 17.
+    #[test]
+    fn nudge_ramps_from_the_last_breakaway_learns_it_and_cuts() {
+        let comp = shift_inverse();
+        let mut settings = s();
+        settings.ki = 0.0;
+        settings.nudge = Some(NudgeSettings {
+            band: 1.0,
+            ramp: 100.0,
+            start_fraction: 0.5,
+            rest_samples: 2,
+            cut_fraction: 0.5,
+        });
+        let mut c = PositionController::new(settings, Some(comp)).unwrap();
+        let u: [f64; 10] = core::array::from_fn(|_| 0.0);
+        let ys = [0.5, 0.5, 0.5, 0.5, 0.5, 0.6, 0.8, 0.8, 0.8, 0.99];
+        let want = [0.0, 0.0, 15.0, 16.0, 17.0, 17.0, 0.0, 0.0, 8.5, 0.0];
+        let mut got = u;
+        for (g, y) in got.iter_mut().zip(ys) {
+            *g = c.step(1.0, y).unwrap();
+        }
+        assert_eq!(got, want);
+        assert_eq!(c.breakaway(), [20.0, 17.0]);
+        let mut bad = settings;
+        bad.nudge = Some(NudgeSettings {
+            band: 0.01,
+            ..settings.nudge.unwrap()
+        });
+        assert_eq!(
+            PositionController::new(bad, Some(comp)).unwrap_err(),
+            Error::Setting
+        );
     }
 
     #[test]

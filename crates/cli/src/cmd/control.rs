@@ -571,8 +571,14 @@ pub fn tuned_line(s: &control::ControllerSettings) -> String {
                 c.deadzone.b_l, c.deadzone.b_r, s.fine_band_mm
             )
         });
+    let nudge = s.nudge.map_or(String::new(), |n| {
+        format!(
+            ", nudge band {:.3} mm (ramp {:.1} counts/s from {} of the learnt breakaway, cut at {:.3} of the error, rest {} samples)",
+            n.band_mm, n.ramp_counts_s, n.start_fraction, n.cut_fraction, n.rest_samples
+        )
+    });
     format!(
-        "tuned PID Kp = {:.4}, Ki = {:.4}, Kd = {:.4} (Tf = {} s), clamping anti-windup, {comp}, hold band {} mm, |u| <= {} counts",
+        "tuned PID Kp = {:.4}, Ki = {:.4}, Kd = {:.4} (Tf = {} s), clamping anti-windup, {comp}, hold band {} mm{nudge}, |u| <= {} counts",
         s.kp, s.ki, s.kd, s.derivative_filter_s, s.hold_band_mm, s.u_max
     )
 }

@@ -44,6 +44,14 @@ if [ -f "$DATA/silverbox/SNLS80mV.csv" ] && [ -f "$DATA/emps/DATA_EMPS.csv" ]; t
     done
     row "identify silverbox OE (7,9,0), whole command" "$(printf '%.3f s, %s it' "$best" "$(jq -r .estimation.iterations "$tmp/sb.json")")" \
         "1.21 s, 16 iterations (OE table); bench oe 0.927 s"
+    # The same with --offset: the issue's 37 iterations (a legitimate slow valley; docs/benchmarks.md).
+    s=$(date +%s.%N)
+    "$bin" identify --data "$DATA/silverbox/SNLS80mV.csv" --u-col V1 --y-col V2 --ts 0.0016384 \
+        --rows 40650..105712 --structure arx --na 7 --nb 9 --nk 0 --method oe --offset --json "$tmp/sbo.json" >/dev/null 2>&1
+    e=$(date +%s.%N)
+    row "identify silverbox OE (7,9,0) --offset, whole command" \
+        "$(printf '%.3f s, %s it' "$(echo "$e - $s" | bc -l)" "$(jq -r .estimation.iterations "$tmp/sbo.json")")" \
+        "3.3 s, 37 iterations (issue 22's quiet-machine figure)"
     "$bin" bench oe --data-dir "$DATA" --repetitions 3 --json "$tmp/oe.json" >/dev/null 2>&1 || true
     if [ -s "$tmp/oe.json" ]; then
         jq -r '(.cases // .)[] | select(.output_error != null) | "\(.name)\t\(.output_error.seconds * 1000 | round / 1000) s, \(.output_error.iterations) it"' \

@@ -1436,11 +1436,25 @@ impl Branches {
             start_pos = quantile(u.iter().copied().filter(|&v| v > 0.0).collect());
             start_neg = -quantile(u.iter().filter(|&&v| v < 0.0).map(|v| -v).collect());
         }
+        let (b_l_fixed, b_r_fixed) = (
+            left && !right && !zero && offset,
+            right && !left && !zero && offset,
+        );
+        // Two levels (a PRBS, a relay test) cannot determine a deadzone with a free breakpoint: any map
+        // through the two points fits, which the regression would only report as an unexcited
+        // regressor. (A constant input keeps the regression's own "constant input" error.)
+        if let (false, false, Some((a, b))) = (b_l_fixed, b_r_fixed, only_two_levels(u)) {
+            return Err(SysidError::Data(format!(
+                "{name}: the input takes only 2 distinct levels ({a} and {b}); a deadzone input \
+                 nonlinearity needs at least 3 distinct levels: a static map through 2 points is not \
+                 determined (use a linear input, --structure arx, or an input with several amplitudes)"
+            )));
+        }
         Ok(Branches {
             left,
             right,
-            b_l_fixed: left && !right && !zero && offset,
-            b_r_fixed: right && !left && !zero && offset,
+            b_l_fixed,
+            b_r_fixed,
             max_neg: if left { start_neg } else { 0.0 },
             min_pos: if right { start_pos } else { 0.0 },
             limit,
@@ -1540,6 +1554,23 @@ pub fn deadzone_warnings(
         }
     }
     (w, no_std)
+}
+
+/// The two values of `u` when it takes exactly two distinct finite values (one pass, stopping at a
+/// third value, so that it costs a few samples on any rich input).
+fn only_two_levels(u: &[f64]) -> Option<(f64, f64)> {
+    let mut finite = u.iter().copied().filter(|v| v.is_finite());
+    let a = finite.next()?;
+    let mut b = None;
+    for v in finite {
+        match b {
+            _ if v == a => {}
+            None => b = Some(v),
+            Some(b) if v == b => {}
+            Some(_) => return None,
+        }
+    }
+    b.map(|b| (a.min(b), a.max(b)))
 }
 
 /// The distinct values of `u`, sorted.
@@ -1651,6 +1682,31 @@ mod tests {
     // A staircase of levels −60, −56, −48, −33, 20, 40, 60: a deadzone with b_l = −48 (on a level, two
     // levels below it) and b_r = 25 (between levels) warns about b_l only; b_r keeps its standard
     // deviation.
+    #[test]
+    fn only_two_levels_counts_distinct_finite_values() {
+        assert_eq!(
+            only_two_levels(&[1.0, -1.0, 1.0, 1.0, -1.0]),
+            Some((-1.0, 1.0))
+        );
+        assert_eq!(
+            only_two_levels(&[0.0, f64::NAN, 5.0, 0.0]),
+            Some((0.0, 5.0))
+        );
+        assert_eq!(only_two_levels(&[2.0, 2.0, 2.0]), None);
+        assert_eq!(only_two_levels(&[1.0, -1.0, 0.0, 1.0]), None);
+        assert_eq!(only_two_levels(&[]), None);
+        // A deadzone start on a two-level input is refused, naming the record.
+        let err = DeadzoneBlock
+            .start(&[1.0, -1.0, -1.0, 1.0, 1.0, -1.0], false, false, "prbs.csv")
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        assert!(
+            err.contains("prbs.csv") && err.contains("only 2 distinct levels"),
+            "{err}"
+        );
+    }
+
     #[test]
     fn a_breakpoint_on_an_input_level_is_flagged() {
         let d = data(vec![-60.0, -56.0, -48.0, -33.0, 20.0, 40.0, 60.0, -56.0]);

@@ -306,7 +306,6 @@ pub fn identify<R: Records + ?Sized>(
         return identify_breakpoints(records, settings);
     }
     let problem = settings.problem(records.records())?;
-    check_input_levels(&problem)?;
     let mut fit = settings.estimator.fit(&problem)?;
     if let Some(kind) = settings.output {
         let max_iterations = match settings.estimator {
@@ -324,34 +323,6 @@ pub fn identify<R: Records + ?Sized>(
     fit.notes = notes;
     check_finite(problem.name(), &fit.params)?;
     safeguard(&problem, settings, fit)
-}
-
-/// An input with a static nonlinearity must take at least 3 distinct values: with two (a PRBS, a
-/// relay test) its nonlinearity's parameters and B cannot be separated (any static map through the two
-/// levels fits), which the least-squares solver would only report as an unexcited regressor.
-fn check_input_levels(problem: &crate::problem::Problem) -> Result<(), SysidError> {
-    for (m, ch) in problem.regression().channels().iter().enumerate() {
-        if ch.kind == NonlinearityKind::Linear {
-            continue;
-        }
-        let mut u = problem.input_samples(m);
-        u.sort_by(f64::total_cmp);
-        u.dedup();
-        // A constant input (one level) has its own error, from the regression.
-        if u.len() == 2 {
-            return Err(SysidError::Data(format!(
-                "{}: input {}: a {} nonlinearity needs an input with at least 3 distinct levels, but \
-                 it takes only 2 ({} and {}): a static map through 2 points is not determined (use a \
-                 linear input, --structure arx, or an input with several amplitudes)",
-                problem.name(),
-                ch.name,
-                ch.kind,
-                u[0],
-                u[1]
-            )));
-        }
-    }
-    Ok(())
 }
 
 /// `--breakpoints auto`: the identification with K = 1..=[`MAX_AUTO_BREAKPOINTS`] breakpoints in every

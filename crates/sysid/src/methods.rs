@@ -15,7 +15,7 @@ use nalgebra::{DMatrix, DVector};
 
 use crate::fitted::{Fitted, Method, Note, Termination};
 use crate::problem::{Estimator, Problem};
-use crate::regression::{scatter, scatter_matrix};
+use crate::regression::{scatter, scatter_into, scatter_matrix};
 use crate::rls_ud::RlsForm;
 use crate::warnings::Warning;
 use crate::windup::Windup;
@@ -483,10 +483,7 @@ pub(crate) fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitte
                 }
                 if hammer && pass == 0 && at > 0 {
                     // θ̂ at full size in a buffer kept across samples (no allocation per sample).
-                    let mut t = est.theta().iter();
-                    for ((v, fr), z) in full_theta.iter_mut().zip(&free).zip(&zeros) {
-                        *v = if *fr { *t.next().unwrap_or(z) } else { *z };
-                    }
+                    scatter_into(&free, est.theta(), &zeros, &mut full_theta);
                     reg.update(&full_theta, &mut f, p.starts());
                     for ((fm, start), ch) in f.iter_mut().zip(&initial_f).zip(reg.channels()) {
                         if ch.kind.block().is_degenerate(fm) {

@@ -533,11 +533,17 @@ impl Regression {
 
 /// The full vector with `sub` in the entries marked free and `base` elsewhere.
 pub(crate) fn scatter(free: &[bool], sub: &[f64], base: &[f64]) -> Vec<f64> {
+    let mut out = vec![0.0; free.len().min(base.len())];
+    scatter_into(free, sub, base, &mut out);
+    out
+}
+
+/// [`scatter`] into `out` (its length: the full size), without allocating.
+pub(crate) fn scatter_into(free: &[bool], sub: &[f64], base: &[f64], out: &mut [f64]) {
     let mut it = sub.iter();
-    free.iter()
-        .zip(base)
-        .map(|(f, b)| if *f { *it.next().unwrap_or(b) } else { *b })
-        .collect()
+    for ((v, f), b) in out.iter_mut().zip(free).zip(base) {
+        *v = if *f { *it.next().unwrap_or(b) } else { *b };
+    }
 }
 
 /// The full matrix with `sub` in the rows and columns marked free and zeros elsewhere.

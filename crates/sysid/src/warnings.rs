@@ -249,13 +249,10 @@ impl Warning {
             Warning::Fallback { used, .. } => used.starts_with(LINEAR_START_USED),
             Warning::BreakpointOnInputLevel { name, .. }
             | Warning::BreakpointNotBracketed { name, .. } => *name == param,
-            Warning::ForInput { input, warning } => match warning.as_ref() {
-                Warning::BreakpointOnInputLevel { name, .. }
-                | Warning::BreakpointNotBracketed { name, .. } => {
-                    param == format!("{name} ({input})")
-                }
-                _ => false,
-            },
+            // `b_l (u1)`: the breakpoint warning of input u1 names `b_l`.
+            Warning::ForInput { input, warning } => param
+                .strip_suffix(&format!(" ({input})"))
+                .is_some_and(|name| warning.explains_missing_std(name)),
             _ => false,
         }
     }

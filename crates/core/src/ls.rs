@@ -180,6 +180,12 @@ impl Triangular {
         &self.scale
     }
 
+    /// ‖y − Φ θ̂‖²: the residual sum of squares of the undamped least-squares solution (for a
+    /// Levenberg–Marquardt search, ‖y‖² minus it is the reduction its Gauss–Newton step predicts).
+    pub fn rss(&self) -> f64 {
+        self.rss
+    }
+
     /// The damped step δ minimising ‖y − Φ δ‖² + λ ‖D δ‖² (Levenberg–Marquardt with Marquardt's
     /// scaling): in the scaled variables w = D δ it is min ‖z − R w‖² + λ ‖w‖², solved by a Householder
     /// QR of the small stacked matrix [R; √λ I] (2p × p). Fails when that system is singular (λ = 0 on a

@@ -236,6 +236,13 @@ pub trait Block: Sync {
     ) -> Vec<(f64, Option<f64>)>;
     /// ∂x/∂p for physical parameter `which` at the command u (a one-sided derivative at a kink).
     fn derivative(&self, f: &StaticNonlinearity, which: usize, u: f64) -> f64;
+    /// The physical parameters `v` with crossed breakpoints put in order, in the ways worth trying
+    /// (empty when they are in order or the kind has none). A deadzone with b_l > b_r jumps by
+    /// m_l (b_r − b_l) at b_r, a discontinuity the output-error search's one-sided derivative cannot
+    /// see across: the search restarts from each of these, where the map is continuous again.
+    fn ordered(&self, _v: &[f64]) -> Vec<Vec<f64>> {
+        Vec::new()
+    }
     /// True when the key-term estimate `f` cannot switch any regressor on (every slope zero: the
     /// recursion's first samples); RLS then keeps the start.
     fn is_degenerate(&self, f: &StaticNonlinearity) -> bool;
@@ -331,6 +338,25 @@ impl Block for LinearBlock {
 /// [m_r, m_r b_r, m_l, m_l b_l] with regressors [h_r u, −h_r, h_l u, −h_l] at u(k − nk)
 /// (h_r = [u ≥ b_r], h_l = [u ≤ b_l], paper eqs. 2–3).
 pub struct DeadzoneBlock;
+
+/// Physical parameters starting [b_l, b_r, …] with crossed breakpoints (b_l > b_r) put in order in
+/// the three ways [`Block::ordered`] lists: b_l down to b_r, both to their midpoint, b_r up to b_l;
+/// empty when they are in order (or not finite).
+fn ordered_breakpoints(v: &[f64]) -> Vec<Vec<f64>> {
+    if !(v.len() >= 2 && v[0] > v[1] && v[0].is_finite() && v[1].is_finite()) {
+        return Vec::new();
+    }
+    let mid = 0.5 * (v[0] + v[1]);
+    [(v[1], v[1]), (mid, mid), (v[0], v[0])]
+        .iter()
+        .map(|&(b_l, b_r)| {
+            let mut w = v.to_vec();
+            w[0] = b_l;
+            w[1] = b_r;
+            w
+        })
+        .collect()
+}
 
 /// The deadzone of `f` (zero for another kind, which a deadzone block is never given).
 fn dz(f: &StaticNonlinearity) -> Deadzone {
@@ -428,6 +454,9 @@ impl Block for DeadzoneBlock {
             (theta[at + 2], sd(cov, at + 2)),
             (theta[at], sd(cov, at)),
         ]
+    }
+    fn ordered(&self, v: &[f64]) -> Vec<Vec<f64>> {
+        ordered_breakpoints(v)
     }
     fn derivative(&self, f: &StaticNonlinearity, which: usize, u: f64) -> f64 {
         let d = dz(f);
@@ -826,6 +855,9 @@ impl Block for DeadzoneSaturationBlock {
             (theta[at + 3], sd(cov, at + 3)),
             (theta[at], sd(cov, at)),
         ]
+    }
+    fn ordered(&self, v: &[f64]) -> Vec<Vec<f64>> {
+        ordered_breakpoints(v)
     }
     fn derivative(&self, f: &StaticNonlinearity, which: usize, u: f64) -> f64 {
         let d = dzs(f);

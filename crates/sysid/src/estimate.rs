@@ -597,6 +597,13 @@ fn termination_words(t: &Termination, method: Method) -> String {
                 .into()
         }
         (Termination::NotSettled, _) => "the estimate had not settled".into(),
+        (Termination::NotStationary, _) => {
+            "the output-error search stopped where its Gauss-Newton model still predicts a decrease of \
+             more than 1 % of the cost that no step realises (a kink or jump of the criterion, e.g. a \
+             deadzone breakpoint on an input level), also after restarting: a better model may exist \
+             (try other orders, --offset or another start)"
+                .into()
+        }
         (Termination::Converged, _) => "converged".into(),
     }
 }

@@ -69,6 +69,9 @@ pub enum Termination {
     IterationLimit,
     /// The recursive estimate was still moving at the end of the data.
     NotSettled,
+    /// The output-error search stopped falling at a point that is not stationary (a kink or jump of
+    /// the criterion), even after restarting.
+    NotStationary,
 }
 
 impl Termination {

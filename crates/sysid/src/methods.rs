@@ -721,11 +721,7 @@ impl OeVerdict {
             (None, Some(_)) => false,
             (None, None) => true,
         };
-        let termination = if fit.stop.converged() {
-            Termination::Converged
-        } else {
-            Termination::IterationLimit
-        };
+        let termination = fit.stop.termination();
         if refined_better {
             if let (Some(r), true) = (refined_rmse, start_rmse.is_some() || fit.stabilised_start) {
                 notes.push(Note::KeptCandidate {

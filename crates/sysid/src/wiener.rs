@@ -19,7 +19,7 @@
 //! output).
 
 use crate::blocks::{monotonicity_change, Block, NonlinearityKind};
-use crate::fitted::{Fitted, Method, Note, Termination};
+use crate::fitted::{Fitted, Method, Note};
 use crate::ls;
 use crate::methods::reported_rmse;
 use crate::oe::{self, OutputStart};
@@ -163,11 +163,7 @@ pub(crate) fn refine(
         evaluations: fit.evaluations,
         stopped: fit.stop.to_string(),
     });
-    let termination = if fit.stop.converged() {
-        Termination::Converged
-    } else {
-        Termination::IterationLimit
-    };
+    let termination = fit.stop.termination();
     let better = match (refined, before) {
         (Some(r), Some(b)) => r <= b,
         (Some(_), None) => true,

@@ -46,6 +46,16 @@
 //! (√ε, MINPACK's defaults)
 //! (converged), when λ exceeds 1e16 (no further improvement possible), or at the iteration cap.
 //!
+//! A stop on these tolerances is checked to first order before it is called convergence: at a minimum
+//! of a smooth criterion the residuals are (nearly) orthogonal to the sensitivities, so the undamped
+//! Gauss–Newton step of the last iteration predicts (almost) no decrease. When it still predicts more
+//! than [`STATIONARY`] of the cost, the search crept towards a kink or a jump of the criterion with a
+//! growing λ (a deadzone breakpoint on an input level; with crossed breakpoints b_l > b_r the deadzone
+//! jumps at b_r). Such a stop, and any end with crossed breakpoints, restarts the same search with λ
+//! reset ([`restart`]: from each way of putting the breakpoints in order, else from the end point), the
+//! lowest cost of all ends kept; a stop that stays non-stationary is reported as not converged
+//! ([`OeStop::NotStationary`]).
+//!
 //! Standard deviations: σ̂² (JᵀJ)⁻¹ with J the final Jacobian and σ̂² = 2 V / (N − p).
 
 use std::cell::Cell;
@@ -414,6 +424,23 @@ impl Problem<'_> {
     /// Loss Σ r² (infinite when the simulation diverges).
     fn cost(&self) -> f64 {
         self.residuals().map_or(f64::INFINITY, |r| r.norm_squared())
+    }
+
+    /// The larger of the loss with the estimated initial outputs and the loss with the measured ones
+    /// (η = y(0..k0−1)): the ends of restarted searches are compared on it, as the kept model is judged
+    /// on the worse of both initial states, so that a restart cannot buy a lower loss with the initial
+    /// state alone.
+    fn guarded_cost(&self) -> f64 {
+        let np = self.n_params();
+        let mut measured = Problem {
+            full: self.full.clone(),
+            free: Vec::new(),
+            jacobians: Cell::new(0),
+            channels: self.channels.clone(),
+            ..*self
+        };
+        measured.full[np..np + self.k0].copy_from_slice(&self.y[..self.k0]);
+        self.cost().max(measured.cost())
     }
 
     /// ∂ŷ/∂θ for the free parameters, with the simulation it was computed on.
@@ -826,7 +853,8 @@ fn run(
 /// nonlinearity's breakpoints cross (a deadzone with b_l > b_r jumps at b_r, a discontinuity the
 /// one-sided derivative cannot see across). With crossed breakpoints the search restarts from each
 /// way of putting them in order ([`Block::ordered`]: different valleys of a rugged criterion), else
-/// from the end point itself; the lowest cost of all ends is kept, and this repeats (at most
+/// from the end point itself; the end with the lowest loss is kept — the loss being the worse of the
+/// estimated and the measured initial outputs ([`Problem::guarded_cost`]) — and this repeats (at most
 /// [`RESTARTS`] rounds) while a round lowers the cost. Each restarted search may take the iterations
 /// the first one left of `max_iterations`; the counts reported add up every search. A stop that stays
 /// non-stationary becomes [`OeStop::NotStationary`] (not converged).
@@ -842,15 +870,15 @@ fn restart(problem: &mut Problem, end: &mut SearchEnd, max_iterations: usize) {
         if starts.is_empty() || remaining == 0 {
             break;
         }
-        let (mut best, mut best_cost) = (problem.full.clone(), problem.cost());
+        let (mut best, mut best_cost) = (problem.full.clone(), problem.guarded_cost());
         let mut improved = false;
         for start in starts {
             problem.full = start;
             let again = search(problem, remaining).ok();
             end.iterations += again.map_or(0, |a| a.iterations);
-            end.evaluations += again.map_or(0, |a| a.evaluations) + 1;
+            end.evaluations += again.map_or(0, |a| a.evaluations) + 2;
             end.projected += again.map_or(0, |a| a.projected);
-            let cost = problem.cost();
+            let cost = problem.guarded_cost();
             if let Some(a) = again.filter(|_| cost < best_cost) {
                 (best, best_cost, improved) = (problem.full.clone(), cost, true);
                 end.stop = a.stop;

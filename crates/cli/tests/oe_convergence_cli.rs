@@ -314,11 +314,11 @@ fn output_error_does_not_claim_convergence_away_from_a_stationary_point() {
             let (mut up, mut down) = (full.clone(), full.clone());
             up[q] += h;
             down[q] -= h;
-            let (ru, rd) = (
-                shape.residuals(&up, &u, &y),
-                shape.residuals(&down, &u, &y),
-            );
-            ru.iter().zip(&rd).map(|(a, b)| (a - b) / (2.0 * h)).collect()
+            let (ru, rd) = (shape.residuals(&up, &u, &y), shape.residuals(&down, &u, &y));
+            ru.iter()
+                .zip(&rd)
+                .map(|(a, b)| (a - b) / (2.0 * h))
+                .collect()
         })
         .collect();
     let w = least_squares(&jac, &r);

@@ -530,6 +530,10 @@ struct SearchEnd {
     /// (‖r‖² − min_δ ‖r − J δ‖²) / ‖r‖², the squared cosine between the residuals and the span of the
     /// sensitivities (0 at a stationary point).
     explained: f64,
+    /// A trial step of the last iteration left the stable region (shortened or projected): the
+    /// stability constraint is active, where the unconstrained prediction says nothing about
+    /// stationarity.
+    constrained: bool,
 }
 
 /// The stability-constrained Levenberg–Marquardt search (module docs): how it stopped, the
@@ -541,12 +545,14 @@ fn search(problem: &mut Problem, max_iterations: usize) -> Result<SearchEnd, Sys
     let mut lambda: f64 = 1e-3;
     let mut workspace = ls::LsWorkspace::new();
     let mut explained = 0.0;
-    let end = |stop, iterations, evaluations, projected, explained| SearchEnd {
+    let mut constrained = false;
+    let end = |stop, iterations, evaluations, projected, explained, constrained| SearchEnd {
         stop,
         iterations,
         evaluations,
         projected,
         explained,
+        constrained,
     };
     for iteration in 1..=max_iterations {
         let (Some(jac), Some(r)) = (problem.jacobian(), problem.residuals()) else {
@@ -557,23 +563,45 @@ fn search(problem: &mut Problem, max_iterations: usize) -> Result<SearchEnd, Sys
         let gradient = jac.transpose() * &r;
         let gmax = gradient.amax();
         if gmax == 0.0 || !gmax.is_finite() {
-            return Ok(end(OeStop::GradientZero, iteration, evaluations, projected, explained));
+            return Ok(end(
+                OeStop::GradientZero,
+                iteration,
+                evaluations,
+                projected,
+                explained,
+                constrained,
+            ));
         }
         let theta = problem.free_values();
         // One Householder triangularisation of [J D⁻¹ | r] per iteration; every damped trial step is
         // then a small 2p × p problem (Triangular::damped_step).
         let Ok(tri) = workspace.triangularise(&jac, &r, &[], false) else {
-            return Ok(end(OeStop::NoImprovement, iteration, evaluations, projected, explained));
+            return Ok(end(
+                OeStop::NoImprovement,
+                iteration,
+                evaluations,
+                projected,
+                explained,
+                constrained,
+            ));
         };
         if cost > 0.0 && cost.is_finite() {
             explained = ((cost - tri.rss()) / cost).clamp(0.0, 1.0);
         }
+        constrained = false;
         loop {
             let Ok(step) = tri.damped_step(lambda) else {
                 lambda = (lambda * 4.0).max(1e-10);
                 if lambda > LAMBDA_MAX {
                     problem.set_free(&theta);
-                    return Ok(end(OeStop::NoImprovement, iteration, evaluations, projected, explained));
+                    return Ok(end(
+                        OeStop::NoImprovement,
+                        iteration,
+                        evaluations,
+                        projected,
+                        explained,
+                        constrained,
+                    ));
                 }
                 continue;
             };
@@ -600,6 +628,7 @@ fn search(problem: &mut Problem, max_iterations: usize) -> Result<SearchEnd, Sys
             }
             if on_boundary {
                 projected += 1;
+                constrained = true;
             }
             let new_cost = problem.cost();
             evaluations += 1;
@@ -639,21 +668,49 @@ fn search(problem: &mut Problem, max_iterations: usize) -> Result<SearchEnd, Sys
                 };
                 if decrease < FTOL && predicted <= FTOL {
                     let stop = converged(OeStop::CostConverged);
-                    return Ok(end(stop, iteration, evaluations, projected, explained));
+                    return Ok(end(
+                        stop,
+                        iteration,
+                        evaluations,
+                        projected,
+                        explained,
+                        constrained,
+                    ));
                 }
                 if on_boundary && decrease < FTOL_BOUNDARY {
-                    return Ok(end(OeStop::StabilityBoundary, iteration, evaluations, projected, explained));
+                    return Ok(end(
+                        OeStop::StabilityBoundary,
+                        iteration,
+                        evaluations,
+                        projected,
+                        explained,
+                        constrained,
+                    ));
                 }
                 if moved <= XTOL * (size + XTOL) {
                     let stop = converged(OeStop::StepConverged);
-                    return Ok(end(stop, iteration, evaluations, projected, explained));
+                    return Ok(end(
+                        stop,
+                        iteration,
+                        evaluations,
+                        projected,
+                        explained,
+                        constrained,
+                    ));
                 }
                 break;
             }
             lambda = (lambda * 4.0).max(1e-10);
             if lambda > LAMBDA_MAX {
                 problem.set_free(&theta);
-                return Ok(end(OeStop::NoImprovement, iteration, evaluations, projected, explained));
+                return Ok(end(
+                    OeStop::NoImprovement,
+                    iteration,
+                    evaluations,
+                    projected,
+                    explained,
+                    constrained,
+                ));
             }
         }
     }
@@ -663,6 +720,7 @@ fn search(problem: &mut Problem, max_iterations: usize) -> Result<SearchEnd, Sys
         evaluations,
         projected,
         explained,
+        constrained,
     ))
 }
 
@@ -859,7 +917,8 @@ fn run(
 /// the first one left of `max_iterations`; the counts reported add up every search. A stop that stays
 /// non-stationary becomes [`OeStop::NotStationary`] (not converged).
 fn restart(problem: &mut Problem, end: &mut SearchEnd, max_iterations: usize) {
-    let stalled = |e: &SearchEnd| e.stop.on_tolerance() && e.explained > STATIONARY;
+    let stalled =
+        |e: &SearchEnd| e.stop.on_tolerance() && !e.constrained && e.explained > STATIONARY;
     // Each restarted search may take the iterations the first one left.
     let remaining = max_iterations.saturating_sub(end.iterations);
     for _ in 0..RESTARTS {
@@ -883,6 +942,7 @@ fn restart(problem: &mut Problem, end: &mut SearchEnd, max_iterations: usize) {
                 (best, best_cost, improved) = (problem.full.clone(), cost, true);
                 end.stop = a.stop;
                 end.explained = a.explained;
+                end.constrained = a.constrained;
             }
         }
         problem.full = best;

@@ -1654,6 +1654,25 @@ pub(crate) fn check_breakpoint(
 mod tests {
     use super::*;
 
+    // Crossed breakpoints (b_l = 0.753 > b_r = 0.037, the audit's robot arm end) are put in order in
+    // three ways, each with b_l = b_r and the slopes kept; ordered ones are left alone.
+    #[test]
+    fn crossed_deadzone_breakpoints_are_put_in_order() {
+        let v = [0.753, 0.037, 0.0025, 0.0102];
+        let got = DeadzoneBlock.ordered(&v);
+        let mid = 0.5 * (0.753 + 0.037);
+        let want = [[0.037, 0.037], [mid, mid], [0.753, 0.753]];
+        assert_eq!(got.len(), 3);
+        for (g, w) in got.iter().zip(want) {
+            assert_eq!((g[0], g[1], g[2], g[3]), (w[0], w[1], 0.0025, 0.0102));
+        }
+        assert!(DeadzoneBlock.ordered(&[-0.1, 0.2, 1.0, 1.0]).is_empty());
+        assert!(LinearBlock.ordered(&[]).is_empty());
+        // Deadzone with saturation: [b_l, b_r, s_l, s_r, m_l, m_r].
+        let w = DeadzoneSaturationBlock.ordered(&[1.0, -1.0, -5.0, 5.0, 1.0, 1.0]);
+        assert_eq!(w[0], vec![-1.0, -1.0, -5.0, 5.0, 1.0, 1.0]);
+    }
+
     fn start(u: &[f64], offset: bool) -> Branches {
         Branches::of(u, offset, true, "t").unwrap()
     }

@@ -52,9 +52,10 @@
 //! than [`STATIONARY`] of the cost, the search crept towards a kink or a jump of the criterion with a
 //! growing λ (a deadzone breakpoint on an input level; with crossed breakpoints b_l > b_r the deadzone
 //! jumps at b_r). Such a stop, and any end with crossed breakpoints, restarts the same search with λ
-//! reset ([`restart`]: from each way of putting the breakpoints in order, else from the end point), the
-//! lowest cost of all ends kept; a stop that stays non-stationary is reported as not converged
-//! ([`OeStop::NotStationary`]).
+//! reset ([`restart`]: from each way of putting the breakpoints in order, else from the end point); the
+//! end with the lowest loss on the worse of both initial states is kept. A stop that stays
+//! non-stationary is reported as not converged ([`OeStop::NotStationary`]). A stop whose last step met
+//! the stability constraint is not judged so (a constrained optimum has a non-zero gradient).
 //!
 //! Standard deviations: σ̂² (JᵀJ)⁻¹ with J the final Jacobian and σ̂² = 2 V / (N − p).
 
@@ -121,7 +122,7 @@ pub enum OeStop {
     /// The cost stopped falling (a tolerance was met or no step lowers it) at a point that is not
     /// stationary: the Gauss–Newton model of the last iteration still predicted a decrease of more than
     /// [`STATIONARY`] of the cost that no step realised — a kink or jump of the criterion (a deadzone
-    /// breakpoint on an input level), not a minimum; the restart did not get past it either.
+    /// breakpoint on an input level), not a stationary point; the restart did not get past it either.
     NotStationary,
 }
 
@@ -164,7 +165,7 @@ impl std::fmt::Display for OeStop {
             OeStop::IterationLimit => "stopped at the iteration limit (not converged)",
             OeStop::NotStationary => {
                 "not converged (the cost stopped falling where the Gauss-Newton model still predicts a \
-                 decrease of more than 1 %: a kink or jump of the criterion, not a minimum)"
+                 decrease of more than 1 %: a kink or jump of the criterion, not a stationary point)"
             }
         })
     }
@@ -511,8 +512,7 @@ const FTOL_BOUNDARY: f64 = 1e-6;
 /// Relative decrease predicted by the last Gauss–Newton model above which a stop on a tolerance is no
 /// convergence ([`restart`]): at a minimum of a smooth criterion the residuals are (nearly) orthogonal
 /// to the sensitivities and the prediction is about the last decrease; a search that creeps to a kink
-/// with a growing damping still sees a large predicted decrease (0.04–0.9 on the audited cases against
-/// below 0.005 at the documented benchmarks' ends).
+/// with a growing damping still sees a large predicted decrease (0.04–0.9 on the audit's cases).
 const STATIONARY: f64 = 1e-2;
 /// How many times [`restart`] may restart the search (each restart must lower the cost).
 const RESTARTS: usize = 4;
@@ -536,23 +536,30 @@ struct SearchEnd {
     constrained: bool,
 }
 
+impl SearchEnd {
+    /// The search stopped with `stop` at iteration `iteration`.
+    fn stopped(self, stop: OeStop, iteration: usize) -> Self {
+        SearchEnd {
+            stop,
+            iterations: iteration,
+            ..self
+        }
+    }
+}
+
 /// The stability-constrained Levenberg–Marquardt search (module docs): how it stopped, the
 /// iterations, the loss evaluations and the projected steps.
 fn search(problem: &mut Problem, max_iterations: usize) -> Result<SearchEnd, SysidError> {
     let mut cost = problem.cost();
-    let mut evaluations = 1;
-    let mut projected = 0;
     let mut lambda: f64 = 1e-3;
     let mut workspace = ls::LsWorkspace::new();
-    let mut explained = 0.0;
-    let mut constrained = false;
-    let end = |stop, iterations, evaluations, projected, explained, constrained| SearchEnd {
-        stop,
-        iterations,
-        evaluations,
-        projected,
-        explained,
-        constrained,
+    let mut at = SearchEnd {
+        stop: OeStop::IterationLimit,
+        iterations: max_iterations,
+        evaluations: 1,
+        projected: 0,
+        explained: 0.0,
+        constrained: false,
     };
     for iteration in 1..=max_iterations {
         let (Some(jac), Some(r)) = (problem.jacobian(), problem.residuals()) else {
@@ -563,45 +570,24 @@ fn search(problem: &mut Problem, max_iterations: usize) -> Result<SearchEnd, Sys
         let gradient = jac.transpose() * &r;
         let gmax = gradient.amax();
         if gmax == 0.0 || !gmax.is_finite() {
-            return Ok(end(
-                OeStop::GradientZero,
-                iteration,
-                evaluations,
-                projected,
-                explained,
-                constrained,
-            ));
+            return Ok(at.stopped(OeStop::GradientZero, iteration));
         }
         let theta = problem.free_values();
         // One Householder triangularisation of [J D⁻¹ | r] per iteration; every damped trial step is
         // then a small 2p × p problem (Triangular::damped_step).
         let Ok(tri) = workspace.triangularise(&jac, &r, &[], false) else {
-            return Ok(end(
-                OeStop::NoImprovement,
-                iteration,
-                evaluations,
-                projected,
-                explained,
-                constrained,
-            ));
+            return Ok(at.stopped(OeStop::NoImprovement, iteration));
         };
         if cost > 0.0 && cost.is_finite() {
-            explained = ((cost - tri.rss()) / cost).clamp(0.0, 1.0);
+            at.explained = ((cost - tri.rss()) / cost).clamp(0.0, 1.0);
         }
-        constrained = false;
+        at.constrained = false;
         loop {
             let Ok(step) = tri.damped_step(lambda) else {
                 lambda = (lambda * 4.0).max(1e-10);
                 if lambda > LAMBDA_MAX {
                     problem.set_free(&theta);
-                    return Ok(end(
-                        OeStop::NoImprovement,
-                        iteration,
-                        evaluations,
-                        projected,
-                        explained,
-                        constrained,
-                    ));
+                    return Ok(at.stopped(OeStop::NoImprovement, iteration));
                 }
                 continue;
             };
@@ -627,11 +613,11 @@ fn search(problem: &mut Problem, max_iterations: usize) -> Result<SearchEnd, Sys
                 }
             }
             if on_boundary {
-                projected += 1;
-                constrained = true;
+                at.projected += 1;
+                at.constrained = true;
             }
             let new_cost = problem.cost();
-            evaluations += 1;
+            at.evaluations += 1;
             if new_cost < cost {
                 let moved = problem
                     .free_values()
@@ -668,60 +654,25 @@ fn search(problem: &mut Problem, max_iterations: usize) -> Result<SearchEnd, Sys
                 };
                 if decrease < FTOL && predicted <= FTOL {
                     let stop = converged(OeStop::CostConverged);
-                    return Ok(end(
-                        stop,
-                        iteration,
-                        evaluations,
-                        projected,
-                        explained,
-                        constrained,
-                    ));
+                    return Ok(at.stopped(stop, iteration));
                 }
                 if on_boundary && decrease < FTOL_BOUNDARY {
-                    return Ok(end(
-                        OeStop::StabilityBoundary,
-                        iteration,
-                        evaluations,
-                        projected,
-                        explained,
-                        constrained,
-                    ));
+                    return Ok(at.stopped(OeStop::StabilityBoundary, iteration));
                 }
                 if moved <= XTOL * (size + XTOL) {
                     let stop = converged(OeStop::StepConverged);
-                    return Ok(end(
-                        stop,
-                        iteration,
-                        evaluations,
-                        projected,
-                        explained,
-                        constrained,
-                    ));
+                    return Ok(at.stopped(stop, iteration));
                 }
                 break;
             }
             lambda = (lambda * 4.0).max(1e-10);
             if lambda > LAMBDA_MAX {
                 problem.set_free(&theta);
-                return Ok(end(
-                    OeStop::NoImprovement,
-                    iteration,
-                    evaluations,
-                    projected,
-                    explained,
-                    constrained,
-                ));
+                return Ok(at.stopped(OeStop::NoImprovement, iteration));
             }
         }
     }
-    Ok(end(
-        OeStop::IterationLimit,
-        max_iterations,
-        evaluations,
-        projected,
-        explained,
-        constrained,
-    ))
+    Ok(at)
 }
 
 impl Problem<'_> {

@@ -5,45 +5,15 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
 
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
+use common::{bin, run_json, warnings};
 use serde_json::Value;
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
-}
 
 fn data_dir() -> Option<PathBuf> {
     ipa_testdata::shared_data()
-}
-
-/// Runs `ipa-sysid ARGS --json F` in `dir` and returns the JSON document (the command must succeed).
-fn run_json(dir: &Path, args: &[&str]) -> Value {
-    let tmp = tempfile::tempdir().unwrap();
-    let json = tmp.path().join("out.json");
-    let out = bin()
-        .current_dir(dir)
-        .args(args)
-        .arg("--json")
-        .arg(&json)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap()
-}
-
-fn warnings(doc: &Value) -> Vec<String> {
-    doc["warnings"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|w| w.as_str().unwrap().to_string())
-        .collect()
 }
 
 /// The same `identify` flags with the structure and method replaced by ARX least squares: the plain

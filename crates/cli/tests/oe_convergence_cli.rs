@@ -6,8 +6,9 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
 
+mod common;
+
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use serde_json::Value;
 
@@ -15,26 +16,16 @@ fn data_dir() -> Option<PathBuf> {
     ipa_testdata::shared_data()
 }
 
-/// Runs `ipa-sysid ARGS --json … --save-model …` in `dir`: the JSON document and the saved model.
+/// Runs `ipa-sysid ARGS --save-model … --json …` in `dir` (it must succeed): the JSON document and the
+/// saved model.
 fn identify(dir: &Path, args: &[&str]) -> (Value, Value) {
     let tmp = tempfile::tempdir().unwrap();
-    let (json, model) = (tmp.path().join("out.json"), tmp.path().join("m.json"));
-    let out = Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
-        .current_dir(dir)
-        .args(args)
-        .arg("--json")
-        .arg(&json)
-        .arg("--save-model")
-        .arg(&model)
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let read = |p: &Path| serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap();
-    (read(&json), read(&model))
+    let model = tmp.path().join("m.json");
+    let mut all = args.to_vec();
+    all.extend(["--save-model", model.to_str().unwrap()]);
+    let doc = common::run_json(dir, &all);
+    let saved = serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
+    (doc, saved)
 }
 
 /// Columns `u` and `y` of a CSV file with a header row.
@@ -339,12 +330,7 @@ fn output_error_does_not_claim_convergence_away_from_a_stationary_point() {
             !converged && note.contains("not converged"),
             "predicted decrease {predicted} but converged: {note}"
         );
-        let w: Vec<&str> = doc["warnings"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|w| w.as_str().unwrap())
-            .collect();
+        let w = common::warnings(&doc);
         assert!(w.iter().any(|w| w.contains("not converged")), "{w:?}");
     } else {
         assert!(converged, "stationary (predicted {predicted}) but: {note}");

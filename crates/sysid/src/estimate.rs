@@ -598,10 +598,10 @@ fn termination_words(t: &Termination, method: Method) -> String {
         }
         (Termination::NotSettled, _) => "the estimate had not settled".into(),
         (Termination::NotStationary, _) => {
-            "the output-error search stopped where its Gauss-Newton model still predicts a decrease of \
-             more than 1 % of the cost that no step realises (a kink or jump of the criterion, e.g. a \
-             deadzone breakpoint on an input level), also after restarting: a better model may exist \
-             (try other orders, --offset or another start)"
+            "the output-error search stopped on a tolerance while its Gauss-Newton model still predicts \
+             a decrease of more than 1 % of the cost, and the restarted searches were still lowering it \
+             when they ran out of rounds or iterations (raise --max-iterations; max_iterations= in \
+             Python) or the breakpoints still cross (a jump of the criterion)"
                 .into()
         }
         (Termination::Converged, _) => "converged".into(),

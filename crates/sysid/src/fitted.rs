@@ -69,8 +69,8 @@ pub enum Termination {
     IterationLimit,
     /// The recursive estimate was still moving at the end of the data.
     NotSettled,
-    /// The output-error search stopped falling at a point that is not stationary (a kink or jump of
-    /// the criterion), even after restarting.
+    /// The output-error search stopped on a tolerance where its Gauss–Newton model still predicted a
+    /// decrease, and its restarts were still lowering the loss when they ran out.
     NotStationary,
 }
 

@@ -51,11 +51,14 @@
 //! Gauss–Newton step of the last iteration predicts (almost) no decrease. When it still predicts more
 //! than [`STATIONARY`] of the cost, the search crept towards a kink or a jump of the criterion with a
 //! growing λ (a deadzone breakpoint on an input level; with crossed breakpoints b_l > b_r the deadzone
-//! jumps at b_r). Such a stop, and any end with crossed breakpoints, restarts the same search with λ
-//! reset ([`restart`]: from each way of putting the breakpoints in order, else from the end point); the
-//! end with the lowest loss on the worse of both initial states is kept. A stop that stays
-//! non-stationary is reported as not converged ([`OeStop::NotStationary`]). A stop whose last step met
-//! the stability constraint is not judged so (a constrained optimum has a non-zero gradient).
+//! jumps at b_r). Such a stop restarts the same search with λ reset from the end point with the
+//! breakpoints held (the criterion is smooth in every other parameter), and any end with crossed
+//! breakpoints restarts from each way of putting them in order ([`restart`]); the end with the lowest
+//! loss on the worse of both initial states is kept. A stop that is still predicted to fall is "not
+//! converged" ([`OeStop::NotStationary`]) when the restarts were still lowering the loss when they ran
+//! out or the breakpoints still cross, "converged at a kink" ([`OeStop::AtKink`]) when a restart from
+//! it found nothing lower. A stop whose last step met the stability constraint is not judged so (a
+//! constrained optimum has a non-zero gradient).
 //!
 //! Standard deviations: σ̂² (JᵀJ)⁻¹ with J the final Jacobian and σ̂² = 2 V / (N − p).
 
@@ -68,7 +71,7 @@ use crate::fitted::{Param, Termination};
 use crate::ls;
 use crate::regression::Regression;
 use sysid_core::model::{is_stable_polynomial_within, poles_of};
-use sysid_core::{Dataset, Model, NoiseModel, StaticNonlinearity, SysidError};
+use sysid_core::{Dataset, Model, NoiseModel, ParamName, StaticNonlinearity, SysidError};
 
 /// The `input` label of the output nonlinearity's parameters (`s_r (output)`).
 pub const OUTPUT: &str = "output";
@@ -119,11 +122,15 @@ pub enum OeStop {
     StabilityBoundary,
     /// The iteration cap was reached first.
     IterationLimit,
-    /// The cost stopped falling (a tolerance was met or no step lowers it) at a point that is not
-    /// stationary: the Gauss–Newton model of the last iteration still predicted a decrease of more than
-    /// [`STATIONARY`] of the cost that no step realised — a kink or jump of the criterion (a deadzone
-    /// breakpoint on an input level), not a stationary point; the restart did not get past it either.
+    /// The search stopped on a tolerance where the Gauss–Newton model still predicted a decrease of
+    /// more than [`STATIONARY`] of the cost, and the restarts were still lowering the loss when they
+    /// ran out (of rounds or iterations), or the breakpoints still cross: not converged.
     NotStationary,
+    /// The search stopped on a tolerance where the Gauss–Newton model still predicted a decrease of
+    /// more than [`STATIONARY`] of the cost, and a fresh search from that point (its breakpoints held)
+    /// found nothing lower: a local minimum at a kink of the criterion (a breakpoint on an input
+    /// level) or where the linear model of the loss is poor.
+    AtKink,
 }
 
 impl OeStop {
@@ -164,8 +171,14 @@ impl std::fmt::Display for OeStop {
             }
             OeStop::IterationLimit => "stopped at the iteration limit (not converged)",
             OeStop::NotStationary => {
-                "not converged (the cost stopped falling where the Gauss-Newton model still predicts a \
-                 decrease of more than 1 %: a kink or jump of the criterion, not a stationary point)"
+                "not converged (the Gauss-Newton model still predicts a decrease of more than 1 %, and the \
+                 restarted searches were still lowering the cost when they ran out or the deadzone's \
+                 breakpoints still cross)"
+            }
+            OeStop::AtKink => {
+                "converged at a kink (the Gauss-Newton model predicts a decrease of more than 1 %, but a \
+                 restarted search from this point finds nothing lower: a breakpoint on an input level \
+                 or a strongly curved valley)"
             }
         })
     }
@@ -425,6 +438,26 @@ impl Problem<'_> {
     /// Loss Σ r² (infinite when the simulation diverges).
     fn cost(&self) -> f64 {
         self.residuals().map_or(f64::INFINITY, |r| r.norm_squared())
+    }
+
+    /// The free entries without the input nonlinearities' breakpoints (b_l, b_r, s_l, s_r, p_i): the
+    /// parameters the criterion is smooth in (a breakpoint crossing an input level is a kink).
+    fn smooth_free(&self) -> Vec<usize> {
+        self.free
+            .iter()
+            .copied()
+            .filter(|&q| match self.role(q) {
+                Role::Block { ch, which } => !matches!(
+                    self.channels[ch].block.physical_names()[which],
+                    ParamName::BL
+                        | ParamName::BR
+                        | ParamName::SL
+                        | ParamName::SR
+                        | ParamName::Knot(_)
+                ),
+                _ => true,
+            })
+            .collect()
     }
 
     /// The larger of the loss with the estimated initial outputs and the loss with the measured ones
@@ -856,35 +889,48 @@ fn run(
     })
 }
 
-/// The search once more, with its damping reset, when it stopped on a tolerance at a point that is no
-/// minimum: the last Gauss–Newton model still predicted a decrease of more than [`STATIONARY`] of the
-/// cost (the steps crept towards a kink or jump of the criterion, the damping growing), or a
+/// The search once more, with its damping reset, when it stopped on a tolerance at a point that may
+/// be no minimum: the last Gauss–Newton model still predicted a decrease of more than [`STATIONARY`]
+/// of the cost (the steps crept towards a kink or jump of the criterion, the damping growing), or a
 /// nonlinearity's breakpoints cross (a deadzone with b_l > b_r jumps at b_r, a discontinuity the
-/// one-sided derivative cannot see across). With crossed breakpoints the search restarts from each
-/// way of putting them in order ([`Block::ordered`]: different valleys of a rugged criterion), else
-/// from the end point itself; the end with the lowest loss is kept — the loss being the worse of the
-/// estimated and the measured initial outputs ([`Problem::guarded_cost`]) — and this repeats (at most
-/// [`RESTARTS`] rounds) while a round lowers the cost. Each restarted search may take the iterations
-/// the first one left of `max_iterations`; the counts reported add up every search. A stop that stays
-/// non-stationary becomes [`OeStop::NotStationary`] (not converged).
+/// one-sided derivative cannot see across). With crossed breakpoints the search restarts from each way
+/// of putting them in order ([`Block::ordered`]: different valleys of a rugged criterion), otherwise
+/// from the end point with the breakpoints held ([`Problem::smooth_free`]); the end with the lowest
+/// loss is kept — the loss being the worse of the estimated and the measured initial outputs
+/// ([`Problem::guarded_cost`]) — and this repeats (at most [`RESTARTS`] rounds) while a round lowers
+/// it. Each restarted search may take the iterations the first one left of `max_iterations`; the
+/// counts reported add up every search. A stop still predicted to fall becomes
+/// [`OeStop::NotStationary`] (not converged) when the last round was still lowering the loss or the
+/// breakpoints still cross, else [`OeStop::AtKink`].
 fn restart(problem: &mut Problem, end: &mut SearchEnd, max_iterations: usize) {
     let stalled =
         |e: &SearchEnd| e.stop.on_tolerance() && !e.constrained && e.explained > STATIONARY;
     // Each restarted search may take the iterations the first one left.
     let remaining = max_iterations.saturating_sub(end.iterations);
+    let all = problem.free.clone();
+    let smooth = problem.smooth_free();
+    // Whether the last round lowered the loss (the search was still making progress when it ended).
+    let mut progressing = remaining == 0;
     for _ in 0..RESTARTS {
-        let mut starts = problem.ordered();
+        // (start, the free entries): ordered breakpoints move; a stall restarts with them held.
+        let mut starts: Vec<(Vec<f64>, &[usize])> = problem
+            .ordered()
+            .into_iter()
+            .map(|f| (f, all.as_slice()))
+            .collect();
         if starts.is_empty() && stalled(end) {
-            starts.push(problem.full.clone());
+            starts.push((problem.full.clone(), smooth.as_slice()));
         }
         if starts.is_empty() || remaining == 0 {
             break;
         }
         let (mut best, mut best_cost) = (problem.full.clone(), problem.guarded_cost());
         let mut improved = false;
-        for start in starts {
+        for (start, free) in starts {
             problem.full = start;
+            problem.free = free.to_vec();
             let again = search(problem, remaining).ok();
+            problem.free = all.clone();
             end.iterations += again.map_or(0, |a| a.iterations);
             end.evaluations += again.map_or(0, |a| a.evaluations) + 2;
             end.projected += again.map_or(0, |a| a.projected);
@@ -897,12 +943,21 @@ fn restart(problem: &mut Problem, end: &mut SearchEnd, max_iterations: usize) {
             }
         }
         problem.full = best;
+        progressing = improved;
         if !improved {
             break;
         }
     }
     if stalled(end) {
-        end.stop = OeStop::NotStationary;
+        // Still predicted to fall: not converged while the restarts were still lowering the loss
+        // when they ran out, or at crossed breakpoints (a jump, not a kink); a local minimum at a
+        // kink (or where the linear model is poor) when a fresh search from the end point found
+        // nothing lower.
+        end.stop = if progressing || !problem.ordered().is_empty() {
+            OeStop::NotStationary
+        } else {
+            OeStop::AtKink
+        };
     }
 }
 

@@ -584,6 +584,9 @@ impl SearchEnd {
 /// iterations, the loss evaluations and the projected steps.
 fn search(problem: &mut Problem, max_iterations: usize) -> Result<SearchEnd, SysidError> {
     let mut cost = problem.cost();
+    // A loss at the rounding level of the data (a noise-free record fitted exactly) has no meaningful
+    // relative prediction: the first-order test is skipped there.
+    let floor = f64::EPSILON * problem.y.iter().map(|v| v * v).sum::<f64>();
     let mut lambda: f64 = 1e-3;
     let mut workspace = ls::LsWorkspace::new();
     let mut at = SearchEnd {
@@ -611,9 +614,11 @@ fn search(problem: &mut Problem, max_iterations: usize) -> Result<SearchEnd, Sys
         let Ok(tri) = workspace.triangularise(&jac, &r, &[], false) else {
             return Ok(at.stopped(OeStop::NoImprovement, iteration));
         };
-        if cost > 0.0 && cost.is_finite() {
-            at.explained = ((cost - tri.rss()) / cost).clamp(0.0, 1.0);
-        }
+        at.explained = if cost > floor && cost.is_finite() {
+            ((cost - tri.rss()) / cost).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
         at.constrained = false;
         loop {
             let Ok(step) = tri.damped_step(lambda) else {

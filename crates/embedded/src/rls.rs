@@ -290,16 +290,44 @@ fn update_standard<F: Float, const N: usize, const FULL: bool>(
     }
     // (Pφ)_i = Σ_j P_ij φ_j for j = 0, 1, …, accumulated one row of P at a time (P is exactly
     // symmetric, so row j is column j): the inner loop runs along contiguous memory, across i.
-    for (row, f) in p.iter().zip(phi) {
-        if let Some(row) = row.get(..m) {
-            for (acc, c) in pphi.iter_mut().zip(row) {
-                *acc += *c * *f;
+    let mut denom = rho;
+    if F::SYSID_ORDER {
+        for (row, f) in p.iter().zip(phi) {
+            if let Some(row) = row.get(..m) {
+                for (acc, c) in pphi.iter_mut().zip(row) {
+                    *acc += *c * *f;
+                }
             }
         }
-    }
-    let mut denom = rho;
-    for (f, q) in phi.iter().zip(pphi.iter()) {
-        denom += *f * *q;
+        for (f, q) in phi.iter().zip(pphi.iter()) {
+            denom += *f * *q;
+        }
+    } else {
+        // f32: the even and the odd rows in two sums started at −0 (−0 + x = x: no addition), then
+        // added: the chain through P is about half as long (the update is latency-bound at small n).
+        let mut odd_buf = [-F::ZERO; N];
+        let odd = odd_buf.get_mut(..m).ok_or(Error::Capacity)?;
+        for acc in pphi.iter_mut() {
+            *acc = -F::ZERO;
+        }
+        for (j, (row, f)) in p.iter().zip(phi).enumerate() {
+            let sum = if j % 2 == 0 { &mut *pphi } else { &mut *odd };
+            if let Some(row) = row.get(..m) {
+                for (acc, c) in sum.iter_mut().zip(row) {
+                    *acc += *c * *f;
+                }
+            }
+        }
+        let (mut even_d, mut odd_d) = (-F::ZERO, -F::ZERO);
+        for (j, ((acc, o), f)) in pphi.iter_mut().zip(odd.iter()).zip(phi).enumerate() {
+            *acc += *o;
+            if j % 2 == 0 {
+                even_d += *f * *acc;
+            } else {
+                odd_d += *f * *acc;
+            }
+        }
+        denom += even_d + odd_d;
     }
     if !(denom.is_finite() && denom > F::ZERO && eps.is_finite()) {
         return Err(Error::Numerical);

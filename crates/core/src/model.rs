@@ -582,7 +582,7 @@ impl Model {
             .inputs
             .iter()
             .zip(u)
-            .map(|(ch, s)| s[..n].iter().map(|&v| ch.map(v)).collect())
+            .map(|(ch, s)| ch.nonlinearity.apply_all(&s[..n]))
             .collect();
         let c = self.offset.unwrap_or(0.0);
         // One step from the outputs `past` (measured, simulated or scratch): c − Σ a_i past(k−i) + Σ b x,

@@ -36,7 +36,8 @@ fn hammerstein_record(seed: u64, n: usize) -> Dataset {
         .collect();
     let mut y = vec![0.0; n];
     for k in 3..n {
-        y[k] = 1.2 * y[k - 1] - 0.5 * y[k - 2] + 0.1 * y[k - 3]
+        y[k] = 1.2 * y[k - 1] - 0.5 * y[k - 2]
+            + 0.1 * y[k - 3]
             + 0.02 * x[k - 1]
             + rng.gen_range(-0.01..0.01);
     }
@@ -53,7 +54,11 @@ fn a_window_reports_what_identify_reports_without_the_residual_analysis() {
     let settings = WindowSettings {
         identification: identification.clone(),
         track: TrackSettings {
-            orders: Orders { na: 3, nb: 1, nk: 1 },
+            orders: Orders {
+                na: 3,
+                nb: 1,
+                nk: 1,
+            },
             detector: Some(DetectorSettings {
                 warmup: 200,
                 calibration: 800,
@@ -70,7 +75,10 @@ fn a_window_reports_what_identify_reports_without_the_residual_analysis() {
             IdentifyReport::assemble(&fit, &identification, std::slice::from_ref(&data), None, 25)
                 .unwrap();
         // The full report has a residual analysis; the window's says it was not computed.
-        assert!(matches!(full.residuals.estimation, ResidualEntry::Analysis(_)));
+        assert!(matches!(
+            full.residuals.estimation,
+            ResidualEntry::Analysis(_)
+        ));
         match &w.report.residuals.estimation {
             ResidualEntry::Unavailable { error } => assert_eq!(error, "not computed"),
             other => panic!("seed {seed}: expected no residual analysis, got {other:?}"),

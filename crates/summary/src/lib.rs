@@ -159,7 +159,8 @@ impl IdentifyReport {
     /// Assembles the whole report of a fit on its estimation data and, optionally, validation data:
     /// metrics, residual analysis with `max_lag` lags, and the warnings (the fit's own plus those the
     /// validation record raises). The one place where the `identify --json` document is made (the
-    /// command line and the Python package both call it).
+    /// command line and the Python package both call it; a fleet window takes the same document without
+    /// the residual analysis, [`IdentifyReport::without_residuals`]).
     ///
     /// With several estimation records (`est_data`: merged experiments) `metrics.estimation` pools their
     /// rows and `records` holds each one's metrics and residual analysis.

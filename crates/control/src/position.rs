@@ -300,7 +300,11 @@ impl PositionController {
                 if let Some((side, y_cut, v_cut)) = self.cut.take() {
                     // At rest after a cut: how far the piston coasted on with the valve closed,
                     // per mm/s of the speed at the cut.
-                    let moved = if side == 1 { y_mm - y_cut } else { y_cut - y_mm };
+                    let moved = if side == 1 {
+                        y_mm - y_cut
+                    } else {
+                        y_cut - y_mm
+                    };
                     if v_cut > 0.0 {
                         self.coast[side] = if moved > 0.0 { moved / v_cut } else { 0.0 };
                     }

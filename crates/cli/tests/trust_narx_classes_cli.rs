@@ -7,46 +7,10 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
 
-use std::path::Path;
-use std::process::Command;
+mod common;
 
+use common::{run_json_code, warnings};
 use serde_json::Value;
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
-}
-
-/// Runs `ipa-sysid ARGS --json F` in `dir`; returns the exit code and the JSON document.
-fn run_json(dir: &Path, args: &[&str]) -> (i32, Value) {
-    let tmp = tempfile::tempdir().unwrap();
-    let json = tmp.path().join("out.json");
-    let out = bin()
-        .current_dir(dir)
-        .args(args)
-        .arg("--json")
-        .arg(&json)
-        .output()
-        .unwrap();
-    let text = std::fs::read_to_string(&json).unwrap_or_else(|_| {
-        panic!(
-            "{args:?}: no JSON; {}",
-            String::from_utf8_lossy(&out.stderr)
-        )
-    });
-    (
-        out.status.code().unwrap(),
-        serde_json::from_str(&text).unwrap(),
-    )
-}
-
-fn warnings(doc: &Value) -> Vec<String> {
-    doc["warnings"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|w| w.as_str().unwrap().to_string())
-        .collect()
-}
 
 const HYDRAULIC: [&str; 10] = [
     "--data",
@@ -132,10 +96,10 @@ fn narx_without_an_input_term_is_not_chosen_silently_on_the_hydraulic_record() {
     args.extend(lags);
     let mut narx = args.clone();
     narx.extend(["--structure", "narx", "--degree", "3"]);
-    let (_, doc) = run_json(&dir, &narx);
+    let (_, doc) = run_json_code(&dir, &narx);
     let mut arx = args.clone();
     arx.extend(["--structure", "arx", "--method", "ls"]);
-    let (_, base) = run_json(&dir, &arx);
+    let (_, base) = run_json_code(&dir, &arx);
     assert_narx_rules(&doc, &base);
     let terms: Vec<&str> = doc["terms"]
         .as_array()
@@ -165,15 +129,15 @@ fn narx_negative_fit_is_warned_and_fails_strict_on_the_coupled_drives() {
         args.extend(extra);
         let mut narx = args.clone();
         narx.extend(["--structure", "narx"]);
-        let (code, doc) = run_json(&dir, &narx);
+        let (code, doc) = run_json_code(&dir, &narx);
         assert_eq!(code, 0);
         let mut arx = args.clone();
         arx.extend(["--structure", "arx", "--method", "ls"]);
-        let (_, base) = run_json(&dir, &arx);
+        let (_, base) = run_json_code(&dir, &arx);
         assert_narx_rules(&doc, &base);
         if !warnings(&doc).is_empty() {
             narx.push("--strict");
-            let (code, _) = run_json(&dir, &narx);
+            let (code, _) = run_json_code(&dir, &narx);
             assert_eq!(code, 1, "{extra:?}");
         }
     }
@@ -206,14 +170,14 @@ fn validate_of_a_narx_model_warns_like_identify() {
         "--save-model",
         model,
     ]);
-    run_json(&dir, &args);
+    run_json_code(&dir, &args);
     let text = std::fs::read_to_string(model).unwrap();
     let file: Value = serde_json::from_str(&text).unwrap();
     let has_input = file.to_string().contains("u(k");
     let mut args = vec!["validate", "--model", model];
     args.extend(&DRIVES[..8]);
     args.extend(["--rows", "250..500"]);
-    let (code, doc) = run_json(&dir, &args);
+    let (code, doc) = run_json_code(&dir, &args);
     assert_eq!(code, 0);
     let w = warnings(&doc);
     assert_eq!(
@@ -262,7 +226,7 @@ fn order_classes_never_recommends_a_disqualified_candidate_on_the_hydraulic_reco
         "--classes",
         "arx,hammerstein,narx2",
     ]);
-    let (code, doc) = run_json(&dir, &args);
+    let (code, doc) = run_json_code(&dir, &args);
     assert_eq!(code, 0);
     let cands = doc["candidates"].as_array().unwrap();
     let disqualifying = [
@@ -335,7 +299,7 @@ fn order_classes_warns_about_the_chosen_models_test_record() {
     let mut args = vec!["order"];
     args.extend(DRIVES);
     args.extend(["--na", "2", "--nb", "2", "--nk", "0", "--classes", "narx3"]);
-    let (code, doc) = run_json(&dir, &args);
+    let (code, doc) = run_json_code(&dir, &args);
     assert_eq!(code, 0);
     let Some(fit) = doc["chosen"]["fit_sim_percent"].as_f64() else {
         return;

@@ -133,9 +133,10 @@ pub fn identify_checked(
     // The safeguards of `estimate::identify` that concern an ARX least-squares fit.
     fit.warnings
         .extend(Warning::if_unstable_or_integrating(&fit.model));
-    fit.warnings.extend(Warning::if_poor_simulation(
+    // Judged on the worse of both initial states, with the initial-state warning, as in memory.
+    fit.warnings.extend(crate::trust::metric_warnings(
         Record::Estimation,
-        est_metrics.fit_sim_percent,
+        &est_metrics,
     ));
     let (validation, val_shape) = match val {
         Some(v) => {

@@ -1,0 +1,57 @@
+//! What the trust tests share: running the binary for its `--json` document and reading its
+//! `warnings`. Each integration test that needs them declares `mod common;` (Cargo's convention: a
+//! folder module is not compiled as a test of its own).
+
+// Each test binary uses part of this module; the rest would be reported as dead code.
+#![allow(dead_code, clippy::unwrap_used, clippy::expect_used)]
+
+use std::path::Path;
+use std::process::Command;
+
+use serde_json::Value;
+
+/// The binary under test.
+pub fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
+}
+
+/// Runs `ipa-sysid ARGS --json F` in `dir`; returns the exit code and the JSON document (the command
+/// must have written one, whatever its exit code).
+pub fn run_json_code(dir: &Path, args: &[&str]) -> (i32, Value) {
+    let tmp = tempfile::tempdir().unwrap();
+    let json = tmp.path().join("out.json");
+    let out = bin()
+        .current_dir(dir)
+        .args(args)
+        .arg("--json")
+        .arg(&json)
+        .output()
+        .unwrap();
+    let text = std::fs::read_to_string(&json).unwrap_or_else(|_| {
+        panic!(
+            "{args:?}: no JSON; {}",
+            String::from_utf8_lossy(&out.stderr)
+        )
+    });
+    (
+        out.status.code().unwrap(),
+        serde_json::from_str(&text).unwrap(),
+    )
+}
+
+/// Runs `ipa-sysid ARGS --json F` in `dir` and returns the JSON document; the command must succeed.
+pub fn run_json(dir: &Path, args: &[&str]) -> Value {
+    let (code, doc) = run_json_code(dir, args);
+    assert_eq!(code, 0, "{args:?} exited with {code}");
+    doc
+}
+
+/// The document's `warnings` list.
+pub fn warnings(doc: &Value) -> Vec<String> {
+    doc["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w.as_str().unwrap().to_string())
+        .collect()
+}

@@ -382,13 +382,9 @@ mod tests {
         assert_eq!(c.step(1.0, 0.0).unwrap(), 26.0);
     }
 
-    // The nudge mode by hand (the same case as control::position's test): deadzone b_l = −20, b_r = 30,
-    // band 1 mm, ρ Ts = 1 count per sample, β = 0.5, N_r = 2, γ = 0.5, e = 0.5 mm: closed until y has
-    // been still for 2 samples, then 15, 16, 17 counts; y moves at 17 (learnt, held) and the valve closes
-    // once y has covered 0.25 mm; the next nudge starts at 0.5 × 17.
-    #[test]
-    fn nudge_ramps_from_the_last_breakaway_learns_it_and_cuts() {
-        let comp = shift_inverse();
+    /// A P controller (Kp = 10) with the nudge mode: band 1 mm, ρ = 100 counts/s, β = 0.5, N_r = 2,
+    /// cut fraction γ.
+    fn nudging(cut_fraction: f64) -> PositionSettings<f64> {
         let mut settings = s();
         settings.ki = 0.0;
         settings.nudge = Some(NudgeSettings {
@@ -396,8 +392,19 @@ mod tests {
             ramp: 100.0,
             start_fraction: 0.5,
             rest_samples: 2,
-            cut_fraction: 0.5,
+            cut_fraction,
         });
+        settings
+    }
+
+    // The nudge mode by hand (the same case as control::position's test): deadzone b_l = −20, b_r = 30,
+    // band 1 mm, ρ Ts = 1 count per sample, β = 0.5, N_r = 2, γ = 0.5, e = 0.5 mm: closed until y has
+    // been still for 2 samples, then 15, 16, 17 counts; y moves at 17 (learnt, held) and the valve closes
+    // once y has covered 0.25 mm; the next nudge starts at 0.5 × 17.
+    #[test]
+    fn nudge_ramps_from_the_last_breakaway_learns_it_and_cuts() {
+        let comp = shift_inverse();
+        let settings = nudging(0.5);
         let mut c = PositionController::new(settings, Some(comp)).unwrap();
         let u: [f64; 10] = core::array::from_fn(|_| 0.0);
         let ys = [0.5, 0.5, 0.5, 0.5, 0.5, 0.6, 0.8, 0.8, 0.8, 0.99];
@@ -424,16 +431,7 @@ mod tests {
     // y = 1.875 because the 0.125 mm left is below τ_c × 37.5 mm/s + e_h.
     #[test]
     fn a_nudge_ends_where_the_learnt_coast_would_carry_the_piston() {
-        let mut settings = s();
-        settings.ki = 0.0;
-        settings.nudge = Some(NudgeSettings {
-            band: 1.0,
-            ramp: 100.0,
-            start_fraction: 0.5,
-            rest_samples: 2,
-            cut_fraction: 1.0,
-        });
-        let mut c = PositionController::new(settings, Some(shift_inverse())).unwrap();
+        let mut c = PositionController::new(nudging(1.0), Some(shift_inverse())).unwrap();
         let steps = [
             (1.0, 0.25, 0.0),
             (1.0, 0.25, 0.0),

@@ -1434,7 +1434,7 @@ fn control_loop<'py>(
             u_max,
             range_mm: limits.range_mm,
             unstable_pole: limits.unstable_pole,
-            fixed_step: matches!(profile, Profile::Fixed { .. }),
+            judge_steps: profile.has_held_steps(),
         },
     ));
     let out = PyDict::new(py);

@@ -9,12 +9,16 @@
 //! * **steady-state error** e_ss = r - y_f in mm (signed).
 //! * **rise time** t_r = t_90 - t_10, where t_p is the first time d (y - y0) reaches p |Δ|, found by linear
 //!   interpolation between the two samples around the crossing (MATLAB `RiseTime`, limits 10 %-90 %).
-//! * **settling time** t_s = the time, from t_0, after which |y - y_f| stays within 2 % of |Δ|; the
-//!   crossing into the band after the last sample outside it is linearly interpolated. 0 if no sample is
-//!   ever outside the band. `None` ("not settled within the run") when the response is still moving at
-//!   its end ([`still_moving`]) while its last sample is outside the set-point's 2 % band: y_f is then
-//!   not a final value, and a settling time measured against it would be an artefact of where the run
-//!   stopped.
+//! * **settling time** t_s = the time, from t_0, after which y stays within a band around a centre;
+//!   the crossing into the band after the last sample outside it is linearly interpolated, 0 if no
+//!   sample is ever outside it. When the run ends inside the set-point's band (|r − y_f| ≤ 2 % of
+//!   |r − y0|) the centre is r and the band 2 % of |r − y0| (MATLAB `stepinfo(y, t, r)`), so a response
+//!   that converges slowly gets the same t_s whatever the run's length. Otherwise the centre is y_f and
+//!   the band 2 % of |Δ| (`stepinfo(y, t)`: a loop with a genuine offset, such as a P controller), unless
+//!   the loop is not at rest: the output still moves at the end of the run ([`still_moving`]), or the
+//!   command does ([`command_still_moving`], e.g. an integrator winding up while friction holds the
+//!   piston short of r). Then t_s is `None` ("not settled within the run"): y_f is not a final value, and
+//!   a settling time measured against it would be an artefact of where the run stopped.
 //!
 //! When Δ = 0 (the response never left y0) the step-relative metrics are `None` (JSON `null`): there is no
 //! step to measure, and a made-up number would be misleading.
@@ -65,11 +69,24 @@ impl StepMetrics {
         y0_mm: f64,
         r_mm: f64,
     ) -> Result<StepMetrics, ControlError> {
+        Self::of_loop(t_s, y_mm, None, y0_mm, r_mm)
+    }
+
+    /// [`StepMetrics::compute`] for a closed loop whose command `u` (counts, one per sample) is known:
+    /// a response held outside the set-point's band while the command still moves has not settled.
+    pub fn of_loop(
+        t_s: &[f64],
+        y_mm: &[f64],
+        u: Option<&[f64]>,
+        y0_mm: f64,
+        r_mm: f64,
+    ) -> Result<StepMetrics, ControlError> {
         let n = t_s.len();
-        if n != y_mm.len() {
+        if n != y_mm.len() || u.is_some_and(|u| u.len() != n) {
             return Err(ControlError::Config(format!(
-                "step metrics: {n} times but {} outputs",
-                y_mm.len()
+                "step metrics: {n} times but {} outputs and {} commands",
+                y_mm.len(),
+                u.map_or(n, <[f64]>::len)
             )));
         }
         if n < 2 {
@@ -131,17 +148,13 @@ impl StepMetrics {
         };
 
         let band = SETTLING_BAND * step;
-        // The band's centre: the final value y_f, unless the output still moves at the end of the run.
-        // Then y_f is not final: outside the set-point's band there is no settling time yet; inside it
-        // (creeping towards r, which cannot leave the band around r) it is measured against the band
-        // around the set-point r, 2 % of the commanded step |r − y0|, whatever the run's length.
-        let (centre, band) = if still_moving(t_s, y_mm, band) {
-            let r_band = SETTLING_BAND * (r_mm - y0_mm).abs();
-            if (r_mm - y_f).abs() > r_band {
-                (None, band)
-            } else {
-                (Some(r_mm), r_band)
-            }
+        // The band's centre (see the module documentation): the set-point r when the run ends inside its
+        // band; otherwise the final value y_f, when the loop is at rest; otherwise none (not settled).
+        let r_band = SETTLING_BAND * (r_mm - y0_mm).abs();
+        let (centre, band) = if (r_mm - y_f).abs() <= r_band {
+            (Some(r_mm), r_band)
+        } else if still_moving(t_s, y_mm, band) || u.is_some_and(command_still_moving) {
+            (None, band)
         } else {
             (Some(y_f), band)
         };
@@ -169,7 +182,9 @@ impl StepMetrics {
     }
 
     /// Field-wise worst case over several steps (largest overshoot, rise and settling time; the steady-state
-    /// error of largest magnitude, sign kept). `None` fields are skipped; `None` if `steps` is empty.
+    /// error of largest magnitude, sign kept). `None` fields are skipped (a step without a step has no
+    /// relative metrics), except that the settling time is `None` when any step that moved has not
+    /// settled; `None` if `steps` is empty.
     pub fn worst<'a>(steps: impl IntoIterator<Item = &'a StepMetrics>) -> Option<StepMetrics> {
         fn pick(a: Option<f64>, b: Option<f64>) -> Option<f64> {
             match (a, b) {
@@ -178,12 +193,24 @@ impl StepMetrics {
                 (None, y) => y,
             }
         }
-        steps.into_iter().copied().reduce(|a, b| StepMetrics {
-            overshoot_mm: pick(a.overshoot_mm, b.overshoot_mm),
-            overshoot_percent: pick(a.overshoot_percent, b.overshoot_percent),
-            steady_state_error_mm: pick(a.steady_state_error_mm, b.steady_state_error_mm),
-            rise_time_s: pick(a.rise_time_s, b.rise_time_s),
-            settling_time_s: pick(a.settling_time_s, b.settling_time_s),
+        // A step that moved (it has an overshoot) but has no settling time has not settled: then
+        // neither has the run, whatever the other steps did.
+        let unsettled = |m: &StepMetrics| m.overshoot_mm.is_some() && m.settling_time_s.is_none();
+        let mut any_unsettled = false;
+        let worst = steps
+            .into_iter()
+            .copied()
+            .inspect(|m| any_unsettled |= unsettled(m))
+            .reduce(|a, b| StepMetrics {
+                overshoot_mm: pick(a.overshoot_mm, b.overshoot_mm),
+                overshoot_percent: pick(a.overshoot_percent, b.overshoot_percent),
+                steady_state_error_mm: pick(a.steady_state_error_mm, b.steady_state_error_mm),
+                rise_time_s: pick(a.rise_time_s, b.rise_time_s),
+                settling_time_s: pick(a.settling_time_s, b.settling_time_s),
+            });
+        worst.map(|w| StepMetrics {
+            settling_time_s: w.settling_time_s.filter(|_| !any_unsettled),
+            ..w
         })
     }
 }
@@ -203,15 +230,35 @@ pub const DRIFT_FRACTION: f64 = 0.1;
 /// more such tails.
 pub fn still_moving(t_s: &[f64], y_mm: &[f64], band_mm: f64) -> bool {
     let n = t_s.len().min(y_mm.len());
-    let m = (n as f64 * TAIL_FRACTION) as usize;
-    if m < 4 {
-        return false;
-    }
-    let tail = &y_mm[n - m..n];
-    let half = m / 2;
+    tail(&y_mm[..n]).is_some_and(|tail| drift(tail) > DRIFT_FRACTION * band_mm)
+}
+
+/// The last [`TAIL_FRACTION`] of `v`; `None` when that is fewer than 4 samples (too short to tell).
+fn tail(v: &[f64]) -> Option<&[f64]> {
+    let m = (v.len() as f64 * TAIL_FRACTION) as usize;
+    (m >= 4).then(|| &v[v.len() - m..])
+}
+
+/// Twice the difference between the means of the two halves of `tail` (its drift, with sample noise
+/// and quantisation averaged out).
+fn drift(tail: &[f64]) -> f64 {
+    let half = tail.len() / 2;
     let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
-    let drift = 2.0 * (mean(&tail[half..]) - mean(&tail[..half])).abs();
-    drift > DRIFT_FRACTION * band_mm
+    2.0 * (mean(&tail[half..]) - mean(&tail[..half])).abs()
+}
+
+/// Fraction of the command's largest magnitude over the run's tail by which the command may still drift
+/// over that tail (measured as in [`still_moving`]) for the loop to count as at rest.
+pub const COMMAND_DRIFT_FRACTION: f64 = 0.01;
+
+/// True when the command `u` (counts) still drifts over the last [`TAIL_FRACTION`] of the run by more
+/// than [`COMMAND_DRIFT_FRACTION`] of its largest magnitude there: a loop whose integrator still winds up
+/// (the piston held by friction short of its set-point) is not at rest even when its output is flat.
+pub fn command_still_moving(u: &[f64]) -> bool {
+    tail(u).is_some_and(|tail| {
+        let scale = tail.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
+        drift(tail) > COMMAND_DRIFT_FRACTION * scale
+    })
 }
 
 /// One step of an unfixed set-point profile and its metrics.
@@ -244,7 +291,13 @@ pub fn metrics_for_steps(trace: &Trace) -> Result<Vec<StepSegment>, ControlError
         if e - s < 2 {
             continue;
         }
-        let metrics = StepMetrics::compute(&trace.t[s..e], &trace.y[s..e], trace.y[s], trace.r[s])?;
+        let metrics = StepMetrics::of_loop(
+            &trace.t[s..e],
+            &trace.y[s..e],
+            Some(&trace.u[s..e]),
+            trace.y[s],
+            trace.r[s],
+        )?;
         out.push(StepSegment {
             start_s: trace.t[s],
             end_s: trace.t[e - 1],
@@ -277,7 +330,7 @@ pub fn run_metrics(trace: &Trace, profile: &crate::Profile) -> Result<RunMetrics
             let y0 = trace.y.first().copied().unwrap_or(0.0);
             (
                 "fixed",
-                StepMetrics::compute(&trace.t, &trace.y, y0, *setpoint_mm)?,
+                StepMetrics::of_loop(&trace.t, &trace.y, Some(&trace.u), y0, *setpoint_mm)?,
             )
         }
         _ => (
@@ -370,6 +423,40 @@ mod tests {
         );
         assert_eq!(m.overshoot_mm, Some(0.0));
         assert!(m.steady_state_error_mm.unwrap().abs() < 1e-8);
+    }
+
+    #[test]
+    fn a_run_ending_inside_the_set_points_band_settles_against_r_whatever_its_length() {
+        // y = 1 - e^(-t/τ) towards r = 1 enters r's 2 % band at τ ln 50, for runs of 5τ, 8τ and 20τ,
+        // although y_f (0.9933, 0.99966, 1 − 2e-9) and with it a band around y_f differ.
+        let tau = 0.5;
+        let dt = tau / 1000.0;
+        for end in [5.0, 8.0, 20.0] {
+            let t = grid(dt, end * tau);
+            let y: Vec<f64> = t.iter().map(|&t| 1.0 - (-t / tau).exp()).collect();
+            let m = StepMetrics::of_loop(&t, &y, Some(&vec![1.0; t.len()]), 0.0, 1.0).unwrap();
+            let ts = m.settling_time_s.unwrap();
+            assert!((ts - tau * 50f64.ln()).abs() < 1e-5 * tau, "{end}τ: {ts}");
+        }
+    }
+
+    #[test]
+    fn a_response_held_short_of_r_settles_only_when_the_command_is_at_rest() {
+        // y ramps 0 -> 0.9 over 1 s, then stays at 0.9 to 5 s (r = 1: outside its 0.02 band). With a
+        // constant command (a P loop's offset) it settles against y_f = 0.9: band 0.018, entered at
+        // t = 0.98 s. With a command still rising by 4 counts per second (an integrator winding up) it has
+        // not settled.
+        let t = grid(0.01, 5.0);
+        let y: Vec<f64> = t.iter().map(|&t| 0.9 * t.min(1.0)).collect();
+        let at_rest = vec![40.0; t.len()];
+        let m = StepMetrics::of_loop(&t, &y, Some(&at_rest), 0.0, 1.0).unwrap();
+        assert!((m.settling_time_s.unwrap() - 0.98).abs() < 1e-9, "{m:?}");
+        let winding: Vec<f64> = t.iter().map(|&t| 40.0 * (1.0 + 0.1 * t)).collect();
+        assert!(command_still_moving(&winding));
+        assert!(!command_still_moving(&at_rest));
+        let m = StepMetrics::of_loop(&t, &y, Some(&winding), 0.0, 1.0).unwrap();
+        assert_eq!(m.settling_time_s, None);
+        assert!((m.steady_state_error_mm.unwrap() - 0.1).abs() < 1e-12);
     }
 
     #[test]
@@ -523,7 +610,7 @@ mod tests {
             overshoot_percent: Some(2.0),
             steady_state_error_mm: Some(0.1),
             rise_time_s: Some(0.3),
-            settling_time_s: None,
+            settling_time_s: Some(0.5),
         };
         let b = StepMetrics {
             overshoot_mm: Some(0.5),
@@ -539,5 +626,23 @@ mod tests {
         assert_eq!(w.rise_time_s, Some(0.3));
         assert_eq!(w.settling_time_s, Some(1.0));
         assert!(StepMetrics::worst([]).is_none());
+        // A step that never left y0 has no settling time to take; one that moved without settling
+        // makes the run unsettled.
+        let still = StepMetrics {
+            overshoot_mm: None,
+            overshoot_percent: None,
+            steady_state_error_mm: Some(0.0),
+            rise_time_s: None,
+            settling_time_s: None,
+        };
+        let w = StepMetrics::worst([&a, &still, &b]).unwrap();
+        assert_eq!(w.settling_time_s, Some(1.0));
+        let unsettled = StepMetrics {
+            settling_time_s: None,
+            ..a
+        };
+        let w = StepMetrics::worst([&unsettled, &b]).unwrap();
+        assert_eq!(w.settling_time_s, None);
+        assert_eq!(w.rise_time_s, Some(0.3));
     }
 }

@@ -48,6 +48,13 @@ pub enum Profile {
 }
 
 impl Profile {
+    /// True when the profile is made of held steps (a fixed set-point or a staircase), each of which is
+    /// judged against the paper's acceptance ([`crate::LoopFacts::judge_steps`]); a profile read from
+    /// samples may change r every sample.
+    pub fn has_held_steps(&self) -> bool {
+        matches!(self, Profile::Fixed { .. } | Profile::Staircase { .. })
+    }
+
     /// Parses a specification string (see the module documentation); `file:` specs read the file.
     ///
     /// ```

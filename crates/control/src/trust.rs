@@ -2,12 +2,15 @@
 //! (the `warnings` list of `ipa-sysid control --json`, `warning:` lines in the text, Python's
 //! `control()`).
 //!
-//! - a step that has not settled within the run ([`crate::metrics::still_moving`]);
+//! - a step that has not settled within the run: the output still moves
+//!   ([`crate::metrics::still_moving`]), or it is held outside the set-point's band while the command
+//!   still moves ([`crate::metrics::command_still_moving`]);
 //! - a command saturated at ±u_max for more than [`SATURATION_WARN`] of the samples (the loop is not
 //!   in its linear range: the metrics describe a saturated response);
 //! - a set-point outside the plant's reachable range (the IPA's stroke, 0..L mm);
 //! - an unstable plant model (its metrics describe a diverging simulation);
-//! - a fixed step that misses the paper's acceptance (overshoot < 10 %, |e_ss| < 2 % of the step).
+//! - a step (of a fixed set-point or a staircase) that misses the paper's acceptance (overshoot < 10 %,
+//!   |e_ss| < 2 % of the step).
 
 use crate::metrics::{still_moving, StepSegment, SETTLING_BAND};
 use crate::Trace;
@@ -24,8 +27,9 @@ pub struct LoopFacts {
     pub range_mm: Option<(f64, f64)>,
     /// The largest pole modulus of a model plant when it exceeds 1 (unstable); `None` otherwise.
     pub unstable_pole: Option<f64>,
-    /// True for a fixed set-point (one step), judged against the paper's acceptance.
-    pub fixed_step: bool,
+    /// True for a fixed set-point or a staircase: each step is judged against the paper's acceptance
+    /// (a profile read from samples may change r every sample, which has no step to judge).
+    pub judge_steps: bool,
 }
 
 /// The warnings of a run `trace` with its `steps` (from [`crate::metrics_for_steps`]).
@@ -77,6 +81,19 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
         let (t, y): (Vec<f64>, Vec<f64>) = k.iter().map(|&k| (trace.t[k], trace.y[k])).unzip();
         let step = (y.last().copied().unwrap_or(s.y0_mm) - s.y0_mm).abs();
         if !still_moving(&t, &y, SETTLING_BAND * step) {
+            if s.metrics.settling_time_s.is_none() {
+                // At rest in y but not in u (metrics::command_still_moving).
+                w.push(format!(
+                    "the step to r = {} mm at t = {:.3} s has not settled within {:.3} s: the output \
+                     stopped {:.4} mm short of the set-point, outside its 2 % band, while the command \
+                     still changes (friction holds the piston while the integrator winds up), so its \
+                     settling time is unknown (null) and its steady-state error is not final",
+                    s.setpoint_mm,
+                    s.start_s,
+                    s.end_s - s.start_s,
+                    s.metrics.steady_state_error_mm.unwrap_or(f64::NAN).abs()
+                ));
+            }
             continue;
         }
         if let Some(ts) = s.metrics.settling_time_s {
@@ -100,8 +117,8 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
             ));
         }
     }
-    if facts.fixed_step {
-        if let Some(s) = steps.first() {
+    if facts.judge_steps {
+        for s in steps {
             let step = (s.setpoint_mm - s.y0_mm).abs();
             let (os, ess) = (s.metrics.overshoot_percent, s.metrics.steady_state_error_mm);
             let mut missed = Vec::new();
@@ -116,8 +133,16 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
                 ));
             }
             if !missed.is_empty() {
+                let which = if steps.len() == 1 {
+                    "the step".to_string()
+                } else {
+                    format!(
+                        "the step to r = {} mm at t = {:.3} s",
+                        s.setpoint_mm, s.start_s
+                    )
+                };
                 w.push(format!(
-                    "the step misses the paper's acceptance: {}",
+                    "{which} misses the paper's acceptance: {}",
                     missed.join("; ")
                 ));
             }
@@ -176,7 +201,7 @@ mod tests {
                 u_max: 255.0,
                 range_mm: Some((0.0, 200.0)),
                 unstable_pole: Some(1.02),
-                fixed_step: true,
+                judge_steps: true,
             },
         );
         assert!(w.iter().any(|w| w.contains("99.9 %")), "{w:?}");

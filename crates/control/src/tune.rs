@@ -307,7 +307,8 @@ pub fn evaluate(
                 spec.run_s,
                 case.y0_mm,
             )?;
-            let metrics = StepMetrics::compute(&trace.t, &trace.y, case.y0_mm, case.r_mm)?;
+            let metrics =
+                StepMetrics::of_loop(&trace.t, &trace.y, Some(&trace.u), case.y0_mm, case.r_mm)?;
             let tail = &trace.y[trace.len() - trace.len() / 5..];
             let hi = tail.iter().copied().fold(f64::NEG_INFINITY, f64::max);
             let lo = tail.iter().copied().fold(f64::INFINITY, f64::min);

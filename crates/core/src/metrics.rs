@@ -141,7 +141,18 @@ fn estimate_initial_from(
     }
     // A free response that is identically zero after k0 (a pole at 0) still has its unit row below
     // k0, so the problem is never rank deficient.
-    let sol = crate::ls::solve(&phi, &target, &[])?;
+    // Numerically they can still be dependent when the model diverges (its free responses grow until
+    // one swamps the others): say that, not the least squares' "input is not persistently exciting",
+    // which would send the user to redesign a good experiment.
+    let sol = crate::ls::solve(&phi, &target, &[]).map_err(|e| match e {
+        SysidError::Data(_) => SysidError::Data(
+            "the initial outputs that fit the record best cannot be estimated: the model's free \
+             responses are numerically dependent over the record (a diverging, unstable model makes \
+             them so), so only the fit from the measured initial outputs is defined"
+                .into(),
+        ),
+        other => other,
+    })?;
     let eta: Vec<f64> = (0..k0).map(|j| y0[j] + sol.theta[j]).collect();
     let mut out = base;
     let columns: Vec<&[f64]> = phi.as_slice().chunks_exact(n).collect();
@@ -539,6 +550,25 @@ mod initial_tests {
     // starts with a noisy y(0) = 4 is fitted exactly once η0 is estimated: η0 = 5 minimises
     // (4 − η0)² + Σ_{k≥1} (5·0.9^k − η0·0.9^k)² only approximately, so check against the closed form
     // η0 = (4 + 5 Σ 0.81^k) / (1 + Σ 0.81^k), k = 1..N−1.
+    #[test]
+    fn a_diverging_model_is_named_when_its_initial_outputs_cannot_be_estimated() {
+        // Poles 1.2 and 1.1 (A = 1 − 2.3 q⁻¹ + 1.32 q⁻²) over 1000 samples: both free responses grow like
+        // 1.2^k (10^79 at the end, still finite), their 1.1^k parts vanish beside it (ratio 10^-38), so
+        // the two columns are parallel to rounding. The cause is the model, not the input.
+        let n = 1000;
+        let y: Vec<f64> = (0..n).map(|k| (k as f64 * 0.1).sin()).collect();
+        let data = Dataset::new(Signals { u: y.clone(), y }, 1.0, "rec").unwrap();
+        let m = Model::arx(1.0, vec![-2.3, 1.32], vec![1.0], 1, None).unwrap();
+        let err = simulate_estimated_initial(&m, &data)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.contains("free responses are numerically dependent"),
+            "{err}"
+        );
+        assert!(!err.contains("persistently exciting"), "{err}");
+    }
+
     #[test]
     fn estimated_initial_output_is_the_least_squares_value() {
         let n = 40;

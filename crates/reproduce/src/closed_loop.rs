@@ -107,7 +107,13 @@ pub(crate) fn step_metrics(
     y0_mm: f64,
     r_mm: f64,
 ) -> Result<StepMetrics, ReproduceError> {
-    Ok(StepMetrics::compute(&trace.t, &trace.y, y0_mm, r_mm)?)
+    Ok(StepMetrics::of_loop(
+        &trace.t,
+        &trace.y,
+        Some(&trace.u),
+        y0_mm,
+        r_mm,
+    )?)
 }
 
 pub(crate) fn unfixed_metrics(

@@ -264,7 +264,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             u_max: tuned.map_or(args.u_max, |t| t.u_max),
             range_mm: limits.range_mm,
             unstable_pole: limits.unstable_pole,
-            fixed_step: matches!(profile, Profile::Fixed { .. }),
+            judge_steps: profile.has_held_steps(),
         },
     ));
 

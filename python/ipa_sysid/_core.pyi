@@ -267,6 +267,5 @@ def fleet_windows(
     nk: int = 1,
     detect_warmup: int = 200,
     detect_calibration: int = 800,
-    resid_lags: int = 25,
 ) -> dict[str, Any]:
     """Every window of a partition identified (LS) and tracked: the columns `ipa_sysid.fleet.identify_partition` builds its frame from."""

@@ -80,7 +80,6 @@ def identify_partition(
     nk=1,
     detect_warmup=200,
     detect_calibration=800,
-    resid_lags=25,
 ):
     """One row per actuator and window of ``partition`` (a pandas DataFrame with columns ``actuator_id,
     t, u, y``; any other columns are ignored).
@@ -130,7 +129,6 @@ def identify_partition(
         nk,
         detect_warmup,
         detect_calibration,
-        resid_lags,
     )
     group = np.asarray(r["group"], dtype=np.int64)
     start = np.asarray(r["start"], dtype=np.int64)

@@ -824,7 +824,7 @@ const MAX_FLEET_WINDOWS: usize = 10_000_000;
 /// identification failed: a fleet goes on past one bad record). The GIL is released while computing.
 #[pyfunction]
 #[pyo3(signature = (u, y, offsets, ts, window, method="ls", na=3, nb=1, nk=1, detect_warmup=200,
-    detect_calibration=800, resid_lags=25))]
+    detect_calibration=800))]
 #[allow(clippy::too_many_arguments)]
 fn fleet_windows<'py>(
     py: Python<'py>,
@@ -839,7 +839,6 @@ fn fleet_windows<'py>(
     nk: usize,
     detect_warmup: usize,
     detect_calibration: usize,
-    resid_lags: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
     let u = floats(u, "u")?;
     let y = floats(y, "y")?;
@@ -887,7 +886,6 @@ fn fleet_windows<'py>(
     sysid::online::Tracker::new(track).map_err(sysid_err)?;
     let settings = sysid_summary::monitor::WindowSettings {
         identification,
-        resid_lags,
         track,
     };
     // (group, window index, first row) of every complete window.

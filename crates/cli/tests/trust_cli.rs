@@ -698,7 +698,7 @@ fn a_nonlinearity_on_a_two_level_input_is_refused_with_the_reason() {
     let err = String::from_utf8_lossy(&out.stderr);
     if levels.len() == 2 {
         assert_eq!(out.status.code(), Some(2), "{err}");
-        assert!(err.contains("at least 3 distinct levels"), "{err}");
+        assert!(err.contains("only 2 distinct levels"), "{err}");
         assert!(err.contains("DATAPRBS.csv"), "{err}");
     }
 }

@@ -80,7 +80,8 @@ pub struct Nudge {
     /// N_r: samples of unchanged y that count as rest (>= 1); a nudge starts only at rest.
     pub rest_samples: u32,
     /// γ: a nudge ends (valve closed) once the piston has covered γ |e_0| of the error e_0 it started
-    /// with, or e changed sign (0 < γ <= 1; the piston coasts on after the valve closes).
+    /// with, or the error left is at most the learnt coast τ_c |dy/dt| + e_h, or e changed sign
+    /// (0 < γ <= 1; the piston coasts on after the valve closes).
     pub cut_fraction: f64,
 }
 
@@ -192,6 +193,8 @@ impl ControllerSettings {
             still: 0,
             nudging: None,
             breakaway,
+            cut: None,
+            coast: [-1.0, -1.0],
         })
     }
 }
@@ -236,6 +239,12 @@ pub struct PositionController {
     nudging: Option<Nudging>,
     /// u_b: the last breakaway command in each direction (left, right), counts.
     breakaway: [f64; 2],
+    /// The last nudge's direction, the position where its valve closed and |dy/dt| there (mm/s),
+    /// until the piston rests.
+    cut: Option<(usize, f64, f64)>,
+    /// τ_c: how far the piston coasted on after the last cut in each direction (left, right) per
+    /// mm/s of its speed at the cut, s; −1 = not learnt yet.
+    coast: [f64; 2],
 }
 
 impl PositionController {
@@ -254,14 +263,21 @@ impl PositionController {
         self.breakaway
     }
 
+    /// The learnt coasts τ_c (left, right): distance coasted after a cut per mm/s of speed at the
+    /// cut, s; −1 = not learnt.
+    pub fn coast_s(&self) -> [f64; 2] {
+        self.coast
+    }
+
     /// The nudge mode's command at |e| in (e_h, e_n] (module documentation).
-    fn nudge(&mut self, n: &Nudge, e: f64, y_mm: f64) -> f64 {
+    fn nudge(&mut self, n: &Nudge, e: f64, y_mm: f64, dy: f64) -> f64 {
         self.integral = 0.0;
         let s = &self.settings;
         let g = match self.nudging {
             Some(g) => {
-                if (y_mm - g.y0_mm).abs() >= n.cut_fraction * g.e0_mm.abs() || e * g.e0_mm <= 0.0 {
+                if e * g.e0_mm <= 0.0 || (y_mm != g.y0_mm && self.cut_now(n, &g, e, y_mm, dy)) {
                     self.nudging = None;
+                    self.cut = Some((g.side, y_mm, dy.abs()));
                     return 0.0;
                 }
                 if g.moving {
@@ -281,6 +297,18 @@ impl PositionController {
             }
             None if self.still < n.rest_samples => return 0.0,
             None => {
+                if let Some((side, y_cut, v_cut)) = self.cut.take() {
+                    // At rest after a cut: how far the piston coasted on with the valve closed,
+                    // per mm/s of the speed at the cut.
+                    let moved = if side == 1 {
+                        y_mm - y_cut
+                    } else {
+                        y_cut - y_mm
+                    };
+                    if v_cut > 0.0 {
+                        self.coast[side] = if moved > 0.0 { moved / v_cut } else { 0.0 };
+                    }
+                }
                 let side = usize::from(e > 0.0);
                 let start = n.start_fraction * self.breakaway[side];
                 Nudging {
@@ -299,6 +327,16 @@ impl PositionController {
             -g.u_mag
         }
     }
+
+    /// Whether a nudge that has moved the piston ends now: once it has covered γ |e_0|, or once the
+    /// error left is at most τ_c(side) |dy/dt| + e_h, the distance it is expected to coast on
+    /// (τ_c learnt after the last cut in its direction; the γ rule alone until then).
+    fn cut_now(&self, n: &Nudge, g: &Nudging, e: f64, y_mm: f64, dy: f64) -> bool {
+        let coast = self.coast[g.side];
+        let left = if g.side == 1 { e } else { -e };
+        (y_mm - g.y0_mm).abs() >= n.cut_fraction * g.e0_mm.abs()
+            || (coast >= 0.0 && left <= coast * dy.abs() + self.settings.hold_band_mm)
+    }
 }
 
 impl Controller for PositionController {
@@ -314,6 +352,8 @@ impl Controller for PositionController {
         self.still = 0;
         self.nudging = None;
         self.breakaway = initial_breakaway(&self.settings);
+        self.cut = None;
+        self.coast = [-1.0, -1.0];
     }
 
     fn step(&mut self, r_mm: f64, y_mm: f64) -> f64 {
@@ -331,14 +371,17 @@ impl Controller for PositionController {
         self.derivative = self.alpha * self.derivative - (1.0 - self.alpha) * dy;
         if e.abs() <= s.hold_band_mm {
             self.e_prev = e;
-            self.nudging = None;
+            if let Some(g) = self.nudging.take() {
+                self.cut = Some((g.side, y_mm, dy.abs()));
+            }
             return 0.0;
         }
         if let Some(n) = s.nudge.filter(|n| e.abs() <= n.band_mm) {
             self.e_prev = e;
-            return self.nudge(&n, e, y_mm);
+            return self.nudge(&n, e, y_mm, dy);
         }
         self.nudging = None;
+        self.cut = None;
         if s.reset_on_crossing && e * self.e_prev < 0.0 {
             self.integral = 0.0;
         }
@@ -551,6 +594,40 @@ mod tests {
         assert_eq!(c.step(3.0, 1.0), 50.0);
         c.reset();
         assert_eq!(c.breakaway_counts(), [20.0, 30.0]);
+    }
+
+    // The learnt coast, by hand (γ = 1, so only the coast rule can end a nudge early): a nudge from
+    // y = 0.25 to r = 1 reaches the hold band at 50 mm/s (cut there), coasts on to 1.25 and rests:
+    // τ_c(right) = 0.25 mm / 50 mm/s. Then r = 2: the left nudge under way ends (e changed sign; its
+    // speed 0 teaches nothing) and a right nudge starts at β u_b = 7.5; at y = 1.875 (37.5 mm/s) the
+    // error left, 0.125 mm, is below τ_c × 37.5 + e_h = 0.2075 mm: cut, although the γ rule would
+    // hold on (moved 0.625 < 0.75 mm).
+    #[test]
+    fn a_nudge_ends_where_the_learnt_coast_would_carry_the_piston() {
+        let mut s = nudging();
+        s.nudge.as_mut().unwrap().cut_fraction = 1.0;
+        let mut c = s.build().unwrap();
+        let steps = [
+            (1.0, 0.25, 0.0),
+            (1.0, 0.25, 0.0),
+            (1.0, 0.25, 15.0),
+            (1.0, 0.5, 15.0),
+            (1.0, 1.0, 0.0),
+            (1.0, 1.25, 0.0),
+            (1.0, 1.25, 0.0),
+            (1.0, 1.25, -10.0),
+            (2.0, 1.25, 0.0),
+            (2.0, 1.25, 7.5),
+            (2.0, 1.5, 7.5),
+            (2.0, 1.875, 0.0),
+        ];
+        for (k, (r, y, u)) in steps.into_iter().enumerate() {
+            assert_eq!(c.step(r, y), u, "sample {k}");
+        }
+        assert_eq!(c.coast_s()[1], 0.25 / ((1.0 - 0.5) / 0.01));
+        assert_eq!(c.coast_s()[0], -1.0);
+        c.reset();
+        assert_eq!(c.coast_s(), [-1.0, -1.0]);
     }
 
     #[test]

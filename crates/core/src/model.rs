@@ -582,7 +582,7 @@ impl Model {
             .inputs
             .iter()
             .zip(u)
-            .map(|(ch, s)| s[..n].iter().map(|&v| ch.map(v)).collect())
+            .map(|(ch, s)| ch.nonlinearity.apply_all(&s[..n]))
             .collect();
         let c = self.offset.unwrap_or(0.0);
         // One step from the outputs `past` (measured, simulated or scratch): c − Σ a_i past(k−i) + Σ b x,
@@ -615,6 +615,27 @@ impl Model {
         };
         let mut out: Vec<f64> = Vec::with_capacity(n);
         out.extend_from_slice(&y[..n.min(k0)]);
+        // The common structures (one input, na ≤ 4, nb ≤ 2; the paper's is na = 3, nb = 1) run the
+        // same steps compiled for their orders.
+        if let ([ch], [xi], None | Some(1)) = (&self.inputs[..], &x[..], horizon) {
+            let simulate = horizon.is_none();
+            let mut run =
+                |f: OneInputRun| f(&self.a, &ch.b, c, ch.nk, xi, y, k0, n, simulate, &mut out);
+            macro_rules! sized {
+                ($(($na:literal, $nb:literal))*) => {
+                    match (na, ch.b.len()) {
+                        $(($na, $nb) => Some(run(run_one_input::<$na, $nb>)),)*
+                        _ => None,
+                    }
+                };
+            }
+            let done = sized!((1, 1)(2, 1)(3, 1)(4, 1)(1, 2)(2, 2)(3, 2)(4, 2));
+            match done {
+                Some(Ok(())) => return Ok(out),
+                Some(Err(k)) => return fail(k, if simulate { "simulation" } else { "prediction" }),
+                None => {}
+            }
+        }
         match horizon {
             None => {
                 for k in k0..n {
@@ -1236,6 +1257,57 @@ impl crate::Plant for ModelPlant {
     fn name(&self) -> String {
         self.label.clone()
     }
+}
+
+/// The signature of [`run_one_input`] for one pair of orders.
+type OneInputRun = fn(
+    &[f64],
+    &[f64],
+    f64,
+    usize,
+    &[f64],
+    &[f64],
+    usize,
+    usize,
+    bool,
+    &mut Vec<f64>,
+) -> Result<(), usize>;
+
+/// [`Model::run_linear`]'s simulation (`simulate`: the past outputs are the simulated ones in `out`) or
+/// one-step prediction (the past outputs are the measured `y`) for one input channel of `NA` poles `a`
+/// and `NB` coefficients `b` (slices of exactly those lengths), offset `c`, delay `nk` and mapped input
+/// `x`: y(k) = c − Σ a_i past(k − i) + Σ b_j x(k − nk − j + 1) for k = k0..n, appended to `out`
+/// (which holds the first k0 outputs). The same operations in the same order as `run_linear`'s general
+/// step, so the same numbers to the bit. Err(k): the first non-finite output.
+#[allow(clippy::too_many_arguments)]
+fn run_one_input<const NA: usize, const NB: usize>(
+    a: &[f64],
+    b: &[f64],
+    c: f64,
+    nk: usize,
+    x: &[f64],
+    y: &[f64],
+    k0: usize,
+    n: usize,
+    simulate: bool,
+    out: &mut Vec<f64>,
+) -> Result<(), usize> {
+    let (a, b) = (&a[..NA], &b[..NB]);
+    for k in k0..n {
+        let past: &[f64] = if simulate { out } else { y };
+        let mut v = c;
+        for i in 0..NA {
+            v -= a[i] * past[k - 1 - i];
+        }
+        for j in 0..NB {
+            v += b[j] * x[k - nk - j];
+        }
+        if !v.is_finite() {
+            return Err(k);
+        }
+        out.push(v);
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -335,6 +335,19 @@ impl StaticNonlinearity {
         }
     }
 
+    /// x = f(u) for every sample of `u`: [`StaticNonlinearity::apply`] with the choice of map made once
+    /// for the record instead of once per sample (the same numbers).
+    pub fn apply_all(&self, u: &[f64]) -> Vec<f64> {
+        match self {
+            StaticNonlinearity::Linear => u.to_vec(),
+            StaticNonlinearity::Deadzone(d) => u.iter().map(|&v| d.apply(v)).collect(),
+            StaticNonlinearity::Saturation(s) => u.iter().map(|&v| s.apply(v)).collect(),
+            StaticNonlinearity::DeadzoneSaturation(d) => u.iter().map(|&v| d.apply(v)).collect(),
+            StaticNonlinearity::PiecewiseLinear(p) => u.iter().map(|&v| p.apply(v)).collect(),
+            StaticNonlinearity::Polynomial(p) => u.iter().map(|&v| p.apply(v)).collect(),
+        }
+    }
+
     /// df/du at u (the derivative of the branch u lies on, as [`StaticNonlinearity::apply`] assigns a
     /// kink); used for an output nonlinearity's sensitivities and invertibility checks.
     pub fn slope(&self, u: f64) -> f64 {

@@ -25,6 +25,10 @@ pub trait Float:
     const ONE: Self;
     /// +∞.
     const INFINITY: Self;
+    /// Whether the estimators add in exactly `sysid`'s order (f64: bit-for-bit agreement). `false`
+    /// (f32, which has nothing to agree with) lets [`crate::Rls`] split its long sums in two halves
+    /// so that the chain of dependent operations through P is shorter. Default `true`.
+    const SYSID_ORDER: bool = true;
     /// Whether the value is neither infinite nor NaN.
     fn is_finite(self) -> bool;
     /// The nearest value of this type to `v` (exact for f64).
@@ -76,6 +80,7 @@ impl Float for f32 {
     const ZERO: Self = 0.0;
     const ONE: Self = 1.0;
     const INFINITY: Self = f32::INFINITY;
+    const SYSID_ORDER: bool = false;
     #[inline]
     fn is_finite(self) -> bool {
         f32::is_finite(self)

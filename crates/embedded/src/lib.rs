@@ -121,24 +121,26 @@ mod tests {
         assert_eq!(size_of::<Compensator<f32>>(), round(6 * 4 + 1, 4));
         // PositionController: settings (eight floats, a bool, the optional nudge settings: four floats,
         // a u32 and the `None` tag), the optional compensator (the slope mode's spare values hold the
-        // `None`), seven floats (α, I, D, y(k−1), e(k−1), two breakaway commands), the optional nudge
-        // under way (three floats and two bools, whose spare values hold the `None`), a u32 and a
-        // bool: 272 bytes for f64 on a 64-bit host.
+        // `None`), nine floats (α, I, D, y(k−1), e(k−1), two breakaway commands, two learnt coasts),
+        // the optional nudge under way (three floats and two bools, whose spare values hold the
+        // `None`), the optional last cut (two floats and a bool, whose spare values hold the `None`),
+        // a u32 and a bool: 312 bytes for f64 on a 64-bit host.
         let a = |f: usize| f.max(4);
         let nudge = |f: usize| round(4 * f + 4, a(f)) + a(f);
         let settings = |f: usize| round(8 * f + 1 + nudge(f), f);
         let nudging = |f: usize| round(3 * f + 2, f);
+        let cut = |f: usize| round(2 * f + 1, f);
         let ctl = |f: usize| {
             round(
-                settings(f) + round(6 * f + 1, f) + 7 * f + nudging(f) + 4 + 1,
+                settings(f) + round(6 * f + 1, f) + 9 * f + nudging(f) + cut(f) + 4 + 1,
                 f.max(4),
             )
         };
         assert_eq!(size_of::<PositionController<f64>>(), ctl(8));
         assert_eq!(size_of::<PositionController<f32>>(), ctl(4));
         if w == 8 {
-            assert_eq!(ctl(8), 272);
-            assert_eq!(ctl(4), 140);
+            assert_eq!(ctl(8), 312);
+            assert_eq!(ctl(4), 160);
         }
         assert!(ffi::ipa_ctl_state_size() <= ffi::IPA_CTL_STATE_BYTES);
         if w == 8 {

@@ -13,7 +13,9 @@
 //!             u = sat(u_c + Kd D)
 //! e_h < |e| ≤ e_n (nudge mode, when set): I = 0; at rest (y unchanged for N_r samples) a nudge starts
 //!             at u_n = β u_b(side) towards r, ramps by ρ Ts per sample until y changes (u_b(side) = u_n,
-//!             then u_n is held), and ends (u = 0) once |y − y_0| ≥ γ |e_0| or e changes sign
+//!             then u_n is held), and ends (u = 0) once y has moved and |y − y_0| ≥ γ |e_0| or the error
+//!             left is ≤ τ_c(side) |dy/dt| + e_h, or e changes sign; at the next rest τ_c(side) = the
+//!             distance coasted since the cut / |dy/dt| at the cut (learnt on line, −1 = not yet)
 //! ```
 
 use crate::deadzone::Compensator;
@@ -94,6 +96,13 @@ pub struct PositionController<F: Float> {
     nudging: Option<Nudging<F>>,
     breakaway_left: F,
     breakaway_right: F,
+    /// The last nudge's direction (`true`: right) and the position where its valve closed, until the
+    /// piston rests.
+    cut: Option<(bool, F, F)>,
+    /// τ_c: the coast after the last cut to the left per mm/s of speed at the cut, s (−1 = not learnt).
+    coast_left: F,
+    /// τ_c: the same to the right, s (−1 = not learnt).
+    coast_right: F,
 }
 
 /// |b_l|, |b_r| of the compensator's deadzone, 0 without one.
@@ -146,6 +155,9 @@ impl<F: Float> PositionController<F> {
             nudging: None,
             breakaway_left: initial_breakaway(&compensator).0,
             breakaway_right: initial_breakaway(&compensator).1,
+            cut: None,
+            coast_left: -F::ONE,
+            coast_right: -F::ONE,
         })
     }
 
@@ -172,16 +184,19 @@ impl<F: Float> PositionController<F> {
         self.derivative = self.alpha * self.derivative - (F::ONE - self.alpha) * dy;
         if e.abs() <= s.hold_band {
             self.e_prev = e;
-            self.nudging = None;
+            if let Some(g) = self.nudging.take() {
+                self.cut = Some((g.right, y, dy.abs()));
+            }
             return Ok(F::ZERO);
         }
         if let Some(n) = s.nudge {
             if e.abs() <= n.band {
                 self.e_prev = e;
-                return Ok(self.nudge(&n, e, y));
+                return Ok(self.nudge(&n, e, y, dy));
             }
         }
         self.nudging = None;
+        self.cut = None;
         if s.reset_on_crossing && e * self.e_prev < F::ZERO {
             self.integral = F::ZERO;
         }
@@ -208,13 +223,14 @@ impl<F: Float> PositionController<F> {
     }
 
     /// The nudge mode's command (module documentation).
-    fn nudge(&mut self, n: &NudgeSettings<F>, e: F, y: F) -> F {
+    fn nudge(&mut self, n: &NudgeSettings<F>, e: F, y: F, dy: F) -> F {
         self.integral = F::ZERO;
         let s = self.s;
         let g = match self.nudging {
             Some(g) => {
-                if (y - g.y0).abs() >= n.cut_fraction * g.e0.abs() || e * g.e0 <= F::ZERO {
+                if e * g.e0 <= F::ZERO || (y != g.y0 && self.cut_now(n, &g, e, y, dy)) {
                     self.nudging = None;
+                    self.cut = Some((g.right, y, dy.abs()));
                     return F::ZERO;
                 }
                 if g.moving {
@@ -236,6 +252,21 @@ impl<F: Float> PositionController<F> {
             }
             None if self.still < n.rest_samples => return F::ZERO,
             None => {
+                if let Some((right, y_cut, v_cut)) = self.cut.take() {
+                    let moved = if right { y - y_cut } else { y_cut - y };
+                    if v_cut > F::ZERO {
+                        let coast = if moved > F::ZERO {
+                            moved / v_cut
+                        } else {
+                            F::ZERO
+                        };
+                        if right {
+                            self.coast_right = coast;
+                        } else {
+                            self.coast_left = coast;
+                        }
+                    }
+                }
                 let right = e > F::ZERO;
                 let last = if right {
                     self.breakaway_right
@@ -260,6 +291,19 @@ impl<F: Float> PositionController<F> {
         }
     }
 
+    /// Whether a nudge that has moved the piston ends now: once it has covered γ |e_0|, or once the
+    /// error left is at most τ_c(side) |dy/dt| + e_h (τ_c learnt after the last cut in its direction).
+    fn cut_now(&self, n: &NudgeSettings<F>, g: &Nudging<F>, e: F, y: F, dy: F) -> bool {
+        let coast = if g.right {
+            self.coast_right
+        } else {
+            self.coast_left
+        };
+        let left = if g.right { e } else { -e };
+        (y - g.y0).abs() >= n.cut_fraction * g.e0.abs()
+            || (coast >= F::ZERO && left <= coast * dy.abs() + self.s.hold_band)
+    }
+
     /// The integral term I in counts.
     pub fn integral(&self) -> F {
         self.integral
@@ -280,6 +324,9 @@ impl<F: Float> PositionController<F> {
         self.still = 0;
         self.nudging = None;
         (self.breakaway_left, self.breakaway_right) = initial_breakaway(&self.compensator);
+        self.cut = None;
+        self.coast_left = -F::ONE;
+        self.coast_right = -F::ONE;
     }
 }
 
@@ -335,13 +382,9 @@ mod tests {
         assert_eq!(c.step(1.0, 0.0).unwrap(), 26.0);
     }
 
-    // The nudge mode by hand (the same case as control::position's test): deadzone b_l = −20, b_r = 30,
-    // band 1 mm, ρ Ts = 1 count per sample, β = 0.5, N_r = 2, γ = 0.5, e = 0.5 mm: closed until y has
-    // been still for 2 samples, then 15, 16, 17 counts; y moves at 17 (learnt, held) and the valve closes
-    // once y has covered 0.25 mm; the next nudge starts at 0.5 × 17.
-    #[test]
-    fn nudge_ramps_from_the_last_breakaway_learns_it_and_cuts() {
-        let comp = shift_inverse();
+    /// A P controller (Kp = 10) with the nudge mode: band 1 mm, ρ = 100 counts/s, β = 0.5, N_r = 2,
+    /// cut fraction γ.
+    fn nudging(cut_fraction: f64) -> PositionSettings<f64> {
         let mut settings = s();
         settings.ki = 0.0;
         settings.nudge = Some(NudgeSettings {
@@ -349,8 +392,19 @@ mod tests {
             ramp: 100.0,
             start_fraction: 0.5,
             rest_samples: 2,
-            cut_fraction: 0.5,
+            cut_fraction,
         });
+        settings
+    }
+
+    // The nudge mode by hand (the same case as control::position's test): deadzone b_l = −20, b_r = 30,
+    // band 1 mm, ρ Ts = 1 count per sample, β = 0.5, N_r = 2, γ = 0.5, e = 0.5 mm: closed until y has
+    // been still for 2 samples, then 15, 16, 17 counts; y moves at 17 (learnt, held) and the valve closes
+    // once y has covered 0.25 mm; the next nudge starts at 0.5 × 17.
+    #[test]
+    fn nudge_ramps_from_the_last_breakaway_learns_it_and_cuts() {
+        let comp = shift_inverse();
+        let settings = nudging(0.5);
         let mut c = PositionController::new(settings, Some(comp)).unwrap();
         let u: [f64; 10] = core::array::from_fn(|_| 0.0);
         let ys = [0.5, 0.5, 0.5, 0.5, 0.5, 0.6, 0.8, 0.8, 0.8, 0.99];
@@ -370,6 +424,33 @@ mod tests {
             PositionController::new(bad, Some(comp)).unwrap_err(),
             Error::Setting
         );
+    }
+
+    // The learnt coast by hand, the same case as control::position's test: γ = 1; the first right
+    // nudge is cut in the hold band at 50 mm/s and coasts 0.25 mm; the next right nudge is cut at
+    // y = 1.875 because the 0.125 mm left is below τ_c × 37.5 mm/s + e_h.
+    #[test]
+    fn a_nudge_ends_where_the_learnt_coast_would_carry_the_piston() {
+        let mut c = PositionController::new(nudging(1.0), Some(shift_inverse())).unwrap();
+        let steps = [
+            (1.0, 0.25, 0.0),
+            (1.0, 0.25, 0.0),
+            (1.0, 0.25, 15.0),
+            (1.0, 0.5, 15.0),
+            (1.0, 1.0, 0.0),
+            (1.0, 1.25, 0.0),
+            (1.0, 1.25, 0.0),
+            (1.0, 1.25, -10.0),
+            (2.0, 1.25, 0.0),
+            (2.0, 1.25, 7.5),
+            (2.0, 1.5, 7.5),
+            (2.0, 1.875, 0.0),
+        ];
+        for (k, (r, y, u)) in steps.into_iter().enumerate() {
+            assert_eq!(c.step(r, y).unwrap(), u, "sample {k}");
+        }
+        assert_eq!(c.coast_right, 0.25 / ((1.0 - 0.5) / 0.01));
+        assert_eq!(c.coast_left, -1.0);
     }
 
     #[test]

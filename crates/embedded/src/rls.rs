@@ -14,6 +14,13 @@
 //! exactly symmetric. (Pφ is accumulated one row of P at a time, across i: row j of the symmetric P is
 //! column j, so every (Pφ)_i still adds its terms in the order j = 0, 1, ….)
 //!
+//! f32 has no reference to agree with bit for bit ([`Float::SYSID_ORDER`] is `false`): there (Pφ)_i is
+//! the sum over the even rows j plus the sum over the odd rows, each started at −0 (no addition for the
+//! first term), and ρ + φᵀPφ is ρ + (even + odd) likewise. At small n the update is a chain of dependent
+//! operations through P (Pφ, δ, 1/δ, L̃, P), and this halves the additions on it; it also executes n
+//! additions fewer (3.5 n² + 7.5 n + 2 flops for ρ < 1). The eq. 12 formula and P's exact symmetry are
+//! unchanged; f32 results differ from the sequential order by rounding only.
+//!
 //! # UD form (optional)
 //!
 //! With [`Form::Ud`] ([`Rls::with_form`]) P = U D Uᵀ is kept as its factors (U unit upper triangular,
@@ -290,16 +297,44 @@ fn update_standard<F: Float, const N: usize, const FULL: bool>(
     }
     // (Pφ)_i = Σ_j P_ij φ_j for j = 0, 1, …, accumulated one row of P at a time (P is exactly
     // symmetric, so row j is column j): the inner loop runs along contiguous memory, across i.
-    for (row, f) in p.iter().zip(phi) {
-        if let Some(row) = row.get(..m) {
-            for (acc, c) in pphi.iter_mut().zip(row) {
-                *acc += *c * *f;
+    let mut denom = rho;
+    if F::SYSID_ORDER {
+        for (row, f) in p.iter().zip(phi) {
+            if let Some(row) = row.get(..m) {
+                for (acc, c) in pphi.iter_mut().zip(row) {
+                    *acc += *c * *f;
+                }
             }
         }
-    }
-    let mut denom = rho;
-    for (f, q) in phi.iter().zip(pphi.iter()) {
-        denom += *f * *q;
+        for (f, q) in phi.iter().zip(pphi.iter()) {
+            denom += *f * *q;
+        }
+    } else {
+        // f32: the even and the odd rows in two sums started at −0 (−0 + x = x: no addition), then
+        // added: the chain through P is about half as long (the update is latency-bound at small n).
+        let mut odd_buf = [-F::ZERO; N];
+        let odd = odd_buf.get_mut(..m).ok_or(Error::Capacity)?;
+        for acc in pphi.iter_mut() {
+            *acc = -F::ZERO;
+        }
+        for (j, (row, f)) in p.iter().zip(phi).enumerate() {
+            let sum = if j % 2 == 0 { &mut *pphi } else { &mut *odd };
+            if let Some(row) = row.get(..m) {
+                for (acc, c) in sum.iter_mut().zip(row) {
+                    *acc += *c * *f;
+                }
+            }
+        }
+        let (mut even_d, mut odd_d) = (-F::ZERO, -F::ZERO);
+        for (j, ((acc, o), f)) in pphi.iter_mut().zip(odd.iter()).zip(phi).enumerate() {
+            *acc += *o;
+            if j % 2 == 0 {
+                even_d += *f * *acc;
+            } else {
+                odd_d += *f * *acc;
+            }
+        }
+        denom += even_d + odd_d;
     }
     if !(denom.is_finite() && denom > F::ZERO && eps.is_finite()) {
         return Err(Error::Numerical);
@@ -471,23 +506,25 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
     // The new D: d_j · (α_(j−1) · (1/α_j)) · (1/ρ) (x · 1 = x exactly: no branch for ρ = 1).
     let mut d_new = [F::ZERO; N];
     let mut ok = true;
-    let mut alpha_prev = rho;
-    for (j, ((dn, al), r)) in d_new
-        .iter_mut()
-        .zip(alpha.iter())
-        .zip(inv.iter())
-        .take(m)
-        .enumerate()
-    {
-        let d = fac
-            .get(j)
-            .and_then(|row| row.get(j))
-            .copied()
-            .unwrap_or(F::ZERO);
-        *dn = d * (alpha_prev * *r) * inv_rho;
-        ok &= dn.is_finite() && *dn >= F::ZERO;
-        alpha_prev = *al;
-    }
+    // Written out per column (literal j): as an enumerate loop with the diagonal read through
+    // `fac.get(j)` it stayed a run-time loop with bounds checks, a third of the update's time.
+    for_columns!(full, m, 'col, |j| {
+        let (Some(dn), Some(d), Some(r)) = (
+            d_new.get_mut(j),
+            fac.get(j).and_then(|row| row.get(j)),
+            inv.get(j),
+        ) else {
+            break 'col;
+        };
+        let alpha_prev = if j == 0 {
+            rho
+        } else {
+            alpha.get(j - 1).copied().unwrap_or(F::ZERO)
+        };
+        *dn = *d * (alpha_prev * *r) * inv_rho;
+        // 0 ≤ d < ∞ (NaN fails both comparisons).
+        ok &= (*dn >= F::ZERO) & (*dn < F::INFINITY);
+    });
     let mut theta_new = [F::ZERO; N];
     for ((tn, t), bi) in theta_new.iter_mut().zip(theta.iter()).zip(b.iter()) {
         *tn = *t + *bi * inv_last * eps;
@@ -542,11 +579,12 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
     // The guard (sysid's order: tr P of the new factors, then D ← D · T / tr P).
     if GUARD && tr > max_trace {
         let s = max_trace / tr;
-        for (j, row) in fac.iter_mut().enumerate() {
-            if let Some(d) = row.get_mut(j) {
-                *d *= s;
-            }
-        }
+        for_columns!(full, m, 'col, |j| {
+            let Some(d) = fac.get_mut(j).and_then(|row| row.get_mut(j)) else {
+                break 'col;
+            };
+            *d *= s;
+        });
     }
     for (t, tn) in theta.iter_mut().zip(theta_new) {
         *t = tn;

@@ -106,6 +106,15 @@ impl From<Result<ResidualAnalysis, String>> for ResidualEntry {
     }
 }
 
+/// The metrics of `fit` on its estimation records: those the safeguards of `identify` computed on the
+/// same records (checked), unless the model or the records changed since.
+fn estimation_metrics(fit: &Fitted, est_data: &[Dataset]) -> Result<Metrics, SysidError> {
+    match fit.estimation_metrics(est_data) {
+        Some(kept) => Ok(kept.clone()),
+        None => pooled_metrics(&fit.model, est_data),
+    }
+}
+
 /// Metrics and residual analysis of a model on one of several estimation records.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RecordReport {
@@ -150,7 +159,8 @@ impl IdentifyReport {
     /// Assembles the whole report of a fit on its estimation data and, optionally, validation data:
     /// metrics, residual analysis with `max_lag` lags, and the warnings (the fit's own plus those the
     /// validation record raises). The one place where the `identify --json` document is made (the
-    /// command line and the Python package both call it).
+    /// command line and the Python package both call it; a fleet window takes the same document without
+    /// the residual analysis, [`IdentifyReport::without_residuals`]).
     ///
     /// With several estimation records (`est_data`: merged experiments) `metrics.estimation` pools their
     /// rows and `records` holds each one's metrics and residual analysis.
@@ -162,12 +172,7 @@ impl IdentifyReport {
         max_lag: usize,
     ) -> Result<Self, SysidError> {
         let m = &fit.model;
-        // The safeguards of `identify` computed them on the same records (checked), unless the model
-        // or the records changed since.
-        let est = match fit.estimation_metrics(est_data) {
-            Some(kept) => kept.clone(),
-            None => pooled_metrics(m, est_data)?,
-        };
+        let est = estimation_metrics(fit, est_data)?;
         let val = val_data.map(|v| metrics(m, v)).transpose()?;
         let (estimation, records) = match est_data {
             [one] => (residual_analysis(m, one, max_lag), None),
@@ -202,6 +207,20 @@ impl IdentifyReport {
         report.records = records;
         report.warnings.extend(below.map(|w| w.to_string()));
         Ok(report)
+    }
+
+    /// [`IdentifyReport::assemble`] on one or more estimation records without validation data and
+    /// without the residual analysis: the same model, parameters, metrics, poles and warnings (the
+    /// residual analysis adds none), `residuals.estimation` saying "not computed" and no per-record
+    /// `records`. For callers that carry no residual test, e.g. a fleet window
+    /// ([`monitor::window`]): the residual analysis is a tenth of such a window's time.
+    pub fn without_residuals(
+        fit: &Fitted,
+        settings: &Identification,
+        est_data: &[Dataset],
+    ) -> Result<Self, SysidError> {
+        let est = estimation_metrics(fit, est_data)?;
+        Ok(Self::new(fit, settings, est, None))
     }
 
     /// The report from metrics and residual analyses computed elsewhere (the streaming path,

@@ -1,5 +1,7 @@
 //! One monitoring window of one actuator (the Python `ipa_sysid.fleet`): the identification of the
-//! window's record, exactly as `ipa-sysid identify --json` reports it ([`IdentifyReport`]), and the
+//! window's record, exactly as `ipa-sysid identify --json` reports it ([`IdentifyReport`]: the same
+//! parameters, standard deviations, metrics and warnings) but without the residual analysis, which a
+//! fleet row does not carry ([`IdentifyReport::without_residuals`]), and the
 //! change points of the online tracker run over the same samples, exactly as `ipa-sysid track` finds
 //! them ([`Tracker`]). A fleet is many such windows; the engine that maps them (Dask, Spark) is not
 //! this crate's business.
@@ -14,8 +16,6 @@ use crate::IdentifyReport;
 pub struct WindowSettings {
     /// The identification (`identify`'s flags, checked).
     pub identification: Identification,
-    /// Lags of the residual analysis (`identify --resid-lags`).
-    pub resid_lags: usize,
     /// The tracker and its change detector (`track`'s flags).
     pub track: TrackSettings,
 }
@@ -23,7 +23,7 @@ pub struct WindowSettings {
 /// The results of one window.
 #[derive(Debug, Clone)]
 pub struct WindowResult {
-    /// The `identify --json` document of the window.
+    /// The `identify --json` document of the window, its residual analysis not computed.
     pub report: IdentifyReport,
     /// Samples k (0-based, within the window) at which the tracker's detector raised an alarm
     /// (`track`'s change points).
@@ -33,12 +33,10 @@ pub struct WindowResult {
 /// Identifies the window `data` and runs the tracker over it.
 pub fn window(data: &Dataset, settings: &WindowSettings) -> Result<WindowResult, SysidError> {
     let fit = sysid::identify(data, &settings.identification)?;
-    let report = IdentifyReport::assemble(
+    let report = IdentifyReport::without_residuals(
         &fit,
         &settings.identification,
         std::slice::from_ref(data),
-        None,
-        settings.resid_lags,
     )?;
     let mut tracker = Tracker::new(settings.track)?;
     let mut change_points = Vec::new();

@@ -1472,15 +1472,34 @@ impl Branches {
             left && !right && !zero && offset,
             right && !left && !zero && offset,
         );
-        // Two levels (a PRBS, a relay test) cannot determine a deadzone with a free breakpoint: any map
-        // through the two points fits, which the regression would only report as an unexcited
-        // regressor. (A constant input keeps the regression's own "constant input" error.)
-        if let (false, false, Some((a, b))) = (b_l_fixed, b_r_fixed, only_two_levels(u)) {
-            return Err(SysidError::Data(format!(
-                "{name}: the input takes only 2 distinct levels ({a} and {b}); a deadzone input \
-                 nonlinearity needs at least 3 distinct levels: a static map through 2 points is not \
-                 determined (use a linear input, --structure arx, or an input with several amplitudes)"
-            )));
+        // Too few levels (a PRBS, a relay test, a three-level test signal) cannot determine a deadzone
+        // with free breakpoints: the linear block sees one value of the map per level, so a map with
+        // more free parameters than levels fits in many ways, which the regression would only report
+        // as an unexcited regressor. Both branches with free breakpoints (b_l, m_l, b_r, m_r) need 4
+        // levels, otherwise 3. (A constant input keeps the regression's own "constant input" error.)
+        let need = if left && right && !b_l_fixed && !b_r_fixed {
+            4
+        } else {
+            3
+        };
+        if let (false, false, Some(levels)) = (b_l_fixed, b_r_fixed, few_levels(u, need)) {
+            if levels.len() >= 2 {
+                let list: Vec<String> = levels.iter().map(ToString::to_string).collect();
+                return Err(SysidError::Data(format!(
+                    "{name}: the input takes only {} distinct levels ({}); a deadzone input \
+                     nonlinearity {} needs at least {need} distinct levels: a static map through {} \
+                     points is not determined (use a linear input, --structure arx, or an input with \
+                     several amplitudes)",
+                    levels.len(),
+                    list.join(", "),
+                    if need == 4 {
+                        "with two branches (b_l, m_l, b_r, m_r)"
+                    } else {
+                        "with a free breakpoint"
+                    },
+                    levels.len()
+                )));
+            }
         }
         Ok(Branches {
             left,
@@ -1588,21 +1607,20 @@ pub fn deadzone_warnings(
     (w, no_std)
 }
 
-/// The two values of `u` when it takes exactly two distinct finite values (one pass, stopping at a
-/// third value, so that it costs a few samples on any rich input).
-fn only_two_levels(u: &[f64]) -> Option<(f64, f64)> {
-    let mut finite = u.iter().copied().filter(|v| v.is_finite());
-    let a = finite.next()?;
-    let mut b = None;
-    for v in finite {
-        match b {
-            _ if v == a => {}
-            None => b = Some(v),
-            Some(b) if v == b => {}
-            Some(_) => return None,
+/// The distinct finite values of `u`, sorted, when there are fewer than `need` of them (one pass,
+/// stopping at the `need`-th value, so that it costs a few samples on any rich input).
+fn few_levels(u: &[f64], need: usize) -> Option<Vec<f64>> {
+    let mut seen: Vec<f64> = Vec::with_capacity(need);
+    for v in u.iter().copied().filter(|v| v.is_finite()) {
+        if !seen.contains(&v) {
+            if seen.len() + 1 >= need {
+                return None;
+            }
+            seen.push(v);
         }
     }
-    b.map(|b| (a.min(b), a.max(b)))
+    seen.sort_unstable_by(f64::total_cmp);
+    Some(seen)
 }
 
 /// The distinct values of `u`, sorted.
@@ -1734,18 +1752,33 @@ mod tests {
     // levels below it) and b_r = 25 (between levels) warns about b_l only; b_r keeps its standard
     // deviation.
     #[test]
-    fn only_two_levels_counts_distinct_finite_values() {
+    fn few_levels_counts_distinct_finite_values() {
         assert_eq!(
-            only_two_levels(&[1.0, -1.0, 1.0, 1.0, -1.0]),
-            Some((-1.0, 1.0))
+            few_levels(&[1.0, -1.0, 1.0, 1.0, -1.0], 3),
+            Some(vec![-1.0, 1.0])
         );
         assert_eq!(
-            only_two_levels(&[0.0, f64::NAN, 5.0, 0.0]),
-            Some((0.0, 5.0))
+            few_levels(&[0.0, f64::NAN, 5.0, 0.0], 3),
+            Some(vec![0.0, 5.0])
         );
-        assert_eq!(only_two_levels(&[2.0, 2.0, 2.0]), None);
-        assert_eq!(only_two_levels(&[1.0, -1.0, 0.0, 1.0]), None);
-        assert_eq!(only_two_levels(&[]), None);
+        assert_eq!(few_levels(&[2.0, 2.0, 2.0], 3), Some(vec![2.0]));
+        assert_eq!(few_levels(&[1.0, -1.0, 0.0, 1.0], 3), None);
+        assert_eq!(
+            few_levels(&[1.0, -1.0, 0.0, 1.0], 4),
+            Some(vec![-1.0, 0.0, 1.0])
+        );
+        assert_eq!(few_levels(&[1.0, -1.0, 0.0, 2.0], 4), None);
+        assert_eq!(few_levels(&[], 3), Some(vec![]));
+        // A two-sided deadzone on a three-level input (−1, 0, 1): four parameters, three points.
+        let err = DeadzoneBlock
+            .start(&[1.0, -1.0, 0.0, 1.0, 0.0, -1.0], false, false, "three.csv")
+            .err()
+            .map(|e| e.to_string())
+            .unwrap_or_default();
+        assert!(
+            err.contains("three.csv") && err.contains("only 3 distinct levels (-1, 0, 1)"),
+            "{err}"
+        );
         // A deadzone start on a two-level input is refused, naming the record.
         let err = DeadzoneBlock
             .start(&[1.0, -1.0, -1.0, 1.0, 1.0, -1.0], false, false, "prbs.csv")

@@ -310,6 +310,11 @@ fn solve_free(
     })
 }
 
+/// True when `a` and `b` hold the same numbers bit for bit.
+fn same_bits(a: &[f64], b: &[f64]) -> bool {
+    a.len() == b.len() && a.iter().zip(b).all(|(x, y)| x.to_bits() == y.to_bits())
+}
+
 /// The nonlinearities the estimators start from (each block's start).
 fn initial(p: &Problem) -> Vec<StaticNonlinearity> {
     p.starts().iter().map(|s| s.initial).collect()
@@ -344,20 +349,31 @@ pub(crate) fn least_squares(p: &Problem, st: &LeastSquares) -> Result<Fitted, Sy
     let mut converged = false;
     let mut cycle = false;
     let mut iterations = 0;
+    // The previous iterate's Φ, solution and loss.
+    let mut last: Option<(DMatrix<f64>, ls::LsSolution, f64)> = None;
     for it in 1..=st.max_iterations {
         iterations = it;
         let (phi, y) = reg.stacked(p.records(), &f);
-        let sol = match solve_free(&phi, &y, &free, &names) {
-            Ok(sol) => sol,
-            // A later iterate's breakpoints can leave a branch with too few distinct commands: stop and keep
-            // the best iterate so far (reported in the note as not converged).
-            Err(SysidError::Data(_)) if best.is_some() => break,
-            Err(e) => return Err(context(p, e)),
+        let (sol, rss) = match last.take() {
+            // The switching functions did not change (typically the iterate that confirms convergence):
+            // Φ is the previous one to the bit, and so are θ̂ and its loss; not computed twice.
+            Some((prev, sol, rss)) if same_bits(prev.as_slice(), phi.as_slice()) => (sol, rss),
+            _ => {
+                let sol = match solve_free(&phi, &y, &free, &names) {
+                    Ok(sol) => sol,
+                    // A later iterate's breakpoints can leave a branch with too few distinct commands:
+                    // stop and keep the best iterate so far (reported in the note as not converged).
+                    Err(SysidError::Data(_)) if best.is_some() => break,
+                    Err(e) => return Err(context(p, e)),
+                };
+                let rss = model_from_theta(p, &sol.theta)
+                    .and_then(|m| prediction_rss(&m, p.records()))
+                    .unwrap_or(f64::INFINITY);
+                (sol, rss)
+            }
         };
+        last = Some((phi, sol.clone(), rss));
         let theta = sol.theta.clone();
-        let rss = model_from_theta(p, &theta)
-            .and_then(|m| prediction_rss(&m, p.records()))
-            .unwrap_or(f64::INFINITY);
         if best.as_ref().is_none_or(|b| rss < b.0) {
             best = Some((rss, theta.clone(), sol, it));
         }

@@ -293,7 +293,7 @@ fn evaluate(est: &Dataset, val: Option<&Dataset>, o: Orders, base: &Identificati
             Ok(m) => {
                 c.fit_validation = m.fit_sim_percent;
                 c.ranking_fit = guarded_fit(&m);
-                let w = metric_warnings(Record::Validation, &m);
+                let w = metric_warnings(Record::Selection, &m);
                 c.disqualified = c.disqualified.take().or_else(|| disqualification(&w));
                 c.warnings.extend(w.iter().map(ToString::to_string));
             }

@@ -13,6 +13,10 @@ pub enum Record {
     Estimation,
     /// The validation data.
     Validation,
+    /// The selection part of the estimation data, on which `order` ranks its candidates.
+    Selection,
+    /// The test record of `order`, never used to choose.
+    Test,
 }
 
 impl std::fmt::Display for Record {
@@ -20,6 +24,8 @@ impl std::fmt::Display for Record {
         f.write_str(match self {
             Record::Estimation => "estimation",
             Record::Validation => "validation",
+            Record::Selection => "selection",
+            Record::Test => "test",
         })
     }
 }
@@ -56,6 +62,9 @@ pub enum Warning {
     NearIntegrator {
         /// Largest pole modulus.
         max_pole_modulus: f64,
+        /// The model already carries an output level (an offset or a removed operating point), so
+        /// "add one" is not the advice.
+        has_level: bool,
     },
     /// The free-run simulation does worse than the mean of the record (fit < 0 %), or diverges.
     PoorSimulation {
@@ -152,14 +161,24 @@ impl std::fmt::Display for Warning {
                 "unstable model: a pole has modulus {max_pole_modulus:.6} >= 1; its simulation diverges \
                  (do not use it for simulation or control)"
             ),
-            Warning::NearIntegrator { max_pole_modulus } => write!(
+            Warning::NearIntegrator {
+                max_pole_modulus,
+                has_level,
+            } => write!(
                 f,
                 "a pole at modulus {max_pole_modulus:.7}, on the stability boundary: the model integrates \
                  (time constant {:.1e} samples); unless the plant integrates (a position driven by a \
                  velocity), this is a spurious mode the data do not determine, so the static gain and \
-                 long simulations are not to be trusted (an output level the model cannot represent is the \
-                 usual cause: try --offset or --detrend mean)",
-                -1.0 / max_pole_modulus.ln()
+                 long simulations are not to be trusted ({})",
+                -1.0 / max_pole_modulus.ln(),
+                if *has_level {
+                    "the model already has an output level, so a drift, a record too short for a slow \
+                     mode, or too high an order is the likelier cause: try a longer record, --detrend \
+                     linear or a lower na"
+                } else {
+                    "an output level the model cannot represent is the usual cause: try --offset or \
+                     --detrend mean"
+                }
             ),
             Warning::PoorSimulation {
                 record,
@@ -264,7 +283,10 @@ impl Warning {
         if max_pole_modulus >= 1.0 {
             Some(Warning::Unstable { max_pole_modulus })
         } else if max_pole_modulus >= 1.0 - INTEGRATOR_MARGIN {
-            Some(Warning::NearIntegrator { max_pole_modulus })
+            Some(Warning::NearIntegrator {
+                max_pole_modulus,
+                has_level: model.offset().is_some() || model.operating_point().is_some(),
+            })
         } else {
             None
         }
@@ -360,3 +382,26 @@ impl std::fmt::Display for Concern {
 /// Percentage points by which the fits from estimated and from measured initial outputs may differ
 /// before a warning says that the initial state flatters the headline.
 pub const INITIAL_STATE_MARGIN: f64 = 5.0;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    // A(q) = 1 − 0.9999995 q⁻¹: one pole at 0.9999995, within INTEGRATOR_MARGIN of 1. Without an output
+    // level the advice is to add one; with an offset c it must not repeat it.
+    #[test]
+    fn the_boundary_pole_advice_depends_on_whether_the_model_has_a_level() {
+        let plain = Model::arx(1.0, vec![-0.9999995], vec![1.0], 1, None).unwrap();
+        let levelled = Model::arx(1.0, vec![-0.9999995], vec![1.0], 1, Some(0.5)).unwrap();
+        let w = Warning::if_unstable_or_integrating(&plain)
+            .unwrap()
+            .to_string();
+        assert!(w.contains("0.9999995") && w.contains("try --offset"), "{w}");
+        let w = Warning::if_unstable_or_integrating(&levelled)
+            .unwrap()
+            .to_string();
+        assert!(w.contains("0.9999995") && !w.contains("--offset"), "{w}");
+        assert!(w.contains("already has an output level"), "{w}");
+        assert_eq!(Record::Selection.to_string(), "selection");
+    }
+}

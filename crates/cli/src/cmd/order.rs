@@ -422,7 +422,7 @@ pub(super) fn test_record_warnings(
     t: &Dataset,
     m: &sysid::metrics::Metrics,
 ) -> Vec<String> {
-    let record = sysid::warnings::Record::Validation;
+    let record = sysid::warnings::Record::Test;
     sysid::trust::metric_warnings(record, m)
         .into_iter()
         .chain(sysid::trust::baseline_warning(

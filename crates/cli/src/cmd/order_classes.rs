@@ -243,7 +243,7 @@ fn chosen_on_test(
                     let m = sysid::narx::narx_metrics(&fit.model, t)?;
                     warnings.extend(
                         sysid::narx::narx_trust(
-                            sysid::warnings::Record::Validation,
+                            sysid::warnings::Record::Test,
                             &fit.model,
                             s.constant,
                             data,

@@ -1573,6 +1573,13 @@ pub fn deadzone_warnings(
             why: format!("b_l = {} > b_r = {}", d.b_l, d.b_r),
         });
     }
+    let (lo, hi) = (levels[0], levels[levels.len() - 1]);
+    if levels.iter().all(|&l| d.apply(l) == 0.0) && (d.m_l != 0.0 || d.m_r != 0.0) {
+        w.push(Warning::InputSwallowed {
+            breakpoints: (d.b_l, d.b_r),
+            range: (lo, hi),
+        });
+    }
     if left && right && d.m_l * d.m_r < 0.0 {
         w.push(Warning::NonPhysicalDeadzone {
             why: format!(
@@ -1789,6 +1796,27 @@ mod tests {
             err.contains("prbs.csv") && err.contains("only 2 distinct levels"),
             "{err}"
         );
+    }
+
+    // Inputs −0.4..0.4 inside a deadzone [−0.7, 0.8]: x = 0 for every sample, so the model cannot
+    // respond; a deadzone [−0.3, 0.8] lets −0.4 through and is not flagged so.
+    #[test]
+    fn a_deadzone_holding_every_input_is_flagged() {
+        let u = [-0.4, -0.1, 0.0, 0.2, 0.4];
+        let swallowed = |b_l: f64| {
+            let d = Deadzone {
+                b_l,
+                b_r: 0.8,
+                m_l: 1.0,
+                m_r: 1.0,
+            };
+            deadzone_warnings(&d, &u, (true, true), (None, None))
+                .0
+                .iter()
+                .any(|w| matches!(w, Warning::InputSwallowed { .. }))
+        };
+        assert!(swallowed(-0.7));
+        assert!(!swallowed(-0.3));
     }
 
     #[test]

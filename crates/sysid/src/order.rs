@@ -66,6 +66,7 @@ pub fn disqualifies(w: &Warning) -> bool {
         | Warning::NonPhysicalDeadzone { .. }
         | Warning::NonlinearityShape { .. }
         | Warning::NoInputTerm { .. }
+        | Warning::InputSwallowed { .. }
         | Warning::Trust(Concern::BelowBaseline { .. }) => true,
         Warning::ForInput { warning, .. } => disqualifies(warning),
         // A pole near 1 may be a true integrator (EMPS); poorly determined parameters are said, not

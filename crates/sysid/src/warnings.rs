@@ -149,6 +149,14 @@ pub enum Warning {
         /// Number of (output-only or constant) terms the model has.
         terms: usize,
     },
+    /// A deadzone that holds every input level of the record: the input block's output is zero
+    /// throughout, so the model cannot respond to the input.
+    InputSwallowed {
+        /// b_l, b_r of the deadzone.
+        breakpoints: (f64, f64),
+        /// The smallest and largest input of the record.
+        range: (f64, f64),
+    },
     /// A trust check (module `trust`: initial state, baseline, standard deviations).
     Trust(Concern),
 }
@@ -252,6 +260,15 @@ impl std::fmt::Display for Warning {
                 "the model has no input term (its {terms} term(s) are lagged outputs or the constant): it \
                  cannot respond to the input and its simulation is only the decay of its initial outputs \
                  — do not use it; lower the degree, change the lags or the stopping rule"
+            ),
+            Warning::InputSwallowed {
+                breakpoints: (b_l, b_r),
+                range: (lo, hi),
+            } => write!(
+                f,
+                "the deadzone [b_l, b_r] = [{b_l}, {b_r}] holds every input of the record ({lo} to {hi}): \
+                 the model does not respond to the input and its simulation is only the decay of its \
+                 initial outputs — do not use it; try other orders, --method ls or a linear input"
             ),
             Warning::Trust(c) => c.fmt(f),
         }

@@ -710,8 +710,8 @@ fn a_nonlinearity_on_a_two_level_input_is_refused_with_the_reason() {
 #[test]
 fn streamed_identification_warns_like_the_in_memory_path() {
     let Some(dir) = data_dir() else { return };
-    let cases: [&[&str]; 3] = [
-        &[
+    let gas = |nk: &'static str| {
+        vec![
             "--data",
             "gas_furnace_box_jenkins/gas_furnace.csv",
             "--ts",
@@ -725,47 +725,32 @@ fn streamed_identification_warns_like_the_in_memory_path() {
             "--nb",
             "2",
             "--nk",
-            "3",
-        ],
-        &[
-            "--data",
-            "gas_furnace_box_jenkins/gas_furnace.csv",
-            "--ts",
-            "9",
-            "--u-col",
-            "InputGasRate",
-            "--y-col",
-            "CO2",
-            "--na",
-            "2",
-            "--nb",
-            "2",
-            "--nk",
-            "1",
-        ],
-        &[
-            "--data",
-            "coupled_electric_drives_prbs/DATAPRBS.csv",
-            "--ts",
-            "0.02",
-            "--u-col",
-            "u1",
-            "--y-col",
-            "z1",
-            "--na",
-            "2",
-            "--nb",
-            "2",
-            "--nk",
-            "1",
-            "--offset",
-            "--rows",
-            "0..250",
-            "--val-rows",
-            "250..500",
-        ],
+            nk,
+        ]
+    };
+    let drives = vec![
+        "--data",
+        "coupled_electric_drives_prbs/DATAPRBS.csv",
+        "--ts",
+        "0.02",
+        "--u-col",
+        "u1",
+        "--y-col",
+        "z1",
+        "--na",
+        "2",
+        "--nb",
+        "2",
+        "--nk",
+        "1",
+        "--offset",
+        "--rows",
+        "0..250",
+        "--val-rows",
+        "250..500",
     ];
-    for case in cases {
+    let cases = [gas("3"), gas("1"), drives];
+    for case in &cases {
         let mut docs = Vec::new();
         for mode in ["off", "on"] {
             let mut args = vec!["identify", "--structure", "arx", "--method", "ls"];

@@ -306,6 +306,11 @@ fn numerical_failures_exit_1_and_name_the_sample() {
             &["overflow.csv", "at sample"],
         ),
         case(
+            "delay --data {c}/csv/overflow.csv",
+            1,
+            &["overflow.csv", "numerical failure", "nk = "],
+        ),
+        case(
             "identify --data {c}/csv/underflow.csv",
             1,
             &[

@@ -126,7 +126,7 @@ pub fn estimate_delay(
                 loss: None,
                 error: Some(e.to_string()),
             },
-            Err(e) => return Err(e),
+            Err(e) => return Err(e.context(&format!("{} (nk = {nk})", data.name()))),
         });
     }
     let mut order: Vec<(usize, f64)> = candidates

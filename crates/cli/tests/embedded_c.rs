@@ -293,6 +293,7 @@ fn c_controller_matches_control_bit_for_bit_on_a_recorded_run() {
     }
     args.push(nudge["rest_samples"].as_u64().unwrap().to_string());
     args.push(format!("{:?}", nudge["cut_fraction"].as_f64().unwrap()));
+    args.push(format!("{:?}", nudge["rest_band_mm"].as_f64().unwrap()));
     let out = Command::new(&exe)
         .args(&args)
         .stdin(std::fs::File::open(&trace).unwrap())

@@ -83,6 +83,13 @@ pub struct Nudge {
     /// with, or the error left is at most the learnt coast τ_c |dy/dt| + e_h, or e changed sign
     /// (0 < γ <= 1; the piston coasts on after the valve closes).
     pub cut_fraction: f64,
+    /// e_r: rest band, mm: for e_n < |e| <= e_r the nudge mode also acts once the piston has rested
+    /// N_r samples (and until the nudge it starts, and the coast after its cut, have ended), so that a
+    /// stop short of the nudge band is finished by nudges rather than by a PID whose integral would
+    /// take seconds to reach the breakaway command. e_r <= e_n (0 in a file written before it
+    /// existed): the nudge band alone, as then.
+    #[serde(default)]
+    pub rest_band_mm: f64,
 }
 
 impl Nudge {
@@ -100,6 +107,9 @@ impl Nudge {
         }
         if !(self.cut_fraction.is_finite() && self.cut_fraction > 0.0 && self.cut_fraction <= 1.0) {
             return bad("a nudge cut_fraction in (0, 1]", self.cut_fraction);
+        }
+        if !(self.rest_band_mm.is_finite() && self.rest_band_mm >= 0.0) {
+            return bad("a nudge rest_band_mm finite and >= 0", self.rest_band_mm);
         }
         if self.rest_samples == 0 || self.rest_samples > 1000 {
             return bad(
@@ -376,7 +386,11 @@ impl Controller for PositionController {
             }
             return 0.0;
         }
-        if let Some(n) = s.nudge.filter(|n| e.abs() <= n.band_mm) {
+        let resting = self.nudging.is_some() || self.cut.is_some();
+        if let Some(n) = s.nudge.filter(|n| {
+            e.abs() <= n.band_mm
+                || (e.abs() <= n.rest_band_mm && (resting || self.still >= n.rest_samples))
+        }) {
             self.e_prev = e;
             return self.nudge(&n, e, y_mm, dy);
         }
@@ -560,6 +574,7 @@ mod tests {
             start_fraction: 0.5,
             rest_samples: 2,
             cut_fraction: 0.5,
+            rest_band_mm: 0.0,
         });
         s
     }
@@ -594,6 +609,55 @@ mod tests {
         assert_eq!(c.step(3.0, 1.0), 50.0);
         c.reset();
         assert_eq!(c.breakaway_counts(), [20.0, 30.0]);
+    }
+
+    // The rest band by hand: e_r = 3 mm, r = 3, y = 0.5 (e = 2.5 mm, outside e_n = 1): the PID acts
+    // (10 × 2.5 + b_r = 55) until y has rested N_r = 2 samples, then a nudge starts at β |b_r| = 15,
+    // ramps to 16, breaks loose (u_b = 16, held) and is cut at y = 1.8 (moved 1.3 ≥ γ |e_0| = 1.25);
+    // while the piston coasts (e = 1.1–1.2 mm) the valve stays closed, and after 2 samples of rest
+    // the next nudge starts at β u_b = 8, having learnt τ_c = 0.1 mm / 30 mm/s. Beyond e_r the PID
+    // acts again: 10 × 8 + 30. With e_r = 0 (a file without it) the PID acts at every sample.
+    #[test]
+    fn a_stop_short_of_the_nudge_band_is_finished_by_nudges_in_the_rest_band() {
+        let steps = [
+            (3.0, 0.5, 55.0, 55.0),
+            (3.0, 0.5, 55.0, 55.0),
+            (3.0, 0.5, 15.0, 55.0),
+            (3.0, 0.5, 16.0, 55.0),
+            (3.0, 0.6, 16.0, 54.0),
+            (3.0, 1.5, 16.0, 45.0),
+            (3.0, 1.8, 0.0, 42.0),
+            (3.0, 1.9, 0.0, 41.0),
+            (3.0, 1.9, 0.0, 41.0),
+            (3.0, 1.9, 8.0, 41.0),
+            (10.0, 2.0, 110.0, 110.0),
+        ];
+        for (e_r, col) in [(3.0, 0), (0.0, 1)] {
+            let mut s = nudging();
+            s.nudge.as_mut().unwrap().rest_band_mm = e_r;
+            let mut c = s.build().unwrap();
+            for (k, &(r, y, u_band, u_pid)) in steps.iter().enumerate() {
+                let want = if col == 0 { u_band } else { u_pid };
+                let u = c.step(r, y);
+                assert!(
+                    (u - want).abs() < 1e-9,
+                    "e_r {e_r}, sample {k}: {u} != {want}"
+                );
+            }
+            if col == 0 {
+                assert_eq!(c.breakaway_counts(), [20.0, 16.0]);
+                assert_eq!(c.coast_s()[1], (1.9 - 1.8) / ((1.8 - 1.5) / 0.01));
+            }
+        }
+        let mut s = nudging();
+        s.nudge.as_mut().unwrap().rest_band_mm = -1.0;
+        assert!(s.build().is_err());
+        // A file written before the rest band existed reads with e_r = 0.
+        let text = serde_json::to_string(&ControllerFile::new(nudging(), None))
+            .unwrap()
+            .replace(",\"rest_band_mm\":0.0", "");
+        assert!(!text.contains("rest_band"));
+        assert_eq!(ControllerFile::parse(&text, "c.json").unwrap(), nudging());
     }
 
     // The learnt coast, by hand (γ = 1, so only the coast rule can end a nudge early): a nudge from

@@ -1,7 +1,8 @@
 //! Tuning the position controller ([`crate::PositionController`]) by optimising closed-loop simulations
 //! against a [`Spec`] (`ipa-sysid tune`).
 //!
-//! **Problem.** The free parameters are θ = (ln Kp, ln Ki, Kd, c): Kp, Ki, Kd as in
+//! **Problem.** The free parameters are θ = (ln Kp, ln Ki, Kd, c, ln e_f, ln e_n, ln ρ, γ, ln e_r)
+//! (docs/control.md, "Method"): Kp, Ki, Kd as in
 //! [`crate::position`], c the fraction of the model's deadzone breakpoints the compensator shifts by
 //! (c b_l, c b_r). The hold band e_h is the specification's |e_ss| limit and the integral restarts when
 //! the error changes sign (the small-error treatment); Tf = 2 Ts. Each θ is simulated on every plant
@@ -367,14 +368,18 @@ fn summarise(runs: Vec<RunResult>, spec: &Spec) -> Evaluation {
     }
 }
 
-/// Number of tuned parameters: θ = (ln Kp, ln Ki, Kd, c, ln e_f, ln e_n, ln ρ, γ).
-pub const P: usize = 8;
+/// Number of tuned parameters: θ = (ln Kp, ln Ki, Kd, c, ln e_f, ln e_n, ln ρ, γ, ln e_r).
+pub const P: usize = 9;
 /// Lower bounds of θ: Kp ≥ 1 counts/mm, Ki ≥ 0.1 counts/(mm·s), Kd ≥ 0, c ≥ 0.5, e_f ≥ 0.05 mm,
-/// e_n ≥ 0.1 mm, ρ ≥ 20 counts/s, γ ≥ 0.1.
-const LOWER: [f64; P] = [0.0, -2.3, 0.0, 0.5, -3.0, -2.3, 3.0, 0.1];
+/// e_n ≥ 0.1 mm, ρ ≥ 20 counts/s, γ ≥ 0.1, e_r ≥ 0.1 mm (a rest band inside e_n has no effect).
+const LOWER: [f64; P] = [0.0, -2.3, 0.0, 0.5, -3.0, -2.3, 3.0, 0.1, -2.3];
 /// Upper bounds: Kp ≤ e^4.6 ≈ 100 counts/mm, Ki ≤ e^6.9 ≈ 1000 counts/(mm·s), Kd ≤ 2 counts·s/mm, c ≤ 1.3,
-/// e_f ≤ e^1.6 ≈ 5 mm, e_n ≤ 5 mm, ρ ≤ e^6.9 ≈ 1000 counts/s, γ ≤ 1.
-const UPPER: [f64; P] = [4.6, 6.9, 2.0, 1.3, 1.6, 1.6, 6.9, 1.0];
+/// e_f ≤ e^1.6 ≈ 5 mm, e_n ≤ 5 mm, ρ ≤ e^6.9 ≈ 1000 counts/s, γ ≤ 1, e_r ≤ 5 mm (below the
+/// smallest default step, so that a step's start, at rest, is never taken for a stop short).
+const UPPER: [f64; P] = [4.6, 6.9, 2.0, 1.3, 1.6, 1.6, 6.9, 1.0, 1.6];
+/// e_r of the grid points with the slow nudge style and of the fallback start, mm (the fast style's
+/// grid points have none: e_r = 0.1 mm, inside every nudge band).
+const GRID_REST_BAND_MM: f64 = 4.0;
 /// β: a nudge starts at this fraction of the last breakaway command (fixed, not searched).
 pub const NUDGE_START_FRACTION: f64 = 0.8;
 /// N_r: samples of unchanged position that count as rest before a nudge (fixed, not searched).
@@ -415,6 +420,7 @@ pub fn settings_of(
             start_fraction: NUDGE_START_FRACTION,
             rest_samples: NUDGE_REST_SAMPLES,
             cut_fraction: theta[7],
+            rest_band_mm: theta[8].exp(),
         }),
         compensator,
     })
@@ -479,11 +485,23 @@ pub fn tune(
         for ki in [5.0f64, 30.0] {
             for kd in [0.05, 0.25] {
                 for en in [0.5f64, 2.0] {
-                    for (rho, gamma) in [(100.0f64, 0.3), (300.0f64, 0.1)] {
+                    for (rho, gamma, er) in
+                        [(100.0f64, 0.3, GRID_REST_BAND_MM), (300.0f64, 0.1, 0.1f64)]
+                    {
                         if search.used + 2 * (P + 1) >= settings.max_evaluations {
                             break 'grid;
                         }
-                        let x = [kp.ln(), ki.ln(), kd, 1.0, 0.0, en.ln(), rho.ln(), gamma];
+                        let x = [
+                            kp.ln(),
+                            ki.ln(),
+                            kd,
+                            1.0,
+                            0.0,
+                            en.ln(),
+                            rho.ln(),
+                            gamma,
+                            er.ln(),
+                        ];
                         let f = search.eval(x)?;
                         grid.push((x, f));
                     }
@@ -495,7 +513,17 @@ pub fn tune(
     // Nelder–Mead from the best STARTS grid points, the remaining budget shared among them.
     let starts: Vec<[f64; P]> = grid.iter().take(STARTS).map(|g| g.0).collect();
     let starts = if starts.is_empty() {
-        vec![[2.0, 3.4, 0.1, 1.0, 0.0, 0.0, 4.6, 0.3]]
+        vec![[
+            2.0,
+            3.4,
+            0.1,
+            1.0,
+            0.0,
+            0.0,
+            4.6,
+            0.3,
+            GRID_REST_BAND_MM.ln(),
+        ]]
     } else {
         starts
     };
@@ -549,7 +577,7 @@ impl Search<'_> {
     /// Nelder–Mead (reflection 1, expansion 2, contraction ½, shrink ½) from `start` in the box, until
     /// `budget` evaluations in all have been used or the simplex's costs agree to 1e-3 s.
     fn nelder_mead(&mut self, start: [f64; P], budget: usize) -> Result<(), ControlError> {
-        let steps = [0.5, 1.0, 0.2, 0.1, 0.7, 0.7, 0.7, 0.2];
+        let steps: [f64; P] = [0.5, 1.0, 0.2, 0.1, 0.7, 0.7, 0.7, 0.2, 0.7];
         let clamp = |mut x: [f64; P]| {
             for i in 0..P {
                 x[i] = x[i].clamp(LOWER[i], UPPER[i]);

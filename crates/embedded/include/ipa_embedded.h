@@ -214,6 +214,10 @@ typedef struct IpaController {
    * γ: cut fraction of the starting error (`nudge.cut_fraction`).
    */
   double nudge_cut_fraction;
+  /**
+   * e_r: rest band, mm (`nudge.rest_band_mm`; 0 = none, as in a file without it).
+   */
+  double nudge_rest_band;
 } IpaController;
 
 #ifdef __cplusplus

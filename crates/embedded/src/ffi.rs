@@ -147,6 +147,8 @@ pub struct IpaController {
     pub nudge_start_fraction: f64,
     /// γ: cut fraction of the starting error (`nudge.cut_fraction`).
     pub nudge_cut_fraction: f64,
+    /// e_r: rest band, mm (`nudge.rest_band_mm`; 0 = none, as in a file without it).
+    pub nudge_rest_band: f64,
 }
 const _: () = assert!(size_of::<CusumState>() <= IPA_CUSUM_STATE_BYTES);
 const _: () = assert!(MAX_D >= IPA_MAX_NA as usize);
@@ -656,6 +658,7 @@ pub unsafe extern "C" fn ipa_ctl_init(
             start_fraction: c.nudge_start_fraction,
             rest_samples: c.nudge_rest_samples,
             cut_fraction: c.nudge_cut_fraction,
+            rest_band: c.nudge_rest_band,
         })),
         _ => Err(Error::Setting),
     };

@@ -16,6 +16,8 @@
 //!             then u_n is held), and ends (u = 0) once y has moved and |y − y_0| ≥ γ |e_0| or the error
 //!             left is ≤ τ_c(side) |dy/dt| + e_h, or e changes sign; at the next rest τ_c(side) = the
 //!             distance coasted since the cut / |dy/dt| at the cut (learnt on line, −1 = not yet)
+//! e_n < |e| ≤ e_r (rest band): the nudge mode too once y has been unchanged for N_r samples, and while
+//!             the nudge it starts, or the coast after its cut, is under way
 //! ```
 
 use crate::deadzone::Compensator;
@@ -34,6 +36,9 @@ pub struct NudgeSettings<F: Float> {
     pub rest_samples: u32,
     /// γ: cut fraction of the starting error, in (0, 1].
     pub cut_fraction: F,
+    /// e_r: rest band, mm (≥ 0): for e_n < |e| ≤ e_r the nudge mode acts too once y has rested N_r
+    /// samples, and until that nudge and the coast after its cut end (e_r ≤ e_n: no effect).
+    pub rest_band: F,
 }
 
 /// A nudge under way (`right`: u > 0).
@@ -137,6 +142,7 @@ impl<F: Float> PositionController<F> {
                 && positive(n.ramp)
                 && fraction_ok
                 && cut_ok
+                && nonneg(n.rest_band)
                 && (1..=1000).contains(&n.rest_samples))
             {
                 return Err(Error::Setting);
@@ -190,7 +196,10 @@ impl<F: Float> PositionController<F> {
             return Ok(F::ZERO);
         }
         if let Some(n) = s.nudge {
-            if e.abs() <= n.band {
+            let resting = self.nudging.is_some() || self.cut.is_some();
+            if e.abs() <= n.band
+                || (e.abs() <= n.rest_band && (resting || self.still >= n.rest_samples))
+            {
                 self.e_prev = e;
                 return Ok(self.nudge(&n, e, y, dy));
             }
@@ -393,6 +402,7 @@ mod tests {
             start_fraction: 0.5,
             rest_samples: 2,
             cut_fraction,
+            rest_band: 0.0,
         });
         settings
     }
@@ -401,6 +411,50 @@ mod tests {
     // band 1 mm, ρ Ts = 1 count per sample, β = 0.5, N_r = 2, γ = 0.5, e = 0.5 mm: closed until y has
     // been still for 2 samples, then 15, 16, 17 counts; y moves at 17 (learnt, held) and the valve closes
     // once y has covered 0.25 mm; the next nudge starts at 0.5 × 17.
+    // The rest band by hand (the same case as control::position's test): e_r = 3 mm, r = 3, y = 0.5
+    // (e = 2.5 mm, outside e_n = 1): the PID acts (10 × 2.5 + b_r = 55) until y has rested N_r = 2
+    // samples, then a nudge starts at β |b_r| = 15, ramps to 16, breaks loose (u_b = 16, held) and is
+    // cut at y = 1.8 (moved 1.3 ≥ γ |e_0| = 1.25); while the piston coasts (e = 1.1–1.2 mm) the
+    // valve stays closed, and after 2 samples of rest the next nudge starts at β u_b = 8, having
+    // learnt τ_c = 0.1 mm / 30 mm/s. Beyond e_r the PID acts again: 10 × 8 + 30. With e_r = 0 the PID
+    // acts at every one of these samples.
+    #[test]
+    fn a_stop_short_of_the_nudge_band_is_finished_by_nudges_in_the_rest_band() {
+        let steps = [
+            (3.0, 0.5, 55.0, 55.0),
+            (3.0, 0.5, 55.0, 55.0),
+            (3.0, 0.5, 15.0, 55.0),
+            (3.0, 0.5, 16.0, 55.0),
+            (3.0, 0.6, 16.0, 54.0),
+            (3.0, 1.5, 16.0, 45.0),
+            (3.0, 1.8, 0.0, 42.0),
+            (3.0, 1.9, 0.0, 41.0),
+            (3.0, 1.9, 0.0, 41.0),
+            (3.0, 1.9, 8.0, 41.0),
+            (10.0, 2.0, 110.0, 110.0),
+        ];
+        for (e_r, col) in [(3.0, 0), (0.0, 1)] {
+            let mut settings = nudging(0.5);
+            settings.nudge.as_mut().unwrap().rest_band = e_r;
+            let mut c = PositionController::new(settings, Some(shift_inverse())).unwrap();
+            for (k, &(r, y, u_band, u_pid)) in steps.iter().enumerate() {
+                let want = if col == 0 { u_band } else { u_pid };
+                let u = c.step(r, y).unwrap();
+                assert!(
+                    (u - want).abs() < 1e-9,
+                    "e_r {e_r}, sample {k}: {u} != {want}"
+                );
+            }
+            if col == 0 {
+                assert_eq!(c.breakaway(), [20.0, 16.0]);
+                assert_eq!(c.coast_right, (1.9 - 1.8) / ((1.8 - 1.5) / 0.01));
+            }
+        }
+        let mut settings = nudging(0.5);
+        settings.nudge.as_mut().unwrap().rest_band = -1.0;
+        assert!(PositionController::new(settings, None).is_err());
+    }
+
     #[test]
     fn nudge_ramps_from_the_last_breakaway_learns_it_and_cuts() {
         let comp = shift_inverse();

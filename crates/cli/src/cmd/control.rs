@@ -573,8 +573,17 @@ pub fn tuned_line(s: &control::ControllerSettings) -> String {
         });
     let nudge = s.nudge.map_or(String::new(), |n| {
         format!(
-            ", nudge band {:.3} mm (ramp {:.1} counts/s from {} of the learnt breakaway, cut at {:.3} of the error, rest {} samples)",
-            n.band_mm, n.ramp_counts_s, n.start_fraction, n.cut_fraction, n.rest_samples
+            ", nudge band {:.3} mm (ramp {:.1} counts/s from {} of the learnt breakaway, cut at {:.3} of the error, rest {} samples{})",
+            n.band_mm,
+            n.ramp_counts_s,
+            n.start_fraction,
+            n.cut_fraction,
+            n.rest_samples,
+            if n.rest_band_mm > n.band_mm {
+                format!(", also after a rest within {:.3} mm", n.rest_band_mm)
+            } else {
+                String::new()
+            }
         )
     });
     format!(

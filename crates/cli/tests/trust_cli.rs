@@ -861,3 +861,47 @@ fn streamed_identification_warns_like_the_in_memory_path() {
         assert_eq!(w, warnings(memory), "{case:?}: streamed vs in memory");
     }
 }
+
+// Re-audit s8 H1: a Hammerstein model file with absurd deadzone slopes. With m = 1e300 the closed loop
+// reaches |y| ~ 1e303 mm: the run must say that it diverges and print its numbers in a readable form
+// (not 300 digits); a zero slope makes a model that cannot respond, which `simulate` must say.
+#[test]
+fn a_model_with_absurd_deadzone_slopes_is_called_what_it_is() {
+    let tmp = tempfile::tempdir().unwrap();
+    let model = |name: &str, m: &str| {
+        let p = tmp.path().join(name);
+        std::fs::write(
+            &p,
+            format!(
+                r#"{{"format": "ipa-sysid-model", "version": 2, "model": {{"kind": "hammerstein", "ts": 0.01,
+                "na": 1, "nb": 1, "nk": 1, "a": [-0.9], "b": [1.0], "offset": null,
+                "deadzone": {{"b_l": -40.0, "b_r": 40.0, "m_l": {m}, "m_r": {m}}}}}}}"#
+            ),
+        )
+        .unwrap();
+        format!("model:{}", p.display())
+    };
+    let huge = model("huge.json", "1e300");
+    let args = ["--plant", &huge, "--setpoint", "50", "--duration", "2"];
+    let (doc, _) = control(&args);
+    let w = warnings(&doc);
+    assert!(w.iter().any(|w| w.contains("diverges")), "{w:?}");
+    let text = bin().arg("control").args(args).output().unwrap();
+    let text = String::from_utf8_lossy(&text.stdout).into_owned();
+    let longest = text
+        .split(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .map(str::len)
+        .max()
+        .unwrap();
+    assert!(longest < 30, "a number of {longest} characters: {text}");
+
+    let zero = model("zero.json", "0.0");
+    let out = bin()
+        .args(["simulate", "--plant", &zero, "--samples", "50", "--out"])
+        .arg(tmp.path().join("s.csv"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("a slope is zero"), "{err}");
+}

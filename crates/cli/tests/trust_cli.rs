@@ -905,3 +905,42 @@ fn a_model_with_absurd_deadzone_slopes_is_called_what_it_is() {
     assert!(out.status.success(), "{err}");
     assert!(err.contains("a slope is zero"), "{err}");
 }
+
+// Re-audit s8 H2/H3: an input of magnitude 1e300 overflows the residual test's lagged sums (its
+// message used to say the input "does not excite" the lags), and numbers of 1e306 overflow the
+// estimation itself, whose error must name the file.
+#[test]
+fn overflowing_records_are_called_overflowing_and_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let write = |name: &str, scale: f64, y_scale: f64| {
+        let mut text = String::from("t,u,y\n");
+        for k in 0..400 {
+            let u = scale * (1.7 * k as f64).sin();
+            let y = y_scale * ((1.7 * (k as f64 - 1.0)).sin() + 0.1 * (0.3 * k as f64).cos());
+            text += &format!("{},{u:e},{y}\n", k as f64 * 0.01);
+        }
+        let p = tmp.path().join(name);
+        std::fs::write(&p, text).unwrap();
+        p
+    };
+    let big = write("big.csv", 1e300, 1.0);
+    let out = bin()
+        .args(["identify", "--structure", "arx", "--method", "ls", "--data"])
+        .arg(&big)
+        .output()
+        .unwrap();
+    let text =
+        String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr);
+    assert!(!text.contains("does not excite"), "{text}");
+    assert!(text.contains("overflow"), "{text}");
+
+    let huge = write("huge.csv", 1e307, 1e307);
+    let out = bin()
+        .args(["identify", "--structure", "arx", "--method", "ls", "--data"])
+        .arg(&huge)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(err.contains("huge.csv"), "{err}");
+}

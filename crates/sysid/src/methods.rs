@@ -483,12 +483,49 @@ pub(crate) fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitte
     let tail_start = total_rows - total_rows / 10;
     let mut theta_tail = DVector::from_column_slice(est.theta());
     let mut settled = false;
+    // A later pass of the plain recursion (standard form, ρ = 1, no windup protection, no history) is
+    // the regularised least squares `regularised_pass` solves in closed form; the recursion runs
+    // otherwise, and when that solve fails.
+    let closed_form = st.form == RlsForm::Standard
+        && st.windup == Windup::None
+        && st.forgetting == 1.0
+        && !st.record_history;
+    let free_names: Vec<String> = if closed_form {
+        let names = reg.names();
+        idx.iter().map(|&i| names[i].clone()).collect()
+    } else {
+        Vec::new()
+    };
+    // θ̂ at the end of the last pass, and P there when that pass was solved in closed form (otherwise
+    // the estimator's).
+    let mut theta = DVector::from_column_slice(est.theta());
+    let mut p_closed: Option<DMatrix<f64>> = None;
     for pass in 0..st.passes.max() {
         if pass > 0 {
-            est.restart_covariance(st.p0);
             if hammer {
-                reg.update(expand(est.theta()).as_slice(), &mut f, p.starts());
+                reg.update(expand(theta.as_slice()).as_slice(), &mut f, p.starts());
             }
+            let solved = closed_form
+                .then(|| {
+                    let rows = FreeRows {
+                        reg,
+                        records,
+                        idx: &idx,
+                    };
+                    regularised_pass(&rows, &f, theta.as_slice(), st.p0, &free_names).ok()
+                })
+                .flatten();
+            if let Some(sol) = solved {
+                theta = sol.theta;
+                p_closed = Some(sol.inv_gram);
+                if pass_end(st.passes, &mut pass_ends, &theta) {
+                    settled = true;
+                    break;
+                }
+                continue;
+            }
+            est.restart_at(theta.as_slice(), st.p0);
+            p_closed = None;
         }
         let mut at = 0;
         for r in records {
@@ -525,18 +562,13 @@ pub(crate) fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitte
                 at += 1;
             }
         }
-        let end = DVector::from_column_slice(est.theta());
-        if let (Passes::UntilSettled { .. }, Some(prev)) = (st.passes, pass_ends.last()) {
-            if (&end - prev).norm() <= PASSES_SETTLED * (1e-300 + end.norm()) {
-                settled = true;
-                pass_ends.push(end);
-                break;
-            }
+        theta.copy_from_slice(est.theta());
+        if pass_end(st.passes, &mut pass_ends, &theta) {
+            settled = true;
+            break;
         }
-        pass_ends.push(end);
     }
     let passes_run = pass_ends.len();
-    let theta = DVector::from_column_slice(est.theta());
     let rel = |a: &DVector<f64>, b: &DVector<f64>| (a - b).norm() / (1e-300 + b.norm());
     let converged = match st.passes {
         Passes::UntilSettled { .. } => settled,
@@ -549,7 +581,8 @@ pub(crate) fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitte
     let model = model_from_theta(p, &theta_full)?;
     let rss = prediction_rss(&model, records)?;
     let sigma2 = rss / total_rows.saturating_sub(np).max(1) as f64;
-    let cov = scatter_matrix(&free, &(est.covariance() * sigma2));
+    let p_end = p_closed.unwrap_or_else(|| est.covariance());
+    let cov = scatter_matrix(&free, &(p_end * sigma2));
     let mut notes = Vec::new();
     if let Passes::UntilSettled { max } = st.passes {
         notes.push(Note::PassesUntilSettled {
@@ -577,6 +610,71 @@ pub(crate) fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitte
         history_samples,
         ..Fitted::new(model, Vec::new(), Method::Rls, sigma2)
     })
+}
+
+/// Records θ̂ = `end` at the end of a pass; true when the passes have settled (with
+/// [`Passes::UntilSettled`], the change since the previous pass's end is below [`PASSES_SETTLED`]
+/// relative).
+fn pass_end(passes: Passes, pass_ends: &mut Vec<DVector<f64>>, end: &DVector<f64>) -> bool {
+    let settled = match (passes, pass_ends.last()) {
+        (Passes::UntilSettled { .. }, Some(prev)) => {
+            (end - prev).norm() <= PASSES_SETTLED * (1e-300 + end.norm())
+        }
+        _ => false,
+    };
+    pass_ends.push(end.clone());
+    settled
+}
+
+/// The regression rows of every record (k ≥ k0, records one after the other) restricted to the free
+/// entries `idx` of θ.
+struct FreeRows<'a> {
+    reg: &'a crate::regression::Regression,
+    records: &'a [Dataset],
+    idx: &'a [usize],
+}
+
+/// One later RLS pass in closed form. Such a pass restarts P(0) = p0 I at θ̂(0) = θ_prev and keeps the
+/// nonlinearities `f` of its start, so with ρ = 1 the recursion (paper eqs. 9–12) is exact recursive
+/// least squares with the prior θ_prev of weight I/p0: after the N rows φ_k of the records,
+///
+/// ```text
+/// P_N = (Σ φ_k φ_kᵀ + I/p0)⁻¹,   θ̂_N = P_N (Σ φ_k y_k + θ_prev/p0),
+/// ```
+///
+/// i.e. the least-squares solution of the rows [φ_kᵀ | y_k] augmented by the p rows [e_iᵀ/√p0 |
+/// θ_prev,i/√p0], solved here by Householder QR of that augmented matrix ([`ls::QrAccumulator`],
+/// never the normal equations). Returns θ̂_N (free entries) with `inv_gram` = P_N; the same numbers as
+/// the recursion up to rounding.
+fn regularised_pass(
+    rows: &FreeRows,
+    f: &[StaticNonlinearity],
+    theta_prev: &[f64],
+    p0: f64,
+    names: &[String],
+) -> Result<ls::LsSolution, SysidError> {
+    let (reg, idx) = (rows.reg, rows.idx);
+    let np = idx.len();
+    let mut qr = ls::QrAccumulator::new(np);
+    let mut full_row = vec![0.0; reg.len()];
+    let mut row = vec![0.0; np];
+    for r in rows.records {
+        let u = r.input_signals();
+        for k in reg.k0()..r.len() {
+            reg.fill_row(&u, r.y(), f, k, &mut full_row);
+            for (q, &i) in idx.iter().enumerate() {
+                row[q] = full_row[i];
+            }
+            qr.push(&row, r.y()[k]);
+        }
+    }
+    let w = 1.0 / p0.sqrt();
+    for (i, t) in theta_prev.iter().enumerate() {
+        row.fill(0.0);
+        row[i] = w;
+        qr.push(&row, w * t);
+    }
+    qr.triangular(names, false)?.solution()
 }
 
 /// The one record of `p`, or an error naming `method` for merged records.

@@ -499,33 +499,31 @@ pub(crate) fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitte
     // θ̂ at the end of the last pass, and P there when that pass was solved in closed form (otherwise
     // the estimator's).
     let mut theta = DVector::from_column_slice(est.theta());
-    let mut p_closed: Option<DMatrix<f64>> = None;
+    let mut closed: Option<ClosedPass> = None;
     for pass in 0..st.passes.max() {
         if pass > 0 {
             if hammer {
                 reg.update(expand(theta.as_slice()).as_slice(), &mut f, p.starts());
             }
-            let solved = closed_form
-                .then(|| {
-                    let rows = FreeRows {
-                        reg,
-                        records,
-                        idx: &idx,
-                    };
-                    regularised_pass(&rows, &f, theta.as_slice(), st.p0, &free_names).ok()
-                })
-                .flatten();
-            if let Some(sol) = solved {
-                theta = sol.theta;
-                p_closed = Some(sol.inv_gram);
-                if pass_end(st.passes, &mut pass_ends, &theta) {
-                    settled = true;
-                    break;
+            if closed_form {
+                let prev = closed.take();
+                let rows = FreeRows {
+                    reg,
+                    records,
+                    idx: &idx,
+                    names: &free_names,
+                };
+                if let Ok(pass) = regularised_pass(&rows, &f, &theta, st.p0, prev) {
+                    theta.copy_from(&pass.sol.theta);
+                    closed = Some(pass);
+                    if pass_end(st.passes, &mut pass_ends, &theta) {
+                        settled = true;
+                        break;
+                    }
+                    continue;
                 }
-                continue;
             }
             est.restart_at(theta.as_slice(), st.p0);
-            p_closed = None;
         }
         let mut at = 0;
         for r in records {
@@ -581,7 +579,9 @@ pub(crate) fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitte
     let model = model_from_theta(p, &theta_full)?;
     let rss = prediction_rss(&model, records)?;
     let sigma2 = rss / total_rows.saturating_sub(np).max(1) as f64;
-    let p_end = p_closed.unwrap_or_else(|| est.covariance());
+    // P at the end: the closed-form pass's when the last pass was one (a recursive pass after a
+    // closed-form one clears it).
+    let p_end = closed.map_or_else(|| est.covariance(), |c| c.sol.inv_gram);
     let cov = scatter_matrix(&free, &(p_end * sigma2));
     let mut notes = Vec::new();
     if let Passes::UntilSettled { max } = st.passes {
@@ -626,12 +626,22 @@ fn pass_end(passes: Passes, pass_ends: &mut Vec<DVector<f64>>, end: &DVector<f64
     settled
 }
 
-/// The regression rows of every record (k ≥ k0, records one after the other) restricted to the free
-/// entries `idx` of θ.
+/// The regression of a problem's records restricted to the free entries `idx` of θ (named `names`).
 struct FreeRows<'a> {
     reg: &'a crate::regression::Regression,
     records: &'a [Dataset],
     idx: &'a [usize],
+    names: &'a [String],
+}
+
+/// What a closed-form RLS pass leaves for the next ([`regularised_pass`]).
+struct ClosedPass {
+    /// Φ of the pass (all entries of θ, every record's rows stacked).
+    phi: DMatrix<f64>,
+    /// θ_prev, the estimate the pass started from (free entries).
+    start: DVector<f64>,
+    /// θ̂_N (free entries) and P_N = (ΦᵀΦ + I/p0)⁻¹ (as `inv_gram`).
+    sol: ls::LsSolution,
 }
 
 /// One later RLS pass in closed form. Such a pass restarts P(0) = p0 I at θ̂(0) = θ_prev and keeps the
@@ -642,39 +652,56 @@ struct FreeRows<'a> {
 /// P_N = (Σ φ_k φ_kᵀ + I/p0)⁻¹,   θ̂_N = P_N (Σ φ_k y_k + θ_prev/p0),
 /// ```
 ///
-/// i.e. the least-squares solution of the rows [φ_kᵀ | y_k] augmented by the p rows [e_iᵀ/√p0 |
-/// θ_prev,i/√p0], solved here by Householder QR of that augmented matrix ([`ls::QrAccumulator`],
-/// never the normal equations). Returns θ̂_N (free entries) with `inv_gram` = P_N; the same numbers as
-/// the recursion up to rounding.
+/// i.e. the least-squares solution of the rows [φ_kᵀ | y_k] (free entries `idx`) augmented by the p rows
+/// [e_iᵀ/√p0 | θ_prev,i/√p0], solved by Householder QR of that augmented matrix ([`ls`], never the
+/// normal equations): the same numbers as the recursion up to rounding. When Φ repeats the previous
+/// closed-form pass's to the bit (no switching changed, the usual last pass that confirms the settling),
+/// P_N and Σ φ y are that pass's too, and θ̂_N = θ̂' + P_N (θ_prev − θ'_prev)/p0 from its θ̂' and start
+/// θ'_prev, without a second factorisation.
 fn regularised_pass(
     rows: &FreeRows,
     f: &[StaticNonlinearity],
-    theta_prev: &[f64],
+    theta_prev: &DVector<f64>,
     p0: f64,
-    names: &[String],
-) -> Result<ls::LsSolution, SysidError> {
-    let (reg, idx) = (rows.reg, rows.idx);
-    let np = idx.len();
-    let mut qr = ls::QrAccumulator::new(np);
-    let mut full_row = vec![0.0; reg.len()];
-    let mut row = vec![0.0; np];
-    for r in rows.records {
-        let u = r.input_signals();
-        for k in reg.k0()..r.len() {
-            reg.fill_row(&u, r.y(), f, k, &mut full_row);
-            for (q, &i) in idx.iter().enumerate() {
-                row[q] = full_row[i];
-            }
-            qr.push(&row, r.y()[k]);
+    prev: Option<ClosedPass>,
+) -> Result<ClosedPass, SysidError> {
+    let (idx, names) = (rows.idx, rows.names);
+    let (phi, y) = rows.reg.stacked(rows.records, f);
+    if let Some(prev) = prev.filter(|q| same_bits(q.phi.as_slice(), phi.as_slice())) {
+        let step = &prev.sol.inv_gram * ((theta_prev - &prev.start) / p0);
+        let theta = &prev.sol.theta + step;
+        if theta.iter().all(|v| v.is_finite()) {
+            return Ok(ClosedPass {
+                phi,
+                start: theta_prev.clone(),
+                sol: ls::LsSolution { theta, ..prev.sol },
+            });
         }
+        return Err(SysidError::Numerical(
+            "a repeated RLS pass gave a non-finite estimate".into(),
+        ));
     }
+    let (m, np) = (phi.nrows(), idx.len());
     let w = 1.0 / p0.sqrt();
-    for (i, t) in theta_prev.iter().enumerate() {
-        row.fill(0.0);
-        row[i] = w;
-        qr.push(&row, w * t);
+    let mut a = DMatrix::<f64>::zeros(m + np, np);
+    // Φ is stored by columns: column q of the augmented matrix is Φ's column idx[q], then w e_q.
+    for (q, col) in a.as_mut_slice().chunks_exact_mut(m + np).enumerate() {
+        col[..m].copy_from_slice(&phi.as_slice()[idx[q] * m..(idx[q] + 1) * m]);
+        col[m + q] = w;
     }
-    qr.triangular(names, false)?.solution()
+    let mut b = DVector::<f64>::zeros(m + np);
+    b.as_mut_slice()[..m].copy_from_slice(y.as_slice());
+    for (q, t) in theta_prev.iter().enumerate() {
+        b[m + q] = w * t;
+    }
+    let sol = ls::LsWorkspace::new()
+        .triangularise(&a, &b, names, false)?
+        .solution()?;
+    Ok(ClosedPass {
+        phi,
+        start: theta_prev.clone(),
+        sol,
+    })
 }
 
 /// The one record of `p`, or an error naming `method` for merged records.

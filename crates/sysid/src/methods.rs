@@ -466,11 +466,35 @@ pub(crate) fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitte
     // batch methods do, and such data are refused with the same message. With forgetting ρ < 1 or windup
     // protection the estimator is being used as a tracker, where spells without excitation are expected.
     let total_rows = reg.rows(records);
+    // A later pass of the plain recursion (standard form, ρ = 1, no windup protection, no history,
+    // every entry of θ free) is the regularised least squares `regularised_pass` solves in closed form;
+    // the recursion runs otherwise, and when that solve fails.
+    let closed_form = st.form == RlsForm::Standard
+        && st.windup == Windup::None
+        && st.forgetting == 1.0
+        && !st.record_history
+        && np == reg.len();
+    let names = reg.names();
+    // The closed-form passes' buffer of N + p rows, Φ built into its first N.
+    let mut aug: Option<Buffers> = None;
     if st.forgetting == 1.0 && st.windup == Windup::None && total_rows >= np {
-        let (phi, y) = reg.stacked(records, &f);
         // Only the rank verdict matters here; numerical trouble (overflow) is left to the recursion,
         // which reports the sample where it happens.
-        if let Err(e @ SysidError::Data(_)) = solve_free(&phi, &y, &free, &reg.names()) {
+        let verdict = if closed_form {
+            // Built into the closed-form passes' buffer: its p prior rows are still 0, which add only
+            // zeros to the QR's sums (the same R as Φ alone up to the order of summation, so the same
+            // verdict except within rounding of the rank tolerance).
+            let mut a = DMatrix::zeros(total_rows + np, np);
+            let mut b = DVector::zeros(total_rows + np);
+            reg.stacked_into::<false>(records, &f, &mut a, &mut b);
+            let verdict = ls::solve(&a, &b, &names).map(|_| ());
+            aug = Some((a, b));
+            verdict
+        } else {
+            let (phi, y) = reg.stacked(records, &f);
+            solve_free(&phi, &y, &free, &names).map(|_| ())
+        };
+        if let Err(e @ SysidError::Data(_)) = verdict {
             return Err(context(p, e));
         }
     }
@@ -483,19 +507,6 @@ pub(crate) fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitte
     let tail_start = total_rows - total_rows / 10;
     let mut theta_tail = DVector::from_column_slice(est.theta());
     let mut settled = false;
-    // A later pass of the plain recursion (standard form, ρ = 1, no windup protection, no history) is
-    // the regularised least squares `regularised_pass` solves in closed form; the recursion runs
-    // otherwise, and when that solve fails.
-    let closed_form = st.form == RlsForm::Standard
-        && st.windup == Windup::None
-        && st.forgetting == 1.0
-        && !st.record_history;
-    let free_names: Vec<String> = if closed_form {
-        let names = reg.names();
-        idx.iter().map(|&i| names[i].clone()).collect()
-    } else {
-        Vec::new()
-    };
     // θ̂ at the end of the last pass, and P there when that pass was solved in closed form (otherwise
     // the estimator's).
     let mut theta = DVector::from_column_slice(est.theta());
@@ -510,10 +521,13 @@ pub(crate) fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitte
                 let rows = FreeRows {
                     reg,
                     records,
-                    idx: &idx,
-                    names: &free_names,
+                    names: &names,
                 };
-                if let Ok(pass) = regularised_pass(&rows, &f, &theta, st.p0, prev) {
+                let buf = aug.get_or_insert_with(|| {
+                    let n = total_rows + np;
+                    (DMatrix::zeros(n, np), DVector::zeros(n))
+                });
+                if let Ok(pass) = regularised_pass(&rows, &f, &theta, st.p0, prev, buf) {
                     theta.copy_from(&pass.sol.theta);
                     closed = Some(pass);
                     if pass_end(st.passes, &mut pass_ends, &theta) {
@@ -626,82 +640,90 @@ fn pass_end(passes: Passes, pass_ends: &mut Vec<DVector<f64>>, end: &DVector<f64
     settled
 }
 
-/// The regression of a problem's records restricted to the free entries `idx` of θ (named `names`).
+/// The regression of a problem's records (its entries named `names`).
 struct FreeRows<'a> {
     reg: &'a crate::regression::Regression,
     records: &'a [Dataset],
-    idx: &'a [usize],
     names: &'a [String],
 }
 
+/// The augmented matrix [Φ; w I] and target [y; w θ_prev] of the closed-form passes (w = 1/√p0), one
+/// buffer built into again by every pass.
+type Buffers = (DMatrix<f64>, DVector<f64>);
+
 /// What a closed-form RLS pass leaves for the next ([`regularised_pass`]).
 struct ClosedPass {
-    /// Φ of the pass (all entries of θ, every record's rows stacked).
-    phi: DMatrix<f64>,
-    /// θ_prev, the estimate the pass started from (free entries).
+    /// θ_prev, the estimate the pass started from.
     start: DVector<f64>,
-    /// θ̂_N (free entries) and P_N = (ΦᵀΦ + I/p0)⁻¹ (as `inv_gram`).
+    /// θ̂_N and P_N = (ΦᵀΦ + I/p0)⁻¹ (as `inv_gram`).
     sol: ls::LsSolution,
 }
 
-/// One later RLS pass in closed form. Such a pass restarts P(0) = p0 I at θ̂(0) = θ_prev and keeps the
-/// nonlinearities `f` of its start, so with ρ = 1 the recursion (paper eqs. 9–12) is exact recursive
-/// least squares with the prior θ_prev of weight I/p0: after the N rows φ_k of the records,
+/// One later RLS pass in closed form, every entry of θ free. Such a pass restarts P(0) = p0 I at
+/// θ̂(0) = θ_prev and keeps the nonlinearities `f` of its start, so with ρ = 1 the recursion (paper
+/// eqs. 9–12) is exact recursive least squares with the prior θ_prev of weight I/p0: after the N rows
+/// φ_k of the records,
 ///
 /// ```text
 /// P_N = (Σ φ_k φ_kᵀ + I/p0)⁻¹,   θ̂_N = P_N (Σ φ_k y_k + θ_prev/p0),
 /// ```
 ///
-/// i.e. the least-squares solution of the rows [φ_kᵀ | y_k] (free entries `idx`) augmented by the p rows
-/// [e_iᵀ/√p0 | θ_prev,i/√p0], solved by Householder QR of that augmented matrix ([`ls`], never the
-/// normal equations): the same numbers as the recursion up to rounding. When Φ repeats the previous
-/// closed-form pass's to the bit (no switching changed, the usual last pass that confirms the settling),
-/// P_N and Σ φ y are that pass's too, and θ̂_N = θ̂' + P_N (θ_prev − θ'_prev)/p0 from its θ̂' and start
-/// θ'_prev, without a second factorisation.
+/// i.e. the least-squares solution of the rows [φ_kᵀ | y_k] augmented by the p rows
+/// [w e_iᵀ | w θ_prev,i], w = 1/√p0, solved by Householder QR of that augmented matrix ([`ls::solve`],
+/// never the normal equations): the same numbers as the recursion up to rounding. When Φ repeats the
+/// previous closed-form pass's to the bit (no switching changed: the usual last pass, which confirms the
+/// settling), P_N and Σ φ y are that pass's too, and θ̂_N = θ̂' + P_N (θ_prev − θ'_prev)/p0 from its
+/// θ̂' and start θ'_prev, without a second factorisation. `buf` holds (N + p) rows: Φ of the last
+/// build (a previous pass's, or the rank test's) above, overwritten here.
 fn regularised_pass(
     rows: &FreeRows,
     f: &[StaticNonlinearity],
     theta_prev: &DVector<f64>,
     p0: f64,
     prev: Option<ClosedPass>,
+    buf: &mut Buffers,
 ) -> Result<ClosedPass, SysidError> {
-    let (idx, names) = (rows.idx, rows.names);
-    let (phi, y) = rows.reg.stacked(rows.records, f);
-    if let Some(prev) = prev.filter(|q| same_bits(q.phi.as_slice(), phi.as_slice())) {
-        let step = &prev.sol.inv_gram * ((theta_prev - &prev.start) / p0);
-        let theta = &prev.sol.theta + step;
-        if theta.iter().all(|v| v.is_finite()) {
-            return Ok(ClosedPass {
-                phi,
-                start: theta_prev.clone(),
-                sol: ls::LsSolution { theta, ..prev.sol },
-            });
-        }
-        return Err(SysidError::Numerical(
-            "a repeated RLS pass gave a non-finite estimate".into(),
-        ));
-    }
-    let (m, np) = (phi.nrows(), idx.len());
+    let (a, b) = buf;
+    let np = a.ncols();
+    let m = a.nrows() - np;
+    let repeats = rows.reg.stacked_into::<true>(rows.records, f, a, b);
     let w = 1.0 / p0.sqrt();
-    let mut a = DMatrix::<f64>::zeros(m + np, np);
-    // Φ is stored by columns: column q of the augmented matrix is Φ's column idx[q], then w e_q.
     for (q, col) in a.as_mut_slice().chunks_exact_mut(m + np).enumerate() {
-        col[..m].copy_from_slice(&phi.as_slice()[idx[q] * m..(idx[q] + 1) * m]);
+        col[m..].fill(0.0);
         col[m + q] = w;
     }
-    let mut b = DVector::<f64>::zeros(m + np);
-    b.as_mut_slice()[..m].copy_from_slice(y.as_slice());
     for (q, t) in theta_prev.iter().enumerate() {
         b[m + q] = w * t;
     }
-    let sol = ls::LsWorkspace::new()
-        .triangularise(&a, &b, names, false)?
-        .solution()?;
-    Ok(ClosedPass {
-        phi,
-        start: theta_prev.clone(),
-        sol,
-    })
+    let start = theta_prev.clone();
+    match prev {
+        Some(prev) if repeats => {
+            let step = &prev.sol.inv_gram * ((theta_prev - &prev.start) / p0);
+            let theta = &prev.sol.theta + step;
+            if !theta.iter().all(|v| v.is_finite()) {
+                return Err(SysidError::Numerical(
+                    "a repeated RLS pass gave a non-finite estimate".into(),
+                ));
+            }
+            let sol = ls::LsSolution { theta, ..prev.sol };
+            Ok(ClosedPass { start, sol })
+        }
+        _ => {
+            let sol = solve_augmented(a, b, rows.names)?;
+            Ok(ClosedPass { start, sol })
+        }
+    }
+}
+
+/// The least squares of a closed-form pass's augmented rows.
+fn solve_augmented(
+    a: &DMatrix<f64>,
+    b: &DVector<f64>,
+    names: &[String],
+) -> Result<ls::LsSolution, SysidError> {
+    // With the rank test of every solve: the prior rows make the columns independent, but a column of
+    // norm above ~1e7 √p0 scales them below its tolerance; the caller then runs the recursion.
+    ls::solve(a, b, names)
 }
 
 /// The one record of `p`, or an error naming `method` for merged records.

@@ -454,6 +454,8 @@ pub(crate) fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitte
     let free = reg.free_key(p.starts());
     let idx: Vec<usize> = (0..free.len()).filter(|&i| free[i]).collect();
     let np = idx.len();
+    // Every entry free (the usual case): θ̂ and φ need no scatter to the full layout and back.
+    let all_free = np == reg.len();
     let mut est = recursive_estimator(np, st)?;
     let mut full_row = vec![0.0; reg.len()];
     let mut row = vec![0.0; np];
@@ -473,7 +475,7 @@ pub(crate) fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitte
         && st.windup == Windup::None
         && st.forgetting == 1.0
         && !st.record_history
-        && np == reg.len();
+        && all_free;
     let names = reg.names();
     // The closed-form passes' buffer of N + p rows, Φ built into its first N.
     let mut aug: Option<Buffers> = None;
@@ -547,18 +549,26 @@ pub(crate) fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitte
                     theta_tail.copy_from_slice(est.theta());
                 }
                 if hammer && pass == 0 && at > 0 {
-                    // θ̂ at full size in a buffer kept across samples (no allocation per sample).
-                    scatter_into(&free, est.theta(), &zeros, &mut full_theta);
-                    reg.update(&full_theta, &mut f, p.starts());
+                    if all_free {
+                        reg.update(est.theta(), &mut f, p.starts());
+                    } else {
+                        // θ̂ at full size in a buffer kept across samples (no allocation per sample).
+                        scatter_into(&free, est.theta(), &zeros, &mut full_theta);
+                        reg.update(&full_theta, &mut f, p.starts());
+                    }
                     for ((fm, start), ch) in f.iter_mut().zip(&initial_f).zip(reg.channels()) {
                         if ch.kind.block().is_degenerate(fm) {
                             *fm = *start;
                         }
                     }
                 }
-                reg.fill_row(&u, r.y(), &f, k, &mut full_row);
-                for (q, &i) in idx.iter().enumerate() {
-                    row[q] = full_row[i];
+                if all_free {
+                    reg.fill_row(&u, r.y(), &f, k, &mut row);
+                } else {
+                    reg.fill_row(&u, r.y(), &f, k, &mut full_row);
+                    for (q, &i) in idx.iter().enumerate() {
+                        row[q] = full_row[i];
+                    }
                 }
                 est.update(&row, r.y()[k], k)
                     .map_err(|e| e.context(r.name()))?;

@@ -205,7 +205,7 @@ def simulate_plant(
     seed: int = 0,
     amplitude: float = 255.0,
     ts: float | None = None,
-    x0: float = 100.0,
+    x0: float | None = None,
     noise_std: float = 0.0,
     plant_config: str | PathLike[str] | None = None,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray | None]:

@@ -1148,7 +1148,7 @@ fn plant_spec(plant: &str) -> PyResult<ipa::PlantSpec> {
 /// command line rounds them to 0.1 Pa). `plant`: "ipa", "paper", or a model file ("model:FILE" or its path).
 #[pyfunction]
 #[pyo3(signature = (plant="ipa", input="staircase", samples=None, seed=0, amplitude=255.0, ts=None,
-    x0=100.0, noise_std=0.0, plant_config=None))]
+    x0=None, noise_std=0.0, plant_config=None))]
 #[allow(clippy::too_many_arguments, clippy::type_complexity)]
 fn simulate_plant<'py>(
     py: Python<'py>,
@@ -1158,7 +1158,7 @@ fn simulate_plant<'py>(
     seed: u64,
     amplitude: f64,
     ts: Option<f64>,
-    x0: f64,
+    x0: Option<f64>,
     noise_std: f64,
     plant_config: Option<PathBuf>,
 ) -> PyResult<(

@@ -145,3 +145,80 @@ fn plant_config_prints_the_defaults_as_toml() {
     );
     assert!(s.status.success(), "{}", String::from_utf8_lossy(&s.stderr));
 }
+
+/// A model file of y(k) = −a1 y(k−1) + b1 (u(k−1) − u0) + c around the operating point (u0, y0) when
+/// given (version 2), written by hand.
+fn first_order_model(dir: &Path, name: &str, a1: f64, c: f64, op: Option<(f64, f64)>) -> String {
+    let op = op.map_or(String::new(), |(u0, y0)| {
+        format!(r#", "operating_point": {{"u": [{u0}], "y": {y0}}}"#)
+    });
+    std::fs::write(
+        dir.join(name),
+        format!(
+            r#"{{"format": "ipa-sysid-model", "version": 2, "model": {{"kind": "arx", "ts": 0.1, "na": 1,
+            "nb": 1, "nk": 1, "a": [{a1}], "b": [0.5], "offset": {c}{op}}}}}"#
+        ),
+    )
+    .unwrap();
+    format!("model:{name}")
+}
+
+// Without --y0 a stable model starts at rest at its own level — the fixed point y = y0 + c / (1 + a1)
+// of its equation with the input at the operating point — so the record shows the input's response
+// and no decay from an arbitrary start; an integrator (no resting level) starts mid-stroke at 100 mm as
+// the IPA does; --y0 still overrides. Expectations: the difference equation run here.
+#[test]
+fn a_stable_model_starts_at_its_own_resting_level() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |plant: &str, extra: &[&str], out: &str| {
+        let mut args = vec!["--plant", plant];
+        args.extend(extra);
+        let o = simulate(dir.path(), &args, out);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        (
+            sysid::data::read_csv(&dir.path().join(out), &Default::default()).unwrap(),
+            String::from_utf8_lossy(&o.stderr).into_owned(),
+        )
+    };
+    let expect = |y0: f64, a1: f64, c: f64, u0: f64, yop: f64, u: &[f64]| {
+        let mut y = vec![y0];
+        for k in 0..u.len() - 1 {
+            let dev = y[k] - yop;
+            y.push(yop - a1 * dev + 0.5 * (u[k] - u0) + c);
+        }
+        y
+    };
+    let close = |a: &[f64], b: &[f64]| a.iter().zip(b).all(|(x, y)| (x - y).abs() < 1e-9);
+
+    // Stable, no operating point: rest 0.1 / (1 − 0.8) = 0.5.
+    let m = first_order_model(dir.path(), "stable.json", -0.8, 0.1, None);
+    let (d, err) = run(&m, &["--input", "step:10@5", "--samples", "12"], "s.csv");
+    let want = expect(0.5, -0.8, 0.1, 0.0, 0.0, d.u());
+    assert!(close(d.y(), &want), "{:?} vs {want:?}", d.y());
+    assert!(d.y()[..6].iter().all(|y| (y - 0.5).abs() < 1e-12));
+    assert!(err.contains("from rest at y0 = 0.5"), "{err}");
+
+    // Stable around (u0, y0) = (20, 3): rest 3 + 0.1 / 0.2 = 3.5 with the input at u0.
+    std::fs::write(dir.path().join("u.csv"), "u\n20\n20\n20\n30\n30\n30\n30\n").unwrap();
+    let m = first_order_model(dir.path(), "op.json", -0.8, 0.1, Some((20.0, 3.0)));
+    let (d, _) = run(&m, &["--input", "file:u.csv"], "o.csv");
+    let want = expect(3.5, -0.8, 0.1, 20.0, 3.0, d.u());
+    assert!(close(d.y(), &want), "{:?} vs {want:?}", d.y());
+    assert!((d.y()[3] - 3.5).abs() < 1e-12);
+
+    // An integrator has no resting level: mid-stroke, as the IPA.
+    let m = first_order_model(dir.path(), "int.json", -1.0, 0.0, None);
+    let (d, err) = run(&m, &["--input", "step:10@5", "--samples", "12"], "i.csv");
+    assert_eq!(d.y()[0], 100.0);
+    assert!(close(d.y(), &expect(100.0, -1.0, 0.0, 0.0, 0.0, d.u())));
+    assert!(err.contains("from rest at y0 = 100"), "{err}");
+
+    // --y0 overrides the resting level.
+    let m = first_order_model(dir.path(), "stable2.json", -0.8, 0.1, None);
+    let (d, _) = run(
+        &m,
+        &["--input", "step:10@5", "--samples", "12", "--y0", "7"],
+        "y.csv",
+    );
+    assert!(close(d.y(), &expect(7.0, -0.8, 0.1, 0.0, 0.0, d.u())));
+}

@@ -81,6 +81,18 @@ impl StepMetrics {
         y0_mm: f64,
         r_mm: f64,
     ) -> Result<StepMetrics, ControlError> {
+        Self::assess(t_s, y_mm, u, y0_mm, r_mm).map(|(m, _)| m)
+    }
+
+    /// [`StepMetrics::of_loop`] and, when the step has no settling time, why ([`Unsettled`]: the words
+    /// of [`crate::trust::loop_warnings`]).
+    pub fn assess(
+        t_s: &[f64],
+        y_mm: &[f64],
+        u: Option<&[f64]>,
+        y0_mm: f64,
+        r_mm: f64,
+    ) -> Result<(StepMetrics, Option<Unsettled>), ControlError> {
         let n = t_s.len();
         if n != y_mm.len() || u.is_some_and(|u| u.len() != n) {
             return Err(ControlError::Config(format!(
@@ -115,17 +127,19 @@ impl StepMetrics {
         let delta = y_f - y0_mm;
         let scale = y0_mm.abs().max(y_f.abs()).max(1.0);
         if delta.abs() <= 16.0 * f64::EPSILON * scale {
-            return Ok(StepMetrics {
+            let metrics = StepMetrics {
                 overshoot_mm: None,
                 overshoot_percent: None,
                 steady_state_error_mm: ess,
                 rise_time_s: None,
                 settling_time_s: None,
-            });
+            };
+            // The set-point moved away and the output never followed: a step that did not respond.
+            let why = (r_mm != y0_mm).then_some(Unsettled::NoResponse);
+            return Ok((metrics, why));
         }
         let d = delta.signum();
         let step = delta.abs();
-        let t0 = t_s[0];
         // z_k: progress along the step direction, from 0 at y0 to |Δ| at y_f.
         let z = |k: usize| d * (y_mm[k] - y0_mm);
 
@@ -151,41 +165,38 @@ impl StepMetrics {
         // The band's centre (see the module documentation): the set-point r when the run ends inside its
         // band; otherwise the final value y_f, when the loop is at rest; otherwise none (not settled).
         let r_band = SETTLING_BAND * (r_mm - y0_mm).abs();
-        let (centre, band) = if (r_mm - y_f).abs() <= r_band {
-            (Some(r_mm), r_band)
-        } else if still_moving(t_s, y_mm, band) || u.is_some_and(command_still_moving) {
-            (None, band)
+        let settled = if (r_mm - y_f).abs() <= r_band {
+            settle(t_s, y_mm, r_mm, r_band)
+        } else if still_moving(t_s, y_mm, band) {
+            Err(Unsettled::Moving)
+        } else if u.is_some_and(command_still_moving) {
+            Err(Unsettled::CommandMoving)
         } else {
-            (Some(y_f), band)
+            settle(t_s, y_mm, y_f, band)
         };
-        let settling = centre.and_then(|c| {
-            match (0..n).rev().find(|&k| (y_mm[k] - c).abs() > band) {
-                None => Some(0.0),
-                Some(k) if k + 1 >= n => None,
-                Some(k) => {
-                    // y_k is outside the band, y_(k+1) inside: interpolate the crossing of the violated
-                    // edge.
-                    let edge = if y_mm[k] > c { c + band } else { c - band };
-                    let frac = (y_mm[k] - edge) / (y_mm[k] - y_mm[k + 1]);
-                    Some(t_s[k] + frac * (t_s[k + 1] - t_s[k]) - t0)
-                }
-            }
-        });
-
-        Ok(StepMetrics {
+        let metrics = StepMetrics {
             overshoot_mm: Some(overshoot),
             overshoot_percent: Some(100.0 * overshoot / step),
             steady_state_error_mm: ess,
             rise_time_s: rise,
-            settling_time_s: settling,
-        })
+            settling_time_s: settled.ok(),
+        };
+        Ok((metrics, settled.err()))
     }
 
     /// Field-wise worst case over several steps (largest overshoot, rise and settling time; the steady-state
     /// error of largest magnitude, sign kept). `None` fields are skipped (a step without a step has no
-    /// relative metrics), except that the settling time is `None` when any step that moved has not
-    /// settled; `None` if `steps` is empty.
+    /// relative metrics), except that the settling time is `None` when any step that moved, or whose
+    /// output did not follow its set-point at all, has not settled; `None` if `steps` is empty.
     pub fn worst<'a>(steps: impl IntoIterator<Item = &'a StepMetrics>) -> Option<StepMetrics> {
+        // A step that moved (it has an overshoot) or whose set-point moved away from an output that
+        // never followed (a non-zero error without a step) has not settled when it has no settling
+        // time: then neither has the run, whatever the other steps did.
+        fn unsettled(m: &StepMetrics) -> bool {
+            let moved = m.overshoot_mm.is_some();
+            let stuck = m.steady_state_error_mm.is_some_and(|e| e != 0.0);
+            (moved || stuck) && m.settling_time_s.is_none()
+        }
         fn pick(a: Option<f64>, b: Option<f64>) -> Option<f64> {
             match (a, b) {
                 (Some(x), Some(y)) => Some(if y.abs() > x.abs() { y } else { x }),
@@ -193,9 +204,6 @@ impl StepMetrics {
                 (None, y) => y,
             }
         }
-        // A step that moved (it has an overshoot) but has no settling time has not settled: then
-        // neither has the run, whatever the other steps did.
-        let unsettled = |m: &StepMetrics| m.overshoot_mm.is_some() && m.settling_time_s.is_none();
         let mut any_unsettled = false;
         let worst = steps
             .into_iter()
@@ -215,22 +223,98 @@ impl StepMetrics {
     }
 }
 
-/// Fraction of a run, at its end, over which [`still_moving`] measures the drift.
+/// Why a step that moved has no settling time ([`StepMetrics::assess`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Unsettled {
+    /// Outside the set-point's band the output still drifts at the end of the run ([`still_moving`]).
+    Moving,
+    /// Outside the set-point's band the output is at rest while the command still changes
+    /// ([`command_still_moving`]: friction holds the piston while the integrator winds up).
+    CommandMoving,
+    /// The output left the band again within the run's last [`TAIL_FRACTION`], on both sides of its
+    /// centre: it oscillates (a limit cycle), with this peak-to-peak amplitude over that tail, mm.
+    Oscillating {
+        /// max − min of the output over the run's last [`TAIL_FRACTION`], mm.
+        peak_to_peak_mm: f64,
+    },
+    /// The output entered the band for good only within the run's last [`TAIL_FRACTION`], at this time
+    /// from the step's start, s: too late to tell that it stays.
+    LateEntry {
+        /// When the output entered the band for good, s from the step's start.
+        at_s: f64,
+    },
+    /// The set-point moved away and the output never left y0.
+    NoResponse,
+}
+
+/// The settling time against the band `centre ± band` (s from t_0): the interpolated crossing into the
+/// band after the last sample outside it, 0 if none is outside; [`Unsettled`] when the output has not
+/// stayed inside for the run's last [`TAIL_FRACTION`] (at least its last sample when that tail is
+/// too short to tell), so that a settling time means the output stayed.
+fn settle(t_s: &[f64], y_mm: &[f64], centre: f64, band: f64) -> Result<f64, Unsettled> {
+    let n = t_s.len().min(y_mm.len());
+    let outside = |k: &usize| (y_mm[*k] - centre).abs() > band;
+    let Some(k) = (0..n).rev().find(outside) else {
+        return Ok(0.0);
+    };
+    // The final stay in the band starts at sample k + 1; it must cover the tail.
+    let tail_len = tail(&y_mm[..n]).map_or(1, <[f64]>::len);
+    if k + 1 > n - tail_len {
+        let tail = &y_mm[n - tail_len..n];
+        let above = tail.iter().any(|y| y - centre > band);
+        let below = tail.iter().any(|y| centre - y > band);
+        if above && below {
+            let (lo, hi) = tail
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &y| {
+                    (a.min(y), b.max(y))
+                });
+            return Err(Unsettled::Oscillating {
+                peak_to_peak_mm: hi - lo,
+            });
+        }
+        if k + 1 >= n {
+            return Err(Unsettled::Moving);
+        }
+        return Err(Unsettled::LateEntry {
+            at_s: crossing(t_s, y_mm, k, centre, band) - t_s[0],
+        });
+    }
+    Ok(crossing(t_s, y_mm, k, centre, band) - t_s[0])
+}
+
+/// The interpolated time at which the output crosses into `centre ± band` between sample `k`
+/// (outside) and `k + 1` (inside).
+fn crossing(t_s: &[f64], y_mm: &[f64], k: usize, centre: f64, band: f64) -> f64 {
+    let edge = if y_mm[k] > centre {
+        centre + band
+    } else {
+        centre - band
+    };
+    let frac = (y_mm[k] - edge) / (y_mm[k] - y_mm[k + 1]);
+    t_s[k] + frac * (t_s[k + 1] - t_s[k])
+}
+
+/// Fraction of a run, at its end, over which [`still_moving`] measures the drift, and for which a
+/// settled output must have stayed inside its band.
 pub const TAIL_FRACTION: f64 = 0.2;
 
-/// Fraction of the settling band by which the output may still drift over the run's tail.
+/// Fraction of the settling band by which the output may drift over a time as long as the whole run,
+/// at the rate it drifts over the run's tail.
 pub const DRIFT_FRACTION: f64 = 0.1;
 
-/// True when the response `y_mm` is still moving at the end of the run: over the last
-/// [`TAIL_FRACTION`] of its samples it drifts by more than [`DRIFT_FRACTION`] of the settling band
-/// `band_mm` (the drift is twice the difference between the means of the tail's two halves, so that
-/// sample noise and quantisation average out). A response that creeps towards its set-point (friction,
-/// a slow pole) then has no final value within the run, so neither a settling time nor a steady-state
-/// error measured at its last sample is final: at that rate it would cross the band within a few
-/// more such tails.
+/// True when the response `y_mm` is still moving at the end of the run: its drift over the last
+/// [`TAIL_FRACTION`] of the samples (twice the difference between the means of the tail's two halves,
+/// so that sample noise and quantisation average out), carried on at that rate over a time as long as
+/// the whole run, exceeds [`DRIFT_FRACTION`] of the settling band `band_mm`. A response that creeps
+/// towards its set-point (friction, a slow pole) then has no final value within the run, so neither a
+/// settling time nor a steady-state error measured at its last sample is final. The rate, not the
+/// tail's drift, is judged, so that a short run cannot pass a creep off as rest (0.28 mm/s over a 1 s
+/// tail is a tenth of a 3 mm band; over a 5 s run, half of it).
 pub fn still_moving(t_s: &[f64], y_mm: &[f64], band_mm: f64) -> bool {
     let n = t_s.len().min(y_mm.len());
-    tail(&y_mm[..n]).is_some_and(|tail| drift(tail) > DRIFT_FRACTION * band_mm)
+    tail(&y_mm[..n])
+        .is_some_and(|tail| drift(tail) * (n as f64 / tail.len() as f64) > DRIFT_FRACTION * band_mm)
 }
 
 /// The last [`TAIL_FRACTION`] of `v`; `None` when that is fewer than 4 samples (too short to tell).
@@ -457,6 +541,91 @@ mod tests {
         let m = StepMetrics::of_loop(&t, &y, Some(&winding), 0.0, 1.0).unwrap();
         assert_eq!(m.settling_time_s, None);
         assert!((m.steady_state_error_mm.unwrap() - 0.1).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a_creep_judged_by_its_rate_is_not_rest_on_a_short_run() {
+        // Audit s8 F1: y overshoots r = 150 to 153.9 mm at 0.3 s (y0 = 0: r's band ±3 mm) and then
+        // creeps down with a flat command, ending outside r's band. At 0.1 mm/s the last fifth of a 5 s
+        // run (1 s) drifts 0.1 mm, below a tenth of the y_f band (0.1 · 2 % · 153.4 ≈ 0.31 mm), but at
+        // that rate over the whole run 0.5 mm: still moving, no settling time. At 0.01 mm/s, 0.05 mm
+        // over the run: at rest, settled against y_f.
+        let t = grid(0.01, 5.0);
+        let u = vec![20.0; t.len()];
+        for (rate, moving) in [(0.01, false), (0.1, true)] {
+            let y: Vec<f64> = t
+                .iter()
+                .map(|&t| {
+                    if t < 0.3 {
+                        512.0 * t
+                    } else {
+                        153.6 + 0.3 - rate * (t - 0.3)
+                    }
+                })
+                .collect();
+            let (m, why) = StepMetrics::assess(&t, &y, Some(&u), 0.0, 150.0).unwrap();
+            assert_eq!(
+                why == Some(Unsettled::Moving),
+                moving,
+                "{rate}: {m:?} {why:?}"
+            );
+            assert_eq!(m.settling_time_s.is_none(), moving, "{rate}: {m:?}");
+        }
+    }
+
+    #[test]
+    fn an_oscillating_or_late_or_unmoved_step_has_no_settling_time_and_says_why() {
+        let t = grid(0.01, 8.0);
+        let u = vec![0.0; t.len()];
+        // A limit cycle around r = 50 (±8 mm) whose last sample happens to be at r: not settled.
+        let y: Vec<f64> = t
+            .iter()
+            .map(|&t| {
+                if t < 0.5 {
+                    100.0 * t
+                } else {
+                    50.0 + 8.0 * (2.0 * std::f64::consts::PI * t).sin()
+                }
+            })
+            .collect();
+        let (m, why) = StepMetrics::assess(&t, &y, Some(&u), 0.0, 50.0).unwrap();
+        assert!((y[y.len() - 1] - 50.0).abs() < 1e-9);
+        assert_eq!(m.settling_time_s, None);
+        let Some(Unsettled::Oscillating { peak_to_peak_mm }) = why else {
+            panic!("{why:?}")
+        };
+        assert!((peak_to_peak_mm - 16.0).abs() < 0.01, "{peak_to_peak_mm}");
+        // A ramp reaching r = 1 only at 7.5 s of an 8 s run enters the band (0.98) at 7.35 s, within
+        // the last fifth (after 6.4 s): too late to tell that it stays.
+        let y: Vec<f64> = t.iter().map(|&t| (t / 7.5).min(1.0)).collect();
+        let (m, why) = StepMetrics::assess(&t, &y, Some(&u), 0.0, 1.0).unwrap();
+        assert_eq!(m.settling_time_s, None);
+        let Some(Unsettled::LateEntry { at_s }) = why else {
+            panic!("{why:?}")
+        };
+        assert!((at_s - 7.35).abs() < 1e-9, "{at_s}");
+        // The same ramp over 1.5 s settles at 1.47 s.
+        let y: Vec<f64> = t.iter().map(|&t| (t / 1.5).min(1.0)).collect();
+        let (m, why) = StepMetrics::assess(&t, &y, Some(&u), 0.0, 1.0).unwrap();
+        assert!((m.settling_time_s.unwrap() - 1.47).abs() < 1e-9, "{m:?}");
+        assert_eq!(why, None);
+        // The set-point moves 2 mm away and the output never follows: no response, and the worst step
+        // of a run holding it has no settling time either.
+        let y = vec![100.59; t.len()];
+        let (m, why) = StepMetrics::assess(&t, &y, Some(&u), 100.59, 98.0).unwrap();
+        assert_eq!(why, Some(Unsettled::NoResponse));
+        let settled = StepMetrics {
+            settling_time_s: Some(0.2),
+            ..StepMetrics::compute(&[0.0, 1.0], &[0.0, 1.0], 0.0, 1.0).unwrap()
+        };
+        assert_eq!(
+            StepMetrics::worst([&settled, &m]).unwrap().settling_time_s,
+            None
+        );
+        assert_eq!(
+            StepMetrics::worst([&settled]).unwrap().settling_time_s,
+            Some(0.2)
+        );
     }
 
     #[test]

@@ -2,9 +2,10 @@
 //! (the `warnings` list of `ipa-sysid control --json`, `warning:` lines in the text, Python's
 //! `control()`).
 //!
-//! - a step that has not settled within the run: the output still moves
-//!   ([`crate::metrics::still_moving`]), or it is held outside the set-point's band while the command
-//!   still moves ([`crate::metrics::command_still_moving`]);
+//! - a step that has not settled within the run, with the reason ([`crate::metrics::Unsettled`]): the
+//!   output still moves ([`crate::metrics::still_moving`]), it is held outside the set-point's band
+//!   while the command still moves ([`crate::metrics::command_still_moving`]), it oscillates, it entered
+//!   its band only in the run's last fifth, or it never moved although the set-point did;
 //! - a command saturated at ±u_max for more than [`SATURATION_WARN`] of the samples (the loop is not
 //!   in its linear range: the metrics describe a saturated response);
 //! - a set-point outside the plant's reachable range (the IPA's stroke, 0..L mm);
@@ -12,8 +13,20 @@
 //! - a step (of a fixed set-point or a staircase) that misses the paper's acceptance (overshoot < 10 %,
 //!   |e_ss| < 2 % of the step).
 
-use crate::metrics::{still_moving, StepSegment, SETTLING_BAND};
-use crate::Trace;
+use crate::metrics::{still_moving, StepSegment, Unsettled, SETTLING_BAND, TAIL_FRACTION};
+use crate::{StepMetrics, Trace};
+
+/// A length in mm as a person writes it: at most 4 decimals, trailing zeros dropped (a step of
+/// 100 − 97.41 mm is "2.59", not "2.5900000000000034").
+fn fmt_mm(v: f64) -> String {
+    let s = format!("{v:.4}");
+    let s = s.trim_end_matches('0').trim_end_matches('.');
+    if s == "-0" {
+        "0".to_string()
+    } else {
+        s.to_string()
+    }
+}
 
 /// Fraction of samples at the command limit above which the run is reported as saturated.
 pub const SATURATION_WARN: f64 = 0.2;
@@ -72,49 +85,66 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
         }
     }
     for s in steps {
-        let Some(_) = s.metrics.overshoot_mm else {
-            continue;
-        };
         let k: Vec<usize> = (0..n)
             .filter(|&k| trace.t[k] >= s.start_s && trace.t[k] <= s.end_s)
             .collect();
-        let (t, y): (Vec<f64>, Vec<f64>) = k.iter().map(|&k| (trace.t[k], trace.y[k])).unzip();
-        let step = (y.last().copied().unwrap_or(s.y0_mm) - s.y0_mm).abs();
-        if !still_moving(&t, &y, SETTLING_BAND * step) {
-            if s.metrics.settling_time_s.is_none() {
-                // At rest in y but not in u (metrics::command_still_moving).
-                w.push(format!(
-                    "the step to r = {} mm at t = {:.3} s has not settled within {:.3} s: the output \
-                     stopped {:.4} mm short of the set-point, outside its 2 % band, while the command \
-                     still changes (friction holds the piston while the integrator winds up), so its \
-                     settling time is unknown (null) and its steady-state error is not final",
-                    s.setpoint_mm,
-                    s.start_s,
-                    s.end_s - s.start_s,
-                    s.metrics.steady_state_error_mm.unwrap_or(f64::NAN).abs()
-                ));
-            }
+        let pick = |v: &[f64]| -> Vec<f64> { k.iter().map(|&k| v[k]).collect() };
+        let (t, y, u) = (pick(&trace.t), pick(&trace.y), pick(&trace.u));
+        // The same assessment as the step's metrics (metrics_for_steps), kept with its reason.
+        let Ok((m, why)) = StepMetrics::assess(&t, &y, Some(&u), s.y0_mm, s.setpoint_mm) else {
             continue;
-        }
-        if let Some(ts) = s.metrics.settling_time_s {
-            w.push(format!(
-                "the step to r = {} mm at t = {:.3} s still creeps at the end of the run: its settling \
-                 time ({ts:.3} s) is measured against the set-point's 2 % band, and its steady-state error \
-                 of {:.4} mm is not final (run longer: --duration)",
-                s.setpoint_mm,
-                s.start_s,
-                s.metrics.steady_state_error_mm.unwrap_or(f64::NAN)
-            ));
-        } else {
-            w.push(format!(
-                "the step to r = {} mm at t = {:.3} s has not settled within {:.3} s: the output is \
-                 still moving at the end of the run, so its settling time is unknown (null) and its \
-                 steady-state error of {:.4} mm is not final (run longer: --duration)",
-                s.setpoint_mm,
-                s.start_s,
-                s.end_s - s.start_s,
-                s.metrics.steady_state_error_mm.unwrap_or(f64::NAN)
-            ));
+        };
+        let head = format!(
+            "the step to r = {} mm at t = {:.3} s",
+            s.setpoint_mm, s.start_s
+        );
+        let ess = m.steady_state_error_mm.unwrap_or(f64::NAN);
+        let within = s.end_s - s.start_s;
+        let tail_s = TAIL_FRACTION * within;
+        match why {
+            None => {
+                let step = (y.last().copied().unwrap_or(s.y0_mm) - s.y0_mm).abs();
+                if let (Some(ts), true) = (
+                    m.settling_time_s,
+                    still_moving(&t, &y, SETTLING_BAND * step),
+                ) {
+                    w.push(format!(
+                        "{head} still creeps at the end of the run: its settling time ({ts:.3} s) is \
+                         measured against the set-point's 2 % band, and its steady-state error of \
+                         {ess:.4} mm is not final (run longer: --duration)"
+                    ));
+                }
+            }
+            Some(Unsettled::Moving) => w.push(format!(
+                "{head} has not settled within {within:.3} s: the output is still moving at the end of \
+                 the run, so its settling time is unknown (null) and its steady-state error of {ess:.4} \
+                 mm is not final (run longer: --duration)"
+            )),
+            Some(Unsettled::CommandMoving) => w.push(format!(
+                "{head} has not settled within {within:.3} s: the output stopped {:.4} mm short of the \
+                 set-point, outside its 2 % band, while the command still changes (friction holds the \
+                 piston while the integrator winds up), so its settling time is unknown (null) and its \
+                 steady-state error is not final",
+                ess.abs()
+            )),
+            Some(Unsettled::Oscillating { peak_to_peak_mm }) => w.push(format!(
+                "{head} has not settled within {within:.3} s: the output oscillates, swinging \
+                 {peak_to_peak_mm:.4} mm peak to peak over the run's last {tail_s:.3} s (a limit \
+                 cycle), so it has no settling time (null) and its steady-state error of {ess:.4} mm is \
+                 only where the last sample fell"
+            )),
+            Some(Unsettled::LateEntry { at_s }) => w.push(format!(
+                "{head} has not settled within {within:.3} s: the output entered its 2 % band for good \
+                 only {at_s:.3} s after the step, within the run's last {tail_s:.3} s, too late to tell \
+                 that it stays, so its settling time is unknown (null) (run longer: --duration)"
+            )),
+            Some(Unsettled::NoResponse) => w.push(format!(
+                "{head} had no response: the output stayed at y0 = {} mm while the set-point moved \
+                 {} mm away (friction holds the piston, or the command is too small to open a valve), \
+                 so the step has no metrics but its error of {ess:.4} mm",
+                fmt_mm(s.y0_mm),
+                fmt_mm((s.setpoint_mm - s.y0_mm).abs())
+            )),
         }
     }
     if facts.judge_steps {
@@ -127,8 +157,9 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
             }
             if let Some(e) = ess.filter(|e| step > 0.0 && e.abs() >= 0.02 * step) {
                 missed.push(format!(
-                    "|e_ss| = {:.4} mm >= 2 % of the {step} mm step ({:.4} mm)",
+                    "|e_ss| = {:.4} mm >= 2 % of the {} mm step ({:.4} mm)",
                     e.abs(),
+                    fmt_mm(step),
                     0.02 * step
                 ));
             }

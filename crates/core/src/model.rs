@@ -685,6 +685,28 @@ impl Model {
         self.poles().iter().all(|p| p.norm() < 1.0)
     }
 
+    /// The output at rest with every input held at its operating point u0 (0 without one), in the
+    /// user's units: y = y0 + v̄, v̄ = (c + Σ_inputs f(0)·Σ_j b_j) / (1 + Σ_i a_i), the fixed point of
+    /// A(q) v = B(q) f(u − u0) + c. `None` when there is no such resting level to start from: an
+    /// unstable model or one with a pole at 1 (an integrator rests at any level, or at none with an
+    /// offset), or a model with an output nonlinearity y = g(v) (its plant state holds v, which
+    /// [`crate::Plant::reset`] sets from y as if g(v) = v).
+    pub fn rest_output(&self) -> Option<f64> {
+        if self.output.is_some() || !self.is_stable() {
+            return None;
+        }
+        let den = 1.0 + self.a.iter().sum::<f64>();
+        let num = self.offset.unwrap_or(0.0)
+            + self
+                .inputs
+                .iter()
+                .map(|ch| ch.map(0.0) * ch.b().iter().sum::<f64>())
+                .sum::<f64>();
+        let v = num / den;
+        let y0 = self.operating_point.as_ref().map_or(0.0, |o| o.y);
+        (den.abs() > f64::EPSILON && v.is_finite()).then_some(y0 + v)
+    }
+
     /// Number of estimated parameters p: na (+1 with offset) plus, per input, nb for a linear input and
     /// the nonlinearity's parameters + (nb - 1) for a nonlinear input, e.g. 4 + (nb - 1) for a deadzone
     /// (b1 = 1 is fixed by normalisation), and the output nonlinearity's parameters but its unit
@@ -1137,7 +1159,7 @@ impl ModelPlant {
         let x_hist = model
             .inputs()
             .iter()
-            .map(|ch| vec![0.0; ch.nk() + ch.nb() - 1])
+            .map(|ch| vec![ch.map(0.0); ch.nk() + ch.nb() - 1])
             .collect();
         Ok(ModelPlant {
             model,
@@ -1251,7 +1273,12 @@ impl crate::Plant for ModelPlant {
     fn reset(&mut self, y0_mm: f64) {
         let dev = y0_mm - self.y0();
         self.y_hist.iter_mut().for_each(|v| *v = dev);
-        self.x_hist.iter_mut().flatten().for_each(|v| *v = 0.0);
+        // Past commands at the operating point: x = f(u0 − u0) = f(0) (0 for a deadzone or a linear
+        // input).
+        for (ch, hist) in self.model.inputs().iter().zip(&mut self.x_hist) {
+            let x = ch.map(0.0);
+            hist.iter_mut().for_each(|v| *v = x);
+        }
     }
 
     fn name(&self) -> String {

@@ -31,8 +31,9 @@ pub struct Experiment {
     pub samples: Option<usize>,
     /// Sampling period Ts in s (`--ts`); `None`: 0.01 s, or a model plant's own Ts.
     pub ts: Option<f64>,
-    /// Initial position y0 in mm, the piston at rest (`--y0`).
-    pub x0: f64,
+    /// Initial output y0 in mm, the plant at rest there (`--y0`); `None`: the plant's own default
+    /// ([`PlantSpec::default_y0`]: mid-stroke for the IPA, a stable model's resting level).
+    pub x0: Option<f64>,
     /// Seed of the random input and of the noise (`--seed`).
     pub seed: u64,
     /// Standard deviation of white Gaussian noise added to y, mm (`--noise-std`).
@@ -48,7 +49,7 @@ impl Default for Experiment {
             amplitude: 255.0,
             samples: None,
             ts: None,
-            x0: 100.0,
+            x0: None,
             seed: 0,
             noise_std: 0.0,
         }
@@ -75,13 +76,10 @@ impl Experiment {
         if let Some(n) = self.samples {
             crate::input::check_samples(n)?;
         }
-        if !self.x0.is_finite() {
-            return Err(SysidError::setting(
-                Setting::Other("--y0"),
-                self.x0,
-                "a finite position in mm",
-            )
-            .into());
+        if let Some(x0) = self.x0.filter(|v| !v.is_finite()) {
+            return Err(
+                SysidError::setting(Setting::Other("--y0"), x0, "a finite position in mm").into(),
+            );
         }
         if !(self.noise_std.is_finite() && self.noise_std >= 0.0) {
             return Err(SysidError::setting(
@@ -106,8 +104,12 @@ impl Experiment {
             return self.run_ipa(cfg, samples);
         }
         let rec = {
+            let x0 = match self.x0 {
+                Some(v) => v,
+                None => self.plant.default_y0()?,
+            };
             let mut plant = self.plant.build(self.plant_config.as_deref(), self.ts)?;
-            plant.reset(self.x0);
+            plant.reset(x0);
             let ts = plant.ts();
             let (u, y) = match self.input {
                 InputSpec::Staircase => staircase_experiment(
@@ -156,7 +158,7 @@ impl Experiment {
     fn run_ipa(&self, cfg: PlantConfig, samples: usize) -> Result<Record, IpaError> {
         let rec = {
             let mut plant = Ipa::with_ts(cfg, self.ts.unwrap_or(crate::DEFAULT_TS_S))?;
-            plant.reset(self.x0);
+            plant.reset(self.x0.unwrap_or(crate::spec::MID_STROKE_Y0_MM));
             let mut p = Vec::with_capacity(samples);
             let (u, y) = match self.input {
                 // The experimenter's rule watches the plant: the designed input and the record come from

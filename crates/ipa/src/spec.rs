@@ -113,6 +113,29 @@ impl PlantSpec {
     }
 }
 
+/// The default initial output of an open-loop experiment on the IPA or the paper's model, mm:
+/// mid-stroke, so that the input can move the piston both ways.
+pub const MID_STROKE_Y0_MM: f64 = 100.0;
+
+impl PlantSpec {
+    /// Where an open-loop experiment starts when no y0 is given (`simulate` without `--y0`), mm: a
+    /// stable linear model at its own resting level with the inputs at the operating point
+    /// ([`sysid_core::Model::rest_output`]), so that its record shows the input's response and not a
+    /// decay from an arbitrary start; the IPA, the paper's model and models without a resting level
+    /// (an integrator such as the IPA's position, an unstable model, a NARX model, an output
+    /// nonlinearity) at [`MID_STROKE_Y0_MM`].
+    pub fn default_y0(&self) -> Result<f64, IpaError> {
+        let rest = match self {
+            PlantSpec::Ipa | PlantSpec::Paper => None,
+            PlantSpec::ModelFile(path) => match sysid_core::model_file::read_any_model(path)? {
+                sysid_core::model_file::AnyModel::Linear(m) => m.rest_output(),
+                sysid_core::model_file::AnyModel::Narx(_) => None,
+            },
+        };
+        Ok(rest.unwrap_or(MID_STROKE_Y0_MM))
+    }
+}
+
 /// What a closed loop around a plant can be checked against ([`PlantSpec::limits`]).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct PlantLimits {

@@ -20,7 +20,7 @@ fn one_run_staircase_record_equals_a_replay_of_its_input() {
     let rec = exp.run().unwrap();
 
     let mut plant = Ipa::new(PlantConfig::default()).unwrap();
-    plant.reset(exp.x0);
+    plant.reset(exp.x0.unwrap_or(ipa::spec::MID_STROKE_Y0_MM));
     let mut copy = plant.clone();
     let (u, _) = staircase_experiment(
         &mut copy,

@@ -30,11 +30,15 @@ pub struct Args {
     /// Sampling period Ts in s (default 0.01; a model plant uses its own Ts).
     #[arg(long)]
     pub ts: Option<f64>,
-    /// Initial position y0 in mm (the piston starts at rest there; `--x0` is an older spelling). The
-    /// default, mid-stroke, differs from `control`'s 0 on purpose: an open-loop experiment must be able to
-    /// move both ways, the paper's closed-loop test starts from the end of the stroke.
-    #[arg(long = "y0", alias = "x0", default_value_t = 100.0)]
-    pub y0: f64,
+    /// Initial output y0 in mm (the plant starts at rest there; `--x0` is an older spelling). Default:
+    /// 100 mm (mid-stroke) for `ipa`, `paper` and models without a resting level (an integrator such as
+    /// the IPA's position, an unstable or NARX model); a stable model starts at its own resting level
+    /// with the inputs at the operating point, so its record shows the response to the input and no
+    /// decay from an arbitrary start. The IPA's mid-stroke differs from `control`'s 0 on purpose: an
+    /// open-loop experiment must be able to move both ways, the paper's closed-loop test starts from the
+    /// end of the stroke.
+    #[arg(long = "y0", alias = "x0")]
+    pub y0: Option<f64>,
     /// Seed of the random input and noise (the same seed gives a byte-identical file).
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
@@ -115,6 +119,10 @@ fn run_plant(args: &Args, plant: ipa::spec::PlantSpec) -> anyhow::Result<()> {
         noise_std: args.noise_std,
     };
     exp.check()?;
+    let y0 = match exp.x0 {
+        Some(v) => v,
+        None => exp.plant.default_y0()?,
+    };
     let mut inputs: Vec<&Path> =
         ipa::spec::spec_input_files(&args.plant, args.plant_config.as_deref());
     if let Some(f) = exp.input.file() {
@@ -125,7 +133,7 @@ fn run_plant(args: &Args, plant: ipa::spec::PlantSpec) -> anyhow::Result<()> {
     let rec = exp.run()?;
     write_csv(&args.out, &rec)?;
     eprintln!(
-        "wrote {} samples (Ts = {} s) to {}",
+        "wrote {} samples (Ts = {} s), from rest at y0 = {y0}, to {}",
         rec.u.len(),
         rec.ts,
         args.out.display()
@@ -213,7 +221,16 @@ fn run_miso(args: &Args, model: &sysid::Model, model_path: &Path) -> anyhow::Res
     sysid_io::refuse_overwrite_input(&args.out, &inputs, "--out")?;
     let u = ipa::input::read_input_columns(file, &names)?;
     let us: Vec<&[f64]> = u.iter().map(Vec::as_slice).collect();
-    let y = sysid::model::run_from_rest(model, &us, args.y0)?;
+    let y0 = match args.y0 {
+        Some(v) if !v.is_finite() => anyhow::bail!(sysid::SysidError::setting(
+            sysid::Setting::Other("--y0"),
+            v,
+            "a finite output level"
+        )),
+        Some(v) => v,
+        None => model.rest_output().unwrap_or(ipa::spec::MID_STROKE_Y0_MM),
+    };
+    let y = sysid::model::run_from_rest(model, &us, y0)?;
     let mut header = vec!["t"];
     header.extend(&names);
     header.push("y");
@@ -227,7 +244,7 @@ fn run_miso(args: &Args, model: &sysid::Model, model_path: &Path) -> anyhow::Res
     });
     sysid_io::write_csv(&args.out, &header, rows)?;
     eprintln!(
-        "wrote {} samples (Ts = {} s) of the {}-input model to {}",
+        "wrote {} samples (Ts = {} s) of the {}-input model, from rest at y0 = {y0}, to {}",
         y.len(),
         model.ts(),
         names.len(),

@@ -21,7 +21,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         (args.ts.is_some(), "--ts"),
         (args.noise_std != 0.0, "--noise-std"),
         (args.amplitude != 255.0, "--amplitude"),
-        (args.y0 != 100.0, "--y0"),
+        (args.y0.is_some(), "--y0"),
     ];
     if let Some((_, flag)) = ignored.iter().find(|(on, _)| *on) {
         anyhow::bail!(

@@ -210,16 +210,27 @@ fn ls_solves_a_hand_derived_three_row_case() {
     assert!((std_a - (1.8f64 / 5.0).sqrt()).abs() < 1e-12, "{std_a}");
 }
 
+/// u uniform in [-1, 1] and y of the ARX y(k) = 1.2 y(k-1) − 0.4 y(k-2) + 0.7 u(k-1) + 0.2 u(k-2) plus
+/// uniform noise in [-0.5, 0.5].
+fn noisy_arx22(n: usize, seed: u64) -> (Vec<f64>, Vec<f64>) {
+    let mut rng = ChaCha8Rng::seed_from_u64(seed);
+    let u: Vec<f64> = (0..n).map(|_| rng.gen_range(-1.0..1.0)).collect();
+    let mut y = simulate(&u, &[-1.2, 0.4], &[0.7, 0.2], 1, 0.0, None);
+    y.iter_mut().for_each(|v| *v += rng.gen_range(-0.5..0.5));
+    (u, y)
+}
+
+/// (a1, a2, b1, b2) of an ARX(2, 2, 1) fit.
+fn arx22_theta(fit: &sysid::Fitted) -> [f64; 4] {
+    let m = &fit.model;
+    [m.a()[0], m.a()[1], m.b()[0], m.b()[1]]
+}
+
 // RLS with θ(0) = 0, P(0) = p0 I and forgetting ρ equals the minimiser of
 // Σ ρ^(N-k) (y_k - φ_kᵀθ)² + ρ^N θᵀθ / p0, solved here from its normal equations.
 #[test]
 fn rls_equals_the_weighted_regularised_least_squares_closed_form() {
-    let a = [-1.2, 0.4];
-    let b = [0.7, 0.2];
-    let mut rng = ChaCha8Rng::seed_from_u64(5);
-    let u: Vec<f64> = (0..300).map(|_| rng.gen_range(-1.0..1.0)).collect();
-    let mut y = simulate(&u, &a, &b, 1, 0.0, None);
-    y.iter_mut().for_each(|v| *v += rng.gen_range(-0.5..0.5));
+    let (u, y) = noisy_arx22(300, 5);
     for (rho, p0) in [(1.0, 10.0), (0.97, 2.0), (0.9, 1e3), (1.0, 1e6)] {
         let data = Dataset::new(
             Signals {
@@ -254,12 +265,7 @@ fn rls_equals_the_weighted_regularised_least_squares_closed_form() {
             h += &phi * (w * y[k]);
         }
         let theta = g.lu().solve(&h).unwrap();
-        let got = [
-            fit.model.a()[0],
-            fit.model.a()[1],
-            fit.model.b()[0],
-            fit.model.b()[1],
-        ];
+        let got = arx22_theta(&fit);
         for i in 0..4 {
             assert!(
                 close(got[i], theta[i], 1e-8),
@@ -275,12 +281,7 @@ fn rls_equals_the_weighted_regularised_least_squares_closed_form() {
 // Solved here from those normal equations, with a small p0 so that the prior matters.
 #[test]
 fn later_rls_passes_equal_the_least_squares_regularised_towards_the_previous_pass() {
-    let a = [-1.2, 0.4];
-    let b = [0.7, 0.2];
-    let mut rng = ChaCha8Rng::seed_from_u64(9);
-    let u: Vec<f64> = (0..400).map(|_| rng.gen_range(-1.0..1.0)).collect();
-    let mut y = simulate(&u, &a, &b, 1, 0.0, None);
-    y.iter_mut().for_each(|v| *v += rng.gen_range(-0.5..0.5));
+    let (u, y) = noisy_arx22(400, 9);
     let data = Dataset::new(
         Signals {
             u: u.clone(),
@@ -315,12 +316,7 @@ fn later_rls_passes_equal_the_least_squares_regularised_towards_the_previous_pas
         for _ in 0..passes {
             theta = lu.solve(&(&h + &theta / p0)).unwrap();
         }
-        let got = [
-            fit.model.a()[0],
-            fit.model.a()[1],
-            fit.model.b()[0],
-            fit.model.b()[1],
-        ];
+        let got = arx22_theta(&fit);
         for i in 0..4 {
             assert!(
                 close(got[i], theta[i], 1e-9),

@@ -166,7 +166,7 @@ fn first_order_model(dir: &Path, name: &str, a1: f64, c: f64, op: Option<(f64, f
 // Without --y0 a stable model starts at rest at its own level — the fixed point y = y0 + c / (1 + a1)
 // of its equation with the input at the operating point — so the record shows the input's response
 // and no decay from an arbitrary start; an integrator (no resting level) starts mid-stroke at 100 mm as
-// the IPA does; --y0 still overrides. Expectations: the difference equation run here.
+// the IPA does (so does a near-integrator); --y0 still overrides. Expectations: the difference equation run here.
 #[test]
 fn a_stable_model_starts_at_its_own_resting_level() {
     let dir = tempfile::tempdir().unwrap();
@@ -212,6 +212,11 @@ fn a_stable_model_starts_at_its_own_resting_level() {
     assert_eq!(d.y()[0], 100.0);
     assert!(close(d.y(), &expect(100.0, -1.0, 0.0, 0.0, 0.0, d.u())));
     assert!(err.contains("from rest at y0 = 100"), "{err}");
+
+    // A near-integrator (pole 0.9995, time constant 2000 samples: an identified position model) too.
+    let m = first_order_model(dir.path(), "near.json", -0.9995, 0.01, None);
+    let (d, _) = run(&m, &["--input", "step:10@5", "--samples", "12"], "n.csv");
+    assert_eq!(d.y()[0], 100.0);
 
     // --y0 overrides the resting level.
     let m = first_order_model(dir.path(), "stable2.json", -0.8, 0.1, None);

@@ -861,3 +861,86 @@ fn streamed_identification_warns_like_the_in_memory_path() {
         assert_eq!(w, warnings(memory), "{case:?}: streamed vs in memory");
     }
 }
+
+// Re-audit s8 H1: a Hammerstein model file with absurd deadzone slopes. With m = 1e300 the closed loop
+// reaches |y| ~ 1e303 mm: the run must say that it diverges and print its numbers in a readable form
+// (not 300 digits); a zero slope makes a model that cannot respond, which `simulate` must say.
+#[test]
+fn a_model_with_absurd_deadzone_slopes_is_called_what_it_is() {
+    let tmp = tempfile::tempdir().unwrap();
+    let model = |name: &str, m: &str| {
+        let p = tmp.path().join(name);
+        std::fs::write(
+            &p,
+            format!(
+                r#"{{"format": "ipa-sysid-model", "version": 2, "model": {{"kind": "hammerstein", "ts": 0.01,
+                "na": 1, "nb": 1, "nk": 1, "a": [-0.9], "b": [1.0], "offset": null,
+                "deadzone": {{"b_l": -40.0, "b_r": 40.0, "m_l": {m}, "m_r": {m}}}}}}}"#
+            ),
+        )
+        .unwrap();
+        format!("model:{}", p.display())
+    };
+    let huge = model("huge.json", "1e300");
+    let args = ["--plant", &huge, "--setpoint", "50", "--duration", "2"];
+    let (doc, _) = control(&args);
+    let w = warnings(&doc);
+    assert!(w.iter().any(|w| w.contains("diverges")), "{w:?}");
+    let text = bin().arg("control").args(args).output().unwrap();
+    let text = String::from_utf8_lossy(&text.stdout).into_owned();
+    let longest = text
+        .split(|c: char| !(c.is_ascii_digit() || c == '.'))
+        .map(str::len)
+        .max()
+        .unwrap();
+    assert!(longest < 30, "a number of {longest} characters: {text}");
+
+    let zero = model("zero.json", "0.0");
+    let out = bin()
+        .args(["simulate", "--plant", &zero, "--samples", "50", "--out"])
+        .arg(tmp.path().join("s.csv"))
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("a slope is zero"), "{err}");
+}
+
+// Re-audit s8 H2/H3: an input of magnitude 1e300 overflows the residual test's lagged sums (its
+// message used to say the input "does not excite" the lags), and numbers of 1e306 overflow the
+// estimation itself, whose error must name the file.
+#[test]
+fn overflowing_records_are_called_overflowing_and_named() {
+    let tmp = tempfile::tempdir().unwrap();
+    let write = |name: &str, scale: f64, y_scale: f64| {
+        let mut text = String::from("t,u,y\n");
+        for k in 0..400 {
+            let u = scale * (1.7 * k as f64).sin();
+            let y = y_scale * ((1.7 * (k as f64 - 1.0)).sin() + 0.1 * (0.3 * k as f64).cos());
+            text += &format!("{},{u:e},{y}\n", k as f64 * 0.01);
+        }
+        let p = tmp.path().join(name);
+        std::fs::write(&p, text).unwrap();
+        p
+    };
+    let big = write("big.csv", 1e300, 1.0);
+    let out = bin()
+        .args(["identify", "--structure", "arx", "--method", "ls", "--data"])
+        .arg(&big)
+        .output()
+        .unwrap();
+    let text =
+        String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr);
+    assert!(!text.contains("does not excite"), "{text}");
+    assert!(text.contains("overflow"), "{text}");
+
+    let huge = write("huge.csv", 1e307, 1e307);
+    let out = bin()
+        .args(["identify", "--structure", "arx", "--method", "ls", "--data"])
+        .arg(&huge)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(err.contains("huge.csv"), "{err}");
+}

@@ -16,6 +16,20 @@
 use crate::metrics::{still_moving, StepSegment, Unsettled, SETTLING_BAND, TAIL_FRACTION};
 use crate::{StepMetrics, Trace};
 
+/// |y| beyond which a closed loop is reported as diverging, mm (a kilometre: beyond any actuator's
+/// stroke; a model plant has no stroke to check against).
+pub const DIVERGED_MM: f64 = 1e6;
+
+/// A value with 4 decimals, in scientific notation beyond 1e9 in magnitude (a diverging loop's
+/// numbers would otherwise print hundreds of digits).
+pub fn fmt_value(v: f64) -> String {
+    if v.abs() >= 1e9 {
+        format!("{v:.4e}")
+    } else {
+        format!("{v:.4}")
+    }
+}
+
 /// A length in mm as a person writes it: at most 4 decimals, trailing zeros dropped (a step of
 /// 100 − 97.41 mm is "2.59", not "2.5900000000000034").
 fn fmt_mm(v: f64) -> String {
@@ -68,6 +82,19 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
         }
     }
     let n = trace.len();
+    if let Some(peak) = trace
+        .y
+        .iter()
+        .map(|y| y.abs())
+        .reduce(f64::max)
+        .filter(|p| *p > DIVERGED_MM)
+    {
+        w.push(format!(
+            "the closed loop diverges: the output reached |y| = {} mm, beyond any actuator's stroke, \
+             so the step metrics describe a diverging loop (check the plant model's gains)",
+            fmt_value(peak)
+        ));
+    }
     if n > 0 && facts.u_max > 0.0 {
         let at_limit = trace
             .u
@@ -98,7 +125,7 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
             "the step to r = {} mm at t = {:.3} s",
             s.setpoint_mm, s.start_s
         );
-        let ess = m.steady_state_error_mm.unwrap_or(f64::NAN);
+        let ess = fmt_value(m.steady_state_error_mm.unwrap_or(f64::NAN));
         let within = s.end_s - s.start_s;
         let tail_s = TAIL_FRACTION * within;
         match why {
@@ -111,26 +138,26 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
                     w.push(format!(
                         "{head} still creeps at the end of the run: its settling time ({ts:.3} s) is \
                          measured against the set-point's 2 % band, and its steady-state error of \
-                         {ess:.4} mm is not final (run longer: --duration)"
+                         {ess} mm is not final (run longer: --duration)"
                     ));
                 }
             }
             Some(Unsettled::Moving) => w.push(format!(
                 "{head} has not settled within {within:.3} s: the output is still moving at the end of \
-                 the run, so its settling time is unknown (null) and its steady-state error of {ess:.4} \
+                 the run, so its settling time is unknown (null) and its steady-state error of {ess} \
                  mm is not final (run longer: --duration)"
             )),
             Some(Unsettled::CommandMoving) => w.push(format!(
-                "{head} has not settled within {within:.3} s: the output stopped {:.4} mm short of the \
+                "{head} has not settled within {within:.3} s: the output stopped {} mm short of the \
                  set-point, outside its 2 % band, while the command still changes (friction holds the \
                  piston while the integrator winds up), so its settling time is unknown (null) and its \
                  steady-state error is not final",
-                ess.abs()
+                fmt_value(m.steady_state_error_mm.unwrap_or(f64::NAN).abs())
             )),
             Some(Unsettled::Oscillating { peak_to_peak_mm }) => w.push(format!(
                 "{head} has not settled within {within:.3} s: the output oscillates, swinging \
                  {peak_to_peak_mm:.4} mm peak to peak over the run's last {tail_s:.3} s (a limit \
-                 cycle), so it has no settling time (null) and its steady-state error of {ess:.4} mm is \
+                 cycle), so it has no settling time (null) and its steady-state error of {ess} mm is \
                  only where the last sample fell"
             )),
             Some(Unsettled::LateEntry { at_s }) => w.push(format!(
@@ -141,7 +168,7 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
             Some(Unsettled::NoResponse) => w.push(format!(
                 "{head} had no response: the output stayed at y0 = {} mm while the set-point moved \
                  {} mm away (friction holds the piston, or the command is too small to open a valve), \
-                 so the step has no metrics but its error of {ess:.4} mm",
+                 so the step has no metrics but its error of {ess} mm",
                 fmt_mm(s.y0_mm),
                 fmt_mm((s.setpoint_mm - s.y0_mm).abs())
             )),
@@ -157,8 +184,8 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
             }
             if let Some(e) = ess.filter(|e| step > 0.0 && e.abs() >= 0.02 * step) {
                 missed.push(format!(
-                    "|e_ss| = {:.4} mm >= 2 % of the {} mm step ({:.4} mm)",
-                    e.abs(),
+                    "|e_ss| = {} mm >= 2 % of the {} mm step ({:.4} mm)",
+                    fmt_value(e.abs()),
                     fmt_mm(step),
                     0.02 * step
                 ));

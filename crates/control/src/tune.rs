@@ -787,6 +787,9 @@ pub fn margins(model: &Model, s: &ControllerSettings) -> Margins {
             break;
         }
     }
+    // A loop gain that overflows (a model with absurd gains) has no margin to report.
+    let gm = gm.filter(|(g, w)| g.is_finite() && w.is_finite());
+    let pm = pm.filter(|(p, w)| p.is_finite() && w.is_finite());
     Margins {
         gain_margin_db: gm.map(|g| g.0),
         phase_crossover_rad_s: gm.map(|g| g.1),

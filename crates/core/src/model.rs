@@ -156,6 +156,10 @@ impl InputChannel {
     }
 }
 
+/// The largest pole modulus of a model with a resting level ([`Model::rest_output`]): 0.999, a time
+/// constant of about 1000 samples; slower models are treated as integrating.
+pub const REST_POLE_MAX: f64 = 0.999;
+
 /// A fitted (or given) model: the JSON `model` object of `identify --json`.
 ///
 /// Fields are private and every constructor validates, so a model in hand is always consistent (orders
@@ -689,10 +693,13 @@ impl Model {
     /// user's units: y = y0 + v̄, v̄ = (c + Σ_inputs f(0)·Σ_j b_j) / (1 + Σ_i a_i), the fixed point of
     /// A(q) v = B(q) f(u − u0) + c. `None` when there is no such resting level to start from: an
     /// unstable model or one with a pole at 1 (an integrator rests at any level, or at none with an
-    /// offset), or a model with an output nonlinearity y = g(v) (its plant state holds v, which
-    /// [`crate::Plant::reset`] sets from y as if g(v) = v).
+    /// offset), a near-integrator whose slowest pole has modulus above [`REST_POLE_MAX`] (an identified
+    /// position model: its level would be a quotient of two small numbers, reached only after
+    /// thousands of samples), or a model with an output nonlinearity y = g(v) (its plant state holds
+    /// v, which [`crate::Plant::reset`] sets from y as if g(v) = v).
     pub fn rest_output(&self) -> Option<f64> {
-        if self.output.is_some() || !self.is_stable() {
+        let slowest = self.poles().iter().map(|p| p.norm()).fold(0.0, f64::max);
+        if self.output.is_some() || !slowest.is_finite() || slowest > REST_POLE_MAX {
             return None;
         }
         let den = 1.0 + self.a.iter().sum::<f64>();

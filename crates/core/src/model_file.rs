@@ -75,6 +75,13 @@ pub fn load_warnings(model: &Model) -> Vec<String> {
                     d.b_l, d.b_r
                 ));
             }
+            if d.m_l == 0.0 || d.m_r == 0.0 {
+                w.push(format!(
+                    "non-physical deadzone{of}: a slope is zero (m_l = {}, m_r = {}), so the model does \
+                     not respond to commands beyond that breakpoint",
+                    d.m_l, d.m_r
+                ));
+            }
             if d.m_l * d.m_r < 0.0 {
                 w.push(format!(
                     "non-physical deadzone{of}: the slopes have opposite signs (m_l = {}, m_r = {})",

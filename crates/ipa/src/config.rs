@@ -284,6 +284,24 @@ impl PlantConfig {
             ));
         }
         pos("cylinder", "stroke_mm", c.stroke_mm)?;
+        // The error tolerance and the volumes scale with the stroke and the bore: beyond any
+        // pneumatic cylinder (rodless ones reach about 10 m) they stop meaning anything.
+        if c.stroke_mm > MAX_STROKE_MM {
+            return Err(bad(
+                "cylinder",
+                "stroke_mm",
+                c.stroke_mm,
+                &format!("a stroke of at most {MAX_STROKE_MM} mm"),
+            ));
+        }
+        if c.bore_mm > MAX_BORE_MM {
+            return Err(bad(
+                "cylinder",
+                "bore_mm",
+                c.bore_mm,
+                &format!("a bore of at most {MAX_BORE_MM} mm"),
+            ));
+        }
         pos("cylinder", "dead_volume_cap_cm3", c.dead_volume_cap_cm3)?;
         pos("cylinder", "dead_volume_rod_cm3", c.dead_volume_rod_cm3)?;
         let a = &self.air;
@@ -503,6 +521,12 @@ impl PlantConfig {
     }
 }
 
+/// The longest stroke a plant configuration accepts, mm (10 m: beyond any pneumatic cylinder).
+pub const MAX_STROKE_MM: f64 = 10_000.0;
+
+/// The largest bore a plant configuration accepts, mm (1 m).
+pub const MAX_BORE_MM: f64 = 1_000.0;
+
 fn bad(section: &str, key: &str, value: f64, expected: &str) -> IpaError {
     IpaError::Config(format!(
         "invalid plant config {section}.{key} = {value}: expected {expected}"
@@ -588,6 +612,8 @@ mod tests {
             ("[cylinder]\nbore_mm = nan\n", "cylinder.bore_mm"),
             ("[integration]\ntolerance = 0.0\n", "integration.tolerance"),
             ("[integration]\ntolerance = 0.01\n", "integration.tolerance"),
+            ("[cylinder]\nstroke_mm = 1e308\n", "cylinder.stroke_mm"),
+            ("[cylinder]\nbore_mm = 2000.0\n", "cylinder.bore_mm"),
         ] {
             let e = PlantConfig::from_toml_str(toml, "t")
                 .unwrap_err()

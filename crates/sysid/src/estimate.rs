@@ -306,13 +306,21 @@ pub fn identify<R: Records + ?Sized>(
         return identify_breakpoints(records, settings);
     }
     let problem = settings.problem(records.records())?;
-    let mut fit = settings.estimator.fit(&problem)?;
+    // A numerical failure names the record it happened on (once).
+    let named = |e: SysidError| {
+        if e.to_string().contains(problem.name()) {
+            e
+        } else {
+            e.context(problem.name())
+        }
+    };
+    let mut fit = settings.estimator.fit(&problem).map_err(named)?;
     if let Some(kind) = settings.output {
         let max_iterations = match settings.estimator {
             EstimatorSettings::Oe(st) => st.max_iterations,
             _ => OutputError::default().max_iterations,
         };
-        fit = crate::wiener::refine(&problem, kind, fit, max_iterations)?;
+        fit = crate::wiener::refine(&problem, kind, fit, max_iterations).map_err(named)?;
     }
     let mut notes: Vec<crate::fitted::Note> = problem
         .notes()
@@ -322,7 +330,7 @@ pub fn identify<R: Records + ?Sized>(
     notes.append(&mut fit.notes);
     fit.notes = notes;
     check_finite(problem.name(), &fit.params)?;
-    safeguard(&problem, settings, fit)
+    safeguard(&problem, settings, fit).map_err(named)
 }
 
 /// `--breakpoints auto`: the identification with K = 1..=[`MAX_AUTO_BREAKPOINTS`] breakpoints in every

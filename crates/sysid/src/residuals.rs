@@ -197,6 +197,14 @@ impl fmt::Display for ResidError {
                 "residual analysis: the {signal} is constant (zero variance), so its correlations \
                  are undefined"
             ),
+            // A non-finite pivot is an overflow of the input's lagged sums (|u| ~ 1e154 or more),
+            // not a lack of excitation.
+            ResidError::InputNotExciting { order, at, pivot } if !pivot.is_finite() => write!(
+                f,
+                "residual analysis: the input's lagged sums overflow (values too large: lagged-input \
+                 matrix of the {order}-lag independence test not finite at lag index {at}, pivot \
+                 {pivot}); rescale the input"
+            ),
             ResidError::InputNotExciting { order, at, pivot } => write!(
                 f,
                 "residual analysis: the input does not excite all {order} lags of the \

@@ -535,7 +535,7 @@ fn adaptive_text(a: &AdaptiveOut) -> String {
 
 fn fmt_opt(v: Option<f64>, unit: &str) -> String {
     match v {
-        Some(x) => format!("{x:.4} {unit}"),
+        Some(x) => format!("{} {unit}", control::trust::fmt_value(x)),
         None => "n/a (no step)".to_string(),
     }
 }
@@ -637,7 +637,7 @@ fn summary_text(
     if steps.len() > 1 {
         o += "steps:\n    start_s   r_mm      y0_mm     OS_%      e_ss_mm   t_r_s     t_s_s\n";
         for st in steps {
-            let f = |v: Option<f64>| v.map_or("n/a".to_string(), |x| format!("{x:.4}"));
+            let f = |v: Option<f64>| v.map_or("n/a".to_string(), control::trust::fmt_value);
             let row = format!(
                 "  {:<9} {:<9} {:<9} {:<9} {:<9} {:<9} {:<9}",
                 format!("{:.2}", st.start_s),

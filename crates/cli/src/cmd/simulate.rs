@@ -31,8 +31,8 @@ pub struct Args {
     #[arg(long)]
     pub ts: Option<f64>,
     /// Initial output y0 in mm (the plant starts at rest there; `--x0` is an older spelling). Default:
-    /// 100 mm (mid-stroke) for `ipa`, `paper` and models without a resting level (an integrator such as
-    /// the IPA's position, an unstable or NARX model); a stable model starts at its own resting level
+    /// 100 mm (mid-stroke) for `ipa`, `paper` and models without a resting level (an integrator or
+    /// near-integrator such as an identified IPA position model, an unstable or NARX model); a stable model starts at its own resting level
     /// with the inputs at the operating point, so its record shows the response to the input and no
     /// decay from an arbitrary start. The IPA's mid-stroke differs from `control`'s 0 on purpose: an
     /// open-loop experiment must be able to move both ways, the paper's closed-loop test starts from the

@@ -85,12 +85,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let us = data.input_signals();
     check_ts(data.name(), data.ts(), model.ts())?;
-    let mut report = ValidationReport::assemble(&model, &data, args.resid_lags)?;
+    let mut report = ValidationReport::assemble(&model, &data, args.resid_lags)
+        .map_err(|e| e.context(data.name()))?;
     report
         .warnings
         .extend(record.notes.iter().map(|n| format!("data: {n}")));
     model_warnings(&mut report, &model);
-    let out = sysid::metrics::model_output(&model, &us, data.y(), args.horizon)?;
+    let out = sysid::metrics::model_output(&model, &us, data.y(), args.horizon)
+        .map_err(|e| e.context(data.name()))?;
     let value = report_json(&report, args.horizon, out.fit_pred_percent, &record.notes)?;
     let text = report_text(
         &args,

@@ -30,6 +30,9 @@ row "bench identify: Hammerstein 2000 samples, LS (key-term)" \
 row "bench identify: Hammerstein 2000 samples, RLS" \
     "$(us .rls.seconds_per_identification) µs, CPU $(us .rls.cpu_seconds_per_identification) µs" \
     "CPU 574–578 µs (26 Nov 02:34, load 10, 3 passes; main 615–637); 239 µs (Results table, 1 pass); 785 µs (Python section)"
+row "bench identify: Hammerstein 2000 samples, RLS, 1 pass" \
+    "$(us .rls_one_pass.seconds_per_identification) µs, CPU $(us .rls_one_pass.cpu_seconds_per_identification) µs" \
+    "239 µs (Results table, 1 pass, estimator only)"
 
 if [ -f "$DATA/silverbox/SNLS80mV.csv" ] && [ -f "$DATA/emps/DATA_EMPS.csv" ]; then
     # The whole identify command, as the OE table times it (wall clock, best of 3).

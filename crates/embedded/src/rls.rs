@@ -336,7 +336,8 @@ fn update_standard<F: Float, const N: usize, const FULL: bool>(
         }
         denom += even_d + odd_d;
     }
-    if !(denom.is_finite() && denom > F::ZERO && eps.is_finite()) {
+    // Both finite ⇔ denom · 0 + ε · 0 = 0 (x · 0 is NaN for ±∞ and NaN): float tests, no integer-coded ones.
+    if !(denom * F::ZERO + eps * F::ZERO == F::ZERO && denom > F::ZERO) {
         return Err(Error::Numerical);
     }
     let inv = F::ONE / denom;
@@ -362,7 +363,7 @@ fn update_standard<F: Float, const N: usize, const FULL: bool>(
         }
         let td = max_trace * denom;
         let nu = trp * denom - qq;
-        if nu.is_finite() && td.is_finite() {
+        if nu * F::ZERO + td * F::ZERO == F::ZERO {
             if nu > td * rho {
                 s = td / nu;
                 scale = true;
@@ -452,9 +453,10 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
         dot += *f * *t;
     }
     let eps = y - dot;
-    if !eps.is_finite() {
-        return Err(Error::Numerical);
-    }
+    // Every check of the update is made once, after pass 1: x · 0 is ±0 for finite x and NaN for ±∞ or
+    // NaN, so x · 0 = 0 exactly when x is finite (a float test, vectorisable, instead of an
+    // integer-coded one); `ok` collects the tests of ε, α_(m−1), the new D and the new θ̂ (no branch).
+    let mut ok = eps * F::ZERO == F::ZERO;
     let full = FULL;
     // Pass 1. Column j of U is row j of `fac` (U_0j..U_(j−1)j, then d_j).
     let mut f = [F::ZERO; N];
@@ -493,8 +495,8 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
         *bj = vv;
     });
     // α_(m−1) ≥ … ≥ α_0 ≥ ρ > 0 (D ≥ 0 makes every f_j v_j = d_j f_j² ≥ 0), so one check of the last
-    // covers them all.
-    if !(a.is_finite() && a > F::ZERO) {
+    // covers them all (finite here, positive below).
+    if !((a * F::ZERO == F::ZERO) & (a > F::ZERO)) {
         return Err(Error::Numerical);
     }
     let inv_rho = F::ONE / rho;
@@ -505,7 +507,6 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
     let inv_last = inv.get(m - 1).copied().unwrap_or(F::ZERO);
     // The new D: d_j · (α_(j−1) · (1/α_j)) · (1/ρ) (x · 1 = x exactly: no branch for ρ = 1).
     let mut d_new = [F::ZERO; N];
-    let mut ok = true;
     // Written out per column (literal j): as an enumerate loop with the diagonal read through
     // `fac.get(j)` it stayed a run-time loop with bounds checks, a third of the update's time.
     for_columns!(full, m, 'col, |j| {
@@ -522,13 +523,13 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
             alpha.get(j - 1).copied().unwrap_or(F::ZERO)
         };
         *dn = *d * (alpha_prev * *r) * inv_rho;
-        // 0 ≤ d < ∞ (NaN fails both comparisons).
-        ok &= (*dn >= F::ZERO) & (*dn < F::INFINITY);
+        // 0 ≤ d < ∞.
+        ok &= (*dn * F::ZERO == F::ZERO) & (*dn >= F::ZERO);
     });
     let mut theta_new = [F::ZERO; N];
     for ((tn, t), bi) in theta_new.iter_mut().zip(theta.iter()).zip(b.iter()) {
         *tn = *t + *bi * inv_last * eps;
-        ok &= tn.is_finite();
+        ok &= *tn * F::ZERO == F::ZERO;
     }
     if !ok {
         return Err(Error::Numerical);
@@ -721,6 +722,40 @@ mod tests {
         );
         assert_eq!(est.theta(), before.theta());
         assert_eq!(est.p(0, 0), before.p(0, 0));
+    }
+
+    // The UD form's checks (made once, after its reading pass, as x · 0 = 0 tests): a non-finite ε
+    // (y = NaN or ∞), an overflowing α (φ = 1e200: φᵀPφ = ∞) and an infinite φ entry are errors, and
+    // the factors and θ̂ are left exactly as they were, with and without the guard.
+    #[test]
+    fn failed_ud_updates_are_errors_and_leave_the_state_unchanged() {
+        for guard in [false, true] {
+            let mut est = Rls::<f64, 3>::new(3, 0.98, 100.0)
+                .unwrap()
+                .with_form(Form::Ud);
+            if guard {
+                est = est.with_max_trace(50.0).unwrap();
+            }
+            est.update(&[1.0, -2.0, 0.5], 1.0).unwrap();
+            est.update(&[0.3, 1.0, -1.0], -0.5).unwrap();
+            let before = est;
+            let bad: [([f64; 3], f64); 4] = [
+                ([1.0, 1.0, 1.0], f64::NAN),
+                ([1.0, 1.0, 1.0], f64::INFINITY),
+                ([1e200, 1.0, 1.0], 0.0),
+                ([1.0, f64::INFINITY, 1.0], 0.0),
+            ];
+            for (phi, y) in bad {
+                assert_eq!(
+                    est.update(&phi, y).unwrap_err(),
+                    Error::Numerical,
+                    "{phi:?} {y}"
+                );
+                assert_eq!(est.theta(), before.theta());
+                assert_eq!(est.p, before.p);
+            }
+            est.update(&[0.5, 0.5, 0.5], 0.2).unwrap();
+        }
     }
 
     // Bierman's update is an exact refactorisation of eq. 12: the same θ̂ and P to rounding, for ρ = 1

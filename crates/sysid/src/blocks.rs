@@ -186,9 +186,14 @@ pub struct BlockStart {
 }
 
 impl BlockStart {
+    /// True when the data determine every physical parameter ([`BlockStart::impose`] changes nothing).
+    pub fn all_free(&self) -> bool {
+        self.free_physical.iter().all(|v| *v)
+    }
+
     /// `f` with its fixed parameters set to their fixed values.
     pub fn impose(&self, block: &dyn Block, f: &StaticNonlinearity) -> StaticNonlinearity {
-        if self.free_physical.iter().all(|v| *v) {
+        if self.all_free() {
             return *f;
         }
         let mut v = block.physical(f);
@@ -226,6 +231,11 @@ pub trait Block: Sync {
         prev: &StaticNonlinearity,
         limit: f64,
     ) -> StaticNonlinearity;
+    /// `f` replaced by [`Block::of_key_terms`]`(key, f, limit)`, in place (the recursion calls it at
+    /// every sample; a kind may avoid moving the whole nonlinearity).
+    fn set_key_terms(&self, key: &[f64], f: &mut StaticNonlinearity, limit: f64) {
+        *f = self.of_key_terms(key, f, limit);
+    }
     /// The physical parameters from the key terms at `theta[at..]` with their standard deviations from
     /// Cov(θ̂) (delta method); a value the key terms do not determine is NaN.
     fn physical_with_std(
@@ -441,6 +451,12 @@ impl Block for DeadzoneBlock {
         limit: f64,
     ) -> StaticNonlinearity {
         StaticNonlinearity::Deadzone(deadzone_from_theta(key, dz(prev), limit))
+    }
+    fn set_key_terms(&self, key: &[f64], f: &mut StaticNonlinearity, limit: f64) {
+        match f {
+            StaticNonlinearity::Deadzone(d) => *d = deadzone_from_theta(key, *d, limit),
+            _ => *f = self.of_key_terms(key, f, limit),
+        }
     }
     fn physical_with_std(
         &self,

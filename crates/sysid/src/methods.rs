@@ -454,6 +454,8 @@ pub(crate) fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitte
     let free = reg.free_key(p.starts());
     let idx: Vec<usize> = (0..free.len()).filter(|&i| free[i]).collect();
     let np = idx.len();
+    // Every entry free (the usual case): θ̂ and φ need no scatter to the full layout and back.
+    let all_free = np == reg.len();
     let mut est = recursive_estimator(np, st)?;
     let mut full_row = vec![0.0; reg.len()];
     let mut row = vec![0.0; np];
@@ -466,11 +468,35 @@ pub(crate) fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitte
     // batch methods do, and such data are refused with the same message. With forgetting ρ < 1 or windup
     // protection the estimator is being used as a tracker, where spells without excitation are expected.
     let total_rows = reg.rows(records);
+    // A later pass of the plain recursion (standard form, ρ = 1, no windup protection, no history,
+    // every entry of θ free) is the regularised least squares `regularised_pass` solves in closed form;
+    // the recursion runs otherwise, and when that solve fails.
+    let closed_form = st.form == RlsForm::Standard
+        && st.windup == Windup::None
+        && st.forgetting == 1.0
+        && !st.record_history
+        && all_free;
+    let names = reg.names();
+    // The closed-form passes' buffer of N + p rows, Φ built into its first N.
+    let mut aug: Option<Buffers> = None;
     if st.forgetting == 1.0 && st.windup == Windup::None && total_rows >= np {
-        let (phi, y) = reg.stacked(records, &f);
         // Only the rank verdict matters here; numerical trouble (overflow) is left to the recursion,
         // which reports the sample where it happens.
-        if let Err(e @ SysidError::Data(_)) = solve_free(&phi, &y, &free, &reg.names()) {
+        let verdict = if closed_form {
+            // Built into the closed-form passes' buffer: its p prior rows are still 0, which add only
+            // zeros to the QR's sums (the same R as Φ alone up to the order of summation, so the same
+            // verdict except within rounding of the rank tolerance).
+            let mut a = DMatrix::zeros(total_rows + np, np);
+            let mut b = DVector::zeros(total_rows + np);
+            reg.stacked_into::<false>(records, &f, &mut a, &mut b);
+            let verdict = ls::solve(&a, &b, &names).map(|_| ());
+            aug = Some((a, b));
+            verdict
+        } else {
+            let (phi, y) = reg.stacked(records, &f);
+            solve_free(&phi, &y, &free, &names).map(|_| ())
+        };
+        if let Err(e @ SysidError::Data(_)) = verdict {
             return Err(context(p, e));
         }
     }
@@ -483,12 +509,37 @@ pub(crate) fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitte
     let tail_start = total_rows - total_rows / 10;
     let mut theta_tail = DVector::from_column_slice(est.theta());
     let mut settled = false;
+    // θ̂ at the end of the last pass, and P there when that pass was solved in closed form (otherwise
+    // the estimator's).
+    let mut theta = DVector::from_column_slice(est.theta());
+    let mut closed: Option<ClosedPass> = None;
     for pass in 0..st.passes.max() {
         if pass > 0 {
-            est.restart_covariance(st.p0);
             if hammer {
-                reg.update(expand(est.theta()).as_slice(), &mut f, p.starts());
+                reg.update(expand(theta.as_slice()).as_slice(), &mut f, p.starts());
             }
+            if closed_form {
+                let prev = closed.take();
+                let rows = FreeRows {
+                    reg,
+                    records,
+                    names: &names,
+                };
+                let buf = aug.get_or_insert_with(|| {
+                    let n = total_rows + np;
+                    (DMatrix::zeros(n, np), DVector::zeros(n))
+                });
+                if let Ok(pass) = regularised_pass(&rows, &f, &theta, st.p0, prev, buf) {
+                    theta.copy_from(&pass.sol.theta);
+                    closed = Some(pass);
+                    if pass_end(st.passes, &mut pass_ends, &theta) {
+                        settled = true;
+                        break;
+                    }
+                    continue;
+                }
+            }
+            est.restart_at(theta.as_slice(), st.p0);
         }
         let mut at = 0;
         for r in records {
@@ -498,18 +549,26 @@ pub(crate) fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitte
                     theta_tail.copy_from_slice(est.theta());
                 }
                 if hammer && pass == 0 && at > 0 {
-                    // θ̂ at full size in a buffer kept across samples (no allocation per sample).
-                    scatter_into(&free, est.theta(), &zeros, &mut full_theta);
-                    reg.update(&full_theta, &mut f, p.starts());
+                    if all_free {
+                        reg.update(est.theta(), &mut f, p.starts());
+                    } else {
+                        // θ̂ at full size in a buffer kept across samples (no allocation per sample).
+                        scatter_into(&free, est.theta(), &zeros, &mut full_theta);
+                        reg.update(&full_theta, &mut f, p.starts());
+                    }
                     for ((fm, start), ch) in f.iter_mut().zip(&initial_f).zip(reg.channels()) {
                         if ch.kind.block().is_degenerate(fm) {
                             *fm = *start;
                         }
                     }
                 }
-                reg.fill_row(&u, r.y(), &f, k, &mut full_row);
-                for (q, &i) in idx.iter().enumerate() {
-                    row[q] = full_row[i];
+                if all_free {
+                    reg.fill_row(&u, r.y(), &f, k, &mut row);
+                } else {
+                    reg.fill_row(&u, r.y(), &f, k, &mut full_row);
+                    for (q, &i) in idx.iter().enumerate() {
+                        row[q] = full_row[i];
+                    }
                 }
                 est.update(&row, r.y()[k], k)
                     .map_err(|e| e.context(r.name()))?;
@@ -525,18 +584,13 @@ pub(crate) fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitte
                 at += 1;
             }
         }
-        let end = DVector::from_column_slice(est.theta());
-        if let (Passes::UntilSettled { .. }, Some(prev)) = (st.passes, pass_ends.last()) {
-            if (&end - prev).norm() <= PASSES_SETTLED * (1e-300 + end.norm()) {
-                settled = true;
-                pass_ends.push(end);
-                break;
-            }
+        theta.copy_from_slice(est.theta());
+        if pass_end(st.passes, &mut pass_ends, &theta) {
+            settled = true;
+            break;
         }
-        pass_ends.push(end);
     }
     let passes_run = pass_ends.len();
-    let theta = DVector::from_column_slice(est.theta());
     let rel = |a: &DVector<f64>, b: &DVector<f64>| (a - b).norm() / (1e-300 + b.norm());
     let converged = match st.passes {
         Passes::UntilSettled { .. } => settled,
@@ -549,7 +603,10 @@ pub(crate) fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitte
     let model = model_from_theta(p, &theta_full)?;
     let rss = prediction_rss(&model, records)?;
     let sigma2 = rss / total_rows.saturating_sub(np).max(1) as f64;
-    let cov = scatter_matrix(&free, &(est.covariance() * sigma2));
+    // P at the end: the closed-form pass's when the last pass was one (a recursive pass after a
+    // closed-form one clears it).
+    let p_end = closed.map_or_else(|| est.covariance(), |c| c.sol.inv_gram);
+    let cov = scatter_matrix(&free, &(p_end * sigma2));
     let mut notes = Vec::new();
     if let Passes::UntilSettled { max } = st.passes {
         notes.push(Note::PassesUntilSettled {
@@ -577,6 +634,106 @@ pub(crate) fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitte
         history_samples,
         ..Fitted::new(model, Vec::new(), Method::Rls, sigma2)
     })
+}
+
+/// Records θ̂ = `end` at the end of a pass; true when the passes have settled (with
+/// [`Passes::UntilSettled`], the change since the previous pass's end is below [`PASSES_SETTLED`]
+/// relative).
+fn pass_end(passes: Passes, pass_ends: &mut Vec<DVector<f64>>, end: &DVector<f64>) -> bool {
+    let settled = match (passes, pass_ends.last()) {
+        (Passes::UntilSettled { .. }, Some(prev)) => {
+            (end - prev).norm() <= PASSES_SETTLED * (1e-300 + end.norm())
+        }
+        _ => false,
+    };
+    pass_ends.push(end.clone());
+    settled
+}
+
+/// The regression of a problem's records (its entries named `names`).
+struct FreeRows<'a> {
+    reg: &'a crate::regression::Regression,
+    records: &'a [Dataset],
+    names: &'a [String],
+}
+
+/// The augmented matrix [Φ; w I] and target [y; w θ_prev] of the closed-form passes (w = 1/√p0), one
+/// buffer built into again by every pass.
+type Buffers = (DMatrix<f64>, DVector<f64>);
+
+/// What a closed-form RLS pass leaves for the next ([`regularised_pass`]).
+struct ClosedPass {
+    /// θ_prev, the estimate the pass started from.
+    start: DVector<f64>,
+    /// θ̂_N and P_N = (ΦᵀΦ + I/p0)⁻¹ (as `inv_gram`).
+    sol: ls::LsSolution,
+}
+
+/// One later RLS pass in closed form, every entry of θ free. Such a pass restarts P(0) = p0 I at
+/// θ̂(0) = θ_prev and keeps the nonlinearities `f` of its start, so with ρ = 1 the recursion (paper
+/// eqs. 9–12) is exact recursive least squares with the prior θ_prev of weight I/p0: after the N rows
+/// φ_k of the records,
+///
+/// ```text
+/// P_N = (Σ φ_k φ_kᵀ + I/p0)⁻¹,   θ̂_N = P_N (Σ φ_k y_k + θ_prev/p0),
+/// ```
+///
+/// i.e. the least-squares solution of the rows [φ_kᵀ | y_k] augmented by the p rows
+/// [w e_iᵀ | w θ_prev,i], w = 1/√p0, solved by Householder QR of that augmented matrix ([`ls::solve`],
+/// never the normal equations): the same numbers as the recursion up to rounding. When Φ repeats the
+/// previous closed-form pass's to the bit (no switching changed: the usual last pass, which confirms the
+/// settling), P_N and Σ φ y are that pass's too, and θ̂_N = θ̂' + P_N (θ_prev − θ'_prev)/p0 from its
+/// θ̂' and start θ'_prev, without a second factorisation. `buf` holds (N + p) rows: Φ of the last
+/// build (a previous pass's, or the rank test's) above, overwritten here.
+fn regularised_pass(
+    rows: &FreeRows,
+    f: &[StaticNonlinearity],
+    theta_prev: &DVector<f64>,
+    p0: f64,
+    prev: Option<ClosedPass>,
+    buf: &mut Buffers,
+) -> Result<ClosedPass, SysidError> {
+    let (a, b) = buf;
+    let np = a.ncols();
+    let m = a.nrows() - np;
+    let repeats = rows.reg.stacked_into::<true>(rows.records, f, a, b);
+    let w = 1.0 / p0.sqrt();
+    for (q, col) in a.as_mut_slice().chunks_exact_mut(m + np).enumerate() {
+        col[m..].fill(0.0);
+        col[m + q] = w;
+    }
+    for (q, t) in theta_prev.iter().enumerate() {
+        b[m + q] = w * t;
+    }
+    let start = theta_prev.clone();
+    match prev {
+        Some(prev) if repeats => {
+            let step = &prev.sol.inv_gram * ((theta_prev - &prev.start) / p0);
+            let theta = &prev.sol.theta + step;
+            if !theta.iter().all(|v| v.is_finite()) {
+                return Err(SysidError::Numerical(
+                    "a repeated RLS pass gave a non-finite estimate".into(),
+                ));
+            }
+            let sol = ls::LsSolution { theta, ..prev.sol };
+            Ok(ClosedPass { start, sol })
+        }
+        _ => {
+            let sol = solve_augmented(a, b, rows.names)?;
+            Ok(ClosedPass { start, sol })
+        }
+    }
+}
+
+/// The least squares of a closed-form pass's augmented rows.
+fn solve_augmented(
+    a: &DMatrix<f64>,
+    b: &DVector<f64>,
+    names: &[String],
+) -> Result<ls::LsSolution, SysidError> {
+    // With the rank test of every solve: the prior rows make the columns independent, but a column of
+    // norm above ~1e7 √p0 scales them below its tolerance; the caller then runs the recursion.
+    ls::solve(a, b, names)
 }
 
 /// The one record of `p`, or an error naming `method` for merged records.

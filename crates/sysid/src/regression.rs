@@ -259,6 +259,32 @@ impl Regression {
         let rows = self.rows(records);
         let mut phi = DMatrix::<f64>::zeros(rows, self.len);
         let mut y = DVector::<f64>::zeros(rows);
+        self.stacked_into::<false>(records, f, &mut phi, &mut y);
+        (phi, y)
+    }
+
+    /// [`Regression::stacked`] into the first rows of `phi` and `y`, which have room for them (at least
+    /// the regression's rows, and its columns); rows below are left as they are (the caller's extra
+    /// rows), so a buffer is reused without being cleared. With `TRACK`, returns true when the columns
+    /// that depend on `f` (the key terms, x̂ = f(u)) are what `phi` held before to the bit (so when
+    /// `phi` held these records' rows, Φ repeats); without, always true.
+    pub fn stacked_into<const TRACK: bool>(
+        &self,
+        records: &[Dataset],
+        f: &[StaticNonlinearity],
+        phi: &mut DMatrix<f64>,
+        y: &mut DVector<f64>,
+    ) -> bool {
+        let mut unchanged = true;
+        let mut write = |d: &mut f64, v: f64| {
+            if TRACK {
+                unchanged &= d.to_bits() == v.to_bits();
+            }
+            *d = v;
+        };
+        // `rows` is the stride of Φ's columns (its whole height).
+        let rows = phi.nrows();
+        debug_assert!(rows >= self.rows(records) && phi.ncols() == self.len && y.len() == rows);
         let data = phi.as_mut_slice();
         let k0 = self.k0;
         let mut key = vec![0.0; self.n_key];
@@ -281,7 +307,7 @@ impl Regression {
                 for q in 0..m {
                     block.fill_key_terms(f, u[k0 + q - ch.nk], &mut key[..n]);
                     for (t, v) in key[..n].iter().enumerate() {
-                        data[(col + t) * rows + at + q] = *v;
+                        write(&mut data[(col + t) * rows + at + q], *v);
                     }
                 }
                 col += n;
@@ -295,7 +321,7 @@ impl Regression {
             for ((ch, u), f) in self.channels.iter().zip(&u).zip(f) {
                 for j in ch.b_from()..ch.nb {
                     for (d, v) in data[column(col)].iter_mut().zip(&u[k0 - ch.nk - j..]) {
-                        *d = f.apply(*v);
+                        write(d, f.apply(*v));
                     }
                     col += 1;
                 }
@@ -306,7 +332,7 @@ impl Regression {
             y.as_mut_slice()[at..at + m].copy_from_slice(&ys[k0..]);
             at += m;
         }
-        (phi, y)
+        unchanged
     }
 
     /// Which entries of θ the data determine (the blocks' free key terms; the rest is free).
@@ -342,8 +368,10 @@ impl Regression {
             let b = ch.block();
             let n = b.key_names().len();
             if n > 0 {
-                let next = b.of_key_terms(&theta[i..i + n], f, s.limit);
-                *f = s.impose(b, &next);
+                b.set_key_terms(&theta[i..i + n], f, s.limit);
+                if !s.all_free() {
+                    *f = s.impose(b, f);
+                }
                 i += n;
             }
         }

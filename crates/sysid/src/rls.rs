@@ -97,6 +97,8 @@ pub trait RecursiveUpdate {
     fn update(&mut self, phi: &[f64], y: f64, sample: usize) -> Result<f64, SysidError>;
     /// Restarts P at p0 · I, keeping θ̂.
     fn restart_covariance(&mut self, p0: f64);
+    /// Restarts at θ̂ = `theta` (n entries) and P = p0 · I.
+    fn restart_at(&mut self, theta: &[f64], p0: f64);
     /// P (times σ² the covariance of θ̂).
     fn covariance(&self) -> DMatrix<f64>;
 }
@@ -109,6 +111,10 @@ impl RecursiveUpdate for Rls {
         Rls::update(self, phi, y, sample)
     }
     fn restart_covariance(&mut self, p0: f64) {
+        Rls::restart_covariance(self, p0)
+    }
+    fn restart_at(&mut self, theta: &[f64], p0: f64) {
+        self.theta.copy_from_slice(theta);
         Rls::restart_covariance(self, p0)
     }
     fn covariance(&self) -> DMatrix<f64> {
@@ -127,6 +133,10 @@ impl<const N: usize> RecursiveUpdate for RlsN<N> {
         RlsN::update(self, phi, y, sample)
     }
     fn restart_covariance(&mut self, p0: f64) {
+        RlsN::restart_covariance(self, p0)
+    }
+    fn restart_at(&mut self, theta: &[f64], p0: f64) {
+        self.theta.copy_from_slice(theta);
         RlsN::restart_covariance(self, p0)
     }
     fn covariance(&self) -> DMatrix<f64> {

@@ -401,6 +401,10 @@ impl crate::rls::RecursiveUpdate for RobustRls {
     fn restart_covariance(&mut self, p0: f64) {
         RobustRls::restart_covariance(self, p0)
     }
+    fn restart_at(&mut self, theta: &[f64], p0: f64) {
+        self.theta.copy_from_slice(theta);
+        RobustRls::restart_covariance(self, p0)
+    }
     fn covariance(&self) -> DMatrix<f64> {
         RobustRls::covariance(self)
     }

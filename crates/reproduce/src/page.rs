@@ -21,12 +21,14 @@ fn step_list(steps: &[control::StepSegment]) -> String {
         .iter()
         .map(|g| {
             format!(
-                "r = {} mm at {} s: overshoot {} mm, e_ss {} mm, settling {} s",
+                "r = {} mm at {} s: overshoot {} mm, e_ss {} mm, settling {}",
                 estimate(g.setpoint_mm),
                 estimate(g.start_s),
                 opt(g.metrics.overshoot_mm),
                 opt(g.metrics.steady_state_error_mm),
-                opt(g.metrics.settling_time_s)
+                g.metrics
+                    .settling_time_s
+                    .map_or("not settled".to_string(), |t| format!("{} s", estimate(t)))
             )
         })
         .collect::<Vec<_>>()
@@ -369,7 +371,7 @@ pub(crate) fn build_report(
     let cl = with_fig(
         cl.paragraph(format!(
             "Changing set-point ({}), step by step (each step's own overshoot, steady-state error and settling \
-             time; a settling time of n/a means not settled before the next step). On the plant: {}. On the model: {}.",
+             time; not settled: the step had not settled, by the rule of docs/control.md, before the next one). On the plant: {}. On the model: {}.",
             s.unfixed_profile,
             step_list(&st.steps_plant),
             if st.steps_model.is_empty() {

@@ -35,7 +35,8 @@
 //! Cost ([`flops_per_update_ud`]): ε 2n + 1; f = Uᵀφ n² + n; v = D f n; α 2n; b = U v n(n − 1);
 //! reciprocals n + 1; new D 3n; new θ̂ 3n; Bierman's column steps 2 per column and 4 per entry above the
 //! diagonal (2 n(n − 1)). Total 4 n² + 12 n + 2: 282 for n = 7, 434 for n = 9, of which n + 1
-//! divisions. The update runs in two passes over U and copies nothing: the first only reads (f, v, α,
+//! divisions (with a capacity N ≥ 8 the first pass keeps the partial gains the column steps need, so
+//! n(n − 1) of these flops are not executed: 362 for n = 9). The update runs in two passes over U and copies nothing: the first only reads (f, v, α,
 //! b, the new D and θ̂, every check), the second writes U, D and θ̂ only when every check passed, so a
 //! failed update leaves the state unchanged.
 //!
@@ -432,8 +433,11 @@ fn symmetric_update<F: Float, const N: usize, const SCALE: bool>(
 /// 1. reading only: f = Uᵀφ, v = D f, the prefix sums α_j = ρ + Σ_(i≤j) f_i v_i, the gain numerator
 ///    b = U v (accumulated column by column exactly as Bierman's loop builds it), the reciprocals 1/ρ and
 ///    1/α_j (independent divisions: they pipeline), the new D and the new θ̂; every check is made here;
-/// 2. only when all passed: Bierman's column steps write U in place (re-accumulating the partial gain
-///    they need), then D and θ̂; with `GUARD`, tr P of the new factors is summed in the same pass.
+/// 2. only when all passed: Bierman's column steps write U in place, then D and θ̂; with `GUARD`, tr P
+///    of the new factors is summed in the same pass. The partial gains w they need (w_i before column
+///    j = b_i after columns < j) are the values pass 1 accumulates in the same order: for N ≥ 8 pass 1
+///    keeps them (`wsnap`, one row per column) instead of pass 2 summing them again (n(n − 1) flops
+///    fewer; measured slower at N = 4, where pass 2 sums them).
 ///
 /// So a failed update leaves the state unchanged, without a copy of the factors.
 #[inline(always)]
@@ -445,7 +449,14 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
     let (rho, max_trace) = (est.forgetting, est.max_trace);
     let m = if FULL { N } else { est.n };
     let (theta, fac) = (&mut est.theta, &mut est.p);
-    let phi = phi.get(..m).ok_or(Error::Length)?;
+    let phi_in = phi.get(..m).ok_or(Error::Length)?;
+    // φ read one entry at a time (each through an opaque copy): loaded in wide pieces, a caller's
+    // narrower stores of φ cannot be forwarded to the loads, which then wait for the stores to retire.
+    let mut phi_buf = [F::ZERO; N];
+    for (d, s) in phi_buf.iter_mut().zip(phi_in) {
+        *d = core::hint::black_box(*s);
+    }
+    let phi = phi_buf.get(..m).ok_or(Error::Length)?;
     let theta = theta.get_mut(..m).ok_or(Error::Capacity)?;
     let fac = fac.get_mut(..m).ok_or(Error::Capacity)?;
     let mut dot = -F::ZERO;
@@ -463,15 +474,20 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
     let mut v = [F::ZERO; N];
     let mut alpha = [F::ZERO; N];
     let mut b = [F::ZERO; N];
+    // Whether pass 1 keeps the partial gains for pass 2 (measured faster at N = 9, slower at N = 4 in
+    // f64 and the same in f32; N = 7 a tie: docs/benchmarks.md, "Fifth round"). Same values either way.
+    let keep_w = N >= 8;
+    let mut wsnap = [[F::ZERO; N]; N];
     let mut a = rho;
     for_columns!(full, m, 'col, |j| {
-        let (Some(row), Some(ph), Some(fj), Some(vj), Some(aj), Some((b_col, b_rest))) = (
+        let (Some(row), Some(ph), Some(fj), Some(vj), Some(aj), Some((b_col, b_rest)), Some(ws)) = (
             fac.get(j),
             phi.get(j),
             f.get_mut(j),
             v.get_mut(j),
             alpha.get_mut(j),
             b.split_at_mut_checked(j),
+            wsnap.get_mut(j),
         ) else {
             break 'col;
         };
@@ -489,7 +505,10 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
         *vj = vv;
         a += acc * vv;
         *aj = a;
-        for (bi, u) in b_col.iter_mut().zip(u_col) {
+        for ((bi, wi), u) in b_col.iter_mut().zip(ws.iter_mut()).zip(u_col) {
+            if keep_w {
+                *wi = *bi;
+            }
             *bi += *u * vv;
         }
         *bj = vv;
@@ -534,15 +553,17 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
     if !ok {
         return Err(Error::Numerical);
     }
-    // Pass 2: λ_j = −f_j · (1/α_(j−1)); U_ij ← U_ij + w_i λ_j, w_i ← w_i + U_ij v_j (old U_ij), w_j = v_j.
+    // Pass 2: λ_j = −f_j · (1/α_(j−1)); U_ij ← U_ij + w_i λ_j with w_i = v_i + Σ_(i<k<j) U_ik v_k (old
+    // U): kept by pass 1 (`keep_w`) or summed again here (w_i ← w_i + U_ij v_j, w_j = v_j).
     let mut w = [F::ZERO; N];
     let mut tr = -F::ZERO;
     for_columns!(full, m, 'col, |j| {
-        let (Some(row), Some(fj), Some(vj), Some(dn), Some((w_col, w_rest))) = (
+        let (Some(row), Some(fj), Some(vj), Some(dn), Some(kept), Some((w_col, w_rest))) = (
             fac.get_mut(j),
             f.get(j),
             v.get(j).copied(),
             d_new.get(j).copied(),
+            wsnap.get(j),
             w.split_at_mut_checked(j),
         ) else {
             break 'col;
@@ -557,11 +578,13 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
             break 'col;
         };
         let mut col = -F::ZERO;
-        for (u, wi) in u_col.iter_mut().zip(w_col.iter_mut()) {
+        for ((u, wi), wk) in u_col.iter_mut().zip(w_col.iter_mut()).zip(kept) {
             let uij = *u;
-            let un = uij + *wi * lambda;
+            let un = uij + if keep_w { *wk } else { *wi } * lambda;
             *u = un;
-            *wi += uij * vj;
+            if !keep_w {
+                *wi += uij * vj;
+            }
             if GUARD {
                 col += un * un;
             }

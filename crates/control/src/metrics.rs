@@ -358,6 +358,10 @@ pub struct StepSegment {
     pub y0_mm: f64,
     /// Metrics of the segment, times measured from `start_s`.
     pub metrics: StepMetrics,
+    /// Why the segment has no settling time, when it has none ([`StepMetrics::assess`]); said in
+    /// words by [`crate::trust::loop_warnings`], not serialised.
+    #[serde(skip)]
+    pub unsettled: Option<Unsettled>,
 }
 
 /// Splits a trace where the set-point r changes (and at sample 0) and computes the metrics of each step,
@@ -375,7 +379,7 @@ pub fn metrics_for_steps(trace: &Trace) -> Result<Vec<StepSegment>, ControlError
         if e - s < 2 {
             continue;
         }
-        let metrics = StepMetrics::of_loop(
+        let (metrics, unsettled) = StepMetrics::assess(
             &trace.t[s..e],
             &trace.y[s..e],
             Some(&trace.u[s..e]),
@@ -388,6 +392,7 @@ pub fn metrics_for_steps(trace: &Trace) -> Result<Vec<StepSegment>, ControlError
             setpoint_mm: trace.r[s],
             y0_mm: trace.y[s],
             metrics,
+            unsettled,
         });
     }
     Ok(out)

@@ -14,7 +14,7 @@
 //!   |e_ss| < 2 % of the step).
 
 use crate::metrics::{still_moving, StepSegment, Unsettled, SETTLING_BAND, TAIL_FRACTION};
-use crate::{StepMetrics, Trace};
+use crate::Trace;
 
 /// |y| beyond which a closed loop is reported as diverging, mm (a kilometre: beyond any actuator's
 /// stroke; a model plant has no stroke to check against).
@@ -116,11 +116,9 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
             .filter(|&k| trace.t[k] >= s.start_s && trace.t[k] <= s.end_s)
             .collect();
         let pick = |v: &[f64]| -> Vec<f64> { k.iter().map(|&k| v[k]).collect() };
-        let (t, y, u) = (pick(&trace.t), pick(&trace.y), pick(&trace.u));
-        // The same assessment as the step's metrics (metrics_for_steps), kept with its reason.
-        let Ok((m, why)) = StepMetrics::assess(&t, &y, Some(&u), s.y0_mm, s.setpoint_mm) else {
-            continue;
-        };
+        let (t, y) = (pick(&trace.t), pick(&trace.y));
+        // The step's metrics and, when it has not settled, why (metrics_for_steps).
+        let (m, why) = (s.metrics, s.unsettled);
         let head = format!(
             "the step to r = {} mm at t = {:.3} s",
             s.setpoint_mm, s.start_s

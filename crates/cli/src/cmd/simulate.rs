@@ -119,9 +119,14 @@ fn run_plant(args: &Args, plant: ipa::spec::PlantSpec) -> anyhow::Result<()> {
         noise_std: args.noise_std,
     };
     exp.check()?;
+    // The start, resolved once (a model file is read for it) and passed on.
     let y0 = match exp.x0 {
         Some(v) => v,
         None => exp.plant.default_y0()?,
+    };
+    let exp = Experiment {
+        x0: Some(y0),
+        ..exp
     };
     let mut inputs: Vec<&Path> =
         ipa::spec::spec_input_files(&args.plant, args.plant_config.as_deref());

@@ -894,6 +894,24 @@ fn a_model_with_absurd_deadzone_slopes_is_called_what_it_is() {
         .max()
         .unwrap();
     assert!(longest < 30, "a number of {longest} characters: {text}");
+    // `tune` on that model says its loop diverges.
+    let tuned = bin()
+        .args([
+            "tune",
+            "--max-evaluations",
+            "8",
+            "--variants",
+            "1",
+            "--model",
+        ])
+        .arg(huge.trim_start_matches("model:"))
+        .arg("--out")
+        .arg(tmp.path().join("c.json"))
+        .output()
+        .unwrap();
+    let said = String::from_utf8_lossy(&tuned.stdout).into_owned()
+        + &String::from_utf8_lossy(&tuned.stderr);
+    assert!(said.contains("the closed loop diverges"), "{said}");
 
     let zero = model("zero.json", "0.0");
     let out = bin()

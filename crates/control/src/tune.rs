@@ -864,13 +864,22 @@ impl Evaluation {
                 100.0 * spec.ess_share
             ));
         }
+        let fmt = crate::trust::fmt_value;
         if self.max_abs_ess_mm > spec.ess_all_mm {
             w.push(format!(
-                "not met on {what}: |e_ss| <= {} mm in every step (largest {:.3} mm)",
-                spec.ess_all_mm, self.max_abs_ess_mm
+                "not met on {what}: |e_ss| <= {} mm in every step (largest {} mm)",
+                spec.ess_all_mm,
+                fmt(self.max_abs_ess_mm)
             ));
         }
-        if self.worst_limit_cycle_mm > spec.limit_cycle_mm + 1e-9 {
+        let diverged = self.max_abs_ess_mm.max(self.worst_limit_cycle_mm);
+        if diverged > crate::trust::DIVERGED_MM || diverged.is_nan() {
+            w.push(format!(
+                "the closed loop diverges on {what}: an error or swing of {} mm, beyond any actuator's \
+                 stroke (check the plant model's gains): this controller is not usable there",
+                fmt(diverged)
+            ));
+        } else if self.worst_limit_cycle_mm > spec.limit_cycle_mm + 1e-9 {
             let k = self
                 .runs
                 .iter()

@@ -112,11 +112,6 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
         }
     }
     for s in steps {
-        let k: Vec<usize> = (0..n)
-            .filter(|&k| trace.t[k] >= s.start_s && trace.t[k] <= s.end_s)
-            .collect();
-        let pick = |v: &[f64]| -> Vec<f64> { k.iter().map(|&k| v[k]).collect() };
-        let (t, y) = (pick(&trace.t), pick(&trace.y));
         // The step's metrics and, when it has not settled, why (metrics_for_steps).
         let (m, why) = (s.metrics, s.unsettled);
         let head = format!(
@@ -128,11 +123,18 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
         let tail_s = TAIL_FRACTION * within;
         match why {
             None => {
+                let Some(ts) = m.settling_time_s else {
+                    continue;
+                };
+                // Settled against the set-point's band: does the output still creep? Only this case
+                // needs the step's samples.
+                let k: Vec<usize> = (0..n)
+                    .filter(|&k| trace.t[k] >= s.start_s && trace.t[k] <= s.end_s)
+                    .collect();
+                let pick = |v: &[f64]| -> Vec<f64> { k.iter().map(|&k| v[k]).collect() };
+                let (t, y) = (pick(&trace.t), pick(&trace.y));
                 let step = (y.last().copied().unwrap_or(s.y0_mm) - s.y0_mm).abs();
-                if let (Some(ts), true) = (
-                    m.settling_time_s,
-                    still_moving(&t, &y, SETTLING_BAND * step),
-                ) {
+                if still_moving(&t, &y, SETTLING_BAND * step) {
                     w.push(format!(
                         "{head} still creeps at the end of the run: its settling time ({ts:.3} s) is \
                          measured against the set-point's 2 % band, and its steady-state error of \

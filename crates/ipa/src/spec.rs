@@ -128,12 +128,18 @@ impl PlantSpec {
         let rest = match self {
             PlantSpec::Ipa | PlantSpec::Paper => None,
             PlantSpec::ModelFile(path) => match sysid_core::model_file::read_any_model(path)? {
-                sysid_core::model_file::AnyModel::Linear(m) => m.rest_output(),
+                sysid_core::model_file::AnyModel::Linear(m) => return Ok(model_default_y0(&m)),
                 sysid_core::model_file::AnyModel::Narx(_) => None,
             },
         };
         Ok(rest.unwrap_or(MID_STROKE_Y0_MM))
     }
+}
+
+/// [`PlantSpec::default_y0`] of a linear or Hammerstein model already read (any number of inputs):
+/// its resting level ([`sysid_core::Model::rest_output`]), else [`MID_STROKE_Y0_MM`].
+pub fn model_default_y0(model: &sysid_core::Model) -> f64 {
+    model.rest_output().unwrap_or(MID_STROKE_Y0_MM)
 }
 
 /// What a closed loop around a plant can be checked against ([`PlantSpec::limits`]).

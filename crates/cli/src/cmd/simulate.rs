@@ -233,7 +233,7 @@ fn run_miso(args: &Args, model: &sysid::Model, model_path: &Path) -> anyhow::Res
             "a finite output level"
         )),
         Some(v) => v,
-        None => model.rest_output().unwrap_or(ipa::spec::MID_STROKE_Y0_MM),
+        None => ipa::spec::model_default_y0(model),
     };
     let y = sysid::model::run_from_rest(model, &us, y0)?;
     let mut header = vec!["t"];

@@ -1,8 +1,9 @@
 //! The tuned position controller of `ipa-sysid tune` (CONTROLLER.json) for firmware: PID with clamping
 //! anti-windup, a deadzone inverse scaled in a fine band, and a hold band against stick-slip hunting.
 //!
-//! The same operations in the same order as `control::PositionController` (docs/control.md, section
-//! "The tuned controller"), so f64 commands are equal to it bit for bit:
+//! The one implementation of the step: `control::PositionController` (what `ipa-sysid control` and
+//! `tune` run) delegates to `PositionController<f64>`, so the firmware, the C API and the host run the
+//! same code (docs/control.md, section "The tuned controller"):
 //!
 //! ```text
 //! D(k) = α D(k−1) − (1 − α) (y(k) − y(k−1)) / Ts          α = Tf / (Tf + Ts), D = 0 at the first sample
@@ -323,6 +324,12 @@ impl<F: Float> PositionController<F> {
         [self.breakaway_left, self.breakaway_right]
     }
 
+    /// The learnt coasts τ_c (left, right): distance coasted after a cut per mm/s of speed at the
+    /// cut, s; −1 = not learnt.
+    pub fn coast(&self) -> [F; 2] {
+        [self.coast_left, self.coast_right]
+    }
+
     /// Back to rest.
     pub fn reset(&mut self) {
         self.integral = F::ZERO;
@@ -370,6 +377,18 @@ mod tests {
         assert_eq!(c.step(1.0, 1.5).unwrap(), -5.5);
     }
 
+    // D(k) = α D(k−1) − (1 − α) Δy/Ts with α = Tf/(Tf + Ts) = 0.5 at Tf = Ts; Δy = 0.1 mm: −5 mm/s,
+    // then D = 0.5 × (−5) − 0.5 × 0 = −2.5 (Kp = Ki = 0, Kd = 2).
+    #[test]
+    fn derivative_acts_on_the_filtered_measured_velocity() {
+        let mut settings = s();
+        (settings.kp, settings.ki, settings.kd, settings.tf) = (0.0, 0.0, 2.0, 0.01);
+        let mut c = PositionController::new(settings, None).unwrap();
+        assert_eq!(c.step(10.0, 0.0).unwrap(), 0.0);
+        assert_eq!(c.step(10.0, 0.1).unwrap(), 2.0 * -5.0);
+        assert_eq!(c.step(10.0, 0.1).unwrap(), 2.0 * -2.5);
+    }
+
     /// The shift inverse of the deadzone b_l = −20, b_r = 30 (unit slopes).
     fn shift_inverse() -> Compensator<f64> {
         let dz = Deadzone {
@@ -407,11 +426,7 @@ mod tests {
         settings
     }
 
-    // The nudge mode by hand (the same case as control::position's test): deadzone b_l = −20, b_r = 30,
-    // band 1 mm, ρ Ts = 1 count per sample, β = 0.5, N_r = 2, γ = 0.5, e = 0.5 mm: closed until y has
-    // been still for 2 samples, then 15, 16, 17 counts; y moves at 17 (learnt, held) and the valve closes
-    // once y has covered 0.25 mm; the next nudge starts at 0.5 × 17.
-    // The rest band by hand (the same case as control::position's test): e_r = 3 mm, r = 3, y = 0.5
+    // The rest band by hand: e_r = 3 mm, r = 3, y = 0.5
     // (e = 2.5 mm, outside e_n = 1): the PID acts (10 × 2.5 + b_r = 55) until y has rested N_r = 2
     // samples, then a nudge starts at β |b_r| = 15, ramps to 16, breaks loose (u_b = 16, held) and is
     // cut at y = 1.8 (moved 1.3 ≥ γ |e_0| = 1.25); while the piston coasts (e = 1.1–1.2 mm) the
@@ -455,6 +470,10 @@ mod tests {
         assert!(PositionController::new(settings, None).is_err());
     }
 
+    // The nudge mode by hand: deadzone b_l = −20, b_r = 30,
+    // band 1 mm, ρ Ts = 1 count per sample, β = 0.5, N_r = 2, γ = 0.5, e = 0.5 mm: closed until y has
+    // been still for 2 samples, then 15, 16, 17 counts; y moves at 17 (learnt, held) and the valve closes
+    // once y has covered 0.25 mm; the next nudge starts at 0.5 × 17.
     #[test]
     fn nudge_ramps_from_the_last_breakaway_learns_it_and_cuts() {
         let comp = shift_inverse();
@@ -469,6 +488,19 @@ mod tests {
         }
         assert_eq!(got, want);
         assert_eq!(c.breakaway(), [20.0, 17.0]);
+        // Past the set-point: a nudge to the left from β |b_l| = 10 counts; e changes sign during it:
+        // it ends; outside the band u = Kp e + b_r = 10 × 2 + 30; reset restores |b_l|, |b_r|.
+        for (r, y, u) in [
+            (1.0, 1.3, 0.0),
+            (1.0, 1.3, 0.0),
+            (1.0, 1.3, -10.0),
+            (1.0, 0.9, 0.0),
+            (3.0, 1.0, 50.0),
+        ] {
+            assert_eq!(c.step(r, y).unwrap(), u);
+        }
+        c.reset();
+        assert_eq!(c.breakaway(), [20.0, 30.0]);
         let mut bad = settings;
         bad.nudge = Some(NudgeSettings {
             band: 0.01,
@@ -480,7 +512,7 @@ mod tests {
         );
     }
 
-    // The learnt coast by hand, the same case as control::position's test: γ = 1; the first right
+    // The learnt coast by hand: γ = 1; the first right
     // nudge is cut in the hold band at 50 mm/s and coasts 0.25 mm; the next right nudge is cut at
     // y = 1.875 because the 0.125 mm left is below τ_c × 37.5 mm/s + e_h.
     #[test]
@@ -503,8 +535,9 @@ mod tests {
         for (k, (r, y, u)) in steps.into_iter().enumerate() {
             assert_eq!(c.step(r, y).unwrap(), u, "sample {k}");
         }
-        assert_eq!(c.coast_right, 0.25 / ((1.0 - 0.5) / 0.01));
-        assert_eq!(c.coast_left, -1.0);
+        assert_eq!(c.coast(), [-1.0, 0.25 / ((1.0 - 0.5) / 0.01)]);
+        c.reset();
+        assert_eq!(c.coast(), [-1.0, -1.0]);
     }
 
     #[test]

@@ -293,7 +293,13 @@ fn c_controller_matches_control_bit_for_bit_on_a_recorded_run() {
     }
     args.push(nudge["rest_samples"].as_u64().unwrap().to_string());
     args.push(format!("{:?}", nudge["cut_fraction"].as_f64().unwrap()));
-    args.push(format!("{:?}", nudge["rest_band_mm"].as_f64().unwrap()));
+    for k in ["rest_band_mm", "cut_band_mm", "min_ramp_counts_s"] {
+        args.push(format!("{:?}", nudge[k].as_f64().unwrap()));
+    }
+    assert!(
+        nudge["cut_band_mm"].as_f64().unwrap() > 0.0,
+        "the tuned controller has a ramp-and-cut band"
+    );
     let out = Command::new(&exe)
         .args(&args)
         .stdin(std::fs::File::open(&trace).unwrap())

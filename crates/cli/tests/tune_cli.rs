@@ -107,7 +107,10 @@ fn reference_commands(c: &serde_json::Value, r: &[f64], y: &[f64]) -> Vec<f64> {
     let alpha = tf / (tf + ts);
     let (mut i, mut d, mut e_prev) = (0.0f64, 0.0f64, 0.0f64);
     // Nudge mode: (band, ρ, β, N_r, γ), the samples at rest, the learnt breakaway commands (left,
-    // right) and the nudge under way (side ±1, y_0, e_0, u_n, moving).
+    // right) and the nudge under way (side ±1, y_0, e_0, u_n, moving, its ramp rate, ramp-and-cut).
+    // Ramp-and-cut (e_c, ρ_min): rate per mm a (left, right) = ρ / e_c at first, learnt at the rest
+    // after a ramp-and-cut's end from the move d = side (y − y_0): d > |e_0| + e_h → a × max(1/4,
+    // |e_0| / d), d < |e_0| / 2 → a × 5/4, then a kept within [ρ_min / e_c, ρ / e_h].
     let nudge = &c["nudge"];
     let n = nudge.is_object().then(|| {
         let h = |k: &str| nudge[k].as_f64().unwrap();
@@ -121,7 +124,19 @@ fn reference_commands(c: &serde_json::Value, r: &[f64], y: &[f64]) -> Vec<f64> {
     });
     let mut still = 0.0f64;
     let mut ub = [bl.abs(), br.abs()];
-    let mut under_way: Option<(f64, f64, f64, f64, bool)> = None;
+    let mut under_way: Option<(f64, f64, f64, f64, bool, f64, bool)> = None;
+    let (e_c, rho_min) = (
+        nudge["cut_band_mm"].as_f64().unwrap_or(0.0),
+        nudge["min_ramp_counts_s"].as_f64().unwrap_or(0.0),
+    );
+    let rho_max = n.map_or(0.0, |n| n.1);
+    let mut a = if e_c > 0.0 {
+        [rho_max / e_c; 2]
+    } else {
+        [0.0; 2]
+    };
+    // The last ramp-and-cut that ended (side, y_0, e_0), until the next nudge starts.
+    let mut ended: Option<(f64, f64, f64)> = None;
     let mut out = Vec::new();
     for k in 0..r.len() {
         let e = r[k] - y[k];
@@ -134,7 +149,9 @@ fn reference_commands(c: &serde_json::Value, r: &[f64], y: &[f64]) -> Vec<f64> {
         };
         if e.abs() <= hold {
             e_prev = e;
-            under_way = None;
+            if let Some((side, y0, e0, _, _, _, true)) = under_way.take() {
+                ended = Some((side, y0, e0));
+            }
             out.push(0.0);
             continue;
         }
@@ -143,27 +160,54 @@ fn reference_commands(c: &serde_json::Value, r: &[f64], y: &[f64]) -> Vec<f64> {
             e_prev = e;
             let idx = |side: f64| usize::from(side > 0.0);
             let u = match under_way {
-                Some((side, y0, e0, un, moving)) => {
-                    if (y[k] - y0).abs() >= gamma * e0.abs() || e * e0 <= 0.0 {
+                Some((side, y0, e0, un, moving, rate, cuts)) => {
+                    let towards = side * (y[k] - y0) > 0.0;
+                    if (y[k] != y0 && (y[k] - y0).abs() >= gamma * e0.abs())
+                        || e * e0 <= 0.0
+                        || (cuts && !moving && towards)
+                    {
+                        if cuts && !moving && towards {
+                            ub[idx(side)] = un;
+                        }
                         under_way = None;
+                        if cuts {
+                            ended = Some((side, y0, e0));
+                        }
                         0.0
                     } else if moving {
                         side * un
-                    } else if y[k] != y0 {
+                    } else if towards {
                         ub[idx(side)] = un;
-                        under_way = Some((side, y0, e0, un, true));
+                        under_way = Some((side, y0, e0, un, true, rate, cuts));
                         side * un
                     } else {
-                        let un = (un + rho * ts).min(umax);
-                        under_way = Some((side, y0, e0, un, false));
+                        // Stuck, or a count away from r: ramp on from here.
+                        let un = (un + rate * ts).min(umax);
+                        under_way = Some((side, y[k], e0, un, false, rate, cuts));
                         side * un
                     }
                 }
                 None if still < rest => 0.0,
                 None => {
+                    if let Some((side, y0, e0)) = ended.take() {
+                        let moved = side * (y[k] - y0);
+                        let j = idx(side);
+                        if moved > e0.abs() + hold {
+                            a[j] *= (e0.abs() / moved).max(0.25);
+                        } else if moved < 0.5 * e0.abs() {
+                            a[j] *= 1.25;
+                        }
+                        a[j] = a[j].clamp(rho_min / e_c, rho_max / hold.max(1e-3));
+                    }
                     let side = if e > 0.0 { 1.0 } else { -1.0 };
                     let un = (beta * ub[idx(side)]).min(umax);
-                    under_way = Some((side, y[k], e, un, false));
+                    let cuts = e.abs() <= e_c;
+                    let rate = if cuts {
+                        (a[idx(side)] * e.abs()).clamp(rho_min, rho)
+                    } else {
+                        rho
+                    };
+                    under_way = Some((side, y[k], e, un, false, rate, cuts));
                     side * un
                 }
             };
@@ -172,6 +216,7 @@ fn reference_commands(c: &serde_json::Value, r: &[f64], y: &[f64]) -> Vec<f64> {
             continue;
         }
         under_way = None;
+        ended = None;
         if reset && e * e_prev < 0.0 {
             i = 0.0;
         }

@@ -31,6 +31,12 @@ fn main() {
         if let Some(g) = env("BETA") {
             n.start_fraction = g;
         }
+        if let Some(g) = env("MINRHO") {
+            n.min_ramp_counts_s = g;
+        }
+        if let Some(g) = env("CUTBAND") {
+            n.cut_band_mm = g;
+        }
     }
     let spec = Spec::default();
     if let Ok(t) = std::env::var("TRACE") {

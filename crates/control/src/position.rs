@@ -93,6 +93,15 @@ pub struct Nudge {
     /// existed): the nudge band alone, as then.
     #[serde(default)]
     pub rest_band_mm: f64,
+    /// e_c: ramp-and-cut band, mm (>= 0; 0 = off, as in a file written before it existed): a nudge
+    /// that starts at |e_0| <= e_c ramps at a(side) |e_0| clamped to [ρ_min, ρ] and ends at the first
+    /// encoder count towards r; the rate per mm a(side) (ρ / e_c at first) is learnt from the moves
+    /// (docs/control.md).
+    #[serde(default)]
+    pub cut_band_mm: f64,
+    /// ρ_min: ramp-and-cut's slowest ramp, counts/s (0 < ρ_min <= ρ when e_c > 0).
+    #[serde(default)]
+    pub min_ramp_counts_s: f64,
 }
 
 impl Nudge {
@@ -110,6 +119,23 @@ impl Nudge {
         }
         if !(self.cut_fraction.is_finite() && self.cut_fraction > 0.0 && self.cut_fraction <= 1.0) {
             return bad("a nudge cut_fraction in (0, 1]", self.cut_fraction);
+        }
+        if !(self.cut_band_mm.is_finite() && self.cut_band_mm >= 0.0) {
+            return bad("a nudge cut_band_mm finite and >= 0", self.cut_band_mm);
+        }
+        let min_ok = if self.cut_band_mm > 0.0 {
+            self.min_ramp_counts_s > 0.0
+        } else {
+            self.min_ramp_counts_s >= 0.0
+        };
+        if !(self.min_ramp_counts_s.is_finite()
+            && min_ok
+            && self.min_ramp_counts_s <= self.ramp_counts_s)
+        {
+            return bad(
+                "a nudge min_ramp_counts_s finite, <= ramp_counts_s, and > 0 when cut_band_mm > 0",
+                self.min_ramp_counts_s,
+            );
         }
         if !(self.rest_band_mm.is_finite() && self.rest_band_mm >= 0.0) {
             return bad("a nudge rest_band_mm finite and >= 0", self.rest_band_mm);
@@ -227,6 +253,8 @@ impl ControllerSettings {
                 rest_samples: n.rest_samples,
                 cut_fraction: n.cut_fraction,
                 rest_band: n.rest_band_mm,
+                cut_band: n.cut_band_mm,
+                min_ramp: n.min_ramp_counts_s,
             }),
         }
     }
@@ -435,6 +463,8 @@ mod tests {
             rest_samples: 2,
             cut_fraction: 0.5,
             rest_band_mm: 0.0,
+            cut_band_mm: 0.0,
+            min_ramp_counts_s: 0.0,
         });
         s
     }

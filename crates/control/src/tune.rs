@@ -385,9 +385,17 @@ pub const NUDGE_START_FRACTION: f64 = 0.8;
 /// N_r: samples of unchanged position that count as rest before a nudge (fixed, not searched).
 pub const NUDGE_REST_SAMPLES: u32 = 3;
 
-/// The controller of θ for a plant sampled at `ts_s` with the model deadzone `deadzone` (if any).
+/// The ramp-and-cut bands e_c (mm) tried at the best θ of the search (0 = none, the search's own).
+pub const CUT_BANDS_MM: [f64; 3] = [0.1, 0.3, 0.6];
+/// ρ_min: the slowest ramp of a ramp-and-cut nudge, counts/s (fixed, not searched; the feasibility
+/// oracle's one-count moves need 10–50 counts/s; at most ρ).
+pub const NUDGE_MIN_RAMP: f64 = 20.0;
+
+/// The controller of θ and the ramp-and-cut band `cut_band_mm` (e_c, mm; 0 = none) for a plant
+/// sampled at `ts_s` with the model deadzone `deadzone` (if any).
 pub fn settings_of(
     theta: &[f64; P],
+    cut_band_mm: f64,
     deadzone: Option<sysid_core::Deadzone>,
     ts_s: f64,
     spec: &Spec,
@@ -421,6 +429,12 @@ pub fn settings_of(
             rest_samples: NUDGE_REST_SAMPLES,
             cut_fraction: theta[7],
             rest_band_mm: theta[8].exp(),
+            cut_band_mm,
+            min_ramp_counts_s: if cut_band_mm > 0.0 {
+                NUDGE_MIN_RAMP.min(theta[6].exp())
+            } else {
+                0.0
+            },
         }),
         compensator,
     })
@@ -477,7 +491,13 @@ pub fn tune(
         ts_s,
         spec,
         plants: settings.plants,
+        cut_band_mm: 0.0,
     };
+    // The last evaluations: the ramp-and-cut bands at the best θ.
+    let max_evaluations = settings
+        .max_evaluations
+        .saturating_sub(CUT_BANDS_MM.len())
+        .max(8);
     // Coarse grid over Kp, Ki, Kd, the nudge band and two nudge styles (slow ramp and late cut, or
     // fast ramp and early cut); c = 1 and e_f = 1 mm.
     let mut grid: Vec<([f64; P], f64)> = Vec::new();
@@ -488,7 +508,7 @@ pub fn tune(
                     for (rho, gamma, er) in
                         [(100.0f64, 0.3, GRID_REST_BAND_MM), (300.0f64, 0.1, 0.1f64)]
                     {
-                        if search.used + 2 * (P + 1) >= settings.max_evaluations {
+                        if search.used + 2 * (P + 1) >= max_evaluations {
                             break 'grid;
                         }
                         let x = [
@@ -529,16 +549,27 @@ pub fn tune(
     };
     let n_starts = starts.len();
     for (k, start) in starts.into_iter().enumerate() {
-        let remaining = settings.max_evaluations.saturating_sub(search.used);
+        let remaining = max_evaluations.saturating_sub(search.used);
         let budget = search.used + remaining / (n_starts - k);
         search.nelder_mead(start, budget)?;
     }
+    // Ramp-and-cut (a nudge from |e| <= e_c ends at the first encoder count, its ramp rate learnt):
+    // tried at the best θ, kept where it lowers J.
+    if let Some((theta, _, _)) = search.best.clone() {
+        for ec in CUT_BANDS_MM {
+            if search.used >= settings.max_evaluations {
+                break;
+            }
+            search.cut_band_mm = ec;
+            search.eval(theta)?;
+        }
+    }
     let used = search.used;
-    let (theta, evaluation) = search
+    let (theta, cut_band_mm, evaluation) = search
         .best
         .ok_or_else(|| ControlError::Config("no evaluation".into()))?;
     Ok(Tuned {
-        settings: settings_of(&theta, deadzone, ts_s, spec)?,
+        settings: settings_of(&theta, cut_band_mm, deadzone, ts_s, spec)?,
         evaluation,
         evaluations: used,
     })
@@ -550,26 +581,35 @@ pub const STARTS: usize = 3;
 /// The state of a search: evaluations used, the best point so far, and what an evaluation needs.
 struct Search<'a> {
     used: usize,
-    best: Option<([f64; P], Evaluation)>,
+    /// θ, e_c and the evaluation of the best point so far.
+    best: Option<([f64; P], f64, Evaluation)>,
     make_plant: &'a PlantFactory<'a>,
     deadzone: Option<sysid_core::Deadzone>,
     ts_s: f64,
     spec: &'a Spec,
     plants: usize,
+    /// e_c of the next evaluations, mm (0 = none).
+    cut_band_mm: f64,
 }
 
 impl Search<'_> {
     /// J(θ), keeping the best evaluation.
     fn eval(&mut self, theta: [f64; P]) -> Result<f64, ControlError> {
         self.used += 1;
-        let s = settings_of(&theta, self.deadzone, self.ts_s, self.spec)?;
+        let s = settings_of(
+            &theta,
+            self.cut_band_mm,
+            self.deadzone,
+            self.ts_s,
+            self.spec,
+        )?;
         let factory = move || -> Result<Box<dyn Controller + Send>, ControlError> {
             Ok(Box::new(s.build()?))
         };
         let e = evaluate(self.plants, self.make_plant, &factory, self.spec)?;
         let c = e.cost;
-        if self.best.as_ref().is_none_or(|(_, b)| c < b.cost) {
-            self.best = Some((theta, e));
+        if self.best.as_ref().is_none_or(|(_, _, b)| c < b.cost) {
+            self.best = Some((theta, self.cut_band_mm, e));
         }
         Ok(c)
     }

@@ -218,6 +218,15 @@ typedef struct IpaController {
    * e_r: rest band, mm (`nudge.rest_band_mm`; 0 = none, as in a file without it).
    */
   double nudge_rest_band;
+  /**
+   * e_c: ramp-and-cut band, mm (`nudge.cut_band_mm`; 0 = off, as in a file without it).
+   */
+  double nudge_cut_band;
+  /**
+   * ρ_min: ramp-and-cut's slowest ramp, counts/s (`nudge.min_ramp_counts_s`; 0 = off, as in a file
+   * without it).
+   */
+  double nudge_min_ramp;
 } IpaController;
 
 #ifdef __cplusplus

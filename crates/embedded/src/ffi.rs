@@ -149,6 +149,11 @@ pub struct IpaController {
     pub nudge_cut_fraction: f64,
     /// e_r: rest band, mm (`nudge.rest_band_mm`; 0 = none, as in a file without it).
     pub nudge_rest_band: f64,
+    /// e_c: ramp-and-cut band, mm (`nudge.cut_band_mm`; 0 = off, as in a file without it).
+    pub nudge_cut_band: f64,
+    /// ρ_min: ramp-and-cut's slowest ramp, counts/s (`nudge.min_ramp_counts_s`; 0 = off, as in a file
+    /// without it).
+    pub nudge_min_ramp: f64,
 }
 const _: () = assert!(size_of::<CusumState>() <= IPA_CUSUM_STATE_BYTES);
 const _: () = assert!(MAX_D >= IPA_MAX_NA as usize);
@@ -659,6 +664,8 @@ pub unsafe extern "C" fn ipa_ctl_init(
             rest_samples: c.nudge_rest_samples,
             cut_fraction: c.nudge_cut_fraction,
             rest_band: c.nudge_rest_band,
+            cut_band: c.nudge_cut_band,
+            min_ramp: c.nudge_min_ramp,
         })),
         _ => Err(Error::Setting),
     };

@@ -119,28 +119,29 @@ mod tests {
         assert_eq!(size_of::<Deadzone<f64>>(), 32);
         assert_eq!(size_of::<Compensator<f64>>(), round(6 * 8 + 1, 8));
         assert_eq!(size_of::<Compensator<f32>>(), round(6 * 4 + 1, 4));
-        // PositionController: settings (eight floats, a bool, the optional nudge settings: five floats,
+        // PositionController: settings (eight floats, a bool, the optional nudge settings: seven floats,
         // a u32 and the `None` tag), the optional compensator (the slope mode's spare values hold the
-        // `None`), nine floats (α, I, D, y(k−1), e(k−1), two breakaway commands, two learnt coasts),
-        // the optional nudge under way (three floats and two bools, whose spare values hold the
-        // `None`), the optional last cut (two floats and a bool, whose spare values hold the `None`),
-        // a u32 and a bool: 320 bytes for f64 on a 64-bit host.
+        // `None`), 13 floats (α, I, D, y(k−1), e(k−1), two breakaway commands, two learnt coasts, the
+        // last nudge's y_0 and e_0, two ramp-and-cut rates per mm), the optional nudge under way (four
+        // floats and three bools, whose spare values hold the `None`), the optional last cut (two
+        // floats and a bool, whose spare values hold the `None`), a u32 and two bools: 376 bytes for
+        // f64 on a 64-bit host.
         let a = |f: usize| f.max(4);
-        let nudge = |f: usize| round(5 * f + 4, a(f)) + a(f);
+        let nudge = |f: usize| round(7 * f + 4, a(f)) + a(f);
         let settings = |f: usize| round(8 * f + 1 + nudge(f), f);
-        let nudging = |f: usize| round(3 * f + 2, f);
+        let nudging = |f: usize| round(4 * f + 3, f);
         let cut = |f: usize| round(2 * f + 1, f);
         let ctl = |f: usize| {
             round(
-                settings(f) + round(6 * f + 1, f) + 9 * f + nudging(f) + cut(f) + 4 + 1,
+                settings(f) + round(6 * f + 1, f) + 13 * f + nudging(f) + cut(f) + 4 + 2,
                 f.max(4),
             )
         };
         assert_eq!(size_of::<PositionController<f64>>(), ctl(8));
         assert_eq!(size_of::<PositionController<f32>>(), ctl(4));
         if w == 8 {
-            assert_eq!(ctl(8), 320);
-            assert_eq!(ctl(4), 164);
+            assert_eq!(ctl(8), 376);
+            assert_eq!(ctl(4), 192);
         }
         assert!(ffi::ipa_ctl_state_size() <= ffi::IPA_CTL_STATE_BYTES);
         if w == 8 {

@@ -40,6 +40,12 @@ pub struct NudgeSettings<F: Float> {
     /// e_r: rest band, mm (≥ 0): for e_n < |e| ≤ e_r the nudge mode acts too once y has rested N_r
     /// samples, and until that nudge and the coast after its cut end (e_r ≤ e_n: no effect).
     pub rest_band: F,
+    /// e_c: ramp-and-cut band, mm (≥ 0; 0 = off): a nudge that starts at |e_0| ≤ e_c ramps at
+    /// ρ_n = a(side) |e_0| clamped to [ρ_min, ρ] and ends at the first encoder count towards r; the
+    /// rate per mm a(side) starts at ρ / e_c and is learnt from each such move (module documentation).
+    pub cut_band: F,
+    /// ρ_min: ramp-and-cut's slowest ramp, counts/s (> 0 and ≤ ρ when e_c > 0).
+    pub min_ramp: F,
 }
 
 /// A nudge under way (`right`: u > 0).
@@ -50,6 +56,10 @@ struct Nudging<F: Float> {
     e0: F,
     u_mag: F,
     moving: bool,
+    /// ρ_n: this nudge's ramp rate, counts/s.
+    ramp: F,
+    /// Ramp-and-cut: the nudge ends at the first count towards r.
+    and_cut: bool,
 }
 
 /// The settings of a [`PositionController`] (the `controller` object of CONTROLLER.json).
@@ -109,6 +119,21 @@ pub struct PositionController<F: Float> {
     coast_left: F,
     /// τ_c: the same to the right, s (−1 = not learnt).
     coast_right: F,
+    /// y_0 and e_0 of the last nudge that ended, until the piston rests (ramp-and-cut learning).
+    last_start: (F, F),
+    /// a(left), a(right): ramp-and-cut rate per mm of error, counts/(s·mm).
+    rate_per_mm: [F; 2],
+    /// Whether the last nudge that ended was a ramp-and-cut (its move teaches a(side)).
+    last_learns: bool,
+}
+
+/// a(side) at the start: ρ / e_c, so that a nudge from the edge of the ramp-and-cut band ramps at ρ
+/// (0 without one).
+fn initial_rate_per_mm<F: Float>(n: &Option<NudgeSettings<F>>) -> [F; 2] {
+    match n {
+        Some(n) if n.cut_band > F::ZERO => [n.ramp / n.cut_band, n.ramp / n.cut_band],
+        _ => [F::ZERO, F::ZERO],
+    }
 }
 
 /// |b_l|, |b_r| of the compensator's deadzone, 0 without one.
@@ -144,6 +169,10 @@ impl<F: Float> PositionController<F> {
                 && fraction_ok
                 && cut_ok
                 && nonneg(n.rest_band)
+                && nonneg(n.cut_band)
+                && nonneg(n.min_ramp)
+                && n.min_ramp <= n.ramp
+                && (n.cut_band == F::ZERO || n.min_ramp > F::ZERO)
                 && (1..=1000).contains(&n.rest_samples))
             {
                 return Err(Error::Setting);
@@ -165,6 +194,9 @@ impl<F: Float> PositionController<F> {
             cut: None,
             coast_left: -F::ONE,
             coast_right: -F::ONE,
+            last_start: (F::ZERO, F::ZERO),
+            rate_per_mm: initial_rate_per_mm(&s.nudge),
+            last_learns: false,
         })
     }
 
@@ -192,7 +224,7 @@ impl<F: Float> PositionController<F> {
         if e.abs() <= s.hold_band {
             self.e_prev = e;
             if let Some(g) = self.nudging.take() {
-                self.cut = Some((g.right, y, dy.abs()));
+                self.end_nudge(&g, y, dy);
             }
             return Ok(F::ZERO);
         }
@@ -238,24 +270,31 @@ impl<F: Float> PositionController<F> {
         let s = self.s;
         let g = match self.nudging {
             Some(g) => {
-                if e * g.e0 <= F::ZERO || (y != g.y0 && self.cut_now(n, &g, e, y, dy)) {
+                let towards = if g.right { y > g.y0 } else { y < g.y0 };
+                let first_count = !g.moving && towards && g.and_cut;
+                if e * g.e0 <= F::ZERO
+                    || (y != g.y0 && self.cut_now(n, &g, e, y, dy))
+                    || first_count
+                {
+                    if first_count {
+                        self.learn_breakaway(&g);
+                    }
                     self.nudging = None;
-                    self.cut = Some((g.right, y, dy.abs()));
+                    self.end_nudge(&g, y, dy);
                     return F::ZERO;
                 }
                 if g.moving {
                     g
-                } else if y != g.y0 {
-                    if g.right {
-                        self.breakaway_right = g.u_mag;
-                    } else {
-                        self.breakaway_left = g.u_mag;
-                    }
+                } else if towards {
+                    self.learn_breakaway(&g);
                     Nudging { moving: true, ..g }
                 } else {
-                    let up = g.u_mag + n.ramp * s.ts;
+                    // Still stuck, or a count away from r (the piston settling back): ramp on from
+                    // where it is now.
+                    let up = g.u_mag + g.ramp * s.ts;
                     Nudging {
                         u_mag: if up < s.u_max { up } else { s.u_max },
+                        y0: y,
                         ..g
                     }
                 }
@@ -276,6 +315,9 @@ impl<F: Float> PositionController<F> {
                             self.coast_left = coast;
                         }
                     }
+                    if self.last_learns {
+                        self.learn_rate(n, right, y);
+                    }
                 }
                 let right = e > F::ZERO;
                 let last = if right {
@@ -284,12 +326,22 @@ impl<F: Float> PositionController<F> {
                     self.breakaway_left
                 };
                 let start = n.start_fraction * last;
+                let and_cut = e.abs() <= n.cut_band;
+                let ramp = if and_cut {
+                    let [left, right_rate] = self.rate_per_mm;
+                    let a = if right { right_rate } else { left } * e.abs();
+                    a.clamp_to(n.min_ramp, n.ramp)
+                } else {
+                    n.ramp
+                };
                 Nudging {
                     right,
                     y0: y,
                     e0: e,
                     u_mag: if start < s.u_max { start } else { s.u_max },
                     moving: false,
+                    ramp,
+                    and_cut,
                 }
             }
         };
@@ -299,6 +351,52 @@ impl<F: Float> PositionController<F> {
         } else {
             -g.u_mag
         }
+    }
+
+    /// u_b(side) = the command of a nudge whose piston broke loose.
+    fn learn_breakaway(&mut self, g: &Nudging<F>) {
+        if g.right {
+            self.breakaway_right = g.u_mag;
+        } else {
+            self.breakaway_left = g.u_mag;
+        }
+    }
+
+    /// A nudge ends at y (speed dy): remember the cut (learnt coast) and where it started.
+    fn end_nudge(&mut self, g: &Nudging<F>, y: F, dy: F) {
+        self.cut = Some((g.right, y, dy.abs()));
+        self.last_start = (g.y0, g.e0);
+        self.last_learns = g.and_cut;
+    }
+
+    /// Ramp-and-cut learning at the rest after a cut: the move d = side (y − y_0) against the error
+    /// |e_0| it was for. Past r by more than e_h (d > |e_0| + e_h): a(side) × max(1/4, |e_0| / d)
+    /// (slower: the move grows with the rate); short of half the error (d < |e_0| / 2): a(side) × 5/4;
+    /// a(side) stays within [ρ_min / e_c, ρ / max(e_h, 0.001 mm)].
+    fn learn_rate(&mut self, n: &NudgeSettings<F>, right: bool, y: F) {
+        let (y0, e0) = self.last_start;
+        let moved = if right { y - y0 } else { y0 - y };
+        let err = e0.abs();
+        let [left, right_rate] = &mut self.rate_per_mm;
+        let slot = if right { right_rate } else { left };
+        let mut a = *slot;
+        if moved > err + self.s.hold_band {
+            let f = err / moved;
+            a *= if f > F::from_f64(0.25) {
+                f
+            } else {
+                F::from_f64(0.25)
+            };
+        } else if moved < F::from_f64(0.5) * err {
+            a *= F::from_f64(1.25);
+        }
+        let floor = F::from_f64(1e-3);
+        let h = if self.s.hold_band > floor {
+            self.s.hold_band
+        } else {
+            floor
+        };
+        *slot = a.clamp_to(n.min_ramp / n.cut_band, n.ramp / h);
     }
 
     /// Whether a nudge that has moved the piston ends now: once it has covered γ |e_0|, or once the
@@ -343,6 +441,9 @@ impl<F: Float> PositionController<F> {
         self.cut = None;
         self.coast_left = -F::ONE;
         self.coast_right = -F::ONE;
+        self.last_start = (F::ZERO, F::ZERO);
+        self.rate_per_mm = initial_rate_per_mm(&self.s.nudge);
+        self.last_learns = false;
     }
 }
 
@@ -422,6 +523,8 @@ mod tests {
             rest_samples: 2,
             cut_fraction,
             rest_band: 0.0,
+            cut_band: 0.0,
+            min_ramp: 0.0,
         });
         settings
     }
@@ -538,6 +641,77 @@ mod tests {
         assert_eq!(c.coast(), [-1.0, 0.25 / ((1.0 - 0.5) / 0.01)]);
         c.reset();
         assert_eq!(c.coast(), [-1.0, -1.0]);
+    }
+
+    // A count away from r during the ramp (the piston settling back) is not a breakaway: the ramp goes
+    // on from there (before this, the nudge took it for one, held its 16 counts, below the breakaway,
+    // and waited for γ |e_0| of motion that never came). r = 1, y = 0.5: 15, 16; y = 0.49 (away):
+    // 17, 18; y = 0.6 (towards): u_b = 18, held; y = 0.8 (0.31 ≥ γ |e_0| = 0.25 from 0.49): cut.
+    #[test]
+    fn a_count_away_from_the_set_point_is_not_a_breakaway() {
+        let mut c = PositionController::new(nudging(0.5), Some(shift_inverse())).unwrap();
+        let ys = [0.5, 0.5, 0.5, 0.5, 0.49, 0.49, 0.6, 0.6, 0.8];
+        let want = [0.0, 0.0, 15.0, 16.0, 17.0, 18.0, 18.0, 18.0, 0.0];
+        for (k, (y, u)) in ys.into_iter().zip(want).enumerate() {
+            let got = c.step(1.0, y).unwrap();
+            assert!((got - u).abs() < 1e-9, "sample {k}: {got} != {u}");
+        }
+        assert_eq!(c.breakaway(), [20.0, 18.0]);
+    }
+
+    // Ramp-and-cut by hand: e_c = 0.5 mm, ρ_min = 20, ρ = 100 counts/s, so a(side) = ρ / e_c = 200
+    // counts/(s·mm) at first. r = 1, y = 0.6 (e_0 = 0.4): ρ_n = 200 × 0.4 = 80 counts/s (0.8 per
+    // sample) from β |b_r| = 15: 15, 15.8, 16.6; the first count towards r (y = 0.61) cuts at once
+    // (u_b = 16.6). The piston coasts to 0.62 and rests: it moved 0.02 < e_0 / 2, so a(right) =
+    // 200 × 5/4 = 250; next nudge (e_0 = 0.38): ρ_n = 95 from β u_b = 8.3: 8.3, 9.25; it jumps past r
+    // to y = 1.1 (e changes sign: cut; u_b = 9.25) and rests there: it moved 0.48 > 0.38 + e_h, so
+    // a(right) = 250 × 0.38 / 0.48; the nudge back (e_0 = −0.1) ramps at max(200 × 0.1, ρ_min) = 20
+    // counts/s from β |b_l| = 10. With e_c = 0 (a file without it) the first count does not cut.
+    #[test]
+    fn ramp_and_cut_ends_at_the_first_count_and_learns_its_rate() {
+        let mut settings = nudging(0.5);
+        let n = settings.nudge.as_mut().unwrap();
+        (n.cut_band, n.min_ramp) = (0.5, 20.0);
+        let mut c = PositionController::new(settings, Some(shift_inverse())).unwrap();
+        let steps = [
+            (0.6, 0.0),
+            (0.6, 0.0),
+            (0.6, 15.0),
+            (0.6, 15.8),
+            (0.6, 16.6),
+            (0.61, 0.0),
+            (0.62, 0.0),
+            (0.62, 0.0),
+            (0.62, 8.3),
+            (0.62, 9.25),
+            (1.1, 0.0),
+            (1.1, 0.0),
+            (1.1, -10.0),
+            (1.1, -10.2),
+        ];
+        for (k, (y, u)) in steps.into_iter().enumerate() {
+            let got = c.step(1.0, y).unwrap();
+            assert!((got - u).abs() < 1e-9, "sample {k}: {got} != {u}");
+        }
+        assert!((c.breakaway()[1] - 9.25).abs() < 1e-9);
+        let [a_left, a_right] = c.rate_per_mm;
+        assert_eq!(a_left, 200.0);
+        assert!((a_right - 250.0 * 0.38 / 0.48).abs() < 1e-9);
+        // The learnt coast after the jump's cut: it stopped where it was cut.
+        assert_eq!(c.coast()[1], 0.0);
+        c.reset();
+        assert_eq!(c.rate_per_mm, [200.0, 200.0]);
+        // Without the band: the first count is a breakaway, the command is held.
+        let mut c = PositionController::new(nudging(0.5), Some(shift_inverse())).unwrap();
+        let ys = [0.6, 0.6, 0.6, 0.6, 0.6, 0.61];
+        let got = ys.map(|y| c.step(1.0, y).unwrap());
+        assert_eq!(got, [0.0, 0.0, 15.0, 16.0, 17.0, 17.0]);
+        // ρ_min must be > 0 with a band, and ≤ ρ.
+        let mut bad = nudging(0.5);
+        bad.nudge.as_mut().unwrap().cut_band = 0.5;
+        assert!(PositionController::new(bad, None).is_err());
+        bad.nudge.as_mut().unwrap().min_ramp = 200.0;
+        assert!(PositionController::new(bad, None).is_err());
     }
 
     #[test]

@@ -573,7 +573,7 @@ pub fn tuned_line(s: &control::ControllerSettings) -> String {
         });
     let nudge = s.nudge.map_or(String::new(), |n| {
         format!(
-            ", nudge band {:.3} mm (ramp {:.1} counts/s from {} of the learnt breakaway, cut at {:.3} of the error, rest {} samples{})",
+            ", nudge band {:.3} mm (ramp {:.1} counts/s from {} of the learnt breakaway, cut at {:.3} of the error, rest {} samples{}{})",
             n.band_mm,
             n.ramp_counts_s,
             n.start_fraction,
@@ -581,6 +581,14 @@ pub fn tuned_line(s: &control::ControllerSettings) -> String {
             n.rest_samples,
             if n.rest_band_mm > n.band_mm {
                 format!(", also after a rest within {:.3} mm", n.rest_band_mm)
+            } else {
+                String::new()
+            },
+            if n.cut_band_mm > 0.0 {
+                format!(
+                    "; ramp-and-cut within {:.3} mm: a learnt ramp of at least {:.1} counts/s, cut at the first count",
+                    n.cut_band_mm, n.min_ramp_counts_s
+                )
             } else {
                 String::new()
             }

@@ -4,12 +4,12 @@
  *
  *   cc -O2 -std=c99 -Icrates/embedded/include crates/embedded/examples/c/position.c \
  *      target/release/libipa_embedded.a -lm -lpthread -ldl
- *   ./a.out TS KP KI KD TF U_MAX HOLD FINE RESET [B_L B_R M_L M_R [BAND RAMP START REST CUT [REST_BAND]]] < trace.csv
+ *   ./a.out TS KP KI KD TF U_MAX HOLD FINE RESET [B_L B_R M_L M_R [BAND RAMP START REST CUT [REST_BAND [CUT_BAND MIN_RAMP]]]] < trace.csv
  *
  * The arguments are the fields of the `controller` object of CONTROLLER.json (ts_s, kp, ki, kd,
  * derivative_filter_s, u_max, hold_band_mm, fine_band_mm, reset_on_crossing as 0/1, and the
  * compensator's deadzone when it has one, then the nudge mode's band_mm, ramp_counts_s, start_fraction,
- * rest_samples, cut_fraction and optionally rest_band_mm (0 when absent) when it has one). trace.csv is what `ipa-sysid control --controller
+ * rest_samples, cut_fraction and optionally rest_band_mm, then cut_band_mm and min_ramp_counts_s (0 when absent) when it has one). trace.csv is what `ipa-sysid control --controller
  * CONTROLLER.json --out trace.csv` writes (header t,r,u,y): the controller is fed r(k) and y(k) of each
  * row, as firmware would feed the set-point and the encoder, and prints its command u(k) per line
  * (round-trip decimal, %.17g), to compare with the u column.
@@ -24,9 +24,9 @@
 static uint64_t state[IPA_CTL_STATE_BYTES / sizeof(uint64_t) + 1];
 
 int main(int argc, char **argv) {
-    if (argc != 10 && argc != 14 && argc != 19 && argc != 20) {
+    if (argc != 10 && argc != 14 && argc != 19 && argc != 20 && argc != 22) {
         fprintf(stderr,
-                "usage: %s TS KP KI KD TF U_MAX HOLD FINE RESET [B_L B_R M_L M_R [BAND RAMP START REST CUT [REST_BAND]]]"
+                "usage: %s TS KP KI KD TF U_MAX HOLD FINE RESET [B_L B_R M_L M_R [BAND RAMP START REST CUT [REST_BAND [CUT_BAND MIN_RAMP]]]]"
                 " < trace.csv\n",
                 argv[0]);
         return 2;
@@ -52,13 +52,18 @@ int main(int argc, char **argv) {
     c.nudge_rest_samples = 0;
     c.nudge_band = c.nudge_ramp = c.nudge_start_fraction = c.nudge_cut_fraction = 0.0;
     c.nudge_rest_band = 0.0;
+    c.nudge_cut_band = c.nudge_min_ramp = 0.0;
     if (c.has_nudge) {
         c.nudge_band = atof(argv[14]);
         c.nudge_ramp = atof(argv[15]);
         c.nudge_start_fraction = atof(argv[16]);
         c.nudge_rest_samples = (uint32_t)atol(argv[17]);
         c.nudge_cut_fraction = atof(argv[18]);
-        if (argc == 20) c.nudge_rest_band = atof(argv[19]);
+        if (argc >= 20) c.nudge_rest_band = atof(argv[19]);
+        if (argc == 22) {
+            c.nudge_cut_band = atof(argv[20]);
+            c.nudge_min_ramp = atof(argv[21]);
+        }
     }
     int rc = ipa_ctl_init(state, sizeof state, &c);
     if (rc != IPA_OK) {

@@ -387,6 +387,10 @@ pub const NUDGE_REST_SAMPLES: u32 = 3;
 
 /// The ramp-and-cut bands e_c (mm) tried at the best θ of the search (0 = none, the search's own).
 pub const CUT_BANDS_MM: [f64; 3] = [0.1, 0.3, 0.6];
+/// The rest band e_r (mm) tried at the best θ of the search, with each e_c and without.
+pub const FINISH_REST_BAND_MM: f64 = 3.0;
+/// Evaluations of the finish: e_c at the best θ, then e_r = FINISH_REST_BAND_MM with none and each e_c.
+const FINISH_EVALUATIONS: usize = 2 * CUT_BANDS_MM.len() + 1;
 /// ρ_min: the slowest ramp of a ramp-and-cut nudge, counts/s (fixed, not searched; the feasibility
 /// oracle's one-count moves need 10–50 counts/s; at most ρ).
 pub const NUDGE_MIN_RAMP: f64 = 20.0;
@@ -493,10 +497,10 @@ pub fn tune(
         plants: settings.plants,
         cut_band_mm: 0.0,
     };
-    // The last evaluations: the ramp-and-cut bands at the best θ.
+    // The last evaluations: the ramp-and-cut bands and the finishing rest band at the best θ.
     let max_evaluations = settings
         .max_evaluations
-        .saturating_sub(CUT_BANDS_MM.len())
+        .saturating_sub(FINISH_EVALUATIONS)
         .max(8);
     // Coarse grid over Kp, Ki, Kd, the nudge band and two nudge styles (slow ramp and late cut, or
     // fast ramp and early cut); c = 1 and e_f = 1 mm.
@@ -553,15 +557,23 @@ pub fn tune(
         let budget = search.used + remaining / (n_starts - k);
         search.nelder_mead(start, budget)?;
     }
-    // Ramp-and-cut (a nudge from |e| <= e_c ends at the first encoder count, its ramp rate learnt):
-    // tried at the best θ, kept where it lowers J.
+    // The finish, at the best θ: ramp-and-cut (a nudge from |e| <= e_c ends at the first encoder
+    // count, its ramp rate learnt) with each band of CUT_BANDS_MM, and the rest band e_r =
+    // FINISH_REST_BAND_MM (a stop short of the nudge band finished by nudges) with and without it;
+    // each kept only where it lowers J.
     if let Some((theta, _, _)) = search.best.clone() {
-        for ec in CUT_BANDS_MM {
+        let mut rested = theta;
+        rested[8] = FINISH_REST_BAND_MM.ln();
+        let points = CUT_BANDS_MM
+            .iter()
+            .map(|&ec| (theta, ec))
+            .chain([0.0].iter().chain(&CUT_BANDS_MM).map(|&ec| (rested, ec)));
+        for (x, ec) in points {
             if search.used >= settings.max_evaluations {
                 break;
             }
             search.cut_band_mm = ec;
-            search.eval(theta)?;
+            search.eval(x)?;
         }
     }
     let used = search.used;

@@ -867,6 +867,13 @@ fn streamed_identification_warns_like_the_in_memory_path() {
 // (not 300 digits); a zero slope makes a model that cannot respond, which `simulate` must say.
 #[test]
 fn a_model_with_absurd_deadzone_slopes_is_called_what_it_is() {
+    // The longest run of digits and points in a text: a number printed in full.
+    fn longest_number(text: &str) -> usize {
+        text.split(|c: char| !(c.is_ascii_digit() || c == '.'))
+            .map(str::len)
+            .max()
+            .unwrap_or(0)
+    }
     let tmp = tempfile::tempdir().unwrap();
     let model = |name: &str, m: &str| {
         let p = tmp.path().join(name);
@@ -888,11 +895,7 @@ fn a_model_with_absurd_deadzone_slopes_is_called_what_it_is() {
     assert!(w.iter().any(|w| w.contains("diverges")), "{w:?}");
     let text = bin().arg("control").args(args).output().unwrap();
     let text = String::from_utf8_lossy(&text.stdout).into_owned();
-    let longest = text
-        .split(|c: char| !(c.is_ascii_digit() || c == '.'))
-        .map(str::len)
-        .max()
-        .unwrap();
+    let longest = longest_number(&text);
     assert!(longest < 30, "a number of {longest} characters: {text}");
     // `tune` on that model says its loop diverges.
     let tuned = bin()
@@ -912,6 +915,8 @@ fn a_model_with_absurd_deadzone_slopes_is_called_what_it_is() {
     let said = String::from_utf8_lossy(&tuned.stdout).into_owned()
         + &String::from_utf8_lossy(&tuned.stderr);
     assert!(said.contains("the closed loop diverges"), "{said}");
+    // ... and its table prints the diverged figures in scientific notation, not 300 digits.
+    assert!(longest_number(&said) < 30, "{said}");
 
     let zero = model("zero.json", "0.0");
     let out = bin()

@@ -174,8 +174,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// A table cell: `digits` decimals, or scientific notation for a diverged loop's figures (a
+/// 300-digit number helps nobody; the rule of `control::trust::fmt_value`).
 fn f(v: Option<f64>, digits: usize) -> String {
-    v.map_or("n/a".to_string(), |x| format!("{x:.digits$}"))
+    v.map_or("n/a".to_string(), |x| {
+        if x.abs() >= 1e9 {
+            control::trust::fmt_value(x)
+        } else {
+            format!("{x:.digits$}")
+        }
+    })
 }
 
 /// The Table V criteria of an evaluation: worst over its runs, and how many runs meet the spec.
@@ -189,7 +197,7 @@ fn rows(label: &str, e: &Evaluation) -> String {
         f(w.and_then(|m| m.steady_state_error_mm).map(f64::abs), 3),
         f(w.and_then(|m| m.rise_time_s), 3),
         f(w.and_then(|m| m.settling_time_s), 3),
-        format!("{:.3}", e.worst_limit_cycle_mm),
+        f(Some(e.worst_limit_cycle_mm), 3),
         e.overshoot_met,
         e.settling_met,
         e.ess_met,

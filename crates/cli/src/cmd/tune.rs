@@ -137,6 +137,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         },
         check_physics: args.check_physics,
         physics_variants: args.physics_variants,
+    })
+    .map_err(|e| match e {
+        // The deadzone the compensator would invert is the model's: name the flag the user gave.
+        control::ControlError::Setting {
+            setting: control::ControlSetting::Deadzone,
+            value,
+            expected,
+        } => anyhow::Error::new(sysid::SysidError::setting(
+            sysid::Setting::Other(if args.model.is_some() {
+                "--model (its deadzone)"
+            } else {
+                "--plant-config (the twin's identified deadzone)"
+            }),
+            value,
+            &expected,
+        )),
+        e => e.into(),
     })?;
 
     let provenance = serde_json::json!({

@@ -21,6 +21,8 @@ pub const TUNING_SEED_OFFSET: u64 = 1000;
 pub const MAX_VARIANTS: usize = 200;
 /// Largest number of cost evaluations of a request.
 pub const MAX_EVALUATIONS: usize = 10_000;
+/// Fewest closed-loop evaluations a tuning needs (`--max-evaluations`).
+pub const MIN_EVALUATIONS: usize = 8;
 
 /// What to tune on.
 #[derive(Debug, Clone)]

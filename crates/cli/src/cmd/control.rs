@@ -589,7 +589,12 @@ pub fn tuned_line(s: &control::ControllerSettings) -> String {
     });
     format!(
         "tuned PID Kp = {:.4}, Ki = {:.4}, Kd = {:.4} (Tf = {} s), clamping anti-windup, {comp}, hold band {} mm{nudge}, |u| <= {} counts",
-        s.kp, s.ki, s.kd, s.derivative_filter_s, s.hold_band_mm, s.u_max
+        s.kp,
+        s.ki,
+        s.kd,
+        report::format::sig(s.derivative_filter_s, 6),
+        report::format::sig(s.hold_band_mm, 6),
+        report::format::sig(s.u_max, 6)
     )
 }
 

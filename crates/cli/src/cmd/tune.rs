@@ -41,7 +41,8 @@ pub struct Args {
     /// Plant variants searched over (variant 0 is the nominal model or twin).
     #[arg(long, value_name = "N", default_value_t = 5)]
     pub variants: usize,
-    /// Largest number of cost evaluations of the search (each simulates every variant and step).
+    /// Largest number of cost evaluations of the search (each simulates every variant and step); 8 to
+    /// 10 000.
     #[arg(long, value_name = "N", default_value_t = 150)]
     pub max_evaluations: usize,
     /// Also verify on the built-in physics plant (with --model: for a model identified on a record of
@@ -87,6 +88,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 &format!("at most {max}")
             ));
         }
+    }
+    if args.max_evaluations < tuning::MIN_EVALUATIONS {
+        bail!(sysid::SysidError::setting(
+            sysid::Setting::Other("--max-evaluations"),
+            args.max_evaluations,
+            &format!("at least {}", tuning::MIN_EVALUATIONS)
+        ));
     }
     if args.variants == 0 {
         bail!(sysid::SysidError::setting(

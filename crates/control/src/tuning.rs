@@ -278,7 +278,12 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
     let margins = tune::margins(&model, &settings);
     let on_model = verify(
         format!(
-            "the model (nominal + {} variants)",
+            "{} (nominal + {} variants)",
+            if twin.is_some() {
+                "the twin's identified model"
+            } else {
+                "the model"
+            },
             req.search.plants.saturating_sub(1)
         ),
         req.search.plants,

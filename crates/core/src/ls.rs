@@ -124,39 +124,25 @@ impl LsWorkspace {
             self.a.extend(src.iter().map(|s| s * inv));
         }
         self.a.extend_from_slice(y.as_slice());
-        let mut r = vec![0.0; p * cols]; // R and z by rows: r[k * cols + c]
+        // R of [Φ D⁻¹ | y] (cols × cols, by rows), folded in [`FOLD_ROWS`] rows at a time: each block
+        // stays in the first-level cache while every reflection passes over it (the reflections of the
+        // whole columns passed over the N·(p + 1) numbers once per pair of columns).
+        let mut rr = vec![0.0; cols * cols];
+        for start in (0..n).step_by(FOLD_ROWS) {
+            let m = FOLD_ROWS.min(n - start);
+            fold_rows(&mut rr, &mut self.a[start..], n, m, cols);
+        }
         for k in 0..p {
-            let (left, right) = self.a.split_at_mut((k + 1) * n);
-            let v = &mut left[k * n + k..(k + 1) * n];
-            let sigma = dot(v, v).sqrt();
-            // |R_kk| = ‖column k below the diagonal‖; the rank test of ls::solve.
-            if rank_test && sigma < RANK_TOLERANCE {
+            // |R_kk| = ‖column k after the reflections of the columns before it‖; the rank test of
+            // ls::solve.
+            if rank_test && rr[k * cols + k].abs() < RANK_TOLERANCE {
                 return Err(dependent(&name(k)));
-            }
-            if sigma == 0.0 {
-                // Nothing to reflect (H = I): row k of R is what stands in row k.
-                r[k * cols + k] = 0.0;
-                for c in k + 1..cols {
-                    r[k * cols + c] = right[(c - k - 1) * n + k];
-                }
-                continue;
-            }
-            let alpha = if v[0] > 0.0 { -sigma } else { sigma };
-            // v = x − α e₁; H = I − 2 v vᵀ / vᵀv with vᵀv = 2 σ (σ + |x₀|).
-            v[0] -= alpha;
-            let vtv = 2.0 * sigma * (sigma + (v[0] + alpha).abs());
-            let beta = 2.0 / vtv;
-            r[k * cols + k] = alpha;
-            for c in k + 1..cols {
-                let col = &mut right[(c - k - 1) * n + k..(c - k) * n];
-                let w = beta * dot(v, col);
-                axpy(-w, v, col);
-                r[k * cols + c] = col[0];
             }
         }
         // ‖r‖²: what is left of the transformed y below row p.
-        let tail = &self.a[p * n + p..];
-        let rss = dot(tail, tail);
+        let rss = rr[p * cols + p] * rr[p * cols + p];
+        rr.truncate(p * cols);
+        let r = rr;
         Ok(Triangular { r, scale, rss, p })
     }
 }
@@ -383,28 +369,7 @@ impl QrAccumulator {
                     .for_each(|v| *v *= s);
             }
         }
-        let r = &mut self.r;
-        for k in 0..cols {
-            let (left, right) = block.split_at_mut((k + 1) * FOLD_ROWS);
-            let a = &left[k * FOLD_ROWS..k * FOLD_ROWS + m];
-            let aa = dot(a, a);
-            if aa == 0.0 {
-                continue; // nothing below the diagonal to annihilate
-            }
-            let rkk = r[k * cols + k];
-            let sigma = (rkk * rkk + aa).sqrt();
-            let alpha = if rkk > 0.0 { -sigma } else { sigma };
-            // v = (R_kk − α, a); H = I − β v vᵀ with vᵀv = 2σ(σ + |R_kk|).
-            let v0 = rkk - alpha;
-            let beta = 1.0 / (sigma * (sigma + rkk.abs()));
-            for c in k + 1..cols {
-                let col = &mut right[(c - k - 1) * FOLD_ROWS..(c - k - 1) * FOLD_ROWS + m];
-                let w = beta * (v0 * r[k * cols + c] + dot(a, col));
-                r[k * cols + c] -= w * v0;
-                axpy(-w, a, col);
-            }
-            r[k * cols + k] = alpha;
-        }
+        fold_rows(&mut self.r, block, FOLD_ROWS, m, cols);
         self.filled = 0;
     }
 
@@ -452,6 +417,35 @@ impl QrAccumulator {
     /// θ̂, (ΦᵀΦ)⁻¹ and the RSS (as [`solve`] on the same rows).
     pub fn solve(self, names: &[String]) -> Result<LsSolution, SysidError> {
         self.triangular(names, true)?.solution()
+    }
+}
+
+/// Folds `m` rows into the upper-triangular `r` (cols × cols, by rows): the rows are column j of
+/// `block` at `block[j * ld..j * ld + m]`, and are overwritten. For each column k, the Householder
+/// reflection that maps (R_kk, rows(:, k)) to (±σ, 0) is applied to the columns on its right, so that
+/// [R; rows] = Q [R'; 0] (row-block QR, the building step of TSQR; Golub & Van Loan, *Matrix
+/// Computations*, 4th ed., §5.2). A column with nothing below the diagonal is left as it is (H = I).
+fn fold_rows(r: &mut [f64], block: &mut [f64], ld: usize, m: usize, cols: usize) {
+    for k in 0..cols {
+        let (left, right) = block.split_at_mut(((k + 1) * ld).min(block.len()));
+        let a = &left[k * ld..k * ld + m];
+        let aa = dot(a, a);
+        if aa == 0.0 {
+            continue; // nothing below the diagonal to annihilate
+        }
+        let rkk = r[k * cols + k];
+        let sigma = (rkk * rkk + aa).sqrt();
+        let alpha = if rkk > 0.0 { -sigma } else { sigma };
+        // v = (R_kk − α, a); H = I − β v vᵀ with vᵀv = 2σ(σ + |R_kk|).
+        let v0 = rkk - alpha;
+        let beta = 1.0 / (sigma * (sigma + rkk.abs()));
+        for c in k + 1..cols {
+            let col = &mut right[(c - k - 1) * ld..(c - k - 1) * ld + m];
+            let w = beta * (v0 * r[k * cols + c] + dot(a, col));
+            r[k * cols + c] -= w * v0;
+            axpy(-w, a, col);
+        }
+        r[k * cols + k] = alpha;
     }
 }
 

@@ -155,11 +155,16 @@ fn estimate_initial_from(
     })?;
     let eta: Vec<f64> = (0..k0).map(|j| y0[j] + sol.theta[j]).collect();
     let mut out = base;
-    let columns: Vec<&[f64]> = phi.as_slice().chunks_exact(n).collect();
-    let theta = sol.theta.as_slice();
-    for (k, o) in out.iter_mut().enumerate() {
-        let shift: f64 = columns.iter().zip(theta).map(|(s, t)| s[k] * t).sum();
-        *o += shift;
+    // ŷ(k; η) = ŷ_m(k) + Σ_j s_j(k) (η_j − y(j)): the shift summed column after column (vectorised),
+    // in the order of j as before, then added.
+    let mut shift = vec![0.0; n];
+    for (s, t) in phi.as_slice().chunks_exact(n).zip(sol.theta.iter()) {
+        for (d, v) in shift.iter_mut().zip(s) {
+            *d += v * t;
+        }
+    }
+    for (o, d) in out.iter_mut().zip(&shift) {
+        *o += d;
     }
     if out.iter().any(|v| !v.is_finite()) {
         return Err(SysidError::Numerical(
@@ -270,14 +275,14 @@ fn free_responses(
     for j in 0..k0 {
         s[j * n + j] = 1.0;
     }
-    for k in k0..n {
-        for j in 0..k0 {
-            let mut v = 0.0;
-            for (i, ai) in a.iter().enumerate() {
-                v -= ai * s[j * n + k - 1 - i];
-            }
-            s[j * n + k] = v;
-        }
+    // The loop compiled per order for the usual na (its sums unrolled, the past in registers); the
+    // same operations in the same order for every na.
+    match a.len() {
+        1 => advance_free_responses::<1>(a, s, n, k0),
+        2 => advance_free_responses::<2>(a, s, n, k0),
+        3 => advance_free_responses::<3>(a, s, n, k0),
+        4 => advance_free_responses::<4>(a, s, n, k0),
+        _ => advance_free_responses::<0>(a, s, n, k0),
     }
     if !crate::ls::all_finite(s) {
         return Err(SysidError::Numerical(
@@ -285,6 +290,23 @@ fn free_responses(
         ));
     }
     Ok(phi)
+}
+
+/// Fills rows k0..n of the k0 free responses in `s` (by columns, entry (k, j) at j·n + k, rows < k0
+/// set): s_j(k) = −Σ_i a_i s_j(k − 1 − i). `NA` = na compiles the sum for that order (0: any order, from
+/// `a.len()`).
+fn advance_free_responses<const NA: usize>(a: &[f64], s: &mut [f64], n: usize, k0: usize) {
+    let a = if NA == 0 { a } else { &a[..NA] };
+    for k in k0..n {
+        for j in 0..k0 {
+            let past = &s[j * n + k - a.len()..j * n + k];
+            let mut v = 0.0;
+            for (i, ai) in a.iter().enumerate() {
+                v -= ai * past[a.len() - 1 - i];
+            }
+            s[j * n + k] = v;
+        }
+    }
 }
 
 /// The one-step prediction ŷ(k|k−1) of `model` (MATLAB `predict(m, data, 1)` with estimated initial

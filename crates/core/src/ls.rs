@@ -439,11 +439,35 @@ fn fold_rows(r: &mut [f64], block: &mut [f64], ld: usize, m: usize, cols: usize)
         // v = (R_kk − α, a); H = I − β v vᵀ with vᵀv = 2σ(σ + |R_kk|).
         let v0 = rkk - alpha;
         let beta = 1.0 / (sigma * (sigma + rkk.abs()));
-        for c in k + 1..cols {
-            let col = &mut right[(c - k - 1) * ld..(c - k - 1) * ld + m];
-            let w = beta * (v0 * r[k * cols + c] + dot(a, col));
-            r[k * cols + c] -= w * v0;
-            axpy(-w, a, col);
+        // The columns on the right four at a time (one pass over the rows for four dot products,
+        // one for four updates), then one by one.
+        let mut rest = right;
+        let mut c = k + 1;
+        while c < cols {
+            if cols - c >= 4 {
+                let (c0, t) = rest.split_at_mut(ld);
+                let (c1, t) = t.split_at_mut(ld);
+                let (c2, t) = t.split_at_mut(ld);
+                let (c3, t) = t.split_at_mut(ld.min(t.len()));
+                let mut four = [&mut c0[..m], &mut c1[..m], &mut c2[..m], &mut c3[..m]];
+                let d = dot4(a, &four);
+                let mut w = [0.0; 4];
+                for q in 0..4 {
+                    w[q] = beta * (v0 * r[k * cols + c + q] + d[q]);
+                    r[k * cols + c + q] -= w[q] * v0;
+                }
+                axpy4(&w, a, &mut four);
+                rest = t;
+                c += 4;
+            } else {
+                let (col, t) = rest.split_at_mut(ld.min(rest.len()));
+                let col = &mut col[..m];
+                let w = beta * (v0 * r[k * cols + c] + dot(a, col));
+                r[k * cols + c] -= w * v0;
+                axpy(-w, a, col);
+                rest = t;
+                c += 1;
+            }
         }
         r[k * cols + k] = alpha;
     }
@@ -516,6 +540,50 @@ pub fn dot(x: &[f64], y: &[f64]) -> f64 {
         s += a * b;
     }
     s
+}
+
+/// xᵀc_q for four columns c_q of x's length, in one pass over x (two accumulators per column).
+#[inline]
+fn dot4(x: &[f64], c: &[&mut [f64]; 4]) -> [f64; 4] {
+    let n = x.len();
+    let (c0, c1, c2, c3) = (&c[0][..n], &c[1][..n], &c[2][..n], &c[3][..n]);
+    let mut acc = [[0.0; 2]; 4];
+    let pairs = n / 2;
+    for i in 0..pairs {
+        for l in 0..2 {
+            let (k, xv) = (2 * i + l, x[2 * i + l]);
+            acc[0][l] += xv * c0[k];
+            acc[1][l] += xv * c1[k];
+            acc[2][l] += xv * c2[k];
+            acc[3][l] += xv * c3[k];
+        }
+    }
+    let mut out = [0.0; 4];
+    for q in 0..4 {
+        out[q] = acc[q][0] + acc[q][1];
+    }
+    if n % 2 == 1 {
+        let xv = x[n - 1];
+        out[0] += xv * c0[n - 1];
+        out[1] += xv * c1[n - 1];
+        out[2] += xv * c2[n - 1];
+        out[3] += xv * c3[n - 1];
+    }
+    out
+}
+
+/// c_q ← c_q − w_q x for four columns, in one pass over x.
+#[inline]
+fn axpy4(w: &[f64; 4], x: &[f64], c: &mut [&mut [f64]; 4]) {
+    let n = x.len();
+    let [c0, c1, c2, c3] = c;
+    let (c0, c1, c2, c3) = (&mut c0[..n], &mut c1[..n], &mut c2[..n], &mut c3[..n]);
+    for (i, xv) in x.iter().enumerate() {
+        c0[i] -= w[0] * xv;
+        c1[i] -= w[1] * xv;
+        c2[i] -= w[2] * xv;
+        c3[i] -= w[3] * xv;
+    }
 }
 
 /// y ← y + a x.

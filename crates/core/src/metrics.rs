@@ -275,14 +275,24 @@ fn free_responses(
     for j in 0..k0 {
         s[j * n + j] = 1.0;
     }
-    // The loop compiled per order for the usual na (its sums unrolled, the past in registers); the
-    // same operations in the same order for every na.
-    match a.len() {
-        1 => advance_free_responses::<1>(a, s, n, k0),
-        2 => advance_free_responses::<2>(a, s, n, k0),
-        3 => advance_free_responses::<3>(a, s, n, k0),
-        4 => advance_free_responses::<4>(a, s, n, k0),
-        _ => advance_free_responses::<0>(a, s, n, k0),
+    // The loop compiled per order for the usual na = k0 (the past of each response held in
+    // registers); the same operations in the same order for every order.
+    match (a.len(), k0) {
+        (1, 1) => advance_free_responses::<1, 1>(a, s, n),
+        (2, 2) => advance_free_responses::<2, 2>(a, s, n),
+        (3, 3) => advance_free_responses::<3, 3>(a, s, n),
+        (4, 4) => advance_free_responses::<4, 4>(a, s, n),
+        _ => {
+            for k in k0..n {
+                for j in 0..k0 {
+                    let mut v = 0.0;
+                    for (i, ai) in a.iter().enumerate() {
+                        v -= ai * s[j * n + k - 1 - i];
+                    }
+                    s[j * n + k] = v;
+                }
+            }
+        }
     }
     if !crate::ls::all_finite(s) {
         return Err(SysidError::Numerical(
@@ -292,18 +302,30 @@ fn free_responses(
     Ok(phi)
 }
 
-/// Fills rows k0..n of the k0 free responses in `s` (by columns, entry (k, j) at j·n + k, rows < k0
-/// set): s_j(k) = −Σ_i a_i s_j(k − 1 − i). `NA` = na compiles the sum for that order (0: any order, from
-/// `a.len()`).
-fn advance_free_responses<const NA: usize>(a: &[f64], s: &mut [f64], n: usize, k0: usize) {
-    let a = if NA == 0 { a } else { &a[..NA] };
-    for k in k0..n {
-        for j in 0..k0 {
-            let past = &s[j * n + k - a.len()..j * n + k];
+/// Fills rows K0..n of the K0 free responses in `s` (by columns, entry (k, j) at j·n + k, rows < K0
+/// set) for a model of NA = K0 poles `a`: s_j(k) = −Σ_i a_i s_j(k − 1 − i), the K0 recursions advanced
+/// side by side with their last NA values in registers.
+fn advance_free_responses<const NA: usize, const K0: usize>(a: &[f64], s: &mut [f64], n: usize) {
+    let mut coef = [0.0; NA];
+    coef.copy_from_slice(&a[..NA]);
+    // past[j][i] = s_j(k − 1 − i).
+    let mut past = [[0.0; NA]; K0];
+    for (j, p) in past.iter_mut().enumerate() {
+        for (i, v) in p.iter_mut().enumerate() {
+            *v = s[j * n + K0 - 1 - i];
+        }
+    }
+    let s = &mut s[..K0 * n];
+    for k in K0..n {
+        for j in 0..K0 {
             let mut v = 0.0;
-            for (i, ai) in a.iter().enumerate() {
-                v -= ai * past[a.len() - 1 - i];
+            for i in 0..NA {
+                v -= coef[i] * past[j][i];
             }
+            for i in (1..NA).rev() {
+                past[j][i] = past[j][i - 1];
+            }
+            past[j][0] = v;
             s[j * n + k] = v;
         }
     }

@@ -11,10 +11,12 @@
 //! ```
 //!
 //! so that θ̂ = D⁻¹ R⁻¹ z, ‖y − Φθ̂‖² = ‖r‖² and (ΦᵀΦ)⁻¹ = D⁻¹ R⁻¹ R⁻ᵀ D⁻¹. The work is about
-//! 4 N Σ_k (p − k) + 2 N p flops (≈ 0.25 Mflop for N = 2000, p = 7) in contiguous column loops with
-//! several accumulators (vectorised), one allocation of N (p + 1) numbers per solve, and a
-//! [`LsWorkspace`] that keeps even that buffer between solves (the key-term iteration solves one problem
-//! of the same size per iteration).
+//! 4 N Σ_k (p − k) + 2 N p flops (≈ 0.25 Mflop for N = 2000, p = 7). The rows are folded into R
+//! [`FOLD_ROWS`] at a time (row-block Householder QR, the kernel [`QrAccumulator`] uses for records too
+//! long to hold), so that each block stays in the first-level cache while every reflection passes over
+//! it, in contiguous column loops with several accumulators (vectorised, four columns per pass); one
+//! allocation of N (p + 1) numbers per solve, and a [`LsWorkspace`] that keeps even that buffer between
+//! solves (the key-term iteration solves one problem of the same size per iteration).
 
 use nalgebra::{DMatrix, DVector};
 

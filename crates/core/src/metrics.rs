@@ -639,6 +639,35 @@ mod initial_tests {
         assert!(!err.contains("persistently exciting"), "{err}");
     }
 
+    // The free response s_j of 1/A(q) is the model's own simulation with zero input from the unit
+    // initial outputs e_j: checked against `Model::simulate` for na = k0 = 1..=4 (the orders compiled
+    // apart) and na = 5 (the general loop), with a pole close to the unit circle among them.
+    #[test]
+    fn free_responses_are_the_simulations_from_unit_initial_outputs() {
+        let n = 300;
+        for a in [
+            vec![-0.9],
+            vec![-1.5, 0.7],
+            vec![-2.2, 1.65, -0.42],
+            vec![-1.2, 0.5, -0.1, 0.02],
+            vec![-0.5, 0.1, 0.05, -0.02, 0.01],
+        ] {
+            let m = Model::arx(1.0, a.clone(), vec![1.0], 1, None).unwrap();
+            let k0 = m.k0();
+            assert_eq!(k0, a.len());
+            let phi = free_responses(&m, n, k0).unwrap();
+            let u = vec![0.0; n];
+            for j in 0..k0 {
+                let mut y = vec![0.0; n];
+                y[j] = 1.0;
+                let sim = m.simulate(&[&u], &y).unwrap();
+                for k in 0..n {
+                    assert_eq!(phi[(k, j)], sim[k], "na = {}, j = {j}, k = {k}", a.len());
+                }
+            }
+        }
+    }
+
     #[test]
     fn estimated_initial_output_is_the_least_squares_value() {
         let n = 40;

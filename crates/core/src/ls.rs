@@ -11,10 +11,12 @@
 //! ```
 //!
 //! so that θ̂ = D⁻¹ R⁻¹ z, ‖y − Φθ̂‖² = ‖r‖² and (ΦᵀΦ)⁻¹ = D⁻¹ R⁻¹ R⁻ᵀ D⁻¹. The work is about
-//! 4 N Σ_k (p − k) + 2 N p flops (≈ 0.25 Mflop for N = 2000, p = 7) in contiguous column loops with
-//! several accumulators (vectorised), one allocation of N (p + 1) numbers per solve, and a
-//! [`LsWorkspace`] that keeps even that buffer between solves (the key-term iteration solves one problem
-//! of the same size per iteration).
+//! 4 N Σ_k (p − k) + 2 N p flops (≈ 0.25 Mflop for N = 2000, p = 7). The rows are folded into R
+//! [`FOLD_ROWS`] at a time (row-block Householder QR, the kernel [`QrAccumulator`] uses for records too
+//! long to hold), so that each block stays in the first-level cache while every reflection passes over
+//! it, in contiguous column loops with several accumulators (vectorised, four columns per pass); one
+//! allocation of N (p + 1) numbers per solve, and a [`LsWorkspace`] that keeps even that buffer between
+//! solves (the key-term iteration solves one problem of the same size per iteration).
 
 use nalgebra::{DMatrix, DVector};
 
@@ -124,39 +126,25 @@ impl LsWorkspace {
             self.a.extend(src.iter().map(|s| s * inv));
         }
         self.a.extend_from_slice(y.as_slice());
-        let mut r = vec![0.0; p * cols]; // R and z by rows: r[k * cols + c]
+        // R of [Φ D⁻¹ | y] (cols × cols, by rows), folded in [`FOLD_ROWS`] rows at a time: each block
+        // stays in the first-level cache while every reflection passes over it (the reflections of the
+        // whole columns passed over the N·(p + 1) numbers once per pair of columns).
+        let mut rr = vec![0.0; cols * cols];
+        for start in (0..n).step_by(FOLD_ROWS) {
+            let m = FOLD_ROWS.min(n - start);
+            fold_rows(&mut rr, &mut self.a[start..], n, m, cols);
+        }
         for k in 0..p {
-            let (left, right) = self.a.split_at_mut((k + 1) * n);
-            let v = &mut left[k * n + k..(k + 1) * n];
-            let sigma = dot(v, v).sqrt();
-            // |R_kk| = ‖column k below the diagonal‖; the rank test of ls::solve.
-            if rank_test && sigma < RANK_TOLERANCE {
+            // |R_kk| = ‖column k after the reflections of the columns before it‖; the rank test of
+            // ls::solve.
+            if rank_test && rr[k * cols + k].abs() < RANK_TOLERANCE {
                 return Err(dependent(&name(k)));
-            }
-            if sigma == 0.0 {
-                // Nothing to reflect (H = I): row k of R is what stands in row k.
-                r[k * cols + k] = 0.0;
-                for c in k + 1..cols {
-                    r[k * cols + c] = right[(c - k - 1) * n + k];
-                }
-                continue;
-            }
-            let alpha = if v[0] > 0.0 { -sigma } else { sigma };
-            // v = x − α e₁; H = I − 2 v vᵀ / vᵀv with vᵀv = 2 σ (σ + |x₀|).
-            v[0] -= alpha;
-            let vtv = 2.0 * sigma * (sigma + (v[0] + alpha).abs());
-            let beta = 2.0 / vtv;
-            r[k * cols + k] = alpha;
-            for c in k + 1..cols {
-                let col = &mut right[(c - k - 1) * n + k..(c - k) * n];
-                let w = beta * dot(v, col);
-                axpy(-w, v, col);
-                r[k * cols + c] = col[0];
             }
         }
         // ‖r‖²: what is left of the transformed y below row p.
-        let tail = &self.a[p * n + p..];
-        let rss = dot(tail, tail);
+        let rss = rr[p * cols + p] * rr[p * cols + p];
+        rr.truncate(p * cols);
+        let r = rr;
         Ok(Triangular { r, scale, rss, p })
     }
 }
@@ -383,28 +371,7 @@ impl QrAccumulator {
                     .for_each(|v| *v *= s);
             }
         }
-        let r = &mut self.r;
-        for k in 0..cols {
-            let (left, right) = block.split_at_mut((k + 1) * FOLD_ROWS);
-            let a = &left[k * FOLD_ROWS..k * FOLD_ROWS + m];
-            let aa = dot(a, a);
-            if aa == 0.0 {
-                continue; // nothing below the diagonal to annihilate
-            }
-            let rkk = r[k * cols + k];
-            let sigma = (rkk * rkk + aa).sqrt();
-            let alpha = if rkk > 0.0 { -sigma } else { sigma };
-            // v = (R_kk − α, a); H = I − β v vᵀ with vᵀv = 2σ(σ + |R_kk|).
-            let v0 = rkk - alpha;
-            let beta = 1.0 / (sigma * (sigma + rkk.abs()));
-            for c in k + 1..cols {
-                let col = &mut right[(c - k - 1) * FOLD_ROWS..(c - k - 1) * FOLD_ROWS + m];
-                let w = beta * (v0 * r[k * cols + c] + dot(a, col));
-                r[k * cols + c] -= w * v0;
-                axpy(-w, a, col);
-            }
-            r[k * cols + k] = alpha;
-        }
+        fold_rows(&mut self.r, block, FOLD_ROWS, m, cols);
         self.filled = 0;
     }
 
@@ -452,6 +419,59 @@ impl QrAccumulator {
     /// θ̂, (ΦᵀΦ)⁻¹ and the RSS (as [`solve`] on the same rows).
     pub fn solve(self, names: &[String]) -> Result<LsSolution, SysidError> {
         self.triangular(names, true)?.solution()
+    }
+}
+
+/// Folds `m` rows into the upper-triangular `r` (cols × cols, by rows): the rows are column j of
+/// `block` at `block[j * ld..j * ld + m]`, and are overwritten. For each column k, the Householder
+/// reflection that maps (R_kk, rows(:, k)) to (±σ, 0) is applied to the columns on its right, so that
+/// [R; rows] = Q [R'; 0] (row-block QR, the building step of TSQR; Golub & Van Loan, *Matrix
+/// Computations*, 4th ed., §5.2). A column with nothing below the diagonal is left as it is (H = I).
+fn fold_rows(r: &mut [f64], block: &mut [f64], ld: usize, m: usize, cols: usize) {
+    for k in 0..cols {
+        let (left, right) = block.split_at_mut(((k + 1) * ld).min(block.len()));
+        let a = &left[k * ld..k * ld + m];
+        let aa = dot(a, a);
+        if aa == 0.0 {
+            continue; // nothing below the diagonal to annihilate
+        }
+        let rkk = r[k * cols + k];
+        let sigma = (rkk * rkk + aa).sqrt();
+        let alpha = if rkk > 0.0 { -sigma } else { sigma };
+        // v = (R_kk − α, a); H = I − β v vᵀ with vᵀv = 2σ(σ + |R_kk|).
+        let v0 = rkk - alpha;
+        let beta = 1.0 / (sigma * (sigma + rkk.abs()));
+        // The columns on the right four at a time (one pass over the rows for four dot products,
+        // one for four updates), then one by one.
+        let mut rest = right;
+        let mut c = k + 1;
+        while c < cols {
+            if cols - c >= 4 {
+                let (c0, t) = rest.split_at_mut(ld);
+                let (c1, t) = t.split_at_mut(ld);
+                let (c2, t) = t.split_at_mut(ld);
+                let (c3, t) = t.split_at_mut(ld.min(t.len()));
+                let mut four = [&mut c0[..m], &mut c1[..m], &mut c2[..m], &mut c3[..m]];
+                let d = dot4(a, &four);
+                let mut w = [0.0; 4];
+                for q in 0..4 {
+                    w[q] = beta * (v0 * r[k * cols + c + q] + d[q]);
+                    r[k * cols + c + q] -= w[q] * v0;
+                }
+                axpy4(&w, a, &mut four);
+                rest = t;
+                c += 4;
+            } else {
+                let (col, t) = rest.split_at_mut(ld.min(rest.len()));
+                let col = &mut col[..m];
+                let w = beta * (v0 * r[k * cols + c] + dot(a, col));
+                r[k * cols + c] -= w * v0;
+                axpy(-w, a, col);
+                rest = t;
+                c += 1;
+            }
+        }
+        r[k * cols + k] = alpha;
     }
 }
 
@@ -522,6 +542,50 @@ pub fn dot(x: &[f64], y: &[f64]) -> f64 {
         s += a * b;
     }
     s
+}
+
+/// xᵀc_q for four columns c_q of x's length, in one pass over x (two accumulators per column).
+#[inline]
+fn dot4(x: &[f64], c: &[&mut [f64]; 4]) -> [f64; 4] {
+    let n = x.len();
+    let (c0, c1, c2, c3) = (&c[0][..n], &c[1][..n], &c[2][..n], &c[3][..n]);
+    let mut acc = [[0.0; 2]; 4];
+    let pairs = n / 2;
+    for i in 0..pairs {
+        for l in 0..2 {
+            let (k, xv) = (2 * i + l, x[2 * i + l]);
+            acc[0][l] += xv * c0[k];
+            acc[1][l] += xv * c1[k];
+            acc[2][l] += xv * c2[k];
+            acc[3][l] += xv * c3[k];
+        }
+    }
+    let mut out = [0.0; 4];
+    for q in 0..4 {
+        out[q] = acc[q][0] + acc[q][1];
+    }
+    if n % 2 == 1 {
+        let xv = x[n - 1];
+        out[0] += xv * c0[n - 1];
+        out[1] += xv * c1[n - 1];
+        out[2] += xv * c2[n - 1];
+        out[3] += xv * c3[n - 1];
+    }
+    out
+}
+
+/// c_q ← c_q − w_q x for four columns, in one pass over x.
+#[inline]
+fn axpy4(w: &[f64; 4], x: &[f64], c: &mut [&mut [f64]; 4]) {
+    let n = x.len();
+    let [c0, c1, c2, c3] = c;
+    let (c0, c1, c2, c3) = (&mut c0[..n], &mut c1[..n], &mut c2[..n], &mut c3[..n]);
+    for (i, xv) in x.iter().enumerate() {
+        c0[i] -= w[0] * xv;
+        c1[i] -= w[1] * xv;
+        c2[i] -= w[2] * xv;
+        c3[i] -= w[3] * xv;
+    }
 }
 
 /// y ← y + a x.

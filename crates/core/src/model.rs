@@ -1356,6 +1356,26 @@ fn run_one_input<const NA: usize, const NB: usize>(
     out: &mut Vec<f64>,
 ) -> Result<(), usize> {
     let (a, b) = (&a[..NA], &b[..NB]);
+    if !simulate && n > k0 {
+        // The prediction's outputs do not feed each other: the same steps for every k, term by term
+        // over the whole record (vectorised), then the first non-finite output is looked for.
+        out.resize(n, c);
+        let v = &mut out[k0..n];
+        for (i, ai) in a.iter().enumerate() {
+            for (v, p) in v.iter_mut().zip(&y[k0 - 1 - i..n - 1 - i]) {
+                *v -= ai * p;
+            }
+        }
+        for (j, bj) in b.iter().enumerate() {
+            for (v, xv) in v.iter_mut().zip(&x[k0 - nk - j..n - nk - j]) {
+                *v += bj * xv;
+            }
+        }
+        return match v.iter().position(|v| !v.is_finite()) {
+            Some(i) => Err(k0 + i),
+            None => Ok(()),
+        };
+    }
     for k in k0..n {
         let past: &[f64] = if simulate { out } else { y };
         let mut v = c;

@@ -33,10 +33,11 @@
 //! once, 1/α_j (d_j ← d_j · (α_(j−1) · (1/α_j)), λ_j = −f_j · (1/α_(j−1)), θ̂ += b · (1/α) ε), plus
 //! 1/ρ: n + 1 independent divisions per update (4n before issue 28's second round).
 //! Cost ([`flops_per_update_ud`]): ε 2n + 1; f = Uᵀφ n² + n; v = D f n; α 2n; b = U v n(n − 1);
-//! reciprocals n + 1; new D 3n; new θ̂ 3n; Bierman's column steps 2 per column and 4 per entry above the
-//! diagonal (2 n(n − 1)). Total 4 n² + 12 n + 2: 282 for n = 7, 434 for n = 9, of which n + 1
-//! divisions (with a capacity N ≥ 8 the first pass keeps the partial gains the column steps need, so
-//! n(n − 1) of these flops are not executed: 362 for n = 9). The update runs in two passes over U and copies nothing: the first only reads (f, v, α,
+//! reciprocals n + 1; new D 3n; new θ̂ 3n; Bierman's column steps 2 per column and 2 per entry above the
+//! diagonal, plus 2 per entry to sum the partial gains again when the capacity N < 8 (with N ≥ 8 the
+//! first pass keeps them). Total 4 n² + 12 n + 2 for N < 8 (114 for n = 4, 282 for n = 7) and
+//! 3 n² + 13 n + 2 for N ≥ 8 (362 for n = 9), of which n + 1 divisions.
+//! The update runs in two passes over U and copies nothing: the first only reads (f, v, α,
 //! b, the new D and θ̂, every check), the second writes U, D and θ̂ only when every check passed, so a
 //! failed update leaves the state unchanged.
 //!
@@ -426,6 +427,10 @@ fn symmetric_update<F: Float, const N: usize, const SCALE: bool>(
     });
 }
 
+/// The capacity N from which the UD form's first pass keeps the partial gains of Bierman's column
+/// steps (n(n − 1) flops fewer; measured slower at N = 4: docs/benchmarks.md, "Fifth round").
+const KEEP_GAINS_FROM: usize = 8;
+
 /// Bierman's UD update with forgetting on the leading m × m block (m = N when `FULL`), in the operation
 /// order of `sysid::rls_ud::RobustRls` (sums start at −0, as `Iterator::sum` of floats does); with
 /// `GUARD` the trace bound of [`Rls::with_max_trace`]. Two passes over U and nothing copied:
@@ -476,7 +481,7 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
     let mut b = [F::ZERO; N];
     // Whether pass 1 keeps the partial gains for pass 2 (measured faster at N = 9, slower at N = 4 in
     // f64 and the same in f32; N = 7 a tie: docs/benchmarks.md, "Fifth round"). Same values either way.
-    let keep_w = N >= 8;
+    let keep_w = N >= KEEP_GAINS_FROM;
     let mut wsnap = [[F::ZERO; N]; N];
     let mut a = rho;
     for_columns!(full, m, 'col, |j| {
@@ -631,11 +636,22 @@ fn ud_trace<F: Float, const N: usize>(fac: &[[F; N]; N], n: usize) -> F {
     tr
 }
 
-/// Flops of one UD-form update for `n` parameters (no guard): 4 n² + 12 n + 2, of which n + 1 are
-/// divisions, for ρ < 1 and ρ = 1 alike (the multiplication by 1/ρ = 1 is executed: it is exact and keeps
-/// the loop branch-free). Breakdown in the module documentation.
-pub fn flops_per_update_ud(n: usize, _rho_is_one: bool) -> usize {
-    4 * n * n + 12 * n + 2
+/// Flops of one UD-form update for `n` parameters in a state of capacity `capacity` (the `N` of
+/// [`Rls<F, N>`]), no guard, as the code executes them (each +, −, ×, ÷ of the source one flop): ε 2n + 1;
+/// f = Uᵀφ n² + n; v = D f n; α 2n; b = U v n(n − 1); reciprocals n + 1 (the divisions); new D 3n;
+/// new θ̂ 3n; Bierman's column steps 2 per column and 2 per entry above the diagonal, plus, for a
+/// capacity below 8, 2 more per entry to sum the partial gains again (capacity ≥ 8 keeps them from the
+/// first pass). Total 4 n² + 12 n + 2 for capacity < 8 (114 for n = N = 4, 282 for n = N = 7) and
+/// 3 n² + 13 n + 2 for capacity ≥ 8 (362 for n = N = 9; 240 for n = 7 in the C interface's N = 19),
+/// n + 1 of them divisions, for ρ < 1 and ρ = 1 alike (the multiplication by 1/ρ = 1 is executed: it is
+/// exact and keeps the loop branch-free). Not counted, as for [`flops_per_update`]: the finiteness
+/// tests x · 0 (2n + 2) and comparisons. The compiler folds 2n + 1 of the counted operations (the
+/// 1 · φ_j of f and the first addition of each sum from −0, both exact): the machine executes
+/// 4 n² + 10 n + 1 or 3 n² + 11 n + 1.
+pub fn flops_per_update_ud(n: usize, capacity: usize) -> usize {
+    let above = n * n.saturating_sub(1);
+    let resum = if capacity >= KEEP_GAINS_FROM { 0 } else { above };
+    3 * n * n + 13 * n + 2 + resum
 }
 
 /// Flops of one update for `n` parameters (no guard): 3.5 n² + 8.5 n + 2 for ρ < 1, 3 n² + 8 n + 1
@@ -831,9 +847,11 @@ mod tests {
         assert_eq!(flops_per_update(9, false), 362);
         assert_eq!(flops_per_update(9, true), 316);
         assert_eq!(flops_per_update(7, false), 233);
-        // UD: 4·49 + 12·7 + 2 = 282 for either ρ; 4·81 + 12·9 + 2 = 434.
-        assert_eq!(flops_per_update_ud(7, false), 282);
-        assert_eq!(flops_per_update_ud(7, true), 282);
-        assert_eq!(flops_per_update_ud(9, false), 434);
+        // UD, capacity < 8: 4·16 + 12·4 + 2 = 114, 4·49 + 12·7 + 2 = 282; capacity ≥ 8 (the partial
+        // gains kept, n(n − 1) fewer): 3·81 + 13·9 + 2 = 362, 3·49 + 13·7 + 2 = 240.
+        assert_eq!(flops_per_update_ud(4, 4), 114);
+        assert_eq!(flops_per_update_ud(7, 7), 282);
+        assert_eq!(flops_per_update_ud(9, 9), 362);
+        assert_eq!(flops_per_update_ud(7, 19), 240);
     }
 }

@@ -271,6 +271,20 @@ macro_rules! for_columns {
     };
 }
 
+/// φ's first m entries copied one at a time, each through an opaque copy (`black_box`), or
+/// [`Error::Length`] when φ is shorter. Loaded in wide pieces, a caller's narrower stores of φ (a
+/// regressor built entry by entry) cannot be forwarded to the loads, which then wait for the stores to
+/// retire; scalar loads are always forwarded (issue 28, fifth round).
+#[inline(always)]
+fn read_regressor<F: Float, const N: usize>(phi: &[F], m: usize) -> Result<[F; N], Error> {
+    let phi = phi.get(..m).ok_or(Error::Length)?;
+    let mut buf = [F::ZERO; N];
+    for (d, s) in buf.iter_mut().zip(phi) {
+        *d = core::hint::black_box(*s);
+    }
+    Ok(buf)
+}
+
 /// The paper's eq. 12 on the leading m × m block of `p` (m = N when `FULL`, else `n`), in the operation
 /// order of the module documentation; with a finite trace bound T the guard's scaling is folded into
 /// the division by ρ (see [`Rls::with_max_trace`]). Errors before any write, so a failed update leaves
@@ -286,7 +300,8 @@ fn update_standard<F: Float, const N: usize, const FULL: bool>(
     let (theta, p) = (&mut est.theta, &mut est.p);
     // Exact-length slices: every loop below is a zip of slices of length m (for n = N a constant), so
     // there is no bounds check and nothing depends on the data but the guard's one branch.
-    let phi = phi.get(..m).ok_or(Error::Length)?;
+    let phi_buf = read_regressor::<F, N>(phi, m)?;
+    let phi = phi_buf.get(..m).ok_or(Error::Length)?;
     let theta = theta.get_mut(..m).ok_or(Error::Capacity)?;
     let p = p.get_mut(..m).ok_or(Error::Capacity)?;
     let mut pphi_buf = [F::ZERO; N];
@@ -454,13 +469,7 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
     let (rho, max_trace) = (est.forgetting, est.max_trace);
     let m = if FULL { N } else { est.n };
     let (theta, fac) = (&mut est.theta, &mut est.p);
-    let phi_in = phi.get(..m).ok_or(Error::Length)?;
-    // φ read one entry at a time (each through an opaque copy): loaded in wide pieces, a caller's
-    // narrower stores of φ cannot be forwarded to the loads, which then wait for the stores to retire.
-    let mut phi_buf = [F::ZERO; N];
-    for (d, s) in phi_buf.iter_mut().zip(phi_in) {
-        *d = core::hint::black_box(*s);
-    }
+    let phi_buf = read_regressor::<F, N>(phi, m)?;
     let phi = phi_buf.get(..m).ok_or(Error::Length)?;
     let theta = theta.get_mut(..m).ok_or(Error::Capacity)?;
     let fac = fac.get_mut(..m).ok_or(Error::Capacity)?;

@@ -491,6 +491,7 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
     // Whether pass 1 keeps the partial gains for pass 2 (measured faster at N = 9, slower at N = 4 in
     // f64 and the same in f32; N = 7 a tie: docs/benchmarks.md, "Fifth round"). Same values either way.
     let keep_w = N >= KEEP_GAINS_FROM;
+    let split_row_loads = core::mem::size_of::<[F; N]>() <= 16;
     let mut wsnap = [[F::ZERO; N]; N];
     let mut a = rho;
     for_columns!(full, m, 'col, |j| {
@@ -504,6 +505,18 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
             wsnap.get_mut(j),
         ) else {
             break 'col;
+        };
+        // A row of at most 16 bytes (f32, N ≤ 4) is loaded whole, by one vector load, which spans
+        // the pieces the previous update's second pass stored it in and so cannot be forwarded from
+        // them: read column j of U and d_j one entry at a time then (opaque copies, as φ).
+        let mut col_buf = [F::ZERO; N];
+        let row: &[F] = if split_row_loads {
+            for (d, s) in col_buf.iter_mut().zip(row.iter().take(j + 1)) {
+                *d = core::hint::black_box(*s);
+            }
+            &col_buf
+        } else {
+            row
         };
         let (Some(u_col), Some(dj), Some(bj)) = (row.get(..j), row.get(j), b_rest.first_mut())
         else {

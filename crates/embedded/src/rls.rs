@@ -493,6 +493,8 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
     let keep_w = N >= KEEP_GAINS_FROM;
     let split_row_loads = core::mem::size_of::<[F; N]>() <= 16;
     let mut wsnap = [[F::ZERO; N]; N];
+    // With split row loads, the copies of U read by the first pass, for the second.
+    let mut u_old = [[F::ZERO; N]; N];
     let mut a = rho;
     for_columns!(full, m, 'col, |j| {
         let (Some(row), Some(ph), Some(fj), Some(vj), Some(aj), Some((b_col, b_rest)), Some(ws)) = (
@@ -506,15 +508,17 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
         ) else {
             break 'col;
         };
+        let Some(old) = u_old.get_mut(j) else {
+            break 'col;
+        };
         // A row of at most 16 bytes (f32, N ≤ 4) is loaded whole, by one vector load, which spans
         // the pieces the previous update's second pass stored it in and so cannot be forwarded from
         // them: read column j of U and d_j one entry at a time then (opaque copies, as φ).
-        let mut col_buf = [F::ZERO; N];
         let row: &[F] = if split_row_loads {
-            for (d, s) in col_buf.iter_mut().zip(row.iter().take(j + 1)) {
+            for (d, s) in old.iter_mut().zip(row.iter().take(j + 1)) {
                 *d = core::hint::black_box(*s);
             }
-            &col_buf
+            old
         } else {
             row
         };
@@ -595,6 +599,9 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
         ) else {
             break 'col;
         };
+        let Some(old) = u_old.get(j) else {
+            break 'col;
+        };
         let inv_prev = if j == 0 {
             inv_rho
         } else {
@@ -605,8 +612,9 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
             break 'col;
         };
         let mut col = -F::ZERO;
-        for ((u, wi), wk) in u_col.iter_mut().zip(w_col.iter_mut()).zip(kept) {
-            let uij = *u;
+        for (((u, wi), wk), uo) in u_col.iter_mut().zip(w_col.iter_mut()).zip(kept).zip(old) {
+            // The first pass's copy where it made one (the same value).
+            let uij = if split_row_loads { *uo } else { *u };
             let un = uij + if keep_w { *wk } else { *wi } * lambda;
             *u = un;
             if !keep_w {

@@ -196,7 +196,10 @@ fn a_stable_model_starts_at_its_own_resting_level() {
     let want = expect(0.5, -0.8, 0.1, 0.0, 0.0, d.u());
     assert!(close(d.y(), &want), "{:?} vs {want:?}", d.y());
     assert!(d.y()[..6].iter().all(|y| (y - 0.5).abs() < 1e-12));
-    assert!(err.contains("from rest at y0 = 0.5"), "{err}");
+    assert!(
+        err.contains("held before the start, the model's resting level"),
+        "{err}"
+    );
 
     // Stable around (u0, y0) = (20, 3): rest 3 + 0.1 / 0.2 = 3.5 with the input at u0.
     std::fs::write(dir.path().join("u.csv"), "u\n20\n20\n20\n30\n30\n30\n30\n").unwrap();
@@ -211,19 +214,55 @@ fn a_stable_model_starts_at_its_own_resting_level() {
     let (d, err) = run(&m, &["--input", "step:10@5", "--samples", "12"], "i.csv");
     assert_eq!(d.y()[0], 100.0);
     assert!(close(d.y(), &expect(100.0, -1.0, 0.0, 0.0, 0.0, d.u())));
-    assert!(err.contains("from rest at y0 = 100"), "{err}");
+    assert!(err.contains("from y0 = 100 held before the start"), "{err}");
+    assert!(err.contains("no resting level"), "{err}");
+    // A pole at 1 is an integrator, not an unstable model (audit s9 S3).
+    assert!(err.contains("a pole at 1 (an integrator)"), "{err}");
+    assert!(!err.contains("unstable"), "{err}");
 
     // A near-integrator (pole 0.9995, time constant 2000 samples: an identified position model) too.
     let m = first_order_model(dir.path(), "near.json", -0.9995, 0.01, None);
     let (d, _) = run(&m, &["--input", "step:10@5", "--samples", "12"], "n.csv");
     assert_eq!(d.y()[0], 100.0);
 
-    // --y0 overrides the resting level.
+    // A pole at 1.02 is unstable, and said so.
+    let m = first_order_model(dir.path(), "unstable.json", -1.02, 0.0, None);
+    let (_, err) = run(&m, &["--input", "step:10@5", "--samples", "12"], "u.csv");
+    assert!(
+        err.contains("unstable model (a pole has modulus 1.020000"),
+        "{err}"
+    );
+
+    // --y0 overrides the resting level, and the words say where the model goes from there
+    // (audit s9 S2: "from rest" was untrue for a start away from the resting level).
     let m = first_order_model(dir.path(), "stable2.json", -0.8, 0.1, None);
-    let (d, _) = run(
+    let (d, err) = run(
         &m,
         &["--input", "step:10@5", "--samples", "12", "--y0", "7"],
         "y.csv",
     );
     assert!(close(d.y(), &expect(7.0, -0.8, 0.1, 0.0, 0.0, d.u())));
+    assert!(err.contains("the model rests at 0.5"), "{err}");
+
+    // With an output nonlinearity y = g(v) the linear part starts at its own rest, v̄ = 0.1 / 0.2,
+    // so the record is flat until the step (audit s9 S1: it started at g(100), saturated, and
+    // decayed), and the words give y(0) as recorded.
+    std::fs::write(
+        dir.path().join("wiener.json"),
+        r#"{"format": "ipa-sysid-model", "version": 2, "model": {"kind": "arx", "ts": 0.1, "na": 1,
+        "nb": 1, "nk": 1, "a": [-0.8], "b": [0.5], "offset": 0.1,
+        "output_nonlinearity": {"kind": "saturation", "s_l": -1.0, "s_r": 0.3, "m": 1.0}}}"#,
+    )
+    .unwrap();
+    let (d, err) = run(
+        "model:wiener.json",
+        &["--input", "step:10@5", "--samples", "12"],
+        "w.csv",
+    );
+    assert!(d.y()[..6].iter().all(|y| *y == d.y()[0]), "{:?}", d.y());
+    assert!(err.contains("with the linear part held at 0.5"), "{err}");
+    assert!(
+        err.contains(&format!("y(0) = {}", d.y()[0])) && err.contains("resting level"),
+        "{err}"
+    );
 }

@@ -138,6 +138,19 @@ impl StepMetrics {
             let why = (r_mm != y0_mm).then_some(Unsettled::NoResponse);
             return Ok((metrics, why));
         }
+        // A set-point step whose output ended farther from r than it began (it moved the wrong way,
+        // or swung past r by more than the step): no rise, overshoot or settling time describes an
+        // approach that did not happen (MATLAB's stepinfo without a reference would call it clean).
+        if r_mm != y0_mm && (r_mm - y_f).abs() > (r_mm - y0_mm).abs() {
+            let metrics = StepMetrics {
+                overshoot_mm: None,
+                overshoot_percent: None,
+                steady_state_error_mm: ess,
+                rise_time_s: None,
+                settling_time_s: None,
+            };
+            return Ok((metrics, Some(Unsettled::MovedAway { moved_mm: delta })));
+        }
         let d = delta.signum();
         let step = delta.abs();
         // z_k: progress along the step direction, from 0 at y0 to |Δ| at y_f.
@@ -245,6 +258,12 @@ pub enum Unsettled {
     },
     /// The set-point moved away and the output never left y0.
     NoResponse,
+    /// The output ended farther from the set-point than it started: it moved the wrong way (or
+    /// past r by more than the step), by this much (y_f − y0), mm.
+    MovedAway {
+        /// y_f − y0, mm.
+        moved_mm: f64,
+    },
 }
 
 /// The settling time against the band `centre ± band` (s from t_0): the interpolated crossing into the
@@ -331,18 +350,38 @@ fn drift(tail: &[f64]) -> f64 {
     2.0 * (mean(&tail[half..]) - mean(&tail[..half])).abs()
 }
 
-/// Fraction of the command's largest magnitude over the run's tail by which the command may still drift
-/// over that tail (measured as in [`still_moving`]) for the loop to count as at rest.
+/// Fraction of the command's largest magnitude over the run's tail by which the command may drift
+/// over a time as long as the whole run, at the rate it drifts over the tail (as in [`still_moving`]),
+/// for the loop to count as at rest.
 pub const COMMAND_DRIFT_FRACTION: f64 = 0.01;
 
-/// True when the command `u` (counts) still drifts over the last [`TAIL_FRACTION`] of the run by more
-/// than [`COMMAND_DRIFT_FRACTION`] of its largest magnitude there: a loop whose integrator still winds up
-/// (the piston held by friction short of its set-point) is not at rest even when its output is flat.
+/// True when the command `u` (counts) still drifts: its drift over the last [`TAIL_FRACTION`] of the
+/// run, carried on at that rate over a time as long as the whole run, exceeds
+/// [`COMMAND_DRIFT_FRACTION`] of its largest magnitude over the tail. A loop whose integrator still
+/// winds up (the piston held by friction short of its set-point) is not at rest even when its output is
+/// flat; judging the rate, not the tail's drift, keeps a slow integrator (0.15 counts/s on 40 counts)
+/// from passing for rest on a short run.
 pub fn command_still_moving(u: &[f64]) -> bool {
     tail(u).is_some_and(|tail| {
         let scale = tail.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
-        drift(tail) > COMMAND_DRIFT_FRACTION * scale
+        drift(tail) * (u.len() as f64 / tail.len() as f64) > COMMAND_DRIFT_FRACTION * scale
     })
+}
+
+/// The amplitude of a limit cycle in `y` (mm), e.g. the last fifth of a run: the smaller of its
+/// largest fall from a running maximum and its largest rise from a running minimum. An oscillation of
+/// peak-to-peak A gives A; a monotone drift, however long, gives 0 (it is still moving, which the
+/// settling time says, not cycling); a drift with a swing on it gives about the swing.
+pub fn limit_cycle_mm(y: &[f64]) -> f64 {
+    let (mut hi, mut lo) = (f64::NEG_INFINITY, f64::INFINITY);
+    let (mut fall, mut rise) = (0.0_f64, 0.0_f64);
+    for &v in y {
+        hi = hi.max(v);
+        lo = lo.min(v);
+        fall = fall.max(hi - v);
+        rise = rise.max(v - lo);
+    }
+    fall.min(rise)
 }
 
 /// One step of an unfixed set-point profile and its metrics.
@@ -631,6 +670,82 @@ mod tests {
             StepMetrics::worst([&settled]).unwrap().settling_time_s,
             Some(0.2)
         );
+    }
+
+    // Audit s9 T1: friction holds y at 166.52 mm, 1.52 mm short of r = 165 (outside the 0.2 mm band),
+    // while a slow integrator winds the command from 40 counts at 0.15 counts/s (Ts = 0.01 s) over a
+    // 3 s run. Over the tail (last 60 of 300 samples) the command drifts 2 · 30 · 0.0015 = 0.09
+    // counts: under 1 % of its 40.4 counts, so a per-tail rule called it at rest; at that rate it moves
+    // 0.09 · 300/60 = 0.45 counts over the run, above 0.404: not at rest.
+    #[test]
+    fn a_slowly_winding_integrator_is_judged_by_its_rate() {
+        let t = grid(0.01, 2.99);
+        assert_eq!(t.len(), 300);
+        let u: Vec<f64> = (0..300).map(|k| 40.0 + 0.0015 * k as f64).collect();
+        let y = vec![166.52; 300];
+        let tail = &u[240..];
+        assert!(drift(tail) < COMMAND_DRIFT_FRACTION * 40.4);
+        assert!(command_still_moving(&u));
+        // The step: y jumps from 175 to 166.52 at once; with the command winding, no settling time.
+        let mut y = y;
+        y[0] = 175.0;
+        let (m, why) = StepMetrics::assess(&t, &y, Some(&u), 175.0, 165.0).unwrap();
+        assert_eq!(m.settling_time_s, None);
+        assert_eq!(why, Some(Unsettled::CommandMoving));
+        // A command at rest (constant) with the same output: settled against y_f's band (2 % of
+        // 8.48 mm) where the first sample interval crosses it: (8.48 − 0.1696) / 8.48 · 0.01 s.
+        let (m, why) = StepMetrics::assess(&t, &y, Some(&vec![40.0; 300]), 175.0, 165.0).unwrap();
+        assert!((m.settling_time_s.unwrap() - 0.0098).abs() < 1e-12, "{m:?}");
+        assert_eq!(why, None);
+    }
+
+    // Audit s9 T2: from y0 = 25 towards r = 35 the output falls to 2.42 mm (a model that cannot reach
+    // r, started away from its rest): it ends 32.58 mm from r, farther than the 10 mm it started from.
+    // No rise, overshoot or settling time; the reason says how far it moved (2.42 − 25 at the end).
+    #[test]
+    fn a_step_that_moves_away_from_its_set_point_has_no_step_metrics() {
+        let t = grid(0.01, 3.0);
+        let y: Vec<f64> = t
+            .iter()
+            .map(|&t| 2.42 + 22.58 * (-t / 0.05).exp())
+            .collect();
+        let y_f = y[y.len() - 1];
+        let (m, why) = StepMetrics::assess(&t, &y, None, 25.0, 35.0).unwrap();
+        assert_eq!(
+            (m.rise_time_s, m.settling_time_s, m.overshoot_mm),
+            (None, None, None)
+        );
+        assert!((m.steady_state_error_mm.unwrap() - (35.0 - y_f)).abs() < 1e-12);
+        assert_eq!(
+            why,
+            Some(Unsettled::MovedAway {
+                moved_mm: y_f - 25.0
+            })
+        );
+        // Overshooting r and staying past it by less than the step is still a step (OS judged).
+        let y: Vec<f64> = t
+            .iter()
+            .map(|&t| 25.0 + 15.0 * (t / 0.5).min(1.0))
+            .collect();
+        let (m, why) = StepMetrics::assess(&t, &y, None, 25.0, 35.0).unwrap();
+        assert_eq!(why, None);
+        assert!(m.rise_time_s.is_some() && m.settling_time_s.is_some());
+    }
+
+    // Audit s9 T3: a limit cycle is a swing, not a drift. A monotone ramp of 6 mm gives 0; a sine of
+    // amplitude 0.5 gives its peak-to-peak 1.0; the same sine on the ramp gives about 1.0 (the fall
+    // from each crest is 1.0 minus the ramp's rise over half a period).
+    #[test]
+    fn a_limit_cycle_is_a_swing_and_a_drift_is_none() {
+        let t = grid(0.001, 1.0);
+        let ramp: Vec<f64> = t.iter().map(|&t| 140.0 + 6.0 * t).collect();
+        assert_eq!(limit_cycle_mm(&ramp), 0.0);
+        let w = 2.0 * std::f64::consts::PI * 10.0;
+        let sine: Vec<f64> = t.iter().map(|&t| 0.5 * (w * t).sin()).collect();
+        assert!((limit_cycle_mm(&sine) - 1.0).abs() < 1e-4);
+        let both: Vec<f64> = t.iter().map(|&t| 0.1 * t + 0.5 * (w * t).sin()).collect();
+        // Half a period (0.05 s) of the 0.1 mm/s ramp: 0.005 mm.
+        assert!((limit_cycle_mm(&both) - 1.0).abs() < 0.006);
     }
 
     #[test]

@@ -29,6 +29,17 @@ use serde::{Deserialize, Serialize};
 use crate::closed_loop::Controller;
 use crate::{ControlError, ControlSetting, DeadzoneCompensator};
 
+/// Largest Kp, Ki, Kd a controller file may hold (counts per mm, per mm·s, s/mm).
+pub const MAX_GAIN: f64 = 1e6;
+/// Largest band (hold, fine, nudge, rest) a controller file may hold, mm (10 m).
+pub const MAX_LENGTH_MM: f64 = 1e4;
+/// Largest time constant a controller file may hold, s.
+pub const MAX_TIME_S: f64 = 1e4;
+/// Largest command limit u_max, counts.
+pub const MAX_COMMAND: f64 = 1e6;
+/// Largest nudge ramp rate, counts/s.
+pub const MAX_RAMP_COUNTS_S: f64 = 1e9;
+
 /// The format name written in a controller file's `format` field.
 pub const CONTROLLER_FORMAT: &str = "ipa-sysid-controller";
 /// The version of the controller file format.
@@ -95,12 +106,33 @@ pub struct Nudge {
 impl Nudge {
     /// Checks every field; errors name [`ControlSetting::Nudge`].
     pub fn validate(&self, hold_band_mm: f64) -> Result<(), ControlError> {
-        let bad = |what: &str, v: f64| Err(ControlError::setting(ControlSetting::Nudge, v, what));
-        if !(self.band_mm.is_finite() && self.band_mm > hold_band_mm) {
-            return bad("a nudge band_mm finite and > hold_band_mm", self.band_mm);
+        let bad = |what: &str, v: f64| {
+            Err(ControlError::setting(
+                ControlSetting::Nudge,
+                crate::trust::fmt_value(v),
+                what,
+            ))
+        };
+        if !(self.band_mm.is_finite()
+            && self.band_mm > hold_band_mm
+            && self.band_mm <= MAX_LENGTH_MM)
+        {
+            return bad(
+                &format!(
+                    "a nudge band_mm > hold_band_mm ({}) and at most {MAX_LENGTH_MM:e} mm",
+                    crate::trust::fmt_value(hold_band_mm)
+                ),
+                self.band_mm,
+            );
         }
-        if !(self.ramp_counts_s.is_finite() && self.ramp_counts_s > 0.0) {
-            return bad("a nudge ramp_counts_s finite and > 0", self.ramp_counts_s);
+        if !(self.ramp_counts_s.is_finite()
+            && self.ramp_counts_s > 0.0
+            && self.ramp_counts_s <= MAX_RAMP_COUNTS_S)
+        {
+            return bad(
+                &format!("a nudge ramp_counts_s > 0 and at most {MAX_RAMP_COUNTS_S:e}"),
+                self.ramp_counts_s,
+            );
         }
         if !(self.start_fraction.is_finite() && (0.0..=1.0).contains(&self.start_fraction)) {
             return bad("a nudge start_fraction in [0, 1]", self.start_fraction);
@@ -108,8 +140,11 @@ impl Nudge {
         if !(self.cut_fraction.is_finite() && self.cut_fraction > 0.0 && self.cut_fraction <= 1.0) {
             return bad("a nudge cut_fraction in (0, 1]", self.cut_fraction);
         }
-        if !(self.rest_band_mm.is_finite() && self.rest_band_mm >= 0.0) {
-            return bad("a nudge rest_band_mm finite and >= 0", self.rest_band_mm);
+        if !(self.rest_band_mm.is_finite() && (0.0..=MAX_LENGTH_MM).contains(&self.rest_band_mm)) {
+            return bad(
+                &format!("a nudge rest_band_mm from 0 to {MAX_LENGTH_MM:e} mm"),
+                self.rest_band_mm,
+            );
         }
         if self.rest_samples == 0 || self.rest_samples > 1000 {
             return bad(
@@ -140,24 +175,31 @@ impl ControllerSettings {
         }
     }
 
-    /// Checks every field; errors name the [`ControlSetting`] at fault.
+    /// Checks every field; errors name the [`ControlSetting`] at fault. Besides the signs, each
+    /// magnitude is bounded far above any actuator's ([`MAX_GAIN`], [`MAX_LENGTH_MM`],
+    /// [`MAX_COMMAND`]): a gain of 1e308 is a corrupt file, not a controller.
     pub fn validate(&self) -> Result<(), ControlError> {
         let nonneg = |setting: ControlSetting, v: f64, unit: &str| {
-            if v.is_finite() && v >= 0.0 {
+            let max = match unit {
+                "mm" => MAX_LENGTH_MM,
+                "s" => MAX_TIME_S,
+                _ => MAX_GAIN,
+            };
+            if v.is_finite() && (0.0..=max).contains(&v) {
                 Ok(())
             } else {
                 Err(ControlError::setting(
                     setting,
-                    v,
-                    &format!("a finite number >= 0 ({unit})"),
+                    crate::trust::fmt_value(v),
+                    &format!("a number from 0 to {max:e} ({unit})"),
                 ))
             }
         };
-        if !(self.ts_s.is_finite() && self.ts_s > 0.0) {
+        if !(self.ts_s.is_finite() && self.ts_s > 0.0 && self.ts_s <= MAX_TIME_S) {
             return Err(ControlError::setting(
                 ControlSetting::Ts,
-                self.ts_s,
-                "a finite sampling period in s > 0",
+                crate::trust::fmt_value(self.ts_s),
+                &format!("a sampling period in s > 0 and at most {MAX_TIME_S:e}"),
             ));
         }
         nonneg(ControlSetting::Kp, self.kp, "counts/mm")?;
@@ -170,17 +212,38 @@ impl ControllerSettings {
         )?;
         nonneg(ControlSetting::HoldBand, self.hold_band_mm, "mm")?;
         nonneg(ControlSetting::FineBand, self.fine_band_mm, "mm")?;
-        if !(self.u_max.is_finite() && self.u_max > 0.0) {
+        if !(self.u_max.is_finite() && self.u_max > 0.0 && self.u_max <= MAX_COMMAND) {
             return Err(ControlError::setting(
                 ControlSetting::UMax,
-                self.u_max,
-                "a finite number of counts > 0",
+                crate::trust::fmt_value(self.u_max),
+                &format!("a number of counts > 0 and at most {MAX_COMMAND:e}"),
             ));
         }
         if let Some(n) = &self.nudge {
             n.validate(self.hold_band_mm)?;
         }
+        if let Some(c) = self.compensator.as_ref().filter(|c| c.u_max != self.u_max) {
+            return Err(ControlError::setting(
+                ControlSetting::UMax,
+                format!("{} (compensator) and {} (controller)", c.u_max, self.u_max),
+                "the same command limit in the compensator and the controller",
+            ));
+        }
         if let Some(c) = &self.compensator {
+            // The breakpoints are commands: bounded like u_max (the slopes are checked where the
+            // model is read, and only scale the inverse's shift).
+            let d = &c.deadzone;
+            if !(d.b_l.abs() <= MAX_COMMAND && d.b_r.abs() <= MAX_COMMAND) {
+                return Err(ControlError::setting(
+                    ControlSetting::Deadzone,
+                    format!(
+                        "b_l = {}, b_r = {}",
+                        crate::trust::fmt_value(d.b_l),
+                        crate::trust::fmt_value(d.b_r)
+                    ),
+                    &format!("breakpoints within ±{MAX_COMMAND:e} counts"),
+                ));
+            }
             // Rebuilding checks the deadzone and the threshold as `DeadzoneCompensator::new` does.
             DeadzoneCompensator::new(c.deadzone, c.slope_mode, c.u_max)?
                 .with_threshold(c.threshold_counts)?;
@@ -422,9 +485,14 @@ impl Controller for PositionController {
     }
 }
 
+/// Largest controller file read, bytes (one `tune` writes is about 1–2 kB, its provenance included).
+pub const MAX_CONTROLLER_BYTES: u64 = 1 << 20;
+
 /// The contents of a controller file (CONTROLLER.json): format, version, the settings, and what the
-/// tuning knew (free-form provenance, not read back).
+/// tuning knew (free-form provenance, not read back). Unknown fields are refused at every level (a
+/// misspelt key must not be ignored).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub struct ControllerFile {
     /// Always [`CONTROLLER_FORMAT`].
     pub format: String,
@@ -476,13 +544,21 @@ impl ControllerFile {
         Ok(f.controller)
     }
 
-    /// Reads and parses a controller file; errors name the file.
+    /// Reads and parses a controller file (at most [`MAX_CONTROLLER_BYTES`], counted as read, so that
+    /// a device such as `/dev/zero` is refused, not read until memory runs out); errors name the file.
     pub fn read(path: &std::path::Path) -> Result<ControllerSettings, ControlError> {
-        let text = std::fs::read_to_string(path).map_err(|source| ControlError::Io {
-            path: path.to_path_buf(),
-            source,
+        let name = path.display().to_string();
+        let text = sysid_core::data::bounded::read_bounded_text(
+            path,
+            MAX_CONTROLLER_BYTES,
+            "a controller file",
+            "expected the JSON that `ipa-sysid tune --out` writes (about a kilobyte)",
+        )
+        .map_err(|e| match e {
+            sysid_core::SysidError::Io { path, source } => ControlError::Io { path, source },
+            other => ControlError::Config(other.to_string()),
         })?;
-        Self::parse(&text, &path.display().to_string())
+        Self::parse(&text, &name)
     }
 }
 

@@ -33,6 +33,9 @@ pub fn fmt_value(v: f64) -> String {
 /// A length in mm as a person writes it: at most 4 decimals, trailing zeros dropped (a step of
 /// 100 − 97.41 mm is "2.59", not "2.5900000000000034").
 fn fmt_mm(v: f64) -> String {
+    if v.abs() >= 1e9 {
+        return fmt_value(v);
+    }
     let s = format!("{v:.4}");
     let s = s.trim_end_matches('0').trim_end_matches('.');
     if s == "-0" {
@@ -164,6 +167,16 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
                 "{head} has not settled within {within:.3} s: the output entered its 2 % band for good \
                  only {at_s:.3} s after the step, within the run's last {tail_s:.3} s, too late to tell \
                  that it stays, so its settling time is unknown (null) (run longer: --duration)"
+            )),
+            Some(Unsettled::MovedAway { moved_mm }) => w.push(format!(
+                "{head} moved away from its set-point: the output went {} mm from y0 = {} mm and \
+                 ended {} mm from r, farther than it started ({} mm), so the step has no rise, \
+                 overshoot or settling time (null); the set-point may be beyond the plant's reach, or \
+                 the loop's sign is wrong",
+                fmt_mm(moved_mm),
+                fmt_mm(s.y0_mm),
+                fmt_value(m.steady_state_error_mm.unwrap_or(f64::NAN).abs()),
+                fmt_mm((s.setpoint_mm - s.y0_mm).abs())
             )),
             Some(Unsettled::NoResponse) => w.push(format!(
                 "{head} had no response: the output stayed at y0 = {} mm while the set-point moved \

@@ -28,6 +28,7 @@ use serde::Serialize;
 use sysid_core::{Model, Plant};
 
 use crate::closed_loop::{self, Controller};
+use crate::metrics::Unsettled;
 use crate::position::{ControllerSettings, Nudge};
 use crate::{ControlError, ControlSetting, DeadzoneCompensator, Profile, SlopeMode, StepMetrics};
 
@@ -112,10 +113,18 @@ impl Spec {
         let bad = |what: &str, expected: &str| {
             ControlError::setting(ControlSetting::Spec, what, expected)
         };
+        let mut seen: Vec<&str> = Vec::new();
         for item in text.split(',').map(str::trim).filter(|i| !i.is_empty()) {
             let (key, value) = item
                 .split_once('=')
                 .ok_or_else(|| bad(item, "KEY=VALUE pairs separated by commas"))?;
+            if seen.contains(&key.trim()) {
+                return Err(bad(
+                    item,
+                    &format!("each key once ({} is given twice)", key.trim()),
+                ));
+            }
+            seen.push(key.trim());
             let num = |v: &str| -> Result<f64, ControlError> {
                 v.trim()
                     .parse::<f64>()
@@ -132,7 +141,12 @@ impl Spec {
                 "high" => s.high_mm = num(value)?,
                 "run" => s.run_s = num(value)?,
                 "settling" => s.settling_s = num(value)?,
-                "ess-share" => s.ess_share = num(value)?.min(1.0),
+                "ess-share" => {
+                    s.ess_share = num(value)?;
+                    if s.ess_share > 1.0 {
+                        return Err(bad(item, "a fraction of the steps, in (0, 1]"));
+                    }
+                }
                 "ess-all" => s.ess_all_mm = num(value)?,
                 "steps" => {
                     s.steps_mm = value.split('/').map(num).collect::<Result<_, _>>()?;
@@ -195,10 +209,14 @@ pub struct RunResult {
     pub case: StepCase,
     /// Its step metrics (stepinfo).
     pub metrics: StepMetrics,
-    /// Peak-to-peak output over the last fifth of the run, mm.
+    /// Limit-cycle amplitude over the last fifth of the run ([`crate::metrics::limit_cycle_mm`]: a
+    /// swing, not a drift), mm.
     pub limit_cycle_mm: f64,
     /// Largest |u| applied, counts.
     pub max_command: f64,
+    /// Why the run has no settling time, when it has none ([`StepMetrics::assess`]).
+    #[serde(skip)]
+    pub unsettled: Option<Unsettled>,
 }
 
 impl RunResult {
@@ -217,6 +235,9 @@ impl RunResult {
             w.push(format!("|e_ss| {:.3} mm > {} mm", e.abs(), spec.ess_mm));
         }
         match m.settling_time_s {
+            None if matches!(self.unsettled, Some(Unsettled::MovedAway { .. })) => {
+                w.push("moved away from the set-point".to_string())
+            }
             None => w.push(format!("not settled within {} s", spec.run_s)),
             Some(t) if t > spec.settling_s => {
                 w.push(format!("2 % settling {t:.3} s > {} s", spec.settling_s))
@@ -308,18 +329,17 @@ pub fn evaluate(
                 spec.run_s,
                 case.y0_mm,
             )?;
-            let metrics =
-                StepMetrics::of_loop(&trace.t, &trace.y, Some(&trace.u), case.y0_mm, case.r_mm)?;
+            let (metrics, unsettled) =
+                StepMetrics::assess(&trace.t, &trace.y, Some(&trace.u), case.y0_mm, case.r_mm)?;
             let tail = &trace.y[trace.len() - trace.len() / 5..];
-            let hi = tail.iter().copied().fold(f64::NEG_INFINITY, f64::max);
-            let lo = tail.iter().copied().fold(f64::INFINITY, f64::min);
             let max_command = trace.u.iter().fold(0.0f64, |a, u| a.max(u.abs()));
             Ok(RunResult {
                 plant: p,
                 case,
                 metrics,
-                limit_cycle_mm: hi - lo,
+                limit_cycle_mm: crate::metrics::limit_cycle_mm(tail),
                 max_command,
+                unsettled,
             })
         })
         .collect::<Result<Vec<_>, ControlError>>()?;
@@ -345,7 +365,11 @@ fn summarise(runs: Vec<RunResult>, spec: &Spec) -> Evaluation {
             .count(),
         overshoot_met: runs
             .iter()
-            .filter(|r| r.metrics.overshoot_percent.unwrap_or(0.0) <= spec.overshoot_percent)
+            .filter(|r| match r.metrics.overshoot_percent {
+                Some(os) => os <= spec.overshoot_percent,
+                // No step (no response) has no overshoot; a step that moved away is not judged.
+                None => !matches!(r.unsettled, Some(Unsettled::MovedAway { .. })),
+            })
             .count(),
         settling_met: runs
             .iter()
@@ -836,15 +860,24 @@ impl Evaluation {
             return w;
         }
         let pct = |k: usize| 100.0 * k as f64 / n as f64;
+        let away = self
+            .runs
+            .iter()
+            .filter(|r| matches!(r.unsettled, Some(Unsettled::MovedAway { .. })))
+            .count();
         if self.overshoot_met < n {
+            let worst = self.worst.and_then(|m| m.overshoot_percent);
             w.push(format!(
-                "not met on {what}: overshoot <= {} % in {} of {n} steps ({:.0} %); worst {:.2} %",
+                "not met on {what}: overshoot <= {} % in {} of {n} steps ({:.0} %){}{}",
                 spec.overshoot_percent,
                 self.overshoot_met,
                 pct(self.overshoot_met),
-                self.worst
-                    .and_then(|m| m.overshoot_percent)
-                    .unwrap_or(f64::NAN)
+                worst.map_or(String::new(), |os| format!("; worst {os:.2} %")),
+                if away > 0 {
+                    format!(" ({away} moved away from the set-point: no overshoot to judge)")
+                } else {
+                    String::new()
+                }
             ));
         }
         if self.settling_met < n {
@@ -887,8 +920,23 @@ impl Evaluation {
                 .count();
             w.push(format!(
                 "not met on {what}: a limit cycle larger than {} mm peak to peak in {k} of {n} steps \
-                 (largest {:.3} mm): the piston hunts around the set-point (stick-slip)",
+                 (largest {:.3} mm): the output swings back and forth at the end of the run (on an \
+                 actuator with friction, stick-slip hunting)",
                 spec.limit_cycle_mm, self.worst_limit_cycle_mm
+            ));
+        }
+        if let Some(r) = self
+            .runs
+            .iter()
+            .find(|r| matches!(r.unsettled, Some(Unsettled::MovedAway { .. })))
+        {
+            w.push(format!(
+                "on {what} the output moved away from the set-point in {away} of {n} steps (e.g. from {} \
+                 towards {} mm it ended {} mm away): the set-points may be beyond the plant's reach \
+                 or the loop's sign wrong; those steps have no overshoot, rise or settling time",
+                r.case.y0_mm,
+                r.case.r_mm,
+                fmt(r.metrics.steady_state_error_mm.unwrap_or(f64::NAN).abs())
             ));
         }
         w

@@ -21,6 +21,8 @@ pub const TUNING_SEED_OFFSET: u64 = 1000;
 pub const MAX_VARIANTS: usize = 200;
 /// Largest number of cost evaluations of a request.
 pub const MAX_EVALUATIONS: usize = 10_000;
+/// Fewest closed-loop evaluations a tuning needs (`--max-evaluations`).
+pub const MIN_EVALUATIONS: usize = 8;
 
 /// What to tune on.
 #[derive(Debug, Clone)]
@@ -182,7 +184,20 @@ fn verify(
     spec: &Spec,
 ) -> Result<Verification, ControlError> {
     let comparison = tune::compare(plants, make, settings, spec)?;
-    let warnings = comparison.tuned.spec_warnings(spec, &what);
+    let mut warnings = comparison.tuned.spec_warnings(spec, &what);
+    let (j, j_pi) = (comparison.tuned.cost, comparison.paper_pi.cost);
+    if j > j_pi || comparison.tuned.met < comparison.paper_pi.met {
+        warnings.push(format!(
+            "the tuned controller does not beat the paper's PI (Kp = 14, Ki = 1) on {what}: cost J \
+             {} against {}, whole specification met in {} against {} of {} steps; the search did not \
+             find a better controller here (widen it: --max-evaluations, or use the paper's PI)",
+            crate::trust::fmt_value(j),
+            crate::trust::fmt_value(j_pi),
+            comparison.tuned.met,
+            comparison.paper_pi.met,
+            comparison.tuned.runs.len()
+        ));
+    }
     Ok(Verification {
         plant: what,
         plants,
@@ -218,6 +233,7 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
         }
     };
     let ts = model.ts();
+    check_spec(&req.spec, ts, &twin, req.check_physics)?;
     let model_plants = |i: usize| -> Result<Box<dyn Plant + Send>, ControlError> {
         let m = tune::model_variant(&model, i, SPREAD)?;
         Ok(Box::new(
@@ -262,7 +278,12 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
     let margins = tune::margins(&model, &settings);
     let on_model = verify(
         format!(
-            "the model (nominal + {} variants)",
+            "{} (nominal + {} variants)",
+            if twin.is_some() {
+                "the twin's identified model"
+            } else {
+                "the model"
+            },
             req.search.plants.saturating_sub(1)
         ),
         req.search.plants,
@@ -299,11 +320,17 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
     if let Some(p) = &on_physics {
         warnings.extend(p.warnings.iter().cloned());
     }
-    if let Some(pm) = margins.phase_margin_deg.filter(|pm| *pm < 30.0) {
-        warnings.push(format!(
+    match margins.phase_margin_deg {
+        Some(pm) if pm < 0.0 => warnings.push(format!(
+            "the linear part's phase margin is {pm:.1}° (negative): the linear loop (the model with \
+             the deadzone's slope and this controller) is unstable"
+        )),
+        Some(pm) if pm < 30.0 => warnings.push(format!(
             "the linear part's phase margin is {pm:.1}° (< 30°): the loop is close to oscillating"
-        ));
+        )),
+        _ => {}
     }
+    warnings.splice(0..0, reach_warnings(&model, &deadzone, &req.spec));
     Ok(TuneReport {
         source: label,
         spec: req.spec.clone(),
@@ -316,4 +343,84 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
         on_physics,
         warnings,
     })
+}
+
+/// Fewest samples in one run of the specification: a run of a handful of samples has no rise or
+/// settling to measure (every step would "settle" at its first sample).
+pub const MIN_RUN_SAMPLES: f64 = 20.0;
+
+/// Refuses a specification the plants cannot run: runs shorter than [`MIN_RUN_SAMPLES`] at the model's
+/// Ts, and, when the physics plant or a twin is simulated, set-points outside its stroke 0..L (its end
+/// stops would hold the piston, and the steps would be measured from a start it cannot take).
+fn check_spec(
+    spec: &Spec,
+    ts: f64,
+    twin: &Option<ipa::PlantConfig>,
+    check_physics: bool,
+) -> Result<(), ControlError> {
+    let bad = |what: String, expected: String| {
+        ControlError::setting(crate::ControlSetting::Spec, what, &expected)
+    };
+    if spec.run_s / ts < MIN_RUN_SAMPLES {
+        return Err(bad(
+            format!("run={}", spec.run_s),
+            format!(
+                "runs of at least {MIN_RUN_SAMPLES} samples: {} s at the model's Ts = {ts} s",
+                MIN_RUN_SAMPLES * ts
+            ),
+        ));
+    }
+    let strokes = [
+        twin.as_ref().map(|c| c.cylinder.stroke_mm),
+        check_physics.then(|| ipa::PlantConfig::default().cylinder.stroke_mm),
+    ];
+    if let Some(l) = strokes.into_iter().flatten().reduce(f64::min) {
+        if spec.low_mm < 0.0 || spec.high_mm > l {
+            return Err(bad(
+                format!("low={}, high={}", spec.low_mm, spec.high_mm),
+                format!("set-points within the plant's stroke 0..{l} mm"),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Doubts about the model as a plant for `spec`: a deadzone breakpoint at or beyond ±u_max (no command
+/// moves the model that way), and set-points beyond the outputs a stable model can hold with the
+/// command at ±u_max ([`Model::held_output`]; a near-integrator has no such bound).
+fn reach_warnings(model: &Model, deadzone: &Deadzone, spec: &Spec) -> Vec<String> {
+    let mut w = Vec::new();
+    let fmt = crate::trust::fmt_value;
+    for (side, b) in [("b_r", deadzone.b_r), ("b_l", -deadzone.b_l)] {
+        if b >= spec.u_max {
+            w.push(format!(
+                "the model's deadzone {side} = {} counts is at or beyond the command limit u_max = {}: \
+                 no command moves the model {}; the steps that need it cannot be met",
+                fmt(if side == "b_l" { -b } else { b }),
+                spec.u_max,
+                if side == "b_r" { "up" } else { "down" }
+            ));
+        }
+    }
+    let u0 = model
+        .operating_point()
+        .and_then(|o| o.u.first().copied())
+        .unwrap_or(0.0);
+    let held = |u: f64| model.held_output(&[u - u0]);
+    if let (Some(a), Some(b)) = (held(-spec.u_max), held(spec.u_max)) {
+        let (lo, hi) = (a.min(b), a.max(b));
+        if spec.low_mm < lo || spec.high_mm > hi {
+            w.push(format!(
+                "the model cannot hold the set-points: with |u| <= {} counts its output rests between \
+                 {} and {} mm, and the specification's steps span {}..{} mm; its runs describe a plant \
+                 that cannot reach them",
+                spec.u_max,
+                fmt(lo),
+                fmt(hi),
+                spec.low_mm,
+                spec.high_mm
+            ));
+        }
+    }
+    w
 }

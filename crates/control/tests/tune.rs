@@ -181,6 +181,7 @@ fn run_cost_caps_each_violation() {
         },
         limit_cycle_mm: 0.0,
         max_command: 100.0,
+        unsettled: None,
     };
     let base = 1.0 + tune::SETTLING_PENALTY_S * 1.0;
     assert!((run(0.03).cost(&spec) - (base + tune::PENALTY_S * 0.5)).abs() < 1e-12);

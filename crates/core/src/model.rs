@@ -698,8 +698,36 @@ impl Model {
     /// thousands of samples), or a model with an output nonlinearity y = g(v) (its plant state holds
     /// v, which [`crate::Plant::reset`] sets from y as if g(v) = v).
     pub fn rest_output(&self) -> Option<f64> {
+        self.held_output(&vec![0.0; self.inputs.len()])
+    }
+
+    /// The output at rest with input i held at u0_i + `du[i]` (the user's units), as
+    /// [`Model::rest_output`] (which is `du` = 0): y0 + (c + Σ_i f_i(du_i)·Σ_j b_ij) / (1 + Σ a), and
+    /// `None` in the same cases, or when `du` does not give one value per input. With the command at
+    /// ±u_max it bounds the outputs a stable model can hold.
+    pub fn held_output(&self, du: &[f64]) -> Option<f64> {
+        if self.output.is_some() {
+            return None;
+        }
+        self.held_level(du)
+    }
+
+    /// The level a model plant starts from to be at rest with every input at its operating point: its
+    /// [`Model::rest_output`], or for a model with an output nonlinearity y = g(v) the resting level of
+    /// its linear part v (which [`crate::Plant::reset`] sets; the output is then g of it). `None` in the
+    /// other cases of [`Model::rest_output`].
+    pub fn rest_state(&self) -> Option<f64> {
+        self.held_level(&vec![0.0; self.inputs.len()])
+    }
+
+    /// The fixed point of the linear part, y0 + v̄ ([`Model::held_output`] without the output
+    /// nonlinearity).
+    fn held_level(&self, du: &[f64]) -> Option<f64> {
+        if du.len() != self.inputs.len() {
+            return None;
+        }
         let slowest = self.poles().iter().map(|p| p.norm()).fold(0.0, f64::max);
-        if self.output.is_some() || !slowest.is_finite() || slowest > REST_POLE_MAX {
+        if !slowest.is_finite() || slowest > REST_POLE_MAX {
             return None;
         }
         let den = 1.0 + self.a.iter().sum::<f64>();
@@ -707,7 +735,8 @@ impl Model {
             + self
                 .inputs
                 .iter()
-                .map(|ch| ch.map(0.0) * ch.b().iter().sum::<f64>())
+                .zip(du)
+                .map(|(ch, &du)| ch.map(du) * ch.b().iter().sum::<f64>())
                 .sum::<f64>();
         let v = num / den;
         let y0 = self.operating_point.as_ref().map_or(0.0, |o| o.y);

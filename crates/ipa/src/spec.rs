@@ -137,9 +137,10 @@ impl PlantSpec {
 }
 
 /// [`PlantSpec::default_y0`] of a linear or Hammerstein model already read (any number of inputs):
-/// its resting level ([`sysid_core::Model::rest_output`]), else [`MID_STROKE_Y0_MM`].
+/// the level at which it rests ([`sysid_core::Model::rest_state`]: its resting output, or the resting
+/// level of the linear part of a model with an output nonlinearity), else [`MID_STROKE_Y0_MM`].
 pub fn model_default_y0(model: &sysid_core::Model) -> f64 {
-    model.rest_output().unwrap_or(MID_STROKE_Y0_MM)
+    model.rest_state().unwrap_or(MID_STROKE_Y0_MM)
 }
 
 /// What a closed loop around a plant can be checked against ([`PlantSpec::limits`]).

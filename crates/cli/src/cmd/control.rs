@@ -92,8 +92,9 @@ pub struct Args {
     #[arg(long, value_name = "AT_S:COUNTS")]
     pub deadzone_change: Option<control::DeadzoneChange>,
     /// Run the controller of this file (written by `ipa-sysid tune --out`) instead of the PI of --kp/--ki
-    /// (its gains, anti-windup, deadzone inverse and hold band are in the file).
-    #[arg(long, value_name = "CONTROLLER.json", conflicts_with_all = ["compensate_deadzone", "adaptive", "anti_windup", "tracking_time", "integral"])]
+    /// (its gains, command limit, anti-windup, deadzone inverse and hold band are in the file, so the
+    /// flags that set them are refused beside it).
+    #[arg(long, value_name = "CONTROLLER.json", conflicts_with_all = ["compensate_deadzone", "adaptive", "anti_windup", "tracking_time", "integral", "kp", "ki", "u_max", "compensator_threshold", "compensator_slopes"])]
     pub controller: Option<PathBuf>,
     /// Write the metrics and settings as JSON to this file (`-` = standard output).
     #[arg(long, value_name = "OUT")]
@@ -536,7 +537,7 @@ fn adaptive_text(a: &AdaptiveOut) -> String {
 fn fmt_opt(v: Option<f64>, unit: &str) -> String {
     match v {
         Some(x) => format!("{} {unit}", control::trust::fmt_value(x)),
-        None => "n/a (no step)".to_string(),
+        None => "n/a (no step towards the set-point)".to_string(),
     }
 }
 
@@ -545,7 +546,7 @@ fn fmt_settling(m: &StepMetrics, run_s: f64) -> String {
     match (m.settling_time_s, m.overshoot_mm) {
         (Some(x), _) => format!("{x:.4} s"),
         (None, Some(_)) => format!("not settled within {run_s} s (see the warnings)"),
-        (None, None) => "n/a (no step)".to_string(),
+        (None, None) => "n/a (no step towards the set-point)".to_string(),
     }
 }
 
@@ -588,7 +589,12 @@ pub fn tuned_line(s: &control::ControllerSettings) -> String {
     });
     format!(
         "tuned PID Kp = {:.4}, Ki = {:.4}, Kd = {:.4} (Tf = {} s), clamping anti-windup, {comp}, hold band {} mm{nudge}, |u| <= {} counts",
-        s.kp, s.ki, s.kd, s.derivative_filter_s, s.hold_band_mm, s.u_max
+        s.kp,
+        s.ki,
+        s.kd,
+        report::format::sig(s.derivative_filter_s, 6),
+        report::format::sig(s.hold_band_mm, 6),
+        report::format::sig(s.u_max, 6)
     )
 }
 

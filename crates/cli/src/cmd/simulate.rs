@@ -80,19 +80,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     args.samples.unwrap_or(ipa::experiment::DEFAULT_SAMPLES),
                     m.ts(),
                 )?;
-                return run_plant(&args, plant);
+                return run_plant(&args, plant, None);
             }
         };
         // What validate would say of this model, said before its simulation is written.
         for w in sysid::model_file::load_warnings(&model) {
             eprintln!("warning: {}: {w}", path.display());
         }
-        if !model.is_stable() {
-            eprintln!(
-                "warning: {}: unstable model (a pole on or outside the unit circle): its simulation \
-                 diverges",
-                path.display()
-            );
+        if let Some(w) = stability_words(&model) {
+            eprintln!("warning: {}: {w}", path.display());
         }
         check_time_span(
             args.samples.unwrap_or(ipa::experiment::DEFAULT_SAMPLES),
@@ -101,12 +97,89 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         if model.inputs().len() > 1 {
             return run_miso(&args, &model, path);
         }
+        return run_plant(&args, plant, Some(&model));
     }
-    run_plant(&args, plant)
+    run_plant(&args, plant, None)
 }
 
-/// Runs the plant of `--plant` on the designed input and writes the record.
-fn run_plant(args: &Args, plant: ipa::spec::PlantSpec) -> anyhow::Result<()> {
+/// What a model's poles mean for its simulation, when it does not simply settle: unstable (a pole
+/// outside the unit circle: it diverges), an integrator (a pole at 1: its output ramps under any net
+/// input, as an actuator's position does), or a pole elsewhere on the circle (it oscillates without
+/// decay). The same tolerance as `control`'s plant check ([`ipa::PlantLimits::of_model`]).
+fn stability_words(model: &sysid::Model) -> Option<String> {
+    const ON_CIRCLE: f64 = 1e-9;
+    // (re, im, modulus) of each pole.
+    let poles: Vec<(f64, f64, f64)> = model
+        .poles()
+        .iter()
+        .map(|p| (p.re, p.im, p.norm()))
+        .collect();
+    let largest = poles.iter().map(|p| p.2).fold(0.0, f64::max);
+    if largest > 1.0 + ON_CIRCLE || largest.is_nan() {
+        return Some(format!(
+            "unstable model (a pole has modulus {largest:.6} > 1): its simulation diverges"
+        ));
+    }
+    let on: Vec<&(f64, f64, f64)> = poles.iter().filter(|p| p.2 >= 1.0 - ON_CIRCLE).collect();
+    if on.is_empty() {
+        return None;
+    }
+    Some(
+        if on
+            .iter()
+            .all(|p| (p.0 - 1.0).abs() < ON_CIRCLE && p.1.abs() < ON_CIRCLE)
+        {
+            "the model has a pole at 1 (an integrator): its output ramps under any net input, as an \
+             actuator's position does, and rests only where the input is at its operating point"
+        } else {
+            "the model has a pole on the unit circle away from 1: its simulation oscillates without \
+             decaying"
+        }
+        .to_string(),
+    )
+}
+
+/// How the record starts, in words: the level held before the start and, for a model, what its
+/// output does from there (its resting level when it has one and it differs; that a model without one
+/// may drift; the output of a model with an output nonlinearity, whose linear part holds the level).
+fn start_words(
+    y0: f64,
+    y_first: Option<f64>,
+    model: Option<&sysid::Model>,
+    chosen: bool,
+) -> String {
+    let Some(m) = model else {
+        return format!("from rest at y0 = {y0}");
+    };
+    let mut s = if m.output_nonlinearity().is_some() {
+        format!(
+            "with the linear part held at {y0} before the start (the output nonlinearity makes \
+             y(0) = {})",
+            y_first.map_or("n/a".to_string(), |y| y.to_string())
+        )
+    } else {
+        format!("from y0 = {y0} held before the start")
+    };
+    match m.rest_state() {
+        Some(rest) if (rest - y0).abs() > 1e-9 * rest.abs().max(1.0) => s += &format!(
+            "; the model rests at {rest} with the input at its operating point, so it moves towards \
+             that level"
+        ),
+        Some(_) => s += ", the model's resting level",
+        None if chosen => s += " (mid-stroke: the model has no resting level to start from, so its \
+             output may drift before the input moves)",
+        None => {}
+    }
+    s
+}
+
+/// Runs the plant of `--plant` (`model`: the model file it names, already read) on the designed
+/// input and writes the record.
+fn run_plant(
+    args: &Args,
+    plant: ipa::spec::PlantSpec,
+    model: Option<&sysid::Model>,
+) -> anyhow::Result<()> {
     let exp = Experiment {
         plant,
         plant_config: args.plant_config.clone(),
@@ -138,9 +211,10 @@ fn run_plant(args: &Args, plant: ipa::spec::PlantSpec) -> anyhow::Result<()> {
     let rec = exp.run()?;
     write_csv(&args.out, &rec)?;
     eprintln!(
-        "wrote {} samples (Ts = {} s), from rest at y0 = {y0}, to {}",
+        "wrote {} samples (Ts = {} s), {}, to {}",
         rec.u.len(),
         rec.ts,
+        start_words(y0, rec.y.first().copied(), model, args.y0.is_none()),
         args.out.display()
     );
     Ok(())
@@ -249,10 +323,11 @@ fn run_miso(args: &Args, model: &sysid::Model, model_path: &Path) -> anyhow::Res
     });
     sysid_io::write_csv(&args.out, &header, rows)?;
     eprintln!(
-        "wrote {} samples (Ts = {} s) of the {}-input model, from rest at y0 = {y0}, to {}",
+        "wrote {} samples (Ts = {} s) of the {}-input model, {}, to {}",
         y.len(),
         model.ts(),
         names.len(),
+        start_words(y0, y.first().copied(), Some(model), args.y0.is_none()),
         args.out.display()
     );
     Ok(())

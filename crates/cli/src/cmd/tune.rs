@@ -41,7 +41,8 @@ pub struct Args {
     /// Plant variants searched over (variant 0 is the nominal model or twin).
     #[arg(long, value_name = "N", default_value_t = 5)]
     pub variants: usize,
-    /// Largest number of cost evaluations of the search (each simulates every variant and step).
+    /// Largest number of cost evaluations of the search (each simulates every variant and step); 8 to
+    /// 10 000.
     #[arg(long, value_name = "N", default_value_t = 150)]
     pub max_evaluations: usize,
     /// Also verify on the built-in physics plant (with --model: for a model identified on a record of
@@ -87,6 +88,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 &format!("at most {max}")
             ));
         }
+    }
+    if args.max_evaluations < tuning::MIN_EVALUATIONS {
+        bail!(sysid::SysidError::setting(
+            sysid::Setting::Other("--max-evaluations"),
+            args.max_evaluations,
+            &format!("at least {}", tuning::MIN_EVALUATIONS)
+        ));
     }
     if args.variants == 0 {
         bail!(sysid::SysidError::setting(
@@ -137,6 +145,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         },
         check_physics: args.check_physics,
         physics_variants: args.physics_variants,
+    })
+    .map_err(|e| match e {
+        // The deadzone the compensator would invert is the model's: name the flag the user gave.
+        control::ControlError::Setting {
+            setting: control::ControlSetting::Deadzone,
+            value,
+            expected,
+        } => anyhow::Error::new(sysid::SysidError::setting(
+            sysid::Setting::Other(if args.model.is_some() {
+                "--model (its deadzone)"
+            } else {
+                "--plant-config (the twin's identified deadzone)"
+            }),
+            value,
+            &expected,
+        )),
+        e => e.into(),
     })?;
 
     let provenance = serde_json::json!({
@@ -174,8 +199,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// A table cell: `digits` decimals, or scientific notation for a diverged loop's figures (a
+/// 300-digit number helps nobody; the rule of `control::trust::fmt_value`).
 fn f(v: Option<f64>, digits: usize) -> String {
-    v.map_or("n/a".to_string(), |x| format!("{x:.digits$}"))
+    v.map_or("n/a".to_string(), |x| {
+        if x.abs() >= 1e9 {
+            control::trust::fmt_value(x)
+        } else {
+            format!("{x:.digits$}")
+        }
+    })
 }
 
 /// The Table V criteria of an evaluation: worst over its runs, and how many runs meet the spec.
@@ -189,7 +222,7 @@ fn rows(label: &str, e: &Evaluation) -> String {
         f(w.and_then(|m| m.steady_state_error_mm).map(f64::abs), 3),
         f(w.and_then(|m| m.rise_time_s), 3),
         f(w.and_then(|m| m.settling_time_s), 3),
-        format!("{:.3}", e.worst_limit_cycle_mm),
+        f(Some(e.worst_limit_cycle_mm), 3),
         e.overshoot_met,
         e.settling_met,
         e.ess_met,

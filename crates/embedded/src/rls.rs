@@ -680,7 +680,11 @@ fn ud_trace<F: Float, const N: usize>(fac: &[[F; N]; N], n: usize) -> F {
 /// 4 n² + 10 n + 1 or 3 n² + 11 n + 1.
 pub fn flops_per_update_ud(n: usize, capacity: usize) -> usize {
     let above = n * n.saturating_sub(1);
-    let resum = if capacity >= KEEP_GAINS_FROM { 0 } else { above };
+    let resum = if capacity >= KEEP_GAINS_FROM {
+        0
+    } else {
+        above
+    };
     3 * n * n + 13 * n + 2 + resum
 }
 

@@ -37,7 +37,8 @@
 //! diagonal, plus 2 per entry to sum the partial gains again when the capacity N < 8 (with N ≥ 8 the
 //! first pass keeps them). Total 4 n² + 12 n + 2 for N < 8 (114 for n = 4, 282 for n = 7) and
 //! 3 n² + 13 n + 2 for N ≥ 8 (362 for n = 9), of which n + 1 divisions.
-//! The update runs in two passes over U and copies nothing: the first only reads (f, v, α,
+//! The update runs in two passes over U and makes no copy of the factors to undo a failure (f32 with
+//! N ≤ 4 reads its 16-byte rows into a local copy, for speed): the first only reads (f, v, α,
 //! b, the new D and θ̂, every check), the second writes U, D and θ̂ only when every check passed, so a
 //! failed update leaves the state unchanged.
 //!
@@ -459,7 +460,9 @@ const KEEP_GAINS_FROM: usize = 8;
 ///    keeps them (`wsnap`, one row per column) instead of pass 2 summing them again (n(n − 1) flops
 ///    fewer; measured slower at N = 4, where pass 2 sums them).
 ///
-/// So a failed update leaves the state unchanged, without a copy of the factors.
+/// So a failed update leaves the state unchanged, without a copy of the factors made for that. (Rows
+/// of at most 16 bytes, f32 with N ≤ 4, are read by pass 1 entry by entry into a local copy, which
+/// pass 2 then reads: a speed measure, docs/benchmarks.md "Sixth round".)
 #[inline(always)]
 fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
     est: &mut Rls<F, N>,

@@ -110,7 +110,8 @@ impl<F: Float> HammersteinSettings<F> {
 ///
 /// Cost per sample ([`flops_per_sample`]): the RLS update for n parameters plus 4 + na + 2 nb flops
 /// for the deadzone from θ̂ and the regressor: 242 flops for the paper's orders with ρ < 1, 213 with
-/// ρ = 1 (UD form: 291 for either); plus D + D moves of the delay lines.
+/// ρ = 1 (UD form: 291 for either with N = 7, 249 with a capacity N ≥ 8: [`flops_per_sample_ud`]);
+/// plus D + D moves of the delay lines.
 #[derive(Debug, Clone, Copy)]
 pub struct HammersteinRls<F: Float, const N: usize, const D: usize> {
     rls: Rls<F, N>,
@@ -307,9 +308,10 @@ pub fn flops_per_sample(na: usize, nb: usize, rho_is_one: bool) -> usize {
     rls::flops_per_update(3 + na + nb, rho_is_one) + 4 + na + 2 * nb
 }
 
-/// As [`flops_per_sample`] with the UD form ([`rls::flops_per_update_ud`]).
-pub fn flops_per_sample_ud(na: usize, nb: usize, rho_is_one: bool) -> usize {
-    rls::flops_per_update_ud(3 + na + nb, rho_is_one) + 4 + na + 2 * nb
+/// As [`flops_per_sample`] with the UD form ([`rls::flops_per_update_ud`]) in a state of capacity
+/// `capacity` (the `N` of [`HammersteinRls<F, N, D>`]; the same for ρ < 1 and ρ = 1).
+pub fn flops_per_sample_ud(na: usize, nb: usize, capacity: usize) -> usize {
+    rls::flops_per_update_ud(3 + na + nb, capacity) + 4 + na + 2 * nb
 }
 
 /// Deadzone from θ = [m_r, m_r b_r, m_l, m_l b_l, ...] as `sysid` computes it: a breakpoint whose
@@ -477,9 +479,10 @@ mod tests {
     fn flops_per_sample_for_the_paper_orders() {
         assert_eq!(flops_per_sample(3, 1, false), 242);
         assert_eq!(flops_per_sample(3, 1, true), 213);
-        // UD: 4·49 + 12·7 + 2 = 282, plus the same 9.
-        assert_eq!(flops_per_sample_ud(3, 1, false), 291);
-        assert_eq!(flops_per_sample_ud(3, 1, true), 291);
+        // UD: 4·49 + 12·7 + 2 = 282 in `PaperHrls` (N = 7), 3·49 + 13·7 + 2 = 240 in the C interface's
+        // N = 19 (the partial gains kept), plus the same 9.
+        assert_eq!(flops_per_sample_ud(3, 1, 7), 291);
+        assert_eq!(flops_per_sample_ud(3, 1, 19), 249);
     }
 
     #[test]

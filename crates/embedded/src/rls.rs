@@ -33,10 +33,12 @@
 //! once, 1/α_j (d_j ← d_j · (α_(j−1) · (1/α_j)), λ_j = −f_j · (1/α_(j−1)), θ̂ += b · (1/α) ε), plus
 //! 1/ρ: n + 1 independent divisions per update (4n before issue 28's second round).
 //! Cost ([`flops_per_update_ud`]): ε 2n + 1; f = Uᵀφ n² + n; v = D f n; α 2n; b = U v n(n − 1);
-//! reciprocals n + 1; new D 3n; new θ̂ 3n; Bierman's column steps 2 per column and 4 per entry above the
-//! diagonal (2 n(n − 1)). Total 4 n² + 12 n + 2: 282 for n = 7, 434 for n = 9, of which n + 1
-//! divisions (with a capacity N ≥ 8 the first pass keeps the partial gains the column steps need, so
-//! n(n − 1) of these flops are not executed: 362 for n = 9). The update runs in two passes over U and copies nothing: the first only reads (f, v, α,
+//! reciprocals n + 1; new D 3n; new θ̂ 3n; Bierman's column steps 2 per column and 2 per entry above the
+//! diagonal, plus 2 per entry to sum the partial gains again when the capacity N < 8 (with N ≥ 8 the
+//! first pass keeps them). Total 4 n² + 12 n + 2 for N < 8 (114 for n = 4, 282 for n = 7) and
+//! 3 n² + 13 n + 2 for N ≥ 8 (362 for n = 9), of which n + 1 divisions.
+//! The update runs in two passes over U and makes no copy of the factors to undo a failure (f32 with
+//! N ≤ 4 reads its 16-byte rows into a local copy, for speed): the first only reads (f, v, α,
 //! b, the new D and θ̂, every check), the second writes U, D and θ̂ only when every check passed, so a
 //! failed update leaves the state unchanged.
 //!
@@ -270,6 +272,20 @@ macro_rules! for_columns {
     };
 }
 
+/// φ's first m entries copied one at a time, each through an opaque copy (`black_box`), or
+/// [`Error::Length`] when φ is shorter. Loaded in wide pieces, a caller's narrower stores of φ (a
+/// regressor built entry by entry) cannot be forwarded to the loads, which then wait for the stores to
+/// retire; scalar loads are always forwarded (issue 28, fifth round).
+#[inline(always)]
+fn read_regressor<F: Float, const N: usize>(phi: &[F], m: usize) -> Result<[F; N], Error> {
+    let phi = phi.get(..m).ok_or(Error::Length)?;
+    let mut buf = [F::ZERO; N];
+    for (d, s) in buf.iter_mut().zip(phi) {
+        *d = core::hint::black_box(*s);
+    }
+    Ok(buf)
+}
+
 /// The paper's eq. 12 on the leading m × m block of `p` (m = N when `FULL`, else `n`), in the operation
 /// order of the module documentation; with a finite trace bound T the guard's scaling is folded into
 /// the division by ρ (see [`Rls::with_max_trace`]). Errors before any write, so a failed update leaves
@@ -285,7 +301,8 @@ fn update_standard<F: Float, const N: usize, const FULL: bool>(
     let (theta, p) = (&mut est.theta, &mut est.p);
     // Exact-length slices: every loop below is a zip of slices of length m (for n = N a constant), so
     // there is no bounds check and nothing depends on the data but the guard's one branch.
-    let phi = phi.get(..m).ok_or(Error::Length)?;
+    let phi_buf = read_regressor::<F, N>(phi, m)?;
+    let phi = phi_buf.get(..m).ok_or(Error::Length)?;
     let theta = theta.get_mut(..m).ok_or(Error::Capacity)?;
     let p = p.get_mut(..m).ok_or(Error::Capacity)?;
     let mut pphi_buf = [F::ZERO; N];
@@ -426,6 +443,10 @@ fn symmetric_update<F: Float, const N: usize, const SCALE: bool>(
     });
 }
 
+/// The capacity N from which the UD form's first pass keeps the partial gains of Bierman's column
+/// steps (n(n − 1) flops fewer; measured slower at N = 4: docs/benchmarks.md, "Fifth round").
+const KEEP_GAINS_FROM: usize = 8;
+
 /// Bierman's UD update with forgetting on the leading m × m block (m = N when `FULL`), in the operation
 /// order of `sysid::rls_ud::RobustRls` (sums start at −0, as `Iterator::sum` of floats does); with
 /// `GUARD` the trace bound of [`Rls::with_max_trace`]. Two passes over U and nothing copied:
@@ -439,7 +460,9 @@ fn symmetric_update<F: Float, const N: usize, const SCALE: bool>(
 ///    keeps them (`wsnap`, one row per column) instead of pass 2 summing them again (n(n − 1) flops
 ///    fewer; measured slower at N = 4, where pass 2 sums them).
 ///
-/// So a failed update leaves the state unchanged, without a copy of the factors.
+/// So a failed update leaves the state unchanged, without a copy of the factors made for that. (Rows
+/// of at most 16 bytes, f32 with N ≤ 4, are read by pass 1 entry by entry into a local copy, which
+/// pass 2 then reads: a speed measure, docs/benchmarks.md "Sixth round".)
 #[inline(always)]
 fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
     est: &mut Rls<F, N>,
@@ -449,13 +472,7 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
     let (rho, max_trace) = (est.forgetting, est.max_trace);
     let m = if FULL { N } else { est.n };
     let (theta, fac) = (&mut est.theta, &mut est.p);
-    let phi_in = phi.get(..m).ok_or(Error::Length)?;
-    // φ read one entry at a time (each through an opaque copy): loaded in wide pieces, a caller's
-    // narrower stores of φ cannot be forwarded to the loads, which then wait for the stores to retire.
-    let mut phi_buf = [F::ZERO; N];
-    for (d, s) in phi_buf.iter_mut().zip(phi_in) {
-        *d = core::hint::black_box(*s);
-    }
+    let phi_buf = read_regressor::<F, N>(phi, m)?;
     let phi = phi_buf.get(..m).ok_or(Error::Length)?;
     let theta = theta.get_mut(..m).ok_or(Error::Capacity)?;
     let fac = fac.get_mut(..m).ok_or(Error::Capacity)?;
@@ -476,8 +493,11 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
     let mut b = [F::ZERO; N];
     // Whether pass 1 keeps the partial gains for pass 2 (measured faster at N = 9, slower at N = 4 in
     // f64 and the same in f32; N = 7 a tie: docs/benchmarks.md, "Fifth round"). Same values either way.
-    let keep_w = N >= 8;
+    let keep_w = N >= KEEP_GAINS_FROM;
+    let split_row_loads = core::mem::size_of::<[F; N]>() <= 16;
     let mut wsnap = [[F::ZERO; N]; N];
+    // With split row loads, the copies of U read by the first pass, for the second.
+    let mut u_old = [[F::ZERO; N]; N];
     let mut a = rho;
     for_columns!(full, m, 'col, |j| {
         let (Some(row), Some(ph), Some(fj), Some(vj), Some(aj), Some((b_col, b_rest)), Some(ws)) = (
@@ -490,6 +510,20 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
             wsnap.get_mut(j),
         ) else {
             break 'col;
+        };
+        let Some(old) = u_old.get_mut(j) else {
+            break 'col;
+        };
+        // A row of at most 16 bytes (f32, N ≤ 4) is loaded whole, by one vector load, which spans
+        // the pieces the previous update's second pass stored it in and so cannot be forwarded from
+        // them: read column j of U and d_j one entry at a time then (opaque copies, as φ).
+        let row: &[F] = if split_row_loads {
+            for (d, s) in old.iter_mut().zip(row.iter().take(j + 1)) {
+                *d = core::hint::black_box(*s);
+            }
+            old
+        } else {
+            row
         };
         let (Some(u_col), Some(dj), Some(bj)) = (row.get(..j), row.get(j), b_rest.first_mut())
         else {
@@ -568,6 +602,9 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
         ) else {
             break 'col;
         };
+        let Some(old) = u_old.get(j) else {
+            break 'col;
+        };
         let inv_prev = if j == 0 {
             inv_rho
         } else {
@@ -578,8 +615,9 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
             break 'col;
         };
         let mut col = -F::ZERO;
-        for ((u, wi), wk) in u_col.iter_mut().zip(w_col.iter_mut()).zip(kept) {
-            let uij = *u;
+        for (((u, wi), wk), uo) in u_col.iter_mut().zip(w_col.iter_mut()).zip(kept).zip(old) {
+            // The first pass's copy where it made one (the same value).
+            let uij = if split_row_loads { *uo } else { *u };
             let un = uij + if keep_w { *wk } else { *wi } * lambda;
             *u = un;
             if !keep_w {
@@ -631,11 +669,26 @@ fn ud_trace<F: Float, const N: usize>(fac: &[[F; N]; N], n: usize) -> F {
     tr
 }
 
-/// Flops of one UD-form update for `n` parameters (no guard): 4 n² + 12 n + 2, of which n + 1 are
-/// divisions, for ρ < 1 and ρ = 1 alike (the multiplication by 1/ρ = 1 is executed: it is exact and keeps
-/// the loop branch-free). Breakdown in the module documentation.
-pub fn flops_per_update_ud(n: usize, _rho_is_one: bool) -> usize {
-    4 * n * n + 12 * n + 2
+/// Flops of one UD-form update for `n` parameters in a state of capacity `capacity` (the `N` of
+/// [`Rls<F, N>`]), no guard, as the code executes them (each +, −, ×, ÷ of the source one flop): ε 2n + 1;
+/// f = Uᵀφ n² + n; v = D f n; α 2n; b = U v n(n − 1); reciprocals n + 1 (the divisions); new D 3n;
+/// new θ̂ 3n; Bierman's column steps 2 per column and 2 per entry above the diagonal, plus, for a
+/// capacity below 8, 2 more per entry to sum the partial gains again (capacity ≥ 8 keeps them from the
+/// first pass). Total 4 n² + 12 n + 2 for capacity < 8 (114 for n = N = 4, 282 for n = N = 7) and
+/// 3 n² + 13 n + 2 for capacity ≥ 8 (362 for n = N = 9; 240 for n = 7 in the C interface's N = 19),
+/// n + 1 of them divisions, for ρ < 1 and ρ = 1 alike (the multiplication by 1/ρ = 1 is executed: it is
+/// exact and keeps the loop branch-free). Not counted, as for [`flops_per_update`]: the finiteness
+/// tests x · 0 (2n + 2) and comparisons. The compiler folds 2n + 1 of the counted operations (the
+/// 1 · φ_j of f and the first addition of each sum from −0, both exact): the machine executes
+/// 4 n² + 10 n + 1 or 3 n² + 11 n + 1.
+pub fn flops_per_update_ud(n: usize, capacity: usize) -> usize {
+    let above = n * n.saturating_sub(1);
+    let resum = if capacity >= KEEP_GAINS_FROM {
+        0
+    } else {
+        above
+    };
+    3 * n * n + 13 * n + 2 + resum
 }
 
 /// Flops of one update for `n` parameters (no guard): 3.5 n² + 8.5 n + 2 for ρ < 1, 3 n² + 8 n + 1
@@ -831,9 +884,11 @@ mod tests {
         assert_eq!(flops_per_update(9, false), 362);
         assert_eq!(flops_per_update(9, true), 316);
         assert_eq!(flops_per_update(7, false), 233);
-        // UD: 4·49 + 12·7 + 2 = 282 for either ρ; 4·81 + 12·9 + 2 = 434.
-        assert_eq!(flops_per_update_ud(7, false), 282);
-        assert_eq!(flops_per_update_ud(7, true), 282);
-        assert_eq!(flops_per_update_ud(9, false), 434);
+        // UD, capacity < 8: 4·16 + 12·4 + 2 = 114, 4·49 + 12·7 + 2 = 282; capacity ≥ 8 (the partial
+        // gains kept, n(n − 1) fewer): 3·81 + 13·9 + 2 = 362, 3·49 + 13·7 + 2 = 240.
+        assert_eq!(flops_per_update_ud(4, 4), 114);
+        assert_eq!(flops_per_update_ud(7, 7), 282);
+        assert_eq!(flops_per_update_ud(9, 9), 362);
+        assert_eq!(flops_per_update_ud(7, 19), 240);
     }
 }

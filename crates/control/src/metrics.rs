@@ -126,30 +126,24 @@ impl StepMetrics {
         let ess = Some(r_mm - y_f);
         let delta = y_f - y0_mm;
         let scale = y0_mm.abs().max(y_f.abs()).max(1.0);
+        // Only the error describes a step that did not move, or moved the wrong way.
+        let error_only = StepMetrics {
+            overshoot_mm: None,
+            overshoot_percent: None,
+            steady_state_error_mm: ess,
+            rise_time_s: None,
+            settling_time_s: None,
+        };
         if delta.abs() <= 16.0 * f64::EPSILON * scale {
-            let metrics = StepMetrics {
-                overshoot_mm: None,
-                overshoot_percent: None,
-                steady_state_error_mm: ess,
-                rise_time_s: None,
-                settling_time_s: None,
-            };
             // The set-point moved away and the output never followed: a step that did not respond.
             let why = (r_mm != y0_mm).then_some(Unsettled::NoResponse);
-            return Ok((metrics, why));
+            return Ok((error_only, why));
         }
         // A set-point step whose output ended farther from r than it began (it moved the wrong way,
         // or swung past r by more than the step): no rise, overshoot or settling time describes an
         // approach that did not happen (MATLAB's stepinfo without a reference would call it clean).
         if r_mm != y0_mm && (r_mm - y_f).abs() > (r_mm - y0_mm).abs() {
-            let metrics = StepMetrics {
-                overshoot_mm: None,
-                overshoot_percent: None,
-                steady_state_error_mm: ess,
-                rise_time_s: None,
-                settling_time_s: None,
-            };
-            return Ok((metrics, Some(Unsettled::MovedAway { moved_mm: delta })));
+            return Ok((error_only, Some(Unsettled::MovedAway { moved_mm: delta })));
         }
         let d = delta.signum();
         let step = delta.abs();

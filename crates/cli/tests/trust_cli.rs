@@ -1139,6 +1139,26 @@ fn tune_on_a_model_that_cannot_reach_its_set_points_says_so() {
     );
     assert_eq!(tuned["overshoot_met"].as_u64(), Some(os_met), "{tuned}");
     assert!(said.contains("moved away from the set-point"), "{said}");
+    // Audit s9 T8: whether the tuned controller beats the paper's PI on these runs is said from the
+    // JSON's own counts and costs (fewer steps meeting the spec, or as many at a higher cost J: does
+    // not beat; more steps at a higher J: its worst runs are worse; else nothing).
+    let pi = &doc["on_model"]["paper_pi"];
+    let (met, met_pi) = (tuned["met"].as_u64().unwrap(), pi["met"].as_u64().unwrap());
+    let (j, j_pi) = (
+        tuned["cost"].as_f64().unwrap(),
+        pi["cost"].as_f64().unwrap(),
+    );
+    let loses = met < met_pi || (met == met_pi && j > j_pi);
+    assert_eq!(
+        said.contains("does not beat the paper's PI"),
+        loses,
+        "{said}"
+    );
+    assert_eq!(
+        said.contains("its worst runs are worse"),
+        !loses && j > j_pi,
+        "{said}"
+    );
 }
 
 // Audit s9 T9, H1–H3: beside --controller the flags it overrides are refused (they were ignored);

@@ -320,13 +320,7 @@ pub(crate) fn build_report(
     .paper_column(3)
     .paper_column(4);
     for (label, ps, pe, a, b) in closed_loop_rows(&st.fixed) {
-        t5.push_row([
-            label.to_string(),
-            opt(a),
-            opt(b),
-            estimate(ps),
-            estimate(pe),
-        ]);
+        t5.push_row([label.to_string(), a, b, estimate(ps), estimate(pe)]);
     }
     t5.push_row([
         // The paper's acceptance is a threshold, not a measurement: it goes into the label, so that
@@ -338,7 +332,7 @@ pub(crate) fn build_report(
         "—".into(),
     ]);
     for (label, a, b) in crate::tables::tuned_rows(st) {
-        t5.push_row([label, opt(a), opt(b), "—".into(), "—".into()]);
+        t5.push_row([label, a, b, "—".into(), "—".into()]);
     }
     let comp_text = match &st.compensated {
         Ok(m) => format!(

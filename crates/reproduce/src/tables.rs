@@ -95,7 +95,20 @@ pub(crate) fn metrics_row(label: &str, rep: &IdentifyReport) -> [String; 6] {
 }
 
 /// A Table V row: criterion, the paper's simulation and experiment values, ours on model and plant.
-pub(crate) type ClosedLoopRow = (&'static str, f64, f64, Option<f64>, Option<f64>);
+pub(crate) type ClosedLoopRow = (&'static str, f64, f64, String, String);
+
+/// A settling-time cell: the time, "not settled" for a step that moved but had not settled within
+/// the run (the rule of docs/control.md), "n/a" when there is no step (or no model run).
+pub(crate) fn settling_cell(m: Option<&control::StepMetrics>) -> String {
+    match m {
+        Some(m)
+            if m.settling_time_s.is_none() && m.steady_state_error_mm.is_some_and(|e| e != 0.0) =>
+        {
+            "not settled".into()
+        }
+        m => opt(m.and_then(|m| m.settling_time_s)),
+    }
+}
 
 pub(crate) fn closed_loop_rows(lp: &Loop) -> [ClosedLoopRow; 4] {
     let [a, b, c, d] = paper::CLOSED_LOOP;
@@ -105,30 +118,30 @@ pub(crate) fn closed_loop_rows(lp: &Loop) -> [ClosedLoopRow; 4] {
             a.0,
             a.1,
             a.2,
-            m.and_then(|m| m.overshoot_mm),
-            p.overshoot_mm,
+            opt(m.and_then(|m| m.overshoot_mm)),
+            opt(p.overshoot_mm),
         ),
         (
             b.0,
             b.1,
             b.2,
-            m.and_then(|m| m.steady_state_error_mm),
-            p.steady_state_error_mm,
+            opt(m.and_then(|m| m.steady_state_error_mm)),
+            opt(p.steady_state_error_mm),
         ),
-        (c.0, c.1, c.2, m.and_then(|m| m.rise_time_s), p.rise_time_s),
         (
-            d.0,
-            d.1,
-            d.2,
-            m.and_then(|m| m.settling_time_s),
-            p.settling_time_s,
+            c.0,
+            c.1,
+            c.2,
+            opt(m.and_then(|m| m.rise_time_s)),
+            opt(p.rise_time_s),
         ),
+        (d.0, d.1, d.2, settling_cell(m), settling_cell(Some(p))),
     ]
 }
 
 /// The "tuned controller" rows of Table V (issue 25): each criterion of the tuned controller on the
-/// model and on the plant (the paper has no such column: `None`).
-pub(crate) fn tuned_rows(st: &Study) -> Vec<(String, Option<f64>, Option<f64>)> {
+/// model and on the plant, as cells (the paper has no such column).
+pub(crate) fn tuned_rows(st: &Study) -> Vec<(String, String, String)> {
     let Ok(t) = &st.tuned else {
         return Vec::new();
     };
@@ -136,19 +149,23 @@ pub(crate) fn tuned_rows(st: &Study) -> Vec<(String, Option<f64>, Option<f64>)> 
     vec![
         (
             "tuned: overshoot (mm)".into(),
-            m.overshoot_mm,
-            p.overshoot_mm,
+            opt(m.overshoot_mm),
+            opt(p.overshoot_mm),
         ),
         (
             "tuned: e_ss (mm)".into(),
-            m.steady_state_error_mm,
-            p.steady_state_error_mm,
+            opt(m.steady_state_error_mm),
+            opt(p.steady_state_error_mm),
         ),
-        ("tuned: rise time (s)".into(), m.rise_time_s, p.rise_time_s),
+        (
+            "tuned: rise time (s)".into(),
+            opt(m.rise_time_s),
+            opt(p.rise_time_s),
+        ),
         (
             "tuned: settling time (s)".into(),
-            m.settling_time_s,
-            p.settling_time_s,
+            settling_cell(Some(m)),
+            settling_cell(Some(p)),
         ),
     ]
 }
@@ -255,22 +272,13 @@ pub(crate) fn tables_text(s: &ReproduceSettings, st: &Study) -> String {
     for (label, ps, pe, a, b) in closed_loop_rows(&st.fixed) {
         let _ = writeln!(
             o,
-            "{label:<26}{:>14}{:>14}{:>14}{:>14}",
-            opt(a),
-            opt(b),
+            "{label:<26}{a:>14}{b:>14}{:>14}{:>14}",
             estimate(ps),
             estimate(pe)
         );
     }
     for (label, a, b) in tuned_rows(st) {
-        let _ = writeln!(
-            o,
-            "{label:<26}{:>14}{:>14}{:>14}{:>14}",
-            opt(a),
-            opt(b),
-            "—",
-            "—"
-        );
+        let _ = writeln!(o, "{label:<26}{a:>14}{b:>14}{:>14}{:>14}", "—", "—");
     }
     let _ = writeln!(o, "{}", tuned_text(st));
     let _ = writeln!(
@@ -428,4 +436,29 @@ pub(crate) fn residual_table(st: &Study) -> Table {
         }
     }
     t
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn metrics(settling: Option<f64>, ess: f64) -> control::StepMetrics {
+        control::StepMetrics {
+            overshoot_mm: Some(0.2),
+            overshoot_percent: Some(0.4),
+            steady_state_error_mm: Some(ess),
+            rise_time_s: Some(0.26),
+            settling_time_s: settling,
+        }
+    }
+
+    // A step that moved and has no settling time reads "not settled" (the tuned loop on the model
+    // printed "n/a", as if there were no step); a step without a set-point change reads "n/a".
+    #[test]
+    fn an_unsettled_step_reads_not_settled() {
+        assert_eq!(settling_cell(Some(&metrics(None, 0.61))), "not settled");
+        assert_eq!(settling_cell(Some(&metrics(Some(0.3517), 0.0))), "0.3517");
+        assert_eq!(settling_cell(Some(&metrics(None, 0.0))), "n/a");
+        assert_eq!(settling_cell(None), "n/a");
+    }
 }

@@ -213,7 +213,17 @@ pub(crate) fn headline(s: &ReproduceSettings, st: &Study) -> Vec<String> {
         if met { "Yes" } else { "No" },
         loops
             .iter()
-            .map(|c| format!("{}: {}", c.id, c.status()))
+            .map(|c| {
+                let what = match c.id {
+                    "pi_overshoot" => "overshoot of the fixed step",
+                    "pi_steady_state_error" => "|e_ss| of the fixed step",
+                    "pi_changing_setpoint_steady_state_error" => {
+                        "|e_ss| at every step of the changing set-point"
+                    }
+                    id => id,
+                };
+                format!("{what}: {}", c.status())
+            })
             .collect::<Vec<_>>()
             .join("; ")
     );

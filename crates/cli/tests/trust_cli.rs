@@ -1252,3 +1252,38 @@ fn controller_files_and_their_flags_are_checked() {
         eprintln!("SKIPPED: /dev/zero is absent on this machine");
     }
 }
+
+// Audit s9 T4: a model whose deadzone breakpoint b_r = 300 counts lies beyond the command limit
+// u_max = 255 cannot be moved up by any command; `tune` says so (b_l = −40 is within reach: no word).
+#[test]
+fn tune_says_when_a_deadzone_breakpoint_is_beyond_the_command_limit() {
+    let tmp = tempfile::tempdir().unwrap();
+    std::fs::write(
+        tmp.path().join("m.json"),
+        r#"{"format": "ipa-sysid-model", "version": 2, "model": {"kind": "hammerstein", "ts": 0.01,
+        "na": 1, "nb": 1, "nk": 1, "a": [-1.0], "b": [1.0], "offset": null,
+        "deadzone": {"b_l": -40.0, "b_r": 300.0, "m_l": 0.0054, "m_r": 0.0056}}}"#,
+    )
+    .unwrap();
+    let (ok, said) = tune(
+        tmp.path(),
+        &[
+            "--model",
+            "m.json",
+            "--out",
+            "c.json",
+            "--variants",
+            "1",
+            "--max-evaluations",
+            "8",
+        ],
+    );
+    assert!(ok, "{said}");
+    assert!(
+        said.contains(
+            "deadzone b_r = 300.0000 counts is at or beyond the command limit u_max = 255"
+        ) && said.contains("no command moves the model up"),
+        "{said}"
+    );
+    assert!(!said.contains("deadzone b_l = "), "{said}");
+}

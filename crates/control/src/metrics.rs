@@ -326,8 +326,13 @@ pub const DRIFT_FRACTION: f64 = 0.1;
 /// tail is a tenth of a 3 mm band; over a 5 s run, half of it).
 pub fn still_moving(t_s: &[f64], y_mm: &[f64], band_mm: f64) -> bool {
     let n = t_s.len().min(y_mm.len());
-    tail(&y_mm[..n])
-        .is_some_and(|tail| drift(tail) * (n as f64 / tail.len() as f64) > DRIFT_FRACTION * band_mm)
+    run_drift(&y_mm[..n]).is_some_and(|d| d > DRIFT_FRACTION * band_mm)
+}
+
+/// The drift of `v` over its last [`TAIL_FRACTION`] ([`drift`]) carried on at that rate over a time as
+/// long as all of `v`; `None` when the tail is too short to tell.
+fn run_drift(v: &[f64]) -> Option<f64> {
+    tail(v).map(|tail| drift(tail) * (v.len() as f64 / tail.len() as f64))
 }
 
 /// The last [`TAIL_FRACTION`] of `v`; `None` when that is fewer than 4 samples (too short to tell).
@@ -356,10 +361,8 @@ pub const COMMAND_DRIFT_FRACTION: f64 = 0.01;
 /// flat; judging the rate, not the tail's drift, keeps a slow integrator (0.15 counts/s on 40 counts)
 /// from passing for rest on a short run.
 pub fn command_still_moving(u: &[f64]) -> bool {
-    tail(u).is_some_and(|tail| {
-        let scale = tail.iter().fold(0.0_f64, |a, v| a.max(v.abs()));
-        drift(tail) * (u.len() as f64 / tail.len() as f64) > COMMAND_DRIFT_FRACTION * scale
-    })
+    let scale = tail(u).map_or(0.0, |tail| tail.iter().fold(0.0_f64, |a, v| a.max(v.abs())));
+    run_drift(u).is_some_and(|d| d > COMMAND_DRIFT_FRACTION * scale)
 }
 
 /// The amplitude of a limit cycle in `y` (mm), e.g. the last fifth of a run: the smaller of its

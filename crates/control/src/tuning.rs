@@ -402,14 +402,17 @@ fn check_spec(
 fn reach_warnings(model: &Model, deadzone: &Deadzone, spec: &Spec) -> Vec<String> {
     let mut w = Vec::new();
     let fmt = crate::trust::fmt_value;
-    for (side, b) in [("b_r", deadzone.b_r), ("b_l", -deadzone.b_l)] {
-        if b >= spec.u_max {
+    // (name, breakpoint, the command magnitude it needs, the way it moves the model)
+    for (side, b, needs, way) in [
+        ("b_r", deadzone.b_r, deadzone.b_r, "up"),
+        ("b_l", deadzone.b_l, -deadzone.b_l, "down"),
+    ] {
+        if needs >= spec.u_max {
             w.push(format!(
                 "the model's deadzone {side} = {} counts is at or beyond the command limit u_max = {}: \
-                 no command moves the model {}; the steps that need it cannot be met",
-                fmt(if side == "b_l" { -b } else { b }),
-                spec.u_max,
-                if side == "b_r" { "up" } else { "down" }
+                 no command moves the model {way}; the steps that need it cannot be met",
+                fmt(b),
+                spec.u_max
             ));
         }
     }

@@ -19,23 +19,17 @@ fn main() {
     }
     if let Some(n) = s.nudge.as_mut() {
         let env = |k: &str| std::env::var(k).ok().map(|v| v.parse::<f64>().unwrap());
-        if let Some(g) = env("GAMMA") {
-            n.cut_fraction = g;
-        }
-        if let Some(g) = env("BAND") {
-            n.band_mm = g;
-        }
-        if let Some(g) = env("RHO") {
-            n.ramp_counts_s = g;
-        }
-        if let Some(g) = env("BETA") {
-            n.start_fraction = g;
-        }
-        if let Some(g) = env("MINRHO") {
-            n.min_ramp_counts_s = g;
-        }
-        if let Some(g) = env("CUTBAND") {
-            n.cut_band_mm = g;
+        for (key, field) in [
+            ("GAMMA", &mut n.cut_fraction),
+            ("BAND", &mut n.band_mm),
+            ("RHO", &mut n.ramp_counts_s),
+            ("BETA", &mut n.start_fraction),
+            ("MINRHO", &mut n.min_ramp_counts_s),
+            ("CUTBAND", &mut n.cut_band_mm),
+        ] {
+            if let Some(v) = env(key) {
+                *field = v;
+            }
         }
     }
     let spec = Spec::default();

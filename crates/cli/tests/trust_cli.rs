@@ -1089,23 +1089,11 @@ fn tune_says_when_the_specification_is_far_outside_the_models_data() {
     std::fs::write(tmp.path().join("volts.csv"), csv).unwrap();
     let o = bin()
         .current_dir(tmp.path())
-        .args([
-            "identify",
-            "--data",
-            "volts.csv",
-            "--structure",
-            "hammerstein",
-            "--method",
-            "ls",
-            "--na",
-            "1",
-            "--nb",
-            "1",
-            "--nk",
-            "1",
-            "--save-model",
-            "m.json",
-        ])
+        .args(
+            "identify --data volts.csv --structure hammerstein --method ls --na 1 --nb 1 --nk 1 \
+             --save-model m.json"
+                .split_whitespace(),
+        )
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -1122,16 +1110,9 @@ fn tune_says_when_the_specification_is_far_outside_the_models_data() {
     assert_eq!(range["u"][0][1].as_f64(), Some(uhi), "{range}");
     assert_eq!(range["y"][0].as_f64(), Some(ylo), "{range}");
     assert_eq!(range["y"][1].as_f64(), Some(yhi), "{range}");
-    let base = [
-        "--model",
-        "m.json",
-        "--out",
-        "c.json",
-        "--variants",
-        "1",
-        "--max-evaluations",
-        "16",
-    ];
+    let base: Vec<&str> = "--model m.json --out c.json --variants 1 --max-evaluations 16"
+        .split_whitespace()
+        .collect();
     let (ok, said) = tune(tmp.path(), &base);
     assert!(ok, "{said}");
     let u_ratio = 255.0 / ulo.abs().max(uhi.abs());

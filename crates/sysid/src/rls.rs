@@ -54,8 +54,10 @@ pub struct Rls {
 /// embedded estimator of whichever size.
 macro_rules! states {
     ($($v:ident $n:literal)*) => {
-        /// The state of an [`Rls`]: the embedded estimator compiled for n, or the heap loop.
+        /// The state of an [`Rls`]: the embedded estimator compiled for n, or the heap loop. Every
+        /// variant is held inline (at most 2.2 kB, n = 16): the update reads it without an indirection.
         #[derive(Debug, Clone)]
+        #[allow(clippy::large_enum_variant)]
         enum State {
             $(
                 #[doc = concat!("n = ", stringify!($n), ".")]

@@ -33,6 +33,10 @@ pub const RISE_LOW: f64 = 0.1;
 pub const RISE_HIGH: f64 = 0.9;
 /// Settling band: 2 % of the step.
 pub const SETTLING_BAND: f64 = 0.02;
+/// The fewest samples a step needs for its rise, overshoot and settling time to be judged: its last
+/// fifth (the tail the rest tests read) is then at least 4 samples. A shorter step has only its error
+/// ([`Unsettled::TooShort`]); `tune` refuses runs shorter than this.
+pub const MIN_STEP_SAMPLES: usize = 20;
 
 /// Step-response metrics of one step (the JSON `metrics` object of `ipa-sysid control`).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -144,6 +148,11 @@ impl StepMetrics {
         // approach that did not happen (MATLAB's stepinfo without a reference would call it clean).
         if r_mm != y0_mm && (r_mm - y_f).abs() > (r_mm - y0_mm).abs() {
             return Ok((error_only, Some(Unsettled::MovedAway { moved_mm: delta })));
+        }
+        // Audit s10 F3: an 11-sample step still rising 3.5 mm per sample, 122 mm short, had a
+        // "settling time": its tail was 2 samples, too few to see the motion.
+        if n < MIN_STEP_SAMPLES {
+            return Ok((error_only, Some(Unsettled::TooShort { samples: n })));
         }
         let d = delta.signum();
         let step = delta.abs();
@@ -257,6 +266,12 @@ pub enum Unsettled {
     MovedAway {
         /// y_f − y0, mm.
         moved_mm: f64,
+    },
+    /// The step has fewer than [`MIN_STEP_SAMPLES`] samples: too short to tell a rise, an overshoot
+    /// or a settling from a response cut off while it still moves.
+    TooShort {
+        /// The step's number of samples.
+        samples: usize,
     },
 }
 
@@ -476,18 +491,20 @@ mod tests {
     use super::*;
 
     // A staircase run: r steps 0 -> 10 at t = 1 s and 10 -> 4 at t = 2 s, y follows r exactly one sample
-    // late. Hand-derived: the first segment (y at 0, r = 0) has no step, the second rises 0 -> 10 within one
-    // sample (0.1 s) and the third falls 10 -> 4 the same way; each has no overshoot and zero final error.
-    // worst-step takes the largest of each field; a fixed profile measures from y(0) towards r.
+    // late (Ts = 0.02 s, 50 samples per level, at least MIN_STEP_SAMPLES). Hand-derived: the first segment
+    // (y at 0, r = 0) has no step, the second rises 0 -> 10 within one sample and the third falls 10 -> 4
+    // the same way; each has no overshoot and zero final error. worst-step takes the largest of each
+    // field; a fixed profile measures from y(0) towards r.
     #[test]
     fn run_metrics_picks_fixed_or_worst_step() {
-        let t: Vec<f64> = (0..30).map(|k| k as f64 * 0.1).collect();
+        let n = 150;
+        let t: Vec<f64> = (0..n).map(|k| k as f64 * 0.02).collect();
         let r: Vec<f64> = t
             .iter()
             .map(|&t| {
-                if t < 0.95 {
+                if t < 0.99 {
                     0.0
-                } else if t < 1.95 {
+                } else if t < 1.99 {
                     10.0
                 } else {
                     4.0
@@ -495,11 +512,11 @@ mod tests {
             })
             .collect();
         let mut y = vec![0.0];
-        y.extend_from_slice(&r[..29]);
+        y.extend_from_slice(&r[..n - 1]);
         let trace = Trace {
             t: t.clone(),
             r,
-            u: vec![0.0; 30],
+            u: vec![0.0; n],
             y,
         };
         let stairs = crate::Profile::Staircase {
@@ -858,15 +875,40 @@ mod tests {
         assert!(StepMetrics::compute(&[0.0, 0.0], &[0.0, 1.0], 0.0, 1.0).is_err());
     }
 
+    // Audit s10 F3: a step of fewer than MIN_STEP_SAMPLES samples has only its error, whatever its
+    // shape: a ramp cut off after 19 samples (still rising 1 mm per sample, 81 mm short) had a
+    // settling time. With 20 samples the same ramp is judged, and found still moving.
+    #[test]
+    fn a_step_too_short_to_judge_has_only_its_error() {
+        let ramp = |n: usize| -> (Vec<f64>, Vec<f64>) {
+            (
+                (0..n).map(|k| k as f64 * 0.01).collect(),
+                (0..n).map(|k| k as f64).collect(),
+            )
+        };
+        let (t, y) = ramp(MIN_STEP_SAMPLES - 1);
+        let (m, why) = StepMetrics::assess(&t, &y, None, 0.0, 100.0).unwrap();
+        assert_eq!(why, Some(Unsettled::TooShort { samples: 19 }));
+        assert_eq!(m.steady_state_error_mm, Some(100.0 - 18.0));
+        assert!(m.rise_time_s.is_none() && m.settling_time_s.is_none() && m.overshoot_mm.is_none());
+        let (t, y) = ramp(MIN_STEP_SAMPLES);
+        let (m, why) = StepMetrics::assess(&t, &y, None, 0.0, 100.0).unwrap();
+        assert_eq!(why, Some(Unsettled::Moving));
+        assert!(m.rise_time_s.is_some() && m.settling_time_s.is_none());
+    }
+
     #[test]
     fn staircase_trace_splits_into_one_segment_per_level() {
-        // r = 1 for 3 samples then 3 for 3 samples; y jumps to r one sample late: each segment is a step of
-        // 1 then 2 mm with zero error, from y0 = y at the change.
+        // r = 1 for 20 samples then 3 for 20 samples (t = k s); y jumps to r one sample late: each segment
+        // is a step of 1 then 2 mm with zero error, from y0 = y at the change.
+        let r: Vec<f64> = (0..40).map(|k| if k < 20 { 1.0 } else { 3.0 }).collect();
+        let mut y = vec![0.0];
+        y.extend_from_slice(&r[..39]);
         let trace = Trace {
-            t: vec![0.0, 1.0, 2.0, 3.0, 4.0, 5.0],
-            r: vec![1.0, 1.0, 1.0, 3.0, 3.0, 3.0],
-            u: vec![0.0; 6],
-            y: vec![0.0, 1.0, 1.0, 1.0, 3.0, 3.0],
+            t: (0..40).map(f64::from).collect(),
+            r,
+            u: vec![0.0; 40],
+            y,
         };
         let segs = metrics_for_steps(&trace).unwrap();
         assert_eq!(segs.len(), 2);
@@ -881,9 +923,9 @@ mod tests {
                 segs[1].y0_mm,
                 segs[1].setpoint_mm
             ),
-            (3.0, 5.0, 1.0, 3.0)
+            (20.0, 39.0, 1.0, 3.0)
         );
-        // Segment 2: z = 0, 2, 2 -> 10 % at t = 3.1, 90 % at t = 3.9: t_r = 0.8 s.
+        // Segment 2: z = 0, 2, 2, ... -> 10 % at t = 20.1, 90 % at t = 20.9: t_r = 0.8 s.
         assert!((segs[1].metrics.rise_time_s.unwrap() - 0.8).abs() < 1e-12);
         assert_eq!(segs[1].metrics.steady_state_error_mm, Some(0.0));
     }

@@ -178,6 +178,12 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
                 fmt_value(m.steady_state_error_mm.unwrap_or(f64::NAN).abs()),
                 fmt_mm((s.setpoint_mm - s.y0_mm).abs())
             )),
+            Some(Unsettled::TooShort { samples }) => w.push(format!(
+                "{head} is too short to judge: {samples} samples (at least {} are needed), so it has \
+                 no rise, overshoot or settling time (null) and its error of {ess} mm is where the \
+                 run stopped, not a steady state (run longer: --duration, or hold each set-point longer)",
+                crate::metrics::MIN_STEP_SAMPLES
+            )),
             Some(Unsettled::NoResponse) => w.push(format!(
                 "{head} had no response: the output stayed at y0 = {} mm while the set-point moved \
                  {} mm away (friction holds the piston, or the command is too small to open a valve), \

@@ -358,7 +358,7 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
 
 /// Fewest samples in one run of the specification: a run of a handful of samples has no rise or
 /// settling to measure (every step would "settle" at its first sample).
-pub const MIN_RUN_SAMPLES: f64 = 20.0;
+pub const MIN_RUN_SAMPLES: f64 = crate::metrics::MIN_STEP_SAMPLES as f64;
 
 /// Refuses a specification the plants cannot run: runs shorter than [`MIN_RUN_SAMPLES`] at the model's
 /// Ts, and, when the physics plant or a twin is simulated, set-points outside its stroke 0..L (its end

@@ -195,7 +195,8 @@ pub(crate) fn build_report(
         "poles",
     ])
     .caption(
-        "The paper's Table IV: validation record, free-run fit % (eq. 13), loss V = (1/N) Σ ½ ε² (eq. 14) and FPE (eq. 15) of \
+        "The paper's Table IV: validation record, free-run fit % (eq. 13; the worse of estimated and measured initial \
+         outputs, so that an initial state cannot flatter it), loss V = (1/N) Σ ½ ε² (eq. 14) and FPE (eq. 15) of \
          the one-step equation errors (every model, so that the column compares), and the simulation-error loss \
          (1/N) Σ ½ (y − ŷ_sim)² apart",
     );

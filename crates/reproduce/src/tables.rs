@@ -82,7 +82,7 @@ pub(crate) fn metrics_row(label: &str, rep: &IdentifyReport) -> [String; 6] {
     let v = rep.metrics.validation.as_ref();
     [
         label.to_string(),
-        opt(v.and_then(|m| m.fit_sim_percent)),
+        opt(v.and_then(sysid::trust::guarded_fit)),
         opt(v.map(|m| m.loss)),
         opt(v.and_then(|m| m.loss_sim)),
         opt(v.and_then(|m| m.fpe)),

@@ -115,6 +115,29 @@ fn estimation_metrics(fit: &Fitted, est_data: &[Dataset]) -> Result<Metrics, Sys
     }
 }
 
+/// The fit's warnings with those about its estimation record's figures judged on `est`, the metrics of
+/// the model on `est_data` (the records as reported): a poor simulation, a flattering initial state,
+/// and, for one record, a fit far below the plain ARX-LS baseline on it.
+fn estimation_warnings_on(
+    fit: &Fitted,
+    settings: &Identification,
+    est_data: &[Dataset],
+    est: &Metrics,
+) -> Vec<String> {
+    let on_record = match est_data {
+        [one] => baseline_warning(Record::Estimation, fit, settings, est_data, one, est),
+        _ => None,
+    };
+    fit.warnings
+        .iter()
+        .filter(|w| w.record() != Some(Record::Estimation))
+        .cloned()
+        .chain(metric_warnings(Record::Estimation, est))
+        .chain(on_record)
+        .map(|w| w.to_string())
+        .collect()
+}
+
 /// Metrics and residual analysis of a model on one of several estimation records.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct RecordReport {
@@ -172,6 +195,11 @@ impl IdentifyReport {
         max_lag: usize,
     ) -> Result<Self, SysidError> {
         let m = &fit.model;
+        // Metrics not kept by the identification are of another record than the one the fit's
+        // safeguards judged (a record put back in the user's units after `--detrend linear`, whose
+        // drift the model does not carry): the warnings about the estimation figures are judged again
+        // on the figures reported.
+        let rejudge = fit.estimation_metrics(est_data).is_none();
         let est = estimation_metrics(fit, est_data)?;
         let val = val_data.map(|v| metrics(m, v)).transpose()?;
         let (estimation, records) = match est_data {
@@ -205,6 +233,12 @@ impl IdentifyReport {
         };
         let mut report = Self::from_parts(fit, settings, est, val, residuals);
         report.records = records;
+        if rejudge {
+            let later = report.warnings.split_off(fit.warnings.len());
+            report.warnings =
+                estimation_warnings_on(fit, settings, est_data, &report.metrics.estimation);
+            report.warnings.extend(later);
+        }
         report.warnings.extend(below.map(|w| w.to_string()));
         Ok(report)
     }

@@ -276,6 +276,18 @@ impl std::fmt::Display for Warning {
 }
 
 impl Warning {
+    /// The record whose figures this warning judges, for the warnings made from a record's metrics
+    /// (a poor simulation, a flattering initial state, a fit below the baseline); `None` for the others
+    /// (they are about the model or the estimation itself).
+    pub fn record(&self) -> Option<Record> {
+        match self {
+            Warning::PoorSimulation { record, .. }
+            | Warning::Trust(Concern::InitialStateFlatters { record, .. })
+            | Warning::Trust(Concern::BelowBaseline { record, .. }) => Some(*record),
+            _ => None,
+        }
+    }
+
     /// Whether this warning already says why the parameter named `param` (as in a several-input
     /// parameter list: `b_l (u1)`) has no standard deviation: a breakpoint warning naming it, or the
     /// linear start returned by the fallback (its breakpoints are fixed at 0 and its B/b1 not estimated

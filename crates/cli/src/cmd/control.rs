@@ -534,10 +534,20 @@ fn adaptive_text(a: &AdaptiveOut) -> String {
     text
 }
 
-fn fmt_opt(v: Option<f64>, unit: &str) -> String {
+fn fmt_opt(v: Option<f64>, unit: &str, m: &StepMetrics) -> String {
     match v {
         Some(x) => format!("{} {unit}", control::trust::fmt_value(x)),
-        None => "n/a (no step towards the set-point)".to_string(),
+        None => no_metric(m).to_string(),
+    }
+}
+
+/// Why a step metric is missing: no step at all (the set-point was where the output rested), or a
+/// step the warnings describe (too short to judge, moved away, no response).
+fn no_metric(m: &StepMetrics) -> &'static str {
+    if m.steady_state_error_mm.is_some_and(|e| e != 0.0) {
+        "n/a (see the warnings)"
+    } else {
+        "n/a (no step towards the set-point)"
     }
 }
 
@@ -546,7 +556,7 @@ fn fmt_settling(m: &StepMetrics, run_s: f64) -> String {
     match (m.settling_time_s, m.overshoot_mm) {
         (Some(x), _) => format!("{x:.4} s"),
         (None, Some(_)) => format!("not settled within {run_s} s (see the warnings)"),
-        (None, None) => "n/a (no step towards the set-point)".to_string(),
+        (None, None) => no_metric(m).to_string(),
     }
 }
 
@@ -646,16 +656,25 @@ fn summary_text(
         "worst step (field-wise)"
     };
     o += &format!("{heading}:\n");
-    o += &format!(
-        "  overshoot            {} ({} of the step)\n",
-        fmt_opt(m.overshoot_mm, "mm"),
-        fmt_opt(m.overshoot_percent, "%")
-    );
+    o += &match (m.overshoot_mm, m.overshoot_percent) {
+        (Some(_), Some(_)) => format!(
+            "  overshoot            {} ({} of the step)\n",
+            fmt_opt(m.overshoot_mm, "mm", m),
+            fmt_opt(m.overshoot_percent, "%", m)
+        ),
+        _ => format!(
+            "  overshoot            {}\n",
+            fmt_opt(m.overshoot_mm, "mm", m)
+        ),
+    };
     o += &format!(
         "  steady-state error   {}\n",
-        fmt_opt(m.steady_state_error_mm, "mm")
+        fmt_opt(m.steady_state_error_mm, "mm", m)
     );
-    o += &format!("  rise time 10-90 %    {}\n", fmt_opt(m.rise_time_s, "s"));
+    o += &format!(
+        "  rise time 10-90 %    {}\n",
+        fmt_opt(m.rise_time_s, "s", m)
+    );
     o += &format!("  settling time 2 %    {}\n", fmt_settling(m, duration));
     if steps.len() > 1 {
         o += "steps:\n    start_s   r_mm      y0_mm     OS_%      e_ss_mm   t_r_s     t_s_s\n";

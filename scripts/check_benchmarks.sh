@@ -26,13 +26,13 @@ us() { jq -r "$1 * 1e6 | . * 10 | round / 10" "$tmp/id.json"; }
 # Wall clock (best run), then the CPU time of the timing thread (best run), which the load inflates less.
 row "bench identify: Hammerstein 2000 samples, LS (key-term)" \
     "$(us .ls.seconds_per_identification) µs, CPU $(us .ls.cpu_seconds_per_identification) µs" \
-    "CPU 205–207 µs (26 Nov 08:40, load 3–5; main 250–253 µs then); 168 µs (Results table, estimator only); 686 µs (Python section)"
+    "CPU 196–198 µs (26 Nov 10:52, load 5–8; main 208–212 µs then); 168 µs (Results table, estimator only); 686 µs (Python section)"
 row "bench identify: Hammerstein 2000 samples, RLS" \
     "$(us .rls.seconds_per_identification) µs, CPU $(us .rls.cpu_seconds_per_identification) µs" \
-    "CPU 379–388 µs (26 Nov 08:40, load 3–5, 3 passes; main 431–440 µs then); 239 µs (Results table, 1 pass); 785 µs (Python section)"
+    "CPU 344–348 µs (26 Nov 10:52, load 5–8, 3 passes; main 390–392 µs then); 239 µs (Results table, 1 pass); 785 µs (Python section)"
 row "bench identify: Hammerstein 2000 samples, RLS, 1 pass" \
     "$(us .rls_one_pass.seconds_per_identification) µs, CPU $(us .rls_one_pass.cpu_seconds_per_identification) µs" \
-    "CPU 314–323 µs (26 Nov 08:40, load 3–5, with safeguards; main 364–372 µs then); 239 µs (Results table, estimator only)"
+    "CPU 292–296 µs (26 Nov 10:52, load 5–8, with safeguards; main 318–323 µs then); 239 µs (Results table, estimator only)"
 
 if [ -f "$DATA/silverbox/SNLS80mV.csv" ] && [ -f "$DATA/emps/DATA_EMPS.csv" ]; then
     # The whole identify command, as the OE table times it (wall clock, best of 3).

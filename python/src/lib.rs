@@ -1001,7 +1001,7 @@ impl PyRls {
     /// ρ: the forgetting factor.
     #[getter]
     fn forgetting(&self) -> f64 {
-        self.inner.forgetting
+        self.inner.forgetting()
     }
 
     /// Number of updates applied so far.
@@ -1013,7 +1013,7 @@ impl PyRls {
     /// θ̂: the current estimate (a copy, float64 array of n).
     #[getter]
     fn theta<'py>(&self, py: Python<'py>) -> Bound<'py, PyArray1<f64>> {
-        PyArray1::from_slice(py, self.inner.theta.as_slice())
+        PyArray1::from_slice(py, self.inner.theta())
     }
 
     /// P: the n × n matrix proportional to the covariance of θ̂ (a copy).
@@ -1100,7 +1100,7 @@ impl PyRls {
 
     /// Restarts P at p0 · I, keeping θ̂ (a new pass over the data).
     fn restart_covariance(&mut self, p0: f64) -> PyResult<()> {
-        sysid::rls::check_settings(self.inner.forgetting, p0).map_err(sysid_err)?;
+        sysid::rls::check_settings(self.inner.forgetting(), p0).map_err(sysid_err)?;
         self.inner.restart_covariance(p0);
         Ok(())
     }
@@ -1109,7 +1109,7 @@ impl PyRls {
         format!(
             "Rls(n={}, forgetting={}, samples={})",
             self.inner.n_params(),
-            self.inner.forgetting,
+            self.inner.forgetting(),
             self.samples
         )
     }

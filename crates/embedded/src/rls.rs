@@ -7,7 +7,8 @@
 //! P(k) = [P(k−1) − L(k) φᵀ(k) P(k−1)] / ρ             (12)
 //! ```
 //!
-//! The operations and their order are those of `sysid::rls::Rls::update` (and its reference loop):
+//! `sysid::rls::Rls` (and so `identify --method rls`, `track`) runs this update for n ≤ 16 (f64, capacity
+//! N = n); its textbook reference loop `sysid::rls::ReferenceRls` does the same operations in the same order:
 //! ε = ((y − φ₀θ₀) − φ₁θ₁) − …; (Pφ)_i = Σ_j P_ij φ_j for j = 0, 1, …; ρ + Σ φ_i (Pφ)_i; 1/(ρ + φᵀPφ);
 //! L̃_i = (Pφ)_i · (1/(ρ + φᵀPφ)); θ̂_i += L̃_i ε; P_ij ← (P_ij − (Pφ)_min(i,j) L̃_max(i,j)) · (1/ρ), the
 //! scaling skipped for ρ = 1. So with f64 the results are bit-for-bit those of `sysid`, and P stays
@@ -172,6 +173,24 @@ impl<F: Float, const N: usize> Rls<F, N> {
                 *v = if i == j && i < self.n { p0 } else { F::ZERO };
             }
         }
+    }
+
+    /// Restarts at θ̂ = the first n entries of `theta` and P = p0 · I (U = I, D = p0 I in the UD form),
+    /// p0 becoming the scale of later [`Rls::restart_covariance`] calls: a new RLS pass over a record
+    /// from the previous pass's estimate (`identify --passes`). Errors (the state is then unchanged):
+    /// [`Error::Setting`] for p0 not positive and finite, [`Error::Length`] when `theta` has fewer than
+    /// n entries.
+    pub fn restart_at(&mut self, theta: &[F], p0: F) -> Result<(), Error> {
+        if !(p0.is_finite() && p0 > F::ZERO) {
+            return Err(Error::Setting);
+        }
+        let src = theta.get(..self.n).ok_or(Error::Length)?;
+        for (t, s) in self.theta.iter_mut().zip(src) {
+            *t = *s;
+        }
+        self.p0 = p0;
+        self.restart_covariance();
+        Ok(())
     }
 
     /// n: the number of parameters in use.
@@ -720,6 +739,31 @@ mod tests {
         assert!((est.p(0, 1) - (-8.0 / d)).abs() < 1e-15);
         assert!((est.p(1, 1) - (2.0 - 16.0 / d)).abs() < 1e-15);
         assert_eq!(est.p(0, 1), est.p(1, 0));
+    }
+
+    // A restart at θ̂ = (1, −2) with p0 = 3 sets exactly that state in both forms (P = 3 I), and a later
+    // covariance restart uses the new p0; bad settings and a short θ̂ are refused, state unchanged.
+    #[test]
+    fn restart_at_sets_the_estimate_and_the_covariance_scale() {
+        for form in [Form::Standard, Form::Ud] {
+            let mut est = Rls::<f64, 3>::new(2, 1.0, 100.0).unwrap().with_form(form);
+            est.update(&[1.0, 2.0], 5.0).unwrap();
+            est.restart_at(&[1.0, -2.0], 3.0).unwrap();
+            assert_eq!(est.theta(), &[1.0, -2.0, 0.0]);
+            for (i, j) in [(0, 0), (0, 1), (1, 0), (1, 1)] {
+                assert_eq!(est.p(i, j), if i == j { 3.0 } else { 0.0 });
+            }
+            est.update(&[1.0, 2.0], 5.0).unwrap();
+            est.restart_covariance();
+            assert_eq!(est.p(1, 1), 3.0);
+            let before = est;
+            assert_eq!(est.restart_at(&[1.0], 3.0).unwrap_err(), Error::Length);
+            assert_eq!(
+                est.restart_at(&[1.0, 1.0], f64::NAN).unwrap_err(),
+                Error::Setting
+            );
+            assert_eq!(est.theta(), before.theta());
+        }
     }
 
     // With ρ = 0.5 and φ = 1 (n = 1): P(1) = (p0 − p0²/(ρ + p0)) / ρ = p0 / (ρ + p0) (hand-derived):

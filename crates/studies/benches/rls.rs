@@ -1,5 +1,5 @@
 //! Criterion benchmark of one RLS update (paper eqs. 9–12) for n = 4, 9 and 16 parameters: the fast
-//! heap estimator `Rls::update`, the array-backed `RlsN<N>` and the plain reference loop.
+//! heap estimator `Rls::update`, the array-backed `RlsN<N>` and the plain reference loop `ReferenceRls`.
 //! Run with `cargo bench -p sysid --bench rls` (not part of the tests).
 
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
@@ -8,7 +8,7 @@ use std::hint::black_box;
 
 use criterion::{criterion_group, criterion_main, BenchmarkId, Criterion, Throughput};
 use rand::Rng;
-use sysid::rls::{Rls, RlsN};
+use sysid::rls::{ReferenceRls, Rls, RlsN};
 use sysid_studies::rng::SplitMix64;
 
 const RING: usize = 1024;
@@ -69,13 +69,13 @@ fn rls_update(c: &mut Criterion) {
             })
         });
         g.bench_function(BenchmarkId::new("reference", n), |b| {
-            let mut est = Rls::new(n, 0.99, 1e3).expect("valid settings");
+            let mut est = ReferenceRls::new(n, 0.99, 1e3).expect("valid settings");
             let mut k = 0;
             b.iter(|| {
                 let i = k % RING;
                 k += 1;
                 black_box(
-                    est.update_reference(black_box(&phi[i * n..i * n + n]), y[i], k)
+                    est.update(black_box(&phi[i * n..i * n + n]), y[i], k)
                         .expect("well-posed data"),
                 )
             })

@@ -15,7 +15,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::rng::SplitMix64;
 use sysid::data::Signals;
-use sysid::rls::{flops_per_update, Rls, RlsN};
+use sysid::rls::{flops_per_update, ReferenceRls, Rls, RlsN};
 use sysid::{identify, Estimator, Identification, Method};
 use sysid::{Dataset, Model, ModelKind, ModelPlant, Plant, SysidError};
 
@@ -144,7 +144,7 @@ pub struct RlsBench {
     pub ns_per_update: f64,
     /// Updates per second of the array-backed [`RlsN`] (n ≤ [`sysid::rls::MAX_FIXED`] only), best run.
     pub fixed_samples_per_second: Option<f64>,
-    /// Updates per second of the plain loop [`Rls::update_reference`], best run.
+    /// Updates per second of the plain loop [`ReferenceRls`], best run.
     pub reference_samples_per_second: f64,
     /// Flops per update ([`flops_per_update`]).
     pub flops_per_update: f64,
@@ -207,13 +207,13 @@ pub fn bench_rls(
         for (k, (row, yk)) in rows().enumerate() {
             black_box(est.update(black_box(row), yk, k)?);
         }
-        black_box(&est.theta);
+        black_box(est.theta());
         Ok::<(), SysidError>(())
     })?;
     let reference = time_it(repetitions, samples, || {
-        let mut est = Rls::new(params, forgetting, 1e3)?;
+        let mut est = ReferenceRls::new(params, forgetting, 1e3)?;
         for (k, (row, yk)) in rows().enumerate() {
-            black_box(est.update_reference(black_box(row), yk, k)?);
+            black_box(est.update(black_box(row), yk, k)?);
         }
         black_box(&est.theta);
         Ok::<(), SysidError>(())

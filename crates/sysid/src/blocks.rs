@@ -223,6 +223,29 @@ pub trait Block: Sync {
     /// Fills `out` (one entry per key term) with the regressors at the command u, the switching of the
     /// current estimate `f`.
     fn fill_key_terms(&self, f: &StaticNonlinearity, u: f64, out: &mut [f64]);
+    /// The key-term columns of the rows at the commands `u` (one row per command), the values of
+    /// [`Block::fill_key_terms`]: key term t of row q goes to `out[t · stride + q]`. Returns true when
+    /// every value written equals, to the bit, what `out` held there. (One call per record instead of
+    /// one per row: inside, [`Block::fill_key_terms`] is the kind's own, inlined.)
+    fn fill_key_columns(
+        &self,
+        f: &StaticNonlinearity,
+        u: &[f64],
+        out: &mut [f64],
+        stride: usize,
+    ) -> bool {
+        let mut key = vec![0.0; self.key_names().len()];
+        let mut unchanged = true;
+        for (q, &uq) in u.iter().enumerate() {
+            self.fill_key_terms(f, uq, &mut key);
+            for (t, v) in key.iter().enumerate() {
+                let d = &mut out[t * stride + q];
+                unchanged &= d.to_bits() == v.to_bits();
+                *d = *v;
+            }
+        }
+        unchanged
+    }
     /// The nonlinearity from estimated key terms `key`; a parameter they do not determine keeps its
     /// value in `prev`; breakpoints are clamped to ±`limit`.
     fn of_key_terms(

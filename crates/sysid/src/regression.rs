@@ -276,6 +276,7 @@ impl Regression {
         y: &mut DVector<f64>,
     ) -> bool {
         let mut unchanged = true;
+        let mut keys_unchanged = true;
         let mut write = |d: &mut f64, v: f64| {
             if TRACK {
                 unchanged &= d.to_bits() == v.to_bits();
@@ -287,7 +288,6 @@ impl Regression {
         debug_assert!(rows >= self.rows(records) && phi.ncols() == self.len && y.len() == rows);
         let data = phi.as_mut_slice();
         let k0 = self.k0;
-        let mut key = vec![0.0; self.n_key];
         let mut at = 0;
         for r in records {
             let (u, ys) = (r.input_signals(), r.y());
@@ -304,12 +304,9 @@ impl Regression {
                 if n == 0 {
                     continue;
                 }
-                for q in 0..m {
-                    block.fill_key_terms(f, u[k0 + q - ch.nk], &mut key[..n]);
-                    for (t, v) in key[..n].iter().enumerate() {
-                        write(&mut data[(col + t) * rows + at + q], *v);
-                    }
-                }
+                let commands = &u[k0 - ch.nk..k0 - ch.nk + m];
+                let same = block.fill_key_columns(f, commands, &mut data[col * rows + at..], rows);
+                keys_unchanged &= same;
                 col += n;
             }
             for a in 1..=self.na {
@@ -332,7 +329,7 @@ impl Regression {
             y.as_mut_slice()[at..at + m].copy_from_slice(&ys[k0..]);
             at += m;
         }
-        unchanged
+        unchanged && (keys_unchanged || !TRACK)
     }
 
     /// Which entries of θ the data determine (the blocks' free key terms; the rest is free).
@@ -642,5 +639,86 @@ mod tests {
         assert_eq!(fixed.iter().filter(|f| **f).count(), 2);
         assert!(fixed[9] && fixed[12]);
         assert_eq!(reg.model_of_physical(&v, 0.01).unwrap(), model);
+    }
+
+    // Φ built column by column (`stacked_into`, the key terms one call per record) holds, to the bit, the
+    // rows `fill_row` builds one at a time, for every kind of block (deadzone, saturation, deadzone with
+    // saturation, piecewise-linear, polynomial, linear) over two records; built again into the same
+    // buffer it reports the f-dependent columns unchanged, and changed after f moves.
+    #[test]
+    fn stacked_rows_are_the_rows_built_one_at_a_time() {
+        let kinds = [
+            NonlinearityKind::Deadzone,
+            NonlinearityKind::Saturation,
+            NonlinearityKind::DeadzoneSaturation,
+            NonlinearityKind::PiecewiseLinear { breakpoints: 2 },
+            NonlinearityKind::Polynomial { degree: 3 },
+        ];
+        let wave = |k: usize, s: f64| ((k as f64 * s).sin() * 200.0).round();
+        let record = |n: usize, seed: f64, name: &str| {
+            let u1: Vec<f64> = (0..n).map(|k| wave(k, 0.37 + seed)).collect();
+            let u2: Vec<f64> = (0..n).map(|k| wave(k, 0.11 + seed) * 0.5).collect();
+            let y: Vec<f64> = (0..n).map(|k| wave(k, 0.05 + seed) * 0.01).collect();
+            Dataset::with_inputs(vec![("a".into(), u1), ("b".into(), u2)], y, 0.01, name).unwrap()
+        };
+        let records = [record(60, 0.0, "r1"), record(45, 0.3, "r2")];
+        for kind in kinds {
+            let channels = vec![
+                Channel {
+                    name: "a".into(),
+                    nb: 2,
+                    nk: 1,
+                    kind,
+                },
+                Channel {
+                    name: "b".into(),
+                    nb: 2,
+                    nk: 0,
+                    kind: NonlinearityKind::Linear,
+                },
+            ];
+            let reg = Regression::new(2, true, channels).unwrap();
+            let u_all: Vec<f64> = records
+                .iter()
+                .flat_map(|r| r.inputs()[0].u().iter().copied())
+                .collect();
+            let start = kind.block().start(&u_all, true, true, "t").unwrap();
+            let f = vec![start.initial, StaticNonlinearity::Linear];
+            let (phi, y) = reg.stacked(&records, &f);
+            let mut row = vec![0.0; reg.len()];
+            let mut at = 0;
+            for r in &records {
+                let u = r.input_signals();
+                for k in reg.k0()..r.len() {
+                    reg.fill_row(&u, r.y(), &f, k, &mut row);
+                    for (c, v) in row.iter().enumerate() {
+                        assert_eq!(
+                            phi[(at, c)].to_bits(),
+                            v.to_bits(),
+                            "{kind:?} row {at} column {c}"
+                        );
+                    }
+                    assert_eq!(y[at], r.y()[k]);
+                    at += 1;
+                }
+            }
+            assert_eq!(at, phi.nrows());
+            let (mut again, mut y2) = (phi.clone(), y.clone());
+            assert!(reg.stacked_into::<true>(&records, &f, &mut again, &mut y2));
+            // Moving the nonlinearity changes its key-term columns.
+            let mut theta = vec![0.0; reg.len()];
+            for (i, v) in theta.iter_mut().enumerate() {
+                *v = 0.3 + 0.1 * i as f64;
+            }
+            let mut moved = f.clone();
+            let linear = NonlinearityKind::Linear
+                .block()
+                .start(&[], false, true, "t");
+            reg.update(&theta, &mut moved, &[start, linear.unwrap()]);
+            assert!(
+                !reg.stacked_into::<true>(&records, &moved, &mut again, &mut y2),
+                "{kind:?}"
+            );
+        }
     }
 }

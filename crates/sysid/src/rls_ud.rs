@@ -462,7 +462,7 @@ mod tests {
             let pb = b.covariance();
             for i in 0..4 {
                 assert!(
-                    (a.theta[i] - b.theta[i]).abs() < 1e-9 * (1.0 + a.theta[i].abs()),
+                    (a.theta()[i] - b.theta[i]).abs() < 1e-9 * (1.0 + a.theta()[i].abs()),
                     "rho {rho}"
                 );
                 for j in 0..4 {

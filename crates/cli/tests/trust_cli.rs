@@ -1054,6 +1054,85 @@ fn one_pole_model(dir: &Path, name: &str, a1: f64) {
     .unwrap();
 }
 
+// Audit s9 T10: `tune`'s defaults are the IPA's units (±255 counts, steps up to 150 mm). A model
+// identified on a plant in volts and metres records its data's range, and `tune` says when the
+// specification lies far outside it (the ratios recomputed here from the record), and not once the
+// specification is given in the model's units.
+#[test]
+fn tune_says_when_the_specification_is_far_outside_the_models_data() {
+    let tmp = tempfile::tempdir().unwrap();
+    // y(k) = y(k−1) + f(u(k−1)), f a deadzone ±0.5 V with slopes 0.002 m/V per sample; u a sine of ±4 V.
+    let n = 600;
+    let u: Vec<f64> = (0..n)
+        .map(|k| {
+            4.0 * (2.0 * std::f64::consts::PI * k as f64 / 80.0).sin()
+                + 0.3 * ((k * 7) % 5) as f64 / 4.0
+        })
+        .collect();
+    let f = |v: f64| {
+        if v > 0.5 {
+            0.002 * (v - 0.5)
+        } else if v < -0.5 {
+            0.002 * (v + 0.5)
+        } else {
+            0.0
+        }
+    };
+    let mut y = vec![0.1; n];
+    for k in 1..n {
+        y[k] = y[k - 1] + f(u[k - 1]);
+    }
+    let mut csv = String::from("t,u,y\n");
+    for k in 0..n {
+        csv.push_str(&format!("{},{:?},{:?}\n", k as f64 * 0.01, u[k], y[k]));
+    }
+    std::fs::write(tmp.path().join("volts.csv"), csv).unwrap();
+    let o = bin()
+        .current_dir(tmp.path())
+        .args(
+            "identify --data volts.csv --structure hammerstein --method ls --na 1 --nb 1 --nk 1 \
+             --save-model m.json"
+                .split_whitespace(),
+        )
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let doc: Value =
+        serde_json::from_str(&std::fs::read_to_string(tmp.path().join("m.json")).unwrap()).unwrap();
+    let min_max = |s: &[f64]| {
+        let lo = s.iter().copied().fold(f64::INFINITY, f64::min);
+        let hi = s.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+        (lo, hi)
+    };
+    let ((ulo, uhi), (ylo, yhi)) = (min_max(&u), min_max(&y));
+    let range = &doc["model"]["data_range"];
+    assert_eq!(range["u"][0][0].as_f64(), Some(ulo), "{range}");
+    assert_eq!(range["u"][0][1].as_f64(), Some(uhi), "{range}");
+    assert_eq!(range["y"][0].as_f64(), Some(ylo), "{range}");
+    assert_eq!(range["y"][1].as_f64(), Some(yhi), "{range}");
+    let base: Vec<&str> = "--model m.json --out c.json --variants 1 --max-evaluations 16"
+        .split_whitespace()
+        .collect();
+    let (ok, said) = tune(tmp.path(), &base);
+    assert!(ok, "{said}");
+    let u_ratio = 255.0 / ulo.abs().max(uhi.abs());
+    let y_ratio = 150.0 / (yhi - ylo);
+    assert!(
+        said.contains("command limit u_max = 255 is")
+            && said.contains(&format!("{u_ratio:.4} times")),
+        "{said}"
+    );
+    assert!(
+        said.contains("steps (up to 150") && said.contains(&format!("{y_ratio:.4} times")),
+        "{said}"
+    );
+    let mut args = base.to_vec();
+    args.extend(["--spec", "u-max=4,steps=0.05/0.1,low=0.12,high=0.3"]);
+    let (ok, said) = tune(tmp.path(), &args);
+    assert!(ok, "{said}");
+    assert!(!said.contains("far outside its data"), "{said}");
+}
+
 // Audit s9 T6/T7/T4: a specification the plants cannot run is refused, naming --spec and what was
 // expected, and no controller is written: runs of fewer than 20 samples, set-points beyond the
 // physics plant's 200 mm stroke, a key given twice, a share above 1.

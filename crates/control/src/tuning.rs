@@ -396,6 +396,10 @@ fn check_spec(
     Ok(())
 }
 
+/// How many times the estimation data's largest command, or its output span, the specification's command
+/// limit or largest step may be before `tune` says the model is used far outside its data.
+pub const EXTRAPOLATION_FACTOR: f64 = 4.0;
+
 /// Doubts about the model as a plant for `spec`: a deadzone breakpoint at or beyond ±u_max (no command
 /// moves the model that way), and set-points beyond the outputs a stable model can hold with the
 /// command at ±u_max ([`Model::held_output`]; a near-integrator has no such bound).
@@ -413,6 +417,39 @@ fn reach_warnings(model: &Model, deadzone: &Deadzone, spec: &Spec) -> Vec<String
                  no command moves the model {way}; the steps that need it cannot be met",
                 fmt(b),
                 spec.u_max
+            ));
+        }
+    }
+    // The units: the specification's defaults are the IPA's (PWM counts, mm). A model whose
+    // estimation data lie on another scale (a plant in volts and metres) is tuned far outside its data.
+    if let Some(range) = model.data_range() {
+        if let Some(u_data) = range.u_magnitude(0).filter(|m| *m > 0.0) {
+            if spec.u_max > EXTRAPOLATION_FACTOR * u_data {
+                w.push(format!(
+                    "the specification's command limit u_max = {} is {} times the largest command in \
+                     the model's estimation data (|u| <= {}): the model is used far outside its data \
+                     (if its input is not in PWM counts, give the limit in its units: --spec u-max=...)",
+                    spec.u_max,
+                    fmt(spec.u_max / u_data),
+                    fmt(u_data)
+                ));
+            }
+        }
+        let largest = spec.steps_mm.iter().fold(0.0_f64, |m, s| m.max(s.abs()));
+        let span = range.y_span();
+        if largest > EXTRAPOLATION_FACTOR * span {
+            w.push(format!(
+                "the specification's steps (up to {}) are {} times the output's span in the model's \
+                 estimation data ({} .. {}): the model is used far outside its data (if its output is \
+                 not in mm, give the set-points in its units: --spec steps=...,low=...,high=...)",
+                fmt(largest),
+                if span > 0.0 {
+                    fmt(largest / span)
+                } else {
+                    "infinitely many".to_string()
+                },
+                fmt(range.y[0]),
+                fmt(range.y[1])
             ));
         }
     }

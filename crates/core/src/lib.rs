@@ -24,7 +24,7 @@ pub mod structure;
 
 pub use data::Dataset;
 pub use error::{PlantError, Setting, SysidError};
-pub use model::{InputChannel, Model, ModelKind, ModelPlant, NoiseModel, Orders};
+pub use model::{DataRange, InputChannel, Model, ModelKind, ModelPlant, NoiseModel, Orders};
 pub use nonlinearity::{
     Deadzone, DeadzoneSaturation, PiecewiseLinear, Polynomial, Saturation, StaticNonlinearity,
 };

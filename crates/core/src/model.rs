@@ -175,6 +175,85 @@ pub struct Model {
     operating_point: Option<OperatingPoint>,
     /// g of y = g(v), v the linear block's output (Wiener / Hammerstein–Wiener); `None`: y = v.
     output: Option<StaticNonlinearity>,
+    /// The range of the estimation data, in the user's units; `None` for a model not identified from
+    /// data here (the paper's, a hand-written file, one saved before it was recorded). Boxed: a model
+    /// is moved often and the range is read rarely.
+    data_range: Option<Box<DataRange>>,
+}
+
+/// The range of the data a model was estimated on, in the user's units (for the IPA: PWM counts and
+/// mm): the smallest and largest value of each input, in the model's input order, and of the output y.
+/// A model is an approximation of its plant over this range; used far beyond it (a command limit or
+/// set-points many times larger, as when a model of a plant in volts and metres is tuned for ±255
+/// counts and 150 mm steps) it is extrapolated, and `tune` says so. Merged records give the range over
+/// all of them.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct DataRange {
+    /// [min, max] of each input.
+    pub u: Vec<[f64; 2]>,
+    /// [min, max] of the output y.
+    pub y: [f64; 2],
+}
+
+impl DataRange {
+    /// The range of `records` (every input and the output over every sample); `None` when there is no
+    /// sample or the records' numbers of inputs differ.
+    pub fn of(records: &[crate::Dataset]) -> Option<DataRange> {
+        let first = records.first()?;
+        let m = first.inputs().len();
+        if records
+            .iter()
+            .any(|r| r.inputs().len() != m || r.is_empty())
+        {
+            return None;
+        }
+        let span = |s: &[f64], r: &mut [f64; 2]| {
+            for &v in s {
+                r[0] = r[0].min(v);
+                r[1] = r[1].max(v);
+            }
+        };
+        let empty = [f64::INFINITY, f64::NEG_INFINITY];
+        let mut range = DataRange {
+            u: vec![empty; m],
+            y: empty,
+        };
+        for r in records {
+            for (i, s) in r.input_signals().into_iter().enumerate() {
+                span(s, &mut range.u[i]);
+            }
+            span(r.y(), &mut range.y);
+        }
+        range.check(m).ok().map(|()| range)
+    }
+
+    /// Every bound finite, min ≤ max, one [min, max] per input of a model with `inputs` inputs.
+    fn check(&self, inputs: usize) -> Result<(), SysidError> {
+        if self.u.len() != inputs {
+            return Err(SysidError::Data(format!(
+                "invalid model: data_range has {} input range(s) but the model has {inputs} input(s)",
+                self.u.len()
+            )));
+        }
+        let ok = |r: &[f64; 2]| r[0].is_finite() && r[1].is_finite() && r[0] <= r[1];
+        if !(self.u.iter().all(ok) && ok(&self.y)) {
+            return Err(SysidError::Data(
+                "invalid model: data_range needs finite [min, max] pairs with min <= max".into(),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The largest command magnitude of input `i` in the data, max(|min|, |max|).
+    pub fn u_magnitude(&self, i: usize) -> Option<f64> {
+        self.u.get(i).map(|r| r[0].abs().max(r[1].abs()))
+    }
+
+    /// max − min of the output.
+    pub fn y_span(&self) -> f64 {
+        self.y[1] - self.y[0]
+    }
 }
 
 impl Model {
@@ -207,6 +286,7 @@ impl Model {
             noise: NoiseModel::EquationError,
             operating_point: None,
             output: None,
+            data_range: None,
         })
     }
 
@@ -319,6 +399,7 @@ impl Model {
             noise: NoiseModel::EquationError,
             operating_point: None,
             output: None,
+            data_range: None,
         }
     }
 
@@ -390,6 +471,21 @@ impl Model {
     /// relates u − u0 to y − y0, and its simulations, predictions and plant steps are in the user's units.
     pub fn operating_point(&self) -> Option<&OperatingPoint> {
         self.operating_point.as_ref()
+    }
+
+    /// The range of the data the model was estimated on ([`DataRange`]), if recorded.
+    pub fn data_range(&self) -> Option<&DataRange> {
+        self.data_range.as_deref()
+    }
+
+    /// The same model with the estimation data's range `range` (one [min, max] per input, all finite),
+    /// or without one.
+    pub fn with_data_range(mut self, range: Option<DataRange>) -> Result<Self, SysidError> {
+        if let Some(r) = &range {
+            r.check(self.inputs.len())?;
+        }
+        self.data_range = range.map(Box::new);
+        Ok(self)
     }
 
     /// The same model around the operating point `op` (one u0 per input, all finite), or without one.
@@ -896,6 +992,9 @@ pub(crate) struct ModelRepr {
     /// g of y = g(v) (Wiener / Hammerstein–Wiener); absent without one.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     output_nonlinearity: Option<NonlinearityRepr>,
+    /// The estimation data's range; absent in files written before it was recorded.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    data_range: Option<DataRange>,
 }
 
 fn is_equation_error(n: &NoiseModel) -> bool {
@@ -1008,7 +1107,8 @@ impl TryFrom<ModelRepr> for Model {
         let m = Model::new(r.ts, r.a, inputs, r.offset)?
             .with_operating_point(r.operating_point)?
             .with_noise_model(r.noise_model)
-            .with_output_nonlinearity(output)?;
+            .with_output_nonlinearity(output)?
+            .with_data_range(r.data_range)?;
         if m.kind() != r.kind {
             return bad(format!(
                 "kind = {} does not match the inputs' nonlinearities",
@@ -1051,6 +1151,7 @@ impl From<Model> for ModelRepr {
             noise_model: m.noise,
             operating_point: m.operating_point,
             output_nonlinearity: m.output.as_ref().and_then(NonlinearityRepr::of),
+            data_range: m.data_range.map(|r| *r),
         }
     }
 }
@@ -1423,6 +1524,50 @@ mod tests {
             if margin > 1e-9 {
                 assert_eq!(is_stable_polynomial(&c), by_roots, "{c:?}");
             }
+        }
+    }
+
+    // The estimation data's range: min and max of each input and of y over every record (hand case),
+    // kept through a model file, and a file's range that is not one finite [min, max] per input refused.
+    #[test]
+    fn the_data_range_is_the_records_extremes_and_files_are_checked() {
+        use crate::data::Signals;
+        let a = crate::Dataset::new(
+            Signals {
+                u: vec![1.0, -3.0, 2.0],
+                y: vec![0.5, 0.25, 4.0],
+            },
+            0.01,
+            "a",
+        )
+        .unwrap();
+        let b = crate::Dataset::new(
+            Signals {
+                u: vec![7.0, 0.0],
+                y: vec![-1.0, 0.0],
+            },
+            0.01,
+            "b",
+        )
+        .unwrap();
+        let r = DataRange::of(&[a, b]).unwrap();
+        assert_eq!(r.u, vec![[-3.0, 7.0]]);
+        assert_eq!(r.y, [-1.0, 4.0]);
+        assert_eq!(r.u_magnitude(0), Some(7.0));
+        assert_eq!(r.y_span(), 5.0);
+        let m = Model::paper().with_data_range(Some(r.clone())).unwrap();
+        let back: Model = serde_json::from_str(&serde_json::to_string(&m).unwrap()).unwrap();
+        assert_eq!(back.data_range(), Some(&r));
+        for bad in [
+            r#""data_range": {"u": [[1.0, 0.0]], "y": [0.0, 1.0]}"#,
+            r#""data_range": {"u": [[0.0, 1.0], [0.0, 1.0]], "y": [0.0, 1.0]}"#,
+            r#""data_range": {"u": [[0.0, 1.0]], "y": [0.0, 1e999]}"#,
+        ] {
+            let text = format!(
+                r#"{{"kind": "arx", "ts": 0.01, "na": 1, "nb": 1, "nk": 1, "a": [-0.5], "b": [1.0],
+                "offset": null, {bad}}}"#
+            );
+            assert!(serde_json::from_str::<Model>(&text).is_err(), "{bad}");
         }
     }
 

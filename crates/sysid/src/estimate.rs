@@ -330,7 +330,10 @@ pub fn identify<R: Records + ?Sized>(
     notes.append(&mut fit.notes);
     fit.notes = notes;
     check_finite(problem.name(), &fit.params)?;
-    safeguard(&problem, settings, fit).map_err(named)
+    // The data the model was estimated on (a caller that detrended first puts back its own range).
+    safeguard(&problem, settings, fit)
+        .map_err(named)?
+        .with_data_range(crate::DataRange::of(records.records()))
 }
 
 /// `--breakpoints auto`: the identification with K = 1..=[`MAX_AUTO_BREAKPOINTS`] breakpoints in every

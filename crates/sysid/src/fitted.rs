@@ -391,6 +391,19 @@ impl Fitted {
         }));
     }
 
+    /// The same fit with the estimation data's range recorded in its model
+    /// ([`Model::with_data_range`]); the range changes no metric, so metrics kept for the model stay kept.
+    pub(crate) fn with_data_range(
+        mut self,
+        range: Option<sysid_core::DataRange>,
+    ) -> Result<Self, sysid_core::SysidError> {
+        self.model = self.model.with_data_range(range.clone())?;
+        if let Some(kept) = self.kept_metrics.as_mut() {
+            kept.model = kept.model.clone().with_data_range(range)?;
+        }
+        Ok(self)
+    }
+
     pub(crate) fn with_method(mut self, method: Method) -> Self {
         self.method = method;
         self

@@ -9,9 +9,10 @@
 //! itself from its delay lines; ours gets it from the benchmark
 //! loop, which builds it from the record (comparable work: n moves).
 //!
-//! Guard cases: `guard` has T = p0 · n (the `identify --windup trace` default; on this data it is active
-//! only at the start), `guard-active` has T = ½ the trace the unguarded estimator reaches, so that it
-//! rescales P at every update (the guard's worst case).
+//! Guard cases: `guard` and `ud-guard` have T = p0 · n (the `identify --windup trace` default; on this
+//! data it is active only at the start), `guard-active` and `ud-guard-active` have T = ½ the trace the
+//! unguarded estimator reaches, so that they rescale P at every update (the guard's worst case, which
+//! sets the update's worst-case time on a controller).
 //!
 //! Run: `cargo bench -p ipa-embedded --bench rls -- --warm-up-time 1 --measurement-time 3`, then
 //! `python3 crates/embedded/benches/best_of.py` for the best and median sample of each benchmark.
@@ -96,7 +97,7 @@ fn regressor<F: Float, const NA: usize, const NB: usize, const P: usize>(
 }
 
 /// Our estimator's variants: (label, form, trace bound).
-fn variants(n: usize, active_trace: f64) -> [(&'static str, Form, Option<f64>); 5] {
+fn variants(n: usize, active_trace: f64) -> [(&'static str, Form, Option<f64>); 6] {
     let t = P0 * n as f64;
     [
         ("plain", Form::Standard, None),
@@ -104,6 +105,7 @@ fn variants(n: usize, active_trace: f64) -> [(&'static str, Form, Option<f64>); 
         ("guard-active", Form::Standard, Some(active_trace)),
         ("ud", Form::Ud, None),
         ("ud-guard", Form::Ud, Some(t)),
+        ("ud-guard-active", Form::Ud, Some(active_trace)),
     ]
 }
 

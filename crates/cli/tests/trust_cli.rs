@@ -696,6 +696,59 @@ fn a_step_too_short_to_judge_has_no_rise_or_settling_time() {
     );
 }
 
+// Audit s10 F5: a time column in milliseconds read as seconds (t = 0, 10, 20, ...) silently gave
+// Ts = 10 s, and every time figure after it (rise and settling times of `control` on the model) was
+// 1000 times too large. The reader now says so; with `--time-unit ms` Ts is 0.01 s and nothing is said.
+#[test]
+fn a_time_column_in_milliseconds_read_as_seconds_is_pointed_out() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mut csv = String::from("t,u,y\n");
+    let mut y = 0.0;
+    for k in 0..400 {
+        let u = if (k / 25) % 2 == 0 { 100.0 } else { -80.0 };
+        csv.push_str(&format!("{},{u},{y}\n", k * 10));
+        y = 0.9 * y + 0.01 * u;
+    }
+    std::fs::write(tmp.path().join("ms.csv"), csv).unwrap();
+    let run = |extra: &[&str]| {
+        let out = bin()
+            .current_dir(tmp.path())
+            .args([
+                "identify",
+                "--data",
+                "ms.csv",
+                "--structure",
+                "arx",
+                "--method",
+                "ls",
+            ])
+            .args(["--na", "1", "--nb", "1", "--nk", "1", "--json", "-"])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        serde_json::from_slice::<Value>(&out.stdout).unwrap()
+    };
+    let doc = run(&[]);
+    assert_eq!(doc["model"]["ts"].as_f64(), Some(10.0));
+    assert!(
+        warnings(&doc).iter().any(|w| w.contains("--time-unit ms")),
+        "{:?}",
+        warnings(&doc)
+    );
+    let doc = run(&["--time-unit", "ms"]);
+    assert_eq!(doc["model"]["ts"].as_f64(), Some(0.01));
+    assert!(
+        !warnings(&doc).iter().any(|w| w.contains("--time-unit")),
+        "{:?}",
+        warnings(&doc)
+    );
+}
+
 fn trace_rows(csv: &Path) -> Vec<(f64, f64, f64)> {
     let text = std::fs::read_to_string(csv).unwrap();
     let mut lines = text.lines();

@@ -381,12 +381,33 @@ pub fn read_record_bytes(
                 .iter()
                 .map(|v| v * opts.time_unit.seconds())
                 .collect();
-            uniform_ts(&t, &table, tc)?
+            let ts = uniform_ts(&t, &table, tc)?;
+            notes.extend(milliseconds_hint(
+                &t,
+                ts,
+                opts.time_unit,
+                &table.headers[tc],
+            ));
+            ts
         }
     };
     Ok(Record {
         data: record(us, y, ts)?,
         notes,
+    })
+}
+
+/// A note when a time column read in seconds gives a sampling period of a second or more from whole
+/// numbers only (0, 10, 20, ...): the usual sign of a column in milliseconds read as seconds, which
+/// makes every time figure 1000 times too large (a 10 ms record identified at Ts = 10 s; audit s10).
+fn milliseconds_hint(t: &[f64], ts: f64, unit: TimeUnit, column: &str) -> Option<String> {
+    let whole = t.iter().all(|v| v.fract() == 0.0);
+    (unit == TimeUnit::S && ts >= 1.0 && whole).then(|| {
+        format!(
+            "the time column {column} gives Ts = {ts} s from whole numbers: if it holds milliseconds \
+             (or microseconds), pass --time-unit ms (or us); read as seconds, Ts and every time \
+             figure are 1000 (or 10^6) times too large"
+        )
     })
 }
 

@@ -749,6 +749,56 @@ fn a_time_column_in_milliseconds_read_as_seconds_is_pointed_out() {
     );
 }
 
+// Audit s10 F4: one input sample of 1e308 (finite, accepted) made the covariance underflow: b1 and b2
+// were reported "± 0", the strongest claim a tool can make, about parameters the data no longer
+// determine. A standard deviation of exactly 0 from residuals that are not zero is withheld and said.
+#[test]
+fn an_underflowing_covariance_is_not_reported_as_certainty() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mut csv = String::from("t,u,y\n");
+    let mut y = 0.0;
+    for k in 0..300 {
+        let u = if k == 150 {
+            1e308
+        } else {
+            ((k * 37) % 11) as f64 - 5.0
+        };
+        let e = ((k * 53) % 7) as f64 * 0.01 - 0.03;
+        csv.push_str(&format!("{},{u:e},{:?}\n", k as f64 * 0.08, y + e));
+        y = 0.5 * y + 0.1 * if k == 150 { 0.0 } else { u };
+    }
+    std::fs::write(tmp.path().join("outlier.csv"), csv).unwrap();
+    let out = bin()
+        .current_dir(tmp.path())
+        .args(
+            "identify --data outlier.csv --structure arx --method ls --na 1 --nb 2 --nk 1 --json -"
+                .split(' '),
+        )
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let doc: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert!(doc["estimation"]["noise_variance"].as_f64().unwrap() > 0.0);
+    let zero: Vec<&Value> = doc["parameters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|p| p["std"].as_f64() == Some(0.0))
+        .collect();
+    assert!(zero.is_empty(), "{zero:?}");
+    assert!(
+        warnings(&doc)
+            .iter()
+            .any(|w| w.contains("came out exactly 0")),
+        "{:?}",
+        warnings(&doc)
+    );
+}
+
 fn trace_rows(csv: &Path) -> Vec<(f64, f64, f64)> {
     let text = std::fs::read_to_string(csv).unwrap();
     let mut lines = text.lines();

@@ -503,12 +503,41 @@ pub fn safeguard(
             }));
         }
     }
+    let zero = zero_std(&mut fit);
+    fit.warnings.extend(zero);
     fit.warnings.extend(unexplained_missing_std(&fit));
     // The report needs the same metrics: computed once, here.
     if let Some(m) = est {
         fit.keep_metrics(p.records(), m);
     }
     Ok(fit)
+}
+
+/// A standard deviation of exactly 0 from residuals that are not zero claims a certainty no data give:
+/// the covariance σ̂² (ΦᵀΦ)⁻¹ underflowed (an input or output many orders of magnitude from the others:
+/// one sample of 1e308 made b ≈ 1e-309 "± 0", audit s10) or is degenerate. Such standard deviations are
+/// withheld, with the reason in a warning.
+fn zero_std(fit: &mut Fitted) -> Option<Warning> {
+    if fit.noise_variance.is_nan() || fit.noise_variance <= 0.0 {
+        return None;
+    }
+    let mut zero = Vec::new();
+    for q in fit.params.iter_mut().filter(|q| q.std == Some(0.0)) {
+        q.std = None;
+        zero.push(q.label());
+    }
+    if zero.is_empty() {
+        return None;
+    }
+    crate::trust::std_warning(Some(format!(
+        "the standard deviations of {} of {} parameters ({}) came out exactly 0 although the \
+         residuals are not zero: the \
+         covariance underflowed or is degenerate (data many orders of magnitude apart: rescale the \
+         signals), so they are not reported",
+        zero.len(),
+        fit.params.len(),
+        zero.join(", ")
+    )))
 }
 
 /// A [`Concern::NoStandardDeviations`](crate::warnings::Concern) naming the estimated parameters

@@ -397,12 +397,16 @@ pub fn read_record_bytes(
     })
 }
 
-/// A note when a time column read in seconds gives a sampling period of a second or more from whole
-/// numbers only (0, 10, 20, ...): the usual sign of a column in milliseconds read as seconds, which
-/// makes every time figure 1000 times too large (a 10 ms record identified at Ts = 10 s; audit s10).
+/// The smallest Ts (s) from a whole-number time column that [`milliseconds_hint`] questions.
+const MS_HINT_TS: f64 = 5.0;
+
+/// A note when a time column read in seconds gives a sampling period of [`MS_HINT_TS`] or more from
+/// whole numbers only (0, 10, 20, ...): the usual sign of a column in milliseconds read as seconds,
+/// which makes every time figure 1000 times too large (a 10 ms record identified at Ts = 10 s; audit
+/// s10). Records sampled every second or two with whole-second stamps are common and are not flagged.
 fn milliseconds_hint(t: &[f64], ts: f64, unit: TimeUnit, column: &str) -> Option<String> {
     let whole = t.iter().all(|v| v.fract() == 0.0);
-    (unit == TimeUnit::S && ts >= 1.0 && whole).then(|| {
+    (unit == TimeUnit::S && ts >= MS_HINT_TS && whole).then(|| {
         format!(
             "the time column {column} gives Ts = {ts} s from whole numbers: if it holds milliseconds \
              (or microseconds), pass --time-unit ms (or us); read as seconds, Ts and every time \

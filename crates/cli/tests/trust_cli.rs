@@ -711,27 +711,12 @@ fn a_time_column_in_milliseconds_read_as_seconds_is_pointed_out() {
     }
     std::fs::write(tmp.path().join("ms.csv"), csv).unwrap();
     let run = |extra: &[&str]| {
-        let out = bin()
-            .current_dir(tmp.path())
-            .args([
-                "identify",
-                "--data",
-                "ms.csv",
-                "--structure",
-                "arx",
-                "--method",
-                "ls",
-            ])
-            .args(["--na", "1", "--nb", "1", "--nk", "1", "--json", "-"])
-            .args(extra)
-            .output()
-            .unwrap();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
-        serde_json::from_slice::<Value>(&out.stdout).unwrap()
+        let mut args: Vec<&str> =
+            "identify --data ms.csv --structure arx --method ls --na 1 --nb 1 --nk 1"
+                .split(' ')
+                .collect();
+        args.extend(extra);
+        run_json(tmp.path(), &args)
     };
     let doc = run(&[]);
     assert_eq!(doc["model"]["ts"].as_f64(), Some(10.0));
@@ -768,20 +753,11 @@ fn an_underflowing_covariance_is_not_reported_as_certainty() {
         y = 0.5 * y + 0.1 * if k == 150 { 0.0 } else { u };
     }
     std::fs::write(tmp.path().join("outlier.csv"), csv).unwrap();
-    let out = bin()
-        .current_dir(tmp.path())
-        .args(
-            "identify --data outlier.csv --structure arx --method ls --na 1 --nb 2 --nk 1 --json -"
-                .split(' '),
-        )
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let doc: Value = serde_json::from_slice(&out.stdout).unwrap();
+    let args: Vec<&str> =
+        "identify --data outlier.csv --structure arx --method ls --na 1 --nb 2 --nk 1"
+            .split(' ')
+            .collect();
+    let doc = run_json(tmp.path(), &args);
     assert!(doc["estimation"]["noise_variance"].as_f64().unwrap() > 0.0);
     let zero: Vec<&Value> = doc["parameters"]
         .as_array()

@@ -13,7 +13,7 @@ use serde::{Deserialize, Serialize};
 use sysid::metrics::{metrics, pooled_metrics, Metrics};
 use sysid::residuals::ResidualAnalysis;
 use sysid::trust::{baseline_warning, metric_warnings};
-use sysid::warnings::{Record, Warning};
+use sysid::warnings::{Concern, Record, Warning};
 use sysid::SysidError;
 use sysid::{Dataset, EstimatorSettings, Fitted, Identification, Method, Model, Param, Passes};
 
@@ -116,21 +116,34 @@ fn estimation_metrics(fit: &Fitted, est_data: &[Dataset]) -> Result<Metrics, Sys
 }
 
 /// The fit's warnings with those about its estimation record's figures judged on `est`, the metrics of
-/// the model on `est_data` (the records as reported): a poor simulation, a flattering initial state,
-/// and, for one record, a fit far below the plain ARX-LS baseline on it.
+/// the model on `est_data` (the records as reported): a poor simulation and a flattering initial state
+/// are judged again; a fit far below the plain ARX-LS baseline is kept when the identification found it
+/// (its baseline saw the detrended record, as the model did; a baseline on the record as reported has
+/// no operating point and could only be weaker) and, for one record, judged on the reported figures
+/// when it did not.
 fn estimation_warnings_on(
     fit: &Fitted,
     settings: &Identification,
     est_data: &[Dataset],
     est: &Metrics,
 ) -> Vec<String> {
+    let metric = |w: &Warning| {
+        w.record() == Some(Record::Estimation)
+            && !matches!(w, Warning::Trust(Concern::BelowBaseline { .. }))
+    };
+    let below_said = fit
+        .warnings
+        .iter()
+        .any(|w| w.record() == Some(Record::Estimation) && !metric(w));
     let on_record = match est_data {
-        [one] => baseline_warning(Record::Estimation, fit, settings, est_data, one, est),
+        [one] if !below_said => {
+            baseline_warning(Record::Estimation, fit, settings, est_data, one, est)
+        }
         _ => None,
     };
     fit.warnings
         .iter()
-        .filter(|w| w.record() != Some(Record::Estimation))
+        .filter(|w| !metric(w))
         .cloned()
         .chain(metric_warnings(Record::Estimation, est))
         .chain(on_record)

@@ -439,10 +439,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         _ => (records.clone(), None),
     };
     let mut fit = identify(&estimation, &settings)?;
-    fit.model = fit
-        .model
-        .with_operating_point(op)?
-        .with_data_range(sysid::DataRange::of(&records))?;
+    if op.is_some() {
+        // The range in the user's units, as the operating point is (identify saw deviations).
+        fit.model = fit
+            .model
+            .with_operating_point(op)?
+            .with_data_range(sysid::DataRange::of(&records))?;
+    }
     // Metrics, residuals and warnings in the user's units: the model puts its operating point back.
     let mut report =
         IdentifyReport::assemble(&fit, &settings, &records, val.as_ref(), args.resid_lags)?;

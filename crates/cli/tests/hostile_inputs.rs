@@ -325,28 +325,79 @@ fn sizes_are_bounded_before_allocation() {
     assert!(!dir.path().join("x.csv").exists());
 }
 
-// A read is bounded as it goes, not by the file's metadata (0 for a device or a pipe): /dev/zero is
-// refused at its first bytes (binary), for every file flag.
+// An input file that is not a regular file is refused before it is opened, for every file flag: a
+// device (/dev/zero would never end) and a FIFO with no writer (opening it would wait forever; the
+// binary is killed after 20 s if it hangs, and the test fails).
 #[cfg(unix)]
 #[test]
-fn endless_devices_are_refused() {
+fn devices_and_fifos_are_refused_as_inputs() {
     let dir = tempfile::tempdir().unwrap();
-    for (args, needle) in [
-        ("identify --data /dev/zero", "NUL byte"),
-        ("validate --model /dev/zero --data {c}/good.csv", "at most"),
-        (
-            "simulate --plant-config /dev/zero --out {t}/x.csv",
-            "at most",
-        ),
-        (
-            "simulate --input file:/dev/zero --out {t}/x.csv",
-            "NUL byte",
-        ),
-    ] {
-        let out = run(args, dir.path());
-        assert_eq!(out.status.code(), Some(2), "{args}: {}", stderr(&out));
-        assert!(stderr(&out).contains(needle), "{args}: {}", stderr(&out));
+    let fifo = dir.path().join("pipe");
+    if !Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .is_ok_and(|s| s.success())
+    {
+        eprintln!("SKIPPED: mkfifo is not available");
+        return;
     }
+    std::fs::copy(corpus().join("good_model.json"), dir.path().join("m.json")).unwrap();
+    let flags = [
+        "identify --data {f}",
+        "identify --data {f} --structure arx --method ls --stream on",
+        "validate --model {f} --data {c}/good.csv",
+        "simulate --plant-config {f} --samples 10 --out {t}/x.csv",
+        "simulate --plant paper --input file:{f} --out {t}/x.csv",
+        "control --plant paper --profile file:{f} --duration 1",
+        "control --plant paper --controller {f} --setpoint 5 --duration 1",
+        "calibrate --data {f} --out {t}/x.toml",
+    ];
+    for (file, kind) in [
+        ("/dev/zero", "a character device"),
+        (fifo.to_str().unwrap(), "a FIFO"),
+    ] {
+        for args in flags {
+            let args = args.replace("{f}", file);
+            let out = run_with_timeout(&args, dir.path(), 20);
+            let err = stderr(&out);
+            assert_eq!(out.status.code(), Some(2), "{args}: {err}");
+            assert!(
+                err.contains(file) && err.contains(kind) && err.contains("not a regular file"),
+                "{args}: {err}"
+            );
+        }
+    }
+    assert!(!dir.path().join("x.csv").exists() && !dir.path().join("x.toml").exists());
+}
+
+/// [`run`], killing the binary after `secs` seconds (its output then shows it was killed).
+#[cfg(unix)]
+fn run_with_timeout(args: &str, dir: &Path, secs: u64) -> Output {
+    let c = corpus().display().to_string();
+    let argv: Vec<String> = args
+        .split_whitespace()
+        .map(|a| {
+            a.replace("{c}", &c)
+                .replace("{t}", &dir.display().to_string())
+        })
+        .collect();
+    let mut child = bin()
+        .args(&argv)
+        .current_dir(dir)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("the binary runs");
+    let start = std::time::Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed().as_secs() >= secs {
+            child.kill().unwrap();
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child.wait_with_output().unwrap()
 }
 
 // A header of many columns is refused at once with the bound; a duplicate name among thousands is
@@ -525,6 +576,24 @@ fn montecarlo_failures_and_work_are_bounded() {
         stderr(&out)
     );
     assert!(String::from_utf8_lossy(&out.stdout).contains("0 ok, 3 failed"));
+
+    // The failed study leaves the user's --json file as it was, and writes none where there was none.
+    let mine = dir.path().join("mine.json");
+    std::fs::write(&mine, "{\"mine\": true}\n").unwrap();
+    for (json, existed) in [("{t}/mine.json", true), ("{t}/new.json", false)] {
+        let out = run(
+            &format!("montecarlo --plant paper --samples 5 --runs 3 --method ls --json {json}"),
+            dir.path(),
+        );
+        assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
+        assert!(stderr(&out).contains("not written"), "{}", stderr(&out));
+        if existed {
+            assert_eq!(std::fs::read_to_string(&mine).unwrap(), "{\"mine\": true}\n");
+        } else {
+            assert!(!dir.path().join("new.json").exists());
+        }
+    }
+    assert!(temporaries(dir.path()).is_empty());
 
     let out = run("montecarlo --runs 10000 --samples 50000000", dir.path());
     assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));

@@ -180,10 +180,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         print!("{text}");
     }
-    if let Some(path) = &args.json {
-        let json = serde_json::to_string_pretty(&report)? + "\n";
-        write_output(path, json.as_bytes(), &inputs, "--json")?;
-    }
     // A study in which a method never succeeded has no statistics for it: an error, not a result.
     let failed: Vec<String> = report
         .methods
@@ -197,6 +193,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             )
         })
         .collect();
+    if let Some(path) = &args.json {
+        // A failed study does not replace the user's file with a failure report (the table above and
+        // the error below say what failed); standard output still gets the JSON.
+        if failed.is_empty() || json_to_stdout {
+            let json = serde_json::to_string_pretty(&report)? + "\n";
+            write_output(path, json.as_bytes(), &inputs, "--json")?;
+        } else {
+            eprintln!(
+                "{}: not written: the study failed (an existing file is left as it was)",
+                path.display()
+            );
+        }
+    }
     if !failed.is_empty() {
         anyhow::bail!(sysid::SysidError::Numerical(format!(
             "every run failed for {}: the study has no estimates for {}",

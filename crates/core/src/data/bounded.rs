@@ -3,7 +3,9 @@
 //! A size taken from the file's metadata is 0 for a device, a pipe or `/proc` files, so it cannot bound
 //! `--data /dev/zero` or a FIFO that never ends; [`read_bounded`] reads through `Read::take(max + 1)`
 //! and refuses the file as soon as one byte more than `max` has come. Every reader of a whole input file
-//! (data, model, plant configuration, input and profile files) goes through it.
+//! (data, model, plant configuration, input and profile files) goes through it, and every input file is
+//! opened by [`open_input`], which refuses what is not a regular file: opening a FIFO with no writer
+//! waits forever, and a device or a socket is not a saved record.
 
 use std::io::Read;
 use std::path::Path;
@@ -19,6 +21,56 @@ pub fn read_bounded(
     advice: &str,
 ) -> Result<Vec<u8>, SysidError> {
     read_bounded_checked(path, max, what, advice, |_| Ok(()))
+}
+
+/// Opens an input file (`what` names its kind in the error, e.g. "a data file") for reading, refusing
+/// anything but a regular file (a symbolic link is followed) before it is opened: a FIFO (named pipe)
+/// would block the open until a writer came, a character or block device or a socket is not a saved
+/// record, and a folder cannot be read. The one open of every whole-file input (`--data`, `--model`,
+/// `--plant-config`, `--controller`, `--input file:`, `--profile file:`, `calibrate --data`, and the
+/// streamed passes of `--stream`); `track --data` and `--follow` read live streams and open their source
+/// themselves.
+pub fn open_input(path: &Path, what: &str) -> Result<std::fs::File, SysidError> {
+    let io = |source| SysidError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
+    let kind = std::fs::metadata(path).map_err(io)?.file_type();
+    if !kind.is_file() {
+        return Err(SysidError::File {
+            file: path.display().to_string(),
+            message: format!(
+                "this is {}, not a regular file; {what} is read from a saved file (save the \
+                 data to a file first)",
+                kind_name(&kind)
+            ),
+        });
+    }
+    std::fs::File::open(path).map_err(io)
+}
+
+/// "a folder", "a FIFO (named pipe)", ... for the error of [`open_input`].
+fn kind_name(kind: &std::fs::FileType) -> &'static str {
+    if kind.is_dir() {
+        return "a folder";
+    }
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::FileTypeExt;
+        if kind.is_fifo() {
+            return "a FIFO (named pipe: opening it would wait for a writer)";
+        }
+        if kind.is_char_device() {
+            return "a character device";
+        }
+        if kind.is_block_device() {
+            return "a block device";
+        }
+        if kind.is_socket() {
+            return "a socket";
+        }
+    }
+    "a special file"
 }
 
 /// Bytes looked at by the `check` of [`read_bounded_checked`] before the rest is read.
@@ -38,7 +90,7 @@ pub fn read_bounded_checked(
         path: path.to_path_buf(),
         source,
     };
-    let file = std::fs::File::open(path).map_err(io)?;
+    let file = open_input(path, what)?;
     // The metadata length, when there is one, refuses a large regular file before it is read.
     let known = file
         .metadata()
@@ -145,12 +197,12 @@ fn too_large(path: &Path, max: u64, what: &str, advice: &str, got: &str) -> Sysi
 mod tests {
     use super::*;
 
-    // /dev/zero never ends and its metadata length is 0: the bound stops the read after max + 1 bytes.
+    // /dev/zero never ends: a device is refused before it is read.
     #[cfg(unix)]
     #[test]
-    fn an_endless_device_is_refused_after_the_bound() {
+    fn an_endless_device_is_refused_before_it_is_read() {
         let e = read_bounded(Path::new("/dev/zero"), 1000, "a data file", "split it").unwrap_err();
-        assert!(e.to_string().contains("at most 1000 bytes"), "{e}");
+        assert!(e.to_string().contains("a character device"), "{e}");
     }
 
     // A file of exactly max bytes is read whole; one byte more is refused.

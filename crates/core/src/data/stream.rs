@@ -197,19 +197,10 @@ impl CsvStream {
             path: path.to_path_buf(),
             source,
         };
-        let meta = std::fs::metadata(path).map_err(io)?;
-        if !meta.is_file() {
-            return Err(SysidError::File {
-                file: name,
-                message:
-                    "streaming reads the file several times, so it must be a regular file (not \
-                          standard input, a pipe or a folder); save the data to a file first"
-                        .into(),
-            });
-        }
+        let file = super::bounded::open_input(path, "a streamed record (read several times)")?;
+        let meta = file.metadata().map_err(io)?;
         let mut prefix = Vec::with_capacity(PREFIX_BYTES);
-        std::fs::File::open(path)
-            .map_err(io)?
+        file
             .take(PREFIX_BYTES as u64)
             .read_to_end(&mut prefix)
             .map_err(io)?;
@@ -351,7 +342,7 @@ impl RecordSource for CsvStream {
             path: self.path.clone(),
             source,
         };
-        let mut file = std::fs::File::open(&self.path).map_err(io)?;
+        let mut file = super::bounded::open_input(&self.path, "a streamed record")?;
         let file_id = FileId::of(&file.metadata().map_err(io)?);
         if let Some(change) = self.first_pass.and_then(|f| file_id.change_from(&f.file)) {
             return Err(self.changed(&change));

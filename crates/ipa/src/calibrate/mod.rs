@@ -103,10 +103,7 @@ pub const MIN_SAMPLES: usize = 50;
 /// Reads a record from CSV: columns u and y (names in `cols`), the pressures when present, Ts from
 /// `ts_s` or else from the `t` column ((t_last − t_first)/(N − 1)), else 0.01 s.
 pub fn read_record(path: &Path, cols: &Columns, ts_s: Option<f64>) -> Result<Record, IpaError> {
-    let bytes = std::fs::read(path).map_err(|source| sysid_core::SysidError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let bytes = sysid_core::data::bounded::read_data_file(path, "a calibration record")?;
     let name = path.display().to_string();
     let table = sysid_core::data::read_table(&bytes, &name)?;
     let col = |c: &str, flag: &'static str| -> Result<Vec<f64>, IpaError> {

@@ -257,6 +257,62 @@ fn reproduce_refuses_a_folder_of_other_files() {
     assert_eq!(std::fs::read_dir(&out_dir).unwrap().count(), 1);
 }
 
+// `reproduce` writes its folder whole: SIGTERM in the middle of a run (once its staging folder holds the
+// estimation record) leaves no folder and no staging folder; a run into a folder of a previous run
+// replaces it and keeps a file the user added there.
+#[cfg(unix)]
+#[test]
+fn reproduce_writes_its_folder_whole() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let staging = |d: &Path| -> Vec<PathBuf> {
+        std::fs::read_dir(d)
+            .unwrap()
+            .filter_map(|e| e.ok())
+            .filter(|e| e.file_name().to_string_lossy().starts_with(".ipa-sysid-"))
+            .map(|e| e.path())
+            .collect()
+    };
+    let mut child = bin()
+        .args(["reproduce", "--plant", "paper", "--out", "new"])
+        .current_dir(d)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut seen = false;
+    while child.try_wait().unwrap().is_none() {
+        if staging(d)
+            .iter()
+            .any(|s| s.join("data/estimation.csv").is_file())
+        {
+            seen = true;
+            let _ = Command::new("kill")
+                .args(["-TERM", &child.id().to_string()])
+                .status();
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+    let status = child.wait().unwrap();
+    assert!(seen, "the run was never seen in progress (status {status})");
+    assert!(!status.success());
+    assert!(staging(d).is_empty(), "{:?}", staging(d));
+    assert!(!d.join("new").exists());
+
+    let out = run("reproduce --plant paper --out {t}/new", d);
+    assert!(out.status.success(), "{}", stderr(&out));
+    std::fs::write(d.join("new/notes.txt"), "mine").unwrap();
+    std::fs::write(d.join("new/report.html"), "stale").unwrap();
+    let out = run("reproduce --plant paper --out {t}/new", d);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert_eq!(std::fs::read_to_string(d.join("new/notes.txt")).unwrap(), "mine");
+    assert!(std::fs::read_to_string(d.join("new/report.html"))
+        .unwrap()
+        .contains("<html"));
+    assert!(staging(d).is_empty(), "{:?}", staging(d));
+}
+
 // SIGTERM during a long write removes the temporary file: nothing `.ipa-sysid-*.tmp` is left, and the
 // output was not created.
 #[cfg(unix)]

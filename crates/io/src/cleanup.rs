@@ -1,4 +1,5 @@
-//! Temporary files of [`crate::write_atomic`] removed when the process is stopped by a signal.
+//! Temporary files of [`crate::write_atomic`] and folders of [`crate::write_folder`] removed when the
+//! process is stopped by a signal.
 //!
 //! A write lists its temporary file here from creation until the rename; [`remove_temporaries_on_signals`]
 //! starts a thread that, on SIGINT, SIGTERM or SIGHUP, removes every listed file and then ends the
@@ -46,6 +47,42 @@ impl Pending {
     }
 }
 
+/// A temporary folder ([`crate::write_folder`]) listed for removal (with everything in it) on a signal;
+/// unlisted when dropped.
+pub(crate) struct PendingDir {
+    path: PathBuf,
+}
+
+impl PendingDir {
+    /// Creates a temporary folder in `dir` with `builder` and lists it, with the list locked.
+    pub(crate) fn create(
+        builder: &tempfile::Builder<'_, '_>,
+        dir: &Path,
+    ) -> std::io::Result<(tempfile::TempDir, Self)> {
+        let mut list = pending();
+        let tmp = builder.tempdir_in(dir)?;
+        list.push(tmp.path().to_path_buf());
+        let path = tmp.path().to_path_buf();
+        Ok((tmp, PendingDir { path }))
+    }
+
+    /// Runs `f` (the renames that put the folder in place) with the list locked, so that a signal
+    /// comes before them (the temporary folder is removed) or after them (the folder is in place),
+    /// never between; unlists the folder.
+    pub(crate) fn finish<T>(self, f: impl FnOnce() -> T) -> T {
+        let mut list = pending();
+        let out = f();
+        list.retain(|p| p != &self.path);
+        out
+    }
+}
+
+impl Drop for PendingDir {
+    fn drop(&mut self) {
+        pending().retain(|p| p != &self.path);
+    }
+}
+
 impl Drop for Pending {
     fn drop(&mut self) {
         pending().retain(|p| p != &self.path);
@@ -70,7 +107,11 @@ pub fn remove_temporaries_on_signals() -> std::io::Result<()> {
             if let Some(signal) = signals.forever().next() {
                 let list = pending();
                 for p in list.iter() {
-                    let _ = std::fs::remove_file(p);
+                    if p.is_dir() {
+                        let _ = std::fs::remove_dir_all(p);
+                    } else {
+                        let _ = std::fs::remove_file(p);
+                    }
                 }
                 // Ends the process with the list still locked: no rename can follow the removal.
                 let _ = signal_hook::low_level::emulate_default_handler(signal);

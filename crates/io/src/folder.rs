@@ -3,6 +3,7 @@
 
 use std::path::Path;
 
+use crate::cleanup::PendingDir;
 use crate::{refused, OutputError, TEMP_PREFIX};
 
 /// Writes the folder `dir` (chosen by option `flag`) as a whole: `fill` writes every file into a new
@@ -56,28 +57,40 @@ where
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => false,
         Err(e) => return Err(io(e).into()),
     };
-    let tmp = tempfile::Builder::new()
-        .prefix(TEMP_PREFIX)
-        .tempdir_in(parent)
-        .map_err(io)?;
+    // Listed for removal on SIGINT/SIGTERM/SIGHUP until it is renamed into place.
+    let (tmp, pending) =
+        PendingDir::create(tempfile::Builder::new().prefix(TEMP_PREFIX), parent).map_err(io)?;
     fill(tmp.path())?;
-    if existing {
-        let old = tempfile::Builder::new()
-            .prefix(TEMP_PREFIX)
-            .tempdir_in(parent)
-            .map_err(io)?;
-        // The old folder moves into a temporary name (removed when `old` is dropped), the new takes its place.
-        let old_dir = old.path().join("old");
-        std::fs::rename(dir, &old_dir).map_err(io)?;
-        if let Err(e) = std::fs::rename(tmp.path(), dir) {
-            // Put the old folder back; the new one is dropped with `tmp`.
-            let _ = std::fs::rename(&old_dir, dir);
-            return Err(io(e).into());
-        }
-        drop(old);
+    let old = if existing {
+        Some(
+            tempfile::Builder::new()
+                .prefix(TEMP_PREFIX)
+                .tempdir_in(parent)
+                .map_err(io)?,
+        )
     } else {
-        std::fs::rename(tmp.path(), dir).map_err(io)?;
-    }
+        None
+    };
+    // The renames run with the signal list locked: a signal removes the new folder before them or
+    // comes after both, never between (the user's folder is never left moved aside).
+    pending.finish(|| -> Result<(), OutputError> {
+        match &old {
+            Some(old) => {
+                // The old folder moves into a temporary name (removed when `old` is dropped), the new
+                // takes its place.
+                let old_dir = old.path().join("old");
+                std::fs::rename(dir, &old_dir).map_err(io)?;
+                if let Err(e) = std::fs::rename(tmp.path(), dir) {
+                    // Put the old folder back; the new one is dropped with `tmp`.
+                    let _ = std::fs::rename(&old_dir, dir);
+                    return Err(io(e));
+                }
+            }
+            None => std::fs::rename(tmp.path(), dir).map_err(io)?,
+        }
+        Ok(())
+    })?;
+    drop(old);
     let _ = tmp.keep();
     Ok(())
 }

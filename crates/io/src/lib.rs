@@ -462,19 +462,77 @@ pub(crate) fn parent_dir(path: &Path) -> &Path {
     }
 }
 
-/// The file that marks a folder as written by `reproduce` ([`claim_folder`]).
+/// The file that marks a folder as written by `reproduce` ([`write_claimed_folder`]).
 pub const FOLDER_MARKER: &str = ".ipa-sysid-output";
 
-/// Makes `dir` (chosen by option `flag`) a folder this tool may fill: creates it when missing and leaves
-/// the marker file [`FOLDER_MARKER`] in it. An existing folder is accepted when it is empty or holds
-/// the marker (written by a previous run, whose files are replaced); any other folder is refused, naming
-/// what it holds, so that a user's own files are never replaced.
-pub fn claim_folder(dir: &Path, flag: &str, tool: &str) -> Result<(), OutputError> {
+/// Writes the folder `dir` (chosen by option `flag`) of a run of `tool` as a whole ([`write_folder`]:
+/// `fill` writes into a temporary folder beside `dir`, renamed into place at the end; when `fill` fails
+/// or a signal stops the process, the temporary folder is removed and `dir` is as it was). An existing
+/// folder is accepted when it is empty or holds the marker [`FOLDER_MARKER`] (written by a previous
+/// run); any other folder is refused before `fill` runs, naming what it holds, so that a user's own
+/// files are never replaced. The new folder holds the marker; the files of a marked folder that the
+/// new run did not write (a note the user added, a figure of an older version) are copied into it, so
+/// replacing the folder loses nothing the run would not have replaced file by file.
+pub fn write_claimed_folder<E>(
+    dir: &Path,
+    flag: &str,
+    tool: &str,
+    fill: impl FnOnce(&Path) -> Result<(), E>,
+) -> Result<(), E>
+where
+    E: From<OutputError>,
+{
+    check_claim(dir, flag, tool)?;
+    write_folder(dir, flag, true, |tmp: &Path| {
+        write_atomic(
+            &tmp.join(FOLDER_MARKER),
+            format!("This folder was written by `{tool}`; the next run into it replaces its files.\n")
+                .as_bytes(),
+        )?;
+        fill(tmp)?;
+        if dir.is_dir() {
+            copy_missing(dir, tmp).map_err(|source| OutputError::Io {
+                path: dir.to_path_buf(),
+                source,
+            })?;
+        }
+        Ok(())
+    })
+}
+
+/// Copies every entry of `from` that `to` lacks (recursively into folders both hold); links are not
+/// followed.
+fn copy_missing(from: &Path, to: &Path) -> std::io::Result<()> {
+    for e in std::fs::read_dir(from)? {
+        let e = e?;
+        let (src, dst) = (e.path(), to.join(e.file_name()));
+        let kind = e.file_type()?;
+        match std::fs::symlink_metadata(&dst) {
+            Ok(m) if m.is_dir() && kind.is_dir() => copy_missing(&src, &dst)?,
+            Ok(_) => {}
+            Err(_) if kind.is_dir() => {
+                std::fs::create_dir(&dst)?;
+                copy_missing(&src, &dst)?;
+            }
+            Err(_) if kind.is_file() => {
+                std::fs::copy(&src, &dst)?;
+            }
+            #[cfg(unix)]
+            Err(_) if kind.is_symlink() => {
+                std::os::unix::fs::symlink(std::fs::read_link(&src)?, &dst)?;
+            }
+            Err(_) => {}
+        }
+    }
+    Ok(())
+}
+
+/// Refuses `dir` unless it is missing, empty or holds [`FOLDER_MARKER`] ([`write_claimed_folder`]).
+fn check_claim(dir: &Path, flag: &str, tool: &str) -> Result<(), OutputError> {
     let io = |source| OutputError::Io {
         path: dir.to_path_buf(),
         source,
     };
-    let marker = dir.join(FOLDER_MARKER);
     match std::fs::read_dir(dir) {
         Ok(entries) => {
             let mut names: Vec<String> = Vec::new();
@@ -503,17 +561,11 @@ pub fn claim_folder(dir: &Path, flag: &str, tool: &str) -> Result<(), OutputErro
                     ),
                 ));
             }
+            Ok(())
         }
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-            std::fs::create_dir_all(dir).map_err(io)?;
-        }
-        Err(e) => return Err(io(e)),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
+        Err(e) => Err(io(e)),
     }
-    write_atomic(
-        &marker,
-        format!("This folder was written by `{tool}`; the next run into it replaces its files.\n")
-            .as_bytes(),
-    )
 }
 
 #[cfg(test)]
@@ -521,26 +573,54 @@ pub fn claim_folder(dir: &Path, flag: &str, tool: &str) -> Result<(), OutputErro
 mod folder_tests {
     use super::*;
 
-    // A missing folder is created and marked; a marked folder is accepted again (a second run replaces
-    // its own files); a folder of other files is refused and left as it was.
+    fn fill(files: &'static [&'static str]) -> impl FnOnce(&Path) -> Result<(), OutputError> {
+        move |d: &Path| {
+            for f in files {
+                std::fs::write(d.join(f), "new").unwrap();
+            }
+            Ok(())
+        }
+    }
+
+    // A missing folder is written whole and marked; a marked folder is replaced, keeping the files the
+    // new run did not write; a folder of other files is refused and left as it was; a failed fill
+    // leaves the folder as it was and no temporary folder.
     #[test]
-    fn only_new_empty_or_marked_folders_are_claimed() {
+    fn only_new_empty_or_marked_folders_are_written() {
         let dir = tempfile::tempdir().unwrap();
         let out = dir.path().join("out");
-        claim_folder(&out, "--out", "test").unwrap();
+        write_claimed_folder(&out, "--out", "test", fill(&["report.html"])).unwrap();
         assert!(out.join(FOLDER_MARKER).is_file());
-        std::fs::write(out.join("report.html"), "ours").unwrap();
-        claim_folder(&out, "--out", "test").unwrap();
+        std::fs::write(out.join("notes.txt"), "mine").unwrap();
+        write_claimed_folder(&out, "--out", "test", fill(&["report.html", "b.json"])).unwrap();
+        assert_eq!(std::fs::read_to_string(out.join("notes.txt")).unwrap(), "mine");
+        assert!(out.join("b.json").is_file());
+        let e = write_claimed_folder(&out, "--out", "test", |d: &Path| {
+            std::fs::write(d.join("report.html"), "half").unwrap();
+            Err(OutputError::Io {
+                path: d.to_path_buf(),
+                source: std::io::Error::other("failed"),
+            })
+        });
+        assert!(e.is_err());
+        assert_eq!(std::fs::read_to_string(out.join("report.html")).unwrap(), "new");
         let theirs = dir.path().join("theirs");
         std::fs::create_dir(&theirs).unwrap();
         std::fs::write(theirs.join("report.html"), "mine").unwrap();
-        let e = claim_folder(&theirs, "--out", "test")
+        let e = write_claimed_folder(&theirs, "--out", "test", fill(&["report.html"]))
             .unwrap_err()
             .to_string();
         assert!(e.contains("report.html"), "{e}");
         assert!(!theirs.join(FOLDER_MARKER).exists());
+        assert_eq!(std::fs::read_to_string(theirs.join("report.html")).unwrap(), "mine");
         let empty = dir.path().join("empty");
         std::fs::create_dir(&empty).unwrap();
-        claim_folder(&empty, "--out", "test").unwrap();
+        write_claimed_folder(&empty, "--out", "test", fill(&["a"])).unwrap();
+        let left: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n.starts_with(TEMP_PREFIX))
+            .collect();
+        assert!(left.is_empty(), "{left:?}");
     }
 }

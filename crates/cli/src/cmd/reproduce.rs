@@ -2,6 +2,7 @@
 
 use std::path::PathBuf;
 
+use anyhow::Context;
 use indicatif::{ProgressBar, ProgressStyle};
 use ipa_reproduce::{run as reproduce, ReproduceSettings};
 
@@ -57,9 +58,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     ipa::plant_from_spec(&args.plant, args.plant_config.as_deref())?;
     sysid::rls::check_settings(args.forgetting, 1.0)?;
-    // Never replace a user's own files: the folder must be new, empty, or written by `reproduce`.
-    sysid_io::claim_folder(&args.out, "--out", "ipa-sysid reproduce")?;
-    let settings = ReproduceSettings {
+    let mut settings = ReproduceSettings {
         plant: args.plant.clone(),
         plant_config: args.plant_config.clone(),
         seed: args.seed,
@@ -73,16 +72,31 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .unwrap_or_else(|_| ProgressStyle::default_bar())
             .progress_chars("=> "),
     );
-    let outcome = reproduce(&settings, &mut |stage: &str, fraction: f64| {
-        bar.set_position((fraction * 100.0).round() as u64);
-        bar.set_message(stage.to_string());
-    });
+    // Never replace a user's own files: the folder must be new, empty, or written by `reproduce`. It is
+    // written whole: into a temporary folder beside it, renamed into place when the run has succeeded
+    // (a failure or SIGINT/SIGTERM leaves the folder as it was and no temporary folder).
+    let mut outcome = None;
+    let written = sysid_io::write_claimed_folder(
+        &args.out,
+        "--out",
+        "ipa-sysid reproduce",
+        |dir: &std::path::Path| -> anyhow::Result<()> {
+            settings.out_dir = dir.to_path_buf();
+            let run = reproduce(&settings, &mut |stage: &str, fraction: f64| {
+                bar.set_position((fraction * 100.0).round() as u64);
+                bar.set_message(stage.to_string());
+            })?;
+            outcome = Some(run);
+            Ok(())
+        },
+    );
     bar.finish_and_clear();
-    let outcome = outcome?;
+    written?;
+    let outcome = outcome.context("reproduce did not run")?;
     println!("{}", outcome.text);
     println!(
         "Report: {}\nSummary: {}\nElapsed: {:.2} s",
-        outcome.report_path.display(),
+        args.out.join("report.html").display(),
         args.out.join("summary.json").display(),
         outcome.summary["elapsed_s"].as_f64().unwrap_or(f64::NAN)
     );

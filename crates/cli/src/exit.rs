@@ -50,6 +50,13 @@ pub fn strict(strict: bool, warnings: usize) -> anyhow::Result<()> {
 
 /// The message of one error, with the library's settings named by their flags.
 pub fn render(e: &(dyn std::error::Error + 'static)) -> String {
+    // Every error the program prints passes here: what it echoes of the input is capped once
+    // (`sysid::error::clip`: a 200 kB TOML line, a 309-digit number).
+    sysid::error::clip(&render_whole(e))
+}
+
+/// [`render`] before the cap.
+fn render_whole(e: &(dyn std::error::Error + 'static)) -> String {
     if let Some(s) = e.downcast_ref::<sysid::SysidError>() {
         return s.render_flags();
     }

@@ -306,7 +306,10 @@ fn reproduce_writes_its_folder_whole() {
     std::fs::write(d.join("new/report.html"), "stale").unwrap();
     let out = run("reproduce --plant paper --out {t}/new", d);
     assert!(out.status.success(), "{}", stderr(&out));
-    assert_eq!(std::fs::read_to_string(d.join("new/notes.txt")).unwrap(), "mine");
+    assert_eq!(
+        std::fs::read_to_string(d.join("new/notes.txt")).unwrap(),
+        "mine"
+    );
     assert!(std::fs::read_to_string(d.join("new/report.html"))
         .unwrap()
         .contains("<html"));
@@ -644,7 +647,10 @@ fn montecarlo_failures_and_work_are_bounded() {
         assert_eq!(out.status.code(), Some(1), "{}", stderr(&out));
         assert!(stderr(&out).contains("not written"), "{}", stderr(&out));
         if existed {
-            assert_eq!(std::fs::read_to_string(&mine).unwrap(), "{\"mine\": true}\n");
+            assert_eq!(
+                std::fs::read_to_string(&mine).unwrap(),
+                "{\"mine\": true}\n"
+            );
         } else {
             assert!(!dir.path().join("new.json").exists());
         }
@@ -846,4 +852,68 @@ proptest::proptest! {
             Err(e) => proptest::prop_assert!(e.to_string().contains("damaged.mat"), "{e}"),
         }
     }
+}
+
+// A plant parameter outside its plausible range (docs/plant.md) is refused at its line and column, with
+// the key, the value as written (compact: 1e308, not 309 digits) and the range; nothing is simulated.
+// Before, a mass of 1e308 ran to exit 0 with nonsense, 1e-300 and a 1e12 MPa supply ended in an
+// integration error that named neither the file nor the value (audit s10 F7.3).
+#[test]
+fn absurd_plant_values_are_refused_with_their_range() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for (body, at, echo, range) in [
+        (
+            "[load]\nmoving_mass_kg = 1e308\n",
+            "p.toml:2:1:",
+            "load.moving_mass_kg = 1e308",
+            "[0.001, 10000.0]",
+        ),
+        (
+            "[load]\n  moving_mass_kg = 1e-300\n",
+            "p.toml:2:3:",
+            "load.moving_mass_kg = 1e-300",
+            "[0.001, 10000.0]",
+        ),
+        (
+            "# a note\nair.supply_gauge_mpa = 1e12\n",
+            "p.toml:2:1:",
+            "air.supply_gauge_mpa = 1000000000000.0",
+            "[0.01, 10.0]",
+        ),
+    ] {
+        std::fs::write(d.join("p.toml"), body).unwrap();
+        for cmd in [
+            "simulate --plant ipa --plant-config {t}/p.toml --samples 50 --out {t}/x.csv",
+            "montecarlo --plant ipa --plant-config {t}/p.toml --samples 50 --runs 2 --json {t}/x.json",
+        ] {
+            let out = run(cmd, d);
+            let err = stderr(&out);
+            assert_eq!(out.status.code(), Some(2), "{body}: {err}");
+            assert!(err.contains(at) && err.contains(echo) && err.contains(range), "{body}: {err}");
+        }
+    }
+    assert!(!d.join("x.csv").exists() && !d.join("x.json").exists());
+}
+
+// What an error echoes of its input is capped in one place (80 characters a word, then `…`): a TOML
+// value nested 100 000 deep (a 200 kB line) gives an error of a few hundred bytes.
+#[test]
+fn long_echoes_are_cut() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let deep = format!("a = {}1{}\n", "[".repeat(100_000), "]".repeat(100_000));
+    std::fs::write(d.join("deep.toml"), deep).unwrap();
+    let out = run(
+        "simulate --plant ipa --plant-config {t}/deep.toml --samples 50 --out {t}/x.csv",
+        d,
+    );
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("deep.toml") && err.contains("[[[…"), "{err}");
+    assert!(err.len() < 2000, "{} bytes: {err}", err.len());
+    assert!(
+        err.lines().all(|l| l.chars().count() <= 4 * 80 + 1),
+        "{err}"
+    );
 }

@@ -848,12 +848,9 @@ pub(crate) fn sig6(x: f64) -> String {
         .map_or_else(|_| x.to_string(), |v| v.to_string())
 }
 
+/// A cell or a column name as a message echoes it: at most 40 characters ([`crate::error::clip_to`]).
 pub(crate) fn shorten(s: &str) -> String {
-    if s.chars().count() > 40 {
-        format!("{}...", s.chars().take(40).collect::<String>())
-    } else {
-        s.to_string()
-    }
+    crate::error::clip_to(s, 40)
 }
 
 /// Ts from a time column: time must increase strictly, and every step must equal the median step

@@ -169,6 +169,45 @@ pub enum SysidError {
     Numerical(String),
 }
 
+/// The most characters of one word (a run without white space) or one line that an error message echoes
+/// ([`clip`]).
+pub const MAX_ECHO_CHARS: usize = 80;
+
+/// `text` with every word (a run without white space) longer than [`MAX_ECHO_CHARS`] cut to that many
+/// characters and `…`, and every line cut to 4 × [`MAX_ECHO_CHARS`]: the one cap on what an error
+/// message echoes of its input (a 200 kB TOML line, a 309-digit number, a 1 MB cell). The command line
+/// applies it to every error it prints.
+pub fn clip(text: &str) -> String {
+    clip_to(text, MAX_ECHO_CHARS)
+}
+
+/// [`clip`] with words cut to `max` characters (lines to 4 × `max`).
+pub fn clip_to(text: &str, max: usize) -> String {
+    let cut = |s: &str, n: usize| -> Option<String> {
+        s.char_indices()
+            .nth(n)
+            .map(|(i, _)| format!("{}…", &s[..i]))
+    };
+    let mut out = String::with_capacity(text.len().min(8 * max));
+    for (i, line) in text.split('\n').enumerate() {
+        if i > 0 {
+            out.push('\n');
+        }
+        let mut line_out = String::new();
+        let mut rest = line;
+        while !rest.is_empty() {
+            let end = rest.find(char::is_whitespace).unwrap_or(rest.len());
+            let (word, after) = rest.split_at(end);
+            line_out.push_str(&cut(word, max).unwrap_or_else(|| word.to_string()));
+            let space = after.len() - after.trim_start().len();
+            line_out.push_str(&after[..space]);
+            rest = &after[space..];
+        }
+        out.push_str(&cut(&line_out, 4 * max).unwrap_or(line_out));
+    }
+    out
+}
+
 impl SysidError {
     /// The message, with each [`Setting`] named by `name` (the library's own names in `Display`; the
     /// command line passes its flag names, so that its messages say `--na` where this says `na`).

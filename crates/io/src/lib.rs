@@ -486,8 +486,10 @@ where
     write_folder(dir, flag, true, |tmp: &Path| {
         write_atomic(
             &tmp.join(FOLDER_MARKER),
-            format!("This folder was written by `{tool}`; the next run into it replaces its files.\n")
-                .as_bytes(),
+            format!(
+                "This folder was written by `{tool}`; the next run into it replaces its files.\n"
+            )
+            .as_bytes(),
         )?;
         fill(tmp)?;
         if dir.is_dir() {
@@ -593,7 +595,10 @@ mod folder_tests {
         assert!(out.join(FOLDER_MARKER).is_file());
         std::fs::write(out.join("notes.txt"), "mine").unwrap();
         write_claimed_folder(&out, "--out", "test", fill(&["report.html", "b.json"])).unwrap();
-        assert_eq!(std::fs::read_to_string(out.join("notes.txt")).unwrap(), "mine");
+        assert_eq!(
+            std::fs::read_to_string(out.join("notes.txt")).unwrap(),
+            "mine"
+        );
         assert!(out.join("b.json").is_file());
         let e = write_claimed_folder(&out, "--out", "test", |d: &Path| {
             std::fs::write(d.join("report.html"), "half").unwrap();
@@ -603,7 +608,10 @@ mod folder_tests {
             })
         });
         assert!(e.is_err());
-        assert_eq!(std::fs::read_to_string(out.join("report.html")).unwrap(), "new");
+        assert_eq!(
+            std::fs::read_to_string(out.join("report.html")).unwrap(),
+            "new"
+        );
         let theirs = dir.path().join("theirs");
         std::fs::create_dir(&theirs).unwrap();
         std::fs::write(theirs.join("report.html"), "mine").unwrap();
@@ -612,7 +620,10 @@ mod folder_tests {
             .to_string();
         assert!(e.contains("report.html"), "{e}");
         assert!(!theirs.join(FOLDER_MARKER).exists());
-        assert_eq!(std::fs::read_to_string(theirs.join("report.html")).unwrap(), "mine");
+        assert_eq!(
+            std::fs::read_to_string(theirs.join("report.html")).unwrap(),
+            "mine"
+        );
         let empty = dir.path().join("empty");
         std::fs::create_dir(&empty).unwrap();
         write_claimed_folder(&empty, "--out", "test", fill(&["a"])).unwrap();

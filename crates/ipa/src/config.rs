@@ -234,6 +234,9 @@ struct Entry {
     key: &'static str,
     value: f64,
     doc: &'static str,
+    /// The plausible range [lo, hi] of the value (beyond it the physics means nothing, or the
+    /// integration cannot follow it); the checks of [`PlantConfig::validate`] narrow some further.
+    range: (f64, f64),
 }
 
 /// Upper bound on the size of a plant configuration file, checked as it is read (1 MiB; the default
@@ -254,21 +257,41 @@ impl PlantConfig {
         Self::from_toml_str(&text, &path.display().to_string())
     }
 
-    /// Parses TOML text (`name` is used in messages) and validates it.
+    /// Parses TOML text (`name` is used in messages) and validates it; a value out of range is reported
+    /// at its line and column in the text (`name:LINE:COLUMN: invalid plant config load.moving_mass_kg
+    /// = 1e308: expected ...`) when the key is written there.
     pub fn from_toml_str(text: &str, name: &str) -> Result<Self, IpaError> {
         let cfg: PlantConfig = toml::from_str(text)
             .map_err(|e| IpaError::Config(format!("{name}: invalid plant config: {e}")))?;
-        cfg.validate()
-            .map_err(|e| IpaError::Config(format!("{name}: {e}")))?;
+        cfg.check().map_err(|e| {
+            IpaError::Config(match locate(text, e.section, e.key) {
+                Some((line, column)) => format!("{name}:{line}:{column}: {}", e.message),
+                None => format!("{name}: {}", e.message),
+            })
+        })?;
         Ok(cfg)
     }
 
     /// Checks every value; the error names the key (`section.key`), the value and what is accepted.
     pub fn validate(&self) -> Result<(), IpaError> {
+        self.check().map_err(|e| IpaError::Config(e.message))
+    }
+
+    /// [`PlantConfig::validate`], keeping the key of the value refused.
+    fn check(&self) -> Result<(), Invalid> {
         for (section, entries) in self.sections() {
             for e in entries {
                 if !e.value.is_finite() {
                     return Err(bad(section, e.key, e.value, "a finite number"));
+                }
+                let (lo, hi) = e.range;
+                if !(lo..=hi).contains(&e.value) {
+                    return Err(bad(
+                        section,
+                        e.key,
+                        e.value,
+                        &format!("a value in the plausible range [{lo:?}, {hi:?}] (docs/plant.md)"),
+                    ));
                 }
             }
         }
@@ -450,7 +473,12 @@ impl PlantConfig {
     }
 
     fn sections(&self) -> Vec<(&'static str, Vec<Entry>)> {
-        let e = |key, value, doc| Entry { key, value, doc };
+        let e = |key, value, doc, range| Entry {
+            key,
+            value,
+            doc,
+            range,
+        };
         let c = &self.cylinder;
         let a = &self.air;
         let v = &self.valve;
@@ -459,62 +487,62 @@ impl PlantConfig {
             (
                 "cylinder",
                 vec![
-                    e("bore_mm", c.bore_mm, "bore D, mm (paper Table II)"),
-                    e("rod_mm", c.rod_mm, "rod diameter d, mm (Table II); rod side is the smaller area"),
-                    e("stroke_mm", c.stroke_mm, "stroke L, mm (Table II); end stops at 0 and L"),
-                    e("dead_volume_cap_cm3", c.dead_volume_cap_cm3, "cap-side dead volume, cm^3 (estimate: end cap + port + 0.5 m of 4 mm tube)"),
-                    e("dead_volume_rod_cm3", c.dead_volume_rod_cm3, "rod-side dead volume, cm^3 (estimate, as cap side)"),
+                    e("bore_mm", c.bore_mm, "bore D, mm (paper Table II)", (1.0, MAX_BORE_MM)),
+                    e("rod_mm", c.rod_mm, "rod diameter d, mm (Table II); rod side is the smaller area", (0.0, MAX_BORE_MM)),
+                    e("stroke_mm", c.stroke_mm, "stroke L, mm (Table II); end stops at 0 and L", (1.0, MAX_STROKE_MM)),
+                    e("dead_volume_cap_cm3", c.dead_volume_cap_cm3, "cap-side dead volume, cm^3 (estimate: end cap + port + 0.5 m of 4 mm tube)", (1e-3, 1e5)),
+                    e("dead_volume_rod_cm3", c.dead_volume_rod_cm3, "rod-side dead volume, cm^3 (estimate, as cap side)", (1e-3, 1e5)),
                 ],
             ),
             (
                 "air",
                 vec![
-                    e("supply_gauge_mpa", a.supply_gauge_mpa, "supply pressure above atmosphere, MPa (Table II: 0.6 MPa)"),
-                    e("atmosphere_pa", a.atmosphere_pa, "exhaust/atmospheric pressure, Pa (standard atmosphere)"),
-                    e("temperature_k", a.temperature_k, "air temperature T, K (Table II, ISO 6358)"),
-                    e("heat_capacity_ratio", a.heat_capacity_ratio, "specific heat ratio k (Table II)"),
-                    e("gas_constant_j_kg_k", a.gas_constant_j_kg_k, "gas constant R of air, J/(kg K)"),
-                    e("exponent_charging", a.exponent_charging, "polytropic exponent of charging alpha_in (Richer & Hurmuzlu 2000: k)"),
-                    e("exponent_discharging", a.exponent_discharging, "polytropic exponent of discharging alpha_out (Richer & Hurmuzlu 2000: 1)"),
-                    e("exponent_volume", a.exponent_volume, "polytropic exponent of the volume term alpha (Richer & Hurmuzlu 2000: 1.2)"),
+                    e("supply_gauge_mpa", a.supply_gauge_mpa, "supply pressure above atmosphere, MPa (Table II: 0.6 MPa)", (0.01, 10.0)),
+                    e("atmosphere_pa", a.atmosphere_pa, "exhaust/atmospheric pressure, Pa (standard atmosphere)", (1e4, 2e5)),
+                    e("temperature_k", a.temperature_k, "air temperature T, K (Table II, ISO 6358)", (150.0, 500.0)),
+                    e("heat_capacity_ratio", a.heat_capacity_ratio, "specific heat ratio k (Table II)", (1.0, 5.0 / 3.0)),
+                    e("gas_constant_j_kg_k", a.gas_constant_j_kg_k, "gas constant R of air, J/(kg K)", (50.0, 5000.0)),
+                    e("exponent_charging", a.exponent_charging, "polytropic exponent of charging alpha_in (Richer & Hurmuzlu 2000: k)", (1.0, 5.0 / 3.0)),
+                    e("exponent_discharging", a.exponent_discharging, "polytropic exponent of discharging alpha_out (Richer & Hurmuzlu 2000: 1)", (1.0, 5.0 / 3.0)),
+                    e("exponent_volume", a.exponent_volume, "polytropic exponent of the volume term alpha (Richer & Hurmuzlu 2000: 1.2)", (1.0, 5.0 / 3.0)),
                 ],
             ),
             (
                 "valve",
                 vec![
-                    e("supply_conductance_dm3_s_bar", v.supply_conductance_dm3_s_bar, "ISO 6358 sonic conductance C supply -> chamber, dm^3/(s bar) ANR (estimate for a 10 mm wide solenoid valve, ~1 mm orifice; sets the full-command speed)"),
-                    e("exhaust_conductance_dm3_s_bar", v.exhaust_conductance_dm3_s_bar, "ISO 6358 sonic conductance C chamber -> exhaust, dm^3/(s bar) ANR (estimate; larger than the supply path, which makes retracting faster than extending as in the paper's model)"),
-                    e("critical_pressure_ratio", v.critical_pressure_ratio, "ISO 6358 critical pressure ratio b (estimate, typical of small solenoid valves)"),
-                    e("laminar_pressure_ratio", v.laminar_pressure_ratio, "above this pressure ratio the flow is linear in the pressure difference (numerical regularisation)"),
-                    e("pwm_period_ms", v.pwm_period_ms, "PWM period, ms (estimate: one period per sample Ts = 10 ms); duty = |u|/255, latched at each period start"),
-                    e("opening_delay_ms", v.opening_delay_ms, "valve opening delay, ms (estimate; with the PWM period it sets the deadzone)"),
-                    e("closing_delay_ms", v.closing_delay_ms, "valve closing delay, ms (estimate)"),
+                    e("supply_conductance_dm3_s_bar", v.supply_conductance_dm3_s_bar, "ISO 6358 sonic conductance C supply -> chamber, dm^3/(s bar) ANR (estimate for a 10 mm wide solenoid valve, ~1 mm orifice; sets the full-command speed)", (0.0, 100.0)),
+                    e("exhaust_conductance_dm3_s_bar", v.exhaust_conductance_dm3_s_bar, "ISO 6358 sonic conductance C chamber -> exhaust, dm^3/(s bar) ANR (estimate; larger than the supply path, which makes retracting faster than extending as in the paper's model)", (0.0, 100.0)),
+                    e("critical_pressure_ratio", v.critical_pressure_ratio, "ISO 6358 critical pressure ratio b (estimate, typical of small solenoid valves)", (0.0, 1.0)),
+                    e("laminar_pressure_ratio", v.laminar_pressure_ratio, "above this pressure ratio the flow is linear in the pressure difference (numerical regularisation)", (0.0, 1.0)),
+                    e("pwm_period_ms", v.pwm_period_ms, "PWM period, ms (estimate: one period per sample Ts = 10 ms); duty = |u|/255, latched at each period start", (0.01, 1000.0)),
+                    e("opening_delay_ms", v.opening_delay_ms, "valve opening delay, ms (estimate; with the PWM period it sets the deadzone)", (0.0, 1000.0)),
+                    e("closing_delay_ms", v.closing_delay_ms, "valve closing delay, ms (estimate)", (0.0, 1000.0)),
                 ],
             ),
             (
                 "load",
                 vec![
-                    e("moving_mass_kg", self.load.moving_mass_kg, "piston + 16 mm steel rod + encoder strip, kg (estimate)"),
-                    e("external_force_n", self.load.external_force_n, "constant external force on the rod, N, + extends (Table II: ambient force 0 N)"),
+                    e("moving_mass_kg", self.load.moving_mass_kg, "piston + 16 mm steel rod + encoder strip, kg (estimate)", (1e-3, 1e4)),
+                    e("external_force_n", self.load.external_force_n, "constant external force on the rod, N, + extends (Table II: ambient force 0 N)", (-1e6, 1e6)),
                 ],
             ),
             (
                 "friction",
                 vec![
-                    e("static_n", f.static_n, "breakaway (static) friction F_s, N (estimate for 40 mm bore seals)"),
-                    e("coulomb_n", f.coulomb_n, "Coulomb friction F_c, N (estimate)"),
-                    e("stribeck_velocity_mm_s", f.stribeck_velocity_mm_s, "Stribeck velocity v_s, mm/s (estimate)"),
-                    e("viscous_n_s_m", f.viscous_n_s_m, "viscous friction sigma, N s/m (estimate)"),
+                    e("static_n", f.static_n, "breakaway (static) friction F_s, N (estimate for 40 mm bore seals)", (0.0, 1e5)),
+                    e("coulomb_n", f.coulomb_n, "Coulomb friction F_c, N (estimate)", (0.0, 1e5)),
+                    e("stribeck_velocity_mm_s", f.stribeck_velocity_mm_s, "Stribeck velocity v_s, mm/s (estimate)", (1e-3, 1e4)),
+                    e("viscous_n_s_m", f.viscous_n_s_m, "viscous friction sigma, N s/m (estimate)", (0.0, 1e6)),
                 ],
             ),
-            ("encoder", vec![e("resolution_mm", self.encoder.resolution_mm, "encoder resolution, mm per count (issue 3: 0.01 mm)")]),
+            ("encoder", vec![e("resolution_mm", self.encoder.resolution_mm, "encoder resolution, mm per count (issue 3: 0.01 mm)", (1e-6, 10.0))]),
             (
                 "integration",
                 vec![
-                    e("tolerance", self.integration.tolerance, "local error tolerance of the adaptive Dormand-Prince steps, relative to stroke, 1 m/s (1 + |v|/v_s) and 0.2 supply pressure (tests/accuracy.rs)"),
-                    e("max_substep_ms", self.integration.max_substep_ms, "largest substep of the RK4 reference integrator, ms (cut at valve switching instants)"),
-                    e("slow_substep_ms", self.integration.slow_substep_ms, "largest RK4 reference substep while sliding slowly (Stribeck region), ms"),
-                    e("slow_speed_mm_s", self.integration.slow_speed_mm_s, "speed below which slow_substep_ms applies, mm/s (4 Stribeck velocities)"),
+                    e("tolerance", self.integration.tolerance, "local error tolerance of the adaptive Dormand-Prince steps, relative to stroke, 1 m/s (1 + |v|/v_s) and 0.2 supply pressure (tests/accuracy.rs)", (1e-14, 1e-3)),
+                    e("max_substep_ms", self.integration.max_substep_ms, "largest substep of the RK4 reference integrator, ms (cut at valve switching instants)", (1e-6, 1000.0)),
+                    e("slow_substep_ms", self.integration.slow_substep_ms, "largest RK4 reference substep while sliding slowly (Stribeck region), ms", (1e-6, 1000.0)),
+                    e("slow_speed_mm_s", self.integration.slow_speed_mm_s, "speed below which slow_substep_ms applies, mm/s (4 Stribeck velocities)", (0.0, 1e5)),
                 ],
             ),
         ]
@@ -527,13 +555,52 @@ pub const MAX_STROKE_MM: f64 = 10_000.0;
 /// The largest bore a plant configuration accepts, mm (1 m).
 pub const MAX_BORE_MM: f64 = 1_000.0;
 
-fn bad(section: &str, key: &str, value: f64, expected: &str) -> IpaError {
-    IpaError::Config(format!(
-        "invalid plant config {section}.{key} = {value}: expected {expected}"
-    ))
+/// A value [`PlantConfig::check`] refuses: its section, key, and the message.
+struct Invalid {
+    section: &'static str,
+    key: &'static str,
+    message: String,
 }
 
-fn pos(section: &str, key: &str, value: f64) -> Result<(), IpaError> {
+/// The refusal of `section.key = value`; the value is printed as Rust's `{:?}` does (shortest exact
+/// digits, exponent form for very large or small values: `1e308`, not 309 digits).
+fn bad(section: &'static str, key: &'static str, value: f64, expected: &str) -> Invalid {
+    Invalid {
+        section,
+        key,
+        message: format!("invalid plant config {section}.{key} = {value:?}: expected {expected}"),
+    }
+}
+
+/// Line and column (1-based) of `key` of table `[section]` in TOML `text`: a `key =` line inside the
+/// section's table, or a `section.key =` line before any table; `None` when the key is not written
+/// (a default that another value made invalid) or is written in another form (an inline table).
+fn locate(text: &str, section: &str, key: &str) -> Option<(usize, usize)> {
+    let mut current: Option<String> = None;
+    let dotted = format!("{section}.{key}");
+    for (i, line) in text.lines().enumerate() {
+        let t = line.trim_start();
+        let column = line.len() - t.len() + 1;
+        if let Some(rest) = t.strip_prefix('[') {
+            current = rest.split(']').next().map(|h| h.trim().to_string());
+            continue;
+        }
+        let lhs = match t.split_once('=') {
+            Some((lhs, _)) => lhs.trim().trim_matches('"'),
+            None => continue,
+        };
+        let hit = match current.as_deref() {
+            Some(sec) => sec == section && lhs == key,
+            None => lhs.replace(' ', "") == dotted,
+        };
+        if hit {
+            return Some((i + 1, column));
+        }
+    }
+    None
+}
+
+fn pos(section: &'static str, key: &'static str, value: f64) -> Result<(), Invalid> {
     if value > 0.0 {
         Ok(())
     } else {
@@ -541,7 +608,7 @@ fn pos(section: &str, key: &str, value: f64) -> Result<(), IpaError> {
     }
 }
 
-fn nonneg(section: &str, key: &str, value: f64) -> Result<(), IpaError> {
+fn nonneg(section: &'static str, key: &'static str, value: f64) -> Result<(), Invalid> {
     if value >= 0.0 {
         Ok(())
     } else {

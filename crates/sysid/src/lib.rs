@@ -50,9 +50,9 @@ pub use estimate::{
 pub use fitted::{Fitted, Method, Note, Param, Termination};
 pub use options::IdentifyOptions;
 pub use sysid_core::{
-    data, detrend, metrics, model, model_file, narx as narx_model, nonlinearity, param, plant,
-    structure, DataRange, Dataset, Deadzone, InputChannel, Model, ModelKind, ModelPlant, Orders,
-    ParamName, Parameterisation, Plant, PlantError, Setting, StaticNonlinearity, Structure,
+    data, detrend, error, metrics, model, model_file, narx as narx_model, nonlinearity, param,
+    plant, structure, DataRange, Dataset, Deadzone, InputChannel, Model, ModelKind, ModelPlant,
+    Orders, ParamName, Parameterisation, Plant, PlantError, Setting, StaticNonlinearity, Structure,
     SysidError,
 };
 pub use warnings::Warning;

@@ -646,7 +646,12 @@ fn summary_text(
             let d = c.deadzone;
             o += &format!(
                 "compensator:  deadzone inverse ({:?}), b_l = {}, b_r = {}, m_l = {}, m_r = {}, threshold {} counts\n",
-                c.slope_mode, d.b_l, d.b_r, d.m_l, d.m_r, c.threshold_counts
+                c.slope_mode,
+                ::report::format::num(d.b_l),
+                ::report::format::num(d.b_r),
+                ::report::format::num(d.m_l),
+                ::report::format::num(d.m_r),
+                ::report::format::num(c.threshold_counts)
             );
         }
     }

@@ -200,8 +200,7 @@ impl CsvStream {
         let file = super::bounded::open_input(path, "a streamed record (read several times)")?;
         let meta = file.metadata().map_err(io)?;
         let mut prefix = Vec::with_capacity(PREFIX_BYTES);
-        file
-            .take(PREFIX_BYTES as u64)
+        file.take(PREFIX_BYTES as u64)
             .read_to_end(&mut prefix)
             .map_err(io)?;
         let is_mat_name = path

@@ -191,3 +191,55 @@ fn order_detects_an_operating_point_and_detrends_like_identify() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("--detrend"));
 }
+
+// A record on which every structure fails numerically (values of 1e300: the least-squares sums
+// overflow) is an error, exit 1, as identify's on the same data; the table still lists each structure
+// with its failure, and the user's --json file is left as it was (audit s10 F7.6).
+#[test]
+fn order_fails_when_no_structure_can_be_estimated() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut s = String::from("u,y\n");
+    for k in 0..300 {
+        s += &format!("{}e300,{}e300\n", 1 + k % 7, 2 + k % 5);
+    }
+    let data = dir.path().join("huge.csv");
+    std::fs::write(&data, s).unwrap();
+    let json = dir.path().join("mine.json");
+    std::fs::write(&json, "mine\n").unwrap();
+    let out = bin()
+        .args([
+            "order", "--ts", "0.1", "--na", "1..2", "--nb", "1..2", "--nk", "1", "--data",
+        ])
+        .arg(&data)
+        .arg("--json")
+        .arg(&json)
+        .output()
+        .unwrap();
+    let (stdout, stderr) = (
+        String::from_utf8_lossy(&out.stdout),
+        String::from_utf8_lossy(&out.stderr),
+    );
+    assert_eq!(out.status.code(), Some(1), "{stdout}{stderr}");
+    assert!(
+        stderr.contains("every one of the 4 structures failed"),
+        "{stderr}"
+    );
+    assert_eq!(stdout.matches("numerical failure").count(), 4, "{stdout}");
+    assert!(stdout.contains("nothing could be estimated"), "{stdout}");
+    assert_eq!(std::fs::read_to_string(&json).unwrap(), "mine\n");
+    let identify = bin()
+        .args([
+            "identify",
+            "--ts",
+            "0.1",
+            "--structure",
+            "arx",
+            "--method",
+            "ls",
+            "--data",
+        ])
+        .arg(&data)
+        .output()
+        .unwrap();
+    assert_eq!(identify.status.code(), Some(1));
+}

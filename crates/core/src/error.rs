@@ -174,14 +174,15 @@ pub enum SysidError {
 pub const MAX_ECHO_CHARS: usize = 80;
 
 /// `text` with every word (a run without white space) longer than [`MAX_ECHO_CHARS`] cut to that many
-/// characters and `…`, and every line cut to 4 × [`MAX_ECHO_CHARS`]: the one cap on what an error
+/// characters and `…`, and every line cut to 25 × [`MAX_ECHO_CHARS`] (a long message of many short
+/// words is kept whole): the one cap on what an error
 /// message echoes of its input (a 200 kB TOML line, a 309-digit number, a 1 MB cell). The command line
 /// applies it to every error it prints.
 pub fn clip(text: &str) -> String {
     clip_to(text, MAX_ECHO_CHARS)
 }
 
-/// [`clip`] with words cut to `max` characters (lines to 4 × `max`).
+/// [`clip`] with words cut to `max` characters (lines to 25 × `max`).
 pub fn clip_to(text: &str, max: usize) -> String {
     let cut = |s: &str, n: usize| -> Option<String> {
         s.char_indices()
@@ -203,7 +204,7 @@ pub fn clip_to(text: &str, max: usize) -> String {
             line_out.push_str(&after[..space]);
             rest = &after[space..];
         }
-        out.push_str(&cut(&line_out, 4 * max).unwrap_or(line_out));
+        out.push_str(&cut(&line_out, 25 * max).unwrap_or(line_out));
     }
     out
 }

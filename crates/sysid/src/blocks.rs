@@ -1523,7 +1523,17 @@ impl Branches {
         };
         if let (false, false, Some(levels)) = (b_l_fixed, b_r_fixed, few_levels(u, need)) {
             if levels.len() >= 2 {
-                let list: Vec<String> = levels.iter().map(ToString::to_string).collect();
+                // Exponent form beyond 1e16 (1e300 is not printed with 301 digits).
+                let list: Vec<String> = levels
+                    .iter()
+                    .map(|v| {
+                        if v.abs() < 1e16 {
+                            v.to_string()
+                        } else {
+                            format!("{v:e}")
+                        }
+                    })
+                    .collect();
                 return Err(SysidError::Data(format!(
                     "{name}: the input takes only {} distinct levels ({}); a deadzone input \
                      nonlinearity {} needs at least {need} distinct levels: a static map through {} \

@@ -277,8 +277,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     for w in &warnings {
         text.push_str(&format!("warning: {w}\n"));
     }
+    // Nothing could be estimated: an error after the table (which says why for each structure), as
+    // identify's on the same data; the --json file is then not written (as montecarlo's).
+    let failed = ranked.iter().filter(|c| c.error.is_some()).count();
+    let nothing = failed == ranked.len();
+    if nothing {
+        text.push_str(&format!(
+            "Every structure failed to estimate ({failed} of {failed}): nothing could be estimated, \
+             no structure is recommended.\n"
+        ));
+    }
     print_report(&text, args.json.as_deref());
-    if let Some(path) = &args.json {
+    let json_to_stdout = args.json.as_deref().is_some_and(|p| p.as_os_str() == "-");
+    if let (true, Some(path), false) = (nothing, &args.json, json_to_stdout) {
+        eprintln!(
+            "{}: not written: no structure could be estimated (an existing file is left as it was)",
+            path.display()
+        );
+    } else if let Some(path) = &args.json {
         let doc = OrderReport {
             warnings,
             data: fit_part.name().to_string(),
@@ -291,6 +307,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         };
         let json = serde_json::to_string_pretty(&doc)? + "\n";
         write_output(path, json.as_bytes(), &inputs, "--json")?;
+    }
+    if nothing {
+        let first = ranked.iter().find_map(|c| c.error.as_deref()).unwrap_or("");
+        anyhow::bail!(sysid::SysidError::Numerical(format!(
+            "every one of the {failed} structures failed to estimate (the first: {first}); nothing \
+             could be estimated from this record"
+        )));
     }
     Ok(())
 }

@@ -128,3 +128,73 @@ fn bad_calibrate_input_is_refused_clearly() {
         "t,u,pos\n0,0,1\n"
     );
 }
+
+// A record without motion (u = 1 count, y = 2 mm throughout) carries no information on any parameter
+// (the Jacobian is 0): no standard deviation is reported as 0 (each is withheld and said, and every
+// parameter is "not determined"); a record of 1e300 values makes the cost overflow: an error (exit 1)
+// and no twin written (audit s10 F4).
+#[test]
+fn a_still_record_has_no_zero_standard_deviations_and_an_overflowing_one_fails() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path();
+    let still: String = std::iter::once("u,y\n".to_string())
+        .chain((0..300).map(|_| "1,2\n".to_string()))
+        .collect();
+    std::fs::write(p.join("still.csv"), still).unwrap();
+    let o = run(
+        p,
+        &[
+            "calibrate",
+            "--data",
+            "still.csv",
+            "--ts",
+            "0.08",
+            "--no-baseline",
+            "--out",
+            "s.toml",
+            "--json",
+            "s.json",
+        ],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(p.join("s.json")).unwrap()).unwrap();
+    let text = doc.to_string();
+    assert!(!text.contains("\"std\":0.0"), "{text}");
+    let warnings = doc["warnings"].as_array().unwrap();
+    assert!(
+        warnings
+            .iter()
+            .any(|w| w.as_str().unwrap().contains("came out exactly 0")),
+        "{warnings:?}"
+    );
+    let not_determined = warnings
+        .iter()
+        .filter(|w| w.as_str().unwrap().contains("is not determined"))
+        .count();
+    assert_eq!(not_determined, 12, "{warnings:?}");
+
+    let huge: String = std::iter::once("u,y\n".to_string())
+        .chain((0..300).map(|k| format!("{}e300,{}e300\n", 1 + k % 7, 4 + k % 3)))
+        .collect();
+    std::fs::write(p.join("huge.csv"), huge).unwrap();
+    let o = run(
+        p,
+        &[
+            "calibrate",
+            "--data",
+            "huge.csv",
+            "--ts",
+            "0.08",
+            "--no-baseline",
+            "--out",
+            "h.toml",
+            "--json",
+            "h.json",
+        ],
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(err.contains("cost is inf"), "{err}");
+    assert!(!p.join("h.toml").exists() && !p.join("h.json").exists());
+}

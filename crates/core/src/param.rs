@@ -409,6 +409,25 @@ pub fn deadzone_from_theta(theta: &[f64], prev: Deadzone, limit: f64) -> Deadzon
     }
 }
 
+/// Withholds every standard deviation that is exactly 0 (sets it to `None`) and returns the labels of
+/// those withheld. A standard deviation of exactly 0 claims a certainty no finite record gives: it comes
+/// from a covariance that underflowed (signals many orders of magnitude apart) or is degenerate (a
+/// pseudo-inverse of a singular information matrix gives 0 where the data say nothing). The one rule of
+/// `identify` (`sysid::estimate`, when the residuals are not zero) and `calibrate` (whose record cannot
+/// fit exactly: a still record gives J = 0).
+pub fn withhold_zero_stds<'a>(
+    stds: impl IntoIterator<Item = (String, &'a mut Option<f64>)>,
+) -> Vec<String> {
+    let mut withheld = Vec::new();
+    for (label, std) in stds {
+        if *std == Some(0.0) {
+            *std = None;
+            withheld.push(label);
+        }
+    }
+    withheld
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

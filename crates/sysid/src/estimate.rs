@@ -521,11 +521,9 @@ fn zero_std(fit: &mut Fitted) -> Option<Warning> {
     if fit.noise_variance.is_nan() || fit.noise_variance <= 0.0 {
         return None;
     }
-    let mut zero = Vec::new();
-    for q in fit.params.iter_mut().filter(|q| q.std == Some(0.0)) {
-        q.std = None;
-        zero.push(q.label());
-    }
+    let zero = sysid_core::param::withhold_zero_stds(
+        fit.params.iter_mut().map(|q| (q.label(), &mut q.std)),
+    );
     if zero.is_empty() {
         return None;
     }

@@ -259,6 +259,13 @@ pub enum CalibrationWarning {
     },
     /// Without pressures the record could not be cut into segments: one free run over the record.
     SingleSegment,
+    /// Standard deviations that came out exactly 0 (withheld: the record does not determine them).
+    ZeroStd {
+        /// The parameters whose standard deviation was withheld.
+        parameters: Vec<String>,
+        /// How many parameters were estimated.
+        of: usize,
+    },
     /// V stayed above 3 times the quantisation floor after the restarts: measurement noise, a mechanism
     /// the plant lacks, or a local minimum; the standard deviations are then optimistic.
     AboveFloor {
@@ -329,6 +336,14 @@ impl std::fmt::Display for CalibrationWarning {
                  encoder counts ({resolution_mm} mm): the plant does not reproduce the record (a mechanism the \
                  model lacks, wrong fixed parameters, or a local minimum: start closer with --plant-config); \
                  the standard deviations assume the model fits"
+            ),
+            CalibrationWarning::ZeroStd { parameters, of } => write!(
+                f,
+                "the standard deviations of {} of {of} parameters ({}) came out exactly 0: the record \
+                 carries no information on them (a record without motion gives a zero Jacobian) or the \
+                 covariance underflowed, so they are not reported",
+                parameters.len(),
+                parameters.join(", ")
             ),
             CalibrationWarning::SingleSegment => f.write_str(
                 "no rest states with known pressures to start segments from (record without pressure \
@@ -583,7 +598,27 @@ impl Calibration {
             ));
         }
         let config = coords.config(&start, &sol.theta);
+        if !sol.cost.is_finite() {
+            return Err(IpaError::Numerical(format!(
+                "the calibration cost is {} (the record's values overflow the simulation error: check the \
+                 columns and their units); no twin is written",
+                sol.cost
+            )));
+        }
         let (mut estimates, correlation) = self.uncertainty(&coords, &start, &sol);
+        // A standard deviation of exactly 0 (a still record: J = 0) claims a certainty the record does
+        // not give: withheld (the parameter is then "not determined" below), and said.
+        let zero = sysid_core::param::withhold_zero_stds(
+            estimates
+                .iter_mut()
+                .map(|e| (e.parameter.name().to_string(), &mut e.std)),
+        );
+        if !zero.is_empty() {
+            warnings.push(CalibrationWarning::ZeroStd {
+                parameters: zero,
+                of: estimates.len(),
+            });
+        }
         for e in &mut estimates {
             e.start = e.parameter.get(&start_values_from);
         }

@@ -302,6 +302,38 @@ fn follow_reads_lines_appended_later_and_stops_after_the_idle_timeout() {
     assert_eq!(finish(child, &summary), (30, 6));
 }
 
+// Log rotation by copy and truncate: the followed file is emptied, then the logger writes on (here with
+// its header again). track notes it on stderr and reads the file again from its beginning (after the
+// header): every sample is read once, and the run ends normally (audit s10 F7.7: it ended in "the line
+// is longer than 1048576 bytes").
+#[test]
+fn follow_reads_a_file_truncated_under_it_again_from_its_beginning() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("live.csv");
+    let all = paper_lines(30);
+    let first: String = all.lines().take(20).map(|l| format!("{l}\n")).collect();
+    let rest: String = all.lines().skip(20).map(|l| format!("{l}\n")).collect();
+    std::fs::write(&path, format!("t,u,y\n{first}")).unwrap();
+    let summary = dir.path().join("s.json");
+    let child = spawn_track(&["--follow", path.to_str().unwrap()], "5", &summary);
+    std::thread::sleep(Duration::from_millis(500));
+    let f = std::fs::OpenOptions::new().write(true).open(&path).unwrap();
+    f.set_len(0).unwrap();
+    drop(f);
+    std::thread::sleep(Duration::from_millis(200));
+    std::fs::write(&path, format!("t,u,y\n{rest}")).unwrap();
+    let o = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("live.csv") && err.contains("truncated to 0 bytes"),
+        "{err}"
+    );
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    assert_eq!(s["samples"].as_u64(), Some(30), "{err}");
+}
+
 // A pseudo-terminal pair stands in for the serial cable: the test writes CSV lines to the master side,
 // track reads the slave side as a serial port.
 #[cfg(unix)]

@@ -1,13 +1,14 @@
 //! Reading a source that is still being written (`track --follow FILE`, `track --serial`): end of data
 //! and read time-outs mean "nothing yet", not "finished".
 //!
-//! A followed *file* ([`Follow::file`]) is also watched for being replaced under the reader: whenever
+//! A followed *file* ([`Follow::file`]) is also watched for being changed under the reader: whenever
 //! the reader is at the end of the data (and at least once a second while data flow), the path is
-//! looked at again, and reading stops with an error ([`ErrorKind::InvalidData`], saying what happened)
-//! when the file was truncated (its size is below what was read), replaced (deleted and created again, or
-//! renamed over: another inode) or rewritten (its first bytes differ from those read) — log rotation.
-//! Reading on from the old position would skip the new file's first samples and parse a line fragment.
-//! `track` then stops; start it again on the new file.
+//! looked at again. A file **truncated** (its size is below what was read) or **rewritten** in place (its
+//! first bytes differ from those read) — log rotation by copy and truncate — is read again from its
+//! beginning (after its first line when that is the header line read before), and the note passed to
+//! [`Follow::on_restart`] says so. A file **replaced** (deleted and created again, or renamed over:
+//! another inode) stops the reader with an error ([`ErrorKind::Other`], saying what happened): `track`
+//! then stops; start it again on the new file.
 
 use std::fs::File;
 use std::io::{ErrorKind, Read};
@@ -24,13 +25,39 @@ const CHECK_EVERY: Duration = Duration::from_secs(1);
 /// not yet appended to) or times out (a serial port), it polls again every `poll` until new bytes come.
 /// With an idle time-out it ends (reports end of data) once no byte has come for that long; without
 /// one it waits for ever (until the process is stopped).
-#[derive(Debug)]
 pub struct Follow<R> {
     inner: R,
     idle_timeout: Option<Duration>,
     poll: Duration,
     last_data: Instant,
     watch: Option<Watch>,
+    /// Moves the reader to a byte position (a followed file read again from its beginning).
+    seek_to: Option<fn(&mut R, u64) -> std::io::Result<u64>>,
+    /// Told when a followed file is read again from its beginning.
+    on_restart: Option<Box<dyn FnMut(&str) + Send>>,
+    /// The last read found no data: the next data are checked before they are returned.
+    idle: bool,
+    /// After a restart: the header line to skip if the file starts with it again (not yet decided).
+    pending_header: Option<Vec<u8>>,
+}
+
+impl<R> std::fmt::Debug for Follow<R> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Follow")
+            .field("idle_timeout", &self.idle_timeout)
+            .field("poll", &self.poll)
+            .field("watch", &self.watch)
+            .finish_non_exhaustive()
+    }
+}
+
+/// What a look at a followed file found.
+enum Change {
+    /// Still the file being read.
+    None,
+    /// Truncated or rewritten: read again from the beginning (after `header`, the first line read
+    /// before, when the file starts with it again); `what` says what happened.
+    Restart { header: Vec<u8>, what: String },
 }
 
 /// What is known of a followed file: its path, identity, the bytes read and the first of them.
@@ -64,46 +91,51 @@ impl Watch {
         self.read += bytes.len() as u64;
     }
 
-    /// Whether the file at the path is still the one being read; the error says what happened.
-    fn check(&mut self) -> std::io::Result<()> {
+    /// Whether the file at the path is still the one being read: an error when it was replaced, a
+    /// restart when it was truncated or rewritten in place.
+    fn check(&mut self) -> std::io::Result<Change> {
         self.checked = Instant::now();
-        let stop = |what: String| {
-            std::io::Error::new(
-                ErrorKind::InvalidData,
-                format!(
-                    "{what} after {} bytes were read (log rotation?); reading on would mix two files, so \
-                     track stops: start it again on the new file",
-                    self.read
-                ),
-            )
-        };
         // Deleted and not yet created again: nothing to read, keep waiting.
         let Ok(mut now) = File::open(&self.path) else {
-            return Ok(());
+            return Ok(Change::None);
         };
         let meta = now.metadata()?;
         if self.id.is_some() && identity(&meta) != self.id {
-            return Err(stop(
-                "the followed file was replaced (deleted and created again, or renamed over)"
-                    .into(),
-            ));
-        }
-        if meta.len() < self.read {
-            return Err(stop(format!(
-                "the followed file was truncated to {} bytes",
-                meta.len()
+            return Err(std::io::Error::other(format!(
+                "the followed file was replaced (deleted and created again, or renamed over) after {} \
+                 bytes were read (log rotation?); reading on would mix two files, so track stops: start \
+                 it again on the new file",
+                self.read
             )));
         }
-        let mut head = Vec::with_capacity(self.head.len());
-        (&mut now)
-            .take(self.head.len() as u64)
-            .read_to_end(&mut head)?;
-        if head != self.head {
-            return Err(stop(
-                "the followed file was rewritten (its first bytes changed)".into(),
-            ));
-        }
-        Ok(())
+        let what = if meta.len() < self.read {
+            format!(
+                "the followed file was truncated to {} bytes after {} were read",
+                meta.len(),
+                self.read
+            )
+        } else {
+            let mut head = Vec::with_capacity(self.head.len());
+            (&mut now)
+                .take(self.head.len() as u64)
+                .read_to_end(&mut head)?;
+            if head == self.head {
+                return Ok(Change::None);
+            }
+            format!(
+                "the followed file was rewritten (its first bytes changed) after {} bytes were read",
+                self.read
+            )
+        };
+        // Read again from the beginning (after the header line when the file starts with it again:
+        // decided by the reader once the file holds that many bytes).
+        let header = match self.head.iter().position(|&b| b == b'\n') {
+            Some(end) => self.head[..=end].to_vec(),
+            None => Vec::new(),
+        };
+        self.head.clear();
+        self.read = 0;
+        Ok(Change::Restart { header, what })
     }
 }
 
@@ -117,13 +149,71 @@ impl<R: Read> Follow<R> {
             poll,
             last_data: Instant::now(),
             watch: None,
+            seek_to: None,
+            on_restart: None,
+            idle: false,
+            pending_header: None,
         }
+    }
+
+    /// Calls `note` with a message when a followed file is read again from its beginning (truncated
+    /// or rewritten in place: log rotation by copy and truncate).
+    pub fn on_restart(mut self, note: impl FnMut(&str) + Send + 'static) -> Self {
+        self.on_restart = Some(Box::new(note));
+        self
+    }
+
+    /// Looks at the followed file (if any): `true` when it was truncated or rewritten, and the reader now
+    /// reads it again from its beginning.
+    fn watch(&mut self) -> std::io::Result<bool> {
+        let Some(w) = &mut self.watch else {
+            return Ok(false);
+        };
+        let Change::Restart { header, what } = w.check()? else {
+            return Ok(false);
+        };
+        if let Some(seek) = self.seek_to {
+            seek(&mut self.inner, 0)?;
+        }
+        if !header.is_empty() {
+            self.pending_header = Some(header);
+        }
+        if let Some(note) = &mut self.on_restart {
+            note(&format!(
+                "{what} (log rotation by copy and truncate?): reading it again from its beginning (after \
+                 its header line if it starts with it again)"
+            ));
+        }
+        Ok(true)
+    }
+
+    /// After a restart, skips the header line when the file starts with it again: `false` while the
+    /// file is too short to tell (wait for more).
+    fn skip_header(&mut self) -> std::io::Result<bool> {
+        let (Some(header), Some(w)) = (&self.pending_header, &mut self.watch) else {
+            return Ok(true);
+        };
+        let mut start = Vec::with_capacity(header.len());
+        if let Ok(f) = File::open(&w.path) {
+            f.take(header.len() as u64).read_to_end(&mut start)?;
+        }
+        if start.len() < header.len() && header.starts_with(&start) {
+            return Ok(false);
+        }
+        if start == *header {
+            if let Some(seek) = self.seek_to {
+                seek(&mut self.inner, header.len() as u64)?;
+            }
+            w.saw(header);
+        }
+        self.pending_header = None;
+        Ok(true)
     }
 }
 
 impl Follow<File> {
-    /// Follows the file at `path` ([`Follow::new`]), and stops with an error when it is truncated,
-    /// replaced or rewritten (see the module documentation).
+    /// Follows the file at `path` ([`Follow::new`]): read again from its beginning when it is truncated
+    /// or rewritten, stopped with an error when it is replaced (see the module documentation).
     pub fn file(
         path: &Path,
         idle_timeout: Option<Duration>,
@@ -132,6 +222,10 @@ impl Follow<File> {
         let file = File::open(path)?;
         let id = identity(&file.metadata()?);
         let mut f = Follow::new(file, idle_timeout, poll);
+        f.seek_to = Some(|file: &mut File, at: u64| {
+            use std::io::Seek;
+            file.seek(std::io::SeekFrom::Start(at))
+        });
         f.watch = Some(Watch {
             path: path.to_path_buf(),
             id,
@@ -149,15 +243,24 @@ impl<R: Read> Read for Follow<R> {
             return Ok(0);
         }
         loop {
-            let waited = match self.inner.read(buf) {
+            let ready = self.skip_header()?;
+            let waited = match if ready { self.inner.read(buf) } else { Ok(0) } {
                 Ok(0) => false,
                 Ok(n) => {
+                    // Data after a pause, or a second of data: the file is looked at first, and bytes
+                    // read from a file truncated or rewritten under the reader are dropped (it is read
+                    // again from its beginning).
+                    let due = self
+                        .watch
+                        .as_ref()
+                        .is_some_and(|w| self.idle || w.checked.elapsed() >= CHECK_EVERY);
+                    self.idle = false;
+                    if due && self.watch()? {
+                        continue;
+                    }
                     self.last_data = Instant::now();
                     if let Some(w) = &mut self.watch {
                         w.saw(&buf[..n]);
-                        if w.checked.elapsed() >= CHECK_EVERY {
-                            w.check()?;
-                        }
                     }
                     return Ok(n);
                 }
@@ -166,9 +269,8 @@ impl<R: Read> Read for Follow<R> {
                 Err(e) if matches!(e.kind(), ErrorKind::TimedOut | ErrorKind::WouldBlock) => true,
                 Err(e) => return Err(e),
             };
-            if let Some(w) = &mut self.watch {
-                w.check()?;
-            }
+            self.idle = true;
+            self.watch()?;
             if self
                 .idle_timeout
                 .is_some_and(|t| self.last_data.elapsed() >= t)
@@ -216,11 +318,12 @@ mod tests {
     }
 
     /// Follows a file holding `initial` while another thread applies `change` to it after 100 ms;
-    /// returns what was read and the error that stopped the reader.
+    /// returns what was read (until 500 ms without data) or the error that stopped the reader, and the
+    /// notes of restarts.
     fn follow_through(
         initial: &str,
         change: impl FnOnce(&std::path::Path) + Send + 'static,
-    ) -> (String, std::io::Error) {
+    ) -> (std::io::Result<String>, Vec<String>) {
         let dir = tempfile::tempdir().unwrap();
         let path = dir.path().join("log.csv");
         std::fs::write(&path, initial).unwrap();
@@ -229,46 +332,73 @@ mod tests {
             std::thread::sleep(Duration::from_millis(100));
             change(&p);
         });
+        let notes = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+        let n = notes.clone();
         let reader = Follow::file(
             &path,
-            Some(Duration::from_secs(5)),
+            Some(Duration::from_millis(500)),
             Duration::from_millis(10),
         )
-        .unwrap();
+        .unwrap()
+        .on_restart(move |m| n.lock().unwrap().push(m.to_string()));
         let mut out = String::new();
-        let e = BufReader::new(reader).read_to_string(&mut out).unwrap_err();
+        let r = BufReader::new(reader).read_to_string(&mut out).map(|_| out);
         writer.join().unwrap();
-        (out, e)
+        let notes = notes.lock().unwrap().clone();
+        (r, notes)
     }
 
-    // A file truncated and written again (log rotation by copy-truncate) stops the reader with an error
-    // that says so, instead of reading the new content from the old position.
+    // A file truncated and written again (log rotation by copy and truncate) is read again from its
+    // beginning, after the header line it starts with again, with a note; what was read before stays.
     #[test]
-    fn a_truncated_file_stops_the_reader() {
-        let (_, e) = follow_through("t,u,y\n0,1,2\n0.01,1,2\n", |p| {
-            std::fs::write(p, "t,u\n").unwrap(); // shorter than what was read
+    fn a_truncated_file_is_read_again_from_its_beginning() {
+        let (out, notes) = follow_through("t,u,y\n0,1,2\n0.01,1,2\n", |p| {
+            std::fs::write(p, "").unwrap();
+            std::thread::sleep(Duration::from_millis(100));
+            std::fs::write(p, "t,u,y\n0.02,1,3\n").unwrap();
         });
-        assert_eq!(e.kind(), ErrorKind::InvalidData);
-        assert!(e.to_string().contains("truncated"), "{e}");
+        assert_eq!(out.unwrap(), "t,u,y\n0,1,2\n0.01,1,2\n0.02,1,3\n");
+        assert_eq!(notes.len(), 1, "{notes:?}");
+        assert!(
+            notes[0].contains("truncated to 0 bytes after 21 were read"),
+            "{notes:?}"
+        );
     }
 
-    // A file deleted and created again (another inode), even longer than what was read, is detected.
+    // Truncated and written again with data only (copytruncate: the writer appends on without a
+    // header): the new bytes are read from the beginning.
+    #[test]
+    fn a_truncated_file_without_its_header_is_read_from_byte_0() {
+        let (out, notes) = follow_through("t,u,y\n0,1,2\n", |p| {
+            let f = std::fs::OpenOptions::new().write(true).open(p).unwrap();
+            f.set_len(0).unwrap();
+            std::thread::sleep(Duration::from_millis(100));
+            std::fs::write(p, "0.01,1,2\n").unwrap();
+        });
+        assert_eq!(out.unwrap(), "t,u,y\n0,1,2\n0.01,1,2\n");
+        assert_eq!(notes.len(), 1, "{notes:?}");
+    }
+
+    // A file deleted and created again (another inode), even longer than what was read, is detected
+    // and stops the reader.
     #[cfg(unix)]
     #[test]
     fn a_recreated_file_stops_the_reader() {
-        let (out, e) = follow_through("t,u,y\n0,1,2\n", |p| {
+        let (out, _) = follow_through("t,u,y\n0,1,2\n", |p| {
             let other = p.with_extension("new");
             std::fs::write(&other, "t,u,y\n0,1,2\n0.01,1,2\n0.02,1,2\n").unwrap();
             std::fs::rename(&other, p).unwrap();
         });
+        let e = out.unwrap_err();
         assert!(e.to_string().contains("replaced"), "{e}");
-        assert_eq!(out, "t,u,y\n0,1,2\n");
+        assert_eq!(e.kind(), ErrorKind::Other);
     }
 
-    // Rewritten in place with new, longer content (same inode, larger size): the first bytes differ.
+    // Rewritten in place with new, longer content (same inode, larger size): the first bytes differ,
+    // so it is read again from its beginning (after the header).
     #[test]
-    fn a_rewritten_file_stops_the_reader() {
-        let (_, e) = follow_through("t,u,y\n0,1,2\n", |p| {
+    fn a_rewritten_file_is_read_again() {
+        let (out, notes) = follow_through("t,u,y\n0,1,2\n", |p| {
             let mut f = std::fs::OpenOptions::new()
                 .write(true)
                 .truncate(true)
@@ -276,8 +406,8 @@ mod tests {
                 .unwrap();
             f.write_all(b"t,u,y\n5,1,2\n5.01,1,2\n5.02,1,2\n").unwrap();
         });
+        assert_eq!(out.unwrap(), "t,u,y\n0,1,2\n5,1,2\n5.01,1,2\n5.02,1,2\n");
         // Between the truncation and the write the file may be seen empty (truncated): either is right.
-        let m = e.to_string();
-        assert!(m.contains("rewritten") || m.contains("truncated"), "{m}");
+        assert!(!notes.is_empty(), "{notes:?}");
     }
 }

@@ -198,7 +198,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     } else if let Some(p) = &args.follow {
         inputs.push(p.as_path());
-        let r = sysid_io::Follow::file(p, idle, POLL).with_context(|| p.display().to_string())?;
+        let shown = p.display().to_string();
+        let r = sysid_io::Follow::file(p, idle, POLL)
+            .with_context(|| p.display().to_string())?
+            .on_restart(move |note| eprintln!("note: {shown}: {note}"));
         (
             Box::new(BufReader::with_capacity(1 << 16, r)),
             p.display().to_string(),

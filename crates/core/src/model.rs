@@ -196,6 +196,12 @@ pub struct DataRange {
     pub y: [f64; 2],
 }
 
+/// Widens [min, max] `r` to hold `v` (a NaN leaves it as it was).
+fn widen(r: &mut [f64; 2], v: f64) {
+    r[0] = r[0].min(v);
+    r[1] = r[1].max(v);
+}
+
 impl DataRange {
     /// The range of `records` (every input and the output over every sample); `None` when there is no
     /// sample or the records' numbers of inputs differ.
@@ -208,24 +214,36 @@ impl DataRange {
         {
             return None;
         }
-        let span = |s: &[f64], r: &mut [f64; 2]| {
-            for &v in s {
-                r[0] = r[0].min(v);
-                r[1] = r[1].max(v);
-            }
-        };
-        let empty = [f64::INFINITY, f64::NEG_INFINITY];
-        let mut range = DataRange {
-            u: vec![empty; m],
-            y: empty,
-        };
+        let mut range = DataRange::empty(m);
         for r in records {
             for (i, s) in r.input_signals().into_iter().enumerate() {
-                span(s, &mut range.u[i]);
+                for &v in s {
+                    widen(&mut range.u[i], v);
+                }
             }
-            span(r.y(), &mut range.y);
+            for &v in r.y() {
+                widen(&mut range.y, v);
+            }
         }
         range.check(m).ok().map(|()| range)
+    }
+
+    /// The range of no sample for `inputs` inputs ([+inf, −inf] each): [`DataRange::widen`] it sample
+    /// by sample (the streamed identification).
+    pub fn empty(inputs: usize) -> DataRange {
+        let empty = [f64::INFINITY, f64::NEG_INFINITY];
+        DataRange {
+            u: vec![empty; inputs],
+            y: empty,
+        }
+    }
+
+    /// Widens the range to hold the sample `u` (one value per input) and `y`.
+    pub fn widen(&mut self, u: &[f64], y: f64) {
+        for (r, &v) in self.u.iter_mut().zip(u) {
+            widen(r, v);
+        }
+        widen(&mut self.y, y);
     }
 
     /// Every bound finite, min ≤ max, one [min, max] per input of a model with `inputs` inputs.
@@ -1497,6 +1515,35 @@ fn run_one_input<const NA: usize, const NB: usize>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    // Widening sample by sample (the streamed path) gives the range `DataRange::of` gives for the whole
+    // record, and both are the minimum and maximum taken here by sorting.
+    #[test]
+    fn widening_sample_by_sample_is_the_range_of_the_record() {
+        let u = vec![3.0, -2.0, 7.5, 0.0, 1.0];
+        let y = vec![0.1, 0.4, -0.3, 2.0, 1.5];
+        let d = crate::Dataset::new(
+            crate::data::Signals {
+                u: u.clone(),
+                y: y.clone(),
+            },
+            0.1,
+            "r",
+        )
+        .unwrap();
+        let mut w = DataRange::empty(1);
+        for (a, b) in u.iter().zip(&y) {
+            w.widen(&[*a], *b);
+        }
+        let sorted = |v: &[f64]| {
+            let mut v = v.to_vec();
+            v.sort_by(f64::total_cmp);
+            [v[0], v[v.len() - 1]]
+        };
+        assert_eq!(w.u, vec![sorted(&u)]);
+        assert_eq!(w.y, sorted(&y));
+        assert_eq!(Some(w), DataRange::of(&[d]));
+    }
 
     // Jury's step-down test agrees with the roots: (z − 0.5)(z + 0.9) stable, (z − 1.1)(z − 0.2)
     // unstable, z² + 1 on the circle (not strictly inside), and 200 pseudo-random cubics against the

@@ -249,15 +249,12 @@ pub fn identify_arx(
     let (mut wu, mut wy) = (Vec::new(), Vec::new());
     let mut row = vec![0.0; p];
     // The record's range in the user's units (before detrending), as the in-memory path records it.
-    let mut range = [[f64::INFINITY, f64::NEG_INFINITY]; 2];
+    let mut range = crate::DataRange::empty(1);
     let shape = src.pass(&mut |start, u, y| {
         let carried = wu.len();
         let first = start - carried; // the window's first sample
         for (i, (a, b)) in u.iter().zip(y).enumerate() {
-            for (r, v) in range.iter_mut().zip([*a, *b]) {
-                r[0] = r[0].min(v);
-                r[1] = r[1].max(v);
-            }
+            range.widen(&[*a], *b);
             let (a, b) = match &trend {
                 Some(t) => t.remove(start + i, *a, *b),
                 None => (*a, *b),
@@ -307,10 +304,7 @@ pub fn identify_arx(
             u: vec![t.mean[0]],
             y: t.mean[1],
         }))?
-        .with_data_range(Some(crate::DataRange {
-            u: vec![range[0]],
-            y: range[1],
-        }))?;
+        .with_data_range(Some(range))?;
     Ok(Streamed {
         result: Fitted::new(model, params, Method::Ls, sigma2),
         shape,

@@ -917,3 +917,57 @@ fn long_echoes_are_cut() {
         "{err}"
     );
 }
+
+// .mat wording (audit s10 F7.8): a cell variable is named a cell array; negative dimensions are printed
+// as read; bytes after the end of a compressed element's stream are refused; a .mat given where CSV is
+// read (simulate --input file:, track --data) says that .mat is not supported there.
+#[test]
+fn mat_wording_names_what_the_file_holds() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let n = 20;
+    let vals: Vec<u8> = (0..n).flat_map(|k| f64::from(k).to_le_bytes()).collect();
+    let y = mat_matrix(6, n as usize, "y", 9, &vals, None);
+    let write = |name: &str, u: Vec<u8>| {
+        let mut f = mat_header();
+        f.extend(u);
+        f.extend(y.clone());
+        std::fs::write(d.join(name), f).unwrap();
+    };
+    // A cell class (1), 1 x 20.
+    write("cell.mat", mat_matrix(1, n as usize, "u", 9, &vals, None));
+    // Dimensions 1 x -5: the second dimension's bytes are at 8 (tag) + 16 (flags) + 8 (dims tag) + 4.
+    let mut neg = mat_matrix(6, n as usize, "u", 9, &vals, None);
+    neg[36..40].copy_from_slice(&(-5i32).to_le_bytes());
+    write("neg.mat", neg);
+    // A compressed u with 7 junk bytes after its zlib stream, inside the element.
+    let mut z = mat_compressed(&mat_matrix(6, n as usize, "u", 9, &vals, None));
+    z.extend_from_slice(&[1, 2, 3, 4, 5, 6, 7]);
+    let len = (z.len() - 8) as u32;
+    z[4..8].copy_from_slice(&len.to_le_bytes());
+    write("junk.mat", z);
+    write("ok.mat", mat_matrix(6, n as usize, "u", 9, &vals, None));
+    for (args, needle) in [
+        (
+            "identify --data {t}/cell.mat --ts 1",
+            "variable 'u' is a cell array",
+        ),
+        ("identify --data {t}/neg.mat --ts 1", "dimensions [1, -5]"),
+        (
+            "identify --data {t}/junk.mat --ts 1",
+            "7 bytes follow the end of its compressed data",
+        ),
+        (
+            "simulate --plant paper --input file:{t}/ok.mat --out {t}/x.csv",
+            "a MATLAB .mat file, which is not supported here",
+        ),
+        (
+            "track --data {t}/ok.mat --ts 1",
+            "a MATLAB .mat file, which is not supported here",
+        ),
+    ] {
+        let out = run(args, d);
+        assert_eq!(out.status.code(), Some(2), "{args}: {}", stderr(&out));
+        assert!(stderr(&out).contains(needle), "{args}: {}", stderr(&out));
+    }
+}

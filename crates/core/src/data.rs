@@ -454,6 +454,13 @@ fn table_of(
             "the file is empty; expected a header row and data rows".into(),
         ));
     }
+    if mat::is_mat(bytes) {
+        return Err(file_err(
+            "a MATLAB .mat file, which is not supported here: this reads CSV text (a .mat record is \
+             read by --data of identify, validate, order and delay; save the columns as CSV for this)"
+                .into(),
+        ));
+    }
     // A UTF-8 byte-order mark (spreadsheet exports) is not part of the first column's name.
     let bom = if bytes.starts_with(b"\xef\xbb\xbf") {
         3
@@ -848,9 +855,9 @@ pub(crate) fn sig6(x: f64) -> String {
         .map_or_else(|_| x.to_string(), |v| v.to_string())
 }
 
-/// A cell or a column name as a message echoes it: at most 40 characters ([`crate::error::clip_to`]).
+/// A cell or a column name as a message echoes it: at most 40 characters ([`crate::error::cut_chars`]).
 pub(crate) fn shorten(s: &str) -> String {
-    crate::error::clip_to(s, 40)
+    crate::error::cut_chars(s, 40).unwrap_or_else(|| s.to_string())
 }
 
 /// Ts from a time column: time must increase strictly, and every step must equal the median step

@@ -173,22 +173,31 @@ pub enum SysidError {
 /// ([`clip`]).
 pub const MAX_ECHO_CHARS: usize = 80;
 
+/// The most characters [`clip`] keeps of a word holding a path separator (Linux's PATH_MAX).
+pub const MAX_PATH_CHARS: usize = 4096;
+
 /// `text` with every word (a run without white space) longer than [`MAX_ECHO_CHARS`] cut to that many
-/// characters and `…`, and every line cut to 25 × [`MAX_ECHO_CHARS`] (a long message of many short
-/// words is kept whole): the one cap on what an error
+/// characters and `…` (a word holding a path separator only beyond [`MAX_PATH_CHARS`]: file names are
+/// echoed whole), and every line cut to 25 × [`MAX_ECHO_CHARS`] + [`MAX_PATH_CHARS`] (a long
+/// message of many short words is kept whole): the one cap on what an error
 /// message echoes of its input (a 200 kB TOML line, a 309-digit number, a 1 MB cell). The command line
 /// applies it to every error it prints.
 pub fn clip(text: &str) -> String {
-    clip_to(text, MAX_ECHO_CHARS)
+    clip_to(text, MAX_ECHO_CHARS, MAX_PATH_CHARS)
 }
 
-/// [`clip`] with words cut to `max` characters (lines to 25 × `max`).
-pub fn clip_to(text: &str, max: usize) -> String {
-    let cut = |s: &str, n: usize| -> Option<String> {
-        s.char_indices()
-            .nth(n)
-            .map(|(i, _)| format!("{}…", &s[..i]))
-    };
+/// `s` cut to its first `n` characters and `…`; `None` when it has at most `n` (the cut of [`clip`]
+/// and of the cell and column names messages echo).
+pub fn cut_chars(s: &str, n: usize) -> Option<String> {
+    s.char_indices()
+        .nth(n)
+        .map(|(i, _)| format!("{}…", &s[..i]))
+}
+
+/// [`clip`] with words cut to `max` characters, words holding a path separator to `path_max` (lines
+/// to 25 × `max` + `path_max`).
+fn clip_to(text: &str, max: usize, path_max: usize) -> String {
+    let cut = |s: &str, n: usize| -> Option<String> { cut_chars(s, n) };
     let mut out = String::with_capacity(text.len().min(8 * max));
     for (i, line) in text.split('\n').enumerate() {
         if i > 0 {
@@ -199,12 +208,19 @@ pub fn clip_to(text: &str, max: usize) -> String {
         while !rest.is_empty() {
             let end = rest.find(char::is_whitespace).unwrap_or(rest.len());
             let (word, after) = rest.split_at(end);
-            line_out.push_str(&cut(word, max).unwrap_or_else(|| word.to_string()));
+            // A word holding a path separator may be a file's path, which is never cut below the
+            // longest path a system takes (4096 bytes on Linux).
+            let cap = if word.contains(std::path::MAIN_SEPARATOR) {
+                max.max(path_max)
+            } else {
+                max
+            };
+            line_out.push_str(&cut(word, cap).unwrap_or_else(|| word.to_string()));
             let space = after.len() - after.trim_start().len();
             line_out.push_str(&after[..space]);
             rest = &after[space..];
         }
-        out.push_str(&cut(&line_out, 25 * max).unwrap_or(line_out));
+        out.push_str(&cut(&line_out, 25 * max + path_max).unwrap_or(line_out));
     }
     out
 }

@@ -87,20 +87,6 @@ pub fn read_mat_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Rec
                 hint: None,
             });
         };
-        let long = a.dims.iter().filter(|&&d| d > 1).count();
-        if long > 1 {
-            return Err(file_err(
-                name,
-                format!(
-                    "variable '{var}' is a {} array; expected a vector (one row or one column)",
-                    a.dims
-                        .iter()
-                        .map(usize::to_string)
-                        .collect::<Vec<_>>()
-                        .join("x")
-                ),
-            ));
-        }
         let v = match &a.values {
             Values::Real(v) => v.clone(),
             Values::Complex => {
@@ -125,6 +111,20 @@ pub fn read_mat_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Rec
                 ))
             }
         };
+        let long = a.dims.iter().filter(|&&d| d > 1).count();
+        if long > 1 {
+            return Err(file_err(
+                name,
+                format!(
+                    "variable '{var}' is a {} array; expected a vector (one row or one column)",
+                    a.dims
+                        .iter()
+                        .map(usize::to_string)
+                        .collect::<Vec<_>>()
+                        .join("x")
+                ),
+            ));
+        }
         if let Some(k) = v.iter().position(|x| !x.is_finite()) {
             return Err(file_err(
                 name,
@@ -452,15 +452,25 @@ fn compressed(
 ) -> Result<Variable, (Option<String>, Stop)> {
     let inflate = |limit: u64| -> Result<Vec<u8>, (Option<String>, Stop)> {
         let mut out = Vec::new();
-        flate2::read::ZlibDecoder::new(zipped)
-            .take(limit)
-            .read_to_end(&mut out)
-            .map_err(|e| {
-                (
-                    None,
-                    Stop::Damaged(format!("its compressed data cannot be inflated ({e})")),
-                )
-            })?;
+        let mut z = flate2::read::ZlibDecoder::new(zipped);
+        (&mut z).take(limit).read_to_end(&mut out).map_err(|e| {
+            (
+                None,
+                Stop::Damaged(format!("its compressed data cannot be inflated ({e})")),
+            )
+        })?;
+        // The stream ended before the bound: it must fill its element (bytes after the end of the
+        // compressed data are damage; scipy refuses them too).
+        let used = z.total_in();
+        if (out.len() as u64) < limit && used < zipped.len() as u64 {
+            return Err((
+                None,
+                Stop::Damaged(format!(
+                    "{} bytes follow the end of its compressed data inside the element",
+                    zipped.len() as u64 - used
+                )),
+            ));
+        }
         Ok(out)
     };
     let peek = inflate(PEEK_BYTES)?;
@@ -490,7 +500,18 @@ fn compressed(
             )),
         ));
     }
-    let whole = inflate(declared + 8)?;
+    // One byte more than the element: a stream that goes on past it is damage, and one that ends
+    // there is checked for bytes after it (in `inflate`).
+    let whole = inflate(declared + 9)?;
+    if whole.len() as u64 > declared + 8 {
+        return Err((
+            Some(head.name),
+            Stop::Damaged(format!(
+                "its compressed data inflate to more than the {} bytes its element declares",
+                declared + 8
+            )),
+        ));
+    }
     matrix(&whole, endian, wanted)
 }
 
@@ -534,13 +555,22 @@ fn matrix(
     let class = flags & 0xff;
     let complex = flags & 0x0800 != 0;
     let (_, dims_raw) = c.element(false).map_err(|s| (None, s))?;
-    let dims: Vec<usize> = dims_raw
-        .chunks_exact(4)
-        .map(|d| word(d) as i32)
-        .map(|d| usize::try_from(d).unwrap_or(0))
-        .collect();
+    let raw_dims: Vec<i32> = dims_raw.chunks_exact(4).map(|d| word(d) as i32).collect();
     let (_, name_raw) = c.element(false).map_err(|s| (None, s))?;
     let name = String::from_utf8_lossy(name_raw).into_owned();
+    // A negative size is damage; it is printed as read, not as 0.
+    if raw_dims.iter().any(|&d| d < 0) {
+        return Err((
+            Some(name),
+            Stop::Damaged(format!(
+                "its dimensions {raw_dims:?} include a negative size"
+            )),
+        ));
+    }
+    let dims: Vec<usize> = raw_dims
+        .iter()
+        .map(|&d| usize::try_from(d).unwrap_or(0))
+        .collect();
     let class_name = match class {
         1 => Some("cell"),
         2 => Some("struct"),

@@ -16,9 +16,9 @@ use std::time::Instant;
 use control::{PiSettings, Profile, Trace};
 use ipa::input::{generate, InputSpec};
 use report::plot::save_figure;
-use sysid::metrics::{fit_percent, metrics};
+use sysid::metrics::metrics;
 use sysid::{identify, EstimatorSettings, Identification, Method, RecursiveLeastSquares};
-use sysid::{ModelKind, ModelPlant, Plant};
+use sysid::{ModelKind, ModelPlant};
 use sysid_summary::IdentifyReport;
 
 mod acceptance;
@@ -250,14 +250,15 @@ pub fn run(
         s.experiment_start_mm,
         "open-loop test",
     )?;
-    let y_ol_model = match model_plant.as_mut() {
-        Some(mp) => {
-            mp.reset(s.experiment_start_mm);
-            Some(sysid::plant::run_open_loop(mp, &u_ol)?)
-        }
-        None => None,
+    // From the measured initial outputs, as `validate` simulates (MATLAB `compare` with 'InitialCondition'
+    // 'z'): a user re-checking the figure with `validate --data data/open_loop.csv` gets the same number.
+    let (y_ol_model, fit_ol) = match cl_model.and_then(|i| models.get(i)) {
+        Some(m) => (
+            Some(m.fit.model.simulate(&[&u_ol], ol.y())?),
+            metrics(&m.fit.model, &ol)?.fit_sim_measured_percent,
+        ),
+        None => (None, None),
     };
-    let fit_ol = y_ol_model.as_ref().and_then(|y| fit_percent(ol.y(), y));
     let t_ol = sysid::data::sample_times(u_ol.len(), ts);
     let nan = vec![f64::NAN; u_ol.len()];
     sysid_io::write_columns_csv(

@@ -13,8 +13,7 @@ use ipa::calibrate::{free_run, Calibrated, Calibration};
 use ipa::experiment::record_input;
 use ipa::{Ipa, PlantConfig, PlantSpec};
 use report::format::{estimate, opt, sig};
-use sysid::metrics::fit_percent;
-use sysid::{ModelPlant, Plant};
+use sysid::Plant;
 
 use crate::study::Fitted;
 use crate::ReproduceSettings;
@@ -89,11 +88,16 @@ pub(crate) fn calibrated_twin(
         .fit(&est, Some(&val))
         .map_err(|e| format!("the calibration failed: {e}"))?;
     let open_loop_fit = free_run(&cal.config, &ol).ok().and_then(|f| f.fit_percent);
+    // The models from the measured initial outputs, as `validate` and the validation column do.
     let model_ol = |m: &Fitted| -> Option<f64> {
-        let mut mp = ModelPlant::new(m.fit.model.clone(), m.label).ok()?;
-        mp.reset(s.experiment_start_mm);
-        let y = sysid::plant::run_open_loop(&mut mp, u_ol).ok()?;
-        fit_percent(&ol.y, &y)
+        let signals = sysid::data::Signals {
+            u: u_ol.to_vec(),
+            y: ol.y.clone(),
+        };
+        let data = sysid::data::Dataset::new(signals, ts, "open-loop test").ok()?;
+        sysid::metrics::metrics(&m.fit.model, &data)
+            .ok()?
+            .fit_sim_measured_percent
     };
     let models = models
         .iter()

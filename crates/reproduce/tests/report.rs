@@ -649,3 +649,57 @@ fn the_calibrated_twin_section_matches_its_parameters_and_beats_the_models() {
         .unwrap()
         .contains("not the physics IPA"));
 }
+
+/// The open-loop column of the twin table and the open-loop test's fit simulate each model from the measured
+/// initial outputs, as `validate` does (audit s11: they simulated from rest at the experiment's start, a
+/// start `validate` does not offer, and the ranking flipped). Re-simulated here by the ARX recursion of each
+/// saved model: y_hat(k) = y(k) for k < k0 = max(na, nk + nb − 1), then −Σ a_i y_hat(k−i) + Σ b_j x(k−nk−j+1)
+/// + c, with x = f(u) the model's static map, and eq. (13)'s fit over k ≥ k0 computed here.
+#[test]
+fn the_open_loop_fits_start_from_the_measured_outputs_as_validate_does() {
+    let (dir, s) = run_once("ipa");
+    let ol = std::fs::read_to_string(dir.join("data/open_loop.csv")).unwrap();
+    let rows: Vec<Vec<f64>> = ol
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|c| c.parse().unwrap()).collect())
+        .collect();
+    let u: Vec<f64> = rows.iter().map(|r| r[1]).collect();
+    let y: Vec<f64> = rows.iter().map(|r| r[2]).collect();
+    let chosen = s["open_loop"]["model"].as_str().expect("a stable model");
+    for (key, m) in s["twin"]["models"].as_object().unwrap() {
+        let model = sysid::model_file::read_model(&dir.join(format!("model_{key}.json"))).unwrap();
+        let (a, ch) = (model.a(), &model.inputs()[0]);
+        let (b, nk, c) = (ch.b(), ch.nk(), model.offset().unwrap_or(0.0));
+        let k0 = a.len().max(nk + b.len() - 1);
+        let x: Vec<f64> = u.iter().map(|&v| model.input_map(v)).collect();
+        let mut yh = y[..k0].to_vec();
+        for k in k0..y.len() {
+            let ar: f64 = a.iter().enumerate().map(|(i, ai)| ai * yh[k - 1 - i]).sum();
+            let ex: f64 = b.iter().enumerate().map(|(j, bj)| bj * x[k - nk - j]).sum();
+            yh.push(-ar + ex + c);
+        }
+        // Eq. (13) over the samples the model predicts, k ≥ k0 (docs/estimators.md).
+        let yk = &y[k0..];
+        let mean = yk.iter().sum::<f64>() / yk.len() as f64;
+        let den: f64 = yk.iter().map(|v| (v - mean).powi(2)).sum();
+        let num: f64 = yk.iter().zip(&yh[k0..]).map(|(p, q)| (p - q).powi(2)).sum();
+        let fit = 100.0 * (1.0 - (num / den).sqrt());
+        let reported = m["open_loop_fit_percent"].as_f64().unwrap();
+        assert!(
+            (fit - reported).abs() < 1e-6 * fit.abs().max(1.0),
+            "{key}: {fit} vs {reported}"
+        );
+        if key == chosen {
+            let f = s["open_loop"]["fit_percent"].as_f64().unwrap();
+            assert!((fit - f).abs() < 1e-6 * fit.abs().max(1.0), "{fit} vs {f}");
+            for (r, v) in rows.iter().zip(&yh) {
+                assert!(
+                    (r[3] - v).abs() <= 1e-9 * v.abs().max(1.0),
+                    "{} vs {v}",
+                    r[3]
+                );
+            }
+        }
+    }
+}

@@ -177,6 +177,33 @@ struct PlantOut<'a> {
     spec: &'a str,
 }
 
+/// Refuses a start outside the plant's stroke (the piston would start at the end stop under a report
+/// that says y0) and a command limit above what the plant applies (the IPA's valves saturate at ±255
+/// counts: a larger limit writes commands the plant never received and hides its saturation; audit s11).
+fn check_plant_limits(limits: &ipa::PlantLimits, y0: f64, u_max: f64) -> anyhow::Result<()> {
+    if let Some((lo, hi)) = limits
+        .range_mm
+        .filter(|(lo, hi)| !(*lo..=*hi).contains(&y0))
+    {
+        bail!(sysid::SysidError::setting(
+            sysid::Setting::Other("--y0"),
+            y0,
+            &format!("a start within the plant's stroke, {lo}..{hi} mm")
+        ));
+    }
+    if let Some(limit) = limits.u_max.filter(|l| u_max > *l) {
+        bail!(sysid::SysidError::setting(
+            sysid::Setting::Other("--u-max (or the controller file's u_max)"),
+            u_max,
+            &format!(
+                "at most {limit} counts: the physics IPA's valves saturate at ±{limit}, so a larger limit \
+                 would write commands the plant never received"
+            )
+        ));
+    }
+    Ok(())
+}
+
 /// Runs `ipa-sysid control`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let profile = profile_of(&args)?;
@@ -211,13 +238,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .with_anti_windup(anti_windup(&args, ts)?)
         .with_u_max(args.u_max);
     let tuned = tuned_controller(&args, ts, &mut inputs)?;
+    let limits = args
+        .plant
+        .parse::<ipa::PlantSpec>()
+        .and_then(|spec| spec.limits(args.plant_config.as_deref()))
+        .with_context(|| format!("cannot read the plant for --plant {}", args.plant))?;
+    check_plant_limits(&limits, args.y0, tuned.map_or(args.u_max, |t| t.u_max))?;
     let mut pi = settings.build(ts)?;
     let mut position = tuned.map(|t| t.build()).transpose()?;
     let controller: &mut dyn control::Controller = match position.as_mut() {
         Some(p) => p,
         None => &mut pi,
     };
-    let compensator = compensator(&args, &mut inputs)?;
+    let (compensator, compensator_warning) = compensator(&args, &mut inputs)?;
 
     let duration_s = match (args.duration, profile.natural_duration_s()) {
         (Some(d), _) => d,
@@ -251,13 +284,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         steps,
     } = run_metrics(&trace, &profile)?;
     let metrics_kind = kind.as_str();
-    let limits = args
-        .plant
-        .parse::<ipa::PlantSpec>()
-        .and_then(|spec| spec.limits(args.plant_config.as_deref()))
-        .with_context(|| format!("cannot read the plant for --plant {}", args.plant))?;
     // The model file's own doubts (a crossed deadzone), then the loop's.
     let mut warnings = limits.model_warnings.clone();
+    warnings.extend(compensator_warning);
     warnings.extend(control::loop_warnings(
         &trace,
         &steps,
@@ -438,26 +467,35 @@ fn anti_windup(args: &Args, ts: f64) -> anyhow::Result<AntiWindup> {
 
 /// The deadzone-inverse compensator of `--compensate-deadzone`, if any; a model file read is added to
 /// `inputs` (so that no output replaces it).
+/// The deadzone compensator of `--compensate-deadzone`, with a warning when its model's data never
+/// came near the loop's command limit ([`control::tuning::compensator_scale_warning`]).
 fn compensator(
     args: &Args,
     inputs: &mut Vec<PathBuf>,
-) -> anyhow::Result<Option<DeadzoneCompensator>> {
+) -> anyhow::Result<(Option<DeadzoneCompensator>, Option<String>)> {
     let Some(path) = &args.compensate_deadzone else {
-        return Ok(None);
+        return Ok((None, None));
     };
-    let deadzone = if path.as_os_str() == "paper" {
-        sysid::Model::paper()
+    let (deadzone, warning) = if path.as_os_str() == "paper" {
+        let d = sysid::Model::paper()
             .deadzone()
             .copied()
-            .context("the paper's model has a deadzone")?
+            .context("the paper's model has a deadzone")?;
+        (d, None)
     } else {
         inputs.push(path.clone());
         let m = sysid::model_file::read_model(path).context("cannot read --compensate-deadzone")?;
-        command_deadzone(&m, path, "--compensate-deadzone")?
+        (
+            command_deadzone(&m, path, "--compensate-deadzone")?,
+            control::tuning::compensator_scale_warning(&m, args.u_max),
+        )
     };
-    Ok(Some(
-        DeadzoneCompensator::new(deadzone, args.compensator_slopes, args.u_max)?
-            .with_threshold(args.compensator_threshold)?,
+    Ok((
+        Some(
+            DeadzoneCompensator::new(deadzone, args.compensator_slopes, args.u_max)?
+                .with_threshold(args.compensator_threshold)?,
+        ),
+        warning,
     ))
 }
 

@@ -15,6 +15,9 @@ use std::io::{ErrorKind, Read};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
+/// What a [`Follow`] is told when a followed file is read again from its beginning.
+type Note = Box<dyn FnMut(&str) + Send>;
+
 /// How many of a followed file's first bytes are kept to detect a rewrite.
 const HEAD_BYTES: usize = 4096;
 
@@ -34,7 +37,7 @@ pub struct Follow<R> {
     /// Moves the reader to a byte position (a followed file read again from its beginning).
     seek_to: Option<fn(&mut R, u64) -> std::io::Result<u64>>,
     /// Told when a followed file is read again from its beginning.
-    on_restart: Option<Box<dyn FnMut(&str) + Send>>,
+    on_restart: Option<Note>,
     /// The last read found no data: the next data are checked before they are returned.
     idle: bool,
     /// After a restart: the header line to skip if the file starts with it again (not yet decided).

@@ -257,6 +257,27 @@ fn reproduce_refuses_a_folder_of_other_files() {
     assert_eq!(std::fs::read_dir(&out_dir).unwrap().count(), 1);
 }
 
+/// Sends SIGTERM to `child` as soon as `ready()` holds; whether it was seen before the child ended, and
+/// the child's exit status.
+#[cfg(unix)]
+fn terminate_when(
+    mut child: std::process::Child,
+    ready: impl Fn() -> bool,
+) -> (bool, std::process::ExitStatus) {
+    let mut seen = false;
+    while child.try_wait().unwrap().is_none() {
+        if ready() {
+            seen = true;
+            let _ = Command::new("kill")
+                .args(["-TERM", &child.id().to_string()])
+                .status();
+            break;
+        }
+        std::thread::sleep(std::time::Duration::from_millis(1));
+    }
+    (seen, child.wait().unwrap())
+}
+
 // `reproduce` writes its folder whole: SIGTERM in the middle of a run (once its staging folder holds the
 // estimation record) leaves no folder and no staging folder; a run into a folder of a previous run
 // replaces it and keeps a file the user added there.
@@ -273,28 +294,18 @@ fn reproduce_writes_its_folder_whole() {
             .map(|e| e.path())
             .collect()
     };
-    let mut child = bin()
+    let child = bin()
         .args(["reproduce", "--plant", "paper", "--out", "new"])
         .current_dir(d)
         .stdout(Stdio::null())
         .stderr(Stdio::null())
         .spawn()
         .unwrap();
-    let mut seen = false;
-    while child.try_wait().unwrap().is_none() {
-        if staging(d)
+    let (seen, status) = terminate_when(child, || {
+        staging(d)
             .iter()
             .any(|s| s.join("data/estimation.csv").is_file())
-        {
-            seen = true;
-            let _ = Command::new("kill")
-                .args(["-TERM", &child.id().to_string()])
-                .status();
-            break;
-        }
-        std::thread::sleep(std::time::Duration::from_millis(1));
-    }
-    let status = child.wait().unwrap();
+    });
     assert!(seen, "the run was never seen in progress (status {status})");
     assert!(!status.success());
     assert!(staging(d).is_empty(), "{:?}", staging(d));
@@ -324,7 +335,7 @@ fn sigterm_during_a_write_leaves_no_temporary_file() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     // A record of some 90 MB: its write and sync take long enough to be seen and interrupted.
-    let mut child = bin()
+    let child = bin()
         .args([
             "simulate",
             "--plant",
@@ -338,18 +349,7 @@ fn sigterm_during_a_write_leaves_no_temporary_file() {
         .stderr(Stdio::null())
         .spawn()
         .unwrap();
-    let mut seen = false;
-    while child.try_wait().unwrap().is_none() {
-        if !temporaries(d).is_empty() {
-            seen = true;
-            let _ = Command::new("kill")
-                .args(["-TERM", &child.id().to_string()])
-                .status();
-            break;
-        }
-        std::thread::sleep(std::time::Duration::from_millis(1));
-    }
-    let status = child.wait().unwrap();
+    let (seen, status) = terminate_when(child, || !temporaries(d).is_empty());
     assert!(
         seen,
         "the write was never seen in progress (status {status})"

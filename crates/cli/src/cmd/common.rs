@@ -274,6 +274,71 @@ impl ValidationArgs {
     }
 }
 
+/// Rows of one file: a record as the reader selected it (`rows` `None` = every row).
+#[derive(Debug, Clone, Copy)]
+pub struct FileRows<'a> {
+    /// The file.
+    pub file: &'a Path,
+    /// Its rows (`--rows`, `--val-rows`, `--selection-rows`).
+    pub rows: Option<RowRange>,
+}
+
+/// Whether two paths name the same file (compared after resolving links), or are the same path.
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    a == b
+        || matches!(
+            (std::fs::canonicalize(a), std::fs::canonicalize(b)),
+            (Ok(x), Ok(y)) if x == y
+        )
+}
+
+/// A warning (audit s11 V1) when the `what` record ("validation", "test") holds rows of the file the
+/// estimation read (`est`, called `est_what`): its fit is then in-sample, not held out. `None` when
+/// the files differ or the rows are disjoint.
+pub fn shared_rows_warning(
+    what: &str,
+    test: FileRows,
+    est_what: &str,
+    est: FileRows,
+) -> Option<String> {
+    if !same_file(test.file, est.file) {
+        return None;
+    }
+    let all = RowRange::default();
+    let (t, e) = (test.rows.unwrap_or(all), est.rows.unwrap_or(all));
+    let shared = t.intersection(&e)?;
+    let rows = if shared == all {
+        format!("every row of {} is", test.file.display())
+    } else {
+        format!("rows {shared} of {} are", test.file.display())
+    };
+    Some(if shared == t {
+        let is = if t == e { "is" } else { "is part of" };
+        format!(
+            "the {what} record {is} the {est_what} data ({rows} in both): its fit is in-sample, not \
+             held out"
+        )
+    } else {
+        format!(
+            "the {what} record overlaps the {est_what} data ({rows} in both): its fit is partly in-sample"
+        )
+    })
+}
+
+/// A warning when the `what` record holds exactly the samples of the estimation record `est` (a copy
+/// of the file, say): its fit is in-sample.
+pub fn same_samples_warning(what: &str, test: &sysid::Dataset, est: &sysid::Dataset) -> Option<String> {
+    let same = test.y() == est.y() && test.input_signals() == est.input_signals();
+    same.then(|| {
+        format!(
+            "the {what} record {} holds the same samples as the estimation record {}: its fit is \
+             in-sample, not held out",
+            test.name(),
+            est.name()
+        )
+    })
+}
+
 /// A progress bar of `len` steps on standard error with the template `template` (indicatif syntax),
 /// hidden when standard error is not a terminal (pipes, CI logs).
 pub fn progress_bar(len: u64, template: &str) -> indicatif::ProgressBar {

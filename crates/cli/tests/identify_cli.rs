@@ -381,3 +381,66 @@ fn validate_reports_residuals_and_warnings() {
             > 99.0
     );
 }
+
+/// The `warnings` of `identify --json -` (the JSON alone on standard output) run in `dir`.
+fn identify_warnings(dir: &Path, args: &[&str]) -> Vec<String> {
+    let out = bin()
+        .current_dir(dir)
+        .args(["identify", "--structure", "arx", "--method", "ls"])
+        .args(args)
+        .args(["--json", "-"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    doc["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w.as_str().unwrap().to_string())
+        .collect()
+}
+
+// Audit s11 V1: a validation record that is (part of) the estimation data is said to give an in-sample
+// fit: the same file with overlapping rows (rows 500..1000 ∩ 0..600 = 500..600), the --data file itself,
+// or a copy of its samples under another name; disjoint rows (0..600 and 600..1000) are not warned.
+#[test]
+fn a_validation_record_that_is_the_estimation_data_is_warned() {
+    let dir = tempfile::tempdir().unwrap();
+    let (u, y) = paper_record(1000, 0);
+    write_csv(dir.path(), "d.csv", &u, &y);
+    write_csv(dir.path(), "copy.csv", &u, &y);
+    let d = ["--data", "d.csv", "--ts", "0.01"];
+    let in_sample = |w: &[String]| w.iter().any(|w| w.contains("in-sample"));
+    let w = identify_warnings(
+        dir.path(),
+        &[&d[..], &["--rows", "0..600", "--val-rows", "500..1000"]].concat(),
+    );
+    assert!(
+        w.iter()
+            .any(|w| w.contains("rows 500..600 of d.csv are in both") && w.contains("partly in-sample")),
+        "{w:?}"
+    );
+    let w = identify_warnings(dir.path(), &[&d[..], &["--validation", "d.csv"]].concat());
+    assert!(
+        w.iter()
+            .any(|w| w.contains("the validation record is the estimation data") && w.contains("in-sample")),
+        "{w:?}"
+    );
+    let w = identify_warnings(dir.path(), &[&d[..], &["--validation", "copy.csv"]].concat());
+    assert!(
+        w.iter().any(|w| w.contains("holds the same samples")),
+        "{w:?}"
+    );
+    let w = identify_warnings(
+        dir.path(),
+        &[&d[..], &["--rows", "0..600", "--val-rows", "600..1000"]].concat(),
+    );
+    assert!(!in_sample(&w), "{w:?}");
+    let w = identify_warnings(dir.path(), &[&d[..], &["--split", "0.6"]].concat());
+    assert!(!in_sample(&w), "{w:?}");
+}

@@ -327,3 +327,47 @@ fn a_short_selection_part_is_warned() {
     );
     assert!(!doc["warnings"].to_string().contains("holds only"), "{doc}");
 }
+
+// Audit s11 V1: `order`'s test record must be held out; the --data file itself as --validation, or
+// --val-rows inside the --selection-rows, is said to give an in-sample test fit.
+#[test]
+fn a_test_record_that_is_the_estimation_data_is_warned() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = two_plant_record(dir.path());
+    let d = data.to_str().unwrap();
+    let grid = ["--na", "1", "--nb", "1", "--nk", "2"];
+    let (doc, _) = order_json(
+        &[&["order", "--data", d, "--validation", d][..], &grid].concat(),
+        dir.path(),
+    );
+    assert!(
+        doc["warnings"]
+            .to_string()
+            .contains("the test record is the estimation data"),
+        "{doc}"
+    );
+    let (doc, _) = order_json(
+        &[
+            &[
+                "order",
+                "--data",
+                d,
+                "--rows",
+                "0..300",
+                "--selection-rows",
+                "300..500",
+                "--val-rows",
+                "450..600",
+            ][..],
+            &grid,
+        ]
+        .concat(),
+        dir.path(),
+    );
+    let w = doc["warnings"].to_string();
+    assert!(
+        w.contains("the test record overlaps the selection data (rows 450..500"),
+        "{w}"
+    );
+    assert!(!w.contains("the estimation data"), "{w}");
+}

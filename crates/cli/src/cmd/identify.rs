@@ -10,7 +10,8 @@ use sysid::{IdentifyOptions, ModelKind};
 use sysid_summary::IdentifyReport;
 
 use super::common::{
-    check_outputs, print_notes, stream_note, write_output, ColumnArgs, StreamMode, ValidationArgs,
+    check_outputs, print_notes, same_samples_warning, shared_rows_warning, stream_note, write_output,
+    ColumnArgs, FileRows, StreamMode, ValidationArgs,
 };
 use sysid::detrend::{detrend, Detrend};
 
@@ -453,6 +454,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     report
         .warnings
         .extend(notes.iter().map(|n| format!("data: {n}")));
+    report
+        .warnings
+        .extend(in_sample_warnings(&args, &files, &records, val.as_ref()));
     let names: Vec<&str> = records.iter().map(|r| r.name()).collect();
     let n: usize = records.iter().map(Dataset::len).sum();
     let est_name = if records.len() > 1 {
@@ -474,6 +478,51 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &notes,
         &inputs,
     )
+}
+
+/// Warnings (audit s11 V1) when the validation record holds rows of an estimation file (the same file,
+/// overlapping `--rows` and `--val-rows`) or the very samples of an estimation record: its fit is then
+/// in-sample. `records` and `val` are the records read (none for the streamed path).
+fn in_sample_warnings(
+    args: &Args,
+    files: &[PathBuf],
+    records: &[Dataset],
+    val: Option<&Dataset>,
+) -> Vec<String> {
+    let opts = args.columns.csv_options();
+    let Some(data) = files.first() else {
+        return Vec::new();
+    };
+    if args.val.split.is_some() {
+        return Vec::new(); // the validation rows follow the estimation rows
+    }
+    let Some((path, vopts)) = args.val.validation_source(data, &opts) else {
+        return Vec::new();
+    };
+    let test = FileRows {
+        file: path,
+        rows: vopts.rows,
+    };
+    let mut w: Vec<String> = files
+        .iter()
+        .filter_map(|f| {
+            let est = FileRows {
+                file: f,
+                rows: args.columns.rows,
+            };
+            shared_rows_warning("validation", test, "estimation", est)
+        })
+        .collect();
+    if w.is_empty() {
+        if let Some(v) = val {
+            w.extend(
+                records
+                    .iter()
+                    .find_map(|r| same_samples_warning("validation", v, r)),
+            );
+        }
+    }
+    w
 }
 
 /// The estimation records (one per file; `--split`/`--val-rows` of a single file apply) and the
@@ -588,14 +637,20 @@ fn run_streamed(args: &Args, settings: &Identification, data_path: &Path) -> any
         Some((path, vopts)) => Some(CsvStream::open(path, &vopts)?),
         None => None,
     };
-    let streamed = sysid_summary::stream::identify_report(
+    let mut streamed = sysid_summary::stream::identify_report(
         &mut est,
         val.as_mut().map(|v| v as &mut dyn RecordSource),
         settings,
         args.detrend,
         args.resid_lags,
     )?;
-    let (fit, report) = &streamed.result;
+    let (fit, report) = &mut streamed.result;
+    report.warnings.extend(in_sample_warnings(
+        args,
+        &[data_path.to_path_buf()],
+        &[],
+        None,
+    ));
     stream_note(
         est.name(),
         streamed.passes,

@@ -444,3 +444,33 @@ fn a_validation_record_that_is_the_estimation_data_is_warned() {
     let w = identify_warnings(dir.path(), &[&d[..], &["--split", "0.6"]].concat());
     assert!(!in_sample(&w), "{w:?}");
 }
+
+// Audit s11 A4: an output written to standard output (`-`) is the only thing there, so it parses: the
+// model of `identify --save-model -` is one JSON document, `validate --out -` is a CSV whose first line
+// is its header; two outputs on standard output are refused naming the second flag.
+#[test]
+fn an_output_to_standard_output_is_alone_there() {
+    let dir = tempfile::tempdir().unwrap();
+    let (u, y) = paper_record(600, 0);
+    write_csv(dir.path(), "d.csv", &u, &y);
+    let run = |args: &[&str]| bin().current_dir(dir.path()).args(args).output().unwrap();
+    let id = [
+        "identify", "--data", "d.csv", "--structure", "arx", "--method", "ls",
+    ];
+    let o = run(&[&id[..], &["--save-model", "-"]].concat());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let model: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(model["format"], "ipa-sysid-model");
+    std::fs::write(dir.path().join("m.json"), &o.stdout).unwrap();
+    let o = run(&["validate", "--model", "m.json", "--data", "d.csv", "--out", "-"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let csv = String::from_utf8(o.stdout).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    assert_eq!(lines[0], "t,y,y_sim,y_pred,residual");
+    assert_eq!(lines.len(), 601, "a header and one row per sample");
+    let o = run(&[&id[..], &["--save-model", "-", "--json", "-"]].concat());
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.contains("--json") && err.contains("standard output"), "{err}");
+    assert!(o.stdout.is_empty());
+}

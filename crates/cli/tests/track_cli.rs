@@ -594,3 +594,39 @@ fn a_change_without_restart_says_the_final_model_blends_both_plants() {
     let s = track_summary(&data, &[&orders[..], &["--restart-on-change"]].concat());
     assert!(!s["warnings"].to_string().contains("blend"), "{s}");
 }
+
+// Audit s11 A4: `track --json -` keeps standard output a JSON-lines stream: every line parses on its own,
+// one per `--every` samples, and the last is the summary (it has `samples`, the lines have `k`).
+#[test]
+fn the_summary_on_standard_output_is_one_more_json_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = simulate(dir.path(), 1000, 4);
+    let o = run(
+        &[
+            "track",
+            "--data",
+            data.to_str().unwrap(),
+            "--every",
+            "250",
+            "--json",
+            "-",
+        ],
+        b"",
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let lines: Vec<serde_json::Value> = String::from_utf8(o.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    // A line after every 250th sample: the 250th, 500th, 750th and 1000th (k = 249, 499, 749, 999, k
+    // 0-based), then the summary.
+    let ks: Vec<u64> = lines[..lines.len() - 1]
+        .iter()
+        .map(|l| l["k"].as_u64().unwrap())
+        .collect();
+    assert_eq!(ks, [249, 499, 749, 999]);
+    let last = lines.last().unwrap();
+    assert_eq!(last["samples"], 1000);
+    assert!(last.get("k").is_none());
+}

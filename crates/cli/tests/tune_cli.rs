@@ -403,3 +403,22 @@ fn tuning_on_an_unstable_model_says_so_and_qualifies_the_margins() {
     assert!(!w.contains("the model tuned on") && !w.contains("do not show"), "{w}");
     assert_eq!(doc["margins"]["open_loop_unstable"], false);
 }
+
+// Audit s11 A4: `tune --out -` writes the controller file alone on standard output (it parses as one
+// JSON document), the table goes to standard error; `--out - --json -` is refused naming --json.
+#[test]
+fn a_controller_to_standard_output_is_alone_there() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("m.json");
+    std::fs::write(&model, MODEL).unwrap();
+    let m = model.to_str().unwrap();
+    let args = ["tune", "--model", m, "--max-evaluations", "8", "--variants", "1"];
+    let o = ipa_sysid(&[&args[..], &["--out", "-"]].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let c: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(c["format"], "ipa-sysid-controller");
+    assert!(stderr(&o).contains("paper PI 14/1"));
+    let o = ipa_sysid(&[&args[..], &["--out", "-", "--json", "-"]].concat());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("--json"), "{}", stderr(&o));
+}

@@ -112,14 +112,40 @@ pub fn stream_note(name: &str, passes: usize, rows: usize, mode: StreamMode) {
     );
 }
 
-/// Prints a command's text report: on standard error when the JSON goes to standard output (`--json -`),
-/// so that the JSON stays parseable, else on standard output.
-pub fn print_report(text: &str, json: Option<&Path>) {
-    if json.is_some_and(|p| p.as_os_str() == "-") {
+/// Whether any of a command's outputs is `-` (standard output).
+pub fn any_to_stdout(outputs: &[Option<&Path>]) -> bool {
+    outputs.iter().flatten().any(|p| p.as_os_str() == "-")
+}
+
+/// Prints a command's text report: on standard error when one of its `outputs` (`--json`, `--out`,
+/// `--save-model`) goes to standard output (`-`), so that standard output carries that one parseable
+/// document alone, else on standard output.
+pub fn print_report(text: &str, outputs: &[Option<&Path>]) {
+    if any_to_stdout(outputs) {
         eprint!("{text}");
     } else {
         print!("{text}");
     }
+}
+
+/// Refuses more than one output to standard output (`-`): two documents in one stream parse as
+/// neither. `outputs` pairs each path with its flag.
+pub fn refuse_two_stdout(outputs: &[(Option<&Path>, &str)]) -> anyhow::Result<()> {
+    let flags: Vec<&str> = outputs
+        .iter()
+        .filter(|(p, _)| p.is_some_and(|p| p.as_os_str() == "-"))
+        .map(|(_, f)| *f)
+        .collect();
+    if let [first, second, ..] = flags.as_slice() {
+        anyhow::bail!(sysid_io::OutputError::Refused {
+            flag: second.to_string(),
+            path: PathBuf::from("-"),
+            expected: format!(
+                "a file: {first} already writes to standard output, and one stream holds one document"
+            ),
+        });
+    }
+    Ok(())
 }
 
 /// Prints the reader's warnings on standard error.
@@ -144,8 +170,10 @@ pub fn write_output(
 }
 
 /// Checks before any work that every output path can be written (its folder exists, it is not a folder),
-/// names none of the inputs, and that no two outputs are the same file.
+/// names none of the inputs, that no two outputs are the same file, and that at most one is `-`.
 pub fn check_outputs(outputs: &[(&Option<PathBuf>, &str)], inputs: &[&Path]) -> anyhow::Result<()> {
+    let all: Vec<(Option<&Path>, &str)> = outputs.iter().map(|(p, f)| (p.as_deref(), *f)).collect();
+    refuse_two_stdout(&all)?;
     let files: Vec<(&Path, &str)> = outputs
         .iter()
         .filter_map(|(out, flag)| out.as_deref().map(|p| (p, *flag)))

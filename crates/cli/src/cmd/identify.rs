@@ -10,7 +10,7 @@ use sysid::{IdentifyOptions, ModelKind};
 use sysid_summary::IdentifyReport;
 
 use super::common::{
-    check_outputs, print_notes, same_samples_warning, shared_rows_warning, stream_note, write_output,
+    any_to_stdout, check_outputs, print_notes, same_samples_warning, shared_rows_warning, stream_note, write_output,
     ColumnArgs, FileRows, StreamMode, ValidationArgs,
 };
 use sysid::detrend::{detrend, Detrend};
@@ -175,7 +175,8 @@ pub struct Args {
     /// Write the JSON summary here (`-` for standard output).
     #[arg(long, value_name = "OUT")]
     pub json: Option<PathBuf>,
-    /// Save the model for `validate --model` and `--plant model:FILE`.
+    /// Save the model for `validate --model` and `--plant model:FILE` (`-`: standard output; the text
+    /// report then goes to standard error, and no other output may be `-`).
     #[arg(long, value_name = "MODEL.json")]
     pub save_model: Option<PathBuf>,
     /// Read the record in passes with bounded memory (ARX by least squares; docs/data.md, "Long
@@ -567,7 +568,9 @@ fn output(
     notes: &[String],
     inputs: &[&Path],
 ) -> anyhow::Result<()> {
-    let json_to_stdout = args.json.as_deref().is_some_and(|p| p.as_os_str() == "-");
+    // One parseable document on standard output: the text goes to standard error when --json or
+    // --save-model is `-` (check_outputs refuses both).
+    let to_stdout = any_to_stdout(&[args.json.as_deref(), args.save_model.as_deref()]);
     let text = format!(
         "Data: {} ({} samples){}\n{}",
         est.0,
@@ -587,7 +590,7 @@ fn output(
             )
         })
         .unwrap_or_default();
-    if json_to_stdout {
+    if to_stdout {
         eprint!("{text}");
     } else {
         print!("{text}");

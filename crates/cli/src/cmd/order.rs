@@ -293,7 +293,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     for w in &warnings {
         text.push_str(&format!("warning: {w}\n"));
     }
-    print_report(&text, args.json.as_deref());
+    print_report(&text, &[args.json.as_deref()]);
     if let Some(path) = &args.json {
         let doc = OrderReport {
             warnings,

@@ -730,16 +730,50 @@ fn delay_refuses_several_inputs_and_finds_each_inputs_delay_alone() {
     }
     std::fs::write(&f, text).unwrap();
     for cmd in [
-        &["delay", "--data", s(&f), "--ts", "1", "--y-col", "yu", "--u-col", "u,x"][..],
-        &["order", "--data", s(&f), "--ts", "1", "--y-col", "yu", "--u-col", "u,x", "--nk", "auto"],
+        &[
+            "delay",
+            "--data",
+            s(&f),
+            "--ts",
+            "1",
+            "--y-col",
+            "yu",
+            "--u-col",
+            "u,x",
+        ][..],
+        &[
+            "order",
+            "--data",
+            s(&f),
+            "--ts",
+            "1",
+            "--y-col",
+            "yu",
+            "--u-col",
+            "u,x",
+            "--nk",
+            "auto",
+        ],
     ] {
         let err = fails(cmd);
-        assert!(err.contains("--u-col") && err.contains("one input"), "{err}");
+        assert!(
+            err.contains("--u-col") && err.contains("one input"),
+            "{err}"
+        );
     }
     for (ucol, ycol, nk) in [("u", "yu", 4), ("x", "yx", 2)] {
         let out = dir.path().join(format!("{ucol}.json"));
         run(&[
-            "delay", "--data", s(&f), "--ts", "1", "--u-col", ucol, "--y-col", ycol, "--json",
+            "delay",
+            "--data",
+            s(&f),
+            "--ts",
+            "1",
+            "--u-col",
+            ucol,
+            "--y-col",
+            ycol,
+            "--json",
             s(&out),
         ]);
         assert_eq!(json(&out)["nk"], nk, "{ucol}");

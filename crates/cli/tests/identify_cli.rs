@@ -422,16 +422,22 @@ fn a_validation_record_that_is_the_estimation_data_is_warned() {
     );
     assert!(
         w.iter()
-            .any(|w| w.contains("rows 500..600 of d.csv are in both") && w.contains("partly in-sample")),
+            .any(|w| w.contains("rows 500..600 of d.csv are in both")
+                && w.contains("partly in-sample")),
         "{w:?}"
     );
     let w = identify_warnings(dir.path(), &[&d[..], &["--validation", "d.csv"]].concat());
     assert!(
-        w.iter()
-            .any(|w| w.contains("the validation record is the estimation data") && w.contains("in-sample")),
+        w.iter().any(
+            |w| w.contains("the validation record is the estimation data")
+                && w.contains("in-sample")
+        ),
         "{w:?}"
     );
-    let w = identify_warnings(dir.path(), &[&d[..], &["--validation", "copy.csv"]].concat());
+    let w = identify_warnings(
+        dir.path(),
+        &[&d[..], &["--validation", "copy.csv"]].concat(),
+    );
     assert!(
         w.iter().any(|w| w.contains("holds the same samples")),
         "{w:?}"
@@ -455,14 +461,22 @@ fn an_output_to_standard_output_is_alone_there() {
     write_csv(dir.path(), "d.csv", &u, &y);
     let run = |args: &[&str]| bin().current_dir(dir.path()).args(args).output().unwrap();
     let id = [
-        "identify", "--data", "d.csv", "--structure", "arx", "--method", "ls",
+        "identify",
+        "--data",
+        "d.csv",
+        "--structure",
+        "arx",
+        "--method",
+        "ls",
     ];
     let o = run(&[&id[..], &["--save-model", "-"]].concat());
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let model: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
     assert_eq!(model["format"], "ipa-sysid-model");
     std::fs::write(dir.path().join("m.json"), &o.stdout).unwrap();
-    let o = run(&["validate", "--model", "m.json", "--data", "d.csv", "--out", "-"]);
+    let o = run(&[
+        "validate", "--model", "m.json", "--data", "d.csv", "--out", "-",
+    ]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let csv = String::from_utf8(o.stdout).unwrap();
     let lines: Vec<&str> = csv.lines().collect();
@@ -471,6 +485,9 @@ fn an_output_to_standard_output_is_alone_there() {
     let o = run(&[&id[..], &["--save-model", "-", "--json", "-"]].concat());
     assert_eq!(o.status.code(), Some(2));
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(err.contains("--json") && err.contains("standard output"), "{err}");
+    assert!(
+        err.contains("--json") && err.contains("standard output"),
+        "{err}"
+    );
     assert!(o.stdout.is_empty());
 }

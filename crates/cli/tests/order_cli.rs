@@ -304,8 +304,9 @@ fn a_short_selection_part_is_warned() {
         .map(|w| w.as_str().unwrap())
         .collect();
     assert!(
-        w.iter()
-            .any(|w| w.contains("holds only 10 samples") && w.contains("k0 = 3") && w.contains("7 compared")),
+        w.iter().any(|w| w.contains("holds only 10 samples")
+            && w.contains("k0 = 3")
+            && w.contains("7 compared")),
         "{w:?}"
     );
     // 290 rows of selection on the same grid: no such warning.

@@ -380,10 +380,7 @@ fn track_reads_a_semicolon_file_that_identify_reads_with_the_same_numbers() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     // 2000 samples are fewer than the detector needs to arm (a warning says so, then the count).
     let err = String::from_utf8_lossy(&o.stderr);
-    assert!(
-        err.lines().any(|l| l.starts_with("2000 samples")),
-        "{err}"
-    );
+    assert!(err.lines().any(|l| l.starts_with("2000 samples")), "{err}");
 }
 
 // Hostile flags and streams (issue 21, items 2 and 4): every size a flag drives is bounded before
@@ -537,7 +534,9 @@ fn deadzone_change_record(path: &Path) {
     let n = 12_000;
     let mut state: u64 = 12345;
     let mut rand = || {
-        state = state.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
         (state >> 11) as f64 / (1u64 << 53) as f64
     };
     let mut u = vec![0.0; n];
@@ -549,7 +548,11 @@ fn deadzone_change_record(path: &Path) {
         *v = level;
     }
     let f = |v: f64, k: usize| {
-        let (bl, br) = if k < 6000 { (-30.0, 25.0) } else { (-60.0, 55.0) };
+        let (bl, br) = if k < 6000 {
+            (-30.0, 25.0)
+        } else {
+            (-60.0, 55.0)
+        };
         if v >= br {
             0.01 * (v - br)
         } else if v <= bl {

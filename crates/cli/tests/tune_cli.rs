@@ -396,11 +396,17 @@ fn tuning_on_an_unstable_model_says_so_and_qualifies_the_margins() {
         w.contains("the model tuned on: unstable model: a pole has modulus 1.020000"),
         "{w}"
     );
-    assert!(w.contains("do not show that the closed loop is stable"), "{w}");
+    assert!(
+        w.contains("do not show that the closed loop is stable"),
+        "{w}"
+    );
     assert_eq!(doc["margins"]["open_loop_unstable"], true);
     let doc = tune_first_order(dir.path(), -0.9);
     let w = doc["warnings"].to_string();
-    assert!(!w.contains("the model tuned on") && !w.contains("do not show"), "{w}");
+    assert!(
+        !w.contains("the model tuned on") && !w.contains("do not show"),
+        "{w}"
+    );
     assert_eq!(doc["margins"]["open_loop_unstable"], false);
 }
 
@@ -412,7 +418,15 @@ fn a_controller_to_standard_output_is_alone_there() {
     let model = dir.path().join("m.json");
     std::fs::write(&model, MODEL).unwrap();
     let m = model.to_str().unwrap();
-    let args = ["tune", "--model", m, "--max-evaluations", "8", "--variants", "1"];
+    let args = [
+        "tune",
+        "--model",
+        m,
+        "--max-evaluations",
+        "8",
+        "--variants",
+        "1",
+    ];
     let o = ipa_sysid(&[&args[..], &["--out", "-"]].concat());
     assert!(o.status.success(), "{}", stderr(&o));
     let c: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();

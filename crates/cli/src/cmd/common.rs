@@ -355,7 +355,11 @@ pub fn shared_rows_warning(
 
 /// A warning when the `what` record holds exactly the samples of the estimation record `est` (a copy
 /// of the file, say): its fit is in-sample.
-pub fn same_samples_warning(what: &str, test: &sysid::Dataset, est: &sysid::Dataset) -> Option<String> {
+pub fn same_samples_warning(
+    what: &str,
+    test: &sysid::Dataset,
+    est: &sysid::Dataset,
+) -> Option<String> {
     let same = test.y() == est.y() && test.input_signals() == est.input_signals();
     same.then(|| {
         format!(

@@ -10,8 +10,8 @@ use sysid::{IdentifyOptions, ModelKind};
 use sysid_summary::IdentifyReport;
 
 use super::common::{
-    any_to_stdout, check_outputs, print_notes, same_samples_warning, shared_rows_warning, stream_note, write_output,
-    ColumnArgs, FileRows, StreamMode, ValidationArgs,
+    any_to_stdout, check_outputs, print_notes, same_samples_warning, shared_rows_warning,
+    stream_note, write_output, ColumnArgs, FileRows, StreamMode, ValidationArgs,
 };
 use sysid::detrend::{detrend, Detrend};
 

@@ -455,8 +455,9 @@ fn in_sample_warnings(
         file: &args.data,
         rows: args.columns.rows,
     };
-    let mut w: Vec<String> =
-        shared_rows_warning("test", test_rows, "estimation", estimation).into_iter().collect();
+    let mut w: Vec<String> = shared_rows_warning("test", test_rows, "estimation", estimation)
+        .into_iter()
+        .collect();
     if w.is_empty() {
         w.extend(same_samples_warning("test", t, data));
     }
@@ -465,7 +466,12 @@ fn in_sample_warnings(
             file: &args.data,
             rows: Some(rows),
         };
-        w.extend(shared_rows_warning("test", test_rows, "selection", selection));
+        w.extend(shared_rows_warning(
+            "test",
+            test_rows,
+            "selection",
+            selection,
+        ));
     }
     w
 }

@@ -155,7 +155,10 @@ mod tests {
 
     #[test]
     fn overlapping_ranges_share_the_rows_between_the_later_start_and_the_earlier_end() {
-        assert_eq!(r("0..600").intersection(&r("500..1000")), Some(r("500..600")));
+        assert_eq!(
+            r("0..600").intersection(&r("500..1000")),
+            Some(r("500..600"))
+        );
         assert_eq!(r("..").intersection(&r("600..1000")), Some(r("600..1000")));
         assert_eq!(r("100..").intersection(&r("..300")), Some(r("100..300")));
         assert_eq!(r("100..").intersection(&r("50..")), Some(r("100..")));

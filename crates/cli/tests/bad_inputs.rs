@@ -686,6 +686,33 @@ fn study_and_benchmark_flags_exit_2_naming_the_flag() {
             2,
             &["--y0", "finite position"],
         ),
+        // The physics IPA's valves saturate at ±255 counts and its stroke is 0..200 mm: a record or a
+        // loop beyond them would say what the plant never did (audit s11 S1, S2).
+        case(
+            "simulate --out {t}/s.csv --amplitude 1000 --input prbs",
+            2,
+            &["--amplitude", "1000", "±255"],
+        ),
+        case(
+            "simulate --out {t}/s.csv --input step:300",
+            2,
+            &["step:LEVEL", "300", "±255"],
+        ),
+        case(
+            "simulate --out {t}/s.csv --y0 500",
+            2,
+            &["--y0", "500", "0..200 mm"],
+        ),
+        case(
+            "control --setpoint 100 --u-max 1000 --duration 1",
+            2,
+            &["--u-max", "1000", "±255"],
+        ),
+        case(
+            "control --setpoint 50 --y0 -5 --duration 1",
+            2,
+            &["--y0", "-5", "0..200 mm"],
+        ),
         case(
             "simulate --out {t}/s.csv --noise-std -1",
             2,
@@ -962,4 +989,39 @@ fn saved_model_is_read_back_by_validate() {
         .as_f64()
         .unwrap();
     assert!(fit > 99.9, "{fit}");
+}
+
+/// A command file beyond the IPA's ±255 counts is refused naming the file and the data row, and nothing
+/// is written; a model plant (the paper's) applies any command, so the same amplitude is accepted there
+/// and its record differs from the ±255 one (the commands were applied, not clipped).
+#[test]
+fn commands_the_ipa_would_clip_are_refused_and_a_model_applies_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = dir.path().join("u.csv");
+    std::fs::write(&f, "u\n10\n-300\n20\n").unwrap();
+    let arg = format!("simulate --out {{t}}/s.csv --input file:{}", f.display());
+    let out = run(&arg, dir.path());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("u.csv") && err.contains("data row 2") && err.contains("-300"),
+        "{err}"
+    );
+    assert!(!dir.path().join("s.csv").exists());
+    let y_of = |amplitude: &str| -> Vec<f64> {
+        let a = format!("simulate --plant paper --input prbs --seed 3 --samples 300 --amplitude {amplitude} --out {{t}}/p.csv");
+        let out = run(&a, dir.path());
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let text = std::fs::read_to_string(dir.path().join("p.csv")).unwrap();
+        text.lines()
+            .skip(1)
+            .map(|l| l.split(',').nth(2).unwrap().parse().unwrap())
+            .collect()
+    };
+    let (y255, y1000) = (y_of("255"), y_of("1000"));
+    assert!(y255.iter().zip(&y1000).any(|(a, b)| (a - b).abs() > 1e-6));
 }

@@ -266,3 +266,48 @@ fn a_stable_model_starts_at_its_own_resting_level() {
         "{err}"
     );
 }
+
+// A model without an operating point (identified with --offset) rests for every past command 0; when its
+// estimation data never had u = 0 (its stored data range) the record opens with a transient from a state
+// the data never showed, and `simulate` says so (audit s11 S3). Not said when 0 is inside the range, when
+// the model has an operating point, or when the user chose the start.
+#[test]
+fn a_rest_outside_the_models_data_is_pointed_out() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = |name: &str, range: &str, op: &str| {
+        std::fs::write(
+            dir.path().join(name),
+            format!(
+                r#"{{"format": "ipa-sysid-model", "version": 2, "model": {{"kind": "arx", "ts": 0.1, "na": 1,
+                "nb": 1, "nk": 1, "a": [-0.8], "b": [0.5], "offset": 0.1{op},
+                "data_range": {{"u": [{range}], "y": [2.0, 9.0]}}}}}}"#
+            ),
+        )
+        .unwrap();
+        format!("model:{name}")
+    };
+    let warned = |plant: &str, extra: &[&str]| {
+        let mut args = vec!["--plant", plant, "--input", "step:5@3", "--samples", "8"];
+        args.extend(extra);
+        let o = simulate(dir.path(), &args, "s.csv");
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(o.status.success(), "{err}");
+        err.contains("warning: the model starts at its rest")
+            .then_some(err)
+    };
+    let outside = model("off.json", "[3.0, 6.0]", "");
+    let err = warned(&outside, &[]).expect("a warning");
+    // Its rest c / (1 + a1) = 0.1 / 0.2 = 0.5, the input's range and the output's.
+    assert!(
+        err.contains("y0 = 0.5") && err.contains("u in [3, 6]"),
+        "{err}"
+    );
+    assert!(
+        err.contains("[2, 9]") && err.contains("--detrend mean"),
+        "{err}"
+    );
+    assert!(warned(&outside, &["--y0", "4"]).is_none());
+    assert!(warned(&model("in.json", "[-1.0, 6.0]", ""), &[]).is_none());
+    let op = r#", "operating_point": {"u": [4.5], "y": 5.0}"#;
+    assert!(warned(&model("op.json", "[3.0, 6.0]", op), &[]).is_none());
+}

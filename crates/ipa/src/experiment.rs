@@ -146,6 +146,49 @@ impl Experiment {
         self.run_ipa(cfg, samples)
     }
 
+    /// Refuses a command the physics IPA would not apply: its valves saturate at ±[`crate::plant::U_MAX`]
+    /// counts, so a larger u in the record would not be the command the plant received (audit s11: a
+    /// record written with `--amplitude 1000` identified b_l = +520). `u` is the designed input (`None`:
+    /// before it is designed, the amplitude alone).
+    fn check_applied(&self, u: Option<&[f64]>) -> Result<(), IpaError> {
+        const WHY: &str =
+            "the physics IPA's valves saturate at ±255 PWM counts, so a larger u in the record \
+                           would not be the command the plant received";
+        let uses_amplitude = !matches!(self.input, InputSpec::Step { .. } | InputSpec::File(_));
+        if uses_amplitude && self.amplitude > crate::plant::U_MAX {
+            return Err(SysidError::setting(
+                Setting::Other("--amplitude"),
+                self.amplitude,
+                &format!("at most {} counts ({WHY})", crate::plant::U_MAX),
+            )
+            .into());
+        }
+        let Some((k, v)) = u
+            .unwrap_or_default()
+            .iter()
+            .enumerate()
+            .find(|(_, v)| v.abs() > crate::plant::U_MAX)
+        else {
+            return Ok(());
+        };
+        Err(match self.input.file() {
+            Some(f) => SysidError::File {
+                file: f.display().to_string(),
+                message: format!(
+                    "column u, data row {}: u = {v} is beyond ±{} counts ({WHY}); scale the commands",
+                    k + 1,
+                    crate::plant::U_MAX
+                ),
+            },
+            None => SysidError::setting(
+                Setting::Other("--input step:LEVEL"),
+                *v,
+                &format!("a level within ±{} counts ({WHY})", crate::plant::U_MAX),
+            ),
+        }
+        .into())
+    }
+
     /// N: `--samples`, else the length of a file input, else [`DEFAULT_SAMPLES`].
     fn sample_count(&self) -> Result<usize, IpaError> {
         Ok(match (self.samples, self.input.file()) {
@@ -156,9 +199,21 @@ impl Experiment {
     }
 
     fn run_ipa(&self, cfg: PlantConfig, samples: usize) -> Result<Record, IpaError> {
+        let y0 = self.x0.unwrap_or(crate::spec::MID_STROKE_Y0_MM);
+        let stroke = cfg.cylinder.stroke_mm;
+        if !(0.0..=stroke).contains(&y0) {
+            // The piston would start at the end stop instead, under a record that says y0 (audit s11).
+            return Err(SysidError::setting(
+                Setting::Other("--y0"),
+                y0,
+                &format!("a start within the physics IPA's stroke, 0..{stroke} mm"),
+            )
+            .into());
+        }
+        self.check_applied(None)?;
         let rec = {
             let mut plant = Ipa::with_ts(cfg, self.ts.unwrap_or(crate::DEFAULT_TS_S))?;
-            plant.reset(self.x0.unwrap_or(crate::spec::MID_STROKE_Y0_MM));
+            plant.reset(y0);
             let mut p = Vec::with_capacity(samples);
             let (u, y) = match self.input {
                 // The experimenter's rule watches the plant: the designed input and the record come from
@@ -186,6 +241,7 @@ impl Experiment {
                         self.amplitude,
                         self.seed,
                     )?;
+                    self.check_applied(Some(&u))?;
                     let rec = record_input(&mut plant, u)?;
                     p = rec.pressures.unwrap_or_default();
                     (rec.u, rec.y)

@@ -149,6 +149,9 @@ pub struct PlantLimits {
     /// The outputs the plant can reach, in mm: the IPA's stroke 0..L (its end stops); `None` for a
     /// model, which has no stroke.
     pub range_mm: Option<(f64, f64)>,
+    /// The largest command magnitude the plant applies, counts: the IPA's valves saturate at ±255 (a
+    /// larger command is clipped); `None` for a model, which applies any command.
+    pub u_max: Option<f64>,
     /// The largest pole modulus of a model plant when it exceeds 1 (an unstable model; an integrator's
     /// pole at 1 is a position actuator's normal dynamics); `None` otherwise.
     pub unstable_pole: Option<f64>,
@@ -158,8 +161,8 @@ pub struct PlantLimits {
 }
 
 impl PlantSpec {
-    /// The limits of this plant: the stroke of `ipa` (from `config` or the defaults), the stability of
-    /// a model.
+    /// The limits of this plant: the stroke and command range of `ipa` (from `config` or the
+    /// defaults), the stability of a model.
     pub fn limits(&self, config: Option<&Path>) -> Result<PlantLimits, IpaError> {
         let model = match self {
             PlantSpec::Ipa => {
@@ -169,6 +172,7 @@ impl PlantSpec {
                 };
                 return Ok(PlantLimits {
                     range_mm: Some((0.0, cfg.cylinder.stroke_mm)),
+                    u_max: Some(crate::plant::U_MAX),
                     unstable_pole: None,
                     model_warnings: Vec::new(),
                 });
@@ -191,6 +195,7 @@ impl PlantLimits {
         let pole = model.poles().iter().map(|z| z.norm()).fold(0.0, f64::max);
         PlantLimits {
             range_mm: None,
+            u_max: None,
             unstable_pole: (pole > 1.0 + 1e-9).then_some(pole),
             model_warnings: sysid_core::model_file::load_warnings(model),
         }

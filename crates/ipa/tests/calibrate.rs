@@ -45,6 +45,23 @@ fn reduced_study_recovers_every_determined_parameter_within_two_percent() {
                 );
             }
         }
+        // The ± are lower bounds at the quantisation floor (the residuals are the encoder's rounding)
+        // and optimistic above 3 floors: one of the two warnings, by V / floor (audit s11 C1).
+        let ratio = cal.cost / cal.cost_floor;
+        let at = cal
+            .warnings
+            .iter()
+            .any(|w| matches!(w, CalibrationWarning::AtFloor { .. }));
+        let above = cal
+            .warnings
+            .iter()
+            .any(|w| matches!(w, CalibrationWarning::AboveFloor { .. }));
+        assert_eq!(
+            (at, above),
+            (ratio <= 3.0, ratio > 3.0),
+            "seed {}: V/floor {ratio}",
+            case.seed
+        );
         let (twin, start) = validation_fits(cal);
         assert!(
             twin > start,

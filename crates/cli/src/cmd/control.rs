@@ -177,6 +177,33 @@ struct PlantOut<'a> {
     spec: &'a str,
 }
 
+/// Refuses a start outside the plant's stroke (the piston would start at the end stop under a report
+/// that says y0) and a command limit above what the plant applies (the IPA's valves saturate at ±255
+/// counts: a larger limit writes commands the plant never received and hides its saturation; audit s11).
+fn check_plant_limits(limits: &ipa::PlantLimits, y0: f64, u_max: f64) -> anyhow::Result<()> {
+    if let Some((lo, hi)) = limits
+        .range_mm
+        .filter(|(lo, hi)| !(*lo..=*hi).contains(&y0))
+    {
+        bail!(sysid::SysidError::setting(
+            sysid::Setting::Other("--y0"),
+            y0,
+            &format!("a start within the plant's stroke, {lo}..{hi} mm")
+        ));
+    }
+    if let Some(limit) = limits.u_max.filter(|l| u_max > *l) {
+        bail!(sysid::SysidError::setting(
+            sysid::Setting::Other("--u-max (or the controller file's u_max)"),
+            u_max,
+            &format!(
+                "at most {limit} counts: the physics IPA's valves saturate at ±{limit}, so a larger limit \
+                 would write commands the plant never received"
+            )
+        ));
+    }
+    Ok(())
+}
+
 /// Runs `ipa-sysid control`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let profile = profile_of(&args)?;
@@ -211,6 +238,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .with_anti_windup(anti_windup(&args, ts)?)
         .with_u_max(args.u_max);
     let tuned = tuned_controller(&args, ts, &mut inputs)?;
+    let limits = args
+        .plant
+        .parse::<ipa::PlantSpec>()
+        .and_then(|spec| spec.limits(args.plant_config.as_deref()))
+        .with_context(|| format!("cannot read the plant for --plant {}", args.plant))?;
+    check_plant_limits(&limits, args.y0, tuned.map_or(args.u_max, |t| t.u_max))?;
     let mut pi = settings.build(ts)?;
     let mut position = tuned.map(|t| t.build()).transpose()?;
     let controller: &mut dyn control::Controller = match position.as_mut() {
@@ -251,11 +284,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         steps,
     } = run_metrics(&trace, &profile)?;
     let metrics_kind = kind.as_str();
-    let limits = args
-        .plant
-        .parse::<ipa::PlantSpec>()
-        .and_then(|spec| spec.limits(args.plant_config.as_deref()))
-        .with_context(|| format!("cannot read the plant for --plant {}", args.plant))?;
     // The model file's own doubts (a crossed deadzone), then the loop's.
     let mut warnings = limits.model_warnings.clone();
     warnings.extend(control::loop_warnings(

@@ -139,6 +139,30 @@ fn stability_words(model: &sysid::Model) -> Option<String> {
     )
 }
 
+/// A warning when a model without an operating point (identified with `--offset`, not `--detrend`)
+/// starts at its rest for every past command 0 while its estimation data never had u = 0 (audit s11:
+/// the dryer's `--offset` model starts at 0.26 against data in 3.2..6.3 and its record opens with a
+/// transient larger than the data's span). `None` when the start was chosen (`--y0`) or is inside.
+fn rest_outside_data(model: &sysid::Model, y0: f64, chosen: bool) -> Option<String> {
+    if !chosen || model.operating_point().is_some() {
+        return None;
+    }
+    let range = model.data_range()?;
+    let (i, [lo, hi]) = range
+        .u
+        .iter()
+        .enumerate()
+        .find(|(_, [lo, hi])| !(*lo..=*hi).contains(&0.0))?;
+    let name = model.inputs().get(i).map_or("u", |c| c.name());
+    Some(format!(
+        "the model starts at its rest y0 = {y0} for every past command 0, but its estimation data had {name} \
+         in [{lo}, {hi}] (no operating point is stored: identified with --offset), so the record opens \
+         with a transient from a state the data never showed (its output was in [{}, {}]); identify \
+         with --detrend mean instead, whose model stores the operating point and rests there",
+        range.y[0], range.y[1]
+    ))
+}
+
 /// How the record starts, in words: the level held before the start and, for a model, what its
 /// output does from there (its resting level when it has one and it differs; that a model without one
 /// may drift; the output of a model with an output nonlinearity, whose linear part holds the level).
@@ -217,6 +241,9 @@ fn run_plant(
         start_words(y0, rec.y.first().copied(), model, args.y0.is_none()),
         args.out.display()
     );
+    if let Some(w) = model.and_then(|m| rest_outside_data(m, y0, args.y0.is_none())) {
+        eprintln!("warning: {w}");
+    }
     Ok(())
 }
 
@@ -330,5 +357,8 @@ fn run_miso(args: &Args, model: &sysid::Model, model_path: &Path) -> anyhow::Res
         start_words(y0, y.first().copied(), Some(model), args.y0.is_none()),
         args.out.display()
     );
+    if let Some(w) = rest_outside_data(model, y0, args.y0.is_none()) {
+        eprintln!("warning: {w}");
+    }
     Ok(())
 }

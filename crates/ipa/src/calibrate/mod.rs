@@ -268,6 +268,14 @@ pub enum CalibrationWarning {
         /// V / floor.
         ratio: f64,
     },
+    /// V reached the quantisation floor (at most 3 times it): the residuals are then mostly the
+    /// encoder's rounding, a deterministic function of the motion rather than independent noise, so the
+    /// Jacobian's standard deviations understate the error (audit s11: 4 to 26 times on a plant of known
+    /// truth); they are lower bounds.
+    AtFloor {
+        /// V / floor.
+        ratio: f64,
+    },
     /// The twin's position error over the segments is far above the encoder resolution: the plant
     /// does not reproduce the record (model mismatch, or the search stopped in a local minimum).
     PoorFit {
@@ -325,6 +333,13 @@ impl std::fmt::Display for CalibrationWarning {
                 "the simulation error is {ratio:.1} times what encoder quantisation alone gives: measurement \
                  noise, a mechanism the plant lacks, or a local minimum of the search; the standard \
                  deviations are optimistic"
+            ),
+            CalibrationWarning::AtFloor { ratio } => write!(
+                f,
+                "the simulation error is at the encoder's quantisation floor ({ratio:.2} times what rounding \
+                 to the encoder's resolution alone gives): the residuals are then that rounding, which \
+                 follows the motion and is not independent noise, so the standard deviations (±) are lower \
+                 bounds, possibly several times too small; judge the twin by its validation fit"
             ),
             CalibrationWarning::PoorFit { rmse_mm, resolution_mm } => write!(
                 f,
@@ -603,6 +618,10 @@ impl Calibration {
         if sol.cost > RESTART_FLOOR_RATIO * floor {
             warnings.push(CalibrationWarning::AboveFloor {
                 ratio: sol.cost / floor.max(1e-300),
+            });
+        } else if sol.cost.is_finite() && floor > 0.0 {
+            warnings.push(CalibrationWarning::AtFloor {
+                ratio: sol.cost / floor,
             });
         }
         let resolution_mm = config.encoder.resolution_mm;

@@ -2,6 +2,8 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -382,27 +384,14 @@ fn validate_reports_residuals_and_warnings() {
     );
 }
 
-/// The `warnings` of `identify --json -` (the JSON alone on standard output) run in `dir`.
+/// The `warnings` of `identify ARGS` (ARX by least squares) run in `dir`.
 fn identify_warnings(dir: &Path, args: &[&str]) -> Vec<String> {
-    let out = bin()
-        .current_dir(dir)
-        .args(["identify", "--structure", "arx", "--method", "ls"])
-        .args(args)
-        .args(["--json", "-"])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    doc["warnings"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|w| w.as_str().unwrap().to_string())
-        .collect()
+    let args = [
+        &["identify", "--structure", "arx", "--method", "ls"][..],
+        args,
+    ]
+    .concat();
+    common::warnings(&common::run_json(dir, &args))
 }
 
 // Audit s11 V1: a validation record that is (part of) the estimation data is said to give an in-sample

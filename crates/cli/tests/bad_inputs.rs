@@ -709,6 +709,11 @@ fn study_and_benchmark_flags_exit_2_naming_the_flag() {
             &["--u-max", "1000", "±255"],
         ),
         case(
+            "control --setpoint 50 --compensate-deadzone paper --adaptive --adaptive-max-rate -1 --duration 1",
+            2,
+            &["--adaptive-max-rate", "-1", "finite and >= 0"],
+        ),
+        case(
             "control --setpoint 50 --y0 -5 --duration 1",
             2,
             &["--y0", "-5", "0..200 mm"],

@@ -332,3 +332,58 @@ fn refuses_to_write_the_trace_over_the_profile_file() {
     assert_eq!(t.len(), 101);
     assert_eq!((r[0], r[99], r[100]), (10.0, 10.0, 20.0));
 }
+
+/// A compensator whose model was estimated on commands far smaller than the loop's limit (a deadzone in
+/// another plant's units, e.g. volts on the IPA's PWM counts) is used with a warning that says by how
+/// much (audit s11): its data reached |u| ≤ 4.3 against u_max = 255, 255 / 4.3 ≈ 59.30 times.
+#[test]
+fn a_compensator_from_another_plants_units_is_warned() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = |name: &str, u: &str| {
+        let path = dir.path().join(name);
+        std::fs::write(
+            &path,
+            format!(
+                r#"{{"format": "ipa-sysid-model", "version": 2, "model": {{"kind": "hammerstein", "ts": 0.01,
+                "na": 1, "nb": 1, "nk": 1, "a": [-0.9], "b": [1.0], "offset": null,
+                "deadzone": {{"b_l": -0.2, "b_r": 0.1, "m_l": 0.01, "m_r": 0.01}},
+                "data_range": {{"u": [{u}], "y": [0.0, 0.25]}}}}}}"#
+            ),
+        )
+        .unwrap();
+        path.display().to_string()
+    };
+    let warnings = |path: &str| -> Vec<String> {
+        let o = ipa_sysid(&[
+            "--plant",
+            "paper",
+            "--setpoint",
+            "5",
+            "--duration",
+            "1",
+            "--compensate-deadzone",
+            path,
+            "--json",
+            "-",
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        v["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|w| w.as_str().unwrap().to_string())
+            .collect()
+    };
+    let volts = warnings(&model("volts.json", "[-4.3, 2.0]"));
+    let w = volts
+        .iter()
+        .find(|w| w.contains("compensator's model was estimated on commands within ±4.3"))
+        .unwrap_or_else(|| panic!("{volts:?}"));
+    assert!(w.contains(&format!("({:.2}", 255.0 / 4.3)), "{w}");
+    let counts = warnings(&model("counts.json", "[-250.0, 240.0]"));
+    assert!(
+        !counts.iter().any(|w| w.contains("compensator's model")),
+        "{counts:?}"
+    );
+}

@@ -360,28 +360,60 @@ pub fn run_adaptive(
     Ok(run)
 }
 
-/// The settings' own bounds.
+/// The settings' own bounds; an error names the first setting out of range (its command-line flag
+/// where it has one), its value and what is accepted (audit s11: it printed the whole settings struct).
 fn check(s: &AdaptiveSettings) -> Result<(), ControlError> {
-    let positive = |v: f64| v.is_finite() && v > 0.0;
-    let ok = positive(s.max_breakpoint_sd_counts)
-        && positive(s.max_slope_rel_sd)
-        && s.sigma_floor_mm.is_finite()
-        && s.sigma_floor_mm >= 0.0
-        && positive(s.max_breakpoint_fraction)
-        && s.slope_factor.is_finite()
-        && s.slope_factor >= 1.0
-        && s.max_rate_counts_per_s.is_finite()
-        && s.max_rate_counts_per_s >= 0.0
-        && s.max_slope_rate_per_s.is_finite()
-        && s.max_slope_rate_per_s >= 0.0;
-    if ok {
-        Ok(())
-    } else {
-        Err(ControlError::Config(format!(
-            "adaptive compensation: settings out of range ({s:?}): standard-deviation bounds and the \
-             breakpoint fraction must be finite and > 0, the slope factor >= 1, the rates and the \
-             sigma floor finite and >= 0"
-        )))
+    const POSITIVE: &str = "finite and > 0";
+    const NON_NEGATIVE: &str = "finite and >= 0";
+    let checks: [(&str, f64, bool, &str); 7] = [
+        (
+            "the breakpoint standard-deviation bound (--adaptive-max-sd)",
+            s.max_breakpoint_sd_counts,
+            s.max_breakpoint_sd_counts > 0.0,
+            POSITIVE,
+        ),
+        (
+            "the slopes' relative standard-deviation bound",
+            s.max_slope_rel_sd,
+            s.max_slope_rel_sd > 0.0,
+            POSITIVE,
+        ),
+        (
+            "the sigma floor (mm)",
+            s.sigma_floor_mm,
+            s.sigma_floor_mm >= 0.0,
+            NON_NEGATIVE,
+        ),
+        (
+            "the breakpoint fraction",
+            s.max_breakpoint_fraction,
+            s.max_breakpoint_fraction > 0.0,
+            POSITIVE,
+        ),
+        (
+            "the slope factor",
+            s.slope_factor,
+            s.slope_factor >= 1.0,
+            "finite and >= 1",
+        ),
+        (
+            "the breakpoint rate (--adaptive-max-rate, counts/s)",
+            s.max_rate_counts_per_s,
+            s.max_rate_counts_per_s >= 0.0,
+            NON_NEGATIVE,
+        ),
+        (
+            "the slope rate (per s)",
+            s.max_slope_rate_per_s,
+            s.max_slope_rate_per_s >= 0.0,
+            NON_NEGATIVE,
+        ),
+    ];
+    match checks.iter().find(|(_, v, ok, _)| !(v.is_finite() && *ok)) {
+        None => Ok(()),
+        Some((name, v, _, expected)) => Err(ControlError::Config(format!(
+            "adaptive compensation: {name} = {v} is out of range: it must be {expected}"
+        ))),
     }
 }
 

@@ -422,6 +422,23 @@ fn check_spec(
 /// limit or largest step may be before `tune` says the model is used far outside its data.
 pub const EXTRAPOLATION_FACTOR: f64 = 4.0;
 
+/// A deadzone compensator taken from `model` for a loop whose command limit is `u_max`: a warning when
+/// the model's estimation data never came near that limit (its largest |u| more than
+/// [`EXTRAPOLATION_FACTOR`] times smaller), i.e. its deadzone is probably in another plant's command
+/// units (audit s11: an EMPS model in volts compensating the IPA in PWM counts, silently).
+pub fn compensator_scale_warning(model: &Model, u_max: f64) -> Option<String> {
+    let u_data = model.data_range()?.u_magnitude(0).filter(|m| *m > 0.0)?;
+    (u_max > EXTRAPOLATION_FACTOR * u_data).then(|| {
+        format!(
+            "the compensator's model was estimated on commands within ±{} while the loop commands up to \
+             ±{u_max} ({} times more): its deadzone is probably in another plant's units; check that the \
+             model is of this plant",
+            crate::trust::fmt_value(u_data),
+            crate::trust::fmt_value(u_max / u_data)
+        )
+    })
+}
+
 /// Doubts about the model as a plant for `spec`: a deadzone breakpoint at or beyond ±u_max (no command
 /// moves the model that way), and set-points beyond the outputs a stable model can hold with the
 /// command at ±u_max ([`Model::held_output`]; a near-integrator has no such bound).

@@ -250,7 +250,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some(p) => p,
         None => &mut pi,
     };
-    let compensator = compensator(&args, &mut inputs)?;
+    let (compensator, compensator_warning) = compensator(&args, &mut inputs)?;
 
     let duration_s = match (args.duration, profile.natural_duration_s()) {
         (Some(d), _) => d,
@@ -286,6 +286,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let metrics_kind = kind.as_str();
     // The model file's own doubts (a crossed deadzone), then the loop's.
     let mut warnings = limits.model_warnings.clone();
+    warnings.extend(compensator_warning);
     warnings.extend(control::loop_warnings(
         &trace,
         &steps,
@@ -466,26 +467,35 @@ fn anti_windup(args: &Args, ts: f64) -> anyhow::Result<AntiWindup> {
 
 /// The deadzone-inverse compensator of `--compensate-deadzone`, if any; a model file read is added to
 /// `inputs` (so that no output replaces it).
+/// The deadzone compensator of `--compensate-deadzone`, with a warning when its model's data never
+/// came near the loop's command limit ([`control::tuning::compensator_scale_warning`]).
 fn compensator(
     args: &Args,
     inputs: &mut Vec<PathBuf>,
-) -> anyhow::Result<Option<DeadzoneCompensator>> {
+) -> anyhow::Result<(Option<DeadzoneCompensator>, Option<String>)> {
     let Some(path) = &args.compensate_deadzone else {
-        return Ok(None);
+        return Ok((None, None));
     };
-    let deadzone = if path.as_os_str() == "paper" {
-        sysid::Model::paper()
+    let (deadzone, warning) = if path.as_os_str() == "paper" {
+        let d = sysid::Model::paper()
             .deadzone()
             .copied()
-            .context("the paper's model has a deadzone")?
+            .context("the paper's model has a deadzone")?;
+        (d, None)
     } else {
         inputs.push(path.clone());
         let m = sysid::model_file::read_model(path).context("cannot read --compensate-deadzone")?;
-        command_deadzone(&m, path, "--compensate-deadzone")?
+        (
+            command_deadzone(&m, path, "--compensate-deadzone")?,
+            control::tuning::compensator_scale_warning(&m, args.u_max),
+        )
     };
-    Ok(Some(
-        DeadzoneCompensator::new(deadzone, args.compensator_slopes, args.u_max)?
-            .with_threshold(args.compensator_threshold)?,
+    Ok((
+        Some(
+            DeadzoneCompensator::new(deadzone, args.compensator_slopes, args.u_max)?
+                .with_threshold(args.compensator_threshold)?,
+        ),
+        warning,
     ))
 }
 

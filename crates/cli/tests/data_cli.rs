@@ -714,6 +714,72 @@ fn delay_finds_the_generating_delay() {
     assert!(String::from_utf8_lossy(&o.stdout).contains("warning: "));
 }
 
+// Audit s11 D1: a second input column used to be read and ignored (the delay of the first reported as
+// "the" delay). The delay is estimated for one input at a time: a list is refused naming --u-col, by
+// `delay` and by `order --nk auto`; each input alone gets its own generating delay (u: 4, x: 2).
+#[test]
+fn delay_refuses_several_inputs_and_finds_each_inputs_delay_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    let u = input(400);
+    let x: Vec<f64> = u.iter().rev().copied().collect();
+    let (yu, yx) = (delayed(&u, 4, 1.0, 0.5), delayed(&x, 2, 1.0, 0.5));
+    let f = dir.path().join("two.csv");
+    let mut text = String::from("u,x,yu,yx\n");
+    for k in 0..u.len() {
+        text += &format!("{},{},{},{}\n", u[k], x[k], yu[k], yx[k]);
+    }
+    std::fs::write(&f, text).unwrap();
+    for cmd in [
+        &[
+            "delay",
+            "--data",
+            s(&f),
+            "--ts",
+            "1",
+            "--y-col",
+            "yu",
+            "--u-col",
+            "u,x",
+        ][..],
+        &[
+            "order",
+            "--data",
+            s(&f),
+            "--ts",
+            "1",
+            "--y-col",
+            "yu",
+            "--u-col",
+            "u,x",
+            "--nk",
+            "auto",
+        ],
+    ] {
+        let err = fails(cmd);
+        assert!(
+            err.contains("--u-col") && err.contains("one input"),
+            "{err}"
+        );
+    }
+    for (ucol, ycol, nk) in [("u", "yu", 4), ("x", "yx", 2)] {
+        let out = dir.path().join(format!("{ucol}.json"));
+        run(&[
+            "delay",
+            "--data",
+            s(&f),
+            "--ts",
+            "1",
+            "--u-col",
+            ucol,
+            "--y-col",
+            ycol,
+            "--json",
+            s(&out),
+        ]);
+        assert_eq!(json(&out)["nk"], nk, "{ucol}");
+    }
+}
+
 #[test]
 fn order_ranks_on_a_selection_set_and_reports_the_test_fit_separately() {
     let dir = tempfile::tempdir().unwrap();

@@ -2,6 +2,8 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -380,4 +382,101 @@ fn validate_reports_residuals_and_warnings() {
             .unwrap()
             > 99.0
     );
+}
+
+/// The `warnings` of `identify ARGS` (ARX by least squares) run in `dir`.
+fn identify_warnings(dir: &Path, args: &[&str]) -> Vec<String> {
+    let args = [
+        &["identify", "--structure", "arx", "--method", "ls"][..],
+        args,
+    ]
+    .concat();
+    common::warnings(&common::run_json(dir, &args))
+}
+
+// Audit s11 V1: a validation record that is (part of) the estimation data is said to give an in-sample
+// fit: the same file with overlapping rows (rows 500..1000 ∩ 0..600 = 500..600), the --data file itself,
+// or a copy of its samples under another name; disjoint rows (0..600 and 600..1000) are not warned.
+#[test]
+fn a_validation_record_that_is_the_estimation_data_is_warned() {
+    let dir = tempfile::tempdir().unwrap();
+    let (u, y) = paper_record(1000, 0);
+    write_csv(dir.path(), "d.csv", &u, &y);
+    write_csv(dir.path(), "copy.csv", &u, &y);
+    let d = ["--data", "d.csv", "--ts", "0.01"];
+    let in_sample = |w: &[String]| w.iter().any(|w| w.contains("in-sample"));
+    let w = identify_warnings(
+        dir.path(),
+        &[&d[..], &["--rows", "0..600", "--val-rows", "500..1000"]].concat(),
+    );
+    assert!(
+        w.iter()
+            .any(|w| w.contains("rows 500..600 of d.csv are in both")
+                && w.contains("partly in-sample")),
+        "{w:?}"
+    );
+    let w = identify_warnings(dir.path(), &[&d[..], &["--validation", "d.csv"]].concat());
+    assert!(
+        w.iter().any(
+            |w| w.contains("the validation record is the estimation data")
+                && w.contains("in-sample")
+        ),
+        "{w:?}"
+    );
+    let w = identify_warnings(
+        dir.path(),
+        &[&d[..], &["--validation", "copy.csv"]].concat(),
+    );
+    assert!(
+        w.iter().any(|w| w.contains("holds the same samples")),
+        "{w:?}"
+    );
+    let w = identify_warnings(
+        dir.path(),
+        &[&d[..], &["--rows", "0..600", "--val-rows", "600..1000"]].concat(),
+    );
+    assert!(!in_sample(&w), "{w:?}");
+    let w = identify_warnings(dir.path(), &[&d[..], &["--split", "0.6"]].concat());
+    assert!(!in_sample(&w), "{w:?}");
+}
+
+// Audit s11 A4: an output written to standard output (`-`) is the only thing there, so it parses: the
+// model of `identify --save-model -` is one JSON document, `validate --out -` is a CSV whose first line
+// is its header; two outputs on standard output are refused naming the second flag.
+#[test]
+fn an_output_to_standard_output_is_alone_there() {
+    let dir = tempfile::tempdir().unwrap();
+    let (u, y) = paper_record(600, 0);
+    write_csv(dir.path(), "d.csv", &u, &y);
+    let run = |args: &[&str]| bin().current_dir(dir.path()).args(args).output().unwrap();
+    let id = [
+        "identify",
+        "--data",
+        "d.csv",
+        "--structure",
+        "arx",
+        "--method",
+        "ls",
+    ];
+    let o = run(&[&id[..], &["--save-model", "-"]].concat());
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let model: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(model["format"], "ipa-sysid-model");
+    std::fs::write(dir.path().join("m.json"), &o.stdout).unwrap();
+    let o = run(&[
+        "validate", "--model", "m.json", "--data", "d.csv", "--out", "-",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let csv = String::from_utf8(o.stdout).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    assert_eq!(lines[0], "t,y,y_sim,y_pred,residual");
+    assert_eq!(lines.len(), 601, "a header and one row per sample");
+    let o = run(&[&id[..], &["--save-model", "-", "--json", "-"]].concat());
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("--json") && err.contains("standard output"),
+        "{err}"
+    );
+    assert!(o.stdout.is_empty());
 }

@@ -243,3 +243,184 @@ fn order_fails_when_no_structure_can_be_estimated() {
         .unwrap();
     assert_eq!(identify.status.code(), Some(1));
 }
+
+/// Rows 0..300: y(k) = 0.7 y(k−1) + 0.5 u(k−2); rows 300..600: y(k) = 0.2 y(k−1) + 2 u(k−2) (another
+/// plant), noise-free, by a plain loop.
+fn two_plant_record(dir: &std::path::Path) -> std::path::PathBuf {
+    let n = 600;
+    let u: Vec<f64> = (0..n)
+        .map(|k| (((k / 7) * 7919) % 19) as f64 - 9.0)
+        .collect();
+    let mut y = vec![0.0; n];
+    for k in 2..n {
+        let (a, b) = if k < 300 { (0.7, 0.5) } else { (0.2, 2.0) };
+        y[k] = a * y[k - 1] + b * u[k - 2];
+    }
+    let mut s = String::from("t,u,y\n");
+    for k in 0..n {
+        s += &format!("{},{},{}\n", k as f64 * 0.1, u[k], y[k]);
+    }
+    let p = dir.join("two.csv");
+    std::fs::write(&p, s).unwrap();
+    p
+}
+
+// Audit s11 O1: the --selection-rows are never used for estimation, as the help says. On a record whose
+// two halves come from two plants, ARX(1, 1, 2) estimated on the rows left after removing the selection
+// rows (one plant, noise-free) fits them exactly (100 %); estimated on all 600 rows (the old behaviour)
+// it could not, since no single (a, b) reproduces both halves. The selection half is the other plant,
+// so its fit is far from 100 %.
+#[test]
+fn selection_rows_are_not_used_for_estimation() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = two_plant_record(dir.path());
+    let d = data.to_str().unwrap();
+    let grid = ["--na", "1", "--nb", "1", "--nk", "2"];
+    for (sel, est_rows) in [("300..600", "[0..300]"), ("0..300", "[300..600]")] {
+        let mut args = vec!["order", "--data", d, "--selection-rows", sel];
+        args.extend(grid);
+        let (doc, _) = order_json(&args, dir.path());
+        assert!(
+            doc["data"].as_str().unwrap().ends_with(est_rows),
+            "{sel}: {}",
+            doc["data"]
+        );
+        let c = &doc["candidates"][0];
+        assert!(
+            c["fit_estimation"].as_f64().unwrap() > 99.9999,
+            "{sel}: {c}"
+        );
+        assert!(c["fit_validation"].as_f64().unwrap() < 99.0, "{sel}: {c}");
+    }
+    // With --rows 0..300 the selection rows lie outside the data rows: the estimation is rows 0..300.
+    let mut args = vec![
+        "order",
+        "--data",
+        d,
+        "--rows",
+        "0..300",
+        "--selection-rows",
+        "300..600",
+    ];
+    args.extend(grid);
+    let (doc, _) = order_json(&args, dir.path());
+    assert!(doc["data"].as_str().unwrap().ends_with("[0..300]"));
+    // Selection rows in the middle would cut the estimation rows in two: refused, pointing at --rows.
+    let out = bin()
+        .args(["order", "--data", d, "--selection-rows", "200..400"])
+        .args(grid)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("--selection-rows 200..400") && err.contains("--rows 0..200"),
+        "{err}"
+    );
+    // A selection of every data row leaves nothing to estimate on.
+    let out = bin()
+        .args(["order", "--data", d, "--selection-rows", "0..600"])
+        .args(grid)
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(2));
+}
+
+// Audit s11 O1: a selection part of 10 rows on a grid whose largest k0 = max(na, nk + nb − 1) is
+// max(3, 2 + 2 − 1) = 3 holds fewer than 5 k0 = 15 samples: said, with the 10 − 3 = 7 compared samples.
+#[test]
+fn a_short_selection_part_is_warned() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = two_plant_record(dir.path());
+    let d = data.to_str().unwrap();
+    let args = [
+        "order",
+        "--data",
+        d,
+        "--rows",
+        "0..300",
+        "--selection-rows",
+        "290..300",
+        "--na",
+        "1..3",
+        "--nb",
+        "1..2",
+        "--nk",
+        "0..2",
+    ];
+    let (doc, _) = order_json(&args, dir.path());
+    let w: Vec<&str> = doc["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w.as_str().unwrap())
+        .collect();
+    assert!(
+        w.iter().any(|w| w.contains("holds only 10 samples")
+            && w.contains("k0 = 3")
+            && w.contains("7 compared")),
+        "{w:?}"
+    );
+    // 290 rows of selection on the same grid: no such warning.
+    let (doc, _) = order_json(
+        &[
+            "order",
+            "--data",
+            d,
+            "--selection-rows",
+            "300..600",
+            "--na",
+            "1..3",
+            "--nb",
+            "1..2",
+            "--nk",
+            "0..2",
+        ],
+        dir.path(),
+    );
+    assert!(!doc["warnings"].to_string().contains("holds only"), "{doc}");
+}
+
+// Audit s11 V1: `order`'s test record must be held out; the --data file itself as --validation, or
+// --val-rows inside the --selection-rows, is said to give an in-sample test fit.
+#[test]
+fn a_test_record_that_is_the_estimation_data_is_warned() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = two_plant_record(dir.path());
+    let d = data.to_str().unwrap();
+    let grid = ["--na", "1", "--nb", "1", "--nk", "2"];
+    let (doc, _) = order_json(
+        &[&["order", "--data", d, "--validation", d][..], &grid].concat(),
+        dir.path(),
+    );
+    assert!(
+        doc["warnings"]
+            .to_string()
+            .contains("the test record is the estimation data"),
+        "{doc}"
+    );
+    let (doc, _) = order_json(
+        &[
+            &[
+                "order",
+                "--data",
+                d,
+                "--rows",
+                "0..300",
+                "--selection-rows",
+                "300..500",
+                "--val-rows",
+                "450..600",
+            ][..],
+            &grid,
+        ]
+        .concat(),
+        dir.path(),
+    );
+    let w = doc["warnings"].to_string();
+    assert!(
+        w.contains("the test record overlaps the selection data (rows 450..500"),
+        "{w}"
+    );
+    assert!(!w.contains("the estimation data"), "{w}");
+}

@@ -410,7 +410,9 @@ fn track_reads_a_semicolon_file_that_identify_reads_with_the_same_numbers() {
         &std::fs::read(&semi_path).unwrap(),
     );
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-    assert!(String::from_utf8_lossy(&o.stderr).starts_with("2000 samples"));
+    // 2000 samples are fewer than the detector needs to arm (a warning says so, then the count).
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(err.lines().any(|l| l.starts_with("2000 samples")), "{err}");
 }
 
 // Hostile flags and streams (issue 21, items 2 and 4): every size a flag drives is bounded before
@@ -530,4 +532,136 @@ proptest! {
             prop_assert!(err.contains("error: "), "{flags:?}: {err}");
         }
     }
+}
+
+// Audit s11 A1: the detector arms after k0 + warm-up + calibration samples: k0 = max(na, nk + nb − 1) =
+// max(3, 1) = 3 for the default structure, so 3 + 500 + 2000 = 2503. A record one sample shorter ends
+// with a summary warning that no change could be detected; at 2503 samples the detector is armed and
+// nothing is said.
+#[test]
+fn a_record_too_short_to_arm_the_change_detector_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = simulate(dir.path(), 2503, 3);
+    let text = std::fs::read_to_string(&data).unwrap();
+    let short = dir.path().join("short.csv");
+    let lines: Vec<&str> = text.lines().collect();
+    std::fs::write(&short, lines[..lines.len() - 1].join("\n") + "\n").unwrap();
+    let s = track_summary(&short, &[]);
+    assert_eq!(s["samples"], 2502);
+    let w = s["warnings"].to_string();
+    assert!(
+        w.contains("the change detector never armed")
+            && w.contains("= 2503 samples, the record has 2502"),
+        "{w}"
+    );
+    let s = track_summary(&data, &[]);
+    assert_eq!(s["samples"], 2503);
+    assert!(!s["warnings"].to_string().contains("never armed"), "{s}");
+}
+
+/// y(k) = 1.5 y(k−1) − 0.56 y(k−2) + f(u(k−1)) + e(k): a deadzone (slopes 0.01) whose breakpoints widen
+/// from −30/25 to −60/55 at k = 6000, u a pseudo-random level held 20 samples in ±150, e uniform in
+/// ±0.05 (a plain loop and a linear congruential generator).
+fn deadzone_change_record(path: &Path) {
+    let n = 12_000;
+    let mut state: u64 = 12345;
+    let mut rand = || {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (state >> 11) as f64 / (1u64 << 53) as f64
+    };
+    let mut u = vec![0.0; n];
+    let mut level = 0.0;
+    for (k, v) in u.iter_mut().enumerate() {
+        if k % 20 == 0 {
+            level = 300.0 * rand() - 150.0;
+        }
+        *v = level;
+    }
+    let f = |v: f64, k: usize| {
+        let (bl, br) = if k < 6000 {
+            (-30.0, 25.0)
+        } else {
+            (-60.0, 55.0)
+        };
+        if v >= br {
+            0.01 * (v - br)
+        } else if v <= bl {
+            0.01 * (v - bl)
+        } else {
+            0.0
+        }
+    };
+    let mut x = vec![0.0; n];
+    let mut y = vec![0.0; n];
+    for k in 2..n {
+        x[k] = 1.5 * x[k - 1] - 0.56 * x[k - 2] + f(u[k - 1], k);
+    }
+    for k in 0..n {
+        y[k] = x[k] + 0.1 * rand() - 0.05;
+    }
+    let mut s = String::from("t,u,y\n");
+    for k in 0..n {
+        s += &format!("{},{},{}\n", k as f64 * 0.01, u[k], y[k]);
+    }
+    std::fs::write(path, s).unwrap();
+}
+
+// Audit s11 A2: after a detected change without --restart-on-change the final model is estimated from
+// both plants; the summary says so. With --restart-on-change it is not said.
+#[test]
+fn a_change_without_restart_says_the_final_model_blends_both_plants() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("chg.csv");
+    deadzone_change_record(&data);
+    let orders = ["--na", "2", "--nb", "1", "--nk", "1"];
+    let s = track_summary(&data, &orders);
+    let changes = s["change_points"].as_array().unwrap();
+    assert!(!changes.is_empty(), "{s}");
+    let first = changes[0]["k"].as_u64().unwrap();
+    assert!((6000..6500).contains(&first), "{first}");
+    let w = s["warnings"].to_string();
+    assert!(
+        w.contains("without --restart-on-change") && w.contains("a blend of both plants"),
+        "{w}"
+    );
+    let s = track_summary(&data, &[&orders[..], &["--restart-on-change"]].concat());
+    assert!(!s["warnings"].to_string().contains("blend"), "{s}");
+}
+
+// Audit s11 A4: `track --json -` keeps standard output a JSON-lines stream: every line parses on its own,
+// one per `--every` samples, and the last is the summary (it has `samples`, the lines have `k`).
+#[test]
+fn the_summary_on_standard_output_is_one_more_json_line() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = simulate(dir.path(), 1000, 4);
+    let o = run(
+        &[
+            "track",
+            "--data",
+            data.to_str().unwrap(),
+            "--every",
+            "250",
+            "--json",
+            "-",
+        ],
+        b"",
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let lines: Vec<serde_json::Value> = String::from_utf8(o.stdout)
+        .unwrap()
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    // A line after every 250th sample: the 250th, 500th, 750th and 1000th (k = 249, 499, 749, 999, k
+    // 0-based), then the summary.
+    let ks: Vec<u64> = lines[..lines.len() - 1]
+        .iter()
+        .map(|l| l["k"].as_u64().unwrap())
+        .collect();
+    assert_eq!(ks, [249, 499, 749, 999]);
+    let last = lines.last().unwrap();
+    assert_eq!(last["samples"], 1000);
+    assert!(last.get("k").is_none());
 }

@@ -355,3 +355,84 @@ fn bad_inputs_name_the_file_or_the_flag() {
     let e = stderr(&o);
     assert!(e.contains("bad.json:3:"), "{e}");
 }
+
+/// `tune --model` of MODEL with A(q) = 1 + a1 q⁻¹ (one pole at z = −a1): its JSON document.
+fn tune_first_order(dir: &Path, a1: f64) -> serde_json::Value {
+    let model = dir.join(format!("m{a1}.json"));
+    std::fs::write(&model, MODEL.replace("[-1.0]", &format!("[{a1}]"))).unwrap();
+    let out = dir.join(format!("c{a1}.json"));
+    let json = dir.join(format!("t{a1}.json"));
+    let o = ipa_sysid(&[
+        "tune",
+        "--model",
+        model.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+        json.to_str().unwrap(),
+        "--max-evaluations",
+        "10",
+        "--variants",
+        "1",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8_lossy(&o.stdout);
+    let doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let unstable = doc["margins"]["open_loop_unstable"].as_bool().unwrap();
+    assert_eq!(text.contains("UNSTABLE open loop"), unstable, "{text}");
+    doc
+}
+
+// Audit s11 T1: tuned on a model with a pole at z = 1.02 (a1 = −1.02), the report carries identify's
+// unstable-model warning with that modulus, and says that the margins of an unstable open loop do not
+// show closed-loop stability; with the pole at 0.9 neither is said.
+#[test]
+fn tuning_on_an_unstable_model_says_so_and_qualifies_the_margins() {
+    let dir = tempfile::tempdir().unwrap();
+    let doc = tune_first_order(dir.path(), -1.02);
+    let w = doc["warnings"].to_string();
+    assert!(
+        w.contains("the model tuned on: unstable model: a pole has modulus 1.020000"),
+        "{w}"
+    );
+    assert!(
+        w.contains("do not show that the closed loop is stable"),
+        "{w}"
+    );
+    assert_eq!(doc["margins"]["open_loop_unstable"], true);
+    let doc = tune_first_order(dir.path(), -0.9);
+    let w = doc["warnings"].to_string();
+    assert!(
+        !w.contains("the model tuned on") && !w.contains("do not show"),
+        "{w}"
+    );
+    assert_eq!(doc["margins"]["open_loop_unstable"], false);
+}
+
+// Audit s11 A4: `tune --out -` writes the controller file alone on standard output (it parses as one
+// JSON document), the table goes to standard error; `--out - --json -` is refused naming --json.
+#[test]
+fn a_controller_to_standard_output_is_alone_there() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("m.json");
+    std::fs::write(&model, MODEL).unwrap();
+    let m = model.to_str().unwrap();
+    let args = [
+        "tune",
+        "--model",
+        m,
+        "--max-evaluations",
+        "8",
+        "--variants",
+        "1",
+    ];
+    let o = ipa_sysid(&[&args[..], &["--out", "-"]].concat());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let c: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(c["format"], "ipa-sysid-controller");
+    assert!(stderr(&o).contains("paper PI 14/1"));
+    let o = ipa_sysid(&[&args[..], &["--out", "-", "--json", "-"]].concat());
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("--json"), "{}", stderr(&o));
+}

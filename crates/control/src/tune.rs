@@ -773,6 +773,10 @@ pub struct Margins {
     pub phase_margin_deg: Option<f64>,
     /// Gain crossover frequency, rad/s.
     pub gain_crossover_rad_s: Option<f64>,
+    /// The linear part has a pole outside the unit circle (|p| > 1): the margins above then
+    /// do not show that the closed loop is stable (Nyquist: L must encircle −1 once per open-loop
+    /// pole outside the circle), only how far the frequency response passes from −1.
+    pub open_loop_unstable: bool,
 }
 
 /// Gain and phase margins of L(e^{jωTs}) = C · G: G = m z^{-nk} B(z⁻¹)/A(z⁻¹) the model's linear part
@@ -899,6 +903,9 @@ pub fn margins(model: &Model, s: &ControllerSettings) -> Margins {
         phase_crossover_rad_s: gm.map(|g| g.1),
         phase_margin_deg: pm.map(|p| p.0),
         gain_crossover_rad_s: pm.map(|p| p.1),
+        // A pole on the circle (an integrator) is the classical case of margins read with an
+        // indented Nyquist contour; only poles outside it break their meaning.
+        open_loop_unstable: model.poles().iter().any(|p| p.norm() > 1.0),
     }
 }
 

@@ -342,6 +342,7 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
         _ => {}
     }
     warnings.splice(0..0, reach_warnings(&model, &deadzone, &req.spec));
+    warnings.splice(0..0, model_stability_warnings(&model, &margins));
     Ok(TuneReport {
         source: label,
         spec: req.spec.clone(),
@@ -354,6 +355,27 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
         on_physics,
         warnings,
     })
+}
+
+/// The model's own stability warning ([`sysid::Warning::if_unstable_or_integrating`], the words
+/// `identify` uses) for the model tuned on, and for an unstable one what its margins mean: with an
+/// open-loop pole outside the unit circle the gain and phase margins do not certify closed-loop
+/// stability (audit s11 T1).
+fn model_stability_warnings(model: &Model, margins: &Margins) -> Vec<String> {
+    let Some(w) = sysid::Warning::if_unstable_or_integrating(model) else {
+        return Vec::new();
+    };
+    let mut out = vec![format!("the model tuned on: {w}")];
+    if margins.open_loop_unstable {
+        out.push(
+            "the gain and phase margins are those of an unstable open loop: they do not show that the \
+             closed loop is stable (Nyquist: the loop must encircle -1 once per open-loop pole outside \
+             the unit circle), only how far its frequency response passes from -1; judge the loop by the \
+             closed-loop runs below and verify it on the plant"
+                .to_string(),
+        );
+    }
+    out
 }
 
 /// Fewest samples in one run of the specification: a run of a handful of samples has no rise or

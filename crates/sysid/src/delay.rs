@@ -87,6 +87,16 @@ pub fn estimate_delay(
     nb: usize,
     max_delay: usize,
 ) -> Result<DelayEstimate, SysidError> {
+    if data.inputs().len() != 1 {
+        // One delay per input would need one search per input; MATLAB `delayest` is single-input too.
+        let names: Vec<&str> = data.inputs().iter().map(|i| i.name()).collect();
+        return Err(SysidError::setting(
+            crate::Setting::UCol,
+            names.join(","),
+            "one input column: the delay is estimated for one input at a time (as MATLAB delayest); \
+             run it once per input (--u-col NAME)",
+        ));
+    }
     if nb == 0 {
         return Err(SysidError::setting(
             crate::Setting::Nb,

@@ -585,6 +585,67 @@ impl Tracker {
         self.key.model_of(self.est.theta(), ts_s)
     }
 
+    /// Why the change detector could not flag a change at the end of the samples so far, in words
+    /// (audit s11 A1): it never armed (fewer than k0 + warm-up + calibration samples, or errors that
+    /// were exactly 0, which keep it calibrating), or it was arming again after the last detected
+    /// change. `None` when it is armed, or without a detector.
+    pub fn detector_unarmed_warning(&self) -> Option<String> {
+        let s = self.settings.detector?;
+        if self.detector_state().is_some() {
+            return None;
+        }
+        let arming = s.warmup + s.calibration;
+        Some(match self.changes.last() {
+            None => {
+                let needed = self.k0 + arming;
+                if self.k >= needed {
+                    "the change detector never armed: its calibration errors were all 0 (σ̂² = 0, a \
+                     noise-free record), so no change could be detected"
+                        .to_string()
+                } else {
+                    format!(
+                        "the change detector never armed (it needs k0 + warm-up + calibration = {} + {} + {} \
+                         = {needed} samples, the record has {}): no change could be detected",
+                        self.k0, s.warmup, s.calibration, self.k
+                    )
+                }
+            }
+            Some(&c) => format!(
+                "the change detector was arming again after the change at k = {c} (warm-up + calibration = \
+                 {arming} samples; {} came after it): a later change could not be detected",
+                self.k - c - 1
+            ),
+        })
+    }
+
+    /// A warning (audit s11 A2) when a change was detected and the estimator was not restarted
+    /// ([`TrackSettings::restart_on_change`] off): the final estimate still carries the samples before
+    /// the change, so it blends both plants. With forgetting ρ < 1 the old samples fade with a memory
+    /// of about 1/(1 − ρ) samples; no warning once 5 memories have passed since the last change.
+    pub fn blended_model_warning(&self) -> Option<String> {
+        let &c = self.changes.last()?;
+        if self.settings.restart_on_change {
+            return None;
+        }
+        let since = self.k - c - 1;
+        let rho = self.settings.forgetting;
+        let memory = if rho < 1.0 {
+            let m = 1.0 / (1.0 - rho);
+            if since as f64 > 5.0 * m {
+                return None;
+            }
+            format!(" (forgetting ρ = {rho} remembers about {m:.0} samples; {since} came after it)")
+        } else {
+            String::new()
+        };
+        Some(format!(
+            "{} change(s) detected (the last at k = {c}) without --restart-on-change: the final model is \
+             estimated from the samples before and after the change{memory}, a blend of both plants, not \
+             the plant after it; run again with --restart-on-change for that",
+            self.changes.len()
+        ))
+    }
+
     /// Reasons not to trust the current estimate or the `change` flag yet, in words.
     pub fn warnings(&self, model: &Model) -> Vec<String> {
         let mut w = Vec::new();

@@ -34,7 +34,8 @@ pub struct Args {
     /// The start plant (default: the built-in defaults); its parameters that are not free are kept.
     #[arg(long, value_name = "START.toml")]
     pub plant_config: Option<PathBuf>,
-    /// Output plant-config TOML of the twin.
+    /// Output plant-config TOML of the twin (`-`: standard output; the text report then goes to
+    /// standard error, and no other output may be `-`).
     #[arg(long, value_name = "PLANT.toml", required_unless_present = "study")]
     pub out: Option<PathBuf>,
     /// Write the report as JSON here (`-` for standard output).
@@ -116,7 +117,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     write_output(out, toml.as_bytes(), &inputs, "--out")?;
     let text = report_text(&twin, baseline.as_ref(), seconds, out);
-    print_report(&text, args.json.as_deref());
+    print_report(&text, &[args.json.as_deref(), Some(out)]);
     if let Some(path) = &args.json {
         let value = report_json(&twin, baseline.as_ref(), seconds);
         let s = serde_json::to_string_pretty(&value)? + "\n";
@@ -342,7 +343,7 @@ fn run_study(args: &Args, calibration: Calibration, n: usize) -> anyhow::Result<
     };
     let rows = study.run()?;
     let text = study_table(&study, &rows);
-    print_report(&text, args.json.as_deref());
+    print_report(&text, &[args.json.as_deref()]);
     if let Some(path) = &args.json {
         let value = json!({
             "plants": rows.iter().map(|c| json!({

@@ -112,14 +112,40 @@ pub fn stream_note(name: &str, passes: usize, rows: usize, mode: StreamMode) {
     );
 }
 
-/// Prints a command's text report: on standard error when the JSON goes to standard output (`--json -`),
-/// so that the JSON stays parseable, else on standard output.
-pub fn print_report(text: &str, json: Option<&Path>) {
-    if json.is_some_and(|p| p.as_os_str() == "-") {
+/// Whether any of a command's outputs is `-` (standard output).
+pub fn any_to_stdout(outputs: &[Option<&Path>]) -> bool {
+    outputs.iter().flatten().any(|p| p.as_os_str() == "-")
+}
+
+/// Prints a command's text report: on standard error when one of its `outputs` (`--json`, `--out`,
+/// `--save-model`) goes to standard output (`-`), so that standard output carries that one parseable
+/// document alone, else on standard output.
+pub fn print_report(text: &str, outputs: &[Option<&Path>]) {
+    if any_to_stdout(outputs) {
         eprint!("{text}");
     } else {
         print!("{text}");
     }
+}
+
+/// Refuses more than one output to standard output (`-`): two documents in one stream parse as
+/// neither. `outputs` pairs each path with its flag.
+pub fn refuse_two_stdout(outputs: &[(Option<&Path>, &str)]) -> anyhow::Result<()> {
+    let flags: Vec<&str> = outputs
+        .iter()
+        .filter(|(p, _)| p.is_some_and(|p| p.as_os_str() == "-"))
+        .map(|(_, f)| *f)
+        .collect();
+    if let [first, second, ..] = flags.as_slice() {
+        anyhow::bail!(sysid_io::OutputError::Refused {
+            flag: second.to_string(),
+            path: PathBuf::from("-"),
+            expected: format!(
+                "a file: {first} already writes to standard output, and one stream holds one document"
+            ),
+        });
+    }
+    Ok(())
 }
 
 /// Prints the reader's warnings on standard error.
@@ -144,8 +170,10 @@ pub fn write_output(
 }
 
 /// Checks before any work that every output path can be written (its folder exists, it is not a folder),
-/// names none of the inputs, and that no two outputs are the same file.
+/// names none of the inputs, that no two outputs are the same file, and that at most one is `-`.
 pub fn check_outputs(outputs: &[(&Option<PathBuf>, &str)], inputs: &[&Path]) -> anyhow::Result<()> {
+    let all: Vec<(Option<&Path>, &str)> = outputs.iter().map(|(p, f)| (p.as_deref(), *f)).collect();
+    refuse_two_stdout(&all)?;
     let files: Vec<(&Path, &str)> = outputs
         .iter()
         .filter_map(|(out, flag)| out.as_deref().map(|p| (p, *flag)))
@@ -272,6 +300,75 @@ impl ValidationArgs {
             notes,
         })
     }
+}
+
+/// Rows of one file: a record as the reader selected it (`rows` `None` = every row).
+#[derive(Debug, Clone, Copy)]
+pub struct FileRows<'a> {
+    /// The file.
+    pub file: &'a Path,
+    /// Its rows (`--rows`, `--val-rows`, `--selection-rows`).
+    pub rows: Option<RowRange>,
+}
+
+/// Whether two paths name the same file (compared after resolving links), or are the same path.
+pub fn same_file(a: &Path, b: &Path) -> bool {
+    a == b
+        || matches!(
+            (std::fs::canonicalize(a), std::fs::canonicalize(b)),
+            (Ok(x), Ok(y)) if x == y
+        )
+}
+
+/// A warning (audit s11 V1) when the `what` record ("validation", "test") holds rows of the file the
+/// estimation read (`est`, called `est_what`): its fit is then in-sample, not held out. `None` when
+/// the files differ or the rows are disjoint.
+pub fn shared_rows_warning(
+    what: &str,
+    test: FileRows,
+    est_what: &str,
+    est: FileRows,
+) -> Option<String> {
+    if !same_file(test.file, est.file) {
+        return None;
+    }
+    let all = RowRange::default();
+    let (t, e) = (test.rows.unwrap_or(all), est.rows.unwrap_or(all));
+    let shared = t.intersection(&e)?;
+    let rows = if shared == all {
+        format!("every row of {} is", test.file.display())
+    } else {
+        format!("rows {shared} of {} are", test.file.display())
+    };
+    Some(if shared == t {
+        let is = if t == e { "is" } else { "is part of" };
+        format!(
+            "the {what} record {is} the {est_what} data ({rows} in both): its fit is in-sample, not \
+             held out"
+        )
+    } else {
+        format!(
+            "the {what} record overlaps the {est_what} data ({rows} in both): its fit is partly in-sample"
+        )
+    })
+}
+
+/// A warning when the `what` record holds exactly the samples of the estimation record `est` (a copy
+/// of the file, say): its fit is in-sample.
+pub fn same_samples_warning(
+    what: &str,
+    test: &sysid::Dataset,
+    est: &sysid::Dataset,
+) -> Option<String> {
+    let same = test.y() == est.y() && test.input_signals() == est.input_signals();
+    same.then(|| {
+        format!(
+            "the {what} record {} holds the same samples as the estimation record {}: its fit is \
+             in-sample, not held out",
+            test.name(),
+            est.name()
+        )
+    })
 }
 
 /// A progress bar of `len` steps on standard error with the template `template` (indicatif syntax),

@@ -10,7 +10,8 @@ use sysid::{IdentifyOptions, ModelKind};
 use sysid_summary::IdentifyReport;
 
 use super::common::{
-    check_outputs, print_notes, stream_note, write_output, ColumnArgs, StreamMode, ValidationArgs,
+    any_to_stdout, check_outputs, print_notes, same_samples_warning, shared_rows_warning,
+    stream_note, write_output, ColumnArgs, FileRows, StreamMode, ValidationArgs,
 };
 use sysid::detrend::{detrend, Detrend};
 
@@ -174,7 +175,8 @@ pub struct Args {
     /// Write the JSON summary here (`-` for standard output).
     #[arg(long, value_name = "OUT")]
     pub json: Option<PathBuf>,
-    /// Save the model for `validate --model` and `--plant model:FILE`.
+    /// Save the model for `validate --model` and `--plant model:FILE` (`-`: standard output; the text
+    /// report then goes to standard error, and no other output may be `-`).
     #[arg(long, value_name = "MODEL.json")]
     pub save_model: Option<PathBuf>,
     /// Read the record in passes with bounded memory (ARX by least squares; docs/data.md, "Long
@@ -453,6 +455,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     report
         .warnings
         .extend(notes.iter().map(|n| format!("data: {n}")));
+    report
+        .warnings
+        .extend(in_sample_warnings(&args, &files, &records, val.as_ref()));
     let names: Vec<&str> = records.iter().map(|r| r.name()).collect();
     let n: usize = records.iter().map(Dataset::len).sum();
     let est_name = if records.len() > 1 {
@@ -474,6 +479,51 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &notes,
         &inputs,
     )
+}
+
+/// Warnings (audit s11 V1) when the validation record holds rows of an estimation file (the same file,
+/// overlapping `--rows` and `--val-rows`) or the very samples of an estimation record: its fit is then
+/// in-sample. `records` and `val` are the records read (none for the streamed path).
+fn in_sample_warnings(
+    args: &Args,
+    files: &[PathBuf],
+    records: &[Dataset],
+    val: Option<&Dataset>,
+) -> Vec<String> {
+    let opts = args.columns.csv_options();
+    let Some(data) = files.first() else {
+        return Vec::new();
+    };
+    if args.val.split.is_some() {
+        return Vec::new(); // the validation rows follow the estimation rows
+    }
+    let Some((path, vopts)) = args.val.validation_source(data, &opts) else {
+        return Vec::new();
+    };
+    let test = FileRows {
+        file: path,
+        rows: vopts.rows,
+    };
+    let mut w: Vec<String> = files
+        .iter()
+        .filter_map(|f| {
+            let est = FileRows {
+                file: f,
+                rows: args.columns.rows,
+            };
+            shared_rows_warning("validation", test, "estimation", est)
+        })
+        .collect();
+    if w.is_empty() {
+        if let Some(v) = val {
+            w.extend(
+                records
+                    .iter()
+                    .find_map(|r| same_samples_warning("validation", v, r)),
+            );
+        }
+    }
+    w
 }
 
 /// The estimation records (one per file; `--split`/`--val-rows` of a single file apply) and the
@@ -518,7 +568,9 @@ fn output(
     notes: &[String],
     inputs: &[&Path],
 ) -> anyhow::Result<()> {
-    let json_to_stdout = args.json.as_deref().is_some_and(|p| p.as_os_str() == "-");
+    // One parseable document on standard output: the text goes to standard error when --json or
+    // --save-model is `-` (check_outputs refuses both).
+    let to_stdout = any_to_stdout(&[args.json.as_deref(), args.save_model.as_deref()]);
     let text = format!(
         "Data: {} ({} samples){}\n{}",
         est.0,
@@ -538,7 +590,7 @@ fn output(
             )
         })
         .unwrap_or_default();
-    if json_to_stdout {
+    if to_stdout {
         eprint!("{text}");
     } else {
         print!("{text}");
@@ -588,14 +640,20 @@ fn run_streamed(args: &Args, settings: &Identification, data_path: &Path) -> any
         Some((path, vopts)) => Some(CsvStream::open(path, &vopts)?),
         None => None,
     };
-    let streamed = sysid_summary::stream::identify_report(
+    let mut streamed = sysid_summary::stream::identify_report(
         &mut est,
         val.as_mut().map(|v| v as &mut dyn RecordSource),
         settings,
         args.detrend,
         args.resid_lags,
     )?;
-    let (fit, report) = &streamed.result;
+    let (fit, report) = &mut streamed.result;
+    report.warnings.extend(in_sample_warnings(
+        args,
+        &[data_path.to_path_buf()],
+        &[],
+        None,
+    ));
     stream_note(
         est.name(),
         streamed.passes,

@@ -92,7 +92,10 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     report
         .warnings
         .extend(records.notes.iter().map(|n| format!("data: {n}")));
-    print_report(&render(&report, &settings), args.json.as_deref());
+    print_report(
+        &render(&report, &settings),
+        &[args.json.as_deref(), args.save_model.as_deref()],
+    );
     if let Some(path) = &args.json {
         let json = serde_json::to_string_pretty(&report)? + "\n";
         write_output(path, json.as_bytes(), &inputs, "--json")?;

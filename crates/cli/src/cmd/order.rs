@@ -15,8 +15,8 @@ use sysid::order::{grid_size, search, Candidate};
 use sysid::{Dataset, Identification, Method, ModelKind};
 
 use super::common::{
-    check_outputs, parse_rows, print_notes, print_report, progress_bar, write_output, ColumnArgs,
-    ValidationArgs,
+    check_outputs, parse_rows, print_notes, print_report, progress_bar, same_samples_warning,
+    shared_rows_warning, write_output, ColumnArgs, FileRows, ValidationArgs,
 };
 use sysid::data::RowRange;
 
@@ -39,8 +39,10 @@ pub struct Args {
     /// Input delays to try; `auto` estimates the delay first (as `ipa-sysid delay`) and tries it ± 1.
     #[arg(long, default_value = "0..5")]
     pub nk: String,
-    /// Rows A..B of the --data file that rank the structures (not used for estimation); default: the
-    /// last part of the estimation record (see --selection-split).
+    /// Rows A..B of the --data file that rank the structures, never used for estimation: the
+    /// structures are estimated on the data rows (--rows, default the whole file) without them, so they
+    /// lie at the start or the end of the data rows, or outside them. Default: the last part of the
+    /// estimation record (see --selection-split).
     #[arg(long, value_name = "A..B", value_parser = parse_rows)]
     pub selection_rows: Option<RowRange>,
     /// Without --selection-rows: estimate on this first fraction of the estimation record, rank on the rest.
@@ -177,16 +179,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let (data, test, fit_part, selection) =
         detrended(args.detrend, (data, test, fit_part, selection), &mut notes)?;
     print_notes(&notes);
+    let mut warnings = in_sample_warnings(&args, &opts, &data, test.as_ref());
     if !args.classes.is_empty() {
         if auto_nk {
             anyhow::bail!("--classes takes a --nk range, not auto");
         }
+        warnings.extend(selection_length_warning(
+            &selection,
+            largest_k0(&na, &nb, &nk),
+        ));
         return super::order_classes::run(
             &args,
             &base,
             (&data, &fit_part, &selection, test.as_ref()),
             (&na, &nb, &nk),
-            &inputs,
+            (&inputs, warnings),
         );
     }
     let delay = if auto_nk {
@@ -196,6 +203,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         None
     };
+    warnings.extend(selection_length_warning(
+        &selection,
+        largest_k0(&na, &nb, &nk),
+    ));
     let bar = progress_bar(
         grid_size(&na, &nb, &nk) as u64,
         "{bar:40} {pos}/{len} structures {elapsed}",
@@ -208,7 +219,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "selection fit % (simulation, the worse of estimated and measured initial outputs); \
                      structures a warning disqualifies (unstable, negative fit, not converged, worse \
                      than the linear start or baseline, nonlinearity not physical) last";
-    let mut warnings = sysid::order::search_warnings(&ranked, &na, &nb, &nk);
+    warnings.extend(sysid::order::search_warnings(&ranked, &na, &nb, &nk));
     for w in delay.iter().flat_map(|d| &d.warnings) {
         warnings.push(format!("--nk auto: {w}"));
     }
@@ -233,7 +244,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let mut text = format!(
         "Order search: {} structures ({} model, {} estimator) estimated on {} ({} samples), ranked on \
-         {} ({} samples) by {ranked_by}, then fewer parameters, then AIC\n",
+         {} ({} samples{}) by {ranked_by}, then fewer parameters, then AIC\n",
         ranked.len(),
         base.structure.kind,
         sysid::Estimator::method(&base.estimator),
@@ -241,6 +252,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         fit_part.len(),
         selection.name(),
         selection.len(),
+        if args.selection_rows.is_some() {
+            ", never used for estimation"
+        } else {
+            ""
+        }
     );
     if let Some(d) = &delay {
         text.push_str(&format!(
@@ -287,7 +303,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
              no structure is recommended.\n"
         ));
     }
-    print_report(&text, args.json.as_deref());
+    print_report(&text, &[args.json.as_deref()]);
     let json_to_stdout = args.json.as_deref().is_some_and(|p| p.as_os_str() == "-");
     if let (true, Some(path), false) = (nothing, &args.json, json_to_stdout) {
         eprintln!(
@@ -335,7 +351,7 @@ fn selection_parts(
             };
             let sel = sysid::data::read_record(&args.data, &sopts)?;
             notes.extend(sel.notes);
-            (data.clone(), sel.data)
+            (estimation_rows(args, data, opts, *r)?, sel.data)
         }
         None => {
             let n = data.len();
@@ -351,6 +367,136 @@ fn selection_parts(
             (data.rows(0..k), data.rows(k..n))
         }
     })
+}
+
+/// The estimation part when `--selection-rows S` are given: the data rows R (`--rows`, default the whole
+/// file) minus S, which must leave one contiguous part (S at the start or the end of R, or outside it).
+/// `data` is the record of R, returned as it is when S lies outside R.
+fn estimation_rows(
+    args: &Args,
+    data: &Dataset,
+    opts: &sysid::data::CsvOptions,
+    s: RowRange,
+) -> anyhow::Result<Dataset> {
+    let r = args.columns.rows.unwrap_or_default();
+    if r.intersection(&s).is_none() {
+        return Ok(data.clone());
+    }
+    // The file's row count resolves open ends (`600..`): the rows before any resampling, without Ts.
+    let count = sysid::data::CsvOptions {
+        rows: None,
+        resample: None,
+        ts: Some(1.0),
+        ..opts.clone()
+    };
+    let n = sysid::data::read_record(&args.data, &count)?.data.len();
+    let name = args.data.display().to_string();
+    let r = r.resolve(n, "--rows", &name)?;
+    let s = s.resolve(n, "--selection-rows", &name)?;
+    let before = r.start..s.start.max(r.start);
+    let after = s.end.min(r.end)..r.end;
+    let part = match (before.is_empty(), after.is_empty()) {
+        (false, true) => before,
+        (true, false) => after,
+        (true, true) => anyhow::bail!(
+            "--selection-rows {}..{} cover every estimation row ({}..{} of {name}): no row is left to \
+             estimate on; pass --rows with the estimation rows",
+            s.start,
+            s.end,
+            r.start,
+            r.end
+        ),
+        (false, false) => anyhow::bail!(
+            "--selection-rows {}..{} lie inside the estimation rows {}..{} of {name} and would cut them in \
+             two records; the selection rows are never used for estimation, so choose selection rows at \
+             the start or the end of the data rows, or pass --rows with the estimation rows (e.g. --rows \
+             {}..{})",
+            s.start,
+            s.end,
+            r.start,
+            r.end,
+            r.start,
+            s.start
+        ),
+    };
+    let eopts = sysid::data::CsvOptions {
+        rows: Some(RowRange {
+            start: Some(part.start),
+            end: Some(part.end),
+        }),
+        ..opts.clone()
+    };
+    Ok(sysid::data::read_record(&args.data, &eopts)?.data)
+}
+
+/// The most initial samples k0 = max(na, nk + nb − 1) of a structure of the grid: the free-run
+/// simulation of the selection part starts from its first k0 samples and compares the rest.
+fn largest_k0(na: &[usize], nb: &[usize], nk: &[usize]) -> usize {
+    let max = |v: &[usize]| v.iter().copied().max().unwrap_or(0);
+    max(na).max((max(nk) + max(nb)).saturating_sub(1))
+}
+
+/// How many times the grid's largest k0 the selection part should hold before its fits rank anything.
+const SELECTION_K0_FACTOR: usize = 5;
+
+/// A warning when the selection part holds fewer than [`SELECTION_K0_FACTOR`] times the grid's largest
+/// k0 samples: the ranking then rests on a handful of compared samples (none for the structures whose k0
+/// reaches the part's length).
+fn selection_length_warning(selection: &Dataset, k0: usize) -> Option<String> {
+    let n = selection.len();
+    (n < SELECTION_K0_FACTOR * k0).then(|| {
+        format!(
+            "the selection part {} holds only {n} samples, fewer than {SELECTION_K0_FACTOR} times the \
+             grid's largest k0 = {k0} (k0 = max(na, nk + nb - 1), the initial samples a simulation \
+             starts from): the ranking rests on {} compared samples or fewer and may pick by chance; \
+             choose more selection rows",
+            selection.name(),
+            n.saturating_sub(k0)
+        )
+    })
+}
+
+/// Warnings (audit s11 V1) when the test record holds rows the chosen structure was estimated on
+/// (`data`, the `--rows` of the file) or ranked on (`--selection-rows`), or the very samples of `data`.
+fn in_sample_warnings(
+    args: &Args,
+    opts: &sysid::data::CsvOptions,
+    data: &Dataset,
+    test: Option<&Dataset>,
+) -> Vec<String> {
+    let Some(t) = test else {
+        return Vec::new();
+    };
+    let Some((path, vopts)) = args.val.validation_source(&args.data, opts) else {
+        return Vec::new(); // --split: the test rows follow the estimation rows
+    };
+    let test_rows = FileRows {
+        file: path,
+        rows: vopts.rows,
+    };
+    let estimation = FileRows {
+        file: &args.data,
+        rows: args.columns.rows,
+    };
+    let mut w: Vec<String> = shared_rows_warning("test", test_rows, "estimation", estimation)
+        .into_iter()
+        .collect();
+    if w.is_empty() {
+        w.extend(same_samples_warning("test", t, data));
+    }
+    if let Some(rows) = args.selection_rows {
+        let selection = FileRows {
+            file: &args.data,
+            rows: Some(rows),
+        };
+        w.extend(shared_rows_warning(
+            "test",
+            test_rows,
+            "selection",
+            selection,
+        ));
+    }
+    w
 }
 
 /// The ranking table: a header and the first `top` candidates.

@@ -26,13 +26,14 @@ struct Chosen {
 }
 
 /// Runs the class search: `records` = (whole estimation record, estimation part, selection part,
-/// test record), `grid` = (na, nb, nk) values.
+/// test record), `grid` = (na, nb, nk) values, `inputs` the input files and `warnings` those found
+/// before the search (the test record's rows, a short selection part).
 pub fn run(
     args: &Args,
     base: &Identification,
     records: (&Dataset, &Dataset, &Dataset, Option<&Dataset>),
     grid: (&[usize], &[usize], &[usize]),
-    inputs: &[&Path],
+    (inputs, mut warnings): (&[&Path], Vec<String>),
 ) -> anyhow::Result<()> {
     let (data, fit_part, selection, test) = records;
     if data.inputs().len() != 1 {
@@ -63,7 +64,6 @@ pub fn run(
         bar.inc(1)
     });
     bar.finish_and_clear();
-    let mut warnings = Vec::new();
     let chosen = match recommended(&ranked) {
         None => {
             warnings.push(
@@ -183,7 +183,7 @@ pub fn run(
     for w in &warnings {
         text.push_str(&format!("warning: {w}\n"));
     }
-    print_report(&text, args.json.as_deref());
+    print_report(&text, &[args.json.as_deref()]);
     if let Some(path) = &args.json {
         #[derive(serde::Serialize)]
         struct Doc<'a> {

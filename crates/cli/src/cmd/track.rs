@@ -127,7 +127,8 @@ pub struct Args {
     #[arg(long, value_name = "C", default_value_t = DetectorSettings::default().excursion_factor)]
     pub detect_excursion_factor: f64,
     /// Write a summary at the end as JSON (final model, samples, change points; `-` for standard
-    /// output). `--json-summary`, its former name, is still accepted.
+    /// output, where it is one compact line after the per-sample lines, so the stream stays JSON
+    /// lines). `--json-summary`, its former name, is still accepted.
     #[arg(long = "json", alias = "json-summary", value_name = "FILE")]
     pub json: Option<PathBuf>,
 }
@@ -252,7 +253,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .join(",")
     );
     if let Some(path) = &args.json {
-        let mut text = serde_json::to_string_pretty(&summary).context("serialising the summary")?;
+        // On standard output the summary is one more line of the JSON-lines stream (the last, with
+        // `samples` and no `k`), so a line-by-line reader parses every line; in a file it is
+        // pretty-printed.
+        let mut text = if path.as_os_str() == "-" {
+            serde_json::to_string(&summary)
+        } else {
+            serde_json::to_string_pretty(&summary)
+        }
+        .context("serialising the summary")?;
         text.push('\n');
         super::common::write_output(path, text.as_bytes(), &inputs, "--json")?;
     }

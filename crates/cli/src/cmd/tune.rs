@@ -36,6 +36,8 @@ pub struct Args {
     #[arg(long, value_name = "SPEC", default_value = "")]
     pub spec: String,
     /// Write the tuned controller here (JSON; `control --controller` and the C interface read it).
+    /// `-`: standard output; the text report then goes to standard error, and no other output may be
+    /// `-`.
     #[arg(long, value_name = "CONTROLLER.json")]
     pub out: PathBuf,
     /// Plant variants searched over (variant 0 is the nominal model or twin).
@@ -107,6 +109,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .into_iter()
         .flatten()
         .collect();
+    super::common::refuse_two_stdout(&[
+        (Some(args.out.as_path()), "--out"),
+        (args.json.as_deref(), "--json"),
+    ])?;
     sysid_io::check_writable(&args.out, "--out")?;
     sysid_io::refuse_overwrite_input(&args.out, &inputs, "--out")?;
     if let Some(j) = args.json.as_ref().filter(|j| j.as_os_str() != "-") {
@@ -191,7 +197,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             sysid_io::write_atomic(json, text.as_bytes())?;
         }
     }
-    if json_to_stdout {
+    // One parseable document on standard output: the controller file or the JSON, the table aside.
+    if json_to_stdout || args.out.as_os_str() == "-" {
         eprint!("{summary}");
     } else {
         print!("{summary}");
@@ -265,11 +272,16 @@ fn summary_text(r: &TuneReport, out: &Path) -> String {
     );
     o += &format!("controller:   {}\n", super::control::tuned_line(s));
     o += &format!(
-        "margins:      gain {} dB at {} rad/s, phase {}° at {} rad/s (linear part: model with the deadzone's slope)\n",
+        "margins:      gain {} dB at {} rad/s, phase {}° at {} rad/s (linear part: model with the deadzone's slope{})\n",
         f(m.gain_margin_db, 2),
         f(m.phase_crossover_rad_s, 2),
         f(m.phase_margin_deg, 1),
-        f(m.gain_crossover_rad_s, 2)
+        f(m.gain_crossover_rad_s, 2),
+        if m.open_loop_unstable {
+            "; UNSTABLE open loop: not a proof of stability, see the warnings"
+        } else {
+            ""
+        }
     );
     o += &block(&r.on_model, &r.spec);
     if let Some(p) = &r.on_physics {

@@ -29,7 +29,8 @@ pub struct Args {
     #[arg(long, value_name = "OUT")]
     pub json: Option<PathBuf>,
     /// Write the model's output as CSV: t,y,y_sim,y_pred,residual (residual = y − y_pred; y_pred is the
-    /// --horizon-step prediction; MATLAB `compare`/`predict`).
+    /// --horizon-step prediction; MATLAB `compare`/`predict`). `-`: standard output; the text report
+    /// then goes to standard error, and no other output may be `-`.
     #[arg(long, value_name = "FILE.csv")]
     pub out: Option<PathBuf>,
     /// Prediction horizon K in samples for y_pred and the prediction metrics (MATLAB `predict(m, z, K)`;
@@ -101,7 +102,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         data.len(),
         out.fit_pred_percent,
     );
-    print_report(&text, args.json.as_deref());
+    print_report(&text, &[args.json.as_deref(), args.out.as_deref()]);
     if let Some(path) = &args.out {
         let t = sysid::data::sample_times(data.len(), data.ts());
         let mut w = csv::Writer::from_writer(Vec::new());
@@ -187,7 +188,7 @@ fn run_narx(
     for w in &warnings {
         text.push_str(&format!("warning: {w}\n"));
     }
-    print_report(&text, args.json.as_deref());
+    print_report(&text, &[args.json.as_deref(), args.out.as_deref()]);
     if let Some(path) = &args.out {
         let sim = model.simulate(data.u(), data.y())?.y;
         let pred = model.predict(data.u(), data.y())?;
@@ -353,7 +354,7 @@ fn run_streamed(
     };
     let value = report_json(&report, args.horizon, fit_horizon, &[])?;
     let text = report_text(args, &report, &name, shape.rows, fit_horizon);
-    print_report(&text, args.json.as_deref());
+    print_report(&text, &[args.json.as_deref(), args.out.as_deref()]);
     finish(args, &report, &value, inputs)
 }
 

@@ -84,6 +84,23 @@ impl RowRange {
     }
 }
 
+impl RowRange {
+    /// The rows two ranges of one file share (`None` when they are disjoint); an open end stays open,
+    /// since both reach the same end of the file.
+    pub fn intersection(&self, other: &RowRange) -> Option<RowRange> {
+        let start = self.start.max(other.start);
+        let end = match (self.end, other.end) {
+            (Some(a), Some(b)) => Some(a.min(b)),
+            (a, b) => a.or(b),
+        };
+        match (start, end) {
+            (Some(a), Some(b)) if a >= b => None,
+            (None, Some(0)) => None,
+            _ => Some(RowRange { start, end }),
+        }
+    }
+}
+
 /// The number of estimation rows of `--split F`: ⌊F·N⌋ of N rows, the rest being validation rows; fails
 /// unless 0 < F < 1 and both parts hold at least one row.
 pub fn split_rows(n: usize, fraction: f64) -> Result<usize, SysidError> {
@@ -125,5 +142,32 @@ impl Dataset {
             ts: self.ts,
             name: format!("{}[{}..{}]", self.name, r.start, r.end),
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::RowRange;
+
+    fn r(text: &str) -> RowRange {
+        text.parse().unwrap()
+    }
+
+    #[test]
+    fn overlapping_ranges_share_the_rows_between_the_later_start_and_the_earlier_end() {
+        assert_eq!(
+            r("0..600").intersection(&r("500..1000")),
+            Some(r("500..600"))
+        );
+        assert_eq!(r("..").intersection(&r("600..1000")), Some(r("600..1000")));
+        assert_eq!(r("100..").intersection(&r("..300")), Some(r("100..300")));
+        assert_eq!(r("100..").intersection(&r("50..")), Some(r("100..")));
+    }
+
+    #[test]
+    fn ranges_that_only_touch_share_no_row() {
+        assert_eq!(r("0..600").intersection(&r("600..1000")), None);
+        assert_eq!(r("600..").intersection(&r("..600")), None);
+        assert_eq!(r("..10").intersection(&r("20..")), None);
     }
 }

@@ -15,16 +15,20 @@ fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
 }
 
-/// Runs the binary in `dir` with `args` (split on spaces; `{c}` is the corpus folder, `{t}` is `dir`).
-fn run(args: &str, dir: &Path) -> Output {
+/// `args` split on spaces, `{c}` replaced by the corpus folder and `{t}` by `dir`.
+fn argv(args: &str, dir: &Path) -> Vec<String> {
     let c = corpus().display().to_string();
-    let argv: Vec<String> = args
-        .split_whitespace()
+    args.split_whitespace()
         .map(|a| {
             a.replace("{c}", &c)
                 .replace("{t}", &dir.display().to_string())
         })
-        .collect();
+        .collect()
+}
+
+/// Runs the binary in `dir` with `args` (split on spaces; `{c}` is the corpus folder, `{t}` is `dir`).
+fn run(args: &str, dir: &Path) -> Output {
+    let argv = argv(args, dir);
     bin()
         .args(&argv)
         .current_dir(dir)
@@ -432,14 +436,7 @@ fn devices_and_fifos_are_refused_as_inputs() {
 /// [`run`], killing the binary after `secs` seconds (its output then shows it was killed).
 #[cfg(unix)]
 fn run_with_timeout(args: &str, dir: &Path, secs: u64) -> Output {
-    let c = corpus().display().to_string();
-    let argv: Vec<String> = args
-        .split_whitespace()
-        .map(|a| {
-            a.replace("{c}", &c)
-                .replace("{t}", &dir.display().to_string())
-        })
-        .collect();
+    let argv = argv(args, dir);
     let mut child = bin()
         .args(&argv)
         .current_dir(dir)

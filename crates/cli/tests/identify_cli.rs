@@ -438,6 +438,20 @@ fn a_validation_record_that_is_the_estimation_data_is_warned() {
     assert!(!in_sample(&w), "{w:?}");
     let w = identify_warnings(dir.path(), &[&d[..], &["--split", "0.6"]].concat());
     assert!(!in_sample(&w), "{w:?}");
+    // Merging a record with its copy counts every sample twice; another record is not warned.
+    let twice = |w: &[String]| w.iter().any(|w| w.contains("every sample counts twice"));
+    let merge = ["--data", "d.csv", "copy.csv", "--merge", "--ts", "0.01"];
+    let w = identify_warnings(dir.path(), &merge);
+    assert!(
+        w.iter().any(|w| twice(std::slice::from_ref(w))
+            && w.contains("copy.csv holds the same samples as")
+            && w.contains("d.csv")),
+        "{w:?}"
+    );
+    let (u2, y2) = paper_record(1000, 1);
+    write_csv(dir.path(), "other.csv", &u2, &y2);
+    let other = ["--data", "d.csv", "other.csv", "--merge", "--ts", "0.01"];
+    assert!(!twice(&identify_warnings(dir.path(), &other)));
 }
 
 // Audit s11 A4: an output written to standard output (`-`) is the only thing there, so it parses: the

@@ -458,6 +458,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     report
         .warnings
         .extend(in_sample_warnings(&args, &files, &records, val.as_ref()));
+    report.warnings.extend(repeated_record_warnings(&records));
     let names: Vec<&str> = records.iter().map(|r| r.name()).collect();
     let n: usize = records.iter().map(Dataset::len).sum();
     let est_name = if records.len() > 1 {
@@ -479,6 +480,28 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &notes,
         &inputs,
     )
+}
+
+/// A warning for each merged record that holds the very samples of an earlier one (`--merge a.csv
+/// a.csv`, a copied file): every sample then counts twice, so the standard deviations shrink by √2 and
+/// the fit statistics claim data the experiment never gave (audit s11).
+fn repeated_record_warnings(records: &[Dataset]) -> Vec<String> {
+    records
+        .iter()
+        .enumerate()
+        .filter_map(|(j, r)| {
+            let earlier = records[..j]
+                .iter()
+                .find(|e| e.y() == r.y() && e.input_signals() == r.input_signals())?;
+            Some(format!(
+                "the merged record {} holds the same samples as {}: every sample counts twice, so the \
+                 standard deviations are too small by √2 and the fit statistics claim data the experiment \
+                 never gave (merge each record once)",
+                r.name(),
+                earlier.name()
+            ))
+        })
+        .collect()
 }
 
 /// Warnings (audit s11 V1) when the validation record holds rows of an estimation file (the same file,

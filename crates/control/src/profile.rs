@@ -270,6 +270,25 @@ impl Profile {
         }
     }
 
+    /// A warning when a run of `duration_s` ends at (or before) the instant the profile's last row
+    /// changes the set-point: that set-point is then applied for at most one sample and never judged
+    /// (audit s11: rows `0,50` and `2,100` ran 2 s and dropped r = 100 silently).
+    pub fn last_row_warning(&self, duration_s: f64) -> Option<String> {
+        let Profile::Samples { path, t_s, r_mm } = self else {
+            return None;
+        };
+        let (&t_last, &r_last) = (t_s.last()?, r_mm.last()?);
+        let r_before = *r_mm.get(r_mm.len().checked_sub(2)?)?;
+        (r_last != r_before && duration_s <= t_last).then(|| {
+            format!(
+                "the last row of {} changes the set-point to r = {r_last} mm at t = {t_last} s, where the \
+                 run ends ({duration_s} s): it is never held, so no step to it is judged; pass --duration \
+                 to hold it",
+                path.display()
+            )
+        })
+    }
+
     /// A short description for summaries ("fixed 50 mm", "staircase 20, 60 mm, 3 s each", "file x.csv").
     pub fn describe(&self) -> String {
         match self {
@@ -358,6 +377,17 @@ mod tests {
         assert_eq!(p.r_at(100.0 * 0.01), -5.0);
         assert_eq!(p.r_at(3.0), 30.0);
         assert_eq!(p.natural_duration_s(), Some(2.0));
+        // Its last row changes r (−5 → 30) at t = 2 s: a run of 2 s never holds it, one of 3 s does.
+        let w = p.last_row_warning(2.0).expect("a warning");
+        assert!(
+            w.contains("r = 30 mm at t = 2 s") && w.contains("--duration"),
+            "{w}"
+        );
+        assert!(p.last_row_warning(3.0).is_none());
+        // A last row that repeats the set-point (a sampled trajectory) changes nothing.
+        std::fs::write(&path, "t,r\n0,10\n1,20\n2,20\n").unwrap();
+        let q = Profile::parse(&format!("file:{}", path.display())).unwrap();
+        assert!(q.last_row_warning(2.0).is_none());
     }
 
     #[test]

@@ -287,6 +287,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // The model file's own doubts (a crossed deadzone), then the loop's.
     let mut warnings = limits.model_warnings.clone();
     warnings.extend(compensator_warning);
+    warnings.extend(profile.last_row_warning(duration_s));
     warnings.extend(control::loop_warnings(
         &trace,
         &steps,

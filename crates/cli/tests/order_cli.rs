@@ -423,4 +423,34 @@ fn a_test_record_that_is_the_estimation_data_is_warned() {
         "{w}"
     );
     assert!(!w.contains("the estimation data"), "{w}");
+    // The chosen structure's test line says whether the test record was held out.
+    let test_line = |val_rows: &str| -> String {
+        let args = [
+            &[
+                "order",
+                "--data",
+                d,
+                "--rows",
+                "0..300",
+                "--selection-rows",
+                "300..500",
+            ][..],
+            &["--val-rows", val_rows][..],
+            &grid,
+        ]
+        .concat();
+        let out = bin().args(&args).output().unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let text = String::from_utf8_lossy(&out.stdout).into_owned();
+        text.lines()
+            .find(|l| l.contains("test fit"))
+            .unwrap_or_else(|| panic!("{text}"))
+            .to_string()
+    };
+    assert!(test_line("450..600").contains("NOT held out"));
+    assert!(test_line("500..600").contains("never used for ranking"));
 }

@@ -180,6 +180,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         detrended(args.detrend, (data, test, fit_part, selection), &mut notes)?;
     print_notes(&notes);
     let mut warnings = in_sample_warnings(&args, &opts, &data, test.as_ref());
+    // The test record is held out unless it shares rows or samples with what was fitted or ranked.
+    let test_shares_rows = !warnings.is_empty();
     if !args.classes.is_empty() {
         if auto_nk {
             anyhow::bail!("--classes takes a --nk range, not auto");
@@ -276,13 +278,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     match (&test_result, &test) {
         (Some(t), _) => text.push_str(&format!(
             "\nChosen structure (na, nb, nk) = ({}, {}, {}), re-estimated on {}: test fit {} % (simulation) \
-             on {} (never used for ranking)\n",
+             on {} ({})\n",
             t.orders.na,
             t.orders.nb,
             t.orders.nk,
             t.estimated_on,
             o(t.fit_sim_percent),
-            t.data
+            t.data,
+            if test_shares_rows {
+                "NOT held out: it shares rows with the estimation or selection data, see the warnings"
+            } else {
+                "never used for ranking"
+            }
         )),
         (None, Some(_)) => text.push_str("\nNo structure qualifies: no test fit.\n"),
         (None, None) => text.push_str(

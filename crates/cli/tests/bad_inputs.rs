@@ -699,6 +699,11 @@ fn study_and_benchmark_flags_exit_2_naming_the_flag() {
             &["step:LEVEL", "300", "±255"],
         ),
         case(
+            "simulate --out {t}/s.csv --plant paper --input step:50@99999999999 --samples 100",
+            2,
+            &["step:50@99999999999", "after the record's last sample", "100 samples"],
+        ),
+        case(
             "simulate --out {t}/s.csv --y0 500",
             2,
             &["--y0", "500", "0..200 mm"],

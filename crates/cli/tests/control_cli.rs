@@ -387,3 +387,32 @@ fn a_compensator_from_another_plants_units_is_warned() {
         "{counts:?}"
     );
 }
+
+/// A `--deadzone-change` at or after the run's end never acts, and the run says so (audit s11): 1 s run,
+/// change at 5 s → warned; change at 0.5 s → not.
+#[test]
+fn a_deadzone_change_after_the_run_is_warned() {
+    let warned = |at: &str| -> bool {
+        let o = ipa_sysid(&[
+            "--plant",
+            "paper",
+            "--setpoint",
+            "5",
+            "--duration",
+            "1",
+            "--deadzone-change",
+            &format!("{at}:20"),
+            "--json",
+            "-",
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        v["warnings"].as_array().unwrap().iter().any(|w| {
+            w.as_str()
+                .unwrap()
+                .contains("the plant never changes in this run")
+        })
+    };
+    assert!(warned("5"));
+    assert!(!warned("0.5"));
+}

@@ -158,9 +158,19 @@ pub fn generate(
             .collect(),
         InputSpec::Aprbs => aprbs(samples, ts_s, amplitude, seed, &mut rng),
         InputSpec::Multisine => multisine(samples, ts_s, amplitude, &mut rng),
-        InputSpec::Step { level, onset } => (0..samples)
-            .map(|k| if k >= *onset { *level } else { 0.0 })
-            .collect(),
+        InputSpec::Step { level, onset } => {
+            if *onset >= samples && *level != 0.0 {
+                // The record would hold no step at all (audit s11).
+                return Err(IpaError::Config(format!(
+                    "--input step:{level}@{onset}: the step comes at sample {onset}, after the record's last \
+                     sample ({samples} samples, 0..{}); give an onset below {samples} or more --samples",
+                    samples.saturating_sub(1)
+                )));
+            }
+            (0..samples)
+                .map(|k| if k >= *onset { *level } else { 0.0 })
+                .collect()
+        }
         InputSpec::File(path) => {
             let u = read_input_file(path)?;
             if u.len() < samples {

@@ -288,6 +288,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut warnings = limits.model_warnings.clone();
     warnings.extend(compensator_warning);
     warnings.extend(profile.last_row_warning(duration_s));
+    if let Some(change) = args.deadzone_change.filter(|c| c.at_s >= duration_s) {
+        warnings.push(format!(
+            "--deadzone-change at {} s comes at or after the run's end ({duration_s} s): the plant never \
+             changes in this run",
+            change.at_s
+        ));
+    }
     warnings.extend(control::loop_warnings(
         &trace,
         &steps,

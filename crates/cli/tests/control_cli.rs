@@ -333,6 +333,25 @@ fn refuses_to_write_the_trace_over_the_profile_file() {
     assert_eq!((r[0], r[99], r[100]), (10.0, 10.0, 20.0));
 }
 
+/// The `warnings` of a 1 s run of the paper's plant to 5 mm with `extra` flags (JSON on standard output).
+fn paper_step_warnings(extra: &[&str]) -> Vec<String> {
+    let args = [
+        &["--plant", "paper", "--setpoint", "5", "--duration", "1"][..],
+        extra,
+        &["--json", "-"],
+    ]
+    .concat();
+    let o = ipa_sysid(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    v["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w.as_str().unwrap().to_string())
+        .collect()
+}
+
 /// A compensator whose model was estimated on commands far smaller than the loop's limit (a deadzone in
 /// another plant's units, e.g. volts on the IPA's PWM counts) is used with a warning that says by how
 /// much (audit s11): its data reached |u| ≤ 4.3 against u_max = 255, 255 / 4.3 ≈ 59.30 times.
@@ -353,28 +372,7 @@ fn a_compensator_from_another_plants_units_is_warned() {
         .unwrap();
         path.display().to_string()
     };
-    let warnings = |path: &str| -> Vec<String> {
-        let o = ipa_sysid(&[
-            "--plant",
-            "paper",
-            "--setpoint",
-            "5",
-            "--duration",
-            "1",
-            "--compensate-deadzone",
-            path,
-            "--json",
-            "-",
-        ]);
-        assert!(o.status.success(), "{}", stderr(&o));
-        let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-        v["warnings"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .map(|w| w.as_str().unwrap().to_string())
-            .collect()
-    };
+    let warnings = |path: &str| paper_step_warnings(&["--compensate-deadzone", path]);
     let volts = warnings(&model("volts.json", "[-4.3, 2.0]"));
     let w = volts
         .iter()
@@ -392,26 +390,10 @@ fn a_compensator_from_another_plants_units_is_warned() {
 /// change at 5 s → warned; change at 0.5 s → not.
 #[test]
 fn a_deadzone_change_after_the_run_is_warned() {
-    let warned = |at: &str| -> bool {
-        let o = ipa_sysid(&[
-            "--plant",
-            "paper",
-            "--setpoint",
-            "5",
-            "--duration",
-            "1",
-            "--deadzone-change",
-            &format!("{at}:20"),
-            "--json",
-            "-",
-        ]);
-        assert!(o.status.success(), "{}", stderr(&o));
-        let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
-        v["warnings"].as_array().unwrap().iter().any(|w| {
-            w.as_str()
-                .unwrap()
-                .contains("the plant never changes in this run")
-        })
+    let warned = |at: &str| {
+        paper_step_warnings(&["--deadzone-change", &format!("{at}:20")])
+            .iter()
+            .any(|w| w.contains("the plant never changes in this run"))
     };
     assert!(warned("5"));
     assert!(!warned("0.5"));

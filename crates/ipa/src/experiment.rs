@@ -200,16 +200,7 @@ impl Experiment {
 
     fn run_ipa(&self, cfg: PlantConfig, samples: usize) -> Result<Record, IpaError> {
         let y0 = self.x0.unwrap_or(crate::spec::MID_STROKE_Y0_MM);
-        let stroke = cfg.cylinder.stroke_mm;
-        if !(0.0..=stroke).contains(&y0) {
-            // The piston would start at the end stop instead, under a record that says y0 (audit s11).
-            return Err(SysidError::setting(
-                Setting::Other("--y0"),
-                y0,
-                &format!("a start within the physics IPA's stroke, 0..{stroke} mm"),
-            )
-            .into());
-        }
+        crate::PlantLimits::of_ipa(&cfg).check_start(y0)?;
         self.check_applied(None)?;
         let rec = {
             let mut plant = Ipa::with_ts(cfg, self.ts.unwrap_or(crate::DEFAULT_TS_S))?;

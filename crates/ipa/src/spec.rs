@@ -5,6 +5,7 @@ use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
 use crate::{Ipa, IpaError, IpaSetting, PlantConfig};
+use sysid_core::{Setting, SysidError};
 
 /// Default sampling period Ts of the IPA experiments, s (paper: 0.01 s).
 pub const DEFAULT_TS_S: f64 = 0.01;
@@ -170,12 +171,7 @@ impl PlantSpec {
                     Some(path) => PlantConfig::from_toml_file(path)?,
                     None => PlantConfig::default(),
                 };
-                return Ok(PlantLimits {
-                    range_mm: Some((0.0, cfg.cylinder.stroke_mm)),
-                    u_max: Some(crate::plant::U_MAX),
-                    unstable_pole: None,
-                    model_warnings: Vec::new(),
-                });
+                return Ok(PlantLimits::of_ipa(&cfg));
             }
             PlantSpec::Paper => sysid_core::Model::paper(),
             PlantSpec::ModelFile(path) => match sysid_core::model_file::read_any_model(path)? {
@@ -189,6 +185,29 @@ impl PlantSpec {
 }
 
 impl PlantLimits {
+    /// The limits of the physics IPA of `cfg`: its stroke 0..L and its valves' ±[`crate::plant::U_MAX`].
+    pub fn of_ipa(cfg: &PlantConfig) -> PlantLimits {
+        PlantLimits {
+            range_mm: Some((0.0, cfg.cylinder.stroke_mm)),
+            u_max: Some(crate::plant::U_MAX),
+            unstable_pole: None,
+            model_warnings: Vec::new(),
+        }
+    }
+
+    /// Refuses a start `y0_mm` the plant cannot hold (outside its stroke: it would start at the end stop
+    /// under a record or report that says y0; audit s11).
+    pub fn check_start(&self, y0_mm: f64) -> Result<(), SysidError> {
+        match self.range_mm {
+            Some((lo, hi)) if !(lo..=hi).contains(&y0_mm) => Err(SysidError::setting(
+                Setting::Other("--y0"),
+                y0_mm,
+                &format!("a start within the plant's stroke, {lo}..{hi} mm"),
+            )),
+            _ => Ok(()),
+        }
+    }
+
     /// The limits of a model used as the plant: no stroke, its largest pole modulus when above 1, and
     /// the doubts its parameters raise ([`sysid_core::model_file::load_warnings`]).
     pub fn of_model(model: &sysid_core::Model) -> PlantLimits {

@@ -181,16 +181,7 @@ struct PlantOut<'a> {
 /// that says y0) and a command limit above what the plant applies (the IPA's valves saturate at ±255
 /// counts: a larger limit writes commands the plant never received and hides its saturation; audit s11).
 fn check_plant_limits(limits: &ipa::PlantLimits, y0: f64, u_max: f64) -> anyhow::Result<()> {
-    if let Some((lo, hi)) = limits
-        .range_mm
-        .filter(|(lo, hi)| !(*lo..=*hi).contains(&y0))
-    {
-        bail!(sysid::SysidError::setting(
-            sysid::Setting::Other("--y0"),
-            y0,
-            &format!("a start within the plant's stroke, {lo}..{hi} mm")
-        ));
-    }
+    limits.check_start(y0)?;
     if let Some(limit) = limits.u_max.filter(|l| u_max > *l) {
         bail!(sysid::SysidError::setting(
             sysid::Setting::Other("--u-max (or the controller file's u_max)"),

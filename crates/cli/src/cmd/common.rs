@@ -353,6 +353,11 @@ pub fn shared_rows_warning(
     })
 }
 
+/// True when `a` and `b` hold exactly the same samples (every input and the output), whatever their names.
+pub fn same_samples(a: &sysid::Dataset, b: &sysid::Dataset) -> bool {
+    a.y() == b.y() && a.input_signals() == b.input_signals()
+}
+
 /// A warning when the `what` record holds exactly the samples of the estimation record `est` (a copy
 /// of the file, say): its fit is in-sample.
 pub fn same_samples_warning(
@@ -360,8 +365,7 @@ pub fn same_samples_warning(
     test: &sysid::Dataset,
     est: &sysid::Dataset,
 ) -> Option<String> {
-    let same = test.y() == est.y() && test.input_signals() == est.input_signals();
-    same.then(|| {
+    same_samples(test, est).then(|| {
         format!(
             "the {what} record {} holds the same samples as the estimation record {}: its fit is \
              in-sample, not held out",

@@ -10,8 +10,9 @@ use sysid::{IdentifyOptions, ModelKind};
 use sysid_summary::IdentifyReport;
 
 use super::common::{
-    any_to_stdout, check_outputs, print_notes, same_samples_warning, shared_rows_warning,
-    stream_note, write_output, ColumnArgs, FileRows, StreamMode, ValidationArgs,
+    any_to_stdout, check_outputs, print_notes, same_samples, same_samples_warning,
+    shared_rows_warning, stream_note, write_output, ColumnArgs, FileRows, StreamMode,
+    ValidationArgs,
 };
 use sysid::detrend::{detrend, Detrend};
 
@@ -492,7 +493,7 @@ fn repeated_record_warnings(records: &[Dataset]) -> Vec<String> {
         .filter_map(|(j, r)| {
             let earlier = records[..j]
                 .iter()
-                .find(|e| e.y() == r.y() && e.input_signals() == r.input_signals())?;
+                .find(|e| same_samples(e, r))?;
             Some(format!(
                 "the merged record {} holds the same samples as {}: every sample counts twice, so the \
                  standard deviations are too small by √2 and the fit statistics claim data the experiment \

@@ -65,14 +65,28 @@ fn configure(c: clap::Command) -> clap::Command {
         .mut_subcommands(configure)
 }
 
+/// The ids (field names, e.g. `max_terms`) of the arguments typed on the command line.
+fn given_flags(m: &clap::ArgMatches) -> Vec<String> {
+    m.ids()
+        .filter(|id| m.value_source(id.as_str()) == Some(clap::parser::ValueSource::CommandLine))
+        .map(|id| id.as_str().to_string())
+        .collect()
+}
+
 fn main() -> ExitCode {
     let command = Cli::command()
         .after_help(EXIT_CODES)
         .mut_subcommands(configure);
-    let cli = match Cli::from_arg_matches(&command.get_matches()) {
+    let matches = command.get_matches();
+    let mut cli = match Cli::from_arg_matches(&matches) {
         Ok(cli) => cli,
         Err(e) => e.exit(),
     };
+    if let (Command::Identify(a), Some((_, m))) = (&mut cli.command, matches.subcommand()) {
+        // `identify` refuses flags its structure or method would ignore: it needs to know which were
+        // typed (a flag given at its default value counts).
+        a.given = given_flags(m);
+    }
     // An interrupted write (Ctrl-C, SIGTERM) leaves no `.ipa-sysid-*.tmp` file behind.
     if let Err(e) = sysid_io::remove_temporaries_on_signals() {
         eprintln!("warning: cannot watch for signals ({e}); an interrupted write may leave a temporary file");

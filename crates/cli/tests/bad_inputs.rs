@@ -557,6 +557,122 @@ fn identify_flags_out_of_range_exit_2_naming_the_flag() {
     ]);
 }
 
+// Flags the chosen structure or method would ignore are refused by name with what uses them (audit
+// s12 F9), as `--breakpoints` without a piecewise-linear block is: a NARX model is neither streamed nor
+// fitted by OE/RLS/IV, a deadzone has no degree, the NARX-only flags do nothing elsewhere, --passes is
+// RLS's and --forgetting is RLS's and IV's, and --structure arx with an input nonlinearity would not be
+// linear ARX.
+#[test]
+fn identify_flags_the_structure_or_method_would_ignore_exit_2_naming_the_flag() {
+    check_all(&[
+        case(
+            "identify --data {c}/good.csv --structure narx --stream on",
+            2,
+            &["--stream", "--structure narx reads its record in memory"],
+        ),
+        case(
+            "identify --data {c}/good.csv --structure narx --method oe",
+            2,
+            &["--method oe does not apply to --structure narx", "FROLS"],
+        ),
+        case(
+            "identify --data {c}/good.csv --structure narx --method iv",
+            2,
+            &["--method iv does not apply to --structure narx"],
+        ),
+        case(
+            "identify --data {c}/good.csv --structure narx --fallback",
+            2,
+            &["--fallback", "--structure narx has no such fallback"],
+        ),
+        case(
+            "identify --data {c}/good.csv --structure narx --forgetting 0.9",
+            2,
+            &["--forgetting is a setting of the recursive estimators", "--structure narx does not use it"],
+        ),
+        case(
+            "identify --data {c}/good.csv --structure narx --passes 3",
+            2,
+            &["--passes is a setting of the recursive estimators", "leave out --passes"],
+        ),
+        case(
+            "identify --data {c}/good.csv --degree 3",
+            2,
+            &["--degree 3 sets the degree of a polynomial block", "this structure has none"],
+        ),
+        case(
+            "identify --data {c}/good.csv --nonlinearity saturation --degree 2",
+            2,
+            &["--degree 2 sets the degree of a polynomial block"],
+        ),
+        case(
+            "identify --data {c}/good.csv --stop bic",
+            2,
+            &["--stop is a setting of polynomial NARX models", "this is a Hammerstein model"],
+        ),
+        case(
+            "identify --data {c}/good.csv --structure arx --max-terms 5",
+            2,
+            &["--max-terms is a setting of polynomial NARX models", "this is a linear ARX model"],
+        ),
+        case(
+            "identify --data {c}/good.csv --structure arx --output-nonlinearity saturation --no-refine",
+            2,
+            &["--no-refine is a setting of polynomial NARX models", "this is a Wiener model"],
+        ),
+        case(
+            "identify --data {c}/good.csv --selection 0.5",
+            2,
+            &["--selection is a setting of polynomial NARX models"],
+        ),
+        case(
+            "identify --data {c}/good.csv --method ls --passes 3",
+            2,
+            &["--passes is a setting of recursive least squares (--method rls)", "--method ls does not use it"],
+        ),
+        case(
+            "identify --data {c}/good.csv --method oe --forgetting 0.9",
+            2,
+            &["--forgetting is a setting of the recursive estimators (--method rls or iv)", "--method oe does not use it"],
+        ),
+        case(
+            "identify --data {c}/good.csv --method iv --passes 2",
+            2,
+            &["--passes", "--method iv does not use it"],
+        ),
+        case(
+            "identify --data {c}/good.csv --structure arx --nonlinearity saturation",
+            2,
+            &[
+                "--nonlinearity saturation with --structure arx would make a Hammerstein model (saturation + ARX)",
+                "--structure hammerstein --nonlinearity saturation",
+            ],
+        ),
+    ]);
+}
+
+// The same flags where the structure or method does use them are accepted (the refusal above is not a
+// blanket one): --forgetting by IV, --degree by a polynomial output block and by NARX, the NARX flags
+// by NARX, --structure arx with linear inputs, --passes by RLS given explicitly.
+#[test]
+fn identify_flags_the_structure_or_method_uses_are_accepted() {
+    for args in [
+        "identify --data {c}/good.csv --structure arx --na 1 --nb 1 --method iv --forgetting 0.999",
+        "identify --data {c}/good.csv --structure arx --na 1 --nb 1 --method ls --output-nonlinearity polynomial --degree 2",
+        "identify --data {c}/good.csv --structure narx --na 1 --nb 1 --degree 1 --stop bic --max-terms 5 --no-refine",
+        "identify --data {c}/good.csv --structure arx --na 1 --nb 1 --nonlinearity linear --method rls --passes 2",
+    ] {
+        let dir = tempfile::tempdir().expect("temporary folder");
+        let out = run(args, dir.path());
+        let stderr = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            !stderr.contains("leave out") && !stderr.contains("would make"),
+            "{args}: {stderr}"
+        );
+        assert_ne!(out.status.code(), Some(2), "{args}: {stderr}");
+    }
+}
+
 // control's flags: NaN gains, malformed profiles and plant specs, durations out of range (the sample
 // count is bounded before anything is allocated).
 #[test]

@@ -185,6 +185,11 @@ pub struct Args {
     /// `--stream` alone is `on`.
     #[arg(long, value_enum, default_value = "auto", num_args = 0..=1, default_missing_value = "on", value_name = "WHEN")]
     pub stream: StreamMode,
+    /// The ids (field names, e.g. `max_terms`) of the flags typed on the command line, a flag given at
+    /// its default value included (filled by `main` from clap's matches): [`Args::check_flags`] refuses
+    /// the ones this structure and method would ignore.
+    #[arg(skip)]
+    pub given: Vec<String>,
 }
 
 /// `--structure`: a linear or Hammerstein model (sysid's [`ModelKind`]) or a polynomial NARX model.
@@ -262,23 +267,171 @@ impl Args {
     /// `--u-col u1,u2` (orders from `--nb`/`--nk` lists, nonlinearity from `--nonlinearity`,
     /// `--linear-inputs` or `--structure`).
     pub fn settings(&self) -> anyhow::Result<Identification> {
-        let piecewise =
-            |k: &NonlinearityKind| matches!(k, NonlinearityKind::PiecewiseLinear { .. });
-        let uses_breakpoints = match &self.nonlinearity {
-            Some(NonlinearityArg::All(k)) => piecewise(k),
-            Some(NonlinearityArg::PerInput(list)) => list.iter().any(|(_, k)| piecewise(k)),
+        Ok(self
+            .settings_inputs()?
+            .with_output_nonlinearity(self.output_nonlinearity.map(|k| self.sized(k))))
+    }
+
+    /// Whether the flag of field `id` (e.g. `max_terms`) was typed on the command line.
+    fn given(&self, id: &str) -> bool {
+        self.given.iter().any(|g| g == id)
+    }
+
+    /// Whether some input or output block is of a kind `is` accepts.
+    fn any_block(&self, is: impl Fn(&NonlinearityKind) -> bool) -> bool {
+        (match &self.nonlinearity {
+            Some(NonlinearityArg::All(k)) => is(k),
+            Some(NonlinearityArg::PerInput(list)) => list.iter().any(|(_, k)| is(k)),
             None => false,
-        } || self.output_nonlinearity.as_ref().is_some_and(piecewise);
-        if self.breakpoints.is_some() && !uses_breakpoints {
+        }) || self.output_nonlinearity.as_ref().is_some_and(is)
+    }
+
+    /// Refuses, naming the flag and why, every flag this structure and method would ignore (the one
+    /// place for such checks; audit s12 F9): a flag accepted and silently ignored suggests a model
+    /// that is not the one made.
+    pub fn check_flags(&self) -> anyhow::Result<()> {
+        if self.breakpoints.is_some()
+            && !self.any_block(|k| matches!(k, NonlinearityKind::PiecewiseLinear { .. }))
+        {
             anyhow::bail!(sysid::SysidError::setting(
                 sysid::Setting::Other("--breakpoints"),
                 self.breakpoints.unwrap_or_default(),
                 "--nonlinearity or --output-nonlinearity piecewise-linear (it sets the number of breakpoints of that kind)"
             ));
         }
-        Ok(self
-            .settings_inputs()?
-            .with_output_nonlinearity(self.output_nonlinearity.map(|k| self.sized(k))))
+        let refuse = |flag: &str, why: &str| -> anyhow::Result<()> {
+            anyhow::bail!("{flag} {why}; leave out {flag}")
+        };
+        if self.model == StructureArg::Narx {
+            if self.stream == StreamMode::On {
+                anyhow::bail!(sysid::stream::refused(
+                    "--structure narx reads its record in memory"
+                ));
+            }
+            if self.given("method") {
+                refuse(
+                    &format!("--method {}", self.method),
+                    "does not apply to --structure narx: its terms are chosen by orthogonal least \
+                     squares (FROLS) and their coefficients refined on the simulation error by its own \
+                     Levenberg–Marquardt search (--no-refine keeps the least-squares ones)",
+                )?;
+            }
+            if self.fallback {
+                refuse(
+                    "--fallback",
+                    "replaces a failed Hammerstein estimate by its linear start; --structure narx has \
+                     no such fallback",
+                )?;
+            }
+            for (id, flag) in [
+                ("forgetting", "--forgetting"),
+                ("p0", "--p0"),
+                ("passes", "--passes"),
+                ("rls_form", "--rls-form"),
+                ("windup", "--windup"),
+                ("max_trace", "--max-trace"),
+                ("iv_stages", "--iv-stages"),
+            ] {
+                if self.given(id) {
+                    refuse(
+                        flag,
+                        "is a setting of the recursive estimators (--method rls, iv) of ARX, \
+                         Hammerstein and Wiener models; --structure narx does not use it",
+                    )?;
+                }
+            }
+            if self.given("resid_lags") {
+                refuse(
+                    "--resid-lags",
+                    "sets the residual analysis of ARX, Hammerstein and Wiener models; --structure \
+                     narx prints none",
+                )?;
+            }
+            if !self.linear_inputs.is_empty() {
+                refuse(
+                    "--linear-inputs",
+                    "is for Hammerstein models with several inputs; --structure narx has one input",
+                )?;
+            }
+            return Ok(());
+        }
+        for (id, flag) in [
+            ("stop", "--stop"),
+            ("max_terms", "--max-terms"),
+            ("selection", "--selection"),
+            ("no_refine", "--no-refine"),
+        ] {
+            if self.given(id) {
+                refuse(
+                    flag,
+                    &format!(
+                        "is a setting of polynomial NARX models (--structure narx); this is a {} model",
+                        self.structure_name()
+                    ),
+                )?;
+            }
+        }
+        if let Some(d) = self.degree {
+            if !self.any_block(|k| matches!(k, NonlinearityKind::Polynomial { .. })) {
+                refuse(
+                    &format!("--degree {d}"),
+                    "sets the degree of a polynomial block (--nonlinearity or --output-nonlinearity \
+                     polynomial) or of --structure narx; this structure has none",
+                )?;
+            }
+        }
+        if self.model == StructureArg::Arx {
+            if let Some(kind) = self.any_input_kind(|k| *k != NonlinearityKind::Linear) {
+                anyhow::bail!(
+                    "--nonlinearity {kind} with --structure arx would make a Hammerstein model ({kind} + \
+                     ARX), not the linear ARX model asked for: write --structure hammerstein \
+                     --nonlinearity {kind} for that model, or leave out --nonlinearity for linear ARX"
+                );
+            }
+        }
+        let used_by = |methods: &[Method]| methods.contains(&self.method);
+        for (id, flag, methods, what) in [
+            ("passes", "--passes", &[Method::Rls][..], "recursive least squares (--method rls)"),
+            ("rls_form", "--rls-form", &[Method::Rls][..], "recursive least squares (--method rls)"),
+            ("windup", "--windup", &[Method::Rls][..], "recursive least squares (--method rls)"),
+            ("max_trace", "--max-trace", &[Method::Rls][..], "recursive least squares (--method rls)"),
+            (
+                "forgetting",
+                "--forgetting",
+                &[Method::Rls, Method::Iv][..],
+                "the recursive estimators (--method rls or iv)",
+            ),
+            ("p0", "--p0", &[Method::Rls, Method::Iv][..], "the recursive estimators (--method rls or iv)"),
+            ("iv_stages", "--iv-stages", &[Method::Iv][..], "instrumental variables (--method iv)"),
+        ] {
+            if self.given(id) && !used_by(methods) {
+                refuse(
+                    flag,
+                    &format!("is a setting of {what}; --method {} does not use it", self.method),
+                )?;
+            }
+        }
+        Ok(())
+    }
+
+    /// The structure's name for messages: linear ARX, Hammerstein, Wiener or Hammerstein–Wiener.
+    fn structure_name(&self) -> &'static str {
+        match (self.model, self.output_nonlinearity.is_some()) {
+            (StructureArg::Narx, _) => "polynomial NARX",
+            (StructureArg::Arx, false) => "linear ARX",
+            (StructureArg::Arx, true) => "Wiener",
+            (StructureArg::Hammerstein, false) => "Hammerstein",
+            (StructureArg::Hammerstein, true) => "Hammerstein–Wiener",
+        }
+    }
+
+    /// The first input kind of `--nonlinearity` that `is` accepts.
+    fn any_input_kind(&self, is: impl Fn(&NonlinearityKind) -> bool) -> Option<NonlinearityKind> {
+        match &self.nonlinearity {
+            Some(NonlinearityArg::All(k)) => Some(*k).filter(&is),
+            Some(NonlinearityArg::PerInput(list)) => list.iter().map(|(_, k)| *k).find(&is),
+            None => None,
+        }
     }
 
     /// [`Args::settings`] without the output nonlinearity.
@@ -400,6 +553,7 @@ impl Args {
 /// Runs `identify`: one record or several merged (`--merge`), one input or several, by any method;
 /// several files without `--merge` are batch mode ([`super::identify_batch`]).
 pub fn run(args: Args) -> anyhow::Result<()> {
+    args.check_flags()?;
     if args.model == StructureArg::Narx {
         return super::identify_narx::run(&args);
     }

@@ -207,38 +207,38 @@ pub fn search(
 /// without it on the selection part before [`offset_hint`] speaks.
 pub const OFFSET_HINT_MARGIN: f64 = 5.0;
 
-/// When the search ran without a constant term: the recommended structure `chosen` estimated again
-/// with `--offset` on `est` and ranked on `val` the same way. A hint (in words) when that fits the
-/// selection part by more than [`OFFSET_HINT_MARGIN`] points better: the output has a non-zero
-/// operating point (ȳ, and ū, far from 0) that a model without c can only mimic through its
-/// dynamics. `None` with an offset already, without a selection part, or when c does not help (an
+/// When a model was chosen without a constant term: `base` (without c) at `orders`, estimated on `est`
+/// and ranked on `val` as the order search ranks, against the same with `--offset`. A hint (in words)
+/// when c fits the selection part by more than [`OFFSET_HINT_MARGIN`] points better: the output has a
+/// non-zero operating point (ȳ, and ū, far from 0) that a model without c can only mimic through its
+/// dynamics. `without` is the selection fit without c when already known (the search's); `what` names
+/// the model compared (`the recommended (2, 2, 1)`) and `advice` says what to run again. The one test
+/// behind `order`, `order --classes` (on ARX of the recommended orders) and NARX `identify` (on ARX of
+/// its lags). `None` with an offset already, without a selection part, or when c does not help (an
 /// integrating plant, a record about 0).
 pub fn offset_hint(
-    est: &Dataset,
-    val: Option<&Dataset>,
+    (est, val): (&Dataset, Option<&Dataset>),
     base: &Identification,
-    chosen: &Candidate,
+    (orders, without): (Orders, Option<f64>),
+    (what, advice): (&str, &str),
 ) -> Option<String> {
     if base.structure.offset {
         return None;
     }
     let val = val?;
-    let without = chosen.ranking_fit?;
-    let with = evaluate(
-        est,
-        Some(val),
-        chosen.orders,
-        &base.clone().with_offset(true),
-    );
+    let without = match without {
+        Some(f) => f,
+        None => evaluate(est, Some(val), orders, base).ranking_fit?,
+    };
+    let with = evaluate(est, Some(val), orders, &base.clone().with_offset(true));
     let with_fit = with.ranking_fit.filter(|_| with.qualified())?;
     (with_fit > without + OFFSET_HINT_MARGIN).then(|| {
         let y = est.y();
         let mean = y.iter().sum::<f64>() / y.len().max(1) as f64;
         format!(
-            "the output has a non-zero operating point (mean {mean:.4} over the estimation part): the \
-             recommended ({}, {}, {}) with a constant term (--offset) fits the selection part by {with_fit:.1} % \
-             instead of {without:.1} %; search again with --offset (or --detrend mean)",
-            chosen.orders.na, chosen.orders.nb, chosen.orders.nk
+            "the output has a non-zero operating point (mean {mean:.4} over the estimation part): {what} \
+             with a constant term (--offset) fits the selection part by {with_fit:.1} % instead of \
+             {without:.1} %; {advice}"
         )
     })
 }

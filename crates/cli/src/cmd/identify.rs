@@ -391,23 +391,56 @@ impl Args {
         }
         let used_by = |methods: &[Method]| methods.contains(&self.method);
         for (id, flag, methods, what) in [
-            ("passes", "--passes", &[Method::Rls][..], "recursive least squares (--method rls)"),
-            ("rls_form", "--rls-form", &[Method::Rls][..], "recursive least squares (--method rls)"),
-            ("windup", "--windup", &[Method::Rls][..], "recursive least squares (--method rls)"),
-            ("max_trace", "--max-trace", &[Method::Rls][..], "recursive least squares (--method rls)"),
+            (
+                "passes",
+                "--passes",
+                &[Method::Rls][..],
+                "recursive least squares (--method rls)",
+            ),
+            (
+                "rls_form",
+                "--rls-form",
+                &[Method::Rls][..],
+                "recursive least squares (--method rls)",
+            ),
+            (
+                "windup",
+                "--windup",
+                &[Method::Rls][..],
+                "recursive least squares (--method rls)",
+            ),
+            (
+                "max_trace",
+                "--max-trace",
+                &[Method::Rls][..],
+                "recursive least squares (--method rls)",
+            ),
             (
                 "forgetting",
                 "--forgetting",
                 &[Method::Rls, Method::Iv][..],
                 "the recursive estimators (--method rls or iv)",
             ),
-            ("p0", "--p0", &[Method::Rls, Method::Iv][..], "the recursive estimators (--method rls or iv)"),
-            ("iv_stages", "--iv-stages", &[Method::Iv][..], "instrumental variables (--method iv)"),
+            (
+                "p0",
+                "--p0",
+                &[Method::Rls, Method::Iv][..],
+                "the recursive estimators (--method rls or iv)",
+            ),
+            (
+                "iv_stages",
+                "--iv-stages",
+                &[Method::Iv][..],
+                "instrumental variables (--method iv)",
+            ),
         ] {
             if self.given(id) && !used_by(methods) {
                 refuse(
                     flag,
-                    &format!("is a setting of {what}; --method {} does not use it", self.method),
+                    &format!(
+                        "is a setting of {what}; --method {} does not use it",
+                        self.method
+                    ),
                 )?;
             }
         }

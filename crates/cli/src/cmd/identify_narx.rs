@@ -92,6 +92,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     report
         .warnings
         .extend(records.notes.iter().map(|n| format!("data: {n}")));
+    report.warnings.extend(offset_hint(&records.est, &settings));
     print_report(
         &render(&report, &settings),
         &[args.json.as_deref(), args.save_model.as_deref()],
@@ -105,6 +106,39 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         write_output(path, json.as_bytes(), &inputs, "--save-model")?;
     }
     crate::exit::strict(args.strict, report.warnings.len())
+}
+
+/// Without `--offset`: whether a constant term would help, judged as `order` judges it
+/// (`sysid::order::offset_hint`) on ARX of the same lags, estimated on the first part of the
+/// estimation record and ranked on its last `--selection` fraction (audit s12 F8).
+fn offset_hint(est: &sysid::Dataset, s: &NarxSettings) -> Option<String> {
+    if s.constant {
+        return None;
+    }
+    let n = est.len();
+    let k = sysid::data::split_rows(n, 1.0 - s.selection).ok()?;
+    let arx = sysid::Identification::default()
+        .with_kind(sysid::ModelKind::Arx)
+        .with_method(sysid::Method::Ls);
+    sysid::order::offset_hint(
+        (&est.rows(0..k), Some(&est.rows(k..n))),
+        &arx,
+        (
+            sysid::Orders {
+                na: s.na,
+                nb: s.nb,
+                nk: s.nk,
+            },
+            None,
+        ),
+        (
+            &format!(
+                "ARX of the same lags ({}, {}, {}), by ls,",
+                s.na, s.nb, s.nk
+            ),
+            "identify again with --offset (it offers the NARX model the constant term)",
+        ),
+    )
 }
 
 fn opt(v: Option<f64>, unit: &str) -> String {

@@ -228,9 +228,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // The chosen structure on the test record, re-estimated on the whole estimation record.
     let chosen = sysid::order::recommended(&ranked);
     if args.detrend == sysid::detrend::Detrend::None {
-        warnings.extend(
-            chosen.and_then(|c| sysid::order::offset_hint(&fit_part, Some(&selection), &base, c)),
-        );
+        warnings.extend(chosen.and_then(|c| {
+            sysid::order::offset_hint(
+                (&fit_part, Some(&selection)),
+                &base,
+                (c.orders, c.ranking_fit),
+                (
+                    &format!(
+                        "the recommended ({}, {}, {})",
+                        c.orders.na, c.orders.nb, c.orders.nk
+                    ),
+                    "search again with --offset (or --detrend mean)",
+                ),
+            )
+        }));
     }
     if let Some(c) = chosen {
         warnings.extend(c.warnings.iter().map(|w| {

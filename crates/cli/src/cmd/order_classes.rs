@@ -105,6 +105,26 @@ pub fn run(
                     .iter()
                     .map(|w| format!("recommended {}: {w}", name(c))),
             );
+            if args.detrend == sysid::detrend::Detrend::None {
+                // Whether a constant term would help, judged on ARX of the recommended orders (the
+                // hint plain `order` gives; audit s12 F8).
+                let o = c.orders;
+                warnings.extend(sysid::order::offset_hint(
+                    (fit_part, Some(selection)),
+                    &base.clone().with_kind(sysid::ModelKind::Arx),
+                    (o, None),
+                    (
+                        &format!(
+                            "ARX of the recommended orders ({}, {}, {}), by {},",
+                            o.na,
+                            o.nb,
+                            o.nk,
+                            sysid::Estimator::method(&base.estimator)
+                        ),
+                        "search again with --offset (it offers every class the constant term)",
+                    ),
+                ));
+            }
             let chosen = chosen_on_test(
                 c,
                 base,

@@ -36,7 +36,6 @@ from ._core import (
     __version__,
     load_model,
     paper_model,
-    simulate_plant,
 )
 
 
@@ -49,9 +48,48 @@ def _warn_all(messages, stacklevel=3):
         _warnings.warn(str(message), IpaSysidWarning, stacklevel=stacklevel)
 
 
+def _named_ints(f):
+    """``f`` (a function of the Rust core) with a negative or oversized whole number refused by a
+    ValueError naming its argument, where the core's conversion raises an OverflowError naming none."""
+    import inspect
+
+    try:
+        signature = inspect.signature(f)
+    except (TypeError, ValueError):  # pragma: no cover - every core function carries its signature
+        signature = None
+
+    @functools.wraps(f)
+    def call(*args, **kwargs):
+        try:
+            return f(*args, **kwargs)
+        except OverflowError as e:
+            try:
+                given = signature.bind(*args, **kwargs).arguments if signature else kwargs
+            except TypeError:
+                given = kwargs
+            bad = [
+                (k, v)
+                for k, v in given.items()
+                if isinstance(v, int) and not isinstance(v, bool) and not 0 <= v < 2**63
+            ]
+            if not bad:
+                raise
+            k, v = bad[0]
+            expected = "a whole number >= 0" if v < 0 else "a whole number that fits 64 bits"
+            raise ValueError(f"invalid setting {k} = {v}: expected {expected}") from e
+
+    return call
+
+
+simulate_plant = _named_ints(_core.simulate_plant)
+_identify, _control, _tune, _calibrate = (
+    _named_ints(f) for f in (_core.identify, _core.control, _core.tune, _core.calibrate)
+)
+
+
 @functools.wraps(_core.identify)
 def identify(*args, **kwargs):
-    fit = _core.identify(*args, **kwargs)
+    fit = _identify(*args, **kwargs)
     _warn_all(fit.warnings)
     return fit
 
@@ -73,21 +111,21 @@ def _controller_text(controller):
 
 @functools.wraps(_core.control)
 def control(*args, controller=None, **kwargs):
-    result = _core.control(*args, controller=_controller_text(controller), **kwargs)
+    result = _control(*args, controller=_controller_text(controller), **kwargs)
     _warn_all(result.get("warnings"))
     return result
 
 
 @functools.wraps(_core.tune)
 def tune(*args, **kwargs):
-    result = _core.tune(*args, **kwargs)
+    result = _tune(*args, **kwargs)
     _warn_all(result.get("warnings"))
     return result
 
 
 @functools.wraps(_core.calibrate)
 def calibrate(*args, **kwargs):
-    result = _core.calibrate(*args, **kwargs)
+    result = _calibrate(*args, **kwargs)
     _warn_all(result.get("warnings"))
     return result
 

@@ -23,8 +23,10 @@ See docs/fleet.md in the repository (one machine, a Dask cluster, Spark).
 import glob
 import html
 import math
+import numbers
 import os
 import tempfile
+import warnings
 
 import numpy as np
 
@@ -35,6 +37,27 @@ INPUT_COLUMNS = ("actuator_id", "t", "u", "y")
 
 #: Default family-wise false-flag level of ``worn`` (Bonferroni over the fleet's actuators).
 ALPHA = 0.01
+
+
+def _warn(message):
+    from . import IpaSysidWarning  # the package's warning class (the package is loaded first)
+
+    warnings.warn(message, IpaSysidWarning, stacklevel=3)
+
+
+def _ids(ids, most=10):
+    """Up to ``most`` actuator ids for a message, with how many more."""
+    ids = list(ids)
+    text = ", ".join(str(i) for i in ids[:most])
+    return text + (f" and {len(ids) - most} more" if len(ids) > most else "")
+
+
+def _whole_numbers(**values):
+    """Refuses, naming the argument, a value that is not a whole number >= 0 (before the Rust core
+    turns a negative into an OverflowError that names nothing)."""
+    for name, v in values.items():
+        if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < 0:
+            raise ValueError(f"invalid setting {name} = {v!r}: expected a whole number >= 0")
 
 
 def _pandas():
@@ -104,6 +127,16 @@ def identify_partition(
             f"partition: missing column(s) {', '.join(missing)} (expected long-format records "
             f"{', '.join(INPUT_COLUMNS)})"
         )
+    settings = dict(
+        window=window, na=na, nb=nb, nk=nk, detect_warmup=detect_warmup,
+        detect_calibration=detect_calibration,
+    )
+    _whole_numbers(**settings)
+    # The settings checked by the core on no data (ts, window, the orders as `identify` checks them,
+    # the tracker's), before anything is sized by them.
+    empty = np.empty(0)
+    _core.fleet_windows(empty, empty, [0], ts, window, "ls", na, nb, nk, detect_warmup,
+                        detect_calibration)
     cols = _columns(na, nb)
     if len(partition) == 0:
         return _typed(pd.DataFrame({c: [] for c in cols}))
@@ -130,6 +163,14 @@ def identify_partition(
         detect_warmup,
         detect_calibration,
     )
+    lengths = np.diff(offsets)
+    partial = [(ids[o], n % window) for o, n in zip(offsets[:-1], lengths) if n >= window and n % window]
+    if partial:
+        _warn(
+            f"{len(partial)} actuator(s) end with an incomplete window (fewer than window = {window} "
+            f"samples after the last whole one), left out of the results: {_ids(i for i, _ in partial)} "
+            f"({sum(k for _, k in partial)} samples in all)"
+        )
     group = np.asarray(r["group"], dtype=np.int64)
     start = np.asarray(r["start"], dtype=np.int64)
     out = {
@@ -159,7 +200,34 @@ def identify_partition(
         dtype=np.float64,
     )
     out["error"] = r["error"]
-    return _typed(pd.DataFrame(out, columns=cols))
+    frame = pd.DataFrame(out, columns=cols)
+    short = [(o, n) for o, n in zip(offsets[:-1], lengths) if n < window]
+    if short:
+        # An actuator shorter than one window is an error row, not a silent absence from the fleet.
+        rows = pd.DataFrame(
+            {
+                "actuator_id": [ids[o] for o, _ in short],
+                "window": 0,
+                "t_start": [t[o] for o, _ in short],
+                "t_end": [t[o + n - 1] for o, n in short],
+                "samples": [n for _, n in short],
+                "stable": False,
+                "warnings": "",
+                "changes": 0,
+                "error": [
+                    f"the actuator has {n} samples, fewer than one window (window = {window}): "
+                    "not identified"
+                    for _, n in short
+                ],
+            },
+            columns=cols,
+        )
+        frame = pd.concat([frame, rows], ignore_index=True) if len(frame) else rows
+        _warn(
+            f"{len(short)} actuator(s) have fewer samples than one window (window = {window}): "
+            f"{_ids(ids[o] for o, _ in short)}; each is an error row, not identified"
+        )
+    return _typed(frame)
 
 
 def _in_order(df):
@@ -223,9 +291,8 @@ def run(input_dir, output_dir, client=None, **settings):
 
     pd = _pandas()
     # One partition per file (never a file split by row groups: an actuator's record stays whole).
-    ddf = dd.read_parquet(
-        _parquet_files(input_dir), columns=list(INPUT_COLUMNS), split_row_groups=False
-    )
+    files = _parquet_files(input_dir)
+    ddf = dd.read_parquet(files, columns=list(INPUT_COLUMNS), split_row_groups=False)
     meta = identify_partition(
         pd.DataFrame({c: pd.Series([], dtype=ddf[c].dtype) for c in INPUT_COLUMNS}), **settings
     )
@@ -234,11 +301,35 @@ def run(input_dir, output_dir, client=None, **settings):
         results = client.compute(lazy).result()
     else:
         results = lazy.compute()
+    _check_whole_actuators(results, files)
     results = results.sort_values(["actuator_id", "window"], kind="stable").reset_index(drop=True)
     os.makedirs(output_dir, exist_ok=True)
     target = os.path.join(os.fspath(output_dir), "results.parquet")
     _write_atomic(target, lambda tmp: results.to_parquet(tmp, index=False))
     return results
+
+
+def _check_whole_actuators(results, files):
+    """Raises when an actuator's rows span several files: each file is a partition whose windows are
+    counted from 0, so such an actuator has its windows cut at the file boundary and numbered twice
+    (duplicated ``(actuator_id, window)``). Names the actuators and the files that hold them."""
+    dup = results.duplicated(["actuator_id", "window"], keep=False)
+    if not dup.any():
+        return
+    pd = _pandas()
+    split = sorted(set(results.loc[dup, "actuator_id"].tolist()), key=str)
+    holders = {}
+    for f in files:  # the error path only: read the id column of each file
+        for aid in set(pd.read_parquet(f, columns=["actuator_id"])["actuator_id"]) & set(split):
+            holders.setdefault(aid, []).append(os.path.basename(f))
+    where = "; ".join(f"{a} in {', '.join(holders.get(a, []))}" for a in split[:5])
+    raise ValueError(
+        f"{len(split)} actuator(s) have rows in several files ({where}"
+        f"{'; ...' if len(split) > 5 else ''}): each file is one partition, identified on its own, so "
+        "their windows would be cut at the file boundaries and numbered twice. Regroup the records so "
+        "that each actuator's rows are in one file, e.g. with Dask: dd.read_parquet(input_dir)"
+        ".shuffle('actuator_id').to_parquet(new_dir) (docs/fleet.md), then run on new_dir"
+    )
 
 
 def _write_atomic(path, write):
@@ -323,8 +414,10 @@ def trends(results, alpha=ALPHA):
     at most alpha (default 0.01), if the windows' estimates scatter independently about a line.
 
     Columns: ``actuator_id, windows, width_mean, width_trend_per_h, width_trend_sd, width_t,
-    slope_mean, slope_trend_per_h, slope_trend_sd, slope_t, p_width, p_slope, p_value, threshold,
-    worn``; sorted by p_value.
+    slope_mean, slope_trend_per_h, slope_trend_sd, slope_t, p_width, p_slope, p_value, tested,
+    threshold, worn``; sorted by p_value. ``tested`` is False (and ``worn`` ``<NA>``, pandas' nullable
+    boolean: no verdict) for an actuator with fewer than 3 identified windows, or windows without spread;
+    a warning (``IpaSysidWarning``) names them.
     """
     pd = _pandas()
     ok = results[(results["error"].fillna("") == "")]
@@ -366,9 +459,21 @@ def trends(results, alpha=ALPHA):
     out = pd.DataFrame(rows)
     if out.empty:
         return out
-    tested = int(out["p_value"].notna().sum())
+    out["tested"] = out["p_value"].notna()
+    tested = int(out["tested"].sum())
     out["threshold"] = alpha / max(tested, 1)
-    out["worn"] = out["p_value"] < out["threshold"]
+    # No verdict (<NA>, not False) where the test never ran: fewer than 3 identified windows, or no
+    # spread in time or in the trends.
+    out["worn"] = pd.array(
+        [bool(p < th) if ok else pd.NA for p, th, ok in zip(out["p_value"], out["threshold"], out["tested"])],
+        dtype="boolean",
+    )
+    untested = out.loc[~out["tested"], "actuator_id"].tolist()
+    if untested:
+        _warn(
+            f"{len(untested)} actuator(s) not tested for wear (fewer than 3 identified windows, or "
+            f"windows without spread): {_ids(untested)}; their worn is <NA>, not a verdict"
+        )
     return out.sort_values(["p_value", "actuator_id"], kind="stable", na_position="last").reset_index(
         drop=True
     )
@@ -380,7 +485,7 @@ def worn(results, alpha=ALPHA):
     tr = trends(results, alpha)
     if tr.empty:
         return tr
-    flagged = tr[tr["worn"]].reset_index(drop=True)
+    flagged = tr[tr["worn"].fillna(False)].reset_index(drop=True)
     flagged.insert(0, "rank", np.arange(1, len(flagged) + 1))
     return flagged
 
@@ -415,10 +520,11 @@ def glance_svg(trend_table, width=640, height=420):
         parts.append(f'<text x="{sx(v):.1f}" y="{height - pad + 16}" text-anchor="middle">{v}</text>')
     for v in range(int(math.ceil(y0 / 5)) * 5, int(y1) + 1, 5):
         parts.append(f'<text x="{pad - 6}" y="{sy(v) + 4:.1f}" text-anchor="end">{v}</text>')
-    for (x, y, w) in sorted(zip(xs, ys, tt["worn"]), key=lambda r: r[2]):
+    flags = tt["worn"].fillna(False).astype(bool).tolist()
+    for (x, y, w) in sorted(zip(xs, ys, flags), key=lambda r: r[2]):
         colour, r = ("#d62728", 4) if w else ("#888888", 2.5)
         parts.append(f'<circle cx="{sx(x):.1f}" cy="{sy(y):.1f}" r="{r}" fill="{colour}" fill-opacity="0.8"/>')
-    n, k = len(tt), int(tt["worn"].sum())
+    n, k = len(tt), sum(flags)
     parts += [
         f'<text x="{width / 2}" y="{height - 14}" text-anchor="middle">t of the deadzone-width trend '
         "(widening →)</text>",

@@ -858,6 +858,7 @@ fn fleet_windows<'py>(
             u.len()
         )));
     }
+    sysid_core::data::check_ts(ts).map_err(sysid_err)?;
     if !(2..=sysid_core::data::MAX_SAMPLES).contains(&window) {
         return Err(setting_err(
             "window",
@@ -908,7 +909,7 @@ fn fleet_windows<'py>(
                 };
                 Dataset::new(signals, ts, format!("group {g} window {j}"))
                     .and_then(|d| sysid_summary::monitor::window(&d, &settings))
-                    .map_err(|e| e.render_flags())
+                    .map_err(|e| e.render(&|s| keyword(s.flag())))
             })
             .collect()
     });

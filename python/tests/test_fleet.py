@@ -23,6 +23,7 @@ pytest.importorskip("pyarrow", reason="ipa_sysid.fleet needs pyarrow: pip instal
 pytest.importorskip("dask.dataframe", reason="ipa_sysid.fleet needs dask[dataframe]: pip install 'ipa-sysid[fleet]'")
 distributed = pytest.importorskip("distributed", reason="ipa_sysid.fleet needs distributed: pip install 'ipa-sysid[fleet]'")
 
+import ipa_sysid  # noqa: E402
 from ipa_sysid import fleet  # noqa: E402
 
 from test_ipa_sysid import cli  # noqa: E402
@@ -236,3 +237,87 @@ def test_the_spark_schema_names_every_column_with_its_type(results):
     for name, spark in schema:
         dtype = str(results[name].dtype)
         assert spark_of.get(dtype, "string") == spark, (name, dtype, spark)
+
+
+def _one_actuator(fleet_dir):
+    """The rows of the first actuator of the first file (WINDOWS windows of 2000 samples)."""
+    part = pd.read_parquet(sorted(fleet_dir.glob("*.parquet"))[0])
+    first = part["actuator_id"].iloc[0]
+    return part[part["actuator_id"] == first].reset_index(drop=True), first
+
+
+def test_fewer_than_3_windows_are_not_tested_rather_than_healthy(fleet_dir):
+    # The trend test needs n >= 3 windows (t with n - 2 degrees of freedom): with 2, `worn` is no verdict
+    # (<NA>), `tested` False, and a warning names the actuator; worn() lists nobody (audit s12 F6).
+    a, aid = _one_actuator(fleet_dir)
+    res = fleet.identify_partition(a.iloc[: 2 * 2000])
+    assert len(res) == 2 and (res["error"] == "").all()
+    with pytest.warns(ipa_sysid.IpaSysidWarning, match=rf"not tested for wear.*: {aid};"):
+        tr = fleet.trends(res)
+    assert not tr["tested"].iloc[0] and pd.isna(tr["worn"].iloc[0]) and math.isnan(tr["p_value"].iloc[0])
+    with pytest.warns(ipa_sysid.IpaSysidWarning):
+        assert len(fleet.worn(res)) == 0
+    # With every window, the same actuator is tested and gets a verdict.
+    tr = fleet.trends(fleet.identify_partition(a))
+    assert tr["tested"].iloc[0] and tr["worn"].iloc[0] in (True, False)
+
+
+def test_a_short_actuator_is_an_error_row_and_a_cut_window_is_said(fleet_dir):
+    # An actuator shorter than one window used to vanish from the results; the samples after the last
+    # whole window were dropped without a word (audit s12 F6).
+    a, aid = _one_actuator(fleet_dir)
+    short = a.iloc[:50].assign(actuator_id=-7)
+    with pytest.warns(ipa_sysid.IpaSysidWarning) as caught:
+        res = fleet.identify_partition(pd.concat([a.iloc[:2100], short], ignore_index=True))
+    said = " | ".join(str(w.message) for w in caught)
+    assert re.search(rf"1 actuator\(s\) end with an incomplete window .*: {aid} \(100 samples in all\)", said), said
+    assert re.search(r"fewer samples than one window \(window = 2000\): -7;", said), said
+    assert list(res["actuator_id"]) == [aid, -7]
+    row = res[res["actuator_id"] == -7].iloc[0]
+    assert row["samples"] == 50 and "has 50 samples, fewer than one window" in row["error"]
+    assert row["t_start"] == short["t"].iloc[0] and row["t_end"] == short["t"].iloc[49]
+    assert math.isnan(row["b_l"]) and res.loc[res["actuator_id"] == aid, "error"].iloc[0] == ""
+
+
+def test_bad_settings_are_refused_naming_the_python_argument(fleet_dir):
+    a, _ = _one_actuator(fleet_dir)
+    a = a.iloc[:2000]
+    # An order too large for identify: the same message identify gives, before anything is sized by it
+    # (it was a MemoryError from the column names).
+    with pytest.raises(ValueError) as direct:
+        ipa_sysid.identify(a["u"], a["y"], 0.01, na=10**9)
+    with pytest.raises(ValueError) as fl:
+        fleet.identify_partition(a, na=10**9)
+    assert str(fl.value) == str(direct.value) and "na = 1000000000" in str(fl.value)
+    with pytest.raises(ValueError, match=r"invalid setting ts = NaN") as e:
+        fleet.identify_partition(a, ts=float("nan"))
+    assert "--ts" not in str(e.value)
+    for name, value in [("window", -5), ("na", -1), ("detect_warmup", -1), ("window", 2.5)]:
+        with pytest.raises(ValueError, match=rf"invalid setting {name} = {value}: expected a whole number >= 0"):
+            fleet.identify_partition(a, **{name: value})
+    # The same for the package's functions, where the core's conversion named nothing (OverflowError).
+    with pytest.raises(ValueError, match=r"invalid setting na = -1: expected a whole number >= 0"):
+        ipa_sysid.identify(a["u"], a["y"], 0.01, na=-1)
+    with pytest.raises(ValueError, match=r"invalid setting nk = -1"):
+        ipa_sysid.identify(a["u"], a["y"], 0.01, "arx", "ls", 2, 1, -1)
+    with pytest.raises(ValueError, match=r"invalid setting seed = -1"):
+        ipa_sysid.simulate_plant("paper", samples=10, seed=-1)
+
+
+def test_run_refuses_an_actuator_split_over_files(fleet_dir, tmp_path):
+    # Each file is one partition whose windows count from 0: an actuator in two files had its windows
+    # numbered twice, silently (audit s12 F3). Now run() names the actuators and files, says how to
+    # regroup, and writes no results.
+    part = pd.read_parquet(sorted(fleet_dir.glob("*.parquet"))[0])
+    half = part.groupby("actuator_id").cumcount() < (WINDOWS // 2) * 2000
+    split = tmp_path / "split"
+    split.mkdir()
+    part[half].to_parquet(split / "part-a.parquet", index=False)
+    part[~half].to_parquet(split / "part-b.parquet", index=False)
+    out = tmp_path / "out"
+    with pytest.raises(ValueError) as e:
+        fleet.run(split, out)
+    text = str(e.value)
+    assert f"{part['actuator_id'].nunique()} actuator(s) have rows in several files" in text
+    assert "part-a.parquet, part-b.parquet" in text and "shuffle('actuator_id')" in text
+    assert not (out / "results.parquet").exists()

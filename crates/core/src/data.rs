@@ -220,7 +220,9 @@ impl Dataset {
     }
 }
 
-pub(crate) fn check_ts(ts: f64) -> Result<(), SysidError> {
+/// Fails unless Ts (s) is positive and finite (every [`Dataset`] checks it; callers that build many
+/// datasets from one Ts check it once, before any work).
+pub fn check_ts(ts: f64) -> Result<(), SysidError> {
     if ts.is_finite() && ts > 0.0 {
         Ok(())
     } else {

@@ -120,15 +120,17 @@ fn narx_negative_fit_is_warned_and_fails_strict_on_the_coupled_drives() {
     let Some(dir) = ipa_testdata::shared_data() else {
         return;
     };
-    for extra in [
-        &["--na", "1", "--nb", "1", "--nk", "1"][..],
-        &["--nb", "2", "--nk", "1", "--na", "2", "--degree", "3"][..],
+    // (lags, degree): the degree is the NARX model's only (the ARX baseline has none; identify refuses
+    // --degree there).
+    for (extra, degree) in [
+        (&["--na", "1", "--nb", "1", "--nk", "1"][..], "2"),
+        (&["--nb", "2", "--nk", "1", "--na", "2"][..], "3"),
     ] {
         let mut args = vec!["identify"];
         args.extend(DRIVES);
         args.extend(extra);
         let mut narx = args.clone();
-        narx.extend(["--structure", "narx"]);
+        narx.extend(["--structure", "narx", "--degree", degree]);
         let (code, doc) = run_json_code(&dir, &narx);
         assert_eq!(code, 0);
         let mut arx = args.clone();

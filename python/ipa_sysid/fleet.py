@@ -119,6 +119,12 @@ def identify_partition(
     ``warnings`` (the ``identify --json`` warnings joined by newlines), ``changes`` (number of change
     points the tracker found), ``first_change_t`` (time of the first, s, or NaN) and ``error`` (empty,
     or why the window could not be identified: the other windows go on).
+
+    An actuator with fewer than ``window`` samples is one row with ``window`` 0, ``samples`` its count,
+    NaN parameters and an ``error``; the samples after an actuator's last whole window are left out.
+    Both are also said by an ``IpaSysidWarning`` naming the actuators. The settings are checked first
+    (``ValueError`` naming the argument: ``identify``'s message for the orders, ``ts``; a whole number
+    >= 0 for ``window``, the orders and the detector's counts).
     """
     pd = _pandas()
     missing = [c for c in INPUT_COLUMNS if c not in partition.columns]

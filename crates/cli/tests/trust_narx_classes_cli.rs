@@ -324,23 +324,21 @@ const TANKS: [&str; 8] = [
     "yEst",
 ];
 
+/// The lags (3, 2, 0) of the audit's tanks NARX model.
+const TANKS_LAGS: [&str; 6] = ["--na", "3", "--nb", "2", "--nk", "0"];
+
 /// The selection fit (%) of ARX (3, 2, 0) by least squares estimated on rows 0..682 of the tanks'
 /// estimation signals and simulated on rows 682..1024, with or without a constant term: the worse of
 /// estimated and measured initial outputs, as the order search ranks. Separate `identify` runs.
 fn tanks_arx_selection_fit(dir: &std::path::Path, offset: bool) -> f64 {
     let mut args = vec!["identify"];
     args.extend(TANKS);
+    args.extend(TANKS_LAGS);
     args.extend([
         "--structure",
         "arx",
         "--method",
         "ls",
-        "--na",
-        "3",
-        "--nb",
-        "2",
-        "--nk",
-        "0",
         "--rows",
         "0..682",
         "--val-rows",
@@ -369,6 +367,17 @@ fn offset_hint(warnings: &[String]) -> Option<(f64, f64)> {
     Some((num("fits the selection part by "), num("instead of ")))
 }
 
+/// `doc` holds the offset hint quoting the fits (with, without c) to their printed 0.1, and `advice`.
+fn assert_hint(doc: &Value, (with, without): (f64, f64), advice: &str) {
+    let w = warnings(doc);
+    let (h_with, h_without) = offset_hint(&w).unwrap_or_else(|| panic!("no hint: {w:?}"));
+    assert!(
+        (h_with - with).abs() < 0.051 && (h_without - without).abs() < 0.051,
+        "{w:?}"
+    );
+    assert!(w.iter().any(|w| w.contains(advice)), "{w:?}");
+}
+
 // Audit s12 F8: without --offset on the cascaded tanks (output mean about 5.4 V), plain `order` says a
 // constant term would help, but NARX `identify` (−6.8 % on the test record) and `order --classes` said
 // nothing. Both now give the same hint through the same test: ARX (3, 2, 0) on the selection part with
@@ -385,45 +394,18 @@ fn narx_and_class_search_say_add_offset_on_the_cascaded_tanks() {
     assert!(with > without + 5.0, "with c {with} %, without {without} %");
     let mut narx = vec!["identify"];
     narx.extend(TANKS);
-    narx.extend([
-        "--structure",
-        "narx",
-        "--degree",
-        "2",
-        "--na",
-        "3",
-        "--nb",
-        "2",
-        "--nk",
-        "0",
-    ]);
+    narx.extend(TANKS_LAGS);
+    narx.extend(["--structure", "narx", "--degree", "2"]);
     let (_, doc) = run_json_code(&dir, &narx);
-    let w = warnings(&doc);
-    let (h_with, h_without) = offset_hint(&w).unwrap_or_else(|| panic!("no hint: {w:?}"));
-    assert!(
-        (h_with - with).abs() < 0.051 && (h_without - without).abs() < 0.051,
-        "{w:?}"
-    );
-    assert!(
-        w.iter().any(|w| w.contains("identify again with --offset")),
-        "{w:?}"
-    );
+    assert_hint(&doc, (with, without), "identify again with --offset");
     narx.push("--offset");
     let (_, doc) = run_json_code(&dir, &narx);
     assert_eq!(offset_hint(&warnings(&doc)), None);
 
     let mut classes = vec!["order"];
     classes.extend(TANKS);
-    classes.extend(["--classes", "narx2", "--na", "3", "--nb", "2", "--nk", "0"]);
+    classes.extend(TANKS_LAGS);
+    classes.extend(["--classes", "narx2"]);
     let (_, doc) = run_json_code(&dir, &classes);
-    let w = warnings(&doc);
-    let (h_with, h_without) = offset_hint(&w).unwrap_or_else(|| panic!("no hint: {w:?}"));
-    assert!(
-        (h_with - with).abs() < 0.051 && (h_without - without).abs() < 0.051,
-        "{w:?}"
-    );
-    assert!(
-        w.iter().any(|w| w.contains("search again with --offset")),
-        "{w:?}"
-    );
+    assert_hint(&doc, (with, without), "search again with --offset");
 }

@@ -63,6 +63,29 @@ fn parse_order(text: &str) -> Result<usize, String> {
         .map_err(|e| format!("{e}; expected a whole number >= 0"))
 }
 
+/// The estimator settings of `identify`: (field id, flag, the methods that use it, those methods in
+/// words); [`Args::check_flags`] refuses each where its method is not chosen, and with NARX.
+const METHOD_FLAGS: [(&str, &str, &[Method], &str); 7] = {
+    const RLS: &[Method] = &[Method::Rls];
+    const RECURSIVE: &[Method] = &[Method::Rls, Method::Iv];
+    const RLS_WORDS: &str = "recursive least squares (--method rls)";
+    const RECURSIVE_WORDS: &str = "the recursive estimators (--method rls or iv)";
+    [
+        ("passes", "--passes", RLS, RLS_WORDS),
+        ("rls_form", "--rls-form", RLS, RLS_WORDS),
+        ("windup", "--windup", RLS, RLS_WORDS),
+        ("max_trace", "--max-trace", RLS, RLS_WORDS),
+        ("forgetting", "--forgetting", RECURSIVE, RECURSIVE_WORDS),
+        ("p0", "--p0", RECURSIVE, RECURSIVE_WORDS),
+        (
+            "iv_stages",
+            "--iv-stages",
+            &[Method::Iv],
+            "instrumental variables (--method iv)",
+        ),
+    ]
+};
+
 /// Flags of `identify`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
@@ -323,20 +346,14 @@ impl Args {
                      no such fallback",
                 )?;
             }
-            for (id, flag) in [
-                ("forgetting", "--forgetting"),
-                ("p0", "--p0"),
-                ("passes", "--passes"),
-                ("rls_form", "--rls-form"),
-                ("windup", "--windup"),
-                ("max_trace", "--max-trace"),
-                ("iv_stages", "--iv-stages"),
-            ] {
+            for (id, flag, _, what) in METHOD_FLAGS {
                 if self.given(id) {
                     refuse(
                         flag,
-                        "is a setting of the recursive estimators (--method rls, iv) of ARX, \
-                         Hammerstein and Wiener models; --structure narx does not use it",
+                        &format!(
+                            "is a setting of {what} for ARX, Hammerstein and Wiener models; \
+                             --structure narx does not use it"
+                        ),
                     )?;
                 }
             }
@@ -389,52 +406,8 @@ impl Args {
                 );
             }
         }
-        let used_by = |methods: &[Method]| methods.contains(&self.method);
-        for (id, flag, methods, what) in [
-            (
-                "passes",
-                "--passes",
-                &[Method::Rls][..],
-                "recursive least squares (--method rls)",
-            ),
-            (
-                "rls_form",
-                "--rls-form",
-                &[Method::Rls][..],
-                "recursive least squares (--method rls)",
-            ),
-            (
-                "windup",
-                "--windup",
-                &[Method::Rls][..],
-                "recursive least squares (--method rls)",
-            ),
-            (
-                "max_trace",
-                "--max-trace",
-                &[Method::Rls][..],
-                "recursive least squares (--method rls)",
-            ),
-            (
-                "forgetting",
-                "--forgetting",
-                &[Method::Rls, Method::Iv][..],
-                "the recursive estimators (--method rls or iv)",
-            ),
-            (
-                "p0",
-                "--p0",
-                &[Method::Rls, Method::Iv][..],
-                "the recursive estimators (--method rls or iv)",
-            ),
-            (
-                "iv_stages",
-                "--iv-stages",
-                &[Method::Iv][..],
-                "instrumental variables (--method iv)",
-            ),
-        ] {
-            if self.given(id) && !used_by(methods) {
+        for (id, flag, methods, what) in METHOD_FLAGS {
+            if self.given(id) && !methods.contains(&self.method) {
                 refuse(
                     flag,
                     &format!(

@@ -593,7 +593,7 @@ fn identify_flags_the_structure_or_method_would_ignore_exit_2_naming_the_flag() 
         case(
             "identify --data {c}/good.csv --structure narx --passes 3",
             2,
-            &["--passes is a setting of the recursive estimators", "leave out --passes"],
+            &["--passes is a setting of recursive least squares (--method rls)", "--structure narx does not use it"],
         ),
         case(
             "identify --data {c}/good.csv --degree 3",

@@ -361,8 +361,9 @@ impl std::fmt::Display for CalibrationWarning {
                 parameters.join(", ")
             ),
             CalibrationWarning::SingleSegment => f.write_str(
-                "no rest states with known pressures to start segments from (record without pressure \
-                 columns and no rest at u = 0): calibrated on one free run, which is less robust",
+                "no rest states to start segments from (a rest is y unchanged within half an encoder \
+                 count over two samples, which noise on y never gives, and without pressure columns \
+                 0.3 s of u = 0 before it): calibrated on one free run, which is less robust",
             ),
         }
     }

@@ -460,6 +460,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .warnings
         .extend(in_sample_warnings(&args, &files, &records, val.as_ref()));
     report.warnings.extend(repeated_record_warnings(&records));
+    if !report.warnings.is_empty() {
+        report.warnings.extend(
+            records
+                .first()
+                .and_then(super::common::swapped_columns_hint),
+        );
+    }
     let names: Vec<&str> = records.iter().map(|r| r.name()).collect();
     let n: usize = records.iter().map(Dataset::len).sum();
     let est_name = if records.len() > 1 {

@@ -36,8 +36,8 @@ pub const MAX_ACTUATORS: usize = 100_000;
 /// Largest number of windows per actuator.
 pub const MAX_WINDOWS: usize = 1000;
 /// Largest fleet record, N × windows × samples (about 5 GB of Parquet, 5 bytes a sample measured, and
-/// two hours of two cores at
-/// the plant's speed; audit s12: 100 000 × 1000 × 2000 = 2·10¹¹ samples started without a word).
+/// two hours of two cores at the plant's speed; audit s12: 100 000 × 1000 × 2000 = 2·10¹¹ samples
+/// started without a word).
 pub const MAX_FLEET_SAMPLES: u64 = 1_000_000_000;
 /// Fewest samples of a window: one monitoring identification of the deadzone + ARX model (7
 /// parameters) needs far more rows than parameters (a window of 1 sample cannot be identified).

@@ -11,8 +11,9 @@
 //!   driving chamber grows with |u| and the flow out of the other with it, so the full command raises
 //!   the driving pressure difference fastest; friction opposes motion whatever the command). Any 2 %
 //!   settling time is at least the first entry into the band.
-//! - **bang-bang family**: u = d u_max for T1 samples, −d u_max for T2 samples, then 0 (valves
-//!   closed) to the end of the run; T1 ≥ 1, T2 ≥ 0 on the sampling grid. A sequence counts when the
+//! - **bang-bang family**: u = d u_max for T1 samples (the last of them at a fraction a1 of u_max),
+//!   −a2 d u_max for T2 samples, then 0 (valves closed) to the end of the run; T1 ≥ 1, T2 ≥ 0 on the
+//!   sampling grid, a1 and a2 from [`FamilySearch`]. A sequence counts when the
 //!   run ends within the band around r; its settling time is [`StepMetrics`]' (the same metric as the
 //!   verification's). The best over the family is an *achievable* settling time (an upper bound on the
 //!   best possible one), reported also under the overshoot limit and with a landing within e_max.
@@ -115,10 +116,14 @@ pub fn full_command_bound(plant: &mut dyn Plant, run: &StepRun) -> Result<Reach,
 /// One sequence of the bang-bang family and what it gave.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct BangBang {
-    /// T1: samples of full command towards r.
+    /// T1: samples of command towards r (full, the last at a1 u_max).
     pub t1: usize,
-    /// T2: samples of full reverse command after them.
+    /// a1: the fraction of u_max of the last of the T1 samples.
+    pub a1: f64,
+    /// T2: samples of reverse command after them.
     pub t2: usize,
+    /// a2: the reverse command's fraction of u_max.
+    pub a2: f64,
     /// Its metrics (the run ends within the band around r, so t_s is centred on r).
     pub metrics: StepMetrics,
 }
@@ -132,6 +137,8 @@ pub struct FamilyBest {
     pub overshoot_ok: Option<BangBang>,
     /// Best of those whose overshoot ≤ the limit and |e_ss| ≤ e_max.
     pub landed: Option<BangBang>,
+    /// The shortest rise time of those whose overshoot ≤ the limit.
+    pub fastest_rise: Option<BangBang>,
     /// Sequences simulated.
     pub sequences: usize,
     /// The earliest first entry into the band of any sequence simulated, s (a check of the bound).
@@ -149,6 +156,10 @@ pub struct FamilySearch {
     /// and hold it there (None: simulate every tail to the end of the run). With the valves closed
     /// both chambers exhaust, so a piston at rest stays at rest: this only saves time.
     pub rest_samples: Option<usize>,
+    /// a1: fractions of u_max tried for the last sample of the first phase (1 = full).
+    pub last_fractions: &'static [f64],
+    /// a2: fractions of u_max tried for the reverse phase.
+    pub reverse_fractions: &'static [f64],
 }
 
 /// Searches T1 = 1, 2, … and, for each, T2 = 0, 1, … exhaustively on the sampling grid, with two
@@ -173,40 +184,15 @@ pub fn bang_bang<P: Plant + Clone>(
     let mut y_full: Vec<f64> = Vec::with_capacity(n);
     for t1 in 1..n {
         y_full.push(base.output());
-        step(&mut base, d * run.u_max, t1 - 1)?;
-        let mut rev = base.clone();
-        let mut y_rev = y_full.clone();
-        for t2 in 0..=(n - t1) {
-            if t2 > 0 {
-                y_rev.push(rev.output());
-                step(&mut rev, -d * run.u_max, t1 + t2 - 1)?;
-            }
-            if y_rev.len() >= n {
-                break;
-            }
-            let mut tail = rev.clone();
-            let mut y = y_rev.clone();
-            let mut still = 0;
-            while y.len() < n {
-                let yk = tail.output();
-                still = if y.last() == Some(&yk) { still + 1 } else { 0 };
-                y.push(yk);
-                if search.rest_samples.is_some_and(|m| still >= m) {
-                    y.resize(n, yk);
-                    break;
-                }
-                step(&mut tail, 0.0, y.len() - 1)?;
-            }
-            best.sequences += 1;
-            consider(&mut best, &t, &y, run, search, t1, t2)?;
-            let z = d * (rev.output() - run.y0_mm);
-            let moving_back = y_rev
-                .last()
-                .is_some_and(|&yl| d * (rev.output() - yl) < 0.0);
-            if t2 > 0 && z < step_mm - band && moving_back {
-                break;
+        for &a1 in search.last_fractions {
+            let mut last = base.clone();
+            step(&mut last, d * a1 * run.u_max, t1 - 1)?;
+            for &a2 in search.reverse_fractions {
+                let seq = Sequence { t1, a1, t2: 0, a2 };
+                reverse_then_rest(&mut best, &t, &last, &y_full, run, search, seq)?;
             }
         }
+        step(&mut base, d * run.u_max, t1 - 1)?;
         let z = d * (base.output() - run.y0_mm);
         let far = step_mm + band;
         let past = z - far > 0.01 * search.overshoot_percent * far;
@@ -221,14 +207,72 @@ pub fn bang_bang<P: Plant + Clone>(
     Ok(best)
 }
 
+/// The shape of one sequence (its T2 filled in as it grows).
+#[derive(Clone, Copy)]
+struct Sequence {
+    t1: usize,
+    a1: f64,
+    t2: usize,
+    a2: f64,
+}
+
+/// From `last` (the plant after the first phase, outputs `y_first`), T2 = 0, 1, … samples of reverse
+/// command a2 u_max, each followed by a tail of u = 0 to the end of the run.
+fn reverse_then_rest<P: Plant + Clone>(
+    best: &mut FamilyBest,
+    t: &[f64],
+    last: &P,
+    y_first: &[f64],
+    run: &StepRun,
+    search: &FamilySearch,
+    seq: Sequence,
+) -> Result<(), ControlError> {
+    let n = run.samples;
+    let d = run.direction();
+    let (step_mm, band) = (run.step_mm(), run.band_mm());
+    let mut rev = last.clone();
+    let mut y_rev = y_first.to_vec();
+    y_rev.push(last.output());
+    for t2 in 0..=n.saturating_sub(seq.t1) {
+        if t2 > 0 {
+            step(&mut rev, -d * seq.a2 * run.u_max, seq.t1 + t2 - 1)?;
+            y_rev.push(rev.output());
+        }
+        if y_rev.len() > n || (t2 > 0 && seq.a2 == 0.0) {
+            break;
+        }
+        // y_rev holds y(0..=t1+t2): the last is the output the tail starts from.
+        let mut tail = rev.clone();
+        let mut y = y_rev.clone();
+        let mut still = 0;
+        while y.len() < n {
+            step(&mut tail, 0.0, y.len() - 1)?;
+            let yk = tail.output();
+            still = if y.last() == Some(&yk) { still + 1 } else { 0 };
+            y.push(yk);
+            if search.rest_samples.is_some_and(|m| still >= m) {
+                y.resize(n, yk);
+            }
+        }
+        y.truncate(n);
+        best.sequences += 1;
+        consider(best, t, &y, run, search, Sequence { t2, ..seq })?;
+        let z = d * (rev.output() - run.y0_mm);
+        let moving_back = y_rev.len() >= 2 && d * (y_rev[y_rev.len() - 1] - y_rev[y_rev.len() - 2]) < 0.0;
+        if t2 > 0 && z < step_mm - band && moving_back {
+            break;
+        }
+    }
+    Ok(())
+}
+
 fn consider(
     best: &mut FamilyBest,
     t: &[f64],
     y: &[f64],
     run: &StepRun,
     search: &FamilySearch,
-    t1: usize,
-    t2: usize,
+    seq: Sequence,
 ) -> Result<(), ControlError> {
     let ts = t.get(1).copied().unwrap_or(0.0);
     if let Some(e) = reach(ts, y, run).band_entry_s {
@@ -242,7 +286,13 @@ fn consider(
     let Some(ts_new) = metrics.settling_time_s else {
         return Ok(());
     };
-    let candidate = BangBang { t1, t2, metrics };
+    let candidate = BangBang {
+        t1: seq.t1,
+        a1: seq.a1,
+        t2: seq.t2,
+        a2: seq.a2,
+        metrics,
+    };
     let better = |slot: &Option<BangBang>| {
         slot.and_then(|b| b.metrics.settling_time_s)
             .is_none_or(|s| ts_new < s)
@@ -261,6 +311,13 @@ fn consider(
         .is_some_and(|e| e.abs() <= search.ess_mm);
     if os_ok && lands && better(&best.landed) {
         best.landed = Some(candidate);
+    }
+    let faster = best
+        .fastest_rise
+        .and_then(|b| b.metrics.rise_time_s)
+        .is_none_or(|r| metrics.rise_time_s.is_some_and(|x| x < r));
+    if os_ok && metrics.rise_time_s.is_some() && faster {
+        best.fastest_rise = Some(candidate);
     }
     Ok(())
 }

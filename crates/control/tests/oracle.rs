@@ -29,6 +29,8 @@ const SEARCH: FamilySearch = FamilySearch {
     overshoot_percent: 1.0,
     ess_mm: 0.02,
     rest_samples: None,
+    last_fractions: &[1.0],
+    reverse_fractions: &[1.0],
 };
 
 // An integrator moving 1 mm per sample at full command, 25 → 35 mm: y(k) = 25 + k. The band edge

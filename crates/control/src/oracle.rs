@@ -139,6 +139,9 @@ pub struct FamilyBest {
     pub landed: Option<BangBang>,
     /// The shortest rise time of those whose overshoot ≤ the limit.
     pub fastest_rise: Option<BangBang>,
+    /// Of the sequences ending in the band whose rise time is below [`FamilySearch::rise_below_s`],
+    /// the one with the least overshoot.
+    pub least_overshoot_faster: Option<BangBang>,
     /// Sequences simulated.
     pub sequences: usize,
     /// The earliest first entry into the band of any sequence simulated, s (a check of the bound).
@@ -160,6 +163,9 @@ pub struct FamilySearch {
     pub last_fractions: &'static [f64],
     /// a2: fractions of u_max tried for the reverse phase.
     pub reverse_fractions: &'static [f64],
+    /// A rise time, s: report the least overshoot of the sequences that rise faster than it
+    /// ([`FamilyBest::least_overshoot_faster`]; e.g. the paper's PI's rise time).
+    pub rise_below_s: Option<f64>,
 }
 
 /// Searches T1 = 1, 2, … and, for each, T2 = 0, 1, … exhaustively on the sampling grid, with two
@@ -318,6 +324,14 @@ fn consider(
         .is_none_or(|r| metrics.rise_time_s.is_some_and(|x| x < r));
     if os_ok && metrics.rise_time_s.is_some() && faster {
         best.fastest_rise = Some(candidate);
+    }
+    let rises_faster = metrics
+        .rise_time_s
+        .zip(search.rise_below_s)
+        .is_some_and(|(r, below)| r < below);
+    let less = |b: BangBang| b.metrics.overshoot_percent < metrics.overshoot_percent;
+    if rises_faster && !best.least_overshoot_faster.is_some_and(less) {
+        best.least_overshoot_faster = Some(candidate);
     }
     Ok(())
 }

@@ -31,6 +31,7 @@ const SEARCH: FamilySearch = FamilySearch {
     rest_samples: None,
     last_fractions: &[1.0],
     reverse_fractions: &[1.0],
+    rise_below_s: None,
 };
 
 // An integrator moving 1 mm per sample at full command, 25 → 35 mm: y(k) = 25 + k. The band edge

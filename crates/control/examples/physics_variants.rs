@@ -143,7 +143,7 @@ fn main() {
         plants,
         &make,
         &move || -> Result<Box<dyn control::Controller + Send>, control::ControlError> {
-            let inner = s.clone().build()?;
+            let inner = s.build()?;
             Ok(match &approach {
                 Some(a) => Box::new(Approach {
                     u_max: spec.u_max,

@@ -63,8 +63,10 @@ fn closed(v: usize, c: &mut dyn Controller, run: &StepRun, duration_s: f64) -> L
 /// Other command shapes towards r (none should enter the band earlier or rise faster than the full
 /// command): constant fractions of u_max, ramps to u_max over a few samples, one sample of delay, one
 /// sample of reverse first.
-fn shapes(u_max: f64) -> Vec<(String, Box<dyn Fn(usize) -> f64 + Sync>)> {
-    let mut v: Vec<(String, Box<dyn Fn(usize) -> f64 + Sync>)> = Vec::new();
+type Shape = (String, Box<dyn Fn(usize) -> f64 + Sync>);
+
+fn shapes(u_max: f64) -> Vec<Shape> {
+    let mut v: Vec<Shape> = Vec::new();
     for f in [0.5, 0.75, 0.9, 0.97] {
         v.push((format!("const {f}"), Box::new(move |_| f * u_max)));
     }
@@ -161,7 +163,7 @@ fn main() {
             let p = plant(v);
             let bound = oracle::full_command_bound(&mut p.clone(), &run).unwrap();
             let family = oracle::bang_bang(&p, &run, &search).unwrap();
-            let tuned = file.clone().map(|s| {
+            let tuned = file.map(|s| {
                 let mut c = s.build().unwrap();
                 closed(v, &mut c, &run, spec.run_s)
             });
@@ -182,7 +184,8 @@ fn main() {
                     refuted.push(format!("{name}: band entry {}", fmt(r.band_entry_s)));
                 }
                 if below(r.rise_s, bound.rise_s) {
-                    rise_beaten = rise_beaten.max(bound.rise_s.unwrap_or(f64::INFINITY) - r.rise_s.unwrap());
+                    rise_beaten =
+                        rise_beaten.max(bound.rise_s.unwrap_or(f64::INFINITY) - r.rise_s.unwrap());
                 }
             }
             for (name, l) in [("tuned", tuned.as_ref()), ("PI", Some(&pi))] {

@@ -264,7 +264,8 @@ fn reverse_then_rest<P: Plant + Clone>(
         best.sequences += 1;
         consider(best, t, &y, run, search, Sequence { t2, ..seq })?;
         let z = d * (rev.output() - run.y0_mm);
-        let moving_back = y_rev.len() >= 2 && d * (y_rev[y_rev.len() - 1] - y_rev[y_rev.len() - 2]) < 0.0;
+        let moving_back =
+            y_rev.len() >= 2 && d * (y_rev[y_rev.len() - 1] - y_rev[y_rev.len() - 2]) < 0.0;
         if t2 > 0 && z < step_mm - band && moving_back {
             break;
         }

@@ -108,6 +108,13 @@ fn pi_of(r: &Row) -> Option<&Loop> {
     Some(&r.pi)
 }
 
+/// "T1 …, a1 …, T2 …, a2 …" of a family's sequence, or "none".
+fn sequence(b: Option<oracle::BangBang>) -> String {
+    b.map_or("none".into(), |b| {
+        format!("T1 {}, a1 {}, T2 {}, a2 {}", b.t1, b.a1, b.t2, b.a2)
+    })
+}
+
 fn fmt(x: Option<f64>) -> String {
     x.map_or("—".into(), |x| format!("{x:.3}"))
 }
@@ -382,24 +389,18 @@ fn main() {
         let fr = family.fastest_rise;
         let lo = family.least_overshoot_faster;
         println!(
-            "Table V: of the bang-bang sequences ending in the band that rise faster than the PI, the least overshoot is {} % (T1 {}, a1 {}, T2 {}, a2 {}; rise {} s)",
+            "Table V: of the bang-bang sequences ending in the band that rise faster than the PI, the least overshoot is {} % ({}; rise {} s)",
             fmt(lo.and_then(|b| b.metrics.overshoot_percent)),
-            lo.map_or(0, |b| b.t1),
-            lo.map_or(0.0, |b| b.a1),
-            lo.map_or(0, |b| b.t2),
-            lo.map_or(0.0, |b| b.a2),
+            sequence(lo),
             fmt(lo.and_then(|b| b.metrics.rise_time_s)),
         );
         println!(
-            "Table V rise: full command {:.4} s, fastest other shape {shape_rise:.4} s, paper PI {:.4} s; fastest bang-bang with OS <= {} % ending in the band: {} s (T1 {}, a1 {}, T2 {}, a2 {}; t_s {} s)",
+            "Table V rise: full command {:.4} s, fastest other shape {shape_rise:.4} s, paper PI {:.4} s; fastest bang-bang with OS <= {} % ending in the band: {} s ({}; t_s {} s)",
             bound.rise_s.unwrap_or(f64::NAN),
             pi.metrics.rise_time_s.unwrap_or(f64::NAN),
             spec.overshoot_percent,
             fmt(fr.and_then(|b| b.metrics.rise_time_s)),
-            fr.map_or(0, |b| b.t1),
-            fr.map_or(0.0, |b| b.a1),
-            fr.map_or(0, |b| b.t2),
-            fr.map_or(0.0, |b| b.a2),
+            sequence(fr),
             fmt(fr.and_then(|b| b.metrics.settling_time_s)),
         );
         println!(

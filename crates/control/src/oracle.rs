@@ -172,8 +172,9 @@ pub struct FamilySearch {
 /// cuts that cannot lose a better sequence of the ones reported: T2 stops growing once the reverse
 /// command has the piston moving away from r outside the band on the start's side (more reverse
 /// cannot bring it back; it ends outside the band), and T1 stops once the full command has passed
-/// the far band edge by more than the overshoot limit allows and its time exceeds the best settling
-/// time found (every later T1 is outside the band then).
+/// the far band edge by more than the overshoot limit allows (and than the least overshoot of the
+/// sequences rising faster than [`FamilySearch::rise_below_s`], when given) and its time exceeds the
+/// best settling time found (every later T1 is outside the band then).
 pub fn bang_bang<P: Plant + Clone>(
     plant: &P,
     run: &StepRun,
@@ -201,7 +202,16 @@ pub fn bang_bang<P: Plant + Clone>(
         step(&mut base, d * run.u_max, t1 - 1)?;
         let z = d * (base.output() - run.y0_mm);
         let far = step_mm + band;
-        let past = z - far > 0.01 * search.overshoot_percent * far;
+        // Every later T1 ends (within the band) with at least this overshoot, %.
+        let os_floor = 100.0 * (z - far) / far;
+        let least_faster = match search.rise_below_s {
+            None => Some(f64::NEG_INFINITY),
+            Some(_) => best
+                .least_overshoot_faster
+                .and_then(|b| b.metrics.overshoot_percent),
+        };
+        let past =
+            os_floor > search.overshoot_percent && least_faster.is_some_and(|o| os_floor > o);
         let late = best
             .any
             .and_then(|b| b.metrics.settling_time_s)

@@ -452,6 +452,59 @@ fn a_validation_record_that_is_the_estimation_data_is_warned() {
     write_csv(dir.path(), "other.csv", &u2, &y2);
     let other = ["--data", "d.csv", "other.csv", "--merge", "--ts", "0.01"];
     assert!(!twice(&identify_warnings(dir.path(), &other)));
+    // Two experiments side by side in one file (as the cascaded tanks' uEst, yEst, uVal, yVal): the
+    // same rows of other columns are held out (audit s12 F1); the same columns are not.
+    let mut both = String::from("uEst,yEst,uVal,yVal\n");
+    for k in 0..u.len() {
+        both += &format!("{},{},{},{}\n", u[k], y[k], u2[k], y2[k]);
+    }
+    std::fs::write(dir.path().join("both.csv"), both).unwrap();
+    let side = [
+        "--data",
+        "both.csv",
+        "--u-col",
+        "uEst",
+        "--y-col",
+        "yEst",
+        "--ts",
+        "0.01",
+        "--validation",
+        "both.csv",
+        "--val-y-col",
+        "yVal",
+    ];
+    let w = identify_warnings(dir.path(), &[&side[..], &["--val-u-col", "uVal"]].concat());
+    assert!(!in_sample(&w), "{w:?}");
+    // NARX says it too (audit s12 F2), for the same rows and for a copy.
+    for val in ["d.csv", "copy.csv"] {
+        let narx = [
+            "identify",
+            "--structure",
+            "narx",
+            "--degree",
+            "2",
+            "--na",
+            "2",
+            "--nb",
+            "2",
+            "--nk",
+            "1",
+            "--data",
+            "d.csv",
+            "--ts",
+            "0.01",
+            "--validation",
+            val,
+        ];
+        let w = common::warnings(&common::run_json(dir.path(), &narx));
+        assert!(in_sample(&w), "{val}: {w:?}");
+    }
+    let w = identify_warnings(dir.path(), &side[..10]);
+    assert!(
+        w.iter()
+            .any(|w| w.contains("the validation record is the estimation data")),
+        "{w:?}"
+    );
 }
 
 // Audit s11 A4: an output written to standard output (`-`) is the only thing there, so it parses: the

@@ -302,13 +302,15 @@ impl ValidationArgs {
     }
 }
 
-/// Rows of one file: a record as the reader selected it (`rows` `None` = every row).
+/// Rows and columns of one file: a record as the reader selected it (`rows` `None` = every row).
 #[derive(Debug, Clone, Copy)]
 pub struct FileRows<'a> {
     /// The file.
     pub file: &'a Path,
     /// Its rows (`--rows`, `--val-rows`, `--selection-rows`).
     pub rows: Option<RowRange>,
+    /// The input and output columns read (`--u-col`, `--y-col`; `--val-u-col`, `--val-y-col`).
+    pub columns: (&'a str, &'a str),
 }
 
 /// Whether two paths name the same file (compared after resolving links), or are the same path.
@@ -321,15 +323,17 @@ pub fn same_file(a: &Path, b: &Path) -> bool {
 }
 
 /// A warning (audit s11 V1) when the `what` record ("validation", "test") holds rows of the file the
-/// estimation read (`est`, called `est_what`): its fit is then in-sample, not held out. `None` when
-/// the files differ or the rows are disjoint.
+/// estimation read (`est`, called `est_what`) in the same columns: its fit is then in-sample, not held
+/// out. `None` when the files differ, the rows are disjoint, or other columns are read (the cascaded
+/// tanks' file holds its estimation and validation experiments side by side: uEst/yEst, uVal/yVal,
+/// audit s12 F1).
 pub fn shared_rows_warning(
     what: &str,
     test: FileRows,
     est_what: &str,
     est: FileRows,
 ) -> Option<String> {
-    if !same_file(test.file, est.file) {
+    if test.columns != est.columns || !same_file(test.file, est.file) {
         return None;
     }
     let all = RowRange::default();

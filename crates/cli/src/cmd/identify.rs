@@ -508,7 +508,7 @@ fn repeated_record_warnings(records: &[Dataset]) -> Vec<String> {
 /// Warnings (audit s11 V1) when the validation record holds rows of an estimation file (the same file,
 /// overlapping `--rows` and `--val-rows`) or the very samples of an estimation record: its fit is then
 /// in-sample. `records` and `val` are the records read (none for the streamed path).
-fn in_sample_warnings(
+pub(super) fn in_sample_warnings(
     args: &Args,
     files: &[PathBuf],
     records: &[Dataset],
@@ -527,6 +527,7 @@ fn in_sample_warnings(
     let test = FileRows {
         file: path,
         rows: vopts.rows,
+        columns: (&vopts.u_col, &vopts.y_col),
     };
     let mut w: Vec<String> = files
         .iter()
@@ -534,6 +535,7 @@ fn in_sample_warnings(
             let est = FileRows {
                 file: f,
                 rows: args.columns.rows,
+                columns: (&opts.u_col, &opts.y_col),
             };
             shared_rows_warning("validation", test, "estimation", est)
         })

@@ -114,16 +114,18 @@ pub fn simulate_estimated_initial_signals(
     u: &[&[f64]],
     y: &[f64],
 ) -> Result<(Vec<f64>, Vec<f64>), SysidError> {
-    estimate_initial_from(model, u, y, model.simulate(u, y)?)
+    estimate_initial_from(model, u, y, model.simulate(u, y)?, Vec::new())
 }
 
 /// The estimated-initial-output simulation from `base`, the simulation from the measured initial
-/// outputs (see [`simulate_estimated_initial`]).
+/// outputs (see [`simulate_estimated_initial`]); `free`: the free responses computed beside it
+/// ([`Model::simulate_with_free_responses`]), or empty.
 fn estimate_initial_from(
     model: &Model,
     u: &[&[f64]],
     y: &[f64],
     base: Vec<f64>,
+    free: Vec<f64>,
 ) -> Result<(Vec<f64>, Vec<f64>), SysidError> {
     let n = base.len();
     let k0 = model.k0().min(n);
@@ -131,7 +133,7 @@ fn estimate_initial_from(
     if k0 == 0 || n <= k0 {
         return Ok((base, y0));
     }
-    let phi = free_responses(model, n, k0)?;
+    let phi = free_responses(model, n, k0, free)?;
     if let Some(g) = model.output_nonlinearity() {
         return estimate_initial_through_output(model, g, u, y, base, &phi);
     }
@@ -260,17 +262,25 @@ fn estimate_initial_through_output(
     Ok((out, v[..k0].iter().map(|v| v + y0).collect()))
 }
 
-/// The k0 free responses s_j of 1/A(q) to a unit initial output j (rows k = 0..n−1).
+/// The k0 free responses s_j of 1/A(q) to a unit initial output j (rows k = 0..n−1): `computed` when
+/// the simulation computed them beside its own loop (n·k0 numbers,
+/// [`Model::simulate_with_free_responses`]: the same numbers), else computed here.
 fn free_responses(
     model: &Model,
     n: usize,
     k0: usize,
+    computed: Vec<f64>,
 ) -> Result<nalgebra::DMatrix<f64>, SysidError> {
     let a = model.a();
     // Rows: k < k0 (the initial outputs themselves) then k ≥ k0; columns: the k0 free responses, by
     // columns (entry (k, j) at j·n + k). The k0 recursions are independent: advancing them side by side,
     // sample by sample, lets the processor overlap their chains of dependent operations.
-    let mut phi = nalgebra::DMatrix::<f64>::zeros(n, k0);
+    let given = computed.len() == n * k0;
+    let mut phi = if given {
+        nalgebra::DMatrix::<f64>::from_vec(n, k0, computed)
+    } else {
+        nalgebra::DMatrix::<f64>::zeros(n, k0)
+    };
     let s = phi.as_mut_slice();
     for j in 0..k0 {
         s[j * n + j] = 1.0;
@@ -278,6 +288,7 @@ fn free_responses(
     // The loop compiled per order for the usual na = k0 (the past of each response held in
     // registers); the same operations in the same order for every order.
     match (a.len(), k0) {
+        _ if given => {}
         (1, 1) => advance_free_responses::<1, 1>(a, s, n),
         (2, 2) => advance_free_responses::<2, 2>(a, s, n),
         (3, 3) => advance_free_responses::<3, 3>(a, s, n),
@@ -404,10 +415,11 @@ fn record_sums(model: &Model, data: &Dataset) -> Result<MetricSums, SysidError> 
     let y = &y_all[k0..];
     let n = y.len();
     // One simulation from the measured initial outputs serves both simulation metrics (and the
-    // output-error predictor).
-    let measured = model.simulate(u, y_all);
+    // output-error predictor); the free responses for the estimated initial outputs come beside it.
+    let mut free = Vec::new();
+    let measured = model.simulate_with_free_responses(u, y_all, &mut free);
     let estimated = match &measured {
-        Ok(s) => estimate_initial_from(model, u, y_all, s.clone()).map_err(|e| e.to_string()),
+        Ok(s) => estimate_initial_from(model, u, y_all, s.clone(), free).map_err(|e| e.to_string()),
         Err(e) => Err(e.to_string()),
     };
     let pred = match (model.noise_model(), &estimated) {

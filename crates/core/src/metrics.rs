@@ -583,6 +583,62 @@ mod tests {
     fn fit_of_a_constant_output_is_undefined() {
         assert_eq!(fit_percent(&[2.0, 2.0], &[2.0, 2.0]), None);
     }
+
+    fn bits(v: &[f64]) -> Vec<u64> {
+        v.iter().map(|x| x.to_bits()).collect()
+    }
+
+    // The free responses that the simulation computes beside its own loop are, to the bit, those of
+    // the plain recursion s_j(k) = −Σ_i a_i s_j(k − 1 − i) from the unit initial outputs (written out
+    // here) and of `free_responses` alone, and the simulation is `simulate`'s; orders without a
+    // compiled loop (na = 5) or with k0 > na (nk + nb − 1 > na) leave the buffer empty.
+    #[test]
+    fn free_responses_beside_the_simulation_are_the_plain_recursion() {
+        let n = 300;
+        let u: Vec<f64> = (0..n).map(|k| ((k * 7919) % 13) as f64 - 6.0).collect();
+        let y: Vec<f64> = (0..n).map(|k| (k as f64 * 0.37).sin()).collect();
+        let a_all = [-0.5, 0.2, -0.1, 0.05, 0.01];
+        let mut fused = 0;
+        for na in 1..=5 {
+            for nb in 1..=2 {
+                for nk in 1..=2 {
+                    let a = a_all[..na].to_vec();
+                    let m = Model::arx(1.0, a.clone(), [1.0, 0.5][..nb].to_vec(), nk, Some(0.3))
+                        .unwrap();
+                    let mut free = vec![7.0];
+                    let sim = m.simulate_with_free_responses(&[&u], &y, &mut free).unwrap();
+                    assert_eq!(bits(&sim), bits(&m.simulate(&[&u], &y).unwrap()));
+                    let k0 = m.k0();
+                    if k0 != na || na > 4 {
+                        assert!(free.is_empty(), "na {na} nb {nb} nk {nk}");
+                        continue;
+                    }
+                    fused += 1;
+                    let mut plain = vec![0.0; n * k0];
+                    for j in 0..k0 {
+                        plain[j * n + j] = 1.0;
+                        for k in k0..n {
+                            let mut v = 0.0;
+                            for (i, ai) in a.iter().enumerate() {
+                                v -= ai * plain[j * n + k - 1 - i];
+                            }
+                            plain[j * n + k] = v;
+                        }
+                    }
+                    assert_eq!(bits(&free), bits(&plain), "na {na} nb {nb} nk {nk}");
+                    let alone = free_responses(&m, n, k0, Vec::new()).unwrap();
+                    assert_eq!(bits(alone.as_slice()), bits(&plain));
+                }
+            }
+        }
+        // k0 = na unless nk + nb − 1 > na: na = 1 once, na = 2 three times, na = 3 and 4 always.
+        assert_eq!(fused, 1 + 3 + 4 + 4);
+        // A diverging simulation leaves no free responses behind.
+        let m = Model::arx(1.0, vec![-3.0], vec![1e300], 1, None).unwrap();
+        let mut free = Vec::new();
+        assert!(m.simulate_with_free_responses(&[&u], &y, &mut free).is_err());
+        assert!(free.is_empty());
+    }
 }
 
 /// The outputs of a model on a record (`validate --out`): free-run simulation and K-step prediction.
@@ -667,7 +723,7 @@ mod initial_tests {
             let m = Model::arx(1.0, a.clone(), vec![1.0], 1, None).unwrap();
             let k0 = m.k0();
             assert_eq!(k0, a.len());
-            let phi = free_responses(&m, n, k0).unwrap();
+            let phi = free_responses(&m, n, k0, Vec::new()).unwrap();
             let u = vec![0.0; n];
             for j in 0..k0 {
                 let mut y = vec![0.0; n];

@@ -1762,10 +1762,14 @@ fn few_levels(u: &[f64], need: usize) -> Option<Vec<f64>> {
 
 /// The distinct values of `u`, sorted.
 pub(crate) fn levels_of(u: &[f64]) -> Vec<f64> {
-    let mut levels: Vec<f64> = u.iter().copied().filter(|v| v.is_finite()).collect();
     // Runs of one value (a staircase holds each level for many samples) shrink to one entry before the
-    // sort: the same distinct values, far fewer to sort.
-    levels.dedup_by(|a, b| a.total_cmp(b).is_eq());
+    // sort, as they are collected: the same distinct values, far fewer to sort.
+    let mut levels: Vec<f64> = Vec::new();
+    for &v in u {
+        if v.is_finite() && levels.last().is_none_or(|l| !l.total_cmp(&v).is_eq()) {
+            levels.push(v);
+        }
+    }
     // Entries equal under the total order are the same number: an unstable sort gives the same list.
     levels.sort_unstable_by(f64::total_cmp);
     levels.dedup();

@@ -452,6 +452,63 @@ fn a_validation_record_that_is_the_estimation_data_is_warned() {
     write_csv(dir.path(), "other.csv", &u2, &y2);
     let other = ["--data", "d.csv", "other.csv", "--merge", "--ts", "0.01"];
     assert!(!twice(&identify_warnings(dir.path(), &other)));
+    // Two experiments side by side in one file (as the cascaded tanks' uEst, yEst, uVal, yVal): the
+    // same rows of other columns are held out (audit s12 F1); the same columns are not.
+    let mut both = String::from("uEst,yEst,uVal,yVal\n");
+    for k in 0..u.len() {
+        both += &format!("{},{},{},{}\n", u[k], y[k], u2[k], y2[k]);
+    }
+    std::fs::write(dir.path().join("both.csv"), both).unwrap();
+    let side = [
+        "--data",
+        "both.csv",
+        "--u-col",
+        "uEst",
+        "--y-col",
+        "yEst",
+        "--ts",
+        "0.01",
+        "--validation",
+        "both.csv",
+        "--val-y-col",
+        "yVal",
+    ];
+    let w = identify_warnings(dir.path(), &[&side[..], &["--val-u-col", "uVal"]].concat());
+    assert!(!in_sample(&w), "{w:?}");
+    // NARX says it too (audit s12 F2), for the same rows and for a copy.
+    for val in ["d.csv", "copy.csv"] {
+        let narx = [
+            "identify",
+            "--structure",
+            "narx",
+            "--degree",
+            "2",
+            "--na",
+            "2",
+            "--nb",
+            "2",
+            "--nk",
+            "1",
+            "--data",
+            "d.csv",
+            "--ts",
+            "0.01",
+            "--validation",
+            val,
+        ];
+        let doc = common::run_json(dir.path(), &narx);
+        assert!(in_sample(&common::warnings(&doc)), "{val}: {doc}");
+        // Its free run starts from the measured outputs, under both names (audit s12 L).
+        let m = &doc["metrics"]["validation"];
+        assert!(m["fit_sim_percent"].is_number(), "{m}");
+        assert_eq!(m["fit_sim_measured_percent"], m["fit_sim_percent"], "{m}");
+    }
+    let w = identify_warnings(dir.path(), &side[..10]);
+    assert!(
+        w.iter()
+            .any(|w| w.contains("the validation record is the estimation data")),
+        "{w:?}"
+    );
 }
 
 // Audit s11 A4: an output written to standard output (`-`) is the only thing there, so it parses: the
@@ -493,4 +550,26 @@ fn an_output_to_standard_output_is_alone_there() {
         "{err}"
     );
     assert!(o.stdout.is_empty());
+}
+
+// Audits s10-s12: a record read with u and y swapped (the command, held in levels for 17 samples, as
+// the output; the measured position, changing at almost every sample, as the input) gets warnings that
+// never named the columns; now a hint beside them says they may be swapped. The right way round: none.
+#[test]
+fn swapped_columns_are_pointed_out() {
+    let dir = tempfile::tempdir().unwrap();
+    let (u, y) = paper_record(1000, 0);
+    write_csv(dir.path(), "d.csv", &u, &y);
+    let hint = |w: &[String]| {
+        w.iter()
+            .any(|w| w.contains("are --u-col and --y-col swapped?"))
+    };
+    // The paper's method (the default structure), which warns on the swapped record; the hint comes
+    // only beside other warnings (an ARX fits the swapped record's differentiator without one).
+    let d = ["identify", "--data", "d.csv", "--ts", "0.01"];
+    let warnings =
+        |extra: &[&str]| common::warnings(&common::run_json(dir.path(), &[&d[..], extra].concat()));
+    let swapped = warnings(&["--u-col", "y", "--y-col", "u"]);
+    assert!(hint(&swapped), "{swapped:?}");
+    assert!(!hint(&warnings(&[])));
 }

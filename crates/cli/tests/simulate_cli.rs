@@ -311,3 +311,59 @@ fn a_rest_outside_the_models_data_is_pointed_out() {
     let op = r#", "operating_point": {"u": [4.5], "y": 5.0}"#;
     assert!(warned(&model("op.json", "[3.0, 6.0]", op), &[]).is_none());
 }
+
+// Audit s12 F4: the designed inputs are the IPA's. At a slow sampling period the multisine's band (1 Hz
+// up to 0.8 f_Nyquist = 0.1 Hz at Ts = 4 s) holds no harmonic, so it is refused instead of written as a
+// constant; an input outside the model's data (PRBS ±255 counts against data in [0.4, 6.5]) is warned;
+// one inside (a step to 5 against data in [-1, 6]) is not.
+#[test]
+fn an_input_the_model_never_saw_is_pointed_out_and_an_empty_multisine_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = |name: &str, ts: f64, range: &str| {
+        std::fs::write(
+            dir.path().join(name),
+            format!(
+                r#"{{"format": "ipa-sysid-model", "version": 2, "model": {{"kind": "arx", "ts": {ts}, "na": 1,
+                "nb": 1, "nk": 1, "a": [-0.8], "b": [0.5], "operating_point": {{"u": [3.0], "y": 5.0}},
+                "data_range": {{"u": [{range}], "y": [2.0, 9.0]}}}}}}"#
+            ),
+        )
+        .unwrap();
+        format!("model:{name}")
+    };
+    let slow = model("slow.json", 4.0, "[0.4, 6.5]");
+    let o = simulate(
+        dir.path(),
+        &["--plant", &slow, "--input", "multisine", "--samples", "500"],
+        "m.csv",
+    );
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("fewer than 2 harmonics") && err.contains("Ts = 4 s"),
+        "{err}"
+    );
+    assert!(!dir.path().join("m.csv").exists());
+    let o = simulate(
+        dir.path(),
+        &["--plant", &slow, "--input", "prbs", "--samples", "200"],
+        "p.csv",
+    );
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("warning: the input spans [-255, 255]") && err.contains("in [0.4, 6.5]"),
+        "{err}"
+    );
+    let fast = model("in.json", 0.1, "[-1.0, 6.0]");
+    let o = simulate(
+        dir.path(),
+        &["--plant", &fast, "--input", "step:5@3", "--samples", "8"],
+        "s.csv",
+    );
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(
+        o.status.success() && !err.contains("the input spans"),
+        "{err}"
+    );
+}

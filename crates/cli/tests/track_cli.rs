@@ -665,3 +665,37 @@ fn the_summary_on_standard_output_is_one_more_json_line() {
     assert_eq!(last["samples"], 1000);
     assert!(last.get("k").is_none());
 }
+
+// Audit s12 F7: a two-level input (the dryer's 3.41 / 6.41 V) cannot determine a deadzone, which
+// `identify` refuses; `track` reads live data and cannot refuse, so its summary says it, and that the
+// left branch, never reached by a positive input, still holds the start's values. A record of the
+// paper's plant (a staircase of many levels, both signs) gets neither warning.
+#[test]
+fn an_input_that_cannot_determine_the_deadzone_is_said_at_the_end() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut s = String::from("t,u,y\n");
+    let mut y = 0.0;
+    for k in 0..600 {
+        let u = if (k / 25) % 2 == 0 { 3.41 } else { 6.41 };
+        y = 0.9 * y + 0.1 * u;
+        s += &format!("{},{u},{y}\n", k as f64 * 0.08);
+    }
+    let two = dir.path().join("two.csv");
+    std::fs::write(&two, s).unwrap();
+    let w = track_summary(&two, &[])["warnings"].to_string();
+    assert!(
+        w.contains("the input took only 2 distinct level(s) (3.41, 6.41)")
+            && w.contains("needs at least 3"),
+        "{w}"
+    );
+    assert!(
+        w.contains("the input was never negative: the left branch (b_l, m_l) is not estimated"),
+        "{w}"
+    );
+    let data = simulate(dir.path(), 3000, 3);
+    let w = track_summary(&data, &[])["warnings"].to_string();
+    assert!(
+        !w.contains("distinct level") && !w.contains("the input was never"),
+        "{w}"
+    );
+}

@@ -436,3 +436,50 @@ fn a_controller_to_standard_output_is_alone_there() {
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("--json"), "{}", stderr(&o));
 }
+
+// Audit s12: a Hammerstein model with another input block is not called "ARX" when tune refuses it.
+#[test]
+fn a_model_without_a_deadzone_is_refused_naming_its_input_block() {
+    let dir = tempfile::tempdir().unwrap();
+    let rec = dir.path().join("r.csv");
+    let model = dir.path().join("p.json");
+    let o = ipa_sysid(&[
+        "simulate",
+        "--plant",
+        "paper",
+        "--samples",
+        "1500",
+        "--out",
+        rec.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let o = ipa_sysid(&[
+        "identify",
+        "--data",
+        rec.to_str().unwrap(),
+        "--nonlinearity",
+        "polynomial",
+        "--degree",
+        "3",
+        "--method",
+        "ls",
+        "--save-model",
+        model.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = dir.path().join("c.json");
+    let o = ipa_sysid(&[
+        "tune",
+        "--model",
+        model.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(
+        e.contains("this model's input block is a polynomial") && !e.contains("is ARX"),
+        "{e}"
+    );
+    assert!(!out.exists());
+}

@@ -114,8 +114,8 @@ impl TuneReport {
 pub enum DeadzoneProblem {
     /// A model with several inputs (the controller drives one command).
     SeveralInputs(usize),
-    /// An ARX model (no deadzone).
-    NoDeadzone,
+    /// A model whose input block is not a deadzone (ARX, or another input nonlinearity), in words.
+    NoDeadzone(&'static str),
 }
 
 impl std::fmt::Display for DeadzoneProblem {
@@ -126,9 +126,10 @@ impl std::fmt::Display for DeadzoneProblem {
                 "a single-input Hammerstein model file (this model has {n} inputs; the controller \
                  drives one command)"
             ),
-            DeadzoneProblem::NoDeadzone => {
-                f.write_str("a Hammerstein model file (this model is ARX and has no deadzone)")
-            }
+            DeadzoneProblem::NoDeadzone(block) => write!(
+                f,
+                "a model with a deadzone input block (this model's input block is {block})"
+            ),
         }
     }
 }
@@ -143,7 +144,16 @@ pub fn command_deadzone(m: &Model) -> Result<Deadzone, DeadzoneProblem> {
         .operating_point()
         .and_then(|o| o.u.first().copied())
         .unwrap_or(0.0);
-    let d = m.deadzone().ok_or(DeadzoneProblem::NoDeadzone)?;
+    let d = m.deadzone().ok_or_else(|| {
+        use sysid_core::StaticNonlinearity as S;
+        DeadzoneProblem::NoDeadzone(match m.inputs().first().map(|c| c.nonlinearity()) {
+            Some(S::Saturation(_)) => "a saturation",
+            Some(S::DeadzoneSaturation(_)) => "a deadzone whose branches saturate",
+            Some(S::PiecewiseLinear(_)) => "piecewise-linear",
+            Some(S::Polynomial(_)) => "a polynomial",
+            _ => "linear: an ARX model",
+        })
+    })?;
     Ok(Deadzone {
         b_l: d.b_l + u0,
         b_r: d.b_r + u0,

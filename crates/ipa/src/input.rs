@@ -157,7 +157,7 @@ pub fn generate(
             .map(|b| if b { amplitude } else { -amplitude })
             .collect(),
         InputSpec::Aprbs => aprbs(samples, ts_s, amplitude, seed, &mut rng),
-        InputSpec::Multisine => multisine(samples, ts_s, amplitude, &mut rng),
+        InputSpec::Multisine => multisine(samples, ts_s, amplitude, &mut rng)?,
         InputSpec::Step { level, onset } => {
             if *onset >= samples && *level != 0.0 {
                 // The record would hold no step at all (audit s11).
@@ -461,12 +461,26 @@ fn aprbs(samples: usize, ts_s: f64, amplitude: f64, seed: u64, rng: &mut ChaCha8
     out
 }
 
-fn multisine(samples: usize, ts_s: f64, amplitude: f64, rng: &mut ChaCha8Rng) -> Vec<f64> {
+fn multisine(
+    samples: usize,
+    ts_s: f64,
+    amplitude: f64,
+    rng: &mut ChaCha8Rng,
+) -> Result<Vec<f64>, IpaError> {
     let duration = samples as f64 * ts_s;
     let f_nyq = 0.5 / ts_s;
+    let f_max = 10.0_f64.min(0.8 * f_nyq);
     let j_min = (1.0 * duration).ceil().max(1.0) as usize;
-    let j_max = ((10.0_f64.min(0.8 * f_nyq)) * duration).floor() as usize;
-    let harmonics: Vec<(f64, f64)> = (j_min..=j_max.max(j_min))
+    let j_max = (f_max * duration).floor() as usize;
+    // The band is the IPA's (1 Hz up to 10 Hz or 0.8 f_Nyquist): at a slow sampling period (a model of
+    // a process sampled every second, audit s12 F4) it holds one harmonic at the sampling rate or none,
+    // and the "multisine" would be a constant.
+    if j_max < j_min + 1 {
+        return Err(IpaError::Config(format!(
+            "--input multisine excites 1 Hz .. {f_max} Hz (the IPA's band, at most 0.8 times the Nyquist frequency {f_nyq} Hz at Ts = {ts_s} s), which holds fewer than 2 harmonics of the record's 1 / ({samples} x {ts_s} s): the input would be a constant; use --input prbs, aprbs, staircase or file:CSV"
+        )));
+    }
+    let harmonics: Vec<(f64, f64)> = (j_min..=j_max)
         .map(|j| {
             (
                 j as f64 / duration,
@@ -485,9 +499,9 @@ fn multisine(samples: usize, ts_s: f64, amplitude: f64, rng: &mut ChaCha8Rng) ->
         .collect();
     let peak = s.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
     if peak == 0.0 {
-        return vec![0.0; samples];
+        return Ok(vec![0.0; samples]);
     }
-    s.iter().map(|v| (amplitude * v / peak).round()).collect()
+    Ok(s.iter().map(|v| (amplitude * v / peak).round()).collect())
 }
 
 #[cfg(test)]

@@ -145,6 +145,39 @@ fn the_truth_is_a_fixed_point() {
     }
 }
 
+// Started from the true plant, the segmented simulation reproduces the plant's own record up to the
+// encoder's rounding: V at the truth is the quantisation floor, ½ Σ (q / s_y)² / 12 over the n position
+// samples = n / 24 for q = s_y = 0.01 mm (the recorded pressures are rounded to 0.1 Pa against s_p =
+// 5 kPa: nothing). A segment started where the piston had already broken loose (the encoder not yet a
+// count further) made it 123 times that for seed 0 (`ipa-sysid simulate --input calibration --samples 3000`,
+// audit s11 C3).
+#[test]
+fn at_the_truth_the_segments_reproduce_the_record_to_the_quantisation_floor() {
+    let plants = (0..4)
+        .map(|s| (PlantConfig::default(), s))
+        .chain((1..3).map(|s| (perturbed_plant(s, 0.3), s)));
+    for (truth, seed) in plants {
+        let n = 3000;
+        let est = record(&truth, InputSpec::Calibration, n, seed).unwrap();
+        let cal = Calibration {
+            start: truth,
+            free: vec![Parameter::ExternalForce],
+            max_iterations: 2,
+            physical_start: false,
+            ..Calibration::default()
+        }
+        .fit(&est, None)
+        .unwrap();
+        let floor = n as f64 / 24.0;
+        assert!(cal.segments > 10, "seed {seed}: {} segments", cal.segments);
+        assert!(
+            cal.cost_start < 2.0 * floor,
+            "seed {seed}: V at the truth {} against the floor {floor}",
+            cal.cost_start
+        );
+    }
+}
+
 // Without pressure columns and without rest at u = 0 (a PRBS is never 0) the record cannot be
 // segmented: one free run, and a warning says so.
 #[test]

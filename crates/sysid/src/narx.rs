@@ -1009,6 +1009,10 @@ pub struct NarxMetrics {
     pub rmse_sim_measured: Option<f64>,
     /// MATLAB `compare` fit % of the simulation.
     pub fit_sim_percent: Option<f64>,
+    /// The same number again (measured initial outputs), under the name the linear and block-oriented
+    /// models give their measured-start fit: a script comparing classes on it compares one start
+    /// (audit s12).
+    pub fit_sim_measured_percent: Option<f64>,
     /// One-step-ahead prediction RMSE.
     pub rmse_pred: f64,
     /// Fit % of the one-step prediction.
@@ -1037,6 +1041,7 @@ pub fn narx_metrics(model: &NarxModel, data: &Dataset) -> Result<NarxMetrics, Sy
         rmse_sim,
         rmse_sim_measured: rmse_sim,
         fit_sim_percent: fit_sim,
+        fit_sim_measured_percent: fit_sim,
         rmse_pred: sysid_core::metrics::rmse(&y[k0..], &pred[k0..]),
         fit_pred_percent: sysid_core::metrics::fit_percent(&y[k0..], &pred[k0..]),
         blew_up_at: sim.blew_up_at,

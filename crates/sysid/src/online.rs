@@ -319,7 +319,15 @@ pub struct Tracker {
     detector: Option<Detector>,
     changes: Vec<usize>,
     guard_hits: usize,
+    /// The first distinct input levels seen (at most [`LEVELS_KEPT`]), and whether u was ever < 0 or > 0:
+    /// what the input excited, for [`Tracker::input_warnings`].
+    levels: Vec<f64>,
+    negative: bool,
+    positive: bool,
 }
+
+/// Distinct input levels a tracker keeps: one more than a two-branch deadzone needs (4).
+const LEVELS_KEPT: usize = 5;
 
 impl Tracker {
     /// A tracker; errors name the setting out of range.
@@ -385,6 +393,9 @@ impl Tracker {
             detector,
             changes: Vec::new(),
             guard_hits: 0,
+            levels: Vec::new(),
+            negative: false,
+            positive: false,
             settings,
         })
     }
@@ -438,6 +449,11 @@ impl Tracker {
         self.u.push(u);
         self.y.push(y);
         self.k += 1;
+        if self.levels.len() < LEVELS_KEPT && !self.levels.contains(&u) {
+            self.levels.push(u);
+        }
+        self.negative |= u < 0.0;
+        self.positive |= u > 0.0;
         if k < self.k0 {
             return Ok(Step {
                 k,
@@ -616,6 +632,46 @@ impl Tracker {
                 self.k - c - 1
             ),
         })
+    }
+
+    /// What the input left undetermined in a deadzone estimate (audit s12 F7: `identify` refuses such a
+    /// record, a live tracker cannot, so it says so at the end): fewer distinct levels than the deadzone
+    /// has free parameters on its excited branches (4 with both, as `identify`'s check), or a branch the
+    /// input never reached, whose breakpoint and slope are still the start's. Empty for an ARX tracker.
+    pub fn input_warnings(&self) -> Vec<String> {
+        if self.structure.kind != ModelKind::Hammerstein || self.k == 0 {
+            return Vec::new();
+        }
+        let mut w = Vec::new();
+        let need = if self.negative && self.positive { 4 } else { 3 };
+        if self.levels.len() < need {
+            let list: Vec<String> = self.levels.iter().map(f64::to_string).collect();
+            w.push(format!(
+                "the input took only {} distinct level(s) ({}): a deadzone needs at least {need} to be                  determined (identify refuses such a record), so the deadzone estimate is not determined by                  the data",
+                self.levels.len(),
+                list.join(", ")
+            ));
+        }
+        let start = self.settings.start;
+        for (excited, side, b0) in [
+            (
+                self.negative,
+                "negative: the left branch (b_l, m_l)",
+                start.b_l0,
+            ),
+            (
+                self.positive,
+                "positive: the right branch (b_r, m_r)",
+                start.b_r0,
+            ),
+        ] {
+            if !excited {
+                w.push(format!(
+                    "the input was never {side} is not estimated from the data; it holds the start's                      values (breakpoint {b0}; --b-l0/--b-r0 in the input's units)"
+                ));
+            }
+        }
+        w
     }
 
     /// A warning (audit s11 A2) when a change was detected and the estimator was not restarted

@@ -121,7 +121,17 @@ impl std::str::FromStr for Class {
                 });
         }
         if let Some(out) = t.strip_prefix("wiener:") {
-            return parse_sized_kind(out).map(Class::Wiener);
+            // The kind and its size checked here, as `--output-nonlinearity` is (audit s12: a degree
+            // of 99 failed every candidate and the search ended "no structure qualifies").
+            let kind = parse_sized_kind(out)?;
+            crate::wiener::check_output_kind(kind).map_err(|e| format!("'{t}': {e}"))?;
+            if kind == (NonlinearityKind::PiecewiseLinear { breakpoints: 0 }) {
+                return Err(format!(
+                    "'{t}': an output map's number of breakpoints, 1 to {} (auto is for input blocks)",
+                    sysid_core::nonlinearity::MAX_BREAKPOINTS
+                ));
+            }
+            return Ok(Class::Wiener(kind));
         }
         let kind = t.strip_prefix("hammerstein:").unwrap_or(t);
         kind.parse::<NonlinearityKind>().map(Class::Input).map_err(|e| {
@@ -337,6 +347,31 @@ pub fn structure_search(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    // Audit s12: a Wiener class whose output map `--output-nonlinearity` would refuse is refused when
+    // parsed (a degree of 99 failed every candidate and the search ended without a word of why).
+    #[test]
+    fn a_wiener_class_is_checked_as_its_output_map() {
+        for bad in [
+            "wiener:polynomial:99",
+            "wiener:polynomial:0",
+            "wiener:piecewise-linear:0",
+            "wiener:piecewise-linear:9",
+            "wiener:deadzone",
+        ] {
+            assert!(bad.parse::<Class>().is_err(), "{bad}");
+        }
+        assert_eq!(
+            "wiener:polynomial:2".parse::<Class>(),
+            Ok(Class::Wiener(NonlinearityKind::Polynomial { degree: 2 }))
+        );
+        assert_eq!(
+            "wiener:piecewise-linear:3".parse::<Class>(),
+            Ok(Class::Wiener(NonlinearityKind::PiecewiseLinear {
+                breakpoints: 3
+            }))
+        );
+    }
 
     fn candidate(class: &str, rmse: f64, fit: f64, disqualified: Option<&str>) -> ClassCandidate {
         ClassCandidate {

@@ -460,6 +460,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .warnings
         .extend(in_sample_warnings(&args, &files, &records, val.as_ref()));
     report.warnings.extend(repeated_record_warnings(&records));
+    if !report.warnings.is_empty() {
+        report.warnings.extend(
+            records
+                .first()
+                .and_then(super::common::swapped_columns_hint),
+        );
+    }
     let names: Vec<&str> = records.iter().map(|r| r.name()).collect();
     let n: usize = records.iter().map(Dataset::len).sum();
     let est_name = if records.len() > 1 {
@@ -508,7 +515,7 @@ fn repeated_record_warnings(records: &[Dataset]) -> Vec<String> {
 /// Warnings (audit s11 V1) when the validation record holds rows of an estimation file (the same file,
 /// overlapping `--rows` and `--val-rows`) or the very samples of an estimation record: its fit is then
 /// in-sample. `records` and `val` are the records read (none for the streamed path).
-fn in_sample_warnings(
+pub(super) fn in_sample_warnings(
     args: &Args,
     files: &[PathBuf],
     records: &[Dataset],
@@ -527,6 +534,7 @@ fn in_sample_warnings(
     let test = FileRows {
         file: path,
         rows: vopts.rows,
+        columns: (&vopts.u_col, &vopts.y_col),
     };
     let mut w: Vec<String> = files
         .iter()
@@ -534,6 +542,7 @@ fn in_sample_warnings(
             let est = FileRows {
                 file: f,
                 rows: args.columns.rows,
+                columns: (&opts.u_col, &opts.y_col),
             };
             shared_rows_warning("validation", test, "estimation", est)
         })

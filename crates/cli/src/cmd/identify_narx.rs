@@ -92,6 +92,14 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     report
         .warnings
         .extend(records.notes.iter().map(|n| format!("data: {n}")));
+    // A validation record that is the estimation data (the same rows, or a copy) is in-sample: said as
+    // for every other structure (audit s12 F2).
+    report.warnings.extend(super::identify::in_sample_warnings(
+        args,
+        &args.data,
+        std::slice::from_ref(&records.est),
+        records.val.as_ref(),
+    ));
     print_report(
         &render(&report, &settings),
         &[args.json.as_deref(), args.save_model.as_deref()],

@@ -480,10 +480,12 @@ fn in_sample_warnings(
     let test_rows = FileRows {
         file: path,
         rows: vopts.rows,
+        columns: (&vopts.u_col, &vopts.y_col),
     };
     let estimation = FileRows {
         file: &args.data,
         rows: args.columns.rows,
+        columns: (&opts.u_col, &opts.y_col),
     };
     let mut w: Vec<String> = shared_rows_warning("test", test_rows, "estimation", estimation)
         .into_iter()
@@ -495,6 +497,7 @@ fn in_sample_warnings(
         let selection = FileRows {
             file: &args.data,
             rows: Some(rows),
+            columns: estimation.columns,
         };
         w.extend(shared_rows_warning(
             "test",

@@ -244,7 +244,31 @@ fn run_plant(
     if let Some(w) = model.and_then(|m| rest_outside_data(m, y0, args.y0.is_none())) {
         eprintln!("warning: {w}");
     }
+    if let Some(w) = model.and_then(|m| input_outside_data(m, &rec.u)) {
+        eprintln!("warning: {w}");
+    }
     Ok(())
+}
+
+/// A warning when the designed input `u` of a model plant leaves the range of the model's estimation
+/// data by more than a tenth of that range (audit s12 F4): the designs are the IPA's (whole PWM counts
+/// within ±--amplitude around 0), and outside its data a model extrapolates (a NARX or polynomial block
+/// most of all). `None` for a model without a recorded data range or a single-input range it covers.
+fn input_outside_data(model: &sysid::Model, u: &[f64]) -> Option<String> {
+    let [lo, hi] = *model.data_range()?.u.first()?;
+    let (u_min, u_max) = u
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(*v), b.max(*v))
+        });
+    let margin = 0.1 * (hi - lo).abs();
+    if !(u_min.is_finite() && u_max.is_finite()) || (u_min >= lo - margin && u_max <= hi + margin) {
+        return None;
+    }
+    let name = model.inputs().first().map_or("u", |c| c.name());
+    Some(format!(
+        "the input spans [{u_min}, {u_max}] but the model's estimation data had {name} in [{lo}, {hi}]: outside it the model extrapolates; the designed inputs are the IPA's (whole counts within ±--amplitude around 0): give the model an input in its own units with --input file:CSV"
+    ))
 }
 
 /// Refuses a record whose last sample time (N - 1) Ts is not a finite number of seconds (a model with

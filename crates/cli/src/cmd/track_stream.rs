@@ -363,6 +363,7 @@ fn summary(
     warnings.retain(|w| !w.starts_with("the change detector"));
     warnings.extend(tracker.detector_unarmed_warning());
     warnings.extend(tracker.blended_model_warning());
+    warnings.extend(tracker.input_warnings());
     Ok(TrackSummary {
         samples: tracker.samples(),
         t_end,

@@ -173,17 +173,18 @@ fn run_narx(
             .map(|w| w.to_string()),
     );
     let fmt = |v: Option<f64>| v.map_or("n/a (the simulation blew up)".into(), report::format::num);
+    let pct = |v: Option<f64>| v.map_or("n/a".into(), |v| format!("{} %", report::format::num(v)));
     let mut text = format!(
-        "{} (polynomial NARX, {} terms) on {} ({} samples): simulation RMSE {}, fit {} % (initial \
-         outputs measured); one-step RMSE {}, fit {} %\n",
+        "{} (polynomial NARX, {} terms) on {} ({} samples): simulation RMSE {}, fit {} (initial \
+         outputs measured); one-step RMSE {}, fit {}\n",
         args.model.display(),
         model.terms().len(),
         data.name(),
         data.len(),
         fmt(metrics.rmse_sim),
-        fmt(metrics.fit_sim_percent),
+        pct(metrics.fit_sim_percent),
         report::format::num(metrics.rmse_pred),
-        fmt(metrics.fit_pred_percent),
+        pct(metrics.fit_pred_percent),
     );
     for w in &warnings {
         text.push_str(&format!("warning: {w}\n"));

@@ -233,7 +233,10 @@ fn the_linear_start_still_judges_the_estimates_it_can_beat() {
     let fb_fit = fb["metrics"]["estimation"]["fit_sim_percent"]
         .as_f64()
         .unwrap();
-    assert!((fb_fit - linear).abs() < 1e-6, "{fb_fit} % against {linear} %");
+    assert!(
+        (fb_fit - linear).abs() < 1e-6,
+        "{fb_fit} % against {linear} %"
+    );
 }
 
 // Issue 22 item 1: the hair dryer's OE (5, 6, 3) refinement bought a 91 % headline with a slow pole

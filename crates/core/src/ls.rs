@@ -915,7 +915,9 @@ mod tests {
             for n in [p, p + 1, 300, 700] {
                 let phi = DMatrix::from_fn(n, p, |_, _| rng.gen_range(-1.0..1.0));
                 let y = DVector::from_fn(n, |_, _| rng.gen_range(-1.0..1.0));
-                let (r_y, scale_y, _) = LsWorkspace::new().factor(&phi, Some(&y), &[], true).unwrap();
+                let (r_y, scale_y, _) = LsWorkspace::new()
+                    .factor(&phi, Some(&y), &[], true)
+                    .unwrap();
                 let (r, scale, _) = LsWorkspace::new().factor(&phi, None, &[], true).unwrap();
                 let cols = p + 1;
                 for k in 0..p {

@@ -606,7 +606,9 @@ mod tests {
                     let m = Model::arx(1.0, a.clone(), [1.0, 0.5][..nb].to_vec(), nk, Some(0.3))
                         .unwrap();
                     let mut free = vec![7.0];
-                    let sim = m.simulate_with_free_responses(&[&u], &y, &mut free).unwrap();
+                    let sim = m
+                        .simulate_with_free_responses(&[&u], &y, &mut free)
+                        .unwrap();
                     assert_eq!(bits(&sim), bits(&m.simulate(&[&u], &y).unwrap()));
                     let k0 = m.k0();
                     if k0 != na || na > 4 {
@@ -636,7 +638,9 @@ mod tests {
         // A diverging simulation leaves no free responses behind.
         let m = Model::arx(1.0, vec![-3.0], vec![1e300], 1, None).unwrap();
         let mut free = Vec::new();
-        assert!(m.simulate_with_free_responses(&[&u], &y, &mut free).is_err());
+        assert!(m
+            .simulate_with_free_responses(&[&u], &y, &mut free)
+            .is_err());
         assert!(free.is_empty());
     }
 }

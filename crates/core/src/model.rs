@@ -1637,11 +1637,26 @@ mod tests {
     // empty and from a non-empty start.
     #[test]
     fn the_range_in_four_lanes_is_the_sample_by_sample_fold() {
-        let values = [0.0, -0.0, 1.5, -2.0, f64::NAN, 3.0, -0.0, 0.0, f64::INFINITY, -1e-300];
+        let values = [
+            0.0,
+            -0.0,
+            1.5,
+            -2.0,
+            f64::NAN,
+            3.0,
+            -0.0,
+            0.0,
+            f64::INFINITY,
+            -1e-300,
+        ];
         let mut cases: Vec<Vec<f64>> = Vec::new();
         for len in 0..=12 {
             for shift in 0..values.len() {
-                cases.push((0..len).map(|i| values[(i * 3 + shift) % values.len()]).collect());
+                cases.push(
+                    (0..len)
+                        .map(|i| values[(i * 3 + shift) % values.len()])
+                        .collect(),
+                );
             }
         }
         cases.push(vec![-0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -0.0, 0.0, 0.0]);

@@ -1516,10 +1516,26 @@ impl SignedExtremes {
     #[inline]
     fn take(&mut self, v: f64) {
         let (pos, neg) = (v > 0.0, v < 0.0);
-        self.min_pos = if pos && v < self.min_pos { v } else { self.min_pos };
-        self.max_pos = if pos && v > self.max_pos { v } else { self.max_pos };
-        self.max_neg = if neg && v > self.max_neg { v } else { self.max_neg };
-        self.min_neg = if neg && v < self.min_neg { v } else { self.min_neg };
+        self.min_pos = if pos && v < self.min_pos {
+            v
+        } else {
+            self.min_pos
+        };
+        self.max_pos = if pos && v > self.max_pos {
+            v
+        } else {
+            self.max_pos
+        };
+        self.max_neg = if neg && v > self.max_neg {
+            v
+        } else {
+            self.max_neg
+        };
+        self.min_neg = if neg && v < self.min_neg {
+            v
+        } else {
+            self.min_neg
+        };
         self.zero |= !pos && !neg;
     }
 
@@ -1537,10 +1553,26 @@ impl SignedExtremes {
         }
         let mut all = Self::NONE;
         for lane in &lanes {
-            all.min_pos = if lane.min_pos < all.min_pos { lane.min_pos } else { all.min_pos };
-            all.max_pos = if lane.max_pos > all.max_pos { lane.max_pos } else { all.max_pos };
-            all.max_neg = if lane.max_neg > all.max_neg { lane.max_neg } else { all.max_neg };
-            all.min_neg = if lane.min_neg < all.min_neg { lane.min_neg } else { all.min_neg };
+            all.min_pos = if lane.min_pos < all.min_pos {
+                lane.min_pos
+            } else {
+                all.min_pos
+            };
+            all.max_pos = if lane.max_pos > all.max_pos {
+                lane.max_pos
+            } else {
+                all.max_pos
+            };
+            all.max_neg = if lane.max_neg > all.max_neg {
+                lane.max_neg
+            } else {
+                all.max_neg
+            };
+            all.min_neg = if lane.min_neg < all.min_neg {
+                lane.min_neg
+            } else {
+                all.min_neg
+            };
             all.zero |= lane.zero;
         }
         for &v in chunks.remainder() {
@@ -1900,11 +1932,26 @@ mod tests {
     // branches) to the bit, for lengths around the lane count, zeros of both signs, NaN and ±∞.
     #[test]
     fn signed_extremes_in_four_lanes_are_the_sample_by_sample_ones() {
-        let values = [0.0, -0.0, 1.5, -2.0, f64::NAN, 3.0, -1e-300, f64::INFINITY, 7.0, -7.0];
+        let values = [
+            0.0,
+            -0.0,
+            1.5,
+            -2.0,
+            f64::NAN,
+            3.0,
+            -1e-300,
+            f64::INFINITY,
+            7.0,
+            -7.0,
+        ];
         let mut cases: Vec<Vec<f64>> = Vec::new();
         for len in 0..=13 {
             for shift in 0..values.len() {
-                cases.push((0..len).map(|i| values[(i * 7 + shift) % values.len()]).collect());
+                cases.push(
+                    (0..len)
+                        .map(|i| values[(i * 7 + shift) % values.len()])
+                        .collect(),
+                );
             }
         }
         cases.push((0..1000).map(|k| (k as f64 * 0.37).sin() * 1e3).collect());

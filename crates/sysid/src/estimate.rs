@@ -631,8 +631,8 @@ fn hammerstein_guard(
 /// Comparisons are written so that a NaN fit counts as "can matter" (the start is then computed).
 fn start_can_matter(nonlinear: bool, est: Option<&Metrics>, stable: bool) -> bool {
     let safe = |fit: Option<f64>, margin: f64| fit.is_some_and(|f| f >= 100.0 - margin);
-    let guard = nonlinear
-        && !(stable && safe(est.and_then(|m| m.fit_sim_percent), FALLBACK_FIT_MARGIN));
+    let guard =
+        nonlinear && !(stable && safe(est.and_then(|m| m.fit_sim_percent), FALLBACK_FIT_MARGIN));
     let guarded = est.and_then(crate::trust::guarded_fit);
     let baseline = guarded.is_some() && !safe(guarded, crate::trust::BASELINE_MARGIN);
     guard || baseline
@@ -803,7 +803,11 @@ mod tests {
         // Linear models: stability and a missing fit do not involve the start (no guard), and without a
         // guarded fit there is no baseline check.
         assert!(!start_can_matter(false, Some(&m(85.0, 85.0)), false));
-        assert!(!start_can_matter(false, Some(&metrics(Some(10.0), None)), true));
+        assert!(!start_can_matter(
+            false,
+            Some(&metrics(Some(10.0), None)),
+            true
+        ));
         assert!(!start_can_matter(false, None, false));
     }
 

@@ -469,7 +469,7 @@ impl Block for DeadzoneBlock {
     }
     /// The same values as the default (those of [`Block::fill_key_terms`] above, row by row), written
     /// straight into the four columns with the deadzone read once: a loop without calls or a row
-    /// buffer, which the compiler vectorises (Φ is built for the rank test and every closed-form pass).
+    /// buffer (Φ is built for the rank test and every closed-form pass).
     fn fill_key_columns(
         &self,
         f: &StaticNonlinearity,

@@ -1924,10 +1924,6 @@ mod tests {
         D { u }
     }
 
-    // A staircase of levels −60, −56, −48, −33, 20, 40, 60: a deadzone with b_l = −48 (on a level, two
-    // levels below it) and b_r = 25 (between levels) warns about b_l only; b_r keeps its standard
-    // deviation.
-    #[test]
     // The four-lane extremes are the sample-by-sample ones (written out here with f64::min/max and
     // branches) to the bit, for lengths around the lane count, zeros of both signs, NaN and ±∞.
     #[test]
@@ -1985,6 +1981,9 @@ mod tests {
         }
     }
 
+    // A staircase of levels −60, −56, −48, −33, 20, 40, 60: a deadzone with b_l = −48 (on a level, two
+    // levels below it) and b_r = 25 (between levels) warns about b_l only; b_r keeps its standard
+    // deviation.
     #[test]
     fn few_levels_counts_distinct_finite_values() {
         assert_eq!(

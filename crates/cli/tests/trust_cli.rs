@@ -1651,3 +1651,86 @@ fn tune_says_when_a_deadzone_breakpoint_is_beyond_the_command_limit() {
     );
     assert!(!said.contains("deadzone b_l = "), "{said}");
 }
+
+// Audit s12: one parameter the output-error simulation does not depend on withheld EVERY standard
+// deviation (133 of 196 Hammerstein–Wiener fits). Gas furnace, piecewise-linear input (2 breakpoints)
+// + polynomial output by output error: a breakpoint beyond the estimation rows' input range (computed
+// here from the CSV) has a zero Jacobian column, and so has the slope beyond it. Those two are named
+// in the warning and have no standard deviation; the others still have theirs.
+#[test]
+fn a_parameter_the_data_do_not_reach_withholds_only_its_own_standard_deviation() {
+    let Some(dir) = data_dir() else { return };
+    let doc = run_json(
+        &dir,
+        &[
+            "identify",
+            "--data",
+            "gas_furnace_box_jenkins/gas_furnace.csv",
+            "--u-col",
+            "InputGasRate",
+            "--y-col",
+            "CO2",
+            "--ts",
+            "9",
+            "--rows",
+            "0..148",
+            "--na",
+            "3",
+            "--nb",
+            "1",
+            "--nk",
+            "0",
+            "--nonlinearity",
+            "piecewise-linear",
+            "--breakpoints",
+            "2",
+            "--method",
+            "oe",
+            "--output-nonlinearity",
+            "polynomial",
+            "--degree",
+            "3",
+        ],
+    );
+    let text =
+        std::fs::read_to_string(dir.join("gas_furnace_box_jenkins/gas_furnace.csv")).unwrap();
+    let u: Vec<f64> = text
+        .lines()
+        .skip(1)
+        .take(148)
+        .map(|l| l.split(',').next().unwrap().trim().parse().unwrap())
+        .collect();
+    let (lo, hi) = u
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(*v), b.max(*v))
+        });
+    let params = doc["parameters"].as_array().unwrap();
+    let value = |n: &str| params.iter().find(|p| p["name"] == n).unwrap();
+    let outside: Vec<&str> = ["p1", "p2"]
+        .into_iter()
+        .filter(|n| {
+            let p = value(n)["value"].as_f64().unwrap();
+            p < lo || p > hi
+        })
+        .collect();
+    assert!(
+        !outside.is_empty(),
+        "the case needs a breakpoint outside [{lo}, {hi}]"
+    );
+    let w = warnings(&doc);
+    let said = w
+        .iter()
+        .find(|w| w.contains("the output-error simulation does not depend on"))
+        .unwrap_or_else(|| panic!("{w:?}"));
+    for n in &outside {
+        assert!(said.contains(n), "{n}: {said}");
+        assert!(value(n)["std"].is_null());
+    }
+    let with_std = params.iter().filter(|p| p["std"].is_number()).count();
+    assert!(
+        with_std >= params.len() / 2,
+        "{with_std} of {}: {w:?}",
+        params.len()
+    );
+}

@@ -6,11 +6,66 @@
 //! `cargo run --release -p control --example physics_variants -- CONTROLLER.json [REST_BAND_MM]`
 //! REST_BAND_MM replaces the nudge's rest band e_r; the environment variables GAMMA, BAND, RHO, BETA
 //! replace γ, e_n, ρ, β; SHOW=1 lists the runs whose |e_ss| > 0.02 mm; TRACE=V,Y0,R prints the run of
-//! variant V from Y0 to R (samples within 3 mm of R).
+//! variant V from Y0 to R (samples within 3 mm of R). APPROACH=τ_b,e_sw[,Q[,R]] wraps the controller
+//! in a prototype approach mode (issue 25, session 12; not in the controller): full command towards r
+//! from the step's start until |e| ≤ e_sw + τ_b |dy/dt| (moving towards r; Q = 1: τ_b (dy/dt)², τ_b
+//! in s²/mm), then the controller for the rest of the run (it runs through the approach, its command
+//! unused; R = 1: it restarts at the switch instead). TWIN=TWIN.toml runs on the twin and its tuning draws (seeds 1001..,
+//! `tune --plant-config`'s plants: for choosing a setting without the true plants) instead.
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
 use control::tune::{self, Spec};
 use control::ControllerFile;
 use sysid_core::Plant;
+
+/// The prototype approach mode (see the module documentation) around `inner`.
+struct Approach {
+    inner: control::PositionController,
+    tau_s: f64,
+    switch_mm: f64,
+    u_max: f64,
+    y_prev: Option<f64>,
+    on: bool,
+    /// The braking distance is τ_b v² (τ_b in s²/mm) instead of τ_b |v|.
+    quadratic: bool,
+    /// The controller restarts at the switch (else it runs through the approach, its command unused).
+    reset_at_switch: bool,
+}
+
+impl control::Controller for Approach {
+    fn ts_s(&self) -> f64 {
+        self.inner.ts_s()
+    }
+    fn reset(&mut self) {
+        self.inner.reset();
+        self.y_prev = None;
+        self.on = true;
+    }
+    fn step(&mut self, r_mm: f64, y_mm: f64) -> f64 {
+        let e = r_mm - y_mm;
+        let v = self.y_prev.map_or(0.0, |p| (y_mm - p) / self.ts_s());
+        self.y_prev = Some(y_mm);
+        if self.on {
+            let towards = (e.signum() * v).max(0.0);
+            let braking = if self.quadratic {
+                self.tau_s * towards * towards
+            } else {
+                self.tau_s * towards
+            };
+            if e.abs() > self.switch_mm + braking {
+                if !self.reset_at_switch {
+                    self.inner.step(r_mm, y_mm);
+                }
+                return e.signum() * self.u_max;
+            }
+            self.on = false;
+            if self.reset_at_switch {
+                self.inner.reset();
+            }
+        }
+        self.inner.step(r_mm, y_mm)
+    }
+}
+
 fn main() {
     let a: Vec<String> = std::env::args().collect();
     let mut s = ControllerFile::parse(&std::fs::read_to_string(&a[1]).unwrap(), "c").unwrap();
@@ -65,16 +120,47 @@ fn main() {
         }
         return;
     }
+    let twin = std::env::var("TWIN")
+        .ok()
+        .map(|p| ipa::PlantConfig::from_toml_file(std::path::Path::new(&p)).unwrap());
     let make = |i: usize| -> Result<Box<dyn Plant + Send>, control::ControlError> {
-        let base = ipa::PlantConfig::default();
+        let (base, offset) = match &twin {
+            Some(t) => (t.clone(), control::tuning::TUNING_SEED_OFFSET),
+            None => (ipa::PlantConfig::default(), 0),
+        };
         let cfg = if i == 0 {
             base
         } else {
-            ipa::calibrate::study::perturbed_from(&base, i as u64, 0.3)
+            ipa::calibrate::study::perturbed_from(&base, offset + i as u64, 0.3)
         };
         Ok(Box::new(ipa::Ipa::with_ts(cfg, 0.01).unwrap()))
     };
-    let ev = tune::evaluate(21, &make, &move || Ok(Box::new(s.build()?)), &spec).unwrap();
+    let approach: Option<Vec<f64>> = std::env::var("APPROACH")
+        .ok()
+        .map(|a| a.split(',').map(|x| x.parse().unwrap()).collect());
+    let plants = std::env::var("PLANTS").map_or(21, |n| n.parse().unwrap());
+    let ev = tune::evaluate(
+        plants,
+        &make,
+        &move || -> Result<Box<dyn control::Controller + Send>, control::ControlError> {
+            let inner = s.build()?;
+            Ok(match &approach {
+                Some(a) => Box::new(Approach {
+                    u_max: spec.u_max,
+                    inner,
+                    tau_s: a[0],
+                    switch_mm: a[1],
+                    y_prev: None,
+                    on: true,
+                    quadratic: a.get(2) == Some(&1.0),
+                    reset_at_switch: a.get(3) == Some(&1.0),
+                }),
+                None => Box::new(inner),
+            })
+        },
+        &spec,
+    )
+    .unwrap();
     for r in &ev.runs {
         let e = r.metrics.steady_state_error_mm.unwrap_or(f64::NAN);
         if (e.is_nan() || e.abs() > 0.02) && std::env::var("SHOW").is_ok() {

@@ -22,6 +22,7 @@ pub mod closed_loop;
 pub mod compensator;
 pub mod error;
 pub mod metrics;
+pub mod oracle;
 pub mod pi;
 pub mod position;
 pub mod profile;

@@ -162,16 +162,7 @@ impl StepMetrics {
         let peak = (0..n).map(z).fold(f64::NEG_INFINITY, f64::max);
         let overshoot = (peak - step).max(0.0);
 
-        let first_reach = |p: f64| -> Option<f64> {
-            let level = p * step;
-            let k = (0..n).find(|&k| z(k) >= level)?;
-            if k == 0 {
-                return Some(t_s[0]);
-            }
-            let (za, zb) = (z(k - 1), z(k));
-            // za < level <= zb, so zb - za > 0.
-            Some(t_s[k - 1] + (level - za) / (zb - za) * (t_s[k] - t_s[k - 1]))
-        };
+        let first_reach = |p: f64| first_reach(t_s, &z, p * step);
         let rise = match (first_reach(RISE_LOW), first_reach(RISE_HIGH)) {
             (Some(lo), Some(hi)) => Some(hi - lo),
             _ => None,
@@ -279,6 +270,20 @@ pub enum Unsettled {
 /// band after the last sample outside it, 0 if none is outside; [`Unsettled`] when the output has not
 /// stayed inside for the run's last [`TAIL_FRACTION`] (at least its last sample when that tail is
 /// too short to tell), so that a settling time means the output stayed.
+/// The first time the progress z(k) (mm along the step, one value per sample of `t_s`) reaches
+/// `level`, linearly interpolated between the two samples around the crossing; `None` if it never
+/// does. The rise time's t_10 and t_90, and the time oracle's first entry into the settling band
+/// ([`crate::oracle`]).
+pub(crate) fn first_reach(t_s: &[f64], z: &dyn Fn(usize) -> f64, level: f64) -> Option<f64> {
+    let k = (0..t_s.len()).find(|&k| z(k) >= level)?;
+    if k == 0 {
+        return Some(t_s[0]);
+    }
+    let (za, zb) = (z(k - 1), z(k));
+    // za < level <= zb, so zb - za > 0.
+    Some(t_s[k - 1] + (level - za) / (zb - za) * (t_s[k] - t_s[k - 1]))
+}
+
 fn settle(t_s: &[f64], y_mm: &[f64], centre: f64, band: f64) -> Result<f64, Unsettled> {
     let n = t_s.len().min(y_mm.len());
     let outside = |k: &usize| (y_mm[*k] - centre).abs() > band;

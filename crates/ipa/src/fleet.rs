@@ -35,6 +35,13 @@ use crate::{Experiment, InputSpec, IpaError, PlantConfig, Record};
 pub const MAX_ACTUATORS: usize = 100_000;
 /// Largest number of windows per actuator.
 pub const MAX_WINDOWS: usize = 1000;
+/// Largest fleet record, N × windows × samples (about 5 GB of Parquet, 5 bytes a sample measured, and
+/// two hours of two cores at the plant's speed; audit s12: 100 000 × 1000 × 2000 = 2·10¹¹ samples
+/// started without a word).
+pub const MAX_FLEET_SAMPLES: u64 = 1_000_000_000;
+/// Fewest samples of a window: one monitoring identification of the deadzone + ARX model (7
+/// parameters) needs far more rows than parameters (a window of 1 sample cannot be identified).
+pub const MIN_WINDOW_SAMPLES: usize = 100;
 
 /// How a worn valve changes by the last window (linearly in the window index from none at window 0).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -139,6 +146,29 @@ impl FleetDesign {
             ));
         }
         crate::input::check_samples(self.samples_per_window)?;
+        if self.samples_per_window < MIN_WINDOW_SAMPLES {
+            return Err(bad(
+                "--samples",
+                self.samples_per_window,
+                &format!(
+                    "at least {MIN_WINDOW_SAMPLES} samples per window (each window is one monitoring \
+                     identification)"
+                ),
+            ));
+        }
+        let total = (self.actuators as u64)
+            .saturating_mul(self.windows as u64)
+            .saturating_mul(self.samples_per_window as u64);
+        if total > MAX_FLEET_SAMPLES {
+            return Err(bad(
+                "--fleet × --windows × --samples",
+                total,
+                &format!(
+                    "at most {MAX_FLEET_SAMPLES} samples in all (about 5 bytes of Parquet each; fewer \
+                     actuators, windows or samples per window)"
+                ),
+            ));
+        }
         if !(self.spread.is_finite() && (0.0..0.5).contains(&self.spread)) {
             return Err(bad("spread", self.spread, "a relative spread in [0, 0.5)"));
         }
@@ -261,5 +291,37 @@ mod tests {
         .unwrap_err()
         .to_string();
         assert!(e.contains("--fleet"), "{e}");
+        // Audit s12: windows too short to identify, and a fleet record of 2·10¹¹ samples.
+        let e = FleetDesign {
+            samples_per_window: 1,
+            ..FleetDesign::default()
+        }
+        .check()
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("--samples = 1") && e.contains("at least 100"),
+            "{e}"
+        );
+        let big = FleetDesign {
+            actuators: MAX_ACTUATORS,
+            windows: MAX_WINDOWS,
+            samples_per_window: 2000,
+            ..FleetDesign::default()
+        };
+        let e = big.check().unwrap_err().to_string();
+        assert!(
+            e.contains("200000000000") && e.contains("at most 1000000000"),
+            "{e}"
+        );
+        // The bound itself is allowed: 500 000 000 samples.
+        assert!(FleetDesign {
+            actuators: 500,
+            windows: 500,
+            samples_per_window: 2000,
+            ..FleetDesign::default()
+        }
+        .check()
+        .is_ok());
     }
 }

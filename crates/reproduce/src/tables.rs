@@ -309,13 +309,22 @@ pub(crate) fn tables_text(s: &ReproduceSettings, st: &Study) -> String {
     }
     let _ = writeln!(o, "\nCalibrated twin: {}", crate::twin::paragraph(&st.twin));
     if let Ok(t) = &st.twin {
+        let rows = crate::twin::fit_rows(t);
+        // As wide as the longest label ("… — unstable" rows ran past 40 and pushed their figures
+        // out of the columns).
+        let w = rows
+            .iter()
+            .map(|[label, ..]| label.chars().count() + 2)
+            .max()
+            .unwrap_or(0)
+            .max(40);
         let _ = writeln!(
             o,
-            "{:<40}{:>14}{:>14}",
+            "{:<w$}{:>14}{:>14}",
             "free-run fit %", "validation", "open loop"
         );
-        for [label, v, ol] in crate::twin::fit_rows(t) {
-            let _ = writeln!(o, "{label:<40}{v:>14}{ol:>14}");
+        for [label, v, ol] in rows {
+            let _ = writeln!(o, "{label:<w$}{v:>14}{ol:>14}");
         }
         for w in crate::twin::warnings(t) {
             let _ = writeln!(o, "  warning: {w}");

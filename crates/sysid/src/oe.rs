@@ -875,7 +875,10 @@ fn run(
         .collect();
     let (cov, std_unavailable) = match ls::solve(&jac, &resid, &columns) {
         Ok(sol) => (Some(sol.inv_gram * sigma2), None),
-        Err(e) => (None, Some(why_no_covariance(&problem, &e))),
+        Err(e) => match covariance_without_zero_columns(&jac, &resid, &columns, sigma2) {
+            Some((cov, why)) => (Some(cov), Some(why)),
+            None => (None, Some(why_no_covariance(&problem, &e))),
+        },
     };
     Ok(Searched {
         full: problem.full,
@@ -964,6 +967,52 @@ fn restart(problem: &mut Problem, end: &mut SearchEnd, max_iterations: usize) {
             OeStop::AtKink
         };
     }
+}
+
+/// σ̂² (JᵀJ)⁻¹ over the Jacobian's non-zero columns when the whole JᵀJ is singular only because some
+/// columns are zero (the simulation does not depend on those parameters at the estimate: an output
+/// limit beyond the range of the linear block's output, a breakpoint no sample reaches), with NaN in
+/// the rows and columns of the zero ones, and the reason their standard deviations are missing. One
+/// such parameter withheld every standard deviation before (audit s12: 133 of 196 Hammerstein–Wiener
+/// fits), where the least-squares path withholds only the affected ones. `None` when no column is zero
+/// or the rest is singular too.
+fn covariance_without_zero_columns(
+    jac: &DMatrix<f64>,
+    resid: &DVector<f64>,
+    columns: &[String],
+    sigma2: f64,
+) -> Option<(DMatrix<f64>, String)> {
+    let norms: Vec<f64> = jac.column_iter().map(|c| c.norm()).collect();
+    let largest = norms.iter().copied().fold(0.0, f64::max);
+    let kept: Vec<usize> = (0..norms.len())
+        .filter(|&j| norms[j] > 1e-12 * largest)
+        .collect();
+    if kept.is_empty() || kept.len() == norms.len() {
+        return None;
+    }
+    let reduced = jac.select_columns(kept.iter());
+    let names: Vec<String> = kept.iter().map(|&j| columns[j].clone()).collect();
+    let sol = ls::solve(&reduced, resid, &names).ok()?;
+    let mut cov = DMatrix::from_element(norms.len(), norms.len(), f64::NAN);
+    for (a, &i) in kept.iter().enumerate() {
+        for (b, &j) in kept.iter().enumerate() {
+            cov[(i, j)] = sol.inv_gram[(a, b)] * sigma2;
+        }
+    }
+    let dropped: Vec<&str> = (0..norms.len())
+        .filter(|j| !kept.contains(j))
+        .map(|j| columns[j].as_str())
+        .collect();
+    let parameters = columns.iter().filter(|c| !c.starts_with("y0(")).count();
+    let why = format!(
+        "{} of {parameters} estimated parameters have none ({}): the output-error simulation does not depend on \
+         them at the estimate (their columns of the Jacobian are zero: a limit beyond the range of the \
+         signal it acts on, or a breakpoint no sample reaches), so the data do not determine them; the \
+         others' come from the remaining columns",
+        dropped.len(),
+        dropped.join(", ")
+    );
+    Some((cov, why))
 }
 
 /// Why σ̂² (JᵀJ)⁻¹ could not be formed at the end of the search, in words: the solver's reason (a

@@ -26,13 +26,13 @@ us() { jq -r "$1 * 1e6 | . * 10 | round / 10" "$tmp/id.json"; }
 # Wall clock (best run), then the CPU time of the timing thread (best run), which the load inflates less.
 row "bench identify: Hammerstein 2000 samples, LS (key-term)" \
     "$(us .ls.seconds_per_identification) µs, CPU $(us .ls.cpu_seconds_per_identification) µs" \
-    "CPU 196–198 µs (26 Nov 10:52, load 5–8; main 208–212 µs then); 168 µs (Results table, estimator only); 686 µs (Python section)"
+    "CPU 108–109 µs (26 Nov 15:59, load 6.5–7, issue22j; main 203–208 µs then); 168 µs (Results table, estimator only); 686 µs (Python section)"
 row "bench identify: Hammerstein 2000 samples, RLS" \
     "$(us .rls.seconds_per_identification) µs, CPU $(us .rls.cpu_seconds_per_identification) µs" \
-    "CPU 344–348 µs (26 Nov 10:52, load 5–8, 3 passes; main 390–392 µs then); 239 µs (Results table, 1 pass); 785 µs (Python section)"
+    "CPU 240–242 µs (26 Nov 15:59, load 6.5–7, 3 passes, issue22j; main 350–353 µs then); 239 µs (Results table, 1 pass); 785 µs (Python section)"
 row "bench identify: Hammerstein 2000 samples, RLS, 1 pass" \
     "$(us .rls_one_pass.seconds_per_identification) µs, CPU $(us .rls_one_pass.cpu_seconds_per_identification) µs" \
-    "CPU 292–296 µs (26 Nov 10:52, load 5–8, with safeguards; main 318–323 µs then); 239 µs (Results table, estimator only)"
+    "CPU 204–206 µs (26 Nov 15:59, load 6.5–7, with safeguards, issue22j; main 298–311 µs then); 239 µs (Results table, estimator only)"
 
 if [ -f "$DATA/silverbox/SNLS80mV.csv" ] && [ -f "$DATA/emps/DATA_EMPS.csv" ]; then
     # The whole identify command, as the OE table times it (wall clock, best of 3).

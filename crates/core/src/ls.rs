@@ -71,6 +71,26 @@ pub fn solve(
     })
 }
 
+/// The rank test of [`solve`] alone, for a verdict on the data before any estimate: the same checks
+/// in the same order (finite values, too few rows, a zero or overflowing column, then |R_kk| of the
+/// column-normalised Φ against [`RANK_TOLERANCE`]) and the same diagonal of R to the bit, without
+/// the target column (the reflections that would update it change nothing to the left of it) and
+/// without the solution. The same verdict as `solve(phi, y, names)` for any finite y.
+pub fn rank_test(phi: &DMatrix<f64>, names: &[String]) -> Result<(), SysidError> {
+    WORKSPACE.with(|ws| match ws.try_borrow_mut() {
+        Ok(mut ws) => {
+            let result = ws.factor(phi, None, names, true).map(|_| ());
+            if ws.a.capacity() > KEPT_WORKSPACE {
+                *ws = LsWorkspace::new();
+            }
+            result
+        }
+        Err(_) => LsWorkspace::new()
+            .factor(phi, None, names, true)
+            .map(|_| ()),
+    })
+}
+
 impl LsWorkspace {
     /// An empty workspace (it grows to N (p + 1) numbers on first use).
     pub fn new() -> Self {
@@ -97,14 +117,38 @@ impl LsWorkspace {
         names: &[String],
         rank_test: bool,
     ) -> Result<Triangular, SysidError> {
+        let (r, scale, rss) = self.factor(phi, Some(y), names, rank_test)?;
+        Ok(Triangular {
+            r,
+            scale,
+            rss,
+            p: phi.ncols(),
+        })
+    }
+
+    /// [`LsWorkspace::triangularise`]'s factorisation: R and z by rows (p rows of p + 1), D and ‖r‖².
+    /// Without `y` only R's columns are computed (z is left 0, ‖r‖² is 0): the reflections are grouped
+    /// as with y, so R is the same to the bit.
+    #[allow(clippy::type_complexity)]
+    fn factor(
+        &mut self,
+        phi: &DMatrix<f64>,
+        y: Option<&DVector<f64>>,
+        names: &[String],
+        rank_test: bool,
+    ) -> Result<(Vec<f64>, Vec<f64>, f64), SysidError> {
         let (n, p) = phi.shape();
-        if y.len() != n {
+        if let Some(y) = y.filter(|y| y.len() != n) {
             return Err(SysidError::Data(format!(
                 "{n} regression rows but {} targets",
                 y.len()
             )));
         }
-        check_problem(n, p, all_finite(phi.as_slice()) && all_finite(y.as_slice()))?;
+        check_problem(
+            n,
+            p,
+            all_finite(phi.as_slice()) && y.is_none_or(|y| all_finite(y.as_slice())),
+        )?;
         let name = |j: usize| column_name(names, j);
         // Augmented matrix [Φ D⁻¹ | y], by columns; column scaling makes the rank test independent of
         // units (counts vs mm vs 0/1 switches).
@@ -125,14 +169,21 @@ impl LsWorkspace {
             let inv = 1.0 / norm;
             self.a.extend(src.iter().map(|s| s * inv));
         }
-        self.a.extend_from_slice(y.as_slice());
+        // The columns present: y's too, or only Φ's.
+        let live = match y {
+            Some(y) => {
+                self.a.extend_from_slice(y.as_slice());
+                cols
+            }
+            None => p,
+        };
         // R of [Φ D⁻¹ | y] (cols × cols, by rows), folded in [`FOLD_ROWS`] rows at a time: each block
         // stays in the first-level cache while every reflection passes over it (the reflections of the
         // whole columns passed over the N·(p + 1) numbers once per pair of columns).
         let mut rr = vec![0.0; cols * cols];
         for start in (0..n).step_by(FOLD_ROWS) {
             let m = FOLD_ROWS.min(n - start);
-            fold_rows(&mut rr, &mut self.a[start..], n, m, cols);
+            fold_rows(&mut rr, &mut self.a[start..], n, m, cols, live);
         }
         for k in 0..p {
             // |R_kk| = ‖column k after the reflections of the columns before it‖; the rank test of
@@ -144,8 +195,7 @@ impl LsWorkspace {
         // ‖r‖²: what is left of the transformed y below row p.
         let rss = rr[p * cols + p] * rr[p * cols + p];
         rr.truncate(p * cols);
-        let r = rr;
-        Ok(Triangular { r, scale, rss, p })
+        Ok((rr, scale, rss))
     }
 }
 
@@ -371,7 +421,7 @@ impl QrAccumulator {
                     .for_each(|v| *v *= s);
             }
         }
-        fold_rows(&mut self.r, block, FOLD_ROWS, m, cols);
+        fold_rows(&mut self.r, block, FOLD_ROWS, m, cols, cols);
         self.filled = 0;
     }
 
@@ -427,8 +477,11 @@ impl QrAccumulator {
 /// reflection that maps (R_kk, rows(:, k)) to (±σ, 0) is applied to the columns on its right, so that
 /// [R; rows] = Q [R'; 0] (row-block QR, the building step of TSQR; Golub & Van Loan, *Matrix
 /// Computations*, 4th ed., §5.2). A column with nothing below the diagonal is left as it is (H = I).
-fn fold_rows(r: &mut [f64], block: &mut [f64], ld: usize, m: usize, cols: usize) {
-    for k in 0..cols {
+///
+/// Only the first `live` columns are present (and computed): the columns on the right are grouped by
+/// four as for all `cols`, so each live column gets the same operations as with them.
+fn fold_rows(r: &mut [f64], block: &mut [f64], ld: usize, m: usize, cols: usize, live: usize) {
+    for k in 0..live {
         let (left, right) = block.split_at_mut(((k + 1) * ld).min(block.len()));
         let a = &left[k * ld..k * ld + m];
         let aa = dot(a, a);
@@ -445,8 +498,8 @@ fn fold_rows(r: &mut [f64], block: &mut [f64], ld: usize, m: usize, cols: usize)
         // one for four updates), then one by one.
         let mut rest = right;
         let mut c = k + 1;
-        while c < cols {
-            if cols - c >= 4 {
+        while c < live {
+            if cols - c >= 4 && live - c >= 4 {
                 let (c0, t) = rest.split_at_mut(ld);
                 let (c1, t) = t.split_at_mut(ld);
                 let (c2, t) = t.split_at_mut(ld);
@@ -461,6 +514,15 @@ fn fold_rows(r: &mut [f64], block: &mut [f64], ld: usize, m: usize, cols: usize)
                 axpy4(&w, a, &mut four);
                 rest = t;
                 c += 4;
+            } else if cols - c >= 4 {
+                // A group of four whose last columns are absent: the live ones as in the group.
+                let rk = &mut r[k * cols + c..];
+                rest = match live - c {
+                    1 => reflect_columns::<1>(a, rest, ld, m, rk, beta, v0),
+                    2 => reflect_columns::<2>(a, rest, ld, m, rk, beta, v0),
+                    _ => reflect_columns::<3>(a, rest, ld, m, rk, beta, v0),
+                };
+                c += 4;
             } else {
                 let (col, t) = rest.split_at_mut(ld.min(rest.len()));
                 let col = &mut col[..m];
@@ -473,6 +535,37 @@ fn fold_rows(r: &mut [f64], block: &mut [f64], ld: usize, m: usize, cols: usize)
         }
         r[k * cols + k] = alpha;
     }
+}
+
+/// Applies the reflection (v0, `a`), β to the N = 1..3 columns at the start of `rest` (each `ld`
+/// long, rows `..m` used) whose entries of R's row are `rk[..N]`, each column with the operations
+/// [`dot4`] and [`axpy4`] give a column of a group of four ([`dot_columns`], [`axpy_columns`]).
+/// Returns what follows those columns.
+#[inline]
+fn reflect_columns<'a, const N: usize>(
+    a: &[f64],
+    rest: &'a mut [f64],
+    ld: usize,
+    m: usize,
+    rk: &mut [f64],
+    beta: f64,
+    v0: f64,
+) -> &'a mut [f64] {
+    let mut tail = rest;
+    let mut group: [&mut [f64]; N] = std::array::from_fn(|_| {
+        let t = std::mem::take(&mut tail);
+        let (col, after) = t.split_at_mut(ld.min(t.len()));
+        tail = after;
+        &mut col[..m]
+    });
+    let d = dot_columns(a, &group);
+    let mut w = [0.0; N];
+    for q in 0..N {
+        w[q] = beta * (v0 * rk[q] + d[q]);
+        rk[q] -= w[q] * v0;
+    }
+    axpy_columns(&w, a, &mut group);
+    tail
 }
 
 /// The checks before a solve: at least as many rows `n` as parameters `p`, every value finite.
@@ -585,6 +678,44 @@ fn axpy4(w: &[f64; 4], x: &[f64], c: &mut [&mut [f64]; 4]) {
         c1[i] -= w[1] * xv;
         c2[i] -= w[2] * xv;
         c3[i] -= w[3] * xv;
+    }
+}
+
+/// [`dot4`] for N columns: each column's sums are [`dot4`]'s for it.
+#[inline]
+fn dot_columns<const N: usize>(x: &[f64], c: &[&mut [f64]; N]) -> [f64; N] {
+    let n = x.len();
+    let c: [&[f64]; N] = std::array::from_fn(|q| &c[q][..n]);
+    let mut acc = [[0.0; 2]; N];
+    let pairs = n / 2;
+    for i in 0..pairs {
+        for l in 0..2 {
+            let (k, xv) = (2 * i + l, x[2 * i + l]);
+            for q in 0..N {
+                acc[q][l] += xv * c[q][k];
+            }
+        }
+    }
+    let mut out = [0.0; N];
+    for q in 0..N {
+        out[q] = acc[q][0] + acc[q][1];
+    }
+    if n % 2 == 1 {
+        let xv = x[n - 1];
+        for q in 0..N {
+            out[q] += xv * c[q][n - 1];
+        }
+    }
+    out
+}
+
+/// [`axpy4`] for N columns.
+#[inline]
+fn axpy_columns<const N: usize>(w: &[f64; N], x: &[f64], c: &mut [&mut [f64]; N]) {
+    for (i, xv) in x.iter().enumerate() {
+        for q in 0..N {
+            c[q][i] -= w[q] * xv;
+        }
     }
 }
 
@@ -771,6 +902,54 @@ mod tests {
         assert!(!solve(&phi, &DVector::from_vec(vec![1.0]), &[])
             .unwrap_err()
             .is_numerical());
+    }
+
+    // The rank test alone (no target column) factors Φ into the same R as the solve with y, to the bit,
+    // for every number of columns (the groups of four with their last columns absent: p = 3, 4, 5, 7,
+    // 8, 11), and refuses exactly what the solve refuses: a zero column, dependent columns, too few
+    // rows, a non-finite value.
+    #[test]
+    fn rank_test_alone_has_the_solves_triangle_and_verdict() {
+        let mut rng = ChaCha8Rng::seed_from_u64(22);
+        for p in [1, 2, 3, 4, 5, 7, 8, 11] {
+            for n in [p, p + 1, 300, 700] {
+                let phi = DMatrix::from_fn(n, p, |_, _| rng.gen_range(-1.0..1.0));
+                let y = DVector::from_fn(n, |_, _| rng.gen_range(-1.0..1.0));
+                let (r_y, scale_y, _) = LsWorkspace::new()
+                    .factor(&phi, Some(&y), &[], true)
+                    .unwrap();
+                let (r, scale, _) = LsWorkspace::new().factor(&phi, None, &[], true).unwrap();
+                let cols = p + 1;
+                for k in 0..p {
+                    for c in k..p {
+                        assert_eq!(
+                            r[k * cols + c].to_bits(),
+                            r_y[k * cols + c].to_bits(),
+                            "p {p} n {n} R[{k}][{c}]"
+                        );
+                    }
+                }
+                assert_eq!(scale, scale_y);
+                assert!(rank_test(&phi, &[]).is_ok());
+            }
+        }
+        let names: Vec<String> = (1..=4).map(|j| format!("x{j}")).collect();
+        let y = DVector::from_fn(50, |i, _| (i as f64 * 0.3).cos());
+        let base = DMatrix::from_fn(50, 4, |i, j| ((i * (j + 2)) as f64 * 0.7).sin());
+        let mut zero = base.clone();
+        zero.column_mut(2).fill(0.0);
+        let mut dependent = base.clone();
+        let c0 = dependent.column(0).clone_owned();
+        dependent.set_column(3, &(c0 * 2.0));
+        let mut infinite = base.clone();
+        infinite[(7, 1)] = f64::INFINITY;
+        let short = base.rows(0, 3).clone_owned();
+        for phi in [zero, dependent, infinite, short] {
+            let ys = DVector::from_fn(phi.nrows(), |i, _| y[i]);
+            let want = solve(&phi, &ys, &names).unwrap_err().to_string();
+            let got = rank_test(&phi, &names).unwrap_err().to_string();
+            assert_eq!(got, want);
+        }
     }
 
     // A workspace reused for problems of different sizes gives the same answers as fresh solves.

@@ -114,16 +114,18 @@ pub fn simulate_estimated_initial_signals(
     u: &[&[f64]],
     y: &[f64],
 ) -> Result<(Vec<f64>, Vec<f64>), SysidError> {
-    estimate_initial_from(model, u, y, model.simulate(u, y)?)
+    estimate_initial_from(model, u, y, model.simulate(u, y)?, Vec::new())
 }
 
 /// The estimated-initial-output simulation from `base`, the simulation from the measured initial
-/// outputs (see [`simulate_estimated_initial`]).
+/// outputs (see [`simulate_estimated_initial`]); `free`: the free responses computed beside it
+/// ([`Model::simulate_with_free_responses`]), or empty.
 fn estimate_initial_from(
     model: &Model,
     u: &[&[f64]],
     y: &[f64],
     base: Vec<f64>,
+    free: Vec<f64>,
 ) -> Result<(Vec<f64>, Vec<f64>), SysidError> {
     let n = base.len();
     let k0 = model.k0().min(n);
@@ -131,7 +133,7 @@ fn estimate_initial_from(
     if k0 == 0 || n <= k0 {
         return Ok((base, y0));
     }
-    let phi = free_responses(model, n, k0)?;
+    let phi = free_responses(model, n, k0, free)?;
     if let Some(g) = model.output_nonlinearity() {
         return estimate_initial_through_output(model, g, u, y, base, &phi);
     }
@@ -260,17 +262,25 @@ fn estimate_initial_through_output(
     Ok((out, v[..k0].iter().map(|v| v + y0).collect()))
 }
 
-/// The k0 free responses s_j of 1/A(q) to a unit initial output j (rows k = 0..n−1).
+/// The k0 free responses s_j of 1/A(q) to a unit initial output j (rows k = 0..n−1): `computed` when
+/// the simulation computed them beside its own loop (n·k0 numbers,
+/// [`Model::simulate_with_free_responses`]: the same numbers), else computed here.
 fn free_responses(
     model: &Model,
     n: usize,
     k0: usize,
+    computed: Vec<f64>,
 ) -> Result<nalgebra::DMatrix<f64>, SysidError> {
     let a = model.a();
     // Rows: k < k0 (the initial outputs themselves) then k ≥ k0; columns: the k0 free responses, by
     // columns (entry (k, j) at j·n + k). The k0 recursions are independent: advancing them side by side,
     // sample by sample, lets the processor overlap their chains of dependent operations.
-    let mut phi = nalgebra::DMatrix::<f64>::zeros(n, k0);
+    let given = computed.len() == n * k0;
+    let mut phi = if given {
+        nalgebra::DMatrix::<f64>::from_vec(n, k0, computed)
+    } else {
+        nalgebra::DMatrix::<f64>::zeros(n, k0)
+    };
     let s = phi.as_mut_slice();
     for j in 0..k0 {
         s[j * n + j] = 1.0;
@@ -278,6 +288,7 @@ fn free_responses(
     // The loop compiled per order for the usual na = k0 (the past of each response held in
     // registers); the same operations in the same order for every order.
     match (a.len(), k0) {
+        _ if given => {}
         (1, 1) => advance_free_responses::<1, 1>(a, s, n),
         (2, 2) => advance_free_responses::<2, 2>(a, s, n),
         (3, 3) => advance_free_responses::<3, 3>(a, s, n),
@@ -404,10 +415,11 @@ fn record_sums(model: &Model, data: &Dataset) -> Result<MetricSums, SysidError> 
     let y = &y_all[k0..];
     let n = y.len();
     // One simulation from the measured initial outputs serves both simulation metrics (and the
-    // output-error predictor).
-    let measured = model.simulate(u, y_all);
+    // output-error predictor); the free responses for the estimated initial outputs come beside it.
+    let mut free = Vec::new();
+    let measured = model.simulate_with_free_responses(u, y_all, &mut free);
     let estimated = match &measured {
-        Ok(s) => estimate_initial_from(model, u, y_all, s.clone()).map_err(|e| e.to_string()),
+        Ok(s) => estimate_initial_from(model, u, y_all, s.clone(), free).map_err(|e| e.to_string()),
         Err(e) => Err(e.to_string()),
     };
     let pred = match (model.noise_model(), &estimated) {
@@ -571,6 +583,66 @@ mod tests {
     fn fit_of_a_constant_output_is_undefined() {
         assert_eq!(fit_percent(&[2.0, 2.0], &[2.0, 2.0]), None);
     }
+
+    fn bits(v: &[f64]) -> Vec<u64> {
+        v.iter().map(|x| x.to_bits()).collect()
+    }
+
+    // The free responses that the simulation computes beside its own loop are, to the bit, those of
+    // the plain recursion s_j(k) = −Σ_i a_i s_j(k − 1 − i) from the unit initial outputs (written out
+    // here) and of `free_responses` alone, and the simulation is `simulate`'s; orders without a
+    // compiled loop (na = 5) or with k0 > na (nk + nb − 1 > na) leave the buffer empty.
+    #[test]
+    fn free_responses_beside_the_simulation_are_the_plain_recursion() {
+        let n = 300;
+        let u: Vec<f64> = (0..n).map(|k| ((k * 7919) % 13) as f64 - 6.0).collect();
+        let y: Vec<f64> = (0..n).map(|k| (k as f64 * 0.37).sin()).collect();
+        let a_all = [-0.5, 0.2, -0.1, 0.05, 0.01];
+        let mut fused = 0;
+        for na in 1..=5 {
+            for nb in 1..=2 {
+                for nk in 1..=2 {
+                    let a = a_all[..na].to_vec();
+                    let m = Model::arx(1.0, a.clone(), [1.0, 0.5][..nb].to_vec(), nk, Some(0.3))
+                        .unwrap();
+                    let mut free = vec![7.0];
+                    let sim = m
+                        .simulate_with_free_responses(&[&u], &y, &mut free)
+                        .unwrap();
+                    assert_eq!(bits(&sim), bits(&m.simulate(&[&u], &y).unwrap()));
+                    let k0 = m.k0();
+                    if k0 != na || na > 4 {
+                        assert!(free.is_empty(), "na {na} nb {nb} nk {nk}");
+                        continue;
+                    }
+                    fused += 1;
+                    let mut plain = vec![0.0; n * k0];
+                    for j in 0..k0 {
+                        plain[j * n + j] = 1.0;
+                        for k in k0..n {
+                            let mut v = 0.0;
+                            for (i, ai) in a.iter().enumerate() {
+                                v -= ai * plain[j * n + k - 1 - i];
+                            }
+                            plain[j * n + k] = v;
+                        }
+                    }
+                    assert_eq!(bits(&free), bits(&plain), "na {na} nb {nb} nk {nk}");
+                    let alone = free_responses(&m, n, k0, Vec::new()).unwrap();
+                    assert_eq!(bits(alone.as_slice()), bits(&plain));
+                }
+            }
+        }
+        // k0 = na unless nk + nb − 1 > na: na = 1 once, na = 2 three times, na = 3 and 4 always.
+        assert_eq!(fused, 1 + 3 + 4 + 4);
+        // A diverging simulation leaves no free responses behind.
+        let m = Model::arx(1.0, vec![-3.0], vec![1e300], 1, None).unwrap();
+        let mut free = Vec::new();
+        assert!(m
+            .simulate_with_free_responses(&[&u], &y, &mut free)
+            .is_err());
+        assert!(free.is_empty());
+    }
 }
 
 /// The outputs of a model on a record (`validate --out`): free-run simulation and K-step prediction.
@@ -655,7 +727,7 @@ mod initial_tests {
             let m = Model::arx(1.0, a.clone(), vec![1.0], 1, None).unwrap();
             let k0 = m.k0();
             assert_eq!(k0, a.len());
-            let phi = free_responses(&m, n, k0).unwrap();
+            let phi = free_responses(&m, n, k0, Vec::new()).unwrap();
             let u = vec![0.0; n];
             for j in 0..k0 {
                 let mut y = vec![0.0; n];

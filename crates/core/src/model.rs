@@ -202,6 +202,38 @@ fn widen(r: &mut [f64; 2], v: f64) {
     r[1] = r[1].max(v);
 }
 
+/// [`widen`] by every sample of `s` in turn, in four independent lanes of branch-free selects
+/// (vectorisable; a NaN is never smaller or larger, so it is skipped as `min`/`max` skip it), then
+/// combined. The minimum and maximum of a set do not depend on the order, except for the sign of a
+/// zero (−0 and +0 compare equal, and which one is kept depends on the order they come in): a bound
+/// that comes out zero is taken from the sample-by-sample fold itself, so the result is that fold's
+/// to the bit.
+fn widen_all(r: &mut [f64; 2], s: &[f64]) {
+    let mut lanes = [[f64::INFINITY, f64::NEG_INFINITY]; 4];
+    let mut chunks = s.chunks_exact(4);
+    for c in &mut chunks {
+        for (lane, &v) in lanes.iter_mut().zip(c) {
+            lane[0] = if v < lane[0] { v } else { lane[0] };
+            lane[1] = if v > lane[1] { v } else { lane[1] };
+        }
+    }
+    let mut out = *r;
+    for lane in &lanes {
+        out[0] = out[0].min(lane[0]);
+        out[1] = out[1].max(lane[1]);
+    }
+    for &v in chunks.remainder() {
+        widen(&mut out, v);
+    }
+    if out[0] == 0.0 || out[1] == 0.0 {
+        for &v in s {
+            widen(r, v);
+        }
+    } else {
+        *r = out;
+    }
+}
+
 impl DataRange {
     /// The range of `records` (every input and the output over every sample); `None` when there is no
     /// sample or the records' numbers of inputs differ.
@@ -217,13 +249,9 @@ impl DataRange {
         let mut range = DataRange::empty(m);
         for r in records {
             for (i, s) in r.input_signals().into_iter().enumerate() {
-                for &v in s {
-                    widen(&mut range.u[i], v);
-                }
+                widen_all(&mut range.u[i], s);
             }
-            for &v in r.y() {
-                widen(&mut range.y, v);
-            }
+            widen_all(&mut range.y, r.y());
         }
         range.check(m).ok().map(|()| range)
     }
@@ -583,7 +611,28 @@ impl Model {
     /// input in `u`: y_hat(k) = y(k) for k < k0, then y_hat(k) = -sum a_i y_hat(k-i) + sum over the
     /// inputs of sum b_j x(k-nk-j+1) + c. Fails if the simulation becomes non-finite.
     pub fn simulate(&self, u: &[&[f64]], y: &[f64]) -> Result<Vec<f64>, SysidError> {
-        self.run(u, y, None)
+        self.run(u, y, None, None)
+    }
+
+    /// [`Model::simulate`], and beside it, when the simulation runs the loop compiled for its orders
+    /// (one input, na ≤ 4, nb ≤ 2) with k0 = na, the k0 free responses s_j of 1/A(q) to a unit initial
+    /// output j (A s_j = 0, s_j(i) = δ_ij for i < k0) in the same loop: independent chains of dependent
+    /// operations that the processor overlaps with the simulation's own. `free` then holds them by
+    /// columns, n × k0 (entry (k, j) at j·n + k), the same numbers to the bit as
+    /// `metrics::free_responses` computes alone; otherwise (and when the simulation fails) `free` is
+    /// left empty.
+    pub(crate) fn simulate_with_free_responses(
+        &self,
+        u: &[&[f64]],
+        y: &[f64],
+        free: &mut Vec<f64>,
+    ) -> Result<Vec<f64>, SysidError> {
+        free.clear();
+        let out = self.run(u, y, None, Some(&mut *free));
+        if out.is_err() {
+            free.clear();
+        }
+        out
     }
 
     /// One-step-ahead prediction (MATLAB `predict` with horizon 1) of a single-input model. With an
@@ -596,7 +645,7 @@ impl Model {
     /// The equation-error one-step prediction (measured past outputs), whatever the noise model: the
     /// regression residual of the key-term estimators. One input record per model input.
     pub fn predict_equation_error(&self, u: &[&[f64]], y: &[f64]) -> Result<Vec<f64>, SysidError> {
-        self.run(u, y, Some(1))
+        self.run(u, y, Some(1), None)
     }
 
     /// k-step-ahead prediction (MATLAB `predict(m, data, k)`): y_hat(k) from measured outputs up to
@@ -615,20 +664,28 @@ impl Model {
             ));
         }
         if self.noise.is_equation_error() {
-            self.run(u, y, Some(horizon))
+            self.run(u, y, Some(horizon), None)
         } else {
-            self.run(u, y, None)
+            self.run(u, y, None, None)
         }
     }
 
     /// [`Model::run_deviation`] in the user's units: with an operating point (u0, y0), the model runs on
-    /// u − u0 and y − y0 and y0 is added back to its output.
-    fn run(&self, u: &[&[f64]], y: &[f64], horizon: Option<usize>) -> Result<Vec<f64>, SysidError> {
+    /// u − u0 and y − y0 and y0 is added back to its output. `free`: see
+    /// [`Model::simulate_with_free_responses`].
+    fn run(
+        &self,
+        u: &[&[f64]],
+        y: &[f64],
+        horizon: Option<usize>,
+        free: Option<&mut Vec<f64>>,
+    ) -> Result<Vec<f64>, SysidError> {
         let (Some(op), Some((du, dy))) = (&self.operating_point, self.deviations(u, y)) else {
-            return self.run_deviation(u, y, horizon); // no operating point, or reports the mismatch
+            // No operating point, or reports the mismatch.
+            return self.run_deviation(u, y, horizon, free);
         };
         let du: Vec<&[f64]> = du.iter().map(Vec::as_slice).collect();
-        let mut out = self.run_deviation(&du, &dy, horizon)?;
+        let mut out = self.run_deviation(&du, &dy, horizon, free)?;
         // The first k0 entries are the measured outputs themselves.
         let k0 = self.k0().min(out.len());
         out[..k0].copy_from_slice(&y[..k0]);
@@ -643,25 +700,26 @@ impl Model {
         u: &[&[f64]],
         y: &[f64],
         horizon: Option<usize>,
+        free: Option<&mut Vec<f64>>,
     ) -> Result<Vec<f64>, SysidError> {
         if let Some(g) = &self.output {
             // y = g(v): every prediction is the simulation of v from the measured initial outputs.
-            let mut out = self.run_linear(u, y, None)?;
+            let mut out = self.run_linear(u, y, None, free)?;
             let k0 = self.k0().min(out.len());
             out[k0..].iter_mut().for_each(|v| *v = g.apply(*v));
             return Ok(out);
         }
-        self.run_linear(u, y, horizon)
+        self.run_linear(u, y, horizon, free)
     }
 
     /// The output v of the linear block (before any output nonlinearity): free run from the measured
     /// initial outputs (v(k) = y(k) for k < k0), in deviation units.
     pub fn simulate_linear_part(&self, u: &[&[f64]], y: &[f64]) -> Result<Vec<f64>, SysidError> {
         let Some((du, dy)) = self.deviations(u, y) else {
-            return self.run_linear(u, y, None);
+            return self.run_linear(u, y, None, None);
         };
         let du: Vec<&[f64]> = du.iter().map(Vec::as_slice).collect();
-        self.run_linear(&du, &dy, None)
+        self.run_linear(&du, &dy, None, None)
     }
 
     /// u − u0 (per input) and y − y0 with the operating point; `None` without one or when the number
@@ -680,12 +738,14 @@ impl Model {
         Some((du, y.iter().map(|v| v - op.y).collect()))
     }
 
-    /// [`Model::run_deviation`] of the linear block alone.
+    /// [`Model::run_deviation`] of the linear block alone (`free`: see
+    /// [`Model::simulate_with_free_responses`]).
     fn run_linear(
         &self,
         u: &[&[f64]],
         y: &[f64],
         horizon: Option<usize>,
+        free: Option<&mut Vec<f64>>,
     ) -> Result<Vec<f64>, SysidError> {
         if u.len() != self.inputs.len() {
             return Err(SysidError::Data(format!(
@@ -737,21 +797,48 @@ impl Model {
         // same steps compiled for their orders.
         if let ([ch], [xi], None | Some(1)) = (&self.inputs[..], &x[..], horizon) {
             let simulate = horizon.is_none();
-            let mut run =
-                |f: OneInputRun| f(&self.a, &ch.b, c, ch.nk, xi, y, k0, n, simulate, &mut out);
+            // The free responses ride along a simulation whose first k0 = na outputs are the initial
+            // ones (their unit rows).
+            let mut free = free;
+            let fbuf: &mut [f64] = match free.as_deref_mut() {
+                Some(buf) if simulate && k0 == na && n > k0 => {
+                    buf.clear();
+                    buf.resize(n * k0, 0.0);
+                    for j in 0..k0 {
+                        buf[j * n + j] = 1.0;
+                    }
+                    buf
+                }
+                _ => &mut [],
+            };
+            let with_free = !fbuf.is_empty();
+            let mut run = |f: OneInputRun| {
+                f(
+                    &self.a, &ch.b, c, ch.nk, xi, y, k0, n, simulate, fbuf, &mut out,
+                )
+            };
             macro_rules! sized {
-                ($(($na:literal, $nb:literal))*) => {
+                ($free:literal; $(($na:literal, $nb:literal))*) => {
                     match (na, ch.b.len()) {
-                        $(($na, $nb) => Some(run(run_one_input::<$na, $nb>)),)*
+                        $(($na, $nb) => Some(run(run_one_input::<$na, $nb, $free>)),)*
                         _ => None,
                     }
                 };
             }
-            let done = sized!((1, 1)(2, 1)(3, 1)(4, 1)(1, 2)(2, 2)(3, 2)(4, 2));
+            let done = if with_free {
+                sized!(true; (1, 1)(2, 1)(3, 1)(4, 1)(1, 2)(2, 2)(3, 2)(4, 2))
+            } else {
+                sized!(false; (1, 1)(2, 1)(3, 1)(4, 1)(1, 2)(2, 2)(3, 2)(4, 2))
+            };
             match done {
                 Some(Ok(())) => return Ok(out),
                 Some(Err(k)) => return fail(k, if simulate { "simulation" } else { "prediction" }),
-                None => {}
+                None => {
+                    // Orders without a compiled loop: no free responses beside the simulation.
+                    if let Some(buf) = free {
+                        buf.clear();
+                    }
+                }
             }
         }
         match horizon {
@@ -1452,6 +1539,7 @@ type OneInputRun = fn(
     usize,
     usize,
     bool,
+    &mut [f64],
     &mut Vec<f64>,
 ) -> Result<(), usize>;
 
@@ -1461,8 +1549,13 @@ type OneInputRun = fn(
 /// `x`: y(k) = c − Σ a_i past(k − i) + Σ b_j x(k − nk − j + 1) for k = k0..n, appended to `out`
 /// (which holds the first k0 outputs). The same operations in the same order as `run_linear`'s general
 /// step, so the same numbers to the bit. Err(k): the first non-finite output.
+///
+/// With `FREE` (a simulation with k0 = `NA`), the k0 free responses of 1/A(q) in `free` (by columns,
+/// n × k0, the unit rows k < k0 set) are advanced in the same loop, with the operations and order of
+/// `metrics::free_responses` (their last NA values in registers): independent chains that overlap
+/// with the simulation's.
 #[allow(clippy::too_many_arguments)]
-fn run_one_input<const NA: usize, const NB: usize>(
+fn run_one_input<const NA: usize, const NB: usize, const FREE: bool>(
     a: &[f64],
     b: &[f64],
     c: f64,
@@ -1472,9 +1565,19 @@ fn run_one_input<const NA: usize, const NB: usize>(
     k0: usize,
     n: usize,
     simulate: bool,
+    free: &mut [f64],
     out: &mut Vec<f64>,
 ) -> Result<(), usize> {
     let (a, b) = (&a[..NA], &b[..NB]);
+    // past[j][i] = s_j(k − 1 − i) of the free responses (FREE only).
+    let mut past = [[0.0; NA]; NA];
+    if FREE {
+        for (j, p) in past.iter_mut().enumerate() {
+            for (i, v) in p.iter_mut().enumerate() {
+                *v = free[j * n + NA - 1 - i];
+            }
+        }
+    }
     if !simulate && n > k0 {
         // The prediction's outputs do not feed each other: the same steps for every k, term by term
         // over the whole record (vectorised), then the first non-finite output is looked for.
@@ -1496,13 +1599,26 @@ fn run_one_input<const NA: usize, const NB: usize>(
         };
     }
     for k in k0..n {
-        let past: &[f64] = if simulate { out } else { y };
+        let prev: &[f64] = if simulate { out } else { y };
         let mut v = c;
         for i in 0..NA {
-            v -= a[i] * past[k - 1 - i];
+            v -= a[i] * prev[k - 1 - i];
         }
         for j in 0..NB {
             v += b[j] * x[k - nk - j];
+        }
+        if FREE {
+            for (j, p) in past.iter_mut().enumerate() {
+                let mut s = 0.0;
+                for i in 0..NA {
+                    s -= a[i] * p[i];
+                }
+                for i in (1..NA).rev() {
+                    p[i] = p[i - 1];
+                }
+                p[0] = s;
+                free[j * n + k] = s;
+            }
         }
         if !v.is_finite() {
             return Err(k);
@@ -1515,6 +1631,50 @@ fn run_one_input<const NA: usize, const NB: usize>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    // The four-lane range is the sample-by-sample fold to the bit, for every length around the lane
+    // count, signed zeros in every order (where min and max depend on the order), NaN and ±∞, from an
+    // empty and from a non-empty start.
+    #[test]
+    fn the_range_in_four_lanes_is_the_sample_by_sample_fold() {
+        let values = [
+            0.0,
+            -0.0,
+            1.5,
+            -2.0,
+            f64::NAN,
+            3.0,
+            -0.0,
+            0.0,
+            f64::INFINITY,
+            -1e-300,
+        ];
+        let mut cases: Vec<Vec<f64>> = Vec::new();
+        for len in 0..=12 {
+            for shift in 0..values.len() {
+                cases.push(
+                    (0..len)
+                        .map(|i| values[(i * 3 + shift) % values.len()])
+                        .collect(),
+                );
+            }
+        }
+        cases.push(vec![-0.0, 0.0, 0.0, 0.0, 0.0, 0.0, -0.0, 0.0, 0.0]);
+        cases.push(vec![0.0, -0.0, 0.0, 0.0, 5.0, -0.0, 0.0, 0.0, 0.0]);
+        cases.push((0..1000).map(|k| (k as f64 * 0.37).sin() * 1e3).collect());
+        let bits = |r: [f64; 2]| [r[0].to_bits(), r[1].to_bits()];
+        for s in &cases {
+            for start in [[f64::INFINITY, f64::NEG_INFINITY], [0.5, 0.75], [-0.0, 0.0]] {
+                let mut serial = start;
+                for &v in s {
+                    widen(&mut serial, v);
+                }
+                let mut lanes = start;
+                widen_all(&mut lanes, s);
+                assert_eq!(bits(lanes), bits(serial), "{s:?} from {start:?}");
+            }
+        }
+    }
 
     // Widening sample by sample (the streamed path) gives the range `DataRange::of` gives for the whole
     // record, and both are the minimum and maximum taken here by sorting.

@@ -467,6 +467,39 @@ impl Block for DeadzoneBlock {
         out[2] = hl * u;
         out[3] = -hl;
     }
+    /// The same values as the default (those of [`Block::fill_key_terms`] above, row by row), written
+    /// straight into the four columns with the deadzone read once: a loop without calls or a row
+    /// buffer (Φ is built for the rank test and every closed-form pass).
+    fn fill_key_columns(
+        &self,
+        f: &StaticNonlinearity,
+        u: &[f64],
+        out: &mut [f64],
+        stride: usize,
+    ) -> bool {
+        let d = dz(f);
+        let m = u.len();
+        let (c0, rest) = out.split_at_mut(stride);
+        let (c1, rest) = rest.split_at_mut(stride);
+        let (c2, c3) = rest.split_at_mut(stride);
+        let (c0, c1, c2, c3) = (&mut c0[..m], &mut c1[..m], &mut c2[..m], &mut c3[..m]);
+        // The bits that differ from what the columns held, or-ed together: 0 when nothing changed.
+        let mut changed = 0u64;
+        for q in 0..m {
+            let uq = u[q];
+            let (hr, hl) = (d.h_r(uq), d.h_l(uq));
+            let v = [hr * uq, -hr, hl * uq, -hl];
+            changed |= (c0[q].to_bits() ^ v[0].to_bits())
+                | (c1[q].to_bits() ^ v[1].to_bits())
+                | (c2[q].to_bits() ^ v[2].to_bits())
+                | (c3[q].to_bits() ^ v[3].to_bits());
+            c0[q] = v[0];
+            c1[q] = v[1];
+            c2[q] = v[2];
+            c3[q] = v[3];
+        }
+        changed == 0
+    }
     fn of_key_terms(
         &self,
         key: &[f64],
@@ -1458,28 +1491,108 @@ struct Branches {
     limit: f64,
 }
 
+/// The extremes of the positive and of the negative commands of an input (±∞ when there is none),
+/// and whether some command is neither (0 or NaN).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct SignedExtremes {
+    min_pos: f64,
+    max_pos: f64,
+    max_neg: f64,
+    min_neg: f64,
+    zero: bool,
+}
+
+impl SignedExtremes {
+    const NONE: SignedExtremes = SignedExtremes {
+        min_pos: f64::INFINITY,
+        max_pos: f64::NEG_INFINITY,
+        max_neg: f64::NEG_INFINITY,
+        min_neg: f64::INFINITY,
+        zero: false,
+    };
+
+    /// Takes the command `v` in (branch-free selects: a positive `v` can only move the positive
+    /// extremes, a negative one the negative extremes, anything else sets `zero`).
+    #[inline]
+    fn take(&mut self, v: f64) {
+        let (pos, neg) = (v > 0.0, v < 0.0);
+        self.min_pos = if pos && v < self.min_pos {
+            v
+        } else {
+            self.min_pos
+        };
+        self.max_pos = if pos && v > self.max_pos {
+            v
+        } else {
+            self.max_pos
+        };
+        self.max_neg = if neg && v > self.max_neg {
+            v
+        } else {
+            self.max_neg
+        };
+        self.min_neg = if neg && v < self.min_neg {
+            v
+        } else {
+            self.min_neg
+        };
+        self.zero |= !pos && !neg;
+    }
+
+    /// The extremes of `u`, in four lanes (independent, vectorisable) then combined. The extremes of
+    /// a set of nonzero numbers (no NaN: those are neither positive nor negative) do not depend on the
+    /// order they are taken in, and equal nonzero numbers have the same bits: the result is the
+    /// sample-by-sample one to the bit.
+    fn of(u: &[f64]) -> Self {
+        let mut lanes = [Self::NONE; 4];
+        let mut chunks = u.chunks_exact(4);
+        for c in &mut chunks {
+            for (lane, &v) in lanes.iter_mut().zip(c) {
+                lane.take(v);
+            }
+        }
+        let mut all = Self::NONE;
+        for lane in &lanes {
+            all.min_pos = if lane.min_pos < all.min_pos {
+                lane.min_pos
+            } else {
+                all.min_pos
+            };
+            all.max_pos = if lane.max_pos > all.max_pos {
+                lane.max_pos
+            } else {
+                all.max_pos
+            };
+            all.max_neg = if lane.max_neg > all.max_neg {
+                lane.max_neg
+            } else {
+                all.max_neg
+            };
+            all.min_neg = if lane.min_neg < all.min_neg {
+                lane.min_neg
+            } else {
+                all.min_neg
+            };
+            all.zero |= lane.zero;
+        }
+        for &v in chunks.remainder() {
+            all.take(v);
+        }
+        all
+    }
+}
+
 impl Branches {
     /// Looks at the input `u`. With `allow_one_sided == false` a one-sided input is refused (as the
     /// paper's method would fail on it); otherwise the unexcited branch is dropped.
     fn of(u: &[f64], offset: bool, allow_one_sided: bool, name: &str) -> Result<Self, SysidError> {
-        let (mut min_pos, mut max_pos, mut max_neg, mut min_neg) = (
-            f64::INFINITY,
-            f64::NEG_INFINITY,
-            f64::NEG_INFINITY,
-            f64::INFINITY,
-        );
-        let mut zero = false;
-        for &v in u {
-            if v > 0.0 {
-                min_pos = min_pos.min(v);
-                max_pos = max_pos.max(v);
-            } else if v < 0.0 {
-                max_neg = max_neg.max(v);
-                min_neg = min_neg.min(v);
-            } else {
-                zero = true;
-            }
-        }
+        let SignedExtremes {
+            min_pos,
+            max_pos,
+            max_neg,
+            min_neg,
+            zero,
+        } = SignedExtremes::of(u);
         let right = min_pos.is_finite();
         let left = max_neg.is_finite();
         if !(allow_one_sided || left && right) {
@@ -1681,10 +1794,14 @@ fn few_levels(u: &[f64], need: usize) -> Option<Vec<f64>> {
 
 /// The distinct values of `u`, sorted.
 pub(crate) fn levels_of(u: &[f64]) -> Vec<f64> {
-    let mut levels: Vec<f64> = u.iter().copied().filter(|v| v.is_finite()).collect();
     // Runs of one value (a staircase holds each level for many samples) shrink to one entry before the
-    // sort: the same distinct values, far fewer to sort.
-    levels.dedup_by(|a, b| a.total_cmp(b).is_eq());
+    // sort, as they are collected: the same distinct values, far fewer to sort.
+    let mut levels: Vec<f64> = Vec::new();
+    for &v in u {
+        if v.is_finite() && levels.last().is_none_or(|l| !l.total_cmp(&v).is_eq()) {
+            levels.push(v);
+        }
+    }
     // Entries equal under the total order are the same number: an unstable sort gives the same list.
     levels.sort_unstable_by(f64::total_cmp);
     levels.dedup();
@@ -1805,6 +1922,63 @@ mod tests {
     }
     fn data(u: Vec<f64>) -> D {
         D { u }
+    }
+
+    // The four-lane extremes are the sample-by-sample ones (written out here with f64::min/max and
+    // branches) to the bit, for lengths around the lane count, zeros of both signs, NaN and ±∞.
+    #[test]
+    fn signed_extremes_in_four_lanes_are_the_sample_by_sample_ones() {
+        let values = [
+            0.0,
+            -0.0,
+            1.5,
+            -2.0,
+            f64::NAN,
+            3.0,
+            -1e-300,
+            f64::INFINITY,
+            7.0,
+            -7.0,
+        ];
+        let mut cases: Vec<Vec<f64>> = Vec::new();
+        for len in 0..=13 {
+            for shift in 0..values.len() {
+                cases.push(
+                    (0..len)
+                        .map(|i| values[(i * 7 + shift) % values.len()])
+                        .collect(),
+                );
+            }
+        }
+        cases.push((0..1000).map(|k| (k as f64 * 0.37).sin() * 1e3).collect());
+        for u in &cases {
+            let (mut min_pos, mut max_pos, mut max_neg, mut min_neg) = (
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+                f64::NEG_INFINITY,
+                f64::INFINITY,
+            );
+            let mut zero = false;
+            for &v in u {
+                if v > 0.0 {
+                    min_pos = min_pos.min(v);
+                    max_pos = max_pos.max(v);
+                } else if v < 0.0 {
+                    max_neg = max_neg.max(v);
+                    min_neg = min_neg.min(v);
+                } else {
+                    zero = true;
+                }
+            }
+            let e = SignedExtremes::of(u);
+            let bits = |v: [f64; 4]| v.map(f64::to_bits);
+            assert_eq!(
+                bits([e.min_pos, e.max_pos, e.max_neg, e.min_neg]),
+                bits([min_pos, max_pos, max_neg, min_neg]),
+                "{u:?}"
+            );
+            assert_eq!(e.zero, zero, "{u:?}");
+        }
     }
 
     // A staircase of levels −60, −56, −48, −33, 20, 40, 60: a deadzone with b_l = −48 (on a level, two

@@ -400,15 +400,18 @@ pub fn safeguard(
     let mut fell_back = false;
     let several = p.regression().channels().len() > 1;
     // The plain linear least-squares ARX of the same orders on the same data: the guard's start and
-    // every model's baseline (not computed for the baseline itself).
-    let start = (p.regression().nonlinear() || fit.method != Method::Ls)
-        .then(|| linear_start(p))
-        .flatten();
+    // every model's baseline (not computed for the baseline itself, nor when no start could change
+    // the result: `start_can_matter`).
+    let nonlinear = p.regression().nonlinear();
+    let start = ((nonlinear || fit.method != Method::Ls)
+        && start_can_matter(nonlinear, est.as_ref(), fit.model.is_stable()))
+    .then(|| linear_start(p))
+    .flatten();
     let baseline = start
         .as_ref()
         .filter(|(l, _)| l.model.is_stable())
         .map(|(_, m)| crate::trust::guarded_fit(m));
-    if p.regression().nonlinear() {
+    if nonlinear {
         if let Some((linear, linear_metrics)) = start {
             let linear_fit = linear_metrics.fit_sim_percent.unwrap_or(f64::NAN);
             if let Some(why) = hammerstein_guard(
@@ -608,6 +611,33 @@ fn hammerstein_guard(
     }
 }
 
+/// Whether the linear start (and the baseline it gives) could change what [`safeguard`] returns for
+/// an estimate with estimation metrics `est` (`None`: they could not be computed), stability `stable`
+/// and a static nonlinearity (`nonlinear`, the case where [`hammerstein_guard`] runs). When `false`,
+/// the start need not be computed: the result and every warning are the same without it.
+///
+/// The argument: every simulation fit is at most 100 % (fit = 100 (1 − ‖y − ŷ‖/‖y − ȳ‖) with a
+/// norm ratio ≥ 0; `metrics_from_sums` keeps only finite fits), so the start's fit f_l and its guarded
+/// fit g_l are ≤ 100, and, rounding being monotone, f_l − [`FALLBACK_FIT_MARGIN`] ≤
+/// 100 − [`FALLBACK_FIT_MARGIN`] (likewise for [`BASELINE_MARGIN`](crate::trust::BASELINE_MARGIN)).
+/// - [`hammerstein_guard`] fires when the estimate's fit is `None`, when it is unstable (and the start
+///   is not), or when its fit f < f_l − [`FALLBACK_FIT_MARGIN`]. A stable estimate with
+///   f ≥ 100 − [`FALLBACK_FIT_MARGIN`] can therefore never trail any start.
+/// - [`below_baseline`](crate::trust::below_baseline) fires only when the estimate's guarded fit g is
+///   known and g < g_l − [`BASELINE_MARGIN`](crate::trust::BASELINE_MARGIN); g ≥ 100 −
+///   [`BASELINE_MARGIN`](crate::trust::BASELINE_MARGIN) can never trail, and without g there is no
+///   check.
+///
+/// Comparisons are written so that a NaN fit counts as "can matter" (the start is then computed).
+fn start_can_matter(nonlinear: bool, est: Option<&Metrics>, stable: bool) -> bool {
+    let safe = |fit: Option<f64>, margin: f64| fit.is_some_and(|f| f >= 100.0 - margin);
+    let guard =
+        nonlinear && !(stable && safe(est.and_then(|m| m.fit_sim_percent), FALLBACK_FIT_MARGIN));
+    let guarded = est.and_then(crate::trust::guarded_fit);
+    let baseline = guarded.is_some() && !safe(guarded, crate::trust::BASELINE_MARGIN);
+    guard || baseline
+}
+
 /// The standard deviation of parameter `name` of `input` in `params`, if it is there and has one.
 fn std_of(params: &[Param], name: ParamName, input: Option<&str>) -> Option<f64> {
     params
@@ -716,4 +746,135 @@ fn linear_start(p: &Problem) -> Option<(Fitted, Metrics)> {
         },
         metrics,
     ))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::trust::{below_baseline, guarded_fit, BASELINE_MARGIN};
+
+    /// Hand-built estimation metrics: simulation fits from estimated (`fit`) and measured (`measured`)
+    /// initial outputs; the rest is irrelevant to the guards.
+    fn metrics(fit: Option<f64>, measured: Option<f64>) -> Metrics {
+        Metrics {
+            fit_sim_percent: fit,
+            fit_pred_percent: Some(99.0),
+            rmse_sim: fit.map(|_| 1.0),
+            fit_sim_measured_percent: measured,
+            rmse_sim_measured: measured.map(|_| 1.0),
+            rmse_pred: 0.1,
+            loss: 0.005,
+            loss_sim: fit.map(|_| 0.5),
+            fpe: Some(0.005),
+            aic: Some(-5.0),
+            n: 100,
+            p: 4,
+            note: None,
+        }
+    }
+
+    // The margins are 10 points (guard) and 20 (baseline) and no fit exceeds 100 %: the start is
+    // skipped exactly from 90 % (stable Hammerstein estimate) and 80 % (guarded fit) up.
+    #[test]
+    fn the_linear_start_is_skipped_only_where_no_start_can_beat_the_estimate() {
+        assert_eq!((FALLBACK_FIT_MARGIN, BASELINE_MARGIN), (10.0, 20.0));
+        let below = |x: f64| x.next_down();
+        let m = |f: f64, g: f64| metrics(Some(f), Some(g));
+        // Hammerstein, stable: fit 90 % (both initial states) cannot trail a start of ≤ 100 %.
+        assert!(!start_can_matter(true, Some(&m(90.0, 90.0)), true));
+        assert!(!start_can_matter(true, Some(&m(100.0, 100.0)), true));
+        // Just below 90 %, a start of 100 % would be more than 10 points better.
+        assert!(start_can_matter(true, Some(&m(below(90.0), 99.0)), true));
+        // Unstable: the start decides (is it stable?), whatever the fit.
+        assert!(start_can_matter(true, Some(&m(99.0, 99.0)), false));
+        // Diverging simulation (no fit) or no metrics at all: the guard fires on the start.
+        assert!(start_can_matter(true, Some(&metrics(None, None)), true));
+        assert!(start_can_matter(true, None, true));
+        // NaN is never "safe".
+        assert!(start_can_matter(true, Some(&m(f64::NAN, 99.0)), true));
+        assert!(start_can_matter(false, Some(&m(f64::NAN, f64::NAN)), true));
+        // The baseline: the guarded fit (the worse of both) from 80 % up cannot trail by > 20 points.
+        assert!(!start_can_matter(false, Some(&m(99.0, 80.0)), true));
+        assert!(start_can_matter(false, Some(&m(99.0, below(80.0))), true));
+        assert!(start_can_matter(false, Some(&m(below(80.0), 99.0)), true));
+        // A Hammerstein estimate above 90 % from the estimated initial outputs but below 80 % from the
+        // measured ones may still be far below the baseline.
+        assert!(start_can_matter(true, Some(&m(95.0, 70.0)), true));
+        // Linear models: stability and a missing fit do not involve the start (no guard), and without a
+        // guarded fit there is no baseline check.
+        assert!(!start_can_matter(false, Some(&m(85.0, 85.0)), false));
+        assert!(!start_can_matter(
+            false,
+            Some(&metrics(Some(10.0), None)),
+            true
+        ));
+        assert!(!start_can_matter(false, None, false));
+    }
+
+    // The guards themselves, run against every start on a grid of fits up to 100 % (stable or not):
+    // whenever `start_can_matter` says no, neither the Hammerstein guard nor the baseline check fires,
+    // and the grid has cases where the start does matter and a guard fires (the test can fail).
+    #[test]
+    fn no_start_changes_the_result_where_the_start_is_skipped() {
+        let fits = [
+            None,
+            Some(f64::NAN),
+            Some(-1e3),
+            Some(0.0),
+            Some(50.0),
+            Some(79.9),
+            Some(80.0_f64.next_down()),
+            Some(80.0),
+            Some(85.0),
+            Some(90.0_f64.next_down()),
+            Some(90.0),
+            Some(95.0),
+            Some(100.0_f64.next_down()),
+            Some(100.0),
+        ];
+        let (mut skipped, mut fired) = (0, 0);
+        for nonlinear in [false, true] {
+            for stable in [false, true] {
+                for &f in &fits {
+                    for &g in &fits {
+                        let est = metrics(f, g);
+                        let can = start_can_matter(nonlinear, Some(&est), stable);
+                        for &lf in fits.iter().flatten().filter(|v| !v.is_nan()) {
+                            for &lg in fits.iter().flatten().filter(|v| !v.is_nan()) {
+                                for linear_stable in [false, true] {
+                                    let guard = nonlinear
+                                        && hammerstein_guard(
+                                            Method::Rls,
+                                            f,
+                                            stable,
+                                            linear_stable,
+                                            lf,
+                                        )
+                                        .is_some();
+                                    let start = metrics(Some(lf), Some(lg));
+                                    let baseline = below_baseline(
+                                        Record::Estimation,
+                                        guarded_fit(&est),
+                                        linear_stable.then(|| guarded_fit(&start)).flatten(),
+                                    )
+                                    .is_some();
+                                    if !can {
+                                        skipped += 1;
+                                        assert!(
+                                            !guard && !baseline,
+                                            "fits {f:?}/{g:?} stable {stable}, start {lf}/{lg} \
+                                             stable {linear_stable}"
+                                        );
+                                    } else if guard || baseline {
+                                        fired += 1;
+                                    }
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        assert!(skipped > 0 && fired > 0, "{skipped} {fired}");
+    }
 }

@@ -26,13 +26,13 @@ us() { jq -r "$1 * 1e6 | . * 10 | round / 10" "$tmp/id.json"; }
 # Wall clock (best run), then the CPU time of the timing thread (best run), which the load inflates less.
 row "bench identify: Hammerstein 2000 samples, LS (key-term)" \
     "$(us .ls.seconds_per_identification) µs, CPU $(us .ls.cpu_seconds_per_identification) µs" \
-    "CPU 108–109 µs (26 Nov 15:59, load 6.5–7, issue22j; main 203–208 µs then); 168 µs (Results table, estimator only); 686 µs (Python section)"
+    "CPU 110.2 µs (26 Nov 16:35, quiet, main f82af9c; e0dc901 201 µs); 168 µs (Results table, estimator only); 686 µs (Python section)"
 row "bench identify: Hammerstein 2000 samples, RLS" \
     "$(us .rls.seconds_per_identification) µs, CPU $(us .rls.cpu_seconds_per_identification) µs" \
-    "CPU 240–242 µs (26 Nov 15:59, load 6.5–7, 3 passes, issue22j; main 350–353 µs then); 239 µs (Results table, 1 pass); 785 µs (Python section)"
+    "CPU 239.6–240.4 µs (26 Nov 16:35, quiet, 3 passes, main f82af9c; e0dc901 347 µs); 239 µs (Results table, 1 pass); 785 µs (Python section)"
 row "bench identify: Hammerstein 2000 samples, RLS, 1 pass" \
     "$(us .rls_one_pass.seconds_per_identification) µs, CPU $(us .rls_one_pass.cpu_seconds_per_identification) µs" \
-    "CPU 204–206 µs (26 Nov 15:59, load 6.5–7, with safeguards, issue22j; main 298–311 µs then); 239 µs (Results table, estimator only)"
+    "CPU 202.4–203.1 µs (26 Nov 16:35, quiet, with safeguards, main f82af9c; e0dc901 297 µs); 239 µs (Results table, estimator only)"
 
 if [ -f "$DATA/silverbox/SNLS80mV.csv" ] && [ -f "$DATA/emps/DATA_EMPS.csv" ]; then
     # The whole identify command, as the OE table times it (wall clock, best of 3).

@@ -25,6 +25,7 @@ import html
 import math
 import numbers
 import os
+import stat
 import tempfile
 import warnings
 
@@ -340,17 +341,32 @@ def _check_whole_actuators(results, files):
 
 def _write_atomic(path, write):
     """Calls ``write(tmp)`` on a temporary file beside ``path``, then renames it to ``path``: ``path`` is
-    either untouched or wholly replaced (the temporary file is removed on failure)."""
+    either untouched or wholly replaced (the temporary file is removed on failure). The file gets the
+    permissions of the file it replaces, or a new file's (0o666 less the umask), as the command line's
+    outputs do: not the 0o600 of a bare temporary file (audit s12: a report meant for others was
+    unreadable to them)."""
     directory = os.path.dirname(os.path.abspath(path))
     fd, tmp = tempfile.mkstemp(prefix=".ipa-sysid-", suffix=".tmp", dir=directory)
     os.close(fd)
     try:
         write(tmp)
+        os.chmod(tmp, _output_mode(path))
         os.replace(tmp, path)
     except BaseException:
         if os.path.exists(tmp):
             os.unlink(tmp)
         raise
+
+
+def _output_mode(path):
+    """The permission bits an output at ``path`` gets: those of the file it replaces, else 0o666 less
+    the process's umask."""
+    try:
+        return stat.S_IMODE(os.stat(path).st_mode)
+    except FileNotFoundError:
+        umask = os.umask(0)
+        os.umask(umask)
+        return 0o666 & ~umask
 
 
 # ---------------------------------------------------------------------------------------------------

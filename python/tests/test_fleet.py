@@ -11,6 +11,7 @@ import json
 import math
 import os
 import re
+import stat
 import signal
 import threading
 import time
@@ -321,3 +322,20 @@ def test_run_refuses_an_actuator_split_over_files(fleet_dir, tmp_path):
     assert f"{part['actuator_id'].nunique()} actuator(s) have rows in several files" in text
     assert "part-a.parquet, part-b.parquet" in text and "shuffle('actuator_id')" in text
     assert not (out / "results.parquet").exists()
+
+
+def test_outputs_get_the_permissions_of_a_new_file_or_of_the_file_they_replace(tmp_path):
+    # Audit s12: results.parquet and the report were created 0600 (a bare temporary file renamed).
+    umask = os.umask(0o022)
+    try:
+        new = tmp_path / "new.txt"
+        fleet._write_atomic(str(new), lambda p: open(p, "w").write("x"))
+        assert stat.S_IMODE(new.stat().st_mode) == 0o644
+        old = tmp_path / "old.txt"
+        old.write_text("old")
+        os.chmod(old, 0o640)
+        fleet._write_atomic(str(old), lambda p: open(p, "w").write("y"))
+        assert old.read_text() == "y"
+        assert stat.S_IMODE(old.stat().st_mode) == 0o640
+    finally:
+        os.umask(umask)

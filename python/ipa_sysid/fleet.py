@@ -299,6 +299,7 @@ def run(input_dir, output_dir, client=None, **settings):
     pd = _pandas()
     # One partition per file (never a file split by row groups: an actuator's record stays whole).
     files = _parquet_files(input_dir)
+    _check_schemas(files)
     ddf = dd.read_parquet(files, columns=list(INPUT_COLUMNS), split_row_groups=False)
     meta = identify_partition(
         pd.DataFrame({c: pd.Series([], dtype=ddf[c].dtype) for c in INPUT_COLUMNS}), **settings
@@ -314,6 +315,37 @@ def run(input_dir, output_dir, client=None, **settings):
     target = os.path.join(os.fspath(output_dir), "results.parquet")
     _write_atomic(target, lambda tmp: results.to_parquet(tmp, index=False))
     return results
+
+
+def _check_schemas(files):
+    """Reads each file's Parquet footer (not its data) before Dask does: a damaged file, one without the
+    input columns, or one whose column types differ from the first file's is named here (audit s12: Dask
+    raised pyarrow's "Parquet magic bytes not found" or "Could not convert '0x' … int64" without the
+    file, one of possibly thousands)."""
+    import pyarrow.parquet as pq
+
+    first = None
+    for f in files:
+        try:
+            schema = pq.read_schema(f)
+        except Exception as e:  # pyarrow raises several types for a damaged file
+            raise ValueError(f"{f}: not a readable Parquet file ({e})") from e
+        missing = [c for c in INPUT_COLUMNS if c not in schema.names]
+        if missing:
+            raise ValueError(
+                f"{f}: no column(s) {', '.join(missing)} (a long-format record has "
+                f"{', '.join(INPUT_COLUMNS)}; the file has {', '.join(schema.names)})"
+            )
+        types = {c: schema.field(c).type for c in INPUT_COLUMNS}
+        if first is None:
+            first = (f, types)
+            continue
+        for c in INPUT_COLUMNS:
+            if types[c] != first[1][c]:
+                raise ValueError(
+                    f"{f}: column {c} is {types[c]} where {first[0]} has {first[1][c]}: every file of "
+                    "the fleet needs the same column types"
+                )
 
 
 def _check_whole_actuators(results, files):

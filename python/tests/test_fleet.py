@@ -339,3 +339,24 @@ def test_outputs_get_the_permissions_of_a_new_file_or_of_the_file_they_replace(t
         assert stat.S_IMODE(old.stat().st_mode) == 0o640
     finally:
         os.umask(umask)
+
+
+def test_run_names_a_damaged_or_mismatched_file(fleet_dir, tmp_path):
+    # Audit s12: a damaged Parquet among the fleet's files, or one whose actuator_id is text where the
+    # others have integers, raised pyarrow's error without the file's name; no results are written.
+    part = pd.read_parquet(sorted(fleet_dir.glob("*.parquet"))[0])
+    out = tmp_path / "out"
+    damaged = tmp_path / "damaged"
+    damaged.mkdir()
+    part.to_parquet(damaged / "a.parquet", index=False)
+    (damaged / "b.parquet").write_bytes(b"PAR1 not really")
+    with pytest.raises(ValueError, match=r"b\.parquet: not a readable Parquet file"):
+        fleet.run(damaged, out)
+    mixed = tmp_path / "mixed"
+    mixed.mkdir()
+    part.to_parquet(mixed / "a.parquet", index=False)
+    other = part.assign(actuator_id=part["actuator_id"].map(lambda a: f"0x{a}"))
+    other.to_parquet(mixed / "b.parquet", index=False)
+    with pytest.raises(ValueError, match=r"b\.parquet: column actuator_id is .* where .*a\.parquet has"):
+        fleet.run(mixed, out)
+    assert not (out / "results.parquet").exists()

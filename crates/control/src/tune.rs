@@ -777,10 +777,15 @@ pub struct Margins {
     /// do not show that the closed loop is stable (Nyquist: L must encircle −1 once per open-loop
     /// pole outside the circle), only how far the frequency response passes from −1.
     pub open_loop_unstable: bool,
+    /// The model's output nonlinearity y = g(v), if any: `Some(true)` when its slope is in G (a
+    /// saturation, slope m inside its limits), `Some(false)` when it is not (a polynomial or
+    /// piecewise-linear map, whose slope changes with v: the margins are then those of v's loop).
+    pub output_slope_included: Option<bool>,
 }
 
 /// Gain and phase margins of L(e^{jωTs}) = C · G: G = m z^{-nk} B(z⁻¹)/A(z⁻¹) the model's linear part
-/// with the deadzone replaced by its mean slope m = (m_l + m_r)/2 (what the shift compensator leaves),
+/// with the deadzone replaced by its mean slope m = (m_l + m_r)/2 (what the shift compensator leaves)
+/// and, for a model with an output saturation, times that saturation's slope inside its limits,
 /// C = Kp + Ki Ts/(1 − z⁻¹) + Kd (1 − α)(1 − z⁻¹)/(Ts (1 − α z⁻¹)) (the derivative acts on y, which
 /// for the loop's stability is the same return path). Evaluated on 4000 logarithmically spaced
 /// frequencies from 10⁻³ rad/s to the Nyquist frequency π/Ts; the phase is unwrapped from the lowest
@@ -790,10 +795,17 @@ pub struct Margins {
 pub fn margins(model: &Model, s: &ControllerSettings) -> Margins {
     use std::f64::consts::PI;
     let ts = s.ts_s;
+    // An output saturation multiplies the loop gain by its slope m inside its limits (audit s12: 1.19
+    // on the tanks' Hammerstein–Wiener model, 1.5 dB left out).
+    let output_slope = match model.output_nonlinearity() {
+        Some(sysid_core::StaticNonlinearity::Saturation(g)) => Some(g.m),
+        _ => None,
+    };
     let slope = model
         .deadzone()
         .map(|d| 0.5 * (d.m_l + d.m_r))
-        .unwrap_or(1.0);
+        .unwrap_or(1.0)
+        * output_slope.unwrap_or(1.0);
     let alpha = s.derivative_filter_s / (s.derivative_filter_s + ts);
     let n = 4000;
     let (w_lo, w_hi) = (1e-3f64, PI / ts);
@@ -906,6 +918,7 @@ pub fn margins(model: &Model, s: &ControllerSettings) -> Margins {
         // A pole on the circle (an integrator) is the classical case of margins read with an
         // indented Nyquist contour; only poles outside it break their meaning.
         open_loop_unstable: model.poles().iter().any(|p| p.norm() > 1.0),
+        output_slope_included: model.output_nonlinearity().map(|_| output_slope.is_some()),
     }
 }
 

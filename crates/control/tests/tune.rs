@@ -57,6 +57,31 @@ fn gain_margin_with_a_delay_is_at_a_third_of_nyquist() {
     assert!((m.phase_crossover_rad_s.unwrap() - w).abs() < 0.5, "{m:?}");
 }
 
+// An output saturation of slope 2 inside its limits doubles the loop gain: Kp m m_g = 0.4, so
+// GM = -20 log10(0.4) = 7.96 dB at the same phase crossover (audit s12: its slope was left out).
+#[test]
+fn an_output_saturation_s_slope_is_in_the_loop_gain() {
+    let g = sysid_core::StaticNonlinearity::Saturation(sysid_core::Saturation {
+        s_l: -100.0,
+        s_r: 100.0,
+        m: 2.0,
+    });
+    let model = integrator(2, 0.01, (-1.0, 1.0))
+        .with_output_nonlinearity(Some(g))
+        .unwrap();
+    let m = tune::margins(&model, &p_only(20.0));
+    let gm = -20.0 * (0.4f64).log10();
+    assert!(
+        (m.gain_margin_db.unwrap() - gm).abs() < 0.02,
+        "{m:?} vs {gm}"
+    );
+    assert_eq!(m.output_slope_included, Some(true));
+    assert_eq!(
+        tune::margins(&integrator(2, 0.01, (-1.0, 1.0)), &p_only(20.0)).output_slope_included,
+        None
+    );
+}
+
 #[test]
 fn spec_parses_over_the_defaults_and_names_a_bad_key() {
     let s = Spec::parse("").unwrap();

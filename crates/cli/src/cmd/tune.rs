@@ -272,11 +272,16 @@ fn summary_text(r: &TuneReport, out: &Path) -> String {
     );
     o += &format!("controller:   {}\n", super::control::tuned_line(s));
     o += &format!(
-        "margins:      gain {} dB at {} rad/s, phase {}° at {} rad/s (linear part: model with the deadzone's slope{})\n",
+        "margins:      gain {} dB at {} rad/s, phase {}° at {} rad/s (linear part: model with the deadzone's slope{}{})\n",
         f(m.gain_margin_db, 2),
         f(m.phase_crossover_rad_s, 2),
         f(m.phase_margin_deg, 1),
         f(m.gain_crossover_rad_s, 2),
+        match m.output_slope_included {
+            Some(true) => " and the output saturation's",
+            Some(false) => "; the output map's varying slope is not in it",
+            None => "",
+        },
         if m.open_loop_unstable {
             "; UNSTABLE open loop: not a proof of stability, see the warnings"
         } else {

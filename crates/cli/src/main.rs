@@ -82,10 +82,12 @@ fn main() -> ExitCode {
         Ok(cli) => cli,
         Err(e) => e.exit(),
     };
-    if let (Command::Identify(a), Some((_, m))) = (&mut cli.command, matches.subcommand()) {
-        // `identify` refuses flags its structure or method would ignore: it needs to know which were
-        // typed (a flag given at its default value counts).
-        a.given = given_flags(m);
+    // `identify` and `order` refuse flags their structure, method or classes would ignore: they need
+    // to know which were typed (a flag given at its default value counts).
+    match (&mut cli.command, matches.subcommand()) {
+        (Command::Identify(a), Some((_, m))) => a.given = given_flags(m),
+        (Command::Order(a), Some((_, m))) => a.given = given_flags(m),
+        _ => {}
     }
     // An interrupted write (Ctrl-C, SIGTERM) leaves no `.ipa-sysid-*.tmp` file behind.
     if let Err(e) = sysid_io::remove_temporaries_on_signals() {

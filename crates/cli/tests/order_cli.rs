@@ -454,3 +454,46 @@ fn a_test_record_that_is_the_estimation_data_is_warned() {
     assert!(test_line("450..600").contains("NOT held out"));
     assert!(test_line("500..600").contains("never used for ranking"));
 }
+
+// Audit s12: the NARX search's settings were accepted and ignored when no narxD class is searched (plain
+// `order`, or --classes without a NARX class); they are refused naming the flag, and accepted with one.
+#[test]
+fn narx_settings_without_a_narx_class_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = two_plant_record(dir.path());
+    let d = data.to_str().unwrap();
+    let grid = ["--na", "1", "--nb", "1", "--nk", "1"];
+    for (extra, flag) in [
+        (&["--stop", "bic"][..], "--stop"),
+        (&["--max-terms", "5"][..], "--max-terms"),
+        (&["--no-refine"][..], "--no-refine"),
+        (
+            &["--classes", "arx,wiener:saturation", "--selection", "0.3"][..],
+            "--selection",
+        ),
+    ] {
+        let out = bin()
+            .args([&["order", "--data", d][..], &grid, extra].concat())
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{flag}: {err}");
+        assert!(
+            err.contains(&format!("{flag} is a setting of the NARX class search")),
+            "{flag}: {err}"
+        );
+    }
+    let (doc, _) = order_json(
+        &[
+            &["order", "--data", d][..],
+            &grid,
+            &["--classes", "arx,narx2", "--stop", "bic"],
+        ]
+        .concat(),
+        dir.path(),
+    );
+    assert!(
+        doc["candidates"].as_array().is_some_and(|c| !c.is_empty()),
+        "{doc}"
+    );
+}

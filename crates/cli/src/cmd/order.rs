@@ -87,6 +87,39 @@ pub struct Args {
     pub classes: Vec<sysid::search::Class>,
     #[command(flatten)]
     pub narx: super::identify_narx::NarxArgs,
+    /// The ids of the arguments typed on the command line (set by `main`), to refuse the NARX settings
+    /// when no NARX class is searched.
+    #[arg(skip)]
+    pub given: Vec<String>,
+}
+
+/// The NARX search's settings (`NarxArgs`): (argument id, flag).
+const NARX_FLAGS: [(&str, &str); 4] = [
+    ("stop", "--stop"),
+    ("max_terms", "--max-terms"),
+    ("selection", "--selection"),
+    ("no_refine", "--no-refine"),
+];
+
+/// Refuses a NARX setting typed when no `narxD` class is searched: it would be ignored silently
+/// (audit s12), as `identify` refuses it without `--structure narx`.
+fn check_narx_flags(args: &Args) -> anyhow::Result<()> {
+    let narx = args
+        .classes
+        .iter()
+        .any(|c| matches!(c, sysid::search::Class::Narx(_)));
+    if narx {
+        return Ok(());
+    }
+    for (id, flag) in NARX_FLAGS {
+        if args.given.iter().any(|g| g == id) {
+            anyhow::bail!(
+                "{flag} is a setting of the NARX class search (a narxD class in --classes), which this \
+                 search does not run; leave out {flag}"
+            );
+        }
+    }
+    Ok(())
 }
 
 /// Parses one class of `--classes`.
@@ -153,6 +186,7 @@ struct TestResult {
 
 /// Runs `order`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    check_narx_flags(&args)?;
     let na = parse_range(&args.na, "--na")?;
     let nb = parse_range(&args.nb, "--nb")?;
     let auto_nk = args.nk.trim() == "auto";

@@ -631,6 +631,16 @@ fn quantile(v: &[f64], q: f64) -> f64 {
     s[((s.len() - 1) as f64 * q).round() as usize]
 }
 
+/// Distinct input levels a deadzone needs to be determined: 4 with two branches whose breakpoints are
+/// both free (b_l, m_l, b_r, m_r), otherwise 3 (`identify`'s refusal and `track`'s end-of-run warning).
+pub(crate) fn deadzone_levels_needed(both_branches_free: bool) -> usize {
+    if both_branches_free {
+        4
+    } else {
+        3
+    }
+}
+
 /// Refuses an input with fewer than `need` distinct levels for a block of `kind`.
 fn need_levels(u: &[f64], need: usize, kind: &str, name: &str) -> Result<Vec<f64>, SysidError> {
     let levels = levels_of(u);
@@ -1629,11 +1639,7 @@ impl Branches {
         // more free parameters than levels fits in many ways, which the regression would only report
         // as an unexcited regressor. Both branches with free breakpoints (b_l, m_l, b_r, m_r) need 4
         // levels, otherwise 3. (A constant input keeps the regression's own "constant input" error.)
-        let need = if left && right && !b_l_fixed && !b_r_fixed {
-            4
-        } else {
-            3
-        };
+        let need = deadzone_levels_needed(left && right && !b_l_fixed && !b_r_fixed);
         if let (false, false, Some(levels)) = (b_l_fixed, b_r_fixed, few_levels(u, need)) {
             if levels.len() >= 2 {
                 // Exponent form beyond 1e16 (1e300 is not printed with 301 digits).

@@ -643,11 +643,13 @@ impl Tracker {
             return Vec::new();
         }
         let mut w = Vec::new();
-        let need = if self.negative && self.positive { 4 } else { 3 };
+        let need = crate::blocks::deadzone_levels_needed(self.negative && self.positive);
         if self.levels.len() < need {
             let list: Vec<String> = self.levels.iter().map(f64::to_string).collect();
             w.push(format!(
-                "the input took only {} distinct level(s) ({}): a deadzone needs at least {need} to be                  determined (identify refuses such a record), so the deadzone estimate is not determined by                  the data",
+                "the input took only {} distinct level(s) ({}): a deadzone needs at least {need} to be \
+                 determined (identify refuses such a record), so the deadzone estimate is not determined \
+                 by the data",
                 self.levels.len(),
                 list.join(", ")
             ));
@@ -667,7 +669,8 @@ impl Tracker {
         ] {
             if !excited {
                 w.push(format!(
-                    "the input was never {side} is not estimated from the data; it holds the start's                      values (breakpoint {b0}; --b-l0/--b-r0 in the input's units)"
+                    "the input was never {side} is not estimated from the data; it holds the start's \
+                     values (breakpoint {b0}; --b-l0/--b-r0 in the input's units)"
                 ));
             }
         }

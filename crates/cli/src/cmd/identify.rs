@@ -372,12 +372,7 @@ impl Args {
             }
             return Ok(());
         }
-        for (id, flag) in [
-            ("stop", "--stop"),
-            ("max_terms", "--max-terms"),
-            ("selection", "--selection"),
-            ("no_refine", "--no-refine"),
-        ] {
+        for (id, flag) in super::identify_narx::NARX_FLAGS {
             if self.given(id) {
                 refuse(
                     flag,

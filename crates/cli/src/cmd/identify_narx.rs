@@ -7,6 +7,15 @@ use sysid_summary::narx::NarxReport;
 use super::common::{print_notes, print_report, write_output};
 use super::identify::Args;
 
+/// The flags of [`NarxArgs`], (argument id, flag): `identify` refuses them without `--structure
+/// narx`, `order` without a narxD class (a flag typed is known by its id).
+pub const NARX_FLAGS: [(&str, &str); 4] = [
+    ("stop", "--stop"),
+    ("max_terms", "--max-terms"),
+    ("selection", "--selection"),
+    ("no_refine", "--no-refine"),
+];
+
 /// Flags that only polynomial NARX models use.
 #[derive(Debug, Clone, clap::Args)]
 pub struct NarxArgs {

@@ -93,14 +93,6 @@ pub struct Args {
     pub given: Vec<String>,
 }
 
-/// The NARX search's settings (`NarxArgs`): (argument id, flag).
-const NARX_FLAGS: [(&str, &str); 4] = [
-    ("stop", "--stop"),
-    ("max_terms", "--max-terms"),
-    ("selection", "--selection"),
-    ("no_refine", "--no-refine"),
-];
-
 /// Refuses a NARX setting typed when no `narxD` class is searched: it would be ignored silently
 /// (audit s12), as `identify` refuses it without `--structure narx`.
 fn check_narx_flags(args: &Args) -> anyhow::Result<()> {
@@ -111,7 +103,7 @@ fn check_narx_flags(args: &Args) -> anyhow::Result<()> {
     if narx {
         return Ok(());
     }
-    for (id, flag) in NARX_FLAGS {
+    for (id, flag) in super::identify_narx::NARX_FLAGS {
         if args.given.iter().any(|g| g == id) {
             anyhow::bail!(
                 "{flag} is a setting of the NARX class search (a narxD class in --classes), which this \

@@ -601,6 +601,37 @@ fn suspicious_model_files_are_announced() {
         "{c}"
     );
 
+    // Any input or output map whose shape breaks its kind is announced the same way: here a
+    // Hammerstein–Wiener file whose output saturation's limits cross (s_l > s_r), by validate and tune.
+    edited_model(d, "crossed_output.json", |v| {
+        v["model"]["output_nonlinearity"] =
+            serde_json::json!({"kind": "saturation", "s_l": 84.0, "s_r": 49.0, "m": 1.0});
+    });
+    let out = run(
+        "validate --model {t}/crossed_output.json --data {c}/good.csv --ts 0.01 --json {t}/w.json",
+        d,
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let w: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("w.json")).unwrap()).unwrap();
+    let said = |v: &serde_json::Value| {
+        v["warnings"].as_array().unwrap().iter().any(|w| {
+            let w = w.as_str().unwrap();
+            w.contains("non-physical saturation (the output nonlinearity)")
+                && w.contains("s_l = 84 >= s_r = 49")
+        })
+    };
+    assert!(said(&w), "{w}");
+    let out = run(
+        "tune --model {t}/crossed_output.json --spec steps=1,low=1,high=3 --max-evaluations 40 \
+         --variants 1 --out {t}/ctl.json --json {t}/tune.json",
+        d,
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let tuned: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("tune.json")).unwrap()).unwrap();
+    assert!(said(&tuned), "{tuned}");
+
     let out = run(
         "simulate --plant model:{c}/model/unstable.json --input prbs --samples 20 --out {t}/u.csv",
         d,

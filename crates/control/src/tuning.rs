@@ -352,6 +352,11 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
         _ => {}
     }
     warnings.splice(0..0, reach_warnings(&model, &deadzone, &req.spec));
+    if twin.is_none() {
+        // What the model file itself holds (a map that is not its kind's shape), as `validate` says it.
+        let file = sysid_core::model_file::load_warnings(&model);
+        warnings.splice(0..0, file.into_iter().map(|w| format!("model: {w}")));
+    }
     warnings.splice(0..0, model_stability_warnings(&model, &margins));
     Ok(TuneReport {
         source: label,

@@ -51,44 +51,35 @@ pub fn read_model(path: &Path) -> Result<Model, SysidError> {
     parse_model(&read_file(path)?, &path.display().to_string())
 }
 
-/// What a model file holds that a reader must be told about, in words: a deadzone that is not
-/// physical (b_l > b_r: the breakpoints crossed; slopes of opposite signs). `identify` saves such a
-/// model with the same warning; `validate`, `simulate` and `control` repeat it when they load the file
-/// (`control --compensate-deadzone` refuses it, as it cannot invert it).
+/// What a model file holds that a reader must be told about, in words: an input or output map that is
+/// not the physical shape its kind names ([`crate::StaticNonlinearity::shape_problems`]: a deadzone
+/// whose breakpoints cross or whose slopes are zero or of opposite signs, a saturation whose limits
+/// cross, ...). `identify` saves such a model with its own warning; `validate`, `simulate`, `control`
+/// and `tune` repeat these when they load the file (`control --compensate-deadzone` refuses a
+/// non-physical deadzone, as it cannot invert it).
 pub fn load_warnings(model: &Model) -> Vec<String> {
     let several = model.inputs().len() > 1;
-    model
-        .inputs()
-        .iter()
-        .filter_map(|input| Some((input.name(), input.deadzone()?)))
-        .flat_map(|(name, d)| {
-            let of = if several {
-                format!(" (input {name})")
-            } else {
-                String::new()
-            };
-            let mut w = Vec::new();
-            if d.b_l > d.b_r {
-                w.push(format!(
-                    "non-physical deadzone{of}: b_l = {} > b_r = {} (the breakpoints cross); the model's \
-                     input map is not the valve's deadzone, use its results with care",
-                    d.b_l, d.b_r
-                ));
-            }
-            if d.m_l == 0.0 || d.m_r == 0.0 {
-                w.push(format!(
-                    "non-physical deadzone{of}: a slope is zero (m_l = {}, m_r = {}), so the model does \
-                     not respond to commands beyond that breakpoint",
-                    d.m_l, d.m_r
-                ));
-            }
-            if d.m_l * d.m_r < 0.0 {
-                w.push(format!(
-                    "non-physical deadzone{of}: the slopes have opposite signs (m_l = {}, m_r = {})",
-                    d.m_l, d.m_r
-                ));
-            }
-            w
+    let inputs = model.inputs().iter().map(|input| {
+        let of = if several {
+            format!(" (input {})", input.name())
+        } else {
+            String::new()
+        };
+        (input.nonlinearity(), of)
+    });
+    let output = model
+        .output_nonlinearity()
+        .map(|g| (g, " (the output nonlinearity)".to_string()));
+    inputs
+        .chain(output)
+        .flat_map(|(f, of)| {
+            let kind = f.kind_name();
+            f.shape_problems().into_iter().map(move |why| {
+                format!(
+                    "non-physical {kind}{of}: {why}; the model's map is not a {kind}, use its results \
+                     with care"
+                )
+            })
         })
         .collect()
 }

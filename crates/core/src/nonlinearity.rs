@@ -431,4 +431,153 @@ impl StaticNonlinearity {
     pub fn is_finite(&self) -> bool {
         self.values().iter().all(|v| v.is_finite())
     }
+
+    /// What makes this map not the physical shape its kind names, whatever the data (each a phrase,
+    /// empty when nothing does): a deadzone whose breakpoints cross (b_l > b_r), with a zero slope or
+    /// slopes of opposite signs; a saturation without a linear interval (s_l ≥ s_r) or with m = 0; a
+    /// deadzone–saturation whose branch saturates before it opens (s_l ≥ b_l or s_r ≤ b_r), whose
+    /// breakpoints cross, or whose slopes are zero or of opposite signs; a piecewise-linear map or a
+    /// polynomial that is zero everywhere. A model file's reader repeats these as warnings
+    /// (`model_file::load_warnings`): such a model still simulates, but its input or output map is not
+    /// what its kind says, so its results need care.
+    pub fn shape_problems(&self) -> Vec<String> {
+        let mut out = Vec::new();
+        let slopes = |out: &mut Vec<String>, m_l: f64, m_r: f64| {
+            if m_l == 0.0 || m_r == 0.0 {
+                out.push(format!(
+                    "a slope is zero (m_l = {m_l}, m_r = {m_r}), so it does not respond beyond that breakpoint"
+                ));
+            } else if m_l * m_r < 0.0 {
+                out.push(format!(
+                    "the slopes have opposite signs (m_l = {m_l}, m_r = {m_r})"
+                ));
+            }
+        };
+        match self {
+            StaticNonlinearity::Linear => {}
+            StaticNonlinearity::Deadzone(d) => {
+                if d.b_l > d.b_r {
+                    out.push(format!(
+                        "b_l = {} > b_r = {} (the breakpoints cross)",
+                        d.b_l, d.b_r
+                    ));
+                }
+                slopes(&mut out, d.m_l, d.m_r);
+            }
+            StaticNonlinearity::Saturation(s) => {
+                if s.s_l >= s.s_r {
+                    out.push(format!(
+                        "s_l = {} >= s_r = {} (no linear interval: the limits cross)",
+                        s.s_l, s.s_r
+                    ));
+                }
+                if s.m == 0.0 {
+                    out.push("its slope m is zero, so it does not respond at all".into());
+                }
+            }
+            StaticNonlinearity::DeadzoneSaturation(d) => {
+                if d.b_l > d.b_r {
+                    out.push(format!(
+                        "b_l = {} > b_r = {} (the breakpoints cross)",
+                        d.b_l, d.b_r
+                    ));
+                }
+                if d.s_l >= d.b_l {
+                    out.push(format!(
+                        "s_l = {} >= b_l = {} (the left branch saturates before it opens)",
+                        d.s_l, d.b_l
+                    ));
+                }
+                if d.s_r <= d.b_r {
+                    out.push(format!(
+                        "s_r = {} <= b_r = {} (the right branch saturates before it opens)",
+                        d.s_r, d.b_r
+                    ));
+                }
+                slopes(&mut out, d.m_l, d.m_r);
+            }
+            StaticNonlinearity::PiecewiseLinear(p) => {
+                if p.slopes().iter().all(|s| *s == 0.0) {
+                    out.push("every slope is zero, so it does not respond at all".into());
+                }
+            }
+            StaticNonlinearity::Polynomial(p) => {
+                if p.coefficients().iter().all(|g| *g == 0.0) {
+                    out.push("every coefficient is zero, so it does not respond at all".into());
+                }
+            }
+        }
+        out
+    }
+
+    /// The kind's name as the model file and `--nonlinearity` spell it.
+    pub fn kind_name(&self) -> &'static str {
+        match self {
+            StaticNonlinearity::Linear => "linear",
+            StaticNonlinearity::Deadzone(_) => "deadzone",
+            StaticNonlinearity::Saturation(_) => "saturation",
+            StaticNonlinearity::DeadzoneSaturation(_) => "deadzone-saturation",
+            StaticNonlinearity::PiecewiseLinear(_) => "piecewise-linear",
+            StaticNonlinearity::Polynomial(_) => "polynomial",
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    // Each kind's physical shape gives no problem; each way of breaking it is named once, by the
+    // parameter values it breaks with.
+    #[test]
+    fn shape_problems_name_each_broken_rule() {
+        let dz = |b_l, b_r, m_l, m_r| StaticNonlinearity::Deadzone(Deadzone { b_l, b_r, m_l, m_r });
+        assert!(dz(-5.0, 5.0, 1.0, 2.0).shape_problems().is_empty());
+        let crossed = dz(5.0, -5.0, 1.0, 1.0).shape_problems();
+        assert_eq!(crossed.len(), 1);
+        assert!(crossed[0].contains("b_l = 5 > b_r = -5"), "{crossed:?}");
+        assert!(dz(-5.0, 5.0, 1.0, -1.0).shape_problems()[0].contains("opposite signs"));
+        assert!(dz(-5.0, 5.0, 0.0, 1.0).shape_problems()[0].contains("zero"));
+
+        let sat = |s_l, s_r, m| StaticNonlinearity::Saturation(Saturation { s_l, s_r, m });
+        assert!(sat(-1.0, 2.0, 3.0).shape_problems().is_empty());
+        let p = sat(84.0, 49.0, 1.7).shape_problems();
+        assert_eq!(p.len(), 1);
+        assert!(p[0].contains("s_l = 84 >= s_r = 49"), "{p:?}");
+        // Equal limits leave no linear interval either; a zero slope is a second problem.
+        assert_eq!(sat(1.0, 1.0, 0.0).shape_problems().len(), 2);
+
+        let ds = |b_l, b_r, s_l, s_r| {
+            StaticNonlinearity::DeadzoneSaturation(DeadzoneSaturation {
+                b_l,
+                b_r,
+                s_l,
+                s_r,
+                m_l: 2.0,
+                m_r: 0.5,
+            })
+        };
+        assert!(ds(-1.0, 1.0, -3.0, 4.0).shape_problems().is_empty());
+        let p = ds(-1.0, 1.0, -0.5, 0.5).shape_problems();
+        assert_eq!(p.len(), 2, "{p:?}");
+        assert!(p[0].contains("s_l = -0.5 >= b_l = -1") && p[1].contains("s_r = 0.5 <= b_r = 1"));
+
+        let pwl = PiecewiseLinear::new(&[1.0], &[0.0, 0.0]).unwrap();
+        assert_eq!(
+            StaticNonlinearity::PiecewiseLinear(pwl)
+                .shape_problems()
+                .len(),
+            1
+        );
+        let pwl = PiecewiseLinear::new(&[1.0], &[0.0, 1.0]).unwrap();
+        assert!(StaticNonlinearity::PiecewiseLinear(pwl)
+            .shape_problems()
+            .is_empty());
+        let poly = Polynomial::new(&[0.0, 0.0]).unwrap();
+        assert_eq!(
+            StaticNonlinearity::Polynomial(poly).shape_problems().len(),
+            1
+        );
+        assert!(StaticNonlinearity::Linear.shape_problems().is_empty());
+    }
 }

@@ -156,8 +156,8 @@ pub struct PlantLimits {
     /// The largest pole modulus of a model plant when it exceeds 1 (an unstable model; an integrator's
     /// pole at 1 is a position actuator's normal dynamics); `None` otherwise.
     pub unstable_pole: Option<f64>,
-    /// What the model file holds that the user must be told (a deadzone whose breakpoints cross, slopes
-    /// of opposite signs: [`sysid_core::model_file::load_warnings`]); empty for `ipa` and `paper`.
+    /// What the model file holds that the user must be told (an input or output map that breaks its
+    /// kind's shape: [`sysid_core::model_file::load_warnings`]); empty for `ipa` and `paper`.
     pub model_warnings: Vec<String>,
 }
 

@@ -359,7 +359,7 @@ fn run_streamed(
     finish(args, &report, &value, inputs)
 }
 
-/// Adds what the model file itself deserves a warning for (a non-physical deadzone) to the report.
+/// Adds what the model file itself deserves a warning for (a map that breaks its kind's shape) to the report.
 fn model_warnings(report: &mut ValidationReport, model: &sysid::Model) {
     report.warnings.extend(
         sysid::model_file::load_warnings(model)

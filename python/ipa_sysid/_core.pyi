@@ -160,7 +160,7 @@ def identify(
     y: ArrayLike,
     ts: float,
     model: Literal["hammerstein", "arx"] = "hammerstein",
-    method: Literal["rls", "ls", "oe", "iv"] = "rls",
+    method: Literal["rls", "ls", "oe", "iv"] | None = None,
     na: int = 3,
     nb: int = 1,
     nk: int = 1,

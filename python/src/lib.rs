@@ -76,6 +76,12 @@ fn setting_err(name: &'static str, value: impl ToString, expected: &str) -> PyEr
     sysid_err(SysidError::setting(Setting::Other(name), value, expected))
 }
 
+/// A whole number argument of a method (where the module's functions get this from the Python
+/// wrapper `_named_ints`): a negative one is a `ValueError` naming `name`, as the functions' are.
+fn whole(name: &'static str, v: i64) -> PyResult<usize> {
+    usize::try_from(v).map_err(|_| setting_err(name, v, "a whole number >= 0"))
+}
+
 /// One of the command line's value names (`--method rls`, ...) parsed into its enum.
 fn choice<T: ValueEnum>(flag: &'static str, value: &str) -> PyResult<T> {
     T::from_str(value, false).map_err(|_| {
@@ -303,8 +309,9 @@ impl PyModel {
         py: Python<'py>,
         u: &Bound<'py, PyAny>,
         y: &Bound<'py, PyAny>,
-        horizon: usize,
+        horizon: i64,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
+        let horizon = whole("horizon", horizon)?;
         let data = dataset(u, y, self.inner.ts(), "predict")?;
         let out = self
             .inner
@@ -605,7 +612,7 @@ fn py_float(v: Option<f64>) -> String {
 /// `model`; `output_nonlinearity` ("saturation", "piecewise-linear", "polynomial", the command line's
 /// `--output-nonlinearity`) adds y = g(v) after the linear block, fitted by output error.
 #[pyfunction]
-#[pyo3(signature = (u, y, ts, model="hammerstein", method="rls", na=3, nb=1, nk=1, forgetting=1.0,
+#[pyo3(signature = (u, y, ts, model="hammerstein", method=None, na=3, nb=1, nk=1, forgetting=1.0,
     p0=1e6, offset=false, validation=None, passes=None, max_iterations=100, rls_form="standard",
     windup="none", max_trace=None, iv_stages=10, name="data", validation_name="validation",
     resid_lags=25, fallback=false, nonlinearity=None, breakpoints=None, degree=None,
@@ -617,7 +624,7 @@ fn identify<'py>(
     y: &Bound<'_, PyAny>,
     ts: f64,
     model: &str,
-    method: &str,
+    method: Option<&str>,
     na: usize,
     nb: usize,
     nk: usize,
@@ -646,7 +653,61 @@ fn identify<'py>(
 ) -> PyResult<Bound<'py, PyAny>> {
     // `structure` is the command line's --structure (`model` its older spelling).
     let model = structure.unwrap_or(model);
-    if model == "narx" {
+    // The settings one kind of model uses and the other ignores are refused where they would be
+    // ignored, as the command line refuses their flags (`identify::Args::check_flags`): a value other
+    // than the default (or, for `method`, any value) counts as given.
+    let narx = model == "narx";
+    let given_estimator = [
+        ("method", method.is_some()),
+        ("forgetting", forgetting != 1.0),
+        ("p0", p0 != 1e6),
+        ("passes", passes.is_some()),
+        ("rls_form", rls_form != "standard"),
+        ("windup", windup != "none"),
+        ("max_trace", max_trace.is_some()),
+        ("iv_stages", iv_stages != 10),
+        ("resid_lags", resid_lags != 25),
+        ("fallback", fallback),
+        ("nonlinearity", nonlinearity.is_some()),
+        ("breakpoints", breakpoints.is_some()),
+        ("output_nonlinearity", output_nonlinearity.is_some()),
+    ];
+    let given_narx = [
+        ("stop", stop != "sim"),
+        ("max_terms", max_terms != 30),
+        ("refine", !refine),
+    ];
+    let ignored: Vec<&str> = if narx {
+        given_estimator.iter()
+    } else {
+        given_narx.iter()
+    }
+    .filter(|(_, given)| *given)
+    .map(|(name, _)| *name)
+    .collect();
+    if !ignored.is_empty() {
+        let one = ignored.len() == 1;
+        let (whose, why) = if narx {
+            (
+                "the ARX, Hammerstein and Wiener estimators",
+                "its terms are chosen by orthogonal least squares (FROLS) and refined on the simulation \
+                 error by its own search; refine=False keeps the least-squares ones",
+            )
+        } else {
+            (
+                "the polynomial NARX search",
+                "they apply only with structure=\"narx\"",
+            )
+        };
+        return Err(PyValueError::new_err(format!(
+            "{}: {} of {whose}, which structure=\"{model}\" does not use ({why}); leave {} out",
+            ignored.join(", "),
+            if one { "a setting" } else { "settings" },
+            if one { "it" } else { "them" },
+        )));
+    }
+    let method = method.unwrap_or("rls");
+    if narx {
         let settings = sysid::narx::NarxSettings {
             na,
             nb,
@@ -979,7 +1040,8 @@ struct PyRls {
 impl PyRls {
     #[new]
     #[pyo3(signature = (n, forgetting=1.0, p0=1e6))]
-    fn new(n: usize, forgetting: f64, p0: f64) -> PyResult<Self> {
+    fn new(n: i64, forgetting: f64, p0: f64) -> PyResult<Self> {
+        let n = whole("n", n)?;
         if n == 0 || n > MAX_RLS_PARAMS {
             return Err(setting_err(
                 "n",

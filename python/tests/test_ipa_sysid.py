@@ -313,6 +313,11 @@ def test_rls_errors():
         ipa_sysid.Rls(3, forgetting=1.5)
     with pytest.raises(ValueError, match="n = 0"):
         ipa_sysid.Rls(0)
+    # A negative count is named (the conversion alone raised an OverflowError naming nothing).
+    with pytest.raises(ValueError, match=r"invalid setting n = -1: .*whole number >= 0"):
+        ipa_sysid.Rls(-1)
+    with pytest.raises(ValueError, match=r"invalid setting horizon = -2"):
+        ipa_sysid.paper_model().predict(np.zeros(10), np.zeros(10), horizon=-2)
     r = ipa_sysid.Rls(3)
     with pytest.raises(ValueError, match="n = 3"):
         r.update_many(np.zeros((4, 2)), np.zeros(4))
@@ -652,3 +657,20 @@ def test_narx_structure_recovers_a_known_polynomial_narx():
     assert abs(terms["y(k-1)*u(k-1)"] - 0.1) < 1e-8
     assert abs(terms["u(k-2)"] - 0.9) < 1e-8
     assert '"kind": "narx"' in fit.model_file()
+
+
+def test_settings_the_model_would_ignore_are_refused_by_name():
+    # As the command line refuses --method with --structure narx and --stop without it: a setting
+    # that would be silently ignored is an error naming it (and every other one given).
+    rng = np.random.default_rng(4)
+    u = rng.uniform(-1.0, 1.0, 300)
+    y = np.convolve(u, [0.0, 0.5, 0.2])[: len(u)]
+    with pytest.raises(ValueError, match=r'^method: a setting of the ARX.*structure="narx" does not use'):
+        ipa_sysid.identify(u, y, 1.0, structure="narx", method="oe")
+    with pytest.raises(ValueError, match=r"^forgetting, passes, fallback: settings of .*leave them out"):
+        ipa_sysid.identify(u, y, 1.0, structure="narx", forgetting=0.99, passes=1, fallback=True)
+    with pytest.raises(ValueError, match=r'^stop, refine: settings of the polynomial NARX search.*"arx"'):
+        ipa_sysid.identify(u, y, 1.0, model="arx", stop="aic", refine=False)
+    # The defaults are not "given": both kinds still run with them.
+    assert ipa_sysid.identify(u, y, 1.0, model="arx", method="ls", na=1, nb=2).stable
+    ipa_sysid.identify(u, y, 1.0, structure="narx", degree=1, na=1, nb=2, max_iterations=50)

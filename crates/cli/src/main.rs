@@ -73,15 +73,33 @@ fn given_flags(m: &clap::ArgMatches) -> Vec<String> {
         .collect()
 }
 
+/// clap's own output (help, version, a usage error) and its exit code; a help text that cannot be
+/// written (standard output on a full disk) is an error (exit 2), where `Error::exit` would exit 0. A
+/// reader that stopped early (`ipa-sysid --help | head`, a closed pipe) is not an error.
+fn clap_exit(e: &clap::Error) -> ExitCode {
+    let failed = e
+        .print()
+        .err()
+        .filter(|io| io.kind() != std::io::ErrorKind::BrokenPipe);
+    if let Some(io) = failed {
+        eprintln!("error: cannot write to standard output: {io}");
+        return ExitCode::from(2);
+    }
+    ExitCode::from(u8::try_from(e.exit_code()).unwrap_or(2))
+}
+
 fn main() -> ExitCode {
     let command = Cli::command()
         .after_help(EXIT_CODES)
         .mut_subcommands(configure);
-    let matches = command.get_matches();
-    let mut cli = match Cli::from_arg_matches(&matches) {
-        Ok(cli) => cli,
-        Err(e) => e.exit(),
+    let parsed = match command
+        .try_get_matches()
+        .and_then(|m| Cli::from_arg_matches(&m).map(|cli| (cli, m)))
+    {
+        Ok(parsed) => parsed,
+        Err(e) => return clap_exit(&e),
     };
+    let (mut cli, matches) = parsed;
     // `identify` and `order` refuse flags their structure, method or classes would ignore: they need
     // to know which were typed (a flag given at its default value counts).
     match (&mut cli.command, matches.subcommand()) {

@@ -999,3 +999,40 @@ fn mat_wording_names_what_the_file_holds() {
         assert!(stderr(&out).contains(needle), "{args}: {}", stderr(&out));
     }
 }
+
+// Standard output that cannot be written (a full disk: /dev/full) is an error with one `error:` line
+// naming standard output and exit code 2, for the report of every command and for clap's help; it
+// was a panic (exit 101, a backtrace) wherever the report was printed with `print!` (audit s13 H1).
+#[test]
+fn a_standard_output_that_cannot_be_written_is_an_error_not_a_panic() {
+    let full = Path::new("/dev/full");
+    if !full.exists() {
+        eprintln!("SKIPPED a_standard_output_that_cannot_be_written_is_an_error_not_a_panic: no /dev/full");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    for args in [
+        "identify --data {c}/good.csv --ts 0.01",
+        "validate --model {c}/good_model.json --data {c}/good.csv --ts 0.01",
+        "control --plant paper --setpoint 10 --duration 1",
+        "plant-config",
+        "order --data {c}/good.csv --ts 0.01 --na 1..2 --nb 1 --nk 1",
+        "--help",
+        "--version",
+    ] {
+        let out = bin()
+            .args(argv(args, dir.path()))
+            .current_dir(dir.path())
+            .stdin(Stdio::null())
+            .stdout(std::fs::File::create(full).unwrap())
+            .output()
+            .expect("the binary runs");
+        let err = stderr(&out);
+        assert_eq!(out.status.code(), Some(2), "{args}: {err}");
+        assert!(
+            err.contains("standard output") && err.contains("No space left"),
+            "{args}: {err}"
+        );
+        assert!(!err.contains("panicked"), "{args}: {err}");
+    }
+}

@@ -179,12 +179,7 @@ fn emit<T: Serialize>(
     json: &Option<PathBuf>,
     inputs: &[&std::path::Path],
 ) -> anyhow::Result<()> {
-    let to_stdout = json.as_deref().is_some_and(|p| p.as_os_str() == "-");
-    if to_stdout {
-        eprint!("{text}");
-    } else {
-        print!("{text}");
-    }
+    super::common::print_report(text, &[json.as_deref()])?;
     if let Some(path) = json {
         let body =
             serde_json::to_string_pretty(value).context("serialising the benchmark result")? + "\n";

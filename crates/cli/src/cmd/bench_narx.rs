@@ -121,11 +121,7 @@ pub fn run(a: NarxArgs) -> anyhow::Result<()> {
         cases,
         peer_versions: peer,
     };
-    if a.json.as_deref().is_some_and(|p| p.as_os_str() == "-") {
-        eprint!("{text}");
-    } else {
-        print!("{text}");
-    }
+    super::common::print_report(&text, &[a.json.as_deref()])?;
     if let Some(path) = &a.json {
         let body = serde_json::to_string_pretty(&out)? + "\n";
         let ins: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();

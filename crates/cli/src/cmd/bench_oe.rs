@@ -125,12 +125,7 @@ pub fn run(a: OeArgs) -> anyhow::Result<()> {
         cases,
         peer_versions: peer,
     };
-    let to_stdout = a.json.as_deref().is_some_and(|p| p.as_os_str() == "-");
-    if to_stdout {
-        eprint!("{text}");
-    } else {
-        print!("{text}");
-    }
+    super::common::print_report(&text, &[a.json.as_deref()])?;
     if let Some(path) = &a.json {
         let body =
             serde_json::to_string_pretty(&out).context("serialising the benchmark result")? + "\n";

@@ -117,7 +117,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     write_output(out, toml.as_bytes(), &inputs, "--out")?;
     let text = report_text(&twin, baseline.as_ref(), seconds, out);
-    print_report(&text, &[args.json.as_deref(), Some(out)]);
+    print_report(&text, &[args.json.as_deref(), Some(out)])?;
     if let Some(path) = &args.json {
         let value = report_json(&twin, baseline.as_ref(), seconds);
         let s = serde_json::to_string_pretty(&value)? + "\n";
@@ -343,7 +343,7 @@ fn run_study(args: &Args, calibration: Calibration, n: usize) -> anyhow::Result<
     };
     let rows = study.run()?;
     let text = study_table(&study, &rows);
-    print_report(&text, &[args.json.as_deref()]);
+    print_report(&text, &[args.json.as_deref()])?;
     if let Some(path) = &args.json {
         let value = json!({
             "plants": rows.iter().map(|c| json!({

@@ -119,13 +119,25 @@ pub fn any_to_stdout(outputs: &[Option<&Path>]) -> bool {
 
 /// Prints a command's text report: on standard error when one of its `outputs` (`--json`, `--out`,
 /// `--save-model`) goes to standard output (`-`), so that standard output carries that one parseable
-/// document alone, else on standard output.
-pub fn print_report(text: &str, outputs: &[Option<&Path>]) {
+/// document alone, else on standard output ([`print_stdout`]: a failed write is an error, not a panic).
+pub fn print_report(text: &str, outputs: &[Option<&Path>]) -> anyhow::Result<()> {
     if any_to_stdout(outputs) {
         eprint!("{text}");
+        Ok(())
     } else {
-        print!("{text}");
+        print_stdout(text)
     }
+}
+
+/// Writes `text` to standard output and flushes it. A write that fails (standard output on a full
+/// disk, `>/dev/full`, a closed pipe) is an error naming standard output, so the command exits
+/// non-zero with one `error:` line; `print!` would panic with a backtrace.
+pub fn print_stdout(text: &str) -> anyhow::Result<()> {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    out.write_all(text.as_bytes())
+        .and_then(|()| out.flush())
+        .map_err(|e| anyhow::anyhow!("cannot write the report to standard output: {e}"))
 }
 
 /// Refuses more than one output to standard output (`-`): two documents in one stream parse as

@@ -362,12 +362,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         summary += &format!("warning: {w}\n");
     }
     // Keep standard output clean JSON (or CSV) when the JSON (or the trace) goes there.
-    if json_to_stdout || to_stdout(&args.out) {
-        eprint!("{summary}");
-    } else {
-        print!("{summary}");
-    }
-    Ok(())
+    super::common::print_report(&summary, &[args.json.as_deref(), args.out.as_deref()])
 }
 
 /// The closed loop of `run`: with `--adaptive`, the compensator follows the online estimate and the run

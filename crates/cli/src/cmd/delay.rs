@@ -67,7 +67,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     for w in &est.warnings {
         text.push_str(&format!("warning: {w}\n"));
     }
-    print_report(&text, &[args.json.as_deref()]);
+    print_report(&text, &[args.json.as_deref()])?;
     if let Some(path) = &args.json {
         let value = serde_json::json!({
             "data": data.name(),

@@ -10,9 +10,8 @@ use sysid::{IdentifyOptions, ModelKind};
 use sysid_summary::IdentifyReport;
 
 use super::common::{
-    any_to_stdout, check_outputs, print_notes, same_samples, same_samples_warning,
-    shared_rows_warning, stream_note, write_output, ColumnArgs, FileRows, StreamMode,
-    ValidationArgs,
+    check_outputs, print_notes, same_samples, same_samples_warning, shared_rows_warning,
+    stream_note, write_output, ColumnArgs, FileRows, StreamMode, ValidationArgs,
 };
 use sysid::detrend::{detrend, Detrend};
 
@@ -758,7 +757,6 @@ fn output(
 ) -> anyhow::Result<()> {
     // One parseable document on standard output: the text goes to standard error when --json or
     // --save-model is `-` (check_outputs refuses both).
-    let to_stdout = any_to_stdout(&[args.json.as_deref(), args.save_model.as_deref()]);
     let text = format!(
         "Data: {} ({} samples){}\n{}",
         est.0,
@@ -778,11 +776,7 @@ fn output(
             )
         })
         .unwrap_or_default();
-    if to_stdout {
-        eprint!("{text}");
-    } else {
-        print!("{text}");
-    }
+    super::common::print_report(&text, &[args.json.as_deref(), args.save_model.as_deref()])?;
     if let Some(path) = &args.json {
         let mut json = report.to_json()?;
         if !notes.is_empty() || args.detrend != Detrend::None {

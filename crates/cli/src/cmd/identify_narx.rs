@@ -113,7 +113,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     print_report(
         &render(&report, &settings),
         &[args.json.as_deref(), args.save_model.as_deref()],
-    );
+    )?;
     if let Some(path) = &args.json {
         let json = serde_json::to_string_pretty(&report)? + "\n";
         write_output(path, json.as_bytes(), &inputs, "--json")?;

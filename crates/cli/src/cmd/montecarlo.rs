@@ -175,11 +175,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     let text = header + &report.to_text();
     let json_to_stdout = args.json.as_deref().is_some_and(|p| p.as_os_str() == "-");
-    if json_to_stdout {
-        eprint!("{text}");
-    } else {
-        print!("{text}");
-    }
+    super::common::print_report(&text, &[args.json.as_deref()])?;
     // A study in which a method never succeeded has no statistics for it: an error, not a result.
     let failed: Vec<String> = report
         .methods

@@ -347,7 +347,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
              no structure is recommended.\n"
         ));
     }
-    print_report(&text, &[args.json.as_deref()]);
+    print_report(&text, &[args.json.as_deref()])?;
     let json_to_stdout = args.json.as_deref().is_some_and(|p| p.as_os_str() == "-");
     if let (true, Some(path), false) = (nothing, &args.json, json_to_stdout) {
         eprintln!(

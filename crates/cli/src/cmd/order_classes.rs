@@ -203,7 +203,7 @@ pub fn run(
     for w in &warnings {
         text.push_str(&format!("warning: {w}\n"));
     }
-    print_report(&text, &[args.json.as_deref()]);
+    print_report(&text, &[args.json.as_deref()])?;
     if let Some(path) = &args.json {
         #[derive(serde::Serialize)]
         struct Doc<'a> {

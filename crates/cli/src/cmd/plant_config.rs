@@ -6,6 +6,5 @@ pub struct Args {}
 
 /// Prints the defaults as TOML with the unit and source of every value.
 pub fn run(_args: Args) -> anyhow::Result<()> {
-    print!("{}", ipa::PlantConfig::default().to_commented_toml());
-    Ok(())
+    super::common::print_stdout(&ipa::PlantConfig::default().to_commented_toml())
 }

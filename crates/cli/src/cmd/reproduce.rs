@@ -93,15 +93,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     bar.finish_and_clear();
     written?;
     let outcome = outcome.context("reproduce did not run")?;
-    println!("{}", outcome.text);
-    println!(
-        "Report: {}\nSummary: {}\nElapsed: {:.2} s",
+    let mut text = format!(
+        "{}\nReport: {}\nSummary: {}\nElapsed: {:.2} s\n",
+        outcome.text,
         args.out.join("report.html").display(),
         args.out.join("summary.json").display(),
         outcome.summary["elapsed_s"].as_f64().unwrap_or(f64::NAN)
     );
     if !outcome.accepted {
-        println!("Note: not every acceptance criterion was met; the report says which and why.");
+        text += "Note: not every acceptance criterion was met; the report says which and why.\n";
     }
-    Ok(())
+    super::common::print_stdout(&text)
 }

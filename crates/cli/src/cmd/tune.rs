@@ -198,12 +198,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
     // One parseable document on standard output: the controller file or the JSON, the table aside.
-    if json_to_stdout || args.out.as_os_str() == "-" {
-        eprint!("{summary}");
-    } else {
-        print!("{summary}");
-    }
-    Ok(())
+    super::common::print_report(&summary, &[args.json.as_deref(), Some(args.out.as_path())])
 }
 
 /// A table cell: `digits` decimals, or scientific notation for a diverged loop's figures (a

@@ -102,7 +102,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         data.len(),
         out.fit_pred_percent,
     );
-    print_report(&text, &[args.json.as_deref(), args.out.as_deref()]);
+    print_report(&text, &[args.json.as_deref(), args.out.as_deref()])?;
     if let Some(path) = &args.out {
         let t = sysid::data::sample_times(data.len(), data.ts());
         let mut w = csv::Writer::from_writer(Vec::new());
@@ -189,7 +189,7 @@ fn run_narx(
     for w in &warnings {
         text.push_str(&format!("warning: {w}\n"));
     }
-    print_report(&text, &[args.json.as_deref(), args.out.as_deref()]);
+    print_report(&text, &[args.json.as_deref(), args.out.as_deref()])?;
     if let Some(path) = &args.out {
         let sim = model.simulate(data.u(), data.y())?.y;
         let pred = model.predict(data.u(), data.y())?;
@@ -355,7 +355,7 @@ fn run_streamed(
     };
     let value = report_json(&report, args.horizon, fit_horizon, &[])?;
     let text = report_text(args, &report, &name, shape.rows, fit_horizon);
-    print_report(&text, &[args.json.as_deref(), args.out.as_deref()]);
+    print_report(&text, &[args.json.as_deref(), args.out.as_deref()])?;
     finish(args, &report, &value, inputs)
 }
 

@@ -1036,3 +1036,41 @@ fn a_standard_output_that_cannot_be_written_is_an_error_not_a_panic() {
         assert!(!err.contains("panicked"), "{args}: {err}");
     }
 }
+
+// `simulate --fleet --overwrite` replaces a folder an earlier fleet run wrote, and refuses, leaving
+// every file in place, a folder that holds anything else (a user's records, a subfolder): it removed
+// them recursively (audit s13 M7).
+#[test]
+fn fleet_overwrite_never_removes_a_folder_of_other_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let fleet = "simulate --fleet 2 --samples 100 --windows 3 --out {t}/f";
+    let out = run(fleet, d);
+    assert!(out.status.success(), "{}", stderr(&out));
+    // Its own output is replaced.
+    let out = run(&format!("{fleet} --overwrite"), d);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(d.join("f/truth.csv").is_file() && d.join("f/part-00000.parquet").is_file());
+
+    std::fs::create_dir_all(d.join("data/x")).unwrap();
+    std::fs::write(d.join("data/x/precious.csv"), "precious\n").unwrap();
+    std::fs::write(d.join("data/truth.csv"), "mine\n").unwrap();
+    let out = run(
+        "simulate --fleet 2 --samples 100 --windows 3 --out {t}/data --overwrite",
+        d,
+    );
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("1 other entry (x)"),
+        "{}",
+        stderr(&out)
+    );
+    assert_eq!(
+        std::fs::read_to_string(d.join("data/x/precious.csv")).unwrap(),
+        "precious\n"
+    );
+    assert_eq!(
+        std::fs::read_to_string(d.join("data/truth.csv")).unwrap(),
+        "mine\n"
+    );
+}

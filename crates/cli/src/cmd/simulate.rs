@@ -61,7 +61,8 @@ pub struct Args {
     /// With --fleet: actuators per Parquet file (a partition holds whole actuators).
     #[arg(long, value_name = "K", requires = "fleet", default_value_t = 50)]
     pub per_file: usize,
-    /// With --fleet: replace an existing --out folder that holds files (refused otherwise).
+    /// With --fleet: replace an existing --out folder written by an earlier --fleet run (refused
+    /// otherwise, and always for a folder that holds anything else).
     #[arg(long, requires = "fleet")]
     pub overwrite: bool,
 }

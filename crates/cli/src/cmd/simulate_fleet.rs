@@ -3,7 +3,7 @@
 //! (`actuator_id` INT64, `t` s, `u` counts, `y` mm; `part-00000.parquet`, … each holding `--per-file`
 //! whole actuators, rows by actuator then time) and `truth.csv` (`actuator_id,worn`). The folder is
 //! written as a whole (`sysid_io::write_folder`): an existing folder with files is refused unless
-//! `--overwrite`. Actuators are simulated in parallel (rayon); the files do not depend on the threads.
+//! `--overwrite`, and even then unless it holds only what a fleet run writes. Actuators are simulated in parallel (rayon); the files do not depend on the threads.
 
 use std::path::Path;
 
@@ -48,6 +48,9 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let worn = design.worn();
     let ids: Vec<usize> = (0..design.actuators).collect();
     let files = ids.chunks(args.per_file).count();
+    if args.overwrite {
+        check_fleet_folder(&args.out)?;
+    }
     sysid_io::write_folder(&args.out, "--out", args.overwrite, |dir: &Path| {
         ids.chunks(args.per_file)
             .enumerate()
@@ -70,6 +73,55 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         args.out.display()
     );
     Ok(())
+}
+
+/// With `--overwrite`, an existing `--out` folder is replaced only when it holds nothing but what a
+/// fleet run writes (`part-NNNNN.parquet` and `truth.csv`, plain files): a mistyped `--out ~/data
+/// --overwrite` must not remove a folder of the user's records (audit s13 M7).
+fn check_fleet_folder(dir: &Path) -> anyhow::Result<()> {
+    let entries = match std::fs::read_dir(dir) {
+        Ok(entries) => entries,
+        // Missing (or not a folder: `write_folder` names that).
+        Err(_) => return Ok(()),
+    };
+    let is_fleet_file = |name: &str| {
+        name == "truth.csv"
+            || name
+                .strip_prefix("part-")
+                .and_then(|r| r.strip_suffix(".parquet"))
+                .is_some_and(|n| n.len() == 5 && n.bytes().all(|b| b.is_ascii_digit()))
+    };
+    let mut others = Vec::new();
+    for e in entries {
+        let e = e.map_err(|e| anyhow::anyhow!("{}: {e}", dir.display()))?;
+        let name = e.file_name().to_string_lossy().into_owned();
+        let plain = e.file_type().is_ok_and(|t| t.is_file());
+        if !(plain && is_fleet_file(&name)) {
+            others.push(name);
+        }
+    }
+    if others.is_empty() {
+        return Ok(());
+    }
+    others.sort();
+    let shown = others
+        .iter()
+        .take(5)
+        .cloned()
+        .collect::<Vec<_>>()
+        .join(", ");
+    anyhow::bail!(sysid::SysidError::setting(
+        sysid::Setting::Other("--out"),
+        dir.display(),
+        &format!(
+            "with --overwrite, a folder written by an earlier `simulate --fleet` (only part-NNNNN.parquet \
+             and truth.csv); this one also holds {} other entr{} ({shown}{}), which --overwrite would \
+             remove: choose another --out",
+            others.len(),
+            if others.len() == 1 { "y" } else { "ies" },
+            if others.len() > 5 { ", ..." } else { "" }
+        )
+    ));
 }
 
 /// The name of Parquet file `f`.

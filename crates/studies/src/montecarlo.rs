@@ -9,6 +9,13 @@
 //!
 //! Per method and physical parameter θ: mean, sample standard deviation, and, when the truth θ₀ is known,
 //! bias = mean − θ₀ and RMSE = √(mean (θ̂ − θ₀)²). Failed runs are counted, not averaged.
+//!
+//! One wild run (an estimator that diverged on one unlucky record) dominates a mean and a standard
+//! deviation, so each parameter also has its median and robust standard deviation 1.4826 · MAD (the
+//! median absolute deviation, scaled to equal σ for a normal sample), and the runs more than
+//! [`OUTLIER_ROBUST_STDS`] robust standard deviations from the median are counted as outliers; the
+//! report's `warnings` say when a method has any (its mean, std and RMSE are then not to be read), and
+//! how many of its runs' identifications carried warnings of their own.
 
 use rand::{Rng, RngCore, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -51,6 +58,10 @@ pub struct StudySettings {
     pub ts_s: f64,
 }
 
+/// An estimate further than this many robust standard deviations (1.4826 · MAD) from the median is an
+/// outlier. A normal sample has none beyond 10 σ (probability 1.5e-23 per run).
+pub const OUTLIER_ROBUST_STDS: f64 = 10.0;
+
 /// Statistics of one parameter under one method.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ParamStats {
@@ -66,6 +77,16 @@ pub struct ParamStats {
     pub bias: Option<f64>,
     /// √(mean (θ̂ − truth)²).
     pub rmse: Option<f64>,
+    /// Median of the estimates.
+    pub median: f64,
+    /// Robust standard deviation 1.4826 · median |θ̂ − median|.
+    pub robust_std: f64,
+    /// Estimates further than [`OUTLIER_ROBUST_STDS`] robust standard deviations from the median (none
+    /// when the robust std is 0).
+    pub outliers: usize,
+    /// The estimate furthest from the median, when there are outliers.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub worst_outlier: Option<f64>,
 }
 
 /// The results of one method.
@@ -77,6 +98,11 @@ pub struct MethodStats {
     pub ok_runs: usize,
     /// Runs that failed, with the first error message.
     pub failed_runs: usize,
+    /// Runs whose identification gave an estimate with warnings of its own (as `identify` prints).
+    pub warned_runs: usize,
+    /// The first of those warnings.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub first_warning: Option<String>,
     /// The first failure's message.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub first_error: Option<String>,
@@ -95,6 +121,9 @@ pub struct StudyReport {
     pub noise_std: f64,
     /// Per method.
     pub methods: Vec<MethodStats>,
+    /// What makes parts of the table untrustworthy: outliers that dominate a method's mean and std,
+    /// runs whose identification was warned.
+    pub warnings: Vec<String>,
 }
 
 /// One parameter's value in the physical layout, by name.
@@ -116,8 +145,20 @@ pub fn truth_of(model: &Model) -> Vec<NamedValue> {
         .collect()
 }
 
-/// What one method gave on one run: its estimates, or the failure's message.
-type Outcome = Result<Vec<NamedValue>, String>;
+/// What one method gave on one run: its estimates and the first warning of the identification, or the
+/// failure's message.
+type Outcome = Result<(Vec<NamedValue>, Option<String>), String>;
+
+/// The median of `v` (sorted in place; NaN-free values), 0 for none.
+fn median_of(v: &mut [f64]) -> f64 {
+    v.sort_by(f64::total_cmp);
+    let n = v.len();
+    match n {
+        0 => 0.0,
+        _ if n % 2 == 1 => v[n / 2],
+        _ => 0.5 * (v[n / 2 - 1] + v[n / 2]),
+    }
+}
 
 /// Mean, sample standard deviation and, against `truth`, bias and RMSE of the estimates `vals` of one
 /// parameter.
@@ -129,6 +170,16 @@ fn param_stats(name: ParamName, vals: &[f64], truth: Option<f64>) -> ParamStats 
     } else {
         0.0
     };
+    let median = median_of(&mut vals.to_vec());
+    let robust_std =
+        1.4826 * median_of(&mut vals.iter().map(|v| (v - median).abs()).collect::<Vec<_>>());
+    let far = |v: &f64| robust_std > 0.0 && (v - median).abs() > OUTLIER_ROBUST_STDS * robust_std;
+    let outliers = vals.iter().filter(|v| far(v)).count();
+    let worst_outlier = vals
+        .iter()
+        .copied()
+        .filter(far)
+        .max_by(|a, b| (a - median).abs().total_cmp(&(b - median).abs()));
     ParamStats {
         name,
         truth,
@@ -136,6 +187,10 @@ fn param_stats(name: ParamName, vals: &[f64], truth: Option<f64>) -> ParamStats 
         std,
         bias: truth.map(|t| mean - t),
         rmse: truth.map(|t| (vals.iter().map(|v| (v - t).powi(2)).sum::<f64>() / n).sqrt()),
+        median,
+        robust_std,
+        outliers,
+        worst_outlier,
     }
 }
 
@@ -200,14 +255,17 @@ pub fn study(
                             .map(|m| {
                                 identify(&data, &st.base.clone().with_method(*m))
                                     .map(|f| {
-                                        f.params
+                                        let warned = f.warnings.first().map(|w| w.to_string());
+                                        let values = f
+                                            .params
                                             .into_iter()
                                             .filter(|p| !(hammer && p.name == ParamName::B(1)))
                                             .map(|p| NamedValue {
                                                 name: p.name,
                                                 value: p.value,
                                             })
-                                            .collect()
+                                            .collect();
+                                        (values, warned)
                                     })
                                     .map_err(|e| format!("run {r}: {e}"))
                             })
@@ -220,9 +278,12 @@ pub fn study(
         })
         .collect();
     let mut methods = Vec::new();
+    let mut warnings = Vec::new();
     for (mi, m) in st.methods.iter().enumerate() {
-        let ok: Vec<&Vec<NamedValue>> =
+        let ok_runs: Vec<&(Vec<NamedValue>, Option<String>)> =
             results.iter().filter_map(|r| r[mi].as_ref().ok()).collect();
+        let ok: Vec<&Vec<NamedValue>> = ok_runs.iter().map(|(v, _)| v).collect();
+        let warned: Vec<&String> = ok_runs.iter().filter_map(|(_, w)| w.as_ref()).collect();
         let errors: Vec<&String> = results
             .iter()
             .filter_map(|r| r[mi].as_ref().err())
@@ -233,18 +294,50 @@ pub fn study(
             .unwrap_or_default();
         let find =
             |v: &[NamedValue], name: ParamName| v.iter().find(|p| p.name == name).map(|p| p.value);
-        let params = names
+        let params: Vec<ParamStats> = names
             .iter()
             .map(|&name| {
                 let vals: Vec<f64> = ok.iter().filter_map(|v| find(v, name)).collect();
                 param_stats(name, &vals, truth.and_then(|t| find(t, name)))
             })
             .collect();
+        let wild: Vec<String> = params
+            .iter()
+            .filter(|p| p.outliers > 0)
+            .map(|p| {
+                format!(
+                    "{} in {} run(s) (the furthest {}; median {}, robust std {})",
+                    p.name,
+                    p.outliers,
+                    report::format::num(p.worst_outlier.unwrap_or(f64::NAN)),
+                    report::format::num(p.median),
+                    report::format::num(p.robust_std)
+                )
+            })
+            .collect();
+        if !wild.is_empty() {
+            warnings.push(format!(
+                "method {m}: outliers more than {OUTLIER_ROBUST_STDS} robust standard deviations (1.4826 MAD) \
+                 from the median: {}; its mean, std, bias and RMSE include them and may be far off: read the \
+                 median and the robust std",
+                wild.join("; ")
+            ));
+        }
+        if let Some(w) = warned.first() {
+            warnings.push(format!(
+                "method {m}: {} of {} runs' estimates carried warnings of their own, which the table \
+                 averages in (the first: {w})",
+                warned.len(),
+                ok.len()
+            ));
+        }
         methods.push(MethodStats {
             method: *m,
             ok_runs: ok.len(),
             failed_runs: errors.len(),
             first_error: errors.first().map(|e| e.to_string()),
+            warned_runs: warned.len(),
+            first_warning: warned.first().map(|w| w.to_string()),
             params,
         });
     }
@@ -253,6 +346,7 @@ pub fn study(
         seed: st.seed,
         noise_std: st.noise_std,
         methods,
+        warnings,
     })
 }
 
@@ -280,22 +374,32 @@ impl StudyReport {
             }
             let _ = writeln!(
                 s,
-                "  {:<6}{:>14}{:>14}{:>14}{:>14}{:>14}",
-                "param", "truth", "mean", "bias", "std", "RMSE"
+                "  {:<6}{:>14}{:>14}{:>14}{:>14}{:>14}{:>14}{:>14}",
+                "param", "truth", "mean", "bias", "std", "RMSE", "median", "robust std"
             );
             let o = |v: Option<f64>| v.map_or_else(|| "-".to_string(), num);
             for p in &m.params {
                 let _ = writeln!(
                     s,
-                    "  {:<6}{:>14}{:>14}{:>14}{:>14}{:>14}",
+                    "  {:<6}{:>14}{:>14}{:>14}{:>14}{:>14}{:>14}{:>14}{}",
                     p.name,
                     o(p.truth),
                     num(p.mean),
                     o(p.bias),
                     num(p.std),
-                    o(p.rmse)
+                    o(p.rmse),
+                    num(p.median),
+                    num(p.robust_std),
+                    if p.outliers > 0 {
+                        format!("  ({} outlier(s))", p.outliers)
+                    } else {
+                        String::new()
+                    }
                 );
             }
+        }
+        for w in &self.warnings {
+            let _ = writeln!(s, "warning: {w}");
         }
         s
     }
@@ -365,6 +469,59 @@ mod tests {
                 );
             }
         }
+    }
+
+    // Median and robust std by hand: values 1, 2, 3, 4, 100 have median 3, absolute deviations
+    // 2, 1, 0, 1, 97 (median 1), so robust std 1.4826; 100 is 97 / 1.4826 = 65 robust stds away.
+    #[test]
+    fn median_robust_std_and_outliers_by_hand() {
+        let p = param_stats(ParamName::A(1), &[4.0, 100.0, 1.0, 3.0, 2.0], Some(3.0));
+        assert_eq!(p.median, 3.0);
+        assert!((p.robust_std - 1.4826).abs() < 1e-12);
+        assert_eq!((p.outliers, p.worst_outlier), (1, Some(100.0)));
+        assert_eq!(p.mean, 22.0);
+        // Equal values: robust std 0, no outliers (nothing to scale by).
+        let q = param_stats(ParamName::A(1), &[2.0, 2.0, 2.0, 7.0], None);
+        assert_eq!((q.median, q.robust_std, q.outliers), (2.0, 0.0, 0));
+    }
+
+    // One run whose input is 1e6 times smaller (b1 is then not determined: noise / 1e-6) is an
+    // outlier of b1 that the mean follows; the report says so and the median stays near the truth.
+    #[test]
+    fn one_wild_run_is_named_and_the_median_is_not_moved() {
+        let wild = |r: usize, seed: u64| {
+            let (u, _) = experiment(r, seed)?;
+            let scale = if r == 3 { 1e-6 } else { 1.0 };
+            let u: Vec<f64> = u.iter().map(|v| v * scale).collect();
+            let mut y = vec![0.0; u.len()];
+            for k in 1..u.len() {
+                y[k] = 0.5 * y[k - 1] + 2.0 * u[k - 1];
+            }
+            Ok((u, y))
+        };
+        let mut st = settings(0.1);
+        st.runs = 12;
+        st.methods = vec![Method::Ls];
+        let r = study(&st, None, &wild, &|| {}).unwrap();
+        let b1 = r.methods[0]
+            .params
+            .iter()
+            .find(|p| p.name == ParamName::B(1))
+            .unwrap();
+        assert_eq!(b1.outliers, 1, "{b1:?}");
+        assert!((b1.median - 2.0).abs() < 0.05, "{b1:?}");
+        assert!(b1.std > 100.0 * b1.robust_std, "{b1:?}");
+        assert!(
+            r.warnings
+                .iter()
+                .any(|w| w.contains("method ls: outliers") && w.contains("b1 in 1 run(s)")),
+            "{:?}",
+            r.warnings
+        );
+        // Without the wild run: no outlier, no warning.
+        let r = study(&st, None, &experiment, &|| {}).unwrap();
+        assert!(r.methods[0].params.iter().all(|p| p.outliers == 0));
+        assert!(r.warnings.is_empty(), "{:?}", r.warnings);
     }
 
     // RMSE² = bias² + (n−1)/n · std² for any sample (the identity behind the table).

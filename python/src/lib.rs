@@ -1640,13 +1640,26 @@ fn calibrate<'py>(
         ..Calibration::default()
     };
     let cols = Columns::default();
-    let est = ipa::calibrate::read_record(&data, &cols, ts).map_err(ipa_err)?;
-    let val = validation
-        .as_ref()
-        .map(|v| ipa::calibrate::read_record(v, &cols, ts))
-        .transpose()
-        .map_err(ipa_err)?;
-    let twin = py.detach(|| cal.fit(&est, val.as_ref())).map_err(ipa_err)?;
+    let (est, mut notes) = ipa::calibrate::read_record(&data, &cols, ts).map_err(ipa_err)?;
+    let val = match validation.as_ref() {
+        Some(v) => {
+            let (val, val_notes) = ipa::calibrate::read_record(v, &cols, ts).map_err(ipa_err)?;
+            notes.extend(
+                val_notes
+                    .into_iter()
+                    .map(|n| format!("{}: {n}", v.display())),
+            );
+            Some(val)
+        }
+        None => None,
+    };
+    let mut twin = py.detach(|| cal.fit(&est, val.as_ref())).map_err(ipa_err)?;
+    twin.warnings.splice(
+        0..0,
+        notes
+            .into_iter()
+            .map(|note| ipa::calibrate::CalibrationWarning::Reader { note }),
+    );
     let fit = |r: &Option<ipa::calibrate::FreeRun>| r.as_ref().and_then(|r| r.fit_percent);
     let out = PyDict::new(py);
     let estimates = PyList::empty(py);

@@ -198,3 +198,74 @@ fn a_still_record_has_no_zero_standard_deviations_and_an_overflowing_one_fails()
     assert!(err.contains("cost is inf"), "{err}");
     assert!(!p.join("h.toml").exists() && !p.join("h.json").exists());
 }
+
+// calibrate reads its records with the reader every command uses (audit s13 M6/H3, L): a --ts that
+// contradicts the record's time column is said (it sent the search into minutes of a plant twice too
+// slow, without a word), a non-uniform time column is refused at its line, and the column flags are
+// named as the command spells them (--u-col, not --u-column).
+#[test]
+fn calibrate_reads_records_like_every_command() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path();
+    let o = run(
+        p,
+        &[
+            "simulate",
+            "--input",
+            "calibration",
+            "--samples",
+            "300",
+            "--seed",
+            "1",
+            "--out",
+            "est.csv",
+        ],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let calibrate = |data: &str, extra: &[&str]| {
+        let mut args = vec![
+            "calibrate",
+            "--data",
+            data,
+            "--out",
+            "twin.toml",
+            "--no-baseline",
+            "--max-iterations",
+            "1",
+        ];
+        args.extend(extra);
+        run(p, &args)
+    };
+    let o = calibrate("est.csv", &["--ts", "0.02"]);
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    let out = String::from_utf8_lossy(&o.stdout).into_owned();
+    assert!(o.status.success(), "{err}");
+    assert!(
+        (out + &err)
+            .contains("--ts 0.02 s contradicts the time column t (its typical step is 0.01 s)"),
+        "{err}"
+    );
+
+    // Row 100's time moved by half a step: refused at its line (data row 100 is line 102 with the header).
+    let text = std::fs::read_to_string(p.join("est.csv")).unwrap();
+    let mut lines: Vec<String> = text.lines().map(str::to_string).collect();
+    let mut cells: Vec<String> = lines[101].split(',').map(str::to_string).collect();
+    cells[0] = format!("{}", cells[0].parse::<f64>().unwrap() + 0.005);
+    lines[101] = cells.join(",");
+    std::fs::write(p.join("jitter.csv"), lines.join("\n") + "\n").unwrap();
+    let o = calibrate("jitter.csv", &[]);
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("jitter.csv:102:1: non-uniform sampling"),
+        "{err}"
+    );
+
+    let o = calibrate("est.csv", &["--u-col", "command"]);
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("--u-col") && !err.contains("--u-column"),
+        "{err}"
+    );
+}

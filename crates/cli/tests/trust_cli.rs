@@ -842,6 +842,46 @@ fn a_time_column_in_milliseconds_read_as_seconds_is_pointed_out() {
     );
 }
 
+// Audit s13 M6: `--ts` that contradicts the record's time column was used without a word (a model of
+// a 0.01 s record saved at Ts = 0.02 s). It still wins, and the reader says so, naming both; a --ts
+// equal to the column's step (to 0.1 %), or in the column's unit (--time-unit ms), says nothing.
+#[test]
+fn a_ts_that_contradicts_the_time_column_is_pointed_out() {
+    let tmp = tempfile::tempdir().unwrap();
+    let mut csv = String::from("t,u,y\n");
+    let mut y = 0.0;
+    for k in 0..400 {
+        let u = if (k / 25) % 2 == 0 { 100.0 } else { -80.0 };
+        csv.push_str(&format!("{},{u},{y}\n", k * 10));
+        y = 0.9 * y + 0.01 * u;
+    }
+    std::fs::write(tmp.path().join("ms.csv"), csv).unwrap();
+    let run = |extra: &[&str]| {
+        let mut args: Vec<&str> =
+            "identify --data ms.csv --structure arx --method ls --na 1 --nb 1 --nk 1 --time-unit ms"
+                .split(' ')
+                .collect();
+        args.extend(extra);
+        run_json(tmp.path(), &args)
+    };
+    let said = |doc: &serde_json::Value| {
+        warnings(doc).iter().any(|w| {
+            w.contains("--ts 0.02 s contradicts the time column t (its typical step is 0.01 s)")
+        })
+    };
+    let doc = run(&["--ts", "0.02"]);
+    assert_eq!(doc["model"]["ts"].as_f64(), Some(0.02));
+    assert!(said(&doc), "{:?}", warnings(&doc));
+    for agreeing in ["0.01", "0.010005"] {
+        let doc = run(&["--ts", agreeing]);
+        assert!(
+            !warnings(&doc).iter().any(|w| w.contains("contradicts")),
+            "{agreeing}: {:?}",
+            warnings(&doc)
+        );
+    }
+}
+
 // Audit s10 F4: one input sample of 1e308 (finite, accepted) made the covariance underflow: b1 and b2
 // were reported "± 0", the strongest claim a tool can make, about parameters the data no longer
 // determine. A standard deviation of exactly 0 from residuals that are not zero is withheld and said.

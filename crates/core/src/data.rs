@@ -374,6 +374,7 @@ pub fn read_record_bytes(
     let ts = match ts_given {
         Some(ts) => {
             check_ts(ts)?;
+            notes.extend(ts_contradiction(&table, opts, ts));
             ts
         }
         None => {
@@ -396,6 +397,38 @@ pub fn read_record_bytes(
     Ok(Record {
         data: record(us, y, ts)?,
         notes,
+    })
+}
+
+/// A note when `--ts` (`ts`) contradicts the record's own time column by more than 0.1 % (its median
+/// step): `--ts` wins, so every time figure (Ts of the model, time constants, a physics twin's
+/// dynamics) follows it, which is right only when the column is wrong (audit s13 M6: `identify --ts 0.02`
+/// of a 0.01 s record saved a model at Ts = 0.02 s without a word, and `calibrate` then searched a
+/// plant twice too slow for minutes). Nothing when there is no such column or it does not parse.
+fn ts_contradiction(table: &Table, opts: &CsvOptions, ts: f64) -> Option<String> {
+    let tc = opts
+        .ts
+        .and(table.headers.iter().position(|h| *h == opts.t_col))?;
+    let t = table.numbers(tc).ok()?;
+    let mut steps: Vec<f64> = t
+        .windows(2)
+        .map(|w| (w[1] - w[0]) * opts.time_unit.seconds())
+        .collect();
+    if steps.is_empty() {
+        return None;
+    }
+    let mid = steps.len() / 2;
+    let step = *steps.select_nth_unstable_by(mid, f64::total_cmp).1;
+    (step.is_finite() && step > 0.0 && (step - ts).abs() > 1e-3 * step).then(|| {
+        format!(
+            "--ts {} s contradicts the time column {} (its typical step is {} s): --ts is used, so \
+             every time figure (Ts, time constants, a twin's dynamics) is {} times what the column \
+             says; leave out --ts to use the column",
+            sig6(ts),
+            opts.t_col,
+            sig6(step),
+            sig6(ts / step)
+        )
     })
 }
 

@@ -47,6 +47,8 @@ impl IpaError {
                 value,
                 expected,
             } => format!("invalid {} {value}: {expected}", name(*setting)),
+            // A data or model error of the identification library names its settings by their flags.
+            IpaError::Sysid(e) => e.render_flags(),
             other => other.to_string(),
         }
     }

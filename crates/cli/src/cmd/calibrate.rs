@@ -97,13 +97,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         y: args.y_col.clone(),
         pressures: args.pa_col.clone().zip(args.pb_col.clone()),
     };
-    let est = ipa::calibrate::read_record(data, &cols, args.ts)?;
+    let (est, mut notes) = ipa::calibrate::read_record(data, &cols, args.ts)?;
     let val = match &args.validation {
-        Some(v) => Some(ipa::calibrate::read_record(v, &cols, args.ts)?),
+        Some(v) => {
+            let (val, val_notes) = ipa::calibrate::read_record(v, &cols, args.ts)?;
+            notes.extend(
+                val_notes
+                    .into_iter()
+                    .map(|n| format!("{}: {n}", v.display())),
+            );
+            Some(val)
+        }
         None => None,
     };
     let started = std::time::Instant::now();
-    let twin = calibration.fit(&est, val.as_ref())?;
+    let mut twin = calibration.fit(&est, val.as_ref())?;
+    twin.warnings.splice(
+        0..0,
+        notes
+            .into_iter()
+            .map(|note| ipa::calibrate::CalibrationWarning::Reader { note }),
+    );
     let seconds = started.elapsed().as_secs_f64();
     let baseline = if args.no_baseline {
         None

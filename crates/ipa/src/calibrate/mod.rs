@@ -100,34 +100,54 @@ const SHAPE_PARAMETERS: [Parameter; 3] = [
 /// Fewest samples a record must have for calibration.
 pub const MIN_SAMPLES: usize = 50;
 
-/// Reads a record from CSV: columns u and y (names in `cols`), the pressures when present, Ts from
-/// `ts_s` or else from the `t` column ((t_last − t_first)/(N − 1)), else 0.01 s.
-pub fn read_record(path: &Path, cols: &Columns, ts_s: Option<f64>) -> Result<Record, IpaError> {
-    let bytes = sysid_core::data::bounded::read_data_file(path, "a calibration record")?;
+/// Reads a record: columns u and y (names in `cols`) and Ts by the reader every command uses
+/// (`sysid_core::data::read_record`: a `.mat` file or CSV, Ts from `ts_s` or else from a uniform `t`
+/// column, else 0.01 s; a non-uniform column is refused at its line), and the pressures when present
+/// (CSV). Returns the record and the reader's notes (for example a `ts_s` that contradicts the `t`
+/// column), which a caller shows as warnings ([`CalibrationWarning::Reader`]).
+pub fn read_record(
+    path: &Path,
+    cols: &Columns,
+    ts_s: Option<f64>,
+) -> Result<(Record, Vec<String>), IpaError> {
     let name = path.display().to_string();
-    let table = sysid_core::data::read_table(&bytes, &name)?;
-    let col = |c: &str, flag: &'static str| -> Result<Vec<f64>, IpaError> {
-        let i = table.column_index(c, sysid_core::Setting::Other(flag))?;
-        Ok(table.numbers(i)?)
+    let opts = sysid_core::data::CsvOptions {
+        u_col: cols.u.clone(),
+        y_col: cols.y.clone(),
+        ts: ts_s,
+        fallback_ts: Some(crate::DEFAULT_TS_S),
+        ..sysid_core::data::CsvOptions::default()
     };
-    let u = col(&cols.u, "--u-column")?;
-    let y = col(&cols.y, "--y-column")?;
-    let pressures = match &cols.pressures {
-        Some((a, b)) => Some((col(a, "--pa-column")?, col(b, "--pb-column")?)),
-        None if table.headers.iter().any(|h| h == "p_a_pa")
-            && table.headers.iter().any(|h| h == "p_b_pa") =>
-        {
-            Some((col("p_a_pa", "--pa-column")?, col("p_b_pa", "--pb-column")?))
+    let read = sysid_core::data::read_record(path, &opts)?;
+    let (u, y, ts) = (
+        read.data.u().to_vec(),
+        read.data.y().to_vec(),
+        read.data.ts(),
+    );
+    let pressure_columns = cols.pressures.clone();
+    // The pressures: named columns, or the plant's own p_a_pa, p_b_pa when the file has both.
+    let pressures = {
+        let bytes = sysid_core::data::bounded::read_data_file(path, "a calibration record")?;
+        match sysid_core::data::read_table(&bytes, &name) {
+            Ok(table) => {
+                let col = |c: &str, flag: &'static str| -> Result<Vec<f64>, IpaError> {
+                    let i = table.column_index(c, sysid_core::Setting::Other(flag))?;
+                    Ok(table.numbers(i)?)
+                };
+                match pressure_columns {
+                    Some((a, b)) => Some((col(&a, "--pa-col")?, col(&b, "--pb-col")?)),
+                    None if table.headers.iter().any(|h| h == "p_a_pa")
+                        && table.headers.iter().any(|h| h == "p_b_pa") =>
+                    {
+                        Some((col("p_a_pa", "--pa-col")?, col("p_b_pa", "--pb-col")?))
+                    }
+                    None => None,
+                }
+            }
+            // Not a CSV table (a `.mat` file): pressures only when asked for, which is an error.
+            Err(e) if pressure_columns.is_some() => return Err(e.into()),
+            Err(_) => None,
         }
-        None => None,
-    };
-    let ts = match ts_s {
-        Some(ts) => ts,
-        None if table.headers.iter().any(|h| h == "t") && u.len() >= 2 => {
-            let t = col("t", "--ts")?;
-            (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64
-        }
-        None => crate::DEFAULT_TS_S,
     };
     if !(ts.is_finite() && ts > 0.0 && ts <= 10.0) {
         return Err(IpaError::Config(format!(
@@ -142,6 +162,14 @@ pub fn read_record(path: &Path, cols: &Columns, ts_s: Option<f64>) -> Result<Rec
     }
     let pressures = match pressures {
         Some((a, b)) => {
+            if a.len() != u.len() || b.len() != u.len() {
+                return Err(IpaError::Config(format!(
+                    "{name}: the pressure columns have {} and {} rows, the record {}",
+                    a.len(),
+                    b.len(),
+                    u.len()
+                )));
+            }
             if let Some(k) = a.iter().chain(&b).position(|p| p.is_nan() || *p <= 0.0) {
                 return Err(IpaError::Config(format!(
                     "{name}: data row {}: a chamber pressure must be an absolute pressure > 0 Pa",
@@ -152,12 +180,15 @@ pub fn read_record(path: &Path, cols: &Columns, ts_s: Option<f64>) -> Result<Rec
         }
         None => None,
     };
-    Ok(Record {
-        u,
-        y,
-        pressures,
-        ts,
-    })
+    Ok((
+        Record {
+            u,
+            y,
+            pressures,
+            ts,
+        },
+        read.notes,
+    ))
 }
 
 /// Settings of a calibration (unfitted); [`Calibration::fit`] returns a [`Calibrated`] twin.
@@ -240,6 +271,12 @@ pub enum CalibrationWarning {
     NotConverged {
         /// Why it stopped.
         termination: Termination,
+    },
+    /// What the reader said about a record (a `--ts` that contradicts its time column, ...), as every
+    /// command's reader says it.
+    Reader {
+        /// The reader's words.
+        note: String,
     },
     /// The twin simulates a record worse than the start plant did.
     WorseThanStart {
@@ -329,6 +366,7 @@ impl std::fmt::Display for CalibrationWarning {
                 "the twin simulates the {record} record WORSE than its start (free-run fit {twin_fit:.2} % vs \
                  {start_fit:.2} %): do not use it without checking"
             ),
+            CalibrationWarning::Reader { note } => f.write_str(note),
             CalibrationWarning::SimulationFailed { record, message } => {
                 write!(f, "the twin's free run on the {record} record failed: {message}")
             }

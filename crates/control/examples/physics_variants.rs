@@ -128,6 +128,7 @@ fn main() {
             Some(t) => (t.clone(), control::tuning::TUNING_SEED_OFFSET),
             None => (ipa::PlantConfig::default(), 0),
         };
+        let offset = std::env::var("SEED_OFFSET").map_or(offset, |o| o.parse().unwrap());
         let cfg = if i == 0 {
             base
         } else {
@@ -177,12 +178,22 @@ fn main() {
         }
     }
     println!(
-        "OS {} ts {} ess {} all {} worst ess {:.3} cycle {:.3}",
+        "OS {} ts {} ess {} all {} worst ess {:.3} cycle {:.3}{}",
         ev.overshoot_met,
         ev.settling_met,
         ev.ess_met,
         ev.met,
         ev.max_abs_ess_mm,
-        ev.worst_limit_cycle_mm
+        ev.worst_limit_cycle_mm,
+        if std::env::var("COST").is_ok() {
+            let c: Vec<f64> = ev.runs.iter().map(|r| r.cost(&spec)).collect();
+            format!(
+                " J {:.2} mean {:.3}",
+                ev.cost,
+                c.iter().sum::<f64>() / c.len() as f64
+            )
+        } else {
+            String::new()
+        }
     );
 }

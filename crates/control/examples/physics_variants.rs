@@ -11,7 +11,10 @@
 //! from the step's start until |e| ≤ e_sw + τ_b |dy/dt| (moving towards r; Q = 1: τ_b (dy/dt)², τ_b
 //! in s²/mm), then the controller for the rest of the run (it runs through the approach, its command
 //! unused; R = 1: it restarts at the switch instead). TWIN=TWIN.toml runs on the twin and its tuning draws (seeds 1001..,
-//! `tune --plant-config`'s plants: for choosing a setting without the true plants) instead.
+//! `tune --plant-config`'s plants: for choosing a setting without the true plants) instead;
+//! SEED_OFFSET=K draws the variants with seeds K+1.. instead (e.g. TWIN=twin.toml SEED_OFFSET=2000: a
+//! family of twins neither the search nor the verification uses); PLANTS=N runs N plants (default 21);
+//! COST=1 also prints the tuning cost J of the runs (their mean run cost) and the largest run cost.
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
 use control::tune::{self, Spec};
 use control::ControllerFile;
@@ -128,6 +131,7 @@ fn main() {
             Some(t) => (t.clone(), control::tuning::TUNING_SEED_OFFSET),
             None => (ipa::PlantConfig::default(), 0),
         };
+        let offset = std::env::var("SEED_OFFSET").map_or(offset, |o| o.parse().unwrap());
         let cfg = if i == 0 {
             base
         } else {
@@ -177,12 +181,22 @@ fn main() {
         }
     }
     println!(
-        "OS {} ts {} ess {} all {} worst ess {:.3} cycle {:.3}",
+        "OS {} ts {} ess {} all {} worst ess {:.3} cycle {:.3}{}",
         ev.overshoot_met,
         ev.settling_met,
         ev.ess_met,
         ev.met,
         ev.max_abs_ess_mm,
-        ev.worst_limit_cycle_mm
+        ev.worst_limit_cycle_mm,
+        if std::env::var("COST").is_ok() {
+            let c: Vec<f64> = ev.runs.iter().map(|r| r.cost(&spec)).collect();
+            format!(
+                " J (mean run cost) {:.3} largest run cost {:.2}",
+                ev.cost,
+                c.iter().copied().fold(0.0, f64::max)
+            )
+        } else {
+            String::new()
+        }
     );
 }

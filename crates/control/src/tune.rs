@@ -12,8 +12,15 @@
 //! **Cost.** A run costs its 2 % settling time t_s (s; `run_s` when not settled) plus a penalty of
 //! [`PENALTY_S`] seconds per unit by which it misses the specification: (OS − OS_max)/OS_max for the
 //! overshoot, (|e_ss| − e_max)/e_max for the final error, (A − A_max)/A_max for the limit cycle's
-//! peak-to-peak amplitude A over the last fifth of the run. J(θ) = max over runs + mean over runs:
-//! the worst case drives the design (robustness), the mean keeps the search moving where several runs tie.
+//! peak-to-peak amplitude A over the last fifth of the run, each capped at [`PENALTY_CAP`] units.
+//! J(θ) = the mean run cost over the plant variants × steps ([`tuning_cost`]): with the cap, each
+//! criterion's miss weighs at most PENALTY_S × PENALTY_CAP, so J is a smoothed count of the runs'
+//! misses over the family of plants. (Until session 12, J was the largest run cost + the mean: its
+//! largest-run term, set by one run that tips from hunting to landing, dominated it, jumped from one θ
+//! to the next and preferred a controller that misses every run a little to one that misses a few
+//! runs a lot; twins that differ by 0.5 % gave tuned controllers meeting |e_ss| in 6 to 128 of the
+//! 168 verification runs. docs/control.md, "Method" and Results' session-13 block.) The worst case
+//! is reported beside it ([`Evaluation`]), not minimised.
 //!
 //! **Search.** The points of a coarse grid (3 × 3 × 2 × 2) are evaluated, then Nelder–Mead (reflection
 //! 1, expansion 2, contraction ½, shrink ½) runs from the best, inside box bounds (a point outside is
@@ -39,8 +46,10 @@ pub const PENALTY_S: f64 = 10.0;
 pub const SETTLING_PENALTY_S: f64 = 0.5;
 /// Largest relative violation counted per criterion and run: beyond it a miss is a miss, so that a
 /// few plant variants whose stick-slip jumps no controller can place within the band do not drown
-/// the count of runs that meet the specification.
-pub const PENALTY_CAP: f64 = 5.0;
+/// the count of runs that meet the specification. 2 (session 13; 5 before): an |e_ss| of 3 e_max or
+/// more costs 2 PENALTY_S, as does an overshoot of 3 OS_max; chosen by the fragility test of
+/// docs/control.md (cap 1: the |e_ss| counts 82–113 of 168 over six twins, cap 2: 99–118).
+pub const PENALTY_CAP: f64 = 2.0;
 
 /// The tuning specification (`--spec`): what a step must achieve, and over which steps.
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -297,7 +306,7 @@ pub struct Evaluation {
     pub settling_met: usize,
     /// Largest |e_ss| over the runs, mm.
     pub max_abs_ess_mm: f64,
-    /// J: max + mean of the run costs.
+    /// J: the mean of the run costs ([`tuning_cost`]), s.
     pub cost: f64,
 }
 
@@ -346,11 +355,26 @@ pub fn evaluate(
     Ok(summarise(runs, spec))
 }
 
+/// J, the tuning cost of a set of runs: the mean of their costs ([`RunResult::cost`], s); 0 for no
+/// runs. The mean, not the worst run: a worst-run term is set by the one run that tips from hunting
+/// to landing, jumps between neighbouring θ and between twins that differ by 0.5 %, and ranks a
+/// controller that misses every run a little above one that lands in most runs (module documentation).
+///
+/// ```
+/// // 36 runs landed at t_s = 0.3 s and 4 runs 2 mm short (0.3 s + 10 s × the cap of 2 units):
+/// let mut costs = vec![0.3; 36];
+/// costs.extend([20.3; 4]);
+/// assert!((control::tune::tuning_cost(&costs) - 2.3).abs() < 1e-12);
+/// ```
+pub fn tuning_cost(costs: &[f64]) -> f64 {
+    if costs.is_empty() {
+        return 0.0;
+    }
+    costs.iter().sum::<f64>() / costs.len() as f64
+}
+
 fn summarise(runs: Vec<RunResult>, spec: &Spec) -> Evaluation {
     let costs: Vec<f64> = runs.iter().map(|r| r.cost(spec)).collect();
-    let n = costs.len().max(1) as f64;
-    let max = costs.iter().copied().fold(0.0, f64::max);
-    let mean = costs.iter().sum::<f64>() / n;
     Evaluation {
         worst: StepMetrics::worst(runs.iter().map(|r| &r.metrics)),
         worst_limit_cycle_mm: runs.iter().map(|r| r.limit_cycle_mm).fold(0.0, f64::max),
@@ -387,7 +411,7 @@ fn summarise(runs: Vec<RunResult>, spec: &Spec) -> Evaluation {
                     .map_or(f64::INFINITY, f64::abs)
             })
             .fold(0.0, f64::max),
-        cost: max + mean,
+        cost: tuning_cost(&costs),
         runs,
     }
 }

@@ -213,8 +213,8 @@ fn verify(
     } else if j > j_pi {
         warnings.push(format!(
             "the tuned controller meets the whole specification in more steps than the paper's PI on \
-             {what} ({met} against {met_pi} of {n}) but its tuning cost J (worst run + mean run) is \
-             higher ({} against {}): its worst runs are worse than the PI's",
+             {what} ({met} against {met_pi} of {n}) but its tuning cost J (the mean run cost) is \
+             higher ({} against {}): its runs miss by more on average than the PI's",
             fmt(j),
             fmt(j_pi)
         ));

@@ -298,7 +298,8 @@ fn numerical_failures_exit_1_and_name_the_sample() {
         case(
             "identify --data {c}/csv/overflow.csv",
             1,
-            &["overflow.csv", "numerical failure", "RLS", "at sample"],
+            // ... and what to try (audit s13 M9: a record in µm failed at sample 6 with no hint).
+            &["overflow.csv", "numerical failure", "RLS", "at sample", "try --rls-form ud"],
         ),
         case(
             "identify --data {c}/csv/overflow.csv --model arx",

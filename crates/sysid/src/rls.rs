@@ -463,7 +463,10 @@ fn failure(
 fn numerical(sample: usize, denom: f64, eps: f64) -> SysidError {
     SysidError::Numerical(format!(
         "RLS lost positive definiteness or met a non-finite value at sample {sample} \
-         (denominator ρ + φᵀPφ = {denom:e}, error ε = {eps:e})"
+         (denominator ρ + φᵀPφ = {denom:e}, error ε = {eps:e}); this usually means P(0) is too large \
+         for the signals' magnitude (large numbers, e.g. µm or Pa: the rounding of P − Pφφᵀ P/δ then \
+         exceeds its smallest entries): try --rls-form ud (the factorised update stays positive \
+         definite), a smaller --p0, rescaled signals, or --method ls"
     ))
 }
 

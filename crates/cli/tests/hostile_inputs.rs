@@ -1074,3 +1074,20 @@ fn fleet_overwrite_never_removes_a_folder_of_other_files() {
         "mine\n"
     );
 }
+
+// A closed-loop run is bounded before anything is allocated: 2·10^7 samples (55 hours at 0.01 s) is
+// refused with the bound; 10^8 had been accepted and aborted on a failed allocation (audit s13 M8).
+#[test]
+fn a_closed_loop_run_beyond_the_sample_bound_is_refused_before_it_runs() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = run(
+        "control --plant paper --setpoint 50 --duration 200000",
+        dir.path(),
+    );
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("invalid setting --duration = 200000: at most 10000000 samples"),
+        "{}",
+        stderr(&out)
+    );
+}

@@ -34,9 +34,10 @@ impl Controller for PiController {
     }
 }
 
-/// Upper bound on the number of samples of one run (10^8: 11 days at Ts = 0.01 s), so that a typo in a
-/// duration cannot exhaust memory.
-pub const MAX_SAMPLES: usize = 100_000_000;
+/// Upper bound on the number of samples of one run (10^7: 27.8 hours at Ts = 0.01 s), so that a typo in a
+/// duration cannot exhaust memory: the trace holds 32 bytes per sample and a written run more (10^8
+/// samples needed over 5 GB and aborted on a failed allocation under a 6 GB limit; audit s13 M8).
+pub const MAX_SAMPLES: usize = 10_000_000;
 
 /// A recorded closed-loop run: one entry per sample k.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]

@@ -366,4 +366,22 @@ fn an_input_the_model_never_saw_is_pointed_out_and_an_empty_multisine_refused() 
         o.status.success() && !err.contains("the input spans"),
         "{err}"
     );
+    // The output too (audit s13 M3): y = 5 + 0.5 (u − 3) / (1 − 0.8) at rest, so a step to u = 6, inside
+    // the data's input range, settles at 12.5, beyond the data's [2, 9] by more than a tenth of its
+    // span (before the step u(0) = 0 gives y(1) = 5 + 0.5 (0 − 3) = 3.5, the lowest); after 8 samples
+    // of a step to 5 (y < 5 + 5 = 10, here 8.4) it is still within 9.7.
+    assert!(!err.contains("simulated output spans"), "{err}");
+    let o = simulate(
+        dir.path(),
+        &["--plant", &fast, "--input", "step:6@1", "--samples", "100"],
+        "o.csv",
+    );
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "{err}");
+    assert!(
+        !err.contains("the input spans")
+            && err.contains("warning: the simulated output spans [3.500000, 12.5")
+            && err.contains("had y in [2, 9]: outside it the model extrapolates"),
+        "{err}"
+    );
 }

@@ -1619,7 +1619,7 @@ fn calibrate<'py>(
     max_iterations: usize,
     ts: Option<f64>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    use ipa::calibrate::{Calibration, Columns, Parameter};
+    use ipa::calibrate::{Calibration, Parameter};
     let start = match &plant_config {
         Some(p) => ipa::PlantConfig::from_toml_file(p).map_err(ipa_err)?,
         None => ipa::PlantConfig::default(),
@@ -1639,11 +1639,15 @@ fn calibrate<'py>(
         max_iterations,
         ..Calibration::default()
     };
-    let cols = Columns::default();
-    let (est, mut notes) = ipa::calibrate::read_record(&data, &cols, ts).map_err(ipa_err)?;
+    let opts = sysid::data::CsvOptions {
+        ts,
+        fallback_ts: Some(ipa::DEFAULT_TS_S),
+        ..sysid::data::CsvOptions::default()
+    };
+    let (est, mut notes) = ipa::calibrate::read_record(&data, &opts, None).map_err(ipa_err)?;
     let val = match validation.as_ref() {
         Some(v) => {
-            let (val, val_notes) = ipa::calibrate::read_record(v, &cols, ts).map_err(ipa_err)?;
+            let (val, val_notes) = ipa::calibrate::read_record(v, &opts, None).map_err(ipa_err)?;
             notes.extend(
                 val_notes
                     .into_iter()

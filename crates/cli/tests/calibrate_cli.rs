@@ -261,6 +261,29 @@ fn calibrate_reads_records_like_every_command() {
         "{err}"
     );
 
+    // The shared reader's flags: a file without a header, columns by position (1-based).
+    std::fs::write(
+        p.join("bare.csv"),
+        text.lines()
+            .skip(1)
+            .map(|l| format!("{l}\n"))
+            .collect::<String>(),
+    )
+    .unwrap();
+    let o = calibrate(
+        "bare.csv",
+        &[
+            "--no-header",
+            "--t-col",
+            "1",
+            "--u-col",
+            "2",
+            "--y-col",
+            "3",
+        ],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+
     let o = calibrate("est.csv", &["--u-col", "command"]);
     let err = String::from_utf8_lossy(&o.stderr).into_owned();
     assert_eq!(o.status.code(), Some(2), "{err}");

@@ -8,10 +8,10 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use ipa::calibrate::study::Study;
-use ipa::calibrate::{Calibrated, Calibration, Columns, Parameter};
+use ipa::calibrate::{Calibrated, Calibration, Parameter};
 use serde_json::json;
 
-use super::common::{check_outputs, print_report, write_output};
+use super::common::{check_outputs, print_report, write_output, ColumnArgs};
 
 /// Flags of `calibrate`.
 #[derive(Debug, clap::Args)]
@@ -41,21 +41,16 @@ pub struct Args {
     /// Write the report as JSON here (`-` for standard output).
     #[arg(long, value_name = "FILE")]
     pub json: Option<PathBuf>,
-    /// Name of the command column u (counts).
-    #[arg(long, default_value = "u", value_name = "NAME")]
-    pub u_col: String,
-    /// Name of the position column y (mm).
-    #[arg(long, default_value = "y", value_name = "NAME")]
-    pub y_col: String,
+    /// The record's columns and sampling period, read as every command reads them (the command u in
+    /// counts, the position y in mm).
+    #[command(flatten)]
+    pub columns: ColumnArgs,
     /// Name of the cap-side pressure column p_a (Pa, absolute); default p_a_pa when present.
     #[arg(long, value_name = "NAME", requires = "pb_col")]
     pub pa_col: Option<String>,
     /// Name of the rod-side pressure column p_b (Pa, absolute); default p_b_pa when present.
     #[arg(long, value_name = "NAME", requires = "pa_col")]
     pub pb_col: Option<String>,
-    /// Sampling period Ts in s (default: from the t column, else 0.01).
-    #[arg(long, value_name = "SECONDS")]
-    pub ts: Option<f64>,
     /// Nominal length of a shooting segment in s (0: one free run over the record).
     #[arg(long, default_value_t = 0.5, value_name = "SECONDS")]
     pub segment: f64,
@@ -92,15 +87,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     inputs.extend(args.validation.as_deref());
     inputs.extend(args.plant_config.as_deref());
     check_outputs(&[(&args.out, "--out"), (&args.json, "--json")], &inputs)?;
-    let cols = Columns {
-        u: args.u_col.clone(),
-        y: args.y_col.clone(),
-        pressures: args.pa_col.clone().zip(args.pb_col.clone()),
-    };
-    let (est, mut notes) = ipa::calibrate::read_record(data, &cols, args.ts)?;
+    let opts = record_options(&args)?;
+    let pressures = args.pa_col.clone().zip(args.pb_col.clone());
+    let (est, mut notes) = ipa::calibrate::read_record(data, &opts, pressures.as_ref())?;
     let val = match &args.validation {
         Some(v) => {
-            let (val, val_notes) = ipa::calibrate::read_record(v, &cols, args.ts)?;
+            let (val, val_notes) = ipa::calibrate::read_record(v, &opts, pressures.as_ref())?;
             notes.extend(
                 val_notes
                     .into_iter()
@@ -186,14 +178,25 @@ struct Baseline {
     on_validation: bool,
 }
 
-fn best_hammerstein(args: &Args, data: &Path, val: Option<&Path>) -> anyhow::Result<Baseline> {
+/// The reader's options for `calibrate`'s records: the shared column flags, one command column, and
+/// Ts 0.01 s when neither --ts nor a time column gives one.
+fn record_options(args: &Args) -> anyhow::Result<sysid::data::CsvOptions> {
     let opts = sysid::data::CsvOptions {
-        u_col: args.u_col.clone(),
-        y_col: args.y_col.clone(),
-        ts: args.ts,
         fallback_ts: Some(ipa::DEFAULT_TS_S),
-        ..Default::default()
+        ..args.columns.csv_options()
     };
+    if opts.input_names().len() > 1 {
+        anyhow::bail!(sysid::SysidError::setting(
+            sysid::Setting::UCol,
+            &opts.u_col,
+            "one command column (the twin has one valve command)"
+        ));
+    }
+    Ok(opts)
+}
+
+fn best_hammerstein(args: &Args, data: &Path, val: Option<&Path>) -> anyhow::Result<Baseline> {
+    let opts = record_options(args)?;
     let est = sysid::data::read_csv(data, &opts)?;
     let val = match val {
         Some(v) => Some(sysid::data::read_csv(v, &opts)?),

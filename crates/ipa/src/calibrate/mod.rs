@@ -52,28 +52,6 @@ pub use parameter::{parse_list, Parameter};
 
 use crate::{Ipa, IpaError, PlantConfig, Record};
 
-/// Column names of a record CSV (`--u-column`, `--y-column`, `--pa-column`, `--pb-column`).
-#[derive(Debug, Clone, PartialEq)]
-pub struct Columns {
-    /// Command u, counts.
-    pub u: String,
-    /// Position y, mm.
-    pub y: String,
-    /// Cap-side absolute pressure p_a, Pa, and rod-side p_b; `None`: the plant's own `p_a_pa`, `p_b_pa`
-    /// when the file has both, else no pressures.
-    pub pressures: Option<(String, String)>,
-}
-
-impl Default for Columns {
-    fn default() -> Self {
-        Columns {
-            u: "u".into(),
-            y: "y".into(),
-            pressures: None,
-        }
-    }
-}
-
 /// Parameters of the first stage of plan C: those that set speeds, forces and pressures.
 const CORE_PARAMETERS: [Parameter; 6] = [
     Parameter::SupplyConductance,
@@ -100,58 +78,59 @@ const SHAPE_PARAMETERS: [Parameter; 3] = [
 /// Fewest samples a record must have for calibration.
 pub const MIN_SAMPLES: usize = 50;
 
-/// Reads a record: columns u and y (names in `cols`) and Ts by the reader every command uses
-/// (`sysid_core::data::read_record`: a `.mat` file or CSV, Ts from `ts_s` or else from a uniform `t`
-/// column, else 0.01 s; a non-uniform column is refused at its line), and the pressures when present
-/// (CSV). Returns the record and the reader's notes (for example a `ts_s` that contradicts the `t`
-/// column), which a caller shows as warnings ([`CalibrationWarning::Reader`]).
+/// Reads a record with the reader every command uses (`sysid_core::data::read_record` with `opts`: a
+/// `.mat` file or CSV, `--no-header`, `--rows`, `--time-unit`, `--resample`; Ts from `opts.ts`, else a
+/// uniform time column, else `opts.fallback_ts`, else 0.01 s; a non-uniform column is refused at its
+/// line): u and y from `opts.u_col`, `opts.y_col`, and the chamber pressures p_a, p_b (Pa, absolute)
+/// from the columns `pressures` names, or the plant's own `p_a_pa`, `p_b_pa` when the file has both. The pressures are read as two more
+/// columns of the same record, so `--rows` and `--resample` cut and interpolate them with u and y.
+/// Returns the record and the reader's notes (for example a `--ts` that contradicts the time column),
+/// which a caller shows as warnings ([`CalibrationWarning::Reader`]).
 pub fn read_record(
     path: &Path,
-    cols: &Columns,
-    ts_s: Option<f64>,
+    opts: &sysid_core::data::CsvOptions,
+    pressures: Option<&(String, String)>,
 ) -> Result<(Record, Vec<String>), IpaError> {
     let name = path.display().to_string();
-    let opts = sysid_core::data::CsvOptions {
-        u_col: cols.u.clone(),
-        y_col: cols.y.clone(),
-        ts: ts_s,
-        fallback_ts: Some(crate::DEFAULT_TS_S),
-        ..sysid_core::data::CsvOptions::default()
+    let is_mat = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("mat"));
+    // The pressure columns: named, or found in a CSV header (checked here, so that a missing one is
+    // named by the flag that chose it).
+    let pressures = match (pressures, is_mat) {
+        (Some(ab), _) => Some(ab.clone()),
+        (None, true) => None,
+        (None, false) if opts.no_header => None,
+        (None, false) => {
+            let bytes = sysid_core::data::bounded::read_data_file(path, "a calibration record")?;
+            let table = sysid_core::data::read_table(&bytes, &name)?;
+            let has = |c: &str| table.headers.iter().any(|h| h == c);
+            (has("p_a_pa") && has("p_b_pa")).then(|| ("p_a_pa".to_string(), "p_b_pa".to_string()))
+        }
     };
-    let read = sysid_core::data::read_record(path, &opts)?;
+    if let (Some((a, b)), false) = (&pressures, is_mat) {
+        let bytes = sysid_core::data::bounded::read_data_file(path, "a calibration record")?;
+        let table = sysid_core::data::read_table_with(&bytes, &name, !opts.no_header)?;
+        table.column_index(a, sysid_core::Setting::Other("--pa-col"))?;
+        table.column_index(b, sysid_core::Setting::Other("--pb-col"))?;
+    }
+    let mut read_opts = opts.clone();
+    if read_opts.fallback_ts.is_none() {
+        read_opts.fallback_ts = Some(crate::DEFAULT_TS_S);
+    }
+    if let Some((a, b)) = &pressures {
+        read_opts.u_col = format!("{},{a},{b}", opts.u_col);
+    }
+    let read = sysid_core::data::read_record(path, &read_opts)?;
+    let columns = read.data.input_signals();
     let (u, y, ts) = (
-        read.data.u().to_vec(),
+        columns.first().map(|c| c.to_vec()).unwrap_or_default(),
         read.data.y().to_vec(),
         read.data.ts(),
     );
-    let pressure_columns = cols.pressures.clone();
-    // The pressures: named columns, or the plant's own p_a_pa, p_b_pa when the file has both.
-    let pressures = {
-        let bytes = sysid_core::data::bounded::read_data_file(path, "a calibration record")?;
-        match sysid_core::data::read_table(&bytes, &name) {
-            Ok(table) => {
-                let col = |c: &str, flag: &'static str| -> Result<Vec<f64>, IpaError> {
-                    let i = table.column_index(c, sysid_core::Setting::Other(flag))?;
-                    Ok(table.numbers(i)?)
-                };
-                match pressure_columns {
-                    Some((a, b)) => Some((col(&a, "--pa-col")?, col(&b, "--pb-col")?)),
-                    None if table.headers.iter().any(|h| h == "p_a_pa")
-                        && table.headers.iter().any(|h| h == "p_b_pa") =>
-                    {
-                        Some((col("p_a_pa", "--pa-col")?, col("p_b_pa", "--pb-col")?))
-                    }
-                    None => None,
-                }
-            }
-            // Not a CSV table (a `.mat` file): pressures only when asked for, which is an error.
-            Err(e) if pressure_columns.is_some() => return Err(e.into()),
-            Err(_) => None,
-        }
-    };
     if !(ts.is_finite() && ts > 0.0 && ts <= 10.0) {
         return Err(IpaError::Config(format!(
-            "{name}: sampling period {ts} s (from the t column or --ts): expected a value in (0, 10] s"
+            "{name}: sampling period {ts} s (from the time column or --ts): expected a value in (0, 10] s"
         )));
     }
     if u.len() < MIN_SAMPLES {
@@ -160,25 +139,21 @@ pub fn read_record(
             u.len()
         )));
     }
-    let pressures = match pressures {
-        Some((a, b)) => {
-            if a.len() != u.len() || b.len() != u.len() {
-                return Err(IpaError::Config(format!(
-                    "{name}: the pressure columns have {} and {} rows, the record {}",
-                    a.len(),
-                    b.len(),
-                    u.len()
-                )));
-            }
-            if let Some(k) = a.iter().chain(&b).position(|p| p.is_nan() || *p <= 0.0) {
+    let pressures = match (columns.get(1), columns.get(2)) {
+        (Some(a), Some(b)) => {
+            if let Some(k) = a
+                .iter()
+                .chain(b.iter())
+                .position(|p| p.is_nan() || *p <= 0.0)
+            {
                 return Err(IpaError::Config(format!(
                     "{name}: data row {}: a chamber pressure must be an absolute pressure > 0 Pa",
                     k % a.len() + 1
                 )));
             }
-            Some(a.into_iter().zip(b).map(|(a, b)| [a, b]).collect())
+            Some(a.iter().zip(b.iter()).map(|(a, b)| [*a, *b]).collect())
         }
-        None => None,
+        _ => None,
     };
     Ok((
         Record {

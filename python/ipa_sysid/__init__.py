@@ -62,6 +62,14 @@ def _named_ints(f):
     def call(*args, **kwargs):
         try:
             return f(*args, **kwargs)
+        except TypeError as e:
+            # The core names the argument only in a note ("while processing 'ts'"), which str(e)
+            # leaves out: put it in the message.
+            prefix = "while processing '"
+            names = [n[len(prefix) : -1] for n in getattr(e, "__notes__", ()) if n.startswith(prefix)]
+            if not names:
+                raise
+            raise TypeError(f"{names[0]}: {e}") from e
         except OverflowError as e:
             try:
                 given = signature.bind(*args, **kwargs).arguments if signature else kwargs

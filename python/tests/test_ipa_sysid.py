@@ -313,6 +313,12 @@ def test_rls_errors():
         ipa_sysid.Rls(3, forgetting=1.5)
     with pytest.raises(ValueError, match="n = 0"):
         ipa_sysid.Rls(0)
+    # A wrong type is named in the message (the core named it only in an exception note).
+    u = np.zeros(100)
+    with pytest.raises(TypeError, match=r"^ts: must be real number, not str"):
+        ipa_sysid.identify(u, u, "a")
+    with pytest.raises(TypeError, match=r"^samples: "):
+        ipa_sysid.simulate_plant(samples=1.5)
     # A negative count is named (the conversion alone raised an OverflowError naming nothing).
     with pytest.raises(ValueError, match=r"invalid setting n = -1: .*whole number >= 0"):
         ipa_sysid.Rls(-1)

@@ -1091,3 +1091,20 @@ fn a_closed_loop_run_beyond_the_sample_bound_is_refused_before_it_runs() {
         stderr(&out)
     );
 }
+
+// `order` bounds its work before it reads the record: a million structures (every range within its
+// own limit of 100) is refused with the count, where it ran silently for hours (audit s13 M10).
+#[test]
+fn an_order_search_beyond_the_structure_bound_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = run(
+        "order --data {c}/good.csv --ts 0.01 --na 1..100 --nb 1..100 --nk 0..100 --structure arx --method ls",
+        dir.path(),
+    );
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("a search of at most 20000 structures (this one has 1010000)"),
+        "{}",
+        stderr(&out)
+    );
+}

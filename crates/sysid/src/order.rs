@@ -244,6 +244,12 @@ pub fn offset_hint(
 }
 
 /// The number of structures in a grid.
+/// The most structures one search fits (orders × classes): about 10–20 s at the IPA's record sizes
+/// with least squares, so that a typed range (`--na 1..100 --nb 1..100 --nk 0..100`, a million
+/// structures and hours of silent work; audit s13 M10) is refused with its size instead.
+pub const MAX_STRUCTURES: usize = 20_000;
+
+/// The number of structures of the grid na × nb × nk.
 pub fn grid_size(na: &[usize], nb: &[usize], nk: &[usize]) -> usize {
     na.len() * nb.len() * nk.len()
 }

@@ -187,6 +187,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         parse_range(&args.nk, "--nk")?
     };
+    // The work is bounded before any record is read (nk auto adds three delays to the grid).
+    let structures = sysid::order::grid_size(&na, &nb, if auto_nk { &[0, 1, 2] } else { &nk })
+        .saturating_mul(args.classes.len().max(1));
+    if structures > sysid::order::MAX_STRUCTURES {
+        anyhow::bail!(sysid::SysidError::setting(
+            sysid::Setting::Other("--na/--nb/--nk"),
+            format!("{} x {} x {}", args.na, args.nb, args.nk),
+            &format!(
+                "a search of at most {} structures (this one has {structures}{}); narrow the ranges, \
+                 e.g. search na and nb first with a fixed nk (`ipa-sysid delay` estimates it)",
+                sysid::order::MAX_STRUCTURES,
+                if args.classes.is_empty() {
+                    String::new()
+                } else {
+                    format!(", {} classes", args.classes.len())
+                }
+            )
+        ));
+    }
     let base = Identification {
         drop_unexcited_branch: true,
         ..Identification::default()

@@ -246,6 +246,23 @@ fn streamed_reading_reports_bad_cells_with_line_and_column() {
         e.contains("non-uniform sampling") && e.contains("bad.csv:1000"),
         "{e}"
     );
+    // A gap (rows 500..599 left out): the gap's line 502 is named, streamed as in memory, not the
+    // first regular row that differs from the mean the gap inflated (audit s13 M5).
+    // Line 1 is the header, data row k line k + 2: rows 0..499 are lines 2..501, row 600 line 502.
+    let gap: String = text
+        .lines()
+        .enumerate()
+        .filter(|(i, _)| !(501..601).contains(i))
+        .map(|(_, l)| format!("{l}\n"))
+        .collect();
+    std::fs::write(&f, gap).unwrap();
+    for stream in [&["--stream"][..], &[][..]] {
+        let e = fails(&arx_ls(s(&f), stream));
+        assert!(
+            e.contains("bad.csv:502:1: non-uniform sampling: step 1.01 s"),
+            "{stream:?}: {e}"
+        );
+    }
 }
 
 // What needs the whole record is refused under --stream on, naming the way out; standard input cannot be

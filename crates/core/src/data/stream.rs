@@ -312,7 +312,14 @@ impl CsvStream {
                 format!("the time steps (mean {ts} s) do not give a usable Ts; pass --ts"),
             ));
         }
-        for (step, line) in [s.min_step, s.max_step] {
+        // The extreme further from the mean first: a gap inflates the mean, so the regular steps also
+        // differ from it, and the row to name is the gap's (audit s13 M5: line 1504 was named, a
+        // regular row, for a gap at line 502).
+        let mut extremes = [s.min_step, s.max_step];
+        if (s.max_step.0 - ts).abs() > (s.min_step.0 - ts).abs() {
+            extremes.reverse();
+        }
+        for (step, line) in extremes {
             if (step - ts).abs() > 1e-3 * ts {
                 return Err(self.at(
                     line,

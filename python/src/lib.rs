@@ -82,6 +82,23 @@ fn whole(name: &'static str, v: i64) -> PyResult<usize> {
     usize::try_from(v).map_err(|_| setting_err(name, v, "a whole number >= 0"))
 }
 
+/// Issues each message as an `ipa_sysid.IpaSysidWarning` (the command line's `warning:` lines).
+fn warn_all(py: Python<'_>, messages: &[String]) -> PyResult<()> {
+    if messages.is_empty() {
+        return Ok(());
+    }
+    let category = py.import("ipa_sysid")?.getattr("IpaSysidWarning")?;
+    for m in messages {
+        PyErr::warn(
+            py,
+            &category,
+            &std::ffi::CString::new(m.replace('\0', " "))?,
+            1,
+        )?;
+    }
+    Ok(())
+}
+
 /// One of the command line's value names (`--method rls`, ...) parsed into its enum.
 fn choice<T: ValueEnum>(flag: &'static str, value: &str) -> PyResult<T> {
     T::from_str(value, false).map_err(|_| {
@@ -255,6 +272,18 @@ impl PyModel {
         y0: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let u = floats(u, "u")?;
+        // What `simulate --plant model:FILE` warns of: the model file's doubts and an unstable model.
+        let doubts: Vec<String> = sysid::model_file::load_warnings(&self.inner)
+            .into_iter()
+            .map(|w| format!("model: {w}"))
+            .chain(
+                sysid::Warning::if_unstable_or_integrating(&self.inner)
+                    .into_iter()
+                    .filter(|w| matches!(w, sysid::Warning::Unstable { .. }))
+                    .map(|w| w.to_string()),
+            )
+            .collect();
+        warn_all(py, &doubts)?;
         let k0 = self.inner.k0();
         let mut y = vec![0.0; u.len()];
         let y0 = match y0 {
@@ -332,7 +361,20 @@ impl PyModel {
     ) -> PyResult<Bound<'py, PyAny>> {
         let data = dataset(u, y, self.inner.ts(), name)?;
         let m = sysid::metrics::metrics(&self.inner, &data).map_err(sysid_err)?;
-        to_py(py, &m)
+        // What `validate` warns of: the model file's own doubts, an unstable model, a negative or
+        // flattered fit; each an IpaSysidWarning and in the dict's "warnings" (audit s13 M4).
+        let warnings: Vec<String> = sysid::model_file::load_warnings(&self.inner)
+            .into_iter()
+            .map(|w| format!("model: {w}"))
+            .chain(sysid_summary::ValidationReport::warnings_of(
+                &self.inner,
+                &m,
+            ))
+            .collect();
+        warn_all(py, &warnings)?;
+        let out = to_py(py, &m)?;
+        out.set_item("warnings", warnings)?;
+        Ok(out)
     }
 
     /// The model file text (the command line's `--save-model` format, JSON).

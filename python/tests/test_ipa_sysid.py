@@ -211,7 +211,10 @@ def test_model_file_round_trip_and_cli_reads_it(records, tmp_path):
     cli("validate", "--model", path, "--data", val, "--ts", 0.01, "--json", out)
     doc = json.loads(out.read_text())
     v = read_csv(val)
-    assert_same(back.metrics(v["u"], v["y"]), doc["metrics"]["validation"])
+    m = back.metrics(v["u"], v["y"])
+    # ... and the same warnings (validate's also carry the reader's notes on the file, "data: ...").
+    assert sorted(m.pop("warnings")) == sorted(w for w in doc["warnings"] if not w.startswith("data:"))
+    assert_same(m, doc["metrics"]["validation"])
 
 
 def test_load_model_reads_the_cli_model_file(records, tmp_path):
@@ -680,3 +683,29 @@ def test_settings_the_model_would_ignore_are_refused_by_name():
     # The defaults are not "given": both kinds still run with them.
     assert ipa_sysid.identify(u, y, 1.0, model="arx", method="ls", na=1, nb=2).stable
     ipa_sysid.identify(u, y, 1.0, structure="narx", degree=1, na=1, nb=2, max_iterations=50)
+
+
+def test_model_methods_warn_of_what_validate_warns_of(tmp_path):
+    # An unstable model (A = 1 - 3 q^-1 + 3 q^-2 - 1.5 q^-3: the real root of z^3 - 3z^2 + 3z - 1.5 is
+    # 1 + 0.5^(1/3) = 1.79, outside the unit circle) judged on a record: Model.metrics and
+    # Model.simulate issue IpaSysidWarning (as validate and simulate print warning: lines), and the
+    # metrics dict carries them; a stable model fitted to its own output raises none.
+    path = tmp_path / "unstable.json"
+    path.write_text(json.dumps({"format": "ipa-sysid-model", "version": 2, "model": {
+        "kind": "arx", "ts": 0.01, "na": 3, "nb": 1, "nk": 1, "a": [-3.0, 3.0, -1.5], "b": [0.01],
+        "offset": None}}))
+    m = ipa_sysid.load_model(str(path))
+    u = np.sin(np.arange(300) * 0.05)
+    y = np.zeros(300)
+    with pytest.warns(ipa_sysid.IpaSysidWarning, match=r"unstable model: a pole has modulus 1\.79"):
+        d = m.metrics(u, y)
+    assert any("unstable model" in w for w in d["warnings"])
+    with pytest.warns(ipa_sysid.IpaSysidWarning, match="unstable model"):
+        m.simulate(u, 0.0)
+    stable = ipa_sysid.paper_model()
+    u = 100.0 * u  # beyond the deadzone (|b| < 1.5 counts), so the output moves
+    y = stable.simulate(u, 0.0)
+    import warnings as w
+    with w.catch_warnings():
+        w.simplefilter("error", ipa_sysid.IpaSysidWarning)
+        assert stable.metrics(u, y)["warnings"] == []

@@ -398,11 +398,7 @@ impl ValidationReport {
     /// The report from metrics and a residual analysis computed elsewhere (the streaming path,
     /// `sysid::stream`), with the warnings [`ValidationReport::assemble`] gives.
     pub fn from_parts(model: &Model, m: Metrics, residuals: ResidualEntry) -> Self {
-        let warnings: Vec<String> = Warning::if_unstable_or_integrating(model)
-            .into_iter()
-            .chain(metric_warnings(Record::Validation, &m))
-            .map(|w| w.to_string())
-            .collect();
+        let warnings = Self::warnings_of(model, &m);
         ValidationReport {
             model: model.clone(),
             poles: poles(model),
@@ -413,6 +409,17 @@ impl ValidationReport {
             },
             warnings,
         }
+    }
+
+    /// The warnings of a model judged on a record with metrics `m`: an unstable or integrating model,
+    /// a negative or diverging simulation fit, a fit flattered by the initial state (what `validate`
+    /// and Python's `Model.metrics` say).
+    pub fn warnings_of(model: &Model, m: &Metrics) -> Vec<String> {
+        Warning::if_unstable_or_integrating(model)
+            .into_iter()
+            .chain(metric_warnings(Record::Validation, m))
+            .map(|w| w.to_string())
+            .collect()
     }
 
     /// Pretty JSON text (ending with a newline).

@@ -748,6 +748,9 @@ fn identify<'py>(
             if one { "it" } else { "them" },
         )));
     }
+    if resid_lags == 0 {
+        return Err(setting_err("resid_lags", 0, "a whole number of lags >= 1"));
+    }
     let method = method.unwrap_or("rls");
     if narx {
         let settings = sysid::narx::NarxSettings {

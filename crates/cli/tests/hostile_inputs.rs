@@ -1108,3 +1108,22 @@ fn an_order_search_beyond_the_structure_bound_is_refused() {
         stderr(&out)
     );
 }
+
+// `--resid-lags 0` is a usage error naming the flag (it ran and left the residual analysis "not
+// available"; audit s13 L3).
+#[test]
+fn zero_residual_lags_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    for cmd in [
+        "identify --data {c}/good.csv --ts 0.01 --resid-lags 0",
+        "validate --model {c}/good_model.json --data {c}/good.csv --ts 0.01 --resid-lags 0",
+    ] {
+        let out = run(cmd, dir.path());
+        assert_eq!(out.status.code(), Some(2), "{cmd}: {}", stderr(&out));
+        assert!(
+            stderr(&out).contains("'--resid-lags <M>': expected a whole number of lags >= 1"),
+            "{}",
+            stderr(&out)
+        );
+    }
+}

@@ -660,8 +660,9 @@ fn termination_words(t: &Termination, method: Method) -> String {
                 .into()
         }
         (Termination::NotSettled, Method::Rls) => {
-            "the recursive estimate was still moving at the end of the data (more passes or a \
-             forgetting factor below 1 may settle it)"
+            "the recursive estimate was still moving at the end of the data (more passes may \
+             settle it, or, for a plant that changes, a forgetting factor below 1; with forgetting \
+             the estimate follows the latest data and moves by design)"
                 .into()
         }
         (Termination::NotSettled, _) => "the estimate had not settled".into(),

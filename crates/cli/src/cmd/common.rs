@@ -11,6 +11,15 @@ pub fn parse_rows(text: &str) -> Result<RowRange, String> {
     })
 }
 
+/// Parses `--resid-lags M`: at least one lag (M = 0 left the residual analysis "not available"
+/// without an error; audit s13 L3).
+pub fn parse_lags(text: &str) -> Result<usize, String> {
+    match text.trim().parse::<usize>() {
+        Ok(m) if m >= 1 => Ok(m),
+        _ => Err("expected a whole number of lags >= 1".into()),
+    }
+}
+
 /// Which columns of a CSV file hold the data, and its sampling period.
 #[derive(Debug, Clone, clap::Args)]
 pub struct ColumnArgs {

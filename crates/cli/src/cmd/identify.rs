@@ -185,7 +185,8 @@ pub struct Args {
     #[command(flatten)]
     pub val: ValidationArgs,
     /// Lags M of the residual analysis (autocorrelation τ = 1..M, cross-correlation τ = −M..M).
-    #[arg(long, default_value_t = sysid::residuals::DEFAULT_MAX_LAG, value_name = "M")]
+    #[arg(long, default_value_t = sysid::residuals::DEFAULT_MAX_LAG, value_name = "M",
+          value_parser = super::common::parse_lags)]
     pub resid_lags: usize,
     /// Hammerstein: when the estimate diverges, is unstable or simulates the estimation data far worse
     /// (10 fit points) than the linear ARX model of the same orders, return that linear model written

@@ -20,7 +20,8 @@ pub struct Args {
     #[command(flatten)]
     pub columns: ColumnArgs,
     /// Lags M of the residual analysis (autocorrelation τ = 1..M, cross-correlation τ = −M..M).
-    #[arg(long, default_value_t = sysid::residuals::DEFAULT_MAX_LAG, value_name = "M")]
+    #[arg(long, default_value_t = sysid::residuals::DEFAULT_MAX_LAG, value_name = "M",
+          value_parser = super::common::parse_lags)]
     pub resid_lags: usize,
     /// Exit with code 1 when the result carries warnings (they are printed either way).
     #[arg(long)]

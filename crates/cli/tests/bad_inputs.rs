@@ -712,7 +712,7 @@ fn control_flags_out_of_range_exit_2_naming_the_flag() {
         case(
             "control --plant paper --setpoint 5 --duration 1e12",
             2,
-            &["--duration", "at most 100000000 samples"],
+            &["--duration", "at most 10000000 samples"],
         ),
         case(
             "control --plant paper --setpoint 5 --u-max 0",

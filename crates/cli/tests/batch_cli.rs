@@ -115,17 +115,31 @@ fn explicit_files_keep_their_order_and_match_single_file_output() {
     let (u, y) = paper_record(800, 4);
     let first = write_csv(dir.path(), "m.csv", &u, &y);
     let out_path = dir.path().join("all.jsonl");
-    let st = bin()
+    let out = bin()
         .args(["identify", "--method", "rls", "--passes", "3", "--data"])
         .arg(&first)
         .arg(&second)
         .arg("--json")
         .arg(&out_path)
-        .status()
+        .output()
         .unwrap();
-    assert!(st.success());
+    assert!(out.status.success());
     let v = lines(&std::fs::read_to_string(&out_path).unwrap());
     assert_eq!(v.len(), 2);
+    // Standard error says how many lines carry warnings, counted here from the lines themselves
+    // (audit s13 L12: it said nothing of them).
+    let warned = v
+        .iter()
+        .filter(|l| l["warnings"].as_array().is_some_and(|w| !w.is_empty()))
+        .count();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(
+        err.contains(&format!(
+            "warning: {warned} of 2 identified files have warnings"
+        )),
+        warned > 0,
+        "{err}"
+    );
     for (line, path) in v.iter().zip([&first, &second]) {
         assert_eq!(line["file"].as_str().unwrap(), path.display().to_string());
         let single = dir.path().join("single.json");

@@ -148,6 +148,7 @@ pub fn run(args: Args, settings: &Identification) -> anyhow::Result<()> {
     let elapsed = start.elapsed().as_secs_f64();
     bar.finish_and_clear();
     let failed = lines.iter().filter(|(_, code, _)| *code != 0).count();
+    let warned = lines.iter().filter(|(_, _, w)| *w > 0).count();
     let mut body = String::with_capacity(lines.iter().map(|(l, _, _)| l.len() + 1).sum());
     for (l, _, _) in &lines {
         body.push_str(l);
@@ -170,6 +171,15 @@ pub fn run(args: Args, settings: &Identification) -> anyhow::Result<()> {
             String::new()
         }
     );
+    // The reasons not to trust a result travel in each line's "warnings"; say that there are some
+    // (audit s13 L12: a batch of unstable models printed no warning at all).
+    if warned > 0 {
+        eprintln!(
+            "warning: {warned} of {} identified files have warnings (an unstable model, a poor fit, ...): \
+             read each line's \"warnings\" before using its model",
+            files.len() - failed
+        );
+    }
     if failed > 0 {
         // Exit 1 when every failure was numerical, 2 when any file was bad input.
         let msg = format!("{failed} of {} files could not be identified", files.len());

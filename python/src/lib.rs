@@ -1541,6 +1541,7 @@ fn control_loop<'py>(
             range_mm: limits.range_mm,
             unstable_pole: limits.unstable_pole,
             judge_steps: profile.has_held_steps(),
+            data_u_range: limits.data_u_range,
         },
     ));
     let out = PyDict::new(py);

@@ -60,6 +60,10 @@ pub struct LoopFacts {
     /// True for a fixed set-point or a staircase: each step is judged against the paper's acceptance
     /// (a profile read from samples may change r every sample, which has no step to judge).
     pub judge_steps: bool,
+    /// The commands [min, max] of a model plant's estimation data (`PlantLimits::data_u_range`): a run
+    /// whose commands leave them by more than a tenth of their span is warned (the model extrapolates
+    /// there; audit s13 L10); `None`: not checked.
+    pub data_u_range: Option<(f64, f64)>,
 }
 
 /// The warnings of a run `trace` with its `steps` (from [`crate::metrics_for_steps`]).
@@ -81,6 +85,22 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
             w.push(format!(
                 "set-point r = {r} mm is outside the reachable range {lo}..{hi} mm (the stroke): the \
                  piston cannot follow it, and the step metrics describe the end stop"
+            ));
+        }
+    }
+    if let Some((lo, hi)) = facts.data_u_range {
+        let margin = 0.1 * (hi - lo).abs();
+        let (u_min, u_max) = trace
+            .u
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                (a.min(*v), b.max(*v))
+            });
+        if u_min.is_finite() && u_max.is_finite() && (u_min < lo - margin || u_max > hi + margin) {
+            w.push(format!(
+                "the commands span [{u_min:.6}, {u_max:.6}] but the plant model's estimation data had u in \
+                 [{lo}, {hi}]: outside it the model extrapolates, so the loop's response there is the \
+                 equations' guess, not the plant's"
             ));
         }
     }
@@ -264,6 +284,30 @@ mod tests {
         assert!(w.iter().any(|w| w.contains("has not settled")), "{w:?}");
     }
 
+    // Commands −255..3 against a model estimated on u in [−100, 100]: 255 is beyond 100 + 20, warned;
+    // within [−110, 110] they are not.
+    #[test]
+    fn commands_beyond_a_model_plants_data_are_warned() {
+        let mut u = vec![-255.0; 101];
+        u[0] = 3.0;
+        let tr = trace(vec![0.0; 101], u, 10.0);
+        let steps = metrics_for_steps(&tr).unwrap();
+        let facts = |range| LoopFacts {
+            u_max: 255.0,
+            data_u_range: Some(range),
+            ..LoopFacts::default()
+        };
+        let w = loop_warnings(&tr, &steps, &facts((-100.0, 100.0)));
+        assert!(
+            w.iter()
+                .any(|w| w.contains("the commands span [-255.000000, 3.000000]")
+                    && w.contains("u in [-100, 100]")),
+            "{w:?}"
+        );
+        let w = loop_warnings(&tr, &steps, &facts((-240.0, 240.0)));
+        assert!(!w.iter().any(|w| w.contains("the commands span")), "{w:?}");
+    }
+
     // 1000 of 1001 samples at −255: 99.9 % saturated; r = 300 mm beyond a 200 mm stroke.
     #[test]
     fn saturation_and_an_unreachable_set_point_are_warned() {
@@ -279,6 +323,7 @@ mod tests {
                 range_mm: Some((0.0, 200.0)),
                 unstable_pole: Some(1.02),
                 judge_steps: true,
+                data_u_range: None,
             },
         );
         assert!(w.iter().any(|w| w.contains("99.9 %")), "{w:?}");

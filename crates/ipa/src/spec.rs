@@ -159,6 +159,9 @@ pub struct PlantLimits {
     /// What the model file holds that the user must be told (an input or output map that breaks its
     /// kind's shape: [`sysid_core::model_file::load_warnings`]); empty for `ipa` and `paper`.
     pub model_warnings: Vec<String>,
+    /// The commands of a model plant's estimation data, [min, max] of its first input (its
+    /// `data_range`): outside them the model extrapolates; `None` without one.
+    pub data_u_range: Option<(f64, f64)>,
 }
 
 impl PlantSpec {
@@ -192,6 +195,7 @@ impl PlantLimits {
             u_max: Some(crate::plant::U_MAX),
             unstable_pole: None,
             model_warnings: Vec::new(),
+            data_u_range: None,
         }
     }
 
@@ -217,6 +221,10 @@ impl PlantLimits {
             u_max: None,
             unstable_pole: (pole > 1.0 + 1e-9).then_some(pole),
             model_warnings: sysid_core::model_file::load_warnings(model),
+            data_u_range: model
+                .data_range()
+                .and_then(|r| r.u.first())
+                .map(|[lo, hi]| (*lo, *hi)),
         }
     }
 }

@@ -294,6 +294,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             range_mm: limits.range_mm,
             unstable_pole: limits.unstable_pole,
             judge_steps: profile.has_held_steps(),
+            data_u_range: limits.data_u_range,
         },
     ));
 

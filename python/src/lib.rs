@@ -817,7 +817,13 @@ fn identify<'py>(
         ));
     }
     let options = IdentifyOptions {
-        model: choice("--model", model)?,
+        model: if structure.is_some() {
+            // `structure=` is the command line's --structure, which also offers narx (handled above).
+            choice("--structure", model)
+                .map_err(|_| setting_err("structure", model, "one of arx, hammerstein, narx"))?
+        } else {
+            choice("--model", model)?
+        },
         na,
         nb,
         nk,

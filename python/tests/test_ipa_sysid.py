@@ -680,6 +680,9 @@ def test_settings_the_model_would_ignore_are_refused_by_name():
         ipa_sysid.identify(u, y, 1.0, structure="narx", forgetting=0.99, passes=1, fallback=True)
     with pytest.raises(ValueError, match=r'^stop, refine: settings of the polynomial NARX search.*"arx"'):
         ipa_sysid.identify(u, y, 1.0, model="arx", stop="aic", refine=False)
+    # A structure that does not exist is named as the argument given, with every choice.
+    with pytest.raises(ValueError, match=r"invalid setting structure = x: one of arx, hammerstein, narx"):
+        ipa_sysid.identify(u, y, 1.0, structure="x")
     # The defaults are not "given": both kinds still run with them.
     assert ipa_sysid.identify(u, y, 1.0, model="arx", method="ls", na=1, nb=2).stable
     ipa_sysid.identify(u, y, 1.0, structure="narx", degree=1, na=1, nb=2, max_iterations=50)

@@ -699,6 +699,15 @@ fn control_flags_out_of_range_exit_2_naming_the_flag() {
             2,
             &["--duration", "at least one sampling period"],
         ),
+        // Without --duration the profile's hold times set the length: they are named (audit s13 L14).
+        case(
+            "control --plant paper --profile staircase:10,20@1e-9",
+            2,
+            &[
+                "invalid setting --profile (its hold times",
+                "at least one sampling period",
+            ],
+        ),
         case(
             "control --plant paper --setpoint 5 --duration -1",
             2,

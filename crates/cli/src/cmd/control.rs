@@ -263,8 +263,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         duration_s,
     )?;
     if trace.len() < 2 {
+        // The run's length came from --duration, or from the profile's own hold times when none was
+        // given: name what the user typed (audit s13 L14: a staircase held 1e-9 s blamed --duration).
+        let flag = if args.duration.is_some() {
+            "--duration"
+        } else {
+            "--profile (its hold times; or give --duration)"
+        };
         bail!(sysid::SysidError::setting(
-            sysid::Setting::Other("--duration"),
+            sysid::Setting::Other(flag),
             duration_s,
             &format!("at least one sampling period ({ts} s) to measure a response")
         ));

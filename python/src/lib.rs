@@ -1696,26 +1696,10 @@ fn calibrate<'py>(
         fallback_ts: Some(ipa::DEFAULT_TS_S),
         ..sysid::data::CsvOptions::default()
     };
-    let (est, mut notes) = ipa::calibrate::read_record(&data, &opts, None).map_err(ipa_err)?;
-    let val = match validation.as_ref() {
-        Some(v) => {
-            let (val, val_notes) = ipa::calibrate::read_record(v, &opts, None).map_err(ipa_err)?;
-            notes.extend(
-                val_notes
-                    .into_iter()
-                    .map(|n| format!("{}: {n}", v.display())),
-            );
-            Some(val)
-        }
-        None => None,
-    };
+    let (est, val, notes) =
+        ipa::calibrate::read_records(&data, validation.as_deref(), &opts, None).map_err(ipa_err)?;
     let mut twin = py.detach(|| cal.fit(&est, val.as_ref())).map_err(ipa_err)?;
-    twin.warnings.splice(
-        0..0,
-        notes
-            .into_iter()
-            .map(|note| ipa::calibrate::CalibrationWarning::Reader { note }),
-    );
+    twin.warnings.splice(0..0, notes);
     let fit = |r: &Option<ipa::calibrate::FreeRun>| r.as_ref().and_then(|r| r.fit_percent);
     let out = PyDict::new(py);
     let estimates = PyList::empty(py);

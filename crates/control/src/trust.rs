@@ -89,14 +89,7 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
         }
     }
     if let Some((lo, hi)) = facts.data_u_range {
-        let margin = 0.1 * (hi - lo).abs();
-        let (u_min, u_max) = trace
-            .u
-            .iter()
-            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-                (a.min(*v), b.max(*v))
-            });
-        if u_min.is_finite() && u_max.is_finite() && (u_min < lo - margin || u_max > hi + margin) {
+        if let Some((u_min, u_max)) = sysid_core::DataRange::excursion(&trace.u, (lo, hi)) {
             w.push(format!(
                 "the commands span [{u_min:.6}, {u_max:.6}] but the plant model's estimation data had u in \
                  [{lo}, {hi}]: outside it the model extrapolates, so the loop's response there is the \

@@ -235,6 +235,21 @@ fn widen_all(r: &mut [f64; 2], s: &[f64]) {
 }
 
 impl DataRange {
+    /// The [min, max] of `values` when they leave [lo, hi] by more than a tenth of its span, where a
+    /// model estimated on [lo, hi] extrapolates (the one rule of `simulate`'s input and output warnings
+    /// and `control`'s command warning); `None` when they stay within it, when there are none, or when an
+    /// extreme is infinite (a diverged run, warned of on its own). NaN values are skipped.
+    pub fn excursion(values: &[f64], (lo, hi): (f64, f64)) -> Option<(f64, f64)> {
+        let (min, max) = values
+            .iter()
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                (a.min(*v), b.max(*v))
+            });
+        let margin = 0.1 * (hi - lo).abs();
+        (min.is_finite() && max.is_finite() && (min < lo - margin || max > hi + margin))
+            .then_some((min, max))
+    }
+
     /// The range of `records` (every input and the output over every sample); `None` when there is no
     /// sample or the records' numbers of inputs differ.
     pub fn of(records: &[crate::Dataset]) -> Option<DataRange> {
@@ -1631,6 +1646,22 @@ fn run_one_input<const NA: usize, const NB: usize, const FREE: bool>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    // [0, 100] with its tenth (10) of margin: −10 and 110 are within, −10.5 or 110.5 leave it; NaN is
+    // skipped; an infinite extreme is not judged.
+    #[test]
+    fn an_excursion_is_beyond_a_tenth_of_the_span() {
+        let r = (0.0, 100.0);
+        assert_eq!(DataRange::excursion(&[-10.0, 50.0, 110.0], r), None);
+        assert_eq!(DataRange::excursion(&[-10.5, 50.0], r), Some((-10.5, 50.0)));
+        assert_eq!(DataRange::excursion(&[5.0, 110.5], r), Some((5.0, 110.5)));
+        assert_eq!(
+            DataRange::excursion(&[f64::NAN, 500.0], r),
+            Some((500.0, 500.0))
+        );
+        assert_eq!(DataRange::excursion(&[f64::INFINITY], r), None);
+        assert_eq!(DataRange::excursion(&[], r), None);
+    }
 
     // The four-lane range is the sample-by-sample fold to the bit, for every length around the lane
     // count, signed zeros in every order (where min and max depend on the order), NaN and ±∞, from an

@@ -89,27 +89,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     check_outputs(&[(&args.out, "--out"), (&args.json, "--json")], &inputs)?;
     let opts = record_options(&args)?;
     let pressures = args.pa_col.clone().zip(args.pb_col.clone());
-    let (est, mut notes) = ipa::calibrate::read_record(data, &opts, pressures.as_ref())?;
-    let val = match &args.validation {
-        Some(v) => {
-            let (val, val_notes) = ipa::calibrate::read_record(v, &opts, pressures.as_ref())?;
-            notes.extend(
-                val_notes
-                    .into_iter()
-                    .map(|n| format!("{}: {n}", v.display())),
-            );
-            Some(val)
-        }
-        None => None,
-    };
+    let (est, val, notes) =
+        ipa::calibrate::read_records(data, args.validation.as_deref(), &opts, pressures.as_ref())?;
     let started = std::time::Instant::now();
     let mut twin = calibration.fit(&est, val.as_ref())?;
-    twin.warnings.splice(
-        0..0,
-        notes
-            .into_iter()
-            .map(|note| ipa::calibrate::CalibrationWarning::Reader { note }),
-    );
+    twin.warnings.splice(0..0, notes);
     let seconds = started.elapsed().as_secs_f64();
     let baseline = if args.no_baseline {
         None

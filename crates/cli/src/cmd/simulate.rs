@@ -261,15 +261,7 @@ fn run_plant(
 /// recorded data range.
 fn output_outside_data(model: &sysid::Model, y: &[f64]) -> Option<String> {
     let [lo, hi] = model.data_range()?.y;
-    let (y_min, y_max) = y
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-            (a.min(*v), b.max(*v))
-        });
-    let margin = 0.1 * (hi - lo).abs();
-    if !(y_min.is_finite() && y_max.is_finite()) || (y_min >= lo - margin && y_max <= hi + margin) {
-        return None;
-    }
+    let (y_min, y_max) = sysid::DataRange::excursion(y, (lo, hi))?;
     Some(format!(
         "the simulated output spans [{y_min:.6}, {y_max:.6}] but the model's estimation data had y in \
          [{lo}, {hi}]: outside it the model extrapolates (a real actuator would meet its end stops or \
@@ -284,15 +276,7 @@ fn output_outside_data(model: &sysid::Model, y: &[f64]) -> Option<String> {
 /// most of all). `None` for a model without a recorded data range or a single-input range it covers.
 fn input_outside_data(model: &sysid::Model, u: &[f64]) -> Option<String> {
     let [lo, hi] = *model.data_range()?.u.first()?;
-    let (u_min, u_max) = u
-        .iter()
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-            (a.min(*v), b.max(*v))
-        });
-    let margin = 0.1 * (hi - lo).abs();
-    if !(u_min.is_finite() && u_max.is_finite()) || (u_min >= lo - margin && u_max <= hi + margin) {
-        return None;
-    }
+    let (u_min, u_max) = sysid::DataRange::excursion(u, (lo, hi))?;
     let name = model.inputs().first().map_or("u", |c| c.name());
     Some(format!(
         "the input spans [{u_min}, {u_max}] but the model's estimation data had {name} in [{lo}, {hi}]: outside it the model extrapolates; the designed inputs are the IPA's (whole counts within ±--amplitude around 0): give the model an input in its own units with --input file:CSV"

@@ -166,6 +166,35 @@ pub fn read_record(
     ))
 }
 
+/// The estimation record `data` and the optional validation record `validation`, read by
+/// [`read_record`], with the reader's notes on both as warnings (a validation record's prefixed by its
+/// name), for [`Calibrated::warnings`]: what the command line and the Python package both do.
+pub fn read_records(
+    data: &Path,
+    validation: Option<&Path>,
+    opts: &sysid_core::data::CsvOptions,
+    pressures: Option<&(String, String)>,
+) -> Result<(Record, Option<Record>, Vec<CalibrationWarning>), IpaError> {
+    let (est, mut notes) = read_record(data, opts, pressures)?;
+    let val = match validation {
+        Some(v) => {
+            let (val, val_notes) = read_record(v, opts, pressures)?;
+            notes.extend(
+                val_notes
+                    .into_iter()
+                    .map(|n| format!("{}: {n}", v.display())),
+            );
+            Some(val)
+        }
+        None => None,
+    };
+    let notes = notes
+        .into_iter()
+        .map(|note| CalibrationWarning::Reader { note })
+        .collect();
+    Ok((est, val, notes))
+}
+
 /// Settings of a calibration (unfitted); [`Calibration::fit`] returns a [`Calibrated`] twin.
 #[derive(Debug, Clone)]
 pub struct Calibration {

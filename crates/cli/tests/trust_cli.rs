@@ -804,11 +804,9 @@ fn a_step_too_short_to_judge_has_no_rise_or_settling_time() {
     );
 }
 
-// Audit s10 F5: a time column in milliseconds read as seconds (t = 0, 10, 20, ...) silently gave
-// Ts = 10 s, and every time figure after it (rise and settling times of `control` on the model) was
-// 1000 times too large. The reader now says so; with `--time-unit ms` Ts is 0.01 s and nothing is said.
-#[test]
-fn a_time_column_in_milliseconds_read_as_seconds_is_pointed_out() {
+/// A folder with `ms.csv`: 400 samples of y(k+1) = 0.9 y(k) + 0.01 u(k), u a ±square wave, and a time
+/// column in milliseconds (t = 0, 10, 20, ...).
+fn ms_record() -> tempfile::TempDir {
     let tmp = tempfile::tempdir().unwrap();
     let mut csv = String::from("t,u,y\n");
     let mut y = 0.0;
@@ -818,6 +816,15 @@ fn a_time_column_in_milliseconds_read_as_seconds_is_pointed_out() {
         y = 0.9 * y + 0.01 * u;
     }
     std::fs::write(tmp.path().join("ms.csv"), csv).unwrap();
+    tmp
+}
+
+// Audit s10 F5: a time column in milliseconds read as seconds (t = 0, 10, 20, ...) silently gave
+// Ts = 10 s, and every time figure after it (rise and settling times of `control` on the model) was
+// 1000 times too large. The reader now says so; with `--time-unit ms` Ts is 0.01 s and nothing is said.
+#[test]
+fn a_time_column_in_milliseconds_read_as_seconds_is_pointed_out() {
+    let tmp = ms_record();
     let run = |extra: &[&str]| {
         let mut args: Vec<&str> =
             "identify --data ms.csv --structure arx --method ls --na 1 --nb 1 --nk 1"
@@ -847,15 +854,7 @@ fn a_time_column_in_milliseconds_read_as_seconds_is_pointed_out() {
 // equal to the column's step (to 0.1 %), or in the column's unit (--time-unit ms), says nothing.
 #[test]
 fn a_ts_that_contradicts_the_time_column_is_pointed_out() {
-    let tmp = tempfile::tempdir().unwrap();
-    let mut csv = String::from("t,u,y\n");
-    let mut y = 0.0;
-    for k in 0..400 {
-        let u = if (k / 25) % 2 == 0 { 100.0 } else { -80.0 };
-        csv.push_str(&format!("{},{u},{y}\n", k * 10));
-        y = 0.9 * y + 0.01 * u;
-    }
-    std::fs::write(tmp.path().join("ms.csv"), csv).unwrap();
+    let tmp = ms_record();
     let run = |extra: &[&str]| {
         let mut args: Vec<&str> =
             "identify --data ms.csv --structure arx --method ls --na 1 --nb 1 --nk 1 --time-unit ms"

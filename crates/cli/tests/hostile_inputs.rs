@@ -1127,3 +1127,30 @@ fn zero_residual_lags_are_refused() {
         );
     }
 }
+
+// A record whose output never moves (every command inside the deadzone) is refused, and the refusal
+// names that cause beside an input that does not excite (audit s13 L2: it named the input alone).
+#[test]
+fn an_output_that_never_moves_is_named_as_a_cause() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut csv = String::from("t,u,y\n");
+    for k in 0..300 {
+        csv.push_str(&format!(
+            "{},{},100\n",
+            k as f64 / 100.0,
+            (k % 7) as f64 * 5.0 - 15.0
+        ));
+    }
+    std::fs::write(dir.path().join("still.csv"), csv).unwrap();
+    let out = run(
+        "identify --data {t}/still.csv --structure arx --method ls",
+        dir.path(),
+    );
+    assert_ne!(out.status.code(), Some(0), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("linearly dependent")
+            && stderr(&out).contains("the output never moves"),
+        "{}",
+        stderr(&out)
+    );
+}

@@ -611,7 +611,8 @@ fn check_norm(norm: f64, name: impl Fn() -> String) -> Result<(), SysidError> {
 fn dependent(name: &str) -> SysidError {
     SysidError::Data(format!(
         "the regressors are linearly dependent (at {name}): the input is not persistently exciting for \
-         this model structure (constant input, too few distinct levels, or orders too high)"
+         this model structure (constant input, too few distinct levels, or orders too high), or the \
+         output never moves (every command inside the deadzone, for example)"
     ))
 }
 

@@ -82,8 +82,8 @@ pub const MIN_SAMPLES: usize = 50;
 /// `.mat` file or CSV, `--no-header`, `--rows`, `--time-unit`, `--resample`; Ts from `opts.ts`, else a
 /// uniform time column, else `opts.fallback_ts`, else 0.01 s; a non-uniform column is refused at its
 /// line): u and y from `opts.u_col`, `opts.y_col`, and the chamber pressures p_a, p_b (Pa, absolute)
-/// from the columns `pressures` names, or the plant's own `p_a_pa`, `p_b_pa` when the file has both. The pressures are read as two more
-/// columns of the same record, so `--rows` and `--resample` cut and interpolate them with u and y.
+/// from the columns `pressures` names, or the plant's own `p_a_pa`, `p_b_pa` when the file has both.
+/// The pressures are read as two more columns of the same record, so `--rows` and `--resample` cut and interpolate them with u and y.
 /// Returns the record and the reader's notes (for example a `--ts` that contradicts the time column),
 /// which a caller shows as warnings ([`CalibrationWarning::Reader`]).
 pub fn read_record(
@@ -92,28 +92,28 @@ pub fn read_record(
     pressures: Option<&(String, String)>,
 ) -> Result<(Record, Vec<String>), IpaError> {
     let name = path.display().to_string();
+    // The file is read once: its bytes give the pressure columns (a CSV header) and the record.
+    let bytes = sysid_core::data::bounded::read_data_file(path, "a calibration record")?;
     let is_mat = path
         .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("mat"));
+        .is_some_and(|e| e.eq_ignore_ascii_case("mat"))
+        || sysid_core::data::mat::is_mat(&bytes);
     // The pressure columns: named, or found in a CSV header (checked here, so that a missing one is
     // named by the flag that chose it).
-    let pressures = match (pressures, is_mat) {
-        (Some(ab), _) => Some(ab.clone()),
-        (None, true) => None,
-        (None, false) if opts.no_header => None,
-        (None, false) => {
-            let bytes = sysid_core::data::bounded::read_data_file(path, "a calibration record")?;
-            let table = sysid_core::data::read_table(&bytes, &name)?;
-            let has = |c: &str| table.headers.iter().any(|h| h == c);
-            (has("p_a_pa") && has("p_b_pa")).then(|| ("p_a_pa".to_string(), "p_b_pa".to_string()))
-        }
-    };
-    if let (Some((a, b)), false) = (&pressures, is_mat) {
-        let bytes = sysid_core::data::bounded::read_data_file(path, "a calibration record")?;
+    let pressures = if is_mat {
+        pressures.cloned()
+    } else {
         let table = sysid_core::data::read_table_with(&bytes, &name, !opts.no_header)?;
-        table.column_index(a, sysid_core::Setting::Other("--pa-col"))?;
-        table.column_index(b, sysid_core::Setting::Other("--pb-col"))?;
-    }
+        let has = |c: &str| !opts.no_header && table.headers.iter().any(|h| h == c);
+        let pressures = pressures.cloned().or_else(|| {
+            (has("p_a_pa") && has("p_b_pa")).then(|| ("p_a_pa".to_string(), "p_b_pa".to_string()))
+        });
+        if let Some((a, b)) = &pressures {
+            table.column_index(a, sysid_core::Setting::Other("--pa-col"))?;
+            table.column_index(b, sysid_core::Setting::Other("--pb-col"))?;
+        }
+        pressures
+    };
     let mut read_opts = opts.clone();
     if read_opts.fallback_ts.is_none() {
         read_opts.fallback_ts = Some(crate::DEFAULT_TS_S);
@@ -121,7 +121,11 @@ pub fn read_record(
     if let Some((a, b)) = &pressures {
         read_opts.u_col = format!("{},{a},{b}", opts.u_col);
     }
-    let read = sysid_core::data::read_record(path, &read_opts)?;
+    let read = if is_mat {
+        sysid_core::data::mat::read_mat_bytes(&bytes, &name, &read_opts)?
+    } else {
+        sysid_core::data::read_record_bytes(&bytes, &name, &read_opts)?
+    };
     let columns = read.data.input_signals();
     let (u, y, ts) = (
         columns.first().map(|c| c.to_vec()).unwrap_or_default(),

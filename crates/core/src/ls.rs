@@ -189,6 +189,11 @@ impl LsWorkspace {
             // |R_kk| = ‖column k after the reflections of the columns before it‖; the rank test of
             // ls::solve.
             if rank_test && rr[k * cols + k].abs() < RANK_TOLERANCE {
+                // A column carried by one value (an outlier such as 1e308 among values of 10) looks
+                // dependent once scaled: say so rather than blame the input's excitation.
+                if let Some(e) = (0..p).find_map(|j| one_value_column(phi, j, &name)) {
+                    return Err(e);
+                }
                 return Err(dependent(&name(k)));
             }
         }
@@ -608,6 +613,37 @@ fn check_norm(norm: f64, name: impl Fn() -> String) -> Result<(), SysidError> {
     Ok(())
 }
 
+/// Column `j` of Φ when one value carries it: every other value is below [`RANK_TOLERANCE`] times the
+/// largest (nonzero), so that after scaling the column is a single spike and the fit cannot use the
+/// rest of the record. Names the regression row (0-based) and the value.
+fn one_value_column(
+    phi: &DMatrix<f64>,
+    j: usize,
+    name: &impl Fn(usize) -> String,
+) -> Option<SysidError> {
+    let col = phi.column(j);
+    let (row, big) = col
+        .iter()
+        .enumerate()
+        .map(|(i, v)| (i, v.abs()))
+        .fold((0, 0.0f64), |a, b| if b.1 > a.1 { b } else { a });
+    let rest = col
+        .iter()
+        .enumerate()
+        .filter(|&(i, _)| i != row)
+        .fold(0.0f64, |m, (_, v)| m.max(v.abs()));
+    (rest > 0.0 && rest < RANK_TOLERANCE * big).then(|| {
+        SysidError::Numerical(format!(
+            "regressor {} is carried by one value, {:e} in regression row {row} of {}, while every other \
+             value is at most {rest:e}: an outlier or a unit error in the data (remove or rescale it); \
+             the rest of the record cannot determine the parameters",
+            name(j),
+            col[row],
+            col.len()
+        ))
+    })
+}
+
 fn dependent(name: &str) -> SysidError {
     SysidError::Data(format!(
         "the regressors are linearly dependent (at {name}): the input is not persistently exciting for \
@@ -892,6 +928,26 @@ mod tests {
         let phi = DMatrix::from_row_slice(3, 2, &[1.0, 0.0, 2.0, 0.0, 3.0, 0.0]);
         let e = solve(&phi, &y, &["a".into(), "b".into()]).unwrap_err();
         assert!(e.to_string().contains("regressor b is zero"), "{e}");
+    }
+
+    #[test]
+    fn a_column_carried_by_one_outlier_is_named_with_its_row_not_called_unexciting() {
+        // y(k−1) and u(k−1) of a record whose row 4 holds 1e308 in both (audit s13 L1): scaled, both
+        // columns are the same spike, numerically dependent; the error names the value instead.
+        let mut a: Vec<f64> = vec![3.0, -1.0, 2.0, 4.0, 1e308, 5.0, -2.0, 1.0];
+        let b = vec![0.5, 2.0, -3.0, 1.0, 1e308, -1.0, 4.0, 2.0];
+        let y = DVector::from_vec(a.iter().map(|v: &f64| v.min(10.0)).collect());
+        let phi = DMatrix::from_fn(8, 2, |i, j| if j == 0 { a[i] } else { b[i] });
+        let e = solve(&phi, &y, &["a1".into(), "a2".into()]).unwrap_err();
+        let m = e.to_string();
+        assert!(e.is_numerical(), "{m}");
+        assert!(m.contains("regressor a1 is carried by one value, 1e308 in regression row 4 of 8"), "{m}");
+        assert!(m.contains("at most 5e0"), "{m}");
+        // Without the outlier the same columns solve.
+        a[4] = 6.0;
+        let b = vec![0.5, 2.0, -3.0, 1.0, 2.5, -1.0, 4.0, 2.0];
+        let phi = DMatrix::from_fn(8, 2, |i, j| if j == 0 { a[i] } else { b[i] });
+        assert!(solve(&phi, &y, &["a1".into(), "a2".into()]).is_ok());
     }
 
     #[test]

@@ -1671,19 +1671,12 @@ fn calibrate<'py>(
     max_iterations: usize,
     ts: Option<f64>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    use ipa::calibrate::{Calibration, Parameter};
+    use ipa::calibrate::Calibration;
     let start = match &plant_config {
         Some(p) => ipa::PlantConfig::from_toml_file(p).map_err(ipa_err)?,
         None => ipa::PlantConfig::default(),
     };
-    let mut free_set = match free {
-        Some(l) => ipa::calibrate::parse_list(l).map_err(ipa_err)?,
-        None => Parameter::ALL.to_vec(),
-    };
-    if let Some(l) = fixed {
-        let f = ipa::calibrate::parse_list(l).map_err(ipa_err)?;
-        free_set.retain(|p| !f.contains(p));
-    }
+    let free_set = ipa::calibrate::free_parameters(free, fixed).map_err(ipa_err)?;
     let cal = Calibration {
         start,
         free: free_set,

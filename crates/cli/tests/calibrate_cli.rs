@@ -116,6 +116,29 @@ fn bad_calibrate_input_is_refused_clearly() {
     );
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("moving_mass"));
+    // A parameter named twice, or both free and fixed, is a contradiction, not a set (audit s13 L4).
+    for (flags, said) in [
+        (
+            &["--free", "moving_mass,moving_mass"][..],
+            "names moving_mass twice",
+        ),
+        (
+            &[
+                "--free",
+                "moving_mass,static_friction",
+                "--fixed",
+                "static_friction",
+            ][..],
+            "static_friction is named both free and fixed",
+        ),
+    ] {
+        let mut args = vec!["calibrate", "--data", "r.csv", "--out", "o.toml"];
+        args.extend_from_slice(flags);
+        let o = run(p, &args);
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{e}");
+        assert!(e.contains(said), "{e}");
+    }
     let o = run(p, &["calibrate", "--data", "r.csv", "--out", "o.toml"]);
     assert_eq!(o.status.code(), Some(2));
     let e = String::from_utf8_lossy(&o.stderr);
@@ -173,6 +196,31 @@ fn a_still_record_has_no_zero_standard_deviations_and_an_overflowing_one_fails()
         .filter(|w| w.as_str().unwrap().contains("is not determined"))
         .count();
     assert_eq!(not_determined, 12, "{warnings:?}");
+    // With the comparison model asked for: a constant command cannot give one; the twin is still
+    // written and the report says why there is no comparison (it was an error naming no file, audit
+    // s13 L5).
+    let o = run(
+        p,
+        &[
+            "calibrate",
+            "--data",
+            "still.csv",
+            "--ts",
+            "0.08",
+            "--out",
+            "b.toml",
+        ],
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(p.join("b.toml").exists());
+    let report = String::from_utf8_lossy(&o.stdout);
+    assert!(
+        report.contains(
+            "warning: no Hammerstein model could be identified for the comparison (still.csv"
+        ),
+        "{report}"
+    );
 
     let huge: String = std::iter::once("u,y\n".to_string())
         .chain((0..300).map(|k| format!("{}e300,{}e300\n", 1 + k % 7, 4 + k % 3)))

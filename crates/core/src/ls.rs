@@ -935,17 +935,20 @@ mod tests {
         // y(k−1) and u(k−1) of a record whose row 4 holds 1e308 in both (audit s13 L1): scaled, both
         // columns are the same spike, numerically dependent; the error names the value instead.
         let mut a: Vec<f64> = vec![3.0, -1.0, 2.0, 4.0, 1e308, 5.0, -2.0, 1.0];
-        let b = vec![0.5, 2.0, -3.0, 1.0, 1e308, -1.0, 4.0, 2.0];
+        let b = [0.5, 2.0, -3.0, 1.0, 1e308, -1.0, 4.0, 2.0];
         let y = DVector::from_vec(a.iter().map(|v: &f64| v.min(10.0)).collect());
         let phi = DMatrix::from_fn(8, 2, |i, j| if j == 0 { a[i] } else { b[i] });
         let e = solve(&phi, &y, &["a1".into(), "a2".into()]).unwrap_err();
         let m = e.to_string();
         assert!(e.is_numerical(), "{m}");
-        assert!(m.contains("regressor a1 is carried by one value, 1e308 in regression row 4 of 8"), "{m}");
+        assert!(
+            m.contains("regressor a1 is carried by one value, 1e308 in regression row 4 of 8"),
+            "{m}"
+        );
         assert!(m.contains("at most 5e0"), "{m}");
         // Without the outlier the same columns solve.
         a[4] = 6.0;
-        let b = vec![0.5, 2.0, -3.0, 1.0, 2.5, -1.0, 4.0, 2.0];
+        let b = [0.5, 2.0, -3.0, 1.0, 2.5, -1.0, 4.0, 2.0];
         let phi = DMatrix::from_fn(8, 2, |i, j| if j == 0 { a[i] } else { b[i] });
         assert!(solve(&phi, &y, &["a1".into(), "a2".into()]).is_ok());
     }

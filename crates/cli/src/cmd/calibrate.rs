@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use ipa::calibrate::study::Study;
-use ipa::calibrate::{Calibrated, Calibration, Parameter};
+use ipa::calibrate::{Calibrated, Calibration, CalibrationWarning};
 use serde_json::json;
 
 use super::common::{check_outputs, print_report, write_output, ColumnArgs};
@@ -98,7 +98,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let baseline = if args.no_baseline {
         None
     } else {
-        Some(best_hammerstein(&args, data, args.validation.as_deref())?)
+        match best_hammerstein(&args, data, args.validation.as_deref())? {
+            Ok(b) => Some(b),
+            Err(message) => {
+                twin.warnings
+                    .push(CalibrationWarning::NoComparison { message });
+                None
+            }
+        }
     };
     let toml = format!(
         "# Digital twin calibrated by `ipa-sysid calibrate` on {}.\n{}",
@@ -122,27 +129,19 @@ fn settings(args: &Args) -> anyhow::Result<Calibration> {
         Some(p) => ipa::PlantConfig::from_toml_file(p)?,
         None => ipa::PlantConfig::default(),
     };
-    let mut free = match &args.free {
-        Some(list) => ipa::calibrate::parse_list(list).context("--free")?,
-        None => Parameter::ALL.to_vec(),
-    };
-    if let Some(list) = &args.fixed {
-        let fixed = ipa::calibrate::parse_list(list).context("--fixed")?;
-        free.retain(|p| !fixed.contains(p));
-    }
-    if free.is_empty() {
-        anyhow::bail!("--free/--fixed leave no parameter to calibrate");
-    }
+    let free = ipa::calibrate::free_parameters(args.free.as_deref(), args.fixed.as_deref())
+        .context("--free/--fixed")?;
     if !(args.segment.is_finite() && args.segment >= 0.0) {
         anyhow::bail!(
             "invalid --segment {}: expected a length in s >= 0",
             args.segment
         );
     }
-    if args.max_iterations == 0 || args.max_iterations > 10_000 {
+    if args.max_iterations == 0 || args.max_iterations > ipa::calibrate::MAX_ITERATIONS {
         anyhow::bail!(
-            "invalid --max-iterations {}: expected 1..=10000",
-            args.max_iterations
+            "invalid --max-iterations {}: expected 1..={}",
+            args.max_iterations,
+            ipa::calibrate::MAX_ITERATIONS
         );
     }
     Ok(Calibration {
@@ -179,7 +178,14 @@ fn record_options(args: &Args) -> anyhow::Result<sysid::data::CsvOptions> {
     Ok(opts)
 }
 
-fn best_hammerstein(args: &Args, data: &Path, val: Option<&Path>) -> anyhow::Result<Baseline> {
+/// The comparison model: the best of [`BASELINE_ORDERS`] by free-run fit on the validation record
+/// (else the estimation record); `Err` with the first reason when none could be identified (the
+/// twin is then reported without it, with a warning).
+fn best_hammerstein(
+    args: &Args,
+    data: &Path,
+    val: Option<&Path>,
+) -> anyhow::Result<Result<Baseline, String>> {
     let opts = record_options(args)?;
     let est = sysid::data::read_csv(data, &opts)?;
     let val = match val {
@@ -187,6 +193,7 @@ fn best_hammerstein(args: &Args, data: &Path, val: Option<&Path>) -> anyhow::Res
         None => None,
     };
     let mut best: Option<Baseline> = None;
+    let mut first_error = None;
     for (na, nb, nk) in BASELINE_ORDERS {
         let settings = sysid::Identification::default()
             .with_kind(sysid::ModelKind::Hammerstein)
@@ -196,14 +203,23 @@ fn best_hammerstein(args: &Args, data: &Path, val: Option<&Path>) -> anyhow::Res
             drop_unexcited_branch: true,
             ..settings
         };
-        let Ok(fit) = sysid::identify(&est, &settings) else {
-            continue;
+        let fit = match sysid::identify(&est, &settings) {
+            Ok(fit) => fit,
+            Err(e) => {
+                first_error.get_or_insert_with(|| e.to_string());
+                continue;
+            }
         };
         let on = val.as_ref().unwrap_or(&est);
-        let Some(f) = sysid::metrics::metrics(&fit.model, on)
-            .ok()
-            .and_then(|m| m.fit_sim_measured_percent)
-        else {
+        let f = match sysid::metrics::metrics(&fit.model, on) {
+            Ok(m) => m.fit_sim_measured_percent,
+            Err(e) => {
+                first_error.get_or_insert_with(|| e.to_string());
+                continue;
+            }
+        };
+        let Some(f) = f else {
+            first_error.get_or_insert_with(|| "no simulation fit".into());
             continue;
         };
         if best.as_ref().is_none_or(|b| f > b.fit_percent) {
@@ -214,7 +230,7 @@ fn best_hammerstein(args: &Args, data: &Path, val: Option<&Path>) -> anyhow::Res
             });
         }
     }
-    best.context("no Hammerstein model could be identified on the record for the comparison")
+    Ok(best.ok_or_else(|| first_error.unwrap_or_default()))
 }
 
 fn fit(r: &Option<ipa::calibrate::FreeRun>) -> Option<f64> {

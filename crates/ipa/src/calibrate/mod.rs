@@ -48,7 +48,7 @@ use rayon::prelude::*;
 
 pub use lm::Termination;
 use parameter::Coordinates;
-pub use parameter::{parse_list, Parameter};
+pub use parameter::{free_parameters, parse_list, Parameter};
 
 use crate::{Ipa, IpaError, PlantConfig, Record};
 
@@ -220,6 +220,10 @@ pub struct Calibration {
     pub physical_start: bool,
 }
 
+/// The largest [`Calibration::max_iterations`] accepted (each iteration simulates the record a few
+/// times: 10 000 is hours on a long record).
+pub const MAX_ITERATIONS: usize = 10_000;
+
 impl Default for Calibration {
     fn default() -> Self {
         Calibration {
@@ -302,6 +306,12 @@ pub enum CalibrationWarning {
         /// The error.
         message: String,
     },
+    /// The comparison model beside the twin (the command line's best Hammerstein output-error model of
+    /// a few orders) could not be identified on the record: the twin stands without it.
+    NoComparison {
+        /// Why (the first identification's error, which names the record).
+        message: String,
+    },
     /// Without pressures the record could not be cut into segments: one free run over the record.
     SingleSegment,
     /// Standard deviations that came out exactly 0 (withheld: the record does not determine them).
@@ -375,6 +385,11 @@ impl std::fmt::Display for CalibrationWarning {
                  {start_fit:.2} %): do not use it without checking"
             ),
             CalibrationWarning::Reader { note } => f.write_str(note),
+            CalibrationWarning::NoComparison { message } => write!(
+                f,
+                "no Hammerstein model could be identified for the comparison ({message}): the twin is \
+                 reported without it"
+            ),
             CalibrationWarning::SimulationFailed { record, message } => {
                 write!(f, "the twin's free run on the {record} record failed: {message}")
             }
@@ -899,6 +914,12 @@ impl Calibration {
         }
         if self.free.is_empty() {
             return Err(IpaError::Config("no free parameter to calibrate".into()));
+        }
+        if !(1..=MAX_ITERATIONS).contains(&self.max_iterations) {
+            return Err(IpaError::Config(format!(
+                "max_iterations = {}: expected 1..={MAX_ITERATIONS} Levenberg–Marquardt iterations",
+                self.max_iterations
+            )));
         }
         Ok(())
     }

@@ -241,15 +241,47 @@ pub fn parse_list(s: &str) -> Result<Vec<Parameter>, IpaError> {
     let mut out = Vec::new();
     for part in s.split(',').filter(|p| !p.trim().is_empty()) {
         let p: Parameter = part.parse()?;
-        if !out.contains(&p) {
-            out.push(p);
+        if out.contains(&p) {
+            return Err(IpaError::Config(format!(
+                "parameter list '{s}' names {} twice: expected each parameter once",
+                p.name()
+            )));
         }
+        out.push(p);
     }
     if out.is_empty() {
         return Err(IpaError::Config(format!(
             "empty parameter list '{s}': expected names separated by commas ({})",
             Parameter::ALL.map(Parameter::name).join(", ")
         )));
+    }
+    Ok(out)
+}
+
+/// The free parameters from `--free` (default: all) without `--fixed`: each list parsed by
+/// [`parse_list`]; a parameter named in both lists, or lists that leave none free, is an error.
+pub fn free_parameters(
+    free: Option<&str>,
+    fixed: Option<&str>,
+) -> Result<Vec<Parameter>, IpaError> {
+    let mut out = match free {
+        Some(l) => parse_list(l)?,
+        None => Parameter::ALL.to_vec(),
+    };
+    if let Some(l) = fixed {
+        let fixed = parse_list(l)?;
+        if let (Some(_), Some(p)) = (free, fixed.iter().find(|p| out.contains(p))) {
+            return Err(IpaError::Config(format!(
+                "{} is named both free and fixed: expected each parameter in one list",
+                p.name()
+            )));
+        }
+        out.retain(|p| !fixed.contains(p));
+    }
+    if out.is_empty() {
+        return Err(IpaError::Config(
+            "the free and fixed lists leave no parameter to calibrate".into(),
+        ));
     }
     Ok(out)
 }
@@ -347,5 +379,28 @@ mod tests {
         );
         let e = parse_list("mass").unwrap_err().to_string();
         assert!(e.contains("mass") && e.contains("moving_mass"), "{e}");
+        // Named twice, by name or by key (audit s13 L4).
+        let e = parse_list("moving_mass,load.moving_mass_kg")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("names moving_mass twice"), "{e}");
+    }
+
+    #[test]
+    fn free_minus_fixed_refuses_contradictions_and_empty_sets() {
+        let all = free_parameters(None, None).unwrap();
+        assert_eq!(all, Parameter::ALL.to_vec());
+        let f = free_parameters(None, Some("moving_mass")).unwrap();
+        assert_eq!(f.len(), Parameter::ALL.len() - 1);
+        assert!(!f.contains(&Parameter::MovingMass));
+        let e = free_parameters(Some("moving_mass,friction.static_n"), Some("moving_mass"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("moving_mass is named both free and fixed"),
+            "{e}"
+        );
+        let e = free_parameters(None, Some("all")).unwrap_err().to_string();
+        assert!(e.contains("leave no parameter"), "{e}");
     }
 }

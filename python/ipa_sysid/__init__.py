@@ -48,6 +48,21 @@ def _warn_all(messages, stacklevel=3):
         _warnings.warn(str(message), IpaSysidWarning, stacklevel=stacklevel)
 
 
+def _refuse_bools(signature, args, kwargs):
+    """A bool given for a number (``na=True``): Python counts it as 1, the core would run with it.
+    Refused with a TypeError naming the argument; an argument whose default is a bool takes one."""
+    if signature is None:
+        return
+    try:
+        given = signature.bind(*args, **kwargs).arguments
+    except TypeError:
+        return  # the core reports the wrong call itself
+    for k, v in given.items():
+        default = signature.parameters[k].default
+        if isinstance(v, bool) and not isinstance(default, bool):
+            raise TypeError(f"{k}: expected a number, not the bool {v}")
+
+
 def _named_ints(f):
     """``f`` (a function of the Rust core) with a negative or oversized whole number refused by a
     ValueError naming its argument, where the core's conversion raises an OverflowError naming none."""
@@ -60,6 +75,7 @@ def _named_ints(f):
 
     @functools.wraps(f)
     def call(*args, **kwargs):
+        _refuse_bools(signature, args, kwargs)
         try:
             return f(*args, **kwargs)
         except TypeError as e:

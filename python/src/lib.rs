@@ -133,12 +133,35 @@ fn floats(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<f64>> {
 }
 
 /// `numpy.ascontiguousarray(obj, dtype=float64)`, with a message naming the argument on failure.
+/// Only real numbers are taken: `None`, a scalar, booleans, complex numbers, text and objects are
+/// refused (numpy would make `None` a one-sample NaN array, `True` a 1.0 and drop an imaginary part
+/// with only a ComplexWarning; audit s13 L7).
 fn as_float_array<'py>(
     obj: &Bound<'py, PyAny>,
     what: &str,
 ) -> PyResult<Bound<'py, numpy::PyUntypedArray>> {
     let py = obj.py();
     let np = py.import("numpy")?;
+    if obj.is_none() {
+        return Err(PyValueError::new_err(format!(
+            "{what}: expected an array of numbers, got None"
+        )));
+    }
+    if let Ok(raw) = np.call_method1("asarray", (obj,)) {
+        let kind: String = raw.getattr("dtype")?.getattr("kind")?.extract()?;
+        if !matches!(kind.as_str(), "f" | "i" | "u") {
+            let dtype = raw.getattr("dtype")?.str()?.to_string();
+            return Err(PyValueError::new_err(format!(
+                "{what}: expected an array of real numbers (integers or floats), got dtype {dtype}"
+            )));
+        }
+        let ndim: usize = raw.getattr("ndim")?.extract()?;
+        if ndim == 0 {
+            return Err(PyValueError::new_err(format!(
+                "{what}: expected an array of numbers, got a single number"
+            )));
+        }
+    }
     let kwargs = PyDict::new(py);
     kwargs.set_item("dtype", "float64")?;
     let arr = np
@@ -1250,8 +1273,15 @@ fn plant_spec(plant: &str) -> PyResult<ipa::PlantSpec> {
     let t = plant.trim();
     let spec = if t == "ipa" || t == "paper" || t.starts_with("model:") {
         t.to_string()
-    } else {
+    } else if std::path::Path::new(t).exists() {
         format!("model:{t}")
+    } else {
+        // Neither a plant's name nor a file: a misspelt name as often as a missing file (audit s13 L9).
+        return Err(setting_err(
+            "plant",
+            t,
+            "one of ipa, paper, model:FILE or the path of an existing model file",
+        ));
     };
     spec.parse::<ipa::PlantSpec>().map_err(ipa_err)
 }

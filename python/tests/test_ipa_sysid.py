@@ -381,6 +381,18 @@ def test_bad_data_raises_value_error(records):
     assert "--ts" not in str(info.value)
     with pytest.raises(ValueError):
         ipa_sysid.identify(["a", "b"], [1.0, 2.0], 0.01)
+    # Not arrays of real numbers: refused by name, where numpy would make None a one-sample NaN, True
+    # a 1.0 and drop an imaginary part (audit s13 L7).
+    with pytest.raises(ValueError, match=r"^u: expected an array of numbers, got None"):
+        ipa_sysid.identify(None, e["y"], 0.01)
+    with pytest.raises(ValueError, match=r"^u: expected an array of real numbers .*complex128"):
+        ipa_sysid.identify(e["u"] + 1j, e["y"], 0.01)
+    with pytest.raises(ValueError, match=r"^y: expected an array of real numbers .*bool"):
+        ipa_sysid.identify(e["u"], e["y"] > 100, 0.01)
+    with pytest.raises(ValueError, match=r"^y: expected an array of numbers, got a single number"):
+        ipa_sysid.identify(e["u"], 3.0, 0.01)
+    with pytest.raises(TypeError, match=r"^na: expected a number, not the bool True"):
+        ipa_sysid.identify(e["u"], e["y"], 0.01, na=True)
 
 
 def test_numerical_failure_raises_arithmetic_error(tmp_path):
@@ -470,6 +482,33 @@ def test_tune_matches_cli_and_control_takes_its_controller(tmp_path):
         ipa_sysid.tune(model=str(m), spec="overshoot=fast")
     with pytest.raises(ValueError, match="exactly one of"):
         ipa_sysid.tune()
+    # Search sizes are checked by the library for both, named as the keyword (audit s13 L11).
+    with pytest.raises(ValueError, match=r"^invalid setting max_evaluations = 0: a whole number in 8\.\.=10000"):
+        ipa_sysid.tune(model=str(m), max_evaluations=0)
+    with pytest.raises(ValueError, match=r"^invalid setting variants = 0: "):
+        ipa_sysid.tune(model=str(m), variants=0)
+
+
+def test_plants_that_are_neither_a_name_nor_a_file_and_missing_files(tmp_path):
+    # A misspelt plant is a ValueError saying what is expected; a missing plant configuration is an
+    # OSError as every missing file (audit s13 L9); a huge duration is shown as a number, not 301
+    # digits (L11); calibrate's settings are checked as the command line checks them (L4).
+    with pytest.raises(ValueError, match=r"invalid setting plant = foo: one of ipa, paper, model:FILE"):
+        ipa_sysid.simulate_plant("foo")
+    with pytest.raises(ValueError, match=r"invalid setting plant = foo: "):
+        ipa_sysid.control("foo", setpoint=50)
+    missing = tmp_path / "none.toml"
+    with pytest.raises(OSError, match="none.toml"):
+        ipa_sysid.simulate_plant(plant_config=str(missing))
+    with pytest.raises(ValueError, match=r"^invalid setting duration = 1e300: at most 10000000 samples"):
+        ipa_sysid.control("ipa", setpoint=50, duration=1e300)
+    rec = tmp_path / "r.csv"
+    t, u, y, _ = ipa_sysid.simulate_plant("ipa", input="calibration", samples=300)
+    rec.write_text("t,u,y\n" + "".join(f"{a},{b},{c}\n" for a, b, c in zip(t, u, y)))
+    with pytest.raises(ValueError, match=r"max_iterations = 0: expected 1\.\.=10000"):
+        ipa_sysid.calibrate(str(rec), max_iterations=0)
+    with pytest.raises(ValueError, match="names moving_mass twice"):
+        ipa_sysid.calibrate(str(rec), free="moving_mass,moving_mass")
 
 
 def test_control_warns_about_an_unreachable_set_point():

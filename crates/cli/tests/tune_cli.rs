@@ -325,6 +325,38 @@ fn bad_inputs_name_the_file_or_the_flag() {
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("--spec"), "{}", stderr(&o));
 
+    // The search's sizes: checked once, by the library, for the command line and Python alike.
+    for (flag, value, said) in [
+        (
+            "--max-evaluations",
+            "3",
+            "invalid setting --max-evaluations = 3: a whole number in 8..=10000",
+        ),
+        (
+            "--variants",
+            "0",
+            "invalid setting --variants = 0: a whole number in 1..=200",
+        ),
+        (
+            "--physics-variants",
+            "201",
+            "invalid setting --physics-variants = 201: a whole number in 0..=200",
+        ),
+    ] {
+        let o = ipa_sysid(&[
+            "tune",
+            "--model",
+            model.to_str().unwrap(),
+            flag,
+            value,
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert_eq!(o.status.code(), Some(2));
+        assert!(stderr(&o).contains(said), "{}", stderr(&o));
+        assert!(!out.exists());
+    }
+
     // --out over the model is refused and the model is untouched.
     let o = ipa_sysid(&[
         "tune",

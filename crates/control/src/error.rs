@@ -36,6 +36,12 @@ pub enum ControlSetting {
     Nudge,
     /// The tuning specification (`--spec`).
     Spec,
+    /// Plant variants a tuning searches over.
+    Variants,
+    /// Physics variants of a tuning's verification.
+    PhysicsVariants,
+    /// Cost evaluations a tuning may use.
+    MaxEvaluations,
 }
 
 impl ControlSetting {
@@ -57,6 +63,9 @@ impl ControlSetting {
             ControlSetting::FineBand => "fine_band_mm",
             ControlSetting::Nudge => "nudge",
             ControlSetting::Spec => "spec",
+            ControlSetting::Variants => "variants",
+            ControlSetting::PhysicsVariants => "physics_variants",
+            ControlSetting::MaxEvaluations => "max_evaluations",
         }
     }
 }
@@ -128,7 +137,7 @@ impl ControlError {
     pub fn setting(setting: ControlSetting, value: impl ToString, expected: &str) -> Self {
         ControlError::Setting {
             setting,
-            value: value.to_string(),
+            value: sysid_core::error::shown_value(value),
             expected: expected.to_string(),
         }
     }
@@ -153,6 +162,9 @@ impl ControlSetting {
             ControlSetting::FineBand => "fine_band_mm (controller file)",
             ControlSetting::Nudge => "nudge (controller file)",
             ControlSetting::Spec => "--spec",
+            ControlSetting::Variants => "--variants",
+            ControlSetting::PhysicsVariants => "--physics-variants",
+            ControlSetting::MaxEvaluations => "--max-evaluations",
         }
     }
 }

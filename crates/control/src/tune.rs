@@ -530,9 +530,18 @@ pub fn tune(
     spec: &Spec,
     settings: &TuneSettings,
 ) -> Result<Tuned, ControlError> {
-    if settings.plants == 0 || settings.max_evaluations < 8 {
-        return Err(ControlError::Config(
-            "tuning needs at least one plant variant and 8 evaluations".into(),
+    if settings.plants == 0 {
+        return Err(ControlError::setting(
+            crate::ControlSetting::Variants,
+            0,
+            "at least 1 (the nominal plant)",
+        ));
+    }
+    if settings.max_evaluations < crate::tuning::MIN_EVALUATIONS {
+        return Err(ControlError::setting(
+            crate::ControlSetting::MaxEvaluations,
+            settings.max_evaluations,
+            &format!("at least {}", crate::tuning::MIN_EVALUATIONS),
         ));
     }
     let mut search = Search {

@@ -229,13 +229,36 @@ fn verify(
 
 /// Runs a tuning request (module documentation).
 pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
-    for (what, v, max) in [
-        ("plant variants", req.search.plants, MAX_VARIANTS),
-        ("physics variants", req.physics_variants, MAX_VARIANTS),
-        ("evaluations", req.search.max_evaluations, MAX_EVALUATIONS),
+    use crate::ControlSetting as S;
+    for (setting, v, min, max, expected) in [
+        (
+            S::Variants,
+            req.search.plants,
+            1,
+            MAX_VARIANTS,
+            " (variant 0 is the nominal plant)",
+        ),
+        (
+            S::PhysicsVariants,
+            req.physics_variants,
+            0,
+            MAX_VARIANTS,
+            "",
+        ),
+        (
+            S::MaxEvaluations,
+            req.search.max_evaluations,
+            MIN_EVALUATIONS,
+            MAX_EVALUATIONS,
+            "",
+        ),
     ] {
-        if v > max {
-            return Err(ControlError::Config(format!("{v} {what}: at most {max}")));
+        if !(min..=max).contains(&v) {
+            return Err(ControlError::setting(
+                setting,
+                v,
+                &format!("a whole number in {min}..={max}{expected}"),
+            ));
         }
     }
     let started = Instant::now();

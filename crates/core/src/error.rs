@@ -336,7 +336,7 @@ impl SysidError {
     pub fn setting(setting: Setting, value: impl ToString, expected: &str) -> Self {
         SysidError::Setting {
             setting,
-            value: value.to_string(),
+            value: shown_value(value),
             expected: expected.to_string(),
         }
     }
@@ -365,5 +365,31 @@ impl From<PlantError> for SysidError {
         match e {
             PlantError::Diverged(m) => SysidError::Numerical(m),
         }
+    }
+}
+
+/// A setting's value as an error message shows it: as given, unless it is a number whose plain form is
+/// longer than 24 characters (`1e300` as a `f64` prints 301 digits), which is shown in scientific
+/// notation (`1e300`).
+pub fn shown_value(value: impl ToString) -> String {
+    let text = value.to_string();
+    match text.parse::<f64>() {
+        Ok(x) if text.len() > 24 && x.is_finite() => format!("{x:e}"),
+        _ => text,
+    }
+}
+
+#[cfg(test)]
+mod shown_value_tests {
+    use super::shown_value;
+
+    #[test]
+    fn long_numbers_are_shown_in_scientific_notation_and_the_rest_as_given() {
+        assert_eq!(shown_value(1e300), "1e300");
+        assert_eq!(shown_value(-2.5e-30), "-2.5e-30");
+        assert_eq!(shown_value(0.5), "0.5");
+        assert_eq!(shown_value(2e-9), "0.000000002");
+        assert_eq!(shown_value("ipa"), "ipa");
+        assert_eq!(shown_value(u64::MAX), u64::MAX.to_string());
     }
 }

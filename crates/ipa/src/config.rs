@@ -253,7 +253,12 @@ impl PlantConfig {
             "a plant configuration",
             "expected a TOML file such as `ipa-sysid plant-config` prints",
         )
-        .map_err(|e| IpaError::Config(format!("cannot read plant config: {e}")))?;
+        .map_err(|e| match e {
+            // A file that cannot be opened stays an I/O error, as for every input file (Python:
+            // OSError, docs/python.md; audit s13 L9).
+            sysid_core::SysidError::Io { .. } => IpaError::Sysid(e),
+            e => IpaError::Config(format!("cannot read plant config: {e}")),
+        })?;
         Self::from_toml_str(&text, &path.display().to_string())
     }
 

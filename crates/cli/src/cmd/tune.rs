@@ -70,41 +70,6 @@ struct TuneOut<'a> {
 /// Runs `ipa-sysid tune`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let spec = Spec::parse(&args.spec).context("invalid --spec")?;
-    for (flag, v, max) in [
-        ("--variants", args.variants, tuning::MAX_VARIANTS),
-        (
-            "--physics-variants",
-            args.physics_variants,
-            tuning::MAX_VARIANTS,
-        ),
-        (
-            "--max-evaluations",
-            args.max_evaluations,
-            tuning::MAX_EVALUATIONS,
-        ),
-    ] {
-        if v > max {
-            bail!(sysid::SysidError::setting(
-                sysid::Setting::Other(flag),
-                v,
-                &format!("at most {max}")
-            ));
-        }
-    }
-    if args.max_evaluations < tuning::MIN_EVALUATIONS {
-        bail!(sysid::SysidError::setting(
-            sysid::Setting::Other("--max-evaluations"),
-            args.max_evaluations,
-            &format!("at least {}", tuning::MIN_EVALUATIONS)
-        ));
-    }
-    if args.variants == 0 {
-        bail!(sysid::SysidError::setting(
-            sysid::Setting::Other("--variants"),
-            0,
-            "at least 1 (the nominal plant)"
-        ));
-    }
     let inputs: Vec<&Path> = [args.model.as_deref(), args.plant_config.as_deref()]
         .into_iter()
         .flatten()

@@ -824,6 +824,17 @@ fn study_and_benchmark_flags_exit_2_naming_the_flag() {
             2,
             &["step:LEVEL", "300", "±255"],
         ),
+        // The paper's IPA takes the same ±255 PWM commands (audit s13 L18).
+        case(
+            "simulate --out {t}/s.csv --plant paper --input step:300 --samples 100",
+            2,
+            &["step:LEVEL", "300", "±255", "the paper's command range"],
+        ),
+        case(
+            "control --plant paper --setpoint 10 --u-max 300 --duration 1",
+            2,
+            &["--u-max", "300", "±255"],
+        ),
         case(
             "simulate --out {t}/s.csv --plant paper --input step:50@99999999999 --samples 100",
             2,
@@ -1128,8 +1139,9 @@ fn saved_model_is_read_back_by_validate() {
 }
 
 /// A command file beyond the IPA's ±255 counts is refused naming the file and the data row, and nothing
-/// is written; a model plant (the paper's) applies any command, so the same amplitude is accepted there
-/// and its record differs from the ±255 one (the commands were applied, not clipped).
+/// is written; the paper's IPA refuses it too (its valves' PWM range, audit s13 L18); a model file
+/// applies any command, so the same amplitude is accepted there and its record differs from the ±255
+/// one (the commands were applied, not clipped).
 #[test]
 fn commands_the_ipa_would_clip_are_refused_and_a_model_applies_them() {
     let dir = tempfile::tempdir().unwrap();
@@ -1144,15 +1156,35 @@ fn commands_the_ipa_would_clip_are_refused_and_a_model_applies_them() {
         "{err}"
     );
     assert!(!dir.path().join("s.csv").exists());
+    let paper = run(
+        "simulate --plant paper --input prbs --samples 300 --amplitude 1000 --out {t}/p.csv",
+        dir.path(),
+    );
+    assert_eq!(paper.status.code(), Some(2));
+    assert!(!dir.path().join("p.csv").exists());
+    let made = run(
+        "simulate --plant paper --input prbs --seed 1 --samples 600 --out {t}/r.csv",
+        dir.path(),
+    );
+    assert!(made.status.success());
+    let fitted = run(
+        "identify --data {t}/r.csv --structure arx --method ls --json {t}/m.json",
+        dir.path(),
+    );
+    assert!(
+        fitted.status.success(),
+        "{}",
+        String::from_utf8_lossy(&fitted.stderr)
+    );
     let y_of = |amplitude: &str| -> Vec<f64> {
-        let a = format!("simulate --plant paper --input prbs --seed 3 --samples 300 --amplitude {amplitude} --out {{t}}/p.csv");
+        let a = format!("simulate --plant model:{{t}}/m.json --input prbs --seed 3 --samples 300 --amplitude {amplitude} --out {{t}}/p{amplitude}.csv");
         let out = run(&a, dir.path());
         assert!(
             out.status.success(),
             "{}",
             String::from_utf8_lossy(&out.stderr)
         );
-        let text = std::fs::read_to_string(dir.path().join("p.csv")).unwrap();
+        let text = std::fs::read_to_string(dir.path().join(format!("p{amplitude}.csv"))).unwrap();
         text.lines()
             .skip(1)
             .map(|l| l.split(',').nth(2).unwrap().parse().unwrap())

@@ -108,6 +108,11 @@ impl Experiment {
                 Some(v) => v,
                 None => self.plant.default_y0()?,
             };
+            // The paper's IPA takes the same ±255 PWM commands as the physics plant (audit s13 L18).
+            let paper = self.plant == PlantSpec::Paper;
+            if paper {
+                self.check_applied(None)?;
+            }
             let mut plant = self.plant.build(self.plant_config.as_deref(), self.ts)?;
             plant.reset(x0);
             let ts = plant.ts();
@@ -121,6 +126,9 @@ impl Experiment {
                 )?,
                 _ => {
                     let u = crate::generate(&self.input, samples, ts, self.amplitude, self.seed)?;
+                    if paper {
+                        self.check_applied(Some(&u))?;
+                    }
                     let y = sysid_core::plant::run_open_loop(plant.as_mut(), &u)?;
                     (u, y)
                 }
@@ -146,14 +154,14 @@ impl Experiment {
         self.run_ipa(cfg, samples)
     }
 
-    /// Refuses a command the physics IPA would not apply: its valves saturate at ±[`crate::plant::U_MAX`]
+    /// Refuses a command the IPA (physics or the paper's) would not apply: its valves saturate at ±[`crate::plant::U_MAX`]
     /// counts, so a larger u in the record would not be the command the plant received (audit s11: a
     /// record written with `--amplitude 1000` identified b_l = +520). `u` is the designed input (`None`:
     /// before it is designed, the amplitude alone).
     fn check_applied(&self, u: Option<&[f64]>) -> Result<(), IpaError> {
         const WHY: &str =
-            "the physics IPA's valves saturate at ±255 PWM counts, so a larger u in the record \
-                           would not be the command the plant received";
+            "the IPA's valves saturate at ±255 PWM counts, the paper's command range and the physics \
+             plant's, so a larger u in the record would not be the command the plant received";
         let uses_amplitude = !matches!(self.input, InputSpec::Step { .. } | InputSpec::File(_));
         if uses_amplitude && self.amplitude > crate::plant::U_MAX {
             return Err(SysidError::setting(

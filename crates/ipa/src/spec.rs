@@ -151,7 +151,8 @@ pub struct PlantLimits {
     /// model, which has no stroke.
     pub range_mm: Option<(f64, f64)>,
     /// The largest command magnitude the plant applies, counts: the IPA's valves saturate at ±255 (a
-    /// larger command is clipped); `None` for a model, which applies any command.
+    /// larger command is clipped; the physics plant and the paper's); `None` for a model file, which
+    /// applies any command.
     pub u_max: Option<f64>,
     /// The largest pole modulus of a model plant when it exceeds 1 (an unstable model; an integrator's
     /// pole at 1 is a position actuator's normal dynamics); `None` otherwise.
@@ -176,7 +177,13 @@ impl PlantSpec {
                 };
                 return Ok(PlantLimits::of_ipa(&cfg));
             }
-            PlantSpec::Paper => sysid_core::Model::paper(),
+            // The paper's IPA: its model, with the ±255 PWM commands of its valves.
+            PlantSpec::Paper => {
+                return Ok(PlantLimits {
+                    u_max: Some(crate::plant::U_MAX),
+                    ..PlantLimits::of_model(&sysid_core::Model::paper())
+                })
+            }
             PlantSpec::ModelFile(path) => match sysid_core::model_file::read_any_model(path)? {
                 sysid_core::model_file::AnyModel::Linear(m) => m,
                 // A NARX model has no poles; its blow-up is caught as the closed loop runs.

@@ -187,7 +187,7 @@ fn check_plant_limits(limits: &ipa::PlantLimits, y0: f64, u_max: f64) -> anyhow:
             sysid::Setting::Other("--u-max (or the controller file's u_max)"),
             u_max,
             &format!(
-                "at most {limit} counts: the physics IPA's valves saturate at ±{limit}, so a larger limit \
+                "at most {limit} counts: the IPA's valves saturate at ±{limit}, so a larger limit \
                  would write commands the plant never received"
             )
         ));

@@ -794,6 +794,17 @@ fn mat_files_of_any_numeric_class_and_damaged_ones() {
         j["model"]
     );
 
+    // A header and no variable: said as such (it listed an empty header, audit s13 L8).
+    std::fs::write(d.join("empty.mat"), mat_header()).unwrap();
+    let out = run("identify --data {t}/empty.mat --ts 1", d);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(
+        stderr(&out)
+            .contains("empty.mat: the MAT-file holds no variables; expected the vectors u and y"),
+        "{}",
+        stderr(&out)
+    );
+
     let out = run(
         "identify --data {t}/good.mat --ts 1 --u-col note --json -",
         d,

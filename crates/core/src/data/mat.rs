@@ -68,6 +68,15 @@ pub fn read_mat_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Rec
         opts.t_col.as_str(),
     ];
     let vars = parse(bytes, name, &wanted)?;
+    if vars.is_empty() {
+        // A header and nothing else (audit s13 L8: "no column named 'u'; the header has: ").
+        return Err(file_err(
+            name,
+            "the MAT-file holds no variables; expected the vectors u and y (save('file.mat', 'u', 'y', \
+             '-v7'))"
+                .into(),
+        ));
+    }
     let find = |var: &str| vars.iter().find(|v| v.name == var);
     let names = || {
         let v: Vec<&str> = vars.iter().map(|a| a.name.as_str()).collect();

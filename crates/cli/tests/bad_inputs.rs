@@ -824,6 +824,17 @@ fn study_and_benchmark_flags_exit_2_naming_the_flag() {
             2,
             &["step:LEVEL", "300", "±255"],
         ),
+        // An idle timeout beyond a year is a typo; its bound is named (audit s13 L13).
+        case(
+            "track --follow {t}/nothing.csv --idle-timeout 1e300",
+            2,
+            &["--idle-timeout = 1e300", "0..=31536000"],
+        ),
+        case(
+            "track --follow {t}/nothing.csv --idle-timeout -1",
+            2,
+            &["--idle-timeout = -1", "0..=31536000"],
+        ),
         // The paper's IPA takes the same ±255 PWM commands (audit s13 L18).
         case(
             "simulate --out {t}/s.csv --plant paper --input step:300 --samples 100",

@@ -168,15 +168,22 @@ impl Args {
     fn idle(&self) -> anyhow::Result<Option<Duration>> {
         self.idle_timeout
             .map(|s| {
-                Duration::try_from_secs_f64(s).map_err(|_| {
-                    anyhow::anyhow!(
-                        "invalid setting --idle-timeout = {s}: a number of seconds >= 0"
-                    )
-                })
+                if !(0.0..=MAX_IDLE_S).contains(&s) {
+                    anyhow::bail!(sysid::SysidError::setting(
+                        sysid::Setting::Other("--idle-timeout"),
+                        s,
+                        &format!("a number of seconds in 0..={MAX_IDLE_S} (a year)")
+                    ));
+                }
+                Ok(Duration::from_secs_f64(s))
             })
             .transpose()
     }
 }
+
+/// The longest `--idle-timeout`, s: a year (a larger one is a typo, and `Duration` overflows near
+/// 1.8e19 s).
+const MAX_IDLE_S: f64 = 365.0 * 86_400.0;
 
 /// How often a followed file or serial port is polled when no data has come.
 const POLL: Duration = Duration::from_millis(20);

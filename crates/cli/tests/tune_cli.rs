@@ -325,6 +325,31 @@ fn bad_inputs_name_the_file_or_the_flag() {
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("--spec"), "{}", stderr(&o));
 
+    // A twin held at an end stop by its external force: named, with the file and the force (it was
+    // the identification's "input is never positive ... use --model arx", audit s13 L15).
+    let cfg = ipa_sysid(&["plant-config"]);
+    assert!(cfg.status.success());
+    let text = String::from_utf8_lossy(&cfg.stdout)
+        .replace("external_force_n = 0.0", "external_force_n = 5000.0");
+    assert!(text.contains("external_force_n = 5000.0"));
+    let pinned = dir.path().join("pinned.toml");
+    std::fs::write(&pinned, text).unwrap();
+    let o = ipa_sysid(&[
+        "tune",
+        "--plant-config",
+        pinned.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    let e = stderr(&o);
+    assert!(
+        e.contains("pinned.toml: the twin's piston sits at its extended end stop (200 mm)")
+            && e.contains("external_force_n = 5000 N"),
+        "{e}"
+    );
+    assert!(!out.exists());
+
     // The search's sizes: checked once, by the library, for the command line and Python alike.
     for (flag, value, said) in [
         (

@@ -171,6 +171,23 @@ pub fn twin_model(cfg: &ipa::PlantConfig) -> Result<Model, ControlError> {
     };
     let rec = ipa::calibrate::study::record(cfg, ipa::InputSpec::Staircase, 3000, 1)
         .map_err(|e| err(&e))?;
+    // A twin whose piston is held at an end stop (by its external force, say) gives a record with
+    // nothing to identify: say that, not the identification's symptom (audit s13 L15).
+    let stroke = cfg.cylinder.stroke_mm;
+    let n = rec.y.len().max(1) as f64;
+    for (at, name) in [(0.0, "retracted"), (stroke, "extended")] {
+        let share = rec.y.iter().filter(|y| (*y - at).abs() <= 0.1).count() as f64 / n;
+        if share > 0.5 {
+            return Err(ControlError::Config(format!(
+                "the twin's piston sits at its {name} end stop ({at} mm) in {:.0} % of the staircase \
+                 record it is identified from (3000 samples, commands up to ±255 counts towards \
+                 mid-stroke): nothing to identify or tune; check the twin's forces and pressures \
+                 (external_force_n = {} N, supply, friction)",
+                100.0 * share,
+                cfg.load.external_force_n
+            )));
+        }
+    }
     let data = sysid_core::Dataset::new(
         sysid_core::data::Signals { u: rec.u, y: rec.y },
         rec.ts,
@@ -269,7 +286,10 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
             label,
         } => (model.clone(), *deadzone, label.clone(), None),
         Source::Twin { config, label } => {
-            let m = twin_model(config)?;
+            let m = twin_model(config).map_err(|e| match e {
+                ControlError::Config(m) => ControlError::Config(format!("{label}: {m}")),
+                e => e,
+            })?;
             let d = *m.deadzone().ok_or_else(|| {
                 ControlError::Config("the twin's identified model has no deadzone".into())
             })?;

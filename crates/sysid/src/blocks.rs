@@ -1830,16 +1830,29 @@ pub(crate) fn check_breakpoint(
     };
     let on = |l: f64| 1e-9 * l.abs().max(1.0);
     let reach = |l: f64| on(l).max(std.unwrap_or(0.0));
-    if let Some(level) = levels.iter().find(|l| (b - **l).abs() <= reach(**l)) {
-        w.push(Warning::BreakpointOnInputLevel {
-            name,
-            value: b,
-            level: *level,
-            // On the level itself the deviation says nothing; near it, the withheld value is named.
-            std: std.filter(|_| (b - *level).abs() > on(*level)),
-        });
-        no_std.push(name);
-    } else if b <= u_min || b >= u_max {
+    // The nearest level (not the first within reach: a deviation of thousands of counts reaches the
+    // lowest level first, audit s13 L17).
+    let nearest = levels
+        .iter()
+        .copied()
+        .min_by(|a, c| (b - a).abs().total_cmp(&(b - c).abs()));
+    let on_level = nearest.filter(|l| (b - l).abs() <= on(*l));
+    let outside = b < u_min - on(u_min) || b > u_max + on(u_max);
+    if let (Some(level), false) = (nearest, outside && on_level.is_none()) {
+        if (b - level).abs() <= reach(level) {
+            w.push(Warning::BreakpointOnInputLevel {
+                name,
+                value: b,
+                level,
+                // On the level itself the deviation says nothing; near it, the withheld value is named.
+                std: std.filter(|_| on_level.is_none()),
+            });
+            no_std.push(name);
+            return;
+        }
+    }
+    // Beyond the data (or on its edge): no samples on one side, whatever the deviation.
+    if b <= u_min || b >= u_max {
         w.push(Warning::BreakpointNotBracketed {
             name,
             value: b,
@@ -2127,6 +2140,38 @@ mod tests {
             branch: Branch::Left,
             levels: 2
         }));
+        // Far beyond the data with a deviation that spans every level (audit s13 L17: b_r = 3344.8
+        // ± 46333 for commands −59..60 was "3403.818 from the input level −59 ... a kink"): not
+        // bracketed, never a kink at the lowest level.
+        let mut w = Vec::new();
+        let mut no_std = Vec::new();
+        check_breakpoint(
+            ParamName::BR,
+            3344.8,
+            Some(46333.0),
+            &[-59.0, -20.0, 0.0, 30.0, 60.0],
+            &mut w,
+            &mut no_std,
+        );
+        assert_eq!(no_std, vec![ParamName::BR]);
+        assert!(
+            matches!(w[..], [Warning::BreakpointNotBracketed { u_max, .. }] if u_max == 60.0),
+            "{w:?}"
+        );
+        // Inside the data, a deviation that reaches several levels names the nearest one.
+        let mut w = Vec::new();
+        check_breakpoint(
+            ParamName::BR,
+            27.0,
+            Some(100.0),
+            &[-59.0, -20.0, 0.0, 30.0, 60.0],
+            &mut w,
+            &mut Vec::new(),
+        );
+        assert!(
+            matches!(w[..], [Warning::BreakpointOnInputLevel { level, .. }] if level == 30.0),
+            "{w:?}"
+        );
     }
 
     // b_l > b_r and slopes of opposite sign are not a valve deadzone.

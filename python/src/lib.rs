@@ -78,8 +78,22 @@ fn setting_err(name: &'static str, value: impl ToString, expected: &str) -> PyEr
 
 /// A whole number argument of a method (where the module's functions get this from the Python
 /// wrapper `_named_ints`): a negative one is a `ValueError` naming `name`, as the functions' are.
-fn whole(name: &'static str, v: i64) -> PyResult<usize> {
-    usize::try_from(v).map_err(|_| setting_err(name, v, "a whole number >= 0"))
+fn whole(name: &'static str, v: &Bound<'_, PyAny>) -> PyResult<usize> {
+    if v.is_instance_of::<pyo3::types::PyBool>() {
+        return Err(pyo3::exceptions::PyTypeError::new_err(format!(
+            "{name}: expected a number, not the bool {v}"
+        )));
+    }
+    match v.extract::<i64>() {
+        Ok(n) => usize::try_from(n).map_err(|_| setting_err(name, n, "a whole number >= 0")),
+        // A Python int beyond 64 bits (the conversion alone raises an OverflowError naming none).
+        Err(_) if v.is_instance_of::<pyo3::types::PyInt>() => {
+            Err(setting_err(name, v, "a whole number that fits 64 bits"))
+        }
+        Err(e) => Err(pyo3::exceptions::PyTypeError::new_err(format!(
+            "{name}: {e}"
+        ))),
+    }
 }
 
 /// Issues each message as an `ipa_sysid.IpaSysidWarning` (the command line's `warning:` lines).
@@ -355,15 +369,17 @@ impl PyModel {
     /// k-step-ahead prediction (MATLAB `predict(m, data, k)`) from measured `u` and `y` (equal lengths):
     /// ŷ(k) uses measured outputs up to k − horizon. horizon = 1 is the one-step prediction; entries
     /// k < k0 are copies of `y`.
-    #[pyo3(signature = (u, y, horizon=1))]
+    /// (`horizon` None: 1; taken as any object so that a bool, a negative or a too-large number is
+    /// refused naming it.)
+    #[pyo3(signature = (u, y, horizon=None))]
     fn predict<'py>(
         &self,
         py: Python<'py>,
         u: &Bound<'py, PyAny>,
         y: &Bound<'py, PyAny>,
-        horizon: i64,
+        horizon: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
-        let horizon = whole("horizon", horizon)?;
+        let horizon = horizon.map_or(Ok(1), |h| whole("horizon", h))?;
         let data = dataset(u, y, self.inner.ts(), "predict")?;
         let out = self
             .inner
@@ -1114,7 +1130,7 @@ struct PyRls {
 impl PyRls {
     #[new]
     #[pyo3(signature = (n, forgetting=1.0, p0=1e6))]
-    fn new(n: i64, forgetting: f64, p0: f64) -> PyResult<Self> {
+    fn new(n: &Bound<'_, PyAny>, forgetting: f64, p0: f64) -> PyResult<Self> {
         let n = whole("n", n)?;
         if n == 0 || n > MAX_RLS_PARAMS {
             return Err(setting_err(

@@ -327,6 +327,17 @@ def test_rls_errors():
         ipa_sysid.Rls(-1)
     with pytest.raises(ValueError, match=r"invalid setting horizon = -2"):
         ipa_sysid.paper_model().predict(np.zeros(10), np.zeros(10), horizon=-2)
+    # Beyond 64 bits, or a bool, also named (audit s13 M2).
+    with pytest.raises(ValueError, match=r"invalid setting n = 1180591620717411303424: .*fits 64 bits"):
+        ipa_sysid.Rls(2**70)
+    with pytest.raises(ValueError, match=r"invalid setting horizon = 1180591620717411303424"):
+        ipa_sysid.paper_model().predict(np.zeros(10), np.zeros(10), horizon=2**70)
+    with pytest.raises(TypeError, match=r"^n: expected a number, not the bool True"):
+        ipa_sysid.Rls(True)
+    with pytest.raises(TypeError, match=r"^horizon: "):
+        ipa_sysid.paper_model().predict(np.zeros(10), np.zeros(10), horizon="2")
+    p1 = ipa_sysid.paper_model().predict(np.full(10, 100.0), np.zeros(10))
+    assert np.array_equal(p1, ipa_sysid.paper_model().predict(np.full(10, 100.0), np.zeros(10), horizon=1))
     r = ipa_sysid.Rls(3)
     with pytest.raises(ValueError, match="n = 3"):
         r.update_many(np.zeros((4, 2)), np.zeros(4))

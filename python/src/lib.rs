@@ -326,16 +326,13 @@ impl PyModel {
         let y0 = match y0 {
             None => {
                 if k0 > 0 {
-                    let category = py.import("ipa_sysid")?.getattr("IpaSysidWarning")?;
-                    PyErr::warn(
+                    warn_all(
                         py,
-                        &category,
-                        &std::ffi::CString::new(format!(
+                        &[format!(
                             "Model.simulate without y0 starts from y = 0 for the first k0 = {k0} samples; \
                              a record that starts elsewhere (e.g. at 100 mm) then fits badly: pass y0 = the \
                              record's output (its first k0 values are used) or its start position"
-                        ))?,
-                        1,
+                        )],
                     )?;
                 }
                 None

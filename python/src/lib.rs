@@ -744,7 +744,10 @@ fn identify<'py>(
         ("windup", windup != "none"),
         ("max_trace", max_trace.is_some()),
         ("iv_stages", iv_stages != 10),
-        ("resid_lags", resid_lags != 25),
+        (
+            "resid_lags",
+            resid_lags != sysid::residuals::DEFAULT_MAX_LAG,
+        ),
         ("fallback", fallback),
         ("nonlinearity", nonlinearity.is_some()),
         ("breakpoints", breakpoints.is_some()),
@@ -784,8 +787,15 @@ fn identify<'py>(
             if one { "it" } else { "them" },
         )));
     }
-    if resid_lags == 0 {
-        return Err(setting_err("resid_lags", 0, "a whole number of lags >= 1"));
+    if !(1..=sysid::residuals::MAX_LAG).contains(&resid_lags) {
+        return Err(setting_err(
+            "resid_lags",
+            resid_lags,
+            &format!(
+                "a whole number of lags in 1..={}",
+                sysid::residuals::MAX_LAG
+            ),
+        ));
     }
     let method = method.unwrap_or("rls");
     if narx {

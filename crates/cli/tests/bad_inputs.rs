@@ -311,6 +311,17 @@ fn numerical_failures_exit_1_and_name_the_sample() {
             1,
             &["overflow.csv", "numerical failure", "nk = "],
         ),
+        // Orders near the integer limit wrapped the size check and panicked (audit s14 H-d).
+        case(
+            "delay --data {c}/good.csv --na 18446744073709551615",
+            2,
+            &["--na = 18446744073709551615", "an order of at most 100"],
+        ),
+        case(
+            "delay --data {c}/good.csv --nb 9223372036854775807",
+            2,
+            &["--nb = 9223372036854775807", "an order of at most 100"],
+        ),
         case(
             "identify --data {c}/csv/underflow.csv",
             1,

@@ -1121,21 +1121,32 @@ fn an_order_search_beyond_the_structure_bound_is_refused() {
 }
 
 // `--resid-lags 0` is a usage error naming the flag (it ran and left the residual analysis "not
-// available"; audit s13 L3).
+// available"; audit s13 L3), and so is a lag near the integer limit, whose sizes 2(M+1) wrapped
+// around and panicked (audit s14 H-c).
 #[test]
-fn zero_residual_lags_are_refused() {
+fn zero_and_huge_residual_lags_are_refused() {
     let dir = tempfile::tempdir().unwrap();
-    for cmd in [
-        "identify --data {c}/good.csv --ts 0.01 --resid-lags 0",
-        "validate --model {c}/good_model.json --data {c}/good.csv --ts 0.01 --resid-lags 0",
+    for lags in [
+        "0",
+        "1000001",
+        "9223372036854775807",
+        "18446744073709551615",
     ] {
-        let out = run(cmd, dir.path());
-        assert_eq!(out.status.code(), Some(2), "{cmd}: {}", stderr(&out));
-        assert!(
-            stderr(&out).contains("'--resid-lags <M>': expected a whole number of lags >= 1"),
-            "{}",
-            stderr(&out)
-        );
+        for cmd in [
+            format!("identify --data {{c}}/good.csv --ts 0.01 --resid-lags {lags}"),
+            format!(
+                "validate --model {{c}}/good_model.json --data {{c}}/good.csv --ts 0.01 --resid-lags {lags}"
+            ),
+        ] {
+            let out = run(&cmd, dir.path());
+            assert_eq!(out.status.code(), Some(2), "{cmd}: {}", stderr(&out));
+            assert!(
+                stderr(&out)
+                    .contains("'--resid-lags <M>': expected a whole number of lags in 1..=1000000"),
+                "{}",
+                stderr(&out)
+            );
+        }
     }
 }
 

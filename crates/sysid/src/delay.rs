@@ -104,6 +104,17 @@ pub fn estimate_delay(
             "at least one B coefficient",
         ));
     }
+    // The orders every estimator accepts (near the integer limit the sizes below wrapped around and
+    // the allocation panicked; audit s14 H-d).
+    for (setting, v) in [(crate::Setting::Na, na), (crate::Setting::Nb, nb)] {
+        if v > crate::model::MAX_ORDER {
+            return Err(SysidError::setting(
+                setting,
+                v,
+                &format!("an order of at most {}", crate::model::MAX_ORDER),
+            ));
+        }
+    }
     if max_delay > crate::model::MAX_ORDER {
         return Err(SysidError::setting(
             crate::Setting::Other("--max-delay"),

@@ -79,6 +79,19 @@ use std::fmt;
 /// MATLAB's default maximum lag M.
 pub const DEFAULT_MAX_LAG: usize = 25;
 
+/// The largest maximum lag M accepted: the analysis needs N ≥ 2(M + 1) samples and holds sums of
+/// 2M + 1 lags, so a larger M is a typo (and near `usize::MAX` its sizes wrap around; audit s14 H-c).
+pub const MAX_LAG: usize = 1_000_000;
+
+/// M checked: at least 1, at most [`MAX_LAG`].
+pub fn check_max_lag(m: usize) -> Result<(), ResidError> {
+    match m {
+        0 => Err(ResidError::ZeroMaxLag),
+        m if m > MAX_LAG => Err(ResidError::MaxLagTooLarge { max_lag: m }),
+        _ => Ok(()),
+    }
+}
+
 /// The two-sided 99 % point of the standard normal distribution as MATLAB rounds it (2.5758… → 2.58).
 pub const Z_99: f64 = 2.58;
 
@@ -133,6 +146,11 @@ impl fmt::Display for Signal {
 pub enum ResidError {
     /// The maximum lag M is 0.
     ZeroMaxLag,
+    /// The maximum lag M is above [`MAX_LAG`].
+    MaxLagTooLarge {
+        /// M as asked for.
+        max_lag: usize,
+    },
     /// ε and u have different lengths.
     LengthMismatch {
         /// Number of residuals.
@@ -179,6 +197,11 @@ impl fmt::Display for ResidError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             ResidError::ZeroMaxLag => write!(f, "residual analysis: the maximum lag must be at least 1"),
+            ResidError::MaxLagTooLarge { max_lag } => write!(
+                f,
+                "residual analysis: maximum lag {max_lag} is above {MAX_LAG} (the analysis needs at least \
+                 2(M+1) samples)"
+            ),
             ResidError::LengthMismatch { residuals, input } => write!(
                 f,
                 "residual analysis: {residuals} residuals but {input} input samples (must be equal)"
@@ -343,9 +366,7 @@ pub fn analyze(
     options: &ResidOptions,
 ) -> Result<ResidualAnalysis, ResidError> {
     let m = options.max_lag;
-    if m == 0 {
-        return Err(ResidError::ZeroMaxLag);
-    }
+    check_max_lag(m)?;
     if residuals.len() != input.len() {
         return Err(ResidError::LengthMismatch {
             residuals: residuals.len(),
@@ -513,7 +534,13 @@ impl CovarianceAccumulator {
     /// An empty accumulator for M = `options.max_lag` lags; `residual_mean` and `input_mean` are ε̄ and ū
     /// of the whole record (subtracted when `options.remove_mean`).
     pub fn new(options: &ResidOptions, residual_mean: f64, input_mean: f64) -> Self {
-        let m = options.max_lag;
+        // An M beyond [`MAX_LAG`] is refused by `finish`; nothing of its size is allocated.
+        let refused = check_max_lag(options.max_lag).err();
+        let m = if refused.is_some() {
+            0
+        } else {
+            options.max_lag
+        };
         CovarianceAccumulator {
             sums: CovarianceSums {
                 n: 0,
@@ -533,7 +560,7 @@ impl CovarianceAccumulator {
             e: vec![0.0; 2 * (2 * m + 1)],
             v: vec![0.0; 2 * (2 * m + 1)],
             at: 0,
-            bad: None,
+            bad: refused,
         }
     }
 
@@ -589,8 +616,8 @@ impl CovarianceAccumulator {
     /// The analysis (the errors of [`analyze`]).
     pub fn finish(mut self) -> Result<ResidualAnalysis, ResidError> {
         let (n, m) = (self.sums.n, self.sums.max_lag);
-        if m == 0 {
-            return Err(ResidError::ZeroMaxLag);
+        if let Some(e @ (ResidError::MaxLagTooLarge { .. } | ResidError::ZeroMaxLag)) = &self.bad {
+            return Err(e.clone());
         }
         let required = 2 * (m + 1);
         if n < required {
@@ -1510,6 +1537,19 @@ mod tests {
             analyze(&ok, &ok2, &opts(0, true)),
             Err(ResidError::ZeroMaxLag)
         );
+        // M near the integer limit: refused, its sizes never computed (audit s14 H-c), by the
+        // accumulator too (nothing of its size allocated).
+        for m in [MAX_LAG + 1, usize::MAX / 2, usize::MAX] {
+            assert_eq!(
+                analyze(&ok, &ok2, &opts(m, true)),
+                Err(ResidError::MaxLagTooLarge { max_lag: m })
+            );
+            let mut acc = CovarianceAccumulator::new(&opts(m, true), 0.0, 0.0);
+            for (e, u) in ok.iter().zip(&ok2) {
+                acc.push(*e, *u);
+            }
+            assert_eq!(acc.finish(), Err(ResidError::MaxLagTooLarge { max_lag: m }));
+        }
         assert_eq!(
             analyze(&ok, &ok2[..59], &opts(5, true)),
             Err(ResidError::LengthMismatch {

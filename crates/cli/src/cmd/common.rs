@@ -14,9 +14,10 @@ pub fn parse_rows(text: &str) -> Result<RowRange, String> {
 /// Parses `--resid-lags M`: at least one lag (M = 0 left the residual analysis "not available"
 /// without an error; audit s13 L3).
 pub fn parse_lags(text: &str) -> Result<usize, String> {
+    let max = sysid::residuals::MAX_LAG;
     match text.trim().parse::<usize>() {
-        Ok(m) if m >= 1 => Ok(m),
-        _ => Err("expected a whole number of lags >= 1".into()),
+        Ok(m) if (1..=max).contains(&m) => Ok(m),
+        _ => Err(format!("expected a whole number of lags in 1..={max}")),
     }
 }
 

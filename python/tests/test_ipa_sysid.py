@@ -404,6 +404,9 @@ def test_bad_data_raises_value_error(records):
         ipa_sysid.identify(e["u"], 3.0, 0.01)
     with pytest.raises(TypeError, match=r"^na: expected a number, not the bool True"):
         ipa_sysid.identify(e["u"], e["y"], 0.01, na=True)
+    # A maximum lag near the integer limit panicked (audit s14 H-c).
+    with pytest.raises(ValueError, match=r"invalid setting resid_lags = 18446744073709551615: .*1\.\.=1000000"):
+        ipa_sysid.identify(e["u"], e["y"], 0.01, resid_lags=2**64 - 1)
 
 
 def test_numerical_failure_raises_arithmetic_error(tmp_path):

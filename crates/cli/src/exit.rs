@@ -35,15 +35,44 @@ pub fn report(e: &anyhow::Error) -> ExitCode {
     ExitCode::from(code(e))
 }
 
-/// `--strict` was given and the result carries warnings.
-#[derive(Debug, thiserror::Error)]
-#[error("{0} warning(s) and --strict: the result is not to be trusted without review")]
-pub struct StrictWarnings(pub usize);
+/// `--strict` was given and the result carries warnings; the output files it did not write.
+#[derive(Debug)]
+pub struct StrictWarnings {
+    /// How many warnings.
+    pub warnings: usize,
+    /// The output files left unwritten (flag and path), so that an earlier one stays.
+    pub not_written: Vec<String>,
+}
 
-/// With `--strict`, turns warnings into an error (exit code 1); otherwise Ok.
+impl std::fmt::Display for StrictWarnings {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} warning(s) and --strict: the result is not to be trusted without review",
+            self.warnings
+        )?;
+        if !self.not_written.is_empty() {
+            write!(
+                f,
+                "; not written (any earlier file there is unchanged): {}",
+                self.not_written.join(", ")
+            )?;
+        }
+        Ok(())
+    }
+}
+
+impl std::error::Error for StrictWarnings {}
+
+/// With `--strict`, turns warnings into an error (exit code 1); otherwise Ok (for a command without
+/// output files; the others use `common::write_outputs`).
 pub fn strict(strict: bool, warnings: usize) -> anyhow::Result<()> {
     if strict && warnings > 0 {
-        return Err(StrictWarnings(warnings).into());
+        return Err(StrictWarnings {
+            warnings,
+            not_written: Vec::new(),
+        }
+        .into());
     }
     Ok(())
 }

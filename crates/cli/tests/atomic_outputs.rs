@@ -125,6 +125,92 @@ fn failed_runs_leave_existing_outputs_untouched() {
     }
 }
 
+// A second output that cannot be written (a full disk: /dev/full) after the first was made: neither is
+// written, the first keeps its old content (audit s14 M-f: `--out` was already replaced).
+#[cfg(target_os = "linux")]
+#[test]
+fn a_failing_second_output_leaves_the_first_as_it_was() {
+    let cases: &[(&str, &str)] = &[
+        (
+            "control --plant ipa --setpoint 50 --duration 1 --out {t}/trace.csv --json /dev/full",
+            "trace.csv",
+        ),
+        (
+            "validate --model {t}/model.json --data {t}/data.csv --out {t}/v.csv --json /dev/full",
+            "v.csv",
+        ),
+        (
+            "calibrate --data {t}/data.csv --out {t}/k.toml --json /dev/full --max-iterations 2 --no-baseline",
+            "k.toml",
+        ),
+        (
+            "tune --model {t}/model.json --out {t}/t.json --json /dev/full --max-evaluations 8 --variants 1 --physics-variants 0",
+            "t.json",
+        ),
+    ];
+    for (args, first) in cases {
+        let dir = tempfile::tempdir().unwrap();
+        setup(dir.path(), &[first]);
+        let out = run(args, dir.path());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert_eq!(out.status.code(), Some(2), "{args}: {err}");
+        assert!(err.contains("/dev/full"), "{args}: {err}");
+        assert_eq!(
+            std::fs::read_to_string(dir.path().join(first)).unwrap(),
+            SENTINEL,
+            "{args}: {first} was replaced"
+        );
+        assert!(leftovers(dir.path()).is_empty(), "{args}");
+    }
+}
+
+// `--strict` on a result with warnings exits 1 and writes no output file: an earlier model (the one a
+// script `identify --strict --save-model m.json || exit 1` relies on) stays (audit s14 H-a); without
+// --strict the same run writes both.
+#[test]
+fn strict_with_warnings_replaces_no_output() {
+    let dir = tempfile::tempdir().unwrap();
+    setup(dir.path(), &["m.json", "fit.json"]);
+    // The record's output replaced by a deterministic scramble: the deadzone is not determined
+    // (warnings), whatever the estimator does.
+    let text = std::fs::read_to_string(dir.path().join("data.csv")).unwrap();
+    let mut lines = text.lines();
+    let mut noisy = format!("{}\n", lines.next().unwrap());
+    for (k, line) in lines.enumerate() {
+        let f: Vec<&str> = line.split(',').collect();
+        let y = 3.0 * ((k * k) as f64 * 0.37).sin();
+        noisy.push_str(&format!("{},{},{y:.4}\n", f[0], f[1]));
+    }
+    std::fs::write(dir.path().join("noise.csv"), noisy).unwrap();
+    let args = "identify --data {t}/noise.csv --strict --save-model {t}/m.json --json {t}/fit.json";
+    let out = run(args, dir.path());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(err.contains("--strict"), "{err}");
+    assert!(
+        err.contains("not written (any earlier file there is unchanged): --json")
+            && err.contains("--save-model"),
+        "{err}"
+    );
+    for o in ["m.json", "fit.json"] {
+        assert_eq!(
+            std::fs::read_to_string(dir.path().join(o)).unwrap(),
+            SENTINEL,
+            "{o}"
+        );
+    }
+    let out = run(&args.replace(" --strict", ""), dir.path());
+    assert!(out.status.success());
+    for o in ["m.json", "fit.json"] {
+        assert_ne!(
+            std::fs::read_to_string(dir.path().join(o)).unwrap(),
+            SENTINEL,
+            "{o}"
+        );
+    }
+    assert!(leftovers(dir.path()).is_empty());
+}
+
 // Every output flag refuses a path that is one of the run's inputs (also through another spelling of
 // the same path), and the input is left as it was.
 #[test]

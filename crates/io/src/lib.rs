@@ -145,41 +145,107 @@ fn is_socket(_kind: &std::fs::FileType) -> bool {
 /// permissions for a new file (0o666 less the umask) — not the 0o600 of a bare temporary file. While
 /// the temporary file exists it is listed for [`remove_temporaries_on_signals`].
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
+    write_all_atomic(&[(path, bytes)])
+}
+
+/// Writes several outputs of one run together, each as [`write_atomic`] writes it, so that a failure
+/// of any leaves every existing output as it was (audit s14 M-f: a full disk for `--json` left `--out`
+/// replaced): every regular file is first written to its temporary file (flushed); then the devices,
+/// FIFOs and standard output are written; only when all of that succeeded are the temporary files
+/// renamed into place, in order. A rename can still fail after an earlier one succeeded (the folder
+/// removed meanwhile, say): then the error says which outputs were already replaced.
+pub fn write_all_atomic(outputs: &[(&Path, &[u8])]) -> Result<(), OutputError> {
+    let mut staged = Vec::new();
+    let mut direct = Vec::new();
+    for &(path, bytes) in outputs {
+        let io = |source| OutputError::Io {
+            path: path.to_path_buf(),
+            source,
+        };
+        let target = match resolve_output(path, "output") {
+            Ok(t) => t,
+            Err(OutputError::Refused { expected, .. }) => {
+                return Err(io(std::io::Error::other(format!("expected {expected}"))))
+            }
+            Err(e) => return Err(e),
+        };
+        match target {
+            OutputTarget::File(p) => staged.push(stage(&p, bytes)?),
+            other => direct.push((other, bytes)),
+        }
+    }
+    for (target, bytes) in direct {
+        match target {
+            OutputTarget::Stdout => {
+                let mut out = std::io::stdout().lock();
+                out.write_all(bytes)
+                    .and_then(|()| out.flush())
+                    .map_err(|source| OutputError::Io {
+                        path: PathBuf::from("<standard output>"),
+                        source,
+                    })?;
+            }
+            OutputTarget::Stream(p) => {
+                let io = |source| OutputError::Io {
+                    path: p.clone(),
+                    source,
+                };
+                let mut f = std::fs::OpenOptions::new()
+                    .write(true)
+                    .open(&p)
+                    .map_err(io)?;
+                f.write_all(bytes).and_then(|()| f.flush()).map_err(io)?;
+            }
+            OutputTarget::File(_) => unreachable!("regular files are staged"),
+        }
+    }
+    let mut done: Vec<PathBuf> = Vec::new();
+    for s in staged {
+        let path = s.path.clone();
+        s.commit().map_err(|source| {
+            let source = if done.is_empty() {
+                source
+            } else {
+                std::io::Error::new(
+                    source.kind(),
+                    format!(
+                        "{source} (already replaced: {})",
+                        done.iter()
+                            .map(|p| p.display().to_string())
+                            .collect::<Vec<_>>()
+                            .join(", ")
+                    ),
+                )
+            };
+            OutputError::Io {
+                path: path.clone(),
+                source,
+            }
+        })?;
+        done.push(path);
+    }
+    Ok(())
+}
+
+/// A regular-file output written to its temporary file beside it, not yet renamed into place; dropped
+/// without [`Staged::commit`], the temporary file is removed.
+struct Staged {
+    tmp: tempfile::NamedTempFile,
+    pending: cleanup::Pending,
+    path: PathBuf,
+}
+
+/// Writes `bytes` to a temporary file beside `path` (flushed to disk), with the permissions and owner of
+/// the file it will replace ([`write_atomic`]).
+fn stage(path: &Path, bytes: &[u8]) -> Result<Staged, OutputError> {
     let io = |source| OutputError::Io {
         path: path.to_path_buf(),
         source,
     };
-    let target = match resolve_output(path, "output") {
-        Ok(t) => t,
-        Err(OutputError::Refused { expected, .. }) => {
-            return Err(io(std::io::Error::other(format!("expected {expected}"))))
-        }
-        Err(e) => return Err(e),
-    };
-    let path = match target {
-        OutputTarget::Stdout => {
-            let mut out = std::io::stdout().lock();
-            return out
-                .write_all(bytes)
-                .and_then(|()| out.flush())
-                .map_err(|source| OutputError::Io {
-                    path: PathBuf::from("<standard output>"),
-                    source,
-                });
-        }
-        OutputTarget::Stream(p) => {
-            let mut f = std::fs::OpenOptions::new()
-                .write(true)
-                .open(&p)
-                .map_err(io)?;
-            return f.write_all(bytes).and_then(|()| f.flush()).map_err(io);
-        }
-        OutputTarget::File(p) => p,
-    };
-    let dir = parent_dir(&path);
+    let dir = parent_dir(path);
     let mut builder = tempfile::Builder::new();
     builder.prefix(TEMP_PREFIX).suffix(".tmp");
-    let existing = std::fs::metadata(&path).ok().filter(|m| m.is_file());
+    let existing = std::fs::metadata(path).ok().filter(|m| m.is_file());
     let permissions = match &existing {
         Some(m) => Some(m.permissions()),
         None => default_permissions(),
@@ -193,12 +259,23 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
     }
     tmp.write_all(bytes).map_err(io)?;
     tmp.as_file().sync_all().map_err(io)?;
-    pending.persist(tmp, &path).map_err(io)?;
-    // Make the rename itself durable; not every platform or file system can sync a folder.
-    if let Ok(d) = std::fs::File::open(dir) {
-        let _ = d.sync_all();
+    Ok(Staged {
+        tmp,
+        pending,
+        path: path.to_path_buf(),
+    })
+}
+
+impl Staged {
+    /// Renames the temporary file over the output and makes the rename durable where the platform can.
+    fn commit(self) -> std::io::Result<()> {
+        let dir = parent_dir(&self.path).to_path_buf();
+        self.pending.persist(self.tmp, &self.path)?;
+        if let Ok(d) = std::fs::File::open(&dir) {
+            let _ = d.sync_all();
+        }
+        Ok(())
     }
-    Ok(())
 }
 
 /// The prefix of the temporary files [`write_atomic`] creates beside its outputs (`.ipa-sysid-*.tmp`).
@@ -349,11 +426,21 @@ pub fn write_columns_csv(
     header: &[&str],
     columns: &[&[f64]],
 ) -> Result<(), OutputError> {
+    write_atomic(path, &columns_csv(path, header, columns)?)
+}
+
+/// The bytes [`write_columns_csv`] writes (for outputs written together: [`write_all_atomic`]); `path`
+/// names the output in messages.
+pub fn columns_csv(
+    path: &Path,
+    header: &[&str],
+    columns: &[&[f64]],
+) -> Result<Vec<u8>, OutputError> {
     let formatted: Vec<(&[f64], NumberFormat)> = columns
         .iter()
         .map(|&c| (c, NumberFormat::Shortest))
         .collect();
-    write_formatted_columns_csv(path, header, &formatted)
+    formatted_columns_csv(path, header, &formatted)
 }
 
 /// [`write_columns_csv`] with a [`NumberFormat`] per column; the cells are formatted into buffers
@@ -364,6 +451,15 @@ pub fn write_formatted_columns_csv(
     header: &[&str],
     columns: &[(&[f64], NumberFormat)],
 ) -> Result<(), OutputError> {
+    write_atomic(path, &formatted_columns_csv(path, header, columns)?)
+}
+
+/// The bytes [`write_formatted_columns_csv`] writes.
+fn formatted_columns_csv(
+    path: &Path,
+    header: &[&str],
+    columns: &[(&[f64], NumberFormat)],
+) -> Result<Vec<u8>, OutputError> {
     let n = columns.first().map_or(0, |c| c.0.len());
     if header.len() != columns.len() || columns.iter().any(|c| c.0.len() != n) {
         return Err(OutputError::Io {
@@ -393,8 +489,7 @@ pub fn write_formatted_columns_csv(
         }
         w.write_record(&cells).map_err(|e| io(e.into()))?;
     }
-    let bytes = w.into_inner().map_err(|e| io(e.into_error()))?;
-    write_atomic(path, &bytes)
+    w.into_inner().map_err(|e| io(e.into_error()))
 }
 
 #[cfg(unix)]

@@ -60,7 +60,7 @@ pub struct Args {
     /// Do not identify the Hammerstein models for comparison.
     #[arg(long)]
     pub no_baseline: bool,
-    /// Exit with code 1 when the report has warnings.
+    /// Exit with code 1 when the report has warnings, without writing the output files.
     #[arg(long)]
     pub strict: bool,
     /// Run the recovery study on N plants drawn ±30 % around the defaults instead (docs/twin.md).
@@ -112,15 +112,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         data.display(),
         twin.config.to_commented_toml()
     );
-    write_output(out, toml.as_bytes(), &inputs, "--out")?;
     let text = report_text(&twin, baseline.as_ref(), seconds, out);
     print_report(&text, &[args.json.as_deref(), Some(out)])?;
-    if let Some(path) = &args.json {
-        let value = report_json(&twin, baseline.as_ref(), seconds);
-        let s = serde_json::to_string_pretty(&value)? + "\n";
-        write_output(path, s.as_bytes(), &inputs, "--json")?;
+    let json = match &args.json {
+        Some(_) => {
+            let value = report_json(&twin, baseline.as_ref(), seconds);
+            Some(serde_json::to_string_pretty(&value)? + "\n")
+        }
+        None => None,
+    };
+    let mut outputs: Vec<(&Path, &[u8], &str)> = vec![(out, toml.as_bytes(), "--out")];
+    if let (Some(path), Some(s)) = (&args.json, &json) {
+        outputs.push((path, s.as_bytes(), "--json"));
     }
-    crate::exit::strict(args.strict, twin.warnings.len())
+    super::common::write_outputs(&outputs, &inputs, args.strict, twin.warnings.len())
 }
 
 /// The calibration settings from the flags.

@@ -191,6 +191,43 @@ pub fn write_output(
     Ok(())
 }
 
+/// Writes the outputs of one run together ([`sysid_io::write_all_atomic`]: a failure of any leaves
+/// every existing one as it was), refusing to write over any of `inputs`; each output is (path,
+/// content, flag). With `--strict` and `warnings` > 0 the files are not written — the run's result is
+/// not to be trusted, so an earlier output (a good model a script relies on) must not be replaced by
+/// it (audit s14 H-a) — and the error says so (exit 1); what goes to standard output (`-`) is the
+/// report and is still written.
+pub fn write_outputs(
+    outputs: &[(&Path, &[u8], &str)],
+    inputs: &[&Path],
+    strict: bool,
+    warnings: usize,
+) -> anyhow::Result<()> {
+    for (path, _, flag) in outputs {
+        sysid_io::refuse_overwrite_input(path, inputs, flag)?;
+    }
+    let refused = strict && warnings > 0;
+    let written: Vec<(&Path, &[u8])> = outputs
+        .iter()
+        .filter(|(p, _, _)| !refused || p.as_os_str() == "-")
+        .map(|(p, b, _)| (*p, *b))
+        .collect();
+    sysid_io::write_all_atomic(&written)?;
+    if refused {
+        let kept: Vec<String> = outputs
+            .iter()
+            .filter(|(p, _, _)| p.as_os_str() != "-")
+            .map(|(p, _, flag)| format!("{flag} {}", p.display()))
+            .collect();
+        return Err(crate::exit::StrictWarnings {
+            warnings,
+            not_written: kept,
+        }
+        .into());
+    }
+    Ok(())
+}
+
 /// Checks before any work that every output path can be written (its folder exists, it is not a folder),
 /// names none of the inputs, that no two outputs are the same file, and that at most one is `-`.
 pub fn check_outputs(outputs: &[(&Option<PathBuf>, &str)], inputs: &[&Path]) -> anyhow::Result<()> {

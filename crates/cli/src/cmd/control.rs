@@ -2,7 +2,6 @@
 //!
 //! Thin: flags -> `control` library -> summary, JSON and trace CSV. Definitions are in docs/control.md.
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
@@ -305,11 +304,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         },
     ));
 
-    if let Some(out) = &args.out {
-        sysid_io::write_columns_csv(out, &Trace::COLUMNS, &trace.columns())?;
-    }
-    let json_to_stdout = to_stdout(&args.json);
-    if let Some(json) = &args.json {
+    // The trace and the JSON are written together, after both are made (a failure of either leaves
+    // both files as they were; audit s14 M-f).
+    let trace_csv = match &args.out {
+        Some(out) => Some(sysid_io::columns_csv(
+            out,
+            &Trace::COLUMNS,
+            &trace.columns(),
+        )?),
+        None => None,
+    };
+    let mut json_text = None;
+    if args.json.is_some() {
         let doc = ControlOut {
             plant: PlantOut {
                 name: plant.name(),
@@ -337,16 +343,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             warnings: &warnings,
             adaptive: adaptive.as_ref(),
         };
-        let text =
-            serde_json::to_string_pretty(&doc).context("serialising the JSON output")? + "\n";
-        if json_to_stdout {
-            std::io::stdout()
-                .write_all(text.as_bytes())
-                .context("writing JSON to standard output")?;
-        } else {
-            sysid_io::write_atomic(json, text.as_bytes())?;
-        }
+        json_text =
+            Some(serde_json::to_string_pretty(&doc).context("serialising the JSON output")? + "\n");
     }
+    let mut outputs: Vec<(&Path, &[u8])> = Vec::new();
+    if let (Some(out), Some(bytes)) = (&args.out, &trace_csv) {
+        outputs.push((out, bytes));
+    }
+    if let (Some(json), Some(text)) = (&args.json, &json_text) {
+        outputs.push((json, text.as_bytes()));
+    }
+    sysid_io::write_all_atomic(&outputs)?;
 
     let mut summary = summary_text(
         &plant.name(),

@@ -11,7 +11,7 @@ use sysid_summary::IdentifyReport;
 
 use super::common::{
     check_outputs, print_notes, same_samples, same_samples_warning, shared_rows_warning,
-    stream_note, write_output, ColumnArgs, FileRows, StreamMode, ValidationArgs,
+    stream_note, ColumnArgs, FileRows, StreamMode, ValidationArgs,
 };
 use sysid::detrend::{detrend, Detrend};
 
@@ -193,7 +193,8 @@ pub struct Args {
     /// as a Hammerstein model (b_l = b_r = 0) instead; a warning says so either way.
     #[arg(long)]
     pub fallback: bool,
-    /// Exit with code 1 when the result carries warnings (they are printed either way).
+    /// Exit with code 1 when the result carries warnings (they are printed either way), without writing
+    /// the output files (an earlier file there is kept).
     #[arg(long)]
     pub strict: bool,
     /// Write the JSON summary here (`-` for standard output).
@@ -778,21 +779,21 @@ fn output(
         })
         .unwrap_or_default();
     super::common::print_report(&text, &[args.json.as_deref(), args.save_model.as_deref()])?;
-    if let Some(path) = &args.json {
-        let mut json = report.to_json()?;
+    let mut json = None;
+    if args.json.is_some() {
+        let mut text = report.to_json()?;
         if !notes.is_empty() || args.detrend != Detrend::None {
             // The reader's warnings and the detrending travel with the numbers they concern.
-            let mut value: serde_json::Value = serde_json::from_str(&json)?;
+            let mut value: serde_json::Value = serde_json::from_str(&text)?;
             if let Some(obj) = value.as_object_mut() {
                 obj.insert("detrend".into(), serde_json::json!(args.detrend));
                 obj.insert("data_notes".into(), serde_json::json!(notes));
             }
-            json = serde_json::to_string_pretty(&value)? + "\n";
+            text = serde_json::to_string_pretty(&value)? + "\n";
         }
-        write_output(path, json.as_bytes(), inputs, "--json")?;
+        json = Some(text);
     }
-    save_model(args, model, inputs)?;
-    crate::exit::strict(args.strict, report.warnings.len())
+    write_files(args, json.as_deref(), model, inputs, report.warnings.len())
 }
 
 /// Whether to read the record in passes (`--stream`, [`StreamMode::decide`]): ARX by least squares,
@@ -873,11 +874,25 @@ pub(super) fn checked_inputs<'a>(
     Ok(inputs)
 }
 
-/// Writes `--save-model`, if given.
-fn save_model(args: &Args, model: &sysid::Model, inputs: &[&Path]) -> anyhow::Result<()> {
-    if let Some(path) = &args.save_model {
-        let json = sysid::model_file::to_json(model)?;
-        write_output(path, json.as_bytes(), inputs, "--save-model")?;
+/// Writes `--json` (its text `json`) and `--save-model`, if given, together; with `--strict` and
+/// warnings neither file ([`super::common::write_outputs`]).
+fn write_files(
+    args: &Args,
+    json: Option<&str>,
+    model: &sysid::Model,
+    inputs: &[&Path],
+    warnings: usize,
+) -> anyhow::Result<()> {
+    let saved = match &args.save_model {
+        Some(_) => Some(sysid::model_file::to_json(model)?),
+        None => None,
+    };
+    let mut outputs: Vec<(&Path, &[u8], &str)> = Vec::new();
+    if let (Some(path), Some(text)) = (&args.json, json) {
+        outputs.push((path, text.as_bytes(), "--json"));
     }
-    Ok(())
+    if let (Some(path), Some(text)) = (&args.save_model, &saved) {
+        outputs.push((path, text.as_bytes(), "--save-model"));
+    }
+    super::common::write_outputs(&outputs, inputs, args.strict, warnings)
 }

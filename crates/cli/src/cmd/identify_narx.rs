@@ -4,8 +4,9 @@
 use sysid::narx::{identify_narx, NarxSettings, StopRule};
 use sysid_summary::narx::NarxReport;
 
-use super::common::{print_notes, print_report, write_output};
+use super::common::{print_notes, print_report};
 use super::identify::Args;
+use std::path::Path;
 
 /// The flags of [`NarxArgs`], (argument id, flag): `identify` refuses them without `--structure
 /// narx`, `order` without a narxD class (a flag typed is known by its id).
@@ -114,15 +115,22 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         &render(&report, &settings),
         &[args.json.as_deref(), args.save_model.as_deref()],
     )?;
-    if let Some(path) = &args.json {
-        let json = serde_json::to_string_pretty(&report)? + "\n";
-        write_output(path, json.as_bytes(), &inputs, "--json")?;
+    let json = match &args.json {
+        Some(_) => Some(serde_json::to_string_pretty(&report)? + "\n"),
+        None => None,
+    };
+    let saved = match &args.save_model {
+        Some(_) => Some(sysid::model_file::narx_to_json(&report.model)?),
+        None => None,
+    };
+    let mut outputs: Vec<(&Path, &[u8], &str)> = Vec::new();
+    if let (Some(path), Some(text)) = (&args.json, &json) {
+        outputs.push((path, text.as_bytes(), "--json"));
     }
-    if let Some(path) = &args.save_model {
-        let json = sysid::model_file::narx_to_json(&report.model)?;
-        write_output(path, json.as_bytes(), &inputs, "--save-model")?;
+    if let (Some(path), Some(text)) = (&args.save_model, &saved) {
+        outputs.push((path, text.as_bytes(), "--save-model"));
     }
-    crate::exit::strict(args.strict, report.warnings.len())
+    super::common::write_outputs(&outputs, &inputs, args.strict, report.warnings.len())
 }
 
 /// Without `--offset`: whether a constant term would help, judged as `order` judges it

@@ -4,7 +4,6 @@
 //! Thin: flags -> `control::tune` (search, evaluation, margins) -> text, JSON and the controller file.
 //! Method and definitions: docs/control.md, section "Tuning".
 
-use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
@@ -143,25 +142,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     });
     let file = ControllerFile::new(report.controller, Some(provenance));
     let text = serde_json::to_string_pretty(&file).context("serialising the controller")? + "\n";
-    sysid_io::write_atomic(&args.out, text.as_bytes())?;
 
     let summary = summary_text(&report, &args.out);
-    let json_to_stdout = args.json.as_ref().is_some_and(|j| j.as_os_str() == "-");
-    if let Some(json) = &args.json {
-        let doc = TuneOut {
-            report: &report,
-            controller_file: args.out.display().to_string(),
-        };
-        let text =
-            serde_json::to_string_pretty(&doc).context("serialising the JSON output")? + "\n";
-        if json_to_stdout {
-            std::io::stdout()
-                .write_all(text.as_bytes())
-                .context("writing JSON to standard output")?;
-        } else {
-            sysid_io::write_atomic(json, text.as_bytes())?;
+    let json_text = match &args.json {
+        Some(_) => {
+            let doc = TuneOut {
+                report: &report,
+                controller_file: args.out.display().to_string(),
+            };
+            Some(serde_json::to_string_pretty(&doc).context("serialising the JSON output")? + "\n")
         }
+        None => None,
+    };
+    // The controller file and the JSON together: a failure of either leaves both as they were (audit
+    // s14 M-f).
+    let mut outputs: Vec<(&Path, &[u8])> = vec![(&args.out, text.as_bytes())];
+    if let (Some(json), Some(t)) = (&args.json, &json_text) {
+        outputs.push((json, t.as_bytes()));
     }
+    sysid_io::write_all_atomic(&outputs)?;
     // One parseable document on standard output: the controller file or the JSON, the table aside.
     super::common::print_report(&summary, &[args.json.as_deref(), Some(args.out.as_path())])
 }

@@ -5,7 +5,7 @@ use std::path::{Path, PathBuf};
 use sysid_summary::ValidationReport;
 
 use super::common::{
-    check_outputs, print_notes, print_report, stream_note, write_output, ColumnArgs, StreamMode,
+    check_outputs, print_notes, print_report, stream_note, ColumnArgs, StreamMode,
 };
 
 /// Flags of `validate`.
@@ -23,7 +23,8 @@ pub struct Args {
     #[arg(long, default_value_t = sysid::residuals::DEFAULT_MAX_LAG, value_name = "M",
           value_parser = super::common::parse_lags)]
     pub resid_lags: usize,
-    /// Exit with code 1 when the result carries warnings (they are printed either way).
+    /// Exit with code 1 when the result carries warnings (they are printed either way), without writing
+    /// the output files (an earlier file there is kept).
     #[arg(long)]
     pub strict: bool,
     /// Write the metrics as JSON here (`-` for standard output).
@@ -104,7 +105,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         out.fit_pred_percent,
     );
     print_report(&text, &[args.json.as_deref(), args.out.as_deref()])?;
-    if let Some(path) = &args.out {
+    let mut out_csv = None;
+    if args.out.is_some() {
         let t = sysid::data::sample_times(data.len(), data.ts());
         let mut w = csv::Writer::from_writer(Vec::new());
         w.write_record(["t", "y", "y_sim", "y_pred", "residual"])?;
@@ -121,10 +123,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 (data.y()[k] - out.y_pred[k]).to_string(),
             ])?;
         }
-        let bytes = w.into_inner().map_err(|e| anyhow::anyhow!("{e}"))?;
-        write_output(path, &bytes, &inputs, "--out")?;
+        out_csv = Some(w.into_inner().map_err(|e| anyhow::anyhow!("{e}"))?);
     }
-    finish(&args, &report, &value, &inputs)
+    finish(&args, report.warnings.len(), &value, out_csv, &inputs)
 }
 
 /// `validate` of a polynomial NARX model: simulation (from the measured initial outputs) and one-step
@@ -191,7 +192,8 @@ fn run_narx(
         text.push_str(&format!("warning: {w}\n"));
     }
     print_report(&text, &[args.json.as_deref(), args.out.as_deref()])?;
-    if let Some(path) = &args.out {
+    let mut out_csv = None;
+    if args.out.is_some() {
         let sim = model.simulate(data.u(), data.y())?.y;
         let pred = model.predict(data.u(), data.y())?;
         let t = sysid::data::sample_times(data.len(), data.ts());
@@ -211,34 +213,38 @@ fn run_narx(
                 (data.y()[k] - pred[k]).to_string(),
             ])?;
         }
-        let bytes = w.into_inner().map_err(|e| anyhow::anyhow!("{e}"))?;
-        write_output(path, &bytes, inputs, "--out")?;
+        out_csv = Some(w.into_inner().map_err(|e| anyhow::anyhow!("{e}"))?);
     }
-    if let Some(path) = &args.json {
-        let value = serde_json::json!({
-            "model": model,
-            "metrics": { "validation": metrics },
-            "warnings": warnings,
-            "data_notes": record.notes,
-        });
-        let json = serde_json::to_string_pretty(&value)? + "\n";
-        write_output(path, json.as_bytes(), inputs, "--json")?;
-    }
-    crate::exit::strict(args.strict, warnings.len())
+    let value = serde_json::json!({
+        "model": model,
+        "metrics": { "validation": metrics },
+        "warnings": warnings,
+        "data_notes": record.notes,
+    });
+    finish(args, warnings.len(), &value, out_csv, inputs)
 }
 
-/// Writes `--json` and applies `--strict`.
+/// Writes `--out` (its CSV `out_csv`) and `--json` together, with `--strict` (neither when the run has
+/// `warnings` and `--strict` is given: [`super::common::write_outputs`]).
 fn finish(
     args: &Args,
-    report: &ValidationReport,
+    warnings: usize,
     value: &serde_json::Value,
+    out_csv: Option<Vec<u8>>,
     inputs: &[&Path],
 ) -> anyhow::Result<()> {
-    if let Some(path) = &args.json {
-        let json = serde_json::to_string_pretty(value)? + "\n";
-        write_output(path, json.as_bytes(), inputs, "--json")?;
+    let json = match &args.json {
+        Some(_) => Some(serde_json::to_string_pretty(value)? + "\n"),
+        None => None,
+    };
+    let mut outputs: Vec<(&Path, &[u8], &str)> = Vec::new();
+    if let (Some(path), Some(bytes)) = (&args.out, &out_csv) {
+        outputs.push((path, bytes, "--out"));
     }
-    crate::exit::strict(args.strict, report.warnings.len())
+    if let (Some(path), Some(text)) = (&args.json, &json) {
+        outputs.push((path, text.as_bytes(), "--json"));
+    }
+    super::common::write_outputs(&outputs, inputs, args.strict, warnings)
 }
 
 /// The `validate --json` document: the report with the horizon, the fit of its prediction and the
@@ -357,7 +363,7 @@ fn run_streamed(
     let value = report_json(&report, args.horizon, fit_horizon, &[])?;
     let text = report_text(args, &report, &name, shape.rows, fit_horizon);
     print_report(&text, &[args.json.as_deref(), args.out.as_deref()])?;
-    finish(args, &report, &value, inputs)
+    finish(args, report.warnings.len(), &value, None, inputs)
 }
 
 /// Adds what the model file itself deserves a warning for (a map that breaks its kind's shape) to the report.

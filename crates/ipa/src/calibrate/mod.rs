@@ -299,6 +299,15 @@ pub enum CalibrationWarning {
         /// Free-run fit % of the twin.
         twin_fit: f64,
     },
+    /// The twin simulates a record no better than the record's mean (free-run fit ≤ 0 %).
+    NoBetterThanMean {
+        /// Which record.
+        record: &'static str,
+        /// Free-run fit % of the twin.
+        twin_fit: f64,
+        /// max |u| of the record, counts.
+        largest_command: f64,
+    },
     /// The free run of the twin failed on a record.
     SimulationFailed {
         /// Which record.
@@ -385,6 +394,27 @@ impl std::fmt::Display for CalibrationWarning {
                  {start_fit:.2} %): do not use it without checking"
             ),
             CalibrationWarning::Reader { note } => f.write_str(note),
+            CalibrationWarning::NoBetterThanMean {
+                record,
+                twin_fit,
+                largest_command,
+            } => {
+                write!(
+                    f,
+                    "the twin simulates the {record} record worse than its mean (free-run fit \
+                     {twin_fit:.2} %): it does not follow this record, so do not use it as a model of \
+                     the plant that produced it"
+                )?;
+                if *largest_command < 30.0 {
+                    write!(
+                        f,
+                        "; the record's commands stay within ±{largest_command:.3} counts, inside the \
+                         valves' deadzone (the twin is a pneumatic IPA driven by PWM counts up to \
+                         ±255: is this record of such a plant, in counts?)"
+                    )?;
+                }
+                Ok(())
+            }
             CalibrationWarning::NoComparison { message } => write!(
                 f,
                 "no Hammerstein model could be identified for the comparison ({message}): the twin is \
@@ -815,6 +845,16 @@ impl Calibration {
                         twin_fit: tf,
                     });
                 }
+            }
+            // A twin that simulates the record no better than its mean does not follow it, whatever it
+            // did against its start (audit s14 M-b: fits of −1.5 % and 0.0 % were written silently).
+            if let Some(tf) = t.as_ref().and_then(|t| t.fit_percent).filter(|f| *f <= 0.0) {
+                let u_max = r.u.iter().fold(0.0f64, |m, u| m.max(u.abs()));
+                warnings.push(CalibrationWarning::NoBetterThanMean {
+                    record: name,
+                    twin_fit: tf,
+                    largest_command: u_max,
+                });
             }
             (s, t)
         };

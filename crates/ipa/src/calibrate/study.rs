@@ -146,9 +146,9 @@ impl Study {
                     CalibrationWarning::Correlated { a, b, .. } => {
                         *a == e.parameter || *b == e.parameter
                     }
-                    CalibrationWarning::AboveFloor { .. } | CalibrationWarning::PoorFit { .. } => {
-                        true
-                    }
+                    CalibrationWarning::AboveFloor { .. }
+                    | CalibrationWarning::PoorFit { .. }
+                    | CalibrationWarning::NoBetterThanMean { .. } => true,
                     _ => false,
                 })
             })

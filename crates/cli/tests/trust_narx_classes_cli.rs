@@ -138,9 +138,20 @@ fn narx_negative_fit_is_warned_and_fails_strict_on_the_coupled_drives() {
         let (_, base) = run_json_code(&dir, &arx);
         assert_narx_rules(&doc, &base);
         if !warnings(&doc).is_empty() {
+            // --strict: exit 1, and the untrusted result's JSON is not written.
             narx.push("--strict");
-            let (code, _) = run_json_code(&dir, &narx);
-            assert_eq!(code, 1, "{extra:?}");
+            let tmp = tempfile::tempdir().unwrap();
+            let json = tmp.path().join("strict.json");
+            let out = common::bin()
+                .current_dir(&dir)
+                .args(&narx)
+                .arg("--json")
+                .arg(&json)
+                .output()
+                .unwrap();
+            assert_eq!(out.status.code(), Some(1), "{extra:?}");
+            assert!(!json.exists(), "{extra:?}");
+            assert!(String::from_utf8_lossy(&out.stderr).contains("not written"));
         }
     }
 }

@@ -291,16 +291,19 @@ macro_rules! for_columns {
     };
 }
 
-/// φ's first m entries copied one at a time, each through an opaque copy (`black_box`), or
-/// [`Error::Length`] when φ is shorter. Loaded in wide pieces, a caller's narrower stores of φ (a
-/// regressor built entry by entry) cannot be forwarded to the loads, which then wait for the stores to
-/// retire; scalar loads are always forwarded (issue 28, fifth round).
+/// φ's first m entries copied one at a time, each by one volatile scalar load, or [`Error::Length`]
+/// when φ is shorter. Loaded in wide pieces, a caller's narrower stores of φ (a regressor built entry
+/// by entry) cannot be forwarded to the loads, which then wait for the stores to retire; scalar loads
+/// are always forwarded (issue 28, fifth round). A volatile load cannot be merged into a wider one and
+/// goes straight to a register; the opaque copy used before (`black_box`) also stored each entry to the
+/// stack and loaded it back, a longer path to the first use (issue 28, ninth round: 1–3 ns per update).
 #[inline(always)]
 fn read_regressor<F: Float, const N: usize>(phi: &[F], m: usize) -> Result<[F; N], Error> {
     let phi = phi.get(..m).ok_or(Error::Length)?;
     let mut buf = [F::ZERO; N];
     for (d, s) in buf.iter_mut().zip(phi) {
-        *d = core::hint::black_box(*s);
+        // SAFETY: `s` is a reference to an initialised entry of `phi`.
+        *d = unsafe { core::ptr::read_volatile(s) };
     }
     Ok(buf)
 }
@@ -535,10 +538,11 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
         };
         // A row of at most 16 bytes (f32, N ≤ 4) is loaded whole, by one vector load, which spans
         // the pieces the previous update's second pass stored it in and so cannot be forwarded from
-        // them: read column j of U and d_j one entry at a time then (opaque copies, as φ).
+        // them: read column j of U and d_j one entry at a time then (volatile scalar loads, as φ).
         let row: &[F] = if split_row_loads {
             for (d, s) in old.iter_mut().zip(row.iter().take(j + 1)) {
-                *d = core::hint::black_box(*s);
+                // SAFETY: `s` is a reference to an initialised value of `row`.
+                *d = unsafe { core::ptr::read_volatile(s) };
             }
             old
         } else {

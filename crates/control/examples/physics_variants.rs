@@ -18,7 +18,8 @@
 //! τ_b |dy/dt|, −a_b u_max below it) until |e| ≤ H mm (with BRAKE_HOLD: inside H only the brake, while
 //! τ_b |dy/dt| > |e|, until rest); APPROACH_MIN=mm limits the approach to steps of at least that size,
 //! APPROACH_DIR=1 (−1) to steps up (down). ROWS=1 prints a line per run (plant, y0, r, e_ss, OS %,
-//! t_s, limit cycle); TRACE_MM=W widens TRACE's window to W mm. TWIN=TWIN.toml runs on the twin and its tuning draws (seeds 1001..,
+//! t_s, limit cycle); TRACE_MM=W widens TRACE's window to W mm. BRAKE_CTL=e_a,e_s,τ_b,a_b,T_b,N_b sets
+//! the controller's own approach with braking (`brake` of CONTROLLER.json). TWIN=TWIN.toml runs on the twin and its tuning draws (seeds 1001..,
 //! `tune --plant-config`'s plants: for choosing a setting without the true plants) instead;
 //! SEED_OFFSET=K draws the variants with seeds K+1.. instead (e.g. TWIN=twin.toml SEED_OFFSET=2000: a
 //! family of twins neither the search nor the verification uses); PLANTS=N runs N plants (default 21);
@@ -187,6 +188,17 @@ fn main() {
                 *field = v;
             }
         }
+    }
+    if let Ok(b) = std::env::var("BRAKE_CTL") {
+        let v: Vec<f64> = b.split(',').map(|x| x.parse().unwrap()).collect();
+        s.brake = Some(control::position::Brake {
+            min_step_mm: v[0],
+            switch_mm: v[1],
+            lead_s: v[2],
+            strength: v[3],
+            samples: v[4] as u32,
+            rest_samples: v[5] as u32,
+        });
     }
     let spec = Spec::default();
     let approach: Option<Vec<f64>> = std::env::var("APPROACH")

@@ -34,6 +34,8 @@ pub enum ControlSetting {
     FineBand,
     /// The nudge mode of the tuned controller (band, ramp, start fraction, rest samples).
     Nudge,
+    /// The approach with braking of the tuned controller (min step, switch, lead, strength, samples).
+    Brake,
     /// The tuning specification (`--spec`).
     Spec,
 }
@@ -56,6 +58,7 @@ impl ControlSetting {
             ControlSetting::HoldBand => "hold_band_mm",
             ControlSetting::FineBand => "fine_band_mm",
             ControlSetting::Nudge => "nudge",
+            ControlSetting::Brake => "brake",
             ControlSetting::Spec => "spec",
         }
     }
@@ -152,6 +155,7 @@ impl ControlSetting {
             ControlSetting::HoldBand => "hold_band_mm (controller file)",
             ControlSetting::FineBand => "fine_band_mm (controller file)",
             ControlSetting::Nudge => "nudge (controller file)",
+            ControlSetting::Brake => "brake (controller file)",
             ControlSetting::Spec => "--spec",
         }
     }

@@ -893,7 +893,7 @@ mod tests {
     fn the_brake_engages_at_the_sample_where_the_error_falls_within_the_lead() {
         let mut c = PositionController::new(braking(), None).unwrap();
         let y = [0.0, 1.0, 2.0, 10.0, 12.0, 13.0, 13.0, 13.0, 13.5];
-        let u: [f64; 9] = core::array::from_fn(|k| c.step(20.0, y[k]).unwrap());
+        let u = y.map(|y| c.step(20.0, y).unwrap());
         assert_eq!(u, [255.0, 255.0, 255.0, -127.5, -127.5, 0.0, 0.0, 7.0, 6.5]);
         // A new set-point 26.5 mm away re-arms the approach; one 5 mm away does not (< e_a).
         assert_eq!(c.step(40.0, 13.5).unwrap(), 255.0);
@@ -906,7 +906,7 @@ mod tests {
     fn the_brake_acts_the_same_way_down() {
         let mut c = PositionController::new(braking(), None).unwrap();
         let y = [20.0, 19.0, 18.0, 10.0, 8.0];
-        let u: [f64; 5] = core::array::from_fn(|k| c.step(0.0, y[k]).unwrap());
+        let u = y.map(|y| c.step(0.0, y).unwrap());
         assert_eq!(u, [-255.0, -255.0, -255.0, 127.5, 127.5]);
     }
 

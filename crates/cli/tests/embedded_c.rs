@@ -202,6 +202,17 @@ fn c_example_matches_identify_rls_single_pass() {
 /// same doubles).
 #[test]
 fn c_controller_matches_control_bit_for_bit_on_a_recorded_run() {
+    c_controller_matches_control(false);
+}
+
+/// The same with the approach with braking (`brake`, session 14) in the file: the staircase's steps
+/// of 82 and 60 mm (>= e_a = 30 mm) are approached with the full command and braked.
+#[test]
+fn c_controller_with_a_brake_matches_control_bit_for_bit_on_a_recorded_run() {
+    c_controller_matches_control(true);
+}
+
+fn c_controller_matches_control(brake: bool) {
     if no_cc() {
         return;
     }
@@ -248,6 +259,10 @@ fn c_controller_matches_control_bit_for_bit_on_a_recorded_run() {
         serde_json::from_str(&std::fs::read_to_string(&ctl).unwrap()).unwrap();
     file["controller"]["nudge"]["cut_band_mm"] = serde_json::json!(0.3);
     file["controller"]["nudge"]["min_ramp_counts_s"] = serde_json::json!(20.0);
+    if brake {
+        file["controller"]["brake"] = serde_json::json!({"min_step_mm": 30.0, "switch_mm": 0.0,
+            "lead_s": 0.02, "strength": 0.25, "samples": 25, "rest_samples": 3});
+    }
     std::fs::write(&ctl, serde_json::to_string_pretty(&file).unwrap()).unwrap();
     cli(&[
         "control",
@@ -303,6 +318,15 @@ fn c_controller_matches_control_bit_for_bit_on_a_recorded_run() {
     for k in ["rest_band_mm", "cut_band_mm", "min_ramp_counts_s"] {
         args.push(format!("{:?}", nudge[k].as_f64().unwrap()));
     }
+    if brake {
+        let b = &c["brake"];
+        for k in ["min_step_mm", "switch_mm", "lead_s", "strength"] {
+            args.push(format!("{:?}", b[k].as_f64().unwrap()));
+        }
+        for k in ["samples", "rest_samples"] {
+            args.push(b[k].as_u64().unwrap().to_string());
+        }
+    }
     let out = Command::new(&exe)
         .args(&args)
         .stdin(std::fs::File::open(&trace).unwrap())
@@ -349,4 +373,10 @@ fn c_controller_matches_control_bit_for_bit_on_a_recorded_run() {
         .filter(|(e, u)| e.abs() > hold && e.abs() <= band && *u != 0.0)
         .count();
     assert!(nudges > 0, "no nudge in the run");
+    // With the brake: its reverse command −a_b u_max = −0.25 × 255 after a full command (both
+    // directions: the staircase goes up 82 mm and down 60 mm).
+    if brake {
+        assert!(recorded.contains(&-63.75) && recorded.contains(&63.75));
+        assert!(recorded.contains(&255.0) && recorded.contains(&-255.0));
+    }
 }

@@ -10,7 +10,16 @@
 //! in a prototype approach mode (issue 25, session 12; not in the controller): full command towards r
 //! from the step's start until |e| ≤ e_sw + τ_b |dy/dt| (moving towards r; Q = 1: τ_b (dy/dt)², τ_b
 //! in s²/mm), then the controller for the rest of the run (it runs through the approach, its command
-//! unused; R = 1: it restarts at the switch instead). TWIN=TWIN.toml runs on the twin and its tuning draws (seeds 1001..,
+//! unused; R = 1: it restarts at the switch instead). Braking after the switch (issue 25, session
+//! 14; prototypes, not in the controller): BRAKE=a_b reverses the command to −a_b u_max while the
+//! piston still moves towards r, or for BRAKE_N=T samples (timed, the time oracle's T2);
+//! BRAKE_HOLD=N (1 = 3) then closes the valves (u = 0) until y has not changed for N samples and restarts
+//! the controller; SLIDE=H replaces the switch by a switching line (full command while |e| > e_sw +
+//! τ_b |dy/dt|, −a_b u_max below it) until |e| ≤ H mm (with BRAKE_HOLD: inside H only the brake, while
+//! τ_b |dy/dt| > |e|, until rest); APPROACH_MIN=mm limits the approach to steps of at least that size,
+//! APPROACH_DIR=1 (−1) to steps up (down). ROWS=1 prints a line per run (plant, y0, r, e_ss, OS %,
+//! t_s, limit cycle); TRACE_MM=W widens TRACE's window to W mm. BRAKE_CTL=e_a,e_s,τ_b,a_b,T_b,N_b sets
+//! the controller's own approach with braking (`brake` of CONTROLLER.json). TWIN=TWIN.toml runs on the twin and its tuning draws (seeds 1001..,
 //! `tune --plant-config`'s plants: for choosing a setting without the true plants) instead;
 //! SEED_OFFSET=K draws the variants with seeds K+1.. instead (e.g. TWIN=twin.toml SEED_OFFSET=2000: a
 //! family of twins neither the search nor the verification uses); PLANTS=N runs N plants (default 21);
@@ -32,6 +41,25 @@ struct Approach {
     quadratic: bool,
     /// The controller restarts at the switch (else it runs through the approach, its command unused).
     reset_at_switch: bool,
+    /// BRAKE=a_b: after the switch, −a_b u_max while the piston still moves towards r (0 = none).
+    brake: f64,
+    braking: bool,
+    /// APPROACH_MIN=mm: the approach only for a step of at least this size.
+    min_step_mm: f64,
+    /// APPROACH_DIR=1 or −1: the approach only for steps up (r > y0) or down (0 = both).
+    direction: f64,
+    /// BRAKE_HOLD=1: after the brake, valves closed until y rests 3 samples, then the controller restarts.
+    hold: bool,
+    /// Samples of unchanged y that end the hold (BRAKE_HOLD=N, default 3).
+    rest_n: u32,
+    /// SLIDE=H: sliding approach: full command while |e| > e_sw + τ_b v, else −a_b u_max, until |e| ≤ H mm.
+    slide: f64,
+    /// BRAKE_N=T: the brake lasts T samples (timed, the time oracle's T2) instead of until the piston stops.
+    brake_n: u32,
+    brake_k: u32,
+    side: f64,
+    holding: bool,
+    still: u32,
 }
 
 impl control::Controller for Approach {
@@ -42,10 +70,16 @@ impl control::Controller for Approach {
         self.inner.reset();
         self.y_prev = None;
         self.on = true;
+        self.braking = false;
+        self.holding = false;
+        self.still = 0;
     }
     fn step(&mut self, r_mm: f64, y_mm: f64) -> f64 {
         let e = r_mm - y_mm;
         let v = self.y_prev.map_or(0.0, |p| (y_mm - p) / self.ts_s());
+        if self.y_prev.is_none() && (e.abs() < self.min_step_mm || e * self.direction < 0.0) {
+            self.on = false;
+        }
         self.y_prev = Some(y_mm);
         if self.on {
             let towards = (e.signum() * v).max(0.0);
@@ -54,16 +88,81 @@ impl control::Controller for Approach {
             } else {
                 self.tau_s * towards
             };
-            if e.abs() > self.switch_mm + braking {
+            if self.slide > 0.0 && e.abs() > self.slide {
+                if !self.reset_at_switch {
+                    self.inner.step(r_mm, y_mm);
+                }
+                return if e.abs() > self.switch_mm + braking {
+                    e.signum() * self.u_max
+                } else {
+                    -e.signum() * self.brake * self.u_max
+                };
+            }
+            if self.slide > 0.0 && self.hold {
+                // inside H: brake only (while the predicted stop is past r), else valves closed, until rest
+                self.still = if v == 0.0 { self.still + 1 } else { 0 };
+                if self.still < self.rest_n {
+                    if !self.reset_at_switch {
+                        self.inner.step(r_mm, y_mm);
+                    }
+                    return if braking > e.abs() {
+                        -e.signum() * self.brake * self.u_max
+                    } else {
+                        0.0
+                    };
+                }
+                self.on = false;
+                self.inner.reset();
+            } else if self.slide > 0.0 {
+                self.on = false;
+                self.holding = self.hold;
+                self.still = 0;
+                if self.reset_at_switch {
+                    self.inner.reset();
+                }
+            } else if e.abs() > self.switch_mm + braking {
                 if !self.reset_at_switch {
                     self.inner.step(r_mm, y_mm);
                 }
                 return e.signum() * self.u_max;
             }
-            self.on = false;
-            if self.reset_at_switch {
-                self.inner.reset();
+            if self.slide <= 0.0 {
+                self.on = false;
+                self.braking = self.brake > 0.0;
+                self.side = e.signum();
+                self.brake_k = 0;
+                if self.reset_at_switch {
+                    self.inner.reset();
+                }
             }
+        }
+        if self.braking && self.brake_n > 0 {
+            self.brake_k += 1;
+            if self.brake_k <= self.brake_n {
+                self.inner.step(r_mm, y_mm);
+                return -self.side * self.brake * self.u_max;
+            }
+            self.braking = false;
+            self.holding = self.hold;
+            self.still = 0;
+        }
+        if self.braking {
+            if e.signum() * v > 0.0 {
+                self.inner.step(r_mm, y_mm);
+                return -e.signum() * self.brake * self.u_max;
+            }
+            self.braking = false;
+            self.holding = self.hold;
+            self.still = 0;
+        }
+        if self.holding {
+            self.still = if v == 0.0 { self.still + 1 } else { 0 };
+            if self.still < self.rest_n {
+                self.inner.step(r_mm, y_mm);
+                return 0.0;
+            }
+            self.holding = false;
+            self.inner.reset();
         }
         self.inner.step(r_mm, y_mm)
     }
@@ -90,7 +189,49 @@ fn main() {
             }
         }
     }
+    if let Ok(b) = std::env::var("BRAKE_CTL") {
+        let v: Vec<f64> = b.split(',').map(|x| x.parse().unwrap()).collect();
+        s.brake = Some(control::position::Brake {
+            min_step_mm: v[0],
+            switch_mm: v[1],
+            lead_s: v[2],
+            strength: v[3],
+            samples: v[4] as u32,
+            rest_samples: v[5] as u32,
+        });
+    }
     let spec = Spec::default();
+    let approach: Option<Vec<f64>> = std::env::var("APPROACH")
+        .ok()
+        .map(|a| a.split(',').map(|x| x.parse().unwrap()).collect());
+    let build = move || -> Result<Box<dyn control::Controller + Send>, control::ControlError> {
+        let inner = s.build()?;
+        Ok(match &approach {
+            Some(a) => Box::new(Approach {
+                u_max: spec.u_max,
+                inner,
+                tau_s: a[0],
+                switch_mm: a[1],
+                y_prev: None,
+                on: true,
+                quadratic: a.get(2) == Some(&1.0),
+                reset_at_switch: a.get(3) == Some(&1.0),
+                brake: std::env::var("BRAKE").map_or(0.0, |b| b.parse().unwrap()),
+                braking: false,
+                hold: std::env::var("BRAKE_HOLD").is_ok(),
+                rest_n: std::env::var("BRAKE_HOLD").map_or(3, |n| n.parse().unwrap_or(3)),
+                holding: false,
+                brake_n: std::env::var("BRAKE_N").map_or(0, |b| b.parse().unwrap()),
+                brake_k: 0,
+                side: 0.0,
+                slide: std::env::var("SLIDE").map_or(0.0, |b| b.parse().unwrap()),
+                still: 0,
+                direction: std::env::var("APPROACH_DIR").map_or(0.0, |b| b.parse().unwrap()),
+                min_step_mm: std::env::var("APPROACH_MIN").map_or(0.0, |b| b.parse().unwrap()),
+            }),
+            None => Box::new(inner),
+        })
+    };
     if let Ok(t) = std::env::var("TRACE") {
         let v: Vec<f64> = t.split(',').map(|x| x.parse().unwrap()).collect();
         let base = ipa::PlantConfig::default();
@@ -100,18 +241,19 @@ fn main() {
             ipa::calibrate::study::perturbed_from(&base, v[0] as u64, 0.3)
         };
         let mut p = ipa::Ipa::with_ts(cfg, 0.01).unwrap();
-        let mut c = s.build().unwrap();
+        let mut c = build().unwrap();
         let tr = control::closed_loop::run(
             &mut p,
-            &mut c,
+            c.as_mut(),
             None,
             &control::Profile::Fixed { setpoint_mm: v[2] },
             3.0,
             v[1],
         )
         .unwrap();
+        let width = std::env::var("TRACE_MM").map_or(3.0, |w| w.parse().unwrap());
         for k in 0..tr.len() {
-            if (v[2] - tr.y[k]).abs() < 3.0 {
+            if (v[2] - tr.y[k]).abs() < width {
                 println!(
                     "{:.2} y {:.3} e {:.3} u {:.1}",
                     tr.t[k],
@@ -139,34 +281,22 @@ fn main() {
         };
         Ok(Box::new(ipa::Ipa::with_ts(cfg, 0.01).unwrap()))
     };
-    let approach: Option<Vec<f64>> = std::env::var("APPROACH")
-        .ok()
-        .map(|a| a.split(',').map(|x| x.parse().unwrap()).collect());
     let plants = std::env::var("PLANTS").map_or(21, |n| n.parse().unwrap());
-    let ev = tune::evaluate(
-        plants,
-        &make,
-        &move || -> Result<Box<dyn control::Controller + Send>, control::ControlError> {
-            let inner = s.build()?;
-            Ok(match &approach {
-                Some(a) => Box::new(Approach {
-                    u_max: spec.u_max,
-                    inner,
-                    tau_s: a[0],
-                    switch_mm: a[1],
-                    y_prev: None,
-                    on: true,
-                    quadratic: a.get(2) == Some(&1.0),
-                    reset_at_switch: a.get(3) == Some(&1.0),
-                }),
-                None => Box::new(inner),
-            })
-        },
-        &spec,
-    )
-    .unwrap();
+    let ev = tune::evaluate(plants, &make, &build, &spec).unwrap();
     for r in &ev.runs {
         let e = r.metrics.steady_state_error_mm.unwrap_or(f64::NAN);
+        if std::env::var("ROWS").is_ok() {
+            println!(
+                "row {} {} {} ess {:.3} os {:.3} ts {:.3} cycle {:.3}",
+                r.plant,
+                r.case.y0_mm,
+                r.case.r_mm,
+                e,
+                r.metrics.overshoot_percent.unwrap_or(f64::NAN),
+                r.metrics.settling_time_s.unwrap_or(f64::NAN),
+                r.limit_cycle_mm
+            );
+        }
         if (e.is_nan() || e.abs() > 0.02) && std::env::var("SHOW").is_ok() {
             println!(
                 "  plant {} {} -> {} e_ss {:.3} cycle {:.2} OS {:?} ts {:?}",

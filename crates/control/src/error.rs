@@ -34,6 +34,8 @@ pub enum ControlSetting {
     FineBand,
     /// The nudge mode of the tuned controller (band, ramp, start fraction, rest samples).
     Nudge,
+    /// The approach with braking of the tuned controller (min step, switch, lead, strength, samples).
+    Brake,
     /// The tuning specification (`--spec`).
     Spec,
     /// Plant variants a tuning searches over.
@@ -62,6 +64,7 @@ impl ControlSetting {
             ControlSetting::HoldBand => "hold_band_mm",
             ControlSetting::FineBand => "fine_band_mm",
             ControlSetting::Nudge => "nudge",
+            ControlSetting::Brake => "brake",
             ControlSetting::Spec => "spec",
             ControlSetting::Variants => "variants",
             ControlSetting::PhysicsVariants => "physics_variants",
@@ -161,6 +164,7 @@ impl ControlSetting {
             ControlSetting::HoldBand => "hold_band_mm (controller file)",
             ControlSetting::FineBand => "fine_band_mm (controller file)",
             ControlSetting::Nudge => "nudge (controller file)",
+            ControlSetting::Brake => "brake (controller file)",
             ControlSetting::Spec => "--spec",
             ControlSetting::Variants => "--variants",
             ControlSetting::PhysicsVariants => "--physics-variants",

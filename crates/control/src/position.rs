@@ -77,6 +77,10 @@ pub struct ControllerSettings {
     /// without the field).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub nudge: Option<Nudge>,
+    /// The approach with braking for large steps (module documentation); `None` = off (a file
+    /// written before it existed runs as then).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub brake: Option<Brake>,
     /// The deadzone inverse between the PID and the valve (from the model's deadzone), if any.
     pub compensator: Option<DeadzoneCompensator>,
 }
@@ -113,6 +117,65 @@ pub struct Nudge {
     /// ρ_min: ramp-and-cut's slowest ramp, counts/s (0 < ρ_min <= ρ when e_c > 0).
     #[serde(default)]
     pub min_ramp_counts_s: f64,
+}
+
+/// The approach with braking (issue 25, session 14): for a step of at least e_a, the full command
+/// towards r until side e ≤ e_s + τ_b v (v: speed towards r, mm/s), then −a_b u_max for T_b samples,
+/// then the valves closed until y has rested N_b samples, then the law from a fresh start (the time
+/// oracle's open-loop family made a feedback rule; docs/control.md).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Brake {
+    /// e_a: smallest step approached this way, mm (>= 0): |r − y| when r is set or changes.
+    pub min_step_mm: f64,
+    /// e_s: the full command ends at side e <= e_s + τ_b v, mm (>= 0).
+    pub switch_mm: f64,
+    /// τ_b: stopping lead per mm/s of speed towards r, s (>= 0).
+    pub lead_s: f64,
+    /// a_b: braking command as a fraction of u_max, in (0, 1].
+    pub strength: f64,
+    /// T_b: samples of braking (1 to 1000).
+    pub samples: u32,
+    /// N_b: samples of unchanged y that end the hold after the brake (1 to 1000).
+    pub rest_samples: u32,
+}
+
+impl Brake {
+    /// Checks every field; errors name [`ControlSetting::Brake`].
+    pub fn validate(&self) -> Result<(), ControlError> {
+        let bad =
+            |what: &str, v: String| Err(ControlError::setting(ControlSetting::Brake, v, what));
+        let fmt = crate::trust::fmt_value;
+        for (name, v) in [
+            ("min_step_mm", self.min_step_mm),
+            ("switch_mm", self.switch_mm),
+        ] {
+            if !(v.is_finite() && (0.0..=MAX_LENGTH_MM).contains(&v)) {
+                return bad(
+                    &format!("a brake {name} from 0 to {MAX_LENGTH_MM:e} mm"),
+                    fmt(v),
+                );
+            }
+        }
+        if !(self.lead_s.is_finite() && (0.0..=MAX_TIME_S).contains(&self.lead_s)) {
+            return bad(
+                &format!("a brake lead_s from 0 to {MAX_TIME_S:e} s"),
+                fmt(self.lead_s),
+            );
+        }
+        if !(self.strength > 0.0 && self.strength <= 1.0) {
+            return bad("a brake strength in (0, 1]", fmt(self.strength));
+        }
+        for (name, n) in [
+            ("samples", self.samples),
+            ("rest_samples", self.rest_samples),
+        ] {
+            if !(1..=1000).contains(&n) {
+                return bad(&format!("brake {name} from 1 to 1000"), n.to_string());
+            }
+        }
+        Ok(())
+    }
 }
 
 impl Nudge {
@@ -203,6 +266,7 @@ impl ControllerSettings {
             fine_band_mm: 0.0,
             reset_on_crossing: false,
             nudge: None,
+            brake: None,
             compensator: None,
         }
     }
@@ -253,6 +317,9 @@ impl ControllerSettings {
         }
         if let Some(n) = &self.nudge {
             n.validate(self.hold_band_mm)?;
+        }
+        if let Some(b) = &self.brake {
+            b.validate()?;
         }
         if let Some(c) = self.compensator.as_ref().filter(|c| c.u_max != self.u_max) {
             return Err(ControlError::setting(
@@ -321,6 +388,14 @@ impl ControllerSettings {
                 rest_band: n.rest_band_mm,
                 cut_band: n.cut_band_mm,
                 min_ramp: n.min_ramp_counts_s,
+            }),
+            brake: self.brake.map(|b| ipa_embedded::position::BrakeSettings {
+                min_step: b.min_step_mm,
+                switch: b.switch_mm,
+                lead: b.lead_s,
+                strength: b.strength,
+                samples: b.samples,
+                rest_samples: b.rest_samples,
             }),
         }
     }
@@ -613,5 +688,48 @@ mod tests {
         let bad = text.replace("\"kp\": 14.0", "\"kp\": -1.0");
         let e = ControllerFile::parse(&bad, "c.json").unwrap_err();
         assert!(e.to_string().contains("kp"), "{e}");
+    }
+
+    fn with_brake(switch_mm: f64) -> ControllerSettings {
+        ControllerSettings {
+            brake: Some(Brake {
+                min_step_mm: 10.0,
+                switch_mm,
+                lead_s: 0.0,
+                strength: 0.5,
+                samples: 1,
+                rest_samples: 1,
+            }),
+            ..plain(1.0, 0.0)
+        }
+    }
+
+    // The brake's fields reach the embedded step: r = 20 from y = 0 with the switch at e_s = 1000 mm
+    // brakes at once, −a_b u_max = −127.5; with e_s = 1 mm the first command is the full +255.
+    #[test]
+    fn the_brake_settings_reach_the_embedded_step() {
+        let mut c = with_brake(1000.0).build().unwrap();
+        assert_eq!(c.step(20.0, 0.0), -127.5);
+        let mut c = with_brake(1.0).build().unwrap();
+        assert_eq!(c.step(20.0, 0.0), 255.0);
+    }
+
+    #[test]
+    fn a_brake_round_trips_and_a_bad_one_is_refused_by_name() {
+        let s = with_brake(1.0);
+        let text = serde_json::to_string_pretty(&ControllerFile::new(s, None)).unwrap();
+        assert!(text.contains("\"brake\""));
+        assert_eq!(ControllerFile::parse(&text, "c.json").unwrap(), s);
+        let bad = text.replace("\"strength\": 0.5", "\"strength\": 2.0");
+        let e = ControllerFile::parse(&bad, "c.json").unwrap_err();
+        assert!(e.to_string().contains("brake"), "{e}");
+        let bad = text.replace("\"samples\": 1,", "\"samples\": 1, \"extra\": 1,");
+        assert!(ControllerFile::parse(&bad, "c.json").is_err());
+        // A file without one (every file before session 14) reads as none.
+        assert!(
+            !serde_json::to_string(&ControllerFile::new(plain(1.0, 0.0), None))
+                .unwrap()
+                .contains("brake")
+        );
     }
 }

@@ -488,6 +488,7 @@ pub fn settings_of(
                 0.0
             },
         }),
+        brake: None,
         compensator,
     })
 }

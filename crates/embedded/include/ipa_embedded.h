@@ -46,7 +46,7 @@
 /**
  * An upper bound, valid on every target, of [`ipa_ctl_state_size`] in bytes (the tuned controller).
  */
-#define IPA_CTL_STATE_BYTES 384
+#define IPA_CTL_STATE_BYTES 512
 
 /**
  * `ipa_hrls_init` form: P itself, updated by the paper's eq. 12 (`identify --rls-form standard`).
@@ -227,6 +227,35 @@ typedef struct IpaController {
    * without it).
    */
   double nudge_min_ramp;
+  /**
+   * 1: the approach with braking with the `brake_*` fields (`brake`); 0: none (the fields are
+   * ignored; a struct zeroed before it existed runs as then).
+   */
+  int32_t has_brake;
+  /**
+   * T_b: samples of braking (`brake.samples`).
+   */
+  uint32_t brake_samples;
+  /**
+   * N_b: samples of unchanged y that end the hold after the brake (`brake.rest_samples`).
+   */
+  uint32_t brake_rest_samples;
+  /**
+   * e_a: smallest step approached this way, mm (`brake.min_step_mm`).
+   */
+  double brake_min_step;
+  /**
+   * e_s: switch distance, mm (`brake.switch_mm`).
+   */
+  double brake_switch;
+  /**
+   * τ_b: stopping lead per mm/s towards r, s (`brake.lead_s`).
+   */
+  double brake_lead;
+  /**
+   * a_b: braking command as a fraction of u_max (`brake.strength`).
+   */
+  double brake_strength;
 } IpaController;
 
 #ifdef __cplusplus

@@ -24,7 +24,7 @@ use crate::cusum::{Cusum, CusumStatus};
 use crate::deadzone::{Compensator, Deadzone, SlopeMode};
 use crate::hammerstein::{HammersteinRls, HammersteinSettings};
 use crate::pi::{AntiWindup, Pi};
-use crate::position::{NudgeSettings, PositionController, PositionSettings};
+use crate::position::{BrakeSettings, NudgeSettings, PositionController, PositionSettings};
 use crate::rls::Form;
 use crate::Error;
 
@@ -40,7 +40,7 @@ pub const IPA_HRLS_STATE_BYTES: usize = 3456;
 pub const IPA_PI_STATE_BYTES: usize = 80;
 
 /// An upper bound, valid on every target, of [`ipa_ctl_state_size`] in bytes (the tuned controller).
-pub const IPA_CTL_STATE_BYTES: usize = 384;
+pub const IPA_CTL_STATE_BYTES: usize = 512;
 
 /// `ipa_hrls_init` form: P itself, updated by the paper's eq. 12 (`identify --rls-form standard`).
 pub const IPA_FORM_STANDARD: u32 = 0;
@@ -154,6 +154,21 @@ pub struct IpaController {
     /// ρ_min: ramp-and-cut's slowest ramp, counts/s (`nudge.min_ramp_counts_s`; 0 = off, as in a file
     /// without it).
     pub nudge_min_ramp: f64,
+    /// 1: the approach with braking with the `brake_*` fields (`brake`); 0: none (the fields are
+    /// ignored; a struct zeroed before it existed runs as then).
+    pub has_brake: i32,
+    /// T_b: samples of braking (`brake.samples`).
+    pub brake_samples: u32,
+    /// N_b: samples of unchanged y that end the hold after the brake (`brake.rest_samples`).
+    pub brake_rest_samples: u32,
+    /// e_a: smallest step approached this way, mm (`brake.min_step_mm`).
+    pub brake_min_step: f64,
+    /// e_s: switch distance, mm (`brake.switch_mm`).
+    pub brake_switch: f64,
+    /// τ_b: stopping lead per mm/s towards r, s (`brake.lead_s`).
+    pub brake_lead: f64,
+    /// a_b: braking command as a fraction of u_max (`brake.strength`).
+    pub brake_strength: f64,
 }
 const _: () = assert!(size_of::<CusumState>() <= IPA_CUSUM_STATE_BYTES);
 const _: () = assert!(MAX_D >= IPA_MAX_NA as usize);
@@ -669,6 +684,18 @@ pub unsafe extern "C" fn ipa_ctl_init(
         })),
         _ => Err(Error::Setting),
     };
+    let brake = match c.has_brake {
+        0 => Ok(None),
+        1 => Ok(Some(BrakeSettings {
+            min_step: c.brake_min_step,
+            switch: c.brake_switch,
+            lead: c.brake_lead,
+            strength: c.brake_strength,
+            samples: c.brake_samples,
+            rest_samples: c.brake_rest_samples,
+        })),
+        _ => Err(Error::Setting),
+    };
     let state = compensator.and_then(|comp| {
         let s = PositionSettings {
             ts: c.ts,
@@ -681,6 +708,7 @@ pub unsafe extern "C" fn ipa_ctl_init(
             fine_band: c.fine_band,
             reset_on_crossing: reset_on_crossing?,
             nudge: nudge?,
+            brake: brake?,
         };
         PositionController::new(s, comp).map(|ctl| CtlState {
             magic: CTL_MAGIC,

@@ -124,24 +124,36 @@ mod tests {
         // `None`), 13 floats (α, I, D, y(k−1), e(k−1), two breakaway commands, two learnt coasts, the
         // last nudge's y_0 and e_0, two ramp-and-cut rates per mm), the optional nudge under way (four
         // floats and three bools, whose spare values hold the `None`), the optional last cut (two
-        // floats and a bool, whose spare values hold the `None`), a u32 and two bools: 376 bytes for
-        // f64 on a 64-bit host.
+        // floats and a bool, whose spare values hold the `None`), a u32 and two bools; and (the
+        // approach with braking) the optional brake settings (four floats and two u32, a tag), its
+        // phase (a tag, a bool and a u32: 8 bytes), r(k−1) and a bool: 440 bytes for f64 on a 64-bit
+        // host.
         let a = |f: usize| f.max(4);
         let nudge = |f: usize| round(7 * f + 4, a(f)) + a(f);
-        let settings = |f: usize| round(8 * f + 1 + nudge(f), f);
+        let brake = |f: usize| round(4 * f + 8 + 1, a(f));
+        let settings = |f: usize| round(8 * f + 1 + nudge(f) + brake(f), f);
         let nudging = |f: usize| round(4 * f + 3, f);
         let cut = |f: usize| round(2 * f + 1, f);
         let ctl = |f: usize| {
             round(
-                settings(f) + round(6 * f + 1, f) + 13 * f + nudging(f) + cut(f) + 4 + 2,
+                settings(f)
+                    + round(6 * f + 1, f)
+                    + 13 * f
+                    + nudging(f)
+                    + cut(f)
+                    + 4
+                    + 2
+                    + 8
+                    + f
+                    + 1,
                 f.max(4),
             )
         };
         assert_eq!(size_of::<PositionController<f64>>(), ctl(8));
         assert_eq!(size_of::<PositionController<f32>>(), ctl(4));
         if w == 8 {
-            assert_eq!(ctl(8), 376);
-            assert_eq!(ctl(4), 192);
+            assert_eq!(ctl(8), 440);
+            assert_eq!(ctl(4), 232);
         }
         assert!(ffi::ipa_ctl_state_size() <= ffi::IPA_CTL_STATE_BYTES);
         if w == 8 {

@@ -19,6 +19,13 @@
 //!             distance coasted since the cut / |dy/dt| at the cut (learnt on line, −1 = not yet)
 //! e_n < |e| ≤ e_r (rest band): the nudge mode too once y has been unchanged for N_r samples, and while
 //!             the nudge it starts, or the coast after its cut, is under way
+//! approach with braking (when set; issue 25, session 14), armed at the first sample and whenever r
+//!             changes, for a step |r − y| ≥ e_a, side = sign(r − y), v = side (y(k) − y(k−1))/Ts:
+//!             approach: u = side u_max while side e > e_s + τ_b max(v, 0); then
+//!             brake:    u = −side a_b u_max for T_b samples (from the sample the approach ends); then
+//!             hold:     u = 0 (valves closed) until y has been unchanged for N_b samples; then the law
+//!                       above from a fresh start (I, D, y(k−1), e(k−1), the nudge under way and the
+//!                       rest count cleared; the learnt u_b, τ_c and a(side) kept)
 //! ```
 
 use crate::deadzone::Compensator;
@@ -46,6 +53,38 @@ pub struct NudgeSettings<F: Float> {
     pub cut_band: F,
     /// ρ_min: ramp-and-cut's slowest ramp, counts/s (> 0 and ≤ ρ when e_c > 0).
     pub min_ramp: F,
+}
+
+/// The approach with braking of a [`PositionController`] (`controller.brake` of CONTROLLER.json):
+/// for a large step, the full command towards r, then a long weak reverse command, then the valves
+/// closed until the piston rests (the time oracle's open-loop family, docs/control.md).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BrakeSettings<F: Float> {
+    /// e_a: smallest step that is approached this way, mm (≥ 0): |r − y| when r is set or changes.
+    pub min_step: F,
+    /// e_s: the approach ends at side e ≤ e_s + τ_b max(v, 0), mm (≥ 0).
+    pub switch: F,
+    /// τ_b: stopping lead per mm/s of speed towards r, s (≥ 0).
+    pub lead: F,
+    /// a_b: braking command as a fraction of u_max, in (0, 1].
+    pub strength: F,
+    /// T_b: samples of braking (1..=1000).
+    pub samples: u32,
+    /// N_b: samples of unchanged y that end the hold after the brake (1..=1000).
+    pub rest_samples: u32,
+}
+
+/// Where the approach with braking is (`right`: towards larger y).
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Approach {
+    /// Not approaching: the law runs.
+    Off,
+    /// Full command towards r.
+    Drive { right: bool },
+    /// Braking: samples given so far.
+    Brake { right: bool, given: u32 },
+    /// Valves closed after the brake: samples of unchanged y so far.
+    Hold { still: u32 },
 }
 
 /// A nudge under way (`right`: u > 0).
@@ -85,6 +124,8 @@ pub struct PositionSettings<F: Float> {
     pub reset_on_crossing: bool,
     /// The nudge mode, if any.
     pub nudge: Option<NudgeSettings<F>>,
+    /// The approach with braking for large steps, if any (`None`: as before it existed).
+    pub brake: Option<BrakeSettings<F>>,
 }
 
 /// A running tuned controller: settings, the optional deadzone inverse and the states (I, D, y(k−1),
@@ -93,7 +134,8 @@ pub struct PositionSettings<F: Float> {
 /// ```
 /// use ipa_embedded::{PositionController, PositionSettings};
 /// let s = PositionSettings { ts: 0.01, kp: 10.0, ki: 100.0, kd: 0.0, tf: 0.0, u_max: 255.0,
-///                            hold_band: 0.02, fine_band: 0.0, reset_on_crossing: true, nudge: None };
+///                            hold_band: 0.02, fine_band: 0.0, reset_on_crossing: true, nudge: None,
+///                            brake: None };
 /// let mut c = PositionController::new(s, None).unwrap();
 /// assert_eq!(c.step(1.0, 0.0).unwrap(), 11.0);  // Kp e + Ki Ts e
 /// assert_eq!(c.step(1.0, 0.99).unwrap(), 0.0);  // inside the hold band
@@ -125,6 +167,12 @@ pub struct PositionController<F: Float> {
     rate_per_mm: [F; 2],
     /// Whether the last nudge that ended was a ramp-and-cut (its move teaches a(side)).
     last_learns: bool,
+    /// The approach with braking's phase.
+    approach: Approach,
+    /// r at the previous sample (a change re-arms the approach).
+    r_prev: F,
+    /// Whether r_prev holds a set-point (false until the first sample and after `reset`).
+    r_seen: bool,
 }
 
 /// a(side) at the start: ρ / e_c, so that a nudge from the edge of the ramp-and-cut band ramps at ρ
@@ -178,6 +226,18 @@ impl<F: Float> PositionController<F> {
                 return Err(Error::Setting);
             }
         }
+        if let Some(b) = s.brake {
+            if !(nonneg(b.min_step)
+                && nonneg(b.switch)
+                && nonneg(b.lead)
+                && positive(b.strength)
+                && b.strength <= F::ONE
+                && (1..=1000).contains(&b.samples)
+                && (1..=1000).contains(&b.rest_samples))
+            {
+                return Err(Error::Setting);
+            }
+        }
         Ok(PositionController {
             s,
             compensator,
@@ -197,6 +257,9 @@ impl<F: Float> PositionController<F> {
             last_start: (F::ZERO, F::ZERO),
             rate_per_mm: initial_rate_per_mm(&s.nudge),
             last_learns: false,
+            approach: Approach::Off,
+            r_prev: F::ZERO,
+            r_seen: false,
         })
     }
 
@@ -205,6 +268,9 @@ impl<F: Float> PositionController<F> {
     pub fn step(&mut self, r: F, y: F) -> Result<F, Error> {
         if !(r.is_finite() && y.is_finite()) {
             return Err(Error::NotFinite);
+        }
+        if let Some(u) = self.approach_step(r, y) {
+            return Ok(u);
         }
         let s = self.s;
         let e = r - y;
@@ -262,6 +328,77 @@ impl<F: Float> PositionController<F> {
             None => u_pi,
         };
         Ok((compensated + s.kd * self.derivative).clamp_to(-s.u_max, s.u_max))
+    }
+
+    /// The approach with braking (module documentation): `Some(u)` while it commands, `None` when
+    /// the law runs. At the end of the hold the law's transient state restarts (as at the first
+    /// sample), so that neither its derivative nor a nudge sees the brake.
+    fn approach_step(&mut self, r: F, y: F) -> Option<F> {
+        let b = self.s.brake?;
+        let first = !self.r_seen || r != self.r_prev;
+        let moved = self.started && y != self.y_prev;
+        let dy = if self.started {
+            (y - self.y_prev) / self.s.ts
+        } else {
+            F::ZERO
+        };
+        let e = r - y;
+        self.r_prev = r;
+        self.r_seen = true;
+        if first {
+            self.approach = if e.abs() >= b.min_step && e != F::ZERO {
+                Approach::Drive { right: e > F::ZERO }
+            } else {
+                Approach::Off
+            };
+        }
+        let side = |right: bool| if right { F::ONE } else { -F::ONE };
+        if let Approach::Drive { right } = self.approach {
+            let v = side(right) * dy;
+            let lead = if v > F::ZERO { b.lead * v } else { F::ZERO };
+            if side(right) * e > b.switch + lead {
+                self.started = true;
+                self.y_prev = y;
+                return Some(side(right) * self.s.u_max);
+            }
+            self.approach = Approach::Brake { right, given: 0 };
+        }
+        if let Approach::Brake { right, given } = self.approach {
+            if given < b.samples {
+                self.approach = Approach::Brake {
+                    right,
+                    given: given + 1,
+                };
+                self.started = true;
+                self.y_prev = y;
+                return Some(-side(right) * b.strength * self.s.u_max);
+            }
+            self.approach = Approach::Hold { still: 0 };
+        }
+        if let Approach::Hold { still } = self.approach {
+            let still = if moved { 0 } else { still + 1 };
+            if still < b.rest_samples {
+                self.approach = Approach::Hold { still };
+                self.started = true;
+                self.y_prev = y;
+                return Some(F::ZERO);
+            }
+            self.approach = Approach::Off;
+            self.restart_law();
+        }
+        None
+    }
+
+    /// The law's transient state back to a first sample (the learnt u_b, τ_c, a(side) kept).
+    fn restart_law(&mut self) {
+        self.integral = F::ZERO;
+        self.derivative = F::ZERO;
+        self.y_prev = F::ZERO;
+        self.started = false;
+        self.e_prev = F::ZERO;
+        self.still = 0;
+        self.nudging = None;
+        self.cut = None;
     }
 
     /// The nudge mode's command (module documentation).
@@ -444,6 +581,9 @@ impl<F: Float> PositionController<F> {
         self.last_start = (F::ZERO, F::ZERO);
         self.rate_per_mm = initial_rate_per_mm(&self.s.nudge);
         self.last_learns = false;
+        self.approach = Approach::Off;
+        self.r_prev = F::ZERO;
+        self.r_seen = false;
     }
 }
 
@@ -465,6 +605,7 @@ mod tests {
             fine_band: 0.0,
             reset_on_crossing: true,
             nudge: None,
+            brake: None,
         }
     }
 
@@ -725,5 +866,66 @@ mod tests {
         let mut c = PositionController::new(s(), None).unwrap();
         assert_eq!(c.step(f64::NAN, 0.0).unwrap_err(), Error::NotFinite);
         assert_eq!(c.integral(), 0.0);
+    }
+
+    fn braking() -> PositionSettings<f64> {
+        PositionSettings {
+            kp: 1.0,
+            ki: 0.0,
+            brake: Some(BrakeSettings {
+                min_step: 10.0,
+                switch: 1.0,
+                lead: 0.1,
+                strength: 0.5,
+                samples: 2,
+                rest_samples: 2,
+            }),
+            ..s()
+        }
+    }
+
+    // r = 20 from y = 0 (a step >= e_a = 10): full command while e > e_s + τ_b v = 1 + 0.1 v:
+    // k = 0: v = 0, e = 20; k = 1, 2: v = 100 mm/s, e = 19, 18 > 11; k = 3: v = 800, e = 10 <= 81 →
+    // the brake −a_b u_max = −127.5 at k = 3 and 4 (T_b = 2); k = 5: y moved → hold, u = 0;
+    // k = 6: unchanged once (1 < N_b = 2), u = 0; k = 7: unchanged twice → the law from a fresh
+    // start: Kp e = 7; k = 8: Kp e = 6.5.
+    #[test]
+    fn the_brake_engages_at_the_sample_where_the_error_falls_within_the_lead() {
+        let mut c = PositionController::new(braking(), None).unwrap();
+        let y = [0.0, 1.0, 2.0, 10.0, 12.0, 13.0, 13.0, 13.0, 13.5];
+        let u = y.map(|y| c.step(20.0, y).unwrap());
+        assert_eq!(u, [255.0, 255.0, 255.0, -127.5, -127.5, 0.0, 0.0, 7.0, 6.5]);
+        // A new set-point 26.5 mm away re-arms the approach; one 5 mm away does not (< e_a).
+        assert_eq!(c.step(40.0, 13.5).unwrap(), 255.0);
+        let mut c = PositionController::new(braking(), None).unwrap();
+        assert_eq!(c.step(5.0, 0.0).unwrap(), 5.0);
+    }
+
+    // Downwards the same rule with the signs turned: r = 0 from y = 20, v = −100 mm/s towards r.
+    #[test]
+    fn the_brake_acts_the_same_way_down() {
+        let mut c = PositionController::new(braking(), None).unwrap();
+        let y = [20.0, 19.0, 18.0, 10.0, 8.0];
+        let u = y.map(|y| c.step(0.0, y).unwrap());
+        assert_eq!(u, [-255.0, -255.0, -255.0, 127.5, 127.5]);
+    }
+
+    #[test]
+    fn brake_settings_out_of_range_are_refused() {
+        for f in [
+            |b: &mut BrakeSettings<f64>| b.strength = 0.0,
+            |b: &mut BrakeSettings<f64>| b.strength = 1.5,
+            |b: &mut BrakeSettings<f64>| b.samples = 0,
+            |b: &mut BrakeSettings<f64>| b.rest_samples = 1001,
+            |b: &mut BrakeSettings<f64>| b.lead = -1.0,
+            |b: &mut BrakeSettings<f64>| b.min_step = f64::NAN,
+        ] {
+            let mut s = braking();
+            f(s.brake.as_mut().unwrap());
+            assert_eq!(
+                PositionController::new(s, None).unwrap_err(),
+                Error::Setting
+            );
+        }
     }
 }

@@ -652,8 +652,19 @@ pub fn tuned_line(s: &control::ControllerSettings) -> String {
             }
         )
     });
+    let brake = s.brake.map_or(String::new(), |b| {
+        format!(
+            ", approach with braking for steps of {} mm or more (full command until the error is {} mm + {} s × the speed, then {} u_max reversed for {} samples, valves closed until {} samples at rest)",
+            report::format::sig(b.min_step_mm, 6),
+            report::format::sig(b.switch_mm, 6),
+            report::format::sig(b.lead_s, 6),
+            report::format::sig(b.strength, 6),
+            b.samples,
+            b.rest_samples
+        )
+    });
     format!(
-        "tuned PID Kp = {:.4}, Ki = {:.4}, Kd = {:.4} (Tf = {} s), clamping anti-windup, {comp}, hold band {} mm{nudge}, |u| <= {} counts",
+        "tuned PID Kp = {:.4}, Ki = {:.4}, Kd = {:.4} (Tf = {} s), clamping anti-windup, {comp}, hold band {} mm{nudge}{brake}, |u| <= {} counts",
         s.kp,
         s.ki,
         s.kd,

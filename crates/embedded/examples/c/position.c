@@ -24,9 +24,9 @@
 static uint64_t state[IPA_CTL_STATE_BYTES / sizeof(uint64_t) + 1];
 
 int main(int argc, char **argv) {
-    if (argc != 10 && argc != 14 && argc != 19 && argc != 20 && argc != 22) {
+    if (argc != 10 && argc != 14 && argc != 19 && argc != 20 && argc != 22 && argc != 28) {
         fprintf(stderr,
-                "usage: %s TS KP KI KD TF U_MAX HOLD FINE RESET [B_L B_R M_L M_R [BAND RAMP START REST CUT [REST_BAND [CUT_BAND MIN_RAMP]]]]"
+                "usage: %s TS KP KI KD TF U_MAX HOLD FINE RESET [B_L B_R M_L M_R [BAND RAMP START REST CUT [REST_BAND [CUT_BAND MIN_RAMP [MIN_STEP SWITCH LEAD STRENGTH SAMPLES BRAKE_REST]]]]]"
                 " < trace.csv\n",
                 argv[0]);
         return 2;
@@ -60,10 +60,21 @@ int main(int argc, char **argv) {
         c.nudge_rest_samples = (uint32_t)atol(argv[17]);
         c.nudge_cut_fraction = atof(argv[18]);
         if (argc >= 20) c.nudge_rest_band = atof(argv[19]);
-        if (argc == 22) {
+        if (argc >= 22) {
             c.nudge_cut_band = atof(argv[20]);
             c.nudge_min_ramp = atof(argv[21]);
         }
+    }
+    c.has_brake = argc == 28;
+    c.brake_samples = c.brake_rest_samples = 0;
+    c.brake_min_step = c.brake_switch = c.brake_lead = c.brake_strength = 0.0;
+    if (c.has_brake) {
+        c.brake_min_step = atof(argv[22]);
+        c.brake_switch = atof(argv[23]);
+        c.brake_lead = atof(argv[24]);
+        c.brake_strength = atof(argv[25]);
+        c.brake_samples = (uint32_t)atol(argv[26]);
+        c.brake_rest_samples = (uint32_t)atol(argv[27]);
     }
     int rc = ipa_ctl_init(state, sizeof state, &c);
     if (rc != IPA_OK) {

@@ -406,6 +406,10 @@ impl PyModel {
                 &self.inner,
                 &m,
             ))
+            .chain(sysid_summary::ValidationReport::extrapolation_warnings(
+                &self.inner,
+                &data,
+            ))
             .collect();
         warn_all(py, &warnings)?;
         let out = to_py(py, &m)?;

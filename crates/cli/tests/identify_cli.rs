@@ -573,3 +573,62 @@ fn swapped_columns_are_pointed_out() {
     assert!(hint(&swapped), "{swapped:?}");
     assert!(!hint(&warnings(&[])));
 }
+
+// A validation record whose input leaves the model's estimation data (commands up to ±250 counts for a
+// model fitted on ±100) is warned by `validate` and by `identify --validation`, text and JSON: the fit
+// judges equations never fitted there (audit s14 M-c); a record within the range is not.
+#[test]
+fn validation_inputs_outside_the_estimation_data_are_warned() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let run = |args: &[&str]| {
+        let o = bin().current_dir(d).args(args).output().unwrap();
+        assert!(
+            o.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        o
+    };
+    for (amplitude, seed, out) in [("100", "1", "e.csv"), ("250", "2", "v.csv")] {
+        run(&[
+            "simulate",
+            "--plant",
+            "paper",
+            "--input",
+            "aprbs",
+            "--amplitude",
+            amplitude,
+            "--samples",
+            "800",
+            "--seed",
+            seed,
+            "--out",
+            out,
+        ]);
+    }
+    run(&["identify", "--data", "e.csv", "--save-model", "m.json"]);
+    let said = "the record's input u spans [-250, 249] but the model's estimation data had it in [-97, 99]";
+    let text = |o: &std::process::Output| {
+        String::from_utf8_lossy(&o.stdout).into_owned() + &String::from_utf8_lossy(&o.stderr)
+    };
+    let o = run(&[
+        "validate", "--model", "m.json", "--data", "v.csv", "--json", "vj.json",
+    ]);
+    assert!(text(&o).contains(said), "{}", text(&o));
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("vj.json")).unwrap()).unwrap();
+    assert!(
+        v["warnings"].to_string().contains(said),
+        "{}",
+        v["warnings"]
+    );
+    let o = run(&["identify", "--data", "e.csv", "--validation", "v.csv"]);
+    assert!(
+        text(&o).contains(&format!("warning: validation: {said}")),
+        "{}",
+        text(&o)
+    );
+    let o = run(&["validate", "--model", "m.json", "--data", "e.csv"]);
+    assert!(!text(&o).contains("extrapolates"), "{}", text(&o));
+}

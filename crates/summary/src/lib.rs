@@ -253,6 +253,13 @@ impl IdentifyReport {
             report.warnings.extend(later);
         }
         report.warnings.extend(below.map(|w| w.to_string()));
+        if let Some(v) = val_data {
+            report.warnings.extend(
+                ValidationReport::extrapolation_warnings(m, v)
+                    .into_iter()
+                    .map(|w| format!("validation: {w}")),
+            );
+        }
         Ok(report)
     }
 
@@ -388,11 +395,36 @@ impl ValidationReport {
     /// model, negative or diverging simulation fit).
     pub fn assemble(model: &Model, data: &Dataset, max_lag: usize) -> Result<Self, SysidError> {
         let m = metrics(model, data)?;
-        Ok(Self::from_parts(
-            model,
-            m,
-            residual_analysis(model, data, max_lag),
-        ))
+        let mut report = Self::from_parts(model, m, residual_analysis(model, data, max_lag));
+        report
+            .warnings
+            .extend(Self::extrapolation_warnings(model, data));
+        Ok(report)
+    }
+
+    /// A warning per input of `data` that leaves the model's estimation data range (its `data_range`)
+    /// by more than a tenth of it (`DataRange::excursion`, the rule of `simulate` and `control`): there
+    /// the model extrapolates, so its fit on this record judges equations never fitted there (audit s14
+    /// M-c: a fit fell from 72 to 35 % for an input scaled by 1.1, without a word). None without a
+    /// recorded range.
+    pub fn extrapolation_warnings(model: &Model, data: &Dataset) -> Vec<String> {
+        let Some(range) = model.data_range() else {
+            return Vec::new();
+        };
+        data.input_signals()
+            .iter()
+            .zip(&range.u)
+            .zip(model.inputs())
+            .filter_map(|((u, &[lo, hi]), input)| {
+                let (u_min, u_max) = sysid_core::DataRange::excursion(u, (lo, hi))?;
+                Some(format!(
+                    "the record's input {} spans [{u_min}, {u_max}] but the model's estimation data had \
+                     it in [{lo}, {hi}]: outside it the model extrapolates, so this fit judges equations \
+                     never fitted there",
+                    input.name()
+                ))
+            })
+            .collect()
     }
 
     /// The report from metrics and a residual analysis computed elsewhere (the streaming path,

@@ -632,3 +632,50 @@ fn validation_inputs_outside_the_estimation_data_are_warned() {
     let o = run(&["validate", "--model", "m.json", "--data", "e.csv"]);
     assert!(!text(&o).contains("extrapolates"), "{}", text(&o));
 }
+
+// A record whose output sits at 50 (a second-order ARX response plus a level) identified without a
+// constant term fits negatively; the warning names the operating point and the flags that fix it; with
+// --offset there is no such warning (audit s14 M-a: nine warnings and none named --offset/--detrend).
+#[test]
+fn a_level_the_model_cannot_hold_is_named_with_its_fix() {
+    let dir = tempfile::tempdir().unwrap();
+    let n = 600;
+    let u: Vec<f64> = (0..n)
+        .map(|k| [60.0, -80.0, 120.0, -40.0, 90.0, -120.0][(k / 40) % 6])
+        .collect();
+    let mut x = vec![0.0; n];
+    for k in 2..n {
+        x[k] = 0.7 * x[k - 1] + 0.1 * x[k - 2] + 0.02 * u[k - 1];
+    }
+    let y: Vec<f64> = x.iter().map(|v| 50.0 + v).collect();
+    let est = write_csv(dir.path(), "lvl.csv", &u, &y);
+    let run = |extra: &[&str]| {
+        let o = bin()
+            .args(["identify", "--data"])
+            .arg(&est)
+            .args([
+                "--structure",
+                "arx",
+                "--method",
+                "ls",
+                "--split",
+                "0.5",
+                "--json",
+                "-",
+            ])
+            .args(extra)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let v: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+        v["warnings"].to_string()
+    };
+    let plain = run(&[]);
+    assert!(
+        plain.contains("the output sits far from zero")
+            && plain.contains("--offset")
+            && plain.contains("--detrend mean"),
+        "{plain}"
+    );
+    assert!(!run(&["--offset"]).contains("far from zero"));
+}

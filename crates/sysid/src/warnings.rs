@@ -225,16 +225,11 @@ impl std::fmt::Display for Warning {
             } => write!(
                 f,
                 "{name} = {value:.6} is {} from the input level {level}, less than its standard deviation \
-                 {std:.3}: the criterion has a kink within that uncertainty, so the standard deviation is not \
+                 {}: the criterion has a kink within that uncertainty, so the standard deviation is not \
                  meaningful (not reported)",
-                {
-                    let d = (value - level).abs();
-                    if d >= 1e-3 {
-                        format!("{d:.3}")
-                    } else {
-                        format!("{d:.1e}")
-                    }
-                }
+                small(value - level),
+                // A deviation of volts (5e-5) read "0.000" beside a distance of 2.2e-5 (audit s14 L-m).
+                small(*std)
             ),
             Warning::BreakpointNotBracketed {
                 name,
@@ -432,5 +427,38 @@ mod tests {
         assert!(w.contains("0.9999995") && !w.contains("--offset"), "{w}");
         assert!(w.contains("already has an output level"), "{w}");
         assert_eq!(Record::Selection.to_string(), "selection");
+    }
+}
+
+/// |x| with three decimals, or in scientific notation below 1e-3 (where three decimals read as 0).
+fn small(x: f64) -> String {
+    let d = x.abs();
+    if d >= 1e-3 {
+        format!("{d:.3}")
+    } else {
+        format!("{d:.1e}")
+    }
+}
+
+#[cfg(test)]
+mod small_number_tests {
+    use super::*;
+
+    // The silverbox's breakpoint 2.2e-5 V from a level with σ 4.7e-5 V: both numbers shown, not "0.000".
+    #[test]
+    fn a_kink_warning_shows_small_deviations_in_scientific_notation() {
+        let w = Warning::BreakpointOnInputLevel {
+            name: crate::ParamName::BL,
+            value: 0.005288,
+            level: 0.0052659,
+            std: Some(4.7e-5),
+        };
+        let text = w.to_string();
+        assert!(
+            text.contains(
+                "is 2.2e-5 from the input level 0.0052659, less than its standard deviation 4.7e-5"
+            ),
+            "{text}"
+        );
     }
 }

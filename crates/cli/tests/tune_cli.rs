@@ -350,6 +350,24 @@ fn bad_inputs_name_the_file_or_the_flag() {
     );
     assert!(!out.exists());
 
+    // A model of Ts = 1 s with the default specification: its 3 s runs are 3 samples; the error says
+    // that run=3 is the default and what to give (audit s14 L-b: it read as if --spec had been given).
+    let slow = dir.path().join("slow.json");
+    std::fs::write(&slow, MODEL.replace("\"ts\": 0.01", "\"ts\": 1.0")).unwrap();
+    let o = ipa_sysid(&[
+        "tune",
+        "--model",
+        slow.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    let e = stderr(&o);
+    assert!(
+        e.contains("run=3 (the default, made for Ts = 0.01 s)") && e.contains("run=20 or longer"),
+        "{e}"
+    );
+
     // The search's sizes: checked once, by the library, for the command line and Python alike.
     for (flag, value, said) in [
         (

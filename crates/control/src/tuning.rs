@@ -453,10 +453,19 @@ fn check_spec(
         ControlError::setting(crate::ControlSetting::Spec, what, &expected)
     };
     if spec.run_s / ts < MIN_RUN_SAMPLES {
+        // The default run length is the IPA's (3 s at 0.01 s): say so when the user never chose it
+        // (audit s14 L-b: a model of Ts = 1 s "blamed a --spec the user never passed").
+        let default = spec.run_s == Spec::default().run_s;
+        let need = (MIN_RUN_SAMPLES * ts).ceil();
         return Err(bad(
-            format!("run={}", spec.run_s),
             format!(
-                "runs of at least {MIN_RUN_SAMPLES} samples: {} s at the model's Ts = {ts} s",
+                "run={}{}",
+                spec.run_s,
+                if default { " (the default, made for Ts = 0.01 s)" } else { "" }
+            ),
+            format!(
+                "runs of at least {MIN_RUN_SAMPLES} samples: {} s at the model's Ts = {ts} s; give the \
+                 specification run={need} or longer",
                 MIN_RUN_SAMPLES * ts
             ),
         ));

@@ -260,9 +260,6 @@ impl IdentifyReport {
                     .map(|w| format!("validation: {w}")),
             );
         }
-        report
-            .warnings
-            .extend(operating_point_hint(m, est_data, &report.metrics));
         Ok(report)
     }
 
@@ -298,6 +295,9 @@ impl IdentifyReport {
                     .map(ToString::to_string),
             );
         }
+        report
+            .warnings
+            .extend(operating_point_hint(&fit.model, &report.metrics));
         report
     }
 
@@ -466,10 +466,12 @@ impl ValidationReport {
 }
 
 /// When a model without a constant term and without an operating point simulates worse than the mean
-/// (a negative fit on either record) and the estimation output sits far from zero (|ȳ| above twice its
-/// standard deviation): the likely cause in words, with the flags that fix it (audit s14 M-a: fits of
-/// −1465 … −2033 % on real records, nine warnings, none naming `--offset` or `--detrend`).
-fn operating_point_hint(model: &Model, est: &[Dataset], m: &MetricsPair) -> Option<String> {
+/// (a negative fit on either record) and its estimation output lies far from zero (its recorded range
+/// [lo, hi] excludes 0 and min(|lo|, |hi|) exceeds hi − lo): the likely cause in words, with the flags
+/// that fix it (audit s14 M-a: fits of −1465 … −2033 % on real records, nine warnings, none naming
+/// `--offset` or `--detrend`). The range is the model's (`data_range`), so the in-memory and the
+/// streamed paths say the same.
+fn operating_point_hint(model: &Model, m: &MetricsPair) -> Option<String> {
     if model.offset().is_some() || model.operating_point().is_some() {
         return None;
     }
@@ -484,18 +486,13 @@ fn operating_point_hint(model: &Model, est: &[Dataset], m: &MetricsPair) -> Opti
     if !(negative(Some(&m.estimation)) || negative(m.validation.as_ref())) {
         return None;
     }
-    let y: Vec<f64> = est.iter().flat_map(|d| d.y().iter().copied()).collect();
-    let n = y.len() as f64;
-    if n < 2.0 {
-        return None;
-    }
-    let mean = y.iter().sum::<f64>() / n;
-    let std = (y.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / n).sqrt();
-    (mean.abs() > 2.0 * std).then(|| {
+    let [lo, hi] = model.data_range()?.y;
+    let far = (lo > 0.0 || hi < 0.0) && lo.abs().min(hi.abs()) > hi - lo;
+    far.then(|| {
         format!(
-            "the output sits far from zero (mean {mean:.4}, standard deviation {std:.4}) and the model \
-             has no constant term: it can only reach that level through its dynamics, the likely cause \
-             of the negative fit; identify again with --offset (a constant c) or --detrend mean (Python: \
+            "the output lies far from zero (estimation data {lo:.4} .. {hi:.4}) and the model has no \
+             constant term: it can only reach that level through its dynamics, the likely cause of the \
+             negative fit; identify again with --offset (a constant c) or --detrend mean (Python: \
              offset=True)"
         )
     })

@@ -311,6 +311,18 @@ fn numerical_failures_exit_1_and_name_the_sample() {
             1,
             &["overflow.csv", "numerical failure", "nk = "],
         ),
+        // --time-unit with no time column to scale: --ts is in seconds (audit s14 L-n).
+        case(
+            "identify --data {c}/good.csv --ts 10 --t-col time --time-unit ms",
+            2,
+            &["--time-unit = ms", "the file has none ('time')", "--ts 0.01 for 10 ms"],
+        ),
+        // `-` is standard input only for track (audit s14 L-r).
+        case(
+            "identify --data -",
+            2,
+            &["-: standard input is not read here", "track --data -"],
+        ),
         // Orders near the integer limit wrapped the size check and panicked (audit s14 H-d).
         case(
             "delay --data {c}/good.csv --na 18446744073709551615",

@@ -374,6 +374,27 @@ pub fn read_record_bytes(
     let ts = match ts_given {
         Some(ts) => {
             check_ts(ts)?;
+            // --time-unit scales a time column; without one it has nothing to act on, and a user who
+            // wrote `--ts 80 --time-unit ms` meant 0.08 s (audit s14 L-n).
+            let has_time = table.headers.iter().any(|h| *h == opts.t_col);
+            if opts.time_unit != resample::TimeUnit::S && !has_time {
+                let unit = match opts.time_unit {
+                    resample::TimeUnit::Ms => "ms",
+                    resample::TimeUnit::Us => "us",
+                    resample::TimeUnit::S => "s",
+                };
+                return Err(SysidError::setting(
+                    Setting::Other("--time-unit"),
+                    unit,
+                    &format!(
+                        "a time column to scale, and the file has none ('{}'); --ts is always in \
+                         seconds (--ts {} for {} {unit})",
+                        opts.t_col,
+                        sig6(ts * opts.time_unit.seconds()),
+                        sig6(ts),
+                    ),
+                ));
+            }
             notes.extend(ts_contradiction(&table, opts, ts));
             ts
         }

@@ -35,6 +35,17 @@ pub fn open_input(path: &Path, what: &str) -> Result<std::fs::File, SysidError> 
         path: path.to_path_buf(),
         source,
     };
+    if path.as_os_str() == "-" && std::fs::metadata(path).is_err() {
+        // `-` is standard input for `track --data -` and standard output for `--json -`; here it is
+        // a file name (audit s14 L-r: "-: No such file or directory").
+        return Err(SysidError::File {
+            file: "-".into(),
+            message: format!(
+                "standard input is not read here: {what} is read from a saved file (only `track --data -` \
+                 reads standard input); save the data to a file and give its name"
+            ),
+        });
+    }
     let kind = std::fs::metadata(path).map_err(io)?.file_type();
     if !kind.is_file() {
         return Err(SysidError::File {
@@ -203,6 +214,16 @@ mod tests {
     fn an_endless_device_is_refused_before_it_is_read() {
         let e = read_bounded(Path::new("/dev/zero"), 1000, "a data file", "split it").unwrap_err();
         assert!(e.to_string().contains("a character device"), "{e}");
+    }
+
+    // `-` (no such file) is said not to be standard input here (audit s14 L-r).
+    #[test]
+    fn a_dash_is_not_standard_input_here() {
+        let e = read_bounded(Path::new("-"), 1000, "a data file", "").unwrap_err();
+        assert!(
+            e.to_string().contains("-: standard input is not read here"),
+            "{e}"
+        );
     }
 
     // A file of exactly max bytes is read whole; one byte more is refused.

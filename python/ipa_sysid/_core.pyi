@@ -89,6 +89,12 @@ class Fit:
     def metrics(self) -> dict[str, Any]:
         """{"estimation": {...}, "validation": {...}} as in identify --json."""
     @property
+    def fit_sim_percent(self) -> float | None:
+        """Simulation fit % on the estimation record (metrics["estimation"]["fit_sim_percent"])."""
+    @property
+    def fit_pred_percent(self) -> float | None:
+        """One-step prediction fit % on the estimation record."""
+    @property
     def parameters(self) -> list[dict[str, Any]]:
         """[{"name", "value", "std"}] as in identify --json."""
     @property

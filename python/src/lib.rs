@@ -659,6 +659,20 @@ impl PyFit {
         self.json.clone()
     }
 
+    /// The simulation fit % on the estimation record (`metrics["estimation"]["fit_sim_percent"]`;
+    /// the name the repr shows, audit s14 L-f).
+    #[getter]
+    fn fit_sim_percent(&self) -> Option<f64> {
+        self.report.metrics.estimation.fit_sim_percent
+    }
+
+    /// The one-step prediction fit % on the estimation record
+    /// (`metrics["estimation"]["fit_pred_percent"]`).
+    #[getter]
+    fn fit_pred_percent(&self) -> Option<f64> {
+        self.report.metrics.estimation.fit_pred_percent
+    }
+
     fn __repr__(&self) -> String {
         let m = &self.report.metrics.estimation;
         format!(

@@ -685,6 +685,17 @@ def test_control_takes_a_model_object(tmp_path):
         ipa_sysid.control(3.0, setpoint=50)
 
 
+def test_the_figures_the_repr_shows_are_attributes(records):
+    # The repr names fit_sim_percent and fit_pred_percent: both read as attributes, equal to the
+    # metrics dict's estimation figures (audit s14 L-f).
+    est, _ = records
+    e = read_csv(est)
+    fit = ipa_sysid.identify(e["u"], e["y"], 0.01, model="arx", method="ls")
+    assert "fit_sim_percent=" in repr(fit)
+    assert fit.fit_sim_percent == fit.metrics["estimation"]["fit_sim_percent"]
+    assert fit.fit_pred_percent == fit.metrics["estimation"]["fit_pred_percent"]
+
+
 def test_fit_parameters_by_name_and_as_a_data_frame(records):
     est, _ = records
     e = read_csv(est)

@@ -129,6 +129,20 @@ fn choice<T: ValueEnum>(flag: &'static str, value: &str) -> PyResult<T> {
 
 /// A 1-D float64 copy of `obj` (ndarray, list, pandas Series, anything `numpy.asarray` accepts).
 fn floats(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<f64>> {
+    // A masked array's mask says which samples are invalid; its data would be read whole (audit s14
+    // L-g): refused unless nothing is masked.
+    if obj.hasattr("mask")? {
+        let ma = obj.py().import("numpy")?.getattr("ma")?;
+        if ma.call_method1("isMaskedArray", (obj,))?.is_truthy()? {
+            let masked: usize = ma.call_method1("count_masked", (obj,))?.extract()?;
+            if masked > 0 {
+                return Err(PyValueError::new_err(format!(
+                    "{what}: a masked array with {masked} masked samples; the mask would be ignored: \
+                     drop those samples or fill them (numpy.ma.filled) first"
+                )));
+            }
+        }
+    }
     if let Ok(a) = obj.extract::<PyReadonlyArray1<'_, f64>>() {
         return Ok(match a.as_slice() {
             Ok(s) => s.to_vec(),

@@ -404,6 +404,11 @@ def test_bad_data_raises_value_error(records):
         ipa_sysid.identify(e["u"], 3.0, 0.01)
     with pytest.raises(TypeError, match=r"^na: expected a number, not the bool True"):
         ipa_sysid.identify(e["u"], e["y"], 0.01, na=True)
+    # A masked array's masked samples would be read as data (audit s14 L-g); without a mask it is data.
+    masked = np.ma.masked_array(e["u"], mask=np.arange(len(e["u"])) > 1000)
+    with pytest.raises(ValueError, match=r"^u: a masked array with 999 masked samples"):
+        ipa_sysid.identify(masked, e["y"], 0.01)
+    ipa_sysid.identify(np.ma.masked_array(e["u"]), e["y"], 0.01, model="arx", method="ls")
     # A maximum lag near the integer limit panicked (audit s14 H-c).
     with pytest.raises(ValueError, match=r"invalid setting resid_lags = 18446744073709551615: .*1\.\.=1000000"):
         ipa_sysid.identify(e["u"], e["y"], 0.01, resid_lags=2**64 - 1)

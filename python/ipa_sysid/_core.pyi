@@ -226,6 +226,10 @@ def calibrate(
     segment: float = 0.5,
     max_iterations: int = 40,
     ts: float | None = None,
+    u_col: str = "u",
+    y_col: str = "y",
+    t_col: str = "t",
+    no_header: bool = False,
 ) -> dict[str, Any]:
     """The physics plant calibrated to a record as `ipa-sysid calibrate`: estimates, fits, warnings, toml."""
 

@@ -528,6 +528,15 @@ def test_plants_that_are_neither_a_name_nor_a_file_and_missing_files(tmp_path):
         ipa_sysid.calibrate(str(rec), max_iterations=0)
     with pytest.raises(ValueError, match="names moving_mass twice"):
         ipa_sysid.calibrate(str(rec), free="moving_mass,moving_mass")
+    # The columns by name, as the command line's --u-col/--y-col (audit s14 L-k).
+    renamed = tmp_path / "renamed.csv"
+    renamed.write_text(rec.read_text().replace("t,u,y", "time,cmd,pos", 1))
+    a = ipa_sysid.calibrate(str(rec), max_iterations=2, free="moving_mass")
+    b = ipa_sysid.calibrate(str(renamed), max_iterations=2, free="moving_mass", u_col="cmd",
+                            y_col="pos", t_col="time")
+    assert a["toml"] == b["toml"]
+    with pytest.raises(ValueError, match=r"no column named 'u' \(chosen by u_col\)"):
+        ipa_sysid.calibrate(str(renamed))
 
 
 def test_control_warns_about_an_unreachable_set_point():

@@ -317,6 +317,12 @@ fn numerical_failures_exit_1_and_name_the_sample() {
             2,
             &["--time-unit = ms", "the file has none ('time')", "--ts 0.01 for 10 ms"],
         ),
+        // --resample far finer than the measurements is interpolation, not data (audit s14 L-d).
+        case(
+            "identify --data {c}/good.csv --resample 0.00001",
+            2,
+            &["--resample", "at most 100 samples per measured row"],
+        ),
         // `-` is standard input only for track (audit s14 L-r).
         case(
             "identify --data -",

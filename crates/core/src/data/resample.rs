@@ -10,6 +10,10 @@ use serde::{Deserialize, Serialize};
 use crate::error::Setting;
 use crate::SysidError;
 
+/// The most samples `--resample` makes per measured row: a grid finer than that is interpolation, not
+/// data.
+pub const MAX_UPSAMPLING: usize = 100;
+
 /// Unit of the time column.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[cfg_attr(feature = "clap", derive(clap::ValueEnum))]
@@ -142,6 +146,26 @@ pub fn resample_record(
                      a larger TS",
                     super::MAX_SAMPLES,
                     super::sig6(tl - t0),
+                    super::sig6(m)
+                ),
+            ));
+        }
+    }
+    // A grid far finer than the measurements is interpolation, not data (audit s14 L-d: 7032 rows onto
+    // 49.9 million samples, 5.5 GB).
+    if let (Some(&t0), Some(&tl)) = (t.first(), t.last()) {
+        let m = ((tl - t0) / ts).floor() + 1.0;
+        let most = (MAX_UPSAMPLING * t.len()) as f64;
+        if m > most {
+            return Err(SysidError::setting(
+                Setting::Other("--resample"),
+                ts,
+                &format!(
+                    "a sampling period giving at most {MAX_UPSAMPLING} samples per measured row ({} \
+                     samples for these {} rows; this one gives {}): the rest would be invented by \
+                     interpolation; a larger TS",
+                    most,
+                    t.len(),
                     super::sig6(m)
                 ),
             ));

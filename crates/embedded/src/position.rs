@@ -567,15 +567,9 @@ impl<F: Float> PositionController<F> {
 
     /// Back to rest.
     pub fn reset(&mut self) {
-        self.integral = F::ZERO;
-        self.derivative = F::ZERO;
-        self.y_prev = F::ZERO;
-        self.started = false;
-        self.e_prev = F::ZERO;
-        self.still = 0;
-        self.nudging = None;
+        // The law's transient state, then what it learnt.
+        self.restart_law();
         (self.breakaway_left, self.breakaway_right) = initial_breakaway(&self.compensator);
-        self.cut = None;
         self.coast_left = -F::ONE;
         self.coast_right = -F::ONE;
         self.last_start = (F::ZERO, F::ZERO);

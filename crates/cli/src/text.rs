@@ -78,6 +78,9 @@ fn header_text(r: &IdentifyReport, s: &mut String) {
             "NOT converged"
         }
     );
+    if let Some(returned) = &r.estimation.returned {
+        let _ = writeln!(s, "returned: {returned} (see the fallback warning)");
+    }
     if several {
         for ch in m.inputs() {
             let _ = writeln!(

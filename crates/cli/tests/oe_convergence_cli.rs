@@ -340,3 +340,80 @@ fn output_error_does_not_claim_convergence_away_from_a_stationary_point() {
         assert!(converged, "stationary (predicted {predicted}) but: {note}");
     }
 }
+
+// Audit s14 L-q: when the output-error refinement is rejected and the least-squares start is returned,
+// the text header and the JSON `estimation` block say so (`returned`), while `method`, `iterations` and
+// `converged` still describe the search that ran. Checked independently: the returned model's
+// parameters are those of `--method ls` on the same record and orders.
+#[test]
+fn a_rejected_output_error_refinement_says_the_least_squares_start_was_returned() {
+    let Some(dir) = data_dir() else { return };
+    let common_args = [
+        "identify",
+        "--data",
+        "robot_arm_flexible/robot_arm.csv",
+        "--ts",
+        "1",
+        "--rows",
+        "0..512",
+        "--na",
+        "8",
+        "--nb",
+        "7",
+        "--nk",
+        "1",
+        "--structure",
+        "arx",
+        "--offset",
+    ];
+    let mut oe_args = common_args.to_vec();
+    oe_args.extend(["--method", "oe"]);
+    let (oe, oe_model) = identify(&dir, &oe_args);
+    let fell_back = common::warnings(&oe)
+        .iter()
+        .any(|w| w.starts_with("fallback used: the least-squares start"));
+    let returned = oe["estimation"]["returned"].as_str();
+    assert_eq!(oe["estimation"]["method"], "oe");
+    if !fell_back {
+        assert!(
+            returned.is_none(),
+            "no fallback, yet returned = {returned:?}"
+        );
+        eprintln!("SKIPPED: the output-error refinement was kept on this record; the fallback report was not checked");
+        return;
+    }
+    assert_eq!(
+        returned,
+        Some("the least-squares start instead of the output-error refinement")
+    );
+    let mut ls_args = common_args.to_vec();
+    ls_args.extend(["--method", "ls"]);
+    let (ls, _) = identify(&dir, &ls_args);
+    let values = |d: &Value| -> Vec<f64> {
+        d["parameters"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|p| p["value"].as_f64().unwrap())
+            .collect()
+    };
+    let (a, b) = (values(&oe), values(&ls));
+    assert_eq!(a.len(), b.len());
+    for (x, y) in a.iter().zip(&b) {
+        assert!(
+            (x - y).abs() <= 1e-9 * (1.0 + y.abs()),
+            "returned {x} vs least squares {y}"
+        );
+    }
+    let _ = oe_model;
+    let out = common::bin()
+        .current_dir(&dir)
+        .args(&oe_args)
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        text.contains("returned: the least-squares start instead of the output-error refinement"),
+        "{text}"
+    );
+}

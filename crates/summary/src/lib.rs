@@ -56,6 +56,12 @@ pub struct EstimationInfo {
     /// Remarks (limit cycle, best iterate kept...).
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub note: Option<String>,
+    /// What was returned when it is not the estimate of `method` itself: the `used` text of the
+    /// fallback warning (e.g. "the least-squares start instead of the output-error refinement"), so
+    /// that `method`, `iterations` and `converged` describe the estimator that ran, and this field the
+    /// model that was kept. Absent when `method`'s own estimate was returned.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub returned: Option<String>,
 }
 
 /// Metrics on the estimation record and, when given, on the validation record.
@@ -338,6 +344,10 @@ impl IdentifyReport {
                 }),
                 noise_variance: fit.noise_variance,
                 note: fit.note(),
+                returned: fit.warnings.iter().find_map(|w| match w {
+                    Warning::Fallback { used, .. } => Some(used.clone()),
+                    _ => None,
+                }),
             },
             metrics: MetricsPair {
                 estimation: est,

@@ -376,7 +376,7 @@ pub fn read_record_bytes(
             check_ts(ts)?;
             // --time-unit scales a time column; without one it has nothing to act on, and a user who
             // wrote `--ts 80 --time-unit ms` meant 0.08 s (audit s14 L-n).
-            let has_time = table.headers.iter().any(|h| *h == opts.t_col);
+            let has_time = table.headers.contains(&opts.t_col);
             if opts.time_unit != resample::TimeUnit::S && !has_time {
                 let unit = match opts.time_unit {
                     resample::TimeUnit::Ms => "ms",

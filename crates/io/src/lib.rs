@@ -171,12 +171,14 @@ pub fn write_all_atomic(outputs: &[(&Path, &[u8])]) -> Result<(), OutputError> {
         };
         match target {
             OutputTarget::File(p) => staged.push(stage(&p, bytes)?),
-            other => direct.push((other, bytes)),
+            OutputTarget::Stdout => direct.push((None, bytes)),
+            OutputTarget::Stream(p) => direct.push((Some(p), bytes)),
         }
     }
+    // Devices, FIFOs (`Some`) and standard output (`None`).
     for (target, bytes) in direct {
         match target {
-            OutputTarget::Stdout => {
+            None => {
                 let mut out = std::io::stdout().lock();
                 out.write_all(bytes)
                     .and_then(|()| out.flush())
@@ -185,7 +187,7 @@ pub fn write_all_atomic(outputs: &[(&Path, &[u8])]) -> Result<(), OutputError> {
                         source,
                     })?;
             }
-            OutputTarget::Stream(p) => {
+            Some(p) => {
                 let io = |source| OutputError::Io {
                     path: p.clone(),
                     source,
@@ -196,7 +198,6 @@ pub fn write_all_atomic(outputs: &[(&Path, &[u8])]) -> Result<(), OutputError> {
                     .map_err(io)?;
                 f.write_all(bytes).and_then(|()| f.flush()).map_err(io)?;
             }
-            OutputTarget::File(_) => unreachable!("regular files are staged"),
         }
     }
     let mut done: Vec<PathBuf> = Vec::new();

@@ -112,7 +112,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         data.display(),
         twin.config.to_commented_toml()
     );
-    let text = report_text(&twin, baseline.as_ref(), seconds, out);
+    // With --strict and warnings the twin is not written (`write_outputs`): no "wrote" line then.
+    let writes = !(args.strict && !twin.warnings.is_empty());
+    let text = report_text(
+        &twin,
+        baseline.as_ref(),
+        seconds,
+        writes.then_some(out.as_path()),
+    );
     print_report(&text, &[args.json.as_deref(), Some(out)])?;
     let json = match &args.json {
         Some(_) => {
@@ -246,7 +253,7 @@ fn fmt_fit(f: Option<f64>) -> String {
     f.map_or("-".into(), |f| format!("{f:.2} %"))
 }
 
-fn report_text(t: &Calibrated, b: Option<&Baseline>, seconds: f64, out: &Path) -> String {
+fn report_text(t: &Calibrated, b: Option<&Baseline>, seconds: f64, out: Option<&Path>) -> String {
     let mut s = format!(
         "Calibrated twin of the physics IPA ({} segments, {} pressures; {} iterations, {} simulations, {}; {:.2} s)\n",
         t.segments,
@@ -299,11 +306,13 @@ fn report_text(t: &Calibrated, b: Option<&Baseline>, seconds: f64, out: &Path) -
     for w in &t.warnings {
         s.push_str(&format!("warning: {w}\n"));
     }
-    s.push_str(&format!(
-        "wrote {} (use: --plant ipa --plant-config {})\n",
-        out.display(),
-        out.display()
-    ));
+    if let Some(out) = out {
+        s.push_str(&format!(
+            "wrote {} (use: --plant ipa --plant-config {})\n",
+            out.display(),
+            out.display()
+        ));
+    }
     s
 }
 

@@ -113,7 +113,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         twin.config.to_commented_toml()
     );
     // With --strict and warnings the twin is not written (`write_outputs`): no "wrote" line then.
-    let writes = !(args.strict && !twin.warnings.is_empty());
+    let writes = !args.strict || twin.warnings.is_empty();
     let text = report_text(
         &twin,
         baseline.as_ref(),

@@ -401,24 +401,23 @@ pub fn pooled_metrics(model: &Model, records: &[Dataset]) -> Result<Metrics, Sys
     metrics_from_sums(&pooled, &names.join(" + "))
 }
 
-/// The sums of [`metrics`] over the rows k ≥ k0 of one record.
 /// A record sampled at another Ts than the model's (within 0.1 %) cannot judge it: the model's
 /// samples would not be the record's (audit s14 H-b: a 0.08 s model "validated" at 22.6 % on a
 /// 0.16 s record).
-pub fn check_sampling(data: &Dataset, model_ts: f64) -> Result<(), SysidError> {
-    let ts = data.ts();
+/// `name` names the record, `ts` its sampling period (also a streamed record's, held nowhere whole).
+pub fn check_sampling(name: &str, ts: f64, model_ts: f64) -> Result<(), SysidError> {
     if (ts - model_ts).abs() > 1e-3 * model_ts {
         return Err(SysidError::Data(format!(
-            "{}: the data are sampled at Ts = {ts} s but the model was identified at Ts = {model_ts} s; \
-             resample the data (--resample) or pass the matching --ts",
-            data.name()
+            "{name}: the data are sampled at Ts = {ts} s but the model was identified at Ts = {model_ts} s; \
+             resample the data (--resample) or pass the matching --ts"
         )));
     }
     Ok(())
 }
 
+/// The sums of [`metrics`] over the rows k ≥ k0 of one record.
 fn record_sums(model: &Model, data: &Dataset) -> Result<MetricSums, SysidError> {
-    check_sampling(data, model.ts())?;
+    check_sampling(data.name(), data.ts(), model.ts())?;
     let (u, y_all, name) = (&data.input_signals(), data.y(), data.name());
     let k0 = model.k0();
     let p = model.parameter_count();

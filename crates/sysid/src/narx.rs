@@ -1024,7 +1024,7 @@ pub struct NarxMetrics {
 
 /// The metrics of `model` on `data` (its first input).
 pub fn narx_metrics(model: &NarxModel, data: &Dataset) -> Result<NarxMetrics, SysidError> {
-    sysid_core::metrics::check_sampling(data, model.ts())?;
+    sysid_core::metrics::check_sampling(data.name(), data.ts(), model.ts())?;
     let (u, y) = (data.u(), data.y());
     let k0 = model.k0().min(y.len());
     let pred = model.predict(u, y)?;

@@ -87,7 +87,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ));
     }
     let us = data.input_signals();
-    check_ts(data.name(), data.ts(), model.ts())?;
+    sysid::metrics::check_sampling(data.name(), data.ts(), model.ts())?;
     let mut report = ValidationReport::assemble(&model, &data, args.resid_lags)
         .map_err(|e| e.context(data.name()))?;
     report
@@ -148,7 +148,7 @@ fn run_narx(
     let record = sysid::data::read_record(&args.data, &opts)?;
     print_notes(&record.notes);
     let data = record.data;
-    check_ts(data.name(), data.ts(), model.ts())?;
+    sysid::metrics::check_sampling(data.name(), data.ts(), model.ts())?;
     let metrics = sysid::narx::narx_metrics(model, &data)?;
     let mut warnings: Vec<String> = record.notes.iter().map(|n| format!("data: {n}")).collect();
     if let Some(k) = metrics.blew_up_at {
@@ -349,7 +349,7 @@ fn run_streamed(
     let streamed = sysid_summary::stream::validation_report(model, &mut src, args.resid_lags)?;
     let shape = streamed.shape;
     let name = sysid::data::stream::RecordSource::name(&src).to_string();
-    check_ts(&name, shape.ts, model.ts())?;
+    sysid::metrics::check_sampling(&name, shape.ts, model.ts())?;
     stream_note(&name, streamed.passes, shape.rows, args.stream);
     let mut report = streamed.result;
     model_warnings(&mut report, model);
@@ -373,15 +373,4 @@ fn model_warnings(report: &mut ValidationReport, model: &sysid::Model) {
             .into_iter()
             .map(|w| format!("model: {w}")),
     );
-}
-
-/// The record's Ts must be the model's (within 0.1 %).
-fn check_ts(name: &str, ts: f64, model_ts: f64) -> anyhow::Result<()> {
-    if (ts - model_ts).abs() > 1e-3 * model_ts {
-        anyhow::bail!(
-            "{name}: the data are sampled at Ts = {ts} s but the model was identified at Ts = {model_ts} s; \
-             resample the data or pass the matching --ts"
-        );
-    }
-    Ok(())
 }

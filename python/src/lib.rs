@@ -1633,6 +1633,7 @@ fn control_loop<'py>(
             unstable_pole: limits.unstable_pole,
             judge_steps: profile.has_held_steps(),
             data_u_range: limits.data_u_range,
+            can_run_longer: true,
         },
     ));
     let out = PyDict::new(py);

@@ -125,3 +125,60 @@ fn reproduce_on_the_paper_model_writes_report_summary_figures_and_data() {
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
     assert!(html.contains("data:image/png;base64,") && !html.contains("<script"));
 }
+
+// Audit s14 M-e: `reproduce --plant model:FILE` carried none of the doubts `control` gives on the same
+// plant. A first-order model with Ts = 1 s estimated on commands within [−1, 1]: reproduce's staircase
+// drives ±255 counts (its design, far outside the data), and the changing set-point holds each of its
+// five set-points 4 s = 4 samples, fewer than the 20 a step needs to be judged; the text, summary.json
+// and the report say both, and the changing set-point's criterion is "not judged".
+#[test]
+fn reproduce_on_a_model_plant_says_what_control_would_doubt() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("m.json");
+    std::fs::write(
+        &model,
+        r#"{"format": "ipa-sysid-model", "version": 2, "model": {"kind": "arx", "ts": 1.0,
+        "na": 1, "nb": 1, "nk": 1, "a": [-0.5], "b": [0.1], "offset": null,
+        "data_range": {"u": [[-1.0, 1.0]], "y": [-0.2, 0.2]}}}"#,
+    )
+    .unwrap();
+    let out = dir.path().join("run");
+    let o = Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
+        .args(["reproduce", "--out"])
+        .arg(&out)
+        .arg("--plant")
+        .arg(format!("model:{}", model.display()))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    let extrapolates = "the plant model's estimation data had u in [-1, 1]: outside it the model extrapolates";
+    assert!(stdout.contains(extrapolates), "{stdout}");
+    assert!(
+        stdout.contains("PI on the plant, changing set-point: the step to r = 120 mm at t = 4.000 s is too short to judge: 4 samples"),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("[not judged] pi_changing_setpoint_steady_state_error"),
+        "{stdout}"
+    );
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    let warnings: Vec<&str> = s["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w.as_str().unwrap())
+        .collect();
+    assert!(warnings.iter().any(|w| w.contains(extrapolates)), "{warnings:?}");
+    assert!(warnings.iter().any(|w| w.contains("too short to judge")), "{warnings:?}");
+    let criterion = s["acceptance"]["criteria"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["id"] == "pi_changing_setpoint_steady_state_error")
+        .unwrap();
+    assert_eq!(criterion["status"], "not judged");
+    let html = std::fs::read_to_string(out.join("report.html")).unwrap();
+    assert!(html.contains("outside it the model extrapolates"));
+}

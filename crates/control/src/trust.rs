@@ -64,6 +64,10 @@ pub struct LoopFacts {
     /// whose commands leave them by more than a tenth of their span is warned (the model extrapolates
     /// there; audit s13 L10); `None`: not checked.
     pub data_u_range: Option<(f64, f64)>,
+    /// True when the run's length is the caller's to choose (`control --duration`): the warnings then
+    /// say how to run longer; false for a run of fixed length (`reproduce`'s tests), which says nothing
+    /// the user cannot do.
+    pub can_run_longer: bool,
 }
 
 /// The warnings of a run `trace` with its `steps` (from [`crate::metrics_for_steps`]).
@@ -97,6 +101,13 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
             ));
         }
     }
+    let longer = |hint: &str| {
+        if facts.can_run_longer {
+            format!(" ({hint})")
+        } else {
+            String::new()
+        }
+    };
     let n = trace.len();
     if let Some(peak) = trace
         .y
@@ -154,14 +165,16 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
                     w.push(format!(
                         "{head} still creeps at the end of the run: its settling time ({ts:.3} s) is \
                          measured against the set-point's 2 % band, and its steady-state error of \
-                         {ess} mm is not final (run longer: --duration)"
+                         {ess} mm is not final{}",
+                        longer("run longer: --duration")
                     ));
                 }
             }
             Some(Unsettled::Moving) => w.push(format!(
                 "{head} has not settled within {within:.3} s: the output is still moving at the end of \
                  the run, so its settling time is unknown (null) and its steady-state error of {ess} \
-                 mm is not final (run longer: --duration)"
+                 mm is not final{}",
+                longer("run longer: --duration")
             )),
             Some(Unsettled::CommandMoving) => w.push(format!(
                 "{head} has not settled within {within:.3} s: the output stopped {} mm short of the \
@@ -179,7 +192,8 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
             Some(Unsettled::LateEntry { at_s }) => w.push(format!(
                 "{head} has not settled within {within:.3} s: the output entered its 2 % band for good \
                  only {at_s:.3} s after the step, within the run's last {tail_s:.3} s, too late to tell \
-                 that it stays, so its settling time is unknown (null) (run longer: --duration)"
+                 that it stays, so its settling time is unknown (null){}",
+                longer("run longer: --duration")
             )),
             Some(Unsettled::MovedAway { moved_mm }) => w.push(format!(
                 "{head} moved away from its set-point: the output went {} mm from y0 = {} mm and \
@@ -194,8 +208,9 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
             Some(Unsettled::TooShort { samples }) => w.push(format!(
                 "{head} is too short to judge: {samples} samples (at least {} are needed), so it has \
                  no rise, overshoot or settling time (null) and its error of {ess} mm is where the \
-                 run stopped, not a steady state (run longer: --duration, or hold each set-point longer)",
-                crate::metrics::MIN_STEP_SAMPLES
+                 run stopped, not a steady state{}",
+                crate::metrics::MIN_STEP_SAMPLES,
+                longer("run longer: --duration, or hold each set-point longer")
             )),
             Some(Unsettled::NoResponse) => w.push(format!(
                 "{head} had no response: the output stayed at y0 = {} mm while the set-point moved \
@@ -317,6 +332,7 @@ mod tests {
                 unstable_pole: Some(1.02),
                 judge_steps: true,
                 data_u_range: None,
+                can_run_longer: true,
             },
         );
         assert!(w.iter().any(|w| w.contains("99.9 %")), "{w:?}");

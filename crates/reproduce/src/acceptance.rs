@@ -150,11 +150,18 @@ pub(crate) fn loop_verdicts(s: &ReproduceSettings, st: &Study) -> Vec<Criterion>
             (g.setpoint_mm, pct)
         })
         .collect();
+    // A step too short to reach a steady state has no steady-state error to judge (its "error" is where
+    // the step stopped; the run's warnings say so).
+    let too_short = st
+        .steps_plant
+        .iter()
+        .filter(|g| matches!(g.unsettled, Some(control::metrics::Unsettled::TooShort { .. })))
+        .count();
     if !per_step.is_empty() {
         v.push(Criterion {
             id: "pi_changing_setpoint_steady_state_error",
-            met: per_step.iter().all(|(_, p)| p.is_some_and(|p| p < 2.0)),
-            judged: true,
+            met: too_short == 0 && per_step.iter().all(|(_, p)| p.is_some_and(|p| p < 2.0)),
+            judged: too_short == 0,
             text: format!(
                 "PI on the plant, changing set-point ({}): |steady-state error| of each step as % of that step — {} (paper's acceptance: < 2 %)",
                 s.unfixed_profile,
@@ -163,7 +170,15 @@ pub(crate) fn loop_verdicts(s: &ReproduceSettings, st: &Study) -> Vec<Criterion>
                     .map(|(r, p)| format!("r = {} mm: {} %", estimate(*r), opt(*p)))
                     .collect::<Vec<_>>()
                     .join("; ")
-            ),
+            ) + &if too_short > 0 {
+                format!(
+                    " — {too_short} of {} steps are too short to reach a steady state at this plant's \
+                     sampling period (see the warnings), so the criterion is not judged",
+                    st.steps_plant.len()
+                )
+            } else {
+                String::new()
+            },
         });
     }
     v

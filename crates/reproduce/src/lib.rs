@@ -38,7 +38,10 @@ mod twin;
 pub use error::ReproduceError;
 pub use study::CLOSED_LOOP_RULE;
 
-use closed_loop::{closed_loop_pair, compensated_run, step_metrics, tuned_run, unfixed_metrics};
+use closed_loop::{
+    closed_loop_pair, compensated_run, experiment_warning, run_warnings, step_metrics, tuned_run,
+    unfixed_metrics,
+};
 use experiment::record;
 use study::{closed_loop_choice, Fitted, Loop, Study};
 
@@ -124,7 +127,9 @@ pub fn run(
 
     // 1. Experiments.
     progress("experiment on the plant", 0.0);
-    let mut plant = ipa::plant_from_spec(&s.plant, s.plant_config.as_deref())?;
+    let spec: ipa::PlantSpec = s.plant.parse()?;
+    let limits = spec.limits(s.plant_config.as_deref())?;
+    let mut plant = spec.build(s.plant_config.as_deref(), None)?;
     let ts = plant.ts();
     let stair = InputSpec::Staircase;
     let u_est = generate(&stair, s.samples, ts, s.amplitude_counts, s.seed)?;
@@ -271,6 +276,14 @@ pub fn run(
     progress("calibrated twin", 0.5);
     let twin = twin::calibrated_twin(s, ts, [est.u(), val.u(), &u_ol], &models);
 
+    // The plant's own doubts (a model file's), then each run's, as `control` gives them (audit s14 M-e).
+    let mut warnings: Vec<String> = limits
+        .model_warnings
+        .iter()
+        .map(|w| format!("the plant model: {w}"))
+        .collect();
+    warnings.extend(experiment_warning(&[est.u(), val.u(), &u_ol], &limits));
+
     // 3. Closed loop, fixed and unfixed set-point, model vs plant.
     progress("closed-loop PI control", 0.55);
     let fixed_profile = Profile::Fixed {
@@ -284,6 +297,12 @@ pub fn run(
         s.fixed_duration_s,
         s.fixed_start_mm,
     )?;
+    warnings.extend(run_warnings(
+        "PI on the plant, fixed set-point",
+        &fp,
+        &limits,
+        s.pi.u_max,
+    )?);
     let fixed = Loop {
         m_plant: step_metrics(&fp, s.fixed_start_mm, s.fixed_setpoint_mm)?,
         m_model: match &fm {
@@ -305,6 +324,12 @@ pub fn run(
         s.fixed_start_mm,
     )? {
         Ok(tr) => {
+            warnings.extend(run_warnings(
+                "PI with the deadzone compensator on the plant, fixed set-point",
+                &tr,
+                &limits,
+                s.pi.u_max,
+            )?);
             sysid_io::write_columns_csv(
                 &data_dir.join("closed_loop_fixed_plant_compensated.csv"),
                 &Trace::COLUMNS,
@@ -323,6 +348,12 @@ pub fn run(
         s.fixed_start_mm,
     )? {
         Ok((settings, on_plant, on_model)) => {
+            warnings.extend(run_warnings(
+                "the tuned controller on the plant, fixed set-point",
+                &on_plant,
+                &limits,
+                settings.u_max,
+            )?);
             sysid_io::write_columns_csv(
                 &data_dir.join("closed_loop_fixed_plant_tuned.csv"),
                 &Trace::COLUMNS,
@@ -346,6 +377,12 @@ pub fn run(
         uf_duration,
         s.fixed_start_mm,
     )?;
+    warnings.extend(run_warnings(
+        "PI on the plant, changing set-point",
+        &up,
+        &limits,
+        s.pi.u_max,
+    )?);
     let (m_up, steps_plant) = unfixed_metrics(&up)?;
     let (m_um, steps_model) = match &um {
         Some(um) => {
@@ -391,6 +428,7 @@ pub fn run(
         paper_check,
         residuals,
         twin,
+        warnings,
         verdicts: Vec::new(),
         checks: Vec::new(),
     };

@@ -109,6 +109,9 @@ pub(crate) fn build_report(
             },
         );
     }
+    for w in &st.warnings {
+        acc = acc.callout(Verdict::Note, format!("Warning: {w}"));
+    }
     for c in &st.checks {
         acc = acc.callout(
             Verdict::Note,

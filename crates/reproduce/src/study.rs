@@ -85,6 +85,9 @@ pub(crate) struct Study {
     pub(crate) residuals: Vec<analysis::ModelResiduals>,
     /// The calibrated twin beside the identified models, or why there is none.
     pub(crate) twin: Result<crate::twin::Twin, String>,
+    /// Why the plant's runs may not deserve trust, in words (a model plant's own doubts, experiments
+    /// beyond its data, each closed-loop run's: `control::loop_warnings`); empty when all is well.
+    pub(crate) warnings: Vec<String>,
     pub(crate) verdicts: Vec<Criterion>,
     /// Checks of the process (not the paper's criteria): e.g. a stable model was available to control.
     pub(crate) checks: Vec<Criterion>,

@@ -91,6 +91,7 @@ pub(crate) fn summary_json(
             "criteria": st.verdicts.iter().map(|c| json!({"id": c.id, "met": c.met, "status": c.status(), "criterion": c.text})).collect::<Vec<_>>(),
             "process_checks": st.checks.iter().map(|c| json!({"id": c.id, "met": c.met, "check": c.text})).collect::<Vec<_>>(),
         },
+        "warnings": st.warnings,
         "elapsed_s": elapsed_s,
     })
 }

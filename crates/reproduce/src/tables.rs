@@ -338,6 +338,12 @@ pub(crate) fn tables_text(s: &ReproduceSettings, st: &Study) -> String {
     for c in &st.verdicts {
         let _ = writeln!(o, "  [{}] {}: {}", c.status(), c.id, c.text);
     }
+    if !st.warnings.is_empty() {
+        let _ = writeln!(o, "\nWarnings (the plant and its runs)");
+        for w in &st.warnings {
+            let _ = writeln!(o, "  warning: {w}");
+        }
+    }
     let _ = writeln!(o, "\nProcess checks");
     for c in &st.checks {
         let _ = writeln!(

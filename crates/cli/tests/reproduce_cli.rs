@@ -152,7 +152,8 @@ fn reproduce_on_a_model_plant_says_what_control_would_doubt() {
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let stdout = String::from_utf8_lossy(&o.stdout);
-    let extrapolates = "the plant model's estimation data had u in [-1, 1]: outside it the model extrapolates";
+    let extrapolates =
+        "the plant model's estimation data had u in [-1, 1]: outside it the model extrapolates";
     assert!(stdout.contains(extrapolates), "{stdout}");
     assert!(
         stdout.contains("PI on the plant, changing set-point: the step to r = 120 mm at t = 4.000 s is too short to judge: 4 samples"),
@@ -170,8 +171,14 @@ fn reproduce_on_a_model_plant_says_what_control_would_doubt() {
         .iter()
         .map(|w| w.as_str().unwrap())
         .collect();
-    assert!(warnings.iter().any(|w| w.contains(extrapolates)), "{warnings:?}");
-    assert!(warnings.iter().any(|w| w.contains("too short to judge")), "{warnings:?}");
+    assert!(
+        warnings.iter().any(|w| w.contains(extrapolates)),
+        "{warnings:?}"
+    );
+    assert!(
+        warnings.iter().any(|w| w.contains("too short to judge")),
+        "{warnings:?}"
+    );
     let criterion = s["acceptance"]["criteria"]
         .as_array()
         .unwrap()

@@ -327,3 +327,70 @@ fn stream_refuses_what_needs_the_whole_record() {
     let e = String::from_utf8_lossy(&out.stderr);
     assert!(e.contains("regular file"), "{e}");
 }
+
+// The validated record's input beyond the model's estimation data (three times its amplitude: the
+// estimation input stays within [−100, 100], this one reaches about ±300): the streamed `validate` and
+// the streamed `identify --validation` warn as the in-memory paths do, with the same documents (audit
+// s14 M-c, left for the streamed paths).
+#[test]
+fn streamed_validation_beyond_the_estimation_data_is_warned_as_in_memory() {
+    let dir = tempfile::tempdir().unwrap();
+    let (est, val) = (dir.path().join("est.csv"), dir.path().join("val3.csv"));
+    let u = input(5_000, 3);
+    write_tuy(&est, &u, &output(&u, 1.0, 3));
+    let u: Vec<f64> = input(3_000, 4).iter().map(|v| 3.0 * v).collect();
+    write_tuy(&val, &u, &output(&u, 1.0, 4));
+    let mut docs = Vec::new();
+    for mode in ["off", "on"] {
+        let (out, model, v) = (
+            dir.path().join(format!("{mode}.json")),
+            dir.path().join(format!("{mode}-model.json")),
+            dir.path().join(format!("{mode}-val.json")),
+        );
+        run(&arx_ls(
+            s(&est),
+            &[
+                "--stream",
+                mode,
+                "--validation",
+                s(&val),
+                "--json",
+                s(&out),
+                "--save-model",
+                s(&model),
+            ],
+        ));
+        run(&[
+            "validate",
+            "--model",
+            s(&model),
+            "--data",
+            s(&val),
+            "--stream",
+            mode,
+            "--json",
+            s(&v),
+        ]);
+        let (ident, valid) = (json(&out), json(&v));
+        assert!(
+            ident["warnings"]
+                .to_string()
+                .contains("validation: the record's input u spans [")
+                && ident["warnings"]
+                    .to_string()
+                    .contains("outside it the model extrapolates"),
+            "{mode}: {}",
+            ident["warnings"]
+        );
+        assert!(
+            valid["warnings"]
+                .to_string()
+                .contains("outside it the model extrapolates"),
+            "{mode}: {}",
+            valid["warnings"]
+        );
+        docs.push((ident, valid));
+    }
+    assert_same(&docs[1].0, &docs[0].0, "identify");
+    assert_same(&docs[1].1, &docs[0].1, "validate");
+}

@@ -239,12 +239,17 @@ impl DataRange {
     /// model estimated on [lo, hi] extrapolates (the one rule of `simulate`'s input and output warnings
     /// and `control`'s command warning); `None` when they stay within it, when there are none, or when an
     /// extreme is infinite (a diverged run, warned of on its own). NaN values are skipped.
-    pub fn excursion(values: &[f64], (lo, hi): (f64, f64)) -> Option<(f64, f64)> {
-        let (min, max) = values
+    pub fn excursion(values: &[f64], range: (f64, f64)) -> Option<(f64, f64)> {
+        let extremes = values
             .iter()
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
                 (a.min(*v), b.max(*v))
             });
+        Self::excursion_of(extremes, range)
+    }
+
+    /// [`DataRange::excursion`] of values whose [min, max] is already known (a record read in passes).
+    pub fn excursion_of((min, max): (f64, f64), (lo, hi): (f64, f64)) -> Option<(f64, f64)> {
         let margin = 0.1 * (hi - lo).abs();
         (min.is_finite() && max.is_finite() && (min < lo - margin || max > hi + margin))
             .then_some((min, max))

@@ -155,7 +155,12 @@ pub(crate) fn loop_verdicts(s: &ReproduceSettings, st: &Study) -> Vec<Criterion>
     let too_short = st
         .steps_plant
         .iter()
-        .filter(|g| matches!(g.unsettled, Some(control::metrics::Unsettled::TooShort { .. })))
+        .filter(|g| {
+            matches!(
+                g.unsettled,
+                Some(control::metrics::Unsettled::TooShort { .. })
+            )
+        })
         .count();
     if !per_step.is_empty() {
         v.push(Criterion {

@@ -421,15 +421,31 @@ impl ValidationReport {
     /// M-c: a fit fell from 72 to 35 % for an input scaled by 1.1, without a word). None without a
     /// recorded range.
     pub fn extrapolation_warnings(model: &Model, data: &Dataset) -> Vec<String> {
+        let extremes: Vec<(f64, f64)> = data
+            .input_signals()
+            .iter()
+            .map(|u| {
+                u.iter()
+                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                        (a.min(*v), b.max(*v))
+                    })
+            })
+            .collect();
+        Self::extrapolation_warnings_of(model, &extremes)
+    }
+
+    /// [`ValidationReport::extrapolation_warnings`] from each input's [min, max] over the record (a
+    /// record read in passes: `sysid::stream::Streamed::u_extremes`).
+    pub fn extrapolation_warnings_of(model: &Model, extremes: &[(f64, f64)]) -> Vec<String> {
         let Some(range) = model.data_range() else {
             return Vec::new();
         };
-        data.input_signals()
+        extremes
             .iter()
             .zip(&range.u)
             .zip(model.inputs())
-            .filter_map(|((u, &[lo, hi]), input)| {
-                let (u_min, u_max) = sysid_core::DataRange::excursion(u, (lo, hi))?;
+            .filter_map(|((&ext, &[lo, hi]), input)| {
+                let (u_min, u_max) = sysid_core::DataRange::excursion_of(ext, (lo, hi))?;
                 Some(format!(
                     "the record's input {} spans [{u_min}, {u_max}] but the model's estimation data had \
                      it in [{lo}, {hi}]: outside it the model extrapolates, so this fit judges equations \

@@ -29,13 +29,15 @@ pub fn identify_report(
             },
         shape,
         val_shape,
+        u_extremes,
+        val_u_extremes,
         passes,
     } = identify_checked(est, val, settings, detrend, max_lag)?;
     let (val_metrics, val_resid) = match validation {
         Some((m, r)) => (Some(m), Some(r.into())),
         None => (None, None),
     };
-    let report = IdentifyReport::from_parts(
+    let mut report = IdentifyReport::from_parts(
         &fit,
         settings,
         est_metrics,
@@ -45,10 +47,20 @@ pub fn identify_report(
             validation: val_resid,
         },
     );
+    // The validation record against the model's data range, as `IdentifyReport::assemble` judges it.
+    if let Some(ext) = val_u_extremes {
+        report.warnings.extend(
+            ValidationReport::extrapolation_warnings_of(&fit.model, &[ext])
+                .into_iter()
+                .map(|w| format!("validation: {w}")),
+        );
+    }
     Ok(Streamed {
         result: (fit, report),
         shape,
         val_shape,
+        u_extremes,
+        val_u_extremes,
         passes,
     })
 }
@@ -61,10 +73,20 @@ pub fn validation_report(
 ) -> Result<Streamed<ValidationReport>, SysidError> {
     let on = record_metrics(model, data, max_lag)?;
     let (m, r) = on.result;
+    let mut report = ValidationReport::from_parts(model, m, r.into());
+    // The record against the model's data range, as `ValidationReport::assemble` judges it.
+    report
+        .warnings
+        .extend(ValidationReport::extrapolation_warnings_of(
+            model,
+            &on.u_extremes.into_iter().collect::<Vec<_>>(),
+        ));
     Ok(Streamed {
-        result: ValidationReport::from_parts(model, m, r.into()),
+        result: report,
         shape: on.shape,
         val_shape: None,
+        u_extremes: on.u_extremes,
+        val_u_extremes: None,
         passes: on.passes,
     })
 }

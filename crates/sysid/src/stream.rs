@@ -50,6 +50,11 @@ pub struct Streamed<T> {
     pub shape: Shape,
     /// The validation record's, when there was one.
     pub val_shape: Option<Shape>,
+    /// The validated record's input [min, max] ([`record_metrics`]; NaN skipped), to judge it against
+    /// the model's estimation data range as the in-memory report does; `None` when not looked at.
+    pub u_extremes: Option<(f64, f64)>,
+    /// The same of the validation record, when there was one.
+    pub val_u_extremes: Option<(f64, f64)>,
     /// Passes over the records (every file read counts).
     pub passes: usize,
 }
@@ -138,13 +143,13 @@ pub fn identify_checked(
         Record::Estimation,
         &est_metrics,
     ));
-    let (validation, val_shape) = match val {
+    let (validation, val_shape, val_u_extremes) = match val {
         Some(v) => {
             let on_val = record_metrics(&fit.model, v, max_lag)?;
             passes += on_val.passes;
-            (Some(on_val.result), Some(on_val.shape))
+            (Some(on_val.result), Some(on_val.shape), on_val.u_extremes)
         }
-        None => (None, None),
+        None => (None, None, None),
     };
     Ok(Streamed {
         result: StreamedFit {
@@ -154,6 +159,8 @@ pub fn identify_checked(
         },
         shape: on_est.shape,
         val_shape,
+        u_extremes: on_est.u_extremes,
+        val_u_extremes,
         passes,
     })
 }
@@ -297,6 +304,7 @@ pub fn identify_arx(
         .regression(&[sysid_core::data::SINGLE_INPUT])?
         .params_of_theta(sol.theta.as_slice(), Some(&cov));
     check_finite(&name, &params)?;
+    let u_extremes = range.u.first().map(|[lo, hi]| (*lo, *hi));
     let model = key
         .model_of(sol.theta.as_slice(), shape.ts)
         .map_err(|e| SysidError::Numerical(format!("{name}: {e}")))?
@@ -309,6 +317,8 @@ pub fn identify_arx(
         result: Fitted::new(model, params, Method::Ls, sigma2),
         shape,
         val_shape: None,
+        u_extremes,
+        val_u_extremes: None,
         passes,
     })
 }
@@ -498,9 +508,11 @@ pub fn record_metrics(
     let mut s_row = vec![0.0; k0];
     let (mut sum_y, mut sum_u, mut sum_eps) = (0.0, 0.0, 0.0);
     let (mut sse_pred, mut sse_measured, mut sse_equation) = (0.0, 0.0, 0.0);
+    let mut u_extremes = (f64::INFINITY, f64::NEG_INFINITY);
     let shape = src.pass(&mut |start, u, y| {
         for (i, (uk, yk)) in u.iter().zip(y).enumerate() {
             let k = start + i;
+            u_extremes = (u_extremes.0.min(*uk), u_extremes.1.max(*uk));
             let step = run.step(*uk, *yk);
             if let Some(sim) = step.sim {
                 free.step(&mut s_row);
@@ -658,6 +670,8 @@ pub fn record_metrics(
         result: (metrics, entry),
         shape,
         val_shape: None,
+        u_extremes: Some(u_extremes),
+        val_u_extremes: None,
         passes,
     })
 }

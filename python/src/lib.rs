@@ -574,7 +574,9 @@ impl PyFit {
         to_py(py, &self.report.metrics)
     }
 
-    /// Parameters with standard deviations: a list of {"name", "value", "std"} (std None when fixed).
+    /// Parameters with standard deviations: a list of {"name", "value", "std"} (std None when fixed or
+    /// not computable), with "fixed" naming why when the tool held the parameter at its value instead of
+    /// estimating it ("normalisation": b1 = 1; "one-sided input": a dropped deadzone branch).
     #[getter]
     fn parameters<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         to_py(py, &self.report.parameters)
@@ -592,8 +594,8 @@ impl PyFit {
         Ok(out)
     }
 
-    /// The parameters as a pandas DataFrame indexed by name (columns `value`, `std`, and `input` when
-    /// the model has several inputs); needs pandas.
+    /// The parameters as a pandas DataFrame indexed by name (columns `value`, `std`, `fixed` (why the
+    /// tool held it, or None), and `input` when the model has several inputs); needs pandas.
     fn parameters_frame<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         let pd = py.import("pandas").map_err(|e| {
             PyImportError::new_err(format!(
@@ -617,6 +619,14 @@ impl PyFit {
                 .parameters
                 .iter()
                 .map(|p| p.std.unwrap_or(f64::NAN))
+                .collect::<Vec<_>>(),
+        )?;
+        cols.set_item(
+            "fixed",
+            self.report
+                .parameters
+                .iter()
+                .map(|p| p.fixed.clone())
                 .collect::<Vec<_>>(),
         )?;
         if several {

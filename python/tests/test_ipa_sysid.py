@@ -728,6 +728,10 @@ def test_fit_parameters_by_name_and_as_a_data_frame(records):
         assert frame.loc[p["name"], "value"] == p["value"]
         std = frame.loc[p["name"], "std"]
         assert (p["std"] is None and math.isnan(std)) or std == p["std"]
+        assert frame.loc[p["name"], "fixed"] == p.get("fixed")
+    # The deadzone model's b1 = 1 is the key-term normalisation, held fixed; every other is estimated.
+    assert [p["name"] for p in listed if "fixed" in p] == ["b1"]
+    assert next(p for p in listed if p["name"] == "b1")["fixed"] == "normalisation"
 
 
 def test_narx_structure_recovers_a_known_polynomial_narx():

@@ -122,10 +122,11 @@ fn parameters_text(r: &IdentifyReport, s: &mut String) {
                     p.name,
                     ParamName::M | ParamName::Slope(0) | ParamName::Poly(1)
                 ));
-        let sd = match p.std {
-            Some(v) => format!("± {}", num(v)),
-            None if normalised => "(fixed: normalisation)".into(),
-            None => "± n/a".into(),
+        let sd = match (p.std, &p.fixed) {
+            (Some(v), _) => format!("± {}", num(v)),
+            (None, Some(why)) => format!("(fixed: {why})"),
+            (None, None) if normalised => "(fixed: normalisation)".into(),
+            (None, None) => "± n/a".into(),
         };
         let _ = writeln!(s, "  {:<width$} = {:>14}  {sd}", p.label(), num(p.value));
     }

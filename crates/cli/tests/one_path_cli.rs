@@ -284,6 +284,37 @@ fn a_one_sided_input_drops_its_unexcited_branch_with_several_inputs_too() {
     ] {
         assert!((got.as_f64().unwrap() - want).abs() < 1e-8, "{m}");
     }
+    // The dropped branch's b_l, m_l are the tool's choice: marked fixed (and why) in the parameters, not
+    // blamed on the data by the missing-standard-deviation warning (audit s14 L-a); b1 of the keyed
+    // input u1 is the normalisation; estimated parameters carry no mark.
+    let fixed: Vec<(String, String)> = j["parameters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|p| {
+            Some((
+                format!("{} ({})", p["name"].as_str()?, p["input"].as_str()?),
+                p["fixed"].as_str()?.to_string(),
+            ))
+        })
+        .collect();
+    let want = [
+        ("b_l (u1)", "one-sided input"),
+        ("m_l (u1)", "one-sided input"),
+        ("b1 (u1)", "normalisation"),
+    ];
+    assert_eq!(fixed.len(), want.len(), "{fixed:?}");
+    for (name, why) in want {
+        assert!(
+            fixed.iter().any(|(n, w)| n == name && w == why),
+            "{name}: {fixed:?}"
+        );
+    }
+    let said = j["warnings"].to_string();
+    assert!(
+        !said.contains("parameters the data do not separate"),
+        "{said}"
+    );
 }
 
 // `--nonlinearity` chooses each input's static nonlinearity (MATLAB idnlhw's InputNonlinearity):

@@ -692,6 +692,14 @@ fn an_input_that_cannot_determine_the_deadzone_is_said_at_the_end() {
         w.contains("the input was never negative: the left branch (b_l, m_l) is not estimated"),
         "{w}"
     );
+    // Its key terms start at 0 and a regressor that is always 0 never moves them (P φ has no entry
+    // there): the estimate reports 0s, said as such, and they are no verdict of implausibility (audit
+    // s14 L-h: "holds the start's values (breakpoint -1)" beside b_l = 0, then "implausible: m_l = 0").
+    assert!(
+        w.contains("the estimate reports b_l = 0, m_l = 0, no value of the plant's"),
+        "{w}"
+    );
+    assert!(!w.contains("m_l = 0: a slope"), "{w}");
     let data = simulate(dir.path(), 3000, 3);
     let w = track_summary(&data, &[])["warnings"].to_string();
     assert!(

@@ -329,6 +329,9 @@ pub fn identify<R: Records + ?Sized>(
         .collect();
     notes.append(&mut fit.notes);
     fit.notes = notes;
+    problem
+        .regression()
+        .mark_fixed(problem.starts(), &mut fit.params);
     check_finite(problem.name(), &fit.params)?;
     // The data the model was estimated on (a caller that detrended first puts back its own range).
     safeguard(&problem, settings, fit)
@@ -564,7 +567,7 @@ fn unexplained_missing_std(fit: &Fitted) -> Option<Warning> {
     let missing: Vec<String> = fit
         .params
         .iter()
-        .filter(|q| q.std.is_none() && !(q.name == ParamName::B(1) && q.value == 1.0))
+        .filter(|q| q.std.is_none() && q.fixed.is_none())
         .map(|q| q.label())
         .filter(|l| !fit.warnings.iter().any(|w| w.explains_missing_std(l)))
         .collect();

@@ -54,7 +54,17 @@ pub struct Param {
     /// Standard deviation from the covariance (delta method for ratios); `None` for fixed parameters (b1 = 1
     /// of a Hammerstein model) or when it cannot be computed.
     pub std: Option<f64>,
+    /// Why the tool held the parameter at its value instead of estimating it ([`FIXED_NORMALISATION`],
+    /// [`FIXED_ONE_SIDED`]); `None` for an estimated parameter.
+    #[serde(skip_serializing_if = "Option::is_none", default)]
+    pub fixed: Option<String>,
 }
+
+/// [`Param::fixed`] of b1 = 1 of an input with a static nonlinearity: the key-term normalisation.
+pub const FIXED_NORMALISATION: &str = "normalisation";
+/// [`Param::fixed`] of a deadzone parameter a one-sided input does not determine (a dropped branch, a
+/// breakpoint not separable from the offset; the note says which).
+pub const FIXED_ONE_SIDED: &str = "one-sided input";
 
 /// How an estimator stopped.
 #[derive(Debug, Clone, PartialEq)]

@@ -1181,6 +1181,7 @@ pub fn refine_with_output(
                 input: Some(OUTPUT.to_string()),
                 value: v[i],
                 std: found.std(n_model + i),
+                fixed: None,
             });
         }
     }

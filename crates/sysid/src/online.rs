@@ -638,7 +638,9 @@ impl Tracker {
     /// record, a live tracker cannot, so it says so at the end): fewer distinct levels than the deadzone
     /// has free parameters on its excited branches (4 with both, as `identify`'s check), or a branch the
     /// input never reached, whose breakpoint and slope are still the start's. Empty for an ARX tracker.
-    pub fn input_warnings(&self) -> Vec<String> {
+    /// `model` is the current estimate ([`Tracker::model`]), whose values of an unexcited branch are
+    /// named as reported.
+    pub fn input_warnings(&self, model: Option<&Model>) -> Vec<String> {
         if self.structure.kind != ModelKind::Hammerstein || self.k == 0 {
             return Vec::new();
         }
@@ -655,22 +657,28 @@ impl Tracker {
             ));
         }
         let start = self.settings.start;
-        for (excited, side, b0) in [
+        let d = model.and_then(Model::deadzone);
+        for (excited, side, b0, reported) in [
             (
                 self.negative,
                 "negative: the left branch (b_l, m_l)",
                 start.b_l0,
+                d.map(|d| format!("b_l = {}, m_l = {}", d.b_l, d.m_l)),
             ),
             (
                 self.positive,
                 "positive: the right branch (b_r, m_r)",
                 start.b_r0,
+                d.map(|d| format!("b_r = {}, m_r = {}", d.b_r, d.m_r)),
             ),
         ] {
             if !excited {
                 w.push(format!(
-                    "the input was never {side} is not estimated from the data; it holds the start's \
-                     values (breakpoint {b0}; --b-l0/--b-r0 in the input's units)"
+                    "the input was never {side} is not estimated from the data{}: its key terms never \
+                     left their start, and its switching function uses the start's breakpoint {b0} \
+                     (--b-l0/--b-r0 in the input's units)",
+                    reported.map_or(String::new(), |r| format!(" (the estimate reports {r}, no value \
+                        of the plant's)"))
                 ));
             }
         }
@@ -730,7 +738,11 @@ impl Tracker {
             w.push("the current model is unstable (a pole on or outside the unit circle)".into());
         }
         if let Some(d) = model.deadzone() {
-            if !(d.m_r > 0.0 && d.m_l > 0.0 && d.b_l <= 0.0 && d.b_r >= 0.0) {
+            // A branch the input never reached is not estimated (its 0s are no verdict on the data;
+            // `input_warnings` says so): only the excited branches are judged (audit s14 L-h).
+            let left_ok = !self.negative || (d.m_l > 0.0 && d.b_l <= 0.0);
+            let right_ok = !self.positive || (d.m_r > 0.0 && d.b_r >= 0.0);
+            if !(left_ok && right_ok) {
                 w.push(format!(
                     "the deadzone estimate is implausible (b_l = {}, b_r = {}, m_l = {}, m_r = {}: a slope <= 0 \
                      or a breakpoint on the wrong side of zero){}",

@@ -171,6 +171,24 @@ impl Regression {
             .sum()
     }
 
+    /// Marks in `params` the block parameters the data do not determine (`starts`' fixed entries: a
+    /// one-sided input's dropped branch) as [`crate::fitted::FIXED_ONE_SIDED`].
+    pub fn mark_fixed(&self, starts: &[BlockStart], params: &mut [Param]) {
+        for (c, (ch, start)) in self.channels.iter().zip(starts).enumerate() {
+            let names = ch.kind.block().physical_names();
+            for (name, free) in names.iter().zip(&start.free_physical) {
+                let input = self.input_of(c);
+                if let Some(p) = params
+                    .iter_mut()
+                    .filter(|_| !free)
+                    .find(|p| p.name == *name && p.input == input)
+                {
+                    p.fixed = Some(crate::fitted::FIXED_ONE_SIDED.to_string());
+                }
+            }
+        }
+    }
+
     /// The label of a parameter of input `c` (its name in brackets with several inputs).
     fn input_of(&self, c: usize) -> Option<String> {
         (self.channels.len() > 1).then(|| self.channels[c].name.clone())
@@ -466,37 +484,39 @@ impl Regression {
     /// keyed input fixed, c) with `entry(i)` the value and standard deviation of physical-layout entry i.
     pub fn params_from(&self, entry: impl Fn(usize) -> (f64, Option<f64>)) -> Vec<Param> {
         let mut out = Vec::with_capacity(self.physical_len() + self.channels.len());
-        let mut push =
-            |name: ParamName, input: Option<String>, (value, std): (f64, Option<f64>)| {
-                out.push(Param {
-                    name,
-                    input,
-                    value,
-                    std,
-                })
+        let param =
+            |name: ParamName, input: Option<String>, (value, std): (f64, Option<f64>)| Param {
+                name,
+                input,
+                value,
+                std,
+                fixed: None,
             };
         let mut i = 0;
         for (c, ch) in self.channels.iter().enumerate() {
             for n in ch.block().physical_names() {
-                push(*n, self.input_of(c), entry(i));
+                out.push(param(*n, self.input_of(c), entry(i)));
                 i += 1;
             }
         }
         for a in 1..=self.na {
-            push(ParamName::A(a), None, entry(i));
+            out.push(param(ParamName::A(a), None, entry(i)));
             i += 1;
         }
         for (c, ch) in self.channels.iter().enumerate() {
             if ch.keyed() {
-                push(ParamName::B(1), self.input_of(c), (1.0, None));
+                out.push(Param {
+                    fixed: Some(crate::fitted::FIXED_NORMALISATION.to_string()),
+                    ..param(ParamName::B(1), self.input_of(c), (1.0, None))
+                });
             }
             for j in ch.b_from() + 1..=ch.nb {
-                push(ParamName::B(j), self.input_of(c), entry(i));
+                out.push(param(ParamName::B(j), self.input_of(c), entry(i)));
                 i += 1;
             }
         }
         if self.offset {
-            push(ParamName::C, None, entry(i));
+            out.push(param(ParamName::C, None, entry(i)));
         }
         out
     }

@@ -363,7 +363,7 @@ fn summary(
     warnings.retain(|w| !w.starts_with("the change detector"));
     warnings.extend(tracker.detector_unarmed_warning());
     warnings.extend(tracker.blended_model_warning());
-    warnings.extend(tracker.input_warnings());
+    warnings.extend(tracker.input_warnings(model.as_ref()));
     Ok(TrackSummary {
         samples: tracker.samples(),
         t_end,

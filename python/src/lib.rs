@@ -1747,14 +1747,16 @@ fn tune<'py>(
 /// squares, the physics IPA simulator and PI control, computed in Rust.
 /// Calibrates the physics plant to a record, as `ipa-sysid calibrate` (without the Hammerstein
 /// baseline, which `identify` gives): `data` and `validation` are CSV paths (columns u, y and, when
-/// present, p_a_pa, p_b_pa); returns a dict with "estimates" (parameter, key, unit, start, value, std,
+/// present, p_a_pa, p_b_pa; the validation record's own columns `val_u_col`/`val_y_col`, default
+/// `u_col`/`y_col`); returns a dict with "estimates" (parameter, key, unit, start, value, std,
 /// at_bound), "correlation", "segments", "iterations", "simulations", "termination", "cost_start",
 /// "cost", the free-run fits "fit_estimation_start_percent", "fit_estimation_percent",
 /// "fit_validation_start_percent", "fit_validation_percent", "warnings" and "toml" (the plant-config
 /// of the twin, as `--out` writes it, without its first comment line).
 #[pyfunction]
 #[pyo3(signature = (data, validation=None, free=None, fixed=None, plant_config=None, segment=0.5,
-    max_iterations=40, ts=None, u_col="u", y_col="y", t_col="t", no_header=false))]
+    max_iterations=40, ts=None, u_col="u", y_col="y", t_col="t", no_header=false, val_u_col=None,
+    val_y_col=None))]
 #[allow(clippy::too_many_arguments)]
 fn calibrate<'py>(
     py: Python<'py>,
@@ -1770,8 +1772,15 @@ fn calibrate<'py>(
     y_col: &str,
     t_col: &str,
     no_header: bool,
+    val_u_col: Option<&str>,
+    val_y_col: Option<&str>,
 ) -> PyResult<Bound<'py, PyDict>> {
     use ipa::calibrate::Calibration;
+    if validation.is_none() && (val_u_col.is_some() || val_y_col.is_some()) {
+        return Err(PyValueError::new_err(
+            "val_u_col/val_y_col name columns of the validation record: give validation=PATH",
+        ));
+    }
     let start = match &plant_config {
         Some(p) => ipa::PlantConfig::from_toml_file(p).map_err(ipa_err)?,
         None => ipa::PlantConfig::default(),
@@ -1795,8 +1804,19 @@ fn calibrate<'py>(
         no_header,
         ..sysid::data::CsvOptions::default()
     };
-    let (est, val, notes) =
-        ipa::calibrate::read_records(&data, validation.as_deref(), &opts, None).map_err(ipa_err)?;
+    // The validation record's own columns, as --val-u-col/--val-y-col (audit s14 L-e).
+    let val_opts = sysid::data::CsvOptions {
+        u_col: val_u_col.unwrap_or(u_col).to_string(),
+        y_col: val_y_col.unwrap_or(y_col).to_string(),
+        ..opts.clone()
+    };
+    let (est, val, notes) = ipa::calibrate::read_records(
+        &data,
+        validation.as_deref().map(|v| (v, &val_opts)),
+        &opts,
+        None,
+    )
+    .map_err(ipa_err)?;
     let mut twin = py.detach(|| cal.fit(&est, val.as_ref())).map_err(ipa_err)?;
     twin.warnings.splice(0..0, notes);
     let fit = |r: &Option<ipa::calibrate::FreeRun>| r.as_ref().and_then(|r| r.fit_percent);

@@ -537,6 +537,14 @@ def test_plants_that_are_neither_a_name_nor_a_file_and_missing_files(tmp_path):
     assert a["toml"] == b["toml"]
     with pytest.raises(ValueError, match=r"no column named 'u' \(chosen by u_col\)"):
         ipa_sysid.calibrate(str(renamed))
+    # The validation record's own columns (audit s14 L-e): the renamed file as the validation record of
+    # the first gives the fit of the first as its own validation record (the same samples).
+    c = ipa_sysid.calibrate(str(rec), validation=str(rec), max_iterations=2, free="moving_mass")
+    d = ipa_sysid.calibrate(str(rec), validation=str(renamed), max_iterations=2, free="moving_mass",
+                            val_u_col="cmd", val_y_col="pos")
+    assert c["fit_validation_percent"] == d["fit_validation_percent"]
+    with pytest.raises(ValueError, match="give validation=PATH"):
+        ipa_sysid.calibrate(str(rec), val_u_col="cmd")
 
 
 def test_control_warns_about_an_unreachable_set_point():

@@ -384,3 +384,103 @@ fn calibrate_reads_records_like_every_command() {
         "{err}"
     );
 }
+
+// Audit s14 L-e: the validation record's columns named apart (`--val-u-col`/`--val-y-col`, as identify
+// and order have them: the cascaded-tanks file holds both records). A file with the validation record
+// in columns uv, yv gives the twin's validation fit of the same record written alone as u, y; the flags
+// without --validation are refused.
+#[test]
+fn calibrate_takes_the_validation_records_own_columns() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path();
+    for (seed, out) in [("1", "est.csv"), ("2", "val.csv")] {
+        let o = run(
+            p,
+            &[
+                "simulate",
+                "--input",
+                "calibration",
+                "--samples",
+                "300",
+                "--seed",
+                seed,
+                "--out",
+                out,
+            ],
+        );
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+    // Every column of est.csv (t, u, y and the pressures) beside val.csv's u, y as uv, yv; val.csv
+    // without its pressures (the twin is judged on the position).
+    let est = std::fs::read_to_string(p.join("est.csv")).unwrap();
+    let val = std::fs::read_to_string(p.join("val.csv")).unwrap();
+    let col = |l: &str, i: usize| l.split(',').nth(i).unwrap().to_string();
+    assert!(est.lines().next().unwrap().starts_with("t,u,y"));
+    let both: String = est
+        .lines()
+        .zip(val.lines())
+        .enumerate()
+        .map(|(k, (e, v))| {
+            if k == 0 {
+                format!("{e},uv,yv\n")
+            } else {
+                format!("{e},{},{}\n", col(v, 1), col(v, 2))
+            }
+        })
+        .collect();
+    std::fs::write(
+        p.join("val.csv"),
+        val.lines()
+            .map(|v| format!("{},{},{}\n", col(v, 0), col(v, 1), col(v, 2)))
+            .collect::<String>(),
+    )
+    .unwrap();
+    std::fs::write(p.join("both.csv"), both).unwrap();
+    let fit = |args: &[&str], json: &str| {
+        let mut a = vec![
+            "calibrate",
+            "--out",
+            "twin.toml",
+            "--no-baseline",
+            "--max-iterations",
+            "1",
+            "--json",
+            json,
+        ];
+        a.extend(args);
+        let o = run(p, &a);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(p.join(json)).unwrap()).unwrap();
+        v["fit_validation_percent"].as_f64().unwrap()
+    };
+    let alone = fit(&["--data", "est.csv", "--validation", "val.csv"], "a.json");
+    let apart = fit(
+        &[
+            "--data",
+            "both.csv",
+            "--validation",
+            "both.csv",
+            "--val-u-col",
+            "uv",
+            "--val-y-col",
+            "yv",
+        ],
+        "b.json",
+    );
+    assert_eq!(alone, apart);
+    let o = run(
+        p,
+        &[
+            "calibrate",
+            "--data",
+            "est.csv",
+            "--out",
+            "t2.toml",
+            "--val-u-col",
+            "uv",
+        ],
+    );
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--validation"));
+}

@@ -19,9 +19,16 @@ pub struct Args {
     /// Estimation record (CSV with columns u, y and, when measured, p_a_pa, p_b_pa in Pa absolute).
     #[arg(long, value_name = "REC.csv", required_unless_present = "study")]
     pub data: Option<PathBuf>,
-    /// Validation record (same columns): the free-run fit of the twin and of the Hammerstein model.
+    /// Validation record (same columns unless --val-u-col/--val-y-col): the free-run fit of the twin
+    /// and of the Hammerstein model.
     #[arg(long, value_name = "VAL.csv")]
     pub validation: Option<PathBuf>,
+    /// Input column of the validation file (default: --u-col).
+    #[arg(long, value_name = "NAME", requires = "validation")]
+    pub val_u_col: Option<String>,
+    /// Output column of the validation file (default: --y-col).
+    #[arg(long, value_name = "NAME", requires = "validation")]
+    pub val_y_col: Option<String>,
     /// Parameters to estimate, comma-separated (names or TOML keys; `all`). Default: all of
     /// supply_conductance, exhaust_conductance, opening_delay, closing_delay, static_friction,
     /// coulomb_friction, stribeck_velocity, viscous_friction, moving_mass, dead_volume_cap,
@@ -71,6 +78,16 @@ pub struct Args {
     pub seed: u64,
 }
 
+/// The validation record's reader options: the estimation record's with the columns of
+/// `--val-u-col`/`--val-y-col` (as identify's `ValidationArgs`).
+fn validation_options(args: &Args, opts: &sysid::data::CsvOptions) -> sysid::data::CsvOptions {
+    sysid::data::CsvOptions {
+        u_col: args.val_u_col.clone().unwrap_or_else(|| opts.u_col.clone()),
+        y_col: args.val_y_col.clone().unwrap_or_else(|| opts.y_col.clone()),
+        ..opts.clone()
+    }
+}
+
 /// The Hammerstein output-error structures tried for the comparison (na, nb, nk).
 const BASELINE_ORDERS: [(usize, usize, usize); 4] = [(1, 1, 1), (2, 2, 1), (3, 1, 1), (3, 3, 1)];
 
@@ -88,9 +105,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     inputs.extend(args.plant_config.as_deref());
     check_outputs(&[(&args.out, "--out"), (&args.json, "--json")], &inputs)?;
     let opts = record_options(&args)?;
+    let val_opts = validation_options(&args, &opts);
     let pressures = args.pa_col.clone().zip(args.pb_col.clone());
-    let (est, val, notes) =
-        ipa::calibrate::read_records(data, args.validation.as_deref(), &opts, pressures.as_ref())?;
+    let (est, val, notes) = ipa::calibrate::read_records(
+        data,
+        args.validation.as_deref().map(|v| (v, &val_opts)),
+        &opts,
+        pressures.as_ref(),
+    )?;
     let started = std::time::Instant::now();
     let mut twin = calibration.fit(&est, val.as_ref())?;
     twin.warnings.splice(0..0, notes);
@@ -201,7 +223,7 @@ fn best_hammerstein(
     let opts = record_options(args)?;
     let est = sysid::data::read_csv(data, &opts)?;
     let val = match val {
-        Some(v) => Some(sysid::data::read_csv(v, &opts)?),
+        Some(v) => Some(sysid::data::read_csv(v, &validation_options(args, &opts))?),
         None => None,
     };
     let mut best: Option<Baseline> = None;

@@ -170,19 +170,19 @@ pub fn read_record(
     ))
 }
 
-/// The estimation record `data` and the optional validation record `validation`, read by
-/// [`read_record`], with the reader's notes on both as warnings (a validation record's prefixed by its
+/// The estimation record `data` and the optional validation record `validation` (its file and its
+/// reader options: its own columns), read by [`read_record`], with the reader's notes on both as warnings (a validation record's prefixed by its
 /// name), for [`Calibrated::warnings`]: what the command line and the Python package both do.
 pub fn read_records(
     data: &Path,
-    validation: Option<&Path>,
+    validation: Option<(&Path, &sysid_core::data::CsvOptions)>,
     opts: &sysid_core::data::CsvOptions,
     pressures: Option<&(String, String)>,
 ) -> Result<(Record, Option<Record>, Vec<CalibrationWarning>), IpaError> {
     let (est, mut notes) = read_record(data, opts, pressures)?;
     let val = match validation {
-        Some(v) => {
-            let (val, val_notes) = read_record(v, opts, pressures)?;
+        Some((v, val_opts)) => {
+            let (val, val_notes) = read_record(v, val_opts, pressures)?;
             notes.extend(
                 val_notes
                     .into_iter()

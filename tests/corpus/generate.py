@@ -57,6 +57,8 @@ write("csv/inf_cell.csv", "t,u,y\n0.00,1,2\n0.01,1,-inf\n0.02,1,2\n")
 write("csv/ragged_row.csv", "t,u,y\n0.00,1,2\n0.01,1,2,7\n0.02,1,2\n")
 write("csv/short_row.csv", "t,u,y\n0.00,1,2\n0.01,1\n0.02,1,2\n")
 write("csv/nonuniform_time.csv", "t,u,y\n0.00,1,2\n0.01,1,2\n0.02,1,2\n0.04,1,2\n0.05,1,2\n")
+# A logger's millisecond clock read as seconds: typical step 10 "s", one of 11.
+write("csv/millisecond_time.csv", "t,u,y\n0,1,2\n10,1,2\n20,1,2\n31,1,2\n41,1,2\n51,1,2\n")
 write("csv/decreasing_time.csv", "t,u,y\n0.00,1,2\n0.01,1,2\n0.02,1,2\n0.015,1,2\n0.03,1,2\n")
 write("csv/repeated_time.csv", "t,u,y\n0.00,1,2\n0.01,1,2\n0.01,1,2\n0.02,1,2\n")
 write("csv/too_few_samples.csv", "\n".join(plain.splitlines()[:7]) + "\n")

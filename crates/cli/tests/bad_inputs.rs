@@ -180,6 +180,17 @@ fn malformed_csv_files_exit_2_with_file_line_column() {
                 "--ts",
             ],
         ),
+        // A typical step of 10 s whose time column counts milliseconds: the unit flag is named (audit
+        // s14 L-i); a step of 0.01 s (above) is not given that hint.
+        case(
+            "identify --data {c}/csv/millisecond_time.csv",
+            2,
+            &[
+                "millisecond_time.csv:5:1",
+                "non-uniform sampling",
+                "if the time column counts milliseconds, pass --time-unit ms",
+            ],
+        ),
         case(
             "identify --data {c}/csv/decreasing_time.csv",
             2,
@@ -207,7 +218,23 @@ fn malformed_csv_files_exit_2_with_file_line_column() {
         case(
             "identify --data {c}/csv/no_header.csv",
             2,
-            &["no_header.csv", "no header row", "add one such as t,u,y"],
+            &[
+                "no_header.csv",
+                "no header row",
+                "pass --no-header and name the columns by position (--u-col 2)",
+                "or add a header such as t,u,y",
+            ],
+        ),
+        // With --no-header the columns are positions: a name is answered with the flag's number form
+        // (audit s14 L-i: the hint said to add a header the flag had just said the file lacks).
+        case(
+            "identify --data {c}/csv/no_header.csv --no-header",
+            2,
+            &[
+                "no column named 'u' (chosen by --u-col)",
+                "with --no-header the columns are named by their position, 1 to",
+                "give --u-col a column number",
+            ],
         ),
         case(
             "identify --data {c}/no_such_file.csv",

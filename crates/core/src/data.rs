@@ -480,6 +480,8 @@ pub struct Table {
     rows: Vec<(usize, csv::StringRecord)>,
     /// Read `1,5` as 1.5 (semicolon- or tab-delimited files).
     decimal_comma: bool,
+    /// False when read without a header row: `headers` are then the positions "1", "2", ...
+    has_header: bool,
 }
 
 /// Parses CSV bytes into a [`Table`], checking the header and the shape of every row.
@@ -659,6 +661,7 @@ fn table_of(
         headers,
         rows,
         decimal_comma: delimiter != b',',
+        has_header,
     })
 }
 
@@ -801,7 +804,9 @@ impl Table {
         if let Some(i) = self.headers.iter().position(|h| h == col) {
             return Ok(i);
         }
-        let hint = if self.headers.iter().all(|h| parse_number(h, true).is_some()) {
+        let hint = if !self.has_header {
+            Some(ColumnHint::ByPosition(self.headers.len()))
+        } else if self.headers.iter().all(|h| parse_number(h, true).is_some()) {
             Some(ColumnHint::NoHeader)
         } else {
             self.headers
@@ -946,14 +951,28 @@ fn uniform_ts(t: &[f64], table: &Table, col: usize) -> Result<f64, SysidError> {
                 format!(
                     "non-uniform sampling: step {} s from the previous row differs from the typical \
                      (median) step {} s by more than 0.1 %; pass --resample TS to interpolate onto a uniform \
-                     grid, or --ts",
+                     grid, or --ts{}",
                     sig6(dt),
-                    sig6(median)
+                    sig6(median),
+                    unit_hint(median)
                 ),
             ));
         }
     }
     Ok(ts)
+}
+
+/// A typical time step of a second or more read as seconds: the time column may count milliseconds
+/// (a logger's clock), which `--time-unit ms` says (audit s14 L-i: a 10 s step over 19.5 h of rows).
+pub(crate) fn unit_hint(median_s: f64) -> String {
+    if median_s >= 1.0 {
+        format!(
+            " (a typical step of {} s: if the time column counts milliseconds, pass --time-unit ms)",
+            sig6(median_s)
+        )
+    } else {
+        String::new()
+    }
 }
 
 /// Checks that time increases strictly (at least two samples).

@@ -35,6 +35,8 @@ pub enum Setting {
     MaxIterations,
     /// Relative tolerance of the key-term iteration.
     Tolerance,
+    /// Reading a data file without a header row (its columns named by position).
+    NoHeader,
     /// Any other setting, by the name the caller uses (an application's own options).
     Other(&'static str),
 }
@@ -58,6 +60,7 @@ impl Setting {
             Setting::IvStages => "iv_stages",
             Setting::MaxIterations => "max_iterations",
             Setting::Tolerance => "tolerance",
+            Setting::NoHeader => "no_header",
             Setting::Other(name) => name,
         }
     }
@@ -83,6 +86,7 @@ impl Setting {
             Setting::IvStages => "--iv-stages",
             Setting::MaxIterations => "--max-iterations",
             Setting::Tolerance => "tolerance",
+            Setting::NoHeader => "--no-header",
             Setting::Other(name) => name,
         }
     }
@@ -99,6 +103,9 @@ impl std::fmt::Display for Setting {
 pub enum ColumnHint {
     /// Every header cell is a number: the file has no header row.
     NoHeader,
+    /// The file was read without a header row (its columns named 1..=n by position) and the column was
+    /// named otherwise.
+    ByPosition(usize),
     /// A header name equal to the requested one but for case.
     Case(String),
 }
@@ -248,9 +255,16 @@ impl SysidError {
                 let flag = name(*setting);
                 let hint = match hint {
                     None => String::new(),
-                    Some(ColumnHint::NoHeader) => " (the first row holds numbers: the file has no header \
-                                                  row; add one such as t,u,y)"
-                        .to_string(),
+                    Some(ColumnHint::NoHeader) => format!(
+                        " (the first row holds numbers: the file has no header row; pass {} and name \
+                         the columns by position ({flag} 2), or add a header such as t,u,y)",
+                        name(Setting::NoHeader)
+                    ),
+                    Some(ColumnHint::ByPosition(n)) => format!(
+                        " (with {} the columns are named by their position, 1 to {n}: give {flag} a \
+                         column number)",
+                        name(Setting::NoHeader)
+                    ),
                     Some(ColumnHint::Case(h)) => {
                         format!(" (names are case-sensitive: did you mean {flag} {h}?)")
                     }

@@ -327,9 +327,10 @@ impl CsvStream {
                     format!(
                         "non-uniform sampling: step {} s from the previous row differs from the mean step \
                          {} s by more than 0.1 %; pass --resample TS to interpolate onto a uniform grid \
-                         (in memory, without --stream), or --ts",
+                         (in memory, without --stream), or --ts{}",
                         sig6(step),
-                        sig6(ts)
+                        sig6(ts),
+                        super::unit_hint(ts)
                     ),
                 ));
             }

@@ -244,6 +244,61 @@ fn order_fails_when_no_structure_can_be_estimated() {
     assert_eq!(identify.status.code(), Some(1));
 }
 
+// The data's failure, not a numerical one: two inputs that are the same column make every structure's
+// regressors linearly dependent, so every structure is refused by the data: exit 2, as identify's on
+// the same record (audit s14 L-j: order exited 1 where identify exits 2).
+#[test]
+fn order_exits_as_identify_when_the_data_refuse_every_structure() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut s = String::from("u1,u2,y\n");
+    let mut y = 0.0;
+    for k in 0..300 {
+        let u = ((k * 7919) % 13) as f64 - 6.0;
+        y = 0.5 * y + u;
+        s += &format!("{u},{u},{y}\n");
+    }
+    let data = dir.path().join("twins.csv");
+    std::fs::write(&data, s).unwrap();
+    let run = |cmd: &[&str]| {
+        bin()
+            .args(cmd)
+            .args([
+                "--ts",
+                "0.1",
+                "--u-col",
+                "u1,u2",
+                "--structure",
+                "arx",
+                "--data",
+            ])
+            .arg(&data)
+            .output()
+            .unwrap()
+    };
+    let identify = run(&["identify", "--method", "ls"]);
+    assert_eq!(identify.status.code(), Some(2));
+    let order = run(&["order", "--na", "1..2", "--nb", "1", "--nk", "1"]);
+    let stderr = String::from_utf8_lossy(&order.stderr);
+    assert_eq!(order.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("every one of the 2 structures failed"),
+        "{stderr}"
+    );
+    assert!(stderr.contains("linearly dependent"), "{stderr}");
+    // track follows one input: the list is refused as a list, not looked up as a column's name.
+    let track = bin()
+        .args(["track", "--u-col", "u1,u2", "--data"])
+        .arg(&data)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&track.stderr);
+    assert_eq!(track.status.code(), Some(2), "{stderr}");
+    assert!(
+        stderr.contains("invalid setting --u-col = u1,u2: one input column"),
+        "{stderr}"
+    );
+}
+
 /// Rows 0..300: y(k) = 0.7 y(k−1) + 0.5 u(k−2); rows 300..600: y(k) = 0.2 y(k−1) + 2 u(k−2) (another
 /// plant), noise-free, by a plain loop.
 fn two_plant_record(dir: &std::path::Path) -> std::path::PathBuf {

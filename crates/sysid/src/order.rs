@@ -48,6 +48,10 @@ pub struct Candidate {
     /// Why the structure could not be estimated.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub error: Option<String>,
+    /// Whether that failure was numerical (`SysidError::is_numerical`) rather than the data's or a
+    /// setting's: the command line's exit code when every structure fails (1 against 2).
+    #[serde(skip)]
+    pub error_numerical: bool,
     /// The first of its warnings that disqualifies it ([`disqualifies`]), when one does.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub disqualified: Option<String>,
@@ -266,6 +270,7 @@ fn evaluate(est: &Dataset, val: Option<&Dataset>, o: Orders, base: &Identificati
         ranking_fit: None,
         warnings: Vec::new(),
         error: None,
+        error_numerical: false,
         disqualified: None,
     };
     let settings = Identification {
@@ -279,6 +284,7 @@ fn evaluate(est: &Dataset, val: Option<&Dataset>, o: Orders, base: &Identificati
         Ok(f) => f,
         Err(e) => {
             c.error = Some(e.to_string());
+            c.error_numerical = e.is_numerical();
             return c;
         }
     };
@@ -293,7 +299,10 @@ fn evaluate(est: &Dataset, val: Option<&Dataset>, o: Orders, base: &Identificati
             c.fpe = m.fpe;
             c.ranking_fit = guarded_fit(&m);
         }
-        Err(e) => c.error = Some(e.to_string()),
+        Err(e) => {
+            c.error = Some(e.to_string());
+            c.error_numerical = e.is_numerical();
+        }
     }
     if let Some(v) = val {
         match metrics(&fit.model, v) {
@@ -304,7 +313,10 @@ fn evaluate(est: &Dataset, val: Option<&Dataset>, o: Orders, base: &Identificati
                 c.disqualified = c.disqualified.take().or_else(|| disqualification(&w));
                 c.warnings.extend(w.iter().map(ToString::to_string));
             }
-            Err(e) => c.error = Some(format!("validation: {e}")),
+            Err(e) => {
+                c.error = Some(format!("validation: {e}"));
+                c.error_numerical = e.is_numerical();
+            }
         }
     }
     c

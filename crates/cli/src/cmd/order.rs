@@ -389,10 +389,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     if nothing {
         let first = ranked.iter().find_map(|c| c.error.as_deref()).unwrap_or("");
-        anyhow::bail!(sysid::SysidError::Numerical(format!(
+        let message = format!(
             "every one of the {failed} structures failed to estimate (the first: {first}); nothing \
              could be estimated from this record"
-        )));
+        );
+        // Exit 1 when a numerical failure is among them; 2 when the data (or a setting) refused every
+        // structure, as `identify` exits on the same record (audit s14 L-j).
+        anyhow::bail!(if ranked.iter().any(|c| c.error_numerical) {
+            sysid::SysidError::Numerical(message)
+        } else {
+            sysid::SysidError::Data(message)
+        });
     }
     Ok(())
 }

@@ -190,6 +190,16 @@ const POLL: Duration = Duration::from_millis(20);
 
 /// Runs `track`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    // A list of inputs is the other commands' several-input form; the tracker follows one (audit s14
+    // L-j: the list was looked up as one column's name).
+    if args.u_col.contains(',') {
+        anyhow::bail!(sysid::SysidError::setting(
+            sysid::Setting::UCol,
+            &args.u_col,
+            "one input column: track follows a single-input model, one input at a time; run it once \
+             per input (--u-col NAME)",
+        ));
+    }
     let mut tracker = Tracker::new(args.settings())?;
     let idle = args.idle()?;
     let mut inputs = Vec::new();

@@ -372,3 +372,32 @@ fn nonlinearity_per_input_is_the_structure_and_linear_inputs_spelled_by_input() 
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("--nonlinearity"));
 }
+
+// An order refused for one of several inputs names that input's column, not its position among the
+// default names u1, u2 (audit s14 L-o: columns u1,u3 and "for input u2", a column of the file that was
+// not chosen), checked by the command line before it reads the data.
+#[test]
+fn a_per_input_order_error_names_the_inputs_column() {
+    let dir = tempfile::tempdir().unwrap();
+    let (u1, u3, y) = two_input_record(300);
+    let u2 = vec![0.0; 300];
+    let f = dir.path().join("three.csv");
+    write(&f, &["u1", "u2", "u3", "y"], &[&u1, &u2, &u3, &y]);
+    let o = run(&[
+        "identify",
+        "--data",
+        s(&f),
+        "--u-col",
+        "u1,u3",
+        "--structure",
+        "arx",
+        "--nk",
+        "1,101",
+    ]);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("invalid setting --nk = 101 for input u3: an order of at most 100"),
+        "{err}"
+    );
+}

@@ -115,12 +115,19 @@ impl Default for Identification {
 }
 
 impl Identification {
-    /// Checks the structure and the estimator's settings, without data.
+    /// Checks the structure and the estimator's settings, without data (several inputs named by their
+    /// position: "input 2").
     pub fn check(&self) -> Result<(), SysidError> {
         let n = self.inputs.len().max(1);
-        let names: Vec<String> = (1..=n).map(|i| format!("u{i}")).collect();
+        let names: Vec<String> = (1..=n).map(|i| i.to_string()).collect();
         let names: Vec<&str> = names.iter().map(String::as_str).collect();
-        self.regression(&names)?;
+        self.check_for(&names)
+    }
+
+    /// [`Identification::check`] for inputs named `names` (the data's columns), so that an error about
+    /// one input names its column (audit s14 L-o: "for input u2" named the second of u1,u3 by position).
+    pub fn check_for(&self, names: &[&str]) -> Result<(), SysidError> {
+        self.regression(names)?;
         if let Some(kind) = self.output {
             crate::wiener::check_output_kind(kind)?;
         }
@@ -301,7 +308,13 @@ pub fn identify<R: Records + ?Sized>(
     records: &R,
     settings: &Identification,
 ) -> Result<Fitted, SysidError> {
-    settings.check()?;
+    match records.records().first() {
+        Some(r) => {
+            let names: Vec<&str> = r.inputs().iter().map(|i| i.name()).collect();
+            settings.check_for(&names)?;
+        }
+        None => settings.check()?,
+    }
     if settings.auto_breakpoints() {
         return identify_breakpoints(records, settings);
     }

@@ -567,7 +567,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ));
     }
     let settings = args.settings()?;
-    settings.check()?; // refuse bad flags before reading anything
+    // Refuse bad flags before reading anything, naming each input by its column.
+    if several_inputs {
+        let names: Vec<&str> = args.columns.u_col.split(',').map(str::trim).collect();
+        settings.check_for(&names)?;
+    } else {
+        settings.check()?;
+    }
     if batch && !args.merge {
         return super::identify_batch::run(args, &settings);
     }

@@ -1543,6 +1543,8 @@ fn control_loop<'py>(
         }
     };
     let (limits, mut plant) = plant_and_limits(plant, plant_config.as_deref())?;
+    // A start the plant cannot hold (beyond the IPA's stroke, or ±1e6 of a model), as the command line.
+    limits.check_start(y0).map_err(sysid_err)?;
     let ts = plant.ts();
     let settings = ::control::PiSettings::new(kp, ki)
         .with_integral(integral)
@@ -1644,6 +1646,7 @@ fn control_loop<'py>(
             judge_steps: profile.has_held_steps(),
             data_u_range: limits.data_u_range,
             can_run_longer: true,
+            model_units: false,
         },
     ));
     let out = PyDict::new(py);

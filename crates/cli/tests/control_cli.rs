@@ -398,3 +398,78 @@ fn a_deadzone_change_after_the_run_is_warned() {
     assert!(warned("5"));
     assert!(!warned("0.5"));
 }
+
+// Audit s14 L-l and L-p. A model plant (a first-order model estimated on a tank's volts) has no
+// stroke: a start of 1e300 is refused, not run and reported as a diverging loop; its summary names
+// the model's own units, not the IPA's mm and counts. Back-calculation with Tt <= Ts/2 diverges (the
+// saturated update multiplies I by 1 − Ts/Tt <= −1): refused. A tiny command limit prints as a number.
+#[test]
+fn control_refuses_nonsense_starts_and_speaks_a_model_plants_units() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("tank.json");
+    std::fs::write(
+        &model,
+        r#"{"format": "ipa-sysid-model", "version": 2, "model": {"kind": "arx", "ts": 1.0,
+        "na": 1, "nb": 1, "nk": 1, "a": [-0.9], "b": [0.05], "offset": null}}"#,
+    )
+    .unwrap();
+    let plant = format!("model:{}", model.display());
+    let o = ipa_sysid(&["--plant", &plant, "--setpoint", "6", "--y0", "1e300"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("invalid setting --y0 = 1e300: a start within ±1000000"));
+    let o = ipa_sysid(&[
+        "--plant",
+        &plant,
+        "--setpoint",
+        "6",
+        "--y0",
+        "4",
+        "--duration",
+        "200",
+        "--kp",
+        "2",
+        "--ki",
+        "0.1",
+        "--u-max",
+        "10",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8_lossy(&o.stdout).into_owned() + &stderr(&o);
+    assert!(text.contains("|u| <= 10 (u's units)"), "{text}");
+    assert!(
+        text.contains("set-point:    fixed set-point 6 (y's units) from y0 = 4 (y's units)"),
+        "{text}"
+    );
+    assert!(!text.contains(" mm") && !text.contains("counts"), "{text}");
+    let o = ipa_sysid(&[
+        "--plant",
+        "ipa",
+        "--setpoint",
+        "50",
+        "--duration",
+        "1",
+        "--anti-windup",
+        "back-calculation",
+        "--tracking-time",
+        "0.005",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o)
+            .contains("--tracking-time = 0.005: more than half the sampling period (0.005 s)"),
+        "{}",
+        stderr(&o)
+    );
+    let o = ipa_sysid(&[
+        "--plant",
+        "ipa",
+        "--setpoint",
+        "50",
+        "--duration",
+        "1",
+        "--u-max",
+        "1e-300",
+    ]);
+    let text = String::from_utf8_lossy(&o.stdout).into_owned() + &stderr(&o);
+    assert!(text.contains("|u| <= 1e-300 counts"), "{text}");
+}

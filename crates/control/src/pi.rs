@@ -230,6 +230,21 @@ impl PiSettings {
                 "a finite sampling period in s > 0",
             ));
         }
+        // In saturation the back-calculation update is I(k) = (1 − Ts/Tt) I(k−1) + …, which grows
+        // without bound for Ts/Tt >= 2 (audit s14 L-l: Tt = 1e-300 s ended in NaN at sample 3).
+        if let AntiWindup::BackCalculation { tt_s } = self.anti_windup {
+            if tt_s <= ts_s / 2.0 {
+                return Err(ControlError::setting(
+                    ControlSetting::TrackingTime,
+                    tt_s,
+                    &format!(
+                        "more than half the sampling period ({} s): with Ts/Tt >= 2 the \
+                         back-calculation diverges",
+                        ts_s / 2.0
+                    ),
+                ));
+            }
+        }
         Ok(PiController {
             settings: self,
             ts_s,
@@ -434,5 +449,15 @@ mod tests {
             "invalid setting kp = NaN: a finite number (counts/mm)"
         );
         assert!(PiSettings::paper().build(0.0).is_err());
+        // Tt = Ts/2 at Ts = 0.01 s: the saturated update I(k) = −I(k−1) + … never decays; refused by
+        // name at build (validate has no Ts); Tt just above is built.
+        let bc = |tt_s| PiSettings::paper().with_anti_windup(AntiWindup::BackCalculation { tt_s });
+        let e = bc(0.005).build(0.01).unwrap_err();
+        assert!(
+            e.to_string()
+                .starts_with("invalid setting tt_s = 0.005: more than half the sampling period"),
+            "{e}"
+        );
+        assert!(bc(0.0051).build(0.01).is_ok());
     }
 }

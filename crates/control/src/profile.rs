@@ -291,11 +291,16 @@ impl Profile {
 
     /// A short description for summaries ("fixed 50 mm", "staircase 20, 60 mm, 3 s each", "file x.csv").
     pub fn describe(&self) -> String {
+        self.describe_in("mm")
+    }
+
+    /// [`Profile::describe`] with the set-points in `unit` (a model plant's output units).
+    pub fn describe_in(&self, unit: &str) -> String {
         match self {
-            Profile::Fixed { setpoint_mm } => format!("fixed set-point {setpoint_mm} mm"),
+            Profile::Fixed { setpoint_mm } => format!("fixed set-point {setpoint_mm} {unit}"),
             Profile::Staircase { levels_mm, hold_s } => {
                 let l: Vec<String> = levels_mm.iter().map(|v| v.to_string()).collect();
-                format!("staircase {} mm, {hold_s} s each", l.join(", "))
+                format!("staircase {} {unit}, {hold_s} s each", l.join(", "))
             }
             Profile::Samples { path, t_s, .. } => {
                 format!("set-points from {} ({} rows)", path.display(), t_s.len())

@@ -17,7 +17,8 @@ use crate::metrics::{still_moving, StepSegment, Unsettled, SETTLING_BAND, TAIL_F
 use crate::Trace;
 
 /// |y| beyond which a closed loop is reported as diverging, mm (a kilometre: beyond any actuator's
-/// stroke; a model plant has no stroke to check against).
+/// stroke; a model plant has no stroke to check against); also the largest start of a model plant
+/// (`ipa::spec::MAX_START_ABS`).
 pub const DIVERGED_MM: f64 = 1e6;
 
 /// A value with 4 decimals, in scientific notation beyond 1e9 in magnitude (a diverging loop's
@@ -64,6 +65,9 @@ pub struct LoopFacts {
     /// whose commands leave them by more than a tenth of their span is warned (the model extrapolates
     /// there; audit s13 L10); `None`: not checked.
     pub data_u_range: Option<(f64, f64)>,
+    /// True for a model plant, whose signals are in its estimation record's units: the warnings then
+    /// name "(y's units)" and "(u's units)" where the IPA's are mm and counts.
+    pub model_units: bool,
     /// True when the run's length is the caller's to choose (`control --duration`): the warnings then
     /// say how to run longer; false for a run of fixed length (`reproduce`'s tests), which says nothing
     /// the user cannot do.
@@ -231,10 +235,10 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
             }
             if let Some(e) = ess.filter(|e| step > 0.0 && e.abs() >= 0.02 * step) {
                 missed.push(format!(
-                    "|e_ss| = {} mm >= 2 % of the {} mm step ({:.4} mm)",
+                    "|e_ss| = {} mm >= 2 % of the {} mm step ({} mm)",
                     fmt_value(e.abs()),
                     fmt_mm(step),
-                    0.02 * step
+                    fmt_value(0.02 * step)
                 ));
             }
             if !missed.is_empty() {
@@ -251,6 +255,14 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
                     missed.join("; ")
                 ));
             }
+        }
+    }
+    if facts.model_units {
+        // Every length above is written " mm" and every command " counts": the IPA's units.
+        for m in &mut w {
+            *m = m
+                .replace(" mm", " (y's units)")
+                .replace(" counts", " (u's units)");
         }
     }
     w
@@ -333,6 +345,7 @@ mod tests {
                 judge_steps: true,
                 data_u_range: None,
                 can_run_longer: true,
+                model_units: false,
             },
         );
         assert!(w.iter().any(|w| w.contains("99.9 %")), "{w:?}");

@@ -46,15 +46,17 @@ pub struct Pi<F: Float> {
 
 impl<F: Float> Pi<F> {
     /// A controller with Kp (counts/mm), Ki (counts/(mm·s)), Ts (s, > 0), u_max (counts, > 0; 255
-    /// for the IPA's PWM) and an anti-windup scheme. Non-finite gains, Ts ≤ 0, u_max ≤ 0 or Tt ≤ 0 give
-    /// [`Error::Setting`].
+    /// for the IPA's PWM) and an anti-windup scheme. Non-finite gains, Ts ≤ 0, u_max ≤ 0 or Tt ≤ Ts/2
+    /// (the back-calculation would diverge) give [`Error::Setting`].
     pub fn new(kp: F, ki: F, ts: F, u_max: F, anti_windup: AntiWindup<F>) -> Result<Self, Error> {
         let positive = |v: F| v.is_finite() && v > F::ZERO;
         if !(kp.is_finite() && ki.is_finite() && positive(ts) && positive(u_max)) {
             return Err(Error::Setting);
         }
+        // Tt <= Ts/2 makes the saturated back-calculation update I(k) = (1 − Ts/Tt) I(k−1) + … grow
+        // without bound (as `control::PiSettings::build` refuses it).
         if let AntiWindup::BackCalculation { tt_s } = anti_windup {
-            if !positive(tt_s) {
+            if !positive(tt_s) || tt_s + tt_s <= ts {
                 return Err(Error::Setting);
             }
         }
@@ -154,6 +156,10 @@ mod tests {
             AntiWindup::BackCalculation { tt_s: -1.0 }
         )
         .is_err());
+        // Ts/Tt = 2: the saturated update I(k) = −I(k−1) + … no longer decays; just above Ts/2 is kept.
+        let bc = |tt_s| AntiWindup::BackCalculation { tt_s };
+        assert!(Pi::new(1.0, 1.0, 0.01, 255.0, bc(0.005)).is_err());
+        assert!(Pi::new(1.0, 1.0, 0.01, 255.0, bc(0.0051)).is_ok());
         let mut pi = Pi::new(14.0, 1.0, 0.01, 255.0, AntiWindup::None).unwrap();
         assert_eq!(pi.step(f64::INFINITY, 0.0).unwrap_err(), Error::NotFinite);
         assert_eq!(pi.integral(), 0.0);

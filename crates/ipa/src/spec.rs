@@ -144,6 +144,10 @@ pub fn model_default_y0(model: &sysid_core::Model) -> f64 {
     model.rest_state().unwrap_or(MID_STROKE_Y0_MM)
 }
 
+/// The largest |y0| a plant without a stroke starts from: 1e6, the output beyond which `control`
+/// reports a closed loop as diverging (`control::trust::DIVERGED_MM`, a kilometre in mm).
+pub const MAX_START_ABS: f64 = 1e6;
+
 /// What a closed loop around a plant can be checked against ([`PlantSpec::limits`]).
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct PlantLimits {
@@ -208,6 +212,8 @@ impl PlantLimits {
 
     /// Refuses a start `y0_mm` the plant cannot hold (outside its stroke: it would start at the end stop
     /// under a record or report that says y0; audit s11).
+    /// A plant without a stroke (a model) takes a start within ±[`MAX_START_ABS`] (audit s14 L-l: a
+    /// start of 1e300 ran, and its metrics read as a diverging loop).
     pub fn check_start(&self, y0_mm: f64) -> Result<(), SysidError> {
         match self.range_mm {
             Some((lo, hi)) if !(lo..=hi).contains(&y0_mm) => Err(SysidError::setting(
@@ -215,6 +221,16 @@ impl PlantLimits {
                 y0_mm,
                 &format!("a start within the plant's stroke, {lo}..{hi} mm"),
             )),
+            None if !(y0_mm.is_finite() && y0_mm.abs() <= MAX_START_ABS) => {
+                Err(SysidError::setting(
+                    Setting::Other("--y0"),
+                    y0_mm,
+                    &format!(
+                        "a start within ±{MAX_START_ABS} (in the model's output units): beyond it a \
+                         loop is reported as diverging"
+                    ),
+                ))
+            }
             _ => Ok(()),
         }
     }

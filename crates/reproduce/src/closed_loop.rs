@@ -147,6 +147,7 @@ pub(crate) fn run_warnings(
         judge_steps: false,
         data_u_range: limits.data_u_range,
         can_run_longer: false,
+        model_units: false,
     };
     Ok(loop_warnings(trace, &steps, &facts)
         .into_iter()

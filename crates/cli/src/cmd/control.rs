@@ -302,6 +302,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             judge_steps: profile.has_held_steps(),
             data_u_range: limits.data_u_range,
             can_run_longer: true,
+            model_units: args.plant.trim().starts_with("model:"),
         },
     ));
 
@@ -356,12 +357,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     sysid_io::write_all_atomic(&outputs)?;
 
+    // A model plant's signals are in its record's units, not the IPA's (audit s14 L-p).
+    let units = if args.plant.trim().starts_with("model:") {
+        Units::MODEL
+    } else {
+        Units::IPA
+    };
     let mut summary = summary_text(
         &plant.name(),
         &match &tuned {
             Some(t) => tuned_line(t),
-            None => pi_line(&settings),
+            None => pi_line(&settings, units),
         },
+        units,
         ts,
         &profile,
         args.y0,
@@ -608,15 +616,40 @@ fn fmt_settling(m: &StepMetrics, run_s: f64) -> String {
     }
 }
 
+/// The units the summary names: the IPA's (`ipa`, `paper`), or a model plant's own, which are its
+/// estimation record's (a tank's volts, a motor's radians).
+#[derive(Debug, Clone, Copy)]
+struct Units {
+    /// Of the command u.
+    u: &'static str,
+    /// Of the output y, the set-point and the errors.
+    y: &'static str,
+}
+
+impl Units {
+    const IPA: Units = Units {
+        u: "counts",
+        y: "mm",
+    };
+    const MODEL: Units = Units {
+        u: "(u's units)",
+        y: "(y's units)",
+    };
+}
+
 /// The `controller:` line of the summary for the PI of the flags.
-fn pi_line(s: &PiSettings) -> String {
+fn pi_line(s: &PiSettings, units: Units) -> String {
     let form = match s.integral {
         IntegralForm::Scaled => "u = Kp e + Ki Ts Σe",
         IntegralForm::PerSample => "u = Kp e + Ki Σe",
     };
     format!(
-        "PI Kp = {}, Ki = {} ({form}), anti-windup {}, |u| <= {} counts",
-        s.kp, s.ki, s.anti_windup, s.u_max
+        "PI Kp = {}, Ki = {} ({form}), anti-windup {}, |u| <= {} {}",
+        report::format::sig(s.kp, 6),
+        report::format::sig(s.ki, 6),
+        s.anti_windup,
+        report::format::sig(s.u_max, 6),
+        units.u
     )
 }
 
@@ -679,6 +712,7 @@ pub fn tuned_line(s: &control::ControllerSettings) -> String {
 fn summary_text(
     plant: &str,
     controller_line: &str,
+    units: Units,
     ts: f64,
     profile: &Profile,
     y0: f64,
@@ -695,7 +729,11 @@ fn summary_text(
         trace.len()
     );
     o += &format!("controller:   {controller_line}\n");
-    o += &format!("set-point:    {} from y0 = {y0} mm\n", profile.describe());
+    o += &format!(
+        "set-point:    {} from y0 = {y0} {}\n",
+        profile.describe_in(units.y),
+        units.y
+    );
     match compensator {
         None if controller_line.starts_with("tuned") => {
             o += "compensator:  the tuned controller's own (above)\n"
@@ -704,13 +742,14 @@ fn summary_text(
         Some(c) => {
             let d = c.deadzone;
             o += &format!(
-                "compensator:  deadzone inverse ({:?}), b_l = {}, b_r = {}, m_l = {}, m_r = {}, threshold {} counts\n",
+                "compensator:  deadzone inverse ({:?}), b_l = {}, b_r = {}, m_l = {}, m_r = {}, threshold {} {}\n",
                 c.slope_mode,
                 ::report::format::num(d.b_l),
                 ::report::format::num(d.b_r),
                 ::report::format::num(d.m_l),
                 ::report::format::num(d.m_r),
-                ::report::format::num(c.threshold_counts)
+                ::report::format::num(c.threshold_counts),
+                units.u
             );
         }
     }
@@ -723,17 +762,17 @@ fn summary_text(
     o += &match (m.overshoot_mm, m.overshoot_percent) {
         (Some(_), Some(_)) => format!(
             "  overshoot            {} ({} of the step)\n",
-            fmt_opt(m.overshoot_mm, "mm", m),
+            fmt_opt(m.overshoot_mm, units.y, m),
             fmt_opt(m.overshoot_percent, "%", m)
         ),
         _ => format!(
             "  overshoot            {}\n",
-            fmt_opt(m.overshoot_mm, "mm", m)
+            fmt_opt(m.overshoot_mm, units.y, m)
         ),
     };
     o += &format!(
         "  steady-state error   {}\n",
-        fmt_opt(m.steady_state_error_mm, "mm", m)
+        fmt_opt(m.steady_state_error_mm, units.y, m)
     );
     o += &format!(
         "  rise time 10-90 %    {}\n",

@@ -130,6 +130,33 @@ fn parameters_text(r: &IdentifyReport, s: &mut String) {
         };
         let _ = writeln!(s, "  {:<width$} = {:>14}  {sd}", p.label(), num(p.value));
     }
+    // A detrended model's static maps take u − u0: say so, and where a deadzone's breakpoints lie in
+    // the record's units (audit s14 L-c: tune printed those, unlabelled, beside identify's).
+    if let Some(op) = m.operating_point() {
+        for (c, u0) in m.inputs().iter().zip(&op.u) {
+            if c.nonlinearity().is_linear() || *u0 == 0.0 {
+                continue;
+            }
+            let which = if several {
+                format!(" of {}", c.name())
+            } else {
+                String::new()
+            };
+            let in_record = match c.nonlinearity() {
+                sysid::StaticNonlinearity::Deadzone(d) => format!(
+                    "in the record's units its breakpoints are b_l = {}, b_r = {}",
+                    num(d.b_l + u0),
+                    num(d.b_r + u0)
+                ),
+                _ => "add u0 to its breakpoints for the record's units".to_string(),
+            };
+            let _ = writeln!(
+                s,
+                "  (the input nonlinearity{which} maps the detrended input u − u0, u0 = {}; {in_record})",
+                num(*u0)
+            );
+        }
+    }
 }
 
 /// The poles and the stability verdict.

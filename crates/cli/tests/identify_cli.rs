@@ -683,3 +683,57 @@ fn a_level_the_model_cannot_hold_is_named_with_its_fix() {
     // The streamed path says the same (the hint reads the model's data range, not the record).
     assert!(run(&["--stream", "on"]).contains("the output lies far from zero"));
 }
+
+// Audit s14 L-c: a detrended model's deadzone is in u − u0, and `tune` speaks of it in the record's
+// units: identify labels the coordinates and gives the breakpoints + u0 (u0 = the record's mean input,
+// from the model file; b_l + u0 computed here); without detrending there is no such line.
+#[test]
+fn a_detrended_deadzone_says_which_input_it_maps() {
+    let dir = tempfile::tempdir().unwrap();
+    let (u, y) = paper_record(1200, 0);
+    let data = write_csv(dir.path(), "rec.csv", &u, &y);
+    let model = dir.path().join("m.json");
+    let o = bin()
+        .args(["identify", "--method", "ls", "--detrend", "mean", "--data"])
+        .arg(&data)
+        .arg("--save-model")
+        .arg(&model)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    let m: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
+    let u0 = m["model"]["operating_point"]["u"][0].as_f64().unwrap();
+    let mean = u.iter().sum::<f64>() / u.len() as f64;
+    assert!(
+        (u0 - mean).abs() < 1e-9 * mean.abs().max(1.0),
+        "{u0} vs {mean}"
+    );
+    let b_l = m["model"]["deadzone"]["b_l"].as_f64().unwrap();
+    assert!(
+        text.contains("(the input nonlinearity maps the detrended input u − u0, u0 = ")
+            && text.contains("in the record's units its breakpoints are b_l = "),
+        "{text}"
+    );
+    // The printed b_l in the record's units is b_l + u0 to 6 significant digits.
+    let at = text.find("its breakpoints are b_l = ").unwrap() + "its breakpoints are b_l = ".len();
+    let shown: f64 = text[at..]
+        .split(',')
+        .next()
+        .unwrap()
+        .trim()
+        .parse()
+        .unwrap();
+    assert!(
+        (shown - (b_l + u0)).abs() <= 1e-5 * (b_l + u0).abs().max(1e-3),
+        "{shown} vs {}",
+        b_l + u0
+    );
+    let plain = bin()
+        .args(["identify", "--method", "ls", "--data"])
+        .arg(&data)
+        .output()
+        .unwrap();
+    assert!(!String::from_utf8_lossy(&plain.stdout).contains("detrended input"));
+}

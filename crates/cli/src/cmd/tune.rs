@@ -124,12 +124,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             expected,
         } => anyhow::Error::new(sysid::SysidError::setting(
             sysid::Setting::Other(if args.model.is_some() {
-                "--model (its deadzone)"
+                "--model (its deadzone, in the record's input units: a detrended model's breakpoints + u0)"
             } else {
                 "--plant-config (the twin's identified deadzone)"
             }),
             value,
-            &expected,
+            &format!(
+                "{expected}; the compensator inverts the deadzone, which this one does not allow \
+                 (identify's warnings say whether it is physical): tune on a model whose deadzone \
+                 straddles u = 0 with positive slopes"
+            ),
         )),
         e => e.into(),
     })?;

@@ -777,15 +777,21 @@ fn identify<'py>(
     // ignored, as the command line refuses their flags (`identify::Args::check_flags`): a value other
     // than the default (or, for `method`, any value) counts as given.
     let narx = model == "narx";
+    // The defaults of the signature above are the library's (`IdentifyOptions::default`,
+    // `NarxSettings::default`): compared with those, not with repeated literals.
+    let (d, dn) = (
+        IdentifyOptions::default(),
+        sysid::narx::NarxSettings::default(),
+    );
     let given_estimator = [
         ("method", method.is_some()),
-        ("forgetting", forgetting != 1.0),
-        ("p0", p0 != 1e6),
+        ("forgetting", forgetting != d.forgetting),
+        ("p0", p0 != d.p0),
         ("passes", passes.is_some()),
         ("rls_form", rls_form != "standard"),
         ("windup", windup != "none"),
         ("max_trace", max_trace.is_some()),
-        ("iv_stages", iv_stages != 10),
+        ("iv_stages", iv_stages != d.iv_stages),
         (
             "resid_lags",
             resid_lags != sysid::residuals::DEFAULT_MAX_LAG,
@@ -797,8 +803,8 @@ fn identify<'py>(
     ];
     let given_narx = [
         ("stop", stop != "sim"),
-        ("max_terms", max_terms != 30),
-        ("refine", !refine),
+        ("max_terms", max_terms != dn.max_terms),
+        ("refine", refine != dn.refine),
     ];
     let ignored: Vec<&str> = if narx {
         given_estimator.iter()

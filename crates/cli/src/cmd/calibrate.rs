@@ -120,7 +120,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let baseline = if args.no_baseline {
         None
     } else {
-        match best_hammerstein(&args, data, args.validation.as_deref())? {
+        let val_record = args.validation.as_deref().zip(val.as_ref());
+        match best_hammerstein((data, &est), val_record)? {
             Ok(b) => Some(b),
             Err(message) => {
                 twin.warnings
@@ -215,17 +216,23 @@ fn record_options(args: &Args) -> anyhow::Result<sysid::data::CsvOptions> {
 /// The comparison model: the best of [`BASELINE_ORDERS`] by free-run fit on the validation record
 /// (else the estimation record); `Err` with the first reason when none could be identified (the
 /// twin is then reported without it, with a warning).
+/// The records are the ones the twin was calibrated on (read once, by `ipa::calibrate::read_records`).
 fn best_hammerstein(
-    args: &Args,
-    data: &Path,
-    val: Option<&Path>,
+    data: (&Path, &ipa::Record),
+    val: Option<(&Path, &ipa::Record)>,
 ) -> anyhow::Result<Result<Baseline, String>> {
-    let opts = record_options(args)?;
-    let est = sysid::data::read_csv(data, &opts)?;
-    let val = match val {
-        Some(v) => Some(sysid::data::read_csv(v, &validation_options(args, &opts))?),
-        None => None,
+    let dataset = |(path, r): (&Path, &ipa::Record)| {
+        sysid::Dataset::new(
+            sysid::data::Signals {
+                u: r.u.clone(),
+                y: r.y.clone(),
+            },
+            r.ts,
+            path.display().to_string(),
+        )
     };
+    let est = dataset(data)?;
+    let val = val.map(dataset).transpose()?;
     let mut best: Option<Baseline> = None;
     let mut first_error = None;
     for (na, nb, nk) in BASELINE_ORDERS {

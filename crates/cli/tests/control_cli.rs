@@ -416,7 +416,7 @@ fn control_refuses_nonsense_starts_and_speaks_a_model_plants_units() {
     let plant = format!("model:{}", model.display());
     let o = ipa_sysid(&["--plant", &plant, "--setpoint", "6", "--y0", "1e300"]);
     assert_eq!(o.status.code(), Some(2));
-    assert!(stderr(&o).contains("invalid setting --y0 = 1e300: a start within ±1000000"));
+    assert!(stderr(&o).contains("invalid setting --y0 = 1e300: a finite start within ±1000000"));
     let o = ipa_sysid(&[
         "--plant",
         &plant,

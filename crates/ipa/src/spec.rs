@@ -226,7 +226,7 @@ impl PlantLimits {
                     Setting::Other("--y0"),
                     y0_mm,
                     &format!(
-                        "a start within ±{MAX_START_ABS} (in the model's output units): beyond it a \
+                        "a finite start within ±{MAX_START_ABS} (in the model's output units): beyond it a \
                          loop is reported as diverging"
                     ),
                 ))

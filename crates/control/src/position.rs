@@ -138,6 +138,20 @@ pub struct Brake {
     pub samples: u32,
     /// N_b: samples of unchanged y that end the hold after the brake (1 to 1000).
     pub rest_samples: u32,
+    /// κ_b: the lead learnt per direction, in [0, 1] (0 = off, as in a file written before it
+    /// existed; issue 25, session 15): at the rest that ends each hold, τ̂ = D / v_sw (D the travel
+    /// after the switch, v_sw the speed towards r there) and τ_b(side) moves by κ_b towards
+    /// min(τ̂, τ_max), so that the next move that way rests e_s short of r.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub learn: f64,
+    /// τ_max: the largest learnt lead, s (>= lead_s when learn > 0; 0 when absent).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub lead_max_s: f64,
+}
+
+/// Whether an optional number is absent from a file (written as 0 = off).
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 impl Brake {
@@ -165,6 +179,22 @@ impl Brake {
         }
         if !(self.strength > 0.0 && self.strength <= 1.0) {
             return bad("a brake strength in (0, 1]", fmt(self.strength));
+        }
+        if !(self.learn.is_finite() && (0.0..=1.0).contains(&self.learn)) {
+            return bad("a brake learn in [0, 1] (0 = off)", fmt(self.learn));
+        }
+        if self.learn > 0.0
+            && !(self.lead_max_s.is_finite()
+                && self.lead_max_s >= self.lead_s
+                && self.lead_max_s <= MAX_TIME_S)
+        {
+            return bad(
+                &format!(
+                    "a brake lead_max_s from lead_s ({}) to {MAX_TIME_S:e} s when learn > 0",
+                    fmt(self.lead_s)
+                ),
+                fmt(self.lead_max_s),
+            );
         }
         for (name, n) in [
             ("samples", self.samples),
@@ -396,6 +426,8 @@ impl ControllerSettings {
                 strength: b.strength,
                 samples: b.samples,
                 rest_samples: b.rest_samples,
+                learn: b.learn,
+                lead_max: b.lead_max_s,
             }),
         }
     }
@@ -462,6 +494,11 @@ impl PositionController {
     pub fn coast_s(&self) -> [f64; 2] {
         self.inner.coast()
     }
+
+    /// The approach's leads τ_b (left, right), s: as set, or learnt (`brake.learn`).
+    pub fn brake_lead_s(&self) -> [f64; 2] {
+        self.inner.brake_lead()
+    }
 }
 
 impl Controller for PositionController {
@@ -471,6 +508,10 @@ impl Controller for PositionController {
 
     fn reset(&mut self) {
         self.inner.reset();
+    }
+
+    fn restart(&mut self) {
+        self.inner.restart();
     }
 
     /// One sample; a non-finite r or y gives NaN (and leaves the state unchanged).
@@ -699,6 +740,8 @@ mod tests {
                 strength: 0.5,
                 samples: 1,
                 rest_samples: 1,
+                learn: 0.0,
+                lead_max_s: 0.0,
             }),
             ..plain(1.0, 0.0)
         }

@@ -72,6 +72,14 @@ pub struct BrakeSettings<F: Float> {
     pub samples: u32,
     /// N_b: samples of unchanged y that end the hold after the brake (1..=1000).
     pub rest_samples: u32,
+    /// κ_b: how far the lead moves towards the one the last braked move measured, per move, in
+    /// [0, 1] (0 = off: τ_b stays as set, as in a file written before it existed). At the rest that
+    /// ends the hold, τ̂ = D / v_sw (D = side (y_rest − y_sw), the travel after the switch; v_sw the
+    /// speed towards r at the switch) and τ_b(side) ← τ_b(side) + κ_b (min(τ̂, τ_max) − τ_b(side)),
+    /// so that the next move in that direction at that speed rests e_s short of r.
+    pub learn: F,
+    /// τ_max: the largest learnt lead, s (≥ τ_b when κ_b > 0; unused when κ_b = 0).
+    pub lead_max: F,
 }
 
 /// Where the approach with braking is (`right`: towards larger y).
@@ -85,6 +93,17 @@ enum Approach {
     Brake { right: bool, given: u32 },
     /// Valves closed after the brake: samples of unchanged y so far.
     Hold { still: u32 },
+}
+
+/// The switch of the last braked move, until the rest that ends its hold (τ_b learning).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Switch<F: Float> {
+    /// Towards larger y.
+    right: bool,
+    /// y_sw: position at the switch, mm.
+    y: F,
+    /// v_sw: speed towards r at the switch, mm/s.
+    v: F,
 }
 
 /// A nudge under way (`right`: u > 0).
@@ -173,6 +192,18 @@ pub struct PositionController<F: Float> {
     r_prev: F,
     /// Whether r_prev holds a set-point (false until the first sample and after `reset`).
     r_seen: bool,
+    /// τ_b(left), τ_b(right): the approach's lead, s (learnt when κ_b > 0, else τ_b as set).
+    lead: [F; 2],
+    /// The last braked move's switch, until its hold ends.
+    switched: Option<Switch<F>>,
+}
+
+/// τ_b at the start, both directions (0 without a brake).
+fn initial_lead<F: Float>(b: &Option<BrakeSettings<F>>) -> [F; 2] {
+    match b {
+        Some(b) => [b.lead, b.lead],
+        None => [F::ZERO, F::ZERO],
+    }
 }
 
 /// a(side) at the start: ρ / e_c, so that a nudge from the edge of the ramp-and-cut band ramps at ρ
@@ -233,7 +264,10 @@ impl<F: Float> PositionController<F> {
                 && positive(b.strength)
                 && b.strength <= F::ONE
                 && (1..=1000).contains(&b.samples)
-                && (1..=1000).contains(&b.rest_samples))
+                && (1..=1000).contains(&b.rest_samples)
+                && nonneg(b.learn)
+                && b.learn <= F::ONE
+                && (b.learn == F::ZERO || (b.lead_max.is_finite() && b.lead_max >= b.lead)))
             {
                 return Err(Error::Setting);
             }
@@ -260,6 +294,8 @@ impl<F: Float> PositionController<F> {
             approach: Approach::Off,
             r_prev: F::ZERO,
             r_seen: false,
+            lead: initial_lead(&s.brake),
+            switched: None,
         })
     }
 
@@ -355,13 +391,15 @@ impl<F: Float> PositionController<F> {
         let side = |right: bool| if right { F::ONE } else { -F::ONE };
         if let Approach::Drive { right } = self.approach {
             let v = side(right) * dy;
-            let lead = if v > F::ZERO { b.lead * v } else { F::ZERO };
+            let tau = self.lead[usize::from(right)];
+            let lead = if v > F::ZERO { tau * v } else { F::ZERO };
             if side(right) * e > b.switch + lead {
                 self.started = true;
                 self.y_prev = y;
                 return Some(side(right) * self.s.u_max);
             }
             self.approach = Approach::Brake { right, given: 0 };
+            self.switched = Some(Switch { right, y, v });
         }
         if let Approach::Brake { right, given } = self.approach {
             if given < b.samples {
@@ -384,9 +422,26 @@ impl<F: Float> PositionController<F> {
                 return Some(F::ZERO);
             }
             self.approach = Approach::Off;
+            self.learn_lead(&b, y);
             self.restart_law();
         }
         None
+    }
+
+    /// τ_b learning at the rest y that ends a hold (κ_b > 0; [`BrakeSettings::learn`]): τ̂ = D / v_sw
+    /// bounded to [0, τ_max], τ_b(side) moved by κ_b towards it. No speed towards r at the switch
+    /// (v_sw ≤ 0: the step began within the lead) teaches nothing.
+    fn learn_lead(&mut self, b: &BrakeSettings<F>, y: F) {
+        let Some(sw) = self.switched.take() else {
+            return;
+        };
+        if b.learn == F::ZERO || sw.v <= F::ZERO {
+            return;
+        }
+        let travel = if sw.right { y - sw.y } else { sw.y - y };
+        let measured = (travel / sw.v).clamp_to(F::ZERO, b.lead_max);
+        let slot = &mut self.lead[usize::from(sw.right)];
+        *slot = *slot + b.learn * (measured - *slot);
     }
 
     /// The law's transient state back to a first sample (the learnt u_b, τ_c, a(side) kept).
@@ -578,6 +633,26 @@ impl<F: Float> PositionController<F> {
         self.approach = Approach::Off;
         self.r_prev = F::ZERO;
         self.r_seen = false;
+        self.lead = initial_lead(&self.s.brake);
+        self.switched = None;
+    }
+
+    /// The next move from rest, keeping what was learnt (u_b, τ_c, a(side), τ_b(side)): the law's
+    /// transient state and the approach restart as at the first sample, as on a machine that
+    /// repeats its moves. [`reset`](Self::reset) forgets the learnt values too.
+    pub fn restart(&mut self) {
+        self.restart_law();
+        self.last_start = (F::ZERO, F::ZERO);
+        self.last_learns = false;
+        self.approach = Approach::Off;
+        self.r_prev = F::ZERO;
+        self.r_seen = false;
+        self.switched = None;
+    }
+
+    /// The approach's leads τ_b (left, right), s: as set, or learnt ([`BrakeSettings::learn`]).
+    pub fn brake_lead(&self) -> [F; 2] {
+        self.lead
     }
 }
 
@@ -873,6 +948,8 @@ mod tests {
                 strength: 0.5,
                 samples: 2,
                 rest_samples: 2,
+                learn: 0.0,
+                lead_max: 0.0,
             }),
             ..s()
         }

@@ -768,6 +768,29 @@ mod tests {
         assert!(e.to_string().contains("brake"), "{e}");
         let bad = text.replace("\"samples\": 1,", "\"samples\": 1, \"extra\": 1,");
         assert!(ControllerFile::parse(&bad, "c.json").is_err());
+        // Session 14's brake (no learn, no lead_max_s) reads with the learning off and writes as it
+        // was read; learn outside [0, 1], or lead_max_s below lead_s while learning, are refused.
+        assert!(!text.contains("learn") && !text.contains("lead_max_s"));
+        let learning = text.replace(
+            "\"rest_samples\": 1\n",
+            "\"rest_samples\": 1, \"learn\": 0.5, \"lead_max_s\": 0.1\n",
+        );
+        let read = ControllerFile::parse(&learning, "c.json").unwrap();
+        let b = read.brake.unwrap();
+        assert_eq!((b.learn, b.lead_max_s), (0.5, 0.1));
+        let again = serde_json::to_string(&ControllerFile::new(read, None)).unwrap();
+        assert!(again.contains("\"learn\":0.5") && again.contains("\"lead_max_s\":0.1"));
+        for bad in [
+            "\"learn\": 1.5, \"lead_max_s\": 0.1",
+            "\"learn\": 0.5, \"lead_max_s\": -0.1",
+        ] {
+            let text = text.replace(
+                "\"rest_samples\": 1\n",
+                &format!("\"rest_samples\": 1, {bad}\n"),
+            );
+            let e = ControllerFile::parse(&text, "c.json").unwrap_err();
+            assert!(e.to_string().contains("brake"), "{e}");
+        }
         // A file without one (every file before session 14) reads as none.
         assert!(
             !serde_json::to_string(&ControllerFile::new(plain(1.0, 0.0), None))

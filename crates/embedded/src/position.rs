@@ -981,6 +981,69 @@ mod tests {
         assert_eq!(u, [-255.0, -255.0, -255.0, 127.5, 127.5]);
     }
 
+    /// [`braking`] with the lead learnt at rate κ_b up to τ_max.
+    fn learning(learn: f64, lead_max: f64) -> PositionSettings<f64> {
+        let mut s = braking();
+        let b = s.brake.as_mut().unwrap();
+        (b.learn, b.lead_max) = (learn, lead_max);
+        s
+    }
+
+    // The scripted move of the test above: the switch at y_sw = 10 mm with v_sw = (10 − 2)/0.01 =
+    // 800 mm/s, the rest that ends the hold at y = 13 mm: D = 3 mm, τ̂ = 3/800 = 0.00375 s; with
+    // κ_b = 0.5: τ_b(right) = 0.1 + 0.5 (0.00375 − 0.1) = 0.051875 s, τ_b(left) still 0.1. The
+    // commands are those of the brake without learning. The next move up (restart: kept) at
+    // 100 mm/s brakes at e ≤ 1 + 0.051875 × 100 = 6.1875 mm, no longer at e ≤ 11 mm: at y = 9 mm
+    // (e = 11) it drives on, where a controller reset (lead 0.1 s again) brakes.
+    #[test]
+    fn the_lead_learnt_after_one_braked_move_is_the_measured_travel_per_speed() {
+        let mut c = PositionController::new(learning(0.5, 0.5), None).unwrap();
+        let y = [0.0, 1.0, 2.0, 10.0, 12.0, 13.0, 13.0, 13.0, 13.5];
+        let u = y.map(|y| c.step(20.0, y).unwrap());
+        assert_eq!(u, [255.0, 255.0, 255.0, -127.5, -127.5, 0.0, 0.0, 7.0, 6.5]);
+        let [left, right] = c.brake_lead();
+        assert_eq!(left, 0.1);
+        assert!((right - 0.051875).abs() < 1e-15, "{right}");
+        c.restart();
+        assert!((c.brake_lead()[1] - 0.051875).abs() < 1e-15);
+        let y: [f64; 10] = core::array::from_fn(|k| k as f64);
+        let u = y.map(|y| c.step(20.0, y).unwrap());
+        assert_eq!(u, [255.0; 10]);
+        c.reset();
+        assert_eq!(c.brake_lead(), [0.1, 0.1]);
+        let u = y.map(|y| c.step(20.0, y).unwrap());
+        assert_eq!(u[9], -127.5);
+        assert_eq!(u[8], 255.0);
+        // κ_b = 0 (a file without it): the same commands, the lead as set.
+        let mut c = PositionController::new(braking(), None).unwrap();
+        for y in [0.0, 1.0, 2.0, 10.0, 12.0, 13.0, 13.0, 13.0] {
+            c.step(20.0, y).unwrap();
+        }
+        assert_eq!(c.brake_lead(), [0.1, 0.1]);
+    }
+
+    // Bounds, κ_b = 1 (τ_b = the bounded τ̂ at once), downwards: switch at y_sw = 10 from 18 (v_sw =
+    // 800 mm/s towards r = 0); a rest at y = −190 mm (D = 200 mm, τ̂ = 0.25 s) gives τ_max = 0.2 s; a
+    // rest back behind the switch (y = 11 mm, D = −1 mm) gives 0.
+    #[test]
+    fn the_learnt_lead_stays_within_zero_and_its_largest_value() {
+        for (rest, want) in [(-190.0, 0.2), (11.0, 0.0)] {
+            let mut c = PositionController::new(learning(1.0, 0.2), None).unwrap();
+            for y in [20.0, 19.0, 18.0, 10.0, 9.0, rest, rest, rest] {
+                c.step(0.0, y).unwrap();
+            }
+            assert_eq!(c.brake_lead(), [want, 0.1], "rest at {rest}");
+        }
+        // κ_b outside [0, 1], or τ_max below τ_b while learning: refused; τ_max unused at κ_b = 0.
+        for (learn, lead_max) in [(1.5, 0.2), (-0.1, 0.2), (0.5, 0.05), (f64::NAN, 0.2)] {
+            assert_eq!(
+                PositionController::new(learning(learn, lead_max), None).unwrap_err(),
+                Error::Setting
+            );
+        }
+        assert!(PositionController::new(learning(0.0, 0.0), None).is_ok());
+    }
+
     #[test]
     fn brake_settings_out_of_range_are_refused() {
         for f in [

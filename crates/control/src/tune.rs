@@ -705,8 +705,11 @@ pub const BRAKE_TIME_S: f64 = 0.25;
 pub const BRAKE_REST_SAMPLES: u32 = 3;
 /// e_a as a fraction of the specification's largest step (100 mm of the default 150 mm).
 pub const BRAKE_MIN_STEP_FRACTION: f64 = 2.0 / 3.0;
-/// κ_b: the lead's learning per braked move, and τ_max, its largest value, s.
-pub const BRAKE_LEARN: f64 = 0.5;
+/// κ_b: the lead's learning per braked move. The stop moves by 1.8–4 mm per mm that the switch
+/// moves on these plants (the `LEADS` traces of `physics_variants`), so κ_b = 0.5 overshot its
+/// correction and alternated between a late and an early brake; 0.25 converges (docs/control.md,
+/// Results' session-15 block).
+pub const BRAKE_LEARN: f64 = 0.25;
 /// τ_max: the largest learnt lead, s.
 pub const BRAKE_LEAD_MAX_S: f64 = 0.1;
 

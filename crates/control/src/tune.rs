@@ -240,7 +240,10 @@ impl RunResult {
             )),
             _ => {}
         }
-        if let Some(e) = m.steady_state_error_mm.filter(|e| e.abs() > spec.ess_mm) {
+        if let Some(e) = m
+            .steady_state_error_mm
+            .filter(|e| e.abs() > spec.ess_mm + ROUNDING_MM)
+        {
             w.push(format!("|e_ss| {:.3} mm > {} mm", e.abs(), spec.ess_mm));
         }
         match m.settling_time_s {
@@ -253,7 +256,7 @@ impl RunResult {
             }
             Some(_) => {}
         }
-        if self.limit_cycle_mm > spec.limit_cycle_mm + 1e-9 {
+        if self.limit_cycle_mm > spec.limit_cycle_mm + ROUNDING_MM {
             w.push(format!(
                 "limit cycle {:.3} mm peak to peak > {} mm",
                 self.limit_cycle_mm, spec.limit_cycle_mm
@@ -419,7 +422,7 @@ fn summarise(runs: Vec<RunResult>, spec: &Spec) -> Evaluation {
             .filter(|r| {
                 r.metrics
                     .steady_state_error_mm
-                    .is_some_and(|e| e.abs() <= spec.ess_mm)
+                    .is_some_and(|e| e.abs() <= spec.ess_mm + ROUNDING_MM)
             })
             .count(),
         overshoot_met: runs
@@ -450,6 +453,12 @@ fn summarise(runs: Vec<RunResult>, spec: &Spec) -> Evaluation {
         runs,
     }
 }
+
+/// Rounding allowance of the |e_ss| and limit-cycle limits, mm: positions are whole encoder counts
+/// of 0.01 mm in binary floating point, so an error of exactly 2 counts, r − y = 35 − 34.98, is
+/// 0.020000000000003 mm and was counted a miss of the 0.02 mm limit (issue 25, session 15: 5 of
+/// (B)'s 42 |e_ss| misses); the limit cycle had this allowance already.
+pub const ROUNDING_MM: f64 = 1e-9;
 
 /// Number of tuned parameters: θ = (ln Kp, ln Ki, Kd, c, ln e_f, ln e_n, ln ρ, γ, ln e_r).
 pub const P: usize = 9;
@@ -1122,7 +1131,7 @@ impl Evaluation {
             ));
         }
         let fmt = crate::trust::fmt_value;
-        if self.max_abs_ess_mm > spec.ess_all_mm {
+        if self.max_abs_ess_mm > spec.ess_all_mm + ROUNDING_MM {
             w.push(format!(
                 "not met on {what}: |e_ss| <= {} mm in every step (largest {} mm)",
                 spec.ess_all_mm,
@@ -1136,11 +1145,11 @@ impl Evaluation {
                  stroke (check the plant model's gains): this controller is not usable there",
                 fmt(diverged)
             ));
-        } else if self.worst_limit_cycle_mm > spec.limit_cycle_mm + 1e-9 {
+        } else if self.worst_limit_cycle_mm > spec.limit_cycle_mm + ROUNDING_MM {
             let k = self
                 .runs
                 .iter()
-                .filter(|r| r.limit_cycle_mm > spec.limit_cycle_mm + 1e-9)
+                .filter(|r| r.limit_cycle_mm > spec.limit_cycle_mm + ROUNDING_MM)
                 .count();
             w.push(format!(
                 "not met on {what}: a limit cycle larger than {} mm peak to peak in {k} of {n} steps \

@@ -268,3 +268,15 @@ fn a_warm_up_move_changes_nothing_for_a_controller_that_learns_nothing() {
     let repeated = tune::evaluate_repeated(2, &f, &pi, &spec, 1).unwrap();
     assert_eq!(fresh, repeated);
 }
+
+// Positions are whole encoder counts of 0.01 mm in binary floating point: r − y at 2 counts, 35 −
+// 34.98, is 0.020000000000003 mm, above the 0.02 mm limit by rounding alone; it meets it, and 3
+// counts (0.03 mm) do not.
+#[test]
+fn an_error_of_exactly_two_encoder_counts_meets_the_limit() {
+    let spec = Spec::default();
+    let two_counts = 35.0 - 34.98;
+    assert!(two_counts > spec.ess_mm);
+    assert!(run_result(two_counts, 0.3).misses(&spec).is_empty());
+    assert_eq!(run_result(35.0 - 34.97, 0.3).misses(&spec).len(), 1);
+}

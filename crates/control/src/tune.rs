@@ -25,7 +25,10 @@
 //! **Search.** The points of a coarse grid (3 × 3 × 2 × 2) are evaluated, then Nelder–Mead (reflection
 //! 1, expansion 2, contraction ½, shrink ½) runs from the best, inside box bounds (a point outside is
 //! clamped onto the box), for at most `max_evaluations` evaluations. The runs of one evaluation are
-//! simulated in parallel (rayon).
+//! simulated in parallel (rayon). After the search, the approach with braking of
+//! [`BRAKE_CANDIDATES`] is evaluated at the best controller and kept where it meets the whole
+//! specification in more runs (issue 25, session 15; chosen by the count, not by J: [`choose_brake`]'s
+//! documentation).
 //!
 //! **Linear margins.** [`margins`] gives the gain and phase margins of the loop's linear part: the
 //! model's B/A with the deadzone replaced by its slope (compensated, shift mode), under the PID.

@@ -145,6 +145,13 @@ impl control::Controller for Approach {
                 self.inner.step(r_mm, y_mm);
                 return -self.side * self.brake * self.u_max;
             }
+            // BRAKE_RAMP=N: the reverse command falls to 0 over N samples after the timed brake.
+            let ramp: u32 = std::env::var("BRAKE_RAMP").map_or(0, |n| n.parse().unwrap());
+            if self.brake_k <= self.brake_n + ramp {
+                self.inner.step(r_mm, y_mm);
+                let left = (self.brake_n + ramp + 1 - self.brake_k) as f64 / (ramp + 1) as f64;
+                return -self.side * self.brake * self.u_max * left;
+            }
             self.braking = false;
             self.holding = self.hold;
             self.still = 0;

@@ -717,13 +717,15 @@ pub const BRAKE_TIME_S: f64 = 0.25;
 pub const BRAKE_REST_SAMPLES: u32 = 3;
 /// e_a as a fraction of the specification's largest step (100 mm of the default 150 mm).
 pub const BRAKE_MIN_STEP_FRACTION: f64 = 2.0 / 3.0;
-/// κ_b: the lead's learning per braked move. The stop moves by 1.8–4 mm per mm that the switch
-/// moves on these plants (the `LEADS` traces of `physics_variants`), so κ_b = 0.5 overshot its
-/// correction and alternated between a late and an early brake; 0.25 converges (docs/control.md,
-/// Results' session-15 block).
-pub const BRAKE_LEARN: f64 = 0.25;
-/// τ_max: the largest learnt lead, s.
-pub const BRAKE_LEAD_MAX_S: f64 = 0.1;
+/// κ_b: the lead's learning per braked move written by `tune`: 0, off. Learnt at 0.25 (0.5
+/// alternated between a late and an early brake) the lead met the whole specification in 1–3 more
+/// runs per twin after one or two repeated moves but in 0–3 fewer after four or eight: the overshoot
+/// it reacts to comes mostly from the release of the brake (valves closed while the driving chamber
+/// is still at pressure), which an earlier switch does not remove (docs/control.md, Results'
+/// session-15 block). The fresh verification runs are the same either way.
+pub const BRAKE_LEARN: f64 = 0.0;
+/// τ_max: the largest learnt lead, s (unused while [`BRAKE_LEARN`] = 0).
+pub const BRAKE_LEAD_MAX_S: f64 = 0.0;
 
 /// The approach with braking of candidate (e_s, τ_b) for `spec` at Ts = `ts_s`.
 pub fn brake_of(switch_mm: f64, lead_s: f64, ts_s: f64, spec: &Spec) -> crate::position::Brake {

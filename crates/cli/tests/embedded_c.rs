@@ -212,9 +212,10 @@ fn c_controller_with_a_brake_matches_control_bit_for_bit_on_a_recorded_run() {
     c_controller_matches_control(Brake::Fixed);
 }
 
-/// The same with the brake's lead learnt per direction (`learn`, `lead_max_s`; session 15) on a
-/// staircase that goes up 82 mm and down 60 mm twice, so that the second move each way brakes with
-/// the lead the first taught; the same C replay with the learning off gives other commands.
+/// The same with the brake's lead learnt per direction (`learn`, `lead_max_s`) and its release
+/// (`release_samples`; session 15) on a staircase that goes up 82 mm and down 60 mm twice, so that
+/// the second move each way brakes with the lead the first taught; the same C replay with the
+/// learning and the release off gives other commands.
 #[test]
 fn c_controller_with_a_learnt_brake_lead_matches_control_bit_for_bit_on_a_recorded_run() {
     c_controller_matches_control(Brake::Learnt);
@@ -285,6 +286,7 @@ fn c_controller_matches_control(brake: Brake) {
     if brake == Brake::Learnt {
         file["controller"]["brake"]["learn"] = serde_json::json!(0.5);
         file["controller"]["brake"]["lead_max_s"] = serde_json::json!(0.1);
+        file["controller"]["brake"]["release_samples"] = serde_json::json!(10);
     }
     let (profile, samples) = if brake == Brake::Learnt {
         ("staircase:40,38,120,60,120,60@2", 1201)
@@ -378,6 +380,7 @@ fn c_controller_matches_control(brake: Brake) {
         for k in ["learn", "lead_max_s"] {
             args.push(format!("{:?}", b[k].as_f64().unwrap()));
         }
+        args.push(b["release_samples"].as_u64().unwrap().to_string());
     }
     let from_c = replay(&args);
     let recorded: Vec<f64> = std::fs::read_to_string(&trace)

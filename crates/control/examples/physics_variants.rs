@@ -225,6 +225,7 @@ fn main() {
             rest_samples: v[5] as u32,
             learn: v.get(6).copied().unwrap_or(0.0),
             lead_max_s: v.get(7).copied().unwrap_or(0.0),
+            release_samples: v.get(8).copied().unwrap_or(0.0) as u32,
         });
     }
     let spec = Spec::default();

@@ -147,11 +147,21 @@ pub struct Brake {
     /// τ_max: the largest learnt lead, s (>= lead_s when learn > 0; 0 when absent).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub lead_max_s: f64,
+    /// T_r: samples over which the braking command falls linearly to 0 after the T_b samples, 0 to
+    /// 1000 (0 = at once, as in a file written before it existed; session 15): closed at once, the
+    /// valves let the chamber that drove the piston, still at pressure, push it on by several mm.
+    #[serde(default, skip_serializing_if = "is_zero_u32")]
+    pub release_samples: u32,
 }
 
 /// Whether an optional number is absent from a file (written as 0 = off).
 fn is_zero(v: &f64) -> bool {
     *v == 0.0
+}
+
+/// Whether an optional count is absent from a file (written as 0 = off).
+fn is_zero_u32(v: &u32) -> bool {
+    *v == 0
 }
 
 impl Brake {
@@ -179,6 +189,12 @@ impl Brake {
         }
         if !(self.strength > 0.0 && self.strength <= 1.0) {
             return bad("a brake strength in (0, 1]", fmt(self.strength));
+        }
+        if self.release_samples > 1000 {
+            return bad(
+                "brake release_samples from 0 to 1000",
+                self.release_samples.to_string(),
+            );
         }
         if !(self.learn.is_finite() && (0.0..=1.0).contains(&self.learn)) {
             return bad("a brake learn in [0, 1] (0 = off)", fmt(self.learn));
@@ -428,6 +444,7 @@ impl ControllerSettings {
                 rest_samples: b.rest_samples,
                 learn: b.learn,
                 lead_max: b.lead_max_s,
+                release: b.release_samples,
             }),
         }
     }
@@ -742,6 +759,7 @@ mod tests {
                 rest_samples: 1,
                 learn: 0.0,
                 lead_max_s: 0.0,
+                release_samples: 0,
             }),
             ..plain(1.0, 0.0)
         }
@@ -780,7 +798,20 @@ mod tests {
         assert_eq!((b.learn, b.lead_max_s), (0.5, 0.1));
         let again = serde_json::to_string(&ControllerFile::new(read, None)).unwrap();
         assert!(again.contains("\"learn\":0.5") && again.contains("\"lead_max_s\":0.1"));
+        let released = text.replace(
+            "\"rest_samples\": 1\n",
+            "\"rest_samples\": 1, \"release_samples\": 10\n",
+        );
+        assert_eq!(
+            ControllerFile::parse(&released, "c.json")
+                .unwrap()
+                .brake
+                .unwrap()
+                .release_samples,
+            10
+        );
         for bad in [
+            "\"release_samples\": 1001",
             "\"learn\": 1.5, \"lead_max_s\": 0.1",
             "\"learn\": 0.5, \"lead_max_s\": -0.1",
         ] {

@@ -711,8 +711,13 @@ pub const BRAKE_CANDIDATES: [(f64, f64); 6] = [
 ];
 /// a_b: the braking command's fraction of u_max (the time oracle's best 150 mm sequences: 0.25).
 pub const BRAKE_STRENGTH: f64 = 0.25;
-/// T_b: the braking time, s (the time oracle's 21–38 samples of 10 ms: 25).
-pub const BRAKE_TIME_S: f64 = 0.25;
+/// (T_b, T_r) tried with each of [`BRAKE_CANDIDATES`], s: the braking time (the time oracle's 21–38
+/// samples of 10 ms: 0.25 s) and no release after it. With the release tried too ((0.2, 0.1) and
+/// (0.15, 0.2) s), `tune` chose one on 5 of the eight fragility twins: the whole specification +11
+/// runs over the eight, but on the twin of Results (B) 120 / 89 / 131 / 63 → 119 / 95 / 125 / 63 and
+/// its worst |e_ss| 0.88 → 2.81 mm (docs/control.md, Results' session-15 block), so it is not
+/// searched.
+pub const BRAKE_TIMES_S: [(f64, f64); 1] = [(0.25, 0.0)];
 /// N_b: samples at rest that end the hold after the brake.
 pub const BRAKE_REST_SAMPLES: u32 = 3;
 /// e_a as a fraction of the specification's largest step (100 mm of the default 150 mm).
@@ -727,23 +732,31 @@ pub const BRAKE_LEARN: f64 = 0.0;
 /// τ_max: the largest learnt lead, s (unused while [`BRAKE_LEARN`] = 0).
 pub const BRAKE_LEAD_MAX_S: f64 = 0.0;
 
-/// The approach with braking of candidate (e_s, τ_b) for `spec` at Ts = `ts_s`.
-pub fn brake_of(switch_mm: f64, lead_s: f64, ts_s: f64, spec: &Spec) -> crate::position::Brake {
+/// The approach with braking of candidate (e_s, τ_b) and times (T_b, T_r) in s for `spec` at Ts =
+/// `ts_s`.
+pub fn brake_of(
+    (switch_mm, lead_s): (f64, f64),
+    (brake_s, release_s): (f64, f64),
+    ts_s: f64,
+    spec: &Spec,
+) -> crate::position::Brake {
+    let samples = |t: f64| (t / ts_s).round().clamp(0.0, 1000.0) as u32;
     let largest = spec.steps_mm.iter().copied().fold(0.0, f64::max);
     crate::position::Brake {
         min_step_mm: BRAKE_MIN_STEP_FRACTION * largest,
         switch_mm,
         lead_s,
         strength: BRAKE_STRENGTH,
-        samples: ((BRAKE_TIME_S / ts_s).round() as u32).clamp(1, 1000),
+        samples: samples(brake_s).max(1),
         rest_samples: BRAKE_REST_SAMPLES,
         learn: BRAKE_LEARN,
         lead_max_s: BRAKE_LEAD_MAX_S,
+        release_samples: samples(release_s),
     }
 }
 
-/// The approach with braking at the search's best controller: each of [`BRAKE_CANDIDATES`] is
-/// evaluated on the tuning plants and the one meeting the whole specification in the most runs is
+/// The approach with braking at the search's best controller: each of [`BRAKE_CANDIDATES`] with
+/// each of [`BRAKE_TIMES_S`] is evaluated on the tuning plants and the one meeting the whole specification in the most runs is
 /// kept, ties broken by the lower J, and only when it meets it in more runs than none does (or as
 /// many at a lower J). Chosen by the count, not by J: on the twin of Results' session 14 the brake
 /// turned 5 runs into whole-specification runs while 3 runs on faster draws overshot 4.8–7.4 %,
@@ -761,9 +774,12 @@ fn choose_brake(
     }
     let mut chosen = (best.clone(), evaluation);
     let mut used = 0;
-    for &(switch_mm, lead_s) in &BRAKE_CANDIDATES {
+    let candidates = BRAKE_TIMES_S
+        .iter()
+        .flat_map(|&t| BRAKE_CANDIDATES.iter().map(move |&c| (c, t)));
+    for (c, t) in candidates {
         let mut s = best.clone();
-        s.brake = Some(brake_of(switch_mm, lead_s, best.ts_s, spec));
+        s.brake = Some(brake_of(c, t, best.ts_s, spec));
         let built = s.clone();
         let factory = move || -> Result<Box<dyn Controller + Send>, ControlError> {
             Ok(Box::new(built.build()?))

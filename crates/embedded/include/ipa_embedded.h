@@ -265,6 +265,11 @@ typedef struct IpaController {
    * τ_max: the largest learnt lead, s (`brake.lead_max_s`; unused when κ_b = 0).
    */
   double brake_lead_max;
+  /**
+   * T_r: samples over which the braking command falls to 0 (`brake.release_samples`; 0 = at once,
+   * as in a struct zeroed before it existed).
+   */
+  uint32_t brake_release;
 } IpaController;
 
 #ifdef __cplusplus

@@ -23,6 +23,7 @@
 //!             changes, for a step |r − y| ≥ e_a, side = sign(r − y), v = side (y(k) − y(k−1))/Ts:
 //!             approach: u = side u_max while side e > e_s + τ_b max(v, 0); then
 //!             brake:    u = −side a_b u_max for T_b samples (from the sample the approach ends); then
+//!             release:  u = −side a_b u_max (T_r − j)/(T_r + 1) at its j-th sample, j = 0..T_r−1; then
 //!             hold:     u = 0 (valves closed) until y has been unchanged for N_b samples; then the law
 //!                       above from a fresh start (I, D, y(k−1), e(k−1), the nudge under way and the
 //!                       rest count cleared; the learnt u_b, τ_c and a(side) kept)
@@ -80,6 +81,10 @@ pub struct BrakeSettings<F: Float> {
     pub learn: F,
     /// τ_max: the largest learnt lead, s (≥ τ_b when κ_b > 0; unused when κ_b = 0).
     pub lead_max: F,
+    /// T_r: samples over which the braking command falls linearly to 0 after the brake, 0..=1000
+    /// (0 = at once, as in a file written before it existed): closing the valves at once lets the
+    /// chamber that drove the piston, still at pressure, push it on by several mm.
+    pub release: u32,
 }
 
 /// Where the approach with braking is (`right`: towards larger y).
@@ -91,6 +96,8 @@ enum Approach {
     Drive { right: bool },
     /// Braking: samples given so far.
     Brake { right: bool, given: u32 },
+    /// Releasing the brake: samples given so far.
+    Release { right: bool, given: u32 },
     /// Valves closed after the brake: samples of unchanged y so far.
     Hold { still: u32 },
 }
@@ -265,6 +272,7 @@ impl<F: Float> PositionController<F> {
                 && b.strength <= F::ONE
                 && (1..=1000).contains(&b.samples)
                 && (1..=1000).contains(&b.rest_samples)
+                && b.release <= 1000
                 && nonneg(b.learn)
                 && b.learn <= F::ONE
                 && (b.learn == F::ZERO || (b.lead_max.is_finite() && b.lead_max >= b.lead)))
@@ -410,6 +418,20 @@ impl<F: Float> PositionController<F> {
                 self.started = true;
                 self.y_prev = y;
                 return Some(-side(right) * b.strength * self.s.u_max);
+            }
+            self.approach = Approach::Release { right, given: 0 };
+        }
+        if let Approach::Release { right, given } = self.approach {
+            if given < b.release {
+                self.approach = Approach::Release {
+                    right,
+                    given: given + 1,
+                };
+                self.started = true;
+                self.y_prev = y;
+                let n = F::from_f64(f64::from(b.release) + 1.0);
+                let left = F::from_f64(f64::from(b.release - given)) / n;
+                return Some(-side(right) * b.strength * self.s.u_max * left);
             }
             self.approach = Approach::Hold { still: 0 };
         }
@@ -950,6 +972,7 @@ mod tests {
                 rest_samples: 2,
                 learn: 0.0,
                 lead_max: 0.0,
+                release: 0,
             }),
             ..s()
         }
@@ -1042,6 +1065,26 @@ mod tests {
             );
         }
         assert!(PositionController::new(learning(0.0, 0.0), None).is_ok());
+    }
+
+    // The release by hand: T_r = 3 after the T_b = 2 samples of −127.5 of the test above: −127.5 ×
+    // 3/4, × 2/4, × 1/4 = −95.625, −63.75, −31.875, then the hold (y moved: 0), and the law after
+    // N_b = 2 samples at rest (Kp e = 7).
+    #[test]
+    fn the_release_lowers_the_braking_command_to_zero_in_equal_steps() {
+        let mut s = braking();
+        s.brake.as_mut().unwrap().release = 3;
+        let mut c = PositionController::new(s, None).unwrap();
+        let y = [
+            0.0, 1.0, 2.0, 10.0, 12.0, 12.5, 12.8, 12.9, 13.0, 13.0, 13.0,
+        ];
+        let u = y.map(|y| c.step(20.0, y).unwrap());
+        assert_eq!(
+            u,
+            [255.0, 255.0, 255.0, -127.5, -127.5, -95.625, -63.75, -31.875, 0.0, 0.0, 7.0]
+        );
+        s.brake.as_mut().unwrap().release = 1001;
+        assert!(PositionController::new(s, None).is_err());
     }
 
     #[test]

@@ -661,7 +661,14 @@ pub fn tuned_line(s: &control::ControllerSettings) -> String {
             report::format::sig(b.strength, 6),
             b.samples,
             b.rest_samples
-        ) + &if b.learn > 0.0 {
+        ) + &if b.release_samples > 0 {
+            format!(
+                ", released over {} samples",
+                b.release_samples
+            )
+        } else {
+            String::new()
+        } + &if b.learn > 0.0 {
             format!(
                 "; the lead learnt per direction at {} per braked move, at most {} s",
                 report::format::sig(b.learn, 6),

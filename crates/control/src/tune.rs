@@ -713,7 +713,7 @@ pub const BRAKE_CANDIDATES: [(f64, f64); 6] = [
 pub const BRAKE_STRENGTH: f64 = 0.25;
 /// (T_b, T_r) tried with each of [`BRAKE_CANDIDATES`], s: the braking time (the time oracle's 21–38
 /// samples of 10 ms: 0.25 s) and no release after it. With the release tried too ((0.2, 0.1) and
-/// (0.15, 0.2) s), `tune` chose one on 5 of the eight fragility twins: the whole specification +11
+/// (0.15, 0.2) s), `tune` chose one on 6 of the eight fragility twins: the whole specification +11
 /// runs over the eight, but on the twin of Results (B) 120 / 89 / 131 / 63 → 119 / 95 / 125 / 63 and
 /// its worst |e_ss| 0.88 → 2.81 mm (docs/control.md, Results' session-15 block), so it is not
 /// searched.
@@ -723,8 +723,9 @@ pub const BRAKE_REST_SAMPLES: u32 = 3;
 /// e_a as a fraction of the specification's largest step (100 mm of the default 150 mm).
 pub const BRAKE_MIN_STEP_FRACTION: f64 = 2.0 / 3.0;
 /// κ_b: the lead's learning per braked move written by `tune`: 0, off. Learnt at 0.25 (0.5
-/// alternated between a late and an early brake) the lead met the whole specification in 1–3 more
-/// runs per twin after one or two repeated moves but in 0–3 fewer after four or eight: the overshoot
+/// alternated between a late and an early brake) the lead met the whole specification in 0–3 more
+/// runs per twin after one repeated move (one fewer on one twin after two) but in 0–3 fewer after
+/// four or eight: the overshoot
 /// it reacts to comes mostly from the release of the brake (valves closed while the driving chamber
 /// is still at pressure), which an earlier switch does not remove (docs/control.md, Results'
 /// session-15 block). The fresh verification runs are the same either way.

@@ -232,7 +232,7 @@ fn main() {
     let approach: Option<Vec<f64>> = std::env::var("APPROACH")
         .ok()
         .map(|a| a.split(',').map(|x| x.parse().unwrap()).collect());
-    let s2 = s.clone();
+    let s2 = s;
     let build = move || -> Result<Box<dyn control::Controller + Send>, control::ControlError> {
         let inner = s.build()?;
         Ok(match &approach {

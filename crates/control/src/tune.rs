@@ -773,15 +773,15 @@ fn choose_brake(
     if spec.steps_mm.is_empty() {
         return Ok((best, evaluation, 0));
     }
-    let mut chosen = (best.clone(), evaluation);
+    let mut chosen = (best, evaluation);
     let mut used = 0;
     let candidates = BRAKE_TIMES_S
         .iter()
         .flat_map(|&t| BRAKE_CANDIDATES.iter().map(move |&c| (c, t)));
     for (c, t) in candidates {
-        let mut s = best.clone();
+        let mut s = best;
         s.brake = Some(brake_of(c, t, best.ts_s, spec));
-        let built = s.clone();
+        let built = s;
         let factory = move || -> Result<Box<dyn Controller + Send>, ControlError> {
             Ok(Box::new(built.build()?))
         };

@@ -186,9 +186,9 @@ fn tuning_meets_the_spec_where_it_is_reachable() {
     );
     // The approach with braking is kept only where it meets the whole specification in more runs
     // than the same controller without it (or as many at a lower J): re-evaluated here.
-    let mut without = t.settings.clone();
+    let mut without = t.settings;
     if without.brake.take().is_some() {
-        let built = without.clone();
+        let built = without;
         let factory =
             move || -> Result<Box<dyn control::Controller + Send>, control::ControlError> {
                 Ok(Box::new(built.build()?))

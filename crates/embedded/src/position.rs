@@ -399,7 +399,8 @@ impl<F: Float> PositionController<F> {
         let side = |right: bool| if right { F::ONE } else { -F::ONE };
         if let Approach::Drive { right } = self.approach {
             let v = side(right) * dy;
-            let tau = self.lead[usize::from(right)];
+            let [tau_left, tau_right] = self.lead;
+            let tau = if right { tau_right } else { tau_left };
             let lead = if v > F::ZERO { tau * v } else { F::ZERO };
             if side(right) * e > b.switch + lead {
                 self.started = true;
@@ -462,7 +463,8 @@ impl<F: Float> PositionController<F> {
         }
         let travel = if sw.right { y - sw.y } else { sw.y - y };
         let measured = (travel / sw.v).clamp_to(F::ZERO, b.lead_max);
-        let slot = &mut self.lead[usize::from(sw.right)];
+        let [tau_left, tau_right] = &mut self.lead;
+        let slot = if sw.right { tau_right } else { tau_left };
         *slot = *slot + b.learn * (measured - *slot);
     }
 

@@ -24,8 +24,10 @@
 //! SEED_OFFSET=K draws the variants with seeds K+1.. instead (e.g. TWIN=twin.toml SEED_OFFSET=2000: a
 //! family of twins neither the search nor the verification uses); PLANTS=N runs N plants (default 21);
 //! COST=1 also prints the tuning cost J of the runs (their mean run cost) and the largest run cost.
-//! BRAKE_CTL=...,κ_b,τ_max adds the learnt lead (`brake.learn`, `brake.lead_max_s`; issue 25,
-//! session 15); WARMUP=N makes N runs of the same step before each measured one, the controller
+//! BRAKE_CTL=...,κ_b,τ_max[,T_r] adds the learnt lead (`brake.learn`, `brake.lead_max_s`) and the
+//! release (`brake.release_samples`; issue 25, session 15); BRAKE_RAMP=N lowers the prototype's timed
+//! brake (BRAKE_N) to 0 over N samples; LEADS=1 prints, per variant and 150 mm step, OS, t_s, e_ss and
+//! the learnt τ_b after each of 3 repeated moves; WARMUP=N makes N runs of the same step before each measured one, the controller
 //! keeping what it learnt (a machine that repeats its moves; `tune::evaluate_repeated`).
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
 use control::tune::{self, Spec};

@@ -202,17 +202,34 @@ fn c_example_matches_identify_rls_single_pass() {
 /// same doubles).
 #[test]
 fn c_controller_matches_control_bit_for_bit_on_a_recorded_run() {
-    c_controller_matches_control(false);
+    c_controller_matches_control(Brake::None);
 }
 
 /// The same with the approach with braking (`brake`, session 14) in the file: the staircase's steps
 /// of 82 and 60 mm (>= e_a = 30 mm) are approached with the full command and braked.
 #[test]
 fn c_controller_with_a_brake_matches_control_bit_for_bit_on_a_recorded_run() {
-    c_controller_matches_control(true);
+    c_controller_matches_control(Brake::Fixed);
 }
 
-fn c_controller_matches_control(brake: bool) {
+/// The same with the brake's lead learnt per direction (`learn`, `lead_max_s`) and its release
+/// (`release_samples`; session 15) on a staircase that goes up 82 mm and down 60 mm twice, so that
+/// the second move each way brakes with the lead the first taught; the same C replay with the
+/// learning and the release off gives other commands.
+#[test]
+fn c_controller_with_a_learnt_brake_lead_matches_control_bit_for_bit_on_a_recorded_run() {
+    c_controller_matches_control(Brake::Learnt);
+}
+
+/// Which approach with braking the controller file of [`c_controller_matches_control`] has.
+#[derive(Clone, Copy, PartialEq)]
+enum Brake {
+    None,
+    Fixed,
+    Learnt,
+}
+
+fn c_controller_matches_control(brake: Brake) {
     if no_cc() {
         return;
     }
@@ -259,10 +276,23 @@ fn c_controller_matches_control(brake: bool) {
         serde_json::from_str(&std::fs::read_to_string(&ctl).unwrap()).unwrap();
     file["controller"]["nudge"]["cut_band_mm"] = serde_json::json!(0.3);
     file["controller"]["nudge"]["min_ramp_counts_s"] = serde_json::json!(20.0);
-    if brake {
+    if brake == Brake::None {
+        // tune may choose one (session 15); this run is the controller without it.
+        file["controller"].as_object_mut().unwrap().remove("brake");
+    } else {
         file["controller"]["brake"] = serde_json::json!({"min_step_mm": 30.0, "switch_mm": 0.0,
             "lead_s": 0.02, "strength": 0.25, "samples": 25, "rest_samples": 3});
     }
+    if brake == Brake::Learnt {
+        file["controller"]["brake"]["learn"] = serde_json::json!(0.5);
+        file["controller"]["brake"]["lead_max_s"] = serde_json::json!(0.1);
+        file["controller"]["brake"]["release_samples"] = serde_json::json!(10);
+    }
+    let (profile, samples) = if brake == Brake::Learnt {
+        ("staircase:40,38,120,60,120,60@2", 1201)
+    } else {
+        ("staircase:40,38,120,60@2", 801)
+    };
     std::fs::write(&ctl, serde_json::to_string_pretty(&file).unwrap()).unwrap();
     cli(&[
         "control",
@@ -271,7 +301,7 @@ fn c_controller_matches_control(brake: bool) {
         "--controller",
         &p(&ctl),
         "--profile",
-        "staircase:40,38,120,60@2",
+        profile,
         "--out",
         &p(&trace),
     ]);
@@ -318,7 +348,7 @@ fn c_controller_matches_control(brake: bool) {
     for k in ["rest_band_mm", "cut_band_mm", "min_ramp_counts_s"] {
         args.push(format!("{:?}", nudge[k].as_f64().unwrap()));
     }
-    if brake {
+    if brake != Brake::None {
         let b = &c["brake"];
         for k in ["min_step_mm", "switch_mm", "lead_s", "strength"] {
             args.push(format!("{:?}", b[k].as_f64().unwrap()));
@@ -327,21 +357,32 @@ fn c_controller_matches_control(brake: bool) {
             args.push(b[k].as_u64().unwrap().to_string());
         }
     }
-    let out = Command::new(&exe)
-        .args(&args)
-        .stdin(std::fs::File::open(&trace).unwrap())
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let from_c: Vec<f64> = String::from_utf8(out.stdout)
-        .unwrap()
-        .lines()
-        .map(|l| l.parse().unwrap())
-        .collect();
+    let replay = |args: &[String]| -> Vec<f64> {
+        let out = Command::new(&exe)
+            .args(args)
+            .stdin(std::fs::File::open(&trace).unwrap())
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8(out.stdout)
+            .unwrap()
+            .lines()
+            .map(|l| l.parse().unwrap())
+            .collect()
+    };
+    let unlearnt = (brake == Brake::Learnt).then(|| replay(&args));
+    if brake == Brake::Learnt {
+        let b = &c["brake"];
+        for k in ["learn", "lead_max_s"] {
+            args.push(format!("{:?}", b[k].as_f64().unwrap()));
+        }
+        args.push(b["release_samples"].as_u64().unwrap().to_string());
+    }
+    let from_c = replay(&args);
     let recorded: Vec<f64> = std::fs::read_to_string(&trace)
         .unwrap()
         .lines()
@@ -349,7 +390,10 @@ fn c_controller_matches_control(brake: bool) {
         .map(|l| l.split(',').nth(2).unwrap().parse().unwrap())
         .collect();
     assert_eq!(from_c.len(), recorded.len());
-    assert_eq!(recorded.len(), 801);
+    assert_eq!(recorded.len(), samples);
+    if let Some(unlearnt) = unlearnt {
+        assert_ne!(unlearnt, recorded, "the learnt lead changed no command");
+    }
     for (k, (a, b)) in from_c.iter().zip(&recorded).enumerate() {
         assert_eq!(a.to_bits(), b.to_bits(), "sample {k}: C {a} vs control {b}");
     }
@@ -375,7 +419,7 @@ fn c_controller_matches_control(brake: bool) {
     assert!(nudges > 0, "no nudge in the run");
     // With the brake: its reverse command −a_b u_max = −0.25 × 255 after a full command (both
     // directions: the staircase goes up 82 mm and down 60 mm).
-    if brake {
+    if brake != Brake::None {
         assert!(recorded.contains(&-63.75) && recorded.contains(&63.75));
         assert!(recorded.contains(&255.0) && recorded.contains(&-255.0));
     }

@@ -24,6 +24,11 @@
 //! SEED_OFFSET=K draws the variants with seeds K+1.. instead (e.g. TWIN=twin.toml SEED_OFFSET=2000: a
 //! family of twins neither the search nor the verification uses); PLANTS=N runs N plants (default 21);
 //! COST=1 also prints the tuning cost J of the runs (their mean run cost) and the largest run cost.
+//! BRAKE_CTL=...,κ_b,τ_max[,T_r] adds the learnt lead (`brake.learn`, `brake.lead_max_s`) and the
+//! release (`brake.release_samples`; issue 25, session 15); BRAKE_RAMP=N lowers the prototype's timed
+//! brake (BRAKE_N) to 0 over N samples; LEADS=1 prints, per variant and 150 mm step, OS, t_s, e_ss and
+//! the learnt τ_b after each of 3 repeated moves; WARMUP=N makes N runs of the same step before each measured one, the controller
+//! keeping what it learnt (a machine that repeats its moves; `tune::evaluate_repeated`).
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
 use control::tune::{self, Spec};
 use control::ControllerFile;
@@ -142,6 +147,13 @@ impl control::Controller for Approach {
                 self.inner.step(r_mm, y_mm);
                 return -self.side * self.brake * self.u_max;
             }
+            // BRAKE_RAMP=N: the reverse command falls to 0 over N samples after the timed brake.
+            let ramp: u32 = std::env::var("BRAKE_RAMP").map_or(0, |n| n.parse().unwrap());
+            if self.brake_k <= self.brake_n + ramp {
+                self.inner.step(r_mm, y_mm);
+                let left = (self.brake_n + ramp + 1 - self.brake_k) as f64 / (ramp + 1) as f64;
+                return -self.side * self.brake * self.u_max * left;
+            }
             self.braking = false;
             self.holding = self.hold;
             self.still = 0;
@@ -165,6 +177,21 @@ impl control::Controller for Approach {
             self.inner.reset();
         }
         self.inner.step(r_mm, y_mm)
+    }
+}
+
+/// The controller restarted, not reset, at each run (what it learnt kept).
+struct Restart<'a>(&'a mut control::PositionController);
+
+impl control::Controller for Restart<'_> {
+    fn ts_s(&self) -> f64 {
+        self.0.ts_s()
+    }
+    fn reset(&mut self) {
+        control::Controller::restart(self.0);
+    }
+    fn step(&mut self, r_mm: f64, y_mm: f64) -> f64 {
+        self.0.step(r_mm, y_mm)
     }
 }
 
@@ -198,12 +225,16 @@ fn main() {
             strength: v[3],
             samples: v[4] as u32,
             rest_samples: v[5] as u32,
+            learn: v.get(6).copied().unwrap_or(0.0),
+            lead_max_s: v.get(7).copied().unwrap_or(0.0),
+            release_samples: v.get(8).copied().unwrap_or(0.0) as u32,
         });
     }
     let spec = Spec::default();
     let approach: Option<Vec<f64>> = std::env::var("APPROACH")
         .ok()
         .map(|a| a.split(',').map(|x| x.parse().unwrap()).collect());
+    let s2 = s;
     let build = move || -> Result<Box<dyn control::Controller + Send>, control::ControlError> {
         let inner = s.build()?;
         Ok(match &approach {
@@ -232,6 +263,47 @@ fn main() {
             None => Box::new(inner),
         })
     };
+    if std::env::var("LEADS").is_ok() {
+        // Per plant and 150 mm step: the learnt lead τ_b after each of 3 moves, and the run's OS and
+        // e_ss (a move repeated with what the controller learnt kept).
+        for i in 0..21u64 {
+            let base = ipa::PlantConfig::default();
+            let cfg = if i == 0 {
+                base
+            } else {
+                ipa::calibrate::study::perturbed_from(&base, i, 0.3)
+            };
+            let mut p = ipa::Ipa::with_ts(cfg, 0.01).unwrap();
+            for (y0, r) in [(25.0, 175.0), (175.0, 25.0)] {
+                let mut c = s2.build().unwrap();
+                let mut line = format!("plant {i} {y0}->{r}:");
+                for _ in 0..3 {
+                    let tr = control::closed_loop::run(
+                        &mut p,
+                        &mut Restart(&mut c),
+                        None,
+                        &control::Profile::Fixed { setpoint_mm: r },
+                        3.0,
+                        y0,
+                    )
+                    .unwrap();
+                    let m = control::StepMetrics::assess(&tr.t, &tr.y, Some(&tr.u), y0, r)
+                        .unwrap()
+                        .0;
+                    let side = if r > y0 { 1 } else { 0 };
+                    line += &format!(
+                        " [OS {:.2} ts {:.3} ess {:.3} tau {:.4}]",
+                        m.overshoot_percent.unwrap_or(f64::NAN),
+                        m.settling_time_s.unwrap_or(f64::NAN),
+                        m.steady_state_error_mm.unwrap_or(f64::NAN),
+                        c.brake_lead_s()[side]
+                    );
+                }
+                println!("{line}");
+            }
+        }
+        return;
+    }
     if let Ok(t) = std::env::var("TRACE") {
         let v: Vec<f64> = t.split(',').map(|x| x.parse().unwrap()).collect();
         let base = ipa::PlantConfig::default();
@@ -282,7 +354,8 @@ fn main() {
         Ok(Box::new(ipa::Ipa::with_ts(cfg, 0.01).unwrap()))
     };
     let plants = std::env::var("PLANTS").map_or(21, |n| n.parse().unwrap());
-    let ev = tune::evaluate(plants, &make, &build, &spec).unwrap();
+    let warmups = std::env::var("WARMUP").map_or(0, |n| n.parse().unwrap());
+    let ev = tune::evaluate_repeated(plants, &make, &build, &spec, warmups).unwrap();
     for r in &ev.runs {
         let e = r.metrics.steady_state_error_mm.unwrap_or(f64::NAN);
         if std::env::var("ROWS").is_ok() {

@@ -18,6 +18,12 @@ pub trait Controller {
     fn ts_s(&self) -> f64;
     /// Back to rest (integral, filter and memory states to 0).
     fn reset(&mut self);
+    /// The next move from rest, keeping what the controller learnt on line (the tuned controller's
+    /// u_b, τ_c, a(side), τ_b(side)), as on a machine that repeats its moves; a controller that
+    /// learns nothing resets.
+    fn restart(&mut self) {
+        self.reset();
+    }
     /// One sample: r(k), y(k) in mm -> u(k) in counts.
     fn step(&mut self, r_mm: f64, y_mm: f64) -> f64;
 }

@@ -325,7 +325,7 @@ fn consider(
     }
     let lands = metrics
         .steady_state_error_mm
-        .is_some_and(|e| e.abs() <= search.ess_mm);
+        .is_some_and(|e| e.abs() <= search.ess_mm + crate::tune::ROUNDING_MM);
     if os_ok && lands && better(&best.landed) {
         best.landed = Some(candidate);
     }

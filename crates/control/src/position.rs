@@ -138,6 +138,30 @@ pub struct Brake {
     pub samples: u32,
     /// N_b: samples of unchanged y that end the hold after the brake (1 to 1000).
     pub rest_samples: u32,
+    /// κ_b: the lead learnt per direction, in [0, 1] (0 = off, as in a file written before it
+    /// existed; issue 25, session 15): at the rest that ends each hold, τ̂ = D / v_sw (D the travel
+    /// after the switch, v_sw the speed towards r there) and τ_b(side) moves by κ_b towards
+    /// min(τ̂, τ_max), so that the next move that way rests e_s short of r.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub learn: f64,
+    /// τ_max: the largest learnt lead, s (>= lead_s when learn > 0; 0 when absent).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub lead_max_s: f64,
+    /// T_r: samples over which the braking command falls linearly to 0 after the T_b samples, 0 to
+    /// 1000 (0 = at once, as in a file written before it existed; session 15): closed at once, the
+    /// valves let the chamber that drove the piston, still at pressure, push it on by several mm.
+    #[serde(default, skip_serializing_if = "is_zero_u32")]
+    pub release_samples: u32,
+}
+
+/// Whether an optional number is absent from a file (written as 0 = off).
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
+}
+
+/// Whether an optional count is absent from a file (written as 0 = off).
+fn is_zero_u32(v: &u32) -> bool {
+    *v == 0
 }
 
 impl Brake {
@@ -165,6 +189,28 @@ impl Brake {
         }
         if !(self.strength > 0.0 && self.strength <= 1.0) {
             return bad("a brake strength in (0, 1]", fmt(self.strength));
+        }
+        if self.release_samples > 1000 {
+            return bad(
+                "brake release_samples from 0 to 1000",
+                self.release_samples.to_string(),
+            );
+        }
+        if !(self.learn.is_finite() && (0.0..=1.0).contains(&self.learn)) {
+            return bad("a brake learn in [0, 1] (0 = off)", fmt(self.learn));
+        }
+        if self.learn > 0.0
+            && !(self.lead_max_s.is_finite()
+                && self.lead_max_s >= self.lead_s
+                && self.lead_max_s <= MAX_TIME_S)
+        {
+            return bad(
+                &format!(
+                    "a brake lead_max_s from lead_s ({}) to {MAX_TIME_S:e} s when learn > 0",
+                    fmt(self.lead_s)
+                ),
+                fmt(self.lead_max_s),
+            );
         }
         for (name, n) in [
             ("samples", self.samples),
@@ -396,6 +442,9 @@ impl ControllerSettings {
                 strength: b.strength,
                 samples: b.samples,
                 rest_samples: b.rest_samples,
+                learn: b.learn,
+                lead_max: b.lead_max_s,
+                release: b.release_samples,
             }),
         }
     }
@@ -462,6 +511,11 @@ impl PositionController {
     pub fn coast_s(&self) -> [f64; 2] {
         self.inner.coast()
     }
+
+    /// The approach's leads τ_b (left, right), s: as set, or learnt (`brake.learn`).
+    pub fn brake_lead_s(&self) -> [f64; 2] {
+        self.inner.brake_lead()
+    }
 }
 
 impl Controller for PositionController {
@@ -471,6 +525,10 @@ impl Controller for PositionController {
 
     fn reset(&mut self) {
         self.inner.reset();
+    }
+
+    fn restart(&mut self) {
+        self.inner.restart();
     }
 
     /// One sample; a non-finite r or y gives NaN (and leaves the state unchanged).
@@ -699,6 +757,9 @@ mod tests {
                 strength: 0.5,
                 samples: 1,
                 rest_samples: 1,
+                learn: 0.0,
+                lead_max_s: 0.0,
+                release_samples: 0,
             }),
             ..plain(1.0, 0.0)
         }
@@ -725,6 +786,42 @@ mod tests {
         assert!(e.to_string().contains("brake"), "{e}");
         let bad = text.replace("\"samples\": 1,", "\"samples\": 1, \"extra\": 1,");
         assert!(ControllerFile::parse(&bad, "c.json").is_err());
+        // Session 14's brake (no learn, no lead_max_s) reads with the learning off and writes as it
+        // was read; learn outside [0, 1], or lead_max_s below lead_s while learning, are refused.
+        assert!(!text.contains("learn") && !text.contains("lead_max_s"));
+        let learning = text.replace(
+            "\"rest_samples\": 1\n",
+            "\"rest_samples\": 1, \"learn\": 0.5, \"lead_max_s\": 0.1\n",
+        );
+        let read = ControllerFile::parse(&learning, "c.json").unwrap();
+        let b = read.brake.unwrap();
+        assert_eq!((b.learn, b.lead_max_s), (0.5, 0.1));
+        let again = serde_json::to_string(&ControllerFile::new(read, None)).unwrap();
+        assert!(again.contains("\"learn\":0.5") && again.contains("\"lead_max_s\":0.1"));
+        let released = text.replace(
+            "\"rest_samples\": 1\n",
+            "\"rest_samples\": 1, \"release_samples\": 10\n",
+        );
+        assert_eq!(
+            ControllerFile::parse(&released, "c.json")
+                .unwrap()
+                .brake
+                .unwrap()
+                .release_samples,
+            10
+        );
+        for bad in [
+            "\"release_samples\": 1001",
+            "\"learn\": 1.5, \"lead_max_s\": 0.1",
+            "\"learn\": 0.5, \"lead_max_s\": -0.1",
+        ] {
+            let text = text.replace(
+                "\"rest_samples\": 1\n",
+                &format!("\"rest_samples\": 1, {bad}\n"),
+            );
+            let e = ControllerFile::parse(&text, "c.json").unwrap_err();
+            assert!(e.to_string().contains("brake"), "{e}");
+        }
         // A file without one (every file before session 14) reads as none.
         assert!(
             !serde_json::to_string(&ControllerFile::new(plain(1.0, 0.0), None))

@@ -85,8 +85,10 @@ pub struct TuneReport {
     pub spec: Spec,
     /// The search settings.
     pub search: TuneSettings,
-    /// Cost evaluations used.
+    /// Cost evaluations used by the search.
     pub evaluations: usize,
+    /// Evaluations of the approach with braking after the search (`tune::BRAKE_CANDIDATES`).
+    pub brake_evaluations: usize,
     /// Wall-clock time, s.
     pub seconds: f64,
     /// The tuned controller.
@@ -406,6 +408,7 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
         spec: req.spec.clone(),
         search: req.search,
         evaluations: tuned.evaluations,
+        brake_evaluations: tuned.brake_evaluations,
         seconds: started.elapsed().as_secs_f64(),
         controller: settings,
         margins,

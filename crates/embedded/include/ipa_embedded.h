@@ -256,6 +256,20 @@ typedef struct IpaController {
    * a_b: braking command as a fraction of u_max (`brake.strength`).
    */
   double brake_strength;
+  /**
+   * κ_b: the lead's learning per braked move, in [0, 1] (`brake.learn`; 0 = off, as in a struct
+   * zeroed before it existed).
+   */
+  double brake_learn;
+  /**
+   * τ_max: the largest learnt lead, s (`brake.lead_max_s`; unused when κ_b = 0).
+   */
+  double brake_lead_max;
+  /**
+   * T_r: samples over which the braking command falls to 0 (`brake.release_samples`; 0 = at once,
+   * as in a struct zeroed before it existed).
+   */
+  uint32_t brake_release;
 } IpaController;
 
 #ifdef __cplusplus

@@ -169,6 +169,14 @@ pub struct IpaController {
     pub brake_lead: f64,
     /// a_b: braking command as a fraction of u_max (`brake.strength`).
     pub brake_strength: f64,
+    /// κ_b: the lead's learning per braked move, in [0, 1] (`brake.learn`; 0 = off, as in a struct
+    /// zeroed before it existed).
+    pub brake_learn: f64,
+    /// τ_max: the largest learnt lead, s (`brake.lead_max_s`; unused when κ_b = 0).
+    pub brake_lead_max: f64,
+    /// T_r: samples over which the braking command falls to 0 (`brake.release_samples`; 0 = at once,
+    /// as in a struct zeroed before it existed).
+    pub brake_release: u32,
 }
 const _: () = assert!(size_of::<CusumState>() <= IPA_CUSUM_STATE_BYTES);
 const _: () = assert!(MAX_D >= IPA_MAX_NA as usize);
@@ -693,6 +701,9 @@ pub unsafe extern "C" fn ipa_ctl_init(
             strength: c.brake_strength,
             samples: c.brake_samples,
             rest_samples: c.brake_rest_samples,
+            learn: c.brake_learn,
+            lead_max: c.brake_lead_max,
+            release: c.brake_release,
         })),
         _ => Err(Error::Setting),
     };

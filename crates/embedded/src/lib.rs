@@ -125,12 +125,14 @@ mod tests {
         // last nudge's y_0 and e_0, two ramp-and-cut rates per mm), the optional nudge under way (four
         // floats and three bools, whose spare values hold the `None`), the optional last cut (two
         // floats and a bool, whose spare values hold the `None`), a u32 and two bools; and (the
-        // approach with braking) the optional brake settings (four floats and two u32, a tag), its
-        // phase (a tag, a bool and a u32: 8 bytes), r(k−1) and a bool: 440 bytes for f64 on a 64-bit
-        // host.
+        // approach with braking) the optional brake settings (six floats and three u32, padded, then a
+        // tag: an `Option` cannot use its settings' trailing padding), its
+        // phase (a tag, a bool and a u32: 8 bytes), r(k−1) and a bool; and (the learnt lead) two
+        // floats τ_b(left), τ_b(right) and the optional last switch (two floats and a bool, whose
+        // spare values hold the `None`): 504 bytes for f64 on a 64-bit host.
         let a = |f: usize| f.max(4);
         let nudge = |f: usize| round(7 * f + 4, a(f)) + a(f);
-        let brake = |f: usize| round(4 * f + 8 + 1, a(f));
+        let brake = |f: usize| round(round(6 * f + 12, a(f)) + 1, a(f));
         let settings = |f: usize| round(8 * f + 1 + nudge(f) + brake(f), f);
         let nudging = |f: usize| round(4 * f + 3, f);
         let cut = |f: usize| round(2 * f + 1, f);
@@ -145,15 +147,17 @@ mod tests {
                     + 2
                     + 8
                     + f
-                    + 1,
+                    + 1
+                    + 2 * f
+                    + cut(f),
                 f.max(4),
             )
         };
         assert_eq!(size_of::<PositionController<f64>>(), ctl(8));
         assert_eq!(size_of::<PositionController<f32>>(), ctl(4));
         if w == 8 {
-            assert_eq!(ctl(8), 440);
-            assert_eq!(ctl(4), 232);
+            assert_eq!(ctl(8), 504);
+            assert_eq!(ctl(4), 264);
         }
         assert!(ffi::ipa_ctl_state_size() <= ffi::IPA_CTL_STATE_BYTES);
         if w == 8 {

@@ -23,6 +23,7 @@
 //!             changes, for a step |r − y| ≥ e_a, side = sign(r − y), v = side (y(k) − y(k−1))/Ts:
 //!             approach: u = side u_max while side e > e_s + τ_b max(v, 0); then
 //!             brake:    u = −side a_b u_max for T_b samples (from the sample the approach ends); then
+//!             release:  u = −side a_b u_max (T_r − j)/(T_r + 1) at its j-th sample, j = 0..T_r−1; then
 //!             hold:     u = 0 (valves closed) until y has been unchanged for N_b samples; then the law
 //!                       above from a fresh start (I, D, y(k−1), e(k−1), the nudge under way and the
 //!                       rest count cleared; the learnt u_b, τ_c and a(side) kept)
@@ -72,6 +73,18 @@ pub struct BrakeSettings<F: Float> {
     pub samples: u32,
     /// N_b: samples of unchanged y that end the hold after the brake (1..=1000).
     pub rest_samples: u32,
+    /// κ_b: how far the lead moves towards the one the last braked move measured, per move, in
+    /// [0, 1] (0 = off: τ_b stays as set, as in a file written before it existed). At the rest that
+    /// ends the hold, τ̂ = D / v_sw (D = side (y_rest − y_sw), the travel after the switch; v_sw the
+    /// speed towards r at the switch) and τ_b(side) ← τ_b(side) + κ_b (min(τ̂, τ_max) − τ_b(side)),
+    /// so that the next move in that direction at that speed rests e_s short of r.
+    pub learn: F,
+    /// τ_max: the largest learnt lead, s (≥ τ_b when κ_b > 0; unused when κ_b = 0).
+    pub lead_max: F,
+    /// T_r: samples over which the braking command falls linearly to 0 after the brake, 0..=1000
+    /// (0 = at once, as in a file written before it existed): closing the valves at once lets the
+    /// chamber that drove the piston, still at pressure, push it on by several mm.
+    pub release: u32,
 }
 
 /// Where the approach with braking is (`right`: towards larger y).
@@ -83,8 +96,21 @@ enum Approach {
     Drive { right: bool },
     /// Braking: samples given so far.
     Brake { right: bool, given: u32 },
+    /// Releasing the brake: samples given so far.
+    Release { right: bool, given: u32 },
     /// Valves closed after the brake: samples of unchanged y so far.
     Hold { still: u32 },
+}
+
+/// The switch of the last braked move, until the rest that ends its hold (τ_b learning).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Switch<F: Float> {
+    /// Towards larger y.
+    right: bool,
+    /// y_sw: position at the switch, mm.
+    y: F,
+    /// v_sw: speed towards r at the switch, mm/s.
+    v: F,
 }
 
 /// A nudge under way (`right`: u > 0).
@@ -173,6 +199,18 @@ pub struct PositionController<F: Float> {
     r_prev: F,
     /// Whether r_prev holds a set-point (false until the first sample and after `reset`).
     r_seen: bool,
+    /// τ_b(left), τ_b(right): the approach's lead, s (learnt when κ_b > 0, else τ_b as set).
+    lead: [F; 2],
+    /// The last braked move's switch, until its hold ends.
+    switched: Option<Switch<F>>,
+}
+
+/// τ_b at the start, both directions (0 without a brake).
+fn initial_lead<F: Float>(b: &Option<BrakeSettings<F>>) -> [F; 2] {
+    match b {
+        Some(b) => [b.lead, b.lead],
+        None => [F::ZERO, F::ZERO],
+    }
 }
 
 /// a(side) at the start: ρ / e_c, so that a nudge from the edge of the ramp-and-cut band ramps at ρ
@@ -233,7 +271,11 @@ impl<F: Float> PositionController<F> {
                 && positive(b.strength)
                 && b.strength <= F::ONE
                 && (1..=1000).contains(&b.samples)
-                && (1..=1000).contains(&b.rest_samples))
+                && (1..=1000).contains(&b.rest_samples)
+                && b.release <= 1000
+                && nonneg(b.learn)
+                && b.learn <= F::ONE
+                && (b.learn == F::ZERO || (b.lead_max.is_finite() && b.lead_max >= b.lead)))
             {
                 return Err(Error::Setting);
             }
@@ -260,6 +302,8 @@ impl<F: Float> PositionController<F> {
             approach: Approach::Off,
             r_prev: F::ZERO,
             r_seen: false,
+            lead: initial_lead(&s.brake),
+            switched: None,
         })
     }
 
@@ -355,13 +399,16 @@ impl<F: Float> PositionController<F> {
         let side = |right: bool| if right { F::ONE } else { -F::ONE };
         if let Approach::Drive { right } = self.approach {
             let v = side(right) * dy;
-            let lead = if v > F::ZERO { b.lead * v } else { F::ZERO };
+            let [tau_left, tau_right] = self.lead;
+            let tau = if right { tau_right } else { tau_left };
+            let lead = if v > F::ZERO { tau * v } else { F::ZERO };
             if side(right) * e > b.switch + lead {
                 self.started = true;
                 self.y_prev = y;
                 return Some(side(right) * self.s.u_max);
             }
             self.approach = Approach::Brake { right, given: 0 };
+            self.switched = Some(Switch { right, y, v });
         }
         if let Approach::Brake { right, given } = self.approach {
             if given < b.samples {
@@ -372,6 +419,20 @@ impl<F: Float> PositionController<F> {
                 self.started = true;
                 self.y_prev = y;
                 return Some(-side(right) * b.strength * self.s.u_max);
+            }
+            self.approach = Approach::Release { right, given: 0 };
+        }
+        if let Approach::Release { right, given } = self.approach {
+            if given < b.release {
+                self.approach = Approach::Release {
+                    right,
+                    given: given + 1,
+                };
+                self.started = true;
+                self.y_prev = y;
+                let n = F::from_f64(f64::from(b.release) + 1.0);
+                let left = F::from_f64(f64::from(b.release - given)) / n;
+                return Some(-side(right) * b.strength * self.s.u_max * left);
             }
             self.approach = Approach::Hold { still: 0 };
         }
@@ -384,9 +445,27 @@ impl<F: Float> PositionController<F> {
                 return Some(F::ZERO);
             }
             self.approach = Approach::Off;
+            self.learn_lead(&b, y);
             self.restart_law();
         }
         None
+    }
+
+    /// τ_b learning at the rest y that ends a hold (κ_b > 0; [`BrakeSettings::learn`]): τ̂ = D / v_sw
+    /// bounded to [0, τ_max], τ_b(side) moved by κ_b towards it. No speed towards r at the switch
+    /// (v_sw ≤ 0: the step began within the lead) teaches nothing.
+    fn learn_lead(&mut self, b: &BrakeSettings<F>, y: F) {
+        let Some(sw) = self.switched.take() else {
+            return;
+        };
+        if b.learn == F::ZERO || sw.v <= F::ZERO {
+            return;
+        }
+        let travel = if sw.right { y - sw.y } else { sw.y - y };
+        let measured = (travel / sw.v).clamp_to(F::ZERO, b.lead_max);
+        let [tau_left, tau_right] = &mut self.lead;
+        let slot = if sw.right { tau_right } else { tau_left };
+        *slot = *slot + b.learn * (measured - *slot);
     }
 
     /// The law's transient state back to a first sample (the learnt u_b, τ_c, a(side) kept).
@@ -578,6 +657,26 @@ impl<F: Float> PositionController<F> {
         self.approach = Approach::Off;
         self.r_prev = F::ZERO;
         self.r_seen = false;
+        self.lead = initial_lead(&self.s.brake);
+        self.switched = None;
+    }
+
+    /// The next move from rest, keeping what was learnt (u_b, τ_c, a(side), τ_b(side)): the law's
+    /// transient state and the approach restart as at the first sample, as on a machine that
+    /// repeats its moves. [`reset`](Self::reset) forgets the learnt values too.
+    pub fn restart(&mut self) {
+        self.restart_law();
+        self.last_start = (F::ZERO, F::ZERO);
+        self.last_learns = false;
+        self.approach = Approach::Off;
+        self.r_prev = F::ZERO;
+        self.r_seen = false;
+        self.switched = None;
+    }
+
+    /// The approach's leads τ_b (left, right), s: as set, or learnt ([`BrakeSettings::learn`]).
+    pub fn brake_lead(&self) -> [F; 2] {
+        self.lead
     }
 }
 
@@ -873,6 +972,9 @@ mod tests {
                 strength: 0.5,
                 samples: 2,
                 rest_samples: 2,
+                learn: 0.0,
+                lead_max: 0.0,
+                release: 0,
             }),
             ..s()
         }
@@ -902,6 +1004,89 @@ mod tests {
         let y = [20.0, 19.0, 18.0, 10.0, 8.0];
         let u = y.map(|y| c.step(0.0, y).unwrap());
         assert_eq!(u, [-255.0, -255.0, -255.0, 127.5, 127.5]);
+    }
+
+    /// [`braking`] with the lead learnt at rate κ_b up to τ_max.
+    fn learning(learn: f64, lead_max: f64) -> PositionSettings<f64> {
+        let mut s = braking();
+        let b = s.brake.as_mut().unwrap();
+        (b.learn, b.lead_max) = (learn, lead_max);
+        s
+    }
+
+    // The scripted move of the test above: the switch at y_sw = 10 mm with v_sw = (10 − 2)/0.01 =
+    // 800 mm/s, the rest that ends the hold at y = 13 mm: D = 3 mm, τ̂ = 3/800 = 0.00375 s; with
+    // κ_b = 0.5: τ_b(right) = 0.1 + 0.5 (0.00375 − 0.1) = 0.051875 s, τ_b(left) still 0.1. The
+    // commands are those of the brake without learning. The next move up (restart: kept) at
+    // 100 mm/s brakes at e ≤ 1 + 0.051875 × 100 = 6.1875 mm, no longer at e ≤ 11 mm: at y = 9 mm
+    // (e = 11) it drives on, where a controller reset (lead 0.1 s again) brakes.
+    #[test]
+    fn the_lead_learnt_after_one_braked_move_is_the_measured_travel_per_speed() {
+        let mut c = PositionController::new(learning(0.5, 0.5), None).unwrap();
+        let y = [0.0, 1.0, 2.0, 10.0, 12.0, 13.0, 13.0, 13.0, 13.5];
+        let u = y.map(|y| c.step(20.0, y).unwrap());
+        assert_eq!(u, [255.0, 255.0, 255.0, -127.5, -127.5, 0.0, 0.0, 7.0, 6.5]);
+        let [left, right] = c.brake_lead();
+        assert_eq!(left, 0.1);
+        assert!((right - 0.051875).abs() < 1e-15, "{right}");
+        c.restart();
+        assert!((c.brake_lead()[1] - 0.051875).abs() < 1e-15);
+        let y: [f64; 10] = core::array::from_fn(|k| k as f64);
+        let u = y.map(|y| c.step(20.0, y).unwrap());
+        assert_eq!(u, [255.0; 10]);
+        c.reset();
+        assert_eq!(c.brake_lead(), [0.1, 0.1]);
+        let u = y.map(|y| c.step(20.0, y).unwrap());
+        assert_eq!(u[9], -127.5);
+        assert_eq!(u[8], 255.0);
+        // κ_b = 0 (a file without it): the same commands, the lead as set.
+        let mut c = PositionController::new(braking(), None).unwrap();
+        for y in [0.0, 1.0, 2.0, 10.0, 12.0, 13.0, 13.0, 13.0] {
+            c.step(20.0, y).unwrap();
+        }
+        assert_eq!(c.brake_lead(), [0.1, 0.1]);
+    }
+
+    // Bounds, κ_b = 1 (τ_b = the bounded τ̂ at once), downwards: switch at y_sw = 10 from 18 (v_sw =
+    // 800 mm/s towards r = 0); a rest at y = −190 mm (D = 200 mm, τ̂ = 0.25 s) gives τ_max = 0.2 s; a
+    // rest back behind the switch (y = 11 mm, D = −1 mm) gives 0.
+    #[test]
+    fn the_learnt_lead_stays_within_zero_and_its_largest_value() {
+        for (rest, want) in [(-190.0, 0.2), (11.0, 0.0)] {
+            let mut c = PositionController::new(learning(1.0, 0.2), None).unwrap();
+            for y in [20.0, 19.0, 18.0, 10.0, 9.0, rest, rest, rest] {
+                c.step(0.0, y).unwrap();
+            }
+            assert_eq!(c.brake_lead(), [want, 0.1], "rest at {rest}");
+        }
+        // κ_b outside [0, 1], or τ_max below τ_b while learning: refused; τ_max unused at κ_b = 0.
+        for (learn, lead_max) in [(1.5, 0.2), (-0.1, 0.2), (0.5, 0.05), (f64::NAN, 0.2)] {
+            assert_eq!(
+                PositionController::new(learning(learn, lead_max), None).unwrap_err(),
+                Error::Setting
+            );
+        }
+        assert!(PositionController::new(learning(0.0, 0.0), None).is_ok());
+    }
+
+    // The release by hand: T_r = 3 after the T_b = 2 samples of −127.5 of the test above: −127.5 ×
+    // 3/4, × 2/4, × 1/4 = −95.625, −63.75, −31.875, then the hold (y moved: 0), and the law after
+    // N_b = 2 samples at rest (Kp e = 7).
+    #[test]
+    fn the_release_lowers_the_braking_command_to_zero_in_equal_steps() {
+        let mut s = braking();
+        s.brake.as_mut().unwrap().release = 3;
+        let mut c = PositionController::new(s, None).unwrap();
+        let y = [
+            0.0, 1.0, 2.0, 10.0, 12.0, 12.5, 12.8, 12.9, 13.0, 13.0, 13.0,
+        ];
+        let u = y.map(|y| c.step(20.0, y).unwrap());
+        assert_eq!(
+            u,
+            [255.0, 255.0, 255.0, -127.5, -127.5, -95.625, -63.75, -31.875, 0.0, 0.0, 7.0]
+        );
+        s.brake.as_mut().unwrap().release = 1001;
+        assert!(PositionController::new(s, None).is_err());
     }
 
     #[test]

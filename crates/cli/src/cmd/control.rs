@@ -695,7 +695,22 @@ pub fn tuned_line(s: &control::ControllerSettings) -> String {
             report::format::sig(b.strength, 6),
             b.samples,
             b.rest_samples
-        )
+        ) + &if b.release_samples > 0 {
+            format!(
+                ", released over {} samples",
+                b.release_samples
+            )
+        } else {
+            String::new()
+        } + &if b.learn > 0.0 {
+            format!(
+                "; the lead learnt per direction at {} per braked move, at most {} s",
+                report::format::sig(b.learn, 6),
+                report::format::sig(b.lead_max_s, 6)
+            )
+        } else {
+            String::new()
+        }
     });
     format!(
         "tuned PID Kp = {:.4}, Ki = {:.4}, Kd = {:.4} (Tf = {} s), clamping anti-windup, {comp}, hold band {} mm{nudge}{brake}, |u| <= {} counts",

@@ -9,7 +9,9 @@
  * The arguments are the fields of the `controller` object of CONTROLLER.json (ts_s, kp, ki, kd,
  * derivative_filter_s, u_max, hold_band_mm, fine_band_mm, reset_on_crossing as 0/1, and the
  * compensator's deadzone when it has one, then the nudge mode's band_mm, ramp_counts_s, start_fraction,
- * rest_samples, cut_fraction and optionally rest_band_mm, then cut_band_mm and min_ramp_counts_s (0 when absent) when it has one). trace.csv is what `ipa-sysid control --controller
+ * rest_samples, cut_fraction and optionally rest_band_mm, then cut_band_mm and min_ramp_counts_s (0 when absent) when it has one;
+ * then the brake's min_step_mm, switch_mm, lead_s, strength, samples, rest_samples and optionally
+ * learn and lead_max_s, then release_samples, when it has one). trace.csv is what `ipa-sysid control --controller
  * CONTROLLER.json --out trace.csv` writes (header t,r,u,y): the controller is fed r(k) and y(k) of each
  * row, as firmware would feed the set-point and the encoder, and prints its command u(k) per line
  * (round-trip decimal, %.17g), to compare with the u column.
@@ -24,9 +26,10 @@
 static uint64_t state[IPA_CTL_STATE_BYTES / sizeof(uint64_t) + 1];
 
 int main(int argc, char **argv) {
-    if (argc != 10 && argc != 14 && argc != 19 && argc != 20 && argc != 22 && argc != 28) {
+    if (argc != 10 && argc != 14 && argc != 19 && argc != 20 && argc != 22 && argc != 28 &&
+        argc != 30 && argc != 31) {
         fprintf(stderr,
-                "usage: %s TS KP KI KD TF U_MAX HOLD FINE RESET [B_L B_R M_L M_R [BAND RAMP START REST CUT [REST_BAND [CUT_BAND MIN_RAMP [MIN_STEP SWITCH LEAD STRENGTH SAMPLES BRAKE_REST]]]]]"
+                "usage: %s TS KP KI KD TF U_MAX HOLD FINE RESET [B_L B_R M_L M_R [BAND RAMP START REST CUT [REST_BAND [CUT_BAND MIN_RAMP [MIN_STEP SWITCH LEAD STRENGTH SAMPLES BRAKE_REST [LEARN LEAD_MAX [RELEASE]]]]]]]"
                 " < trace.csv\n",
                 argv[0]);
         return 2;
@@ -65,9 +68,11 @@ int main(int argc, char **argv) {
             c.nudge_min_ramp = atof(argv[21]);
         }
     }
-    c.has_brake = argc == 28;
+    c.has_brake = argc >= 28;
     c.brake_samples = c.brake_rest_samples = 0;
     c.brake_min_step = c.brake_switch = c.brake_lead = c.brake_strength = 0.0;
+    c.brake_learn = c.brake_lead_max = 0.0;
+    c.brake_release = 0;
     if (c.has_brake) {
         c.brake_min_step = atof(argv[22]);
         c.brake_switch = atof(argv[23]);
@@ -75,6 +80,11 @@ int main(int argc, char **argv) {
         c.brake_strength = atof(argv[25]);
         c.brake_samples = (uint32_t)atol(argv[26]);
         c.brake_rest_samples = (uint32_t)atol(argv[27]);
+        if (argc >= 30) {
+            c.brake_learn = atof(argv[28]);
+            c.brake_lead_max = atof(argv[29]);
+        }
+        if (argc == 31) c.brake_release = (uint32_t)atol(argv[30]);
     }
     int rc = ipa_ctl_init(state, sizeof state, &c);
     if (rc != IPA_OK) {

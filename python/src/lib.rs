@@ -1652,7 +1652,8 @@ fn control_loop<'py>(
             judge_steps: profile.has_held_steps(),
             data_u_range: limits.data_u_range,
             can_run_longer: true,
-            model_units: false,
+            // A model (a Model or "model:FILE") applies any command: its units are its record's.
+            model_units: limits.u_max.is_none(),
         },
     ));
     let out = PyDict::new(py);

@@ -1651,7 +1651,7 @@ fn control_loop<'py>(
             unstable_pole: limits.unstable_pole,
             judge_steps: profile.has_held_steps(),
             data_u_range: limits.data_u_range,
-            can_run_longer: true,
+            duration_setting: Some("duration="),
             // A model (a Model or "model:FILE") applies any command: its units are its record's.
             model_units: limits.u_max.is_none(),
         },

@@ -68,10 +68,10 @@ pub struct LoopFacts {
     /// True for a model plant, whose signals are in its estimation record's units: the warnings then
     /// name "(y's units)" and "(u's units)" where the IPA's are mm and counts.
     pub model_units: bool,
-    /// True when the run's length is the caller's to choose (`control --duration`): the warnings then
-    /// say how to run longer; false for a run of fixed length (`reproduce`'s tests), which says nothing
-    /// the user cannot do.
-    pub can_run_longer: bool,
+    /// How the caller sets the run's length (`--duration` on the command line, `duration=` in Python):
+    /// the warnings then say how to run longer; `None` for a run of fixed length (`reproduce`'s tests),
+    /// which says nothing the user cannot do.
+    pub duration_setting: Option<&'static str>,
 }
 
 /// The warnings of a run `trace` with its `steps` (from [`crate::metrics_for_steps`]).
@@ -105,12 +105,10 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
             ));
         }
     }
-    let longer = |hint: &str| {
-        if facts.can_run_longer {
-            format!(" ({hint})")
-        } else {
-            String::new()
-        }
+    let longer = |or_hold: bool| match facts.duration_setting {
+        Some(d) if or_hold => format!(" (run longer: {d}, or hold each set-point longer)"),
+        Some(d) => format!(" (run longer: {d})"),
+        None => String::new(),
     };
     let n = trace.len();
     if let Some(peak) = trace
@@ -170,7 +168,7 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
                         "{head} still creeps at the end of the run: its settling time ({ts:.3} s) is \
                          measured against the set-point's 2 % band, and its steady-state error of \
                          {ess} mm is not final{}",
-                        longer("run longer: --duration")
+                        longer(false)
                     ));
                 }
             }
@@ -178,7 +176,7 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
                 "{head} has not settled within {within:.3} s: the output is still moving at the end of \
                  the run, so its settling time is unknown (null) and its steady-state error of {ess} \
                  mm is not final{}",
-                longer("run longer: --duration")
+                longer(false)
             )),
             Some(Unsettled::CommandMoving) => w.push(format!(
                 "{head} has not settled within {within:.3} s: the output stopped {} mm short of the \
@@ -197,7 +195,7 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
                 "{head} has not settled within {within:.3} s: the output entered its 2 % band for good \
                  only {at_s:.3} s after the step, within the run's last {tail_s:.3} s, too late to tell \
                  that it stays, so its settling time is unknown (null){}",
-                longer("run longer: --duration")
+                longer(false)
             )),
             Some(Unsettled::MovedAway { moved_mm }) => w.push(format!(
                 "{head} moved away from its set-point: the output went {} mm from y0 = {} mm and \
@@ -214,7 +212,7 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
                  no rise, overshoot or settling time (null) and its error of {ess} mm is where the \
                  run stopped, not a steady state{}",
                 crate::metrics::MIN_STEP_SAMPLES,
-                longer("run longer: --duration, or hold each set-point longer")
+                longer(true)
             )),
             Some(Unsettled::NoResponse) => w.push(format!(
                 "{head} had no response: the output stayed at y0 = {} mm while the set-point moved \
@@ -344,7 +342,7 @@ mod tests {
                 unstable_pole: Some(1.02),
                 judge_steps: true,
                 data_u_range: None,
-                can_run_longer: true,
+                duration_setting: Some("--duration"),
                 model_units: false,
             },
         );

@@ -146,7 +146,7 @@ pub(crate) fn run_warnings(
         unstable_pole: limits.unstable_pole,
         judge_steps: false,
         data_u_range: limits.data_u_range,
-        can_run_longer: false,
+        duration_setting: None,
         model_units: false,
     };
     Ok(loop_warnings(trace, &steps, &facts)

@@ -301,7 +301,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             unstable_pole: limits.unstable_pole,
             judge_steps: profile.has_held_steps(),
             data_u_range: limits.data_u_range,
-            can_run_longer: true,
+            duration_setting: Some("--duration"),
             model_units: args.plant.trim().starts_with("model:"),
         },
     ));

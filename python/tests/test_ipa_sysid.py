@@ -12,6 +12,7 @@ import os
 import pathlib
 import subprocess
 import sys
+import warnings
 
 import numpy as np
 import pytest
@@ -803,3 +804,15 @@ def test_model_methods_warn_of_what_validate_warns_of(tmp_path):
     with w.catch_warnings():
         w.simplefilter("error", ipa_sysid.IpaSysidWarning)
         assert stable.metrics(u, y)["warnings"] == []
+
+
+def test_control_warnings_speak_pythons_words_and_a_models_units():
+    # A Model plant's signals are in its record's units, and Python's run length is duration=: the
+    # loop's warnings say both (audit s14 L-p; the words of the command line were "mm" and "--duration").
+    # The paper's model after 2 s of a 5-unit step still creeps into its band (warned as not final).
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ipa_sysid.IpaSysidWarning)
+        r = ipa_sysid.control(ipa_sysid.paper_model(), setpoint=5, y0=0, duration=2)
+    said = " ".join(r["warnings"])
+    assert "still creeps" in said and "(run longer: duration=)" in said, said
+    assert "(y's units)" in said and " mm" not in said and "--duration" not in said, said

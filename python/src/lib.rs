@@ -416,13 +416,10 @@ impl PyModel {
         let warnings: Vec<String> = sysid::model_file::load_warnings(&self.inner)
             .into_iter()
             .map(|w| format!("model: {w}"))
-            .chain(sysid_summary::ValidationReport::warnings_of(
+            .chain(sysid_summary::ValidationReport::record_warnings(
                 &self.inner,
                 &m,
-            ))
-            .chain(sysid_summary::ValidationReport::extrapolation_warnings(
-                &self.inner,
-                &data,
+                &sysid_summary::input_extremes(&data),
             ))
             .collect();
         warn_all(py, &warnings)?;

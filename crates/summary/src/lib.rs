@@ -403,16 +403,31 @@ pub struct ValidationReport {
     pub warnings: Vec<String>,
 }
 
+/// Each input's [min, max] over `data` (NaN skipped): what [`ValidationReport::from_parts`] judges
+/// against the model's data range.
+pub fn input_extremes(data: &Dataset) -> Vec<(f64, f64)> {
+    data.input_signals()
+        .iter()
+        .map(|u| {
+            u.iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                    (a.min(*v), b.max(*v))
+                })
+        })
+        .collect()
+}
+
 impl ValidationReport {
     /// Validates `model` on `data`: metrics, residual analysis with `max_lag` lags, warnings (unstable
     /// model, negative or diverging simulation fit).
     pub fn assemble(model: &Model, data: &Dataset, max_lag: usize) -> Result<Self, SysidError> {
         let m = metrics(model, data)?;
-        let mut report = Self::from_parts(model, m, residual_analysis(model, data, max_lag));
-        report
-            .warnings
-            .extend(Self::extrapolation_warnings(model, data));
-        Ok(report)
+        Ok(Self::from_parts(
+            model,
+            m,
+            residual_analysis(model, data, max_lag),
+            &input_extremes(data),
+        ))
     }
 
     /// A warning per input of `data` that leaves the model's estimation data range (its `data_range`)
@@ -421,17 +436,7 @@ impl ValidationReport {
     /// M-c: a fit fell from 72 to 35 % for an input scaled by 1.1, without a word). None without a
     /// recorded range.
     pub fn extrapolation_warnings(model: &Model, data: &Dataset) -> Vec<String> {
-        let extremes: Vec<(f64, f64)> = data
-            .input_signals()
-            .iter()
-            .map(|u| {
-                u.iter()
-                    .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-                        (a.min(*v), b.max(*v))
-                    })
-            })
-            .collect();
-        Self::extrapolation_warnings_of(model, &extremes)
+        Self::extrapolation_warnings_of(model, &input_extremes(data))
     }
 
     /// [`ValidationReport::extrapolation_warnings`] from each input's [min, max] over the record (a
@@ -456,10 +461,16 @@ impl ValidationReport {
             .collect()
     }
 
-    /// The report from metrics and a residual analysis computed elsewhere (the streaming path,
-    /// `sysid::stream`), with the warnings [`ValidationReport::assemble`] gives.
-    pub fn from_parts(model: &Model, m: Metrics, residuals: ResidualEntry) -> Self {
-        let warnings = Self::warnings_of(model, &m);
+    /// The report from metrics, a residual analysis and each input's [min, max] over the record computed
+    /// elsewhere (the streaming path, `sysid::stream`), with the warnings [`ValidationReport::assemble`]
+    /// gives (the one place they are put together).
+    pub fn from_parts(
+        model: &Model,
+        m: Metrics,
+        residuals: ResidualEntry,
+        input_extremes: &[(f64, f64)],
+    ) -> Self {
+        let warnings = Self::record_warnings(model, &m, input_extremes);
         ValidationReport {
             model: model.clone(),
             poles: poles(model),
@@ -470,6 +481,20 @@ impl ValidationReport {
             },
             warnings,
         }
+    }
+
+    /// Every warning of a model judged on a record with metrics `m` and inputs spanning
+    /// `input_extremes` ([`input_extremes`]): [`ValidationReport::warnings_of`], then the record's input
+    /// beyond the model's data range (what `validate`, its streamed path and Python's `Model.metrics`
+    /// say).
+    pub fn record_warnings(
+        model: &Model,
+        m: &Metrics,
+        input_extremes: &[(f64, f64)],
+    ) -> Vec<String> {
+        let mut w = Self::warnings_of(model, m);
+        w.extend(Self::extrapolation_warnings_of(model, input_extremes));
+        w
     }
 
     /// The warnings of a model judged on a record with metrics `m`: an unstable or integrating model,

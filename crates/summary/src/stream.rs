@@ -73,16 +73,9 @@ pub fn validation_report(
 ) -> Result<Streamed<ValidationReport>, SysidError> {
     let on = record_metrics(model, data, max_lag)?;
     let (m, r) = on.result;
-    let mut report = ValidationReport::from_parts(model, m, r.into());
-    // The record against the model's data range, as `ValidationReport::assemble` judges it.
-    report
-        .warnings
-        .extend(ValidationReport::extrapolation_warnings_of(
-            model,
-            &on.u_extremes.into_iter().collect::<Vec<_>>(),
-        ));
+    let extremes: Vec<(f64, f64)> = on.u_extremes.into_iter().collect();
     Ok(Streamed {
-        result: report,
+        result: ValidationReport::from_parts(model, m, r.into(), &extremes),
         shape: on.shape,
         val_shape: None,
         u_extremes: on.u_extremes,

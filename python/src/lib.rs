@@ -1649,8 +1649,7 @@ fn control_loop<'py>(
             judge_steps: profile.has_held_steps(),
             data_u_range: limits.data_u_range,
             duration_setting: Some("duration="),
-            // A model (a Model or "model:FILE") applies any command: its units are its record's.
-            model_units: limits.u_max.is_none(),
+            model_units: limits.model_units(),
         },
     ));
     let out = PyDict::new(py);

@@ -3,7 +3,7 @@
 
 use report::format::num;
 use sysid::metrics::Metrics;
-use sysid::{Method, ParamName};
+use sysid::Method;
 use sysid_summary::{IdentifyReport, ResidualEntry};
 
 /// A row of the text metrics table: label and how to format the value from a [`Metrics`].
@@ -110,22 +110,11 @@ fn parameters_text(r: &IdentifyReport, s: &mut String) {
         6
     };
     for p in &r.parameters {
-        // b1 = 1 of an input with a static nonlinearity is the key-term normalisation.
-        let normalised = p.name == ParamName::B(1)
-            && m.inputs()
-                .iter()
-                .find(|c| p.input.as_deref().is_none_or(|i| i == c.name()))
-                .is_some_and(|c| !c.nonlinearity().is_linear())
-            // The output nonlinearity's gain is held fixed (its scale is the linear block's).
-            || (p.input.as_deref() == Some(sysid::oe::OUTPUT)
-                && matches!(
-                    p.name,
-                    ParamName::M | ParamName::Slope(0) | ParamName::Poly(1)
-                ));
+        // A parameter the tool held (b1 = 1 of a keyed input, the output map's gain, a dropped branch)
+        // says why ([`sysid::Param::fixed`]).
         let sd = match (p.std, &p.fixed) {
             (Some(v), _) => format!("± {}", num(v)),
             (None, Some(why)) => format!("(fixed: {why})"),
-            (None, None) if normalised => "(fixed: normalisation)".into(),
             (None, None) => "± n/a".into(),
         };
         let _ = writeln!(s, "  {:<width$} = {:>14}  {sd}", p.label(), num(p.value));

@@ -240,12 +240,16 @@ impl DataRange {
     /// and `control`'s command warning); `None` when they stay within it, when there are none, or when an
     /// extreme is infinite (a diverged run, warned of on its own). NaN values are skipped.
     pub fn excursion(values: &[f64], range: (f64, f64)) -> Option<(f64, f64)> {
-        let extremes = values
-            .iter()
+        Self::excursion_of(Self::extremes(values), range)
+    }
+
+    /// The [min, max] of `values`, NaN skipped ((+∞, −∞) when there is none).
+    pub fn extremes<'a>(values: impl IntoIterator<Item = &'a f64>) -> (f64, f64) {
+        values
+            .into_iter()
             .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
                 (a.min(*v), b.max(*v))
-            });
-        Self::excursion_of(extremes, range)
+            })
     }
 
     /// [`DataRange::excursion`] of values whose [min, max] is already known (a record read in passes).

@@ -199,6 +199,13 @@ impl PlantSpec {
 }
 
 impl PlantLimits {
+    /// True for a model used as the plant (a model file, a Python `Model`): it applies any command
+    /// (`u_max` is `None`), and its signals are in its estimation record's units, not the IPA's mm and
+    /// counts (what `control` prints and warns in).
+    pub fn model_units(&self) -> bool {
+        self.u_max.is_none()
+    }
+
     /// The limits of the physics IPA of `cfg`: its stroke 0..L and its valves' ±[`crate::plant::U_MAX`].
     pub fn of_ipa(cfg: &PlantConfig) -> PlantLimits {
         PlantLimits {

@@ -160,8 +160,8 @@ pub(crate) fn run_warnings(
 /// describe the model's extrapolation, not the plant it was fitted to).
 pub(crate) fn experiment_warning(records: &[&[f64]], limits: &ipa::PlantLimits) -> Option<String> {
     let (lo, hi) = limits.data_u_range?;
-    let all: Vec<f64> = records.iter().flat_map(|u| u.iter().copied()).collect();
-    let (u_min, u_max) = sysid_core::DataRange::excursion(&all, (lo, hi))?;
+    let extremes = sysid_core::DataRange::extremes(records.iter().flat_map(|u| u.iter()));
+    let (u_min, u_max) = sysid_core::DataRange::excursion_of(extremes, (lo, hi))?;
     Some(format!(
         "the experiments' commands span [{u_min}, {u_max}] counts but the plant model's estimation data had \
          u in [{lo}, {hi}]: outside it the model extrapolates, so the records, the models identified from \

@@ -408,12 +408,7 @@ pub struct ValidationReport {
 pub fn input_extremes(data: &Dataset) -> Vec<(f64, f64)> {
     data.input_signals()
         .iter()
-        .map(|u| {
-            u.iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-                    (a.min(*v), b.max(*v))
-                })
-        })
+        .map(|u| sysid_core::DataRange::extremes(*u))
         .collect()
 }
 

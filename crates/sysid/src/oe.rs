@@ -1181,7 +1181,8 @@ pub fn refine_with_output(
                 input: Some(OUTPUT.to_string()),
                 value: v[i],
                 std: found.std(n_model + i),
-                fixed: None,
+                // The output map's gain is held against the linear block's scale.
+                fixed: (!o.free[i]).then(|| crate::fitted::FIXED_NORMALISATION.to_string()),
             });
         }
     }

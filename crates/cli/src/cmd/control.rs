@@ -302,7 +302,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             judge_steps: profile.has_held_steps(),
             data_u_range: limits.data_u_range,
             duration_setting: Some("--duration"),
-            model_units: args.plant.trim().starts_with("model:"),
+            model_units: limits.model_units(),
         },
     ));
 
@@ -358,7 +358,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     sysid_io::write_all_atomic(&outputs)?;
 
     // A model plant's signals are in its record's units, not the IPA's (audit s14 L-p).
-    let units = if args.plant.trim().starts_with("model:") {
+    let units = if limits.model_units() {
         Units::MODEL
     } else {
         Units::IPA

@@ -260,13 +260,20 @@ impl IdentifyReport {
         }
         report.warnings.extend(below.map(|w| w.to_string()));
         if let Some(v) = val_data {
-            report.warnings.extend(
-                ValidationReport::extrapolation_warnings(m, v)
-                    .into_iter()
-                    .map(|w| format!("validation: {w}")),
-            );
+            report
+                .warnings
+                .extend(Self::validation_extrapolation(m, &input_extremes(v)));
         }
         Ok(report)
+    }
+
+    /// The validation record's inputs (their [min, max], `input_extremes`) beyond the model's data range,
+    /// each warning headed "validation:" (in memory and read in passes alike).
+    pub fn validation_extrapolation(model: &Model, input_extremes: &[(f64, f64)]) -> Vec<String> {
+        ValidationReport::extrapolation_warnings_of(model, input_extremes)
+            .into_iter()
+            .map(|w| format!("validation: {w}"))
+            .collect()
     }
 
     /// [`IdentifyReport::assemble`] on one or more estimation records without validation data and
@@ -425,17 +432,12 @@ impl ValidationReport {
         ))
     }
 
-    /// A warning per input of `data` that leaves the model's estimation data range (its `data_range`)
-    /// by more than a tenth of it (`DataRange::excursion`, the rule of `simulate` and `control`): there
-    /// the model extrapolates, so its fit on this record judges equations never fitted there (audit s14
-    /// M-c: a fit fell from 72 to 35 % for an input scaled by 1.1, without a word). None without a
-    /// recorded range.
-    pub fn extrapolation_warnings(model: &Model, data: &Dataset) -> Vec<String> {
-        Self::extrapolation_warnings_of(model, &input_extremes(data))
-    }
-
-    /// [`ValidationReport::extrapolation_warnings`] from each input's [min, max] over the record (a
-    /// record read in passes: `sysid::stream::Streamed::u_extremes`).
+    /// A warning per input whose [min, max] over the record (`extremes`, [`input_extremes`]; a record
+    /// read in passes: `sysid::stream::Streamed::u_extremes`) leaves the model's estimation data range
+    /// (its `data_range`) by more than a tenth of it (`DataRange::excursion_of`, the rule of `simulate`
+    /// and `control`): there the model extrapolates, so its fit on this record judges equations never
+    /// fitted there (audit s14 M-c: a fit fell from 72 to 35 % for an input scaled by 1.1, without a
+    /// word). None without a recorded range.
     pub fn extrapolation_warnings_of(model: &Model, extremes: &[(f64, f64)]) -> Vec<String> {
         let Some(range) = model.data_range() else {
             return Vec::new();

@@ -49,11 +49,9 @@ pub fn identify_report(
     );
     // The validation record against the model's data range, as `IdentifyReport::assemble` judges it.
     if let Some(ext) = val_u_extremes {
-        report.warnings.extend(
-            ValidationReport::extrapolation_warnings_of(&fit.model, &[ext])
-                .into_iter()
-                .map(|w| format!("validation: {w}")),
-        );
+        report
+            .warnings
+            .extend(IdentifyReport::validation_extrapolation(&fit.model, &[ext]));
     }
     Ok(Streamed {
         result: (fit, report),

@@ -1649,7 +1649,7 @@ fn control_loop<'py>(
             judge_steps: profile.has_held_steps(),
             data_u_range: limits.data_u_range,
             duration_setting: Some("duration="),
-            model_units: limits.model_units(),
+            units: ::control::Units::of(limits.model_units()),
         },
     ));
     let out = PyDict::new(py);

@@ -42,5 +42,5 @@ pub use metrics::{
 pub use pi::{AntiWindup, AntiWindupScheme, IntegralForm, PiController, PiSettings};
 pub use position::{ControllerFile, ControllerSettings, PositionController};
 pub use profile::Profile;
-pub use trust::{loop_warnings, LoopFacts};
+pub use trust::{loop_warnings, LoopFacts, Units};
 pub use widening::{DeadzoneChange, Widened};

@@ -49,6 +49,44 @@ fn fmt_mm(v: f64) -> String {
 /// Fraction of samples at the command limit above which the run is reported as saturated.
 pub const SATURATION_WARN: f64 = 0.2;
 
+/// The units a run's words name: the IPA's, or a model plant's own, which are its estimation
+/// record's (a tank's volts, a motor's radians).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Units {
+    /// Of the command u.
+    pub u: &'static str,
+    /// Of the output y, the set-point and the errors.
+    pub y: &'static str,
+}
+
+impl Units {
+    /// The IPA's: the command in PWM counts, lengths in mm.
+    pub const IPA: Units = Units {
+        u: "counts",
+        y: "mm",
+    };
+    /// A model plant's: its estimation record's, which the model does not name.
+    pub const MODEL: Units = Units {
+        u: "(u's units)",
+        y: "(y's units)",
+    };
+
+    /// [`Units::MODEL`] for a model plant (`ipa::PlantLimits::model_units`), else [`Units::IPA`].
+    pub fn of(model_plant: bool) -> Units {
+        if model_plant {
+            Units::MODEL
+        } else {
+            Units::IPA
+        }
+    }
+}
+
+impl Default for Units {
+    fn default() -> Units {
+        Units::IPA
+    }
+}
+
 /// What the caller knows about the plant beyond the trace.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct LoopFacts {
@@ -65,9 +103,9 @@ pub struct LoopFacts {
     /// whose commands leave them by more than a tenth of their span is warned (the model extrapolates
     /// there; audit s13 L10); `None`: not checked.
     pub data_u_range: Option<(f64, f64)>,
-    /// True for a model plant, whose signals are in its estimation record's units: the warnings then
-    /// name "(y's units)" and "(u's units)" where the IPA's are mm and counts.
-    pub model_units: bool,
+    /// The units the warnings name: the IPA's mm and counts, or a model plant's own
+    /// ([`Units::MODEL`]: its signals are in its estimation record's units).
+    pub units: Units,
     /// How the caller sets the run's length (`--duration` on the command line, `duration=` in Python):
     /// the warnings then say how to run longer; `None` for a run of fixed length (`reproduce`'s tests),
     /// which says nothing the user cannot do.
@@ -77,6 +115,10 @@ pub struct LoopFacts {
 /// The warnings of a run `trace` with its `steps` (from [`crate::metrics_for_steps`]).
 pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) -> Vec<String> {
     let mut w = Vec::new();
+    let Units {
+        u: u_unit,
+        y: y_unit,
+    } = facts.units;
     if let Some(p) = facts.unstable_pole {
         w.push(format!(
             "the plant model is unstable (a pole has modulus {p:.6} > 1): its closed-loop response \
@@ -91,7 +133,7 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
             .collect();
         if let Some(r) = outside.first() {
             w.push(format!(
-                "set-point r = {r} mm is outside the reachable range {lo}..{hi} mm (the stroke): the \
+                "set-point r = {r} {y_unit} is outside the reachable range {lo}..{hi} {y_unit} (the stroke): the \
                  piston cannot follow it, and the step metrics describe the end stop"
             ));
         }
@@ -119,7 +161,7 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
         .filter(|p| *p > DIVERGED_MM)
     {
         w.push(format!(
-            "the closed loop diverges: the output reached |y| = {} mm, beyond any actuator's stroke, \
+            "the closed loop diverges: the output reached |y| = {} {y_unit}, beyond any actuator's stroke, \
              so the step metrics describe a diverging loop (check the plant model's gains)",
             fmt_value(peak)
         ));
@@ -133,7 +175,7 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
         let fraction = at_limit as f64 / n as f64;
         if fraction > SATURATION_WARN {
             w.push(format!(
-                "the command is saturated at ±{} counts for {:.1} % of the samples ({at_limit} of {n}): \
+                "the command is saturated at ±{} {u_unit} for {:.1} % of the samples ({at_limit} of {n}): \
                  the loop is not in its linear range, so the step metrics describe a saturated response",
                 facts.u_max,
                 100.0 * fraction
@@ -144,7 +186,7 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
         // The step's metrics and, when it has not settled, why (metrics_for_steps).
         let (m, why) = (s.metrics, s.unsettled);
         let head = format!(
-            "the step to r = {} mm at t = {:.3} s",
+            "the step to r = {} {y_unit} at t = {:.3} s",
             s.setpoint_mm, s.start_s
         );
         let ess = fmt_value(m.steady_state_error_mm.unwrap_or(f64::NAN));
@@ -167,7 +209,7 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
                     w.push(format!(
                         "{head} still creeps at the end of the run: its settling time ({ts:.3} s) is \
                          measured against the set-point's 2 % band, and its steady-state error of \
-                         {ess} mm is not final{}",
+                         {ess} {y_unit} is not final{}",
                         longer(false)
                     ));
                 }
@@ -175,11 +217,11 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
             Some(Unsettled::Moving) => w.push(format!(
                 "{head} has not settled within {within:.3} s: the output is still moving at the end of \
                  the run, so its settling time is unknown (null) and its steady-state error of {ess} \
-                 mm is not final{}",
+                 {y_unit} is not final{}",
                 longer(false)
             )),
             Some(Unsettled::CommandMoving) => w.push(format!(
-                "{head} has not settled within {within:.3} s: the output stopped {} mm short of the \
+                "{head} has not settled within {within:.3} s: the output stopped {} {y_unit} short of the \
                  set-point, outside its 2 % band, while the command still changes (friction holds the \
                  piston while the integrator winds up), so its settling time is unknown (null) and its \
                  steady-state error is not final",
@@ -187,8 +229,8 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
             )),
             Some(Unsettled::Oscillating { peak_to_peak_mm }) => w.push(format!(
                 "{head} has not settled within {within:.3} s: the output oscillates, swinging \
-                 {peak_to_peak_mm:.4} mm peak to peak over the run's last {tail_s:.3} s (a limit \
-                 cycle), so it has no settling time (null) and its steady-state error of {ess} mm is \
+                 {peak_to_peak_mm:.4} {y_unit} peak to peak over the run's last {tail_s:.3} s (a limit \
+                 cycle), so it has no settling time (null) and its steady-state error of {ess} {y_unit} is \
                  only where the last sample fell"
             )),
             Some(Unsettled::LateEntry { at_s }) => w.push(format!(
@@ -198,8 +240,8 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
                 longer(false)
             )),
             Some(Unsettled::MovedAway { moved_mm }) => w.push(format!(
-                "{head} moved away from its set-point: the output went {} mm from y0 = {} mm and \
-                 ended {} mm from r, farther than it started ({} mm), so the step has no rise, \
+                "{head} moved away from its set-point: the output went {} {y_unit} from y0 = {} {y_unit} and \
+                 ended {} {y_unit} from r, farther than it started ({} {y_unit}), so the step has no rise, \
                  overshoot or settling time (null); the set-point may be beyond the plant's reach, or \
                  the loop's sign is wrong",
                 fmt_mm(moved_mm),
@@ -209,15 +251,15 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
             )),
             Some(Unsettled::TooShort { samples }) => w.push(format!(
                 "{head} is too short to judge: {samples} samples (at least {} are needed), so it has \
-                 no rise, overshoot or settling time (null) and its error of {ess} mm is where the \
+                 no rise, overshoot or settling time (null) and its error of {ess} {y_unit} is where the \
                  run stopped, not a steady state{}",
                 crate::metrics::MIN_STEP_SAMPLES,
                 longer(true)
             )),
             Some(Unsettled::NoResponse) => w.push(format!(
-                "{head} had no response: the output stayed at y0 = {} mm while the set-point moved \
-                 {} mm away (friction holds the piston, or the command is too small to open a valve), \
-                 so the step has no metrics but its error of {ess} mm",
+                "{head} had no response: the output stayed at y0 = {} {y_unit} while the set-point moved \
+                 {} {y_unit} away (friction holds the piston, or the command is too small to open a valve), \
+                 so the step has no metrics but its error of {ess} {y_unit}",
                 fmt_mm(s.y0_mm),
                 fmt_mm((s.setpoint_mm - s.y0_mm).abs())
             )),
@@ -233,7 +275,7 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
             }
             if let Some(e) = ess.filter(|e| step > 0.0 && e.abs() >= 0.02 * step) {
                 missed.push(format!(
-                    "|e_ss| = {} mm >= 2 % of the {} mm step ({} mm)",
+                    "|e_ss| = {} {y_unit} >= 2 % of the {} {y_unit} step ({} {y_unit})",
                     fmt_value(e.abs()),
                     fmt_mm(step),
                     fmt_value(0.02 * step)
@@ -244,7 +286,7 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
                     "the step".to_string()
                 } else {
                     format!(
-                        "the step to r = {} mm at t = {:.3} s",
+                        "the step to r = {} {y_unit} at t = {:.3} s",
                         s.setpoint_mm, s.start_s
                     )
                 };
@@ -253,14 +295,6 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
                     missed.join("; ")
                 ));
             }
-        }
-    }
-    if facts.model_units {
-        // Every length above is written " mm" and every command " counts": the IPA's units.
-        for m in &mut w {
-            *m = m
-                .replace(" mm", " (y's units)")
-                .replace(" counts", " (u's units)");
         }
     }
     w
@@ -343,11 +377,39 @@ mod tests {
                 judge_steps: true,
                 data_u_range: None,
                 duration_setting: Some("--duration"),
-                model_units: false,
+                units: Units::IPA,
             },
         );
         assert!(w.iter().any(|w| w.contains("99.9 %")), "{w:?}");
         assert!(w.iter().any(|w| w.contains("outside the reachable range")));
         assert!(w.iter().any(|w| w.contains("unstable")));
+    }
+
+    // The same run on a model plant: every warning names the record's units, none the IPA's.
+    #[test]
+    fn a_model_plants_warnings_name_its_units_not_the_ipas() {
+        let mut u = vec![-255.0; 1001];
+        u[0] = 3.0;
+        let mut y = vec![0.0; 1001];
+        y[1000] = 2e6; // diverged
+        let tr = trace(y, u, 300.0);
+        let steps = metrics_for_steps(&tr).unwrap();
+        let w = loop_warnings(
+            &tr,
+            &steps,
+            &LoopFacts {
+                u_max: 255.0,
+                range_mm: Some((0.0, 200.0)),
+                judge_steps: true,
+                units: Units::MODEL,
+                ..LoopFacts::default()
+            },
+        );
+        assert!(w.len() >= 4, "{w:?}");
+        assert!(w.iter().any(|w| w.contains("±255 (u's units)")), "{w:?}");
+        assert!(w.iter().any(|w| w.contains("r = 300 (y's units)")), "{w:?}");
+        for m in &w {
+            assert!(!m.contains(" mm") && !m.contains("counts"), "{m}");
+        }
     }
 }

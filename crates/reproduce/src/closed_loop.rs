@@ -147,7 +147,7 @@ pub(crate) fn run_warnings(
         judge_steps: false,
         data_u_range: limits.data_u_range,
         duration_setting: None,
-        model_units: false,
+        units: control::Units::IPA,
     };
     Ok(loop_warnings(trace, &steps, &facts)
         .into_iter()

@@ -7,7 +7,7 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context};
 use control::{
     closed_loop, run_metrics, AntiWindup, AntiWindupScheme, DeadzoneCompensator, IntegralForm,
-    PiSettings, Profile, RunMetrics, SlopeMode, StepMetrics, StepSegment, Trace,
+    PiSettings, Profile, RunMetrics, SlopeMode, StepMetrics, StepSegment, Trace, Units,
 };
 use serde::Serialize;
 
@@ -302,7 +302,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             judge_steps: profile.has_held_steps(),
             data_u_range: limits.data_u_range,
             duration_setting: Some("--duration"),
-            model_units: limits.model_units(),
+            units: Units::of(limits.model_units()),
         },
     ));
 
@@ -358,11 +358,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     sysid_io::write_all_atomic(&outputs)?;
 
     // A model plant's signals are in its record's units, not the IPA's (audit s14 L-p).
-    let units = if limits.model_units() {
-        Units::MODEL
-    } else {
-        Units::IPA
-    };
+    let units = Units::of(limits.model_units());
     let mut summary = summary_text(
         &plant.name(),
         &match &tuned {
@@ -614,27 +610,6 @@ fn fmt_settling(m: &StepMetrics, run_s: f64) -> String {
         (None, Some(_)) => format!("not settled within {run_s} s (see the warnings)"),
         (None, None) => no_metric(m).to_string(),
     }
-}
-
-/// The units the summary names: the IPA's (`ipa`, `paper`), or a model plant's own, which are its
-/// estimation record's (a tank's volts, a motor's radians).
-#[derive(Debug, Clone, Copy)]
-struct Units {
-    /// Of the command u.
-    u: &'static str,
-    /// Of the output y, the set-point and the errors.
-    y: &'static str,
-}
-
-impl Units {
-    const IPA: Units = Units {
-        u: "counts",
-        y: "mm",
-    };
-    const MODEL: Units = Units {
-        u: "(u's units)",
-        y: "(y's units)",
-    };
 }
 
 /// The `controller:` line of the summary for the PI of the flags.

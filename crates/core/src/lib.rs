@@ -12,6 +12,7 @@
 pub mod data;
 pub mod detrend;
 pub mod error;
+pub mod format;
 pub mod ls;
 pub mod metrics;
 pub mod model;

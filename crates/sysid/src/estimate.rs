@@ -522,14 +522,29 @@ pub fn safeguard(
             }));
         }
     }
-    let zero = zero_std(&mut fit);
-    fit.warnings.extend(zero);
-    fit.warnings.extend(unexplained_missing_std(&fit));
+    std_warnings(&mut fit);
     // The report needs the same metrics: computed once, here.
     if let Some(m) = est {
         fit.keep_metrics(p.records(), m);
     }
     Ok(fit)
+}
+
+/// The doubts a fit's standard deviations raise, added to its warnings: zeros withheld
+/// ([`zero_std`]), missing ones nobody explained ([`unexplained_missing_std`]), and estimated parameters
+/// within two standard deviations of zero ([`crate::trust::poorly_determined`]). For every fit, in
+/// memory or read in passes (`stream::identify_checked`).
+pub(crate) fn std_warnings(fit: &mut Fitted) {
+    let zero = zero_std(fit);
+    fit.warnings.extend(zero);
+    fit.warnings.extend(unexplained_missing_std(fit));
+    fit.warnings.extend(crate::trust::poorly_determined(
+        "parameters",
+        fit.params
+            .iter()
+            .filter(|q| q.fixed.is_none())
+            .map(|q| (q.label(), q.value, q.std)),
+    ));
 }
 
 /// A standard deviation of exactly 0 from residuals that are not zero claims a certainty no data give:

@@ -562,20 +562,17 @@ pub fn identify_narx(data: &Dataset, settings: &NarxSettings) -> Result<NarxFit,
     }
     disqualified = disqualified.or_else(|| crate::order::disqualification(&trust));
     warnings.extend(trust.iter().map(ToString::to_string));
-    let weak: Vec<String> = chosen_terms
-        .iter()
-        .zip(model.theta())
-        .zip(&std)
-        .filter(|((_, c), sd)| sd.is_some_and(|sd| c.abs() < 2.0 * sd))
-        .map(|((t, _), _)| t.to_string())
-        .collect();
-    if !weak.is_empty() {
-        warnings.push(format!(
-            "{} term(s) have a coefficient within two standard deviations of zero (poorly determined): {}",
-            weak.len(),
-            weak.join(", ")
-        ));
-    }
+    warnings.extend(
+        crate::trust::poorly_determined(
+            "terms",
+            chosen_terms
+                .iter()
+                .zip(model.theta())
+                .zip(&std)
+                .map(|((t, c), sd)| (t.to_string(), *c, *sd)),
+        )
+        .map(|w| w.to_string()),
+    );
     let terms = chosen_terms
         .iter()
         .zip(model.theta())

@@ -82,6 +82,35 @@ pub fn metric_warnings(record: Record, m: &Metrics) -> Vec<Warning> {
         .collect()
 }
 
+/// [`Concern::PoorlyDetermined`] for the `params` (label, estimate θ̂, standard deviation σ̂) with
+/// |θ̂| < [`POORLY_DETERMINED_SIGMAS`](crate::warnings::POORLY_DETERMINED_SIGMAS) σ̂; those without a
+/// standard deviation (fixed, or none computed: said elsewhere) are not counted. `noun` names them.
+pub fn poorly_determined(
+    noun: &'static str,
+    params: impl IntoIterator<Item = (String, f64, Option<f64>)>,
+) -> Option<Warning> {
+    let mut of = 0;
+    let mut which = Vec::new();
+    for (label, value, std) in params {
+        let Some(sd) = std.filter(|sd| sd.is_finite()) else {
+            continue;
+        };
+        of += 1;
+        if value.abs() < crate::warnings::POORLY_DETERMINED_SIGMAS * sd {
+            which.push(format!(
+                "{label} = {} ± {}",
+                sysid_core::format::sig(value, 4),
+                sysid_core::format::sig(sd, 3)
+            ));
+        }
+    }
+    (!which.is_empty()).then_some(Warning::Trust(Concern::PoorlyDetermined {
+        noun,
+        which,
+        of,
+    }))
+}
+
 /// [`Concern::NoStandardDeviations`] with the reason, when there is one.
 pub fn std_warning(why: Option<String>) -> Option<Warning> {
     why.map(|why| Warning::Trust(Concern::NoStandardDeviations { why }))
@@ -144,6 +173,29 @@ pub fn baseline_fit(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    // 0.1 < 2 × 0.06 (named), 0.2 > 2 × 0.09 (not), -0.3 < 2 × 0.2 (named, sign ignored), no std (not
+    // counted): 2 of 3.
+    #[test]
+    fn parameters_within_two_standard_deviations_of_zero_are_named() {
+        let w = poorly_determined(
+            "parameters",
+            [
+                ("a1".to_string(), 0.1, Some(0.06)),
+                ("a2".to_string(), 0.2, Some(0.09)),
+                ("b1".to_string(), -0.3, Some(0.2)),
+                ("b2".to_string(), 1e-9, None),
+            ],
+        )
+        .unwrap()
+        .to_string();
+        assert!(
+            w.starts_with("2 of 3 parameters within 2 standard deviations of zero"),
+            "{w}"
+        );
+        assert!(w.ends_with(": a1 = 0.1 ± 0.06, b1 = -0.3 ± 0.2"), "{w}");
+        assert!(poorly_determined("terms", [("x".to_string(), 1.0, Some(0.4))]).is_none());
+    }
 
     fn metrics(est: Option<f64>, meas: Option<f64>) -> Metrics {
         Metrics {

@@ -366,6 +366,16 @@ pub enum Concern {
         /// The baseline's guarded fit %.
         baseline: f64,
     },
+    /// Estimated parameters whose value lies within [`POORLY_DETERMINED_SIGMAS`] standard deviations of
+    /// zero: the data do not tell them from 0 (MATLAB's `present` shows the same ± without a word).
+    PoorlyDetermined {
+        /// What they are: "parameters" (ARX, Hammerstein) or "terms" (NARX).
+        noun: &'static str,
+        /// Each as "name = value ± std".
+        which: Vec<String>,
+        /// How many were estimated with a standard deviation.
+        of: usize,
+    },
     /// No standard deviation could be computed.
     NoStandardDeviations {
         /// Why (a singular information matrix, a pole pinned on the stability boundary, ...).
@@ -396,12 +406,24 @@ impl std::fmt::Display for Concern {
                 "the model simulates the {record} data far worse than the plain linear least-squares ARX of \
                  the same orders (fit {fit:.2} % against {baseline:.2} %, the worse of both initial states)"
             ),
+            Concern::PoorlyDetermined { noun, which, of } => write!(
+                f,
+                "{} of {of} {noun} within {POORLY_DETERMINED_SIGMAS} standard deviations of zero \
+                 (poorly determined: the data do not tell them from 0; fewer {noun}, a lower order or a \
+                 richer input may help): {}",
+                which.len(),
+                which.join(", ")
+            ),
             Concern::NoStandardDeviations { why } => {
                 write!(f, "no standard deviation could be computed: {why}")
             }
         }
     }
 }
+
+/// How many standard deviations from zero an estimated parameter must lie to count as determined
+/// ([`Concern::PoorlyDetermined`]): |θ̂| < 2 σ̂ is, for a Gaussian estimate, a 95 % interval that holds 0.
+pub const POORLY_DETERMINED_SIGMAS: f64 = 2.0;
 
 /// Percentage points by which the fits from estimated and from measured initial outputs may differ
 /// before a warning says that the initial state flatters the headline.

@@ -447,3 +447,45 @@ fn kept_estimation_metrics_are_the_models_on_its_own_record_only() {
         );
     }
 }
+
+// y(k) = 0.5 y(k−1) + u(k−1) + e(k), white u ~ U(−1, 1), e ~ U(−1, 1), 400 samples, fitted by least
+// squares with nb = 2 (b2, at lag 2, is 0 in truth). b1 ± σ and a1 ± σ: σ ≈ sqrt(σ_e² / (N var)) ≈
+// 0.03–0.05 against values of 1 and 0.5, far from zero; b2's estimate is 0 plus noise of the same σ, so
+// it lies within 2σ of zero (|b̂2| < 2σ̂ is a 95 % event; the seed is fixed). Only b2 is named.
+#[test]
+fn a_parameter_within_two_standard_deviations_of_zero_is_named_as_poorly_determined() {
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let n = 400;
+    let u: Vec<f64> = (0..n).map(|_| rng.gen_range(-1.0..1.0)).collect();
+    let mut y = vec![0.0; n];
+    for k in 1..n {
+        y[k] = 0.5 * y[k - 1] + u[k - 1] + rng.gen_range(-1.0..1.0);
+    }
+    let data = Dataset::new(Signals { u, y }, 0.01, "b2 is zero").unwrap();
+    let fit = identify(
+        &vec![data],
+        &Identification::default()
+            .with_kind(ModelKind::Arx)
+            .with_orders(1, 2, 1)
+            .with_method(Method::Ls),
+    )
+    .unwrap();
+    let b2 = fit.params.iter().find(|q| q.label() == "b2").unwrap();
+    let sd = b2.std.unwrap();
+    // Independent of the tool's check: the estimate against its standard deviation.
+    assert!(b2.value.abs() < 2.0 * sd, "b2 = {} ± {sd}", b2.value);
+    let said: Vec<String> = fit
+        .warnings
+        .iter()
+        .map(ToString::to_string)
+        .filter(|w| w.contains("poorly determined"))
+        .collect();
+    assert_eq!(said.len(), 1, "{:?}", fit.warnings);
+    assert!(said[0].starts_with("1 of 3 parameters"), "{}", said[0]);
+    assert!(said[0].contains("b2 = "), "{}", said[0]);
+    assert!(
+        !said[0].contains("b1 =") && !said[0].contains("a1 ="),
+        "{}",
+        said[0]
+    );
+}

@@ -209,6 +209,34 @@ fn strict_with_warnings_replaces_no_output() {
         );
     }
     assert!(leftovers(dir.path()).is_empty());
+    // Batch mode (two files) keeps the rule: an earlier --json stays (audit s16 M10); standard output
+    // still gets every line.
+    std::fs::write(dir.path().join("fit.jsonl"), SENTINEL).unwrap();
+    let batch = "identify --data {t}/noise.csv {t}/data.csv --strict --json {t}/fit.jsonl";
+    let out = run(batch, dir.path());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("not written (any earlier file there is unchanged): --json"),
+        "{err}"
+    );
+    assert_eq!(
+        std::fs::read_to_string(dir.path().join("fit.jsonl")).unwrap(),
+        SENTINEL
+    );
+    let out = run(&batch.replace("{t}/fit.jsonl", "-"), dir.path());
+    assert_eq!(out.status.code(), Some(1));
+    assert_eq!(String::from_utf8_lossy(&out.stdout).lines().count(), 2);
+    let out = run(&batch.replace(" --strict", ""), dir.path());
+    assert!(out.status.success());
+    assert_eq!(
+        std::fs::read_to_string(dir.path().join("fit.jsonl"))
+            .unwrap()
+            .lines()
+            .count(),
+        2
+    );
+    assert!(leftovers(dir.path()).is_empty());
 }
 
 // Every output flag refuses a path that is one of the run's inputs (also through another spelling of
@@ -284,9 +312,15 @@ fn two_outputs_on_one_file_are_refused() {
     for args in [
         "identify --data {t}/data.csv --method ls --json {t}/a.json --save-model {t}/./a.json",
         "control --plant paper --setpoint 5 --duration 0.1 --out {t}/a.json --json {t}/a.json",
+        // Two spellings of one file (audit s16 H2): relative against ./, absolute, through sub/..
+        "control --plant paper --setpoint 5 --duration 0.1 --out a.json --json ./a.json",
+        "control --plant paper --setpoint 5 --duration 0.1 --out sub/../a.json --json {t}/a.json",
+        "tune --model {t}/model.json --out a.json --json ./a.json",
+        "tune --model {t}/model.json --out {t}/a.json --json a.json",
     ] {
         let dir = tempfile::tempdir().unwrap();
         setup(dir.path(), &[]);
+        std::fs::create_dir(dir.path().join("sub")).unwrap();
         let out = run(args, dir.path());
         let stderr = String::from_utf8_lossy(&out.stderr);
         assert_eq!(out.status.code(), Some(2), "{args}: {stderr}");

@@ -368,6 +368,92 @@ fn bad_inputs_name_the_file_or_the_flag() {
         "{e}"
     );
 
+    // The same model with the advised run=20 is accepted (the run is bounded in samples, 6000, not
+    // in seconds: audit s16 M1 advised run=180 for Ts = 9 s and then refused it), a run of 6001
+    // samples is not, and a request of more than 1e8 simulated samples is refused before any work:
+    // (10000 + 6) evaluations × 200 variants × 8 steps × 300 samples = 4.8e9 (audit s16 M11).
+    let o = ipa_sysid(&[
+        "tune",
+        "--model",
+        slow.to_str().unwrap(),
+        "--spec",
+        "run=6001",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("runs of at most 6000 samples: 6000 s at the model's Ts = 1 s"),
+        "{}",
+        stderr(&o)
+    );
+    let o = ipa_sysid(&[
+        "tune",
+        "--model",
+        model.to_str().unwrap(),
+        "--max-evaluations",
+        "10000",
+        "--variants",
+        "200",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    let e = stderr(&o);
+    assert!(
+        e.contains("--max-evaluations = 10000")
+            && e.contains("at most 1e8 simulated samples")
+            && e.contains("(10000 evaluations + 6 of the brake) × 200 variants"),
+        "{e}"
+    );
+    assert!(!out.exists());
+    let o = ipa_sysid(&[
+        "tune",
+        "--model",
+        slow.to_str().unwrap(),
+        "--spec",
+        "run=20",
+        "--max-evaluations",
+        "8",
+        "--variants",
+        "1",
+        "--physics-variants",
+        "0",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(
+        !stderr(&o).contains("invalid setting --spec"),
+        "{}",
+        stderr(&o)
+    );
+    let _ = std::fs::remove_file(&out);
+
+    // A one-sided input's model (identify fixes the unexcited branch at m_l = b_l = 0): refused as one,
+    // not as "positive slopes" the user could not give (audit s16 M1).
+    let one_sided = dir.path().join("one_sided.json");
+    std::fs::write(
+        &one_sided,
+        MODEL.replace(
+            "\"b_l\": -20.0, \"b_r\": 20.0, \"m_l\": 0.005",
+            "\"b_l\": 0.0, \"b_r\": 20.0, \"m_l\": 0.0",
+        ),
+    )
+    .unwrap();
+    let o = ipa_sysid(&[
+        "tune",
+        "--model",
+        one_sided.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("a one-sided input") && stderr(&o).contains("driven both ways"),
+        "{}",
+        stderr(&o)
+    );
+
     // The search's sizes: checked once, by the library, for the command line and Python alike.
     for (flag, value, said) in [
         (

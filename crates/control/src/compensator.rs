@@ -88,6 +88,14 @@ impl DeadzoneCompensator {
         if d.b_l > 0.0 || d.b_r < 0.0 {
             return bad("a deadzone around u = 0 (b_l <= 0 <= b_r)");
         }
+        if d.m_l == 0.0 || d.m_r == 0.0 {
+            // identify fixes the branch of a one-sided input at 0 (Param.fixed "one-sided input").
+            return bad(
+                "both deadzone branches estimated (a slope of exactly 0 is the branch identify drops \
+                 when the input never goes that way: a one-sided input; the deadzone inverse, and \
+                 tune, are for an actuator driven both ways, like the IPA's valve pair)",
+            );
+        }
         if !(d.m_l > 0.0 && d.m_r > 0.0) {
             return bad("positive slopes m_l, m_r (a valve whose output rises with its command)");
         }

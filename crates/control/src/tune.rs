@@ -174,9 +174,6 @@ impl Spec {
                 }
             }
         }
-        if s.run_s > 60.0 {
-            return Err(bad(&format!("run={}", s.run_s), "at most 60 s per run"));
-        }
         if s.high_mm <= s.low_mm {
             return Err(bad(
                 &format!("low={}, high={}", s.low_mm, s.high_mm),

@@ -299,7 +299,7 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
         }
     };
     let ts = model.ts();
-    check_spec(&req.spec, ts, &twin, req.check_physics)?;
+    check_spec(req, ts, &twin)?;
     let model_plants = |i: usize| -> Result<Box<dyn Plant + Send>, ControlError> {
         let m = tune::model_variant(&model, i, SPREAD)?;
         Ok(Box::new(
@@ -443,18 +443,57 @@ fn model_stability_warnings(model: &Model, margins: &Margins) -> Vec<String> {
 /// settling to measure (every step would "settle" at its first sample).
 pub const MIN_RUN_SAMPLES: f64 = crate::metrics::MIN_STEP_SAMPLES as f64;
 
-/// Refuses a specification the plants cannot run: runs shorter than [`MIN_RUN_SAMPLES`] at the model's
-/// Ts, and, when the physics plant or a twin is simulated, set-points outside its stroke 0..L (its end
-/// stops would hold the piston, and the steps would be measured from a start it cannot take).
-fn check_spec(
-    spec: &Spec,
-    ts: f64,
-    twin: &Option<ipa::PlantConfig>,
-    check_physics: bool,
-) -> Result<(), ControlError> {
+/// Most samples in one run of the specification: 60 s at the IPA's Ts = 0.01 s (a model of Ts = 9 s
+/// may run 15 hours of its time).
+pub const MAX_RUN_SAMPLES: f64 = 6000.0;
+
+/// Most samples a tuning request may simulate, the search (its evaluations and the brake choice, on
+/// every variant) and the verifications (the tuned controller and the paper's PI on every plant)
+/// together: 50 times the default request (about 2·10⁶: 156 evaluations × 5 variants × 8 steps × 300
+/// samples), a few minutes on the physics plant (audit s16 M11: in-range settings asked for hours).
+pub const MAX_SIMULATED_SAMPLES: f64 = 1e8;
+
+/// Refuses a specification the plants cannot run: runs shorter than [`MIN_RUN_SAMPLES`] or longer than
+/// [`MAX_RUN_SAMPLES`] at the model's Ts, a request that would simulate more than
+/// [`MAX_SIMULATED_SAMPLES`], and, when the physics plant or a twin is simulated, set-points outside its
+/// stroke 0..L (its end stops would hold the piston, and the steps would be measured from a start it
+/// cannot take).
+fn check_spec(req: &Request, ts: f64, twin: &Option<ipa::PlantConfig>) -> Result<(), ControlError> {
+    let (spec, check_physics) = (&req.spec, req.check_physics);
     let bad = |what: String, expected: String| {
         ControlError::setting(crate::ControlSetting::Spec, what, &expected)
     };
+    let run_samples = spec.run_s / ts;
+    if run_samples > MAX_RUN_SAMPLES {
+        return Err(bad(
+            format!("run={}", spec.run_s),
+            format!(
+                "runs of at most {MAX_RUN_SAMPLES} samples: {} s at the model's Ts = {ts} s",
+                MAX_RUN_SAMPLES * ts
+            ),
+        ));
+    }
+    let cases = spec.cases().len() as f64;
+    let search = (req.search.max_evaluations + tune::BRAKE_CANDIDATES.len()) as f64
+        * req.search.plants as f64;
+    let verified = 2.0 * (req.search.plants + req.physics_variants + 1) as f64;
+    let work = (search + verified) * cases * run_samples.ceil();
+    if work > MAX_SIMULATED_SAMPLES {
+        return Err(ControlError::setting(
+            crate::ControlSetting::MaxEvaluations,
+            req.search.max_evaluations,
+            &format!(
+                "a request of at most {MAX_SIMULATED_SAMPLES:e} simulated samples: ({} evaluations + {} \
+                 of the brake) × {} variants, and the verifications, × {} steps × {} samples per run = \
+                 {work:.3e}; fewer evaluations, variants or steps, or a shorter run",
+                req.search.max_evaluations,
+                tune::BRAKE_CANDIDATES.len(),
+                req.search.plants,
+                spec.cases().len(),
+                run_samples.ceil()
+            ),
+        ));
+    }
     if spec.run_s / ts < MIN_RUN_SAMPLES {
         // The default run length is the IPA's (3 s at 0.01 s): say so when the user never chose it
         // (audit s14 L-b: a model of Ts = 1 s "blamed a --spec the user never passed").

@@ -138,12 +138,12 @@ pub fn identify_checked(
     // The safeguards of `estimate::identify` that concern an ARX least-squares fit.
     fit.warnings
         .extend(Warning::if_unstable_or_integrating(&fit.model));
-    crate::estimate::std_warnings(&mut fit);
     // Judged on the worse of both initial states, with the initial-state warning, as in memory.
     fit.warnings.extend(crate::trust::metric_warnings(
         Record::Estimation,
         &est_metrics,
     ));
+    crate::estimate::std_warnings(&mut fit);
     let (validation, val_shape, val_u_extremes) = match val {
         Some(v) => {
             let on_val = record_metrics(&fit.model, v, max_lag)?;

@@ -529,28 +529,11 @@ pub fn command_deadzone(
     })
 }
 
-/// Output paths: never over an input, and not both to the same file.
+/// Output paths: never over an input, and not both to the same file (in any spelling: `x` and `./x`,
+/// an absolute path, `sub/..`; audit s16 H2): the one check of `identify`, `validate` and `calibrate`.
 fn check_outputs(args: &Args, inputs: &[PathBuf]) -> anyhow::Result<()> {
     let input_refs: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
-    if let Some(out) = &args.out {
-        sysid_io::check_writable(out, "--out")?;
-        sysid_io::refuse_overwrite_input(out, &input_refs, "--out")?;
-    }
-    if let Some(json) = args.json.as_ref().filter(|j| j.as_os_str() != "-") {
-        sysid_io::check_writable(json, "--json")?;
-        sysid_io::refuse_overwrite_input(json, &input_refs, "--json")?;
-        if let Some(out) = &args.out {
-            if json == out {
-                bail!(sysid::SysidError::setting(
-                    sysid::Setting::Other("--json"),
-                    json.display(),
-                    "a path different from --out"
-                ));
-            }
-            sysid_io::refuse_overwrite_input(json, &[out.as_path()], "--json")?;
-        }
-    }
-    Ok(())
+    super::common::check_outputs(&[(&args.out, "--out"), (&args.json, "--json")], &input_refs)
 }
 
 /// The lines `--adaptive` adds to the text summary: the final compensator, the detected changes, what

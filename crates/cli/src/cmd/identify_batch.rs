@@ -66,7 +66,7 @@ struct Failure {
 }
 
 /// Runs `identify` in batch mode with the (checked) `settings`; with `--strict`, exits 1 when any
-/// file's report carries warnings (every line is written first).
+/// file's report carries warnings, without writing the `--json` file (standard output is written).
 pub fn run(args: Args, settings: &Identification) -> anyhow::Result<()> {
     if args.save_model.is_some() {
         anyhow::bail!(SysidError::setting(
@@ -154,10 +154,20 @@ pub fn run(args: Args, settings: &Identification) -> anyhow::Result<()> {
         body.push_str(l);
         body.push('\n');
     }
-    match &args.json {
-        Some(path) => write_output(path, body.as_bytes(), &inputs, "--json")?,
-        None => write_output(Path::new("-"), body.as_bytes(), &inputs, "--json")?,
-    }
+    // With --strict and any warning, the file is not written, so an earlier one stays (as for one
+    // file; audit s16 M10); standard output is always written.
+    let total_warnings: usize = lines.iter().map(|(_, _, w)| w).sum();
+    let held = match &args.json {
+        Some(path) if path.as_os_str() != "-" && args.strict && total_warnings > 0 => Some(path),
+        Some(path) => {
+            write_output(path, body.as_bytes(), &inputs, "--json")?;
+            None
+        }
+        None => {
+            write_output(Path::new("-"), body.as_bytes(), &inputs, "--json")?;
+            None
+        }
+    };
     eprintln!(
         "identified {} of {} files in {:.3} s ({:.1} files/s on {} threads){}",
         files.len() - failed,
@@ -191,7 +201,14 @@ pub fn run(args: Args, settings: &Identification) -> anyhow::Result<()> {
         }
         anyhow::bail!(SysidError::Data(msg));
     }
-    crate::exit::strict(args.strict, lines.iter().map(|(_, _, w)| w).sum())
+    if let Some(path) = held {
+        return Err(crate::exit::StrictWarnings {
+            warnings: total_warnings,
+            not_written: vec![format!("--json {}", path.display())],
+        }
+        .into());
+    }
+    crate::exit::strict(args.strict, total_warnings)
 }
 
 /// The single-file pipeline of `identify` on one record: fit, refuse non-finite estimates, metrics on the

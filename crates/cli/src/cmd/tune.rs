@@ -73,23 +73,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .into_iter()
         .flatten()
         .collect();
-    super::common::refuse_two_stdout(&[
-        (Some(args.out.as_path()), "--out"),
-        (args.json.as_deref(), "--json"),
-    ])?;
-    sysid_io::check_writable(&args.out, "--out")?;
-    sysid_io::refuse_overwrite_input(&args.out, &inputs, "--out")?;
-    if let Some(j) = args.json.as_ref().filter(|j| j.as_os_str() != "-") {
-        sysid_io::check_writable(j, "--json")?;
-        sysid_io::refuse_overwrite_input(j, &inputs, "--json")?;
-        if *j == args.out {
-            bail!(sysid::SysidError::setting(
-                sysid::Setting::Other("--json"),
-                j.display(),
-                "a path different from --out"
-            ));
-        }
-    }
+    // Never over an input, and not both to the same file in any spelling (audit s16 H2).
+    super::common::check_outputs(
+        &[(&Some(args.out.clone()), "--out"), (&args.json, "--json")],
+        &inputs,
+    )?;
     let source = match (&args.model, &args.plant_config) {
         (Some(path), None) => {
             let model = sysid::model_file::read_model(path).context("cannot read --model")?;

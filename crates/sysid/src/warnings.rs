@@ -66,7 +66,7 @@ pub enum Warning {
         /// "add one" is not the advice.
         has_level: bool,
     },
-    /// The free-run simulation does worse than the mean of the record (fit < 0 %), or diverges.
+    /// The free-run simulation does no better than the mean of the record (fit <= 0 %), or diverges.
     PoorSimulation {
         /// Which record.
         record: Record,
@@ -191,10 +191,19 @@ impl std::fmt::Display for Warning {
             Warning::PoorSimulation {
                 record,
                 fit_percent: Some(fit),
-            } => write!(
+            } if *fit < 0.0 => write!(
                 f,
                 "negative simulation fit on the {record} data ({fit:.2} %, the worse of estimated and \
                  measured initial outputs): the model simulates worse than the record's mean"
+            ),
+            Warning::PoorSimulation {
+                record,
+                fit_percent: Some(fit),
+            } => write!(
+                f,
+                "simulation fit of {fit:.2} % on the {record} data (the worse of estimated and measured \
+                 initial outputs): the model simulates no better than the record's mean (a constant \
+                 output)"
             ),
             Warning::PoorSimulation {
                 record,
@@ -316,11 +325,11 @@ impl Warning {
         }
     }
 
-    /// [`Warning::PoorSimulation`] when the simulation fit % on `record` is negative or missing (the
-    /// simulation diverged).
+    /// [`Warning::PoorSimulation`] when the simulation fit % on `record` is at most 0 (no better than
+    /// the record's mean) or missing (the simulation diverged).
     pub fn if_poor_simulation(record: Record, fit_percent: Option<f64>) -> Option<Warning> {
         match fit_percent {
-            Some(f) if f >= 0.0 => None,
+            Some(f) if f > 0.0 => None,
             other => Some(Warning::PoorSimulation {
                 record,
                 fit_percent: other,

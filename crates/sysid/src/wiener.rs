@@ -223,6 +223,19 @@ pub fn output_warnings(g: &StaticNonlinearity, v: &[f64]) -> Vec<Warning> {
     if !(lo.is_finite() && hi.is_finite()) {
         return w;
     }
+    // The shape a model file's reader names (`model_file::load_warnings`): limits that cross leave no
+    // linear interval, and the model's output is a constant (audit s16 M7).
+    let kind = match g {
+        StaticNonlinearity::Saturation(_) => "output saturation",
+        StaticNonlinearity::PiecewiseLinear(_) => "output piecewise-linear",
+        StaticNonlinearity::Polynomial(_) => "output polynomial",
+        _ => "output",
+    };
+    w.extend(
+        g.shape_problems()
+            .into_iter()
+            .map(|why| Warning::NonlinearityShape { kind, why }),
+    );
     let outside = |name: &str, b: f64, w: &mut Vec<Warning>, kind: &'static str| {
         if b <= lo || b >= hi {
             w.push(Warning::NonlinearityShape {
@@ -290,4 +303,51 @@ pub fn output_warnings(g: &StaticNonlinearity, v: &[f64]) -> Vec<Warning> {
         _ => {}
     }
     w
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use sysid_core::nonlinearity::Saturation;
+
+    // An output saturation whose limits cross (s_l = 0.8 > s_r = −0.4) maps every v to one constant: said
+    // in words, as a model file's reader says it (audit s16 M7); limits in order and inside the range of
+    // v say nothing.
+    #[test]
+    fn crossed_output_limits_are_warned() {
+        let v: Vec<f64> = (0..=20).map(|k| -1.0 + 0.1 * k as f64).collect();
+        let crossed = StaticNonlinearity::Saturation(Saturation {
+            s_l: 0.8,
+            s_r: -0.4,
+            m: 1.0,
+        });
+        let w: Vec<String> = output_warnings(&crossed, &v)
+            .iter()
+            .map(ToString::to_string)
+            .collect();
+        assert!(
+            w.iter().any(|w| w
+                .starts_with("output saturation nonlinearity: s_l = 0.8 >= s_r = -0.4")
+                && w.contains("the limits cross")),
+            "{w:?}"
+        );
+        let fine = StaticNonlinearity::Saturation(Saturation {
+            s_l: -0.5,
+            s_r: 0.5,
+            m: 1.0,
+        });
+        assert!(output_warnings(&fine, &v).is_empty());
+    }
+
+    // A fit of exactly 0 % is no better than the record's mean: warned, as a negative one is.
+    #[test]
+    fn a_fit_of_zero_is_no_better_than_the_mean() {
+        use crate::warnings::Record;
+        let w = Warning::if_poor_simulation(Record::Estimation, Some(0.0)).unwrap();
+        assert!(
+            w.to_string().contains("no better than the record's mean"),
+            "{w}"
+        );
+        assert!(Warning::if_poor_simulation(Record::Estimation, Some(1e-3)).is_none());
+    }
 }

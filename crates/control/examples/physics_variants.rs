@@ -82,7 +82,11 @@ impl control::Controller for Approach {
     fn step(&mut self, r_mm: f64, y_mm: f64) -> f64 {
         let e = r_mm - y_mm;
         let v = self.y_prev.map_or(0.0, |p| (y_mm - p) / self.ts_s());
-        if self.y_prev.is_none() && (e.abs() < self.min_step_mm || e * self.direction < 0.0) {
+        let max_step: f64 =
+            std::env::var("APPROACH_MAX").map_or(f64::INFINITY, |b| b.parse().unwrap());
+        if self.y_prev.is_none()
+            && (e.abs() < self.min_step_mm || e.abs() > max_step || e * self.direction < 0.0)
+        {
             self.on = false;
         }
         self.y_prev = Some(y_mm);
@@ -129,7 +133,8 @@ impl control::Controller for Approach {
                 if !self.reset_at_switch {
                     self.inner.step(r_mm, y_mm);
                 }
-                return e.signum() * self.u_max;
+                let a1: f64 = std::env::var("APPROACH_U").map_or(1.0, |b| b.parse().unwrap());
+                return e.signum() * a1 * self.u_max;
             }
             if self.slide <= 0.0 {
                 self.on = false;
@@ -214,6 +219,9 @@ fn main() {
             if let Some(v) = env(key) {
                 *field = v;
             }
+        }
+        if let Some(v) = env("NR") {
+            n.rest_samples = v as u32;
         }
     }
     if let Ok(b) = std::env::var("BRAKE_CTL") {

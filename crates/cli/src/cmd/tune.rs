@@ -237,6 +237,10 @@ fn summary_text(r: &TuneReport, out: &Path) -> String {
             format!(" + {} of the approach with braking", r.brake_evaluations)
         } else {
             String::new()
+        } + &if r.rest_evaluations > 0 {
+            format!(" + {} of the nudge's rest count", r.rest_evaluations)
+        } else {
+            String::new()
         },
         r.seconds
     );

@@ -738,12 +738,14 @@ pub const BRAKE_CANDIDATES: [(f64, f64); 6] = [
 /// a_b: the braking command's fraction of u_max (the time oracle's best 150 mm sequences: 0.25).
 pub const BRAKE_STRENGTH: f64 = 0.25;
 /// (T_b, T_r) tried with each of [`BRAKE_CANDIDATES`], s: the braking time (the time oracle's 21–38
-/// samples of 10 ms: 0.25 s) and no release after it. With the release tried too ((0.2, 0.1) and
-/// (0.15, 0.2) s), `tune` chose one on 6 of the eight fragility twins: the whole specification +11
-/// runs over the eight, but on the twin of Results (B) 120 / 89 / 131 / 63 → 119 / 95 / 125 / 63 and
-/// its worst |e_ss| 0.88 → 2.81 mm (docs/control.md, Results' session-15 block), so it is not
-/// searched.
-pub const BRAKE_TIMES_S: [(f64, f64); 1] = [(0.25, 0.0)];
+/// samples of 10 ms: 0.25 s) with no release after it, and shorter brakes released over T_r (the
+/// braking command falls to 0 in T_r equal steps: closing the valves at once lets the still
+/// pressurised driving chamber push the piston on). In session 15, with N_r = 3 fixed, the release
+/// was a trade on the twin's (B) (its worst |e_ss| 0.88 → 2.81 mm), so it was not searched; since
+/// session 16 the nudge's rest count is chosen after the brake, and the two choices together beat the
+/// rest count alone on the verification runs, the fragility twins and the independent family
+/// (docs/control.md, Results' session-16 block).
+pub const BRAKE_TIMES_S: [(f64, f64); 3] = [(0.25, 0.0), (0.2, 0.1), (0.15, 0.2)];
 /// N_b: samples at rest that end the hold after the brake.
 pub const BRAKE_REST_SAMPLES: u32 = 3;
 /// e_a as a fraction of the specification's largest step (100 mm of the default 150 mm).

@@ -29,6 +29,10 @@
 //! brake (BRAKE_N) to 0 over N samples; LEADS=1 prints, per variant and 150 mm step, OS, t_s, e_ss and
 //! the learnt τ_b after each of 3 repeated moves; WARMUP=N makes N runs of the same step before each measured one, the controller
 //! keeping what it learnt (a machine that repeats its moves; `tune::evaluate_repeated`).
+//! Session 16: NR=N replaces the nudge's rest count N_r; APPROACH_MAX=mm limits the prototype approach
+//! to steps of at most that size, APPROACH_U=U drives it at U u_max instead of u_max, APPROACH_RAMP=c
+//! raises that drive by c counts per sample until the piston first moves (the short-step approach of
+//! docs/control.md, Results' session-16 block).
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
 use control::tune::{self, Spec};
 use control::ControllerFile;
@@ -41,6 +45,9 @@ struct Approach {
     switch_mm: f64,
     u_max: f64,
     y_prev: Option<f64>,
+    /// APPROACH_RAMP=c: the drive rises by c counts per sample until the piston first moves
+    /// (its start position and the samples so far).
+    drive_from: Option<(f64, u32)>,
     on: bool,
     /// The braking distance is τ_b v² (τ_b in s²/mm) instead of τ_b |v|.
     quadratic: bool,
@@ -74,6 +81,7 @@ impl control::Controller for Approach {
     fn reset(&mut self) {
         self.inner.reset();
         self.y_prev = None;
+        self.drive_from = None;
         self.on = true;
         self.braking = false;
         self.holding = false;
@@ -82,7 +90,11 @@ impl control::Controller for Approach {
     fn step(&mut self, r_mm: f64, y_mm: f64) -> f64 {
         let e = r_mm - y_mm;
         let v = self.y_prev.map_or(0.0, |p| (y_mm - p) / self.ts_s());
-        if self.y_prev.is_none() && (e.abs() < self.min_step_mm || e * self.direction < 0.0) {
+        let max_step: f64 =
+            std::env::var("APPROACH_MAX").map_or(f64::INFINITY, |b| b.parse().unwrap());
+        if self.y_prev.is_none()
+            && (e.abs() < self.min_step_mm || e.abs() > max_step || e * self.direction < 0.0)
+        {
             self.on = false;
         }
         self.y_prev = Some(y_mm);
@@ -129,7 +141,15 @@ impl control::Controller for Approach {
                 if !self.reset_at_switch {
                     self.inner.step(r_mm, y_mm);
                 }
-                return e.signum() * self.u_max;
+                let a1: f64 = std::env::var("APPROACH_U").map_or(1.0, |b| b.parse().unwrap());
+                let ramp: f64 = std::env::var("APPROACH_RAMP").map_or(0.0, |b| b.parse().unwrap());
+                let (y_start, k) = *self.drive_from.get_or_insert((y_mm, 0));
+                if y_mm == y_start {
+                    self.drive_from = Some((y_start, k + 1));
+                }
+                let k = self.drive_from.map_or(0, |d| d.1);
+                let u = (a1 * self.u_max + ramp * f64::from(k.saturating_sub(1))).min(self.u_max);
+                return e.signum() * u;
             }
             if self.slide <= 0.0 {
                 self.on = false;
@@ -215,6 +235,9 @@ fn main() {
                 *field = v;
             }
         }
+        if let Some(v) = env("NR") {
+            n.rest_samples = v as u32;
+        }
     }
     if let Ok(b) = std::env::var("BRAKE_CTL") {
         let v: Vec<f64> = b.split(',').map(|x| x.parse().unwrap()).collect();
@@ -244,6 +267,7 @@ fn main() {
                 tau_s: a[0],
                 switch_mm: a[1],
                 y_prev: None,
+                drive_from: None,
                 on: true,
                 quadratic: a.get(2) == Some(&1.0),
                 reset_at_switch: a.get(3) == Some(&1.0),

@@ -89,6 +89,8 @@ pub struct TuneReport {
     pub evaluations: usize,
     /// Evaluations of the approach with braking after the search (`tune::BRAKE_CANDIDATES`).
     pub brake_evaluations: usize,
+    /// Evaluations of the nudge's rest count after the brake (`tune::NUDGE_REST_CANDIDATES`).
+    pub rest_evaluations: usize,
     /// Wall-clock time, s.
     pub seconds: f64,
     /// The tuned controller.
@@ -409,6 +411,7 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
         search: req.search,
         evaluations: tuned.evaluations,
         brake_evaluations: tuned.brake_evaluations,
+        rest_evaluations: tuned.rest_evaluations,
         seconds: started.elapsed().as_secs_f64(),
         controller: settings,
         margins,

@@ -184,17 +184,35 @@ fn tuning_meets_the_spec_where_it_is_reachable() {
         t.brake_evaluations,
         tune::BRAKE_CANDIDATES.len() * tune::BRAKE_TIMES_S.len()
     );
-    // The approach with braking is kept only where it meets the whole specification in more runs
-    // than the same controller without it (or as many at a lower J): re-evaluated here.
-    let mut without = t.settings;
-    if without.brake.take().is_some() {
-        let built = without;
+    assert_eq!(
+        t.rest_evaluations,
+        tune::NUDGE_REST_CANDIDATES
+            .iter()
+            .filter(|&&n| n != tune::NUDGE_REST_SAMPLES)
+            .count()
+    );
+    // The approach with braking and then the nudge's rest count N_r are kept only where they meet
+    // the whole specification in more runs than the controller before each choice (or in as many at
+    // a lower J): re-evaluated here, against the search's own controller (no brake, N_r = 3) and
+    // against the chosen one with N_r = 3.
+    let evaluate = |s: ControllerSettings| {
         let factory =
             move || -> Result<Box<dyn control::Controller + Send>, control::ControlError> {
-                Ok(Box::new(built.build()?))
+                Ok(Box::new(s.build()?))
             };
-        let w = tune::evaluate(5, &f, &factory, &spec).unwrap();
-        assert!(e.met > w.met || (e.met == w.met && e.cost < w.cost));
+        tune::evaluate(5, &f, &factory, &spec).unwrap()
+    };
+    let better = |w: &tune::Evaluation| e.met > w.met || (e.met == w.met && e.cost < w.cost);
+    let mut searched = t.settings;
+    let nudge = searched.nudge.as_mut().unwrap();
+    let rest_chosen = nudge.rest_samples != tune::NUDGE_REST_SAMPLES;
+    nudge.rest_samples = tune::NUDGE_REST_SAMPLES;
+    let braked = searched;
+    if rest_chosen {
+        assert!(better(&evaluate(braked)));
+    }
+    if searched.brake.take().is_some() || rest_chosen {
+        assert!(better(&evaluate(searched)));
     }
     // The paper's PI on the same plants (no inverse: it waits for its slow integral) does worse.
     let c = tune::compare(5, &f, &t.settings, &spec).unwrap();

@@ -807,6 +807,26 @@ mod tests {
         assert!(PositionController::new(settings, None).is_err());
     }
 
+    // N_r, the rest that starts a nudge (`tune` chooses it among 3, 2, 1 since session 16), by hand:
+    // r = 1, y = 0.5 held (e = 0.5 mm, inside the 1 mm band). The first sample has no previous y
+    // (still = 0); each later one adds a sample of rest; the nudge starts once still ≥ N_r at β |b_r|
+    // = 15 counts and ramps by ρ Ts = 1 count per sample: N_r = 1 → 0, 15, 16, 17, 18;
+    // N_r = 2 → 0, 0, 15, 16, 17; N_r = 3 → 0, 0, 0, 15, 16.
+    #[test]
+    fn a_nudge_starts_after_n_r_samples_at_rest() {
+        for (n_r, want) in [
+            (1, [0.0, 15.0, 16.0, 17.0, 18.0]),
+            (2, [0.0, 0.0, 15.0, 16.0, 17.0]),
+            (3, [0.0, 0.0, 0.0, 15.0, 16.0]),
+        ] {
+            let mut settings = nudging(0.5);
+            settings.nudge.as_mut().unwrap().rest_samples = n_r;
+            let mut c = PositionController::new(settings, Some(shift_inverse())).unwrap();
+            let got: [f64; 5] = core::array::from_fn(|_| c.step(1.0, 0.5).unwrap());
+            assert_eq!(got, want, "N_r = {n_r}");
+        }
+    }
+
     // The nudge mode by hand: deadzone b_l = −20, b_r = 30,
     // band 1 mm, ρ Ts = 1 count per sample, β = 0.5, N_r = 2, γ = 0.5, e = 0.5 mm: closed until y has
     // been still for 2 samples, then 15, 16, 17 counts; y moves at 17 (learnt, held) and the valve closes

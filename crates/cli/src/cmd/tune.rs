@@ -43,7 +43,8 @@ pub struct Args {
     #[arg(long, value_name = "N", default_value_t = 5)]
     pub variants: usize,
     /// Largest number of cost evaluations of the search (each simulates every variant and step); 8 to
-    /// 10 000. The choice of the approach with braking adds 6 after it.
+    /// 10 000. The choices of the approach with braking and of the nudge's rest count add 18 and 2
+    /// after it.
     #[arg(long, value_name = "N", default_value_t = 150)]
     pub max_evaluations: usize,
     /// Also verify on the built-in physics plant (with --model: for a model identified on a record of
@@ -223,6 +224,10 @@ fn summary_text(r: &TuneReport, out: &Path) -> String {
         r.evaluations,
         if r.brake_evaluations > 0 {
             format!(" + {} of the approach with braking", r.brake_evaluations)
+        } else {
+            String::new()
+        } + &if r.rest_evaluations > 0 {
+            format!(" + {} of the nudge's rest count", r.rest_evaluations)
         } else {
             String::new()
         },

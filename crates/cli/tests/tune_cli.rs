@@ -371,7 +371,7 @@ fn bad_inputs_name_the_file_or_the_flag() {
     // The same model with the advised run=20 is accepted (the run is bounded in samples, 6000, not
     // in seconds: audit s16 M1 advised run=180 for Ts = 9 s and then refused it), a run of 6001
     // samples is not, and a request of more than 1e8 simulated samples is refused before any work:
-    // (10000 + 6) evaluations × 200 variants × 8 steps × 300 samples = 4.8e9 (audit s16 M11).
+    // (10000 + 20) evaluations × 200 variants × 8 steps × 300 samples = 4.8e9 (audit s16 M11).
     let o = ipa_sysid(&[
         "tune",
         "--model",
@@ -403,7 +403,7 @@ fn bad_inputs_name_the_file_or_the_flag() {
     assert!(
         e.contains("--max-evaluations = 10000")
             && e.contains("at most 1e8 simulated samples")
-            && e.contains("(10000 evaluations + 6 of the brake) × 200 variants"),
+            && e.contains("(10000 evaluations + 20 after the search) × 200 variants"),
         "{e}"
     );
     assert!(!out.exists());

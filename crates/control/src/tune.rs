@@ -732,6 +732,10 @@ pub const BRAKE_CANDIDATES: [(f64, f64); 6] = [
     (2.0, 0.02),
     (2.0, 0.025),
 ];
+/// Evaluations after the search: the approach with braking ([`BRAKE_CANDIDATES`] × [`BRAKE_TIMES_S`])
+/// and the nudge's rest count ([`NUDGE_REST_CANDIDATES`]).
+pub const AFTER_SEARCH_EVALUATIONS: usize =
+    BRAKE_CANDIDATES.len() * BRAKE_TIMES_S.len() + NUDGE_REST_CANDIDATES.len();
 /// a_b: the braking command's fraction of u_max (the time oracle's best 150 mm sequences: 0.25).
 pub const BRAKE_STRENGTH: f64 = 0.25;
 /// (T_b, T_r) tried with each of [`BRAKE_CANDIDATES`], s: the braking time (the time oracle's 21–38

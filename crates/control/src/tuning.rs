@@ -477,7 +477,7 @@ fn check_spec(req: &Request, ts: f64, twin: &Option<ipa::PlantConfig>) -> Result
         ));
     }
     let cases = spec.cases().len() as f64;
-    let search = (req.search.max_evaluations + tune::BRAKE_CANDIDATES.len()) as f64
+    let search = (req.search.max_evaluations + tune::AFTER_SEARCH_EVALUATIONS) as f64
         * req.search.plants as f64;
     let verified = 2.0 * (req.search.plants + req.physics_variants + 1) as f64;
     let work = (search + verified) * cases * run_samples.ceil();
@@ -487,10 +487,10 @@ fn check_spec(req: &Request, ts: f64, twin: &Option<ipa::PlantConfig>) -> Result
             req.search.max_evaluations,
             &format!(
                 "a request of at most {MAX_SIMULATED_SAMPLES:e} simulated samples: ({} evaluations + {} \
-                 of the brake) × {} variants, and the verifications, × {} steps × {} samples per run = \
+                 after the search) × {} variants, and the verifications, × {} steps × {} samples per run = \
                  {work:.3e}; fewer evaluations, variants or steps, or a shorter run",
                 req.search.max_evaluations,
-                tune::BRAKE_CANDIDATES.len(),
+                tune::AFTER_SEARCH_EVALUATIONS,
                 req.search.plants,
                 spec.cases().len(),
                 run_samples.ceil()

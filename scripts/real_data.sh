@@ -213,13 +213,14 @@ echo
 echo "| record | fit % sim | fit % sim (y0 measured) | fit % 1-step |"
 echo "|---|---|---|---|"
 for i in 0 1; do
-    printf '| %s | %s | %s | %s |\n' "$(jq -r ".metrics.estimation[$i].data" "$tmp/m.json")" \
-        "$(pct ".metrics.estimation[$i].metrics.fit_sim_percent" "$tmp/m.json")" \
-        "$(pct ".metrics.estimation[$i].metrics.fit_sim_measured_percent" "$tmp/m.json")" \
-        "$(pct ".metrics.estimation[$i].metrics.fit_pred_percent" "$tmp/m.json" 4)"
+    # The merged document: each record's metrics under records[i].metrics, the pooled ones as metrics.estimation.
+    printf '| %s | %s | %s | %s |\n' "$(jq -er ".records[$i].data" "$tmp/m.json")" \
+        "$(pct ".records[$i].metrics.fit_sim_percent" "$tmp/m.json")" \
+        "$(pct ".records[$i].metrics.fit_sim_measured_percent" "$tmp/m.json")" \
+        "$(pct ".records[$i].metrics.fit_pred_percent" "$tmp/m.json" 4)"
 done
-printf '| pooled | %s | %s | %s |\n' "$(pct .metrics.pooled.fit_sim_percent "$tmp/m.json")" \
-    "$(pct .metrics.pooled.fit_sim_measured_percent "$tmp/m.json")" "$(pct .metrics.pooled.fit_pred_percent "$tmp/m.json" 4)"
+printf '| pooled | %s | %s | %s |\n' "$(pct .metrics.estimation.fit_sim_percent "$tmp/m.json")" \
+    "$(pct .metrics.estimation.fit_sim_measured_percent "$tmp/m.json")" "$(pct .metrics.estimation.fit_pred_percent "$tmp/m.json" 4)"
 
 echo
 echo "## Pneumatic cylinder friction record, read as logged"

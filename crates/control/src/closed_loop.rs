@@ -136,6 +136,7 @@ pub fn run_with(
             plant.name()
         )));
     }
+    profile.check_sampling(ts)?;
     if !(duration_s.is_finite() && duration_s >= 0.0) {
         return Err(ControlError::setting(
             ControlSetting::Duration,

@@ -234,6 +234,24 @@ impl Profile {
         }
     }
 
+    /// Refuses a staircase that holds each level for less than one sampling period `ts` (s): r(t) is
+    /// read at t = k Ts, so levels would be skipped without a word (audit s16 L1: `staircase:50,60,70@0.001`
+    /// at Ts = 0.01 s never applied 60).
+    pub fn check_sampling(&self, ts: f64) -> Result<(), ControlError> {
+        match self {
+            Profile::Staircase { hold_s, .. } if *hold_s < ts * (1.0 - GRID_EPS) => {
+                Err(ControlError::Profile {
+                    spec: self.describe(),
+                    message: format!(
+                        "each level is held {hold_s} s, less than the sampling period Ts = {ts} s, so some \
+                         levels would never be applied; hold each level at least one sample"
+                    ),
+                })
+            }
+            _ => Ok(()),
+        }
+    }
+
     /// The set-point r(t) in mm at time `t_s` (s from the start of the run).
     pub fn r_at(&self, t_s: f64) -> f64 {
         match self {
@@ -345,6 +363,15 @@ mod tests {
         assert_eq!(p.r_at(2.99), 20.0);
         assert_eq!(p.r_at(300.0 * 0.01), 60.0);
         assert_eq!(p.r_at(599.0 * 0.01), 60.0);
+        // Held exactly one sample: accepted; held less: refused, naming Ts (audit s16 L1).
+        let one = Profile::parse("staircase:50,60,70@0.01").unwrap();
+        assert!(one.check_sampling(0.01).is_ok());
+        let short = Profile::parse("staircase:50,60,70@0.001").unwrap();
+        let e = short.check_sampling(0.01).unwrap_err().to_string();
+        assert!(
+            e.contains("less than the sampling period Ts = 0.01 s"),
+            "{e}"
+        );
         assert_eq!(p.r_at(600.0 * 0.01), 100.0);
         assert_eq!(p.r_at(11.99), 40.0);
         assert_eq!(p.r_at(50.0), 40.0);

@@ -522,7 +522,7 @@ fn table_of(
     if mat::is_mat(bytes) {
         return Err(file_err(
             "a MATLAB .mat file, which is not supported here: this reads CSV text (a .mat record is \
-             read by --data of identify, validate, order and delay; save the columns as CSV for this)"
+             read by --data of identify, validate, order, delay and calibrate; save the columns as CSV for this)"
                 .into(),
         ));
     }

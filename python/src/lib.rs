@@ -1758,7 +1758,7 @@ fn tune<'py>(
 /// at_bound), "correlation", "segments", "iterations", "simulations", "termination", "cost_start",
 /// "cost", the free-run fits "fit_estimation_start_percent", "fit_estimation_percent",
 /// "fit_validation_start_percent", "fit_validation_percent", "warnings" and "toml" (the plant-config
-/// of the twin, as `--out` writes it, without its first comment line).
+/// of the twin, as `--out` writes it, with its `[calibration]` table of fits and warnings).
 #[pyfunction]
 #[pyo3(signature = (data, validation=None, free=None, fixed=None, plant_config=None, segment=0.5,
     max_iterations=40, ts=None, u_col="u", y_col="y", t_col="t", no_header=false, val_u_col=None,
@@ -1803,7 +1803,6 @@ fn calibrate<'py>(
     // error named a u_col the function did not have).
     let opts = sysid::data::CsvOptions {
         ts,
-        fallback_ts: Some(ipa::DEFAULT_TS_S),
         u_col: u_col.to_string(),
         y_col: y_col.to_string(),
         t_col: t_col.to_string(),
@@ -1858,7 +1857,7 @@ fn calibrate<'py>(
             .map(ToString::to_string)
             .collect::<Vec<_>>(),
     )?;
-    out.set_item("toml", twin.config.to_commented_toml())?;
+    out.set_item("toml", twin.twin_toml(&data.display().to_string(), est.ts))?;
     Ok(out)
 }
 

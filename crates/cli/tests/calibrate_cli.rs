@@ -289,6 +289,168 @@ fn a_twin_that_does_not_follow_its_record_is_said() {
             && w.contains("inside the valves' deadzone")
     });
     assert!(warned, "{}", doc["warnings"]);
+
+    // Audit s16 M8: the twin carries the verdict (a `[calibration]` table with the fit and every
+    // warning of the report), and tune and control, run on it, repeat each warning.
+    let toml = std::fs::read_to_string(p.join("s.toml")).unwrap();
+    assert!(toml.contains("\n[calibration]\n"), "{toml}");
+    let warnings: Vec<String> = doc["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w.as_str().unwrap().to_string())
+        .collect();
+    let tune = run(
+        p,
+        &[
+            "tune",
+            "--plant-config",
+            "s.toml",
+            "--out",
+            "c.json",
+            "--variants",
+            "1",
+            "--max-evaluations",
+            "8",
+            "--physics-variants",
+            "0",
+        ],
+    );
+    let control = run(
+        p,
+        &[
+            "control",
+            "--plant",
+            "ipa",
+            "--plant-config",
+            "s.toml",
+            "--setpoint",
+            "60",
+            "--duration",
+            "0.3",
+        ],
+    );
+    for (name, o) in [("tune", &tune), ("control", &control)] {
+        let text =
+            String::from_utf8_lossy(&o.stdout).into_owned() + &String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{name}: {text}");
+        for w in &warnings {
+            let repeated = format!(
+                "this twin's calibration on slow.csv (free-run fit {fit:.2} % on it) warned: {w}"
+            );
+            assert!(
+                text.contains(&repeated),
+                "{name}: no '{repeated}' in {text}"
+            );
+        }
+    }
+    // A plant config without the table (plant-config's output, a twin written before it): no such
+    // warning.
+    let o = run(p, &["plant-config"]);
+    std::fs::write(p.join("plain.toml"), &o.stdout).unwrap();
+    let o = run(
+        p,
+        &[
+            "control",
+            "--plant",
+            "ipa",
+            "--plant-config",
+            "plain.toml",
+            "--setpoint",
+            "60",
+            "--duration",
+            "0.3",
+        ],
+    );
+    let text =
+        String::from_utf8_lossy(&o.stdout).into_owned() + &String::from_utf8_lossy(&o.stderr);
+    assert!(
+        o.status.success() && !text.contains("calibration"),
+        "{text}"
+    );
+}
+
+// Audit s16 M6: a record without a time column and without --ts is refused with identify's message
+// (it was calibrated at an assumed 0.01 s without a word); with --ts, the report says the Ts used, in
+// the text and the JSON.
+#[test]
+fn calibrate_without_a_time_column_needs_ts_as_identify_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path();
+    let o = run(
+        p,
+        &[
+            "simulate",
+            "--input",
+            "calibration",
+            "--samples",
+            "300",
+            "--seed",
+            "2",
+            "--out",
+            "est.csv",
+        ],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    // The record without its t column (the first).
+    let text = std::fs::read_to_string(p.join("est.csv")).unwrap();
+    let bare: String = text
+        .lines()
+        .map(|l| format!("{}\n", l.split_once(',').unwrap().1))
+        .collect();
+    std::fs::write(p.join("not.csv"), bare).unwrap();
+    let identify = run(p, &["identify", "--data", "not.csv"]);
+    let calibrate = run(
+        p,
+        &[
+            "calibrate",
+            "--data",
+            "not.csv",
+            "--out",
+            "t.toml",
+            "--no-baseline",
+            "--max-iterations",
+            "1",
+        ],
+    );
+    let (ie, ce) = (
+        String::from_utf8_lossy(&identify.stderr),
+        String::from_utf8_lossy(&calibrate.stderr),
+    );
+    assert_eq!(identify.status.code(), Some(2), "{ie}");
+    assert_eq!(calibrate.status.code(), Some(2), "{ce}");
+    assert!(ie.contains("no time column 't' and no --ts"), "{ie}");
+    assert_eq!(ie, ce);
+    assert!(!p.join("t.toml").exists());
+
+    let o = run(
+        p,
+        &[
+            "calibrate",
+            "--data",
+            "not.csv",
+            "--ts",
+            "0.01",
+            "--out",
+            "t.toml",
+            "--no-baseline",
+            "--max-iterations",
+            "1",
+            "--json",
+            "t.json",
+        ],
+    );
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(
+        out.starts_with("Calibrated twin of the physics IPA (Ts = 0.01 s;"),
+        "{out}"
+    );
+    let doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(p.join("t.json")).unwrap()).unwrap();
+    assert_eq!(doc["ts"].as_f64(), Some(0.01));
+    let toml = std::fs::read_to_string(p.join("t.toml")).unwrap();
+    assert!(toml.contains("\nts_s = 0.01\n"), "{toml}");
 }
 
 // calibrate reads its records with the reader every command uses (audit s13 M6/H3, L): a --ts that
@@ -337,6 +499,15 @@ fn calibrate_reads_records_like_every_command() {
             .contains("--ts 0.02 s contradicts the time column t (its typical step is 0.01 s)"),
         "{err}"
     );
+    // Audit s16 M9: said on standard error before the search, with a start line naming the work
+    // (the report on standard output repeats the warning with the others).
+    let contradiction = err
+        .find("warning: --ts 0.02 s contradicts the time column t")
+        .expect(&err);
+    let start = err
+        .find("calibrating 12 parameters on est.csv (300 samples, Ts = 0.02 s): up to 1 iterations")
+        .expect(&err);
+    assert!(contradiction < start, "{err}");
 
     // Row 100's time moved by half a step: refused at its line (data row 100 is line 102 with the header).
     let text = std::fs::read_to_string(p.join("est.csv")).unwrap();

@@ -385,3 +385,75 @@ fn an_input_the_model_never_saw_is_pointed_out_and_an_empty_multisine_refused() 
         "{err}"
     );
 }
+
+// Audit s16 L14: `--input file:CSV` with a time column replays the commands at the column's step
+// (0.02 s here: the written record's t steps 0.02 s); a --ts that contradicts it is said in the
+// reader's words, and a model plant with its own Ts says the commands are not replayed as recorded.
+// A file without a time column keeps the default Ts = 0.01 s.
+#[test]
+fn a_command_file_s_time_column_sets_ts_or_is_said() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path();
+    let ts_file = 0.02;
+    let mut with_t = String::from("t,u\n");
+    let mut without_t = String::from("u\n");
+    for k in 0..300 {
+        let u = if (k / 50) % 2 == 0 { 120 } else { -120 };
+        with_t += &format!("{},{u}\n", k as f64 * ts_file);
+        without_t += &format!("{u}\n");
+    }
+    std::fs::write(p.join("u_t.csv"), with_t).unwrap();
+    std::fs::write(p.join("u.csv"), without_t).unwrap();
+    let steps = |file: &str| -> Vec<f64> {
+        let text = std::fs::read_to_string(p.join(file)).unwrap();
+        let t: Vec<f64> = text
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').next().unwrap().parse().unwrap())
+            .collect();
+        t.windows(2).map(|w| w[1] - w[0]).collect()
+    };
+
+    let o = simulate(p, &["--plant", "ipa", "--input", "file:u_t.csv"], "a.csv");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("(Ts = 0.02 s, the time column t of u_t.csv)"),
+        "{err}"
+    );
+    assert!(!err.contains("warning"), "{err}");
+    assert!(steps("a.csv").iter().all(|d| (d - ts_file).abs() < 1e-9));
+
+    let o = simulate(
+        p,
+        &["--plant", "ipa", "--input", "file:u_t.csv", "--ts", "0.01"],
+        "b.csv",
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains(
+            "u_t.csv: --ts 0.01 s contradicts the time column t (its typical step is 0.02 s)"
+        ),
+        "{err}"
+    );
+    assert!(steps("b.csv").iter().all(|d| (d - 0.01).abs() < 1e-9));
+
+    // The paper's model runs at its own Ts = 0.01 s.
+    let o = simulate(p, &["--plant", "paper", "--input", "file:u_t.csv"], "c.csv");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("its time column t steps 0.02 s, but the plant runs at its own Ts = 0.01 s"),
+        "{err}"
+    );
+
+    let o = simulate(p, &["--plant", "ipa", "--input", "file:u.csv"], "d.csv");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains("(Ts = 0.01 s)") && !err.contains("warning"),
+        "{err}"
+    );
+    assert!(steps("d.csv").iter().all(|d| (d - 0.01).abs() < 1e-9));
+}

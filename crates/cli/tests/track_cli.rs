@@ -707,3 +707,83 @@ fn an_input_that_cannot_determine_the_deadzone_is_said_at_the_end() {
         "{w}"
     );
 }
+
+/// The record of [`record`] with its time column written in milliseconds (t = 10 k).
+fn record_ms(n: usize) -> Vec<u8> {
+    let text = String::from_utf8(record(n)).unwrap();
+    let mut lines = text.lines();
+    let mut s = format!("{}\n", lines.next().unwrap());
+    for (k, line) in lines.enumerate() {
+        let rest = line.split_once(',').unwrap().1;
+        s += &format!("{},{rest}\n", 10 * k);
+    }
+    s.into_bytes()
+}
+
+// Audit s16 L11: a time column in milliseconds read as seconds gives Ts = 10 s; track says so with
+// identify's hint, and `--time-unit ms` (identify's flag) reads it as 10 ms = 0.01 s, the Ts of the
+// same record written in seconds, in every model line and the summary.
+#[test]
+fn track_takes_time_unit_and_gives_identify_s_millisecond_hint() {
+    let o = track(&["--every", "100", "--json", "-"], &record_ms(400));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("if it holds milliseconds"), "{err}");
+    assert!(err.contains("pass --time-unit ms"), "{err}");
+
+    let o = track(
+        &["--every", "100", "--json", "-", "--time-unit", "ms"],
+        &record_ms(400),
+    );
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(!err.contains("milliseconds"), "{err}");
+    let text = String::from_utf8_lossy(&o.stdout);
+    let lines: Vec<serde_json::Value> = text
+        .lines()
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert!(lines.len() >= 4, "{text}");
+    for l in &lines {
+        let ts = l["model"]["ts"].as_f64().unwrap();
+        assert!((ts - 10.0 * 1e-3).abs() < 1e-12, "{l}");
+    }
+    // The summary's last time: 10 (n - 1) ms in seconds.
+    let t_end = lines.last().unwrap()["t_end"].as_f64().unwrap();
+    assert!((t_end - 3.99).abs() < 1e-9, "{t_end}");
+}
+
+// Audit s16 L11: a --ts that contradicts the time column is said once, in identify's words, not as a
+// "time jump" at every sample whose step differs from --ts; a real jump in the column is still said.
+#[test]
+fn a_ts_contradicting_the_time_column_is_said_once_as_identify_says_it() {
+    let o = track(&["--every", "100", "--ts", "0.02"], &record(400));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert_eq!(
+        err.matches("--ts 0.02 s contradicts the time column t (its typical step is 0.01 s)")
+            .count(),
+        1,
+        "{err}"
+    );
+    assert!(!err.contains("time jump"), "{err}");
+
+    // The same record with 5 samples missing after row 200: one jump, measured against the column's
+    // own 0.01 s step.
+    let text = String::from_utf8(record(400)).unwrap();
+    let kept: String = text
+        .lines()
+        .enumerate()
+        .filter(|(i, _)| !(202..207).contains(i))
+        .map(|(_, l)| format!("{l}\n"))
+        .collect();
+    let o = track(&["--every", "100", "--ts", "0.02"], kept.as_bytes());
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert_eq!(err.matches("time jumps from").count(), 1, "{err}");
+    assert_eq!(
+        err.matches("contradicts the time column").count(),
+        1,
+        "{err}"
+    );
+}

@@ -405,6 +405,11 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
         warnings.splice(0..0, file.into_iter().map(|w| format!("model: {w}")));
     }
     warnings.splice(0..0, model_stability_warnings(&model, &margins));
+    if let Some(cfg) = &twin {
+        // What calibrate said of the twin (its `[calibration]` table): first, since every figure
+        // below is the twin's (audit s16 M8).
+        warnings.splice(0..0, cfg.calibration_warnings());
+    }
     Ok(TuneReport {
         source: label,
         spec: req.spec.clone(),

@@ -440,13 +440,20 @@ fn ts_contradiction(table: &Table, opts: &CsvOptions, ts: f64) -> Option<String>
     }
     let mid = steps.len() / 2;
     let step = *steps.select_nth_unstable_by(mid, f64::total_cmp).1;
+    ts_contradiction_note(ts, &opts.t_col, step)
+}
+
+/// The note of a `--ts` (`ts`, s) that contradicts the time column `column`, whose typical step is
+/// `step` (s), by more than 0.1 %; `None` when they agree or `step` is not a positive number. The one
+/// wording of the reader ([`read_record`]) and of a stream (`track`).
+pub fn ts_contradiction_note(ts: f64, column: &str, step: f64) -> Option<String> {
     (step.is_finite() && step > 0.0 && (step - ts).abs() > 1e-3 * step).then(|| {
         format!(
             "--ts {} s contradicts the time column {} (its typical step is {} s): --ts is used, so \
              every time figure (Ts, time constants, a twin's dynamics) is {} times what the column \
              says; leave out --ts to use the column",
             sig6(ts),
-            opts.t_col,
+            column,
             sig6(step),
             sig6(ts / step)
         )
@@ -460,7 +467,7 @@ const MS_HINT_TS: f64 = 5.0;
 /// whole numbers only (0, 10, 20, ...): the usual sign of a column in milliseconds read as seconds,
 /// which makes every time figure 1000 times too large (a 10 ms record identified at Ts = 10 s; audit
 /// s10). Records sampled every second or two with whole-second stamps are common and are not flagged.
-fn milliseconds_hint(t: &[f64], ts: f64, unit: TimeUnit, column: &str) -> Option<String> {
+pub fn milliseconds_hint(t: &[f64], ts: f64, unit: TimeUnit, column: &str) -> Option<String> {
     let whole = t.iter().all(|v| v.fract() == 0.0);
     (unit == TimeUnit::S && ts >= MS_HINT_TS && whole).then(|| {
         format!(
@@ -515,7 +522,7 @@ fn table_of(
     if mat::is_mat(bytes) {
         return Err(file_err(
             "a MATLAB .mat file, which is not supported here: this reads CSV text (a .mat record is \
-             read by --data of identify, validate, order and delay; save the columns as CSV for this)"
+             read by --data of identify, validate, order, delay and calibrate; save the columns as CSV for this)"
                 .into(),
         ));
     }
@@ -844,6 +851,13 @@ impl Table {
                 })
             })
             .collect()
+    }
+
+    /// Ts (s) of time column `col` in seconds by the reader's rule (time increasing strictly, every
+    /// step the median step within 0.1 %; a column that breaks it is refused at its line): for files
+    /// read apart from a record, such as `simulate --input file:CSV`'s commands.
+    pub fn uniform_ts(&self, col: usize) -> Result<f64, SysidError> {
+        uniform_ts(&self.numbers(col)?, self, col)
     }
 
     /// The line number (1-based) of data row `row` (0 when there is no such row).

@@ -34,6 +34,32 @@ pub struct PlantConfig {
     pub encoder: EncoderConfig,
     /// Numerical integration.
     pub integration: IntegrationConfig,
+    /// What `ipa-sysid calibrate` said of this twin (the `[calibration]` table it writes; absent in
+    /// `plant-config`'s output, in hand-written files and in twins written before it existed). The
+    /// plant ignores it; `tune` and `control` repeat its warnings ([`PlantConfig::calibration_warnings`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub calibration: Option<CalibrationNote>,
+}
+
+/// The verdict of `ipa-sysid calibrate` on the twin it wrote (the `[calibration]` table of the twin
+/// TOML): the record, its sampling period Ts, the free-run fits and the warnings, so that a command
+/// that later runs on the twin can say that its calibration was doubtful (audit s16 M8).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(default, deny_unknown_fields)]
+pub struct CalibrationNote {
+    /// The estimation record the twin was calibrated on (its path as given to `calibrate --data`).
+    pub record: String,
+    /// The record's sampling period Ts, s, at which the twin was fitted.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ts_s: Option<f64>,
+    /// Free-run fit of the twin on the estimation record, % (100 (1 - |y - y_sim| / |y - mean y|)).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fit_estimation_percent: Option<f64>,
+    /// Free-run fit of the twin on the validation record, % (when one was given).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fit_validation_percent: Option<f64>,
+    /// The calibration's warnings, as `calibrate` printed them.
+    pub warnings: Vec<String>,
 }
 
 /// Double-acting cylinder (Koganei twin-port, Table I/II).
@@ -277,6 +303,33 @@ impl PlantConfig {
         Ok(cfg)
     }
 
+    /// The warnings of the calibration that wrote this twin ([`CalibrationNote::warnings`]), each
+    /// prefixed by the record and the twin's free-run fit, for a command that runs on the twin to
+    /// repeat (`tune --plant-config`, `control --plant-config`); empty for a configuration without a
+    /// `[calibration]` table or whose calibration gave none.
+    pub fn calibration_warnings(&self) -> Vec<String> {
+        let Some(note) = &self.calibration else {
+            return Vec::new();
+        };
+        let fit = |f: Option<f64>| f.map_or("-".to_string(), |f| format!("{f:.2} %"));
+        let mut fits = format!("free-run fit {} on it", fit(note.fit_estimation_percent));
+        if note.fit_validation_percent.is_some() {
+            fits.push_str(&format!(
+                ", {} on the validation record",
+                fit(note.fit_validation_percent)
+            ));
+        }
+        note.warnings
+            .iter()
+            .map(|w| {
+                format!(
+                    "this twin's calibration on {} ({fits}) warned: {w}",
+                    note.record
+                )
+            })
+            .collect()
+    }
+
     /// Checks every value; the error names the key (`section.key`), the value and what is accepted.
     pub fn validate(&self) -> Result<(), IpaError> {
         self.check().map_err(|e| IpaError::Config(e.message))
@@ -474,6 +527,20 @@ impl PlantConfig {
                 s.push_str(&format!("{} = {:?}  # {}\n", e.key, e.value, e.doc));
             }
         }
+        if let Some(note) = &self.calibration {
+            #[derive(Serialize)]
+            struct Table<'a> {
+                calibration: &'a CalibrationNote,
+            }
+            // The toml crate quotes the record's path and the warnings; a note that cannot be
+            // written (it always can: strings and finite numbers) is left out rather than corrupt.
+            if let Ok(t) = toml::to_string(&Table { calibration: note }) {
+                s.push_str(
+                    "\n# What `ipa-sysid calibrate` said of this twin; tune and control repeat its warnings.\n",
+                );
+                s.push_str(&t);
+            }
+        }
         s
     }
 
@@ -649,6 +716,30 @@ mod tests {
             PlantConfig::from_toml_str(&c.to_commented_toml(), "t").unwrap(),
             c
         );
+    }
+
+    #[test]
+    fn a_calibration_note_survives_the_round_trip_and_is_repeated() {
+        let mut c = PlantConfig::default();
+        assert!(c.calibration_warnings().is_empty());
+        c.calibration = Some(CalibrationNote {
+            record: "dir/a \"b\".csv".into(),
+            ts_s: Some(0.01),
+            fit_estimation_percent: Some(-3.5),
+            fit_validation_percent: None,
+            warnings: vec!["do not use it".into(), "second\nline".into()],
+        });
+        let back = PlantConfig::from_toml_str(&c.to_commented_toml(), "t").unwrap();
+        assert_eq!(back, c);
+        let w = back.calibration_warnings();
+        assert_eq!(w.len(), 2);
+        assert!(
+            w[0].contains("-3.50 %") && w[0].ends_with("do not use it"),
+            "{w:?}"
+        );
+        // A note with a key it does not know is refused like any section.
+        let e = PlantConfig::from_toml_str("[calibration]\nfit = 1.0\n", "t").unwrap_err();
+        assert!(e.to_string().contains("fit"), "{e}");
     }
 
     #[test]

@@ -248,6 +248,18 @@ pub fn read_input_columns(path: &Path, names: &[&str]) -> Result<Vec<Vec<f64>>, 
     Ok(cols)
 }
 
+/// Ts (s) of the commands of an input file: the step of its time column `t` (seconds) when it has
+/// one, by the reader's rule (non-uniform time is refused at its line); `None` without one. `simulate
+/// --input file:CSV` replays the commands at this Ts, or says that it does not (audit s16 L14).
+pub fn input_file_ts(path: &Path) -> Result<Option<f64>, IpaError> {
+    let bytes = sysid_core::data::bounded::read_data_file(path, "an input file")?;
+    let table = sysid_core::data::read_table(&bytes, &path.display().to_string())?;
+    match table.headers.iter().position(|h| h == "t") {
+        Some(col) => Ok(Some(table.uniform_ts(col)?)),
+        None => Ok(None),
+    }
+}
+
 /// Clock period of the PRBS in samples: 50 ms, at least one sample.
 fn clock_samples(ts_s: f64) -> usize {
     ((0.05 / ts_s).round() as usize).max(1)

@@ -162,7 +162,8 @@ pub struct PlantLimits {
     /// pole at 1 is a position actuator's normal dynamics); `None` otherwise.
     pub unstable_pole: Option<f64>,
     /// What the model file holds that the user must be told (an input or output map that breaks its
-    /// kind's shape: [`sysid_core::model_file::load_warnings`]); empty for `ipa` and `paper`.
+    /// kind's shape: [`sysid_core::model_file::load_warnings`]), or what the calibration of a twin
+    /// config warned ([`PlantConfig::calibration_warnings`]); empty for `paper` and the defaults.
     pub model_warnings: Vec<String>,
     /// The commands of a model plant's estimation data, [min, max] of its first input (its
     /// `data_range`): outside them the model extrapolates; `None` without one.
@@ -179,7 +180,11 @@ impl PlantSpec {
                     Some(path) => PlantConfig::from_toml_file(path)?,
                     None => PlantConfig::default(),
                 };
-                return Ok(PlantLimits::of_ipa(&cfg));
+                // A calibrated twin's own doubts (its `[calibration]` table), as a model file's.
+                return Ok(PlantLimits {
+                    model_warnings: cfg.calibration_warnings(),
+                    ..PlantLimits::of_ipa(&cfg)
+                });
             }
             // The paper's IPA: its model, with the ±255 PWM commands of its valves.
             PlantSpec::Paper => {

@@ -113,6 +113,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &opts,
         pressures.as_ref(),
     )?;
+    // What the reader found (a --ts that contradicts the time column) and a start line, on standard
+    // error before the search, which runs for minutes on a long record (audit s16 M9); the report
+    // below repeats the warnings with the others.
+    for n in &notes {
+        eprintln!("warning: {n}");
+    }
+    eprintln!(
+        "calibrating {} parameters on {} ({} samples, Ts = {} s{}): up to {} iterations, each simulating \
+         the record a few times",
+        calibration.free.len(),
+        data.display(),
+        est.u.len(),
+        est.ts,
+        if val.is_some() { ", and a validation record" } else { "" },
+        calibration.max_iterations
+    );
     let started = std::time::Instant::now();
     let mut twin = calibration.fit(&est, val.as_ref())?;
     twin.warnings.splice(0..0, notes);
@@ -130,23 +146,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             }
         }
     };
-    let toml = format!(
-        "# Digital twin calibrated by `ipa-sysid calibrate` on {}.\n{}",
-        data.display(),
-        twin.config.to_commented_toml()
-    );
+    // The twin with its verdict (`[calibration]`: fits and warnings), which tune and control repeat.
+    let toml = twin.twin_toml(&data.display().to_string(), est.ts);
     // With --strict and warnings the twin is not written (`write_outputs`): no "wrote" line then.
     let writes = !args.strict || twin.warnings.is_empty();
     let text = report_text(
         &twin,
         baseline.as_ref(),
-        seconds,
+        (est.ts, seconds),
         writes.then_some(out.as_path()),
     );
     print_report(&text, &[args.json.as_deref(), Some(out)])?;
     let json = match &args.json {
         Some(_) => {
-            let value = report_json(&twin, baseline.as_ref(), seconds);
+            let value = report_json(&twin, baseline.as_ref(), est.ts, seconds);
             Some(serde_json::to_string_pretty(&value)? + "\n")
         }
         None => None,
@@ -196,13 +209,11 @@ struct Baseline {
     on_validation: bool,
 }
 
-/// The reader's options for `calibrate`'s records: the shared column flags, one command column, and
-/// Ts 0.01 s when neither --ts nor a time column gives one.
+/// The reader's options for `calibrate`'s records: the shared column flags and one command column.
+/// Ts comes from --ts or the time column; a record with neither is refused as `identify` refuses it
+/// (audit s16 M6: a twin fitted at an assumed 0.01 s is another plant, and nothing said so).
 fn record_options(args: &Args) -> anyhow::Result<sysid::data::CsvOptions> {
-    let opts = sysid::data::CsvOptions {
-        fallback_ts: Some(ipa::DEFAULT_TS_S),
-        ..args.columns.csv_options()
-    };
+    let opts = args.columns.csv_options();
     if opts.input_names().len() > 1 {
         anyhow::bail!(sysid::SysidError::setting(
             sysid::Setting::UCol,
@@ -282,9 +293,15 @@ fn fmt_fit(f: Option<f64>) -> String {
     f.map_or("-".into(), |f| format!("{f:.2} %"))
 }
 
-fn report_text(t: &Calibrated, b: Option<&Baseline>, seconds: f64, out: Option<&Path>) -> String {
+/// The text report; `(ts, seconds)`: the record's sampling period Ts and the search's wall time, s.
+fn report_text(
+    t: &Calibrated,
+    b: Option<&Baseline>,
+    (ts, seconds): (f64, f64),
+    out: Option<&Path>,
+) -> String {
     let mut s = format!(
-        "Calibrated twin of the physics IPA ({} segments, {} pressures; {} iterations, {} simulations, {}; {:.2} s)\n",
+        "Calibrated twin of the physics IPA (Ts = {ts} s; {} segments, {} pressures; {} iterations, {} simulations, {}; {:.2} s)\n",
         t.segments,
         if t.used_pressures { "with" } else { "without" },
         t.iterations,
@@ -345,7 +362,8 @@ fn report_text(t: &Calibrated, b: Option<&Baseline>, seconds: f64, out: Option<&
     s
 }
 
-fn report_json(t: &Calibrated, b: Option<&Baseline>, seconds: f64) -> serde_json::Value {
+/// The JSON report; `ts` is the record's sampling period Ts, s.
+fn report_json(t: &Calibrated, b: Option<&Baseline>, ts: f64, seconds: f64) -> serde_json::Value {
     let estimates: Vec<serde_json::Value> = t
         .estimates
         .iter()
@@ -365,6 +383,7 @@ fn report_json(t: &Calibrated, b: Option<&Baseline>, seconds: f64) -> serde_json
     json!({
         "estimates": estimates,
         "correlation": t.correlation.iter().map(|r| r.iter().map(|&v| nan_to_null(v)).collect::<Vec<_>>()).collect::<Vec<_>>(),
+        "ts": ts,
         "segments": t.segments,
         "used_pressures": t.used_pressures,
         "iterations": t.iterations,

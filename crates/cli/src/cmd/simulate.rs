@@ -205,13 +205,26 @@ fn run_plant(
     plant: ipa::spec::PlantSpec,
     model: Option<&sysid::Model>,
 ) -> anyhow::Result<()> {
+    let input: ipa::InputSpec = args.input.parse()?;
+    // The commands of a file with a time column keep their recorded spacing: its Ts is the physics
+    // plant's unless --ts says otherwise (a model plant runs at its own Ts); a Ts that differs is
+    // said below (audit s16 L14: a 0.02 s command record replayed at 0.01 s without a word).
+    let file_ts = input
+        .file()
+        .map(ipa::input::input_file_ts)
+        .transpose()?
+        .flatten();
+    let ts = match (args.ts, file_ts, &plant) {
+        (None, Some(f), ipa::spec::PlantSpec::Ipa) => Some(f),
+        _ => args.ts,
+    };
     let exp = Experiment {
         plant,
         plant_config: args.plant_config.clone(),
-        input: args.input.parse()?,
+        input,
         amplitude: args.amplitude,
         samples: args.samples,
-        ts: args.ts,
+        ts,
         x0: args.y0,
         seed: args.seed,
         noise_std: args.noise_std,
@@ -235,13 +248,38 @@ fn run_plant(
     sysid_io::refuse_overwrite_input(&args.out, &inputs, "--out")?;
     let rec = exp.run()?;
     write_csv(&args.out, &rec)?;
+    let file_words = match (file_ts, exp.input.file()) {
+        (Some(f), Some(path)) if (f - rec.ts).abs() <= 1e-3 * f => {
+            format!(", the time column t of {}", path.display())
+        }
+        _ => String::new(),
+    };
     eprintln!(
-        "wrote {} samples (Ts = {} s), {}, to {}",
+        "wrote {} samples (Ts = {} s{file_words}), {}, to {}",
         rec.u.len(),
         rec.ts,
         start_words(y0, rec.y.first().copied(), model, args.y0.is_none()),
         args.out.display()
     );
+    if let (Some(f), Some(path)) = (file_ts, exp.input.file()) {
+        let note = match args.ts {
+            // The reader's words for a --ts against a time column (identify, calibrate, track).
+            Some(ts) => sysid::data::ts_contradiction_note(ts, "t", f)
+                .map(|n| format!("{}: {n}", path.display())),
+            None => ((f - rec.ts).abs() > 1e-3 * f).then(|| {
+                format!(
+                    "{}: its time column t steps {f} s, but the plant runs at its own Ts = {} s: the \
+                     commands are replayed {} times as far apart as recorded",
+                    path.display(),
+                    rec.ts,
+                    rec.ts / f
+                )
+            }),
+        };
+        if let Some(w) = note {
+            eprintln!("warning: {w}");
+        }
+    }
     if let Some(w) = model.and_then(|m| rest_outside_data(m, y0, args.y0.is_none())) {
         eprintln!("warning: {w}");
     }

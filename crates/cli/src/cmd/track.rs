@@ -44,9 +44,13 @@ pub struct Args {
     /// Name of the time column t (optional with --ts: then t = k Ts).
     #[arg(long, default_value = "t", value_name = "NAME")]
     pub t_col: String,
-    /// Sampling period Ts in seconds (default: the difference of the first two times).
+    /// Sampling period Ts in seconds (default: the difference of the first two times). A --ts that
+    /// contradicts the time column is used and said once, as `identify` says it.
     #[arg(long, value_name = "SECONDS")]
     pub ts: Option<f64>,
+    /// Unit of the time column (Ts and --ts are always in seconds), as `identify`'s.
+    #[arg(long, value_enum, default_value = "s")]
+    pub time_unit: sysid::data::TimeUnit,
     /// Model structure (as `identify`; `--model` is an alias).
     #[arg(
         long = "structure",
@@ -247,6 +251,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             y_col: args.y_col.clone(),
             t_col: args.t_col.clone(),
             ts: args.ts,
+            time_unit: args.time_unit,
             ..sysid::data::CsvOptions::default()
         },
         every: args.every,

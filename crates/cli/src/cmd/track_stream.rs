@@ -24,8 +24,9 @@ pub const MAX_LINE_BYTES: usize = 1 << 20;
 pub struct StreamOptions {
     /// The source's name in messages (`<stdin>`, a path).
     pub name: String,
-    /// The columns u, y and t (s) and Ts (`--ts`; `None`: the difference of the first two times; with
-    /// it the t column is optional, then t = k Ts). The other reader options do not apply to a stream.
+    /// The columns u, y and t, the unit of t (`--time-unit`) and Ts (`--ts`; `None`: the difference of
+    /// the first two times; with it the t column is optional, then t = k Ts). The other reader options
+    /// do not apply to a stream.
     pub csv: CsvOptions,
     /// Print a line every `every` samples (≥ 1), and at every detected change.
     pub every: usize,
@@ -164,8 +165,10 @@ pub fn track_stream<R: BufRead, W: Write>(
     // The reader, once the header has come, and the columns of u, y and t.
     let mut reader: Option<(CsvLines, Columns)> = None;
     let mut ts = options.csv.ts;
-    let mut t0 = None;
-    let mut t_last = None;
+    // The step later time steps are checked against: Ts, or the column's own first step when --ts
+    // contradicts it (said once, as identify says it, not as a "time jump" at every sample).
+    let mut step_ref: Option<f64> = None;
+    let mut t_last: Option<f64> = None;
     let mut pending_change = false;
     let mut change_points = Vec::new();
     // Time that jumps (samples missing, a clock reset forwards): warnings for the next line and the end.
@@ -212,30 +215,52 @@ pub fn track_stream<R: BufRead, W: Write>(
         }
         let (u, y) = (csv.value(*ucol, line_no)?, csv.value(*ycol, line_no)?);
         let k = tracker.samples();
+        // t in s: the column scaled by --time-unit, else k Ts.
         let t = match (*tcol, ts) {
-            (Some(c), _) => csv.value(c, line_no)?,
+            (Some(c), _) => csv.value(c, line_no)? * options.csv.time_unit.seconds(),
             (None, Some(ts)) => k as f64 * ts,
             (None, None) => f64::NAN, // not reached: a missing t column needs `ts`
         };
-        match (ts, t0) {
-            (None, None) => t0 = Some(t),
-            (None, Some(first)) => {
-                let d = t - first;
-                if !(d.is_finite() && d > 0.0) {
-                    return Err(SysidError::Parse {
-                        file: options.name.clone(),
-                        line: line_no,
-                        column: tcol.map_or(1, |c| c + 1),
-                        message: format!(
-                            "t = {t} after t = {first}: the time must increase (or give --ts)"
-                        ),
-                    });
+        if let (Some(tc), Some(prev)) = (*tcol, t_last) {
+            match step_ref {
+                // The second sample: the column's first step gives Ts (without --ts), or is set
+                // against --ts, with the reader's words (`sysid::data`: the ms hint, the contradiction).
+                None => {
+                    let d = t - prev;
+                    match ts {
+                        None if !(d.is_finite() && d > 0.0) => {
+                            return Err(SysidError::Parse {
+                                file: options.name.clone(),
+                                line: line_no,
+                                column: tc + 1,
+                                message: format!(
+                                    "t = {t} after t = {prev}: the time must increase (or give --ts)"
+                                ),
+                            });
+                        }
+                        None => {
+                            ts = Some(d);
+                            new_time_warnings.extend(sysid::data::milliseconds_hint(
+                                &[prev, t],
+                                d,
+                                options.csv.time_unit,
+                                &options.csv.t_col,
+                            ));
+                        }
+                        Some(given) => {
+                            check_time_step(prev, t, given, line_no, tc, &options.name)?;
+                            let note =
+                                sysid::data::ts_contradiction_note(given, &options.csv.t_col, d);
+                            if note.is_none() {
+                                step_ref = Some(given);
+                            }
+                            new_time_warnings.extend(note);
+                        }
+                    }
+                    step_ref.get_or_insert(d);
                 }
-                ts = Some(d);
-            }
-            (Some(ts), _) => {
-                if let (Some(tc), Some(prev)) = (*tcol, t_last) {
-                    if let Some(w) = check_time_step(prev, t, ts, line_no, tc, &options.name)? {
+                Some(step) => {
+                    if let Some(w) = check_time_step(prev, t, step, line_no, tc, &options.name)? {
                         time_jumps += 1;
                         if time_jumps <= 10 {
                             new_time_warnings.push(w);
@@ -289,7 +314,8 @@ pub fn track_stream<R: BufRead, W: Write>(
 }
 
 /// Checks the time t of a sample after `prev` (line `line_no`, 0-based column `col` of `name`) against
-/// Ts: time that does not increase is an error (a logger restarted, a file rotated); a step more than
+/// the expected step `ts` (Ts, or the column's own step when `--ts` contradicts it, which is said
+/// once): time that does not increase is an error (a logger restarted, a file rotated); a step more than
 /// 50 % away from Ts is returned as a warning (samples missing, or the clock jumped), because the
 /// estimator treats the samples as Ts apart.
 fn check_time_step(

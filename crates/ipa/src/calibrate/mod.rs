@@ -80,7 +80,8 @@ pub const MIN_SAMPLES: usize = 50;
 
 /// Reads a record with the reader every command uses (`sysid_core::data::read_record` with `opts`: a
 /// `.mat` file or CSV, `--no-header`, `--rows`, `--time-unit`, `--resample`; Ts from `opts.ts`, else a
-/// uniform time column, else `opts.fallback_ts`, else 0.01 s; a non-uniform column is refused at its
+/// uniform time column, else `opts.fallback_ts`; without any of them the record is refused as
+/// `identify` refuses it, "no time column 't' and no --ts"; a non-uniform column is refused at its
 /// line): u and y from `opts.u_col`, `opts.y_col`, and the chamber pressures p_a, p_b (Pa, absolute)
 /// from the columns `pressures` names, or the plant's own `p_a_pa`, `p_b_pa` when the file has both.
 /// The pressures are read as two more columns of the same record, so `--rows` and `--resample` cut and interpolate them with u and y.
@@ -115,9 +116,6 @@ pub fn read_record(
         pressures
     };
     let mut read_opts = opts.clone();
-    if read_opts.fallback_ts.is_none() {
-        read_opts.fallback_ts = Some(crate::DEFAULT_TS_S);
-    }
     if let Some((a, b)) = &pressures {
         read_opts.u_col = format!("{},{a},{b}", opts.u_col);
     }
@@ -510,6 +508,31 @@ pub struct Calibrated {
     pub validation: Option<FreeRun>,
     /// Every reason not to trust the result.
     pub warnings: Vec<CalibrationWarning>,
+}
+
+impl Calibrated {
+    /// The twin as the plant-config TOML `calibrate` writes: a comment naming the record, the
+    /// parameters ([`PlantConfig::to_commented_toml`]) and a `[calibration]` table with the record,
+    /// its Ts (s), the free-run fits (%) and every warning ([`crate::config::CalibrationNote`]), which
+    /// `tune` and `control` repeat when they run on the twin (audit s16 M8). `record` names the
+    /// estimation record, `ts_s` is its sampling period.
+    pub fn twin_toml(&self, record: &str, ts_s: f64) -> String {
+        let fit = |r: &Option<FreeRun>| r.as_ref().and_then(|r| r.fit_percent);
+        let config = PlantConfig {
+            calibration: Some(crate::config::CalibrationNote {
+                record: record.to_string(),
+                ts_s: Some(ts_s),
+                fit_estimation_percent: fit(&self.estimation),
+                fit_validation_percent: fit(&self.validation),
+                warnings: self.warnings.iter().map(ToString::to_string).collect(),
+            }),
+            ..self.config.clone()
+        };
+        format!(
+            "# Digital twin calibrated by `ipa-sysid calibrate` on {record} (Ts = {ts_s} s).\n{}",
+            config.to_commented_toml()
+        )
+    }
 }
 
 /// Simulates `cfg` on samples start..end of `rec` from the measured state at `start` (at rest at

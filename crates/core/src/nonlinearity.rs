@@ -445,7 +445,9 @@ impl StaticNonlinearity {
         let slopes = |out: &mut Vec<String>, m_l: f64, m_r: f64| {
             if m_l == 0.0 || m_r == 0.0 {
                 out.push(format!(
-                    "a slope is zero (m_l = {m_l}, m_r = {m_r}), so it does not respond beyond that breakpoint"
+                    "a slope is zero (m_l = {m_l}, m_r = {m_r}), so it does not respond beyond that breakpoint \
+                     (the model of a one-sided input, whose unexcited branch identify fixes at 0, is such a \
+                     map: commands on that side do nothing in it)"
                 ));
             } else if m_l * m_r < 0.0 {
                 out.push(format!(

@@ -595,7 +595,13 @@ impl Block for DeadzoneBlock {
         std: &[Option<f64>],
     ) -> (Vec<Warning>, Vec<ParamName>) {
         let (left, right) = (start.free_physical[2], start.free_physical[3]);
-        deadzone_warnings(&dz(f), u, (left, right), (std[0], std[1]))
+        deadzone_warnings(
+            &dz(f),
+            u,
+            (left, right),
+            (start.free_physical[0], start.free_physical[1]),
+            (std[0], std[1]),
+        )
     }
 }
 
@@ -1020,7 +1026,13 @@ impl Block for DeadzoneSaturationBlock {
             m_l: d.m_l,
             m_r: d.m_r,
         };
-        let (mut w, mut no_std) = deadzone_warnings(&as_dz, u, (left, right), (std[0], std[1]));
+        let (mut w, mut no_std) = deadzone_warnings(
+            &as_dz,
+            u,
+            (left, right),
+            (start.free_physical[0], start.free_physical[1]),
+            (std[0], std[1]),
+        );
         let levels = levels_of(u);
         let sides = [
             (
@@ -1722,12 +1734,15 @@ impl Branches {
 /// Checks a deadzone estimate against the input it was estimated from: a physical shape, breakpoints
 /// bracketed by the data and not on an input level (nor within their standard deviation `std_l`,
 /// `std_r` of one), at least two distinct levels on each estimated branch. `left`/`right`: whether that
-/// branch was estimated (not dropped for a one-sided input). Returns the warnings and the names of the
-/// breakpoints whose standard deviation is not meaningful.
+/// branch was estimated (not dropped for a one-sided input); `free_l`/`free_r`: whether its breakpoint
+/// was (a one-sided input whose every sample lies on one branch has that breakpoint fixed at 0: the
+/// offset absorbs it, and no check blames the data for it; audit s16 L4). Returns the warnings and the
+/// names of the breakpoints whose standard deviation is not meaningful.
 pub fn deadzone_warnings(
     d: &Deadzone,
     u: &[f64],
     (left, right): (bool, bool),
+    (free_l, free_r): (bool, bool),
     (std_l, std_r): (Option<f64>, Option<f64>),
 ) -> (Vec<Warning>, Vec<ParamName>) {
     let mut w = Vec::new();
@@ -1757,14 +1772,16 @@ pub fn deadzone_warnings(
         });
     }
     let checks = [
-        (left, ParamName::BL, d.b_l, std_l, Branch::Left),
-        (right, ParamName::BR, d.b_r, std_r, Branch::Right),
+        (left, free_l, ParamName::BL, d.b_l, std_l, Branch::Left),
+        (right, free_r, ParamName::BR, d.b_r, std_r, Branch::Right),
     ];
-    for (estimated, name, b, std, branch) in checks {
+    for (estimated, free, name, b, std, branch) in checks {
         if !estimated {
             continue;
         }
-        check_breakpoint(name, b, std, &levels, &mut w, &mut no_std);
+        if free {
+            check_breakpoint(name, b, std, &levels, &mut w, &mut no_std);
+        }
         let beyond = levels
             .iter()
             .filter(|l| match branch {
@@ -2055,7 +2072,7 @@ mod tests {
                 m_l: 1.0,
                 m_r: 1.0,
             };
-            deadzone_warnings(&d, &u, (true, true), (None, None))
+            deadzone_warnings(&d, &u, (true, true), (true, true), (None, None))
                 .0
                 .iter()
                 .any(|w| matches!(w, Warning::InputSwallowed { .. }))
@@ -2073,7 +2090,7 @@ mod tests {
             m_l: 0.005,
             m_r: 0.005,
         };
-        let (w, no_std) = deadzone_warnings(&dz, d.u(), (true, true), (None, None));
+        let (w, no_std) = deadzone_warnings(&dz, d.u(), (true, true), (true, true), (None, None));
         assert_eq!(no_std, vec![ParamName::BL]);
         assert!(matches!(
             w[..],
@@ -2086,7 +2103,13 @@ mod tests {
             b_l: -47.99996,
             ..dz
         };
-        let (w, _) = deadzone_warnings(&near, d.u(), (true, true), (Some(0.5), Some(0.1)));
+        let (w, _) = deadzone_warnings(
+            &near,
+            d.u(),
+            (true, true),
+            (true, true),
+            (Some(0.5), Some(0.1)),
+        );
         assert!(
             matches!(w[..], [Warning::BreakpointOnInputLevel { .. }]),
             "{w:?}"
@@ -2102,14 +2125,26 @@ mod tests {
         );
         assert!(!text.contains("lies on"), "{text}");
         let far = Deadzone { b_l: -47.78, ..dz };
-        let (w, _) = deadzone_warnings(&far, d.u(), (true, true), (Some(0.3), Some(0.1)));
+        let (w, _) = deadzone_warnings(
+            &far,
+            d.u(),
+            (true, true),
+            (true, true),
+            (Some(0.3), Some(0.1)),
+        );
         let text = w[0].to_string();
         assert!(
             text.contains("b_l = -47.780000 is 0.220 from the input level -48, less than its standard deviation 0.300"),
             "{text}"
         );
         let apart = Deadzone { b_l: -47.6, ..dz };
-        let (w, no_std) = deadzone_warnings(&apart, d.u(), (true, true), (Some(0.1), Some(0.1)));
+        let (w, no_std) = deadzone_warnings(
+            &apart,
+            d.u(),
+            (true, true),
+            (true, true),
+            (Some(0.1), Some(0.1)),
+        );
         assert!(w.is_empty() && no_std.is_empty(), "{w:?}");
     }
 
@@ -2123,7 +2158,7 @@ mod tests {
             m_l: 1.0,
             m_r: 1.0,
         };
-        let (w, no_std) = deadzone_warnings(&dz, d.u(), (true, true), (None, None));
+        let (w, no_std) = deadzone_warnings(&dz, d.u(), (true, true), (true, true), (None, None));
         assert_eq!(no_std, vec![ParamName::BR]);
         assert!(w.contains(&Warning::BreakpointNotBracketed {
             name: ParamName::BR,
@@ -2184,7 +2219,7 @@ mod tests {
             m_l: -1.0,
             m_r: 1.0,
         };
-        let (w, _) = deadzone_warnings(&dz, d.u(), (true, true), (None, None));
+        let (w, _) = deadzone_warnings(&dz, d.u(), (true, true), (true, true), (None, None));
         let n = w
             .iter()
             .filter(|w| matches!(w, Warning::NonPhysicalDeadzone { .. }))
@@ -2202,7 +2237,7 @@ mod tests {
             m_l: 0.0,
             m_r: 1.0,
         };
-        let (w, _) = deadzone_warnings(&dz, d.u(), (false, true), (None, None));
+        let (w, _) = deadzone_warnings(&dz, d.u(), (false, true), (false, true), (None, None));
         assert!(w.is_empty(), "{w:?}");
     }
 }

@@ -458,8 +458,10 @@ def _check_whole_actuators(results, files):
 def _duplicated_windows(results):
     """The actuators (sorted) with a duplicated ``(actuator_id, window)`` row in ``results``: the one
     check of ``run`` (an actuator split across files) and ``trends`` (results appended twice, an
-    actuator split across Spark batches), where each copy would count as another window of evidence."""
-    dup = results.duplicated(["actuator_id", "window"], keep=False)
+    actuator split across Spark batches), where each copy would count as another window of evidence.
+    A frame made without the ``window`` column is checked on ``(actuator_id, t_start)``."""
+    key = "window" if "window" in results.columns else "t_start"
+    dup = results.duplicated(["actuator_id", key], keep=False)
     return sorted(set(results.loc[dup, "actuator_id"].tolist()), key=str) if dup.any() else []
 
 

@@ -1137,3 +1137,59 @@ pub fn sample_times(n: usize, ts: f64) -> Vec<f64> {
         })
         .collect()
 }
+
+#[cfg(test)]
+mod tests {
+    use super::{ts_contradicts, uniform_time, TimeFault};
+
+    /// t(k) = k · 0.01 s for k = 0 .. n − 1.
+    fn grid(n: usize) -> Vec<f64> {
+        (0..n).map(|k| k as f64 * 0.01).collect()
+    }
+
+    #[test]
+    fn a_uniform_grid_gives_its_step_as_ts() {
+        // (t_last − t_0) / (N − 1) = 0.99 / 99 = 0.01, rounded to 12 digits.
+        assert_eq!(uniform_time(&grid(100)), Ok(0.01));
+    }
+
+    #[test]
+    fn one_dropped_sample_is_a_step_twice_the_median_at_that_sample() {
+        let mut t = grid(100);
+        t.remove(40);
+        match uniform_time(&t) {
+            Err(TimeFault::NonUniform { k, step, median }) => {
+                assert_eq!(k, 40);
+                assert!((step - 0.02).abs() < 1e-12 && (median - 0.01).abs() < 1e-12);
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn a_repeated_time_does_not_increase_and_a_nan_is_not_finite() {
+        let mut t = grid(10);
+        t.insert(3, t[3]);
+        assert_eq!(
+            uniform_time(&t).map_err(|f| f.sample()),
+            Err(Some(4)),
+            "t(4) = t(3)"
+        );
+        let mut t = grid(10);
+        t[7] = f64::NAN;
+        assert!(matches!(
+            uniform_time(&t),
+            Err(TimeFault::NotFinite { k: 7, .. })
+        ));
+        assert_eq!(uniform_time(&[0.0]), Err(TimeFault::TooShort));
+    }
+
+    #[test]
+    fn a_ts_off_by_more_than_a_thousandth_of_the_step_contradicts_it() {
+        let t = grid(50);
+        assert_eq!(ts_contradicts(&t, 0.01), None);
+        assert_eq!(ts_contradicts(&t, 0.010005), None); // 0.05 % off
+        let step = ts_contradicts(&t, 0.02).expect("twice the step");
+        assert!((step - 0.01).abs() < 1e-12);
+    }
+}

@@ -54,6 +54,9 @@ class Model:
     @property
     def parameter_count(self) -> int:
         """p: number of estimated parameters."""
+    @property
+    def data_range(self) -> dict[str, Any] | None:
+        """{"u": [[min, max] per input], "y": [min, max]} of the estimation data, or None (read-only)."""
     def simulate(self, u: ArrayLike, y0: ArrayLike | float | None = None) -> FloatArray:
         """Free-run simulation of len(u) samples; the first k0 outputs from y0 (an output record, or one
         number: at rest there), zeros with an IpaSysidWarning when None."""
@@ -279,3 +282,7 @@ def fleet_windows(
     detect_calibration: int = 800,
 ) -> dict[str, Any]:
     """Every window of a partition identified (LS) and tracked: the columns `ipa_sysid.fleet.identify_partition` builds its frame from."""
+
+def fleet_times(t: ArrayLike, offsets: list[int], ts: float) -> list[tuple[str, str]]:
+    """Per actuator (rows offsets[g] .. offsets[g + 1] of t, sorted by time): (error, note), each "" or the
+    time column's fault (NaN, not increasing, non-uniform) and a ts contradicting its typical step."""

@@ -111,7 +111,12 @@ def identify_partition(
     Each actuator's rows are sorted by ``t`` and cut into consecutive windows of ``window`` samples
     (``window`` counts from 0 within the partition, so a partition must hold an actuator's whole
     record; an incomplete last window is left out). Ts is the setting ``ts`` (s): ``t`` orders the
-    samples and dates the windows. Every window is identified by least squares (Hammerstein, ``na``,
+    samples and dates the windows, and is checked first, per actuator, as the command line's reader
+    checks a time column: an actuator whose ``t`` has a NaN, a time that does not increase (duplicated
+    rows) or a step that differs from its typical step by more than 0.1 % (a gap) is one error row
+    (``window`` 0, ``samples`` its count, the fault and where in ``error``), not identified across it;
+    an actuator whose typical step contradicts ``ts`` by more than 0.1 % is identified with ``ts``, and
+    each of its windows' ``warnings`` says so. Both are also said by an ``IpaSysidWarning``. Every window is identified by least squares (Hammerstein, ``na``,
     ``nb``, ``nk``; as ``identify --method ls``) and run through the online tracker (``track``'s
     defaults, detector warm-up ``detect_warmup`` and calibration ``detect_calibration`` samples, so
     that it monitors within a window). Columns: ``actuator_id, window, t_start, t_end, samples``, each
@@ -153,10 +158,21 @@ def identify_partition(
     df = partition if _in_order(partition) else partition.sort_values(
         ["actuator_id", "t"], kind="stable"
     )
-    ids = df["actuator_id"].to_numpy()
-    t = df["t"].to_numpy(dtype=np.float64)
-    change = np.flatnonzero(ids[1:] != ids[:-1]) + 1
-    offsets = np.concatenate(([0], change, [len(ids)])).tolist()
+    ids, t, offsets = _groups(df)
+    # Each actuator's time column checked as the command line's reader checks one (the core's
+    # `uniform_time` and `ts_contradicts`, audit s16 H1): an actuator whose t has a NaN, a repeated or
+    # decreasing time, or a gap is an error row, not windows identified across it; a ts that
+    # contradicts the column is said in its windows' warnings.
+    times = _core.fleet_times(t, offsets, ts)
+    faulty = [(ids[o], o, n, e) for o, n, (e, _) in zip(offsets[:-1], np.diff(offsets), times) if e]
+    notes = {ids[o]: note for o, (_, note) in zip(offsets[:-1], times) if note}
+    faulty_rows = [
+        (aid, n, t[o], t[o + n - 1], e) for aid, o, n, e in faulty
+    ]
+    if faulty:
+        keep = np.repeat([not e for e, _ in times], np.diff(offsets))
+        df = df[keep]
+        ids, t, offsets = _groups(df)
     r = _core.fleet_windows(
         df["u"].to_numpy(dtype=np.float64),
         df["y"].to_numpy(dtype=np.float64),
@@ -208,33 +224,80 @@ def identify_partition(
     )
     out["error"] = r["error"]
     frame = pd.DataFrame(out, columns=cols)
+    if notes:
+        said = frame["actuator_id"].map(notes).fillna("")
+        frame["warnings"] = [
+            (w + "\n" + n if w else n) if n else w for w, n in zip(frame["warnings"], said)
+        ]
+        _warn(
+            f"{len(notes)} actuator(s) have a time column whose typical step contradicts ts = {ts} s: "
+            f"{_ids(notes)}; ts is used (each window's warnings say by how much)"
+        )
     short = [(o, n) for o, n in zip(offsets[:-1], lengths) if n < window]
     if short:
         # An actuator shorter than one window is an error row, not a silent absence from the fleet.
-        rows = pd.DataFrame(
-            {
-                "actuator_id": [ids[o] for o, _ in short],
-                "window": 0,
-                "t_start": [t[o] for o, _ in short],
-                "t_end": [t[o + n - 1] for o, n in short],
-                "samples": [n for _, n in short],
-                "stable": False,
-                "warnings": "",
-                "changes": 0,
-                "error": [
+        frame = _with_error_rows(
+            frame,
+            cols,
+            [
+                (
+                    ids[o],
+                    n,
+                    t[o],
+                    t[o + n - 1],
                     f"the actuator has {n} samples, fewer than one window (window = {window}): "
-                    "not identified"
-                    for _, n in short
-                ],
-            },
-            columns=cols,
+                    "not identified",
+                )
+                for o, n in short
+            ],
         )
-        frame = pd.concat([frame, rows], ignore_index=True) if len(frame) else rows
         _warn(
             f"{len(short)} actuator(s) have fewer samples than one window (window = {window}): "
             f"{_ids(ids[o] for o, _ in short)}; each is an error row, not identified"
         )
+    if faulty_rows:
+        frame = _with_error_rows(frame, cols, faulty_rows)
+        _warn(
+            f"{len(faulty_rows)} actuator(s) have a time column that cannot date a uniformly sampled "
+            f"record (a NaN time, repeated or decreasing times, a gap): {_ids(r[0] for r in faulty_rows)}; "
+            f"each is an error row, not identified (its error says where): first, {faulty_rows[0][0]}: "
+            f"{faulty_rows[0][4]}"
+        )
     return _typed(frame)
+
+
+def _groups(df):
+    """The actuator ids, the time column and the row offsets of each actuator's rows (``df`` sorted by
+    actuator)."""
+    ids = df["actuator_id"].to_numpy()
+    t = df["t"].to_numpy(dtype=np.float64)
+    if len(ids) == 0:
+        return ids, t, [0]
+    change = np.flatnonzero(ids[1:] != ids[:-1]) + 1
+    offsets = np.concatenate(([0], change, [len(ids)])).astype(np.int64).tolist()
+    return ids, t, offsets
+
+
+def _with_error_rows(frame, cols, rows):
+    """``frame`` with one error row (window 0, NaN parameters) per ``(actuator_id, samples, t_start,
+    t_end, error)`` of ``rows``: an actuator not identified is a row that says why, not a silent absence
+    from the fleet."""
+    pd = _pandas()
+    extra = pd.DataFrame(
+        {
+            "actuator_id": [r[0] for r in rows],
+            "window": 0,
+            "t_start": [r[2] for r in rows],
+            "t_end": [r[3] for r in rows],
+            "samples": [r[1] for r in rows],
+            "stable": False,
+            "warnings": "",
+            "changes": 0,
+            "error": [r[4] for r in rows],
+        },
+        columns=cols,
+    )
+    return pd.concat([frame, extra], ignore_index=True) if len(frame) else extra
 
 
 def _in_order(df):
@@ -299,6 +362,8 @@ def run(input_dir, output_dir, client=None, **settings):
     pd = _pandas()
     # One partition per file (never a file split by row groups: an actuator's record stays whole).
     files = _parquet_files(input_dir)
+    target = os.path.join(os.fspath(output_dir), "results.parquet")
+    _check_output(input_dir, output_dir, target, files)
     _check_schemas(files)
     ddf = dd.read_parquet(files, columns=list(INPUT_COLUMNS), split_row_groups=False)
     meta = identify_partition(
@@ -312,9 +377,29 @@ def run(input_dir, output_dir, client=None, **settings):
     _check_whole_actuators(results, files)
     results = results.sort_values(["actuator_id", "window"], kind="stable").reset_index(drop=True)
     os.makedirs(output_dir, exist_ok=True)
-    target = os.path.join(os.fspath(output_dir), "results.parquet")
     _write_atomic(target, lambda tmp: results.to_parquet(tmp, index=False))
     return results
+
+
+def _check_output(input_dir, output_dir, target, files):
+    """Refuses an ``output_dir`` that is ``input_dir`` or inside it, or a ``target`` that is one of the
+    input ``files`` (symbolic links resolved): the results would replace an input record, and every later
+    run would read them back as a partition (audit s16 M3; the command line never writes over an
+    input file)."""
+    inp = os.path.realpath(os.fspath(input_dir))
+    out = os.path.realpath(os.fspath(output_dir))
+    if os.path.realpath(target) in {os.path.realpath(f) for f in files}:
+        raise ValueError(
+            f"output_dir {output_dir}: its results.parquet would replace the input file {target}; "
+            "write the results to a folder outside input_dir"
+        )
+    if os.path.commonpath([inp, out]) == inp:
+        where = "is" if out == inp else "is inside"
+        raise ValueError(
+            f"output_dir {output_dir} {where} input_dir {input_dir}: results.parquet would be read "
+            "back as an input partition by every later run (and could replace an input file); write "
+            "the results to a folder outside input_dir"
+        )
 
 
 def _check_schemas(files):
@@ -352,11 +437,10 @@ def _check_whole_actuators(results, files):
     """Raises when an actuator's rows span several files: each file is a partition whose windows are
     counted from 0, so such an actuator has its windows cut at the file boundary and numbered twice
     (duplicated ``(actuator_id, window)``). Names the actuators and the files that hold them."""
-    dup = results.duplicated(["actuator_id", "window"], keep=False)
-    if not dup.any():
+    split = _duplicated_windows(results)
+    if not split:
         return
     pd = _pandas()
-    split = sorted(set(results.loc[dup, "actuator_id"].tolist()), key=str)
     holders = {}
     for f in files:  # the error path only: read the id column of each file
         for aid in set(pd.read_parquet(f, columns=["actuator_id"])["actuator_id"]) & set(split):
@@ -369,6 +453,27 @@ def _check_whole_actuators(results, files):
         "that each actuator's rows are in one file, e.g. with Dask: dd.read_parquet(input_dir)"
         ".shuffle('actuator_id').to_parquet(new_dir) (docs/fleet.md), then run on new_dir"
     )
+
+
+def _duplicated_windows(results):
+    """The actuators (sorted) with a duplicated ``(actuator_id, window)`` row in ``results``: the one
+    check of ``run`` (an actuator split across files) and ``trends`` (results appended twice, an
+    actuator split across Spark batches), where each copy would count as another window of evidence.
+    A frame made without the ``window`` column is checked on ``(actuator_id, t_start)``."""
+    key = "window" if "window" in results.columns else "t_start"
+    dup = results.duplicated(["actuator_id", key], keep=False)
+    return sorted(set(results.loc[dup, "actuator_id"].tolist()), key=str) if dup.any() else []
+
+
+def _check_alpha(alpha):
+    """Refuses a false-flag level ``alpha`` that is not a number in (0, 1) (NaN flags nothing, 2.0 flags
+    actuators whose trends are noise; audit s16 H3)."""
+    ok = isinstance(alpha, numbers.Real) and not isinstance(alpha, bool) and 0.0 < alpha < 1.0
+    if not ok:
+        raise ValueError(
+            f"invalid setting alpha = {alpha!r}: expected a family-wise false-flag level in (0, 1), "
+            f"e.g. {ALPHA}"
+        )
 
 
 def _write_atomic(path, write):
@@ -471,9 +576,22 @@ def trends(results, alpha=ALPHA):
     slope_mean, slope_trend_per_h, slope_trend_sd, slope_t, p_width, p_slope, p_value, tested,
     threshold, worn``; sorted by p_value. ``tested`` is False (and ``worn`` ``<NA>``, pandas' nullable
     boolean: no verdict) for an actuator with fewer than 3 identified windows, or windows without spread;
-    a warning (``IpaSysidWarning``) names them.
+    a warning (``IpaSysidWarning``) names them. Refused (``ValueError``): ``results`` with a duplicated
+    ``(actuator_id, window)`` row (as ``run`` refuses them: each copy would count as one more window of
+    evidence), and ``alpha`` not a number in (0, 1).
     """
     pd = _pandas()
+    _check_alpha(alpha)
+    split = _duplicated_windows(results)
+    if split:
+        raise ValueError(
+            f"results: {len(split)} actuator(s) have duplicated (actuator_id, window) rows: "
+            f"{_ids(split)}; each copy would count as one more window of evidence and make a healthy "
+            "actuator look worn. Results appended twice: drop the copies (results.drop_duplicates("
+            "['actuator_id', 'window'])); an actuator split across partitions or Spark batches (each "
+            "piece numbered from window 0): identify each actuator's rows in one partition "
+            "(docs/fleet.md)"
+        )
     ok = results[(results["error"].fillna("") == "")]
     rows = []
     for aid, g in ok.groupby("actuator_id", sort=True):
@@ -594,7 +712,13 @@ def glance_svg(trend_table, width=640, height=420):
 def report(results, path, alpha=ALPHA):
     """Writes the worn-valve report to ``path`` (HTML, written atomically): the fleet at a glance
     (``glance_svg``) and the table of flagged actuators (``worn``), with the test and its threshold in
-    words. Returns the table of flagged actuators."""
+    words. Returns the table of flagged actuators. ``path`` is the file to write, not a folder
+    (``ValueError``)."""
+    if os.path.isdir(os.fspath(path)):
+        raise ValueError(
+            f"path {path}: is a folder; expected the HTML file to write, e.g. "
+            f"{os.path.join(os.fspath(path), 'worn.html')}"
+        )
     tr = trends(results, alpha)
     flagged = worn(results, alpha)
     head = (

@@ -200,8 +200,50 @@ fn as_float_array<'py>(
     Ok(arr.cast_into::<numpy::PyUntypedArray>()?)
 }
 
-/// A record (u, y) checked by the library (equal lengths, finite values, Ts > 0).
+/// Refuses two pandas objects (Series, DataFrame columns) `u` and `y` whose indexes differ (audit s16
+/// L7): a sample is paired with the sample at the same position, never by label, so a reordered or
+/// misaligned `y` would be identified against the wrong `u` without a word. Objects without a pandas
+/// index (arrays, lists) are paired by position as always.
+fn same_index<'py>(u: &Bound<'py, PyAny>, y: &Bound<'py, PyAny>) -> PyResult<()> {
+    let index = |o: &Bound<'py, PyAny>| -> Option<Bound<'py, PyAny>> {
+        let i = o.getattr("index").ok()?;
+        i.hasattr("equals").ok()?.then_some(i)
+    };
+    let (Some(iu), Some(iy)) = (index(u), index(y)) else {
+        return Ok(());
+    };
+    if iu.call_method1("equals", (&iy,))?.is_truthy()? {
+        return Ok(());
+    }
+    let (nu, ny) = (iu.len()?, iy.len()?);
+    let first = if nu != ny {
+        format!("u's index has {nu} labels, y's {ny}")
+    } else {
+        let mut at = String::new();
+        for k in 0..nu {
+            let (a, b) = (iu.get_item(k)?, iy.get_item(k)?);
+            if !a.eq(&b)? {
+                at = format!(
+                    "at position {k} u's index has {} where y's has {}",
+                    a.repr()?,
+                    b.repr()?
+                );
+                break;
+            }
+        }
+        at
+    };
+    Err(PyValueError::new_err(format!(
+        "u and y: pandas objects whose indexes differ ({first}); samples are paired by position, not \
+         by index label, so they would be misaligned: align them first (y = y.reindex(u.index), or \
+         pandas.concat([u, y], axis=1).dropna()) or pass u.to_numpy() and y.to_numpy()"
+    )))
+}
+
+/// A record (u, y) checked by the library (equal lengths, finite values, Ts > 0); two pandas objects
+/// must share their index ([`same_index`]), which is then dropped.
 fn dataset(u: &Bound<'_, PyAny>, y: &Bound<'_, PyAny>, ts: f64, name: &str) -> PyResult<Dataset> {
+    same_index(u, y)?;
     let u = floats(u, "u")?;
     let y = floats(y, "y")?;
     Dataset::new(Signals { u, y }, ts, name).map_err(sysid_err)
@@ -304,6 +346,15 @@ impl PyModel {
         self.inner.is_stable()
     }
 
+    /// The range of the estimation data, in the data's units: {"u": [[min, max] of each input], "y":
+    /// [min, max]}, or None for a model saved without one. Outside it the model extrapolates:
+    /// `simulate`, `predict` and `metrics` warn (an `IpaSysidWarning`) when an input leaves it by more
+    /// than a tenth of its span (the command line's rule). Read-only.
+    #[getter]
+    fn data_range<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyAny>>> {
+        self.inner.data_range().map(|r| to_py(py, r)).transpose()
+    }
+
     /// p: the number of estimated parameters (as in FPE and AIC).
     #[getter]
     fn parameter_count(&self) -> usize {
@@ -374,6 +425,7 @@ impl PyModel {
             .inner
             .simulate(&data.input_signals(), data.y())
             .map_err(sysid_err)?;
+        warn_all(py, &extrapolation_warnings(&self.inner, data.u(), &out))?;
         Ok(out.into_pyarray(py))
     }
 
@@ -396,6 +448,7 @@ impl PyModel {
             .inner
             .predict_k(&[data.u()], data.y(), horizon)
             .map_err(sysid_err)?;
+        warn_all(py, &extrapolation_warnings(&self.inner, data.u(), &out))?;
         Ok(out.into_pyarray(py))
     }
 
@@ -499,6 +552,16 @@ impl PyModel {
 }
 
 /// The poles of a model as a complex array, in the order of the `identify --json` `poles`.
+/// What `simulate --plant model:` warns of after a run (audit s16 M5): the input `u` or the
+/// simulated / predicted output `y` beyond the model's estimation data by more than a tenth of its
+/// span (`sysid_summary::input_outside_data`, `output_outside_data`).
+fn extrapolation_warnings(model: &Model, u: &[f64], y: &[f64]) -> Vec<String> {
+    sysid_summary::input_outside_data(model, u)
+        .into_iter()
+        .chain(sysid_summary::output_outside_data(model, y))
+        .collect()
+}
+
 fn poles_array<'py>(py: Python<'py>, m: &Model) -> Bound<'py, PyArray1<Complex64>> {
     let p: Vec<Complex64> = m
         .poles()
@@ -861,12 +924,13 @@ fn identify<'py>(
         let val = validation
             .map(|(uv, yv)| dataset(&uv, &yv, ts, validation_name))
             .transpose()?;
-        let report = py
+        let mut report = py
             .detach(|| -> Result<sysid_summary::narx::NarxReport, SysidError> {
                 let fit = sysid::narx::identify_narx(&data, &settings)?;
                 sysid_summary::narx::NarxReport::assemble(fit, &settings, &data, val.as_ref())
             })
             .map_err(sysid_err)?;
+        report.warnings.extend(in_sample(&data, val.as_ref()));
         let json = serde_json::to_string_pretty(&report)
             .map_err(|e| PyValueError::new_err(e.to_string()))?
             + "\n";
@@ -945,7 +1009,7 @@ fn identify<'py>(
     let val = validation
         .map(|(uv, yv)| dataset(&uv, &yv, ts, validation_name))
         .transpose()?;
-    let report = py
+    let mut report = py
         .detach(|| -> Result<IdentifyReport, SysidError> {
             let fit = sysid::identify(&data, &settings)?;
             IdentifyReport::assemble(
@@ -957,8 +1021,15 @@ fn identify<'py>(
             )
         })
         .map_err(sysid_err)?;
+    report.warnings.extend(in_sample(&data, val.as_ref()));
     let json = report.to_json().map_err(sysid_err)?;
     Ok(Bound::new(py, PyFit { report, json })?.into_any())
+}
+
+/// The command line's warning (`identify --validation` of the estimation data, audit s16 M12) when
+/// the validation record holds exactly the estimation record's samples: its fit is in-sample.
+fn in_sample(data: &Dataset, val: Option<&Dataset>) -> Option<String> {
+    val.and_then(|v| sysid_summary::same_samples_warning("validation", v, data))
 }
 
 /// The result of `identify(..., structure="narx")`: a polynomial NARX model, its terms and metrics
@@ -1165,6 +1236,73 @@ fn fleet_windows<'py>(
     out.set_item("change_points", changes)?;
     out.set_item("error", errors)?;
     Ok(out)
+}
+
+/// The time column of each actuator of a fleet partition checked as the command line's reader checks
+/// one (`sysid_core::data::uniform_time`, `ts_contradicts`; audit s16 H1): `t` (s) holds the actuators
+/// one after the other, actuator g in rows offsets[g] .. offsets[g + 1], each sorted by time. Returns
+/// one (error, note) pair of strings per actuator: error "" or why its time column cannot date a
+/// uniformly sampled record (a NaN time, a time that does not increase — duplicated rows —, a gap or
+/// other non-uniform step; the sample and its time named), note "" or why `ts` contradicts the column's
+/// typical step. An actuator of one sample has neither (it is too short for a window anyway).
+#[pyfunction]
+fn fleet_times(
+    t: &Bound<'_, PyAny>,
+    offsets: Vec<usize>,
+    ts: f64,
+) -> PyResult<Vec<(String, String)>> {
+    let t = floats(t, "t")?;
+    if offsets.first() != Some(&0)
+        || offsets.last() != Some(&t.len())
+        || offsets.windows(2).any(|w| w[1] < w[0])
+    {
+        return Err(PyValueError::new_err(format!(
+            "offsets: expected non-decreasing row offsets from 0 to {} (the number of samples)",
+            t.len()
+        )));
+    }
+    sysid_core::data::check_ts(ts).map_err(sysid_err)?;
+    use sysid_core::data::TimeFault;
+    Ok(offsets
+        .windows(2)
+        .map(|w| {
+            let t = &t[w[0]..w[1]];
+            let error = match sysid_core::data::uniform_time(t) {
+                Ok(_) | Err(TimeFault::TooShort) => String::new(),
+                Err(fault) => {
+                    let at = fault
+                        .sample()
+                        .map(|k| format!(" (sample {k} of the actuator's rows sorted by t)"))
+                        .unwrap_or_default();
+                    let advice = match fault {
+                        TimeFault::NotFinite { .. } => "drop or fill the rows without a time",
+                        TimeFault::NotIncreasing { .. } => {
+                            "drop the duplicated rows (a record appended twice, a logger that \
+                             repeated samples)"
+                        }
+                        _ => "resample the actuator's record onto a uniform grid of ts, or split it at \
+                              the gap",
+                    };
+                    format!("time column t: {fault}{at}; not identified: {advice}")
+                }
+            };
+            let note = sysid_core::data::ts_contradicts(t, ts)
+                .filter(|_| error.is_empty())
+                .map(|step| {
+                    format!(
+                        "ts = {} s contradicts the time column t (its typical step is {} s): ts is \
+                         used, so every time figure (Ts, time constants) is {} times what the column \
+                         says; pass ts = {} to use the column",
+                        sysid_core::format::sig(ts, 6),
+                        sysid_core::format::sig(step, 6),
+                        sysid_core::format::sig(ts / step, 6),
+                        sysid_core::format::sig(step, 6)
+                    )
+                })
+                .unwrap_or_default();
+            (error, note)
+        })
+        .collect())
 }
 
 // ---------------------------------------------------------------------------------------------------
@@ -1875,6 +2013,7 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(control_loop, m)?)?;
     m.add_function(wrap_pyfunction!(tune, m)?)?;
     m.add_function(wrap_pyfunction!(fleet_windows, m)?)?;
+    m.add_function(wrap_pyfunction!(fleet_times, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -360,3 +360,85 @@ def test_run_names_a_damaged_or_mismatched_file(fleet_dir, tmp_path):
     with pytest.raises(ValueError, match=r"b\.parquet: column actuator_id is .* where .*a\.parquet has"):
         fleet.run(mixed, out)
     assert not (out / "results.parquet").exists()
+
+
+# --- audit s16: the time column, duplicated results, alpha, outputs ---------------------------------
+
+
+def test_a_gap_a_nan_time_or_repeated_rows_make_an_error_row_and_the_others_go_on(fleet_dir):
+    # The reference actuator a is uniformly sampled (t = 0, 0.01, ...). Each faulty copy gets its own
+    # id: a gap (one row dropped: step 0.02 s at sample 2500), a NaN time (sorted last: sample n - 1),
+    # every row twice (t repeats at sample 1) and a constant time; each is one error row naming the
+    # fault and the sample, and a is identified as when it is alone (audit s16 H1).
+    a, aid = _one_actuator(fleet_dir)
+    n = len(a)
+    step = a["t"].iloc[1] - a["t"].iloc[0]
+    gap = a.drop(index=2500).assign(actuator_id=-1)
+    nan = a.copy().assign(actuator_id=-2)
+    nan.loc[5, "t"] = np.nan
+    twice = pd.concat([a, a]).assign(actuator_id=-3)
+    const = a.assign(actuator_id=-4, t=0.0)
+    alone = fleet.identify_partition(a)
+    with pytest.warns(ipa_sysid.IpaSysidWarning) as caught:
+        res = fleet.identify_partition(pd.concat([gap, a, nan, twice, const], ignore_index=True))
+    said = " | ".join(str(w.message) for w in caught)
+    assert "4 actuator(s) have a time column that cannot date" in said and "-4, -3, -2, -1" in said, said
+    ok = res[res["actuator_id"] == aid].reset_index(drop=True)
+    pd.testing.assert_frame_equal(ok, alone)
+    err = res[res["actuator_id"] < 0].set_index("actuator_id")
+    assert (err["window"] == 0).all() and err["b_l"].isna().all()
+    assert list(err.loc[[-1, -2, -3, -4], "samples"]) == [n - 1, n, 2 * n, n]
+    assert f"non-uniform sampling: step {2 * step:g} s" in err.loc[-1, "error"]
+    assert "(sample 2500 of the actuator's rows sorted by t)" in err.loc[-1, "error"]
+    assert "time nan is not a finite number" in err.loc[-2, "error"].lower()
+    assert f"(sample {n - 1} " in err.loc[-2, "error"]
+    assert "does not increase" in err.loc[-3, "error"] and "(sample 1 " in err.loc[-3, "error"]
+    assert "time 0 s does not increase after 0 s" in err.loc[-4, "error"]
+
+
+def test_a_ts_that_contradicts_the_time_column_is_said_in_each_window(fleet_dir):
+    # t doubled (steps of 0.02 s) with ts = 0.01: identified with ts (the same numbers as before: ts sets
+    # the time figures, the samples are the same), each window's warnings say so, and so does a warning.
+    a, aid = _one_actuator(fleet_dir)
+    a = a.iloc[: 3 * 2000]
+    ref = fleet.identify_partition(a)
+    with pytest.warns(ipa_sysid.IpaSysidWarning, match=rf"contradicts ts = 0.01 s: {aid};"):
+        res = fleet.identify_partition(a.assign(t=2.0 * a["t"]))
+    for col in ("b_l", "b_r", "m_l", "m_r", "a1", "fit_sim_percent"):
+        assert np.array_equal(res[col].to_numpy(), ref[col].to_numpy()), col
+    note = "ts = 0.01 s contradicts the time column t (its typical step is 0.02 s)"
+    assert all(note in w for w in res["warnings"]), res["warnings"].tolist()
+    assert not any("contradicts" in w for w in ref["warnings"])
+
+
+def test_trends_refuse_duplicated_windows_and_an_alpha_outside_0_1(results, tmp_path):
+    # Results appended twice made a healthy actuator "worn" (p from 0.33 to 7.7e-4; audit s16 H3).
+    with pytest.raises(ValueError, match=rf"{ACTUATORS} actuator\(s\) have duplicated \(actuator_id, window\) rows"):
+        fleet.trends(pd.concat([results, results]))
+    with pytest.raises(ValueError, match="duplicated"):
+        fleet.worn(pd.concat([results, results.iloc[:1]]))
+    for alpha in (2.0, float("nan"), 0.0, 1.0, -0.1, True, "0.01"):
+        with pytest.raises(ValueError, match=r"invalid setting alpha = .*: expected .* in \(0, 1\)"):
+            fleet.trends(results, alpha=alpha)
+    with pytest.raises(ValueError, match=r"is a folder; expected the HTML file"):
+        fleet.report(results, tmp_path)
+    assert os.listdir(tmp_path) == []
+
+
+def test_run_refuses_an_output_in_the_input_folder(fleet_dir, tmp_path):
+    # An input partition named results.parquet was replaced by the results, and an output folder inside
+    # the input folder was read back as a partition by the next run (audit s16 M3): both refused before
+    # anything is computed or written.
+    part = pd.read_parquet(sorted(fleet_dir.glob("*.parquet"))[0])
+    d = tmp_path / "in"
+    d.mkdir()
+    part.to_parquet(d / "results.parquet", index=False)
+    before = (d / "results.parquet").read_bytes()
+    with pytest.raises(ValueError, match="would replace the input file"):
+        fleet.run(d, d)
+    with pytest.raises(ValueError, match=r"is inside input_dir"):
+        fleet.run(d, d / "out")
+    with pytest.raises(ValueError, match="would replace the input file"):
+        fleet.run(d, tmp_path / "." / "in")
+    assert (d / "results.parquet").read_bytes() == before
+    assert sorted(os.listdir(d)) == ["results.parquet"]

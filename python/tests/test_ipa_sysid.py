@@ -818,3 +818,91 @@ def test_control_warnings_speak_pythons_words_and_a_models_units():
     said = " ".join(r["warnings"])
     assert "still creeps" in said and "(run longer: duration=)" in said, said
     assert "(y's units)" in said and " mm" not in said and "--duration" not in said, said
+
+
+# --- audit s16: extrapolation, in-sample validation, pandas indexes ---------------------------------
+
+
+def test_model_exposes_its_data_range_and_simulate_predict_warn_beyond_it(records):
+    # The data range is the [min, max] of the estimation record's u and y (computed here with numpy);
+    # an input three times as wide leaves it by far more than a tenth of its span (the command line's
+    # rule): simulate and predict warn, as `simulate --plant model:` does (audit s16 M5).
+    est, _ = records
+    e = read_csv(est)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ipa_sysid.IpaSysidWarning)
+        m = ipa_sysid.identify(e["u"], e["y"], 0.01, model="arx", method="ls").model
+    r = m.data_range
+    assert r == {"u": [[e["u"].min(), e["u"].max()]], "y": [e["y"].min(), e["y"].max()]}
+    with pytest.raises(AttributeError):
+        m.data_range = None  # read-only
+    wide = 3.0 * e["u"]
+    lo, hi = 3.0 * e["u"].min(), 3.0 * e["u"].max()
+    for run in (lambda: m.simulate(wide, y0=e["y"]), lambda: m.predict(wide, e["y"], horizon=10)):
+        with pytest.warns(ipa_sysid.IpaSysidWarning) as caught:
+            run()
+        said = [str(w.message) for w in caught]
+        assert any(f"the input spans [{lo:g}, {hi:g}]" in s and "extrapolates" in s for s in said), said
+    # Within the data: no word about the input. (This ARX model of the IPA has a pole on the unit
+    # circle, so its free-run simulation drifts out of y's range and is rightly said to; its one-step
+    # prediction follows the measured y and stays in.)
+    for run in (lambda: m.simulate(e["u"], y0=e["y"]), lambda: m.predict(e["u"], e["y"])):
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            yhat = run()
+        said = [str(w.message) for w in caught]
+        assert not any("the input spans" in s for s in said), said
+        outside = yhat.min() < r["y"][0] - 0.1 * (r["y"][1] - r["y"][0]) or (
+            yhat.max() > r["y"][1] + 0.1 * (r["y"][1] - r["y"][0]))
+        assert any("the simulated output spans" in s for s in said) == outside, said
+    # The paper's model was not estimated here: it has no range and nothing to warn of.
+    assert ipa_sysid.paper_model().data_range is None
+
+
+def test_validation_with_the_estimation_data_is_said_to_be_in_sample(records):
+    # As `identify --validation est.csv` on its own estimation file (audit s16 M12); a held-out record
+    # gets no such warning.
+    est, val = records
+    e, v = read_csv(est), read_csv(val)
+    for structure in ("arx", "narx"):
+        kw = {"structure": structure} if structure == "narx" else {"model": "arx", "method": "ls"}
+        with pytest.warns(ipa_sysid.IpaSysidWarning, match="in-sample, not held out"):
+            f = ipa_sysid.identify(e["u"], e["y"], 0.01, validation=(e["u"].copy(), e["y"].copy()), **kw)
+        assert any("in-sample" in w for w in f.warnings), structure
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            f = ipa_sysid.identify(e["u"], e["y"], 0.01, validation=(v["u"], v["y"]), **kw)
+        assert not any("in-sample" in str(w.message) for w in caught)
+        assert not any("in-sample" in w for w in f.warnings)
+
+
+def test_pandas_series_with_different_indexes_are_refused_naming_both(records):
+    # A Series is paired by position; a y reordered with its index kept (pandas would align it by label)
+    # was identified against the wrong u without a word (audit s16 L7): refused, naming u's and y's
+    # labels at the first position where they differ.
+    pd = pytest.importorskip("pandas")
+    est, _ = records
+    e = read_csv(est)
+    su = pd.Series(e["u"])
+    sy = pd.Series(e["y"]).iloc[::-1]  # index N-1 .. 0
+    n = len(e["y"])
+    with pytest.raises(ValueError, match=rf"u and y: .*position 0 u's index has .*\b0\b.* where y's has .*\b{n - 1}\b"):
+        ipa_sysid.identify(su, sy, 0.01, model="arx", method="ls")
+    m = ipa_sysid.paper_model()
+    with pytest.raises(ValueError, match="u and y: pandas objects whose indexes differ"):
+        m.predict(su, sy)
+    with pytest.raises(ValueError, match="indexes differ"):
+        m.metrics(su, sy.iloc[:-1])
+    with pytest.raises(ValueError, match="indexes differ"):
+        ipa_sysid.identify(su, pd.Series(e["y"]), 0.01, model="arx", method="ls",
+                           validation=(su, sy))
+    # The same index (any labels), or a Series with an array: paired by position, the index dropped.
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ipa_sysid.IpaSysidWarning)
+        a = ipa_sysid.identify(e["u"], e["y"], 0.01, model="arx", method="ls").to_dict()
+        idx = pd.date_range("2026-01-01", periods=n, freq="10ms")
+        b = ipa_sysid.identify(pd.Series(e["u"], index=idx), pd.Series(e["y"], index=idx), 0.01,
+                               model="arx", method="ls").to_dict()
+        c = ipa_sysid.identify(su, e["y"], 0.01, model="arx", method="ls").to_dict()
+    assert_same(b, a)
+    assert_same(c, a)

@@ -430,24 +430,21 @@ fn ts_contradiction(table: &Table, opts: &CsvOptions, ts: f64) -> Option<String>
     let tc = opts
         .ts
         .and(table.headers.iter().position(|h| *h == opts.t_col))?;
-    let t = table.numbers(tc).ok()?;
-    let mut steps: Vec<f64> = t
-        .windows(2)
-        .map(|w| (w[1] - w[0]) * opts.time_unit.seconds())
+    let t: Vec<f64> = table
+        .numbers(tc)
+        .ok()?
+        .iter()
+        .map(|v| v * opts.time_unit.seconds())
         .collect();
-    if steps.is_empty() {
-        return None;
-    }
-    let mid = steps.len() / 2;
-    let step = *steps.select_nth_unstable_by(mid, f64::total_cmp).1;
+    let step = ts_contradicts(&t, ts)?;
     ts_contradiction_note(ts, &opts.t_col, step)
 }
 
 /// The note of a `--ts` (`ts`, s) that contradicts the time column `column`, whose typical step is
-/// `step` (s), by more than 0.1 %; `None` when they agree or `step` is not a positive number. The one
-/// wording of the reader ([`read_record`]) and of a stream (`track`).
+/// `step` (s), by more than 0.1 % ([`ts_contradicts`]' rule); `None` when they agree or `step` is not a
+/// positive number. The one wording of the reader ([`read_record`]) and of a stream (`track`).
 pub fn ts_contradiction_note(ts: f64, column: &str, step: f64) -> Option<String> {
-    (step.is_finite() && step > 0.0 && (step - ts).abs() > 1e-3 * step).then(|| {
+    step_contradicts(step, ts).then(|| {
         format!(
             "--ts {} s contradicts the time column {} (its typical step is {} s): --ts is used, so \
              every time figure (Ts, time constants, a twin's dynamics) is {} times what the column \
@@ -935,45 +932,189 @@ pub(crate) fn shorten(s: &str) -> String {
     crate::error::cut_chars(s, 40).unwrap_or_else(|| s.to_string())
 }
 
-/// Ts from a time column: time must increase strictly, and every step must equal the median step
-/// within 0.1 %; Ts is then the mean step (t_last - t_0) / (N - 1).
-fn uniform_ts(t: &[f64], table: &Table, col: usize) -> Result<f64, SysidError> {
+/// What makes a time column t (s) unfit to date a uniformly sampled record: the one rule of the CSV
+/// reader (a record without `--ts`) and of the Python fleet's per-actuator check (audit s16 H1), so
+/// that both refuse the same columns. `k` is a sample index (0-based) into the column.
+#[derive(Debug, Clone, PartialEq)]
+pub enum TimeFault {
+    /// Fewer than two samples: no step to find Ts from.
+    TooShort,
+    /// t(k) is NaN or infinite.
+    NotFinite {
+        /// The sample.
+        k: usize,
+        /// Its time t(k), s.
+        t: f64,
+    },
+    /// t(k) <= t(k - 1): duplicated or unsorted rows.
+    NotIncreasing {
+        /// The sample.
+        k: usize,
+        /// Its time t(k), s.
+        t: f64,
+        /// t(k - 1), s.
+        previous: f64,
+    },
+    /// The typical (median) step or the mean step is not a positive finite number.
+    NoUsableStep {
+        /// The median step, s.
+        median: f64,
+    },
+    /// The step t(k) - t(k - 1) differs from the median step by more than 0.1 % (a gap, a jump).
+    NonUniform {
+        /// The sample.
+        k: usize,
+        /// t(k) - t(k - 1), s.
+        step: f64,
+        /// The median step, s.
+        median: f64,
+    },
+}
+
+impl TimeFault {
+    /// The sample the fault is found at (none for a column too short or without a usable step).
+    pub fn sample(&self) -> Option<usize> {
+        match *self {
+            Self::NotFinite { k, .. }
+            | Self::NotIncreasing { k, .. }
+            | Self::NonUniform { k, .. } => Some(k),
+            Self::TooShort | Self::NoUsableStep { .. } => None,
+        }
+    }
+}
+
+impl std::fmt::Display for TimeFault {
+    /// The fault in words, without advice (each caller adds its own: flags for the command line,
+    /// arguments for Python).
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match *self {
+            Self::TooShort => write!(
+                f,
+                "one sample is not enough to find Ts from the time column"
+            ),
+            Self::NotFinite { t, .. } => write!(f, "time {t} is not a finite number"),
+            Self::NotIncreasing { t, previous, .. } => write!(
+                f,
+                "time {t} s does not increase after {previous} s on the previous row; expected \
+                 strictly increasing time"
+            ),
+            Self::NoUsableStep { median } => {
+                write!(
+                    f,
+                    "the time steps (median {median} s) do not give a usable Ts"
+                )
+            }
+            Self::NonUniform { step, median, .. } => write!(
+                f,
+                "non-uniform sampling: step {} s from the previous row differs from the typical \
+                 (median) step {} s by more than 0.1 %",
+                sig6(step),
+                sig6(median)
+            ),
+        }
+    }
+}
+
+/// The median of the steps t(k) - t(k - 1) of a time column (s); `None` with fewer than two samples.
+pub fn median_step(t: &[f64]) -> Option<f64> {
+    let mut steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    if steps.is_empty() {
+        return None;
+    }
+    let mid = steps.len() / 2;
+    Some(*steps.select_nth_unstable_by(mid, f64::total_cmp).1)
+}
+
+/// Ts (s) from a time column t (s): every t(k) finite, time strictly increasing, and every step equal
+/// to the median step within 0.1 %; Ts is then the mean step (t_last - t_0) / (N - 1), rounded to 12
+/// significant digits (so that a column 0, 0.01, 0.02, ... gives Ts = 0.01 and not the
+/// 0.009999999999999998 of its floating-point sum). The first fault found otherwise.
+pub fn uniform_time(t: &[f64]) -> Result<f64, TimeFault> {
+    increasing_time(t)?;
+    let median = median_step(t).unwrap_or(f64::NAN);
+    let ts = round_significant((t[t.len() - 1] - t[0]) / (t.len() - 1) as f64, 12);
+    if !(median.is_finite() && median > 0.0 && ts.is_finite() && ts > 0.0) {
+        return Err(TimeFault::NoUsableStep { median });
+    }
+    if let Some(k) = (1..t.len()).find(|&k| (t[k] - t[k - 1] - median).abs() > 1e-3 * median) {
+        return Err(TimeFault::NonUniform {
+            k,
+            step: t[k] - t[k - 1],
+            median,
+        });
+    }
+    Ok(ts)
+}
+
+/// Checks that a time column t (s) has at least two samples, all finite, strictly increasing (the
+/// first half of [`uniform_time`], all that resampling needs).
+pub fn increasing_time(t: &[f64]) -> Result<(), TimeFault> {
+    if t.len() < 2 {
+        return Err(TimeFault::TooShort);
+    }
+    if let Some(k) = t.iter().position(|v| !v.is_finite()) {
+        return Err(TimeFault::NotFinite { k, t: t[k] });
+    }
+    if let Some(k) = (1..t.len()).find(|&k| t[k] <= t[k - 1]) {
+        return Err(TimeFault::NotIncreasing {
+            k,
+            t: t[k],
+            previous: t[k - 1],
+        });
+    }
+    Ok(())
+}
+
+/// The typical step (s) of the time column t when a given sampling period `ts` (s) contradicts it by
+/// more than 0.1 % (`ts` is then used, so every time figure is ts / step times what the column says);
+/// `None` when it agrees, or the column has no positive finite typical step. The rule of the reader's
+/// `--ts` note and of the Python fleet's `ts` check.
+pub fn ts_contradicts(t: &[f64], ts: f64) -> Option<f64> {
+    let step = median_step(t)?;
+    step_contradicts(step, ts).then_some(step)
+}
+
+/// True when `ts` differs from a positive finite typical time step `step` by more than 0.1 %.
+fn step_contradicts(step: f64, ts: f64) -> bool {
+    step.is_finite() && step > 0.0 && (step - ts).abs() > 1e-3 * step
+}
+
+/// A time fault as the reader's error at the row and column of the file, with the command line's
+/// advice.
+fn time_error(fault: TimeFault, table: &Table, col: usize) -> SysidError {
     let at = |k: usize, message: String| SysidError::Parse {
         file: table.name.clone(),
         line: table.line_of(k),
         column: col + 1,
         message,
     };
-    increasing(t, table, col)?;
-    let mut steps: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
-    let mid = steps.len() / 2;
-    let median = *steps.select_nth_unstable_by(mid, f64::total_cmp).1;
-    // The mean step, rounded to 12 significant digits so that a column 0, 0.01, 0.02, … gives Ts = 0.01
-    // and not the 0.009999999999999998 of its floating-point sum.
-    let ts = round_significant((t[t.len() - 1] - t[0]) / (t.len() - 1) as f64, 12);
-    if !(median.is_finite() && median > 0.0 && ts.is_finite() && ts > 0.0) {
-        return Err(at(
-            1,
-            format!("the time steps (median {median} s) do not give a usable Ts; pass --ts"),
-        ));
-    }
-    for k in 1..t.len() {
-        let dt = t[k] - t[k - 1];
-        if (dt - median).abs() > 1e-3 * median {
-            return Err(at(
-                k,
-                format!(
-                    "non-uniform sampling: step {} s from the previous row differs from the typical \
-                     (median) step {} s by more than 0.1 %; pass --resample TS to interpolate onto a uniform \
-                     grid, or --ts{}",
-                    sig6(dt),
-                    sig6(median),
-                    unit_hint(median)
-                ),
-            ));
+    match fault {
+        TimeFault::TooShort => SysidError::File {
+            file: table.name.clone(),
+            message: format!("{fault}; pass --ts"),
+        },
+        TimeFault::NotFinite { k, .. } | TimeFault::NotIncreasing { k, .. } => {
+            at(k, fault.to_string())
         }
+        TimeFault::NoUsableStep { .. } => at(1, format!("{fault}; pass --ts")),
+        TimeFault::NonUniform { k, median, .. } => at(
+            k,
+            format!(
+                "{fault}; pass --resample TS to interpolate onto a uniform grid, or --ts{}",
+                unit_hint(median)
+            ),
+        ),
     }
-    Ok(ts)
+}
+
+/// Ts from a time column ([`uniform_time`]), or its fault as the reader's error.
+fn uniform_ts(t: &[f64], table: &Table, col: usize) -> Result<f64, SysidError> {
+    uniform_time(t).map_err(|fault| time_error(fault, table, col))
+}
+
+/// Checks that time increases strictly ([`increasing_time`]), or its fault as the reader's error.
+fn increasing(t: &[f64], table: &Table, col: usize) -> Result<(), SysidError> {
+    increasing_time(t).map_err(|fault| time_error(fault, table, col))
 }
 
 /// A typical time step of a second or more read as seconds: the time column may count milliseconds
@@ -987,32 +1128,6 @@ pub(crate) fn unit_hint(median_s: f64) -> String {
     } else {
         String::new()
     }
-}
-
-/// Checks that time increases strictly (at least two samples).
-fn increasing(t: &[f64], table: &Table, col: usize) -> Result<(), SysidError> {
-    if t.len() < 2 {
-        return Err(SysidError::File {
-            file: table.name.clone(),
-            message: "one sample is not enough to find Ts from the time column; pass --ts".into(),
-        });
-    }
-    for k in 1..t.len() {
-        if t[k] <= t[k - 1] {
-            return Err(SysidError::Parse {
-                file: table.name.clone(),
-                line: table.line_of(k),
-                column: col + 1,
-                message: format!(
-                    "time {} s does not increase after {} s on the previous row; expected strictly \
-                     increasing time",
-                    t[k],
-                    t[k - 1]
-                ),
-            });
-        }
-    }
-    Ok(())
 }
 
 /// `v` rounded to `digits` significant decimal digits (non-finite values unchanged).
@@ -1040,4 +1155,60 @@ pub fn sample_times(n: usize, ts: f64) -> Vec<f64> {
             }
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{ts_contradicts, uniform_time, TimeFault};
+
+    /// t(k) = k · 0.01 s for k = 0 .. n − 1.
+    fn grid(n: usize) -> Vec<f64> {
+        (0..n).map(|k| k as f64 * 0.01).collect()
+    }
+
+    #[test]
+    fn a_uniform_grid_gives_its_step_as_ts() {
+        // (t_last − t_0) / (N − 1) = 0.99 / 99 = 0.01, rounded to 12 digits.
+        assert_eq!(uniform_time(&grid(100)), Ok(0.01));
+    }
+
+    #[test]
+    fn one_dropped_sample_is_a_step_twice_the_median_at_that_sample() {
+        let mut t = grid(100);
+        t.remove(40);
+        match uniform_time(&t) {
+            Err(TimeFault::NonUniform { k, step, median }) => {
+                assert_eq!(k, 40);
+                assert!((step - 0.02).abs() < 1e-12 && (median - 0.01).abs() < 1e-12);
+            }
+            other => panic!("{other:?}"),
+        }
+    }
+
+    #[test]
+    fn a_repeated_time_does_not_increase_and_a_nan_is_not_finite() {
+        let mut t = grid(10);
+        t.insert(3, t[3]);
+        assert_eq!(
+            uniform_time(&t).map_err(|f| f.sample()),
+            Err(Some(4)),
+            "t(4) = t(3)"
+        );
+        let mut t = grid(10);
+        t[7] = f64::NAN;
+        assert!(matches!(
+            uniform_time(&t),
+            Err(TimeFault::NotFinite { k: 7, .. })
+        ));
+        assert_eq!(uniform_time(&[0.0]), Err(TimeFault::TooShort));
+    }
+
+    #[test]
+    fn a_ts_off_by_more_than_a_thousandth_of_the_step_contradicts_it() {
+        let t = grid(50);
+        assert_eq!(ts_contradicts(&t, 0.01), None);
+        assert_eq!(ts_contradicts(&t, 0.010005), None); // 0.05 % off
+        let step = ts_contradicts(&t, 0.02).expect("twice the step");
+        assert!((step - 0.01).abs() < 1e-12);
+    }
 }

@@ -546,6 +546,60 @@ fn operating_point_hint(model: &Model, m: &MetricsPair) -> Option<String> {
     })
 }
 
+/// True when `a` and `b` hold exactly the same samples (every input and the output), whatever their names.
+pub fn same_samples(a: &sysid::Dataset, b: &sysid::Dataset) -> bool {
+    a.y() == b.y() && a.input_signals() == b.input_signals()
+}
+
+/// A warning when the `what` record holds exactly the samples of the estimation record `est` (a copy
+/// of the file, say): its fit is in-sample.
+pub fn same_samples_warning(
+    what: &str,
+    test: &sysid::Dataset,
+    est: &sysid::Dataset,
+) -> Option<String> {
+    same_samples(test, est).then(|| {
+        format!(
+            "the {what} record {} holds the same samples as the estimation record {}: its fit is \
+             in-sample, not held out",
+            test.name(),
+            est.name()
+        )
+    })
+}
+
+/// A warning when the simulated (or predicted) output `y` of `model` leaves the range of the model's
+/// estimation data by more than a tenth of that range (`DataRange::excursion`; audit s13 M3: an OE model
+/// of a 0..195 mm record simulated −95..465 mm, beyond the data and the actuator's stroke, without a
+/// word): the model was never fitted there, so the record says what the equations do, not what the
+/// plant would. `None` without a recorded data range. `simulate --plant model:` and Python's
+/// `Model.simulate` / `Model.predict`.
+pub fn output_outside_data(model: &Model, y: &[f64]) -> Option<String> {
+    let [lo, hi] = model.data_range()?.y;
+    let (y_min, y_max) = sysid_core::DataRange::excursion(y, (lo, hi))?;
+    Some(format!(
+        "the simulated output spans [{y_min:.6}, {y_max:.6}] but the model's estimation data had y in \
+         [{lo}, {hi}]: outside it the model extrapolates (a real actuator would meet its end stops or \
+         other physics the model never saw), so this part of the record is the equations' guess, not \
+         the plant's"
+    ))
+}
+
+/// A warning when the input `u` driving a single-input `model` leaves the range of its estimation
+/// data by more than a tenth of that range (`DataRange::excursion`, audit s12 F4): outside it the
+/// model extrapolates (a NARX or polynomial block most of all). `None` for a model without a recorded
+/// data range or a range `u` stays in. `simulate --plant model:` (which adds its own advice) and
+/// Python's `Model.simulate` / `Model.predict`.
+pub fn input_outside_data(model: &Model, u: &[f64]) -> Option<String> {
+    let [lo, hi] = *model.data_range()?.u.first()?;
+    let (u_min, u_max) = sysid_core::DataRange::excursion(u, (lo, hi))?;
+    let name = model.inputs().first().map_or("u", |c| c.name());
+    Some(format!(
+        "the input spans [{u_min}, {u_max}] but the model's estimation data had {name} in [{lo}, {hi}]: \
+         outside it the model extrapolates"
+    ))
+}
+
 /// The poles of a model as JSON-friendly values.
 pub fn poles(model: &Model) -> Vec<Pole> {
     model

@@ -446,27 +446,7 @@ pub fn swapped_columns_hint(d: &sysid::Dataset) -> Option<String> {
     })
 }
 
-/// True when `a` and `b` hold exactly the same samples (every input and the output), whatever their names.
-pub fn same_samples(a: &sysid::Dataset, b: &sysid::Dataset) -> bool {
-    a.y() == b.y() && a.input_signals() == b.input_signals()
-}
-
-/// A warning when the `what` record holds exactly the samples of the estimation record `est` (a copy
-/// of the file, say): its fit is in-sample.
-pub fn same_samples_warning(
-    what: &str,
-    test: &sysid::Dataset,
-    est: &sysid::Dataset,
-) -> Option<String> {
-    same_samples(test, est).then(|| {
-        format!(
-            "the {what} record {} holds the same samples as the estimation record {}: its fit is \
-             in-sample, not held out",
-            test.name(),
-            est.name()
-        )
-    })
-}
+pub use sysid_summary::{same_samples, same_samples_warning};
 
 /// A progress bar of `len` steps on standard error with the template `template` (indicatif syntax),
 /// hidden when standard error is not a terminal (pipes, CI logs).

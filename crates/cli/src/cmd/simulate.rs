@@ -286,39 +286,22 @@ fn run_plant(
     if let Some(w) = model.and_then(|m| input_outside_data(m, &rec.u)) {
         eprintln!("warning: {w}");
     }
-    if let Some(w) = model.and_then(|m| output_outside_data(m, &rec.y)) {
+    if let Some(w) = model.and_then(|m| sysid_summary::output_outside_data(m, &rec.y)) {
         eprintln!("warning: {w}");
     }
     Ok(())
 }
 
-/// A warning when the simulated output of a model plant leaves the range of the model's estimation
-/// data by more than a tenth of that range (audit s13 M3: an OE model of a 0..195 mm record simulated
-/// −95..465 mm, beyond the data and the actuator's stroke, without a word): the model was never
-/// fitted there, so the record says what the equations do, not what the plant would. `None` without a
-/// recorded data range.
-fn output_outside_data(model: &sysid::Model, y: &[f64]) -> Option<String> {
-    let [lo, hi] = model.data_range()?.y;
-    let (y_min, y_max) = sysid::DataRange::excursion(y, (lo, hi))?;
-    Some(format!(
-        "the simulated output spans [{y_min:.6}, {y_max:.6}] but the model's estimation data had y in \
-         [{lo}, {hi}]: outside it the model extrapolates (a real actuator would meet its end stops or \
-         other physics the model never saw), so this part of the record is the equations' guess, not \
-         the plant's"
-    ))
-}
-
 /// A warning when the designed input `u` of a model plant leaves the range of the model's estimation
-/// data by more than a tenth of that range (audit s12 F4): the designs are the IPA's (whole PWM counts
-/// within ±--amplitude around 0), and outside its data a model extrapolates (a NARX or polynomial block
-/// most of all). `None` for a model without a recorded data range or a single-input range it covers.
+/// data ([`sysid_summary::input_outside_data`], audit s12 F4): the designs are the IPA's (whole PWM
+/// counts within ±--amplitude around 0), so the advice names the flag that gives the model its own.
 fn input_outside_data(model: &sysid::Model, u: &[f64]) -> Option<String> {
-    let [lo, hi] = *model.data_range()?.u.first()?;
-    let (u_min, u_max) = sysid::DataRange::excursion(u, (lo, hi))?;
-    let name = model.inputs().first().map_or("u", |c| c.name());
-    Some(format!(
-        "the input spans [{u_min}, {u_max}] but the model's estimation data had {name} in [{lo}, {hi}]: outside it the model extrapolates; the designed inputs are the IPA's (whole counts within ±--amplitude around 0): give the model an input in its own units with --input file:CSV"
-    ))
+    sysid_summary::input_outside_data(model, u).map(|w| {
+        format!(
+            "{w}; the designed inputs are the IPA's (whole counts within ±--amplitude around 0): give \
+             the model an input in its own units with --input file:CSV"
+        )
+    })
 }
 
 /// Refuses a record whose last sample time (N - 1) Ts is not a finite number of seconds (a model with

@@ -47,4 +47,19 @@ fn the_data_folder_must_be_named() {
     let out = bin().args(["bench", "oe"]).output().unwrap();
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("--data-dir"));
+    // A folder that does not exist (a typo) is a usage error, not a run that measured nothing.
+    let dir = tempfile::tempdir().unwrap();
+    for what in ["oe", "narx"] {
+        let out = bin()
+            .args(["bench", what, "--repetitions", "1", "--data-dir"])
+            .arg(dir.path().join("typo"))
+            .output()
+            .unwrap();
+        assert_eq!(out.status.code(), Some(2), "{what}");
+        let e = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            e.contains("--data-dir") && e.contains("an existing folder"),
+            "{e}"
+        );
+    }
 }

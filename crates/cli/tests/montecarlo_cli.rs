@@ -72,3 +72,53 @@ fn an_unknown_method_is_refused() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("magic"));
 }
+
+// A model plant estimated on commands within [−1, 1] driven by the default ±255-count design: every run
+// extrapolates, said in the text and the JSON (audit s16 L5); within its data (--amplitude 1) nothing
+// is said of it.
+#[test]
+fn a_model_plant_driven_beyond_its_data_is_warned() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("m.json");
+    std::fs::write(
+        &model,
+        r#"{"format": "ipa-sysid-model", "version": 2, "model": {"kind": "arx", "ts": 0.01,
+        "na": 1, "nb": 1, "nk": 1, "a": [-0.5], "b": [0.1], "offset": null,
+        "data_range": {"u": [[-1.0, 1.0]], "y": [-0.2, 0.2]}}}"#,
+    )
+    .unwrap();
+    for (amplitude, warned) in [("255", true), ("1", false)] {
+        let json = dir.path().join("mc.json");
+        let out = bin()
+            .args(["montecarlo", "--plant"])
+            .arg(format!("model:{}", model.display()))
+            .args([
+                "--noise-std",
+                "0.01",
+                "--runs",
+                "2",
+                "--method",
+                "ls",
+                "--samples",
+                "500",
+                "--amplitude",
+                amplitude,
+                "--json",
+            ])
+            .arg(&json)
+            .output()
+            .unwrap();
+        let text = String::from_utf8_lossy(&out.stdout).into_owned()
+            + &String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{text}");
+        let doc: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        let in_json = doc["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|w| w.as_str().unwrap().contains("the model extrapolates"));
+        assert_eq!(in_json, warned, "{amplitude}: {}", doc["warnings"]);
+        assert_eq!(text.contains("the model extrapolates"), warned, "{text}");
+    }
+}

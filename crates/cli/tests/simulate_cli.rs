@@ -457,3 +457,39 @@ fn a_command_file_s_time_column_sets_ts_or_is_said() {
     );
     assert!(steps("d.csv").iter().all(|d| (d - 0.01).abs() < 1e-9));
 }
+
+// The paper's model has no end stops: a record of it that leaves the IPA's stroke 0..200 mm says so
+// (audit s16 L3: an APRBS record reached −966 mm without a word); one that stays inside does not.
+// Whether it left is read from the written record here.
+#[test]
+fn a_paper_record_beyond_the_stroke_is_warned() {
+    let dir = tempfile::tempdir().unwrap();
+    for (input, samples) in [("aprbs", "3000"), ("step:20@10", "50")] {
+        let o = simulate(
+            dir.path(),
+            &[
+                "--plant",
+                "paper",
+                "--input",
+                input,
+                "--samples",
+                samples,
+                "--seed",
+                "3",
+            ],
+            "p.csv",
+        );
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let d = sysid::data::read_csv(&dir.path().join("p.csv"), &Default::default()).unwrap();
+        let beyond = d.y().iter().any(|y| *y < 0.0 || *y > 200.0);
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(
+            e.contains("beyond the IPA's stroke 0..200 mm"),
+            beyond,
+            "{input}: {e}"
+        );
+        if input == "aprbs" {
+            assert!(beyond, "the APRBS record was expected to leave the stroke");
+        }
+    }
+}

@@ -609,3 +609,17 @@ fn long(a: LongArgs) -> anyhow::Result<()> {
     };
     emit(&text, &out, &a.json, &[])
 }
+
+/// Refuses a `--data-dir` that is not a folder (a typo): the benchmark would skip every case and exit
+/// 0 having measured nothing (audit s16 L10). An existing folder without the records skips each case
+/// in words, as documented.
+pub fn check_data_dir(dir: &std::path::Path) -> anyhow::Result<()> {
+    if !dir.is_dir() {
+        anyhow::bail!(sysid::SysidError::setting(
+            sysid::Setting::Other("--data-dir"),
+            dir.display(),
+            "an existing folder (the one holding the public benchmark records)"
+        ));
+    }
+    Ok(())
+}

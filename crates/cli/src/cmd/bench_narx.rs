@@ -54,6 +54,7 @@ fn rmse(v: Option<f64>) -> String {
 
 /// Runs `bench narx`.
 pub fn run(a: NarxArgs) -> anyhow::Result<()> {
+    super::bench::check_data_dir(&a.data_dir)?;
     let reps = a.repetitions as usize;
     let mut text = format!(
         "Polynomial NARX identification (FROLS, the stopping rule of each case, simulation-error refinement), best of {reps}:\n"

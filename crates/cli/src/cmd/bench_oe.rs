@@ -56,6 +56,7 @@ struct Case {
 
 /// Runs `bench oe`.
 pub fn run(a: OeArgs) -> anyhow::Result<()> {
+    super::bench::check_data_dir(&a.data_dir)?;
     let reps = a.repetitions as usize;
     let mut text = format!(
         "Output-error identification (ARX, Levenberg-Marquardt on the simulation error), best of {reps}:\n"

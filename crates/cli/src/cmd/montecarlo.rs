@@ -121,7 +121,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     check_work(&args, methods.len())?;
     // Check the input design (samples, amplitude, file) once, before any run: a bad flag is an error,
     // not a study in which every run failed.
-    generate(&spec, args.samples, ts_s, args.amplitude, args.seed)?;
+    let design = generate(&spec, args.samples, ts_s, args.amplitude, args.seed)?;
+    // A model plant driven beyond its estimation data extrapolates in every run (audit s16 L5; the
+    // warning `simulate --plant model:` gives on the same design).
+    let extrapolation = plant_spec
+        .starts_with("model:")
+        .then(|| {
+            truth_model
+                .as_ref()
+                .and_then(|m| sysid_summary::input_outside_data(m, &design))
+        })
+        .flatten()
+        .map(|w| {
+            format!(
+                "{w}: every run's record is the model's extrapolation, not the plant it was fitted to \
+                 (--amplitude sets the design's span)"
+            )
+        });
     let base = base_identification(&args, truth_model.as_ref());
     let (kind, orders) = (base.structure.kind, base.structure.orders);
     // The truth is comparable only when the estimated structure is the plant model's own.
@@ -156,8 +172,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.runs as u64,
         "{bar:40} {pos}/{len} runs {elapsed} elapsed, about {eta} left",
     );
-    let report = study(&settings, truth.as_deref(), &experiment, &|| bar.inc(1))
+    let mut report = study(&settings, truth.as_deref(), &experiment, &|| bar.inc(1))
         .context("Monte Carlo study")?;
+    report.warnings.splice(0..0, extrapolation);
     bar.finish_and_clear();
     let header = format!(
         "Plant: {}; input {} ±{} counts, {} samples, Ts = {} s; estimated structure {} na = {} nb = {} nk = {}{}{}\n",

@@ -218,6 +218,7 @@ fn run_plant(
         (None, Some(f), ipa::spec::PlantSpec::Ipa) => Some(f),
         _ => args.ts,
     };
+    let paper = matches!(plant, ipa::spec::PlantSpec::Paper);
     let exp = Experiment {
         plant,
         plant_config: args.plant_config.clone(),
@@ -288,6 +289,19 @@ fn run_plant(
     }
     if let Some(w) = model.and_then(|m| sysid_summary::output_outside_data(m, &rec.y)) {
         eprintln!("warning: {w}");
+    }
+    if paper {
+        // The paper's model is linear past its deadzone and has no end stops (audit s16 L3: an APRBS
+        // record of it reached −966 mm).
+        let stroke = ipa::PlantConfig::default().cylinder.stroke_mm;
+        let (lo, hi) = sysid_core::DataRange::extremes(&rec.y);
+        if lo < 0.0 || hi > stroke {
+            eprintln!(
+                "warning: the simulated output spans [{lo:.2}, {hi:.2}] mm, beyond the IPA's stroke 0..{stroke} \
+                 mm: the paper's model has no end stops, so this record holds positions the actuator \
+                 cannot take (the physics plant, --plant ipa, stops at its ends)"
+            );
+        }
     }
     Ok(())
 }

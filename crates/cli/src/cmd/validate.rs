@@ -31,7 +31,8 @@ pub struct Args {
     #[arg(long, value_name = "OUT")]
     pub json: Option<PathBuf>,
     /// Write the model's output as CSV: t,y,y_sim,y_pred,residual (residual = y − y_pred; y_pred is the
-    /// --horizon-step prediction; MATLAB `compare`/`predict`). `-`: standard output; the text report
+    /// --horizon-step prediction; MATLAB `compare`/`predict`). t is k·Ts from the judged record's first
+    /// row (its first --rows row), not the file's time column. `-`: standard output; the text report
     /// then goes to standard error, and no other output may be `-`.
     #[arg(long, value_name = "FILE.csv")]
     pub out: Option<PathBuf>,

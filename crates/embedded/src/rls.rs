@@ -54,8 +54,15 @@
 //! division when it acts (if δ tr P or (Pφ)ᵀ(Pφ) overflows, possible in f32 with P ≳ 1e19, tr P(k) is
 //! summed from the new diagonal instead). `sysid` writes its guarded update in a different operation
 //! order, so results agree to rounding, not bit for bit. In the UD form tr P = Σ_j d_j (Σ_(i<j) U_ij² + 1)
-//! is summed from the new factors as the second pass writes them (n² + 3n flops, sysid's order: bit for
-//! bit) and D is scaled (n + 1) when it acts.
+//! is summed from the new factors as the second pass writes them (n² + 3n flops, sysid's order), and
+//! when it exceeds T the scale c = T / tr P is not applied to D but left pending: P = c · U D Uᵀ, kept
+//! as the next update's measurement variance ρ̃ = ρ / c = tr P · (ρ / T) (one more float of state; ρ̃ = ρ
+//! when nothing is pending). Bierman's update of (U, D) with variance ρ̃ gives the gain and the factors
+//! of c · U D Uᵀ's update (L = c U D Uᵀ φ / (ρ + c φᵀ U D Uᵀ φ) = U D Uᵀ φ / (ρ̃ + φᵀ U D Uᵀ φ)), and the
+//! closing D ← D · (1/ρ̃) = D · c / ρ applies c with the forgetting: no pass over D when the guard acts,
+//! only tr P · (ρ / T) (ρ / T divided at the start of the update, off the chain). [`Rls::p`] and
+//! [`Rls::trace`] report c · U D Uᵀ; a failed update leaves ρ̃ unchanged; a restart sets ρ̃ = ρ.
+//! `sysid::rls_ud::RobustRls` keeps the same pending variance, so f64 results are bit for bit.
 //!
 //! # Cost per update, n parameters (each +, −, ×, ÷ one flop)
 //!
@@ -484,10 +491,11 @@ const KEEP_GAINS_FROM: usize = 8;
 
 /// Bierman's UD update with forgetting on the leading m × m block (m = N when `FULL`), in the operation
 /// order of `sysid::rls_ud::RobustRls` (sums start at −0, as `Iterator::sum` of floats does); with
-/// `GUARD` the trace bound of [`Rls::with_max_trace`]. Two passes over U and nothing copied:
+/// `GUARD` the trace bound of [`Rls::with_max_trace`], whose pending scale makes the measurement variance
+/// ρ̃ = ρ / c in place of ρ below (module documentation). Two passes over U and nothing copied:
 ///
 /// 1. reading only: f = Uᵀφ, v = D f, the prefix sums α_j = ρ + Σ_(i≤j) f_i v_i, the gain numerator
-///    b = U v (accumulated column by column exactly as Bierman's loop builds it), the reciprocals 1/ρ and
+///    b = U v (accumulated column by column exactly as Bierman's loop builds it), the reciprocals 1/ρ̃ and
 ///    1/α_j (independent divisions: they pipeline), the new D and the new θ̂; every check is made here;
 /// 2. only when all passed: Bierman's column steps write U in place, then D and θ̂; with `GUARD`, tr P
 ///    of the new factors is summed in the same pass. The partial gains w they need (w_i before column
@@ -507,6 +515,14 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
     let (rho, max_trace) = (est.forgetting, est.max_trace);
     // The measurement variance ρ̃ = ρ / c (P = c · U D Uᵀ): ρ unless the guard's scale c is pending.
     let var = if GUARD { est.var } else { rho };
+    // ρ / T, for the guard's ρ̃ below: divided here, at the start, so that when the guard acts only a
+    // multiplication follows tr P (kept here by `black_box`: the compiler would otherwise move the
+    // division into the branch that uses it, after tr P).
+    let rho_t = if GUARD {
+        core::hint::black_box(rho / max_trace)
+    } else {
+        F::ZERO
+    };
     let m = if FULL { N } else { est.n };
     let (theta, fac) = (&mut est.theta, &mut est.p);
     let phi_buf = read_regressor::<F, N>(phi, m)?;
@@ -687,7 +703,7 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
     // select would make it wait).
     if GUARD {
         if tr > max_trace {
-            est.var = tr * (rho / max_trace);
+            est.var = tr * rho_t;
         } else if var != rho {
             est.var = rho;
         }

@@ -105,8 +105,8 @@ impl<F: Float> HammersteinSettings<F> {
 /// samples (na ≤ D, nk + nb − 1 ≤ D). No heap; `Copy`.
 ///
 /// Size (`core::mem::size_of`, test `state_sizes`): the [`Rls`] state plus 2 D + 9 floats and 5 `usize`,
-/// e.g. [`PaperHrls<f64>`] (N = 7, D = 3) 648 bytes on a 64-bit host, `PaperHrls<f32>` 324 bytes on a
-/// 32-bit target (352 on a 64-bit host).
+/// e.g. [`PaperHrls<f64>`] (N = 7, D = 3) 656 bytes on a 64-bit host, `PaperHrls<f32>` 328 bytes on a
+/// 32-bit target (360 on a 64-bit host).
 ///
 /// Cost per sample ([`flops_per_sample`]): the RLS update for n parameters plus 4 + na + 2 nb flops
 /// for the deadzone from θ̂ and the regressor: 242 flops for the paper's orders with ρ < 1, 213 with

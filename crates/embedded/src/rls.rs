@@ -54,8 +54,15 @@
 //! division when it acts (if δ tr P or (Pφ)ᵀ(Pφ) overflows, possible in f32 with P ≳ 1e19, tr P(k) is
 //! summed from the new diagonal instead). `sysid` writes its guarded update in a different operation
 //! order, so results agree to rounding, not bit for bit. In the UD form tr P = Σ_j d_j (Σ_(i<j) U_ij² + 1)
-//! is summed from the new factors as the second pass writes them (n² + 3n flops, sysid's order: bit for
-//! bit) and D is scaled (n + 1) when it acts.
+//! is summed from the new factors as the second pass writes them (n² + 3n flops, sysid's order), and
+//! when it exceeds T the scale c = T / tr P is not applied to D but left pending: P = c · U D Uᵀ, kept
+//! as the next update's measurement variance ρ̃ = ρ / c = tr P · (ρ / T) (one more float of state; ρ̃ = ρ
+//! when nothing is pending). Bierman's update of (U, D) with variance ρ̃ gives the gain and the factors
+//! of c · U D Uᵀ's update (L = c U D Uᵀ φ / (ρ + c φᵀ U D Uᵀ φ) = U D Uᵀ φ / (ρ̃ + φᵀ U D Uᵀ φ)), and the
+//! closing D ← D · (1/ρ̃) = D · c / ρ applies c with the forgetting: no pass over D when the guard acts,
+//! only tr P · (ρ / T) (ρ / T divided at the start of the update, off the chain). [`Rls::p`] and
+//! [`Rls::trace`] report c · U D Uᵀ; a failed update leaves ρ̃ unchanged; a restart sets ρ̃ = ρ.
+//! `sysid::rls_ud::RobustRls` keeps the same pending variance, so f64 results are bit for bit.
 //!
 //! # Cost per update, n parameters (each +, −, ×, ÷ one flop)
 //!
@@ -86,9 +93,9 @@ pub enum Form {
 
 /// The RLS state: θ̂, P and ρ for at most `N` parameters (n ≤ N in use), with no heap.
 ///
-/// Size: `size_of::<Rls<F, N>>()` = (N + N² + 3) · `size_of::<F>()` + `size_of::<usize>()` + 1 rounded
-/// to the alignment, e.g. 488 bytes for `Rls<f64, 7>` on a 64-bit host (480 on a 32-bit target) and 244
-/// bytes for `Rls<f32, 7>` on a 32-bit target (248 on a 64-bit host); see the test `state_sizes`.
+/// Size: `size_of::<Rls<F, N>>()` = (N + N² + 4) · `size_of::<F>()` + `size_of::<usize>()` + 1 rounded
+/// to the alignment, e.g. 496 bytes for `Rls<f64, 7>` on a 64-bit host (488 on a 32-bit target) and 248
+/// bytes for `Rls<f32, 7>` on a 32-bit target (256 on a 64-bit host); see the test `state_sizes`.
 ///
 /// ```
 /// use ipa_embedded::Rls;
@@ -110,6 +117,10 @@ pub struct Rls<F: Float, const N: usize> {
     max_trace: F,
     /// P(0) scale p0, for [`Rls::restart_covariance`].
     p0: F,
+    /// UD form: ρ̃ = ρ / c, the measurement variance of the next update, where P = c · U D Uᵀ; ρ (c = 1)
+    /// except after the windup guard acted, which leaves its scale c = T / tr P pending (module
+    /// documentation, "Windup guard"). Unused (ρ) in the standard form.
+    var: F,
     /// n: parameters in use.
     n: usize,
     /// Standard: `p` is P. UD: row j of `p` holds U_0j..U_(j−1)j and d_j (at column j).
@@ -136,6 +147,7 @@ impl<F: Float, const N: usize> Rls<F, N> {
             forgetting,
             max_trace: F::INFINITY,
             p0,
+            var: forgetting,
             n,
             form: Form::Standard,
         };
@@ -168,6 +180,7 @@ impl<F: Float, const N: usize> Rls<F, N> {
     /// Restarts P = p0 · I (U = I, D = p0 I in the UD form), keeping θ̂.
     pub fn restart_covariance(&mut self) {
         let p0 = self.p0;
+        self.var = self.forgetting;
         for (i, row) in self.p.iter_mut().enumerate() {
             for (j, v) in row.iter_mut().enumerate() {
                 *v = if i == j && i < self.n { p0 } else { F::ZERO };
@@ -203,7 +216,8 @@ impl<F: Float, const N: usize> Rls<F, N> {
         &self.theta
     }
 
-    /// P_ij (0 outside n×n or out of range); in the UD form computed as Σ_k U_ik d_k U_jk.
+    /// P_ij (0 outside n×n or out of range); in the UD form computed as c · Σ_k U_ik d_k U_jk (c = 1
+    /// unless the windup guard's scale is pending).
     pub fn p(&self, i: usize, j: usize) -> F {
         let at = |r: usize, c: usize| {
             self.p
@@ -221,12 +235,13 @@ impl<F: Float, const N: usize> Rls<F, N> {
                 for k in i.max(j)..self.n {
                     s += u(i, k) * at(k, k) * u(j, k);
                 }
-                s
+                self.pending_scale() * s
             }
         }
     }
 
-    /// tr P: Σ_i P_ii in the order i = 0, 1, …, n−1 (UD form: Σ_j d_j Σ_(i≤j) U_ij², as `sysid`).
+    /// tr P: Σ_i P_ii in the order i = 0, 1, …, n−1 (UD form: c · Σ_j d_j Σ_(i≤j) U_ij², as `sysid`;
+    /// c = 1 unless the windup guard's scale is pending).
     pub fn trace(&self) -> F {
         match self.form {
             Form::Standard => {
@@ -236,8 +251,13 @@ impl<F: Float, const N: usize> Rls<F, N> {
                 }
                 tr
             }
-            Form::Ud => ud_trace(&self.p, self.n),
+            Form::Ud => self.pending_scale() * ud_trace(&self.p, self.n),
         }
+    }
+
+    /// UD form: c in P = c · U D Uᵀ, computed as ρ / ρ̃ (exactly 1 unless the guard's scale is pending).
+    fn pending_scale(&self) -> F {
+        self.forgetting / self.var
     }
 
     /// ρ: the forgetting factor.
@@ -471,10 +491,11 @@ const KEEP_GAINS_FROM: usize = 8;
 
 /// Bierman's UD update with forgetting on the leading m × m block (m = N when `FULL`), in the operation
 /// order of `sysid::rls_ud::RobustRls` (sums start at −0, as `Iterator::sum` of floats does); with
-/// `GUARD` the trace bound of [`Rls::with_max_trace`]. Two passes over U and nothing copied:
+/// `GUARD` the trace bound of [`Rls::with_max_trace`], whose pending scale makes the measurement variance
+/// ρ̃ = ρ / c in place of ρ below (module documentation). Two passes over U and nothing copied:
 ///
 /// 1. reading only: f = Uᵀφ, v = D f, the prefix sums α_j = ρ + Σ_(i≤j) f_i v_i, the gain numerator
-///    b = U v (accumulated column by column exactly as Bierman's loop builds it), the reciprocals 1/ρ and
+///    b = U v (accumulated column by column exactly as Bierman's loop builds it), the reciprocals 1/ρ̃ and
 ///    1/α_j (independent divisions: they pipeline), the new D and the new θ̂; every check is made here;
 /// 2. only when all passed: Bierman's column steps write U in place, then D and θ̂; with `GUARD`, tr P
 ///    of the new factors is summed in the same pass. The partial gains w they need (w_i before column
@@ -492,6 +513,16 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
     y: F,
 ) -> Result<F, Error> {
     let (rho, max_trace) = (est.forgetting, est.max_trace);
+    // The measurement variance ρ̃ = ρ / c (P = c · U D Uᵀ): ρ unless the guard's scale c is pending.
+    let var = if GUARD { est.var } else { rho };
+    // ρ / T, for the guard's ρ̃ below: divided here, at the start, so that when the guard acts only a
+    // multiplication follows tr P (kept here by `black_box`: the compiler would otherwise move the
+    // division into the branch that uses it, after tr P).
+    let rho_t = if GUARD {
+        core::hint::black_box(rho / max_trace)
+    } else {
+        F::ZERO
+    };
     let m = if FULL { N } else { est.n };
     let (theta, fac) = (&mut est.theta, &mut est.p);
     let phi_buf = read_regressor::<F, N>(phi, m)?;
@@ -520,7 +551,7 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
     let mut wsnap = [[F::ZERO; N]; N];
     // With split row loads, the copies of U read by the first pass, for the second.
     let mut u_old = [[F::ZERO; N]; N];
-    let mut a = rho;
+    let mut a = var;
     for_columns!(full, m, 'col, |j| {
         let (Some(row), Some(ph), Some(fj), Some(vj), Some(aj), Some((b_col, b_rest)), Some(ws)) = (
             fac.get(j),
@@ -570,18 +601,19 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
         }
         *bj = vv;
     });
-    // α_(m−1) ≥ … ≥ α_0 ≥ ρ > 0 (D ≥ 0 makes every f_j v_j = d_j f_j² ≥ 0), so one check of the last
+    // α_(m−1) ≥ … ≥ α_0 ≥ ρ̃ > 0 (D ≥ 0 makes every f_j v_j = d_j f_j² ≥ 0), so one check of the last
     // covers them all (finite here, positive below).
     if !((a * F::ZERO == F::ZERO) & (a > F::ZERO)) {
         return Err(Error::Numerical);
     }
-    let inv_rho = F::ONE / rho;
+    let inv_var = F::ONE / var;
     let mut inv = [F::ZERO; N];
     for (r, al) in inv.iter_mut().zip(alpha.iter()).take(m) {
         *r = F::ONE / *al;
     }
     let inv_last = inv.get(m - 1).copied().unwrap_or(F::ZERO);
-    // The new D: d_j · (α_(j−1) · (1/α_j)) · (1/ρ) (x · 1 = x exactly: no branch for ρ = 1).
+    // The new D: d_j · (α_(j−1) · (1/α_j)) · (1/ρ̃) (x · 1 = x exactly: no branch for ρ̃ = 1); with a
+    // pending guard scale c, the factor 1/ρ̃ = c/ρ applies it.
     let mut d_new = [F::ZERO; N];
     // Written out per column (literal j): as an enumerate loop with the diagonal read through
     // `fac.get(j)` it stayed a run-time loop with bounds checks, a third of the update's time.
@@ -594,11 +626,11 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
             break 'col;
         };
         let alpha_prev = if j == 0 {
-            rho
+            var
         } else {
             alpha.get(j - 1).copied().unwrap_or(F::ZERO)
         };
-        *dn = *d * (alpha_prev * *r) * inv_rho;
+        *dn = *d * (alpha_prev * *r) * inv_var;
         // 0 ≤ d < ∞.
         ok &= (*dn * F::ZERO == F::ZERO) & (*dn >= F::ZERO);
     });
@@ -629,7 +661,7 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
             break 'col;
         };
         let inv_prev = if j == 0 {
-            inv_rho
+            inv_var
         } else {
             inv.get(j - 1).copied().unwrap_or(F::ZERO)
         };
@@ -661,18 +693,32 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
             tr += dn * col;
         }
     });
-    // The guard (sysid's order: tr P of the new factors, then D ← D · T / tr P).
-    if GUARD && tr > max_trace {
-        let s = max_trace / tr;
-        for_columns!(full, m, 'col, |j| {
-            let Some(d) = fac.get_mut(j).and_then(|row| row.get_mut(j)) else {
-                break 'col;
-            };
-            *d *= s;
-        });
-    }
     for (t, tn) in theta.iter_mut().zip(theta_new) {
         *t = tn;
+    }
+    // The guard (sysid's order): the new factors are P(k) itself (the pending scale was consumed);
+    // when tr P(k) > T, P ← c · P with c = T / tr P, left pending as ρ̃ = ρ / c = tr P · (ρ / T) for the
+    // next update, which folds it into its 1/ρ̃. Written only when it changes: a store on one arm stays
+    // a branch, so the next update's ρ̃ does not wait for this tr P when the guard does not act (a
+    // select would make it wait).
+    if GUARD {
+        if tr > max_trace {
+            est.var = tr * rho_t;
+        } else {
+            // ρ and ρ̃ read again here (volatile loads) instead of kept in registers through the
+            // update: fewer live values in the kernel (measured: the inactive guard at n = 4 as fast
+            // as before the pending scale, docs/benchmarks.md "Eleventh round").
+            // SAFETY: references to initialised fields of `est`.
+            let (rho, pending) = unsafe {
+                (
+                    core::ptr::read_volatile(&est.forgetting),
+                    core::ptr::read_volatile(&est.var),
+                )
+            };
+            if pending != rho {
+                est.var = rho;
+            }
+        }
     }
     Ok(eps)
 }
@@ -746,11 +792,19 @@ mod tests {
     }
 
     // A restart at θ̂ = (1, −2) with p0 = 3 sets exactly that state in both forms (P = 3 I), and a later
-    // covariance restart uses the new p0; bad settings and a short θ̂ are refused, state unchanged.
+    // covariance restart uses the new p0; bad settings and a short θ̂ are refused, state unchanged. With
+    // the guard T = 50 (tr P(0) = 200: it acts, and in the UD form leaves its scale pending) a restart
+    // also drops the pending scale: P = 3 I exactly again.
     #[test]
     fn restart_at_sets_the_estimate_and_the_covariance_scale() {
-        for form in [Form::Standard, Form::Ud] {
+        for (form, guard) in [Form::Standard, Form::Ud]
+            .into_iter()
+            .flat_map(|f| [(f, false), (f, true)])
+        {
             let mut est = Rls::<f64, 3>::new(2, 1.0, 100.0).unwrap().with_form(form);
+            if guard {
+                est = est.with_max_trace(50.0).unwrap();
+            }
             est.update(&[1.0, 2.0], 5.0).unwrap();
             est.restart_at(&[1.0, -2.0], 3.0).unwrap();
             assert_eq!(est.theta(), &[1.0, -2.0, 0.0]);
@@ -862,7 +916,16 @@ mod tests {
             }
             est.update(&[1.0, -2.0, 0.5], 1.0).unwrap();
             est.update(&[0.3, 1.0, -1.0], -0.5).unwrap();
+            // With the guard, unexcited updates (P ← P / ρ) until the guard acts: its scale c is then
+            // pending (ρ̃ ≠ ρ), and a failed update must leave it so.
+            for _ in 0..200 {
+                if !guard || est.var != est.forgetting {
+                    break;
+                }
+                est.update(&[0.0, 0.0, 0.0], 0.0).unwrap();
+            }
             let before = est;
+            assert_eq!(before.var != before.forgetting, guard);
             let bad: [([f64; 3], f64); 4] = [
                 ([1.0, 1.0, 1.0], f64::NAN),
                 ([1.0, 1.0, 1.0], f64::INFINITY),
@@ -877,6 +940,7 @@ mod tests {
                 );
                 assert_eq!(est.theta(), before.theta());
                 assert_eq!(est.p, before.p);
+                assert_eq!(est.var, before.var);
             }
             est.update(&[0.5, 0.5, 0.5], 0.2).unwrap();
         }

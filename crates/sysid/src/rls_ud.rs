@@ -12,7 +12,11 @@
 //! - directional forgetting: first P̃ = P + α ppᵀ with p = Pφ, α = (1 − ρ)/(ρ r), r = φᵀPφ (an Agee–Turner
 //!   rank-one update of the factors, stable for α > 0), then Bierman's update with variance 1;
 //!   see [`crate::windup`];
-//! - bounded trace: D is scaled so that tr P = Σ_j d_j Σ_i U_ij² stays ≤ T.
+//! - bounded trace: P is scaled so that tr P stays ≤ T after every update. In the dense form P itself is
+//!   scaled. In the UD form (tr P = Σ_j d_j Σ_(i≤j) U_ij²) the scale c = T / tr P is left pending,
+//!   P = c · U D Uᵀ, and the next update folds it in: Bierman's update of (U, D) with measurement variance
+//!   ρ̃ = ρ / c gives the gain and the factors of the update of c · U D Uᵀ, and D ← D · (1/ρ̃) both applies
+//!   c and divides by ρ. So the bound costs no pass over D; ρ̃ = tr P · (ρ / T) when it acts, ρ otherwise.
 //!
 //! The same options exist in the standard (dense P) form, [`RlsForm::Standard`], for comparison.
 
@@ -67,6 +71,9 @@ pub struct RobustRls {
     pub forgetting: f64,
     windup: Windup,
     max_trace: f64,
+    /// UD form with the trace bound: ρ̃ = ρ / c while the bound's scale c = T / tr P is pending
+    /// (P = c · U D Uᵀ, module documentation); `None`: c = 1.
+    pending_var: Option<f64>,
     cov: Covariance,
     work: DVector<f64>,
     work2: DVector<f64>,
@@ -104,6 +111,7 @@ impl RobustRls {
             forgetting,
             windup,
             max_trace,
+            pending_var: None,
             cov,
             work: DVector::zeros(n),
             work2: DVector::zeros(n),
@@ -120,6 +128,7 @@ impl RobustRls {
 
     /// Restarts P = p0 I, keeping θ̂.
     pub fn restart_covariance(&mut self, p0: f64) {
+        self.pending_var = None;
         match &mut self.cov {
             Covariance::Dense(p) => {
                 p.fill(0.0);
@@ -133,27 +142,27 @@ impl RobustRls {
         }
     }
 
-    /// P (for the UD form, U D Uᵀ).
+    /// P (for the UD form, c · U D Uᵀ, c = 1 unless the trace bound's scale is pending).
     pub fn covariance(&self) -> DMatrix<f64> {
         match &self.cov {
             Covariance::Dense(p) => p.clone(),
             Covariance::Ud { u, d } => {
                 let ud = u * DMatrix::from_diagonal(d);
-                &ud * u.transpose()
+                &ud * u.transpose() * self.pending_scale()
             }
         }
+    }
+
+    /// c in P = c · U D Uᵀ: ρ / ρ̃ while the trace bound's scale is pending, else 1.
+    fn pending_scale(&self) -> f64 {
+        self.pending_var.map_or(1.0, |var| self.forgetting / var)
     }
 
     /// tr P.
     pub fn trace(&self) -> f64 {
         match &self.cov {
             Covariance::Dense(p) => p.trace(),
-            Covariance::Ud { u, d } => {
-                let n = d.len();
-                (0..n)
-                    .map(|j| d[j] * (0..=j).map(|i| u[(i, j)] * u[(i, j)]).sum::<f64>())
-                    .sum()
-            }
+            Covariance::Ud { u, d } => self.pending_scale() * ud_trace(u, d),
         }
     }
 
@@ -175,6 +184,7 @@ impl RobustRls {
             phi,
             eps,
             rho: self.forgetting,
+            var: self.pending_var.unwrap_or(self.forgetting),
             windup: self.windup,
             sample,
         };
@@ -191,12 +201,19 @@ impl RobustRls {
             }
         }
         if self.windup == Windup::Trace {
-            let tr = self.trace();
-            if tr > self.max_trace {
-                let s = self.max_trace / tr;
-                match &mut self.cov {
-                    Covariance::Dense(p) => p.scale_mut(s),
-                    Covariance::Ud { d, .. } => d.scale_mut(s),
+            match &mut self.cov {
+                Covariance::Dense(p) => {
+                    let tr = p.trace();
+                    if tr > self.max_trace {
+                        p.scale_mut(self.max_trace / tr);
+                    }
+                }
+                Covariance::Ud { u, d } => {
+                    // The update consumed the pending scale: the new factors are P itself. When
+                    // tr P > T, c = T / tr P is left pending as ρ̃ = ρ / c = tr P · (ρ / T).
+                    let tr = ud_trace(u, d);
+                    self.pending_var =
+                        (tr > self.max_trace).then(|| tr * (self.forgetting / self.max_trace));
                 }
             }
         }
@@ -209,12 +226,13 @@ impl RobustRls {
     }
 }
 
-/// What one update needs besides the covariance: φ(k), ε(k), ρ, the windup protection and k (for
-/// messages).
+/// What one update needs besides the covariance: φ(k), ε(k), ρ, the UD form's measurement variance ρ̃
+/// (ρ unless the trace bound's scale is pending), the windup protection and k (for messages).
 struct Step<'a> {
     phi: &'a [f64],
     eps: f64,
     rho: f64,
+    var: f64,
     windup: Windup,
     sample: usize,
 }
@@ -329,6 +347,14 @@ fn bierman(f: &mut Factors<'_>, phi: &[f64], var: f64) -> (f64, f64) {
     (alpha, inv_prev)
 }
 
+/// tr (U D Uᵀ) = Σ_j d_j Σ_(i≤j) U_ij² (sums from −0 in this order, the U_jj = 1 term last:
+/// `ipa_embedded` sums it the same way).
+fn ud_trace(u: &DMatrix<f64>, d: &DVector<f64>) -> f64 {
+    (0..d.len())
+        .map(|j| d[j] * (0..=j).map(|i| u[(i, j)] * u[(i, j)]).sum::<f64>())
+        .sum()
+}
+
 /// Agee–Turner rank-one update U D Uᵀ + c a aᵀ (c > 0); `a` is destroyed.
 fn agee_turner(u: &mut DMatrix<f64>, d: &mut DVector<f64>, mut c: f64, a: &mut DVector<f64>) {
     let n = d.len();
@@ -373,10 +399,13 @@ fn update_ud(
         }
         bierman(f, phi, 1.0)
     } else {
-        let a = bierman(f, phi, rho);
-        if rho < 1.0 {
-            // D ← D · (1/ρ): one division, the same operations as `ipa_embedded`.
-            f.d.scale_mut(1.0 / rho);
+        // ρ̃ = ρ / c: ρ unless the trace bound's scale c is pending.
+        let var = st.var;
+        let a = bierman(f, phi, var);
+        if var != 1.0 {
+            // D ← D · (1/ρ̃) = D · c / ρ: one division, the same operations as `ipa_embedded` (which
+            // also multiplies by 1/ρ̃ = 1, exactly).
+            f.d.scale_mut(1.0 / var);
         }
         a
     };
@@ -495,11 +524,15 @@ mod tests {
         }
     }
 
-    // The form asked for is the form kept, and a restart gives P = p0 I in either form.
+    // The form asked for is the form kept, and a restart gives P = p0 I in either form; with the trace
+    // bound (T = 30 = p0 n, reached as P grows by 1/ρ) the UD form's pending scale is dropped too.
     #[test]
     fn restart_gives_p0_times_identity_in_either_form() {
-        for form in [RlsForm::Standard, RlsForm::Ud] {
-            let mut e = RobustRls::new(3, 0.9, 10.0, form, Windup::None, None).unwrap();
+        let cases = [RlsForm::Standard, RlsForm::Ud]
+            .into_iter()
+            .flat_map(|f| [(f, Windup::None), (f, Windup::Trace)]);
+        for (form, windup) in cases {
+            let mut e = RobustRls::new(3, 0.9, 10.0, form, windup, None).unwrap();
             assert_eq!(e.form(), form);
             for k in 0..20 {
                 let (phi, y) = regressors(3, k);
@@ -508,6 +541,38 @@ mod tests {
             e.restart_covariance(5.0);
             assert_eq!(e.covariance(), DMatrix::identity(3, 3) * 5.0, "{form}");
             assert_eq!(e.trace(), 15.0);
+        }
+    }
+
+    // The bounded trace in the UD form (D's scale left pending, folded into the next update's variance
+    // ρ̃) is the same recursion as the dense form's explicit scaling P ← P T / tr P: the same θ̂ and P to
+    // rounding, with the bound acting (T = 5 against p0 n = 400).
+    #[test]
+    fn bounded_trace_ud_equals_the_dense_form() {
+        for rho in [1.0, 0.95] {
+            let mut a =
+                RobustRls::new(4, rho, 100.0, RlsForm::Standard, Windup::Trace, Some(5.0)).unwrap();
+            let mut b =
+                RobustRls::new(4, rho, 100.0, RlsForm::Ud, Windup::Trace, Some(5.0)).unwrap();
+            let mut acted = 0;
+            for k in 0..200 {
+                let (phi, y) = regressors(4, k);
+                a.update(&phi, y, k).unwrap();
+                b.update(&phi, y, k).unwrap();
+                acted += usize::from(b.pending_var.is_some());
+                assert!(
+                    (a.trace() - b.trace()).abs() < 1e-9 * a.trace(),
+                    "rho {rho} k {k}"
+                );
+            }
+            assert!(acted > 0, "rho {rho}: the bound never acted");
+            let (pa, pb) = (a.covariance(), b.covariance());
+            for i in 0..4 {
+                assert!((a.theta[i] - b.theta[i]).abs() < 1e-9 * (1.0 + a.theta[i].abs()));
+                for j in 0..4 {
+                    assert!((pa[(i, j)] - pb[(i, j)]).abs() < 1e-9 * (1.0 + pa[(i, j)].abs()));
+                }
+            }
         }
     }
 

@@ -755,13 +755,13 @@ fn control_flags_out_of_range_exit_2_naming_the_flag() {
             2,
             &["--duration", "at least one sampling period"],
         ),
-        // Without --duration the profile's hold times set the length: they are named (audit s13 L14).
+        // Hold times shorter than Ts are named as such (audit s13 L14, s16 L1).
         case(
             "control --plant paper --profile staircase:10,20@1e-9",
             2,
             &[
-                "invalid setting --profile (its hold times",
-                "at least one sampling period",
+                "set-point profile `staircase 10, 20 mm",
+                "less than the sampling period Ts = 0.01 s",
             ],
         ),
         case(

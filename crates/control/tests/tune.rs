@@ -96,7 +96,6 @@ fn spec_parses_over_the_defaults_and_names_a_bad_key() {
         "overshoot=-1",
         "steps=10/x",
         "steps=200",
-        "run=1000",
         "nokey",
     ] {
         match Spec::parse(bad) {

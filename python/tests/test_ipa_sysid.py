@@ -540,10 +540,13 @@ def test_plants_that_are_neither_a_name_nor_a_file_and_missing_files(tmp_path):
     assert "\n[calibration]\n" in a["toml"]
     with pytest.raises(ValueError, match=r"no column named 'u' \(chosen by u_col\)"):
         ipa_sysid.calibrate(str(renamed))
-    # The validation record's own columns (audit s14 L-e): the renamed file as the validation record of
-    # the first gives the fit of the first as its own validation record (the same samples).
+    # The validation record's own columns (audit s14 L-e): the record with u, y renamed (its time
+    # column kept: a record without one and without ts is refused, audit s16 M6) as the validation
+    # record of the first gives the fit of the first as its own validation record (the same samples).
+    renamed_v = tmp_path / "renamed_v.csv"
+    renamed_v.write_text(rec.read_text().replace("t,u,y", "t,cmd,pos", 1))
     c = ipa_sysid.calibrate(str(rec), validation=str(rec), max_iterations=2, free="moving_mass")
-    d = ipa_sysid.calibrate(str(rec), validation=str(renamed), max_iterations=2, free="moving_mass",
+    d = ipa_sysid.calibrate(str(rec), validation=str(renamed_v), max_iterations=2, free="moving_mass",
                             val_u_col="cmd", val_y_col="pos")
     assert c["fit_validation_percent"] == d["fit_validation_percent"]
     with pytest.raises(ValueError, match="give validation=PATH"):

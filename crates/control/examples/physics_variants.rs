@@ -33,6 +33,8 @@
 //! to steps of at most that size, APPROACH_U=U drives it at U u_max instead of u_max, APPROACH_RAMP=c
 //! raises that drive by c counts per sample until the piston first moves (the short-step approach of
 //! docs/control.md, Results' session-16 block).
+//! Session 17: SHORT_CTL=e_m,U,ρ_a,e_s',τ_s,a_s,T_s,N_s sets the controller's own short-step approach
+//! (`short_approach` of CONTROLLER.json; e_m = 0 removes it).
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
 use control::tune::{self, Spec};
 use control::ControllerFile;
@@ -251,6 +253,19 @@ fn main() {
             learn: v.get(6).copied().unwrap_or(0.0),
             lead_max_s: v.get(7).copied().unwrap_or(0.0),
             release_samples: v.get(8).copied().unwrap_or(0.0) as u32,
+        });
+    }
+    if let Ok(b) = std::env::var("SHORT_CTL") {
+        let v: Vec<f64> = b.split(',').map(|x| x.parse().unwrap()).collect();
+        s.short_approach = (v[0] > 0.0).then(|| control::position::ShortApproach {
+            max_step_mm: v[0],
+            drive_fraction: v[1],
+            ramp_counts_s: v[2],
+            switch_mm: v[3],
+            lead_s: v[4],
+            brake_strength: v[5],
+            brake_samples: v[6] as u32,
+            rest_samples: v[7] as u32,
         });
     }
     let spec = Spec::default();

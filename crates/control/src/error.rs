@@ -36,6 +36,8 @@ pub enum ControlSetting {
     Nudge,
     /// The approach with braking of the tuned controller (min step, switch, lead, strength, samples).
     Brake,
+    /// The short-step approach of the tuned controller (max step, drive, ramp, switch, lead, brake).
+    ShortApproach,
     /// The tuning specification (`--spec`).
     Spec,
     /// Plant variants a tuning searches over.
@@ -65,6 +67,7 @@ impl ControlSetting {
             ControlSetting::FineBand => "fine_band_mm",
             ControlSetting::Nudge => "nudge",
             ControlSetting::Brake => "brake",
+            ControlSetting::ShortApproach => "short_approach",
             ControlSetting::Spec => "spec",
             ControlSetting::Variants => "variants",
             ControlSetting::PhysicsVariants => "physics_variants",
@@ -165,6 +168,7 @@ impl ControlSetting {
             ControlSetting::FineBand => "fine_band_mm (controller file)",
             ControlSetting::Nudge => "nudge (controller file)",
             ControlSetting::Brake => "brake (controller file)",
+            ControlSetting::ShortApproach => "short_approach (controller file)",
             ControlSetting::Spec => "--spec",
             ControlSetting::Variants => "--variants",
             ControlSetting::PhysicsVariants => "--physics-variants",

@@ -81,6 +81,10 @@ pub struct ControllerSettings {
     /// written before it existed runs as then).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub brake: Option<Brake>,
+    /// The short-step approach for small steps (issue 25, session 17); `None` = off (a file written
+    /// before it existed runs as then; not written when off).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub short_approach: Option<ShortApproach>,
     /// The deadzone inverse between the PID and the valve (from the model's deadzone), if any.
     pub compensator: Option<DeadzoneCompensator>,
 }
@@ -152,6 +156,96 @@ pub struct Brake {
     /// valves let the chamber that drove the piston, still at pressure, push it on by several mm.
     #[serde(default, skip_serializing_if = "is_zero_u32")]
     pub release_samples: u32,
+}
+
+/// The short-step approach (issue 25, session 17): for a step e_s' < |r − y| ≤ e_m, a drive at U u_max
+/// towards r that rises by ρ_a Ts per sample until the piston first moves, until side e ≤ e_s' + τ_s v
+/// (v: speed towards r, mm/s), then −a_s u_max for T_s samples, then the valves closed until y has
+/// rested N_s samples, then the law from a fresh start. The approach with braking ([`Brake`]) drives
+/// the full command, too fast to stop within the 2 % band of a 10 or 30 mm step (docs/control.md).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ShortApproach {
+    /// e_m: largest step approached this way, mm (> 0): |r − y| when r is set or changes.
+    pub max_step_mm: f64,
+    /// U: the drive's fraction of u_max, in (0, 1].
+    pub drive_fraction: f64,
+    /// ρ_a: guard ramp, counts/s (>= 0): the drive rises by ρ_a Ts per sample while the piston has
+    /// not moved from where the step began, then is held.
+    pub ramp_counts_s: f64,
+    /// e_s': the drive ends at side e <= e_s' + τ_s v, mm (>= 0).
+    pub switch_mm: f64,
+    /// τ_s: stopping lead per mm/s of speed towards r, s (>= 0).
+    pub lead_s: f64,
+    /// a_s: braking command as a fraction of u_max, in (0, 1].
+    pub brake_strength: f64,
+    /// T_s: samples of braking (1 to 1000).
+    pub brake_samples: u32,
+    /// N_s: samples of unchanged y that end the hold after the brake (1 to 1000).
+    pub rest_samples: u32,
+}
+
+impl ShortApproach {
+    /// Checks every field; errors name [`ControlSetting::ShortApproach`].
+    pub fn validate(&self) -> Result<(), ControlError> {
+        let bad = |what: &str, v: String| {
+            Err(ControlError::setting(
+                ControlSetting::ShortApproach,
+                v,
+                what,
+            ))
+        };
+        let fmt = crate::trust::fmt_value;
+        if !(self.max_step_mm.is_finite()
+            && self.max_step_mm > 0.0
+            && self.max_step_mm <= MAX_LENGTH_MM)
+        {
+            return bad(
+                &format!("a short_approach max_step_mm > 0 and at most {MAX_LENGTH_MM:e} mm"),
+                fmt(self.max_step_mm),
+            );
+        }
+        for (name, v) in [
+            ("drive_fraction", self.drive_fraction),
+            ("brake_strength", self.brake_strength),
+        ] {
+            if !(v > 0.0 && v <= 1.0) {
+                return bad(&format!("a short_approach {name} in (0, 1]"), fmt(v));
+            }
+        }
+        if !(self.ramp_counts_s.is_finite()
+            && (0.0..=MAX_RAMP_COUNTS_S).contains(&self.ramp_counts_s))
+        {
+            return bad(
+                &format!("a short_approach ramp_counts_s from 0 to {MAX_RAMP_COUNTS_S:e}"),
+                fmt(self.ramp_counts_s),
+            );
+        }
+        if !(self.switch_mm.is_finite() && (0.0..=MAX_LENGTH_MM).contains(&self.switch_mm)) {
+            return bad(
+                &format!("a short_approach switch_mm from 0 to {MAX_LENGTH_MM:e} mm"),
+                fmt(self.switch_mm),
+            );
+        }
+        if !(self.lead_s.is_finite() && (0.0..=MAX_TIME_S).contains(&self.lead_s)) {
+            return bad(
+                &format!("a short_approach lead_s from 0 to {MAX_TIME_S:e} s"),
+                fmt(self.lead_s),
+            );
+        }
+        for (name, n) in [
+            ("brake_samples", self.brake_samples),
+            ("rest_samples", self.rest_samples),
+        ] {
+            if !(1..=1000).contains(&n) {
+                return bad(
+                    &format!("short_approach {name} from 1 to 1000"),
+                    n.to_string(),
+                );
+            }
+        }
+        Ok(())
+    }
 }
 
 /// Whether an optional number is absent from a file (written as 0 = off).
@@ -313,6 +407,7 @@ impl ControllerSettings {
             reset_on_crossing: false,
             nudge: None,
             brake: None,
+            short_approach: None,
             compensator: None,
         }
     }
@@ -366,6 +461,9 @@ impl ControllerSettings {
         }
         if let Some(b) = &self.brake {
             b.validate()?;
+        }
+        if let Some(a) = &self.short_approach {
+            a.validate()?;
         }
         if let Some(c) = self.compensator.as_ref().filter(|c| c.u_max != self.u_max) {
             return Err(ControlError::setting(
@@ -446,6 +544,18 @@ impl ControllerSettings {
                 lead_max: b.lead_max_s,
                 release: b.release_samples,
             }),
+            short: self
+                .short_approach
+                .map(|a| ipa_embedded::ShortApproachSettings {
+                    max_step: a.max_step_mm,
+                    drive_fraction: a.drive_fraction,
+                    ramp: a.ramp_counts_s,
+                    switch: a.switch_mm,
+                    lead: a.lead_s,
+                    strength: a.brake_strength,
+                    samples: a.brake_samples,
+                    rest_samples: a.rest_samples,
+                }),
         }
     }
 

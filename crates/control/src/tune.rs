@@ -29,7 +29,7 @@
 //! [`BRAKE_CANDIDATES`] is evaluated at the best controller and kept where it meets the whole
 //! specification in more runs (issue 25, session 15; chosen by the count, not by J: [`choose_by_count`]'s
 //! documentation); then, the same way, the nudge's rest count N_r of [`NUDGE_REST_CANDIDATES`]
-//! (session 16).
+//! (session 16), then the short-step approach of [`short_candidates`] (session 17).
 //!
 //! **Linear margins.** [`margins`] gives the gain and phase margins of the loop's linear part: the
 //! model's B/A with the deadzone replaced by its slope (compensated, shift mode), under the PID.
@@ -542,6 +542,7 @@ pub fn settings_of(
             },
         }),
         brake: None,
+        short_approach: None,
         compensator,
     })
 }
@@ -577,6 +578,8 @@ pub struct Tuned {
     pub brake_evaluations: usize,
     /// Evaluations of the nudge's rest count N_r after the brake ([`NUDGE_REST_CANDIDATES`]).
     pub rest_evaluations: usize,
+    /// Evaluations of the short-step approach after the rest count ([`short_candidates`]'s).
+    pub short_evaluations: usize,
 }
 
 /// Tunes the controller (module documentation) for plants of sampling period `ts_s` built by
@@ -704,10 +707,18 @@ pub fn tune(
         settings.plants,
         spec,
     )?;
-    let (settings_chosen, evaluation, rest_evaluations) = choose_by_count(
+    let (rested, evaluation, rest_evaluations) = choose_by_count(
         braked,
         evaluation,
         &rest_candidates(&braked),
+        make_plant,
+        settings.plants,
+        spec,
+    )?;
+    let (settings_chosen, evaluation, short_evaluations) = choose_by_count(
+        rested,
+        evaluation,
+        &short_candidates(&rested, spec),
         make_plant,
         settings.plants,
         spec,
@@ -718,6 +729,7 @@ pub fn tune(
         evaluations: used,
         brake_evaluations,
         rest_evaluations,
+        short_evaluations,
     })
 }
 
@@ -732,10 +744,78 @@ pub const BRAKE_CANDIDATES: [(f64, f64); 6] = [
     (2.0, 0.02),
     (2.0, 0.025),
 ];
-/// Evaluations after the search: the approach with braking ([`BRAKE_CANDIDATES`] × [`BRAKE_TIMES_S`])
-/// and the nudge's rest count ([`NUDGE_REST_CANDIDATES`]).
+/// Evaluations after the search: the approach with braking ([`BRAKE_CANDIDATES`] × [`BRAKE_TIMES_S`]),
+/// the nudge's rest count ([`NUDGE_REST_CANDIDATES`]) and the short-step approach
+/// ([`SHORT_DRIVE_FRACTIONS`] × [`SHORT_LEADS_S`] × [`SHORT_SWITCHES_MM`]).
 pub const AFTER_SEARCH_EVALUATIONS: usize =
-    BRAKE_CANDIDATES.len() * BRAKE_TIMES_S.len() + NUDGE_REST_CANDIDATES.len();
+    BRAKE_CANDIDATES.len() * BRAKE_TIMES_S.len() + NUDGE_REST_CANDIDATES.len() + SHORT_CANDIDATES;
+
+/// U: the short-step approach's drive fractions of u_max tried (issue 25, session 17): at the full
+/// command the piston covers about 5.8 mm per 10 ms sample and a 10 mm step overshoots by 7 mm
+/// whatever the switch; below about 0.3 the drive is under some variants' breakaway (hence the guard
+/// ramp [`SHORT_RAMP_COUNTS_S`]).
+pub const SHORT_DRIVE_FRACTIONS: [f64; 3] = [0.3, 0.35, 0.4];
+/// τ_s: the short-step approach's stopping leads tried, s.
+pub const SHORT_LEADS_S: [f64; 2] = [0.005, 0.01];
+/// e_s': the short-step approach's switch distances tried, mm.
+pub const SHORT_SWITCHES_MM: [f64; 2] = [0.5, 1.0];
+/// Candidates of the short-step approach ([`short_candidates`]).
+pub const SHORT_CANDIDATES: usize =
+    SHORT_DRIVE_FRACTIONS.len() * SHORT_LEADS_S.len() * SHORT_SWITCHES_MM.len();
+/// ρ_a: the short drive's guard ramp, counts/s (5 counts per 10 ms sample; the prototype's
+/// measurements of session 16 with 2, 5 and 10 counts per sample: docs/control.md).
+pub const SHORT_RAMP_COUNTS_S: f64 = 500.0;
+/// a_s: the short-step brake's fraction of u_max.
+pub const SHORT_BRAKE_STRENGTH: f64 = 0.25;
+/// T_s: the short-step brake's duration, s (3 samples of 10 ms).
+pub const SHORT_BRAKE_S: f64 = 0.03;
+/// N_s: samples at rest that end the hold after the short-step brake.
+pub const SHORT_REST_SAMPLES: u32 = 2;
+/// e_m as a fraction of the specification's largest step (40 mm of the default 150 mm: the 10 and
+/// 30 mm steps; the 70 and 150 mm steps keep the law or the approach with braking).
+pub const SHORT_MAX_STEP_FRACTION: f64 = 4.0 / 15.0;
+
+/// The short-step approach with drive fraction U, lead τ_s (s) and switch e_s' (mm) for `spec` at
+/// Ts = `ts_s` (the other fields: the `SHORT_*` constants).
+pub fn short_approach_of(
+    drive_fraction: f64,
+    lead_s: f64,
+    switch_mm: f64,
+    ts_s: f64,
+    spec: &Spec,
+) -> crate::position::ShortApproach {
+    let largest = spec.steps_mm.iter().copied().fold(0.0, f64::max);
+    crate::position::ShortApproach {
+        max_step_mm: SHORT_MAX_STEP_FRACTION * largest,
+        drive_fraction,
+        ramp_counts_s: SHORT_RAMP_COUNTS_S,
+        switch_mm,
+        lead_s,
+        brake_strength: SHORT_BRAKE_STRENGTH,
+        brake_samples: ((SHORT_BRAKE_S / ts_s).round().clamp(1.0, 1000.0)) as u32,
+        rest_samples: SHORT_REST_SAMPLES,
+    }
+}
+
+/// `chosen` with each short-step approach of [`SHORT_DRIVE_FRACTIONS`] × [`SHORT_LEADS_S`] ×
+/// [`SHORT_SWITCHES_MM`] (in that order; none when the specification has no steps).
+pub fn short_candidates(chosen: &ControllerSettings, spec: &Spec) -> Vec<ControllerSettings> {
+    if spec.steps_mm.is_empty() {
+        return Vec::new();
+    }
+    let mut out = Vec::with_capacity(SHORT_CANDIDATES);
+    for &u in &SHORT_DRIVE_FRACTIONS {
+        for &lead in &SHORT_LEADS_S {
+            for &switch in &SHORT_SWITCHES_MM {
+                out.push(ControllerSettings {
+                    short_approach: Some(short_approach_of(u, lead, switch, chosen.ts_s, spec)),
+                    ..*chosen
+                });
+            }
+        }
+    }
+    out
+}
 /// a_b: the braking command's fraction of u_max (the time oracle's best 150 mm sequences: 0.25).
 pub const BRAKE_STRENGTH: f64 = 0.25;
 /// (T_b, T_r) tried with each of [`BRAKE_CANDIDATES`], s: the braking time (the time oracle's 21–38
@@ -821,7 +901,8 @@ fn rest_candidates(chosen: &ControllerSettings) -> Vec<ControllerSettings> {
         .collect()
 }
 
-/// A discrete choice after the search (the approach with braking, then the nudge's rest count): each
+/// A discrete choice after the search (the approach with braking, the nudge's rest count, the
+/// short-step approach): each
 /// candidate is evaluated on the tuning plants and the one meeting the whole specification in the
 /// most runs is kept, ties broken by the lower J, and only when it meets it in more runs than `best`
 /// does (or as many at a lower J). Chosen by the count, not by J: on the twin of Results' session 14

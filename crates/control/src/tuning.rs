@@ -91,6 +91,8 @@ pub struct TuneReport {
     pub brake_evaluations: usize,
     /// Evaluations of the nudge's rest count after the brake (`tune::NUDGE_REST_CANDIDATES`).
     pub rest_evaluations: usize,
+    /// Evaluations of the short-step approach after the rest count (`tune::short_candidates`).
+    pub short_evaluations: usize,
     /// Wall-clock time, s.
     pub seconds: f64,
     /// The tuned controller.
@@ -417,6 +419,7 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
         evaluations: tuned.evaluations,
         brake_evaluations: tuned.brake_evaluations,
         rest_evaluations: tuned.rest_evaluations,
+        short_evaluations: tuned.short_evaluations,
         seconds: started.elapsed().as_secs_f64(),
         controller: settings,
         margins,

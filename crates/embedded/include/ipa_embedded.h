@@ -46,7 +46,7 @@
 /**
  * An upper bound, valid on every target, of [`ipa_ctl_state_size`] in bytes (the tuned controller).
  */
-#define IPA_CTL_STATE_BYTES 512
+#define IPA_CTL_STATE_BYTES 640
 
 /**
  * `ipa_hrls_init` form: P itself, updated by the paper's eq. 12 (`identify --rls-form standard`).
@@ -270,6 +270,39 @@ typedef struct IpaController {
    * as in a struct zeroed before it existed).
    */
   uint32_t brake_release;
+  /**
+   * T_s: samples of the short-step approach's brake (`short_approach.brake_samples`).
+   */
+  uint32_t short_samples;
+  /**
+   * N_s: samples of unchanged y that end its hold (`short_approach.rest_samples`).
+   */
+  uint32_t short_rest_samples;
+  /**
+   * e_m: largest step driven by the short-step approach, mm (`short_approach.max_step_mm`; 0 =
+   * none, as in a struct zeroed before it existed: the `short_*` fields are then ignored).
+   */
+  double short_max_step;
+  /**
+   * U: its drive as a fraction of u_max (`short_approach.drive_fraction`).
+   */
+  double short_drive_fraction;
+  /**
+   * ρ_a: its guard ramp until the piston first moves, counts/s (`short_approach.ramp_counts_s`).
+   */
+  double short_ramp;
+  /**
+   * e_s': its switch distance, mm (`short_approach.switch_mm`).
+   */
+  double short_switch;
+  /**
+   * τ_s: its stopping lead per mm/s towards r, s (`short_approach.lead_s`).
+   */
+  double short_lead;
+  /**
+   * a_s: its braking command as a fraction of u_max (`short_approach.brake_strength`).
+   */
+  double short_strength;
 } IpaController;
 
 #ifdef __cplusplus

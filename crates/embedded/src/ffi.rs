@@ -24,7 +24,9 @@ use crate::cusum::{Cusum, CusumStatus};
 use crate::deadzone::{Compensator, Deadzone, SlopeMode};
 use crate::hammerstein::{HammersteinRls, HammersteinSettings};
 use crate::pi::{AntiWindup, Pi};
-use crate::position::{BrakeSettings, NudgeSettings, PositionController, PositionSettings};
+use crate::position::{
+    BrakeSettings, NudgeSettings, PositionController, PositionSettings, ShortApproachSettings,
+};
 use crate::rls::Form;
 use crate::Error;
 
@@ -40,7 +42,7 @@ pub const IPA_HRLS_STATE_BYTES: usize = 3456;
 pub const IPA_PI_STATE_BYTES: usize = 80;
 
 /// An upper bound, valid on every target, of [`ipa_ctl_state_size`] in bytes (the tuned controller).
-pub const IPA_CTL_STATE_BYTES: usize = 512;
+pub const IPA_CTL_STATE_BYTES: usize = 640;
 
 /// `ipa_hrls_init` form: P itself, updated by the paper's eq. 12 (`identify --rls-form standard`).
 pub const IPA_FORM_STANDARD: u32 = 0;
@@ -177,6 +179,23 @@ pub struct IpaController {
     /// T_r: samples over which the braking command falls to 0 (`brake.release_samples`; 0 = at once,
     /// as in a struct zeroed before it existed).
     pub brake_release: u32,
+    /// T_s: samples of the short-step approach's brake (`short_approach.brake_samples`).
+    pub short_samples: u32,
+    /// N_s: samples of unchanged y that end its hold (`short_approach.rest_samples`).
+    pub short_rest_samples: u32,
+    /// e_m: largest step driven by the short-step approach, mm (`short_approach.max_step_mm`; 0 =
+    /// none, as in a struct zeroed before it existed: the `short_*` fields are then ignored).
+    pub short_max_step: f64,
+    /// U: its drive as a fraction of u_max (`short_approach.drive_fraction`).
+    pub short_drive_fraction: f64,
+    /// ρ_a: its guard ramp until the piston first moves, counts/s (`short_approach.ramp_counts_s`).
+    pub short_ramp: f64,
+    /// e_s': its switch distance, mm (`short_approach.switch_mm`).
+    pub short_switch: f64,
+    /// τ_s: its stopping lead per mm/s towards r, s (`short_approach.lead_s`).
+    pub short_lead: f64,
+    /// a_s: its braking command as a fraction of u_max (`short_approach.brake_strength`).
+    pub short_strength: f64,
 }
 const _: () = assert!(size_of::<CusumState>() <= IPA_CUSUM_STATE_BYTES);
 const _: () = assert!(MAX_D >= IPA_MAX_NA as usize);
@@ -707,6 +726,20 @@ pub unsafe extern "C" fn ipa_ctl_init(
         })),
         _ => Err(Error::Setting),
     };
+    let short = if c.short_max_step == 0.0 {
+        None
+    } else {
+        Some(ShortApproachSettings {
+            max_step: c.short_max_step,
+            drive_fraction: c.short_drive_fraction,
+            ramp: c.short_ramp,
+            switch: c.short_switch,
+            lead: c.short_lead,
+            strength: c.short_strength,
+            samples: c.short_samples,
+            rest_samples: c.short_rest_samples,
+        })
+    };
     let state = compensator.and_then(|comp| {
         let s = PositionSettings {
             ts: c.ts,
@@ -720,6 +753,7 @@ pub unsafe extern "C" fn ipa_ctl_init(
             reset_on_crossing: reset_on_crossing?,
             nudge: nudge?,
             brake: brake?,
+            short,
         };
         PositionController::new(s, comp).map(|ctl| CtlState {
             magic: CTL_MAGIC,

@@ -47,7 +47,7 @@ pub use deadzone::{Compensator, Deadzone, SlopeMode};
 pub use float::Float;
 pub use hammerstein::{HammersteinRls, HammersteinSettings};
 pub use pi::{AntiWindup, Pi};
-pub use position::{PositionController, PositionSettings};
+pub use position::{PositionController, PositionSettings, ShortApproachSettings};
 pub use rls::{Form, Rls};
 
 /// A failure of an embedded routine. In the C interface each is a negative return code
@@ -130,13 +130,18 @@ mod tests {
         // tag: an `Option` cannot use its settings' trailing padding), its
         // phase (a tag, a bool and a u32: 8 bytes), r(k−1) and a bool; and (the learnt lead) two
         // floats τ_b(left), τ_b(right) and the optional last switch (two floats and a bool, whose
-        // spare values hold the `None`): 504 bytes for f64 on a 64-bit host.
+        // spare values hold the `None`); and (the short-step approach, session 17) the optional
+        // short-step settings (six floats and two u32, then a tag, as the brake's), the phase grown
+        // to a tag, two bools, a u32 and a float (the short drive's y_0): 576 bytes for f64 on a
+        // 64-bit host (504 before it).
         let a = |f: usize| f.max(4);
         let nudge = |f: usize| round(7 * f + 4, a(f)) + a(f);
         let brake = |f: usize| round(round(6 * f + 12, a(f)) + 1, a(f));
-        let settings = |f: usize| round(8 * f + 1 + nudge(f) + brake(f), f);
+        let short = |f: usize| round(round(6 * f + 8, a(f)) + 1, a(f));
+        let settings = |f: usize| round(8 * f + 1 + nudge(f) + brake(f) + short(f), f);
         let nudging = |f: usize| round(4 * f + 3, f);
         let cut = |f: usize| round(2 * f + 1, f);
+        let phase = |f: usize| round(f + 4 + 3, a(f));
         let ctl = |f: usize| {
             round(
                 settings(f)
@@ -146,7 +151,7 @@ mod tests {
                     + cut(f)
                     + 4
                     + 2
-                    + 8
+                    + phase(f)
                     + f
                     + 1
                     + 2 * f
@@ -157,8 +162,8 @@ mod tests {
         assert_eq!(size_of::<PositionController<f64>>(), ctl(8));
         assert_eq!(size_of::<PositionController<f32>>(), ctl(4));
         if w == 8 {
-            assert_eq!(ctl(8), 504);
-            assert_eq!(ctl(4), 264);
+            assert_eq!(ctl(8), 576);
+            assert_eq!(ctl(4), 304);
         }
         assert!(ffi::ipa_ctl_state_size() <= ffi::IPA_CTL_STATE_BYTES);
         if w == 8 {

@@ -27,6 +27,12 @@
 //!             hold:     u = 0 (valves closed) until y has been unchanged for N_b samples; then the law
 //!                       above from a fresh start (I, D, y(k−1), e(k−1), the nudge under way and the
 //!                       rest count cleared; the learnt u_b, τ_c and a(side) kept)
+//! short-step approach (when set; issue 25, session 17), armed instead for a step e_s' < |r − y| ≤ e_m:
+//!             drive:    u = side min(U u_max + ρ_a Ts (j − 1), u_max) while side e > e_s' + τ_s max(v, 0),
+//!                       j the samples so far at the start position (frozen once the piston moves:
+//!                       a guard ramp against a drive below the breakaway); then
+//!             brake:    u = −side a_s u_max for T_s samples; then
+//!             hold:     u = 0 until y has been unchanged for N_s samples; then the law from a fresh start
 //! ```
 
 use crate::deadzone::Compensator;
@@ -87,9 +93,37 @@ pub struct BrakeSettings<F: Float> {
     pub release: u32,
 }
 
+/// The short-step approach of a [`PositionController`] (`controller.short_approach` of
+/// CONTROLLER.json; issue 25, session 17): for a step of at most e_m, a drive at a fraction U of
+/// u_max (rising by ρ_a Ts per sample until the piston first moves), a brief brake, then the valves
+/// closed until the piston rests. The approach with braking ([`BrakeSettings`]) drives the full
+/// command, which on a 10 or 30 mm step arrives too fast to stop within the 2 % band.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ShortApproachSettings<F: Float> {
+    /// e_m: largest step approached this way, mm (> 0): e_s' < |r − y| ≤ e_m when r is set or
+    /// changes (such a step is not approached with braking).
+    pub max_step: F,
+    /// U: the drive's fraction of u_max, in (0, 1].
+    pub drive_fraction: F,
+    /// ρ_a: guard ramp, counts/s (≥ 0): the drive rises by ρ_a Ts per sample while the piston has
+    /// not moved from where the step began (a drive below the breakaway would otherwise never move
+    /// it), and is held from the first motion.
+    pub ramp: F,
+    /// e_s': the drive ends at side e ≤ e_s' + τ_s max(v, 0), mm (≥ 0).
+    pub switch: F,
+    /// τ_s: stopping lead per mm/s of speed towards r, s (≥ 0).
+    pub lead: F,
+    /// a_s: braking command as a fraction of u_max, in (0, 1].
+    pub strength: F,
+    /// T_s: samples of braking (1..=1000).
+    pub samples: u32,
+    /// N_s: samples of unchanged y that end the hold after the brake (1..=1000).
+    pub rest_samples: u32,
+}
+
 /// Where the approach with braking is (`right`: towards larger y).
 #[derive(Debug, Clone, Copy, PartialEq)]
-enum Approach {
+enum Approach<F: Float> {
     /// Not approaching: the law runs.
     Off,
     /// Full command towards r.
@@ -100,6 +134,18 @@ enum Approach {
     Release { right: bool, given: u32 },
     /// Valves closed after the brake: samples of unchanged y so far.
     Hold { still: u32 },
+    /// Short-step drive: y_0 where the step began, j the samples at y_0 so far, whether the piston
+    /// has moved from it.
+    ShortDrive {
+        right: bool,
+        y0: F,
+        stuck: u32,
+        moved: bool,
+    },
+    /// Short-step brake: samples given so far.
+    ShortBrake { right: bool, given: u32 },
+    /// Valves closed after the short-step brake: samples of unchanged y so far.
+    ShortHold { still: u32 },
 }
 
 /// The switch of the last braked move, until the rest that ends its hold (τ_b learning).
@@ -152,6 +198,8 @@ pub struct PositionSettings<F: Float> {
     pub nudge: Option<NudgeSettings<F>>,
     /// The approach with braking for large steps, if any (`None`: as before it existed).
     pub brake: Option<BrakeSettings<F>>,
+    /// The short-step approach, if any (`None`: as before it existed).
+    pub short: Option<ShortApproachSettings<F>>,
 }
 
 /// A running tuned controller: settings, the optional deadzone inverse and the states (I, D, y(k−1),
@@ -161,7 +209,7 @@ pub struct PositionSettings<F: Float> {
 /// use ipa_embedded::{PositionController, PositionSettings};
 /// let s = PositionSettings { ts: 0.01, kp: 10.0, ki: 100.0, kd: 0.0, tf: 0.0, u_max: 255.0,
 ///                            hold_band: 0.02, fine_band: 0.0, reset_on_crossing: true, nudge: None,
-///                            brake: None };
+///                            brake: None, short: None };
 /// let mut c = PositionController::new(s, None).unwrap();
 /// assert_eq!(c.step(1.0, 0.0).unwrap(), 11.0);  // Kp e + Ki Ts e
 /// assert_eq!(c.step(1.0, 0.99).unwrap(), 0.0);  // inside the hold band
@@ -193,8 +241,8 @@ pub struct PositionController<F: Float> {
     rate_per_mm: [F; 2],
     /// Whether the last nudge that ended was a ramp-and-cut (its move teaches a(side)).
     last_learns: bool,
-    /// The approach with braking's phase.
-    approach: Approach,
+    /// The approach with braking's (or the short-step approach's) phase.
+    approach: Approach<F>,
     /// r at the previous sample (a change re-arms the approach).
     r_prev: F,
     /// Whether r_prev holds a set-point (false until the first sample and after `reset`).
@@ -276,6 +324,21 @@ impl<F: Float> PositionController<F> {
                 && nonneg(b.learn)
                 && b.learn <= F::ONE
                 && (b.learn == F::ZERO || (b.lead_max.is_finite() && b.lead_max >= b.lead)))
+            {
+                return Err(Error::Setting);
+            }
+        }
+        if let Some(a) = s.short {
+            if !(positive(a.max_step)
+                && positive(a.drive_fraction)
+                && a.drive_fraction <= F::ONE
+                && nonneg(a.ramp)
+                && nonneg(a.switch)
+                && nonneg(a.lead)
+                && positive(a.strength)
+                && a.strength <= F::ONE
+                && (1..=1000).contains(&a.samples)
+                && (1..=1000).contains(&a.rest_samples))
             {
                 return Err(Error::Setting);
             }
@@ -378,7 +441,9 @@ impl<F: Float> PositionController<F> {
     /// the law runs. At the end of the hold the law's transient state restarts (as at the first
     /// sample), so that neither its derivative nor a nudge sees the brake.
     fn approach_step(&mut self, r: F, y: F) -> Option<F> {
-        let b = self.s.brake?;
+        if self.s.brake.is_none() && self.s.short.is_none() {
+            return None;
+        }
         let first = !self.r_seen || r != self.r_prev;
         let moved = self.started && y != self.y_prev;
         let dy = if self.started {
@@ -390,12 +455,27 @@ impl<F: Float> PositionController<F> {
         self.r_prev = r;
         self.r_seen = true;
         if first {
-            self.approach = if e.abs() >= b.min_step && e != F::ZERO {
-                Approach::Drive { right: e > F::ZERO }
-            } else {
-                Approach::Off
+            self.approach = match (self.s.short, self.s.brake) {
+                (Some(a), _) if e.abs() > a.switch && e.abs() <= a.max_step => {
+                    Approach::ShortDrive {
+                        right: e > F::ZERO,
+                        y0: y,
+                        stuck: 0,
+                        moved: false,
+                    }
+                }
+                (_, Some(b)) if e.abs() >= b.min_step && e != F::ZERO => {
+                    Approach::Drive { right: e > F::ZERO }
+                }
+                _ => Approach::Off,
             };
         }
+        if let Some(a) = self.s.short {
+            if let Some(u) = self.short_step(&a, e, y, dy, moved) {
+                return Some(u);
+            }
+        }
+        let b = self.s.brake?;
         let side = |right: bool| if right { F::ONE } else { -F::ONE };
         if let Approach::Drive { right } = self.approach {
             let v = side(right) * dy;
@@ -446,6 +526,74 @@ impl<F: Float> PositionController<F> {
             }
             self.approach = Approach::Off;
             self.learn_lead(&b, y);
+            self.restart_law();
+        }
+        None
+    }
+
+    /// The short-step approach (module documentation; [`ShortApproachSettings`]): `Some(u)` while it
+    /// commands; at the end of its hold the law restarts as after the approach with braking and
+    /// `None` is returned.
+    fn short_step(
+        &mut self,
+        a: &ShortApproachSettings<F>,
+        e: F,
+        y: F,
+        dy: F,
+        moved_now: bool,
+    ) -> Option<F> {
+        let side = |right: bool| if right { F::ONE } else { -F::ONE };
+        if let Approach::ShortDrive {
+            right,
+            y0,
+            stuck,
+            moved,
+        } = self.approach
+        {
+            let v = side(right) * dy;
+            let lead = if v > F::ZERO { a.lead * v } else { F::ZERO };
+            if side(right) * e > a.switch + lead {
+                let moved = moved || y != y0;
+                let stuck = if moved {
+                    stuck
+                } else {
+                    stuck.saturating_add(1)
+                };
+                let rise = a.ramp * self.s.ts * F::from_f64(f64::from(stuck.saturating_sub(1)));
+                let u = a.drive_fraction * self.s.u_max + rise;
+                self.approach = Approach::ShortDrive {
+                    right,
+                    y0,
+                    stuck,
+                    moved,
+                };
+                self.started = true;
+                self.y_prev = y;
+                return Some(side(right) * if u < self.s.u_max { u } else { self.s.u_max });
+            }
+            self.approach = Approach::ShortBrake { right, given: 0 };
+        }
+        if let Approach::ShortBrake { right, given } = self.approach {
+            if given < a.samples {
+                self.approach = Approach::ShortBrake {
+                    right,
+                    given: given + 1,
+                };
+                self.started = true;
+                self.y_prev = y;
+                return Some(-side(right) * a.strength * self.s.u_max);
+            }
+            self.approach = Approach::ShortHold { still: 0 };
+        }
+        if let Approach::ShortHold { still } = self.approach {
+            let still = if moved_now { 0 } else { still + 1 };
+            if still < a.rest_samples {
+                self.approach = Approach::ShortHold { still };
+                self.started = true;
+                self.y_prev = y;
+                return Some(F::ZERO);
+            }
+            self.approach = Approach::Off;
             self.restart_law();
         }
         None
@@ -699,6 +847,7 @@ mod tests {
             reset_on_crossing: true,
             nudge: None,
             brake: None,
+            short: None,
         }
     }
 

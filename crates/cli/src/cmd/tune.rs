@@ -43,8 +43,8 @@ pub struct Args {
     #[arg(long, value_name = "N", default_value_t = 5)]
     pub variants: usize,
     /// Largest number of cost evaluations of the search (each simulates every variant and step); 8 to
-    /// 10 000. The choices of the approach with braking and of the nudge's rest count add 18 and 2
-    /// after it.
+    /// 10 000. The choices of the approach with braking, of the nudge's rest count and of the
+    /// short-step approach add 18, 2 and 12 after it.
     #[arg(long, value_name = "N", default_value_t = 150)]
     pub max_evaluations: usize,
     /// Also verify on the built-in physics plant (with --model: for a model identified on a record of
@@ -228,6 +228,10 @@ fn summary_text(r: &TuneReport, out: &Path) -> String {
             String::new()
         } + &if r.rest_evaluations > 0 {
             format!(" + {} of the nudge's rest count", r.rest_evaluations)
+        } else {
+            String::new()
+        } + &if r.short_evaluations > 0 {
+            format!(" + {} of the short-step approach", r.short_evaluations)
         } else {
             String::new()
         },

@@ -221,12 +221,23 @@ fn c_controller_with_a_learnt_brake_lead_matches_control_bit_for_bit_on_a_record
     c_controller_matches_control(Brake::Learnt);
 }
 
-/// Which approach with braking the controller file of [`c_controller_matches_control`] has.
+/// The same with the short-step approach (`short_approach`, session 17) beside the brake: the
+/// staircase's steps of 20, 15 and 20 mm (<= e_m = 40 mm) are driven at U u_max = 89.25 counts and
+/// braked at −a_s u_max = ∓127.5, the 75 mm step keeps the brake; the same C replay without the
+/// short-step fields (a struct with them zeroed) gives other commands.
+#[test]
+fn c_controller_with_a_short_step_approach_matches_control_bit_for_bit_on_a_recorded_run() {
+    c_controller_matches_control(Brake::Short);
+}
+
+/// Which approach the controller file of [`c_controller_matches_control`] has.
 #[derive(Clone, Copy, PartialEq)]
 enum Brake {
     None,
     Fixed,
     Learnt,
+    /// The fixed brake and the short-step approach.
+    Short,
 }
 
 fn c_controller_matches_control(brake: Brake) {
@@ -276,6 +287,11 @@ fn c_controller_matches_control(brake: Brake) {
         serde_json::from_str(&std::fs::read_to_string(&ctl).unwrap()).unwrap();
     file["controller"]["nudge"]["cut_band_mm"] = serde_json::json!(0.3);
     file["controller"]["nudge"]["min_ramp_counts_s"] = serde_json::json!(20.0);
+    // tune may choose a short-step approach (session 17); only the `Short` run has one.
+    file["controller"]
+        .as_object_mut()
+        .unwrap()
+        .remove("short_approach");
     if brake == Brake::None {
         // tune may choose one (session 15); this run is the controller without it.
         file["controller"].as_object_mut().unwrap().remove("brake");
@@ -288,10 +304,15 @@ fn c_controller_matches_control(brake: Brake) {
         file["controller"]["brake"]["lead_max_s"] = serde_json::json!(0.1);
         file["controller"]["brake"]["release_samples"] = serde_json::json!(10);
     }
-    let (profile, samples) = if brake == Brake::Learnt {
-        ("staircase:40,38,120,60,120,60@2", 1201)
-    } else {
-        ("staircase:40,38,120,60@2", 801)
+    if brake == Brake::Short {
+        file["controller"]["short_approach"] = serde_json::json!({"max_step_mm": 40.0,
+            "drive_fraction": 0.35, "ramp_counts_s": 500.0, "switch_mm": 0.5, "lead_s": 0.01,
+            "brake_strength": 0.5, "brake_samples": 3, "rest_samples": 2});
+    }
+    let (profile, samples) = match brake {
+        Brake::Learnt => ("staircase:40,38,120,60,120,60@2", 1201),
+        Brake::Short => ("staircase:40,60,45,120,100@2", 1001),
+        _ => ("staircase:40,38,120,60@2", 801),
     };
     std::fs::write(&ctl, serde_json::to_string_pretty(&file).unwrap()).unwrap();
     cli(&[
@@ -374,13 +395,29 @@ fn c_controller_matches_control(brake: Brake) {
             .map(|l| l.parse().unwrap())
             .collect()
     };
-    let unlearnt = (brake == Brake::Learnt).then(|| replay(&args));
-    if brake == Brake::Learnt {
+    let unlearnt = matches!(brake, Brake::Learnt | Brake::Short).then(|| replay(&args));
+    if matches!(brake, Brake::Learnt | Brake::Short) {
         let b = &c["brake"];
         for k in ["learn", "lead_max_s"] {
-            args.push(format!("{:?}", b[k].as_f64().unwrap()));
+            args.push(format!("{:?}", b[k].as_f64().unwrap_or(0.0)));
         }
-        args.push(b["release_samples"].as_u64().unwrap().to_string());
+        args.push(b["release_samples"].as_u64().unwrap_or(0).to_string());
+    }
+    if brake == Brake::Short {
+        let a = &c["short_approach"];
+        for k in [
+            "max_step_mm",
+            "drive_fraction",
+            "ramp_counts_s",
+            "switch_mm",
+            "lead_s",
+            "brake_strength",
+        ] {
+            args.push(format!("{:?}", a[k].as_f64().unwrap()));
+        }
+        for k in ["brake_samples", "rest_samples"] {
+            args.push(a[k].as_u64().unwrap().to_string());
+        }
     }
     let from_c = replay(&args);
     let recorded: Vec<f64> = std::fs::read_to_string(&trace)
@@ -392,7 +429,10 @@ fn c_controller_matches_control(brake: Brake) {
     assert_eq!(from_c.len(), recorded.len());
     assert_eq!(recorded.len(), samples);
     if let Some(unlearnt) = unlearnt {
-        assert_ne!(unlearnt, recorded, "the learnt lead changed no command");
+        assert_ne!(
+            unlearnt, recorded,
+            "the learnt lead or the short-step approach changed no command"
+        );
     }
     for (k, (a, b)) in from_c.iter().zip(&recorded).enumerate() {
         assert_eq!(a.to_bits(), b.to_bits(), "sample {k}: C {a} vs control {b}");
@@ -419,8 +459,16 @@ fn c_controller_matches_control(brake: Brake) {
     assert!(nudges > 0, "no nudge in the run");
     // With the brake: its reverse command −a_b u_max = −0.25 × 255 after a full command (both
     // directions: the staircase goes up 82 mm and down 60 mm).
-    if brake != Brake::None {
+    if matches!(brake, Brake::Fixed | Brake::Learnt) {
         assert!(recorded.contains(&-63.75) && recorded.contains(&63.75));
         assert!(recorded.contains(&255.0) && recorded.contains(&-255.0));
+    }
+    // With the short-step approach: the brake up (75 mm, full command then −63.75), the short
+    // drive both ways at 0.35 × 255 = 89.25 (raised by 5 per sample while the piston has not moved)
+    // and its brake ∓0.5 × 255.
+    if brake == Brake::Short {
+        assert!(recorded.contains(&255.0) && recorded.contains(&-63.75));
+        assert!(recorded.contains(&89.25) && recorded.contains(&-89.25));
+        assert!(recorded.contains(&-127.5) && recorded.contains(&127.5));
     }
 }

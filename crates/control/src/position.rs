@@ -939,4 +939,62 @@ mod tests {
                 .contains("brake")
         );
     }
+
+    fn with_short(max_step_mm: f64) -> ControllerSettings {
+        ControllerSettings {
+            short_approach: Some(ShortApproach {
+                max_step_mm,
+                drive_fraction: 0.4,
+                ramp_counts_s: 500.0,
+                switch_mm: 0.5,
+                lead_s: 0.01,
+                brake_strength: 0.25,
+                brake_samples: 3,
+                rest_samples: 2,
+            }),
+            ..plain(1.0, 0.0)
+        }
+    }
+
+    // The short-step approach's fields reach the embedded step: r = 10 from y = 0 (<= e_m = 40 mm)
+    // starts with U u_max = 0.4 × 255 = 102 and, y unchanged, rises by ρ_a Ts = 5 (107); with e_m =
+    // 5 mm the same step is the law's, Kp e = 10.
+    #[test]
+    fn the_short_step_settings_reach_the_embedded_step() {
+        let mut c = with_short(40.0).build().unwrap();
+        assert_eq!(c.step(10.0, 0.0), 102.0);
+        assert_eq!(c.step(10.0, 0.0), 107.0);
+        let mut c = with_short(5.0).build().unwrap();
+        assert_eq!(c.step(10.0, 0.0), 10.0);
+    }
+
+    #[test]
+    fn a_short_step_approach_round_trips_and_a_bad_one_is_refused_by_name() {
+        let s = with_short(40.0);
+        let text = serde_json::to_string_pretty(&ControllerFile::new(s, None)).unwrap();
+        assert!(text.contains("\"short_approach\""));
+        assert_eq!(ControllerFile::parse(&text, "c.json").unwrap(), s);
+        for (good, bad) in [
+            ("\"drive_fraction\": 0.4", "\"drive_fraction\": 0.0"),
+            ("\"max_step_mm\": 40.0", "\"max_step_mm\": -1.0"),
+            ("\"brake_samples\": 3", "\"brake_samples\": 0"),
+            ("\"ramp_counts_s\": 500.0", "\"ramp_counts_s\": -5.0"),
+        ] {
+            assert!(text.contains(good), "{good}");
+            let e = ControllerFile::parse(&text.replace(good, bad), "c.json").unwrap_err();
+            assert!(e.to_string().contains("short_approach"), "{e}");
+        }
+        let extra = text.replace("\"rest_samples\": 2", "\"rest_samples\": 2, \"extra\": 1");
+        assert!(ControllerFile::parse(&extra, "c.json").is_err());
+        // Off (every file before session 17): not written, and read as none.
+        let plain_text =
+            serde_json::to_string(&ControllerFile::new(plain(1.0, 0.0), None)).unwrap();
+        assert!(!plain_text.contains("short"));
+        assert_eq!(
+            ControllerFile::parse(&plain_text, "c.json")
+                .unwrap()
+                .short_approach,
+            None
+        );
+    }
 }

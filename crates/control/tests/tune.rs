@@ -202,7 +202,12 @@ fn tuning_meets_the_spec_where_it_is_reachable() {
         tune::evaluate(5, &f, &factory, &spec).unwrap()
     };
     let better = |w: &tune::Evaluation| e.met > w.met || (e.met == w.met && e.cost < w.cost);
+    assert_eq!(t.short_evaluations, tune::SHORT_CANDIDATES);
     let mut searched = t.settings;
+    // The short-step approach (session 17) was the last choice: without it, the controller before it.
+    if searched.short_approach.take().is_some() {
+        assert!(better(&evaluate(searched)));
+    }
     let nudge = searched.nudge.as_mut().unwrap();
     let rest_chosen = nudge.rest_samples != tune::NUDGE_REST_SAMPLES;
     nudge.rest_samples = tune::NUDGE_REST_SAMPLES;

@@ -1258,6 +1258,106 @@ mod tests {
         assert!(PositionController::new(s, None).is_err());
     }
 
+    /// Kp = 1, Ki = 0 and the short-step approach: e_m = 20 mm, U = 0.2 (U u_max = 51 counts), ρ_a =
+    /// 500 counts/s (5 counts per sample), e_s' = 1 mm, τ_s = 0.1 s, a_s = 0.5, T_s = 2, N_s = 2.
+    fn short_stepping() -> PositionSettings<f64> {
+        PositionSettings {
+            kp: 1.0,
+            ki: 0.0,
+            short: Some(ShortApproachSettings {
+                max_step: 20.0,
+                drive_fraction: 0.2,
+                ramp: 500.0,
+                switch: 1.0,
+                lead: 0.1,
+                strength: 0.5,
+                samples: 2,
+                rest_samples: 2,
+            }),
+            ..s()
+        }
+    }
+
+    // r = 10 from y = 0 (e_s' = 1 < 10 <= e_m = 20), by hand: the drive starts at U u_max = 51 and
+    // rises by ρ_a Ts = 5 per sample while y stays at 0 (51, 56, 61); y = 0.5 (first motion): held
+    // at 61 (v = 50 mm/s, e = 9.5 > 1 + 0.1 × 50 = 6); y = 2 (v = 150, e = 8 <= 1 + 15): the brake
+    // −a_s u_max = −127.5 for T_s = 2 samples; y = 3.5 moved: hold 0, then unchanged once (0) and
+    // twice (N_s = 2): the law from a fresh start, Kp e = 6.5. Down, the same with the signs turned.
+    #[test]
+    fn the_short_step_drive_rises_until_the_piston_moves_then_brakes_and_holds() {
+        let mut c = PositionController::new(short_stepping(), None).unwrap();
+        let y = [0.0, 0.0, 0.0, 0.5, 2.0, 3.0, 3.5, 3.5, 3.5, 3.5];
+        let u = y.map(|y| c.step(10.0, y).unwrap());
+        let want = [51.0, 56.0, 61.0, 61.0, -127.5, -127.5, 0.0, 0.0, 6.5, 6.5];
+        assert_eq!(u, want);
+        let mut c = PositionController::new(short_stepping(), None).unwrap();
+        let u = y.map(|y| c.step(-10.0, -y).unwrap());
+        assert_eq!(u, want.map(|u| -u));
+        // A new set-point 3.5 mm below re-arms it (left, from 51 again).
+        let mut c = PositionController::new(short_stepping(), None).unwrap();
+        for y in y {
+            c.step(10.0, y).unwrap();
+        }
+        assert_eq!(c.step(0.0, 3.5).unwrap(), -51.0);
+    }
+
+    // The guard ramp stops at the first motion and does not resume when the piston comes back to
+    // where the step began (51, 56, then 56 held); it never exceeds u_max (U = 0.9: 229.5, then
+    // min(229.5 + 50, 255) = 255 with ρ_a Ts = 50).
+    #[test]
+    fn the_guard_ramp_ends_at_the_first_motion_and_stays_within_u_max() {
+        let mut c = PositionController::new(short_stepping(), None).unwrap();
+        let u = [0.0, 0.0, 0.01, 0.0].map(|y| c.step(10.0, y).unwrap());
+        assert_eq!(u, [51.0, 56.0, 56.0, 56.0]);
+        let mut s = short_stepping();
+        let a = s.short.as_mut().unwrap();
+        (a.drive_fraction, a.ramp) = (0.9, 5000.0);
+        let mut c = PositionController::new(s, None).unwrap();
+        let u = [0.0, 0.0, 0.0].map(|y| c.step(10.0, y).unwrap());
+        assert_eq!(u, [229.5, 255.0, 255.0]);
+    }
+
+    // Which approach a step gets: |e| <= e_s' (0.5 mm) or > e_m (30 mm) not the short one (the law:
+    // Kp e = 0.5, 30); with the brake of `braking` too (e_a = 10 mm), a 15 mm step is a short step
+    // (51) and a 30 mm step is braked (full command 255).
+    #[test]
+    fn the_short_step_approach_takes_the_steps_within_its_range_before_the_brake() {
+        for (r, want) in [(0.5, 0.5), (30.0, 30.0), (10.0, 51.0)] {
+            let mut c = PositionController::new(short_stepping(), None).unwrap();
+            assert_eq!(c.step(r, 0.0).unwrap(), want, "r = {r}");
+        }
+        let both = PositionSettings {
+            brake: braking().brake,
+            ..short_stepping()
+        };
+        for (r, want) in [(15.0, 51.0), (30.0, 255.0), (5.0, 51.0)] {
+            let mut c = PositionController::new(both, None).unwrap();
+            assert_eq!(c.step(r, 0.0).unwrap(), want, "r = {r}");
+        }
+    }
+
+    #[test]
+    fn short_step_settings_out_of_range_are_refused() {
+        for f in [
+            |a: &mut ShortApproachSettings<f64>| a.max_step = 0.0,
+            |a: &mut ShortApproachSettings<f64>| a.drive_fraction = 0.0,
+            |a: &mut ShortApproachSettings<f64>| a.drive_fraction = 1.5,
+            |a: &mut ShortApproachSettings<f64>| a.ramp = -1.0,
+            |a: &mut ShortApproachSettings<f64>| a.switch = f64::NAN,
+            |a: &mut ShortApproachSettings<f64>| a.lead = -0.1,
+            |a: &mut ShortApproachSettings<f64>| a.strength = 0.0,
+            |a: &mut ShortApproachSettings<f64>| a.samples = 0,
+            |a: &mut ShortApproachSettings<f64>| a.rest_samples = 1001,
+        ] {
+            let mut s = short_stepping();
+            f(s.short.as_mut().unwrap());
+            assert_eq!(
+                PositionController::new(s, None).unwrap_err(),
+                Error::Setting
+            );
+        }
+    }
+
     #[test]
     fn brake_settings_out_of_range_are_refused() {
         for f in [

@@ -670,8 +670,21 @@ pub fn tuned_line(s: &control::ControllerSettings) -> String {
             String::new()
         }
     });
+    let short = s.short_approach.map_or(String::new(), |a| {
+        format!(
+            ", short-step approach for steps of at most {} mm ({} u_max, raised by {} counts/s until the piston moves, until the error is {} mm + {} s × the speed, then {} u_max reversed for {} samples, valves closed until {} samples at rest)",
+            report::format::sig(a.max_step_mm, 6),
+            report::format::sig(a.drive_fraction, 6),
+            report::format::sig(a.ramp_counts_s, 6),
+            report::format::sig(a.switch_mm, 6),
+            report::format::sig(a.lead_s, 6),
+            report::format::sig(a.brake_strength, 6),
+            a.brake_samples,
+            a.rest_samples
+        )
+    });
     format!(
-        "tuned PID Kp = {:.4}, Ki = {:.4}, Kd = {:.4} (Tf = {} s), clamping anti-windup, {comp}, hold band {} mm{nudge}{brake}, |u| <= {} counts",
+        "tuned PID Kp = {:.4}, Ki = {:.4}, Kd = {:.4} (Tf = {} s), clamping anti-windup, {comp}, hold band {} mm{nudge}{brake}{short}, |u| <= {} counts",
         s.kp,
         s.ki,
         s.kd,

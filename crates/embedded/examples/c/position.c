@@ -4,14 +4,16 @@
  *
  *   cc -O2 -std=c99 -Icrates/embedded/include crates/embedded/examples/c/position.c \
  *      target/release/libipa_embedded.a -lm -lpthread -ldl
- *   ./a.out TS KP KI KD TF U_MAX HOLD FINE RESET [B_L B_R M_L M_R [BAND RAMP START REST CUT [REST_BAND [CUT_BAND MIN_RAMP]]]] < trace.csv
+ *   ./a.out TS KP KI KD TF U_MAX HOLD FINE RESET [B_L B_R M_L M_R [BAND RAMP START REST CUT [REST_BAND [CUT_BAND MIN_RAMP ...]]]] < trace.csv
  *
  * The arguments are the fields of the `controller` object of CONTROLLER.json (ts_s, kp, ki, kd,
  * derivative_filter_s, u_max, hold_band_mm, fine_band_mm, reset_on_crossing as 0/1, and the
  * compensator's deadzone when it has one, then the nudge mode's band_mm, ramp_counts_s, start_fraction,
  * rest_samples, cut_fraction and optionally rest_band_mm, then cut_band_mm and min_ramp_counts_s (0 when absent) when it has one;
  * then the brake's min_step_mm, switch_mm, lead_s, strength, samples, rest_samples and optionally
- * learn and lead_max_s, then release_samples, when it has one). trace.csv is what `ipa-sysid control --controller
+ * learn and lead_max_s, then release_samples, when it has one; then, after all of these, the
+ * short-step approach's max_step_mm, drive_fraction, ramp_counts_s, switch_mm, lead_s,
+ * brake_strength, brake_samples and rest_samples, when it has one). trace.csv is what `ipa-sysid control --controller
  * CONTROLLER.json --out trace.csv` writes (header t,r,u,y): the controller is fed r(k) and y(k) of each
  * row, as firmware would feed the set-point and the encoder, and prints its command u(k) per line
  * (round-trip decimal, %.17g), to compare with the u column.
@@ -27,9 +29,9 @@ static uint64_t state[IPA_CTL_STATE_BYTES / sizeof(uint64_t) + 1];
 
 int main(int argc, char **argv) {
     if (argc != 10 && argc != 14 && argc != 19 && argc != 20 && argc != 22 && argc != 28 &&
-        argc != 30 && argc != 31) {
+        argc != 30 && argc != 31 && argc != 39) {
         fprintf(stderr,
-                "usage: %s TS KP KI KD TF U_MAX HOLD FINE RESET [B_L B_R M_L M_R [BAND RAMP START REST CUT [REST_BAND [CUT_BAND MIN_RAMP [MIN_STEP SWITCH LEAD STRENGTH SAMPLES BRAKE_REST [LEARN LEAD_MAX [RELEASE]]]]]]]"
+                "usage: %s TS KP KI KD TF U_MAX HOLD FINE RESET [B_L B_R M_L M_R [BAND RAMP START REST CUT [REST_BAND [CUT_BAND MIN_RAMP [MIN_STEP SWITCH LEAD STRENGTH SAMPLES BRAKE_REST [LEARN LEAD_MAX [RELEASE [SHORT_MAX_STEP DRIVE RAMP SWITCH LEAD STRENGTH SAMPLES REST]]]]]]]]"
                 " < trace.csv\n",
                 argv[0]);
         return 2;
@@ -84,7 +86,21 @@ int main(int argc, char **argv) {
             c.brake_learn = atof(argv[28]);
             c.brake_lead_max = atof(argv[29]);
         }
-        if (argc == 31) c.brake_release = (uint32_t)atol(argv[30]);
+        if (argc >= 31) c.brake_release = (uint32_t)atol(argv[30]);
+    }
+    /* The short-step approach: off (max step 0) unless given, as in a struct zeroed before it existed. */
+    c.short_samples = c.short_rest_samples = 0;
+    c.short_max_step = c.short_drive_fraction = c.short_ramp = 0.0;
+    c.short_switch = c.short_lead = c.short_strength = 0.0;
+    if (argc == 39) {
+        c.short_max_step = atof(argv[31]);
+        c.short_drive_fraction = atof(argv[32]);
+        c.short_ramp = atof(argv[33]);
+        c.short_switch = atof(argv[34]);
+        c.short_lead = atof(argv[35]);
+        c.short_strength = atof(argv[36]);
+        c.short_samples = (uint32_t)atol(argv[37]);
+        c.short_rest_samples = (uint32_t)atol(argv[38]);
     }
     int rc = ipa_ctl_init(state, sizeof state, &c);
     if (rc != IPA_OK) {

@@ -767,8 +767,15 @@ pub const SHORT_CANDIDATES: usize =
 pub const SHORT_RAMP_COUNTS_S: f64 = 500.0;
 /// a_s: the short-step brake's fraction of u_max.
 pub const SHORT_BRAKE_STRENGTH: f64 = 0.25;
-/// T_s: the short-step brake's duration, s (3 samples of 10 ms).
-pub const SHORT_BRAKE_S: f64 = 0.03;
+/// T_s: the short-step brake's duration, s (2 samples of 10 ms). The prototype's 3 samples stopped
+/// the fast variants' 30 mm steps down and then pushed them back: variant 15, 175 → 145 mm, driven at
+/// 0.4 u_max (about 170 mm/s), braked from 1.03 mm before r, stopped 0.2 mm past it at the third
+/// sample of the brake and sprang back 3.7 mm with the valves closed, outside the rest band, where
+/// the finish hunted (|e_ss| 1.18 mm, the twin's worst run). With 2 samples the twin's choice meets
+/// the whole specification in 8 more of the 168 verification runs, its worst |e_ss| is main's 0.79 mm,
+/// and the fragility twins gain 51 runs; the independent family loses 3 (docs/control.md, Results'
+/// session-17 block).
+pub const SHORT_BRAKE_S: f64 = 0.02;
 /// N_s: samples at rest that end the hold after the short-step brake.
 pub const SHORT_REST_SAMPLES: u32 = 2;
 /// e_m as a fraction of the specification's largest step (40 mm of the default 150 mm: the 10 and

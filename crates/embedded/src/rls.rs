@@ -54,7 +54,8 @@
 //! division when it acts (if δ tr P or (Pφ)ᵀ(Pφ) overflows, possible in f32 with P ≳ 1e19, tr P(k) is
 //! summed from the new diagonal instead). `sysid` writes its guarded update in a different operation
 //! order, so results agree to rounding, not bit for bit. In the UD form tr P = Σ_j d_j (Σ_(i<j) U_ij² + 1)
-//! is summed from the new factors as the second pass writes them (n² + 3n flops, sysid's order), and
+//! is summed from the new factors as the second pass writes them (n² + 4n flops, sysid's order: each
+//! column's Σ_(i<j) U_ij² as a sum over even i plus a sum over odd i, half the chain of additions), and
 //! when it exceeds T the scale c = T / tr P is not applied to D but left pending: P = c · U D Uᵀ, kept
 //! as the next update's measurement variance ρ̃ = ρ / c = tr P · (ρ / T) (one more float of state; ρ̃ = ρ
 //! when nothing is pending). Bierman's update of (U, D) with variance ρ̃ gives the gain and the factors
@@ -669,8 +670,15 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
         let Some((u_col, rest)) = row.split_at_mut_checked(j) else {
             break 'col;
         };
-        let mut col = -F::ZERO;
-        for (((u, wi), wk), uo) in u_col.iter_mut().zip(w_col.iter_mut()).zip(kept).zip(old) {
+        // Σ_(i<j) U_ij² as two partial sums, even i and odd i (see `ud_trace`).
+        let (mut col_even, mut col_odd) = (-F::ZERO, -F::ZERO);
+        for (i, (((u, wi), wk), uo)) in u_col
+            .iter_mut()
+            .zip(w_col.iter_mut())
+            .zip(kept)
+            .zip(old)
+            .enumerate()
+        {
             // The first pass's copy where it made one (the same value).
             let uij = if split_row_loads { *uo } else { *u };
             let un = uij + if keep_w { *wk } else { *wi } * lambda;
@@ -679,7 +687,11 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
                 *wi += uij * vj;
             }
             if GUARD {
-                col += un * un;
+                if i % 2 == 0 {
+                    col_even += un * un;
+                } else {
+                    col_odd += un * un;
+                }
             }
         }
         if let Some(d) = rest.first_mut() {
@@ -689,7 +701,7 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
             *wj = vj;
         }
         if GUARD {
-            col += F::ONE * F::ONE;
+            let col = (col_even + col_odd) + F::ONE * F::ONE;
             tr += dn * col;
         }
     });
@@ -724,15 +736,21 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
 }
 
 /// tr P = Σ_j d_j Σ_(i≤j) U_ij² of UD factors stored by rows (row j: U_0j..U_(j−1)j, d_j), summed as
-/// `sysid` does (sums from −0, the U_jj = 1 term last).
+/// `sysid` does: Σ_(i<j) U_ij² as (Σ over even i + Σ over odd i), each from −0, then + U_jj² = 1; the
+/// columns' terms d_j · (…) added from −0 in the order j = 0, 1, …. (Two partial sums halve the chain
+/// of dependent additions per column, issue 28 twelfth round.)
 fn ud_trace<F: Float, const N: usize>(fac: &[[F; N]; N], n: usize) -> F {
     let mut tr = -F::ZERO;
     for (j, row) in fac.iter().enumerate().take(n) {
-        let mut col = -F::ZERO;
-        for u in row.iter().take(j) {
-            col += *u * *u;
+        let (mut col_even, mut col_odd) = (-F::ZERO, -F::ZERO);
+        for (i, u) in row.iter().take(j).enumerate() {
+            if i % 2 == 0 {
+                col_even += *u * *u;
+            } else {
+                col_odd += *u * *u;
+            }
         }
-        col += F::ONE * F::ONE;
+        let col = (col_even + col_odd) + F::ONE * F::ONE;
         tr += row.get(j).copied().unwrap_or(F::ZERO) * col;
     }
     tr

@@ -306,3 +306,66 @@ fn f32_ud_form_works_where_the_standard_form_fails() {
     let median = db[db.len() / 2];
     assert!(median < 0.02, "median breakpoint difference {median} count");
 }
+
+// The UD guard acting and idle in turn (the pending scale ρ̃ set, then dropped): excitation, a quiet
+// stretch (φ ≈ 0, so P grows like ρ^(−k) until tr P meets T), excitation again, on the state sized
+// exactly (n = N = 4, the unrolled kernel) and on a larger state (n = 4, N = 9, run-time loop bounds).
+// Every update: ε, θ̂ and tr P (its even-i plus odd-i column sums) equal to `sysid::rls_ud::RobustRls`'s
+// (`--rls-form ud --windup trace`) bit for bit; the guard acted on some updates and not on others.
+#[test]
+fn ud_guard_switching_on_and_off_is_bit_for_bit_sysid() {
+    use sysid::rls_ud::{RlsForm, RobustRls};
+    use sysid::windup::Windup;
+    let (rho, p0, t) = (0.95, 10.0, 100.0);
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let mut want = RobustRls::new(4, rho, p0, RlsForm::Ud, Windup::Trace, Some(t)).unwrap();
+    let mut exact = ipa_embedded::Rls::<f64, 4>::new(4, rho, p0)
+        .unwrap()
+        .with_form(Form::Ud)
+        .with_max_trace(t)
+        .unwrap();
+    let mut larger = ipa_embedded::Rls::<f64, 9>::new(4, rho, p0)
+        .unwrap()
+        .with_form(Form::Ud)
+        .with_max_trace(t)
+        .unwrap();
+    let (mut acted, mut idle) = (0, 0);
+    for k in 0..600 {
+        let quiet = (150..350).contains(&(k % 400));
+        let scale = if quiet { 1e-9 } else { 1.0 };
+        let phi: Vec<f64> = (0..4).map(|_| scale * rng.gen_range(-1.0..1.0)).collect();
+        let y = 2.0 * phi[0] - phi[1] + 0.5 * phi[2] + 0.25 * phi[3] + 1e-3 * rng.gen::<f64>();
+        let e_want = want.update(&phi, y, k).unwrap();
+        for est in [&mut exact as &mut dyn UdUpdate, &mut larger] {
+            let (e, theta, tr) = est.step(&phi, y);
+            assert!(e == e_want, "k={k}: ε {e:e} vs {e_want:e}");
+            for (g, w) in theta.iter().zip(want.theta.iter()) {
+                assert!(g == w, "k={k}: θ̂ {g:e} vs {w:e}");
+            }
+            assert!(
+                tr == want.trace(),
+                "k={k}: tr P {tr:e} vs {:e}",
+                want.trace()
+            );
+        }
+        // Acting: tr P was scaled to T (to rounding); else it is below T.
+        if (want.trace() / t - 1.0).abs() < 1e-12 {
+            acted += 1;
+        } else {
+            idle += 1;
+        }
+    }
+    assert!(acted > 10 && idle > 10, "guard acted {acted}, idle {idle}");
+}
+
+/// One UD update of an `ipa_embedded::Rls` of any capacity: ε, θ̂'s first four entries and tr P.
+trait UdUpdate {
+    fn step(&mut self, phi: &[f64], y: f64) -> (f64, Vec<f64>, f64);
+}
+
+impl<const N: usize> UdUpdate for ipa_embedded::Rls<f64, N> {
+    fn step(&mut self, phi: &[f64], y: f64) -> (f64, Vec<f64>, f64) {
+        let e = self.update(phi, y).unwrap();
+        (e, self.theta()[..4].to_vec(), self.trace())
+    }
+}

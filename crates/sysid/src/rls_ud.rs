@@ -17,6 +17,7 @@
 //!   P = c · U D Uᵀ, and the next update folds it in: Bierman's update of (U, D) with measurement variance
 //!   ρ̃ = ρ / c gives the gain and the factors of the update of c · U D Uᵀ, and D ← D · (1/ρ̃) both applies
 //!   c and divides by ρ. So the bound costs no pass over D; ρ̃ = tr P · (ρ / T) when it acts, ρ otherwise.
+//!   tr P sums each column's Σ_(i<j) U_ij² over even and odd i apart (`ud_trace`): `ipa_embedded`'s order.
 //!
 //! The same options exist in the standard (dense P) form, [`RlsForm::Standard`], for comparison.
 
@@ -347,11 +348,23 @@ fn bierman(f: &mut Factors<'_>, phi: &[f64], var: f64) -> (f64, f64) {
     (alpha, inv_prev)
 }
 
-/// tr (U D Uᵀ) = Σ_j d_j Σ_(i≤j) U_ij² (sums from −0 in this order, the U_jj = 1 term last:
-/// `ipa_embedded` sums it the same way).
+/// tr (U D Uᵀ) = Σ_j d_j Σ_(i≤j) U_ij²: Σ_(i<j) U_ij² as (Σ over even i + Σ over odd i), each from −0,
+/// then + U_jj² = 1; the terms d_j · (…) summed from −0 in the order j = 0, 1, … (`ipa_embedded` sums it
+/// the same way; two partial sums halve its chain of dependent additions).
 fn ud_trace(u: &DMatrix<f64>, d: &DVector<f64>) -> f64 {
     (0..d.len())
-        .map(|j| d[j] * (0..=j).map(|i| u[(i, j)] * u[(i, j)]).sum::<f64>())
+        .map(|j| {
+            let (mut even, mut odd) = (-0.0, -0.0);
+            for i in 0..j {
+                let sq = u[(i, j)] * u[(i, j)];
+                if i % 2 == 0 {
+                    even += sq;
+                } else {
+                    odd += sq;
+                }
+            }
+            d[j] * ((even + odd) + 1.0 * 1.0)
+        })
         .sum()
 }
 

@@ -135,6 +135,10 @@ struct ControlOut<'a> {
     /// `fixed`: metrics of the single step; `worst-step`: field-wise worst over `steps` (unfixed set-point).
     metrics_kind: &'a str,
     metrics: StepMetrics,
+    /// False when a step that moved has not settled: its `overshoot_mm`/`overshoot_percent` (beyond
+    /// the last sample, `stepinfo(y, t)`) are then not final; `overshoot_past_setpoint_*` (beyond r)
+    /// are (audit s17 M-b).
+    overshoot_final: bool,
     steps: &'a [StepSegment],
     samples: usize,
     trace: Option<String>,
@@ -227,7 +231,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .with_integral(args.integral)
         .with_anti_windup(anti_windup(&args, ts)?)
         .with_u_max(args.u_max);
-    let tuned = tuned_controller(&args, ts, &mut inputs)?;
+    // What the controller file's provenance says against it (its tuning missed the spec).
+    let mut file_warnings = Vec::new();
+    let tuned = tuned_controller(&args, ts, &mut inputs, &mut file_warnings)?;
     let limits = args
         .plant
         .parse::<ipa::PlantSpec>()
@@ -283,6 +289,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let metrics_kind = kind.as_str();
     // The model file's own doubts (a crossed deadzone), then the loop's.
     let mut warnings = limits.model_warnings.clone();
+    warnings.extend(file_warnings);
     warnings.extend(compensator_warning);
     warnings.extend(profile.last_row_warning(duration_s));
     if let Some(change) = args.deadzone_change.filter(|c| c.at_s >= duration_s) {
@@ -339,6 +346,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             },
             metrics_kind,
             metrics,
+            overshoot_final: metrics.overshoot_mm.is_none() || metrics.settling_time_s.is_some(),
             steps: &steps,
             samples: trace.len(),
             trace: args.out.as_ref().map(|p| p.display().to_string()),
@@ -732,9 +740,15 @@ fn summary_text(
         "worst step (field-wise)"
     };
     o += &format!("{heading}:\n");
+    // Beyond the last sample (stepinfo(y, t)): final only once the step has settled (audit s17 M-b).
+    let not_final = if m.settling_time_s.is_none() {
+        "; not final: not settled"
+    } else {
+        ""
+    };
     o += &match (m.overshoot_mm, m.overshoot_percent) {
         (Some(_), Some(_)) => format!(
-            "  overshoot            {} ({} of the step)\n",
+            "  overshoot            {} ({} of the step{not_final})\n",
             fmt_opt(m.overshoot_mm, units.y, m),
             fmt_opt(m.overshoot_percent, "%", m)
         ),
@@ -743,6 +757,18 @@ fn summary_text(
             fmt_opt(m.overshoot_mm, units.y, m)
         ),
     };
+    if let (Some(p), Some(pc)) = (
+        m.overshoot_past_setpoint_mm,
+        m.overshoot_past_setpoint_percent,
+    ) {
+        // How far the output went beyond r (stepinfo(y, t, r)), whatever the run's length.
+        o += &format!(
+            "  peak past r          {} {} ({} % of the set-point step)\n",
+            control::trust::fmt_value(p),
+            units.y,
+            control::trust::fmt_value(pc)
+        );
+    }
     o += &format!(
         "  steady-state error   {}\n",
         fmt_opt(m.steady_state_error_mm, units.y, m)
@@ -795,16 +821,21 @@ fn summary_text(
 }
 
 /// The tuned controller of `--controller FILE` (read, and its Ts checked against the plant's `ts`), its
-/// file added to `inputs`; `None` without the flag (the PI of --kp/--ki).
+/// file added to `inputs` and its provenance's doubts to `warnings`; `None` without the flag (the PI of
+/// --kp/--ki).
 fn tuned_controller(
     args: &Args,
     ts: f64,
     inputs: &mut Vec<PathBuf>,
+    warnings: &mut Vec<String>,
 ) -> anyhow::Result<Option<control::ControllerSettings>> {
     Ok(match &args.controller {
         Some(path) => {
             inputs.push(path.clone());
-            let t = control::ControllerFile::read(path).context("cannot read --controller")?;
+            let file =
+                control::ControllerFile::read_file(path).context("cannot read --controller")?;
+            let t = file.controller;
+            warnings.extend(file.provenance_warning());
             if (t.ts_s - ts).abs() > 1e-9 * ts {
                 bail!(sysid::SysidError::setting(
                     sysid::Setting::Other("--controller"),

@@ -132,7 +132,9 @@ impl std::fmt::Display for DeadzoneProblem {
             ),
             DeadzoneProblem::NoDeadzone(block) => write!(
                 f,
-                "a model with a deadzone input block (this model's input block is {block})"
+                "a model with a deadzone input block (this model's input block is {block}; identify \
+                 the record again with `--structure hammerstein` for one, or run this model as a \
+                 plant under a PI: `control --plant model:FILE --kp KP --ki KI`)"
             ),
         }
     }

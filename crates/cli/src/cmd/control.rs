@@ -95,6 +95,10 @@ pub struct Args {
     /// flags that set them are refused beside it).
     #[arg(long, value_name = "CONTROLLER.json", conflicts_with_all = ["compensate_deadzone", "adaptive", "anti_windup", "tracking_time", "integral", "kp", "ki", "u_max", "compensator_threshold", "compensator_slopes"])]
     pub controller: Option<PathBuf>,
+    /// Exit with code 1 when the result carries warnings (they are printed either way), without writing
+    /// the output files (an earlier file there is kept).
+    #[arg(long)]
+    pub strict: bool,
     /// Write the metrics and settings as JSON to this file (`-` = standard output).
     #[arg(long, value_name = "OUT")]
     pub json: Option<PathBuf>,
@@ -356,14 +360,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         json_text =
             Some(serde_json::to_string_pretty(&doc).context("serialising the JSON output")? + "\n");
     }
-    let mut outputs: Vec<(&Path, &[u8])> = Vec::new();
+    let mut outputs: Vec<(&Path, &[u8], &str)> = Vec::new();
     if let (Some(out), Some(bytes)) = (&args.out, &trace_csv) {
-        outputs.push((out, bytes));
+        outputs.push((out, bytes, "--out"));
     }
     if let (Some(json), Some(text)) = (&args.json, &json_text) {
-        outputs.push((json, text.as_bytes()));
+        outputs.push((json, text.as_bytes(), "--json"));
     }
-    sysid_io::write_all_atomic(&outputs)?;
+    // With --strict and warnings, no file is written (an earlier one is kept) and the exit code is 1,
+    // after the report (audit s17 L-d).
+    let written = super::common::write_outputs(&outputs, &[], args.strict, warnings.len());
+    if let Err(e) = &written {
+        if e.downcast_ref::<crate::exit::StrictWarnings>().is_none() {
+            return written;
+        }
+    }
 
     // A model plant's signals are in its record's units, not the IPA's (audit s14 L-p).
     let units = Units::of(limits.model_units());
@@ -390,7 +401,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         summary += &format!("warning: {w}\n");
     }
     // Keep standard output clean JSON (or CSV) when the JSON (or the trace) goes there.
-    super::common::print_report(&summary, &[args.json.as_deref(), args.out.as_deref()])
+    super::common::print_report(&summary, &[args.json.as_deref(), args.out.as_deref()])?;
+    written
 }
 
 /// The closed loop of `run`: with `--adaptive`, the compensator follows the online estimate and the run

@@ -24,8 +24,11 @@ fn stdout(o: &Output) -> String {
     String::from_utf8_lossy(&o.stdout).into_owned()
 }
 
+/// A trace's columns (t, r, u, y).
+type Columns = (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>);
+
 /// The trace CSV (header t,r,u,y): (t, r, u, y).
-fn trace(path: &Path) -> (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>) {
+fn trace(path: &Path) -> Columns {
     let text = std::fs::read_to_string(path).unwrap();
     let mut lines = text.lines();
     assert_eq!(lines.next().unwrap().trim(), "t,r,u,y");
@@ -54,7 +57,7 @@ fn warnings(doc: &Value) -> Vec<String> {
 }
 
 /// Runs `control ARGS --out T --json J` in `dir`; (output, trace, JSON).
-fn control(dir: &Path, args: &[&str]) -> (Output, (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>), Value) {
+fn control(dir: &Path, args: &[&str]) -> (Output, Columns, Value) {
     let (t, j) = (dir.join("t.csv"), dir.join("j.json"));
     let mut a = vec!["control"];
     a.extend_from_slice(args);

@@ -230,13 +230,13 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
                         return "; the output has not gone past the set-point".to_string();
                     }
                     format!(
-                        "; the output went {} {y_unit} ({:.2} % of the step) past the set-point (stepinfo(y, t, r))",
+                        "; the output went {} {y_unit} ({:.2} % of the step) past the set-point (the peak past r)",
                         fmt_mm(p),
                         m.overshoot_past_setpoint_percent.unwrap_or(f64::NAN)
                     )
                 });
                 format!(
-                    "; its overshoot of {os:.2} % (beyond the last sample, stepinfo(y, t)) is not final either{past}"
+                    "; its overshoot of {os:.2} % (beyond the last sample) is not final either{past}"
                 )
             }
             _ => String::new(),

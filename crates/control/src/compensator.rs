@@ -97,7 +97,12 @@ impl DeadzoneCompensator {
             );
         }
         if !(d.m_l > 0.0 && d.m_r > 0.0) {
-            return bad("positive slopes m_l, m_r (a valve whose output rises with its command)");
+            return bad(
+                "positive slopes m_l, m_r (a valve whose output rises with its command; a plant of \
+                 negative gain, both slopes < 0, is a plant the deadzone inverse and tune do not \
+                 handle as it is: negate its output column (y -> -y), identify again, and give the \
+                 set-points negated; audit s17 L-b)",
+            );
         }
         if !(u_max.is_finite() && u_max > 0.0) {
             return Err(ControlError::setting(

@@ -5,10 +5,19 @@
 //! * **final value** y_f = y(t_(N-1)), the last sample (as python-control; MATLAB uses the last sample of a
 //!   simulated response too). The run must be long enough for the response to have settled.
 //! * **step** Δ = y_f - y0, direction d = sign(Δ). All relative measures are taken on |Δ|.
-//! * **overshoot** OS = max(0, max_k d (y_k - y_f)) in mm, and 100 OS / |Δ| in % (MATLAB `Overshoot`).
+//! * **overshoot** OS = max(0, max_k d (y_k - y_f)) in mm, and 100 OS / |Δ| in % (MATLAB `Overshoot` of
+//!   `stepinfo(y, t)`: beyond the last sample, so it is final only when the step has settled).
+//! * **peak past the set-point** OS_r = max(0, max_k d_r (y_k - r)) in mm, d_r = sign(r - y0), and
+//!   100 OS_r / |r - y0| in % (the `Overshoot` of MATLAB `stepinfo(y, t, r)`): how far the output went
+//!   beyond r whatever the run's length; `None` when r = y0 (no step towards a set-point).
 //! * **steady-state error** e_ss = r - y_f in mm (signed).
 //! * **rise time** t_r = t_90 - t_10, where t_p is the first time d (y - y0) reaches p |Δ|, found by linear
 //!   interpolation between the two samples around the crossing (MATLAB `RiseTime`, limits 10 %-90 %).
+//!   `None` when the step has not settled (no settling time) and the output never reached 90 % of the
+//!   way from y0 to the set-point (d_r (y - y0) < 0.9 |r - y0| throughout): a step cut off short of r
+//!   has no 10-90 % rise towards it, and the rise to wherever the run ended would describe a step that
+//!   did not happen (audit s17 M-c: 7.8 s printed for a step that covered 2.5 % of the way). A step
+//!   settled at an offset (a P controller) keeps `stepinfo(y, t)`'s rise to its final value.
 //! * **settling time** t_s = the time, from t_0, after which y stays within a band around a centre;
 //!   the crossing into the band after the last sample outside it is linearly interpolated, 0 if no
 //!   sample is ever outside it. When the run ends inside the set-point's band (|r − y_f| ≤ 2 % of
@@ -45,6 +54,13 @@ pub struct StepMetrics {
     pub overshoot_mm: Option<f64>,
     /// OS as a percentage of the step |y_f - y0|.
     pub overshoot_percent: Option<f64>,
+    /// OS_r: the peak past the set-point r, in mm (>= 0; `stepinfo(y, t, r)`); absent (`None`) in
+    /// files written before it existed.
+    #[serde(default)]
+    pub overshoot_past_setpoint_mm: Option<f64>,
+    /// OS_r as a percentage of the set-point step |r - y0|.
+    #[serde(default)]
+    pub overshoot_past_setpoint_percent: Option<f64>,
     /// e_ss = r - y_f: set-point minus final value, in mm.
     pub steady_state_error_mm: Option<f64>,
     /// t_r: 10 %-90 % rise time in s.
@@ -134,6 +150,8 @@ impl StepMetrics {
         let error_only = StepMetrics {
             overshoot_mm: None,
             overshoot_percent: None,
+            overshoot_past_setpoint_mm: None,
+            overshoot_past_setpoint_percent: None,
             steady_state_error_mm: ess,
             rise_time_s: None,
             settling_time_s: None,
@@ -162,6 +180,11 @@ impl StepMetrics {
         let peak = (0..n).map(z).fold(f64::NEG_INFINITY, f64::max);
         let overshoot = (peak - step).max(0.0);
 
+        // The peak past r and how far towards r the output ever got (d = d_r here: a step that ended
+        // on the far side of y0 from r moved away, above).
+        let r_step = (r_mm - y0_mm).abs();
+        let past_r = (r_step > 0.0).then(|| (peak - d * (r_mm - y0_mm)).max(0.0));
+        let reached_r90 = r_step == 0.0 || peak >= RISE_HIGH * r_step;
         let first_reach = |p: f64| first_reach(t_s, &z, p * step);
         let rise = match (first_reach(RISE_LOW), first_reach(RISE_HIGH)) {
             (Some(lo), Some(hi)) => Some(hi - lo),
@@ -184,11 +207,21 @@ impl StepMetrics {
         let metrics = StepMetrics {
             overshoot_mm: Some(overshoot),
             overshoot_percent: Some(100.0 * overshoot / step),
+            overshoot_past_setpoint_mm: past_r,
+            overshoot_past_setpoint_percent: past_r.map(|p| 100.0 * p / r_step),
             steady_state_error_mm: ess,
-            rise_time_s: rise,
+            rise_time_s: rise.filter(|_| reached_r90 || settled.is_ok()),
             settling_time_s: settled.ok(),
         };
         Ok((metrics, settled.err()))
+    }
+
+    /// The overshoot judged against a limit (`tune`'s OS_max, audit s17 M-b): the peak past the
+    /// set-point OS_r (`stepinfo(y, t, r)`), which a run's length does not change, when the step had a
+    /// set-point to pass; else OS beyond the last sample.
+    pub fn overshoot_judged_percent(&self) -> Option<f64> {
+        self.overshoot_past_setpoint_percent
+            .or(self.overshoot_percent)
     }
 
     /// Field-wise worst case over several steps (largest overshoot, rise and settling time; the steady-state
@@ -219,6 +252,14 @@ impl StepMetrics {
             .reduce(|a, b| StepMetrics {
                 overshoot_mm: pick(a.overshoot_mm, b.overshoot_mm),
                 overshoot_percent: pick(a.overshoot_percent, b.overshoot_percent),
+                overshoot_past_setpoint_mm: pick(
+                    a.overshoot_past_setpoint_mm,
+                    b.overshoot_past_setpoint_mm,
+                ),
+                overshoot_past_setpoint_percent: pick(
+                    a.overshoot_past_setpoint_percent,
+                    b.overshoot_past_setpoint_percent,
+                ),
                 steady_state_error_mm: pick(a.steady_state_error_mm, b.steady_state_error_mm),
                 rise_time_s: pick(a.rise_time_s, b.rise_time_s),
                 settling_time_s: pick(a.settling_time_s, b.settling_time_s),
@@ -899,7 +940,10 @@ mod tests {
         let (t, y) = ramp(MIN_STEP_SAMPLES);
         let (m, why) = StepMetrics::assess(&t, &y, None, 0.0, 100.0).unwrap();
         assert_eq!(why, Some(Unsettled::Moving));
-        assert!(m.rise_time_s.is_some() && m.settling_time_s.is_none());
+        // Judged: an overshoot (0) but no settling time, and no rise time either, since the output got
+        // only 19 of the 100 mm towards r (audit s17 M-c).
+        assert!(m.overshoot_mm == Some(0.0) && m.settling_time_s.is_none());
+        assert_eq!(m.rise_time_s, None);
     }
 
     #[test]
@@ -941,6 +985,8 @@ mod tests {
         let a = StepMetrics {
             overshoot_mm: Some(1.0),
             overshoot_percent: Some(2.0),
+            overshoot_past_setpoint_mm: Some(1.1),
+            overshoot_past_setpoint_percent: Some(2.2),
             steady_state_error_mm: Some(0.1),
             rise_time_s: Some(0.3),
             settling_time_s: Some(0.5),
@@ -948,6 +994,8 @@ mod tests {
         let b = StepMetrics {
             overshoot_mm: Some(0.5),
             overshoot_percent: Some(4.0),
+            overshoot_past_setpoint_mm: Some(0.3),
+            overshoot_past_setpoint_percent: Some(3.0),
             steady_state_error_mm: Some(-0.2),
             rise_time_s: Some(0.2),
             settling_time_s: Some(1.0),
@@ -955,6 +1003,8 @@ mod tests {
         let w = StepMetrics::worst([&a, &b]).unwrap();
         assert_eq!(w.overshoot_mm, Some(1.0));
         assert_eq!(w.overshoot_percent, Some(4.0));
+        assert_eq!(w.overshoot_past_setpoint_mm, Some(1.1));
+        assert_eq!(w.overshoot_past_setpoint_percent, Some(3.0));
         assert_eq!(w.steady_state_error_mm, Some(-0.2));
         assert_eq!(w.rise_time_s, Some(0.3));
         assert_eq!(w.settling_time_s, Some(1.0));
@@ -964,6 +1014,8 @@ mod tests {
         let still = StepMetrics {
             overshoot_mm: None,
             overshoot_percent: None,
+            overshoot_past_setpoint_mm: None,
+            overshoot_past_setpoint_percent: None,
             steady_state_error_mm: Some(0.0),
             rise_time_s: None,
             settling_time_s: None,
@@ -977,5 +1029,50 @@ mod tests {
         let w = StepMetrics::worst([&unsettled, &b]).unwrap();
         assert_eq!(w.settling_time_s, None);
         assert_eq!(w.rise_time_s, Some(0.3));
+    }
+
+    // y0 = 0, r = 100: y rises to 103 and falls back to 101.5 where the run ends still moving.
+    // stepinfo(y, t): OS = 103 − 101.5 = 1.5 (1.478 % of 101.5); stepinfo(y, t, r): OS_r = 3 (3 %).
+    #[test]
+    fn the_peak_past_the_set_point_is_measured_against_r_not_the_last_sample() {
+        let t: Vec<f64> = (0..=40).map(|k| k as f64 * 0.1).collect();
+        let y: Vec<f64> = (0..=40)
+            .map(|k| match k {
+                0..=10 => 10.3 * k as f64,
+                _ => 103.0 - 1.5 * (k - 10) as f64 / 30.0,
+            })
+            .collect();
+        let m = StepMetrics::compute(&t, &y, 0.0, 100.0).unwrap();
+        assert!((m.overshoot_mm.unwrap() - 1.5).abs() < 1e-9);
+        assert!((m.overshoot_percent.unwrap() - 150.0 / 101.5).abs() < 1e-9);
+        assert!((m.overshoot_past_setpoint_mm.unwrap() - 3.0).abs() < 1e-9);
+        assert!((m.overshoot_past_setpoint_percent.unwrap() - 3.0).abs() < 1e-9);
+        assert_eq!(
+            m.overshoot_judged_percent(),
+            m.overshoot_past_setpoint_percent
+        );
+        // Downwards: y0 = 150, r = 50, the output goes to 45 and stays: OS_r = 5 (5 % of 100).
+        let y: Vec<f64> = (0..=40)
+            .map(|k| 150.0 - 10.5 * (k.min(10) as f64))
+            .collect();
+        let m = StepMetrics::compute(&t, &y, 150.0, 50.0).unwrap();
+        assert_eq!(m.overshoot_mm, Some(0.0));
+        assert!((m.overshoot_past_setpoint_mm.unwrap() - 5.0).abs() < 1e-9);
+    }
+
+    // r = 1000 from 0; the output ramps to 25 (2.5 % of the way) and rests, still short of r's band
+    // with the command moving: not settled, no 10–90 % rise towards r. Reaching 95 of r = 100 (past
+    // 90 %) keeps it: 0.1·95 at 0.1 s … 0.9·95 at 0.9 s → 0.8 s.
+    #[test]
+    fn a_step_that_never_reached_ninety_percent_of_the_set_point_has_no_rise_time() {
+        let t: Vec<f64> = (0..=40).map(|k| k as f64 * 0.1).collect();
+        let ramp = |top: f64| -> Vec<f64> { t.iter().map(|&t| top * t.min(1.0)).collect() };
+        let u: Vec<f64> = (0..t.len()).map(|k| k as f64).collect();
+        let (m, why) = StepMetrics::assess(&t, &ramp(25.0), Some(&u), 0.0, 1000.0).unwrap();
+        assert_eq!(why, Some(Unsettled::CommandMoving));
+        assert_eq!(m.rise_time_s, None);
+        assert!(m.overshoot_mm.is_some());
+        let m = StepMetrics::compute(&t, &ramp(95.0), 0.0, 100.0).unwrap();
+        assert!((m.rise_time_s.unwrap() - 0.8).abs() < 1e-9);
     }
 }

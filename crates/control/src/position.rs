@@ -681,6 +681,11 @@ impl ControllerFile {
     /// Parses the JSON text of a controller file named `name` (for messages): errors give the line and
     /// column, a wrong format or version, or the setting out of range.
     pub fn parse(text: &str, name: &str) -> Result<ControllerSettings, ControlError> {
+        Self::parse_file(text, name).map(|f| f.controller)
+    }
+
+    /// [`ControllerFile::parse`], keeping the file's provenance (what `tune` said of the controller).
+    pub fn parse_file(text: &str, name: &str) -> Result<ControllerFile, ControlError> {
         let f: ControllerFile = serde_json::from_str(text).map_err(|e| {
             ControlError::Config(format!(
                 "{name}:{}:{}: not a controller file: {e} (expected the JSON that `ipa-sysid tune --out` writes)",
@@ -703,12 +708,17 @@ impl ControllerFile {
         f.controller
             .validate()
             .map_err(|e| ControlError::Config(format!("{name}: {e}")))?;
-        Ok(f.controller)
+        Ok(f)
     }
 
     /// Reads and parses a controller file (at most [`MAX_CONTROLLER_BYTES`], counted as read, so that
     /// a device such as `/dev/zero` is refused, not read until memory runs out); errors name the file.
     pub fn read(path: &std::path::Path) -> Result<ControllerSettings, ControlError> {
+        Self::read_file(path).map(|f| f.controller)
+    }
+
+    /// [`ControllerFile::read`], keeping the file's provenance.
+    pub fn read_file(path: &std::path::Path) -> Result<ControllerFile, ControlError> {
         let name = path.display().to_string();
         let text = sysid_core::data::bounded::read_bounded_text(
             path,
@@ -720,7 +730,32 @@ impl ControllerFile {
             sysid_core::SysidError::Io { path, source } => ControlError::Io { path, source },
             other => ControlError::Config(other.to_string()),
         })?;
-        Self::parse(&text, &name)
+        Self::parse_file(&text, &name)
+    }
+
+    /// What the provenance says against the controller, in words (audit s17 L-m): `tune` wrote
+    /// `"meets_spec": false`, with the steps that met the whole specification when it recorded them.
+    /// `None` when it met it, or the file has no such provenance (a hand-written controller).
+    pub fn provenance_warning(&self) -> Option<String> {
+        let p = self.provenance.as_ref()?;
+        if p.get("meets_spec")?.as_bool()? {
+            return None;
+        }
+        let met = p
+            .get("met")
+            .and_then(|m| {
+                Some(format!(
+                    "; the whole specification met in {} of {} steps on {}",
+                    m.get("steps")?.as_u64()?,
+                    m.get("of")?.as_u64()?,
+                    m.get("on")?.as_str()?
+                ))
+            })
+            .unwrap_or_default();
+        Some(format!(
+            "the controller file says it does not meet the specification it was tuned for \
+             (provenance meets_spec = false{met}); see the warnings of the `tune` that wrote it"
+        ))
     }
 }
 

@@ -37,6 +37,10 @@ fn fmt_mm(v: f64) -> String {
     if v.abs() >= 1e9 {
         return fmt_value(v);
     }
+    if v != 0.0 && v.abs() < 5e-5 {
+        // A drift of 1e-8 is not "0" (audit s17 M-f: "went 0 … from y0").
+        return format!("{v:.3e}");
+    }
     let s = format!("{v:.4}");
     let s = s.trim_end_matches('0').trim_end_matches('.');
     if s == "-0" {
@@ -192,20 +196,73 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
         let ess = fmt_value(m.steady_state_error_mm.unwrap_or(f64::NAN));
         let within = s.end_s - s.start_s;
         let tail_s = TAIL_FRACTION * within;
+        // The step's samples (t increases: two binary searches).
+        let first = trace.t.partition_point(|&t| t < s.start_s);
+        let last = trace.t.partition_point(|&t| t <= s.end_s).max(first);
+        let (t, y, u) = (
+            &trace.t[first..last],
+            &trace.y[first..last],
+            &trace.u[first..last.min(trace.u.len())],
+        );
+        // A set-point step under a command that stayed 0 throughout: the controller never acted, and
+        // whatever the output did is the plant's own drift (audit s17 M-f: "moved away … farther than
+        // it started" for a loop that never moved).
+        if s.setpoint_mm != s.y0_mm && !u.is_empty() && u.iter().all(|u| *u == 0.0) {
+            let drift = y.last().copied().unwrap_or(s.y0_mm) - s.y0_mm;
+            w.push(format!(
+                "{head}: the command was identically 0 over the step ({} samples): the controller never acted, so the output {} on the plant's own dynamics and the step's metrics describe no control (a controller whose bands are wider than the set-point's step holds still: check its hold, fine and nudge bands against the step of {} {y_unit})",
+                u.len(),
+                if drift == 0.0 {
+                    format!("stayed at y0 = {} {y_unit}", fmt_mm(s.y0_mm))
+                } else {
+                    format!("drifted {} {y_unit} from y0 = {} {y_unit}", fmt_mm(drift), fmt_mm(s.y0_mm))
+                },
+                fmt_mm((s.setpoint_mm - s.y0_mm).abs())
+            ));
+            continue;
+        }
+        // A step judged (it has an overshoot) that has not settled: its overshoot beyond the last
+        // sample is not final, and how far it went past r is (audit s17 M-b).
+        let not_final_os = match (why, m.overshoot_percent) {
+            (Some(_), Some(os)) => {
+                let past = m.overshoot_past_setpoint_mm.map_or(String::new(), |p| {
+                    if p == 0.0 {
+                        return "; the output has not gone past the set-point".to_string();
+                    }
+                    format!(
+                        "; the output went {} {y_unit} ({:.2} % of the step) past the set-point (the peak past r)",
+                        fmt_mm(p),
+                        m.overshoot_past_setpoint_percent.unwrap_or(f64::NAN)
+                    )
+                });
+                format!(
+                    "; its overshoot of {os:.2} % (beyond the last sample) is not final either{past}"
+                )
+            }
+            _ => String::new(),
+        };
+        // Not settled and never 90 % of the way to r: no rise time (metrics::StepMetrics::assess).
+        if why.is_some() && m.overshoot_mm.is_some() && m.rise_time_s.is_none() {
+            let r_step = s.setpoint_mm - s.y0_mm;
+            let reached = y
+                .iter()
+                .map(|y| (y - s.y0_mm) * r_step.signum())
+                .fold(0.0_f64, f64::max);
+            w.push(format!(
+                "{head} reached at most {:.1} % of the way from y0 = {} {y_unit} to r within the run (less than 90 %), so it has no 10-90 % rise time (null); the set-point may be beyond the plant's reach within the run{}",
+                100.0 * reached / r_step.abs(),
+                fmt_mm(s.y0_mm),
+                longer(false)
+            ));
+        }
         match why {
             None => {
                 let Some(ts) = m.settling_time_s else {
                     continue;
                 };
-                // Settled against the set-point's band: does the output still creep? Only this case
-                // needs the step's samples.
-                let k: Vec<usize> = (0..n)
-                    .filter(|&k| trace.t[k] >= s.start_s && trace.t[k] <= s.end_s)
-                    .collect();
-                let pick = |v: &[f64]| -> Vec<f64> { k.iter().map(|&k| v[k]).collect() };
-                let (t, y) = (pick(&trace.t), pick(&trace.y));
+                // Settled against the set-point's band: does the output still creep?
                 let step = (y.last().copied().unwrap_or(s.y0_mm) - s.y0_mm).abs();
-                if still_moving(&t, &y, SETTLING_BAND * step) {
+                if still_moving(t, y, SETTLING_BAND * step) {
                     w.push(format!(
                         "{head} still creeps at the end of the run: its settling time ({ts:.3} s) is \
                          measured against the set-point's 2 % band, and its steady-state error of \
@@ -217,26 +274,35 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
             Some(Unsettled::Moving) => w.push(format!(
                 "{head} has not settled within {within:.3} s: the output is still moving at the end of \
                  the run, so its settling time is unknown (null) and its steady-state error of {ess} \
-                 {y_unit} is not final{}",
+                 {y_unit} is not final{not_final_os}{}",
                 longer(false)
             )),
-            Some(Unsettled::CommandMoving) => w.push(format!(
-                "{head} has not settled within {within:.3} s: the output stopped {} {y_unit} short of the \
-                 set-point, outside its 2 % band, while the command still changes (friction holds the \
-                 piston while the integrator winds up), so its settling time is unknown (null) and its \
-                 steady-state error is not final",
-                fmt_value(m.steady_state_error_mm.unwrap_or(f64::NAN).abs())
-            )),
+            Some(Unsettled::CommandMoving) => {
+                // e_ss = r − y_f: of the step's sign when short of r, of the other sign when past it.
+                let e = m.steady_state_error_mm.unwrap_or(f64::NAN);
+                let side = if e * (s.setpoint_mm - s.y0_mm) < 0.0 {
+                    "past"
+                } else {
+                    "short of"
+                };
+                w.push(format!(
+                    "{head} has not settled within {within:.3} s: the output stopped {} {y_unit} {side} \
+                     the set-point, outside its 2 % band, while the command still changes (friction \
+                     holds the piston while the integrator winds up), so its settling time is unknown \
+                     (null) and its steady-state error is not final{not_final_os}",
+                    fmt_value(e.abs())
+                ))
+            }
             Some(Unsettled::Oscillating { peak_to_peak_mm }) => w.push(format!(
                 "{head} has not settled within {within:.3} s: the output oscillates, swinging \
                  {peak_to_peak_mm:.4} {y_unit} peak to peak over the run's last {tail_s:.3} s (a limit \
                  cycle), so it has no settling time (null) and its steady-state error of {ess} {y_unit} is \
-                 only where the last sample fell"
+                 only where the last sample fell{not_final_os}"
             )),
             Some(Unsettled::LateEntry { at_s }) => w.push(format!(
                 "{head} has not settled within {within:.3} s: the output entered its 2 % band for good \
                  only {at_s:.3} s after the step, within the run's last {tail_s:.3} s, too late to tell \
-                 that it stays, so its settling time is unknown (null){}",
+                 that it stays, so its settling time is unknown (null){not_final_os}{}",
                 longer(false)
             )),
             Some(Unsettled::MovedAway { moved_mm }) => w.push(format!(

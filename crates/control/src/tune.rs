@@ -81,6 +81,51 @@ pub struct Spec {
     pub ess_share: f64,
     /// Largest |e_ss| allowed in every step, mm (issue 25: 0.05 mm), reported.
     pub ess_all_mm: f64,
+    /// The units of the plant the controller is tuned for, against the IPA's mm and counts (the
+    /// search's θ is in the IPA's; [`settings_of`] scales it). (1, 1) for the IPA; `tune` sets
+    /// [`Scale::of_spec`] for a model plant in its record's own units (audit s17 M-f).
+    pub scale: Scale,
+}
+
+/// How a plant's output and command units compare with the IPA's mm and counts, for which the
+/// search's bounds and starts were chosen (e_n ≤ 5 mm below the smallest default step of 10 mm;
+/// ramps of 20–1000 counts/s against ±255 counts): a band of b mm becomes `length` · b, a ramp of
+/// ρ counts/s becomes `command` · ρ, and a gain K counts/mm becomes (`command` / `length`) K, so that
+/// a controller tuned for a plant in other units is the IPA's controller of the scaled plant.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Scale {
+    /// Output units per mm: the specification's smallest step over [`DEFAULT_SMALLEST_STEP_MM`].
+    pub length: f64,
+    /// Command units per count: the specification's u_max over [`DEFAULT_U_MAX`].
+    pub command: f64,
+}
+
+/// The default specification's smallest step, mm: the length the search's bands were chosen for.
+pub const DEFAULT_SMALLEST_STEP_MM: f64 = 10.0;
+/// The default command limit, counts (the IPA's valves).
+pub const DEFAULT_U_MAX: f64 = 255.0;
+
+impl Default for Scale {
+    fn default() -> Scale {
+        Scale {
+            length: 1.0,
+            command: 1.0,
+        }
+    }
+}
+
+impl Scale {
+    /// The scale of `spec`'s units for a model plant in its record's own units: its smallest step over
+    /// 10 mm and its u_max over 255 counts, each only when smaller (a specification on a finer scale
+    /// than the IPA's, where the mm bands would swallow every step; audit s17 M-f); (1, 1) for the
+    /// default specification and any on the IPA's scale, whose controllers are unchanged bit for bit.
+    pub fn of_spec(spec: &Spec) -> Scale {
+        let smallest = spec.steps_mm.iter().copied().fold(f64::INFINITY, f64::min);
+        Scale {
+            length: (smallest / DEFAULT_SMALLEST_STEP_MM).min(1.0),
+            command: (spec.u_max / DEFAULT_U_MAX).min(1.0),
+        }
+    }
 }
 
 impl Default for Spec {
@@ -97,6 +142,7 @@ impl Default for Spec {
             settling_s: 0.5,
             ess_share: 0.9,
             ess_all_mm: 0.05,
+            scale: Scale::default(),
         }
     }
 }
@@ -112,8 +158,9 @@ pub struct StepCase {
 
 impl Spec {
     /// Parses `key=value` pairs separated by commas over the defaults: `overshoot` (%), `ess` (mm),
-    /// `limit-cycle` (mm), `u-max` (counts), `steps` (mm, separated by `/`), `low`, `high` (mm), `run` (s),
-    /// and the reported targets `settling` (s), `ess-share` (fraction), `ess-all` (mm).
+    /// `limit-cycle` (mm), `u-max` (counts), `steps` (mm, separated by `/`), `low`, `high` (mm, any
+    /// finite number: a centred record's range is negative at its low end), `run` (s), and the
+    /// reported targets `settling` (s), `ess-share` (fraction), `ess-all` (mm).
     ///
     /// ```
     /// let s = control::tune::Spec::parse("overshoot=2,steps=10/50").unwrap();
@@ -145,13 +192,20 @@ impl Spec {
                     .filter(|x| x.is_finite() && *x > 0.0)
                     .ok_or_else(|| bad(item, "a finite number > 0"))
             };
+            let finite = |v: &str| -> Result<f64, ControlError> {
+                v.trim()
+                    .parse::<f64>()
+                    .ok()
+                    .filter(|x| x.is_finite())
+                    .ok_or_else(|| bad(item, "a finite number"))
+            };
             match key.trim() {
                 "overshoot" => s.overshoot_percent = num(value)?,
                 "ess" => s.ess_mm = num(value)?,
                 "limit-cycle" => s.limit_cycle_mm = num(value)?,
                 "u-max" => s.u_max = num(value)?,
-                "low" => s.low_mm = num(value)?,
-                "high" => s.high_mm = num(value)?,
+                "low" => s.low_mm = finite(value)?,
+                "high" => s.high_mm = finite(value)?,
                 "run" => s.run_s = num(value)?,
                 "settling" => s.settling_s = num(value)?,
                 "ess-share" => {
@@ -234,7 +288,7 @@ impl RunResult {
     pub fn misses(&self, spec: &Spec) -> Vec<String> {
         let mut w = Vec::new();
         let m = &self.metrics;
-        match m.overshoot_percent {
+        match m.overshoot_judged_percent() {
             Some(os) if os > spec.overshoot_percent => w.push(format!(
                 "overshoot {os:.2} % > {} %",
                 spec.overshoot_percent
@@ -428,7 +482,7 @@ fn summarise(runs: Vec<RunResult>, spec: &Spec) -> Evaluation {
             .count(),
         overshoot_met: runs
             .iter()
-            .filter(|r| match r.metrics.overshoot_percent {
+            .filter(|r| match r.metrics.overshoot_judged_percent() {
                 Some(os) => os <= spec.overshoot_percent,
                 // No step (no response) has no overshoot; a step that moved away is not judged.
                 None => !matches!(r.unsettled, Some(Unsettled::MovedAway { .. })),
@@ -505,6 +559,13 @@ pub fn settings_of(
     ts_s: f64,
     spec: &Spec,
 ) -> Result<ControllerSettings, ControlError> {
+    let Scale {
+        length: ly,
+        command: uc,
+    } = spec.scale;
+    // Gains counts/mm -> command units per output unit; bands mm -> output units; ramps counts/s ->
+    // command units/s (exact for the IPA's scale (1, 1)).
+    let gain = uc / ly;
     let compensator = match deadzone {
         Some(d) => Some(DeadzoneCompensator::new(
             sysid_core::Deadzone {
@@ -519,24 +580,24 @@ pub fn settings_of(
     };
     Ok(ControllerSettings {
         ts_s,
-        kp: theta[0].exp(),
-        ki: theta[1].exp(),
-        kd: theta[2],
+        kp: gain * theta[0].exp(),
+        ki: gain * theta[1].exp(),
+        kd: gain * theta[2],
         derivative_filter_s: 2.0 * ts_s,
         u_max: spec.u_max,
         hold_band_mm: spec.ess_mm,
-        fine_band_mm: theta[4].exp(),
+        fine_band_mm: ly * theta[4].exp(),
         reset_on_crossing: true,
         nudge: Some(Nudge {
-            band_mm: theta[5].exp().max(2.0 * spec.ess_mm),
-            ramp_counts_s: theta[6].exp(),
+            band_mm: (ly * theta[5].exp()).max(2.0 * spec.ess_mm),
+            ramp_counts_s: uc * theta[6].exp(),
             start_fraction: NUDGE_START_FRACTION,
             rest_samples: NUDGE_REST_SAMPLES,
             cut_fraction: theta[7],
-            rest_band_mm: theta[8].exp(),
-            cut_band_mm,
+            rest_band_mm: ly * theta[8].exp(),
+            cut_band_mm: ly * cut_band_mm,
             min_ramp_counts_s: if cut_band_mm > 0.0 {
-                NUDGE_MIN_RAMP.min(theta[6].exp())
+                uc * NUDGE_MIN_RAMP.min(theta[6].exp())
             } else {
                 0.0
             },
@@ -861,7 +922,7 @@ pub fn brake_of(
     let largest = spec.steps_mm.iter().copied().fold(0.0, f64::max);
     crate::position::Brake {
         min_step_mm: BRAKE_MIN_STEP_FRACTION * largest,
-        switch_mm,
+        switch_mm: spec.scale.length * switch_mm,
         lead_s,
         strength: BRAKE_STRENGTH,
         samples: samples(brake_s).max(1),
@@ -1264,7 +1325,7 @@ impl Evaluation {
             .filter(|r| matches!(r.unsettled, Some(Unsettled::MovedAway { .. })))
             .count();
         if self.overshoot_met < n {
-            let worst = self.worst.and_then(|m| m.overshoot_percent);
+            let worst = self.worst.and_then(|m| m.overshoot_judged_percent());
             w.push(format!(
                 "not met on {what}: overshoot <= {} % in {} of {n} steps ({:.0} %){}{}",
                 spec.overshoot_percent,
@@ -1276,6 +1337,16 @@ impl Evaluation {
                 } else {
                     String::new()
                 }
+            ));
+        }
+        // Runs whose command stayed 0: the controller never acted (its bands wider than the steps;
+        // audit s17 M-f).
+        let idle = self.runs.iter().filter(|r| r.max_command == 0.0).count();
+        if idle > 0 {
+            w.push(format!(
+                "on {what}: the command was identically 0 in {idle} of {n} steps: the controller never \
+                 acted there (its hold, fine or nudge band is as wide as the step, or the plant drifted \
+                 without it); check the specification's steps and ess against the plant's units"
             ));
         }
         if self.settling_met < n {

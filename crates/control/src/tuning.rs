@@ -134,7 +134,9 @@ impl std::fmt::Display for DeadzoneProblem {
             ),
             DeadzoneProblem::NoDeadzone(block) => write!(
                 f,
-                "a model with a deadzone input block (this model's input block is {block})"
+                "a model with a deadzone input block (this model's input block is {block}; identify \
+                 the record again with `--structure hammerstein` for one, or run this model as a \
+                 plant under a PI: `control --plant model:FILE --kp KP --ki KI`)"
             ),
         }
     }
@@ -285,6 +287,12 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
         }
     }
     let started = Instant::now();
+    // A model plant in its record's own units: the search's mm bands and counts ramps scaled to the
+    // specification's (audit s17 M-f); a twin is the IPA.
+    let mut spec = req.spec.clone();
+    if matches!(req.source, Source::Model { .. }) {
+        spec.scale = tune::Scale::of_spec(&spec);
+    }
     let (model, deadzone, label, twin) = match &req.source {
         Source::Model {
             model,
@@ -340,9 +348,9 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
         ))
     };
     let tuned = if twin.is_some() {
-        tune::tune(&twin_plants, Some(deadzone), ts, &req.spec, &req.search)?
+        tune::tune(&twin_plants, Some(deadzone), ts, &spec, &req.search)?
     } else {
-        tune::tune(&model_plants, Some(deadzone), ts, &req.spec, &req.search)?
+        tune::tune(&model_plants, Some(deadzone), ts, &spec, &req.search)?
     };
     let settings = tuned.settings;
     let margins = tune::margins(&model, &settings);
@@ -359,7 +367,7 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
         req.search.plants,
         &model_plants,
         &settings,
-        &req.spec,
+        &spec,
     )?;
     let on_physics = if twin.is_some() || req.check_physics {
         let what = if req.check_physics {
@@ -372,7 +380,7 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
             req.physics_variants + 1,
             &physics_plants,
             &settings,
-            &req.spec,
+            &spec,
         )?)
     } else {
         None
@@ -400,7 +408,7 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
         )),
         _ => {}
     }
-    warnings.splice(0..0, reach_warnings(&model, &deadzone, &req.spec));
+    warnings.splice(0..0, reach_warnings(&model, &deadzone, &spec));
     if twin.is_none() {
         // What the model file itself holds (a map that is not its kind's shape), as `validate` says it.
         let file = sysid_core::model_file::load_warnings(&model);
@@ -414,7 +422,7 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
     }
     Ok(TuneReport {
         source: label,
-        spec: req.spec.clone(),
+        spec: spec.clone(),
         search: req.search,
         evaluations: tuned.evaluations,
         brake_evaluations: tuned.brake_evaluations,

@@ -246,6 +246,8 @@ fn run_result(ess_mm: f64, settling_s: f64) -> control::tune::RunResult {
         metrics: control::StepMetrics {
             overshoot_mm: Some(0.0),
             overshoot_percent: Some(0.0),
+            overshoot_past_setpoint_mm: Some(0.0),
+            overshoot_past_setpoint_percent: Some(0.0),
             steady_state_error_mm: Some(ess_mm),
             rise_time_s: Some(0.2),
             settling_time_s: Some(settling_s),

@@ -123,6 +123,8 @@ pub(crate) fn unfixed_metrics(
     let worst = StepMetrics::worst(steps.iter().map(|s| &s.metrics)).unwrap_or(StepMetrics {
         overshoot_mm: None,
         overshoot_percent: None,
+        overshoot_past_setpoint_mm: None,
+        overshoot_past_setpoint_percent: None,
         steady_state_error_mm: None,
         rise_time_s: None,
         settling_time_s: None,

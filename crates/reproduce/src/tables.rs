@@ -461,6 +461,8 @@ mod tests {
         control::StepMetrics {
             overshoot_mm: Some(0.2),
             overshoot_percent: Some(0.4),
+            overshoot_past_setpoint_mm: Some(0.2),
+            overshoot_past_setpoint_percent: Some(0.4),
             steady_state_error_mm: Some(ess),
             rise_time_s: Some(0.26),
             settling_time_s: settling,

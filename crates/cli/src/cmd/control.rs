@@ -95,6 +95,10 @@ pub struct Args {
     /// flags that set them are refused beside it).
     #[arg(long, value_name = "CONTROLLER.json", conflicts_with_all = ["compensate_deadzone", "adaptive", "anti_windup", "tracking_time", "integral", "kp", "ki", "u_max", "compensator_threshold", "compensator_slopes"])]
     pub controller: Option<PathBuf>,
+    /// Exit with code 1 when the result carries warnings (they are printed either way), without writing
+    /// the output files (an earlier file there is kept).
+    #[arg(long)]
+    pub strict: bool,
     /// Write the metrics and settings as JSON to this file (`-` = standard output).
     #[arg(long, value_name = "OUT")]
     pub json: Option<PathBuf>,
@@ -135,6 +139,10 @@ struct ControlOut<'a> {
     /// `fixed`: metrics of the single step; `worst-step`: field-wise worst over `steps` (unfixed set-point).
     metrics_kind: &'a str,
     metrics: StepMetrics,
+    /// False when a step that moved has not settled: its `overshoot_mm`/`overshoot_percent` (beyond
+    /// the last sample, `stepinfo(y, t)`) are then not final; `overshoot_past_setpoint_*` (beyond r)
+    /// are (audit s17 M-b).
+    overshoot_final: bool,
     steps: &'a [StepSegment],
     samples: usize,
     trace: Option<String>,
@@ -227,7 +235,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .with_integral(args.integral)
         .with_anti_windup(anti_windup(&args, ts)?)
         .with_u_max(args.u_max);
-    let tuned = tuned_controller(&args, ts, &mut inputs)?;
+    // What the controller file's provenance says against it (its tuning missed the spec).
+    let mut file_warnings = Vec::new();
+    let tuned = tuned_controller(&args, ts, &mut inputs, &mut file_warnings)?;
     let limits = args
         .plant
         .parse::<ipa::PlantSpec>()
@@ -283,6 +293,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let metrics_kind = kind.as_str();
     // The model file's own doubts (a crossed deadzone), then the loop's.
     let mut warnings = limits.model_warnings.clone();
+    warnings.extend(file_warnings);
     warnings.extend(compensator_warning);
     warnings.extend(profile.last_row_warning(duration_s));
     if let Some(change) = args.deadzone_change.filter(|c| c.at_s >= duration_s) {
@@ -339,6 +350,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             },
             metrics_kind,
             metrics,
+            overshoot_final: metrics.overshoot_mm.is_none() || metrics.settling_time_s.is_some(),
             steps: &steps,
             samples: trace.len(),
             trace: args.out.as_ref().map(|p| p.display().to_string()),
@@ -348,14 +360,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         json_text =
             Some(serde_json::to_string_pretty(&doc).context("serialising the JSON output")? + "\n");
     }
-    let mut outputs: Vec<(&Path, &[u8])> = Vec::new();
+    let mut outputs: Vec<(&Path, &[u8], &str)> = Vec::new();
     if let (Some(out), Some(bytes)) = (&args.out, &trace_csv) {
-        outputs.push((out, bytes));
+        outputs.push((out, bytes, "--out"));
     }
     if let (Some(json), Some(text)) = (&args.json, &json_text) {
-        outputs.push((json, text.as_bytes()));
+        outputs.push((json, text.as_bytes(), "--json"));
     }
-    sysid_io::write_all_atomic(&outputs)?;
+    // With --strict and warnings, no file is written (an earlier one is kept) and the exit code is 1,
+    // after the report (audit s17 L-d).
+    let written = super::common::write_outputs(&outputs, &[], args.strict, warnings.len());
+    if let Err(e) = &written {
+        if e.downcast_ref::<crate::exit::StrictWarnings>().is_none() {
+            return written;
+        }
+    }
 
     // A model plant's signals are in its record's units, not the IPA's (audit s14 L-p).
     let units = Units::of(limits.model_units());
@@ -382,7 +401,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         summary += &format!("warning: {w}\n");
     }
     // Keep standard output clean JSON (or CSV) when the JSON (or the trace) goes there.
-    super::common::print_report(&summary, &[args.json.as_deref(), args.out.as_deref()])
+    super::common::print_report(&summary, &[args.json.as_deref(), args.out.as_deref()])?;
+    written
 }
 
 /// The closed loop of `run`: with `--adaptive`, the compensator follows the online estimate and the run
@@ -745,9 +765,15 @@ fn summary_text(
         "worst step (field-wise)"
     };
     o += &format!("{heading}:\n");
+    // Beyond the last sample (stepinfo(y, t)): final only once the step has settled (audit s17 M-b).
+    let not_final = if m.settling_time_s.is_none() {
+        "; not final: not settled"
+    } else {
+        ""
+    };
     o += &match (m.overshoot_mm, m.overshoot_percent) {
         (Some(_), Some(_)) => format!(
-            "  overshoot            {} ({} of the step)\n",
+            "  overshoot            {} ({} of the step{not_final})\n",
             fmt_opt(m.overshoot_mm, units.y, m),
             fmt_opt(m.overshoot_percent, "%", m)
         ),
@@ -756,6 +782,18 @@ fn summary_text(
             fmt_opt(m.overshoot_mm, units.y, m)
         ),
     };
+    if let (Some(p), Some(pc)) = (
+        m.overshoot_past_setpoint_mm,
+        m.overshoot_past_setpoint_percent,
+    ) {
+        // How far the output went beyond r (stepinfo(y, t, r)), whatever the run's length.
+        o += &format!(
+            "  peak past r          {} {} ({} % of the set-point step)\n",
+            control::trust::fmt_value(p),
+            units.y,
+            control::trust::fmt_value(pc)
+        );
+    }
     o += &format!(
         "  steady-state error   {}\n",
         fmt_opt(m.steady_state_error_mm, units.y, m)
@@ -808,16 +846,21 @@ fn summary_text(
 }
 
 /// The tuned controller of `--controller FILE` (read, and its Ts checked against the plant's `ts`), its
-/// file added to `inputs`; `None` without the flag (the PI of --kp/--ki).
+/// file added to `inputs` and its provenance's doubts to `warnings`; `None` without the flag (the PI of
+/// --kp/--ki).
 fn tuned_controller(
     args: &Args,
     ts: f64,
     inputs: &mut Vec<PathBuf>,
+    warnings: &mut Vec<String>,
 ) -> anyhow::Result<Option<control::ControllerSettings>> {
     Ok(match &args.controller {
         Some(path) => {
             inputs.push(path.clone());
-            let t = control::ControllerFile::read(path).context("cannot read --controller")?;
+            let file =
+                control::ControllerFile::read_file(path).context("cannot read --controller")?;
+            let t = file.controller;
+            warnings.extend(file.provenance_warning());
             if (t.ts_s - ts).abs() > 1e-9 * ts {
                 bail!(sysid::SysidError::setting(
                     sysid::Setting::Other("--controller"),

@@ -219,6 +219,7 @@ fn run_plant(
         _ => args.ts,
     };
     let paper = matches!(plant, ipa::spec::PlantSpec::Paper);
+    let physics = matches!(plant, ipa::spec::PlantSpec::Ipa);
     let exp = Experiment {
         plant,
         plant_config: args.plant_config.clone(),
@@ -289,6 +290,20 @@ fn run_plant(
     }
     if let Some(w) = model.and_then(|m| sysid_summary::output_outside_data(m, &rec.y)) {
         eprintln!("warning: {w}");
+    }
+    if physics {
+        // A command record that never opens a valve leaves a flat record (audit s17 L-l: a ball and
+        // beam's ±0.03 commands replayed in PWM counts), which calibrate warns of and simulate did not.
+        let (lo, hi) = sysid_core::DataRange::extremes(&rec.y);
+        let largest = rec.u.iter().fold(0.0_f64, |m, u| m.max(u.abs()));
+        if lo == hi && largest > 0.0 {
+            eprintln!(
+                "warning: the output never moved from y0 = {y0} mm: the commands stay within ±{} \
+                 counts, inside the valves' deadzone (the physics plant is a pneumatic IPA driven by \
+                 PWM counts up to ±255: is this command record of such a plant, in counts?)",
+                control::trust::fmt_value(largest)
+            );
+        }
     }
     if paper {
         // The paper's model is linear past its deadzone and has no end stops (audit s16 L3: an APRBS

@@ -54,6 +54,10 @@ pub struct Args {
     /// Variants of the physics plant (±30 %, seeds 1..N) in the verification, beside the nominal one.
     #[arg(long, value_name = "N", default_value_t = 20)]
     pub physics_variants: usize,
+    /// Exit with code 1 when the result carries warnings (they are printed either way), without writing
+    /// the controller file or the JSON (an earlier file there is kept).
+    #[arg(long)]
+    pub strict: bool,
     /// Write the results as JSON to this file (`-` = standard output).
     #[arg(long, value_name = "OUT")]
     pub json: Option<PathBuf>,
@@ -119,24 +123,34 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             }),
             value,
             &format!(
-                "{expected}; the compensator inverts the deadzone, which this one does not allow \
-                 (identify's warnings say whether it is physical): tune on a model whose deadzone \
-                 straddles u = 0 with positive slopes"
+                "{expected}; the compensator inverts the deadzone, which this one does not allow: \
+                 tune on a model whose deadzone straddles u = 0 with positive slopes"
             ),
         )),
         e => e.into(),
     })?;
 
+    // The whole-specification count of the last verification (`control --controller` repeats it
+    // when the spec is not met; audit s17 L-m).
+    let last = report.on_physics.as_ref().unwrap_or(&report.on_model);
+    let met = serde_json::json!({
+        "steps": last.comparison.tuned.met,
+        "of": last.comparison.tuned.runs.len(),
+        "on": last.plant,
+    });
     let provenance = serde_json::json!({
         "tuned_by": "ipa-sysid tune",
         "source": report.source,
         "spec": report.spec,
         "meets_spec": report.meets_spec(),
+        "met": met,
     });
     let file = ControllerFile::new(report.controller, Some(provenance));
     let text = serde_json::to_string_pretty(&file).context("serialising the controller")? + "\n";
 
-    let summary = summary_text(&report, &args.out);
+    // --strict with warnings writes nothing: the summary must not say "wrote".
+    let refused = args.strict && !report.warnings.is_empty();
+    let summary = summary_text(&report, (!refused).then_some(args.out.as_path()));
     let json_text = match &args.json {
         Some(_) => {
             let doc = TuneOut {
@@ -149,13 +163,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     // The controller file and the JSON together: a failure of either leaves both as they were (audit
     // s14 M-f).
-    let mut outputs: Vec<(&Path, &[u8])> = vec![(&args.out, text.as_bytes())];
+    let mut outputs: Vec<(&Path, &[u8], &str)> = vec![(&args.out, text.as_bytes(), "--out")];
     if let (Some(json), Some(t)) = (&args.json, &json_text) {
-        outputs.push((json, t.as_bytes()));
+        outputs.push((json, t.as_bytes(), "--json"));
     }
-    sysid_io::write_all_atomic(&outputs)?;
+    // With --strict and warnings, neither file is written (an earlier one is kept) and the exit code
+    // is 1, after the report (audit s17 L-d).
+    let written = super::common::write_outputs(&outputs, &[], args.strict, report.warnings.len());
+    if let Err(e) = &written {
+        if e.downcast_ref::<crate::exit::StrictWarnings>().is_none() {
+            return written;
+        }
+    }
     // One parseable document on standard output: the controller file or the JSON, the table aside.
-    super::common::print_report(&summary, &[args.json.as_deref(), Some(args.out.as_path())])
+    super::common::print_report(&summary, &[args.json.as_deref(), Some(args.out.as_path())])?;
+    written
 }
 
 /// A table cell: `digits` decimals, or scientific notation for a diverged loop's figures (a
@@ -176,8 +198,12 @@ fn rows(label: &str, e: &Evaluation) -> String {
     let n = e.runs.len();
     format!(
         "  {label:<16} {:>9} {:>8} {:>10} {:>8} {:>9} {:>9}   {:>3}/{n} {:>3}/{n} {:>3}/{n} {:>3}/{n}\n",
-        f(w.and_then(|m| m.overshoot_mm), 3),
-        f(w.and_then(|m| m.overshoot_percent), 2),
+        // The overshoot judged (the peak past r; audit s17 M-b).
+        f(
+            w.and_then(|m| m.overshoot_past_setpoint_mm.or(m.overshoot_mm)),
+            3,
+        ),
+        f(w.and_then(|m| m.overshoot_judged_percent()), 2),
         f(w.and_then(|m| m.steady_state_error_mm).map(f64::abs), 3),
         f(w.and_then(|m| m.rise_time_s), 3),
         f(w.and_then(|m| m.settling_time_s), 3),
@@ -216,7 +242,7 @@ fn block(v: &Verification, spec: &Spec) -> String {
     o
 }
 
-fn summary_text(r: &TuneReport, out: &Path) -> String {
+fn summary_text(r: &TuneReport, out: Option<&Path>) -> String {
     let (s, m) = (&r.controller, &r.margins);
     let mut o = format!(
         "tuned on:     {} ({} evaluations{}, {:.2} s)\n",
@@ -260,7 +286,9 @@ fn summary_text(r: &TuneReport, out: &Path) -> String {
         o += &block(p, &r.spec);
     }
     o += "  (columns OS..all: steps meeting overshoot, settling-time target, |e_ss| and the whole spec)\n";
-    o += &format!("wrote {}\n", out.display());
+    if let Some(out) = out {
+        o += &format!("wrote {}\n", out.display());
+    }
     for w in &r.warnings {
         o += &format!("warning: {w}\n");
     }

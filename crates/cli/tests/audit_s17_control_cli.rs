@@ -1,0 +1,407 @@
+//! Audit s17 control findings through the binary (M-b, M-c, M-f, L-b, L-d `--strict`, L-l, L-m):
+//! every expectation is recomputed here from the written trace (columns t,r,u,y) or the files, not
+//! copied from the program's output.
+
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests may panic
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+use serde_json::Value;
+
+fn ipa_sysid(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
+        .args(args)
+        .output()
+        .expect("run ipa-sysid")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// A trace's columns (t, r, u, y).
+type Columns = (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>);
+
+/// The trace CSV (header t,r,u,y): (t, r, u, y).
+fn trace(path: &Path) -> Columns {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next().unwrap().trim(), "t,r,u,y");
+    let (mut t, mut r, mut u, mut y) = (vec![], vec![], vec![], vec![]);
+    for l in lines {
+        let v: Vec<f64> = l.split(',').map(|x| x.trim().parse().unwrap()).collect();
+        t.push(v[0]);
+        r.push(v[1]);
+        u.push(v[2]);
+        y.push(v[3]);
+    }
+    (t, r, u, y)
+}
+
+fn json(path: &Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
+fn warnings(doc: &Value) -> Vec<String> {
+    doc["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w.as_str().unwrap().to_string())
+        .collect()
+}
+
+/// Runs `control ARGS --out T --json J` in `dir`; (output, trace, JSON).
+fn control(dir: &Path, args: &[&str]) -> (Output, Columns, Value) {
+    let (t, j) = (dir.join("t.csv"), dir.join("j.json"));
+    let mut a = vec!["control"];
+    a.extend_from_slice(args);
+    a.extend(["--out", t.to_str().unwrap(), "--json", j.to_str().unwrap()]);
+    let o = ipa_sysid(&a);
+    assert!(o.status.success(), "{a:?}: {}", stderr(&o));
+    (o, trace(&t), json(&j))
+}
+
+// M-b: the IPA's 150 mm step cut at 1 s ends past r (y_f > 150) while its integrator still moves:
+// the warning says "past", never "short of"; the peak past r is max y − r (stepinfo(y, t, r)); the
+// overshoot beyond the last sample is flagged not final (no settling time).
+#[test]
+fn a_step_that_ended_past_its_set_point_is_said_past_and_its_peak_past_r_is_reported() {
+    let dir = tempfile::tempdir().unwrap();
+    for (y0, r, dur) in [("0", 150.0, "1"), ("150", 50.0, "0.5")] {
+        let (o, (_, _, _, y), doc) = control(
+            dir.path(),
+            &[
+                "--plant",
+                "ipa",
+                "--y0",
+                y0,
+                "--setpoint",
+                &r.to_string(),
+                "--duration",
+                dur,
+            ],
+        );
+        let y0: f64 = y0.parse().unwrap();
+        let d = (r - y0).signum();
+        let y_f = *y.last().unwrap();
+        // The premise (the audit's runs): the output ended beyond r, outside the 2 % band.
+        assert!(d * (y_f - r) > 0.02 * (r - y0).abs(), "y_f = {y_f}");
+        let peak_past = y.iter().map(|v| d * (v - r)).fold(0.0_f64, f64::max);
+        let m = &doc["metrics"];
+        assert!(m["settling_time_s"].is_null());
+        let got = m["overshoot_past_setpoint_mm"].as_f64().unwrap();
+        assert!((got - peak_past).abs() < 1e-9, "{got} vs {peak_past}");
+        let pct = m["overshoot_past_setpoint_percent"].as_f64().unwrap();
+        assert!((pct - 100.0 * peak_past / (r - y0).abs()).abs() < 1e-9);
+        assert_eq!(doc["overshoot_final"], Value::Bool(false));
+        let w = warnings(&doc);
+        let step = w.iter().find(|w| w.contains("has not settled")).unwrap();
+        assert!(
+            step.contains(&format!(
+                "stopped {:.4} mm past the set-point",
+                (r - y_f).abs()
+            )),
+            "{step}"
+        );
+        assert!(!step.contains("short of"), "{step}");
+        assert!(step.contains("is not final either"), "{step}");
+        let text = stdout(&o);
+        assert!(text.contains("not final: not settled"), "{text}");
+        assert!(text.contains("peak past r"), "{text}");
+    }
+}
+
+// M-c: the paper's plant driven to r = 1e5 mm saturates for 10 s and covers a few % of the way:
+// no 10–90 % rise time (null), and a warning with the share of the way reached, from the trace.
+#[test]
+fn a_step_that_never_reached_ninety_percent_of_r_has_no_rise_time() {
+    let dir = tempfile::tempdir().unwrap();
+    let (o, (_, _, _, y), doc) = control(dir.path(), &["--plant", "paper", "--setpoint", "1e5"]);
+    let reached = y.iter().fold(0.0_f64, |m, v| m.max(*v)) / 1e5;
+    assert!(reached < 0.9, "{reached}");
+    assert!(doc["metrics"]["rise_time_s"].is_null());
+    let w = warnings(&doc);
+    assert!(
+        w.iter().any(|w| w.contains(&format!(
+            "reached at most {:.1} % of the way",
+            100.0 * reached
+        )) && w.contains("no 10-90 % rise time (null)")),
+        "{w:?}"
+    );
+    assert!(stdout(&o).contains("rise time 10-90 %    n/a"));
+}
+
+/// y(k) = y(k−1) + f(u(k−1)) in a record's own small units: deadzone ±0.002, slopes 0.5 per sample.
+const SMALL_MODEL: &str = r#"{
+  "format": "ipa-sysid-model",
+  "version": 2,
+  "model": {
+    "kind": "hammerstein", "ts": 0.01, "na": 1, "nb": 1, "nk": 1,
+    "a": [-1.0], "b": [1.0], "offset": null,
+    "deadzone": {"b_l": -0.002, "b_r": 0.002, "m_l": 0.5, "m_r": 0.5},
+    "noise_model": "output-error"
+  }
+}
+"#;
+
+const SMALL_SPEC: &str = "steps=0.02/0.05,low=-0.1,high=0.08,u-max=0.03,ess=0.002,ess-all=0.005,\
+                          limit-cycle=0.002,run=2,settling=1";
+
+// M-f: tune in the model's own units (a negative low accepted) scales its mm bands by the smallest
+// step over the IPA's 10 mm (0.02 / 10 = 0.002): every band of the file is at most 5 mm × 0.002
+// (the search's upper bound), within the smallest step, and the controller acts (u not ≡ 0). The
+// same controller with its bands widened past the step never acts: control says the command was
+// identically 0, not that the output "moved away".
+#[test]
+fn tune_in_a_models_units_scales_its_bands_and_an_idle_controller_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("m.json");
+    std::fs::write(&model, SMALL_MODEL).unwrap();
+    let c = dir.path().join("c.json");
+    let j = dir.path().join("tune.json");
+    let o = ipa_sysid(&[
+        "tune",
+        "--model",
+        model.to_str().unwrap(),
+        "--spec",
+        SMALL_SPEC,
+        "--max-evaluations",
+        "40",
+        "--out",
+        c.to_str().unwrap(),
+        "--json",
+        j.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let file = json(&c);
+    let ctl = &file["controller"];
+    let max_band = 1.6_f64.exp() * 0.002 * (1.0 + 1e-9); // e^1.6 ≈ 4.95 mm, × 0.002
+    for band in [
+        ctl["fine_band_mm"].as_f64().unwrap(),
+        ctl["nudge"]["band_mm"].as_f64().unwrap(),
+        ctl["nudge"]["rest_band_mm"].as_f64().unwrap(),
+    ] {
+        assert!(band <= max_band && band < 0.02, "band {band} of {ctl}");
+    }
+    // L-m: the provenance carries the whole-spec count of the verification the JSON reports.
+    let report = json(&j);
+    let met = &file["provenance"]["met"];
+    assert_eq!(met["steps"], report["on_model"]["tuned"]["met"], "{met}");
+    let (_, (_, _, u, _), _) = control(
+        dir.path(),
+        &[
+            "--plant",
+            &format!("model:{}", model.display()),
+            "--controller",
+            c.to_str().unwrap(),
+            "--y0",
+            "0.01",
+            "--setpoint",
+            "0.03",
+            "--duration",
+            "2",
+        ],
+    );
+    assert!(u.iter().any(|u| *u != 0.0));
+
+    // Bands wider than the 0.02 step: the controller holds still.
+    let mut wide = file.clone();
+    wide["controller"]["hold_band_mm"] = 1.0.into();
+    wide["controller"]["fine_band_mm"] = 1.0.into();
+    wide["controller"]["nudge"]["band_mm"] = 2.0.into();
+    wide["controller"]["nudge"]["rest_band_mm"] = 0.0.into();
+    wide["controller"]["brake"] = Value::Null;
+    let cw = dir.path().join("wide.json");
+    std::fs::write(&cw, serde_json::to_string(&wide).unwrap()).unwrap();
+    let (_, (_, _, u, _), doc) = control(
+        dir.path(),
+        &[
+            "--plant",
+            &format!("model:{}", model.display()),
+            "--controller",
+            cw.to_str().unwrap(),
+            "--y0",
+            "0.01",
+            "--setpoint",
+            "0.03",
+            "--duration",
+            "2",
+        ],
+    );
+    assert!(u.iter().all(|u| *u == 0.0));
+    let w = warnings(&doc);
+    assert!(
+        w.iter().any(|w| w.contains(&format!(
+            "the command was identically 0 over the step ({} samples)",
+            u.len()
+        ))),
+        "{w:?}"
+    );
+    assert!(!w.iter().any(|w| w.contains("moved away")), "{w:?}");
+}
+
+// L-m: a controller file whose provenance says meets_spec = false (3 of 20 steps) is repeated by
+// control; one that met its spec says nothing of it.
+#[test]
+fn control_repeats_a_controller_files_failed_tuning() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("m.json");
+    std::fs::write(&model, SMALL_MODEL).unwrap();
+    let c = dir.path().join("c.json");
+    let o = ipa_sysid(&[
+        "tune",
+        "--model",
+        model.to_str().unwrap(),
+        "--spec",
+        SMALL_SPEC,
+        "--max-evaluations",
+        "40",
+        "--out",
+        c.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let mut file = json(&c);
+    for (meets, expect) in [(false, true), (true, false)] {
+        file["provenance"]["meets_spec"] = meets.into();
+        file["provenance"]["met"] = serde_json::json!({"steps": 3, "of": 20, "on": "the model"});
+        std::fs::write(&c, serde_json::to_string(&file).unwrap()).unwrap();
+        let (_, _, doc) = control(
+            dir.path(),
+            &[
+                "--plant",
+                &format!("model:{}", model.display()),
+                "--controller",
+                c.to_str().unwrap(),
+                "--y0",
+                "0.01",
+                "--setpoint",
+                "0.03",
+                "--duration",
+                "1",
+            ],
+        );
+        let said = warnings(&doc).iter().any(|w| {
+            w.contains("meets_spec = false")
+                && w.contains("the whole specification met in 3 of 20 steps on the model")
+        });
+        assert_eq!(said, expect, "{:?}", warnings(&doc));
+    }
+}
+
+// L-d: control --strict on a run with warnings exits 1 and leaves an earlier --json and --out as
+// they were; without warnings it writes them.
+#[test]
+fn control_strict_fails_on_warnings_and_keeps_earlier_files() {
+    let dir = tempfile::tempdir().unwrap();
+    let (t, j) = (dir.path().join("t.csv"), dir.path().join("j.json"));
+    std::fs::write(&t, "old trace\n").unwrap();
+    std::fs::write(&j, "old json\n").unwrap();
+    let o = ipa_sysid(&[
+        "control",
+        "--plant",
+        "ipa",
+        "--setpoint",
+        "150",
+        "--duration",
+        "1",
+        "--strict",
+        "--out",
+        t.to_str().unwrap(),
+        "--json",
+        j.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--strict"), "{}", stderr(&o));
+    assert!(stdout(&o).contains("warning: "), "{}", stdout(&o));
+    assert_eq!(std::fs::read_to_string(&t).unwrap(), "old trace\n");
+    assert_eq!(std::fs::read_to_string(&j).unwrap(), "old json\n");
+}
+
+// L-d: tune --strict with warnings (a model-only verification always warns) writes no controller.
+#[test]
+fn tune_strict_fails_on_warnings_without_writing_the_controller() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("m.json");
+    std::fs::write(&model, SMALL_MODEL).unwrap();
+    let c = dir.path().join("c.json");
+    let o = ipa_sysid(&[
+        "tune",
+        "--model",
+        model.to_str().unwrap(),
+        "--spec",
+        SMALL_SPEC,
+        "--max-evaluations",
+        "40",
+        "--strict",
+        "--out",
+        c.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(!c.exists());
+    assert!(!stdout(&o).contains("wrote "), "{}", stdout(&o));
+}
+
+// L-l: commands of ±0.03 "counts" replayed on the physics plant never open a valve: the record is
+// flat at y0 and simulate says why, with the largest command.
+#[test]
+fn simulate_warns_when_the_commands_stay_inside_the_valves_deadzone() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("u.csv");
+    let u: Vec<f64> = (0..300).map(|k| 0.03 * (k as f64 * 0.1).sin()).collect();
+    let largest = u.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+    let mut text = String::from("u\n");
+    for v in &u {
+        text += &format!("{v}\n");
+    }
+    std::fs::write(&input, text).unwrap();
+    let out = dir.path().join("s.csv");
+    let o = ipa_sysid(&[
+        "simulate",
+        "--plant",
+        "ipa",
+        "--input",
+        &format!("file:{}", input.display()),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(
+        e.contains(&format!("the commands stay within ±{largest:.4} counts"))
+            && e.contains("inside the valves' deadzone"),
+        "{e}"
+    );
+}
+
+// L-b: tune refuses a linear ARX model and names the way forward.
+#[test]
+fn tune_on_an_arx_model_names_the_way_forward() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("arx.json");
+    std::fs::write(
+        &model,
+        r#"{"format": "ipa-sysid-model", "version": 2, "model": {"kind": "arx", "ts": 0.01,
+            "na": 1, "nb": 1, "nk": 1, "a": [-0.9], "b": [0.1], "offset": null,
+            "noise_model": "equation-error"}}"#,
+    )
+    .unwrap();
+    let o = ipa_sysid(&[
+        "tune",
+        "--model",
+        model.to_str().unwrap(),
+        "--out",
+        dir.path().join("c.json").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(
+        e.contains("--structure hammerstein") && e.contains("control --plant model:FILE --kp"),
+        "{e}"
+    );
+}

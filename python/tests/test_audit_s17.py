@@ -185,3 +185,16 @@ def test_output_nonlinearity_models_have_no_equation_error_loss(tmp_path):
     assert "no one-step equation error" in m["note"]
     assert m["loss_sim"] == pytest.approx(m["rmse_sim"] ** 2 / 2, rel=1e-9)
     assert "loss V (eq. 14)                    n/a" in r.stdout + r.stderr
+
+
+# L-k: ARX(2, 2, 1) has p = 4 parameters and k0 = 2; 30 samples give N = 28 < 10 p rows, 60 give 58 >= 40.
+def test_few_regression_rows_per_parameter_are_warned(tmp_path):
+    u, y = arx_record(60, 7)
+    write(tmp_path / "short.csv", u[:30], y[:30])
+    write(tmp_path / "long.csv", u, y)
+    r = run("identify", "--data", tmp_path / "short.csv", "--ts", "1", "--structure", "arx", "--method", "ls",
+            "--na", 2, "--nb", 2, "--nk", 1)
+    assert f"N = {30 - 2} regression rows for p = 4 parameters" in r.stdout + r.stderr
+    r = run("identify", "--data", tmp_path / "long.csv", "--ts", "1", "--structure", "arx", "--method", "ls",
+            "--na", 2, "--nb", 2, "--nk", 1)
+    assert "regression rows for p" not in r.stdout + r.stderr

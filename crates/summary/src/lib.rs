@@ -259,6 +259,18 @@ impl IdentifyReport {
             report.warnings.extend(later);
         }
         report.warnings.extend(below.map(|w| w.to_string()));
+        // Few regression rows per parameter: the fits describe the noise as much as the plant (audit
+        // s17 L-k: N = 5 rows for p = 4 parameters printed a 99.6 % fit).
+        let (n, p) = (report.metrics.estimation.n, report.metrics.estimation.p);
+        if n < FEW_ROWS_PER_PARAMETER * p {
+            report.warnings.push(format!(
+                "the estimation used N = {n} regression rows for p = {p} parameters (fewer than \
+                 {FEW_ROWS_PER_PARAMETER} per parameter; the fit from estimated initial outputs frees \
+                 {} more values): the parameters are barely determined and the estimation fits flatter \
+                 the model; use a longer record (--rows) or lower orders",
+                m.k0()
+            ));
+        }
         // Merged records: each record's own fits judged as one record's are (a poor simulation, a
         // flattering initial state), so that the pooled figures cannot hide a record the model does
         // not simulate, and `--strict` refuses it (audit s17 H-1).
@@ -555,6 +567,10 @@ fn operating_point_hint(model: &Model, m: &MetricsPair) -> Option<String> {
         )
     })
 }
+
+/// The fewest regression rows per estimated parameter before `identify` warns that the estimate is
+/// barely determined (N < 10 p).
+pub const FEW_ROWS_PER_PARAMETER: usize = 10;
 
 /// True when `a` and `b` hold exactly the same samples (every input and the output), whatever their names.
 pub fn same_samples(a: &sysid::Dataset, b: &sysid::Dataset) -> bool {

@@ -198,3 +198,27 @@ def test_few_regression_rows_per_parameter_are_warned(tmp_path):
     r = run("identify", "--data", tmp_path / "long.csv", "--ts", "1", "--structure", "arx", "--method", "ls",
             "--na", 2, "--nb", 2, "--nk", 1)
     assert "regression rows for p" not in r.stdout + r.stderr
+
+
+# L-j: `order` quotes the test fit it ranks on, the worse of estimated and measured initial outputs.
+# One candidate, ARX(2, 2, 1), re-estimated on the estimation file, tested on a held-out file: the
+# measured-start figure is numpy's least squares simulated from the test record's first two outputs.
+def test_order_quotes_the_lower_test_fit(tmp_path):
+    u, y = arx_record(800, 8)
+    write(tmp_path / "est.csv", u[:500], y[:500])
+    write(tmp_path / "test.csv", u[500:], y[500:])
+    out = tmp_path / "o.json"
+    r = run("order", "--data", tmp_path / "est.csv", "--validation", tmp_path / "test.csv", "--ts", "1",
+            "--na", "2", "--nb", "2", "--nk", "1", "--json", out)
+    assert r.returncode == 0, r.stderr
+    X, t = regression(u[:500], y[:500])
+    theta = np.linalg.lstsq(X, t, rcond=None)[0]
+    ut, yt = u[500:], y[500:]
+    s = simulate_measured(theta, ut, yt)
+    measured = 100 * (1 - np.linalg.norm(yt[2:] - s[2:]) / np.linalg.norm(yt[2:] - yt[2:].mean()))
+    m = json.loads(out.read_text())["test"]["metrics"]
+    assert m["fit_sim_measured_percent"] == pytest.approx(measured, abs=1e-6)
+    lower = min(m["fit_sim_percent"], m["fit_sim_measured_percent"])
+    line = next(l for l in (r.stdout + r.stderr).splitlines() if "test fit" in l)
+    quoted = float(line.split("test fit ")[1].split(" %")[0])
+    assert quoted == pytest.approx(lower, rel=1e-5, abs=1e-4)

@@ -222,3 +222,29 @@ def test_order_quotes_the_lower_test_fit(tmp_path):
     line = next(l for l in (r.stdout + r.stderr).splitlines() if "test fit" in l)
     quoted = float(line.split("test fit ")[1].split(" %")[0])
     assert quoted == pytest.approx(lower, rel=1e-5, abs=1e-4)
+
+
+# L-c: a hand-edited piecewise-linear map whose breakpoints are not strictly increasing is named.
+def test_unsorted_piecewise_linear_breakpoints_are_named(tmp_path):
+    rng = np.random.default_rng(9)
+    u = rng.uniform(-1, 1, 400)
+    y = np.zeros(400)
+    for k in range(1, 400):
+        y[k] = 0.5 * y[k - 1] + np.tanh(2 * u[k - 1]) + 0.01 * rng.standard_normal()
+    write(tmp_path / "d.csv", u, y)
+    model = tmp_path / "m.json"
+    r = run("identify", "--data", tmp_path / "d.csv", "--ts", "1", "--structure", "hammerstein",
+            "--nonlinearity", "piecewise-linear", "--method", "ls", "--save-model", model)
+    assert r.returncode == 0, r.stderr
+    d = json.loads(model.read_text())
+    p = d["model"]["nonlinearity"]["breakpoints"]
+    assert all(a < b for a, b in zip(p, p[1:]))
+    r = run("validate", "--model", model, "--data", tmp_path / "d.csv", "--ts", "1")
+    assert "not strictly increasing" not in r.stdout + r.stderr
+    for bad in (p[::-1], [p[0]] * len(p)):
+        if len(bad) < 2:
+            continue
+        d["model"]["nonlinearity"]["breakpoints"] = bad
+        model.write_text(json.dumps(d))
+        r = run("validate", "--model", model, "--data", tmp_path / "d.csv", "--ts", "1")
+        assert "are not strictly increasing" in r.stdout + r.stderr

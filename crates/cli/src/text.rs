@@ -204,7 +204,7 @@ fn metrics_text(r: &IdentifyReport, s: &mut String) {
         ("RMSE (simulation)", |m| opt(m.rmse_sim)),
         ("RMSE (sim., y0 meas.)", |m| opt(m.rmse_sim_measured)),
         ("RMSE (1-step pred.)", |m| num(m.rmse_pred)),
-        ("loss V (eq. 14)", |m| num(m.loss)),
+        ("loss V (eq. 14)", |m| opt(m.loss)),
         ("loss V_sim (sim.)", |m| opt(m.loss_sim)),
         ("FPE (eq. 15)", |m| opt(m.fpe)),
         ("AIC (normalised)", |m| opt(m.aic)),
@@ -222,17 +222,19 @@ fn metrics_text(r: &IdentifyReport, s: &mut String) {
     if let Some(records) = &r.records {
         let _ = writeln!(
             s,
-            "\nEstimation records (each simulated from its own estimated initial outputs; the \
-             estimation column above pools their rows)\n{:<50} {:>8} {:>14} {:>14}",
-            "record", "N", "fit sim %", "fit pred %"
+            "\nEstimation records (each simulated from its own initial outputs, estimated or measured, \
+             and measured against its own mean; the estimation column above pools their rows)\n\
+             {:<50} {:>8} {:>14} {:>16} {:>14}",
+            "record", "N", "fit sim %", "fit sim y0 m. %", "fit pred %"
         );
         for r in records {
             let _ = writeln!(
                 s,
-                "{:<50} {:>8} {:>14} {:>14}",
+                "{:<50} {:>8} {:>14} {:>16} {:>14}",
                 r.data,
                 r.metrics.n,
                 opt(r.metrics.fit_sim_percent),
+                opt(r.metrics.fit_sim_measured_percent),
                 opt(r.metrics.fit_pred_percent)
             );
         }

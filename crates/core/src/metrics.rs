@@ -43,13 +43,15 @@ pub struct Metrics {
     /// RMSE of the one-step prediction (units of y).
     pub rmse_pred: f64,
     /// Loss V = (1/N) Σ ½ ε² of the one-step equation-error prediction (paper eq. 14), whatever the
-    /// model's noise model.
-    pub loss: f64,
+    /// model's noise model; `None` (n/a) for a model with an output nonlinearity (Wiener,
+    /// Hammerstein–Wiener), whose linear block's output is not measured, so no equation error is
+    /// defined (audit s17 M-a: it was the simulation loss under the same name). `note` says so.
+    pub loss: Option<f64>,
     /// Simulation-error loss (1/N) Σ ½ (y − ŷ_sim)², ŷ_sim from the estimated initial outputs (what an
     /// output-error fit minimises); `None` when the simulation diverged.
     #[serde(default)]
     pub loss_sim: Option<f64>,
-    /// FPE = (N + p)/(N − p) V (paper eq. 15).
+    /// FPE = (N + p)/(N − p) V (paper eq. 15); `None` with V.
     pub fpe: Option<f64>,
     /// Normalised AIC = ln(mean ε²) + 2p/N, ε the one-step equation-error prediction errors (as V).
     pub aic: Option<f64>,
@@ -362,8 +364,10 @@ pub fn metrics(model: &Model, data: &Dataset) -> Result<Metrics, SysidError> {
 }
 
 /// The metrics of `model` over several records (merged experiments): every record's rows k ≥ k0
-/// pooled, with one mean ȳ over all of them (each record simulated from its own initial outputs). For
-/// one record, [`metrics`].
+/// pooled, each record's output measured against its own mean ȳ_r (fit = 100 (1 − ‖y − ŷ‖ / √Σ_r ‖y_r −
+/// ȳ_r‖²), as MATLAB's `compare` gives one fit per experiment: one mean over records at different
+/// levels would count their gap as explained, audit s17 H-1; each record simulated from its own initial
+/// outputs). For one record, [`metrics`].
 pub fn pooled_metrics(model: &Model, records: &[Dataset]) -> Result<Metrics, SysidError> {
     let [first, rest @ ..] = records else {
         return Err(SysidError::Data("no record to judge the model on".into()));
@@ -371,32 +375,31 @@ pub fn pooled_metrics(model: &Model, records: &[Dataset]) -> Result<Metrics, Sys
     if rest.is_empty() {
         return metrics(model, first);
     }
-    let k0 = model.k0();
     let mut pooled = MetricSums {
         n: 0,
         p: model.parameter_count(),
         y_deviation: 0.0,
         sse_pred: 0.0,
-        sse_equation: 0.0,
+        sse_equation: Some(0.0),
         sse_sim: Some(0.0),
         sse_sim_measured: Some(0.0),
         note: None,
     };
-    let mut ys = Vec::new();
     for r in records {
         let s = record_sums(model, r)?;
         pooled.n += s.n;
+        // Each record's deviation from its own mean ȳ_r: records at different levels would otherwise
+        // make Σ(y − ȳ)² over all of them large and flatter every fit (audit s17 H-1).
+        pooled.y_deviation += s.y_deviation;
         pooled.sse_pred += s.sse_pred;
-        pooled.sse_equation += s.sse_equation;
+        pooled.sse_equation = pooled.sse_equation.zip(s.sse_equation).map(|(a, b)| a + b);
         pooled.sse_sim = pooled.sse_sim.zip(s.sse_sim).map(|(a, b)| a + b);
         pooled.sse_sim_measured = pooled
             .sse_sim_measured
             .zip(s.sse_sim_measured)
             .map(|(a, b)| a + b);
         pooled.note = pooled.note.or(s.note.map(|n| format!("{}: {n}", r.name())));
-        ys.extend_from_slice(&r.y()[k0..]);
     }
-    pooled.y_deviation = deviation(&ys);
     let names: Vec<&str> = records.iter().map(Dataset::name).collect();
     metrics_from_sums(&pooled, &names.join(" + "))
 }
@@ -445,14 +448,15 @@ fn record_sums(model: &Model, data: &Dataset) -> Result<MetricSums, SysidError> 
     let pred = &pred[k0..];
     // The one-step equation-error prediction (the ARX predictor from the measured outputs) for the
     // loss V of every model; for an equation-error model it is `pred` itself.
-    let sse_equation = match model.noise_model() {
-        crate::NoiseModel::EquationError => sse(y, pred),
-        crate::NoiseModel::OutputError => {
+    let sse_equation = match (model.output_nonlinearity(), model.noise_model()) {
+        (Some(_), _) => None,
+        (None, crate::NoiseModel::EquationError) => Some(sse(y, pred)),
+        (None, crate::NoiseModel::OutputError) => {
             let eq = model
                 .clone()
                 .with_noise_model(crate::NoiseModel::EquationError)
                 .predict_k(u, y_all, 1)?;
-            sse(y, &eq[k0..])
+            Some(sse(y, &eq[k0..]))
         }
     };
     let (sim_measured, note) = match measured {
@@ -522,8 +526,9 @@ pub struct MetricSums {
     /// Σ ε² of the one-step prediction errors (an output-error model predicts by simulation).
     pub sse_pred: f64,
     /// Σ ε² of the one-step equation-error prediction errors (the ARX predictor; for an
-    /// equation-error model the same as `sse_pred`).
-    pub sse_equation: f64,
+    /// equation-error model the same as `sse_pred`); `None` for a model with an output nonlinearity
+    /// (not defined: see [`Metrics::loss`]).
+    pub sse_equation: Option<f64>,
     /// Σ (y − ŷ_sim)² of the simulation from estimated initial outputs (`None`: it failed).
     pub sse_sim: Option<f64>,
     /// Σ (y − ŷ_sim)² of the simulation from the measured initial outputs (`None`: it failed).
@@ -539,6 +544,12 @@ fn fit_of(sse: f64, deviation: f64) -> Option<f64> {
     (den > 0.0 && f.is_finite()).then_some(f)
 }
 
+/// Why a model with an output nonlinearity has no loss V, FPE or AIC (audit s17 M-a).
+pub const NO_EQUATION_ERROR: &str =
+    "loss V, FPE and AIC are n/a: a model with an output nonlinearity \
+     (Wiener, Hammerstein-Wiener) has no one-step equation error (its linear block's output is not \
+     measured); compare it with other models by loss_sim and the simulation fits";
+
 /// The [`Metrics`] of a record from its sums (`name` names the record in errors).
 pub fn metrics_from_sums(s: &MetricSums, name: &str) -> Result<Metrics, SysidError> {
     let (n, p) = (s.n, s.p);
@@ -548,7 +559,7 @@ pub fn metrics_from_sums(s: &MetricSums, name: &str) -> Result<Metrics, SysidErr
             name
         )));
     }
-    if !s.sse_equation.is_finite() {
+    if s.sse_equation.is_some_and(|e| !e.is_finite()) {
         return Err(SysidError::Numerical(format!(
             "{}: the squared equation-error prediction errors overflow f64 (values too large? rescale \
              the data)",
@@ -557,14 +568,28 @@ pub fn metrics_from_sums(s: &MetricSums, name: &str) -> Result<Metrics, SysidErr
     }
     let nf = n.max(1) as f64;
     let mse = s.sse_pred / n as f64;
-    let loss = 0.5 * s.sse_equation / nf;
-    let fpe = (n > p)
-        .then(|| (n + p) as f64 / (n - p) as f64 * loss)
+    let loss = s.sse_equation.map(|e| 0.5 * e / nf);
+    let fpe = loss
+        .filter(|_| n > p)
+        .map(|loss| (n + p) as f64 / (n - p) as f64 * loss)
         .filter(|v| v.is_finite());
-    let mse_equation = s.sse_equation / nf;
-    let aic = (mse_equation > 0.0)
-        .then(|| mse_equation.ln() + 2.0 * p as f64 / nf)
+    let aic = s
+        .sse_equation
+        .map(|e| e / nf)
+        .filter(|mse| *mse > 0.0)
+        .map(|mse| mse.ln() + 2.0 * p as f64 / nf)
         .filter(|v| v.is_finite());
+    // Said where the numbers are read (text and JSON), so that n/a is not taken for a failure.
+    let note = match (s.sse_equation, &s.note) {
+        (Some(_), n) => n.clone(),
+        (None, n) => Some(
+            n.iter()
+                .cloned()
+                .chain([NO_EQUATION_ERROR.to_string()])
+                .collect::<Vec<_>>()
+                .join("; "),
+        ),
+    };
     let rmse_of = |sse: f64| Some((sse / nf).sqrt()).filter(|v| v.is_finite());
     Ok(Metrics {
         fit_sim_percent: s.sse_sim.and_then(|e| fit_of(e, s.y_deviation)),
@@ -579,7 +604,7 @@ pub fn metrics_from_sums(s: &MetricSums, name: &str) -> Result<Metrics, SysidErr
         aic,
         n,
         p,
-        note: s.note.clone(),
+        note,
     })
 }
 

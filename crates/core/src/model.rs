@@ -299,7 +299,7 @@ impl DataRange {
     }
 
     /// Every bound finite, min ≤ max, one [min, max] per input of a model with `inputs` inputs.
-    fn check(&self, inputs: usize) -> Result<(), SysidError> {
+    pub(crate) fn check(&self, inputs: usize) -> Result<(), SysidError> {
         if self.u.len() != inputs {
             return Err(SysidError::Data(format!(
                 "invalid model: data_range has {} input range(s) but the model has {inputs} input(s)",

@@ -238,6 +238,9 @@ pub struct NarxModel {
     degree: usize,
     terms: Vec<Term>,
     theta: Vec<f64>,
+    /// The range of the estimation data (u and y), when recorded: outside it the polynomial
+    /// extrapolates, and a simulation from a y0 or an input beyond it may diverge (audit s17 M-d).
+    data_range: Option<crate::DataRange>,
 }
 
 /// The serialised form: `kind: "narx"`, Ts, the lags, the degree and the terms with their coefficients.
@@ -251,6 +254,8 @@ struct NarxRepr {
     nk: usize,
     degree: usize,
     terms: Vec<TermRepr>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    data_range: Option<crate::DataRange>,
 }
 
 #[derive(Debug, Clone, Copy, Serialize, Deserialize)]
@@ -284,7 +289,8 @@ impl TryFrom<NarxRepr> for NarxModel {
             );
             theta.push(t.coefficient);
         }
-        NarxModel::new(r.ts, r.na, r.nb, r.nk, r.degree, terms, theta)
+        NarxModel::new(r.ts, r.na, r.nb, r.nk, r.degree, terms, theta)?
+            .with_data_range(r.data_range)
     }
 }
 
@@ -297,6 +303,7 @@ impl From<NarxModel> for NarxRepr {
             nb: m.nb,
             nk: m.nk,
             degree: m.degree,
+            data_range: m.data_range,
             terms: m
                 .terms
                 .iter()
@@ -381,7 +388,23 @@ impl NarxModel {
             degree,
             terms,
             theta,
+            data_range: None,
         })
+    }
+
+    /// The same model with the estimation data's range recorded (`None` clears it); fails on a range
+    /// that is not one finite [min, max] pair for the input and one for y.
+    pub fn with_data_range(mut self, range: Option<crate::DataRange>) -> Result<Self, SysidError> {
+        if let Some(r) = &range {
+            r.check(1)?;
+        }
+        self.data_range = range;
+        Ok(self)
+    }
+
+    /// The range of the data the model was estimated on, if recorded.
+    pub fn data_range(&self) -> Option<&crate::DataRange> {
+        self.data_range.as_ref()
     }
 
     /// Sampling period Ts in s.
@@ -432,7 +455,8 @@ impl NarxModel {
             self.degree,
             self.terms.clone(),
             theta,
-        )
+        )?
+        .with_data_range(self.data_range.clone())
     }
 
     /// The position of a lagged variable in the vector v = (y(k−1..k−na), u(k−nk..k−nk−nb+1)) that
@@ -560,6 +584,10 @@ pub struct NarxPlant {
     /// u(k), u(k−1), …, newest first (length nk + nb), filled as commands are applied.
     u_hist: Vec<f64>,
     label: String,
+    /// The level every past output was set to by the last reset (y0).
+    y0: f64,
+    /// [min, max] of the inputs applied since the last reset.
+    u_applied: (f64, f64),
 }
 
 impl NarxPlant {
@@ -577,11 +605,54 @@ impl NarxPlant {
             y_hist,
             u_hist,
             label: label.into(),
+            y0: 0.0,
+            u_applied: (f64::INFINITY, f64::NEG_INFINITY),
         })
     }
     /// The wrapped model.
     pub fn model(&self) -> &NarxModel {
         &self.model
+    }
+
+    /// Why a polynomial run diverged, in words (audit s17 M-d): the start y0 or the inputs applied
+    /// beyond the estimation data's range ([`DataRange::excursion_of`](crate::DataRange::excursion_of)),
+    /// where the polynomial's higher powers take over, and what to change; empty when neither left it
+    /// or no range is recorded (a file written before the range was stored: then that is said).
+    fn divergence_cause(&self) -> String {
+        let Some(range) = self.model.data_range() else {
+            return ": a polynomial model diverges outside the data it was estimated on, and this file \
+                    records no data range to check the start y0 and the input against (identify \
+                    again with --save-model to record it); try a y0 and an input within the \
+                    estimation data's"
+                .into();
+        };
+        let [ylo, yhi] = range.y;
+        let mut why = Vec::new();
+        if crate::DataRange::excursion_of((self.y0, self.y0), (ylo, yhi)).is_some() {
+            why.push(format!(
+                "it started from y0 = {} but the estimation data had y in [{ylo}, {yhi}] (give --y0 \
+                 inside it)",
+                self.y0
+            ));
+        }
+        if let Some([ulo, uhi]) = range.u.first().copied() {
+            if crate::DataRange::excursion_of(self.u_applied, (ulo, uhi)).is_some() {
+                why.push(format!(
+                    "its input reached [{}, {}] but the estimation data had u in [{ulo}, {uhi}] (keep \
+                     the commands within it: simulate's --amplitude or --input file:CSV in the model's \
+                     units; control's gains and --u-max)",
+                    self.u_applied.0, self.u_applied.1
+                ));
+            }
+        }
+        if why.is_empty() {
+            String::new()
+        } else {
+            format!(
+                ": a polynomial model diverges outside the data it was estimated on, and {}",
+                why.join("; and ")
+            )
+        }
     }
 }
 
@@ -596,6 +667,7 @@ impl crate::Plant for NarxPlant {
         // u(k) enters; y(k+1) uses y(k+1−l) = y_hist[l−1] and u(k+1−l) = u_hist[l−1].
         self.u_hist.rotate_right(1);
         self.u_hist[0] = u;
+        self.u_applied = (self.u_applied.0.min(u), self.u_applied.1.max(u));
         let (yh, uh) = (&self.y_hist, &self.u_hist);
         let v: f64 = self
             .model
@@ -611,8 +683,9 @@ impl crate::Plant for NarxPlant {
             .sum();
         if !v.is_finite() {
             return Err(PlantError::Diverged(format!(
-                "{} output became non-finite",
-                self.label
+                "{} output became non-finite{}",
+                self.label,
+                self.divergence_cause()
             )));
         }
         self.y_hist.rotate_right(1);
@@ -622,6 +695,8 @@ impl crate::Plant for NarxPlant {
     fn reset(&mut self, y0_mm: f64) {
         self.y_hist.iter_mut().for_each(|v| *v = y0_mm);
         self.u_hist.iter_mut().for_each(|v| *v = 0.0);
+        self.y0 = y0_mm;
+        self.u_applied = (f64::INFINITY, f64::NEG_INFINITY);
     }
     fn name(&self) -> String {
         self.label.clone()

@@ -214,9 +214,9 @@ pub struct PiecewiseLinear {
 }
 
 impl PiecewiseLinear {
-    /// Breakpoints `p` (any order: they are sorted, each with its slope change) and the K + 1 segment
-    /// slopes `s` in the order of the given breakpoints' sorted positions. Fails on K = 0, K above
-    /// [`MAX_BREAKPOINTS`] or `s.len() != K + 1`.
+    /// Breakpoints `p` (p_1 < … < p_K; an unsorted or repeated list is kept as given and named by
+    /// [`StaticNonlinearity::shape_problems`]) and the K + 1 segment slopes `s`, the first left of p_1.
+    /// Fails on K = 0, K above [`MAX_BREAKPOINTS`] or `s.len() != K + 1`.
     pub fn new(p: &[f64], s: &[f64]) -> Result<Self, SysidError> {
         let k = p.len();
         if k == 0 || k > MAX_BREAKPOINTS || s.len() != k + 1 {
@@ -501,6 +501,15 @@ impl StaticNonlinearity {
             StaticNonlinearity::PiecewiseLinear(p) => {
                 if p.slopes().iter().all(|s| *s == 0.0) {
                     out.push("every slope is zero, so it does not respond at all".into());
+                }
+                // Segment i lies between p_i and p_{i+1}: an unsorted or repeated list defines no map
+                // (audit s17 L-c: a hand-edited [0.5, 0.06] was simulated without a word).
+                if p.breakpoints().windows(2).any(|w| w[0] >= w[1]) {
+                    out.push(format!(
+                        "the breakpoints {:?} are not strictly increasing, so the segments between them \
+                         are not defined (list each breakpoint once, in increasing order)",
+                        p.breakpoints()
+                    ));
                 }
             }
             StaticNonlinearity::Polynomial(p) => {

@@ -116,7 +116,7 @@ pub(crate) fn differences(s: &ReproduceSettings, st: &Study) -> Vec<Difference> 
         Difference {
             id: "loss",
             quantity: "loss V = (1/N) Σ ½ ε² (mm²)",
-            plant: per_model(&|m| val(m, &|v| Some(v.loss))),
+            plant: per_model(&|m| val(m, &|v| v.loss)),
             paper: vec![("Hammerstein", paper::LOSS.1)],
             reason: "one-step errors grow with unmodelled dynamics: the simulator's pressure dynamics, friction and \
                      stick–slip are outside a 3rd-order Hammerstein model; the paper's V means a one-step RMS error of \

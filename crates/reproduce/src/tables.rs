@@ -83,7 +83,7 @@ pub(crate) fn metrics_row(label: &str, rep: &IdentifyReport) -> [String; 6] {
     [
         label.to_string(),
         opt(v.and_then(sysid::trust::guarded_fit)),
-        opt(v.map(|m| m.loss)),
+        opt(v.and_then(|m| m.loss)),
         opt(v.and_then(|m| m.loss_sim)),
         opt(v.and_then(|m| m.fpe)),
         if rep.stable {

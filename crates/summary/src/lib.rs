@@ -259,6 +259,28 @@ impl IdentifyReport {
             report.warnings.extend(later);
         }
         report.warnings.extend(below.map(|w| w.to_string()));
+        // Few regression rows per parameter: the fits describe the noise as much as the plant (audit
+        // s17 L-k: N = 5 rows for p = 4 parameters printed a 99.6 % fit).
+        let (n, p) = (report.metrics.estimation.n, report.metrics.estimation.p);
+        if n < FEW_ROWS_PER_PARAMETER * p {
+            report.warnings.push(format!(
+                "the estimation used N = {n} regression rows for p = {p} parameters (fewer than \
+                 {FEW_ROWS_PER_PARAMETER} per parameter; the fit from estimated initial outputs frees \
+                 {} more values): the parameters are barely determined and the estimation fits flatter \
+                 the model; use a longer record (--rows) or lower orders",
+                m.k0()
+            ));
+        }
+        // Merged records: each record's own fits judged as one record's are (a poor simulation, a
+        // flattering initial state), so that the pooled figures cannot hide a record the model does
+        // not simulate, and `--strict` refuses it (audit s17 H-1).
+        for r in report.records.iter().flatten() {
+            report.warnings.extend(
+                metric_warnings(Record::Estimation, &r.metrics)
+                    .into_iter()
+                    .map(|w| format!("merged record {}: {w}", r.data)),
+            );
+        }
         if let Some(v) = val_data {
             report
                 .warnings
@@ -546,26 +568,88 @@ fn operating_point_hint(model: &Model, m: &MetricsPair) -> Option<String> {
     })
 }
 
+/// The fewest regression rows per estimated parameter before `identify` warns that the estimate is
+/// barely determined (N < 10 p).
+pub const FEW_ROWS_PER_PARAMETER: usize = 10;
+
 /// True when `a` and `b` hold exactly the same samples (every input and the output), whatever their names.
 pub fn same_samples(a: &sysid::Dataset, b: &sysid::Dataset) -> bool {
     a.y() == b.y() && a.input_signals() == b.input_signals()
 }
 
+/// The fewest consecutive samples two records must share, input and output alike, for one to count as
+/// cut from the other ([`shared_run`]): long enough that two experiments from rest do not match by their
+/// quiet start alone (the run must also move, see there).
+pub const MIN_SHARED_SAMPLES: usize = 50;
+
+/// The longest run of consecutive samples (every input and the output equal, bit for bit) that begins
+/// at the first sample of `a` or of `b` and appears in the other: `(start in a, start in b, length)`.
+/// Two cuts of one record share such a run (the later cut starts inside the earlier one), and so do a
+/// record and a file that contains it (spliced, or the whole record). `None` when no run of at least
+/// `min(MIN_SHARED_SAMPLES, shorter length)` samples (and ≥ 10) is shared, or when the run's output
+/// never moves (a rest both experiments started from).
+pub fn shared_run(a: &sysid::Dataset, b: &sysid::Dataset) -> Option<(usize, usize, usize)> {
+    let (ua, ub) = (a.input_signals(), b.input_signals());
+    let (ya, yb) = (a.y(), b.y());
+    let min = MIN_SHARED_SAMPLES.min(ya.len()).min(yb.len());
+    if min < 10 || ua.len() != ub.len() {
+        return None;
+    }
+    let equal = |i: usize, j: usize| {
+        ya[i].to_bits() == yb[j].to_bits()
+            && ua
+                .iter()
+                .zip(&ub)
+                .all(|(x, z)| x[i].to_bits() == z[j].to_bits())
+    };
+    let mut best: Option<(usize, usize, usize)> = None;
+    // The head of `b` inside `a`, then the head of `a` inside `b`.
+    for (head_of_b, hay_len) in [(true, ya.len()), (false, yb.len())] {
+        for start in 0..hay_len {
+            let (i0, j0) = if head_of_b { (start, 0) } else { (0, start) };
+            let mut n = 0;
+            while i0 + n < ya.len() && j0 + n < yb.len() && equal(i0 + n, j0 + n) {
+                n += 1;
+            }
+            let moves = ya[i0..i0 + n]
+                .iter()
+                .any(|v| v.to_bits() != ya[i0].to_bits());
+            if n >= min && moves && best.is_none_or(|(_, _, m)| n > m) {
+                best = Some((i0, j0, n));
+            }
+        }
+    }
+    best
+}
+
 /// A warning when the `what` record holds exactly the samples of the estimation record `est` (a copy
-/// of the file, say): its fit is in-sample.
+/// of the file, say), or a run of at least [`MIN_SHARED_SAMPLES`] of them (a file cut from the
+/// record, or one containing it: audit s17 M-e): its fit is then in-sample, wholly or in part.
 pub fn same_samples_warning(
     what: &str,
     test: &sysid::Dataset,
     est: &sysid::Dataset,
 ) -> Option<String> {
-    same_samples(test, est).then(|| {
-        format!(
+    if same_samples(test, est) {
+        return Some(format!(
             "the {what} record {} holds the same samples as the estimation record {}: its fit is \
              in-sample, not held out",
             test.name(),
             est.name()
-        )
-    })
+        ));
+    }
+    let (i, j, n) = shared_run(test, est)?;
+    Some(format!(
+        "the {what} record {} holds {n} consecutive samples of the estimation record {} (its samples \
+         {i}..{} are the estimation record's {j}..{}: {:.0} % of the {what} record): its fit is \
+         in-sample there, not held out; cut the {what} rows from a part of the experiment the \
+         estimation did not use",
+        test.name(),
+        est.name(),
+        i + n,
+        j + n,
+        100.0 * n as f64 / test.len().max(1) as f64
+    ))
 }
 
 /// A warning when the simulated (or predicted) output `y` of `model` leaves the range of the model's
@@ -575,7 +659,12 @@ pub fn same_samples_warning(
 /// plant would. `None` without a recorded data range. `simulate --plant model:` and Python's
 /// `Model.simulate` / `Model.predict`.
 pub fn output_outside_data(model: &Model, y: &[f64]) -> Option<String> {
-    let [lo, hi] = model.data_range()?.y;
+    output_outside_range(model.data_range()?, y)
+}
+
+/// [`output_outside_data`] for a recorded range (a linear or a NARX model's).
+pub fn output_outside_range(range: &sysid_core::DataRange, y: &[f64]) -> Option<String> {
+    let [lo, hi] = range.y;
     let (y_min, y_max) = sysid_core::DataRange::excursion(y, (lo, hi))?;
     Some(format!(
         "the simulated output spans [{y_min:.6}, {y_max:.6}] but the model's estimation data had y in \
@@ -591,9 +680,14 @@ pub fn output_outside_data(model: &Model, y: &[f64]) -> Option<String> {
 /// data range or a range `u` stays in. `simulate --plant model:` (which adds its own advice) and
 /// Python's `Model.simulate` / `Model.predict`.
 pub fn input_outside_data(model: &Model, u: &[f64]) -> Option<String> {
-    let [lo, hi] = *model.data_range()?.u.first()?;
-    let (u_min, u_max) = sysid_core::DataRange::excursion(u, (lo, hi))?;
     let name = model.inputs().first().map_or("u", |c| c.name());
+    input_outside_range(model.data_range()?, name, u)
+}
+
+/// [`input_outside_data`] for a recorded range (a linear or a NARX model's) and the input's `name`.
+pub fn input_outside_range(range: &sysid_core::DataRange, name: &str, u: &[f64]) -> Option<String> {
+    let [lo, hi] = *range.u.first()?;
+    let (u_min, u_max) = sysid_core::DataRange::excursion(u, (lo, hi))?;
     Some(format!(
         "the input spans [{u_min}, {u_max}] but the model's estimation data had {name} in [{lo}, {hi}]: \
          outside it the model extrapolates"

@@ -71,7 +71,7 @@ fn assert_metrics(what: &str, a: &Metrics, b: &Metrics) {
         a.fit_sim_measured_percent,
         b.fit_sim_measured_percent,
     );
-    assert_close_opt(&format!("{what} loss"), Some(a.loss), Some(b.loss));
+    assert_close_opt(&format!("{what} loss"), a.loss, b.loss);
     assert_close_opt(&format!("{what} fpe"), a.fpe, b.fpe);
     assert_close_opt(&format!("{what} aic"), a.aic, b.aic);
     assert_eq!(a.note.is_some(), b.note.is_some(), "{what} note");

@@ -795,7 +795,7 @@ mod tests {
             fit_sim_measured_percent: measured,
             rmse_sim_measured: measured.map(|_| 1.0),
             rmse_pred: 0.1,
-            loss: 0.005,
+            loss: Some(0.005),
             loss_sim: fit.map(|_| 0.5),
             fpe: Some(0.005),
             aic: Some(-5.0),

@@ -90,7 +90,10 @@ pub fn pass<F: Fn(&[f64], usize, &mut [f64])>(
         let den = forgetting + phi.dot(&pz);
         if !(den.is_finite() && den.abs() > 1e-300 && eps.is_finite()) {
             return Err(SysidError::Numerical(format!(
-                "{}: recursive IV met a singular or non-finite update at sample {k} (ρ + φᵀPz = {den})",
+                "{}: recursive IV met a singular or non-finite update at sample {k} (ρ + φᵀPz = {den}): \
+                 its instruments (simulated from the start model) have diverged or stopped exciting \
+                 the regressors for this structure; use --method ls or --method oe on the same flags, \
+                 or a lower order or another --nonlinearity",
                 r.name
             )));
         }

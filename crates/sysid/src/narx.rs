@@ -30,7 +30,7 @@ use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
 use sysid_core::narx::{candidate_count, candidate_terms, Lagged, NarxModel, Term, MAX_DEGREE};
-use sysid_core::{Dataset, Setting, SysidError};
+use sysid_core::{DataRange, Dataset, Setting, SysidError};
 
 use crate::warnings::{Record, Warning};
 
@@ -375,6 +375,17 @@ pub fn identify_narx(data: &Dataset, settings: &NarxSettings) -> Result<NarxFit,
             "polynomial NARX models have one input; choose it with --u-col".into(),
         ));
     }
+    // A record whose output never moves determines no dynamics: y(k−1) = const explains it exactly,
+    // whatever the input, as the linear classes' rank test refuses it (audit s17 L-i).
+    if let Some(first) = data.y().first() {
+        if data.y().iter().all(|v| v == first) {
+            return Err(SysidError::Data(format!(
+                "{}: the output never moves (every sample is {first}): no model can be identified from \
+                 it; record an experiment whose commands move the output",
+                data.name()
+            )));
+        }
+    }
     let (u, y) = (data.u(), data.y());
     let s = settings;
     let k0 = s.k0();
@@ -585,6 +596,8 @@ pub fn identify_narx(data: &Dataset, settings: &NarxSettings) -> Result<NarxFit,
             err: *e,
         })
         .collect();
+    // The range of the data, for the extrapolation warnings of whatever drives the model (audit s17 M-d).
+    let model = model.with_data_range(DataRange::of(std::slice::from_ref(data)))?;
     Ok(NarxFit {
         model,
         terms,

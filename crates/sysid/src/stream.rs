@@ -655,7 +655,7 @@ pub fn record_metrics(
             p,
             y_deviation: deviation,
             sse_pred,
-            sse_equation,
+            sse_equation: Some(sse_equation),
             sse_sim: estimated.is_ok().then_some(sse_est),
             sse_sim_measured: measured.is_ok().then_some(sse_measured),
             note,

@@ -205,7 +205,7 @@ mod tests {
             fit_sim_measured_percent: meas,
             rmse_sim_measured: None,
             rmse_pred: 0.0,
-            loss: 0.0,
+            loss: Some(0.0),
             loss_sim: None,
             fpe: None,
             aic: None,

@@ -65,7 +65,7 @@ fn loss_fpe_aic_and_fit_on_a_hand_checked_record() {
     .unwrap();
     let v = metrics(&m, &d).unwrap();
     assert_eq!((v.n, v.p), (3, 1));
-    assert!((v.loss - 1.0 / 3.0).abs() < 1e-12);
+    assert!((v.loss.unwrap() - 1.0 / 3.0).abs() < 1e-12);
     assert!((v.fpe.unwrap() - 2.0 / 3.0).abs() < 1e-12);
     assert!((v.aic.unwrap() - ((2.0f64 / 3.0).ln() + 2.0 / 3.0)).abs() < 1e-12);
     assert!(v.fit_pred_percent.unwrap().abs() < 1e-12);

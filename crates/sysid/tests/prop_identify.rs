@@ -119,7 +119,10 @@ fn check_outcome(data: &Dataset, s: &Identification) -> Result<(), TestCaseError
                         m.aic,
                     ];
                     prop_assert!(opt.iter().all(|v| v.is_none_or(f64::is_finite)), "{m:?}");
-                    prop_assert!(m.rmse_pred.is_finite() && m.loss.is_finite(), "{m:?}");
+                    prop_assert!(
+                        m.rmse_pred.is_finite() && m.loss.is_some_and(f64::is_finite),
+                        "{m:?}"
+                    );
                 }
                 Err(e) => prop_assert!(!e.to_string().is_empty()),
             }

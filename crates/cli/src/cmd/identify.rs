@@ -653,23 +653,36 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 }
 
 /// A warning for each merged record that holds the very samples of an earlier one (`--merge a.csv
-/// a.csv`, a copied file): every sample then counts twice, so the standard deviations shrink by √2 and
-/// the fit statistics claim data the experiment never gave (audit s11).
+/// a.csv`, a copied file), or a run of at least `MIN_SHARED_SAMPLES` of them (a record merged with a
+/// file cut from it or containing it, audit s17 M-e): those samples then count twice, so the standard
+/// deviations shrink and the fit statistics claim data the experiment never gave (audit s11).
 fn repeated_record_warnings(records: &[Dataset]) -> Vec<String> {
     records
         .iter()
         .enumerate()
         .filter_map(|(j, r)| {
-            let earlier = records[..j]
-                .iter()
-                .find(|e| same_samples(e, r))?;
-            Some(format!(
-                "the merged record {} holds the same samples as {}: every sample counts twice, so the \
-                 standard deviations are too small by √2 and the fit statistics claim data the experiment \
-                 never gave (merge each record once)",
-                r.name(),
-                earlier.name()
-            ))
+            if let Some(earlier) = records[..j].iter().find(|e| same_samples(e, r)) {
+                return Some(format!(
+                    "the merged record {} holds the same samples as {}: every sample counts twice, so \
+                     the standard deviations are too small by √2 and the fit statistics claim data the \
+                     experiment never gave (merge each record once)",
+                    r.name(),
+                    earlier.name()
+                ));
+            }
+            records[..j].iter().find_map(|e| {
+                let (i, k, n) = sysid_summary::shared_run(r, e)?;
+                Some(format!(
+                    "the merged record {} holds {n} consecutive samples of {} (its samples {i}..{} are \
+                     the other's {k}..{}): they count twice, so the standard deviations are too small \
+                     and the fit statistics claim data the experiment never gave (merge each stretch \
+                     of the experiment once)",
+                    r.name(),
+                    e.name(),
+                    i + n,
+                    k + n
+                ))
+            })
         })
         .collect()
 }

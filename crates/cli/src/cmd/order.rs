@@ -333,12 +333,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let o = |v: Option<f64>| v.map_or_else(|| "n/a".to_string(), num);
     match (&test_result, &test) {
         (Some(t), _) => text.push_str(&format!(
-            "\nChosen structure (na, nb, nk) = ({}, {}, {}), re-estimated on {}: test fit {} % (simulation) \
+            "\nChosen structure (na, nb, nk) = ({}, {}, {}), re-estimated on {}: test fit {} % (simulation, \
+             the worse of estimated and measured initial outputs, as ranked; {} % from estimated ones) \
              on {} ({})\n",
             t.orders.na,
             t.orders.nb,
             t.orders.nk,
             t.estimated_on,
+            o(sysid::trust::guarded_fit(&t.metrics)),
             o(t.fit_sim_percent),
             t.data,
             if test_shares_rows {

@@ -81,7 +81,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     args.samples.unwrap_or(ipa::experiment::DEFAULT_SAMPLES),
                     m.ts(),
                 )?;
-                return run_plant(&args, plant, None);
+                return run_plant(&args, plant, None, m.data_range());
             }
         };
         // What validate would say of this model, said before its simulation is written.
@@ -98,9 +98,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         if model.inputs().len() > 1 {
             return run_miso(&args, &model, path);
         }
-        return run_plant(&args, plant, Some(&model));
+        return run_plant(&args, plant, Some(&model), None);
     }
-    run_plant(&args, plant, None)
+    run_plant(&args, plant, None, None)
 }
 
 /// What a model's poles mean for its simulation, when it does not simply settle: unstable (a pole
@@ -204,6 +204,7 @@ fn run_plant(
     args: &Args,
     plant: ipa::spec::PlantSpec,
     model: Option<&sysid::Model>,
+    narx_range: Option<&sysid::DataRange>,
 ) -> anyhow::Result<()> {
     let input: ipa::InputSpec = args.input.parse()?;
     // The commands of a file with a time column keep their recorded spacing: its Ts is the physics
@@ -303,6 +304,21 @@ fn run_plant(
                  PWM counts up to ±255: is this command record of such a plant, in counts?)",
                 control::trust::fmt_value(largest)
             );
+        }
+    }
+    // A NARX model's range, as a linear model's (audit s17 M-d).
+    if let Some(range) = narx_range {
+        let words = [
+            sysid_summary::input_outside_range(range, "u", &rec.u).map(|w| {
+                format!(
+                    "{w}; the designed inputs are the IPA's (whole counts within ±--amplitude around \
+                     0): give the model an input in its own units with --input file:CSV"
+                )
+            }),
+            sysid_summary::output_outside_range(range, &rec.y),
+        ];
+        for w in words.into_iter().flatten() {
+            eprintln!("warning: {w}");
         }
     }
     if paper {

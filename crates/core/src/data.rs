@@ -1079,31 +1079,34 @@ fn step_contradicts(step: f64, ts: f64) -> bool {
     step.is_finite() && step > 0.0 && (step - ts).abs() > 1e-3 * step
 }
 
-/// A time fault as the reader's error at the row and column of the file, with the command line's
-/// advice.
-fn time_error(fault: TimeFault, table: &Table, col: usize) -> SysidError {
-    let at = |k: usize, message: String| SysidError::Parse {
-        file: table.name.clone(),
-        line: table.line_of(k),
-        column: col + 1,
-        message,
-    };
+/// A time fault in words with the command line's advice (the flags that mend it): the message of
+/// every reader that dates a record by its time column (CSV in memory and streamed, MAT-files, `track`).
+pub(crate) fn time_fault_message(fault: &TimeFault) -> String {
     match fault {
-        TimeFault::TooShort => SysidError::File {
-            file: table.name.clone(),
-            message: format!("{fault}; pass --ts"),
-        },
-        TimeFault::NotFinite { k, .. } | TimeFault::NotIncreasing { k, .. } => {
-            at(k, fault.to_string())
-        }
-        TimeFault::NoUsableStep { .. } => at(1, format!("{fault}; pass --ts")),
-        TimeFault::NonUniform { k, median, .. } => at(
-            k,
-            format!(
-                "{fault}; pass --resample TS to interpolate onto a uniform grid, or --ts{}",
-                unit_hint(median)
-            ),
+        TimeFault::TooShort | TimeFault::NoUsableStep { .. } => format!("{fault}; pass --ts"),
+        TimeFault::NotFinite { .. } | TimeFault::NotIncreasing { .. } => fault.to_string(),
+        TimeFault::NonUniform { median, .. } => format!(
+            "{fault}; pass --resample TS to interpolate onto a uniform grid, or --ts{}",
+            unit_hint(*median)
         ),
+    }
+}
+
+/// A time fault as the reader's error at the row and column of the file, with the command line's
+/// advice ([`time_fault_message`]).
+fn time_error(fault: TimeFault, table: &Table, col: usize) -> SysidError {
+    let message = time_fault_message(&fault);
+    match fault.sample() {
+        None if fault == TimeFault::TooShort => SysidError::File {
+            file: table.name.clone(),
+            message,
+        },
+        k => SysidError::Parse {
+            file: table.name.clone(),
+            line: table.line_of(k.unwrap_or(1)),
+            column: col + 1,
+            message,
+        },
     }
 }
 

@@ -447,6 +447,29 @@ fn refused(o: &Output, needle: &str) {
     assert!(err.contains(needle), "expected '{needle}' in: {err}");
 }
 
+// Time that stands still is refused at its line in the readers' words (one rule:
+// sysid_core::data::increasing_time), with track's way out; at the second sample as later.
+#[test]
+fn time_that_does_not_increase_is_refused_in_the_readers_words() {
+    for bad_line in [3usize, 30] {
+        let text = String::from_utf8(record(50)).unwrap();
+        let mut lines: Vec<String> = text.lines().map(String::from).collect();
+        // Line L (1-based) holds sample L - 2 at t = (L - 2) 0.01; give it the time of line L - 1.
+        let previous = (bad_line - 3) as f64 * 0.01;
+        let cells: Vec<String> = lines[bad_line - 1].split(',').map(String::from).collect();
+        lines[bad_line - 1] = format!("{previous},{},{}", cells[1], cells[2]);
+        let input = lines.join("\n") + "\n";
+        let o = track(&[], input.as_bytes());
+        refused(
+            &o,
+            &format!(
+                "<stdin>:{bad_line}:1: time {previous} s does not increase after {previous} s on the \
+                 previous row; expected strictly increasing time (a restarted logger"
+            ),
+        );
+    }
+}
+
 // identify's bound on the orders (at most 100) holds for track: before, --nk/--nb u64::MAX panicked
 // (index out of bounds), --na 100000 aborted on an 80 GB allocation and --na u64::MAX exited 0.
 #[test]

@@ -442,14 +442,16 @@ fn parse(bytes: &[u8], name: &str, wanted: &[&str]) -> Result<Vec<Variable>, Sys
         match var {
             // A variable without a name is no variable MATLAB writes: damage (audit s16 L2: a damaged
             // compressed element of zeros was listed as a nameless "column").
-            Ok(v) if v.name.is_empty() => return Err(file_err(
-                name,
-                format!(
+            Ok(v) if v.name.is_empty() => {
+                return Err(file_err(
+                    name,
+                    format!(
                     "{} is damaged: its variable has no name; expected a named variable (save the \
                          record again with save('file.mat', 'u', 'y', '-v7'))",
                     which(None)
                 ),
-            )),
+                ))
+            }
             Ok(v) => vars.push(Variable {
                 element,
                 offset: start,

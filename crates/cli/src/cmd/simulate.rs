@@ -205,15 +205,12 @@ fn run_plant(
     plant: ipa::spec::PlantSpec,
     model: Option<&sysid::Model>,
 ) -> anyhow::Result<()> {
-    let input: ipa::InputSpec = args.input.parse()?;
+    // A file input is read once, its commands with the Ts of its time column.
+    let input = args.input.parse::<ipa::InputSpec>()?.load()?;
     // The commands of a file with a time column keep their recorded spacing: its Ts is the physics
     // plant's unless --ts says otherwise (a model plant runs at its own Ts); a Ts that differs is
     // said below (audit s16 L14: a 0.02 s command record replayed at 0.01 s without a word).
-    let file_ts = input
-        .file()
-        .map(ipa::input::input_file_ts)
-        .transpose()?
-        .flatten();
+    let file_ts = input.file_ts();
     let ts = match (args.ts, file_ts, &plant) {
         (None, Some(f), ipa::spec::PlantSpec::Ipa) => Some(f),
         _ => args.ts,

@@ -1696,7 +1696,10 @@ fn control_loop<'py>(
             return Err(setting_err(
                 "--controller",
                 t.ts_s,
-                &format!("a controller for the plant's Ts = {ts} s"),
+                &format!(
+                    "a controller for the plant's Ts = {} s",
+                    sysid_core::format::Shortest(ts)
+                ),
             ));
         }
     }

@@ -29,6 +29,7 @@ pub mod stream;
 pub use ranges::{split_rows, RowRange};
 
 use crate::error::{ColumnHint, Setting};
+use crate::format::Shortest;
 use crate::SysidError;
 pub use resample::TimeUnit;
 
@@ -468,9 +469,10 @@ pub fn milliseconds_hint(t: &[f64], ts: f64, unit: TimeUnit, column: &str) -> Op
     let whole = t.iter().all(|v| v.fract() == 0.0);
     (unit == TimeUnit::S && ts >= MS_HINT_TS && whole).then(|| {
         format!(
-            "the time column {column} gives Ts = {ts} s from whole numbers: if it holds milliseconds \
+            "the time column {column} gives Ts = {} s from whole numbers: if it holds milliseconds \
              (or microseconds), pass --time-unit ms (or us); read as seconds, Ts and every time \
-             figure are 1000 (or 10^6) times too large"
+             figure are 1000 (or 10^6) times too large",
+            Shortest(ts)
         )
     })
 }
@@ -1003,16 +1005,19 @@ impl std::fmt::Display for TimeFault {
                 f,
                 "one sample is not enough to find Ts from the time column"
             ),
-            Self::NotFinite { t, .. } => write!(f, "time {t} is not a finite number"),
+            Self::NotFinite { t, .. } => write!(f, "time {} is not a finite number", Shortest(t)),
             Self::NotIncreasing { t, previous, .. } => write!(
                 f,
-                "time {t} s does not increase after {previous} s on the previous row; expected \
-                 strictly increasing time"
+                "time {} s does not increase after {} s on the previous row; expected strictly \
+                 increasing time",
+                Shortest(t),
+                Shortest(previous)
             ),
             Self::NoUsableStep { median } => {
                 write!(
                     f,
-                    "the time steps (median {median} s) do not give a usable Ts"
+                    "the time steps (median {} s) do not give a usable Ts",
+                    Shortest(median)
                 )
             }
             Self::NonUniformMean { step, mean, .. } => write!(

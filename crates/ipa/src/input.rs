@@ -547,7 +547,8 @@ fn multisine(
     // and the "multisine" would be a constant.
     if j_max < j_min + 1 {
         return Err(IpaError::Config(format!(
-            "--input multisine excites 1 Hz .. {f_max} Hz (the IPA's band, at most 0.8 times the Nyquist frequency {f_nyq} Hz at Ts = {ts_s} s), which holds fewer than 2 harmonics of the record's 1 / ({samples} x {ts_s} s): the input would be a constant; use --input prbs, aprbs, staircase or file:CSV"
+            "--input multisine excites 1 Hz .. {f_max} Hz (the IPA's band, at most 0.8 times the Nyquist frequency {f_nyq} Hz at Ts = {} s), which holds fewer than 2 harmonics of the record's 1 / ({samples} x {ts_s} s): the input would be a constant; use --input prbs, aprbs, staircase or file:CSV",
+            sysid_core::format::Shortest(ts_s)
         )));
     }
     let harmonics: Vec<(f64, f64)> = (j_min..=j_max)

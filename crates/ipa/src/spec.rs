@@ -103,7 +103,9 @@ impl PlantSpec {
         if let Some(ts) = ts_s {
             if (ts - model_ts).abs() > 1e-9 * model_ts {
                 return Err(IpaError::Config(format!(
-                    "invalid --ts {ts}: the {label} is sampled at Ts = {model_ts} s; leave --ts out or pass that value"
+                    "invalid --ts {}: the {label} is sampled at Ts = {} s; leave --ts out or pass that value",
+                    sysid_core::format::Shortest(ts),
+                    sysid_core::format::Shortest(model_ts)
                 )));
             }
         }

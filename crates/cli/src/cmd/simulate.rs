@@ -4,6 +4,7 @@
 //! writes a folder of Parquet files (module `simulate_fleet`).
 
 use std::path::{Path, PathBuf};
+use sysid_core::format::Shortest;
 
 use ipa::{Experiment, Record};
 
@@ -255,7 +256,7 @@ fn run_plant(
     eprintln!(
         "wrote {} samples (Ts = {} s{file_words}), {}, to {}",
         rec.u.len(),
-        rec.ts,
+        Shortest(rec.ts),
         start_words(y0, rec.y.first().copied(), model, args.y0.is_none()),
         args.out.display()
     );
@@ -266,10 +267,11 @@ fn run_plant(
                 .map(|n| format!("{}: {n}", path.display())),
             None => ((f - rec.ts).abs() > 1e-3 * f).then(|| {
                 format!(
-                    "{}: its time column t steps {f} s, but the plant runs at its own Ts = {} s: the \
+                    "{}: its time column t steps {} s, but the plant runs at its own Ts = {} s: the \
                      commands are replayed {} times as far apart as recorded",
                     path.display(),
-                    rec.ts,
+                    Shortest(f),
+                    Shortest(rec.ts),
                     rec.ts / f
                 )
             }),
@@ -420,7 +422,7 @@ fn run_miso(args: &Args, model: &sysid::Model, model_path: &Path) -> anyhow::Res
     eprintln!(
         "wrote {} samples (Ts = {} s) of the {}-input model, {}, to {}",
         y.len(),
-        model.ts(),
+        Shortest(model.ts()),
         names.len(),
         start_words(y0, y.first().copied(), Some(model), args.y0.is_none()),
         args.out.display()

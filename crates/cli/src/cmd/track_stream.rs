@@ -8,6 +8,7 @@
 //! out.
 
 use std::io::{BufRead, Write};
+use sysid_core::format::Shortest;
 
 use serde::Serialize;
 use sysid::data::lines::CsvLines;
@@ -321,8 +322,12 @@ fn check_time_step(
     let d = t - prev;
     Ok(((d - ts).abs() > 0.5 * ts).then(|| {
         format!(
-            "{name}:{line_no}: time jumps from {prev} to {t} s (a step of {d} s where Ts = {ts} s): samples \
-             missing or the clock jumped; the estimate treats the samples as Ts apart"
+            "{name}:{line_no}: time jumps from {} to {} s (a step of {} s where Ts = {} s): samples \
+             missing or the clock jumped; the estimate treats the samples as Ts apart",
+            Shortest(prev),
+            Shortest(t),
+            Shortest(d),
+            Shortest(ts)
         )
     }))
 }

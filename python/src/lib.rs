@@ -1578,6 +1578,8 @@ fn plant_and_limits(
             ));
         }
         let model = m.get().inner.clone();
+        // The paper's model (`paper_model()`) is the paper plant, in the IPA's counts and mm
+        // (`PlantLimits::of_model`); any other Model speaks its record's units.
         let limits = ipa::PlantLimits::of_model(&model);
         let plant = sysid::ModelPlant::new(model, "model").map_err(sysid_err)?;
         return Ok((limits, Box::new(plant)));

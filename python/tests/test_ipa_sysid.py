@@ -909,3 +909,19 @@ def test_pandas_series_with_different_indexes_are_refused_naming_both(records):
         c = ipa_sysid.identify(su, e["y"], 0.01, model="arx", method="ls").to_dict()
     assert_same(b, a)
     assert_same(c, a)
+
+
+def test_control_speaks_the_models_units():
+    # The paper's model is the paper plant, in PWM counts and mm: a set-point beyond its data is said
+    # in mm, as for plant="paper"; a model of another record speaks "(y's units)" (session 17).
+    words = " ".join(ipa_sysid.control(ipa_sysid.paper_model(), setpoint=50, duration=0.05)["warnings"])
+    paper = " ".join(ipa_sysid.control("paper", setpoint=50, duration=0.05)["warnings"])
+    assert "(y's units)" not in words and "(u's units)" not in words, words
+    assert ("mm" in words) == ("mm" in paper), (words, paper)
+    other = ipa_sysid.Model.from_json(
+        '{"format": "ipa-sysid-model", "version": 2, "model": {"kind": "arx", "ts": 0.01, "na": 1,'
+        ' "nb": 1, "nk": 1, "a": [-0.5], "b": [0.1]}}'
+    ) if hasattr(ipa_sysid.Model, "from_json") else None
+    if other is not None:
+        w = " ".join(ipa_sysid.control(other, setpoint=50, duration=0.05)["warnings"])
+        assert " mm" not in w, w

@@ -1578,6 +1578,8 @@ fn plant_and_limits(
             ));
         }
         let model = m.get().inner.clone();
+        // The paper's model (`paper_model()`) is the paper plant, in the IPA's counts and mm
+        // (`PlantLimits::of_model`); any other Model speaks its record's units.
         let limits = ipa::PlantLimits::of_model(&model);
         let plant = sysid::ModelPlant::new(model, "model").map_err(sysid_err)?;
         return Ok((limits, Box::new(plant)));
@@ -1696,7 +1698,10 @@ fn control_loop<'py>(
             return Err(setting_err(
                 "--controller",
                 t.ts_s,
-                &format!("a controller for the plant's Ts = {ts} s"),
+                &format!(
+                    "a controller for the plant's Ts = {} s",
+                    sysid_core::format::Shortest(ts)
+                ),
             ));
         }
     }

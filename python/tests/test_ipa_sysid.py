@@ -1,3 +1,4 @@
+import tempfile
 """Tests of the Python package against the command line (same data, same options) and against
 independent implementations written here (closed-form least squares, a plain Python simulation loop).
 
@@ -814,13 +815,25 @@ def test_model_methods_warn_of_what_validate_warns_of(tmp_path):
 def test_control_warnings_speak_pythons_words_and_a_models_units():
     # A Model plant's signals are in its record's units, and Python's run length is duration=: the
     # loop's warnings say both (audit s14 L-p; the words of the command line were "mm" and "--duration").
-    # The paper's model after 2 s of a 5-unit step still creeps into its band (warned as not final).
+    # The paper's model after 2 s of a 5-mm step still creeps into its band (warned as not final).
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ipa_sysid.IpaSysidWarning)
         r = ipa_sysid.control(ipa_sysid.paper_model(), setpoint=5, y0=0, duration=2)
     said = " ".join(r["warnings"])
     assert "still creeps" in said and "(run longer: duration=)" in said, said
-    assert "(y's units)" in said and " mm" not in said and "--duration" not in said, said
+    # The paper's model is the paper plant, in counts and mm (session 17: it said "(y's units)").
+    assert " mm" in said and "(y's units)" not in said and "--duration" not in said, said
+    # The same model with its first a coefficient changed is another record's model: its units.
+    doc = json.loads(ipa_sysid.paper_model().to_json())
+    doc["model"]["a"][0] *= 1.0001
+    other_path = tempfile.mkdtemp() + "/other.json"
+    with open(other_path, "w") as f:
+        json.dump(doc, f)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ipa_sysid.IpaSysidWarning)
+        r = ipa_sysid.control(ipa_sysid.load_model(other_path), setpoint=5, y0=0, duration=2)
+    said = " ".join(r["warnings"])
+    assert "(y's units)" in said and " mm" not in said, said
 
 
 # --- audit s16: extrapolation, in-sample validation, pandas indexes ---------------------------------
@@ -909,3 +922,4 @@ def test_pandas_series_with_different_indexes_are_refused_naming_both(records):
         c = ipa_sysid.identify(su, e["y"], 0.01, model="arx", method="ls").to_dict()
     assert_same(b, a)
     assert_same(c, a)
+

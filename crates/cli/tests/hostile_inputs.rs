@@ -858,6 +858,149 @@ fn mat_files_of_any_numeric_class_and_damaged_ones() {
     );
 }
 
+// Two variables of one name (no file MATLAB's `save` writes) are refused when the name is chosen, with
+// both elements and their bytes; a nameless variable (a damaged compressed element of zeros) is
+// damage named by its element and byte, not a "column" with an empty name; a missing variable is named
+// against the variables the MAT-file holds, not a "header" (audit s16 L2).
+#[test]
+fn mat_duplicate_and_nameless_variables_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let n = 40;
+    let doubles = |v: &[f64]| -> Vec<u8> { v.iter().flat_map(|x| x.to_le_bytes()).collect() };
+    let u: Vec<f64> = (0..n)
+        .map(|k| [0.0, 100.0, 30.0, 70.0][(k / 4) % 4])
+        .collect();
+    let y: Vec<f64> = (0..n).map(|k| (k % 7) as f64).collect();
+    let first_u = mat_matrix(6, n, "u", 9, &doubles(&u), None);
+    let second_u = mat_matrix(6, n, "u", 9, &doubles(&vec![0.0; n]), None);
+    let mut dup = mat_header();
+    dup.extend(&first_u);
+    dup.extend(&second_u);
+    dup.extend(mat_matrix(6, n, "y", 9, &doubles(&y), None));
+    std::fs::write(d.join("dup.mat"), &dup).unwrap();
+    let out = run("identify --data {t}/dup.mat --ts 0.01 --json -", d);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    // The second element starts where the first ends: the header's 128 bytes plus the first's length.
+    let expected = format!(
+        "dup.mat: two variables are named 'u' (data element 1 at byte 128 and data element 2 at byte {})",
+        128 + first_u.len()
+    );
+    assert!(stderr(&out).contains(&expected), "{}", stderr(&out));
+    assert!(out.stdout.is_empty());
+
+    // A name given twice but not chosen does no harm: 'note' twice, u and y once.
+    let mut dup_other = mat_header();
+    dup_other.extend(&first_u);
+    dup_other.extend(mat_matrix(4, 2, "note", 4, &[104, 0, 105, 0], None));
+    dup_other.extend(mat_matrix(4, 2, "note", 4, &[104, 0, 105, 0], None));
+    dup_other.extend(mat_matrix(6, n, "y", 9, &doubles(&y), None));
+    std::fs::write(d.join("dup_other.mat"), &dup_other).unwrap();
+    let out = run(
+        "identify --data {t}/dup_other.mat --ts 0.01 --structure arx --method ls --na 1 --nb 1 --nk 1",
+        d,
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+
+    // A compressed element of a matrix tag declaring 2^31 bytes followed by zeros: no flags, no
+    // dimensions, no name.
+    let mut zeros = 14u32.to_le_bytes().to_vec();
+    zeros.extend_from_slice(&(1u32 << 31).to_le_bytes());
+    zeros.resize(200_000, 0);
+    let mut nameless = mat_header();
+    nameless.extend(mat_compressed(&zeros));
+    nameless.extend(mat_matrix(6, n, "y", 9, &doubles(&y), None));
+    std::fs::write(d.join("nameless.mat"), &nameless).unwrap();
+    let out = run("identify --data {t}/nameless.mat --ts 0.01", d);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains(
+            "nameless.mat: data element 1 at byte 128 is damaged: its variable has no name"
+        ),
+        "{}",
+        stderr(&out)
+    );
+    assert!(!stderr(&out).contains("header"), "{}", stderr(&out));
+
+    // A variable that is not there: the variables the file holds are listed.
+    let out = run("identify --data {t}/dup_other.mat --ts 0.01 --u-col v", d);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains(
+            "dup_other.mat: no variable named 'v' (chosen by --u-col); the MAT-file holds: u, note, \
+             note, y"
+        ),
+        "{}",
+        stderr(&out)
+    );
+}
+
+// The time variable of a MAT-file is judged by the CSV reader's rule (sysid_core::data::uniform_time):
+// Ts is the mean step rounded to 12 digits, a gap is named at its element with the same words and
+// advice as for a CSV time column.
+#[test]
+fn mat_time_variable_follows_the_csv_rule() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let n = 50;
+    let doubles = |v: &[f64]| -> Vec<u8> { v.iter().flat_map(|x| x.to_le_bytes()).collect() };
+    let u: Vec<f64> = (0..n)
+        .map(|k| [0.0, 100.0, 30.0, 70.0][(k / 4) % 4])
+        .collect();
+    let y: Vec<f64> = (0..n).map(|k| (k % 7) as f64).collect();
+    // t(k) = 0.02 k: the sum of steps is not exactly 0.98, the rounded mean is 0.02.
+    let t: Vec<f64> = (0..n).map(|k| k as f64 * 0.02).collect();
+    let file = |t: &[f64]| {
+        let mut f = mat_header();
+        f.extend(mat_matrix(6, n, "t", 9, &doubles(t), None));
+        f.extend(mat_matrix(6, n, "u", 9, &doubles(&u), None));
+        f.extend(mat_matrix(6, n, "y", 9, &doubles(&y), None));
+        f
+    };
+    std::fs::write(d.join("t.mat"), file(&t)).unwrap();
+    let out = run(
+        "identify --data {t}/t.mat --structure arx --method ls --na 1 --nb 1 --nk 1 --json -",
+        d,
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(j["model"]["ts"].as_f64(), Some(0.02), "{}", j["model"]);
+
+    // A gap at element 31 (1-based): t(30) onwards is late by one step.
+    let mut gap = t.clone();
+    for v in &mut gap[30..] {
+        *v += 0.02;
+    }
+    std::fs::write(d.join("gap.mat"), file(&gap)).unwrap();
+    let out = run("identify --data {t}/gap.mat", d);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains(
+            "gap.mat: time variable 't' element 31 (1-based): non-uniform sampling: step 0.04 s from \
+             the previous row differs from the typical (median) step 0.02 s by more than 0.1 %; pass \
+             --resample TS"
+        ),
+        "{}",
+        stderr(&out)
+    );
+    // The same record as CSV gets the same words.
+    let mut csv = String::from("t,u,y\n");
+    for k in 0..n {
+        csv.push_str(&format!("{},{},{}\n", gap[k], u[k], y[k]));
+    }
+    std::fs::write(d.join("gap.csv"), csv).unwrap();
+    let out = run("identify --data {t}/gap.csv", d);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains(
+            "non-uniform sampling: step 0.04 s from the previous row differs from the typical \
+             (median) step 0.02 s by more than 0.1 %; pass --resample TS"
+        ),
+        "{}",
+        stderr(&out)
+    );
+}
+
 // The .mat reader on damaged files (an open-ended class, so a property test): any truncation of a valid
 // file, and any file with bytes overwritten, gives a value or an error naming the file, never a panic,
 // and never more memory than the bound (the reader checks every announced size before allocating).

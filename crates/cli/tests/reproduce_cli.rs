@@ -130,7 +130,8 @@ fn reproduce_on_the_paper_model_writes_report_summary_figures_and_data() {
 // plant. A first-order model with Ts = 1 s estimated on commands within [−1, 1]: reproduce's staircase
 // drives ±255 counts (its design, far outside the data), and the changing set-point holds each of its
 // five set-points 4 s = 4 samples, fewer than the 20 a step needs to be judged; the text, summary.json
-// and the report say both, and the changing set-point's criterion is "not judged".
+// and the report say both, and the changing set-point's criterion is "not judged". The run's words use
+// the model's units, not the IPA's mm (session 17).
 #[test]
 fn reproduce_on_a_model_plant_says_what_control_would_doubt() {
     let dir = tempfile::tempdir().unwrap();
@@ -156,7 +157,8 @@ fn reproduce_on_a_model_plant_says_what_control_would_doubt() {
         "the plant model's estimation data had u in [-1, 1]: outside it the model extrapolates";
     assert!(stdout.contains(extrapolates), "{stdout}");
     assert!(
-        stdout.contains("PI on the plant, changing set-point: the step to r = 120 mm at t = 4.000 s is too short to judge: 4 samples"),
+        // The model plant's own units (its record's), not the IPA's mm (as `control` says them).
+        stdout.contains("PI on the plant, changing set-point: the step to r = 120 (y's units) at t = 4.000 s is too short to judge: 4 samples"),
         "{stdout}"
     );
     assert!(

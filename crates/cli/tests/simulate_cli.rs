@@ -493,3 +493,58 @@ fn a_paper_record_beyond_the_stroke_is_warned() {
         }
     }
 }
+
+// A model Ts of 1e-300 s is printed as 1e-300 (the shortest decimal that reads back, in exponent form),
+// not as 300 digits, in the message and in the CSV's t column, whose cells read back as k Ts (audit
+// s16 L9: a 496-character stderr line and 300-digit t cells).
+#[test]
+fn a_tiny_model_ts_is_printed_compactly_and_exactly() {
+    let dir = tempfile::tempdir().unwrap();
+    std::fs::write(
+        dir.path().join("tiny.json"),
+        r#"{"format": "ipa-sysid-model", "version": 2, "model": {"kind": "arx", "ts": 1e-300, "na": 1,
+        "nb": 1, "nk": 1, "a": [-0.8], "b": [0.5]}}"#,
+    )
+    .unwrap();
+    let o = simulate(
+        dir.path(),
+        &[
+            "--plant",
+            "model:tiny.json",
+            "--input",
+            "step:10@2",
+            "--samples",
+            "20",
+        ],
+        "s.csv",
+    );
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(o.status.success(), "{err}");
+    assert!(err.contains("(Ts = 1e-300 s"), "{err}");
+    assert!(err.lines().all(|l| l.len() < 300), "{err}");
+    let csv = std::fs::read_to_string(dir.path().join("s.csv")).unwrap();
+    let mut rows = 0;
+    for (k, line) in csv.lines().skip(1).enumerate() {
+        let t = line.split(',').next().unwrap();
+        assert!(t.len() <= 24, "row {k}: {t}");
+        let v: f64 = t.parse().unwrap();
+        // t_k = k Ts within a rounding of the product.
+        let expected = k as f64 * 1e-300;
+        assert!(
+            (v - expected).abs() <= 1e-15 * expected,
+            "row {k}: {v} vs {expected}"
+        );
+        rows += 1;
+    }
+    assert_eq!(rows, 20);
+    // The same model's Ts in a refusal: --ts against the model's own Ts.
+    let o = simulate(
+        dir.path(),
+        &["--plant", "model:tiny.json", "--ts", "0.01"],
+        "s2.csv",
+    );
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert!(!o.status.success());
+    assert!(err.contains("sampled at Ts = 1e-300 s"), "{err}");
+    assert!(err.lines().all(|l| l.len() < 300), "{err}");
+}

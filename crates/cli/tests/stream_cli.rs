@@ -265,6 +265,29 @@ fn streamed_reading_reports_bad_cells_with_line_and_column() {
     }
 }
 
+// Time that stands still is refused by the streamed reader in the in-memory reader's words, at the same
+// line and column (one rule: sysid_core::data::increasing_time).
+#[test]
+fn streamed_and_in_memory_readers_refuse_a_repeated_time_in_the_same_words() {
+    let dir = tempfile::tempdir().unwrap();
+    let u = input(3_000, 5);
+    let y = output(&u, 1.0, 5);
+    let f = dir.path().join("rep.csv");
+    write_tuy(&f, &u, &y);
+    let text = std::fs::read_to_string(&f).unwrap();
+    let mut lines: Vec<String> = text.lines().map(String::from).collect();
+    // Data row k is line k + 2 (line 1 the header); row 2001 takes row 2000's time 20 s.
+    lines[2002] = format!("{},{},{}", 2_000.0 / 100.0, u[2_001], y[2_001]);
+    std::fs::write(&f, lines.join("\n")).unwrap();
+    let expected =
+        "rep.csv:2003:1: time 20 s does not increase after 20 s on the previous row; expected \
+         strictly increasing time";
+    for stream in [&["--stream"][..], &[][..]] {
+        let e = fails(&arx_ls(s(&f), stream));
+        assert!(e.contains(expected), "{stream:?}: {e}");
+    }
+}
+
 // What needs the whole record is refused under --stream on, naming the way out; standard input cannot be
 // read twice.
 #[test]

@@ -447,6 +447,29 @@ fn refused(o: &Output, needle: &str) {
     assert!(err.contains(needle), "expected '{needle}' in: {err}");
 }
 
+// Time that stands still is refused at its line in the readers' words (one rule:
+// sysid_core::data::increasing_time), with track's way out; at the second sample as later.
+#[test]
+fn time_that_does_not_increase_is_refused_in_the_readers_words() {
+    for bad_line in [3usize, 30] {
+        let text = String::from_utf8(record(50)).unwrap();
+        let mut lines: Vec<String> = text.lines().map(String::from).collect();
+        // Line L (1-based) holds sample L - 2 at t = (L - 2) 0.01; give it the time of line L - 1.
+        let previous = (bad_line - 3) as f64 * 0.01;
+        let cells: Vec<String> = lines[bad_line - 1].split(',').map(String::from).collect();
+        lines[bad_line - 1] = format!("{previous},{},{}", cells[1], cells[2]);
+        let input = lines.join("\n") + "\n";
+        let o = track(&[], input.as_bytes());
+        refused(
+            &o,
+            &format!(
+                "<stdin>:{bad_line}:1: time {previous} s does not increase after {previous} s on the \
+                 previous row; expected strictly increasing time (a restarted logger"
+            ),
+        );
+    }
+}
+
 // identify's bound on the orders (at most 100) holds for track: before, --nk/--nb u64::MAX panicked
 // (index out of bounds), --na 100000 aborted on an 80 GB allocation and --na u64::MAX exited 0.
 #[test]
@@ -785,5 +808,86 @@ fn a_ts_contradicting_the_time_column_is_said_once_as_identify_says_it() {
         err.matches("contradicts the time column").count(),
         1,
         "{err}"
+    );
+}
+
+// An input that stays within the start breakpoints ±1 (a ball-and-beam record, |u| < 0.031) never
+// switches the deadzone on: x(k) = 0 at every sample and the tracked model never used the input. The
+// summary says so naming --b-l0/--b-r0 and the start identify would take from the samples (the largest
+// u < 0, the smallest u > 0, max |u|: computed here from the record); with that start the input enters
+// (audit s16 L8: the warning called the estimate "implausible" instead).
+#[test]
+fn an_input_inside_the_start_breakpoints_is_said_with_the_start_to_use() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("small.csv");
+    let levels = [0.02, -0.011, 0.031, -0.025, 0.007, -0.018, 0.013, -0.029];
+    let n = 4000;
+    let u: Vec<f64> = (0..n).map(|k| levels[(k / 37) % levels.len()]).collect();
+    // A deadzone with breakpoints ±0.005 and slope 1 before a first-order lag.
+    let dz = |v: f64| {
+        if v > 0.005 {
+            v - 0.005
+        } else if v < -0.005 {
+            v + 0.005
+        } else {
+            0.0
+        }
+    };
+    let mut y = vec![0.0; n];
+    for k in 1..n {
+        y[k] = 0.9 * y[k - 1] + 2.0 * dz(u[k - 1]);
+    }
+    let mut text = String::from("t,u,y\n");
+    for k in 0..n {
+        text.push_str(&format!("{},{},{}\n", k as f64 * 0.1, u[k], y[k]));
+    }
+    std::fs::write(&data, text).unwrap();
+    let s = track_summary(&data, &[]);
+    let warnings: Vec<String> = s["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w.as_str().unwrap().to_string())
+        .collect();
+    let max_neg = u
+        .iter()
+        .copied()
+        .filter(|&v| v < 0.0)
+        .fold(f64::MIN, f64::max);
+    let min_pos = u
+        .iter()
+        .copied()
+        .filter(|&v| v > 0.0)
+        .fold(f64::MAX, f64::min);
+    let limit = u.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let expected = format!(
+        "no input sample passed the start breakpoints --b-l0 -1 / --b-r0 1 (the input stayed within \
+         [{}, {}])",
+        u.iter().copied().fold(f64::MAX, f64::min),
+        u.iter().copied().fold(f64::MIN, f64::max)
+    );
+    let advice = format!("--b-l0 {max_neg} --b-r0 {min_pos} --breakpoint-limit {limit}");
+    assert!(
+        warnings
+            .iter()
+            .any(|w| w.contains(&expected) && w.contains(&advice)),
+        "{warnings:#?}"
+    );
+    assert!(
+        !warnings.iter().any(|w| w.contains("implausible")),
+        "{warnings:#?}"
+    );
+    // With that start the input is used: both slopes are estimated away from 0.
+    let (l, r, lim) = (max_neg.to_string(), min_pos.to_string(), limit.to_string());
+    let s = track_summary(
+        &data,
+        &["--b-l0", &l, "--b-r0", &r, "--breakpoint-limit", &lim],
+    );
+    let w = s["warnings"].to_string();
+    assert!(!w.contains("no input sample passed"), "{w}");
+    let d = &s["model"]["deadzone"];
+    assert!(
+        d["m_l"].as_f64().unwrap() > 0.5 && d["m_r"].as_f64().unwrap() > 0.5,
+        "{d}"
     );
 }

@@ -125,15 +125,17 @@ pub fn run_with(
     let ts = plant.ts();
     if !(ts.is_finite() && ts > 0.0) {
         return Err(ControlError::Config(format!(
-            "plant {} has an invalid sampling period Ts = {ts} s",
-            plant.name()
+            "plant {} has an invalid sampling period Ts = {} s",
+            plant.name(),
+            sysid_core::format::Shortest(ts)
         )));
     }
     if (controller.ts_s() - ts).abs() > 1e-12 * ts {
         return Err(ControlError::Config(format!(
-            "the controller was built for Ts = {} s but plant {} samples at Ts = {ts} s",
-            controller.ts_s(),
-            plant.name()
+            "the controller was built for Ts = {} s but plant {} samples at Ts = {} s",
+            sysid_core::format::Shortest(controller.ts_s()),
+            plant.name(),
+            sysid_core::format::Shortest(ts)
         )));
     }
     profile.check_sampling(ts)?;

@@ -243,8 +243,9 @@ impl Profile {
                 Err(ControlError::Profile {
                     spec: self.describe(),
                     message: format!(
-                        "each level is held {hold_s} s, less than the sampling period Ts = {ts} s, so some \
-                         levels would never be applied; hold each level at least one sample"
+                        "each level is held {hold_s} s, less than the sampling period Ts = {} s, so some \
+                         levels would never be applied; hold each level at least one sample",
+                        sysid_core::format::Shortest(ts)
                     ),
                 })
             }

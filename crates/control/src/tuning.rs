@@ -487,8 +487,9 @@ fn check_spec(req: &Request, ts: f64, twin: &Option<ipa::PlantConfig>) -> Result
         return Err(bad(
             format!("run={}", spec.run_s),
             format!(
-                "runs of at most {MAX_RUN_SAMPLES} samples: {} s at the model's Ts = {ts} s",
-                MAX_RUN_SAMPLES * ts
+                "runs of at most {MAX_RUN_SAMPLES} samples: {} s at the model's Ts = {} s",
+                sysid_core::format::Shortest(MAX_RUN_SAMPLES * ts),
+                sysid_core::format::Shortest(ts)
             ),
         ));
     }
@@ -525,9 +526,10 @@ fn check_spec(req: &Request, ts: f64, twin: &Option<ipa::PlantConfig>) -> Result
                 if default { " (the default, made for Ts = 0.01 s)" } else { "" }
             ),
             format!(
-                "runs of at least {MIN_RUN_SAMPLES} samples: {} s at the model's Ts = {ts} s; give the \
+                "runs of at least {MIN_RUN_SAMPLES} samples: {} s at the model's Ts = {} s; give the \
                  specification run={need} or longer",
-                MIN_RUN_SAMPLES * ts
+                sysid_core::format::Shortest(MIN_RUN_SAMPLES * ts),
+                sysid_core::format::Shortest(ts)
             ),
         ));
     }

@@ -29,6 +29,7 @@ pub mod stream;
 pub use ranges::{split_rows, RowRange};
 
 use crate::error::{ColumnHint, Setting};
+use crate::format::Shortest;
 use crate::SysidError;
 pub use resample::TimeUnit;
 
@@ -468,9 +469,10 @@ pub fn milliseconds_hint(t: &[f64], ts: f64, unit: TimeUnit, column: &str) -> Op
     let whole = t.iter().all(|v| v.fract() == 0.0);
     (unit == TimeUnit::S && ts >= MS_HINT_TS && whole).then(|| {
         format!(
-            "the time column {column} gives Ts = {ts} s from whole numbers: if it holds milliseconds \
+            "the time column {column} gives Ts = {} s from whole numbers: if it holds milliseconds \
              (or microseconds), pass --time-unit ms (or us); read as seconds, Ts and every time \
-             figure are 1000 (or 10^6) times too large"
+             figure are 1000 (or 10^6) times too large",
+            Shortest(ts)
         )
     })
 }
@@ -969,6 +971,16 @@ pub enum TimeFault {
         /// The median step, s.
         median: f64,
     },
+    /// The streamed form of [`TimeFault::NonUniform`] ([`TimeSteps`]): the step differs from the mean
+    /// step (t_last − t_0)/(N − 1) by more than 0.1 %.
+    NonUniformMean {
+        /// The sample (or the locator the caller gave [`TimeSteps::push`]).
+        k: usize,
+        /// t(k) - t(k - 1), s.
+        step: f64,
+        /// The mean step, s.
+        mean: f64,
+    },
 }
 
 impl TimeFault {
@@ -977,7 +989,8 @@ impl TimeFault {
         match *self {
             Self::NotFinite { k, .. }
             | Self::NotIncreasing { k, .. }
-            | Self::NonUniform { k, .. } => Some(k),
+            | Self::NonUniform { k, .. }
+            | Self::NonUniformMean { k, .. } => Some(k),
             Self::TooShort | Self::NoUsableStep { .. } => None,
         }
     }
@@ -992,18 +1005,28 @@ impl std::fmt::Display for TimeFault {
                 f,
                 "one sample is not enough to find Ts from the time column"
             ),
-            Self::NotFinite { t, .. } => write!(f, "time {t} is not a finite number"),
+            Self::NotFinite { t, .. } => write!(f, "time {} is not a finite number", Shortest(t)),
             Self::NotIncreasing { t, previous, .. } => write!(
                 f,
-                "time {t} s does not increase after {previous} s on the previous row; expected \
-                 strictly increasing time"
+                "time {} s does not increase after {} s on the previous row; expected strictly \
+                 increasing time",
+                Shortest(t),
+                Shortest(previous)
             ),
             Self::NoUsableStep { median } => {
                 write!(
                     f,
-                    "the time steps (median {median} s) do not give a usable Ts"
+                    "the time steps (median {} s) do not give a usable Ts",
+                    Shortest(median)
                 )
             }
+            Self::NonUniformMean { step, mean, .. } => write!(
+                f,
+                "non-uniform sampling: step {} s from the previous row differs from the mean step {} s \
+                 by more than 0.1 %",
+                sig6(step),
+                sig6(mean)
+            ),
             Self::NonUniform { step, median, .. } => write!(
                 f,
                 "non-uniform sampling: step {} s from the previous row differs from the typical \
@@ -1046,6 +1069,84 @@ pub fn uniform_time(t: &[f64]) -> Result<f64, TimeFault> {
     Ok(ts)
 }
 
+/// The time rule of [`uniform_time`] sample by sample, in bounded memory (the streamed reader, which
+/// does not hold the column): each t(k) is checked as it comes ([`increasing_time`] on t(k − 1), t(k));
+/// at the end Ts is the mean step (t_last − t_0)/(N − 1) rounded to 12 significant digits, as in
+/// [`uniform_time`], and the smallest and largest steps must lie within 0.1 % of it. The one difference
+/// from [`uniform_time`]: the reference is the mean step, not the median (which needs every step); the
+/// two accept the same uniform records, and a gap is named at its own sample by both.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct TimeSteps {
+    /// t_0, t_last (s) and the number of samples.
+    first: f64,
+    last: f64,
+    count: usize,
+    /// The smallest and largest step (s), each with the locator of its later sample.
+    min_step: (f64, usize),
+    max_step: (f64, usize),
+}
+
+impl TimeSteps {
+    /// Takes the next time t (s); `at` locates it for the caller (a sample index, a line number) and is
+    /// the `k` of a fault. Fails when t is not finite or does not increase.
+    pub fn push(&mut self, t: f64, at: usize) -> Result<(), TimeFault> {
+        if self.count == 0 {
+            if !t.is_finite() {
+                return Err(TimeFault::NotFinite { k: at, t });
+            }
+            *self = Self {
+                first: t,
+                last: t,
+                count: 1,
+                min_step: (f64::INFINITY, at),
+                max_step: (f64::NEG_INFINITY, at),
+            };
+            return Ok(());
+        }
+        increasing_time(&[self.last, t]).map_err(|fault| match fault {
+            TimeFault::NotFinite { t, .. } => TimeFault::NotFinite { k: at, t },
+            TimeFault::NotIncreasing { t, previous, .. } => {
+                TimeFault::NotIncreasing { k: at, t, previous }
+            }
+            other => other,
+        })?;
+        let step = t - self.last;
+        if step < self.min_step.0 {
+            self.min_step = (step, at);
+        }
+        if step > self.max_step.0 {
+            self.max_step = (step, at);
+        }
+        self.last = t;
+        self.count += 1;
+        Ok(())
+    }
+
+    /// Ts (s) from the times pushed, or the fault: too few samples, no usable step, or the step further
+    /// from the mean (a gap inflates the mean, so the regular steps also differ from it: the step
+    /// further away is the gap's, audit s13 M5).
+    pub fn ts(&self) -> Result<f64, TimeFault> {
+        if self.count < 2 {
+            return Err(TimeFault::TooShort);
+        }
+        let mean = round_significant((self.last - self.first) / (self.count - 1) as f64, 12);
+        if !(mean.is_finite() && mean > 0.0) {
+            return Err(TimeFault::NoUsableStep { median: mean });
+        }
+        let mut extremes = [self.min_step, self.max_step];
+        if (self.max_step.0 - mean).abs() > (self.min_step.0 - mean).abs() {
+            extremes.reverse();
+        }
+        match extremes
+            .into_iter()
+            .find(|&(step, _)| (step - mean).abs() > 1e-3 * mean)
+        {
+            Some((step, k)) => Err(TimeFault::NonUniformMean { k, step, mean }),
+            None => Ok(mean),
+        }
+    }
+}
+
 /// Checks that a time column t (s) has at least two samples, all finite, strictly increasing (the
 /// first half of [`uniform_time`], all that resampling needs).
 pub fn increasing_time(t: &[f64]) -> Result<(), TimeFault> {
@@ -1079,31 +1180,37 @@ fn step_contradicts(step: f64, ts: f64) -> bool {
     step.is_finite() && step > 0.0 && (step - ts).abs() > 1e-3 * step
 }
 
-/// A time fault as the reader's error at the row and column of the file, with the command line's
-/// advice.
-fn time_error(fault: TimeFault, table: &Table, col: usize) -> SysidError {
-    let at = |k: usize, message: String| SysidError::Parse {
-        file: table.name.clone(),
-        line: table.line_of(k),
-        column: col + 1,
-        message,
-    };
+/// A time fault in words with the command line's advice (the flags that mend it): the message of
+/// every reader that dates a record by its time column (CSV in memory and streamed, MAT-files, `track`).
+pub(crate) fn time_fault_message(fault: &TimeFault) -> String {
     match fault {
-        TimeFault::TooShort => SysidError::File {
-            file: table.name.clone(),
-            message: format!("{fault}; pass --ts"),
-        },
-        TimeFault::NotFinite { k, .. } | TimeFault::NotIncreasing { k, .. } => {
-            at(k, fault.to_string())
+        TimeFault::TooShort | TimeFault::NoUsableStep { .. } => format!("{fault}; pass --ts"),
+        TimeFault::NotFinite { .. } | TimeFault::NotIncreasing { .. } => fault.to_string(),
+        TimeFault::NonUniform {
+            median: typical, ..
         }
-        TimeFault::NoUsableStep { .. } => at(1, format!("{fault}; pass --ts")),
-        TimeFault::NonUniform { k, median, .. } => at(
-            k,
-            format!(
-                "{fault}; pass --resample TS to interpolate onto a uniform grid, or --ts{}",
-                unit_hint(median)
-            ),
+        | TimeFault::NonUniformMean { mean: typical, .. } => format!(
+            "{fault}; pass --resample TS to interpolate onto a uniform grid, or --ts{}",
+            unit_hint(*typical)
         ),
+    }
+}
+
+/// A time fault as the reader's error at the row and column of the file, with the command line's
+/// advice ([`time_fault_message`]).
+fn time_error(fault: TimeFault, table: &Table, col: usize) -> SysidError {
+    let message = time_fault_message(&fault);
+    match fault.sample() {
+        None if fault == TimeFault::TooShort => SysidError::File {
+            file: table.name.clone(),
+            message,
+        },
+        k => SysidError::Parse {
+            file: table.name.clone(),
+            line: table.line_of(k.unwrap_or(1)),
+            column: col + 1,
+            message,
+        },
     }
 }
 

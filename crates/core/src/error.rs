@@ -152,6 +152,17 @@ pub enum SysidError {
         /// What probably went wrong, when it can be told.
         hint: Option<ColumnHint>,
     },
+    /// A variable chosen by a setting is not in a MAT-file.
+    MissingVariable {
+        /// The file concerned.
+        file: String,
+        /// The variable asked for.
+        variable: String,
+        /// Which setting chose it.
+        setting: Setting,
+        /// The names of the variables the file holds.
+        variables: Vec<String>,
+    },
     /// A setting is outside its valid range.
     Setting {
         /// The setting at fault.
@@ -282,6 +293,29 @@ impl SysidError {
                 format!(
                     "{file}: no column named '{}' (chosen by {flag}); the header has: {}{hint}",
                     crate::data::shorten(column),
+                    names.join(", ")
+                )
+            }
+            SysidError::MissingVariable {
+                file,
+                variable,
+                setting,
+                variables,
+            } => {
+                // A damaged file can hold countless names: echo a bounded part of them.
+                const SHOWN: usize = 50;
+                let mut names: Vec<String> = variables
+                    .iter()
+                    .take(SHOWN)
+                    .map(|v| crate::data::shorten(v))
+                    .collect();
+                if variables.len() > SHOWN {
+                    names.push(format!("... ({} variables in all)", variables.len()));
+                }
+                format!(
+                    "{file}: no variable named '{}' (chosen by {}); the MAT-file holds: {}",
+                    crate::data::shorten(variable),
+                    name(*setting),
                     names.join(", ")
                 )
             }

@@ -411,8 +411,10 @@ pub fn pooled_metrics(model: &Model, records: &[Dataset]) -> Result<Metrics, Sys
 pub fn check_sampling(name: &str, ts: f64, model_ts: f64) -> Result<(), SysidError> {
     if (ts - model_ts).abs() > 1e-3 * model_ts {
         return Err(SysidError::Data(format!(
-            "{name}: the data are sampled at Ts = {ts} s but the model was identified at Ts = {model_ts} s; \
-             resample the data (--resample) or pass the matching --ts"
+            "{name}: the data are sampled at Ts = {} s but the model was identified at Ts = {} s; \
+             resample the data (--resample) or pass the matching --ts",
+            crate::format::Shortest(ts),
+            crate::format::Shortest(model_ts)
         )));
     }
     Ok(())

@@ -343,7 +343,10 @@ impl Model {
             return bad("a model needs at least one input".into());
         }
         if !(ts.is_finite() && ts > 0.0) {
-            return bad(format!("ts = {ts} must be a positive number of seconds"));
+            return bad(format!(
+                "ts = {} must be a positive number of seconds",
+                crate::format::Shortest(ts)
+            ));
         }
         if a.iter().chain(offset.iter()).any(|v| !v.is_finite()) {
             return bad("a coefficient is NaN or infinite".into());
@@ -1174,7 +1177,7 @@ impl TryFrom<ModelRepr> for Model {
         if !(r.ts.is_finite() && r.ts > 0.0) {
             return bad(format!(
                 "ts = {} must be a positive number of seconds",
-                r.ts
+                crate::format::Shortest(r.ts)
             ));
         }
         let nonlinear_first = r.deadzone.is_some() || r.nonlinearity.is_some();

@@ -348,7 +348,10 @@ impl NarxModel {
             return bad(format!("degree = {degree}; expected 1..{MAX_DEGREE}"));
         }
         if !(ts.is_finite() && ts > 0.0) {
-            return bad(format!("ts = {ts} must be a positive number of seconds"));
+            return bad(format!(
+                "ts = {} must be a positive number of seconds",
+                crate::format::Shortest(ts)
+            ));
         }
         if terms.len() != theta.len() {
             return bad(format!(

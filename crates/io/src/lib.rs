@@ -334,20 +334,21 @@ where
     write_atomic(path, &bytes)
 }
 
-/// `x` as Rust's `{}` prints it (the shortest decimal that reads back as the same f64), without the
-/// general formatter's cost for the common case of a record ([`push_shortest`]).
+/// `x` as [`sysid_core::format::Shortest`] prints it (the shortest decimal that reads back as the same
+/// f64, in exponent form below 1e-5 and from 1e16 in magnitude), without the general formatter's cost
+/// for the common case of a record ([`push_shortest`]).
 pub fn format_shortest(x: f64) -> String {
     let mut out = String::with_capacity(16);
     push_shortest(&mut out, x);
     out
 }
 
-/// Appends `x` as Rust's `{}` prints it to `out`. Fast path for values with at most three decimals and
+/// Appends `x` as [`sysid_core::format::Shortest`] prints it to `out`. Fast path for values with at most three decimals and
 /// |x| < 1e9 (sample times, integer commands, encoder counts): for the smallest d in 0..=3 such that
 /// n / 10^d == x with n = round(x 10^d), the decimal n · 10^-d reads back as x (the division and the
 /// parser both round the same exact quotient correctly), and it is the only one with d decimals
 /// (their spacing, 10^-d, far exceeds the spacing of f64 below 1e9), so it is the shortest. Every
-/// other value goes through `{}`.
+/// other value goes through [`sysid_core::format::Shortest`].
 pub fn push_shortest(out: &mut String, x: f64) {
     const SCALE: [f64; 4] = [1.0, 10.0, 100.0, 1000.0];
     if x != 0.0 && x.abs() < 1e9 {
@@ -372,7 +373,7 @@ pub fn push_shortest(out: &mut String, x: f64) {
         }
     }
     // Writing to a String cannot fail.
-    let _ = write!(out, "{x}");
+    let _ = write!(out, "{}", sysid_core::format::Shortest(x));
 }
 
 /// `x` with one decimal, exactly as `format!("{x:.1}")` ([`push_one_decimal`]).
@@ -402,7 +403,7 @@ pub fn push_one_decimal(out: &mut String, x: f64) {
 /// How [`write_formatted_columns_csv`] prints the numbers of a column.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum NumberFormat {
-    /// Rust's `{}`: the shortest decimal that reads back as the same f64 ([`push_shortest`]).
+    /// The shortest decimal that reads back as the same f64 ([`push_shortest`]).
     Shortest,
     /// `{:.1}`: one decimal ([`push_one_decimal`]).
     OneDecimal,

@@ -54,7 +54,7 @@ fn matches_the_standard_formatter() {
     }
 }
 
-// The expectation is the standard library's `{}`: on sample times k / 100 and k · 0.0016384, integer
+// The expectation is the standard library's `{}` (its `{:e}` below 1e-5 and from 1e16): on sample times k / 100 and k · 0.0016384, integer
 // commands, encoder positions (multiples of 0.01 mm), values with 1 to 4 decimals, random reals, and
 // values outside the fast path (zero, -0, huge, tiny, non-finite).
 #[test]
@@ -95,6 +95,13 @@ fn shortest_matches_the_standard_formatter() {
         values.extend([r, r * 2e3, (r * 2e5).round() / 1e3, (r * 2e7).round() / 1e4]);
     }
     for x in values {
-        assert_eq!(sysid_io::format_shortest(x), x.to_string(), "{x:e}");
+        // Exponent form (`{:e}`, shortest digits too) outside 1e-5 <= |x| < 1e16, as `{:?}` switches:
+        // 1e-300 is `1e-300`, not 300 digits (audit s16 L9).
+        let expected = if x != 0.0 && x.is_finite() && !(1e-5..1e16).contains(&x.abs()) {
+            format!("{x:e}")
+        } else {
+            x.to_string()
+        };
+        assert_eq!(sysid_io::format_shortest(x), expected, "{x:e}");
     }
 }

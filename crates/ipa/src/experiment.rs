@@ -92,8 +92,16 @@ impl Experiment {
         Ok(())
     }
 
-    /// Runs the experiment: y(k) is the plant's output before u(k) is applied.
+    /// Runs the experiment: y(k) is the plant's output before u(k) is applied. A `file:CSV` input not
+    /// yet loaded is read once here ([`InputSpec::load`]).
     pub fn run(&self) -> Result<Record, IpaError> {
+        if let InputSpec::File(_) = self.input {
+            return Experiment {
+                input: self.input.clone().load()?,
+                ..self.clone()
+            }
+            .run();
+        }
         self.check()?;
         let samples = self.sample_count()?;
         if self.plant == PlantSpec::Ipa {
@@ -149,6 +157,13 @@ impl Experiment {
     /// Runs the experiment on the physics plant with the configuration `cfg` in memory (the plant
     /// and `plant_config` fields are not used): what [`Experiment::run`] does for `--plant ipa`.
     pub fn run_with_config(&self, cfg: PlantConfig) -> Result<Record, IpaError> {
+        if let InputSpec::File(_) = self.input {
+            return Experiment {
+                input: self.input.clone().load()?,
+                ..self.clone()
+            }
+            .run_with_config(cfg);
+        }
         self.check()?;
         let samples = self.sample_count()?;
         self.run_ipa(cfg, samples)
@@ -162,7 +177,10 @@ impl Experiment {
         const WHY: &str =
             "the IPA's valves saturate at ±255 PWM counts, the paper's command range and the physics \
              plant's, so a larger u in the record would not be the command the plant received";
-        let uses_amplitude = !matches!(self.input, InputSpec::Step { .. } | InputSpec::File(_));
+        let uses_amplitude = !matches!(
+            self.input,
+            InputSpec::Step { .. } | InputSpec::File(_) | InputSpec::Commands(_)
+        );
         if uses_amplitude && self.amplitude > crate::plant::U_MAX {
             return Err(SysidError::setting(
                 Setting::Other("--amplitude"),
@@ -199,9 +217,9 @@ impl Experiment {
 
     /// N: `--samples`, else the length of a file input, else [`DEFAULT_SAMPLES`].
     fn sample_count(&self) -> Result<usize, IpaError> {
-        Ok(match (self.samples, self.input.file()) {
+        Ok(match (self.samples, self.input.file_commands()?) {
             (Some(n), _) => n,
-            (None, Some(f)) => crate::input::read_input_file(f)?.len(),
+            (None, Some(u)) => u.len(),
             (None, None) => DEFAULT_SAMPLES,
         })
     }

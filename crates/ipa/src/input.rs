@@ -45,6 +45,20 @@ pub enum InputSpec {
     },
     /// Column `u` of a CSV file; the amplitude is not used.
     File(PathBuf),
+    /// A `file:CSV` input once read ([`InputSpec::load`]): its column `u` and the Ts of its time column.
+    Commands(CommandFile),
+}
+
+/// The commands of a CSV file, read once: the columns asked for and Ts (s) of its time column `t`
+/// when it has one (by the reader's rule, [`sysid_core::data::uniform_time`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct CommandFile {
+    /// The file, for messages and to refuse overwriting it.
+    pub path: PathBuf,
+    /// The columns asked for, in the order asked (commands, counts).
+    pub columns: Vec<Vec<f64>>,
+    /// Ts (s) from the time column `t`; `None` without one.
+    pub ts: Option<f64>,
 }
 
 /// Sample at which `step:LEVEL` steps when no `@K` is given.
@@ -113,6 +127,7 @@ impl std::fmt::Display for InputSpec {
             InputSpec::Multisine => f.write_str("multisine"),
             InputSpec::Step { level, onset } => write!(f, "step:{level}@{onset}"),
             InputSpec::File(p) => write!(f, "file:{}", p.display()),
+            InputSpec::Commands(c) => write!(f, "file:{}", c.path.display()),
         }
     }
 }
@@ -122,8 +137,39 @@ impl InputSpec {
     pub fn file(&self) -> Option<&Path> {
         match self {
             InputSpec::File(p) => Some(p),
+            InputSpec::Commands(c) => Some(&c.path),
             _ => None,
         }
+    }
+
+    /// The input with a `file:CSV` read once ([`read_command_file`]: column `u` and the Ts of its time
+    /// column), so that neither its Ts nor its commands make the file be read again; any other input
+    /// unchanged.
+    pub fn load(self) -> Result<Self, IpaError> {
+        match self {
+            InputSpec::File(path) => Ok(InputSpec::Commands(read_command_file(&path, &["u"])?)),
+            other => Ok(other),
+        }
+    }
+
+    /// Ts (s) of the time column of a loaded `file:CSV` input ([`InputSpec::load`]); `None` for any
+    /// other input, or a file without a time column.
+    pub fn file_ts(&self) -> Option<f64> {
+        match self {
+            InputSpec::Commands(c) => c.ts,
+            _ => None,
+        }
+    }
+
+    /// The commands of a `file:CSV` input: those loaded, or read now (column `u`).
+    pub(crate) fn file_commands(&self) -> Result<Option<std::borrow::Cow<'_, [f64]>>, IpaError> {
+        Ok(match self {
+            InputSpec::File(path) => Some(std::borrow::Cow::Owned(read_input_file(path)?)),
+            InputSpec::Commands(c) => Some(std::borrow::Cow::Borrowed(
+                c.columns.first().map_or(&[][..], Vec::as_slice),
+            )),
+            _ => None,
+        })
     }
 }
 
@@ -171,8 +217,8 @@ pub fn generate(
                 .map(|k| if k >= *onset { *level } else { 0.0 })
                 .collect()
         }
-        InputSpec::File(path) => {
-            let u = read_input_file(path)?;
+        InputSpec::File(path) | InputSpec::Commands(CommandFile { path, .. }) => {
+            let u = spec.file_commands()?.unwrap_or_default();
             if u.len() < samples {
                 return Err(IpaError::Config(format!(
                     "{}: has {} samples of u but {samples} were asked for (--samples)",
@@ -238,6 +284,14 @@ pub fn read_input_file(path: &Path) -> Result<Vec<f64>, IpaError> {
 /// Reads the columns `names` of a CSV file (header row required), every cell a finite number: the
 /// commands of a model with several inputs, one column per input.
 pub fn read_input_columns(path: &Path, names: &[&str]) -> Result<Vec<Vec<f64>>, IpaError> {
+    Ok(read_columns(path, names)?.1)
+}
+
+/// The table of a CSV input file and its columns `names` (one read).
+fn read_columns(
+    path: &Path,
+    names: &[&str],
+) -> Result<(sysid_core::data::Table, Vec<Vec<f64>>), IpaError> {
     let bytes = sysid_core::data::bounded::read_data_file(path, "an input file")?;
     let table = sysid_core::data::read_table(&bytes, &path.display().to_string())?;
     let mut cols = Vec::with_capacity(names.len());
@@ -245,19 +299,23 @@ pub fn read_input_columns(path: &Path, names: &[&str]) -> Result<Vec<Vec<f64>>, 
         let col = table.column_index(name, sysid_core::Setting::Other("--input file:CSV"))?;
         cols.push(table.numbers(col)?);
     }
-    Ok(cols)
+    Ok((table, cols))
 }
 
-/// Ts (s) of the commands of an input file: the step of its time column `t` (seconds) when it has
-/// one, by the reader's rule (non-uniform time is refused at its line); `None` without one. `simulate
-/// --input file:CSV` replays the commands at this Ts, or says that it does not (audit s16 L14).
-pub fn input_file_ts(path: &Path) -> Result<Option<f64>, IpaError> {
-    let bytes = sysid_core::data::bounded::read_data_file(path, "an input file")?;
-    let table = sysid_core::data::read_table(&bytes, &path.display().to_string())?;
-    match table.headers.iter().position(|h| h == "t") {
-        Some(col) => Ok(Some(table.uniform_ts(col)?)),
-        None => Ok(None),
-    }
+/// The columns `names` of a CSV input file and Ts (s) of its time column `t` (seconds) when it has
+/// one, by the reader's rule (non-uniform time is refused at its line), in one read. `simulate --input
+/// file:CSV` replays the commands at this Ts, or says that it does not (audit s16 L14).
+pub fn read_command_file(path: &Path, names: &[&str]) -> Result<CommandFile, IpaError> {
+    let (table, columns) = read_columns(path, names)?;
+    let ts = match table.headers.iter().position(|h| h == "t") {
+        Some(col) => Some(table.uniform_ts(col)?),
+        None => None,
+    };
+    Ok(CommandFile {
+        path: path.to_path_buf(),
+        columns,
+        ts,
+    })
 }
 
 /// Clock period of the PRBS in samples: 50 ms, at least one sample.
@@ -489,7 +547,8 @@ fn multisine(
     // and the "multisine" would be a constant.
     if j_max < j_min + 1 {
         return Err(IpaError::Config(format!(
-            "--input multisine excites 1 Hz .. {f_max} Hz (the IPA's band, at most 0.8 times the Nyquist frequency {f_nyq} Hz at Ts = {ts_s} s), which holds fewer than 2 harmonics of the record's 1 / ({samples} x {ts_s} s): the input would be a constant; use --input prbs, aprbs, staircase or file:CSV"
+            "--input multisine excites 1 Hz .. {f_max} Hz (the IPA's band, at most 0.8 times the Nyquist frequency {f_nyq} Hz at Ts = {} s), which holds fewer than 2 harmonics of the record's 1 / ({samples} x {ts_s} s): the input would be a constant; use --input prbs, aprbs, staircase or file:CSV",
+            sysid_core::format::Shortest(ts_s)
         )));
     }
     let harmonics: Vec<(f64, f64)> = (j_min..=j_max)

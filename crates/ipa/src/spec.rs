@@ -103,7 +103,9 @@ impl PlantSpec {
         if let Some(ts) = ts_s {
             if (ts - model_ts).abs() > 1e-9 * model_ts {
                 return Err(IpaError::Config(format!(
-                    "invalid --ts {ts}: the {label} is sampled at Ts = {model_ts} s; leave --ts out or pass that value"
+                    "invalid --ts {}: the {label} is sampled at Ts = {} s; leave --ts out or pass that value",
+                    sysid_core::format::Shortest(ts),
+                    sysid_core::format::Shortest(model_ts)
                 )));
             }
         }
@@ -251,9 +253,13 @@ impl PlantLimits {
     /// the doubts its parameters raise ([`sysid_core::model_file::load_warnings`]).
     pub fn of_model(model: &sysid_core::Model) -> PlantLimits {
         let pole = model.poles().iter().map(|z| z.norm()).fold(0.0, f64::max);
+        // The paper's model (Table III), however it came (`--plant paper`, its model file, Python's
+        // `paper_model()`), is the paper's IPA: PWM counts within its valves' ±255 and mm, so a run on
+        // it speaks the IPA's units; any other model its estimation record's (`model_units`).
+        let paper = *model == sysid_core::Model::paper();
         PlantLimits {
             range_mm: None,
-            u_max: None,
+            u_max: paper.then_some(crate::plant::U_MAX),
             unstable_pole: (pole > 1.0 + 1e-9).then_some(pole),
             model_warnings: sysid_core::model_file::load_warnings(model),
             data_u_range: model

@@ -45,3 +45,40 @@ fn one_run_staircase_record_equals_a_replay_of_its_input() {
         - y.iter().cloned().fold(f64::INFINITY, f64::min);
     assert!(span > 50.0, "span {span} mm");
 }
+
+// A file input is read once (`InputSpec::load`): its commands and the Ts of its time column come from
+// that one read, so the experiment runs on them after the file is gone (before, `simulate` read the
+// file for its Ts, for its length and for its commands). Ts 0.02 s is the time column's step.
+#[test]
+fn a_loaded_file_input_runs_without_reading_the_file_again() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("u.csv");
+    let u: Vec<f64> = (0..40).map(|k| [0.0, 120.0, -90.0, 60.0][k / 10]).collect();
+    let mut text = String::from("t,u\n");
+    for (k, v) in u.iter().enumerate() {
+        text.push_str(&format!("{},{v}\n", k as f64 * 0.02));
+    }
+    std::fs::write(&path, text).unwrap();
+    let spec = format!("file:{}", path.display())
+        .parse::<ipa::InputSpec>()
+        .unwrap()
+        .load()
+        .unwrap();
+    std::fs::remove_file(&path).unwrap();
+    assert_eq!(spec.file_ts(), Some(0.02));
+    assert_eq!(spec.file(), Some(path.as_path()));
+    let exp = Experiment {
+        input: spec.clone(),
+        ts: spec.file_ts(),
+        ..Experiment::default()
+    };
+    let rec = exp.run().unwrap();
+    assert_eq!(rec.u, u);
+    assert_eq!(rec.ts, 0.02);
+    // Not loaded, the same file is read when the experiment runs: gone, it is an error.
+    let unloaded = Experiment {
+        input: format!("file:{}", path.display()).parse().unwrap(),
+        ..Experiment::default()
+    };
+    assert!(unloaded.run().is_err());
+}

@@ -149,7 +149,8 @@ pub(crate) fn run_warnings(
         judge_steps: false,
         data_u_range: limits.data_u_range,
         duration_setting: None,
-        units: control::Units::IPA,
+        // A model plant's own units (its estimation record's), the IPA's otherwise: as `control` says.
+        units: control::Units::of(limits.model_units()),
     };
     Ok(loop_warnings(trace, &steps, &facts)
         .into_iter()

@@ -29,6 +29,7 @@
 //! the estimate.
 
 use serde::Serialize;
+use sysid_core::format::Shortest;
 
 use crate::rls::RecursiveUpdate;
 use crate::rls_ud::{recursive_estimator, RlsForm};
@@ -324,6 +325,12 @@ pub struct Tracker {
     levels: Vec<f64>,
     negative: bool,
     positive: bool,
+    /// The smallest and largest u seen, and the largest u < 0 and the smallest u > 0 (identify's start,
+    /// [`DeadzoneStart::from_record`], of the samples so far): what the input reached of the start
+    /// breakpoints, and the start to advise when it reached neither (audit s16 L8).
+    u_range: [f64; 2],
+    max_negative: Option<f64>,
+    min_positive: Option<f64>,
 }
 
 /// Distinct input levels a tracker keeps: one more than a two-branch deadzone needs (4).
@@ -396,6 +403,9 @@ impl Tracker {
             levels: Vec::new(),
             negative: false,
             positive: false,
+            u_range: [f64::INFINITY, f64::NEG_INFINITY],
+            max_negative: None,
+            min_positive: None,
             settings,
         })
     }
@@ -454,6 +464,13 @@ impl Tracker {
         }
         self.negative |= u < 0.0;
         self.positive |= u > 0.0;
+        self.u_range = [self.u_range[0].min(u), self.u_range[1].max(u)];
+        if u < 0.0 {
+            self.max_negative = Some(self.max_negative.map_or(u, |m| m.max(u)));
+        }
+        if u > 0.0 {
+            self.min_positive = Some(self.min_positive.map_or(u, |m| m.min(u)));
+        }
         if k < self.k0 {
             return Ok(Step {
                 k,
@@ -658,20 +675,64 @@ impl Tracker {
         }
         let start = self.settings.start;
         let d = model.and_then(Model::deadzone);
-        for (excited, side, b0, reported) in [
+        let [lo, hi] = self.u_range;
+        let (left, right) = self.branches_reached();
+        if self.negative && self.positive && !left && !right {
+            // Both signs, but within the start's deadzone at every sample: x(k) = 0 throughout, so the
+            // tracked model never used the input (audit s16 L8: ball and beam, |u| < 0.031 with the
+            // PWM start ±1). The start identify would take from these samples is the way out.
+            let advice = match (self.max_negative, self.min_positive) {
+                (Some(l), Some(r)) => format!(
+                    "; start inside the input's range, as identify would from these samples: --b-l0 {} \
+                     --b-r0 {} --breakpoint-limit {}",
+                    Shortest(l),
+                    Shortest(r),
+                    Shortest(lo.abs().max(hi.abs()))
+                ),
+                _ => String::new(),
+            };
+            w.push(format!(
+                "no input sample passed the start breakpoints --b-l0 {} / --b-r0 {} (the input stayed \
+                 within [{}, {}]): the deadzone's output x(k) was 0 at every sample, so the input was \
+                 never used and the tracked model is y on its own past only{advice}",
+                Shortest(start.b_l0),
+                Shortest(start.b_r0),
+                Shortest(lo),
+                Shortest(hi)
+            ));
+            return w;
+        }
+        for (excited, reached, side, b0, reported) in [
             (
                 self.negative,
+                left,
                 "negative: the left branch (b_l, m_l)",
                 start.b_l0,
                 d.map(|d| format!("b_l = {}, m_l = {}", d.b_l, d.m_l)),
             ),
             (
                 self.positive,
+                right,
                 "positive: the right branch (b_r, m_r)",
                 start.b_r0,
                 d.map(|d| format!("b_r = {}, m_r = {}", d.b_r, d.m_r)),
             ),
         ] {
+            if excited && !reached {
+                let (flag, extreme) = if b0 < 0.0 {
+                    ("--b-l0", lo)
+                } else {
+                    ("--b-r0", hi)
+                };
+                let branch = side.split_once(": ").map_or(side, |(_, b)| b);
+                w.push(format!(
+                    "the input never passed the start breakpoint {flag} {} (its extreme is {}): {branch} \
+                     is not estimated from the data: its key terms never left their start; pass {flag} \
+                     within the input's range",
+                    Shortest(b0),
+                    Shortest(extreme)
+                ));
+            }
             if !excited {
                 w.push(format!(
                     "the input was never {side} is not estimated from the data{}: its key terms never \
@@ -713,6 +774,14 @@ impl Tracker {
         ))
     }
 
+    /// Whether the input passed the start's left and right breakpoints (u < b_l0, u > b_r0): a branch
+    /// whose start breakpoint no sample passed has a switching function that stayed 0, so its key terms
+    /// were never estimated.
+    fn branches_reached(&self) -> (bool, bool) {
+        let start = self.settings.start;
+        (self.u_range[0] < start.b_l0, self.u_range[1] > start.b_r0)
+    }
+
     /// Reasons not to trust the current estimate or the `change` flag yet, in words.
     pub fn warnings(&self, model: &Model) -> Vec<String> {
         let mut w = Vec::new();
@@ -740,8 +809,9 @@ impl Tracker {
         if let Some(d) = model.deadzone() {
             // A branch the input never reached is not estimated (its 0s are no verdict on the data;
             // `input_warnings` says so): only the excited branches are judged (audit s14 L-h).
-            let left_ok = !self.negative || (d.m_l > 0.0 && d.b_l <= 0.0);
-            let right_ok = !self.positive || (d.m_r > 0.0 && d.b_r >= 0.0);
+            let (left, right) = self.branches_reached();
+            let left_ok = !left || (d.m_l > 0.0 && d.b_l <= 0.0);
+            let right_ok = !right || (d.m_r > 0.0 && d.b_r >= 0.0);
             if !(left_ok && right_ok) {
                 w.push(format!(
                     "the deadzone estimate is implausible (b_l = {}, b_r = {}, m_l = {}, m_r = {}: a slope <= 0 \

@@ -63,9 +63,9 @@ impl<'a> Problem<'a> {
                 return Err(SysidError::Data(format!(
                     "{} is sampled at Ts = {} s but {} at Ts = {} s; merged records need the same Ts",
                     r.name(),
-                    r.ts(),
+                    sysid_core::format::Shortest(r.ts()),
                     first.name(),
-                    first.ts()
+                    sysid_core::format::Shortest(first.ts())
                 )));
             }
             if r.inputs()

@@ -125,7 +125,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         calibration.free.len(),
         data.display(),
         est.u.len(),
-        est.ts,
+        sysid_core::format::Shortest(est.ts),
         if val.is_some() { ", and a validation record" } else { "" },
         calibration.max_iterations
     );
@@ -301,7 +301,8 @@ fn report_text(
     out: Option<&Path>,
 ) -> String {
     let mut s = format!(
-        "Calibrated twin of the physics IPA (Ts = {ts} s; {} segments, {} pressures; {} iterations, {} simulations, {}; {:.2} s)\n",
+        "Calibrated twin of the physics IPA (Ts = {} s; {} segments, {} pressures; {} iterations, {} simulations, {}; {:.2} s)\n",
+        sysid_core::format::Shortest(ts),
         t.segments,
         if t.used_pressures { "with" } else { "without" },
         t.iterations,

@@ -731,8 +731,10 @@ fn summary_text(
     let mut o = String::new();
     let duration = trace.t.last().copied().unwrap_or(0.0);
     o += &format!(
-        "plant:        {plant} (Ts = {ts} s), {} samples over {duration} s\n",
-        trace.len()
+        "plant:        {plant} (Ts = {} s), {} samples over {} s\n",
+        sysid_core::format::Shortest(ts),
+        trace.len(),
+        sysid_core::format::Shortest(duration)
     );
     o += &format!("controller:   {controller_line}\n");
     o += &format!(
@@ -866,8 +868,9 @@ fn tuned_controller(
                     sysid::Setting::Other("--controller"),
                     path.display(),
                     &format!(
-                        "a controller for the plant's Ts = {ts} s (this one was tuned for Ts = {} s)",
-                        t.ts_s
+                        "a controller for the plant's Ts = {} s (this one was tuned for Ts = {} s)",
+                        sysid_core::format::Shortest(ts),
+                        sysid_core::format::Shortest(t.ts_s)
                     )
                 ));
             }

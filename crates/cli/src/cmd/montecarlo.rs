@@ -182,7 +182,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.input,
         args.amplitude,
         args.samples,
-        ts_s,
+        sysid_core::format::Shortest(ts_s),
         kind,
         orders.na,
         orders.nb,

@@ -4,6 +4,7 @@
 //! writes a folder of Parquet files (module `simulate_fleet`).
 
 use std::path::{Path, PathBuf};
+use sysid_core::format::Shortest;
 
 use ipa::{Experiment, Record};
 
@@ -206,15 +207,12 @@ fn run_plant(
     model: Option<&sysid::Model>,
     narx_range: Option<&sysid::DataRange>,
 ) -> anyhow::Result<()> {
-    let input: ipa::InputSpec = args.input.parse()?;
+    // A file input is read once, its commands with the Ts of its time column.
+    let input = args.input.parse::<ipa::InputSpec>()?.load()?;
     // The commands of a file with a time column keep their recorded spacing: its Ts is the physics
     // plant's unless --ts says otherwise (a model plant runs at its own Ts); a Ts that differs is
     // said below (audit s16 L14: a 0.02 s command record replayed at 0.01 s without a word).
-    let file_ts = input
-        .file()
-        .map(ipa::input::input_file_ts)
-        .transpose()?
-        .flatten();
+    let file_ts = input.file_ts();
     let ts = match (args.ts, file_ts, &plant) {
         (None, Some(f), ipa::spec::PlantSpec::Ipa) => Some(f),
         _ => args.ts,
@@ -260,7 +258,7 @@ fn run_plant(
     eprintln!(
         "wrote {} samples (Ts = {} s{file_words}), {}, to {}",
         rec.u.len(),
-        rec.ts,
+        Shortest(rec.ts),
         start_words(y0, rec.y.first().copied(), model, args.y0.is_none()),
         args.out.display()
     );
@@ -271,10 +269,11 @@ fn run_plant(
                 .map(|n| format!("{}: {n}", path.display())),
             None => ((f - rec.ts).abs() > 1e-3 * f).then(|| {
                 format!(
-                    "{}: its time column t steps {f} s, but the plant runs at its own Ts = {} s: the \
+                    "{}: its time column t steps {} s, but the plant runs at its own Ts = {} s: the \
                      commands are replayed {} times as far apart as recorded",
                     path.display(),
-                    rec.ts,
+                    Shortest(f),
+                    Shortest(rec.ts),
                     rec.ts / f
                 )
             }),
@@ -454,7 +453,7 @@ fn run_miso(args: &Args, model: &sysid::Model, model_path: &Path) -> anyhow::Res
     eprintln!(
         "wrote {} samples (Ts = {} s) of the {}-input model, {}, to {}",
         y.len(),
-        model.ts(),
+        Shortest(model.ts()),
         names.len(),
         start_words(y0, y.first().copied(), Some(model), args.y0.is_none()),
         args.out.display()

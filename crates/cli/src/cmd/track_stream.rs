@@ -8,6 +8,7 @@
 //! out.
 
 use std::io::{BufRead, Write};
+use sysid_core::format::Shortest;
 
 use serde::Serialize;
 use sysid::data::lines::CsvLines;
@@ -228,17 +229,8 @@ pub fn track_stream<R: BufRead, W: Write>(
                 None => {
                     let d = t - prev;
                     match ts {
-                        None if !(d.is_finite() && d > 0.0) => {
-                            return Err(SysidError::Parse {
-                                file: options.name.clone(),
-                                line: line_no,
-                                column: tc + 1,
-                                message: format!(
-                                    "t = {t} after t = {prev}: the time must increase (or give --ts)"
-                                ),
-                            });
-                        }
                         None => {
+                            increasing(prev, t, line_no, tc, &options.name)?;
                             ts = Some(d);
                             new_time_warnings.extend(sysid::data::milliseconds_hint(
                                 &[prev, t],
@@ -326,24 +318,31 @@ fn check_time_step(
     col: usize,
     name: &str,
 ) -> Result<Option<String>, SysidError> {
+    increasing(prev, t, line_no, col, name)?;
     let d = t - prev;
-    if d.is_nan() || d <= 0.0 {
-        return Err(SysidError::Parse {
-            file: name.to_string(),
-            line: line_no,
-            column: col + 1,
-            message: format!(
-                "t = {t} after t = {prev}: time went backwards or stood still; expected strictly \
-                 increasing time (a restarted logger or a rotated file: start track again on the new record)"
-            ),
-        });
-    }
     Ok(((d - ts).abs() > 0.5 * ts).then(|| {
         format!(
-            "{name}:{line_no}: time jumps from {prev} to {t} s (a step of {d} s where Ts = {ts} s): samples \
-             missing or the clock jumped; the estimate treats the samples as Ts apart"
+            "{name}:{line_no}: time jumps from {} to {} s (a step of {} s where Ts = {} s): samples \
+             missing or the clock jumped; the estimate treats the samples as Ts apart",
+            Shortest(prev),
+            Shortest(t),
+            Shortest(d),
+            Shortest(ts)
         )
     }))
+}
+
+/// Checks that time t (s, line `line_no`, 0-based column `col` of `name`) increases after `prev` by
+/// the readers' rule and words ([`sysid::data::increasing_time`]), with `track`'s advice.
+fn increasing(prev: f64, t: f64, line_no: usize, col: usize, name: &str) -> Result<(), SysidError> {
+    sysid::data::increasing_time(&[prev, t]).map_err(|fault| SysidError::Parse {
+        file: name.to_string(),
+        line: line_no,
+        column: col + 1,
+        message: format!(
+            "{fault} (a restarted logger or a rotated file: start track again on the new record)"
+        ),
+    })
 }
 
 fn track_line(

@@ -26,7 +26,10 @@
 
 use std::io::Read;
 
-use super::{check_ts, resample, CsvOptions, Record, Signals};
+use super::{
+    check_ts, increasing_time, resample, time_fault_message, uniform_time, CsvOptions, Record,
+    Signals, TimeFault,
+};
 use crate::error::Setting;
 use crate::{Dataset, SysidError};
 
@@ -77,7 +80,24 @@ pub fn read_mat_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Rec
                 .into(),
         ));
     }
-    let find = |var: &str| vars.iter().find(|v| v.name == var);
+    // Two variables of one name (a file MATLAB's `save` cannot write): which one `load` would give is
+    // not something to guess for a record, so a chosen name that appears twice is refused with both
+    // places (audit s16 L2); a duplicated name that is not chosen is not read and does no harm.
+    let find = |var: &str| -> Result<Option<&Variable>, SysidError> {
+        let mut same = vars.iter().filter(|v| v.name == var);
+        match (same.next(), same.next()) {
+            (Some(a), Some(b)) => Err(file_err(
+                name,
+                format!(
+                    "two variables are named '{var}' (data element {} at byte {} and data element {} at \
+                     byte {}); expected one variable of each name: save the record again, or choose \
+                     another variable",
+                    a.element, a.offset, b.element, b.offset
+                ),
+            )),
+            (a, _) => Ok(a),
+        }
+    };
     let names = || {
         let v: Vec<&str> = vars.iter().map(|a| a.name.as_str()).collect();
         if v.is_empty() {
@@ -87,13 +107,12 @@ pub fn read_mat_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Rec
         }
     };
     let vector = |var: &str, setting: Setting| -> Result<Vec<f64>, SysidError> {
-        let Some(a) = find(var) else {
-            return Err(SysidError::MissingColumn {
+        let Some(a) = find(var)? else {
+            return Err(SysidError::MissingVariable {
                 file: name.to_string(),
-                column: var.to_string(),
+                variable: var.to_string(),
                 setting,
-                header: vars.iter().map(|a| a.name.clone()).collect(),
-                hint: None,
+                variables: vars.iter().map(|a| a.name.clone()).collect(),
             });
         };
         let v = match &a.values {
@@ -161,8 +180,8 @@ pub fn read_mat_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Rec
             ),
         ));
     }
-    let has_t = find(&opts.t_col).is_some();
-    let mut t = if has_t && opts.ts.is_none() {
+    let has_t = opts.ts.is_none() && find(&opts.t_col)?.is_some();
+    let mut t = if has_t {
         let t = vector(&opts.t_col, Setting::TCol)?;
         if t.len() != u.len() {
             return Err(file_err(
@@ -193,9 +212,10 @@ pub fn read_mat_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Rec
         name = format!("{name}[{}..{}]", range.start, range.end);
     }
     let mut notes = Vec::new();
+    let time_err = |fault: TimeFault| time_error(fault, &name, &opts.t_col);
     let ts = match (opts.resample, &t, opts.ts.or(if has_t { None } else { opts.fallback_ts })) {
         (Some(ts), Some(t), _) => {
-            increasing(t, &name, &opts.t_col)?;
+            increasing_time(t).map_err(time_err)?;
             let r = resample::resample_record(t, &u, &y, ts, &name)?;
             (u, y) = (r.u, r.y);
             notes.push(r.note);
@@ -205,21 +225,7 @@ pub fn read_mat_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Rec
             check_ts(ts)?;
             ts
         }
-        (_, Some(t), None) => {
-            increasing(t, &name, &opts.t_col)?;
-            let sp = resample::spacing(t);
-            if sp.irregular > 0.0 {
-                return Err(file_err(
-                    &name,
-                    format!(
-                        "non-uniform sampling in '{}': steps from {} to {} s (median {} s); pass \
-                         --resample TS to interpolate onto a uniform grid, or --ts",
-                        opts.t_col, sp.min, sp.max, sp.median
-                    ),
-                ));
-            }
-            (t[t.len() - 1] - t[0]) / (t.len() - 1) as f64
-        }
+        (_, Some(t), None) => uniform_time(t).map_err(time_err)?,
         (_, None, None) => {
             return Err(file_err(
                 &name,
@@ -238,31 +244,30 @@ pub fn read_mat_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Rec
     })
 }
 
-fn increasing(t: &[f64], name: &str, var: &str) -> Result<(), SysidError> {
-    if t.len() < 2 {
-        return Err(file_err(
-            name,
-            "one sample is not enough to find Ts; pass --ts".into(),
-        ));
-    }
-    match t.windows(2).position(|w| w[1] <= w[0]) {
-        Some(k) => Err(file_err(
+/// A fault of the time variable `var` as the reader's error, at its element (1-based) when it has one:
+/// the words and advice of every reader ([`time_fault_message`]).
+fn time_error(fault: TimeFault, name: &str, var: &str) -> SysidError {
+    let message = time_fault_message(&fault);
+    match fault.sample() {
+        Some(k) => file_err(
             name,
             format!(
-                "time variable '{var}' does not increase at element {} (1-based): {} after {}; expected \
-                 strictly increasing time",
-                k + 2,
-                t[k + 1],
-                t[k]
+                "time variable '{var}' element {} (1-based): {message}",
+                k + 1
             ),
-        )),
-        None => Ok(()),
+        ),
+        None => file_err(name, format!("time variable '{var}': {message}")),
     }
 }
 
-/// A variable of a MAT-file: its name, dimensions and (when asked for and numeric) its values.
+/// A variable of a MAT-file: its name, dimensions and (when asked for and numeric) its values, and
+/// where it is (for messages).
 #[derive(Debug)]
 struct Variable {
+    /// The top-level data element that holds it, 1-based.
+    element: usize,
+    /// The byte of the file its element starts at.
+    offset: usize,
     name: String,
     dims: Vec<usize>,
     values: Values,
@@ -387,7 +392,9 @@ fn parse(bytes: &[u8], name: &str, wanted: &[&str]) -> Result<Vec<Variable>, Sys
         at: 128,
         endian,
     };
-    let mut vars = Vec::new();
+    let mut vars: Vec<Variable> = Vec::new();
+    // The data elements met so far (the one being read is element `element`, 1-based).
+    let mut element = 0;
     while top.at < bytes.len() {
         let start = top.at;
         let at_var = |vars: &Vec<Variable>| match vars.last() {
@@ -398,6 +405,7 @@ fn parse(bytes: &[u8], name: &str, wanted: &[&str]) -> Result<Vec<Variable>, Sys
         if bytes.len() - start < 8 && bytes[start..].iter().all(|&b| b == 0) {
             break;
         }
+        element += 1;
         let (ty, data) = match top.element(true) {
             Ok(e) => e,
             Err(Stop::Truncated) => {
@@ -412,7 +420,7 @@ fn parse(bytes: &[u8], name: &str, wanted: &[&str]) -> Result<Vec<Variable>, Sys
             Err(Stop::Damaged(m)) => {
                 return Err(file_err(
                     name,
-                    format!("damaged data element at byte {start}: {m}"),
+                    format!("data element {element} at byte {start} is damaged: {m}"),
                 ))
             }
         };
@@ -427,25 +435,36 @@ fn parse(bytes: &[u8], name: &str, wanted: &[&str]) -> Result<Vec<Variable>, Sys
             // Other top-level elements (e.g. subsystem data) hold no variable.
             _ => continue,
         };
+        let which = |var: Option<String>| match var {
+            Some(v) => format!("variable '{v}' (data element {element} at byte {start})"),
+            None => format!("data element {element} at byte {start}"),
+        };
         match var {
-            Ok(v) => vars.push(v),
+            // A variable without a name is no variable MATLAB writes: damage (audit s16 L2: a damaged
+            // compressed element of zeros was listed as a nameless "column").
+            Ok(v) if v.name.is_empty() => {
+                return Err(file_err(
+                    name,
+                    format!(
+                    "{} is damaged: its variable has no name; expected a named variable (save the \
+                         record again with save('file.mat', 'u', 'y', '-v7'))",
+                    which(None)
+                ),
+                ))
+            }
+            Ok(v) => vars.push(Variable {
+                element,
+                offset: start,
+                ..v
+            }),
             Err((var, Stop::Truncated)) => {
                 return Err(file_err(
                     name,
-                    format!(
-                        "the file ends in the middle of variable {} at byte {start} (truncated?)",
-                        var.map_or_else(|| "?".to_string(), |v| format!("'{v}'"))
-                    ),
+                    format!("the file ends in the middle of {} (truncated?)", which(var)),
                 ))
             }
             Err((var, Stop::Damaged(m))) => {
-                return Err(file_err(
-                    name,
-                    format!(
-                        "variable {} at byte {start} is damaged: {m}",
-                        var.map_or_else(|| "?".to_string(), |v| format!("'{v}'"))
-                    ),
-                ))
+                return Err(file_err(name, format!("{} is damaged: {m}", which(var))))
             }
         }
     }
@@ -627,7 +646,13 @@ fn matrix(
         }
         Values::Real(v)
     };
-    Ok(Variable { name, dims, values })
+    Ok(Variable {
+        element: 0,
+        offset: 0,
+        name,
+        dims,
+        values,
+    })
 }
 
 /// The values of a numeric data element of storage type `ty` as f64 (`None`: not a numeric type).

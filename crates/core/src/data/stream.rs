@@ -11,7 +11,8 @@
 //! decimal comma, quoting, blank-line and ragged-row rules are shared; the first 64 KiB are checked by
 //! the in-memory reader itself), with these differences (docs/data.md, "Long records"):
 //! - the time column must be uniform within 0.1 % of the **mean** step (t_last − t_0)/(N − 1), which is
-//!   also Ts; the in-memory reader compares with the median step (the two agree on any record that passes);
+//!   also Ts; the in-memory reader compares with the median step (the two agree on any record that passes;
+//!   [`super::TimeSteps`] is [`super::uniform_time`]'s rule sample by sample, with its words);
 //! - `--resample` and MATLAB `.mat` files are refused (they need the whole record);
 //! - the input must be a file that can be read again (not standard input or a pipe);
 //! - there is no limit on the number of rows or the file size ([`super::MAX_SAMPLES`],
@@ -21,8 +22,8 @@ use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use super::{
-    cell_value, check_ts, csv_err, ragged_row, read_table_with, round_significant, sig6,
-    sniff_delimiter, CsvOptions, Dataset,
+    cell_value, check_ts, csv_err, ragged_row, read_table_with, sniff_delimiter,
+    time_fault_message, CsvOptions, Dataset, TimeFault, TimeSteps,
 };
 use crate::error::Setting;
 use crate::SysidError;
@@ -178,16 +179,6 @@ fn fnv(hash: u64, v: f64) -> u64 {
 
 const FNV_OFFSET: u64 = 0xcbf2_9ce4_8422_2325;
 
-/// Time steps seen in a pass: the first and last time, the smallest and largest step with their lines.
-#[derive(Debug, Clone, Copy)]
-struct TimeScan {
-    first: f64,
-    last: f64,
-    count: usize,
-    min_step: (f64, usize),
-    max_step: (f64, usize),
-}
-
 impl CsvStream {
     /// Opens `path` with the reader options `opts`: checks the header and the first rows (the in-memory
     /// reader's rules) and finds the columns. Nothing else is read until [`RecordSource::pass`].
@@ -295,47 +286,29 @@ impl CsvStream {
         }
     }
 
-    /// Ts from the time steps of a pass (see the module documentation).
-    fn ts_of(&self, scan: Option<TimeScan>, col: usize) -> Result<f64, SysidError> {
-        let Some(s) = scan.filter(|s| s.count >= 2) else {
-            return Err(SysidError::File {
+    /// Ts from the time steps of a pass ([`TimeSteps::ts`]), or its fault at its line with the
+    /// reader's words ([`time_fault_message`]).
+    fn ts_of(&self, scan: &TimeSteps, col: usize) -> Result<f64, SysidError> {
+        scan.ts().map_err(|fault| self.time_error(fault, col))
+    }
+
+    /// A time fault (whose `k` is a line number, [`TimeSteps::push`]) as the reader's error.
+    fn time_error(&self, fault: TimeFault, col: usize) -> SysidError {
+        let mut message = time_fault_message(&fault);
+        if matches!(fault, TimeFault::NonUniformMean { .. }) {
+            // --resample needs the whole record in memory.
+            message = message.replace(
+                "onto a uniform grid,",
+                "onto a uniform grid (in memory, without --stream),",
+            );
+        }
+        match fault.sample() {
+            Some(line) => self.at(line, col, message),
+            None => SysidError::File {
                 file: self.name.clone(),
-                message: "one sample is not enough to find Ts from the time column; pass --ts"
-                    .into(),
-            });
-        };
-        let ts = round_significant((s.last - s.first) / (s.count - 1) as f64, 12);
-        if !(ts.is_finite() && ts > 0.0) {
-            return Err(self.at(
-                0,
-                col,
-                format!("the time steps (mean {ts} s) do not give a usable Ts; pass --ts"),
-            ));
+                message,
+            },
         }
-        // The extreme further from the mean first: a gap inflates the mean, so the regular steps also
-        // differ from it, and the row to name is the gap's (audit s13 M5: line 1504 was named, a
-        // regular row, for a gap at line 502).
-        let mut extremes = [s.min_step, s.max_step];
-        if (s.max_step.0 - ts).abs() > (s.min_step.0 - ts).abs() {
-            extremes.reverse();
-        }
-        for (step, line) in extremes {
-            if (step - ts).abs() > 1e-3 * ts {
-                return Err(self.at(
-                    line,
-                    col,
-                    format!(
-                        "non-uniform sampling: step {} s from the previous row differs from the mean step \
-                         {} s by more than 0.1 %; pass --resample TS to interpolate onto a uniform grid \
-                         (in memory, without --stream), or --ts{}",
-                        sig6(step),
-                        sig6(ts),
-                        super::unit_hint(ts)
-                    ),
-                ));
-            }
-        }
-        Ok(ts)
     }
 }
 
@@ -373,7 +346,7 @@ impl RecordSource for CsvStream {
         };
         // Time is checked on the first pass only; later passes read u and y.
         let tcol = self.tcol.filter(|_| self.shape.is_none());
-        let mut scan: Option<TimeScan> = None;
+        let mut scan = TimeSteps::default();
         let mut rec = csv::ByteRecord::new();
         let (mut u, mut y) = (
             Vec::with_capacity(CHUNK_ROWS),
@@ -432,38 +405,8 @@ impl RecordSource for CsvStream {
             y.push(yk);
             if let Some(tc) = tcol {
                 let t = value(tc)? * self.time_scale;
-                scan = Some(match scan {
-                    None => TimeScan {
-                        first: t,
-                        last: t,
-                        count: 1,
-                        min_step: (f64::INFINITY, line),
-                        max_step: (f64::NEG_INFINITY, line),
-                    },
-                    Some(mut s) => {
-                        if t <= s.last {
-                            return Err(self.at(
-                                line,
-                                tc,
-                                format!(
-                                    "time {t} s does not increase after {} s on the previous row; \
-                                     expected strictly increasing time",
-                                    s.last
-                                ),
-                            ));
-                        }
-                        let step = t - s.last;
-                        if step < s.min_step.0 {
-                            s.min_step = (step, line);
-                        }
-                        if step > s.max_step.0 {
-                            s.max_step = (step, line);
-                        }
-                        s.last = t;
-                        s.count += 1;
-                        s
-                    }
-                });
+                scan.push(t, line)
+                    .map_err(|fault| self.time_error(fault, tc))?;
             }
             used += 1;
             if u.len() == CHUNK_ROWS {
@@ -505,7 +448,7 @@ impl RecordSource for CsvStream {
                 rows: used,
                 ts: match (self.ts_given, self.tcol) {
                     (Some(ts), _) => ts,
-                    (None, Some(tc)) => self.ts_of(scan, tc)?,
+                    (None, Some(tc)) => self.ts_of(&scan, tc)?,
                     (None, None) => unreachable_ts(&self.name)?,
                 },
             },

@@ -529,7 +529,8 @@ impl Calibrated {
             ..self.config.clone()
         };
         format!(
-            "# Digital twin calibrated by `ipa-sysid calibrate` on {record} (Ts = {ts_s} s).\n{}",
+            "# Digital twin calibrated by `ipa-sysid calibrate` on {record} (Ts = {} s).\n{}",
+            sysid_core::format::Shortest(ts_s),
             config.to_commented_toml()
         )
     }

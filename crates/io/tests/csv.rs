@@ -11,8 +11,9 @@ fn columns_are_written_row_by_row_with_shortest_decimals() {
     let u = [1.5, -2.0, 100.0];
     let y = [0.1 + 0.2, f64::NAN, -1e-7];
     write_columns_csv(&path, &["t", "u", "y"], &[&t, &u, &y]).unwrap();
-    // Rust's `{}`: 0.1 + 0.2 = 0.30000000000000004, no exponent for 1e-7, NaN spelt NaN.
-    let expected = "t,u,y\n0,1.5,0.30000000000000004\n0.01,-2,NaN\n0.02,100,-0.0000001\n";
+    // The shortest round-trip decimal: 0.1 + 0.2 = 0.30000000000000004; below 1e-5 in size the exponent
+    // form (1e-7 reads back exactly and is shorter than 0.0000001); NaN spelt NaN.
+    let expected = "t,u,y\n0,1.5,0.30000000000000004\n0.01,-2,NaN\n0.02,100,-1e-7\n";
     assert_eq!(std::fs::read_to_string(&path).unwrap(), expected);
 }
 

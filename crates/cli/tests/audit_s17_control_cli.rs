@@ -9,6 +9,9 @@ use std::process::{Command, Output};
 
 use serde_json::Value;
 
+mod common;
+use common::warnings;
+
 fn ipa_sysid(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
         .args(args)
@@ -45,15 +48,6 @@ fn trace(path: &Path) -> Columns {
 
 fn json(path: &Path) -> Value {
     serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
-}
-
-fn warnings(doc: &Value) -> Vec<String> {
-    doc["warnings"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|w| w.as_str().unwrap().to_string())
-        .collect()
 }
 
 /// Runs `control ARGS --out T --json J` in `dir`; (output, trace, JSON).

@@ -511,7 +511,11 @@ fn track_checks_every_time_step() {
     assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
     assert!(stderr(&out).contains("back.csv:42"), "{}", stderr(&out));
     // The readers' words for a time that does not increase (one rule, `sysid_core::data`).
-    assert!(stderr(&out).contains("does not increase"), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("does not increase"),
+        "{}",
+        stderr(&out)
+    );
 
     let mut jump = rows;
     for k in 0..20 {

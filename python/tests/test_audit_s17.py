@@ -2,27 +2,12 @@
 computed here with numpy (stacked least squares, a plain simulation loop, min/max of the rows)."""
 
 import json
-import os
-import pathlib
 import subprocess
 
 import numpy as np
 import pytest
 
-REPO = pathlib.Path(__file__).resolve().parents[2]
-
-
-def cli_path():
-    env = os.environ.get("IPA_SYSID_BIN")
-    if env:
-        if not pathlib.Path(env).is_file():
-            pytest.fail(f"IPA_SYSID_BIN={env} is not a file")
-        return env
-    for profile in ("debug", "release"):
-        p = REPO / "target" / profile / "ipa-sysid"
-        if p.is_file():
-            return str(p)
-    pytest.skip("no ipa-sysid binary: build it (cargo build -p ipa-sysid) or set IPA_SYSID_BIN")
+from binary import cli_path
 
 
 def run(*args):

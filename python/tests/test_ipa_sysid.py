@@ -20,21 +20,11 @@ import pytest
 
 import ipa_sysid
 
+from binary import cli_path
+
 REPO = pathlib.Path(__file__).resolve().parents[2]
 TOL = 1e-12
 
-
-def cli_path():
-    env = os.environ.get("IPA_SYSID_BIN")
-    if env:
-        if not pathlib.Path(env).is_file():
-            pytest.fail(f"IPA_SYSID_BIN={env} is not a file")
-        return env
-    for profile in ("debug", "release"):
-        p = REPO / "target" / profile / "ipa-sysid"
-        if p.is_file():
-            return str(p)
-    pytest.skip("no ipa-sysid binary: build it (cargo build -p ipa-sysid) or set IPA_SYSID_BIN")
 
 
 def cli(*args, check=True):

@@ -390,11 +390,22 @@ impl SysidError {
     }
 
     /// Prefixes a [`SysidError::Data`] or [`SysidError::Numerical`] message with `context` (for
-    /// example the data set's name); other variants already say where they come from.
+    /// example the data set's name); other variants already say where they come from. A message that
+    /// already starts with `context: ` is kept as it is (the callee named the record itself: audit s17
+    /// L-c, `validate` printed "rec.csv[998..1000]: rec.csv[998..1000]: …").
     pub fn context(self, context: &str) -> Self {
+        let prefix = |m: String| {
+            if m.strip_prefix(context)
+                .is_some_and(|rest| rest.starts_with(": "))
+            {
+                m
+            } else {
+                format!("{context}: {m}")
+            }
+        };
         match self {
-            SysidError::Data(m) => SysidError::Data(format!("{context}: {m}")),
-            SysidError::Numerical(m) => SysidError::Numerical(format!("{context}: {m}")),
+            SysidError::Data(m) => SysidError::Data(prefix(m)),
+            SysidError::Numerical(m) => SysidError::Numerical(prefix(m)),
             other => other,
         }
     }
@@ -439,5 +450,29 @@ mod shown_value_tests {
         assert_eq!(shown_value(2e-9), "0.000000002");
         assert_eq!(shown_value("ipa"), "ipa");
         assert_eq!(shown_value(u64::MAX), u64::MAX.to_string());
+    }
+}
+
+#[cfg(test)]
+mod context_tests {
+    use super::SysidError;
+
+    #[test]
+    fn a_context_is_added_once() {
+        let e = SysidError::Data("2 samples are not enough".into()).context("rec.csv[998..1000]");
+        assert_eq!(
+            e.to_string(),
+            SysidError::Data("rec.csv[998..1000]: 2 samples are not enough".into()).to_string()
+        );
+        // Named already by the callee: not named again.
+        let shown = e.to_string();
+        let again = e.context("rec.csv[998..1000]");
+        assert_eq!(again.to_string(), shown);
+        // Another record's name, or a name that is only a prefix of the first word, is still added.
+        let other = SysidError::Numerical("rec.csv: overflow".into()).context("rec");
+        assert_eq!(
+            other.to_string(),
+            SysidError::Numerical("rec: rec.csv: overflow".into()).to_string()
+        );
     }
 }

@@ -399,3 +399,64 @@ fn tune_on_an_arx_model_names_the_way_forward() {
         "{e}"
     );
 }
+
+// Audit s17 M-d: a NARX model file carries its data range, and `control` on it says when the loop's
+// commands leave the inputs it was fitted on (as for an ARX or Hammerstein model file). The record:
+// y(k) = 0.9 y(k−1) + 0.5 u(k−1) with u(k) = sin(0.37 k)·cos(0.11 k) (|u| < 1); the expected range is
+// the min and max of the u column written here.
+#[test]
+fn control_on_a_narx_model_names_commands_beyond_its_data() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let u: Vec<f64> = (0..600)
+        .map(|k| (0.37 * k as f64).sin() * (0.11 * k as f64).cos())
+        .collect();
+    let mut y = vec![0.0; 600];
+    for k in 1..600 {
+        y[k] = 0.9 * y[k - 1] + 0.5 * u[k - 1];
+    }
+    let mut csv = String::from("u,y\n");
+    for (a, b) in u.iter().zip(&y) {
+        csv.push_str(&format!("{a},{b}\n"));
+    }
+    std::fs::write(d.join("lin.csv"), csv).unwrap();
+    let (lin, model) = (d.join("lin.csv"), d.join("narx.json"));
+    let fit = ipa_sysid(&[
+        "identify",
+        "--data",
+        lin.to_str().unwrap(),
+        "--ts",
+        "0.1",
+        "--structure",
+        "narx",
+        "--degree",
+        "1",
+        "--save-model",
+        model.to_str().unwrap(),
+    ]);
+    assert_eq!(fit.status.code(), Some(0), "{}", stderr(&fit));
+    let (lo, hi) = u
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| {
+            (l.min(v), h.max(v))
+        });
+    let plant = format!("model:{}", model.display());
+    let out = ipa_sysid(&[
+        "control",
+        "--plant",
+        &plant,
+        "--setpoint",
+        "3",
+        "--duration",
+        "5",
+        "--out",
+        d.join("c.csv").to_str().unwrap(),
+    ]);
+    // control prints its warnings with its report, on stdout.
+    let err = stdout(&out) + &stderr(&out);
+    let expected = format!("the plant model's estimation data had u in [{lo}, {hi}]");
+    assert!(err.contains(&expected), "{expected}\n{err}");
+    // The loop's own commands went beyond it (±255 at the start of a step of 3).
+    let c = trace(&d.join("c.csv"));
+    assert!(c.2.iter().any(|&v| v > hi || v < lo));
+}

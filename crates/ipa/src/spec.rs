@@ -197,8 +197,17 @@ impl PlantSpec {
             }
             PlantSpec::ModelFile(path) => match sysid_core::model_file::read_any_model(path)? {
                 sysid_core::model_file::AnyModel::Linear(m) => m,
-                // A NARX model has no poles; its blow-up is caught as the closed loop runs.
-                sysid_core::model_file::AnyModel::Narx(_) => return Ok(PlantLimits::default()),
+                // A NARX model has no poles; its blow-up is caught as the closed loop runs. Its data
+                // range (audit s17 M-d) says when the loop's commands leave what it was fitted on.
+                sysid_core::model_file::AnyModel::Narx(n) => {
+                    return Ok(PlantLimits {
+                        data_u_range: n
+                            .data_range()
+                            .and_then(|r| r.u.first())
+                            .map(|[lo, hi]| (*lo, *hi)),
+                        ..PlantLimits::default()
+                    })
+                }
             },
         };
         Ok(PlantLimits::of_model(&model))

@@ -602,18 +602,69 @@ pub fn shared_run(a: &sysid::Dataset, b: &sysid::Dataset) -> Option<(usize, usiz
                 .zip(&ub)
                 .all(|(x, z)| x[i].to_bits() == z[j].to_bits())
     };
+    // next_change[i]: the first k > i whose output differs from y_a(i) (a run from i moves iff it
+    // reaches it), so the check is O(1) per start.
+    let mut next_change = vec![ya.len(); ya.len()];
+    for i in (0..ya.len().saturating_sub(1)).rev() {
+        next_change[i] = if ya[i + 1].to_bits() != ya[i].to_bits() {
+            i + 1
+        } else {
+            next_change[i + 1]
+        };
+    }
     let mut best: Option<(usize, usize, usize)> = None;
-    // The head of `b` inside `a`, then the head of `a` inside `b`.
-    for (head_of_b, hay_len) in [(true, ya.len()), (false, yb.len())] {
-        for start in 0..hay_len {
-            let (i0, j0) = if head_of_b { (start, 0) } else { (0, start) };
-            let mut n = 0;
-            while i0 + n < ya.len() && j0 + n < yb.len() && equal(i0 + n, j0 + n) {
-                n += 1;
+    // The head of `b` inside `a`, then the head of `a` inside `b`: for every start, the length of the
+    // common prefix of the head and the haystack from there, by the Z-algorithm over head ++ [gap] ++
+    // haystack (O(len a + len b) comparisons; a start-by-start scan was quadratic on records that rest
+    // for long stretches).
+    for head_of_b in [true, false] {
+        let (head_len, hay_len) = if head_of_b {
+            (yb.len(), ya.len())
+        } else {
+            (ya.len(), yb.len())
+        };
+        // Position p of the joined sequence: Some((i, j)) names sample i of `a` or j of `b` as the
+        // pair `equal` compares; the gap at p = head_len equals nothing.
+        let sample = |p: usize| -> Option<usize> {
+            match p.cmp(&head_len) {
+                std::cmp::Ordering::Less => Some(p),
+                std::cmp::Ordering::Equal => None,
+                std::cmp::Ordering::Greater => Some(p - head_len - 1),
             }
-            let moves = ya[i0..i0 + n]
-                .iter()
-                .any(|v| v.to_bits() != ya[i0].to_bits());
+        };
+        let same = |p: usize, q: usize| -> bool {
+            // p is always inside the head (a prefix position), q anywhere after it.
+            match (sample(p), sample(q), q > head_len) {
+                (Some(h), Some(x), true) if head_of_b => equal(x, h),
+                (Some(h), Some(x), true) => equal(h, x),
+                (Some(h), Some(x), false) if head_of_b => {
+                    yb[h].to_bits() == yb[x].to_bits()
+                        && ub.iter().all(|z| z[h].to_bits() == z[x].to_bits())
+                }
+                (Some(h), Some(x), false) => {
+                    ya[h].to_bits() == ya[x].to_bits()
+                        && ua.iter().all(|z| z[h].to_bits() == z[x].to_bits())
+                }
+                _ => false,
+            }
+        };
+        let total = head_len + 1 + hay_len;
+        let mut z = vec![0usize; total];
+        let (mut l, mut r) = (0usize, 0usize);
+        for p in 1..total {
+            let mut k = if p < r { (r - p).min(z[p - l]) } else { 0 };
+            while p + k < total && same(k, p + k) {
+                k += 1;
+            }
+            z[p] = k;
+            if p + k > r {
+                (l, r) = (p, p + k);
+            }
+        }
+        for start in 0..hay_len {
+            let n = z[head_len + 1 + start];
+            let (i0, j0) = if head_of_b { (start, 0) } else { (0, start) };
+            let moves = n > 0 && next_change[i0] < i0 + n;
             if n >= min && moves && best.is_none_or(|(_, _, m)| n > m) {
                 best = Some((i0, j0, n));
             }

@@ -67,9 +67,10 @@
 //! f32 with a capacity N ≤ 4 (nothing to agree with bit for bit, [`Float::SYSID_ORDER`] `false`) adds
 //! ρ̃ last in the guarded update: Bierman's prefix sums are S_j = Σ_(i≤j) f_i v_i from −0 and
 //! α_j = ρ̃ + S_j (n additions more), so that their chain does not wait for ρ̃, which an acting guard
-//! computes from the previous update's tr P (issue 28, thirteenth round: 0.5–0.8 ns less per acting
-//! update at f32 n = 4; slower at n = 9 and for f64 in the twelfth round, where it would also have to
-//! change `sysid`).
+//! computes from the previous update's tr P (issue 28, thirteenth round: 0.4–1.3 ns less per acting
+//! update at f32 n = 4 in five runs alternated with the previous code, 1.14–1.18× the UD update, the
+//! inactive guard 0.1–0.2 ns more; in the twelfth round slower at n = 9, and for f64 it would have to
+//! change `sysid` too).
 //!
 //! # Cost per update, n parameters (each +, −, ×, ÷ one flop)
 //!

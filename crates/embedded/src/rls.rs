@@ -64,6 +64,13 @@
 //! only tr P · (ρ / T) (ρ / T divided at the start of the update, off the chain). [`Rls::p`] and
 //! [`Rls::trace`] report c · U D Uᵀ; a failed update leaves ρ̃ unchanged; a restart sets ρ̃ = ρ.
 //! `sysid::rls_ud::RobustRls` keeps the same pending variance, so f64 results are bit for bit.
+//! f32 with a capacity N ≤ 4 (nothing to agree with bit for bit, [`Float::SYSID_ORDER`] `false`) adds
+//! ρ̃ last in the guarded update: Bierman's prefix sums are S_j = Σ_(i≤j) f_i v_i from −0 and
+//! α_j = ρ̃ + S_j (n additions more), so that their chain does not wait for ρ̃, which an acting guard
+//! computes from the previous update's tr P (issue 28, thirteenth round: 0.4–1.3 ns less per acting
+//! update at f32 n = 4 in five runs alternated with the previous code, 1.14–1.18× the UD update, the
+//! inactive guard 0.1–0.2 ns more; in the twelfth round slower at n = 9, and for f64 it would have to
+//! change `sysid` too).
 //!
 //! # Cost per update, n parameters (each +, −, ×, ÷ one flop)
 //!
@@ -490,6 +497,12 @@ fn symmetric_update<F: Float, const N: usize, const SCALE: bool>(
 /// steps (n(n − 1) flops fewer; measured slower at N = 4: docs/benchmarks.md, "Fifth round").
 const KEEP_GAINS_FROM: usize = 8;
 
+/// The largest capacity N for which the guarded UD update in f32 ([`Float::SYSID_ORDER`] `false`) adds
+/// the measurement variance ρ̃ last to Bierman's prefix sums (α_j = ρ̃ + S_j, module documentation,
+/// "Windup guard"): measured faster with the guard acting at N = 4, slower at N = 9
+/// (docs/benchmarks.md, "Twelfth round", "Thirteenth round").
+const LATE_VARIANCE_UP_TO: usize = 4;
+
 /// Bierman's UD update with forgetting on the leading m × m block (m = N when `FULL`), in the operation
 /// order of `sysid::rls_ud::RobustRls` (sums start at −0, as `Iterator::sum` of floats does); with
 /// `GUARD` the trace bound of [`Rls::with_max_trace`], whose pending scale makes the measurement variance
@@ -553,6 +566,11 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
     // With split row loads, the copies of U read by the first pass, for the second.
     let mut u_old = [[F::ZERO; N]; N];
     let mut a = var;
+    // f32 guarded with N ≤ 4: ρ̃ added last, α_j = ρ̃ + S_j with S_j = Σ_(i≤j) f_i v_i from −0, so that
+    // the chain of additions does not wait for ρ̃ (the previous update's tr P · (ρ / T) when the guard
+    // acted). f64 keeps `sysid`'s order, α_j = α_(j−1) + f_j v_j from α_(−1) = ρ̃.
+    let late = GUARD && !F::SYSID_ORDER && N <= LATE_VARIANCE_UP_TO;
+    let mut s = -F::ZERO;
     for_columns!(full, m, 'col, |j| {
         let (Some(row), Some(ph), Some(fj), Some(vj), Some(aj), Some((b_col, b_rest)), Some(ws)) = (
             fac.get(j),
@@ -592,7 +610,12 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
         let vv = *dj * acc;
         *fj = acc;
         *vj = vv;
-        a += acc * vv;
+        if late {
+            s += acc * vv;
+            a = var + s;
+        } else {
+            a += acc * vv;
+        }
         *aj = a;
         for ((bi, wi), u) in b_col.iter_mut().zip(ws.iter_mut()).zip(u_col) {
             if keep_w {
@@ -1006,6 +1029,57 @@ mod tests {
             }
             assert!((a.trace() - b.trace()).abs() < 1e-9 * (1.0 + a.trace()));
         }
+    }
+
+    // f32 with N ≤ 4 adds ρ̃ last to the prefix sums of the guarded UD update (α_j = ρ̃ + S_j; f64 adds it
+    // first, `sysid`'s order): the same recursion in another order, so through excitation, an unexcited
+    // stretch (φ = 0: P grows by 1/ρ per update and the guard acts) and excitation again, its θ̂ and tr P
+    // follow the f64 guarded UD update to f32 rounding, and tr P ≤ T after every update (to rounding).
+    #[test]
+    fn f32_guarded_ud_adding_the_variance_last_follows_the_f64_update() {
+        let (rho, p0, t) = (0.95, 100.0, 50.0);
+        let mut a = Rls::<f64, 4>::new(4, rho, p0)
+            .unwrap()
+            .with_form(Form::Ud)
+            .with_max_trace(t)
+            .unwrap();
+        let mut b = Rls::<f32, 4>::new(4, rho as f32, p0 as f32)
+            .unwrap()
+            .with_form(Form::Ud)
+            .with_max_trace(t as f32)
+            .unwrap();
+        let (mut acted, mut idle) = (0, 0);
+        for k in 0..600usize {
+            let phi: [f64; 4] = if (200..400).contains(&k) {
+                [0.0; 4]
+            } else {
+                core::array::from_fn(|i| ((k * 7 + i * 13) % 11) as f64 - 5.0 + 0.1 * i as f64)
+            };
+            let y = phi
+                .iter()
+                .enumerate()
+                .map(|(i, v)| v * (i as f64 - 1.5))
+                .sum::<f64>()
+                + ((k % 5) as f64 - 2.0) * 0.1;
+            a.update(&phi, y).unwrap();
+            b.update(&phi.map(|v| v as f32), y as f32).unwrap();
+            if b.var != b.forgetting {
+                acted += 1;
+            } else {
+                idle += 1;
+            }
+            let (ta, tb) = (a.trace(), f64::from(b.trace()));
+            assert!(tb <= t * (1.0 + 1e-5), "k={k}: tr P = {tb}");
+            assert!((tb - ta).abs() <= 1e-3 * ta, "k={k}: tr P {tb} vs {ta}");
+            for i in 0..4 {
+                let (x, z) = (a.theta()[i], f64::from(b.theta()[i]));
+                assert!(
+                    (x - z).abs() <= 1e-3 * (1.0 + x.abs()),
+                    "k={k} θ{i}: {z} vs {x}"
+                );
+            }
+        }
+        assert!(acted > 10 && idle > 10, "acted {acted}, idle {idle}");
     }
 
     // 3.5·81 + 8.5·9 + 2 = 362 and 3·81 + 8·9 + 1 = 316 (the closed forms above).

@@ -745,8 +745,9 @@ pub fn tune(
         let budget = search.used + remaining / (n_starts - k);
         search.nelder_mead(start, budget)?;
     }
-    // The finish, at the best θ: ramp-and-cut (a nudge from |e| <= e_c ends at the first encoder
-    // count, its ramp rate learnt) with each band of CUT_BANDS_MM, and the rest band e_r =
+    // The finish, at the best θ: ramp-and-cut (a nudge from |e| <= e_c creeps while the piston
+    // moves at most e_v = NUDGE_CREEP_FRACTION e_h per sample and ends when it moves faster, its ramp
+    // rate learnt) with each band of CUT_BANDS_MM, and the rest band e_r =
     // FINISH_REST_BAND_MM (a stop short of the nudge band finished by nudges) with and without it;
     // each kept only where it lowers J.
     if let Some((theta, _, _)) = search.best.clone() {

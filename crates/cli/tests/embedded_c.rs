@@ -230,6 +230,12 @@ fn c_controller_with_a_short_step_approach_matches_control_bit_for_bit_on_a_reco
     c_controller_matches_control(Brake::Short);
 }
 
+// Session 18: the nudge's creep limit e_v (the 40th argument of position.c).
+#[test]
+fn c_controller_with_a_creeping_ramp_and_cut_matches_control_bit_for_bit_on_a_recorded_run() {
+    c_controller_matches_control(Brake::Creep);
+}
+
 /// Which approach the controller file of [`c_controller_matches_control`] has.
 #[derive(Clone, Copy, PartialEq)]
 enum Brake {
@@ -238,6 +244,8 @@ enum Brake {
     Learnt,
     /// The fixed brake and the short-step approach.
     Short,
+    /// As `Short`, with ramp-and-cut's creep limit e_v = 0.015 mm per sample.
+    Creep,
 }
 
 fn c_controller_matches_control(brake: Brake) {
@@ -304,14 +312,17 @@ fn c_controller_matches_control(brake: Brake) {
         file["controller"]["brake"]["lead_max_s"] = serde_json::json!(0.1);
         file["controller"]["brake"]["release_samples"] = serde_json::json!(10);
     }
-    if brake == Brake::Short {
+    if matches!(brake, Brake::Short | Brake::Creep) {
         file["controller"]["short_approach"] = serde_json::json!({"max_step_mm": 40.0,
             "drive_fraction": 0.35, "ramp_counts_s": 500.0, "switch_mm": 0.5, "lead_s": 0.01,
             "brake_strength": 0.5, "brake_samples": 3, "rest_samples": 2});
     }
+    if brake == Brake::Creep {
+        file["controller"]["nudge"]["creep_step_mm"] = serde_json::json!(0.015);
+    }
     let (profile, samples) = match brake {
         Brake::Learnt => ("staircase:40,38,120,60,120,60@2", 1201),
-        Brake::Short => ("staircase:40,60,45,120,100@2", 1001),
+        Brake::Short | Brake::Creep => ("staircase:40,60,45,120,100@2", 1001),
         _ => ("staircase:40,38,120,60@2", 801),
     };
     std::fs::write(&ctl, serde_json::to_string_pretty(&file).unwrap()).unwrap();
@@ -396,14 +407,14 @@ fn c_controller_matches_control(brake: Brake) {
             .collect()
     };
     let unlearnt = matches!(brake, Brake::Learnt | Brake::Short).then(|| replay(&args));
-    if matches!(brake, Brake::Learnt | Brake::Short) {
+    if matches!(brake, Brake::Learnt | Brake::Short | Brake::Creep) {
         let b = &c["brake"];
         for k in ["learn", "lead_max_s"] {
             args.push(format!("{:?}", b[k].as_f64().unwrap_or(0.0)));
         }
         args.push(b["release_samples"].as_u64().unwrap_or(0).to_string());
     }
-    if brake == Brake::Short {
+    if matches!(brake, Brake::Short | Brake::Creep) {
         let a = &c["short_approach"];
         for k in [
             "max_step_mm",
@@ -419,6 +430,14 @@ fn c_controller_matches_control(brake: Brake) {
             args.push(a[k].as_u64().unwrap().to_string());
         }
     }
+    // The creep limit last: the replay without it is the ramp-and-cut that cuts at the first count.
+    let unlearnt = if brake == Brake::Creep {
+        let without = replay(&args);
+        args.push(format!("{:?}", nudge["creep_step_mm"].as_f64().unwrap()));
+        Some(without)
+    } else {
+        unlearnt
+    };
     let from_c = replay(&args);
     let recorded: Vec<f64> = std::fs::read_to_string(&trace)
         .unwrap()
@@ -431,7 +450,7 @@ fn c_controller_matches_control(brake: Brake) {
     if let Some(unlearnt) = unlearnt {
         assert_ne!(
             unlearnt, recorded,
-            "the learnt lead or the short-step approach changed no command"
+            "the learnt lead, the short-step approach or the creep changed no command"
         );
     }
     for (k, (a, b)) in from_c.iter().zip(&recorded).enumerate() {

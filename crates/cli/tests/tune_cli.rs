@@ -110,7 +110,10 @@ fn reference_commands(c: &serde_json::Value, r: &[f64], y: &[f64]) -> Vec<f64> {
     // right) and the nudge under way (side ±1, y_0, e_0, u_n, moving, its ramp rate, ramp-and-cut).
     // Ramp-and-cut (e_c, ρ_min): rate per mm a (left, right) = ρ / e_c at first, learnt at the rest
     // after a ramp-and-cut's end from the move d = side (y − y_0): d > |e_0| + e_h → a × max(1/4,
-    // |e_0| / d), d < |e_0| / 2 → a × 5/4, then a kept within [ρ_min / e_c, ρ / e_h].
+    // |e_0| / d), d < |e_0| / 2 → a × 5/4 (not with a creep limit), then a kept within
+    // [ρ_min / e_c, ρ / e_h]. Creep (e_v > 0, session 18): a ramp-and-cut nudge with e e_0 > 0 ends
+    // when the sample's move towards r exceeds e_v, holds u_n while it is in (0, e_v] (the first
+    // such sample learns u_b) and ramps on otherwise (y_0 = y before the first motion).
     let nudge = &c["nudge"];
     let n = nudge.is_object().then(|| {
         let h = |k: &str| nudge[k].as_f64().unwrap();
@@ -125,9 +128,10 @@ fn reference_commands(c: &serde_json::Value, r: &[f64], y: &[f64]) -> Vec<f64> {
     let mut still = 0.0f64;
     let mut ub = [bl.abs(), br.abs()];
     let mut under_way: Option<(f64, f64, f64, f64, bool, f64, bool)> = None;
-    let (e_c, rho_min) = (
+    let (e_c, rho_min, e_v) = (
         nudge["cut_band_mm"].as_f64().unwrap_or(0.0),
         nudge["min_ramp_counts_s"].as_f64().unwrap_or(0.0),
+        nudge["creep_step_mm"].as_f64().unwrap_or(0.0),
     );
     let rho_max = n.map_or(0.0, |n| n.1);
     let mut a = if e_c > 0.0 {
@@ -160,6 +164,25 @@ fn reference_commands(c: &serde_json::Value, r: &[f64], y: &[f64]) -> Vec<f64> {
             e_prev = e;
             let idx = |side: f64| usize::from(side > 0.0);
             let u = match under_way {
+                Some((side, y0, e0, un, moving, rate, true)) if e_v > 0.0 && e * e0 > 0.0 => {
+                    let step = side * (y[k] - y[k - 1]);
+                    if step > e_v {
+                        under_way = None;
+                        ended = Some((side, y0, e0));
+                        0.0
+                    } else if step > 0.0 {
+                        if !moving {
+                            ub[idx(side)] = un;
+                        }
+                        under_way = Some((side, y0, e0, un, true, rate, true));
+                        side * un
+                    } else {
+                        let un = (un + rate * ts).min(umax);
+                        let y0 = if moving { y0 } else { y[k] };
+                        under_way = Some((side, y0, e0, un, moving, rate, true));
+                        side * un
+                    }
+                }
                 Some((side, y0, e0, un, moving, rate, cuts)) => {
                     let towards = side * (y[k] - y0) > 0.0;
                     if (y[k] != y0 && (y[k] - y0).abs() >= gamma * e0.abs())
@@ -194,7 +217,7 @@ fn reference_commands(c: &serde_json::Value, r: &[f64], y: &[f64]) -> Vec<f64> {
                         let j = idx(side);
                         if moved > e0.abs() + hold {
                             a[j] *= (e0.abs() / moved).max(0.25);
-                        } else if moved < 0.5 * e0.abs() {
+                        } else if moved < 0.5 * e0.abs() && e_v == 0.0 {
                             a[j] *= 1.25;
                         }
                         a[j] = a[j].clamp(rho_min / e_c, rho_max / hold.max(1e-3));

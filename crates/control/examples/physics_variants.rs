@@ -35,6 +35,8 @@
 //! docs/control.md, Results' session-16 block).
 //! Session 17: SHORT_CTL=e_m,U,ρ_a,e_s',τ_s,a_s,T_s,N_s sets the controller's own short-step approach
 //! (`short_approach` of CONTROLLER.json; e_m = 0 removes it).
+//! Session 18: CREEP=e_v replaces ramp-and-cut's creep limit (`nudge.creep_step_mm`, mm per sample;
+//! 0 = off: cut at the first count).
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
 use control::tune::{self, Spec};
 use control::ControllerFile;
@@ -232,6 +234,7 @@ fn main() {
             ("BETA", &mut n.start_fraction),
             ("MINRHO", &mut n.min_ramp_counts_s),
             ("CUTBAND", &mut n.cut_band_mm),
+            ("CREEP", &mut n.creep_step_mm),
         ] {
             if let Some(v) = env(key) {
                 *field = v;

@@ -121,6 +121,13 @@ pub struct Nudge {
     /// ρ_min: ramp-and-cut's slowest ramp, counts/s (0 < ρ_min <= ρ when e_c > 0).
     #[serde(default)]
     pub min_ramp_counts_s: f64,
+    /// e_v: ramp-and-cut's creep limit, mm per sample (>= 0; 0 = off, as in a file written before
+    /// it existed, and not written then): a ramp-and-cut nudge holds its command while the piston
+    /// creeps towards r by at most e_v per sample, ramps on while it rests, and ends when it moves
+    /// more than e_v in one sample (a slip beginning), crosses r or reaches the hold band
+    /// (issue 25, session 18; docs/control.md).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub creep_step_mm: f64,
 }
 
 /// The approach with braking (issue 25, session 14): for a step of at least e_a, the full command
@@ -375,6 +382,13 @@ impl Nudge {
                 self.min_ramp_counts_s,
             );
         }
+        if !(self.creep_step_mm.is_finite() && (0.0..=MAX_LENGTH_MM).contains(&self.creep_step_mm))
+        {
+            return bad(
+                &format!("a nudge creep_step_mm from 0 to {MAX_LENGTH_MM:e} mm"),
+                self.creep_step_mm,
+            );
+        }
         if !(self.rest_band_mm.is_finite() && (0.0..=MAX_LENGTH_MM).contains(&self.rest_band_mm)) {
             return bad(
                 &format!("a nudge rest_band_mm from 0 to {MAX_LENGTH_MM:e} mm"),
@@ -532,6 +546,7 @@ impl ControllerSettings {
                 rest_band: n.rest_band_mm,
                 cut_band: n.cut_band_mm,
                 min_ramp: n.min_ramp_counts_s,
+                creep_step: n.creep_step_mm,
             }),
             brake: self.brake.map(|b| ipa_embedded::position::BrakeSettings {
                 min_step: b.min_step_mm,
@@ -822,6 +837,7 @@ mod tests {
             rest_band_mm: 0.0,
             cut_band_mm: 0.0,
             min_ramp_counts_s: 0.0,
+            creep_step_mm: 0.0,
         });
         s
     }
@@ -857,6 +873,41 @@ mod tests {
             .replace(",\"rest_band_mm\":0.0", "");
         assert!(!text.contains("rest_band"));
         assert_eq!(ControllerFile::parse(&text, "c.json").unwrap(), nudging());
+    }
+
+    // The creep limit e_v reaches the embedded step (whose test derives it by hand): ramp-and-cut
+    // within e_c = 0.5 mm, a = ρ / e_c = 200 counts/(s·mm), e_0 = 0.4 mm: ρ_n = 80 counts/s from
+    // β |b_r| = 15: 15, 15.8, 16.6; the first count is held with e_v = 0.015 mm (16.6) and cut
+    // without it (0). Written only when set; a negative one is refused by name.
+    #[test]
+    fn the_creep_limit_reaches_the_embedded_step_and_round_trips() {
+        let with = |creep_step_mm: f64| {
+            let mut s = nudging();
+            let n = s.nudge.as_mut().unwrap();
+            (n.cut_band_mm, n.min_ramp_counts_s, n.creep_step_mm) = (0.5, 20.0, creep_step_mm);
+            s
+        };
+        for (creep, last) in [(0.015, 16.6), (0.0, 0.0)] {
+            let mut c = with(creep).build().unwrap();
+            let u: Vec<f64> = [0.6, 0.6, 0.6, 0.6, 0.6, 0.61]
+                .iter()
+                .map(|&y| c.step(1.0, y))
+                .collect();
+            let want = [0.0, 0.0, 15.0, 15.8, 16.6, last];
+            for (k, (g, w)) in u.iter().zip(want).enumerate() {
+                assert!((g - w).abs() < 1e-9, "e_v {creep}, sample {k}: {g} != {w}");
+            }
+        }
+        let text = serde_json::to_string_pretty(&ControllerFile::new(with(0.015), None)).unwrap();
+        assert!(text.contains("\"creep_step_mm\": 0.015"), "{text}");
+        assert_eq!(ControllerFile::parse(&text, "c.json").unwrap(), with(0.015));
+        let bad = text.replace("\"creep_step_mm\": 0.015", "\"creep_step_mm\": -1.0");
+        let e = ControllerFile::parse(&bad, "c.json").unwrap_err();
+        assert!(e.to_string().contains("creep_step_mm"), "{e}");
+        // Off (every file before session 18): not written, and read as 0.
+        let off = serde_json::to_string(&ControllerFile::new(with(0.0), None)).unwrap();
+        assert!(!off.contains("creep"));
+        assert_eq!(ControllerFile::parse(&off, "c.json").unwrap(), with(0.0));
     }
 
     #[test]

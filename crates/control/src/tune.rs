@@ -540,6 +540,10 @@ pub const NUDGE_REST_SAMPLES: u32 = 3;
 /// session-16 block.
 pub const NUDGE_REST_CANDIDATES: [u32; 2] = [2, 1];
 
+/// e_v / e_h: ramp-and-cut's creep limit as a fraction of the hold band (the |e_ss| limit; issue
+/// 25, session 18): 0.75 × 0.02 mm = 0.015 mm, between one encoder count per sample (a creep,
+/// held) and two (a slip beginning, cut). Set whenever the ramp-and-cut band e_c is (not a choice).
+pub const NUDGE_CREEP_FRACTION: f64 = 0.75;
 /// The ramp-and-cut bands e_c (mm) tried at the best θ of the search (0 = none, the search's own).
 pub const CUT_BANDS_MM: [f64; 3] = [0.1, 0.3, 0.6];
 /// The rest band e_r (mm) tried at the best θ of the search, with each e_c and without.
@@ -598,6 +602,11 @@ pub fn settings_of(
             cut_band_mm: ly * cut_band_mm,
             min_ramp_counts_s: if cut_band_mm > 0.0 {
                 uc * NUDGE_MIN_RAMP.min(theta[6].exp())
+            } else {
+                0.0
+            },
+            creep_step_mm: if cut_band_mm > 0.0 {
+                NUDGE_CREEP_FRACTION * spec.ess_mm
             } else {
                 0.0
             },
@@ -736,8 +745,9 @@ pub fn tune(
         let budget = search.used + remaining / (n_starts - k);
         search.nelder_mead(start, budget)?;
     }
-    // The finish, at the best θ: ramp-and-cut (a nudge from |e| <= e_c ends at the first encoder
-    // count, its ramp rate learnt) with each band of CUT_BANDS_MM, and the rest band e_r =
+    // The finish, at the best θ: ramp-and-cut (a nudge from |e| <= e_c creeps while the piston
+    // moves at most e_v = NUDGE_CREEP_FRACTION e_h per sample and ends when it moves faster, its ramp
+    // rate learnt) with each band of CUT_BANDS_MM, and the rest band e_r =
     // FINISH_REST_BAND_MM (a stop short of the nudge band finished by nudges) with and without it;
     // each kept only where it lowers J.
     if let Some((theta, _, _)) = search.best.clone() {

@@ -228,6 +228,11 @@ typedef struct IpaController {
    */
   double nudge_min_ramp;
   /**
+   * e_v: ramp-and-cut's creep limit, mm per sample (`nudge.creep_step_mm`; 0 = off: the nudge
+   * ends at the first count, as in a file without it; issue 25, session 18).
+   */
+  double nudge_creep_step;
+  /**
    * 1: the approach with braking with the `brake_*` fields (`brake`); 0: none (the fields are
    * ignored; a struct zeroed before it existed runs as then).
    */

@@ -156,6 +156,9 @@ pub struct IpaController {
     /// ρ_min: ramp-and-cut's slowest ramp, counts/s (`nudge.min_ramp_counts_s`; 0 = off, as in a file
     /// without it).
     pub nudge_min_ramp: f64,
+    /// e_v: ramp-and-cut's creep limit, mm per sample (`nudge.creep_step_mm`; 0 = off: the nudge
+    /// ends at the first count, as in a file without it; issue 25, session 18).
+    pub nudge_creep_step: f64,
     /// 1: the approach with braking with the `brake_*` fields (`brake`); 0: none (the fields are
     /// ignored; a struct zeroed before it existed runs as then).
     pub has_brake: i32,
@@ -708,6 +711,7 @@ pub unsafe extern "C" fn ipa_ctl_init(
             rest_band: c.nudge_rest_band,
             cut_band: c.nudge_cut_band,
             min_ramp: c.nudge_min_ramp,
+            creep_step: c.nudge_creep_step,
         })),
         _ => Err(Error::Setting),
     };

@@ -19,6 +19,10 @@
 //!             distance coasted since the cut / |dy/dt| at the cut (learnt on line, −1 = not yet)
 //! e_n < |e| ≤ e_r (rest band): the nudge mode too once y has been unchanged for N_r samples, and while
 //!             the nudge it starts, or the coast after its cut, is under way
+//! ramp-and-cut (|e_0| ≤ e_c): the ramp ρ_n = a(side) |e_0| clamped to [ρ_min, ρ], the nudge ends at the
+//!             first count towards r; with the creep limit e_v > 0 (session 18) it holds u_n while
+//!             0 < side (y(k) − y(k−1)) ≤ e_v, ramps on while y rests, and ends once
+//!             side (y(k) − y(k−1)) > e_v, e changes sign or |e| ≤ e_h
 //! approach with braking (when set; issue 25, session 14), armed at the first sample and whenever r
 //!             changes, for a step |r − y| ≥ e_a, side = sign(r − y), v = side (y(k) − y(k−1))/Ts:
 //!             approach: u = side u_max while side e > e_s + τ_b max(v, 0); then
@@ -60,6 +64,13 @@ pub struct NudgeSettings<F: Float> {
     pub cut_band: F,
     /// ρ_min: ramp-and-cut's slowest ramp, counts/s (> 0 and ≤ ρ when e_c > 0).
     pub min_ramp: F,
+    /// e_v: ramp-and-cut's creep limit, mm per sample (≥ 0; 0 = off: the nudge ends at the first
+    /// count towards r, as in a file written before it existed). With e_v > 0 a ramp-and-cut nudge
+    /// holds its command while the piston moves towards r by at most e_v per sample (creeps), ramps
+    /// on while it rests, and ends when it moves more than e_v in one sample (a slip beginning), r
+    /// is crossed, or the hold band is reached; a(side) is then only slowed, never sped up
+    /// (issue 25, session 18).
+    pub creep_step: F,
 }
 
 /// The approach with braking of a [`PositionController`] (`controller.brake` of CONTROLLER.json):
@@ -305,6 +316,7 @@ impl<F: Float> PositionController<F> {
                 && nonneg(n.rest_band)
                 && nonneg(n.cut_band)
                 && nonneg(n.min_ramp)
+                && nonneg(n.creep_step)
                 && n.min_ramp <= n.ramp
                 && (n.cut_band == F::ZERO || n.min_ramp > F::ZERO)
                 && (1..=1000).contains(&n.rest_samples))
@@ -635,6 +647,9 @@ impl<F: Float> PositionController<F> {
         let g = match self.nudging {
             Some(g) => {
                 let towards = if g.right { y > g.y0 } else { y < g.y0 };
+                if g.and_cut && n.creep_step > F::ZERO && e * g.e0 > F::ZERO {
+                    return self.creep(n, g, y, dy);
+                }
                 let first_count = !g.moving && towards && g.and_cut;
                 if e * g.e0 <= F::ZERO
                     || (y != g.y0 && self.cut_now(n, &g, e, y, dy))
@@ -717,6 +732,41 @@ impl<F: Float> PositionController<F> {
         }
     }
 
+    /// A ramp-and-cut nudge with the creep limit e_v > 0 ([`NudgeSettings::creep_step`]), e not yet
+    /// past r: the move of this sample towards r, d = side (y(k) − y(k−1)) = side dy Ts, ends the
+    /// nudge when d > e_v (the piston speeds up: a slip begins; nothing is learnt of u_b then);
+    /// d > 0 holds the command (the first such sample learns u_b); d ≤ 0 (at rest, or settling
+    /// back) ramps on by ρ_n Ts (before the first motion from where the piston is now, as a ramp
+    /// that has not broken loose).
+    fn creep(&mut self, n: &NudgeSettings<F>, g: Nudging<F>, y: F, dy: F) -> F {
+        let s = self.s;
+        let d = if g.right { dy } else { -dy } * s.ts;
+        if d > n.creep_step {
+            self.nudging = None;
+            self.end_nudge(&g, y, dy);
+            return F::ZERO;
+        }
+        let g = if d > F::ZERO {
+            if !g.moving {
+                self.learn_breakaway(&g);
+            }
+            Nudging { moving: true, ..g }
+        } else {
+            let up = g.u_mag + g.ramp * s.ts;
+            Nudging {
+                u_mag: if up < s.u_max { up } else { s.u_max },
+                y0: if g.moving { g.y0 } else { y },
+                ..g
+            }
+        };
+        self.nudging = Some(g);
+        if g.right {
+            g.u_mag
+        } else {
+            -g.u_mag
+        }
+    }
+
     /// u_b(side) = the command of a nudge whose piston broke loose.
     fn learn_breakaway(&mut self, g: &Nudging<F>) {
         if g.right {
@@ -735,8 +785,9 @@ impl<F: Float> PositionController<F> {
 
     /// Ramp-and-cut learning at the rest after a cut: the move d = side (y − y_0) against the error
     /// |e_0| it was for. Past r by more than e_h (d > |e_0| + e_h): a(side) × max(1/4, |e_0| / d)
-    /// (slower: the move grows with the rate); short of half the error (d < |e_0| / 2): a(side) × 5/4;
-    /// a(side) stays within [ρ_min / e_c, ρ / max(e_h, 0.001 mm)].
+    /// (slower: the move grows with the rate); short of half the error (d < |e_0| / 2): a(side) × 5/4,
+    /// except with the creep limit e_v > 0 (such a nudge ended short because the piston sped up: a
+    /// faster ramp would make that worse); a(side) stays within [ρ_min / e_c, ρ / max(e_h, 0.001 mm)].
     fn learn_rate(&mut self, n: &NudgeSettings<F>, right: bool, y: F) {
         let (y0, e0) = self.last_start;
         let moved = if right { y - y0 } else { y0 - y };
@@ -751,7 +802,7 @@ impl<F: Float> PositionController<F> {
             } else {
                 F::from_f64(0.25)
             };
-        } else if moved < F::from_f64(0.5) * err {
+        } else if moved < F::from_f64(0.5) * err && n.creep_step == F::ZERO {
             a *= F::from_f64(1.25);
         }
         let floor = F::from_f64(1e-3);
@@ -908,6 +959,7 @@ mod tests {
             rest_band: 0.0,
             cut_band: 0.0,
             min_ramp: 0.0,
+            creep_step: 0.0,
         });
         settings
     }
@@ -1115,6 +1167,61 @@ mod tests {
         assert!(PositionController::new(bad, None).is_err());
         bad.nudge.as_mut().unwrap().min_ramp = 200.0;
         assert!(PositionController::new(bad, None).is_err());
+    }
+
+    // The creep by hand: ramp-and-cut as above (e_c = 0.5 mm, ρ_min = 20, ρ = 100, a = 200
+    // counts/(s·mm)) with the creep limit e_v = 0.015 mm per sample. r = 1, y = 0.6 (e_0 = 0.4):
+    // ρ_n = 80 counts/s from β |b_r| = 15: 15, 15.8, 16.6; the first count (0.61, a move of 0.01 ≤ e_v)
+    // holds 16.6 (u_b = 16.6) instead of cutting, as does the next (0.62); at rest (0.62 again) it
+    // ramps on to 17.4, holds at 0.63, and a move of 0.03 > e_v (0.66) cuts. It coasts to 0.67 and
+    // rests: the move 0.07 < e_0 / 2 does not speed a(right) up (it stays 200, where the cut at the
+    // first count makes it 250); the learnt coast is 0.01 mm / 3 mm/s. Next nudge (e_0 = 0.33):
+    // ρ_n = 66 from β u_b = 8.3: 8.3, 8.96, held at 0.68; r = 0.70 puts y in the hold band: u = 0.
+    #[test]
+    fn a_creeping_ramp_and_cut_nudge_holds_while_the_piston_creeps_and_cuts_when_it_speeds_up() {
+        let mut settings = nudging(0.5);
+        let n = settings.nudge.as_mut().unwrap();
+        (n.cut_band, n.min_ramp, n.creep_step) = (0.5, 20.0, 0.015);
+        let mut c = PositionController::new(settings, Some(shift_inverse())).unwrap();
+        let steps = [
+            (1.0, 0.6, 0.0),
+            (1.0, 0.6, 0.0),
+            (1.0, 0.6, 15.0),
+            (1.0, 0.6, 15.8),
+            (1.0, 0.6, 16.6),
+            (1.0, 0.61, 16.6),
+            (1.0, 0.62, 16.6),
+            (1.0, 0.62, 17.4),
+            (1.0, 0.63, 17.4),
+            (1.0, 0.66, 0.0),
+            (1.0, 0.67, 0.0),
+            (1.0, 0.67, 0.0),
+            (1.0, 0.67, 8.3),
+            (1.0, 0.67, 8.96),
+            (1.0, 0.68, 8.96),
+            (0.70, 0.68, 0.0),
+        ];
+        for (k, (r, y, u)) in steps.into_iter().enumerate() {
+            let got = c.step(r, y).unwrap();
+            assert!((got - u).abs() < 1e-9, "sample {k}: {got} != {u}");
+            if k == 9 {
+                assert!((c.breakaway()[1] - 16.6).abs() < 1e-9);
+            }
+        }
+        assert!((c.breakaway()[1] - 8.96).abs() < 1e-9);
+        assert_eq!(c.rate_per_mm, [200.0, 200.0]);
+        assert!((c.coast()[1] - 0.01 / 3.0).abs() < 1e-9);
+        // Down the same way: a creep to the left holds −u_n, and a move of 0.02 > e_v cuts.
+        let mut c = PositionController::new(settings, Some(shift_inverse())).unwrap();
+        let ys = [0.4, 0.4, 0.4, 0.39, 0.37];
+        let got = ys.map(|y| c.step(0.0, y).unwrap());
+        let want = [0.0, 0.0, -10.0, -10.0, 0.0];
+        for (k, (g, w)) in got.iter().zip(want).enumerate() {
+            assert!((g - w).abs() < 1e-9, "sample {k}: {g} != {w}");
+        }
+        // A negative creep limit is refused.
+        settings.nudge.as_mut().unwrap().creep_step = -0.01;
+        assert!(PositionController::new(settings, None).is_err());
     }
 
     #[test]

@@ -654,7 +654,14 @@ pub fn tuned_line(s: &control::ControllerSettings) -> String {
             } else {
                 String::new()
             },
-            if n.cut_band_mm > 0.0 {
+            if n.cut_band_mm > 0.0 && n.creep_step_mm > 0.0 {
+                format!(
+                    "; ramp-and-cut within {:.3} mm: a learnt ramp of at least {:.1} counts/s, held while the piston creeps at most {} mm per sample, cut when it moves faster",
+                    n.cut_band_mm,
+                    n.min_ramp_counts_s,
+                    report::format::sig(n.creep_step_mm, 6)
+                )
+            } else if n.cut_band_mm > 0.0 {
                 format!(
                     "; ramp-and-cut within {:.3} mm: a learnt ramp of at least {:.1} counts/s, cut at the first count",
                     n.cut_band_mm, n.min_ramp_counts_s

@@ -13,7 +13,8 @@
  * then the brake's min_step_mm, switch_mm, lead_s, strength, samples, rest_samples and optionally
  * learn and lead_max_s, then release_samples, when it has one; then, after all of these, the
  * short-step approach's max_step_mm, drive_fraction, ramp_counts_s, switch_mm, lead_s,
- * brake_strength, brake_samples and rest_samples, when it has one). trace.csv is what `ipa-sysid control --controller
+ * brake_strength, brake_samples and rest_samples, when it has one; then, after all of these, the
+ * nudge's creep_step_mm, when it has one). trace.csv is what `ipa-sysid control --controller
  * CONTROLLER.json --out trace.csv` writes (header t,r,u,y): the controller is fed r(k) and y(k) of each
  * row, as firmware would feed the set-point and the encoder, and prints its command u(k) per line
  * (round-trip decimal, %.17g), to compare with the u column.
@@ -29,9 +30,9 @@ static uint64_t state[IPA_CTL_STATE_BYTES / sizeof(uint64_t) + 1];
 
 int main(int argc, char **argv) {
     if (argc != 10 && argc != 14 && argc != 19 && argc != 20 && argc != 22 && argc != 28 &&
-        argc != 30 && argc != 31 && argc != 39) {
+        argc != 30 && argc != 31 && argc != 39 && argc != 40) {
         fprintf(stderr,
-                "usage: %s TS KP KI KD TF U_MAX HOLD FINE RESET [B_L B_R M_L M_R [BAND RAMP START REST CUT [REST_BAND [CUT_BAND MIN_RAMP [MIN_STEP SWITCH LEAD STRENGTH SAMPLES BRAKE_REST [LEARN LEAD_MAX [RELEASE [SHORT_MAX_STEP DRIVE RAMP SWITCH LEAD STRENGTH SAMPLES REST]]]]]]]]"
+                "usage: %s TS KP KI KD TF U_MAX HOLD FINE RESET [B_L B_R M_L M_R [BAND RAMP START REST CUT [REST_BAND [CUT_BAND MIN_RAMP [MIN_STEP SWITCH LEAD STRENGTH SAMPLES BRAKE_REST [LEARN LEAD_MAX [RELEASE [SHORT_MAX_STEP DRIVE RAMP SWITCH LEAD STRENGTH SAMPLES REST [CREEP]]]]]]]]]"
                 " < trace.csv\n",
                 argv[0]);
         return 2;
@@ -58,6 +59,8 @@ int main(int argc, char **argv) {
     c.nudge_band = c.nudge_ramp = c.nudge_start_fraction = c.nudge_cut_fraction = 0.0;
     c.nudge_rest_band = 0.0;
     c.nudge_cut_band = c.nudge_min_ramp = 0.0;
+    /* The creep limit: off (0) unless given, as in a struct zeroed before it existed. */
+    c.nudge_creep_step = argc == 40 ? atof(argv[39]) : 0.0;
     if (c.has_nudge) {
         c.nudge_band = atof(argv[14]);
         c.nudge_ramp = atof(argv[15]);
@@ -92,7 +95,7 @@ int main(int argc, char **argv) {
     c.short_samples = c.short_rest_samples = 0;
     c.short_max_step = c.short_drive_fraction = c.short_ramp = 0.0;
     c.short_switch = c.short_lead = c.short_strength = 0.0;
-    if (argc == 39) {
+    if (argc >= 39) {
         c.short_max_step = atof(argv[31]);
         c.short_drive_fraction = atof(argv[32]);
         c.short_ramp = atof(argv[33]);

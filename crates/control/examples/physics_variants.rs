@@ -37,6 +37,7 @@
 //! (`short_approach` of CONTROLLER.json; e_m = 0 removes it).
 //! Session 18: CREEP=e_v replaces ramp-and-cut's creep limit (`nudge.creep_step_mm`, mm per sample;
 //! 0 = off: cut at the first count).
+//! SHORT_EM=mm replaces the file's short-step range e_m (`max_step_mm`).
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
 use control::tune::{self, Spec};
 use control::ControllerFile;
@@ -270,6 +271,9 @@ fn main() {
             brake_samples: v[6] as u32,
             rest_samples: v[7] as u32,
         });
+    }
+    if let (Ok(v), Some(a)) = (std::env::var("SHORT_EM"), s.short_approach.as_mut()) {
+        a.max_step_mm = v.parse().unwrap();
     }
     let spec = Spec::default();
     let approach: Option<Vec<f64>> = std::env::var("APPROACH")

@@ -202,9 +202,25 @@ fn tuning_meets_the_spec_where_it_is_reachable() {
         tune::evaluate(5, &f, &factory, &spec).unwrap()
     };
     let better = |w: &tune::Evaluation| e.met > w.met || (e.met == w.met && e.cost < w.cost);
-    assert_eq!(t.short_evaluations, tune::SHORT_CANDIDATES);
     let mut searched = t.settings;
-    // The short-step approach (session 17) was the last choice: without it, the controller before it.
+    // Its range (session 18) is tried only when a short-step approach was chosen.
+    assert_eq!(
+        t.short_evaluations,
+        tune::SHORT_CANDIDATES + usize::from(searched.short_approach.is_some())
+    );
+    // The short-step approach's range was the last choice: a narrowed e_m beat the wider one.
+    let largest = spec.steps_mm.iter().copied().fold(0.0, f64::max);
+    if let Some(a) = searched.short_approach {
+        if a.max_step_mm == tune::SHORT_NARROW_MAX_STEP_FRACTION * largest {
+            let mut wide = searched;
+            wide.short_approach = Some(control::position::ShortApproach {
+                max_step_mm: tune::SHORT_MAX_STEP_FRACTION * largest,
+                ..a
+            });
+            assert!(better(&evaluate(wide)));
+        }
+    }
+    // The short-step approach (session 17) before it: without it, the controller before it.
     if searched.short_approach.take().is_some() {
         assert!(better(&evaluate(searched)));
     }
@@ -306,4 +322,29 @@ fn an_error_of_exactly_two_encoder_counts_meets_the_limit() {
     assert!(two_counts > spec.ess_mm);
     assert!(run_result(two_counts, 0.3).misses(&spec).is_empty());
     assert_eq!(run_result(35.0 - 34.97, 0.3).misses(&spec).len(), 1);
+}
+
+// The short-step approach's range candidate (session 18): the chosen approach with e_m = 2/15 of
+// the largest step (150 mm by default: 20 mm), every other field and setting unchanged; none when
+// no short-step approach was chosen, when e_m is already 20 mm, or without steps.
+#[test]
+fn the_short_step_range_candidate_narrows_only_the_largest_step() {
+    let spec = Spec::default();
+    let mut chosen = p_only(5.0);
+    assert!(tune::short_range_candidates(&chosen, &spec).is_empty());
+    chosen.short_approach = Some(tune::short_approach_of(0.4, 0.01, 0.5, 0.01, &spec));
+    assert!((chosen.short_approach.unwrap().max_step_mm - 40.0).abs() < 1e-9);
+    let c = tune::short_range_candidates(&chosen, &spec);
+    assert_eq!(c.len(), 1);
+    let e_m = c[0].short_approach.unwrap().max_step_mm;
+    assert!((e_m - 20.0).abs() < 1e-9, "{e_m}");
+    let mut back = c[0];
+    back.short_approach.as_mut().unwrap().max_step_mm = chosen.short_approach.unwrap().max_step_mm;
+    assert_eq!(back, chosen);
+    assert!(tune::short_range_candidates(&c[0], &spec).is_empty());
+    let none = Spec {
+        steps_mm: Vec::new(),
+        ..Spec::default()
+    };
+    assert!(tune::short_range_candidates(&chosen, &none).is_empty());
 }

@@ -29,7 +29,8 @@
 //! [`BRAKE_CANDIDATES`] is evaluated at the best controller and kept where it meets the whole
 //! specification in more runs (issue 25, session 15; chosen by the count, not by J: [`choose_by_count`]'s
 //! documentation); then, the same way, the nudge's rest count N_r of [`NUDGE_REST_CANDIDATES`]
-//! (session 16), then the short-step approach of [`short_candidates`] (session 17).
+//! (session 16), then the short-step approach of [`short_candidates`] (session 17), then its range
+//! of [`short_range_candidates`] (session 18).
 //!
 //! **Linear margins.** [`margins`] gives the gain and phase margins of the loop's linear part: the
 //! model's B/A with the deadzone replaced by its slope (compensated, shift mode), under the PID.

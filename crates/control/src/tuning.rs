@@ -454,6 +454,12 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
 /// unreported behind the first crossover's +52°), else a negative or small phase margin, and a
 /// negative gain margin (the loop is unstable at a lower gain, conditionally stable at this one).
 fn linear_loop_warnings(margins: &Margins) -> Vec<String> {
+    // 6 decimals near the unit circle; a loop of absurd gains in scientific notation (not 300 digits).
+    let modulus = |p: Option<f64>| match p {
+        Some(p) if p.abs() < 1e6 => format!("{p:.6}"),
+        Some(p) => format!("{p:.4e}"),
+        None => "n/a".to_string(),
+    };
     let mut w = Vec::new();
     let crossovers = |n: usize| {
         if n > 1 {
@@ -465,8 +471,8 @@ fn linear_loop_warnings(margins: &Margins) -> Vec<String> {
     if margins.closed_loop_unstable() {
         w.push(format!(
             "the linear loop (the model with the deadzone's slope and this controller) is unstable: a \
-             closed-loop pole has modulus {:.6} (> 1){}",
-            margins.closed_loop_max_pole_modulus.unwrap_or(f64::NAN),
+             closed-loop pole has modulus {} (> 1){}",
+            modulus(margins.closed_loop_max_pole_modulus),
             match margins.phase_margin_deg {
                 Some(pm) => format!(
                     "; phase margin {pm:.1}° at {:.2} rad/s{}",
@@ -481,11 +487,11 @@ fn linear_loop_warnings(margins: &Margins) -> Vec<String> {
     match margins.phase_margin_deg {
         Some(pm) if pm < 0.0 => w.push(format!(
             "the linear part's phase margin is {pm:.1}° (negative) at {:.2} rad/s{}, although the \
-             linear closed loop's poles are inside the unit circle (largest modulus {:.6}): the loop is \
+             linear closed loop's poles are inside the unit circle (largest modulus {}): the loop is \
              conditionally stable, a change of gain or delay can destabilise it",
             margins.gain_crossover_rad_s.unwrap_or(f64::NAN),
             crossovers(margins.gain_crossovers),
-            margins.closed_loop_max_pole_modulus.unwrap_or(f64::NAN),
+            modulus(margins.closed_loop_max_pole_modulus),
         )),
         Some(pm) if pm < 30.0 => w.push(format!(
             "the linear part's phase margin is {pm:.1}° (< 30°){}: the loop is close to oscillating",

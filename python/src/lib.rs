@@ -791,12 +791,14 @@ fn py_float(v: Option<f64>) -> String {
 /// `breakpoints` K, "polynomial" with `degree` D) chooses the input's static nonlinearity instead of
 /// `model`; `output_nonlinearity` ("saturation", "piecewise-linear", "polynomial", the command line's
 /// `--output-nonlinearity`) adds y = g(v) after the linear block, fitted by output error.
+/// `detrend` ("none", "mean", "linear", the command line's `--detrend`) removes the record's operating
+/// point before the estimation; the model stores (u0, y0) and puts it back in its simulations.
 #[pyfunction]
 #[pyo3(signature = (u, y, ts, model="hammerstein", method=None, na=3, nb=1, nk=1, forgetting=1.0,
     p0=1e6, offset=false, validation=None, passes=None, max_iterations=100, rls_form="standard",
     windup="none", max_trace=None, iv_stages=10, name="data", validation_name="validation",
     resid_lags=25, fallback=false, nonlinearity=None, breakpoints=None, degree=None,
-    output_nonlinearity=None, structure=None, stop="sim", max_terms=30, refine=true))]
+    output_nonlinearity=None, structure=None, stop="sim", max_terms=30, refine=true, detrend="none"))]
 #[allow(clippy::too_many_arguments)]
 fn identify<'py>(
     py: Python<'py>,
@@ -830,9 +832,12 @@ fn identify<'py>(
     stop: &str,
     max_terms: usize,
     refine: bool,
+    detrend: &str,
 ) -> PyResult<Bound<'py, PyAny>> {
     // `structure` is the command line's --structure (`model` its older spelling).
     let model = structure.unwrap_or(model);
+    // The command line's --detrend none|mean|linear (audit s18 L-5).
+    let detrend: sysid::detrend::Detrend = choice("--detrend", detrend)?;
     // The settings one kind of model uses and the other ignores are refused where they would be
     // ignored, as the command line refuses their flags (`identify::Args::check_flags`): a value other
     // than the default (or, for `method`, any value) counts as given.
@@ -906,6 +911,13 @@ fn identify<'py>(
         ));
     }
     let method = method.unwrap_or("rls");
+    if narx && detrend != sysid::detrend::Detrend::None {
+        return Err(setting_err(
+            "detrend",
+            detrend,
+            "none with structure=\"narx\" (it takes no detrend: offer the constant term with offset=True instead)",
+        ));
+    }
     if narx {
         let settings = sysid::narx::NarxSettings {
             na,
@@ -1011,7 +1023,17 @@ fn identify<'py>(
         .transpose()?;
     let mut report = py
         .detach(|| -> Result<IdentifyReport, SysidError> {
-            let fit = sysid::identify(&data, &settings)?;
+            // As `identify --detrend`: estimated on the deviations from the operating point, which
+            // the model stores (with its data range in the record's units) and puts back; metrics,
+            // residuals and warnings on the record as given.
+            let (estimation, op) = sysid::detrend::detrend(&data, detrend);
+            let mut fit = sysid::identify(&estimation, &settings)?;
+            if op.is_some() {
+                fit.model = fit
+                    .model
+                    .with_operating_point(op)?
+                    .with_data_range(sysid::DataRange::of(std::slice::from_ref(&data)))?;
+            }
             IdentifyReport::assemble(
                 &fit,
                 &settings,
@@ -1022,7 +1044,19 @@ fn identify<'py>(
         })
         .map_err(sysid_err)?;
     report.warnings.extend(in_sample(&data, val.as_ref()));
-    let json = report.to_json().map_err(sysid_err)?;
+    let mut json = report.to_json().map_err(sysid_err)?;
+    if detrend != sysid::detrend::Detrend::None {
+        // The keys `identify --detrend --json` adds (the reader's notes: none for arrays).
+        let mut value: serde_json::Value =
+            serde_json::from_str(&json).map_err(|e| PyValueError::new_err(e.to_string()))?;
+        if let Some(obj) = value.as_object_mut() {
+            obj.insert("detrend".into(), serde_json::json!(detrend));
+            obj.insert("data_notes".into(), serde_json::json!(Vec::<String>::new()));
+        }
+        json = serde_json::to_string_pretty(&value)
+            .map_err(|e| PyValueError::new_err(e.to_string()))?
+            + "\n";
+    }
     Ok(Bound::new(py, PyFit { report, json })?.into_any())
 }
 
@@ -1496,6 +1530,9 @@ fn plant_spec(plant: &str) -> PyResult<ipa::PlantSpec> {
 /// (t, u, y, pressures) — t in s, u in counts, y in mm (noise included), pressures an N × 2 array of
 /// the chamber pressures p_a, p_b in Pa (physics plant `ipa` only; None otherwise; the CSV of the
 /// command line rounds them to 0.1 Pa). `plant`: "ipa", "paper", or a model file ("model:FILE" or its path).
+/// The command line's warnings (a model file's doubts, a start outside its data, an input or output
+/// beyond its estimation data, a flat physics record, the paper model beyond the stroke) are each
+/// issued as an `IpaSysidWarning` (`sysid_summary::simulation`, the list `simulate` prints).
 #[pyfunction]
 #[pyo3(signature = (plant="ipa", input="staircase", samples=None, seed=0, amplitude=255.0, ts=None,
     x0=None, noise_std=0.0, plant_config=None))]
@@ -1517,18 +1554,75 @@ fn simulate_plant<'py>(
     Bound<'py, PyArray1<f64>>,
     Option<Bound<'py, PyArray2<f64>>>,
 )> {
+    let plant = plant_spec(plant)?;
+    // The model a `model:FILE` plant names, for its warnings (those of `simulate --plant model:FILE`,
+    // audit s18 M-2): its file's doubts first, said with the file's name.
+    let (mut warnings, model, narx_range) = match &plant {
+        ipa::PlantSpec::ModelFile(path) => {
+            match sysid::model_file::read_any_model(path).map_err(sysid_err)? {
+                sysid::model_file::AnyModel::Linear(m) => {
+                    let w = sysid_summary::simulation::model_file_warnings(&m)
+                        .into_iter()
+                        .map(|w| format!("{}: {w}", path.display()))
+                        .collect();
+                    (w, Some(m), None)
+                }
+                sysid::model_file::AnyModel::Narx(m) => (Vec::new(), None, m.data_range().cloned()),
+            }
+        }
+        _ => (Vec::new(), None, None),
+    };
+    // A file input is read once; its time column's Ts is the physics plant's unless ts= says
+    // otherwise, as on the command line.
+    let input = input
+        .parse::<ipa::InputSpec>()
+        .map_err(ipa_err)?
+        .load()
+        .map_err(ipa_err)?;
+    let file_ts = input.file_ts();
+    let run_ts = match (ts, file_ts, &plant) {
+        (None, Some(f), ipa::PlantSpec::Ipa) => Some(f),
+        _ => ts,
+    };
+    let (physics, paper) = (
+        matches!(plant, ipa::PlantSpec::Ipa),
+        matches!(plant, ipa::PlantSpec::Paper),
+    );
     let exp = ipa::Experiment {
-        plant: plant_spec(plant)?,
+        plant,
         plant_config,
-        input: input.parse().map_err(ipa_err)?,
+        input,
         amplitude,
         samples,
-        ts,
+        ts: run_ts,
         x0,
         seed,
         noise_std,
     };
+    exp.check().map_err(ipa_err)?;
+    let y0 = match exp.x0 {
+        Some(v) => v,
+        None => exp.plant.default_y0().map_err(ipa_err)?,
+    };
+    let exp = ipa::Experiment {
+        x0: Some(y0),
+        ..exp
+    };
     let rec = py.detach(|| exp.run()).map_err(ipa_err)?;
+    let run = sysid_summary::simulation::OpenLoopRun {
+        model: model.as_ref(),
+        narx_range: narx_range.as_ref(),
+        physics,
+        paper_stroke_mm: paper.then(|| ipa::PlantConfig::default().cylinder.stroke_mm),
+        y0,
+        y0_default: x0.is_none(),
+        input_file: exp.input.file().map(|p| (p, file_ts)),
+        ts_setting: ts,
+    };
+    warnings.extend(sysid_summary::simulation::record_warnings(
+        &run, &rec.u, &rec.y, rec.ts,
+    ));
+    warn_all(py, &warnings)?;
     let t = sysid::data::sample_times(rec.u.len(), rec.ts);
     let pressures = rec.pressures.map(|p| {
         let flat: Vec<f64> = p.iter().flatten().copied().collect();
@@ -1625,10 +1719,11 @@ fn control_loop<'py>(
     use ::control::{AntiWindup, IntegralForm, Profile, SlopeMode};
     // A tuned controller (the JSON of a controller file; the Python wrapper turns the "controller" of
     // tune()'s result into it).
-    let tuned = controller
-        .map(|text| ::control::ControllerFile::parse(text, "controller"))
+    let tuned_file = controller
+        .map(|text| ::control::ControllerFile::parse_file(text, "controller"))
         .transpose()
         .map_err(control_err)?;
+    let tuned = tuned_file.as_ref().map(|f| f.controller);
     if tuned.is_some() && compensate_deadzone.is_some() {
         return Err(setting_err(
             "--controller",
@@ -1708,13 +1803,15 @@ fn control_loop<'py>(
     let mut pi = settings.build(ts).map_err(control_err)?;
     let mut position = tuned.map(|t| t.build()).transpose().map_err(control_err)?;
     let u_max = tuned.map_or(u_max, |t| t.u_max);
+    let mut compensator_warning = None;
     let compensator = match compensate_deadzone {
         None => None,
         Some(obj) => {
             let deadzone = if obj.extract::<&str>().ok() == Some("paper") {
                 Model::paper().deadzone().copied()
             } else {
-                obj.cast::<PyModel>()
+                let m = &obj
+                    .cast::<PyModel>()
                     .map_err(|_| {
                         setting_err(
                             "--compensate-deadzone",
@@ -1723,9 +1820,9 @@ fn control_loop<'py>(
                         )
                     })?
                     .get()
-                    .inner
-                    .deadzone()
-                    .copied()
+                    .inner;
+                compensator_warning = ::control::tuning::compensator_scale_warning(m, u_max);
+                m.deadzone().copied()
             };
             let Some(deadzone) = deadzone else {
                 return Err(setting_err(
@@ -1780,8 +1877,14 @@ fn control_loop<'py>(
             Ok((trace, run))
         })
         .map_err(control_err)?;
-    // The model file's own doubts (a crossed deadzone), then the loop's.
-    let mut warnings = limits.model_warnings.clone();
+    // The model file's own doubts (a crossed deadzone), the controller file's, then the loop's.
+    let mut warnings = ::control::trust::setup_warnings(
+        &limits.model_warnings,
+        tuned_file.as_ref(),
+        compensator_warning,
+        &profile,
+        duration_s,
+    );
     warnings.extend(::control::loop_warnings(
         &trace,
         &run.steps,
@@ -1884,7 +1987,8 @@ fn tune<'py>(
         physics_variants,
     };
     let report = py.detach(|| tuning::run(&req)).map_err(control_err)?;
-    let file = ::control::ControllerFile::new(report.controller, None);
+    // With its provenance, as `tune --out` writes it: control() repeats a missed spec (audit s18 M-4).
+    let file = report.controller_file();
     let text = serde_json::to_string_pretty(&file)
         .map_err(|e| PyArithmeticError::new_err(format!("serialising the controller: {e}")))?;
     let out = to_py(py, &report)?;
@@ -1894,14 +1998,16 @@ fn tune<'py>(
 
 /// ipa-sysid from Python: identification (Hammerstein/ARX by LS, RLS, OE, IV), recursive least
 /// squares, the physics IPA simulator and PI control, computed in Rust.
-/// Calibrates the physics plant to a record, as `ipa-sysid calibrate` (without the Hammerstein
-/// baseline, which `identify` gives): `data` and `validation` are CSV paths (columns u, y and, when
-/// present, p_a_pa, p_b_pa; the validation record's own columns `val_u_col`/`val_y_col`, default
-/// `u_col`/`y_col`); returns a dict with "estimates" (parameter, key, unit, start, value, std,
-/// at_bound), "correlation", "segments", "iterations", "simulations", "termination", "cost_start",
-/// "cost", the free-run fits "fit_estimation_start_percent", "fit_estimation_percent",
-/// "fit_validation_start_percent", "fit_validation_percent", "warnings" and "toml" (the plant-config
-/// of the twin, as `--out` writes it, with its `[calibration]` table of fits and warnings).
+/// Calibrates the physics plant to a record, as `ipa-sysid calibrate --no-baseline` (without the
+/// Hammerstein comparison, which `identify` gives): `data` and `validation` are CSV paths (columns u,
+/// y and, when present, p_a_pa, p_b_pa; the validation record's own columns `val_u_col`/`val_y_col`,
+/// default `u_col`/`y_col`); returns a dict with the keys of `calibrate --no-baseline --json`:
+/// "estimates" (parameter, key, unit, start, value, std, at_bound), "correlation", "ts", "segments",
+/// "used_pressures", "iterations", "simulations", "termination", "cost_start", "cost", "cost_floor",
+/// "segment_rmse_mm", the free-run fits "fit_estimation_start_percent", "fit_estimation_percent",
+/// "fit_validation_start_percent", "fit_validation_percent", "hammerstein" (None), "seconds",
+/// "warnings"; and "toml" (the plant-config of the twin, as `--out` writes it, with its
+/// `[calibration]` table of fits and warnings).
 #[pyfunction]
 #[pyo3(signature = (data, validation=None, free=None, fixed=None, plant_config=None, segment=0.5,
     max_iterations=40, ts=None, u_col="u", y_col="y", t_col="t", no_header=false, val_u_col=None,
@@ -1965,7 +2071,9 @@ fn calibrate<'py>(
         None,
     )
     .map_err(ipa_err)?;
+    let started = std::time::Instant::now();
     let mut twin = py.detach(|| cal.fit(&est, val.as_ref())).map_err(ipa_err)?;
+    let seconds = started.elapsed().as_secs_f64();
     twin.warnings.splice(0..0, notes);
     let fit = |r: &Option<ipa::calibrate::FreeRun>| r.as_ref().and_then(|r| r.fit_percent);
     let out = PyDict::new(py);
@@ -1983,16 +2091,25 @@ fn calibrate<'py>(
     }
     out.set_item("estimates", estimates)?;
     out.set_item("correlation", twin.correlation.clone())?;
+    // The keys of `calibrate --json` (audit s18 L-2), NaN as None as it writes null.
+    let finite = |v: f64| v.is_finite().then_some(v);
+    out.set_item("ts", est.ts)?;
+    out.set_item("used_pressures", twin.used_pressures)?;
     out.set_item("segments", twin.segments)?;
     out.set_item("iterations", twin.iterations)?;
     out.set_item("simulations", twin.evaluations)?;
     out.set_item("termination", twin.termination.to_string())?;
     out.set_item("cost_start", twin.cost_start)?;
     out.set_item("cost", twin.cost)?;
+    out.set_item("cost_floor", twin.cost_floor)?;
+    out.set_item("segment_rmse_mm", finite(twin.segment_rmse_mm))?;
     out.set_item("fit_estimation_start_percent", fit(&twin.estimation_start))?;
     out.set_item("fit_estimation_percent", fit(&twin.estimation))?;
     out.set_item("fit_validation_start_percent", fit(&twin.validation_start))?;
     out.set_item("fit_validation_percent", fit(&twin.validation))?;
+    // No Hammerstein comparison (`identify` gives one): None, as `calibrate --no-baseline --json`.
+    out.set_item("hammerstein", py.None())?;
+    out.set_item("seconds", seconds)?;
     out.set_item(
         "warnings",
         twin.warnings

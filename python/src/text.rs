@@ -45,14 +45,22 @@ fn term(out: &mut String, first: &mut bool, coefficient: f64, signal: &str) {
 }
 
 /// The model as equations: the static nonlinearity of each input, then the difference equation
-/// y(k) = −a1 y(k−1) − … + Σ b_j x(k−nk−j+1) + c, with Ts and the units (u in PWM counts, y in mm for the
-/// IPA; the slopes carry the gain since b1 = 1 for a nonlinear input).
+/// y(k) = −a1 y(k−1) − … + Σ b_j x(k−nk−j+1) + c, with Ts and the units: u in PWM counts and y in mm
+/// for the paper's IPA model, the estimation record's own units for any other (the rule of `control`'s
+/// messages, `ipa::PlantLimits::model_units`; audit s18 L-8: IPA units were printed for a hair-dryer
+/// model). The slopes carry the gain since b1 = 1 for a nonlinear input.
 pub(crate) fn equations(m: &Model) -> String {
     let mut o = String::new();
     let several = m.inputs().len() > 1;
+    let ipa_units = !ipa::PlantLimits::of_model(m).model_units();
+    let (units, u_unit, y_unit) = if ipa_units {
+        ("u in PWM counts, y in mm", " counts", " mm")
+    } else {
+        ("u and y in the estimation record's units", "", "")
+    };
     let _ = writeln!(
         o,
-        "{} model, Ts = {} s (u in PWM counts, y in mm; {} parameters)",
+        "{} model, Ts = {} s ({units}; {} parameters)",
         match m.kind().to_string().as_str() {
             "arx" => "ARX".to_string(),
             "hammerstein" => "Hammerstein".to_string(),
@@ -62,10 +70,15 @@ pub(crate) fn equations(m: &Model) -> String {
         m.parameter_count()
     );
     if let Some(op) = m.operating_point() {
+        let u0: Vec<String> = op.u.iter().map(|v| num(*v)).collect();
+        let u0 = if u0.len() == 1 {
+            u0.concat()
+        } else {
+            format!("({})", u0.join(", "))
+        };
         let _ = writeln!(
             o,
-            "  signals are deviations from the operating point u0 = {:?}, y0 = {} mm",
-            op.u.iter().map(|v| num(*v)).collect::<Vec<_>>(),
+            "  signals are deviations from the operating point u0 = {u0}{u_unit}, y0 = {}{y_unit}",
             num(op.y)
         );
     }
@@ -95,7 +108,7 @@ pub(crate) fn equations(m: &Model) -> String {
                 };
                 let _ = writeln!(
                     o,
-                    "  {x}(k) = {} ({})  if {u} ≥ b_r = {} counts\n  {x}(k) = 0  if b_l < {u} < b_r\n  {x}(k) = {} ({})  if {u} ≤ b_l = {} counts",
+                    "  {x}(k) = {} ({})  if {u} ≥ b_r = {}{u_unit}\n  {x}(k) = 0  if b_l < {u} < b_r\n  {x}(k) = {} ({})  if {u} ≤ b_l = {}{u_unit}",
                     num(d.m_r),
                     shifted(d.b_r),
                     num(d.b_r),

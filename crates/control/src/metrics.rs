@@ -10,6 +10,9 @@
 //! * **peak past the set-point** OS_r = max(0, max_k d_r (y_k - r)) in mm, d_r = sign(r - y0), and
 //!   100 OS_r / |r - y0| in % (the `Overshoot` of MATLAB `stepinfo(y, t, r)`): how far the output went
 //!   beyond r whatever the run's length; `None` when r = y0 (no step towards a set-point).
+//! * **undershoot** US = max(0, max_k −d (y_k − y0)) in mm, and 100 US / |Δ| in % (MATLAB `Undershoot`):
+//!   how far the output first moved the wrong way, below y0 for a step up (a non-minimum-phase plant,
+//!   or a loop kicked backwards by its controller; audit s18 L-4).
 //! * **steady-state error** e_ss = r - y_f in mm (signed).
 //! * **rise time** t_r = t_90 - t_10, where t_p is the first time d (y - y0) reaches p |Δ|, found by linear
 //!   interpolation between the two samples around the crossing (MATLAB `RiseTime`, limits 10 %-90 %).
@@ -61,6 +64,13 @@ pub struct StepMetrics {
     /// OS_r as a percentage of the set-point step |r - y0|.
     #[serde(default)]
     pub overshoot_past_setpoint_percent: Option<f64>,
+    /// US: the largest excursion the wrong way, from y0 away from y_f, in mm (>= 0; MATLAB `stepinfo`
+    /// `Undershoot`); absent (`None`) in files written before it existed.
+    #[serde(default)]
+    pub undershoot_mm: Option<f64>,
+    /// US as a percentage of the step |y_f - y0|.
+    #[serde(default)]
+    pub undershoot_percent: Option<f64>,
     /// e_ss = r - y_f: set-point minus final value, in mm.
     pub steady_state_error_mm: Option<f64>,
     /// t_r: 10 %-90 % rise time in s.
@@ -152,6 +162,8 @@ impl StepMetrics {
             overshoot_percent: None,
             overshoot_past_setpoint_mm: None,
             overshoot_past_setpoint_percent: None,
+            undershoot_mm: None,
+            undershoot_percent: None,
             steady_state_error_mm: ess,
             rise_time_s: None,
             settling_time_s: None,
@@ -179,6 +191,7 @@ impl StepMetrics {
 
         let peak = (0..n).map(z).fold(f64::NEG_INFINITY, f64::max);
         let overshoot = (peak - step).max(0.0);
+        let undershoot = 0.0 - (0..n).map(z).fold(0.0, f64::min);
 
         // The peak past r and how far towards r the output ever got (d = d_r here: a step that ended
         // on the far side of y0 from r moved away, above).
@@ -209,6 +222,8 @@ impl StepMetrics {
             overshoot_percent: Some(100.0 * overshoot / step),
             overshoot_past_setpoint_mm: past_r,
             overshoot_past_setpoint_percent: past_r.map(|p| 100.0 * p / r_step),
+            undershoot_mm: Some(undershoot),
+            undershoot_percent: Some(100.0 * undershoot / step),
             steady_state_error_mm: ess,
             rise_time_s: rise.filter(|_| reached_r90 || settled.is_ok()),
             settling_time_s: settled.ok(),
@@ -224,7 +239,7 @@ impl StepMetrics {
             .or(self.overshoot_percent)
     }
 
-    /// Field-wise worst case over several steps (largest overshoot, rise and settling time; the steady-state
+    /// Field-wise worst case over several steps (largest overshoot, undershoot, rise and settling time; the steady-state
     /// error of largest magnitude, sign kept). `None` fields are skipped (a step without a step has no
     /// relative metrics), except that the settling time is `None` when any step that moved, or whose
     /// output did not follow its set-point at all, has not settled; `None` if `steps` is empty.
@@ -260,6 +275,8 @@ impl StepMetrics {
                     a.overshoot_past_setpoint_percent,
                     b.overshoot_past_setpoint_percent,
                 ),
+                undershoot_mm: pick(a.undershoot_mm, b.undershoot_mm),
+                undershoot_percent: pick(a.undershoot_percent, b.undershoot_percent),
                 steady_state_error_mm: pick(a.steady_state_error_mm, b.steady_state_error_mm),
                 rise_time_s: pick(a.rise_time_s, b.rise_time_s),
                 settling_time_s: pick(a.settling_time_s, b.settling_time_s),
@@ -987,6 +1004,8 @@ mod tests {
             overshoot_percent: Some(2.0),
             overshoot_past_setpoint_mm: Some(1.1),
             overshoot_past_setpoint_percent: Some(2.2),
+            undershoot_mm: Some(0.0),
+            undershoot_percent: Some(0.0),
             steady_state_error_mm: Some(0.1),
             rise_time_s: Some(0.3),
             settling_time_s: Some(0.5),
@@ -996,6 +1015,8 @@ mod tests {
             overshoot_percent: Some(4.0),
             overshoot_past_setpoint_mm: Some(0.3),
             overshoot_past_setpoint_percent: Some(3.0),
+            undershoot_mm: Some(0.25),
+            undershoot_percent: Some(2.0),
             steady_state_error_mm: Some(-0.2),
             rise_time_s: Some(0.2),
             settling_time_s: Some(1.0),
@@ -1008,6 +1029,10 @@ mod tests {
         assert_eq!(w.steady_state_error_mm, Some(-0.2));
         assert_eq!(w.rise_time_s, Some(0.3));
         assert_eq!(w.settling_time_s, Some(1.0));
+        assert_eq!(
+            (w.undershoot_mm, w.undershoot_percent),
+            (Some(0.25), Some(2.0))
+        );
         assert!(StepMetrics::worst([]).is_none());
         // A step that never left y0 has no settling time to take; one that moved without settling
         // makes the run unsettled.
@@ -1016,6 +1041,8 @@ mod tests {
             overshoot_percent: None,
             overshoot_past_setpoint_mm: None,
             overshoot_past_setpoint_percent: None,
+            undershoot_mm: None,
+            undershoot_percent: None,
             steady_state_error_mm: Some(0.0),
             rise_time_s: None,
             settling_time_s: None,
@@ -1029,6 +1056,36 @@ mod tests {
         let w = StepMetrics::worst([&unsettled, &b]).unwrap();
         assert_eq!(w.settling_time_s, None);
         assert_eq!(w.rise_time_s, Some(0.3));
+    }
+
+    // y0 = 0, r = 10: y dips to −1.5 before rising to 10 (a non-minimum-phase response):
+    // US = 1.5 mm, 100 · 1.5 / 10 = 15 % (MATLAB stepinfo Undershoot); a step down from 10 to 0 that
+    // first rises to 10.5 has US = 0.5 mm, 5 %; a monotone step has US = 0.
+    #[test]
+    fn undershoot_is_the_wrong_way_excursion_from_y0_in_percent_of_the_step() {
+        let t: Vec<f64> = (0..=40).map(|k| k as f64 * 0.1).collect();
+        let mut y: Vec<f64> = vec![10.0; 41];
+        y[..4].copy_from_slice(&[0.0, -1.5, -0.5, 5.0]);
+        let m = StepMetrics::compute(&t, &y, 0.0, 10.0).unwrap();
+        assert_eq!(m.undershoot_mm, Some(1.5));
+        assert!(
+            (m.undershoot_percent.unwrap() - 15.0).abs() < 1e-12,
+            "{m:?}"
+        );
+        let down: Vec<f64> = (0..=40)
+            .map(|k| match k {
+                0 => 10.0,
+                1 => 10.5,
+                2 => 4.0,
+                _ => 0.0,
+            })
+            .collect();
+        let m = StepMetrics::compute(&t, &down, 10.0, 0.0).unwrap();
+        assert_eq!(m.undershoot_mm, Some(0.5));
+        assert!((m.undershoot_percent.unwrap() - 5.0).abs() < 1e-12, "{m:?}");
+        let ramp: Vec<f64> = t.iter().map(|&t| t.min(1.0)).collect();
+        let m = StepMetrics::compute(&t, &ramp, 0.0, 1.0).unwrap();
+        assert_eq!(m.undershoot_mm, Some(0.0));
     }
 
     // y0 = 0, r = 100: y rises to 103 and falls back to 101.5 where the run ends still moving.

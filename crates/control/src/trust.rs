@@ -11,7 +11,9 @@
 //! - a set-point outside the plant's reachable range (the IPA's stroke, 0..L mm);
 //! - an unstable plant model (its metrics describe a diverging simulation);
 //! - a step (of a fixed set-point or a staircase) that misses the paper's acceptance (overshoot < 10 %,
-//!   |e_ss| < 2 % of the step).
+//!   |e_ss| < 2 % of the step);
+//! - a step that first moves the wrong way by [`UNDERSHOOT_WARN_PERCENT`] of the step or more (MATLAB
+//!   `stepinfo` Undershoot; not one of the paper's criteria, so said beside them).
 
 use crate::metrics::{still_moving, StepSegment, Unsettled, SETTLING_BAND, TAIL_FRACTION};
 use crate::Trace;
@@ -20,6 +22,10 @@ use crate::Trace;
 /// stroke; a model plant has no stroke to check against); also the largest start of a model plant
 /// (`ipa::spec::MAX_START_ABS`).
 pub const DIVERGED_MM: f64 = 1e6;
+
+/// Undershoot (the wrong-way excursion from y0, % of the step) from which a step is warned about: the
+/// paper's overshoot limit, 10 %, mirrored below y0 (audit s18 L-4: a 10.4 % dip passed silently).
+pub const UNDERSHOOT_WARN_PERCENT: f64 = 10.0;
 
 /// A value with 4 decimals, in scientific notation beyond 1e9 in magnitude (a diverging loop's
 /// numbers would otherwise print hundreds of digits).
@@ -347,15 +353,29 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
                     fmt_value(0.02 * step)
                 ));
             }
+            let which = if steps.len() == 1 {
+                "the step".to_string()
+            } else {
+                format!(
+                    "the step to r = {} {y_unit} at t = {:.3} s",
+                    s.setpoint_mm, s.start_s
+                )
+            };
+            if let (Some(us), Some(pc)) = (
+                s.metrics.undershoot_mm,
+                s.metrics
+                    .undershoot_percent
+                    .filter(|p| *p >= UNDERSHOOT_WARN_PERCENT),
+            ) {
+                w.push(format!(
+                    "{which} first moves {} {y_unit} the wrong way ({} % of the step, MATLAB stepinfo's \
+                     Undershoot) before it moves towards r: the paper's acceptance (overshoot, e_ss) does not judge \
+                     this dip",
+                    fmt_value(us),
+                    fmt_value(pc)
+                ));
+            }
             if !missed.is_empty() {
-                let which = if steps.len() == 1 {
-                    "the step".to_string()
-                } else {
-                    format!(
-                        "the step to r = {} {y_unit} at t = {:.3} s",
-                        s.setpoint_mm, s.start_s
-                    )
-                };
                 w.push(format!(
                     "{which} misses the paper's acceptance: {}",
                     missed.join("; ")
@@ -363,6 +383,26 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
             }
         }
     }
+    w
+}
+
+/// The warnings of a closed-loop run that come before its loop's own ([`loop_warnings`]), in the
+/// order `ipa-sysid control` prints them: the plant model file's doubts, what a controller file's
+/// provenance says against it ([`crate::ControllerFile::provenance_warning`]), the deadzone
+/// compensator's scale ([`crate::tuning::compensator_scale_warning`]) and a profile row the run never
+/// reaches ([`crate::Profile::last_row_warning`]). One list for the command line and the Python
+/// package's `control` (audit s18 M-4: the provenance warning was the command line's only).
+pub fn setup_warnings(
+    model_warnings: &[String],
+    controller_file: Option<&crate::ControllerFile>,
+    compensator_warning: Option<String>,
+    profile: &crate::Profile,
+    duration_s: f64,
+) -> Vec<String> {
+    let mut w = model_warnings.to_vec();
+    w.extend(controller_file.and_then(|f| f.provenance_warning()));
+    w.extend(compensator_warning);
+    w.extend(profile.last_row_warning(duration_s));
     w
 }
 

@@ -1203,15 +1203,27 @@ pub fn model_variant(model: &Model, i: usize, spread: f64) -> Result<Model, Cont
 /// Gain and phase margins of the loop's linear part.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Margins {
-    /// Gain margin in dB (the smallest over the phase crossovers); `None` when the phase never crosses
-    /// −180° above the lowest frequency examined.
+    /// Gain margin in dB: of the points where the Nyquist curve L(e^{jωTs}) meets the negative real
+    /// axis (phase crossovers, the Nyquist frequency π/Ts included), the one nearest 0 dB, as MATLAB
+    /// `margin` and python-control `stability_margins` choose it; `None` when there is none above the
+    /// lowest frequency examined.
     pub gain_margin_db: Option<f64>,
     /// Frequency of that phase crossover, rad/s.
     pub phase_crossover_rad_s: Option<f64>,
-    /// Phase margin in degrees at the (first) gain crossover; `None` when |L| never crosses 1.
+    /// Number of phase crossovers found (each a candidate for the gain margin).
+    pub phase_crossovers: usize,
+    /// Phase margin in degrees: of the gain crossovers (|L| = 1), the one nearest 0° (the smallest
+    /// |PM|, as MATLAB `margin` and python-control `stability_margins`); `None` when |L| never
+    /// crosses 1.
     pub phase_margin_deg: Option<f64>,
-    /// Gain crossover frequency, rad/s.
+    /// Gain crossover frequency of that phase margin, rad/s.
     pub gain_crossover_rad_s: Option<f64>,
+    /// Number of gain crossovers found (each a candidate for the phase margin).
+    pub gain_crossovers: usize,
+    /// Largest modulus of the linear closed loop's poles, the roots of D_c A + N_c m z^{-nk} B
+    /// (C = N_c/D_c): above 1 the linear loop is unstable whatever the margins say. `None` when the
+    /// roots could not be computed (non-finite coefficients).
+    pub closed_loop_max_pole_modulus: Option<f64>,
     /// The linear part has a pole outside the unit circle (|p| > 1): the margins above then
     /// do not show that the closed loop is stable (Nyquist: L must encircle −1 once per open-loop
     /// pole outside the circle), only how far the frequency response passes from −1.
@@ -1222,6 +1234,18 @@ pub struct Margins {
     pub output_slope_included: Option<bool>,
 }
 
+impl Margins {
+    /// Modulus above which a closed-loop pole counts as outside the unit circle (rounding of the
+    /// companion-matrix eigenvalues of a pole on the circle).
+    pub const UNSTABLE_POLE_TOLERANCE: f64 = 1e-9;
+
+    /// The linear closed loop has a pole outside the unit circle.
+    pub fn closed_loop_unstable(&self) -> bool {
+        self.closed_loop_max_pole_modulus
+            .is_some_and(|p| p > 1.0 + Self::UNSTABLE_POLE_TOLERANCE)
+    }
+}
+
 /// Gain and phase margins of L(e^{jωTs}) = C · G: G = m z^{-nk} B(z⁻¹)/A(z⁻¹) the model's linear part
 /// with the deadzone replaced by its mean slope m = (m_l + m_r)/2 (what the shift compensator leaves)
 /// and, for a model with an output saturation, times that saturation's slope inside its limits,
@@ -1230,7 +1254,12 @@ pub struct Margins {
 /// frequencies from 10⁻³ rad/s to the Nyquist frequency π/Ts; the phase is unwrapped from the lowest
 /// frequency and crossings are located by linear interpolation. With a near-integrator plant under
 /// a PI the phase starts near −180°: a crossing at the lowest frequencies is not a margin, so the
-/// crossings counted are those above the first frequency where the phase is above −180°.
+/// crossings counted are those above the first frequency where the phase is above −180°. At the
+/// Nyquist frequency L(−1) is real: a negative L(−1) is a phase crossover too (audit s18 M-1).
+/// Of several crossovers the margin nearest instability is reported (smallest |GM| in dB, smallest
+/// |PM|; MATLAB `margin`, python-control `stability_margins`; audit s18 H-2: the first gain crossover
+/// alone read +52° on a loop whose third crossover has −39°), and the closed loop's poles are
+/// computed directly ([`Margins::closed_loop_max_pole_modulus`]).
 pub fn margins(model: &Model, s: &ControllerSettings) -> Margins {
     use std::f64::consts::PI;
     let ts = s.ts_s;
@@ -1251,10 +1280,8 @@ pub fn margins(model: &Model, s: &ControllerSettings) -> Margins {
     let mut mags = Vec::with_capacity(n);
     let mut phases = Vec::with_capacity(n);
     let mut ws = Vec::with_capacity(n);
-    let mut prev_phase: Option<f64> = None;
-    for k in 0..n {
-        let w = w_lo * (w_hi / w_lo).powf(k as f64 / (n - 1) as f64);
-        let th = w * ts;
+    // L(e^{jθ}) at θ = ωTs, as (re, im).
+    let loop_response = |th: f64| {
         // z^{-m} = e^{-j m θ}
         let zi = |m: f64| (f64::cos(m * th), -f64::sin(m * th));
         let mul = |a: (f64, f64), b: (f64, f64)| (a.0 * b.0 - a.1 * b.1, a.0 * b.1 + a.1 * b.0);
@@ -1283,7 +1310,12 @@ pub fn margins(model: &Model, s: &ControllerSettings) -> Margins {
             (1.0 - alpha * zi(1.0).0, -alpha * zi(1.0).1),
         );
         let c = (s.kp + integ.0 + deriv.0, integ.1 + deriv.1);
-        let l = mul(c, g);
+        mul(c, g)
+    };
+    let mut prev_phase: Option<f64> = None;
+    for k in 0..n {
+        let w = w_lo * (w_hi / w_lo).powf(k as f64 / (n - 1) as f64);
+        let l = loop_response(w * ts);
         let mag = (l.0 * l.0 + l.1 * l.1).sqrt();
         let mut ph = l.1.atan2(l.0).to_degrees();
         if let Some(p) = prev_phase {
@@ -1313,8 +1345,10 @@ pub fn margins(model: &Model, s: &ControllerSettings) -> Margins {
         (ws[k - 1].ln() + f * (ws[k].ln() - ws[k - 1].ln())).exp()
     };
     let first_above = (0..n).find(|&k| phases[k] > -180.0).unwrap_or(n);
-    let mut gm: Option<(f64, f64)> = None;
-    let mut pm: Option<(f64, f64)> = None;
+    // Every candidate (margin, ω); the reported one is the nearest to instability (|margin| smallest).
+    let mut gms: Vec<(f64, f64)> = Vec::new();
+    let mut pms: Vec<(f64, f64)> = Vec::new();
+    let mut crossed_in_last_interval = false;
     for k in (first_above + 1).max(1)..n {
         let (p0, p1) = (phases[k - 1], phases[k]);
         // Crossings of −180° (mod 360) between consecutive samples.
@@ -1325,14 +1359,25 @@ pub fn margins(model: &Model, s: &ControllerSettings) -> Margins {
             let w = interp(k, p0, p1, level);
             let f = (level - p0) / (p1 - p0);
             let mag = mags[k - 1] + f * (mags[k] - mags[k - 1]);
-            let margin = -20.0 * mag.log10();
-            if gm.is_none_or(|(g, _)| margin < g) {
-                gm = Some((margin, w));
-            }
+            gms.push((-20.0 * mag.log10(), w));
+            crossed_in_last_interval = k == n - 1;
+        }
+    }
+    // At ω = π/Ts (z = −1) L is real: when it is negative the Nyquist curve meets the negative real
+    // axis there, a phase crossover that the band test above misses when the phase lands on −180°
+    // exactly at the last sample (audit s18 M-1).
+    if !crossed_in_last_interval {
+        let l_nyq = loop_response(PI);
+        if l_nyq.0 < 0.0 && l_nyq.1.abs() <= 1e-9 * l_nyq.0.abs() {
+            gms.push((-20.0 * l_nyq.0.abs().log10(), w_hi));
         }
     }
     for k in 1..n {
         if (mags[k - 1] - 1.0) * (mags[k] - 1.0) <= 0.0 && mags[k - 1] != mags[k] {
+            // A sample exactly at |L| = 1 touches both intervals around it: count it once.
+            if k >= 2 && mags[k - 1] == 1.0 && (mags[k - 2] - 1.0) * (mags[k - 1] - 1.0) <= 0.0 {
+                continue;
+            }
             let w = interp(k, mags[k - 1], mags[k], 1.0);
             let f = (1.0 - mags[k - 1]) / (mags[k] - mags[k - 1]);
             let ph = phases[k - 1] + f * (phases[k] - phases[k - 1]);
@@ -1342,23 +1387,99 @@ pub fn margins(model: &Model, s: &ControllerSettings) -> Margins {
             } else {
                 margin
             };
-            pm = Some((margin, w));
-            break;
+            pms.push((margin, w));
         }
     }
     // A loop gain that overflows (a model with absurd gains) has no margin to report.
-    let gm = gm.filter(|(g, w)| g.is_finite() && w.is_finite());
-    let pm = pm.filter(|(p, w)| p.is_finite() && w.is_finite());
+    let nearest = |v: &[(f64, f64)]| {
+        v.iter()
+            .copied()
+            .filter(|(g, w)| g.is_finite() && w.is_finite())
+            .min_by(|x, y| x.0.abs().total_cmp(&y.0.abs()))
+    };
+    let (gm, pm) = (nearest(&gms), nearest(&pms));
     Margins {
         gain_margin_db: gm.map(|g| g.0),
         phase_crossover_rad_s: gm.map(|g| g.1),
+        phase_crossovers: gms.len(),
         phase_margin_deg: pm.map(|p| p.0),
         gain_crossover_rad_s: pm.map(|p| p.1),
+        gain_crossovers: pms.len(),
+        closed_loop_max_pole_modulus: closed_loop_max_pole(model, s, slope),
         // A pole on the circle (an integrator) is the classical case of margins read with an
         // indented Nyquist contour; only poles outside it break their meaning.
         open_loop_unstable: model.poles().iter().any(|p| p.norm() > 1.0),
         output_slope_included: model.output_nonlinearity().map(|_| output_slope.is_some()),
     }
+}
+
+/// Product of two polynomials in z⁻¹ (coefficients from z⁰ up).
+fn poly_mul(a: &[f64], b: &[f64]) -> Vec<f64> {
+    let mut c = vec![0.0; a.len() + b.len() - 1];
+    for (i, ai) in a.iter().enumerate() {
+        for (j, bj) in b.iter().enumerate() {
+            c[i + j] += ai * bj;
+        }
+    }
+    c
+}
+
+/// Sum of two polynomials in z⁻¹ (coefficients from z⁰ up).
+fn poly_add(a: &[f64], b: &[f64]) -> Vec<f64> {
+    let mut c = vec![0.0; a.len().max(b.len())];
+    for (i, v) in a.iter().enumerate() {
+        c[i] += v;
+    }
+    for (i, v) in b.iter().enumerate() {
+        c[i] += v;
+    }
+    c
+}
+
+/// Largest |pole| of the linear closed loop 1 + C G = 0 of [`margins`]: the roots of
+/// D_c(z⁻¹) A(z⁻¹) + N_c(z⁻¹) m z^{-nk} B(z⁻¹), with C = N_c/D_c in its lowest terms (no integrator
+/// factor 1 − z⁻¹ when Ki = 0, no filter factor 1 − α z⁻¹ when Kd = 0, so that no cancelled pole is
+/// counted): D_c = (1 − z⁻¹)(1 − α z⁻¹), N_c = Kp D_c + Ki Ts (1 − α z⁻¹) + Kd (1 − α)(1 − z⁻¹)²/Ts.
+fn closed_loop_max_pole(model: &Model, s: &ControllerSettings, slope: f64) -> Option<f64> {
+    let ts = s.ts_s;
+    let alpha = s.derivative_filter_s / (s.derivative_filter_s + ts);
+    let integ: &[f64] = if s.ki != 0.0 { &[1.0, -1.0] } else { &[1.0] };
+    let filt: &[f64] = if s.kd != 0.0 { &[1.0, -alpha] } else { &[1.0] };
+    let dc = poly_mul(integ, filt);
+    let mut nc: Vec<f64> = dc.iter().map(|v| s.kp * v).collect();
+    if s.ki != 0.0 {
+        nc = poly_add(&nc, &filt.iter().map(|v| s.ki * ts * v).collect::<Vec<_>>());
+    }
+    if s.kd != 0.0 {
+        // Kd (1 − α)(1 − z⁻¹)/(Ts (1 − α z⁻¹)) over D_c: its numerator times D_c/(1 − α z⁻¹).
+        let d = poly_mul(integ, &[1.0, -1.0]);
+        nc = poly_add(
+            &nc,
+            &d.iter()
+                .map(|v| s.kd * (1.0 - alpha) / ts * v)
+                .collect::<Vec<_>>(),
+        );
+    }
+    let a: Vec<f64> = std::iter::once(1.0)
+        .chain(model.a().iter().copied())
+        .collect();
+    let g: Vec<f64> = std::iter::repeat_n(0.0, model.nk())
+        .chain(model.b().iter().map(|b| slope * b))
+        .collect();
+    let mut ch = poly_add(&poly_mul(&dc, &a), &poly_mul(&nc, &g));
+    while ch.len() > 1 && ch.last() == Some(&0.0) {
+        ch.pop();
+    }
+    let lead = ch[0];
+    if !ch.iter().all(|v| v.is_finite()) || lead == 0.0 {
+        return None;
+    }
+    let monic: Vec<f64> = ch[1..].iter().map(|v| v / lead).collect();
+    if monic.is_empty() {
+        return Some(0.0);
+    }
+    let p = sysid_core::model::poles_of(&monic);
+    Some(p.iter().fold(0.0_f64, |m, z| m.max(z.norm())))
 }
 
 impl Evaluation {

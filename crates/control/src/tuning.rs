@@ -113,6 +113,27 @@ impl TuneReport {
     pub fn meets_spec(&self) -> bool {
         self.warnings.iter().all(|w| !w.starts_with("not met"))
     }
+
+    /// The controller file `tune --out` writes (and Python's `tune()` returns as "controller_file"):
+    /// the controller with its provenance — source, spec, whether it met it and the whole-specification
+    /// count of the last verification, which `control --controller` repeats when the spec was not met
+    /// (audit s17 L-m; s18 M-4 for Python).
+    pub fn controller_file(&self) -> crate::ControllerFile {
+        let last = self.on_physics.as_ref().unwrap_or(&self.on_model);
+        let met = serde_json::json!({
+            "steps": last.comparison.tuned.met,
+            "of": last.comparison.tuned.runs.len(),
+            "on": last.plant,
+        });
+        let provenance = serde_json::json!({
+            "tuned_by": "ipa-sysid tune",
+            "source": self.source,
+            "spec": self.spec,
+            "meets_spec": self.meets_spec(),
+            "met": met,
+        });
+        crate::ControllerFile::new(self.controller, Some(provenance))
+    }
 }
 
 /// Why a model cannot give the controller's deadzone ([`command_deadzone`]).
@@ -398,16 +419,7 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
     if let Some(p) = &on_physics {
         warnings.extend(p.warnings.iter().cloned());
     }
-    match margins.phase_margin_deg {
-        Some(pm) if pm < 0.0 => warnings.push(format!(
-            "the linear part's phase margin is {pm:.1}° (negative): the linear loop (the model with \
-             the deadzone's slope and this controller) is unstable"
-        )),
-        Some(pm) if pm < 30.0 => warnings.push(format!(
-            "the linear part's phase margin is {pm:.1}° (< 30°): the loop is close to oscillating"
-        )),
-        _ => {}
-    }
+    warnings.extend(linear_loop_warnings(&margins));
     warnings.splice(0..0, reach_warnings(&model, &deadzone, &spec));
     if twin.is_none() {
         // What the model file itself holds (a map that is not its kind's shape), as `validate` says it.
@@ -435,6 +447,67 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
         on_physics,
         warnings,
     })
+}
+
+/// What the linear part's closed loop and margins say ([`tune::margins`]): an unstable linear closed
+/// loop from its poles (audit s18 H-2: a third gain crossover at −39° and a pole of modulus 1.012 went
+/// unreported behind the first crossover's +52°), else a negative or small phase margin, and a
+/// negative gain margin (the loop is unstable at a lower gain, conditionally stable at this one).
+fn linear_loop_warnings(margins: &Margins) -> Vec<String> {
+    // 6 decimals near the unit circle; a loop of absurd gains in scientific notation (not 300 digits).
+    let modulus = |p: Option<f64>| match p {
+        Some(p) if p.abs() < 1e6 => format!("{p:.6}"),
+        Some(p) => format!("{p:.4e}"),
+        None => "n/a".to_string(),
+    };
+    let mut w = Vec::new();
+    let crossovers = |n: usize| {
+        if n > 1 {
+            format!(" (the smallest of {n} crossovers)")
+        } else {
+            String::new()
+        }
+    };
+    if margins.closed_loop_unstable() {
+        w.push(format!(
+            "the linear loop (the model with the deadzone's slope and this controller) is unstable: a \
+             closed-loop pole has modulus {} (> 1){}",
+            modulus(margins.closed_loop_max_pole_modulus),
+            match margins.phase_margin_deg {
+                Some(pm) => format!(
+                    "; phase margin {pm:.1}° at {:.2} rad/s{}",
+                    margins.gain_crossover_rad_s.unwrap_or(f64::NAN),
+                    crossovers(margins.gain_crossovers)
+                ),
+                None => String::new(),
+            }
+        ));
+        return w;
+    }
+    match margins.phase_margin_deg {
+        Some(pm) if pm < 0.0 => w.push(format!(
+            "the linear part's phase margin is {pm:.1}° (negative) at {:.2} rad/s{}, although the \
+             linear closed loop's poles are inside the unit circle (largest modulus {}): the loop is \
+             conditionally stable, a change of gain or delay can destabilise it",
+            margins.gain_crossover_rad_s.unwrap_or(f64::NAN),
+            crossovers(margins.gain_crossovers),
+            modulus(margins.closed_loop_max_pole_modulus),
+        )),
+        Some(pm) if pm < 30.0 => w.push(format!(
+            "the linear part's phase margin is {pm:.1}° (< 30°){}: the loop is close to oscillating",
+            crossovers(margins.gain_crossovers)
+        )),
+        _ => {}
+    }
+    if let Some(gm) = margins.gain_margin_db.filter(|g| *g < 0.0) {
+        w.push(format!(
+            "the linear part's gain margin is {gm:.2} dB (negative) at {:.2} rad/s: the linear loop \
+             turns unstable if its gain falls by {:.2} dB (a smaller deadzone slope, a weaker plant)",
+            margins.phase_crossover_rad_s.unwrap_or(f64::NAN),
+            -gm
+        ));
+    }
+    w
 }
 
 /// The model's own stability warning ([`sysid::Warning::if_unstable_or_integrating`], the words

@@ -82,6 +82,241 @@ fn an_output_saturation_s_slope_is_in_the_loop_gain() {
     );
 }
 
+fn first_order(p: f64, m: f64) -> Model {
+    // y(k) = p y(k-1) + f(u(k-1)), deadzone slopes m.
+    Model::hammerstein(
+        0.01,
+        vec![-p],
+        vec![1.0],
+        1,
+        Deadzone {
+            b_l: -1.0,
+            b_r: 1.0,
+            m_l: m,
+            m_r: m,
+        },
+        None,
+    )
+    .unwrap()
+}
+
+// Audit s18 M-1. L(z) = Kp m z⁻¹/(1 − p z⁻¹) with 0 < p < 1 has phase 0 at θ = 0 falling to −180° only
+// at the Nyquist frequency θ = π, where L(−1) = −Kp m/(1 + p): GM = −20 log10(Kp m/(1 + p)), 17.50 dB
+// for p = 0.5, Kp m = 0.2, at ω = π/Ts. The closed loop z − p + Kp m = 0 has its pole at p − Kp m = 0.3;
+// with Kp m = 2 it is at −1.5 (unstable: 1.5 > 1 + p, GM = −2.50 dB).
+#[test]
+fn a_phase_crossover_at_the_nyquist_frequency_gives_the_gain_margin() {
+    let m = tune::margins(&first_order(0.5, 0.01), &p_only(20.0));
+    let gm = -20.0 * (0.2f64 / 1.5).log10();
+    assert!(
+        (m.gain_margin_db.unwrap() - gm).abs() < 1e-9,
+        "{m:?} vs {gm}"
+    );
+    let w_nyquist = std::f64::consts::PI / 0.01;
+    assert!(
+        (m.phase_crossover_rad_s.unwrap() - w_nyquist).abs() < 1e-9,
+        "{m:?}"
+    );
+    assert_eq!(m.phase_crossovers, 1);
+    assert_eq!(m.phase_margin_deg, None, "|L| <= 0.4 never reaches 1");
+    assert!(
+        (m.closed_loop_max_pole_modulus.unwrap() - 0.3).abs() < 1e-12,
+        "{m:?}"
+    );
+    assert!(!m.closed_loop_unstable());
+    let m = tune::margins(&first_order(0.5, 0.01), &p_only(200.0));
+    assert!((m.gain_margin_db.unwrap() + 20.0 * (2.0f64 / 1.5).log10()).abs() < 1e-9);
+    assert!(
+        (m.closed_loop_max_pole_modulus.unwrap() - 1.5).abs() < 1e-12,
+        "{m:?}"
+    );
+    assert!(m.closed_loop_unstable());
+}
+
+/// L(e^{jθ}) of the loop `tune::margins` documents, evaluated here on its own: G = m z^{-nk} B/A,
+/// C = Kp + Ki Ts/(1 − z⁻¹) + Kd (1 − α)(1 − z⁻¹)/(Ts (1 − α z⁻¹)).
+fn loop_at(model: &Model, s: &ControllerSettings, m: f64, th: f64) -> (f64, f64) {
+    let z = |k: f64| (f64::cos(k * th), -f64::sin(k * th)); // z^{-k}
+    let mul = |a: (f64, f64), b: (f64, f64)| (a.0 * b.0 - a.1 * b.1, a.0 * b.1 + a.1 * b.0);
+    let div = |a: (f64, f64), b: (f64, f64)| {
+        let d = b.0 * b.0 + b.1 * b.1;
+        ((a.0 * b.0 + a.1 * b.1) / d, (a.1 * b.0 - a.0 * b.1) / d)
+    };
+    let a = model
+        .a()
+        .iter()
+        .enumerate()
+        .fold((1.0, 0.0), |acc, (i, ai)| {
+            let zi = z((i + 1) as f64);
+            (acc.0 + ai * zi.0, acc.1 + ai * zi.1)
+        });
+    let b = model
+        .b()
+        .iter()
+        .enumerate()
+        .fold((0.0, 0.0), |acc, (i, bi)| {
+            let zi = z((model.nk() + i) as f64);
+            (acc.0 + m * bi * zi.0, acc.1 + m * bi * zi.1)
+        });
+    let alpha = s.derivative_filter_s / (s.derivative_filter_s + s.ts_s);
+    let d1 = (1.0 - z(1.0).0, -z(1.0).1);
+    let i = div((s.ki * s.ts_s, 0.0), d1);
+    let d = div(
+        (
+            s.kd * (1.0 - alpha) / s.ts_s * d1.0,
+            s.kd * (1.0 - alpha) / s.ts_s * d1.1,
+        ),
+        (1.0 - alpha * z(1.0).0, -alpha * z(1.0).1),
+    );
+    mul((s.kp + i.0 + d.0, i.1 + d.1), div(b, a))
+}
+
+/// Every gain crossover |L| = 1 on a uniform θ grid of (0, π], refined by bisection, with its phase
+/// margin 180° + arg L wrapped into (−180°, 180°].
+fn phase_margins(model: &Model, s: &ControllerSettings, m: f64) -> Vec<f64> {
+    let mag = |th: f64| {
+        let l = loop_at(model, s, m, th);
+        (l.0 * l.0 + l.1 * l.1).sqrt() - 1.0
+    };
+    let n = 200_000;
+    let mut out = Vec::new();
+    for k in 1..n {
+        let (t0, t1) = (
+            std::f64::consts::PI * k as f64 / n as f64,
+            std::f64::consts::PI * (k + 1) as f64 / n as f64,
+        );
+        if mag(t0) * mag(t1) < 0.0 {
+            let (mut lo, mut hi) = (t0, t1);
+            for _ in 0..60 {
+                let mid = 0.5 * (lo + hi);
+                if mag(lo) * mag(mid) <= 0.0 {
+                    hi = mid;
+                } else {
+                    lo = mid;
+                }
+            }
+            let l = loop_at(model, s, m, lo);
+            let pm = l.1.atan2(l.0).to_degrees() + 180.0;
+            out.push(if pm > 180.0 { pm - 360.0 } else { pm });
+        }
+    }
+    out
+}
+
+/// Largest |pole| of the linear closed loop from its free response: the loop (P + summed I + filtered
+/// D on e = −y, the plant's difference equation with the deadzone's slope m) simulated from an impulse;
+/// the growth of the response's energy between two late windows is ρ^{2W}.
+fn closed_loop_growth(model: &Model, s: &ControllerSettings, m: f64) -> f64 {
+    let n = 20_000;
+    // Energy per window of W samples; after each window the state is scaled so that its energy is 1
+    // (a linear loop: the scaled future is the future scaled), so the next window's energy is the ratio.
+    const W: usize = 1000;
+    let mut last_ratio = f64::NAN;
+    let mut energy = 0.0;
+    let alpha = s.derivative_filter_s / (s.derivative_filter_s + s.ts_s);
+    let (mut y, mut u) = (vec![0.0; n], vec![0.0; n]);
+    let (mut integ, mut deriv, mut e_prev) = (0.0, 0.0, 0.0);
+    for k in 0..n {
+        let mut yk = 0.0;
+        for (i, a) in model.a().iter().enumerate() {
+            if k > i {
+                yk -= a * y[k - 1 - i];
+            }
+        }
+        for (j, b) in model.b().iter().enumerate() {
+            let lag = model.nk() + j;
+            if k >= lag {
+                yk += m * b * u[k - lag];
+            }
+        }
+        y[k] = yk;
+        let e = if k == 0 { 1.0 } else { 0.0 } - yk;
+        integ += s.ki * s.ts_s * e;
+        deriv = alpha * deriv + s.kd * (1.0 - alpha) * (e - e_prev) / s.ts_s;
+        e_prev = e;
+        u[k] = s.kp * e + integ + deriv;
+        energy += y[k] * y[k];
+        if (k + 1) % W == 0 {
+            if k + 1 > W {
+                last_ratio = energy;
+            }
+            let scale = 1.0 / energy.sqrt();
+            y[..=k]
+                .iter_mut()
+                .chain(u[..=k].iter_mut())
+                .for_each(|v| *v *= scale);
+            integ *= scale;
+            deriv *= scale;
+            e_prev *= scale;
+            energy = 0.0;
+        }
+    }
+    last_ratio.powf(1.0 / (2.0 * W as f64))
+}
+
+// Audit s18 H-2: the audit's resonant Hammerstein model (poles 0.999 and 0.99 e^{±0.8j}, slopes 0.005)
+// under its tuned PID (Kp 4.3364, Ki 19.136, Kd 0.0352, Tf 0.02 s). |L| = 1 three times; the margin
+// reported is the one nearest 0° (MATLAB `margin`), found here by bisection on a uniform grid, and
+// the closed loop's largest |pole| is the growth rate of its simulated free response (> 1: unstable).
+#[test]
+fn the_phase_margin_is_the_smallest_over_all_gain_crossovers_and_the_closed_loop_is_checked() {
+    let (r, th) = (0.99f64, 0.8f64);
+    // A(z) = (z − 0.999)(z² − 2 r cos θ z + r²)
+    let (c1, c2) = (-2.0 * r * th.cos(), r * r);
+    let a = vec![c1 - 0.999, c2 - 0.999 * c1, -0.999 * c2];
+    let model = Model::hammerstein(
+        0.01,
+        a,
+        vec![1.0],
+        1,
+        Deadzone {
+            b_l: -20.0,
+            b_r: 20.0,
+            m_l: 0.005,
+            m_r: 0.005,
+        },
+        None,
+    )
+    .unwrap();
+    let mut s = ControllerSettings::pi(0.01, 4.3364, 19.136);
+    s.kd = 0.0352;
+    s.derivative_filter_s = 0.02;
+    let m = tune::margins(&model, &s);
+    let pms = phase_margins(&model, &s, 0.005);
+    assert_eq!(pms.len(), 3, "{pms:?}");
+    assert_eq!(m.gain_crossovers, 3, "{m:?}");
+    let nearest = pms
+        .iter()
+        .copied()
+        .min_by(|x, y| x.abs().total_cmp(&y.abs()))
+        .unwrap();
+    assert!(nearest < 0.0, "{pms:?}");
+    assert!(
+        (m.phase_margin_deg.unwrap() - nearest).abs() < 0.5,
+        "{m:?} vs {pms:?}"
+    );
+    let growth = closed_loop_growth(&model, &s, 0.005);
+    assert!(growth > 1.005, "{growth}");
+    assert!(
+        (m.closed_loop_max_pole_modulus.unwrap() - growth).abs() < 1e-3,
+        "{m:?} vs {growth}"
+    );
+    assert!(m.closed_loop_unstable());
+    // The same loop with a tenth of the gains: one crossover, stable, and the simulated decay rate
+    // is the largest |pole| again.
+    let mut calm = ControllerSettings::pi(0.01, 0.43364, 1.9136);
+    calm.kd = 0.00352;
+    calm.derivative_filter_s = 0.02;
+    let m = tune::margins(&model, &calm);
+    let growth = closed_loop_growth(&model, &calm, 0.005);
+    assert!(growth < 1.0, "{growth}");
+    assert!(
+        (m.closed_loop_max_pole_modulus.unwrap() - growth).abs() < 1e-3,
+        "{m:?} vs {growth}"
+    );
+    assert!(!m.closed_loop_unstable());
+}
+
 #[test]
 fn spec_parses_over_the_defaults_and_names_a_bad_key() {
     let s = Spec::parse("").unwrap();
@@ -264,6 +499,8 @@ fn run_result(ess_mm: f64, settling_s: f64) -> control::tune::RunResult {
             overshoot_percent: Some(0.0),
             overshoot_past_setpoint_mm: Some(0.0),
             overshoot_past_setpoint_percent: Some(0.0),
+            undershoot_mm: Some(0.0),
+            undershoot_percent: Some(0.0),
             steady_state_error_mm: Some(ess_mm),
             rise_time_s: Some(0.2),
             settling_time_s: Some(settling_s),

@@ -101,7 +101,11 @@ fn a_twin_worse_than_its_start_is_never_silent() {
         start > 99.9,
         "the start is the plant of the validation record: {start}"
     );
-    assert!(twin < start);
+    // Worse by more than the tolerance below which no warning is given (audit s18 L-1).
+    assert!(
+        twin < start - ipa::calibrate::WORSE_THAN_START_POINTS,
+        "{twin} {start}"
+    );
     assert!(
         cal.warnings.iter().any(|w| matches!(
             w,
@@ -196,4 +200,29 @@ fn a_record_without_pressures_is_calibrated_on_one_free_run_with_a_warning() {
     assert_eq!(cal.segments, 1);
     assert!(cal.warnings.contains(&CalibrationWarning::SingleSegment));
     assert!(cal.cost <= cal.cost_start);
+}
+
+// Audit s18 L-1: fits of 99.99217 % and 99.99275 % read "99.99 % vs 99.99 %" at two decimals; the
+// warning prints the fewest decimals (from 2) at which they differ: 3, "99.992 % vs 99.993 %".
+#[test]
+fn worse_than_start_prints_enough_decimals_to_tell_the_fits_apart() {
+    let w = CalibrationWarning::WorseThanStart {
+        record: "estimation",
+        start_fit: 99.99275,
+        twin_fit: 99.99217,
+    };
+    let text = w.to_string();
+    assert!(
+        text.contains("(free-run fit 99.992 % vs 99.993 %)"),
+        "{text}"
+    );
+    let w = CalibrationWarning::WorseThanStart {
+        record: "validation",
+        start_fit: 80.0,
+        twin_fit: 70.5,
+    };
+    assert!(
+        w.to_string().contains("(free-run fit 70.50 % vs 80.00 %)"),
+        "{w}"
+    );
 }

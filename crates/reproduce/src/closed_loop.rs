@@ -125,6 +125,8 @@ pub(crate) fn unfixed_metrics(
         overshoot_percent: None,
         overshoot_past_setpoint_mm: None,
         overshoot_past_setpoint_percent: None,
+        undershoot_mm: None,
+        undershoot_percent: None,
         steady_state_error_mm: None,
         rise_time_s: None,
         settling_time_s: None,

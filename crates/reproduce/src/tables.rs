@@ -463,6 +463,8 @@ mod tests {
             overshoot_percent: Some(0.4),
             overshoot_past_setpoint_mm: Some(0.2),
             overshoot_past_setpoint_percent: Some(0.4),
+            undershoot_mm: None,
+            undershoot_percent: None,
             steady_state_error_mm: Some(ess),
             rise_time_s: Some(0.26),
             settling_time_s: settling,

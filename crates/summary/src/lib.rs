@@ -19,6 +19,7 @@ use sysid::{Dataset, EstimatorSettings, Fitted, Identification, Method, Model, P
 
 pub mod monitor;
 pub mod narx;
+pub mod simulation;
 pub mod stream;
 
 /// A pole p = re + i·im of the linear block.

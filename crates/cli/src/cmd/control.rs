@@ -235,9 +235,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .with_integral(args.integral)
         .with_anti_windup(anti_windup(&args, ts)?)
         .with_u_max(args.u_max);
-    // What the controller file's provenance says against it (its tuning missed the spec).
-    let mut file_warnings = Vec::new();
-    let tuned = tuned_controller(&args, ts, &mut inputs, &mut file_warnings)?;
+    let tuned_file = tuned_controller(&args, ts, &mut inputs)?;
+    let tuned = tuned_file.as_ref().map(|f| f.controller);
     let limits = args
         .plant
         .parse::<ipa::PlantSpec>()
@@ -292,10 +291,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } = run_metrics(&trace, &profile)?;
     let metrics_kind = kind.as_str();
     // The model file's own doubts (a crossed deadzone), then the loop's.
-    let mut warnings = limits.model_warnings.clone();
-    warnings.extend(file_warnings);
-    warnings.extend(compensator_warning);
-    warnings.extend(profile.last_row_warning(duration_s));
+    let mut warnings = control::trust::setup_warnings(
+        &limits.model_warnings,
+        tuned_file.as_ref(),
+        compensator_warning,
+        &profile,
+        duration_s,
+    );
     if let Some(change) = args.deadzone_change.filter(|c| c.at_s >= duration_s) {
         warnings.push(format!(
             "--deadzone-change at {} s comes at or after the run's end ({duration_s} s): the plant never \
@@ -791,6 +793,15 @@ fn summary_text(
             fmt_opt(m.overshoot_mm, units.y, m)
         ),
     };
+    if let (Some(us), Some(pc)) = (m.undershoot_mm, m.undershoot_percent) {
+        // The wrong-way excursion from y0 (stepinfo's Undershoot; audit s18 L-4).
+        o += &format!(
+            "  undershoot           {} {} ({} % of the step)\n",
+            control::trust::fmt_value(us),
+            units.y,
+            control::trust::fmt_value(pc)
+        );
+    }
     if let (Some(p), Some(pc)) = (
         m.overshoot_past_setpoint_mm,
         m.overshoot_past_setpoint_percent,
@@ -845,8 +856,19 @@ fn summary_text(
                 (None, false) => "NO at the end of the run (not settled)",
                 (None, true) => "not judged (not settled)",
             };
+            // The paper judges overshoot and e_ss only; a large wrong-way dip is named beside its
+            // verdict (and in a warning), not added to it (docs/control.md, "Step metrics").
+            let dip = m
+                .undershoot_percent
+                .filter(|us| *us >= control::trust::UNDERSHOOT_WARN_PERCENT)
+                .map_or(String::new(), |us| {
+                    format!(
+                        " (undershoot {} %: not one of the paper's criteria, see the warning)",
+                        control::trust::fmt_value(us)
+                    )
+                });
             o += &format!(
-                "paper's acceptance: overshoot < 10 %: {}; |e_ss| < 2 % of the step: {ess_verdict}\n",
+                "paper's acceptance: overshoot < 10 %: {}; |e_ss| < 2 % of the step: {ess_verdict}{dip}\n",
                 yes(os < 10.0),
             );
         }
@@ -854,22 +876,20 @@ fn summary_text(
     o
 }
 
-/// The tuned controller of `--controller FILE` (read, and its Ts checked against the plant's `ts`), its
-/// file added to `inputs` and its provenance's doubts to `warnings`; `None` without the flag (the PI of
-/// --kp/--ki).
+/// The tuned controller file of `--controller FILE` (read, and its Ts checked against the plant's
+/// `ts`; its provenance is said by [`control::trust::setup_warnings`]), its file added to `inputs`;
+/// `None` without the flag (the PI of --kp/--ki).
 fn tuned_controller(
     args: &Args,
     ts: f64,
     inputs: &mut Vec<PathBuf>,
-    warnings: &mut Vec<String>,
-) -> anyhow::Result<Option<control::ControllerSettings>> {
+) -> anyhow::Result<Option<control::ControllerFile>> {
     Ok(match &args.controller {
         Some(path) => {
             inputs.push(path.clone());
             let file =
                 control::ControllerFile::read_file(path).context("cannot read --controller")?;
             let t = file.controller;
-            warnings.extend(file.provenance_warning());
             if (t.ts_s - ts).abs() > 1e-9 * ts {
                 bail!(sysid::SysidError::setting(
                     sysid::Setting::Other("--controller"),
@@ -881,7 +901,7 @@ fn tuned_controller(
                     )
                 ));
             }
-            Some(t)
+            Some(file)
         }
         None => None,
     })

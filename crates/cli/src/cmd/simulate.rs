@@ -86,10 +86,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             }
         };
         // What validate would say of this model, said before its simulation is written.
-        for w in sysid::model_file::load_warnings(&model) {
-            eprintln!("warning: {}: {w}", path.display());
-        }
-        if let Some(w) = stability_words(&model) {
+        for w in sysid_summary::simulation::model_file_warnings(&model) {
             eprintln!("warning: {}: {w}", path.display());
         }
         check_time_span(
@@ -102,67 +99,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return run_plant(&args, plant, Some(&model), None);
     }
     run_plant(&args, plant, None, None)
-}
-
-/// What a model's poles mean for its simulation, when it does not simply settle: unstable (a pole
-/// outside the unit circle: it diverges), an integrator (a pole at 1: its output ramps under any net
-/// input, as an actuator's position does), or a pole elsewhere on the circle (it oscillates without
-/// decay). The same tolerance as `control`'s plant check ([`ipa::PlantLimits::of_model`]).
-fn stability_words(model: &sysid::Model) -> Option<String> {
-    const ON_CIRCLE: f64 = 1e-9;
-    // (re, im, modulus) of each pole.
-    let poles: Vec<(f64, f64, f64)> = model
-        .poles()
-        .iter()
-        .map(|p| (p.re, p.im, p.norm()))
-        .collect();
-    let largest = poles.iter().map(|p| p.2).fold(0.0, f64::max);
-    if largest > 1.0 + ON_CIRCLE || largest.is_nan() {
-        return Some(format!(
-            "unstable model (a pole has modulus {largest:.6} > 1): its simulation diverges"
-        ));
-    }
-    let on: Vec<&(f64, f64, f64)> = poles.iter().filter(|p| p.2 >= 1.0 - ON_CIRCLE).collect();
-    if on.is_empty() {
-        return None;
-    }
-    Some(
-        if on
-            .iter()
-            .all(|p| (p.0 - 1.0).abs() < ON_CIRCLE && p.1.abs() < ON_CIRCLE)
-        {
-            "the model has a pole at 1 (an integrator): its output ramps under any net input, as an \
-             actuator's position does, and rests only where the input is at its operating point"
-        } else {
-            "the model has a pole on the unit circle away from 1: its simulation oscillates without \
-             decaying"
-        }
-        .to_string(),
-    )
-}
-
-/// A warning when a model without an operating point (identified with `--offset`, not `--detrend`)
-/// starts at its rest for every past command 0 while its estimation data never had u = 0 (audit s11:
-/// the dryer's `--offset` model starts at 0.26 against data in 3.2..6.3 and its record opens with a
-/// transient larger than the data's span). `None` when the start was chosen (`--y0`) or is inside.
-fn rest_outside_data(model: &sysid::Model, y0: f64, chosen: bool) -> Option<String> {
-    if !chosen || model.operating_point().is_some() {
-        return None;
-    }
-    let range = model.data_range()?;
-    let (i, [lo, hi]) = range
-        .u
-        .iter()
-        .enumerate()
-        .find(|(_, [lo, hi])| !(*lo..=*hi).contains(&0.0))?;
-    let name = model.inputs().get(i).map_or("u", |c| c.name());
-    Some(format!(
-        "the model starts at its rest y0 = {y0} for every past command 0, but its estimation data had {name} \
-         in [{lo}, {hi}] (no operating point is stored: identified with --offset), so the record opens \
-         with a transient from a state the data never showed (its output was in [{}, {}]); identify \
-         with --detrend mean instead, whose model stores the operating point and rests there",
-        range.y[0], range.y[1]
-    ))
 }
 
 /// How the record starts, in words: the level held before the start and, for a model, what its
@@ -262,90 +198,20 @@ fn run_plant(
         start_words(y0, rec.y.first().copied(), model, args.y0.is_none()),
         args.out.display()
     );
-    if let (Some(f), Some(path)) = (file_ts, exp.input.file()) {
-        let note = match args.ts {
-            // The reader's words for a --ts against a time column (identify, calibrate, track).
-            Some(ts) => sysid::data::ts_contradiction_note(ts, "t", f)
-                .map(|n| format!("{}: {n}", path.display())),
-            None => ((f - rec.ts).abs() > 1e-3 * f).then(|| {
-                format!(
-                    "{}: its time column t steps {} s, but the plant runs at its own Ts = {} s: the \
-                     commands are replayed {} times as far apart as recorded",
-                    path.display(),
-                    Shortest(f),
-                    Shortest(rec.ts),
-                    rec.ts / f
-                )
-            }),
-        };
-        if let Some(w) = note {
-            eprintln!("warning: {w}");
-        }
-    }
-    if let Some(w) = model.and_then(|m| rest_outside_data(m, y0, args.y0.is_none())) {
+    let run = sysid_summary::simulation::OpenLoopRun {
+        model,
+        narx_range,
+        physics,
+        paper_stroke_mm: paper.then(|| ipa::PlantConfig::default().cylinder.stroke_mm),
+        y0,
+        y0_default: args.y0.is_none(),
+        input_file: exp.input.file().map(|p| (p, file_ts)),
+        ts_setting: args.ts,
+    };
+    for w in sysid_summary::simulation::record_warnings(&run, &rec.u, &rec.y, rec.ts) {
         eprintln!("warning: {w}");
-    }
-    if let Some(w) = model.and_then(|m| input_outside_data(m, &rec.u)) {
-        eprintln!("warning: {w}");
-    }
-    if let Some(w) = model.and_then(|m| sysid_summary::output_outside_data(m, &rec.y)) {
-        eprintln!("warning: {w}");
-    }
-    if physics {
-        // A command record that never opens a valve leaves a flat record (audit s17 L-l: a ball and
-        // beam's ±0.03 commands replayed in PWM counts), which calibrate warns of and simulate did not.
-        let (lo, hi) = sysid_core::DataRange::extremes(&rec.y);
-        let largest = rec.u.iter().fold(0.0_f64, |m, u| m.max(u.abs()));
-        if lo == hi && largest > 0.0 {
-            eprintln!(
-                "warning: the output never moved from y0 = {y0} mm: the commands stay within ±{} \
-                 counts, inside the valves' deadzone (the physics plant is a pneumatic IPA driven by \
-                 PWM counts up to ±255: is this command record of such a plant, in counts?)",
-                control::trust::fmt_value(largest)
-            );
-        }
-    }
-    // A NARX model's range, as a linear model's (audit s17 M-d).
-    if let Some(range) = narx_range {
-        let words = [
-            sysid_summary::input_outside_range(range, "u", &rec.u).map(|w| {
-                format!(
-                    "{w}; the designed inputs are the IPA's (whole counts within ±--amplitude around \
-                     0): give the model an input in its own units with --input file:CSV"
-                )
-            }),
-            sysid_summary::output_outside_range(range, &rec.y),
-        ];
-        for w in words.into_iter().flatten() {
-            eprintln!("warning: {w}");
-        }
-    }
-    if paper {
-        // The paper's model is linear past its deadzone and has no end stops (audit s16 L3: an APRBS
-        // record of it reached −966 mm).
-        let stroke = ipa::PlantConfig::default().cylinder.stroke_mm;
-        let (lo, hi) = sysid_core::DataRange::extremes(&rec.y);
-        if lo < 0.0 || hi > stroke {
-            eprintln!(
-                "warning: the simulated output spans [{lo:.2}, {hi:.2}] mm, beyond the IPA's stroke 0..{stroke} \
-                 mm: the paper's model has no end stops, so this record holds positions the actuator \
-                 cannot take (the physics plant, --plant ipa, stops at its ends)"
-            );
-        }
     }
     Ok(())
-}
-
-/// A warning when the designed input `u` of a model plant leaves the range of the model's estimation
-/// data ([`sysid_summary::input_outside_data`], audit s12 F4): the designs are the IPA's (whole PWM
-/// counts within ±--amplitude around 0), so the advice names the flag that gives the model its own.
-fn input_outside_data(model: &sysid::Model, u: &[f64]) -> Option<String> {
-    sysid_summary::input_outside_data(model, u).map(|w| {
-        format!(
-            "{w}; the designed inputs are the IPA's (whole counts within ±--amplitude around 0): give \
-             the model an input in its own units with --input file:CSV"
-        )
-    })
 }
 
 /// Refuses a record whose last sample time (N - 1) Ts is not a finite number of seconds (a model with
@@ -458,7 +324,7 @@ fn run_miso(args: &Args, model: &sysid::Model, model_path: &Path) -> anyhow::Res
         start_words(y0, y.first().copied(), Some(model), args.y0.is_none()),
         args.out.display()
     );
-    if let Some(w) = rest_outside_data(model, y0, args.y0.is_none()) {
+    if let Some(w) = sysid_summary::simulation::rest_outside_data(model, y0, args.y0.is_none()) {
         eprintln!("warning: {w}");
     }
     Ok(())

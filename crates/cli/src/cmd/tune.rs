@@ -9,7 +9,6 @@ use std::path::{Path, PathBuf};
 use anyhow::{bail, Context};
 use control::tune::{Evaluation, Spec, TuneSettings};
 use control::tuning::{self, Request, Source, TuneReport, Verification};
-use control::ControllerFile;
 use serde::Serialize;
 
 /// Flags of `ipa-sysid tune`.
@@ -130,22 +129,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         e => e.into(),
     })?;
 
-    // The whole-specification count of the last verification (`control --controller` repeats it
-    // when the spec is not met; audit s17 L-m).
-    let last = report.on_physics.as_ref().unwrap_or(&report.on_model);
-    let met = serde_json::json!({
-        "steps": last.comparison.tuned.met,
-        "of": last.comparison.tuned.runs.len(),
-        "on": last.plant,
-    });
-    let provenance = serde_json::json!({
-        "tuned_by": "ipa-sysid tune",
-        "source": report.source,
-        "spec": report.spec,
-        "meets_spec": report.meets_spec(),
-        "met": met,
-    });
-    let file = ControllerFile::new(report.controller, Some(provenance));
+    let file = report.controller_file();
     let text = serde_json::to_string_pretty(&file).context("serialising the controller")? + "\n";
 
     // --strict with warnings writes nothing: the summary must not say "wrote".
@@ -242,6 +226,15 @@ fn block(v: &Verification, spec: &Spec) -> String {
     o
 }
 
+/// " (smallest of n crossovers)" when there are several candidates for a margin.
+fn of_crossovers(n: usize) -> String {
+    if n > 1 {
+        format!(" (smallest of {n} crossovers)")
+    } else {
+        String::new()
+    }
+}
+
 fn summary_text(r: &TuneReport, out: Option<&Path>) -> String {
     let (s, m) = (&r.controller, &r.margins);
     let mut o = format!(
@@ -265,11 +258,19 @@ fn summary_text(r: &TuneReport, out: Option<&Path>) -> String {
     );
     o += &format!("controller:   {}\n", super::control::tuned_line(s));
     o += &format!(
-        "margins:      gain {} dB at {} rad/s, phase {}° at {} rad/s (linear part: model with the deadzone's slope{}{})\n",
+        "margins:      gain {} dB at {} rad/s{}, phase {}° at {} rad/s{}; closed-loop poles |p| <= {}{} (linear part: model with the deadzone's slope{}{})\n",
         f(m.gain_margin_db, 2),
         f(m.phase_crossover_rad_s, 2),
+        of_crossovers(m.phase_crossovers),
         f(m.phase_margin_deg, 1),
         f(m.gain_crossover_rad_s, 2),
+        of_crossovers(m.gain_crossovers),
+        f(m.closed_loop_max_pole_modulus, 6),
+        if m.closed_loop_unstable() {
+            ": UNSTABLE"
+        } else {
+            ""
+        },
         match m.output_slope_included {
             Some(true) => " and the output saturation's",
             Some(false) => "; the output map's varying slope is not in it",

@@ -30,7 +30,8 @@
 //! specification in more runs (issue 25, session 15; chosen by the count, not by J: [`choose_by_count`]'s
 //! documentation); then, the same way, the nudge's rest count N_r of [`NUDGE_REST_CANDIDATES`]
 //! (session 16), then the short-step approach of [`short_candidates`] (session 17), then its range
-//! of [`short_range_candidates`] (session 18).
+//! of [`short_range_candidates`] (session 18), and last the ramp-and-cut band e_c of
+//! [`cut_band_candidates`] (session 18: the finish's e_c, chosen by J, re-chosen by the count).
 //!
 //! **Linear margins.** [`margins`] gives the gain and phase margins of the loop's linear part: the
 //! model's B/A with the deadzone replaced by its slope (compensated, shift mode), under the PID.
@@ -555,6 +556,46 @@ const FINISH_EVALUATIONS: usize = 2 * CUT_BANDS_MM.len() + 1;
 /// oracle's one-count moves need 10–50 counts/s; at most ρ).
 pub const NUDGE_MIN_RAMP: f64 = 20.0;
 
+/// `nudge` with the ramp-and-cut band e_c = `cut_band_mm` (mm, in the specification's length unit
+/// through its scale; 0 = none), and with it the slowest ramp ρ_min = min([`NUDGE_MIN_RAMP`], ρ)
+/// counts/s and the creep limit e_v = [`NUDGE_CREEP_FRACTION`] e_h (both 0 without e_c).
+pub fn with_cut_band(nudge: Nudge, cut_band_mm: f64, spec: &Spec) -> Nudge {
+    let on = cut_band_mm > 0.0;
+    Nudge {
+        cut_band_mm: spec.scale.length * cut_band_mm,
+        min_ramp_counts_s: if on {
+            (spec.scale.command * NUDGE_MIN_RAMP).min(nudge.ramp_counts_s)
+        } else {
+            0.0
+        },
+        creep_step_mm: if on {
+            NUDGE_CREEP_FRACTION * spec.ess_mm
+        } else {
+            0.0
+        },
+        ..nudge
+    }
+}
+
+/// `chosen` with the ramp-and-cut band e_c of each of [`CUT_BANDS_MM`] that is not its own (in that
+/// order; [`with_cut_band`]: the creep limit and the slowest ramp come with it; none without a
+/// nudge). Tried last (issue 25, session 18): the finish chooses e_c by J at the search's θ, before
+/// the brake, the rest count and the short-step approach, and J keeps no e_c on plants where the
+/// creep would meet the whole specification in more runs.
+pub fn cut_band_candidates(chosen: &ControllerSettings, spec: &Spec) -> Vec<ControllerSettings> {
+    let Some(nudge) = chosen.nudge else {
+        return Vec::new();
+    };
+    CUT_BANDS_MM
+        .iter()
+        .filter(|&&ec| spec.scale.length * ec != nudge.cut_band_mm)
+        .map(|&ec| ControllerSettings {
+            nudge: Some(with_cut_band(nudge, ec, spec)),
+            ..*chosen
+        })
+        .collect()
+}
+
 /// The controller of θ and the ramp-and-cut band `cut_band_mm` (e_c, mm; 0 = none) for a plant
 /// sampled at `ts_s` with the model deadzone `deadzone` (if any).
 pub fn settings_of(
@@ -600,18 +641,11 @@ pub fn settings_of(
             rest_samples: NUDGE_REST_SAMPLES,
             cut_fraction: theta[7],
             rest_band_mm: ly * theta[8].exp(),
-            cut_band_mm: ly * cut_band_mm,
-            min_ramp_counts_s: if cut_band_mm > 0.0 {
-                uc * NUDGE_MIN_RAMP.min(theta[6].exp())
-            } else {
-                0.0
-            },
-            creep_step_mm: if cut_band_mm > 0.0 {
-                NUDGE_CREEP_FRACTION * spec.ess_mm
-            } else {
-                0.0
-            },
-        }),
+            cut_band_mm: 0.0,
+            min_ramp_counts_s: 0.0,
+            creep_step_mm: 0.0,
+        })
+        .map(|n| with_cut_band(n, cut_band_mm, spec)),
         brake: None,
         short_approach: None,
         compensator,
@@ -651,6 +685,10 @@ pub struct Tuned {
     pub rest_evaluations: usize,
     /// Evaluations of the short-step approach after the rest count ([`short_candidates`]'s).
     pub short_evaluations: usize,
+    /// Evaluations of the ramp-and-cut band after the short-step approach ([`cut_band_candidates`]'s).
+    pub cut_evaluations: usize,
+    /// e_c of the finish (chosen by J at the search's θ, mm; 0 = none), before the choice by the count.
+    pub cut_band_before_mm: f64,
 }
 
 /// Tunes the controller (module documentation) for plants of sampling period `ts_s` built by
@@ -804,6 +842,15 @@ pub fn tune(
         spec,
     )?;
     let short_evaluations = short_evaluations + range_evaluations;
+    let cut_band_before_mm = cut_band_mm;
+    let (settings_chosen, evaluation, cut_evaluations) = choose_by_count(
+        settings_chosen,
+        evaluation,
+        &cut_band_candidates(&settings_chosen, spec),
+        make_plant,
+        settings.plants,
+        spec,
+    )?;
     Ok(Tuned {
         settings: settings_chosen,
         evaluation,
@@ -811,6 +858,8 @@ pub fn tune(
         brake_evaluations,
         rest_evaluations,
         short_evaluations,
+        cut_evaluations,
+        cut_band_before_mm,
     })
 }
 
@@ -828,11 +877,13 @@ pub const BRAKE_CANDIDATES: [(f64, f64); 6] = [
 /// Evaluations after the search: the approach with braking ([`BRAKE_CANDIDATES`] × [`BRAKE_TIMES_S`]),
 /// the nudge's rest count ([`NUDGE_REST_CANDIDATES`]), the short-step approach
 /// ([`SHORT_DRIVE_FRACTIONS`] × [`SHORT_LEADS_S`] × [`SHORT_SWITCHES_MM`]) and its range (one more,
-/// [`SHORT_NARROW_MAX_STEP_FRACTION`]).
+/// [`SHORT_NARROW_MAX_STEP_FRACTION`]) and the ramp-and-cut band (at most [`CUT_BANDS_MM`]'s
+/// length, [`cut_band_candidates`]).
 pub const AFTER_SEARCH_EVALUATIONS: usize = BRAKE_CANDIDATES.len() * BRAKE_TIMES_S.len()
     + NUDGE_REST_CANDIDATES.len()
     + SHORT_CANDIDATES
-    + 1;
+    + 1
+    + CUT_BANDS_MM.len();
 
 /// U: the short-step approach's drive fractions of u_max tried (issue 25, session 17): at the full
 /// command the piston covers about 5.8 mm per 10 ms sample and a 10 mm step overshoots by 7 mm

@@ -93,6 +93,8 @@ pub struct TuneReport {
     pub rest_evaluations: usize,
     /// Evaluations of the short-step approach after the rest count (`tune::short_candidates`).
     pub short_evaluations: usize,
+    /// Evaluations of the ramp-and-cut band after the short-step approach (`tune::cut_band_candidates`).
+    pub cut_evaluations: usize,
     /// Wall-clock time, s.
     pub seconds: f64,
     /// The tuned controller.
@@ -440,6 +442,7 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
         brake_evaluations: tuned.brake_evaluations,
         rest_evaluations: tuned.rest_evaluations,
         short_evaluations: tuned.short_evaluations,
+        cut_evaluations: tuned.cut_evaluations,
         seconds: started.elapsed().as_secs_f64(),
         controller: settings,
         margins,

@@ -437,13 +437,53 @@ fn tuning_meets_the_spec_where_it_is_reachable() {
         tune::evaluate(5, &f, &factory, &spec).unwrap()
     };
     let better = |w: &tune::Evaluation| e.met > w.met || (e.met == w.met && e.cost < w.cost);
-    let mut searched = t.settings;
+    // The ramp-and-cut band e_c (session 18) was the last choice, among the finish's e_c (by J) and
+    // the other bands of CUT_BANDS_MM: the chosen one meets the whole specification in at least as
+    // many runs as each of them (at no higher J when as many), and in more (or as many at a lower J)
+    // than the finish's when it differs from it.
+    let nudge = t.settings.nudge.unwrap();
+    let chosen_ec = nudge.cut_band_mm;
+    let mut bands: Vec<f64> = tune::CUT_BANDS_MM.to_vec();
+    if !bands.contains(&t.cut_band_before_mm) {
+        bands.push(t.cut_band_before_mm);
+    }
+    bands.retain(|&ec| ec != chosen_ec);
+    assert_eq!(
+        t.cut_evaluations,
+        tune::CUT_BANDS_MM
+            .iter()
+            .filter(|&&ec| ec != t.cut_band_before_mm)
+            .count()
+    );
+    let with_band = |ec: f64| ControllerSettings {
+        nudge: Some(tune::with_cut_band(nudge, ec, &spec)),
+        ..t.settings
+    };
+    for &ec in &bands {
+        let w = evaluate(with_band(ec));
+        assert!(
+            !(w.met > e.met || (w.met == e.met && w.cost < e.cost)),
+            "e_c = {ec} mm ({} runs, J {}) beats the chosen {chosen_ec} mm ({} runs, J {})",
+            w.met,
+            w.cost,
+            e.met,
+            e.cost
+        );
+        if ec == t.cut_band_before_mm {
+            assert!(better(&w));
+        }
+    }
+    // The earlier choices were made with the finish's e_c: their checks below start from it.
+    let before = with_band(t.cut_band_before_mm);
+    let e = &evaluate(before);
+    let better = |w: &tune::Evaluation| e.met > w.met || (e.met == w.met && e.cost < w.cost);
+    let mut searched = before;
     // Its range (session 18) is tried only when a short-step approach was chosen.
     assert_eq!(
         t.short_evaluations,
         tune::SHORT_CANDIDATES + usize::from(searched.short_approach.is_some())
     );
-    // The short-step approach's range was the last choice: a narrowed e_m beat the wider one.
+    // The short-step approach's range came before: a narrowed e_m beat the wider one.
     let largest = spec.steps_mm.iter().copied().fold(0.0, f64::max);
     if let Some(a) = searched.short_approach {
         if a.max_step_mm == tune::SHORT_NARROW_MAX_STEP_FRACTION * largest {
@@ -584,4 +624,53 @@ fn the_short_step_range_candidate_narrows_only_the_largest_step() {
         ..Spec::default()
     };
     assert!(tune::short_range_candidates(&chosen, &none).is_empty());
+}
+
+// The ramp-and-cut band's candidates (session 18): each e_c of CUT_BANDS_MM other than the
+// controller's own, with e_v = 0.75 × e_h = 0.015 mm and ρ_min = min(20, ρ) counts/s (ρ = 12 counts/s
+// here, so ρ_min = 12; 20 with ρ = 200); nothing else changed, and none without a nudge.
+#[test]
+fn the_cut_band_candidates_are_the_other_bands_with_the_creep() {
+    let spec = Spec::default();
+    let mut chosen = p_only(5.0);
+    assert!(tune::cut_band_candidates(&chosen, &spec).is_empty());
+    let nudge = control::position::Nudge {
+        band_mm: 0.5,
+        ramp_counts_s: 12.0,
+        start_fraction: 0.8,
+        rest_samples: 2,
+        cut_fraction: 0.1,
+        rest_band_mm: 3.0,
+        cut_band_mm: 0.0,
+        min_ramp_counts_s: 0.0,
+        creep_step_mm: 0.0,
+    };
+    chosen.nudge = Some(nudge);
+    let c = tune::cut_band_candidates(&chosen, &spec);
+    let bands: Vec<f64> = c.iter().map(|s| s.nudge.unwrap().cut_band_mm).collect();
+    assert_eq!(bands, tune::CUT_BANDS_MM.to_vec());
+    for s in &c {
+        let n = s.nudge.unwrap();
+        assert!(
+            (n.creep_step_mm - 0.015).abs() < 1e-12,
+            "{}",
+            n.creep_step_mm
+        );
+        assert_eq!(n.min_ramp_counts_s, 12.0);
+        let back = ControllerSettings {
+            nudge: Some(nudge),
+            ..*s
+        };
+        assert_eq!(back, chosen);
+    }
+    chosen.nudge = Some(control::position::Nudge {
+        ramp_counts_s: 200.0,
+        ..c[1].nudge.unwrap()
+    });
+    let c = tune::cut_band_candidates(&chosen, &spec);
+    let bands: Vec<f64> = c.iter().map(|s| s.nudge.unwrap().cut_band_mm).collect();
+    assert_eq!(bands, vec![0.1, 0.6]);
+    assert!(c.iter().all(|s| s.nudge.unwrap().min_ramp_counts_s == 20.0));
+    let none = tune::with_cut_band(chosen.nudge.unwrap(), 0.0, &spec);
+    assert_eq!((none.min_ramp_counts_s, none.creep_step_mm), (0.0, 0.0));
 }

@@ -253,6 +253,10 @@ fn summary_text(r: &TuneReport, out: Option<&Path>) -> String {
             format!(" + {} of the short-step approach", r.short_evaluations)
         } else {
             String::new()
+        } + &if r.cut_evaluations > 0 {
+            format!(" + {} of the ramp-and-cut band", r.cut_evaluations)
+        } else {
+            String::new()
         },
         r.seconds
     );

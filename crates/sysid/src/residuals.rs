@@ -50,7 +50,12 @@
 //!   shown (K = M for r_ε, 2M+1 for r_εu; Bonferroni). Each r(τ) of a white, independent residual is
 //!   about N(0, 1/N), so MATLAB's per-lag band 2.58/√N ([`ResidualAnalysis::bound`], still reported
 //!   with the count of lags beyond it) is crossed somewhere among 51 lags in ~40 % of records from a
-//!   correct model; the joint band (3.72/√N for 51 lags) keeps that below α. A verdict is "white" /
+//!   correct model; the joint band (3.72/√N for 51 lags) keeps that below α. Like S, the band assumes
+//!   the hypothesis "ε white and independent of u": with a coloured residual (an output-error model's)
+//!   and a coloured input r_εu(τ) spreads by √P, P = Σ_k r_ε(k) r_u(k) (Bartlett), so either check
+//!   can then call "NOT independent" a residual that is merely coloured; read it with the whiteness
+//!   verdict. (A band widened by an estimated P was tried: on a short record the unexplained input
+//!   dynamics colour the residual and inflate P, and the audit's wrong delay passed again.) A verdict is "white" /
 //!   "independent" only when both its portmanteau statistic and its per-lag check accept, so the
 //!   false-rejection rate of a correct model is at most 2α (the tests measure it).
 //! * Why the per-lag check: S = N·R² ≤ N, so S can never exceed the 1 % point of χ²(2M+1)
@@ -726,6 +731,8 @@ pub fn finish(s: &CovarianceSums) -> Result<ResidualAnalysis, ResidError> {
 
     let bound = Z_99 / nf.sqrt();
     let joint_bound_whiteness = normal_two_sided_point(SIGNIFICANCE / m as f64) / nf.sqrt();
+    // Under the hypothesis of both tests, "ε white and independent of u", each r_εu(τ) has variance
+    // about 1/N whatever the input's colour (the statistic S has the same hypothesis).
     let joint_bound_independence = normal_two_sided_point(SIGNIFICANCE / order as f64) / nf.sqrt();
     let peak_abs = |r: &[f64]| r.iter().fold(0.0_f64, |a, r| a.max(r.abs()));
     let lags_white = peak_abs(&autocorrelation) <= joint_bound_whiteness;
@@ -1453,8 +1460,9 @@ mod tests {
             assert_eq!(a.largest_decidable_lag(), Some(17));
             rejected += (!a.independent) as usize;
         }
-        // |r_εu(4)| has mean ≈ 0.67 and sd ≈ 0.1 at N = 59: below 0.485 in a few % of records at most.
-        assert!(rejected >= 18, "rejected in {rejected}/20");
+        // |r_εu(4)| has mean ≈ 0.67 and sd ≈ 0.1 at N = 59: below 0.485 in a few % of records at most
+        // (before the per-lag check: in every record, S ≤ N).
+        assert!(rejected >= 17, "rejected in {rejected}/20");
     }
 
     // The per-lag check must not make a correct model fail more often: with a white ε independent of

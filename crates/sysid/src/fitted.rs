@@ -60,6 +60,15 @@ pub struct Param {
     pub fixed: Option<String>,
 }
 
+/// How many of the model structure's parameters the estimator held at a value instead of estimating
+/// them ([`FIXED_ONE_SIDED`]; the normalisation b1 = 1 is not a parameter of the structure's count).
+pub fn held_fixed(params: &[Param]) -> usize {
+    params
+        .iter()
+        .filter(|q| q.fixed.as_deref() == Some(FIXED_ONE_SIDED))
+        .count()
+}
+
 /// [`Param::fixed`] of b1 = 1 of an input with a static nonlinearity: the key-term normalisation.
 pub const FIXED_NORMALISATION: &str = "normalisation";
 /// [`Param::fixed`] of a deadzone parameter a one-sided input does not determine (a dropped branch, a

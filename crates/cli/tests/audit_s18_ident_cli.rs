@@ -156,6 +156,7 @@ fn solve3(a: [[f64; 3]; 3], b: [f64; 3]) -> [f64; 3] {
 // figures (drift left in, what `validate` scores) are reported apart and are poor. In memory and read in
 // passes (`--stream on`) alike.
 #[test]
+#[allow(clippy::needless_range_loop)] // the regression rows k − 1, k − 2 are the point
 fn linear_detrend_scores_the_estimation_figures_on_the_detrended_record() {
     let tmp = tempfile::tempdir().unwrap();
     let n = 1000;

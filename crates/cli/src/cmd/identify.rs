@@ -665,9 +665,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &fit.model,
         (&est_name, n),
         val,
-        &notes,
+        DataRemarks {
+            notes: &notes,
+            drift: drift.as_ref(),
+        },
         &inputs,
-        drift.as_ref(),
     )
 }
 
@@ -847,6 +849,13 @@ fn read_records(
     Ok((records, args.val.read(&opts)?, notes))
 }
 
+/// What the report says about the estimation data beside the numbers: the reader's notes (a resampled
+/// record...) and, after `--detrend linear`, what the estimation figures are scored on.
+struct DataRemarks<'a> {
+    notes: &'a [String],
+    drift: Option<&'a DriftScoring>,
+}
+
 /// Prints the report of an identification (`est` and `val`: the records' names and lengths) and writes
 /// `--json` and `--save-model`; the in-memory and the streaming paths share it.
 fn output(
@@ -855,10 +864,10 @@ fn output(
     model: &sysid::Model,
     est: (&str, usize),
     val: Option<(&str, usize)>,
-    notes: &[String],
+    remarks: DataRemarks<'_>,
     inputs: &[&Path],
-    drift: Option<&DriftScoring>,
 ) -> anyhow::Result<()> {
+    let DataRemarks { notes, drift } = remarks;
     // One parseable document on standard output: the text goes to standard error when --json or
     // --save-model is `-` (check_outputs refuses both).
     let text = format!(
@@ -975,9 +984,11 @@ fn run_streamed(args: &Args, settings: &Identification, data_path: &Path) -> any
         &fit.model,
         (est.name(), streamed.shape.rows),
         val_desc,
-        &[],
+        DataRemarks {
+            notes: &[],
+            drift: drift.as_ref(),
+        },
         &inputs,
-        drift.as_ref(),
     )
 }
 

@@ -219,6 +219,13 @@ fn metrics_text(r: &IdentifyReport, s: &mut String) {
             val.map(f).unwrap_or_default()
         );
     }
+    // Audit s18 L-3: two conventions side by side, said where the numbers are read.
+    let _ = writeln!(
+        s,
+        "(loss V = ½·mean ε² of the one-step equation errors and FPE = V (N+p)/(N−p) as the paper's \
+         eq. 14/15: half of MATLAB's LossFcn and FPE; AIC = ln(mean ε²) + 2p/N is MATLAB's normalised \
+         AIC. An output-error model minimises the simulation error: its criterion is loss V_sim.)"
+    );
     if let Some(records) = &r.records {
         let _ = writeln!(
             s,
@@ -302,7 +309,7 @@ pub fn residuals_text(entries: &[(&str, &ResidualEntry)]) -> String {
                     };
                     let _ = writeln!(
                         s,
-                        "  {:<11} {label} {} (S = {}, p = {}; worst lag {}: r = {}; bound ±{})",
+                        "  {:<11} {label} {} (S = {}, p = {}; worst lag {}: r = {}; bound ±{}, joint ±{})",
                         "",
                         if c.independent {
                             "independent"
@@ -313,7 +320,27 @@ pub fn residuals_text(entries: &[(&str, &ResidualEntry)]) -> String {
                         num(c.cross_p),
                         c.worst.lag,
                         num(c.worst.value),
-                        num(a.bound)
+                        num(a.bound),
+                        num(a.joint_bound_independence)
+                    );
+                }
+                if !a.portmanteau_can_reject() {
+                    let way = match a.largest_decidable_lag() {
+                        Some(m) => {
+                            format!("pass --resid-lags {m} or fewer, or use a longer record")
+                        }
+                        None => "use a longer record".to_string(),
+                    };
+                    let _ = writeln!(
+                        s,
+                        "  {:<11} note: {} rows are too few for the independence statistic at M = {} \
+                         (S <= N, and S must exceed {} to reject): the verdict rests on the per-lag \
+                         check (any |r| beyond the joint band ±{}); {way}",
+                        "",
+                        a.n,
+                        a.max_lag,
+                        num(a.cross_statistic_critical),
+                        num(a.joint_bound_independence)
                     );
                 }
             }

@@ -95,6 +95,34 @@ fn remove(s: &[f64], how: Detrend) -> Vec<f64> {
         .collect()
 }
 
+/// The record with the least-squares drift β (k − k̄) of each signal removed and its mean kept: the data
+/// an `--detrend linear` model was estimated from, in the user's units (its operating point (ū, ȳ) put
+/// back), on which its estimation figures are scored (audit s18 M-3). Also the slopes β per sample of
+/// each input (in the record's order) and of y.
+pub fn drift_removed(data: &Dataset) -> (Dataset, Vec<f64>, f64) {
+    let keep_mean = |s: &[f64]| {
+        let (mean, slope) = line_fit(s);
+        let out: Vec<f64> = remove(s, Detrend::Linear)
+            .iter()
+            .map(|v| v + mean)
+            .collect();
+        (out, slope)
+    };
+    let (inputs, slopes): (Vec<(String, Vec<f64>)>, Vec<f64>) = data
+        .inputs()
+        .iter()
+        .map(|i| {
+            let (u, b) = keep_mean(i.u());
+            ((i.name().to_string(), u), b)
+        })
+        .unzip();
+    let (y, slope_y) = keep_mean(data.y());
+    // Shifted signals of a valid record are finite and as long as y.
+    let out =
+        Dataset::with_inputs(inputs, y, data.ts(), data.name()).unwrap_or_else(|_| data.clone());
+    (out, slopes, slope_y)
+}
+
 /// The record with its operating point removed, and that operating point (`None` for [`Detrend::None`],
 /// which returns the record unchanged).
 pub fn detrend(data: &Dataset, how: Detrend) -> (Dataset, Option<OperatingPoint>) {

@@ -64,6 +64,32 @@ pub struct Metrics {
     pub note: Option<String>,
 }
 
+impl Metrics {
+    /// The same metrics counting `p` estimated parameters: FPE = (N + p)/(N − p) V and
+    /// AIC = ln(2V) + 2p/N recomputed from V (2V = mean ε², the same number AIC was formed from). For a
+    /// model whose estimator held some of its structure's parameters fixed (a deadzone branch the
+    /// input never reached: audit s18 L-7), as MATLAB counts free parameters only.
+    pub fn with_parameter_count(mut self, p: usize) -> Self {
+        if p == self.p {
+            return self;
+        }
+        let (n, nf) = (self.n, self.n.max(1) as f64);
+        self.fpe = self
+            .loss
+            .filter(|_| n > p)
+            .map(|v| (n + p) as f64 / (n - p) as f64 * v)
+            .filter(|v| v.is_finite());
+        self.aic = self
+            .loss
+            .map(|v| 2.0 * v)
+            .filter(|mse| *mse > 0.0)
+            .map(|mse| mse.ln() + 2.0 * p as f64 / nf)
+            .filter(|v| v.is_finite());
+        self.p = p;
+        self
+    }
+}
+
 /// Fit % = 100 (1 − ‖y − ŷ‖ / ‖y − ȳ‖), or `None` when y is constant.
 pub fn fit_percent(y: &[f64], yhat: &[f64]) -> Option<f64> {
     let n = y.len().min(yhat.len());
@@ -412,8 +438,9 @@ pub fn check_sampling(name: &str, ts: f64, model_ts: f64) -> Result<(), SysidErr
     if (ts - model_ts).abs() > 1e-3 * model_ts {
         return Err(SysidError::Data(format!(
             "{name}: the data are sampled at Ts = {} s but the model was identified at Ts = {} s; \
-             resample the data (--resample) or pass the matching --ts",
+             resample the data onto the model's period (--resample {}) or pass the matching --ts",
             crate::format::Shortest(ts),
+            crate::format::Shortest(model_ts),
             crate::format::Shortest(model_ts)
         )));
     }

@@ -233,7 +233,10 @@ impl IdentifyReport {
                         .map(|r| {
                             Ok(RecordReport {
                                 data: r.name().to_string(),
-                                metrics: metrics(m, r)?,
+                                metrics: metrics(m, r)?.with_parameter_count(
+                                    m.parameter_count()
+                                        .saturating_sub(sysid::fitted::held_fixed(&fit.params)),
+                                ),
                                 residuals: residual_analysis(m, r, max_lag),
                             })
                         })
@@ -350,6 +353,13 @@ impl IdentifyReport {
             _ => None,
         };
         let several = fit.model.inputs().len() > 1;
+        // p counts the estimated parameters only: those the estimator held fixed (a dropped deadzone
+        // branch) do not enter FPE and AIC (audit s18 L-7).
+        let estimated = |m: Metrics| {
+            let p = m.p.saturating_sub(sysid::fitted::held_fixed(&fit.params));
+            m.with_parameter_count(p)
+        };
+        let (est, val) = (estimated(est), val.map(estimated));
         IdentifyReport {
             model: fit.model.clone(),
             inputs: several.then(|| {

@@ -60,6 +60,15 @@ pub struct Param {
     pub fixed: Option<String>,
 }
 
+/// How many of the model structure's parameters the estimator held at a value instead of estimating
+/// them ([`FIXED_ONE_SIDED`]; the normalisation b1 = 1 is not a parameter of the structure's count).
+pub fn held_fixed(params: &[Param]) -> usize {
+    params
+        .iter()
+        .filter(|q| q.fixed.as_deref() == Some(FIXED_ONE_SIDED))
+        .count()
+}
+
 /// [`Param::fixed`] of b1 = 1 of an input with a static nonlinearity: the key-term normalisation.
 pub const FIXED_NORMALISATION: &str = "normalisation";
 /// [`Param::fixed`] of a deadzone parameter a one-sided input does not determine (a dropped branch, a
@@ -90,6 +99,13 @@ impl Termination {
         matches!(self, Termination::Converged)
     }
 }
+
+/// [`Note::KeptCandidate::criterion`] of the larger of the RMSEs from estimated and from measured
+/// initial outputs ([`crate::trust::guarded_rmse`]).
+pub const GUARDED_CRITERION: &str = "the worse of estimated and measured initial outputs";
+/// [`Note::KeptCandidate::criterion`] of the RMSE pooled over both initial states,
+/// √((RMSE_est² + RMSE_meas²)/2) ([`crate::trust::pooled_rmse`]).
+pub const POOLED_CRITERION: &str = "pooled over estimated and measured initial outputs";
 
 /// A remark on an estimate, in words by `Display`.
 #[derive(Debug, Clone, PartialEq)]
@@ -131,9 +147,10 @@ pub enum Note {
     KeptCandidate {
         /// The candidate kept.
         kept: &'static str,
-        /// Its estimation simulation RMSE, the worse of estimated and measured initial outputs
-        /// ([`crate::trust::guarded_rmse`]).
+        /// Its estimation simulation RMSE on `criterion`.
         rmse: f64,
+        /// How the RMSE combines the two initial states: [`GUARDED_CRITERION`] or [`POOLED_CRITERION`].
+        criterion: &'static str,
         /// The other candidates and their RMSE (`None`: the simulation diverged or the model is unstable).
         others: Vec<(&'static str, Option<f64>)>,
     },
@@ -216,11 +233,15 @@ impl std::fmt::Display for Note {
                 "RLS passes repeated until the estimate settles: still moving after {passes} of at most \
                  {max} passes"
             ),
-            Note::KeptCandidate { kept, rmse, others } => {
+            Note::KeptCandidate {
+                kept,
+                rmse,
+                criterion,
+                others,
+            } => {
                 write!(
                     f,
-                    "kept the {kept} (estimation simulation RMSE {rmse:.6e}, the worse of estimated and \
-                     measured initial outputs"
+                    "kept the {kept} (estimation simulation RMSE {rmse:.6e}, {criterion}"
                 )?;
                 for (name, r) in others {
                     match r {

@@ -37,7 +37,14 @@ pub struct IvPass {
     pub zphi: DMatrix<f64>,
     /// Σ z zᵀ over the pass (free entries).
     pub zz: DMatrix<f64>,
+    /// Σ_k z(k) z(k−τ)ᵀ for τ = 1..=[`COV_LAGS`] (entry τ − 1; free entries): the instruments' lagged
+    /// moments, for the covariance under a coloured equation error ([`covariance`]).
+    pub zz_lagged: Vec<DMatrix<f64>>,
 }
+
+/// The largest lag of the equation error's autocovariance [`covariance`] uses: white output noise e
+/// makes the equation error A(q) e, a moving average of order n_a, so n_a lags (at most this many).
+pub const COV_LAGS: usize = 10;
 
 /// The regression an IV pass runs on: `rows(ys, k, row)` fills the full regressor at sample k built
 /// from the output sequence `ys` (the measured y gives φ(k), the auxiliary simulation gives z(k));
@@ -77,6 +84,10 @@ pub fn pass<F: Fn(&[f64], usize, &mut [f64])>(
     let mut z = DVector::<f64>::zeros(p);
     let mut zphi = DMatrix::<f64>::zeros(p, p);
     let mut zz = DMatrix::<f64>::zeros(p, p);
+    let mut zz_lagged = vec![DMatrix::<f64>::zeros(p, p); COV_LAGS];
+    // The last COV_LAGS instrument vectors, newest first.
+    let mut recent: std::collections::VecDeque<DVector<f64>> =
+        std::collections::VecDeque::with_capacity(COV_LAGS + 1);
     for k in r.k0..r.y.len() {
         (r.rows)(r.y, k, &mut full_phi);
         (r.rows)(y_aux, k, &mut full_z);
@@ -104,6 +115,15 @@ pub fn pass<F: Fn(&[f64], usize, &mut [f64])>(
         }
         zphi.ger(1.0, &z, &phi, 1.0);
         zz.ger(1.0, &z, &z, 1.0);
+        for (m, older) in zz_lagged.iter_mut().zip(&recent) {
+            m.ger(1.0, &z, older, 1.0);
+        }
+        if COV_LAGS > 0 {
+            if recent.len() == COV_LAGS {
+                recent.pop_back();
+            }
+            recent.push_front(z.clone());
+        }
     }
     if theta.iter().any(|v| !v.is_finite()) {
         return Err(SysidError::Numerical(format!(
@@ -111,7 +131,12 @@ pub fn pass<F: Fn(&[f64], usize, &mut [f64])>(
             r.name
         )));
     }
-    Ok(IvPass { theta, zphi, zz })
+    Ok(IvPass {
+        theta,
+        zphi,
+        zz,
+        zz_lagged,
+    })
 }
 
 pub use crate::fitted::IV_SETTLED;
@@ -250,10 +275,35 @@ pub fn staged<F: Fn(&[f64], usize, &mut [f64])>(
     })
 }
 
-/// Asymptotic covariance of the basic IV estimate, σ² (ZᵀΦ)⁻¹ ZᵀZ (ΦᵀZ)⁻¹, or `None` when ZᵀΦ is
-/// singular.
-pub fn covariance(pass: &IvPass, sigma2: f64) -> Option<DMatrix<f64>> {
+/// Asymptotic covariance of the basic IV estimate (Söderström & Stoica, *Instrumental Variable
+/// Methods*, 1983, ch. 4; *System Identification*, 1989, eq. 8.30) for an equation error v(k) that is
+/// not white:
+///
+/// ```text
+/// Cov θ̂ = (ZᵀΦ)⁻¹ [ Σ_{|τ| ≤ L} r_v(τ) Σ_k z(k) z(k−τ)ᵀ ] (ΦᵀZ)⁻¹
+/// ```
+///
+/// with r_v(τ) the equation error's autocovariance, `r_v[τ]` for τ = 0..=L (`r_v[0]` = σ̂²), and
+/// L = `r_v.len() − 1` ≤ [`COV_LAGS`]. With `r_v = [σ̂²]` (white v) it is the textbook
+/// σ² (ZᵀΦ)⁻¹ ZᵀZ (ΦᵀZ)⁻¹. Under white output noise e (IV's use case) v = A(q) e is a moving average
+/// of order n_a with r_v(1) < 0 for a low-pass plant, so the white-v formula, with σ̂² = var v ≈
+/// (1 + Σ a_i²) σ_e², overstates the spread (audit s18 M-6: 2× on the a-coefficients); with L = n_a the
+/// sum is exact for that noise. When the lagged terms make a variance non-positive (a noise colour
+/// beyond L lags), the white-v form is returned. `None` when ZᵀΦ is singular or the result not finite.
+pub fn covariance(pass: &IvPass, r_v: &[f64]) -> Option<DMatrix<f64>> {
     let inv = pass.zphi.clone().try_inverse()?;
-    let c = &inv * &pass.zz * inv.transpose() * sigma2;
+    let sigma2 = *r_v.first()?;
+    let white = &inv * &pass.zz * inv.transpose() * sigma2;
+    let mut middle = &pass.zz * sigma2;
+    for (tau, r) in r_v.iter().enumerate().skip(1) {
+        let m = pass.zz_lagged.get(tau - 1)?;
+        middle += (m + m.transpose()) * *r;
+    }
+    let c = &inv * middle * inv.transpose();
+    let c = if c.diagonal().iter().all(|d| *d > 0.0) {
+        c
+    } else {
+        white
+    };
     c.iter().all(|v| v.is_finite()).then_some(c)
 }

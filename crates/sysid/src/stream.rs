@@ -30,7 +30,7 @@ use crate::fitted::check_finite;
 use crate::fitted::{Fitted, Method};
 use crate::residuals::{CovarianceAccumulator, ResidOptions, ResidualAnalysis};
 use crate::warnings::{Record, Warning};
-use sysid_core::data::stream::{RecordSource, Shape};
+use sysid_core::data::stream::{ChunkFn, RecordSource, Shape};
 use sysid_core::detrend::{Detrend, OperatingPoint};
 use sysid_core::ls::QrAccumulator;
 use sysid_core::metrics::{metrics_from_sums, MetricSums, Metrics};
@@ -132,7 +132,16 @@ pub fn identify_checked(
         mut passes,
         ..
     } = identify_arx(est, settings, detrend)?;
-    let on_est = record_metrics(&fit.model, est, max_lag)?;
+    // After `--detrend linear` the estimation figures are scored on the data the model was estimated
+    // from: the drift removed, the means kept (audit s18 M-3; the in-memory path likewise).
+    let on_est = if detrend == Detrend::Linear {
+        let (trend, n) = trend_of(est, detrend)?;
+        passes += n;
+        let mut undrifted = Undrifted { inner: est, trend };
+        record_metrics(&fit.model, &mut undrifted, max_lag)?
+    } else {
+        record_metrics(&fit.model, est, max_lag)?
+    };
     passes += on_est.passes;
     let (est_metrics, est_resid) = on_est.result;
     // The safeguards of `estimate::identify` that concern an ARX least-squares fit.
@@ -182,6 +191,40 @@ impl Trend {
             u - self.mean[0] - self.slope[0] * dk,
             y - self.mean[1] - self.slope[1] * dk,
         )
+    }
+}
+
+/// The least-squares slopes β per sample of u and of y of a record read in passes (two passes): the
+/// drift `--detrend linear` removes (`sysid_core::detrend::drift_removed` of a record in memory).
+pub fn drift_slopes(src: &mut dyn RecordSource) -> Result<(f64, f64), SysidError> {
+    let (t, _) = trend_of(src, Detrend::Linear)?;
+    Ok((t.slope[0], t.slope[1]))
+}
+
+/// A record with the drift β (k − k̄) of its [`Trend`] removed from u and y and the means kept.
+struct Undrifted<'a> {
+    inner: &'a mut dyn RecordSource,
+    trend: Trend,
+}
+
+impl RecordSource for Undrifted<'_> {
+    fn name(&self) -> &str {
+        self.inner.name()
+    }
+
+    fn pass(&mut self, consume: &mut ChunkFn<'_>) -> Result<Shape, SysidError> {
+        let t = self.trend;
+        let (mut bu, mut by) = (Vec::new(), Vec::new());
+        self.inner.pass(&mut |k0, u, y| {
+            bu.clear();
+            by.clear();
+            for (i, (a, b)) in u.iter().zip(y).enumerate() {
+                let dk = (k0 + i) as f64 - t.kbar;
+                bu.push(a - t.slope[0] * dk);
+                by.push(b - t.slope[1] * dk);
+            }
+            consume(k0, &bu, &by)
+        })
     }
 }
 

@@ -42,6 +42,21 @@ pub fn guarded_rmse(m: &Metrics) -> Option<f64> {
     }
 }
 
+/// The RMSE of the free-run simulations from both initial states together,
+/// √((RMSE_est² + RMSE_meas²)/2) (the RMSE of the two simulations' errors concatenated), or the
+/// estimated-initial-output RMSE alone when the other is missing; `None` when neither is known. The
+/// criterion the output-error verdict compares its candidates on (audit s18 M-7): neither the free
+/// initial state (which a slow pole can use to flatter a fit, issue 22) nor the noisy measured one
+/// (which a slow pole carries through the whole simulation, so that even the true plant loses) decides
+/// alone.
+pub fn pooled_rmse(m: &Metrics) -> Option<f64> {
+    match (m.rmse_sim, m.rmse_sim_measured) {
+        (Some(a), Some(b)) => Some(((a * a + b * b) / 2.0).sqrt()),
+        (Some(a), None) => Some(a),
+        _ => None,
+    }
+}
+
 /// [`Concern::InitialStateFlatters`] when the two simulation fits of `m` differ by more than
 /// [`INITIAL_STATE_MARGIN`] points.
 pub fn initial_state_warning(record: Record, m: &Metrics) -> Option<Warning> {

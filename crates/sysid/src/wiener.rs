@@ -195,6 +195,7 @@ pub(crate) fn refine(
         notes.push(Note::KeptCandidate {
             kept: "output-error fit with the output nonlinearity",
             rmse: r,
+            criterion: crate::fitted::GUARDED_CRITERION,
             others: vec![("start without output nonlinearity", before)],
         });
     }

@@ -87,14 +87,20 @@ fn table_cases(dir: &Path) -> Vec<(&'static str, Dataset, (usize, usize, usize))
 
 /// The simulation RMSE neither initial state flatters: the larger of the RMSEs from estimated and from
 /// measured initial outputs (the criterion output error judges its candidates on, issue 22).
-fn guarded_rmse(model: &Model, data: &Dataset) -> Option<f64> {
+/// √((RMSE_est² + RMSE_meas²)/2), computed here from the two RMSEs: the criterion output error keeps its
+/// candidates on since audit s18 M-7 (before: the larger of the two).
+fn pooled_rmse(model: &Model, data: &Dataset) -> Option<f64> {
     let m = metrics(model, data).ok()?;
-    Some(m.rmse_sim?.max(m.rmse_sim_measured?))
+    let (a, b) = (m.rmse_sim?, m.rmse_sim_measured?);
+    Some(((a * a + b * b) / 2.0).sqrt())
 }
 
-// On every record of the table, output error with an offset returns a stable model whose guarded
-// estimation simulation RMSE (the criterion it keeps its candidates on) is not above least squares';
-// it converges within its cap.
+/// A refinement within this relative margin of its start is kept (`methods::OE_VERDICT_TOLERANCE`).
+const KEPT_WITHIN: f64 = 0.01;
+
+// On every record of the table, output error with an offset returns a stable model whose estimation
+// simulation RMSE pooled over both initial states (the criterion it keeps its candidates on) is not
+// above least squares' by more than the 1 % a refinement is allowed; it converges within its cap.
 #[test]
 fn output_error_is_stable_and_never_worse_than_least_squares_on_real_records() {
     let Some(dir) = ipa_testdata::shared_data() else {
@@ -103,8 +109,8 @@ fn output_error_is_stable_and_never_worse_than_least_squares_on_real_records() {
     for (name, est, (na, nb, nk)) in table_cases(&dir) {
         let ls = identify(&est, &arx(na, nb, nk, Method::Ls)).unwrap();
         let oe = identify(&est, &arx(na, nb, nk, Method::Oe)).unwrap();
-        let rmse_ls = guarded_rmse(&ls.model, &est).unwrap();
-        let rmse_oe = guarded_rmse(&oe.model, &est).unwrap();
+        let rmse_ls = pooled_rmse(&ls.model, &est).unwrap();
+        let rmse_oe = pooled_rmse(&oe.model, &est).unwrap();
         // The poles, computed independently of the search's stability test.
         let max_pole = oe
             .model
@@ -114,7 +120,7 @@ fn output_error_is_stable_and_never_worse_than_least_squares_on_real_records() {
             .fold(0.0, f64::max);
         assert!(max_pole < 1.0, "{name}: OE pole modulus {max_pole}");
         assert!(
-            rmse_oe <= rmse_ls * (1.0 + 1e-12),
+            rmse_oe <= rmse_ls * (1.0 + KEPT_WITHIN + 1e-12),
             "{name}: OE {rmse_oe} > LS {rmse_ls}"
         );
         assert!(oe.converged(), "{name}: {:?}", oe.note());
@@ -392,11 +398,11 @@ fn hammerstein_output_error_is_stable_and_never_worse_than_its_start() {
             .map(|p| p.norm())
             .fold(0.0, f64::max);
         assert!(max_pole < 1.0, "{name}: OE pole modulus {max_pole}");
-        let rmse_oe = guarded_rmse(&oe.model, &est).unwrap();
+        let rmse_oe = pooled_rmse(&oe.model, &est).unwrap();
         if ls.model.is_stable() {
-            if let Some(rmse_ls) = guarded_rmse(&ls.model, &est) {
+            if let Some(rmse_ls) = pooled_rmse(&ls.model, &est) {
                 assert!(
-                    rmse_oe <= rmse_ls * (1.0 + 1e-12),
+                    rmse_oe <= rmse_ls * (1.0 + KEPT_WITHIN + 1e-12),
                     "{name}: {rmse_oe} > {rmse_ls}"
                 );
             }

@@ -10,8 +10,8 @@ use sysid::{IdentifyOptions, ModelKind};
 use sysid_summary::IdentifyReport;
 
 use super::common::{
-    check_outputs, print_notes, same_samples, same_samples_warning, shared_rows_warning,
-    stream_note, ColumnArgs, FileRows, StreamMode, ValidationArgs,
+    check_outputs, same_samples, same_samples_warning, shared_rows_warning, stream_note,
+    ColumnArgs, FileRows, StreamMode, ValidationArgs,
 };
 use sysid::detrend::{detrend, Detrend};
 
@@ -595,7 +595,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &inputs,
     )?;
     let (records, val, notes) = read_records(&args, &files)?;
-    print_notes(&notes);
+    // The reader's notes are printed once, among the report's warnings ("data: …"; audit s18 L-6).
     let (estimation, op) = match records.as_slice() {
         [one] => {
             let (d, op) = detrend(one, args.detrend);
@@ -612,8 +612,26 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .with_data_range(sysid::DataRange::of(&records))?;
     }
     // Metrics, residuals and warnings in the user's units: the model puts its operating point back.
+    // After `--detrend linear` they are scored on the data the model was estimated from (the drift
+    // removed, the means kept), as MATLAB's `compare(detrend(z, 1), m)`; the raw record's figures (what
+    // `validate` gives on it) are reported beside them (audit s18 M-3).
+    let (scored, drift) = match (args.detrend, records.as_slice()) {
+        (Detrend::Linear, [one]) => {
+            let (d, slope_u, slope_y) = sysid::detrend::drift_removed(one);
+            let raw = sysid::metrics::metrics(&fit.model, one).ok();
+            (
+                vec![d],
+                Some(DriftScoring {
+                    slope_u,
+                    slope_y,
+                    raw,
+                }),
+            )
+        }
+        _ => (records.clone(), None),
+    };
     let mut report =
-        IdentifyReport::assemble(&fit, &settings, &records, val.as_ref(), args.resid_lags)?;
+        IdentifyReport::assemble(&fit, &settings, &scored, val.as_ref(), args.resid_lags)?;
     // The reader's warnings (a resampled record...) are warnings about these numbers too.
     report
         .warnings
@@ -647,9 +665,75 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &fit.model,
         (&est_name, n),
         val,
-        &notes,
+        DataRemarks {
+            notes: &notes,
+            drift: drift.as_ref(),
+        },
         &inputs,
     )
+}
+
+/// What the estimation figures of an `--detrend linear` identification are scored on: the record with
+/// its drift removed and its means kept (the data the model was estimated from); the slopes removed
+/// and, when the record was held in memory, the raw record's metrics (what `validate` reports on it).
+#[derive(Debug, Clone, Default)]
+struct DriftScoring {
+    /// Slope β per sample removed from each input, in the record's order.
+    slope_u: Vec<f64>,
+    /// Slope β per sample removed from y.
+    slope_y: f64,
+    /// The model's metrics on the raw record (drift left in, operating point put back).
+    raw: Option<sysid::metrics::Metrics>,
+}
+
+impl DriftScoring {
+    /// The sentence of the text report.
+    fn text(&self) -> String {
+        use report::format::num;
+        let mut s = String::from(
+            "; the drift removed is not: the estimation figures above are scored on the detrended \
+             record (the data the model was estimated from, its means kept",
+        );
+        if self.slope_y.is_finite() {
+            s += &format!(
+                "; drift per sample removed: y {}, u {}",
+                num(self.slope_y),
+                self.slope_u
+                    .iter()
+                    .map(|v| num(*v))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+        }
+        s += ")";
+        if let Some(m) = &self.raw {
+            let pct = |v: Option<f64>| v.map_or("n/a".to_string(), |v| format!("{} %", num(v)));
+            s += &format!(
+                "; on the raw record, drift left in, as `validate` scores it: fit {} (simulation), {} \
+                 (sim., y0 meas.), {} (1-step pred.)",
+                pct(m.fit_sim_percent),
+                pct(m.fit_sim_measured_percent),
+                pct(m.fit_pred_percent)
+            );
+        }
+        s
+    }
+
+    /// The `detrend_scoring` object of `identify --json`.
+    fn json(&self) -> serde_json::Value {
+        let mut v = serde_json::json!({
+            "scored_on": "detrended",
+            "meaning": "estimation metrics and residuals are computed on the estimation record with its \
+                        least-squares drift removed and its means kept: the data the model was estimated from",
+        });
+        if self.slope_y.is_finite() {
+            v["drift_per_sample"] = serde_json::json!({"u": self.slope_u, "y": self.slope_y});
+        }
+        if let Some(m) = &self.raw {
+            v["raw_record"] = serde_json::to_value(m).unwrap_or(serde_json::Value::Null);
+        }
+        v
+    }
 }
 
 /// A warning for each merged record that holds the very samples of an earlier one (`--merge a.csv
@@ -765,6 +849,13 @@ fn read_records(
     Ok((records, args.val.read(&opts)?, notes))
 }
 
+/// What the report says about the estimation data beside the numbers: the reader's notes (a resampled
+/// record...) and, after `--detrend linear`, what the estimation figures are scored on.
+struct DataRemarks<'a> {
+    notes: &'a [String],
+    drift: Option<&'a DriftScoring>,
+}
+
 /// Prints the report of an identification (`est` and `val`: the records' names and lengths) and writes
 /// `--json` and `--save-model`; the in-memory and the streaming paths share it.
 fn output(
@@ -773,9 +864,10 @@ fn output(
     model: &sysid::Model,
     est: (&str, usize),
     val: Option<(&str, usize)>,
-    notes: &[String],
+    remarks: DataRemarks<'_>,
     inputs: &[&Path],
 ) -> anyhow::Result<()> {
+    let DataRemarks { notes, drift } = remarks;
     // One parseable document on standard output: the text goes to standard error when --json or
     // --save-model is `-` (check_outputs refuses both).
     let text = format!(
@@ -790,10 +882,11 @@ fn output(
         .map(|o| {
             format!(
                 "Detrended ({}): the model works around the operating point u0 = {}, y0 = {} (put back in \
-                 its simulations and predictions)\n",
+                 its simulations and predictions){}\n",
                 args.detrend,
                 o.u.iter().map(|v| report::format::num(*v)).collect::<Vec<_>>().join(", "),
-                report::format::num(o.y)
+                report::format::num(o.y),
+                drift.map(DriftScoring::text).unwrap_or_default()
             )
         })
         .unwrap_or_default();
@@ -807,6 +900,9 @@ fn output(
             if let Some(obj) = value.as_object_mut() {
                 obj.insert("detrend".into(), serde_json::json!(args.detrend));
                 obj.insert("data_notes".into(), serde_json::json!(notes));
+                if let Some(d) = drift {
+                    obj.insert("detrend_scoring".into(), d.json());
+                }
             }
             text = serde_json::to_string_pretty(&value)? + "\n";
         }
@@ -851,6 +947,21 @@ fn run_streamed(args: &Args, settings: &Identification, data_path: &Path) -> any
         args.resid_lags,
     )?;
     let (fit, report) = &mut streamed.result;
+    // After `--detrend linear`: the drift removed and the raw record's figures (a few more passes), as
+    // the in-memory path reports them (audit s18 M-3).
+    let drift = if args.detrend == Detrend::Linear {
+        let (slope_u, slope_y) = sysid::stream::drift_slopes(&mut est)?;
+        let raw = sysid::stream::record_metrics(&fit.model, &mut est, args.resid_lags)
+            .ok()
+            .map(|r| r.result.0);
+        Some(DriftScoring {
+            slope_u: vec![slope_u],
+            slope_y,
+            raw,
+        })
+    } else {
+        None
+    };
     report.warnings.extend(in_sample_warnings(
         args,
         &[data_path.to_path_buf()],
@@ -873,7 +984,10 @@ fn run_streamed(args: &Args, settings: &Identification, data_path: &Path) -> any
         &fit.model,
         (est.name(), streamed.shape.rows),
         val_desc,
-        &[],
+        DataRemarks {
+            notes: &[],
+            drift: drift.as_ref(),
+        },
         &inputs,
     )
 }

@@ -4,7 +4,7 @@
 use sysid::narx::{identify_narx, NarxSettings, StopRule};
 use sysid_summary::narx::NarxReport;
 
-use super::common::{print_notes, print_report};
+use super::common::print_report;
 use super::identify::Args;
 use std::path::Path;
 
@@ -96,7 +96,6 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let data_path = &args.data[0];
     let inputs = super::identify::checked_inputs(args, data_path)?;
     let records = args.val.records(data_path, &args.columns.csv_options())?;
-    print_notes(&records.notes);
     let fit = identify_narx(&records.est, &settings)?;
     let mut report = NarxReport::assemble(fit, &settings, &records.est, records.val.as_ref())?;
     report

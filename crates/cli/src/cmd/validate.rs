@@ -4,9 +4,7 @@ use std::path::{Path, PathBuf};
 
 use sysid_summary::ValidationReport;
 
-use super::common::{
-    check_outputs, print_notes, print_report, stream_note, ColumnArgs, StreamMode,
-};
+use super::common::{check_outputs, print_report, stream_note, ColumnArgs, StreamMode};
 
 /// Flags of `validate`.
 #[derive(Debug, clap::Args)]
@@ -78,7 +76,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return run_streamed(&args, &model, &opts, &inputs);
     }
     let record = sysid::data::read_record(&args.data, &opts)?;
-    print_notes(&record.notes);
+    // The reader's notes are printed once, among the report's warnings ("data: …"; audit s18 L-6).
     let data = record.data;
     if data.inputs().len() != model.inputs().len() {
         anyhow::bail!(sysid::SysidError::setting(
@@ -147,7 +145,6 @@ fn run_narx(
     let mut opts = args.columns.csv_options();
     opts.fallback_ts = Some(model.ts());
     let record = sysid::data::read_record(&args.data, &opts)?;
-    print_notes(&record.notes);
     let data = record.data;
     sysid::metrics::check_sampling(data.name(), data.ts(), model.ts())?;
     let metrics = sysid::narx::narx_metrics(model, &data)?;

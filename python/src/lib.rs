@@ -1899,8 +1899,9 @@ fn tune<'py>(
 /// present, p_a_pa, p_b_pa; the validation record's own columns `val_u_col`/`val_y_col`, default
 /// `u_col`/`y_col`); returns a dict with "estimates" (parameter, key, unit, start, value, std,
 /// at_bound), "correlation", "segments", "iterations", "simulations", "termination", "cost_start",
-/// "cost", the free-run fits "fit_estimation_start_percent", "fit_estimation_percent",
-/// "fit_validation_start_percent", "fit_validation_percent", "warnings" and "toml" (the plant-config
+/// "cost", the free-run fits from the measured initial state keyed as `identify`'s metrics —
+/// "metrics" (the twin) and "start_metrics" (the start plant), each {"estimation": {...},
+/// "validation": {...}} with "fit_sim_measured_percent" and "rmse_sim_measured" — "warnings" and "toml" (the plant-config
 /// of the twin, as `--out` writes it, with its `[calibration]` table of fits and warnings).
 #[pyfunction]
 #[pyo3(signature = (data, validation=None, free=None, fixed=None, plant_config=None, segment=0.5,
@@ -1967,7 +1968,6 @@ fn calibrate<'py>(
     .map_err(ipa_err)?;
     let mut twin = py.detach(|| cal.fit(&est, val.as_ref())).map_err(ipa_err)?;
     twin.warnings.splice(0..0, notes);
-    let fit = |r: &Option<ipa::calibrate::FreeRun>| r.as_ref().and_then(|r| r.fit_percent);
     let out = PyDict::new(py);
     let estimates = PyList::empty(py);
     for e in &twin.estimates {
@@ -1989,10 +1989,9 @@ fn calibrate<'py>(
     out.set_item("termination", twin.termination.to_string())?;
     out.set_item("cost_start", twin.cost_start)?;
     out.set_item("cost", twin.cost)?;
-    out.set_item("fit_estimation_start_percent", fit(&twin.estimation_start))?;
-    out.set_item("fit_estimation_percent", fit(&twin.estimation))?;
-    out.set_item("fit_validation_start_percent", fit(&twin.validation_start))?;
-    out.set_item("fit_validation_percent", fit(&twin.validation))?;
+    // Keyed as identify's metrics and `calibrate --json` (audit s17 L-d).
+    out.set_item("metrics", to_py(py, &twin.metrics())?)?;
+    out.set_item("start_metrics", to_py(py, &twin.start_metrics())?)?;
     out.set_item(
         "warnings",
         twin.warnings

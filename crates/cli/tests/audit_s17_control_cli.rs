@@ -111,6 +111,48 @@ fn a_step_that_ended_past_its_set_point_is_said_past_and_its_peak_past_r_is_repo
     }
 }
 
+// Session 18 (audit s17 L-d rest): the paper's acceptance line judges the overshoot by the peak past r
+// (OS_r), as tune does. A stiff PI (Kp = 100) on the IPA swings 9 mm past r = 50 and ends nearer r:
+// from the trace, OS_r ≥ 10 % of the step while the overshoot beyond the last sample is < 10 % — the
+// old rule passed it; now the line says NO and the step's warning names the peak past r.
+#[test]
+fn the_paper_acceptance_line_judges_the_peak_past_the_set_point() {
+    let dir = tempfile::tempdir().unwrap();
+    let (o, (_, _, _, y), doc) = control(
+        dir.path(),
+        &[
+            "--plant",
+            "ipa",
+            "--kp",
+            "100",
+            "--ki",
+            "1",
+            "--setpoint",
+            "50",
+            "--duration",
+            "3",
+        ],
+    );
+    let (y0, r) = (0.0, 50.0);
+    let y_f = *y.last().unwrap();
+    let peak = y.iter().fold(f64::NEG_INFINITY, |m, v| m.max(*v));
+    let past_r = 100.0 * (peak - r).max(0.0) / (r - y0);
+    let beyond_last = 100.0 * (peak - y_f).max(0.0) / (y_f - y0);
+    // The premise: the two definitions fall on either side of the paper's 10 %.
+    assert!(past_r >= 10.0 && beyond_last < 10.0, "{past_r} {beyond_last}");
+    let text = stdout(&o);
+    assert!(
+        text.contains("paper's acceptance: overshoot past r < 10 %: NO"),
+        "{text}"
+    );
+    let w = warnings(&doc);
+    assert!(
+        w.iter().any(|w| w.contains("misses the paper's acceptance")
+            && w.contains(&format!("overshoot past r {past_r:.2} % >= 10 %"))),
+        "{w:?}"
+    );
+}
+
 // M-c: the paper's plant driven to r = 1e5 mm saturates for 10 s and covers a few % of the way:
 // no 10–90 % rise time (null), and a warning with the share of the way reached, from the trace.
 #[test]

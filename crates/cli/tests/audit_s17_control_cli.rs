@@ -139,7 +139,10 @@ fn the_paper_acceptance_line_judges_the_peak_past_the_set_point() {
     let past_r = 100.0 * (peak - r).max(0.0) / (r - y0);
     let beyond_last = 100.0 * (peak - y_f).max(0.0) / (y_f - y0);
     // The premise: the two definitions fall on either side of the paper's 10 %.
-    assert!(past_r >= 10.0 && beyond_last < 10.0, "{past_r} {beyond_last}");
+    assert!(
+        past_r >= 10.0 && beyond_last < 10.0,
+        "{past_r} {beyond_last}"
+    );
     let text = stdout(&o);
     assert!(
         text.contains("paper's acceptance: overshoot past r < 10 %: NO"),

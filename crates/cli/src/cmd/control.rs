@@ -830,8 +830,7 @@ fn summary_text(
         m.overshoot_judged_percent(),
         m.steady_state_error_mm,
         steps.first(),
-    )
-    {
+    ) {
         if metrics_kind == "fixed" {
             let step = (first.setpoint_mm - first.y0_mm).abs();
             let yes = |b: bool| if b { "yes" } else { "NO" };

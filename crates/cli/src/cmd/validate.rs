@@ -89,14 +89,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let us = data.input_signals();
     sysid::metrics::check_sampling(data.name(), data.ts(), model.ts())?;
-    let mut report = ValidationReport::assemble(&model, &data, args.resid_lags)
-        .map_err(|e| e.context(data.name()))?;
+    let blame = |e: sysid::SysidError| {
+        blame_model(
+            e.context(data.name()),
+            &model,
+            &args.model,
+            (&us, data.y(), data.name()),
+        )
+    };
+    let mut report = ValidationReport::assemble(&model, &data, args.resid_lags).map_err(blame)?;
     report
         .warnings
         .extend(record.notes.iter().map(|n| format!("data: {n}")));
     model_warnings(&mut report, &model);
-    let out = sysid::metrics::model_output(&model, &us, data.y(), args.horizon)
-        .map_err(|e| e.context(data.name()))?;
+    let out = sysid::metrics::model_output(&model, &us, data.y(), args.horizon).map_err(blame)?;
     let value = report_json(&report, args.horizon, out.fit_pred_percent, &record.notes)?;
     let text = report_text(
         &args,
@@ -382,6 +388,29 @@ fn run_streamed(
     let text = report_text(args, &report, &name, shape.rows, fit_horizon);
     print_report(&text, &[args.json.as_deref(), args.out.as_deref()])?;
     finish(args, report.warnings.len(), &value, None, inputs)
+}
+
+/// A numerical failure `e` of `model` (read from `path`) on the record (`u`, `y`, its name) blamed on
+/// the model file when one of its coefficients explains it ([`sysid::Model::overflowing_coefficient`]):
+/// the error names the file and the coefficient, not the data (audit s17 L-c: a1 = 1e308 was reported
+/// as "values too large? rescale the data"). Any other error is returned as it is.
+fn blame_model(
+    e: sysid::SysidError,
+    model: &sysid::Model,
+    path: &Path,
+    (u, y, name): (&[&[f64]], &[f64], &str),
+) -> sysid::SysidError {
+    if !e.is_numerical() {
+        return e;
+    }
+    match model.overflowing_coefficient(u, y) {
+        Some(why) => sysid::SysidError::Numerical(format!(
+            "{}: the model's {why}: the model file holds an absurd coefficient (hand-edited or \
+             damaged?); the record {name} is not to blame",
+            path.display()
+        )),
+        None => e,
+    }
 }
 
 /// Adds what the model file itself deserves a warning for (a map that breaks its kind's shape) to the report.

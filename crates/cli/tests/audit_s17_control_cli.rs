@@ -189,6 +189,79 @@ const SMALL_MODEL: &str = r#"{
 }
 "#;
 
+/// An integrating Hammerstein model with deadzone ±`dz`, slopes `slope` per sample, and the data range
+/// of its estimation record: commands within ±`u`, output over 0..`y`.
+fn integrator_model(dz: f64, slope: f64, u: f64, y: f64) -> String {
+    format!(
+        r#"{{"format": "ipa-sysid-model", "version": 2, "model": {{
+  "kind": "hammerstein", "ts": 0.01, "na": 1, "nb": 1, "nk": 1, "a": [-1.0], "b": [1.0],
+  "offset": null, "deadzone": {{"b_l": {}, "b_r": {dz}, "m_l": {slope}, "m_r": {slope}}},
+  "noise_model": "output-error", "data_range": {{"u": [[{}, {u}]], "y": [0, {y}]}}}}}}"#,
+        -dz, -u
+    )
+}
+
+// Session 18 (audit s17 M-f rest): tune scales only down. A model of an IPA-like plant in µm and a
+// 10-bit PWM (its data: |u| ≤ 1023 > 255 counts, y over 0..200 000 > the 200 mm stroke) tuned with a
+// specification in those units (smallest step 2000 > 10, u-max 1023 > 255) is warned, with the way
+// forward; the same plant in mm and counts tuned with steps of 30 and 70 mm (a smallest step above
+// 10 mm, but data on the IPA's scale) is not.
+#[test]
+fn tune_warns_when_a_models_units_would_need_scaling_up() {
+    let dir = tempfile::tempdir().unwrap();
+    let tune = |name: &str, model: String, spec: &str| -> Vec<String> {
+        let m = dir.path().join(name);
+        std::fs::write(&m, model).unwrap();
+        let (c, j) = (dir.path().join("c.json"), dir.path().join("t.json"));
+        let o = ipa_sysid(&[
+            "tune",
+            "--model",
+            m.to_str().unwrap(),
+            "--spec",
+            spec,
+            "--max-evaluations",
+            "40",
+            "--out",
+            c.to_str().unwrap(),
+            "--json",
+            j.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        warnings(&json(&j))
+    };
+    let (u_data, y_data, smallest, u_max) = (1023.0, 200_000.0, 2000.0, 1023.0);
+    assert!(u_data > 255.0 && y_data > 200.0 && smallest > 10.0 && u_max > 255.0);
+    let w = tune(
+        "um.json",
+        integrator_model(80.0, 5.0, u_data, y_data),
+        "steps=2000/4000,low=25000,high=175000,u-max=1023,ess=20,ess-all=50,limit-cycle=20,run=2,\
+         settling=1",
+    );
+    let said = w
+        .iter()
+        .find(|w| w.contains("units look finer than the IPA's"))
+        .unwrap_or_else(|| panic!("{w:?}"));
+    assert!(said.contains("never up"), "{said}");
+    assert!(
+        said.contains("rescale the record to the IPA's units"),
+        "{said}"
+    );
+    assert!(
+        said.contains(&format!("ℓ = {:.4}", smallest / 10.0)),
+        "{said}"
+    );
+    assert!(
+        said.contains(&format!("c = {:.4}", u_max / 255.0)),
+        "{said}"
+    );
+    let w = tune(
+        "mm.json",
+        integrator_model(20.0, 0.005, 255.0, 200.0),
+        "steps=30/70",
+    );
+    assert!(!w.iter().any(|w| w.contains("units look finer")), "{w:?}");
+}
+
 const SMALL_SPEC: &str = "steps=0.02/0.05,low=-0.1,high=0.08,u-max=0.03,ess=0.002,ess-all=0.005,\
                           limit-cycle=0.002,run=2,settling=1";
 

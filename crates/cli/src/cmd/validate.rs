@@ -31,8 +31,9 @@ pub struct Args {
     #[arg(long, value_name = "OUT")]
     pub json: Option<PathBuf>,
     /// Write the model's output as CSV: t,y,y_sim,y_pred,residual (residual = y − y_pred; y_pred is the
-    /// --horizon-step prediction; MATLAB `compare`/`predict`). t is k·Ts from the judged record's first
-    /// row (its first --rows row), not the file's time column. `-`: standard output; the text report
+    /// --horizon-step prediction; MATLAB `compare`/`predict`). t is the record's time: t0 + k·Ts, t0 the
+    /// time column's value on the judged record's first row (its first --rows row; 0 without a time
+    /// column). `-`: standard output; the text report
     /// then goes to standard error, and no other output may be `-`.
     #[arg(long, value_name = "FILE.csv")]
     pub out: Option<PathBuf>,
@@ -114,7 +115,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     print_report(&text, &[args.json.as_deref(), args.out.as_deref()])?;
     let mut out_csv = None;
     if args.out.is_some() {
-        let t = sysid::data::sample_times(data.len(), data.ts());
+        // The record's own time: t0 + k·Ts from its time column's first value (audit s16 L13).
+        let t0 = record.t0.unwrap_or(0.0);
+        let t: Vec<f64> = sysid::data::sample_times(data.len(), data.ts())
+            .into_iter()
+            .map(|tk| t0 + tk)
+            .collect();
         let mut w = csv::Writer::from_writer(Vec::new());
         w.write_record(["t", "y", "y_sim", "y_pred", "residual"])?;
         for k in 0..data.len() {
@@ -220,7 +226,12 @@ fn run_narx(
     if args.out.is_some() {
         let sim = model.simulate(data.u(), data.y())?.y;
         let pred = model.predict(data.u(), data.y())?;
-        let t = sysid::data::sample_times(data.len(), data.ts());
+        // The record's own time: t0 + k·Ts from its time column's first value (audit s16 L13).
+        let t0 = record.t0.unwrap_or(0.0);
+        let t: Vec<f64> = sysid::data::sample_times(data.len(), data.ts())
+            .into_iter()
+            .map(|tk| t0 + tk)
+            .collect();
         let mut w = csv::Writer::from_writer(Vec::new());
         w.write_record(["t", "y", "y_sim", "y_pred", "residual"])?;
         for k in 0..data.len() {

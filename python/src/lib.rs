@@ -2004,10 +2004,11 @@ fn tune<'py>(
 /// default `u_col`/`y_col`); returns a dict with the keys of `calibrate --no-baseline --json`:
 /// "estimates" (parameter, key, unit, start, value, std, at_bound), "correlation", "ts", "segments",
 /// "used_pressures", "iterations", "simulations", "termination", "cost_start", "cost", "cost_floor",
-/// "segment_rmse_mm", the free-run fits "fit_estimation_start_percent", "fit_estimation_percent",
-/// "fit_validation_start_percent", "fit_validation_percent", "hammerstein" (None), "seconds",
-/// "warnings"; and "toml" (the plant-config of the twin, as `--out` writes it, with its
-/// `[calibration]` table of fits and warnings).
+/// "segment_rmse_mm", the free-run fits from the measured initial state keyed as `identify`'s metrics —
+/// "metrics" (the twin) and "start_metrics" (the start plant), each {"estimation": {...},
+/// "validation": {...}} with "fit_sim_measured_percent" and "rmse_sim_measured" — "hammerstein"
+/// (None), "seconds", "warnings"; and "toml" (the plant-config of the twin, as `--out` writes it, with
+/// its `[calibration]` table of fits and warnings).
 #[pyfunction]
 #[pyo3(signature = (data, validation=None, free=None, fixed=None, plant_config=None, segment=0.5,
     max_iterations=40, ts=None, u_col="u", y_col="y", t_col="t", no_header=false, val_u_col=None,
@@ -2075,7 +2076,6 @@ fn calibrate<'py>(
     let mut twin = py.detach(|| cal.fit(&est, val.as_ref())).map_err(ipa_err)?;
     let seconds = started.elapsed().as_secs_f64();
     twin.warnings.splice(0..0, notes);
-    let fit = |r: &Option<ipa::calibrate::FreeRun>| r.as_ref().and_then(|r| r.fit_percent);
     let out = PyDict::new(py);
     let estimates = PyList::empty(py);
     for e in &twin.estimates {
@@ -2103,10 +2103,9 @@ fn calibrate<'py>(
     out.set_item("cost", twin.cost)?;
     out.set_item("cost_floor", twin.cost_floor)?;
     out.set_item("segment_rmse_mm", finite(twin.segment_rmse_mm))?;
-    out.set_item("fit_estimation_start_percent", fit(&twin.estimation_start))?;
-    out.set_item("fit_estimation_percent", fit(&twin.estimation))?;
-    out.set_item("fit_validation_start_percent", fit(&twin.validation_start))?;
-    out.set_item("fit_validation_percent", fit(&twin.validation))?;
+    // Keyed as identify's metrics and `calibrate --json` (audit s17 L-d).
+    out.set_item("metrics", to_py(py, &twin.metrics())?)?;
+    out.set_item("start_metrics", to_py(py, &twin.start_metrics())?)?;
     // No Hammerstein comparison (`identify` gives one): None, as `calibrate --no-baseline --json`.
     out.set_item("hammerstein", py.None())?;
     out.set_item("seconds", seconds)?;

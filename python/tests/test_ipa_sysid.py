@@ -539,7 +539,7 @@ def test_plants_that_are_neither_a_name_nor_a_file_and_missing_files(tmp_path):
     c = ipa_sysid.calibrate(str(rec), validation=str(rec), max_iterations=2, free="moving_mass")
     d = ipa_sysid.calibrate(str(rec), validation=str(renamed_v), max_iterations=2, free="moving_mass",
                             val_u_col="cmd", val_y_col="pos")
-    assert c["fit_validation_percent"] == d["fit_validation_percent"]
+    assert c["metrics"]["validation"] == d["metrics"]["validation"]
     with pytest.raises(ValueError, match="give validation=PATH"):
         ipa_sysid.calibrate(str(rec), val_u_col="cmd")
 
@@ -591,7 +591,12 @@ def test_calibrate_matches_cli(tmp_path):
     for a, b in zip(c["estimates"], doc["estimates"]):
         assert a["parameter"] == b["parameter"]
         assert a["value"] == pytest.approx(b["value"], rel=1e-12)
-    assert c["fit_validation_percent"] == pytest.approx(doc["fit_validation_percent"], rel=1e-12)
+    # The same keys as the command line's JSON (and identify's metrics, audit s17 L-d).
+    for part in ("estimation", "validation"):
+        for key in ("fit_sim_measured_percent", "rmse_sim_measured"):
+            assert c["metrics"][part][key] == pytest.approx(doc["metrics"][part][key], rel=1e-12)
+            assert c["start_metrics"][part][key] == pytest.approx(doc["start_metrics"][part][key],
+                                                                  rel=1e-12)
     assert c["warnings"] == doc["warnings"]
     # The truth (independent of the program): M = 0.7 kg within 2 %.
     mass = next(e["value"] for e in c["estimates"] if e["parameter"] == "moving_mass")

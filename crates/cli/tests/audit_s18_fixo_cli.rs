@@ -424,8 +424,12 @@ fn calibrate_calls_a_twin_worse_only_beyond_a_tenth_of_a_fit_point() {
     let doc: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
     let (start, twin) = (
-        doc["fit_estimation_start_percent"].as_f64().unwrap(),
-        doc["fit_estimation_percent"].as_f64().unwrap(),
+        doc["start_metrics"]["estimation"]["fit_sim_measured_percent"]
+            .as_f64()
+            .unwrap(),
+        doc["metrics"]["estimation"]["fit_sim_measured_percent"]
+            .as_f64()
+            .unwrap(),
     );
     let worse = doc["warnings"]
         .as_array()

@@ -76,10 +76,77 @@ fn calibrate_recovers_a_known_plant_and_writes_a_usable_plant_config() {
     assert!((cfg.valve.supply_conductance_dm3_s_bar / 0.12 - 1.0).abs() < 0.02);
     let j: serde_json::Value =
         serde_json::from_slice(&std::fs::read(p.join("twin.json")).unwrap()).unwrap();
-    let twin = j["fit_validation_percent"].as_f64().unwrap();
-    let hammerstein = j["hammerstein"]["fit_percent"].as_f64().unwrap();
+    let twin = j["metrics"]["validation"]["fit_sim_measured_percent"]
+        .as_f64()
+        .unwrap();
+    let hammerstein = j["hammerstein"]["fit_sim_measured_percent"]
+        .as_f64()
+        .unwrap();
     assert!(twin > 98.0 && twin > hammerstein, "{twin} vs {hammerstein}");
     assert!(j["warnings"].is_array());
+    same_names_as_identify(p, &j);
+}
+
+/// Audit s17 L-d: calibrate's fits carry identify's names for the same quantities. The twin's fit and
+/// RMSE on the validation record agree with fit = 100 (1 − RMSE·√N / ‖y − ȳ‖) over val.csv's y
+/// (computed here); the Hammerstein comparison's fit is what `identify` prints under
+/// `metrics.validation.fit_sim_measured_percent` for the same structure and estimator.
+fn same_names_as_identify(p: &Path, j: &serde_json::Value) {
+    let text = std::fs::read_to_string(p.join("val.csv")).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let iy = header.iter().position(|h| *h == "y").unwrap();
+    let y: Vec<f64> = lines
+        .map(|l| l.split(',').nth(iy).unwrap().parse().unwrap())
+        .collect();
+    let mean = y.iter().sum::<f64>() / y.len() as f64;
+    let spread = y.iter().map(|v| (v - mean).powi(2)).sum::<f64>().sqrt();
+    let v = &j["metrics"]["validation"];
+    let rmse = v["rmse_sim_measured"].as_f64().unwrap();
+    let fit = v["fit_sim_measured_percent"].as_f64().unwrap();
+    let expect = 100.0 * (1.0 - rmse * (y.len() as f64).sqrt() / spread);
+    assert!((fit - expect).abs() < 1e-9, "{fit} vs {expect}");
+    // The start plant's fits sit beside, under the same keys.
+    assert!(j["start_metrics"]["estimation"]["fit_sim_measured_percent"].is_f64());
+    assert!(j.get("fit_validation_percent").is_none());
+    let h = &j["hammerstein"];
+    let orders: Vec<String> = ["na", "nb", "nk"]
+        .iter()
+        .map(|k| h[*k].as_u64().unwrap().to_string())
+        .collect();
+    let o = run(
+        p,
+        &[
+            "identify",
+            "--data",
+            "est.csv",
+            "--validation",
+            "val.csv",
+            "--structure",
+            "hammerstein",
+            "--na",
+            &orders[0],
+            "--nb",
+            &orders[1],
+            "--nk",
+            &orders[2],
+            "--method",
+            "oe",
+            "--json",
+            "id.json",
+        ],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let id: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(p.join("id.json")).unwrap()).unwrap();
+    let theirs = id["metrics"]["validation"]["fit_sim_measured_percent"]
+        .as_f64()
+        .unwrap();
+    let ours = h["fit_sim_measured_percent"].as_f64().unwrap();
+    assert!(
+        (theirs - ours).abs() < 1e-9 * ours.abs().max(1.0),
+        "{ours} vs identify's {theirs}"
+    );
     let o = run(
         p,
         &[
@@ -281,7 +348,9 @@ fn a_twin_that_does_not_follow_its_record_is_said() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let doc: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(p.join("s.json")).unwrap()).unwrap();
-    let fit = doc["fit_estimation_percent"].as_f64().unwrap();
+    let fit = doc["metrics"]["estimation"]["fit_sim_measured_percent"]
+        .as_f64()
+        .unwrap();
     assert!(fit <= 0.0, "{fit}");
     let warned = doc["warnings"].as_array().unwrap().iter().any(|w| {
         let w = w.as_str().unwrap();
@@ -623,7 +692,9 @@ fn calibrate_takes_the_validation_records_own_columns() {
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
         let v: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(p.join(json)).unwrap()).unwrap();
-        v["fit_validation_percent"].as_f64().unwrap()
+        v["metrics"]["validation"]["fit_sim_measured_percent"]
+            .as_f64()
+            .unwrap()
     };
     let alone = fit(&["--data", "est.csv", "--validation", "val.csv"], "a.json");
     let apart = fit(

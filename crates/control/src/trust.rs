@@ -11,7 +11,7 @@
 //! - a set-point outside the plant's reachable range (the IPA's stroke, 0..L mm);
 //! - an unstable plant model (its metrics describe a diverging simulation);
 //! - a step (of a fixed set-point or a staircase) that misses the paper's acceptance (overshoot < 10 %,
-//!   |e_ss| < 2 % of the step);
+//!   judged by the peak past r, OS_r, as `tune` judges it; |e_ss| < 2 % of the step);
 //! - a step that first moves the wrong way by [`UNDERSHOOT_WARN_PERCENT`] of the step or more (MATLAB
 //!   `stepinfo` Undershoot; not one of the paper's criteria, so said beside them).
 
@@ -340,10 +340,15 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
     if facts.judge_steps {
         for s in steps {
             let step = (s.setpoint_mm - s.y0_mm).abs();
-            let (os, ess) = (s.metrics.overshoot_percent, s.metrics.steady_state_error_mm);
+            // The overshoot is judged by the peak past r (OS_r), as `tune` judges it: the overshoot
+            // beyond the last sample is not final while a step has not settled (audit s17 M-b).
+            let (os, ess) = (
+                s.metrics.overshoot_judged_percent(),
+                s.metrics.steady_state_error_mm,
+            );
             let mut missed = Vec::new();
             if let Some(os) = os.filter(|os| *os >= 10.0) {
-                missed.push(format!("overshoot {os:.2} % >= 10 %"));
+                missed.push(format!("overshoot past r {os:.2} % >= 10 %"));
             }
             if let Some(e) = ess.filter(|e| step > 0.0 && e.abs() >= 0.02 * step) {
                 missed.push(format!(

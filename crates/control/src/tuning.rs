@@ -424,6 +424,7 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
     warnings.extend(linear_loop_warnings(&margins));
     warnings.splice(0..0, reach_warnings(&model, &deadzone, &spec));
     if twin.is_none() {
+        warnings.splice(0..0, scale_up_warning(&model, &spec));
         // What the model file itself holds (a map that is not its kind's shape), as `validate` says it.
         let file = sysid_core::model_file::load_warnings(&model);
         warnings.splice(0..0, file.into_iter().map(|w| format!("model: {w}")));
@@ -643,6 +644,59 @@ pub fn compensator_scale_warning(model: &Model, u_max: f64) -> Option<String> {
             crate::trust::fmt_value(u_max / u_data)
         )
     })
+}
+
+/// A warning when a model plant's units look larger-numbered than the IPA's (its estimation data reach
+/// commands beyond ±255 counts, or span more than the IPA's 200 mm stroke: µm, a 10-bit PWM) and
+/// `spec` is on that scale (its smallest step above 10 or its u_max above 255): [`tune::Scale::of_spec`]
+/// scales the search's bands, ramps and gains down to a finer specification, never up (audit s17 M-f;
+/// scaling up would also rescale every IPA model tuned with `steps=30/70`, whose units are the IPA's),
+/// so the tuned bands are small and the gains large for such a plant. Says the way forward.
+fn scale_up_warning(model: &Model, spec: &Spec) -> Option<String> {
+    let range = model.data_range()?;
+    let stroke = ipa::PlantConfig::default().cylinder.stroke_mm;
+    let fmt = crate::trust::fmt_value;
+    let smallest = spec.steps_mm.iter().copied().fold(f64::INFINITY, f64::min);
+    let (length, command) = (
+        smallest / tune::DEFAULT_SMALLEST_STEP_MM,
+        spec.u_max / tune::DEFAULT_U_MAX,
+    );
+    let u_data = range.u_magnitude(0).unwrap_or(0.0);
+    let mut why = Vec::new();
+    if command > 1.0 && u_data > tune::DEFAULT_U_MAX {
+        why.push(format!(
+            "its commands reach |u| = {} (beyond the IPA's {} counts) and u-max = {} would scale the \
+             ramps by c = {}",
+            fmt(u_data),
+            tune::DEFAULT_U_MAX,
+            fmt(spec.u_max),
+            fmt(command)
+        ));
+    }
+    if length > 1.0 && range.y_span() > stroke {
+        why.push(format!(
+            "its output spans {} .. {} (more than the IPA's {stroke} mm stroke) and the smallest step {} \
+             would scale the bands by ℓ = {}",
+            fmt(range.y[0]),
+            fmt(range.y[1]),
+            fmt(smallest),
+            fmt(length)
+        ));
+    }
+    if why.is_empty() {
+        return None;
+    }
+    Some(format!(
+        "the model's units look finer than the IPA's mm and counts: {}; tune scales the search's \
+         bands (≤ 5 mm), ramps (20–1000 counts/s) and gains (by c/ℓ) only down to a finer \
+         specification, never up (here ℓ = {}, c = {}), so this controller's bands are small and its gains \
+         large for this plant: rescale the record to the IPA's units (y in mm, u within ±255 counts), \
+         identify it again and tune that model, or check this controller with `control --plant \
+         model:FILE --controller` before using it",
+        why.join("; "),
+        fmt(spec.scale.length),
+        fmt(spec.scale.command)
+    ))
 }
 
 /// Doubts about the model as a plant for `spec`: a deadzone breakpoint at or beyond ±u_max (no command

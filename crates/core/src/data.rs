@@ -268,6 +268,9 @@ pub struct Record {
     pub data: Dataset,
     /// Warnings in words (empty when the file was used as it is).
     pub notes: Vec<String>,
+    /// The time of the record's first sample, s (its time column's first value after `--rows` and
+    /// `--time-unit`); `None` when the record has no time column. Sample k is at t0 + k·Ts.
+    pub t0: Option<f64>,
 }
 
 impl CsvOptions {
@@ -370,6 +373,7 @@ pub fn read_record_bytes(
         return Ok(Record {
             data: record(ru, ry, ts)?,
             notes,
+            t0: t.first().copied(),
         });
     }
     let ts = match ts_given {
@@ -416,9 +420,18 @@ pub fn read_record_bytes(
             ts
         }
     };
+    // The first time of the column, when the file has one (sample k is at t0 + k·Ts).
+    let t0 = match table.headers.iter().position(|h| *h == opts.t_col) {
+        Some(tc) if !opts.no_header => table
+            .numbers(tc)
+            .ok()
+            .and_then(|t| t.first().map(|v| v * opts.time_unit.seconds())),
+        _ => None,
+    };
     Ok(Record {
         data: record(us, y, ts)?,
         notes,
+        t0,
     })
 }
 

@@ -634,6 +634,87 @@ impl Model {
         u.iter().map(|&v| self.input_map(v)).collect()
     }
 
+    /// The coefficient that makes this model's output overflow f64 on a record whose own values do not
+    /// (audit s17 L-c: a model file with a1 = 1e308 was blamed on the data, "rescale the data"), in
+    /// words: the term |θ| · max|s| of the linear block's output ŷ = −Σ a_i y(k−i) + Σ b_j x(k−j) + c
+    /// of largest size (s = y for a_i, x = f(u) of its input for b_j, 1 for c), when it exceeds
+    /// √(f64::MAX / N) — beyond that one term cannot be squared and summed over the record's N rows —
+    /// while every |y| and |u| of the record stays within it. A map x = f(u) that itself leaves that
+    /// bound is named instead (its parameters are the absurd ones). `None` when no single term explains
+    /// an overflow, or when the record's own values are beyond the bound (then the data are to blame).
+    /// One input record per model input in `u`.
+    pub fn overflowing_coefficient(&self, u: &[&[f64]], y: &[f64]) -> Option<String> {
+        let limit = (f64::MAX / y.len().max(1) as f64).sqrt();
+        let largest = |v: &[f64]| v.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
+        let y_max = largest(y);
+        if !within(y_max, limit) || u.iter().any(|ui| !within(largest(ui), limit)) {
+            return None;
+        }
+        let several = self.inputs.len() > 1;
+        // (size of the term, what it is in words)
+        let mut terms: Vec<(f64, String)> = self
+            .a
+            .iter()
+            .enumerate()
+            .map(|(i, a)| {
+                (
+                    a.abs() * y_max,
+                    format!(
+                        "a{} = {a:e} (the file's \"a\"[{i}]) times the record's largest |y| = {y_max}",
+                        i + 1
+                    ),
+                )
+            })
+            .collect();
+        for (ch, ui) in self.inputs.iter().zip(u) {
+            let of = if several {
+                format!(" of input {}", ch.name())
+            } else {
+                String::new()
+            };
+            let (x_max, u_at) = ui
+                .iter()
+                .map(|&v| (ch.map(v).abs(), v))
+                .fold((0.0_f64, 0.0), |m, p| if within(p.0, m.0) { m } else { p });
+            if !within(x_max, limit) {
+                return Some(format!(
+                    "input block{of} ({}) maps u = {u_at} of the record to |x| = {x_max:e}, beyond \
+                     what f64 can square and sum over the record's {} rows (√(f64::MAX / N) = \
+                     {limit:e}) through one of its parameters",
+                    ch.nonlinearity().kind_name(),
+                    y.len()
+                ));
+            }
+            terms.extend(ch.b().iter().enumerate().map(|(j, b)| {
+                (
+                    b.abs() * x_max,
+                    format!(
+                        "b{}{of} = {b:e} (the file's \"b\"[{j}]) times the largest |x| = {x_max} of \
+                         its input block on the record",
+                        j + 1
+                    ),
+                )
+            }));
+        }
+        if let Some(c) = self.offset {
+            terms.push((c.abs(), format!("offset c = {c:e} (the file's \"offset\")")));
+        }
+        let (size, words) =
+            terms
+                .into_iter()
+                .fold(None, |m: Option<(f64, String)>, t| match m {
+                    Some(m) if m.0 >= t.0 => Some(m),
+                    _ => Some(t),
+                })?;
+        (!within(size, limit)).then(|| {
+            format!(
+                "{words} gives a term of {size:e} in the prediction, beyond what f64 can square and sum \
+                 over the record's {} rows (√(f64::MAX / N) = {limit:e})",
+                y.len()
+            )
+        })
+    }
+
     /// Free-run simulation (MATLAB `sim`/`compare` with infinite horizon), one input record per model
     /// input in `u`: y_hat(k) = y(k) for k < k0, then y_hat(k) = -sum a_i y_hat(k-i) + sum over the
     /// inputs of sum b_j x(k-nk-j+1) + c. Fails if the simulation becomes non-finite.
@@ -1286,6 +1367,11 @@ impl From<Model> for ModelRepr {
             data_range: m.data_range.map(|r| *r),
         }
     }
+}
+
+/// `v <= limit`, false for NaN: a size that is not known to be within the limit is beyond it.
+fn within(v: f64, limit: f64) -> bool {
+    v <= limit
 }
 
 /// True when every root of z^n + c1 z^(n-1) + ... + c_n lies strictly inside the unit circle, by the

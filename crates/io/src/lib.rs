@@ -321,6 +321,17 @@ where
     R::Item: IntoIterator<Item = C>,
     C: AsRef<[u8]>,
 {
+    write_atomic(path, &csv_bytes(path, header, rows)?)
+}
+
+/// The bytes [`write_csv`] writes (for outputs written together: [`write_all_atomic`]); `path` names
+/// the output in messages.
+pub fn csv_bytes<R, C>(path: &Path, header: &[&str], rows: R) -> Result<Vec<u8>, OutputError>
+where
+    R: IntoIterator,
+    R::Item: IntoIterator<Item = C>,
+    C: AsRef<[u8]>,
+{
     let io = |source| OutputError::Io {
         path: path.to_path_buf(),
         source,
@@ -330,8 +341,7 @@ where
     for row in rows {
         w.write_record(row).map_err(|e| io(e.into()))?;
     }
-    let bytes = w.into_inner().map_err(|e| io(e.into_error()))?;
-    write_atomic(path, &bytes)
+    w.into_inner().map_err(|e| io(e.into_error()))
 }
 
 /// `x` as [`sysid_core::format::Shortest`] prints it (the shortest decimal that reads back as the same
@@ -456,8 +466,9 @@ pub fn write_formatted_columns_csv(
     write_atomic(path, &formatted_columns_csv(path, header, columns)?)
 }
 
-/// The bytes [`write_formatted_columns_csv`] writes.
-fn formatted_columns_csv(
+/// The bytes [`write_formatted_columns_csv`] writes (for outputs written together:
+/// [`write_all_atomic`]); `path` names the output in messages.
+pub fn formatted_columns_csv(
     path: &Path,
     header: &[&str],
     columns: &[(&[f64], NumberFormat)],

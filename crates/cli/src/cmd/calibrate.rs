@@ -394,14 +394,14 @@ fn report_json(t: &Calibrated, b: Option<&Baseline>, ts: f64, seconds: f64) -> s
         "cost": t.cost,
         "cost_floor": t.cost_floor,
         "segment_rmse_mm": nan_to_null(t.segment_rmse_mm),
-        "fit_estimation_start_percent": fit(&t.estimation_start),
-        "fit_estimation_percent": fit(&t.estimation),
-        "fit_validation_start_percent": fit(&t.validation_start),
-        "fit_validation_percent": fit(&t.validation),
+        // The free runs start from the measured initial state: identify's `fit_sim_measured_percent`
+        // under its `metrics.estimation` / `metrics.validation` (audit s17 L-d).
+        "metrics": t.metrics(),
+        "start_metrics": t.start_metrics(),
         "hammerstein": b.map(|b| json!({
             "na": b.orders.0, "nb": b.orders.1, "nk": b.orders.2,
             "method": "oe",
-            "fit_percent": b.fit_percent,
+            "fit_sim_measured_percent": b.fit_percent,
             "record": if b.on_validation { "validation" } else { "estimation" },
         })),
         "seconds": seconds,
@@ -429,8 +429,8 @@ fn run_study(args: &Args, calibration: Calibration, n: usize) -> anyhow::Result<
             "plants": rows.iter().map(|c| json!({
                 "seed": c.seed,
                 "seconds": c.seconds,
-                "fit_validation_percent": fit(&c.calibrated.validation),
-                "fit_validation_start_percent": fit(&c.calibrated.validation_start),
+                "metrics": c.calibrated.metrics(),
+                "start_metrics": c.calibrated.start_metrics(),
                 "parameters": c.calibrated.estimates.iter().zip(&c.relative_errors).zip(&c.determined).map(|((e, r), d)| json!({
                     "parameter": e.parameter.name(),
                     "truth": e.parameter.get(&c.truth),

@@ -841,10 +841,14 @@ fn summary_text(
             o += "\n";
         }
     }
-    // The paper's acceptance: overshoot < 10 %, |e_ss| < 2 % of the step.
-    if let (Some(os), Some(ess), Some(first)) =
-        (m.overshoot_percent, m.steady_state_error_mm, steps.first())
-    {
+    // The paper's acceptance: overshoot < 10 %, |e_ss| < 2 % of the step. The overshoot is the peak
+    // past r (OS_r, `StepMetrics::overshoot_judged_percent`, as `tune` judges it): the overshoot beyond
+    // the last sample is not final while the step has not settled (audit s17 M-b, L-d).
+    if let (Some(os), Some(ess), Some(first)) = (
+        m.overshoot_judged_percent(),
+        m.steady_state_error_mm,
+        steps.first(),
+    ) {
         if metrics_kind == "fixed" {
             let step = (first.setpoint_mm - first.y0_mm).abs();
             let yes = |b: bool| if b { "yes" } else { "NO" };
@@ -868,7 +872,7 @@ fn summary_text(
                     )
                 });
             o += &format!(
-                "paper's acceptance: overshoot < 10 %: {}; |e_ss| < 2 % of the step: {ess_verdict}{dip}\n",
+                "paper's acceptance: overshoot past r < 10 %: {}; |e_ss| < 2 % of the step: {ess_verdict}{dip}\n",
                 yes(os < 10.0),
             );
         }

@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use super::common::{check_outputs, print_notes, print_report, write_output, ColumnArgs};
+use super::common::{check_outputs, print_notes, print_report, write_outputs, ColumnArgs};
 
 /// Flags of `delay`.
 #[derive(Debug, clap::Args)]
@@ -25,6 +25,10 @@ pub struct Args {
     /// Write the result as JSON here (`-` for standard output); its `nk` is the estimate.
     #[arg(long, value_name = "OUT")]
     pub json: Option<PathBuf>,
+    /// Exit with code 1 when the result carries warnings (they are printed either way), without writing
+    /// --json (an earlier file there is kept).
+    #[arg(long)]
+    pub strict: bool,
 }
 
 /// Runs `delay`.
@@ -68,21 +72,29 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         text.push_str(&format!("warning: {w}\n"));
     }
     print_report(&text, &[args.json.as_deref()])?;
-    if let Some(path) = &args.json {
-        let value = serde_json::json!({
-            "data": data.name(),
-            "ts": data.ts(),
-            "nk": est.nk,
-            "delay_s": est.nk as f64 * data.ts(),
-            "na": est.na,
-            "nb": est.nb,
-            "n": est.n,
-            "margin": est.margin,
-            "candidates": est.candidates,
-            "warnings": est.warnings.iter().chain(&record.notes).collect::<Vec<_>>(),
-        });
-        let json = serde_json::to_string_pretty(&value)? + "\n";
-        write_output(path, json.as_bytes(), &inputs, "--json")?;
+    // The reader's notes are printed as warnings too (`print_notes`) and counted by --strict.
+    let warnings: Vec<&String> = est.warnings.iter().chain(&record.notes).collect();
+    let json = match &args.json {
+        Some(_) => Some(
+            serde_json::to_string_pretty(&serde_json::json!({
+                "data": data.name(),
+                "ts": data.ts(),
+                "nk": est.nk,
+                "delay_s": est.nk as f64 * data.ts(),
+                "na": est.na,
+                "nb": est.nb,
+                "n": est.n,
+                "margin": est.margin,
+                "candidates": est.candidates,
+                "warnings": warnings,
+            }))? + "\n",
+        ),
+        None => None,
+    };
+    let mut outputs: Vec<(&Path, &[u8], &str)> = Vec::new();
+    if let (Some(path), Some(text)) = (&args.json, &json) {
+        outputs.push((path, text.as_bytes(), "--json"));
     }
-    Ok(())
+    // With --strict and warnings, --json is not written (an earlier file stays) and the exit code is 1.
+    write_outputs(&outputs, &inputs, args.strict, warnings.len())
 }

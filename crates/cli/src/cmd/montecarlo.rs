@@ -10,7 +10,7 @@ use sysid::{Identification, Method};
 use sysid::{Model, ModelKind, Orders};
 use sysid_studies::montecarlo::{study, truth_of, StudySettings};
 
-use super::common::{check_outputs, progress_bar, write_output};
+use super::common::{check_outputs, progress_bar, write_output, write_outputs};
 
 /// Flags of `montecarlo`.
 #[derive(Debug, clap::Args)]
@@ -74,6 +74,10 @@ pub struct Args {
     /// study that is meant to run for hours).
     #[arg(long, value_name = "SAMPLES", default_value_t = DEFAULT_MAX_WORK)]
     pub max_work: u64,
+    /// Exit with code 1 when the study carries warnings (they are printed either way), without writing
+    /// --json (an earlier file there is kept).
+    #[arg(long)]
+    pub strict: bool,
 }
 
 /// Default bound on runs x samples x methods: 10^9 samples estimated (about an hour on one core with
@@ -206,27 +210,36 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             )
         })
         .collect();
-    if let Some(path) = &args.json {
-        // A failed study does not replace the user's file with a failure report (the table above and
-        // the error below say what failed); standard output still gets the JSON.
-        if failed.is_empty() || json_to_stdout {
-            let json = serde_json::to_string_pretty(&report)? + "\n";
-            write_output(path, json.as_bytes(), &inputs, "--json")?;
-        } else {
-            eprintln!(
-                "{}: not written: the study failed (an existing file is left as it was)",
-                path.display()
-            );
-        }
-    }
     if !failed.is_empty() {
+        if let Some(path) = &args.json {
+            // A failed study does not replace the user's file with a failure report (the table above
+            // and the error below say what failed); standard output still gets the JSON.
+            if json_to_stdout {
+                let json = serde_json::to_string_pretty(&report)? + "\n";
+                write_output(path, json.as_bytes(), &inputs, "--json")?;
+            } else {
+                eprintln!(
+                    "{}: not written: the study failed (an existing file is left as it was)",
+                    path.display()
+                );
+            }
+        }
         anyhow::bail!(sysid::SysidError::Numerical(format!(
             "every run failed for {}: the study has no estimates for {}",
             failed.join("; "),
             if failed.len() == 1 { "it" } else { "them" }
         )));
     }
-    Ok(())
+    let json = match &args.json {
+        Some(_) => Some(serde_json::to_string_pretty(&report)? + "\n"),
+        None => None,
+    };
+    let mut outputs: Vec<(&Path, &[u8], &str)> = Vec::new();
+    if let (Some(path), Some(text)) = (&args.json, &json) {
+        outputs.push((path, text.as_bytes(), "--json"));
+    }
+    // With --strict and warnings, --json is not written (an earlier file stays) and the exit code is 1.
+    write_outputs(&outputs, &inputs, args.strict, report.warnings.len())
 }
 
 /// The total work runs × samples × methods, bounded before anything runs (10 000 runs of 5 × 10^7

@@ -16,7 +16,7 @@ use sysid::{Dataset, Identification, Method, ModelKind};
 
 use super::common::{
     check_outputs, parse_rows, print_notes, print_report, progress_bar, same_samples_warning,
-    shared_rows_warning, write_output, ColumnArgs, FileRows, ValidationArgs,
+    shared_rows_warning, write_outputs, ColumnArgs, FileRows, ValidationArgs,
 };
 use sysid::data::RowRange;
 
@@ -78,6 +78,10 @@ pub struct Args {
     /// Write the ranking as JSON here (`-` for standard output).
     #[arg(long, value_name = "OUT")]
     pub json: Option<PathBuf>,
+    /// Exit with code 1 when the result carries warnings (they are printed either way), without writing
+    /// --json (an earlier file there is kept).
+    #[arg(long)]
+    pub strict: bool,
     /// Structure search over model classes instead of orders of one structure: a list of `arx`,
     /// `hammerstein` (the deadzone) or `hammerstein:KIND` / `KIND` (an input nonlinearity kind of
     /// --nonlinearity), `narxD` (polynomial NARX of degree D), `wiener:KIND[:N]` (a linear block and an
@@ -161,7 +165,7 @@ struct OrderReport<'a> {
     /// The chosen structure, re-estimated on the whole estimation record, on the test record.
     test: Option<TestResult>,
     /// Reasons not to trust the recommendation (always present; empty when all is well).
-    warnings: Vec<String>,
+    warnings: &'a [String],
     candidates: &'a [Candidate],
 }
 
@@ -240,7 +244,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             &base,
             (&data, &fit_part, &selection, test.as_ref()),
             (&na, &nb, &nk),
-            (&inputs, warnings),
+            (&inputs, warnings, &notes),
         );
     }
     let delay = if auto_nk {
@@ -370,14 +374,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     print_report(&text, &[args.json.as_deref()])?;
     let json_to_stdout = args.json.as_deref().is_some_and(|p| p.as_os_str() == "-");
-    if let (true, Some(path), false) = (nothing, &args.json, json_to_stdout) {
-        eprintln!(
-            "{}: not written: no structure could be estimated (an existing file is left as it was)",
-            path.display()
-        );
-    } else if let Some(path) = &args.json {
+    if nothing && !json_to_stdout {
+        if let Some(path) = &args.json {
+            eprintln!(
+                "{}: not written: no structure could be estimated (an existing file is left as it was)",
+                path.display()
+            );
+        }
+        return Err(nothing_estimated(&ranked, failed));
+    }
+    // The reader's notes (printed first, as warnings) join the JSON's warnings as identify's do, and
+    // count for --strict.
+    let warnings: Vec<String> = data_notes(&notes).chain(warnings).collect();
+    let mut json = None;
+    if args.json.is_some() {
         let doc = OrderReport {
-            warnings,
+            warnings: &warnings,
             data: fit_part.name().to_string(),
             selection: selection.name().to_string(),
             validation: test.as_ref().map(|v| v.name().to_string()),
@@ -386,24 +398,40 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             test: test_result,
             candidates: &ranked,
         };
-        let json = serde_json::to_string_pretty(&doc)? + "\n";
-        write_output(path, json.as_bytes(), &inputs, "--json")?;
+        json = Some(serde_json::to_string_pretty(&doc)? + "\n");
+    }
+    let mut outputs: Vec<(&Path, &[u8], &str)> = Vec::new();
+    if let (Some(path), Some(text)) = (&args.json, &json) {
+        outputs.push((path, text.as_bytes(), "--json"));
     }
     if nothing {
-        let first = ranked.iter().find_map(|c| c.error.as_deref()).unwrap_or("");
-        let message = format!(
-            "every one of the {failed} structures failed to estimate (the first: {first}); nothing \
-             could be estimated from this record"
-        );
-        // Exit 1 when a numerical failure is among them; 2 when the data (or a setting) refused every
-        // structure, as `identify` exits on the same record (audit s14 L-j).
-        anyhow::bail!(if ranked.iter().any(|c| c.error_numerical) {
-            sysid::SysidError::Numerical(message)
-        } else {
-            sysid::SysidError::Data(message)
-        });
+        // The JSON went to standard output (the report); the failure is the error.
+        write_outputs(&outputs, &inputs, false, 0)?;
+        return Err(nothing_estimated(&ranked, failed));
     }
-    Ok(())
+    // With --strict and warnings, --json is not written (an earlier file stays) and the exit code is 1.
+    write_outputs(&outputs, &inputs, args.strict, warnings.len())
+}
+
+/// The reader's notes as entries of a JSON `warnings` list (`data: …`, as identify's).
+pub(super) fn data_notes(notes: &[String]) -> impl Iterator<Item = String> + '_ {
+    notes.iter().map(|n| format!("data: {n}"))
+}
+
+/// The error when every one of the `failed` structures of `ranked` failed to estimate: exit 1 when a
+/// numerical failure is among them; 2 when the data (or a setting) refused every structure, as
+/// `identify` exits on the same record (audit s14 L-j).
+fn nothing_estimated(ranked: &[Candidate], failed: usize) -> anyhow::Error {
+    let first = ranked.iter().find_map(|c| c.error.as_deref()).unwrap_or("");
+    let message = format!(
+        "every one of the {failed} structures failed to estimate (the first: {first}); nothing \
+         could be estimated from this record"
+    );
+    if ranked.iter().any(|c| c.error_numerical) {
+        sysid::SysidError::Numerical(message).into()
+    } else {
+        sysid::SysidError::Data(message).into()
+    }
 }
 
 /// The estimation part and the selection part of the estimation record: `--selection-rows` of the data

@@ -8,7 +8,7 @@ use report::format::num;
 use sysid::search::{recommended, structure_search, Class, ClassCandidate};
 use sysid::{Dataset, Identification, Orders};
 
-use super::common::{print_report, progress_bar, write_output};
+use super::common::{print_report, progress_bar, write_outputs};
 use super::order::Args;
 
 /// The chosen candidate on the test record.
@@ -27,13 +27,14 @@ struct Chosen {
 
 /// Runs the class search: `records` = (whole estimation record, estimation part, selection part,
 /// test record), `grid` = (na, nb, nk) values, `inputs` the input files and `warnings` those found
-/// before the search (the test record's rows, a short selection part).
+/// before the search (the test record's rows, a short selection part), `notes` the reader's (printed
+/// already; they join the JSON's warnings and count for `--strict`).
 pub fn run(
     args: &Args,
     base: &Identification,
     records: (&Dataset, &Dataset, &Dataset, Option<&Dataset>),
     grid: (&[usize], &[usize], &[usize]),
-    (inputs, mut warnings): (&[&Path], Vec<String>),
+    (inputs, mut warnings, notes): (&[&Path], Vec<String>, &[String]),
 ) -> anyhow::Result<()> {
     let (data, fit_part, selection, test) = records;
     if data.inputs().len() != 1 {
@@ -204,7 +205,9 @@ pub fn run(
         text.push_str(&format!("warning: {w}\n"));
     }
     print_report(&text, &[args.json.as_deref()])?;
-    if let Some(path) = &args.json {
+    let warnings: Vec<String> = super::order::data_notes(notes).chain(warnings).collect();
+    let mut json = None;
+    if args.json.is_some() {
         #[derive(serde::Serialize)]
         struct Doc<'a> {
             search: &'static str,
@@ -213,7 +216,7 @@ pub fn run(
             validation: Option<&'a str>,
             ranked_by: &'static str,
             chosen: Option<Chosen>,
-            warnings: Vec<String>,
+            warnings: &'a [String],
             candidates: &'a [ClassCandidate],
         }
         let doc = Doc {
@@ -223,13 +226,17 @@ pub fn run(
             validation: test.map(Dataset::name),
             ranked_by,
             chosen,
-            warnings,
+            warnings: &warnings,
             candidates: &ranked,
         };
-        let json = serde_json::to_string_pretty(&doc)? + "\n";
-        write_output(path, json.as_bytes(), inputs, "--json")?;
+        json = Some(serde_json::to_string_pretty(&doc)? + "\n");
     }
-    Ok(())
+    let mut outputs: Vec<(&Path, &[u8], &str)> = Vec::new();
+    if let (Some(path), Some(text)) = (&args.json, &json) {
+        outputs.push((path, text.as_bytes(), "--json"));
+    }
+    // With --strict and warnings, --json is not written (an earlier file stays) and the exit code is 1.
+    write_outputs(&outputs, inputs, args.strict, warnings.len())
 }
 
 /// The chosen candidate re-estimated on the whole estimation record, with its test figures; the test

@@ -66,6 +66,14 @@ pub struct Args {
     /// otherwise, and always for a folder that holds anything else).
     #[arg(long, requires = "fleet")]
     pub overwrite: bool,
+    /// Write what was simulated as JSON here (`-` for standard output): plant, input, samples, Ts, y0,
+    /// the columns written, the output's range and the run's `warnings` (not with --fleet).
+    #[arg(long, value_name = "OUT", conflicts_with = "fleet")]
+    pub json: Option<PathBuf>,
+    /// Exit with code 1 when the run carries warnings (they are printed either way), without writing
+    /// --out or --json (an earlier file there is kept; not with --fleet).
+    #[arg(long, conflicts_with = "fleet")]
+    pub strict: bool,
 }
 
 /// Runs the subcommand.
@@ -74,6 +82,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return super::simulate_fleet::run(&args);
     }
     let plant: ipa::spec::PlantSpec = args.plant.parse()?;
+    let mut warnings = Warnings::default();
     if let ipa::spec::PlantSpec::ModelFile(path) = &plant {
         let model = match sysid::model_file::read_any_model(path)? {
             sysid::model_file::AnyModel::Linear(m) => m,
@@ -82,23 +91,124 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     args.samples.unwrap_or(ipa::experiment::DEFAULT_SAMPLES),
                     m.ts(),
                 )?;
-                return run_plant(&args, plant, None, m.data_range());
+                return run_plant(&args, plant, None, m.data_range(), warnings);
             }
         };
-        // What validate would say of this model, said before its simulation is written.
+        // What validate would say of this model, said before it is simulated.
         for w in sysid_summary::simulation::model_file_warnings(&model) {
-            eprintln!("warning: {}: {w}", path.display());
+            warnings.say(format!("{}: {w}", path.display()));
         }
         check_time_span(
             args.samples.unwrap_or(ipa::experiment::DEFAULT_SAMPLES),
             model.ts(),
         )?;
         if model.inputs().len() > 1 {
-            return run_miso(&args, &model, path);
+            return run_miso(&args, &model, path, warnings);
         }
-        return run_plant(&args, plant, Some(&model), None);
+        return run_plant(&args, plant, Some(&model), None, warnings);
     }
-    run_plant(&args, plant, None, None)
+    run_plant(&args, plant, None, None, warnings)
+}
+
+/// The warnings of one run, kept for `--json` and `--strict`: those found before the simulation are
+/// printed on standard error when found (`warning: …`, [`Warnings::say`]), those about the record after
+/// the line that says what was written (pushed to `all`, printed by [`finish`]).
+#[derive(Debug, Default)]
+struct Warnings {
+    all: Vec<String>,
+    printed: usize,
+}
+
+impl Warnings {
+    /// Prints `w` now and keeps it.
+    fn say(&mut self, w: String) {
+        eprintln!("warning: {w}");
+        self.all.push(w);
+        self.printed = self.all.len();
+    }
+}
+
+/// The `simulate --json` document: what was simulated and the run's warnings.
+#[derive(Debug, serde::Serialize)]
+struct SimulateReport<'a> {
+    /// `--plant` as given (`ipa`, `paper`, `model:FILE`).
+    plant: &'a str,
+    /// `--input` as given.
+    input: &'a str,
+    /// The CSV file of the record (`--out`).
+    out: String,
+    /// Its header.
+    columns: Vec<String>,
+    /// Number of samples N.
+    samples: usize,
+    /// Sampling period Ts in s.
+    ts: f64,
+    /// The level y0 held before the start (the plant's output units: mm for `ipa` and `paper`).
+    y0: f64,
+    /// Seed of the random input and noise (`--seed`).
+    seed: u64,
+    /// Smallest and largest simulated output [min, max] (null for an empty record).
+    y_range: Option<[f64; 2]>,
+    /// Everything printed as `warning:` (always present; empty when all is well).
+    warnings: &'a [String],
+}
+
+/// A simulated record ready to be written: the CSV bytes of `--out`, its header, and the sentence
+/// `wrote …` says of it (without the verb and the path).
+struct Written<'a> {
+    csv: Vec<u8>,
+    columns: Vec<&'a str>,
+    samples: usize,
+    ts: f64,
+    y0: f64,
+    y: &'a [f64],
+    words: String,
+}
+
+/// Writes `--out` and `--json` together (with `--strict` and warnings neither: exit 1, an earlier file
+/// stays), then says what was written and prints the warnings not printed yet.
+fn finish(
+    args: &Args,
+    inputs: &[&Path],
+    rec: Written<'_>,
+    warnings: Warnings,
+) -> anyhow::Result<()> {
+    let (lo, hi) = sysid_core::DataRange::extremes(rec.y);
+    let report = SimulateReport {
+        plant: &args.plant,
+        input: &args.input,
+        out: args.out.display().to_string(),
+        columns: rec.columns.iter().map(|c| c.to_string()).collect(),
+        samples: rec.samples,
+        ts: rec.ts,
+        y0: rec.y0,
+        seed: args.seed,
+        y_range: (!rec.y.is_empty()).then_some([lo, hi]),
+        warnings: &warnings.all,
+    };
+    let json = match &args.json {
+        Some(_) => Some(serde_json::to_string_pretty(&report)? + "\n"),
+        None => None,
+    };
+    let mut outputs: Vec<(&Path, &[u8], &str)> = vec![(&args.out, &rec.csv, "--out")];
+    if let (Some(path), Some(text)) = (&args.json, &json) {
+        outputs.push((path, text.as_bytes(), "--json"));
+    }
+    let written = super::common::write_outputs(&outputs, inputs, args.strict, warnings.all.len());
+    let refused = match &written {
+        Ok(()) => false,
+        Err(e) if e.downcast_ref::<crate::exit::StrictWarnings>().is_some() => true,
+        Err(_) => return written,
+    };
+    if refused {
+        eprintln!("simulated {}", rec.words);
+    } else {
+        eprintln!("wrote {}, to {}", rec.words, args.out.display());
+    }
+    for w in &warnings.all[warnings.printed..] {
+        eprintln!("warning: {w}");
+    }
+    written
 }
 
 /// How the record starts, in words: the level held before the start and, for a model, what its
@@ -136,12 +246,13 @@ fn start_words(
 }
 
 /// Runs the plant of `--plant` (`model`: the model file it names, already read) on the designed
-/// input and writes the record.
+/// input and writes the record; `warnings` are those found before (the model file's).
 fn run_plant(
     args: &Args,
     plant: ipa::spec::PlantSpec,
     model: Option<&sysid::Model>,
     narx_range: Option<&sysid::DataRange>,
+    mut warnings: Warnings,
 ) -> anyhow::Result<()> {
     // A file input is read once, its commands with the Ts of its time column.
     let input = args.input.parse::<ipa::InputSpec>()?.load()?;
@@ -181,22 +292,20 @@ fn run_plant(
     if let Some(f) = exp.input.file() {
         inputs.push(f);
     }
-    sysid_io::check_writable(&args.out, "--out")?;
-    sysid_io::refuse_overwrite_input(&args.out, &inputs, "--out")?;
+    check_outputs(&args.out, args.json.as_ref(), &inputs)?;
     let rec = exp.run()?;
-    write_csv(&args.out, &rec)?;
+    let (csv, columns) = record_csv(&args.out, &rec)?;
     let file_words = match (file_ts, exp.input.file()) {
         (Some(f), Some(path)) if (f - rec.ts).abs() <= 1e-3 * f => {
             format!(", the time column t of {}", path.display())
         }
         _ => String::new(),
     };
-    eprintln!(
-        "wrote {} samples (Ts = {} s{file_words}), {}, to {}",
+    let words = format!(
+        "{} samples (Ts = {} s{file_words}), {}",
         rec.u.len(),
         Shortest(rec.ts),
         start_words(y0, rec.y.first().copied(), model, args.y0.is_none()),
-        args.out.display()
     );
     let run = sysid_summary::simulation::OpenLoopRun {
         model,
@@ -208,10 +317,33 @@ fn run_plant(
         input_file: exp.input.file().map(|p| (p, file_ts)),
         ts_setting: args.ts,
     };
-    for w in sysid_summary::simulation::record_warnings(&run, &rec.u, &rec.y, rec.ts) {
-        eprintln!("warning: {w}");
-    }
-    Ok(())
+    warnings
+        .all
+        .extend(sysid_summary::simulation::record_warnings(
+            &run, &rec.u, &rec.y, rec.ts,
+        ));
+    let written = Written {
+        csv,
+        columns,
+        samples: rec.u.len(),
+        ts: rec.ts,
+        y0,
+        y: &rec.y,
+        words,
+    };
+    finish(args, &inputs, written, warnings)
+}
+
+/// Checks before the simulation that `--out` and `--json` can be written and name none of `inputs`
+/// ([`super::common::check_outputs`]).
+fn check_outputs(out: &Path, json: Option<&PathBuf>, inputs: &[&Path]) -> anyhow::Result<()> {
+    super::common::check_outputs(
+        &[
+            (&Some(out.to_path_buf()), "--out"),
+            (&json.cloned(), "--json"),
+        ],
+        inputs,
+    )
 }
 
 /// Refuses a record whose last sample time (N - 1) Ts is not a finite number of seconds (a model with
@@ -231,9 +363,9 @@ fn check_time_span(samples: usize, ts: f64) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Writes the record as CSV (t, u, y in Rust's shortest round-trip decimals; pressures, when simulated,
-/// to 0.1 Pa).
-fn write_csv(out: &Path, rec: &Record) -> anyhow::Result<()> {
+/// The record as CSV (t, u, y in Rust's shortest round-trip decimals; pressures, when simulated, to
+/// 0.1 Pa) and its header; `out` names the file in messages.
+fn record_csv(out: &Path, rec: &Record) -> anyhow::Result<(Vec<u8>, Vec<&'static str>)> {
     use sysid_io::NumberFormat::{OneDecimal, Shortest};
     check_time_span(rec.u.len(), rec.ts)?;
     let times = sysid::data::sample_times(rec.u.len(), rec.ts);
@@ -248,14 +380,18 @@ fn write_csv(out: &Path, rec: &Record) -> anyhow::Result<()> {
         header.extend(["p_a_pa", "p_b_pa"]);
         columns.extend([(pa.as_slice(), OneDecimal), (pb.as_slice(), OneDecimal)]);
     }
-    Ok(sysid_io::write_formatted_columns_csv(
-        out, &header, &columns,
-    )?)
+    let csv = sysid_io::formatted_columns_csv(out, &header, &columns)?;
+    Ok((csv, header))
 }
 
 /// Runs a model with several inputs open loop on recorded commands (`--input file:CSV` with one column per
 /// model input, named as in the model) from rest at `--y0`, and writes `t,<inputs>,y`.
-fn run_miso(args: &Args, model: &sysid::Model, model_path: &Path) -> anyhow::Result<()> {
+fn run_miso(
+    args: &Args,
+    model: &sysid::Model,
+    model_path: &Path,
+    mut warnings: Warnings,
+) -> anyhow::Result<()> {
     let names: Vec<&str> = model.inputs().iter().map(|i| i.name()).collect();
     let input: ipa::InputSpec = args.input.parse()?;
     let Some(file) = input.file() else {
@@ -290,8 +426,7 @@ fn run_miso(args: &Args, model: &sysid::Model, model_path: &Path) -> anyhow::Res
         }
     }
     let inputs: Vec<&Path> = vec![model_path, file];
-    sysid_io::check_writable(&args.out, "--out")?;
-    sysid_io::refuse_overwrite_input(&args.out, &inputs, "--out")?;
+    check_outputs(&args.out, args.json.as_ref(), &inputs)?;
     let u = ipa::input::read_input_columns(file, &names)?;
     let us: Vec<&[f64]> = u.iter().map(Vec::as_slice).collect();
     let y0 = match args.y0 {
@@ -315,17 +450,29 @@ fn run_miso(args: &Args, model: &sysid::Model, model_path: &Path) -> anyhow::Res
         row.push(y[k].to_string());
         row
     });
-    sysid_io::write_csv(&args.out, &header, rows)?;
-    eprintln!(
-        "wrote {} samples (Ts = {} s) of the {}-input model, {}, to {}",
+    let csv = sysid_io::csv_bytes(&args.out, &header, rows)?;
+    let words = format!(
+        "{} samples (Ts = {} s) of the {}-input model, {}",
         y.len(),
         Shortest(model.ts()),
         names.len(),
         start_words(y0, y.first().copied(), Some(model), args.y0.is_none()),
-        args.out.display()
     );
-    if let Some(w) = sysid_summary::simulation::rest_outside_data(model, y0, args.y0.is_none()) {
-        eprintln!("warning: {w}");
-    }
-    Ok(())
+    warnings
+        .all
+        .extend(sysid_summary::simulation::rest_outside_data(
+            model,
+            y0,
+            args.y0.is_none(),
+        ));
+    let written = Written {
+        csv,
+        columns: header,
+        samples: y.len(),
+        ts: model.ts(),
+        y0,
+        y: &y,
+        words,
+    };
+    finish(args, &inputs, written, warnings)
 }

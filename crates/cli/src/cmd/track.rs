@@ -4,7 +4,7 @@
 //! `track_stream` reads the lines by `identify`'s CSV rules.
 
 use std::io::{BufReader, Write};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 use anyhow::Context;
@@ -135,6 +135,10 @@ pub struct Args {
     /// lines). `--json-summary`, its former name, is still accepted.
     #[arg(long = "json", alias = "json-summary", value_name = "FILE")]
     pub json: Option<PathBuf>,
+    /// Exit with code 1 when the end summary carries warnings (they are printed either way), without
+    /// writing --json (an earlier file there is kept; the lines already streamed stay).
+    #[arg(long)]
+    pub strict: bool,
 }
 
 impl Args {
@@ -274,6 +278,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .collect::<Vec<_>>()
             .join(",")
     );
+    let mut json = None;
     if let Some(path) = &args.json {
         // On standard output the summary is one more line of the JSON-lines stream (the last, with
         // `samples` and no `k`), so a line-by-line reader parses every line; in a file it is
@@ -285,7 +290,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         .context("serialising the summary")?;
         text.push('\n');
-        super::common::write_output(path, text.as_bytes(), &inputs, "--json")?;
+        json = Some(text);
     }
-    Ok(())
+    let mut outputs: Vec<(&Path, &[u8], &str)> = Vec::new();
+    if let (Some(path), Some(text)) = (&args.json, &json) {
+        outputs.push((path, text.as_bytes(), "--json"));
+    }
+    // With --strict and end warnings, --json is not written (an earlier file stays) and the exit code
+    // is 1; the lines already streamed stay as they are.
+    super::common::write_outputs(&outputs, &inputs, args.strict, summary.warnings.len())
 }

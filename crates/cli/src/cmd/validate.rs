@@ -29,8 +29,9 @@ pub struct Args {
     #[arg(long, value_name = "OUT")]
     pub json: Option<PathBuf>,
     /// Write the model's output as CSV: t,y,y_sim,y_pred,residual (residual = y − y_pred; y_pred is the
-    /// --horizon-step prediction; MATLAB `compare`/`predict`). t is k·Ts from the judged record's first
-    /// row (its first --rows row), not the file's time column. `-`: standard output; the text report
+    /// --horizon-step prediction; MATLAB `compare`/`predict`). t is the record's time: t0 + k·Ts, t0 the
+    /// time column's value on the judged record's first row (its first --rows row; 0 without a time
+    /// column). `-`: standard output; the text report
     /// then goes to standard error, and no other output may be `-`.
     #[arg(long, value_name = "FILE.csv")]
     pub out: Option<PathBuf>,
@@ -87,14 +88,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let us = data.input_signals();
     sysid::metrics::check_sampling(data.name(), data.ts(), model.ts())?;
-    let mut report = ValidationReport::assemble(&model, &data, args.resid_lags)
-        .map_err(|e| e.context(data.name()))?;
+    let blame = |e: sysid::SysidError| {
+        blame_model(
+            e.context(data.name()),
+            &model,
+            &args.model,
+            (&us, data.y(), data.name()),
+        )
+    };
+    let mut report = ValidationReport::assemble(&model, &data, args.resid_lags).map_err(blame)?;
     report
         .warnings
         .extend(record.notes.iter().map(|n| format!("data: {n}")));
     model_warnings(&mut report, &model);
-    let out = sysid::metrics::model_output(&model, &us, data.y(), args.horizon)
-        .map_err(|e| e.context(data.name()))?;
+    let out = sysid::metrics::model_output(&model, &us, data.y(), args.horizon).map_err(blame)?;
     let value = report_json(&report, args.horizon, out.fit_pred_percent, &record.notes)?;
     let text = report_text(
         &args,
@@ -106,7 +113,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     print_report(&text, &[args.json.as_deref(), args.out.as_deref()])?;
     let mut out_csv = None;
     if args.out.is_some() {
-        let t = sysid::data::sample_times(data.len(), data.ts());
+        // The record's own time: t0 + k·Ts from its time column's first value (audit s16 L13).
+        let t0 = record.t0.unwrap_or(0.0);
+        let t: Vec<f64> = sysid::data::sample_times(data.len(), data.ts())
+            .into_iter()
+            .map(|tk| t0 + tk)
+            .collect();
         let mut w = csv::Writer::from_writer(Vec::new());
         w.write_record(["t", "y", "y_sim", "y_pred", "residual"])?;
         for k in 0..data.len() {
@@ -211,7 +223,12 @@ fn run_narx(
     if args.out.is_some() {
         let sim = model.simulate(data.u(), data.y())?.y;
         let pred = model.predict(data.u(), data.y())?;
-        let t = sysid::data::sample_times(data.len(), data.ts());
+        // The record's own time: t0 + k·Ts from its time column's first value (audit s16 L13).
+        let t0 = record.t0.unwrap_or(0.0);
+        let t: Vec<f64> = sysid::data::sample_times(data.len(), data.ts())
+            .into_iter()
+            .map(|tk| t0 + tk)
+            .collect();
         let mut w = csv::Writer::from_writer(Vec::new());
         w.write_record(["t", "y", "y_sim", "y_pred", "residual"])?;
         for k in 0..data.len() {
@@ -379,6 +396,29 @@ fn run_streamed(
     let text = report_text(args, &report, &name, shape.rows, fit_horizon);
     print_report(&text, &[args.json.as_deref(), args.out.as_deref()])?;
     finish(args, report.warnings.len(), &value, None, inputs)
+}
+
+/// A numerical failure `e` of `model` (read from `path`) on the record (`u`, `y`, its name) blamed on
+/// the model file when one of its coefficients explains it ([`sysid::Model::overflowing_coefficient`]):
+/// the error names the file and the coefficient, not the data (audit s17 L-c: a1 = 1e308 was reported
+/// as "values too large? rescale the data"). Any other error is returned as it is.
+fn blame_model(
+    e: sysid::SysidError,
+    model: &sysid::Model,
+    path: &Path,
+    (u, y, name): (&[&[f64]], &[f64], &str),
+) -> sysid::SysidError {
+    if !e.is_numerical() {
+        return e;
+    }
+    match model.overflowing_coefficient(u, y) {
+        Some(why) => sysid::SysidError::Numerical(format!(
+            "{}: the model's {why}: the model file holds an absurd coefficient (hand-edited or \
+             damaged?); the record {name} is not to blame",
+            path.display()
+        )),
+        None => e,
+    }
 }
 
 /// Adds what the model file itself deserves a warning for (a map that breaks its kind's shape) to the report.

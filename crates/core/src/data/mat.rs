@@ -238,9 +238,11 @@ pub fn read_mat_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Rec
             ))
         }
     };
+    let t0 = t.as_ref().and_then(|t| t.first().copied());
     Ok(Record {
         data: Dataset::new(Signals { u, y }, ts, name)?,
         notes,
+        t0,
     })
 }
 

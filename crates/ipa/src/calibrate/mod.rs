@@ -483,6 +483,40 @@ pub struct FreeRun {
     pub rmse_mm: f64,
 }
 
+impl FreeRun {
+    /// This free run's figures under `identify`'s names for the same quantities (a free run from the
+    /// measured initial state is its `fit_sim_measured_percent` and `rmse_sim_measured`).
+    pub fn metrics(&self) -> FreeRunMetrics {
+        FreeRunMetrics {
+            fit_sim_measured_percent: self.fit_percent,
+            rmse_sim_measured: self.rmse_mm.is_finite().then_some(self.rmse_mm),
+        }
+    }
+}
+
+/// The figures of one free run ([`FreeRun::metrics`]), keyed as `identify --json`'s
+/// `metrics.estimation` / `metrics.validation` objects key them.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct FreeRunMetrics {
+    /// Fit % = 100 (1 − ‖y − ŷ‖ / ‖y − ȳ‖) of the simulation from the measured initial state
+    /// (`None` for a constant record).
+    pub fit_sim_measured_percent: Option<f64>,
+    /// RMS error of that simulation, in y's units (mm); `None` when not finite.
+    pub rmse_sim_measured: Option<f64>,
+}
+
+/// A plant's free runs on the records of a calibration ([`Calibrated::metrics`],
+/// [`Calibrated::start_metrics`]): `identify --json`'s `metrics` object, with the same record keys.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct RecordMetrics {
+    /// On the estimation record (`None` when its free run failed).
+    pub estimation: Option<FreeRunMetrics>,
+    /// On the validation record, when one was given (absent from the JSON otherwise, as in
+    /// `identify`'s).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub validation: Option<FreeRunMetrics>,
+}
+
 /// A calibrated twin with its report.
 #[derive(Debug, Clone)]
 pub struct Calibrated {
@@ -525,6 +559,22 @@ pub struct Calibrated {
 }
 
 impl Calibrated {
+    /// The twin's free runs on the estimation and validation records, named as `identify`'s metrics.
+    pub fn metrics(&self) -> RecordMetrics {
+        RecordMetrics {
+            estimation: self.estimation.as_ref().map(FreeRun::metrics),
+            validation: self.validation.as_ref().map(FreeRun::metrics),
+        }
+    }
+
+    /// The start plant's free runs (before the search), as [`Calibrated::metrics`].
+    pub fn start_metrics(&self) -> RecordMetrics {
+        RecordMetrics {
+            estimation: self.estimation_start.as_ref().map(FreeRun::metrics),
+            validation: self.validation_start.as_ref().map(FreeRun::metrics),
+        }
+    }
+
     /// The twin as the plant-config TOML `calibrate` writes: a comment naming the record, the
     /// parameters ([`PlantConfig::to_commented_toml`]) and a `[calibration]` table with the record,
     /// its Ts (s), the free-run fits (%) and every warning ([`crate::config::CalibrationNote`]), which

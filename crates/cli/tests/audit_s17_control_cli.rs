@@ -5,23 +5,14 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests may panic
 
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
 use serde_json::Value;
 
 mod common;
 use common::warnings;
 
-fn ipa_sysid(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
-        .args(args)
-        .output()
-        .expect("run ipa-sysid")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+use common::{run as ipa_sysid, stderr};
 
 fn stdout(o: &Output) -> String {
     String::from_utf8_lossy(&o.stdout).into_owned()

@@ -7,18 +7,9 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests may panic
 
 use std::path::Path;
-use std::process::{Command, Output};
 
-fn ipa_sysid(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
-        .args(args)
-        .output()
-        .expect("run ipa-sysid")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+mod common;
+use common::{run as ipa_sysid, stderr};
 
 /// A Hammerstein model file: A = 1 + a1 z⁻¹ + …, B = 1, nk = 1, deadzone ±20 counts, slopes `m`.
 fn hammerstein_file(dir: &Path, name: &str, a: &[f64], m: f64) -> std::path::PathBuf {

@@ -5,18 +5,9 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
 
 use std::path::Path;
-use std::process::{Command, Output};
 
-fn ipa_sysid(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
-        .args(args)
-        .output()
-        .expect("run ipa-sysid")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+mod common;
+use common::{run as ipa_sysid, stderr};
 
 /// y(k) = y(k-1) + f(u(k-1)), deadzone b_l = -20, b_r = 20, slopes 0.005 mm/count per sample.
 const MODEL: &str = r#"{

@@ -6,13 +6,23 @@
 #![allow(dead_code, clippy::unwrap_used, clippy::expect_used)]
 
 use std::path::Path;
-use std::process::Command;
+use std::process::{Command, Output};
 
 use serde_json::Value;
 
 /// The binary under test.
 pub fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
+}
+
+/// Runs `ipa-sysid ARGS` and returns what it did (exit status, standard output and error).
+pub fn run(args: &[&str]) -> Output {
+    bin().args(args).output().expect("run ipa-sysid")
+}
+
+/// A run's standard error as text.
+pub fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
 /// Runs `ipa-sysid ARGS --json F` in `dir`; returns the exit code and the JSON document (the command

@@ -302,6 +302,62 @@ fn follow_reads_lines_appended_later_and_stops_after_the_idle_timeout() {
     assert_eq!(finish(child, &summary), (30, 6));
 }
 
+// Audit s16 L12: `track --follow` without --idle-timeout is stopped by Ctrl-C (SIGINT): the first one
+// ends the run (after the line being read, or at the next poll), with the end summary and --json of
+// every sample read (the 40 written here: track has printed the line of the 40th, k = 39, before the
+// signal is sent), exit 0 and a note on stderr that a signal stopped it.
+#[cfg(unix)]
+#[test]
+fn follow_stopped_by_sigint_writes_its_summary() {
+    use std::io::{BufRead, BufReader};
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("live.csv");
+    std::fs::write(&path, format!("t,u,y\n{}", paper_lines(40))).unwrap();
+    let summary = dir.path().join("s.json");
+    let mut child = Command::new(BIN)
+        .args(["track", "--follow", path.to_str().unwrap()])
+        .args(["--no-detect", "--every", "1"])
+        .args(["--json", summary.to_str().unwrap()])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    // A watchdog: a run that never stops is killed after 60 s, so the test fails instead of hanging.
+    let done = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let (pid, watched) = (child.id().to_string(), done.clone());
+    std::thread::spawn(move || {
+        std::thread::sleep(std::time::Duration::from_secs(60));
+        if !watched.load(std::sync::atomic::Ordering::SeqCst) {
+            let _ = Command::new("kill").args(["-KILL", &pid]).status();
+        }
+    });
+    // Read the streamed lines until the last sample's (k = 39) has come (the first samples, before the
+    // regressor is full, print no line).
+    let mut out = BufReader::new(child.stdout.take().unwrap());
+    let mut line = String::new();
+    loop {
+        line.clear();
+        assert!(out.read_line(&mut line).unwrap() > 0, "track ended early");
+        let k: serde_json::Value = serde_json::from_str(&line).unwrap();
+        if k["k"] == 39 {
+            break;
+        }
+    }
+    let kill = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    let o = child.wait_with_output().unwrap();
+    done.store(true, std::sync::atomic::Ordering::SeqCst);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(0), "{err}");
+    assert!(err.contains("stopped by a signal"), "{err}");
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    assert_eq!(s["samples"], 40);
+}
+
 // Log rotation by copy and truncate: the followed file is emptied, then the logger writes on (here with
 // its header again). track notes it on stderr and reads the file again from its beginning (after the
 // header): every sample is read once, and the run ends normally (audit s10 F7.7: it ended in "the line

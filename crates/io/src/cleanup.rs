@@ -9,7 +9,27 @@
 //! still either the old or the new file).
 
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Mutex, MutexGuard};
+
+/// A run that ends by itself when asked ([`accept_stop`]): the first SIGINT or SIGTERM then sets
+/// [`STOP_ASKED`] instead of ending the process.
+static STOP_ACCEPTED: AtomicBool = AtomicBool::new(false);
+/// A stop was asked by SIGINT or SIGTERM while [`STOP_ACCEPTED`].
+static STOP_ASKED: AtomicBool = AtomicBool::new(false);
+
+/// Lets the first SIGINT or SIGTERM ask the run to stop ([`stop_asked`]) instead of ending the process:
+/// `track --follow` then ends after the line being read (or at its next poll) and writes its summary and `--json` (audit
+/// s16 L12). A second signal ends the process as before (temporaries removed). Only with
+/// [`remove_temporaries_on_signals`] started (the command line).
+pub fn accept_stop() {
+    STOP_ACCEPTED.store(true, Ordering::SeqCst);
+}
+
+/// Whether a stop was asked ([`accept_stop`]).
+pub fn stop_asked() -> bool {
+    STOP_ASKED.load(Ordering::SeqCst)
+}
 
 static PENDING: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
 
@@ -104,7 +124,14 @@ pub fn remove_temporaries_on_signals() -> std::io::Result<()> {
     std::thread::Builder::new()
         .name("remove-temporaries".into())
         .spawn(move || {
-            if let Some(signal) = signals.forever().next() {
+            for signal in signals.forever() {
+                // The first SIGINT or SIGTERM of a run that stops by itself only asks it to stop.
+                if signal != SIGHUP
+                    && STOP_ACCEPTED.load(Ordering::SeqCst)
+                    && !STOP_ASKED.swap(true, Ordering::SeqCst)
+                {
+                    continue;
+                }
                 let list = pending();
                 for p in list.iter() {
                     if p.is_dir() {

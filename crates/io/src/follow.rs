@@ -274,9 +274,12 @@ impl<R: Read> Read for Follow<R> {
             };
             self.idle = true;
             self.watch()?;
+            // No byte now: the end after the idle time-out, or when a stop was asked (the first
+            // Ctrl-C of `track --follow`, [`crate::accept_stop`]; audit s16 L12).
             if self
                 .idle_timeout
                 .is_some_and(|t| self.last_data.elapsed() >= t)
+                || crate::stop_asked()
             {
                 return Ok(0);
             }

@@ -310,7 +310,7 @@ fn keep_owner(_file: &std::fs::File, _old: &std::fs::Metadata) -> std::io::Resul
     Ok(())
 }
 
-pub use cleanup::remove_temporaries_on_signals;
+pub use cleanup::{accept_stop, remove_temporaries_on_signals, stop_asked};
 
 /// Writes a CSV table to `path` atomically ([`write_atomic`]) through `csv::Writer` (fields quoted
 /// only where needed, `\n` line ends): the `header` row, then every row of `rows`, whose cells the

@@ -248,6 +248,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     };
     check_outputs(&[(&args.json, "--json")], &inputs)?;
+    // A followed file or port ends at the first Ctrl-C (SIGINT or SIGTERM) with its summary and
+    // --json, after the line being read (or at the next poll); a second one ends the process
+    // (audit s16 L12).
+    if args.follow.is_some() || args.serial.is_some() {
+        sysid_io::accept_stop();
+    }
     let options = StreamOptions {
         name,
         csv: sysid::data::CsvOptions {
@@ -263,6 +269,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut out = std::io::BufWriter::new(std::io::stdout().lock());
     let summary = track_stream(reader, &mut out, &mut tracker, &options)?;
     out.flush().context("writing to standard output")?;
+    if sysid_io::stop_asked() {
+        eprintln!(
+            "stopped by a signal (SIGINT or SIGTERM): the summary of the samples read until then"
+        );
+    }
     for w in &summary.warnings {
         eprintln!("warning: {w}");
     }

@@ -176,6 +176,11 @@ pub fn track_stream<R: BufRead, W: Write>(
     let (mut time_jumps, mut new_time_warnings, mut time_warnings) =
         (0usize, Vec::new(), Vec::new());
     loop {
+        // A stop asked by the first Ctrl-C of a followed source (`sysid_io::accept_stop`): the run ends
+        // here, between two lines, even when the data never pause (a port streaming without a gap).
+        if sysid_io::stop_asked() {
+            break;
+        }
         match read_line_bounded(&mut input, &mut buf, MAX_LINE_BYTES) {
             Ok(true) => {}
             Ok(false) => break,

@@ -809,48 +809,33 @@ pub fn tune(
         .best
         .ok_or_else(|| ControlError::Config("no evaluation".into()))?;
     let best = settings_of(&theta, cut_band_mm, deadzone, ts_s, spec)?;
-    let (braked, evaluation, brake_evaluations) = choose_by_count(
-        best,
-        evaluation,
-        &brake_candidates(&best, spec),
-        make_plant,
-        settings.plants,
-        spec,
-    )?;
-    let (rested, evaluation, rest_evaluations) = choose_by_count(
-        braked,
-        evaluation,
-        &rest_candidates(&braked),
-        make_plant,
-        settings.plants,
-        spec,
-    )?;
-    let (shortened, evaluation, short_evaluations) = choose_by_count(
-        rested,
-        evaluation,
-        &short_candidates(&rested, spec),
-        make_plant,
-        settings.plants,
-        spec,
-    )?;
-    let (settings_chosen, evaluation, range_evaluations) = choose_by_count(
-        shortened,
-        evaluation,
-        &short_range_candidates(&shortened, spec),
-        make_plant,
-        settings.plants,
-        spec,
-    )?;
+    // After the search, each choice in turn, kept by the count at the controller chosen so far: the
+    // approach with braking, the nudge's rest count, the short-step approach, its range, the
+    // ramp-and-cut band (module documentation).
+    let stages: [fn(&ControllerSettings, &Spec) -> Vec<ControllerSettings>; 5] = [
+        brake_candidates,
+        |s, _| rest_candidates(s),
+        short_candidates,
+        short_range_candidates,
+        cut_band_candidates,
+    ];
+    let (mut settings_chosen, mut evaluation) = (best, evaluation);
+    let mut counts = [0; 5];
+    for (stage, count) in stages.iter().zip(counts.iter_mut()) {
+        let candidates = stage(&settings_chosen, spec);
+        (settings_chosen, evaluation, *count) = choose_by_count(
+            settings_chosen,
+            evaluation,
+            &candidates,
+            make_plant,
+            settings.plants,
+            spec,
+        )?;
+    }
+    let [brake_evaluations, rest_evaluations, short_evaluations, range_evaluations, cut_evaluations] =
+        counts;
     let short_evaluations = short_evaluations + range_evaluations;
     let cut_band_before_mm = cut_band_mm;
-    let (settings_chosen, evaluation, cut_evaluations) = choose_by_count(
-        settings_chosen,
-        evaluation,
-        &cut_band_candidates(&settings_chosen, spec),
-        make_plant,
-        settings.plants,
-        spec,
-    )?;
     Ok(Tuned {
         settings: settings_chosen,
         evaluation,

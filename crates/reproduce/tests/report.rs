@@ -148,7 +148,10 @@ fn every_criterion_has_an_id_and_the_verdicts_follow_from_the_numbers() {
         let json_os_r = s["closed_loop"]["fixed"]["plant"]["overshoot_past_setpoint_percent"]
             .as_f64()
             .unwrap();
-        assert!((json_os_r - os_r).abs() < 1e-6, "{plant}: {json_os_r} vs {os_r}");
+        assert!(
+            (json_os_r - os_r).abs() < 1e-6,
+            "{plant}: {json_os_r} vs {os_r}"
+        );
         assert_eq!(criterion(s, "pi_overshoot")["met"], os_r < 10.0);
         // Table V's acceptance row shows the number the verdict judged.
         let said = criterion(s, "pi_overshoot")["criterion"].as_str().unwrap();

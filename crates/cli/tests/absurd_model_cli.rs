@@ -99,3 +99,45 @@ fn a_record_beyond_the_bound_is_still_the_datas_fault() {
     assert!(e.contains("rescale the data"), "{e}");
     assert!(!e.contains("absurd coefficient"), "{e}");
 }
+
+fn validate_streamed(dir: &Path, model: &str, data: &str) -> Output {
+    bin()
+        .current_dir(dir)
+        .args(["validate", "--stream", "--model", model, "--data", data])
+        .output()
+        .unwrap()
+}
+
+// `validate --stream` reads the record in passes but blames the same file and coefficient, in the same
+// words, as `validate` on the record in memory (one path: the record's sizes, gathered in one more pass
+// only on the failure); a record beyond the bound is still the data's fault there too.
+#[test]
+fn the_streamed_validate_blames_the_model_file_as_the_in_memory_one_does() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path();
+    record(&p.join("rec.csv"), 1.0);
+    record(&p.join("huge.csv"), 1e160);
+    let cases: [Case; 3] = [
+        ("a.json", [-0.5, 1e308], 1.0, None, "a2 = 1e308"),
+        ("b.json", [-0.5, 0.0], 1e300, None, "b1 = 1e300"),
+        ("c.json", [-0.5, 0.0], 1.0, Some(1e300), "offset c = 1e300"),
+    ];
+    for (file, a, b1, c, named) in cases {
+        model(&p.join(file), a, b1, c);
+        let (held, streamed) = (
+            validate(p, file, "rec.csv"),
+            validate_streamed(p, file, "rec.csv"),
+        );
+        let e = stderr(&streamed);
+        assert_eq!(streamed.status.code(), Some(1), "{e}");
+        assert!(e.contains(&format!("{file}: the model's {named}")), "{e}");
+        assert!(e.contains("rec.csv is not to blame"), "{e}");
+        assert!(!e.contains("rescale the data"), "{e}");
+        assert_eq!(e, stderr(&held), "{file}: streamed vs in memory");
+    }
+    model(&p.join("m.json"), [-0.5, 0.0], 1.0, None);
+    let o = validate_streamed(p, "m.json", "huge.csv");
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    assert!(!e.contains("absurd coefficient"), "{e}");
+}

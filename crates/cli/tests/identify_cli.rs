@@ -292,13 +292,8 @@ fn identify_json_carries_warnings_and_residual_analysis() {
 #[test]
 fn strict_turns_warnings_into_exit_code_1() {
     let dir = tempfile::tempdir().unwrap();
-    let mut state = 7u64;
-    let mut next = || {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((state >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
-    };
+    let mut rng = common::lcg(7);
+    let mut next = || rng.unit() * 2.0 - 1.0;
     let n = 400;
     let u: Vec<f64> = (0..n).map(|_| next()).collect();
     let mut y = vec![0.0; n];

@@ -7,6 +7,8 @@
 use std::path::Path;
 use std::process::{Command, Output};
 
+mod common;
+
 fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
 }
@@ -56,15 +58,10 @@ fn json(p: &Path) -> serde_json::Value {
 
 /// A staircase input (levels from a fixed pseudo-random sequence, held 1..25 samples).
 fn input(n: usize, seed: u64) -> Vec<f64> {
-    let mut x = seed
-        .wrapping_mul(6364136223846793005)
-        .wrapping_add(1442695040888963407);
-    let mut next = move || {
-        x = x
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (x >> 33) as f64 / (1u64 << 31) as f64
-    };
+    // The sequence starts one step after `seed`; 31 bits of each state.
+    let mut rng = common::lcg(seed);
+    rng.next_u64();
+    let mut next = move || (rng.next_u64() >> 33) as f64 / (1u64 << 31) as f64;
     let mut u = Vec::with_capacity(n);
     while u.len() < n {
         let level = 200.0 * next() - 100.0;

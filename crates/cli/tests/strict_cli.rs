@@ -15,13 +15,8 @@ use common::{bin, run_json_code, warnings};
 /// A record of y(k) = 0.5 y(k−1) + u(k−3) + 0.3 u(k−4) + e(k): na = 1, nb = 2, nk = 3 (a stable pole
 /// at 0.5), u = ±1 from a linear congruential generator, e uniform in ±`noise`; Ts = 0.1 s.
 fn arx_record(path: &Path, n: usize, noise: f64) {
-    let mut state: u64 = 12345;
-    let mut next = || {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut rng = common::lcg(12345);
+    let mut next = || rng.unit();
     let mut u = vec![0.0; n];
     let mut y = vec![0.0; n];
     let mut text = String::from("t,u,y\n");

@@ -7,19 +7,16 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+mod common;
+
 /// An ARX(2, 2, 1) record, y(k) = 1.5 y(k−1) − 0.7 y(k−2) + u(k−1) + 0.5 u(k−2), plus white output
 /// noise (a fixed linear congruential sequence, so that the estimators have something to refine).
 fn record(dir: &Path, name: &str, seed: u64) -> PathBuf {
     let n = 800;
-    let mut state = seed
-        .wrapping_mul(6364136223846793005)
-        .wrapping_add(1442695040888963407);
-    let mut noise = || {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 0.2
-    };
+    // The sequence starts one step after `seed`.
+    let mut rng = common::lcg(seed);
+    rng.next_u64();
+    let mut noise = || (rng.unit() - 0.5) * 0.2;
     let u: Vec<f64> = (0..n)
         .map(|k| {
             if ((k / 13) * 7 + seed as usize) % 3 == 0 {

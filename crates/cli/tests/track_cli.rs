@@ -11,6 +11,8 @@ use std::time::Duration;
 
 use proptest::prelude::*;
 
+mod common;
+
 const BIN: &str = env!("CARGO_BIN_EXE_ipa-sysid");
 
 fn run(args: &[&str], stdin: &[u8]) -> Output {
@@ -643,13 +645,8 @@ fn a_record_too_short_to_arm_the_change_detector_says_so() {
 /// ±0.05 (a plain loop and a linear congruential generator).
 fn deadzone_change_record(path: &Path) {
     let n = 12_000;
-    let mut state: u64 = 12345;
-    let mut rand = || {
-        state = state
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        (state >> 11) as f64 / (1u64 << 53) as f64
-    };
+    let mut rng = common::lcg(12345);
+    let mut rand = || rng.unit();
     let mut u = vec![0.0; n];
     let mut level = 0.0;
     for (k, v) in u.iter_mut().enumerate() {

@@ -25,7 +25,9 @@ pub mod structure;
 
 pub use data::Dataset;
 pub use error::{PlantError, Setting, SysidError};
-pub use model::{DataRange, InputChannel, Model, ModelKind, ModelPlant, NoiseModel, Orders};
+pub use model::{
+    DataRange, InputChannel, Model, ModelKind, ModelPlant, NoiseModel, Orders, TermSizes,
+};
 pub use nonlinearity::{
     Deadzone, DeadzoneSaturation, PiecewiseLinear, Polynomial, Saturation, StaticNonlinearity,
 };

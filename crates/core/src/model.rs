@@ -326,6 +326,84 @@ impl DataRange {
     }
 }
 
+/// The sizes of a record that decide whether one term of a model's prediction overflows f64
+/// ([`Model::overflowing_term`]): its rows N, its largest |y|, and per model input its largest |u| and
+/// the largest |x| = |f(u)| of that input's block with the u that gives it. Gathered value by value,
+/// so a record read in passes (`sysid::stream::term_sizes`) gives the same sizes as one held in
+/// memory ([`TermSizes::of_record`]).
+#[derive(Debug, Clone, PartialEq)]
+pub struct TermSizes {
+    /// Rows of y seen (N).
+    y_rows: usize,
+    /// max |y(k)|.
+    y_max: f64,
+    /// Per model input.
+    inputs: Vec<InputSizes>,
+}
+
+/// [`TermSizes`] of one input.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct InputSizes {
+    /// max |u(k)|.
+    u_max: f64,
+    /// (max |f(u(k))|, the first u(k) that gives it).
+    x_max: (f64, f64),
+}
+
+impl TermSizes {
+    /// No rows yet, one entry per input of `model`.
+    pub fn new(model: &Model) -> Self {
+        TermSizes {
+            y_rows: 0,
+            y_max: 0.0,
+            inputs: vec![
+                InputSizes {
+                    u_max: 0.0,
+                    x_max: (0.0, 0.0),
+                };
+                model.inputs.len()
+            ],
+        }
+    }
+
+    /// The sizes of a record held in memory, one input record per model input in `u`.
+    pub fn of_record(model: &Model, u: &[&[f64]], y: &[f64]) -> Self {
+        let mut sizes = TermSizes::new(model);
+        for (i, ui) in u.iter().enumerate() {
+            for &v in *ui {
+                sizes.push_input(model, i, v);
+            }
+        }
+        for &v in y {
+            sizes.push_output(v);
+        }
+        sizes
+    }
+
+    /// One value u(k) of input `input` (0-based) of `model`; an input the model does not have is
+    /// ignored.
+    pub fn push_input(&mut self, model: &Model, input: usize, u: f64) {
+        if let (Some(s), Some(ch)) = (self.inputs.get_mut(input), model.inputs.get(input)) {
+            s.u_max = s.u_max.max(u.abs());
+            let x = ch.map(u).abs();
+            if !within(x, s.x_max.0) {
+                s.x_max = (x, u);
+            }
+        }
+    }
+
+    /// One value y(k) of the output.
+    pub fn push_output(&mut self, y: f64) {
+        self.y_rows += 1;
+        self.y_max = self.y_max.max(y.abs());
+    }
+
+    /// N: the rows of the output seen.
+    pub fn rows(&self) -> usize {
+        self.y_rows
+    }
+}
+
 impl Model {
     /// A model from its parts: Ts (s), a1..a_na, the inputs and the optional offset c. Fails on
     /// inconsistent or non-finite parts.
@@ -636,18 +714,25 @@ impl Model {
 
     /// The coefficient that makes this model's output overflow f64 on a record whose own values do not
     /// (audit s17 L-c: a model file with a1 = 1e308 was blamed on the data, "rescale the data"), in
-    /// words: the term |θ| · max|s| of the linear block's output ŷ = −Σ a_i y(k−i) + Σ b_j x(k−j) + c
-    /// of largest size (s = y for a_i, x = f(u) of its input for b_j, 1 for c), when it exceeds
-    /// √(f64::MAX / N) — beyond that one term cannot be squared and summed over the record's N rows —
-    /// while every |y| and |u| of the record stays within it. A map x = f(u) that itself leaves that
-    /// bound is named instead (its parameters are the absurd ones). `None` when no single term explains
-    /// an overflow, or when the record's own values are beyond the bound (then the data are to blame).
-    /// One input record per model input in `u`.
+    /// words: [`Model::overflowing_term`] of the record's [`TermSizes`]. One input record per model
+    /// input in `u`.
     pub fn overflowing_coefficient(&self, u: &[&[f64]], y: &[f64]) -> Option<String> {
-        let limit = (f64::MAX / y.len().max(1) as f64).sqrt();
-        let largest = |v: &[f64]| v.iter().fold(0.0_f64, |m, x| m.max(x.abs()));
-        let y_max = largest(y);
-        if !within(y_max, limit) || u.iter().any(|ui| !within(largest(ui), limit)) {
+        self.overflowing_term(&TermSizes::of_record(self, u, y))
+    }
+
+    /// The coefficient that makes this model's output overflow f64 on a record of these sizes (a
+    /// record held in memory, [`Model::overflowing_coefficient`], or read in passes), in words: the
+    /// term |θ| · max|s| of the linear block's output ŷ = −Σ a_i y(k−i) + Σ b_j x(k−j) + c of largest
+    /// size (s = y for a_i, x = f(u) of its input for b_j, 1 for c), when it exceeds √(f64::MAX / N)
+    /// — beyond that one term cannot be squared and summed over the record's N rows — while every |y|
+    /// and |u| of the record stays within it. A map x = f(u) that itself leaves that bound is named
+    /// instead (its parameters are the absurd ones). `None` when no single term explains an overflow,
+    /// or when the record's own values are beyond the bound (then the data are to blame).
+    pub fn overflowing_term(&self, sizes: &TermSizes) -> Option<String> {
+        let rows = sizes.rows();
+        let limit = (f64::MAX / rows.max(1) as f64).sqrt();
+        let y_max = sizes.y_max;
+        if !within(y_max, limit) || sizes.inputs.iter().any(|s| !within(s.u_max, limit)) {
             return None;
         }
         let several = self.inputs.len() > 1;
@@ -666,23 +751,19 @@ impl Model {
                 )
             })
             .collect();
-        for (ch, ui) in self.inputs.iter().zip(u) {
+        for (ch, s) in self.inputs.iter().zip(&sizes.inputs) {
             let of = if several {
                 format!(" of input {}", ch.name())
             } else {
                 String::new()
             };
-            let (x_max, u_at) = ui
-                .iter()
-                .map(|&v| (ch.map(v).abs(), v))
-                .fold((0.0_f64, 0.0), |m, p| if within(p.0, m.0) { m } else { p });
+            let (x_max, u_at) = s.x_max;
             if !within(x_max, limit) {
                 return Some(format!(
                     "input block{of} ({}) maps u = {u_at} of the record to |x| = {x_max:e}, beyond \
-                     what f64 can square and sum over the record's {} rows (√(f64::MAX / N) = \
+                     what f64 can square and sum over the record's {rows} rows (√(f64::MAX / N) = \
                      {limit:e}) through one of its parameters",
                     ch.nonlinearity().kind_name(),
-                    y.len()
                 ));
             }
             terms.extend(ch.b().iter().enumerate().map(|(j, b)| {
@@ -709,8 +790,7 @@ impl Model {
         (!within(size, limit)).then(|| {
             format!(
                 "{words} gives a term of {size:e} in the prediction, beyond what f64 can square and sum \
-                 over the record's {} rows (√(f64::MAX / N) = {limit:e})",
-                y.len()
+                 over the record's {rows} rows (√(f64::MAX / N) = {limit:e})"
             )
         })
     }

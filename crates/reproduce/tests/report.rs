@@ -56,7 +56,7 @@ fn criterion<'a>(s: &'a Value, id: &str) -> &'a Value {
 #[test]
 fn every_criterion_has_an_id_and_the_verdicts_follow_from_the_numbers() {
     for plant in ["ipa", "paper"] {
-        let (_, s) = run_once(plant);
+        let (dir, s) = run_once(plant);
         let crits = s["acceptance"]["criteria"].as_array().unwrap();
         let mut ids: Vec<&str> = crits.iter().map(|c| c["id"].as_str().unwrap()).collect();
         for c in crits {
@@ -129,13 +129,46 @@ fn every_criterion_has_an_id_and_the_verdicts_follow_from_the_numbers() {
             any_unstable,
             "{plant}"
         );
-        let os = s["closed_loop"]["fixed"]["plant"]["overshoot_percent"]
+        // The overshoot is judged by the peak past the set-point r (as `control`'s acceptance line and
+        // `tune`'s counts), recomputed from the recorded trace: OS_r = max(0, max_k sign(r − y0)(y(k) − r)),
+        // as % of |r − y0|.
+        let (r, y0) = (
+            s["settings"]["fixed_setpoint_mm"].as_f64().unwrap(),
+            s["settings"]["fixed_start_mm"].as_f64().unwrap(),
+        );
+        let step = (r - y0).abs();
+        let trace = std::fs::read_to_string(dir.join("data/closed_loop_fixed_plant.csv")).unwrap();
+        let peak_past_r = trace
+            .lines()
+            .skip(1)
+            .map(|l| l.split(',').nth(3).unwrap().parse::<f64>().unwrap())
+            .map(|y| (r - y0).signum() * (y - r))
+            .fold(0.0, f64::max);
+        let os_r = 100.0 * peak_past_r / step;
+        let json_os_r = s["closed_loop"]["fixed"]["plant"]["overshoot_past_setpoint_percent"]
             .as_f64()
             .unwrap();
-        assert_eq!(criterion(s, "pi_overshoot")["met"], os < 10.0);
-        let step = (s["settings"]["fixed_setpoint_mm"].as_f64().unwrap()
-            - s["settings"]["fixed_start_mm"].as_f64().unwrap())
-        .abs();
+        assert!(
+            (json_os_r - os_r).abs() < 1e-6,
+            "{plant}: {json_os_r} vs {os_r}"
+        );
+        assert_eq!(criterion(s, "pi_overshoot")["met"], os_r < 10.0);
+        // Table V's acceptance row shows the number the verdict judged.
+        let said = criterion(s, "pi_overshoot")["criterion"].as_str().unwrap();
+        let number = said
+            .split("overshoot past r ")
+            .nth(1)
+            .and_then(|t| t.split(' ').next())
+            .unwrap_or_else(|| panic!("{plant}: {said}"));
+        let page = html(dir);
+        let row = page
+            .split("<tr>")
+            .find(|row| row.contains("overshoot past r (% of the step to r"))
+            .unwrap_or_else(|| panic!("{plant}: Table V has no acceptance row"));
+        assert!(
+            row.contains(&format!(">{number}<")),
+            "{plant}: {number} not in {row}"
+        );
         let ess = s["closed_loop"]["fixed"]["plant"]["steady_state_error_mm"]
             .as_f64()
             .unwrap();

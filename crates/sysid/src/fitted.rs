@@ -100,9 +100,6 @@ impl Termination {
     }
 }
 
-/// [`Note::KeptCandidate::criterion`] of the larger of the RMSEs from estimated and from measured
-/// initial outputs ([`crate::trust::guarded_rmse`]).
-pub const GUARDED_CRITERION: &str = "the worse of estimated and measured initial outputs";
 /// [`Note::KeptCandidate::criterion`] of the RMSE pooled over both initial states,
 /// √((RMSE_est² + RMSE_meas²)/2) ([`crate::trust::pooled_rmse`]).
 pub const POOLED_CRITERION: &str = "pooled over estimated and measured initial outputs";
@@ -149,7 +146,7 @@ pub enum Note {
         kept: &'static str,
         /// Its estimation simulation RMSE on `criterion`.
         rmse: f64,
-        /// How the RMSE combines the two initial states: [`GUARDED_CRITERION`] or [`POOLED_CRITERION`].
+        /// How the RMSE combines the two initial states: [`POOLED_CRITERION`].
         criterion: &'static str,
         /// The other candidates and their RMSE (`None`: the simulation diverged or the model is unstable).
         others: Vec<(&'static str, Option<f64>)>,

@@ -862,19 +862,6 @@ pub(crate) fn instrumental(p: &Problem, st: &InstrumentalVariables) -> Result<Fi
     })
 }
 
-/// The criterion an output-error search's candidates are judged on: the RMSE of the free-run
-/// simulation that the initial state cannot flatter ([`crate::trust::guarded_rmse`]: the larger of
-/// the RMSEs from estimated and from measured initial outputs), `None` when the model is unstable or
-/// its simulation diverges.
-pub(crate) fn reported_rmse(model: &Model, data: &Dataset) -> Option<f64> {
-    if !model.is_stable() {
-        return None;
-    }
-    sysid_core::metrics::metrics(model, data)
-        .ok()
-        .and_then(|m| crate::trust::guarded_rmse(&m))
-}
-
 /// The simulation RMSEs of a stable `model` on `data` from estimated and from measured initial outputs
 /// (`None` for an unstable model or a failed simulation).
 pub(crate) fn simulation_rmses(model: &Model, data: &Dataset) -> Option<SimulationRmse> {
@@ -943,6 +930,38 @@ pub(crate) fn output_error(p: &Problem, st: &OutputError) -> Result<Fitted, Sysi
 /// 0.05918 against the start's 0.05881, 0.6 %).
 pub const OE_VERDICT_TOLERANCE: f64 = 0.01;
 
+/// Whether an output-error refinement is kept over the start it began from (the least-squares start
+/// of `--method oe`, [`OeVerdict::judge`]; the model without output nonlinearity of a Wiener fit,
+/// `wiener::refine`): judged on the estimation simulation RMSE pooled over estimated and measured
+/// initial outputs ([`SimulationRmse::pooled`], [`crate::trust::pooled_rmse`]; `None` for an unstable
+/// or diverging model), the refinement is kept unless the start's is lower by more than
+/// [`OE_VERDICT_TOLERANCE`] (relative); a candidate that simulates stably beats one that does not.
+/// `None` when neither simulates stably (the caller decides). Why pooled: [`OeVerdict::judge`].
+pub fn refinement_kept(
+    refined: Option<SimulationRmse>,
+    start: Option<SimulationRmse>,
+) -> Option<bool> {
+    match (refined.map(|r| r.pooled), start.map(|s| s.pooled)) {
+        (Some(r), Some(s)) => Some(r <= s * (1.0 + OE_VERDICT_TOLERANCE)),
+        (Some(_), None) => Some(true),
+        (None, Some(_)) => Some(false),
+        (None, None) => None,
+    }
+}
+
+/// The two simulation RMSEs of a candidate in words, for a fallback warning.
+pub(crate) fn both_rmses(c: Option<SimulationRmse>) -> String {
+    match c {
+        Some(SimulationRmse {
+            estimated,
+            measured: Some(m),
+            ..
+        }) => format!("{estimated:.6e} from estimated, {m:.6e} from measured initial outputs"),
+        Some(c) => format!("{:.6e} from estimated initial outputs", c.estimated),
+        None => "diverges".to_string(),
+    }
+}
+
 /// Which of the least-squares start and the output-error refinement to keep, and the notes that say so
 /// (one input or several).
 #[derive(Debug, Clone, PartialEq)]
@@ -991,12 +1010,8 @@ impl OeVerdict {
             evaluations: fit.evaluations,
             stopped: fit.stop.to_string(),
         });
-        let refined_better = match (refined_rmse, start_rmse) {
-            (Some(r), Some(s)) => r <= s * (1.0 + OE_VERDICT_TOLERANCE),
-            (Some(_), None) => true,
-            (None, Some(_)) => false,
-            (None, None) => true,
-        };
+        // Neither simulates stably: the refinement (stable by construction) is kept, with warnings.
+        let refined_better = refinement_kept(refined, start).unwrap_or(true);
         let termination = fit.stop.termination();
         if refined_better {
             if let (Some(r), true) = (refined_rmse, start_rmse.is_some() || fit.stabilised_start) {
@@ -1023,20 +1038,11 @@ impl OeVerdict {
             criterion: crate::fitted::POOLED_CRITERION,
             others: vec![("output-error refinement", refined_rmse)],
         });
-        let both = |c: Option<SimulationRmse>| match c {
-            Some(SimulationRmse {
-                estimated,
-                measured: Some(m),
-                ..
-            }) => format!("{estimated:.6e} from estimated, {m:.6e} from measured initial outputs"),
-            Some(c) => format!("{:.6e} from estimated initial outputs", c.estimated),
-            None => "diverges".to_string(),
-        };
         let why = format!(
             "the refined model simulates the estimation data worse from both initial states together \
              (pooled RMSE {refined_text} against {kept_rmse:.6e} for the start; refinement {}, start {})",
-            both(refined),
-            both(start)
+            both_rmses(refined),
+            both_rmses(start)
         );
         OeVerdict {
             notes,
@@ -1046,5 +1052,55 @@ impl OeVerdict {
                 why,
             }),
         }
+    }
+}
+
+#[cfg(test)]
+mod verdict_tests {
+    use super::*;
+
+    fn rmse(estimated: f64, measured: f64) -> Option<SimulationRmse> {
+        Some(SimulationRmse {
+            estimated,
+            measured: Some(measured),
+            pooled: ((estimated * estimated + measured * measured) / 2.0).sqrt(),
+        })
+    }
+
+    // A refinement with RMSE 0.05 from estimated and 0.40 from measured initial outputs against a start
+    // with 0.30 from both: the worse of the two (0.40 > 0.30) would keep the start; pooled,
+    // √((0.0025 + 0.16)/2) = 0.28504 < 0.30, the refinement is kept (OE and Wiener alike).
+    #[test]
+    fn the_pooled_rmse_not_the_worse_one_decides() {
+        assert_eq!(
+            refinement_kept(rmse(0.05, 0.40), rmse(0.30, 0.30)),
+            Some(true)
+        );
+        // Reversed roles: the start is better pooled by 5 %, more than the 1 % tolerance.
+        assert_eq!(
+            refinement_kept(rmse(0.30, 0.30), rmse(0.05, 0.40)),
+            Some(false)
+        );
+    }
+
+    // Within the tolerance the refinement stays: 0.302 ≤ 0.30 · 1.01 = 0.303 (kept), 0.304 not.
+    #[test]
+    fn a_refinement_within_one_percent_of_its_start_is_kept() {
+        assert_eq!(
+            refinement_kept(rmse(0.302, 0.302), rmse(0.30, 0.30)),
+            Some(true)
+        );
+        assert_eq!(
+            refinement_kept(rmse(0.304, 0.304), rmse(0.30, 0.30)),
+            Some(false)
+        );
+    }
+
+    // A candidate that simulates stably beats one that does not; neither: the caller decides.
+    #[test]
+    fn a_diverging_candidate_loses() {
+        assert_eq!(refinement_kept(None, rmse(1.0, 1.0)), Some(false));
+        assert_eq!(refinement_kept(rmse(1.0, 1.0), None), Some(true));
+        assert_eq!(refinement_kept(None, None), None);
     }
 }

@@ -35,7 +35,9 @@ use sysid_core::detrend::{Detrend, OperatingPoint};
 use sysid_core::ls::QrAccumulator;
 use sysid_core::metrics::{metrics_from_sums, MetricSums, Metrics};
 use sysid_core::param::Layout;
-use sysid_core::{Deadzone, Model, ModelKind, NoiseModel, Parameterisation, Setting, SysidError};
+use sysid_core::{
+    Deadzone, Model, ModelKind, NoiseModel, Parameterisation, Setting, SysidError, TermSizes,
+};
 
 /// Size of a CSV file from which `identify` and `validate` stream it without being asked (`--stream`):
 /// 64 MiB, about 2 million rows of `t,u,y`, which the in-memory path holds in about 500 MB.
@@ -532,6 +534,22 @@ impl<'m> FreeResponses<'m> {
             *o = v;
         }
     }
+}
+
+/// The [`TermSizes`] of a single-input record read in one more pass (as
+/// [`Model::overflowing_coefficient`] gathers them from a record in memory): when `model`'s prediction
+/// overflows, [`Model::overflowing_term`] then says whether one of the model's coefficients is to blame
+/// rather than the data.
+pub fn term_sizes(model: &Model, src: &mut dyn RecordSource) -> Result<TermSizes, SysidError> {
+    let mut sizes = TermSizes::new(model);
+    src.pass(&mut |_, u, y| {
+        for (&uk, &yk) in u.iter().zip(y) {
+            sizes.push_input(model, 0, uk);
+            sizes.push_output(yk);
+        }
+        Ok(())
+    })?;
+    Ok(sizes)
 }
 
 /// The metrics and residual analysis of `model` on a record read in passes (as

@@ -33,15 +33,6 @@ pub fn guarded_fit(m: &Metrics) -> Option<f64> {
     }
 }
 
-/// The simulation RMSE that the initial state cannot flatter: the larger of the RMSEs from estimated
-/// and from measured initial outputs; `None` when either simulation diverges.
-pub fn guarded_rmse(m: &Metrics) -> Option<f64> {
-    match (m.rmse_sim, m.rmse_sim_measured) {
-        (Some(a), Some(b)) => Some(a.max(b)),
-        _ => None,
-    }
-}
-
 /// The RMSE of the free-run simulations from both initial states together,
 /// √((RMSE_est² + RMSE_meas²)/2) (the RMSE of the two simulations' errors concatenated), or the
 /// estimated-initial-output RMSE alone when the other is missing; `None` when neither is known. The

@@ -12,8 +12,11 @@
 //!    linear block's gain are only determined up to a common scale (the saturation's m, the
 //!    piecewise-linear s0, the polynomial's g1 are that scale).
 //!
-//! The result is kept only when it simulates the estimation data better than its start (the guarded
-//! RMSE of [`crate::trust::guarded_rmse`]); otherwise the start is returned with a warning. Warnings
+//! The result is kept as `--method oe` keeps its refinement ([`crate::methods::refinement_kept`]):
+//! unless its start simulates the estimation data better by more than 1 % on the RMSE pooled over
+//! estimated and measured initial outputs (audit s18 M-7; session 19: before, the worse of the two,
+//! which lets the noisy measured initial outputs decide); otherwise the start is returned with a
+//! warning. Warnings
 //! also say when a limit or breakpoint of g lies outside the range of v̂ (not determined) and when g
 //! is not monotone over that range (it cannot be inverted there: a controller cannot reach every
 //! output).
@@ -21,7 +24,7 @@
 use crate::blocks::{monotonicity_change, Block, NonlinearityKind};
 use crate::fitted::{Fitted, Method, Note};
 use crate::ls;
-use crate::methods::reported_rmse;
+use crate::methods::{both_rmses, refinement_kept, simulation_rmses};
 use crate::oe::{self, OutputStart};
 use crate::problem::Problem;
 use crate::warnings::Warning;
@@ -148,8 +151,9 @@ pub(crate) fn refine(
         }),
         max_iterations,
     )?;
-    let refined = reported_rmse(&fit.model, data);
-    let before = reported_rmse(&start.model, data);
+    let refined = simulation_rmses(&fit.model, data);
+    let before = simulation_rmses(&start.model, data);
+    let (refined_rmse, before_rmse) = (refined.map(|r| r.pooled), before.map(|b| b.pooled));
     let mut notes: Vec<Note> = start
         .notes
         .iter()
@@ -164,18 +168,17 @@ pub(crate) fn refine(
         stopped: fit.stop.to_string(),
     });
     let termination = fit.stop.termination();
-    let better = match (refined, before) {
-        (Some(r), Some(b)) => r <= b,
-        (Some(_), None) => true,
-        (None, _) => false,
-    };
+    // Neither simulates stably: the start is returned, with the warning.
+    let better = refinement_kept(refined, before).unwrap_or(false);
     let start_words = format!("the {} model without output nonlinearity", start.method);
     if !better {
         let why = format!(
-            "the model with the {kind} output nonlinearity simulates the estimation data worse (RMSE {} against {} \
-             for its start)",
-            refined.map_or("diverges".into(), |r| format!("{r:.6e}")),
-            before.map_or("n/a".into(), |r| format!("{r:.6e}")),
+            "the model with the {kind} output nonlinearity simulates the estimation data worse from both \
+             initial states together (pooled RMSE {} against {} for its start; with it {}, start {})",
+            refined_rmse.map_or("diverges".into(), |r| format!("{r:.6e}")),
+            before_rmse.map_or("n/a".into(), |r| format!("{r:.6e}")),
+            both_rmses(refined),
+            both_rmses(before),
         );
         let mut warnings = start.warnings.clone();
         warnings.push(Warning::Fallback {
@@ -191,12 +194,12 @@ pub(crate) fn refine(
         }
         .with_method(Method::Oe));
     }
-    if let Some(r) = refined {
+    if let Some(r) = refined_rmse {
         notes.push(Note::KeptCandidate {
             kept: "output-error fit with the output nonlinearity",
             rmse: r,
-            criterion: crate::fitted::GUARDED_CRITERION,
-            others: vec![("start without output nonlinearity", before)],
+            criterion: crate::fitted::POOLED_CRITERION,
+            others: vec![("start without output nonlinearity", before_rmse)],
         });
     }
     let mut warnings: Vec<Warning> = crate::trust::std_warning(fit.std_unavailable.clone())

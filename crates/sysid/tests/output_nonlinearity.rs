@@ -92,6 +92,41 @@ fn a_wiener_saturation_is_recovered_up_to_the_shared_scale() {
     assert!(out[0].std.is_some() && out[1].std.is_some() && out[2].std.is_none());
     // p counts A, B and the two free limits.
     assert_eq!(m.parameter_count(), 2 + 2 + 2);
+    // Kept as `--method oe` keeps its refinement: on the RMSE pooled over both initial states,
+    // √((RMSE_est² + RMSE_meas²)/2), pooled here from each model's two simulation RMSEs; the start is
+    // the same structure without the output nonlinearity.
+    let pooled = |model: &Model| {
+        let mm = sysid::metrics::metrics(model, &data).unwrap();
+        let (a, b) = (mm.rmse_sim.unwrap(), mm.rmse_sim_measured.unwrap());
+        ((a * a + b * b) / 2.0).sqrt()
+    };
+    let start = identify(
+        &data,
+        &settings(NonlinearityKind::Linear, NonlinearityKind::Linear)
+            .with_output_nonlinearity(None),
+    )
+    .unwrap();
+    let Some(sysid::Note::KeptCandidate {
+        rmse,
+        criterion,
+        others,
+        ..
+    }) = fit
+        .notes
+        .iter()
+        .find(|n| matches!(n, sysid::Note::KeptCandidate { .. }))
+    else {
+        panic!("{:?}", fit.notes);
+    };
+    assert_eq!(*criterion, sysid::fitted::POOLED_CRITERION);
+    assert!(close(*rmse, pooled(m), 1e-9), "{rmse} vs {}", pooled(m));
+    let start_rmse = others[0].1.unwrap();
+    assert!(
+        close(start_rmse, pooled(&start.model), 1e-9),
+        "{start_rmse} vs {}",
+        pooled(&start.model)
+    );
+    assert!(*rmse < start_rmse);
 }
 
 // Hammerstein–Wiener: an input saturation at (−2, 3) and an output polynomial v + 0.2 v². The scale

@@ -93,7 +93,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             e.context(data.name()),
             &model,
             &args.model,
-            (&us, data.y(), data.name()),
+            data.name(),
+            || Ok(sysid::TermSizes::of_record(&model, &us, data.y())),
         )
     };
     let mut report = ValidationReport::assemble(&model, &data, args.resid_lags).map_err(blame)?;
@@ -378,9 +379,16 @@ fn run_streamed(
     inputs: &[&Path],
 ) -> anyhow::Result<()> {
     let mut src = sysid::data::stream::CsvStream::open(&args.data, opts)?;
-    let streamed = sysid_summary::stream::validation_report(model, &mut src, args.resid_lags)?;
-    let shape = streamed.shape;
     let name = sysid::data::stream::RecordSource::name(&src).to_string();
+    // A numerical failure is blamed on the model file's coefficient when one explains it, as the
+    // in-memory path does (one more pass gathers the record's sizes, only on that failure).
+    let streamed = sysid_summary::stream::validation_report(model, &mut src, args.resid_lags)
+        .map_err(|e| {
+            blame_model(e, model, &args.model, &name, || {
+                sysid::stream::term_sizes(model, &mut src)
+            })
+        })?;
+    let shape = streamed.shape;
     sysid::metrics::check_sampling(&name, shape.ts, model.ts())?;
     stream_note(&name, streamed.passes, shape.rows, args.stream);
     let mut report = streamed.result;
@@ -398,20 +406,23 @@ fn run_streamed(
     finish(args, report.warnings.len(), &value, None, inputs)
 }
 
-/// A numerical failure `e` of `model` (read from `path`) on the record (`u`, `y`, its name) blamed on
-/// the model file when one of its coefficients explains it ([`sysid::Model::overflowing_coefficient`]):
-/// the error names the file and the coefficient, not the data (audit s17 L-c: a1 = 1e308 was reported
-/// as "values too large? rescale the data"). Any other error is returned as it is.
+/// A numerical failure `e` of `model` (read from `path`) on the record `name` blamed on the model file
+/// when one of its coefficients explains it ([`sysid::Model::overflowing_term`] of the record's
+/// [`sysid::TermSizes`], gathered by `sizes` only then): the error names the file and the
+/// coefficient, not the data (audit s17 L-c: a1 = 1e308 was reported as "values too large? rescale
+/// the data"). The one path of `validate` and `validate --stream`. Any other error, or a failure to
+/// gather the sizes, returns `e` as it is.
 fn blame_model(
     e: sysid::SysidError,
     model: &sysid::Model,
     path: &Path,
-    (u, y, name): (&[&[f64]], &[f64], &str),
+    name: &str,
+    sizes: impl FnOnce() -> Result<sysid::TermSizes, sysid::SysidError>,
 ) -> sysid::SysidError {
     if !e.is_numerical() {
         return e;
     }
-    match model.overflowing_coefficient(u, y) {
+    match sizes().ok().and_then(|s| model.overflowing_term(&s)) {
         Some(why) => sysid::SysidError::Numerical(format!(
             "{}: the model's {why}: the model file holds an absurd coefficient (hand-edited or \
              damaged?); the record {name} is not to blame",

@@ -65,3 +65,30 @@ pub fn warnings(doc: &Value) -> Vec<String> {
         .map(|w| w.as_str().unwrap().to_string())
         .collect()
 }
+
+/// A linear congruential generator (Knuth's MMIX constants): state ← 6364136223846793005 · state +
+/// 1442695040888963407 (mod 2^64), starting from `seed`. Deterministic test data written here, so
+/// independent of the library; the one generator of the CLI tests.
+pub fn lcg(seed: u64) -> Lcg {
+    Lcg(seed)
+}
+
+/// The state of [`lcg`].
+#[derive(Debug, Clone)]
+pub struct Lcg(u64);
+
+impl Lcg {
+    /// Steps the generator and returns its new state.
+    pub fn next_u64(&mut self) -> u64 {
+        self.0 = self
+            .0
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        self.0
+    }
+
+    /// Steps the generator and returns its top 53 bits as a number in [0, 1).
+    pub fn unit(&mut self) -> f64 {
+        (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
+    }
+}

@@ -38,6 +38,11 @@
 //! Session 18: CREEP=e_v replaces ramp-and-cut's creep limit (`nudge.creep_step_mm`, mm per sample;
 //! 0 = off: cut at the first count).
 //! SHORT_EM=mm replaces the file's short-step range e_m (`max_step_mm`).
+//! Session 19: PHASES=1 prints a line per run instead of the counts (the peak past r and its time,
+//! the first rest after the piston moved and its distance short of r, the moves after it, the
+//! largest speed towards r, the first sample within the 2 % band); REBRAKE=N_b turns the brake's
+//! re-brake on with a hold of N_b samples at rest (`brake.rebrake`, `brake.rest_samples`; 0 = off);
+//! BRAKE_CTL's tenth value 1 turns it on too.
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
 use control::tune::{self, Spec};
 use control::ControllerFile;

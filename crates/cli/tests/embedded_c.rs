@@ -236,8 +236,10 @@ fn c_controller_with_a_creeping_ramp_and_cut_matches_control_bit_for_bit_on_a_re
     c_controller_matches_control(Brake::Creep);
 }
 
-// Session 19: the brake's re-brake (the 41st argument of position.c), with a release of 10 samples
-// and a hold of 8 samples at rest; the same C replay without it gives other commands.
+// Session 19: the brake's re-brake (the 41st argument of position.c), with a brake of 10 samples, a
+// release of 10 and a hold of 8 samples at rest, on a staircase whose 125 mm step (45 → 170 mm)
+// rests 3.1 mm short under the brake and slides on to 170.7 mm as the brake is released without the
+// re-brake; the same C replay without it (0) gives other commands.
 #[test]
 fn c_controller_with_a_rebrake_matches_control_bit_for_bit_on_a_recorded_run() {
     c_controller_matches_control(Brake::Rebrake);
@@ -253,8 +255,8 @@ enum Brake {
     Short,
     /// As `Short`, with ramp-and-cut's creep limit e_v = 0.015 mm per sample.
     Creep,
-    /// As `Creep`, with the brake released over 10 samples, its hold ended after 8 samples at rest
-    /// and the re-brake on.
+    /// As `Creep`, with a brake of 10 samples released over 10 samples, its hold ended after 8
+    /// samples at rest and the re-brake on.
     Rebrake,
 }
 
@@ -323,6 +325,7 @@ fn c_controller_matches_control(brake: Brake) {
         file["controller"]["brake"]["release_samples"] = serde_json::json!(10);
     }
     if brake == Brake::Rebrake {
+        file["controller"]["brake"]["samples"] = serde_json::json!(10);
         file["controller"]["brake"]["release_samples"] = serde_json::json!(10);
         file["controller"]["brake"]["rest_samples"] = serde_json::json!(8);
         file["controller"]["brake"]["rebrake"] = serde_json::json!(true);
@@ -337,7 +340,8 @@ fn c_controller_matches_control(brake: Brake) {
     }
     let (profile, samples) = match brake {
         Brake::Learnt => ("staircase:40,38,120,60,120,60@2", 1201),
-        Brake::Short | Brake::Creep | Brake::Rebrake => ("staircase:40,60,45,120,100@2", 1001),
+        Brake::Short | Brake::Creep => ("staircase:40,60,45,120,100@2", 1001),
+        Brake::Rebrake => ("staircase:40,60,45,170,100@2", 1001),
         _ => ("staircase:40,38,120,60@2", 801),
     };
     std::fs::write(&ctl, serde_json::to_string_pretty(&file).unwrap()).unwrap();
@@ -485,7 +489,7 @@ fn c_controller_matches_control(brake: Brake) {
     if let Some(unlearnt) = unlearnt {
         assert_ne!(
             unlearnt, recorded,
-            "the learnt lead, the short-step approach or the creep changed no command"
+            "the learnt lead, the short-step approach, the creep or the re-brake changed no command"
         );
     }
     for (k, (a, b)) in from_c.iter().zip(&recorded).enumerate() {

@@ -1022,7 +1022,9 @@ mod tests {
         assert_eq!(ControllerFile::parse(&text, "c.json").unwrap(), on);
         let bad = text.replace("\"rebrake\": true", "\"rebrake\": 1");
         let line = 1 + bad.lines().position(|l| l.contains("rebrake")).unwrap();
-        let e = ControllerFile::parse(&bad, "c.json").unwrap_err().to_string();
+        let e = ControllerFile::parse(&bad, "c.json")
+            .unwrap_err()
+            .to_string();
         assert!(
             e.contains(&format!("c.json:{line}:")) && e.contains("boolean"),
             "{e}"

@@ -236,6 +236,15 @@ fn c_controller_with_a_creeping_ramp_and_cut_matches_control_bit_for_bit_on_a_re
     c_controller_matches_control(Brake::Creep);
 }
 
+// Session 19: the brake's re-brake (the 41st argument of position.c), with a brake of 10 samples, a
+// release of 10 and a hold of 8 samples at rest, on a staircase whose 125 mm step (45 → 170 mm)
+// rests 3.1 mm short under the brake and slides on to 170.7 mm as the brake is released without the
+// re-brake; the same C replay without it (0) gives other commands.
+#[test]
+fn c_controller_with_a_rebrake_matches_control_bit_for_bit_on_a_recorded_run() {
+    c_controller_matches_control(Brake::Rebrake);
+}
+
 /// Which approach the controller file of [`c_controller_matches_control`] has.
 #[derive(Clone, Copy, PartialEq)]
 enum Brake {
@@ -246,6 +255,9 @@ enum Brake {
     Short,
     /// As `Short`, with ramp-and-cut's creep limit e_v = 0.015 mm per sample.
     Creep,
+    /// As `Creep`, with a brake of 10 samples released over 10 samples, its hold ended after 8
+    /// samples at rest and the re-brake on.
+    Rebrake,
 }
 
 fn c_controller_matches_control(brake: Brake) {
@@ -312,17 +324,24 @@ fn c_controller_matches_control(brake: Brake) {
         file["controller"]["brake"]["lead_max_s"] = serde_json::json!(0.1);
         file["controller"]["brake"]["release_samples"] = serde_json::json!(10);
     }
-    if matches!(brake, Brake::Short | Brake::Creep) {
+    if brake == Brake::Rebrake {
+        file["controller"]["brake"]["samples"] = serde_json::json!(10);
+        file["controller"]["brake"]["release_samples"] = serde_json::json!(10);
+        file["controller"]["brake"]["rest_samples"] = serde_json::json!(8);
+        file["controller"]["brake"]["rebrake"] = serde_json::json!(true);
+    }
+    if matches!(brake, Brake::Short | Brake::Creep | Brake::Rebrake) {
         file["controller"]["short_approach"] = serde_json::json!({"max_step_mm": 40.0,
             "drive_fraction": 0.35, "ramp_counts_s": 500.0, "switch_mm": 0.5, "lead_s": 0.01,
             "brake_strength": 0.5, "brake_samples": 3, "rest_samples": 2});
     }
-    if brake == Brake::Creep {
+    if matches!(brake, Brake::Creep | Brake::Rebrake) {
         file["controller"]["nudge"]["creep_step_mm"] = serde_json::json!(0.015);
     }
     let (profile, samples) = match brake {
         Brake::Learnt => ("staircase:40,38,120,60,120,60@2", 1201),
         Brake::Short | Brake::Creep => ("staircase:40,60,45,120,100@2", 1001),
+        Brake::Rebrake => ("staircase:40,60,45,170,100@2", 1001),
         _ => ("staircase:40,38,120,60@2", 801),
     };
     std::fs::write(&ctl, serde_json::to_string_pretty(&file).unwrap()).unwrap();
@@ -407,14 +426,17 @@ fn c_controller_matches_control(brake: Brake) {
             .collect()
     };
     let unlearnt = matches!(brake, Brake::Learnt | Brake::Short).then(|| replay(&args));
-    if matches!(brake, Brake::Learnt | Brake::Short | Brake::Creep) {
+    if matches!(
+        brake,
+        Brake::Learnt | Brake::Short | Brake::Creep | Brake::Rebrake
+    ) {
         let b = &c["brake"];
         for k in ["learn", "lead_max_s"] {
             args.push(format!("{:?}", b[k].as_f64().unwrap_or(0.0)));
         }
         args.push(b["release_samples"].as_u64().unwrap_or(0).to_string());
     }
-    if matches!(brake, Brake::Short | Brake::Creep) {
+    if matches!(brake, Brake::Short | Brake::Creep | Brake::Rebrake) {
         let a = &c["short_approach"];
         for k in [
             "max_step_mm",
@@ -438,6 +460,23 @@ fn c_controller_matches_control(brake: Brake) {
     } else {
         unlearnt
     };
+    // The re-brake after the creep limit: the replay without it (0) brakes no slip.
+    let unlearnt = if brake == Brake::Rebrake {
+        args.push(format!("{:?}", nudge["creep_step_mm"].as_f64().unwrap()));
+        let mut without = args.clone();
+        without.push("0".into());
+        args.push(
+            if c["brake"]["rebrake"].as_bool().unwrap() {
+                "1"
+            } else {
+                "0"
+            }
+            .into(),
+        );
+        Some(replay(&without))
+    } else {
+        unlearnt
+    };
     let from_c = replay(&args);
     let recorded: Vec<f64> = std::fs::read_to_string(&trace)
         .unwrap()
@@ -450,7 +489,7 @@ fn c_controller_matches_control(brake: Brake) {
     if let Some(unlearnt) = unlearnt {
         assert_ne!(
             unlearnt, recorded,
-            "the learnt lead, the short-step approach or the creep changed no command"
+            "the learnt lead, the short-step approach, the creep or the re-brake changed no command"
         );
     }
     for (k, (a, b)) in from_c.iter().zip(&recorded).enumerate() {

@@ -38,6 +38,11 @@
 //! Session 18: CREEP=e_v replaces ramp-and-cut's creep limit (`nudge.creep_step_mm`, mm per sample;
 //! 0 = off: cut at the first count).
 //! SHORT_EM=mm replaces the file's short-step range e_m (`max_step_mm`).
+//! Session 19: PHASES=1 prints a line per run instead of the counts (the peak past r and its time,
+//! the first rest after the piston moved and its distance short of r, the moves after it, the
+//! largest speed towards r, the first sample within the 2 % band); REBRAKE=N_b turns the brake's
+//! re-brake on with a hold of N_b samples at rest (`brake.rebrake`, `brake.rest_samples`; 0 = off);
+//! BRAKE_CTL's tenth value 1 turns it on too.
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
 use control::tune::{self, Spec};
 use control::ControllerFile;
@@ -257,6 +262,7 @@ fn main() {
             learn: v.get(6).copied().unwrap_or(0.0),
             lead_max_s: v.get(7).copied().unwrap_or(0.0),
             release_samples: v.get(8).copied().unwrap_or(0.0) as u32,
+            rebrake: v.get(9) == Some(&1.0),
         });
     }
     if let Ok(b) = std::env::var("SHORT_CTL") {
@@ -274,6 +280,15 @@ fn main() {
     }
     if let (Ok(v), Some(a)) = (std::env::var("SHORT_EM"), s.short_approach.as_mut()) {
         a.max_step_mm = v.parse().unwrap();
+    }
+    if let (Ok(v), Some(b)) = (std::env::var("REBRAKE"), s.brake.as_mut()) {
+        // REBRAKE=N_b: the brake re-brakes (rebrake on) and its hold ends after N_b samples at rest;
+        // REBRAKE=0: rebrake off, N_b as in the file.
+        let n: u32 = v.parse().unwrap();
+        b.rebrake = n > 0;
+        if n > 0 {
+            b.rest_samples = n;
+        }
     }
     let spec = Spec::default();
     let approach: Option<Vec<f64>> = std::env::var("APPROACH")
@@ -400,6 +415,29 @@ fn main() {
         Ok(Box::new(ipa::Ipa::with_ts(cfg, 0.01).unwrap()))
     };
     let plants = std::env::var("PLANTS").map_or(21, |n| n.parse().unwrap());
+    if std::env::var("PHASES").is_ok() {
+        // Session 19: a line per run with what its trace says of the approach and the finish.
+        for i in 0..plants {
+            for case in spec.cases() {
+                let mut p = make(i).unwrap();
+                let mut c = build().unwrap();
+                let profile = control::Profile::Fixed {
+                    setpoint_mm: case.r_mm,
+                };
+                let tr = control::closed_loop::run(
+                    p.as_mut(),
+                    c.as_mut(),
+                    None,
+                    &profile,
+                    3.0,
+                    case.y0_mm,
+                )
+                .unwrap();
+                phases(i, case.y0_mm, case.r_mm, &tr.t, &tr.y, &tr.u);
+            }
+        }
+        return;
+    }
     let warmups = std::env::var("WARMUP").map_or(0, |n| n.parse().unwrap());
     let ev = tune::evaluate_repeated(plants, &make, &build, &spec, warmups).unwrap();
     for r in &ev.runs {
@@ -447,5 +485,64 @@ fn main() {
         } else {
             String::new()
         }
+    );
+}
+
+/// PHASES=1: one line per run. side e = side (r − y) (> 0: short of r). The first rest: the first
+/// sample after the piston first moved with y unchanged for 2 samples (where the approach stopped);
+/// moves: the rests left afterwards (nudges and slips); the peak past r and its time; the speed
+/// towards r at its largest; t_s, the judged OS and e_ss.
+fn phases(plant: usize, y0: f64, r: f64, t: &[f64], y: &[f64], u: &[f64]) {
+    let side = (r - y0).signum();
+    let m = control::StepMetrics::assess(t, y, Some(u), y0, r)
+        .unwrap()
+        .0;
+    let band = 0.02 * (r - y0).abs();
+    let mut moved = false;
+    let mut rest1: Option<usize> = None;
+    let mut moves = 0;
+    let mut resting = false;
+    let mut vmax = 0.0f64;
+    for k in 1..y.len() {
+        let v = side * (y[k] - y[k - 1]) / (t[k] - t[k - 1]);
+        vmax = vmax.max(v);
+        if y[k] != y0 {
+            moved = true;
+        }
+        let still = k >= 2 && y[k] == y[k - 1] && y[k - 1] == y[k - 2];
+        if moved && rest1.is_none() && still {
+            rest1 = Some(k);
+            resting = true;
+        } else if rest1.is_some() {
+            if resting && !still && y[k] != y[k - 1] {
+                moves += 1;
+                resting = false;
+            } else if still {
+                resting = true;
+            }
+        }
+    }
+    let (kp, past) = y
+        .iter()
+        .enumerate()
+        .map(|(k, &yk)| (k, side * (yk - r)))
+        .fold((0, f64::NEG_INFINITY), |a, b| if b.1 > a.1 { b } else { a });
+    let (tr1, er1) = rest1.map_or((f64::NAN, f64::NAN), |k| (t[k], side * (r - y[k])));
+    // The first sample within the 2 % band.
+    let tin = y
+        .iter()
+        .position(|&yk| (yk - r).abs() <= band)
+        .map_or(f64::NAN, |k| t[k]);
+    println!(
+        "ph {plant} {y0} {r} os {:.3} ts {:.3} ess {:.3} peak {:.3} tpeak {:.2} rest1 {:.2} erest1 {:.3} moves {moves} vmax {:.0} tin {:.2}",
+        m.overshoot_judged_percent().unwrap_or(f64::NAN),
+        m.settling_time_s.unwrap_or(f64::NAN),
+        m.steady_state_error_mm.unwrap_or(f64::NAN),
+        past.max(0.0),
+        t[kp],
+        tr1,
+        er1,
+        vmax,
+        tin
     );
 }

@@ -163,6 +163,13 @@ pub struct Brake {
     /// valves let the chamber that drove the piston, still at pressure, push it on by several mm.
     #[serde(default, skip_serializing_if = "is_zero_u32")]
     pub release_samples: u32,
+    /// Re-brake (issue 25, session 19; false when absent, as in a file written before it existed,
+    /// and not written then): during the release and the hold, a sample in which the piston moved
+    /// towards r gives the braking command −a_b u_max again, so that a piston resting short of r
+    /// under the brake, its driving chamber still at pressure, does not slide past r when the brake
+    /// is released.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub rebrake: bool,
 }
 
 /// The short-step approach (issue 25, session 17): for a step e_s' < |r − y| ≤ e_m, a drive at U u_max
@@ -258,6 +265,11 @@ impl ShortApproach {
 /// Whether an optional number is absent from a file (written as 0 = off).
 fn is_zero(v: &f64) -> bool {
     *v == 0.0
+}
+
+/// Whether an optional switch is absent from a file (written as false = off).
+fn is_false(v: &bool) -> bool {
+    !*v
 }
 
 /// Whether an optional count is absent from a file (written as 0 = off).
@@ -558,6 +570,7 @@ impl ControllerSettings {
                 learn: b.learn,
                 lead_max: b.lead_max_s,
                 release: b.release_samples,
+                rebrake: b.rebrake,
             }),
             short: self
                 .short_approach
@@ -956,6 +969,7 @@ mod tests {
                 learn: 0.0,
                 lead_max_s: 0.0,
                 release_samples: 0,
+                rebrake: false,
             }),
             ..plain(1.0, 0.0)
         }
@@ -969,6 +983,52 @@ mod tests {
         assert_eq!(c.step(20.0, 0.0), -127.5);
         let mut c = with_brake(1.0).build().unwrap();
         assert_eq!(c.step(20.0, 0.0), 255.0);
+    }
+
+    // The re-brake reaches the embedded step: r = 20 from y = 0 with e_s = 1000 mm brakes at once
+    // (−127.5, T_b = 1), then the hold (N_b = 3: y unchanged once, 0); a count towards r there
+    // (y = 0.01) gives −127.5 again with the re-brake, 0 without it.
+    #[test]
+    fn the_rebrake_reaches_the_embedded_step() {
+        let mut s = with_brake(1000.0);
+        s.brake.as_mut().unwrap().rest_samples = 3;
+        for (rebrake, want) in [(true, -127.5), (false, 0.0)] {
+            s.brake.as_mut().unwrap().rebrake = rebrake;
+            let mut c = s.build().unwrap();
+            assert_eq!(c.step(20.0, 0.0), -127.5);
+            assert_eq!(c.step(20.0, 0.0), 0.0);
+            assert_eq!(c.step(20.0, 0.01), want, "rebrake {rebrake}");
+        }
+    }
+
+    // Off (every file before session 19): `rebrake` not written, read as false; on: written as true
+    // and read back; a number instead of a boolean is refused at its line.
+    #[test]
+    fn a_rebrake_round_trips_and_is_not_written_when_off() {
+        let s = with_brake(1.0);
+        let text = serde_json::to_string_pretty(&ControllerFile::new(s, None)).unwrap();
+        assert!(!text.contains("rebrake"));
+        assert!(
+            !ControllerFile::parse(&text, "c.json")
+                .unwrap()
+                .brake
+                .unwrap()
+                .rebrake
+        );
+        let mut on = s;
+        on.brake.as_mut().unwrap().rebrake = true;
+        let text = serde_json::to_string_pretty(&ControllerFile::new(on, None)).unwrap();
+        assert!(text.contains("\"rebrake\": true"));
+        assert_eq!(ControllerFile::parse(&text, "c.json").unwrap(), on);
+        let bad = text.replace("\"rebrake\": true", "\"rebrake\": 1");
+        let line = 1 + bad.lines().position(|l| l.contains("rebrake")).unwrap();
+        let e = ControllerFile::parse(&bad, "c.json")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(&format!("c.json:{line}:")) && e.contains("boolean"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -87,7 +87,8 @@ pub struct TuneReport {
     pub search: TuneSettings,
     /// Cost evaluations used by the search.
     pub evaluations: usize,
-    /// Evaluations of the approach with braking after the search (`tune::BRAKE_CANDIDATES`).
+    /// Evaluations of the approach with braking after the search (`tune::BRAKE_CANDIDATES`, and its
+    /// re-brake: `tune::rebrake_candidates`).
     pub brake_evaluations: usize,
     /// Evaluations of the nudge's rest count after the brake (`tune::NUDGE_REST_CANDIDATES`).
     pub rest_evaluations: usize,

@@ -308,6 +308,11 @@ typedef struct IpaController {
    * a_s: its braking command as a fraction of u_max (`short_approach.brake_strength`).
    */
   double short_strength;
+  /**
+   * 1: the approach with braking re-brakes a count towards r during its release and hold
+   * (`brake.rebrake`; issue 25, session 19); 0: not (as in a struct zeroed before it existed).
+   */
+  int32_t brake_rebrake;
 } IpaController;
 
 #ifdef __cplusplus

@@ -199,6 +199,9 @@ pub struct IpaController {
     pub short_lead: f64,
     /// a_s: its braking command as a fraction of u_max (`short_approach.brake_strength`).
     pub short_strength: f64,
+    /// 1: the approach with braking re-brakes a count towards r during its release and hold
+    /// (`brake.rebrake`; issue 25, session 19); 0: not (as in a struct zeroed before it existed).
+    pub brake_rebrake: i32,
 }
 const _: () = assert!(size_of::<CusumState>() <= IPA_CUSUM_STATE_BYTES);
 const _: () = assert!(MAX_D >= IPA_MAX_NA as usize);
@@ -715,9 +718,9 @@ pub unsafe extern "C" fn ipa_ctl_init(
         })),
         _ => Err(Error::Setting),
     };
-    let brake = match c.has_brake {
-        0 => Ok(None),
-        1 => Ok(Some(BrakeSettings {
+    let brake = match (c.has_brake, c.brake_rebrake) {
+        (0, _) => Ok(None),
+        (1, rebrake @ (0 | 1)) => Ok(Some(BrakeSettings {
             min_step: c.brake_min_step,
             switch: c.brake_switch,
             lead: c.brake_lead,
@@ -727,6 +730,7 @@ pub unsafe extern "C" fn ipa_ctl_init(
             learn: c.brake_learn,
             lead_max: c.brake_lead_max,
             release: c.brake_release,
+            rebrake: rebrake == 1,
         })),
         _ => Err(Error::Setting),
     };

@@ -126,17 +126,20 @@ mod tests {
         // last nudge's y_0 and e_0, two ramp-and-cut rates per mm), the optional nudge under way (four
         // floats and three bools, whose spare values hold the `None`), the optional last cut (two
         // floats and a bool, whose spare values hold the `None`), a u32 and two bools; and (the
-        // approach with braking) the optional brake settings (six floats and three u32, padded, then a
-        // tag: an `Option` cannot use its settings' trailing padding), its
+        // approach with braking) the optional brake settings (six floats, three u32 and, since session
+        // 19, a bool; before it, padded, then a tag: an `Option` cannot use its settings' trailing
+        // padding), its
         // phase (a tag, a bool and a u32: 8 bytes), r(k−1) and a bool; and (the learnt lead) two
         // floats τ_b(left), τ_b(right) and the optional last switch (two floats and a bool, whose
         // spare values hold the `None`); and (the short-step approach, session 17) the optional
         // short-step settings (six floats and two u32, then a tag, as the brake's), the phase grown
         // to a tag, two bools, a u32 and a float (the short drive's y_0): 576 bytes for f64 on a
-        // 64-bit host (504 before it); 584 since the nudge's creep limit e_v (session 18).
+        // 64-bit host (504 before it); 584 since the nudge's creep limit e_v (session 18); 576 since
+        // the brake's re-brake (session 19): a bool after the three u32, whose spare values hold the
+        // `None` of the optional brake settings, so that their tag is gone (f32: 308 either way).
         let a = |f: usize| f.max(4);
         let nudge = |f: usize| round(8 * f + 4, a(f)) + a(f);
-        let brake = |f: usize| round(round(6 * f + 12, a(f)) + 1, a(f));
+        let brake = |f: usize| round(6 * f + 12 + 1, a(f));
         let short = |f: usize| round(round(6 * f + 8, a(f)) + 1, a(f));
         let settings = |f: usize| round(8 * f + 1 + nudge(f) + brake(f) + short(f), f);
         let nudging = |f: usize| round(4 * f + 3, f);
@@ -162,7 +165,7 @@ mod tests {
         assert_eq!(size_of::<PositionController<f64>>(), ctl(8));
         assert_eq!(size_of::<PositionController<f32>>(), ctl(4));
         if w == 8 {
-            assert_eq!(ctl(8), 584);
+            assert_eq!(ctl(8), 576);
             assert_eq!(ctl(4), 308);
         }
         assert!(ffi::ipa_ctl_state_size() <= ffi::IPA_CTL_STATE_BYTES);

@@ -31,6 +31,9 @@
 //!             hold:     u = 0 (valves closed) until y has been unchanged for N_b samples; then the law
 //!                       above from a fresh start (I, D, y(k−1), e(k−1), the nudge under way and the
 //!                       rest count cleared; the learnt u_b, τ_c and a(side) kept)
+//!             re-brake (when set; session 19): in the release and the hold, a sample with
+//!                       side (y(k) − y(k−1)) > 0 gives u = −side a_b u_max (the release's j does not
+//!                       advance, the hold's count restarts)
 //! short-step approach (when set; issue 25, session 17), armed instead for a step e_s' < |r − y| ≤ e_m:
 //!             drive:    u = side min(U u_max + ρ_a Ts (j − 1), u_max) while side e > e_s' + τ_s max(v, 0),
 //!                       j the samples so far at the start position (frozen once the piston moves:
@@ -102,6 +105,13 @@ pub struct BrakeSettings<F: Float> {
     /// (0 = at once, as in a file written before it existed): closing the valves at once lets the
     /// chamber that drove the piston, still at pressure, push it on by several mm.
     pub release: u32,
+    /// Re-brake (issue 25, session 19; `false`: as in a file written before it existed): during the
+    /// release and the hold, a sample in which the piston moved towards r (side (y(k) − y(k−1)) > 0)
+    /// gives −side a_b u_max again (the release does not advance; the hold's rest count restarts).
+    /// The piston that rests under the brake short of r with its driving chamber still at pressure
+    /// breaks loose when the brake is released and, where Coulomb friction is far below static
+    /// friction, slides 5–15 mm past r; braked at its first count it stays within the band.
+    pub rebrake: bool,
 }
 
 /// The short-step approach of a [`PositionController`] (`controller.short_approach` of
@@ -143,8 +153,8 @@ enum Approach<F: Float> {
     Brake { right: bool, given: u32 },
     /// Releasing the brake: samples given so far.
     Release { right: bool, given: u32 },
-    /// Valves closed after the brake: samples of unchanged y so far.
-    Hold { still: u32 },
+    /// Valves closed after the brake: samples of unchanged y so far, the side of the move.
+    Hold { still: u32, right: bool },
     /// Short-step drive: y_0 where the step began, j the samples at y_0 so far, whether the piston
     /// has moved from it.
     ShortDrive {
@@ -514,6 +524,18 @@ impl<F: Float> PositionController<F> {
             }
             self.approach = Approach::Release { right, given: 0 };
         }
+        if b.rebrake {
+            if let Approach::Release { right, .. } | Approach::Hold { right, .. } = self.approach {
+                if side(right) * (y - self.y_prev) > F::ZERO {
+                    if let Approach::Hold { right, .. } = self.approach {
+                        self.approach = Approach::Hold { still: 0, right };
+                    }
+                    self.started = true;
+                    self.y_prev = y;
+                    return Some(-side(right) * b.strength * self.s.u_max);
+                }
+            }
+        }
         if let Approach::Release { right, given } = self.approach {
             if given < b.release {
                 self.approach = Approach::Release {
@@ -526,12 +548,12 @@ impl<F: Float> PositionController<F> {
                 let left = F::from_f64(f64::from(b.release - given)) / n;
                 return Some(-side(right) * b.strength * self.s.u_max * left);
             }
-            self.approach = Approach::Hold { still: 0 };
+            self.approach = Approach::Hold { still: 0, right };
         }
-        if let Approach::Hold { still } = self.approach {
+        if let Approach::Hold { still, right } = self.approach {
             let still = if moved { 0 } else { still + 1 };
             if still < b.rest_samples {
-                self.approach = Approach::Hold { still };
+                self.approach = Approach::Hold { still, right };
                 self.started = true;
                 self.y_prev = y;
                 return Some(F::ZERO);
@@ -1251,6 +1273,7 @@ mod tests {
                 learn: 0.0,
                 lead_max: 0.0,
                 release: 0,
+                rebrake: false,
             }),
             ..s()
         }
@@ -1363,6 +1386,45 @@ mod tests {
         );
         s.brake.as_mut().unwrap().release = 1001;
         assert!(PositionController::new(s, None).is_err());
+    }
+
+    // The re-brake by hand, on the brake above with T_r = 3: full command at k = 0..2, −127.5 at k = 3,
+    // 4 (T_b = 2); k = 5: y moved 0.5 mm towards r in the release → −127.5 again, the release not
+    // advanced; k = 6, 7, 8: the release −127.5 × 3/4, 2/4, 1/4 = −95.625, −63.75, −31.875; k = 9:
+    // the hold, y unchanged (count 1): 0; k = 10: a count towards r (12.5 → 12.75) → −127.5, the
+    // count restarts; k = 11: a move away from r (12.5) is no slip towards r: 0 (count 0);
+    // k = 12: unchanged once: 0; k = 13: twice (N_b = 2) → the law from a fresh start, Kp e = 7.5.
+    // Without the re-brake the same positions give the release at k = 5..7, the hold at k = 8 and
+    // the law at k = 9 (Kp e = 7.5, 7.25, 7.5, ...).
+    #[test]
+    fn the_rebrake_brakes_a_count_towards_r_in_the_release_and_the_hold() {
+        let mut s = braking();
+        s.brake.as_mut().unwrap().release = 3;
+        s.brake.as_mut().unwrap().rebrake = true;
+        let y = [
+            0.0, 1.0, 2.0, 10.0, 12.0, 12.5, 12.5, 12.5, 12.5, 12.5, 12.75, 12.5, 12.5, 12.5,
+        ];
+        let mut c = PositionController::new(s, None).unwrap();
+        let u = y.map(|y| c.step(20.0, y).unwrap());
+        #[rustfmt::skip]
+        let want = [255.0, 255.0, 255.0, -127.5, -127.5, -127.5, -95.625, -63.75, -31.875, 0.0,
+                    -127.5, 0.0, 0.0, 7.5];
+        assert_eq!(u, want);
+        s.brake.as_mut().unwrap().rebrake = false;
+        let mut c = PositionController::new(s, None).unwrap();
+        let u = y.map(|y| c.step(20.0, y).unwrap());
+        #[rustfmt::skip]
+        let want = [255.0, 255.0, 255.0, -127.5, -127.5, -95.625, -63.75, -31.875, 0.0, 7.5,
+                    7.25, 7.5, 7.5, 7.5];
+        assert_eq!(u, want);
+        // Down, with the signs turned: a count towards r = 0 in the hold re-brakes at +127.5.
+        s.brake.as_mut().unwrap().rebrake = true;
+        let mut c = PositionController::new(s, None).unwrap();
+        let y = y.map(|y| 20.0 - y);
+        let u = y.map(|y| c.step(0.0, y).unwrap());
+        assert_eq!(u[5], 127.5);
+        assert_eq!(u[10], 127.5);
+        assert_eq!(u[13], -7.5);
     }
 
     /// Kp = 1, Ki = 0 and the short-step approach: e_m = 20 mm, U = 0.2 (U u_max = 51 counts), ρ_a =

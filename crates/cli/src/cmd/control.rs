@@ -689,6 +689,10 @@ pub fn tuned_line(s: &control::ControllerSettings) -> String {
             )
         } else {
             String::new()
+        } + &if b.rebrake {
+            ", braked again at each count towards the set-point while released and held".to_string()
+        } else {
+            String::new()
         } + &if b.learn > 0.0 {
             format!(
                 "; the lead learnt per direction at {} per braked move, at most {} s",

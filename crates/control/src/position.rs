@@ -128,6 +128,16 @@ pub struct Nudge {
     /// (issue 25, session 18; docs/control.md).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub creep_step_mm: f64,
+    /// a_p: the slip brake's command as a fraction of u_max (0 <= a_p <= 1; 0 = off, as in a file
+    /// written before it existed, and not written then): when a nudge ends at a sample in which the
+    /// piston moved towards r by more than e_v (e_h without a creep limit), a slip under way, the
+    /// valves are reversed (u = −side a_p u_max) until the piston no longer moves towards r, for at
+    /// most T_p samples (issue 25, session 19; docs/control.md).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub slip_brake_fraction: f64,
+    /// T_p: the slip brake's longest pulse, samples (0..=1000; 0 = off, not written then).
+    #[serde(default, skip_serializing_if = "is_zero_u32")]
+    pub slip_brake_samples: u32,
 }
 
 /// The approach with braking (issue 25, session 14): for a step of at least e_a, the full command
@@ -389,6 +399,20 @@ impl Nudge {
                 self.creep_step_mm,
             );
         }
+        if !(self.slip_brake_fraction.is_finite()
+            && (0.0..=1.0).contains(&self.slip_brake_fraction))
+        {
+            return bad(
+                "a nudge slip_brake_fraction from 0 to 1",
+                self.slip_brake_fraction,
+            );
+        }
+        if self.slip_brake_samples > 1000 {
+            return bad(
+                "a nudge slip_brake_samples from 0 to 1000",
+                f64::from(self.slip_brake_samples),
+            );
+        }
         if !(self.rest_band_mm.is_finite() && (0.0..=MAX_LENGTH_MM).contains(&self.rest_band_mm)) {
             return bad(
                 &format!("a nudge rest_band_mm from 0 to {MAX_LENGTH_MM:e} mm"),
@@ -547,6 +571,8 @@ impl ControllerSettings {
                 cut_band: n.cut_band_mm,
                 min_ramp: n.min_ramp_counts_s,
                 creep_step: n.creep_step_mm,
+                slip_brake: n.slip_brake_fraction,
+                slip_brake_samples: n.slip_brake_samples,
             }),
             brake: self.brake.map(|b| ipa_embedded::position::BrakeSettings {
                 min_step: b.min_step_mm,
@@ -838,6 +864,8 @@ mod tests {
             cut_band_mm: 0.0,
             min_ramp_counts_s: 0.0,
             creep_step_mm: 0.0,
+            slip_brake_fraction: 0.0,
+            slip_brake_samples: 0,
         });
         s
     }

@@ -644,6 +644,8 @@ fn the_cut_band_candidates_are_the_other_bands_with_the_creep() {
         cut_band_mm: 0.0,
         min_ramp_counts_s: 0.0,
         creep_step_mm: 0.0,
+        slip_brake_fraction: 0.0,
+        slip_brake_samples: 0,
     };
     chosen.nudge = Some(nudge);
     let c = tune::cut_band_candidates(&chosen, &spec);

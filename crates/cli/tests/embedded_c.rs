@@ -310,7 +310,10 @@ fn c_controller_matches_control(brake: Brake) {
         .remove("short_approach");
     // tune may choose the slip brake (session 19); only the `Slip` run has one.
     for k in ["slip_brake_fraction", "slip_brake_samples"] {
-        file["controller"]["nudge"].as_object_mut().unwrap().remove(k);
+        file["controller"]["nudge"]
+            .as_object_mut()
+            .unwrap()
+            .remove(k);
     }
     if brake == Brake::None {
         // tune may choose one (session 15); this run is the controller without it.
@@ -423,7 +426,10 @@ fn c_controller_matches_control(brake: Brake) {
             .collect()
     };
     let unlearnt = matches!(brake, Brake::Learnt | Brake::Short).then(|| replay(&args));
-    if matches!(brake, Brake::Learnt | Brake::Short | Brake::Creep | Brake::Slip) {
+    if matches!(
+        brake,
+        Brake::Learnt | Brake::Short | Brake::Creep | Brake::Slip
+    ) {
         let b = &c["brake"];
         for k in ["learn", "lead_max_s"] {
             args.push(format!("{:?}", b[k].as_f64().unwrap_or(0.0)));
@@ -458,7 +464,10 @@ fn c_controller_matches_control(brake: Brake) {
     let unlearnt = if brake == Brake::Slip {
         args.push(format!("{:?}", nudge["creep_step_mm"].as_f64().unwrap()));
         let without = replay(&args);
-        args.push(format!("{:?}", nudge["slip_brake_fraction"].as_f64().unwrap()));
+        args.push(format!(
+            "{:?}",
+            nudge["slip_brake_fraction"].as_f64().unwrap()
+        ));
         args.push(nudge["slip_brake_samples"].as_u64().unwrap().to_string());
         Some(without)
     } else {

@@ -136,7 +136,11 @@ fn reference_commands(c: &serde_json::Value, r: &[f64], y: &[f64]) -> Vec<f64> {
     let mut pulse: Option<(f64, f64)> = None;
     // The command at a nudge's end at sample k (side ±1): 0, or the slip brake's first sample.
     let end = |side: f64, k: usize, pulse: &mut Option<(f64, f64)>| -> f64 {
-        let step = if k == 0 { 0.0 } else { side * (y[k] - y[k - 1]) };
+        let step = if k == 0 {
+            0.0
+        } else {
+            side * (y[k] - y[k - 1])
+        };
         if a_p > 0.0 && t_p > 0.0 && step > slip {
             *pulse = Some((side, 1.0));
             -side * a_p * umax

@@ -938,6 +938,58 @@ mod tests {
         assert_eq!(ControllerFile::parse(&off, "c.json").unwrap(), with(0.0));
     }
 
+    // The slip brake reaches the embedded step (whose test derives it by hand): a held nudge
+    // (γ = 0.5, β = 0.5, ρ = 100, N_r = 2) from 0.6 towards 1 starts at β |b_r| = 15, ramps to 16,
+    // holds at the first count (0.65) and is cut at 0.85 (a move of 0.2 mm in that sample, above
+    // e_h = 0.02): u = −a_p u_max = −0.2 × 255 = −51 with the slip brake, 0 without. Written only
+    // when set; a_p above 1 and T_p above 1000 are refused by name.
+    #[test]
+    fn the_slip_brake_reaches_the_embedded_step_and_round_trips() {
+        let with = |a_p: f64, t_p: u32| {
+            let mut s = nudging();
+            let n = s.nudge.as_mut().unwrap();
+            (n.slip_brake_fraction, n.slip_brake_samples) = (a_p, t_p);
+            s
+        };
+        for ((a_p, t_p), last) in [((0.2, 3), -51.0), ((0.0, 0), 0.0)] {
+            let mut c = with(a_p, t_p).build().unwrap();
+            let u: Vec<f64> = [0.6, 0.6, 0.6, 0.6, 0.65, 0.85]
+                .iter()
+                .map(|&y| c.step(1.0, y))
+                .collect();
+            let want = [0.0, 0.0, 15.0, 16.0, 16.0, last];
+            for (k, (g, w)) in u.iter().zip(want).enumerate() {
+                assert!((g - w).abs() < 1e-9, "a_p {a_p}, sample {k}: {g} != {w}");
+            }
+        }
+        let text = serde_json::to_string_pretty(&ControllerFile::new(with(0.2, 3), None)).unwrap();
+        assert!(text.contains("\"slip_brake_fraction\": 0.2"), "{text}");
+        assert!(text.contains("\"slip_brake_samples\": 3"), "{text}");
+        assert_eq!(
+            ControllerFile::parse(&text, "c.json").unwrap(),
+            with(0.2, 3)
+        );
+        for (from, to, name) in [
+            (
+                "\"slip_brake_fraction\": 0.2",
+                "\"slip_brake_fraction\": 1.5",
+                "slip_brake_fraction",
+            ),
+            (
+                "\"slip_brake_samples\": 3",
+                "\"slip_brake_samples\": 1001",
+                "slip_brake_samples",
+            ),
+        ] {
+            let e = ControllerFile::parse(&text.replace(from, to), "c.json").unwrap_err();
+            assert!(e.to_string().contains(name), "{e}");
+        }
+        // Off (every file before session 19): not written, and read as 0.
+        let off = serde_json::to_string(&ControllerFile::new(with(0.0, 0), None)).unwrap();
+        assert!(!off.contains("slip"));
+        assert_eq!(ControllerFile::parse(&off, "c.json").unwrap(), with(0.0, 0));
+    }
+
     #[test]
     fn a_nudge_band_inside_the_hold_band_is_refused() {
         let mut s = nudging();

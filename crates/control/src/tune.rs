@@ -548,7 +548,7 @@ pub const NUDGE_REST_CANDIDATES: [u32; 2] = [2, 1];
 pub const NUDGE_CREEP_FRACTION: f64 = 0.75;
 /// a_p: the slip brake's command as a fraction of u_max (issue 25, session 19): set on every
 /// nudge (not a choice). On the twin's 168 verification runs (session 18's (B) file) every a_p
-/// from 0.19 to 0.26 met the whole specification in 90–96 runs against 89 without it; 0.5 in 77,
+/// from 0.19 to 0.26 met the whole specification in 90–95 runs against 89 without it; 0.5 in 77,
 /// 1 in 29 (a reverse command above the other side's breakaway drives the piston back);
 /// docs/control.md, Results' session-19 block.
 pub const NUDGE_SLIP_BRAKE_FRACTION: f64 = 0.25;

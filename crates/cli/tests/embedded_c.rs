@@ -245,6 +245,13 @@ fn c_controller_with_a_rebrake_matches_control_bit_for_bit_on_a_recorded_run() {
     c_controller_matches_control(Brake::Rebrake);
 }
 
+// Session 19: the nudge's slip brake a_p, T_p (the 42nd and 43rd arguments of position.c, after the
+// re-brake's 0).
+#[test]
+fn c_controller_with_a_slip_brake_matches_control_bit_for_bit_on_a_recorded_run() {
+    c_controller_matches_control(Brake::Slip);
+}
+
 /// Which approach the controller file of [`c_controller_matches_control`] has.
 #[derive(Clone, Copy, PartialEq)]
 enum Brake {
@@ -258,6 +265,8 @@ enum Brake {
     /// As `Creep`, with a brake of 10 samples released over 10 samples, its hold ended after 8
     /// samples at rest and the re-brake on.
     Rebrake,
+    /// As `Creep`, with the nudge's slip brake a_p = 0.25, T_p = 5.
+    Slip,
 }
 
 fn c_controller_matches_control(brake: Brake) {
@@ -312,6 +321,13 @@ fn c_controller_matches_control(brake: Brake) {
         .as_object_mut()
         .unwrap()
         .remove("short_approach");
+    // tune may choose the slip brake (session 19); only the `Slip` run has one.
+    for k in ["slip_brake_fraction", "slip_brake_samples"] {
+        file["controller"]["nudge"]
+            .as_object_mut()
+            .unwrap()
+            .remove(k);
+    }
     if brake == Brake::None {
         // tune may choose one (session 15); this run is the controller without it.
         file["controller"].as_object_mut().unwrap().remove("brake");
@@ -330,17 +346,21 @@ fn c_controller_matches_control(brake: Brake) {
         file["controller"]["brake"]["rest_samples"] = serde_json::json!(8);
         file["controller"]["brake"]["rebrake"] = serde_json::json!(true);
     }
-    if matches!(brake, Brake::Short | Brake::Creep | Brake::Rebrake) {
+    if matches!(brake, Brake::Short | Brake::Creep | Brake::Rebrake | Brake::Slip) {
         file["controller"]["short_approach"] = serde_json::json!({"max_step_mm": 40.0,
             "drive_fraction": 0.35, "ramp_counts_s": 500.0, "switch_mm": 0.5, "lead_s": 0.01,
             "brake_strength": 0.5, "brake_samples": 3, "rest_samples": 2});
     }
-    if matches!(brake, Brake::Creep | Brake::Rebrake) {
+    if matches!(brake, Brake::Creep | Brake::Rebrake | Brake::Slip) {
         file["controller"]["nudge"]["creep_step_mm"] = serde_json::json!(0.015);
+    }
+    if brake == Brake::Slip {
+        file["controller"]["nudge"]["slip_brake_fraction"] = serde_json::json!(0.25);
+        file["controller"]["nudge"]["slip_brake_samples"] = serde_json::json!(5);
     }
     let (profile, samples) = match brake {
         Brake::Learnt => ("staircase:40,38,120,60,120,60@2", 1201),
-        Brake::Short | Brake::Creep => ("staircase:40,60,45,120,100@2", 1001),
+        Brake::Short | Brake::Creep | Brake::Slip => ("staircase:40,60,45,120,100@2", 1001),
         Brake::Rebrake => ("staircase:40,60,45,170,100@2", 1001),
         _ => ("staircase:40,38,120,60@2", 801),
     };
@@ -428,7 +448,7 @@ fn c_controller_matches_control(brake: Brake) {
     let unlearnt = matches!(brake, Brake::Learnt | Brake::Short).then(|| replay(&args));
     if matches!(
         brake,
-        Brake::Learnt | Brake::Short | Brake::Creep | Brake::Rebrake
+        Brake::Learnt | Brake::Short | Brake::Creep | Brake::Rebrake | Brake::Slip
     ) {
         let b = &c["brake"];
         for k in ["learn", "lead_max_s"] {
@@ -436,7 +456,7 @@ fn c_controller_matches_control(brake: Brake) {
         }
         args.push(b["release_samples"].as_u64().unwrap_or(0).to_string());
     }
-    if matches!(brake, Brake::Short | Brake::Creep | Brake::Rebrake) {
+    if matches!(brake, Brake::Short | Brake::Creep | Brake::Rebrake | Brake::Slip) {
         let a = &c["short_approach"];
         for k in [
             "max_step_mm",
@@ -474,6 +494,18 @@ fn c_controller_matches_control(brake: Brake) {
             .into(),
         );
         Some(replay(&without))
+    // The slip brake after the creep limit and the re-brake (off here): the replay without it closes
+    // the valves at a slip.
+    } else if brake == Brake::Slip {
+        args.push(format!("{:?}", nudge["creep_step_mm"].as_f64().unwrap()));
+        args.push("0".into());
+        let without = replay(&args);
+        args.push(format!(
+            "{:?}",
+            nudge["slip_brake_fraction"].as_f64().unwrap()
+        ));
+        args.push(nudge["slip_brake_samples"].as_u64().unwrap().to_string());
+        Some(without)
     } else {
         unlearnt
     };
@@ -489,7 +521,7 @@ fn c_controller_matches_control(brake: Brake) {
     if let Some(unlearnt) = unlearnt {
         assert_ne!(
             unlearnt, recorded,
-            "the learnt lead, the short-step approach, the creep or the re-brake changed no command"
+            "the learnt lead, the short-step approach, the creep, the re-brake or the slip brake changed no command"
         );
     }
     for (k, (a, b)) in from_c.iter().zip(&recorded).enumerate() {
@@ -524,6 +556,13 @@ fn c_controller_matches_control(brake: Brake) {
     // With the short-step approach: the brake up (75 mm, full command then −63.75), the short
     // drive both ways at 0.35 × 255 = 89.25 (raised by 5 per sample while the piston has not moved)
     // and its brake ∓0.5 × 255.
+    // With the slip brake: a reverse command −side a_p u_max = ∓63.75 in the nudge band, against
+    // the error's sign (a nudge towards r cut during a slip).
+    if brake == Brake::Slip {
+        assert!(rows
+            .iter()
+            .any(|(e, u)| e.abs() <= band && *u == -e.signum() * 63.75));
+    }
     if brake == Brake::Short {
         assert!(recorded.contains(&255.0) && recorded.contains(&-63.75));
         assert!(recorded.contains(&89.25) && recorded.contains(&-89.25));

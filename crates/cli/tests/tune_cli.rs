@@ -104,7 +104,10 @@ fn reference_commands(c: &serde_json::Value, r: &[f64], y: &[f64]) -> Vec<f64> {
     // |e_0| / d), d < |e_0| / 2 → a × 5/4 (not with a creep limit), then a kept within
     // [ρ_min / e_c, ρ / e_h]. Creep (e_v > 0, session 18): a ramp-and-cut nudge with e e_0 > 0 ends
     // when the sample's move towards r exceeds e_v, holds u_n while it is in (0, e_v] (the first
-    // such sample learns u_b) and ramps on otherwise (y_0 = y before the first motion).
+    // such sample learns u_b) and ramps on otherwise (y_0 = y before the first motion). Slip brake
+    // (a_p, T_p; session 19): a nudge that ends at a sample whose move towards r exceeds e_v (e_h
+    // without a creep limit) commands −side a_p u_max from that sample while the piston moves
+    // towards r, at most T_p samples.
     let nudge = &c["nudge"];
     let n = nudge.is_object().then(|| {
         let h = |k: &str| nudge[k].as_f64().unwrap();
@@ -124,6 +127,27 @@ fn reference_commands(c: &serde_json::Value, r: &[f64], y: &[f64]) -> Vec<f64> {
         nudge["min_ramp_counts_s"].as_f64().unwrap_or(0.0),
         nudge["creep_step_mm"].as_f64().unwrap_or(0.0),
     );
+    let (a_p, t_p) = (
+        nudge["slip_brake_fraction"].as_f64().unwrap_or(0.0),
+        nudge["slip_brake_samples"].as_f64().unwrap_or(0.0),
+    );
+    let slip = if e_v > 0.0 { e_v } else { hold };
+    // The slip brake under way: the nudge's side and the samples given.
+    let mut pulse: Option<(f64, f64)> = None;
+    // The command at a nudge's end at sample k (side ±1): 0, or the slip brake's first sample.
+    let end = |side: f64, k: usize, pulse: &mut Option<(f64, f64)>| -> f64 {
+        let step = if k == 0 {
+            0.0
+        } else {
+            side * (y[k] - y[k - 1])
+        };
+        if a_p > 0.0 && t_p > 0.0 && step > slip {
+            *pulse = Some((side, 1.0));
+            -side * a_p * umax
+        } else {
+            0.0
+        }
+    };
     let rho_max = n.map_or(0.0, |n| n.1);
     let mut a = if e_c > 0.0 {
         [rho_max / e_c; 2]
@@ -142,12 +166,25 @@ fn reference_commands(c: &serde_json::Value, r: &[f64], y: &[f64]) -> Vec<f64> {
         } else {
             0.0
         };
+        if let Some((side, given)) = pulse {
+            if given < t_p && side * (y[k] - y[k - 1]) > 0.0 {
+                pulse = Some((side, given + 1.0));
+                e_prev = e;
+                out.push(-side * a_p * umax);
+                continue;
+            }
+            pulse = None;
+        }
         if e.abs() <= hold {
             e_prev = e;
-            if let Some((side, y0, e0, _, _, _, true)) = under_way.take() {
-                ended = Some((side, y0, e0));
+            let mut u = 0.0;
+            if let Some((side, y0, e0, _, _, _, cuts)) = under_way.take() {
+                if cuts {
+                    ended = Some((side, y0, e0));
+                }
+                u = end(side, k, &mut pulse);
             }
-            out.push(0.0);
+            out.push(u);
             continue;
         }
         if let Some((band, rho, beta, rest, gamma)) = n.filter(|n| e.abs() <= n.0) {
@@ -160,7 +197,7 @@ fn reference_commands(c: &serde_json::Value, r: &[f64], y: &[f64]) -> Vec<f64> {
                     if step > e_v {
                         under_way = None;
                         ended = Some((side, y0, e0));
-                        0.0
+                        end(side, k, &mut pulse)
                     } else if step > 0.0 {
                         if !moving {
                             ub[idx(side)] = un;
@@ -187,7 +224,7 @@ fn reference_commands(c: &serde_json::Value, r: &[f64], y: &[f64]) -> Vec<f64> {
                         if cuts {
                             ended = Some((side, y0, e0));
                         }
-                        0.0
+                        end(side, k, &mut pulse)
                     } else if moving {
                         side * un
                     } else if towards {
@@ -417,7 +454,7 @@ fn bad_inputs_name_the_file_or_the_flag() {
     assert!(
         e.contains("--max-evaluations = 10000")
             && e.contains("at most 1e8 simulated samples")
-            && e.contains("(10000 evaluations + 37 after the search) × 200 variants"),
+            && e.contains("(10000 evaluations + 38 after the search) × 200 variants"),
         "{e}"
     );
     assert!(!out.exists());

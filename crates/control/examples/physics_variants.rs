@@ -249,6 +249,12 @@ fn main() {
         if let Some(v) = env("NR") {
             n.rest_samples = v as u32;
         }
+        if let Some(v) = env("SLIP") {
+            n.slip_brake_fraction = v;
+        }
+        if let Some(v) = env("SLIP_N") {
+            n.slip_brake_samples = v as u32;
+        }
     }
     if let Ok(b) = std::env::var("BRAKE_CTL") {
         let v: Vec<f64> = b.split(',').map(|x| x.parse().unwrap()).collect();

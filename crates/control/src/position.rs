@@ -128,6 +128,16 @@ pub struct Nudge {
     /// (issue 25, session 18; docs/control.md).
     #[serde(default, skip_serializing_if = "is_zero")]
     pub creep_step_mm: f64,
+    /// a_p: the slip brake's command as a fraction of u_max (0 <= a_p <= 1; 0 = off, as in a file
+    /// written before it existed, and not written then): when a nudge ends at a sample in which the
+    /// piston moved towards r by more than e_v (e_h without a creep limit), a slip under way, the
+    /// valves are reversed (u = −side a_p u_max) until the piston no longer moves towards r, for at
+    /// most T_p samples (issue 25, session 19; docs/control.md).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub slip_brake_fraction: f64,
+    /// T_p: the slip brake's longest pulse, samples (0..=1000; 0 = off, not written then).
+    #[serde(default, skip_serializing_if = "is_zero_u32")]
+    pub slip_brake_samples: u32,
 }
 
 /// The approach with braking (issue 25, session 14): for a step of at least e_a, the full command
@@ -401,6 +411,20 @@ impl Nudge {
                 self.creep_step_mm,
             );
         }
+        if !(self.slip_brake_fraction.is_finite()
+            && (0.0..=1.0).contains(&self.slip_brake_fraction))
+        {
+            return bad(
+                "a nudge slip_brake_fraction from 0 to 1",
+                self.slip_brake_fraction,
+            );
+        }
+        if self.slip_brake_samples > 1000 {
+            return bad(
+                "a nudge slip_brake_samples from 0 to 1000",
+                f64::from(self.slip_brake_samples),
+            );
+        }
         if !(self.rest_band_mm.is_finite() && (0.0..=MAX_LENGTH_MM).contains(&self.rest_band_mm)) {
             return bad(
                 &format!("a nudge rest_band_mm from 0 to {MAX_LENGTH_MM:e} mm"),
@@ -559,6 +583,8 @@ impl ControllerSettings {
                 cut_band: n.cut_band_mm,
                 min_ramp: n.min_ramp_counts_s,
                 creep_step: n.creep_step_mm,
+                slip_brake: n.slip_brake_fraction,
+                slip_brake_samples: n.slip_brake_samples,
             }),
             brake: self.brake.map(|b| ipa_embedded::position::BrakeSettings {
                 min_step: b.min_step_mm,
@@ -851,6 +877,8 @@ mod tests {
             cut_band_mm: 0.0,
             min_ramp_counts_s: 0.0,
             creep_step_mm: 0.0,
+            slip_brake_fraction: 0.0,
+            slip_brake_samples: 0,
         });
         s
     }
@@ -921,6 +949,58 @@ mod tests {
         let off = serde_json::to_string(&ControllerFile::new(with(0.0), None)).unwrap();
         assert!(!off.contains("creep"));
         assert_eq!(ControllerFile::parse(&off, "c.json").unwrap(), with(0.0));
+    }
+
+    // The slip brake reaches the embedded step (whose test derives it by hand): a held nudge
+    // (γ = 0.5, β = 0.5, ρ = 100, N_r = 2) from 0.6 towards 1 starts at β |b_r| = 15, ramps to 16,
+    // holds at the first count (0.65) and is cut at 0.85 (a move of 0.2 mm in that sample, above
+    // e_h = 0.02): u = −a_p u_max = −0.2 × 255 = −51 with the slip brake, 0 without. Written only
+    // when set; a_p above 1 and T_p above 1000 are refused by name.
+    #[test]
+    fn the_slip_brake_reaches_the_embedded_step_and_round_trips() {
+        let with = |a_p: f64, t_p: u32| {
+            let mut s = nudging();
+            let n = s.nudge.as_mut().unwrap();
+            (n.slip_brake_fraction, n.slip_brake_samples) = (a_p, t_p);
+            s
+        };
+        for ((a_p, t_p), last) in [((0.2, 3), -51.0), ((0.0, 0), 0.0)] {
+            let mut c = with(a_p, t_p).build().unwrap();
+            let u: Vec<f64> = [0.6, 0.6, 0.6, 0.6, 0.65, 0.85]
+                .iter()
+                .map(|&y| c.step(1.0, y))
+                .collect();
+            let want = [0.0, 0.0, 15.0, 16.0, 16.0, last];
+            for (k, (g, w)) in u.iter().zip(want).enumerate() {
+                assert!((g - w).abs() < 1e-9, "a_p {a_p}, sample {k}: {g} != {w}");
+            }
+        }
+        let text = serde_json::to_string_pretty(&ControllerFile::new(with(0.2, 3), None)).unwrap();
+        assert!(text.contains("\"slip_brake_fraction\": 0.2"), "{text}");
+        assert!(text.contains("\"slip_brake_samples\": 3"), "{text}");
+        assert_eq!(
+            ControllerFile::parse(&text, "c.json").unwrap(),
+            with(0.2, 3)
+        );
+        for (from, to, name) in [
+            (
+                "\"slip_brake_fraction\": 0.2",
+                "\"slip_brake_fraction\": 1.5",
+                "slip_brake_fraction",
+            ),
+            (
+                "\"slip_brake_samples\": 3",
+                "\"slip_brake_samples\": 1001",
+                "slip_brake_samples",
+            ),
+        ] {
+            let e = ControllerFile::parse(&text.replace(from, to), "c.json").unwrap_err();
+            assert!(e.to_string().contains(name), "{e}");
+        }
+        // Off (every file before session 19): not written, and read as 0.
+        let off = serde_json::to_string(&ControllerFile::new(with(0.0, 0), None)).unwrap();
+        assert!(!off.contains("slip"));
+        assert_eq!(ControllerFile::parse(&off, "c.json").unwrap(), with(0.0, 0));
     }
 
     #[test]

@@ -547,6 +547,15 @@ pub const NUDGE_REST_CANDIDATES: [u32; 2] = [2, 1];
 /// 25, session 18): 0.75 × 0.02 mm = 0.015 mm, between one encoder count per sample (a creep,
 /// held) and two (a slip beginning, cut). Set whenever the ramp-and-cut band e_c is (not a choice).
 pub const NUDGE_CREEP_FRACTION: f64 = 0.75;
+/// a_p: the slip brake's command as a fraction of u_max (issue 25, session 19): set on every
+/// nudge (not a choice). On the twin's 168 verification runs (session 18's (B) file) every a_p
+/// from 0.19 to 0.26 met the whole specification in 90–95 runs against 89 without it; 0.5 in 77,
+/// 1 in 29 (a reverse command above the other side's breakaway drives the piston back);
+/// docs/control.md, Results' session-19 block.
+pub const NUDGE_SLIP_BRAKE_FRACTION: f64 = 0.25;
+/// T_p: the slip brake's longest pulse, samples (it ends earlier, at the first sample in which
+/// the piston no longer moves towards r; 3 to 10 gave the same runs on the twin).
+pub const NUDGE_SLIP_BRAKE_SAMPLES: u32 = 5;
 /// The ramp-and-cut bands e_c (mm) tried at the best θ of the search (0 = none, the search's own).
 pub const CUT_BANDS_MM: [f64; 3] = [0.1, 0.3, 0.6];
 /// The rest band e_r (mm) tried at the best θ of the search, with each e_c and without.
@@ -645,6 +654,8 @@ pub fn settings_of(
             cut_band_mm: 0.0,
             min_ramp_counts_s: 0.0,
             creep_step_mm: 0.0,
+            slip_brake_fraction: 0.0,
+            slip_brake_samples: 0,
         })
         .map(|n| with_cut_band(n, cut_band_mm, spec)),
         brake: None,
@@ -689,6 +700,9 @@ pub struct Tuned {
     pub short_evaluations: usize,
     /// Evaluations of the ramp-and-cut band after the short-step approach ([`cut_band_candidates`]'s).
     pub cut_evaluations: usize,
+    /// Evaluations of the nudge's slip brake, the first choice after the search
+    /// ([`slip_brake_candidates`]'s: 1 with a nudge, else 0).
+    pub slip_evaluations: usize,
     /// e_c of the finish (chosen by J at the search's θ, mm; 0 = none), before the choice by the count.
     pub cut_band_before_mm: f64,
 }
@@ -812,9 +826,10 @@ pub fn tune(
         .ok_or_else(|| ControlError::Config("no evaluation".into()))?;
     let best = settings_of(&theta, cut_band_mm, deadzone, ts_s, spec)?;
     // After the search, each choice in turn, kept by the count at the controller chosen so far: the
-    // approach with braking, its re-brake, the nudge's rest count, the short-step approach, its
-    // range, the ramp-and-cut band (module documentation).
-    let stages: [fn(&ControllerSettings, &Spec) -> Vec<ControllerSettings>; 6] = [
+    // nudge's slip brake, the approach with braking, its re-brake, the nudge's rest count, the
+    // short-step approach, its range, the ramp-and-cut band (module documentation).
+    let stages: [fn(&ControllerSettings, &Spec) -> Vec<ControllerSettings>; 7] = [
+        slip_brake_candidates,
         brake_candidates,
         rebrake_candidates,
         |s, _| rest_candidates(s),
@@ -823,7 +838,7 @@ pub fn tune(
         cut_band_candidates,
     ];
     let (mut settings_chosen, mut evaluation) = (best, evaluation);
-    let mut counts = [0; 6];
+    let mut counts = [0; 7];
     for (stage, count) in stages.iter().zip(counts.iter_mut()) {
         let candidates = stage(&settings_chosen, spec);
         (settings_chosen, evaluation, *count) = choose_by_count(
@@ -835,7 +850,7 @@ pub fn tune(
             spec,
         )?;
     }
-    let [brake_evaluations, rebrake_evaluations, rest_evaluations, short_evaluations, range_evaluations, cut_evaluations] =
+    let [slip_evaluations, brake_evaluations, rebrake_evaluations, rest_evaluations, short_evaluations, range_evaluations, cut_evaluations] =
         counts;
     let brake_evaluations = brake_evaluations + rebrake_evaluations;
     let short_evaluations = short_evaluations + range_evaluations;
@@ -848,8 +863,29 @@ pub fn tune(
         rest_evaluations,
         short_evaluations,
         cut_evaluations,
+        slip_evaluations,
         cut_band_before_mm,
     })
+}
+
+/// `chosen` with the nudge's slip brake (a_p, T_p) = ([`NUDGE_SLIP_BRAKE_FRACTION`],
+/// [`NUDGE_SLIP_BRAKE_SAMPLES`]) when it has a nudge without one (else none). The first choice
+/// after the search (issue 25, session 19): the search and the finish run without it, and the
+/// later choices (brake, rest count, short-step approach, its range, ramp-and-cut band) are made
+/// with it when it is kept. Tried last instead, or in the search itself, it gave fewer
+/// whole-specification runs on the twin (docs/control.md, Results' session-19 block).
+pub fn slip_brake_candidates(chosen: &ControllerSettings, _spec: &Spec) -> Vec<ControllerSettings> {
+    match chosen.nudge {
+        Some(n) if n.slip_brake_fraction == 0.0 => vec![ControllerSettings {
+            nudge: Some(Nudge {
+                slip_brake_fraction: NUDGE_SLIP_BRAKE_FRACTION,
+                slip_brake_samples: NUDGE_SLIP_BRAKE_SAMPLES,
+                ..n
+            }),
+            ..*chosen
+        }],
+        _ => Vec::new(),
+    }
 }
 
 /// e_s (mm) × τ_b (s) of the approach with braking tried at the end of the search (issue 25,
@@ -866,9 +902,11 @@ pub const BRAKE_CANDIDATES: [(f64, f64); 6] = [
 /// Evaluations after the search: the approach with braking ([`BRAKE_CANDIDATES`] × [`BRAKE_TIMES_S`])
 /// and its re-brake (one more, [`rebrake_candidates`]), the nudge's rest count ([`NUDGE_REST_CANDIDATES`]), the short-step approach
 /// ([`SHORT_DRIVE_FRACTIONS`] × [`SHORT_LEADS_S`] × [`SHORT_SWITCHES_MM`]) and its range (one more,
-/// [`SHORT_NARROW_MAX_STEP_FRACTION`]) and the ramp-and-cut band (at most [`CUT_BANDS_MM`]'s
-/// length, [`cut_band_candidates`]).
-pub const AFTER_SEARCH_EVALUATIONS: usize = BRAKE_CANDIDATES.len() * BRAKE_TIMES_S.len()
+/// [`SHORT_NARROW_MAX_STEP_FRACTION`]), the ramp-and-cut band (at most [`CUT_BANDS_MM`]'s
+/// length, [`cut_band_candidates`]) and, first of all, the nudge's slip brake (one,
+/// [`slip_brake_candidates`]).
+pub const AFTER_SEARCH_EVALUATIONS: usize = 1
+    + BRAKE_CANDIDATES.len() * BRAKE_TIMES_S.len()
     + 1
     + NUDGE_REST_CANDIDATES.len()
     + SHORT_CANDIDATES

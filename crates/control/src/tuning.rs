@@ -96,6 +96,9 @@ pub struct TuneReport {
     pub short_evaluations: usize,
     /// Evaluations of the ramp-and-cut band after the short-step approach (`tune::cut_band_candidates`).
     pub cut_evaluations: usize,
+    /// Evaluations of the nudge's slip brake, the first choice after the search
+    /// (`tune::slip_brake_candidates`).
+    pub slip_evaluations: usize,
     /// Wall-clock time, s.
     pub seconds: f64,
     /// The tuned controller.
@@ -445,6 +448,7 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
         rest_evaluations: tuned.rest_evaluations,
         short_evaluations: tuned.short_evaluations,
         cut_evaluations: tuned.cut_evaluations,
+        slip_evaluations: tuned.slip_evaluations,
         seconds: started.elapsed().as_secs_f64(),
         controller: settings,
         margins,

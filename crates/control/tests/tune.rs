@@ -420,6 +420,9 @@ fn tuning_meets_the_spec_where_it_is_reachable() {
         tune::BRAKE_CANDIDATES.len() * tune::BRAKE_TIMES_S.len()
             + usize::from(t.settings.brake.is_some())
     );
+    // The slip brake (session 19): one candidate, the first choice after the search, when the
+    // controller has a nudge.
+    assert_eq!(t.slip_evaluations, usize::from(t.settings.nudge.is_some()));
     assert_eq!(
         t.rest_evaluations,
         tune::NUDGE_REST_CANDIDATES
@@ -653,6 +656,8 @@ fn the_cut_band_candidates_are_the_other_bands_with_the_creep() {
         cut_band_mm: 0.0,
         min_ramp_counts_s: 0.0,
         creep_step_mm: 0.0,
+        slip_brake_fraction: 0.0,
+        slip_brake_samples: 0,
     };
     chosen.nudge = Some(nudge);
     let c = tune::cut_band_candidates(&chosen, &spec);
@@ -682,4 +687,53 @@ fn the_cut_band_candidates_are_the_other_bands_with_the_creep() {
     assert!(c.iter().all(|s| s.nudge.unwrap().min_ramp_counts_s == 20.0));
     let none = tune::with_cut_band(chosen.nudge.unwrap(), 0.0, &spec);
     assert_eq!((none.min_ramp_counts_s, none.creep_step_mm), (0.0, 0.0));
+}
+
+// The slip brake's candidate (session 19), the first choice after the search: the controller with
+// a_p = 0.25 and T_p = 5 samples and nothing else changed; none without a nudge, and none when the
+// nudge already has a slip brake. The search's own nudges have none (0, 0), so that a file tuned
+// without it keeps the fields unwritten.
+#[test]
+fn the_slip_brake_candidate_is_the_controller_with_the_slip_brake() {
+    let spec = Spec::default();
+    let mut chosen = p_only(5.0);
+    assert!(tune::slip_brake_candidates(&chosen, &spec).is_empty());
+    let nudge = control::position::Nudge {
+        band_mm: 0.5,
+        ramp_counts_s: 200.0,
+        start_fraction: 0.8,
+        rest_samples: 2,
+        cut_fraction: 0.1,
+        rest_band_mm: 3.0,
+        cut_band_mm: 0.3,
+        min_ramp_counts_s: 20.0,
+        creep_step_mm: 0.015,
+        slip_brake_fraction: 0.0,
+        slip_brake_samples: 0,
+    };
+    chosen.nudge = Some(nudge);
+    let c = tune::slip_brake_candidates(&chosen, &spec);
+    assert_eq!(c.len(), 1);
+    let n = c[0].nudge.unwrap();
+    assert_eq!((n.slip_brake_fraction, n.slip_brake_samples), (0.25, 5));
+    let back = ControllerSettings {
+        nudge: Some(nudge),
+        ..c[0]
+    };
+    assert_eq!(back, chosen);
+    assert!(tune::slip_brake_candidates(&c[0], &spec).is_empty());
+    let searched = tune::settings_of(
+        &[2.0, 3.4, 0.1, 1.0, 0.0, 0.0, 4.6, 0.3, 1.0],
+        0.3,
+        None,
+        0.01,
+        &spec,
+    )
+    .unwrap()
+    .nudge
+    .unwrap();
+    assert_eq!(
+        (searched.slip_brake_fraction, searched.slip_brake_samples),
+        (0.0, 0)
+    );
 }

@@ -233,6 +233,15 @@ typedef struct IpaController {
    */
   double nudge_creep_step;
   /**
+   * a_p: the slip brake's command as a fraction of u_max (`nudge.slip_brake_fraction`; 0 = off,
+   * as in a file without it; issue 25, session 19).
+   */
+  double nudge_slip_brake;
+  /**
+   * T_p: the slip brake's longest pulse, samples (`nudge.slip_brake_samples`; 0 = off).
+   */
+  uint32_t nudge_slip_brake_samples;
+  /**
    * 1: the approach with braking with the `brake_*` fields (`brake`); 0: none (the fields are
    * ignored; a struct zeroed before it existed runs as then).
    */

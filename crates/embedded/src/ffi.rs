@@ -159,6 +159,11 @@ pub struct IpaController {
     /// e_v: ramp-and-cut's creep limit, mm per sample (`nudge.creep_step_mm`; 0 = off: the nudge
     /// ends at the first count, as in a file without it; issue 25, session 18).
     pub nudge_creep_step: f64,
+    /// a_p: the slip brake's command as a fraction of u_max (`nudge.slip_brake_fraction`; 0 = off,
+    /// as in a file without it; issue 25, session 19).
+    pub nudge_slip_brake: f64,
+    /// T_p: the slip brake's longest pulse, samples (`nudge.slip_brake_samples`; 0 = off).
+    pub nudge_slip_brake_samples: u32,
     /// 1: the approach with braking with the `brake_*` fields (`brake`); 0: none (the fields are
     /// ignored; a struct zeroed before it existed runs as then).
     pub has_brake: i32,
@@ -715,6 +720,8 @@ pub unsafe extern "C" fn ipa_ctl_init(
             cut_band: c.nudge_cut_band,
             min_ramp: c.nudge_min_ramp,
             creep_step: c.nudge_creep_step,
+            slip_brake: c.nudge_slip_brake,
+            slip_brake_samples: c.nudge_slip_brake_samples,
         })),
         _ => Err(Error::Setting),
     };

@@ -120,8 +120,8 @@ mod tests {
         assert_eq!(size_of::<Deadzone<f64>>(), 32);
         assert_eq!(size_of::<Compensator<f64>>(), round(6 * 8 + 1, 8));
         assert_eq!(size_of::<Compensator<f32>>(), round(6 * 4 + 1, 4));
-        // PositionController: settings (eight floats, a bool, the optional nudge settings: eight floats,
-        // a u32 and the `None` tag), the optional compensator (the slope mode's spare values hold the
+        // PositionController: settings (eight floats, a bool, the optional nudge settings: nine floats,
+        // two u32 and the `None` tag), the optional compensator (the slope mode's spare values hold the
         // `None`), 13 floats (α, I, D, y(k−1), e(k−1), two breakaway commands, two learnt coasts, the
         // last nudge's y_0 and e_0, two ramp-and-cut rates per mm), the optional nudge under way (four
         // floats and three bools, whose spare values hold the `None`), the optional last cut (two
@@ -134,11 +134,13 @@ mod tests {
         // spare values hold the `None`); and (the short-step approach, session 17) the optional
         // short-step settings (six floats and two u32, then a tag, as the brake's), the phase grown
         // to a tag, two bools, a u32 and a float (the short drive's y_0): 576 bytes for f64 on a
-        // 64-bit host (504 before it); 584 since the nudge's creep limit e_v (session 18); 576 since
-        // the brake's re-brake (session 19): a bool after the three u32, whose spare values hold the
-        // `None` of the optional brake settings, so that their tag is gone (f32: 308 either way).
+        // 64-bit host (504 before it); 584 since the nudge's creep limit e_v (session 18); in session
+        // 19 the brake's re-brake (a bool after the three u32, whose spare values hold the `None` of
+        // the optional brake settings, so that their tag is gone) and the nudge's slip brake (a_p and
+        // T_p in the nudge settings, and the brake under way, a bool and a u32 whose bool's spare
+        // values hold the `None`).
         let a = |f: usize| f.max(4);
-        let nudge = |f: usize| round(8 * f + 4, a(f)) + a(f);
+        let nudge = |f: usize| round(9 * f + 8, a(f)) + a(f);
         let brake = |f: usize| round(6 * f + 12 + 1, a(f));
         let short = |f: usize| round(round(6 * f + 8, a(f)) + 1, a(f));
         let settings = |f: usize| round(8 * f + 1 + nudge(f) + brake(f) + short(f), f);
@@ -158,15 +160,16 @@ mod tests {
                     + f
                     + 1
                     + 2 * f
-                    + cut(f),
+                    + cut(f)
+                    + 8,
                 f.max(4),
             )
         };
         assert_eq!(size_of::<PositionController<f64>>(), ctl(8));
         assert_eq!(size_of::<PositionController<f32>>(), ctl(4));
         if w == 8 {
-            assert_eq!(ctl(8), 576);
-            assert_eq!(ctl(4), 308);
+            assert_eq!(ctl(8), 592);
+            assert_eq!(ctl(4), 324);
         }
         assert!(ffi::ipa_ctl_state_size() <= ffi::IPA_CTL_STATE_BYTES);
         if w == 8 {

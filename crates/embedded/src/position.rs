@@ -74,6 +74,14 @@ pub struct NudgeSettings<F: Float> {
     /// is crossed, or the hold band is reached; a(side) is then only slowed, never sped up
     /// (issue 25, session 18).
     pub creep_step: F,
+    /// a_p: the slip brake's command as a fraction of u_max, in [0, 1] (0 = off, as in a file
+    /// written before it existed). When a nudge ends at a sample in which the piston moved towards r
+    /// by more than e_v (e_h without a creep limit) — a slip under way — the valves are reversed,
+    /// u = −side a_p u_max, from that sample until the piston no longer moves towards r, for at
+    /// most T_p samples (issue 25, session 19).
+    pub slip_brake: F,
+    /// T_p: the slip brake's longest pulse, samples (0..=1000; 0 = off).
+    pub slip_brake_samples: u32,
 }
 
 /// The approach with braking of a [`PositionController`] (`controller.brake` of CONTROLLER.json):
@@ -272,6 +280,9 @@ pub struct PositionController<F: Float> {
     lead: [F; 2],
     /// The last braked move's switch, until its hold ends.
     switched: Option<Switch<F>>,
+    /// The slip brake under way after a nudge's cut: its direction (`true`: the nudge was to the
+    /// right, the brake is to the left) and the samples given so far.
+    slip_brake: Option<(bool, u32)>,
 }
 
 /// τ_b at the start, both directions (0 without a brake).
@@ -327,6 +338,9 @@ impl<F: Float> PositionController<F> {
                 && nonneg(n.cut_band)
                 && nonneg(n.min_ramp)
                 && nonneg(n.creep_step)
+                && nonneg(n.slip_brake)
+                && n.slip_brake <= F::ONE
+                && n.slip_brake_samples <= 1000
                 && n.min_ramp <= n.ramp
                 && (n.cut_band == F::ZERO || n.min_ramp > F::ZERO)
                 && (1..=1000).contains(&n.rest_samples))
@@ -389,6 +403,7 @@ impl<F: Float> PositionController<F> {
             r_seen: false,
             lead: initial_lead(&s.brake),
             switched: None,
+            slip_brake: None,
         })
     }
 
@@ -416,10 +431,14 @@ impl<F: Float> PositionController<F> {
         self.started = true;
         self.y_prev = y;
         self.derivative = self.alpha * self.derivative - (F::ONE - self.alpha) * dy;
+        if let Some(u) = self.slip_braking(dy) {
+            self.e_prev = e;
+            return Ok(u);
+        }
         if e.abs() <= s.hold_band {
             self.e_prev = e;
             if let Some(g) = self.nudging.take() {
-                self.end_nudge(&g, y, dy);
+                return Ok(self.end_nudge(&g, y, dy));
             }
             return Ok(F::ZERO);
         }
@@ -652,6 +671,7 @@ impl<F: Float> PositionController<F> {
 
     /// The law's transient state back to a first sample (the learnt u_b, τ_c, a(side) kept).
     fn restart_law(&mut self) {
+        self.slip_brake = None;
         self.integral = F::ZERO;
         self.derivative = F::ZERO;
         self.y_prev = F::ZERO;
@@ -681,8 +701,7 @@ impl<F: Float> PositionController<F> {
                         self.learn_breakaway(&g);
                     }
                     self.nudging = None;
-                    self.end_nudge(&g, y, dy);
-                    return F::ZERO;
+                    return self.end_nudge(&g, y, dy);
                 }
                 if g.moving {
                     g
@@ -765,8 +784,7 @@ impl<F: Float> PositionController<F> {
         let d = if g.right { dy } else { -dy } * s.ts;
         if d > n.creep_step {
             self.nudging = None;
-            self.end_nudge(&g, y, dy);
-            return F::ZERO;
+            return self.end_nudge(&g, y, dy);
         }
         let g = if d > F::ZERO {
             if !g.moving {
@@ -798,11 +816,56 @@ impl<F: Float> PositionController<F> {
         }
     }
 
-    /// A nudge ends at y (speed dy): remember the cut (learnt coast) and where it started.
-    fn end_nudge(&mut self, g: &Nudging<F>, y: F, dy: F) {
+    /// A nudge ends at y (speed dy): remember the cut (learnt coast) and where it started. Returns
+    /// the command of this sample: 0 (the valves closed), or the slip brake's first sample when the
+    /// piston moved towards r by more than e_v (e_h without a creep limit) in this sample
+    /// ([`NudgeSettings::slip_brake`]).
+    fn end_nudge(&mut self, g: &Nudging<F>, y: F, dy: F) -> F {
         self.cut = Some((g.right, y, dy.abs()));
         self.last_start = (g.y0, g.e0);
         self.last_learns = g.and_cut;
+        let Some(n) = self.s.nudge else {
+            return F::ZERO;
+        };
+        if n.slip_brake == F::ZERO || n.slip_brake_samples == 0 {
+            return F::ZERO;
+        }
+        let d = if g.right { dy } else { -dy } * self.s.ts;
+        let slip = if n.creep_step > F::ZERO {
+            n.creep_step
+        } else {
+            self.s.hold_band
+        };
+        if d <= slip {
+            return F::ZERO;
+        }
+        self.slip_brake = Some((g.right, 1));
+        self.slip_brake_command(g.right, &n)
+    }
+
+    /// −side a_p u_max: the slip brake against a nudge to the right (`right`) or to the left.
+    fn slip_brake_command(&self, right: bool, n: &NudgeSettings<F>) -> F {
+        let u = n.slip_brake * self.s.u_max;
+        if right {
+            -u
+        } else {
+            u
+        }
+    }
+
+    /// The slip brake after its first sample ([`NudgeSettings::slip_brake`]): `Some(u)` while the
+    /// piston still moves towards r (d = side dy Ts > 0) and fewer than T_p samples were given;
+    /// otherwise it ends and `None` lets the law run.
+    fn slip_braking(&mut self, dy: F) -> Option<F> {
+        let (right, given) = self.slip_brake?;
+        let n = self.s.nudge?;
+        let d = if right { dy } else { -dy } * self.s.ts;
+        if given < n.slip_brake_samples && d > F::ZERO {
+            self.slip_brake = Some((right, given + 1));
+            return Some(self.slip_brake_command(right, &n));
+        }
+        self.slip_brake = None;
+        None
     }
 
     /// Ramp-and-cut learning at the rest after a cut: the move d = side (y − y_0) against the error
@@ -982,6 +1045,8 @@ mod tests {
             cut_band: 0.0,
             min_ramp: 0.0,
             creep_step: 0.0,
+            slip_brake: 0.0,
+            slip_brake_samples: 0,
         });
         settings
     }
@@ -1244,6 +1309,64 @@ mod tests {
         // A negative creep limit is refused.
         settings.nudge.as_mut().unwrap().creep_step = -0.01;
         assert!(PositionController::new(settings, None).is_err());
+    }
+
+    // The slip brake by hand: a held nudge (γ = 0.5, e_n = 1, ρ = 100, β = 0.5, N_r = 2, no creep
+    // limit, so a slip is a move of more than e_h = 0.02 mm in a sample) with a_p = 0.2, T_p = 3.
+    // r = 1, y = 0.6 (e_0 = 0.4): at rest after 2 samples the nudge starts at β |b_r| = 15, ramps to
+    // 16, the first count (0.65) learns u_b = 16 and holds it; at 0.85 the piston has covered
+    // 0.25 ≥ γ e_0 = 0.2: cut, and it moved 0.2 mm in that sample (> e_h): u = −a_p u_max = −51
+    // from that sample; 0.9 (still moving towards r): −51; 0.9 again (stopped): the brake ends, the
+    // law's rest count is 1 < N_r: 0; rest at the next sample: the coast learnt 0.05 mm / 20 mm/s,
+    // and the next nudge starts at β u_b = 8. With T_p = 2 the brake ends after two samples although
+    // the piston still moves (0.93). Without it (a_p = 0) the cut gives 0, as before.
+    #[test]
+    fn a_nudge_cut_during_a_slip_reverses_the_valves_until_the_piston_stops() {
+        let with = |a_p: f64, t_p: u32| {
+            let mut settings = nudging(0.5);
+            let n = settings.nudge.as_mut().unwrap();
+            (n.slip_brake, n.slip_brake_samples) = (a_p, t_p);
+            PositionController::new(settings, Some(shift_inverse())).unwrap()
+        };
+        let mut c = with(0.2, 3);
+        let ys = [0.6, 0.6, 0.6, 0.6, 0.65, 0.85, 0.9, 0.9, 0.9];
+        let got = ys.map(|y| c.step(1.0, y).unwrap());
+        let want = [0.0, 0.0, 15.0, 16.0, 16.0, -51.0, -51.0, 0.0, 8.0];
+        for (k, (g, w)) in got.iter().zip(want).enumerate() {
+            assert!((g - w).abs() < 1e-9, "sample {k}: {g} != {w}");
+        }
+        assert!((c.coast()[1] - 0.05 / 20.0).abs() < 1e-9);
+        // T_p = 2: two samples, then the law (e = 0.07: a nudge, but not yet at rest).
+        let mut c = with(0.2, 2);
+        let ys = [0.6, 0.6, 0.6, 0.6, 0.65, 0.85, 0.9, 0.93];
+        let got = ys.map(|y| c.step(1.0, y).unwrap());
+        assert_eq!(got[5..], [-51.0, -51.0, 0.0]);
+        // Off: the cut closes the valves.
+        let mut c = with(0.0, 3);
+        let got = ys.map(|y| c.step(1.0, y).unwrap());
+        assert_eq!(got[5..], [0.0, 0.0, 0.0]);
+        // To the left (β |b_l| = 10, 11, u_b = 11 at 0.35; 0.15 cuts at a move of 0.2): +51.
+        let mut c = with(0.2, 3);
+        let ys = [0.4, 0.4, 0.4, 0.4, 0.35, 0.15, 0.1, 0.1];
+        let got = ys.map(|y| c.step(0.0, y).unwrap());
+        let want = [0.0, 0.0, -10.0, -11.0, -11.0, 51.0, 51.0, 0.0];
+        for (k, (g, w)) in got.iter().zip(want).enumerate() {
+            assert!((g - w).abs() < 1e-9, "left, sample {k}: {g} != {w}");
+        }
+        // A cut at a move of one count (0.01 ≤ e_h) is no slip: from 0.97 (e_0 = 0.03) the nudge
+        // starts at 15, its first count (0.98) holds it, and reaching the hold band at 0.99 closes
+        // the valves.
+        let mut c = with(0.2, 3);
+        let ys = [0.97, 0.97, 0.97, 0.98, 0.99];
+        let got = ys.map(|y| c.step(1.0, y).unwrap());
+        assert_eq!(got, [0.0, 0.0, 15.0, 15.0, 0.0]);
+        // a_p above 1 and T_p above 1000 are refused.
+        for (a_p, t_p) in [(1.5, 3), (0.2, 1001), (-0.1, 3)] {
+            let mut settings = nudging(0.5);
+            let n = settings.nudge.as_mut().unwrap();
+            (n.slip_brake, n.slip_brake_samples) = (a_p, t_p);
+            assert!(PositionController::new(settings, None).is_err());
+        }
     }
 
     #[test]

@@ -241,7 +241,11 @@ fn summary_text(r: &TuneReport, out: Option<&Path>) -> String {
         "tuned on:     {} ({} evaluations{}, {:.2} s)\n",
         r.source,
         r.evaluations,
-        if r.brake_evaluations > 0 {
+        if r.slip_evaluations > 0 {
+            format!(" + {} of the slip brake", r.slip_evaluations)
+        } else {
+            String::new()
+        } + &if r.brake_evaluations > 0 {
             format!(" + {} of the approach with braking", r.brake_evaluations)
         } else {
             String::new()

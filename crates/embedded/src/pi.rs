@@ -95,7 +95,7 @@ impl<F: Float> Pi<F> {
         let integrated = self.integral + self.g * e;
         let v = proportional + integrated;
         let u = v.clamp_to(-self.u_max, self.u_max);
-        let u = match self.anti_windup {
+        match self.anti_windup {
             AntiWindup::None => {
                 self.integral = integrated;
                 u
@@ -112,8 +112,7 @@ impl<F: Float> Pi<F> {
                 self.integral = integrated + (self.ts / tt_s) * (u - v);
                 u
             }
-        };
-        u
+        }
     }
 
     /// The integral term I(k) in counts.

@@ -451,9 +451,15 @@ impl ControllerSettings {
         // term overflows (audit s19 M-1).
         let min_ts = ipa_embedded::position::MIN_TS_S;
         if !(self.ts_s.is_finite() && self.ts_s >= min_ts && self.ts_s <= MAX_TIME_S) {
+            // A tiny Ts as given (1e-310), not fmt_value's "0.0000".
+            let shown = if self.ts_s != 0.0 && self.ts_s.abs() < 1e-4 {
+                format!("{:e}", self.ts_s)
+            } else {
+                crate::trust::fmt_value(self.ts_s)
+            };
             return Err(ControlError::setting(
                 ControlSetting::Ts,
-                crate::trust::fmt_value(self.ts_s),
+                shown,
                 &format!("a sampling period in s from {min_ts:e} to {MAX_TIME_S:e}"),
             ));
         }

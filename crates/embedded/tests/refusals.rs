@@ -45,7 +45,9 @@ fn a_sampling_period_below_one_microsecond_is_refused_by_the_controller_and_by_c
         let e = control::ControllerSettings::pi(ts, 3.0, 0.0)
             .build()
             .unwrap_err();
-        assert!(e.to_string().contains("ts"), "{e}");
+        // The value as given (not "0.0000"): 1e-310, 2.2250738585072014e-308, 9.9e-7.
+        let shown = format!("ts = {ts:e}");
+        assert!(e.to_string().contains(&shown), "{e}");
     }
     assert!(PositionController::new(p_only(1e-6), None).is_ok());
     assert!(control::ControllerSettings::pi(1e-6, 3.0, 0.0)

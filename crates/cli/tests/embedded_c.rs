@@ -569,3 +569,51 @@ fn c_controller_matches_control(brake: Brake) {
         assert!(recorded.contains(&-127.5) && recorded.contains(&127.5));
     }
 }
+
+/// Audit s19 M-1, L-1, L-2 through the C interface (crates/embedded/examples/c/refusals.c, one line
+/// `NAME RC [VALUES]` per case; outputs preset to 42). Codes: 0 OK, −1 IPA_ERR_SETTING, −3
+/// IPA_ERR_NOT_FINITE, −4 IPA_ERR_NUMERICAL.
+#[test]
+fn c_interface_refuses_the_audit_s19_cases() {
+    if no_cc() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let exe = build_example(dir.path(), "refusals");
+    let out = Command::new(&exe).output().unwrap();
+    assert!(out.status.success());
+    let text = String::from_utf8(out.stdout).unwrap();
+    let line = |name: &str| -> Vec<f64> {
+        let l = text
+            .lines()
+            .find(|l| l.split(' ').next() == Some(name))
+            .unwrap_or_else(|| panic!("no line {name} in\n{text}"));
+        l.split(' ').skip(1).map(|v| v.parse().unwrap()).collect()
+    };
+    let (ok, setting, not_finite, numerical) = (0.0, -1.0, -3.0, -4.0);
+    // M-1: Ts = 1e-310 s is below the 1 µs floor; 1e-6 s and 0.01 s are kept.
+    assert_eq!(line("ctl_init_ts_1e-310"), [setting]);
+    assert_eq!(line("ctl_init_ts_1e-6"), [ok]);
+    assert_eq!(line("ctl_init_ts_0.01"), [ok]);
+    // r = 50, Kp = 3: y = 0 → 150; y = 1e308 → the velocity 1e310 overflows, 0 × ∞ = NaN: refused,
+    // u not written; y = 1 → 3 × 49 = 147, as if the refused sample had not been given.
+    assert_eq!(line("ctl_step_0"), [ok, 150.0]);
+    assert_eq!(line("ctl_step_1"), [numerical, 42.0]);
+    assert_eq!(line("ctl_step_2"), [ok, 147.0]);
+    // PI, Kp = 0: e = 2e308 = ∞, Kp e = NaN: refused.
+    assert_eq!(line("pi_init"), [ok]);
+    assert_eq!(line("pi_step_overflow"), [numerical, 42.0]);
+    // L-1: NaN and −∞ controller outputs are refused; u = 5 → b_r + m_r u / m_r = 10 + 5 = 15.
+    assert_eq!(line("dz_nan"), [not_finite, 42.0]);
+    assert_eq!(line("dz_minus_inf"), [not_finite, 42.0]);
+    assert_eq!(line("dz_5"), [ok, 15.0]);
+    // L-1: a NaN or ±∞ command in the record is reported (outputs untouched); the finite record's
+    // largest negative −7, smallest positive 12 and max |u| 100.
+    assert_eq!(line("record_start_nan"), [not_finite, 42.0, 42.0, 42.0]);
+    assert_eq!(line("record_start_inf"), [not_finite, 42.0, 42.0, 42.0]);
+    assert_eq!(line("record_start_finite"), [ok, -7.0, 12.0, 100.0]);
+    // L-2: b_l0 = 1 > 0 and the crossed (+∞, −∞) are refused; the one-sided (−∞, +∞) is kept.
+    assert_eq!(line("hrls_init_bl0_1"), [setting]);
+    assert_eq!(line("hrls_init_crossed_inf"), [setting]);
+    assert_eq!(line("hrls_init_one_sided"), [ok]);
+}

@@ -53,7 +53,8 @@ pub const CONTROLLER_VERSION: u32 = 1;
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ControllerSettings {
-    /// Ts: sampling period in s (> 0); the controller runs only on a plant with the same Ts.
+    /// Ts: sampling period in s (≥ `ipa_embedded::position::MIN_TS_S` = 1e-6 s); the controller runs
+    /// only on a plant with the same Ts.
     pub ts_s: f64,
     /// Kp: proportional gain, counts/mm (>= 0).
     pub kp: f64,
@@ -482,11 +483,20 @@ impl ControllerSettings {
                 ))
             }
         };
-        if !(self.ts_s.is_finite() && self.ts_s > 0.0 && self.ts_s <= MAX_TIME_S) {
+        // The floor is the embedded controller's (one check, one number): below it the velocity
+        // term overflows (audit s19 M-1).
+        let min_ts = ipa_embedded::position::MIN_TS_S;
+        if !(self.ts_s.is_finite() && self.ts_s >= min_ts && self.ts_s <= MAX_TIME_S) {
+            // A tiny Ts as given (1e-310), not fmt_value's "0.0000".
+            let shown = if self.ts_s != 0.0 && self.ts_s.abs() < 1e-4 {
+                format!("{:e}", self.ts_s)
+            } else {
+                crate::trust::fmt_value(self.ts_s)
+            };
             return Err(ControlError::setting(
                 ControlSetting::Ts,
-                crate::trust::fmt_value(self.ts_s),
-                &format!("a sampling period in s > 0 and at most {MAX_TIME_S:e}"),
+                shown,
+                &format!("a sampling period in s from {min_ts:e} to {MAX_TIME_S:e}"),
             ));
         }
         nonneg(ControlSetting::Kp, self.kp, "counts/mm")?;
@@ -695,7 +705,8 @@ impl Controller for PositionController {
         self.inner.restart();
     }
 
-    /// One sample; a non-finite r or y gives NaN (and leaves the state unchanged).
+    /// One sample; a non-finite r or y, or a command that would not be finite, gives NaN (and leaves
+    /// the state unchanged).
     fn step(&mut self, r_mm: f64, y_mm: f64) -> f64 {
         self.inner.step(r_mm, y_mm).unwrap_or(f64::NAN)
     }

@@ -341,7 +341,8 @@ size_t ipa_hrls_state_align(void);
 /**
  * The breakpoints `ipa-sysid identify` starts from for a whole record of `n` commands `u` (counts):
  * `*b_l0` = the largest u < 0 (−∞ when none), `*b_r0` = the smallest u > 0 (+∞ when none),
- * `*limit` = max |u|. Returns [`IPA_OK`] or [`IPA_ERR_NULL`].
+ * `*limit` = max |u|. Returns [`IPA_OK`], [`IPA_ERR_NULL`] or [`IPA_ERR_NOT_FINITE`] when a command
+ * is NaN or ±∞ (the outputs are then not written; audit s19 L-1).
  *
  * # Safety
  * `u` must point to `n` readable doubles (or be null with n = 0); the outputs must be writable.
@@ -351,9 +352,10 @@ int32_t ipa_hrls_record_start(const double *u, size_t n, double *b_l0, double *b
 /**
  * Initialises the recursive Hammerstein estimator in `mem` (`len` bytes, ≥ [`ipa_hrls_state_size`],
  * aligned to [`ipa_hrls_state_align`]): orders na ≤ 8, 1 ≤ nb ≤ 8, nk ≤ 8; forgetting ρ ∈ (0, 1];
- * P(0) = p0 · I (p0 > 0, `identify` uses 1e6); initial breakpoints b_l0 ≤ 0 ≤ b_r0 in counts (±∞
- * allowed for an unexcited branch); `limit` ≥ 0 bounds |b̂| (counts); `max_trace` > 0 bounds tr P
- * (windup guard), 0 for none; `form` [`IPA_FORM_STANDARD`] (the paper's eq. 12) or [`IPA_FORM_UD`].
+ * P(0) = p0 · I (p0 > 0, `identify` uses 1e6); initial breakpoints b_l0 ≤ 0 ≤ b_r0 in counts (b_l0 = −∞
+ * or b_r0 = +∞ allowed for an unexcited branch; NaN, b_l0 > 0 or b_r0 < 0 give [`IPA_ERR_SETTING`]);
+ * `limit` ≥ 0 bounds |b̂| (counts); `max_trace` > 0 bounds tr P (windup guard), 0 for none; `form`
+ * [`IPA_FORM_STANDARD`] (the paper's eq. 12) or [`IPA_FORM_UD`].
  * Returns [`IPA_OK`] or a negative code (the storage is then marked uninitialised).
  *
  * # Safety
@@ -502,7 +504,9 @@ int32_t ipa_pi_init(void *mem,
 
 /**
  * One PI sample: set-point r and position y in mm; writes the saturated command (counts) to `*u`.
- * Returns [`IPA_OK`] or a negative code.
+ * Returns [`IPA_OK`] or a negative code: [`IPA_ERR_NOT_FINITE`] for a non-finite r or y,
+ * [`IPA_ERR_NUMERICAL`] when the command or the integral would not be finite (e.g. r − y overflowing);
+ * `*u` is then not written and the state is unchanged.
  *
  * # Safety
  * `mem` storage of a successful [`ipa_pi_init`] (or null); `u` null or writable.
@@ -516,7 +520,9 @@ size_t ipa_ctl_state_size(void);
 
 /**
  * Initialises the tuned position controller (CONTROLLER.json) in `mem` from `settings`, at rest.
- * Returns [`IPA_OK`] or a negative code (a setting out of range, bad storage).
+ * Returns [`IPA_OK`] or a negative code (a setting out of range, bad storage): [`IPA_ERR_SETTING`]
+ * among others for Ts < 1e-6 s (`ipa_embedded::position::MIN_TS_S`, the floor `control` applies to
+ * controller files too; a subnormal Ts gave NaN commands: audit s19 M-1).
  *
  * # Safety
  * `mem` null or writable for `len` bytes, aligned to 8; `settings` null or readable.
@@ -525,7 +531,10 @@ int32_t ipa_ctl_init(void *mem, size_t len, const IpaController *settings);
 
 /**
  * One sample of the tuned controller: set-point r and position y in mm; writes the command (counts)
- * to `*u`. Returns [`IPA_OK`] or a negative code (non-finite input: state unchanged).
+ * to `*u`. Returns [`IPA_OK`] or a negative code: [`IPA_ERR_NOT_FINITE`] for a non-finite r or y,
+ * [`IPA_ERR_NUMERICAL`] when the command (or the integral or derivative term) would not be finite
+ * (finite but extreme inputs, e.g. a jump of y by 1e308 mm); `*u` is then not written and the state
+ * is unchanged (the next sample runs as if this one had not been given).
  *
  * # Safety
  * `mem` storage of a successful [`ipa_ctl_init`] (or null); `u` null or writable.
@@ -544,7 +553,9 @@ int32_t ipa_ctl_reset(void *mem);
 /**
  * Deadzone-inverse compensation of a controller output `u` (counts): `*u_c` = f⁻¹(m_ref u) clamped to
  * ±u_max, 0 when |u| ≤ threshold; `mode` 0 = shift (m_ref = m_r or m_l), 1 = equalise (mean slope).
- * Returns [`IPA_OK`] or a negative code (deadzone not finite, b_l > 0, b_r < 0, a slope ≤ 0, ...).
+ * Returns [`IPA_OK`] or a negative code: [`IPA_ERR_SETTING`] (deadzone not finite, b_l > 0, b_r < 0, a
+ * slope ≤ 0, ...), then [`IPA_ERR_NOT_FINITE`] for a NaN or ±∞ `u` (audit s19 L-1; `*u_c` is then not
+ * written).
  *
  * # Safety
  * `dz` null or readable; `u_c` null or writable.

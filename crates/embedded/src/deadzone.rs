@@ -144,7 +144,7 @@ impl<F: Float> Compensator<F> {
     }
 
     /// The compensated valve command u_c (counts) for the controller output u (counts). A NaN u gives
-    /// NaN.
+    /// 0 (no comparison holds: the valve closed), ±∞ gives ±u_max; `ipa_dz_compensate` refuses both.
     #[inline]
     pub fn apply(&self, u: F) -> F {
         let d = &self.deadzone;

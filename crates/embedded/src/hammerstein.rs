@@ -137,7 +137,9 @@ pub type PaperHrls<F> = HammersteinRls<F, 7, 3>;
 
 impl<F: Float, const N: usize, const D: usize> HammersteinRls<F, N, D> {
     /// A new estimator. Errors: [`Error::Capacity`] when nb = 0 or the orders do not fit N and D;
-    /// [`Error::Setting`] for ρ, p0, max_trace out of range or a NaN breakpoint / limit (limit < 0).
+    /// [`Error::Setting`] for ρ, p0, max_trace out of range, a breakpoint outside b_l0 ≤ 0 ≤ b_r0
+    /// (NaN, b_l0 > 0, b_r0 < 0; b_l0 = −∞ or b_r0 = +∞ is an unexcited branch) or a NaN / negative
+    /// limit.
     pub fn new(s: HammersteinSettings<F>) -> Result<Self, Error> {
         if s.nb == 0 {
             return Err(Error::Capacity);
@@ -150,12 +152,15 @@ impl<F: Float, const N: usize, const D: usize> HammersteinRls<F, N, D> {
         if n > N || s.na > D || u_lags > D {
             return Err(Error::Capacity);
         }
-        // NaN breakpoints would silently switch a branch off; ±∞ is allowed (an unexcited branch).
+        // NaN breakpoints would silently switch a branch off; b_l0 = −∞ or b_r0 = +∞ is allowed (an
+        // unexcited branch); b_l0 > 0 or b_r0 < 0 (+∞ / −∞ among them) is not a deadzone around
+        // u = 0 (audit s19 L-2).
         let limit_bad = matches!(
             s.limit.partial_cmp(&F::ZERO),
             None | Some(core::cmp::Ordering::Less)
         );
-        if is_nan(s.b_l0) || is_nan(s.b_r0) || limit_bad {
+        let crossed = s.b_l0 > F::ZERO || s.b_r0 < F::ZERO;
+        if is_nan(s.b_l0) || is_nan(s.b_r0) || crossed || limit_bad {
             return Err(Error::Setting);
         }
         let mut rls = Rls::new(n, s.forgetting, s.p0)?.with_form(s.form);

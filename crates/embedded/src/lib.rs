@@ -62,7 +62,8 @@ pub enum Error {
     /// An input sample (u, y, r) is not a finite number; the state is unchanged.
     NotFinite = -3,
     /// The update would lose positive definiteness of P or meet a non-finite value
-    /// (ρ + φᵀPφ not finite and > 0, or ε not finite); the state is unchanged.
+    /// (ρ + φᵀPφ not finite and > 0, or ε not finite), or a controller step's command would not be
+    /// finite ([`Pi::step`], [`PositionController::step`]); the state is unchanged.
     Numerical = -4,
     /// A regressor or output buffer is shorter than the number of parameters / coefficients.
     Length = -5,

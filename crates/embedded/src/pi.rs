@@ -71,17 +71,31 @@ impl<F: Float> Pi<F> {
     }
 
     /// One sample: set-point r(k) and measured position y(k) in mm → saturated command u(k) in counts.
-    /// Non-finite inputs give [`Error::NotFinite`] and leave the integral unchanged.
+    /// Non-finite inputs give [`Error::NotFinite`]; a command u(k) or integral I(k) that would not be
+    /// finite (finite but extreme inputs: e = r − y, Kp e or Ki Ts e overflowing, e.g. 0 · ∞ with
+    /// Kp = 0) gives [`Error::Numerical`] (a guard of last resort: audit s19 M-1). Either leaves the
+    /// integral unchanged.
     pub fn step(&mut self, r_mm: F, y_mm: F) -> Result<F, Error> {
         if !(r_mm.is_finite() && y_mm.is_finite()) {
             return Err(Error::NotFinite);
         }
+        let before = self.integral;
+        let u = self.law(r_mm, y_mm);
+        if !(u.is_finite() && self.integral.is_finite()) {
+            self.integral = before;
+            return Err(Error::Numerical);
+        }
+        Ok(u)
+    }
+
+    /// [`step`](Self::step) for finite r and y, without the guard.
+    fn law(&mut self, r_mm: F, y_mm: F) -> F {
         let e = r_mm - y_mm;
         let proportional = self.kp * e;
         let integrated = self.integral + self.g * e;
         let v = proportional + integrated;
         let u = v.clamp_to(-self.u_max, self.u_max);
-        let u = match self.anti_windup {
+        match self.anti_windup {
             AntiWindup::None => {
                 self.integral = integrated;
                 u
@@ -98,8 +112,7 @@ impl<F: Float> Pi<F> {
                 self.integral = integrated + (self.ts / tt_s) * (u - v);
                 u
             }
-        };
-        Ok(u)
+        }
     }
 
     /// The integral term I(k) in counts.

@@ -202,10 +202,16 @@ struct Nudging<F: Float> {
     and_cut: bool,
 }
 
+/// The smallest sampling period Ts a [`PositionController`] accepts, s (1 µs: a 1 MHz loop, far
+/// faster than any valve's). Below it the velocity (y(k) − y(k−1)) / Ts overflows for position
+/// changes of a few mm (a subnormal Ts of 1e-310 s turned a 0.1 mm move into a NaN command: audit
+/// s19 M-1). `control` checks controller files against the same floor.
+pub const MIN_TS_S: f64 = 1e-6;
+
 /// The settings of a [`PositionController`] (the `controller` object of CONTROLLER.json).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PositionSettings<F: Float> {
-    /// Ts: sampling period, s (> 0).
+    /// Ts: sampling period, s (≥ [`MIN_TS_S`]).
     pub ts: F,
     /// Kp, counts/mm (≥ 0).
     pub kp: F,
@@ -311,11 +317,13 @@ fn initial_breakaway<F: Float>(c: &Option<Compensator<F>>) -> (F, F) {
 }
 
 impl<F: Float> PositionController<F> {
-    /// A controller at rest; settings out of range give [`Error::Setting`].
+    /// A controller at rest; settings out of range (Ts < [`MIN_TS_S`] among them) give
+    /// [`Error::Setting`].
     pub fn new(s: PositionSettings<F>, compensator: Option<Compensator<F>>) -> Result<Self, Error> {
         let nonneg = |v: F| v.is_finite() && v >= F::ZERO;
         let positive = |v: F| v.is_finite() && v > F::ZERO;
         if !(positive(s.ts)
+            && s.ts >= F::from_f64(MIN_TS_S)
             && positive(s.u_max)
             && nonneg(s.kp)
             && nonneg(s.ki)
@@ -408,11 +416,25 @@ impl<F: Float> PositionController<F> {
     }
 
     /// One sample: set-point r and position y (mm) → command u (counts). Non-finite inputs give
-    /// [`Error::NotFinite`] and leave the state unchanged.
+    /// [`Error::NotFinite`]; a command u, integral I or derivative D that would not be finite (finite
+    /// but extreme inputs: |y(k) − y(k−1)| / Ts or Kp e overflowing) gives [`Error::Numerical`] (a
+    /// guard of last resort: audit s19 M-1). Either leaves the state unchanged.
     pub fn step(&mut self, r: F, y: F) -> Result<F, Error> {
         if !(r.is_finite() && y.is_finite()) {
             return Err(Error::NotFinite);
         }
+        let before = *self;
+        let u = self.law_step(r, y)?;
+        if !(u.is_finite() && self.integral.is_finite() && self.derivative.is_finite()) {
+            *self = before;
+            return Err(Error::Numerical);
+        }
+        Ok(u)
+    }
+
+    /// [`step`](Self::step) for finite r and y, without the guard: the approach, the hold band, the
+    /// nudge mode or the law (module documentation).
+    fn law_step(&mut self, r: F, y: F) -> Result<F, Error> {
         if let Some(u) = self.approach_step(r, y) {
             return Ok(u);
         }

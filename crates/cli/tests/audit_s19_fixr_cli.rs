@@ -1,6 +1,7 @@
 //! Audit s19 H-1 through the binary: a record whose estimation would need more memory than
 //! `sysid::ls::MAX_ESTIMATION_BYTES` is refused before any N × p matrix is allocated (exit 2, the
-//! code of a data problem, with the rows, p, the memory and the way forward).
+//! code of a data problem, with the rows, p, the memory and the way forward), and a long `delay`
+//! search says how far it is on stderr.
 
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests may panic
 
@@ -97,4 +98,39 @@ fn least_squares_on_the_same_record_needs_less_and_is_checked_with_its_own_size(
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(!err.contains("MAX_ESTIMATION_BYTES"), "{err}");
+}
+
+#[test]
+fn a_long_delay_search_reports_each_candidate_on_stderr() {
+    // 100 000 samples × 101 delays ≥ 10⁷ (sysid::delay::PROGRESS_WORK): one line per delay fitted.
+    let dir = tempfile::tempdir().unwrap();
+    let n = 100_000;
+    let u: Vec<f64> = (0..n).map(|k| ((k * 7919) % 13) as f64 - 6.0).collect();
+    let mut y = vec![0.0; n];
+    for k in 3..n {
+        y[k] = 0.5 * y[k - 1] + u[k - 3];
+    }
+    let mut text = String::from("u,y\n");
+    for k in 0..n {
+        text.push_str(&format!("{},{}\n", u[k], y[k]));
+    }
+    let csv = dir.path().join("d.csv");
+    std::fs::write(&csv, text).unwrap();
+    let o = ipa_sysid(&[
+        "delay",
+        "--data",
+        csv.to_str().unwrap(),
+        "--ts",
+        "0.01",
+        "--max-delay",
+        "100",
+    ]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(0), "{err}");
+    let lines = err
+        .lines()
+        .filter(|l| l.starts_with("delay: nk = "))
+        .count();
+    assert_eq!(lines, 101, "{err}");
+    assert!(err.contains("delay: nk = 100 fitted (101 of 101"), "{err}");
 }

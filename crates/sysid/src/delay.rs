@@ -97,6 +97,22 @@ pub fn estimate_delay(
     nb: usize,
     max_delay: usize,
 ) -> Result<DelayEstimate, SysidError> {
+    estimate_delay_with_progress(data, na, nb, max_delay, &|_| {})
+}
+
+/// Regression rows × candidates above which a delay search is long enough (seconds) for the command
+/// line to report each candidate as it is fitted.
+pub const PROGRESS_WORK: usize = 10_000_000;
+
+/// [`estimate_delay`], calling `progress` with each candidate once it is fitted (the command line
+/// prints a line per candidate on a long record, so that a search of minutes is not silent).
+pub fn estimate_delay_with_progress(
+    data: &Dataset,
+    na: usize,
+    nb: usize,
+    max_delay: usize,
+    progress: &dyn Fn(&DelayCandidate),
+) -> Result<DelayEstimate, SysidError> {
     if data.inputs().len() != 1 {
         // One delay per input would need one search per input; MATLAB `delayest` is single-input too.
         let names: Vec<&str> = data.inputs().iter().map(|i| i.name()).collect();
@@ -162,6 +178,9 @@ pub fn estimate_delay(
             },
             Err(e) => return Err(e.context(&format!("{} (nk = {nk})", data.name()))),
         });
+        if let Some(c) = candidates.last() {
+            progress(c);
+        }
     }
     let mut order: Vec<(usize, f64)> = candidates
         .iter()

@@ -36,6 +36,73 @@ pub struct LsSolution {
 /// Relative size below which a diagonal entry of R (of the column-normalised Φ) counts as zero.
 pub const RANK_TOLERANCE: f64 = 1e-10;
 
+/// The most memory the matrices of one estimation may take: 4 GiB (2³² bytes). A record at the
+/// readers' limit (`sysid::data::MAX_SAMPLES` = 50 000 000 samples) drives N × p matrices of several GB
+/// (a valid 3.9 MB compressed `.mat` drove 6.4 GB and aborted on the failed allocation; audit s19 H-1),
+/// so the size is checked ([`check_memory`]) before any of them is allocated; with the record itself
+/// the peak then stays below the 6 GB limit the project measures its bounds against.
+pub const MAX_ESTIMATION_BYTES: u64 = 1 << 32;
+
+/// The bytes `per_row` numbers (f64) for each of `rows` regression rows take: the memory an estimation
+/// of N = `rows` rows needs at its peak when it holds `per_row` numbers per row (for p parameters,
+/// e.g. Φ and the QR's [Φ | y] are 2p + 1). Saturates instead of wrapping.
+pub fn estimation_bytes(rows: usize, per_row: usize) -> u64 {
+    (rows as u64)
+        .saturating_mul(per_row as u64)
+        .saturating_mul(std::mem::size_of::<f64>() as u64)
+}
+
+/// Refuses, before anything is allocated, an estimation of `p` parameters on `rows` regression rows
+/// (N) that would hold `per_row` numbers per row at its peak ([`estimation_bytes`]) when that is more
+/// than [`MAX_ESTIMATION_BYTES`]. `what` names the record; the message gives N, p, the memory needed
+/// and the way forward (a part of the record, a coarser sampling, lower orders).
+pub fn check_memory(what: &str, rows: usize, p: usize, per_row: usize) -> Result<(), SysidError> {
+    let bytes = estimation_bytes(rows, per_row);
+    if bytes <= MAX_ESTIMATION_BYTES {
+        return Ok(());
+    }
+    // The most rows that fit the budget with these orders.
+    let fit = MAX_ESTIMATION_BYTES / (per_row.max(1) as u64 * std::mem::size_of::<f64>() as u64);
+    Err(SysidError::Data(format!(
+        "{what}: {rows} regression rows of {p} parameters need about {:.1} GB for the estimation's \
+         matrices (N × p numbers), more than its budget of {} GiB (sysid::ls::MAX_ESTIMATION_BYTES); \
+         use at most {fit} rows of the record (--rows A..B, or a slice of the arrays), a coarser \
+         sampling (--resample TS, or decimate the record), or lower orders",
+        bytes as f64 / 1e9,
+        MAX_ESTIMATION_BYTES >> 30
+    )))
+}
+
+/// The error of a failed allocation of `numbers` f64 for `what` (a data problem: the record is too
+/// large for the memory left).
+fn out_of_memory(what: &str, numbers: usize) -> SysidError {
+    SysidError::Data(format!(
+        "not enough memory for {what}: {numbers} numbers ({:.1} GB) could not be allocated; use a part \
+         of the record (--rows A..B, or a slice of the arrays), a coarser sampling (--resample TS) or \
+         lower orders",
+        estimation_bytes(numbers, 1) as f64 / 1e9
+    ))
+}
+
+/// `len` zeros in a vector allocated fallibly: a failed allocation is an error naming `what`, not an
+/// abort of the process.
+pub fn try_zeros(len: usize, what: &str) -> Result<Vec<f64>, SysidError> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(len)
+        .map_err(|_| out_of_memory(what, len))?;
+    v.resize(len, 0.0);
+    Ok(v)
+}
+
+/// A `rows` × `cols` matrix of zeros allocated fallibly ([`try_zeros`]): the N × p regression
+/// matrices are built with it, so that a failed allocation is an error, not an abort.
+pub fn try_matrix(rows: usize, cols: usize, what: &str) -> Result<DMatrix<f64>, SysidError> {
+    let len = rows
+        .checked_mul(cols)
+        .ok_or_else(|| out_of_memory(what, usize::MAX))?;
+    Ok(DMatrix::from_vec(rows, cols, try_zeros(len, what)?))
+}
+
 /// Reusable storage for [`LsWorkspace::solve`]: the augmented matrix, by columns.
 #[derive(Debug, Clone, Default)]
 pub struct LsWorkspace {
@@ -154,7 +221,10 @@ impl LsWorkspace {
         // units (counts vs mm vs 0/1 switches).
         let cols = p + 1;
         self.a.clear();
-        self.a.reserve(n * cols);
+        let len = n.saturating_mul(cols);
+        self.a
+            .try_reserve_exact(len)
+            .map_err(|_| out_of_memory("the least-squares factorisation", len))?;
         let mut scale = vec![0.0; p];
         for (j, scale_j) in scale.iter_mut().enumerate() {
             let src = phi.column(j);

@@ -49,8 +49,12 @@ pub struct DelayEstimate {
 /// Ratio of runner-up to best loss below which the delay counts as poorly determined.
 pub const CLEAR_MARGIN: f64 = 1.05;
 
+/// Φ, y and the names of Φ's columns.
+pub(crate) type ArxRegression = (DMatrix<f64>, DVector<f64>, Vec<String>);
+
 /// The ARX regression y(k) = −Σ a_i y(k−i) + Σ_j b_j u(k−nk−j+1) + c over rows k = k0..N−1:
-/// (Φ, y) with columns a1..a_na, b1..b_nb, c.
+/// (Φ, y) with columns a1..a_na, b1..b_nb, c, allocated fallibly (a failed allocation is an error,
+/// not an abort).
 pub(crate) fn arx_regression(
     y: &[f64],
     u: &[f64],
@@ -58,26 +62,32 @@ pub(crate) fn arx_regression(
     nb: usize,
     nk: usize,
     k0: usize,
-) -> (DMatrix<f64>, DVector<f64>, Vec<String>) {
+) -> Result<ArxRegression, SysidError> {
     let n = y.len().min(u.len()).saturating_sub(k0);
     let p = na + nb + 1;
-    let phi = DMatrix::from_fn(n, p, |r, c| {
-        let k = k0 + r;
-        if c < na {
-            -y[k - 1 - c]
-        } else if c < na + nb {
-            u[k - nk - (c - na)]
-        } else {
-            1.0
+    let mut phi = crate::ls::try_matrix(n, p, "the regression matrix")?;
+    for c in 0..p {
+        for (r, v) in phi.column_mut(c).iter_mut().enumerate() {
+            let k = k0 + r;
+            *v = if c < na {
+                -y[k - 1 - c]
+            } else if c < na + nb {
+                u[k - nk - (c - na)]
+            } else {
+                1.0
+            };
         }
-    });
-    let target = DVector::from_fn(n, |r, _| y[k0 + r]);
+    }
+    let mut target = DVector::from_vec(crate::ls::try_zeros(n, "the regression targets")?);
+    for (r, v) in target.iter_mut().enumerate() {
+        *v = y[k0 + r];
+    }
     let names = (1..=na)
         .map(|i| format!("a{i}"))
         .chain((1..=nb).map(|j| format!("b{j}")))
         .chain(std::iter::once("c".to_string()))
         .collect();
-    (phi, target, names)
+    Ok((phi, target, names))
 }
 
 /// Estimates the input delay of `data` by comparing ARX(na, nb, nk) fits for nk = 0..=max_delay.
@@ -86,6 +96,22 @@ pub fn estimate_delay(
     na: usize,
     nb: usize,
     max_delay: usize,
+) -> Result<DelayEstimate, SysidError> {
+    estimate_delay_with_progress(data, na, nb, max_delay, &|_| {})
+}
+
+/// Regression rows × candidates above which a delay search is long enough (seconds) for the command
+/// line to report each candidate as it is fitted.
+pub const PROGRESS_WORK: usize = 10_000_000;
+
+/// [`estimate_delay`], calling `progress` with each candidate once it is fitted (the command line
+/// prints a line per candidate on a long record, so that a search of minutes is not silent).
+pub fn estimate_delay_with_progress(
+    data: &Dataset,
+    na: usize,
+    nb: usize,
+    max_delay: usize,
+    progress: &dyn Fn(&DelayCandidate),
 ) -> Result<DelayEstimate, SysidError> {
     if data.inputs().len() != 1 {
         // One delay per input would need one search per input; MATLAB `delayest` is single-input too.
@@ -133,9 +159,12 @@ pub fn estimate_delay(
             k0 + p + 1
         )));
     }
+    // Φ, y and the QR's [Φ | y] of one candidate at a time, and the record: the bound of every
+    // estimation's memory, checked before any of them is allocated.
+    crate::ls::check_memory(data.name(), data.len() - k0, p, 2 * p + 4)?;
     let mut candidates = Vec::with_capacity(max_delay + 1);
     for nk in 0..=max_delay {
-        let (phi, target, names) = arx_regression(data.y(), data.u(), na, nb, nk, k0);
+        let (phi, target, names) = arx_regression(data.y(), data.u(), na, nb, nk, k0)?;
         candidates.push(match crate::ls::solve(&phi, &target, &names) {
             Ok(sol) => DelayCandidate {
                 nk,
@@ -149,6 +178,9 @@ pub fn estimate_delay(
             },
             Err(e) => return Err(e.context(&format!("{} (nk = {nk})", data.name()))),
         });
+        if let Some(c) = candidates.last() {
+            progress(c);
+        }
     }
     let mut order: Vec<(usize, f64)> = candidates
         .iter()

@@ -196,6 +196,53 @@ impl Identification {
         )
     }
 
+    /// Numbers (f64) per regression row this identification holds at its peak, for `p` parameters:
+    /// Φ (N × p) and the QR's [Φ | y] (N × (p + 1)) for least squares without key terms, RLS (its rank
+    /// test and closed-form passes) and the linear start of the safeguards; one more Φ for the
+    /// key-term iteration (the previous iterate's, kept to spot a repeat) and for IV (whose start it
+    /// is); the sensitivities and the start's matrices for output error (and an output
+    /// nonlinearity); plus about four numbers per sample for the record, its inputs and the
+    /// simulations. Measured against `/usr/bin/time -v` on 5 M samples within 10 %
+    /// (docs/reliability.md, "Resource bounds").
+    pub fn numbers_per_row(&self, p: usize, key_terms: bool) -> usize {
+        let ls = if key_terms { 3 * p + 4 } else { 2 * p + 4 };
+        let method = match self.estimator {
+            EstimatorSettings::Ls(_) | EstimatorSettings::Iv(_) => ls,
+            EstimatorSettings::Rls(_) => 2 * p + 4,
+            EstimatorSettings::Oe(_) => 5 * p + 4,
+        };
+        if self.output.is_some() {
+            method.max(5 * p + 4)
+        } else {
+            method
+        }
+    }
+
+    /// Refuses, before any N × p matrix is allocated, an identification of `records` whose matrices
+    /// would need more than [`sysid_core::ls::MAX_ESTIMATION_BYTES`] ([`Identification::numbers_per_row`]
+    /// numbers for each of the N regression rows of the structure's p parameters): the one bound of
+    /// every estimation's memory (the command line and the Python package alike; `order` checks its
+    /// largest structure with it before the search).
+    pub fn check_memory(&self, records: &[Dataset]) -> Result<(), SysidError> {
+        let Some(first) = records.first() else {
+            return Ok(());
+        };
+        let names: Vec<&str> = first.inputs().iter().map(|i| i.name()).collect();
+        let reg = self.regression(&names)?;
+        let p = reg.len();
+        let what = records
+            .iter()
+            .map(Dataset::name)
+            .collect::<Vec<_>>()
+            .join(" + ");
+        sysid_core::ls::check_memory(
+            &what,
+            reg.rows(records),
+            p,
+            self.numbers_per_row(p, reg.nonlinear()),
+        )
+    }
+
     /// Builder: one input specification per input of the data.
     pub fn with_inputs(mut self, inputs: Vec<InputSpec>) -> Self {
         self.inputs = inputs;
@@ -318,6 +365,7 @@ pub fn identify<R: Records + ?Sized>(
     if settings.auto_breakpoints() {
         return identify_breakpoints(records, settings);
     }
+    settings.check_memory(records.records())?;
     let problem = settings.problem(records.records())?;
     // A numerical failure names the record it happened on (once).
     let named = |e: SysidError| {

@@ -323,7 +323,9 @@ fn initial(p: &Problem) -> Vec<StaticNonlinearity> {
 /// Least squares without key terms: one solve of the linear regression.
 pub(crate) fn arx_ls(p: &Problem) -> Result<Fitted, SysidError> {
     let reg = p.regression();
-    let (phi, y) = reg.stacked(p.records(), &initial(p));
+    let (phi, y) = reg
+        .stacked(p.records(), &initial(p))
+        .map_err(|e| context(p, e))?;
     let sol = ls::solve(&phi, &y, &reg.names()).map_err(|e| context(p, e))?;
     let dof = (phi.nrows() - phi.ncols()).max(1) as f64;
     let sigma2 = sol.rss / dof;
@@ -353,7 +355,7 @@ pub(crate) fn least_squares(p: &Problem, st: &LeastSquares) -> Result<Fitted, Sy
     let mut last: Option<(DMatrix<f64>, ls::LsSolution, f64)> = None;
     for it in 1..=st.max_iterations {
         iterations = it;
-        let (phi, y) = reg.stacked(p.records(), &f);
+        let (phi, y) = reg.stacked(p.records(), &f).map_err(|e| context(p, e))?;
         let (sol, rss) = match last.take() {
             // The switching functions did not change (typically the iterate that confirms convergence):
             // Φ is the previous one to the bit, and so are θ̂ and its loss; not computed twice.
@@ -486,16 +488,15 @@ pub(crate) fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitte
             // Built into the closed-form passes' buffer: its p prior rows are still 0, which add only
             // zeros to the QR's sums (the same R as Φ alone up to the order of summation, so the same
             // verdict except within rounding of the rank tolerance).
-            let mut a = DMatrix::zeros(total_rows + np, np);
-            let mut b = DVector::zeros(total_rows + np);
+            let (mut a, mut b) = buffers(total_rows + np, np).map_err(|e| context(p, e))?;
             reg.stacked_into::<false>(records, &f, &mut a, &mut b);
             // The solve's verdict without its target column or solution (the records' y is finite).
             let verdict = ls::rank_test(&a, &names);
             aug = Some((a, b));
             verdict
         } else {
-            let (phi, y) = reg.stacked(records, &f);
-            solve_free(&phi, &y, &free, &names).map(|_| ())
+            reg.stacked(records, &f)
+                .and_then(|(phi, y)| solve_free(&phi, &y, &free, &names).map(|_| ()))
         };
         if let Err(e @ SysidError::Data(_)) = verdict {
             return Err(context(p, e));
@@ -526,10 +527,10 @@ pub(crate) fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitte
                     records,
                     names: &names,
                 };
-                let buf = aug.get_or_insert_with(|| {
-                    let n = total_rows + np;
-                    (DMatrix::zeros(n, np), DVector::zeros(n))
-                });
+                let buf = match aug.as_mut() {
+                    Some(buf) => buf,
+                    None => aug.insert(buffers(total_rows + np, np).map_err(|e| context(p, e))?),
+                };
                 if let Ok(pass) = regularised_pass(&rows, &f, &theta, st.p0, prev, buf) {
                     theta.copy_from(&pass.sol.theta);
                     closed = Some(pass);
@@ -698,6 +699,15 @@ struct FreeRows<'a> {
 /// The augmented matrix [Φ; w I] and target [y; w θ_prev] of the closed-form passes (w = 1/√p0), one
 /// buffer built into again by every pass.
 type Buffers = (DMatrix<f64>, DVector<f64>);
+
+/// The closed-form passes' buffers of `rows` rows and `np` columns, allocated fallibly (a failed
+/// allocation is an error, not an abort).
+fn buffers(rows: usize, np: usize) -> Result<Buffers, SysidError> {
+    Ok((
+        ls::try_matrix(rows, np, "the regression matrix")?,
+        DVector::from_vec(ls::try_zeros(rows, "the regression targets")?),
+    ))
+}
 
 /// What a closed-form RLS pass leaves for the next ([`regularised_pass`]).
 struct ClosedPass {

@@ -19,7 +19,7 @@ use crate::estimate::{identify, Identification};
 use crate::trust::{guarded_fit, metric_warnings};
 use crate::warnings::{Concern, Record, Warning};
 use sysid_core::metrics::metrics;
-use sysid_core::{Dataset, Orders};
+use sysid_core::{Dataset, Orders, SysidError};
 
 /// One evaluated structure.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -245,6 +245,45 @@ pub fn offset_hint(
              {without:.1} %; {advice}"
         )
     })
+}
+
+/// Refuses a search whose structures would need more memory than
+/// [`sysid_core::ls::MAX_ESTIMATION_BYTES`] before any is fitted: the largest structure of the grid
+/// (highest na and nb, smallest nk: the most parameters and rows) checked as
+/// [`Identification::check_memory`] checks one identification, times the structures fitted at once
+/// (one per worker thread with the `parallel` feature).
+pub fn check_memory(
+    est: &Dataset,
+    na: &[usize],
+    nb: &[usize],
+    nk: &[usize],
+    base: &Identification,
+) -> Result<(), SysidError> {
+    let (Some(&a), Some(&b), Some(&k)) = (na.iter().max(), nb.iter().max(), nk.iter().min()) else {
+        return Ok(());
+    };
+    let settings = base.clone().with_orders(a, b, k);
+    let names: Vec<&str> = est.inputs().iter().map(|i| i.name()).collect();
+    let reg = settings.regression(&names)?;
+    #[cfg(feature = "parallel")]
+    let workers = rayon::current_num_threads();
+    #[cfg(not(feature = "parallel"))]
+    let workers = 1;
+    let at_once = workers.min(grid_size(na, nb, nk)).max(1);
+    let what = if at_once > 1 {
+        format!("{} ({at_once} structures fitted at once)", est.name())
+    } else {
+        est.name().to_string()
+    };
+    let records = std::slice::from_ref(est);
+    sysid_core::ls::check_memory(
+        &what,
+        reg.rows(records),
+        reg.len(),
+        settings
+            .numbers_per_row(reg.len(), reg.nonlinear())
+            .saturating_mul(at_once),
+    )
 }
 
 /// The number of structures in a grid.

@@ -268,17 +268,19 @@ impl Regression {
 
     /// Φ and y of every record's rows k ≥ k0 stacked (records one after the other: no row spans two),
     /// with the nonlinearities `f`. The same rows as [`Regression::fill_row`] gives, built column by
-    /// column (Φ is stored by columns; only the key terms need a call per row).
+    /// column (Φ is stored by columns; only the key terms need a call per row). Φ and y are allocated
+    /// fallibly ([`sysid_core::ls::try_matrix`]): a failed allocation is an error, not an abort (the
+    /// size is bounded before, by [`crate::Identification::check_memory`]).
     pub fn stacked(
         &self,
         records: &[Dataset],
         f: &[StaticNonlinearity],
-    ) -> (DMatrix<f64>, DVector<f64>) {
+    ) -> Result<(DMatrix<f64>, DVector<f64>), SysidError> {
         let rows = self.rows(records);
-        let mut phi = DMatrix::<f64>::zeros(rows, self.len);
-        let mut y = DVector::<f64>::zeros(rows);
+        let mut phi = sysid_core::ls::try_matrix(rows, self.len, "the regression matrix")?;
+        let mut y = DVector::from_vec(sysid_core::ls::try_zeros(rows, "the regression targets")?);
         self.stacked_into::<false>(records, f, &mut phi, &mut y);
-        (phi, y)
+        Ok((phi, y))
     }
 
     /// [`Regression::stacked`] into the first rows of `phi` and `y`, which have room for them (at least
@@ -704,7 +706,7 @@ mod tests {
                 .collect();
             let start = kind.block().start(&u_all, true, true, "t").unwrap();
             let f = vec![start.initial, StaticNonlinearity::Linear];
-            let (phi, y) = reg.stacked(&records, &f);
+            let (phi, y) = reg.stacked(&records, &f).unwrap();
             let mut row = vec![0.0; reg.len()];
             let mut at = 0;
             for r in &records {

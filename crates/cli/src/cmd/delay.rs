@@ -38,7 +38,26 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let record = sysid::data::read_record(&args.data, &args.columns.csv_options())?;
     print_notes(&record.notes);
     let data = record.data;
-    let est = sysid::delay::estimate_delay(&data, args.na, args.nb, args.max_delay)?;
+    // A long search (seconds to minutes on tens of millions of samples) says on stderr how far it
+    // is, one line per delay fitted, instead of running silently (audit s19 H-1).
+    let candidates = args.max_delay.saturating_add(1);
+    let long = data.len().saturating_mul(candidates) >= sysid::delay::PROGRESS_WORK;
+    let est = sysid::delay::estimate_delay_with_progress(
+        &data,
+        args.na,
+        args.nb,
+        args.max_delay,
+        &|c: &sysid::delay::DelayCandidate| {
+            if long {
+                eprintln!(
+                    "delay: nk = {} fitted ({} of {candidates}, {} samples)",
+                    c.nk,
+                    c.nk + 1,
+                    data.len()
+                );
+            }
+        },
+    )?;
     let mut text = format!(
         "Delay estimate on {} ({} samples): nk = {} samples ({} s), from ARX(na = {}, nb = {}, nk) fits \
          with a constant term on the same {} rows\n\n{:>4} {:>14}\n",

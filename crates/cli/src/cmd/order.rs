@@ -258,6 +258,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &selection,
         largest_k0(&na, &nb, &nk),
     ));
+    sysid::order::check_memory(&fit_part, &na, &nb, &nk, &base)?;
     let bar = progress_bar(
         grid_size(&na, &nb, &nk) as u64,
         "{bar:40} {pos}/{len} structures {elapsed}",

@@ -25,8 +25,6 @@ import html
 import math
 import numbers
 import os
-import stat
-import tempfile
 import warnings
 
 import numpy as np
@@ -364,6 +362,7 @@ def run(input_dir, output_dir, client=None, **settings):
     files = _parquet_files(input_dir)
     target = os.path.join(os.fspath(output_dir), "results.parquet")
     _check_output(input_dir, output_dir, target, files)
+    _core.check_output(target, "output_dir")
     _check_schemas(files)
     ddf = dd.read_parquet(files, columns=list(INPUT_COLUMNS), split_row_groups=False)
     meta = identify_partition(
@@ -377,7 +376,7 @@ def run(input_dir, output_dir, client=None, **settings):
     _check_whole_actuators(results, files)
     results = results.sort_values(["actuator_id", "window"], kind="stable").reset_index(drop=True)
     os.makedirs(output_dir, exist_ok=True)
-    _write_atomic(target, lambda tmp: results.to_parquet(tmp, index=False))
+    _write_output(target, results.to_parquet(None, index=False), "output_dir")
     return results
 
 
@@ -476,34 +475,16 @@ def _check_alpha(alpha):
         )
 
 
-def _write_atomic(path, write):
-    """Calls ``write(tmp)`` on a temporary file beside ``path``, then renames it to ``path``: ``path`` is
-    either untouched or wholly replaced (the temporary file is removed on failure). The file gets the
-    permissions of the file it replaces, or a new file's (0o666 less the umask), as the command line's
-    outputs do: not the 0o600 of a bare temporary file (audit s12: a report meant for others was
-    unreadable to them)."""
-    directory = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=".ipa-sysid-", suffix=".tmp", dir=directory)
-    os.close(fd)
-    try:
-        write(tmp)
-        os.chmod(tmp, _output_mode(path))
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-
-
-def _output_mode(path):
-    """The permission bits an output at ``path`` gets: those of the file it replaces, else 0o666 less
-    the process's umask."""
-    try:
-        return stat.S_IMODE(os.stat(path).st_mode)
-    except FileNotFoundError:
-        umask = os.umask(0)
-        os.umask(umask)
-        return 0o666 & ~umask
+def _write_output(path, data, argument):
+    """Writes ``data`` (bytes) to the user's output ``path`` (the argument ``argument``) as the command line
+    writes its outputs and ``Model.save`` its file, by the same function (``sysid_io::write_atomic``):
+    a regular file or a new name atomically (a temporary file beside it, renamed over it, with the
+    permissions and owner of the file it replaces, or 0o666 less the umask: audit s12), a symbolic link
+    followed, a device or a FIFO written into directly and never replaced (audit s19 H-4: a temporary
+    file renamed over ``/dev/full`` replaced the device); a folder, a socket, a link to nothing or a
+    read-only file is a ``ValueError`` naming ``argument``, an operating-system failure an ``OSError``
+    naming ``path``."""
+    _core.write_output(os.fspath(path), data, argument)
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -712,13 +693,11 @@ def glance_svg(trend_table, width=640, height=420):
 def report(results, path, alpha=ALPHA):
     """Writes the worn-valve report to ``path`` (HTML, written atomically): the fleet at a glance
     (``glance_svg``) and the table of flagged actuators (``worn``), with the test and its threshold in
-    words. Returns the table of flagged actuators. ``path`` is the file to write, not a folder
-    (``ValueError``)."""
-    if os.path.isdir(os.fspath(path)):
-        raise ValueError(
-            f"path {path}: is a folder; expected the HTML file to write, e.g. "
-            f"{os.path.join(os.fspath(path), 'worn.html')}"
-        )
+    words. Returns the table of flagged actuators. ``path`` is the file to write, as the command line
+    writes its outputs (``_write_output``): a file is replaced atomically, a device or a FIFO written into
+    and never replaced, a symbolic link followed; a folder is refused before anything is computed
+    (``ValueError``: ``invalid setting path = ...: a file name (this is a folder)``)."""
+    _core.check_output(os.fspath(path), "path")
     tr = trends(results, alpha)
     flagged = worn(results, alpha)
     head = (
@@ -751,11 +730,7 @@ def report(results, path, alpha=ALPHA):
         + f"<h2>{len(flagged)} flagged, most significant first</h2><table><tr>{head}</tr>{body}"
         "</table></body></html>"
     )
-    def write(tmp):
-        with open(tmp, "w", encoding="utf-8") as f:
-            f.write(doc)
-
-    _write_atomic(path, write)
+    _write_output(path, doc.encode("utf-8"), "path")
     return flagged
 
 

@@ -1,0 +1,180 @@
+"""Audit s19, the Python findings H-2, H-4, L-5 and L-6: the package reads and writes a user's path as
+the command line does (the same Rust functions: `open_input` and its 1 MiB bound for a controller file,
+`resolve_output` / `write_atomic` for every output), and refuses what the command line refuses, naming
+the argument. No test points an output at a real device: a FIFO made in a temporary folder stands for
+one (the devices take the same branch of `resolve_output`)."""
+
+import json
+import math
+import os
+import stat
+import subprocess
+import threading
+
+import numpy as np
+import pytest
+
+import ipa_sysid
+from binary import cli_path
+
+pd = pytest.importorskip("pandas", reason="ipa_sysid.fleet needs pandas: pip install 'ipa-sysid[fleet]'")
+from ipa_sysid import fleet  # noqa: E402
+
+
+def run(*args):
+    return subprocess.run([cli_path(), *map(str, args)], capture_output=True, text=True)
+
+
+def caused_by(stderr):
+    """The last `caused by:` line of the command line's error, without its label (the reader's words)."""
+    lines = [l.strip() for l in stderr.splitlines() if l.strip().startswith("caused by:")]
+    assert lines, stderr
+    return lines[-1].removeprefix("caused by:").strip()
+
+
+def in_thread(f, timeout=60):
+    """Runs f() in a thread; fails (rather than hangs) when it has not returned within `timeout` s."""
+    box = {}
+
+    def target():
+        try:
+            box["value"] = f()
+        except BaseException as e:  # noqa: BLE001 - handed to the caller
+            box["error"] = e
+
+    t = threading.Thread(target=target, daemon=True)
+    t.start()
+    t.join(timeout)
+    assert not t.is_alive(), f"still running after {timeout} s"
+    if "error" in box:
+        raise box["error"]
+    return box.get("value")
+
+
+def read_fifo(path, box):
+    """A reader thread for the FIFO `path`: its bytes go to box["bytes"]."""
+
+    def target():
+        with open(path, "rb") as f:
+            box["bytes"] = f.read()
+
+    t = threading.Thread(target=target, daemon=True)
+    t.start()
+    return t
+
+
+# A results table of three actuators x five windows, made by hand: actuator 2's deadzone widens by 4
+# counts per window and its slopes drop, the others stay put with a little scatter.
+def results_table():
+    rows = []
+    rng = np.random.default_rng(5)
+    for aid in (1, 2, 3):
+        for w in range(5):
+            width = 40.0 + (4.0 * w if aid == 2 else rng.normal(0, 0.3))
+            slope = 0.01 - (0.001 * w if aid == 2 else rng.normal(0, 1e-5))
+            rows.append({"actuator_id": aid, "window": w, "t_start": 3600.0 * w, "b_l": -width / 2,
+                         "b_r": width / 2, "deadzone_width": width, "m_l": slope, "m_r": slope,
+                         "error": ""})
+    return pd.DataFrame(rows)
+
+
+# ---------------------------------------------------------------------------------------------------
+# H-4: fleet.report (and every other Python output) is written as the command line writes an output.
+
+
+def test_report_streams_into_a_fifo_and_leaves_it_a_fifo(tmp_path):
+    res = results_table()
+    reference = tmp_path / "ref.html"
+    fleet.report(res, reference)
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    box = {}
+    reader = read_fifo(fifo, box)
+    in_thread(lambda: fleet.report(res, fifo))
+    reader.join(30)
+    assert stat.S_ISFIFO(os.lstat(fifo).st_mode), "the FIFO was replaced by a file"
+    assert box["bytes"] == reference.read_bytes()
+    assert sorted(os.listdir(tmp_path)) == ["pipe", "ref.html"], "no temporary file is left"
+
+
+def test_report_follows_a_link_refuses_a_folder_and_names_a_missing_folder(tmp_path):
+    res = results_table()
+    reference = tmp_path / "ref.html"
+    fleet.report(res, reference)
+    target = tmp_path / "target.html"
+    target.write_text("old")
+    link = tmp_path / "link.html"
+    link.symlink_to(target)
+    fleet.report(res, link)
+    assert link.is_symlink() and target.read_bytes() == reference.read_bytes()
+    # A folder: the command line's words, with the argument's name (`invalid setting --out = ...`).
+    with pytest.raises(ValueError) as e:
+        fleet.report(res, tmp_path)
+    assert str(e.value) == f"invalid setting path = {tmp_path}: a file name (this is a folder)"
+    # A missing folder: the error names the output, not the temporary file beside it.
+    missing = tmp_path / "nodir" / "worn.html"
+    with pytest.raises(FileNotFoundError) as e:
+        fleet.report(res, missing)
+    assert e.value.filename == str(missing) and ".tmp" not in str(e.value)
+    # A read-only file is refused as the command line refuses it (also as root).
+    ro = tmp_path / "ro.html"
+    ro.write_text("keep")
+    os.chmod(ro, 0o444)
+    with pytest.raises(ValueError, match=r"invalid setting path = .*ro\.html: a writable file"):
+        fleet.report(res, ro)
+    assert ro.read_text() == "keep"
+
+
+def test_outputs_get_the_permissions_of_a_new_file_or_of_the_file_they_replace(tmp_path):
+    # Audit s12: the report was created 0600 (a bare temporary file renamed); now the command line's
+    # writer gives 0o666 less the umask, or the mode of the file replaced.
+    res = results_table()
+    umask = os.umask(0o022)
+    try:
+        new = tmp_path / "new.html"
+        fleet.report(res, new)
+        assert stat.S_IMODE(new.stat().st_mode) == 0o666 & ~0o022
+        old = tmp_path / "old.html"
+        old.write_text("old")
+        os.chmod(old, 0o640)
+        fleet.report(res, old)
+        assert old.read_text().startswith("<!DOCTYPE html>")
+        assert stat.S_IMODE(old.stat().st_mode) == 0o640
+    finally:
+        os.umask(umask)
+
+
+def test_model_save_streams_into_a_fifo_and_refuses_a_folder_by_name(tmp_path):
+    m = ipa_sysid.paper_model()
+    fifo = tmp_path / "pipe"
+    os.mkfifo(fifo)
+    box = {}
+    reader = read_fifo(fifo, box)
+    in_thread(lambda: m.save(fifo))
+    reader.join(30)
+    assert stat.S_ISFIFO(os.lstat(fifo).st_mode)
+    assert box["bytes"].decode() == m.to_json()
+    with pytest.raises(ValueError, match=r"^invalid setting path = .*: a file name \(this is a folder\)$"):
+        m.save(tmp_path)
+
+
+def test_run_writes_results_through_the_same_writer(tmp_path):
+    pytest.importorskip("dask.dataframe", reason="fleet.run needs dask[dataframe]")
+    t, u, y, _ = ipa_sysid.simulate_plant("paper", samples=1000, seed=2)
+    inp = tmp_path / "in"
+    inp.mkdir()
+    pd.DataFrame({"actuator_id": 7, "t": t, "u": u, "y": y}).to_parquet(inp / "part-0.parquet", index=False)
+    out = tmp_path / "out"
+    # results.parquet as a folder: refused before anything is computed, naming output_dir.
+    (out / "results.parquet").mkdir(parents=True)
+    with pytest.raises(ValueError, match=r"^invalid setting output_dir = .*results\.parquet: a file name \(this is a folder\)$"):
+        fleet.run(inp, out, window=500)
+    (out / "results.parquet").rmdir()
+    # A link at results.parquet is followed: the file it names gets the results, the link stays.
+    target = tmp_path / "elsewhere.parquet"
+    target.write_bytes(b"old")
+    (out / "results.parquet").symlink_to(target)
+    res = fleet.run(inp, out, window=500)
+    assert (out / "results.parquet").is_symlink()
+    pd.testing.assert_frame_equal(pd.read_parquet(target), res)
+    assert len(res) == 2 and list(res["window"]) == [0, 1]

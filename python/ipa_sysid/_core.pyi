@@ -253,10 +253,11 @@ def control(
     compensator_slopes: Literal["shift", "equalise"] = "shift",
     compensator_threshold: float = 0.0,
     plant_config: str | PathLike[str] | None = None,
-    controller: str | None = None,
+    controller: str | PathLike[str] | None = None,
 ) -> dict[str, Any]:
     """Closed-loop PI control as `ipa-sysid control`: trace arrays, metrics, steps. `controller`: the
-    JSON text of a controller file (the wrapper also takes tune()'s dict or a path)."""
+    JSON text of a controller file or its path, read as `control --controller` reads it (the wrapper also
+    takes tune()'s dict)."""
 
 def tune(
     model: Model | str | PathLike[str] | None = None,

@@ -71,6 +71,29 @@ fn control_err(e: ::control::ControlError) -> PyErr {
     }
 }
 
+/// The controller file of `control(..., controller=...)`: `controller` is the JSON text of one (a `str`
+/// starting with `{`), or its path (a `str` or an `os.PathLike`), read as the command line reads
+/// `--controller` (`ControllerFile::read_file`). A file that cannot be read is a `ValueError` naming
+/// `controller` (a folder, a device, a FIFO, more than 1 MiB, not UTF-8), or an `OSError` (a missing file).
+fn controller_file(controller: &Bound<'_, PyAny>) -> PyResult<::control::ControllerFile> {
+    if let Ok(text) = controller.extract::<&str>() {
+        if text.trim_start().starts_with('{') {
+            return ::control::ControllerFile::parse_file(text, "controller").map_err(control_err);
+        }
+    }
+    let path: PathBuf = controller.extract().map_err(|_| {
+        pyo3::exceptions::PyTypeError::new_err(format!(
+            "controller: expected tune()'s result, its \"controller\" dict, a controller file's JSON text \
+             or its path, not {}",
+            controller.get_type()
+        ))
+    })?;
+    ::control::ControllerFile::read_file(&path).map_err(|e| match e {
+        ::control::ControlError::Io { path, source } => io_err(&path, &source),
+        other => PyValueError::new_err(format!("cannot read controller: {other}")),
+    })
+}
+
 /// The operating system's refusal `source` of `path` as an `OSError` with its errno (so that Python
 /// makes it a `FileNotFoundError`, `PermissionError`, ...) and the path. An error that `tempfile`
 /// wrapped with the path of the temporary file beside an output (`... at path ".../.ipa-sysid-*.tmp"`,
@@ -1765,15 +1788,14 @@ fn control_loop<'py>(
     compensator_slopes: &str,
     compensator_threshold: f64,
     plant_config: Option<PathBuf>,
-    controller: Option<&str>,
+    controller: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     use ::control::{AntiWindup, IntegralForm, Profile, SlopeMode};
-    // A tuned controller (the JSON of a controller file; the Python wrapper turns the "controller" of
-    // tune()'s result into it).
-    let tuned_file = controller
-        .map(|text| ::control::ControllerFile::parse_file(text, "controller"))
-        .transpose()
-        .map_err(control_err)?;
+    // A tuned controller: the JSON of a controller file (the Python wrapper turns tune()'s result and
+    // its "controller" dict into it), or a controller file's path, read as `control --controller` reads
+    // it (`ControllerFile::read_file`: a regular file only, at most 1 MiB counted as it is read; audit
+    // s19 H-2: the wrapper's `f.read()` read /dev/zero until memory ran out and waited forever on a FIFO).
+    let tuned_file = controller.map(controller_file).transpose()?;
     let tuned = tuned_file.as_ref().map(|f| f.controller);
     if tuned.is_some() && compensate_deadzone.is_some() {
         return Err(setting_err(

@@ -178,3 +178,51 @@ def test_run_writes_results_through_the_same_writer(tmp_path):
     assert (out / "results.parquet").is_symlink()
     pd.testing.assert_frame_equal(pd.read_parquet(target), res)
     assert len(res) == 2 and list(res["window"]) == [0, 1]
+
+
+# ---------------------------------------------------------------------------------------------------
+# H-2: control(controller=PATH) reads the file as `control --controller` does.
+
+
+def test_a_controller_path_is_read_as_the_command_line_reads_it(tmp_path):
+    fifo = tmp_path / "ctl.fifo"
+    os.mkfifo(fifo)
+    big = tmp_path / "big.json"
+    big.write_bytes(b" " * (2**20 + 1))  # one byte over 1 MiB
+    cases = {
+        str(fifo): "this is a FIFO",
+        "/dev/zero": "this is a character device",  # read-only: an input, never an output
+        str(tmp_path): "this is a folder",
+        str(big): f"may have at most {2**20} bytes",
+    }
+    for path, words in cases.items():
+        with pytest.raises(ValueError) as e:
+            in_thread(lambda: ipa_sysid.control("paper", setpoint=50, duration=1, controller=path), timeout=30)
+        msg = str(e.value)
+        assert msg.startswith("cannot read controller: ") and words in msg, (path, msg)
+        # The reader's own words, as the command line prints them after `caused by:`.
+        r = run("control", "--plant", "paper", "--setpoint", 50, "--duration", 1, "--controller", path)
+        assert r.returncode == 2, r.stderr
+        assert caused_by(r.stderr) in msg, (path, r.stderr, msg)
+    with pytest.raises(FileNotFoundError):
+        ipa_sysid.control("paper", setpoint=50, duration=1, controller=str(tmp_path / "none.json"))
+
+
+def test_a_controller_file_given_as_a_path_object_runs_as_its_text(tmp_path):
+    t = ipa_sysid.tune(model=str(_tune_model(tmp_path)), max_evaluations=10, variants=1)
+    ctl = tmp_path / "c.json"
+    ctl.write_text(t["controller_file"])
+    a = ipa_sysid.control("paper", setpoint=40, duration=1, controller=ctl)
+    b = ipa_sysid.control("paper", setpoint=40, duration=1, controller=t["controller_file"])
+    assert np.array_equal(a["u"], b["u"]) and np.array_equal(a["y"], b["y"])
+
+
+def _tune_model(tmp_path):
+    path = tmp_path / "m.json"
+    path.write_text(json.dumps({
+        "format": "ipa-sysid-model", "version": 2,
+        "model": {"kind": "hammerstein", "ts": 0.01, "na": 1, "nb": 1, "nk": 1, "a": [-1.0], "b": [1.0],
+                  "offset": None, "deadzone": {"b_l": -20.0, "b_r": 20.0, "m_l": 0.005, "m_r": 0.005},
+                  "noise_model": "output-error"},
+    }))
+    return path

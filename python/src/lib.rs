@@ -1081,6 +1081,32 @@ fn identify<'py>(
         offset,
         fallback,
     };
+    // A setting of another method's estimator, given (a value other than the default, NaN included),
+    // is refused as the command line refuses its flag (one table: `sysid::EstimatorSetting`; audit s19
+    // L-5: `method="ls", forgetting=nan` was accepted and ignored).
+    let given = |s: sysid::EstimatorSetting| match s {
+        sysid::EstimatorSetting::Passes => passes.is_some(),
+        sysid::EstimatorSetting::RlsForm => rls_form != "standard",
+        sysid::EstimatorSetting::Windup => windup != "none",
+        sysid::EstimatorSetting::MaxTrace => max_trace.is_some(),
+        sysid::EstimatorSetting::Forgetting => forgetting.to_bits() != d.forgetting.to_bits(),
+        sysid::EstimatorSetting::P0 => p0.to_bits() != d.p0.to_bits(),
+        sysid::EstimatorSetting::IvStages => iv_stages != d.iv_stages,
+    };
+    if let Some(s) = sysid::EstimatorSetting::unused_by(options.method, given) {
+        let methods = s
+            .methods()
+            .iter()
+            .map(|m| format!("\"{m}\""))
+            .collect::<Vec<_>>()
+            .join(" or ");
+        return Err(PyValueError::new_err(format!(
+            "{} is a setting of {} (method={methods}); method=\"{}\" does not use it; leave it out",
+            s.id(),
+            s.whose(),
+            options.method
+        )));
+    }
     let mut settings = options.settings();
     if let Some(nonlinearity) = nonlinearity {
         settings = settings.with_inputs(vec![sysid::InputSpec {
@@ -1485,6 +1511,20 @@ impl PyRls {
     fn update(&mut self, phi: &Bound<'_, PyAny>, y: f64) -> PyResult<f64> {
         let phi = floats(phi, "phi")?;
         self.check_columns(phi.len(), "phi has")?;
+        // A non-finite input is the caller's, named as such (audit s19 L-5: y = NaN raised the
+        // estimator's ArithmeticError "RLS lost positive definiteness or met a non-finite value").
+        if let Some((i, v)) = phi.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+            return Err(PyValueError::new_err(format!(
+                "phi({i}) = {}: expected finite numbers; the estimate is unchanged",
+                py_float(Some(*v))
+            )));
+        }
+        if !y.is_finite() {
+            return Err(PyValueError::new_err(format!(
+                "y = {}: expected a finite number; the estimate is unchanged",
+                py_float(Some(y))
+            )));
+        }
         let e = self
             .inner
             .update(&phi, y, self.samples)

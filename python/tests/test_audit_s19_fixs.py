@@ -226,3 +226,54 @@ def _tune_model(tmp_path):
                   "noise_model": "output-error"},
     }))
     return path
+
+
+# ---------------------------------------------------------------------------------------------------
+# L-5: identify refuses another method's settings as the command line does; Rls.update names y.
+
+
+def _record():
+    rng = np.random.default_rng(1)
+    u = np.repeat(rng.choice([-60.0, 60.0], 50), 10)
+    y = np.zeros_like(u)
+    for k in range(1, len(u)):
+        y[k] = 0.9 * y[k - 1] + 0.05 * u[k - 1]
+    return u, y
+
+
+def test_settings_of_the_recursive_estimators_are_refused_with_ls(tmp_path):
+    u, y = _record()
+    kw = dict(model="arx", na=1, nb=1, nk=1)
+    for setting in (dict(forgetting=float("nan")), dict(forgetting=-1.0), dict(forgetting=2.0),
+                    dict(p0=-1.0), dict(p0=float("inf"))):
+        (name, _), = setting.items()
+        with pytest.raises(ValueError) as e:
+            ipa_sysid.identify(u, y, 0.01, method="ls", **kw, **setting)
+        assert str(e.value) == (f'{name} is a setting of the recursive estimators (method="rls" or "iv"); '
+                                'method="ls" does not use it; leave it out')
+    with pytest.raises(ValueError, match=r'^passes is a setting of recursive least squares \(method="rls"\); method="oe"'):
+        ipa_sysid.identify(u, y, 0.01, method="oe", passes=2, **kw)
+    # The command line says the same of the same setting, with its flags.
+    path = tmp_path / "r.csv"
+    np.savetxt(path, np.column_stack([np.arange(len(u)) * 0.01, u, y]), delimiter=",", header="t,u,y", comments="")
+    r = run("identify", "--data", path, "--structure", "arx", "--method", "ls", "--na", 1, "--nb", 1, "--nk", 1,
+            "--forgetting", "nan")
+    assert r.returncode == 2
+    assert ("--forgetting is a setting of the recursive estimators (--method rls or iv); --method ls does not "
+            "use it") in r.stderr
+    # With a recursive method the value itself is checked (a NaN forgetting factor is no factor).
+    with pytest.raises(ValueError, match="forgetting"):
+        ipa_sysid.identify(u, y, 0.01, method="rls", forgetting=float("nan"), **kw)
+
+
+def test_rls_update_names_a_non_finite_y_or_phi_and_keeps_its_state():
+    est = ipa_sysid.Rls(2, 1.0, 100.0)
+    est.update([1.0, 2.0], 3.0)
+    theta, P, n = est.theta.copy(), est.P.copy(), est.samples
+    with pytest.raises(ValueError, match=r"^y = NaN: expected a finite number; the estimate is unchanged$"):
+        est.update([1.0, 0.5], float("nan"))
+    with pytest.raises(ValueError, match=r"^y = inf: "):
+        est.update([1.0, 0.5], float("inf"))
+    with pytest.raises(ValueError, match=r"phi"):
+        est.update([1.0, float("nan")], 1.0)
+    assert np.array_equal(est.theta, theta) and np.array_equal(est.P, P) and est.samples == n

@@ -277,3 +277,43 @@ def test_rls_update_names_a_non_finite_y_or_phi_and_keeps_its_state():
     with pytest.raises(ValueError, match=r"phi"):
         est.update([1.0, float("nan")], 1.0)
     assert np.array_equal(est.theta, theta) and np.array_equal(est.P, P) and est.samples == n
+
+
+# ---------------------------------------------------------------------------------------------------
+# L-6: identify_partition and the report's helpers name what they refuse.
+
+
+def _partition():
+    t, u, y, _ = ipa_sysid.simulate_plant("paper", samples=1000, seed=4)
+    return pd.DataFrame({"actuator_id": 1, "t": t, "u": u, "y": y})
+
+
+def test_identify_partition_refuses_complex_and_unnamed_bad_arguments():
+    base = _partition()
+    with pytest.raises(ValueError) as e:
+        fleet.identify_partition(base.assign(y=base.y + 50j), window=500)
+    assert str(e.value) == ("partition: column y: expected an array of real numbers (integers or floats), "
+                            "got dtype complex128")
+    with pytest.raises(ValueError, match=r"^partition: column u: .* got dtype bool$"):
+        fleet.identify_partition(base.assign(u=base.u > 0), window=500)
+    with pytest.raises(ValueError, match=rf"^invalid setting window = {2**64}: expected a whole number that fits 64 bits$"):
+        fleet.identify_partition(base, window=2**64)
+    with pytest.raises(ValueError, match=r"^invalid setting window = None: "):
+        fleet.identify_partition(base, window=None)
+    for bad in (None, base.to_numpy()):
+        with pytest.raises(TypeError, match=r"^partition: expected a pandas DataFrame with columns actuator_id, t, u, y"):
+            fleet.identify_partition(bad)
+    for f in (fleet.trends, fleet.worn):
+        with pytest.raises(TypeError, match=r"^results: expected a pandas DataFrame"):
+            f("x")
+    # The real record still gives its two windows.
+    assert len(fleet.identify_partition(base, window=500)) == 2
+
+
+def test_glance_svg_refuses_sizes_that_are_not_pixels():
+    tr = fleet.trends(results_table())
+    for name in ("width", "height"):
+        for v in (float("nan"), -5, 0, 112, math.inf, True):
+            with pytest.raises(ValueError, match=rf"^invalid setting {name} = "):
+                fleet.glance_svg(tr, **{name: v})
+    assert fleet.glance_svg(tr, width=113, height=300).startswith('<svg xmlns="http://www.w3.org/2000/svg" width="113" height="300"')

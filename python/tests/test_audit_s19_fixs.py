@@ -317,3 +317,11 @@ def test_glance_svg_refuses_sizes_that_are_not_pixels():
             with pytest.raises(ValueError, match=rf"^invalid setting {name} = "):
                 fleet.glance_svg(tr, **{name: v})
     assert fleet.glance_svg(tr, width=113, height=300).startswith('<svg xmlns="http://www.w3.org/2000/svg" width="113" height="300"')
+
+
+# L-4 (Python side): tune names the spec key, as the command line does.
+def test_tune_names_the_spec_key_when_its_scale_is_out_of_range(tmp_path):
+    with pytest.raises(ValueError, match=r"^invalid setting spec = steps=1e-9: steps of at least"):
+        ipa_sysid.tune(model=str(_tune_model(tmp_path)), spec="steps=1e-9", max_evaluations=8, variants=1)
+    with pytest.raises(ValueError, match=r"^invalid setting spec = u-max=1e308: a command limit of at most 1e6"):
+        ipa_sysid.tune(model=str(_tune_model(tmp_path)), spec="u-max=1e308", max_evaluations=8, variants=1)

@@ -67,7 +67,8 @@ class Model:
     def to_json(self) -> str:
         """The model file text (`identify --save-model` format)."""
     def save(self, path: str | PathLike[str]) -> None:
-        """Writes the model file atomically."""
+        """Writes the model file as the command line writes its outputs: a file atomically, a device or
+        FIFO directly (never replaced), a symbolic link followed; a folder is a ValueError naming `path`."""
     def to_control(self) -> Any:
         """The linear block as a python-control TransferFunction (ImportError without python-control)."""
     def transfer_polynomials(self) -> tuple[list[float], list[float]]:
@@ -252,10 +253,11 @@ def control(
     compensator_slopes: Literal["shift", "equalise"] = "shift",
     compensator_threshold: float = 0.0,
     plant_config: str | PathLike[str] | None = None,
-    controller: str | None = None,
+    controller: str | PathLike[str] | None = None,
 ) -> dict[str, Any]:
     """Closed-loop PI control as `ipa-sysid control`: trace arrays, metrics, steps. `controller`: the
-    JSON text of a controller file (the wrapper also takes tune()'s dict or a path)."""
+    JSON text of a controller file or its path, read as `control --controller` reads it (the wrapper also
+    takes tune()'s dict)."""
 
 def tune(
     model: Model | str | PathLike[str] | None = None,
@@ -286,3 +288,11 @@ def fleet_windows(
 def fleet_times(t: ArrayLike, offsets: list[int], ts: float) -> list[tuple[str, str]]:
     """Per actuator (rows offsets[g] .. offsets[g + 1] of t, sorted by time): (error, note), each "" or the
     time column's fault (NaN, not increasing, non-uniform) and a ts contradicting its typical step."""
+
+def check_output(path: str | PathLike[str], argument: str) -> None:
+    """Refuses an output path as the command line refuses an output flag (a folder, a socket, a link to
+    nothing, a read-only file: ValueError naming `argument`)."""
+
+def write_output(path: str | PathLike[str], data: bytes, argument: str) -> None:
+    """Writes `data` as the command line writes an output: a file atomically, a device or FIFO
+    directly (never replaced), a symbolic link followed; ValueError naming `argument` or OSError."""

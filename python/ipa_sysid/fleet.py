@@ -25,8 +25,6 @@ import html
 import math
 import numbers
 import os
-import stat
-import tempfile
 import warnings
 
 import numpy as np
@@ -54,11 +52,44 @@ def _ids(ids, most=10):
 
 
 def _whole_numbers(**values):
-    """Refuses, naming the argument, a value that is not a whole number >= 0 (before the Rust core
-    turns a negative into an OverflowError that names nothing)."""
+    """Refuses, naming the argument, a value that is not a whole number >= 0 that fits 64 bits (before
+    the Rust core turns a negative or 2**64 into an OverflowError that names nothing; audit s19 L-6)."""
     for name, v in values.items():
         if isinstance(v, bool) or not isinstance(v, numbers.Integral) or v < 0:
             raise ValueError(f"invalid setting {name} = {v!r}: expected a whole number >= 0")
+        if v >= 2**63:
+            raise ValueError(f"invalid setting {name} = {v!r}: expected a whole number that fits 64 bits")
+
+
+def _missing_columns(obj, name, columns):
+    """The ``columns`` that the pandas DataFrame ``obj`` lacks; an ``obj`` that is not a DataFrame is a
+    TypeError naming the argument ``name`` (audit s19 L-6: ``identify_partition(None)`` raised an
+    AttributeError naming nothing)."""
+    pd = _pandas()
+    if not isinstance(obj, pd.DataFrame):
+        raise TypeError(
+            f"{name}: expected a pandas DataFrame with columns {', '.join(columns)}, got "
+            f"{type(obj).__name__}"
+        )
+    return [c for c in columns if c not in obj.columns]
+
+
+def _check_real(df, name):
+    """Refuses column ``name`` of the partition ``df`` unless it holds real numbers, as the core refuses
+    an array (``identify``'s words): a complex column lost its imaginary part silently in the cast to
+    float64 (audit s19 L-6), a bool or text column is not a signal."""
+    dtype = df[name].dtype
+    if getattr(dtype, "kind", "O") not in ("f", "i", "u"):
+        raise ValueError(
+            f"partition: column {name}: expected an array of real numbers (integers or floats), got "
+            f"dtype {dtype}"
+        )
+
+
+def _real_column(df, name):
+    """Column ``name`` of ``df`` as float64 (``_check_real`` first)."""
+    _check_real(df, name)
+    return df[name].to_numpy(dtype=np.float64)
 
 
 def _pandas():
@@ -133,7 +164,7 @@ def identify_partition(
     >= 0 for ``window``, the orders and the detector's counts).
     """
     pd = _pandas()
-    missing = [c for c in INPUT_COLUMNS if c not in partition.columns]
+    missing = _missing_columns(partition, "partition", INPUT_COLUMNS)
     if missing:
         raise ValueError(
             f"partition: missing column(s) {', '.join(missing)} (expected long-format records "
@@ -149,6 +180,8 @@ def identify_partition(
     empty = np.empty(0)
     _core.fleet_windows(empty, empty, [0], ts, window, "ls", na, nb, nk, detect_warmup,
                         detect_calibration)
+    for c in ("t", "u", "y"):
+        _check_real(partition, c)
     cols = _columns(na, nb)
     if len(partition) == 0:
         return _typed(pd.DataFrame({c: [] for c in cols}))
@@ -174,8 +207,8 @@ def identify_partition(
         df = df[keep]
         ids, t, offsets = _groups(df)
     r = _core.fleet_windows(
-        df["u"].to_numpy(dtype=np.float64),
-        df["y"].to_numpy(dtype=np.float64),
+        _real_column(df, "u"),
+        _real_column(df, "y"),
         offsets,
         ts,
         window,
@@ -270,7 +303,7 @@ def _groups(df):
     """The actuator ids, the time column and the row offsets of each actuator's rows (``df`` sorted by
     actuator)."""
     ids = df["actuator_id"].to_numpy()
-    t = df["t"].to_numpy(dtype=np.float64)
+    t = _real_column(df, "t")
     if len(ids) == 0:
         return ids, t, [0]
     change = np.flatnonzero(ids[1:] != ids[:-1]) + 1
@@ -364,6 +397,7 @@ def run(input_dir, output_dir, client=None, **settings):
     files = _parquet_files(input_dir)
     target = os.path.join(os.fspath(output_dir), "results.parquet")
     _check_output(input_dir, output_dir, target, files)
+    _core.check_output(target, "output_dir")
     _check_schemas(files)
     ddf = dd.read_parquet(files, columns=list(INPUT_COLUMNS), split_row_groups=False)
     meta = identify_partition(
@@ -377,7 +411,7 @@ def run(input_dir, output_dir, client=None, **settings):
     _check_whole_actuators(results, files)
     results = results.sort_values(["actuator_id", "window"], kind="stable").reset_index(drop=True)
     os.makedirs(output_dir, exist_ok=True)
-    _write_atomic(target, lambda tmp: results.to_parquet(tmp, index=False))
+    _write_output(target, results.to_parquet(None, index=False), "output_dir")
     return results
 
 
@@ -476,34 +510,16 @@ def _check_alpha(alpha):
         )
 
 
-def _write_atomic(path, write):
-    """Calls ``write(tmp)`` on a temporary file beside ``path``, then renames it to ``path``: ``path`` is
-    either untouched or wholly replaced (the temporary file is removed on failure). The file gets the
-    permissions of the file it replaces, or a new file's (0o666 less the umask), as the command line's
-    outputs do: not the 0o600 of a bare temporary file (audit s12: a report meant for others was
-    unreadable to them)."""
-    directory = os.path.dirname(os.path.abspath(path))
-    fd, tmp = tempfile.mkstemp(prefix=".ipa-sysid-", suffix=".tmp", dir=directory)
-    os.close(fd)
-    try:
-        write(tmp)
-        os.chmod(tmp, _output_mode(path))
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
-
-
-def _output_mode(path):
-    """The permission bits an output at ``path`` gets: those of the file it replaces, else 0o666 less
-    the process's umask."""
-    try:
-        return stat.S_IMODE(os.stat(path).st_mode)
-    except FileNotFoundError:
-        umask = os.umask(0)
-        os.umask(umask)
-        return 0o666 & ~umask
+def _write_output(path, data, argument):
+    """Writes ``data`` (bytes) to the user's output ``path`` (the argument ``argument``) as the command line
+    writes its outputs and ``Model.save`` its file, by the same function (``sysid_io::write_atomic``):
+    a regular file or a new name atomically (a temporary file beside it, renamed over it, with the
+    permissions and owner of the file it replaces, or 0o666 less the umask: audit s12), a symbolic link
+    followed, a device or a FIFO written into directly and never replaced (audit s19 H-4: a temporary
+    file renamed over ``/dev/full`` replaced the device); a folder, a socket, a link to nothing or a
+    read-only file is a ``ValueError`` naming ``argument``, an operating-system failure an ``OSError``
+    naming ``path``."""
+    _core.write_output(os.fspath(path), data, argument)
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -581,6 +597,12 @@ def trends(results, alpha=ALPHA):
     evidence), and ``alpha`` not a number in (0, 1).
     """
     pd = _pandas()
+    missing = _missing_columns(results, "results", ("actuator_id", "t_start", "deadzone_width", "m_l", "m_r", "error"))
+    if missing:
+        raise ValueError(
+            f"results: missing column(s) {', '.join(missing)} (expected the results of "
+            "identify_partition or run)"
+        )
     _check_alpha(alpha)
     split = _duplicated_windows(results)
     if split:
@@ -669,9 +691,18 @@ def worn(results, alpha=ALPHA):
 def glance_svg(trend_table, width=640, height=420):
     """The fleet at a glance: one dot per actuator, the t statistic of its deadzone-width trend against
     that of its slope trend (widening to the right, dropping slopes downwards); flagged actuators in
-    red, the others grey. An SVG document (a string)."""
-    tt = trend_table.dropna(subset=["width_t", "slope_t"])
+    red, the others grey. An SVG document (a string). ``width`` and ``height`` are in pixels, each more
+    than the two margins (112): anything else is a ValueError naming it (audit s19 L-6: NaN, -5 and 0
+    made an SVG of that size)."""
     pad = 56
+    for name, v in (("width", width), ("height", height)):
+        ok = isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(v)
+        if not ok or v <= 2 * pad:
+            raise ValueError(
+                f"invalid setting {name} = {v!r}: expected a number of pixels > {2 * pad} (the figure's "
+                "two margins)"
+            )
+    tt = trend_table.dropna(subset=["width_t", "slope_t"])
     clip = lambda v: float(np.clip(v, -40.0, 40.0))  # noqa: E731 - a short local scale helper
     xs = [clip(v) for v in tt["width_t"]]
     ys = [clip(v) for v in tt["slope_t"]]
@@ -712,13 +743,11 @@ def glance_svg(trend_table, width=640, height=420):
 def report(results, path, alpha=ALPHA):
     """Writes the worn-valve report to ``path`` (HTML, written atomically): the fleet at a glance
     (``glance_svg``) and the table of flagged actuators (``worn``), with the test and its threshold in
-    words. Returns the table of flagged actuators. ``path`` is the file to write, not a folder
-    (``ValueError``)."""
-    if os.path.isdir(os.fspath(path)):
-        raise ValueError(
-            f"path {path}: is a folder; expected the HTML file to write, e.g. "
-            f"{os.path.join(os.fspath(path), 'worn.html')}"
-        )
+    words. Returns the table of flagged actuators. ``path`` is the file to write, as the command line
+    writes its outputs (``_write_output``): a file is replaced atomically, a device or a FIFO written into
+    and never replaced, a symbolic link followed; a folder is refused before anything is computed
+    (``ValueError``: ``invalid setting path = ...: a file name (this is a folder)``)."""
+    _core.check_output(os.fspath(path), "path")
     tr = trends(results, alpha)
     flagged = worn(results, alpha)
     head = (
@@ -751,11 +780,7 @@ def report(results, path, alpha=ALPHA):
         + f"<h2>{len(flagged)} flagged, most significant first</h2><table><tr>{head}</tr>{body}"
         "</table></body></html>"
     )
-    def write(tmp):
-        with open(tmp, "w", encoding="utf-8") as f:
-            f.write(doc)
-
-    _write_atomic(path, write)
+    _write_output(path, doc.encode("utf-8"), "path")
     return flagged
 
 

@@ -71,6 +71,81 @@ fn control_err(e: ::control::ControlError) -> PyErr {
     }
 }
 
+/// The controller file of `control(..., controller=...)`: `controller` is the JSON text of one (a `str`
+/// starting with `{`), or its path (a `str` or an `os.PathLike`), read as the command line reads
+/// `--controller` (`ControllerFile::read_file`). A file that cannot be read is a `ValueError` naming
+/// `controller` (a folder, a device, a FIFO, more than 1 MiB, not UTF-8), or an `OSError` (a missing file).
+fn controller_file(controller: &Bound<'_, PyAny>) -> PyResult<::control::ControllerFile> {
+    if let Ok(text) = controller.extract::<&str>() {
+        if text.trim_start().starts_with('{') {
+            return ::control::ControllerFile::parse_file(text, "controller").map_err(control_err);
+        }
+    }
+    let path: PathBuf = controller.extract().map_err(|_| {
+        pyo3::exceptions::PyTypeError::new_err(format!(
+            "controller: expected tune()'s result, its \"controller\" dict, a controller file's JSON text \
+             or its path, not {}",
+            controller.get_type()
+        ))
+    })?;
+    ::control::ControllerFile::read_file(&path).map_err(|e| match e {
+        ::control::ControlError::Io { path, source } => io_err(&path, &source),
+        other => PyValueError::new_err(format!("cannot read controller: {other}")),
+    })
+}
+
+/// The operating system's refusal `source` of `path` as an `OSError` with its errno (so that Python
+/// makes it a `FileNotFoundError`, `PermissionError`, ...) and the path. An error that `tempfile`
+/// wrapped with the path of the temporary file beside an output (`... at path ".../.ipa-sysid-*.tmp"`,
+/// its errno kept only as a kind) is reported against `path`, the one the caller gave (audit s19 H-4: a
+/// missing folder named the temporary file).
+fn io_err(path: &std::path::Path, source: &std::io::Error) -> PyErr {
+    let errno = source
+        .raw_os_error()
+        .or_else(|| errno_of_kind(source.kind()));
+    let text = source.to_string();
+    let text = text.split(" at path \"").next().unwrap_or(&text);
+    match errno {
+        Some(n) => {
+            let text = text
+                .strip_suffix(&format!(" (os error {n})"))
+                .unwrap_or(text)
+                .to_string();
+            PyOSError::new_err((n, text, path.display().to_string()))
+        }
+        None => PyOSError::new_err(format!("{}: {text}", path.display())),
+    }
+}
+
+/// The errno of an error that carries only its kind (`tempfile` wraps the error of creating a temporary
+/// file with that file's path and keeps only the kind), from Python's `errno` module.
+fn errno_of_kind(kind: std::io::ErrorKind) -> Option<i32> {
+    use std::io::ErrorKind as K;
+    let name = match kind {
+        K::NotFound => "ENOENT",
+        K::PermissionDenied => "EACCES",
+        K::AlreadyExists => "EEXIST",
+        K::NotADirectory => "ENOTDIR",
+        K::IsADirectory => "EISDIR",
+        K::StorageFull => "ENOSPC",
+        K::ReadOnlyFilesystem => "EROFS",
+        _ => return None,
+    };
+    Python::attach(|py| py.import("errno").ok()?.getattr(name).ok()?.extract().ok())
+}
+
+/// An output error as the Python exception of its kind: a path refused for what it is (a folder, a
+/// socket, a read-only file, a link to nothing) is a `ValueError` naming the argument in the command
+/// line's words (`invalid setting path = out: a file name (this is a folder)`); a refusal of the
+/// operating system is an `OSError` with its errno and the output's path (so `FileNotFoundError` for a
+/// missing folder, naming the output, not the temporary file beside it).
+fn output_err(e: sysid_io::OutputError) -> PyErr {
+    match &e {
+        sysid_io::OutputError::Io { path, source } => io_err(path, source),
+        sysid_io::OutputError::Refused { .. } => PyValueError::new_err(e.to_string()),
+    }
+}
+
 /// A `ValueError` naming a setting, worded as the library's setting errors.
 fn setting_err(name: &'static str, value: impl ToString, expected: &str) -> PyErr {
     sysid_err(SysidError::setting(Setting::Other(name), value, expected))
@@ -488,10 +563,9 @@ impl PyModel {
 
     /// Writes the model file (as `identify --save-model`), atomically; readable by `load_model` and by
     /// `ipa-sysid validate --model` / `--plant model:FILE`.
-    fn save(&self, path: PathBuf) -> PyResult<()> {
+    fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
         let text = self.to_json()?;
-        sysid_io::write_atomic(&path, text.as_bytes())
-            .map_err(|e| PyOSError::new_err(e.to_string()))
+        write_output(py, path, text.as_bytes(), "path")
     }
 
     /// The linear block as a python-control `TransferFunction` in z (discrete, dt = Ts):
@@ -1007,6 +1081,32 @@ fn identify<'py>(
         offset,
         fallback,
     };
+    // A setting of another method's estimator, given (a value other than the default, NaN included),
+    // is refused as the command line refuses its flag (one table: `sysid::EstimatorSetting`; audit s19
+    // L-5: `method="ls", forgetting=nan` was accepted and ignored).
+    let given = |s: sysid::EstimatorSetting| match s {
+        sysid::EstimatorSetting::Passes => passes.is_some(),
+        sysid::EstimatorSetting::RlsForm => rls_form != "standard",
+        sysid::EstimatorSetting::Windup => windup != "none",
+        sysid::EstimatorSetting::MaxTrace => max_trace.is_some(),
+        sysid::EstimatorSetting::Forgetting => forgetting.to_bits() != d.forgetting.to_bits(),
+        sysid::EstimatorSetting::P0 => p0.to_bits() != d.p0.to_bits(),
+        sysid::EstimatorSetting::IvStages => iv_stages != d.iv_stages,
+    };
+    if let Some(s) = sysid::EstimatorSetting::unused_by(options.method, given) {
+        let methods = s
+            .methods()
+            .iter()
+            .map(|m| format!("\"{m}\""))
+            .collect::<Vec<_>>()
+            .join(" or ");
+        return Err(PyValueError::new_err(format!(
+            "{} is a setting of {} (method={methods}); method=\"{}\" does not use it; leave it out",
+            s.id(),
+            s.whose(),
+            options.method
+        )));
+    }
     let mut settings = options.settings();
     if let Some(nonlinearity) = nonlinearity {
         settings = settings.with_inputs(vec![sysid::InputSpec {
@@ -1411,6 +1511,20 @@ impl PyRls {
     fn update(&mut self, phi: &Bound<'_, PyAny>, y: f64) -> PyResult<f64> {
         let phi = floats(phi, "phi")?;
         self.check_columns(phi.len(), "phi has")?;
+        // A non-finite input is the caller's, named as such (audit s19 L-5: y = NaN raised the
+        // estimator's ArithmeticError "RLS lost positive definiteness or met a non-finite value").
+        if let Some((i, v)) = phi.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+            return Err(PyValueError::new_err(format!(
+                "phi({i}) = {}: expected finite numbers; the estimate is unchanged",
+                py_float(Some(*v))
+            )));
+        }
+        if !y.is_finite() {
+            return Err(PyValueError::new_err(format!(
+                "y = {}: expected a finite number; the estimate is unchanged",
+                py_float(Some(y))
+            )));
+        }
         let e = self
             .inner
             .update(&phi, y, self.samples)
@@ -1714,15 +1828,14 @@ fn control_loop<'py>(
     compensator_slopes: &str,
     compensator_threshold: f64,
     plant_config: Option<PathBuf>,
-    controller: Option<&str>,
+    controller: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     use ::control::{AntiWindup, IntegralForm, Profile, SlopeMode};
-    // A tuned controller (the JSON of a controller file; the Python wrapper turns the "controller" of
-    // tune()'s result into it).
-    let tuned_file = controller
-        .map(|text| ::control::ControllerFile::parse_file(text, "controller"))
-        .transpose()
-        .map_err(control_err)?;
+    // A tuned controller: the JSON of a controller file (the Python wrapper turns tune()'s result and
+    // its "controller" dict into it), or a controller file's path, read as `control --controller` reads
+    // it (`ControllerFile::read_file`: a regular file only, at most 1 MiB counted as it is read; audit
+    // s19 H-2: the wrapper's `f.read()` read /dev/zero until memory ran out and waited forever on a FIFO).
+    let tuned_file = controller.map(controller_file).transpose()?;
     let tuned = tuned_file.as_ref().map(|f| f.controller);
     if tuned.is_some() && compensate_deadzone.is_some() {
         return Err(setting_err(
@@ -2120,6 +2233,31 @@ fn calibrate<'py>(
     Ok(out)
 }
 
+/// Looks at the output path `path` (the argument `argument`) as the command line looks at an output
+/// flag before any work (`sysid_io::resolve_output`): a folder, a socket, a link to nothing and a
+/// read-only file are refused (`ValueError` naming `argument`, the command line's words); a new name, a
+/// regular file, a device, a FIFO and a link to one of them pass.
+#[pyfunction]
+fn check_output(path: PathBuf, argument: &str) -> PyResult<()> {
+    sysid_io::resolve_output(&path, argument)
+        .map(drop)
+        .map_err(output_err)
+}
+
+/// Writes `data` to the output path `path` (the argument `argument`) as the command line writes every
+/// output and `Model.save` its file (`sysid_io::write_atomic`, after [`check_output`]): a regular file
+/// or a new name atomically (a temporary file beside it, renamed over it; the permissions and owner of
+/// the file it replaces, or 0o666 less the umask), a symbolic link followed (the file it names is
+/// replaced, the link stays), a device or a FIFO written into directly and never replaced (`/dev/full`
+/// raises `OSError` "No space left on device"), `-` to standard output. The GIL is released while it
+/// writes (a FIFO waits for its reader, which may be another Python thread).
+#[pyfunction]
+fn write_output(py: Python<'_>, path: PathBuf, data: &[u8], argument: &str) -> PyResult<()> {
+    check_output(path.clone(), argument)?;
+    py.detach(|| sysid_io::write_atomic(&path, data))
+        .map_err(output_err)
+}
+
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_class::<PyModel>()?;
@@ -2135,6 +2273,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(tune, m)?)?;
     m.add_function(wrap_pyfunction!(fleet_windows, m)?)?;
     m.add_function(wrap_pyfunction!(fleet_times, m)?)?;
+    m.add_function(wrap_pyfunction!(check_output, m)?)?;
+    m.add_function(wrap_pyfunction!(write_output, m)?)?;
     m.add("__version__", env!("CARGO_PKG_VERSION"))?;
     Ok(())
 }

@@ -319,6 +319,7 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
     let mut spec = req.spec.clone();
     if matches!(req.source, Source::Model { .. }) {
         spec.scale = tune::Scale::of_spec(&spec);
+        spec.check_scale()?;
     }
     let (model, deadzone, label, twin) = match &req.source {
         Source::Model {

@@ -795,7 +795,22 @@ impl Table {
                 column: opts.y_col.clone(),
             });
         }
-        let has_t = self.headers.contains(&opts.t_col);
+        // The time column (`--t-col`, `t` by default) dates the samples; as the input or the output it
+        // would be a ramp identified without a word (audit s19 L-9).
+        let tcol = self.headers.iter().position(|h| *h == opts.t_col);
+        for (col, setting, name) in [
+            (ucol, Setting::UCol, &opts.u_col),
+            (ycol, Setting::YCol, &opts.y_col),
+        ] {
+            if Some(col) == tcol {
+                return Err(SysidError::SameColumn {
+                    setting,
+                    other: Setting::TCol,
+                    column: name.clone(),
+                });
+            }
+        }
+        let has_t = tcol.is_some();
         Ok((
             ucol,
             ycol,

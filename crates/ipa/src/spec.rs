@@ -101,7 +101,9 @@ impl PlantSpec {
             AnyModel::Narx(m) => m.ts(),
         };
         if let Some(ts) = ts_s {
-            if (ts - model_ts).abs() > 1e-9 * model_ts {
+            // A NaN --ts compares false with everything: refused by name (audit s19 L-3: `--ts nan`
+            // ran at the model's Ts without a word).
+            if ts.is_nan() || (ts - model_ts).abs() > 1e-9 * model_ts {
                 return Err(IpaError::Config(format!(
                     "invalid --ts {}: the {label} is sampled at Ts = {} s; leave --ts out or pass that value",
                     sysid_core::format::Shortest(ts),

@@ -40,6 +40,82 @@ impl std::fmt::Display for Method {
     }
 }
 
+/// A setting of one family of estimators that the other methods do not use (`identify --forgetting`,
+/// Python `identify(forgetting=...)`): the command line and the Python module refuse each where its
+/// method is not chosen, by this one table ([`EstimatorSetting::unused_by`]; audit s19 L-5: Python
+/// accepted `method="ls", forgetting=nan`, which the command line refuses).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EstimatorSetting {
+    /// Passes over the record (RLS).
+    Passes,
+    /// The RLS update's form (standard, Joseph, Bierman UD).
+    RlsForm,
+    /// The guard against covariance wind-up (RLS).
+    Windup,
+    /// The bound on trace P (RLS).
+    MaxTrace,
+    /// The forgetting factor λ (RLS, IV).
+    Forgetting,
+    /// The initial covariance P(0) = p0 I (RLS, IV).
+    P0,
+    /// The instrumental-variable stages (IV).
+    IvStages,
+}
+
+impl EstimatorSetting {
+    /// Every setting, in the order the command line checks them.
+    pub const ALL: [EstimatorSetting; 7] = [
+        EstimatorSetting::Passes,
+        EstimatorSetting::RlsForm,
+        EstimatorSetting::Windup,
+        EstimatorSetting::MaxTrace,
+        EstimatorSetting::Forgetting,
+        EstimatorSetting::P0,
+        EstimatorSetting::IvStages,
+    ];
+
+    /// Its Python keyword (`max_trace`); the command-line flag is `--` and the id with `-` for `_`.
+    pub fn id(self) -> &'static str {
+        match self {
+            EstimatorSetting::Passes => "passes",
+            EstimatorSetting::RlsForm => "rls_form",
+            EstimatorSetting::Windup => "windup",
+            EstimatorSetting::MaxTrace => "max_trace",
+            EstimatorSetting::Forgetting => "forgetting",
+            EstimatorSetting::P0 => "p0",
+            EstimatorSetting::IvStages => "iv_stages",
+        }
+    }
+
+    /// The methods that use it.
+    pub fn methods(self) -> &'static [Method] {
+        match self {
+            EstimatorSetting::Passes
+            | EstimatorSetting::RlsForm
+            | EstimatorSetting::Windup
+            | EstimatorSetting::MaxTrace => &[Method::Rls],
+            EstimatorSetting::Forgetting | EstimatorSetting::P0 => &[Method::Rls, Method::Iv],
+            EstimatorSetting::IvStages => &[Method::Iv],
+        }
+    }
+
+    /// Those methods in words ("the recursive estimators"), for "a setting of ...".
+    pub fn whose(self) -> &'static str {
+        match self.methods() {
+            [Method::Rls] => "recursive least squares",
+            [Method::Iv] => "instrumental variables",
+            _ => "the recursive estimators",
+        }
+    }
+
+    /// The first setting that `given` says was given and `method` does not use.
+    pub fn unused_by(method: Method, given: impl Fn(EstimatorSetting) -> bool) -> Option<Self> {
+        Self::ALL
+            .into_iter()
+            .find(|&s| given(s) && !s.methods().contains(&method))
+    }
+}
+
 /// One physical parameter with its standard deviation (MATLAB `present`).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Param {

@@ -47,7 +47,7 @@ pub use estimate::{
     identify, Estimator, EstimatorSettings, Identification, InputSpec, InstrumentalVariables,
     LeastSquares, OutputError, Passes, RecursiveLeastSquares,
 };
-pub use fitted::{Fitted, Method, Note, Param, Termination};
+pub use fitted::{EstimatorSetting, Fitted, Method, Note, Param, Termination};
 pub use options::IdentifyOptions;
 pub use sysid_core::{
     data, detrend, error, metrics, model, model_file, narx as narx_model, nonlinearity, param,

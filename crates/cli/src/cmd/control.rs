@@ -489,11 +489,28 @@ fn anti_windup(args: &Args, ts: f64) -> anyhow::Result<AntiWindup> {
                     .with_integral(args.integral)
                     .integral_time_s(ts)
             };
-            let Some(tt_s) = args.tracking_time.or_else(default_tt) else {
+            if let Some(tt_s) = args.tracking_time {
+                return Ok(AntiWindup::BackCalculation { tt_s });
+            }
+            // The default Ti = Kp/Ki is checked here, where it is known to be the default: the
+            // controller's own check would blame `--tracking-time`, which the user did not pass
+            // (audit s19 L-4: `--ki 1e-320` gave "invalid setting --tracking-time = inf").
+            let usable = default_tt().filter(|&ti| ti.is_finite() && ti > ts / 2.0);
+            let Some(tt_s) = usable else {
                 bail!(sysid::SysidError::setting(
-                    sysid::Setting::Other("--tracking-time"),
-                    "(none)",
-                    "a tracking time in s (the default Ti = Kp/Ki needs Kp and Ki nonzero)"
+                    sysid::Setting::Other("--anti-windup"),
+                    "back-calculation",
+                    &format!(
+                        "a tracking time: the default Ti = Kp/Ki = {} s (Kp = {}, Ki = {}) is not a finite \
+                         number of seconds above half the sampling period ({} s); give --tracking-time \
+                         SECONDS",
+                        default_tt().map_or("(none: Kp or Ki is 0)".to_string(), |ti| {
+                            sysid_core::format::Shortest(ti).to_string()
+                        }),
+                        sysid_core::format::Shortest(args.kp),
+                        sysid_core::format::Shortest(args.ki),
+                        sysid_core::format::Shortest(ts / 2.0)
+                    )
                 ));
             };
             AntiWindup::BackCalculation { tt_s }

@@ -62,28 +62,21 @@ fn parse_order(text: &str) -> Result<usize, String> {
         .map_err(|e| format!("{e}; expected a whole number >= 0"))
 }
 
-/// The estimator settings of `identify`: (field id, flag, the methods that use it, those methods in
-/// words); [`Args::check_flags`] refuses each where its method is not chosen, and with NARX.
-const METHOD_FLAGS: [(&str, &str, &[Method], &str); 7] = {
-    const RLS: &[Method] = &[Method::Rls];
-    const RECURSIVE: &[Method] = &[Method::Rls, Method::Iv];
-    const RLS_WORDS: &str = "recursive least squares (--method rls)";
-    const RECURSIVE_WORDS: &str = "the recursive estimators (--method rls or iv)";
-    [
-        ("passes", "--passes", RLS, RLS_WORDS),
-        ("rls_form", "--rls-form", RLS, RLS_WORDS),
-        ("windup", "--windup", RLS, RLS_WORDS),
-        ("max_trace", "--max-trace", RLS, RLS_WORDS),
-        ("forgetting", "--forgetting", RECURSIVE, RECURSIVE_WORDS),
-        ("p0", "--p0", RECURSIVE, RECURSIVE_WORDS),
-        (
-            "iv_stages",
-            "--iv-stages",
-            &[Method::Iv],
-            "instrumental variables (--method iv)",
-        ),
-    ]
-};
+/// An estimator setting as its flag (`--max-trace`) and what uses it in words, with the methods as
+/// flags: "the recursive estimators (--method rls or iv)" ([`sysid::EstimatorSetting`], the one table
+/// the Python module also checks).
+fn method_flag(s: sysid::EstimatorSetting) -> (String, String) {
+    let methods = s
+        .methods()
+        .iter()
+        .map(ToString::to_string)
+        .collect::<Vec<_>>()
+        .join(" or ");
+    (
+        format!("--{}", s.id().replace('_', "-")),
+        format!("{} (--method {methods})", s.whose()),
+    )
+}
 
 /// Flags of `identify`.
 #[derive(Debug, clap::Args)]
@@ -347,10 +340,11 @@ impl Args {
                      no such fallback",
                 )?;
             }
-            for (id, flag, _, what) in METHOD_FLAGS {
-                if self.given(id) {
+            for setting in sysid::EstimatorSetting::ALL {
+                if self.given(setting.id()) {
+                    let (flag, what) = method_flag(setting);
                     refuse(
-                        flag,
+                        &flag,
                         &format!(
                             "is a setting of {what} for ARX, Hammerstein and Wiener models; \
                              --structure narx does not use it"
@@ -402,16 +396,17 @@ impl Args {
                 );
             }
         }
-        for (id, flag, methods, what) in METHOD_FLAGS {
-            if self.given(id) && !methods.contains(&self.method) {
-                refuse(
-                    flag,
-                    &format!(
-                        "is a setting of {what}; --method {} does not use it",
-                        self.method
-                    ),
-                )?;
-            }
+        if let Some(setting) =
+            sysid::EstimatorSetting::unused_by(self.method, |s| self.given(s.id()))
+        {
+            let (flag, what) = method_flag(setting);
+            refuse(
+                &flag,
+                &format!(
+                    "is a setting of {what}; --method {} does not use it",
+                    self.method
+                ),
+            )?;
         }
         Ok(())
     }

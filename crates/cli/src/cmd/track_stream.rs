@@ -297,6 +297,15 @@ pub fn track_stream<R: BufRead, W: Write>(
             message: "no header row arrived; expected a header such as t,u,y and data rows".into(),
         });
     }
+    // A source that ended after its header tracked nothing: an error, as the other commands' reader
+    // says of the same file (audit s19 L-8: exit 0 and a warning). A run stopped by Ctrl-C
+    // (`--follow`) before its first row still ends with its summary.
+    if tracker.samples() == 0 && !sysid_io::stop_asked() {
+        return Err(SysidError::File {
+            file: options.name.clone(),
+            message: "the file has a header but no data rows".into(),
+        });
+    }
     let mut summary = summary(tracker, ts, t_last, change_points)?;
     time_warnings.append(&mut new_time_warnings);
     if time_jumps > time_warnings.len() {

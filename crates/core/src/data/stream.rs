@@ -228,6 +228,24 @@ impl CsvStream {
             })?;
             &prefix[..=end]
         };
+        // A first data row that does not end within the prefix left the header alone in it, which the
+        // in-memory reader called "a header but no data rows" (audit s19 L-7): say what it is.
+        let rows_in_prefix = checked
+            .split(|&b| b == b'\n')
+            .filter(|l| !l.trim_ascii().is_empty())
+            .count();
+        if !whole && rows_in_prefix <= usize::from(!opts.no_header) {
+            return Err(SysidError::Parse {
+                file: name,
+                line: checked.iter().filter(|&&b| b == b'\n').count() + 1,
+                column: 1,
+                message: format!(
+                    "the first data row is longer than {PREFIX_BYTES} bytes (--stream checks the header \
+                     and the first rows within the file's first {PREFIX_BYTES} bytes); expected CSV rows \
+                     such as 0.01,12,3.5"
+                ),
+            });
+        }
         let table = read_table_with(checked, &name, !opts.no_header)?;
         let (ucol, ycol, ts_given) = table.columns(opts)?;
         let tcol = match ts_given {

@@ -346,7 +346,10 @@ fn c_controller_matches_control(brake: Brake) {
         file["controller"]["brake"]["rest_samples"] = serde_json::json!(8);
         file["controller"]["brake"]["rebrake"] = serde_json::json!(true);
     }
-    if matches!(brake, Brake::Short | Brake::Creep | Brake::Rebrake | Brake::Slip) {
+    if matches!(
+        brake,
+        Brake::Short | Brake::Creep | Brake::Rebrake | Brake::Slip
+    ) {
         file["controller"]["short_approach"] = serde_json::json!({"max_step_mm": 40.0,
             "drive_fraction": 0.35, "ramp_counts_s": 500.0, "switch_mm": 0.5, "lead_s": 0.01,
             "brake_strength": 0.5, "brake_samples": 3, "rest_samples": 2});
@@ -456,7 +459,10 @@ fn c_controller_matches_control(brake: Brake) {
         }
         args.push(b["release_samples"].as_u64().unwrap_or(0).to_string());
     }
-    if matches!(brake, Brake::Short | Brake::Creep | Brake::Rebrake | Brake::Slip) {
+    if matches!(
+        brake,
+        Brake::Short | Brake::Creep | Brake::Rebrake | Brake::Slip
+    ) {
         let a = &c["short_approach"];
         for k in [
             "max_step_mm",

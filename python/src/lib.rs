@@ -1506,25 +1506,14 @@ impl PyRls {
     }
 
     /// One update with regressor φ (n values) and measurement y; returns the a-priori error
-    /// ε = y − φᵀθ̂. Raises ArithmeticError (state unchanged) when P loses positive definiteness or a
-    /// value is not finite.
+    /// ε = y − φᵀθ̂. Raises ValueError naming the entry when φ or y is not finite, ArithmeticError
+    /// when P loses positive definiteness; the state is unchanged in both cases.
     fn update(&mut self, phi: &Bound<'_, PyAny>, y: f64) -> PyResult<f64> {
         let phi = floats(phi, "phi")?;
         self.check_columns(phi.len(), "phi has")?;
         // A non-finite input is the caller's, named as such (audit s19 L-5: y = NaN raised the
         // estimator's ArithmeticError "RLS lost positive definiteness or met a non-finite value").
-        if let Some((i, v)) = phi.iter().enumerate().find(|(_, v)| !v.is_finite()) {
-            return Err(PyValueError::new_err(format!(
-                "phi({i}) = {}: expected finite numbers; the estimate is unchanged",
-                py_float(Some(*v))
-            )));
-        }
-        if !y.is_finite() {
-            return Err(PyValueError::new_err(format!(
-                "y = {}: expected a finite number; the estimate is unchanged",
-                py_float(Some(y))
-            )));
-        }
+        check_finite_sample(&phi, y, None)?;
         let e = self
             .inner
             .update(&phi, y, self.samples)
@@ -1534,8 +1523,10 @@ impl PyRls {
     }
 
     /// Updates with each row of `Phi` (N × n float64) and each entry of `y` (N), in Rust without a
-    /// Python loop; returns the a-priori errors ε (N). On a numerical failure at row k, rows before k
-    /// are applied, the state is that after row k − 1, and ArithmeticError names the sample.
+    /// Python loop; returns the a-priori errors ε (N). Every row is checked before any is applied: a
+    /// non-finite φ_k or y_k is a ValueError naming the argument and the row k, the estimate unchanged
+    /// (as `update`'s). On a numerical failure at row k (P losing positive definiteness), rows before
+    /// k are applied, the state is that after row k − 1, and ArithmeticError names the sample.
     #[allow(non_snake_case)]
     fn update_many<'py>(
         &mut self,
@@ -1569,6 +1560,11 @@ impl PyRls {
         let data = phi
             .as_slice()
             .map_err(|e| PyValueError::new_err(format!("Phi: {e}")))?;
+        // All rows before any update (audit s19 leftover: a NaN y at row k raised ArithmeticError
+        // after rows 0..k had been applied).
+        for (k, (row, yk)) in data.chunks_exact(cols).zip(&y).enumerate() {
+            check_finite_sample(row, *yk, Some(k))?;
+        }
         let mut errors = Vec::with_capacity(rows);
         let mut failure = None;
         for (row, yk) in data.chunks_exact(cols).zip(&y) {
@@ -1604,6 +1600,28 @@ impl PyRls {
             self.samples
         )
     }
+}
+
+/// Refuses a non-finite regressor entry φ_i or measurement y before an RLS update, naming the
+/// argument: `phi(i)` / `y` for `Rls.update`, `Phi(k, i)` / `y(k)` with the row k for
+/// `Rls.update_many` (`row` = Some(k)). The one check of both, so that the estimate is unchanged.
+fn check_finite_sample(phi: &[f64], y: f64, row: Option<usize>) -> PyResult<()> {
+    let unchanged = |what: String, v: f64, expected: &str| {
+        let at = row.map_or(String::new(), |k| format!(" (row {k})"));
+        PyValueError::new_err(format!(
+            "{what} = {}: expected {expected}{at}; the estimate is unchanged",
+            py_float(Some(v))
+        ))
+    };
+    if let Some((i, v)) = phi.iter().enumerate().find(|(_, v)| !v.is_finite()) {
+        let what = row.map_or(format!("phi({i})"), |k| format!("Phi({k}, {i})"));
+        return Err(unchanged(what, *v, "finite numbers"));
+    }
+    if !y.is_finite() {
+        let what = row.map_or("y".to_string(), |k| format!("y({k})"));
+        return Err(unchanged(what, y, "a finite number"));
+    }
+    Ok(())
 }
 
 impl PyRls {

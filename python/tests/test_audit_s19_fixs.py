@@ -325,3 +325,31 @@ def test_tune_names_the_spec_key_when_its_scale_is_out_of_range(tmp_path):
         ipa_sysid.tune(model=str(_tune_model(tmp_path)), spec="steps=1e-9", max_evaluations=8, variants=1)
     with pytest.raises(ValueError, match=r"^invalid setting spec = u-max=1e308: a command limit of at most 1e6"):
         ipa_sysid.tune(model=str(_tune_model(tmp_path)), spec="u-max=1e308", max_evaluations=8, variants=1)
+
+
+def test_rls_update_many_checks_every_row_before_applying_any():
+    # A non-finite y or phi at row k is refused before rows 0..k-1 are applied: the state after the
+    # refusal is the state before the call (fixu; the rows before k used to be applied first).
+    rng = np.random.default_rng(3)
+    Phi = rng.normal(size=(6, 2))
+    y = Phi @ np.array([0.5, -1.0])
+    est = ipa_sysid.Rls(2, 1.0, 100.0)
+    est.update([1.0, 2.0], 3.0)
+    theta, P, n = est.theta.copy(), est.P.copy(), est.samples
+    bad_y = y.copy()
+    bad_y[4] = np.nan
+    with pytest.raises(ValueError, match=r"^y\(4\) = NaN: expected a finite number \(row 4\); the estimate is unchanged$"):
+        est.update_many(Phi, bad_y)
+    assert np.array_equal(est.theta, theta) and np.array_equal(est.P, P) and est.samples == n
+    bad_phi = Phi.copy()
+    bad_phi[3, 1] = -np.inf
+    with pytest.raises(ValueError, match=r"^Phi\(3, 1\) = -inf: expected finite numbers \(row 3\); "):
+        est.update_many(bad_phi, y)
+    assert np.array_equal(est.theta, theta) and np.array_equal(est.P, P) and est.samples == n
+    # The good record then applies as one update at a time does.
+    ref = ipa_sysid.Rls(2, 1.0, 100.0)
+    ref.update([1.0, 2.0], 3.0)
+    for k in range(len(y)):
+        ref.update(Phi[k], y[k])
+    est.update_many(Phi, y)
+    assert np.array_equal(est.theta, ref.theta) and np.array_equal(est.P, ref.P) and est.samples == n + len(y)

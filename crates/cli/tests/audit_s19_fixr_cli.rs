@@ -134,3 +134,54 @@ fn a_long_delay_search_reports_each_candidate_on_stderr() {
     assert_eq!(lines, 101, "{err}");
     assert!(err.contains("delay: nk = 100 fitted (101 of 101"), "{err}");
 }
+
+#[test]
+fn a_narx_estimation_over_the_memory_budget_is_refused_before_it_allocates() {
+    // Polynomial NARX with na = nb = 10 and degree 3, without --offset (no constant): the monomials
+    // of degree 1..=3 in 20 lagged variables, M = C(23, 3) − 1 = 1770 candidate terms; by sysid::narx::numbers_per_row the FROLS peak holds 2M + min(T, M) + 4 numbers per row
+    // (T = --max-terms, 30 by default). k0 = max(na, nk + nb − 1) = 10, so 200 000 samples give
+    // 199 990 rows: 5.7 GB > 4 GiB. The output moves (0, 1, 0, 1, …) so that the size is what is
+    // refused.
+    let dir = tempfile::tempdir().unwrap();
+    let n = 200_000;
+    let csv = dir.path().join("long.csv");
+    std::fs::write(&csv, format!("u,y\n{}", "0,0\n0,1\n".repeat(n / 2))).unwrap();
+    let o = ipa_sysid(&[
+        "identify",
+        "--data",
+        csv.to_str().unwrap(),
+        "--ts",
+        "0.01",
+        "--structure",
+        "narx",
+        "--na",
+        "10",
+        "--nb",
+        "10",
+        "--nk",
+        "1",
+        "--degree",
+        "3",
+    ]);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    let m = 23 * 22 * 21 / 6 - 1;
+    let per_row = 2.0 * m as f64 + 30.0 + 4.0;
+    let rows = n - 10;
+    let bytes = rows as f64 * per_row * 8.0;
+    assert!(bytes > BUDGET);
+    assert!(
+        err.contains(&format!("{rows} regression rows of {m} parameters")),
+        "{err}"
+    );
+    assert!(
+        err.contains(&format!("about {:.1} GB", bytes / 1e9)),
+        "{err}"
+    );
+    assert!(
+        !err.contains("panicked") && !err.contains("backtrace"),
+        "{err}"
+    );
+    let fit = (BUDGET / (per_row * 8.0)).floor() as usize;
+    assert!(err.contains(&format!("at most {fit} rows")), "{err}");
+}

@@ -64,7 +64,11 @@ pub const IPA_ERR_SETTING: i32 = -1;
 pub const IPA_ERR_CAPACITY: i32 = -2;
 /// A non-finite sample; the state is unchanged.
 pub const IPA_ERR_NOT_FINITE: i32 = -3;
-/// The RLS update would lose positive definiteness or meet a non-finite value; the state is unchanged.
+/// A numerical failure; the state is unchanged. The RLS update ([`ipa_hrls_update`]) would lose positive
+/// definiteness of P or meet a non-finite value; or a controller step's command would not be finite
+/// (a guard of last resort, audit s19 M-1: [`ipa_ctl_step`] when the command u, the integral I or the
+/// derivative term D would not be, [`ipa_pi_step`] when u or the integral would not be), `*u` then not
+/// written.
 pub const IPA_ERR_NUMERICAL: i32 = -4;
 /// An output buffer is too short.
 pub const IPA_ERR_LENGTH: i32 = -5;

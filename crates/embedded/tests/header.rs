@@ -49,3 +49,60 @@ fn header_declares_every_exported_function_and_constant() {
         assert!(header.contains(&format!("double {field};")));
     }
 }
+
+/// The `///` lines right above `line_no` of `src` (Rust) with the `/// ` removed.
+fn rust_doc(src: &[&str], line_no: usize) -> Vec<String> {
+    let mut doc: Vec<String> = src[..line_no]
+        .iter()
+        .rev()
+        .take_while(|l| l.starts_with("///"))
+        .map(|l| l.trim_start_matches("///").trim().to_string())
+        .collect();
+    doc.reverse();
+    doc
+}
+
+/// The ` * ` lines of the `/** … */` block right above `line_no` of `src` (C), without the stars.
+fn c_doc(src: &[&str], line_no: usize) -> Vec<String> {
+    let mut doc: Vec<String> = src[..line_no]
+        .iter()
+        .rev()
+        .skip_while(|l| l.trim() == "*/")
+        .take_while(|l| l.trim() != "/**")
+        .map(|l| l.trim().trim_start_matches('*').trim().to_string())
+        .collect();
+    doc.reverse();
+    doc
+}
+
+#[test]
+fn every_constants_doc_in_the_header_is_the_rust_doc() {
+    // cbindgen copies each constant's doc comment; a doc edited on one side only (IPA_ERR_NUMERICAL
+    // read RLS-only after the controllers' guard was added) shows here.
+    let ffi = read("src/ffi.rs");
+    let header = read("include/ipa_embedded.h");
+    let (ffi, header): (Vec<&str>, Vec<&str>) = (ffi.lines().collect(), header.lines().collect());
+    let mut checked = 0;
+    for (i, line) in ffi.iter().enumerate() {
+        let Some(rest) = line.strip_prefix("pub const IPA_") else {
+            continue;
+        };
+        let name = format!("IPA_{}", rest.split_once(':').unwrap().0);
+        let j = header
+            .iter()
+            .position(|l| l.starts_with(&format!("#define {name} ")))
+            .unwrap();
+        assert_eq!(c_doc(&header, j), rust_doc(&ffi, i), "{name}");
+        checked += 1;
+    }
+    assert!(checked >= 10, "{checked}");
+    // The numerical code names the controllers' guard as well as the estimator's.
+    let i = ffi
+        .iter()
+        .position(|l| l.starts_with("pub const IPA_ERR_NUMERICAL"))
+        .unwrap();
+    let doc = rust_doc(&ffi, i).join(" ");
+    for f in ["ipa_hrls_update", "ipa_ctl_step", "ipa_pi_step"] {
+        assert!(doc.contains(f), "{doc}");
+    }
+}

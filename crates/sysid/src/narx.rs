@@ -367,6 +367,17 @@ fn sim_rmse_fit(model: &NarxModel, u: &[f64], y: &[f64]) -> Option<(f64, Option<
     ))
 }
 
+/// The numbers (f64) a NARX identification holds for each of its N regression rows at its peak, for M =
+/// `candidates` candidate terms of which FROLS orders at most T = `max_terms`: the candidates' columns
+/// P and their deflated copies W (M each), the orthogonal q_s (at most min(T, M)), and about four for
+/// the record and the simulations. W and the q_s are freed when FROLS returns; what comes after (the
+/// refinement's sensitivities, n ≤ min(T, M) columns, next to P with `--stop sim`; the chosen terms'
+/// columns, Φ and the QR's [Φ | y], 3n + 1, once P is freed) is below this.
+/// Checked against [`sysid_core::ls::MAX_ESTIMATION_BYTES`] by [`identify_narx`].
+pub fn numbers_per_row(candidates: usize, max_terms: usize) -> usize {
+    2 * candidates + candidates.min(max_terms) + 4
+}
+
 /// Identifies a polynomial NARX model of `data` (its first input) with `settings`.
 pub fn identify_narx(data: &Dataset, settings: &NarxSettings) -> Result<NarxFit, SysidError> {
     settings.check()?;
@@ -391,6 +402,14 @@ pub fn identify_narx(data: &Dataset, settings: &NarxSettings) -> Result<NarxFit,
     let k0 = s.k0();
     let cands = candidate_terms(s.na, s.nb, s.nk, s.degree, s.constant);
     let n_rows = y.len().saturating_sub(k0);
+    // The candidates' columns are built below with infallible allocations: their size is checked
+    // first, against the one budget of every estimation (the linear classes' in `identify`).
+    sysid_core::ls::check_memory(
+        data.name(),
+        n_rows,
+        cands.len(),
+        numbers_per_row(cands.len(), s.max_terms),
+    )?;
     if n_rows < 2 * cands.len().min(s.max_terms) + 10 {
         return Err(SysidError::Data(format!(
             "{} samples are too few for a NARX model with up to {} terms (k0 = {k0})",

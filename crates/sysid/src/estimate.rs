@@ -224,22 +224,37 @@ impl Identification {
     /// every estimation's memory (the command line and the Python package alike; `order` checks its
     /// largest structure with it before the search).
     pub fn check_memory(&self, records: &[Dataset]) -> Result<(), SysidError> {
+        self.check_memory_at_once(records, 1)
+    }
+
+    /// [`Identification::check_memory`] for `at_once` fits of this structure held in memory
+    /// together (`order`'s structures fitted at once, one per worker thread): the numbers per row
+    /// times `at_once`, and the count named in the refusal when it is more than one.
+    pub fn check_memory_at_once(
+        &self,
+        records: &[Dataset],
+        at_once: usize,
+    ) -> Result<(), SysidError> {
         let Some(first) = records.first() else {
             return Ok(());
         };
         let names: Vec<&str> = first.inputs().iter().map(|i| i.name()).collect();
         let reg = self.regression(&names)?;
         let p = reg.len();
-        let what = records
+        let mut what = records
             .iter()
             .map(Dataset::name)
             .collect::<Vec<_>>()
             .join(" + ");
+        if at_once > 1 {
+            what = format!("{what} ({at_once} structures fitted at once)");
+        }
         sysid_core::ls::check_memory(
             &what,
             reg.rows(records),
             p,
-            self.numbers_per_row(p, reg.nonlinear()),
+            self.numbers_per_row(p, reg.nonlinear())
+                .saturating_mul(at_once.max(1)),
         )
     }
 

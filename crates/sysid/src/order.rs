@@ -262,28 +262,14 @@ pub fn check_memory(
     let (Some(&a), Some(&b), Some(&k)) = (na.iter().max(), nb.iter().max(), nk.iter().min()) else {
         return Ok(());
     };
-    let settings = base.clone().with_orders(a, b, k);
-    let names: Vec<&str> = est.inputs().iter().map(|i| i.name()).collect();
-    let reg = settings.regression(&names)?;
     #[cfg(feature = "parallel")]
     let workers = rayon::current_num_threads();
     #[cfg(not(feature = "parallel"))]
     let workers = 1;
     let at_once = workers.min(grid_size(na, nb, nk)).max(1);
-    let what = if at_once > 1 {
-        format!("{} ({at_once} structures fitted at once)", est.name())
-    } else {
-        est.name().to_string()
-    };
-    let records = std::slice::from_ref(est);
-    sysid_core::ls::check_memory(
-        &what,
-        reg.rows(records),
-        reg.len(),
-        settings
-            .numbers_per_row(reg.len(), reg.nonlinear())
-            .saturating_mul(at_once),
-    )
+    base.clone()
+        .with_orders(a, b, k)
+        .check_memory_at_once(std::slice::from_ref(est), at_once)
 }
 
 /// The number of structures in a grid.

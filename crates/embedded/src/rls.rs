@@ -38,6 +38,14 @@
 //! diagonal, plus 2 per entry to sum the partial gains again when the capacity N < 8 (with N ≥ 8 the
 //! first pass keeps them). Total 4 n² + 12 n + 2 for N < 8 (114 for n = 4, 282 for n = 7) and
 //! 3 n² + 13 n + 2 for N ≥ 8 (362 for n = 9), of which n + 1 divisions.
+//! f32 with a capacity N ≤ 4 (nothing to agree with bit for bit, [`Float::SYSID_ORDER`] `false`) orders
+//! four steps for shorter chains of dependent operations (issue 28, fourteenth round: about 1–2 ns, 5–10 %,
+//! less per update at n = 4, with and without the guard): f_j = Σ_(i<j) U_ij φ_i + φ_j as a pairwise sum
+//! ((U_0j φ_0 + U_1j φ_1) + (U_2j φ_2 + φ_j) for j = 3); α_0 = ρ̃ + p_0, α_1 = ρ̃ + (p_0 + p_1),
+//! α_2 = α_1 + p_2, α_3 = α_1 + (p_2 + p_3) with p_j = f_j v_j; θ̂_i + (b_i ε) · (1/α); U_ij + (w_i · (−f_j))
+//! · (1/α_(j−1)), so that b ε and w (−f) do not wait for the divisions. At n = N = 4 that is 110 flops as
+//! written (114 in the order above) and 109 executed (105: the pairwise f has no −0 or 1 · φ_j to fold).
+//! The results differ from the f64 order by rounding only.
 //! The update runs in two passes over U and makes no copy of the factors to undo a failure (f32 with
 //! N ≤ 4 reads its 16-byte rows into a local copy, for speed): the first only reads (f, v, α,
 //! b, the new D and θ̂, every check), the second writes U, D and θ̂ only when every check passed, so a
@@ -64,13 +72,8 @@
 //! only tr P · (ρ / T) (ρ / T divided at the start of the update, off the chain). [`Rls::p`] and
 //! [`Rls::trace`] report c · U D Uᵀ; a failed update leaves ρ̃ unchanged; a restart sets ρ̃ = ρ.
 //! `sysid::rls_ud::RobustRls` keeps the same pending variance, so f64 results are bit for bit.
-//! f32 with a capacity N ≤ 4 (nothing to agree with bit for bit, [`Float::SYSID_ORDER`] `false`) adds
-//! ρ̃ last in the guarded update: Bierman's prefix sums are S_j = Σ_(i≤j) f_i v_i from −0 and
-//! α_j = ρ̃ + S_j (n additions more), so that their chain does not wait for ρ̃, which an acting guard
-//! computes from the previous update's tr P (issue 28, thirteenth round: 0.4–1.3 ns less per acting
-//! update at f32 n = 4 in five runs alternated with the previous code, 1.14–1.18× the UD update, the
-//! inactive guard 0.1–0.2 ns more; in the twelfth round slower at n = 9, and for f64 it would have to
-//! change `sysid` too).
+//! In f32 with a capacity N ≤ 4 the guard uses the same shorter chains as the unguarded update (see
+//! "UD form"; they replace the thirteenth round's ρ̃ added last to Bierman's prefix sums).
 //!
 //! # Cost per update, n parameters (each +, −, ×, ÷ one flop)
 //!
@@ -497,11 +500,12 @@ fn symmetric_update<F: Float, const N: usize, const SCALE: bool>(
 /// steps (n(n − 1) flops fewer; measured slower at N = 4: docs/benchmarks.md, "Fifth round").
 const KEEP_GAINS_FROM: usize = 8;
 
-/// The largest capacity N for which the guarded UD update in f32 ([`Float::SYSID_ORDER`] `false`) adds
-/// the measurement variance ρ̃ last to Bierman's prefix sums (α_j = ρ̃ + S_j, module documentation,
-/// "Windup guard"): measured faster with the guard acting at N = 4, slower at N = 9
-/// (docs/benchmarks.md, "Twelfth round", "Thirteenth round").
-const LATE_VARIANCE_UP_TO: usize = 4;
+/// The largest capacity N for which the UD update in f32 ([`Float::SYSID_ORDER`] `false`) uses the
+/// shorter chains of dependent operations of the module documentation ("UD form": f_j as a pairwise sum,
+/// α_j from paired products, θ̂ += (b ε) (1/α), U_ij += (w_i (−f_j)) (1/α_(j−1))); written for N ≤ 4 (the
+/// pairings name four columns). Measured faster at N = 4 with and without the guard (docs/benchmarks.md,
+/// "Fourteenth round").
+const SHORT_CHAINS_UP_TO: usize = 4;
 
 /// Bierman's UD update with forgetting on the leading m × m block (m = N when `FULL`), in the operation
 /// order of `sysid::rls_ud::RobustRls` (sums start at −0, as `Iterator::sum` of floats does); with
@@ -566,11 +570,10 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
     // With split row loads, the copies of U read by the first pass, for the second.
     let mut u_old = [[F::ZERO; N]; N];
     let mut a = var;
-    // f32 guarded with N ≤ 4: ρ̃ added last, α_j = ρ̃ + S_j with S_j = Σ_(i≤j) f_i v_i from −0, so that
-    // the chain of additions does not wait for ρ̃ (the previous update's tr P · (ρ / T) when the guard
-    // acted). f64 keeps `sysid`'s order, α_j = α_(j−1) + f_j v_j from α_(−1) = ρ̃.
-    let late = GUARD && !F::SYSID_ORDER && N <= LATE_VARIANCE_UP_TO;
-    let mut s = -F::ZERO;
+    // f32 with N ≤ 4 (nothing to agree with bit for bit): the shorter chains of the module
+    // documentation. f64 keeps `sysid`'s order: f_j = ((−0 + U_0j φ_0) + …) + 1 · φ_j,
+    // α_j = α_(j−1) + f_j v_j from α_(−1) = ρ̃, θ̂_i + b_i (1/α) ε, U_ij + w_i λ_j.
+    let short = !F::SYSID_ORDER && N <= SHORT_CHAINS_UP_TO;
     for_columns!(full, m, 'col, |j| {
         let (Some(row), Some(ph), Some(fj), Some(vj), Some(aj), Some((b_col, b_rest)), Some(ws)) = (
             fac.get(j),
@@ -602,21 +605,39 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
         else {
             break 'col;
         };
-        let mut acc = -F::ZERO;
-        for (u, x) in u_col.iter().zip(phi) {
-            acc += *u * *x;
-        }
-        acc += F::ONE * *ph;
+        let acc = if short {
+            // The terms U_0j φ_0, …, U_(j−1)j φ_(j−1), φ_j summed in pairs (j < N ≤ 4).
+            let mut t = [F::ZERO; N];
+            for ((tk, u), x) in t.iter_mut().zip(u_col).zip(phi) {
+                *tk = *u * *x;
+            }
+            if let Some(tj) = t.get_mut(j) {
+                *tj = *ph;
+            }
+            let g = |k: usize| t.get(k).copied().unwrap_or(F::ZERO);
+            match j {
+                0 => g(0),
+                1 => g(0) + g(1),
+                2 => (g(0) + g(1)) + g(2),
+                _ => (g(0) + g(1)) + (g(2) + g(3)),
+            }
+        } else {
+            let mut acc = -F::ZERO;
+            for (u, x) in u_col.iter().zip(phi) {
+                acc += *u * *x;
+            }
+            acc + F::ONE * *ph
+        };
         let vv = *dj * acc;
         *fj = acc;
         *vj = vv;
-        if late {
-            s += acc * vv;
-            a = var + s;
+        if short {
+            // The product f_j v_j; α from these products after the loop.
+            *aj = acc * vv;
         } else {
             a += acc * vv;
+            *aj = a;
         }
-        *aj = a;
         for ((bi, wi), u) in b_col.iter_mut().zip(ws.iter_mut()).zip(u_col) {
             if keep_w {
                 *wi = *bi;
@@ -625,6 +646,17 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
         }
         *bj = vv;
     });
+    if short {
+        // `alpha` holds p_j = f_j v_j here (m ≤ N ≤ 4): α_0 = ρ̃ + p_0, α_1 = ρ̃ + (p_0 + p_1),
+        // α_2 = α_1 + p_2, α_3 = α_1 + (p_2 + p_3).
+        let p = |k: usize| alpha.get(k).copied().unwrap_or(F::ZERO);
+        let a1 = var + (p(0) + p(1));
+        let sums = [var + p(0), a1, a1 + p(2), a1 + (p(2) + p(3))];
+        for (al, sj) in alpha.iter_mut().zip(sums).take(m) {
+            *al = sj;
+        }
+        a = alpha.get(m - 1).copied().unwrap_or(F::ZERO);
+    }
     // α_(m−1) ≥ … ≥ α_0 ≥ ρ̃ > 0 (D ≥ 0 makes every f_j v_j = d_j f_j² ≥ 0), so one check of the last
     // covers them all (finite here, positive below).
     if !((a * F::ZERO == F::ZERO) & (a > F::ZERO)) {
@@ -660,7 +692,12 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
     });
     let mut theta_new = [F::ZERO; N];
     for ((tn, t), bi) in theta_new.iter_mut().zip(theta.iter()).zip(b.iter()) {
-        *tn = *t + *bi * inv_last * eps;
+        // f32 N ≤ 4: b_i ε does not wait for the division.
+        *tn = if short {
+            *t + *bi * eps * inv_last
+        } else {
+            *t + *bi * inv_last * eps
+        };
         ok &= *tn * F::ZERO == F::ZERO;
     }
     if !ok {
@@ -689,7 +726,8 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
         } else {
             inv.get(j - 1).copied().unwrap_or(F::ZERO)
         };
-        let lambda = -*fj * inv_prev;
+        let neg_f = -*fj;
+        let lambda = neg_f * inv_prev;
         let Some((u_col, rest)) = row.split_at_mut_checked(j) else {
             break 'col;
         };
@@ -704,7 +742,13 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
         {
             // The first pass's copy where it made one (the same value).
             let uij = if split_row_loads { *uo } else { *u };
-            let un = uij + if keep_w { *wk } else { *wi } * lambda;
+            let wv = if keep_w { *wk } else { *wi };
+            // f32 N ≤ 4: w_i (−f_j) does not wait for the division (one multiplication more).
+            let un = if short {
+                uij + wv * neg_f * inv_prev
+            } else {
+                uij + wv * lambda
+            };
             *u = un;
             if !keep_w {
                 *wi += uij * vj;
@@ -790,7 +834,8 @@ fn ud_trace<F: Float, const N: usize>(fac: &[[F; N]; N], n: usize) -> F {
 /// exact and keeps the loop branch-free). Not counted, as for [`flops_per_update`]: the finiteness
 /// tests x · 0 (2n + 2) and comparisons. The compiler folds 2n + 1 of the counted operations (the
 /// 1 · φ_j of f and the first addition of each sum from −0, both exact): the machine executes
-/// 4 n² + 10 n + 1 or 3 n² + 11 n + 1.
+/// 4 n² + 10 n + 1 or 3 n² + 11 n + 1. f32 with a capacity ≤ 4 orders four steps differently (module
+/// documentation, "UD form"): at n = 4 it is 110 flops as written (this function's 114) and 109 executed.
 pub fn flops_per_update_ud(n: usize, capacity: usize) -> usize {
     let above = n * n.saturating_sub(1);
     let resum = if capacity >= KEEP_GAINS_FROM {
@@ -1031,55 +1076,71 @@ mod tests {
         }
     }
 
-    // f32 with N ≤ 4 adds ρ̃ last to the prefix sums of the guarded UD update (α_j = ρ̃ + S_j; f64 adds it
-    // first, `sysid`'s order): the same recursion in another order, so through excitation, an unexcited
-    // stretch (φ = 0: P grows by 1/ρ per update and the guard acts) and excitation again, its θ̂ and tr P
-    // follow the f64 guarded UD update to f32 rounding, and tr P ≤ T after every update (to rounding).
+    // f32 with N ≤ 4 orders four steps of the UD update differently from f64 (`sysid`'s order): f_j as a
+    // pairwise sum, α_j from paired products f_j v_j, θ̂ + (b ε)(1/α), U + (w (−f_j))(1/α_(j−1)). It is the
+    // same recursion in another order, so for n = 4, 3, 2 (n < N: the loops with run-time bounds), without
+    // and with the guard, through excitation, an unexcited stretch (φ = 0: P grows by 1/ρ per update and
+    // the guard acts) and excitation again, θ̂ and tr P follow the f64 UD update within 1e-3 (relative;
+    // f32 rounds at 6e-8 per operation), and with the guard tr P ≤ T after every update (to rounding).
     #[test]
-    fn f32_guarded_ud_adding_the_variance_last_follows_the_f64_update() {
+    fn f32_ud_update_with_short_chains_follows_the_f64_update() {
         let (rho, p0, t) = (0.95, 100.0, 50.0);
-        let mut a = Rls::<f64, 4>::new(4, rho, p0)
-            .unwrap()
-            .with_form(Form::Ud)
-            .with_max_trace(t)
-            .unwrap();
-        let mut b = Rls::<f32, 4>::new(4, rho as f32, p0 as f32)
-            .unwrap()
-            .with_form(Form::Ud)
-            .with_max_trace(t as f32)
-            .unwrap();
-        let (mut acted, mut idle) = (0, 0);
-        for k in 0..600usize {
-            let phi: [f64; 4] = if (200..400).contains(&k) {
-                [0.0; 4]
-            } else {
-                core::array::from_fn(|i| ((k * 7 + i * 13) % 11) as f64 - 5.0 + 0.1 * i as f64)
-            };
-            let y = phi
-                .iter()
-                .enumerate()
-                .map(|(i, v)| v * (i as f64 - 1.5))
-                .sum::<f64>()
-                + ((k % 5) as f64 - 2.0) * 0.1;
-            a.update(&phi, y).unwrap();
-            b.update(&phi.map(|v| v as f32), y as f32).unwrap();
-            if b.var != b.forgetting {
-                acted += 1;
-            } else {
-                idle += 1;
-            }
-            let (ta, tb) = (a.trace(), f64::from(b.trace()));
-            assert!(tb <= t * (1.0 + 1e-5), "k={k}: tr P = {tb}");
-            assert!((tb - ta).abs() <= 1e-3 * ta, "k={k}: tr P {tb} vs {ta}");
-            for i in 0..4 {
-                let (x, z) = (a.theta()[i], f64::from(b.theta()[i]));
-                assert!(
-                    (x - z).abs() <= 1e-3 * (1.0 + x.abs()),
-                    "k={k} θ{i}: {z} vs {x}"
-                );
+        for n in [4usize, 3, 2] {
+            for guard in [false, true] {
+                let mut a = Rls::<f64, 4>::new(n, rho, p0).unwrap().with_form(Form::Ud);
+                let mut b = Rls::<f32, 4>::new(n, rho as f32, p0 as f32)
+                    .unwrap()
+                    .with_form(Form::Ud);
+                if guard {
+                    a = a.with_max_trace(t).unwrap();
+                    b = b.with_max_trace(t as f32).unwrap();
+                }
+                let (mut acted, mut idle) = (0, 0);
+                for k in 0..600usize {
+                    let phi: [f64; 4] = if (200..400).contains(&k) {
+                        [0.0; 4]
+                    } else {
+                        core::array::from_fn(|i| {
+                            ((k * 7 + i * 13) % 11) as f64 - 5.0 + 0.1 * i as f64
+                        })
+                    };
+                    let y = phi
+                        .iter()
+                        .take(n)
+                        .enumerate()
+                        .map(|(i, v)| v * (i as f64 - 1.5))
+                        .sum::<f64>()
+                        + ((k % 5) as f64 - 2.0) * 0.1;
+                    a.update(&phi[..n], y).unwrap();
+                    b.update(&phi.map(|v| v as f32)[..n], y as f32).unwrap();
+                    if b.var != b.forgetting {
+                        acted += 1;
+                    } else {
+                        idle += 1;
+                    }
+                    let (ta, tb) = (a.trace(), f64::from(b.trace()));
+                    if guard {
+                        assert!(tb <= t * (1.0 + 1e-5), "n={n} k={k}: tr P = {tb}");
+                    }
+                    assert!(
+                        (tb - ta).abs() <= 1e-3 * ta,
+                        "n={n} guard={guard} k={k}: tr P {tb} vs {ta}"
+                    );
+                    for i in 0..n {
+                        let (x, z) = (a.theta()[i], f64::from(b.theta()[i]));
+                        assert!(
+                            (x - z).abs() <= 1e-3 * (1.0 + x.abs()),
+                            "n={n} guard={guard} k={k} θ{i}: {z} vs {x}"
+                        );
+                    }
+                }
+                if guard {
+                    assert!(acted > 10 && idle > 10, "n={n}: acted {acted}, idle {idle}");
+                } else {
+                    assert_eq!(acted, 0, "n={n}: no guard, no pending scale");
+                }
             }
         }
-        assert!(acted > 10 && idle > 10, "acted {acted}, idle {idle}");
     }
 
     // 3.5·81 + 8.5·9 + 2 = 362 and 3·81 + 8·9 + 1 = 316 (the closed forms above).

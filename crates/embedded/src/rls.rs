@@ -39,7 +39,7 @@
 //! first pass keeps them). Total 4 n² + 12 n + 2 for N < 8 (114 for n = 4, 282 for n = 7) and
 //! 3 n² + 13 n + 2 for N ≥ 8 (362 for n = 9), of which n + 1 divisions.
 //! f32 with a capacity N ≤ 4 (nothing to agree with bit for bit, [`Float::SYSID_ORDER`] `false`) orders
-//! four steps for shorter chains of dependent operations (issue 28, fourteenth round: about 1–2 ns, 5–10 %,
+//! four steps for shorter chains of dependent operations (issue 28, fourteenth round: 1.2–2.3 ns, 6–10 %,
 //! less per update at n = 4, with and without the guard): f_j = Σ_(i<j) U_ij φ_i + φ_j as a pairwise sum
 //! ((U_0j φ_0 + U_1j φ_1) + (U_2j φ_2 + φ_j) for j = 3); α_0 = ρ̃ + p_0, α_1 = ρ̃ + (p_0 + p_1),
 //! α_2 = α_1 + p_2, α_3 = α_1 + (p_2 + p_3) with p_j = f_j v_j; θ̂_i + (b_i ε) · (1/α); U_ij + (w_i · (−f_j))

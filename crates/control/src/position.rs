@@ -139,6 +139,12 @@ pub struct Nudge {
     /// T_p: the slip brake's longest pulse, samples (0..=1000; 0 = off, not written then).
     #[serde(default, skip_serializing_if = "is_zero_u32")]
     pub slip_brake_samples: u32,
+    /// Relearn the breakaway command (false = off, as in a file written before it existed, and not
+    /// written then): a creeping nudge whose first motion is already a slip learns u_b there, a held
+    /// nudge whose piston rests N_r samples after its first count ramps on, and the slip brake lasts
+    /// while the piston slips, not while it moves at all (issue 25, session 20; docs/control.md).
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub relearn: bool,
 }
 
 /// The approach with braking (issue 25, session 14): for a step of at least e_a, the full command
@@ -595,6 +601,7 @@ impl ControllerSettings {
                 creep_step: n.creep_step_mm,
                 slip_brake: n.slip_brake_fraction,
                 slip_brake_samples: n.slip_brake_samples,
+                relearn: n.relearn,
             }),
             brake: self.brake.map(|b| ipa_embedded::position::BrakeSettings {
                 min_step: b.min_step_mm,
@@ -890,6 +897,7 @@ mod tests {
             creep_step_mm: 0.0,
             slip_brake_fraction: 0.0,
             slip_brake_samples: 0,
+            relearn: false,
         });
         s
     }

@@ -82,6 +82,19 @@ pub struct NudgeSettings<F: Float> {
     pub slip_brake: F,
     /// T_p: the slip brake's longest pulse, samples (0..=1000; 0 = off).
     pub slip_brake_samples: u32,
+    /// Relearn the breakaway (issue 25, session 20; `false`: as in a file written before it
+    /// existed). Three rules of the finish:
+    /// - a ramp-and-cut nudge with the creep limit whose first motion is already a slip (more than
+    ///   e_v in one sample) learns u_b(side) = u_n there, so that the next nudge that way starts at
+    ///   β u_n instead of β |c b| (without it, on plants whose first count is a slip, every nudge
+    ///   ramped again from the bottom: 0.3–0.6 s each);
+    /// - a held nudge whose piston rests N_r samples after its first count ramps on from its
+    ///   command, as a nudge that has not broken loose (the next count learns u_b again; without it
+    ///   the command was held, below the breakaway, to the end of the run);
+    /// - the slip brake lasts while the piston still slips (moves more than the slip threshold, e_v
+    ///   or e_h, per sample), not while it moves at all: braked on through a one-count creep, the
+    ///   reverse command drove the piston back 0.1 mm.
+    pub relearn: bool,
 }
 
 /// The approach with braking of a [`PositionController`] (`controller.brake` of CONTROLLER.json):
@@ -725,7 +738,16 @@ impl<F: Float> PositionController<F> {
                     self.nudging = None;
                     return self.end_nudge(&g, y, dy);
                 }
-                if g.moving {
+                if g.moving && n.relearn && self.still > n.rest_samples {
+                    // At rest for more than N_r samples after its first count: a nudge at rest again.
+                    let up = g.u_mag + g.ramp * s.ts;
+                    Nudging {
+                        u_mag: if up < s.u_max { up } else { s.u_max },
+                        y0: y,
+                        moving: false,
+                        ..g
+                    }
+                } else if g.moving {
                     g
                 } else if towards {
                     self.learn_breakaway(&g);
@@ -805,6 +827,9 @@ impl<F: Float> PositionController<F> {
         let s = self.s;
         let d = if g.right { dy } else { -dy } * s.ts;
         if d > n.creep_step {
+            if n.relearn && !g.moving {
+                self.learn_breakaway(&g);
+            }
             self.nudging = None;
             return self.end_nudge(&g, y, dy);
         }
@@ -853,16 +878,20 @@ impl<F: Float> PositionController<F> {
             return F::ZERO;
         }
         let d = if g.right { dy } else { -dy } * self.s.ts;
-        let slip = if n.creep_step > F::ZERO {
-            n.creep_step
-        } else {
-            self.s.hold_band
-        };
-        if d <= slip {
+        if d <= self.slip_threshold(&n) {
             return F::ZERO;
         }
         self.slip_brake = Some((g.right, 1));
         self.slip_brake_command(g.right, &n)
+    }
+
+    /// The move per sample towards r that is a slip: e_v, or e_h without a creep limit, mm.
+    fn slip_threshold(&self, n: &NudgeSettings<F>) -> F {
+        if n.creep_step > F::ZERO {
+            n.creep_step
+        } else {
+            self.s.hold_band
+        }
     }
 
     /// −side a_p u_max: the slip brake against a nudge to the right (`right`) or to the left.
@@ -882,7 +911,12 @@ impl<F: Float> PositionController<F> {
         let (right, given) = self.slip_brake?;
         let n = self.s.nudge?;
         let d = if right { dy } else { -dy } * self.s.ts;
-        if given < n.slip_brake_samples && d > F::ZERO {
+        let slipping = if n.relearn {
+            self.slip_threshold(&n)
+        } else {
+            F::ZERO
+        };
+        if given < n.slip_brake_samples && d > slipping {
             self.slip_brake = Some((right, given + 1));
             return Some(self.slip_brake_command(right, &n));
         }
@@ -1069,6 +1103,7 @@ mod tests {
             creep_step: 0.0,
             slip_brake: 0.0,
             slip_brake_samples: 0,
+            relearn: false,
         });
         settings
     }

@@ -1426,6 +1426,79 @@ mod tests {
         }
     }
 
+    /// [`nudging`] (γ = 0.5, e_n = 1, ρ Ts = 1 count per sample, β = 0.5, N_r = 2, b_r = 30) with the
+    /// relearning on or off.
+    fn relearning(relearn: bool) -> PositionSettings<f64> {
+        let mut settings = nudging(0.5);
+        settings.nudge.as_mut().unwrap().relearn = relearn;
+        settings
+    }
+
+    // The stall (session 19's doubt, issue 25 session 20), by hand: a held nudge (no ramp-and-cut
+    // band) from y = 0.6 to r = 1 (e_0 = 0.4, γ e_0 = 0.2) starts at β |b_r| = 15 after N_r = 2
+    // samples at rest, ramps to 16, and its first count (0.61) learns u_b = 16 and holds it. The
+    // piston then sticks at 0.61. Without the relearning the nudge holds 16 for ever. With it, at
+    // rest for more than N_r samples after the count (the third sample at 0.61) it ramps on, 17, 18,
+    // and the next count (0.62) learns u_b = 18 and holds it.
+    #[test]
+    fn a_held_nudge_that_stalls_after_its_first_count_ramps_on_when_it_relearns() {
+        let ys = [0.6, 0.6, 0.6, 0.6, 0.61, 0.61, 0.61, 0.61, 0.61, 0.62, 0.62];
+        let mut c = PositionController::new(relearning(false), Some(shift_inverse())).unwrap();
+        let got = ys.map(|y| c.step(1.0, y).unwrap());
+        let held = [0.0, 0.0, 15.0, 16.0, 16.0, 16.0, 16.0, 16.0, 16.0, 16.0, 16.0];
+        assert_eq!(got, held);
+        assert_eq!(c.breakaway(), [20.0, 16.0]);
+        let mut c = PositionController::new(relearning(true), Some(shift_inverse())).unwrap();
+        let got = ys.map(|y| c.step(1.0, y).unwrap());
+        let ramped = [0.0, 0.0, 15.0, 16.0, 16.0, 16.0, 16.0, 17.0, 18.0, 18.0, 18.0];
+        assert_eq!(got, ramped);
+        assert_eq!(c.breakaway(), [20.0, 18.0]);
+    }
+
+    // The breakaway learnt at a slip, by hand: ramp-and-cut band e_c = 0.5 with the creep limit
+    // e_v = 0.015 and ρ_min = 20; from y = 0.5 to r = 1 (e_0 = 0.5 = e_c: ρ_n = (ρ / e_c) e_0 = 100
+    // counts/s, 1 per sample) the nudge starts at β |b_r| = 15 and ramps 16, 17; its first motion
+    // (0.55, 0.05 > e_v in one sample) is a slip: the nudge ends (u = 0). The piston comes to rest at
+    // 0.6 and after N_r = 2 samples the next nudge starts at β u_b: 0.5 × 17 = 8.5 with the
+    // relearning (u_b = 17 learnt at the slip), 0.5 × 30 = 15 without (nothing learnt).
+    #[test]
+    fn a_creeping_nudge_whose_first_motion_is_a_slip_learns_the_breakaway_when_it_relearns() {
+        let ys = [0.5, 0.5, 0.5, 0.5, 0.5, 0.55, 0.6, 0.6, 0.6];
+        for (relearn, next, u_b) in [(false, 15.0, 30.0), (true, 8.5, 17.0)] {
+            let mut settings = relearning(relearn);
+            let n = settings.nudge.as_mut().unwrap();
+            (n.cut_band, n.min_ramp, n.creep_step) = (0.5, 20.0, 0.015);
+            let mut c = PositionController::new(settings, Some(shift_inverse())).unwrap();
+            let got = ys.map(|y| c.step(1.0, y).unwrap());
+            let want = [0.0, 0.0, 15.0, 16.0, 17.0, 0.0, 0.0, 0.0, next];
+            for (k, (g, w)) in got.iter().zip(want).enumerate() {
+                assert!((g - w).abs() < 1e-9, "relearn {relearn}, sample {k}: {g} != {w}");
+            }
+            assert!((c.breakaway()[1] - u_b).abs() < 1e-9, "{:?}", c.breakaway());
+        }
+    }
+
+    // The slip brake with the relearning lasts while the piston slips: the held nudge of the slip
+    // brake's test (a_p = 0.2, T_p = 3; no creep limit, so the slip threshold is e_h = 0.02) is cut
+    // at 0.85 during a 0.2 mm move: −51; the next sample moves one count (0.86, 0.01 ≤ e_h). Without
+    // the relearning the brake goes on (−51, the piston still moves towards r); with it the brake
+    // ends and the law, not yet at rest, closes the valves (0).
+    #[test]
+    fn with_the_relearning_the_slip_brake_ends_when_the_piston_no_longer_slips() {
+        let ys = [0.6, 0.6, 0.6, 0.6, 0.65, 0.85, 0.86, 0.86];
+        for (relearn, after) in [(false, [-51.0, 0.0]), (true, [0.0, 0.0])] {
+            let mut settings = relearning(relearn);
+            let n = settings.nudge.as_mut().unwrap();
+            (n.slip_brake, n.slip_brake_samples) = (0.2, 3);
+            let mut c = PositionController::new(settings, Some(shift_inverse())).unwrap();
+            let got = ys.map(|y| c.step(1.0, y).unwrap());
+            let want = [0.0, 0.0, 15.0, 16.0, 16.0, -51.0, after[0], after[1]];
+            for (k, (g, w)) in got.iter().zip(want).enumerate() {
+                assert!((g - w).abs() < 1e-9, "relearn {relearn}, sample {k}: {g} != {w}");
+            }
+        }
+    }
+
     #[test]
     fn bad_settings_and_inputs_are_errors() {
         let mut bad = s();

@@ -1445,12 +1445,16 @@ mod tests {
         let ys = [0.6, 0.6, 0.6, 0.6, 0.61, 0.61, 0.61, 0.61, 0.61, 0.62, 0.62];
         let mut c = PositionController::new(relearning(false), Some(shift_inverse())).unwrap();
         let got = ys.map(|y| c.step(1.0, y).unwrap());
-        let held = [0.0, 0.0, 15.0, 16.0, 16.0, 16.0, 16.0, 16.0, 16.0, 16.0, 16.0];
+        let held = [
+            0.0, 0.0, 15.0, 16.0, 16.0, 16.0, 16.0, 16.0, 16.0, 16.0, 16.0,
+        ];
         assert_eq!(got, held);
         assert_eq!(c.breakaway(), [20.0, 16.0]);
         let mut c = PositionController::new(relearning(true), Some(shift_inverse())).unwrap();
         let got = ys.map(|y| c.step(1.0, y).unwrap());
-        let ramped = [0.0, 0.0, 15.0, 16.0, 16.0, 16.0, 16.0, 17.0, 18.0, 18.0, 18.0];
+        let ramped = [
+            0.0, 0.0, 15.0, 16.0, 16.0, 16.0, 16.0, 17.0, 18.0, 18.0, 18.0,
+        ];
         assert_eq!(got, ramped);
         assert_eq!(c.breakaway(), [20.0, 18.0]);
     }
@@ -1472,7 +1476,10 @@ mod tests {
             let got = ys.map(|y| c.step(1.0, y).unwrap());
             let want = [0.0, 0.0, 15.0, 16.0, 17.0, 0.0, 0.0, 0.0, next];
             for (k, (g, w)) in got.iter().zip(want).enumerate() {
-                assert!((g - w).abs() < 1e-9, "relearn {relearn}, sample {k}: {g} != {w}");
+                assert!(
+                    (g - w).abs() < 1e-9,
+                    "relearn {relearn}, sample {k}: {g} != {w}"
+                );
             }
             assert!((c.breakaway()[1] - u_b).abs() < 1e-9, "{:?}", c.breakaway());
         }
@@ -1494,7 +1501,10 @@ mod tests {
             let got = ys.map(|y| c.step(1.0, y).unwrap());
             let want = [0.0, 0.0, 15.0, 16.0, 16.0, -51.0, after[0], after[1]];
             for (k, (g, w)) in got.iter().zip(want).enumerate() {
-                assert!((g - w).abs() < 1e-9, "relearn {relearn}, sample {k}: {g} != {w}");
+                assert!(
+                    (g - w).abs() < 1e-9,
+                    "relearn {relearn}, sample {k}: {g} != {w}"
+                );
             }
         }
     }

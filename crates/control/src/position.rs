@@ -1022,6 +1022,46 @@ mod tests {
         assert_eq!(ControllerFile::parse(&off, "c.json").unwrap(), with(0.0, 0));
     }
 
+    // The relearning reaches the embedded step (whose tests derive it by hand): the held nudge of
+    // the slip brake's test from 0.6 towards 1 (β |b_r| = 15, 16, the first count at 0.61 learns
+    // u_b = 16) sticks at 0.61; with the relearning, at rest for more than N_r = 2 samples after the
+    // count, it ramps on to 17, 18; without it, it holds 16. Written only when on (`"relearn":
+    // true`), read as off from a file without it; a value that is not a bool is refused at its line.
+    #[test]
+    fn the_relearning_reaches_the_embedded_step_and_round_trips() {
+        let with = |relearn: bool| {
+            let mut s = nudging();
+            s.nudge.as_mut().unwrap().relearn = relearn;
+            s
+        };
+        let ys = [0.6, 0.6, 0.6, 0.6, 0.61, 0.61, 0.61, 0.61, 0.61];
+        for (relearn, tail) in [(true, [17.0, 18.0]), (false, [16.0, 16.0])] {
+            let mut c = with(relearn).build().unwrap();
+            let u: Vec<f64> = ys.iter().map(|&y| c.step(1.0, y)).collect();
+            let want = [0.0, 0.0, 15.0, 16.0, 16.0, 16.0, 16.0, tail[0], tail[1]];
+            for (k, (g, w)) in u.iter().zip(want).enumerate() {
+                assert!(
+                    (g - w).abs() < 1e-9,
+                    "relearn {relearn}, sample {k}: {g} != {w}"
+                );
+            }
+        }
+        let text = serde_json::to_string_pretty(&ControllerFile::new(with(true), None)).unwrap();
+        assert!(text.contains("\"relearn\": true"), "{text}");
+        assert_eq!(ControllerFile::parse(&text, "c.json").unwrap(), with(true));
+        let bad = text.replace("\"relearn\": true", "\"relearn\": 1");
+        let e = ControllerFile::parse(&bad, "c.json").unwrap_err();
+        let line = 1 + bad.lines().position(|l| l.contains("relearn")).unwrap();
+        assert!(
+            e.to_string().contains(&format!("c.json:{line}:")) && e.to_string().contains("boolean"),
+            "{e}"
+        );
+        // Off (every file before session 20): not written, and read as off.
+        let off = serde_json::to_string(&ControllerFile::new(with(false), None)).unwrap();
+        assert!(!off.contains("relearn"));
+        assert_eq!(ControllerFile::parse(&off, "c.json").unwrap(), with(false));
+    }
+
     #[test]
     fn a_nudge_band_inside_the_hold_band_is_refused() {
         let mut s = nudging();

@@ -252,6 +252,13 @@ fn c_controller_with_a_slip_brake_matches_control_bit_for_bit_on_a_recorded_run(
     c_controller_matches_control(Brake::Slip);
 }
 
+// Session 20: the nudge's relearning (the 44th argument of position.c, after the slip brake's two);
+// the same C replay without it (0) gives other commands.
+#[test]
+fn c_controller_that_relearns_the_breakaway_matches_control_bit_for_bit_on_a_recorded_run() {
+    c_controller_matches_control(Brake::Relearn);
+}
+
 /// Which approach the controller file of [`c_controller_matches_control`] has.
 #[derive(Clone, Copy, PartialEq)]
 enum Brake {
@@ -267,6 +274,8 @@ enum Brake {
     Rebrake,
     /// As `Creep`, with the nudge's slip brake a_p = 0.25, T_p = 5.
     Slip,
+    /// As `Slip`, with the nudge's relearning.
+    Relearn,
 }
 
 fn c_controller_matches_control(brake: Brake) {
@@ -321,8 +330,9 @@ fn c_controller_matches_control(brake: Brake) {
         .as_object_mut()
         .unwrap()
         .remove("short_approach");
-    // tune may choose the slip brake (session 19); only the `Slip` run has one.
-    for k in ["slip_brake_fraction", "slip_brake_samples"] {
+    // tune may choose the slip brake (session 19) and the relearning (session 20); only the `Slip`
+    // and `Relearn` runs have them.
+    for k in ["slip_brake_fraction", "slip_brake_samples", "relearn"] {
         file["controller"]["nudge"]
             .as_object_mut()
             .unwrap()
@@ -348,22 +358,30 @@ fn c_controller_matches_control(brake: Brake) {
     }
     if matches!(
         brake,
-        Brake::Short | Brake::Creep | Brake::Rebrake | Brake::Slip
+        Brake::Short | Brake::Creep | Brake::Rebrake | Brake::Slip | Brake::Relearn
     ) {
         file["controller"]["short_approach"] = serde_json::json!({"max_step_mm": 40.0,
             "drive_fraction": 0.35, "ramp_counts_s": 500.0, "switch_mm": 0.5, "lead_s": 0.01,
             "brake_strength": 0.5, "brake_samples": 3, "rest_samples": 2});
     }
-    if matches!(brake, Brake::Creep | Brake::Rebrake | Brake::Slip) {
+    if matches!(
+        brake,
+        Brake::Creep | Brake::Rebrake | Brake::Slip | Brake::Relearn
+    ) {
         file["controller"]["nudge"]["creep_step_mm"] = serde_json::json!(0.015);
     }
-    if brake == Brake::Slip {
+    if matches!(brake, Brake::Slip | Brake::Relearn) {
         file["controller"]["nudge"]["slip_brake_fraction"] = serde_json::json!(0.25);
         file["controller"]["nudge"]["slip_brake_samples"] = serde_json::json!(5);
     }
+    if brake == Brake::Relearn {
+        file["controller"]["nudge"]["relearn"] = serde_json::json!(true);
+    }
     let (profile, samples) = match brake {
         Brake::Learnt => ("staircase:40,38,120,60,120,60@2", 1201),
-        Brake::Short | Brake::Creep | Brake::Slip => ("staircase:40,60,45,120,100@2", 1001),
+        Brake::Short | Brake::Creep | Brake::Slip | Brake::Relearn => {
+            ("staircase:40,60,45,120,100@2", 1001)
+        }
         Brake::Rebrake => ("staircase:40,60,45,170,100@2", 1001),
         _ => ("staircase:40,38,120,60@2", 801),
     };
@@ -451,7 +469,7 @@ fn c_controller_matches_control(brake: Brake) {
     let unlearnt = matches!(brake, Brake::Learnt | Brake::Short).then(|| replay(&args));
     if matches!(
         brake,
-        Brake::Learnt | Brake::Short | Brake::Creep | Brake::Rebrake | Brake::Slip
+        Brake::Learnt | Brake::Short | Brake::Creep | Brake::Rebrake | Brake::Slip | Brake::Relearn
     ) {
         let b = &c["brake"];
         for k in ["learn", "lead_max_s"] {
@@ -461,7 +479,7 @@ fn c_controller_matches_control(brake: Brake) {
     }
     if matches!(
         brake,
-        Brake::Short | Brake::Creep | Brake::Rebrake | Brake::Slip
+        Brake::Short | Brake::Creep | Brake::Rebrake | Brake::Slip | Brake::Relearn
     ) {
         let a = &c["short_approach"];
         for k in [
@@ -512,6 +530,26 @@ fn c_controller_matches_control(brake: Brake) {
         ));
         args.push(nudge["slip_brake_samples"].as_u64().unwrap().to_string());
         Some(without)
+    // The relearning after the slip brake: the replay without it (0) learns no breakaway at a slip.
+    } else if brake == Brake::Relearn {
+        args.push(format!("{:?}", nudge["creep_step_mm"].as_f64().unwrap()));
+        args.push("0".into());
+        args.push(format!(
+            "{:?}",
+            nudge["slip_brake_fraction"].as_f64().unwrap()
+        ));
+        args.push(nudge["slip_brake_samples"].as_u64().unwrap().to_string());
+        let mut without = args.clone();
+        without.push("0".into());
+        args.push(
+            if nudge["relearn"].as_bool().unwrap() {
+                "1"
+            } else {
+                "0"
+            }
+            .into(),
+        );
+        Some(replay(&without))
     } else {
         unlearnt
     };
@@ -527,7 +565,7 @@ fn c_controller_matches_control(brake: Brake) {
     if let Some(unlearnt) = unlearnt {
         assert_ne!(
             unlearnt, recorded,
-            "the learnt lead, the short-step approach, the creep, the re-brake or the slip brake changed no command"
+            "the learnt lead, the short-step approach, the creep, the re-brake, the slip brake or the relearning changed no command"
         );
     }
     for (k, (a, b)) in from_c.iter().zip(&recorded).enumerate() {

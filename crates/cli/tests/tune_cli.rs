@@ -107,7 +107,9 @@ fn reference_commands(c: &serde_json::Value, r: &[f64], y: &[f64]) -> Vec<f64> {
     // such sample learns u_b) and ramps on otherwise (y_0 = y before the first motion). Slip brake
     // (a_p, T_p; session 19): a nudge that ends at a sample whose move towards r exceeds e_v (e_h
     // without a creep limit) commands −side a_p u_max from that sample while the piston moves
-    // towards r, at most T_p samples.
+    // towards r, at most T_p samples. Relearning (session 20): the creep's end at a first motion
+    // learns u_b = u_n, a held nudge that has moved and rests more than N_r samples ramps on as one
+    // that has not (y_0 = y), and the slip brake goes on only while the move exceeds e_v (e_h).
     let nudge = &c["nudge"];
     let n = nudge.is_object().then(|| {
         let h = |k: &str| nudge[k].as_f64().unwrap();
@@ -132,6 +134,8 @@ fn reference_commands(c: &serde_json::Value, r: &[f64], y: &[f64]) -> Vec<f64> {
         nudge["slip_brake_samples"].as_f64().unwrap_or(0.0),
     );
     let slip = if e_v > 0.0 { e_v } else { hold };
+    let relearn = nudge["relearn"].as_bool().unwrap_or(false);
+    let slipping = if relearn { slip } else { 0.0 };
     // The slip brake under way: the nudge's side and the samples given.
     let mut pulse: Option<(f64, f64)> = None;
     // The command at a nudge's end at sample k (side ±1): 0, or the slip brake's first sample.
@@ -167,7 +171,7 @@ fn reference_commands(c: &serde_json::Value, r: &[f64], y: &[f64]) -> Vec<f64> {
             0.0
         };
         if let Some((side, given)) = pulse {
-            if given < t_p && side * (y[k] - y[k - 1]) > 0.0 {
+            if given < t_p && side * (y[k] - y[k - 1]) > slipping {
                 pulse = Some((side, given + 1.0));
                 e_prev = e;
                 out.push(-side * a_p * umax);
@@ -195,6 +199,9 @@ fn reference_commands(c: &serde_json::Value, r: &[f64], y: &[f64]) -> Vec<f64> {
                 Some((side, y0, e0, un, moving, rate, true)) if e_v > 0.0 && e * e0 > 0.0 => {
                     let step = side * (y[k] - y[k - 1]);
                     if step > e_v {
+                        if relearn && !moving {
+                            ub[idx(side)] = un;
+                        }
                         under_way = None;
                         ended = Some((side, y0, e0));
                         end(side, k, &mut pulse)
@@ -225,6 +232,10 @@ fn reference_commands(c: &serde_json::Value, r: &[f64], y: &[f64]) -> Vec<f64> {
                             ended = Some((side, y0, e0));
                         }
                         end(side, k, &mut pulse)
+                    } else if moving && relearn && still > rest {
+                        let un = (un + rate * ts).min(umax);
+                        under_way = Some((side, y[k], e0, un, false, rate, cuts));
+                        side * un
                     } else if moving {
                         side * un
                     } else if towards {
@@ -454,7 +465,7 @@ fn bad_inputs_name_the_file_or_the_flag() {
     assert!(
         e.contains("--max-evaluations = 10000")
             && e.contains("at most 1e8 simulated samples")
-            && e.contains("(10000 evaluations + 38 after the search) × 200 variants"),
+            && e.contains("(10000 evaluations + 39 after the search) × 200 variants"),
         "{e}"
     );
     assert!(!out.exists());

@@ -43,6 +43,8 @@
 //! largest speed towards r, the first sample within the 2 % band); REBRAKE=N_b turns the brake's
 //! re-brake on with a hold of N_b samples at rest (`brake.rebrake`, `brake.rest_samples`; 0 = off);
 //! BRAKE_CTL's tenth value 1 turns it on too.
+//! Session 20: RELEARN=1 (0) turns the nudge's relearning of its breakaway on (off)
+//! (`nudge.relearn`).
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
 use control::tune::{self, Spec};
 use control::ControllerFile;
@@ -254,6 +256,9 @@ fn main() {
         }
         if let Some(v) = env("SLIP_N") {
             n.slip_brake_samples = v as u32;
+        }
+        if let Some(v) = env("RELEARN") {
+            n.relearn = v != 0.0;
         }
     }
     if let Ok(b) = std::env::var("BRAKE_CTL") {

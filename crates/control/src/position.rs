@@ -139,6 +139,12 @@ pub struct Nudge {
     /// T_p: the slip brake's longest pulse, samples (0..=1000; 0 = off, not written then).
     #[serde(default, skip_serializing_if = "is_zero_u32")]
     pub slip_brake_samples: u32,
+    /// Relearn the breakaway command (false = off, as in a file written before it existed, and not
+    /// written then): a creeping nudge whose first motion is already a slip learns u_b there, a held
+    /// nudge whose piston rests N_r samples after its first count ramps on, and the slip brake lasts
+    /// while the piston slips, not while it moves at all (issue 25, session 20; docs/control.md).
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub relearn: bool,
 }
 
 /// The approach with braking (issue 25, session 14): for a step of at least e_a, the full command
@@ -595,6 +601,7 @@ impl ControllerSettings {
                 creep_step: n.creep_step_mm,
                 slip_brake: n.slip_brake_fraction,
                 slip_brake_samples: n.slip_brake_samples,
+                relearn: n.relearn,
             }),
             brake: self.brake.map(|b| ipa_embedded::position::BrakeSettings {
                 min_step: b.min_step_mm,
@@ -890,6 +897,7 @@ mod tests {
             creep_step_mm: 0.0,
             slip_brake_fraction: 0.0,
             slip_brake_samples: 0,
+            relearn: false,
         });
         s
     }
@@ -1012,6 +1020,46 @@ mod tests {
         let off = serde_json::to_string(&ControllerFile::new(with(0.0, 0), None)).unwrap();
         assert!(!off.contains("slip"));
         assert_eq!(ControllerFile::parse(&off, "c.json").unwrap(), with(0.0, 0));
+    }
+
+    // The relearning reaches the embedded step (whose tests derive it by hand): the held nudge of
+    // the slip brake's test from 0.6 towards 1 (β |b_r| = 15, 16, the first count at 0.61 learns
+    // u_b = 16) sticks at 0.61; with the relearning, at rest for more than N_r = 2 samples after the
+    // count, it ramps on to 17, 18; without it, it holds 16. Written only when on (`"relearn":
+    // true`), read as off from a file without it; a value that is not a bool is refused at its line.
+    #[test]
+    fn the_relearning_reaches_the_embedded_step_and_round_trips() {
+        let with = |relearn: bool| {
+            let mut s = nudging();
+            s.nudge.as_mut().unwrap().relearn = relearn;
+            s
+        };
+        let ys = [0.6, 0.6, 0.6, 0.6, 0.61, 0.61, 0.61, 0.61, 0.61];
+        for (relearn, tail) in [(true, [17.0, 18.0]), (false, [16.0, 16.0])] {
+            let mut c = with(relearn).build().unwrap();
+            let u: Vec<f64> = ys.iter().map(|&y| c.step(1.0, y)).collect();
+            let want = [0.0, 0.0, 15.0, 16.0, 16.0, 16.0, 16.0, tail[0], tail[1]];
+            for (k, (g, w)) in u.iter().zip(want).enumerate() {
+                assert!(
+                    (g - w).abs() < 1e-9,
+                    "relearn {relearn}, sample {k}: {g} != {w}"
+                );
+            }
+        }
+        let text = serde_json::to_string_pretty(&ControllerFile::new(with(true), None)).unwrap();
+        assert!(text.contains("\"relearn\": true"), "{text}");
+        assert_eq!(ControllerFile::parse(&text, "c.json").unwrap(), with(true));
+        let bad = text.replace("\"relearn\": true", "\"relearn\": 1");
+        let e = ControllerFile::parse(&bad, "c.json").unwrap_err();
+        let line = 1 + bad.lines().position(|l| l.contains("relearn")).unwrap();
+        assert!(
+            e.to_string().contains(&format!("c.json:{line}:")) && e.to_string().contains("boolean"),
+            "{e}"
+        );
+        // Off (every file before session 20): not written, and read as off.
+        let off = serde_json::to_string(&ControllerFile::new(with(false), None)).unwrap();
+        assert!(!off.contains("relearn"));
+        assert_eq!(ControllerFile::parse(&off, "c.json").unwrap(), with(false));
     }
 
     #[test]

@@ -97,7 +97,7 @@ pub struct TuneReport {
     /// Evaluations of the ramp-and-cut band after the short-step approach (`tune::cut_band_candidates`).
     pub cut_evaluations: usize,
     /// Evaluations of the nudge's slip brake, the first choice after the search
-    /// (`tune::slip_brake_candidates`).
+    /// (`tune::slip_brake_candidates`), and of its relearning, the last (`tune::relearn_candidates`).
     pub slip_evaluations: usize,
     /// Wall-clock time, s.
     pub seconds: f64,

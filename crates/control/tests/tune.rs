@@ -421,8 +421,20 @@ fn tuning_meets_the_spec_where_it_is_reachable() {
             + usize::from(t.settings.brake.is_some())
     );
     // The slip brake (session 19): one candidate, the first choice after the search, when the
-    // controller has a nudge.
-    assert_eq!(t.slip_evaluations, usize::from(t.settings.nudge.is_some()));
+    // controller has a nudge; and (session 20) one evaluation of the relearning, applied last,
+    // where the slip brake was kept.
+    let slip_kept = t
+        .settings
+        .nudge
+        .is_some_and(|n| n.slip_brake_fraction > 0.0);
+    assert_eq!(
+        t.slip_evaluations,
+        usize::from(t.settings.nudge.is_some()) + usize::from(slip_kept)
+    );
+    assert_eq!(
+        t.settings.nudge.map(|n| n.relearn),
+        t.settings.nudge.map(|_| slip_kept)
+    );
     assert_eq!(
         t.rest_evaluations,
         tune::NUDGE_REST_CANDIDATES
@@ -658,6 +670,7 @@ fn the_cut_band_candidates_are_the_other_bands_with_the_creep() {
         creep_step_mm: 0.0,
         slip_brake_fraction: 0.0,
         slip_brake_samples: 0,
+        relearn: false,
     };
     chosen.nudge = Some(nudge);
     let c = tune::cut_band_candidates(&chosen, &spec);
@@ -710,6 +723,7 @@ fn the_slip_brake_candidate_is_the_controller_with_the_slip_brake() {
         creep_step_mm: 0.015,
         slip_brake_fraction: 0.0,
         slip_brake_samples: 0,
+        relearn: false,
     };
     chosen.nudge = Some(nudge);
     let c = tune::slip_brake_candidates(&chosen, &spec);

@@ -326,6 +326,13 @@ typedef struct IpaController {
    * (`brake.rebrake`; issue 25, session 19); 0: not (as in a struct zeroed before it existed).
    */
   int32_t brake_rebrake;
+  /**
+   * 1: the nudge relearns its breakaway (`nudge.relearn`; issue 25, session 20): at a creeping
+   * nudge's first motion that is already a slip, after N_r samples at rest following a held
+   * nudge's first count (the ramp resumes), and the slip brake lasts while the piston slips;
+   * 0: not (as in a struct zeroed before it existed).
+   */
+  int32_t nudge_relearn;
 } IpaController;
 
 #ifdef __cplusplus

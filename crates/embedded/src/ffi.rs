@@ -211,6 +211,11 @@ pub struct IpaController {
     /// 1: the approach with braking re-brakes a count towards r during its release and hold
     /// (`brake.rebrake`; issue 25, session 19); 0: not (as in a struct zeroed before it existed).
     pub brake_rebrake: i32,
+    /// 1: the nudge relearns its breakaway (`nudge.relearn`; issue 25, session 20): at a creeping
+    /// nudge's first motion that is already a slip, after N_r samples at rest following a held
+    /// nudge's first count (the ramp resumes), and the slip brake lasts while the piston slips;
+    /// 0: not (as in a struct zeroed before it existed).
+    pub nudge_relearn: i32,
 }
 const _: () = assert!(size_of::<CusumState>() <= IPA_CUSUM_STATE_BYTES);
 const _: () = assert!(MAX_D >= IPA_MAX_NA as usize);
@@ -721,9 +726,9 @@ pub unsafe extern "C" fn ipa_ctl_init(
         1 => Ok(true),
         _ => Err(Error::Setting),
     };
-    let nudge = match c.has_nudge {
-        0 => Ok(None),
-        1 => Ok(Some(NudgeSettings {
+    let nudge = match (c.has_nudge, c.nudge_relearn) {
+        (0, _) => Ok(None),
+        (1, relearn @ (0 | 1)) => Ok(Some(NudgeSettings {
             band: c.nudge_band,
             ramp: c.nudge_ramp,
             start_fraction: c.nudge_start_fraction,
@@ -735,6 +740,7 @@ pub unsafe extern "C" fn ipa_ctl_init(
             creep_step: c.nudge_creep_step,
             slip_brake: c.nudge_slip_brake,
             slip_brake_samples: c.nudge_slip_brake_samples,
+            relearn: relearn == 1,
         })),
         _ => Err(Error::Setting),
     };

@@ -82,6 +82,19 @@ pub struct NudgeSettings<F: Float> {
     pub slip_brake: F,
     /// T_p: the slip brake's longest pulse, samples (0..=1000; 0 = off).
     pub slip_brake_samples: u32,
+    /// Relearn the breakaway (issue 25, session 20; `false`: as in a file written before it
+    /// existed). Three rules of the finish:
+    /// - a ramp-and-cut nudge with the creep limit whose first motion is already a slip (more than
+    ///   e_v in one sample) learns u_b(side) = u_n there, so that the next nudge that way starts at
+    ///   β u_n instead of β |c b| (without it, on plants whose first count is a slip, every nudge
+    ///   ramped again from the bottom: 0.3–0.6 s each);
+    /// - a held nudge whose piston rests N_r samples after its first count ramps on from its
+    ///   command, as a nudge that has not broken loose (the next count learns u_b again; without it
+    ///   the command was held, below the breakaway, to the end of the run);
+    /// - the slip brake lasts while the piston still slips (moves more than the slip threshold, e_v
+    ///   or e_h, per sample), not while it moves at all: braked on through a one-count creep, the
+    ///   reverse command drove the piston back 0.1 mm.
+    pub relearn: bool,
 }
 
 /// The approach with braking of a [`PositionController`] (`controller.brake` of CONTROLLER.json):
@@ -725,7 +738,16 @@ impl<F: Float> PositionController<F> {
                     self.nudging = None;
                     return self.end_nudge(&g, y, dy);
                 }
-                if g.moving {
+                if g.moving && n.relearn && self.still > n.rest_samples {
+                    // At rest for more than N_r samples after its first count: a nudge at rest again.
+                    let up = g.u_mag + g.ramp * s.ts;
+                    Nudging {
+                        u_mag: if up < s.u_max { up } else { s.u_max },
+                        y0: y,
+                        moving: false,
+                        ..g
+                    }
+                } else if g.moving {
                     g
                 } else if towards {
                     self.learn_breakaway(&g);
@@ -805,6 +827,9 @@ impl<F: Float> PositionController<F> {
         let s = self.s;
         let d = if g.right { dy } else { -dy } * s.ts;
         if d > n.creep_step {
+            if n.relearn && !g.moving {
+                self.learn_breakaway(&g);
+            }
             self.nudging = None;
             return self.end_nudge(&g, y, dy);
         }
@@ -853,16 +878,20 @@ impl<F: Float> PositionController<F> {
             return F::ZERO;
         }
         let d = if g.right { dy } else { -dy } * self.s.ts;
-        let slip = if n.creep_step > F::ZERO {
-            n.creep_step
-        } else {
-            self.s.hold_band
-        };
-        if d <= slip {
+        if d <= self.slip_threshold(&n) {
             return F::ZERO;
         }
         self.slip_brake = Some((g.right, 1));
         self.slip_brake_command(g.right, &n)
+    }
+
+    /// The move per sample towards r that is a slip: e_v, or e_h without a creep limit, mm.
+    fn slip_threshold(&self, n: &NudgeSettings<F>) -> F {
+        if n.creep_step > F::ZERO {
+            n.creep_step
+        } else {
+            self.s.hold_band
+        }
     }
 
     /// −side a_p u_max: the slip brake against a nudge to the right (`right`) or to the left.
@@ -882,7 +911,12 @@ impl<F: Float> PositionController<F> {
         let (right, given) = self.slip_brake?;
         let n = self.s.nudge?;
         let d = if right { dy } else { -dy } * self.s.ts;
-        if given < n.slip_brake_samples && d > F::ZERO {
+        let slipping = if n.relearn {
+            self.slip_threshold(&n)
+        } else {
+            F::ZERO
+        };
+        if given < n.slip_brake_samples && d > slipping {
             self.slip_brake = Some((right, given + 1));
             return Some(self.slip_brake_command(right, &n));
         }
@@ -1069,6 +1103,7 @@ mod tests {
             creep_step: 0.0,
             slip_brake: 0.0,
             slip_brake_samples: 0,
+            relearn: false,
         });
         settings
     }
@@ -1388,6 +1423,89 @@ mod tests {
             let n = settings.nudge.as_mut().unwrap();
             (n.slip_brake, n.slip_brake_samples) = (a_p, t_p);
             assert!(PositionController::new(settings, None).is_err());
+        }
+    }
+
+    /// [`nudging`] (γ = 0.5, e_n = 1, ρ Ts = 1 count per sample, β = 0.5, N_r = 2, b_r = 30) with the
+    /// relearning on or off.
+    fn relearning(relearn: bool) -> PositionSettings<f64> {
+        let mut settings = nudging(0.5);
+        settings.nudge.as_mut().unwrap().relearn = relearn;
+        settings
+    }
+
+    // The stall (session 19's doubt, issue 25 session 20), by hand: a held nudge (no ramp-and-cut
+    // band) from y = 0.6 to r = 1 (e_0 = 0.4, γ e_0 = 0.2) starts at β |b_r| = 15 after N_r = 2
+    // samples at rest, ramps to 16, and its first count (0.61) learns u_b = 16 and holds it. The
+    // piston then sticks at 0.61. Without the relearning the nudge holds 16 for ever. With it, at
+    // rest for more than N_r samples after the count (the third sample at 0.61) it ramps on, 17, 18,
+    // and the next count (0.62) learns u_b = 18 and holds it.
+    #[test]
+    fn a_held_nudge_that_stalls_after_its_first_count_ramps_on_when_it_relearns() {
+        let ys = [0.6, 0.6, 0.6, 0.6, 0.61, 0.61, 0.61, 0.61, 0.61, 0.62, 0.62];
+        let mut c = PositionController::new(relearning(false), Some(shift_inverse())).unwrap();
+        let got = ys.map(|y| c.step(1.0, y).unwrap());
+        let held = [
+            0.0, 0.0, 15.0, 16.0, 16.0, 16.0, 16.0, 16.0, 16.0, 16.0, 16.0,
+        ];
+        assert_eq!(got, held);
+        assert_eq!(c.breakaway(), [20.0, 16.0]);
+        let mut c = PositionController::new(relearning(true), Some(shift_inverse())).unwrap();
+        let got = ys.map(|y| c.step(1.0, y).unwrap());
+        let ramped = [
+            0.0, 0.0, 15.0, 16.0, 16.0, 16.0, 16.0, 17.0, 18.0, 18.0, 18.0,
+        ];
+        assert_eq!(got, ramped);
+        assert_eq!(c.breakaway(), [20.0, 18.0]);
+    }
+
+    // The breakaway learnt at a slip, by hand: ramp-and-cut band e_c = 0.5 with the creep limit
+    // e_v = 0.015 and ρ_min = 20; from y = 0.5 to r = 1 (e_0 = 0.5 = e_c: ρ_n = (ρ / e_c) e_0 = 100
+    // counts/s, 1 per sample) the nudge starts at β |b_r| = 15 and ramps 16, 17; its first motion
+    // (0.55, 0.05 > e_v in one sample) is a slip: the nudge ends (u = 0). The piston comes to rest at
+    // 0.6 and after N_r = 2 samples the next nudge starts at β u_b: 0.5 × 17 = 8.5 with the
+    // relearning (u_b = 17 learnt at the slip), 0.5 × 30 = 15 without (nothing learnt).
+    #[test]
+    fn a_creeping_nudge_whose_first_motion_is_a_slip_learns_the_breakaway_when_it_relearns() {
+        let ys = [0.5, 0.5, 0.5, 0.5, 0.5, 0.55, 0.6, 0.6, 0.6];
+        for (relearn, next, u_b) in [(false, 15.0, 30.0), (true, 8.5, 17.0)] {
+            let mut settings = relearning(relearn);
+            let n = settings.nudge.as_mut().unwrap();
+            (n.cut_band, n.min_ramp, n.creep_step) = (0.5, 20.0, 0.015);
+            let mut c = PositionController::new(settings, Some(shift_inverse())).unwrap();
+            let got = ys.map(|y| c.step(1.0, y).unwrap());
+            let want = [0.0, 0.0, 15.0, 16.0, 17.0, 0.0, 0.0, 0.0, next];
+            for (k, (g, w)) in got.iter().zip(want).enumerate() {
+                assert!(
+                    (g - w).abs() < 1e-9,
+                    "relearn {relearn}, sample {k}: {g} != {w}"
+                );
+            }
+            assert!((c.breakaway()[1] - u_b).abs() < 1e-9, "{:?}", c.breakaway());
+        }
+    }
+
+    // The slip brake with the relearning lasts while the piston slips: the held nudge of the slip
+    // brake's test (a_p = 0.2, T_p = 3; no creep limit, so the slip threshold is e_h = 0.02) is cut
+    // at 0.85 during a 0.2 mm move: −51; the next sample moves one count (0.86, 0.01 ≤ e_h). Without
+    // the relearning the brake goes on (−51, the piston still moves towards r); with it the brake
+    // ends and the law, not yet at rest, closes the valves (0).
+    #[test]
+    fn with_the_relearning_the_slip_brake_ends_when_the_piston_no_longer_slips() {
+        let ys = [0.6, 0.6, 0.6, 0.6, 0.65, 0.85, 0.86, 0.86];
+        for (relearn, after) in [(false, [-51.0, 0.0]), (true, [0.0, 0.0])] {
+            let mut settings = relearning(relearn);
+            let n = settings.nudge.as_mut().unwrap();
+            (n.slip_brake, n.slip_brake_samples) = (0.2, 3);
+            let mut c = PositionController::new(settings, Some(shift_inverse())).unwrap();
+            let got = ys.map(|y| c.step(1.0, y).unwrap());
+            let want = [0.0, 0.0, 15.0, 16.0, 16.0, -51.0, after[0], after[1]];
+            for (k, (g, w)) in got.iter().zip(want).enumerate() {
+                assert!(
+                    (g - w).abs() < 1e-9,
+                    "relearn {relearn}, sample {k}: {g} != {w}"
+                );
+            }
         }
     }
 

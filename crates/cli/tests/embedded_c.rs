@@ -252,6 +252,14 @@ fn c_controller_with_a_slip_brake_matches_control_bit_for_bit_on_a_recorded_run(
     c_controller_matches_control(Brake::Slip);
 }
 
+// Session 20: the previews of the approach with braking and of the short-step approach (the 44th
+// and 45th arguments of position.c, after the slip brake); the same C replay with both 0 gives other
+// commands.
+#[test]
+fn c_controller_with_the_previews_matches_control_bit_for_bit_on_a_recorded_run() {
+    c_controller_matches_control(Brake::Preview);
+}
+
 /// Which approach the controller file of [`c_controller_matches_control`] has.
 #[derive(Clone, Copy, PartialEq)]
 enum Brake {
@@ -267,6 +275,8 @@ enum Brake {
     Rebrake,
     /// As `Creep`, with the nudge's slip brake a_p = 0.25, T_p = 5.
     Slip,
+    /// As `Slip`, with the previews of the approach with braking and of the short-step approach.
+    Preview,
 }
 
 fn c_controller_matches_control(brake: Brake) {
@@ -348,22 +358,31 @@ fn c_controller_matches_control(brake: Brake) {
     }
     if matches!(
         brake,
-        Brake::Short | Brake::Creep | Brake::Rebrake | Brake::Slip
+        Brake::Short | Brake::Creep | Brake::Rebrake | Brake::Slip | Brake::Preview
     ) {
         file["controller"]["short_approach"] = serde_json::json!({"max_step_mm": 40.0,
             "drive_fraction": 0.35, "ramp_counts_s": 500.0, "switch_mm": 0.5, "lead_s": 0.01,
             "brake_strength": 0.5, "brake_samples": 3, "rest_samples": 2});
     }
-    if matches!(brake, Brake::Creep | Brake::Rebrake | Brake::Slip) {
+    if matches!(
+        brake,
+        Brake::Creep | Brake::Rebrake | Brake::Slip | Brake::Preview
+    ) {
         file["controller"]["nudge"]["creep_step_mm"] = serde_json::json!(0.015);
     }
-    if brake == Brake::Slip {
+    if brake == Brake::Preview {
+        file["controller"]["brake"]["preview"] = serde_json::json!(true);
+        file["controller"]["short_approach"]["preview"] = serde_json::json!(true);
+    }
+    if matches!(brake, Brake::Slip | Brake::Preview) {
         file["controller"]["nudge"]["slip_brake_fraction"] = serde_json::json!(0.25);
         file["controller"]["nudge"]["slip_brake_samples"] = serde_json::json!(5);
     }
     let (profile, samples) = match brake {
         Brake::Learnt => ("staircase:40,38,120,60,120,60@2", 1201),
-        Brake::Short | Brake::Creep | Brake::Slip => ("staircase:40,60,45,120,100@2", 1001),
+        Brake::Short | Brake::Creep | Brake::Slip | Brake::Preview => {
+            ("staircase:40,60,45,120,100@2", 1001)
+        }
         Brake::Rebrake => ("staircase:40,60,45,170,100@2", 1001),
         _ => ("staircase:40,38,120,60@2", 801),
     };
@@ -451,7 +470,7 @@ fn c_controller_matches_control(brake: Brake) {
     let unlearnt = matches!(brake, Brake::Learnt | Brake::Short).then(|| replay(&args));
     if matches!(
         brake,
-        Brake::Learnt | Brake::Short | Brake::Creep | Brake::Rebrake | Brake::Slip
+        Brake::Learnt | Brake::Short | Brake::Creep | Brake::Rebrake | Brake::Slip | Brake::Preview
     ) {
         let b = &c["brake"];
         for k in ["learn", "lead_max_s"] {
@@ -461,7 +480,7 @@ fn c_controller_matches_control(brake: Brake) {
     }
     if matches!(
         brake,
-        Brake::Short | Brake::Creep | Brake::Rebrake | Brake::Slip
+        Brake::Short | Brake::Creep | Brake::Rebrake | Brake::Slip | Brake::Preview
     ) {
         let a = &c["short_approach"];
         for k in [
@@ -512,6 +531,28 @@ fn c_controller_matches_control(brake: Brake) {
         ));
         args.push(nudge["slip_brake_samples"].as_u64().unwrap().to_string());
         Some(without)
+    // The previews after the slip brake: the replay with both 0 switches a sample later.
+    } else if brake == Brake::Preview {
+        args.push(format!("{:?}", nudge["creep_step_mm"].as_f64().unwrap()));
+        args.push("0".into());
+        args.push(format!(
+            "{:?}",
+            nudge["slip_brake_fraction"].as_f64().unwrap()
+        ));
+        args.push(nudge["slip_brake_samples"].as_u64().unwrap().to_string());
+        let mut without = args.clone();
+        without.extend(["0".to_string(), "0".to_string()]);
+        for k in ["brake", "short_approach"] {
+            args.push(
+                if c[k]["preview"].as_bool().unwrap() {
+                    "1"
+                } else {
+                    "0"
+                }
+                .into(),
+            );
+        }
+        Some(replay(&without))
     } else {
         unlearnt
     };

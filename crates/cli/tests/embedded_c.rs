@@ -259,6 +259,13 @@ fn c_controller_that_relearns_the_breakaway_matches_control_bit_for_bit_on_a_rec
     c_controller_matches_control(Brake::Relearn);
 }
 
+// Session 20: the previews of the approach with braking and of the short-step approach (the two
+// arguments of position.c after the relearning); the same C replay with both 0 gives other commands.
+#[test]
+fn c_controller_with_the_previews_matches_control_bit_for_bit_on_a_recorded_run() {
+    c_controller_matches_control(Brake::Preview);
+}
+
 /// Which approach the controller file of [`c_controller_matches_control`] has.
 #[derive(Clone, Copy, PartialEq)]
 enum Brake {
@@ -276,6 +283,8 @@ enum Brake {
     Slip,
     /// As `Slip`, with the nudge's relearning.
     Relearn,
+    /// As `Slip`, with the previews of the approach with braking and of the short-step approach.
+    Preview,
 }
 
 fn c_controller_matches_control(brake: Brake) {
@@ -359,6 +368,7 @@ fn c_controller_matches_control(brake: Brake) {
     if matches!(
         brake,
         Brake::Short | Brake::Creep | Brake::Rebrake | Brake::Slip | Brake::Relearn
+            | Brake::Preview
     ) {
         file["controller"]["short_approach"] = serde_json::json!({"max_step_mm": 40.0,
             "drive_fraction": 0.35, "ramp_counts_s": 500.0, "switch_mm": 0.5, "lead_s": 0.01,
@@ -366,11 +376,15 @@ fn c_controller_matches_control(brake: Brake) {
     }
     if matches!(
         brake,
-        Brake::Creep | Brake::Rebrake | Brake::Slip | Brake::Relearn
+        Brake::Creep | Brake::Rebrake | Brake::Slip | Brake::Relearn | Brake::Preview
     ) {
         file["controller"]["nudge"]["creep_step_mm"] = serde_json::json!(0.015);
     }
-    if matches!(brake, Brake::Slip | Brake::Relearn) {
+    if brake == Brake::Preview {
+        file["controller"]["brake"]["preview"] = serde_json::json!(true);
+        file["controller"]["short_approach"]["preview"] = serde_json::json!(true);
+    }
+    if matches!(brake, Brake::Slip | Brake::Relearn | Brake::Preview) {
         file["controller"]["nudge"]["slip_brake_fraction"] = serde_json::json!(0.25);
         file["controller"]["nudge"]["slip_brake_samples"] = serde_json::json!(5);
     }
@@ -379,7 +393,7 @@ fn c_controller_matches_control(brake: Brake) {
     }
     let (profile, samples) = match brake {
         Brake::Learnt => ("staircase:40,38,120,60,120,60@2", 1201),
-        Brake::Short | Brake::Creep | Brake::Slip | Brake::Relearn => {
+        Brake::Short | Brake::Creep | Brake::Slip | Brake::Relearn | Brake::Preview => {
             ("staircase:40,60,45,120,100@2", 1001)
         }
         Brake::Rebrake => ("staircase:40,60,45,170,100@2", 1001),
@@ -470,6 +484,7 @@ fn c_controller_matches_control(brake: Brake) {
     if matches!(
         brake,
         Brake::Learnt | Brake::Short | Brake::Creep | Brake::Rebrake | Brake::Slip | Brake::Relearn
+            | Brake::Preview
     ) {
         let b = &c["brake"];
         for k in ["learn", "lead_max_s"] {
@@ -480,6 +495,7 @@ fn c_controller_matches_control(brake: Brake) {
     if matches!(
         brake,
         Brake::Short | Brake::Creep | Brake::Rebrake | Brake::Slip | Brake::Relearn
+            | Brake::Preview
     ) {
         let a = &c["short_approach"];
         for k in [
@@ -531,7 +547,8 @@ fn c_controller_matches_control(brake: Brake) {
         args.push(nudge["slip_brake_samples"].as_u64().unwrap().to_string());
         Some(without)
     // The relearning after the slip brake: the replay without it (0) learns no breakaway at a slip.
-    } else if brake == Brake::Relearn {
+    // The previews after the relearning (0 here): the replay with both 0 switches a sample later.
+    } else if matches!(brake, Brake::Relearn | Brake::Preview) {
         args.push(format!("{:?}", nudge["creep_step_mm"].as_f64().unwrap()));
         args.push("0".into());
         args.push(format!(
@@ -540,15 +557,31 @@ fn c_controller_matches_control(brake: Brake) {
         ));
         args.push(nudge["slip_brake_samples"].as_u64().unwrap().to_string());
         let mut without = args.clone();
-        without.push("0".into());
-        args.push(
-            if nudge["relearn"].as_bool().unwrap() {
-                "1"
-            } else {
-                "0"
+        if brake == Brake::Relearn {
+            without.push("0".into());
+            args.push(
+                if nudge["relearn"].as_bool().unwrap() {
+                    "1"
+                } else {
+                    "0"
+                }
+                .into(),
+            );
+        } else {
+            args.push("0".into());
+            without = args.clone();
+            without.extend(["0".to_string(), "0".to_string()]);
+            for k in ["brake", "short_approach"] {
+                args.push(
+                    if c[k]["preview"].as_bool().unwrap() {
+                        "1"
+                    } else {
+                        "0"
+                    }
+                    .into(),
+                );
             }
-            .into(),
-        );
+        }
         Some(replay(&without))
     } else {
         unlearnt

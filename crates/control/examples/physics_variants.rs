@@ -45,6 +45,9 @@
 //! BRAKE_CTL's tenth value 1 turns it on too.
 //! Session 20: RELEARN=1 (0) turns the nudge's relearning of its breakaway on (off)
 //! (`nudge.relearn`).
+//! Session 20: PREVIEW=S,B sets the short-step approach's (S) and the approach with braking's (B)
+//! preview (`short_approach.preview`, `brake.preview`; 1 on, 0 off); BRAKE_CTL's eleventh value and
+//! SHORT_CTL's ninth value 1 turn it on too.
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
 use control::tune::{self, Spec};
 use control::ControllerFile;
@@ -274,6 +277,7 @@ fn main() {
             lead_max_s: v.get(7).copied().unwrap_or(0.0),
             release_samples: v.get(8).copied().unwrap_or(0.0) as u32,
             rebrake: v.get(9) == Some(&1.0),
+            preview: v.get(10) == Some(&1.0),
         });
     }
     if let Ok(b) = std::env::var("SHORT_CTL") {
@@ -287,6 +291,7 @@ fn main() {
             brake_strength: v[5],
             brake_samples: v[6] as u32,
             rest_samples: v[7] as u32,
+            preview: v.get(8) == Some(&1.0),
         });
     }
     if let (Ok(v), Some(a)) = (std::env::var("SHORT_EM"), s.short_approach.as_mut()) {
@@ -299,6 +304,17 @@ fn main() {
         b.rebrake = n > 0;
         if n > 0 {
             b.rest_samples = n;
+        }
+    }
+    if let Ok(v) = std::env::var("PREVIEW") {
+        // PREVIEW=S,B (session 20): the short-step approach's (S = 1) and the approach with
+        // braking's (B = 1) preview on, 0 off.
+        let v: Vec<f64> = v.split(',').map(|x| x.parse().unwrap()).collect();
+        if let Some(a) = s.short_approach.as_mut() {
+            a.preview = v.first() == Some(&1.0);
+        }
+        if let Some(b) = s.brake.as_mut() {
+            b.preview = v.get(1) == Some(&1.0);
         }
     }
     let spec = Spec::default();

@@ -187,6 +187,12 @@ pub struct Brake {
     /// is released.
     #[serde(default, skip_serializing_if = "is_false")]
     pub rebrake: bool,
+    /// Preview (issue 25, session 20; false when absent, as in a file written before it existed,
+    /// and not written then): the full command ends at the sample whose next one would pass the
+    /// switch (side e − v Ts ≤ e_s + τ_b v), with that last sample at the fraction (side e − e_s −
+    /// τ_b v)/(v Ts) of u_max: the switch then falls within a sample instead of up to v Ts late.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub preview: bool,
 }
 
 /// The short-step approach (issue 25, session 17): for a step e_s' < |r − y| ≤ e_m, a drive at U u_max
@@ -214,6 +220,10 @@ pub struct ShortApproach {
     pub brake_samples: u32,
     /// N_s: samples of unchanged y that end the hold after the brake (1 to 1000).
     pub rest_samples: u32,
+    /// Preview (issue 25, session 20; false when absent, as before, and not written then): as
+    /// [`Brake::preview`], with the drive's command.
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub preview: bool,
 }
 
 impl ShortApproach {
@@ -614,6 +624,7 @@ impl ControllerSettings {
                 lead_max: b.lead_max_s,
                 release: b.release_samples,
                 rebrake: b.rebrake,
+                preview: b.preview,
             }),
             short: self
                 .short_approach
@@ -626,6 +637,7 @@ impl ControllerSettings {
                     strength: a.brake_strength,
                     samples: a.brake_samples,
                     rest_samples: a.rest_samples,
+                    preview: a.preview,
                 }),
         }
     }
@@ -1109,6 +1121,7 @@ mod tests {
                 lead_max_s: 0.0,
                 release_samples: 0,
                 rebrake: false,
+                preview: false,
             }),
             ..plain(1.0, 0.0)
         }
@@ -1168,6 +1181,49 @@ mod tests {
             e.contains(&format!("c.json:{line}:")) && e.contains("boolean"),
             "{e}"
         );
+    }
+
+    // Off (every file before session 20): `preview` written in neither approach, read as false; on:
+    // written as true in each and read back; a number instead of a boolean is refused at its line.
+    // Through the embedded step: r = 20 from y = 0, 1, 2, 3.5 (v = 150 mm/s, e = 16.5 > e_s + τ_b v
+    // = 1 + 0.1 × 150 = 16 ≥ 16.5 − 1.5): with the preview the last full-command sample is (16.5 −
+    // 16)/1.5 = 1/3 of 255, 85 counts; without it 255.
+    #[test]
+    fn a_preview_round_trips_is_not_written_when_off_and_reaches_the_embedded_step() {
+        let mut s = with_brake(1.0);
+        s.brake.as_mut().unwrap().lead_s = 0.1;
+        s.short_approach = with_short(5.0).short_approach;
+        let text = serde_json::to_string_pretty(&ControllerFile::new(s, None)).unwrap();
+        assert!(!text.contains("preview"));
+        let read = ControllerFile::parse(&text, "c.json").unwrap();
+        assert!(!read.brake.unwrap().preview && !read.short_approach.unwrap().preview);
+        let mut on = s;
+        on.brake.as_mut().unwrap().preview = true;
+        on.short_approach.as_mut().unwrap().preview = true;
+        let text = serde_json::to_string_pretty(&ControllerFile::new(on, None)).unwrap();
+        assert_eq!(text.matches("\"preview\": true").count(), 2);
+        assert_eq!(ControllerFile::parse(&text, "c.json").unwrap(), on);
+        let bad = text.replacen("\"preview\": true", "\"preview\": 1", 1);
+        let line = 1 + bad
+            .lines()
+            .position(|l| l.contains("\"preview\": 1"))
+            .unwrap();
+        let e = ControllerFile::parse(&bad, "c.json")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains(&format!("c.json:{line}:")) && e.contains("boolean"),
+            "{e}"
+        );
+        for (settings, want) in [(on, 85.0), (s, 255.0)] {
+            let mut c = settings.build().unwrap();
+            let u: Vec<f64> = [0.0, 1.0, 2.0, 3.5]
+                .iter()
+                .map(|&y| c.step(20.0, y))
+                .collect();
+            assert_eq!(&u[..3], &[255.0; 3]);
+            assert!((u[3] - want).abs() < 1e-9, "{u:?}");
+        }
     }
 
     #[test]
@@ -1236,6 +1292,7 @@ mod tests {
                 brake_strength: 0.25,
                 brake_samples: 3,
                 rest_samples: 2,
+                preview: false,
             }),
             ..plain(1.0, 0.0)
         }

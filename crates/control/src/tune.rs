@@ -28,10 +28,11 @@
 //! simulated in parallel (rayon). After the search, the approach with braking of
 //! [`BRAKE_CANDIDATES`] is evaluated at the best controller and kept where it meets the whole
 //! specification in more runs (issue 25, session 15; chosen by the count, not by J: [`choose_by_count`]'s
-//! documentation); then, the same way, its re-brake of [`rebrake_candidates`] (session 19), the
-//! nudge's rest count N_r of [`NUDGE_REST_CANDIDATES`]
-//! (session 16), then the short-step approach of [`short_candidates`] (session 17), then its range
-//! of [`short_range_candidates`] (session 18), and last the ramp-and-cut band e_c of
+//! documentation); then, the same way, its re-brake of [`rebrake_candidates`] (session 19), its
+//! preview of [`brake_preview_candidates`] (session 20), the nudge's rest count N_r of
+//! [`NUDGE_REST_CANDIDATES`] (session 16), then the short-step approach of [`short_candidates`]
+//! (session 17), then its range of [`short_range_candidates`] (session 18), its preview of
+//! [`short_preview_candidates`] (session 20), and last the ramp-and-cut band e_c of
 //! [`cut_band_candidates`] (session 18: the finish's e_c, chosen by J, re-chosen by the count).
 //!
 //! **Linear margins.** [`margins`] gives the gain and phase margins of the loop's linear part: the
@@ -744,11 +745,13 @@ pub struct Tuned {
     /// Cost evaluations used by the search.
     pub evaluations: usize,
     /// Evaluations of the approach with braking after the search ([`BRAKE_CANDIDATES`] × [`BRAKE_TIMES_S`],
-    /// and one of its re-brake when a brake was chosen: [`rebrake_candidates`]).
+    /// and, when a brake was chosen, one of its re-brake ([`rebrake_candidates`]) and
+    /// [`BRAKE_PREVIEW_CANDIDATES`]' of its preview).
     pub brake_evaluations: usize,
     /// Evaluations of the nudge's rest count N_r after the brake ([`NUDGE_REST_CANDIDATES`]).
     pub rest_evaluations: usize,
-    /// Evaluations of the short-step approach after the rest count ([`short_candidates`]'s).
+    /// Evaluations of the short-step approach after the rest count ([`short_candidates`]'s, its
+    /// range's and its preview's: [`short_range_candidates`], [`short_preview_candidates`]).
     pub short_evaluations: usize,
     /// Evaluations of the ramp-and-cut band after the short-step approach ([`cut_band_candidates`]'s).
     pub cut_evaluations: usize,
@@ -758,6 +761,11 @@ pub struct Tuned {
     pub slip_evaluations: usize,
     /// e_c of the finish (chosen by J at the search's θ, mm; 0 = none), before the choice by the count.
     pub cut_band_before_mm: f64,
+    /// The approach with braking before its preview was tried ([`brake_preview_candidates`]; `None`
+    /// without a brake).
+    pub brake_before_preview: Option<crate::position::Brake>,
+    /// The short-step approach before its preview was tried ([`short_preview_candidates`]).
+    pub short_before_preview: Option<crate::position::ShortApproach>,
 }
 
 /// Tunes the controller (module documentation) for plants of sampling period `ts_s` built by
@@ -879,20 +887,29 @@ pub fn tune(
         .ok_or_else(|| ControlError::Config("no evaluation".into()))?;
     let best = settings_of(&theta, cut_band_mm, deadzone, ts_s, spec)?;
     // After the search, each choice in turn, kept by the count at the controller chosen so far: the
-    // nudge's slip brake, the approach with braking, its re-brake, the nudge's rest count, the
-    // short-step approach, its range, the ramp-and-cut band (module documentation).
-    let stages: [fn(&ControllerSettings, &Spec) -> Vec<ControllerSettings>; 7] = [
+    // nudge's slip brake, the approach with braking, its re-brake, its preview, the nudge's rest
+    // count, the short-step approach, its range, its preview, the ramp-and-cut band (module
+    // documentation).
+    let stages: [fn(&ControllerSettings, &Spec) -> Vec<ControllerSettings>; 9] = [
         slip_brake_candidates,
         brake_candidates,
         rebrake_candidates,
+        brake_preview_candidates,
         |s, _| rest_candidates(s),
         short_candidates,
         short_range_candidates,
+        short_preview_candidates,
         cut_band_candidates,
     ];
     let (mut settings_chosen, mut evaluation) = (best, evaluation);
-    let mut counts = [0; 7];
-    for (stage, count) in stages.iter().zip(counts.iter_mut()) {
+    let mut counts = [0; 9];
+    let (mut brake_before_preview, mut short_before_preview) = (None, None);
+    for (i, (stage, count)) in stages.iter().zip(counts.iter_mut()).enumerate() {
+        match i {
+            3 => brake_before_preview = settings_chosen.brake,
+            7 => short_before_preview = settings_chosen.short_approach,
+            _ => {}
+        }
         let candidates = stage(&settings_chosen, spec);
         (settings_chosen, evaluation, *count) = choose_by_count(
             settings_chosen,
@@ -914,11 +931,11 @@ pub fn tune(
         evaluation = evaluate(settings.plants, make_plant, &factory, spec)?;
         settings_chosen = s;
     }
-    let [slip_evaluations, brake_evaluations, rebrake_evaluations, rest_evaluations, short_evaluations, range_evaluations, cut_evaluations] =
+    let [slip_evaluations, brake_evaluations, rebrake_evaluations, brake_preview_evaluations, rest_evaluations, short_evaluations, range_evaluations, short_preview_evaluations, cut_evaluations] =
         counts;
     let slip_evaluations = slip_evaluations + relearned.len();
-    let brake_evaluations = brake_evaluations + rebrake_evaluations;
-    let short_evaluations = short_evaluations + range_evaluations;
+    let brake_evaluations = brake_evaluations + rebrake_evaluations + brake_preview_evaluations;
+    let short_evaluations = short_evaluations + range_evaluations + short_preview_evaluations;
     let cut_band_before_mm = cut_band_mm;
     Ok(Tuned {
         settings: settings_chosen,
@@ -930,6 +947,8 @@ pub fn tune(
         cut_evaluations,
         slip_evaluations,
         cut_band_before_mm,
+        brake_before_preview,
+        short_before_preview,
     })
 }
 
@@ -984,19 +1003,21 @@ pub const BRAKE_CANDIDATES: [(f64, f64); 6] = [
     (2.0, 0.02),
     (2.0, 0.025),
 ];
-/// Evaluations after the search: the approach with braking ([`BRAKE_CANDIDATES`] × [`BRAKE_TIMES_S`])
-/// and its re-brake (one more, [`rebrake_candidates`]), the nudge's rest count ([`NUDGE_REST_CANDIDATES`]), the short-step approach
-/// ([`SHORT_DRIVE_FRACTIONS`] × [`SHORT_LEADS_S`] × [`SHORT_SWITCHES_MM`]) and its range (one more,
-/// [`SHORT_NARROW_MAX_STEP_FRACTION`]), the ramp-and-cut band (at most [`CUT_BANDS_MM`]'s
+/// Evaluations after the search: the approach with braking ([`BRAKE_CANDIDATES`] × [`BRAKE_TIMES_S`]),
+/// its re-brake (one more, [`rebrake_candidates`]) and its preview ([`BRAKE_PREVIEW_CANDIDATES`]), the nudge's rest count ([`NUDGE_REST_CANDIDATES`]), the short-step approach
+/// ([`SHORT_DRIVE_FRACTIONS`] × [`SHORT_LEADS_S`] × [`SHORT_SWITCHES_MM`]), its range (one more,
+/// [`SHORT_NARROW_MAX_STEP_FRACTION`]) and its preview ([`SHORT_PREVIEW_CANDIDATES`]), the ramp-and-cut band (at most [`CUT_BANDS_MM`]'s
 /// length, [`cut_band_candidates`]) and, first of all, the nudge's slip brake (one,
 /// [`slip_brake_candidates`]) and, last of all, the nudge's relearning (one, [`relearn_candidates`]).
 pub const AFTER_SEARCH_EVALUATIONS: usize = 1
     + 1
     + BRAKE_CANDIDATES.len() * BRAKE_TIMES_S.len()
     + 1
+    + BRAKE_PREVIEW_CANDIDATES.len()
     + NUDGE_REST_CANDIDATES.len()
     + SHORT_CANDIDATES
     + 1
+    + SHORT_PREVIEW_CANDIDATES.len()
     + CUT_BANDS_MM.len();
 
 /// U: the short-step approach's drive fractions of u_max tried (issue 25, session 17): at the full
@@ -1060,6 +1081,7 @@ pub fn short_approach_of(
         brake_strength: SHORT_BRAKE_STRENGTH,
         brake_samples: ((SHORT_BRAKE_S / ts_s).round().clamp(1.0, 1000.0)) as u32,
         rest_samples: SHORT_REST_SAMPLES,
+        preview: false,
     }
 }
 
@@ -1078,6 +1100,77 @@ pub fn short_range_candidates(chosen: &ControllerSettings, spec: &Spec) -> Vec<C
                 ..*chosen
             }]
         }
+        _ => Vec::new(),
+    }
+}
+
+/// (e_s', τ_s) of the short-step approach with the preview (issue 25, session 20), mm and s: the
+/// switch then falls within a sample (without it, up to v Ts ≈ 1 mm late at 100 mm/s, so that the
+/// drive rested 0.1–1.5 mm short of a 10 mm step: outside its 0.2 mm band in 25 of the twin's 42
+/// runs). The travel after the switch is about 5–7 ms × v (3–4 ms on the slow variants: `TRACE`
+/// of variants 0–20, 25 → 35 mm), so τ_s = 5 ms leaves the piston about e_s' short of r; e_s' of
+/// 0.1–0.3 mm aims within that band (docs/control.md, Results' session-20 block).
+pub const SHORT_PREVIEW_CANDIDATES: [(f64, f64); 3] = [(0.1, 0.005), (0.2, 0.005), (0.3, 0.005)];
+
+/// `chosen` with its short-step approach's preview on, with each (e_s', τ_s) of
+/// [`SHORT_PREVIEW_CANDIDATES`] (e_s' scaled by the specification's length scale; none without a
+/// short-step approach or when it already has the preview).
+pub fn short_preview_candidates(
+    chosen: &ControllerSettings,
+    spec: &Spec,
+) -> Vec<ControllerSettings> {
+    match chosen.short_approach {
+        Some(a) if !a.preview => SHORT_PREVIEW_CANDIDATES
+            .iter()
+            .map(|&(switch_mm, lead_s)| ControllerSettings {
+                short_approach: Some(crate::position::ShortApproach {
+                    switch_mm: spec.scale.length * switch_mm,
+                    lead_s,
+                    preview: true,
+                    ..a
+                }),
+                ..*chosen
+            })
+            .collect(),
+        _ => Vec::new(),
+    }
+}
+
+/// (e_s, τ_b) of the approach with braking with the preview (issue 25, session 20), mm and s: the
+/// full command (about 370 mm/s at the switch, 3.7 mm per sample) then ends within a sample of the
+/// switch instead of up to v Ts late, on average v Ts/2 earlier than without it, so the leads are
+/// those of [`BRAKE_CANDIDATES`] less up to Ts/2 = 5 ms.
+pub const BRAKE_PREVIEW_CANDIDATES: [(f64, f64); 8] = [
+    (0.0, 0.0125),
+    (0.0, 0.015),
+    (0.0, 0.0175),
+    (0.0, 0.02),
+    (1.0, 0.0125),
+    (1.0, 0.015),
+    (1.0, 0.0175),
+    (1.0, 0.02),
+];
+
+/// `chosen` with its approach with braking's preview on, with each (e_s, τ_b) of
+/// [`BRAKE_PREVIEW_CANDIDATES`] (its times, re-brake and hold kept; e_s scaled by the
+/// specification's length scale; none without a brake or when it already has the preview).
+pub fn brake_preview_candidates(
+    chosen: &ControllerSettings,
+    spec: &Spec,
+) -> Vec<ControllerSettings> {
+    match chosen.brake {
+        Some(b) if !b.preview => BRAKE_PREVIEW_CANDIDATES
+            .iter()
+            .map(|&(switch_mm, lead_s)| ControllerSettings {
+                brake: Some(crate::position::Brake {
+                    switch_mm: spec.scale.length * switch_mm,
+                    lead_s,
+                    preview: true,
+                    ..b
+                }),
+                ..*chosen
+            })
+            .collect(),
         _ => Vec::new(),
     }
 }
@@ -1148,6 +1241,7 @@ pub fn brake_of(
         lead_max_s: BRAKE_LEAD_MAX_S,
         release_samples: samples(release_s),
         rebrake: false,
+        preview: false,
     }
 }
 

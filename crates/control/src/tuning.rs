@@ -87,12 +87,13 @@ pub struct TuneReport {
     pub search: TuneSettings,
     /// Cost evaluations used by the search.
     pub evaluations: usize,
-    /// Evaluations of the approach with braking after the search (`tune::BRAKE_CANDIDATES`, and its
-    /// re-brake: `tune::rebrake_candidates`).
+    /// Evaluations of the approach with braking after the search (`tune::BRAKE_CANDIDATES`, its
+    /// re-brake: `tune::rebrake_candidates`, and its preview: `tune::brake_preview_candidates`).
     pub brake_evaluations: usize,
     /// Evaluations of the nudge's rest count after the brake (`tune::NUDGE_REST_CANDIDATES`).
     pub rest_evaluations: usize,
-    /// Evaluations of the short-step approach after the rest count (`tune::short_candidates`).
+    /// Evaluations of the short-step approach after the rest count (`tune::short_candidates`, its
+    /// range and its preview: `tune::short_range_candidates`, `tune::short_preview_candidates`).
     pub short_evaluations: usize,
     /// Evaluations of the ramp-and-cut band after the short-step approach (`tune::cut_band_candidates`).
     pub cut_evaluations: usize,

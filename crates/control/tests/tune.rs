@@ -414,11 +414,12 @@ fn tuning_meets_the_spec_where_it_is_reachable() {
     assert_eq!(e.overshoot_met, 40, "{:?}", t.settings);
     assert_eq!(e.ess_met, 40);
     assert!(t.evaluations <= 150);
-    // The re-brake (session 19) is tried once when an approach with braking was chosen.
+    // The re-brake (session 19) is tried once when an approach with braking was chosen, and then
+    // its preview (session 20) with each of BRAKE_PREVIEW_CANDIDATES.
     assert_eq!(
         t.brake_evaluations,
         tune::BRAKE_CANDIDATES.len() * tune::BRAKE_TIMES_S.len()
-            + usize::from(t.settings.brake.is_some())
+            + usize::from(t.settings.brake.is_some()) * (1 + tune::BRAKE_PREVIEW_CANDIDATES.len())
     );
     // The slip brake (session 19): one candidate, the first choice after the search, when the
     // controller has a nudge; and (session 20) one evaluation of the relearning, applied last,
@@ -495,11 +496,32 @@ fn tuning_meets_the_spec_where_it_is_reachable() {
     let e = &evaluate(before);
     let better = |w: &tune::Evaluation| e.met > w.met || (e.met == w.met && e.cost < w.cost);
     let mut searched = before;
-    // Its range (session 18) is tried only when a short-step approach was chosen.
+    // Its range (session 18) and its preview (session 20) are tried only when a short-step approach
+    // was chosen.
     assert_eq!(
         t.short_evaluations,
-        tune::SHORT_CANDIDATES + usize::from(searched.short_approach.is_some())
+        tune::SHORT_CANDIDATES
+            + usize::from(searched.short_approach.is_some())
+                * (1 + tune::SHORT_PREVIEW_CANDIDATES.len())
     );
+    // The short-step approach's preview came last of its choices: when chosen, it beat the
+    // approach without it; none of the other preview candidates beats it.
+    if searched.short_approach.is_some_and(|a| a.preview) {
+        for other in tune::short_preview_candidates(
+            &ControllerSettings {
+                short_approach: t.short_before_preview,
+                ..searched
+            },
+            &spec,
+        ) {
+            let w = evaluate(other);
+            assert!(!(w.met > e.met || (w.met == e.met && w.cost < e.cost)));
+        }
+        searched.short_approach = t.short_before_preview;
+        assert!(better(&evaluate(searched)));
+    } else {
+        assert_eq!(searched.short_approach, t.short_before_preview);
+    }
     // The short-step approach's range came before: a narrowed e_m beat the wider one.
     let largest = spec.steps_mm.iter().copied().fold(0.0, f64::max);
     if let Some(a) = searched.short_approach {
@@ -522,6 +544,13 @@ fn tuning_meets_the_spec_where_it_is_reachable() {
     let braked = searched;
     if rest_chosen {
         assert!(better(&evaluate(braked)));
+    }
+    // The brake's preview (session 20) before the rest count: without it, the brake before it.
+    if searched.brake.is_some_and(|b| b.preview) {
+        searched.brake = t.brake_before_preview;
+        assert!(better(&evaluate(searched)));
+    } else {
+        assert_eq!(searched.brake, t.brake_before_preview);
     }
     // The re-brake (session 19) before it, with its hold of REBRAKE_REST_SAMPLES: without it, the
     // brake as BRAKE_CANDIDATES give it.

@@ -333,6 +333,17 @@ typedef struct IpaController {
    * 0: not (as in a struct zeroed before it existed).
    */
   int32_t nudge_relearn;
+  /**
+   * 1: the approach with braking's full command ends at the sample whose next one would pass the
+   * switch, that last sample at the fraction of u_max that reaches it (`brake.preview`; issue 25,
+   * session 20); 0: not (as in a struct zeroed before it existed).
+   */
+  int32_t brake_preview;
+  /**
+   * 1: the same preview for the short-step approach's drive (`short_approach.preview`; session
+   * 20); 0: not.
+   */
+  int32_t short_preview;
 } IpaController;
 
 #ifdef __cplusplus

@@ -216,6 +216,13 @@ pub struct IpaController {
     /// nudge's first count (the ramp resumes), and the slip brake lasts while the piston slips;
     /// 0: not (as in a struct zeroed before it existed).
     pub nudge_relearn: i32,
+    /// 1: the approach with braking's full command ends at the sample whose next one would pass the
+    /// switch, that last sample at the fraction of u_max that reaches it (`brake.preview`; issue 25,
+    /// session 20); 0: not (as in a struct zeroed before it existed).
+    pub brake_preview: i32,
+    /// 1: the same preview for the short-step approach's drive (`short_approach.preview`; session
+    /// 20); 0: not.
+    pub short_preview: i32,
 }
 const _: () = assert!(size_of::<CusumState>() <= IPA_CUSUM_STATE_BYTES);
 const _: () = assert!(MAX_D >= IPA_MAX_NA as usize);
@@ -744,9 +751,9 @@ pub unsafe extern "C" fn ipa_ctl_init(
         })),
         _ => Err(Error::Setting),
     };
-    let brake = match (c.has_brake, c.brake_rebrake) {
-        (0, _) => Ok(None),
-        (1, rebrake @ (0 | 1)) => Ok(Some(BrakeSettings {
+    let brake = match (c.has_brake, c.brake_rebrake, c.brake_preview) {
+        (0, _, _) => Ok(None),
+        (1, rebrake @ (0 | 1), preview @ (0 | 1)) => Ok(Some(BrakeSettings {
             min_step: c.brake_min_step,
             switch: c.brake_switch,
             lead: c.brake_lead,
@@ -757,13 +764,16 @@ pub unsafe extern "C" fn ipa_ctl_init(
             lead_max: c.brake_lead_max,
             release: c.brake_release,
             rebrake: rebrake == 1,
+            preview: preview == 1,
         })),
         _ => Err(Error::Setting),
     };
     let short = if c.short_max_step == 0.0 {
-        None
+        Ok(None)
+    } else if !matches!(c.short_preview, 0 | 1) {
+        Err(Error::Setting)
     } else {
-        Some(ShortApproachSettings {
+        Ok(Some(ShortApproachSettings {
             max_step: c.short_max_step,
             drive_fraction: c.short_drive_fraction,
             ramp: c.short_ramp,
@@ -772,7 +782,8 @@ pub unsafe extern "C" fn ipa_ctl_init(
             strength: c.short_strength,
             samples: c.short_samples,
             rest_samples: c.short_rest_samples,
-        })
+            preview: c.short_preview == 1,
+        }))
     };
     let state = compensator.and_then(|comp| {
         let s = PositionSettings {
@@ -787,7 +798,7 @@ pub unsafe extern "C" fn ipa_ctl_init(
             reset_on_crossing: reset_on_crossing?,
             nudge: nudge?,
             brake: brake?,
-            short,
+            short: short?,
         };
         PositionController::new(s, comp).map(|ctl| CtlState {
             magic: CTL_MAGIC,

@@ -140,10 +140,12 @@ mod tests {
         // the optional brake settings, so that their tag is gone) and the nudge's slip brake (a_p and
         // T_p in the nudge settings, and the brake under way, a bool and a u32 whose bool's spare
         // values hold the `None`); in session 20 the nudge's relearning (a bool after its two u32,
-        // whose spare values hold the `None` of the optional nudge settings: the same size).
+        // whose spare values hold the `None` of the optional nudge settings: the same size) and the
+        // previews (a second bool in the brake settings, within their padding; a bool in the
+        // short-step settings that takes the place of their `None` tag): the same sizes.
         let a = |f: usize| f.max(4);
         let nudge = |f: usize| round(9 * f + 8 + 1, a(f));
-        let brake = |f: usize| round(6 * f + 12 + 1, a(f));
+        let brake = |f: usize| round(6 * f + 12 + 2, a(f));
         let short = |f: usize| round(round(6 * f + 8, a(f)) + 1, a(f));
         let settings = |f: usize| round(8 * f + 1 + nudge(f) + brake(f) + short(f), f);
         let nudging = |f: usize| round(4 * f + 3, f);

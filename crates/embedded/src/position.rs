@@ -133,6 +133,10 @@ pub struct BrakeSettings<F: Float> {
     /// breaks loose when the brake is released and, where Coulomb friction is far below static
     /// friction, slides 5–15 mm past r; braked at its first count it stays within the band.
     pub rebrake: bool,
+    /// Preview (issue 25, session 20; `false`: as in a file written before it existed): the drive
+    /// ends at the sample whose next one would pass the switch, with a last sample of the
+    /// fraction f = (side e − e_s − τ_b v)/(v Ts) of the full command.
+    pub preview: bool,
 }
 
 /// The short-step approach of a [`PositionController`] (`controller.short_approach` of
@@ -161,6 +165,9 @@ pub struct ShortApproachSettings<F: Float> {
     pub samples: u32,
     /// N_s: samples of unchanged y that end the hold after the brake (1..=1000).
     pub rest_samples: u32,
+    /// Preview (issue 25, session 20; `false`: as before): as [`BrakeSettings::preview`], with the
+    /// drive's command.
+    pub preview: bool,
 }
 
 /// Where the approach with braking is (`right`: towards larger y).
@@ -302,6 +309,18 @@ pub struct PositionController<F: Float> {
     /// The slip brake under way after a nudge's cut: its direction (`true`: the nudge was to the
     /// right, the brake is to the left) and the samples given so far.
     slip_brake: Option<(bool, u32)>,
+}
+
+/// The preview's last drive sample (issue 25, session 20): with the distance to go d = side e,
+/// the switch distance d_s = e_s + τ v and the speed towards r v > 0, a drive whose next sample
+/// would pass the switch (d − v Ts ≤ d_s < d) ends now with the fraction f = (d − d_s)/(v Ts) in
+/// (0, 1] of its command; `None` when off, at rest or not yet within one sample of the switch.
+fn preview_fraction<F: Float>(on: bool, d: F, d_s: F, v: F, ts: F) -> Option<F> {
+    let step = v * ts;
+    if !on || v <= F::ZERO || d - step > d_s {
+        return None;
+    }
+    Some((d - d_s) / step)
 }
 
 /// τ_b at the start, both directions (0 without a brake).
@@ -561,6 +580,13 @@ impl<F: Float> PositionController<F> {
             if side(right) * e > b.switch + lead {
                 self.started = true;
                 self.y_prev = y;
+                if let Some(f) =
+                    preview_fraction(b.preview, side(right) * e, b.switch + lead, v, self.s.ts)
+                {
+                    self.approach = Approach::Brake { right, given: 0 };
+                    self.switched = Some(Switch { right, y, v });
+                    return Some(side(right) * self.s.u_max * f);
+                }
                 return Some(side(right) * self.s.u_max);
             }
             self.approach = Approach::Brake { right, given: 0 };
@@ -657,7 +683,14 @@ impl<F: Float> PositionController<F> {
                 };
                 self.started = true;
                 self.y_prev = y;
-                return Some(side(right) * if u < self.s.u_max { u } else { self.s.u_max });
+                let u = if u < self.s.u_max { u } else { self.s.u_max };
+                if let Some(f) =
+                    preview_fraction(a.preview, side(right) * e, a.switch + lead, v, self.s.ts)
+                {
+                    self.approach = Approach::ShortBrake { right, given: 0 };
+                    return Some(side(right) * u * f);
+                }
+                return Some(side(right) * u);
             }
             self.approach = Approach::ShortBrake { right, given: 0 };
         }
@@ -1537,6 +1570,7 @@ mod tests {
                 lead_max: 0.0,
                 release: 0,
                 rebrake: false,
+                preview: false,
             }),
             ..s()
         }
@@ -1690,6 +1724,62 @@ mod tests {
         assert_eq!(u[13], -7.5);
     }
 
+    // The preview (session 20), r = 20 from y = 0 with `braking`'s e_s = 1 mm, τ_b = 0.1 s: k = 1, 2
+    // (v = 100 mm/s, e = 19, 18): the next sample's e − v Ts = 18, 17 > 1 + 0.1 × 100 = 11, full
+    // command; k = 3 (y = 3.5, v = 150, e = 16.5 > 1 + 15 = 16, but 16.5 − 1.5 = 15 <= 16): the
+    // last drive sample at f = (16.5 − 16)/1.5 = 1/3 of u_max, 85; then −127.5 for T_b = 2
+    // samples, the hold (y moved, then unchanged once), the law at the second rest: Kp e = 14.
+    // Without the preview k = 3 drives 255 and the brake starts at k = 4 (e = 15 <= 16). Down, the
+    // same with the signs turned.
+    #[test]
+    fn the_preview_ends_the_full_command_with_the_fraction_that_reaches_the_switch() {
+        let mut s = braking();
+        s.brake.as_mut().unwrap().preview = true;
+        let y = [0.0, 1.0, 2.0, 3.5, 5.0, 5.5, 6.0, 6.0, 6.0];
+        let want = [255.0, 255.0, 255.0, 85.0, -127.5, -127.5, 0.0, 0.0, 14.0];
+        for (settings, want, sign) in [
+            (s, want, 1.0),
+            (s, want.map(|u| -u), -1.0),
+            (
+                braking(),
+                [255.0, 255.0, 255.0, 255.0, -127.5, -127.5, 0.0, 0.0, 14.0],
+                1.0,
+            ),
+        ] {
+            let mut c = PositionController::new(settings, None).unwrap();
+            let u = y.map(|y| c.step(sign * 20.0, sign * y).unwrap());
+            for (k, (u, w)) in u.iter().zip(want).enumerate() {
+                assert!((u - w).abs() < 1e-9, "k = {k}: {u} against {w}");
+            }
+        }
+    }
+
+    // The short-step approach's preview: r = 6.9 from y = 0 (`short_stepping`: 51, 56, 61 while y
+    // stays at 0); y = 0.5 (v = 50 mm/s, e = 6.4 > 1 + 0.1 × 50 = 6, but 6.4 − 0.5 = 5.9 <= 6): the
+    // last drive sample at f = 0.4/0.5 = 0.8 of the drive's 61, 48.8; then −127.5 for T_s = 2
+    // samples, the hold (y moved, then unchanged once), the law at the second rest (Kp e = 5.6).
+    // Without the preview y = 0.5 drives 61.
+    #[test]
+    fn the_short_step_preview_ends_the_drive_with_the_fraction_that_reaches_the_switch() {
+        let mut s = short_stepping();
+        s.short.as_mut().unwrap().preview = true;
+        let y = [0.0, 0.0, 0.0, 0.5, 1.0, 1.3, 1.3, 1.3];
+        for (settings, at_switch, sign) in [
+            (s, 48.8, 1.0),
+            (s, 48.8, -1.0),
+            (short_stepping(), 61.0, 1.0),
+        ] {
+            let mut c = PositionController::new(settings, None).unwrap();
+            let u = y.map(|y| c.step(sign * 6.9, sign * y).unwrap());
+            let want = [51.0, 56.0, 61.0, at_switch, -127.5, -127.5, 0.0, 5.6];
+            for (k, (u, w)) in u.iter().zip(want).enumerate() {
+                if settings.short.unwrap().preview || k < 4 {
+                    assert!((u - sign * w).abs() < 1e-9, "k = {k}: {u} against {w}");
+                }
+            }
+        }
+    }
+
     /// Kp = 1, Ki = 0 and the short-step approach: e_m = 20 mm, U = 0.2 (U u_max = 51 counts), ρ_a =
     /// 500 counts/s (5 counts per sample), e_s' = 1 mm, τ_s = 0.1 s, a_s = 0.5, T_s = 2, N_s = 2.
     fn short_stepping() -> PositionSettings<f64> {
@@ -1705,6 +1795,7 @@ mod tests {
                 strength: 0.5,
                 samples: 2,
                 rest_samples: 2,
+                preview: false,
             }),
             ..s()
         }

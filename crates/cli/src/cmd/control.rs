@@ -710,6 +710,10 @@ pub fn tuned_line(s: &control::ControllerSettings) -> String {
             ", braked again at each count towards the set-point while released and held".to_string()
         } else {
             String::new()
+        } + &if b.preview {
+            ", the full command's last sample a fraction that reaches the switch".to_string()
+        } else {
+            String::new()
         } + &if b.learn > 0.0 {
             format!(
                 "; the lead learnt per direction at {} per braked move, at most {} s",
@@ -731,7 +735,11 @@ pub fn tuned_line(s: &control::ControllerSettings) -> String {
             report::format::sig(a.brake_strength, 6),
             a.brake_samples,
             a.rest_samples
-        )
+        ) + &if a.preview {
+            ", the drive's last sample a fraction that reaches the switch".to_string()
+        } else {
+            String::new()
+        }
     });
     format!(
         "tuned PID Kp = {:.4}, Ki = {:.4}, Kd = {:.4} (Tf = {} s), clamping anti-windup, {comp}, hold band {} mm{nudge}{brake}{short}, |u| <= {} counts",

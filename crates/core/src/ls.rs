@@ -52,25 +52,61 @@ pub fn estimation_bytes(rows: usize, per_row: usize) -> u64 {
         .saturating_mul(std::mem::size_of::<f64>() as u64)
 }
 
-/// Refuses, before anything is allocated, an estimation of `p` parameters on `rows` regression rows
-/// (N) that would hold `per_row` numbers per row at its peak ([`estimation_bytes`]) when that is more
-/// than [`MAX_ESTIMATION_BYTES`]. `what` names the record; the message gives N, p, the memory needed
-/// and the way forward (a part of the record, a coarser sampling, lower orders).
-pub fn check_memory(what: &str, rows: usize, p: usize, per_row: usize) -> Result<(), SysidError> {
-    let bytes = estimation_bytes(rows, per_row);
-    if bytes <= MAX_ESTIMATION_BYTES {
-        return Ok(());
+/// The memory one estimation needs at its peak: `per_row` numbers (f64) for each of its `rows`
+/// regression rows (N) of `p` parameters ([`estimation_bytes`]); `what` names the record (and the fits
+/// held in memory together). Checked by [`MemoryNeed::check`] before anything is allocated.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct MemoryNeed {
+    /// The record (and the fits held at once), as the refusal names it.
+    pub what: String,
+    /// N: regression rows.
+    pub rows: usize,
+    /// p: parameters (columns of Φ).
+    pub p: usize,
+    /// Numbers (f64) held per regression row at the peak.
+    pub per_row: usize,
+}
+
+impl MemoryNeed {
+    /// The bytes this estimation needs ([`estimation_bytes`]).
+    pub fn bytes(&self) -> u64 {
+        estimation_bytes(self.rows, self.per_row)
     }
-    // The most rows that fit the budget with these orders.
-    let fit = MAX_ESTIMATION_BYTES / (per_row.max(1) as u64 * std::mem::size_of::<f64>() as u64);
-    Err(SysidError::Data(format!(
-        "{what}: {rows} regression rows of {p} parameters need about {:.1} GB for the estimation's \
-         matrices (N × p numbers), more than its budget of {} GiB (sysid::ls::MAX_ESTIMATION_BYTES); \
-         use at most {fit} rows of the record (--rows A..B, or a slice of the arrays), a coarser \
-         sampling (--resample TS, or decimate the record), or lower orders",
-        bytes as f64 / 1e9,
-        MAX_ESTIMATION_BYTES >> 30
-    )))
+
+    /// This need for `at_once` such estimations held in memory together (a search's structures
+    /// fitted at once, one per worker thread): the numbers per row times `at_once`, and the count
+    /// named in the refusal when it is more than one.
+    pub fn at_once(mut self, at_once: usize) -> Self {
+        if at_once > 1 {
+            self.per_row = self.per_row.saturating_mul(at_once);
+            self.what = format!("{} ({at_once} structures fitted at once)", self.what);
+        }
+        self
+    }
+
+    /// Refuses, before anything is allocated, this estimation when it needs more than
+    /// [`MAX_ESTIMATION_BYTES`]; the message gives N, p, the memory needed and the way forward (a part
+    /// of the record, a coarser sampling, lower orders).
+    pub fn check(&self) -> Result<(), SysidError> {
+        let bytes = self.bytes();
+        if bytes <= MAX_ESTIMATION_BYTES {
+            return Ok(());
+        }
+        // The most rows that fit the budget with these orders.
+        let fit =
+            MAX_ESTIMATION_BYTES / (self.per_row.max(1) as u64 * std::mem::size_of::<f64>() as u64);
+        Err(SysidError::Data(format!(
+            "{}: {} regression rows of {} parameters need about {:.1} GB for the estimation's \
+             matrices (N × p numbers), more than its budget of {} GiB (sysid::ls::MAX_ESTIMATION_BYTES); \
+             use at most {fit} rows of the record (--rows A..B, or a slice of the arrays), a coarser \
+             sampling (--resample TS, or decimate the record), or lower orders",
+            self.what,
+            self.rows,
+            self.p,
+            bytes as f64 / 1e9,
+            MAX_ESTIMATION_BYTES >> 30
+        )))
+    }
 }
 
 /// The error of a failed allocation of `numbers` f64 for `what` (a data problem: the record is too

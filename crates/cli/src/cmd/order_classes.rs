@@ -61,6 +61,7 @@ pub fn run(
         );
     }
     let split = fit_part.len();
+    sysid::search::check_memory(data, fit_part, &args.classes, &orders, base, &narx)?;
     let ranked = structure_search(data, split, &args.classes, &orders, base, &narx, &|| {
         bar.inc(1)
     });

@@ -94,7 +94,12 @@ pub(crate) fn arx_regression(
 /// with a constant term, by least squares. Its regression rows are the search's, k ≥ k0 = max(na,
 /// nk_max + nb − 1), its p = na + nb + 1 parameters are every candidate's, and least squares holds
 /// one candidate's Φ and [Φ | y] at a time ([`crate::Identification::numbers_per_row`]).
-fn memory_identification(na: usize, nb: usize, max_delay: usize) -> crate::Identification {
+fn memory_identification(
+    na: usize,
+    nb: usize,
+    max_delay: usize,
+    max_memory: crate::ls::MemoryBudget,
+) -> crate::Identification {
     crate::IdentifyOptions {
         model: crate::ModelKind::Arx,
         na,
@@ -102,19 +107,21 @@ fn memory_identification(na: usize, nb: usize, max_delay: usize) -> crate::Ident
         nk: max_delay,
         method: crate::Method::Ls,
         offset: true,
+        max_memory,
         ..crate::IdentifyOptions::default()
     }
     .settings()
 }
 
-/// Estimates the input delay of `data` by comparing ARX(na, nb, nk) fits for nk = 0..=max_delay.
+/// Estimates the input delay of `data` by comparing ARX(na, nb, nk) fits for nk = 0..=max_delay
+/// (the memory of one fit bounded by the default [`crate::ls::MemoryBudget`]).
 pub fn estimate_delay(
     data: &Dataset,
     na: usize,
     nb: usize,
     max_delay: usize,
 ) -> Result<DelayEstimate, SysidError> {
-    estimate_delay_with_progress(data, na, nb, max_delay, &|_| {})
+    estimate_delay_with_progress(data, na, nb, max_delay, &|_| {}, Default::default())
 }
 
 /// Regression rows × candidates above which a delay search is long enough (seconds) for the command
@@ -122,13 +129,15 @@ pub fn estimate_delay(
 pub const PROGRESS_WORK: usize = 10_000_000;
 
 /// [`estimate_delay`], calling `progress` with each candidate once it is fitted (the command line
-/// prints a line per candidate on a long record, so that a search of minutes is not silent).
+/// prints a line per candidate on a long record, so that a search of minutes is not silent), with
+/// the memory of one fit bounded by `max_memory` (`--max-memory`).
 pub fn estimate_delay_with_progress(
     data: &Dataset,
     na: usize,
     nb: usize,
     max_delay: usize,
     progress: &dyn Fn(&DelayCandidate),
+    max_memory: crate::ls::MemoryBudget,
 ) -> Result<DelayEstimate, SysidError> {
     if data.inputs().len() != 1 {
         // One delay per input would need one search per input; MATLAB `delayest` is single-input too.
@@ -179,7 +188,8 @@ pub fn estimate_delay_with_progress(
     // Φ, y and the QR's [Φ | y] of one candidate at a time, and the record: the bound of every
     // estimation's memory, checked before any of them is allocated, by the one check of every
     // identification.
-    memory_identification(na, nb, max_delay).check_memory(std::slice::from_ref(data))?;
+    memory_identification(na, nb, max_delay, max_memory)
+        .check_memory(std::slice::from_ref(data))?;
     let mut candidates = Vec::with_capacity(max_delay + 1);
     for nk in 0..=max_delay {
         let (phi, target, names) = arx_regression(data.y(), data.u(), na, nb, nk, k0)?;
@@ -267,7 +277,7 @@ mod tests {
             let u: Vec<f64> = (0..n).map(|k| (k % 7) as f64).collect();
             let data =
                 Dataset::new(sysid_core::data::Signals { u: u.clone(), y: u }, 0.01, "r").unwrap();
-            let id = memory_identification(na, nb, max_delay);
+            let id = memory_identification(na, nb, max_delay, Default::default());
             let reg = id.regression(&["u"]).unwrap();
             let k0 = na.max(max_delay + nb - 1);
             let p = na + nb + 1;

@@ -19,7 +19,7 @@ pub use crate::problem::{Estimator, Problem, Records};
 use crate::regression::{Channel, Regression};
 use crate::warnings::{Record, Warning, LINEAR_START_USED};
 use sysid_core::data::SINGLE_INPUT;
-use sysid_core::ls::MemoryNeed;
+use sysid_core::ls::{MemoryBudget, MemoryNeed};
 use sysid_core::metrics::Metrics;
 use sysid_core::{
     Dataset, InputChannel, Model, ModelKind, Orders, ParamName, Structure, SysidError,
@@ -95,6 +95,9 @@ pub struct Identification {
     /// The output nonlinearity y = g(v) (saturation, piecewise-linear, polynomial; `None`: y = v),
     /// fitted by output error from the method's model ([`crate::wiener`]).
     pub output: Option<NonlinearityKind>,
+    /// The most memory the estimation's matrices may take ([`Identification::check_memory`]; default
+    /// 4 GiB, [`sysid_core::ls::MAX_ESTIMATION_BYTES`]).
+    pub max_memory: MemoryBudget,
 }
 
 impl Default for Identification {
@@ -111,6 +114,7 @@ impl Default for Identification {
             drop_unexcited_branch: false,
             fallback: false,
             output: None,
+            max_memory: MemoryBudget::default(),
         }
     }
 }
@@ -220,7 +224,7 @@ impl Identification {
     }
 
     /// Refuses, before any N × p matrix is allocated, an identification of `records` whose matrices
-    /// would need more than [`sysid_core::ls::MAX_ESTIMATION_BYTES`] ([`Identification::numbers_per_row`]
+    /// would need more than [`Identification::max_memory`] ([`Identification::numbers_per_row`]
     /// numbers for each of the N regression rows of the structure's p parameters): the one bound of
     /// every estimation's memory (the command line and the Python package alike; `order` checks its
     /// largest structure with it before the search).
@@ -238,7 +242,7 @@ impl Identification {
         at_once: usize,
     ) -> Result<(), SysidError> {
         match self.memory_need(records)? {
-            Some(need) => need.at_once(at_once).check(),
+            Some(need) => need.at_once(at_once).check(self.max_memory),
             None => Ok(()),
         }
     }

@@ -81,6 +81,9 @@ pub struct NarxSettings {
     pub refine: bool,
     /// Iteration cap of the refinement.
     pub max_iterations: usize,
+    /// The most memory the identification's matrices may take ([`NarxSettings::memory_need`];
+    /// default 4 GiB, [`sysid_core::ls::MAX_ESTIMATION_BYTES`]).
+    pub max_memory: sysid_core::ls::MemoryBudget,
 }
 
 impl Default for NarxSettings {
@@ -98,6 +101,7 @@ impl Default for NarxSettings {
             selection: 1.0 / 3.0,
             refine: true,
             max_iterations: 50,
+            max_memory: sysid_core::ls::MemoryBudget::default(),
         }
     }
 }
@@ -417,7 +421,7 @@ pub fn identify_narx(data: &Dataset, settings: &NarxSettings) -> Result<NarxFit,
     let n_rows = y.len().saturating_sub(k0);
     // The candidates' columns are built below with infallible allocations: their size is checked
     // first, against the one budget of every estimation (the linear classes' in `identify`).
-    s.memory_need(data).check()?;
+    s.memory_need(data).check(s.max_memory)?;
     if n_rows < 2 * cands.len().min(s.max_terms) + 10 {
         return Err(SysidError::Data(format!(
             "{} samples are too few for a NARX model with up to {} terms (k0 = {k0})",

@@ -247,8 +247,8 @@ pub fn offset_hint(
     })
 }
 
-/// Refuses a search whose structures would need more memory than
-/// [`sysid_core::ls::MAX_ESTIMATION_BYTES`] before any is fitted: the largest structure of the grid
+/// Refuses a search whose structures would need more memory than `base`'s
+/// [`Identification::max_memory`] before any is fitted: the largest structure of the grid
 /// (highest na and nb, smallest nk: the most parameters and rows) checked as
 /// [`Identification::check_memory`] checks one identification, times the structures fitted at once
 /// (one per worker thread with the `parallel` feature).

@@ -304,8 +304,8 @@ pub fn evaluate(
     c
 }
 
-/// Refuses a class search whose structures would need more memory than
-/// [`sysid_core::ls::MAX_ESTIMATION_BYTES`] before any is fitted, as [`crate::order::check_memory`]
+/// Refuses a class search whose structures would need more memory than `base`'s
+/// [`Identification::max_memory`] before any is fitted, as [`crate::order::check_memory`]
 /// refuses a grid: each class at the largest orders of `grid` (highest na and nb, smallest nk) —
 /// an input or Wiener class on `est` (the first rows of `whole`, where it is fitted) as
 /// [`Identification::check_memory`] counts it, a NARX class on `whole` (its terms are chosen on the
@@ -346,7 +346,7 @@ pub fn check_memory(
     match classes.iter().filter_map(need).max_by_key(|n| n.bytes()) {
         Some(n) => n
             .at_once(crate::order::fitted_at_once(classes.len() * grid.len()))
-            .check(),
+            .check(base.max_memory),
         None => Ok(()),
     }
 }

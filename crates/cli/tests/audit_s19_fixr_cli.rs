@@ -144,8 +144,7 @@ fn a_narx_estimation_over_the_memory_budget_is_refused_before_it_allocates() {
     // refused.
     let dir = tempfile::tempdir().unwrap();
     let n = 200_000;
-    let csv = dir.path().join("long.csv");
-    std::fs::write(&csv, format!("u,y\n{}", "0,0\n0,1\n".repeat(n / 2))).unwrap();
+    let csv = common::moving_output_csv(dir.path(), n);
     let o = ipa_sysid(&[
         "identify",
         "--data",

@@ -21,8 +21,7 @@ fn a_class_search_over_the_memory_budget_is_refused_before_any_fit() {
     // numbers per row, p = 20). The output moves (0, 1, 0, 1, …) so that the size is what is refused.
     let dir = tempfile::tempdir().unwrap();
     let n = 200_000;
-    let csv = dir.path().join("long.csv");
-    std::fs::write(&csv, format!("u,y\n{}", "0,0\n0,1\n".repeat(n / 2))).unwrap();
+    let csv = common::moving_output_csv(dir.path(), n);
     let o = bin()
         .env("RAYON_NUM_THREADS", "2")
         .args([

@@ -56,6 +56,15 @@ pub fn run_json(dir: &Path, args: &[&str]) -> Value {
     doc
 }
 
+/// A CSV record `u,y` of `n` rows (n even) at `dir/long.csv` whose input is 0 and whose output moves
+/// (0, 1, 0, 1, …): cheap to write and read, and no "the output never moves" refusal, so that a size
+/// check is what a test of one meets.
+pub fn moving_output_csv(dir: &Path, n: usize) -> std::path::PathBuf {
+    let path = dir.join("long.csv");
+    std::fs::write(&path, format!("u,y\n{}", "0,0\n0,1\n".repeat(n / 2))).unwrap();
+    path
+}
+
 /// What `tune` wrote ([`tune`]): the controller file, the report's JSON document, the text printed.
 pub struct Tuned {
     /// The controller file (`--out`).

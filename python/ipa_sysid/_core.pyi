@@ -198,6 +198,8 @@ def identify(
     stop: Literal["sim", "aic", "bic"] = "sim",
     max_terms: int = 30,
     refine: bool = True,
+    detrend: Literal["none", "mean", "linear"] = "none",
+    max_memory_gb: float = 4.0,
 ) -> Fit | NarxFit:
     """Identifies a model as `ipa-sysid identify` does with the same options (structure="narx":
     a polynomial NARX model of degree `degree`, default 2, a NarxFit)."""

@@ -867,12 +867,15 @@ fn py_float(v: Option<f64>) -> String {
 /// `--output-nonlinearity`) adds y = g(v) after the linear block, fitted by output error.
 /// `detrend` ("none", "mean", "linear", the command line's `--detrend`) removes the record's operating
 /// point before the estimation; the model stores (u0, y0) and puts it back in its simulations.
+/// `max_memory_gb` (the command line's `--max-memory`, 4 GiB by default) is the most memory the
+/// estimation's matrices may take: more is refused before anything is allocated.
 #[pyfunction]
 #[pyo3(signature = (u, y, ts, model="hammerstein", method=None, na=3, nb=1, nk=1, forgetting=1.0,
     p0=1e6, offset=false, validation=None, passes=None, max_iterations=100, rls_form="standard",
     windup="none", max_trace=None, iv_stages=10, name="data", validation_name="validation",
     resid_lags=25, fallback=false, nonlinearity=None, breakpoints=None, degree=None,
-    output_nonlinearity=None, structure=None, stop="sim", max_terms=30, refine=true, detrend="none"))]
+    output_nonlinearity=None, structure=None, stop="sim", max_terms=30, refine=true, detrend="none",
+    max_memory_gb=4.0))]
 #[allow(clippy::too_many_arguments)]
 fn identify<'py>(
     py: Python<'py>,
@@ -907,7 +910,15 @@ fn identify<'py>(
     max_terms: usize,
     refine: bool,
     detrend: &str,
+    max_memory_gb: f64,
 ) -> PyResult<Bound<'py, PyAny>> {
+    // The command line's --max-memory GIB, by the same function, named by its keyword here.
+    let max_memory = sysid::ls::MemoryBudget::from_gib(max_memory_gb).map_err(|e| match e {
+        SysidError::Setting { expected, .. } => {
+            setting_err("max_memory_gb", max_memory_gb, &expected)
+        }
+        e => sysid_err(e),
+    })?;
     // `structure` is the command line's --structure (`model` its older spelling).
     let model = structure.unwrap_or(model);
     // The command line's --detrend none|mean|linear (audit s18 L-5).
@@ -1003,6 +1014,7 @@ fn identify<'py>(
             stop: choice("--stop", stop)?,
             refine,
             max_iterations: max_iterations.min(200),
+            max_memory,
             ..sysid::narx::NarxSettings::default()
         };
         settings.check().map_err(sysid_err)?;
@@ -1080,6 +1092,7 @@ fn identify<'py>(
         iv_stages,
         offset,
         fallback,
+        max_memory,
     };
     // A setting of another method's estimator, given (a value other than the default, NaN included),
     // is refused as the command line refuses its flag (one table: `sysid::EstimatorSetting`; audit s19

@@ -9,7 +9,7 @@ use std::path::Path;
 use std::process::Output;
 
 mod common;
-use common::bin;
+use common::{bin, stderr};
 
 /// A record of N = 200 rows: u a ±1 square wave of period 20, y(k) = 0.5 y(k−1) + `scale` · u(k−1)
 /// (so |y| < 2 · scale), Ts = 0.1 s.
@@ -46,10 +46,6 @@ fn validate(dir: &Path, model: &str, data: &str) -> Output {
         .args(["validate", "--model", model, "--data", data])
         .output()
         .unwrap()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
 /// (model file, [a1, a2], b1, offset c, the words that name the absurd coefficient)

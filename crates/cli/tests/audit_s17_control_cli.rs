@@ -203,22 +203,8 @@ fn tune_warns_when_a_models_units_would_need_scaling_up() {
     let tune = |name: &str, model: String, spec: &str| -> Vec<String> {
         let m = dir.path().join(name);
         std::fs::write(&m, model).unwrap();
-        let (c, j) = (dir.path().join("c.json"), dir.path().join("t.json"));
-        let o = ipa_sysid(&[
-            "tune",
-            "--model",
-            m.to_str().unwrap(),
-            "--spec",
-            spec,
-            "--max-evaluations",
-            "40",
-            "--out",
-            c.to_str().unwrap(),
-            "--json",
-            j.to_str().unwrap(),
-        ]);
-        assert!(o.status.success(), "{}", stderr(&o));
-        warnings(&json(&j))
+        let t = common::tune(dir.path(), &m, &["--spec", spec, "--max-evaluations", "40"]);
+        warnings(&t.report)
     };
     let (u_data, y_data, smallest, u_max) = (1023.0, 200_000.0, 2000.0, 1023.0);
     assert!(u_data > 255.0 && y_data > 200.0 && smallest > 10.0 && u_max > 255.0);
@@ -266,23 +252,12 @@ fn tune_in_a_models_units_scales_its_bands_and_an_idle_controller_is_named() {
     let dir = tempfile::tempdir().unwrap();
     let model = dir.path().join("m.json");
     std::fs::write(&model, SMALL_MODEL).unwrap();
-    let c = dir.path().join("c.json");
-    let j = dir.path().join("tune.json");
-    let o = ipa_sysid(&[
-        "tune",
-        "--model",
-        model.to_str().unwrap(),
-        "--spec",
-        SMALL_SPEC,
-        "--max-evaluations",
-        "40",
-        "--out",
-        c.to_str().unwrap(),
-        "--json",
-        j.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let file = json(&c);
+    let t = common::tune(
+        dir.path(),
+        &model,
+        &["--spec", SMALL_SPEC, "--max-evaluations", "40"],
+    );
+    let file = json(&t.controller);
     let ctl = &file["controller"];
     let max_band = 1.6_f64.exp() * 0.002 * (1.0 + 1e-9); // e^1.6 ≈ 4.95 mm, × 0.002
     for band in [
@@ -293,7 +268,7 @@ fn tune_in_a_models_units_scales_its_bands_and_an_idle_controller_is_named() {
         assert!(band <= max_band && band < 0.02, "band {band} of {ctl}");
     }
     // L-m: the provenance carries the whole-spec count of the verification the JSON reports.
-    let report = json(&j);
+    let report = &t.report;
     let met = &file["provenance"]["met"];
     assert_eq!(met["steps"], report["on_model"]["tuned"]["met"], "{met}");
     let (_, (_, _, u, _), _) = control(
@@ -302,7 +277,7 @@ fn tune_in_a_models_units_scales_its_bands_and_an_idle_controller_is_named() {
             "--plant",
             &format!("model:{}", model.display()),
             "--controller",
-            c.to_str().unwrap(),
+            t.controller.to_str().unwrap(),
             "--y0",
             "0.01",
             "--setpoint",

@@ -29,24 +29,8 @@ fn hammerstein_file(dir: &Path, name: &str, a: &[f64], m: f64) -> std::path::Pat
 
 /// `tune --model FILE` (a short search) → the JSON document and the text.
 fn tune(dir: &Path, model: &Path) -> (serde_json::Value, String) {
-    let json = dir.join("t.json");
-    let out = dir.join("c.json");
-    let o = ipa_sysid(&[
-        "tune",
-        "--model",
-        model.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--json",
-        json.to_str().unwrap(),
-        "--max-evaluations",
-        "20",
-        "--variants",
-        "1",
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let doc = serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
-    (doc, String::from_utf8_lossy(&o.stdout).into_owned())
+    let t = common::tune(dir, model, &["--max-evaluations", "20", "--variants", "1"]);
+    (t.report, t.text)
 }
 
 /// The loop: a, m (deadzone slope), Kp, Ki, Kd, Tf, Ts; G = m z⁻¹/A, C as docs/control.md.

@@ -1,5 +1,5 @@
 //! Audit s19 H-1 through the binary: a record whose estimation would need more memory than
-//! `sysid::ls::MAX_ESTIMATION_BYTES` is refused before any N × p matrix is allocated (exit 2, the
+//! `--max-memory` (4 GiB by default, `sysid::ls::MAX_ESTIMATION_BYTES`) is refused before any N × p matrix is allocated (exit 2, the
 //! code of a data problem, with the rows, p, the memory and the way forward), and a long `delay`
 //! search says how far it is on stderr.
 
@@ -97,7 +97,7 @@ fn least_squares_on_the_same_record_needs_less_and_is_checked_with_its_own_size(
     ]);
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(2), "{err}");
-    assert!(!err.contains("MAX_ESTIMATION_BYTES"), "{err}");
+    assert!(!err.contains("--max-memory"), "{err}");
 }
 
 #[test]
@@ -144,8 +144,7 @@ fn a_narx_estimation_over_the_memory_budget_is_refused_before_it_allocates() {
     // refused.
     let dir = tempfile::tempdir().unwrap();
     let n = 200_000;
-    let csv = dir.path().join("long.csv");
-    std::fs::write(&csv, format!("u,y\n{}", "0,0\n0,1\n".repeat(n / 2))).unwrap();
+    let csv = common::moving_output_csv(dir.path(), n);
     let o = ipa_sysid(&[
         "identify",
         "--data",

@@ -4,13 +4,11 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use serde_json::Value;
 
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
-}
+mod common;
+use common::bin;
 
 /// The paper model (b1 = 1, deadzone b_l = −1.5, b_r = 1.41) driven by a staircase, by a plain loop:
 /// y(k) = 1.869 y(k−1) − 0.9976 y(k−2) + 0.1284 y(k−3) + x(k−1).

@@ -6,16 +6,15 @@
 use std::path::Path;
 use std::process::{Command, Output};
 
+mod common;
+use common::stderr;
+
 fn ipa_sysid(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
         .arg("control")
         .args(args)
         .output()
         .expect("run ipa-sysid")
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
 /// Reads a `t,r,u,y` CSV written by `--out`.

@@ -6,11 +6,10 @@
 #![allow(clippy::needless_range_loop)] // the expectations index signals as the equations do
 
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Output;
 
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
-}
+mod common;
+use common::bin;
 
 fn run(args: &[&str]) -> Output {
     let out = bin().args(args).output().unwrap();

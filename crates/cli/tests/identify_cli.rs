@@ -3,13 +3,9 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
 
 mod common;
+use common::bin;
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
-}
 
 /// Paper model (normalised b1 = 1) driven by a deterministic staircase, by a plain loop.
 fn paper_record(n: usize, phase: usize) -> (Vec<f64>, Vec<f64>) {

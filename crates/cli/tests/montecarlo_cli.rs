@@ -2,11 +2,8 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
 
-use std::process::Command;
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
-}
+mod common;
+use common::bin;
 
 fn run(dir: &std::path::Path, name: &str, seed: &str) -> serde_json::Value {
     let json = dir.join(name);

@@ -4,11 +4,9 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
 
 use std::path::Path;
-use std::process::Command;
 
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
-}
+mod common;
+use common::bin;
 
 /// y(k) = 0.2 y(k−1) + 0.1 y(k−1) u(k−1) + 0.9 u(k−2) (SysIdentPy's example system), noise free.
 fn write_record(path: &Path, n: usize, seed: u64) {

@@ -2,11 +2,8 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
 
-use std::process::Command;
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
-}
+mod common;
+use common::bin;
 
 /// y(k) = 0.7 y(k−1) + 0.5 u(k−2), noise-free (na = 1, nb = 1, nk = 2), by a plain loop.
 fn record(dir: &std::path::Path, name: &str, phase: usize) -> std::path::PathBuf {

@@ -5,13 +5,10 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
 
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Output;
 
 mod common;
-
-fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
-}
+use common::bin;
 
 fn run(args: &[&str]) -> Output {
     let out = bin().args(args).output().unwrap();

@@ -7,10 +7,9 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests may panic
 
 use std::path::Path;
-use std::process::Output;
 
 mod common;
-use common::{bin, run_json_code, warnings};
+use common::{bin, run_json_code, stderr, warnings};
 
 /// A record of y(k) = 0.5 y(k−1) + u(k−3) + 0.3 u(k−4) + e(k): na = 1, nb = 2, nk = 3 (a stable pole
 /// at 0.5), u = ±1 from a linear congruential generator, e uniform in ±`noise`; Ts = 0.1 s.
@@ -28,10 +27,6 @@ fn arx_record(path: &Path, n: usize, noise: f64) {
         text.push_str(&format!("{},{},{}\n", k as f64 * 0.1, u[k], y[k]));
     }
     std::fs::write(path, text).unwrap();
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
 /// Runs `args` once without `--strict` (its `--json` document says whether the run warns), then with

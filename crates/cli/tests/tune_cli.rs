@@ -25,25 +25,9 @@ const MODEL: &str = r#"{
 fn tuned(dir: &Path) -> (std::path::PathBuf, serde_json::Value) {
     let model = dir.join("m.json");
     std::fs::write(&model, MODEL).unwrap();
-    let out = dir.join("c.json");
-    let json = dir.join("t.json");
-    let o = ipa_sysid(&[
-        "tune",
-        "--model",
-        model.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--json",
-        json.to_str().unwrap(),
-        "--max-evaluations",
-        "40",
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let text = String::from_utf8_lossy(&o.stdout);
-    assert!(text.contains("paper PI 14/1"), "{text}");
-    let doc: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
-    (out, doc)
+    let t = common::tune(dir, &model, &["--max-evaluations", "40"]);
+    assert!(t.text.contains("paper PI 14/1"), "{}", t.text);
+    (t.controller, t.report)
 }
 
 #[test]
@@ -583,25 +567,9 @@ fn bad_inputs_name_the_file_or_the_flag() {
 fn tune_first_order(dir: &Path, a1: f64) -> serde_json::Value {
     let model = dir.join(format!("m{a1}.json"));
     std::fs::write(&model, MODEL.replace("[-1.0]", &format!("[{a1}]"))).unwrap();
-    let out = dir.join(format!("c{a1}.json"));
-    let json = dir.join(format!("t{a1}.json"));
-    let o = ipa_sysid(&[
-        "tune",
-        "--model",
-        model.to_str().unwrap(),
-        "--out",
-        out.to_str().unwrap(),
-        "--json",
-        json.to_str().unwrap(),
-        "--max-evaluations",
-        "10",
-        "--variants",
-        "1",
-    ]);
-    assert!(o.status.success(), "{}", stderr(&o));
-    let text = String::from_utf8_lossy(&o.stdout);
-    let doc: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let common::Tuned {
+        report: doc, text, ..
+    } = common::tune(dir, &model, &["--max-evaluations", "10", "--variants", "1"]);
     let unstable = doc["margins"]["open_loop_unstable"].as_bool().unwrap();
     assert_eq!(text.contains("UNSTABLE open loop"), unstable, "{text}");
     doc

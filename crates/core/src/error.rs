@@ -37,6 +37,8 @@ pub enum Setting {
     Tolerance,
     /// Reading a data file without a header row (its columns named by position).
     NoHeader,
+    /// The memory budget of one estimation, in GiB ([`crate::ls::MemoryBudget`]).
+    MaxMemory,
     /// Any other setting, by the name the caller uses (an application's own options).
     Other(&'static str),
 }
@@ -61,6 +63,7 @@ impl Setting {
             Setting::MaxIterations => "max_iterations",
             Setting::Tolerance => "tolerance",
             Setting::NoHeader => "no_header",
+            Setting::MaxMemory => "max_memory_gb",
             Setting::Other(name) => name,
         }
     }
@@ -87,6 +90,7 @@ impl Setting {
             Setting::MaxIterations => "--max-iterations",
             Setting::Tolerance => "tolerance",
             Setting::NoHeader => "--no-header",
+            Setting::MaxMemory => "--max-memory",
             Setting::Other(name) => name,
         }
     }

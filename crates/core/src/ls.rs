@@ -36,12 +36,100 @@ pub struct LsSolution {
 /// Relative size below which a diagonal entry of R (of the column-normalised Φ) counts as zero.
 pub const RANK_TOLERANCE: f64 = 1e-10;
 
-/// The most memory the matrices of one estimation may take: 4 GiB (2³² bytes). A record at the
-/// readers' limit (`sysid::data::MAX_SAMPLES` = 50 000 000 samples) drives N × p matrices of several GB
-/// (a valid 3.9 MB compressed `.mat` drove 6.4 GB and aborted on the failed allocation; audit s19 H-1),
-/// so the size is checked ([`check_memory`]) before any of them is allocated; with the record itself
-/// the peak then stays below the 6 GB limit the project measures its bounds against.
+/// The default most memory the matrices of one estimation may take: 4 GiB (2³² bytes). A record at
+/// the readers' limit (`sysid::data::MAX_SAMPLES` = 50 000 000 samples) drives N × p matrices of
+/// several GB (a valid 3.9 MB compressed `.mat` drove 6.4 GB and aborted on the failed allocation;
+/// audit s19 H-1), so the size is checked ([`MemoryNeed::check`]) before any of them is allocated;
+/// with the record itself the peak then stays below the 6 GB limit the project measures its bounds
+/// against. A machine with more memory raises it ([`MemoryBudget`], `--max-memory GIB`).
 pub const MAX_ESTIMATION_BYTES: u64 = 1 << 32;
+
+/// The most memory the matrices of one estimation may take, in GiB (2³⁰ bytes): the command line's
+/// `--max-memory GIB`, the Python package's `max_memory_gb`; [`MAX_ESTIMATION_BYTES`] (4 GiB) by
+/// default. Made only by [`MemoryBudget::from_gib`], so it is always more than 0 bytes and at most
+/// [`MemoryBudget::MAX_GIB`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MemoryBudget {
+    /// The budget in GiB as given (shown as given in messages).
+    gib: f64,
+}
+
+impl MemoryBudget {
+    /// The largest budget accepted, 1024 GiB (1 TiB): more is a typing slip, not a machine's memory.
+    pub const MAX_GIB: f64 = 1024.0;
+
+    /// A budget of `gib` GiB (2³⁰ bytes each); refuses NaN, infinities, 0, negative numbers, less than
+    /// one byte and more than [`MemoryBudget::MAX_GIB`].
+    pub fn from_gib(gib: f64) -> Result<Self, SysidError> {
+        if gib.is_finite() && gib > 0.0 && gib <= Self::MAX_GIB && gib * GIB >= 1.0 {
+            Ok(MemoryBudget { gib })
+        } else {
+            Err(SysidError::setting(
+                crate::Setting::MaxMemory,
+                gib,
+                &format!(
+                    "a memory size in GiB (2^30 bytes), more than 0 and at most {}",
+                    Self::MAX_GIB
+                ),
+            ))
+        }
+    }
+
+    /// The budget in GiB.
+    pub fn gib(self) -> f64 {
+        self.gib
+    }
+
+    /// The budget in bytes (rounded down).
+    pub fn bytes(self) -> u64 {
+        (self.gib * GIB) as u64
+    }
+}
+
+impl Default for MemoryBudget {
+    /// [`MAX_ESTIMATION_BYTES`]: 4 GiB.
+    fn default() -> Self {
+        MemoryBudget {
+            gib: MAX_ESTIMATION_BYTES as f64 / GIB,
+        }
+    }
+}
+
+impl std::fmt::Display for MemoryBudget {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{}", self.gib)
+    }
+}
+
+impl std::str::FromStr for MemoryBudget {
+    type Err = SysidError;
+    /// A number of GiB (`8`, `0.5`), as `--max-memory` takes it.
+    fn from_str(t: &str) -> Result<Self, SysidError> {
+        let gib = t.trim().parse::<f64>().map_err(|_| {
+            SysidError::setting(
+                crate::Setting::MaxMemory,
+                t,
+                "a memory size in GiB (2^30 bytes), a number such as 8 or 0.5",
+            )
+        })?;
+        Self::from_gib(gib)
+    }
+}
+
+/// Bytes in a GiB.
+const GIB: f64 = (1u64 << 30) as f64;
+
+/// A memory size in GB (10⁹ bytes) as the refusals write it: one decimal from 0.1 GB, two significant
+/// digits below (so that a small need under a small budget is not written 0.0 GB).
+pub fn format_gb(bytes: u64) -> String {
+    let gb = bytes as f64 / 1e9;
+    if gb >= 0.1 || gb == 0.0 {
+        format!("{gb:.1}")
+    } else {
+        let decimals = (1.0 - gb.log10().floor()).max(1.0) as usize;
+        format!("{gb:.decimals$}")
+    }
+}
 
 /// The bytes `per_row` numbers (f64) for each of `rows` regression rows take: the memory an estimation
 /// of N = `rows` rows needs at its peak when it holds `per_row` numbers per row (for p parameters,
@@ -52,25 +140,60 @@ pub fn estimation_bytes(rows: usize, per_row: usize) -> u64 {
         .saturating_mul(std::mem::size_of::<f64>() as u64)
 }
 
-/// Refuses, before anything is allocated, an estimation of `p` parameters on `rows` regression rows
-/// (N) that would hold `per_row` numbers per row at its peak ([`estimation_bytes`]) when that is more
-/// than [`MAX_ESTIMATION_BYTES`]. `what` names the record; the message gives N, p, the memory needed
-/// and the way forward (a part of the record, a coarser sampling, lower orders).
-pub fn check_memory(what: &str, rows: usize, p: usize, per_row: usize) -> Result<(), SysidError> {
-    let bytes = estimation_bytes(rows, per_row);
-    if bytes <= MAX_ESTIMATION_BYTES {
-        return Ok(());
+/// The memory one estimation needs at its peak: `per_row` numbers (f64) for each of its `rows`
+/// regression rows (N) of `p` parameters ([`estimation_bytes`]); `what` names the record (and the fits
+/// held in memory together). Checked by [`MemoryNeed::check`] before anything is allocated.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub struct MemoryNeed {
+    /// The record (and the fits held at once), as the refusal names it.
+    pub what: String,
+    /// N: regression rows.
+    pub rows: usize,
+    /// p: parameters (columns of Φ).
+    pub p: usize,
+    /// Numbers (f64) held per regression row at the peak.
+    pub per_row: usize,
+}
+
+impl MemoryNeed {
+    /// The bytes this estimation needs ([`estimation_bytes`]).
+    pub fn bytes(&self) -> u64 {
+        estimation_bytes(self.rows, self.per_row)
     }
-    // The most rows that fit the budget with these orders.
-    let fit = MAX_ESTIMATION_BYTES / (per_row.max(1) as u64 * std::mem::size_of::<f64>() as u64);
-    Err(SysidError::Data(format!(
-        "{what}: {rows} regression rows of {p} parameters need about {:.1} GB for the estimation's \
-         matrices (N × p numbers), more than its budget of {} GiB (sysid::ls::MAX_ESTIMATION_BYTES); \
-         use at most {fit} rows of the record (--rows A..B, or a slice of the arrays), a coarser \
-         sampling (--resample TS, or decimate the record), or lower orders",
-        bytes as f64 / 1e9,
-        MAX_ESTIMATION_BYTES >> 30
-    )))
+
+    /// This need for `at_once` such estimations held in memory together (a search's structures
+    /// fitted at once, one per worker thread): the numbers per row times `at_once`, and the count
+    /// named in the refusal when it is more than one.
+    pub fn at_once(mut self, at_once: usize) -> Self {
+        if at_once > 1 {
+            self.per_row = self.per_row.saturating_mul(at_once);
+            self.what = format!("{} ({at_once} structures fitted at once)", self.what);
+        }
+        self
+    }
+
+    /// Refuses, before anything is allocated, this estimation when it needs more than `budget`; the
+    /// message gives N, p, the memory needed and the way forward (a part of the record, a coarser
+    /// sampling, lower orders, or a larger budget on a machine that has the memory).
+    pub fn check(&self, budget: MemoryBudget) -> Result<(), SysidError> {
+        let bytes = self.bytes();
+        if bytes <= budget.bytes() {
+            return Ok(());
+        }
+        // The most rows that fit the budget with these orders.
+        let fit = budget.bytes() / (self.per_row.max(1) as u64 * std::mem::size_of::<f64>() as u64);
+        Err(SysidError::Data(format!(
+            "{}: {} regression rows of {} parameters need about {} GB for the estimation's \
+             matrices (N × p numbers), more than its budget of {budget} GiB (--max-memory); use at \
+             most {fit} rows of the record (--rows A..B, or a slice of the arrays), a coarser \
+             sampling (--resample TS, or decimate the record), or lower orders, or raise \
+             --max-memory (max_memory_gb in Python) if this machine has the memory",
+            self.what,
+            self.rows,
+            self.p,
+            format_gb(bytes),
+        )))
+    }
 }
 
 /// The error of a failed allocation of `numbers` f64 for `what` (a data problem: the record is too
@@ -890,6 +1013,52 @@ mod tests {
     use super::*;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
+
+    // --max-memory GIB: a size in GiB (2³⁰ bytes), more than 0 and at most 1 TiB; 4 GiB by default.
+    #[test]
+    fn a_memory_budget_is_a_positive_size_in_gib_up_to_a_tebibyte() {
+        assert_eq!(MemoryBudget::default().bytes(), 4 * 1024 * 1024 * 1024);
+        assert_eq!(
+            MemoryBudget::from_gib(0.5).unwrap().bytes(),
+            512 * 1024 * 1024
+        );
+        assert_eq!("1024".parse::<MemoryBudget>().unwrap().bytes(), 1u64 << 40);
+        for bad in [0.0, -1.0, f64::NAN, f64::INFINITY, 1024.5, 1e-12] {
+            let e = MemoryBudget::from_gib(bad).unwrap_err().to_string();
+            assert!(e.contains("GiB"), "{bad}: {e}");
+        }
+        for bad in ["", "8GB", "lots", "nan", "-2"] {
+            assert!(bad.parse::<MemoryBudget>().is_err(), "{bad}");
+        }
+    }
+
+    // A need is refused exactly when its bytes (rows × numbers per row × 8) exceed the budget, and
+    // the rows it offers are the most that fit: 1000 rows × 12 numbers × 8 bytes = 96 000 bytes.
+    #[test]
+    fn a_need_over_its_budget_is_refused_with_the_rows_that_fit() {
+        let need = MemoryNeed {
+            what: "r".into(),
+            rows: 1000,
+            p: 4,
+            per_row: 12,
+        };
+        let exact = MemoryBudget::from_gib(96_000.0 / (1u64 << 30) as f64).unwrap();
+        assert!(need.check(exact).is_ok());
+        let under = MemoryBudget::from_gib(95_999.0 / (1u64 << 30) as f64).unwrap();
+        let e = need.check(under).unwrap_err().to_string();
+        // 95 999 bytes / 96 bytes per row = 999 rows; 9.6e-5 GB.
+        assert!(e.contains("at most 999 rows"), "{e}");
+        assert!(e.contains("about 0.000096 GB"), "{e}");
+        assert!(e.contains("raise --max-memory"), "{e}");
+    }
+
+    #[test]
+    fn sizes_in_gb_keep_two_significant_digits_below_a_tenth() {
+        assert_eq!(format_gb(5_700_000_000), "5.7");
+        assert_eq!(format_gb(100_000_000), "0.1");
+        assert_eq!(format_gb(48_000_000), "0.048");
+        assert_eq!(format_gb(960_000), "0.00096");
+    }
 
     /// Independent reference: nalgebra's QR, without column scaling or rank test.
     fn nalgebra_qr(phi: &DMatrix<f64>, y: &DVector<f64>) -> LsSolution {

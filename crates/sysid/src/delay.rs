@@ -90,14 +90,38 @@ pub(crate) fn arx_regression(
     Ok((phi, target, names))
 }
 
-/// Estimates the input delay of `data` by comparing ARX(na, nb, nk) fits for nk = 0..=max_delay.
+/// The identification whose memory a delay search needs at its peak: ARX (na, nb, nk = `max_delay`)
+/// with a constant term, by least squares. Its regression rows are the search's, k ≥ k0 = max(na,
+/// nk_max + nb − 1), its p = na + nb + 1 parameters are every candidate's, and least squares holds
+/// one candidate's Φ and [Φ | y] at a time ([`crate::Identification::numbers_per_row`]).
+fn memory_identification(
+    na: usize,
+    nb: usize,
+    max_delay: usize,
+    max_memory: crate::ls::MemoryBudget,
+) -> crate::Identification {
+    crate::IdentifyOptions {
+        model: crate::ModelKind::Arx,
+        na,
+        nb,
+        nk: max_delay,
+        method: crate::Method::Ls,
+        offset: true,
+        max_memory,
+        ..crate::IdentifyOptions::default()
+    }
+    .settings()
+}
+
+/// Estimates the input delay of `data` by comparing ARX(na, nb, nk) fits for nk = 0..=max_delay
+/// (the memory of one fit bounded by the default [`crate::ls::MemoryBudget`]).
 pub fn estimate_delay(
     data: &Dataset,
     na: usize,
     nb: usize,
     max_delay: usize,
 ) -> Result<DelayEstimate, SysidError> {
-    estimate_delay_with_progress(data, na, nb, max_delay, &|_| {})
+    estimate_delay_with_progress(data, na, nb, max_delay, &|_| {}, Default::default())
 }
 
 /// Regression rows × candidates above which a delay search is long enough (seconds) for the command
@@ -105,13 +129,15 @@ pub fn estimate_delay(
 pub const PROGRESS_WORK: usize = 10_000_000;
 
 /// [`estimate_delay`], calling `progress` with each candidate once it is fitted (the command line
-/// prints a line per candidate on a long record, so that a search of minutes is not silent).
+/// prints a line per candidate on a long record, so that a search of minutes is not silent), with
+/// the memory of one fit bounded by `max_memory` (`--max-memory`).
 pub fn estimate_delay_with_progress(
     data: &Dataset,
     na: usize,
     nb: usize,
     max_delay: usize,
     progress: &dyn Fn(&DelayCandidate),
+    max_memory: crate::ls::MemoryBudget,
 ) -> Result<DelayEstimate, SysidError> {
     if data.inputs().len() != 1 {
         // One delay per input would need one search per input; MATLAB `delayest` is single-input too.
@@ -160,8 +186,10 @@ pub fn estimate_delay_with_progress(
         )));
     }
     // Φ, y and the QR's [Φ | y] of one candidate at a time, and the record: the bound of every
-    // estimation's memory, checked before any of them is allocated.
-    crate::ls::check_memory(data.name(), data.len() - k0, p, 2 * p + 4)?;
+    // estimation's memory, checked before any of them is allocated, by the one check of every
+    // identification.
+    memory_identification(na, nb, max_delay, max_memory)
+        .check_memory(std::slice::from_ref(data))?;
     let mut candidates = Vec::with_capacity(max_delay + 1);
     for nk in 0..=max_delay {
         let (phi, target, names) = arx_regression(data.y(), data.u(), na, nb, nk, k0)?;
@@ -233,4 +261,30 @@ pub fn estimate_delay_with_progress(
         margin: margin.filter(|m| m.is_finite()),
         warnings,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    // The delay search's memory is counted as one least-squares candidate at a time: on N samples,
+    // N − k0 rows (k0 = max(na, nk_max + nb − 1)) of p = na + nb + 1 parameters (a constant term),
+    // each holding Φ and the QR's [Φ | y] (2p + 1 numbers) and about four for the record: 2p + 4.
+    #[test]
+    fn a_delay_search_is_counted_as_one_least_squares_candidate() {
+        for (na, nb, max_delay) in [(2, 2, 10), (4, 1, 0), (1, 6, 3)] {
+            let n = 1000;
+            let u: Vec<f64> = (0..n).map(|k| (k % 7) as f64).collect();
+            let data =
+                Dataset::new(sysid_core::data::Signals { u: u.clone(), y: u }, 0.01, "r").unwrap();
+            let id = memory_identification(na, nb, max_delay, Default::default());
+            let reg = id.regression(&["u"]).unwrap();
+            let k0 = na.max(max_delay + nb - 1);
+            let p = na + nb + 1;
+            assert_eq!(reg.rows(std::slice::from_ref(&data)), n - k0);
+            assert_eq!(reg.len(), p);
+            assert!(!reg.nonlinear());
+            assert_eq!(id.numbers_per_row(p, reg.nonlinear()), 2 * p + 4);
+        }
+    }
 }

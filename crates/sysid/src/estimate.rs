@@ -19,6 +19,7 @@ pub use crate::problem::{Estimator, Problem, Records};
 use crate::regression::{Channel, Regression};
 use crate::warnings::{Record, Warning, LINEAR_START_USED};
 use sysid_core::data::SINGLE_INPUT;
+use sysid_core::ls::{MemoryBudget, MemoryNeed};
 use sysid_core::metrics::Metrics;
 use sysid_core::{
     Dataset, InputChannel, Model, ModelKind, Orders, ParamName, Structure, SysidError,
@@ -94,6 +95,9 @@ pub struct Identification {
     /// The output nonlinearity y = g(v) (saturation, piecewise-linear, polynomial; `None`: y = v),
     /// fitted by output error from the method's model ([`crate::wiener`]).
     pub output: Option<NonlinearityKind>,
+    /// The most memory the estimation's matrices may take ([`Identification::check_memory`]; default
+    /// 4 GiB, [`sysid_core::ls::MAX_ESTIMATION_BYTES`]).
+    pub max_memory: MemoryBudget,
 }
 
 impl Default for Identification {
@@ -110,6 +114,7 @@ impl Default for Identification {
             drop_unexcited_branch: false,
             fallback: false,
             output: None,
+            max_memory: MemoryBudget::default(),
         }
     }
 }
@@ -219,7 +224,7 @@ impl Identification {
     }
 
     /// Refuses, before any N × p matrix is allocated, an identification of `records` whose matrices
-    /// would need more than [`sysid_core::ls::MAX_ESTIMATION_BYTES`] ([`Identification::numbers_per_row`]
+    /// would need more than [`Identification::max_memory`] ([`Identification::numbers_per_row`]
     /// numbers for each of the N regression rows of the structure's p parameters): the one bound of
     /// every estimation's memory (the command line and the Python package alike; `order` checks its
     /// largest structure with it before the search).
@@ -229,33 +234,39 @@ impl Identification {
 
     /// [`Identification::check_memory`] for `at_once` fits of this structure held in memory
     /// together (`order`'s structures fitted at once, one per worker thread): the numbers per row
-    /// times `at_once`, and the count named in the refusal when it is more than one.
+    /// times `at_once`, and the count named in the refusal when it is more than one
+    /// ([`sysid_core::ls::MemoryNeed::at_once`]).
     pub fn check_memory_at_once(
         &self,
         records: &[Dataset],
         at_once: usize,
     ) -> Result<(), SysidError> {
+        match self.memory_need(records)? {
+            Some(need) => need.at_once(at_once).check(self.max_memory),
+            None => Ok(()),
+        }
+    }
+
+    /// The memory an identification of `records` needs at its peak: the N regression rows of the
+    /// structure's p parameters, [`Identification::numbers_per_row`] numbers each (`None` without a
+    /// record).
+    pub fn memory_need(&self, records: &[Dataset]) -> Result<Option<MemoryNeed>, SysidError> {
         let Some(first) = records.first() else {
-            return Ok(());
+            return Ok(None);
         };
         let names: Vec<&str> = first.inputs().iter().map(|i| i.name()).collect();
         let reg = self.regression(&names)?;
         let p = reg.len();
-        let mut what = records
-            .iter()
-            .map(Dataset::name)
-            .collect::<Vec<_>>()
-            .join(" + ");
-        if at_once > 1 {
-            what = format!("{what} ({at_once} structures fitted at once)");
-        }
-        sysid_core::ls::check_memory(
-            &what,
-            reg.rows(records),
+        Ok(Some(MemoryNeed {
+            what: records
+                .iter()
+                .map(Dataset::name)
+                .collect::<Vec<_>>()
+                .join(" + "),
+            rows: reg.rows(records),
             p,
-            self.numbers_per_row(p, reg.nonlinear())
-                .saturating_mul(at_once.max(1)),
-        )
+            per_row: self.numbers_per_row(p, reg.nonlinear()),
+        }))
     }
 
     /// Builder: one input specification per input of the data.

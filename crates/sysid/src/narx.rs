@@ -81,6 +81,9 @@ pub struct NarxSettings {
     pub refine: bool,
     /// Iteration cap of the refinement.
     pub max_iterations: usize,
+    /// The most memory the identification's matrices may take ([`NarxSettings::memory_need`];
+    /// default 4 GiB, [`sysid_core::ls::MAX_ESTIMATION_BYTES`]).
+    pub max_memory: sysid_core::ls::MemoryBudget,
 }
 
 impl Default for NarxSettings {
@@ -98,6 +101,7 @@ impl Default for NarxSettings {
             selection: 1.0 / 3.0,
             refine: true,
             max_iterations: 50,
+            max_memory: sysid_core::ls::MemoryBudget::default(),
         }
     }
 }
@@ -152,6 +156,19 @@ impl NarxSettings {
 
     fn k0(&self) -> usize {
         self.na.max((self.nk + self.nb).saturating_sub(1))
+    }
+
+    /// The memory an identification of `data` with these settings needs at its peak: its N = len − k0
+    /// regression rows, M candidate terms as p and [`numbers_per_row`] numbers each; checked by
+    /// [`identify_narx`] before the candidates' columns are built (with infallible allocations).
+    pub fn memory_need(&self, data: &Dataset) -> sysid_core::ls::MemoryNeed {
+        let m = candidate_terms(self.na, self.nb, self.nk, self.degree, self.constant).len();
+        sysid_core::ls::MemoryNeed {
+            what: data.name().to_string(),
+            rows: data.len().saturating_sub(self.k0()),
+            p: m,
+            per_row: numbers_per_row(m, self.max_terms),
+        }
     }
 }
 
@@ -404,12 +421,7 @@ pub fn identify_narx(data: &Dataset, settings: &NarxSettings) -> Result<NarxFit,
     let n_rows = y.len().saturating_sub(k0);
     // The candidates' columns are built below with infallible allocations: their size is checked
     // first, against the one budget of every estimation (the linear classes' in `identify`).
-    sysid_core::ls::check_memory(
-        data.name(),
-        n_rows,
-        cands.len(),
-        numbers_per_row(cands.len(), s.max_terms),
-    )?;
+    s.memory_need(data).check(s.max_memory)?;
     if n_rows < 2 * cands.len().min(s.max_terms) + 10 {
         return Err(SysidError::Data(format!(
             "{} samples are too few for a NARX model with up to {} terms (k0 = {k0})",

@@ -45,6 +45,8 @@ pub struct IdentifyOptions {
     /// Replace a diverging or far worse Hammerstein estimate by the linear start (see
     /// [`Identification::fallback`]).
     pub fallback: bool,
+    /// The most memory the estimation's matrices may take (`--max-memory`, `max_memory_gb`).
+    pub max_memory: sysid_core::ls::MemoryBudget,
 }
 
 impl Default for IdentifyOptions {
@@ -67,6 +69,7 @@ impl Default for IdentifyOptions {
             iv_stages: 10,
             offset: false,
             fallback: false,
+            max_memory: sysid_core::ls::MemoryBudget::default(),
         }
     }
 }
@@ -117,6 +120,7 @@ impl IdentifyOptions {
             drop_unexcited_branch: true,
             fallback: self.fallback,
             output: None,
+            max_memory: self.max_memory,
         }
     }
 }

@@ -247,8 +247,8 @@ pub fn offset_hint(
     })
 }
 
-/// Refuses a search whose structures would need more memory than
-/// [`sysid_core::ls::MAX_ESTIMATION_BYTES`] before any is fitted: the largest structure of the grid
+/// Refuses a search whose structures would need more memory than `base`'s
+/// [`Identification::max_memory`] before any is fitted: the largest structure of the grid
 /// (highest na and nb, smallest nk: the most parameters and rows) checked as
 /// [`Identification::check_memory`] checks one identification, times the structures fitted at once
 /// (one per worker thread with the `parallel` feature).
@@ -262,14 +262,20 @@ pub fn check_memory(
     let (Some(&a), Some(&b), Some(&k)) = (na.iter().max(), nb.iter().max(), nk.iter().min()) else {
         return Ok(());
     };
+    base.clone().with_orders(a, b, k).check_memory_at_once(
+        std::slice::from_ref(est),
+        fitted_at_once(grid_size(na, nb, nk)),
+    )
+}
+
+/// How many of a search's `jobs` structures are fitted at once: one per worker thread with the
+/// `parallel` feature (at most `jobs`), else one.
+pub(crate) fn fitted_at_once(jobs: usize) -> usize {
     #[cfg(feature = "parallel")]
     let workers = rayon::current_num_threads();
     #[cfg(not(feature = "parallel"))]
     let workers = 1;
-    let at_once = workers.min(grid_size(na, nb, nk)).max(1);
-    base.clone()
-        .with_orders(a, b, k)
-        .check_memory_at_once(std::slice::from_ref(est), at_once)
+    workers.min(jobs).max(1)
 }
 
 /// The number of structures in a grid.

@@ -304,6 +304,53 @@ pub fn evaluate(
     c
 }
 
+/// Refuses a class search whose structures would need more memory than `base`'s
+/// [`Identification::max_memory`] before any is fitted, as [`crate::order::check_memory`]
+/// refuses a grid: each class at the largest orders of `grid` (highest na and nb, smallest nk) —
+/// an input or Wiener class on `est` (the first rows of `whole`, where it is fitted) as
+/// [`Identification::check_memory`] counts it, a NARX class on `whole` (its terms are chosen on the
+/// rest) as [`crate::narx::identify_narx`] counts it — and the one of them that needs the most,
+/// times the structures fitted at once, checked. A class whose identification cannot be set up at
+/// those orders is left to its own candidates' errors.
+pub fn check_memory(
+    whole: &Dataset,
+    est: &Dataset,
+    classes: &[Class],
+    grid: &[Orders],
+    base: &Identification,
+    narx: &NarxSettings,
+) -> Result<(), SysidError> {
+    let (Some(na), Some(nb), Some(nk)) = (
+        grid.iter().map(|o| o.na).max(),
+        grid.iter().map(|o| o.nb).max(),
+        grid.iter().map(|o| o.nk).min(),
+    ) else {
+        return Ok(());
+    };
+    let largest = Orders { na, nb, nk };
+    let need = |class: &Class| match *class {
+        Class::Narx(degree) => Some(
+            NarxSettings {
+                na,
+                nb,
+                nk,
+                degree,
+                ..*narx
+            }
+            .memory_need(whole),
+        ),
+        _ => class
+            .identification(base, largest)
+            .and_then(|id| id.memory_need(std::slice::from_ref(est)).ok().flatten()),
+    };
+    match classes.iter().filter_map(need).max_by_key(|n| n.bytes()) {
+        Some(n) => n
+            .at_once(crate::order::fitted_at_once(classes.len() * grid.len()))
+            .check(base.max_memory),
+        None => Ok(()),
+    }
+}
+
 /// Every class at every orders of `grid`, estimated on the first `split` rows of `whole` and ranked
 /// on the rest: the qualified candidates ([`ClassCandidate::qualified`]) before the others, as plain
 /// `order` ranks; then least selection RMSE first (a candidate without one last), ties to fewer

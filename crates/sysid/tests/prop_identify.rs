@@ -87,6 +87,7 @@ fn settings(
         drop_unexcited_branch: true,
         fallback: true,
         output: None,
+        max_memory: Default::default(),
     }
 }
 

@@ -173,7 +173,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
 }
 
-fn emit<T: Serialize>(
+/// Prints a benchmark's text and writes `value` as JSON to `--json` (`inputs`: the files read, which
+/// the output may not replace).
+pub(super) fn emit<T: Serialize>(
     text: &str,
     value: &T,
     json: &Option<PathBuf>,
@@ -608,6 +610,41 @@ fn long(a: LongArgs) -> anyhow::Result<()> {
         results,
     };
     emit(&text, &out, &a.json, &[])
+}
+
+/// The JSON document of a benchmark on the public records (`bench oe`, `bench narx`): its cases
+/// (`C`, one per record, run or skipped) and the peer's versions when it ran in the same run.
+#[derive(Serialize)]
+pub(super) struct RecordBench<C> {
+    pub benchmark: &'static str,
+    pub data_dir: String,
+    pub repetitions: usize,
+    pub cases: Vec<C>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub peer_versions: Option<serde_json::Value>,
+}
+
+/// Why a case of a benchmark on the public records is skipped: its file `path` is absent.
+pub(super) fn absent(path: &std::path::Path) -> String {
+    format!(
+        "{} not found (the record is not part of the project)",
+        path.display()
+    )
+}
+
+/// The peer's versions (its JSON's `versions`, null when absent).
+pub(super) fn peer_versions(peer: &serde_json::Value) -> serde_json::Value {
+    peer.get("versions")
+        .cloned()
+        .unwrap_or(serde_json::Value::Null)
+}
+
+/// The peer's result for the case `name` (its JSON's `cases.NAME`), if it gave one.
+pub(super) fn peer_case<'a>(
+    peer: &'a serde_json::Value,
+    name: &str,
+) -> Option<&'a serde_json::Value> {
+    peer.get("cases").and_then(|c| c.get(name))
 }
 
 /// Refuses a `--data-dir` that is not a folder (a typo): the benchmark would skip every case and exit

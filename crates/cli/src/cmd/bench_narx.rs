@@ -8,8 +8,6 @@ use anyhow::Context;
 use serde::Serialize;
 use sysid_studies::narx_bench::{bench_narx, NarxBench, NarxCase, NARX_CASES};
 
-use super::common::write_output;
-
 /// Flags of `bench narx`.
 #[derive(Debug, clap::Args)]
 pub struct NarxArgs {
@@ -71,10 +69,7 @@ pub fn run(a: NarxArgs) -> anyhow::Result<()> {
             peer: None,
         };
         if !est_path.is_file() || !test_path.is_file() {
-            let why = format!(
-                "{} not found (the record is not part of the project)",
-                est_path.display()
-            );
+            let why = super::bench::absent(&est_path);
             text.push_str(&format!("  {:<16} skipped: {why}\n", case.name));
             out.skipped = Some(why);
             cases.push(out);
@@ -106,29 +101,15 @@ pub fn run(a: NarxArgs) -> anyhow::Result<()> {
         Some(python) if !inputs.is_empty() => Some(run_peer(python, &a, &mut cases, &mut text)?),
         _ => None,
     };
-    #[derive(Serialize)]
-    struct Out {
-        benchmark: &'static str,
-        data_dir: String,
-        repetitions: usize,
-        cases: Vec<Case>,
-        #[serde(skip_serializing_if = "Option::is_none")]
-        peer_versions: Option<serde_json::Value>,
-    }
-    let out = Out {
+    let out = super::bench::RecordBench {
         benchmark: "narx",
         data_dir: a.data_dir.display().to_string(),
         repetitions: reps,
         cases,
         peer_versions: peer,
     };
-    super::common::print_report(&text, &[a.json.as_deref()])?;
-    if let Some(path) = &a.json {
-        let body = serde_json::to_string_pretty(&out)? + "\n";
-        let ins: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
-        write_output(path, body.as_bytes(), &ins, "--json")?;
-    }
-    Ok(())
+    let ins: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
+    super::bench::emit(&text, &out, &a.json, &ins)
 }
 
 /// Runs the peer script on the same cases (given on its standard input); adds its results.
@@ -163,15 +144,12 @@ fn run_peer(
         ],
         Some(&serde_json::to_string(&spec)?),
     )?;
-    let versions = v
-        .get("versions")
-        .cloned()
-        .unwrap_or(serde_json::Value::Null);
+    let versions = super::bench::peer_versions(&v);
     text.push_str(&format!(
         "Peer in the same run: SysIdentPy FROLS, AIC, least squares ({versions}):\n"
     ));
     for case in cases.iter_mut() {
-        let Some(p) = v.get("cases").and_then(|c| c.get(case.case.name)) else {
+        let Some(p) = super::bench::peer_case(&v, case.case.name) else {
             continue;
         };
         let num = |k: &str| p.get(k).and_then(serde_json::Value::as_f64);

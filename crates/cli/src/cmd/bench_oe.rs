@@ -9,8 +9,6 @@ use anyhow::Context;
 use serde::Serialize;
 use sysid_studies::oe_bench::{bench_oe, OeBench, OE_CASES};
 
-use super::common::write_output;
-
 /// Flags of `bench oe`.
 #[derive(Debug, clap::Args)]
 pub struct OeArgs {
@@ -74,10 +72,7 @@ pub fn run(a: OeArgs) -> anyhow::Result<()> {
             peer: None,
         };
         if !path.is_file() {
-            let why = format!(
-                "{} not found (the record is not part of the project)",
-                path.display()
-            );
+            let why = super::bench::absent(&path);
             text.push_str(&format!("  {:<10} skipped: {why}\n", case.name));
             out.skipped = Some(why);
             cases.push(out);
@@ -110,30 +105,15 @@ pub fn run(a: OeArgs) -> anyhow::Result<()> {
         }
         None => None,
     };
-    #[derive(Serialize)]
-    struct Out {
-        benchmark: &'static str,
-        data_dir: String,
-        repetitions: usize,
-        cases: Vec<Case>,
-        #[serde(skip_serializing_if = "Option::is_none")]
-        peer_versions: Option<serde_json::Value>,
-    }
-    let out = Out {
+    let out = super::bench::RecordBench {
         benchmark: "oe",
         data_dir: a.data_dir.display().to_string(),
         repetitions: reps,
         cases,
         peer_versions: peer,
     };
-    super::common::print_report(&text, &[a.json.as_deref()])?;
-    if let Some(path) = &a.json {
-        let body =
-            serde_json::to_string_pretty(&out).context("serialising the benchmark result")? + "\n";
-        let ins: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
-        write_output(path, body.as_bytes(), &ins, "--json")?;
-    }
-    Ok(())
+    let ins: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
+    super::bench::emit(&text, &out, &a.json, &ins)
 }
 
 fn percent(v: Option<f64>) -> String {
@@ -159,15 +139,12 @@ fn run_peer(
         ],
         None,
     )?;
-    let versions = v
-        .get("versions")
-        .cloned()
-        .unwrap_or(serde_json::Value::Null);
+    let versions = super::bench::peer_versions(&v);
     text.push_str(&format!(
         "Peer in the same run: SysIdentPy FROLS ({versions}):\n"
     ));
     for case in cases.iter_mut() {
-        let Some(p) = v.get("cases").and_then(|c| c.get(case.name)) else {
+        let Some(p) = super::bench::peer_case(&v, case.name) else {
             continue;
         };
         let num = |k: &str| p.get(k).and_then(serde_json::Value::as_f64);

@@ -70,6 +70,8 @@ pub struct Args {
     /// Exit with code 1 when the report has warnings, without writing the output files.
     #[arg(long)]
     pub strict: bool,
+    #[command(flatten)]
+    pub memory: super::common::MemoryArgs,
     /// Run the recovery study on N plants drawn ±30 % around the defaults instead (docs/twin.md).
     #[arg(long, value_name = "N", conflicts_with_all = ["data", "out", "validation"])]
     pub study: Option<usize>,
@@ -137,7 +139,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None
     } else {
         let val_record = args.validation.as_deref().zip(val.as_ref());
-        match best_hammerstein((data, &est), val_record)? {
+        match best_hammerstein((data, &est), val_record, args.memory.max_memory)? {
             Ok(b) => Some(b),
             Err(message) => {
                 twin.warnings
@@ -231,6 +233,7 @@ fn record_options(args: &Args) -> anyhow::Result<sysid::data::CsvOptions> {
 fn best_hammerstein(
     data: (&Path, &ipa::Record),
     val: Option<(&Path, &ipa::Record)>,
+    max_memory: sysid::ls::MemoryBudget,
 ) -> anyhow::Result<Result<Baseline, String>> {
     let dataset = |(path, r): (&Path, &ipa::Record)| {
         sysid::Dataset::new(
@@ -253,6 +256,7 @@ fn best_hammerstein(
             .with_estimator(sysid::EstimatorSettings::Oe(sysid::OutputError::default()));
         let settings = sysid::Identification {
             drop_unexcited_branch: true,
+            max_memory,
             ..settings
         };
         let fit = match sysid::identify(&est, &settings) {

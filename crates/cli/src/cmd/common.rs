@@ -21,6 +21,26 @@ pub fn parse_lags(text: &str) -> Result<usize, String> {
     }
 }
 
+/// Parses `--max-memory GIB` ([`sysid::ls::MemoryBudget`]): a size in GiB, more than 0 and at most
+/// 1024.
+pub fn parse_max_memory(text: &str) -> Result<sysid::ls::MemoryBudget, String> {
+    text.parse::<sysid::ls::MemoryBudget>()
+        .map_err(|e| match e {
+            sysid::SysidError::Setting { expected, .. } => format!("expected {expected}"),
+            e => e.to_string(),
+        })
+}
+
+/// `--max-memory GIB`: the memory budget of one estimation (docs/reliability.md, "Resource bounds").
+#[derive(Debug, Clone, Copy, clap::Args)]
+pub struct MemoryArgs {
+    /// The most memory one estimation's matrices may take, in GiB (2^30 bytes; more than 0, at most
+    /// 1024). An estimation that would need more is refused before anything is allocated, with the
+    /// rows that would fit; raise it on a machine that has the memory.
+    #[arg(long, value_name = "GIB", default_value = "4", value_parser = parse_max_memory)]
+    pub max_memory: sysid::ls::MemoryBudget,
+}
+
 /// Which columns of a CSV file hold the data, and its sampling period.
 #[derive(Debug, Clone, clap::Args)]
 pub struct ColumnArgs {

@@ -29,6 +29,8 @@ pub struct Args {
     /// --json (an earlier file there is kept).
     #[arg(long)]
     pub strict: bool,
+    #[command(flatten)]
+    pub memory: super::common::MemoryArgs,
 }
 
 /// Runs `delay`.
@@ -57,6 +59,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 );
             }
         },
+        args.memory.max_memory,
     )?;
     let mut text = format!(
         "Delay estimate on {} ({} samples): nk = {} samples ({} s), from ARX(na = {}, nb = {}, nk) fits \

@@ -202,6 +202,8 @@ pub struct Args {
     /// `--stream` alone is `on`.
     #[arg(long, value_enum, default_value = "auto", num_args = 0..=1, default_missing_value = "on", value_name = "WHEN")]
     pub stream: StreamMode,
+    #[command(flatten)]
+    pub memory: super::common::MemoryArgs,
     /// The ids (field names, e.g. `max_terms`) of the flags typed on the command line, a flag given at
     /// its default value included (filled by `main` from clap's matches): [`Args::check_flags`] refuses
     /// the ones this structure and method would ignore.
@@ -450,6 +452,7 @@ impl Args {
             iv_stages: self.iv_stages,
             offset: self.offset,
             fallback: self.fallback,
+            max_memory: self.memory.max_memory,
         };
         if names.len() == 1 {
             if self.nb.0.len() > 1 || self.nk.0.len() > 1 || !self.linear_inputs.is_empty() {
@@ -598,6 +601,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         _ => (records.clone(), None),
     };
+    // A refusal for memory offers `--stream on` where it would read this record in passes (memory
+    // then does not grow with the record); `identify` checks the same need again below.
+    if let Err(e) = settings.check_memory(&estimation) {
+        if !args.merge && !several_inputs && could_stream(&args, &settings, data_path) {
+            anyhow::bail!(sysid::SysidError::Data(format!(
+                "{e}; or --stream on, which reads the CSV record in passes (ARX by least squares: \
+                 memory does not grow with the record)"
+            )));
+        }
+        anyhow::bail!(e);
+    }
     let mut fit = identify(&estimation, &settings)?;
     if op.is_some() {
         // The range in the user's units, as the operating point is (identify saw deviations).
@@ -909,7 +923,23 @@ fn output(
 /// Whether to read the record in passes (`--stream`, [`StreamMode::decide`]): ARX by least squares,
 /// without `--split` or `--resample`.
 fn streaming(args: &Args, settings: &Identification, data: &Path) -> anyhow::Result<bool> {
-    let why = sysid::stream::unsupported(settings)
+    args.stream
+        .decide(data, why_not_stream(args, settings), sysid::stream::refused)
+}
+
+/// Whether `--stream on` would read this record in passes, where a refusal for memory may offer it:
+/// nothing against it ([`why_not_stream`]) and CSV files (the streaming reader reads CSV only).
+fn could_stream(args: &Args, settings: &Identification, data: &Path) -> bool {
+    let csv = |p: &Path| p.extension().is_none_or(|e| !e.eq_ignore_ascii_case("mat"));
+    why_not_stream(args, settings).is_none()
+        && csv(data)
+        && args.val.validation.as_deref().is_none_or(csv)
+}
+
+/// Why this identification cannot be read in passes, if it cannot: ARX by least squares only,
+/// without `--split` or `--resample`.
+fn why_not_stream(args: &Args, settings: &Identification) -> Option<String> {
+    sysid::stream::unsupported(settings)
         .or_else(|| {
             args.val.split.is_some().then(|| {
                 "--split needs the record's length before reading it; use --rows and --val-rows"
@@ -921,8 +951,7 @@ fn streaming(args: &Args, settings: &Identification, data: &Path) -> anyhow::Res
                 .resample
                 .is_some()
                 .then(|| "--resample needs the whole record".into())
-        });
-    args.stream.decide(data, why, sysid::stream::refused)
+        })
 }
 
 /// `identify` with the records read in passes (`sysid::stream`): memory does not grow with the record.

@@ -49,6 +49,7 @@ impl NarxArgs {
         degree: usize,
         offset: bool,
         max_iterations: usize,
+        max_memory: sysid::ls::MemoryBudget,
     ) -> NarxSettings {
         NarxSettings {
             na,
@@ -61,6 +62,7 @@ impl NarxArgs {
             selection: self.selection,
             refine: !self.no_refine,
             max_iterations,
+            max_memory,
         }
     }
 }
@@ -91,6 +93,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         args.degree.unwrap_or(2),
         args.offset,
         args.max_iterations.min(200),
+        args.memory.max_memory,
     );
     settings.check()?;
     let data_path = &args.data[0];

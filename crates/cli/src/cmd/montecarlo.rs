@@ -78,6 +78,8 @@ pub struct Args {
     /// --json (an earlier file there is kept).
     #[arg(long)]
     pub strict: bool,
+    #[command(flatten)]
+    pub memory: super::common::MemoryArgs,
 }
 
 /// Default bound on runs x samples x methods: 10^9 samples estimated (about an hour on one core with
@@ -289,6 +291,7 @@ fn base_identification(args: &Args, truth_model: Option<&Model>) -> Identificati
         }),
         drop_unexcited_branch: true,
         output: None,
+        max_memory: args.memory.max_memory,
         // A study of the estimators' bias and spread looks at their own estimates, never a fallback.
         fallback: false,
     }

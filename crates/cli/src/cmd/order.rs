@@ -82,6 +82,8 @@ pub struct Args {
     /// --json (an earlier file there is kept).
     #[arg(long)]
     pub strict: bool,
+    #[command(flatten)]
+    pub memory: super::common::MemoryArgs,
     /// Structure search over model classes instead of orders of one structure: a list of `arx`,
     /// `hammerstein` (the deadzone) or `hammerstein:KIND` / `KIND` (an input nonlinearity kind of
     /// --nonlinearity), `narxD` (polynomial NARX of degree D), `wiener:KIND[:N]` (a linear block and an
@@ -212,6 +214,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let base = Identification {
         drop_unexcited_branch: true,
+        max_memory: args.memory.max_memory,
         ..Identification::default()
     }
     .with_kind(args.model)
@@ -248,7 +251,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     let delay = if auto_nk {
-        let d = sysid::delay::estimate_delay(&fit_part, 2, 2, 10)?;
+        let d = sysid::delay::estimate_delay_with_progress(
+            &fit_part,
+            2,
+            2,
+            10,
+            &|_| {},
+            args.memory.max_memory,
+        )?;
         nk = (d.nk.saturating_sub(1)..=d.nk + 1).collect();
         Some(d)
     } else {

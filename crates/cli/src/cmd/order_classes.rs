@@ -49,7 +49,9 @@ pub fn run(
                 .flat_map(move |&nb| grid.2.iter().map(move |&nk| Orders { na, nb, nk }))
         })
         .collect();
-    let narx = args.narx.settings((2, 2, 1), 2, args.offset, 100);
+    let narx = args
+        .narx
+        .settings((2, 2, 1), 2, args.offset, 100, args.memory.max_memory);
     narx.check()?;
     let bar = progress_bar(
         (orders.len() * args.classes.len()) as u64,
@@ -61,6 +63,7 @@ pub fn run(
         );
     }
     let split = fit_part.len();
+    sysid::search::check_memory(data, fit_part, &args.classes, &orders, base, &narx)?;
     let ranked = structure_search(data, split, &args.classes, &orders, base, &narx, &|| {
         bar.inc(1)
     });

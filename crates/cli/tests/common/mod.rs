@@ -56,6 +56,45 @@ pub fn run_json(dir: &Path, args: &[&str]) -> Value {
     doc
 }
 
+/// A CSV record `u,y` of `n` rows (n even) at `dir/long.csv` whose input is 0 and whose output moves
+/// (0, 1, 0, 1, …): cheap to write and read, and no "the output never moves" refusal, so that a size
+/// check is what a test of one meets.
+pub fn moving_output_csv(dir: &Path, n: usize) -> std::path::PathBuf {
+    let path = dir.join("long.csv");
+    std::fs::write(&path, format!("u,y\n{}", "0,0\n0,1\n".repeat(n / 2))).unwrap();
+    path
+}
+
+/// What `tune` wrote ([`tune`]): the controller file, the report's JSON document, the text printed.
+pub struct Tuned {
+    /// The controller file (`--out`).
+    pub controller: std::path::PathBuf,
+    /// The report (`--json`).
+    pub report: Value,
+    /// Standard output (the table and the lines around it).
+    pub text: String,
+}
+
+/// `ipa-sysid tune --model MODEL ARGS --out DIR/c.json --json DIR/t.json`, required to succeed: the
+/// set-up of the tests that tune a model file and read what came out.
+pub fn tune(dir: &Path, model: &Path, args: &[&str]) -> Tuned {
+    let controller = dir.join("c.json");
+    let json = dir.join("t.json");
+    let o = bin()
+        .args(["tune", "--model", model.to_str().unwrap()])
+        .args(args)
+        .args(["--out", controller.to_str().unwrap()])
+        .args(["--json", json.to_str().unwrap()])
+        .output()
+        .expect("run ipa-sysid");
+    assert!(o.status.success(), "{}", stderr(&o));
+    Tuned {
+        controller,
+        report: serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap(),
+        text: String::from_utf8_lossy(&o.stdout).into_owned(),
+    }
+}
+
 /// The document's `warnings` list.
 pub fn warnings(doc: &Value) -> Vec<String> {
     doc["warnings"]

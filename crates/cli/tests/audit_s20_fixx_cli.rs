@@ -140,6 +140,102 @@ fn response_of_a_hammerstein_file_states_the_slope_per_side() {
     );
 }
 
+/// A 2-column record with the given header and rows (one string per line).
+fn csv(dir: &Path, name: &str, lines: &[&str]) -> PathBuf {
+    let path = dir.join(name);
+    std::fs::write(&path, lines.join("\n") + "\n").unwrap();
+    path
+}
+
+// L-1: a comma-separated file whose numbers have decimal commas, quoted or not, in memory and streamed:
+// the error names decimal commas and the ways out.
+#[test]
+fn decimal_commas_in_a_comma_separated_file_are_named_as_the_cause() {
+    let dir = tempfile::tempdir().unwrap();
+    let quoted = csv(
+        dir.path(),
+        "quoted.csv",
+        &["\"u\",\"y\"", "\"-0,109\",\"53,8\"", "\"0,5\",\"53,9\""],
+    );
+    let ragged = csv(
+        dir.path(),
+        "ragged.csv",
+        &["u,y", "-0,109,53,8", "0,5,53,9"],
+    );
+    for (file, what) in [(&quoted, "is not a number"), (&ragged, "ragged row")] {
+        for stream in [None, Some("on")] {
+            let mut args = vec![
+                "identify",
+                "--data",
+                s(file),
+                "--ts",
+                "1",
+                "--structure",
+                "arx",
+                "--method",
+                "ls",
+            ];
+            if let Some(on) = stream {
+                args.extend(["--stream", on]);
+            }
+            let o = ipa_sysid(&args);
+            let e = stderr(&o);
+            assert_eq!(o.status.code(), Some(2), "{args:?}: {e}");
+            assert!(
+                e.contains(what)
+                    && e.contains("decimal commas")
+                    && e.contains("';' as the separator"),
+                "{args:?}: {e}"
+            );
+        }
+    }
+    // A plain non-number in a comma-separated file gets no such hint.
+    let word = csv(dir.path(), "word.csv", &["u,y", "abc,1", "1,2"]);
+    let e = stderr(&ipa_sysid(&["identify", "--data", s(&word), "--ts", "1"]));
+    assert!(
+        e.contains("is not a number") && !e.contains("decimal commas"),
+        "{e}"
+    );
+}
+
+// L-5: a time column of date-times: the error names --ts, and --ts works on the same file.
+#[test]
+fn a_date_time_column_names_ts_as_the_way_out() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut lines = vec!["t,u,y".to_string()];
+    let mut y = 0.0f64;
+    let mut u_prev = 0.0;
+    for k in 0..200 {
+        let u = if (k / 10) % 2 == 0 { 1.0 } else { -1.0 };
+        y = 0.8 * y + 0.3 * u_prev + 0.001 * ((k * 7919 % 13) as f64 - 6.0);
+        lines.push(format!(
+            "2026-01-01 00:{:02}:{:02},{u},{y}",
+            k * 9 / 60,
+            k * 9 % 60
+        ));
+        u_prev = u;
+    }
+    let refs: Vec<&str> = lines.iter().map(String::as_str).collect();
+    let f = csv(dir.path(), "dt.csv", &refs);
+    let o = ipa_sysid(&["identify", "--data", s(&f), "--structure", "arx"]);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(
+        e.contains("'2026-01-01 00:00:00'") && e.contains("--ts SECONDS"),
+        "{e}"
+    );
+    let o = ipa_sysid(&[
+        "identify",
+        "--data",
+        s(&f),
+        "--structure",
+        "arx",
+        "--ts",
+        "9",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
 // L-3: the --samples refusal in the form of every other refusal of docs/reliability.md's table.
 #[test]
 fn samples_out_of_range_is_an_invalid_setting() {

@@ -69,7 +69,16 @@ class Model:
     def save(self, path: str | PathLike[str]) -> None:
         """Writes the model file as the command line writes its outputs: a file atomically, a device or
         FIFO directly (never replaced), a symbolic link followed; a folder is a ValueError naming `path`."""
-    def to_control(self) -> Any:
+    def frequency_response(
+        self,
+        points: int = 20,
+        f_min_hz: float | None = None,
+        samples: int = 20,
+        kp: float | None = None,
+        ki: float | None = None,
+    ) -> dict[str, Any]:
+        """Bode table, DC gain, poles, zeros, impulse and step response (and PI margins): as `ipa-sysid response --json`."""
+    def to_control(self, side: Literal["right", "left"] | None = None) -> Any:
         """The linear block as a python-control TransferFunction (ImportError without python-control)."""
     def transfer_polynomials(self) -> tuple[list[float], list[float]]:
         """(num, den) of the linear block in descending powers of z."""

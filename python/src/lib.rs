@@ -569,17 +569,103 @@ impl PyModel {
     }
 
     /// The linear block as a python-control `TransferFunction` in z (discrete, dt = Ts):
-    /// G(z) = (b1 z^-nk + ... + b_nb z^-(nk+nb-1)) / (1 + a1 z^-1 + ... + a_na z^-na). The deadzone and the
-    /// constant term are not part of it. Raises ImportError when python-control is not installed.
-    fn to_control<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
+    /// G(z) = (b1 z^-nk + ... + b_nb z^-(nk+nb-1)) / (1 + a1 z^-1 + ... + a_na z^-na). The constant term
+    /// is not part of it. For a Hammerstein model (b1 = 1, the gain in the deadzone's slopes) `side` =
+    /// "right" or "left" multiplies G by m_r or m_l: the gain from u beyond b_r or below b_l; without
+    /// `side` such a model's G is returned with an `IpaSysidWarning` saying so (audit s20 M-2: a Bode
+    /// plot of G alone is 20 log10(1/m) dB off the gain from u). Raises ImportError when python-control
+    /// is not installed.
+    #[pyo3(signature = (side=None))]
+    fn to_control<'py>(&self, py: Python<'py>, side: Option<&str>) -> PyResult<Bound<'py, PyAny>> {
         let ct = py.import("control").map_err(|e| {
             PyImportError::new_err(format!(
                 "Model.to_control needs python-control: pip install control ({e})"
             ))
         })?;
-        let (num, den) = self.transfer_polynomials();
+        let (mut num, den) = self.transfer_polynomials();
+        let slope = match (self.inner.deadzone(), side) {
+            (_, Some(s)) if s != "right" && s != "left" => {
+                return Err(PyValueError::new_err(format!(
+                    "invalid setting side = {s:?}: expected \"right\", \"left\" or None"
+                )))
+            }
+            (None, Some(s)) => {
+                return Err(PyValueError::new_err(format!(
+                    "invalid setting side = {s:?}: the model has no deadzone (side is for a Hammerstein model)"
+                )))
+            }
+            (Some(d), Some("right")) => d.m_r,
+            (Some(d), Some(_)) => d.m_l,
+            (Some(d), None) => {
+                warn_all(
+                    py,
+                    &[format!(
+                        "Model.to_control(): the linear block G = B/A with b1 = 1, from the deadzone's output; \
+                         the gain from u is m_r G (m_r = {}, {:+.2} dB) beyond b_r and m_l G (m_l = {}, {:+.2} dB) \
+                         below b_l: pass side=\"right\" or side=\"left\" for it",
+                        d.m_r,
+                        20.0 * d.m_r.abs().log10(),
+                        d.m_l,
+                        20.0 * d.m_l.abs().log10()
+                    )],
+                )?;
+                1.0
+            }
+            (None, None) => 1.0,
+        };
+        for v in &mut num {
+            *v *= slope;
+        }
         ct.getattr("TransferFunction")?
             .call1((num, den, self.inner.ts()))
+    }
+
+    /// Frequency response (gain dB, phase deg on a log grid up to the Nyquist frequency), DC gain,
+    /// poles, zeros, impulse and step response of the linear block, and with `kp` (and `ki`) the gain
+    /// and phase margins of that PI loop, as a dict: the same function and keys as
+    /// `ipa-sysid response --json` (`control::response::response`). For a Hammerstein model `"gain"`
+    /// says in words which gain the figures use and `"sides"` gives m_r, m_l with their dB offsets.
+    #[pyo3(signature = (points=20, f_min_hz=None, samples=20, kp=None, ki=None))]
+    fn frequency_response<'py>(
+        &self,
+        py: Python<'py>,
+        points: usize,
+        f_min_hz: Option<f64>,
+        samples: usize,
+        kp: Option<f64>,
+        ki: Option<f64>,
+    ) -> PyResult<Bound<'py, PyAny>> {
+        if !(2..=100_000).contains(&points) {
+            return Err(PyValueError::new_err(format!(
+                "invalid setting points = {points}: expected 2..=100000"
+            )));
+        }
+        if !(1..=1_000_000).contains(&samples) {
+            return Err(PyValueError::new_err(format!(
+                "invalid setting samples = {samples}: expected 1..=1000000"
+            )));
+        }
+        for (name, v) in [("f_min_hz", f_min_hz), ("kp", kp), ("ki", ki)] {
+            if v.is_some_and(|v| !v.is_finite()) {
+                return Err(PyValueError::new_err(format!(
+                    "invalid setting {name} = {}: expected a finite number",
+                    v.unwrap_or(f64::NAN)
+                )));
+            }
+        }
+        if ki.is_some() && kp.is_none() {
+            return Err(PyValueError::new_err(
+                "invalid setting ki: give kp as well (the PI controller of the margins)",
+            ));
+        }
+        let settings = ::control::response::ResponseSettings {
+            points,
+            f_min_hz,
+            samples,
+            pi: kp.map(|kp| (kp, ki.unwrap_or(0.0))),
+        };
+        let r = ::control::response::response(&self.inner, &settings).map_err(control_err)?;
+        to_py(py, &r)
     }
 
     /// Numerator and denominator of the linear block in descending powers of z (equal lengths n + 1,

@@ -42,6 +42,9 @@ enum Command {
     Order(cmd::order::Args),
     /// Estimate the input delay nk by comparing ARX fits over nk (MATLAB `delayest`).
     Delay(cmd::delay::Args),
+    /// Frequency response (Bode), DC gain, poles, zeros, impulse and step response of a model file's
+    /// linear block, and a PI loop's gain and phase margins (MATLAB `bode`, `margin`, `impulse`, `step`).
+    Response(cmd::response::Args),
     /// Monte Carlo study of estimator bias and spread under output noise (parallel).
     Montecarlo(cmd::montecarlo::Args),
     /// Track a model online: recursive estimation of samples as they arrive (stdin, a growing file, a
@@ -122,6 +125,7 @@ fn main() -> ExitCode {
         Command::Reproduce(a) => cmd::reproduce::run(a),
         Command::Order(a) => cmd::order::run(a),
         Command::Delay(a) => cmd::delay::run(a),
+        Command::Response(a) => cmd::response::run(a),
         Command::Montecarlo(a) => cmd::montecarlo::run(a),
         Command::Track(a) => cmd::track::run(a),
         Command::Bench(a) => cmd::bench::run(a),

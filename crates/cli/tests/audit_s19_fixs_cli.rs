@@ -72,7 +72,7 @@ fn a_nan_ts_is_refused_for_the_paper_and_a_model_plant() {
         assert_eq!(o.status.code(), Some(2), "{plant}: {}", stderr(&o));
         // Both models are sampled at 0.01 s (the paper's Table III; the file written above).
         assert!(
-            stderr(&o).contains("invalid --ts NaN")
+            stderr(&o).contains("invalid setting --ts = NaN")
                 && stderr(&o).contains("sampled at Ts = 0.01 s"),
             "{plant}: {}",
             stderr(&o)

@@ -841,27 +841,27 @@ fn study_and_benchmark_flags_exit_2_naming_the_flag() {
         case(
             "simulate --out {t}/s.csv --samples 0",
             2,
-            &["--samples 0", "expected 1..=50000000"],
+            &["invalid setting --samples = 0", "expected 1..=50000000"],
         ),
         case(
             "simulate --out {t}/s.csv --plant paper --samples 10000000000",
             2,
-            &["--samples 10000000000", "expected 1..=50000000"],
+            &["invalid setting --samples = 10000000000", "expected 1..=50000000"],
         ),
         case(
             "simulate --out {t}/s.csv --ts 0",
             2,
-            &["--ts 0", "(0, 10] s"],
+            &["invalid setting --ts = 0", "(0, 10] s"],
         ),
         case(
             "simulate --out {t}/s.csv --ts nan",
             2,
-            &["--ts NaN", "(0, 10] s"],
+            &["invalid setting --ts = NaN", "(0, 10] s"],
         ),
         case(
             "simulate --out {t}/s.csv --amplitude nan",
             2,
-            &["--amplitude NaN", "counts >= 0"],
+            &["invalid setting --amplitude = NaN", "counts >= 0"],
         ),
         case(
             "simulate --out {t}/s.csv --x0 nan",
@@ -935,12 +935,12 @@ fn study_and_benchmark_flags_exit_2_naming_the_flag() {
         case(
             "simulate --out {t}/s.csv --input bogus",
             2,
-            &["--input 'bogus'", "expected staircase"],
+            &["invalid setting --input = 'bogus'", "expected staircase"],
         ),
         case(
             "simulate --out {t}/s.csv --input step:abc",
             2,
-            &["--input 'step:abc'", "must be a number"],
+            &["invalid setting --input = 'step:abc'", "must be a number"],
         ),
         case(
             "simulate --out {t}/s.csv --plant paper --input file:{c}/csv/text_cell.csv",
@@ -973,12 +973,12 @@ fn study_and_benchmark_flags_exit_2_naming_the_flag() {
         case(
             "montecarlo --samples 0 --runs 1",
             2,
-            &["--samples 0", "expected 1..=50000000"],
+            &["invalid setting --samples = 0", "expected 1..=50000000"],
         ),
         case(
             "montecarlo --samples 10000000000 --runs 1",
             2,
-            &["--samples 10000000000", "expected 1..=50000000"],
+            &["invalid setting --samples = 10000000000", "expected 1..=50000000"],
         ),
         case(
             "montecarlo --noise-std nan --runs 1",
@@ -993,17 +993,17 @@ fn study_and_benchmark_flags_exit_2_naming_the_flag() {
         case(
             "montecarlo --amplitude nan --runs 1",
             2,
-            &["--amplitude NaN", "expected a number of counts"],
+            &["invalid setting --amplitude = NaN", "expected a number of counts"],
         ),
         case(
             "montecarlo --input bogus --runs 1",
             2,
-            &["--input 'bogus'", "expected staircase"],
+            &["invalid setting --input = 'bogus'", "expected staircase"],
         ),
         case(
             "montecarlo --input step:abc --runs 1",
             2,
-            &["--input 'step:abc'", "must be a number"],
+            &["invalid setting --input = 'step:abc'", "must be a number"],
         ),
         case(
             "montecarlo --input file:{t}/missing.csv --runs 1",

@@ -123,3 +123,8 @@ fn the_readme_worked_example_prints_what_the_readme_says() {
 fn the_control_page_prints_what_it_says() {
     assert!(check("docs/control.md") >= 1);
 }
+
+#[test]
+fn the_identification_page_prints_what_it_says() {
+    assert!(check("docs/identification.md") >= 1);
+}

@@ -694,3 +694,109 @@ fn c_interface_refuses_the_audit_s19_cases() {
     assert_eq!(line("hrls_init_crossed_inf"), [setting]);
     assert_eq!(line("hrls_init_one_sided"), [ok]);
 }
+
+/// docs/embedded.md's "The C example" prints what the example prints now (audit s20 D-2: the UD line
+/// had gone stale after a change to the UD update, unnoticed because only C against the CLI was checked):
+/// the page's `./track …` lines are run on the page's record (`simulate --plant ipa --seed 1`) and
+/// their output must equal the "Output (measured)" block line by line; every number of the paragraph
+/// after it (identify's figures, shortest round-trip form) must be bit for bit one of those doubles.
+#[test]
+fn the_embedded_page_prints_what_the_c_example_prints() {
+    if no_cc() {
+        return;
+    }
+    let page = std::fs::read_to_string(workspace().join("docs/embedded.md")).unwrap();
+    let section = page
+        .split("## The C example")
+        .nth(1)
+        .expect("docs/embedded.md has a section '## The C example'");
+    let (commands, rest) = section
+        .split_once("Output (measured):")
+        .expect("the section has 'Output (measured):'");
+    let track_lines: Vec<Vec<&str>> = commands
+        .lines()
+        .filter_map(|l| l.trim().strip_prefix("./track "))
+        .map(|l| {
+            l.split('<')
+                .next()
+                .unwrap()
+                .split_whitespace()
+                .collect::<Vec<&str>>()
+        })
+        .collect();
+    assert_eq!(track_lines.len(), 3, "the page runs ./track three times");
+    assert!(
+        commands.contains("ipa-sysid simulate --plant ipa --seed 1 --out est.csv"),
+        "the page's record is simulate --plant ipa --seed 1"
+    );
+    let mut blocks = rest.split("```");
+    let _before = blocks.next();
+    let block = blocks.next().expect("the output block");
+    let documented: Vec<&str> = block
+        .lines()
+        .skip(1) // the fence's info string ("text")
+        .map(str::trim)
+        .filter(|l| !l.is_empty())
+        .collect();
+    let paragraph = blocks.next().expect("the paragraph after the block");
+    let paragraph = paragraph
+        .split("## ")
+        .next()
+        .unwrap()
+        .split("The example's usage")
+        .next()
+        .unwrap();
+
+    let tmp = tempfile::tempdir().unwrap();
+    let track = build_track(tmp.path());
+    let csv = tmp.path().join("est.csv");
+    cli(&[
+        "simulate",
+        "--plant",
+        "ipa",
+        "--seed",
+        "1",
+        "--out",
+        csv.to_str().unwrap(),
+    ]);
+    let mut printed = Vec::new();
+    for args in &track_lines {
+        let out = Command::new(&track)
+            .args(args)
+            .stdin(std::fs::File::open(&csv).unwrap())
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "./track {args:?} failed");
+        printed.push(String::from_utf8(out.stdout).unwrap().trim().to_string());
+    }
+    assert_eq!(
+        documented, printed,
+        "docs/embedded.md's C output block differs from what ./track prints now"
+    );
+
+    // Every double the C example printed, then the paragraph's numbers must each be one of them.
+    let mut doubles: Vec<f64> = Vec::new();
+    for line in &printed {
+        let v: serde_json::Value = serde_json::from_str(line).unwrap();
+        for name in ["b_l", "b_r", "m_l", "m_r"] {
+            doubles.push(v[name].as_f64().unwrap());
+        }
+        doubles.extend(numbers(&v["a"]));
+    }
+    let numbers_in_text: Vec<f64> = paragraph
+        .split(|c: char| !(c.is_ascii_digit() || c == '.' || c == '-' || c == 'e'))
+        .filter(|w| w.contains('.') && w.len() > 12)
+        .map(|w| w.trim_end_matches('.').parse::<f64>().unwrap())
+        .collect();
+    assert!(
+        numbers_in_text.len() >= 21,
+        "the paragraph quotes identify's figures ({} found)",
+        numbers_in_text.len()
+    );
+    for x in &numbers_in_text {
+        assert!(
+            doubles.iter().any(|d| d.to_bits() == x.to_bits()),
+            "docs/embedded.md: identify's figure {x:e} is none of the doubles the C example prints now"
+        );
+    }
+}

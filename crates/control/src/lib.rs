@@ -26,6 +26,7 @@ pub mod oracle;
 pub mod pi;
 pub mod position;
 pub mod profile;
+pub mod response;
 pub mod trust;
 pub mod tune;
 pub mod tuning;

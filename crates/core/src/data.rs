@@ -663,7 +663,13 @@ fn table_of(
             continue; // a blank line or a row of bare delimiters
         }
         if let Some(extra) = rec.iter().skip(headers.len()).position(|f| !f.is_empty()) {
-            return Err(ragged_row(name, line, headers.len(), extra));
+            return Err(ragged_row(
+                name,
+                line,
+                headers.len(),
+                extra,
+                delimiter != b',',
+            ));
         }
         if rows.len() >= MAX_SAMPLES {
             return Err(file_err(format!(
@@ -697,17 +703,42 @@ pub(crate) fn sniff_delimiter(text: &str) -> u8 {
     }
 }
 
-/// The error of a row with a value `extra` fields beyond the header's `width` columns.
-pub(crate) fn ragged_row(name: &str, line: usize, width: usize, extra: usize) -> SysidError {
+/// The error of a row with a value `extra` fields beyond the header's `width` columns; in a
+/// comma-delimited file (`decimal_comma` false) it names the likely cause, numbers written with a
+/// decimal comma (`-0,109,53,8`: audit s20 L-1).
+pub(crate) fn ragged_row(
+    name: &str,
+    line: usize,
+    width: usize,
+    extra: usize,
+    decimal_comma: bool,
+) -> SysidError {
     SysidError::Parse {
         file: name.to_string(),
         line,
         column: width + extra + 1,
         message: format!(
             "ragged row: a value beyond the {width} columns of the header; expected at most {width} \
-             fields per row (or a header naming every column)"
+             fields per row (or a header naming every column){}",
+            if decimal_comma { "" } else { DECIMAL_COMMA_HINT }
         ),
     }
+}
+
+/// What a comma-delimited file's error adds when its numbers may be written with decimal commas.
+const DECIMAL_COMMA_HINT: &str = "; if the numbers are written with decimal commas (-0,109), the comma \
+     cannot also separate the columns: save the file with ';' as the separator or '.' as the decimal mark";
+
+/// A cell that reads as a date or a time of day (`2026-01-01 00:00:00`, `12:30:05`, `01/02/2026`):
+/// digits with '-', '/' or ':' between them, no letters but a 'T' or 'Z' of ISO 8601.
+fn looks_like_date_time(cell: &str) -> bool {
+    let c = cell.trim();
+    let digits = c.chars().filter(char::is_ascii_digit).count();
+    digits >= 4
+        && c.chars().all(|ch| {
+            ch.is_ascii_digit() || matches!(ch, '-' | '/' | ':' | '.' | ' ' | 'T' | 'Z' | '+')
+        })
+        && (c.contains(':') || c[1..].contains('-') || c.contains('/'))
 }
 
 pub(crate) fn csv_err(name: &str, e: csv::Error) -> SysidError {
@@ -913,8 +944,17 @@ pub(crate) fn cell_value(
         ));
     }
     let v = parse_number(cell, decimal_comma).ok_or_else(|| {
+        let hint = if !decimal_comma && parse_number(cell, true).is_some() {
+            DECIMAL_COMMA_HINT
+        } else if looks_like_date_time(unquote(cell)) {
+            "; dates and times are not read as time: give the sampling period instead (--ts SECONDS; \
+             Python ts=), with which the time column is not read, or a numeric time column (--t-col, \
+             --time-unit)"
+        } else {
+            ""
+        };
         format!(
-            "'{}' in column '{cname}' is not a number; expected a decimal number such as -1.5 or 2e-3",
+            "'{}' in column '{cname}' is not a number; expected a decimal number such as -1.5 or 2e-3{hint}",
             shorten(cell)
         )
     })?;

@@ -9,7 +9,7 @@ pub enum IpaError {
     #[error("{0}")]
     Config(String),
     /// A setting is outside its valid range or malformed.
-    #[error("invalid {setting} {value}: {expected}")]
+    #[error("invalid setting {setting} = {value}: {expected}")]
     Setting {
         /// The setting.
         setting: IpaSetting,
@@ -46,7 +46,7 @@ impl IpaError {
                 setting,
                 value,
                 expected,
-            } => format!("invalid {} {value}: {expected}", name(*setting)),
+            } => format!("invalid setting {} = {value}: {expected}", name(*setting)),
             // A data or model error of the identification library names its settings by their flags.
             IpaError::Sysid(e) => e.render_flags(),
             other => other.to_string(),

@@ -105,7 +105,7 @@ impl PlantSpec {
             // ran at the model's Ts without a word).
             if ts.is_nan() || (ts - model_ts).abs() > 1e-9 * model_ts {
                 return Err(IpaError::Config(format!(
-                    "invalid --ts {}: the {label} is sampled at Ts = {} s; leave --ts out or pass that value",
+                    "invalid setting --ts = {}: the {label} is sampled at Ts = {} s; leave --ts out or pass that value",
                     sysid_core::format::Shortest(ts),
                     sysid_core::format::Shortest(model_ts)
                 )));

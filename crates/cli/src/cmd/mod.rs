@@ -15,6 +15,7 @@ pub mod order;
 pub mod order_classes;
 pub mod plant_config;
 pub mod reproduce;
+pub mod response;
 pub mod simulate;
 pub mod simulate_fleet;
 pub mod track;

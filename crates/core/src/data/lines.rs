@@ -115,7 +115,13 @@ impl CsvLines {
         }
         let width = self.table.headers.len();
         if let Some(extra) = self.rec.iter().skip(width).position(|f| !blank(f)) {
-            return Err(ragged_row(name, line_no, width, extra));
+            return Err(ragged_row(
+                name,
+                line_no,
+                width,
+                extra,
+                self.table.decimal_comma,
+            ));
         }
         Ok(true)
     }

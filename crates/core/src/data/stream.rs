@@ -386,7 +386,13 @@ impl RecordSource for CsvStream {
                 .position()
                 .map_or(0, |p| p.line() as usize + usize::from(self.crlf));
             if let Some(extra) = rec.iter().skip(width).position(|f| !blank(f)) {
-                return Err(ragged_row(&file_name, line, width, extra));
+                return Err(ragged_row(
+                    &file_name,
+                    line,
+                    width,
+                    extra,
+                    self.decimal_comma,
+                ));
             }
             let index = row;
             row += 1;

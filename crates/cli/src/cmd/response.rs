@@ -1,0 +1,215 @@
+//! `ipa-sysid response`: frequency response (Bode), DC gain, poles and zeros, impulse and step
+//! response of an identified model's linear block, and the margins of a PI loop around it (MATLAB
+//! `bode`, `dcgain`, `pole`, `zero`, `impulse`, `step`, `margin`); the logic is
+//! `control::response::response`.
+
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use control::response::{response, Response, ResponseSettings};
+use report::format::num;
+
+use super::common::{check_outputs, print_report, write_outputs};
+
+/// Flags of `response`.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// Model file (`identify --save-model`): an ARX or Hammerstein model (one input).
+    #[arg(long, value_name = "FILE")]
+    pub model: PathBuf,
+    /// Number of log-spaced frequencies of the Bode table, up to the Nyquist frequency 1/(2 Ts).
+    #[arg(long, default_value_t = 20, value_name = "N", value_parser = clap::value_parser!(u32).range(2..=100_000))]
+    pub points: u32,
+    /// Lowest frequency of the Bode table, Hz (default: the Nyquist frequency / 1000).
+    #[arg(long, value_name = "HZ")]
+    pub f_min: Option<f64>,
+    /// Samples of the impulse and step responses (k = 0 .. N-1).
+    #[arg(long, default_value_t = 20, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
+    pub samples: u32,
+    /// Proportional gain of a PI controller (counts per output unit): print the loop's gain and phase
+    /// margins as `tune` computes them (MATLAB `margin(C*G)`).
+    #[arg(long, value_name = "KP")]
+    pub kp: Option<f64>,
+    /// Integral gain of that PI controller (counts per output unit per s; default 0 with --kp).
+    #[arg(long, value_name = "KI", requires = "kp")]
+    pub ki: Option<f64>,
+    /// Write the Bode table as CSV here (f_hz, w_rad_s, mag_db, phase_deg; a Hammerstein model adds
+    /// mag_db_right, mag_db_left: the gain from u on each side of the deadzone).
+    #[arg(long, value_name = "FILE")]
+    pub out: Option<PathBuf>,
+    /// Write everything as JSON here (`-` for standard output).
+    #[arg(long, value_name = "OUT")]
+    pub json: Option<PathBuf>,
+}
+
+fn complex(p: &(f64, f64)) -> String {
+    if p.1 == 0.0 {
+        num(p.0)
+    } else {
+        format!(
+            "{} {} {}i (|p| {})",
+            num(p.0),
+            if p.1 < 0.0 { "-" } else { "+" },
+            num(p.1.abs()),
+            num(p.0.hypot(p.1))
+        )
+    }
+}
+
+fn list(v: &[(f64, f64)]) -> String {
+    if v.is_empty() {
+        "none".into()
+    } else {
+        v.iter().map(complex).collect::<Vec<_>>().join(", ")
+    }
+}
+
+fn opt(v: Option<f64>) -> String {
+    v.map_or_else(|| "n/a".into(), num)
+}
+
+/// The printed report.
+fn text(name: &str, r: &Response, pi: Option<(f64, f64)>) -> String {
+    let b = &r.bode;
+    let mut o = format!(
+        "Response of {name} (Ts = {} s, nk = {}; MATLAB idpoly conventions)\n",
+        num(r.ts_s),
+        r.nk
+    );
+    o += &format!("gain:     {}\n", r.gain);
+    o += &format!("DC gain:  G(1) = {}", opt(r.dc_gain));
+    for s in &r.sides {
+        o += &format!("; {}: {}", s.side, opt(s.dc_gain));
+    }
+    o += "\n";
+    o += &format!("poles:    {}\n", list(&r.poles));
+    o += &format!("zeros:    {}\n", list(&r.zeros));
+    if let (Some(m), Some((kp, ki))) = (&r.margins, pi) {
+        o += &format!(
+            "margins:  PI Kp = {}, Ki = {}: gain {} dB at {} rad/s, phase {} deg at {} rad/s; closed-loop \
+             poles |p| <= {}{} (as tune: the deadzone replaced by its mean slope (m_l + m_r)/2)\n",
+            num(kp),
+            num(ki),
+            opt(m.gain_margin_db),
+            opt(m.phase_crossover_rad_s),
+            opt(m.phase_margin_deg),
+            opt(m.gain_crossover_rad_s),
+            opt(m.closed_loop_max_pole_modulus),
+            if m.closed_loop_unstable() {
+                ": UNSTABLE"
+            } else {
+                ""
+            }
+        );
+    }
+    o += &format!(
+        "\nFrequency response G(e^jwTs), {} frequencies up to the Nyquist frequency {} Hz:\n",
+        b.f_hz.len(),
+        num(0.5 / r.ts_s)
+    );
+    o += &format!(
+        "{:>12} {:>12} {:>10} {:>11}",
+        "f (Hz)", "w (rad/s)", "|G| dB", "phase deg"
+    );
+    for s in &r.sides {
+        o += &format!(" {:>13}", format!("|m_{} G| dB", &s.side[..1]));
+    }
+    o += "\n";
+    for i in 0..b.f_hz.len() {
+        o += &format!(
+            "{:>12} {:>12} {:>10.3} {:>11.2}",
+            num(b.f_hz[i]),
+            num(2.0 * std::f64::consts::PI * b.f_hz[i]),
+            b.mag_db[i],
+            b.phase_deg[i]
+        );
+        for s in &r.sides {
+            o += &format!(" {:>13.3}", b.mag_db[i] + s.offset_db);
+        }
+        o += "\n";
+    }
+    o += "\nImpulse and unit-step response of G (t = k Ts):\n";
+    o += &format!(
+        "{:>6} {:>10} {:>14} {:>14}\n",
+        "k", "t (s)", "impulse", "step"
+    );
+    for (k, (h, s)) in r.impulse.iter().zip(&r.step).enumerate() {
+        o += &format!(
+            "{:>6} {:>10} {:>14} {:>14}\n",
+            k,
+            num(k as f64 * r.ts_s),
+            num(*h),
+            num(*s)
+        );
+    }
+    o
+}
+
+/// The Bode table as CSV.
+fn csv(r: &Response) -> String {
+    let b = &r.bode;
+    let mut o = String::from("f_hz,w_rad_s,mag_db,phase_deg");
+    for s in &r.sides {
+        o += &format!(",mag_db_{}", s.side);
+    }
+    o += "\n";
+    for i in 0..b.f_hz.len() {
+        o += &format!(
+            "{},{},{},{}",
+            b.f_hz[i],
+            2.0 * std::f64::consts::PI * b.f_hz[i],
+            b.mag_db[i],
+            b.phase_deg[i]
+        );
+        for s in &r.sides {
+            o += &format!(",{}", b.mag_db[i] + s.offset_db);
+        }
+        o += "\n";
+    }
+    o
+}
+
+/// Runs `response`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let inputs: [&Path; 1] = [&args.model];
+    check_outputs(&[(&args.out, "--out"), (&args.json, "--json")], &inputs)?;
+    let model = sysid::model_file::read_model(&args.model).context("cannot read --model")?;
+    for (flag, v) in [
+        ("--kp", args.kp),
+        ("--ki", args.ki),
+        ("--f-min", args.f_min),
+    ] {
+        if let Some(v) = v {
+            if !v.is_finite() {
+                anyhow::bail!("invalid setting {flag} = {v}: expected a finite number");
+            }
+        }
+    }
+    let pi = args.kp.map(|kp| (kp, args.ki.unwrap_or(0.0)));
+    let settings = ResponseSettings {
+        points: args.points as usize,
+        f_min_hz: args.f_min,
+        samples: args.samples as usize,
+        pi,
+    };
+    let r = response(&model, &settings)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", args.model.display()))?;
+    print_report(
+        &text(&args.model.display().to_string(), &r, pi),
+        &[args.out.as_deref(), args.json.as_deref()],
+    )?;
+    let json = args
+        .json
+        .as_ref()
+        .map(|_| serde_json::to_string_pretty(&r).map(|s| s + "\n"))
+        .transpose()?;
+    let table = args.out.as_ref().map(|_| csv(&r));
+    let mut outputs: Vec<(&Path, &[u8], &str)> = Vec::new();
+    if let (Some(p), Some(t)) = (&args.out, &table) {
+        outputs.push((p, t.as_bytes(), "--out"));
+    }
+    if let (Some(p), Some(t)) = (&args.json, &json) {
+        outputs.push((p, t.as_bytes(), "--json"));
+    }
+    write_outputs(&outputs, &inputs, false, 0)
+}

@@ -1,0 +1,251 @@
+//! Audit s20 through the binary: `response` (M-2: a model's frequency response, impulse and step, DC
+//! gain and a PI loop's margins), decimal-comma and date-time CSV errors that name the cause (L-1,
+//! L-5), and the `--samples` refusal in the "invalid setting X = V" form (L-3). Each expectation is
+//! computed here from the model's coefficients or from what the user passed, never copied from output.
+
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests may panic
+
+use std::path::{Path, PathBuf};
+
+mod common;
+use common::{run as ipa_sysid, stderr};
+
+fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// A model file at Ts = 0.05 s: A = 1 − α z⁻¹, B = β, nk = 1 (y(k) = α y(k−1) + β x(k−1)), ARX, or
+/// Hammerstein with b1 = 1 (β = 1) and the given deadzone.
+fn model_file(
+    dir: &Path,
+    name: &str,
+    alpha: f64,
+    beta: f64,
+    deadzone: Option<[f64; 4]>,
+) -> PathBuf {
+    let path = dir.join(name);
+    let mut model = serde_json::json!({
+        "kind": if deadzone.is_some() { "hammerstein" } else { "arx" },
+        "ts": 0.05, "na": 1, "nb": 1, "nk": 1,
+        "a": [-alpha], "b": [beta], "offset": null,
+        "noise_model": "equation-error"
+    });
+    if let Some([b_l, b_r, m_l, m_r]) = deadzone {
+        model["deadzone"] = serde_json::json!({"b_l": b_l, "b_r": b_r, "m_l": m_l, "m_r": m_r});
+        model["noise_model"] = "output-error".into();
+    }
+    let doc = serde_json::json!({"format": "ipa-sysid-model", "version": 2, "model": model});
+    std::fs::write(&path, doc.to_string()).unwrap();
+    path
+}
+
+fn json_of(args: &[&str]) -> serde_json::Value {
+    let o = ipa_sysid(args);
+    assert!(o.status.success(), "{args:?}: {}", stderr(&o));
+    serde_json::from_slice(&o.stdout).unwrap()
+}
+
+fn floats(v: &serde_json::Value) -> Vec<f64> {
+    v.as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect()
+}
+
+// M-2: G(e^{jθ}) = β e^{−jθ} / (1 − α e^{−jθ}), θ = 2π f Ts; impulse β α^(k−1); DC gain β / (1 − α).
+#[test]
+fn response_of_a_first_order_arx_file_is_the_hand_computed_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let (alpha, beta, ts) = (0.7, 0.4, 0.05);
+    let m = model_file(dir.path(), "arx.json", alpha, beta, None);
+    let csv = dir.path().join("bode.csv");
+    let r = json_of(&[
+        "response",
+        "--model",
+        s(&m),
+        "--points",
+        "11",
+        "--samples",
+        "8",
+        "--out",
+        s(&csv),
+        "--json",
+        "-",
+    ]);
+    assert!((r["dc_gain"].as_f64().unwrap() - beta / (1.0 - alpha)).abs() < 1e-12);
+    let imp = floats(&r["impulse"]);
+    assert_eq!(imp.len(), 8);
+    assert_eq!(imp[0], 0.0);
+    for (k, h) in imp.iter().enumerate().skip(1) {
+        assert!(
+            (h - beta * alpha.powi(k as i32 - 1)).abs() < 1e-12,
+            "impulse {k}"
+        );
+    }
+    let (f, mag, ph) = (
+        floats(&r["bode"]["f_hz"]),
+        floats(&r["bode"]["mag_db"]),
+        floats(&r["bode"]["phase_deg"]),
+    );
+    assert_eq!(f.len(), 11);
+    assert!((f[10] - 0.5 / ts).abs() < 1e-9);
+    for i in 0..11 {
+        let th = 2.0 * std::f64::consts::PI * f[i] * ts;
+        let g = beta / (1.0 - 2.0 * alpha * th.cos() + alpha * alpha).sqrt();
+        let p = -th - (alpha * th.sin()).atan2(1.0 - alpha * th.cos());
+        assert!((mag[i] - 20.0 * g.log10()).abs() < 1e-9 && (ph[i] - p.to_degrees()).abs() < 1e-7);
+    }
+    // The CSV holds the same table.
+    let text = std::fs::read_to_string(&csv).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("f_hz,w_rad_s,mag_db,phase_deg"));
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| l.split(',').map(|v| v.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), 11);
+    assert!(rows.iter().zip(&mag).all(|(row, m)| row[2] == *m));
+}
+
+// M-2: the printed report of a Hammerstein model says which gain: G with b1 = 1 and m_r, m_l per side,
+// with their dB offsets (20 log10 0.01 = −40 dB, 20 log10 0.02 ≈ −33.98 dB).
+#[test]
+fn response_of_a_hammerstein_file_states_the_slope_per_side() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = model_file(
+        dir.path(),
+        "h.json",
+        0.9,
+        1.0,
+        Some([-20.0, 30.0, 0.02, 0.01]),
+    );
+    let o = ipa_sysid(&["response", "--model", s(&m), "--kp", "2", "--ki", "0.5"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8(o.stdout).unwrap();
+    assert!(out.contains("b1 = 1"), "{out}");
+    assert!(
+        out.contains("m_r G = 0.01 G") && out.contains("(-40.00 dB)"),
+        "{out}"
+    );
+    assert!(
+        out.contains("m_l G = 0.02 G") && out.contains("(-33.98 dB)"),
+        "{out}"
+    );
+    // DC gain G(1) = 1 / (1 − 0.9) = 10; from u: 0.1 on the right, 0.2 on the left.
+    assert!(out.contains("G(1) = 10; right: 0.1; left: 0.2"), "{out}");
+    assert!(out.contains("margins:  PI Kp = 2, Ki = 0.5"), "{out}");
+    assert!(
+        out.contains("|m_r G| dB") && out.contains("|m_l G| dB"),
+        "{out}"
+    );
+}
+
+/// A 2-column record with the given header and rows (one string per line).
+fn csv(dir: &Path, name: &str, lines: &[&str]) -> PathBuf {
+    let path = dir.join(name);
+    std::fs::write(&path, lines.join("\n") + "\n").unwrap();
+    path
+}
+
+// L-1: a comma-separated file whose numbers have decimal commas, quoted or not, in memory and streamed:
+// the error names decimal commas and the ways out.
+#[test]
+fn decimal_commas_in_a_comma_separated_file_are_named_as_the_cause() {
+    let dir = tempfile::tempdir().unwrap();
+    let quoted = csv(
+        dir.path(),
+        "quoted.csv",
+        &["\"u\",\"y\"", "\"-0,109\",\"53,8\"", "\"0,5\",\"53,9\""],
+    );
+    let ragged = csv(
+        dir.path(),
+        "ragged.csv",
+        &["u,y", "-0,109,53,8", "0,5,53,9"],
+    );
+    for (file, what) in [(&quoted, "is not a number"), (&ragged, "ragged row")] {
+        for stream in [None, Some("on")] {
+            let mut args = vec![
+                "identify",
+                "--data",
+                s(file),
+                "--ts",
+                "1",
+                "--structure",
+                "arx",
+                "--method",
+                "ls",
+            ];
+            if let Some(on) = stream {
+                args.extend(["--stream", on]);
+            }
+            let o = ipa_sysid(&args);
+            let e = stderr(&o);
+            assert_eq!(o.status.code(), Some(2), "{args:?}: {e}");
+            assert!(
+                e.contains(what)
+                    && e.contains("decimal commas")
+                    && e.contains("';' as the separator"),
+                "{args:?}: {e}"
+            );
+        }
+    }
+    // A plain non-number in a comma-separated file gets no such hint.
+    let word = csv(dir.path(), "word.csv", &["u,y", "abc,1", "1,2"]);
+    let e = stderr(&ipa_sysid(&["identify", "--data", s(&word), "--ts", "1"]));
+    assert!(
+        e.contains("is not a number") && !e.contains("decimal commas"),
+        "{e}"
+    );
+}
+
+// L-5: a time column of date-times: the error names --ts, and --ts works on the same file.
+#[test]
+fn a_date_time_column_names_ts_as_the_way_out() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut lines = vec!["t,u,y".to_string()];
+    let mut y = 0.0f64;
+    let mut u_prev = 0.0;
+    for k in 0..200 {
+        let u = if (k / 10) % 2 == 0 { 1.0 } else { -1.0 };
+        y = 0.8 * y + 0.3 * u_prev + 0.001 * ((k * 7919 % 13) as f64 - 6.0);
+        lines.push(format!(
+            "2026-01-01 00:{:02}:{:02},{u},{y}",
+            k * 9 / 60,
+            k * 9 % 60
+        ));
+        u_prev = u;
+    }
+    let refs: Vec<&str> = lines.iter().map(String::as_str).collect();
+    let f = csv(dir.path(), "dt.csv", &refs);
+    let o = ipa_sysid(&["identify", "--data", s(&f), "--structure", "arx"]);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(
+        e.contains("'2026-01-01 00:00:00'") && e.contains("--ts SECONDS"),
+        "{e}"
+    );
+    let o = ipa_sysid(&[
+        "identify",
+        "--data",
+        s(&f),
+        "--structure",
+        "arx",
+        "--ts",
+        "9",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
+// L-3: the --samples refusal in the form of every other refusal of docs/reliability.md's table.
+#[test]
+fn samples_out_of_range_is_an_invalid_setting() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("x.csv");
+    let o = ipa_sysid(&["simulate", "--samples", "10000000000", "--out", s(&out)]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("invalid setting --samples = 10000000000: expected 1..=50000000"),
+        "{}",
+        stderr(&o)
+    );
+}

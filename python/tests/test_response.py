@@ -1,0 +1,84 @@
+"""Model.frequency_response and Model.to_control's gain convention (audit s20 M-2): expectations
+computed here from the model's coefficients."""
+
+import cmath
+import json
+import math
+import warnings
+
+import pytest
+
+import ipa_sysid
+
+
+def _model(tmp_path, alpha, beta, deadzone=None):
+    """A model file y(k) = alpha y(k-1) + beta x(k-1), Ts = 0.05 s; Hammerstein when deadzone is given."""
+    model = {
+        "kind": "hammerstein" if deadzone else "arx",
+        "ts": 0.05, "na": 1, "nb": 1, "nk": 1,
+        "a": [-alpha], "b": [beta], "offset": None,
+        "noise_model": "output-error" if deadzone else "equation-error",
+    }
+    if deadzone:
+        model["deadzone"] = dict(zip(("b_l", "b_r", "m_l", "m_r"), deadzone))
+    path = tmp_path / "m.json"
+    path.write_text(json.dumps({"format": "ipa-sysid-model", "version": 2, "model": model}))
+    return ipa_sysid.load_model(str(path))
+
+
+def test_first_order_frequency_response_impulse_and_dc_gain(tmp_path):
+    alpha, beta, ts = 0.7, 0.4, 0.05
+    r = _model(tmp_path, alpha, beta).frequency_response(points=9, samples=6)
+    assert r["dc_gain"] == pytest.approx(beta / (1 - alpha), rel=1e-12)
+    assert r["impulse"] == pytest.approx([0.0] + [beta * alpha ** (k - 1) for k in range(1, 6)], abs=1e-12)
+    for f, mag, ph in zip(r["bode"]["f_hz"], r["bode"]["mag_db"], r["bode"]["phase_deg"]):
+        z = cmath.exp(-1j * 2 * math.pi * f * ts)
+        g = beta * z / (1 - alpha * z)
+        assert mag == pytest.approx(20 * math.log10(abs(g)), abs=1e-9)
+        assert ph == pytest.approx(math.degrees(cmath.phase(g)), abs=1e-7)
+    assert r["bode"]["f_hz"][-1] == pytest.approx(0.5 / ts)
+    assert r["margins"] is None and r["sides"] == []
+
+
+def test_margins_of_a_hand_derived_loop(tmp_path):
+    # L = Kp beta z^-1 / (1 - alpha z^-1), Kp beta = 1, alpha = 0.5: |L| = 1 at cos(theta) = 0.25;
+    # at z = -1, L = -1/1.5: gain margin 20 log10 1.5 dB.
+    r = _model(tmp_path, 0.5, 0.25).frequency_response(kp=4.0)
+    th = math.acos(0.25)
+    z = cmath.exp(-1j * th)
+    pm = 180 + math.degrees(cmath.phase(z / (1 - 0.5 * z)))
+    assert r["margins"]["phase_margin_deg"] == pytest.approx(pm, abs=0.01)
+    assert r["margins"]["gain_margin_db"] == pytest.approx(20 * math.log10(1.5), abs=1e-6)
+
+
+def test_hammerstein_response_states_the_slopes_and_bad_settings_are_value_errors(tmp_path):
+    m = _model(tmp_path, 0.9, 1.0, deadzone=(-20.0, 30.0, 0.02, 0.01))
+    r = m.frequency_response()
+    right, left = r["sides"]
+    assert (right["side"], right["slope"], left["side"], left["slope"]) == ("right", 0.01, "left", 0.02)
+    assert right["offset_db"] == pytest.approx(-40.0)
+    assert right["dc_gain"] == pytest.approx(0.1) and left["dc_gain"] == pytest.approx(0.2)
+    assert "b1 = 1" in r["gain"]
+    with pytest.raises(ValueError, match="points"):
+        m.frequency_response(points=1)
+    with pytest.raises(ValueError, match="kp"):
+        m.frequency_response(ki=1.0)
+
+
+def test_to_control_includes_the_slope_per_side_or_warns(tmp_path):
+    control = pytest.importorskip("control")
+    m = _model(tmp_path, 0.9, 1.0, deadzone=(-20.0, 30.0, 0.02, 0.01))
+    with pytest.warns(ipa_sysid.IpaSysidWarning, match="side="):
+        g = m.to_control()
+    gr = m.to_control(side="right")
+    gl = m.to_control(side="left")
+    # DC gains: G(1) = 10; m_r G(1) = 0.1, m_l G(1) = 0.2.
+    assert control.dcgain(g) == pytest.approx(10.0)
+    assert control.dcgain(gr) == pytest.approx(0.1)
+    assert control.dcgain(gl) == pytest.approx(0.2)
+    with pytest.raises(ValueError, match="side"):
+        m.to_control(side="up")
+    arx = _model(tmp_path, 0.5, 2.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert control.dcgain(arx.to_control()) == pytest.approx(4.0)

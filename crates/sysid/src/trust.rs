@@ -82,7 +82,13 @@ pub fn below_baseline(record: Record, fit: Option<f64>, baseline: Option<f64>) -
 /// fit, so that a model no better than the mean from the measured initial outputs is called so), and an
 /// initial state that flatters the headline fit. The one place where metrics become warnings.
 pub fn metric_warnings(record: Record, m: &Metrics) -> Vec<Warning> {
-    Warning::if_poor_simulation(record, guarded_fit(m))
+    // No fit % while both simulations stayed finite: the record's output is constant (fit % divides by
+    // its variation), which is not a divergence (audit s20 H-1: "diverges" beside RMSE 0).
+    let finite = |r: Option<f64>| r.is_some_and(f64::is_finite);
+    let constant_output = m.fit_sim_percent.is_none() && finite(m.rmse_sim);
+    (!constant_output)
+        .then(|| Warning::if_poor_simulation(record, guarded_fit(m)))
+        .flatten()
         .into_iter()
         .chain(initial_state_warning(record, m))
         .collect()

@@ -187,3 +187,122 @@ fn a_pole_on_the_unit_circle_to_rounding_is_not_called_inside() {
     assert!(!poles.contains("all inside"), "{poles}");
     assert!(poles.contains("on the stability boundary"), "{poles}");
 }
+
+/// A noise-free integrator-like record `t,cmd,pos`: pos(k) = 0.999999 pos(k−1) + cmd(k−1), cmd uniform
+/// in [−0.5, 0.5): its pole, 1e-6 from the unit circle, is within the integrator margin 1e-5, so
+/// identify warns of it (the documented rule of `Warning::NearIntegrator`).
+fn integrator_record(dir: &Path) -> PathBuf {
+    let path = dir.join("int.csv");
+    let mut text = String::from("t,cmd,pos\n");
+    let (mut y1, mut u1) = (0.0f64, 0.0f64);
+    let mut g = common::lcg(11);
+    for k in 0..2000 {
+        let u = g.unit() - 0.5;
+        let y = 0.999999 * y1 + u1;
+        text.push_str(&format!("{},{u},{y}\n", k as f64 * 0.01));
+        (y1, u1) = (y, u);
+    }
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+// M-3: a model file carries identify's warnings and column names; validate and control repeat every
+// one of them as "this model's identification on R (free-run fit F on it) warned: W"; validate reads
+// the stored columns when --u-col/--y-col are left at their defaults.
+#[test]
+fn a_model_file_carries_identifys_warnings_and_the_commands_that_load_it_repeat_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = integrator_record(dir.path());
+    let model = dir.path().join("m.json");
+    let doc = common::run_json(
+        dir.path(),
+        &[
+            "identify",
+            "--data",
+            s(&data),
+            "--u-col",
+            "cmd",
+            "--y-col",
+            "pos",
+            "--structure",
+            "arx",
+            "--na",
+            "1",
+            "--nb",
+            "1",
+            "--method",
+            "ls",
+            "--save-model",
+            s(&model),
+        ],
+    );
+    let said = common::warnings(&doc);
+    assert!(
+        said.iter().any(|w| w.contains("modulus 0.999999")),
+        "{said:?}"
+    );
+    let file: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
+    assert_eq!(file["version"], 3);
+    let id = &file["model"]["identification"];
+    assert_eq!(id["u_columns"], serde_json::json!(["cmd"]));
+    assert_eq!(id["y_column"], "pos");
+    assert_eq!(id["warnings"], serde_json::json!(said));
+    let repeated = |err: &str| {
+        for w in &said {
+            let line = format!("this model's identification on {} (free-run fit ", s(&data));
+            assert!(
+                err.lines()
+                    .any(|l| l.contains(&line) && l.ends_with(&format!("warned: {w}"))),
+                "{w} not repeated in {err}"
+            );
+        }
+    };
+    // validate without --u-col/--y-col: the stored cmd/pos columns are read, and said so.
+    let out = ipa_sysid(&["validate", "--model", s(&model), "--data", s(&data)]);
+    let err = stderr(&out) + &String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{err}");
+    assert!(err.contains("--u-col cmd --y-col pos"), "{err}");
+    repeated(&err);
+    let out = ipa_sysid(&[
+        "control",
+        "--plant",
+        &format!("model:{}", s(&model)),
+        "--setpoint",
+        "1",
+        "--kp",
+        "0.5",
+        "--ki",
+        "0.1",
+        "--duration",
+        "1",
+    ]);
+    repeated(&(stderr(&out) + &String::from_utf8_lossy(&out.stdout)));
+}
+
+// M-3: a version-2 file (no identification record) still loads and says nothing of one.
+#[test]
+fn a_version_2_model_file_still_loads() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = integrator_record(dir.path());
+    let path = dir.path().join("v2.json");
+    let doc = serde_json::json!({
+        "format": "ipa-sysid-model", "version": 2,
+        "model": {"kind": "arx", "ts": 0.01, "na": 1, "nb": 1, "nk": 1, "a": [-0.5], "b": [1.0],
+                  "offset": null}
+    });
+    std::fs::write(&path, doc.to_string()).unwrap();
+    let out = ipa_sysid(&[
+        "validate",
+        "--model",
+        s(&path),
+        "--data",
+        s(&data),
+        "--u-col",
+        "cmd",
+        "--y-col",
+        "pos",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(!stderr(&out).contains("identification on"));
+}

@@ -306,3 +306,81 @@ fn a_version_2_model_file_still_loads() {
     assert!(out.status.success(), "{}", stderr(&out));
     assert!(!stderr(&out).contains("identification on"));
 }
+
+/// `t,u,y` of 2000 samples: u = ±1 at random, y(k) = 0.5 y(k−1) + u(k−3) + 0.05 e(k), e uniform in
+/// [−0.5, 0.5): a delay of 3 samples.
+fn delayed_record(dir: &Path) -> PathBuf {
+    let path = dir.join("d.csv");
+    let mut text = String::from("t,u,y\n");
+    let mut g = common::lcg(5);
+    let mut u = vec![0.0f64; 2000];
+    let mut y = vec![0.0f64; 2000];
+    for k in 0..2000 {
+        u[k] = if g.unit() < 0.5 { -1.0 } else { 1.0 };
+        let past = if k >= 3 {
+            0.5 * y[k - 1] + u[k - 3]
+        } else {
+            0.0
+        };
+        y[k] = past + 0.05 * (g.unit() - 0.5);
+        text.push_str(&format!("{},{},{}\n", k as f64 * 0.01, u[k], y[k]));
+    }
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+// M-1: with nk = 1 and nb = 1 the model cannot use u(k−3); on the validation half ε(k) ≈ u(k−3) + …,
+// so r_εu(3) is near 1/√(1 + 0.5²/(1 − 0.5²)) ≈ 0.87, far beyond 3 × 2.58/√1000 ≈ 0.24 and above
+// 0.3: a warning naming lag 3 and the way forward, in the text and JSON, and --strict exits 1. With
+// nk = 3 the residual is the small noise: no such warning.
+#[test]
+fn a_wrong_delay_is_a_warning_with_the_way_forward() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = delayed_record(dir.path());
+    let base = [
+        "identify",
+        "--data",
+        s(&data),
+        "--split",
+        "0.5",
+        "--structure",
+        "arx",
+        "--na",
+        "1",
+        "--nb",
+        "1",
+        "--method",
+        "ls",
+    ];
+    let mut wrong = base.to_vec();
+    wrong.extend(["--nk", "1"]);
+    let (_, doc) = common::run_json_code(dir.path(), &wrong);
+    let w = common::warnings(&doc);
+    let hit: Vec<&String> = w
+        .iter()
+        .filter(|w| w.contains("validation residuals are correlated with the input 3 sample(s)"))
+        .collect();
+    assert_eq!(hit.len(), 1, "{w:?}");
+    assert!(
+        hit[0].contains("ipa-sysid delay") && hit[0].contains("--nk"),
+        "{}",
+        hit[0]
+    );
+    let mut strict = wrong.clone();
+    strict.push("--strict");
+    let out = ipa_sysid(&strict);
+    assert_eq!(out.status.code(), Some(1));
+    let all = stderr(&out) + &String::from_utf8_lossy(&out.stdout);
+    assert!(
+        all.contains("warning: the validation residuals are correlated"),
+        "{all}"
+    );
+    let mut right = base.to_vec();
+    right.extend(["--nk", "3"]);
+    let doc = common::run_json(dir.path(), &right);
+    let w = common::warnings(&doc);
+    assert!(
+        !w.iter().any(|w| w.contains("residuals are correlated")),
+        "{w:?}"
+    );
+}

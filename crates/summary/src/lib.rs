@@ -334,6 +334,14 @@ impl IdentifyReport {
                     .map(ToString::to_string),
             );
         }
+        // The validation record's input–residual test, the one that judges the model (audit s20 M-1).
+        if let Some(ResidualEntry::Analysis(a)) = &report.residuals.validation {
+            report.warnings.extend(
+                sysid::trust::input_dynamics_left(Record::Validation, a)
+                    .iter()
+                    .map(ToString::to_string),
+            );
+        }
         report
             .warnings
             .extend(operating_point_hint(&fit.model, &report.metrics));
@@ -500,7 +508,15 @@ impl ValidationReport {
         residuals: ResidualEntry,
         input_extremes: &[(f64, f64)],
     ) -> Self {
-        let warnings = Self::record_warnings(model, &m, input_extremes);
+        let mut warnings = Self::record_warnings(model, &m, input_extremes);
+        // The record's input–residual test (audit s20 M-1), as identify's validation record.
+        if let ResidualEntry::Analysis(a) = &residuals {
+            warnings.extend(
+                sysid::trust::input_dynamics_left(Record::Validation, a)
+                    .iter()
+                    .map(ToString::to_string),
+            );
+        }
         ValidationReport {
             model: model.clone(),
             poles: poles(model),

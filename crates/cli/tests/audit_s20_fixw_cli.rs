@@ -384,3 +384,27 @@ fn a_wrong_delay_is_a_warning_with_the_way_forward() {
         "{w:?}"
     );
 }
+
+// L-7: a model whose left deadzone branch was not estimated (m_l = 0, identify's one-sided input) cannot
+// be tuned whatever the specification; at Ts = 4 s the default run=3 s is also too short (fewer than 20
+// samples), but the refusal names the model, the property of the file, first.
+#[test]
+fn tune_refuses_a_one_sided_model_before_asking_for_a_longer_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("one.json");
+    let doc = serde_json::json!({
+        "format": "ipa-sysid-model", "version": 2,
+        "model": {
+            "kind": "hammerstein", "ts": 4.0, "na": 1, "nb": 1, "nk": 1,
+            "a": [-0.9], "b": [1.0], "offset": null,
+            "deadzone": {"b_l": 0.0, "b_r": 0.0, "m_l": 0.0, "m_r": 0.004}
+        }
+    });
+    std::fs::write(&path, doc.to_string()).unwrap();
+    let out_file = dir.path().join("c.json");
+    let out = ipa_sysid(&["tune", "--model", s(&path), "--out", s(&out_file)]);
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("both deadzone branches estimated"), "{err}");
+    assert!(!err.contains("run="), "{err}");
+}

@@ -583,8 +583,9 @@ fn operating_point_hint(model: &Model, m: &MetricsPair) -> Option<String> {
     if !(negative(Some(&m.estimation)) || negative(m.validation.as_ref())) {
         return None;
     }
-    let (lo, hi) = output_far_from_zero(model)?;
-    Some(()).map(|()| {
+    let [lo, hi] = model.data_range()?.y;
+    let far = (lo > 0.0 || hi < 0.0) && lo.abs().min(hi.abs()) > hi - lo;
+    far.then(|| {
         format!(
             "the output lies far from zero (estimation data {lo:.4} .. {hi:.4}) and the model has no \
              constant term: it can only reach that level through its dynamics, the likely cause of the \
@@ -592,14 +593,6 @@ fn operating_point_hint(model: &Model, m: &MetricsPair) -> Option<String> {
              offset=True)"
         )
     })
-}
-
-/// The estimation output's range [lo, hi] (the model's `data_range`) when it lies far from zero: it
-/// excludes 0 and min(|lo|, |hi|) exceeds hi − lo. The test behind [`operating_point_hint`] and
-/// `identify`'s `--offset` hint for a positive fit (audit s20 L-2).
-pub fn output_far_from_zero(model: &Model) -> Option<(f64, f64)> {
-    let [lo, hi] = model.data_range()?.y;
-    ((lo > 0.0 || hi < 0.0) && lo.abs().min(hi.abs()) > hi - lo).then_some((lo, hi))
 }
 
 /// The fewest regression rows per estimated parameter before `identify` warns that the estimate is

@@ -461,33 +461,3 @@ pub fn progress_bar(len: u64, template: &str) -> indicatif::ProgressBar {
     }
     bar
 }
-
-/// Whether a constant term would help a model without one, judged as `order` judges it
-/// (`sysid::order::offset_hint`) on ARX of the same orders by least squares, estimated on the first
-/// part of `est` and ranked on its last `selection` fraction: the words of NARX `identify` (audit s12
-/// F8) and of ARX / Hammerstein `identify` on an output far from zero (audit s20 L-2). `advice` says what
-/// to run again.
-pub fn offset_hint(
-    est: &sysid::Dataset,
-    orders: sysid::Orders,
-    selection: f64,
-    advice: &str,
-) -> Option<String> {
-    let n = est.len();
-    let k = sysid::data::split_rows(n, 1.0 - selection).ok()?;
-    let arx = sysid::Identification::default()
-        .with_kind(sysid::ModelKind::Arx)
-        .with_method(sysid::Method::Ls);
-    sysid::order::offset_hint(
-        (&est.rows(0..k), Some(&est.rows(k..n))),
-        &arx,
-        (orders, None),
-        (
-            &format!(
-                "ARX of the same lags ({}, {}, {}), by ls,",
-                orders.na, orders.nb, orders.nk
-            ),
-            advice,
-        ),
-    )
-}

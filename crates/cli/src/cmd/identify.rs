@@ -635,30 +635,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .warnings
         .extend(in_sample_warnings(&args, &files, &records, val.as_ref()));
     report.warnings.extend(repeated_record_warnings(&records));
-    // An output far from zero without a constant term whose fit is not negative (the negative case has
-    // its own hint): whether --offset helps, judged as NARX identify judges it (audit s20 L-2: the gas
-    // furnace fitted 0.82 % and was told of "a slow or spurious mode").
-    if let [one] = records.as_slice() {
-        let m = &fit.model;
-        let linear_block = matches!(
-            settings.structure.kind,
-            sysid::ModelKind::Arx | sysid::ModelKind::Hammerstein
-        );
-        if linear_block
-            && m.inputs().len() == 1
-            && m.offset().is_none()
-            && m.operating_point().is_none()
-            && sysid_summary::output_far_from_zero(m).is_some()
-            && !report.warnings.iter().any(|w| w.contains("--offset"))
-        {
-            report.warnings.extend(super::common::offset_hint(
-                one,
-                settings.structure.orders,
-                1.0 / 3.0,
-                "identify again with --offset (a constant c) or --detrend mean",
-            ));
-        }
-    }
     if !report.warnings.is_empty() {
         report.warnings.extend(
             records

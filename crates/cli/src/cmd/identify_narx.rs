@@ -132,21 +132,36 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     super::common::write_outputs(&outputs, &inputs, args.strict, report.warnings.len())
 }
 
-/// Without `--offset`: whether a constant term would help ([`super::common::offset_hint`] on ARX of
-/// the same lags; audit s12 F8).
+/// Without `--offset`: whether a constant term would help, judged as `order` judges it
+/// (`sysid::order::offset_hint`) on ARX of the same lags, estimated on the first part of the
+/// estimation record and ranked on its last `--selection` fraction (audit s12 F8).
 fn offset_hint(est: &sysid::Dataset, s: &NarxSettings) -> Option<String> {
     if s.constant {
         return None;
     }
-    super::common::offset_hint(
-        est,
-        sysid::Orders {
-            na: s.na,
-            nb: s.nb,
-            nk: s.nk,
-        },
-        s.selection,
-        "identify again with --offset (it offers the NARX model the constant term)",
+    let n = est.len();
+    let k = sysid::data::split_rows(n, 1.0 - s.selection).ok()?;
+    let arx = sysid::Identification::default()
+        .with_kind(sysid::ModelKind::Arx)
+        .with_method(sysid::Method::Ls);
+    sysid::order::offset_hint(
+        (&est.rows(0..k), Some(&est.rows(k..n))),
+        &arx,
+        (
+            sysid::Orders {
+                na: s.na,
+                nb: s.nb,
+                nk: s.nk,
+            },
+            None,
+        ),
+        (
+            &format!(
+                "ARX of the same lags ({}, {}, {}), by ls,",
+                s.na, s.nb, s.nk
+            ),
+            "identify again with --offset (it offers the NARX model the constant term)",
+        ),
     )
 }
 

@@ -408,3 +408,60 @@ fn tune_refuses_a_one_sided_model_before_asking_for_a_longer_run() {
     assert!(err.contains("both deadzone branches estimated"), "{err}");
     assert!(!err.contains("run="), "{err}");
 }
+
+// L-2: y(k) = 0.99 y(k−1) + 0.5 u(k−2) + 0.5 + 0.05 e(k) rests at 0.5/(1 − 0.99) = 50, far from zero
+// (its range excludes 0 and is narrower than its distance from 0). An ARX without a constant term can
+// reach that level only through its dynamics and its initial state, so its fits from estimated and
+// from measured initial outputs differ by more than 5 points while staying positive: the hint must
+// name the operating point and --offset, as it does for a negative fit. With --offset: no hint.
+#[test]
+fn arx_without_offset_on_an_output_far_from_zero_gets_the_offset_hint() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("lvl.csv");
+    let mut text = String::from("t,u,y\n");
+    let mut g = common::lcg(3);
+    let (mut y1, mut u1, mut u2) = (50.0f64, 0.0f64, 0.0f64);
+    for k in 0..600 {
+        let u = if (k / 25) % 2 == 0 { 1.0 } else { -1.0 };
+        let y = 0.99 * y1 + 0.5 * u2 + 0.5 + 0.05 * (g.unit() - 0.5);
+        text.push_str(&format!("{},{u},{y}\n", k as f64 * 0.1));
+        (y1, u2, u1) = (y, u1, u);
+    }
+    std::fs::write(&path, text).unwrap();
+    let args = [
+        "identify",
+        "--data",
+        s(&path),
+        "--structure",
+        "arx",
+        "--na",
+        "2",
+        "--nb",
+        "2",
+        "--nk",
+        "1",
+        "--method",
+        "ls",
+    ];
+    let (_, doc) = common::run_json_code(dir.path(), &args);
+    let est = &doc["metrics"]["estimation"];
+    let (e, m) = (
+        est["fit_sim_percent"].as_f64().unwrap(),
+        est["fit_sim_measured_percent"].as_f64().unwrap(),
+    );
+    assert!(
+        e > 0.0 && m > 0.0 && (e - m).abs() > 5.0,
+        "the case: {e} {m}"
+    );
+    let w = common::warnings(&doc);
+    assert!(
+        w.iter()
+            .any(|w| w.contains("output lies far from zero") && w.contains("--offset")),
+        "{w:?}"
+    );
+    let mut with = args.to_vec();
+    with.push("--offset");
+    let (_, doc) = common::run_json_code(dir.path(), &with);
+    let w = common::warnings(&doc);
+    assert!(!w.iter().any(|w| w.contains("far from zero")), "{w:?}");
+}

@@ -9,8 +9,8 @@ use std::time::Instant;
 use serde::Serialize;
 use sysid_core::{Deadzone, Model, Plant};
 
-use crate::tune::{self, Comparison, Margins, PlantFactory, Spec, TuneSettings};
 use crate::compensator::{DeadzoneCompensator, SlopeMode};
+use crate::tune::{self, Comparison, Margins, PlantFactory, Spec, TuneSettings};
 use crate::{ControlError, ControllerSettings};
 
 /// Spread of the plant variants: ±30 %.

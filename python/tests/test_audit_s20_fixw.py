@@ -39,7 +39,7 @@ def test_load_model_repeats_the_warnings_of_the_identification_that_wrote_the_fi
     with open(data, "w") as f:
         f.write("t,cmd,pos\n")
         for k in range(2000):
-            f.write(f"{k * 0.01!r},{u[k]!r},{y[k]!r}\n")
+            f.write(f"{k * 0.01!r},{float(u[k])!r},{float(y[k])!r}\n")
     model = tmp_path / "m.json"
     out = tmp_path / "id.json"
     r = run("identify", "--data", data, "--u-col", "cmd", "--y-col", "pos", "--structure", "arx",

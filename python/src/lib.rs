@@ -732,12 +732,14 @@ fn poles_array<'py>(py: Python<'py>, m: &Model) -> Bound<'py, PyArray1<Complex64
 }
 
 /// Reads a model file written by `ipa-sysid identify --save-model` (or an `identify --json` summary, or
-/// `Model.save`).
+/// `Model.save`). The warnings of the identification that wrote the file (model file version 3) are
+/// repeated as `IpaSysidWarning`s ("this model's identification on X warned: …"), as the command line's
+/// `control` / `tune` / `validate` repeat them (audit s20 M-3).
 #[pyfunction]
-fn load_model(path: PathBuf) -> PyResult<PyModel> {
-    sysid::model_file::read_model(&path)
-        .map(|inner| PyModel { inner })
-        .map_err(sysid_err)
+fn load_model(py: Python<'_>, path: PathBuf) -> PyResult<PyModel> {
+    let inner = sysid::model_file::read_model(&path).map_err(sysid_err)?;
+    warn_all(py, &sysid::model_file::provenance_warnings(&inner))?;
+    Ok(PyModel { inner })
 }
 
 /// The paper's "actual" Hammerstein model (Table III): the `paper` plant.

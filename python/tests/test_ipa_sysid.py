@@ -215,7 +215,13 @@ def test_load_model_reads_the_cli_model_file(records, tmp_path):
     cli("identify", "--data", est, "--ts", 0.01, "--save-model", path, "--json", out)
     m = ipa_sysid.load_model(path)
     doc = json.loads(out.read_text())
-    assert_same(json.loads(m.to_json())["model"], doc["model"])
+    saved = json.loads(m.to_json())["model"]
+    # The file also records its identification (model file version 3, audit s20 M-3): the record, the
+    # columns and the warnings --json lists.
+    ident = saved.pop("identification")
+    assert ident["record"] == str(est) and ident["u_columns"] == ["u"] and ident["y_column"] == "y"
+    assert ident["warnings"] == doc["warnings"]
+    assert_same(saved, doc["model"])
     assert path.read_text() == m.to_json()  # the same bytes as the command line writes
 
 

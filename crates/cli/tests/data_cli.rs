@@ -265,9 +265,10 @@ fn detrend_mean_identifies_deviations_and_puts_the_operating_point_back() {
         assert!((num(&op["u"][0]) - mean(&u)).abs() < 1e-9, "{how}: {op}");
         assert!((num(&op["y"]) - mean(&y)).abs() < 1e-9, "{how}: {op}");
         assert_eq!(j["detrend"], how);
-        // The saved model is version 2 and carries the operating point.
+        // The saved model carries the operating point (version 2's field; the file is version 3
+        // since it also records its identification, audit s20 M-3).
         let m = json(&model);
-        assert_eq!(m["version"], 2);
+        assert_eq!(m["version"], 3);
         assert_eq!(m["model"]["operating_point"], *op);
 
         // validate --out: y_sim in the user's units = y0 + the deviation model run on u - u0.

@@ -26,7 +26,8 @@ pub mod structure;
 pub use data::Dataset;
 pub use error::{PlantError, Setting, SysidError};
 pub use model::{
-    DataRange, InputChannel, Model, ModelKind, ModelPlant, NoiseModel, Orders, TermSizes,
+    DataRange, InputChannel, Model, ModelKind, ModelPlant, NoiseModel, Orders, Provenance,
+    TermSizes,
 };
 pub use nonlinearity::{
     Deadzone, DeadzoneSaturation, PiecewiseLinear, Polynomial, Saturation, StaticNonlinearity,

@@ -179,6 +179,36 @@ pub struct Model {
     /// data here (the paper's, a hand-written file, one saved before it was recorded). Boxed: a model
     /// is moved often and the range is read rarely.
     data_range: Option<Box<DataRange>>,
+    /// Where the model came from ([`Provenance`]: record, column names, identify's warnings); `None`
+    /// for a model not saved by `identify` (or saved before it was recorded). Boxed as `data_range`.
+    provenance: Option<Box<Provenance>>,
+}
+
+/// What `identify --save-model` records of the identification that wrote a model file (model file
+/// version 3): the estimation record, the columns it read the inputs u and the output y from, the
+/// free-run simulation fit % on the record, and identify's warnings in words. Commands that load the
+/// file repeat the warnings ([`crate::model_file::load_warnings`]), as `tune --plant-config` repeats a
+/// twin's calibration warnings (audit s20 M-3: a model identify called worse than the mean was tuned
+/// on without a word); `validate` reads the columns by these names when none are given.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Provenance {
+    /// The estimation record's name (its path as given, or `-`).
+    pub record: String,
+    /// The column name of each input, in the model's input order; empty when the record had no
+    /// header (columns by position).
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub u_columns: Vec<String>,
+    /// The column name of the output y; `None` when the record had no header.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub y_column: Option<String>,
+    /// The free-run simulation fit % on the estimation record (the worse of estimated and measured
+    /// initial outputs); `None` when undefined or diverged.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub fit_estimation_percent: Option<f64>,
+    /// identify's warnings, in words.
+    #[serde(default)]
+    pub warnings: Vec<String>,
 }
 
 /// The range of the data a model was estimated on, in the user's units (for the IPA: PWM counts and
@@ -438,6 +468,7 @@ impl Model {
             operating_point: None,
             output: None,
             data_range: None,
+            provenance: None,
         })
     }
 
@@ -551,6 +582,7 @@ impl Model {
             operating_point: None,
             output: None,
             data_range: None,
+            provenance: None,
         }
     }
 
@@ -637,6 +669,17 @@ impl Model {
         }
         self.data_range = range.map(Box::new);
         Ok(self)
+    }
+
+    /// Where the model came from ([`Provenance`]), if recorded.
+    pub fn provenance(&self) -> Option<&Provenance> {
+        self.provenance.as_deref()
+    }
+
+    /// The same model with the identification's record `provenance`, or without one.
+    pub fn with_provenance(mut self, provenance: Option<Provenance>) -> Self {
+        self.provenance = provenance.map(Box::new);
+        self
     }
 
     /// The same model around the operating point `op` (one u0 per input, all finite), or without one.
@@ -1288,6 +1331,9 @@ pub(crate) struct ModelRepr {
     /// The estimation data's range; absent in files written before it was recorded.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     data_range: Option<DataRange>,
+    /// The identification that wrote the file ([`Provenance`], model file version 3); absent otherwise.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    identification: Option<Provenance>,
 }
 
 fn is_equation_error(n: &NoiseModel) -> bool {
@@ -1401,7 +1447,8 @@ impl TryFrom<ModelRepr> for Model {
             .with_operating_point(r.operating_point)?
             .with_noise_model(r.noise_model)
             .with_output_nonlinearity(output)?
-            .with_data_range(r.data_range)?;
+            .with_data_range(r.data_range)?
+            .with_provenance(r.identification);
         if m.kind() != r.kind {
             return bad(format!(
                 "kind = {} does not match the inputs' nonlinearities",
@@ -1445,6 +1492,7 @@ impl From<Model> for ModelRepr {
             operating_point: m.operating_point,
             output_nonlinearity: m.output.as_ref().and_then(NonlinearityRepr::of),
             data_range: m.data_range.map(|r| *r),
+            identification: m.provenance.map(|p| *p),
         }
     }
 }

@@ -15,8 +15,9 @@ use crate::{Model, SysidError};
 /// Value of the `format` key of a model file.
 pub const FORMAT: &str = "ipa-sysid-model";
 /// Current version of the model file schema. Version 2 added the optional `operating_point` (`--detrend`);
-/// version 1 files still load (they have no operating point).
-pub const VERSION: u32 = 2;
+/// version 3 the optional `identification` ([`crate::model::Provenance`]: the record, its column names
+/// and identify's warnings). Version 1 and 2 files still load (they have neither).
+pub const VERSION: u32 = 3;
 
 #[derive(Serialize)]
 struct ModelFileOut<'a> {
@@ -56,8 +57,39 @@ pub fn read_model(path: &Path) -> Result<Model, SysidError> {
 /// whose breakpoints cross or whose slopes are zero or of opposite signs, a saturation whose limits
 /// cross, ...). `identify` saves such a model with its own warning; `validate`, `simulate`, `control`
 /// and `tune` repeat these when they load the file (`control --compensate-deadzone` refuses a
-/// non-physical deadzone, as it cannot invert it).
+/// non-physical deadzone, as it cannot invert it). Then the warnings of the identification that wrote
+/// the file ([`provenance_warnings`]).
 pub fn load_warnings(model: &Model) -> Vec<String> {
+    let mut w = shape_warnings(model);
+    w.extend(provenance_warnings(model));
+    w
+}
+
+/// The warnings `identify` gave when it wrote the model file ([`crate::model::Provenance`]), each
+/// prefixed by the record and the model's free-run fit on it — the words `tune --plant-config` uses for
+/// a twin's calibration warnings (audit s20 M-3): "this model's identification on rec.csv (free-run fit
+/// −38.27 % on it) warned: …". Empty for a file without an `identification` record or whose
+/// identification gave none.
+pub fn provenance_warnings(model: &Model) -> Vec<String> {
+    let Some(p) = model.provenance() else {
+        return Vec::new();
+    };
+    let fit = p
+        .fit_estimation_percent
+        .map_or("-".to_string(), |f| format!("{f:.2} %"));
+    p.warnings
+        .iter()
+        .map(|w| {
+            format!(
+                "this model's identification on {} (free-run fit {fit} on it) warned: {w}",
+                p.record
+            )
+        })
+        .collect()
+}
+
+/// The shape problems of a model's input and output maps, in words ([`load_warnings`]).
+fn shape_warnings(model: &Model) -> Vec<String> {
     let several = model.inputs().len() > 1;
     let inputs = model.inputs().iter().map(|input| {
         let of = if several {

@@ -625,8 +625,16 @@ pub(crate) fn std_warnings(fit: &mut Fitted) {
 /// the covariance σ̂² (ΦᵀΦ)⁻¹ underflowed (an input or output many orders of magnitude from the others:
 /// one sample of 1e308 made b ≈ 1e-309 "± 0", audit s10) or is degenerate. Such standard deviations are
 /// withheld, with the reason in a warning.
+///
+/// With windup protection (`--windup trace|directional`) P is not the inverse information matrix
+/// (its recursion is altered to keep it from shrinking or growing), so σ̂² P of exactly 0 is no
+/// certainty either, whatever the residuals (audit s20 H-1): withheld as well.
 fn zero_std(fit: &mut Fitted) -> Option<Warning> {
-    if fit.noise_variance.is_nan() || fit.noise_variance <= 0.0 {
+    let windup = fit.notes.iter().any(|n| {
+        matches!(n, crate::fitted::Note::RlsForm { windup, .. } if *windup != crate::windup::Windup::None)
+    });
+    let residuals = !(fit.noise_variance.is_nan() || fit.noise_variance <= 0.0);
+    if !(residuals || windup) {
         return None;
     }
     let zero = sysid_core::param::withhold_zero_stds(
@@ -635,11 +643,16 @@ fn zero_std(fit: &mut Fitted) -> Option<Warning> {
     if zero.is_empty() {
         return None;
     }
+    let why = if residuals {
+        "although the residuals are not zero: the covariance underflowed or is degenerate (data many \
+         orders of magnitude apart: rescale the signals)"
+    } else {
+        "from the windup-protected P (residuals exactly 0): windup protection keeps P from being the \
+         inverse information matrix, so a zero there is no certainty"
+    };
     crate::trust::std_warning(Some(format!(
-        "the standard deviations of {} of {} parameters ({}) came out exactly 0 although the \
-         residuals are not zero: the \
-         covariance underflowed or is degenerate (data many orders of magnitude apart: rescale the \
-         signals), so they are not reported",
+        "the standard deviations of {} of {} parameters ({}) came out exactly 0 {why}, so they are not \
+         reported",
         zero.len(),
         fit.params.len(),
         zero.join(", ")
@@ -982,5 +995,47 @@ mod tests {
             }
         }
         assert!(skipped > 0 && fired > 0, "{skipped} {fired}");
+    }
+}
+
+#[cfg(test)]
+mod zero_std_tests {
+    use super::*;
+    use crate::fitted::Note;
+    use crate::rls_ud::RlsForm;
+    use crate::windup::Windup;
+    use sysid_core::param::ParamName;
+
+    fn fit(noise_variance: f64, windup: Windup) -> Fitted {
+        let params = (1..=3)
+            .map(|i| Param {
+                name: ParamName::A(i),
+                input: None,
+                value: -0.1,
+                std: Some(0.0),
+                fixed: None,
+            })
+            .collect();
+        let mut f = Fitted::new(Model::paper(), params, Method::Rls, noise_variance);
+        f.notes.push(Note::RlsForm {
+            form: RlsForm::Standard,
+            windup,
+        });
+        f
+    }
+
+    // σ̂² P with P altered by windup protection is no covariance: a 0 from it is withheld (audit s20
+    // H-1), whatever the residuals; without windup protection and with residuals exactly 0 it stays.
+    #[test]
+    fn a_zero_std_from_a_windup_protected_p_is_withheld_with_a_warning() {
+        for windup in [Windup::Trace, Windup::Directional] {
+            let mut f = fit(0.0, windup);
+            let w = zero_std(&mut f).expect("a warning");
+            assert!(f.params.iter().all(|q| q.std.is_none()));
+            assert!(w.to_string().contains("windup-protected P"), "{w}");
+        }
+        let mut f = fit(0.0, Windup::None);
+        assert!(zero_std(&mut f).is_none());
+        assert!(f.params.iter().all(|q| q.std == Some(0.0)));
     }
 }

@@ -465,10 +465,12 @@ pub(crate) fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitte
     let mut f = initial(p);
     let initial_f = f.clone();
     // Persistent excitation: the recursion never fails on data that cannot determine θ (P merely stays
-    // large in the unexcited directions), so for identification proper (ρ = 1, no windup protection:
-    // every sample weighs the same) the regressor matrix of the first pass is rank-tested first, as the
-    // batch methods do, and such data are refused with the same message. With forgetting ρ < 1 or windup
-    // protection the estimator is being used as a tracker, where spells without excitation are expected.
+    // large in the unexcited directions), so the regressor matrix of the first pass is rank-tested
+    // first, as the batch methods do, and such data are refused with the same message — for every
+    // forgetting factor and windup protection alike (audit s20 H-1: `--windup trace` accepted a
+    // constant input and printed every parameter "± 0"). Spells without excitation inside a record
+    // (what forgetting and windup protection are for) pass: the test is over the whole record; a record
+    // that excites θ nowhere is refused, as no estimator can determine θ from it.
     let total_rows = reg.rows(records);
     // A later pass of the plain recursion (standard form, ρ = 1, no windup protection, no history,
     // every entry of θ free) is the regularised least squares `regularised_pass` solves in closed form;
@@ -481,7 +483,7 @@ pub(crate) fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitte
     let names = reg.names();
     // The closed-form passes' buffer of N + p rows, Φ built into its first N.
     let mut aug: Option<Buffers> = None;
-    if st.forgetting == 1.0 && st.windup == Windup::None && total_rows >= np {
+    if total_rows >= np {
         // Only the rank verdict matters here; numerical trouble (overflow) is left to the recursion,
         // which reports the sample where it happens.
         let verdict = if closed_form {

@@ -654,12 +654,28 @@ impl Tracker {
     /// What the input left undetermined in a deadzone estimate (audit s12 F7: `identify` refuses such a
     /// record, a live tracker cannot, so it says so at the end): fewer distinct levels than the deadzone
     /// has free parameters on its excited branches (4 with both, as `identify`'s check), or a branch the
-    /// input never reached, whose breakpoint and slope are still the start's. Empty for an ARX tracker.
+    /// input never reached, whose breakpoint and slope are still the start's. For an ARX tracker, see below.
     /// `model` is the current estimate ([`Tracker::model`]), whose values of an unexcited branch are
     /// named as reported.
+    ///
+    /// An ARX tracker whose input took one level only (constant, or 0 throughout) says that its input
+    /// terms b (and with them the gain and, when y settles, the poles) are not determined: `identify`
+    /// refuses such a record as not persistently exciting whatever the windup protection (audit s20
+    /// H-1), a tracker cannot refuse, so it says so at the end.
     pub fn input_warnings(&self, model: Option<&Model>) -> Vec<String> {
-        if self.structure.kind != ModelKind::Hammerstein || self.k == 0 {
+        if self.k == 0 {
             return Vec::new();
+        }
+        if self.structure.kind != ModelKind::Hammerstein {
+            return match self.levels.as_slice() {
+                [level] => vec![format!(
+                    "the input took only 1 distinct level ({level}): a constant input does not excite \
+                     the model's input terms (identify refuses such a record as not persistently \
+                     exciting), so the estimate of b, and of the gain and poles with it, is not \
+                     determined by the data"
+                )],
+                _ => Vec::new(),
+            };
         }
         let mut w = Vec::new();
         let need = crate::blocks::deadzone_levels_needed(self.negative && self.positive);

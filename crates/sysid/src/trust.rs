@@ -16,6 +16,7 @@
 
 use sysid_core::metrics::Metrics;
 
+use crate::residuals::{InputCorrelation, ResidualAnalysis};
 use crate::warnings::{Concern, Record, Warning};
 
 pub use crate::warnings::INITIAL_STATE_MARGIN;
@@ -82,7 +83,13 @@ pub fn below_baseline(record: Record, fit: Option<f64>, baseline: Option<f64>) -
 /// fit, so that a model no better than the mean from the measured initial outputs is called so), and an
 /// initial state that flatters the headline fit. The one place where metrics become warnings.
 pub fn metric_warnings(record: Record, m: &Metrics) -> Vec<Warning> {
-    Warning::if_poor_simulation(record, guarded_fit(m))
+    // No fit % while both simulations stayed finite: the record's output is constant (fit % divides by
+    // its variation), which is not a divergence (audit s20 H-1: "diverges" beside RMSE 0).
+    let finite = |r: Option<f64>| r.is_some_and(f64::is_finite);
+    let constant_output = m.fit_sim_percent.is_none() && finite(m.rmse_sim);
+    (!constant_output)
+        .then(|| Warning::if_poor_simulation(record, guarded_fit(m)))
+        .flatten()
         .into_iter()
         .chain(initial_state_warning(record, m))
         .collect()
@@ -174,6 +181,52 @@ pub fn baseline_fit(
         return None;
     }
     guarded_fit(&sysid_core::metrics::metrics(&baseline.model, data).ok()?)
+}
+
+/// [`Concern::InputDynamicsLeft`] for each input whose largest input–residual correlation at a lag
+/// τ ≥ 0 (the input leading the residual: dynamics from u to y the model misses) is beyond
+/// [`INPUT_CORRELATION_BANDS`](crate::warnings::INPUT_CORRELATION_BANDS) times the per-lag 99 % band
+/// and above [`INPUT_CORRELATION_LEVEL`](crate::warnings::INPUT_CORRELATION_LEVEL). Negative lags (the
+/// residual leading the input: feedback in closed-loop data) are not counted. Audit s20 M-1: the hair
+/// dryer with nk = 1 failed the test at r = 0.61 (lag 3, bound ±0.116) and nothing in `warnings` said so.
+pub fn input_dynamics_left(record: Record, a: &ResidualAnalysis) -> Vec<Warning> {
+    use crate::warnings::{INPUT_CORRELATION_BANDS, INPUT_CORRELATION_LEVEL};
+    let single = [InputCorrelation::of("", a)];
+    let inputs = if a.inputs.is_empty() {
+        &single[..]
+    } else {
+        &a.inputs[..]
+    };
+    let several = inputs.len() > 1;
+    inputs
+        .iter()
+        .filter_map(|c| {
+            let (lag, r) = c
+                .cross_correlation
+                .iter()
+                .skip(a.max_lag)
+                .enumerate()
+                .filter(|(_, r)| r.is_finite())
+                .fold((0, 0.0f64), |best, (lag, &r)| {
+                    if r.abs() > best.1.abs() {
+                        (lag, r)
+                    } else {
+                        best
+                    }
+                });
+            (r.abs() > INPUT_CORRELATION_BANDS * a.bound && r.abs() > INPUT_CORRELATION_LEVEL).then(
+                || {
+                    Warning::Trust(Concern::InputDynamicsLeft {
+                        record,
+                        input: several.then(|| c.name.clone()),
+                        lag,
+                        r,
+                        bound: a.bound,
+                    })
+                },
+            )
+        })
+        .collect()
 }
 
 #[cfg(test)]

@@ -917,7 +917,7 @@ fn output(
         }
         json = Some(text);
     }
-    write_files(args, json.as_deref(), model, inputs, report.warnings.len())
+    write_files(args, json.as_deref(), model, inputs, report, est.0)
 }
 
 /// Whether to read the record in passes (`--stream`, [`StreamMode::decide`]): ARX by least squares,
@@ -1033,15 +1033,41 @@ pub(super) fn checked_inputs<'a>(
 
 /// Writes `--json` (its text `json`) and `--save-model`, if given, together; with `--strict` and
 /// warnings neither file ([`super::common::write_outputs`]).
+///
+/// The model file records where the model came from (`record`, the columns, the fit and the report's
+/// warnings: [`sysid::model::Provenance`]), so that the commands that load it repeat the warnings
+/// (audit s20 M-3).
 fn write_files(
     args: &Args,
     json: Option<&str>,
     model: &sysid::Model,
     inputs: &[&Path],
-    warnings: usize,
+    report: &IdentifyReport,
+    record: &str,
 ) -> anyhow::Result<()> {
+    let warnings = report.warnings.len();
     let saved = match &args.save_model {
-        Some(_) => Some(sysid::model_file::to_json(model)?),
+        Some(_) => {
+            let named = !args.columns.no_header;
+            let provenance = sysid::model::Provenance {
+                record: record.to_string(),
+                u_columns: if named {
+                    args.columns
+                        .u_col
+                        .split(',')
+                        .map(|c| c.trim().to_string())
+                        .collect()
+                } else {
+                    Vec::new()
+                },
+                y_column: named.then(|| args.columns.y_col.clone()),
+                fit_estimation_percent: sysid::trust::guarded_fit(&report.metrics.estimation),
+                warnings: report.warnings.clone(),
+            };
+            Some(sysid::model_file::to_json(
+                &model.clone().with_provenance(Some(provenance)),
+            )?)
+        }
         None => None,
     };
     let mut outputs: Vec<(&Path, &[u8], &str)> = Vec::new();

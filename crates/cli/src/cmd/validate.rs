@@ -9,7 +9,10 @@ use super::common::{check_outputs, print_report, stream_note, ColumnArgs, Stream
 /// Flags of `validate`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// Model file written by `identify --save-model` (or an `identify --json` file).
+    /// Model file written by `identify --save-model` (or an `identify --json` file). A file that names
+    /// the columns it was identified from (model file version 3) gives the columns read here when
+    /// --u-col / --y-col are left at their defaults (u, y); the report says so. Its identification's
+    /// warnings are repeated.
     #[arg(long, value_name = "MODEL.json")]
     pub model: PathBuf,
     /// CSV file with the validation record. Without a time column and --ts, the model's Ts is used.
@@ -46,6 +49,37 @@ pub struct Args {
     pub stream: StreamMode,
 }
 
+/// The column names the model file recorded ([`sysid::model::Provenance`]) put in `opts` where
+/// --u-col / --y-col were left at their defaults (u, y) and the record has a header (audit s20 L-4: a
+/// model identified from `--u-col InputGasRate --y-col CO2` needed them again); a note saying which,
+/// `None` when none was taken.
+fn stored_columns(model: &sysid::Model, opts: &mut sysid::data::CsvOptions) -> Option<String> {
+    let p = model.provenance()?;
+    if opts.no_header {
+        return None;
+    }
+    let mut taken = Vec::new();
+    if opts.u_col == "u" && !p.u_columns.is_empty() && p.u_columns.join(",") != "u" {
+        opts.u_col = p.u_columns.join(",");
+        taken.push(format!("--u-col {}", opts.u_col));
+    }
+    if let Some(y) = p
+        .y_column
+        .as_ref()
+        .filter(|y| opts.y_col == "y" && *y != "y")
+    {
+        opts.y_col = y.clone();
+        taken.push(format!("--y-col {y}"));
+    }
+    (!taken.is_empty()).then(|| {
+        format!(
+            "columns from the model file (its identification on {} read them): {}",
+            p.record,
+            taken.join(" ")
+        )
+    })
+}
+
 /// Runs `validate`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let inputs: [&Path; 2] = [&args.model, &args.data];
@@ -63,6 +97,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let mut opts = args.columns.csv_options();
     opts.fallback_ts = Some(model.ts());
+    if let Some(note) = stored_columns(&model, &mut opts) {
+        eprintln!("note: {note}");
+    }
     // A model with several inputs reads one column per input: --u-col u1,u2 or the model's input names.
     let miso = model.inputs().len() > 1 || opts.u_col.contains(',');
     if miso && !opts.u_col.contains(',') {

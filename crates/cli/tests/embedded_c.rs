@@ -367,7 +367,11 @@ fn c_controller_matches_control(brake: Brake) {
     }
     if matches!(
         brake,
-        Brake::Short | Brake::Creep | Brake::Rebrake | Brake::Slip | Brake::Relearn
+        Brake::Short
+            | Brake::Creep
+            | Brake::Rebrake
+            | Brake::Slip
+            | Brake::Relearn
             | Brake::Preview
     ) {
         file["controller"]["short_approach"] = serde_json::json!({"max_step_mm": 40.0,
@@ -483,7 +487,12 @@ fn c_controller_matches_control(brake: Brake) {
     let unlearnt = matches!(brake, Brake::Learnt | Brake::Short).then(|| replay(&args));
     if matches!(
         brake,
-        Brake::Learnt | Brake::Short | Brake::Creep | Brake::Rebrake | Brake::Slip | Brake::Relearn
+        Brake::Learnt
+            | Brake::Short
+            | Brake::Creep
+            | Brake::Rebrake
+            | Brake::Slip
+            | Brake::Relearn
             | Brake::Preview
     ) {
         let b = &c["brake"];
@@ -494,7 +503,11 @@ fn c_controller_matches_control(brake: Brake) {
     }
     if matches!(
         brake,
-        Brake::Short | Brake::Creep | Brake::Rebrake | Brake::Slip | Brake::Relearn
+        Brake::Short
+            | Brake::Creep
+            | Brake::Rebrake
+            | Brake::Slip
+            | Brake::Relearn
             | Brake::Preview
     ) {
         let a = &c["short_approach"];

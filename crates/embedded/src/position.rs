@@ -311,6 +311,16 @@ pub struct PositionController<F: Float> {
     slip_brake: Option<(bool, u32)>,
 }
 
+/// The direction's sign: +1 towards larger y (`right`, the valve side of u > 0), −1 the other way;
+/// the one conversion of an approach's side into the sign of its command and of its motion.
+fn side<F: Float>(right: bool) -> F {
+    if right {
+        F::ONE
+    } else {
+        -F::ONE
+    }
+}
+
 /// The preview's last drive sample (issue 25, session 20): with the distance to go d = side e,
 /// the switch distance d_s = e_s + τ v and the speed towards r v > 0, a drive whose next sample
 /// would pass the switch (d − v Ts ≤ d_s < d) ends now with the fraction f = (d − d_s)/(v Ts) in
@@ -571,23 +581,26 @@ impl<F: Float> PositionController<F> {
             }
         }
         let b = self.s.brake?;
-        let side = |right: bool| if right { F::ONE } else { -F::ONE };
         if let Approach::Drive { right } = self.approach {
-            let v = side(right) * dy;
+            let v = side::<F>(right) * dy;
             let [tau_left, tau_right] = self.lead;
             let tau = if right { tau_right } else { tau_left };
             let lead = if v > F::ZERO { tau * v } else { F::ZERO };
-            if side(right) * e > b.switch + lead {
+            if side::<F>(right) * e > b.switch + lead {
                 self.started = true;
                 self.y_prev = y;
-                if let Some(f) =
-                    preview_fraction(b.preview, side(right) * e, b.switch + lead, v, self.s.ts)
-                {
+                if let Some(f) = preview_fraction(
+                    b.preview,
+                    side::<F>(right) * e,
+                    b.switch + lead,
+                    v,
+                    self.s.ts,
+                ) {
                     self.approach = Approach::Brake { right, given: 0 };
                     self.switched = Some(Switch { right, y, v });
-                    return Some(side(right) * self.s.u_max * f);
+                    return Some(side::<F>(right) * self.s.u_max * f);
                 }
-                return Some(side(right) * self.s.u_max);
+                return Some(side::<F>(right) * self.s.u_max);
             }
             self.approach = Approach::Brake { right, given: 0 };
             self.switched = Some(Switch { right, y, v });
@@ -600,19 +613,19 @@ impl<F: Float> PositionController<F> {
                 };
                 self.started = true;
                 self.y_prev = y;
-                return Some(-side(right) * b.strength * self.s.u_max);
+                return Some(-side::<F>(right) * b.strength * self.s.u_max);
             }
             self.approach = Approach::Release { right, given: 0 };
         }
         if b.rebrake {
             if let Approach::Release { right, .. } | Approach::Hold { right, .. } = self.approach {
-                if side(right) * (y - self.y_prev) > F::ZERO {
+                if side::<F>(right) * (y - self.y_prev) > F::ZERO {
                     if let Approach::Hold { right, .. } = self.approach {
                         self.approach = Approach::Hold { still: 0, right };
                     }
                     self.started = true;
                     self.y_prev = y;
-                    return Some(-side(right) * b.strength * self.s.u_max);
+                    return Some(-side::<F>(right) * b.strength * self.s.u_max);
                 }
             }
         }
@@ -626,7 +639,7 @@ impl<F: Float> PositionController<F> {
                 self.y_prev = y;
                 let n = F::from_f64(f64::from(b.release) + 1.0);
                 let left = F::from_f64(f64::from(b.release - given)) / n;
-                return Some(-side(right) * b.strength * self.s.u_max * left);
+                return Some(-side::<F>(right) * b.strength * self.s.u_max * left);
             }
             self.approach = Approach::Hold { still: 0, right };
         }
@@ -656,7 +669,6 @@ impl<F: Float> PositionController<F> {
         dy: F,
         moved_now: bool,
     ) -> Option<F> {
-        let side = |right: bool| if right { F::ONE } else { -F::ONE };
         if let Approach::ShortDrive {
             right,
             y0,
@@ -664,9 +676,9 @@ impl<F: Float> PositionController<F> {
             moved,
         } = self.approach
         {
-            let v = side(right) * dy;
+            let v = side::<F>(right) * dy;
             let lead = if v > F::ZERO { a.lead * v } else { F::ZERO };
-            if side(right) * e > a.switch + lead {
+            if side::<F>(right) * e > a.switch + lead {
                 let moved = moved || y != y0;
                 let stuck = if moved {
                     stuck
@@ -684,13 +696,17 @@ impl<F: Float> PositionController<F> {
                 self.started = true;
                 self.y_prev = y;
                 let u = if u < self.s.u_max { u } else { self.s.u_max };
-                if let Some(f) =
-                    preview_fraction(a.preview, side(right) * e, a.switch + lead, v, self.s.ts)
-                {
+                if let Some(f) = preview_fraction(
+                    a.preview,
+                    side::<F>(right) * e,
+                    a.switch + lead,
+                    v,
+                    self.s.ts,
+                ) {
                     self.approach = Approach::ShortBrake { right, given: 0 };
-                    return Some(side(right) * u * f);
+                    return Some(side::<F>(right) * u * f);
                 }
-                return Some(side(right) * u);
+                return Some(side::<F>(right) * u);
             }
             self.approach = Approach::ShortBrake { right, given: 0 };
         }
@@ -702,7 +718,7 @@ impl<F: Float> PositionController<F> {
                 };
                 self.started = true;
                 self.y_prev = y;
-                return Some(-side(right) * a.strength * self.s.u_max);
+                return Some(-side::<F>(right) * a.strength * self.s.u_max);
             }
             self.approach = Approach::ShortHold { still: 0 };
         }

@@ -642,6 +642,8 @@ fn table_of(
         }
         first_column.insert(h, i);
     }
+    // A decimal comma is read only where the comma does not separate the columns.
+    let decimal_comma = delimiter != b',';
     let mut rows = Vec::new();
     // Line numbers from byte offsets (the csv crate's own line count is one short after CRLF line ends).
     let (mut seen_byte, mut seen_line) = (0usize, 1usize);
@@ -663,13 +665,7 @@ fn table_of(
             continue; // a blank line or a row of bare delimiters
         }
         if let Some(extra) = rec.iter().skip(headers.len()).position(|f| !f.is_empty()) {
-            return Err(ragged_row(
-                name,
-                line,
-                headers.len(),
-                extra,
-                delimiter != b',',
-            ));
+            return Err(ragged_row(name, line, headers.len(), extra, decimal_comma));
         }
         if rows.len() >= MAX_SAMPLES {
             return Err(file_err(format!(
@@ -685,7 +681,7 @@ fn table_of(
         name: name.to_string(),
         headers,
         rows,
-        decimal_comma: delimiter != b',',
+        decimal_comma,
         has_header,
     })
 }

@@ -241,6 +241,56 @@ fn response_margins_of_a_hand_written_controller_file_are_the_hand_derived_ones(
     );
 }
 
+// Session 21: one formatter of a complex pole. A = 1 − z⁻¹ + 0.5 z⁻²: z² − z + 0.5 = 0 gives
+// p = 0.5 ± 0.5i, |p| = √0.5 = 0.707107 (6 digits). `response` prints the pair with its modulus,
+// `identify` (noise-free record of that model, so least squares recovers it) without.
+#[test]
+fn identify_and_response_print_a_complex_pole_pair_in_one_form() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("pair.csv");
+    let mut text = String::from("u,y\n");
+    let (mut y1, mut y2, mut u1) = (0.0f64, 0.0f64, 0.0f64);
+    let mut g = common::lcg(21);
+    for _ in 0..400 {
+        let u = g.unit() - 0.5;
+        let y = y1 - 0.5 * y2 + u1;
+        text.push_str(&format!("{u},{y}\n"));
+        (y2, y1, u1) = (y1, y, u);
+    }
+    std::fs::write(&data, text).unwrap();
+    let model = dir.path().join("pair.json");
+    let o = ipa_sysid(&[
+        "identify",
+        "--data",
+        s(&data),
+        "--ts",
+        "0.05",
+        "--structure",
+        "arx",
+        "--na",
+        "2",
+        "--nb",
+        "1",
+        "--method",
+        "ls",
+        "--save-model",
+        s(&model),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8(o.stdout).unwrap();
+    assert!(
+        out.contains("Poles: 0.5 + 0.5i, 0.5 - 0.5i  → stable"),
+        "{out}"
+    );
+    let o = ipa_sysid(&["response", "--model", s(&model)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8(o.stdout).unwrap();
+    assert!(
+        out.contains("poles:    0.5 + 0.5i (|p| 0.707107), 0.5 - 0.5i (|p| 0.707107)\n"),
+        "{out}"
+    );
+}
+
 /// A 2-column record with the given header and rows (one string per line).
 fn csv(dir: &Path, name: &str, lines: &[&str]) -> PathBuf {
     let path = dir.join(name);

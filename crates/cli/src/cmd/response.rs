@@ -46,25 +46,14 @@ pub struct Args {
     pub json: Option<PathBuf>,
 }
 
-fn complex(p: &(f64, f64)) -> String {
-    if p.1 == 0.0 {
-        num(p.0)
-    } else {
-        format!(
-            "{} {} {}i (|p| {})",
-            num(p.0),
-            if p.1 < 0.0 { "-" } else { "+" },
-            num(p.1.abs()),
-            num(p.0.hypot(p.1))
-        )
-    }
-}
-
 fn list(v: &[(f64, f64)]) -> String {
     if v.is_empty() {
         "none".into()
     } else {
-        v.iter().map(complex).collect::<Vec<_>>().join(", ")
+        v.iter()
+            .map(|p| crate::text::complex(p.0, p.1, 0.0, true))
+            .collect::<Vec<_>>()
+            .join(", ")
     }
 }
 

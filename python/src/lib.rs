@@ -593,12 +593,9 @@ impl PyModel {
     /// is not installed.
     #[pyo3(signature = (side=None))]
     fn to_control<'py>(&self, py: Python<'py>, side: Option<&str>) -> PyResult<Bound<'py, PyAny>> {
-        let ct = py.import("control").map_err(|e| {
-            PyImportError::new_err(format!(
-                "Model.to_control needs python-control: pip install control ({e})"
-            ))
-        })?;
-        let (mut num, den) = self.transfer_polynomials();
+        // A bad `side` is refused before python-control is looked for: the caller's mistake is said
+        // whether or not the package is installed (and G's warning only with a G to go with it).
+        let mut warning = None;
         let slope = match (self.inner.deadzone(), side) {
             (_, Some(s)) if s != "right" && s != "left" => {
                 return Err(PyValueError::new_err(format!(
@@ -613,22 +610,26 @@ impl PyModel {
             (Some(d), Some("right")) => d.m_r,
             (Some(d), Some(_)) => d.m_l,
             (Some(d), None) => {
-                warn_all(
-                    py,
-                    &[format!(
-                        "Model.to_control(): the linear block G = B/A with b1 = 1, from the deadzone's output; \
-                         the gain from u is m_r G (m_r = {}, {:+.2} dB) beyond b_r and m_l G (m_l = {}, {:+.2} dB) \
-                         below b_l: pass side=\"right\" or side=\"left\" for it",
-                        d.m_r,
-                        20.0 * d.m_r.abs().log10(),
-                        d.m_l,
-                        20.0 * d.m_l.abs().log10()
-                    )],
-                )?;
+                warning = Some(format!(
+                    "Model.to_control(): the linear block G = B/A with b1 = 1, from the deadzone's output; \
+                     the gain from u is m_r G (m_r = {}, {:+.2} dB) beyond b_r and m_l G (m_l = {}, {:+.2} dB) \
+                     below b_l: pass side=\"right\" or side=\"left\" for it",
+                    d.m_r,
+                    20.0 * d.m_r.abs().log10(),
+                    d.m_l,
+                    20.0 * d.m_l.abs().log10()
+                ));
                 1.0
             }
             (None, None) => 1.0,
         };
+        let ct = py.import("control").map_err(|e| {
+            PyImportError::new_err(format!(
+                "Model.to_control needs python-control: pip install control ({e})"
+            ))
+        })?;
+        warn_all(py, warning.as_slice())?;
+        let (mut num, den) = self.transfer_polynomials();
         for v in &mut num {
             *v *= slope;
         }

@@ -84,6 +84,24 @@ def test_to_control_includes_the_slope_per_side_or_warns(tmp_path):
         assert control.dcgain(arx.to_control()) == pytest.approx(4.0)
 
 
+def test_to_control_refuses_a_bad_side_before_looking_for_python_control(tmp_path, monkeypatch):
+    # sys.modules["control"] = None makes `import control` raise ImportError, as without the package.
+    monkeypatch.setitem(__import__("sys").modules, "control", None)
+    m = _model(tmp_path, 0.9, 1.0, deadzone=(-20.0, 30.0, 0.02, 0.01))
+    with pytest.raises(ValueError, match="invalid setting side = \"up\""):
+        m.to_control(side="up")
+    arx = _model(tmp_path, 0.5, 2.0)
+    with pytest.raises(ValueError, match="no deadzone"):
+        arx.to_control(side="right")
+    # A good side (or none) meets the missing package, without G's warning first.
+    with pytest.raises(ImportError, match="pip install control"):
+        m.to_control(side="right")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ImportError, match="pip install control"):
+            m.to_control()
+
+
 def test_margins_of_a_tuned_controller_are_tunes_and_those_of_its_gains(tmp_path):
     # Session 21: controller= takes what control(controller=...) takes; tune()'s result gives the
     # margins tune reported; without its derivative (Kd = 0) those of its Kp, Ki given as kp, ki.

@@ -307,6 +307,98 @@ fn a_version_2_model_file_still_loads() {
     assert!(!stderr(&out).contains("identification on"));
 }
 
+// Session 21 (audit s20 L-4b's leftover): an explicit `--u-col u` is told from the default. The model is
+// identified from `cmd`, `pos` of a noise-free record pos(k) = 0.5 pos(k−1) + cmd(k−1) that also holds
+// u = 2 cmd; validate with `--u-col u` reads u (the stored --y-col pos still taken, said by the note,
+// which does not name --u-col), so the one-step prediction 0.5 pos(k−1) + 2 cmd(k−1) misses pos(k) by
+// cmd(k−1): residual(k) = −cmd(k−1). Without the flag, cmd is read: residual 0.
+#[test]
+fn validate_tells_an_explicit_u_col_u_from_the_default() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("both.csv");
+    let mut text = String::from("t,cmd,pos,u\n");
+    let mut cmd = Vec::new();
+    let (mut y1, mut u1) = (0.0f64, 0.0f64);
+    let mut g = common::lcg(21);
+    for k in 0..500 {
+        let c = g.unit() - 0.5;
+        let y = 0.5 * y1 + u1;
+        text.push_str(&format!("{},{c},{y},{}\n", k as f64 * 0.01, 2.0 * c));
+        cmd.push(c);
+        (y1, u1) = (y, c);
+    }
+    std::fs::write(&data, text).unwrap();
+    let model = dir.path().join("m.json");
+    let o = ipa_sysid(&[
+        "identify",
+        "--data",
+        s(&data),
+        "--u-col",
+        "cmd",
+        "--y-col",
+        "pos",
+        "--structure",
+        "arx",
+        "--na",
+        "1",
+        "--nb",
+        "1",
+        "--method",
+        "ls",
+        "--save-model",
+        s(&model),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // (t, residual) of the --out trace.
+    let residuals = |extra: &[&str]| {
+        let out = dir.path().join("v.csv");
+        let args = [
+            &[
+                "validate",
+                "--model",
+                s(&model),
+                "--data",
+                s(&data),
+                "--out",
+                s(&out),
+            ],
+            extra,
+        ];
+        let o = ipa_sysid(&args.concat());
+        assert!(o.status.success(), "{}", stderr(&o));
+        let text = std::fs::read_to_string(&out).unwrap();
+        let mut lines = text.lines();
+        assert_eq!(lines.next(), Some("t,y,y_sim,y_pred,residual"));
+        let rows: Vec<(usize, f64)> = lines
+            .map(|l| {
+                let v: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
+                ((v[0] / 0.01).round() as usize, v[4])
+            })
+            .collect();
+        (stderr(&o), rows)
+    };
+    let (note, rows) = residuals(&["--u-col", "u"]);
+    assert!(
+        note.contains("columns from the model file") && note.contains("--y-col pos"),
+        "{note}"
+    );
+    assert!(!note.contains("--u-col"), "{note}");
+    assert!(rows.len() > 400);
+    for (k, r) in rows.iter().filter(|(k, _)| *k >= 1) {
+        assert!(
+            (r + cmd[k - 1]).abs() < 1e-9,
+            "row {k}: {r} vs {}",
+            -cmd[k - 1]
+        );
+    }
+    let (note, rows) = residuals(&[]);
+    assert!(note.contains("--u-col cmd --y-col pos"), "{note}");
+    assert!(rows
+        .iter()
+        .filter(|(k, _)| *k >= 1)
+        .all(|(_, r)| r.abs() < 1e-9));
+}
+
 /// `t,u,y` of 2000 samples: u = ±1 at random, y(k) = 0.5 y(k−1) + u(k−3) + 0.05 e(k), e uniform in
 /// [−0.5, 0.5): a delay of 3 samples.
 fn delayed_record(dir: &Path) -> PathBuf {

@@ -181,7 +181,10 @@ fn response_margins_of_a_controller_file_are_tunes_and_those_of_its_gains() {
     );
     assert_eq!(
         margins_of(&m, &["--controller", s(&pi_file)]),
-        margins_of(&m, &["--kp", &format!("{kp:?}"), "--ki", &format!("{ki:?}")])
+        margins_of(
+            &m,
+            &["--kp", &format!("{kp:?}"), "--ki", &format!("{ki:?}")]
+        )
     );
     let o = ipa_sysid(&["response", "--model", s(&m), "--controller", c, "--kp", "1"]);
     assert_eq!(o.status.code(), Some(2));
@@ -216,7 +219,10 @@ fn response_margins_of_a_hand_written_controller_file_are_the_hand_derived_ones(
     let f = |k: &str| g[k].as_f64().unwrap();
     assert!((f("phase_margin_deg") - pm).abs() < 0.01, "{g} vs {pm}");
     assert!((f("gain_crossover_rad_s") - th / ts).abs() < 1e-3 * th / ts);
-    assert!((f("gain_margin_db") - 20.0 * 1.5f64.log10()).abs() < 1e-6, "{g}");
+    assert!(
+        (f("gain_margin_db") - 20.0 * 1.5f64.log10()).abs() < 1e-6,
+        "{g}"
+    );
     let pi = std::f64::consts::PI;
     assert!((f("phase_crossover_rad_s") - pi / ts).abs() < 1e-6 * pi / ts);
     let o = ipa_sysid(&["response", "--model", s(&m), "--controller", s(&c)]);

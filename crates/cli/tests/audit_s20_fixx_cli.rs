@@ -39,6 +39,12 @@ fn model_file(
     path
 }
 
+/// The Hammerstein model file of the tests: α = 0.9, b1 = 1, deadzone b_l = −20, b_r = 30, m_l = 0.02,
+/// m_r = 0.01 (G(1) = 10; from u 0.1 on the right, 0.2 on the left).
+fn hammerstein_file(dir: &Path) -> PathBuf {
+    model_file(dir, "h.json", 0.9, 1.0, Some([-20.0, 30.0, 0.02, 0.01]))
+}
+
 fn json_of(args: &[&str]) -> serde_json::Value {
     let o = ipa_sysid(args);
     assert!(o.status.success(), "{args:?}: {}", stderr(&o));
@@ -112,13 +118,7 @@ fn response_of_a_first_order_arx_file_is_the_hand_computed_one() {
 #[test]
 fn response_of_a_hammerstein_file_states_the_slope_per_side() {
     let dir = tempfile::tempdir().unwrap();
-    let m = model_file(
-        dir.path(),
-        "h.json",
-        0.9,
-        1.0,
-        Some([-20.0, 30.0, 0.02, 0.01]),
-    );
+    let m = hammerstein_file(dir.path());
     let o = ipa_sysid(&["response", "--model", s(&m), "--kp", "2", "--ki", "0.5"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let out = String::from_utf8(o.stdout).unwrap();
@@ -152,13 +152,7 @@ fn margins_of(model: &Path, args: &[&str]) -> serde_json::Value {
 #[test]
 fn response_margins_of_a_controller_file_are_tunes_and_those_of_its_gains() {
     let dir = tempfile::tempdir().unwrap();
-    let m = model_file(
-        dir.path(),
-        "h.json",
-        0.9,
-        1.0,
-        Some([-20.0, 30.0, 0.02, 0.01]),
-    );
+    let m = hammerstein_file(dir.path());
     let tuned = common::tune(
         dir.path(),
         &m,
@@ -254,34 +248,16 @@ fn response_margins_of_a_hand_written_controller_file_are_the_hand_derived_ones(
 fn identify_and_response_print_a_complex_pole_pair_in_one_form() {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().join("pair.csv");
-    let mut text = String::from("u,y\n");
-    let (mut y1, mut y2, mut u1) = (0.0f64, 0.0f64, 0.0f64);
     let mut g = common::lcg(21);
-    for _ in 0..400 {
-        let u = g.unit() - 0.5;
-        let y = y1 - 0.5 * y2 + u1;
-        text.push_str(&format!("{u},{y}\n"));
-        (y2, y1, u1) = (y1, y, u);
-    }
-    std::fs::write(&data, text).unwrap();
+    let (u, y) = common::arx_signals(400, &[1.0, -0.5], &[1.0], |_| g.unit() - 0.5);
+    common::write_csv(&data, "u,y", None, &[&u, &y]);
     let model = dir.path().join("pair.json");
-    let o = ipa_sysid(&[
-        "identify",
-        "--data",
-        s(&data),
-        "--ts",
-        "0.05",
-        "--structure",
-        "arx",
-        "--na",
-        "2",
-        "--nb",
-        "1",
-        "--method",
-        "ls",
-        "--save-model",
-        s(&model),
-    ]);
+    let args = [
+        common::identify_arx(&data, "2", "1", "ls"),
+        vec!["--ts", "0.05", "--save-model", s(&model)],
+    ]
+    .concat();
+    let o = ipa_sysid(&args);
     assert!(o.status.success(), "{}", stderr(&o));
     let out = String::from_utf8(o.stdout).unwrap();
     assert!(

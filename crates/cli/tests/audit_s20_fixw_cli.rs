@@ -144,9 +144,10 @@ fn a_pole_on_the_unit_circle_to_rounding_is_not_called_inside() {
     assert!(poles.contains("on the stability boundary"), "{poles}");
 }
 
-/// A noise-free integrator-like record under `header` (`t,cmd,pos` or `t,u,y`): y(k) = 0.999999 y(k−1)
-/// + u(k−1), u uniform in [−0.5, 0.5), Ts = 0.01 s: its pole, 1e-6 from the unit circle, is within the
-/// integrator margin 1e-5, so identify warns of it (the documented rule of `Warning::NearIntegrator`).
+/// A noise-free integrator-like record under `header` (`t,cmd,pos` or `t,u,y`): the output
+/// y(k) = 0.999999 y(k−1) + u(k−1), u uniform in [−0.5, 0.5), Ts = 0.01 s: its pole, 1e-6 from the unit
+/// circle, is within the integrator margin 1e-5, so identify warns of it (the documented rule of
+/// `Warning::NearIntegrator`).
 fn integrator_record(dir: &Path, header: &str) -> PathBuf {
     let path = dir.join("int.csv");
     let mut g = common::lcg(11);

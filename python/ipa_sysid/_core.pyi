@@ -76,8 +76,10 @@ class Model:
         samples: int = 20,
         kp: float | None = None,
         ki: float | None = None,
+        controller: dict[str, Any] | str | PathLike[str] | None = None,
     ) -> dict[str, Any]:
-        """Bode table, DC gain, poles, zeros, impulse and step response (and PI margins): as `ipa-sysid response --json`."""
+        """Bode table, DC gain, poles, zeros, impulse and step response (and the margins of a PI, or of a
+        tuned controller as control(controller=...) takes it): as `ipa-sysid response --json`."""
     def to_control(self, side: Literal["right", "left"] | None = None) -> Any:
         """The linear block as a python-control TransferFunction (ImportError without python-control)."""
     def transfer_polynomials(self) -> tuple[list[float], list[float]]:

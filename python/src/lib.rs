@@ -94,6 +94,22 @@ fn controller_file(controller: &Bound<'_, PyAny>) -> PyResult<::control::Control
     })
 }
 
+/// A tuned controller `t` refused (a `ValueError` naming `controller`) unless it was tuned for the
+/// sampling period `ts` of the `what` (`plant`, `model`) it is to run with, as `--controller` is.
+fn check_controller_ts(t: &::control::ControllerSettings, ts: f64, what: &str) -> PyResult<()> {
+    if (t.ts_s - ts).abs() > 1e-9 * ts {
+        return Err(setting_err(
+            "--controller",
+            t.ts_s,
+            &format!(
+                "a controller for the {what}'s Ts = {} s",
+                sysid_core::format::Shortest(ts)
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// The operating system's refusal `source` of `path` as an `OSError` with its errno (so that Python
 /// makes it a `FileNotFoundError`, `PermissionError`, ...) and the path. An error that `tempfile`
 /// wrapped with the path of the temporary file beside an output (`... at path ".../.ipa-sysid-*.tmp"`,
@@ -577,12 +593,9 @@ impl PyModel {
     /// is not installed.
     #[pyo3(signature = (side=None))]
     fn to_control<'py>(&self, py: Python<'py>, side: Option<&str>) -> PyResult<Bound<'py, PyAny>> {
-        let ct = py.import("control").map_err(|e| {
-            PyImportError::new_err(format!(
-                "Model.to_control needs python-control: pip install control ({e})"
-            ))
-        })?;
-        let (mut num, den) = self.transfer_polynomials();
+        // A bad `side` is refused before python-control is looked for: the caller's mistake is said
+        // whether or not the package is installed (and G's warning only with a G to go with it).
+        let mut warning = None;
         let slope = match (self.inner.deadzone(), side) {
             (_, Some(s)) if s != "right" && s != "left" => {
                 return Err(PyValueError::new_err(format!(
@@ -597,22 +610,26 @@ impl PyModel {
             (Some(d), Some("right")) => d.m_r,
             (Some(d), Some(_)) => d.m_l,
             (Some(d), None) => {
-                warn_all(
-                    py,
-                    &[format!(
-                        "Model.to_control(): the linear block G = B/A with b1 = 1, from the deadzone's output; \
-                         the gain from u is m_r G (m_r = {}, {:+.2} dB) beyond b_r and m_l G (m_l = {}, {:+.2} dB) \
-                         below b_l: pass side=\"right\" or side=\"left\" for it",
-                        d.m_r,
-                        20.0 * d.m_r.abs().log10(),
-                        d.m_l,
-                        20.0 * d.m_l.abs().log10()
-                    )],
-                )?;
+                warning = Some(format!(
+                    "Model.to_control(): the linear block G = B/A with b1 = 1, from the deadzone's output; \
+                     the gain from u is m_r G (m_r = {}, {:+.2} dB) beyond b_r and m_l G (m_l = {}, {:+.2} dB) \
+                     below b_l: pass side=\"right\" or side=\"left\" for it",
+                    d.m_r,
+                    20.0 * d.m_r.abs().log10(),
+                    d.m_l,
+                    20.0 * d.m_l.abs().log10()
+                ));
                 1.0
             }
             (None, None) => 1.0,
         };
+        let ct = py.import("control").map_err(|e| {
+            PyImportError::new_err(format!(
+                "Model.to_control needs python-control: pip install control ({e})"
+            ))
+        })?;
+        warn_all(py, warning.as_slice())?;
+        let (mut num, den) = self.transfer_polynomials();
         for v in &mut num {
             *v *= slope;
         }
@@ -622,10 +639,14 @@ impl PyModel {
 
     /// Frequency response (gain dB, phase deg on a log grid up to the Nyquist frequency), DC gain,
     /// poles, zeros, impulse and step response of the linear block, and with `kp` (and `ki`) the gain
-    /// and phase margins of that PI loop, as a dict: the same function and keys as
-    /// `ipa-sysid response --json` (`control::response::response`). For a Hammerstein model `"gain"`
-    /// says in words which gain the figures use and `"sides"` gives m_r, m_l with their dB offsets.
-    #[pyo3(signature = (points=20, f_min_hz=None, samples=20, kp=None, ki=None))]
+    /// and phase margins of that PI loop, or with `controller` (what `control(controller=...)` takes:
+    /// tune()'s result, its "controller" dict, a controller file's JSON text or path) those of the
+    /// tuned controller (Kp, Ki, Kd, Tf) as tune reported them, as a dict: the same function and keys
+    /// as `ipa-sysid response --json` (`control::response::response`). For a Hammerstein model
+    /// `"gain"` says in words which gain the figures use and `"sides"` gives m_r, m_l with their dB
+    /// offsets.
+    #[pyo3(signature = (points=20, f_min_hz=None, samples=20, kp=None, ki=None, controller=None))]
+    #[allow(clippy::too_many_arguments)] // Python keyword arguments
     fn frequency_response<'py>(
         &self,
         py: Python<'py>,
@@ -634,6 +655,7 @@ impl PyModel {
         samples: usize,
         kp: Option<f64>,
         ki: Option<f64>,
+        controller: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
         if !(2..=100_000).contains(&points) {
             return Err(PyValueError::new_err(format!(
@@ -653,16 +675,35 @@ impl PyModel {
                 )));
             }
         }
-        if ki.is_some() && kp.is_none() {
+        if ki.is_some() && kp.is_none() && controller.is_none() {
             return Err(PyValueError::new_err(
                 "invalid setting ki: give kp as well (the PI controller of the margins)",
             ));
         }
+        let ts = self.inner.ts();
+        let controller = match (controller, kp.is_some() || ki.is_some()) {
+            (Some(_), true) => {
+                return Err(PyValueError::new_err(
+                    "invalid setting controller: not together with kp/ki (the tuned controller has its own gains)",
+                ))
+            }
+            (Some(c), false) => {
+                // tune()'s result and its "controller" dict become a file's text as for control().
+                let text = py
+                    .import("ipa_sysid")?
+                    .getattr("_controller_text")?
+                    .call1((c,))?;
+                let t = controller_file(&text)?.controller;
+                check_controller_ts(&t, ts, "model")?;
+                Some(t)
+            }
+            (None, _) => kp.map(|kp| ::control::ControllerSettings::pi(ts, kp, ki.unwrap_or(0.0))),
+        };
         let settings = ::control::response::ResponseSettings {
             points,
             f_min_hz,
             samples,
-            pi: kp.map(|kp| (kp, ki.unwrap_or(0.0))),
+            controller,
         };
         let r = ::control::response::response(&self.inner, &settings).map_err(control_err)?;
         to_py(py, &r)
@@ -2021,16 +2062,7 @@ fn control_loop<'py>(
         .with_anti_windup(anti_windup)
         .with_u_max(u_max);
     if let Some(t) = &tuned {
-        if (t.ts_s - ts).abs() > 1e-9 * ts {
-            return Err(setting_err(
-                "--controller",
-                t.ts_s,
-                &format!(
-                    "a controller for the plant's Ts = {} s",
-                    sysid_core::format::Shortest(ts)
-                ),
-            ));
-        }
+        check_controller_ts(t, ts, "plant")?;
     }
     let mut pi = settings.build(ts).map_err(control_err)?;
     let mut position = tuned.map(|t| t.build()).transpose().map_err(control_err)?;

@@ -82,3 +82,56 @@ def test_to_control_includes_the_slope_per_side_or_warns(tmp_path):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         assert control.dcgain(arx.to_control()) == pytest.approx(4.0)
+
+
+def test_to_control_refuses_a_bad_side_before_looking_for_python_control(tmp_path, monkeypatch):
+    # sys.modules["control"] = None makes `import control` raise ImportError, as without the package.
+    monkeypatch.setitem(__import__("sys").modules, "control", None)
+    m = _model(tmp_path, 0.9, 1.0, deadzone=(-20.0, 30.0, 0.02, 0.01))
+    with pytest.raises(ValueError, match="invalid setting side = \"up\""):
+        m.to_control(side="up")
+    arx = _model(tmp_path, 0.5, 2.0)
+    with pytest.raises(ValueError, match="no deadzone"):
+        arx.to_control(side="right")
+    # A good side (or none) meets the missing package, without G's warning first.
+    with pytest.raises(ImportError, match="pip install control"):
+        m.to_control(side="right")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ImportError, match="pip install control"):
+            m.to_control()
+
+
+def test_margins_of_a_tuned_controller_are_tunes_and_those_of_its_gains(tmp_path):
+    # Session 21: controller= takes what control(controller=...) takes; tune()'s result gives the
+    # margins tune reported; without its derivative (Kd = 0) those of its Kp, Ki given as kp, ki.
+    m = _model(tmp_path, 0.9, 1.0, deadzone=(-20.0, 30.0, 0.02, 0.01))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ipa_sysid.IpaSysidWarning)
+        tuned = ipa_sysid.tune(model=m, variants=1, max_evaluations=10)
+    r = m.frequency_response(controller=tuned)
+    assert r["margins"] == tuned["margins"]
+    path = tmp_path / "c.json"
+    path.write_text(tuned["controller_file"])
+    assert m.frequency_response(controller=str(path))["margins"] == tuned["margins"]
+    pi = dict(tuned["controller"], kd=0.0, derivative_filter_s=0.0)
+    assert (
+        m.frequency_response(controller=pi)["margins"]
+        == m.frequency_response(kp=pi["kp"], ki=pi["ki"])["margins"]
+    )
+    with pytest.raises(ValueError, match="not together with kp"):
+        m.frequency_response(controller=tuned, kp=1.0)
+    with pytest.raises(ValueError, match="invalid setting controller = 0.02: a controller for the model's Ts = 0.05 s"):
+        m.frequency_response(controller=dict(tuned["controller"], ts_s=0.02))
+
+
+def test_margins_of_a_hand_written_controller_are_the_hand_derived_ones(tmp_path):
+    # As test_margins_of_a_hand_derived_loop, the PI of Kp = 4 given as a controller dict.
+    c = {"ts_s": 0.05, "kp": 4.0, "ki": 0.0, "kd": 0.0, "derivative_filter_s": 0.0, "u_max": 255.0,
+         "hold_band_mm": 0.0, "fine_band_mm": 0.0, "reset_on_crossing": False, "compensator": None}
+    r = _model(tmp_path, 0.5, 0.25).frequency_response(controller=c)
+    th = math.acos(0.25)
+    z = cmath.exp(-1j * th)
+    pm = 180 + math.degrees(cmath.phase(z / (1 - 0.5 * z)))
+    assert r["margins"]["phase_margin_deg"] == pytest.approx(pm, abs=0.01)
+    assert r["margins"]["gain_margin_db"] == pytest.approx(20 * math.log10(1.5), abs=1e-6)

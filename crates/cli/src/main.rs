@@ -108,6 +108,8 @@ fn main() -> ExitCode {
     match (&mut cli.command, matches.subcommand()) {
         (Command::Identify(a), Some((_, m))) => a.given = given_flags(m),
         (Command::Order(a), Some((_, m))) => a.given = given_flags(m),
+        // `validate` reads a model file's stored columns only for --u-col / --y-col not typed.
+        (Command::Validate(a), Some((_, m))) => a.given = given_flags(m),
         _ => {}
     }
     // An interrupted write (Ctrl-C, SIGTERM) leaves no `.ipa-sysid-*.tmp` file behind.

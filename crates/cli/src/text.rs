@@ -148,24 +148,35 @@ fn parameters_text(r: &IdentifyReport, s: &mut String) {
     }
 }
 
+/// A pole or zero p = re + im·i as the reports print it, each part with [`num`]'s 6 digits: `re` alone
+/// when p is real — im = 0, or |im| below `real_below` (`identify` prints an imaginary part under
+/// 1e-12 as rounding; `response` only an exact 0) — else `re ± |im|i`, followed by ` (|p| modulus)`
+/// when `modulus` is set (`response`'s lists). The one formatter of `identify`'s poles and
+/// `response`'s poles and zeros.
+pub fn complex(re: f64, im: f64, real_below: f64, modulus: bool) -> String {
+    if im == 0.0 || im.abs() < real_below {
+        return num(re);
+    }
+    let p = format!(
+        "{} {} {}i",
+        num(re),
+        if im < 0.0 { "-" } else { "+" },
+        num(im.abs())
+    );
+    if modulus {
+        format!("{p} (|p| {})", num(re.hypot(im)))
+    } else {
+        p
+    }
+}
+
 /// The poles and the stability verdict.
 fn poles_text(r: &IdentifyReport, s: &mut String) {
     use std::fmt::Write;
     let poles: Vec<String> = r
         .poles
         .iter()
-        .map(|p| {
-            if p.im.abs() < 1e-12 {
-                num(p.re)
-            } else {
-                format!(
-                    "{} {} {}i",
-                    num(p.re),
-                    if p.im < 0.0 { "-" } else { "+" },
-                    num(p.im.abs())
-                )
-            }
-        })
+        .map(|p| complex(p.re, p.im, 1e-12, false))
         .collect();
     // A pole within the integrator margin of the unit circle is "inside" only to rounding (audit s20
     // H-1: a pole at exactly 1 computed as 0.99999999… was called "all inside"): the verdict says so,
@@ -374,5 +385,18 @@ mod tests {
         assert_eq!(num(-1234.5678), "-1234.57");
         assert_eq!(num(2.5e-4), "2.5e-4");
         assert_eq!(num(100.0), "100");
+    }
+
+    // p = 0.6 − 0.8i has |p| = 1 (a 3-4-5 triangle); a real p prints alone; an imaginary part under
+    // `real_below` is rounding (identify's 1e-12), printed when only an exact 0 counts as real.
+    #[test]
+    fn a_complex_pole_prints_its_parts_and_on_request_its_modulus() {
+        use super::complex;
+        assert_eq!(complex(0.6, -0.8, 0.0, true), "0.6 - 0.8i (|p| 1)");
+        assert_eq!(complex(0.6, -0.8, 1e-12, false), "0.6 - 0.8i");
+        assert_eq!(complex(-0.25, 0.5, 1e-12, false), "-0.25 + 0.5i");
+        assert_eq!(complex(0.5, 0.0, 0.0, true), "0.5");
+        assert_eq!(complex(0.3, -1e-13, 1e-12, false), "0.3");
+        assert_eq!(complex(0.3, -1e-13, 0.0, false), "0.3 - 1e-13i");
     }
 }

@@ -77,17 +77,9 @@ fn a_class_search_over_the_memory_budget_is_refused_before_any_fit() {
 /// refused).
 fn excited_csv(dir: &std::path::Path, n: usize) -> std::path::PathBuf {
     let mut rng = common::lcg(20);
-    let u: Vec<f64> = (0..n).map(|_| 2.0 * rng.unit() - 1.0).collect();
-    let mut y = vec![0.0; n];
-    for k in 2..n {
-        y[k] = 1.2 * y[k - 1] - 0.5 * y[k - 2] + u[k - 1] + 0.5 * u[k - 2];
-    }
-    let mut text = String::from("u,y\n");
-    for k in 0..n {
-        text.push_str(&format!("{},{}\n", u[k], y[k]));
-    }
+    let (u, y) = common::arx_signals(n, &[1.2, -0.5], &[1.0, 0.5], |_| 2.0 * rng.unit() - 1.0);
     let path = dir.join("r.csv");
-    std::fs::write(&path, text).unwrap();
+    common::write_csv(&path, "u,y", None, &[&u, &y]);
     path
 }
 
@@ -109,22 +101,10 @@ fn a_small_record_is_refused_under_a_tiny_max_memory_and_accepted_under_a_larger
     let n = 10_000;
     let csv = excited_csv(dir.path(), n);
     let args = [
-        "identify",
-        "--data",
-        csv.to_str().unwrap(),
-        "--ts",
-        "0.01",
-        "--structure",
-        "arx",
-        "--method",
-        "ls",
-        "--na",
-        "2",
-        "--nb",
-        "2",
-        "--nk",
-        "1",
-    ];
+        common::identify_arx(&csv, "2", "2", "ls"),
+        vec!["--ts", "0.01", "--nk", "1"],
+    ]
+    .concat();
     let rows = n - 2;
     let bytes = rows * 12 * 8;
     let tiny = 0.0001 * (1u64 << 30) as f64;
@@ -151,8 +131,9 @@ fn a_small_record_is_refused_under_a_tiny_max_memory_and_accepted_under_a_larger
     let o = with_budget(&args, "0.001");
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     // Hammerstein by least squares cannot be streamed: the same refusal does not offer it.
-    let mut hammerstein = args.to_vec();
-    hammerstein[6] = "hammerstein";
+    let mut hammerstein = args.clone();
+    let structure = args.iter().position(|a| *a == "arx").unwrap();
+    hammerstein[structure] = "hammerstein";
     let o = with_budget(&hammerstein, "0.0001");
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(2), "{err}");

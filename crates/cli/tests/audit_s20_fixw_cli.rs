@@ -43,19 +43,7 @@ fn a_constant_or_zero_input_is_refused_by_rls_whatever_the_windup_protection() {
             &["--forgetting", "0.99"][..],
             &["--rls-form", "ud", "--windup", "trace"][..],
         ] {
-            let mut args = vec![
-                "identify",
-                "--data",
-                s(&data),
-                "--structure",
-                "arx",
-                "--na",
-                "2",
-                "--nb",
-                "1",
-                "--method",
-                "rls",
-            ];
+            let mut args = common::identify_arx(&data, "2", "1", "rls");
             args.extend_from_slice(extra);
             let out = ipa_sysid(&args);
             let err = stderr(&out);
@@ -124,32 +112,22 @@ fn track_says_a_constant_input_does_not_excite_an_arx_model() {
 fn an_exciting_input_is_still_accepted_with_trace_windup() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("r.csv");
-    let mut text = String::from("t,u,y\n");
-    let (mut y1, mut y2, mut u1) = (0.0f64, 0.0f64, 0.0f64);
     let mut g = common::lcg(7);
-    for k in 0..4000 {
-        let u = if g.unit() < 0.5 { -1.0 } else { 1.0 };
-        // y(k) = 1.2 y(k−1) − 0.5 y(k−2) + 0.3 u(k−1)
-        let y = 1.2 * y1 - 0.5 * y2 + 0.3 * u1;
-        text.push_str(&format!("{},{u},{y}\n", k as f64 * 0.01));
-        (y2, y1, u1) = (y1, y, u);
-    }
-    std::fs::write(&path, text).unwrap();
-    let out = ipa_sysid(&[
-        "identify",
-        "--data",
-        s(&path),
-        "--structure",
-        "arx",
-        "--na",
-        "2",
-        "--nb",
-        "1",
-        "--method",
-        "rls",
-        "--windup",
-        "trace",
-    ]);
+    // y(k) = 1.2 y(k−1) − 0.5 y(k−2) + 0.3 u(k−1), u = ±1 at random.
+    let (u, y) = common::arx_signals(4000, &[1.2, -0.5], &[0.3], |_| {
+        if g.unit() < 0.5 {
+            -1.0
+        } else {
+            1.0
+        }
+    });
+    common::write_csv(&path, "t,u,y", Some(0.01), &[&u, &y]);
+    let args = [
+        common::identify_arx(&path, "2", "1", "rls"),
+        vec!["--windup", "trace"],
+    ]
+    .concat();
+    let out = ipa_sysid(&args);
     assert!(out.status.success(), "{}", stderr(&out));
 }
 
@@ -158,52 +136,32 @@ fn an_exciting_input_is_still_accepted_with_trace_windup() {
 #[test]
 fn a_pole_on_the_unit_circle_to_rounding_is_not_called_inside() {
     let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("i.csv");
-    let mut text = String::from("t,u,y\n");
-    let (mut y1, mut u1) = (0.0f64, 0.0f64);
-    let mut g = common::lcg(11);
-    for k in 0..2000 {
-        let u = g.unit() - 0.5;
-        let y = 0.999999 * y1 + u1;
-        text.push_str(&format!("{},{u},{y}\n", k as f64 * 0.01));
-        (y1, u1) = (y, u);
-    }
-    std::fs::write(&path, text).unwrap();
-    let out = ipa_sysid(&[
-        "identify",
-        "--data",
-        s(&path),
-        "--structure",
-        "arx",
-        "--na",
-        "1",
-        "--nb",
-        "1",
-        "--method",
-        "ls",
-    ]);
+    let path = integrator_record(dir.path(), "t,u,y");
+    let out = ipa_sysid(&common::identify_arx(&path, "1", "1", "ls"));
     let stdout = String::from_utf8_lossy(&out.stdout);
     let poles = stdout.lines().find(|l| l.starts_with("Poles:")).unwrap();
     assert!(!poles.contains("all inside"), "{poles}");
     assert!(poles.contains("on the stability boundary"), "{poles}");
 }
 
-/// A noise-free integrator-like record `t,cmd,pos`: pos(k) = 0.999999 pos(k−1) + cmd(k−1), cmd uniform
-/// in [−0.5, 0.5): its pole, 1e-6 from the unit circle, is within the integrator margin 1e-5, so
-/// identify warns of it (the documented rule of `Warning::NearIntegrator`).
-fn integrator_record(dir: &Path) -> PathBuf {
+/// A noise-free integrator-like record under `header` (`t,cmd,pos` or `t,u,y`): the output
+/// y(k) = 0.999999 y(k−1) + u(k−1), u uniform in [−0.5, 0.5), Ts = 0.01 s: its pole, 1e-6 from the unit
+/// circle, is within the integrator margin 1e-5, so identify warns of it (the documented rule of
+/// `Warning::NearIntegrator`).
+fn integrator_record(dir: &Path, header: &str) -> PathBuf {
     let path = dir.join("int.csv");
-    let mut text = String::from("t,cmd,pos\n");
-    let (mut y1, mut u1) = (0.0f64, 0.0f64);
     let mut g = common::lcg(11);
-    for k in 0..2000 {
-        let u = g.unit() - 0.5;
-        let y = 0.999999 * y1 + u1;
-        text.push_str(&format!("{},{u},{y}\n", k as f64 * 0.01));
-        (y1, u1) = (y, u);
-    }
-    std::fs::write(&path, text).unwrap();
+    let (u, y) = common::arx_signals(2000, &[0.999999], &[1.0], |_| g.unit() - 0.5);
+    common::write_csv(&path, header, Some(0.01), &[&u, &y]);
     path
+}
+
+/// `identify` of an ARX(1, 1) by least squares from the columns `cmd`, `pos` of `data`, saved to
+/// `model`: the model file of the tests of its stored columns.
+fn identify_cmd_pos<'a>(data: &'a Path, model: &'a Path) -> Vec<&'a str> {
+    let mut args = common::identify_arx(data, "1", "1", "ls");
+    args.extend(["--u-col", "cmd", "--y-col", "pos", "--save-model", s(model)]);
+    args
 }
 
 // M-3: a model file carries identify's warnings and column names; validate and control repeat every
@@ -212,30 +170,10 @@ fn integrator_record(dir: &Path) -> PathBuf {
 #[test]
 fn a_model_file_carries_identifys_warnings_and_the_commands_that_load_it_repeat_them() {
     let dir = tempfile::tempdir().unwrap();
-    let data = integrator_record(dir.path());
+    let data = integrator_record(dir.path(), "t,cmd,pos");
     let model = dir.path().join("m.json");
-    let doc = common::run_json(
-        dir.path(),
-        &[
-            "identify",
-            "--data",
-            s(&data),
-            "--u-col",
-            "cmd",
-            "--y-col",
-            "pos",
-            "--structure",
-            "arx",
-            "--na",
-            "1",
-            "--nb",
-            "1",
-            "--method",
-            "ls",
-            "--save-model",
-            s(&model),
-        ],
-    );
+    let args = identify_cmd_pos(&data, &model);
+    let doc = common::run_json(dir.path(), &args);
     let said = common::warnings(&doc);
     assert!(
         said.iter().any(|w| w.contains("modulus 0.999999")),
@@ -284,7 +222,7 @@ fn a_model_file_carries_identifys_warnings_and_the_commands_that_load_it_repeat_
 #[test]
 fn a_version_2_model_file_still_loads() {
     let dir = tempfile::tempdir().unwrap();
-    let data = integrator_record(dir.path());
+    let data = integrator_record(dir.path(), "t,cmd,pos");
     let path = dir.path().join("v2.json");
     let doc = serde_json::json!({
         "format": "ipa-sysid-model", "version": 2,
@@ -305,6 +243,73 @@ fn a_version_2_model_file_still_loads() {
     ]);
     assert!(out.status.success(), "{}", stderr(&out));
     assert!(!stderr(&out).contains("identification on"));
+}
+
+// Session 21 (audit s20 L-4b's leftover): an explicit `--u-col u` is told from the default. The model is
+// identified from `cmd`, `pos` of a noise-free record pos(k) = 0.5 pos(k−1) + cmd(k−1) that also holds
+// u = 2 cmd; validate with `--u-col u` reads u (the stored --y-col pos still taken, said by the note,
+// which does not name --u-col), so the one-step prediction 0.5 pos(k−1) + 2 cmd(k−1) misses pos(k) by
+// cmd(k−1): residual(k) = −cmd(k−1). Without the flag, cmd is read: residual 0.
+#[test]
+fn validate_tells_an_explicit_u_col_u_from_the_default() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("both.csv");
+    let mut g = common::lcg(21);
+    let (cmd, pos) = common::arx_signals(500, &[0.5], &[1.0], |_| g.unit() - 0.5);
+    let u: Vec<f64> = cmd.iter().map(|c| 2.0 * c).collect();
+    common::write_csv(&data, "t,cmd,pos,u", Some(0.01), &[&cmd, &pos, &u]);
+    let model = dir.path().join("m.json");
+    let args = identify_cmd_pos(&data, &model);
+    let o = ipa_sysid(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    // (t, residual) of the --out trace.
+    let residuals = |extra: &[&str]| {
+        let out = dir.path().join("v.csv");
+        let args = [
+            &[
+                "validate",
+                "--model",
+                s(&model),
+                "--data",
+                s(&data),
+                "--out",
+                s(&out),
+            ],
+            extra,
+        ];
+        let o = ipa_sysid(&args.concat());
+        assert!(o.status.success(), "{}", stderr(&o));
+        let text = std::fs::read_to_string(&out).unwrap();
+        let mut lines = text.lines();
+        assert_eq!(lines.next(), Some("t,y,y_sim,y_pred,residual"));
+        let rows: Vec<(usize, f64)> = lines
+            .map(|l| {
+                let v: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
+                ((v[0] / 0.01).round() as usize, v[4])
+            })
+            .collect();
+        (stderr(&o), rows)
+    };
+    let (note, rows) = residuals(&["--u-col", "u"]);
+    assert!(
+        note.contains("columns from the model file") && note.contains("--y-col pos"),
+        "{note}"
+    );
+    assert!(!note.contains("--u-col"), "{note}");
+    assert!(rows.len() > 400);
+    for (k, r) in rows.iter().filter(|(k, _)| *k >= 1) {
+        assert!(
+            (r + cmd[k - 1]).abs() < 1e-9,
+            "row {k}: {r} vs {}",
+            -cmd[k - 1]
+        );
+    }
+    let (note, rows) = residuals(&[]);
+    assert!(note.contains("--u-col cmd --y-col pos"), "{note}");
+    assert!(rows
+        .iter()
+        .filter(|(k, _)| *k >= 1)
+        .all(|(_, r)| r.abs() < 1e-9));
 }
 
 /// `t,u,y` of 2000 samples: u = ±1 at random, y(k) = 0.5 y(k−1) + u(k−3) + 0.05 e(k), e uniform in
@@ -338,20 +343,10 @@ fn a_wrong_delay_is_a_warning_with_the_way_forward() {
     let dir = tempfile::tempdir().unwrap();
     let data = delayed_record(dir.path());
     let base = [
-        "identify",
-        "--data",
-        s(&data),
-        "--split",
-        "0.5",
-        "--structure",
-        "arx",
-        "--na",
-        "1",
-        "--nb",
-        "1",
-        "--method",
-        "ls",
-    ];
+        common::identify_arx(&data, "1", "1", "ls"),
+        vec!["--split", "0.5"],
+    ]
+    .concat();
     let mut wrong = base.to_vec();
     wrong.extend(["--nk", "1"]);
     let (_, doc) = common::run_json_code(dir.path(), &wrong);
@@ -429,20 +424,10 @@ fn arx_without_offset_on_an_output_far_from_zero_gets_the_offset_hint() {
     }
     std::fs::write(&path, text).unwrap();
     let args = [
-        "identify",
-        "--data",
-        s(&path),
-        "--structure",
-        "arx",
-        "--na",
-        "2",
-        "--nb",
-        "2",
-        "--nk",
-        "1",
-        "--method",
-        "ls",
-    ];
+        common::identify_arx(&path, "2", "2", "ls"),
+        vec!["--nk", "1"],
+    ]
+    .concat();
     let (_, doc) = common::run_json_code(dir.path(), &args);
     let est = &doc["metrics"]["estimation"];
     let (e, m) = (

@@ -39,6 +39,12 @@ fn model_file(
     path
 }
 
+/// The Hammerstein model file of the tests: α = 0.9, b1 = 1, deadzone b_l = −20, b_r = 30, m_l = 0.02,
+/// m_r = 0.01 (G(1) = 10; from u 0.1 on the right, 0.2 on the left).
+fn hammerstein_file(dir: &Path) -> PathBuf {
+    model_file(dir, "h.json", 0.9, 1.0, Some([-20.0, 30.0, 0.02, 0.01]))
+}
+
 fn json_of(args: &[&str]) -> serde_json::Value {
     let o = ipa_sysid(args);
     assert!(o.status.success(), "{args:?}: {}", stderr(&o));
@@ -112,13 +118,7 @@ fn response_of_a_first_order_arx_file_is_the_hand_computed_one() {
 #[test]
 fn response_of_a_hammerstein_file_states_the_slope_per_side() {
     let dir = tempfile::tempdir().unwrap();
-    let m = model_file(
-        dir.path(),
-        "h.json",
-        0.9,
-        1.0,
-        Some([-20.0, 30.0, 0.02, 0.01]),
-    );
+    let m = hammerstein_file(dir.path());
     let o = ipa_sysid(&["response", "--model", s(&m), "--kp", "2", "--ki", "0.5"]);
     assert!(o.status.success(), "{}", stderr(&o));
     let out = String::from_utf8(o.stdout).unwrap();
@@ -136,6 +136,139 @@ fn response_of_a_hammerstein_file_states_the_slope_per_side() {
     assert!(out.contains("margins:  PI Kp = 2, Ki = 0.5"), "{out}");
     assert!(
         out.contains("|m_r G| dB") && out.contains("|m_l G| dB"),
+        "{out}"
+    );
+}
+
+/// `response --model MODEL --json - ARGS`: its `margins` object.
+fn margins_of(model: &Path, args: &[&str]) -> serde_json::Value {
+    let r = json_of(&[&["response", "--model", s(model), "--json", "-"], args].concat());
+    r["margins"].clone()
+}
+
+// Session 21: `response --controller` reads the file `tune --out` wrote (as `control --controller`)
+// and gives the margins `tune` reported for it; a controller with Kd = 0 gives those of its Kp, Ki
+// passed as --kp/--ki; and --controller beside --kp is refused.
+#[test]
+fn response_margins_of_a_controller_file_are_tunes_and_those_of_its_gains() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = hammerstein_file(dir.path());
+    let tuned = common::tune(
+        dir.path(),
+        &m,
+        &["--max-evaluations", "10", "--variants", "1"],
+    );
+    let c = s(&tuned.controller);
+    let from_file = margins_of(&m, &["--controller", c]);
+    assert!(from_file["gain_margin_db"].is_number(), "{from_file}");
+    assert_eq!(from_file, tuned.report["margins"]);
+    // The same file with its derivative removed: the PI of its Kp, Ki (written out in full).
+    let mut file: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&tuned.controller).unwrap()).unwrap();
+    file["controller"]["kd"] = 0.0.into();
+    file["controller"]["derivative_filter_s"] = 0.0.into();
+    let pi_file = dir.path().join("pi.json");
+    std::fs::write(&pi_file, file.to_string()).unwrap();
+    let (kp, ki) = (
+        file["controller"]["kp"].as_f64().unwrap(),
+        file["controller"]["ki"].as_f64().unwrap(),
+    );
+    assert_eq!(
+        margins_of(&m, &["--controller", s(&pi_file)]),
+        margins_of(
+            &m,
+            &["--kp", &format!("{kp:?}"), "--ki", &format!("{ki:?}")]
+        )
+    );
+    let o = ipa_sysid(&["response", "--model", s(&m), "--controller", c, "--kp", "1"]);
+    assert_eq!(o.status.code(), Some(2));
+    let e = stderr(&o);
+    assert!(
+        e.contains("--controller") && e.contains("--kp") && e.contains("cannot be used with"),
+        "{e}"
+    );
+}
+
+// Session 21: the hand-derived loop of the library's test through a controller file: L = K β z⁻¹ /
+// (1 − α z⁻¹) with K = Kp = 4 (Ki = Kd = 0), α = 0.5, β = 0.25 (Kβ = 1): |L| = 1 where cos θ = 0.25,
+// PM = 180° + arg L there; L(−1) = −Kβ/(1 + α): GM = 20 log10 1.5 dB at ω = π/Ts. The printed line
+// names the file and its gains; a controller tuned at another Ts is refused naming --controller.
+#[test]
+fn response_margins_of_a_hand_written_controller_file_are_the_hand_derived_ones() {
+    let dir = tempfile::tempdir().unwrap();
+    let (alpha, beta, ts) = (0.5, 0.25, 0.05);
+    let m = model_file(dir.path(), "arx.json", alpha, beta, None);
+    let controller = |name: &str, ts: f64| {
+        let path = dir.path().join(name);
+        let c = serde_json::json!({"format": "ipa-sysid-controller", "version": 1, "controller": {
+            "ts_s": ts, "kp": 4.0, "ki": 0.0, "kd": 0.0, "derivative_filter_s": 0.0, "u_max": 255.0,
+            "hold_band_mm": 0.0, "fine_band_mm": 0.0, "reset_on_crossing": false, "compensator": null}});
+        std::fs::write(&path, c.to_string()).unwrap();
+        path
+    };
+    let c = controller("p.json", ts);
+    let g = margins_of(&m, &["--controller", s(&c)]);
+    let th = 0.25f64.acos();
+    let pm = 180.0 + (-th - (alpha * th.sin()).atan2(1.0 - alpha * th.cos())).to_degrees();
+    let f = |k: &str| g[k].as_f64().unwrap();
+    assert!((f("phase_margin_deg") - pm).abs() < 0.01, "{g} vs {pm}");
+    assert!((f("gain_crossover_rad_s") - th / ts).abs() < 1e-3 * th / ts);
+    assert!(
+        (f("gain_margin_db") - 20.0 * 1.5f64.log10()).abs() < 1e-6,
+        "{g}"
+    );
+    let pi = std::f64::consts::PI;
+    assert!((f("phase_crossover_rad_s") - pi / ts).abs() < 1e-6 * pi / ts);
+    let o = ipa_sysid(&["response", "--model", s(&m), "--controller", s(&c)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8(o.stdout).unwrap();
+    assert!(
+        out.contains(&format!(
+            "margins:  {} Kp = 4, Ki = 0, Kd = 0, Tf = 0 s: gain ",
+            c.display()
+        )),
+        "{out}"
+    );
+    let other = controller("other.json", 0.01);
+    let o = ipa_sysid(&["response", "--model", s(&m), "--controller", s(&other)]);
+    assert_eq!(o.status.code(), Some(2));
+    let e = stderr(&o);
+    assert!(
+        e.contains("invalid setting --controller")
+            && e.contains("the model's Ts = 0.05 s")
+            && e.contains("tuned for Ts = 0.01 s"),
+        "{e}"
+    );
+}
+
+// Session 21: one formatter of a complex pole. A = 1 − z⁻¹ + 0.5 z⁻²: z² − z + 0.5 = 0 gives
+// p = 0.5 ± 0.5i, |p| = √0.5 = 0.707107 (6 digits). `response` prints the pair with its modulus,
+// `identify` (noise-free record of that model, so least squares recovers it) without.
+#[test]
+fn identify_and_response_print_a_complex_pole_pair_in_one_form() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("pair.csv");
+    let mut g = common::lcg(21);
+    let (u, y) = common::arx_signals(400, &[1.0, -0.5], &[1.0], |_| g.unit() - 0.5);
+    common::write_csv(&data, "u,y", None, &[&u, &y]);
+    let model = dir.path().join("pair.json");
+    let args = [
+        common::identify_arx(&data, "2", "1", "ls"),
+        vec!["--ts", "0.05", "--save-model", s(&model)],
+    ]
+    .concat();
+    let o = ipa_sysid(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8(o.stdout).unwrap();
+    assert!(
+        out.contains("Poles: 0.5 + 0.5i, 0.5 - 0.5i  → stable"),
+        "{out}"
+    );
+    let o = ipa_sysid(&["response", "--model", s(&model)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = String::from_utf8(o.stdout).unwrap();
+    assert!(
+        out.contains("poles:    0.5 + 0.5i (|p| 0.707107), 0.5 - 0.5i (|p| 0.707107)\n"),
         "{out}"
     );
 }

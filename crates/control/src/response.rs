@@ -15,10 +15,11 @@ use sysid_core::{Model, StaticNonlinearity};
 
 use crate::position::ControllerSettings;
 use crate::tune::{margins, Margins};
-use crate::ControlError;
+use crate::{ControlError, ControlSetting};
 
 /// What to compute: the frequency grid, how many samples of the impulse and step responses, and an
-/// optional PI controller C = Kp + Ki Ts/(1 − z⁻¹) for the loop's margins.
+/// optional controller for the loop's margins (a PI C = Kp + Ki Ts/(1 − z⁻¹), or a tuned controller
+/// with its derivative term).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ResponseSettings {
     /// Number of log-spaced frequencies (at least 2).
@@ -27,9 +28,11 @@ pub struct ResponseSettings {
     pub f_min_hz: Option<f64>,
     /// Samples of the impulse and step responses, k = 0 … samples − 1 (at least 1).
     pub samples: usize,
-    /// (Kp, Ki) of a PI controller in counts per output unit (and per output unit · s): the loop's
-    /// margins as `tune` reports them (the deadzone replaced by its mean slope (m_l + m_r)/2).
-    pub pi: Option<(f64, f64)>,
+    /// The controller of the loop's margins, as `tune` reports them ([`margins`]: Kp, Ki, Kd and Tf;
+    /// the deadzone replaced by its mean slope (m_l + m_r)/2): a tuned controller file's
+    /// [`ControllerSettings`], or [`ControllerSettings::pi`] for a PI of Kp counts per output unit and
+    /// Ki counts per output unit · s. Its Ts must be the model's; `None`: no margins.
+    pub controller: Option<ControllerSettings>,
 }
 
 impl Default for ResponseSettings {
@@ -38,7 +41,7 @@ impl Default for ResponseSettings {
             points: 20,
             f_min_hz: None,
             samples: 20,
-            pi: None,
+            controller: None,
         }
     }
 }
@@ -82,7 +85,7 @@ pub struct Response {
     pub impulse: Vec<f64>,
     /// Unit-step response of G, s(k) = Σ_{j ≤ k} g(j).
     pub step: Vec<f64>,
-    /// Margins of the PI loop of [`ResponseSettings::pi`], as `tune` computes them ([`margins`]).
+    /// Margins of the loop with [`ResponseSettings::controller`], as `tune` computes them ([`margins`]).
     pub margins: Option<Margins>,
 }
 
@@ -126,6 +129,20 @@ pub fn response(model: &Model, s: &ResponseSettings) -> Result<Response, Control
         )));
     }
     let ts = model.ts();
+    if let Some(c) = &s.controller {
+        // The margins are those of C(z) G(z) on one sampling grid: a controller tuned at another Ts
+        // has other poles and zeros in z.
+        if (c.ts_s - ts).abs() > 1e-9 * ts {
+            return Err(ControlError::setting(
+                ControlSetting::Ts,
+                c.ts_s,
+                &format!(
+                    "the model's Ts = {} s (a controller runs at the sampling period it was tuned for)",
+                    sysid_core::format::Shortest(ts)
+                ),
+            ));
+        }
+    }
     let nyquist_hz = 0.5 / ts;
     let f_min_hz = s.f_min_hz.unwrap_or(1e-3 * nyquist_hz);
     if !(f_min_hz > 0.0 && f_min_hz < nyquist_hz) {
@@ -192,8 +209,7 @@ pub fn response(model: &Model, s: &ResponseSettings) -> Result<Response, Control
     }
     let impulse = filter(model, s.samples.max(1), |k| if k == 0 { 1.0 } else { 0.0 });
     let step = filter(model, s.samples.max(1), |_| 1.0);
-    let margins =
-        s.pi.map(|(kp, ki)| margins(model, &ControllerSettings::pi(ts, kp, ki)));
+    let margins = s.controller.map(|c| margins(model, &c));
     Ok(Response {
         ts_s: ts,
         nk: model.nk(),
@@ -379,7 +395,7 @@ mod tests {
         let r = response(
             &first_order(alpha, beta, ts),
             &ResponseSettings {
-                pi: Some((4.0, 0.0)),
+                controller: Some(ControllerSettings::pi(ts, 4.0, 0.0)),
                 ..ResponseSettings::default()
             },
         )
@@ -397,6 +413,53 @@ mod tests {
             "{m:?}"
         );
         assert!((m.phase_crossover_rad_s.unwrap() - PI / ts).abs() < 1e-6 * PI / ts);
+    }
+
+    #[test]
+    fn a_tuned_controllers_derivative_enters_the_margins() {
+        // G = 0.25 z⁻¹ / (1 − 0.5 z⁻¹); C = Kp + Kd (1 − z⁻¹)/Ts with Kp = 1, Kd/Ts = 1 (Tf = 0):
+        // C = 2 − z⁻¹ = 2 (1 − 0.5 z⁻¹) cancels the pole, L = C G = 0.5 z⁻¹: |L| = 0.5 everywhere (no
+        // gain crossover), L(−1) = −0.5 (GM = 20 log10 2 at ω = π/Ts), closed loop 1 + 0.5 z⁻¹: the
+        // poles −0.5 and the cancelled 0.5, |p| <= 0.5. A PI with the same Kp alone has another GM.
+        let ts = 0.01;
+        let c = ControllerSettings {
+            kd: 0.01,
+            ..ControllerSettings::pi(ts, 1.0, 0.0)
+        };
+        let r = response(
+            &first_order(0.5, 0.25, ts),
+            &ResponseSettings {
+                controller: Some(c),
+                ..ResponseSettings::default()
+            },
+        )
+        .unwrap();
+        let m = r.margins.unwrap();
+        assert!(
+            (m.gain_margin_db.unwrap() - 20.0 * 2f64.log10()).abs() < 1e-9,
+            "{m:?}"
+        );
+        assert!((m.phase_crossover_rad_s.unwrap() - PI / ts).abs() < 1e-6 * PI / ts);
+        assert_eq!((m.phase_margin_deg, m.gain_crossovers), (None, 0), "{m:?}");
+        assert!((m.closed_loop_max_pole_modulus.unwrap() - 0.5).abs() < 1e-9);
+    }
+
+    #[test]
+    fn a_controller_tuned_at_another_ts_is_refused() {
+        // The model at Ts = 0.01 s, the controller at 0.02 s: C(z) G(z) would mix two grids.
+        let e = response(
+            &first_order(0.5, 0.25, 0.01),
+            &ResponseSettings {
+                controller: Some(ControllerSettings::pi(0.02, 1.0, 0.0)),
+                ..ResponseSettings::default()
+            },
+        )
+        .unwrap_err();
+        let text = e.to_string();
+        assert!(
+            text.starts_with("invalid setting") && text.contains("0.02") && text.contains("0.01 s"),
+            "{text}"
+        );
     }
 
     #[test]

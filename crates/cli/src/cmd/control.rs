@@ -920,22 +920,33 @@ fn tuned_controller(
     Ok(match &args.controller {
         Some(path) => {
             inputs.push(path.clone());
-            let file =
-                control::ControllerFile::read_file(path).context("cannot read --controller")?;
-            let t = file.controller;
-            if (t.ts_s - ts).abs() > 1e-9 * ts {
-                bail!(sysid::SysidError::setting(
-                    sysid::Setting::Other("--controller"),
-                    path.display(),
-                    &format!(
-                        "a controller for the plant's Ts = {} s (this one was tuned for Ts = {} s)",
-                        sysid_core::format::Shortest(ts),
-                        sysid_core::format::Shortest(t.ts_s)
-                    )
-                ));
-            }
-            Some(file)
+            Some(read_controller(path, ts, "plant")?)
         }
         None => None,
     })
+}
+
+/// The controller file of `--controller FILE` (as `tune --out` writes it), read by
+/// [`control::ControllerFile::read_file`] and refused, naming the flag, when it was tuned for another
+/// sampling period than the `what` (`plant`, `model`) it is to run with at `ts` s: the one reader of
+/// `control --controller` and `response --controller`.
+pub fn read_controller(
+    path: &Path,
+    ts: f64,
+    what: &str,
+) -> anyhow::Result<control::ControllerFile> {
+    let file = control::ControllerFile::read_file(path).context("cannot read --controller")?;
+    let t = file.controller;
+    if (t.ts_s - ts).abs() > 1e-9 * ts {
+        bail!(sysid::SysidError::setting(
+            sysid::Setting::Other("--controller"),
+            path.display(),
+            &format!(
+                "a controller for the {what}'s Ts = {} s (this one was tuned for Ts = {} s)",
+                sysid_core::format::Shortest(ts),
+                sysid_core::format::Shortest(t.ts_s)
+            )
+        ));
+    }
+    Ok(file)
 }

@@ -33,6 +33,10 @@ pub struct Args {
     /// Integral gain of that PI controller (counts per output unit per s; default 0 with --kp).
     #[arg(long, value_name = "KI", requires = "kp")]
     pub ki: Option<f64>,
+    /// A tuned controller file (`tune --out`, read as `control --controller` reads it): print the
+    /// loop's margins with its Kp, Ki, Kd and Tf, as `tune` reported them. Not with --kp/--ki.
+    #[arg(long, value_name = "CONTROLLER.json", conflicts_with_all = ["kp", "ki"])]
+    pub controller: Option<PathBuf>,
     /// Write the Bode table as CSV here (f_hz, w_rad_s, mag_db, phase_deg; a Hammerstein model adds
     /// mag_db_right, mag_db_left: the gain from u on each side of the deadzone).
     #[arg(long, value_name = "FILE")]
@@ -42,25 +46,14 @@ pub struct Args {
     pub json: Option<PathBuf>,
 }
 
-fn complex(p: &(f64, f64)) -> String {
-    if p.1 == 0.0 {
-        num(p.0)
-    } else {
-        format!(
-            "{} {} {}i (|p| {})",
-            num(p.0),
-            if p.1 < 0.0 { "-" } else { "+" },
-            num(p.1.abs()),
-            num(p.0.hypot(p.1))
-        )
-    }
-}
-
 fn list(v: &[(f64, f64)]) -> String {
     if v.is_empty() {
         "none".into()
     } else {
-        v.iter().map(complex).collect::<Vec<_>>().join(", ")
+        v.iter()
+            .map(|p| crate::text::complex(p.0, p.1, 0.0, true))
+            .collect::<Vec<_>>()
+            .join(", ")
     }
 }
 
@@ -68,8 +61,8 @@ fn opt(v: Option<f64>) -> String {
     v.map_or_else(|| "n/a".into(), num)
 }
 
-/// The printed report.
-fn text(name: &str, r: &Response, pi: Option<(f64, f64)>) -> String {
+/// The printed report; `controller` names the controller of the margins.
+fn text(name: &str, r: &Response, controller: Option<&str>) -> String {
     let b = &r.bode;
     let mut o = format!(
         "Response of {name} (Ts = {} s, nk = {}; MATLAB idpoly conventions)\n",
@@ -84,12 +77,10 @@ fn text(name: &str, r: &Response, pi: Option<(f64, f64)>) -> String {
     o += "\n";
     o += &format!("poles:    {}\n", list(&r.poles));
     o += &format!("zeros:    {}\n", list(&r.zeros));
-    if let (Some(m), Some((kp, ki))) = (&r.margins, pi) {
+    if let (Some(m), Some(c)) = (&r.margins, controller) {
         o += &format!(
-            "margins:  PI Kp = {}, Ki = {}: gain {} dB at {} rad/s, phase {} deg at {} rad/s; closed-loop \
+            "margins:  {c}: gain {} dB at {} rad/s, phase {} deg at {} rad/s; closed-loop \
              poles |p| <= {}{} (as tune: the deadzone replaced by its mean slope (m_l + m_r)/2)\n",
-            num(kp),
-            num(ki),
             opt(m.gain_margin_db),
             opt(m.phase_crossover_rad_s),
             opt(m.phase_margin_deg),
@@ -171,9 +162,15 @@ fn csv(r: &Response) -> String {
 
 /// Runs `response`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let inputs: [&Path; 1] = [&args.model];
+    let mut inputs: Vec<&Path> = vec![&args.model];
+    inputs.extend(args.controller.as_deref());
     check_outputs(&[(&args.out, "--out"), (&args.json, "--json")], &inputs)?;
     let model = sysid::model_file::read_model(&args.model).context("cannot read --model")?;
+    let tuned = args
+        .controller
+        .as_deref()
+        .map(|p| super::control::read_controller(p, model.ts(), "model").map(|f| (p, f)))
+        .transpose()?;
     for (flag, v) in [
         ("--kp", args.kp),
         ("--ki", args.ki),
@@ -185,17 +182,40 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             }
         }
     }
-    let pi = args.kp.map(|kp| (kp, args.ki.unwrap_or(0.0)));
+    let (controller, words) = match (&tuned, args.kp) {
+        (Some((path, f)), _) => {
+            let c = f.controller;
+            (
+                Some(c),
+                Some(format!(
+                    "{} Kp = {}, Ki = {}, Kd = {}, Tf = {} s",
+                    path.display(),
+                    num(c.kp),
+                    num(c.ki),
+                    num(c.kd),
+                    num(c.derivative_filter_s)
+                )),
+            )
+        }
+        (None, Some(kp)) => {
+            let ki = args.ki.unwrap_or(0.0);
+            (
+                Some(control::ControllerSettings::pi(model.ts(), kp, ki)),
+                Some(format!("PI Kp = {}, Ki = {}", num(kp), num(ki))),
+            )
+        }
+        (None, None) => (None, None),
+    };
     let settings = ResponseSettings {
         points: args.points as usize,
         f_min_hz: args.f_min,
         samples: args.samples as usize,
-        pi,
+        controller,
     };
     let r = response(&model, &settings)
         .map_err(|e| anyhow::anyhow!("{}: {e}", args.model.display()))?;
     print_report(
-        &text(&args.model.display().to_string(), &r, pi),
+        &text(&args.model.display().to_string(), &r, words.as_deref()),
         &[args.out.as_deref(), args.json.as_deref()],
     )?;
     let json = args

@@ -10,9 +10,9 @@ use super::common::{check_outputs, print_report, stream_note, ColumnArgs, Stream
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// Model file written by `identify --save-model` (or an `identify --json` file). A file that names
-    /// the columns it was identified from (model file version 3) gives the columns read here when
-    /// --u-col / --y-col are left at their defaults (u, y); the report says so. Its identification's
-    /// warnings are repeated.
+    /// the columns it was identified from (model file version 3) gives the columns read here for
+    /// --u-col / --y-col not given (an explicit `--u-col u` reads u); a note says which. Its
+    /// identification's warnings are repeated.
     #[arg(long, value_name = "MODEL.json")]
     pub model: PathBuf,
     /// CSV file with the validation record. Without a time column and --ts, the model's Ts is used.
@@ -47,26 +47,37 @@ pub struct Args {
     /// `--stream` alone is `on`.
     #[arg(long, value_enum, default_value = "auto", num_args = 0..=1, default_missing_value = "on", value_name = "WHEN")]
     pub stream: StreamMode,
+    /// The ids (field names, e.g. `u_col`) of the flags typed on the command line, a flag given at its
+    /// default value included (filled by `main` from clap's matches): a model file's stored columns
+    /// are read only for --u-col / --y-col not typed ([`stored_columns`]).
+    #[arg(skip)]
+    pub given: Vec<String>,
 }
 
-/// The column names the model file recorded ([`sysid::model::Provenance`]) put in `opts` where
-/// --u-col / --y-col were left at their defaults (u, y) and the record has a header (audit s20 L-4: a
-/// model identified from `--u-col InputGasRate --y-col CO2` needed them again); a note saying which,
-/// `None` when none was taken.
-fn stored_columns(model: &sysid::Model, opts: &mut sysid::data::CsvOptions) -> Option<String> {
+/// The column names the model file recorded ([`sysid::model::Provenance`]) put in `opts` for each of
+/// --u-col / --y-col not typed (`given`: the flags typed; an explicit `--u-col u` is the user's
+/// choice, not the default) when the record has a header (audit s20 L-4: a model identified from
+/// `--u-col InputGasRate --y-col CO2` needed them again); a note saying which, `None` when none was
+/// taken.
+fn stored_columns(
+    model: &sysid::Model,
+    opts: &mut sysid::data::CsvOptions,
+    given: &[String],
+) -> Option<String> {
     let p = model.provenance()?;
     if opts.no_header {
         return None;
     }
+    let typed = |id: &str| given.iter().any(|g| g == id);
     let mut taken = Vec::new();
-    if opts.u_col == "u" && !p.u_columns.is_empty() && p.u_columns.join(",") != "u" {
+    if !typed("u_col") && !p.u_columns.is_empty() && p.u_columns.join(",") != opts.u_col {
         opts.u_col = p.u_columns.join(",");
         taken.push(format!("--u-col {}", opts.u_col));
     }
     if let Some(y) = p
         .y_column
         .as_ref()
-        .filter(|y| opts.y_col == "y" && *y != "y")
+        .filter(|y| !typed("y_col") && **y != opts.y_col)
     {
         opts.y_col = y.clone();
         taken.push(format!("--y-col {y}"));
@@ -97,7 +108,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let mut opts = args.columns.csv_options();
     opts.fallback_ts = Some(model.ts());
-    if let Some(note) = stored_columns(&model, &mut opts) {
+    if let Some(note) = stored_columns(&model, &mut opts, &args.given) {
         eprintln!("note: {note}");
     }
     // A model with several inputs reads one column per input: --u-col u1,u2 or the model's input names.

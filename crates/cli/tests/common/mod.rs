@@ -131,3 +131,65 @@ impl Lcg {
         (self.next_u64() >> 11) as f64 / (1u64 << 53) as f64
     }
 }
+
+/// The noise-free ARX record y(k) = Σ_i a_i y(k−i) + Σ_j b_j u(k−j) (i = 1 … na, j = 1 … nb: nk = 1;
+/// a and b as in the difference equation, A(q) = 1 − Σ a_i q⁻ⁱ) from rest, k = 0 … n − 1, with
+/// u(k) = `input(k)`: test data computed here, independent of the library. Returns (u, y).
+pub fn arx_signals(
+    n: usize,
+    a: &[f64],
+    b: &[f64],
+    mut input: impl FnMut(usize) -> f64,
+) -> (Vec<f64>, Vec<f64>) {
+    let (mut u, mut y) = (Vec::with_capacity(n), Vec::<f64>::with_capacity(n));
+    for k in 0..n {
+        u.push(input(k));
+        let mut v = 0.0;
+        for (i, ai) in a.iter().enumerate() {
+            if let Some(j) = k.checked_sub(i + 1) {
+                v += ai * y[j];
+            }
+        }
+        for (i, bi) in b.iter().enumerate() {
+            if let Some(j) = k.checked_sub(i + 1) {
+                v += bi * u[j];
+            }
+        }
+        y.push(v);
+    }
+    (u, y)
+}
+
+/// Writes `columns` (equal lengths) to `path` as CSV under `header`; with `ts_s` each row starts with
+/// its time t = k·Ts (the header names it). The one writer of the tests' generated records.
+pub fn write_csv(path: &Path, header: &str, ts_s: Option<f64>, columns: &[&[f64]]) {
+    use std::fmt::Write;
+    let mut text = format!("{header}\n");
+    for k in 0..columns.first().map_or(0, |c| c.len()) {
+        let mut row: Vec<String> = ts_s
+            .map(|ts| (k as f64 * ts).to_string())
+            .into_iter()
+            .collect();
+        row.extend(columns.iter().map(|c| c[k].to_string()));
+        let _ = writeln!(text, "{}", row.join(","));
+    }
+    std::fs::write(path, text).unwrap();
+}
+
+/// `identify --data DATA --structure arx --na NA --nb NB --method METHOD`: the argument list the tests
+/// of an ARX identification start from (extend it with their own flags).
+pub fn identify_arx<'a>(data: &'a Path, na: &'a str, nb: &'a str, method: &'a str) -> Vec<&'a str> {
+    vec![
+        "identify",
+        "--data",
+        data.to_str().unwrap(),
+        "--structure",
+        "arx",
+        "--na",
+        na,
+        "--nb",
+        nb,
+        "--method",
+        method,
+    ]
+}

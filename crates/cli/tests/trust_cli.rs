@@ -1462,7 +1462,8 @@ fn tune_says_when_the_specification_is_far_outside_the_models_data() {
 
 // Audit s9 T6/T7/T4: a specification the plants cannot run is refused, naming --spec and what was
 // expected, and no controller is written: runs of fewer than 20 samples, set-points beyond the
-// physics plant's 200 mm stroke, a key given twice, a share above 1.
+// physics plant's 200 mm stroke, a key given twice, a share above 1, a settling target as long as the
+// run, set-points where a step is lost in rounding.
 #[test]
 fn tune_refuses_a_specification_its_plants_cannot_run() {
     let tmp = tempfile::tempdir().unwrap();
@@ -1472,6 +1473,15 @@ fn tune_refuses_a_specification_its_plants_cannot_run() {
         ("high=500", true, "within the plant's stroke 0..200 mm"),
         ("ess=0.1,ess=0.2", false, "ess is given twice"),
         ("ess-share=2", false, "in (0, 1]"),
+        // Audit s21 L-B4: a target no run can miss, and set-points where a step rounds to 0
+        // (-1e308 + 10 = -1e308 in f64).
+        (
+            "settling=10,run=3",
+            false,
+            "settling target shorter than each step's run",
+        ),
+        ("low=-1e308", false, "lost in rounding"),
+        ("high=1e300,low=0", false, "lost in rounding"),
     ] {
         let mut args = vec!["--model", "m.json", "--out", "c.json", "--spec", spec];
         if physics {

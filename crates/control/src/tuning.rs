@@ -565,7 +565,8 @@ pub const MAX_SIMULATED_SAMPLES: f64 = 1e8;
 
 /// Refuses a specification the plants cannot run: runs shorter than [`MIN_RUN_SAMPLES`] or longer than
 /// [`MAX_RUN_SAMPLES`] at the model's Ts, a request that would simulate more than
-/// [`MAX_SIMULATED_SAMPLES`], and, when the physics plant or a twin is simulated, set-points outside its
+/// [`MAX_SIMULATED_SAMPLES`], a settling target no shorter than the run, set-points so large that a
+/// step is lost in rounding, and, when the physics plant or a twin is simulated, set-points outside its
 /// stroke 0..L (its end stops would hold the piston, and the steps would be measured from a start it
 /// cannot take).
 fn check_spec(req: &Request, ts: f64, twin: &Option<ipa::PlantConfig>) -> Result<(), ControlError> {
@@ -623,6 +624,31 @@ fn check_spec(req: &Request, ts: f64, twin: &Option<ipa::PlantConfig>) -> Result
                 sysid_core::format::Shortest(ts)
             ),
         ));
+    }
+    // A settling target no shorter than each step's run can never be met nor missed: every run
+    // would count as settled (audit s21 L-B4).
+    if spec.settling_s >= spec.run_s {
+        return Err(bad(
+            format!("settling={}, run={}", spec.settling_s, spec.run_s),
+            "a settling target shorter than each step's run".to_string(),
+        ));
+    }
+    // Set-points so far from 0 that a step no longer fits in f64's digits: low = -1e308 made every
+    // step 0 mm (−1e308 + 10 = −1e308), tuned and "met" (audit s21 L-B4). A step must survive the
+    // round trip to within 1e-9 of itself from both ends.
+    for &d in &spec.steps_mm {
+        let up = (spec.low_mm + d) - spec.low_mm;
+        let down = spec.high_mm - (spec.high_mm - d);
+        if (up - d).abs() > 1e-9 * d || (down - d).abs() > 1e-9 * d {
+            return Err(bad(
+                format!("low={}, high={}, steps={d}", spec.low_mm, spec.high_mm),
+                format!(
+                    "set-points whose {d} mm steps are representable: at {} mm apart from 0 a step \
+                     of {d} mm is lost in rounding; set-points nearer 0 (or larger steps)",
+                    sysid_core::format::Shortest(spec.low_mm.abs().max(spec.high_mm.abs()))
+                ),
+            ));
+        }
     }
     let strokes = [
         twin.as_ref().map(|c| c.cylinder.stroke_mm),

@@ -454,6 +454,10 @@ fn tuning_meets_the_spec_where_it_is_reachable() {
             };
         tune::evaluate(5, &f, &factory, &spec).unwrap()
     };
+    // The evaluation reported is the written controller's on the 5 plants searched over, although
+    // the short-step choices (session 21) were made on 21: their runs on plants 0..5 are its runs.
+    assert_eq!(&evaluate(t.settings), e);
+    assert_eq!(tune::short_stage_plants(30), 30);
     let better = |w: &tune::Evaluation| e.met > w.met || (e.met == w.met && e.cost < w.cost);
     // The ramp-and-cut band e_c (session 18) was the last choice, among the finish's e_c (by J) and
     // the other bands of CUT_BANDS_MM: the chosen one meets the whole specification in at least as

@@ -31,8 +31,10 @@
 //! documentation); then, the same way, its re-brake of [`rebrake_candidates`] (session 19), its
 //! preview of [`brake_preview_candidates`] (session 20), the nudge's rest count N_r of
 //! [`NUDGE_REST_CANDIDATES`] (session 16), then the short-step approach of [`short_candidates`]
-//! (session 17), then its range of [`short_range_candidates`] (session 18), its preview of
-//! [`short_preview_candidates`] (session 20), and last the ramp-and-cut band e_c of
+//! (session 17), then its preview of [`short_preview_candidates`] (session 20) and its range of
+//! [`short_range_candidates`] (session 18; after the preview since session 21) — these three judged
+//! on the wider tuning plants of [`short_stage_plants`] (session 21) —, and last the ramp-and-cut
+//! band e_c of
 //! [`cut_band_candidates`] (session 18: the finish's e_c, chosen by J, re-chosen by the count).
 //!
 //! **Linear margins.** [`margins`] gives the gain and phase margins of the loop's linear part: the
@@ -751,7 +753,9 @@ pub struct Tuned {
     /// Evaluations of the nudge's rest count N_r after the brake ([`NUDGE_REST_CANDIDATES`]).
     pub rest_evaluations: usize,
     /// Evaluations of the short-step approach after the rest count ([`short_candidates`]'s, its
-    /// range's and its preview's: [`short_range_candidates`], [`short_preview_candidates`]).
+    /// preview's and its range's: [`short_preview_candidates`], [`short_range_candidates`]), each on
+    /// [`short_stage_plants`] plants, and the controller before them once on those plants when they
+    /// are more than the plants searched over.
     pub short_evaluations: usize,
     /// Evaluations of the ramp-and-cut band after the short-step approach ([`cut_band_candidates`]'s).
     pub cut_evaluations: usize,
@@ -888,8 +892,9 @@ pub fn tune(
     let best = settings_of(&theta, cut_band_mm, deadzone, ts_s, spec)?;
     // After the search, each choice in turn, kept by the count at the controller chosen so far: the
     // nudge's slip brake, the approach with braking, its re-brake, its preview, the nudge's rest
-    // count, the short-step approach, its range, its preview, the ramp-and-cut band (module
-    // documentation).
+    // count, the short-step approach, its preview, its range, the ramp-and-cut band (module
+    // documentation). The short-step approach's three choices are judged on the tuning plants
+    // widened to SHORT_STAGE_PLANTS ([`short_stage_plants`]); the others on `settings.plants`.
     let stages: [fn(&ControllerSettings, &Spec) -> Vec<ControllerSettings>; 9] = [
         slip_brake_candidates,
         brake_candidates,
@@ -897,28 +902,62 @@ pub fn tune(
         brake_preview_candidates,
         |s, _| rest_candidates(s),
         short_candidates,
-        short_range_candidates,
         short_preview_candidates,
+        short_range_candidates,
         cut_band_candidates,
     ];
+    let wide_plants = short_stage_plants(settings.plants);
     let (mut settings_chosen, mut evaluation) = (best, evaluation);
+    // The chosen controller's evaluation on the wide plants, while the short-step stages run.
+    let mut wide: Option<Evaluation> = None;
     let mut counts = [0; 9];
     let (mut brake_before_preview, mut short_before_preview) = (None, None);
     for (i, (stage, count)) in stages.iter().zip(counts.iter_mut()).enumerate() {
         match i {
             3 => brake_before_preview = settings_chosen.brake,
-            7 => short_before_preview = settings_chosen.short_approach,
+            6 => short_before_preview = settings_chosen.short_approach,
             _ => {}
         }
         let candidates = stage(&settings_chosen, spec);
-        (settings_chosen, evaluation, *count) = choose_by_count(
+        if !(5..=7).contains(&i) || wide_plants == settings.plants {
+            (settings_chosen, evaluation, *count) = choose_by_count(
+                settings_chosen,
+                evaluation,
+                &candidates,
+                make_plant,
+                settings.plants,
+                spec,
+            )?;
+            continue;
+        }
+        if candidates.is_empty() {
+            continue;
+        }
+        let before = match wide.take() {
+            Some(w) => w,
+            None => {
+                *count += 1;
+                let s = settings_chosen;
+                let factory = move || -> Result<Box<dyn Controller + Send>, ControlError> {
+                    Ok(Box::new(s.build()?))
+                };
+                evaluate(wide_plants, make_plant, &factory, spec)?
+            }
+        };
+        let (chosen, on_wide, n) = choose_by_count(
             settings_chosen,
-            evaluation,
+            before,
             &candidates,
             make_plant,
-            settings.plants,
+            wide_plants,
             spec,
         )?;
+        *count += n;
+        if chosen != settings_chosen {
+            settings_chosen = chosen;
+            evaluation = on_first_plants(&on_wide, settings.plants, spec);
+        }
+        wide = Some(on_wide);
     }
     // Last, the nudge's relearning wherever the slip brake was kept: not chosen by the count
     // (module documentation, [`relearn_candidates`]); evaluated once, so that the evaluation
@@ -950,6 +989,36 @@ pub fn tune(
         brake_before_preview,
         short_before_preview,
     })
+}
+
+/// The tuning plants on which the short-step approach's three choices (the approach itself, its
+/// preview, its range) are judged: the `plants` searched over widened to [`SHORT_STAGE_PLANTS`]
+/// (the model or twin and 20 draws; as many as `plants` when that is more).
+pub fn short_stage_plants(plants: usize) -> usize {
+    plants.max(SHORT_STAGE_PLANTS)
+}
+
+/// The tuning plants of the short-step approach's choices ([`short_stage_plants`]; issue 25,
+/// session 21). On the twin's 5 tuning plants (40 runs) the short-step range tied: e_m = 40 mm with
+/// the preview settled one more 30 mm step and overshot one more (variant 4, 175 → 145 mm, 2.4 %),
+/// and the tie went to e_m = 20 mm by the lower J, although on 21 of its plants (168 runs) e_m = 40
+/// mm met the whole specification in 143 runs against 133, and on the 168 verification runs in 134
+/// against 125. The short-step choices move the 10 and 30 mm steps, whose settling misses are a few
+/// runs each: 40 runs are too few to tell them apart. Evaluations on 21 plants cost about four of
+/// the 5-plant ones; the other choices stay on the plants searched over (all of them widened:
+/// `tune` 1.7–2 × slower and the twin's 168 runs 129, docs/control.md, Results' session-21 block).
+pub const SHORT_STAGE_PLANTS: usize = 21;
+
+/// `e` restricted to its runs on plants `0..plants` (the same runs as an evaluation on them).
+fn on_first_plants(e: &Evaluation, plants: usize, spec: &Spec) -> Evaluation {
+    summarise(
+        e.runs
+            .iter()
+            .filter(|r| r.plant < plants)
+            .cloned()
+            .collect(),
+        spec,
+    )
 }
 
 /// `chosen` with the nudge's slip brake (a_p, T_p) = ([`NUDGE_SLIP_BRAKE_FRACTION`],
@@ -1005,8 +1074,10 @@ pub const BRAKE_CANDIDATES: [(f64, f64); 6] = [
 ];
 /// Evaluations after the search: the approach with braking ([`BRAKE_CANDIDATES`] × [`BRAKE_TIMES_S`]),
 /// its re-brake (one more, [`rebrake_candidates`]) and its preview ([`BRAKE_PREVIEW_CANDIDATES`]), the nudge's rest count ([`NUDGE_REST_CANDIDATES`]), the short-step approach
-/// ([`SHORT_DRIVE_FRACTIONS`] × [`SHORT_LEADS_S`] × [`SHORT_SWITCHES_MM`]), its range (one more,
-/// [`SHORT_NARROW_MAX_STEP_FRACTION`]) and its preview ([`SHORT_PREVIEW_CANDIDATES`]), the ramp-and-cut band (at most [`CUT_BANDS_MM`]'s
+/// ([`SHORT_DRIVE_FRACTIONS`] × [`SHORT_LEADS_S`] × [`SHORT_SWITCHES_MM`]), its preview
+/// ([`SHORT_PREVIEW_CANDIDATES`]) and its range (one more, [`SHORT_NARROW_MAX_STEP_FRACTION`]), the
+/// controller before them on the wider plants of [`short_stage_plants`] (one more; these
+/// [`SHORT_STAGE_EVALUATIONS`] on those plants), the ramp-and-cut band (at most [`CUT_BANDS_MM`]'s
 /// length, [`cut_band_candidates`]) and, first of all, the nudge's slip brake (one,
 /// [`slip_brake_candidates`]) and, last of all, the nudge's relearning (one, [`relearn_candidates`]).
 pub const AFTER_SEARCH_EVALUATIONS: usize = 1
@@ -1015,10 +1086,13 @@ pub const AFTER_SEARCH_EVALUATIONS: usize = 1
     + 1
     + BRAKE_PREVIEW_CANDIDATES.len()
     + NUDGE_REST_CANDIDATES.len()
-    + SHORT_CANDIDATES
-    + 1
-    + SHORT_PREVIEW_CANDIDATES.len()
+    + SHORT_STAGE_EVALUATIONS
     + CUT_BANDS_MM.len();
+
+/// Evaluations of the short-step approach's choices, each on [`short_stage_plants`] plants: the
+/// controller before them, [`SHORT_CANDIDATES`], [`SHORT_PREVIEW_CANDIDATES`] and the range (one).
+pub const SHORT_STAGE_EVALUATIONS: usize =
+    1 + SHORT_CANDIDATES + SHORT_PREVIEW_CANDIDATES.len() + 1;
 
 /// U: the short-step approach's drive fractions of u_max tried (issue 25, session 17): at the full
 /// command the piston covers about 5.8 mm per 10 ms sample and a 10 mm step overshoots by 7 mm
@@ -1059,7 +1133,10 @@ pub const SHORT_MAX_STEP_FRACTION: f64 = 4.0 / 15.0;
 /// (limit cycle 3.2 mm, the twin's worst; 1.02 mm without the short-step approach). Chosen by the
 /// count on the tuning plants as the other candidates: the twin's choice, and with it its 168
 /// verification runs 77 → 84 (worst limit cycle 3.20 → 1.02 mm), the independent family 84 → 86 and
-/// the fragility twins 455 → 462 (docs/control.md, Results' session-18 block).
+/// the fragility twins 455 → 462 (docs/control.md, Results' session-18 block). Since session 21 it is
+/// tried after the short-step preview, on [`short_stage_plants`] plants: before the preview (whose
+/// switch lands the 30 mm steps' drives within their band too) twin_m's 21 plants narrowed it and
+/// its 168 runs fell 91 → 79.
 pub const SHORT_NARROW_MAX_STEP_FRACTION: f64 = 2.0 / 15.0;
 
 /// The short-step approach with drive fraction U, lead τ_s (s) and switch e_s' (mm) for `spec` at

@@ -94,7 +94,8 @@ pub struct TuneReport {
     /// Evaluations of the nudge's rest count after the brake (`tune::NUDGE_REST_CANDIDATES`).
     pub rest_evaluations: usize,
     /// Evaluations of the short-step approach after the rest count (`tune::short_candidates`, its
-    /// range and its preview: `tune::short_range_candidates`, `tune::short_preview_candidates`).
+    /// preview and its range: `tune::short_preview_candidates`, `tune::short_range_candidates`), on
+    /// `tune::short_stage_plants(search.plants)` plants each.
     pub short_evaluations: usize,
     /// Evaluations of the ramp-and-cut band after the short-step approach (`tune::cut_band_candidates`).
     pub cut_evaluations: usize,
@@ -586,8 +587,11 @@ fn check_spec(req: &Request, ts: f64, twin: &Option<ipa::PlantConfig>) -> Result
         ));
     }
     let cases = spec.cases().len() as f64;
+    // The short-step approach's choices run on more plants than the search (tune::short_stage_plants).
+    let wider = tune::short_stage_plants(req.search.plants) - req.search.plants;
     let search = (req.search.max_evaluations + tune::AFTER_SEARCH_EVALUATIONS) as f64
-        * req.search.plants as f64;
+        * req.search.plants as f64
+        + (tune::SHORT_STAGE_EVALUATIONS * wider) as f64;
     let verified = 2.0 * (req.search.plants + req.physics_variants + 1) as f64;
     let work = (search + verified) * cases * run_samples.ceil();
     if work > MAX_SIMULATED_SAMPLES {

@@ -454,6 +454,10 @@ fn tuning_meets_the_spec_where_it_is_reachable() {
             };
         tune::evaluate(5, &f, &factory, &spec).unwrap()
     };
+    // The evaluation reported is the written controller's on the 5 plants searched over, although
+    // the short-step choices (session 21) were made on 21: their runs on plants 0..5 are its runs.
+    assert_eq!(&evaluate(t.settings), e);
+    assert_eq!(tune::short_stage_plants(30), 30);
     let better = |w: &tune::Evaluation| e.met > w.met || (e.met == w.met && e.cost < w.cost);
     // The ramp-and-cut band e_c (session 18) was the last choice, among the finish's e_c (by J) and
     // the other bands of CUT_BANDS_MM: the chosen one meets the whole specification in at least as
@@ -493,19 +497,63 @@ fn tuning_meets_the_spec_where_it_is_reachable() {
     }
     // The earlier choices were made with the finish's e_c: their checks below start from it.
     let before = with_band(t.cut_band_before_mm);
-    let e = &evaluate(before);
-    let better = |w: &tune::Evaluation| e.met > w.met || (e.met == w.met && e.cost < w.cost);
     let mut searched = before;
-    // Its range (session 18) and its preview (session 20) are tried only when a short-step approach
-    // was chosen.
+    // The short-step approach's three choices (session 21) were judged on the wider plants of
+    // short_stage_plants (21 here: the fixed design's variants 5.. are intermediate scalings), the
+    // controller before them evaluated there once; its preview (session 20) and its range (session
+    // 18) only when a short-step approach was chosen, the range after the preview.
+    let wide = tune::short_stage_plants(5);
+    assert_eq!(wide, 21);
+    let evaluate_wide = |s: ControllerSettings| {
+        let factory =
+            move || -> Result<Box<dyn control::Controller + Send>, control::ControlError> {
+                Ok(Box::new(s.build()?))
+            };
+        tune::evaluate(wide, &f, &factory, &spec).unwrap()
+    };
+    let beats = |a: &tune::Evaluation, b: &tune::Evaluation| {
+        a.met > b.met || (a.met == b.met && a.cost < b.cost)
+    };
+    let short_chosen = searched.short_approach.is_some();
     assert_eq!(
         t.short_evaluations,
-        tune::SHORT_CANDIDATES
-            + usize::from(searched.short_approach.is_some())
-                * (1 + tune::SHORT_PREVIEW_CANDIDATES.len())
+        1 + tune::SHORT_CANDIDATES
+            + usize::from(short_chosen) * (tune::SHORT_PREVIEW_CANDIDATES.len() + 1)
     );
-    // The short-step approach's preview came last of its choices: when chosen, it beat the
-    // approach without it; none of the other preview candidates beats it.
+    let largest = spec.steps_mm.iter().copied().fold(0.0, f64::max);
+    let ew = evaluate_wide(searched);
+    // The range came last of the three: a narrowed e_m beat the wider one on the wide plants, and
+    // a wider one is never beaten by the narrowed.
+    if let Some(a) = searched.short_approach {
+        let narrow = tune::SHORT_NARROW_MAX_STEP_FRACTION * largest;
+        let other = ControllerSettings {
+            short_approach: Some(control::position::ShortApproach {
+                max_step_mm: if a.max_step_mm == narrow {
+                    tune::SHORT_MAX_STEP_FRACTION * largest
+                } else {
+                    narrow
+                },
+                ..a
+            }),
+            ..searched
+        };
+        let w = evaluate_wide(other);
+        if a.max_step_mm == narrow {
+            assert!(beats(&ew, &w));
+        } else {
+            assert!(!beats(&w, &ew));
+        }
+        searched = ControllerSettings {
+            short_approach: Some(control::position::ShortApproach {
+                max_step_mm: tune::SHORT_MAX_STEP_FRACTION * largest,
+                ..a
+            }),
+            ..searched
+        };
+    }
+    // Its preview before the range: when chosen, it beat the approach without it on the wide
+    // plants; none of the other preview candidates beats it there.
+    let ew = evaluate_wide(searched);
     if searched.short_approach.is_some_and(|a| a.preview) {
         for other in tune::short_preview_candidates(
             &ControllerSettings {
@@ -514,30 +562,22 @@ fn tuning_meets_the_spec_where_it_is_reachable() {
             },
             &spec,
         ) {
-            let w = evaluate(other);
-            assert!(!(w.met > e.met || (w.met == e.met && w.cost < e.cost)));
+            assert!(!beats(&evaluate_wide(other), &ew));
         }
         searched.short_approach = t.short_before_preview;
-        assert!(better(&evaluate(searched)));
+        assert!(beats(&ew, &evaluate_wide(searched)));
     } else {
         assert_eq!(searched.short_approach, t.short_before_preview);
     }
-    // The short-step approach's range came before: a narrowed e_m beat the wider one.
-    let largest = spec.steps_mm.iter().copied().fold(0.0, f64::max);
-    if let Some(a) = searched.short_approach {
-        if a.max_step_mm == tune::SHORT_NARROW_MAX_STEP_FRACTION * largest {
-            let mut wide = searched;
-            wide.short_approach = Some(control::position::ShortApproach {
-                max_step_mm: tune::SHORT_MAX_STEP_FRACTION * largest,
-                ..a
-            });
-            assert!(better(&evaluate(wide)));
-        }
-    }
-    // The short-step approach (session 17) before it: without it, the controller before it.
+    // The short-step approach (session 17) before them: without it, the controller before it, on
+    // the wide plants too.
+    let ew = evaluate_wide(searched);
     if searched.short_approach.take().is_some() {
-        assert!(better(&evaluate(searched)));
+        assert!(beats(&ew, &evaluate_wide(searched)));
     }
+    // The choices before the short-step approach on the plants searched over.
+    let e = &evaluate(searched);
+    let better = |w: &tune::Evaluation| beats(e, w);
     let nudge = searched.nudge.as_mut().unwrap();
     let rest_chosen = nudge.rest_samples != tune::NUDGE_REST_SAMPLES;
     nudge.rest_samples = tune::NUDGE_REST_SAMPLES;

@@ -254,7 +254,11 @@ fn summary_text(r: &TuneReport, out: Option<&Path>) -> String {
         } else {
             String::new()
         } + &if r.short_evaluations > 0 {
-            format!(" + {} of the short-step approach", r.short_evaluations)
+            format!(
+                " + {} of the short-step approach on {} plants",
+                r.short_evaluations,
+                control::tune::short_stage_plants(r.search.plants)
+            )
         } else {
             String::new()
         } + &if r.cut_evaluations > 0 {

@@ -777,23 +777,31 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
     }
     // The guard (sysid's order): the new factors are P(k) itself (the pending scale was consumed);
     // when tr P(k) > T, P ← c · P with c = T / tr P, left pending as ρ̃ = ρ / c = tr P · (ρ / T) for the
-    // next update, which folds it into its 1/ρ̃. Written only when it changes: a store on one arm stays
-    // a branch, so the next update's ρ̃ does not wait for this tr P when the guard does not act (a
-    // select would make it wait).
+    // next update, which folds it into its 1/ρ̃; else ρ̃ = ρ. How ρ̃ is written depends on a band:
+    // - tr P(k) > T/4 (near the bound, where the guard acts on some updates and not on others): ρ̃ is
+    //   chosen by a select, with no branch on whether the guard acts. A branch there was mispredicted
+    //   whenever the decision flipped (in the benchmark's acting case on 13 % of updates), and that cost
+    //   more than the select: the acting guard took 2–3 ns more per update at n = 4 than a guard that
+    //   acted at every update (docs/benchmarks.md, "Fifteenth round").
+    // - tr P(k) ≤ T/4 (far from the bound, the guard idle): ρ̃ = ρ is written only when it changes, a
+    //   branch that is predicted, so the next update's ρ̃ does not wait for this tr P.
+    // Either way ρ̃ takes the same value (f64 bit for bit with `sysid`). ρ, T and ρ̃ are read again
+    // here (volatile loads) instead of kept in registers through the update: fewer live values in the
+    // kernel (with T live, the f64 n = 4 kernel spilled its trace sum to the stack: 32 ns instead of 20).
     if GUARD {
-        if tr > max_trace {
-            est.var = tr * rho_t;
+        // SAFETY: references to initialised fields of `est`.
+        let (rho, bound) = unsafe {
+            (
+                core::ptr::read_volatile(&est.forgetting),
+                core::ptr::read_volatile(&est.max_trace),
+            )
+        };
+        if tr > bound * F::from_f64(0.25) {
+            // The same value both ways; the compiler emits a select (no branch) here.
+            est.var = if tr > bound { tr * rho_t } else { rho };
         } else {
-            // ρ and ρ̃ read again here (volatile loads) instead of kept in registers through the
-            // update: fewer live values in the kernel (measured: the inactive guard at n = 4 as fast
-            // as before the pending scale, docs/benchmarks.md "Eleventh round").
-            // SAFETY: references to initialised fields of `est`.
-            let (rho, pending) = unsafe {
-                (
-                    core::ptr::read_volatile(&est.forgetting),
-                    core::ptr::read_volatile(&est.var),
-                )
-            };
+            // SAFETY: a reference to an initialised field of `est`.
+            let pending = unsafe { core::ptr::read_volatile(&est.var) };
             if pending != rho {
                 est.var = rho;
             }

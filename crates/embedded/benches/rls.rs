@@ -11,8 +11,10 @@
 //!
 //! Guard cases: `guard` and `ud-guard` have T = p0 · n (the `identify --windup trace` default; on this
 //! data it is active only at the start), `guard-active` and `ud-guard-active` have T = ½ the trace the
-//! unguarded estimator reaches, so that they rescale P at every update (the guard's worst case, which
-//! sets the update's worst-case time on a controller).
+//! unguarded estimator reaches, so that they keep P near the bound and rescale it on most updates (the
+//! guard's worst case, which sets the update's worst-case time on a controller). On this record the UD
+//! guard then acts on 84 % of updates at n = 4 and 77 % at n = 9, and its decision changes on 13–14 % of
+//! them (issue 28, fifteenth round).
 //!
 //! Run: `cargo bench -p ipa-embedded --bench rls -- --warm-up-time 1 --measurement-time 3`, then
 //! `python3 crates/embedded/benches/best_of.py` for the best and median sample of each benchmark.

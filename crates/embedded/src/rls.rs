@@ -72,6 +72,15 @@
 //! only tr P · (ρ / T) (ρ / T divided at the start of the update, off the chain). [`Rls::p`] and
 //! [`Rls::trace`] report c · U D Uᵀ; a failed update leaves ρ̃ unchanged; a restart sets ρ̃ = ρ.
 //! `sysid::rls_ud::RobustRls` keeps the same pending variance, so f64 results are bit for bit.
+//! The guard acts when tr P · (ρ / T) > ρ (tr P > T up to the rounding of ρ̃; `sysid`'s test), and how
+//! ρ̃ is written depends on a band (issue 28, fifteenth round): with tr P > T/4, near the bound, where
+//! data can make the guard act on some updates and not on others, ρ̃ = max(tr P · (ρ / T), ρ) with no
+//! branch (a branch there was mispredicted at every change of the decision, 2–3 ns per update at n = 4
+//! in a benchmark where it changed on 13 % of updates); with tr P ≤ T/4 the guard cannot act and ρ̃ = ρ is
+//! written only when it changes, a predicted branch, so that the next update does not wait for tr P.
+//! Both ways give the same ρ̃; the update takes the same time near the bound whether the guard acts or
+//! not (2 flops more per guarded update than before: T/4 and, near the bound, the product also when the
+//! guard does not act).
 //! In f32 with a capacity N ≤ 4 the guard uses the same shorter chains as the unguarded update (see
 //! "UD form"; they replace the thirteenth round's ρ̃ added last to Bierman's prefix sums).
 //!
@@ -777,23 +786,36 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
     }
     // The guard (sysid's order): the new factors are P(k) itself (the pending scale was consumed);
     // when tr P(k) > T, P ← c · P with c = T / tr P, left pending as ρ̃ = ρ / c = tr P · (ρ / T) for the
-    // next update, which folds it into its 1/ρ̃. Written only when it changes: a store on one arm stays
-    // a branch, so the next update's ρ̃ does not wait for this tr P when the guard does not act (a
-    // select would make it wait).
+    // next update, which folds it into its 1/ρ̃; else ρ̃ = ρ. How ρ̃ is written depends on a band:
+    // - tr P(k) > T/4 (near the bound, where the guard acts on some updates and not on others): ρ̃ is
+    //   max(tr P · (ρ / T), ρ), with no branch on whether the guard acts. A branch there was mispredicted
+    //   whenever the decision flipped (in the benchmark's acting case on 13 % of updates), and that cost
+    //   more than the select: the acting guard took 2–3 ns more per update at n = 4 than a guard that
+    //   acted at every update (docs/benchmarks.md, "Fifteenth round").
+    // - tr P(k) ≤ T/4 (far from the bound, the guard idle): ρ̃ = ρ is written only when it changes, a
+    //   branch that is predicted, so the next update's ρ̃ does not wait for this tr P.
+    // Either way ρ̃ takes the same value (f64 bit for bit with `sysid`). ρ, T and ρ̃ are read again
+    // here (volatile loads) instead of kept in registers through the update: fewer live values in the
+    // kernel (with T live, the f64 n = 4 kernel spilled its trace sum to the stack: 32 ns instead of 20).
     if GUARD {
-        if tr > max_trace {
-            est.var = tr * rho_t;
+        // SAFETY: references to initialised fields of `est`.
+        let (rho, bound) = unsafe {
+            (
+                core::ptr::read_volatile(&est.forgetting),
+                core::ptr::read_volatile(&est.max_trace),
+            )
+        };
+        if tr > bound * F::from_f64(0.25) {
+            // ρ̃ = max(tr P · (ρ / T), ρ): the guard acts when tr P · (ρ / T) > ρ, i.e. tr P > T up to
+            // the rounding of ρ̃ (`sysid`'s test). The same value as a branch would write; the
+            // compiler emits a maximum (`maxsd`/`maxss` on x86-64), one operation after tr P · (ρ / T)
+            // on the next update's chain instead of a compare-and-blend (measured 0.2–0.4 ns less per
+            // update with the guard near the bound, docs/benchmarks.md "Fifteenth round").
+            let v = tr * rho_t;
+            est.var = if v > rho { v } else { rho };
         } else {
-            // ρ and ρ̃ read again here (volatile loads) instead of kept in registers through the
-            // update: fewer live values in the kernel (measured: the inactive guard at n = 4 as fast
-            // as before the pending scale, docs/benchmarks.md "Eleventh round").
-            // SAFETY: references to initialised fields of `est`.
-            let (rho, pending) = unsafe {
-                (
-                    core::ptr::read_volatile(&est.forgetting),
-                    core::ptr::read_volatile(&est.var),
-                )
-            };
+            // SAFETY: a reference to an initialised field of `est`.
+            let pending = unsafe { core::ptr::read_volatile(&est.var) };
             if pending != rho {
                 est.var = rho;
             }

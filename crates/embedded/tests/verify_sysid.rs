@@ -311,7 +311,10 @@ fn f32_ud_form_works_where_the_standard_form_fails() {
 // stretch (φ ≈ 0, so P grows like ρ^(−k) until tr P meets T), excitation again, on the state sized
 // exactly (n = N = 4, the unrolled kernel) and on a larger state (n = 4, N = 9, run-time loop bounds).
 // Every update: ε, θ̂ and tr P (its even-i plus odd-i column sums) equal to `sysid::rls_ud::RobustRls`'s
-// (`--rls-form ud --windup trace`) bit for bit; the guard acted on some updates and not on others.
+// (`--rls-form ud --windup trace`) bit for bit; the guard acted on some updates and not on others, and
+// of the idle updates some ended near the bound (T/4 < tr P ≤ T: the update writes ρ̃ by a select) and
+// some far from it (tr P ≤ T/4: a branch), the two ways the embedded update writes ρ̃ (issue 28,
+// fifteenth round).
 #[test]
 fn ud_guard_switching_on_and_off_is_bit_for_bit_sysid() {
     use sysid::rls_ud::{RlsForm, RobustRls};
@@ -329,7 +332,7 @@ fn ud_guard_switching_on_and_off_is_bit_for_bit_sysid() {
         .with_form(Form::Ud)
         .with_max_trace(t)
         .unwrap();
-    let (mut acted, mut idle) = (0, 0);
+    let (mut acted, mut idle, mut near, mut far) = (0, 0, 0, 0);
     for k in 0..600 {
         let quiet = (150..350).contains(&(k % 400));
         let scale = if quiet { 1e-9 } else { 1.0 };
@@ -353,9 +356,18 @@ fn ud_guard_switching_on_and_off_is_bit_for_bit_sysid() {
             acted += 1;
         } else {
             idle += 1;
+            if want.trace() > t / 4.0 {
+                near += 1;
+            } else {
+                far += 1;
+            }
         }
     }
     assert!(acted > 10 && idle > 10, "guard acted {acted}, idle {idle}");
+    assert!(
+        near > 10 && far > 10,
+        "idle near the bound {near}, far from it {far}"
+    );
 }
 
 /// One UD update of an `ipa_embedded::Rls` of any capacity: ε, θ̂'s first four entries and tr P.

@@ -16,7 +16,8 @@
 //!   scaled. In the UD form (tr P = Σ_j d_j Σ_(i≤j) U_ij²) the scale c = T / tr P is left pending,
 //!   P = c · U D Uᵀ, and the next update folds it in: Bierman's update of (U, D) with measurement variance
 //!   ρ̃ = ρ / c gives the gain and the factors of the update of c · U D Uᵀ, and D ← D · (1/ρ̃) both applies
-//!   c and divides by ρ. So the bound costs no pass over D; ρ̃ = tr P · (ρ / T) when it acts, ρ otherwise.
+//!   c and divides by ρ. So the bound costs no pass over D; ρ̃ = tr P · (ρ / T) when it acts, ρ otherwise,
+//!   and it acts when tr P · (ρ / T) > ρ (tr P > T up to the rounding of ρ̃; `ipa_embedded`'s test).
 //!   tr P sums each column's Σ_(i<j) U_ij² over even and odd i apart (`ud_trace`): `ipa_embedded`'s order.
 //!
 //! The same options exist in the standard (dense P) form, [`RlsForm::Standard`], for comparison.
@@ -211,10 +212,11 @@ impl RobustRls {
                 }
                 Covariance::Ud { u, d } => {
                     // The update consumed the pending scale: the new factors are P itself. When
-                    // tr P > T, c = T / tr P is left pending as ρ̃ = ρ / c = tr P · (ρ / T).
-                    let tr = ud_trace(u, d);
-                    self.pending_var =
-                        (tr > self.max_trace).then(|| tr * (self.forgetting / self.max_trace));
+                    // tr P > T, c = T / tr P is left pending as ρ̃ = ρ / c = tr P · (ρ / T); the test
+                    // is ρ̃ > ρ, i.e. tr P > T up to the rounding of ρ̃ (`ipa_embedded`'s order: its
+                    // update writes ρ̃ as max(tr P · (ρ / T), ρ), with no branch).
+                    let var = ud_trace(u, d) * (self.forgetting / self.max_trace);
+                    self.pending_var = (var > self.forgetting).then_some(var);
                 }
             }
         }

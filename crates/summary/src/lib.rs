@@ -12,7 +12,7 @@ use serde::{Deserialize, Serialize};
 
 use sysid::metrics::{metrics, pooled_metrics, Metrics};
 use sysid::residuals::ResidualAnalysis;
-use sysid::trust::{baseline_warning, metric_warnings};
+use sysid::trust::{baseline_warning, guarded_fit, held_out_drop, metric_warnings};
 use sysid::warnings::{Concern, Record, Warning};
 use sysid::SysidError;
 use sysid::{Dataset, EstimatorSettings, Fitted, Identification, Method, Model, Param, Passes};
@@ -331,6 +331,10 @@ impl IdentifyReport {
             report.warnings.extend(
                 metric_warnings(Record::Validation, m)
                     .iter()
+                    .chain(&held_out_drop(
+                        (Record::Estimation, guarded_fit(&report.metrics.estimation)),
+                        (Record::Validation, guarded_fit(m)),
+                    ))
                     .map(ToString::to_string),
             );
         }
@@ -544,12 +548,18 @@ impl ValidationReport {
     }
 
     /// The warnings of a model judged on a record with metrics `m`: an unstable or integrating model,
-    /// a negative or diverging simulation fit, a fit flattered by the initial state (what `validate`
-    /// and Python's `Model.metrics` say).
+    /// a negative or diverging simulation fit, a fit flattered by the initial state, a fit far below
+    /// the one the model file records on its estimation record (`sysid::trust::held_out_drop`; what
+    /// `validate` and Python's `Model.metrics` say).
     pub fn warnings_of(model: &Model, m: &Metrics) -> Vec<String> {
+        let estimation_fit = model.provenance().and_then(|p| p.fit_estimation_percent);
         Warning::if_unstable_or_integrating(model)
             .into_iter()
             .chain(metric_warnings(Record::Validation, m))
+            .chain(held_out_drop(
+                (Record::Estimation, estimation_fit),
+                (Record::Validation, guarded_fit(m)),
+            ))
             .map(|w| w.to_string())
             .collect()
     }

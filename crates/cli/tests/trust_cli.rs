@@ -1854,6 +1854,75 @@ fn a_validation_fit_far_below_the_estimation_fit_is_said() {
     assert_eq!(said_somewhere, [true, false]);
 }
 
+// Audit s21 M-A2 and M-A1 on `validate`: a model saved from the gas furnace's rows 0..148, validated on
+// those rows (in-sample, said), on rows 100..200 (148 − 100 = 48 of 100 rows in-sample) and on rows
+// 148..296 (held out: no in-sample word; the fall from the file's estimation fit said when the record's
+// worse fit is more than 15 points below it).
+#[test]
+fn validate_says_when_it_is_given_the_estimation_rows() {
+    let Some(dir) = data_dir() else { return };
+    let tmp = tempfile::tempdir().unwrap();
+    let model = tmp.path().join("gas.json");
+    let gas = "gas_furnace_box_jenkins/gas_furnace.csv";
+    let mut args = vec![
+        "identify",
+        "--data",
+        gas,
+        "--u-col",
+        "InputGasRate",
+        "--y-col",
+        "CO2",
+        "--ts",
+        "9",
+        "--offset",
+        "--rows",
+        "0..148",
+        "--na",
+        "2",
+        "--nb",
+        "2",
+        "--nk",
+        "3",
+        "--save-model",
+    ];
+    args.push(model.to_str().unwrap());
+    run_json(&dir, &args);
+    let file: Value = serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
+    let est_fit = file["model"]["identification"]["fit_estimation_percent"]
+        .as_f64()
+        .unwrap();
+    let validate = |rows: &str| {
+        run_json(
+            &dir,
+            &[
+                "validate",
+                "--model",
+                model.to_str().unwrap(),
+                "--data",
+                gas,
+                "--rows",
+                rows,
+            ],
+        )
+    };
+    let in_sample = |doc: &Value, words: &str| warnings(doc).iter().any(|w| w.starts_with(words));
+    let same = validate("0..148");
+    assert!(
+        in_sample(&same, "this is the data the model was estimated on"),
+        "{same}"
+    );
+    let part = validate("100..200");
+    assert!(in_sample(&part, "48 of the 100 rows of"), "{part}");
+    let held = validate("148..296");
+    assert!(!in_sample(&held, "this is the data") && !in_sample(&held, "148 of"));
+    let val = guarded(&held["metrics"]["validation"]).unwrap();
+    assert_eq!(drop_said(&held), est_fit - val > 15.0, "{est_fit} → {val}");
+    assert!(
+        drop_said(&held),
+        "the record no longer shows the drop: {est_fit} → {val}"
+    );
+}
+
 // Audit s21 L-B3: a validation fit of 0.04 % (the pneumatic cylinder at 1 bar, ARX by least squares)
 // is hardly better than the mean: warned below 5 %, as the JSON's own worse fit says.
 #[test]

@@ -752,6 +752,76 @@ pub fn same_samples_warning(
     ))
 }
 
+/// A record's name split into the file and the rows it holds, absolute in the file: `f.csv[100..600]`
+/// is rows 100..600 of `f.csv`, and a cut of a cut (`f.csv[100..600][0..250]`, `--rows` then
+/// `--split`) rows 100..350; `None` for the whole file (a name without a row suffix).
+pub fn record_rows(name: &str) -> (&str, Option<std::ops::Range<usize>>) {
+    let mut base = name;
+    let mut cuts = Vec::new();
+    while let Some(inner) = base.strip_suffix(']') {
+        let Some(open) = inner.rfind('[') else { break };
+        let Some((a, b)) = inner[open + 1..].split_once("..") else {
+            break;
+        };
+        let (Ok(a), Ok(b)) = (a.parse::<usize>(), b.parse::<usize>()) else {
+            break;
+        };
+        cuts.push(a..b.max(a));
+        base = &inner[..open];
+    }
+    // The outermost cut was stripped last: compose from it inwards.
+    let rows = cuts.into_iter().rev().reduce(|outer, inner| {
+        let start = outer.start + inner.start;
+        start.min(outer.end)..(outer.start + inner.end).min(outer.end)
+    });
+    (base, rows)
+}
+
+/// A warning when the record `name` of `len` rows that `validate` judges `model` on holds rows of the
+/// model's own estimation record, as the model file's identification record names it
+/// (`Provenance::record`: file and rows, [`record_rows`]; audit s21 M-A2): wholly, "this is the data
+/// the model was estimated on", or in part, with the count. Files are compared by their path as given,
+/// else by their canonical path. `None` without an identification record, for another file, or for
+/// disjoint rows. Row numbers are those of the names (a record resampled on reading is numbered in
+/// samples after resampling).
+pub fn estimation_rows_warning(model: &Model, name: &str, len: usize) -> Option<String> {
+    let record = &model.provenance()?.record;
+    let (est_file, est_rows) = record_rows(record);
+    let (file, rows) = record_rows(name);
+    let same_file = est_file == file
+        || matches!(
+            (std::fs::canonicalize(est_file), std::fs::canonicalize(file)),
+            (Ok(a), Ok(b)) if a == b
+        );
+    if !same_file {
+        return None;
+    }
+    let rows = rows.unwrap_or(0..len);
+    let est_rows = est_rows.unwrap_or(0..usize::MAX);
+    let shared = rows
+        .end
+        .min(est_rows.end)
+        .saturating_sub(rows.start.max(est_rows.start));
+    if shared == 0 {
+        return None;
+    }
+    Some(if shared >= rows.len() {
+        format!(
+            "this is the data the model was estimated on (the model file's identification record \
+             {record} holds every row of {name}): the fit is in-sample, not a validation; validate \
+             on rows the estimation did not use"
+        )
+    } else {
+        format!(
+            "{shared} of the {} rows of {name} ({:.0} %) are rows the model was estimated on (the \
+             model file's identification record {record}): the fit is in-sample there, not a pure \
+             validation; validate on rows the estimation did not use",
+            rows.len(),
+            100.0 * shared as f64 / rows.len().max(1) as f64
+        )
+    })
+}
+
 /// A warning when the simulated (or predicted) output `y` of `model` leaves the range of the model's
 /// estimation data by more than a tenth of that range (`DataRange::excursion`; audit s13 M3: an OE model
 /// of a 0..195 mm record simulated −95..465 mm, beyond the data and the actuator's stroke, without a

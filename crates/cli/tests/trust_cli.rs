@@ -1854,6 +1854,53 @@ fn a_validation_fit_far_below_the_estimation_fit_is_said() {
     assert_eq!(said_somewhere, [true, false]);
 }
 
+// Audit s21 M-A1 and L-A1 on `order`: the gas furnace chosen on its selection part (94.8 %) falls on
+// the test half; the drop is said, and `test.fit_sim_percent` is the text's headline (the worse of
+// both initial states, as ranked), the estimated-initial-output fit under its own name.
+#[test]
+fn order_says_when_the_test_fit_falls_far_below_the_selection_fit() {
+    let Some(dir) = data_dir() else { return };
+    let doc = order(
+        &dir,
+        &[
+            "--data",
+            "gas_furnace_box_jenkins/gas_furnace.csv",
+            "--u-col",
+            "InputGasRate",
+            "--y-col",
+            "CO2",
+            "--ts",
+            "9",
+            "--offset",
+            "--split",
+            "0.5",
+        ],
+    );
+    let t = &doc["test"];
+    let m = &t["metrics"];
+    assert_eq!(t["fit_sim_percent"].as_f64(), guarded(m), "{t}");
+    assert_eq!(t["fit_sim_estimated_percent"], m["fit_sim_percent"], "{t}");
+    let chosen = doc["candidates"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["orders"] == t["orders"])
+        .unwrap();
+    let sel = chosen["ranking_fit"].as_f64().unwrap();
+    let test = guarded(m).unwrap();
+    assert!(
+        sel - test > 15.0,
+        "the record no longer shows the drop: {sel} → {test}"
+    );
+    assert!(
+        warnings(&doc)
+            .iter()
+            .any(|w| w.starts_with("test record: the simulation fit falls from")),
+        "{:?}",
+        warnings(&doc)
+    );
+}
+
 // Audit s21 M-A2 and M-A1 on `validate`: a model saved from the gas furnace's rows 0..148, validated on
 // those rows (in-sample, said), on rows 100..200 (148 − 100 = 48 of 100 rows in-sample) and on rows
 // 148..296 (held out: no in-sample word; the fall from the file's estimation fit said when the record's

@@ -173,9 +173,12 @@ fn order_detects_an_operating_point_and_detrends_like_identify() {
     );
     let id: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&id_json).unwrap()).unwrap();
-    let id_fit = id["metrics"]["validation"]["fit_sim_percent"]
+    // `test.fit_sim_percent` is the worse of estimated and measured initial outputs (audit s21 L-A1).
+    let v = &id["metrics"]["validation"];
+    let id_fit = v["fit_sim_percent"]
         .as_f64()
-        .unwrap();
+        .unwrap()
+        .min(v["fit_sim_measured_percent"].as_f64().unwrap());
     assert!(
         (order_fit - id_fit).abs() < 1e-6,
         "order {order_fit} vs identify {id_fit}"

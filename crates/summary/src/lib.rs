@@ -12,7 +12,7 @@ use serde::{Deserialize, Serialize};
 
 use sysid::metrics::{metrics, pooled_metrics, Metrics};
 use sysid::residuals::ResidualAnalysis;
-use sysid::trust::{baseline_warning, metric_warnings};
+use sysid::trust::{baseline_warning, guarded_fit, held_out_drop, metric_warnings};
 use sysid::warnings::{Concern, Record, Warning};
 use sysid::SysidError;
 use sysid::{Dataset, EstimatorSettings, Fitted, Identification, Method, Model, Param, Passes};
@@ -331,6 +331,10 @@ impl IdentifyReport {
             report.warnings.extend(
                 metric_warnings(Record::Validation, m)
                     .iter()
+                    .chain(&held_out_drop(
+                        (Record::Estimation, guarded_fit(&report.metrics.estimation)),
+                        (Record::Validation, guarded_fit(m)),
+                    ))
                     .map(ToString::to_string),
             );
         }
@@ -544,12 +548,18 @@ impl ValidationReport {
     }
 
     /// The warnings of a model judged on a record with metrics `m`: an unstable or integrating model,
-    /// a negative or diverging simulation fit, a fit flattered by the initial state (what `validate`
-    /// and Python's `Model.metrics` say).
+    /// a negative or diverging simulation fit, a fit flattered by the initial state, a fit far below
+    /// the one the model file records on its estimation record (`sysid::trust::held_out_drop`; what
+    /// `validate` and Python's `Model.metrics` say).
     pub fn warnings_of(model: &Model, m: &Metrics) -> Vec<String> {
+        let estimation_fit = model.provenance().and_then(|p| p.fit_estimation_percent);
         Warning::if_unstable_or_integrating(model)
             .into_iter()
             .chain(metric_warnings(Record::Validation, m))
+            .chain(held_out_drop(
+                (Record::Estimation, estimation_fit),
+                (Record::Validation, guarded_fit(m)),
+            ))
             .map(|w| w.to_string())
             .collect()
     }
@@ -740,6 +750,76 @@ pub fn same_samples_warning(
         j + n,
         100.0 * n as f64 / test.len().max(1) as f64
     ))
+}
+
+/// A record's name split into the file and the rows it holds, absolute in the file: `f.csv[100..600]`
+/// is rows 100..600 of `f.csv`, and a cut of a cut (`f.csv[100..600][0..250]`, `--rows` then
+/// `--split`) rows 100..350; `None` for the whole file (a name without a row suffix).
+pub fn record_rows(name: &str) -> (&str, Option<std::ops::Range<usize>>) {
+    let mut base = name;
+    let mut cuts = Vec::new();
+    while let Some(inner) = base.strip_suffix(']') {
+        let Some(open) = inner.rfind('[') else { break };
+        let Some((a, b)) = inner[open + 1..].split_once("..") else {
+            break;
+        };
+        let (Ok(a), Ok(b)) = (a.parse::<usize>(), b.parse::<usize>()) else {
+            break;
+        };
+        cuts.push(a..b.max(a));
+        base = &inner[..open];
+    }
+    // The outermost cut was stripped last: compose from it inwards.
+    let rows = cuts.into_iter().rev().reduce(|outer, inner| {
+        let start = outer.start + inner.start;
+        start.min(outer.end)..(outer.start + inner.end).min(outer.end)
+    });
+    (base, rows)
+}
+
+/// A warning when the record `name` of `len` rows that `validate` judges `model` on holds rows of the
+/// model's own estimation record, as the model file's identification record names it
+/// (`Provenance::record`: file and rows, [`record_rows`]; audit s21 M-A2): wholly, "this is the data
+/// the model was estimated on", or in part, with the count. Files are compared by their path as given,
+/// else by their canonical path. `None` without an identification record, for another file, or for
+/// disjoint rows. Row numbers are those of the names (a record resampled on reading is numbered in
+/// samples after resampling).
+pub fn estimation_rows_warning(model: &Model, name: &str, len: usize) -> Option<String> {
+    let record = &model.provenance()?.record;
+    let (est_file, est_rows) = record_rows(record);
+    let (file, rows) = record_rows(name);
+    let same_file = est_file == file
+        || matches!(
+            (std::fs::canonicalize(est_file), std::fs::canonicalize(file)),
+            (Ok(a), Ok(b)) if a == b
+        );
+    if !same_file {
+        return None;
+    }
+    let rows = rows.unwrap_or(0..len);
+    let est_rows = est_rows.unwrap_or(0..usize::MAX);
+    let shared = rows
+        .end
+        .min(est_rows.end)
+        .saturating_sub(rows.start.max(est_rows.start));
+    if shared == 0 {
+        return None;
+    }
+    Some(if shared >= rows.len() {
+        format!(
+            "this is the data the model was estimated on (the model file's identification record \
+             {record} holds every row of {name}): the fit is in-sample, not a validation; validate \
+             on rows the estimation did not use"
+        )
+    } else {
+        format!(
+            "{shared} of the {} rows of {name} ({:.0} %) are rows the model was estimated on (the \
+             model file's identification record {record}): the fit is in-sample there, not a pure \
+             validation; validate on rows the estimation did not use",
+            rows.len(),
+            100.0 * shared as f64 / rows.len().max(1) as f64
+        )
+    })
 }
 
 /// A warning when the simulated (or predicted) output `y` of `model` leaves the range of the model's

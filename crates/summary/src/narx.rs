@@ -56,7 +56,7 @@ pub struct SelectionReport {
 impl NarxReport {
     /// Assembles the report of `fit` with metrics on `est` and `val`; a blow-up on either record, and
     /// on the validation record a negative fit or one far below the linear least-squares ARX baseline
-    /// ([`narx_trust`]), add a warning.
+    /// ([`narx_trust`]) or far below the estimation fit (`sysid::trust::held_out_drop`), add a warning.
     pub fn assemble(
         fit: NarxFit,
         settings: &NarxSettings,
@@ -80,6 +80,10 @@ impl NarxReport {
                     v,
                 )
                 .iter()
+                .chain(&sysid::trust::held_out_drop(
+                    (Record::Estimation, estimation.fit_sim_percent),
+                    (Record::Validation, v.fit_sim_percent),
+                ))
                 .map(ToString::to_string),
             );
         }

@@ -12,6 +12,9 @@
 //! - **Baseline.** A model far below the plain linear least-squares ARX of the same orders on the same
 //!   data ([`below_baseline`], [`BASELINE_MARGIN`] points) is worse than the simplest thing that could
 //!   have been done.
+//! - **Held out.** A simulation fit on a held-out record more than [`HELD_OUT_DROP`] points below the
+//!   fit on the record the model was estimated on or chosen by ([`held_out_drop`]): the first figure
+//!   flatters the model.
 //! - **Standard deviations.** When none can be computed, the reason is a warning.
 
 use sysid_core::metrics::Metrics;
@@ -19,7 +22,7 @@ use sysid_core::metrics::Metrics;
 use crate::residuals::{InputCorrelation, ResidualAnalysis};
 use crate::warnings::{Concern, Record, Warning};
 
-pub use crate::warnings::INITIAL_STATE_MARGIN;
+pub use crate::warnings::{HELD_OUT_DROP, INITIAL_STATE_MARGIN};
 
 /// Percentage points by which a model's guarded simulation fit may trail the linear least-squares ARX
 /// of the same orders on the same data before a warning says so.
@@ -58,6 +61,29 @@ pub fn initial_state_warning(record: Record, m: &Metrics) -> Option<Warning> {
             record,
             estimated,
             measured,
+        },
+    ))
+}
+
+/// [`Concern::HeldOutDrop`] when the simulation fit `held_out_fit` on the held-out record `held_out`
+/// (validation, test) trails the fit `fitted_fit` on the record `fitted` the model was estimated on or
+/// chosen by (estimation, selection) by more than [`HELD_OUT_DROP`] points. Both fits are the guarded
+/// ones ([`guarded_fit`]; a NARX free run's, which starts from measured outputs). Silent when either is
+/// unknown (a diverging simulation has its own warning) and when the fitted record's fit is not
+/// positive (a model no better than the mean where it was fitted has nothing to lose, and is warned
+/// so). The one rule of `identify` (validation data), `order` (selection → test) and `validate` (the
+/// model file's estimation fit → this record).
+pub fn held_out_drop(
+    (fitted, fitted_fit): (Record, Option<f64>),
+    (held_out, held_out_fit): (Record, Option<f64>),
+) -> Option<Warning> {
+    let (fitted_fit, held_out_fit) = (fitted_fit?, held_out_fit?);
+    (fitted_fit > 0.0 && held_out_fit < fitted_fit - HELD_OUT_DROP).then_some(Warning::Trust(
+        Concern::HeldOutDrop {
+            fitted,
+            fitted_fit,
+            held_out,
+            held_out_fit,
         },
     ))
 }
@@ -300,5 +326,51 @@ mod tests {
         assert!(below_baseline(Record::Estimation, Some(4.6), Some(40.0)).is_some());
         assert!(below_baseline(Record::Estimation, Some(25.0), Some(40.0)).is_none());
         assert!(trails(None, 40.0, 10.0));
+    }
+
+    // The gas furnace's halves: 92.2 % on the first, 53.7 % on the second, 38.5 points > 15: warned
+    // with both figures; 89.1 → 82.2 (the hair dryer, 6.9 points) is not; a fitted fit of −22.5 % has
+    // nothing to lose (its negative fit is warned); a diverged held-out run has its own warning.
+    #[test]
+    fn a_held_out_fit_more_than_fifteen_points_below_the_fitted_one_is_warned() {
+        let w = held_out_drop(
+            (Record::Estimation, Some(92.2)),
+            (Record::Validation, Some(53.7)),
+        )
+        .unwrap();
+        assert_eq!(w.record(), Some(Record::Validation));
+        let text = w.to_string();
+        assert!(text.contains("from 92.20 % on the estimation data to 53.70 % on the validation data (38.5 points"), "{text}");
+        let quiet = |a: Option<f64>, b: Option<f64>| {
+            held_out_drop((Record::Selection, a), (Record::Test, b)).is_none()
+        };
+        assert!(quiet(Some(89.1), Some(82.2)));
+        assert!(
+            quiet(Some(80.0), Some(65.0)),
+            "exactly 15 points is not more than 15"
+        );
+        assert!(!quiet(Some(80.0), Some(64.9)));
+        assert!(quiet(Some(-22.5), Some(-80.0)));
+        assert!(quiet(Some(90.0), None) && quiet(None, Some(10.0)));
+    }
+
+    // Below 5 % on a held-out record: hardly better than the mean (0.04 %, audit s21 L-B3); 5 % is not
+    // below; on the estimation record only a fit <= 0 is warned (where `order` disqualifies).
+    #[test]
+    fn a_held_out_fit_below_five_percent_is_hardly_better_than_the_mean() {
+        let w = Warning::if_poor_simulation(Record::Validation, Some(0.042)).unwrap();
+        assert!(
+            w.to_string().contains("0.04 % on the validation data"),
+            "{w}"
+        );
+        assert!(
+            w.to_string()
+                .contains("hardly better than the record's mean"),
+            "{w}"
+        );
+        assert!(Warning::if_poor_simulation(Record::Test, Some(4.99)).is_some());
+        assert!(Warning::if_poor_simulation(Record::Validation, Some(5.0)).is_none());
+        assert!(Warning::if_poor_simulation(Record::Estimation, Some(0.042)).is_none());
+        assert!(Warning::if_poor_simulation(Record::Selection, Some(0.0)).is_some());
     }
 }

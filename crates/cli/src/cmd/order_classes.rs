@@ -303,6 +303,15 @@ fn chosen_on_test(
             }
         }
     };
+    // The test fit far below the selection fit that chose the candidate (audit s21 M-A1), as plain
+    // `order` says it; both from the measured initial outputs.
+    warnings.extend(
+        sysid::trust::held_out_drop(
+            (sysid::warnings::Record::Selection, c.selection_fit_percent),
+            (sysid::warnings::Record::Test, fit),
+        )
+        .map(|w| super::order::test_record_words(&w)),
+    );
     Ok(Chosen {
         class: c.class.clone(),
         orders: o,

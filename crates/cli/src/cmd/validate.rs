@@ -149,7 +149,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     report
         .warnings
         .extend(record.notes.iter().map(|n| format!("data: {n}")));
-    model_warnings(&mut report, &model);
+    model_warnings(&mut report, &model, data.name(), data.len());
     let out = sysid::metrics::model_output(&model, &us, data.y(), args.horizon).map_err(blame)?;
     let value = report_json(&report, args.horizon, out.fit_pred_percent, &record.notes)?;
     let text = report_text(
@@ -437,10 +437,12 @@ fn run_streamed(
             })
         })?;
     let shape = streamed.shape;
+    // The name once read: with --rows it says which rows (`file.csv[100..600]`), as in memory.
+    let name = sysid::data::stream::RecordSource::name(&src).to_string();
     sysid::metrics::check_sampling(&name, shape.ts, model.ts())?;
     stream_note(&name, streamed.passes, shape.rows, args.stream);
     let mut report = streamed.result;
-    model_warnings(&mut report, model);
+    model_warnings(&mut report, model, &name, shape.rows);
     // The 1-step prediction of `model_output`: the ARX predictor, or for an output-error model the
     // simulation from the measured initial outputs.
     let m = &report.metrics.validation;
@@ -480,8 +482,13 @@ fn blame_model(
     }
 }
 
-/// Adds what the model file itself deserves a warning for (a map that breaks its kind's shape) to the report.
-fn model_warnings(report: &mut ValidationReport, model: &sysid::Model) {
+/// Adds what the model file itself deserves a warning for (a map that breaks its kind's shape, its
+/// identification's warnings) to the report, and a record `name` of `len` rows that holds the model's
+/// own estimation rows (`sysid_summary::estimation_rows_warning`).
+fn model_warnings(report: &mut ValidationReport, model: &sysid::Model, name: &str, len: usize) {
+    report
+        .warnings
+        .extend(sysid_summary::estimation_rows_warning(model, name, len));
     report.warnings.extend(
         sysid::model_file::load_warnings(model)
             .into_iter()

@@ -677,6 +677,25 @@ fn table_of(
     if rows.is_empty() && need_rows {
         return Err(file_err("the file has a header but no data rows".into()));
     }
+    if decimal_comma {
+        // One mark per file (audit s21 M-B5), over every cell that reads as a number, before any
+        // column is used: the in-memory reader parses column by column.
+        let mut marks = DecimalMarks::default();
+        for (line, rec) in &rows {
+            for (col, cell) in rec.iter().enumerate() {
+                if parse_number(cell, true).is_some() {
+                    marks
+                        .note(cell, *line, col + 1)
+                        .map_err(|message| SysidError::Parse {
+                            file: name.to_string(),
+                            line: *line,
+                            column: col + 1,
+                            message,
+                        })?;
+                }
+            }
+        }
+    }
     Ok(Table {
         name: name.to_string(),
         headers,
@@ -962,6 +981,57 @@ pub(crate) fn cell_value(
         ));
     }
     Ok(v)
+}
+
+/// The decimal marks the numbers of a semicolon- or tab-delimited file (where `1,5` is read as 1.5) have
+/// used so far, each with its first cell. A file that writes `0,98` with a decimal comma and also
+/// `1.500` with a point is refused (audit s21 M-B5: `1.500` was read as 1.5): a spreadsheet in a
+/// decimal-comma locale writes the point as a thousands separator (1.500 = 1500), so the point is
+/// ambiguous there and reading it either way could be silently wrong by a factor of 1000. A file of
+/// points only, or commas only, reads as before. Shared by the three CSV readers (in memory, streamed,
+/// line by line).
+#[derive(Debug, Default, Clone)]
+pub(crate) struct DecimalMarks {
+    /// (line, column 1-based, cell) of the first number written with a decimal comma.
+    comma: Option<(usize, usize, String)>,
+    /// The same for a decimal point.
+    point: Option<(usize, usize, String)>,
+}
+
+impl DecimalMarks {
+    /// Notes the mark of `cell`, a number read at `line`, `column` (1-based); what is wrong, in words,
+    /// once the file has used both marks.
+    pub(crate) fn note(&mut self, cell: &str, line: usize, column: usize) -> Result<(), String> {
+        let cell = unquote(cell.trim());
+        let comma = cell.contains(',');
+        if !comma && !cell.contains('.') {
+            return Ok(()); // 12, -3e-2: no mark
+        }
+        let (mine, other) = if comma {
+            (&mut self.comma, &self.point)
+        } else {
+            (&mut self.point, &self.comma)
+        };
+        if let Some((l, c, first)) = other {
+            let (this_mark, other_mark) = if comma {
+                ("a decimal comma", "decimal points")
+            } else {
+                ("a point", "decimal commas")
+            };
+            return Err(format!(
+                "'{}' is written with {this_mark}, but this file writes {other_mark} (line {l}, column \
+                 {c}: '{}'); in a file that uses decimal commas a point may be a thousands separator \
+                 (1.500 = 1500), so the number is ambiguous: write every number with the same decimal \
+                 mark and no thousands separators",
+                shorten(cell),
+                shorten(first)
+            ));
+        }
+        if mine.is_none() {
+            *mine = Some((line, column, cell.to_string()));
+        }
+        Ok(())
+    }
 }
 
 /// A cell as f64: Rust's float syntax, plus a decimal comma (`1,5`) when `decimal_comma` (a semicolon-
@@ -1335,6 +1405,40 @@ mod tests {
     /// t(k) = k · 0.01 s for k = 0 .. n − 1.
     fn grid(n: usize) -> Vec<f64> {
         (0..n).map(|k| k as f64 * 0.01).collect()
+    }
+
+    // Audit s21 M-B5: a semicolon file that writes 0,98 and 1.500 is refused at the second mark's first
+    // cell, naming the first cell of the other (1.500 was read as 1.5; a decimal-comma spreadsheet
+    // writes 1500 so); a file of one mark reads as written, and a comma-separated file has no decimal
+    // commas to mix with.
+    #[test]
+    fn a_file_that_mixes_decimal_marks_is_refused() {
+        let e = crate::data::read_table(b"t;u;y\n0;0,98;1\n0,01;1.500;2\n", "mix.csv")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("mix.csv:3:2:")
+                && e.contains("'1.500' is written with a point")
+                && e.contains("writes decimal commas (line 2, column 2: '0,98')"),
+            "{e}"
+        );
+        let e = crate::data::read_table(b"t;u;y\n0;1.5;1\n1;\"2,5\";2\n", "p.csv")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("p.csv:3:2:")
+                && e.contains("'2,5' is written with a decimal comma")
+                && e.contains("writes decimal points (line 2, column 2: '1.5')"),
+            "{e}"
+        );
+        let points = crate::data::read_table(b"t;u;y\n0;1.5;1\n1;2.5;2e1\n", "p.csv").unwrap();
+        assert_eq!(points.numbers(1).unwrap(), [1.5, 2.5]);
+        let commas =
+            crate::data::read_table(b"t\tu\ty\n0\t1,5\t1\n1\t2,5\t2e1\n", "c.csv").unwrap();
+        assert_eq!(commas.numbers(1).unwrap(), [1.5, 2.5]);
+        assert_eq!(commas.numbers(2).unwrap(), [1.0, 20.0]);
+        let plain = crate::data::read_table(b"t,u,y\n0,1.5,1\n1,2.5,2\n", "q.csv").unwrap();
+        assert_eq!(plain.numbers(1).unwrap(), [1.5, 2.5]);
     }
 
     #[test]

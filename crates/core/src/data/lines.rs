@@ -13,7 +13,7 @@
 
 use std::io::Read;
 
-use super::{cell_value, ragged_row, sniff_delimiter, table_of, CsvOptions, Table};
+use super::{cell_value, ragged_row, sniff_delimiter, table_of, CsvOptions, DecimalMarks, Table};
 use crate::error::Setting;
 use crate::SysidError;
 
@@ -43,6 +43,8 @@ pub struct CsvLines {
     rec: csv::ByteRecord,
     /// Bytes handed to `rdr` so far (to check that each line is exactly one record).
     fed: u64,
+    /// The decimal marks read so far (a file uses one: [`DecimalMarks`]).
+    marks: std::cell::RefCell<DecimalMarks>,
 }
 
 impl CsvLines {
@@ -62,6 +64,7 @@ impl CsvLines {
             rdr,
             rec: csv::ByteRecord::new(),
             fed: 0,
+            marks: Default::default(),
         })
     }
 
@@ -144,14 +147,21 @@ impl CsvLines {
             None => None,
         };
         let cname = self.table.headers.get(col).map_or("?", String::as_str);
-        cell_value(
+        let v = cell_value(
             cell,
             self.rec.len(),
             self.table.headers.len(),
             cname,
             self.table.decimal_comma,
         )
-        .map_err(at)
+        .map_err(at)?;
+        if let (true, Some(cell)) = (self.table.decimal_comma, cell) {
+            self.marks
+                .borrow_mut()
+                .note(cell, line_no, col + 1)
+                .map_err(at)?;
+        }
+        Ok(v)
     }
 }
 
@@ -179,6 +189,21 @@ mod tests {
         assert!(!r.read_line(b" ; ;", 3).unwrap());
         assert!(r.read_line(b"0,02;1;2", 4).unwrap());
         assert_eq!(r.value(0, 4).unwrap(), 0.02);
+    }
+
+    // Audit s21 M-B5: a line that writes a point after lines with decimal commas is refused at that
+    // cell, naming the first comma (1.500 may mean 1500 in such a file).
+    #[test]
+    fn a_point_after_decimal_commas_is_refused() {
+        let mut r = CsvLines::from_header(b"t;u;y", "<test>").unwrap();
+        assert!(r.read_line(b"0;0,98;1", 2).unwrap());
+        assert_eq!(r.value(1, 2).unwrap(), 0.98);
+        assert!(r.read_line(b"0,01;1.500;1", 3).unwrap());
+        let e = r.value(1, 3).unwrap_err().to_string();
+        assert!(
+            e.starts_with("<test>:3:2:") && e.contains("line 2, column 2: '0,98'"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -365,6 +365,7 @@ impl RecordSource for CsvStream {
         // Time is checked on the first pass only; later passes read u and y.
         let tcol = self.tcol.filter(|_| self.shape.is_none());
         let mut scan = TimeSteps::default();
+        let mut marks = super::DecimalMarks::default();
         let mut rec = csv::ByteRecord::new();
         let (mut u, mut y) = (
             Vec::with_capacity(CHUNK_ROWS),
@@ -402,7 +403,7 @@ impl RecordSource for CsvStream {
             if end.is_some_and(|b| index >= b) {
                 break;
             }
-            let value = |col: usize| -> Result<f64, SysidError> {
+            let mut value = |col: usize| -> Result<f64, SysidError> {
                 let cell = match rec.get(col).map(std::str::from_utf8) {
                     Some(Err(_)) => {
                         return Err(self.at(
@@ -414,14 +415,20 @@ impl RecordSource for CsvStream {
                     Some(Ok(c)) => Some(c.trim()),
                     None => None,
                 };
-                cell_value(
+                let v = cell_value(
                     cell,
                     rec.len(),
                     width,
                     &self.headers[col],
                     self.decimal_comma,
                 )
-                .map_err(|m| self.at(line, col, m))
+                .map_err(|m| self.at(line, col, m))?;
+                if let (true, Some(cell)) = (self.decimal_comma, cell) {
+                    marks
+                        .note(cell, line, col + 1)
+                        .map_err(|m| self.at(line, col, m))?;
+                }
+                Ok(v)
             };
             let (uk, yk) = (value(self.ucol)?, value(self.ycol)?);
             checksum = fnv(fnv(checksum, uk), yk);
@@ -561,5 +568,33 @@ mod tests {
         drop(f);
         let e = pass(&mut s).unwrap_err().to_string();
         assert!(e.contains("changed between the passes"), "{e}");
+    }
+
+    // Audit s21 M-B5: the streamed reader refuses a file that writes both decimal marks as the in-memory
+    // reader does, at the point's cell, naming the first decimal comma; a file of decimal commas only
+    // passes.
+    #[test]
+    fn a_file_that_mixes_decimal_marks_is_refused_when_streamed() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("mix.csv");
+        std::fs::write(&path, "t;u;y\n0;0,98;1\n0,01;1.500;2\n0,02;1;3\n").unwrap();
+        let e = CsvStream::open(&path, &CsvOptions::default())
+            .and_then(|mut s| pass(&mut s))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("mix.csv:3:2:")
+                && e.contains("'1.500'")
+                && e.contains("line 2, column 2: '0,98'"),
+            "{e}"
+        );
+        let mem =
+            super::super::read_table(&std::fs::read(&path).unwrap(), &path.display().to_string())
+                .unwrap_err()
+                .to_string();
+        assert_eq!(e, mem);
+        std::fs::write(&path, "t;u;y\n0;0,98;1\n0,01;1,5;2\n0,02;1;3\n").unwrap();
+        let mut s = CsvStream::open(&path, &CsvOptions::default()).unwrap();
+        pass(&mut s).unwrap();
     }
 }

@@ -331,7 +331,8 @@ fn decimal_commas_in_a_comma_separated_file_are_named_as_the_cause() {
     );
 }
 
-// L-5: a time column of date-times: the error names --ts, and --ts works on the same file.
+// L-5: a time column of date-times: the error names --ts, and --ts works on the same file, with a note
+// that the stamps were not checked (audit s21 M-B6).
 #[test]
 fn a_date_time_column_names_ts_as_the_way_out() {
     let dir = tempfile::tempdir().unwrap();
@@ -367,6 +368,14 @@ fn a_date_time_column_names_ts_as_the_way_out() {
         "9",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
+    // Audit s21 M-B6: the stamps are not read with --ts, and the output says so (here --ts 9 is right;
+    // a --ts 900 would pass the same way).
+    let said = format!("{}{}", String::from_utf8_lossy(&o.stdout), stderr(&o));
+    assert!(
+        said.contains("the time column t holds dates and times ('2026-01-01 00:00:00')")
+            && said.contains("not checked"),
+        "{said}"
+    );
 }
 
 // L-3: the --samples refusal in the form of every other refusal of docs/reliability.md's table.

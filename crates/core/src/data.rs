@@ -439,17 +439,31 @@ pub fn read_record_bytes(
 /// step): `--ts` wins, so every time figure (Ts of the model, time constants, a physics twin's
 /// dynamics) follows it, which is right only when the column is wrong (audit s13 M6: `identify --ts 0.02`
 /// of a 0.01 s record saved a model at Ts = 0.02 s without a word, and `calibrate` then searched a
-/// plant twice too slow for minutes). Nothing when there is no such column or it does not parse.
+/// plant twice too slow for minutes). Nothing when there is no such column or it does not parse,
+/// except when it holds dates and times (`2026-01-01 00:00:00`): the error for such a column advises
+/// `--ts`, with which the stamps are not read, so the note says they were not checked (audit s21 M-B6:
+/// a --ts 100 times the stamps' step, time going back, an impossible date passed without a word).
 fn ts_contradiction(table: &Table, opts: &CsvOptions, ts: f64) -> Option<String> {
     let tc = opts
         .ts
         .and(table.headers.iter().position(|h| *h == opts.t_col))?;
-    let t: Vec<f64> = table
-        .numbers(tc)
-        .ok()?
-        .iter()
-        .map(|v| v * opts.time_unit.seconds())
-        .collect();
+    let t: Vec<f64> = match table.numbers(tc) {
+        Ok(t) => t.iter().map(|v| v * opts.time_unit.seconds()).collect(),
+        Err(_) => {
+            let first = table.rows.first().and_then(|(_, rec)| rec.get(tc))?;
+            return looks_like_date_time(unquote(first.trim())).then(|| {
+                format!(
+                    "the time column {} holds dates and times ('{}'), which are not read: Ts = --ts {} s \
+                     is taken as given and the stamps are not checked against it (a wrong --ts, gaps, \
+                     uneven steps or time going back go unnoticed); write the time in seconds in a \
+                     numeric column to have it checked",
+                    opts.t_col,
+                    shorten(unquote(first.trim())),
+                    sig6(ts)
+                )
+            });
+        }
+    };
     let step = ts_contradicts(&t, ts)?;
     ts_contradiction_note(ts, &opts.t_col, step)
 }

@@ -48,3 +48,22 @@ def test_overflowing_coefficients_are_an_arithmetic_error(tmp_path):
     m = _arx(tmp_path, [1e308, 1e308], [1.0])
     with pytest.raises(ArithmeticError, match='"a" coefficients'):
         m.frequency_response()
+
+
+def test_load_model_escapes_control_characters(tmp_path):
+    model = {"kind": "arx", "ts": 0.1, "na": 1, "nb": 1, "nk": 1, "a": [-0.5], "b": [1.0],
+             "offset": None, "noise_model": "equation-error",
+             "identification": {"record": "rec.csv", "fit_estimation_percent": 90.0,
+                                "warnings": ["\x1b[2J\x1b]0;pwned\x07\r\x00\x08do not use"]}}
+    path = tmp_path / "esc.json"
+    path.write_text(json.dumps({"format": "ipa-sysid-model", "version": 3, "model": model}))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        ipa_sysid.load_model(str(path))
+    texts = [str(w.message) for w in caught]
+    assert any(t.endswith("\\u{1b}[2J\\u{1b}]0;pwned\\u{7}\\r\\u{0}\\u{8}do not use") for t in texts), texts
+    assert not any(c in t for t in texts for c in "\x1b\x07\r\x00\x08")
+    model["identification"]["warnings"] = ["w"] * 101
+    path.write_text(json.dumps({"format": "ipa-sysid-model", "version": 3, "model": model}))
+    with pytest.raises(ValueError, match="identification.warnings has 101 items, at most 100"):
+        ipa_sysid.load_model(str(path))

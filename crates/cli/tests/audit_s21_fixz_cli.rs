@@ -49,7 +49,10 @@ fn an_integrator_has_an_infinite_dc_gain_in_text_and_json() {
     let (j, text) = response_json(&m);
     assert!(j["dc_gain"].is_null());
     assert_eq!(j["dc_gain_note"], "infinite (integrator)");
-    assert!(text.contains("DC gain:  G(1) = infinite (integrator)"), "{text}");
+    assert!(
+        text.contains("DC gain:  G(1) = infinite (integrator)"),
+        "{text}"
+    );
     let w = strings(&j["warnings"]);
     assert!(w.iter().any(|w| w.contains("integrator")), "{w:?}");
     // Every JSON warning is a `warning:` line of the text.
@@ -112,9 +115,89 @@ fn a_dropped_deadzone_branch_is_not_identified() {
     assert!(left["dc_gain"].is_null() && left["offset_db"].is_null());
     // Right: m_r G(1) = 0.05 · 1/(1 − 0.5) = 0.1.
     assert!((j["sides"][0]["dc_gain"].as_f64().unwrap() - 0.1).abs() < 1e-12);
-    assert!(text.contains("left: not identified") && !text.contains("-inf"), "{text}");
-    assert!(text.contains("warning: model: non-physical deadzone"), "{text}");
+    assert!(
+        text.contains("left: not identified") && !text.contains("-inf"),
+        "{text}"
+    );
+    assert!(
+        text.contains("warning: model: non-physical deadzone"),
+        "{text}"
+    );
     let arx = arx_file(dir.path(), "arx.json", &[-0.5], &[1.0]);
     let o = ipa_sysid(&["response", "--model", s(&arx), "--kp", "1"]);
     assert!(!String::from_utf8_lossy(&o.stdout).contains("deadzone"));
+}
+
+/// A version-3 model file (y(k) = 0.5 y(k−1) + u(k−1)) whose identification record holds `record` and
+/// `warnings`.
+fn provenance_file(dir: &Path, name: &str, record: &str, warnings: &[String]) -> PathBuf {
+    let path = dir.join(name);
+    let model = serde_json::json!({
+        "kind": "arx", "ts": 0.1, "na": 1, "nb": 1, "nk": 1, "a": [-0.5], "b": [1.0],
+        "offset": null, "noise_model": "equation-error",
+        "identification": {"record": record, "fit_estimation_percent": 90.0, "warnings": warnings}
+    });
+    let doc = serde_json::json!({"format": "ipa-sysid-model", "version": 3, "model": model});
+    std::fs::write(&path, doc.to_string()).unwrap();
+    path
+}
+
+// M-B1: ESC (clear screen, colour, OSC window title), BEL, CR, NUL and BS from the file reach the
+// terminal as visible escapes, in simulate's and response's warning lines and response's JSON.
+#[test]
+fn control_characters_of_a_model_file_are_printed_as_escapes() {
+    let dir = tempfile::tempdir().unwrap();
+    let hostile = "\u{1b}[2J\u{1b}[31mRED\u{1b}]0;pwned\u{7}\r\0\u{8}do not use";
+    let m = provenance_file(
+        dir.path(),
+        "esc.json",
+        "rec\u{1b}[8m.csv",
+        &[hostile.to_string()],
+    );
+    let out = dir.path().join("s.csv");
+    let o = ipa_sysid(&[
+        "simulate",
+        "--plant",
+        &format!("model:{}", s(&m)),
+        "--samples",
+        "10",
+        "--out",
+        s(&out),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let err = stderr(&o);
+    let shown = "\\u{1b}[2J\\u{1b}[31mRED\\u{1b}]0;pwned\\u{7}\\r\\u{0}\\u{8}do not use";
+    assert!(
+        err.contains(shown) && err.contains("rec\\u{1b}[8m.csv"),
+        "{err}"
+    );
+    for c in ['\u{1b}', '\u{7}', '\r', '\0', '\u{8}'] {
+        assert!(!err.contains(c), "{c:?} reached the terminal");
+    }
+    let (j, text) = response_json(&m);
+    assert!(text.contains(shown) && !text.contains('\u{1b}'));
+    assert!(strings(&j["warnings"]).iter().any(|w| w.ends_with(shown)));
+}
+
+// M-B2: 101 warnings (one more than identify could write) or a 4097-character record name: the file
+// is refused, naming the field, its size and the limit.
+#[test]
+fn oversized_identification_fields_are_refused_naming_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let many: Vec<String> = (0..101).map(|i| format!("warning {i}")).collect();
+    let m = provenance_file(dir.path(), "many.json", "rec.csv", &many);
+    let o = ipa_sysid(&["response", "--model", s(&m)]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("identification.warnings has 101 items, at most 100"),
+        "{}",
+        stderr(&o)
+    );
+    let m = provenance_file(dir.path(), "rec.json", &"r".repeat(4097), &[]);
+    let o = ipa_sysid(&["response", "--model", s(&m)]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("identification.record has 4097 characters, at most 4096"));
+    // At the limits the file loads.
+    let m = provenance_file(dir.path(), "ok.json", &"r".repeat(4096), &many[..100]);
+    assert!(ipa_sysid(&["response", "--model", s(&m)]).status.success());
 }

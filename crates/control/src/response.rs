@@ -156,7 +156,10 @@ fn dc_verdict(model: &Model) -> Option<(&'static str, String)> {
 /// large for f64 (audit s21 M-B3: a = [1e308, 1e308] gave NaN poles, a NaN Bode table and exit 0):
 /// Σ|a_i| or Σ|b_j| overflows, or the poles (roots of A) are not finite numbers.
 fn check_coefficients(model: &Model) -> Result<(), ControlError> {
-    let finite_poles = model.poles().iter().all(|p| p.re.is_finite() && p.im.is_finite());
+    let finite_poles = model
+        .poles()
+        .iter()
+        .all(|p| p.re.is_finite() && p.im.is_finite());
     for (field, c) in [("a", model.a()), ("b", model.b())] {
         let size: f64 = c.iter().map(|v| v.abs()).sum();
         if !size.is_finite() || (field == "a" && !finite_poles) {
@@ -183,15 +186,22 @@ fn non_finite(r: &Response) -> Option<String> {
     let first_bad = |v: &[f64]| v.iter().position(|x| !x.is_finite());
     let mut bad = Vec::new();
     if r.dc_gain.is_some_and(|g| !g.is_finite())
-        || r.sides.iter().any(|s| s.dc_gain.is_some_and(|g| !g.is_finite()))
+        || r.sides
+            .iter()
+            .any(|s| s.dc_gain.is_some_and(|g| !g.is_finite()))
     {
         bad.push("the DC gain".to_string());
     }
-    if r.zeros.iter().any(|z| !(z.0.is_finite() && z.1.is_finite())) {
+    if r.zeros
+        .iter()
+        .any(|z| !(z.0.is_finite() && z.1.is_finite()))
+    {
         bad.push("the zeros".to_string());
     }
     let b = &r.bode;
-    if let Some(i) = (0..b.f_hz.len()).find(|&i| !b.phase_deg[i].is_finite() || b.mag_db[i] == f64::INFINITY) {
+    if let Some(i) =
+        (0..b.f_hz.len()).find(|&i| !b.phase_deg[i].is_finite() || b.mag_db[i] == f64::INFINITY)
+    {
         bad.push(format!("the Bode table from f = {} Hz", b.f_hz[i]));
     }
     for (name, v) in [("impulse", &r.impulse), ("step", &r.step)] {
@@ -275,8 +285,8 @@ pub fn response(model: &Model, s: &ResponseSettings) -> Result<Response, Control
     let verdict = dc_verdict(model);
     let sum_a: f64 = 1.0 + a.iter().sum::<f64>();
     let scale_a: f64 = 1.0 + a.iter().map(|v| v.abs()).sum::<f64>();
-    let dc_gain = (verdict.is_none() && sum_a.abs() > 1e-12 * scale_a)
-        .then(|| b.iter().sum::<f64>() / sum_a);
+    let dc_gain =
+        (verdict.is_none() && sum_a.abs() > 1e-12 * scale_a).then(|| b.iter().sum::<f64>() / sum_a);
     let poles = model.poles().iter().map(|c| (c.re, c.im)).collect();
     let zeros = match b.iter().position(|&v| v != 0.0) {
         Some(i) => {
@@ -603,7 +613,11 @@ mod tests {
             assert_eq!(*s, k as f64);
         }
         // identify's own stability warning, then what it means for G(1).
-        assert!(r.warnings[0].contains("pole has modulus 1.000000"), "{:?}", r.warnings);
+        assert!(
+            r.warnings[0].contains("pole has modulus 1.000000"),
+            "{:?}",
+            r.warnings
+        );
         assert!(r.warnings[1].contains("integrator"), "{:?}", r.warnings);
     }
 
@@ -611,9 +625,17 @@ mod tests {
     fn a_near_integrator_within_the_margin_has_no_dc_gain_either() {
         // Pole 1 − 10⁻⁶, inside identify's INTEGRATOR_MARGIN = 10⁻⁵: G(1) = 1/10⁻⁶ would be a
         // number, but the step needs ~10⁶ samples to reach it.
-        let r = response(&first_order(1.0 - 1e-6, 1.0, 0.1), &ResponseSettings::default()).unwrap();
+        let r = response(
+            &first_order(1.0 - 1e-6, 1.0, 0.1),
+            &ResponseSettings::default(),
+        )
+        .unwrap();
         assert_eq!((r.dc_gain, r.dc_gain_note), (None, Some(DC_INTEGRATOR)));
-        assert!(r.warnings[0].contains("on the stability boundary"), "{:?}", r.warnings);
+        assert!(
+            r.warnings[0].contains("on the stability boundary"),
+            "{:?}",
+            r.warnings
+        );
     }
 
     #[test]
@@ -622,7 +644,11 @@ mod tests {
         // s(k) = (1.5^k − 1)/0.5 > 0 and growing.
         let r = response(&first_order(1.5, 1.0, 0.1), &ResponseSettings::default()).unwrap();
         assert_eq!((r.dc_gain, r.dc_gain_note), (None, Some(DC_UNSTABLE)));
-        assert!(r.warnings[0].starts_with("unstable model"), "{:?}", r.warnings);
+        assert!(
+            r.warnings[0].starts_with("unstable model"),
+            "{:?}",
+            r.warnings
+        );
         assert!(r.warnings[1].contains("not defined"), "{:?}", r.warnings);
         let k = 10;
         assert!((r.step[k] - (1.5f64.powi(k as i32) - 1.0) / 0.5).abs() < 1e-9);
@@ -655,7 +681,10 @@ mod tests {
         // Σ|a_i| = 2e308 overflows: the poles would be NaN.
         let m = Model::arx(0.1, vec![1e308, 1e308], vec![1.0], 1, None).unwrap();
         let e = response(&m, &ResponseSettings::default()).unwrap_err();
-        assert!(e.is_numerical() && e.to_string().contains("\"a\" coefficients"), "{e}");
+        assert!(
+            e.is_numerical() && e.to_string().contains("\"a\" coefficients"),
+            "{e}"
+        );
         let m = Model::arx(0.1, vec![-0.5], vec![1e308, 1e308], 1, None).unwrap();
         let e = response(&m, &ResponseSettings::default()).unwrap_err();
         assert!(e.to_string().contains("\"b\" coefficients"), "{e}");
@@ -671,16 +700,23 @@ mod tests {
             m_r: 0.05,
         };
         let m = Model::hammerstein(0.01, vec![-0.9], vec![1.0], 1, dz, None).unwrap();
-        let r = response(&m, &ResponseSettings {
+        let r = response(
+            &m,
+            &ResponseSettings {
                 samples: 200,
                 ..ResponseSettings::default()
-            }).unwrap();
+            },
+        )
+        .unwrap();
         let (right, left) = (&r.sides[0], &r.sides[1]);
         assert!(right.identified && !left.identified);
         assert!((right.dc_gain.unwrap() - 0.5).abs() < 1e-12);
         assert_eq!((left.offset_db, left.dc_gain), (None, None));
         assert!(r.gain.contains("m_l not identified"), "{}", r.gain);
         // The file's shape doubt (a zero slope) is repeated as validate repeats it.
-        assert!(r.warnings.iter().any(|w| w.starts_with("model: non-physical deadzone")));
+        assert!(r
+            .warnings
+            .iter()
+            .any(|w| w.starts_with("model: non-physical deadzone")));
     }
 }

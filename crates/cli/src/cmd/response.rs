@@ -89,7 +89,10 @@ fn dc_words(r: &Response) -> String {
 
 /// The `warning:` lines of the report (the JSON's `warnings`), each model-file string escaped.
 fn warning_lines(r: &Response) -> String {
-    r.warnings.iter().map(|w| format!("warning: {w}\n")).collect()
+    r.warnings
+        .iter()
+        .map(|w| format!("warning: {w}\n"))
+        .collect()
 }
 
 /// The printed report.

@@ -2,6 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
+use sysid_core::format::visible;
 use sysid_summary::ValidationReport;
 
 use super::common::{check_outputs, print_report, stream_note, ColumnArgs, StreamMode};
@@ -52,7 +53,7 @@ pub struct Args {
 /// The column names the model file recorded ([`sysid::model::Provenance`]) put in `opts` where
 /// --u-col / --y-col were left at their defaults (u, y) and the record has a header (audit s20 L-4: a
 /// model identified from `--u-col InputGasRate --y-col CO2` needed them again); a note saying which,
-/// `None` when none was taken.
+/// `None` when none was taken. The file's strings are printed through [`visible`].
 fn stored_columns(model: &sysid::Model, opts: &mut sysid::data::CsvOptions) -> Option<String> {
     let p = model.provenance()?;
     if opts.no_header {
@@ -61,7 +62,7 @@ fn stored_columns(model: &sysid::Model, opts: &mut sysid::data::CsvOptions) -> O
     let mut taken = Vec::new();
     if opts.u_col == "u" && !p.u_columns.is_empty() && p.u_columns.join(",") != "u" {
         opts.u_col = p.u_columns.join(",");
-        taken.push(format!("--u-col {}", opts.u_col));
+        taken.push(format!("--u-col {}", visible(&opts.u_col)));
     }
     if let Some(y) = p
         .y_column
@@ -69,12 +70,12 @@ fn stored_columns(model: &sysid::Model, opts: &mut sysid::data::CsvOptions) -> O
         .filter(|y| opts.y_col == "y" && *y != "y")
     {
         opts.y_col = y.clone();
-        taken.push(format!("--y-col {y}"));
+        taken.push(format!("--y-col {}", visible(y)));
     }
     (!taken.is_empty()).then(|| {
         format!(
             "columns from the model file (its identification on {} read them): {}",
-            p.record,
+            visible(&p.record),
             taken.join(" ")
         )
     })

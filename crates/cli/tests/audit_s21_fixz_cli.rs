@@ -201,3 +201,45 @@ fn oversized_identification_fields_are_refused_naming_them() {
     let m = provenance_file(dir.path(), "ok.json", &"r".repeat(4096), &many[..100]);
     assert!(ipa_sysid(&["response", "--model", s(&m)]).status.success());
 }
+
+// L-B2 / L-B1: a model file's Ts below 1e-6 s (the controller's floor) is refused naming ts — not
+// blamed on --f-min — and identify does not save a file that would not load again.
+#[test]
+fn a_model_file_ts_below_one_microsecond_is_refused_naming_ts() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = arx_file(dir.path(), "ts.json", &[-0.5], &[1.0]);
+    let text = std::fs::read_to_string(&m)
+        .unwrap()
+        .replace("\"ts\":0.1", "\"ts\":1e-320");
+    std::fs::write(&m, text).unwrap();
+    let o = ipa_sysid(&["response", "--model", s(&m)]);
+    assert_eq!(o.status.code(), Some(2));
+    let err = stderr(&o);
+    assert!(
+        err.contains("ts = 1e-320 s is below 1e-6 s") && !err.contains("--f-min"),
+        "{err}"
+    );
+    // identify --ts 1e-7 --save-model: refused at the save, nothing written.
+    let csv = dir.path().join("d.csv");
+    let rows: String = (0..200)
+        .map(|k| format!("{},{}\n", (k % 7) as f64, ((k * 3) % 11) as f64))
+        .collect();
+    std::fs::write(&csv, format!("u,y\n{rows}")).unwrap();
+    let saved = dir.path().join("m.json");
+    let o = ipa_sysid(&[
+        "identify",
+        "--data",
+        s(&csv),
+        "--ts",
+        "1e-7",
+        "--structure",
+        "arx",
+        "--method",
+        "ls",
+        "--save-model",
+        s(&saved),
+    ]);
+    assert_ne!(o.status.code(), Some(0));
+    assert!(stderr(&o).contains("below 1e-6 s"), "{}", stderr(&o));
+    assert!(!saved.exists());
+}

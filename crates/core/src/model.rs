@@ -211,6 +211,12 @@ pub struct Provenance {
     pub warnings: Vec<String>,
 }
 
+/// Shortest sampling period Ts of a model file, s: the floor of the controller's range
+/// (`ipa_embedded::position::MIN_TS_S`, equal by a test in `control`). A Ts of 1e-320 s was loaded and
+/// then blamed on `response --f-min` ("the lowest frequency inf Hz", audit s21 L-B2) or simulated as
+/// "Ts = 1e-320 s". No upper limit: a model of daily data (Ts = 86 400 s) is a model.
+pub const MIN_TS_S: f64 = 1e-6;
+
 /// At most this many characters in [`Provenance::record`] (a path; identify writes the one given).
 pub const MAX_RECORD_CHARS: usize = 4096;
 /// At most this many warnings in [`Provenance::warnings`] (identify gives a few).
@@ -1449,6 +1455,13 @@ impl TryFrom<ModelRepr> for Model {
             return bad(format!(
                 "ts = {} must be a positive number of seconds",
                 crate::format::Shortest(r.ts)
+            ));
+        }
+        if r.ts < MIN_TS_S {
+            return bad(format!(
+                "ts = {:e} s is below {MIN_TS_S:e} s, the shortest sampling period of a model file \
+                 (and of the controller)",
+                r.ts
             ));
         }
         if let Some(p) = &r.identification {

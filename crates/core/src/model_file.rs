@@ -38,6 +38,15 @@ struct ModelFileIn {
 
 /// Serialises `model` as a model file (pretty JSON, ending with a newline).
 pub fn to_json(model: &Model) -> Result<String, SysidError> {
+    // A file that would not load again is not written.
+    if model.ts() < crate::model::MIN_TS_S {
+        return Err(SysidError::Data(format!(
+            "the model's Ts = {:e} s is below {:e} s, the shortest sampling period a model file may \
+             hold: it is not saved",
+            model.ts(),
+            crate::model::MIN_TS_S
+        )));
+    }
     let out = ModelFileOut {
         format: FORMAT,
         version: VERSION,

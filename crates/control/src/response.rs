@@ -224,11 +224,11 @@ fn unsettled(step: &[f64], dc_gain: Option<f64>) -> Option<String> {
     let (k, last) = (step.len().checked_sub(1)?, *step.last()?);
     (!((last - g).abs() <= 0.02 * g.abs())).then(|| {
         format!(
-            "the step response has not settled by k = {k}: s({k}) = {} against G(1) = {} ({:.0} %); \
-             more samples show the rest",
+            "the step response has not settled by k = {k}: s({k}) = {} against G(1) = {} ({} % of \
+             it); more samples show the rest",
             sysid_core::format::sig(last, 6),
             sysid_core::format::sig(g, 6),
-            100.0 * last / g
+            sysid_core::format::sig(100.0 * last / g, 2)
         )
     })
 }

@@ -124,32 +124,37 @@ fn dc_verdict(model: &Model) -> Option<(&'static str, String)> {
     let flagged: Vec<_> = model
         .poles()
         .into_iter()
-        .filter(|p| !(p.norm() < 1.0 - margin))
+        .filter(|p| p.norm() >= 1.0 - margin || p.norm().is_nan())
         .collect();
-    Some(if flagged.iter().any(|p| !(p.norm() <= 1.0 + margin)) {
-        (
+    Some(
+        if flagged
+            .iter()
+            .any(|p| p.norm() > 1.0 + margin || p.norm().is_nan())
+        {
+            (
             DC_UNSTABLE,
             "DC gain not defined: a pole outside the unit circle makes the step response diverge, so \
              G(1) = Σ b / (1 + Σ a) is no steady-state gain (its sign can be the opposite of the \
              plant's), and the Bode table is that of an unstable G (no steady sinusoidal response)"
                 .to_string(),
         )
-    } else if flagged.iter().all(|p| (p - 1.0).norm() <= margin) {
-        (
-            DC_INTEGRATOR,
-            format!(
+        } else if flagged.iter().all(|p| (p - 1.0).norm() <= margin) {
+            (
+                DC_INTEGRATOR,
+                format!(
                 "DC gain infinite: a pole at z = 1 (within {margin:e}) is an integrator, the step \
                  response ramps without settling and |G| grows without bound as f → 0"
             ),
-        )
-    } else {
-        (
+            )
+        } else {
+            (
             DC_BOUNDARY,
             "DC gain not defined: a pole on the unit circle away from z = 1 makes the step response \
              oscillate without decay"
                 .to_string(),
         )
-    })
+        },
+    )
 }
 
 /// An error naming the model file's field when the coefficients of `model`'s linear block are too
@@ -222,7 +227,8 @@ fn non_finite(r: &Response) -> Option<String> {
 fn unsettled(step: &[f64], dc_gain: Option<f64>) -> Option<String> {
     let g = dc_gain.filter(|g| *g != 0.0 && g.is_finite())?;
     let (k, last) = (step.len().checked_sub(1)?, *step.last()?);
-    (!((last - g).abs() <= 0.02 * g.abs())).then(|| {
+    let off = (last - g).abs();
+    (off > 0.02 * g.abs() || off.is_nan()).then(|| {
         format!(
             "the step response has not settled by k = {k}: s({k}) = {} against G(1) = {} ({} % of \
              it); more samples show the rest",

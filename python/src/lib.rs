@@ -644,7 +644,10 @@ impl PyModel {
     /// tuned controller (Kp, Ki, Kd, Tf) as tune reported them, as a dict: the same function and keys
     /// as `ipa-sysid response --json` (`control::response::response`). For a Hammerstein model
     /// `"gain"` says in words which gain the figures use and `"sides"` gives m_r, m_l with their dB
-    /// offsets.
+    /// offsets. `"dc_gain"` is None when the step settles at no level, `"dc_gain_note"` saying why
+    /// ("infinite (integrator)", "not defined (unstable)"); `"warnings"` (each also an
+    /// `IpaSysidWarning`) gives the stability verdict in identify's words, the model file's doubts and
+    /// figures that are not finite.
     #[pyo3(signature = (points=20, f_min_hz=None, samples=20, kp=None, ki=None, controller=None))]
     #[allow(clippy::too_many_arguments)] // Python keyword arguments
     fn frequency_response<'py>(
@@ -706,6 +709,8 @@ impl PyModel {
             controller,
         };
         let r = ::control::response::response(&self.inner, &settings).map_err(control_err)?;
+        // The dict's "warnings" (what `response` prints as `warning:` lines), each an IpaSysidWarning.
+        warn_all(py, &r.warnings)?;
         to_py(py, &r)
     }
 

@@ -492,15 +492,17 @@ fn a_paper_record_beyond_the_stroke_is_warned() {
     }
 }
 
-// A model Ts of 1e-300 s is printed as 1e-300 (the shortest decimal that reads back, in exponent form),
-// not as 300 digits, in the message and in the CSV's t column, whose cells read back as k Ts (audit
-// s16 L9: a 496-character stderr line and 300-digit t cells).
+// A tiny model Ts is printed compactly (the shortest decimal that reads back), not as hundreds of
+// digits, in the message and in the CSV's t column, whose cells read back as k Ts (audit s16 L9: a
+// 496-character stderr line and 300-digit t cells for Ts = 1e-300 s). Since audit s21 L-B2 a model file's
+// Ts must be at least 1e-6 s: 1e-300 is refused naming ts, in one short line; 1.1e-6 s is the tiny Ts
+// checked here.
 #[test]
 fn a_tiny_model_ts_is_printed_compactly_and_exactly() {
     let dir = tempfile::tempdir().unwrap();
     std::fs::write(
         dir.path().join("tiny.json"),
-        r#"{"format": "ipa-sysid-model", "version": 2, "model": {"kind": "arx", "ts": 1e-300, "na": 1,
+        r#"{"format": "ipa-sysid-model", "version": 2, "model": {"kind": "arx", "ts": 1.1e-6, "na": 1,
         "nb": 1, "nk": 1, "a": [-0.8], "b": [0.5]}}"#,
     )
     .unwrap();
@@ -518,7 +520,7 @@ fn a_tiny_model_ts_is_printed_compactly_and_exactly() {
     );
     let err = String::from_utf8_lossy(&o.stderr).into_owned();
     assert!(o.status.success(), "{err}");
-    assert!(err.contains("(Ts = 1e-300 s"), "{err}");
+    assert!(err.contains("(Ts = 1.1e-6 s"), "{err}");
     assert!(err.lines().all(|l| l.len() < 300), "{err}");
     let csv = std::fs::read_to_string(dir.path().join("s.csv")).unwrap();
     let mut rows = 0;
@@ -527,7 +529,7 @@ fn a_tiny_model_ts_is_printed_compactly_and_exactly() {
         assert!(t.len() <= 24, "row {k}: {t}");
         let v: f64 = t.parse().unwrap();
         // t_k = k Ts within a rounding of the product.
-        let expected = k as f64 * 1e-300;
+        let expected = k as f64 * 1.1e-6;
         assert!(
             (v - expected).abs() <= 1e-15 * expected,
             "row {k}: {v} vs {expected}"
@@ -543,6 +545,20 @@ fn a_tiny_model_ts_is_printed_compactly_and_exactly() {
     );
     let err = String::from_utf8_lossy(&o.stderr).into_owned();
     assert!(!o.status.success());
-    assert!(err.contains("sampled at Ts = 1e-300 s"), "{err}");
+    assert!(err.contains("sampled at Ts = 1.1e-6 s"), "{err}");
+    assert!(err.lines().all(|l| l.len() < 300), "{err}");
+    // Ts = 1e-300 s: refused naming ts, the value in exponent form, one short line.
+    let text = std::fs::read_to_string(dir.path().join("tiny.json"))
+        .unwrap()
+        .replace("1.1e-6", "1e-300");
+    std::fs::write(dir.path().join("tiny.json"), text).unwrap();
+    let o = simulate(
+        dir.path(),
+        &["--plant", "model:tiny.json", "--samples", "20"],
+        "s3.csv",
+    );
+    let err = String::from_utf8_lossy(&o.stderr).into_owned();
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("ts = 1e-300 s is below 1e-6 s"), "{err}");
     assert!(err.lines().all(|l| l.len() < 300), "{err}");
 }

@@ -499,10 +499,10 @@ impl ControllerSettings {
                 ))
             }
         };
-        // The floor is the embedded controller's (one check, one number): below it the velocity
-        // term overflows (audit s19 M-1).
-        let min_ts = ipa_embedded::position::MIN_TS_S;
-        if !(self.ts_s.is_finite() && self.ts_s >= min_ts && self.ts_s <= MAX_TIME_S) {
+        // The range is the embedded controller's (one check, one range): below it the velocity
+        // term overflows (audit s19 M-1), above it the integral (audit s21 L-B1).
+        let (min_ts, max_ts) = (ipa_embedded::position::MIN_TS_S, ipa_embedded::MAX_TS_S);
+        if !ipa_embedded::ts_in_range(self.ts_s) {
             // A tiny Ts as given (1e-310), not fmt_value's "0.0000".
             let shown = if self.ts_s != 0.0 && self.ts_s.abs() < 1e-4 {
                 format!("{:e}", self.ts_s)
@@ -512,7 +512,7 @@ impl ControllerSettings {
             return Err(ControlError::setting(
                 ControlSetting::Ts,
                 shown,
-                &format!("a sampling period in s from {min_ts:e} to {MAX_TIME_S:e}"),
+                &format!("a sampling period in s from {min_ts:e} to {max_ts:e}"),
             ));
         }
         nonneg(ControlSetting::Kp, self.kp, "counts/mm")?;

@@ -55,10 +55,15 @@ pub struct Side {
     pub breakpoint: f64,
     /// The slope m_r or m_l, units of x per input unit.
     pub slope: f64,
-    /// 20 log10 |slope|: add it to [`Bode::mag_db`] for the gain from u on this side, dB.
-    pub offset_db: f64,
-    /// DC gain from u on this side, slope · G(1), output units per input unit (`None`: G(1) is
-    /// infinite, a pole at z = 1).
+    /// Whether the slope was estimated: `false` for a slope of exactly 0, the branch `identify` drops
+    /// and fixes at m = 0, b = 0 when the record never drives u to that side (audit s21 L-A2: its
+    /// "0 gain, −inf dB" was read as a measured figure).
+    pub identified: bool,
+    /// 20 log10 |slope|: add it to [`Bode::mag_db`] for the gain from u on this side, dB (`None`: the
+    /// slope was not identified).
+    pub offset_db: Option<f64>,
+    /// DC gain from u on this side, slope · G(1), output units per input unit (`None`: the slope was
+    /// not identified, or G(1) is not a finite steady-state gain, [`Response::dc_gain_note`]).
     pub dc_gain: Option<f64>,
 }
 
@@ -71,8 +76,12 @@ pub struct Response {
     pub nk: usize,
     /// Which gain the figures use, in words (the module documentation's convention for this model).
     pub gain: String,
-    /// DC gain G(1) = Σ b_i / (1 + Σ a_i) of the linear block (`None`: a pole at z = 1, an integrator).
+    /// DC gain G(1) = Σ b_i / (1 + Σ a_i) of the linear block, the level its unit step settles at
+    /// (`None` when it settles at none: [`Response::dc_gain_note`] says why).
     pub dc_gain: Option<f64>,
+    /// Why [`Response::dc_gain`] is `None`, in words: [`DC_INTEGRATOR`], [`DC_UNSTABLE`] or
+    /// [`DC_BOUNDARY`] (`None` when there is a DC gain).
+    pub dc_gain_note: Option<&'static str>,
     /// Poles: roots of z^na + a_1 z^(na−1) + … + a_na, as (re, im).
     pub poles: Vec<(f64, f64)>,
     /// Finite zeros: roots of b_1 z^(nb−1) + … + b_nb (leading zero coefficients dropped), as (re, im).
@@ -87,6 +96,150 @@ pub struct Response {
     pub step: Vec<f64>,
     /// Margins of the loop with [`ResponseSettings::controller`], as `tune` computes them ([`margins`]).
     pub margins: Option<Margins>,
+    /// What the figures are not to be trusted for, in words (the `warnings` of `identify --json`):
+    /// the linear block's stability verdict in `identify`'s words
+    /// ([`sysid::Warning::if_unstable_or_integrating`]) and what it means for its DC gain and Bode
+    /// table, the model file's own doubts as `validate` repeats them
+    /// ([`sysid_core::model_file::load_warnings`], prefixed `model: `), a step response that has not
+    /// settled within the samples, and figures that are not finite numbers.
+    pub warnings: Vec<String>,
+}
+
+/// [`Response::dc_gain_note`] of a block with a pole at z = 1 (within
+/// [`sysid::warnings::INTEGRATOR_MARGIN`]) and none outside the unit circle: its step ramps.
+pub const DC_INTEGRATOR: &str = "infinite (integrator)";
+/// [`Response::dc_gain_note`] of a block with a pole outside the unit circle: its step diverges, and
+/// Σ b / (1 + Σ a) is no steady-state gain (its sign can be the opposite of the plant's).
+pub const DC_UNSTABLE: &str = "not defined (unstable)";
+/// [`Response::dc_gain_note`] of a block with a pole on the unit circle away from z = 1: its step
+/// oscillates without decay.
+pub const DC_BOUNDARY: &str = "not defined (a pole on the stability boundary)";
+
+/// The DC-gain verdict of `model`'s linear block: `None` when its unit step settles, else the
+/// [`Response::dc_gain_note`] and a sentence on what the verdict means for the figures. The
+/// stability test is `identify`'s ([`sysid::Warning::if_unstable_or_integrating`]: a pole of modulus
+/// at least 1 − [`sysid::warnings::INTEGRATOR_MARGIN`]); the poles it flags are then sorted by
+/// where they are: within the margin of z = 1 (an integrator), beyond 1 + the margin (unstable), or
+/// elsewhere on the circle.
+fn dc_verdict(model: &Model) -> Option<(&'static str, String)> {
+    sysid::Warning::if_unstable_or_integrating(model)?;
+    let margin = sysid::warnings::INTEGRATOR_MARGIN;
+    let flagged: Vec<_> = model
+        .poles()
+        .into_iter()
+        .filter(|p| p.norm() >= 1.0 - margin || p.norm().is_nan())
+        .collect();
+    Some(
+        if flagged
+            .iter()
+            .any(|p| p.norm() > 1.0 + margin || p.norm().is_nan())
+        {
+            (
+            DC_UNSTABLE,
+            "DC gain not defined: a pole outside the unit circle makes the step response diverge, so \
+             G(1) = Σ b / (1 + Σ a) is no steady-state gain (its sign can be the opposite of the \
+             plant's), and the Bode table is that of an unstable G (no steady sinusoidal response)"
+                .to_string(),
+        )
+        } else if flagged.iter().all(|p| (p - 1.0).norm() <= margin) {
+            (
+                DC_INTEGRATOR,
+                format!(
+                "DC gain infinite: a pole at z = 1 (within {margin:e}) is an integrator, the step \
+                 response ramps without settling and |G| grows without bound as f → 0"
+            ),
+            )
+        } else {
+            (
+            DC_BOUNDARY,
+            "DC gain not defined: a pole on the unit circle away from z = 1 makes the step response \
+             oscillate without decay"
+                .to_string(),
+        )
+        },
+    )
+}
+
+/// An error naming the model file's field when the coefficients of `model`'s linear block are too
+/// large for f64 (audit s21 M-B3: a = [1e308, 1e308] gave NaN poles, a NaN Bode table and exit 0):
+/// Σ|a_i| or Σ|b_j| overflows, or the poles (roots of A) are not finite numbers.
+fn check_coefficients(model: &Model) -> Result<(), ControlError> {
+    let finite_poles = model
+        .poles()
+        .iter()
+        .all(|p| p.re.is_finite() && p.im.is_finite());
+    for (field, c) in [("a", model.a()), ("b", model.b())] {
+        let size: f64 = c.iter().map(|v| v.abs()).sum();
+        if !size.is_finite() || (field == "a" && !finite_poles) {
+            let largest = c.iter().map(|v| v.abs()).fold(0.0, f64::max);
+            return Err(ControlError::Numerical(format!(
+                "the model's \"{field}\" coefficients (largest |{field}_i| = {largest:e}) are too large \
+                 for f64: Σ|{field}_i| = {size:e}{}; the model file holds an absurd coefficient \
+                 (hand-edited or damaged?)",
+                if field == "a" && !finite_poles {
+                    ", the poles are not finite numbers"
+                } else {
+                    ""
+                }
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// The warning for the figures of `r` that are not finite numbers (NaN, ±inf; `null` in JSON), naming
+/// them; a magnitude of NaN dB with a finite phase is |G| = 0 (a zero on the unit circle), which
+/// [`bode`] documents as a gap, not a failure.
+fn non_finite(r: &Response) -> Option<String> {
+    let first_bad = |v: &[f64]| v.iter().position(|x| !x.is_finite());
+    let mut bad = Vec::new();
+    if r.dc_gain.is_some_and(|g| !g.is_finite())
+        || r.sides
+            .iter()
+            .any(|s| s.dc_gain.is_some_and(|g| !g.is_finite()))
+    {
+        bad.push("the DC gain".to_string());
+    }
+    if r.zeros
+        .iter()
+        .any(|z| !(z.0.is_finite() && z.1.is_finite()))
+    {
+        bad.push("the zeros".to_string());
+    }
+    let b = &r.bode;
+    if let Some(i) =
+        (0..b.f_hz.len()).find(|&i| !b.phase_deg[i].is_finite() || b.mag_db[i] == f64::INFINITY)
+    {
+        bad.push(format!("the Bode table from f = {} Hz", b.f_hz[i]));
+    }
+    for (name, v) in [("impulse", &r.impulse), ("step", &r.step)] {
+        if let Some(k) = first_bad(v) {
+            bad.push(format!("the {name} response from k = {k}"));
+        }
+    }
+    (!bad.is_empty()).then(|| {
+        format!(
+            "figures that are not finite numbers (NaN or infinite; null in JSON): {}; do not use them",
+            bad.join(", ")
+        )
+    })
+}
+
+/// The warning when the unit step of a block with a finite DC gain G(1) ≠ 0 is still more than 2 % of
+/// G(1) away from it at the last sample: the table ends before the response settles (audit s21 H-A1).
+fn unsettled(step: &[f64], dc_gain: Option<f64>) -> Option<String> {
+    let g = dc_gain.filter(|g| *g != 0.0 && g.is_finite())?;
+    let (k, last) = (step.len().checked_sub(1)?, *step.last()?);
+    let off = (last - g).abs();
+    (off > 0.02 * g.abs() || off.is_nan()).then(|| {
+        format!(
+            "the step response has not settled by k = {k}: s({k}) = {} against G(1) = {} ({} % of \
+             it); more samples show the rest",
+            sysid_core::format::sig(last, 6),
+            sysid_core::format::sig(g, 6),
+            sysid_core::format::sig(100.0 * last / g, 2)
+        )
+    })
 }
 
 /// The output y(k) of A(q) y = q^{-nk} B(q) x for k = 0 … n − 1 from rest, x given by `x(k)`.
@@ -150,10 +303,13 @@ pub fn response(model: &Model, s: &ResponseSettings) -> Result<Response, Control
             "the lowest frequency {f_min_hz} Hz must be above 0 and below the Nyquist frequency {nyquist_hz} Hz"
         )));
     }
+    check_coefficients(model)?;
     let (a, b) = (model.a(), model.b());
+    let verdict = dc_verdict(model);
     let sum_a: f64 = 1.0 + a.iter().sum::<f64>();
     let scale_a: f64 = 1.0 + a.iter().map(|v| v.abs()).sum::<f64>();
-    let dc_gain = (sum_a.abs() > 1e-12 * scale_a).then(|| b.iter().sum::<f64>() / sum_a);
+    let dc_gain =
+        (verdict.is_none() && sum_a.abs() > 1e-12 * scale_a).then(|| b.iter().sum::<f64>() / sum_a);
     let poles = model.poles().iter().map(|c| (c.re, c.im)).collect();
     let zeros = match b.iter().position(|&v| v != 0.0) {
         Some(i) => {
@@ -170,25 +326,38 @@ pub fn response(model: &Model, s: &ResponseSettings) -> Result<Response, Control
     let (mut gain, sides) = match model.input().nonlinearity() {
         StaticNonlinearity::Linear => (format!("G = z^-nk B/A {}", input("u")), Vec::new()),
         StaticNonlinearity::Deadzone(d) => {
-            let side = |name, breakpoint: f64, slope: f64| Side {
-                side: name,
-                breakpoint,
-                slope,
-                offset_db: 20.0 * slope.abs().log10(),
-                dc_gain: dc_gain.map(|g| slope * g),
+            let side = |name, breakpoint: f64, slope: f64| {
+                let identified = slope != 0.0;
+                Side {
+                    side: name,
+                    breakpoint,
+                    slope,
+                    identified,
+                    offset_db: identified.then(|| 20.0 * slope.abs().log10()),
+                    dc_gain: dc_gain.filter(|_| identified).map(|g| slope * g),
+                }
             };
             let sides = vec![side("right", d.b_r, d.m_r), side("left", d.b_l, d.m_l)];
+            // "m_r G = 0.0655 G for u > b_r = 0 (-23.67 dB)", or for a branch fixed at 0 by identify
+            // "m_l not identified (fixed at 0: ...)".
+            let words = |s: &Side, m: &str, b: &str, beyond: &str| match s.offset_db {
+                Some(db) => format!(
+                    "{m} G = {} G for u {beyond} {b} = {} ({db:+.2} dB)",
+                    sysid_core::format::sig(s.slope, 6),
+                    sysid_core::format::sig(s.breakpoint, 6),
+                ),
+                None => format!(
+                    "{m} not identified for u {beyond} {b} = {} (fixed at 0: the record never \
+                     drove u there; identify drops such a branch)",
+                    sysid_core::format::sig(s.breakpoint, 6),
+                ),
+            };
             (
                 format!(
-                    "G = z^-nk B/A with b1 = 1 {}; the gain from u is m_r G = {} G for u > b_r = {} ({:+.2} dB) \
-                     and m_l G = {} G for u < b_l = {} ({:+.2} dB), 0 inside the deadzone",
+                    "G = z^-nk B/A with b1 = 1 {}; the gain from u is {} and {}, 0 inside the deadzone",
                     input("the deadzone's output x"),
-                    sysid_core::format::sig(d.m_r, 6),
-                    sysid_core::format::sig(d.b_r, 6),
-                    sides[0].offset_db,
-                    sysid_core::format::sig(d.m_l, 6),
-                    sysid_core::format::sig(d.b_l, 6),
-                    sides[1].offset_db,
+                    words(&sides[0], "m_r", "b_r", ">"),
+                    words(&sides[1], "m_l", "b_l", "<"),
                 ),
                 sides,
             )
@@ -210,11 +379,23 @@ pub fn response(model: &Model, s: &ResponseSettings) -> Result<Response, Control
     let impulse = filter(model, s.samples.max(1), |k| if k == 0 { 1.0 } else { 0.0 });
     let step = filter(model, s.samples.max(1), |_| 1.0);
     let margins = s.controller.map(|c| margins(model, &c));
-    Ok(Response {
+    let mut warnings: Vec<String> = sysid::Warning::if_unstable_or_integrating(model)
+        .map(|w| w.to_string())
+        .into_iter()
+        .chain(verdict.as_ref().map(|v| v.1.clone()))
+        .chain(
+            sysid_core::model_file::load_warnings(model)
+                .into_iter()
+                .map(|w| format!("model: {w}")),
+        )
+        .chain(unsettled(&step, dc_gain))
+        .collect();
+    let mut r = Response {
         ts_s: ts,
         nk: model.nk(),
         gain,
         dc_gain,
+        dc_gain_note: verdict.map(|v| v.0),
         poles,
         zeros,
         bode: bode(model, 1.0, f_min_hz, s.points),
@@ -222,7 +403,11 @@ pub fn response(model: &Model, s: &ResponseSettings) -> Result<Response, Control
         impulse,
         step,
         margins,
-    })
+        warnings: Vec::new(),
+    };
+    warnings.extend(non_finite(&r));
+    r.warnings = warnings;
+    Ok(r)
 }
 
 /// Frequency response of a model's linear block, scaled by `gain`: the frequencies (Hz), |H| in dB
@@ -475,12 +660,132 @@ mod tests {
         assert_eq!(r.sides.len(), 2);
         let (right, left) = (&r.sides[0], &r.sides[1]);
         assert_eq!((right.side, left.side), ("right", "left"));
-        assert!((right.offset_db - 20.0 * 0.014f64.log10()).abs() < 1e-12);
-        assert!((left.offset_db - 20.0 * 0.02f64.log10()).abs() < 1e-12);
+        assert!((right.offset_db.unwrap() - 20.0 * 0.014f64.log10()).abs() < 1e-12);
+        assert!((left.offset_db.unwrap() - 20.0 * 0.02f64.log10()).abs() < 1e-12);
+        assert!(right.identified && left.identified);
         // G(1) = 1 / (1 − 0.9) = 10; from u: 0.14 mm/count on the right, 0.2 on the left.
         assert!((r.dc_gain.unwrap() - 10.0).abs() < 1e-12);
         assert!((right.dc_gain.unwrap() - 0.14).abs() < 1e-12);
         assert!((left.dc_gain.unwrap() - 0.2).abs() < 1e-12);
         assert!(r.gain.contains("b1 = 1") && r.gain.contains("m_r") && r.gain.contains("m_l"));
+    }
+
+    #[test]
+    fn an_integrator_y_k_equals_y_k_minus_1_plus_u_k_minus_1_has_an_infinite_dc_gain() {
+        // A = 1 − q⁻¹, B = 1, nk = 1: pole z = 1, G(1) = 1/0; the unit step ramps s(k) = k.
+        let m = first_order(1.0, 1.0, 0.1);
+        let r = response(&m, &ResponseSettings::default()).unwrap();
+        assert_eq!(r.dc_gain, None);
+        assert_eq!(r.dc_gain_note, Some(DC_INTEGRATOR));
+        assert!(r.dc_gain_note.unwrap().contains("integrator"));
+        for (k, s) in r.step.iter().enumerate() {
+            assert_eq!(*s, k as f64);
+        }
+        // identify's own stability warning, then what it means for G(1).
+        assert!(
+            r.warnings[0].contains("pole has modulus 1.000000"),
+            "{:?}",
+            r.warnings
+        );
+        assert!(r.warnings[1].contains("integrator"), "{:?}", r.warnings);
+    }
+
+    #[test]
+    fn a_near_integrator_within_the_margin_has_no_dc_gain_either() {
+        // Pole 1 − 10⁻⁶, inside identify's INTEGRATOR_MARGIN = 10⁻⁵: G(1) = 1/10⁻⁶ would be a
+        // number, but the step needs ~10⁶ samples to reach it.
+        let r = response(
+            &first_order(1.0 - 1e-6, 1.0, 0.1),
+            &ResponseSettings::default(),
+        )
+        .unwrap();
+        assert_eq!((r.dc_gain, r.dc_gain_note), (None, Some(DC_INTEGRATOR)));
+        assert!(
+            r.warnings[0].contains("on the stability boundary"),
+            "{:?}",
+            r.warnings
+        );
+    }
+
+    #[test]
+    fn an_unstable_pole_gives_no_dc_gain_not_the_wrong_signed_quotient() {
+        // y(k) = 1.5 y(k−1) + u(k−1): Σb/(1+Σa) = 1/(1 − 1.5) = −2, but the step diverges:
+        // s(k) = (1.5^k − 1)/0.5 > 0 and growing.
+        let r = response(&first_order(1.5, 1.0, 0.1), &ResponseSettings::default()).unwrap();
+        assert_eq!((r.dc_gain, r.dc_gain_note), (None, Some(DC_UNSTABLE)));
+        assert!(
+            r.warnings[0].starts_with("unstable model"),
+            "{:?}",
+            r.warnings
+        );
+        assert!(r.warnings[1].contains("not defined"), "{:?}", r.warnings);
+        let k = 10;
+        assert!((r.step[k] - (1.5f64.powi(k as i32) - 1.0) / 0.5).abs() < 1e-9);
+        // A pole at −1 (on the circle, away from 1): oscillates, no DC gain.
+        let r = response(&first_order(-1.0, 1.0, 0.1), &ResponseSettings::default()).unwrap();
+        assert_eq!((r.dc_gain, r.dc_gain_note), (None, Some(DC_BOUNDARY)));
+    }
+
+    #[test]
+    fn a_stable_settled_block_has_no_warning() {
+        // Pole 0.5: after 20 samples the step is 2 (1 − 0.5^19) against G(1) = 2, within 2 %.
+        let r = response(&first_order(0.5, 1.0, 0.1), &ResponseSettings::default()).unwrap();
+        assert_eq!((r.dc_gain, r.dc_gain_note), (Some(2.0), None));
+        assert!(r.warnings.is_empty(), "{:?}", r.warnings);
+        // Five samples: s(4) = 2 (1 − 0.5^4) = 1.875, 93.75 % of G(1): not settled.
+        let r = response(
+            &first_order(0.5, 1.0, 0.1),
+            &ResponseSettings {
+                samples: 5,
+                ..ResponseSettings::default()
+            },
+        )
+        .unwrap();
+        assert_eq!(r.warnings.len(), 1);
+        assert!(r.warnings[0].contains("not settled by k = 4") && r.warnings[0].contains("94 %"));
+    }
+
+    #[test]
+    fn coefficients_beyond_f64_are_an_error_naming_the_field() {
+        // Σ|a_i| = 2e308 overflows: the poles would be NaN.
+        let m = Model::arx(0.1, vec![1e308, 1e308], vec![1.0], 1, None).unwrap();
+        let e = response(&m, &ResponseSettings::default()).unwrap_err();
+        assert!(
+            e.is_numerical() && e.to_string().contains("\"a\" coefficients"),
+            "{e}"
+        );
+        let m = Model::arx(0.1, vec![-0.5], vec![1e308, 1e308], 1, None).unwrap();
+        let e = response(&m, &ResponseSettings::default()).unwrap_err();
+        assert!(e.to_string().contains("\"b\" coefficients"), "{e}");
+    }
+
+    #[test]
+    fn a_deadzone_branch_fixed_at_zero_is_not_identified() {
+        // identify's model of a one-sided input: m_l = b_l = 0 fixed. G(1) = 1/(1 − 0.9) = 10.
+        let dz = Deadzone {
+            b_l: 0.0,
+            b_r: 0.0,
+            m_l: 0.0,
+            m_r: 0.05,
+        };
+        let m = Model::hammerstein(0.01, vec![-0.9], vec![1.0], 1, dz, None).unwrap();
+        let r = response(
+            &m,
+            &ResponseSettings {
+                samples: 200,
+                ..ResponseSettings::default()
+            },
+        )
+        .unwrap();
+        let (right, left) = (&r.sides[0], &r.sides[1]);
+        assert!(right.identified && !left.identified);
+        assert!((right.dc_gain.unwrap() - 0.5).abs() < 1e-12);
+        assert_eq!((left.offset_db, left.dc_gain), (None, None));
+        assert!(r.gain.contains("m_l not identified"), "{}", r.gain);
+        // The file's shape doubt (a zero slope) is repeated as validate repeats it.
+        assert!(r
+            .warnings
+            .iter()
+            .any(|w| w.starts_with("model: non-physical deadzone")));
     }
 }

@@ -68,9 +68,59 @@ pub fn shortest(v: f64) -> String {
     Shortest(v).to_string()
 }
 
+/// A string read from a file (a model file's record name, column names, identify's warnings, an
+/// input's name) made safe to print on a terminal: every control character — C0 (ESC, CR, NUL, BS,
+/// tab, newline, …), DEL, C1 (the 8-bit CSI U+009B …) — and every bidirectional-text control
+/// (U+061C, U+200E/F, U+202A–U+202E, U+2066–U+2069) is written as a visible escape (`\u{1b}`, `\r`,
+/// `\n`, `\t`, `\u{202e}`), so that a file cannot clear the screen, set the window title or overwrite
+/// the warning that quotes it (audit s21 M-B1). Everything else is kept as it is, a plain string
+/// unchanged and unallocated. The one function every printer of such a string uses (command line and
+/// Python package).
+///
+/// ```
+/// use sysid_core::format::visible;
+/// assert_eq!(visible("dryer.csv"), "dryer.csv");
+/// assert_eq!(visible("\u{1b}[2Jdo not\r use\0"), "\\u{1b}[2Jdo not\\r use\\u{0}");
+/// ```
+pub fn visible(s: &str) -> std::borrow::Cow<'_, str> {
+    let hidden = |c: char| {
+        c.is_control()
+            || matches!(c, '\u{061c}' | '\u{200e}' | '\u{200f}' | '\u{202a}'..='\u{202e}' | '\u{2066}'..='\u{2069}')
+    };
+    if !s.chars().any(hidden) {
+        return std::borrow::Cow::Borrowed(s);
+    }
+    let mut out = String::with_capacity(s.len() + 16);
+    for c in s.chars() {
+        match c {
+            '\n' => out.push_str("\\n"),
+            '\r' => out.push_str("\\r"),
+            '\t' => out.push_str("\\t"),
+            c if hidden(c) => out.extend(c.escape_unicode()),
+            c => out.push(c),
+        }
+    }
+    std::borrow::Cow::Owned(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn every_control_and_bidi_character_becomes_a_visible_escape_and_plain_text_is_borrowed() {
+        use std::borrow::Cow;
+        assert!(matches!(visible("dryer.csv [0..148] µ"), Cow::Borrowed(_)));
+        // ESC, BEL, CR, NUL, BS, DEL, the 8-bit CSI U+009B and the right-to-left override U+202E.
+        assert_eq!(
+            visible("a\u{1b}b\u{7}c\rd\0e\u{8}f\u{7f}g\u{9b}h\u{202e}i\tj\nk"),
+            "a\\u{1b}b\\u{7}c\\rd\\u{0}e\\u{8}f\\u{7f}g\\u{9b}h\\u{202e}i\\tj\\nk"
+        );
+        for c in (0u32..0x20).chain(0x7f..0xa0) {
+            let s = char::from_u32(c).unwrap().to_string();
+            assert!(!visible(&s).chars().any(char::is_control), "{c:#x}");
+        }
+    }
 
     // Every printed form reads back as the same f64, and is never longer than Rust's `{}` or `{:e}`.
     #[test]

@@ -211,6 +211,75 @@ pub struct Provenance {
     pub warnings: Vec<String>,
 }
 
+/// Shortest sampling period Ts of a model file, s: the floor of the controller's range
+/// (`ipa_embedded::position::MIN_TS_S`, equal by a test in `control`). A Ts of 1e-320 s was loaded and
+/// then blamed on `response --f-min` ("the lowest frequency inf Hz", audit s21 L-B2) or simulated as
+/// "Ts = 1e-320 s". No upper limit: a model of daily data (Ts = 86 400 s) is a model.
+pub const MIN_TS_S: f64 = 1e-6;
+
+/// At most this many characters in [`Provenance::record`] (a path; identify writes the one given).
+pub const MAX_RECORD_CHARS: usize = 4096;
+/// At most this many warnings in [`Provenance::warnings`] (identify gives a few).
+pub const MAX_PROVENANCE_WARNINGS: usize = 100;
+/// At most this many characters in one of [`Provenance::warnings`] (identify's longest are ~600).
+pub const MAX_WARNING_CHARS: usize = 2000;
+/// At most this many column names in [`Provenance::u_columns`], and characters in a column name.
+pub const MAX_COLUMNS: usize = 1000;
+/// At most this many characters in a column name ([`Provenance::u_columns`], `y_column`).
+pub const MAX_COLUMN_CHARS: usize = 1000;
+
+impl Provenance {
+    /// Refuses a record, a column list or a warning list larger than identify writes (audit s21 M-B2:
+    /// an 8 MB record name or 100 000 warnings in a model file were printed in full, 24 MB of
+    /// warnings): the field, its size and the limit in words. The file is refused, not truncated: a
+    /// file this large was not written by identify.
+    pub fn check_sizes(&self) -> Result<(), String> {
+        let chars = |s: &str| s.chars().count();
+        let too_long = |field: &str, n: usize, max: usize| {
+            Err(format!(
+                "identification.{field} has {n} characters, at most {max}"
+            ))
+        };
+        if chars(&self.record) > MAX_RECORD_CHARS {
+            return too_long("record", chars(&self.record), MAX_RECORD_CHARS);
+        }
+        if self.warnings.len() > MAX_PROVENANCE_WARNINGS {
+            return Err(format!(
+                "identification.warnings has {} items, at most {MAX_PROVENANCE_WARNINGS}",
+                self.warnings.len()
+            ));
+        }
+        if let Some((i, w)) = self
+            .warnings
+            .iter()
+            .enumerate()
+            .find(|(_, w)| chars(w) > MAX_WARNING_CHARS)
+        {
+            return too_long(&format!("warnings[{i}]"), chars(w), MAX_WARNING_CHARS);
+        }
+        if self.u_columns.len() > MAX_COLUMNS {
+            return Err(format!(
+                "identification.u_columns has {} items, at most {MAX_COLUMNS}",
+                self.u_columns.len()
+            ));
+        }
+        if let Some((i, c)) = self
+            .u_columns
+            .iter()
+            .enumerate()
+            .find(|(_, c)| chars(c) > MAX_COLUMN_CHARS)
+        {
+            return too_long(&format!("u_columns[{i}]"), chars(c), MAX_COLUMN_CHARS);
+        }
+        match &self.y_column {
+            Some(y) if chars(y) > MAX_COLUMN_CHARS => {
+                too_long("y_column", chars(y), MAX_COLUMN_CHARS)
+            }
+            _ => Ok(()),
+        }
+    }
+}
+
 /// The range of the data a model was estimated on, in the user's units (for the IPA: PWM counts and
 /// mm): the smallest and largest value of each input, in the model's input order, and of the output y.
 /// A model is an approximation of its plant over this range; used far beyond it (a command limit or
@@ -1350,7 +1419,8 @@ fn channel_of(
     let f = match (dz, nl) {
         (Some(_), Some(_)) => {
             return Err(SysidError::Data(format!(
-                "invalid model: input {name} has both a deadzone and a nonlinearity key (one nonlinearity per input)"
+                "invalid model: input {} has both a deadzone and a nonlinearity key (one nonlinearity per input)",
+                crate::format::visible(&name)
             )))
         }
         (Some(d), None) => StaticNonlinearity::Deadzone(d),
@@ -1387,6 +1457,17 @@ impl TryFrom<ModelRepr> for Model {
                 crate::format::Shortest(r.ts)
             ));
         }
+        if r.ts < MIN_TS_S {
+            return bad(format!(
+                "ts = {:e} s is below {MIN_TS_S:e} s, the shortest sampling period of a model file \
+                 (and of the controller)",
+                r.ts
+            ));
+        }
+        if let Some(p) = &r.identification {
+            p.check_sizes()
+                .map_err(|m| SysidError::Data(format!("invalid model: {m}")))?;
+        }
         let nonlinear_first = r.deadzone.is_some() || r.nonlinearity.is_some();
         match (r.kind, nonlinear_first) {
             (ModelKind::Hammerstein, false) if r.inputs.is_none() => {
@@ -1418,11 +1499,22 @@ impl TryFrom<ModelRepr> for Model {
                     );
                 }
                 let mut v = Vec::with_capacity(list.len());
-                for i in list {
+                for (k, i) in list.into_iter().enumerate() {
+                    // An input's name is printed in warnings and errors: a label, not a place for
+                    // terminal control (audit s21 M-B1) or megabytes of text (M-B2).
+                    if i.name.chars().count() > MAX_COLUMN_CHARS
+                        || crate::format::visible(&i.name) != i.name
+                    {
+                        return bad(format!(
+                            "inputs[{k}].name must be at most {MAX_COLUMN_CHARS} characters without \
+                             control characters; it is {:?}",
+                            i.name.chars().take(80).collect::<String>()
+                        ));
+                    }
                     if i.b.len() != i.nb {
                         return bad(format!(
                             "input {}: nb = {} but b has {} coefficients",
-                            i.name,
+                            crate::format::visible(&i.name),
                             i.nb,
                             i.b.len()
                         ));

@@ -8,6 +8,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
+use crate::format::visible;
 use crate::model::ModelRepr;
 use crate::narx::NarxModel;
 use crate::{Model, SysidError};
@@ -37,6 +38,15 @@ struct ModelFileIn {
 
 /// Serialises `model` as a model file (pretty JSON, ending with a newline).
 pub fn to_json(model: &Model) -> Result<String, SysidError> {
+    // A file that would not load again is not written.
+    if model.ts() < crate::model::MIN_TS_S {
+        return Err(SysidError::Data(format!(
+            "the model's Ts = {:e} s is below {:e} s, the shortest sampling period a model file may \
+             hold: it is not saved",
+            model.ts(),
+            crate::model::MIN_TS_S
+        )));
+    }
     let out = ModelFileOut {
         format: FORMAT,
         version: VERSION,
@@ -66,7 +76,8 @@ pub fn load_warnings(model: &Model) -> Vec<String> {
 }
 
 /// The warnings `identify` gave when it wrote the model file ([`crate::model::Provenance`]), each
-/// prefixed by the record and the model's free-run fit on it — the words `tune --plant-config` uses for
+/// prefixed by the record and the model's free-run fit on it, the file's strings made printable
+/// ([`visible`]) — the words `tune --plant-config` uses for
 /// a twin's calibration warnings (audit s20 M-3): "this model's identification on rec.csv (free-run fit
 /// −38.27 % on it) warned: …". Empty for a file without an `identification` record or whose
 /// identification gave none.
@@ -81,8 +92,9 @@ pub fn provenance_warnings(model: &Model) -> Vec<String> {
         .iter()
         .map(|w| {
             format!(
-                "this model's identification on {} (free-run fit {fit} on it) warned: {w}",
-                p.record
+                "this model's identification on {} (free-run fit {fit} on it) warned: {}",
+                visible(&p.record),
+                visible(w)
             )
         })
         .collect()
@@ -93,7 +105,7 @@ fn shape_warnings(model: &Model) -> Vec<String> {
     let several = model.inputs().len() > 1;
     let inputs = model.inputs().iter().map(|input| {
         let of = if several {
-            format!(" (input {})", input.name())
+            format!(" (input {})", visible(input.name()))
         } else {
             String::new()
         };

@@ -543,8 +543,9 @@ size_t ipa_ctl_state_size(void);
 /**
  * Initialises the tuned position controller (CONTROLLER.json) in `mem` from `settings`, at rest.
  * Returns [`IPA_OK`] or a negative code (a setting out of range, bad storage): [`IPA_ERR_SETTING`]
- * among others for Ts < 1e-6 s (`ipa_embedded::position::MIN_TS_S`, the floor `control` applies to
- * controller files too; a subnormal Ts gave NaN commands: audit s19 M-1).
+ * among others for Ts outside 1e-6 to 1e4 s (`ipa_embedded::position::MIN_TS_S` and
+ * `ipa_embedded::MAX_TS_S`, the range `control` applies to controller files too; a subnormal Ts gave
+ * NaN commands, audit s19 M-1, and Ts = 1e308 s an overflowing integral, audit s21 L-B1).
  *
  * # Safety
  * `mem` null or writable for `len` bytes, aligned to 8; `settings` null or readable.

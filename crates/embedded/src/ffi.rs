@@ -699,8 +699,9 @@ pub extern "C" fn ipa_ctl_state_size() -> usize {
 
 /// Initialises the tuned position controller (CONTROLLER.json) in `mem` from `settings`, at rest.
 /// Returns [`IPA_OK`] or a negative code (a setting out of range, bad storage): [`IPA_ERR_SETTING`]
-/// among others for Ts < 1e-6 s (`ipa_embedded::position::MIN_TS_S`, the floor `control` applies to
-/// controller files too; a subnormal Ts gave NaN commands: audit s19 M-1).
+/// among others for Ts outside 1e-6 to 1e4 s (`ipa_embedded::position::MIN_TS_S` and
+/// `ipa_embedded::MAX_TS_S`, the range `control` applies to controller files too; a subnormal Ts gave
+/// NaN commands, audit s19 M-1, and Ts = 1e308 s an overflowing integral, audit s21 L-B1).
 ///
 /// # Safety
 /// `mem` null or writable for `len` bytes, aligned to 8; `settings` null or readable.
@@ -715,6 +716,10 @@ pub unsafe extern "C" fn ipa_ctl_init(
     }
     // SAFETY: non-null and readable per the contract.
     let c = unsafe { settings.read() };
+    // The upper end of the range (the floor is also `PositionController::new`'s).
+    if !crate::ts_in_range(c.ts) {
+        return IPA_ERR_SETTING;
+    }
     let compensator = match c.has_deadzone {
         0 => Ok(None),
         1 => {

@@ -50,6 +50,18 @@ pub use pi::{AntiWindup, Pi};
 pub use position::{PositionController, PositionSettings, ShortApproachSettings};
 pub use rls::{Form, Rls};
 
+/// Largest sampling period Ts of the tuned position controller, s: with
+/// [`position::MIN_TS_S`] (1e-6 s) the one range of Ts, checked by `ipa_ctl_init` and by `control`'s
+/// controller files alike (audit s21 L-1: the C interface took Ts = 1e308 s, after which the integral
+/// Ki·Ts·Σe overflowed at every step in the fine band). Model files take the same floor.
+pub const MAX_TS_S: f64 = 1e4;
+
+/// True when `ts` (s) is a sampling period the tuned position controller takes:
+/// [`position::MIN_TS_S`] ≤ Ts ≤ [`MAX_TS_S`] (false for NaN).
+pub fn ts_in_range(ts: f64) -> bool {
+    (position::MIN_TS_S..=MAX_TS_S).contains(&ts)
+}
+
 /// A failure of an embedded routine. In the C interface each is a negative return code
 /// ([`Error::code`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]

@@ -241,3 +241,30 @@ fn the_c_interface_reports_the_refusals_with_their_codes() {
         assert_eq!(init(f64::NEG_INFINITY, f64::INFINITY), IPA_OK);
     }
 }
+
+// Audit s21 L-B1: the range of Ts is 1e-6 to 1e4 s for the C interface as for a controller file
+// (Ts = 1e308 s was taken by ipa_ctl_init, then Ki·Ts·Σe overflowed at every step). The ends are kept;
+// just beyond either, 1e308, +∞ and NaN are refused with IPA_ERR_SETTING and by `control` naming ts.
+// Model files take the same floor.
+#[test]
+fn a_sampling_period_outside_one_microsecond_to_1e4_s_is_refused_by_c_and_by_control() {
+    assert_eq!((MIN_TS_S, ipa_embedded::MAX_TS_S), (1e-6, 1e4));
+    assert_eq!(sysid::model::MIN_TS_S, MIN_TS_S);
+    let mut ctl = [0u64; IPA_CTL_STATE_BYTES / 8];
+    let p = ctl.as_mut_ptr() as *mut c_void;
+    for ts in [1.0001e4, 1e6, 1e308, f64::INFINITY, f64::NAN, 0.99e-6] {
+        let code = unsafe { ipa_ctl_init(p, IPA_CTL_STATE_BYTES, &c_p_only(ts)) };
+        assert_eq!(code, IPA_ERR_SETTING, "Ts = {ts:e}");
+        let e = control::ControllerSettings::pi(ts, 3.0, 0.0)
+            .build()
+            .unwrap_err();
+        assert!(e.to_string().contains("from 1e-6 to 1e4"), "{e}");
+    }
+    for ts in [1e-6, 0.01, 3600.0, 1e4] {
+        let code = unsafe { ipa_ctl_init(p, IPA_CTL_STATE_BYTES, &c_p_only(ts)) };
+        assert_eq!(code, IPA_OK, "Ts = {ts:e}");
+        assert!(control::ControllerSettings::pi(ts, 3.0, 0.0)
+            .build()
+            .is_ok());
+    }
+}

@@ -323,8 +323,9 @@ impl PlantConfig {
             .iter()
             .map(|w| {
                 format!(
-                    "this twin's calibration on {} ({fits}) warned: {w}",
-                    note.record
+                    "this twin's calibration on {} ({fits}) warned: {}",
+                    sysid_core::format::visible(&note.record),
+                    sysid_core::format::visible(w)
                 )
             })
             .collect()

@@ -61,6 +61,33 @@ fn opt(v: Option<f64>) -> String {
     v.map_or_else(|| "n/a".into(), num)
 }
 
+/// The DC gain G(1) in words: the number, or why there is none (an integrator, an unstable block;
+/// audit s21 H-A1), or for a deadzone side whose slope identify fixed at 0 "not identified".
+fn dc_words(r: &Response) -> String {
+    let mut o = match (r.dc_gain, r.dc_gain_note) {
+        (Some(g), _) => num(g),
+        (None, Some(note)) => note.to_string(),
+        (None, None) => "n/a".to_string(),
+    };
+    for s in &r.sides {
+        let v = match (s.identified, s.dc_gain) {
+            (false, _) => "not identified".to_string(),
+            (true, Some(g)) => num(g),
+            (true, None) => r.dc_gain_note.unwrap_or("n/a").to_string(),
+        };
+        o += &format!("; {}: {v}", s.side);
+    }
+    o
+}
+
+/// The `warning:` lines of the report (the JSON's `warnings`), each model-file string escaped.
+fn warning_lines(r: &Response) -> String {
+    r.warnings
+        .iter()
+        .map(|w| format!("warning: {w}\n"))
+        .collect()
+}
+
 /// The printed report; `controller` names the controller of the margins.
 fn text(name: &str, r: &Response, controller: Option<&str>) -> String {
     let b = &r.bode;
@@ -70,17 +97,13 @@ fn text(name: &str, r: &Response, controller: Option<&str>) -> String {
         r.nk
     );
     o += &format!("gain:     {}\n", r.gain);
-    o += &format!("DC gain:  G(1) = {}", opt(r.dc_gain));
-    for s in &r.sides {
-        o += &format!("; {}: {}", s.side, opt(s.dc_gain));
-    }
-    o += "\n";
+    o += &format!("DC gain:  G(1) = {}\n", dc_words(r));
     o += &format!("poles:    {}\n", list(&r.poles));
     o += &format!("zeros:    {}\n", list(&r.zeros));
     if let (Some(m), Some(c)) = (&r.margins, controller) {
         o += &format!(
             "margins:  {c}: gain {} dB at {} rad/s, phase {} deg at {} rad/s; closed-loop \
-             poles |p| <= {}{} (as tune: the deadzone replaced by its mean slope (m_l + m_r)/2)\n",
+             poles |p| <= {}{}{}\n",
             opt(m.gain_margin_db),
             opt(m.phase_crossover_rad_s),
             opt(m.phase_margin_deg),
@@ -90,6 +113,11 @@ fn text(name: &str, r: &Response, controller: Option<&str>) -> String {
                 ": UNSTABLE"
             } else {
                 ""
+            },
+            if r.sides.is_empty() {
+                ""
+            } else {
+                " (as tune: the deadzone replaced by its mean slope (m_l + m_r)/2)"
             }
         );
     }
@@ -115,7 +143,10 @@ fn text(name: &str, r: &Response, controller: Option<&str>) -> String {
             b.phase_deg[i]
         );
         for s in &r.sides {
-            o += &format!(" {:>13.3}", b.mag_db[i] + s.offset_db);
+            o += &match s.offset_db {
+                Some(db) => format!(" {:>13.3}", b.mag_db[i] + db),
+                None => format!(" {:>13}", "n/a"),
+            };
         }
         o += "\n";
     }
@@ -133,7 +164,7 @@ fn text(name: &str, r: &Response, controller: Option<&str>) -> String {
             num(*s)
         );
     }
-    o
+    o + &warning_lines(r)
 }
 
 /// The Bode table as CSV.
@@ -153,7 +184,12 @@ fn csv(r: &Response) -> String {
             b.phase_deg[i]
         );
         for s in &r.sides {
-            o += &format!(",{}", b.mag_db[i] + s.offset_db);
+            // An unidentified side (slope fixed at 0) has no gain to give: an empty field.
+            if let Some(db) = s.offset_db {
+                o += &format!(",{}", b.mag_db[i] + db);
+            } else {
+                o += ",";
+            }
         }
         o += "\n";
     }
@@ -212,8 +248,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         samples: args.samples as usize,
         controller,
     };
+    // The library's error kept as the cause, so that a numerical one (coefficients beyond f64) exits 1.
     let r = response(&model, &settings)
-        .map_err(|e| anyhow::anyhow!("{}: {e}", args.model.display()))?;
+        .map_err(|e| anyhow::Error::new(e).context(args.model.display().to_string()))?;
     print_report(
         &text(&args.model.display().to_string(), &r, words.as_deref()),
         &[args.out.as_deref(), args.json.as_deref()],

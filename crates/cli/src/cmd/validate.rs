@@ -2,6 +2,7 @@
 
 use std::path::{Path, PathBuf};
 
+use sysid_core::format::visible;
 use sysid_summary::ValidationReport;
 
 use super::common::{check_outputs, print_report, stream_note, ColumnArgs, StreamMode};
@@ -58,7 +59,7 @@ pub struct Args {
 /// --u-col / --y-col not typed (`given`: the flags typed; an explicit `--u-col u` is the user's
 /// choice, not the default) when the record has a header (audit s20 L-4: a model identified from
 /// `--u-col InputGasRate --y-col CO2` needed them again); a note saying which, `None` when none was
-/// taken.
+/// taken. The file's strings are printed through [`visible`].
 fn stored_columns(
     model: &sysid::Model,
     opts: &mut sysid::data::CsvOptions,
@@ -72,7 +73,7 @@ fn stored_columns(
     let mut taken = Vec::new();
     if !typed("u_col") && !p.u_columns.is_empty() && p.u_columns.join(",") != opts.u_col {
         opts.u_col = p.u_columns.join(",");
-        taken.push(format!("--u-col {}", opts.u_col));
+        taken.push(format!("--u-col {}", visible(&opts.u_col)));
     }
     if let Some(y) = p
         .y_column
@@ -80,12 +81,12 @@ fn stored_columns(
         .filter(|y| !typed("y_col") && **y != opts.y_col)
     {
         opts.y_col = y.clone();
-        taken.push(format!("--y-col {y}"));
+        taken.push(format!("--y-col {}", visible(y)));
     }
     (!taken.is_empty()).then(|| {
         format!(
             "columns from the model file (its identification on {} read them): {}",
-            p.record,
+            visible(&p.record),
             taken.join(" ")
         )
     })

@@ -243,34 +243,26 @@ impl Provenance {
         if chars(&self.record) > MAX_RECORD_CHARS {
             return too_long("record", chars(&self.record), MAX_RECORD_CHARS);
         }
-        if self.warnings.len() > MAX_PROVENANCE_WARNINGS {
-            return Err(format!(
-                "identification.warnings has {} items, at most {MAX_PROVENANCE_WARNINGS}",
-                self.warnings.len()
-            ));
-        }
-        if let Some((i, w)) = self
-            .warnings
-            .iter()
-            .enumerate()
-            .find(|(_, w)| chars(w) > MAX_WARNING_CHARS)
-        {
-            return too_long(&format!("warnings[{i}]"), chars(w), MAX_WARNING_CHARS);
-        }
-        if self.u_columns.len() > MAX_COLUMNS {
-            return Err(format!(
-                "identification.u_columns has {} items, at most {MAX_COLUMNS}",
-                self.u_columns.len()
-            ));
-        }
-        if let Some((i, c)) = self
-            .u_columns
-            .iter()
-            .enumerate()
-            .find(|(_, c)| chars(c) > MAX_COLUMN_CHARS)
-        {
-            return too_long(&format!("u_columns[{i}]"), chars(c), MAX_COLUMN_CHARS);
-        }
+        // A list of at most `items` strings of at most `max` characters each.
+        let list = |field: &str, v: &[String], items: usize, max: usize| {
+            if v.len() > items {
+                return Err(format!(
+                    "identification.{field} has {} items, at most {items}",
+                    v.len()
+                ));
+            }
+            match v.iter().enumerate().find(|(_, w)| chars(w) > max) {
+                Some((i, w)) => too_long(&format!("{field}[{i}]"), chars(w), max),
+                None => Ok(()),
+            }
+        };
+        list(
+            "warnings",
+            &self.warnings,
+            MAX_PROVENANCE_WARNINGS,
+            MAX_WARNING_CHARS,
+        )?;
+        list("u_columns", &self.u_columns, MAX_COLUMNS, MAX_COLUMN_CHARS)?;
         match &self.y_column {
             Some(y) if chars(y) > MAX_COLUMN_CHARS => {
                 too_long("y_column", chars(y), MAX_COLUMN_CHARS)

@@ -684,7 +684,7 @@ impl PyModel {
             ));
         }
         let ts = self.inner.ts();
-        let controller = match (controller, kp.is_some() || ki.is_some()) {
+        let tuned = match (controller, kp.is_some() || ki.is_some()) {
             (Some(_), true) => {
                 return Err(PyValueError::new_err(
                     "invalid setting controller: not together with kp/ki (the tuned controller has its own gains)",
@@ -696,11 +696,17 @@ impl PyModel {
                     .import("ipa_sysid")?
                     .getattr("_controller_text")?
                     .call1((c,))?;
-                let t = controller_file(&text)?.controller;
-                check_controller_ts(&t, ts, "model")?;
-                Some(t)
+                let file = controller_file(&text)?;
+                check_controller_ts(&file.controller, ts, "model")?;
+                Some(file)
             }
-            (None, _) => kp.map(|kp| ::control::ControllerSettings::pi(ts, kp, ki.unwrap_or(0.0))),
+            (None, _) => None,
+        };
+        // A tuned controller that did not meet its specification says so, as `control` does.
+        let not_met = tuned.as_ref().and_then(|f| f.provenance_warning());
+        let controller = match tuned {
+            Some(f) => Some(f.controller),
+            None => kp.map(|kp| ::control::ControllerSettings::pi(ts, kp, ki.unwrap_or(0.0))),
         };
         let settings = ::control::response::ResponseSettings {
             points,
@@ -708,7 +714,9 @@ impl PyModel {
             samples,
             controller,
         };
-        let r = ::control::response::response(&self.inner, &settings).map_err(control_err)?;
+        let mut r = ::control::response::response(&self.inner, &settings).map_err(control_err)?;
+        r.warnings
+            .extend(not_met.map(|w| format!("controller: {w}")));
         // The dict's "warnings" (what `response` prints as `warning:` lines), each an IpaSysidWarning.
         warn_all(py, &r.warnings)?;
         to_py(py, &r)

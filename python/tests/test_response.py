@@ -135,3 +135,18 @@ def test_margins_of_a_hand_written_controller_are_the_hand_derived_ones(tmp_path
     pm = 180 + math.degrees(cmath.phase(z / (1 - 0.5 * z)))
     assert r["margins"]["phase_margin_deg"] == pytest.approx(pm, abs=0.01)
     assert r["margins"]["gain_margin_db"] == pytest.approx(20 * math.log10(1.5), abs=1e-6)
+
+
+def test_a_controller_file_that_did_not_meet_its_spec_is_said(tmp_path):
+    # As `control(controller=...)`: a file whose provenance says meets_spec = false gets a
+    # "controller: ..." warning (in the dict and as an IpaSysidWarning); the same file without it none.
+    c = {"ts_s": 0.05, "kp": 4.0, "ki": 0.0, "kd": 0.0, "derivative_filter_s": 0.0, "u_max": 255.0,
+         "hold_band_mm": 0.0, "fine_band_mm": 0.0, "reset_on_crossing": False, "compensator": None}
+    m = _model(tmp_path, 0.5, 0.25)
+    text = {"format": "ipa-sysid-controller", "version": 1, "controller": c}
+    r = m.frequency_response(controller=json.dumps(text))
+    assert not [w for w in r["warnings"] if w.startswith("controller: ")]
+    text["provenance"] = {"meets_spec": False}
+    with pytest.warns(ipa_sysid.IpaSysidWarning, match="does not meet the specification"):
+        r = m.frequency_response(controller=json.dumps(text))
+    assert [w for w in r["warnings"] if w.startswith("controller: ")]

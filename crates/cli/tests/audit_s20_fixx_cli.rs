@@ -192,7 +192,9 @@ fn response_margins_of_a_controller_file_are_tunes_and_those_of_its_gains() {
 // Session 21: the hand-derived loop of the library's test through a controller file: L = K β z⁻¹ /
 // (1 − α z⁻¹) with K = Kp = 4 (Ki = Kd = 0), α = 0.5, β = 0.25 (Kβ = 1): |L| = 1 where cos θ = 0.25,
 // PM = 180° + arg L there; L(−1) = −Kβ/(1 + α): GM = 20 log10 1.5 dB at ω = π/Ts. The printed line
-// names the file and its gains; a controller tuned at another Ts is refused naming --controller.
+// names the file and its gains (the JSON's `controller` too); a file that says it did not meet its
+// specification gets a `controller:` warning; a controller tuned at another Ts is refused naming
+// --controller.
 #[test]
 fn response_margins_of_a_hand_written_controller_file_are_the_hand_derived_ones() {
     let dir = tempfile::tempdir().unwrap();
@@ -229,6 +231,42 @@ fn response_margins_of_a_hand_written_controller_file_are_the_hand_derived_ones(
         )),
         "{out}"
     );
+    // The JSON names the controller as the text does; the file carries no verdict: no controller word.
+    let r = json_of(&[
+        "response",
+        "--model",
+        s(&m),
+        "--controller",
+        s(&c),
+        "--json",
+        "-",
+    ]);
+    let words = format!("{} Kp = 4, Ki = 0, Kd = 0, Tf = 0 s", c.display());
+    assert_eq!(r["controller"], words.as_str(), "{r}");
+    let said = |r: &serde_json::Value| {
+        r["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|w| w.as_str().unwrap().starts_with("controller: "))
+    };
+    assert!(!said(&r), "{r}");
+    // A file whose provenance says it did not meet its specification: said, as `control` says it.
+    let mut file: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&c).unwrap()).unwrap();
+    file["provenance"] = serde_json::json!({"meets_spec": false});
+    let unmet = dir.path().join("unmet.json");
+    std::fs::write(&unmet, file.to_string()).unwrap();
+    let r = json_of(&[
+        "response",
+        "--model",
+        s(&m),
+        "--controller",
+        s(&unmet),
+        "--json",
+        "-",
+    ]);
+    assert!(said(&r), "{r}");
     let other = controller("other.json", 0.01);
     let o = ipa_sysid(&["response", "--model", s(&m), "--controller", s(&other)]);
     assert_eq!(o.status.code(), Some(2));

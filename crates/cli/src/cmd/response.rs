@@ -249,8 +249,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         controller,
     };
     // The library's error kept as the cause, so that a numerical one (coefficients beyond f64) exits 1.
-    let r = response(&model, &settings)
+    let mut r = response(&model, &settings)
         .map_err(|e| anyhow::Error::new(e).context(args.model.display().to_string()))?;
+    // A tuned controller that did not meet its specification says so here too, as in `control`.
+    if let Some((_, f)) = &tuned {
+        r.warnings
+            .extend(f.provenance_warning().map(|w| format!("controller: {w}")));
+    }
     print_report(
         &text(&args.model.display().to_string(), &r, words.as_deref()),
         &[args.out.as_deref(), args.json.as_deref()],
@@ -258,7 +263,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let json = args
         .json
         .as_ref()
-        .map(|_| serde_json::to_string_pretty(&r).map(|s| s + "\n"))
+        .map(|_| {
+            // The controller of the margins, in the text's words (its file and gains, or the PI).
+            let mut v = serde_json::to_value(&r)?;
+            if let (Some(o), Some(w)) = (v.as_object_mut(), &words) {
+                o.insert("controller".into(), w.clone().into());
+            }
+            serde_json::to_string_pretty(&v).map(|s| s + "\n")
+        })
         .transpose()?;
     let table = args.out.as_ref().map(|_| csv(&r));
     let mut outputs: Vec<(&Path, &[u8], &str)> = Vec::new();

@@ -26,6 +26,21 @@ def _model(tmp_path, alpha, beta, deadzone=None):
     return ipa_sysid.load_model(str(path))
 
 
+# The proportional controller Kp = 4 at Ts = 0.05 s, as a controller dict (tune()'s "controller").
+_P4 = {"ts_s": 0.05, "kp": 4.0, "ki": 0.0, "kd": 0.0, "derivative_filter_s": 0.0, "u_max": 255.0,
+       "hold_band_mm": 0.0, "fine_band_mm": 0.0, "reset_on_crossing": False, "compensator": None}
+
+
+def _assert_hand_derived_margins(r):
+    """The margins of L = Kp beta z^-1 / (1 - alpha z^-1) with Kp beta = 1, alpha = 0.5: |L| = 1 at
+    cos(theta) = 0.25 (phase margin 180 deg + arg L there); L(-1) = -1/1.5 (gain margin 20 log10 1.5 dB)."""
+    th = math.acos(0.25)
+    z = cmath.exp(-1j * th)
+    pm = 180 + math.degrees(cmath.phase(z / (1 - 0.5 * z)))
+    assert r["margins"]["phase_margin_deg"] == pytest.approx(pm, abs=0.01)
+    assert r["margins"]["gain_margin_db"] == pytest.approx(20 * math.log10(1.5), abs=1e-6)
+
+
 def test_first_order_frequency_response_impulse_and_dc_gain(tmp_path):
     alpha, beta, ts = 0.7, 0.4, 0.05
     r = _model(tmp_path, alpha, beta).frequency_response(points=9, samples=6)
@@ -44,11 +59,7 @@ def test_margins_of_a_hand_derived_loop(tmp_path):
     # L = Kp beta z^-1 / (1 - alpha z^-1), Kp beta = 1, alpha = 0.5: |L| = 1 at cos(theta) = 0.25;
     # at z = -1, L = -1/1.5: gain margin 20 log10 1.5 dB.
     r = _model(tmp_path, 0.5, 0.25).frequency_response(kp=4.0)
-    th = math.acos(0.25)
-    z = cmath.exp(-1j * th)
-    pm = 180 + math.degrees(cmath.phase(z / (1 - 0.5 * z)))
-    assert r["margins"]["phase_margin_deg"] == pytest.approx(pm, abs=0.01)
-    assert r["margins"]["gain_margin_db"] == pytest.approx(20 * math.log10(1.5), abs=1e-6)
+    _assert_hand_derived_margins(r)
 
 
 def test_hammerstein_response_states_the_slopes_and_bad_settings_are_value_errors(tmp_path):
@@ -127,23 +138,15 @@ def test_margins_of_a_tuned_controller_are_tunes_and_those_of_its_gains(tmp_path
 
 def test_margins_of_a_hand_written_controller_are_the_hand_derived_ones(tmp_path):
     # As test_margins_of_a_hand_derived_loop, the PI of Kp = 4 given as a controller dict.
-    c = {"ts_s": 0.05, "kp": 4.0, "ki": 0.0, "kd": 0.0, "derivative_filter_s": 0.0, "u_max": 255.0,
-         "hold_band_mm": 0.0, "fine_band_mm": 0.0, "reset_on_crossing": False, "compensator": None}
-    r = _model(tmp_path, 0.5, 0.25).frequency_response(controller=c)
-    th = math.acos(0.25)
-    z = cmath.exp(-1j * th)
-    pm = 180 + math.degrees(cmath.phase(z / (1 - 0.5 * z)))
-    assert r["margins"]["phase_margin_deg"] == pytest.approx(pm, abs=0.01)
-    assert r["margins"]["gain_margin_db"] == pytest.approx(20 * math.log10(1.5), abs=1e-6)
+    r = _model(tmp_path, 0.5, 0.25).frequency_response(controller=_P4)
+    _assert_hand_derived_margins(r)
 
 
 def test_a_controller_file_that_did_not_meet_its_spec_is_said(tmp_path):
     # As `control(controller=...)`: a file whose provenance says meets_spec = false gets a
     # "controller: ..." warning (in the dict and as an IpaSysidWarning); the same file without it none.
-    c = {"ts_s": 0.05, "kp": 4.0, "ki": 0.0, "kd": 0.0, "derivative_filter_s": 0.0, "u_max": 255.0,
-         "hold_band_mm": 0.0, "fine_band_mm": 0.0, "reset_on_crossing": False, "compensator": None}
     m = _model(tmp_path, 0.5, 0.25)
-    text = {"format": "ipa-sysid-controller", "version": 1, "controller": c}
+    text = {"format": "ipa-sysid-controller", "version": 1, "controller": _P4}
     r = m.frequency_response(controller=json.dumps(text))
     assert not [w for w in r["warnings"] if w.startswith("controller: ")]
     text["provenance"] = {"meets_spec": False}

@@ -1048,6 +1048,27 @@ impl DecimalMarks {
     }
 }
 
+/// [`cell_value`] of a reader that sees the file row by row (streamed, line by line), its decimal mark
+/// noted in `marks` when the file may write decimal commas (the in-memory reader checks every cell at
+/// once, in `table_of`). `line`, `column` (1-based) name the cell in the mixed-marks message.
+#[allow(clippy::too_many_arguments)] // cell_value's five and the cell's place
+pub(crate) fn marked_cell_value(
+    cell: Option<&str>,
+    fields: usize,
+    headers: usize,
+    cname: &str,
+    decimal_comma: bool,
+    marks: &mut DecimalMarks,
+    line: usize,
+    column: usize,
+) -> Result<f64, String> {
+    let v = cell_value(cell, fields, headers, cname, decimal_comma)?;
+    if let (true, Some(cell)) = (decimal_comma, cell) {
+        marks.note(cell, line, column)?;
+    }
+    Ok(v)
+}
+
 /// A cell as f64: Rust's float syntax, plus a decimal comma (`1,5`) when `decimal_comma` (a semicolon-
 /// or tab-delimited file) and the cell has one comma and no point.
 fn parse_number(cell: &str, decimal_comma: bool) -> Option<f64> {

@@ -13,7 +13,9 @@
 
 use std::io::Read;
 
-use super::{cell_value, ragged_row, sniff_delimiter, table_of, CsvOptions, DecimalMarks, Table};
+use super::{
+    marked_cell_value, ragged_row, sniff_delimiter, table_of, CsvOptions, DecimalMarks, Table,
+};
 use crate::error::Setting;
 use crate::SysidError;
 
@@ -147,21 +149,17 @@ impl CsvLines {
             None => None,
         };
         let cname = self.table.headers.get(col).map_or("?", String::as_str);
-        let v = cell_value(
+        marked_cell_value(
             cell,
             self.rec.len(),
             self.table.headers.len(),
             cname,
             self.table.decimal_comma,
+            &mut self.marks.borrow_mut(),
+            line_no,
+            col + 1,
         )
-        .map_err(at)?;
-        if let (true, Some(cell)) = (self.table.decimal_comma, cell) {
-            self.marks
-                .borrow_mut()
-                .note(cell, line_no, col + 1)
-                .map_err(at)?;
-        }
-        Ok(v)
+        .map_err(at)
     }
 }
 

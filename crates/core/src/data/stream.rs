@@ -22,7 +22,7 @@ use std::io::Read;
 use std::path::{Path, PathBuf};
 
 use super::{
-    cell_value, check_ts, csv_err, ragged_row, read_table_with, sniff_delimiter,
+    check_ts, csv_err, marked_cell_value, ragged_row, read_table_with, sniff_delimiter,
     time_fault_message, CsvOptions, Dataset, TimeFault, TimeSteps,
 };
 use crate::error::Setting;
@@ -415,20 +415,17 @@ impl RecordSource for CsvStream {
                     Some(Ok(c)) => Some(c.trim()),
                     None => None,
                 };
-                let v = cell_value(
+                marked_cell_value(
                     cell,
                     rec.len(),
                     width,
                     &self.headers[col],
                     self.decimal_comma,
+                    &mut marks,
+                    line,
+                    col + 1,
                 )
-                .map_err(|m| self.at(line, col, m))?;
-                if let (true, Some(cell)) = (self.decimal_comma, cell) {
-                    marks
-                        .note(cell, line, col + 1)
-                        .map_err(|m| self.at(line, col, m))?;
-                }
-                Ok(v)
+                .map_err(|m| self.at(line, col, m))
             };
             let (uk, yk) = (value(self.ucol)?, value(self.ycol)?);
             checksum = fnv(fnv(checksum, uk), yk);

@@ -95,6 +95,13 @@ pub struct NudgeSettings<F: Float> {
     ///   or e_h, per sample), not while it moves at all: braked on through a one-count creep, the
     ///   reverse command drove the piston back 0.1 mm.
     pub relearn: bool,
+    /// The overshoot switch (issue 25, session 22; `false`: as in a file written before it
+    /// existed). A held nudge (one that did not start in the ramp-and-cut band) whose piston comes
+    /// to rest past r, d = side (y − y_0) > |e_0| + e_h, marks its direction; from then on a nudge
+    /// that way from within the nudge band (|e_0| ≤ e_n) is a ramp-and-cut nudge (ρ_n = a(side)
+    /// |e_0| clamped to [ρ_min, ρ]) instead of a held one. Rest-band nudges (|e_0| > e_n) stay
+    /// held. Needs the ramp-and-cut band (e_c > 0); without it there is no effect.
+    pub overshoot_cut: bool,
 }
 
 /// The approach with braking of a [`PositionController`] (`controller.brake` of CONTROLLER.json):
@@ -309,6 +316,8 @@ pub struct PositionController<F: Float> {
     /// The slip brake under way after a nudge's cut: its direction (`true`: the nudge was to the
     /// right, the brake is to the left) and the samples given so far.
     slip_brake: Option<(bool, u32)>,
+    /// Whether a held nudge to the left, to the right, overshot r ([`NudgeSettings::overshoot_cut`]).
+    overshot: [bool; 2],
 }
 
 /// The direction's sign: +1 towards larger y (`right`, the valve side of u > 0), −1 the other way;
@@ -454,6 +463,7 @@ impl<F: Float> PositionController<F> {
             lead: initial_lead(&s.brake),
             switched: None,
             slip_brake: None,
+            overshot: [false, false],
         })
     }
 
@@ -830,6 +840,8 @@ impl<F: Float> PositionController<F> {
                     }
                     if self.last_learns {
                         self.learn_rate(n, right, y);
+                    } else if n.overshoot_cut {
+                        self.learn_overshoot(right, y);
                     }
                 }
                 let right = e > F::ZERO;
@@ -839,7 +851,11 @@ impl<F: Float> PositionController<F> {
                     self.breakaway_left
                 };
                 let start = n.start_fraction * last;
-                let and_cut = e.abs() <= n.cut_band;
+                let switched = n.overshoot_cut
+                    && n.cut_band > F::ZERO
+                    && e.abs() <= n.band
+                    && self.overshot[usize::from(right)];
+                let and_cut = e.abs() <= n.cut_band || switched;
                 let ramp = if and_cut {
                     let [left, right_rate] = self.rate_per_mm;
                     let a = if right { right_rate } else { left } * e.abs();
@@ -973,6 +989,16 @@ impl<F: Float> PositionController<F> {
         None
     }
 
+    /// The overshoot switch at the rest after a held nudge's cut ([`NudgeSettings::overshoot_cut`]):
+    /// its move d = side (y − y_0) past the error |e_0| it was for by more than e_h marks its side.
+    fn learn_overshoot(&mut self, right: bool, y: F) {
+        let (y0, e0) = self.last_start;
+        let moved = if right { y - y0 } else { y0 - y };
+        if moved > e0.abs() + self.s.hold_band {
+            self.overshot[usize::from(right)] = true;
+        }
+    }
+
     /// Ramp-and-cut learning at the rest after a cut: the move d = side (y − y_0) against the error
     /// |e_0| it was for. Past r by more than e_h (d > |e_0| + e_h): a(side) × max(1/4, |e_0| / d)
     /// (slower: the move grows with the rate); short of half the error (d < |e_0| / 2): a(side) × 5/4,
@@ -1048,6 +1074,7 @@ impl<F: Float> PositionController<F> {
         self.r_seen = false;
         self.lead = initial_lead(&self.s.brake);
         self.switched = None;
+        self.overshot = [false, false];
     }
 
     /// The next move from rest, keeping what was learnt (u_b, τ_c, a(side), τ_b(side)): the law's
@@ -1153,6 +1180,7 @@ mod tests {
             slip_brake: 0.0,
             slip_brake_samples: 0,
             relearn: false,
+            overshoot_cut: false,
         });
         settings
     }

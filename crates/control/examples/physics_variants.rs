@@ -267,6 +267,9 @@ fn main() {
         if let Some(v) = env("OVERSHOOT_CUT") {
             n.overshoot_cut = v != 0.0;
         }
+        if let Some(v) = env("OVERSHOOT_VARIANT") {
+            n.overshoot_variant = v as u32;
+        }
     }
     if let Ok(b) = std::env::var("BRAKE_CTL") {
         let v: Vec<f64> = b.split(',').map(|x| x.parse().unwrap()).collect();

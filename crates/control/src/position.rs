@@ -150,6 +150,9 @@ pub struct Nudge {
     /// within the nudge band e_n are ramp-and-cut nudges (issue 25, session 22; docs/control.md).
     #[serde(default, skip_serializing_if = "is_false")]
     pub overshoot_cut: bool,
+    /// PROTOTYPE (see the embedded field).
+    #[serde(default, skip_serializing_if = "is_zero_u32")]
+    pub overshoot_variant: u32,
 }
 
 /// The approach with braking (issue 25, session 14): for a step of at least e_a, the full command
@@ -618,6 +621,7 @@ impl ControllerSettings {
                 slip_brake_samples: n.slip_brake_samples,
                 relearn: n.relearn,
                 overshoot_cut: n.overshoot_cut,
+                overshoot_variant: n.overshoot_variant,
             }),
             brake: self.brake.map(|b| ipa_embedded::position::BrakeSettings {
                 min_step: b.min_step_mm,
@@ -917,6 +921,7 @@ mod tests {
             slip_brake_samples: 0,
             relearn: false,
             overshoot_cut: false,
+            overshoot_variant: 0,
         });
         s
     }

@@ -758,6 +758,7 @@ pub unsafe extern "C" fn ipa_ctl_init(
             slip_brake_samples: c.nudge_slip_brake_samples,
             relearn: relearn == 1,
             overshoot_cut: overshoot == 1,
+            overshoot_variant: 0,
         })),
         _ => Err(Error::Setting),
     };

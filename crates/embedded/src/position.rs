@@ -102,6 +102,9 @@ pub struct NudgeSettings<F: Float> {
     /// |e_0| clamped to [ρ_min, ρ]) instead of a held one. Rest-band nudges (|e_0| > e_n) stay
     /// held. Needs the ramp-and-cut band (e_c > 0); without it there is no effect.
     pub overshoot_cut: bool,
+    /// PROTOTYPE: bit 0: a switched nudge ramps at ρ_min; bit 1: a switched nudge that overshoots
+    /// clears its side's mark.
+    pub overshoot_variant: u32,
 }
 
 /// The approach with braking of a [`PositionController`] (`controller.brake` of CONTROLLER.json):
@@ -227,6 +230,8 @@ struct Nudging<F: Float> {
     ramp: F,
     /// Ramp-and-cut: the nudge ends at the first count towards r.
     and_cut: bool,
+    /// Made a ramp-and-cut nudge by the overshoot switch.
+    switched: bool,
 }
 
 /// The smallest sampling period Ts a [`PositionController`] accepts, s (1 µs: a 1 MHz loop, far
@@ -318,6 +323,8 @@ pub struct PositionController<F: Float> {
     slip_brake: Option<(bool, u32)>,
     /// Whether a held nudge to the left, to the right, overshot r ([`NudgeSettings::overshoot_cut`]).
     overshot: [bool; 2],
+    /// Whether the last nudge that ended was switched.
+    last_switched: bool,
 }
 
 /// The direction's sign: +1 towards larger y (`right`, the valve side of u > 0), −1 the other way;
@@ -464,6 +471,7 @@ impl<F: Float> PositionController<F> {
             switched: None,
             slip_brake: None,
             overshot: [false, false],
+            last_switched: false,
         })
     }
 
@@ -839,6 +847,13 @@ impl<F: Float> PositionController<F> {
                         }
                     }
                     if self.last_learns {
+                        if self.last_switched && n.overshoot_variant & 2 != 0 {
+                            let (y0, e0) = self.last_start;
+                            let moved = if right { y - y0 } else { y0 - y };
+                            if moved > e0.abs() + self.s.hold_band {
+                                self.overshot[usize::from(right)] = false;
+                            }
+                        }
                         self.learn_rate(n, right, y);
                     } else if n.overshoot_cut {
                         self.learn_overshoot(right, y);
@@ -855,8 +870,11 @@ impl<F: Float> PositionController<F> {
                     && n.cut_band > F::ZERO
                     && e.abs() <= n.band
                     && self.overshot[usize::from(right)];
+                let switched = switched && e.abs() > n.cut_band;
                 let and_cut = e.abs() <= n.cut_band || switched;
-                let ramp = if and_cut {
+                let ramp = if switched && n.overshoot_variant & 1 != 0 {
+                    n.min_ramp
+                } else if and_cut {
                     let [left, right_rate] = self.rate_per_mm;
                     let a = if right { right_rate } else { left } * e.abs();
                     a.clamp_to(n.min_ramp, n.ramp)
@@ -871,6 +889,7 @@ impl<F: Float> PositionController<F> {
                     moving: false,
                     ramp,
                     and_cut,
+                    switched,
                 }
             }
         };
@@ -936,6 +955,7 @@ impl<F: Float> PositionController<F> {
         self.cut = Some((g.right, y, dy.abs()));
         self.last_start = (g.y0, g.e0);
         self.last_learns = g.and_cut;
+        self.last_switched = g.switched;
         let Some(n) = self.s.nudge else {
             return F::ZERO;
         };
@@ -1181,6 +1201,7 @@ mod tests {
             slip_brake_samples: 0,
             relearn: false,
             overshoot_cut: false,
+            overshoot_variant: 0,
         });
         settings
     }

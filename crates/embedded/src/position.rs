@@ -881,6 +881,24 @@ impl<F: Float> PositionController<F> {
                 } else {
                     n.ramp
                 };
+                let marked = n.overshoot_cut && self.overshot[usize::from(right)];
+                let k = if n.overshoot_variant & 4 != 0 {
+                    F::from_f64(10.0)
+                } else if n.overshoot_variant & 8 != 0 {
+                    F::from_f64(30.0)
+                } else {
+                    F::ZERO
+                };
+                let start = if marked && and_cut && k > F::ZERO {
+                    let lead_in = last - k * ramp * s.ts;
+                    if lead_in > start {
+                        lead_in
+                    } else {
+                        start
+                    }
+                } else {
+                    start
+                };
                 Nudging {
                     right,
                     y0: y,

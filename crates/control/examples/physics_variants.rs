@@ -45,7 +45,6 @@
 //! BRAKE_CTL's tenth value 1 turns it on too.
 //! Session 20: RELEARN=1 (0) turns the nudge's relearning of its breakaway on (off)
 //! (`nudge.relearn`).
-//! Session 22: OVERSHOOT_CUT=1 (0) turns the nudge's overshoot switch on (off) (`nudge.overshoot_cut`).
 //! Session 20: PREVIEW=S,B sets the short-step approach's (S) and the approach with braking's (B)
 //! preview (`short_approach.preview`, `brake.preview`; 1 on, 0 off); BRAKE_CTL's eleventh value and
 //! SHORT_CTL's ninth value 1 turn it on too.
@@ -263,12 +262,6 @@ fn main() {
         }
         if let Some(v) = env("RELEARN") {
             n.relearn = v != 0.0;
-        }
-        if let Some(v) = env("OVERSHOOT_CUT") {
-            n.overshoot_cut = v != 0.0;
-        }
-        if let Some(v) = env("OVERSHOOT_VARIANT") {
-            n.overshoot_variant = v as u32;
         }
     }
     if let Ok(b) = std::env::var("BRAKE_CTL") {

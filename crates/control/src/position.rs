@@ -145,14 +145,6 @@ pub struct Nudge {
     /// while the piston slips, not while it moves at all (issue 25, session 20; docs/control.md).
     #[serde(default, skip_serializing_if = "is_false")]
     pub relearn: bool,
-    /// The overshoot switch (false = off, as in a file written before it existed, and not written
-    /// then): once a held nudge has come to rest past r by more than e_h, later nudges that way from
-    /// within the nudge band e_n are ramp-and-cut nudges (issue 25, session 22; docs/control.md).
-    #[serde(default, skip_serializing_if = "is_false")]
-    pub overshoot_cut: bool,
-    /// PROTOTYPE (see the embedded field).
-    #[serde(default, skip_serializing_if = "is_zero_u32")]
-    pub overshoot_variant: u32,
 }
 
 /// The approach with braking (issue 25, session 14): for a step of at least e_a, the full command
@@ -620,8 +612,6 @@ impl ControllerSettings {
                 slip_brake: n.slip_brake_fraction,
                 slip_brake_samples: n.slip_brake_samples,
                 relearn: n.relearn,
-                overshoot_cut: n.overshoot_cut,
-                overshoot_variant: n.overshoot_variant,
             }),
             brake: self.brake.map(|b| ipa_embedded::position::BrakeSettings {
                 min_step: b.min_step_mm,
@@ -920,8 +910,6 @@ mod tests {
             slip_brake_fraction: 0.0,
             slip_brake_samples: 0,
             relearn: false,
-            overshoot_cut: false,
-            overshoot_variant: 0,
         });
         s
     }

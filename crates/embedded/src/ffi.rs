@@ -223,10 +223,6 @@ pub struct IpaController {
     /// 1: the same preview for the short-step approach's drive (`short_approach.preview`; session
     /// 20); 0: not.
     pub short_preview: i32,
-    /// 1: the nudge's overshoot switch (`nudge.overshoot_cut`; issue 25, session 22): once a held
-    /// nudge has come to rest past r by more than e_h, later nudges that way from within the nudge
-    /// band are ramp-and-cut nudges; 0: not (as in a struct zeroed before it existed).
-    pub nudge_overshoot_cut: i32,
 }
 const _: () = assert!(size_of::<CusumState>() <= IPA_CUSUM_STATE_BYTES);
 const _: () = assert!(MAX_D >= IPA_MAX_NA as usize);
@@ -742,9 +738,9 @@ pub unsafe extern "C" fn ipa_ctl_init(
         1 => Ok(true),
         _ => Err(Error::Setting),
     };
-    let nudge = match (c.has_nudge, c.nudge_relearn, c.nudge_overshoot_cut) {
-        (0, _, _) => Ok(None),
-        (1, relearn @ (0 | 1), overshoot @ (0 | 1)) => Ok(Some(NudgeSettings {
+    let nudge = match (c.has_nudge, c.nudge_relearn) {
+        (0, _) => Ok(None),
+        (1, relearn @ (0 | 1)) => Ok(Some(NudgeSettings {
             band: c.nudge_band,
             ramp: c.nudge_ramp,
             start_fraction: c.nudge_start_fraction,
@@ -757,8 +753,6 @@ pub unsafe extern "C" fn ipa_ctl_init(
             slip_brake: c.nudge_slip_brake,
             slip_brake_samples: c.nudge_slip_brake_samples,
             relearn: relearn == 1,
-            overshoot_cut: overshoot == 1,
-            overshoot_variant: 0,
         })),
         _ => Err(Error::Setting),
     };

@@ -95,16 +95,6 @@ pub struct NudgeSettings<F: Float> {
     ///   or e_h, per sample), not while it moves at all: braked on through a one-count creep, the
     ///   reverse command drove the piston back 0.1 mm.
     pub relearn: bool,
-    /// The overshoot switch (issue 25, session 22; `false`: as in a file written before it
-    /// existed). A held nudge (one that did not start in the ramp-and-cut band) whose piston comes
-    /// to rest past r, d = side (y − y_0) > |e_0| + e_h, marks its direction; from then on a nudge
-    /// that way from within the nudge band (|e_0| ≤ e_n) is a ramp-and-cut nudge (ρ_n = a(side)
-    /// |e_0| clamped to [ρ_min, ρ]) instead of a held one. Rest-band nudges (|e_0| > e_n) stay
-    /// held. Needs the ramp-and-cut band (e_c > 0); without it there is no effect.
-    pub overshoot_cut: bool,
-    /// PROTOTYPE: bit 0: a switched nudge ramps at ρ_min; bit 1: a switched nudge that overshoots
-    /// clears its side's mark.
-    pub overshoot_variant: u32,
 }
 
 /// The approach with braking of a [`PositionController`] (`controller.brake` of CONTROLLER.json):
@@ -230,8 +220,6 @@ struct Nudging<F: Float> {
     ramp: F,
     /// Ramp-and-cut: the nudge ends at the first count towards r.
     and_cut: bool,
-    /// Made a ramp-and-cut nudge by the overshoot switch.
-    switched: bool,
 }
 
 /// The smallest sampling period Ts a [`PositionController`] accepts, s (1 µs: a 1 MHz loop, far
@@ -321,10 +309,6 @@ pub struct PositionController<F: Float> {
     /// The slip brake under way after a nudge's cut: its direction (`true`: the nudge was to the
     /// right, the brake is to the left) and the samples given so far.
     slip_brake: Option<(bool, u32)>,
-    /// Whether a held nudge to the left, to the right, overshot r ([`NudgeSettings::overshoot_cut`]).
-    overshot: [bool; 2],
-    /// Whether the last nudge that ended was switched.
-    last_switched: bool,
 }
 
 /// The direction's sign: +1 towards larger y (`right`, the valve side of u > 0), −1 the other way;
@@ -470,8 +454,6 @@ impl<F: Float> PositionController<F> {
             lead: initial_lead(&s.brake),
             switched: None,
             slip_brake: None,
-            overshot: [false, false],
-            last_switched: false,
         })
     }
 
@@ -847,16 +829,7 @@ impl<F: Float> PositionController<F> {
                         }
                     }
                     if self.last_learns {
-                        if self.last_switched && n.overshoot_variant & 2 != 0 {
-                            let (y0, e0) = self.last_start;
-                            let moved = if right { y - y0 } else { y0 - y };
-                            if moved > e0.abs() + self.s.hold_band {
-                                self.overshot[usize::from(right)] = false;
-                            }
-                        }
                         self.learn_rate(n, right, y);
-                    } else if n.overshoot_cut {
-                        self.learn_overshoot(right, y);
                     }
                 }
                 let right = e > F::ZERO;
@@ -866,38 +839,13 @@ impl<F: Float> PositionController<F> {
                     self.breakaway_left
                 };
                 let start = n.start_fraction * last;
-                let switched = n.overshoot_cut
-                    && n.cut_band > F::ZERO
-                    && e.abs() <= n.band
-                    && self.overshot[usize::from(right)];
-                let switched = switched && e.abs() > n.cut_band;
-                let and_cut = e.abs() <= n.cut_band || switched;
-                let ramp = if switched && n.overshoot_variant & 1 != 0 {
-                    n.min_ramp
-                } else if and_cut {
+                let and_cut = e.abs() <= n.cut_band;
+                let ramp = if and_cut {
                     let [left, right_rate] = self.rate_per_mm;
                     let a = if right { right_rate } else { left } * e.abs();
                     a.clamp_to(n.min_ramp, n.ramp)
                 } else {
                     n.ramp
-                };
-                let marked = n.overshoot_cut && self.overshot[usize::from(right)];
-                let k = if n.overshoot_variant & 4 != 0 {
-                    F::from_f64(10.0)
-                } else if n.overshoot_variant & 8 != 0 {
-                    F::from_f64(30.0)
-                } else {
-                    F::ZERO
-                };
-                let start = if marked && and_cut && k > F::ZERO {
-                    let lead_in = last - k * ramp * s.ts;
-                    if lead_in > start {
-                        lead_in
-                    } else {
-                        start
-                    }
-                } else {
-                    start
                 };
                 Nudging {
                     right,
@@ -907,7 +855,6 @@ impl<F: Float> PositionController<F> {
                     moving: false,
                     ramp,
                     and_cut,
-                    switched,
                 }
             }
         };
@@ -973,7 +920,6 @@ impl<F: Float> PositionController<F> {
         self.cut = Some((g.right, y, dy.abs()));
         self.last_start = (g.y0, g.e0);
         self.last_learns = g.and_cut;
-        self.last_switched = g.switched;
         let Some(n) = self.s.nudge else {
             return F::ZERO;
         };
@@ -1025,16 +971,6 @@ impl<F: Float> PositionController<F> {
         }
         self.slip_brake = None;
         None
-    }
-
-    /// The overshoot switch at the rest after a held nudge's cut ([`NudgeSettings::overshoot_cut`]):
-    /// its move d = side (y − y_0) past the error |e_0| it was for by more than e_h marks its side.
-    fn learn_overshoot(&mut self, right: bool, y: F) {
-        let (y0, e0) = self.last_start;
-        let moved = if right { y - y0 } else { y0 - y };
-        if moved > e0.abs() + self.s.hold_band {
-            self.overshot[usize::from(right)] = true;
-        }
     }
 
     /// Ramp-and-cut learning at the rest after a cut: the move d = side (y − y_0) against the error
@@ -1112,7 +1048,6 @@ impl<F: Float> PositionController<F> {
         self.r_seen = false;
         self.lead = initial_lead(&self.s.brake);
         self.switched = None;
-        self.overshot = [false, false];
     }
 
     /// The next move from rest, keeping what was learnt (u_b, τ_c, a(side), τ_b(side)): the law's
@@ -1218,8 +1153,6 @@ mod tests {
             slip_brake: 0.0,
             slip_brake_samples: 0,
             relearn: false,
-            overshoot_cut: false,
-            overshoot_variant: 0,
         });
         settings
     }

@@ -48,8 +48,6 @@
 //! Session 20: PREVIEW=S,B sets the short-step approach's (S) and the approach with braking's (B)
 //! preview (`short_approach.preview`, `brake.preview`; 1 on, 0 off); BRAKE_CTL's eleventh value and
 //! SHORT_CTL's ninth value 1 turn it on too.
-//! Session 22: MID_CTL=e_m2,U,ρ_a,e_s',τ_s,a_s,T_s,N_s[,P] sets the controller's own mid-step approach
-//! (`mid_approach` of CONTROLLER.json, P = 1 its preview; e_m2 = 0 removes it).
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
 use control::tune::{self, Spec};
 use control::ControllerFile;
@@ -285,22 +283,6 @@ fn main() {
     if let Ok(b) = std::env::var("SHORT_CTL") {
         let v: Vec<f64> = b.split(',').map(|x| x.parse().unwrap()).collect();
         s.short_approach = (v[0] > 0.0).then(|| control::position::ShortApproach {
-            max_step_mm: v[0],
-            drive_fraction: v[1],
-            ramp_counts_s: v[2],
-            switch_mm: v[3],
-            lead_s: v[4],
-            brake_strength: v[5],
-            brake_samples: v[6] as u32,
-            rest_samples: v[7] as u32,
-            preview: v.get(8) == Some(&1.0),
-        });
-    }
-    if let Ok(b) = std::env::var("MID_CTL") {
-        // Session 22: MID_CTL=e_m2,U,ρ_a,e_s',τ_s,a_s,T_s,N_s[,preview] sets the mid-step approach
-        // (`mid_approach`; e_m2 = 0 removes it).
-        let v: Vec<f64> = b.split(',').map(|x| x.parse().unwrap()).collect();
-        s.mid_approach = (v[0] > 0.0).then(|| control::position::ShortApproach {
             max_step_mm: v[0],
             drive_fraction: v[1],
             ramp_counts_s: v[2],

@@ -38,8 +38,6 @@ pub enum ControlSetting {
     Brake,
     /// The short-step approach of the tuned controller (max step, drive, ramp, switch, lead, brake).
     ShortApproach,
-    /// The mid-step approach of the tuned controller (the short-step approach's fields, its own range).
-    MidApproach,
     /// The tuning specification (`--spec`).
     Spec,
     /// Plant variants a tuning searches over.
@@ -70,7 +68,6 @@ impl ControlSetting {
             ControlSetting::Nudge => "nudge",
             ControlSetting::Brake => "brake",
             ControlSetting::ShortApproach => "short_approach",
-            ControlSetting::MidApproach => "mid_approach",
             ControlSetting::Spec => "spec",
             ControlSetting::Variants => "variants",
             ControlSetting::PhysicsVariants => "physics_variants",
@@ -172,7 +169,6 @@ impl ControlSetting {
             ControlSetting::Nudge => "nudge (controller file)",
             ControlSetting::Brake => "brake (controller file)",
             ControlSetting::ShortApproach => "short_approach (controller file)",
-            ControlSetting::MidApproach => "mid_approach (controller file)",
             ControlSetting::Spec => "--spec",
             ControlSetting::Variants => "--variants",
             ControlSetting::PhysicsVariants => "--physics-variants",

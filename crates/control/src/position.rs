@@ -86,13 +86,6 @@ pub struct ControllerSettings {
     /// before it existed runs as then; not written when off).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub short_approach: Option<ShortApproach>,
-    /// The mid-step approach (issue 25, session 22): the short-step approach's drive, brake and hold
-    /// with their own settings for the steps e_m < |r − y| <= its `max_step_mm` (e_m the short-step
-    /// approach's, 0 without one; its `max_step_mm` must exceed e_m); such a step is not approached
-    /// with braking. `None` = off (a file written before it existed runs as then; not written when
-    /// off).
-    #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub mid_approach: Option<ShortApproach>,
     /// The deadzone inverse between the PID and the valve (from the model's deadzone), if any.
     pub compensator: Option<DeadzoneCompensator>,
 }
@@ -236,18 +229,11 @@ pub struct ShortApproach {
 impl ShortApproach {
     /// Checks every field; errors name [`ControlSetting::ShortApproach`].
     pub fn validate(&self) -> Result<(), ControlError> {
-        self.validate_as(ControlSetting::ShortApproach)
-    }
-
-    /// Checks every field; errors name `setting` (the short-step or the mid-step approach) and its
-    /// field name.
-    fn validate_as(&self, setting: ControlSetting) -> Result<(), ControlError> {
-        let short_approach = setting.name();
         let bad = |what: &str, v: String| {
             Err(ControlError::setting(
-                setting,
+                ControlSetting::ShortApproach,
                 v,
-                &what.replace("short_approach", short_approach),
+                what,
             ))
         };
         let fmt = crate::trust::fmt_value;
@@ -300,23 +286,6 @@ impl ShortApproach {
             }
         }
         Ok(())
-    }
-}
-
-impl ShortApproach {
-    /// The same settings for the embedded step (a short-step or a mid-step approach).
-    fn embedded(self) -> ipa_embedded::ShortApproachSettings<f64> {
-        ipa_embedded::ShortApproachSettings {
-            max_step: self.max_step_mm,
-            drive_fraction: self.drive_fraction,
-            ramp: self.ramp_counts_s,
-            switch: self.switch_mm,
-            lead: self.lead_s,
-            strength: self.brake_strength,
-            samples: self.brake_samples,
-            rest_samples: self.rest_samples,
-            preview: self.preview,
-        }
     }
 }
 
@@ -506,7 +475,6 @@ impl ControllerSettings {
             nudge: None,
             brake: None,
             short_approach: None,
-            mid_approach: None,
             compensator: None,
         }
     }
@@ -572,20 +540,6 @@ impl ControllerSettings {
         }
         if let Some(a) = &self.short_approach {
             a.validate()?;
-        }
-        if let Some(m) = &self.mid_approach {
-            m.validate_as(ControlSetting::MidApproach)?;
-            let e_m = self.short_approach.map_or(0.0, |a| a.max_step_mm);
-            if m.max_step_mm <= e_m {
-                return Err(ControlError::setting(
-                    ControlSetting::MidApproach,
-                    crate::trust::fmt_value(m.max_step_mm),
-                    &format!(
-                        "a mid_approach max_step_mm above the short_approach's ({})",
-                        crate::trust::fmt_value(e_m)
-                    ),
-                ));
-            }
         }
         if let Some(c) = self.compensator.as_ref().filter(|c| c.u_max != self.u_max) {
             return Err(ControlError::setting(
@@ -672,8 +626,19 @@ impl ControllerSettings {
                 rebrake: b.rebrake,
                 preview: b.preview,
             }),
-            short: self.short_approach.map(|a| a.embedded()),
-            mid: self.mid_approach.map(|a| a.embedded()),
+            short: self
+                .short_approach
+                .map(|a| ipa_embedded::ShortApproachSettings {
+                    max_step: a.max_step_mm,
+                    drive_fraction: a.drive_fraction,
+                    ramp: a.ramp_counts_s,
+                    switch: a.switch_mm,
+                    lead: a.lead_s,
+                    strength: a.brake_strength,
+                    samples: a.brake_samples,
+                    rest_samples: a.rest_samples,
+                    preview: a.preview,
+                }),
         }
     }
 

@@ -715,7 +715,6 @@ pub fn settings_of(
         .map(|n| with_cut_band(n, cut_band_mm, spec)),
         brake: None,
         short_approach: None,
-        mid_approach: None,
         compensator,
     })
 }

@@ -106,7 +106,7 @@ struct PiState {
 
 const _: () = assert!(size_of::<HrlsState>() <= IPA_HRLS_STATE_BYTES);
 const _: () = assert!(size_of::<PiState>() <= IPA_PI_STATE_BYTES);
-const _: () = assert!(size_of::<CtlState>() <= IPA_CTL_STATE_BYTES + 1000);
+const _: () = assert!(size_of::<CtlState>() <= IPA_CTL_STATE_BYTES);
 
 #[repr(C)]
 struct CtlState {
@@ -223,27 +223,6 @@ pub struct IpaController {
     /// 1: the same preview for the short-step approach's drive (`short_approach.preview`; session
     /// 20); 0: not.
     pub short_preview: i32,
-    /// 1: the same preview for the mid-step approach's drive (`mid_approach.preview`; issue 25,
-    /// session 22); 0: not.
-    pub mid_preview: i32,
-    /// T_s: samples of the mid-step approach's brake (`mid_approach.brake_samples`).
-    pub mid_samples: u32,
-    /// N_s: samples of unchanged y that end its hold (`mid_approach.rest_samples`).
-    pub mid_rest_samples: u32,
-    /// e_m2: largest step driven by the mid-step approach, mm (`mid_approach.max_step_mm`; 0 = none,
-    /// as in a struct zeroed before it existed: the `mid_*` fields are then ignored). It takes the
-    /// steps e_m < |r − y| ≤ e_m2 (e_m = `short_max_step`, 0 without a short-step approach).
-    pub mid_max_step: f64,
-    /// U: its drive as a fraction of u_max (`mid_approach.drive_fraction`).
-    pub mid_drive_fraction: f64,
-    /// ρ_a: its guard ramp until the piston first moves, counts/s (`mid_approach.ramp_counts_s`).
-    pub mid_ramp: f64,
-    /// e_s': its switch distance, mm (`mid_approach.switch_mm`).
-    pub mid_switch: f64,
-    /// τ_s: its stopping lead per mm/s towards r, s (`mid_approach.lead_s`).
-    pub mid_lead: f64,
-    /// a_s: its braking command as a fraction of u_max (`mid_approach.brake_strength`).
-    pub mid_strength: f64,
 }
 const _: () = assert!(size_of::<CusumState>() <= IPA_CUSUM_STATE_BYTES);
 const _: () = assert!(MAX_D >= IPA_MAX_NA as usize);
@@ -811,23 +790,6 @@ pub unsafe extern "C" fn ipa_ctl_init(
             preview: c.short_preview == 1,
         }))
     };
-    let mid = if c.mid_max_step == 0.0 {
-        Ok(None)
-    } else if !matches!(c.mid_preview, 0 | 1) {
-        Err(Error::Setting)
-    } else {
-        Ok(Some(ShortApproachSettings {
-            max_step: c.mid_max_step,
-            drive_fraction: c.mid_drive_fraction,
-            ramp: c.mid_ramp,
-            switch: c.mid_switch,
-            lead: c.mid_lead,
-            strength: c.mid_strength,
-            samples: c.mid_samples,
-            rest_samples: c.mid_rest_samples,
-            preview: c.mid_preview == 1,
-        }))
-    };
     let state = compensator.and_then(|comp| {
         let s = PositionSettings {
             ts: c.ts,
@@ -842,7 +804,6 @@ pub unsafe extern "C" fn ipa_ctl_init(
             nudge: nudge?,
             brake: brake?,
             short: short?,
-            mid: mid?,
         };
         PositionController::new(s, comp).map(|ctl| CtlState {
             magic: CTL_MAGIC,

@@ -255,11 +255,6 @@ pub struct PositionSettings<F: Float> {
     pub brake: Option<BrakeSettings<F>>,
     /// The short-step approach, if any (`None`: as before it existed).
     pub short: Option<ShortApproachSettings<F>>,
-    /// PROTOTYPE (issue 25, session 22; not kept): the mid-step approach, a second short-step
-    /// approach with its own settings for the steps e_m < |r − y| ≤ e_m2 (e_m2 its `max_step`; e_m
-    /// = 0 without a short-step approach); such a step is not approached with braking. At the end
-    /// of its hold, a rest within the short-step approach's range re-arms that approach.
-    pub mid: Option<ShortApproachSettings<F>>,
 }
 
 /// A running tuned controller: settings, the optional deadzone inverse and the states (I, D, y(k−1),
@@ -269,7 +264,7 @@ pub struct PositionSettings<F: Float> {
 /// use ipa_embedded::{PositionController, PositionSettings};
 /// let s = PositionSettings { ts: 0.01, kp: 10.0, ki: 100.0, kd: 0.0, tf: 0.0, u_max: 255.0,
 ///                            hold_band: 0.02, fine_band: 0.0, reset_on_crossing: true, nudge: None,
-///                            brake: None, short: None, mid: None };
+///                            brake: None, short: None };
 /// let mut c = PositionController::new(s, None).unwrap();
 /// assert_eq!(c.step(1.0, 0.0).unwrap(), 11.0);  // Kp e + Ki Ts e
 /// assert_eq!(c.step(1.0, 0.99).unwrap(), 0.0);  // inside the hold band
@@ -314,8 +309,6 @@ pub struct PositionController<F: Float> {
     /// The slip brake under way after a nudge's cut: its direction (`true`: the nudge was to the
     /// right, the brake is to the left) and the samples given so far.
     slip_brake: Option<(bool, u32)>,
-    /// Whether the short-step phases under way are the mid-step approach's (its settings).
-    mid_step: bool,
 }
 
 /// The direction's sign: +1 towards larger y (`right`, the valve side of u > 0), −1 the other way;
@@ -421,7 +414,7 @@ impl<F: Float> PositionController<F> {
                 return Err(Error::Setting);
             }
         }
-        for a in [s.short, s.mid].into_iter().flatten() {
+        if let Some(a) = s.short {
             if !(positive(a.max_step)
                 && positive(a.drive_fraction)
                 && a.drive_fraction <= F::ONE
@@ -433,11 +426,6 @@ impl<F: Float> PositionController<F> {
                 && (1..=1000).contains(&a.samples)
                 && (1..=1000).contains(&a.rest_samples))
             {
-                return Err(Error::Setting);
-            }
-        }
-        if let (Some(m), Some(a)) = (s.mid, s.short) {
-            if m.max_step <= a.max_step {
                 return Err(Error::Setting);
             }
         }
@@ -466,7 +454,6 @@ impl<F: Float> PositionController<F> {
             lead: initial_lead(&s.brake),
             switched: None,
             slip_brake: None,
-            mid_step: false,
         })
     }
 
@@ -559,7 +546,7 @@ impl<F: Float> PositionController<F> {
     /// the law runs. At the end of the hold the law's transient state restarts (as at the first
     /// sample), so that neither its derivative nor a nudge sees the brake.
     fn approach_step(&mut self, r: F, y: F) -> Option<F> {
-        if self.s.brake.is_none() && self.s.short.is_none() && self.s.mid.is_none() {
+        if self.s.brake.is_none() && self.s.short.is_none() {
             return None;
         }
         let first = !self.r_seen || r != self.r_prev;
@@ -573,35 +560,22 @@ impl<F: Float> PositionController<F> {
         self.r_prev = r;
         self.r_seen = true;
         if first {
-            let short_drive = Approach::ShortDrive {
-                right: e > F::ZERO,
-                y0: y,
-                stuck: 0,
-                moved: false,
-            };
-            let in_short =
-                |a: &ShortApproachSettings<F>| e.abs() > a.switch && e.abs() <= a.max_step;
-            self.mid_step = false;
-            self.approach = match (self.s.short, self.s.mid, self.s.brake) {
-                (Some(a), _, _) if in_short(&a) => short_drive,
-                (short, Some(m), _)
-                    if in_short(&m) && short.map_or(true, |a| e.abs() > a.max_step) =>
-                {
-                    self.mid_step = true;
-                    short_drive
+            self.approach = match (self.s.short, self.s.brake) {
+                (Some(a), _) if e.abs() > a.switch && e.abs() <= a.max_step => {
+                    Approach::ShortDrive {
+                        right: e > F::ZERO,
+                        y0: y,
+                        stuck: 0,
+                        moved: false,
+                    }
                 }
-                (_, _, Some(b)) if e.abs() >= b.min_step && e != F::ZERO => {
+                (_, Some(b)) if e.abs() >= b.min_step && e != F::ZERO => {
                     Approach::Drive { right: e > F::ZERO }
                 }
                 _ => Approach::Off,
             };
         }
-        let short = if self.mid_step {
-            self.s.mid
-        } else {
-            self.s.short
-        };
-        if let Some(a) = short {
+        if let Some(a) = self.s.short {
             if let Some(u) = self.short_step(&a, e, y, dy, moved) {
                 return Some(u);
             }
@@ -758,23 +732,6 @@ impl<F: Float> PositionController<F> {
             }
             self.approach = Approach::Off;
             self.restart_law();
-            if core::mem::replace(&mut self.mid_step, false) {
-                // The mid-step approach's rest within the short-step approach's range: that
-                // approach takes the rest of the step (as if r had just been set).
-                if let Some(s) = self
-                    .s
-                    .short
-                    .filter(|s| e.abs() > s.switch && e.abs() <= s.max_step)
-                {
-                    self.approach = Approach::ShortDrive {
-                        right: e > F::ZERO,
-                        y0: y,
-                        stuck: 0,
-                        moved: false,
-                    };
-                    return self.short_step(&s, e, y, dy, moved_now);
-                }
-            }
         }
         None
     }
@@ -1087,7 +1044,6 @@ impl<F: Float> PositionController<F> {
         self.rate_per_mm = initial_rate_per_mm(&self.s.nudge);
         self.last_learns = false;
         self.approach = Approach::Off;
-        self.mid_step = false;
         self.r_prev = F::ZERO;
         self.r_seen = false;
         self.lead = initial_lead(&self.s.brake);
@@ -1102,7 +1058,6 @@ impl<F: Float> PositionController<F> {
         self.last_start = (F::ZERO, F::ZERO);
         self.last_learns = false;
         self.approach = Approach::Off;
-        self.mid_step = false;
         self.r_prev = F::ZERO;
         self.r_seen = false;
         self.switched = None;
@@ -1134,7 +1089,6 @@ mod tests {
             nudge: None,
             brake: None,
             short: None,
-            mid: None,
         }
     }
 

@@ -28,7 +28,6 @@ fn p_only(ts: f64) -> PositionSettings<f64> {
         nudge: None,
         brake: None,
         short: None,
-        mid: None,
     }
 }
 

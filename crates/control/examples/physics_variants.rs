@@ -263,13 +263,6 @@ fn main() {
         if let Some(v) = env("RELEARN") {
             n.relearn = v != 0.0;
         }
-        // PROTOTYPE (25ab, not kept): PULSE=mode,rest,margin turns the pulse nudge on.
-        if let Ok(p) = std::env::var("PULSE") {
-            let v: Vec<f64> = p.split(',').map(|x| x.parse().unwrap()).collect();
-            n.pulse = v[0] as u32;
-            n.pulse_rest = v.get(1).copied().unwrap_or(3.0) as u32;
-            n.pulse_margin = v.get(2).copied().unwrap_or(0.0);
-        }
     }
     if let Ok(b) = std::env::var("BRAKE_CTL") {
         let v: Vec<f64> = b.split(',').map(|x| x.parse().unwrap()).collect();

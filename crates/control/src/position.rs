@@ -145,20 +145,6 @@ pub struct Nudge {
     /// while the piston slips, not while it moves at all (issue 25, session 20; docs/control.md).
     #[serde(default, skip_serializing_if = "is_false")]
     pub relearn: bool,
-    /// PROTOTYPE (issue 25, session 22, helper 25ab; not kept): the pulse nudge's mode (0 = off;
-    /// `ipa_embedded::position::NudgeSettings::pulse`).
-    #[serde(default, skip_serializing_if = "is_zero_u32")]
-    pub pulse: u32,
-    /// PROTOTYPE: samples of rest after a pulse.
-    #[serde(default, skip_serializing_if = "is_zero_u32")]
-    pub pulse_rest: u32,
-    /// PROTOTYPE: the first pulse's margin over u_b.
-    #[serde(default, skip_serializing_if = "is_zero_u32_f")]
-    pub pulse_margin: f64,
-}
-
-fn is_zero_u32_f(v: &f64) -> bool {
-    *v == 0.0
 }
 
 /// The approach with braking (issue 25, session 14): for a step of at least e_a, the full command
@@ -626,9 +612,6 @@ impl ControllerSettings {
                 slip_brake: n.slip_brake_fraction,
                 slip_brake_samples: n.slip_brake_samples,
                 relearn: n.relearn,
-                pulse: n.pulse,
-                pulse_rest: n.pulse_rest,
-                pulse_margin: n.pulse_margin,
             }),
             brake: self.brake.map(|b| ipa_embedded::position::BrakeSettings {
                 min_step: b.min_step_mm,
@@ -927,9 +910,6 @@ mod tests {
             slip_brake_fraction: 0.0,
             slip_brake_samples: 0,
             relearn: false,
-            pulse: 0,
-            pulse_rest: 0,
-            pulse_margin: 0.0,
         });
         s
     }

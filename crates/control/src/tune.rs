@@ -711,9 +711,6 @@ pub fn settings_of(
             slip_brake_fraction: 0.0,
             slip_brake_samples: 0,
             relearn: false,
-            pulse: 0,
-            pulse_rest: 0,
-            pulse_margin: 0.0,
         })
         .map(|n| with_cut_band(n, cut_band_mm, spec)),
         brake: None,

@@ -46,7 +46,7 @@
 /**
  * An upper bound, valid on every target, of [`ipa_ctl_state_size`] in bytes (the tuned controller).
  */
-#define IPA_CTL_STATE_BYTES 768
+#define IPA_CTL_STATE_BYTES 640
 
 /**
  * `ipa_hrls_init` form: P itself, updated by the paper's eq. 12 (`identify --rls-form standard`).

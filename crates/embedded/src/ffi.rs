@@ -42,7 +42,7 @@ pub const IPA_HRLS_STATE_BYTES: usize = 3456;
 pub const IPA_PI_STATE_BYTES: usize = 80;
 
 /// An upper bound, valid on every target, of [`ipa_ctl_state_size`] in bytes (the tuned controller).
-pub const IPA_CTL_STATE_BYTES: usize = 768; // PROTOTYPE (25ab): 640 before the pulse nudge
+pub const IPA_CTL_STATE_BYTES: usize = 640;
 
 /// `ipa_hrls_init` form: P itself, updated by the paper's eq. 12 (`identify --rls-form standard`).
 pub const IPA_FORM_STANDARD: u32 = 0;
@@ -753,10 +753,6 @@ pub unsafe extern "C" fn ipa_ctl_init(
             slip_brake: c.nudge_slip_brake,
             slip_brake_samples: c.nudge_slip_brake_samples,
             relearn: relearn == 1,
-            // PROTOTYPE (25ab, not kept): the pulse nudge is not in the C API.
-            pulse: 0,
-            pulse_rest: 0,
-            pulse_margin: 0.0,
         })),
         _ => Err(Error::Setting),
     };

@@ -95,19 +95,6 @@ pub struct NudgeSettings<F: Float> {
     ///   or e_h, per sample), not while it moves at all: braked on through a one-count creep, the
     ///   reverse command drove the piston back 0.1 mm.
     pub relearn: bool,
-    /// PROTOTYPE (issue 25, session 22, helper 25ab; not kept): the pulse nudge. 0 = off (as
-    /// before). 1: a nudge that would be a ramp-and-cut nudge (|e_0| ≤ e_c) is a pulse instead;
-    /// 2: every nudge within the nudge band (|e_0| ≤ e_n); 3: a nudge within e_n on a side whose
-    /// earlier nudge (or pulse) came to rest past r by more than e_h; 4: as 1 and 3 together. A
-    /// pulse is one sample of side u_p(side), then u = 0 (both valves exhaust) until y has been
-    /// unchanged for max(N_r, `pulse_rest`) samples; at that rest its move d = side (y − y_0)
-    /// adapts u_p(side): d ≤ 0 → lo = u_p, u_p += max(1, 0.05 u_p); d > |e_0| + e_h →
-    /// u_p = (lo + u_p)/2 (u_p × 3/4 without a lo); u_p starts at (1 + `pulse_margin`) u_b(side).
-    pub pulse: u32,
-    /// PROTOTYPE: samples of rest after a pulse (see `pulse`).
-    pub pulse_rest: u32,
-    /// PROTOTYPE: the first pulse's margin over u_b(side), a fraction (see `pulse`).
-    pub pulse_margin: F,
 }
 
 /// The approach with braking of a [`PositionController`] (`controller.brake` of CONTROLLER.json):
@@ -322,16 +309,6 @@ pub struct PositionController<F: Float> {
     /// The slip brake under way after a nudge's cut: its direction (`true`: the nudge was to the
     /// right, the brake is to the left) and the samples given so far.
     slip_brake: Option<(bool, u32)>,
-    /// PROTOTYPE pulse nudge: u_p(left), u_p(right) (0 = not yet), the largest pulse that did
-    /// not move the piston per side, the pulse awaiting its rest (right, y_0, e_0) and the
-    /// overshoot marks per side.
-    pulse_cmd: [F; 2],
-    pulse_lo: [F; 2],
-    pulse_pending: Option<(bool, F, F)>,
-    pulse_overshot: [bool; 2],
-    pulse_width: [u32; 2],
-    pulse_run: u32,
-    pulse_cut: bool,
 }
 
 /// The direction's sign: +1 towards larger y (`right`, the valve side of u > 0), −1 the other way;
@@ -477,13 +454,6 @@ impl<F: Float> PositionController<F> {
             lead: initial_lead(&s.brake),
             switched: None,
             slip_brake: None,
-            pulse_cmd: [F::ZERO; 2],
-            pulse_lo: [F::ZERO; 2],
-            pulse_pending: None,
-            pulse_overshot: [false; 2],
-            pulse_width: [0; 2],
-            pulse_run: 0,
-            pulse_cut: false,
         })
     }
 
@@ -537,8 +507,7 @@ impl<F: Float> PositionController<F> {
             return Ok(F::ZERO);
         }
         if let Some(n) = s.nudge {
-            let resting =
-                self.nudging.is_some() || self.cut.is_some() || self.pulse_pending.is_some();
+            let resting = self.nudging.is_some() || self.cut.is_some();
             if e.abs() <= n.band
                 || (e.abs() <= n.rest_band && (resting || self.still >= n.rest_samples))
             {
@@ -548,7 +517,6 @@ impl<F: Float> PositionController<F> {
         }
         self.nudging = None;
         self.cut = None;
-        self.pulse_pending = None;
         if s.reset_on_crossing && e * self.e_prev < F::ZERO {
             self.integral = F::ZERO;
         }
@@ -796,52 +764,12 @@ impl<F: Float> PositionController<F> {
         self.still = 0;
         self.nudging = None;
         self.cut = None;
-        self.pulse_pending = None;
-        self.pulse_run = 0;
     }
 
     /// The nudge mode's command (module documentation).
     fn nudge(&mut self, n: &NudgeSettings<F>, e: F, y: F, dy: F) -> F {
         self.integral = F::ZERO;
         let s = self.s;
-        if let Some((right, y0, _)) = self.pulse_pending {
-            // PROTOTYPE hundreds digit: 1 the pulse ends at its first count; 2 also the slip brake
-            // at that count and a pedestal β u_b(side) between pulses; 3 the slip brake, no pedestal.
-            let kind = n.pulse / 100;
-            let moved = if right { y > y0 } else { y < y0 };
-            if kind >= 1 && moved && !self.pulse_cut {
-                self.pulse_cut = true;
-                self.pulse_run = 0;
-                if kind >= 2 && n.slip_brake > F::ZERO && n.slip_brake_samples > 0 {
-                    let d = if right { dy } else { -dy } * s.ts;
-                    if d > self.slip_threshold(n) {
-                        self.slip_brake = Some((right, 1));
-                        return self.slip_brake_command(right, n);
-                    }
-                }
-                return F::ZERO;
-            }
-            if self.pulse_run > 0 {
-                self.pulse_run -= 1;
-                self.still = 0;
-                let u = self.pulse_cmd[usize::from(right)];
-                return if right { u } else { -u };
-            }
-            let wait = if n.pulse_rest > n.rest_samples {
-                n.pulse_rest
-            } else {
-                n.rest_samples
-            };
-            if kind == 2 && !self.pulse_cut && self.still < wait {
-                let ub = if right {
-                    self.breakaway_right
-                } else {
-                    self.breakaway_left
-                };
-                let p = n.start_fraction * ub;
-                return if right { p } else { -p };
-            }
-        }
         let g = match self.nudging {
             Some(g) => {
                 let towards = if g.right { y > g.y0 } else { y < g.y0 };
@@ -885,7 +813,6 @@ impl<F: Float> PositionController<F> {
                 }
             }
             None if self.still < n.rest_samples => return F::ZERO,
-            None if self.pulse_pending.is_some() && self.still < n.pulse_rest => return F::ZERO,
             None => {
                 if let Some((right, y_cut, v_cut)) = self.cut.take() {
                     let moved = if right { y - y_cut } else { y_cut - y };
@@ -904,10 +831,6 @@ impl<F: Float> PositionController<F> {
                     if self.last_learns {
                         self.learn_rate(n, right, y);
                     }
-                    self.mark_overshoot(right, y);
-                }
-                if let Some(u) = self.pulse_nudge(n, e, y) {
-                    return u;
                 }
                 let right = e > F::ZERO;
                 let last = if right {
@@ -978,84 +901,6 @@ impl<F: Float> PositionController<F> {
         } else {
             -g.u_mag
         }
-    }
-
-    /// PROTOTYPE: a nudge's rest past r by more than e_h marks its side (pulse modes 3, 4).
-    fn mark_overshoot(&mut self, right: bool, y: F) {
-        let (y0, e0) = self.last_start;
-        let moved = if right { y - y0 } else { y0 - y };
-        if moved > e0.abs() + self.s.hold_band {
-            self.pulse_overshot[usize::from(right)] = true;
-        }
-    }
-
-    /// PROTOTYPE pulse nudge ([`NudgeSettings::pulse`]), at a rest with no nudge under way:
-    /// learns from the pulse awaiting its rest, then `Some(u)`, the next pulse, when the mode
-    /// makes this nudge a pulse; `None`: the ordinary nudge.
-    fn pulse_nudge(&mut self, n: &NudgeSettings<F>, e: F, y: F) -> Option<F> {
-        if n.pulse == 0 {
-            return None;
-        }
-        if let Some((right, y0, e0)) = self.pulse_pending.take() {
-            let i = usize::from(right);
-            let moved = if right { y - y0 } else { y0 - y };
-            let u = self.pulse_cmd[i];
-            if moved <= F::ZERO {
-                self.pulse_lo[i] = u;
-                let step = F::from_f64(0.1) * u;
-                let up = u + if step > F::ONE { step } else { F::ONE };
-                self.pulse_cmd[i] = if up < self.s.u_max { up } else { self.s.u_max };
-            } else if moved > e0.abs() + self.s.hold_band {
-                self.pulse_overshot[i] = true;
-                let lo = self.pulse_lo[i];
-                self.pulse_cmd[i] = if lo > F::ZERO {
-                    F::from_f64(0.5) * (lo + u)
-                } else {
-                    F::from_f64(0.75) * u
-                };
-            }
-        }
-        let right = e > F::ZERO;
-        let i = usize::from(right);
-        let a = e.abs();
-        let within_cut = n.cut_band > F::ZERO && a <= n.cut_band;
-        let marked = self.pulse_overshot[i] && a <= n.band;
-        let on = match n.pulse % 100 % 10 {
-            1 => within_cut,
-            2 => a <= n.band,
-            3 => marked,
-            4 => within_cut || marked,
-            _ => false,
-        };
-        if !on {
-            return None;
-        }
-        if self.pulse_width[i] == 0 {
-            self.pulse_width[i] = if n.pulse % 100 / 10 > 0 {
-                n.pulse % 100 / 10
-            } else {
-                1
-            };
-        }
-        if self.pulse_cmd[i] == F::ZERO {
-            let ub = if right {
-                self.breakaway_right
-            } else {
-                self.breakaway_left
-            };
-            let start = (F::ONE + n.pulse_margin) * ub;
-            self.pulse_cmd[i] = if start < self.s.u_max {
-                start
-            } else {
-                self.s.u_max
-            };
-        }
-        self.pulse_run = self.pulse_width[i] - 1;
-        self.pulse_pending = Some((right, y, e));
-        self.still = 0;
-        self.pulse_cut = false;
-        let u = self.pulse_cmd[i];
-        Some(if right { u } else { -u })
     }
 
     /// u_b(side) = the command of a nudge whose piston broke loose.
@@ -1203,10 +1048,6 @@ impl<F: Float> PositionController<F> {
         self.r_seen = false;
         self.lead = initial_lead(&self.s.brake);
         self.switched = None;
-        self.pulse_cmd = [F::ZERO; 2];
-        self.pulse_lo = [F::ZERO; 2];
-        self.pulse_overshot = [false; 2];
-        self.pulse_width = [0; 2];
     }
 
     /// The next move from rest, keeping what was learnt (u_b, τ_c, a(side), τ_b(side)): the law's
@@ -1312,9 +1153,6 @@ mod tests {
             slip_brake: 0.0,
             slip_brake_samples: 0,
             relearn: false,
-            pulse: 0,
-            pulse_rest: 0,
-            pulse_margin: 0.0,
         });
         settings
     }

@@ -1474,7 +1474,7 @@ mod tests {
     // writes 1500 so); a file of one mark reads as written, and a comma-separated file has no decimal
     // commas to mix with.
     // MIN_TS_S = 1e-6 s is the floor of Ts: the floor itself is a Ts, the next f64 below it, 0, NaN
-    // and infinity are not, and the error names --ts and the floor.
+    // and infinity are not, and the error names ts (the CLI renders it --ts) and the floor.
     #[test]
     fn ts_is_refused_below_one_microsecond_and_accepted_at_it() {
         assert_eq!(crate::model::MIN_TS_S, 1e-6);
@@ -1489,7 +1489,7 @@ mod tests {
         ] {
             let e = check_ts(ts).unwrap_err().to_string();
             assert!(
-                e.contains("--ts") && e.contains("at least 1e-6 s"),
+                e.starts_with("invalid setting ts = ") && e.contains("at least 1e-6 s"),
                 "{ts}: {e}"
             );
         }

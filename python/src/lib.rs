@@ -465,16 +465,12 @@ impl PyModel {
         y0: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let u = floats(u, "u")?;
-        // What `simulate --plant model:FILE` warns of: the model file's doubts and an unstable model.
-        let doubts: Vec<String> = sysid::model_file::load_warnings(&self.inner)
+        // What `simulate --plant model:FILE` warns of, less the model file's doubts (said once, by
+        // `load_model`): an unstable model.
+        let doubts: Vec<String> = sysid::Warning::if_unstable_or_integrating(&self.inner)
             .into_iter()
-            .map(|w| format!("model: {w}"))
-            .chain(
-                sysid::Warning::if_unstable_or_integrating(&self.inner)
-                    .into_iter()
-                    .filter(|w| matches!(w, sysid::Warning::Unstable { .. }))
-                    .map(|w| w.to_string()),
-            )
+            .filter(|w| matches!(w, sysid::Warning::Unstable { .. }))
+            .map(|w| w.to_string())
             .collect();
         warn_all(py, &doubts)?;
         let k0 = self.inner.k0();
@@ -556,7 +552,8 @@ impl PyModel {
         let data = dataset(u, y, self.inner.ts(), name)?;
         let m = sysid::metrics::metrics(&self.inner, &data).map_err(sysid_err)?;
         // What `validate` warns of: the model file's own doubts, an unstable model, a negative or
-        // flattered fit; each an IpaSysidWarning and in the dict's "warnings" (audit s13 M4).
+        // flattered fit; all in the dict's "warnings" (audit s13 M4), each of this result's own an
+        // IpaSysidWarning (the file's were said by `load_model`).
         let warnings: Vec<String> = sysid::model_file::load_warnings(&self.inner)
             .into_iter()
             .map(|w| format!("model: {w}"))
@@ -566,7 +563,7 @@ impl PyModel {
                 &sysid_summary::input_extremes(&data),
             ))
             .collect();
-        warn_all(py, &warnings)?;
+        warn_all(py, &result_warnings(&self.inner, &warnings))?;
         let out = to_py(py, &m)?;
         out.set_item("warnings", warnings)?;
         Ok(out)
@@ -717,8 +714,9 @@ impl PyModel {
         let mut r = ::control::response::response(&self.inner, &settings).map_err(control_err)?;
         r.warnings
             .extend(not_met.map(|w| format!("controller: {w}")));
-        // The dict's "warnings" (what `response` prints as `warning:` lines), each an IpaSysidWarning.
-        warn_all(py, &r.warnings)?;
+        // The dict's "warnings" (what `response` prints as `warning:` lines), each of this result's
+        // own an IpaSysidWarning (the model file's were said by `load_model`).
+        warn_all(py, &result_warnings(&self.inner, &r.warnings))?;
         to_py(py, &r)
     }
 
@@ -786,14 +784,38 @@ fn poles_array<'py>(py: Python<'py>, m: &Model) -> Bound<'py, PyArray1<Complex64
 }
 
 /// Reads a model file written by `ipa-sysid identify --save-model` (or an `identify --json` summary, or
-/// `Model.save`). The warnings of the identification that wrote the file (model file version 3) are
-/// repeated as `IpaSysidWarning`s ("this model's identification on X warned: …"), as the command line's
-/// `control` / `tune` / `validate` repeat them (audit s20 M-3).
+/// `Model.save`). What the file holds that a reader must be told about is said here, once per load,
+/// as `IpaSysidWarning`s (`sysid::model_file::load_warnings`, what the command line's `validate`,
+/// `simulate`, `response` say prefixed `model: `): an input or output map that is not physical, and the
+/// warnings of the identification that wrote the file (model file version 3: "this model's
+/// identification on X warned: …", audit s20 M-3). The model's methods keep them in their results'
+/// `warnings` but do not warn of them again (session 22: `Model.frequency_response` and
+/// `Model.metrics` repeated them on every call).
 #[pyfunction]
 fn load_model(py: Python<'_>, path: PathBuf) -> PyResult<PyModel> {
     let inner = sysid::model_file::read_model(&path).map_err(sysid_err)?;
-    warn_all(py, &sysid::model_file::provenance_warnings(&inner))?;
+    warn_all(py, &sysid::model_file::load_warnings(&inner))?;
     Ok(PyModel { inner })
+}
+
+/// The model file's own doubts as a result lists them (`model: ` and the words of
+/// `sysid::model_file::load_warnings`, which `load_model` warns of).
+fn file_warnings(model: &Model) -> Vec<String> {
+    sysid::model_file::load_warnings(model)
+        .into_iter()
+        .map(|w| format!("model: {w}"))
+        .collect()
+}
+
+/// The warnings of a result on `model` to warn of on each call: `warnings` less the model file's own
+/// ([`file_warnings`], said once by `load_model`).
+fn result_warnings(model: &Model, warnings: &[String]) -> Vec<String> {
+    let file = file_warnings(model);
+    warnings
+        .iter()
+        .filter(|w| !file.contains(w))
+        .cloned()
+        .collect()
 }
 
 /// The paper's "actual" Hammerstein model (Table III): the `paper` plant.

@@ -219,7 +219,8 @@ fn a_model_file_ts_below_one_microsecond_is_refused_naming_ts() {
         err.contains("ts = 1e-320 s is below 1e-6 s") && !err.contains("--f-min"),
         "{err}"
     );
-    // identify --ts 1e-7 --save-model: refused at the save, nothing written.
+    // identify --ts 1e-7 --save-model: refused at the argument since session 22 (before: at the
+    // save), nothing written.
     let csv = dir.path().join("d.csv");
     let rows: String = (0..200)
         .map(|k| format!("{},{}\n", (k % 7) as f64, ((k * 3) % 11) as f64))
@@ -239,7 +240,13 @@ fn a_model_file_ts_below_one_microsecond_is_refused_naming_ts() {
         "--save-model",
         s(&saved),
     ]);
-    assert_ne!(o.status.code(), Some(0));
-    assert!(stderr(&o).contains("below 1e-6 s"), "{}", stderr(&o));
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains(
+            "invalid setting --ts = 0.0000001: a finite sampling period of at least 1e-6 s"
+        ),
+        "{}",
+        stderr(&o)
+    );
     assert!(!saved.exists());
 }

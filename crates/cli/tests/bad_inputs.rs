@@ -558,12 +558,12 @@ fn identify_flags_out_of_range_exit_2_naming_the_flag() {
         case(
             "identify --data {c}/good.csv --ts 0",
             2,
-            &["--ts", "positive"],
+            &["--ts", "at least 1e-6 s"],
         ),
         case(
             "identify --data {c}/good.csv --ts -0.01",
             2,
-            &["--ts", "positive"],
+            &["--ts", "at least 1e-6 s"],
         ),
         case(
             "identify --data {c}/good.csv --ts nan",
@@ -851,12 +851,12 @@ fn study_and_benchmark_flags_exit_2_naming_the_flag() {
         case(
             "simulate --out {t}/s.csv --ts 0",
             2,
-            &["invalid setting --ts = 0", "(0, 10] s"],
+            &["invalid setting --ts = 0", "[1e-6, 10] s"],
         ),
         case(
             "simulate --out {t}/s.csv --ts nan",
             2,
-            &["invalid setting --ts = NaN", "(0, 10] s"],
+            &["invalid setting --ts = NaN", "[1e-6, 10] s"],
         ),
         case(
             "simulate --out {t}/s.csv --amplitude nan",

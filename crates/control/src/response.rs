@@ -412,7 +412,10 @@ pub fn response(model: &Model, s: &ResponseSettings) -> Result<Response, Control
 
 /// Frequency response of a model's linear block, scaled by `gain`: the frequencies (Hz), |H| in dB
 /// and the unwrapped phase in degrees, at `points` log-spaced frequencies from `f_min_hz` up to the
-/// Nyquist frequency 1/(2 Ts).
+/// Nyquist frequency 1/(2 Ts). The first phase lies in [−180°, 180°) (−180° for H on the negative
+/// real axis); each next one within 180° of the one before, a step of a half turn
+/// (to [`PHASE_TIE_DEG`]) taken downwards, so that the same system gives the same sign whatever the
+/// rounding at the Nyquist frequency.
 ///
 /// H(e^{jω Ts}) = gain · Σ_i b_i e^{−jω Ts (nk+i−1)} / (1 + Σ_i a_i e^{−jω Ts i}). A zero |H| gives
 /// NaN dB (a gap in the plot).
@@ -459,12 +462,19 @@ pub fn bode(model: &Model, gain: f64, f_min_hz: f64, points: usize) -> Bode {
             f64::NAN
         });
         let mut ph = hi_.atan2(hr).to_degrees();
-        if let Some(p) = prev {
-            while ph - p > 180.0 {
-                ph -= 360.0;
-            }
-            while ph - p < -180.0 {
-                ph += 360.0;
+        // A half turn is a tie (the negative real axis, or a step of 180° between two points, as at
+        // the Nyquist frequency of a 2-point grid): rounding alone decides it, so it is resolved as a
+        // lag, −180° (audit s21 L-B2: ±180° at Nyquist by the sign of a rounding error).
+        match prev {
+            None if ph > 180.0 - PHASE_TIE_DEG => ph -= 360.0,
+            None => {}
+            Some(p) => {
+                while ph - p > 180.0 - PHASE_TIE_DEG {
+                    ph -= 360.0;
+                }
+                while ph - p <= -180.0 - PHASE_TIE_DEG {
+                    ph += 360.0;
+                }
             }
         }
         if ph.is_finite() {
@@ -474,6 +484,11 @@ pub fn bode(model: &Model, gain: f64, f_min_hz: f64, points: usize) -> Bode {
     }
     out
 }
+
+/// How close to a half turn, degrees, a phase (or the phase step between two points of the grid) is
+/// taken as the half turn itself, which [`bode`] reports as a lag: −180° rather than +180° (audit s21
+/// L-B2). Far above the rounding of the phase (about 1e-13°), far below any step a grid resolves.
+pub const PHASE_TIE_DEG: f64 = 1e-9;
 
 /// A frequency response (see [`bode`]).
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -496,6 +511,45 @@ mod tests {
     /// y(k) = α y(k−1) + β u(k−1), i.e. A = 1 − α q⁻¹, B = β, nk = 1.
     fn first_order(alpha: f64, beta: f64, ts: f64) -> Model {
         Model::arx(ts, vec![-alpha], vec![beta], 1, None).unwrap()
+    }
+
+    // H = −1 at every frequency is a half turn: −180°, whether the minus sign is in b or in the gain
+    // (the sign of a zero imaginary part gave +180° for b = −1 and −180° for gain −1).
+    #[test]
+    fn a_negative_real_response_has_phase_minus_180_however_its_sign_is_written() {
+        let negative_b = Model::arx(0.1, vec![0.0], vec![-1.0], 0, None).unwrap();
+        let positive_b = Model::arx(0.1, vec![0.0], vec![1.0], 0, None).unwrap();
+        for b in [
+            bode(&negative_b, 1.0, 0.01, 7),
+            bode(&positive_b, -1.0, 0.01, 7),
+        ] {
+            for (i, ph) in b.phase_deg.iter().enumerate() {
+                assert_eq!(*ph, -180.0, "point {i}: {b:?}");
+            }
+        }
+    }
+
+    // y(k) = 0.5 y(k−1) + u(k−1): arg G = −θ − atan2(0.5 sin θ, 1 − 0.5 cos θ), continuous from 0 at
+    // θ = 0 to −180° at θ = π (the atan2 term is 0 there). On a 2-point grid the step to the Nyquist
+    // point is a half turn to rounding (audit s21 L-B2: +180° on some grids); every grid gives −180°.
+    #[test]
+    fn the_phase_at_nyquist_is_minus_180_on_every_grid() {
+        for ts in [
+            0.01, 0.02, 0.03, 0.07, 0.11, 0.9, 1.0, 3.0, 7.0, 1e-6, 86_400.0,
+        ] {
+            let m = first_order(0.5, 1.0, ts);
+            let nyquist = 0.5 / ts;
+            for f_min in [1e-300, 1e-12 * nyquist, 1e-3 * nyquist, 0.5 * nyquist] {
+                for points in [2, 3, 20] {
+                    let b = bode(&m, 1.0, f_min, points);
+                    let last = *b.phase_deg.last().unwrap();
+                    assert!(
+                        (last + 180.0).abs() < 1e-7,
+                        "Ts {ts}, f_min {f_min}, {points} points: {last}"
+                    );
+                }
+            }
+        }
     }
 
     #[test]

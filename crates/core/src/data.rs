@@ -221,18 +221,30 @@ impl Dataset {
     }
 }
 
-/// Fails unless Ts (s) is positive and finite (every [`Dataset`] checks it; callers that build many
-/// datasets from one Ts check it once, before any work).
+/// Fails unless Ts (s) is finite and at least [`crate::model::MIN_TS_S`] (1e-6 s, the shortest
+/// sampling period a model file and the controller take: a Ts below it was identified and only
+/// refused when the model was saved). Every [`Dataset`] checks it, so `--ts` (identify, order,
+/// validate, ...) and Python's `ts=` are refused by name; callers that build many datasets from one Ts
+/// check it once, before any work.
 pub fn check_ts(ts: f64) -> Result<(), SysidError> {
-    if ts.is_finite() && ts > 0.0 {
+    check_ts_of(Setting::Ts, ts)
+}
+
+/// [`check_ts`] for the setting `setting` that gives Ts (`--ts`, `--resample`).
+pub fn check_ts_of(setting: Setting, ts: f64) -> Result<(), SysidError> {
+    if ts.is_finite() && ts >= crate::model::MIN_TS_S {
         Ok(())
     } else {
-        Err(SysidError::setting(
-            Setting::Ts,
-            ts,
-            "a positive, finite sampling period in seconds",
-        ))
+        Err(SysidError::setting(setting, ts, &ts_range_words()))
     }
+}
+
+/// What a sampling period must be, in words (the `expected` of [`check_ts`]'s error).
+pub fn ts_range_words() -> String {
+    format!(
+        "a finite sampling period of at least {:e} s (the shortest a model file and the controller take)",
+        crate::model::MIN_TS_S
+    )
 }
 
 /// How to read a CSV record.
@@ -1385,7 +1397,22 @@ fn time_error(fault: TimeFault, table: &Table, col: usize) -> SysidError {
 
 /// Ts from a time column ([`uniform_time`]), or its fault as the reader's error.
 fn uniform_ts(t: &[f64], table: &Table, col: usize) -> Result<f64, SysidError> {
-    uniform_time(t).map_err(|fault| time_error(fault, table, col))
+    let ts = uniform_time(t).map_err(|fault| time_error(fault, table, col))?;
+    if ts < crate::model::MIN_TS_S {
+        return Err(SysidError::Parse {
+            file: table.name.clone(),
+            line: table.line_of(1),
+            column: col + 1,
+            message: format!(
+                "the time column {} steps {} s, below {:e} s, the shortest sampling period a model file \
+                 and the controller take (is the column in another unit? see --time-unit, or pass --ts)",
+                table.headers.get(col).map_or("t", |h| h.as_str()),
+                Shortest(ts),
+                crate::model::MIN_TS_S
+            ),
+        });
+    }
+    Ok(ts)
 }
 
 /// Checks that time increases strictly ([`increasing_time`]), or its fault as the reader's error.
@@ -1435,7 +1462,7 @@ pub fn sample_times(n: usize, ts: f64) -> Vec<f64> {
 
 #[cfg(test)]
 mod tests {
-    use super::{ts_contradicts, uniform_time, TimeFault};
+    use super::{check_ts, ts_contradicts, uniform_time, TimeFault};
 
     /// t(k) = k · 0.01 s for k = 0 .. n − 1.
     fn grid(n: usize) -> Vec<f64> {
@@ -1446,6 +1473,28 @@ mod tests {
     // cell, naming the first cell of the other (1.500 was read as 1.5; a decimal-comma spreadsheet
     // writes 1500 so); a file of one mark reads as written, and a comma-separated file has no decimal
     // commas to mix with.
+    // MIN_TS_S = 1e-6 s is the floor of Ts: the floor itself is a Ts, the next f64 below it, 0, NaN
+    // and infinity are not, and the error names ts (the CLI renders it --ts) and the floor.
+    #[test]
+    fn ts_is_refused_below_one_microsecond_and_accepted_at_it() {
+        assert_eq!(crate::model::MIN_TS_S, 1e-6);
+        assert!(check_ts(1e-6).is_ok() && check_ts(1e4).is_ok());
+        for ts in [
+            f64::from_bits(1e-6f64.to_bits() - 1),
+            5e-7,
+            0.0,
+            -1.0,
+            f64::NAN,
+            f64::INFINITY,
+        ] {
+            let e = check_ts(ts).unwrap_err().to_string();
+            assert!(
+                e.starts_with("invalid setting ts = ") && e.contains("at least 1e-6 s"),
+                "{ts}: {e}"
+            );
+        }
+    }
+
     #[test]
     fn a_file_that_mixes_decimal_marks_is_refused() {
         let e = crate::data::read_table(b"t;u;y\n0;0,98;1\n0,01;1.500;2\n", "mix.csv")

@@ -148,11 +148,17 @@ impl Ipa {
     /// The plant with sampling period `ts_s` (s).
     pub fn with_ts(config: PlantConfig, ts_s: f64) -> Result<Self, IpaError> {
         config.validate()?;
-        if !(ts_s.is_finite() && ts_s > 0.0 && ts_s <= 10.0) {
+        // The floor is the one of every Ts (`sysid_core::data::check_ts`: a model file's, the
+        // controller's): `simulate --ts 1e-9` ran and wrote a record no model could be saved from.
+        let min = sysid_core::model::MIN_TS_S;
+        if !(ts_s.is_finite() && (min..=10.0).contains(&ts_s)) {
             return Err(IpaError::setting(
                 IpaSetting::Ts,
                 ts_s,
-                "expected a sampling period in (0, 10] s",
+                format!(
+                    "expected a sampling period in [{min:e}, 10] s ({min:e} s: the shortest a model \
+                     file and the controller take)"
+                ),
             ));
         }
         let dynamics = Dynamics::new(&config);

@@ -127,13 +127,7 @@ pub fn resample_record(
     ts: f64,
     name: &str,
 ) -> Result<Resampled, SysidError> {
-    if !(ts.is_finite() && ts > 0.0) {
-        return Err(SysidError::setting(
-            Setting::Other("--resample"),
-            ts,
-            "a positive, finite sampling period in seconds",
-        ));
-    }
+    super::check_ts_of(Setting::Other("--resample"), ts)?;
     // The grid size, bounded before anything is allocated (a tiny TS over a long record).
     if let (Some(&t0), Some(&tl)) = (t.first(), t.last()) {
         let m = ((tl - t0) / ts).floor() + 1.0;

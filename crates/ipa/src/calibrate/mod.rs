@@ -130,9 +130,12 @@ pub fn read_record(
         read.data.y().to_vec(),
         read.data.ts(),
     );
-    if !(ts.is_finite() && ts > 0.0 && ts <= 10.0) {
+    // The record's Ts is at least MIN_TS_S (the reader checks it, `sysid_core::data::check_ts`); the
+    // plant's own range caps it.
+    if ts > 10.0 {
         return Err(IpaError::Config(format!(
-            "{name}: sampling period {ts} s (from the time column or --ts): expected a value in (0, 10] s"
+            "{name}: sampling period {ts} s (from the time column or --ts): expected a value in [{:e}, 10] s",
+            sysid_core::model::MIN_TS_S
         )));
     }
     if u.len() < MIN_SAMPLES {

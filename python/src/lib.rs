@@ -12,7 +12,7 @@ use numpy::{
     Complex64, IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2,
     PyUntypedArrayMethods,
 };
-use pyo3::exceptions::{PyArithmeticError, PyImportError, PyOSError, PyValueError};
+use pyo3::exceptions::{PyArithmeticError, PyImportError, PyMemoryError, PyOSError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
 
@@ -235,6 +235,7 @@ fn floats(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<f64>> {
         }
     }
     if let Ok(a) = obj.extract::<PyReadonlyArray1<'_, f64>>() {
+        check_samples(a.len(), what)?;
         return Ok(match a.as_slice() {
             Ok(s) => s.to_vec(),
             Err(_) => a.as_array().to_vec(),
@@ -248,7 +249,47 @@ fn floats(obj: &Bound<'_, PyAny>, what: &str) -> PyResult<Vec<f64>> {
         )));
     }
     let a: PyReadonlyArray1<'_, f64> = arr.extract()?;
+    check_samples(a.len(), what)?;
     Ok(a.as_array().to_vec())
+}
+
+/// Refuses an array of more than [`sysid_core::data::MAX_SAMPLES`] samples, the bound of a record on
+/// every surface (the CSV and MAT readers, `simulate_plant`), before the core copies it (audit s22
+/// H-B1: `Model.simulate(numpy.zeros(2 * 10**8))` aborted the interpreter on a failed allocation of the
+/// core's further full-length copies, which no `except` can catch).
+fn check_samples(n: usize, what: &str) -> PyResult<()> {
+    let max = sysid_core::data::MAX_SAMPLES;
+    if n > max {
+        return Err(PyMemoryError::new_err(format!(
+            "{what}: {n} samples ({} bytes as float64, and as much again for each copy the computation \
+             makes) is more than the {max} samples a record may have (the command line's bound too); \
+             pass a slice (u[a:b]) or decimate the record",
+            n.saturating_mul(8)
+        )));
+    }
+    Ok(())
+}
+
+/// A hint for an array of text `raw` (dtype object, str) whose first cell is a number written with a
+/// decimal comma such as '0,01' (a semicolon CSV read by pandas with its defaults; audit s22 L-N5).
+fn decimal_comma_hint(raw: &Bound<'_, PyAny>) -> String {
+    let first = raw
+        .getattr("size")
+        .and_then(|n| n.extract::<usize>())
+        .ok()
+        .filter(|&n| n > 0)
+        .and_then(|_| raw.call_method0("ravel").ok())
+        .and_then(|flat| flat.get_item(0).ok())
+        .and_then(|cell| cell.extract::<String>().ok());
+    match first {
+        Some(cell) if sysid_core::data::looks_like_decimal_comma(&cell) => format!(
+            " (cells are text such as '{}', a number written with a decimal comma: read the file with \
+             pandas.read_csv(path, sep=';', decimal=',') or convert the column with \
+             .str.replace(',', '.').astype(float))",
+            sysid_core::format::visible(&cell)
+        ),
+        _ => String::new(),
+    }
 }
 
 /// `numpy.ascontiguousarray(obj, dtype=float64)`, with a message naming the argument on failure.
@@ -271,7 +312,8 @@ fn as_float_array<'py>(
         if !matches!(kind.as_str(), "f" | "i" | "u") {
             let dtype = raw.getattr("dtype")?.str()?.to_string();
             return Err(PyValueError::new_err(format!(
-                "{what}: expected an array of real numbers (integers or floats), got dtype {dtype}"
+                "{what}: expected an array of real numbers (integers or floats), got dtype {dtype}{}",
+                decimal_comma_hint(&raw)
             )));
         }
         let ndim: usize = raw.getattr("ndim")?.extract()?;

@@ -196,14 +196,15 @@ fn track_on_a_header_only_record_is_an_error() {
     assert!(!stderr(&o).contains("no data rows"), "{}", stderr(&o));
 }
 
-// L-7: `--stream on` checks the header and the first rows within the file's first 64 KiB; a first data
-// row longer than that is named as such, at its line, not "a header but no data rows".
+// L-7: `--stream on` checks the header and the first rows within the file's first MiB + 1 byte (audit s22
+// H-B2: the bound of one CSV line, 2^20 bytes, and one more); a first data row that does not end there is
+// named as such, at its line, not "a header but no data rows".
 #[test]
 fn a_first_row_longer_than_the_streamed_check_is_named() {
     let dir = tempfile::tempdir().unwrap();
     let long = dir.path().join("long.csv");
     let mut text = String::from("t,u,y\n");
-    text.push_str(&"1".repeat(200_000));
+    text.push_str(&"1".repeat(1_100_000));
     text.push_str(",1,1\n");
     for k in 1..400 {
         text.push_str(&format!("{},{},{}\n", k as f64 * 0.01, k % 7, k % 5));
@@ -228,12 +229,12 @@ fn a_first_row_longer_than_the_streamed_check_is_named() {
     ]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     let e = stderr(&o);
-    // The row is line 2 of the file; the check reads 64 KiB = 65536 bytes.
+    // The row is line 2 of the file; the check reads 2^20 + 1 = 1048577 bytes.
     assert!(e.contains(&format!("{}:2:1:", s(&long))), "{e}");
     assert!(
         e.contains(&format!(
-            "the first data row is longer than {} bytes",
-            64 * 1024
+            "the first data row does not end within the file's first {} bytes",
+            (1 << 20) + 1
         )),
         "{e}"
     );

@@ -114,76 +114,46 @@ impl Profile {
     /// `r_mm`; other columns are ignored), at least one row, finite values, strictly increasing t.
     pub fn from_csv_file(path: &Path) -> Result<Profile, ControlError> {
         let file = path.display().to_string();
-        let text = sysid_core::data::bounded::read_bounded_text(
-            path,
-            sysid_core::data::MAX_FILE_BYTES,
-            "a profile file",
-            "expected a CSV of t,r rows",
-        )
-        .map_err(|e| match e {
-            sysid_core::SysidError::Io { path, source } => ControlError::Io { path, source },
-            other => ControlError::Profile {
-                spec: format!("file:{file}"),
-                message: other.to_string(),
-            },
-        })?;
         let err = |message: String| ControlError::Profile {
-            spec: format!("file:{file}"),
+            spec: format!("file:{}", sysid_core::format::visible(&file)),
             message,
         };
-        let mut lines = text
-            .lines()
-            .enumerate()
-            .filter(|(_, l)| !l.trim().is_empty());
-        let (_, header) = lines.next().ok_or_else(|| {
-            err(format!(
-                "{file}: the file is empty; expected a header `t,r` and rows"
-            ))
-        })?;
-        let names: Vec<String> = header
-            .split(',')
-            .map(|h| h.trim().trim_matches('"').to_ascii_lowercase())
-            .collect();
-        let find = |alts: &[&str]| names.iter().position(|n| alts.contains(&n.as_str()));
+        // Every CSV reader's rules and bounds (file size, line length, header, cells; audit s22 H-B2).
+        let core = |e: sysid_core::SysidError| match e {
+            sysid_core::SysidError::Io { path, source } => ControlError::Io { path, source },
+            other => err(other.to_string()),
+        };
+        let bytes =
+            sysid_core::data::bounded::read_data_file(path, "a profile file").map_err(core)?;
+        let table = sysid_core::data::read_table(&bytes, &file).map_err(core)?;
+        let find = |alts: &[&str]| {
+            table
+                .headers
+                .iter()
+                .position(|n| alts.contains(&n.to_ascii_lowercase().as_str()))
+        };
         let (it, ir) = match (find(&["t", "t_s"]), find(&["r", "r_mm"])) {
             (Some(a), Some(b)) => (a, b),
-            _ => return Err(err(format!("{file}:1: header `{header}` has no `t` and `r` columns; expected a header like `t,r` (t in s, r in mm)"))),
-        };
-        let mut t_s = Vec::new();
-        let mut r_mm = Vec::new();
-        for (i, line) in lines {
-            let line_no = i + 1;
-            let fields: Vec<&str> = line.split(',').collect();
-            let get = |col: usize, what: &str| -> Result<f64, ControlError> {
-                let raw = fields.get(col).map(|f| f.trim()).ok_or_else(|| {
-                    err(format!(
-                        "{file}:{line_no}:{}: missing field; expected {what}",
-                        col + 1
-                    ))
-                })?;
-                let v: f64 = raw.parse().map_err(|_| {
-                    err(format!(
-                        "{file}:{line_no}:{}: `{raw}` is not a number; expected {what}",
-                        col + 1
-                    ))
-                })?;
-                if !v.is_finite() {
-                    return Err(err(format!(
-                        "{file}:{line_no}:{}: `{raw}` is not finite; expected {what}",
-                        col + 1
-                    )));
-                }
-                Ok(v)
-            };
-            let t = get(it, "a time t in s")?;
-            let r = get(ir, "a set-point r in mm")?;
-            if let Some(&prev) = t_s.last() {
-                if t <= prev {
-                    return Err(err(format!("{file}:{line_no}:{}: t = {t} s does not increase (previous row t = {prev} s); expected strictly increasing times", it + 1)));
-                }
+            _ => {
+                let header = table.headers.join(",");
+                return Err(err(format!(
+                    "{file}:1: header `{}` has no `t` and `r` columns; expected a header like `t,r` (t in s, r in mm)",
+                    sysid_core::format::visible(&header)
+                )));
             }
-            t_s.push(t);
-            r_mm.push(r);
+        };
+        let t_s = table.numbers(it).map_err(core)?;
+        let r_mm = table.numbers(ir).map_err(core)?;
+        for (k, w) in t_s.windows(2).enumerate() {
+            if w[1] <= w[0] {
+                return Err(err(format!(
+                    "{file}:{}:{}: t = {} s does not increase (previous row t = {} s); expected strictly increasing times",
+                    table.line_of(k + 1),
+                    it + 1,
+                    w[1],
+                    w[0]
+                )));
+            }
         }
         if t_s.is_empty() {
             return Err(err(format!(
@@ -435,12 +405,23 @@ mod tests {
                 .to_string();
             assert!(msg.contains(needle), "{msg} lacks {needle}");
         };
-        check("t,r\n0,1\n1,abc\n", "r.csv:3:2: `abc` is not a number");
+        check(
+            "t,r\n0,1\n1,abc\n",
+            "r.csv:3:2: 'abc' in column 'r' is not a number",
+        );
         check("t,r\n0,1\n0,2\n", "r.csv:3:1: t = 0 s does not increase");
         check("time,pos\n0,1\n", "r.csv:1: header");
         check("t,r\n", "no data rows");
-        check("t,r\n0\n", "r.csv:2:2: missing field");
-        check("t,r\n0,inf\n", "not finite");
+        check(
+            "t,r\n0\n",
+            "r.csv:2:2: the row has only 1 of the header's 2 fields",
+        );
+        // Audit s22 H-B2: a line longer than every CSV reader's bound (1 MiB) is refused at its line.
+        check(
+            &"1".repeat((1 << 20) + 1),
+            "r.csv:1:1048577: the line is longer than 1048576 bytes",
+        );
+        check("t,r\n0,inf\n", "not a finite number");
         let missing = dir.path().join("nope.csv");
         assert!(Profile::parse(&format!("file:{}", missing.display()))
             .unwrap_err()

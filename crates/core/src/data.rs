@@ -43,6 +43,43 @@ pub const MAX_COLUMNS: usize = 10_000;
 /// Upper bound on the size of a data file, checked as it is read (2 GiB; a device or a pipe too).
 pub const MAX_FILE_BYTES: u64 = 2 * 1024 * 1024 * 1024;
 
+/// Upper bound on the length of one line of a CSV file, bytes (1 MiB; a row of t,u,y is under 100 bytes,
+/// a header of [`MAX_COLUMNS`] names or a row of as many numbers fits): the header and every data row of
+/// every CSV reader (in memory, streamed, line by line), checked before the line is parsed, so that a
+/// file with no line end (binary data, a corrupt export) is refused at its first MiB instead of being
+/// held and copied whole as one header line (audit s22 H-B2).
+pub const MAX_LINE_BYTES: usize = 1 << 20;
+
+/// Refuses the first line of `bytes` (CSV text or its first bytes; `name` in messages) that is longer than
+/// [`MAX_LINE_BYTES`], naming its line: `FILE:LINE:COLUMN: the line is longer than 1048576 bytes ...`.
+/// A last line cut by the end of `bytes` counts with the bytes it has.
+pub(crate) fn check_line_lengths(bytes: &[u8], name: &str) -> Result<(), SysidError> {
+    match bytes
+        .split(|&b| b == b'\n')
+        .position(|line| line.len() > MAX_LINE_BYTES)
+    {
+        Some(index) => Err(long_line(name, index + 1)),
+        None => Ok(()),
+    }
+}
+
+/// The error of line `line` (1-based) longer than [`MAX_LINE_BYTES`].
+pub(crate) fn long_line(name: &str, line: usize) -> SysidError {
+    let expected = if line == 1 {
+        "a CSV header row (binary data, or a file with no line ends?)"
+    } else {
+        "CSV rows such as 0.01,12,3.5 (binary data, or a line end missing?)"
+    };
+    SysidError::Parse {
+        file: name.to_string(),
+        line,
+        column: MAX_LINE_BYTES + 1,
+        message: format!(
+            "the line is longer than {MAX_LINE_BYTES} bytes, the bound of one CSV line; expected {expected}"
+        ),
+    }
+}
+
 /// A uniformly sampled record: one or several named inputs u^(m)(k) and the output y(k), k = 0..N-1,
 /// sampled every `ts` seconds. Every signal has N samples and is finite (checked by the constructors;
 /// the fields are private so that no later change can break it). One input is the ordinary case.
@@ -588,13 +625,16 @@ fn table_of(
             message: "NUL byte: the file is binary, not CSV text".into(),
         });
     }
-    // Rows are counted before they are parsed: a parsed row costs far more memory than its text, so a
-    // file of many short rows would otherwise exhaust memory before reaching the limit.
-    let lines = text
-        .as_bytes()
-        .split(|&b| b == b'\n')
-        .filter(|l| !l.trim_ascii().is_empty())
-        .count();
+    // Rows are counted and their lengths bounded before they are parsed: a parsed row costs far more
+    // memory than its text, so a file of many short rows (or one endless line) would otherwise exhaust
+    // memory before reaching the limit.
+    let mut lines = 0usize;
+    for (index, line) in text.as_bytes().split(|&b| b == b'\n').enumerate() {
+        if line.len() > MAX_LINE_BYTES {
+            return Err(long_line(name, index + 1));
+        }
+        lines += usize::from(!line.trim_ascii().is_empty());
+    }
     if lines > MAX_SAMPLES + usize::from(has_header) {
         return Err(file_err(format!(
             "{lines} non-blank lines: more than the {MAX_SAMPLES} data rows a record may have; split the \
@@ -974,6 +1014,7 @@ pub(crate) fn cell_value(
     cname: &str,
     decimal_comma: bool,
 ) -> Result<f64, String> {
+    let cname = &shorten(cname);
     let Some(cell) = cell else {
         return Err(format!(
             "the row has only {fields} of the header's {headers} fields; expected a number for column '{cname}'"
@@ -1083,6 +1124,12 @@ pub(crate) fn marked_cell_value(
 
 /// A cell as f64: Rust's float syntax, plus a decimal comma (`1,5`) when `decimal_comma` (a semicolon-
 /// or tab-delimited file) and the cell has one comma and no point.
+/// True when `cell` is a number written with a decimal comma (`0,01`, `-1,5e3`): the hint of a reader
+/// that was handed text (Python: a semicolon CSV read by pandas with its defaults; audit s22 L-N5).
+pub fn looks_like_decimal_comma(cell: &str) -> bool {
+    cell.contains(',') && parse_number(cell.trim(), true).is_some()
+}
+
 fn parse_number(cell: &str, decimal_comma: bool) -> Option<f64> {
     let cell = unquote(cell);
     if let Ok(v) = cell.parse::<f64>() {
@@ -1111,8 +1158,13 @@ pub(crate) fn sig6(x: f64) -> String {
 }
 
 /// A cell or a column name as a message echoes it: at most 40 characters ([`crate::error::cut_chars`]).
+/// `s` as an error echoes it: at most 40 characters, and through [`crate::format::visible`], so that a
+/// cell or a column name holding terminal control characters (ESC, BEL) or bidirectional overrides
+/// cannot clear, ring or reverse the user's terminal when printed (audit s22 M-B4/M-B5): the one form of
+/// every string from a data or model file in the readers' errors.
 pub(crate) fn shorten(s: &str) -> String {
-    crate::error::cut_chars(s, 40).unwrap_or_else(|| s.to_string())
+    let cut = crate::error::cut_chars(s, 40).unwrap_or_else(|| s.to_string());
+    crate::format::visible(&cut).into_owned()
 }
 
 /// What makes a time column t (s) unfit to date a uniformly sampled record: the one rule of the CSV
@@ -1467,6 +1519,32 @@ mod tests {
     /// t(k) = k · 0.01 s for k = 0 .. n − 1.
     fn grid(n: usize) -> Vec<f64> {
         (0..n).map(|k| k as f64 * 0.01).collect()
+    }
+
+    // Audit s22 M-B4/M-B5: a cell and a column name holding ESC, BEL or a right-to-left override are
+    // echoed in errors as \u{..} escapes, never as the raw characters (which would clear, ring or
+    // reverse the terminal).
+    #[test]
+    fn errors_escape_control_characters_from_the_file() {
+        let t = crate::data::read_table(b"t,u\x1b[2J,y\xe2\x80\xae\n0,1,2\x1b[2J\x07\n", "esc.csv")
+            .unwrap();
+        let e = t.numbers(2).unwrap_err().to_string();
+        assert!(
+            e.starts_with(
+                "esc.csv:2:3: '2\\u{1b}[2J\\u{7}' in column 'y\\u{202e}' is not a number; expected a \
+                 decimal number"
+            ),
+            "{e}"
+        );
+        let e = t
+            .column_index("v", crate::Setting::UCol)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("the header has: t, u\\u{1b}[2J, y\\u{202e}"),
+            "{e}"
+        );
+        assert!(!e.contains('\x1b') && !e.contains('\u{202e}'), "{e}");
     }
 
     // Audit s21 M-B5: a semicolon file that writes 0,98 and 1.500 is refused at the second mark's first

@@ -263,12 +263,30 @@ impl Provenance {
             MAX_WARNING_CHARS,
         )?;
         list("u_columns", &self.u_columns, MAX_COLUMNS, MAX_COLUMN_CHARS)?;
-        match &self.y_column {
-            Some(y) if chars(y) > MAX_COLUMN_CHARS => {
-                too_long("y_column", chars(y), MAX_COLUMN_CHARS)
-            }
-            _ => Ok(()),
+        if let Some(y) = self
+            .y_column
+            .as_deref()
+            .filter(|y| chars(y) > MAX_COLUMN_CHARS)
+        {
+            return too_long("y_column", chars(y), MAX_COLUMN_CHARS);
         }
+        // A column name is printed in errors and chosen as --u-col/--y-col by validate: a label, not a
+        // place for terminal control characters or bidirectional overrides (audit s22 M-B4).
+        let columns = self
+            .u_columns
+            .iter()
+            .enumerate()
+            .map(|(i, c)| (format!("u_columns[{i}]"), c));
+        for (field, c) in columns.chain(self.y_column.iter().map(|c| ("y_column".to_string(), c))) {
+            if crate::format::visible(c) != *c {
+                return Err(format!(
+                    "identification.{field} = '{}' holds control or bidirectional characters; a column \
+                     name must be printable text",
+                    crate::format::visible(c)
+                ));
+            }
+        }
+        Ok(())
     }
 }
 
@@ -1959,6 +1977,30 @@ mod tests {
 
     // [0, 100] with its tenth (10) of margin: −10 and 110 are within, −10.5 or 110.5 leave it; NaN is
     // skipped; an infinite extreme is not judged.
+    // Audit s22 M-B4: a model file's column names with an ESC or a right-to-left override are refused,
+    // naming the field; printable names (accents included) pass.
+    #[test]
+    fn column_names_with_control_characters_are_refused() {
+        let p = |u: &str, y: &str| Provenance {
+            record: "r.csv".into(),
+            u_columns: vec![u.into()],
+            y_column: Some(y.into()),
+            fit_estimation_percent: None,
+            warnings: vec![],
+        };
+        assert!(p("débit", "y").check_sizes().is_ok());
+        let e = p("u", "y\x1b[2J\x07").check_sizes().unwrap_err();
+        assert!(
+            e.starts_with("identification.y_column = 'y\\u{1b}[2J\\u{7}' holds control"),
+            "{e}"
+        );
+        let e = p("u\u{202e}", "y").check_sizes().unwrap_err();
+        assert!(
+            e.starts_with("identification.u_columns[0] = 'u\\u{202e}'"),
+            "{e}"
+        );
+    }
+
     #[test]
     fn an_excursion_is_beyond_a_tenth_of_the_span() {
         let r = (0.0, 100.0);

@@ -47,6 +47,15 @@ pub fn to_json(model: &Model) -> Result<String, SysidError> {
             crate::model::MIN_TS_S
         )));
     }
+    // Nor one whose identification record (column names, ...) load refuses (audit s22 M-B4: names with
+    // control characters were written, then loaded without a word).
+    if let Some(p) = model.provenance() {
+        p.check_sizes().map_err(|m| {
+            SysidError::Data(format!(
+                "the model is not saved: {m} (the file would not load)"
+            ))
+        })?;
+    }
     let out = ModelFileOut {
         format: FORMAT,
         version: VERSION,

@@ -17,8 +17,9 @@ use sysid::online::Tracker;
 use sysid::{Model, Setting, SysidError};
 use sysid_summary::{poles, Pole};
 
-/// Upper bound on the length of one line of a tracked stream, bytes (a line of t,u,y is under 100).
-pub const MAX_LINE_BYTES: usize = 1 << 20;
+/// Upper bound on the length of one line of a tracked stream, bytes: every CSV reader's bound on a line
+/// (a line of t,u,y is under 100).
+pub use sysid::data::MAX_LINE_BYTES;
 
 /// Where the columns of a streamed CSV are, and how often to report.
 #[derive(Debug, Clone, PartialEq)]

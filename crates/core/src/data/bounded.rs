@@ -20,7 +20,7 @@ pub fn read_bounded(
     what: &str,
     advice: &str,
 ) -> Result<Vec<u8>, SysidError> {
-    read_bounded_checked(path, max, what, advice, |_| Ok(()))
+    read_bounded_checked(path, max, what, advice, PREFIX_BYTES, |_| Ok(()))
 }
 
 /// Opens an input file (`what` names its kind in the error, e.g. "a data file") for reading, refusing
@@ -87,14 +87,15 @@ fn kind_name(kind: &std::fs::FileType) -> &'static str {
 /// Bytes looked at by the `check` of [`read_bounded_checked`] before the rest is read.
 pub const PREFIX_BYTES: usize = 1 << 16;
 
-/// [`read_bounded`] that first reads up to [`PREFIX_BYTES`] and passes them to `check`, which can refuse
-/// the file before the rest is read (binary data where text is expected: `--data /dev/zero` is refused
-/// after 64 KiB, not after the size bound).
+/// [`read_bounded`] that first reads up to `prefix` bytes and passes them to `check`, which can refuse
+/// the file before the rest is read (binary data where text is expected, a first line with no end:
+/// a corrupt data file is refused after its first MiB, not after the size bound).
 pub fn read_bounded_checked(
     path: &Path,
     max: u64,
     what: &str,
     advice: &str,
+    prefix: usize,
     check: impl FnOnce(&[u8]) -> Result<(), SysidError>,
 ) -> Result<Vec<u8>, SysidError> {
     let io = |source| SysidError::Io {
@@ -114,7 +115,7 @@ pub fn read_bounded_checked(
     let mut bytes = Vec::with_capacity(known.unwrap_or(0).min(max) as usize);
     let mut file = file.take(max.saturating_add(1));
     (&mut file)
-        .take(PREFIX_BYTES as u64)
+        .take(prefix as u64)
         .read_to_end(&mut bytes)
         .map_err(io)?;
     check(&bytes)?;
@@ -132,9 +133,10 @@ pub fn read_bounded_checked(
 }
 
 /// The bytes of a record file (CSV text or a MAT-file; `what` names it in messages), at most
-/// [`super::MAX_FILE_BYTES`]: binary bytes that are not a MAT-file are refused after the first 64 KiB
-/// (`/dev/zero` would otherwise be read up to the size bound before the CSV reader refused its first
-/// NUL byte).
+/// [`super::MAX_FILE_BYTES`]: binary bytes that are not a MAT-file, and a line longer than
+/// [`super::MAX_LINE_BYTES`], are refused within the first MiB + 1 byte (a file of zeros or one with no
+/// line end would otherwise be read up to the size bound, and its one line copied several times, before
+/// the CSV reader refused it: audit s22 H-B2).
 pub fn read_data_file(path: &Path, what: &str) -> Result<Vec<u8>, SysidError> {
     let is_mat_name = path
         .extension()
@@ -144,6 +146,7 @@ pub fn read_data_file(path: &Path, what: &str) -> Result<Vec<u8>, SysidError> {
         super::MAX_FILE_BYTES,
         what,
         "split the record",
+        super::MAX_LINE_BYTES + 1,
         |prefix| {
             if is_mat_name || super::mat::is_mat(prefix) {
                 return Ok(());
@@ -173,7 +176,7 @@ pub fn read_data_file(path: &Path, what: &str) -> Result<Vec<u8>, SysidError> {
             };
             match body[..valid].iter().position(|&b| b == 0) {
                 Some(nul) => at(nul, body, "NUL byte: the file is binary, not CSV text"),
-                None => Ok(()),
+                None => super::check_line_lengths(body, &path.display().to_string()),
             }
         },
     )

@@ -31,8 +31,43 @@ use crate::SysidError;
 /// Samples handed to the consumer at a time (two buffers of this many f64: 128 KiB).
 pub const CHUNK_ROWS: usize = 8192;
 
-/// Bytes at the start of a CSV file checked by the in-memory reader (header, delimiter, first rows).
-pub const PREFIX_BYTES: usize = 1 << 16;
+/// Bytes at the start of a CSV file checked by the in-memory reader (header, delimiter, first rows):
+/// one line of the longest a CSV line may be ([`super::MAX_LINE_BYTES`]) and one byte more, so that the
+/// header is bounded as in the other readers.
+pub const PREFIX_BYTES: usize = super::MAX_LINE_BYTES + 1;
+
+/// A reader that refuses a line longer than [`super::MAX_LINE_BYTES`] as its bytes pass (the `csv`
+/// crate would grow its record to hold the whole line): `over` is then the line's number (1-based).
+#[derive(Debug)]
+struct LineBound<R> {
+    inner: R,
+    /// Bytes of the current line read so far.
+    run: usize,
+    /// The current line (1-based).
+    line: usize,
+    over: Option<usize>,
+}
+
+impl<R: Read> Read for LineBound<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        let n = self.inner.read(buf)?;
+        for (i, segment) in buf[..n].split(|&b| b == b'\n').enumerate() {
+            if i > 0 {
+                self.line += 1;
+                self.run = 0;
+            }
+            self.run += segment.len();
+            if self.run > super::MAX_LINE_BYTES {
+                self.over = Some(self.line);
+                return Err(std::io::Error::new(
+                    std::io::ErrorKind::InvalidData,
+                    "a line longer than the bound of one CSV line",
+                ));
+            }
+        }
+        Ok(n)
+    }
+}
 
 /// The length and sampling period of a record, known after a complete pass.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -213,6 +248,8 @@ impl CsvStream {
                 "no --resample with --stream: resampling needs the whole record in memory",
             ));
         }
+        // Every reader's bound on a line (the header first), before the prefix is parsed.
+        super::check_line_lengths(&prefix, &name)?;
         // The in-memory reader checks the header and the first rows (up to the last whole line).
         let whole = (meta.len() as usize) <= prefix.len();
         let checked = if whole {
@@ -240,9 +277,9 @@ impl CsvStream {
                 line: checked.iter().filter(|&&b| b == b'\n').count() + 1,
                 column: 1,
                 message: format!(
-                    "the first data row is longer than {PREFIX_BYTES} bytes (--stream checks the header \
-                     and the first rows within the file's first {PREFIX_BYTES} bytes); expected CSV rows \
-                     such as 0.01,12,3.5"
+                    "the first data row does not end within the file's first {PREFIX_BYTES} bytes \
+                     (--stream checks the header and the first rows there); expected CSV rows such as \
+                     0.01,12,3.5"
                 ),
             });
         }
@@ -355,7 +392,12 @@ impl RecordSource for CsvStream {
             .has_headers(self.has_header)
             .flexible(true)
             .buffer_capacity(1 << 16)
-            .from_reader(file);
+            .from_reader(LineBound {
+                inner: file,
+                run: 0,
+                line: 1,
+                over: None,
+            });
         let file_name = self.path.display().to_string();
         let width = self.headers.len();
         let (first, end) = match self.rows {
@@ -376,6 +418,12 @@ impl RecordSource for CsvStream {
             match rdr.read_byte_record(&mut rec) {
                 Ok(true) => {}
                 Ok(false) => break,
+                Err(_) if rdr.get_ref().over.is_some() => {
+                    return Err(super::long_line(
+                        &file_name,
+                        rdr.get_ref().over.unwrap_or(0),
+                    ))
+                }
                 Err(e) => return Err(csv_err(&file_name, e)),
             }
             // Fields are trimmed here (csv's own trimming allocates a new record per row).
@@ -526,6 +574,53 @@ mod tests {
 
     fn pass(s: &mut CsvStream) -> Result<Shape, SysidError> {
         s.pass(&mut |_, _, _| Ok(()))
+    }
+
+    // Audit s22 H-B2: every reader refuses a line longer than MAX_LINE_BYTES = 2^20 bytes, naming its line:
+    // a first line with no end (refused from the first MiB + 1 byte the reader looks at), and a data row
+    // far beyond that prefix (refused by the streamed pass as its bytes go by, and by the in-memory
+    // reader before its rows are parsed). Lines of exactly 2^20 bytes are not refused.
+    #[test]
+    fn every_reader_bounds_a_line() {
+        let dir = tempfile::tempdir().unwrap();
+        let bound = 1usize << 20;
+        let opts = CsvOptions::default();
+        let long = |line: usize| {
+            format!(
+                "long.csv:{line}:{}: the line is longer than {bound} bytes",
+                bound + 1
+            )
+        };
+        let path = dir.path().join("long.csv");
+        // No line end at all (3 MiB): the header.
+        std::fs::write(&path, "1".repeat(3 * bound)).unwrap();
+        let name_of = |e: SysidError| {
+            e.to_string()
+                .replace(&format!("{}/", dir.path().display()), "")
+        };
+        let e = name_of(CsvStream::open(&path, &opts).unwrap_err());
+        assert!(e.starts_with(&long(1)) && e.contains("header"), "{e}");
+        let e = name_of(super::super::read_record(&path, &opts).unwrap_err());
+        assert!(e.starts_with(&long(1)), "{e}");
+        // 100 000 short rows (beyond the prefix), then a row of 2^20 + 1 bytes at line 100 002.
+        let mut text = String::from("t,u,y\n");
+        for k in 0..100_000 {
+            text.push_str(&format!("{},{},{}\n", k as f64 * 0.01, k % 3, k % 5));
+        }
+        assert!(text.len() > PREFIX_BYTES);
+        let mut ok = text.clone();
+        ok.push_str(&format!("300,1,{}\n", "1".repeat(bound - 6)));
+        text.push_str(&format!("300,1,{}\n", "1".repeat(bound - 5)));
+        std::fs::write(&path, &text).unwrap();
+        let mut s = CsvStream::open(&path, &opts).unwrap();
+        let e = name_of(pass(&mut s).unwrap_err());
+        assert!(e.starts_with(&long(100_002)), "{e}");
+        let e = name_of(super::super::read_record(&path, &opts).unwrap_err());
+        assert!(e.starts_with(&long(100_002)), "{e}");
+        // One byte shorter: the line is read (and its cell refused as a value, not as a line).
+        std::fs::write(&path, &ok).unwrap();
+        let mut s = CsvStream::open(&path, &opts).unwrap();
+        assert!(!name_of(pass(&mut s).unwrap_err()).contains("longer than"));
     }
 
     // A file replaced between two passes by another of the same length and shape is refused on the

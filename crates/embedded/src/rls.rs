@@ -527,8 +527,10 @@ const SHORT_CHAINS_UP_TO: usize = 4;
 /// 2. only when all passed: Bierman's column steps write U in place, then D and θ̂; with `GUARD`, tr P
 ///    of the new factors is summed in the same pass. The partial gains w they need (w_i before column
 ///    j = b_i after columns < j) are the values pass 1 accumulates in the same order: for N ≥ 8 pass 1
-///    keeps them (`wsnap`, one row per column) instead of pass 2 summing them again (n(n − 1) flops
-///    fewer; measured slower at N = 4, where pass 2 sums them).
+///    accumulates b in a sweep of its own after the divisions and computes there the new entries
+///    U_ij + w_i λ_j into a local array (`u_next`, one row per column), which pass 2 copies, instead of
+///    pass 2 summing the gains again (n(n − 1) flops fewer; measured slower at N = 4, where pass 2
+///    sums them).
 ///
 /// So a failed update leaves the state unchanged, without a copy of the factors made for that. (Rows
 /// of at most 16 bytes, f32 with N ≤ 4, are read by pass 1 entry by entry into a local copy, which
@@ -571,11 +573,12 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
     let mut v = [F::ZERO; N];
     let mut alpha = [F::ZERO; N];
     let mut b = [F::ZERO; N];
-    // Whether pass 1 keeps the partial gains for pass 2 (measured faster at N = 9, slower at N = 4 in
-    // f64 and the same in f32; N = 7 a tie: docs/benchmarks.md, "Fifth round"). Same values either way.
+    // Whether pass 1 uses the partial gains for the new U (the gain sweep) instead of pass 2 summing
+    // them again (measured faster at N = 9, slower at N = 4 in f64 and the same in f32; N = 7 a tie:
+    // docs/benchmarks.md, "Fifth round"). Same values either way.
     let keep_w = N >= KEEP_GAINS_FROM;
     let split_row_loads = core::mem::size_of::<[F; N]>() <= 16;
-    let mut wsnap = [[F::ZERO; N]; N];
+    let mut u_next = [[F::ZERO; N]; N];
     // With split row loads, the copies of U read by the first pass, for the second.
     let mut u_old = [[F::ZERO; N]; N];
     let mut a = var;
@@ -584,14 +587,13 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
     // α_j = α_(j−1) + f_j v_j from α_(−1) = ρ̃, θ̂_i + b_i (1/α) ε, U_ij + w_i λ_j.
     let short = !F::SYSID_ORDER && N <= SHORT_CHAINS_UP_TO;
     for_columns!(full, m, 'col, |j| {
-        let (Some(row), Some(ph), Some(fj), Some(vj), Some(aj), Some((b_col, b_rest)), Some(ws)) = (
+        let (Some(row), Some(ph), Some(fj), Some(vj), Some(aj), Some((b_col, b_rest))) = (
             fac.get(j),
             phi.get(j),
             f.get_mut(j),
             v.get_mut(j),
             alpha.get_mut(j),
             b.split_at_mut_checked(j),
-            wsnap.get_mut(j),
         ) else {
             break 'col;
         };
@@ -647,13 +649,13 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
             a += acc * vv;
             *aj = a;
         }
-        for ((bi, wi), u) in b_col.iter_mut().zip(ws.iter_mut()).zip(u_col) {
-            if keep_w {
-                *wi = *bi;
+        // N < 8: b accumulates here; N ≥ 8: in the gain sweep below.
+        if !keep_w {
+            for (bi, u) in b_col.iter_mut().zip(u_col) {
+                *bi += *u * vv;
             }
-            *bi += *u * vv;
+            *bj = vv;
         }
-        *bj = vv;
     });
     if short {
         // `alpha` holds p_j = f_j v_j here (m ≤ N ≤ 4): α_0 = ρ̃ + p_0, α_1 = ρ̃ + (p_0 + p_1),
@@ -677,6 +679,39 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
         *r = F::ONE / *al;
     }
     let inv_last = inv.get(m - 1).copied().unwrap_or(F::ZERO);
+    // N ≥ 8, the gain sweep, after the divisions: b = U v accumulated column by column (Bierman's
+    // order) and, from the partial gain w_i = b_i before column j, the new U_ij = U_ij + w_i λ_j with
+    // λ_j = −f_j · (1/α_(j−1)), written to the local `u_next` (the state is written in pass 2, after
+    // the checks). One sweep over U where pass 1 used to keep w and pass 2 to read it back with U:
+    // 646 instructions instead of 718 at f32 n = 9 (docs/benchmarks.md, "Sixteenth round"); the same
+    // operations in the same order, so the same results.
+    if keep_w {
+        for_columns!(full, m, 'col, |j| {
+            let (Some(row), Some(vj), Some(fj), Some((b_col, b_rest)), Some(next)) = (
+                fac.get(j),
+                v.get(j).copied(),
+                f.get(j).copied(),
+                b.split_at_mut_checked(j),
+                u_next.get_mut(j),
+            ) else {
+                break 'col;
+            };
+            let (Some(u_col), Some(bj)) = (row.get(..j), b_rest.first_mut()) else {
+                break 'col;
+            };
+            let inv_prev = if j == 0 {
+                inv_var
+            } else {
+                inv.get(j - 1).copied().unwrap_or(F::ZERO)
+            };
+            let lambda = -fj * inv_prev;
+            for ((bi, un), u) in b_col.iter_mut().zip(next.iter_mut()).zip(u_col) {
+                *un = *u + *bi * lambda;
+                *bi += *u * vj;
+            }
+            *bj = vj;
+        });
+    }
     // The new D: d_j · (α_(j−1) · (1/α_j)) · (1/ρ̃) (x · 1 = x exactly: no branch for ρ̃ = 1); with a
     // pending guard scale c, the factor 1/ρ̃ = c/ρ applies it.
     let mut d_new = [F::ZERO; N];
@@ -713,7 +748,8 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
         return Err(Error::Numerical);
     }
     // Pass 2: λ_j = −f_j · (1/α_(j−1)); U_ij ← U_ij + w_i λ_j with w_i = v_i + Σ_(i<k<j) U_ik v_k (old
-    // U): kept by pass 1 (`keep_w`) or summed again here (w_i ← w_i + U_ij v_j, w_j = v_j).
+    // U): computed by the gain sweep (`keep_w`, N ≥ 8: copied here) or with w summed again here
+    // (w_i ← w_i + U_ij v_j, w_j = v_j).
     let mut w = [F::ZERO; N];
     let mut tr = -F::ZERO;
     for_columns!(full, m, 'col, |j| {
@@ -722,7 +758,7 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
             f.get(j),
             v.get(j).copied(),
             d_new.get(j).copied(),
-            wsnap.get(j),
+            u_next.get(j),
             w.split_at_mut_checked(j),
         ) else {
             break 'col;
@@ -751,12 +787,14 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
         {
             // The first pass's copy where it made one (the same value).
             let uij = if split_row_loads { *uo } else { *u };
-            let wv = if keep_w { *wk } else { *wi };
-            // f32 N ≤ 4: w_i (−f_j) does not wait for the division (one multiplication more).
-            let un = if short {
-                uij + wv * neg_f * inv_prev
+            // N ≥ 8: computed by the gain sweep. f32 N ≤ 4: w_i (−f_j) does not wait for the
+            // division (one multiplication more).
+            let un = if keep_w {
+                *wk
+            } else if short {
+                uij + *wi * neg_f * inv_prev
             } else {
-                uij + wv * lambda
+                uij + *wi * lambda
             };
             *u = un;
             if !keep_w {

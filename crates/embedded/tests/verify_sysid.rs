@@ -381,3 +381,60 @@ impl<const N: usize> UdUpdate for ipa_embedded::Rls<f64, N> {
         (e, self.theta()[..4].to_vec(), self.trace())
     }
 }
+
+// The UD update with n = N = 9 (the written-out kernel of a capacity ≥ 8, whose gain sweep computes the
+// new U before pass 2 copies it: issue 28, sixteenth round), with and without the trace guard, through
+// excitation and quiet stretches: bit for bit with `sysid::rls_ud::RobustRls` (ε, every θ̂_i, tr P).
+#[test]
+fn ud_form_with_nine_parameters_is_bit_for_bit_sysid() {
+    use sysid::rls_ud::{RlsForm, RobustRls};
+    use sysid::windup::Windup;
+    let (rho, p0) = (0.97, 10.0);
+    for guard in [None, Some(60.0)] {
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        let windup = if guard.is_some() {
+            Windup::Trace
+        } else {
+            Windup::None
+        };
+        let mut want = RobustRls::new(9, rho, p0, RlsForm::Ud, windup, guard).unwrap();
+        let mut got = ipa_embedded::Rls::<f64, 9>::new(9, rho, p0)
+            .unwrap()
+            .with_form(Form::Ud);
+        if let Some(t) = guard {
+            got = got.with_max_trace(t).unwrap();
+        }
+        let mut acted = 0;
+        for k in 0..800 {
+            let quiet = (150..350).contains(&(k % 400));
+            let scale = if quiet { 1e-9 } else { 1.0 };
+            let phi: Vec<f64> = (0..9).map(|_| scale * rng.gen_range(-1.0..1.0)).collect();
+            let y = phi
+                .iter()
+                .enumerate()
+                .map(|(i, p)| p / (1.0 + i as f64))
+                .sum::<f64>()
+                + 1e-3 * rng.gen::<f64>();
+            let e_want = want.update(&phi, y, k).unwrap();
+            let e = got.update(&phi, y).unwrap();
+            assert!(e == e_want, "T={guard:?} k={k}: ε {e:e} vs {e_want:e}");
+            for (g, w) in got.theta().iter().zip(want.theta.iter()) {
+                assert!(g == w, "T={guard:?} k={k}: θ̂ {g:e} vs {w:e}");
+            }
+            assert!(
+                got.trace() == want.trace(),
+                "T={guard:?} k={k}: tr P {:e} vs {:e}",
+                got.trace(),
+                want.trace()
+            );
+            if let Some(t) = guard {
+                if (want.trace() / t - 1.0).abs() < 1e-12 {
+                    acted += 1;
+                }
+            }
+        }
+        if guard.is_some() {
+            assert!(acted > 10, "guard acted {acted} times");
+        }
+    }
+}

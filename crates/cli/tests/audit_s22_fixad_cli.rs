@@ -1,8 +1,11 @@
 //! Audit s22 (helper fixad) through the binary: `validate`'s in-sample rule compares columns and
 //! samples, not file names (M-R2); `order` without a test record warns the chosen structure's fall
 //! from its estimation fit to its selection fit (M-R1); `tune` and `control` say when the loop leaves
-//! the model's data (M-B1). Records are generated here from difference equations; expectations are
-//! worked out by hand from them, never copied from the program's output.
+//! the model's data (M-B1); a controller tuned for another model is warned (M-B6); `response --json`
+//! gives the controller as numbers (L-B7) and takes --strict (L-B11); `control --json` names its units
+//! (L-B8); `tune --spec` refuses a vanishing u-max and subnormal tolerances (L-B2). Records and model
+//! files are generated here; expectations are worked out by hand from them, never copied from the
+//! program's output.
 
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests may panic
 
@@ -150,3 +153,68 @@ fn the_cascaded_tanks_test_columns_are_held_out() {
     assert!(!in_sample(&warnings(&doc)).is_empty(), "{doc}");
 }
 
+/// Hand-derived fit % of the first-order model y(k) = a y(k−1) + b u(k−1) simulated on (u, y) from
+/// the measured y(0): 100 (1 − ‖y − ŷ‖ / ‖y − ȳ‖).
+fn fit_first_order(a: f64, b: f64, u: &[f64], y: &[f64]) -> f64 {
+    let mut yh = vec![y[0]];
+    for k in 1..y.len() {
+        yh.push(a * yh[k - 1] + b * u[k - 1]);
+    }
+    let mean = y.iter().sum::<f64>() / y.len() as f64;
+    let e: f64 = y.iter().zip(&yh).map(|(y, h)| (y - h).powi(2)).sum();
+    let d: f64 = y.iter().map(|y| (y - mean).powi(2)).sum();
+    100.0 * (1.0 - (e / d).sqrt())
+}
+
+// M-R1: 600 rows, y(k) = 0.5 y(k−1) + b u(k−1) with b = 1 for k < 400 and b = 0.6 after. order's
+// default split estimates on rows 0..400 (exact: fit 100 %) and ranks on rows 400..600, where the
+// model's gain is 1/0.6 times the plant's: the fit there is about 100 (1 − 0.67) ≈ 33 %, a fall of
+// more than 15 points that identify would warn. Without a test record order must warn it too.
+#[test]
+fn order_without_a_test_record_warns_the_fall_to_the_selection_fit() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut r = lcg(3);
+    let n = 600;
+    let u: Vec<f64> = (0..n).map(|_| 2.0 * r.unit() - 1.0).collect();
+    let mut y = vec![0.0; n];
+    for k in 1..n {
+        let b = if k - 1 < 400 { 1.0 } else { 0.6 };
+        y[k] = 0.5 * y[k - 1] + b * u[k - 1];
+    }
+    let sel = fit_first_order(0.5, 1.0, &u[400..], &y[400..]);
+    assert!(sel < 85.0 - 1.0, "the hand-derived selection fit {sel}");
+    let data = dir.path().join("g.csv");
+    write_csv(&data, "u,y", None, &[&u, &y]);
+    let args = [
+        "order",
+        "--data",
+        s(&data),
+        "--ts",
+        "0.1",
+        "--na",
+        "1..2",
+        "--nb",
+        "1..2",
+        "--nk",
+        "1..1",
+    ];
+    let (code, doc) = run_json_code(dir.path(), &args);
+    assert_eq!(code, 0, "{doc}");
+    let w = warnings(&doc);
+    assert!(
+        w.iter().any(|w| w.contains("falls from")
+            && w.contains("on the estimation data")
+            && w.contains("on the selection data")),
+        "{w:?}"
+    );
+    let mut strict = args.to_vec();
+    strict.push("--strict");
+    let o = ipa_sysid(&strict);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    // The same plant throughout (b = 1): no fall, no such warning.
+    let (u1, y1) = arx_signals(n, &[0.5], &[1.0], |k| u[k]);
+    write_csv(&data, "u,y", None, &[&u1, &y1]);
+    let (_, doc) = run_json_code(dir.path(), &args);
+    assert!(
+        !warnings(&doc).iter().any(|w| w.contains("falls from")),
+        "{doc}"

@@ -2171,6 +2171,7 @@ fn control_loop<'py>(
             unstable_pole: limits.unstable_pole,
             judge_steps: profile.has_held_steps(),
             data_u_range: limits.data_u_range,
+            data_y_range: limits.data_y_range,
             duration_setting: Some("duration="),
             units: ::control::Units::of(limits.model_units()),
         },

@@ -218,3 +218,101 @@ fn order_without_a_test_record_warns_the_fall_to_the_selection_fit() {
     assert!(
         !warnings(&doc).iter().any(|w| w.contains("falls from")),
         "{doc}"
+    );
+}
+
+/// A Hammerstein model file (the README's worked example's coefficients, Ts = 0.01 s) whose
+/// estimation data had u in [−253, 251] counts and y in [0, 195.38] mm.
+fn hammerstein_file(dir: &Path) -> PathBuf {
+    let path = dir.join("model.json");
+    let model = serde_json::json!({
+        "kind": "hammerstein", "ts": 0.01, "na": 3, "nb": 1, "nk": 1,
+        "a": [-0.7916759814724423, -0.7377846247551252, 0.5299710616130193], "b": [1.0],
+        "offset": null,
+        "deadzone": {"b_l": -48.0, "b_r": 37.6, "m_l": 0.01328, "m_r": 0.01365},
+        "noise_model": "output-error",
+        "data_range": {"u": [[-253.0, 251.0]], "y": [0.0, 195.38]}
+    });
+    let doc = serde_json::json!({"format": "ipa-sysid-model", "version": 3, "model": model});
+    std::fs::write(&path, doc.to_string()).unwrap();
+    path
+}
+
+fn extrapolates<'a>(w: &'a [String], what: &str) -> Vec<&'a String> {
+    w.iter()
+        .filter(|w| w.starts_with(&format!("the {what}")) && w.contains("extrapolates"))
+        .collect()
+}
+
+// M-B1: a tenth of the data's span beyond it is the limit (u: 251 + 50.4 = 301.4; y: 195.38 + 19.5
+// = 214.9). tune's default ±255 counts and set-points 25..175 mm stay inside; u-max = 1000 and
+// set-points 300..600 leave it, and --strict then fails.
+#[test]
+fn tune_warns_commands_and_set_points_beyond_the_models_data() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = hammerstein_file(dir.path());
+    let quick = ["--max-evaluations", "8", "--variants", "1"];
+    let t = common::tune(dir.path(), &model, &quick);
+    let w = warnings(&t.report);
+    assert!(extrapolates(&w, "commands").is_empty(), "{w:?}");
+    assert!(extrapolates(&w, "set-points").is_empty(), "{w:?}");
+    let mut args = quick.to_vec();
+    args.extend(["--spec", "u-max=1000"]);
+    let w = warnings(&common::tune(dir.path(), &model, &args).report);
+    let c = extrapolates(&w, "commands");
+    assert!(
+        c.len() == 1
+            && c[0].contains("[-1000.000000, 1000.000000]")
+            && c[0].contains("[-253, 251]"),
+        "{w:?}"
+    );
+    let mut args = quick.to_vec();
+    args.extend(["--spec", "low=300,high=600,steps=100"]);
+    let t = common::tune(dir.path(), &model, &args);
+    let w = warnings(&t.report);
+    let r = extrapolates(&w, "set-points");
+    assert!(
+        r.len() == 1
+            && r[0].contains("[300.000000, 600.000000]")
+            && r[0].contains("y in [0, 195.38]"),
+        "{w:?}"
+    );
+    assert!(t.text.contains(r[0].as_str()), "{}", t.text);
+    let mut strict = vec!["tune", "--model", s(&model), "--out"];
+    let out = dir.path().join("strict.json");
+    strict.extend([s(&out), "--strict"]);
+    strict.extend(&args);
+    let o = ipa_sysid(&strict);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+}
+
+// M-B1: control's set-point against the model's output range, as its commands are.
+#[test]
+fn control_warns_a_set_point_beyond_the_models_data() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = hammerstein_file(dir.path());
+    let plant = format!("model:{}", s(&model));
+    let run = |r: &str| {
+        let args = [
+            "control",
+            "--plant",
+            &plant,
+            "--setpoint",
+            r,
+            "--duration",
+            "2",
+        ];
+        run_json_code(dir.path(), &args).1
+    };
+    let w = warnings(&run("500"));
+    let r = extrapolates(&w, "set-points");
+    assert!(
+        r.len() == 1
+            && r[0].contains("[500.000000, 500.000000]")
+            && r[0].contains("y in [0, 195.38]"),
+        "{w:?}"
+    );
+    let w = warnings(&run("50"));
+    assert!(extrapolates(&w, "set-points").is_empty(), "{w:?}");
+}
+

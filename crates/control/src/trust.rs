@@ -113,6 +113,10 @@ pub struct LoopFacts {
     /// whose commands leave them by more than a tenth of their span is warned (the model extrapolates
     /// there; audit s13 L10); `None`: not checked.
     pub data_u_range: Option<(f64, f64)>,
+    /// The outputs [min, max] of a model plant's estimation data (`PlantLimits::data_y_range`): a
+    /// set-point that leaves them by more than a tenth of their span is warned as the commands are
+    /// (audit s22 M-B1); `None`: not checked.
+    pub data_y_range: Option<(f64, f64)>,
     /// The units the warnings name: the IPA's mm and counts, or a model plant's own
     /// ([`Units::MODEL`]: its signals are in its estimation record's units).
     pub units: Units,
@@ -120,6 +124,26 @@ pub struct LoopFacts {
     /// the warnings then say how to run longer; `None` for a run of fixed length (`reproduce`'s tests),
     /// which says nothing the user cannot do.
     pub duration_setting: Option<&'static str>,
+}
+
+/// A warning when the `what` of a loop on a model plant ("commands", "set-points"), whose [min, max]
+/// is `extremes`, leave the model's estimation data's `signal` range `range` ("u" or "y", [lo, hi]) by
+/// more than a tenth of its span (`sysid_core::DataRange::excursion_of`): outside it the model
+/// extrapolates. The one rule of `control` (the run's commands and set-points) and `tune` (±u_max and
+/// the specification's set-points low..high, audit s22 M-B1).
+pub fn extrapolation_warning(
+    what: &str,
+    signal: &str,
+    extremes: (f64, f64),
+    range: (f64, f64),
+) -> Option<String> {
+    let (min, max) = sysid_core::DataRange::excursion_of(extremes, range)?;
+    let (lo, hi) = range;
+    Some(format!(
+        "the {what} span [{min:.6}, {max:.6}] but the plant model's estimation data had {signal} in \
+         [{lo}, {hi}]: outside it the model extrapolates, so the loop's response there is the \
+         equations' guess, not the plant's"
+    ))
 }
 
 /// The warnings of a run `trace` with its `steps` (from [`crate::metrics_for_steps`]).
@@ -148,14 +172,21 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
             ));
         }
     }
-    if let Some((lo, hi)) = facts.data_u_range {
-        if let Some((u_min, u_max)) = sysid_core::DataRange::excursion(&trace.u, (lo, hi)) {
-            w.push(format!(
-                "the commands span [{u_min:.6}, {u_max:.6}] but the plant model's estimation data had u in \
-                 [{lo}, {hi}]: outside it the model extrapolates, so the loop's response there is the \
-                 equations' guess, not the plant's"
-            ));
-        }
+    if let Some(range) = facts.data_y_range {
+        w.extend(extrapolation_warning(
+            "set-points",
+            "y",
+            sysid_core::DataRange::extremes(&trace.r),
+            range,
+        ));
+    }
+    if let Some(range) = facts.data_u_range {
+        w.extend(extrapolation_warning(
+            "commands",
+            "u",
+            sysid_core::DataRange::extremes(&trace.u),
+            range,
+        ));
     }
     let longer = |or_hold: bool| match facts.duration_setting {
         Some(d) if or_hold => format!(" (run longer: {d}, or hold each set-point longer)"),
@@ -458,6 +489,7 @@ mod tests {
         let facts = |range| LoopFacts {
             u_max: 255.0,
             data_u_range: Some(range),
+            data_y_range: None,
             ..LoopFacts::default()
         };
         let w = loop_warnings(&tr, &steps, &facts((-100.0, 100.0)));
@@ -487,6 +519,7 @@ mod tests {
                 unstable_pole: Some(1.02),
                 judge_steps: true,
                 data_u_range: None,
+                data_y_range: None,
                 duration_setting: Some("--duration"),
                 units: Units::IPA,
             },

@@ -766,6 +766,23 @@ fn reach_warnings(model: &Model, deadzone: &Deadzone, spec: &Spec) -> Vec<String
     // The units: the specification's defaults are the IPA's (PWM counts, mm). A model whose
     // estimation data lie on another scale (a plant in volts and metres) is tuned far outside its data.
     if let Some(range) = model.data_range() {
+        // The loop's commands reach ±u_max and its set-points low..high: control's rule for a run
+        // beyond the model's data (audit s22 M-B1: u-max=1000 and set-points 300..600 mm on a model of
+        // ±253 counts and 0..195 mm were tuned without a word).
+        if let Some([lo, hi]) = range.u.first() {
+            w.extend(crate::trust::extrapolation_warning(
+                "commands (|u| <= u_max)",
+                "u",
+                (-spec.u_max, spec.u_max),
+                (*lo, *hi),
+            ));
+        }
+        w.extend(crate::trust::extrapolation_warning(
+            "set-points (low .. high)",
+            "y",
+            (spec.low_mm, spec.high_mm),
+            (range.y[0], range.y[1]),
+        ));
         if let Some(u_data) = range.u_magnitude(0).filter(|m| *m > 0.0) {
             if spec.u_max > EXTRAPOLATION_FACTOR * u_data {
                 w.push(format!(

@@ -314,6 +314,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             unstable_pole: limits.unstable_pole,
             judge_steps: profile.has_held_steps(),
             data_u_range: limits.data_u_range,
+            data_y_range: limits.data_y_range,
             duration_setting: Some("--duration"),
             units: Units::of(limits.model_units()),
         },

@@ -316,3 +316,34 @@ fn control_warns_a_set_point_beyond_the_models_data() {
     assert!(extrapolates(&w, "set-points").is_empty(), "{w:?}");
 }
 
+
+// L-B2: a command limit below 1e-6 and a subnormal tolerance are refused, naming the key and the
+// number in exponent form.
+#[test]
+fn tune_refuses_a_vanishing_command_limit_and_subnormal_tolerances() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = hammerstein_file(dir.path());
+    for (spec, shown) in [
+        ("u-max=1e-300", "u-max=1e-300"),
+        ("ess=1e-320", "ess=1e-320"),
+    ] {
+        let out = dir.path().join("c.json");
+        let o = ipa_sysid(&[
+            "tune",
+            "--model",
+            s(&model),
+            "--spec",
+            spec,
+            "--max-evaluations",
+            "8",
+            "--variants",
+            "1",
+            "--out",
+            s(&out),
+        ]);
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{e}");
+        assert!(e.contains(shown) && e.contains("at least"), "{e}");
+        assert!(!out.exists());
+    }
+}

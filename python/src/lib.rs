@@ -2183,6 +2183,11 @@ fn control_loop<'py>(
     out.set_item("y", trace.y.into_pyarray(py))?;
     out.set_item("ts", ts)?;
     out.set_item("metrics_kind", run.kind.as_str())?;
+    // The units of u and of y and the metrics (keys named _mm), as `control --json` (audit s22 L-B8).
+    out.set_item(
+        "units",
+        to_py(py, &::control::Units::of(limits.model_units()))?,
+    )?;
     out.set_item("metrics", to_py(py, &run.metrics)?)?;
     out.set_item("steps", to_py(py, &run.steps)?)?;
     out.set_item("warnings", warnings)?;

@@ -60,8 +60,10 @@ fn fmt_mm(v: f64) -> String {
 pub const SATURATION_WARN: f64 = 0.2;
 
 /// The units a run's words name: the IPA's, or a model plant's own, which are its estimation
-/// record's (a tank's volts, a motor's radians).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// record's (a tank's volts, a motor's radians). Serialised as `control --json`'s and Python
+/// `control()`'s `units` (audit s22 L-B8): the metrics' keys keep their `_mm` names for the JSON's
+/// readers, and hold values in `units.y`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 pub struct Units {
     /// Of the command u.
     pub u: &'static str,

@@ -138,6 +138,9 @@ struct ControlOut<'a> {
     settings: SettingsOut<'a>,
     /// `fixed`: metrics of the single step; `worst-step`: field-wise worst over `steps` (unfixed set-point).
     metrics_kind: &'a str,
+    /// The units of the command and of the output, set-point and metrics (whose keys say `_mm`): the
+    /// IPA's counts and mm, or a model plant's "(u's units)" and "(y's units)" (audit s22 L-B8).
+    units: control::trust::Units,
     metrics: StepMetrics,
     /// False when a step that moved has not settled: its `overshoot_mm`/`overshoot_percent` (beyond
     /// the last sample, `stepinfo(y, t)`) are then not final; `overshoot_past_setpoint_*` (beyond r)
@@ -352,6 +355,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 compensator: compensator.as_ref(),
             },
             metrics_kind,
+            units: Units::of(limits.model_units()),
             metrics,
             overshoot_final: metrics.overshoot_mm.is_none() || metrics.settling_time_s.is_some(),
             steps: &steps,

@@ -44,6 +44,10 @@ pub struct Args {
     /// Write everything as JSON here (`-` for standard output).
     #[arg(long, value_name = "OUT")]
     pub json: Option<PathBuf>,
+    /// Exit with code 1 when the result carries warnings (they are printed either way), without writing
+    /// --out or the JSON (an earlier file there is kept), as `control` and `tune` do.
+    #[arg(long)]
+    pub strict: bool,
 }
 
 fn list(v: &[(f64, f64)]) -> String {
@@ -280,5 +284,5 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let (Some(p), Some(t)) = (&args.json, &json) {
         outputs.push((p, t.as_bytes(), "--json"));
     }
-    write_outputs(&outputs, &inputs, false, 0)
+    write_outputs(&outputs, &inputs, args.strict, r.warnings.len())
 }

@@ -704,6 +704,9 @@ impl PyModel {
         };
         // A tuned controller that did not meet its specification says so, as `control` does.
         let not_met = tuned.as_ref().and_then(|f| f.provenance_warning());
+        // The controller's file when it was given by its path (for the "controller" entry).
+        let controller_path = controller.and_then(|c| c.extract::<String>().ok());
+        let tuned_for_model = tuned.clone();
         let controller = match tuned {
             Some(f) => Some(f.controller),
             None => kp.map(|kp| ::control::ControllerSettings::pi(ts, kp, ki.unwrap_or(0.0))),
@@ -717,9 +720,27 @@ impl PyModel {
         let mut r = ::control::response::response(&self.inner, &settings).map_err(control_err)?;
         r.warnings
             .extend(not_met.map(|w| format!("controller: {w}")));
+        if let Some(f) = &tuned_for_model {
+            r.warnings.extend(
+                ::control::trust::controller_model_warnings(f, &self.inner, "this Model")
+                    .into_iter()
+                    .map(|w| format!("controller: {w}")),
+            );
+        }
         // The dict's "warnings" (what `response` prints as `warning:` lines), each an IpaSysidWarning.
         warn_all(py, &r.warnings)?;
-        to_py(py, &r)
+        let out = to_py(py, &r)?;
+        // The controller of the margins as numbers, as `response --json` gives it (audit s22 L-B7).
+        if let Some(c) = &controller {
+            out.set_item(
+                "controller",
+                to_py(
+                    py,
+                    &::control::response::controller_json(c, controller_path.as_deref()),
+                )?,
+            )?;
+        }
+        Ok(out)
     }
 
     /// Numerator and denominator of the linear block in descending powers of z (equal lengths n + 1,
@@ -2162,6 +2183,29 @@ fn control_loop<'py>(
         &profile,
         duration_s,
     );
+    // A controller file tuned for another model, or whose compensator inverts another deadzone
+    // (`control`'s check of the command line).
+    if let (Some(f), Some(p)) = (&tuned_file, plant) {
+        let model = if let Ok(m) = p.cast::<PyModel>() {
+            Some((m.get().inner.clone(), "the Model (Python)".to_string()))
+        } else {
+            match p.extract::<&str>().ok().map(str::parse::<ipa::PlantSpec>) {
+                Some(Ok(ipa::PlantSpec::ModelFile(path))) => {
+                    match sysid::model_file::read_any_model(&path) {
+                        Ok(sysid::model_file::AnyModel::Linear(m)) => Some((
+                            m,
+                            sysid_core::format::visible(&path.display().to_string()).into_owned(),
+                        )),
+                        _ => None,
+                    }
+                }
+                _ => None,
+            }
+        };
+        if let Some((m, name)) = model {
+            warnings.extend(::control::trust::controller_model_warnings(f, &m, &name));
+        }
+    }
     warnings.extend(::control::loop_warnings(
         &trace,
         &run.steps,

@@ -316,6 +316,116 @@ fn control_warns_a_set_point_beyond_the_models_data() {
     assert!(extrapolates(&w, "set-points").is_empty(), "{w:?}");
 }
 
+/// A first-order ARX model file y(k) = 0.9 y(k−1) + 0.1 u(k−1), Ts = 0.01 s: linear, no deadzone.
+fn arx_file(dir: &Path) -> PathBuf {
+    let path = dir.join("arx.json");
+    let model = serde_json::json!({
+        "kind": "arx", "ts": 0.01, "na": 1, "nb": 1, "nk": 1,
+        "a": [-0.9], "b": [0.1], "offset": null, "noise_model": "equation-error"
+    });
+    let doc = serde_json::json!({"format": "ipa-sysid-model", "version": 2, "model": model});
+    std::fs::write(&path, doc.to_string()).unwrap();
+    path
+}
+
+// M-B6, L-B7, L-B11, L-B8: a controller tuned on the Hammerstein model (its compensator inverts
+// b_l = −48, b_r = 37.6) analysed and run on a linear ARX model is warned in response and control;
+// on its own model it is not. response's JSON gives the controller as the file's numbers; response
+// --strict exits 1 and writes no JSON; control's JSON names its units.
+#[test]
+fn a_controller_tuned_for_another_model_is_warned() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = hammerstein_file(dir.path());
+    let arx = arx_file(dir.path());
+    let t = common::tune(
+        dir.path(),
+        &model,
+        &["--max-evaluations", "8", "--variants", "1"],
+    );
+    let c = s(&t.controller);
+    let file: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&t.controller).unwrap()).unwrap();
+    let response = |m: &Path| {
+        run_json_code(
+            dir.path(),
+            &["response", "--model", s(m), "--controller", c],
+        )
+        .1
+    };
+    let on_arx = response(&arx);
+    let w = warnings(&on_arx);
+    let other: Vec<&String> = w
+        .iter()
+        .filter(|w| w.starts_with("controller: the controller"))
+        .collect();
+    assert!(
+        other.iter().any(|w| w.contains("inverts a deadzone")
+            && w.contains("b_l = -48.0000")
+            && w.contains("does not have")),
+        "{w:?}"
+    );
+    assert!(
+        other.iter().any(|w| w.contains("was tuned on the model")),
+        "{w:?}"
+    );
+    // L-B7: the controller of the margins as the file's numbers.
+    let j = &on_arx["controller"];
+    assert_eq!(j["file"], c);
+    for (k, f) in [
+        ("kp", "kp"),
+        ("ki", "ki"),
+        ("kd", "kd"),
+        ("tf_s", "derivative_filter_s"),
+    ] {
+        assert_eq!(j[k].as_f64(), file["controller"][f].as_f64(), "{k}");
+    }
+    let own = response(&model);
+    assert!(
+        !warnings(&own)
+            .iter()
+            .any(|w| w.contains("compensator inverts") || w.contains("was tuned on the model")),
+        "{own}"
+    );
+    // L-B11: --strict with those warnings exits 1 and writes no JSON.
+    let out = dir.path().join("r.json");
+    let o = ipa_sysid(&[
+        "response",
+        "--model",
+        s(&arx),
+        "--controller",
+        c,
+        "--json",
+        s(&out),
+        "--strict",
+    ]);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(!out.exists());
+    // control on the ARX model: the same warnings, and the model plant's units named (L-B8).
+    let plant = format!("model:{}", s(&arx));
+    let (_, doc) = run_json_code(
+        dir.path(),
+        &[
+            "control",
+            "--plant",
+            &plant,
+            "--controller",
+            c,
+            "--setpoint",
+            "0.5",
+            "--duration",
+            "1",
+        ],
+    );
+    let w = warnings(&doc);
+    assert!(w.iter().any(|w| w.contains("inverts a deadzone")), "{w:?}");
+    assert_eq!(doc["units"]["y"], "(y's units)");
+    let (_, doc) = run_json_code(
+        dir.path(),
+        &["control", "--setpoint", "50", "--duration", "1"],
+    );
+    assert_eq!(doc["units"]["y"], "mm");
+    assert_eq!(doc["units"]["u"], "counts");
+}
 
 // L-B2: a command limit below 1e-6 and a subnormal tolerance are refused, naming the key and the
 // number in exponent form.

@@ -301,6 +301,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &profile,
         duration_s,
     );
+    // A controller file tuned for another model, or whose compensator inverts another deadzone.
+    if let (Some(f), Ok(ipa::PlantSpec::ModelFile(path))) =
+        (&tuned_file, args.plant.parse::<ipa::PlantSpec>())
+    {
+        if let Ok(sysid::model_file::AnyModel::Linear(m)) = sysid::model_file::read_any_model(&path)
+        {
+            let name = sysid_core::format::visible(&path.display().to_string()).into_owned();
+            warnings.extend(control::trust::controller_model_warnings(f, &m, &name));
+        }
+    }
     if let Some(change) = args.deadzone_change.filter(|c| c.at_s >= duration_s) {
         warnings.push(format!(
             "--deadzone-change at {} s comes at or after the run's end ({duration_s} s): the plant never \

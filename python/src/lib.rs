@@ -722,7 +722,7 @@ impl PyModel {
             .extend(not_met.map(|w| format!("controller: {w}")));
         if let Some(f) = &tuned_for_model {
             r.warnings.extend(
-                ::control::trust::controller_model_warnings(f, &self.inner, "this Model")
+                ::control::trust::controller_model_warnings(f, &self.inner, None)
                     .into_iter()
                     .map(|w| format!("controller: {w}")),
             );
@@ -2087,6 +2087,8 @@ fn control_loop<'py>(
             ))
         }
     };
+    // The plant as given, for the controller file's check against a model plant (M-B6).
+    let plant_arg = plant;
     let (limits, mut plant) = plant_and_limits(plant, plant_config.as_deref())?;
     // A start the plant cannot hold (beyond the IPA's stroke, or ±1e6 of a model), as the command line.
     limits.check_start(y0).map_err(sysid_err)?;
@@ -2185,16 +2187,19 @@ fn control_loop<'py>(
     );
     // A controller file tuned for another model, or whose compensator inverts another deadzone
     // (`control`'s check of the command line).
-    if let (Some(f), Some(p)) = (&tuned_file, plant) {
+    if let (Some(f), Some(p)) = (&tuned_file, plant_arg) {
         let model = if let Ok(m) = p.cast::<PyModel>() {
-            Some((m.get().inner.clone(), "the Model (Python)".to_string()))
+            Some((m.get().inner.clone(), None))
         } else {
             match p.extract::<&str>().ok().map(str::parse::<ipa::PlantSpec>) {
                 Some(Ok(ipa::PlantSpec::ModelFile(path))) => {
                     match sysid::model_file::read_any_model(&path) {
                         Ok(sysid::model_file::AnyModel::Linear(m)) => Some((
                             m,
-                            sysid_core::format::visible(&path.display().to_string()).into_owned(),
+                            Some(
+                                sysid_core::format::visible(&path.display().to_string())
+                                    .into_owned(),
+                            ),
                         )),
                         _ => None,
                     }
@@ -2203,7 +2208,11 @@ fn control_loop<'py>(
             }
         };
         if let Some((m, name)) = model {
-            warnings.extend(::control::trust::controller_model_warnings(f, &m, &name));
+            warnings.extend(::control::trust::controller_model_warnings(
+                f,
+                &m,
+                name.as_deref(),
+            ));
         }
     }
     warnings.extend(::control::loop_warnings(

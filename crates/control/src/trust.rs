@@ -444,25 +444,6 @@ pub fn setup_warnings(
     w
 }
 
-/// The relative difference of a breakpoint or slope above which a controller's compensator deadzone
-/// and a plant model's are called different ([`controller_model_warnings`]): 5 %, well above the
-/// spread of one record's estimates (the README model's b_l and b_r have standard deviations of about
-/// 1 % of their values).
-pub const DEADZONE_MISMATCH: f64 = 0.05;
-
-/// Whether the deadzones `a` and `b` differ by more than [`DEADZONE_MISMATCH`] in a breakpoint or a
-/// slope (relative to the larger magnitude; two zeros are equal).
-fn deadzones_differ(a: &sysid_core::Deadzone, b: &sysid_core::Deadzone) -> bool {
-    [
-        (a.b_l, b.b_l),
-        (a.b_r, b.b_r),
-        (a.m_l, b.m_l),
-        (a.m_r, b.m_r),
-    ]
-    .into_iter()
-    .any(|(x, y)| (x - y).abs() > DEADZONE_MISMATCH * x.abs().max(y.abs()))
-}
-
 fn deadzone_words(d: &sysid_core::Deadzone) -> String {
     format!(
         "b_l = {}, b_r = {}, m_l = {}, m_r = {}",
@@ -476,33 +457,27 @@ fn deadzone_words(d: &sysid_core::Deadzone) -> String {
 /// What a controller file says against the plant model `model` (read from `model_name`) it is run or
 /// analysed on (audit s22 M-B6: a controller tuned on a Hammerstein model, run on a linear ARX model,
 /// stepped its command by 38..48 counts at every sign change of the error without a word): its
-/// compensator inverts a deadzone the model does not have, or one whose breakpoints or slopes differ
-/// by more than [`DEADZONE_MISMATCH`]; its provenance (`"source": "model FILE"`, written by `tune`)
+/// compensator inverts a deadzone the model does not have (tune sets the compensator's own breakpoints,
+/// so one that differs from the model's is not a sign of another model); its provenance (`"source": "model FILE"`, written by `tune`)
 /// names another model file (compared by path, canonical path and file name, so a path given from
-/// another folder is the same file). The one check of `control --controller` and `response
+/// another folder is the same file; only when `model_name`, the model's file, is known and the source
+/// names a file). The one check of `control --controller` and `response
 /// --controller`, and of Python's `control` and `Model.frequency_response`.
 pub fn controller_model_warnings(
     file: &crate::ControllerFile,
     model: &sysid_core::Model,
-    model_name: &str,
+    model_name: Option<&str>,
 ) -> Vec<String> {
     let mut w = Vec::new();
+    let named = model_name.map_or(String::new(), |n| format!(" {n}"));
     if let Some(c) = &file.controller.compensator {
         match model.deadzone() {
             None => w.push(format!(
-                "the controller's compensator inverts a deadzone ({}) that the plant model \
-                 {model_name} does not have (its input map is linear): the controller steps its \
+                "the controller's compensator inverts a deadzone ({}) that the plant model{named} \
+                 does not have (its input map is linear): the controller steps its \
                  command by b_l or b_r at every sign change of the error, and its margins are \
                  computed with the compensator's slope; tune a controller on this model",
                 deadzone_words(&c.deadzone)
-            )),
-            Some(m) if deadzones_differ(&c.deadzone, m) => w.push(format!(
-                "the controller's compensator inverts the deadzone {} but the plant model \
-                 {model_name} has {} (more than {} % apart): the controller was tuned for another \
-                 plant; tune it on this model",
-                deadzone_words(&c.deadzone),
-                deadzone_words(m),
-                100.0 * DEADZONE_MISMATCH
             )),
             Some(_) => {}
         }
@@ -513,7 +488,9 @@ pub fn controller_model_warnings(
         .and_then(|p| p.get("source"))
         .and_then(|s| s.as_str())
         .and_then(|s| s.strip_prefix("model "));
-    if let Some(src) = source {
+    // A model given in memory (Python's `Model`, tune's "model (Python)") names no file to compare.
+    let source = source.filter(|s| !s.starts_with('('));
+    if let (Some(src), Some(model_name)) = (source, model_name) {
         let (a, b) = (std::path::Path::new(src), std::path::Path::new(model_name));
         let same = a == b
             || a.file_name() == b.file_name()

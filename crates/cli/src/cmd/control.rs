@@ -308,7 +308,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         if let Ok(sysid::model_file::AnyModel::Linear(m)) = sysid::model_file::read_any_model(&path)
         {
             let name = sysid_core::format::visible(&path.display().to_string()).into_owned();
-            warnings.extend(control::trust::controller_model_warnings(f, &m, &name));
+            warnings.extend(control::trust::controller_model_warnings(
+                f,
+                &m,
+                Some(&name),
+            ));
         }
     }
     if let Some(change) = args.deadzone_change.filter(|c| c.at_s >= duration_s) {

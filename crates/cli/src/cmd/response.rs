@@ -266,7 +266,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .extend(f.provenance_warning().map(|w| format!("controller: {w}")));
         let name = args.model.display().to_string();
         r.warnings.extend(
-            control::trust::controller_model_warnings(f, &model, &name)
+            control::trust::controller_model_warnings(f, &model, Some(&name))
                 .into_iter()
                 .map(|w| format!("controller: {w}")),
         );

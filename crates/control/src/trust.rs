@@ -470,17 +470,14 @@ pub fn controller_model_warnings(
 ) -> Vec<String> {
     let mut w = Vec::new();
     let named = model_name.map_or(String::new(), |n| format!(" {n}"));
-    if let Some(c) = &file.controller.compensator {
-        match model.deadzone() {
-            None => w.push(format!(
-                "the controller's compensator inverts a deadzone ({}) that the plant model{named} \
+    if let (Some(c), None) = (&file.controller.compensator, model.deadzone()) {
+        w.push(format!(
+            "the controller's compensator inverts a deadzone ({}) that the plant model{named} \
                  does not have (its input map is linear): the controller steps its \
                  command by b_l or b_r at every sign change of the error, and its margins are \
                  computed with the compensator's slope; tune a controller on this model",
-                deadzone_words(&c.deadzone)
-            )),
-            Some(_) => {}
-        }
+            deadzone_words(&c.deadzone)
+        ));
     }
     let source = file
         .provenance

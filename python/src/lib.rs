@@ -743,6 +743,9 @@ impl PyModel {
         };
         // A tuned controller that did not meet its specification says so, as `control` does.
         let not_met = tuned.as_ref().and_then(|f| f.provenance_warning());
+        // The controller's file when it was given by its path (for the "controller" entry).
+        let controller_path = controller.and_then(|c| c.extract::<String>().ok());
+        let tuned_for_model = tuned.clone();
         let controller = match tuned {
             Some(f) => Some(f.controller),
             None => kp.map(|kp| ::control::ControllerSettings::pi(ts, kp, ki.unwrap_or(0.0))),
@@ -756,10 +759,28 @@ impl PyModel {
         let mut r = ::control::response::response(&self.inner, &settings).map_err(control_err)?;
         r.warnings
             .extend(not_met.map(|w| format!("controller: {w}")));
+        if let Some(f) = &tuned_for_model {
+            r.warnings.extend(
+                ::control::trust::controller_model_warnings(f, &self.inner, None)
+                    .into_iter()
+                    .map(|w| format!("controller: {w}")),
+            );
+        }
         // The dict's "warnings" (what `response` prints as `warning:` lines), each of this result's
         // own an IpaSysidWarning (the model file's were said by `load_model`).
         warn_all(py, &result_warnings(&self.inner, &r.warnings))?;
-        to_py(py, &r)
+        let out = to_py(py, &r)?;
+        // The controller of the margins as numbers, as `response --json` gives it (audit s22 L-B7).
+        if let Some(c) = &controller {
+            out.set_item(
+                "controller",
+                to_py(
+                    py,
+                    &::control::response::controller_json(c, controller_path.as_deref()),
+                )?,
+            )?;
+        }
+        Ok(out)
     }
 
     /// Numerator and denominator of the linear block in descending powers of z (equal lengths n + 1,
@@ -2130,6 +2151,8 @@ fn control_loop<'py>(
             ))
         }
     };
+    // The plant as given, for the controller file's check against a model plant (M-B6).
+    let plant_arg = plant;
     let (limits, mut plant) = plant_and_limits(plant, plant_config.as_deref())?;
     // A start the plant cannot hold (beyond the IPA's stroke, or ±1e6 of a model), as the command line.
     limits.check_start(y0).map_err(sysid_err)?;
@@ -2226,6 +2249,36 @@ fn control_loop<'py>(
         &profile,
         duration_s,
     );
+    // A controller file tuned for another model, or whose compensator inverts another deadzone
+    // (`control`'s check of the command line).
+    if let (Some(f), Some(p)) = (&tuned_file, plant_arg) {
+        let model = if let Ok(m) = p.cast::<PyModel>() {
+            Some((m.get().inner.clone(), None))
+        } else {
+            match p.extract::<&str>().ok().map(str::parse::<ipa::PlantSpec>) {
+                Some(Ok(ipa::PlantSpec::ModelFile(path))) => {
+                    match sysid::model_file::read_any_model(&path) {
+                        Ok(sysid::model_file::AnyModel::Linear(m)) => Some((
+                            m,
+                            Some(
+                                sysid_core::format::visible(&path.display().to_string())
+                                    .into_owned(),
+                            ),
+                        )),
+                        _ => None,
+                    }
+                }
+                _ => None,
+            }
+        };
+        if let Some((m, name)) = model {
+            warnings.extend(::control::trust::controller_model_warnings(
+                f,
+                &m,
+                name.as_deref(),
+            ));
+        }
+    }
     warnings.extend(::control::loop_warnings(
         &trace,
         &run.steps,
@@ -2235,6 +2288,7 @@ fn control_loop<'py>(
             unstable_pole: limits.unstable_pole,
             judge_steps: profile.has_held_steps(),
             data_u_range: limits.data_u_range,
+            data_y_range: limits.data_y_range,
             duration_setting: Some("duration="),
             units: ::control::Units::of(limits.model_units()),
         },
@@ -2246,6 +2300,11 @@ fn control_loop<'py>(
     out.set_item("y", trace.y.into_pyarray(py))?;
     out.set_item("ts", ts)?;
     out.set_item("metrics_kind", run.kind.as_str())?;
+    // The units of u and of y and the metrics (keys named _mm), as `control --json` (audit s22 L-B8).
+    out.set_item(
+        "units",
+        to_py(py, &::control::Units::of(limits.model_units()))?,
+    )?;
     out.set_item("metrics", to_py(py, &run.metrics)?)?;
     out.set_item("steps", to_py(py, &run.steps)?)?;
     out.set_item("warnings", warnings)?;

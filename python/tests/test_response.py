@@ -125,6 +125,11 @@ def test_margins_of_a_tuned_controller_are_tunes_and_those_of_its_gains(tmp_path
     path = tmp_path / "c.json"
     path.write_text(tuned["controller_file"])
     assert m.frequency_response(controller=str(path))["margins"] == tuned["margins"]
+    # Audit s22 L-B7: the controller of the margins as numbers, as `response --json` gives it.
+    c = tuned["controller"]
+    gains = {"kp": c["kp"], "ki": c["ki"], "kd": c["kd"], "tf_s": c["derivative_filter_s"]}
+    assert m.frequency_response(controller=str(path))["controller"] == dict(gains, file=str(path))
+    assert m.frequency_response(controller=tuned)["controller"] == dict(gains, file=None)
     pi = dict(tuned["controller"], kd=0.0, derivative_filter_s=0.0)
     assert (
         m.frequency_response(controller=pi)["margins"]

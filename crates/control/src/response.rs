@@ -410,6 +410,20 @@ pub fn response(model: &Model, s: &ResponseSettings) -> Result<Response, Control
     Ok(r)
 }
 
+/// The controller of a response's margins as the JSON document and Python's dict give it (audit s22
+/// L-B7: a rounded text string): `{"file": FILE or null, "kp": Kp, "ki": Ki, "kd": Kd, "tf_s": Tf}`,
+/// the gains as stored (counts/mm, counts/(mm·s), counts·s/mm; Tf in s). `file` names the controller
+/// file, `None` for a PI given by its gains.
+pub fn controller_json(c: &crate::ControllerSettings, file: Option<&str>) -> serde_json::Value {
+    serde_json::json!({
+        "file": file,
+        "kp": c.kp,
+        "ki": c.ki,
+        "kd": c.kd,
+        "tf_s": c.derivative_filter_s,
+    })
+}
+
 /// Frequency response of a model's linear block, scaled by `gain`: the frequencies (Hz), |H| in dB
 /// and the unwrapped phase in degrees, at `points` log-spaced frequencies from `f_min_hz` up to the
 /// Nyquist frequency 1/(2 Ts). The first phase lies in [−180°, 180°) (−180° for H on the negative

@@ -60,8 +60,10 @@ fn fmt_mm(v: f64) -> String {
 pub const SATURATION_WARN: f64 = 0.2;
 
 /// The units a run's words name: the IPA's, or a model plant's own, which are its estimation
-/// record's (a tank's volts, a motor's radians).
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+/// record's (a tank's volts, a motor's radians). Serialised as `control --json`'s and Python
+/// `control()`'s `units` (audit s22 L-B8): the metrics' keys keep their `_mm` names for the JSON's
+/// readers, and hold values in `units.y`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 pub struct Units {
     /// Of the command u.
     pub u: &'static str,
@@ -113,6 +115,10 @@ pub struct LoopFacts {
     /// whose commands leave them by more than a tenth of their span is warned (the model extrapolates
     /// there; audit s13 L10); `None`: not checked.
     pub data_u_range: Option<(f64, f64)>,
+    /// The outputs [min, max] of a model plant's estimation data (`PlantLimits::data_y_range`): a
+    /// set-point that leaves them by more than a tenth of their span is warned as the commands are
+    /// (audit s22 M-B1); `None`: not checked.
+    pub data_y_range: Option<(f64, f64)>,
     /// The units the warnings name: the IPA's mm and counts, or a model plant's own
     /// ([`Units::MODEL`]: its signals are in its estimation record's units).
     pub units: Units,
@@ -120,6 +126,26 @@ pub struct LoopFacts {
     /// the warnings then say how to run longer; `None` for a run of fixed length (`reproduce`'s tests),
     /// which says nothing the user cannot do.
     pub duration_setting: Option<&'static str>,
+}
+
+/// A warning when the `what` of a loop on a model plant ("commands", "set-points"), whose [min, max]
+/// is `extremes`, leave the model's estimation data's `signal` range `range` ("u" or "y", [lo, hi]) by
+/// more than a tenth of its span (`sysid_core::DataRange::excursion_of`): outside it the model
+/// extrapolates. The one rule of `control` (the run's commands and set-points) and `tune` (±u_max and
+/// the specification's set-points low..high, audit s22 M-B1).
+pub fn extrapolation_warning(
+    what: &str,
+    signal: &str,
+    extremes: (f64, f64),
+    range: (f64, f64),
+) -> Option<String> {
+    let (min, max) = sysid_core::DataRange::excursion_of(extremes, range)?;
+    let (lo, hi) = range;
+    Some(format!(
+        "the {what} span [{min:.6}, {max:.6}] but the plant model's estimation data had {signal} in \
+         [{lo}, {hi}]: outside it the model extrapolates, so the loop's response there is the \
+         equations' guess, not the plant's"
+    ))
 }
 
 /// The warnings of a run `trace` with its `steps` (from [`crate::metrics_for_steps`]).
@@ -148,14 +174,21 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
             ));
         }
     }
-    if let Some((lo, hi)) = facts.data_u_range {
-        if let Some((u_min, u_max)) = sysid_core::DataRange::excursion(&trace.u, (lo, hi)) {
-            w.push(format!(
-                "the commands span [{u_min:.6}, {u_max:.6}] but the plant model's estimation data had u in \
-                 [{lo}, {hi}]: outside it the model extrapolates, so the loop's response there is the \
-                 equations' guess, not the plant's"
-            ));
-        }
+    if let Some(range) = facts.data_y_range {
+        w.extend(extrapolation_warning(
+            "set-points",
+            "y",
+            sysid_core::DataRange::extremes(&trace.r),
+            range,
+        ));
+    }
+    if let Some(range) = facts.data_u_range {
+        w.extend(extrapolation_warning(
+            "commands",
+            "u",
+            sysid_core::DataRange::extremes(&trace.u),
+            range,
+        ));
     }
     let longer = |or_hold: bool| match facts.duration_setting {
         Some(d) if or_hold => format!(" (run longer: {d}, or hold each set-point longer)"),
@@ -411,6 +444,68 @@ pub fn setup_warnings(
     w
 }
 
+fn deadzone_words(d: &sysid_core::Deadzone) -> String {
+    format!(
+        "b_l = {}, b_r = {}, m_l = {}, m_r = {}",
+        fmt_value(d.b_l),
+        fmt_value(d.b_r),
+        fmt_value(d.m_l),
+        fmt_value(d.m_r)
+    )
+}
+
+/// What a controller file says against the plant model `model` (read from `model_name`) it is run or
+/// analysed on (audit s22 M-B6: a controller tuned on a Hammerstein model, run on a linear ARX model,
+/// stepped its command by 38..48 counts at every sign change of the error without a word): its
+/// compensator inverts a deadzone the model does not have (tune sets the compensator's own breakpoints,
+/// so one that differs from the model's is not a sign of another model); its provenance (`"source": "model FILE"`, written by `tune`)
+/// names another model file (compared by path, canonical path and file name, so a path given from
+/// another folder is the same file; only when `model_name`, the model's file, is known and the source
+/// names a file). The one check of `control --controller` and `response
+/// --controller`, and of Python's `control` and `Model.frequency_response`.
+pub fn controller_model_warnings(
+    file: &crate::ControllerFile,
+    model: &sysid_core::Model,
+    model_name: Option<&str>,
+) -> Vec<String> {
+    let mut w = Vec::new();
+    let named = model_name.map_or(String::new(), |n| format!(" {n}"));
+    if let (Some(c), None) = (&file.controller.compensator, model.deadzone()) {
+        w.push(format!(
+            "the controller's compensator inverts a deadzone ({}) that the plant model{named} \
+                 does not have (its input map is linear): the controller steps its \
+                 command by b_l or b_r at every sign change of the error, and its margins are \
+                 computed with the compensator's slope; tune a controller on this model",
+            deadzone_words(&c.deadzone)
+        ));
+    }
+    let source = file
+        .provenance
+        .as_ref()
+        .and_then(|p| p.get("source"))
+        .and_then(|s| s.as_str())
+        .and_then(|s| s.strip_prefix("model "));
+    // A model given in memory (Python's `Model`, tune's "model (Python)") names no file to compare.
+    let source = source.filter(|s| !s.starts_with('('));
+    if let (Some(src), Some(model_name)) = (source, model_name) {
+        let (a, b) = (std::path::Path::new(src), std::path::Path::new(model_name));
+        let same = a == b
+            || a.file_name() == b.file_name()
+            || matches!(
+                (std::fs::canonicalize(a), std::fs::canonicalize(b)),
+                (Ok(x), Ok(y)) if x == y
+            );
+        if !same {
+            w.push(format!(
+                "the controller file was tuned on the model {} (its provenance), not on {model_name}: \
+                 its gains and compensator are that model's; check it here before trusting it",
+                sysid_core::format::visible(src)
+            ));
+        }
+    }
+    w
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -458,6 +553,7 @@ mod tests {
         let facts = |range| LoopFacts {
             u_max: 255.0,
             data_u_range: Some(range),
+            data_y_range: None,
             ..LoopFacts::default()
         };
         let w = loop_warnings(&tr, &steps, &facts((-100.0, 100.0)));
@@ -487,6 +583,7 @@ mod tests {
                 unstable_pole: Some(1.02),
                 judge_steps: true,
                 data_u_range: None,
+                data_y_range: None,
                 duration_setting: Some("--duration"),
                 units: Units::IPA,
             },

@@ -570,11 +570,49 @@ pub const MAX_SIMULATED_SAMPLES: f64 = 1e8;
 /// step is lost in rounding, and, when the physics plant or a twin is simulated, set-points outside its
 /// stroke 0..L (its end stops would hold the piston, and the steps would be measured from a start it
 /// cannot take).
+/// The smallest command limit u_max `tune` takes (`--spec u-max=`), in the plant's command units.
+pub const MIN_U_MAX: f64 = 1e-6;
+
 fn check_spec(req: &Request, ts: f64, twin: &Option<ipa::PlantConfig>) -> Result<(), ControlError> {
     let (spec, check_physics) = (&req.spec, req.check_physics);
     let bad = |what: String, expected: String| {
         ControlError::setting(crate::ControlSetting::Spec, what, &expected)
     };
+    // Numbers below f64's normal range (1e-320 mm) are no tolerance a measurement can meet, and a
+    // command limit below MIN_U_MAX no actuator resolves (audit s22 L-B2: u-max=1e-300 tuned a
+    // controller of gains 0 and printed a 300-digit limit).
+    let named = [
+        ("overshoot", spec.overshoot_percent),
+        ("ess", spec.ess_mm),
+        ("limit-cycle", spec.limit_cycle_mm),
+        ("u-max", spec.u_max),
+        ("run", spec.run_s),
+        ("settling", spec.settling_s),
+        ("ess-share", spec.ess_share),
+        ("ess-all", spec.ess_all_mm),
+    ];
+    let steps = spec.steps_mm.iter().map(|s| ("steps", *s));
+    for (key, v) in named.into_iter().chain(steps) {
+        if v != 0.0 && !v.is_normal() {
+            return Err(bad(
+                format!("{key}={}", sysid_core::format::Shortest(v)),
+                format!(
+                    "a number of at least {:e} (f64's smallest normal number): a smaller one is lost \
+                     in rounding",
+                    f64::MIN_POSITIVE
+                ),
+            ));
+        }
+    }
+    if spec.u_max < MIN_U_MAX {
+        return Err(bad(
+            format!("u-max={}", sysid_core::format::Shortest(spec.u_max)),
+            format!(
+                "a command limit of at least {MIN_U_MAX:e} in the plant's command units (below any \
+                 actuator's resolution: a 24-bit converter over 10 V steps by 6e-7 V)"
+            ),
+        ));
+    }
     let run_samples = spec.run_s / ts;
     if run_samples > MAX_RUN_SAMPLES {
         return Err(bad(
@@ -759,13 +797,30 @@ fn reach_warnings(model: &Model, deadzone: &Deadzone, spec: &Spec) -> Vec<String
                 "the model's deadzone {side} = {} counts is at or beyond the command limit u_max = {}: \
                  no command moves the model {way}; the steps that need it cannot be met",
                 fmt(b),
-                spec.u_max
+                sysid_core::format::Shortest(spec.u_max)
             ));
         }
     }
     // The units: the specification's defaults are the IPA's (PWM counts, mm). A model whose
     // estimation data lie on another scale (a plant in volts and metres) is tuned far outside its data.
     if let Some(range) = model.data_range() {
+        // The loop's commands reach ±u_max and its set-points low..high: control's rule for a run
+        // beyond the model's data (audit s22 M-B1: u-max=1000 and set-points 300..600 mm on a model of
+        // ±253 counts and 0..195 mm were tuned without a word).
+        if let Some([lo, hi]) = range.u.first() {
+            w.extend(crate::trust::extrapolation_warning(
+                "commands (|u| <= u_max)",
+                "u",
+                (-spec.u_max, spec.u_max),
+                (*lo, *hi),
+            ));
+        }
+        w.extend(crate::trust::extrapolation_warning(
+            "set-points (low .. high)",
+            "y",
+            (spec.low_mm, spec.high_mm),
+            (range.y[0], range.y[1]),
+        ));
         if let Some(u_data) = range.u_magnitude(0).filter(|m| *m > 0.0) {
             if spec.u_max > EXTRAPOLATION_FACTOR * u_data {
                 w.push(format!(

@@ -172,6 +172,9 @@ pub struct PlantLimits {
     /// The commands of a model plant's estimation data, [min, max] of its first input (its
     /// `data_range`): outside them the model extrapolates; `None` without one.
     pub data_u_range: Option<(f64, f64)>,
+    /// The outputs of a model plant's estimation data, [min, max] (its `data_range`): a set-point
+    /// outside them asks the model to extrapolate; `None` without one.
+    pub data_y_range: Option<(f64, f64)>,
 }
 
 impl PlantSpec {
@@ -207,6 +210,7 @@ impl PlantSpec {
                             .data_range()
                             .and_then(|r| r.u.first())
                             .map(|[lo, hi]| (*lo, *hi)),
+                        data_y_range: n.data_range().map(|r| (r.y[0], r.y[1])),
                         ..PlantLimits::default()
                     })
                 }
@@ -232,6 +236,7 @@ impl PlantLimits {
             unstable_pole: None,
             model_warnings: Vec::new(),
             data_u_range: None,
+            data_y_range: None,
         }
     }
 
@@ -277,6 +282,7 @@ impl PlantLimits {
                 .data_range()
                 .and_then(|r| r.u.first())
                 .map(|[lo, hi]| (*lo, *hi)),
+            data_y_range: model.data_range().map(|r| (r.y[0], r.y[1])),
         }
     }
 }

@@ -150,6 +150,7 @@ pub(crate) fn run_warnings(
         unstable_pole: limits.unstable_pole,
         judge_steps: false,
         data_u_range: limits.data_u_range,
+        data_y_range: limits.data_y_range,
         duration_setting: None,
         // A model plant's own units (its estimation record's), the IPA's otherwise: as `control` says.
         units: control::Units::of(limits.model_units()),

@@ -784,8 +784,25 @@ pub fn record_rows(name: &str) -> (&str, Option<std::ops::Range<usize>>) {
 /// else by their canonical path. `None` without an identification record, for another file, or for
 /// disjoint rows. Row numbers are those of the names (a record resampled on reading is numbered in
 /// samples after resampling).
-pub fn estimation_rows_warning(model: &Model, name: &str, len: usize) -> Option<String> {
-    let record = &model.provenance()?.record;
+///
+/// `columns`: the input columns and the output column the record was read from, when it has a header.
+/// When the model file names its own (`Provenance::u_columns`, `y_column`) and they differ, the record
+/// is another experiment of the same file and `None` is returned (audit s22 M-R2: the cascaded tanks'
+/// test record uVal/yVal beside the estimation record uEst/yEst was called in-sample). A copy of the
+/// estimation record under another name is found by its samples ([`same_samples_warning`]), not here.
+pub fn estimation_rows_warning(
+    model: &Model,
+    name: &str,
+    len: usize,
+    columns: Option<(&[String], &str)>,
+) -> Option<String> {
+    let p = model.provenance()?;
+    if let (Some((u, y)), Some(est_y)) = (columns, p.y_column.as_deref()) {
+        if !p.u_columns.is_empty() && (p.u_columns.as_slice() != u || est_y != y) {
+            return None;
+        }
+    }
+    let record = &p.record;
     let (est_file, est_rows) = record_rows(record);
     let (file, rows) = record_rows(name);
     let same_file = est_file == file

@@ -30,6 +30,11 @@ pub struct Candidate {
     pub p: usize,
     /// Fit % of the free-run simulation on the estimation record.
     pub fit_estimation: Option<f64>,
+    /// The guarded fit % on the estimation record (the worse of estimated and measured initial
+    /// outputs, [`crate::trust::guarded_fit`]): what the selection fit is compared with
+    /// ([`crate::trust::held_out_drop`]) when there is no test record (audit s22 M-R1).
+    #[serde(skip)]
+    pub fit_estimation_guarded: Option<f64>,
     /// Fit % of the free-run simulation on the validation record (when given).
     pub fit_validation: Option<f64>,
     /// Normalised AIC on the estimation record (ln(mean ε²) + 2p/N).
@@ -294,6 +299,7 @@ fn evaluate(est: &Dataset, val: Option<&Dataset>, o: Orders, base: &Identificati
         orders: o,
         p: 0,
         fit_estimation: None,
+        fit_estimation_guarded: None,
         fit_validation: None,
         aic: None,
         fpe: None,
@@ -329,6 +335,7 @@ fn evaluate(est: &Dataset, val: Option<&Dataset>, o: Orders, base: &Identificati
             c.aic = m.aic;
             c.fpe = m.fpe;
             c.ranking_fit = guarded_fit(&m);
+            c.fit_estimation_guarded = c.ranking_fit;
         }
         Err(e) => {
             c.error = Some(e.to_string());

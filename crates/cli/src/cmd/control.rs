@@ -138,6 +138,9 @@ struct ControlOut<'a> {
     settings: SettingsOut<'a>,
     /// `fixed`: metrics of the single step; `worst-step`: field-wise worst over `steps` (unfixed set-point).
     metrics_kind: &'a str,
+    /// The units of the command and of the output, set-point and metrics (whose keys say `_mm`): the
+    /// IPA's counts and mm, or a model plant's "(u's units)" and "(y's units)" (audit s22 L-B8).
+    units: control::trust::Units,
     metrics: StepMetrics,
     /// False when a step that moved has not settled: its `overshoot_mm`/`overshoot_percent` (beyond
     /// the last sample, `stepinfo(y, t)`) are then not final; `overshoot_past_setpoint_*` (beyond r)
@@ -298,6 +301,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &profile,
         duration_s,
     );
+    // A controller file tuned for another model, or whose compensator inverts another deadzone.
+    if let (Some(f), Ok(ipa::PlantSpec::ModelFile(path))) =
+        (&tuned_file, args.plant.parse::<ipa::PlantSpec>())
+    {
+        if let Ok(sysid::model_file::AnyModel::Linear(m)) = sysid::model_file::read_any_model(&path)
+        {
+            let name = sysid_core::format::visible(&path.display().to_string()).into_owned();
+            warnings.extend(control::trust::controller_model_warnings(
+                f,
+                &m,
+                Some(&name),
+            ));
+        }
+    }
     if let Some(change) = args.deadzone_change.filter(|c| c.at_s >= duration_s) {
         warnings.push(format!(
             "--deadzone-change at {} s comes at or after the run's end ({duration_s} s): the plant never \
@@ -314,6 +331,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             unstable_pole: limits.unstable_pole,
             judge_steps: profile.has_held_steps(),
             data_u_range: limits.data_u_range,
+            data_y_range: limits.data_y_range,
             duration_setting: Some("--duration"),
             units: Units::of(limits.model_units()),
         },
@@ -351,6 +369,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 compensator: compensator.as_ref(),
             },
             metrics_kind,
+            units: Units::of(limits.model_units()),
             metrics,
             overshoot_final: metrics.overshoot_mm.is_none() || metrics.settling_time_s.is_some(),
             steps: &steps,

@@ -44,6 +44,10 @@ pub struct Args {
     /// Write everything as JSON here (`-` for standard output).
     #[arg(long, value_name = "OUT")]
     pub json: Option<PathBuf>,
+    /// Exit with code 1 when the result carries warnings (they are printed either way), without writing
+    /// --out or the JSON (an earlier file there is kept), as `control` and `tune` do.
+    #[arg(long)]
+    pub strict: bool,
 }
 
 fn list(v: &[(f64, f64)]) -> String {
@@ -242,6 +246,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         (None, None) => (None, None),
     };
+    // The controller of the margins as numbers (its file, or null for --kp/--ki).
+    let controller_value = controller.map(|c| {
+        let file = tuned.as_ref().map(|(p, _)| p.display().to_string());
+        control::response::controller_json(&c, file.as_deref())
+    });
     let settings = ResponseSettings {
         points: args.points as usize,
         f_min_hz: args.f_min,
@@ -255,6 +264,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some((_, f)) = &tuned {
         r.warnings
             .extend(f.provenance_warning().map(|w| format!("controller: {w}")));
+        let name = args.model.display().to_string();
+        r.warnings.extend(
+            control::trust::controller_model_warnings(f, &model, Some(&name))
+                .into_iter()
+                .map(|w| format!("controller: {w}")),
+        );
     }
     print_report(
         &text(&args.model.display().to_string(), &r, words.as_deref()),
@@ -264,10 +279,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .json
         .as_ref()
         .map(|_| {
-            // The controller of the margins, in the text's words (its file and gains, or the PI).
+            // The controller of the margins, as numbers (its file and gains, or the PI's).
             let mut v = serde_json::to_value(&r)?;
-            if let (Some(o), Some(w)) = (v.as_object_mut(), &words) {
-                o.insert("controller".into(), w.clone().into());
+            if let (Some(o), Some(c)) = (v.as_object_mut(), &controller_value) {
+                o.insert("controller".into(), c.clone());
             }
             serde_json::to_string_pretty(&v).map(|s| s + "\n")
         })
@@ -280,5 +295,5 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let (Some(p), Some(t)) = (&args.json, &json) {
         outputs.push((p, t.as_bytes(), "--json"));
     }
-    write_outputs(&outputs, &inputs, false, 0)
+    write_outputs(&outputs, &inputs, args.strict, r.warnings.len())
 }

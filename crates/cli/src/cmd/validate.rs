@@ -150,7 +150,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     report
         .warnings
         .extend(record.notes.iter().map(|n| format!("data: {n}")));
-    model_warnings(&mut report, &model, data.name(), data.len());
+    model_warnings(
+        &mut report,
+        &model,
+        data.name(),
+        data.len(),
+        &opts,
+        Some(&data),
+    );
     let out = sysid::metrics::model_output(&model, &us, data.y(), args.horizon).map_err(blame)?;
     let value = report_json(&report, args.horizon, out.fit_pred_percent, &record.notes)?;
     let text = report_text(
@@ -443,7 +450,7 @@ fn run_streamed(
     sysid::metrics::check_sampling(&name, shape.ts, model.ts())?;
     stream_note(&name, streamed.passes, shape.rows, args.stream);
     let mut report = streamed.result;
-    model_warnings(&mut report, model, &name, shape.rows);
+    model_warnings(&mut report, model, &name, shape.rows, opts, None);
     // The 1-step prediction of `model_output`: the ARX predictor, or for an output-error model the
     // simulation from the measured initial outputs.
     let m = &report.metrics.validation;
@@ -484,15 +491,63 @@ fn blame_model(
 }
 
 /// Adds what the model file itself deserves a warning for (a map that breaks its kind's shape, its
-/// identification's warnings) to the report, and a record `name` of `len` rows that holds the model's
-/// own estimation rows (`sysid_summary::estimation_rows_warning`).
-fn model_warnings(report: &mut ValidationReport, model: &sysid::Model, name: &str, len: usize) {
-    report
-        .warnings
-        .extend(sysid_summary::estimation_rows_warning(model, name, len));
+/// identification's warnings) to the report, and a record `name` of `len` rows, read with `opts`, that
+/// holds the model's own estimation rows in the same columns
+/// (`sysid_summary::estimation_rows_warning`) or, read in memory (`data`), the estimation record's
+/// samples under another name ([`estimation_samples_warning`]; audit s22 M-R2).
+fn model_warnings(
+    report: &mut ValidationReport,
+    model: &sysid::Model,
+    name: &str,
+    len: usize,
+    opts: &sysid::data::CsvOptions,
+    data: Option<&sysid::Dataset>,
+) {
+    let u = opts.input_names();
+    let columns = (!opts.no_header).then_some((u.as_slice(), opts.y_col.as_str()));
+    let in_sample = sysid_summary::estimation_rows_warning(model, name, len, columns)
+        .or_else(|| data.and_then(|d| estimation_samples_warning(model, opts, d)));
+    report.warnings.extend(in_sample);
     report.warnings.extend(
         sysid::model_file::load_warnings(model)
             .into_iter()
             .map(|w| format!("model: {w}")),
     );
+}
+
+/// A warning when `data` holds the samples of the model's estimation record (all of them, or a run of
+/// `sysid_summary::MIN_SHARED_SAMPLES`), compared as identify compares its validation record
+/// (`sysid_summary::same_samples_warning`): the record the model file names (`identification.record`,
+/// its rows and columns) is read again with `opts`' other settings. A copy of the estimation file
+/// under another name was validated without a word (audit s22 M-R2). `None` when the model file names
+/// no record, the file is not there (the path is as identify was given it), is one that validate would
+/// stream (`sysid::stream::AUTO_STREAM_BYTES` or more), or cannot be read: then nothing is known.
+fn estimation_samples_warning(
+    model: &sysid::Model,
+    opts: &sysid::data::CsvOptions,
+    data: &sysid::Dataset,
+) -> Option<String> {
+    let p = model.provenance()?;
+    let (file, rows) = sysid_summary::record_rows(&p.record);
+    let path = Path::new(file);
+    let small = std::fs::metadata(path)
+        .is_ok_and(|m| m.is_file() && m.len() < sysid::stream::AUTO_STREAM_BYTES);
+    if file == "-" || !small {
+        return None;
+    }
+    let mut est_opts = opts.clone();
+    if !est_opts.no_header {
+        if !p.u_columns.is_empty() {
+            est_opts.u_col = p.u_columns.join(",");
+        }
+        if let Some(y) = &p.y_column {
+            est_opts.y_col = y.clone();
+        }
+    }
+    est_opts.rows = rows.map(|r| sysid::data::RowRange {
+        start: Some(r.start),
+        end: Some(r.end),
+    });
+    let est = sysid::data::read_record(path, &est_opts).ok()?.data;
+    sysid_summary::same_samples_warning("validation", data, &est)
 }

@@ -457,11 +457,22 @@ fn run_with_timeout(args: &str, dir: &Path, secs: u64) -> Output {
 fn damaged_headers_get_short_clear_errors() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
-    let wide: Vec<String> = (0..200_000).map(|i| format!("c{i}")).collect();
+    // 100 000 names of 2-6 characters: 689 kB, within the 1 MiB line bound, so the column bound speaks.
+    let wide: Vec<String> = (0..100_000).map(|i| format!("c{i}")).collect();
     std::fs::write(d.join("wide.csv"), format!("{}\n", wide.join(","))).unwrap();
     let out = run("identify --data {t}/wide.csv", d);
     assert_eq!(out.status.code(), Some(2));
-    assert!(stderr(&out).contains("200000 columns"), "{}", stderr(&out));
+    assert!(stderr(&out).contains("100000 columns"), "{}", stderr(&out));
+    // Twice as many (1.4 MB) is a header line beyond the line bound, refused at its 1 048 577th byte.
+    let wider: Vec<String> = (0..200_000).map(|i| format!("c{i}")).collect();
+    std::fs::write(d.join("wider.csv"), format!("{}\n", wider.join(","))).unwrap();
+    let out = run("identify --data {t}/wider.csv", d);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        stderr(&out).contains("wider.csv:1:1048577: the line is longer than 1048576 bytes"),
+        "{}",
+        stderr(&out)
+    );
 
     let mut names: Vec<String> = (0..9_000).map(|i| format!("c{i}")).collect();
     names.push("c17".into());

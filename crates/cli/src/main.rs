@@ -15,6 +15,11 @@ mod text;
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Replace an existing output file even when it holds another kind of file (a model by a CSV, say),
+    /// and write through a symbolic link to its file. Without it an existing file is replaced only by the
+    /// same kind (a model file by a model file, a CSV by a CSV with the same header row).
+    #[arg(long, global = true)]
+    force: bool,
 }
 
 #[derive(Debug, Subcommand)]
@@ -112,6 +117,7 @@ fn main() -> ExitCode {
         (Command::Validate(a), Some((_, m))) => a.given = given_flags(m),
         _ => {}
     }
+    sysid_io::set_force(cli.force);
     // An interrupted write (Ctrl-C, SIGTERM) leaves no `.ipa-sysid-*.tmp` file behind.
     if let Err(e) = sysid_io::remove_temporaries_on_signals() {
         eprintln!("warning: cannot watch for signals ({e}); an interrupted write may leave a temporary file");

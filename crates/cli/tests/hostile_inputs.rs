@@ -1416,3 +1416,33 @@ fn an_output_that_never_moves_is_named_as_a_cause() {
         stderr(&out)
     );
 }
+
+// Audit s22 L-N4: MATLAB names. `compare` and `resid` run validate (fit and residual tests), `pidtune`
+// runs tune; `stepinfo` and `arx` are refused (exit 2) naming the command that does the job.
+#[test]
+fn matlab_names_are_aliases_or_name_the_command() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for (alias, command) in [
+        ("compare", "validate"),
+        ("resid", "validate"),
+        ("pidtune", "tune"),
+    ] {
+        let a = run(&format!("{alias} --help"), d);
+        let c = run(&format!("{command} --help"), d);
+        assert!(a.status.success(), "{alias}: {}", stderr(&a));
+        assert_eq!(a.stdout, c.stdout, "{alias} is {command}");
+    }
+    for (name, needle) in [
+        ("stepinfo", "ipa-sysid control"),
+        ("arx", "ipa-sysid identify --structure arx"),
+    ] {
+        let out = run(name, d);
+        assert_eq!(out.status.code(), Some(2), "{name}");
+        let e = stderr(&out);
+        assert!(
+            e.contains("MATLAB name") && e.contains(needle),
+            "{name}: {e}"
+        );
+    }
+}

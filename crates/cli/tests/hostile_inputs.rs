@@ -1446,3 +1446,28 @@ fn matlab_names_are_aliases_or_name_the_command() {
         );
     }
 }
+
+// Audit s22 L-N6: a missing one-of-two argument is named with both alternatives, and giving both is
+// still refused.
+#[test]
+fn required_alternatives_are_both_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for (args, a, b) in [
+        ("control", "--setpoint", "--profile"),
+        ("tune --out {t}/x.json", "--model", "--plant-config"),
+    ] {
+        let out = run(args, d);
+        assert_eq!(out.status.code(), Some(2), "{args}");
+        let e = stderr(&out);
+        assert!(e.contains(a) && e.contains(b), "{args}: {e}");
+    }
+    let out = run("control --setpoint 50 --profile fixed:50", d);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        stderr(&out).contains("cannot be used with"),
+        "{}",
+        stderr(&out)
+    );
+    assert!(!d.join("x.json").exists());
+}

@@ -229,7 +229,7 @@ fn strict_with_warnings_replaces_no_output() {
     let out = run(&batch.replace("{t}/fit.jsonl", "-"), dir.path());
     assert_eq!(out.status.code(), Some(1));
     assert_eq!(String::from_utf8_lossy(&out.stdout).lines().count(), 2);
-    let out = run(&batch.replace(" --strict", ""), dir.path());
+    let out = run(&batch.replace(" --strict", " --force"), dir.path());
     assert!(out.status.success());
     assert_eq!(
         std::fs::read_to_string(dir.path().join("fit.jsonl"))

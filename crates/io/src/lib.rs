@@ -220,6 +220,9 @@ pub enum FileKind {
     Png,
     /// A Parquet file.
     Parquet,
+    /// A plant TOML written by ipa-sysid (`plant-config`, a `calibrate` twin): its first line is a
+    /// comment naming ipa-sysid (and the record, which may differ between two runs).
+    PlantToml,
     /// Other text, known by its first line: a CSV table's header row, the twin TOML's header comment.
     Text(String),
     /// Other bytes (not UTF-8, or with NUL bytes).
@@ -275,6 +278,9 @@ impl FileKind {
             return Self::Svg;
         }
         let line = text.lines().next().unwrap_or_default();
+        if line.starts_with('#') && line.contains("ipa-sysid") {
+            return Self::PlantToml;
+        }
         Self::Text(line.trim_end_matches('\r').to_string())
     }
 
@@ -304,6 +310,9 @@ impl FileKind {
             Self::Svg => "an SVG picture".into(),
             Self::Png => "a PNG picture".into(),
             Self::Parquet => "a Parquet file".into(),
+            Self::PlantToml => {
+                "a plant TOML written by ipa-sysid (plant-config or calibrate)".into()
+            }
             Self::Text(line) if line.contains(',') || line.contains(';') || line.contains('\t') => {
                 format!("a CSV table with header {}", shown(line))
             }
@@ -1002,6 +1011,10 @@ mod kind_tests {
         assert_eq!(FileKind::of(b"<!DOCTYPE html><html>"), FileKind::Html);
         assert_eq!(FileKind::of(b"<svg xmlns="), FileKind::Svg);
         assert_eq!(FileKind::of(b"a\0b"), FileKind::Binary);
+        assert_eq!(
+            FileKind::of(b"# Digital twin calibrated by `ipa-sysid calibrate` on a.csv\n[x]\n"),
+            FileKind::PlantToml
+        );
         let csv = FileKind::Text("t,u,y".into());
         assert!(csv.may_replace(&FileKind::Text("t,u,y".into())));
         assert!(!csv.may_replace(&FileKind::Text("time,force".into())));

@@ -138,8 +138,9 @@ def test_outputs_get_the_permissions_of_a_new_file_or_of_the_file_they_replace(t
         new = tmp_path / "new.html"
         fleet.report(res, new)
         assert stat.S_IMODE(new.stat().st_mode) == 0o666 & ~0o022
+        # An earlier report (audit s22 M-B9: only a file of the same kind is replaced without force=True).
         old = tmp_path / "old.html"
-        old.write_text("old")
+        old.write_text("<!DOCTYPE html>\n<p>old</p>\n")
         os.chmod(old, 0o640)
         fleet.report(res, old)
         assert old.read_text().startswith("<!DOCTYPE html>")

@@ -66,9 +66,11 @@ class Model:
         """Validation metrics (fit %, RMSE, loss, FPE, AIC, N, p) on a record, as `validate`."""
     def to_json(self) -> str:
         """The model file text (`identify --save-model` format)."""
-    def save(self, path: str | PathLike[str]) -> None:
+    def save(self, path: str | PathLike[str], force: bool = False) -> None:
         """Writes the model file as the command line writes its outputs: a file atomically, a device or
-        FIFO directly (never replaced), a symbolic link followed; a folder is a ValueError naming `path`."""
+        FIFO directly (never replaced); an existing file only when it is a model file (or empty) and a
+        symbolic link not at all, unless force=True (the command line's --force); a folder, or a file of
+        another kind, is a ValueError naming `path`."""
     def frequency_response(
         self,
         points: int = 20,
@@ -302,10 +304,13 @@ def fleet_times(t: ArrayLike, offsets: list[int], ts: float) -> list[tuple[str, 
     """Per actuator (rows offsets[g] .. offsets[g + 1] of t, sorted by time): (error, note), each "" or the
     time column's fault (NaN, not increasing, non-uniform) and a ts contradicting its typical step."""
 
-def check_output(path: str | PathLike[str], argument: str) -> None:
+def check_output(path: str | PathLike[str], argument: str, force: bool = False) -> None:
     """Refuses an output path as the command line refuses an output flag (a folder, a socket, a link to
-    nothing, a read-only file: ValueError naming `argument`)."""
+    nothing, a read-only file, a link to a file without force: ValueError naming `argument`)."""
 
-def write_output(path: str | PathLike[str], data: bytes, argument: str) -> None:
+def write_output(
+    path: str | PathLike[str], data: bytes, argument: str, force: bool = False
+) -> None:
     """Writes `data` as the command line writes an output: a file atomically, a device or FIFO
-    directly (never replaced), a symbolic link followed; ValueError naming `argument` or OSError."""
+    directly (never replaced); an existing file only by the same kind of file and a symbolic link to a
+    file not at all, unless force=True; ValueError naming `argument` or OSError."""

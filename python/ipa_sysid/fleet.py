@@ -377,7 +377,7 @@ def _parquet_files(input_dir):
     return files
 
 
-def run(input_dir, output_dir, client=None, **settings):
+def run(input_dir, output_dir, client=None, force=False, **settings):
     """Identifies every actuator and window of the Parquet files under ``input_dir`` on Dask, writes the
     results to ``output_dir/results.parquet`` and returns them (a pandas DataFrame sorted by
     ``actuator_id, window``).
@@ -388,7 +388,8 @@ def run(input_dir, output_dir, client=None, **settings):
     fraction of the identification's own time). ``client``: a ``dask.distributed.Client`` to compute on;
     None uses Dask's default (the client created last, else threads in this process). A worker lost
     mid-run loses no actuator: the scheduler runs its tasks again elsewhere. ``output_dir`` is created;
-    ``results.parquet`` in it is replaced atomically (written beside it, then renamed).
+    ``results.parquet`` in it is replaced atomically (written beside it, then renamed) when it is a
+    Parquet file; another kind of file there, or a symbolic link, is refused unless ``force=True``.
     """
     import dask.dataframe as dd
 
@@ -397,7 +398,7 @@ def run(input_dir, output_dir, client=None, **settings):
     files = _parquet_files(input_dir)
     target = os.path.join(os.fspath(output_dir), "results.parquet")
     _check_output(input_dir, output_dir, target, files)
-    _core.check_output(target, "output_dir")
+    _core.check_output(target, "output_dir", force)
     _check_schemas(files)
     ddf = dd.read_parquet(files, columns=list(INPUT_COLUMNS), split_row_groups=False)
     meta = identify_partition(
@@ -411,7 +412,7 @@ def run(input_dir, output_dir, client=None, **settings):
     _check_whole_actuators(results, files)
     results = results.sort_values(["actuator_id", "window"], kind="stable").reset_index(drop=True)
     os.makedirs(output_dir, exist_ok=True)
-    _write_output(target, results.to_parquet(None, index=False), "output_dir")
+    _write_output(target, results.to_parquet(None, index=False), "output_dir", force)
     return results
 
 
@@ -510,16 +511,17 @@ def _check_alpha(alpha):
         )
 
 
-def _write_output(path, data, argument):
+def _write_output(path, data, argument, force=False):
     """Writes ``data`` (bytes) to the user's output ``path`` (the argument ``argument``) as the command line
     writes its outputs and ``Model.save`` its file, by the same function (``sysid_io::write_atomic``):
     a regular file or a new name atomically (a temporary file beside it, renamed over it, with the
-    permissions and owner of the file it replaces, or 0o666 less the umask: audit s12), a symbolic link
-    followed, a device or a FIFO written into directly and never replaced (audit s19 H-4: a temporary
+    permissions and owner of the file it replaces, or 0o666 less the umask: audit s12) — an existing
+    file only by the same kind of file, and a symbolic link (followed) only with ``force`` (audit s22
+    M-B9) —, a device or a FIFO written into directly and never replaced (audit s19 H-4: a temporary
     file renamed over ``/dev/full`` replaced the device); a folder, a socket, a link to nothing or a
     read-only file is a ``ValueError`` naming ``argument``, an operating-system failure an ``OSError``
     naming ``path``."""
-    _core.write_output(os.fspath(path), data, argument)
+    _core.write_output(os.fspath(path), data, argument, force)
 
 
 # ---------------------------------------------------------------------------------------------------
@@ -740,14 +742,15 @@ def glance_svg(trend_table, width=640, height=420):
     return "\n".join(parts)
 
 
-def report(results, path, alpha=ALPHA):
+def report(results, path, alpha=ALPHA, force=False):
     """Writes the worn-valve report to ``path`` (HTML, written atomically): the fleet at a glance
     (``glance_svg``) and the table of flagged actuators (``worn``), with the test and its threshold in
     words. Returns the table of flagged actuators. ``path`` is the file to write, as the command line
-    writes its outputs (``_write_output``): a file is replaced atomically, a device or a FIFO written into
-    and never replaced, a symbolic link followed; a folder is refused before anything is computed
+    writes its outputs (``_write_output``): an HTML page is replaced atomically, a device or a FIFO
+    written into and never replaced; another kind of file, or a symbolic link, only with ``force=True``;
+    a folder is refused before anything is computed
     (``ValueError``: ``invalid setting path = ...: a file name (this is a folder)``)."""
-    _core.check_output(os.fspath(path), "path")
+    _core.check_output(os.fspath(path), "path", force)
     tr = trends(results, alpha)
     flagged = worn(results, alpha)
     head = (
@@ -780,7 +783,7 @@ def report(results, path, alpha=ALPHA):
         + f"<h2>{len(flagged)} flagged, most significant first</h2><table><tr>{head}</tr>{body}"
         "</table></body></html>"
     )
-    _write_output(path, doc.encode("utf-8"), "path")
+    _write_output(path, doc.encode("utf-8"), "path", force)
     return flagged
 
 

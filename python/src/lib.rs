@@ -158,7 +158,10 @@ fn errno_of_kind(kind: std::io::ErrorKind) -> Option<i32> {
 fn output_err(e: sysid_io::OutputError) -> PyErr {
     match &e {
         sysid_io::OutputError::Io { path, source } => io_err(path, source),
-        sysid_io::OutputError::Refused { .. } => PyValueError::new_err(e.to_string()),
+        // The command line's `--force` is the argument `force=True` here.
+        sysid_io::OutputError::Refused { .. } | sysid_io::OutputError::Occupied { .. } => {
+            PyValueError::new_err(e.to_string().replace("pass --force", "pass force=True"))
+        }
     }
 }
 
@@ -617,10 +620,13 @@ impl PyModel {
     }
 
     /// Writes the model file (as `identify --save-model`), atomically; readable by `load_model` and by
-    /// `ipa-sysid validate --model` / `--plant model:FILE`.
-    fn save(&self, py: Python<'_>, path: PathBuf) -> PyResult<()> {
+    /// `ipa-sysid validate --model` / `--plant model:FILE`. An existing file is replaced only when it is a
+    /// model file (or empty), and a symbolic link is refused, unless `force=True` (the command line's
+    /// `--force`).
+    #[pyo3(signature = (path, force = false))]
+    fn save(&self, py: Python<'_>, path: PathBuf, force: bool) -> PyResult<()> {
         let text = self.to_json()?;
-        write_output(py, path, text.as_bytes(), "path")
+        write_output(py, path, text.as_bytes(), "path", force)
     }
 
     /// The linear block as a python-control `TransferFunction` in z (discrete, dt = Ts):
@@ -2523,10 +2529,12 @@ fn calibrate<'py>(
 /// Looks at the output path `path` (the argument `argument`) as the command line looks at an output
 /// flag before any work (`sysid_io::resolve_output`): a folder, a socket, a link to nothing and a
 /// read-only file are refused (`ValueError` naming `argument`, the command line's words); a new name, a
-/// regular file, a device, a FIFO and a link to one of them pass.
+/// regular file, a device, a FIFO and a link to a device or FIFO pass; a link to a regular file passes
+/// only with `force` (the command line's `--force`).
 #[pyfunction]
-fn check_output(path: PathBuf, argument: &str) -> PyResult<()> {
-    sysid_io::resolve_output(&path, argument)
+#[pyo3(signature = (path, argument, force = false))]
+fn check_output(path: PathBuf, argument: &str, force: bool) -> PyResult<()> {
+    sysid_io::resolve_output_as(&path, argument, force)
         .map(drop)
         .map_err(output_err)
 }
@@ -2534,14 +2542,24 @@ fn check_output(path: PathBuf, argument: &str) -> PyResult<()> {
 /// Writes `data` to the output path `path` (the argument `argument`) as the command line writes every
 /// output and `Model.save` its file (`sysid_io::write_atomic`, after [`check_output`]): a regular file
 /// or a new name atomically (a temporary file beside it, renamed over it; the permissions and owner of
-/// the file it replaces, or 0o666 less the umask), a symbolic link followed (the file it names is
-/// replaced, the link stays), a device or a FIFO written into directly and never replaced (`/dev/full`
-/// raises `OSError` "No space left on device"), `-` to standard output. The GIL is released while it
-/// writes (a FIFO waits for its reader, which may be another Python thread).
+/// the file it replaces, or 0o666 less the umask), a device or a FIFO written into directly and never
+/// replaced (`/dev/full` raises `OSError` "No space left on device"), `-` to standard output. An
+/// existing regular file is replaced only by the same kind of file (`sysid_io::FileKind`: a model file
+/// by a model file, a CSV by a CSV with the same header row) and a symbolic link to a file is refused,
+/// unless `force` (then the link is followed: the file it names is replaced, the link stays). The GIL
+/// is released while it writes (a FIFO waits for its reader, which may be another Python thread).
 #[pyfunction]
-fn write_output(py: Python<'_>, path: PathBuf, data: &[u8], argument: &str) -> PyResult<()> {
-    check_output(path.clone(), argument)?;
-    py.detach(|| sysid_io::write_atomic(&path, data))
+#[pyo3(signature = (path, data, argument, force = false))]
+fn write_output(
+    py: Python<'_>,
+    path: PathBuf,
+    data: &[u8],
+    argument: &str,
+    force: bool,
+) -> PyResult<()> {
+    check_output(path.clone(), argument, force)?;
+    py.detach(|| sysid_io::write_all_atomic_as(&[(&path, data)], force))
+        .map(drop)
         .map_err(output_err)
 }
 

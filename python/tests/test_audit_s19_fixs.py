@@ -105,7 +105,11 @@ def test_report_follows_a_link_refuses_a_folder_and_names_a_missing_folder(tmp_p
     target.write_text("old")
     link = tmp_path / "link.html"
     link.symlink_to(target)
-    fleet.report(res, link)
+    # Audit s22 M-B9: a link is written through only with force=True (the command line's --force).
+    with pytest.raises(ValueError, match=r"not a symbolic link .*pass force=True"):
+        fleet.report(res, link)
+    assert target.read_text() == "old"
+    fleet.report(res, link, force=True)
     assert link.is_symlink() and target.read_bytes() == reference.read_bytes()
     # A folder: the command line's words, with the argument's name (`invalid setting --out = ...`).
     with pytest.raises(ValueError) as e:
@@ -134,8 +138,9 @@ def test_outputs_get_the_permissions_of_a_new_file_or_of_the_file_they_replace(t
         new = tmp_path / "new.html"
         fleet.report(res, new)
         assert stat.S_IMODE(new.stat().st_mode) == 0o666 & ~0o022
+        # An earlier report (audit s22 M-B9: only a file of the same kind is replaced without force=True).
         old = tmp_path / "old.html"
-        old.write_text("old")
+        old.write_text("<!DOCTYPE html>\n<p>old</p>\n")
         os.chmod(old, 0o640)
         fleet.report(res, old)
         assert old.read_text().startswith("<!DOCTYPE html>")
@@ -174,7 +179,7 @@ def test_run_writes_results_through_the_same_writer(tmp_path):
     target = tmp_path / "elsewhere.parquet"
     target.write_bytes(b"old")
     (out / "results.parquet").symlink_to(target)
-    res = fleet.run(inp, out, window=500)
+    res = fleet.run(inp, out, window=500, force=True)
     assert (out / "results.parquet").is_symlink()
     pd.testing.assert_frame_equal(pd.read_parquet(target), res)
     assert len(res) == 2 and list(res["window"]) == [0, 1]

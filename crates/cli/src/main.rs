@@ -15,13 +15,19 @@ mod text;
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Replace an existing output file even when it holds another kind of file (a model by a CSV, say),
+    /// and write through a symbolic link to its file. Without it an existing file is replaced only by the
+    /// same kind (a model file by a model file, a CSV by a CSV with the same header row).
+    #[arg(long, global = true)]
+    force: bool,
 }
 
 #[derive(Debug, Subcommand)]
 enum Command {
     /// Identify an ARX or Hammerstein model from a CSV of input/output data (MATLAB `arx`).
     Identify(cmd::identify::Args),
-    /// Metrics of a saved model on new data (MATLAB `compare`).
+    /// Metrics of a saved model on new data, with the residual tests (MATLAB `compare`, `resid`).
+    #[command(visible_aliases = ["compare", "resid"])]
     Validate(cmd::validate::Args),
     /// Simulate a plant (physics IPA, the paper's model, or a saved model) and write t,u,y to CSV.
     Simulate(cmd::simulate::Args),
@@ -33,7 +39,9 @@ enum Command {
     /// Closed-loop PI position control on a plant, with step metrics (MATLAB `stepinfo`).
     Control(cmd::control::Args),
     /// Tune the position controller (PID, deadzone inverse, hold band) on an identified model or a
-    /// calibrated twin against a specification; verify it beside the paper's PI; write CONTROLLER.json.
+    /// calibrated twin against a specification; verify it beside the paper's PI; write CONTROLLER.json
+    /// (MATLAB `pidtune`).
+    #[command(visible_alias = "pidtune")]
     Tune(cmd::tune::Args),
     /// Reproduce the paper end to end: experiment, identification, validation, control, report.
     Reproduce(cmd::reproduce::Args),
@@ -76,6 +84,44 @@ fn given_flags(m: &clap::ArgMatches) -> Vec<String> {
         .collect()
 }
 
+/// MATLAB names that are not commands here, with the command that does the job (audit s22 L-N4); the
+/// names that are (`compare`, `resid`, `pidtune`) are aliases of their commands.
+const MATLAB_HINTS: &[(&str, &str)] = &[
+    (
+        "stepinfo",
+        "the step metrics (overshoot, rise and settling time, e_ss) of a closed-loop run are printed by \
+         `ipa-sysid control` (e.g. control --plant model:M.json --setpoint 150)",
+    ),
+    (
+        "arx",
+        "an ARX model is identified by `ipa-sysid identify --structure arx --na NA --nb NB --nk NK`",
+    ),
+    (
+        "delayest",
+        "the input delay nk is estimated by `ipa-sysid delay`",
+    ),
+    (
+        "bode",
+        "the frequency response of a model file is printed by `ipa-sysid response`",
+    ),
+];
+
+/// For an unknown command that is a MATLAB name ([`MATLAB_HINTS`]), the command that does its job.
+fn matlab_hint(e: &clap::Error) -> Option<String> {
+    if e.kind() != clap::error::ErrorKind::InvalidSubcommand {
+        return None;
+    }
+    let clap::error::ContextValue::String(name) =
+        e.get(clap::error::ContextKind::InvalidSubcommand)?
+    else {
+        return None;
+    };
+    let (matlab, hint) = MATLAB_HINTS.iter().find(|(m, _)| m == name)?;
+    Some(format!(
+        "error: `{matlab}` is a MATLAB name, not an ipa-sysid command: {hint}; see ipa-sysid --help"
+    ))
+}
+
 /// clap's own output (help, version, a usage error) and its exit code; a help text that cannot be
 /// written (standard output on a full disk) is an error (exit 2), where `Error::exit` would exit 0. A
 /// reader that stopped early (`ipa-sysid --help | head`, a closed pipe) is not an error.
@@ -100,7 +146,13 @@ fn main() -> ExitCode {
         .and_then(|m| Cli::from_arg_matches(&m).map(|cli| (cli, m)))
     {
         Ok(parsed) => parsed,
-        Err(e) => return clap_exit(&e),
+        Err(e) => {
+            if let Some(hint) = matlab_hint(&e) {
+                eprintln!("{hint}");
+                return ExitCode::from(2);
+            }
+            return clap_exit(&e);
+        }
     };
     let (mut cli, matches) = parsed;
     // `identify` and `order` refuse flags their structure, method or classes would ignore: they need
@@ -112,6 +164,7 @@ fn main() -> ExitCode {
         (Command::Validate(a), Some((_, m))) => a.given = given_flags(m),
         _ => {}
     }
+    sysid_io::set_force(cli.force);
     // An interrupted write (Ctrl-C, SIGTERM) leaves no `.ipa-sysid-*.tmp` file behind.
     if let Err(e) = sysid_io::remove_temporaries_on_signals() {
         eprintln!("warning: cannot watch for signals ({e}); an interrupted write may leave a temporary file");

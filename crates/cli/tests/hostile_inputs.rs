@@ -184,7 +184,22 @@ fn links_are_followed_and_unwritable_targets_refused() {
     let d = dir.path();
     std::fs::write(d.join("real.csv"), "old\n").unwrap();
     std::os::unix::fs::symlink("real.csv", d.join("link.csv")).unwrap();
+    // Audit s22 M-B9: a link is written through only with --force, and the refusal says so.
     let out = run("simulate --plant paper --samples 10 --out {t}/link.csv", d);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("not a symbolic link") && stderr(&out).contains("--force"),
+        "{}",
+        stderr(&out)
+    );
+    assert_eq!(
+        std::fs::read_to_string(d.join("real.csv")).unwrap(),
+        "old\n"
+    );
+    let out = run(
+        "simulate --plant paper --samples 10 --out {t}/link.csv --force",
+        d,
+    );
     assert!(out.status.success(), "{}", stderr(&out));
     assert!(std::fs::symlink_metadata(d.join("link.csv"))
         .unwrap()
@@ -215,6 +230,87 @@ fn links_are_followed_and_unwritable_targets_refused() {
     assert!(temporaries(d).is_empty());
 }
 
+// Audit s22 M-B9: an existing file is replaced only by an output of the same kind (a model file by a
+// model file, a CSV by a CSV with the same header row), and the run says "replaced"; another kind is
+// refused (exit 2) naming the file, what it holds and --force, and left byte for byte; --force replaces
+// it. The model file here is written by hand (its first key "format"), not by the program.
+#[test]
+fn an_existing_file_of_another_kind_is_not_replaced_without_force() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let model = "{\n  \"format\": \"ipa-sysid-model\",\n  \"version\": 3\n}\n";
+    std::fs::write(d.join("model.json"), model).unwrap();
+    let out = run(
+        "simulate --plant paper --samples 10 --out {t}/model.json",
+        d,
+    );
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    let e = stderr(&out);
+    for needle in [
+        "model.json",
+        "ipa-sysid-model file (JSON)",
+        "a CSV table with header t,u,y",
+        "--force",
+    ] {
+        assert!(e.contains(needle), "{needle}: {e}");
+    }
+    assert_eq!(
+        std::fs::read_to_string(d.join("model.json")).unwrap(),
+        model
+    );
+
+    // A CSV of another header (a user's own table) is refused; one of the same header is replaced.
+    std::fs::write(d.join("mine.csv"), "time,force\n0,1\n").unwrap();
+    let out = run("simulate --plant paper --samples 10 --out {t}/mine.csv", d);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("header time,force"),
+        "{}",
+        stderr(&out)
+    );
+    assert_eq!(
+        std::fs::read_to_string(d.join("mine.csv")).unwrap(),
+        "time,force\n0,1\n"
+    );
+    let out = run("simulate --plant paper --samples 400 --out {t}/sim.csv", d);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(!stderr(&out).contains("replaced"), "{}", stderr(&out));
+    let out = run("simulate --plant paper --samples 401 --out {t}/sim.csv", d);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains(&format!("replaced {}/sim.csv", d.display())),
+        "{}",
+        stderr(&out)
+    );
+    assert_eq!(
+        std::fs::read_to_string(d.join("sim.csv"))
+            .unwrap()
+            .lines()
+            .count(),
+        402
+    );
+
+    // The model file is replaced by a model file (identify --save-model), and with --force by anything.
+    let out = run(
+        "identify --data {t}/sim.csv --method ls --save-model {t}/model.json",
+        d,
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(stderr(&out).contains("replaced"), "{}", stderr(&out));
+    let out = run(
+        "simulate --plant paper --samples 10 --out {t}/mine.csv --force",
+        d,
+    );
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(std::fs::read_to_string(d.join("mine.csv"))
+        .unwrap()
+        .starts_with("t,u,y"));
+    // A device is written, never replaced, without --force.
+    let out = run("simulate --plant paper --samples 10 --out /dev/null", d);
+    assert!(out.status.success(), "{}", stderr(&out));
+    assert!(temporaries(d).is_empty());
+}
+
 // Replacing an existing file keeps its owner and group (checked as root, the only user who can give a
 // file to someone else).
 #[cfg(unix)]
@@ -223,7 +319,8 @@ fn a_replaced_file_keeps_its_owner() {
     use std::os::unix::fs::MetadataExt;
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("owned.csv");
-    std::fs::write(&p, "old\n").unwrap();
+    // A previous run's output (the same header row), which a run may replace (audit s22 M-B9).
+    std::fs::write(&p, "t,u,y\n0,0,0\n").unwrap();
     if std::os::unix::fs::chown(&p, Some(4321), Some(4322)).is_err() {
         eprintln!("SKIPPED: not root, cannot give a file to another user");
         return;
@@ -235,7 +332,7 @@ fn a_replaced_file_keeps_its_owner() {
     assert!(out.status.success(), "{}", stderr(&out));
     let m = std::fs::metadata(&p).unwrap();
     assert_eq!((m.uid(), m.gid()), (4321, 4322));
-    assert!(std::fs::read_to_string(&p).unwrap().starts_with("t,u,y"));
+    assert!(std::fs::read_to_string(&p).unwrap().lines().count() > 2);
 }
 
 // `reproduce --out DIR` refuses a folder holding files it did not write, before any work, and leaves
@@ -1329,4 +1426,59 @@ fn an_output_that_never_moves_is_named_as_a_cause() {
         "{}",
         stderr(&out)
     );
+}
+
+// Audit s22 L-N4: MATLAB names. `compare` and `resid` run validate (fit and residual tests), `pidtune`
+// runs tune; `stepinfo` and `arx` are refused (exit 2) naming the command that does the job.
+#[test]
+fn matlab_names_are_aliases_or_name_the_command() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for (alias, command) in [
+        ("compare", "validate"),
+        ("resid", "validate"),
+        ("pidtune", "tune"),
+    ] {
+        let a = run(&format!("{alias} --help"), d);
+        let c = run(&format!("{command} --help"), d);
+        assert!(a.status.success(), "{alias}: {}", stderr(&a));
+        assert_eq!(a.stdout, c.stdout, "{alias} is {command}");
+    }
+    for (name, needle) in [
+        ("stepinfo", "ipa-sysid control"),
+        ("arx", "ipa-sysid identify --structure arx"),
+    ] {
+        let out = run(name, d);
+        assert_eq!(out.status.code(), Some(2), "{name}");
+        let e = stderr(&out);
+        assert!(
+            e.contains("MATLAB name") && e.contains(needle),
+            "{name}: {e}"
+        );
+    }
+}
+
+// Audit s22 L-N6: a missing one-of-two argument is named with both alternatives, and giving both is
+// still refused.
+#[test]
+fn required_alternatives_are_both_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for (args, a, b) in [
+        ("control", "--setpoint", "--profile"),
+        ("tune --out {t}/x.json", "--model", "--plant-config"),
+    ] {
+        let out = run(args, d);
+        assert_eq!(out.status.code(), Some(2), "{args}");
+        let e = stderr(&out);
+        assert!(e.contains(a) && e.contains(b), "{args}: {e}");
+    }
+    let out = run("control --setpoint 50 --profile fixed:50", d);
+    assert_eq!(out.status.code(), Some(2));
+    assert!(
+        stderr(&out).contains("cannot be used with"),
+        "{}",
+        stderr(&out)
+    );
+    assert!(!d.join("x.json").exists());
 }

@@ -223,9 +223,10 @@ fn a_stable_model_starts_at_its_own_resting_level() {
     let (d, _) = run(&m, &["--input", "step:10@5", "--samples", "12"], "n.csv");
     assert_eq!(d.y()[0], 100.0);
 
-    // A pole at 1.02 is unstable, and said so.
+    // A pole at 1.02 is unstable, and said so. (Its record goes to its own file: u.csv above is the
+    // input, a one-column table, which an output of another header may not replace.)
     let m = first_order_model(dir.path(), "unstable.json", -1.02, 0.0, None);
-    let (_, err) = run(&m, &["--input", "step:10@5", "--samples", "12"], "u.csv");
+    let (_, err) = run(&m, &["--input", "step:10@5", "--samples", "12"], "un.csv");
     assert!(
         err.contains("unstable model (a pole has modulus 1.020000"),
         "{err}"

@@ -37,7 +37,7 @@ fn strict_agrees_with_the_warnings(dir: &Path, args: &[&str]) -> Vec<String> {
     assert_eq!(code, 0, "{args:?}");
     let said = warnings(&doc);
     let json = dir.join("earlier.json");
-    std::fs::write(&json, "earlier\n").unwrap();
+    std::fs::write(&json, "{\"earlier\": true}\n").unwrap(); // a JSON report, as the run writes (audit s22 M-B9)
     let o = bin()
         .current_dir(dir)
         .args(args)
@@ -53,7 +53,7 @@ fn strict_agrees_with_the_warnings(dir: &Path, args: &[&str]) -> Vec<String> {
         assert_eq!(warnings(&again), said);
     } else {
         assert_eq!(o.status.code(), Some(1), "{args:?}: {}", stderr(&o));
-        assert_eq!(written, "earlier\n", "{args:?}");
+        assert_eq!(written, "{\"earlier\": true}\n", "{args:?}");
         let e = stderr(&o);
         assert!(
             e.contains(&format!("{} warning(s) and --strict", said.len()))

@@ -36,6 +36,21 @@ pub enum OutputError {
         /// What is accepted.
         expected: String,
     },
+    /// The output path holds a file of another kind than the output ([`FileKind`]), or is a symbolic
+    /// link, and replacing it was not asked for (`--force`).
+    #[error(
+        "{}: {holds}; this run writes {writes} there, so the file would be lost: refusing to replace it \
+         (choose another path, or pass --force to replace it anyway)",
+        path.display()
+    )]
+    Occupied {
+        /// The file concerned, as the user named it.
+        path: PathBuf,
+        /// What it holds, in words (e.g. "it holds an ipa-sysid-model file (JSON)").
+        holds: String,
+        /// What the run writes, in words.
+        writes: String,
+    },
 }
 
 fn refused(flag: &str, path: &Path, expected: impl Into<String>) -> OutputError {
@@ -58,9 +73,19 @@ pub enum OutputTarget {
 }
 
 /// Looks at the output path `path` (chosen by option `flag`) before anything is written: `-` is standard
-/// output; a symbolic link is followed (the file it names is replaced, the link stays); a device or a
-/// FIFO is written directly; a folder, a socket, a link to nothing and a read-only file are refused.
+/// output; a device or a FIFO (or a link to one) is written directly; a symbolic link to a regular file
+/// is refused unless `--force` was given ([`set_force`]), and then followed (the file it names is
+/// replaced, the link stays); a folder, a socket, a link to nothing and a read-only file are refused.
 pub fn resolve_output(path: &Path, flag: &str) -> Result<OutputTarget, OutputError> {
+    resolve_output_as(path, flag, forced())
+}
+
+/// [`resolve_output`] with `force` (`--force`, Python's `force=True`) given by the caller.
+pub fn resolve_output_as(
+    path: &Path,
+    flag: &str,
+    force: bool,
+) -> Result<OutputTarget, OutputError> {
     if path.as_os_str() == "-" {
         return Ok(OutputTarget::Stdout);
     }
@@ -103,10 +128,22 @@ pub fn resolve_output(path: &Path, flag: &str) -> Result<OutputTarget, OutputErr
             ));
         }
         let real = if is_link {
-            std::fs::canonicalize(path).map_err(|source| OutputError::Io {
+            let real = std::fs::canonicalize(path).map_err(|source| OutputError::Io {
                 path: path.to_path_buf(),
                 source,
-            })?
+            })?;
+            if !force {
+                return Err(refused(
+                    flag,
+                    path,
+                    format!(
+                        "a file name, not a symbolic link (this one names the file {}, which would be \
+                         replaced; pass --force to write to it)",
+                        real.display()
+                    ),
+                ));
+            }
+            real
         } else {
             path.to_path_buf()
         };
@@ -145,7 +182,186 @@ fn is_socket(_kind: &std::fs::FileType) -> bool {
 /// permissions for a new file (0o666 less the umask) — not the 0o600 of a bare temporary file. While
 /// the temporary file exists it is listed for [`remove_temporaries_on_signals`].
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
-    write_all_atomic(&[(path, bytes)])
+    write_all_atomic(&[(path, bytes)]).map(|_| ())
+}
+
+/// Whether `--force` was given: an existing file of another kind may be replaced and a symbolic link
+/// written through ([`set_force`]).
+static FORCE: std::sync::atomic::AtomicBool = std::sync::atomic::AtomicBool::new(false);
+
+/// Records the command line's `--force` for every later [`write_atomic`], [`write_all_atomic`],
+/// [`resolve_output`] and [`check_writable`] of the process. Without it an existing regular file is
+/// replaced only by an output of the same [`FileKind`], and a symbolic link to a file is refused.
+pub fn set_force(on: bool) {
+    FORCE.store(on, std::sync::atomic::Ordering::Relaxed);
+}
+
+fn forced() -> bool {
+    FORCE.load(std::sync::atomic::Ordering::Relaxed)
+}
+
+/// What a file holds, as far as replacing it is concerned: an existing regular file is replaced (without
+/// `--force`) only by an output of the same kind — a model file by a model file, a CSV table by a CSV
+/// table with the same header row — so that a run never turns a user's file into something else
+/// (audit s22 M-B9). Read from the first [`KIND_HEAD`] bytes.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum FileKind {
+    /// Nothing, or only white space: nothing is lost by replacing it.
+    Empty,
+    /// A JSON object whose first key is `"format"` (`ipa-sysid-model`, `ipa-sysid-controller`, ...).
+    Format(String),
+    /// Other JSON (the `--json` reports).
+    Json,
+    /// An HTML page.
+    Html,
+    /// An SVG picture.
+    Svg,
+    /// A PNG picture.
+    Png,
+    /// A Parquet file.
+    Parquet,
+    /// A plant TOML written by ipa-sysid (`plant-config`, a `calibrate` twin): its first line is a
+    /// comment naming ipa-sysid (and the record, which may differ between two runs).
+    PlantToml,
+    /// Other text, known by its first line: a CSV table's header row, the twin TOML's header comment.
+    Text(String),
+    /// Other bytes (not UTF-8, or with NUL bytes).
+    Binary,
+}
+
+/// How many bytes of a file [`FileKind::of`] looks at.
+pub const KIND_HEAD: usize = 64 * 1024;
+
+impl FileKind {
+    /// The kind of a file that begins with `head` (its first bytes; [`KIND_HEAD`] are enough).
+    pub fn of(head: &[u8]) -> Self {
+        let head = head.strip_prefix(b"\xEF\xBB\xBF").unwrap_or(head);
+        if head.starts_with(b"\x89PNG\r\n\x1a\n") {
+            return Self::Png;
+        }
+        if head.starts_with(b"PAR1") {
+            return Self::Parquet;
+        }
+        if head.contains(&0) {
+            return Self::Binary;
+        }
+        // A multi-byte character cut at the end of `head` is still text.
+        let text = match std::str::from_utf8(head) {
+            Ok(t) => t,
+            Err(e) if e.error_len().is_none() => {
+                std::str::from_utf8(&head[..e.valid_up_to()]).unwrap_or_default()
+            }
+            Err(_) => return Self::Binary,
+        };
+        let body = text.trim_start();
+        if body.is_empty() {
+            return Self::Empty;
+        }
+        if let Some(rest) = body.strip_prefix('{') {
+            if let Some(f) = format_key(rest) {
+                return Self::Format(f);
+            }
+            return Self::Json;
+        }
+        if body.starts_with('[') {
+            return Self::Json;
+        }
+        let lower: String = body
+            .chars()
+            .take(15)
+            .collect::<String>()
+            .to_ascii_lowercase();
+        if lower.starts_with("<!doctype html") || lower.starts_with("<html") {
+            return Self::Html;
+        }
+        if lower.starts_with("<svg") || (lower.starts_with("<?xml") && text.contains("<svg")) {
+            return Self::Svg;
+        }
+        let line = text.lines().next().unwrap_or_default();
+        if line.starts_with('#') && line.contains("ipa-sysid") {
+            return Self::PlantToml;
+        }
+        Self::Text(line.trim_end_matches('\r').to_string())
+    }
+
+    /// The kind of the existing regular file `path` ([`FileKind::of`] its first [`KIND_HEAD`] bytes).
+    pub fn of_file(path: &Path) -> std::io::Result<Self> {
+        use std::io::Read;
+        let mut head = Vec::new();
+        std::fs::File::open(path)?
+            .take(KIND_HEAD as u64)
+            .read_to_end(&mut head)?;
+        Ok(Self::of(&head))
+    }
+
+    /// Whether an output of this kind may replace a file of kind `old` without `--force`: the same
+    /// kind (text: the same first line), or an empty file.
+    pub fn may_replace(&self, old: &FileKind) -> bool {
+        *old == FileKind::Empty || self == old
+    }
+
+    /// The kind in words, e.g. "an ipa-sysid-model file (JSON)", "a CSV table with header t,u,y".
+    pub fn describe(&self) -> String {
+        match self {
+            Self::Empty => "an empty file".into(),
+            Self::Format(f) => format!("an {} file (JSON)", shown(f)),
+            Self::Json => "a JSON document without a \"format\" key (a report)".into(),
+            Self::Html => "an HTML page".into(),
+            Self::Svg => "an SVG picture".into(),
+            Self::Png => "a PNG picture".into(),
+            Self::Parquet => "a Parquet file".into(),
+            Self::PlantToml => {
+                "a plant TOML written by ipa-sysid (plant-config or calibrate)".into()
+            }
+            Self::Text(line) if line.contains(',') || line.contains(';') || line.contains('\t') => {
+                format!("a CSV table with header {}", shown(line))
+            }
+            Self::Text(line) => format!("text beginning \"{}\"", shown(line)),
+            Self::Binary => "binary data".into(),
+        }
+    }
+}
+
+/// `s` for a message: made safe to print ([`sysid_core::format::visible`]), at most 80 characters.
+fn shown(s: &str) -> String {
+    let cut: String = s.chars().take(80).collect();
+    let more = if cut.len() < s.len() { "..." } else { "" };
+    format!("{}{more}", sysid_core::format::visible(&cut))
+}
+
+/// The value of `"format"` when it is the first key of the JSON object whose text after `{` is `rest`.
+fn format_key(rest: &str) -> Option<String> {
+    let rest = rest.trim_start().strip_prefix("\"format\"")?;
+    let rest = rest.trim_start().strip_prefix(':')?;
+    let rest = rest.trim_start().strip_prefix('"')?;
+    let end = rest.find('"')?;
+    Some(rest[..end].to_string())
+}
+
+/// Refuses (without `force`) to replace the existing regular file `real` (named `path` by the user) by
+/// `bytes` when the two are not of the same [`FileKind`]; `Ok(true)` when a file is there (and will be
+/// replaced), `Ok(false)` when the path is free.
+fn check_replace(path: &Path, real: &Path, bytes: &[u8], force: bool) -> Result<bool, OutputError> {
+    match std::fs::metadata(real) {
+        Ok(m) if m.is_file() => {}
+        _ => return Ok(false),
+    }
+    if force {
+        return Ok(true);
+    }
+    let old = FileKind::of_file(real).map_err(|source| OutputError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let new = FileKind::of(&bytes[..bytes.len().min(KIND_HEAD)]);
+    if new.may_replace(&old) {
+        return Ok(true);
+    }
+    Err(OutputError::Occupied {
+        path: path.to_path_buf(),
+        holds: format!("it holds {}", old.describe()),
+        writes: new.describe(),
+    })
 }
 
 /// Writes several outputs of one run together, each as [`write_atomic`] writes it, so that a failure
@@ -154,21 +370,43 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
 /// FIFOs and standard output are written; only when all of that succeeded are the temporary files
 /// renamed into place, in order. A rename can still fail after an earlier one succeeded (the folder
 /// removed meanwhile, say): then the error says which outputs were already replaced.
-pub fn write_all_atomic(outputs: &[(&Path, &[u8])]) -> Result<(), OutputError> {
-    let mut staged = Vec::new();
-    let mut direct = Vec::new();
+///
+/// An existing regular file is replaced only by an output of the same [`FileKind`] (or when empty), and
+/// a symbolic link to a file is refused, unless `--force` ([`set_force`]); nothing is written when any
+/// output is refused. Returns the outputs (as named by the caller) that replaced an existing file.
+pub fn write_all_atomic(outputs: &[(&Path, &[u8])]) -> Result<Vec<PathBuf>, OutputError> {
+    write_all_atomic_as(outputs, forced())
+}
+
+/// [`write_all_atomic`] with `force` given by the caller (Python's `force=True`).
+pub fn write_all_atomic_as(
+    outputs: &[(&Path, &[u8])],
+    force: bool,
+) -> Result<Vec<PathBuf>, OutputError> {
+    let mut targets = Vec::new();
+    let mut replaced = Vec::new();
     for &(path, bytes) in outputs {
         let io = |source| OutputError::Io {
             path: path.to_path_buf(),
             source,
         };
-        let target = match resolve_output(path, "output") {
+        let target = match resolve_output_as(path, "output", force) {
             Ok(t) => t,
             Err(OutputError::Refused { expected, .. }) => {
                 return Err(io(std::io::Error::other(format!("expected {expected}"))))
             }
             Err(e) => return Err(e),
         };
+        if let OutputTarget::File(p) = &target {
+            if check_replace(path, p, bytes, force)? {
+                replaced.push(path.to_path_buf());
+            }
+        }
+        targets.push((target, bytes));
+    }
+    let mut staged = Vec::new();
+    let mut direct = Vec::new();
+    for (target, bytes) in targets {
         match target {
             OutputTarget::File(p) => staged.push(stage(&p, bytes)?),
             OutputTarget::Stdout => direct.push((None, bytes)),
@@ -225,7 +463,7 @@ pub fn write_all_atomic(outputs: &[(&Path, &[u8])]) -> Result<(), OutputError> {
         })?;
         done.push(path);
     }
-    Ok(())
+    Ok(replaced)
 }
 
 /// A regular-file output written to its temporary file beside it, not yet renamed into place; dropped
@@ -741,5 +979,101 @@ mod folder_tests {
             .filter(|n| n.starts_with(TEMP_PREFIX))
             .collect();
         assert!(left.is_empty(), "{left:?}");
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod kind_tests {
+    use super::*;
+
+    // Kinds read from hand-written file beginnings: the first key "format" names a model or controller
+    // file; other JSON is a report; a text file is known by its first line (a CSV's header row).
+    #[test]
+    fn file_kinds_are_read_from_the_first_bytes() {
+        let model = FileKind::of(b"{\n  \"format\": \"ipa-sysid-model\",\n  \"version\": 3\n}");
+        assert_eq!(model, FileKind::Format("ipa-sysid-model".into()));
+        assert_eq!(
+            FileKind::of(b"\xEF\xBB\xBF {\"format\":\"ipa-sysid-controller\"}"),
+            FileKind::Format("ipa-sysid-controller".into())
+        );
+        assert_eq!(
+            FileKind::of(b"{\"model\": {\"format\": \"x\"}}"),
+            FileKind::Json
+        );
+        assert_eq!(
+            FileKind::of(b"t,u,y\r\n0,1,2\n"),
+            FileKind::Text("t,u,y".into())
+        );
+        assert_eq!(FileKind::of(b" \n\t"), FileKind::Empty);
+        assert_eq!(FileKind::of(b"\x89PNG\r\n\x1a\n...."), FileKind::Png);
+        assert_eq!(FileKind::of(b"PAR1...."), FileKind::Parquet);
+        assert_eq!(FileKind::of(b"<!DOCTYPE html><html>"), FileKind::Html);
+        assert_eq!(FileKind::of(b"<svg xmlns="), FileKind::Svg);
+        assert_eq!(FileKind::of(b"a\0b"), FileKind::Binary);
+        assert_eq!(
+            FileKind::of(b"# Digital twin calibrated by `ipa-sysid calibrate` on a.csv\n[x]\n"),
+            FileKind::PlantToml
+        );
+        let csv = FileKind::Text("t,u,y".into());
+        assert!(csv.may_replace(&FileKind::Text("t,u,y".into())));
+        assert!(!csv.may_replace(&FileKind::Text("time,force".into())));
+        assert!(!csv.may_replace(&model));
+        assert!(csv.may_replace(&FileKind::Empty));
+        assert!(!FileKind::Format("ipa-sysid-controller".into()).may_replace(&model));
+        assert_eq!(model.describe(), "an ipa-sysid-model file (JSON)");
+        assert_eq!(csv.describe(), "a CSV table with header t,u,y");
+        assert_eq!(
+            FileKind::Text("\u{1b}[2J".into()).describe(),
+            "text beginning \"\\u{1b}[2J\""
+        );
+    }
+
+    // Without force, a file of another kind is refused and kept; the same kind is replaced and
+    // reported; a symbolic link to a file is refused; with force both are written.
+    #[test]
+    fn only_the_same_kind_is_replaced_without_force() {
+        let dir = tempfile::tempdir().unwrap();
+        let model = dir.path().join("model.json");
+        std::fs::write(&model, "{\"format\": \"ipa-sysid-model\"}").unwrap();
+        let e = write_all_atomic_as(&[(&model, b"t,u,y\n0,0,0\n")], false).unwrap_err();
+        assert!(matches!(e, OutputError::Occupied { .. }), "{e}");
+        assert!(e.to_string().contains("--force"), "{e}");
+        assert_eq!(
+            std::fs::read_to_string(&model).unwrap(),
+            "{\"format\": \"ipa-sysid-model\"}"
+        );
+        let new = dir.path().join("new.csv");
+        let replaced = write_all_atomic_as(
+            &[
+                (&new, b"t,u,y\n1,1,1\n"),
+                (&model, b"{\"format\": \"ipa-sysid-model\", \"v\": 2}"),
+            ],
+            false,
+        )
+        .unwrap();
+        assert_eq!(replaced, vec![model.clone()]);
+        // Nothing is written when one output of several is refused.
+        let e = write_all_atomic_as(&[(&new, b"t,u,y\n2,2,2\n"), (&model, b"x,y\n")], false);
+        assert!(e.is_err());
+        assert_eq!(std::fs::read_to_string(&new).unwrap(), "t,u,y\n1,1,1\n");
+        #[cfg(unix)]
+        {
+            let link = dir.path().join("link.csv");
+            std::os::unix::fs::symlink(&new, &link).unwrap();
+            assert!(resolve_output_as(&link, "--out", false).is_err());
+            assert!(write_all_atomic_as(&[(&link, b"t,u,y\n3,3,3\n")], false).is_err());
+            assert_eq!(
+                write_all_atomic_as(&[(&link, b"t,u,y\n3,3,3\n")], true).unwrap(),
+                vec![link.clone()]
+            );
+            assert_eq!(std::fs::read_to_string(&new).unwrap(), "t,u,y\n3,3,3\n");
+            assert_eq!(
+                write_all_atomic_as(&[(Path::new("/dev/null"), b"x")], false).unwrap(),
+                Vec::<PathBuf>::new()
+            );
+        }
+        write_all_atomic_as(&[(&model, b"a,b\n")], true).unwrap();
+        assert_eq!(std::fs::read_to_string(&model).unwrap(), "a,b\n");
     }
 }

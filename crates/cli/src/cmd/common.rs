@@ -207,8 +207,19 @@ pub fn write_output(
     flag: &str,
 ) -> anyhow::Result<()> {
     sysid_io::refuse_overwrite_input(path, inputs, flag)?;
-    sysid_io::write_atomic(path, content)?;
+    print_replaced(&sysid_io::write_all_atomic(&[(path, content)])?);
     Ok(())
+}
+
+/// Says which existing files a write replaced ([`sysid_io::write_all_atomic`]: only by the same kind of
+/// file, or with `--force`), so that a replaced file is never a surprise.
+fn print_replaced(replaced: &[PathBuf]) {
+    for p in replaced {
+        eprintln!(
+            "replaced {}",
+            sysid_core::format::visible(&p.display().to_string())
+        );
+    }
 }
 
 /// Writes the outputs of one run together ([`sysid_io::write_all_atomic`]: a failure of any leaves
@@ -232,7 +243,7 @@ pub fn write_outputs(
         .filter(|(p, _, _)| !refused || p.as_os_str() == "-")
         .map(|(p, b, _)| (*p, *b))
         .collect();
-    sysid_io::write_all_atomic(&written)?;
+    print_replaced(&sysid_io::write_all_atomic(&written)?);
     if refused {
         let kept: Vec<String> = outputs
             .iter()

@@ -14,8 +14,10 @@ use serde::Serialize;
 /// Default run length for a fixed set-point, in s.
 const DEFAULT_FIXED_DURATION_S: f64 = 10.0;
 
-/// Flags of `ipa-sysid control`.
+/// Flags of `ipa-sysid control`. Exactly one of --setpoint and --profile (one group, so that a missing
+/// one is named as "--setpoint or --profile": audit s22 L-N6).
 #[derive(Debug, clap::Args)]
+#[command(group(clap::ArgGroup::new("reference").args(["setpoint", "profile"]).required(true)))]
 pub struct Args {
     /// Plant: `ipa` (physics simulator), `paper` (the paper's Table III model) or `model:FILE` (a saved model).
     #[arg(long, value_name = "SPEC", default_value = "ipa")]
@@ -30,12 +32,7 @@ pub struct Args {
     #[arg(long, default_value_t = 1.0)]
     pub ki: f64,
     /// Fixed set-point r in mm (the paper's fixed set-point test).
-    #[arg(
-        long,
-        value_name = "MM",
-        conflicts_with = "profile",
-        required_unless_present = "profile"
-    )]
+    #[arg(long, value_name = "MM")]
     pub setpoint: Option<f64>,
     /// Set-point profile: `fixed:MM`, `staircase:L1,L2,...@HOLD_S` (mm, s) or `file:PATH.csv` (columns t,r).
     #[arg(long, value_name = "SPEC")]

@@ -11,17 +11,14 @@ use control::tune::{Evaluation, Spec, TuneSettings};
 use control::tuning::{self, Request, Source, TuneReport, Verification};
 use serde::Serialize;
 
-/// Flags of `ipa-sysid tune`.
+/// Flags of `ipa-sysid tune`. Exactly one of --model and --plant-config (one group, so that a missing
+/// one is named as "--model or --plant-config": audit s22 L-N6).
 #[derive(Debug, clap::Args)]
+#[command(group(clap::ArgGroup::new("plant_source").args(["model", "plant_config"]).required(true)))]
 pub struct Args {
     /// Tune on this identified Hammerstein model (`identify --save-model`): the simulations run on it
     /// and on variants of its deadzone (gain and breakpoints ±30 %); its deadzone sets the compensator.
-    #[arg(
-        long,
-        value_name = "M.json",
-        required_unless_present = "plant_config",
-        conflicts_with = "plant_config"
-    )]
+    #[arg(long, value_name = "M.json")]
     pub model: Option<PathBuf>,
     /// Tune on this physics-plant TOML (a twin from `ipa-sysid calibrate`): the simulations run on the
     /// twin and its variants (±30 %); the compensator's deadzone comes from a Hammerstein model

@@ -564,15 +564,15 @@ pub const MAX_RUN_SAMPLES: f64 = 6000.0;
 /// samples), a few minutes on the physics plant (audit s16 M11: in-range settings asked for hours).
 pub const MAX_SIMULATED_SAMPLES: f64 = 1e8;
 
+/// The smallest command limit u_max `tune` takes (`--spec u-max=`), in the plant's command units.
+pub const MIN_U_MAX: f64 = 1e-6;
+
 /// Refuses a specification the plants cannot run: runs shorter than [`MIN_RUN_SAMPLES`] or longer than
 /// [`MAX_RUN_SAMPLES`] at the model's Ts, a request that would simulate more than
 /// [`MAX_SIMULATED_SAMPLES`], a settling target no shorter than the run, set-points so large that a
 /// step is lost in rounding, and, when the physics plant or a twin is simulated, set-points outside its
 /// stroke 0..L (its end stops would hold the piston, and the steps would be measured from a start it
-/// cannot take).
-/// The smallest command limit u_max `tune` takes (`--spec u-max=`), in the plant's command units.
-pub const MIN_U_MAX: f64 = 1e-6;
-
+/// cannot take); also numbers below f64's normal range and a command limit below [`MIN_U_MAX`].
 fn check_spec(req: &Request, ts: f64, twin: &Option<ipa::PlantConfig>) -> Result<(), ControlError> {
     let (spec, check_physics) = (&req.spec, req.check_physics);
     let bad = |what: String, expected: String| {

@@ -104,6 +104,50 @@ const MATLAB_HINTS: &[(&str, &str)] = &[
         "bode",
         "the frequency response of a model file is printed by `ipa-sysid response`",
     ),
+    (
+        "idnlhw",
+        "a Hammerstein model (input nonlinearity, then ARX) is identified by `ipa-sysid identify \
+         --structure hammerstein` (--nonlinearity deadzone|saturation|deadzone-saturation|piecewise-linear|polynomial; \
+         --output-nonlinearity KIND adds the output block of a Hammerstein-Wiener model)",
+    ),
+    (
+        "nlarx",
+        "a polynomial NARX model is identified by `ipa-sysid identify --structure narx --degree D`",
+    ),
+    (
+        "nlgreyest",
+        "the grey-box twin (the physics plant's parameters fitted to a record) is estimated by \
+         `ipa-sysid calibrate --data REC.csv --out twin.toml`",
+    ),
+    (
+        "oe",
+        "an output-error model is identified by `ipa-sysid identify --method oe` (ARX or Hammerstein \
+         structure)",
+    ),
+    (
+        "tfest",
+        "transfer-function and state-space estimation are not model classes here: the linear classes are \
+         ARX (`ipa-sysid identify --structure arx`, --method ls|rls|iv) and output error (--method oe), \
+         whose B/A is the transfer function; `ipa-sysid response` prints its poles and Bode table",
+    ),
+    (
+        "ssest",
+        "state-space estimation is not a model class here: the linear classes are ARX (`ipa-sysid \
+         identify --structure arx`, --method ls|rls|iv) and output error (--method oe)",
+    ),
+    (
+        "n4sid",
+        "subspace (state-space) estimation is not a model class here: the linear classes are ARX (`ipa-sysid \
+         identify --structure arx`, --method ls|rls|iv) and output error (--method oe)",
+    ),
+    (
+        "predict",
+        "k-step-ahead prediction of a model on a record is `ipa-sysid validate --horizon K`",
+    ),
+    (
+        "sim",
+        "a model file or plant is simulated by `ipa-sysid simulate --plant model:M.json --input …`",
+    ),
 ];
 
 /// For an unknown command that is a MATLAB name ([`MATLAB_HINTS`]), the command that does its job.

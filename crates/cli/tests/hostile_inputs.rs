@@ -1429,7 +1429,8 @@ fn an_output_that_never_moves_is_named_as_a_cause() {
 }
 
 // Audit s22 L-N4: MATLAB names. `compare` and `resid` run validate (fit and residual tests), `pidtune`
-// runs tune; `stepinfo` and `arx` are refused (exit 2) naming the command that does the job.
+// runs tune; `stepinfo`, `arx` and the other MATLAB names of `MATLAB_HINTS` (s23: idnlhw, nlarx, nlgreyest,
+// oe, tfest, ssest, n4sid, predict, sim) are refused (exit 2) naming the command that does the job.
 #[test]
 fn matlab_names_are_aliases_or_name_the_command() {
     let dir = tempfile::tempdir().unwrap();
@@ -1447,6 +1448,15 @@ fn matlab_names_are_aliases_or_name_the_command() {
     for (name, needle) in [
         ("stepinfo", "ipa-sysid control"),
         ("arx", "ipa-sysid identify --structure arx"),
+        ("idnlhw", "ipa-sysid identify --structure hammerstein"),
+        ("nlarx", "ipa-sysid identify --structure narx"),
+        ("nlgreyest", "ipa-sysid calibrate"),
+        ("oe", "ipa-sysid identify --method oe"),
+        ("tfest", "not model classes here"),
+        ("ssest", "not a model class here"),
+        ("n4sid", "not a model class here"),
+        ("predict", "ipa-sysid validate --horizon"),
+        ("sim", "ipa-sysid simulate"),
     ] {
         let out = run(name, d);
         assert_eq!(out.status.code(), Some(2), "{name}");

@@ -14,9 +14,9 @@
 //! slow stretch shows as such instead of moving the ratio.
 //!
 //! Placement: on x86 a load whose address equals an earlier, still pending store's in its low 12 bits
-//! waits for it ("4K aliasing"); on that Intel guest a UD f32 n = 9 state lying over the kernel's stack
-//! frame modulo 4096 bytes took 1.2–1.7× longer per update than at other offsets, so a run's figure
-//! depended on where the process's stack happened to start (randomised per process). Here every state
+//! waits for it ("4K aliasing"); on that Intel guest a UD f32 n = 9 state at some offsets modulo 4096
+//! bytes (in one process those over the kernel's stack frame) took 1.2–1.5× longer per update than at
+//! others, so a run's figure depended on where the process's stack and heap happened to start. Here every state
 //! (ours and the peer's) moves to another offset modulo 4096 at each window, 64 offsets in turn, so the
 //! median over windows is over placements and runs agree with each other; the slowest quarter shows the
 //! worst placements. On a microcontroller (no such aliasing) the placement does not matter.

@@ -2,7 +2,7 @@
 //! UD form: plain and guarded) and of the Hammerstein RLS, in f32 and f64, beside the no_std peer
 //! `oxictl` 0.1.1 (`sysid::arx::RecursiveArx`) measured in the same run on the same data.
 //!
-//! Data: 1e6 samples of the second-order ARX system
+//! Data (`common`): 1e6 samples of the second-order ARX system
 //! y(t) = 1.5 y(t−1) − 0.7 y(t−2) + u(t−1) + 0.5 u(t−2) + 0.1 e(t), with u, e white N(0, 1). Regressors
 //! φ(t) = [−y(t−1), …, −y(t−na), u(t−1), …, u(t−nb)], the peer's own regressor for (NA, NB, NK = 1):
 //! n = 4 is (na, nb) = (2, 2), n = 9 is (4, 5). λ = 0.98, P(0) = 1000 I for both. The peer builds φ
@@ -18,6 +18,9 @@
 //!
 //! Run: `cargo bench -p ipa-embedded --bench rls -- --warm-up-time 1 --measurement-time 3`, then
 //! `python3 crates/embedded/benches/best_of.py` for the best and median sample of each benchmark.
+//! Criterion runs one benchmark after another, seconds apart: on a shared host whose speed changes for
+//! seconds at a time, compare two of them through `interleaved.rs` (ours and the peer in turns of 200
+//! updates, the states moved through 64 offsets modulo 4096), or check `sample.json` for slow stretches.
 
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // benches may panic
 
@@ -26,30 +29,14 @@ use std::hint::black_box;
 use criterion::measurement::WallTime;
 use criterion::{criterion_group, criterion_main, BenchmarkGroup, BenchmarkId, Criterion};
 use ipa_embedded::hammerstein::{HammersteinRls, HammersteinSettings};
-use ipa_embedded::{Deadzone, Float, Form, Rls};
+use ipa_embedded::{Deadzone, Float, Form};
 use oxictl::sysid::arx::RecursiveArx;
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, StandardNormal};
 
-const SAMPLES: usize = 1_000_000;
-const LAMBDA: f64 = 0.98;
-const P0: f64 = 1000.0;
-
-/// (u, y) of the second-order ARX system (module documentation).
-fn arx_record() -> (Vec<f64>, Vec<f64>) {
-    let mut rng = ChaCha8Rng::seed_from_u64(28);
-    let mut u = vec![0.0; SAMPLES];
-    let mut y = vec![0.0; SAMPLES];
-    for t in 0..SAMPLES {
-        u[t] = StandardNormal.sample(&mut rng);
-        let e: f64 = StandardNormal.sample(&mut rng);
-        if t >= 2 {
-            y[t] = 1.5 * y[t - 1] - 0.7 * y[t - 2] + u[t - 1] + 0.5 * u[t - 2] + 0.1 * e;
-        }
-    }
-    (u, y)
-}
+mod common;
+use common::{arx_record, new_rls, regressor, LAMBDA, P0, SAMPLES};
 
 /// (u in counts, y in mm) of a Hammerstein plant: deadzone b_l = −25, b_r = 20 counts, ARX(3, 1, 1)
 /// with poles at 0.9, 0.8, 0.5, staircase input held 10 samples, output noise 0.01 mm.
@@ -80,24 +67,6 @@ fn hammerstein_record() -> (Vec<f64>, Vec<f64>) {
     (u, y)
 }
 
-/// φ(t) = [−y(t−1), …, −y(t−NA), u(t−1), …, u(t−NB)] (t ≥ max(NA, NB)).
-#[inline(always)]
-fn regressor<F: Float, const NA: usize, const NB: usize, const P: usize>(
-    u: &[F],
-    y: &[F],
-    t: usize,
-) -> [F; P] {
-    let mut phi = [F::ZERO; P];
-    for (i, v) in phi.iter_mut().enumerate() {
-        *v = if i < NA {
-            -y[t - 1 - i]
-        } else {
-            u[t - 1 - (i - NA)]
-        };
-    }
-    phi
-}
-
 /// Our estimator's variants: (label, form, trace bound).
 fn variants(n: usize, active_trace: f64) -> [(&'static str, Form, Option<f64>); 6] {
     let t = P0 * n as f64;
@@ -109,16 +78,6 @@ fn variants(n: usize, active_trace: f64) -> [(&'static str, Form, Option<f64>); 
         ("ud-guard", Form::Ud, Some(t)),
         ("ud-guard-active", Form::Ud, Some(active_trace)),
     ]
-}
-
-fn new_rls<F: Float, const P: usize>(form: Form, trace: Option<f64>) -> Rls<F, P> {
-    let mut est = Rls::<F, P>::new(P, F::from_f64(LAMBDA), F::from_f64(P0))
-        .unwrap()
-        .with_form(form);
-    if let Some(t) = trace {
-        est = est.with_max_trace(F::from_f64(t)).unwrap();
-    }
-    est
 }
 
 /// `v` as F (only `Float` in scope: `oxictl`'s scalar trait has methods of the same names).

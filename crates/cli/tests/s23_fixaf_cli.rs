@@ -63,12 +63,12 @@ fn a_date_time_column_not_named_by_t_col_is_said_to_be_unread() {
         "{}",
         said[0]
     );
-    // The text says it too.
+    // The text (the report on standard output) says it too.
     let o = ipa_sysid(&args);
+    let text = String::from_utf8_lossy(&o.stdout);
     assert!(
-        stderr(&o).contains("the column time (not the time column: --t-col is t)"),
-        "{}",
-        stderr(&o)
+        text.contains("the column time (not the time column: --t-col is t)"),
+        "{text}"
     );
     // Named by --t-col: the time column's note, and only it.
     args.extend(["--t-col", "time"]);

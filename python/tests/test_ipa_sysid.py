@@ -536,7 +536,7 @@ def test_plants_that_are_neither_a_name_nor_a_file_and_missing_files(tmp_path):
     # The same twin; its `[calibration]` table names each record by its own path.
     assert a["toml"].replace(str(rec), "REC") == b["toml"].replace(str(renamed), "REC")
     assert "\n[calibration]\n" in a["toml"]
-    with pytest.raises(ValueError, match=r"no column named 'u' \(chosen by u_col\)"):
+    with pytest.raises(ValueError, match=r"no column named 'u' \(the default of u_col; name yours with u_col NAME\)"):
         ipa_sysid.calibrate(str(renamed))
     # The validation record's own columns (audit s14 L-e): the record with u, y renamed (its time
     # column kept: a record without one and without ts is refused, audit s16 M6) as the validation

@@ -231,7 +231,7 @@ fn malformed_csv_files_exit_2_with_file_line_column() {
             "identify --data {c}/csv/no_header.csv --no-header",
             2,
             &[
-                "no column named 'u' (chosen by --u-col)",
+                "no column named 'u' (the default of --u-col; name yours with --u-col NAME)",
                 "with --no-header the columns are named by their position, 1 to",
                 "give --u-col a column number",
             ],

@@ -152,6 +152,7 @@ fn reproduce_on_a_model_plant_says_what_control_would_doubt() {
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(!String::from_utf8_lossy(&o.stderr).contains("replaced"));
     let stdout = String::from_utf8_lossy(&o.stdout);
     let extrapolates =
         "the plant model's estimation data had u in [-1, 1]: outside it the model extrapolates";
@@ -190,4 +191,23 @@ fn reproduce_on_a_model_plant_says_what_control_would_doubt() {
     assert_eq!(criterion["status"], "not judged");
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
     assert!(html.contains("outside it the model extrapolates"));
+    // A second run into the same folder (its marker says an earlier run wrote it) replaces it, and
+    // says so as every other output does ("replaced FILE", session 22's M-B9).
+    let again = Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
+        .args(["reproduce", "--out"])
+        .arg(&out)
+        .arg("--plant")
+        .arg(format!("model:{}", model.display()))
+        .output()
+        .unwrap();
+    assert!(
+        again.status.success(),
+        "{}",
+        String::from_utf8_lossy(&again.stderr)
+    );
+    assert!(
+        String::from_utf8_lossy(&again.stderr).contains(&format!("replaced {}", out.display())),
+        "{}",
+        String::from_utf8_lossy(&again.stderr)
+    );
 }

@@ -1444,20 +1444,39 @@ fn tune_says_when_the_specification_is_far_outside_the_models_data() {
     assert!(ok, "{said}");
     let u_ratio = 255.0 / ulo.abs().max(uhi.abs());
     let y_ratio = 150.0 / (yhi - ylo);
+    // One warning per fact (session 23): the limit's factor and the steps' are said in the warning of
+    // the commands and of the set-points beyond the data, each once.
+    let lines = |needle: &str| -> Vec<String> {
+        said.lines()
+            .filter(|l| l.contains(needle))
+            .map(str::to_string)
+            .collect()
+    };
+    let u_lines = lines("command limit u_max = 255 is");
+    assert_eq!(u_lines.len(), 1, "{said}");
     assert!(
-        said.contains("command limit u_max = 255 is")
-            && said.contains(&format!("{u_ratio:.4} times")),
+        u_lines[0].contains(&format!("{u_ratio:.4} times"))
+            && u_lines[0].contains("the commands (|u| <= u_max) span")
+            && u_lines[0].contains("extrapolates"),
         "{said}"
     );
+    let y_lines = lines("steps (up to 150");
+    assert_eq!(y_lines.len(), 1, "{said}");
     assert!(
-        said.contains("steps (up to 150") && said.contains(&format!("{y_ratio:.4} times")),
+        y_lines[0].contains(&format!("{y_ratio:.4} times"))
+            && y_lines[0].contains("the set-points (low .. high) span")
+            && y_lines[0].contains("extrapolates"),
         "{said}"
     );
+    assert_eq!(lines("extrapolates").len(), 2, "{said}");
     let mut args = base.to_vec();
     args.extend(["--spec", "u-max=4,steps=0.05/0.1,low=0.12,high=0.3"]);
     let (ok, said) = tune(tmp.path(), &args);
     assert!(ok, "{said}");
-    assert!(!said.contains("far outside its data"), "{said}");
+    assert!(
+        !said.contains("extrapolates") && !said.contains("times the largest |u|"),
+        "{said}"
+    );
 }
 
 // Audit s9 T6/T7/T4: a specification the plants cannot run is refused, naming --spec and what was

@@ -771,16 +771,18 @@ impl ControllerFile {
     /// [`ControllerFile::parse`], keeping the file's provenance (what `tune` said of the controller).
     pub fn parse_file(text: &str, name: &str) -> Result<ControllerFile, ControlError> {
         let f: ControllerFile = serde_json::from_str(text).map_err(|e| {
+            // serde's message quotes the file (an unknown field's name): printed through `visible`.
             ControlError::Config(format!(
-                "{name}:{}:{}: not a controller file: {e} (expected the JSON that `ipa-sysid tune --out` writes)",
+                "{name}:{}:{}: not a controller file: {} (expected the JSON that `ipa-sysid tune --out` writes)",
                 e.line(),
-                e.column()
+                e.column(),
+                sysid_core::format::visible(&e.to_string())
             ))
         })?;
         if f.format != CONTROLLER_FORMAT {
             return Err(ControlError::Config(format!(
                 "{name}: format `{}` is not `{CONTROLLER_FORMAT}`",
-                f.format
+                sysid_core::format::visible(&f.format)
             )));
         }
         if f.version != CONTROLLER_VERSION {
@@ -818,7 +820,8 @@ impl ControllerFile {
     }
 
     /// What the provenance says against the controller, in words (audit s17 L-m): `tune` wrote
-    /// `"meets_spec": false`, with the steps that met the whole specification when it recorded them.
+    /// `"meets_spec": false`, with the steps that met the whole specification when it recorded them
+    /// (the record's name through [`sysid_core::format::visible`]: audit s22 M-B5).
     /// `None` when it met it, or the file has no such provenance (a hand-written controller).
     pub fn provenance_warning(&self) -> Option<String> {
         let p = self.provenance.as_ref()?;
@@ -832,7 +835,7 @@ impl ControllerFile {
                     "; the whole specification met in {} of {} steps on {}",
                     m.get("steps")?.as_u64()?,
                     m.get("of")?.as_u64()?,
-                    m.get("on")?.as_str()?
+                    sysid_core::format::visible(m.get("on")?.as_str()?)
                 ))
             })
             .unwrap_or_default();
@@ -848,6 +851,40 @@ mod tests {
     use super::*;
     use crate::SlopeMode;
     use sysid_core::Deadzone;
+
+    // Audit s22 M-B5: strings of a controller file (the record its provenance names, an unknown key,
+    // its format) are printed as visible escapes, never as the raw ESC / BEL that would clear the
+    // terminal or ring it.
+    #[test]
+    fn a_controller_files_strings_are_printed_visibly() {
+        let file = ControllerFile::new(
+            plain(1.0, 0.0),
+            Some(serde_json::json!({
+                "meets_spec": false,
+                "met": {"steps": 0, "of": 8, "on": "X\u{1b}[2J\u{7}"}
+            })),
+        );
+        let w = file.provenance_warning().unwrap();
+        assert!(
+            w.contains("met in 0 of 8 steps on X\\u{1b}[2J\\u{7}"),
+            "{w}"
+        );
+        assert!(!w.contains('\u{1b}') && !w.contains('\u{7}'), "{w}");
+        let text = serde_json::to_string(&file).unwrap();
+        let renamed = text.replacen("\"provenance\"", "\"prov\\u001b[2J\"", 1);
+        let e = ControllerFile::parse_file(&renamed, "c.json")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("prov\\u{1b}[2J") && !e.contains('\u{1b}'), "{e}");
+        let other = text.replacen(CONTROLLER_FORMAT, "x\\u001b[2J", 1);
+        let e = ControllerFile::parse_file(&other, "c.json")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("format `x\\u{1b}[2J`") && !e.contains('\u{1b}'),
+            "{e}"
+        );
+    }
 
     fn plain(kp: f64, ki: f64) -> ControllerSettings {
         ControllerSettings::pi(0.01, kp, ki)

@@ -708,7 +708,8 @@ fn check_spec(req: &Request, ts: f64, twin: &Option<ipa::PlantConfig>) -> Result
 }
 
 /// How many times the estimation data's largest command, or its output span, the specification's command
-/// limit or largest step may be before `tune` says the model is used far outside its data.
+/// limit or largest step may be before `tune`'s warning of a specification beyond the model's data
+/// ([`crate::trust::extrapolation_warning`]) names the units as the likely cause.
 pub const EXTRAPOLATION_FACTOR: f64 = 4.0;
 
 /// A deadzone compensator taken from `model` for a loop whose command limit is `u_max`: a warning when
@@ -807,49 +808,57 @@ fn reach_warnings(model: &Model, deadzone: &Deadzone, spec: &Spec) -> Vec<String
         // The loop's commands reach ±u_max and its set-points low..high: control's rule for a run
         // beyond the model's data (audit s22 M-B1: u-max=1000 and set-points 300..600 mm on a model of
         // ±253 counts and 0..195 mm were tuned without a word).
-        if let Some([lo, hi]) = range.u.first() {
-            w.extend(crate::trust::extrapolation_warning(
-                "commands (|u| <= u_max)",
-                "u",
-                (-spec.u_max, spec.u_max),
-                (*lo, *hi),
-            ));
-        }
-        w.extend(crate::trust::extrapolation_warning(
-            "set-points (low .. high)",
-            "y",
-            (spec.low_mm, spec.high_mm),
-            (range.y[0], range.y[1]),
-        ));
-        if let Some(u_data) = range.u_magnitude(0).filter(|m| *m > 0.0) {
-            if spec.u_max > EXTRAPOLATION_FACTOR * u_data {
-                w.push(format!(
-                    "the specification's command limit u_max = {} is {} times the largest command in \
-                     the model's estimation data (|u| <= {}): the model is used far outside its data \
-                     (if its input is not in PWM counts, give the limit in its units: --spec u-max=...)",
+        // One warning per fact (session 23): when the limit or the steps are more than
+        // EXTRAPOLATION_FACTOR times the data's, the units are the likely cause, and the same warning
+        // says so with the --spec keys to give in the model's units (audit s9 T10).
+        let u_units = range
+            .u_magnitude(0)
+            .filter(|m| *m > 0.0 && spec.u_max > EXTRAPOLATION_FACTOR * m)
+            .map(|u_data| {
+                format!(
+                    "; the command limit u_max = {} is {} times the largest |u| = {} of those data: if \
+                     the model's input is not in PWM counts, give the limit in its units (--spec \
+                     u-max=...)",
                     spec.u_max,
                     fmt(spec.u_max / u_data),
                     fmt(u_data)
-                ));
-            }
+                )
+            });
+        if let Some([lo, hi]) = range.u.first() {
+            w.extend(
+                crate::trust::extrapolation_warning(
+                    "commands (|u| <= u_max)",
+                    "u",
+                    (-spec.u_max, spec.u_max),
+                    (*lo, *hi),
+                )
+                .map(|m| m + u_units.as_deref().unwrap_or("")),
+            );
         }
         let largest = spec.steps_mm.iter().fold(0.0_f64, |m, s| m.max(s.abs()));
         let span = range.y_span();
-        if largest > EXTRAPOLATION_FACTOR * span {
-            w.push(format!(
-                "the specification's steps (up to {}) are {} times the output's span in the model's \
-                 estimation data ({} .. {}): the model is used far outside its data (if its output is \
-                 not in mm, give the set-points in its units: --spec steps=...,low=...,high=...)",
+        let y_units = (largest > EXTRAPOLATION_FACTOR * span).then(|| {
+            format!(
+                "; the specification's steps (up to {}) are {} times the output's span in those data: \
+                 if the model's output is not in mm, give the set-points in its units (--spec \
+                 steps=...,low=...,high=...)",
                 fmt(largest),
                 if span > 0.0 {
                     fmt(largest / span)
                 } else {
                     "infinitely many".to_string()
                 },
-                fmt(range.y[0]),
-                fmt(range.y[1])
-            ));
-        }
+            )
+        });
+        w.extend(
+            crate::trust::extrapolation_warning(
+                "set-points (low .. high)",
+                "y",
+                (spec.low_mm, spec.high_mm),
+                (range.y[0], range.y[1]),
+            )
+            .map(|m| m + y_units.as_deref().unwrap_or("")),
+        );
     }
     let u0 = model
         .operating_point()

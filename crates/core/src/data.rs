@@ -260,7 +260,8 @@ impl Dataset {
 
 /// Fails unless Ts (s) is finite and at least [`crate::model::MIN_TS_S`] (1e-6 s, the shortest
 /// sampling period a model file and the controller take: a Ts below it was identified and only
-/// refused when the model was saved). Every [`Dataset`] checks it, so `--ts` (identify, order,
+/// refused when the model was saved) and at most [`crate::model::MAX_TS_S`] (1e9 s, the longest a
+/// model file takes: 1e308 s overflowed time axes to inf). Every [`Dataset`] checks it, so `--ts` (identify, order,
 /// validate, ...) and Python's `ts=` are refused by name; callers that build many datasets from one Ts
 /// check it once, before any work.
 pub fn check_ts(ts: f64) -> Result<(), SysidError> {
@@ -269,7 +270,7 @@ pub fn check_ts(ts: f64) -> Result<(), SysidError> {
 
 /// [`check_ts`] for the setting `setting` that gives Ts (`--ts`, `--resample`).
 pub fn check_ts_of(setting: Setting, ts: f64) -> Result<(), SysidError> {
-    if ts.is_finite() && ts >= crate::model::MIN_TS_S {
+    if (crate::model::MIN_TS_S..=crate::model::MAX_TS_S).contains(&ts) {
         Ok(())
     } else {
         Err(SysidError::setting(setting, ts, &ts_range_words()))
@@ -279,8 +280,10 @@ pub fn check_ts_of(setting: Setting, ts: f64) -> Result<(), SysidError> {
 /// What a sampling period must be, in words (the `expected` of [`check_ts`]'s error).
 pub fn ts_range_words() -> String {
     format!(
-        "a finite sampling period of at least {:e} s (the shortest a model file and the controller take)",
-        crate::model::MIN_TS_S
+        "a finite sampling period of at least {:e} s (the shortest a model file and the controller \
+         take) and at most {:e} s (the longest a model file takes)",
+        crate::model::MIN_TS_S,
+        crate::model::MAX_TS_S
     )
 }
 
@@ -450,6 +453,7 @@ pub fn read_record_bytes(
                 ));
             }
             notes.extend(ts_contradiction(&table, opts, ts));
+            notes.extend(unnamed_date_times(&table, opts, &ucols, ycol, ts));
             ts
         }
         None => {
@@ -501,21 +505,76 @@ fn ts_contradiction(table: &Table, opts: &CsvOptions, ts: f64) -> Option<String>
         Err(_) => {
             let first = table.rows.first().and_then(|(_, rec)| rec.get(tc))?;
             return looks_like_date_time(unquote(first.trim())).then(|| {
-                format!(
-                    "the time column {} holds dates and times ('{}'), which are not read: Ts = --ts {} s \
-                     is taken as given and the stamps are not checked against it (a wrong --ts, gaps, \
-                     uneven steps or time going back go unnoticed); write the time in seconds in a \
-                     numeric column to have it checked",
-                    opts.t_col,
-                    shorten(unquote(first.trim())),
-                    sig6(ts)
-                )
+                date_time_note(&format!("the time column {}", opts.t_col), first, ts, opts)
             });
         }
     };
     let step = ts_contradicts(&t, ts)?;
     ts_contradiction_note(ts, &opts.t_col, step)
 }
+
+/// The note of a column `what` ("the time column t", "the column time") whose first cell `first` is a
+/// date or a time of day, in a record whose Ts (s) was given (`--ts`, or a model file's Ts): the
+/// stamps are not read, so nothing checks them against Ts.
+fn date_time_note(what: &str, first: &str, ts: f64, opts: &CsvOptions) -> String {
+    let given = if opts.ts.is_some() { "--ts " } else { "" };
+    format!(
+        "{what} holds dates and times ('{}'), which are not read: Ts = {given}{} s is taken as given \
+         and the stamps are not checked against it (a wrong Ts, gaps, uneven steps or time going back \
+         go unnoticed); write the time in seconds in a numeric column, named by --t-col, to have it \
+         checked",
+        crate::format::visible(&shorten(unquote(first.trim()))),
+        sig6(ts)
+    )
+}
+
+/// The notes of the columns other than the input columns `ucols`, the output column `ycol` and the time
+/// column `opts.t_col` whose first cell is a date or a time of day (`time`, `timestamp`, `Date`), in a
+/// record whose Ts (s) was given because the file has no column `opts.t_col` (audit s22 M-B10: a
+/// record with a `time` column of ISO stamps and 200 rows missing was identified with --ts as if
+/// continuous, without a word; [`ts_contradiction`] spoke only of the column --t-col named). One note
+/// per such column, at most [`MAX_DATE_TIME_NOTES`] (then how many more).
+fn unnamed_date_times(
+    table: &Table,
+    opts: &CsvOptions,
+    ucols: &[usize],
+    ycol: usize,
+    ts: f64,
+) -> Vec<String> {
+    if opts.no_header || table.headers.contains(&opts.t_col) {
+        return Vec::new();
+    }
+    let Some((_, first_row)) = table.rows.first() else {
+        return Vec::new();
+    };
+    let found: Vec<(usize, &str)> = (0..table.headers.len())
+        .filter(|c| !ucols.contains(c) && *c != ycol)
+        .filter_map(|c| first_row.get(c).map(|cell| (c, cell)))
+        .filter(|(_, cell)| looks_like_date_time(unquote(cell.trim())))
+        .collect();
+    let mut notes: Vec<String> = found
+        .iter()
+        .take(MAX_DATE_TIME_NOTES)
+        .map(|&(c, cell)| {
+            let what = format!(
+                "the column {} (not the time column: --t-col is {})",
+                crate::format::visible(&shorten(&table.headers[c])),
+                crate::format::visible(&shorten(&opts.t_col))
+            );
+            date_time_note(&what, cell, ts, opts)
+        })
+        .collect();
+    if found.len() > MAX_DATE_TIME_NOTES {
+        notes.push(format!(
+            "{} more columns hold dates and times, which are not read either",
+            found.len() - MAX_DATE_TIME_NOTES
+        ));
+    }
+    notes
+}
+
+/// The most columns of dates and times [`unnamed_date_times`] names one by one.
+const MAX_DATE_TIME_NOTES: usize = 3;
 
 /// The note of a `--ts` (`ts`, s) that contradicts the time column `column`, whose typical step is
 /// `step` (s), by more than 0.1 % ([`ts_contradicts`]' rule); `None` when they agree or `step` is not a
@@ -963,6 +1022,7 @@ impl Table {
         Err(SysidError::MissingColumn {
             file: self.name.clone(),
             column: col.to_string(),
+            origin: crate::error::ColumnOrigin::of(setting, col),
             setting,
             header: self.headers.clone(),
             hint,
@@ -1464,6 +1524,20 @@ fn uniform_ts(t: &[f64], table: &Table, col: usize) -> Result<f64, SysidError> {
             ),
         });
     }
+    if ts > crate::model::MAX_TS_S {
+        return Err(SysidError::Parse {
+            file: table.name.clone(),
+            line: table.line_of(1),
+            column: col + 1,
+            message: format!(
+                "the time column {} steps {} s, above {:e} s, the longest sampling period a model file \
+                 takes (is the column in another unit? see --time-unit, or pass --ts)",
+                table.headers.get(col).map_or("t", |h| h.as_str()),
+                Shortest(ts),
+                crate::model::MAX_TS_S
+            ),
+        });
+    }
     Ok(ts)
 }
 
@@ -1571,6 +1645,43 @@ mod tests {
                 "{ts}: {e}"
             );
         }
+    }
+
+    // Audit s22 L-B3: MAX_TS_S = 1e9 s is the ceiling of Ts: daily (86 400 s) and yearly (3.15e7 s)
+    // records and the ceiling itself are taken, the next f64 above it and 1e308 are not, and a time
+    // column stepping 2e9 s is refused at the line of its first step's end (3: the header is line 1)
+    // and its column, naming the ceiling.
+    #[test]
+    fn ts_is_refused_above_a_billion_seconds_and_accepted_at_it() {
+        assert_eq!(crate::model::MAX_TS_S, 1e9);
+        for ts in [86_400.0, 365.25 * 86_400.0, 1e9] {
+            assert!(check_ts(ts).is_ok(), "{ts}");
+        }
+        for ts in [f64::from_bits(1e9f64.to_bits() + 1), 1e308] {
+            let e = check_ts(ts).unwrap_err().to_string();
+            assert!(
+                e.starts_with("invalid setting ts = ") && e.contains("at most 1e9 s"),
+                "{ts}: {e}"
+            );
+        }
+        let e = crate::data::read_csv_bytes(
+            b"t,u,y\n0,1,2\n2e9,1,2\n4e9,1,2\n",
+            "slow.csv",
+            &crate::data::CsvOptions::default(),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.starts_with("slow.csv:3:1: the time column t steps 2000000000 s, above 1e9 s"),
+            "{e}"
+        );
+        let daily = crate::data::read_csv_bytes(
+            b"t,u,y\n0,1,2\n86400,1,2\n172800,1,2\n",
+            "d.csv",
+            &crate::data::CsvOptions::default(),
+        )
+        .unwrap();
+        assert_eq!(daily.ts(), 86_400.0);
     }
 
     #[test]

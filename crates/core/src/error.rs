@@ -114,6 +114,38 @@ pub enum ColumnHint {
     Case(String),
 }
 
+/// Where the name of a column that a file lacks came from, so that its message says who chose it
+/// (audit s22 L-N3: "chosen by --u-col" when no --u-col was typed).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ColumnOrigin {
+    /// The setting's default name (`u`, `y`, `t`).
+    Default,
+    /// A name the user gave (a flag's value, a Python argument).
+    Given,
+    /// The column a model file recorded as its identification's (`validate` reads it when --u-col /
+    /// --y-col are not typed).
+    ModelFile,
+}
+
+impl ColumnOrigin {
+    /// The origin of `column` chosen by `setting`: [`ColumnOrigin::Default`] when it is the setting's
+    /// default name (`u` for --u-col, `y` for --y-col, `t` for --t-col), [`ColumnOrigin::Given`]
+    /// otherwise (a typed `--u-col u` is the default name, and is called so).
+    pub fn of(setting: Setting, column: &str) -> Self {
+        let default = match setting {
+            Setting::UCol => "u",
+            Setting::YCol => "y",
+            Setting::TCol => "t",
+            _ => return ColumnOrigin::Given,
+        };
+        if column == default {
+            ColumnOrigin::Default
+        } else {
+            ColumnOrigin::Given
+        }
+    }
+}
+
 /// Everything that can go wrong with data, models and settings. Messages name the file, line and column
 /// (1-based) or the setting at fault, and what was expected.
 #[derive(Debug)]
@@ -155,6 +187,8 @@ pub enum SysidError {
         header: Vec<String>,
         /// What probably went wrong, when it can be told.
         hint: Option<ColumnHint>,
+        /// Where the column's name came from.
+        origin: ColumnOrigin,
     },
     /// A variable chosen by a setting is not in a MAT-file.
     MissingVariable {
@@ -266,8 +300,19 @@ impl SysidError {
                 setting,
                 header,
                 hint,
+                origin,
             } => {
                 let flag = name(*setting);
+                let chosen = match origin {
+                    ColumnOrigin::Given => format!("chosen by {flag}"),
+                    ColumnOrigin::Default => {
+                        format!("the default of {flag}; name yours with {flag} NAME")
+                    }
+                    ColumnOrigin::ModelFile => format!(
+                        "the model file's column, read because {flag} was not given; name yours \
+                         with {flag} NAME"
+                    ),
+                };
                 let hint = match hint {
                     None => String::new(),
                     Some(ColumnHint::NoHeader) => format!(
@@ -295,7 +340,7 @@ impl SysidError {
                     names.push(format!("... ({} columns in all)", header.len()));
                 }
                 format!(
-                    "{file}: no column named '{}' (chosen by {flag}); the header has: {}{hint}",
+                    "{file}: no column named '{}' ({chosen}); the header has: {}{hint}",
                     crate::data::shorten(column),
                     names.join(", ")
                 )

@@ -103,6 +103,18 @@ pub fn visible(s: &str) -> std::borrow::Cow<'_, str> {
     std::borrow::Cow::Owned(out)
 }
 
+/// [`visible`] of every line of a message of several lines that quotes a file (the TOML parser's
+/// error, whose snippet line is the file's own text: audit s22 M-B5), its line breaks kept as they
+/// are (a `\r` before one is escaped).
+///
+/// ```
+/// use sysid_core::format::visible_lines;
+/// assert_eq!(visible_lines("at line 3\n3 | m = \"a\u{1b}[2J\""), "at line 3\n3 | m = \"a\\u{1b}[2J\"");
+/// ```
+pub fn visible_lines(s: &str) -> String {
+    s.split('\n').map(visible).collect::<Vec<_>>().join("\n")
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

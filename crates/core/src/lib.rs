@@ -24,7 +24,7 @@ pub mod plant;
 pub mod structure;
 
 pub use data::Dataset;
-pub use error::{PlantError, Setting, SysidError};
+pub use error::{ColumnOrigin, PlantError, Setting, SysidError};
 pub use model::{
     DataRange, InputChannel, Model, ModelKind, ModelPlant, NoiseModel, Orders, Provenance,
     TermSizes,

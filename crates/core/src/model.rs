@@ -214,8 +214,15 @@ pub struct Provenance {
 /// Shortest sampling period Ts of a model file, s: the floor of the controller's range
 /// (`ipa_embedded::position::MIN_TS_S`, equal by a test in `control`). A Ts of 1e-320 s was loaded and
 /// then blamed on `response --f-min` ("the lowest frequency inf Hz", audit s21 L-B2) or simulated as
-/// "Ts = 1e-320 s". No upper limit: a model of daily data (Ts = 86 400 s) is a model.
+/// "Ts = 1e-320 s".
 pub const MIN_TS_S: f64 = 1e-6;
+
+/// Longest sampling period Ts of a model file and of a record, s (about 32 years): far above any
+/// record's (daily data: Ts = 86 400 s; yearly: 3.2e7 s), far below what overflows a time axis. A Ts of
+/// 1e308 s was loaded and `response` printed the impulse response at t = inf (audit s22 L-B3). Checked
+/// wherever Ts is given, as [`MIN_TS_S`] is: model files, `--ts`, Python's `ts=`, a time column's step,
+/// `--resample`. (Controller files take a narrower range, `ipa_embedded::MAX_TS_S`.)
+pub const MAX_TS_S: f64 = 1e9;
 
 /// At most this many characters in [`Provenance::record`] (a path; identify writes the one given).
 pub const MAX_RECORD_CHARS: usize = 4096;
@@ -1471,6 +1478,12 @@ impl TryFrom<ModelRepr> for Model {
             return bad(format!(
                 "ts = {:e} s is below {MIN_TS_S:e} s, the shortest sampling period of a model file \
                  (and of the controller)",
+                r.ts
+            ));
+        }
+        if r.ts > MAX_TS_S {
+            return bad(format!(
+                "ts = {:e} s is above {MAX_TS_S:e} s, the longest sampling period of a model file",
                 r.ts
             ));
         }

@@ -47,6 +47,14 @@ pub fn to_json(model: &Model) -> Result<String, SysidError> {
             crate::model::MIN_TS_S
         )));
     }
+    if model.ts() > crate::model::MAX_TS_S {
+        return Err(SysidError::Data(format!(
+            "the model's Ts = {:e} s is above {:e} s, the longest sampling period a model file may \
+             hold: it is not saved",
+            model.ts(),
+            crate::model::MAX_TS_S
+        )));
+    }
     // Nor one whose identification record (column names, ...) load refuses (audit s22 M-B4: names with
     // control characters were written, then loaded without a word).
     if let Some(p) = model.provenance() {

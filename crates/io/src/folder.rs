@@ -10,13 +10,15 @@ use crate::{refused, OutputError, TEMP_PREFIX};
 /// temporary folder beside `dir`, which is then renamed to `dir`. A missing or empty `dir` is replaced;
 /// an existing folder with entries is refused unless `overwrite` (then it is replaced by the new one and
 /// its old entries are removed, after the new folder is in place); a path that is not a folder is
-/// refused. When `fill` fails, the temporary folder is removed and `dir` is untouched.
+/// refused. When `fill` fails, the temporary folder is removed and `dir` is untouched. Returns whether
+/// an existing folder with entries was replaced (for the caller's "replaced DIR", as every file output
+/// says it).
 pub fn write_folder<E>(
     dir: &Path,
     flag: &str,
     overwrite: bool,
     fill: impl FnOnce(&Path) -> Result<(), E>,
-) -> Result<(), E>
+) -> Result<bool, E>
 where
     E: From<OutputError>,
 {
@@ -92,7 +94,7 @@ where
     })?;
     drop(old);
     let _ = tmp.keep();
-    Ok(())
+    Ok(existing)
 }
 
 #[cfg(test)]
@@ -113,14 +115,14 @@ mod tests {
     fn a_full_folder_is_replaced_only_when_asked() {
         let root = tempfile::tempdir().unwrap();
         let dir = root.path().join("fleet");
-        write_folder(&dir, "--out", false, fill_one("a")).unwrap();
+        assert!(!write_folder(&dir, "--out", false, fill_one("a")).unwrap());
         assert!(dir.join("a").is_file());
         let e = write_folder(&dir, "--out", false, fill_one("b"))
             .unwrap_err()
             .to_string();
         assert!(e.contains("--overwrite") && e.contains("1 entry"), "{e}");
         assert!(dir.join("a").is_file() && !dir.join("b").exists());
-        write_folder(&dir, "--out", true, fill_one("b")).unwrap();
+        assert!(write_folder(&dir, "--out", true, fill_one("b")).unwrap());
         assert!(dir.join("b").is_file() && !dir.join("a").exists());
         // Nothing temporary is left beside it.
         assert_eq!(std::fs::read_dir(root.path()).unwrap().count(), 1);

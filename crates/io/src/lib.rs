@@ -818,13 +818,14 @@ pub const FOLDER_MARKER: &str = ".ipa-sysid-output";
 /// run); any other folder is refused before `fill` runs, naming what it holds, so that a user's own
 /// files are never replaced. The new folder holds the marker; the files of a marked folder that the
 /// new run did not write (a note the user added, a figure of an older version) are copied into it, so
-/// replacing the folder loses nothing the run would not have replaced file by file.
+/// replacing the folder loses nothing the run would not have replaced file by file. Returns whether an
+/// existing folder with entries was replaced ([`write_folder`]).
 pub fn write_claimed_folder<E>(
     dir: &Path,
     flag: &str,
     tool: &str,
     fill: impl FnOnce(&Path) -> Result<(), E>,
-) -> Result<(), E>
+) -> Result<bool, E>
 where
     E: From<OutputError>,
 {

@@ -292,8 +292,13 @@ impl PlantConfig {
     /// at its line and column in the text (`name:LINE:COLUMN: invalid plant config load.moving_mass_kg
     /// = 1e308: expected ...`) when the key is written there.
     pub fn from_toml_str(text: &str, name: &str) -> Result<Self, IpaError> {
-        let cfg: PlantConfig = toml::from_str(text)
-            .map_err(|e| IpaError::Config(format!("{name}: invalid plant config: {e}")))?;
+        let cfg: PlantConfig = toml::from_str(text).map_err(|e| {
+            // The parser's snippet quotes the file's line: printed through `visible_lines`.
+            IpaError::Config(format!(
+                "{name}: invalid plant config: {}",
+                sysid_core::format::visible_lines(&e.to_string())
+            ))
+        })?;
         cfg.check().map_err(|e| {
             IpaError::Config(match locate(text, e.section, e.key) {
                 Some((line, column)) => format!("{name}:{line}:{column}: {}", e.message),
@@ -692,6 +697,21 @@ fn nonneg(section: &'static str, key: &'static str, value: f64) -> Result<(), In
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    // Audit s22 M-B5: the TOML parser's error quotes the file's line; an ESC (a terminal escape that
+    // clears the screen) and a right-to-left override in it are printed as visible escapes, the
+    // message's own line breaks kept.
+    #[test]
+    fn the_toml_errors_snippet_line_is_printed_visibly() {
+        let text = "[cylinder]\nbore_mm = \"a\u{1b}[2Jb\u{202e}\"\n";
+        let e = PlantConfig::from_toml_str(text, "T3.toml")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("T3.toml: invalid plant config"), "{e}");
+        assert!(e.contains("a\\u{1b}[2Jb\\u{202e}"), "{e}");
+        assert!(!e.contains('\u{1b}') && !e.contains('\u{202e}'), "{e}");
+        assert!(e.lines().count() > 1, "{e}");
+    }
 
     // Printing then parsing is the identity, also for non-default values (so every key is printed).
     #[test]

@@ -51,8 +51,8 @@ pub use fitted::{EstimatorSetting, Fitted, Method, Note, Param, Termination};
 pub use options::IdentifyOptions;
 pub use sysid_core::{
     data, detrend, error, metrics, model, model_file, narx as narx_model, nonlinearity, param,
-    plant, structure, DataRange, Dataset, Deadzone, InputChannel, Model, ModelKind, ModelPlant,
-    Orders, ParamName, Parameterisation, Plant, PlantError, Setting, StaticNonlinearity, Structure,
-    SysidError, TermSizes,
+    plant, structure, ColumnOrigin, DataRange, Dataset, Deadzone, InputChannel, Model, ModelKind,
+    ModelPlant, Orders, ParamName, Parameterisation, Plant, PlantError, Setting,
+    StaticNonlinearity, Structure, SysidError, TermSizes,
 };
 pub use warnings::Warning;

@@ -212,8 +212,9 @@ pub fn write_output(
 }
 
 /// Says which existing files a write replaced ([`sysid_io::write_all_atomic`]: only by the same kind of
-/// file, or with `--force`), so that a replaced file is never a surprise.
-fn print_replaced(replaced: &[PathBuf]) {
+/// file, or with `--force`), or which folder a folder output replaced ([`sysid_io::write_folder`]), so
+/// that a replaced file is never a surprise.
+pub fn print_replaced(replaced: &[PathBuf]) {
     for p in replaced {
         eprintln!(
             "replaced {}",

@@ -581,10 +581,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if !args.merge && !several_inputs && streaming(&args, &settings, data_path)? {
         return run_streamed(&args, &settings, data_path);
     }
-    let files = if args.merge {
-        super::identify_batch::expand(&args.data)?
+    let (files, skipped_note) = if args.merge {
+        let expanded = super::identify_batch::expand(&args.data)?;
+        let note = expanded.skipped_note();
+        (expanded.files, note)
     } else {
-        vec![data_path.clone()]
+        (vec![data_path.clone()], None)
     };
     let mut inputs: Vec<&Path> = files.iter().map(PathBuf::as_path).collect();
     inputs.extend(args.val.validation.as_deref());
@@ -592,7 +594,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &[(&args.json, "--json"), (&args.save_model, "--save-model")],
         &inputs,
     )?;
-    let (records, val, notes) = read_records(&args, &files)?;
+    let (records, val, mut notes) = read_records(&args, &files)?;
+    notes.splice(0..0, skipped_note);
     // The reader's notes are printed once, among the report's warnings ("data: …"; audit s18 L-6).
     let (estimation, op) = match records.as_slice() {
         [one] => {

@@ -2,7 +2,9 @@
 //! (rayon), one JSON line per file — the single-file `--json` object plus a `"file"` key, or
 //! `{"file": …, "error": …}` for a file that fails — in the order the files were given (a folder's
 //! `*.csv` files sorted by name). A progress bar goes to standard error when it is a terminal. Every file
-//! is processed; the exit status is non-zero when any failed.
+//! is processed; the exit status is non-zero when any failed. A folder's `*.csv` entries that are not
+//! regular files (a FIFO, a device, a folder, a broken link) are not opened: a note names them, and
+//! each has a line `{"file": …, "skipped": …}` after the others.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -12,6 +14,7 @@ use rayon::prelude::*;
 use serde::Serialize;
 use sysid::{identify, Identification};
 use sysid::{Dataset, SysidError};
+use sysid_core::format::visible;
 use sysid_summary::IdentifyReport;
 
 use super::common::{check_outputs, progress_bar, write_output};
@@ -22,32 +25,117 @@ pub fn is_batch(paths: &[PathBuf]) -> bool {
     paths.len() > 1 || paths.iter().any(|p| p.is_dir())
 }
 
-/// The files named by `--data`: files as given, folders expanded to their `*.csv` files sorted by name.
-pub fn expand(paths: &[PathBuf]) -> anyhow::Result<Vec<PathBuf>> {
+/// The files named by `--data` ([`expand`]), and the `*.csv` entries of its folders that are not
+/// regular files, which were skipped without being opened.
+pub struct Expanded {
+    /// The files to read: files as given, folders expanded to their `*.csv` files sorted by name.
+    pub files: Vec<PathBuf>,
+    /// The `*.csv` entries of the folders that are not regular files (a FIFO, a device, a folder, a
+    /// link to nothing), with what each is, sorted by name.
+    pub skipped: Vec<(PathBuf, &'static str)>,
+}
+
+impl Expanded {
+    /// The note naming the skipped entries and why (at most [`SKIPPED_SHOWN`] by name), if any.
+    pub fn skipped_note(&self) -> Option<String> {
+        if self.skipped.is_empty() {
+            return None;
+        }
+        let n = self.skipped.len();
+        let mut names: Vec<String> = self
+            .skipped
+            .iter()
+            .take(SKIPPED_SHOWN)
+            .map(|(p, what)| format!("{} ({what})", visible(&p.display().to_string())))
+            .collect();
+        if n > SKIPPED_SHOWN {
+            names.push(format!("... ({n} in all)"));
+        }
+        Some(format!(
+            "skipped {n} entr{} of --data named *.csv that {} not a regular file and {} not opened: {}",
+            if n == 1 { "y" } else { "ies" },
+            if n == 1 { "is" } else { "are" },
+            if n == 1 { "was" } else { "were" },
+            names.join(", ")
+        ))
+    }
+}
+
+/// The most skipped entries [`Expanded::skipped_note`] names.
+pub const SKIPPED_SHOWN: usize = 10;
+
+/// What the folder entry `path` is when it is not a regular file (following links; nothing is opened,
+/// so a FIFO or a device cannot block the run), `None` for a regular file (audit s22 L-B12: a FIFO, a
+/// link to /dev/zero and a link loop named *.csv were skipped without a word).
+fn not_regular(path: &Path) -> Option<&'static str> {
+    use std::os::unix::fs::FileTypeExt;
+    let kind = match std::fs::metadata(path) {
+        Ok(m) => m.file_type(),
+        Err(_) => {
+            return Some(match std::fs::symlink_metadata(path) {
+                Ok(l) if l.file_type().is_symlink() => "a link to nothing: broken, or a loop",
+                _ => "unreadable",
+            })
+        }
+    };
+    if kind.is_file() {
+        None
+    } else if kind.is_dir() {
+        Some("a folder")
+    } else if kind.is_fifo() {
+        Some("a FIFO")
+    } else if kind.is_char_device() || kind.is_block_device() {
+        Some("a device")
+    } else if kind.is_socket() {
+        Some("a socket")
+    } else {
+        Some("not a regular file")
+    }
+}
+
+/// The files named by `--data`: files as given, folders expanded to their `*.csv` files sorted by name,
+/// and the `*.csv` entries skipped because they are not regular files.
+pub fn expand(paths: &[PathBuf]) -> anyhow::Result<Expanded> {
     let mut files = Vec::new();
+    let mut skipped = Vec::new();
     for p in paths {
         if p.is_dir() {
-            let mut found: Vec<PathBuf> = std::fs::read_dir(p)
+            let mut found = Vec::new();
+            let mut other = Vec::new();
+            let csv_entries = std::fs::read_dir(p)
                 .with_context(|| format!("--data {}: cannot list the folder", p.display()))?
                 .filter_map(|e| e.ok().map(|e| e.path()))
-                .filter(|f| {
-                    f.is_file() && f.extension().is_some_and(|x| x.eq_ignore_ascii_case("csv"))
-                })
-                .collect();
+                .filter(|f| f.extension().is_some_and(|x| x.eq_ignore_ascii_case("csv")));
+            for f in csv_entries {
+                match not_regular(&f) {
+                    None => found.push(f),
+                    Some(what) => other.push((f, what)),
+                }
+            }
+            other.sort();
             if found.is_empty() {
                 anyhow::bail!(SysidError::setting(
                     sysid::Setting::Other("--data"),
                     p.display(),
-                    "a folder with at least one *.csv file"
+                    &format!(
+                        "a folder with at least one *.csv file{}",
+                        Expanded {
+                            files: Vec::new(),
+                            skipped: other.clone()
+                        }
+                        .skipped_note()
+                        .map_or(String::new(), |n| format!(" ({n})"))
+                    )
                 ));
             }
             found.sort();
             files.extend(found);
+            skipped.extend(other);
         } else {
             files.push(p.clone());
         }
     }
-    Ok(files)
+    Ok(Expanded { files, skipped })
 }
 
 /// One output line of a successful file.
@@ -63,6 +151,13 @@ struct Line<'a> {
 struct Failure {
     file: String,
     error: String,
+}
+
+/// One output line of a `*.csv` entry of a `--data` folder that is not a regular file (not opened).
+#[derive(Serialize)]
+struct Skipped {
+    file: String,
+    skipped: String,
 }
 
 /// Runs `identify` in batch mode with the (checked) `settings`; with `--strict`, exits 1 when any
@@ -91,7 +186,11 @@ pub fn run(args: Args, settings: &Identification) -> anyhow::Result<()> {
             "--detrend is not available in batch mode yet; identify the files one by one"
         );
     }
-    let files = expand(&args.data)?;
+    let expanded = expand(&args.data)?;
+    if let Some(note) = expanded.skipped_note() {
+        eprintln!("note: {note}");
+    }
+    let (files, skipped) = (expanded.files, expanded.skipped);
     let mut inputs: Vec<&Path> = files.iter().map(PathBuf::as_path).collect();
     inputs.extend(args.val.validation.as_deref());
     check_outputs(&[(&args.json, "--json")], &inputs)?;
@@ -152,6 +251,14 @@ pub fn run(args: Args, settings: &Identification) -> anyhow::Result<()> {
     let mut body = String::with_capacity(lines.iter().map(|(l, _, _)| l.len() + 1).sum());
     for (l, _, _) in &lines {
         body.push_str(l);
+        body.push('\n');
+    }
+    for (path, what) in &skipped {
+        let line = Skipped {
+            file: path.display().to_string(),
+            skipped: format!("{what}: not a regular file, not opened"),
+        };
+        body.push_str(&serde_json::to_string(&line)?);
         body.push('\n');
     }
     // With --strict and any warning, the file is not written, so an earlier one stays (as for one

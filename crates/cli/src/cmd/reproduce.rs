@@ -91,7 +91,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         },
     );
     bar.finish_and_clear();
-    written?;
+    if written? {
+        // The folder of an earlier run (its marker), replaced whole; files it did not write are kept.
+        super::common::print_replaced(std::slice::from_ref(&args.out));
+    }
     let outcome = outcome.context("reproduce did not run")?;
     let mut text = format!(
         "{}\nReport: {}\nSummary: {}\nElapsed: {:.2} s\n",

@@ -51,7 +51,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     if args.overwrite {
         check_fleet_folder(&args.out)?;
     }
-    sysid_io::write_folder(&args.out, "--out", args.overwrite, |dir: &Path| {
+    let replaced = sysid_io::write_folder(&args.out, "--out", args.overwrite, |dir: &Path| {
         ids.chunks(args.per_file)
             .enumerate()
             .try_for_each(|(f, chunk)| {
@@ -64,6 +64,9 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         sysid_io::write_csv(&dir.join("truth.csv"), &["actuator_id", "worn"], rows)?;
         anyhow::Ok(())
     })?;
+    if replaced {
+        super::common::print_replaced(std::slice::from_ref(&args.out));
+    }
     eprintln!(
         "wrote {} actuators ({} worn) × {} windows of {} samples to {} ({files} Parquet file(s) and truth.csv)",
         design.actuators,

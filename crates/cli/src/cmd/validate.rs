@@ -69,7 +69,7 @@ fn stored_columns(
     if opts.no_header {
         return None;
     }
-    let typed = |id: &str| given.iter().any(|g| g == id);
+    let typed = |id: &str| typed(given, id);
     let mut taken = Vec::new();
     if !typed("u_col") && !p.u_columns.is_empty() && p.u_columns.join(",") != opts.u_col {
         opts.u_col = p.u_columns.join(",");
@@ -90,6 +90,11 @@ fn stored_columns(
             taken.join(" ")
         )
     })
+}
+
+/// Whether the flag of id `id` (`u_col`) was typed (`given`: the ids of the flags typed).
+fn typed(given: &[String], id: &str) -> bool {
+    given.iter().any(|g| g == id)
 }
 
 /// Runs `validate`.
@@ -122,10 +127,45 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .collect::<Vec<_>>()
             .join(",");
     }
+    // A column the record lacks that came from the model file is called so (audit s22 L-N3).
+    let from_model = |e: sysid::SysidError| match e {
+        sysid::SysidError::MissingColumn {
+            file,
+            column,
+            setting,
+            header,
+            hint,
+            origin,
+        } => {
+            let taken = (setting == sysid::Setting::UCol && !typed(&args.given, "u_col"))
+                || (setting == sysid::Setting::YCol && !typed(&args.given, "y_col"));
+            let stored = model.provenance().is_some_and(|p| {
+                p.u_columns.iter().any(|c| *c == column) || p.y_column.as_deref() == Some(&column)
+            });
+            sysid::SysidError::MissingColumn {
+                origin: if taken && stored {
+                    sysid::ColumnOrigin::ModelFile
+                } else {
+                    origin
+                },
+                file,
+                column,
+                setting,
+                header,
+                hint,
+            }
+        }
+        e => e,
+    };
     if streaming(&args, miso)? {
-        return run_streamed(&args, &model, &opts, &inputs);
+        return run_streamed(&args, &model, &opts, &inputs).map_err(|e| {
+            match e.downcast::<sysid::SysidError>() {
+                Ok(e) => from_model(e).into(),
+                Err(e) => e,
+            }
+        });
     }
-    let record = sysid::data::read_record(&args.data, &opts)?;
+    let record = sysid::data::read_record(&args.data, &opts).map_err(from_model)?;
     // The reader's notes are printed once, among the report's warnings ("data: …"; audit s18 L-6).
     let data = record.data;
     if data.inputs().len() != model.inputs().len() {

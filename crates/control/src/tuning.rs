@@ -102,6 +102,9 @@ pub struct TuneReport {
     /// Evaluations of the nudge's slip brake, the first choice after the search
     /// (`tune::slip_brake_candidates`), and of its relearning, the last (`tune::relearn_candidates`).
     pub slip_evaluations: usize,
+    /// Evaluations of the held nudge's learnt cut fraction, the last choice
+    /// (`tune::cut_learn_candidates`, on `tune::short_stage_plants(search.plants)` plants).
+    pub cut_learn_evaluations: usize,
     /// Wall-clock time, s.
     pub seconds: f64,
     /// The tuned controller.
@@ -459,6 +462,7 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
         short_evaluations: tuned.short_evaluations,
         cut_evaluations: tuned.cut_evaluations,
         slip_evaluations: tuned.slip_evaluations,
+        cut_learn_evaluations: tuned.cut_learn_evaluations,
         seconds: started.elapsed().as_secs_f64(),
         controller: settings,
         margins,

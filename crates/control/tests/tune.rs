@@ -740,6 +740,7 @@ fn the_cut_band_candidates_are_the_other_bands_with_the_creep() {
         slip_brake_fraction: 0.0,
         slip_brake_samples: 0,
         relearn: false,
+        cut_learn: false,
     };
     chosen.nudge = Some(nudge);
     let c = tune::cut_band_candidates(&chosen, &spec);
@@ -793,6 +794,7 @@ fn the_slip_brake_candidate_is_the_controller_with_the_slip_brake() {
         slip_brake_fraction: 0.0,
         slip_brake_samples: 0,
         relearn: false,
+        cut_learn: false,
     };
     chosen.nudge = Some(nudge);
     let c = tune::slip_brake_candidates(&chosen, &spec);

@@ -1130,7 +1130,8 @@ pub const BRAKE_CANDIDATES: [(f64, f64); 6] = [
 /// controller before them on the wider plants of [`short_stage_plants`] (one more; these
 /// [`SHORT_STAGE_EVALUATIONS`] on those plants), the ramp-and-cut band (at most [`CUT_BANDS_MM`]'s
 /// length, [`cut_band_candidates`]) and, first of all, the nudge's slip brake (one,
-/// [`slip_brake_candidates`]) and, last of all, the nudge's relearning (one, [`relearn_candidates`]).
+/// [`slip_brake_candidates`]), the nudge's relearning (one, [`relearn_candidates`]) and, last of
+/// all, the held nudge's learnt cut fraction ([`CUT_LEARN_EVALUATIONS`], on the wider plants too).
 pub const AFTER_SEARCH_EVALUATIONS: usize = 1
     + 1
     + BRAKE_CANDIDATES.len() * BRAKE_TIMES_S.len()
@@ -1138,7 +1139,12 @@ pub const AFTER_SEARCH_EVALUATIONS: usize = 1
     + BRAKE_PREVIEW_CANDIDATES.len()
     + NUDGE_REST_CANDIDATES.len()
     + SHORT_STAGE_EVALUATIONS
-    + CUT_BANDS_MM.len();
+    + CUT_BANDS_MM.len()
+    + CUT_LEARN_EVALUATIONS;
+
+/// Evaluations of the held nudge's learnt cut fraction, on [`short_stage_plants`] plants: the
+/// controller before it and [`cut_learn_candidates`]'s one (issue 25, session 23).
+pub const CUT_LEARN_EVALUATIONS: usize = 2;
 
 /// Evaluations of the short-step approach's choices, each on [`short_stage_plants`] plants: the
 /// controller before them, [`SHORT_CANDIDATES`], [`SHORT_PREVIEW_CANDIDATES`] and the range (one).

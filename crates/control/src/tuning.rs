@@ -629,11 +629,12 @@ fn check_spec(req: &Request, ts: f64, twin: &Option<ipa::PlantConfig>) -> Result
         ));
     }
     let cases = spec.cases().len() as f64;
-    // The short-step approach's choices run on more plants than the search (tune::short_stage_plants).
+    // The short-step approach's choices and the learnt cut fraction run on more plants than the
+    // search (tune::short_stage_plants).
     let wider = tune::short_stage_plants(req.search.plants) - req.search.plants;
     let search = (req.search.max_evaluations + tune::AFTER_SEARCH_EVALUATIONS) as f64
         * req.search.plants as f64
-        + (tune::SHORT_STAGE_EVALUATIONS * wider) as f64;
+        + ((tune::SHORT_STAGE_EVALUATIONS + tune::CUT_LEARN_EVALUATIONS) * wider) as f64;
     let verified = 2.0 * (req.search.plants + req.physics_variants + 1) as f64;
     let work = (search + verified) * cases * run_samples.ceil();
     if work > MAX_SIMULATED_SAMPLES {

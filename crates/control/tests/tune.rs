@@ -436,6 +436,12 @@ fn tuning_meets_the_spec_where_it_is_reachable() {
         t.settings.nudge.map(|n| n.relearn),
         t.settings.nudge.map(|_| slip_kept)
     );
+    // The learnt cut fraction (session 23): the controller before it and the candidate, on the wide
+    // plants, when the controller has a nudge.
+    assert_eq!(
+        t.cut_learn_evaluations,
+        usize::from(t.settings.nudge.is_some()) * tune::CUT_LEARN_EVALUATIONS
+    );
     assert_eq!(
         t.rest_evaluations,
         tune::NUDGE_REST_CANDIDATES

@@ -1024,7 +1024,8 @@ impl<F: Float> PositionController<F> {
         let (y0, e0) = self.last_start;
         let moved = if right { y - y0 } else { y0 - y };
         let err = e0.abs();
-        let slot = &mut self.cut_gain[usize::from(right)];
+        let [left, right_gain] = &mut self.cut_gain;
+        let slot = if right { right_gain } else { left };
         let two = F::from_f64(2.0);
         if moved < err / two {
             let top = if n.cut_fraction > F::ZERO {
@@ -1051,7 +1052,8 @@ impl<F: Float> PositionController<F> {
         };
         let left = if g.right { e } else { -e };
         let gamma = if n.cut_learn && !g.and_cut {
-            let v = self.cut_gain[usize::from(g.right)] * n.cut_fraction;
+            let [left, right] = self.cut_gain;
+            let v = if g.right { right } else { left } * n.cut_fraction;
             if v < F::ONE {
                 v
             } else {

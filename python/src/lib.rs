@@ -476,10 +476,21 @@ impl PyModel {
         poles_array(py, &self.inner)
     }
 
-    /// True when every pole lies strictly inside the unit circle.
+    /// True when the model settles: its stability verdict (`stability`) is "settles", every pole
+    /// inside the unit circle by more than 1e-5 (an integrator, a pole on the circle and an unstable
+    /// model are not stable; the `stable` of `identify --json`).
     #[getter]
     fn stable(&self) -> bool {
-        self.inner.is_stable()
+        self.inner.stability().settles()
+    }
+
+    /// The stability verdict, the one every command reports: "settles" (every pole inside the unit
+    /// circle by more than 1e-5), "integrator" (a pole within 1e-5 of z = 1), "on_circle" (a pole
+    /// within 1e-5 of the unit circle away from 1) or "unstable" (a pole beyond 1 + 1e-5, or not a
+    /// number); the `stability` of `identify --json` and `validate --json`.
+    #[getter]
+    fn stability(&self) -> &'static str {
+        self.inner.stability().name()
     }
 
     /// The range of the estimation data, in the data's units: {"u": [[min, max] of each input], "y":
@@ -511,11 +522,9 @@ impl PyModel {
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let u = floats(u, "u")?;
         // What `simulate --plant model:FILE` warns of, less the model file's doubts (said once, by
-        // `load_model`): an unstable model.
-        let doubts: Vec<String> = sysid::Warning::if_unstable_or_integrating(&self.inner)
+        // `load_model`): an unstable model, an integrator, a pole on the unit circle.
+        let doubts: Vec<String> = sysid_summary::simulation::stability_words(&self.inner)
             .into_iter()
-            .filter(|w| matches!(w, sysid::Warning::Unstable { .. }))
-            .map(|w| w.to_string())
             .collect();
         warn_all(py, &doubts)?;
         let k0 = self.inner.k0();

@@ -178,21 +178,9 @@ fn poles_text(r: &IdentifyReport, s: &mut String) {
         .iter()
         .map(|p| complex(p.re, p.im, 1e-12, false))
         .collect();
-    // A pole within the integrator margin of the unit circle is "inside" only to rounding (audit s20
-    // H-1: a pole at exactly 1 computed as 0.99999999… was called "all inside"): the verdict says so,
-    // with the warning's modulus.
-    let max_modulus = r.poles.iter().map(|p| p.re.hypot(p.im)).fold(0.0, f64::max);
-    let verdict = if !r.stable {
-        "UNSTABLE (a pole on or outside the unit circle)".to_string()
-    } else if max_modulus >= 1.0 - sysid::warnings::INTEGRATOR_MARGIN {
-        format!(
-            "on the stability boundary (a pole at modulus {max_modulus:.7}, within {:e} of the unit \
-             circle: an integrator, not a stable mode)",
-            sysid::warnings::INTEGRATOR_MARGIN
-        )
-    } else {
-        "stable (all inside the unit circle)".to_string()
-    };
+    // The verdict every command reports (`Model::stability`, with its band around the unit circle:
+    // audit s20 H-1, a pole at exactly 1 computed as 0.99999999… was called "all inside").
+    let verdict = r.model.stability();
     let _ = writeln!(
         s,
         "\nPoles: {}  → {verdict}",

@@ -97,67 +97,55 @@ pub struct Response {
     /// Margins of the loop with [`ResponseSettings::controller`], as `tune` computes them ([`margins`]).
     pub margins: Option<Margins>,
     /// What the figures are not to be trusted for, in words (the `warnings` of `identify --json`):
-    /// the linear block's stability verdict in `identify`'s words
-    /// ([`sysid::Warning::if_unstable_or_integrating`]) and what it means for its DC gain and Bode
+    /// the linear block's stability verdict ([`Model::stability`]) in `identify`'s words
+    /// ([`sysid::Warning::if_not_settling`]) and what it means for its DC gain and Bode
     /// table, the model file's own doubts as `validate` repeats them
     /// ([`sysid_core::model_file::load_warnings`], prefixed `model: `), a step response that has not
     /// settled within the samples, and figures that are not finite numbers.
     pub warnings: Vec<String>,
 }
 
-/// [`Response::dc_gain_note`] of a block with a pole at z = 1 (within
-/// [`sysid::warnings::INTEGRATOR_MARGIN`]) and none outside the unit circle: its step ramps.
+/// [`Response::dc_gain_note`] of a block whose stability verdict is an integrator
+/// ([`sysid_core::Stability::Integrator`]: a pole within ε of z = 1, none beyond the circle): its step
+/// ramps.
 pub const DC_INTEGRATOR: &str = "infinite (integrator)";
-/// [`Response::dc_gain_note`] of a block with a pole outside the unit circle: its step diverges, and
-/// Σ b / (1 + Σ a) is no steady-state gain (its sign can be the opposite of the plant's).
+/// [`Response::dc_gain_note`] of an unstable block ([`sysid_core::Stability::Unstable`]: a pole outside
+/// the unit circle by more than ε): its step diverges, and Σ b / (1 + Σ a) is no steady-state gain (its
+/// sign can be the opposite of the plant's).
 pub const DC_UNSTABLE: &str = "not defined (unstable)";
-/// [`Response::dc_gain_note`] of a block with a pole on the unit circle away from z = 1: its step
-/// oscillates without decay.
+/// [`Response::dc_gain_note`] of a block with a pole on the unit circle away from z = 1
+/// ([`sysid_core::Stability::OnCircle`]): its step oscillates without decay.
 pub const DC_BOUNDARY: &str = "not defined (a pole on the stability boundary)";
 
 /// The DC-gain verdict of `model`'s linear block: `None` when its unit step settles, else the
-/// [`Response::dc_gain_note`] and a sentence on what the verdict means for the figures. The
-/// stability test is `identify`'s ([`sysid::Warning::if_unstable_or_integrating`]: a pole of modulus
-/// at least 1 − [`sysid::warnings::INTEGRATOR_MARGIN`]); the poles it flags are then sorted by
-/// where they are: within the margin of z = 1 (an integrator), beyond 1 + the margin (unstable), or
-/// elsewhere on the circle.
+/// [`Response::dc_gain_note`] and a sentence on what the verdict means for the figures, from its
+/// stability verdict ([`Model::stability`], the one every command reports).
 fn dc_verdict(model: &Model) -> Option<(&'static str, String)> {
-    sysid::Warning::if_unstable_or_integrating(model)?;
-    let margin = sysid::warnings::INTEGRATOR_MARGIN;
-    let flagged: Vec<_> = model
-        .poles()
-        .into_iter()
-        .filter(|p| p.norm() >= 1.0 - margin || p.norm().is_nan())
-        .collect();
-    Some(
-        if flagged
-            .iter()
-            .any(|p| p.norm() > 1.0 + margin || p.norm().is_nan())
-        {
-            (
+    use sysid_core::Stability;
+    Some(match model.stability() {
+        Stability::Settles { .. } => return None,
+        Stability::Unstable { .. } => (
             DC_UNSTABLE,
             "DC gain not defined: a pole outside the unit circle makes the step response diverge, so \
              G(1) = Σ b / (1 + Σ a) is no steady-state gain (its sign can be the opposite of the \
              plant's), and the Bode table is that of an unstable G (no steady sinusoidal response)"
                 .to_string(),
-        )
-        } else if flagged.iter().all(|p| (p - 1.0).norm() <= margin) {
-            (
-                DC_INTEGRATOR,
-                format!(
-                "DC gain infinite: a pole at z = 1 (within {margin:e}) is an integrator, the step \
-                 response ramps without settling and |G| grows without bound as f → 0"
+        ),
+        Stability::Integrator { .. } => (
+            DC_INTEGRATOR,
+            format!(
+                "DC gain infinite: a pole at z = 1 (within {:e}) is an integrator, the step response \
+                 ramps without settling and |G| grows without bound as f → 0",
+                sysid_core::stability::MARGIN
             ),
-            )
-        } else {
-            (
+        ),
+        Stability::OnCircle { .. } => (
             DC_BOUNDARY,
             "DC gain not defined: a pole on the unit circle away from z = 1 makes the step response \
              oscillate without decay"
                 .to_string(),
-        )
-        },
-    )
+        ),
+    })
 }
 
 /// An error naming the model file's field when the coefficients of `model`'s linear block are too
@@ -379,7 +367,7 @@ pub fn response(model: &Model, s: &ResponseSettings) -> Result<Response, Control
     let impulse = filter(model, s.samples.max(1), |k| if k == 0 { 1.0 } else { 0.0 });
     let step = filter(model, s.samples.max(1), |_| 1.0);
     let margins = s.controller.map(|c| margins(model, &c));
-    let mut warnings: Vec<String> = sysid::Warning::if_unstable_or_integrating(model)
+    let mut warnings: Vec<String> = sysid::Warning::if_not_settling(model)
         .map(|w| w.to_string())
         .into_iter()
         .chain(verdict.as_ref().map(|v| v.1.clone()))
@@ -760,7 +748,7 @@ mod tests {
 
     #[test]
     fn a_near_integrator_within_the_margin_has_no_dc_gain_either() {
-        // Pole 1 − 10⁻⁶, inside identify's INTEGRATOR_MARGIN = 10⁻⁵: G(1) = 1/10⁻⁶ would be a
+        // Pole 1 − 10⁻⁶, inside the stability band ε = sysid_core::stability::MARGIN = 10⁻⁵: G(1) = 1/10⁻⁶ would be a
         // number, but the step needs ~10⁶ samples to reach it.
         let r = response(
             &first_order(1.0 - 1e-6, 1.0, 0.1),

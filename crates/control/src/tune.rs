@@ -1644,7 +1644,8 @@ pub struct Margins {
     /// (C = N_c/D_c): above 1 the linear loop is unstable whatever the margins say. `None` when the
     /// roots could not be computed (non-finite coefficients).
     pub closed_loop_max_pole_modulus: Option<f64>,
-    /// The linear part has a pole outside the unit circle (|p| > 1): the margins above then
+    /// The linear part is unstable (its stability verdict, [`Model::stability`], is
+    /// [`sysid_core::Stability::Unstable`]: a pole with |p| > 1 + ε, ε = 10⁻⁵): the margins above then
     /// do not show that the closed loop is stable (Nyquist: L must encircle −1 once per open-loop
     /// pole outside the circle), only how far the frequency response passes from −1.
     pub open_loop_unstable: bool,
@@ -1828,7 +1829,7 @@ pub fn margins(model: &Model, s: &ControllerSettings) -> Margins {
         closed_loop_max_pole_modulus: closed_loop_max_pole(model, s, slope),
         // A pole on the circle (an integrator) is the classical case of margins read with an
         // indented Nyquist contour; only poles outside it break their meaning.
-        open_loop_unstable: model.poles().iter().any(|p| p.norm() > 1.0),
+        open_loop_unstable: model.stability().is_unstable(),
         output_slope_included: model.output_nonlinearity().map(|_| output_slope.is_some()),
     }
 }

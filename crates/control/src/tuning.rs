@@ -533,12 +533,12 @@ fn linear_loop_warnings(margins: &Margins) -> Vec<String> {
     w
 }
 
-/// The model's own stability warning ([`sysid::Warning::if_unstable_or_integrating`], the words
+/// The model's own stability warning ([`sysid::Warning::if_not_settling`], the words
 /// `identify` uses) for the model tuned on, and for an unstable one what its margins mean: with an
 /// open-loop pole outside the unit circle the gain and phase margins do not certify closed-loop
 /// stability (audit s11 T1).
 fn model_stability_warnings(model: &Model, margins: &Margins) -> Vec<String> {
-    let Some(w) = sysid::Warning::if_unstable_or_integrating(model) else {
+    let Some(w) = sysid::Warning::if_not_settling(model) else {
         return Vec::new();
     };
     let mut out = vec![format!("the model tuned on: {w}")];

@@ -21,6 +21,7 @@ pub mod narx;
 pub mod nonlinearity;
 pub mod param;
 pub mod plant;
+pub mod stability;
 pub mod structure;
 
 pub use data::Dataset;
@@ -34,4 +35,5 @@ pub use nonlinearity::{
 };
 pub use param::{ParamName, Parameterisation};
 pub use plant::{run_open_loop, Plant};
+pub use stability::Stability;
 pub use structure::Structure;

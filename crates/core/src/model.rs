@@ -1202,8 +1202,17 @@ impl Model {
         poles_of(&self.a)
     }
 
-    /// True when every pole lies strictly inside the unit circle.
-    pub fn is_stable(&self) -> bool {
+    /// The stability verdict of the linear block ([`crate::Stability`]: settles, an integrator, a pole
+    /// on the unit circle, unstable, with the band ε = [`crate::stability::MARGIN`] around |z| = 1):
+    /// what every command and API reports of the model.
+    pub fn stability(&self) -> crate::Stability {
+        crate::Stability::of_poles(&self.poles())
+    }
+
+    /// True when every pole lies strictly inside the unit circle, |p| < 1, by any amount: the
+    /// estimators' numerical guard (a simulation over a record stays bounded; the output-error search's
+    /// poles at 1 − 10⁻⁶ pass it). Not the verdict reported to users: that is [`Model::stability`].
+    pub fn poles_inside_unit_circle(&self) -> bool {
         self.poles().iter().all(|p| p.norm() < 1.0)
     }
 

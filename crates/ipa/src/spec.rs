@@ -162,8 +162,9 @@ pub struct PlantLimits {
     /// larger command is clipped; the physics plant and the paper's); `None` for a model file, which
     /// applies any command.
     pub u_max: Option<f64>,
-    /// The largest pole modulus of a model plant when it exceeds 1 (an unstable model; an integrator's
-    /// pole at 1 is a position actuator's normal dynamics); `None` otherwise.
+    /// The largest pole modulus of a model plant whose stability verdict is unstable
+    /// ([`sysid_core::Stability::Unstable`]: |p| > 1 + ε, ε = 10⁻⁵; an integrator's pole at 1 is a
+    /// position actuator's normal dynamics); `None` otherwise.
     pub unstable_pole: Option<f64>,
     /// What the model file holds that the user must be told (an input or output map that breaks its
     /// kind's shape: [`sysid_core::model_file::load_warnings`]), or what the calibration of a twin
@@ -265,10 +266,11 @@ impl PlantLimits {
         }
     }
 
-    /// The limits of a model used as the plant: no stroke, its largest pole modulus when above 1, and
-    /// the doubts its parameters raise ([`sysid_core::model_file::load_warnings`]).
+    /// The limits of a model used as the plant: no stroke, the modulus of its pole beyond the unit
+    /// circle when its stability verdict ([`sysid_core::Model::stability`]) is unstable, and the doubts
+    /// its parameters raise ([`sysid_core::model_file::load_warnings`]).
     pub fn of_model(model: &sysid_core::Model) -> PlantLimits {
-        let pole = model.poles().iter().map(|z| z.norm()).fold(0.0, f64::max);
+        let stability = model.stability();
         // The paper's model (Table III), however it came (`--plant paper`, its model file, Python's
         // `paper_model()`), is the paper's IPA: PWM counts within its valves' ±255 and mm, so a run on
         // it speaks the IPA's units; any other model its estimation record's (`model_units`).
@@ -276,7 +278,7 @@ impl PlantLimits {
         PlantLimits {
             range_mm: None,
             u_max: paper.then_some(crate::plant::U_MAX),
-            unstable_pole: (pole > 1.0 + 1e-9).then_some(pole),
+            unstable_pole: stability.is_unstable().then_some(stability.modulus()),
             model_warnings: sysid_core::model_file::load_warnings(model),
             data_u_range: model
                 .data_range()

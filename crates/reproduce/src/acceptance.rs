@@ -79,7 +79,7 @@ pub(crate) fn verdicts(s: &ReproduceSettings, st: &Study) -> Vec<Criterion> {
             judged: !oe.rep.stable || st.arx().rep.stable,
             text: format!(
                 "Addition: Hammerstein by output error is {} and fits the validation record by {} % (linear ARX: {} %){}",
-                if oe.rep.stable { "stable" } else { "UNSTABLE" },
+                crate::study::stability_word(&oe.rep),
                 opt(fo),
                 opt(fa),
                 unstable_caveat(&[("Hammerstein (output error)", oe.rep.stable), ("ARX", st.arx().rep.stable)]),
@@ -205,7 +205,7 @@ pub(crate) fn headline(s: &ReproduceSettings, st: &Study) -> Vec<String> {
         "Does the paper's method (Hammerstein by RLS) give a usable model here? {} — it is {} and fits the \
          fresh validation record by {} %.",
         if usable { "Yes" } else { "No" },
-        if ham.stable { "stable" } else { "UNSTABLE" },
+        crate::study::stability_word(ham),
         opt(fh)
     );
     let best = st

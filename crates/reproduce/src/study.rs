@@ -138,6 +138,17 @@ pub(crate) fn closed_loop_choice(models: &[Fitted]) -> Option<usize> {
 /// The simulation fit % of a model on the validation record that its initial state cannot flatter (the
 /// worse of estimated and measured initial outputs, `sysid::trust::guarded_fit`): the figure the verdict,
 /// the acceptance criteria and Table IV quote.
+/// The report's stability verdict in a word for the page's tables and headline (`stable` is only the
+/// verdict `settles`): `stable`, `an integrator`, `on the stability boundary` or `UNSTABLE`.
+pub(crate) fn stability_word(r: &IdentifyReport) -> &'static str {
+    match r.model.stability() {
+        sysid_core::Stability::Settles { .. } => "stable",
+        sysid_core::Stability::Integrator { .. } => "an integrator",
+        sysid_core::Stability::OnCircle { .. } => "on the stability boundary",
+        sysid_core::Stability::Unstable { .. } => "UNSTABLE",
+    }
+}
+
 pub(crate) fn validation_fit(r: &IdentifyReport) -> Option<f64> {
     r.metrics
         .validation

@@ -86,11 +86,7 @@ pub(crate) fn metrics_row(label: &str, rep: &IdentifyReport) -> [String; 6] {
         opt(v.and_then(|m| m.loss)),
         opt(v.and_then(|m| m.loss_sim)),
         opt(v.and_then(|m| m.fpe)),
-        if rep.stable {
-            "stable".into()
-        } else {
-            "UNSTABLE".into()
-        },
+        crate::study::stability_word(rep).into(),
     ]
 }
 

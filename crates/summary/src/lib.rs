@@ -181,8 +181,14 @@ pub struct IdentifyReport {
     pub parameters: Vec<Param>,
     /// Poles of the linear block, largest modulus first.
     pub poles: Vec<Pole>,
-    /// All poles strictly inside the unit circle.
+    /// The model settles: its stability verdict ([`Model::stability`]) is `settles`, every pole inside
+    /// the unit circle by more than ε = [`sysid_core::stability::MARGIN`] = 10⁻⁵ (an integrator, a pole
+    /// on the circle and an unstable model are not stable).
     pub stable: bool,
+    /// The stability verdict's name ([`sysid_core::Stability::name`]): `settles`, `integrator`,
+    /// `on_circle` or `unstable`; the same for the same model in every command.
+    #[serde(default)]
+    pub stability: String,
     /// Estimation record.
     pub estimation: EstimationInfo,
     /// Validation metrics.
@@ -383,7 +389,8 @@ impl IdentifyReport {
             }),
             parameters: fit.params.clone(),
             poles: poles(&fit.model),
-            stable: fit.model.is_stable(),
+            stable: fit.model.stability().settles(),
+            stability: fit.model.stability().name().to_string(),
             estimation: EstimationInfo {
                 method: fit.method,
                 iterations: fit.iterations,
@@ -445,8 +452,14 @@ pub struct ValidationReport {
     pub model: Model,
     /// Its poles, largest modulus first.
     pub poles: Vec<Pole>,
-    /// All poles strictly inside the unit circle.
+    /// The model settles: its stability verdict ([`Model::stability`]) is `settles`, every pole inside
+    /// the unit circle by more than ε = [`sysid_core::stability::MARGIN`] = 10⁻⁵ (an integrator, a pole
+    /// on the circle and an unstable model are not stable).
     pub stable: bool,
+    /// The stability verdict's name ([`sysid_core::Stability::name`]): `settles`, `integrator`,
+    /// `on_circle` or `unstable`; the same for the same model in every command.
+    #[serde(default)]
+    pub stability: String,
     /// Metrics on the record.
     pub metrics: ValidationMetrics,
     /// Residual analysis on the record.
@@ -524,7 +537,8 @@ impl ValidationReport {
         ValidationReport {
             model: model.clone(),
             poles: poles(model),
-            stable: model.is_stable(),
+            stable: model.stability().settles(),
+            stability: model.stability().name().to_string(),
             metrics: ValidationMetrics { validation: m },
             residuals: ValidationResiduals {
                 validation: residuals,
@@ -553,7 +567,7 @@ impl ValidationReport {
     /// `validate` and Python's `Model.metrics` say).
     pub fn warnings_of(model: &Model, m: &Metrics) -> Vec<String> {
         let estimation_fit = model.provenance().and_then(|p| p.fit_estimation_percent);
-        Warning::if_unstable_or_integrating(model)
+        Warning::if_not_settling(model)
             .into_iter()
             .chain(metric_warnings(Record::Validation, m))
             .chain(held_out_drop(

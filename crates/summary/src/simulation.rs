@@ -38,41 +38,32 @@ pub fn model_file_warnings(model: &Model) -> Vec<String> {
     w
 }
 
-/// What a model's poles mean for its simulation, when it does not simply settle: unstable (a pole
-/// outside the unit circle: it diverges), an integrator (a pole at 1: its output ramps under any net
+/// What a model's poles mean for its simulation, when it does not simply settle: the words of its
+/// stability verdict ([`Model::stability`], the one every command reports): unstable (a pole beyond
+/// the unit circle: it diverges), an integrator (a pole at z = 1: its output ramps under any net
 /// input, as an actuator's position does), or a pole elsewhere on the circle (it oscillates without
-/// decay). The same tolerance as `control`'s plant check (`ipa::PlantLimits::of_model`).
+/// decay).
 pub fn stability_words(model: &Model) -> Option<String> {
-    const ON_CIRCLE: f64 = 1e-9;
-    // (re, im, modulus) of each pole.
-    let poles: Vec<(f64, f64, f64)> = model
-        .poles()
-        .iter()
-        .map(|p| (p.re, p.im, p.norm()))
-        .collect();
-    let largest = poles.iter().map(|p| p.2).fold(0.0, f64::max);
-    if largest > 1.0 + ON_CIRCLE || largest.is_nan() {
-        return Some(format!(
-            "unstable model (a pole has modulus {largest:.6} > 1): its simulation diverges"
-        ));
-    }
-    let on: Vec<&(f64, f64, f64)> = poles.iter().filter(|p| p.2 >= 1.0 - ON_CIRCLE).collect();
-    if on.is_empty() {
-        return None;
-    }
-    Some(
-        if on
-            .iter()
-            .all(|p| (p.0 - 1.0).abs() < ON_CIRCLE && p.1.abs() < ON_CIRCLE)
-        {
+    use sysid_core::Stability;
+    let s = model.stability();
+    Some(match s {
+        Stability::Settles { .. } => return None,
+        Stability::Unstable { .. } if !s.modulus().is_finite() => "unstable model (a pole is not a \
+             finite number: the coefficients are beyond f64): its simulation diverges"
+            .to_string(),
+        Stability::Unstable { .. } => format!(
+            "unstable model (a pole has modulus {:.6} > 1): its simulation diverges",
+            s.modulus()
+        ),
+        Stability::Integrator { .. } => {
             "the model has a pole at 1 (an integrator): its output ramps under any net input, as an \
              actuator's position does, and rests only where the input is at its operating point"
-        } else {
-            "the model has a pole on the unit circle away from 1: its simulation oscillates without \
-             decaying"
+                .to_string()
         }
-        .to_string(),
-    )
+        Stability::OnCircle { .. } => "the model has a pole on the unit circle away from 1: its \
+             simulation oscillates without decaying"
+            .to_string(),
+    })
 }
 
 /// A warning when a model without an operating point (identified with `--offset`, not `--detrend`)

@@ -494,12 +494,16 @@ pub fn safeguard(
     // the result: `start_can_matter`).
     let nonlinear = p.regression().nonlinear();
     let start = ((nonlinear || fit.method != Method::Ls)
-        && start_can_matter(nonlinear, est.as_ref(), fit.model.is_stable()))
+        && start_can_matter(
+            nonlinear,
+            est.as_ref(),
+            fit.model.poles_inside_unit_circle(),
+        ))
     .then(|| linear_start(p))
     .flatten();
     let baseline = start
         .as_ref()
-        .filter(|(l, _)| l.model.is_stable())
+        .filter(|(l, _)| l.model.poles_inside_unit_circle())
         .map(|(_, m)| crate::trust::guarded_fit(m));
     if nonlinear {
         if let Some((linear, linear_metrics)) = start {
@@ -507,8 +511,8 @@ pub fn safeguard(
             if let Some(why) = hammerstein_guard(
                 fit.method,
                 fit_sim,
-                fit.model.is_stable(),
-                linear.model.is_stable(),
+                fit.model.poles_inside_unit_circle(),
+                linear.model.poles_inside_unit_circle(),
                 linear_fit,
             ) {
                 if settings.fallback {
@@ -540,8 +544,7 @@ pub fn safeguard(
             how: termination_words(&fit.termination, fit.method),
         });
     }
-    fit.warnings
-        .extend(Warning::if_unstable_or_integrating(&fit.model));
+    fit.warnings.extend(Warning::if_not_settling(&fit.model));
     match &est {
         Some(m) => {
             fit.warnings

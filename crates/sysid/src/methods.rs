@@ -877,7 +877,7 @@ pub(crate) fn instrumental(p: &Problem, st: &InstrumentalVariables) -> Result<Fi
 /// The simulation RMSEs of a stable `model` on `data` from estimated and from measured initial outputs
 /// (`None` for an unstable model or a failed simulation).
 pub(crate) fn simulation_rmses(model: &Model, data: &Dataset) -> Option<SimulationRmse> {
-    if !model.is_stable() {
+    if !model.poles_inside_unit_circle() {
         return None;
     }
     let m = sysid_core::metrics::metrics(model, data).ok()?;

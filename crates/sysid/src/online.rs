@@ -819,8 +819,9 @@ impl Tracker {
                     .to_string(),
             );
         }
-        if !model.is_stable() {
-            w.push("the current model is unstable (a pole on or outside the unit circle)".into());
+        // The verdict every command reports (`Model::stability`), in `identify`'s words.
+        if let Some(s) = crate::Warning::if_not_settling(model) {
+            w.push(format!("the current model: {s}"));
         }
         if let Some(d) = model.deadzone() {
             // A branch the input never reached is not estimated (its 0s are no verdict on the data;

@@ -41,8 +41,14 @@ pub struct Candidate {
     pub aic: Option<f64>,
     /// FPE on the estimation record (paper eq. 15).
     pub fpe: Option<f64>,
-    /// All poles inside the unit circle.
+    /// The model settles: its stability verdict ([`sysid_core::Model::stability`]) is `settles`, every
+    /// pole inside the unit circle by more than ε = [`sysid_core::stability::MARGIN`] (`identify`'s
+    /// `stable`).
     pub stable: bool,
+    /// The stability verdict's name ([`sysid_core::Stability::name`]: `settles`, `integrator`,
+    /// `on_circle`, `unstable`); empty for a structure that could not be estimated.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub stability: String,
     /// The fit the ranking uses: on the validation record when given, else on the estimation record,
     /// the worse of estimated and measured initial outputs ([`crate::trust::guarded_fit`]).
     #[serde(default)]
@@ -69,6 +75,7 @@ pub struct Candidate {
 pub fn disqualifies(w: &Warning) -> bool {
     match w {
         Warning::Unstable { .. }
+        | Warning::OnCircle { .. }
         | Warning::PoorSimulation { .. }
         | Warning::NotConverged { .. }
         | Warning::LinearStartBetter { .. }
@@ -92,16 +99,27 @@ pub fn disqualification<'a>(warnings: impl IntoIterator<Item = &'a Warning>) -> 
         .map(ToString::to_string)
 }
 
-/// True when a candidate may be recommended: estimated (`failed` false), stable (for a NARX model: its
-/// simulation does not blow up), with a non-negative ranking fit and no disqualifying warning
-/// (`disqualified`, from [`disqualification`]). The one rule of `order` and `order --classes`.
+/// True when a candidate may be recommended: estimated (`failed` false), not diverging (`diverges`
+/// false: a linear model's verdict is not `unstable`, an integrator may be recommended with its
+/// warning; a NARX model's simulation does not blow up), with a non-negative ranking fit and no
+/// disqualifying warning (`disqualified`, from [`disqualification`]: a pole on the unit circle away
+/// from 1 is one). The one rule of `order` and `order --classes`.
 pub fn qualifies(
     failed: bool,
-    stable: bool,
+    diverges: bool,
     ranking_fit: Option<f64>,
     disqualified: Option<&str>,
 ) -> bool {
-    !failed && stable && ranking_fit.is_some_and(|f| f >= 0.0) && disqualified.is_none()
+    !failed && !diverges && ranking_fit.is_some_and(|f| f >= 0.0) && disqualified.is_none()
+}
+
+/// Whether a candidate diverges, from its stability verdict's name `stability` (empty: none, as for a
+/// NARX model or a document written before the verdict) and its `stable` flag.
+pub fn diverges(stability: &str, stable: bool) -> bool {
+    match stability {
+        "" => !stable,
+        name => name == "unstable",
+    }
 }
 
 impl Candidate {
@@ -114,7 +132,7 @@ impl Candidate {
     pub fn qualified(&self) -> bool {
         qualifies(
             self.error.is_some(),
-            self.stable,
+            diverges(&self.stability, self.stable),
             self.ranking_fit,
             self.disqualified.as_deref(),
         )
@@ -304,6 +322,7 @@ fn evaluate(est: &Dataset, val: Option<&Dataset>, o: Orders, base: &Identificati
         aic: None,
         fpe: None,
         stable: false,
+        stability: String::new(),
         ranking_fit: None,
         warnings: Vec::new(),
         error: None,
@@ -326,7 +345,9 @@ fn evaluate(est: &Dataset, val: Option<&Dataset>, o: Orders, base: &Identificati
         }
     };
     c.p = fit.model.parameter_count();
-    c.stable = fit.model.is_stable();
+    let stability = fit.model.stability();
+    c.stable = stability.settles();
+    c.stability = stability.name().to_string();
     c.warnings = fit.warnings.iter().map(ToString::to_string).collect();
     c.disqualified = disqualification(&fit.warnings);
     match metrics(&fit.model, est) {
@@ -412,12 +433,15 @@ mod tests {
         assert_eq!(disqualification(&fine), None);
         let mixed = [fine[0].clone(), bad[2].clone()];
         assert_eq!(disqualification(&mixed), Some(bad[2].to_string()));
-        assert!(qualifies(false, true, Some(0.0), None));
-        assert!(!qualifies(true, true, Some(50.0), None));
-        assert!(!qualifies(false, false, Some(50.0), None));
-        assert!(!qualifies(false, true, Some(-0.1), None));
-        assert!(!qualifies(false, true, None, None));
-        assert!(!qualifies(false, true, Some(50.0), Some("not converged")));
+        assert!(qualifies(false, false, Some(0.0), None));
+        assert!(!qualifies(true, false, Some(50.0), None));
+        assert!(!qualifies(false, true, Some(50.0), None));
+        assert!(!qualifies(false, false, Some(-0.1), None));
+        assert!(!qualifies(false, false, None, None));
+        assert!(!qualifies(false, false, Some(50.0), Some("not converged")));
+        // An integrator does not diverge (it is recommended with its warning); an unstable model does.
+        assert!(!diverges("integrator", false) && diverges("unstable", false));
+        assert!(diverges("", false) && !diverges("", true));
     }
 
     // Data from y(k) = 0.6 y(k−1) + u(k−2) − 0.3 u(k−3) (na = 1, nb = 2, nk = 2), noise-free: the true

@@ -161,8 +161,12 @@ pub struct ClassCandidate {
     /// Why the candidate could not be estimated.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub error: Option<String>,
-    /// All poles inside the unit circle (NARX: its simulation of the selection part did not blow up).
+    /// The model settles (its stability verdict, [`sysid_core::Model::stability`], is `settles`;
+    /// NARX: its simulation of the selection part did not blow up).
     pub stable: bool,
+    /// The linear model's stability verdict's name ([`sysid_core::Stability::name`]); empty for NARX.
+    #[serde(default, skip_serializing_if = "String::is_empty")]
+    pub stability: String,
     /// The first of its warnings that disqualifies it from being recommended
     /// ([`crate::order::disqualifies`], the rule of plain `order`).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -174,7 +178,7 @@ impl ClassCandidate {
     pub fn qualified(&self) -> bool {
         crate::order::qualifies(
             self.error.is_some(),
-            self.stable,
+            crate::order::diverges(&self.stability, self.stable),
             self.selection_fit_percent,
             self.disqualified.as_deref(),
         )
@@ -251,6 +255,7 @@ pub fn evaluate(
         warnings: Vec::new(),
         error: None,
         stable: false,
+        stability: String::new(),
         disqualified: None,
     };
     let est = &whole.rows(0..split);
@@ -265,7 +270,9 @@ pub fn evaluate(
                 let m = &fit.model;
                 c.p = m.parameter_count();
                 c.warnings = fit.warnings.iter().map(ToString::to_string).collect();
-                c.stable = m.is_stable();
+                let stability = m.stability();
+                c.stable = stability.settles();
+                c.stability = stability.name().to_string();
                 c.disqualified = crate::order::disqualification(&fit.warnings);
                 let k0 = m.k0();
                 let sim = m.simulate(&sel.input_signals(), sel.y()).ok();
@@ -435,6 +442,7 @@ mod tests {
             warnings: Vec::new(),
             error: None,
             stable: true,
+            stability: String::new(),
             disqualified: disqualified.map(Into::into),
         }
     }

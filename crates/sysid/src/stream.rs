@@ -147,8 +147,7 @@ pub fn identify_checked(
     passes += on_est.passes;
     let (est_metrics, est_resid) = on_est.result;
     // The safeguards of `estimate::identify` that concern an ARX least-squares fit.
-    fit.warnings
-        .extend(Warning::if_unstable_or_integrating(&fit.model));
+    fit.warnings.extend(Warning::if_not_settling(&fit.model));
     // Judged on the worse of both initial states, with the initial-state warning, as in memory.
     fit.warnings.extend(crate::trust::metric_warnings(
         Record::Estimation,

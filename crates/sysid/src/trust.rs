@@ -203,7 +203,7 @@ pub fn baseline_fit(
         .with_offset(offset)
         .with_method(crate::Method::Ls);
     let baseline = crate::identify(est, &base).ok()?;
-    if !baseline.model.is_stable() {
+    if !baseline.model.poles_inside_unit_circle() {
         return None;
     }
     guarded_fit(&sysid_core::metrics::metrics(&baseline.model, data).ok()?)

@@ -4,7 +4,7 @@
 //! (module `blocks`).
 
 use serde::{Serialize, Serializer};
-use sysid_core::{Model, ParamName};
+use sysid_core::{Model, ParamName, Stability};
 
 /// Which record a warning is about.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -51,20 +51,30 @@ impl std::fmt::Display for Branch {
 /// A reason not to trust an estimate blindly.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Warning {
-    /// A pole on or outside the unit circle.
+    /// A pole beyond the unit circle ([`sysid_core::Stability::Unstable`]: |p| > 1 + ε, or a pole
+    /// that is not a number).
     Unstable {
-        /// Largest pole modulus.
+        /// Largest pole modulus (NaN for a pole that is not a number).
         max_pole_modulus: f64,
     },
-    /// A pole inside the unit circle but within [`INTEGRATOR_MARGIN`] of it: over any practical
-    /// record the model integrates, and the data rarely determine such a mode (an output-error search
-    /// holds it at the stability boundary to imitate a level or a drift).
+    /// A pole at z = 1 within ε = [`sysid_core::stability::MARGIN`] ([`sysid_core::Stability::Integrator`]):
+    /// over any practical record the model integrates, and the data rarely determine such a mode unless
+    /// the plant integrates (an output-error search holds it at the stability boundary to imitate a
+    /// level or a drift).
     NearIntegrator {
-        /// Largest pole modulus.
+        /// Modulus of the pole at 1.
         max_pole_modulus: f64,
         /// The model already carries an output level (an offset or a removed operating point), so
         /// "add one" is not the advice.
         has_level: bool,
+    },
+    /// A pole on the unit circle away from z = 1 ([`sysid_core::Stability::OnCircle`]): the model
+    /// oscillates without decay.
+    OnCircle {
+        /// Real part of the pole.
+        re: f64,
+        /// Imaginary part of the pole.
+        im: f64,
     },
     /// The free-run simulation does no better than the mean of the record (fit <= 0 %), or diverges.
     PoorSimulation {
@@ -164,9 +174,13 @@ pub enum Warning {
 impl std::fmt::Display for Warning {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
+            Warning::Unstable { max_pole_modulus } if !max_pole_modulus.is_finite() => f.write_str(
+                "unstable model: a pole is not a finite number (coefficients beyond f64); its \
+                 simulation diverges (do not use it for simulation or control)",
+            ),
             Warning::Unstable { max_pole_modulus } => write!(
                 f,
-                "unstable model: a pole has modulus {max_pole_modulus:.6} >= 1; its simulation diverges \
+                "unstable model: a pole has modulus {max_pole_modulus:.6} > 1; its simulation diverges \
                  (do not use it for simulation or control)"
             ),
             Warning::NearIntegrator {
@@ -174,11 +188,16 @@ impl std::fmt::Display for Warning {
                 has_level,
             } => write!(
                 f,
-                "a pole at modulus {max_pole_modulus:.7}, on the stability boundary: the model integrates \
-                 (time constant {:.1e} samples); unless the plant integrates (a position driven by a \
-                 velocity), this is a spurious mode the data do not determine, so the static gain and \
+                "a pole at z = 1 (modulus {max_pole_modulus:.7}, within {:e} of 1), on the stability \
+                 boundary: the model integrates ({}); unless the plant integrates (a position driven by \
+                 a velocity), this is a spurious mode the data do not determine, so the static gain and \
                  long simulations are not to be trusted ({})",
-                -1.0 / max_pole_modulus.ln(),
+                sysid_core::stability::MARGIN,
+                if *max_pole_modulus < 1.0 {
+                    format!("time constant {:.1e} samples", -1.0 / max_pole_modulus.ln())
+                } else {
+                    "no decay".to_string()
+                },
                 if *has_level {
                     "the model already has an output level, so a drift, a record too short for a slow \
                      mode, or too high an order is the likelier cause: try a longer record, --detrend \
@@ -187,6 +206,15 @@ impl std::fmt::Display for Warning {
                     "an output level the model cannot represent is the usual cause: try --offset or \
                      --detrend mean"
                 }
+            ),
+            Warning::OnCircle { re, im } => write!(
+                f,
+                "a pole at {re:.6} {} {:.6}i (modulus {:.7}) on the unit circle away from z = 1: the \
+                 model oscillates without decay, so its simulation, static gain and frequency response \
+                 are not to be trusted (too high an order is the usual cause: try a lower na)",
+                if *im < 0.0 { "-" } else { "+" },
+                im.abs(),
+                re.hypot(*im)
             ),
             Warning::PoorSimulation {
                 record,
@@ -323,19 +351,22 @@ impl Warning {
         }
     }
 
-    /// [`Warning::Unstable`] when a pole of `model` has modulus >= 1, [`Warning::NearIntegrator`]
-    /// when the largest is within [`INTEGRATOR_MARGIN`] of 1.
-    pub fn if_unstable_or_integrating(model: &Model) -> Option<Warning> {
-        let max_pole_modulus = model.poles().iter().map(|z| z.norm()).fold(0.0, f64::max);
-        if max_pole_modulus >= 1.0 {
-            Some(Warning::Unstable { max_pole_modulus })
-        } else if max_pole_modulus >= 1.0 - INTEGRATOR_MARGIN {
-            Some(Warning::NearIntegrator {
-                max_pole_modulus,
+    /// The warning of `model`'s stability verdict ([`Model::stability`]): [`Warning::Unstable`],
+    /// [`Warning::NearIntegrator`] or [`Warning::OnCircle`]; `None` when it settles.
+    pub fn if_not_settling(model: &Model) -> Option<Warning> {
+        match model.stability() {
+            Stability::Settles { .. } => None,
+            s @ Stability::Unstable { .. } => Some(Warning::Unstable {
+                max_pole_modulus: s.modulus(),
+            }),
+            s @ Stability::Integrator { .. } => Some(Warning::NearIntegrator {
+                max_pole_modulus: s.modulus(),
                 has_level: model.offset().is_some() || model.operating_point().is_some(),
-            })
-        } else {
-            None
+            }),
+            Stability::OnCircle { pole } => Some(Warning::OnCircle {
+                re: pole.re,
+                im: pole.im,
+            }),
         }
     }
 
@@ -352,11 +383,6 @@ impl Warning {
         }
     }
 }
-
-/// Distance from the unit circle within which a stable pole makes the model an integrator
-/// ([`Warning::NearIntegrator`]): a time constant of 10⁵ samples and more. The output-error search holds
-/// poles at 1 − 10⁻⁶ (`oe::MAX_POLE_MODULUS`), inside this margin.
-pub const INTEGRATOR_MARGIN: f64 = 1e-5;
 
 /// The words of the fallback warning: what replaced a Hammerstein estimate.
 pub(crate) const LINEAR_START_USED: &str =
@@ -555,19 +581,15 @@ fn poor_fit_level(record: Record) -> f64 {
 mod tests {
     use super::*;
 
-    // A(q) = 1 − 0.9999995 q⁻¹: one pole at 0.9999995, within INTEGRATOR_MARGIN of 1. Without an output
+    // A(q) = 1 − 0.9999995 q⁻¹: one pole at 0.9999995, within ε = sysid_core::stability::MARGIN of 1. Without an output
     // level the advice is to add one; with an offset c it must not repeat it.
     #[test]
     fn the_boundary_pole_advice_depends_on_whether_the_model_has_a_level() {
         let plain = Model::arx(1.0, vec![-0.9999995], vec![1.0], 1, None).unwrap();
         let levelled = Model::arx(1.0, vec![-0.9999995], vec![1.0], 1, Some(0.5)).unwrap();
-        let w = Warning::if_unstable_or_integrating(&plain)
-            .unwrap()
-            .to_string();
+        let w = Warning::if_not_settling(&plain).unwrap().to_string();
         assert!(w.contains("0.9999995") && w.contains("try --offset"), "{w}");
-        let w = Warning::if_unstable_or_integrating(&levelled)
-            .unwrap()
-            .to_string();
+        let w = Warning::if_not_settling(&levelled).unwrap().to_string();
         assert!(w.contains("0.9999995") && !w.contains("--offset"), "{w}");
         assert!(w.contains("already has an output level"), "{w}");
         assert_eq!(Record::Selection.to_string(), "selection");

@@ -643,7 +643,7 @@ fn in_sample_warnings(
 fn candidate_rows(ranked: &[Candidate], top: usize) -> String {
     let mut text = String::new();
     text.push_str(&format!(
-        "{:>4} {:>3} {:>3} {:>3} {:>4} {:>12} {:>12} {:>12} {:>12} {:>12} {:>7}\n",
+        "{:>4} {:>3} {:>3} {:>3} {:>4} {:>12} {:>12} {:>12} {:>12} {:>12} {:>10}\n",
         "rank",
         "na",
         "nb",
@@ -659,7 +659,7 @@ fn candidate_rows(ranked: &[Candidate], top: usize) -> String {
     let o = |v: Option<f64>| v.map_or_else(|| "n/a".to_string(), num);
     for (i, c) in ranked.iter().take(top).enumerate() {
         text.push_str(&format!(
-            "{:>4} {:>3} {:>3} {:>3} {:>4} {:>12} {:>12} {:>12} {:>12} {:>12} {:>7}{}\n",
+            "{:>4} {:>3} {:>3} {:>3} {:>4} {:>12} {:>12} {:>12} {:>12} {:>12} {:>10}{}\n",
             i + 1,
             c.orders.na,
             c.orders.nb,
@@ -670,7 +670,14 @@ fn candidate_rows(ranked: &[Candidate], top: usize) -> String {
             o(c.ranking_fit()),
             o(c.aic),
             o(c.fpe),
-            if c.stable { "yes" } else { "no" },
+            // The stability verdict (`Model::stability`): an integrator or a pole on the circle is
+            // neither "yes" nor "no".
+            match c.stability.as_str() {
+                "integrator" => "integrator",
+                "on_circle" => "on circle",
+                _ if c.stable => "yes",
+                _ => "no",
+            },
             c.error
                 .as_ref()
                 .map(|e| format!("  ({e})"))

@@ -45,7 +45,8 @@ pub struct TrackLine {
     pub model: Model,
     /// Its poles.
     pub poles: Vec<Pole>,
-    /// All poles inside the unit circle.
+    /// The model settles: its stability verdict (`Model::stability`) is `settles`, every pole inside
+    /// the unit circle by more than ε = 10⁻⁵ (as `identify`'s `stable`).
     pub stable: bool,
     /// A change was detected at this sample or since the previous line.
     pub change: bool,
@@ -79,7 +80,8 @@ pub struct TrackSummary {
     pub model: Option<Model>,
     /// Its poles.
     pub poles: Vec<Pole>,
-    /// All poles inside the unit circle.
+    /// The model settles: its stability verdict (`Model::stability`) is `settles`, every pole inside
+    /// the unit circle by more than ε = 10⁻⁵ (as `identify`'s `stable`).
     pub stable: Option<bool>,
     /// RMS of the last prediction errors (mm).
     pub pe_rms: Option<f64>,
@@ -372,7 +374,7 @@ fn track_line(
         k,
         t,
         poles: poles(&model),
-        stable: model.is_stable(),
+        stable: model.stability().settles(),
         change,
         pe_rms: tracker.pe_rms(),
         pe_window: tracker.pe_count(),
@@ -408,7 +410,7 @@ fn summary(
         samples: tracker.samples(),
         t_end,
         poles: model.as_ref().map(poles).unwrap_or_default(),
-        stable: model.as_ref().map(Model::is_stable),
+        stable: model.as_ref().map(|m| m.stability().settles()),
         model,
         pe_rms: tracker.pe_rms(),
         change_points,

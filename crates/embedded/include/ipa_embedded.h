@@ -344,12 +344,6 @@ typedef struct IpaController {
    * 20); 0: not.
    */
   int32_t short_preview;
-  /**
-   * 1: the held nudge learns its cut fraction per side (`nudge.cut_learn`; issue 25, session 23):
-   * doubled after a held nudge that stopped short of half its error, halved back (to γ) after
-   * one that passed r; 0: not (as in a struct zeroed before it existed).
-   */
-  int32_t nudge_cut_learn;
 } IpaController;
 
 #ifdef __cplusplus

@@ -32,11 +32,12 @@
 //! preview of [`brake_preview_candidates`] (session 20), the nudge's rest count N_r of
 //! [`NUDGE_REST_CANDIDATES`] (session 16), then the short-step approach of [`short_candidates`]
 //! (session 17), then its preview of [`short_preview_candidates`] (session 20) and its range of
-//! [`short_range_candidates`] (session 18; after the preview since session 21) and its breakaway
-//! seed of [`short_seed_candidates`] (session 23) — these four judged on the wider tuning plants of
-//! [`short_stage_plants`] (session 21) —, and last the ramp-and-cut
+//! [`short_range_candidates`] (session 18; after the preview since session 21) — these three judged
+//! on the wider tuning plants of [`short_stage_plants`] (session 21) —, the ramp-and-cut
 //! band e_c of
-//! [`cut_band_candidates`] (session 18: the finish's e_c, chosen by J, re-chosen by the count).
+//! [`cut_band_candidates`] (session 18: the finish's e_c, chosen by J, re-chosen by the count), and
+//! last the short-step approach's breakaway seed of [`short_seed_candidates`] (session 23), on the
+//! wider plants too.
 //!
 //! **Linear margins.** [`margins`] gives the gain and phase margins of the loop's linear part: the
 //! model's B/A with the deadzone replaced by its slope (compensated, shift mode), under the PID.
@@ -894,10 +895,11 @@ pub fn tune(
     let best = settings_of(&theta, cut_band_mm, deadzone, ts_s, spec)?;
     // After the search, each choice in turn, kept by the count at the controller chosen so far: the
     // nudge's slip brake, the approach with braking, its re-brake, its preview, the nudge's rest
-    // count, the short-step approach, its preview, its range, its breakaway seed, the ramp-and-cut
-    // band (module documentation). The short-step approach's four choices are judged on the tuning
-    // plants widened to SHORT_STAGE_PLANTS ([`short_stage_plants`]); the others on
-    // `settings.plants`.
+    // count, the short-step approach, its preview, its range, the ramp-and-cut band, the short-step
+    // approach's breakaway seed (module documentation). The short-step approach's four choices are
+    // judged on the tuning plants widened to SHORT_STAGE_PLANTS ([`short_stage_plants`]); the
+    // others on `settings.plants`. The seed comes last: before the band, the band chosen after it
+    // on the 5 plants (0.3 → 0.1 mm on the twin) lost on the verification what the seed gained.
     let stages: [fn(&ControllerSettings, &Spec) -> Vec<ControllerSettings>; 10] = [
         slip_brake_candidates,
         brake_candidates,
@@ -907,8 +909,8 @@ pub fn tune(
         short_candidates,
         short_preview_candidates,
         short_range_candidates,
-        short_seed_candidates,
         cut_band_candidates,
+        short_seed_candidates,
     ];
     let wide_plants = short_stage_plants(settings.plants);
     let (mut settings_chosen, mut evaluation) = (best, evaluation);
@@ -923,7 +925,7 @@ pub fn tune(
             _ => {}
         }
         let candidates = stage(&settings_chosen, spec);
-        if !(5..=8).contains(&i) || wide_plants == settings.plants {
+        if !((5..=7).contains(&i) || i == 9) || wide_plants == settings.plants {
             (settings_chosen, evaluation, *count) = choose_by_count(
                 settings_chosen,
                 evaluation,
@@ -932,6 +934,9 @@ pub fn tune(
                 settings.plants,
                 spec,
             )?;
+            // The ramp-and-cut band between the range and the seed: the wide plants' evaluation
+            // carried so far is not the chosen controller's once it changed anything.
+            wide = None;
             continue;
         }
         if candidates.is_empty() {
@@ -974,7 +979,7 @@ pub fn tune(
         evaluation = evaluate(settings.plants, make_plant, &factory, spec)?;
         settings_chosen = s;
     }
-    let [slip_evaluations, brake_evaluations, rebrake_evaluations, brake_preview_evaluations, rest_evaluations, short_evaluations, range_evaluations, short_preview_evaluations, seed_evaluations, cut_evaluations] =
+    let [slip_evaluations, brake_evaluations, rebrake_evaluations, brake_preview_evaluations, rest_evaluations, short_evaluations, range_evaluations, short_preview_evaluations, cut_evaluations, seed_evaluations] =
         counts;
     let slip_evaluations = slip_evaluations + relearned.len();
     let brake_evaluations = brake_evaluations + rebrake_evaluations + brake_preview_evaluations;

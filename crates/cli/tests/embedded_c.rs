@@ -266,6 +266,13 @@ fn c_controller_with_the_previews_matches_control_bit_for_bit_on_a_recorded_run(
     c_controller_matches_control(Brake::Preview);
 }
 
+// Session 23: the short-step approach's breakaway seed (the two arguments of position.c after the
+// previews); the same C replay with both 0 gives other commands.
+#[test]
+fn c_controller_with_a_breakaway_seed_matches_control_bit_for_bit_on_a_recorded_run() {
+    c_controller_matches_control(Brake::Seed);
+}
+
 /// Which approach the controller file of [`c_controller_matches_control`] has.
 #[derive(Clone, Copy, PartialEq)]
 enum Brake {
@@ -285,6 +292,8 @@ enum Brake {
     Relearn,
     /// As `Slip`, with the previews of the approach with braking and of the short-step approach.
     Preview,
+    /// As `Preview`, with the short-step approach's breakaway seed κ_s = 0.8 at any speed.
+    Seed,
 }
 
 fn c_controller_matches_control(brake: Brake) {
@@ -373,6 +382,7 @@ fn c_controller_matches_control(brake: Brake) {
             | Brake::Slip
             | Brake::Relearn
             | Brake::Preview
+            | Brake::Seed
     ) {
         file["controller"]["short_approach"] = serde_json::json!({"max_step_mm": 40.0,
             "drive_fraction": 0.35, "ramp_counts_s": 500.0, "switch_mm": 0.5, "lead_s": 0.01,
@@ -380,15 +390,21 @@ fn c_controller_matches_control(brake: Brake) {
     }
     if matches!(
         brake,
-        Brake::Creep | Brake::Rebrake | Brake::Slip | Brake::Relearn | Brake::Preview
+        Brake::Creep | Brake::Rebrake | Brake::Slip | Brake::Relearn | Brake::Preview | Brake::Seed
     ) {
         file["controller"]["nudge"]["creep_step_mm"] = serde_json::json!(0.015);
     }
-    if brake == Brake::Preview {
+    if matches!(brake, Brake::Preview | Brake::Seed) {
         file["controller"]["brake"]["preview"] = serde_json::json!(true);
         file["controller"]["short_approach"]["preview"] = serde_json::json!(true);
     }
-    if matches!(brake, Brake::Slip | Brake::Relearn | Brake::Preview) {
+    if brake == Brake::Seed {
+        file["controller"]["short_approach"]["breakaway_seed"] = serde_json::json!(0.8);
+    }
+    if matches!(
+        brake,
+        Brake::Slip | Brake::Relearn | Brake::Preview | Brake::Seed
+    ) {
         file["controller"]["nudge"]["slip_brake_fraction"] = serde_json::json!(0.25);
         file["controller"]["nudge"]["slip_brake_samples"] = serde_json::json!(5);
     }
@@ -397,9 +413,12 @@ fn c_controller_matches_control(brake: Brake) {
     }
     let (profile, samples) = match brake {
         Brake::Learnt => ("staircase:40,38,120,60,120,60@2", 1201),
-        Brake::Short | Brake::Creep | Brake::Slip | Brake::Relearn | Brake::Preview => {
-            ("staircase:40,60,45,120,100@2", 1001)
-        }
+        Brake::Short
+        | Brake::Creep
+        | Brake::Slip
+        | Brake::Relearn
+        | Brake::Preview
+        | Brake::Seed => ("staircase:40,60,45,120,100@2", 1001),
         Brake::Rebrake => ("staircase:40,60,45,170,100@2", 1001),
         _ => ("staircase:40,38,120,60@2", 801),
     };
@@ -494,6 +513,7 @@ fn c_controller_matches_control(brake: Brake) {
             | Brake::Slip
             | Brake::Relearn
             | Brake::Preview
+            | Brake::Seed
     ) {
         let b = &c["brake"];
         for k in ["learn", "lead_max_s"] {
@@ -509,6 +529,7 @@ fn c_controller_matches_control(brake: Brake) {
             | Brake::Slip
             | Brake::Relearn
             | Brake::Preview
+            | Brake::Seed
     ) {
         let a = &c["short_approach"];
         for k in [
@@ -561,7 +582,7 @@ fn c_controller_matches_control(brake: Brake) {
         Some(without)
     // The relearning after the slip brake: the replay without it (0) learns no breakaway at a slip.
     // The previews after the relearning (0 here): the replay with both 0 switches a sample later.
-    } else if matches!(brake, Brake::Relearn | Brake::Preview) {
+    } else if matches!(brake, Brake::Relearn | Brake::Preview | Brake::Seed) {
         args.push(format!("{:?}", nudge["creep_step_mm"].as_f64().unwrap()));
         args.push("0".into());
         args.push(format!(
@@ -593,6 +614,16 @@ fn c_controller_matches_control(brake: Brake) {
                     }
                     .into(),
                 );
+            }
+            // The seed after the previews: the replay without it (0, 0) ramps the first nudge
+            // from β |c b|.
+            if brake == Brake::Seed {
+                without = args.clone();
+                without.extend(["0".to_string(), "0".to_string()]);
+                let a = &c["short_approach"];
+                for k in ["breakaway_seed", "seed_speed_mm_s"] {
+                    args.push(format!("{:?}", a[k].as_f64().unwrap_or(0.0)));
+                }
             }
         }
         Some(replay(&without))

@@ -292,7 +292,22 @@ fn main() {
             brake_samples: v[6] as u32,
             rest_samples: v[7] as u32,
             preview: v.get(8) == Some(&1.0),
+            breakaway_seed: v.get(9).copied().unwrap_or(0.0),
+            seed_speed_mm_s: v.get(10).copied().unwrap_or(0.0),
         });
+    }
+    if let (Ok(v), Some(a)) = (std::env::var("SHORT_SEED"), s.short_approach.as_mut()) {
+        // SHORT_SEED=κ_s (session 23): the nudge's breakaway seeded at κ_s × the drive's command
+        // at its first motion.
+        let w: Vec<f64> = v.split(',').map(|x| x.parse().unwrap()).collect();
+        a.breakaway_seed = w[0];
+        a.seed_speed_mm_s = w.get(1).copied().unwrap_or(0.0);
+    }
+    if let (Ok(v), Some(a)) = (std::env::var("SHORT_LEAD"), s.short_approach.as_mut()) {
+        // SHORT_LEAD=e_s',τ_s (session 23): the short-step switch and lead.
+        let w: Vec<f64> = v.split(',').map(|x| x.parse().unwrap()).collect();
+        a.switch_mm = w[0];
+        a.lead_s = w[1];
     }
     if let (Ok(v), Some(a)) = (std::env::var("SHORT_EM"), s.short_approach.as_mut()) {
         a.max_step_mm = v.parse().unwrap();

@@ -224,7 +224,19 @@ pub struct ShortApproach {
     /// [`Brake::preview`], with the drive's command.
     #[serde(default, skip_serializing_if = "is_false")]
     pub preview: bool,
+    /// κ_s: breakaway seed (in [0, 1]; issue 25, session 23; 0 when absent, as before, and not
+    /// written then): at the drive's switch, where the speed towards r is at most v_s, the nudge's
+    /// learnt breakaway u_b(side) is raised to at least κ_s × the drive's held command.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub breakaway_seed: f64,
+    /// v_s: the seed only where the speed at the switch is at most v_s, mm/s (>= 0; 0: any speed;
+    /// not written when 0).
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub seed_speed_mm_s: f64,
 }
+
+/// The largest speed a controller file may name, mm/s (a corrupt file, not a controller, beyond).
+const MAX_SPEED_MM_S: f64 = 1e6;
 
 impl ShortApproach {
     /// Checks every field; errors name [`ControlSetting::ShortApproach`].
@@ -272,6 +284,20 @@ impl ShortApproach {
             return bad(
                 &format!("a short_approach lead_s from 0 to {MAX_TIME_S:e} s"),
                 fmt(self.lead_s),
+            );
+        }
+        if !(0.0..=1.0).contains(&self.breakaway_seed) {
+            return bad(
+                "a short_approach breakaway_seed in [0, 1]",
+                fmt(self.breakaway_seed),
+            );
+        }
+        if !(self.seed_speed_mm_s.is_finite()
+            && (0.0..=MAX_SPEED_MM_S).contains(&self.seed_speed_mm_s))
+        {
+            return bad(
+                &format!("a short_approach seed_speed_mm_s from 0 to {MAX_SPEED_MM_S:e} mm/s"),
+                fmt(self.seed_speed_mm_s),
             );
         }
         for (name, n) in [
@@ -638,6 +664,8 @@ impl ControllerSettings {
                     samples: a.brake_samples,
                     rest_samples: a.rest_samples,
                     preview: a.preview,
+                    seed: a.breakaway_seed,
+                    seed_speed: a.seed_speed_mm_s,
                 }),
         }
     }
@@ -1330,6 +1358,8 @@ mod tests {
                 brake_samples: 3,
                 rest_samples: 2,
                 preview: false,
+                breakaway_seed: 0.0,
+                seed_speed_mm_s: 0.0,
             }),
             ..plain(1.0, 0.0)
         }

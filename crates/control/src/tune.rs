@@ -33,9 +33,11 @@
 //! [`NUDGE_REST_CANDIDATES`] (session 16), then the short-step approach of [`short_candidates`]
 //! (session 17), then its preview of [`short_preview_candidates`] (session 20) and its range of
 //! [`short_range_candidates`] (session 18; after the preview since session 21) — these three judged
-//! on the wider tuning plants of [`short_stage_plants`] (session 21) —, and last the ramp-and-cut
+//! on the wider tuning plants of [`short_stage_plants`] (session 21) —, the ramp-and-cut
 //! band e_c of
-//! [`cut_band_candidates`] (session 18: the finish's e_c, chosen by J, re-chosen by the count).
+//! [`cut_band_candidates`] (session 18: the finish's e_c, chosen by J, re-chosen by the count), and
+//! last the short-step approach's breakaway seed of [`short_seed_candidates`] (session 23), on the
+//! wider plants too.
 //!
 //! **Linear margins.** [`margins`] gives the gain and phase margins of the loop's linear part: the
 //! model's B/A with the deadzone replaced by its slope (compensated, shift mode), under the PID.
@@ -753,7 +755,8 @@ pub struct Tuned {
     /// Evaluations of the nudge's rest count N_r after the brake ([`NUDGE_REST_CANDIDATES`]).
     pub rest_evaluations: usize,
     /// Evaluations of the short-step approach after the rest count ([`short_candidates`]'s, its
-    /// preview's and its range's: [`short_preview_candidates`], [`short_range_candidates`]), each on
+    /// preview's, its range's and its seed's: [`short_preview_candidates`],
+    /// [`short_range_candidates`], [`short_seed_candidates`]), each on
     /// [`short_stage_plants`] plants, and the controller before them once on those plants when they
     /// are more than the plants searched over.
     pub short_evaluations: usize,
@@ -892,10 +895,12 @@ pub fn tune(
     let best = settings_of(&theta, cut_band_mm, deadzone, ts_s, spec)?;
     // After the search, each choice in turn, kept by the count at the controller chosen so far: the
     // nudge's slip brake, the approach with braking, its re-brake, its preview, the nudge's rest
-    // count, the short-step approach, its preview, its range, the ramp-and-cut band (module
-    // documentation). The short-step approach's three choices are judged on the tuning plants
-    // widened to SHORT_STAGE_PLANTS ([`short_stage_plants`]); the others on `settings.plants`.
-    let stages: [fn(&ControllerSettings, &Spec) -> Vec<ControllerSettings>; 9] = [
+    // count, the short-step approach, its preview, its range, the ramp-and-cut band, the short-step
+    // approach's breakaway seed (module documentation). The short-step approach's four choices are
+    // judged on the tuning plants widened to SHORT_STAGE_PLANTS ([`short_stage_plants`]); the
+    // others on `settings.plants`. The seed comes last: before the band, the band chosen after it
+    // on the 5 plants (0.3 → 0.1 mm on the twin) lost on the verification what the seed gained.
+    let stages: [fn(&ControllerSettings, &Spec) -> Vec<ControllerSettings>; 10] = [
         slip_brake_candidates,
         brake_candidates,
         rebrake_candidates,
@@ -905,12 +910,13 @@ pub fn tune(
         short_preview_candidates,
         short_range_candidates,
         cut_band_candidates,
+        short_seed_candidates,
     ];
     let wide_plants = short_stage_plants(settings.plants);
     let (mut settings_chosen, mut evaluation) = (best, evaluation);
     // The chosen controller's evaluation on the wide plants, while the short-step stages run.
     let mut wide: Option<Evaluation> = None;
-    let mut counts = [0; 9];
+    let mut counts = [0; 10];
     let (mut brake_before_preview, mut short_before_preview) = (None, None);
     for (i, (stage, count)) in stages.iter().zip(counts.iter_mut()).enumerate() {
         match i {
@@ -919,7 +925,7 @@ pub fn tune(
             _ => {}
         }
         let candidates = stage(&settings_chosen, spec);
-        if !(5..=7).contains(&i) || wide_plants == settings.plants {
+        if !((5..=7).contains(&i) || i == 9) || wide_plants == settings.plants {
             (settings_chosen, evaluation, *count) = choose_by_count(
                 settings_chosen,
                 evaluation,
@@ -928,6 +934,9 @@ pub fn tune(
                 settings.plants,
                 spec,
             )?;
+            // The ramp-and-cut band between the range and the seed: the wide plants' evaluation
+            // carried so far is not the chosen controller's once it changed anything.
+            wide = None;
             continue;
         }
         if candidates.is_empty() {
@@ -970,11 +979,12 @@ pub fn tune(
         evaluation = evaluate(settings.plants, make_plant, &factory, spec)?;
         settings_chosen = s;
     }
-    let [slip_evaluations, brake_evaluations, rebrake_evaluations, brake_preview_evaluations, rest_evaluations, short_evaluations, range_evaluations, short_preview_evaluations, cut_evaluations] =
+    let [slip_evaluations, brake_evaluations, rebrake_evaluations, brake_preview_evaluations, rest_evaluations, short_evaluations, range_evaluations, short_preview_evaluations, cut_evaluations, seed_evaluations] =
         counts;
     let slip_evaluations = slip_evaluations + relearned.len();
     let brake_evaluations = brake_evaluations + rebrake_evaluations + brake_preview_evaluations;
-    let short_evaluations = short_evaluations + range_evaluations + short_preview_evaluations;
+    let short_evaluations =
+        short_evaluations + range_evaluations + short_preview_evaluations + seed_evaluations;
     let cut_band_before_mm = cut_band_mm;
     Ok(Tuned {
         settings: settings_chosen,
@@ -1159,6 +1169,45 @@ pub fn short_approach_of(
         brake_samples: ((SHORT_BRAKE_S / ts_s).round().clamp(1.0, 1000.0)) as u32,
         rest_samples: SHORT_REST_SAMPLES,
         preview: false,
+        breakaway_seed: 0.0,
+        seed_speed_mm_s: 0.0,
+    }
+}
+
+/// (κ_s, v_s) of the short-step approach's breakaway seed (issue 25, session 23; v_s in mm/s at the
+/// specification's length scale 1): at the drive's switch, where the piston moves towards r at no
+/// more than v_s, the nudge's learnt breakaway u_b(side) is raised to κ_s × the drive's command. On
+/// the slow plants (67–95 mm/s under the drive of U = 0.35) the drive rests 0.2–0.4 mm short and the
+/// first nudge ramped from β |c b| (27 counts) to their breakaway (about 71) for 0.2 s; seeded, it
+/// starts near it. Above v_s (plants whose breakaway is far below the drive, among them the
+/// low-F_c/F_s ones that slip) a seed makes the first nudge jump (docs/control.md, Results'
+/// session-23 block).
+pub const SHORT_SEED_CANDIDATES: [(f64, f64); 6] = [
+    (0.6, 100.0),
+    (0.6, 120.0),
+    (0.7, 100.0),
+    (0.7, 120.0),
+    (0.8, 100.0),
+    (0.8, 120.0),
+];
+
+/// `chosen` with its short-step approach's breakaway seed of each (κ_s, v_s) of
+/// [`SHORT_SEED_CANDIDATES`] (v_s scaled by the specification's length scale; none without a
+/// short-step approach or when it already has a seed).
+pub fn short_seed_candidates(chosen: &ControllerSettings, spec: &Spec) -> Vec<ControllerSettings> {
+    match chosen.short_approach {
+        Some(a) if a.breakaway_seed == 0.0 => SHORT_SEED_CANDIDATES
+            .iter()
+            .map(|&(seed, speed)| ControllerSettings {
+                short_approach: Some(crate::position::ShortApproach {
+                    breakaway_seed: seed,
+                    seed_speed_mm_s: spec.scale.length * speed,
+                    ..a
+                }),
+                ..*chosen
+            })
+            .collect(),
+        _ => Vec::new(),
     }
 }
 

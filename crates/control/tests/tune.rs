@@ -498,10 +498,10 @@ fn tuning_meets_the_spec_where_it_is_reachable() {
     // The earlier choices were made with the finish's e_c: their checks below start from it.
     let before = with_band(t.cut_band_before_mm);
     let mut searched = before;
-    // The short-step approach's three choices (session 21) were judged on the wider plants of
-    // short_stage_plants (21 here: the fixed design's variants 5.. are intermediate scalings), the
-    // controller before them evaluated there once; its preview (session 20) and its range (session
-    // 18) only when a short-step approach was chosen, the range after the preview.
+    // The short-step approach's four choices (session 21; the seed, session 23) were judged on the
+    // wider plants of short_stage_plants (21 here: the fixed design's variants 5.. are intermediate
+    // scalings), the controller before them evaluated there once; its preview (session 20), its
+    // range (session 18) and its seed only when a short-step approach was chosen, in that order.
     let wide = tune::short_stage_plants(5);
     assert_eq!(wide, 21);
     let evaluate_wide = |s: ControllerSettings| {
@@ -518,9 +518,21 @@ fn tuning_meets_the_spec_where_it_is_reachable() {
     assert_eq!(
         t.short_evaluations,
         1 + tune::SHORT_CANDIDATES
-            + usize::from(short_chosen) * (tune::SHORT_PREVIEW_CANDIDATES.len() + 1)
+            + usize::from(short_chosen)
+                * (tune::SHORT_PREVIEW_CANDIDATES.len() + 2 + tune::SHORT_SEED_CANDIDATES.len())
     );
     let largest = spec.steps_mm.iter().copied().fold(0.0, f64::max);
+    // Its breakaway seed (session 23) last of the four: when chosen, it beat the approach without
+    // it on the wide plants.
+    if let Some(a) = searched.short_approach.filter(|a| a.breakaway_seed > 0.0) {
+        let ew = evaluate_wide(searched);
+        searched.short_approach = Some(control::position::ShortApproach {
+            breakaway_seed: 0.0,
+            seed_speed_mm_s: 0.0,
+            ..a
+        });
+        assert!(beats(&ew, &evaluate_wide(searched)));
+    }
     let ew = evaluate_wide(searched);
     // The range came last of the three: a narrowed e_m beat the wider one on the wide plants, and
     // a wider one is never beaten by the narrowed.

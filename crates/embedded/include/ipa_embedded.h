@@ -344,6 +344,16 @@ typedef struct IpaController {
    * 20); 0: not.
    */
   int32_t short_preview;
+  /**
+   * κ_s: the short-step approach's breakaway seed, in [0, 1] (`short_approach.breakaway_seed`;
+   * issue 25, session 23; 0 = off, as in a struct zeroed before it existed).
+   */
+  double short_seed;
+  /**
+   * v_s: the seed only at a switch speed of at most v_s, mm/s (`short_approach.seed_speed_mm_s`;
+   * 0 = at any speed).
+   */
+  double short_seed_speed;
 } IpaController;
 
 #ifdef __cplusplus

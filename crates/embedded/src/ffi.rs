@@ -223,6 +223,12 @@ pub struct IpaController {
     /// 1: the same preview for the short-step approach's drive (`short_approach.preview`; session
     /// 20); 0: not.
     pub short_preview: i32,
+    /// κ_s: the short-step approach's breakaway seed, in [0, 1] (`short_approach.breakaway_seed`;
+    /// issue 25, session 23; 0 = off, as in a struct zeroed before it existed).
+    pub short_seed: f64,
+    /// v_s: the seed only at a switch speed of at most v_s, mm/s (`short_approach.seed_speed_mm_s`;
+    /// 0 = at any speed).
+    pub short_seed_speed: f64,
 }
 const _: () = assert!(size_of::<CusumState>() <= IPA_CUSUM_STATE_BYTES);
 const _: () = assert!(MAX_D >= IPA_MAX_NA as usize);
@@ -788,6 +794,8 @@ pub unsafe extern "C" fn ipa_ctl_init(
             samples: c.short_samples,
             rest_samples: c.short_rest_samples,
             preview: c.short_preview == 1,
+            seed: c.short_seed,
+            seed_speed: c.short_seed_speed,
         }))
     };
     let state = compensator.and_then(|comp| {

@@ -168,6 +168,15 @@ pub struct ShortApproachSettings<F: Float> {
     /// Preview (issue 25, session 20; `false`: as before): as [`BrakeSettings::preview`], with the
     /// drive's command.
     pub preview: bool,
+    /// κ_s: the breakaway seed, in [0, 1] (issue 25, session 23; 0: as before): at the drive's
+    /// switch the nudge's learnt breakaway u_b(side) is raised to at least κ_s × the drive's held
+    /// command (U u_max plus its guard ramp), where the speed towards r is at most v_s. A drive
+    /// that moves a slow plant at most v_s has a command near that plant's breakaway, so the
+    /// finish's first nudge starts near it instead of ramping up from β |c b|.
+    pub seed: F,
+    /// v_s: the seed only where the speed towards r at the switch is at most v_s, mm/s (≥ 0; 0: at
+    /// any speed).
+    pub seed_speed: F,
 }
 
 /// Where the approach with braking is (`right`: towards larger y).
@@ -424,7 +433,10 @@ impl<F: Float> PositionController<F> {
                 && positive(a.strength)
                 && a.strength <= F::ONE
                 && (1..=1000).contains(&a.samples)
-                && (1..=1000).contains(&a.rest_samples))
+                && (1..=1000).contains(&a.rest_samples)
+                && nonneg(a.seed)
+                && nonneg(a.seed_speed)
+                && a.seed <= F::ONE)
             {
                 return Err(Error::Setting);
             }
@@ -703,11 +715,20 @@ impl<F: Float> PositionController<F> {
                     v,
                     self.s.ts,
                 ) {
+                    self.seed_breakaway(a, right, u, v);
                     self.approach = Approach::ShortBrake { right, given: 0 };
                     return Some(side::<F>(right) * u * f);
                 }
                 return Some(side::<F>(right) * u);
             }
+            let held = a.drive_fraction * self.s.u_max
+                + a.ramp * self.s.ts * F::from_f64(f64::from(stuck.saturating_sub(1)));
+            let held = if held < self.s.u_max {
+                held
+            } else {
+                self.s.u_max
+            };
+            self.seed_breakaway(a, right, held, v);
             self.approach = Approach::ShortBrake { right, given: 0 };
         }
         if let Approach::ShortBrake { right, given } = self.approach {
@@ -734,6 +755,24 @@ impl<F: Float> PositionController<F> {
             self.restart_law();
         }
         None
+    }
+
+    /// The breakaway seed (κ_s > 0; [`ShortApproachSettings::seed`]) at the drive's switch: with the
+    /// drive's held command u_d and the speed towards r v ≤ v_s (a slow plant: its breakaway is
+    /// near the drive's command), u_b(side) ← max(u_b(side), κ_s u_d).
+    fn seed_breakaway(&mut self, a: &ShortApproachSettings<F>, right: bool, u: F, v: F) {
+        if a.seed <= F::ZERO || (a.seed_speed > F::ZERO && v > a.seed_speed) {
+            return;
+        }
+        let slot = if right {
+            &mut self.breakaway_right
+        } else {
+            &mut self.breakaway_left
+        };
+        let seeded = a.seed * u;
+        if seeded > *slot {
+            *slot = seeded;
+        }
     }
 
     /// τ_b learning at the rest y that ends a hold (κ_b > 0; [`BrakeSettings::learn`]): τ̂ = D / v_sw
@@ -1812,6 +1851,8 @@ mod tests {
                 samples: 2,
                 rest_samples: 2,
                 preview: false,
+                seed: 0.0,
+                seed_speed: 0.0,
             }),
             ..s()
         }
@@ -1838,6 +1879,58 @@ mod tests {
             c.step(10.0, y).unwrap();
         }
         assert_eq!(c.step(0.0, 3.5).unwrap(), -51.0);
+    }
+
+    // The breakaway seed (session 23), by hand on `short_stepping`'s drive (held at 61 from the
+    // first motion; the switch at y = 2 with v = 150 mm/s): κ_s = 0.8 raises u_b(side) from 0 (no
+    // compensator) to 0.8 × 61 = 48.8 where v_s is 0 (any speed) or at least 150, and leaves it at 0
+    // where v_s = 100 < 150; to the left the same on u_b(left). With the preview the switch is at y
+    // = 0.5 (v = 50): seeded from the held 61, not from the last sample's 48.8 (the fraction f = 0.8).
+    // A seed below the learnt u_b does not lower it (a deadzone b_r = 55 counts: u_b(right) = 55).
+    #[test]
+    fn the_breakaway_seed_raises_the_learnt_breakaway_at_the_switch_of_a_slow_drive() {
+        let y = [0.0, 0.0, 0.0, 0.5, 2.0, 3.0];
+        for (seed_speed, sign, want) in [
+            (0.0, 1.0, [0.0, 48.8]),
+            (150.0, 1.0, [0.0, 48.8]),
+            (100.0, 1.0, [0.0, 0.0]),
+            (0.0, -1.0, [48.8, 0.0]),
+            (100.0, -1.0, [0.0, 0.0]),
+        ] {
+            let mut s = short_stepping();
+            let a = s.short.as_mut().unwrap();
+            (a.seed, a.seed_speed) = (0.8, seed_speed);
+            let mut c = PositionController::new(s, None).unwrap();
+            for y in y {
+                c.step(sign * 10.0, sign * y).unwrap();
+            }
+            let got = c.breakaway();
+            assert!(
+                (got[0] - want[0]).abs() < 1e-9 && (got[1] - want[1]).abs() < 1e-9,
+                "v_s {seed_speed}, side {sign}: {got:?} against {want:?}"
+            );
+        }
+        let mut s = short_stepping();
+        let a = s.short.as_mut().unwrap();
+        (a.seed, a.seed_speed, a.preview) = (0.8, 50.0, true);
+        let mut c = PositionController::new(s, None).unwrap();
+        let u = [0.0, 0.0, 0.0, 0.5].map(|y| c.step(6.9, y).unwrap());
+        assert!((u[3] - 48.8).abs() < 1e-9, "{u:?}");
+        assert!((c.breakaway()[1] - 48.8).abs() < 1e-9);
+        let mut s = short_stepping();
+        s.short.as_mut().unwrap().seed = 0.8;
+        let dz = Deadzone {
+            b_l: -55.0,
+            b_r: 55.0,
+            m_l: 1.0,
+            m_r: 1.0,
+        };
+        let comp = Compensator::new(dz, SlopeMode::Shift, 0.0, 255.0).unwrap();
+        let mut c = PositionController::new(s, Some(comp)).unwrap();
+        for y in y {
+            c.step(10.0, y).unwrap();
+        }
+        assert_eq!(c.breakaway(), [55.0, 55.0]);
     }
 
     // The guard ramp stops at the first motion and does not resume when the piston comes back to
@@ -1887,6 +1980,9 @@ mod tests {
             |a: &mut ShortApproachSettings<f64>| a.strength = 0.0,
             |a: &mut ShortApproachSettings<f64>| a.samples = 0,
             |a: &mut ShortApproachSettings<f64>| a.rest_samples = 1001,
+            |a: &mut ShortApproachSettings<f64>| a.seed = 1.5,
+            |a: &mut ShortApproachSettings<f64>| a.seed = -0.1,
+            |a: &mut ShortApproachSettings<f64>| a.seed_speed = f64::INFINITY,
         ] {
             let mut s = short_stepping();
             f(s.short.as_mut().unwrap());

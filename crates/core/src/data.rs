@@ -1025,7 +1025,7 @@ impl Table {
             origin: crate::error::ColumnOrigin::of(setting, col),
             setting,
             header: self.headers.clone(),
-            hint,
+            hint: hint.map(Box::new),
         })
     }
 

@@ -185,8 +185,8 @@ pub enum SysidError {
         setting: Setting,
         /// The header's column names.
         header: Vec<String>,
-        /// What probably went wrong, when it can be told.
-        hint: Option<ColumnHint>,
+        /// What probably went wrong, when it can be told (boxed: the error stays small).
+        hint: Option<Box<ColumnHint>>,
         /// Where the column's name came from.
         origin: ColumnOrigin,
     },
@@ -313,7 +313,7 @@ impl SysidError {
                          with {flag} NAME"
                     ),
                 };
-                let hint = match hint {
+                let hint = match hint.as_deref() {
                     None => String::new(),
                     Some(ColumnHint::NoHeader) => format!(
                         " (the first row holds numbers: the file has no header row; pass {} and name \

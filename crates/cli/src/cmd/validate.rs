@@ -140,7 +140,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let taken = (setting == sysid::Setting::UCol && !typed(&args.given, "u_col"))
                 || (setting == sysid::Setting::YCol && !typed(&args.given, "y_col"));
             let stored = model.provenance().is_some_and(|p| {
-                p.u_columns.iter().any(|c| *c == column) || p.y_column.as_deref() == Some(&column)
+                p.u_columns.contains(&column) || p.y_column.as_deref() == Some(&column)
             });
             sysid::SysidError::MissingColumn {
                 origin: if taken && stored {

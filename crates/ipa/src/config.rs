@@ -336,6 +336,16 @@ impl PlantConfig {
             .collect()
     }
 
+    /// The largest net pneumatic forces on the piston (N): extending, the supply's gauge pressure on the
+    /// bore's area π d²/4 against atmosphere; retracting, on the annulus π (d² − d_rod²)/4 (MPa × mm² =
+    /// N).
+    pub fn supply_forces_n(&self) -> (f64, f64) {
+        let (d, r) = (self.cylinder.bore_mm, self.cylinder.rod_mm);
+        let p = self.air.supply_gauge_mpa;
+        let quarter_pi = std::f64::consts::FRAC_PI_4;
+        (p * quarter_pi * d * d, p * quarter_pi * (d * d - r * r))
+    }
+
     /// Checks every value; the error names the key (`section.key`), the value and what is accepted.
     pub fn validate(&self) -> Result<(), IpaError> {
         self.check().map_err(|e| IpaError::Config(e.message))
@@ -368,6 +378,22 @@ impl PlantConfig {
                 "rod_mm",
                 c.rod_mm,
                 "a rod diameter smaller than cylinder.bore_mm",
+            ));
+        }
+        // A rod almost as wide as the bore leaves an annulus the retracting air cannot push on (audit
+        // s23 L-B4: rod 39.999 mm in a 40 mm bore, a 0.06 mm² annulus, was accepted).
+        if c.rod_mm > MAX_ROD_RATIO * c.bore_mm {
+            return Err(bad(
+                "cylinder",
+                "rod_mm",
+                c.rod_mm,
+                &format!(
+                    "a rod of at most {MAX_ROD_RATIO} × cylinder.bore_mm = {:.4} mm (an annulus of at \
+                     least {:.0} % of the bore's area; ISO 15552 and ISO 6432 cylinders have rod/bore \
+                     <= 0.5)",
+                    MAX_ROD_RATIO * c.bore_mm,
+                    100.0 * (1.0 - MAX_ROD_RATIO * MAX_ROD_RATIO)
+                ),
             ));
         }
         pos("cylinder", "stroke_mm", c.stroke_mm)?;
@@ -474,6 +500,23 @@ impl PlantConfig {
                 "coulomb_n",
                 f.coulomb_n,
                 "a Coulomb friction not above friction.static_n",
+            ));
+        }
+        // Static friction the supply cannot overcome on either side: the piston never moves and every
+        // later word would blame the command (audit s23 L-B4: 5000 N against 754 N).
+        let (extend_n, retract_n) = self.supply_forces_n();
+        if f.static_n >= retract_n.min(extend_n) {
+            return Err(bad(
+                "friction",
+                "static_n",
+                f.static_n,
+                &format!(
+                    "a static friction below the largest force the supply can put on the piston in \
+                     each direction: air.supply_gauge_mpa = {} MPa on the bore (cylinder.bore_mm = {} \
+                     mm) gives {extend_n:.1} N extending and on the annulus (cylinder.rod_mm = {} mm) \
+                     {retract_n:.1} N retracting; with this friction the piston could not start to move",
+                    a.supply_gauge_mpa, c.bore_mm, c.rod_mm
+                ),
             ));
         }
         pos(
@@ -632,6 +675,9 @@ pub const MAX_STROKE_MM: f64 = 10_000.0;
 
 /// The largest bore a plant configuration accepts, mm (1 m).
 pub const MAX_BORE_MM: f64 = 1_000.0;
+
+/// The widest rod accepted, as a fraction of the bore (an annulus of at least 19 % of the bore's area).
+pub const MAX_ROD_RATIO: f64 = 0.9;
 
 /// A value [`PlantConfig::check`] refuses: its section, key, and the message.
 struct Invalid {
@@ -807,5 +853,40 @@ mod tests {
         let e =
             PlantConfig::from_toml_str("[load]\nmoving_mass_kg = \"heavy\"\n", "t").unwrap_err();
         assert!(e.to_string().contains("moving_mass_kg"), "{e}");
+    }
+    // Audit s23 L-B4. The default cylinder (bore 40 mm, rod 16 mm, 0.6 MPa gauge) can push
+    // 0.6 × π/4 × 40² = 753.98 N extending and 0.6 × π/4 × (40² − 16²) = 633.35 N retracting (by hand).
+    // A static friction at or above the smaller force is refused, naming both keys and both figures;
+    // just below it is accepted. A rod wider than 0.9 × the bore (36 mm) is refused; 36 mm is accepted.
+    #[test]
+    fn friction_beyond_the_supply_force_and_a_thin_annulus_are_refused() {
+        let (ext, ret) = PlantConfig::default().supply_forces_n();
+        assert!(
+            (ext - 753.982).abs() < 1e-3 && (ret - 633.345).abs() < 1e-3,
+            "{ext} {ret}"
+        );
+        for friction in ["static_n = 5000.0", "static_n = 700.0", "static_n = 633.4"] {
+            let toml = format!("[friction]\n{friction}\n");
+            let e = PlantConfig::from_toml_str(&toml, "t")
+                .unwrap_err()
+                .to_string();
+            for needle in [
+                "friction.static_n",
+                "air.supply_gauge_mpa",
+                "754.0 N",
+                "633.3 N",
+            ] {
+                assert!(e.contains(needle), "{toml}: {e}");
+            }
+        }
+        assert!(PlantConfig::from_toml_str("[friction]\nstatic_n = 633.0\n", "t").is_ok());
+        let e = PlantConfig::from_toml_str("[cylinder]\nrod_mm = 39.999\n", "t")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("cylinder.rod_mm") && e.contains("36.0000 mm"),
+            "{e}"
+        );
+        assert!(PlantConfig::from_toml_str("[cylinder]\nrod_mm = 36.0\n", "t").is_ok());
     }
 }

@@ -63,14 +63,17 @@ pub(crate) fn compensated_run(
 
 /// The tuned controller (issue 25) of the fixed set-point test: tuned on the identified model `fit`
 /// (a small search: 3 variants, 40 evaluations, so that `reproduce` stays quick), then run on the plant
-/// and on the model; `Ok(Err(reason))` when the model cannot be tuned on.
+/// and on the model; `Ok(Err(reason))` when the model cannot be tuned on. With the runs, tune's own
+/// verdict ([`TuneVerdict`]: whether it met its specification and every reason it gave not to trust the
+/// controller), so that reproduce says what `tune` says (audit s23 M-R2).
 pub(crate) fn tuned_run(
     plant: &mut dyn Plant,
     fit: &FittedModel,
     profile: &Profile,
     duration_s: f64,
     y0_mm: f64,
-) -> Result<Result<(control::ControllerSettings, Trace, Trace), String>, ReproduceError> {
+) -> Result<Result<(control::ControllerSettings, TuneVerdict, Trace, Trace), String>, ReproduceError>
+{
     let deadzone = match control::tuning::command_deadzone(&fit.model) {
         Ok(d) => d,
         Err(p) => return Ok(Err(p.to_string())),
@@ -95,11 +98,35 @@ pub(crate) fn tuned_run(
         Err(e) => return Err(e.into()),
     };
     let s = report.controller;
+    let last = report.on_physics.as_ref().unwrap_or(&report.on_model);
+    let verdict = TuneVerdict {
+        meets_spec: report.meets_spec(),
+        steps_met: last.comparison.tuned.met,
+        steps: last.comparison.tuned.runs.len(),
+        on: last.plant.clone(),
+        warnings: report.warnings.clone(),
+    };
     let mut c = s.build()?;
     let on_plant = closed_loop::run(plant, &mut c, None, profile, duration_s, y0_mm)?;
     let mut model = ModelPlant::new(fit.model.clone(), "output-error model")?;
     let on_model = closed_loop::run(&mut model, &mut c, None, profile, duration_s, y0_mm)?;
-    Ok(Ok((s, on_plant, on_model)))
+    Ok(Ok((s, verdict, on_plant, on_model)))
+}
+
+/// `tune`'s verdict on the controller it found ([`control::tuning::TuneReport`]): the same figures
+/// the controller file's provenance carries (`meets_spec`, `met`), and its warnings.
+#[derive(Debug, Clone)]
+pub(crate) struct TuneVerdict {
+    /// No verification missed the specification ([`control::tuning::TuneReport::meets_spec`]).
+    pub(crate) meets_spec: bool,
+    /// Steps of the last verification that met the whole specification.
+    pub(crate) steps_met: usize,
+    /// Steps of the last verification.
+    pub(crate) steps: usize,
+    /// The plants of the last verification, in words.
+    pub(crate) on: String,
+    /// Every reason `tune` gave not to trust the controller ("not met on ...", limit cycles, ...).
+    pub(crate) warnings: Vec<String>,
 }
 
 pub(crate) fn step_metrics(

@@ -347,10 +347,24 @@ pub fn run(
         s.fixed_duration_s,
         s.fixed_start_mm,
     )? {
-        Ok((settings, on_plant, on_model)) => {
+        Ok((settings, verdict, on_plant, on_model)) => {
+            // tune's own verdict, as `tune` prints it, then the doubts about both runs (the model's
+            // included: an unsettled step whose e_ss is not final; audit s23 M-R2).
+            warnings.extend(
+                verdict
+                    .warnings
+                    .iter()
+                    .map(|w| format!("the tuned controller (tune's verdict): {w}")),
+            );
             warnings.extend(run_warnings(
                 "the tuned controller on the plant, fixed set-point",
                 &on_plant,
+                &limits,
+                settings.u_max,
+            )?);
+            warnings.extend(run_warnings(
+                "the tuned controller on the output-error model, fixed set-point",
+                &on_model,
                 &limits,
                 settings.u_max,
             )?);
@@ -361,6 +375,7 @@ pub fn run(
             )?;
             Ok(study::Tuned {
                 settings,
+                verdict,
                 m_plant: step_metrics(&on_plant, s.fixed_start_mm, s.fixed_setpoint_mm)?,
                 m_model: step_metrics(&on_model, s.fixed_start_mm, s.fixed_setpoint_mm)?,
             })

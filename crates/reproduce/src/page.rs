@@ -340,7 +340,12 @@ pub(crate) fn build_report(
         "—".into(),
         "—".into(),
     ]);
+    let not_final = |c: &str| c.ends_with(crate::tables::NOT_FINAL_MARK);
+    let mut any_not_final = closed_loop_rows(&st.fixed)
+        .iter()
+        .any(|r| not_final(&r.3) || not_final(&r.4));
     for (label, a, b) in crate::tables::tuned_rows(st) {
+        any_not_final |= not_final(&a) || not_final(&b);
         t5.push_row([label, a, b, "—".into(), "—".into()]);
     }
     let comp_text = match &st.compensated {
@@ -356,8 +361,7 @@ pub(crate) fn build_report(
         ),
         Err(reason) => format!("Deadzone compensation was not run: the identified deadzone cannot be inverted ({reason})."),
     };
-    let cl = with_fig(
-        Section::new("Closed-loop position control")
+    let mut cl_sec = Section::new("Closed-loop position control")
             .id("closed-loop")
             .paragraph(format!(
                 "Metrics follow MATLAB stepinfo: overshoot beyond the final value, steady-state error = set-point − \
@@ -367,11 +371,25 @@ pub(crate) fn build_report(
                  chosen by the rule stated in the open-loop section; an unstable model is never controlled.",
                 st.cl().map_or("no model (none is stable)", |m| m.label)
             ))
-            .table(t5)
-            .paragraph(comp_text)
-            .paragraph(crate::tables::tuned_text(st)),
-        "fig7a_closed_loop_fixed",
-    )?;
+            .table(t5);
+    if any_not_final {
+        cl_sec = cl_sec.paragraph(crate::tables::NOT_FINAL_NOTE);
+    }
+    cl_sec = cl_sec
+        .paragraph(comp_text)
+        .paragraph(crate::tables::tuned_text(st));
+    // tune's verdict where the reader looks (audit s23 M-R2: no "not met" anywhere in the report).
+    if let Ok(t) = &st.tuned {
+        for w in &t.verdict.warnings {
+            let v = if w.starts_with("not met") {
+                Verdict::Fail
+            } else {
+                Verdict::Note
+            };
+            cl_sec = cl_sec.callout(v, format!("the tuned controller (tune's verdict): {w}"));
+        }
+    }
+    let cl = with_fig(cl_sec, "fig7a_closed_loop_fixed")?;
     let cl = with_fig(
         cl.paragraph(format!(
             "Changing set-point ({}), step by step (each step's own overshoot, steady-state error and settling \

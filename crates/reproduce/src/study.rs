@@ -55,6 +55,8 @@ impl Criterion {
 /// The tuned controller's fixed set-point runs.
 pub(crate) struct Tuned {
     pub(crate) settings: control::ControllerSettings,
+    /// What `tune` said of it.
+    pub(crate) verdict: crate::closed_loop::TuneVerdict,
     pub(crate) m_model: StepMetrics,
     pub(crate) m_plant: StepMetrics,
 }

@@ -78,7 +78,12 @@ pub(crate) fn summary_json(
                            Err(reason) => json!({"not_applicable": reason}),
                        },
                        "tuned": match &st.tuned {
-                           Ok(t) => json!({"controller": t.settings, "model": mj(&t.m_model),
+                           Ok(t) => json!({"controller": t.settings, "tune_verdict": {
+                                               "meets_spec": t.verdict.meets_spec,
+                                               "steps_met": t.verdict.steps_met,
+                                               "steps": t.verdict.steps, "on": t.verdict.on,
+                                               "warnings": t.verdict.warnings},
+                                           "model": mj(&t.m_model),
                                            "plant": mj(&t.m_plant)}),
                            Err(reason) => json!({"not_applicable": reason}),
                        } },

@@ -106,6 +106,25 @@ pub(crate) fn settling_cell(m: Option<&control::StepMetrics>) -> String {
     }
 }
 
+/// How a cell marks a steady-state error that is not final ([`ess_cell`]).
+pub(crate) const NOT_FINAL_MARK: &str = "(n.f.)";
+
+/// The note under a table with a [`NOT_FINAL_MARK`] cell.
+pub(crate) const NOT_FINAL_NOTE: &str = "(n.f.) not final: the step had not settled, so its e_ss is the \
+     error at the last sample, not a steady-state error (as `control` says: \"not final: not settled\").";
+
+/// The e_ss cell: the figure, marked [`NOT_FINAL_MARK`] when the step has not settled
+/// ([`settling_cell`] "not settled"; audit s23 M-R2: the tuned loop on the model printed 0.6116 as if
+/// final).
+pub(crate) fn ess_cell(m: Option<&control::StepMetrics>) -> String {
+    let v = opt(m.and_then(|m| m.steady_state_error_mm));
+    if settling_cell(m) == "not settled" {
+        format!("{v} {NOT_FINAL_MARK}")
+    } else {
+        v
+    }
+}
+
 pub(crate) fn closed_loop_rows(lp: &Loop) -> [ClosedLoopRow; 4] {
     let [a, b, c, d] = paper::CLOSED_LOOP;
     let (m, p) = (lp.m_model.as_ref(), &lp.m_plant);
@@ -117,13 +136,7 @@ pub(crate) fn closed_loop_rows(lp: &Loop) -> [ClosedLoopRow; 4] {
             opt(m.and_then(|m| m.overshoot_mm)),
             opt(p.overshoot_mm),
         ),
-        (
-            b.0,
-            b.1,
-            b.2,
-            opt(m.and_then(|m| m.steady_state_error_mm)),
-            opt(p.steady_state_error_mm),
-        ),
+        (b.0, b.1, b.2, ess_cell(m), ess_cell(Some(p))),
         (
             c.0,
             c.1,
@@ -150,8 +163,8 @@ pub(crate) fn tuned_rows(st: &Study) -> Vec<(String, String, String)> {
         ),
         (
             "tuned: e_ss (mm)".into(),
-            opt(m.steady_state_error_mm),
-            opt(p.steady_state_error_mm),
+            ess_cell(Some(m)),
+            ess_cell(Some(p)),
         ),
         (
             "tuned: rise time (s)".into(),
@@ -180,9 +193,28 @@ pub(crate) fn tuned_text(st: &Study) -> String {
                 report::format::sig(s.kd, 3),
                 report::format::sig(s.fine_band_mm, 3),
                 s.hold_band_mm
-            )
+            ) + &tuned_verdict(&t.verdict)
         }
         Err(reason) => format!("The tuned controller was not run: {reason}."),
+    }
+}
+
+/// `tune`'s verdict in a sentence: whether the controller met its specification, with the count of
+/// steps (as `control --controller` repeats it from the controller file); the reasons are in the
+/// warnings.
+fn tuned_verdict(v: &crate::closed_loop::TuneVerdict) -> String {
+    if v.meets_spec {
+        format!(
+            " tune found it meets its specification on {} ({} of {} steps).",
+            v.on, v.steps_met, v.steps
+        )
+    } else {
+        format!(
+            " NOT MET: tune found it does not meet its specification on {} ({} of {} steps meet \
+             all of it; see the warnings \"the tuned controller (tune's verdict)\"): do not take its \
+             rows as a tuned result.",
+            v.on, v.steps_met, v.steps
+        )
     }
 }
 
@@ -273,8 +305,15 @@ pub(crate) fn tables_text(s: &ReproduceSettings, st: &Study) -> String {
             estimate(pe)
         );
     }
+    let mut not_final = closed_loop_rows(&st.fixed)
+        .iter()
+        .any(|r| r.3.ends_with(NOT_FINAL_MARK) || r.4.ends_with(NOT_FINAL_MARK));
     for (label, a, b) in tuned_rows(st) {
+        not_final |= a.ends_with(NOT_FINAL_MARK) || b.ends_with(NOT_FINAL_MARK);
         let _ = writeln!(o, "{label:<26}{a:>14}{b:>14}{:>14}{:>14}", "—", "—");
+    }
+    if not_final {
+        let _ = writeln!(o, "{NOT_FINAL_NOTE}");
     }
     let _ = writeln!(o, "{}", tuned_text(st));
     let _ = writeln!(
@@ -475,5 +514,40 @@ mod tests {
         assert_eq!(settling_cell(Some(&metrics(Some(0.3517), 0.0))), "0.3517");
         assert_eq!(settling_cell(Some(&metrics(None, 0.0))), "n/a");
         assert_eq!(settling_cell(None), "n/a");
+    }
+
+    // Audit s23 M-R2: an unsettled step's e_ss is marked not final (the tuned loop on the model printed
+    // 0.6116 as a result); a settled step's, and a step without a set-point change's, are not.
+    #[test]
+    fn an_unsettled_steps_error_is_marked_not_final() {
+        let c = ess_cell(Some(&metrics(None, 0.6116)));
+        assert!(
+            c.starts_with("0.6116") && c.ends_with(NOT_FINAL_MARK),
+            "{c}"
+        );
+        assert!(c.len() <= 14, "{c}: wider than the text table's column");
+        assert!(!ess_cell(Some(&metrics(Some(0.3517), 0.02))).contains(NOT_FINAL_MARK));
+        assert!(!ess_cell(Some(&metrics(None, 0.0))).contains(NOT_FINAL_MARK));
+        assert!(!ess_cell(None).contains(NOT_FINAL_MARK));
+    }
+
+    // tune's verdict in words: a controller that met none of its steps says NOT MET with the count;
+    // one that met them all says so.
+    #[test]
+    fn the_tuned_controllers_verdict_is_said() {
+        let mut v = crate::closed_loop::TuneVerdict {
+            meets_spec: false,
+            steps_met: 0,
+            steps: 24,
+            on: "the output-error model and 2 variants".into(),
+            warnings: vec!["not met on the model: |e_ss| <= 0.05 mm in every step".into()],
+        };
+        let t = tuned_verdict(&v);
+        assert!(t.contains("NOT MET") && t.contains("0 of 24 steps"), "{t}");
+        v.meets_spec = true;
+        v.steps_met = 24;
+        v.warnings.clear();
+        let t = tuned_verdict(&v);
+        assert!(!t.contains("NOT") && t.contains("24 of 24 steps"), "{t}");
     }
 }

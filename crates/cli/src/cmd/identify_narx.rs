@@ -225,7 +225,7 @@ fn render(r: &NarxReport, s: &NarxSettings) -> String {
     let mut line = |name: &str, x: &sysid::narx::NarxMetrics| {
         let _ = writeln!(
             t,
-            "{name} ({}, {} rows): simulation RMSE {}, fit {}; one-step RMSE {}",
+            "{name} ({}, {} rows): simulation RMSE {}, fit {} (initial outputs measured); one-step RMSE {}",
             x.data,
             x.n,
             opt(x.rmse_sim, ""),

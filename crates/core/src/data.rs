@@ -352,6 +352,21 @@ impl Default for CsvOptions {
     }
 }
 
+/// What a data file that is not UTF-8 CSV is, when its first bytes say (audit s23 L-N1), with what
+/// reads it: a Parquet file (`PAR1`, the fleet's own output) or UTF-16 text (a byte-order mark).
+pub fn known_binary(prefix: &[u8]) -> Option<&'static str> {
+    if prefix.starts_with(b"PAR1") {
+        Some(
+            "a Parquet file (PAR1), not CSV text; read it with the Python package (ipa_sysid.fleet) or \
+             convert it: pandas.read_parquet('FILE.parquet').to_csv('FILE.csv', index=False)",
+        )
+    } else if prefix.starts_with(b"\xff\xfe") || prefix.starts_with(b"\xfe\xff") {
+        Some("UTF-16 text (a byte-order mark), not UTF-8; save it as UTF-8 (CSV UTF-8) and read that")
+    } else {
+        None
+    }
+}
+
 /// Reads a record from a CSV file, or from a MATLAB Level 5 `.mat` file (by its header; see [`mat`]).
 pub fn read_csv(path: &Path, opts: &CsvOptions) -> Result<Dataset, SysidError> {
     read_record(path, opts).map(|r| r.data)

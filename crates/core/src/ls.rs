@@ -217,6 +217,22 @@ pub fn try_zeros(len: usize, what: &str) -> Result<Vec<f64>, SysidError> {
     Ok(v)
 }
 
+/// The `len` numbers of `values` in a vector allocated fallibly ([`try_zeros`]'s error when it cannot
+/// be): the full-length copies of a record (its input over several records, a simulation's output)
+/// are made with it, so that a record too large for the memory left is an error, not an abort
+/// (audit s23 H-B1).
+pub fn try_collect(
+    values: impl IntoIterator<Item = f64>,
+    len: usize,
+    what: &str,
+) -> Result<Vec<f64>, SysidError> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(len)
+        .map_err(|_| out_of_memory(what, len))?;
+    v.extend(values.into_iter().take(len));
+    Ok(v)
+}
+
 /// A `rows` × `cols` matrix of zeros allocated fallibly ([`try_zeros`]): the N × p regression
 /// matrices are built with it, so that a failed allocation is an error, not an abort.
 pub fn try_matrix(rows: usize, cols: usize, what: &str) -> Result<DMatrix<f64>, SysidError> {

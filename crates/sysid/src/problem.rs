@@ -117,10 +117,13 @@ impl<'a> Problem<'a> {
         let several = regression.channels().len() > 1;
         let mut starts = Vec::with_capacity(names.len());
         for (m, ch) in regression.channels().iter().enumerate() {
-            let u: Vec<f64> = records
-                .iter()
-                .flat_map(|r| r.inputs()[m].u().iter().copied())
-                .collect();
+            let u = sysid_core::ls::try_collect(
+                records
+                    .iter()
+                    .flat_map(|r| r.inputs()[m].u().iter().copied()),
+                records.iter().map(|r| r.inputs()[m].u().len()).sum(),
+                &format!("the input of {name}"),
+            )?;
             let who = if several {
                 format!("{} (input {})", name, ch.name)
             } else {

@@ -161,6 +161,9 @@ pub fn read_data_file(path: &Path, what: &str) -> Result<Vec<u8>, SysidError> {
                     message: message.into(),
                 })
             };
+            if let Some(what) = super::known_binary(prefix) {
+                return at(0, prefix, what);
+            }
             let body = prefix.strip_prefix(b"\xef\xbb\xbf").unwrap_or(prefix);
             let valid = match std::str::from_utf8(body) {
                 Ok(_) => body.len(),

@@ -108,6 +108,27 @@ pub fn read_mat_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Rec
     };
     let vector = |var: &str, setting: Setting| -> Result<Vec<f64>, SysidError> {
         let Some(a) = find(var)? else {
+            // A MATLAB object (an iddata saved whole: class object, or opaque for MCOS classes)
+            // holds its vectors inside, where this reader does not go (audit s23 L-N2).
+            if let Some(o) = vars
+                .iter()
+                .find(|a| matches!(a.values, Values::Class("object" | "non-numeric")))
+            {
+                let z = if o.name == "MCOS" || o.name.is_empty() {
+                    "z".to_string()
+                } else {
+                    o.name.clone()
+                };
+                return Err(file_err(
+                    name,
+                    format!(
+                        "no variable named '{var}'; the file holds a MATLAB object ('{}'), which this \
+                         reader cannot open (an iddata saved whole); save its vectors instead: u = \
+                         {z}.InputData; y = {z}.OutputData; save('{z}.mat', 'u', 'y')",
+                        o.name
+                    ),
+                ));
+            }
             return Err(SysidError::MissingVariable {
                 file: name.to_string(),
                 variable: var.to_string(),
@@ -116,7 +137,23 @@ pub fn read_mat_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Rec
             });
         };
         let v = match &a.values {
-            Values::Real(v) => v.clone(),
+            Values::Real(v) => {
+                // Copied fallibly: a record near the limit is hundreds of MB (audit s23 H-B1).
+                let mut copy = Vec::new();
+                copy.try_reserve_exact(v.len()).map_err(|_| {
+                    file_err(
+                        name,
+                        format!(
+                            "not enough memory to read variable '{var}': {} bytes ({} GB) could not \
+                             be allocated; save a part of the record, or run where more memory is free",
+                            8 * v.len() as u64,
+                            crate::ls::format_gb(8 * v.len() as u64)
+                        ),
+                    )
+                })?;
+                copy.extend_from_slice(v);
+                copy
+            }
             Values::Complex => {
                 return Err(file_err(
                     name,
@@ -306,6 +343,8 @@ struct Cursor<'a> {
 enum Stop {
     Truncated,
     Damaged(String),
+    /// A fallible allocation of this many bytes failed (the memory left is too small for the record).
+    Memory(u64),
 }
 
 const MI_INT8: u32 = 1;
@@ -425,6 +464,8 @@ fn parse(bytes: &[u8], name: &str, wanted: &[&str]) -> Result<Vec<Variable>, Sys
                     format!("data element {element} at byte {start} is damaged: {m}"),
                 ))
             }
+            // Not made by reading a tag.
+            Err(Stop::Memory(_)) => unreachable!("a tag is read without allocating"),
         };
         let var = match ty {
             MI_MATRIX => {
@@ -468,6 +509,15 @@ fn parse(bytes: &[u8], name: &str, wanted: &[&str]) -> Result<Vec<Variable>, Sys
             Err((var, Stop::Damaged(m))) => {
                 return Err(file_err(name, format!("{} is damaged: {m}", which(var))))
             }
+            Err((var, Stop::Memory(bytes))) => return Err(file_err(
+                name,
+                format!(
+                    "not enough memory to read {}: {bytes} bytes ({} GB) could not be allocated; \
+                         save a part of the record, or run where more memory is free",
+                    which(var),
+                    crate::ls::format_gb(bytes)
+                ),
+            )),
         }
     }
     Ok(vars)
@@ -481,7 +531,11 @@ fn compressed(
     wanted: &[&str],
 ) -> Result<Variable, (Option<String>, Stop)> {
     let inflate = |limit: u64| -> Result<Vec<u8>, (Option<String>, Stop)> {
+        // The bytes are reserved fallibly before inflating (a 622 KB file announcing 640 MB aborted the
+        // process on a failed allocation under a memory limit; audit s23 H-B1).
         let mut out = Vec::new();
+        out.try_reserve_exact(usize::try_from(limit).unwrap_or(usize::MAX))
+            .map_err(|_| (None, Stop::Memory(limit)))?;
         let mut z = flate2::read::ZlibDecoder::new(zipped);
         (&mut z).take(limit).read_to_end(&mut out).map_err(|e| {
             (
@@ -631,12 +685,14 @@ fn matrix(
             }
         };
         let (ty, data) = c.element(false).map_err(|s| (Some(name.clone()), s))?;
-        let v = numbers(ty, data, endian).ok_or_else(|| {
-            (
-                Some(name.clone()),
-                Stop::Damaged(format!("its values have the unknown storage type {ty}")),
-            )
-        })?;
+        let v = numbers(ty, data, endian)
+            .ok_or_else(|| {
+                (
+                    Some(name.clone()),
+                    Stop::Damaged(format!("its values have the unknown storage type {ty}")),
+                )
+            })?
+            .ok_or_else(|| (Some(name.clone()), Stop::Memory(8 * count as u64)))?;
         if v.len() != count {
             return Err((
                 Some(name),
@@ -657,20 +713,22 @@ fn matrix(
     })
 }
 
-/// The values of a numeric data element of storage type `ty` as f64 (`None`: not a numeric type).
-fn numbers(ty: u32, data: &[u8], endian: Endian) -> Option<Vec<f64>> {
+/// The values of a numeric data element of storage type `ty` as f64 (`None`: not a numeric type;
+/// `Some(None)`: their vector could not be allocated, reserved fallibly).
+fn numbers(ty: u32, data: &[u8], endian: Endian) -> Option<Option<Vec<f64>>> {
     fn conv<const N: usize>(
         data: &[u8],
         endian: Endian,
         f: impl Fn([u8; N], Endian) -> f64,
-    ) -> Vec<f64> {
-        data.chunks_exact(N)
-            .map(|c| {
-                let mut a = [0u8; N];
-                a.copy_from_slice(c);
-                f(a, endian)
-            })
-            .collect()
+    ) -> Option<Vec<f64>> {
+        let mut v = Vec::new();
+        v.try_reserve_exact(data.len() / N).ok()?;
+        v.extend(data.chunks_exact(N).map(|c| {
+            let mut a = [0u8; N];
+            a.copy_from_slice(c);
+            f(a, endian)
+        }));
+        Some(v)
     }
     macro_rules! num {
         ($t:ty) => {

@@ -61,6 +61,9 @@ pub(crate) fn compensated_run(
     )?))
 }
 
+/// The tuned controller's settings, tune's verdict, and its runs on the plant and on the model.
+pub(crate) type TunedRun = (control::ControllerSettings, TuneVerdict, Trace, Trace);
+
 /// The tuned controller (issue 25) of the fixed set-point test: tuned on the identified model `fit`
 /// (a small search: 3 variants, 40 evaluations, so that `reproduce` stays quick), then run on the plant
 /// and on the model; `Ok(Err(reason))` when the model cannot be tuned on. With the runs, tune's own
@@ -72,8 +75,7 @@ pub(crate) fn tuned_run(
     profile: &Profile,
     duration_s: f64,
     y0_mm: f64,
-) -> Result<Result<(control::ControllerSettings, TuneVerdict, Trace, Trace), String>, ReproduceError>
-{
+) -> Result<Result<TunedRun, String>, ReproduceError> {
     let deadzone = match control::tuning::command_deadzone(&fit.model) {
         Ok(d) => d,
         Err(p) => return Ok(Err(p.to_string())),

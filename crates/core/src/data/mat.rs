@@ -509,15 +509,17 @@ fn parse(bytes: &[u8], name: &str, wanted: &[&str]) -> Result<Vec<Variable>, Sys
             Err((var, Stop::Damaged(m))) => {
                 return Err(file_err(name, format!("{} is damaged: {m}", which(var))))
             }
-            Err((var, Stop::Memory(bytes))) => return Err(file_err(
-                name,
-                format!(
+            Err((var, Stop::Memory(bytes))) => {
+                return Err(file_err(
+                    name,
+                    format!(
                     "not enough memory to read {}: {bytes} bytes ({} GB) could not be allocated; \
                          save a part of the record, or run where more memory is free",
                     which(var),
                     crate::ls::format_gb(bytes)
                 ),
-            )),
+                ))
+            }
         }
     }
     Ok(vars)

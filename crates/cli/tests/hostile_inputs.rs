@@ -1335,6 +1335,27 @@ fn fleet_overwrite_never_removes_a_folder_of_other_files() {
         std::fs::read_to_string(d.join("data/truth.csv")).unwrap(),
         "mine\n"
     );
+    // Without --overwrite the same folder is refused with the same reason, not with the advice to
+    // pass --overwrite, which would then be refused (audit s23 L-B7); a folder of the fleet's own
+    // files still gets that advice.
+    let out = run(
+        "simulate --fleet 2 --samples 100 --windows 3 --out {t}/data",
+        d,
+    );
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    let e = stderr(&out);
+    assert!(
+        e.contains("1 other entry (x)") && e.contains("choose another --out"),
+        "{e}"
+    );
+    assert!(!e.contains("pass --overwrite"), "{e}");
+    let out = run(fleet, d);
+    assert_eq!(out.status.code(), Some(2), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("pass --overwrite"),
+        "{}",
+        stderr(&out)
+    );
 }
 
 // A closed-loop run is bounded before anything is allocated: 2·10^7 samples (55 hours at 0.01 s) is

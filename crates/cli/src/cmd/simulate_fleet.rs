@@ -48,9 +48,9 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let worn = design.worn();
     let ids: Vec<usize> = (0..design.actuators).collect();
     let files = ids.chunks(args.per_file).count();
-    if args.overwrite {
-        check_fleet_folder(&args.out)?;
-    }
+    // Checked with or without --overwrite: a folder holding the user's own files gets "choose another
+    // --out", never the advice to pass --overwrite (audit s23 L-B7).
+    check_fleet_folder(&args.out)?;
     let replaced = sysid_io::write_folder(&args.out, "--out", args.overwrite, |dir: &Path| {
         ids.chunks(args.per_file)
             .enumerate()
@@ -78,9 +78,10 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// With `--overwrite`, an existing `--out` folder is replaced only when it holds nothing but what a
-/// fleet run writes (`part-NNNNN.parquet` and `truth.csv`, plain files): a mistyped `--out ~/data
-/// --overwrite` must not remove a folder of the user's records (audit s13 M7).
+/// An existing `--out` folder can be replaced (with `--overwrite`) only when it holds nothing but what
+/// a fleet run writes (`part-NNNNN.parquet` and `truth.csv`, plain files): a mistyped `--out ~/data
+/// --overwrite` must not remove a folder of the user's records (audit s13 M7), and without
+/// `--overwrite` such a folder is not answered with the advice to pass it (audit s23 L-B7).
 fn check_fleet_folder(dir: &Path) -> anyhow::Result<()> {
     let entries = match std::fs::read_dir(dir) {
         Ok(entries) => entries,
@@ -117,9 +118,9 @@ fn check_fleet_folder(dir: &Path) -> anyhow::Result<()> {
         sysid::Setting::Other("--out"),
         dir.display(),
         &format!(
-            "with --overwrite, a folder written by an earlier `simulate --fleet` (only part-NNNNN.parquet \
-             and truth.csv); this one also holds {} other entr{} ({shown}{}), which --overwrite would \
-             remove: choose another --out",
+            "a new or empty folder, or (with --overwrite) one written by an earlier `simulate --fleet` \
+             (only part-NNNNN.parquet and truth.csv); this one also holds {} other entr{} ({shown}{}), \
+             which --overwrite would remove: choose another --out",
             others.len(),
             if others.len() == 1 { "y" } else { "ies" },
             if others.len() > 5 { ", ..." } else { "" }

@@ -77,14 +77,15 @@ def _named_ints(f):
         _refuse_bools(signature, args, kwargs)
         try:
             return f(*args, **kwargs)
-        except TypeError as e:
-            # The core names the argument only in a note ("while processing 'ts'"), which str(e)
-            # leaves out: put it in the message.
+        except (TypeError, ValueError) as e:
+            # The core's argument conversion names the argument only in a note ("while processing
+            # 'ts'"), which str(e) leaves out: put it in the message (a ValueError too, audit s23 L-P1:
+            # `validation=(u, y, y)` said "expected tuple of length 2" naming nothing).
             prefix = "while processing '"
             names = [n[len(prefix) : -1] for n in getattr(e, "__notes__", ()) if n.startswith(prefix)]
             if not names:
                 raise
-            raise TypeError(f"{names[0]}: {e}") from e
+            raise type(e)(f"{names[0]}: {e}") from e
         except OverflowError as e:
             try:
                 given = signature.bind(*args, **kwargs).arguments if signature else kwargs

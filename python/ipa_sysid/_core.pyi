@@ -66,7 +66,7 @@ class Model:
         """Validation metrics (fit %, RMSE, loss, FPE, AIC, N, p) on a record, as `validate`."""
     def to_json(self) -> str:
         """The model file text (`identify --save-model` format)."""
-    def save(self, path: str | PathLike[str], force: bool = False) -> None:
+    def save(self, path: str | bytes | PathLike[str] | PathLike[bytes], force: bool = False) -> None:
         """Writes the model file as the command line writes its outputs: a file atomically, a device or
         FIFO directly (never replaced); an existing file only when it is a model file (or empty) and a
         symbolic link not at all, unless force=True (the command line's --force); a folder, or a file of
@@ -217,7 +217,7 @@ def identify(
     """Identifies a model as `ipa-sysid identify` does with the same options (structure="narx":
     a polynomial NARX model of degree `degree`, default 2, a NarxFit)."""
 
-def load_model(path: str | PathLike[str]) -> Model:
+def load_model(path: str | bytes | PathLike[str] | PathLike[bytes]) -> Model:
     """Reads a model file of `identify --save-model`."""
 
 def paper_model() -> Model:

@@ -421,6 +421,10 @@ def _check_output(input_dir, output_dir, target, files):
     input ``files`` (symbolic links resolved): the results would replace an input record, and every later
     run would read them back as a partition (audit s16 M3; the command line never writes over an
     input file)."""
+    if os.path.exists(output_dir) and not os.path.isdir(output_dir):
+        # Said before any work, in the words of the command line's output checks (audit s23 L-P4: a
+        # raw NotADirectoryError named output_dir/results.parquet, a path the caller never wrote).
+        raise ValueError(f"invalid setting output_dir = {output_dir}: a folder (this is a file)")
     inp = os.path.realpath(os.fspath(input_dir))
     out = os.path.realpath(os.fspath(output_dir))
     if os.path.realpath(target) in {os.path.realpath(f) for f in files}:

@@ -170,14 +170,48 @@ fn setting_err(name: &'static str, value: impl ToString, expected: &str) -> PyEr
     sysid_err(SysidError::setting(Setting::Other(name), value, expected))
 }
 
-/// A whole number argument of a method (where the module's functions get this from the Python
-/// wrapper `_named_ints`): a negative one is a `ValueError` naming `name`, as the functions' are.
-fn whole(name: &'static str, v: &Bound<'_, PyAny>) -> PyResult<usize> {
+/// A bool given for a number (`y0=True`): Python counts it as 1, the core would run with it. A
+/// `TypeError` naming `name`, in the words of the Python wrapper's `_refuse_bools` (audit s23 L-P7).
+fn refuse_bool(name: &str, v: &Bound<'_, PyAny>) -> PyResult<()> {
     if v.is_instance_of::<pyo3::types::PyBool>() {
         return Err(pyo3::exceptions::PyTypeError::new_err(format!(
             "{name}: expected a number, not the bool {v}"
         )));
     }
+    Ok(())
+}
+
+/// A real number argument of a method (a bool refused by [`refuse_bool`]; another type a `TypeError`
+/// naming `name`, where pyo3 names it only in an exception note).
+fn number(name: &str, v: &Bound<'_, PyAny>) -> PyResult<f64> {
+    refuse_bool(name, v)?;
+    v.extract::<f64>()
+        .map_err(|e| pyo3::exceptions::PyTypeError::new_err(format!("{name}: {e}")))
+}
+
+/// A path argument of a method (`str`, `bytes` or `os.PathLike`, as `os.fsdecode` takes them; audit
+/// s23 L-P6: a bytes path was refused while the error for an int said bytes were accepted); another
+/// type a `TypeError` naming `name`.
+fn path_arg(name: &str, v: &Bound<'_, PyAny>) -> PyResult<PathBuf> {
+    let py = v.py();
+    let text = py
+        .import("os")?
+        .getattr("fsdecode")?
+        .call1((v,))
+        .map_err(|e| {
+            if e.is_instance_of::<pyo3::exceptions::PyTypeError>(py) {
+                pyo3::exceptions::PyTypeError::new_err(format!("{name}: {}", e.value(py)))
+            } else {
+                e
+            }
+        })?;
+    Ok(PathBuf::from(text.extract::<String>()?))
+}
+
+/// A whole number argument of a method (where the module's functions get this from the Python
+/// wrapper `_named_ints`): a negative one is a `ValueError` naming `name`, as the functions' are.
+fn whole(name: &'static str, v: &Bound<'_, PyAny>) -> PyResult<usize> {
+    refuse_bool(name, v)?;
     match v.extract::<i64>() {
         Ok(n) => usize::try_from(n).map_err(|_| setting_err(name, n, "a whole number >= 0")),
         // A Python int beyond 64 bits (the conversion alone raises an OverflowError naming none).
@@ -390,6 +424,17 @@ fn json_loads<'py>(py: Python<'py>, text: &str) -> PyResult<Bound<'py, PyAny>> {
     py.import("json")?.call_method1("loads", (text,))
 }
 
+/// Runs the computation `f` with the GIL released (other Python threads run meanwhile), then takes a
+/// Ctrl-C that arrived during it: `KeyboardInterrupt` before any result is built (audit s23 H-P1: the
+/// interrupt surfaced inside numpy's first array conversion as a `PanicException`). The core's loops
+/// have no cancellation hook, so the interrupt is taken when `f` returns, not while it runs (audit s23
+/// M-P1; docs/python.md "Threads and Ctrl-C").
+fn compute<T: Send>(py: Python<'_>, f: impl Send + FnOnce() -> T) -> PyResult<T> {
+    let out = py.detach(f);
+    py.check_signals()?;
+    Ok(out)
+}
+
 /// A serialisable value as Python objects, through its JSON form.
 fn to_py<'py, T: serde::Serialize>(py: Python<'py>, v: &T) -> PyResult<Bound<'py, PyAny>> {
     let text = serde_json::to_string(v)
@@ -545,7 +590,7 @@ impl PyModel {
             }
             Some(obj) => match obj.extract::<f64>() {
                 // One number: the output at rest there before the record (each of the first k0 samples).
-                Ok(v) => Some(vec![v; k0]),
+                Ok(_) => Some(vec![number("y0", obj)?; k0]),
                 Err(_) => Some(floats(obj, "y0")?),
             },
         };
@@ -633,7 +678,8 @@ impl PyModel {
     /// model file (or empty), and a symbolic link is refused, unless `force=True` (the command line's
     /// `--force`).
     #[pyo3(signature = (path, force = false))]
-    fn save(&self, py: Python<'_>, path: PathBuf, force: bool) -> PyResult<()> {
+    fn save(&self, py: Python<'_>, path: &Bound<'_, PyAny>, force: bool) -> PyResult<()> {
+        let path = path_arg("path", path)?;
         let text = self.to_json()?;
         write_output(py, path, text.as_bytes(), "path", force)
     }
@@ -702,18 +748,25 @@ impl PyModel {
     /// ("infinite (integrator)", "not defined (unstable)"); `"warnings"` (each also an
     /// `IpaSysidWarning`) gives the stability verdict in identify's words, the model file's doubts and
     /// figures that are not finite.
-    #[pyo3(signature = (points=20, f_min_hz=None, samples=20, kp=None, ki=None, controller=None))]
+    #[pyo3(signature = (points=None, f_min_hz=None, samples=None, kp=None, ki=None, controller=None),
+        text_signature = "($self, points=20, f_min_hz=None, samples=20, kp=None, ki=None, controller=None)")]
     #[allow(clippy::too_many_arguments)] // Python keyword arguments
     fn frequency_response<'py>(
         &self,
         py: Python<'py>,
-        points: usize,
-        f_min_hz: Option<f64>,
-        samples: usize,
-        kp: Option<f64>,
-        ki: Option<f64>,
+        points: Option<&Bound<'py, PyAny>>,
+        f_min_hz: Option<&Bound<'py, PyAny>>,
+        samples: Option<&Bound<'py, PyAny>>,
+        kp: Option<&Bound<'py, PyAny>>,
+        ki: Option<&Bound<'py, PyAny>>,
         controller: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
+        // Taken as any object so that a bool is refused by name (audit s23 L-P7: points=True ran as 1).
+        let points = points.map_or(Ok(20), |v| whole("points", v))?;
+        let samples = samples.map_or(Ok(20), |v| whole("samples", v))?;
+        let f_min_hz = f_min_hz.map(|v| number("f_min_hz", v)).transpose()?;
+        let kp = kp.map(|v| number("kp", v)).transpose()?;
+        let ki = ki.map(|v| number("ki", v)).transpose()?;
         if !(2..=100_000).contains(&points) {
             return Err(PyValueError::new_err(format!(
                 "invalid setting points = {points}: expected 2..=100000"
@@ -870,7 +923,8 @@ fn poles_array<'py>(py: Python<'py>, m: &Model) -> Bound<'py, PyArray1<Complex64
 /// `warnings` but do not warn of them again (session 22: `Model.frequency_response` and
 /// `Model.metrics` repeated them on every call).
 #[pyfunction]
-fn load_model(py: Python<'_>, path: PathBuf) -> PyResult<PyModel> {
+fn load_model(py: Python<'_>, path: &Bound<'_, PyAny>) -> PyResult<PyModel> {
+    let path = path_arg("path", path)?;
     let inner = sysid::model_file::read_model(&path).map_err(sysid_err)?;
     warn_all(py, &sysid::model_file::load_warnings(&inner))?;
     Ok(PyModel { inner })
@@ -1264,12 +1318,14 @@ fn identify<'py>(
         let val = validation
             .map(|(uv, yv)| dataset(&uv, &yv, ts, validation_name))
             .transpose()?;
-        let mut report = py
-            .detach(|| -> Result<sysid_summary::narx::NarxReport, SysidError> {
+        let mut report = compute(
+            py,
+            || -> Result<sysid_summary::narx::NarxReport, SysidError> {
                 let fit = sysid::narx::identify_narx(&data, &settings)?;
                 sysid_summary::narx::NarxReport::assemble(fit, &settings, &data, val.as_ref())
-            })
-            .map_err(sysid_err)?;
+            },
+        )?
+        .map_err(sysid_err)?;
         report.warnings.extend(in_sample(&data, val.as_ref()));
         let json = serde_json::to_string_pretty(&report)
             .map_err(|e| PyValueError::new_err(e.to_string()))?
@@ -1376,28 +1432,27 @@ fn identify<'py>(
     let val = validation
         .map(|(uv, yv)| dataset(&uv, &yv, ts, validation_name))
         .transpose()?;
-    let mut report = py
-        .detach(|| -> Result<IdentifyReport, SysidError> {
-            // As `identify --detrend`: estimated on the deviations from the operating point, which
-            // the model stores (with its data range in the record's units) and puts back; metrics,
-            // residuals and warnings on the record as given.
-            let (estimation, op) = sysid::detrend::detrend(&data, detrend);
-            let mut fit = sysid::identify(&estimation, &settings)?;
-            if op.is_some() {
-                fit.model = fit
-                    .model
-                    .with_operating_point(op)?
-                    .with_data_range(sysid::DataRange::of(std::slice::from_ref(&data)))?;
-            }
-            IdentifyReport::assemble(
-                &fit,
-                &settings,
-                std::slice::from_ref(&data),
-                val.as_ref(),
-                resid_lags,
-            )
-        })
-        .map_err(sysid_err)?;
+    let mut report = compute(py, || -> Result<IdentifyReport, SysidError> {
+        // As `identify --detrend`: estimated on the deviations from the operating point, which
+        // the model stores (with its data range in the record's units) and puts back; metrics,
+        // residuals and warnings on the record as given.
+        let (estimation, op) = sysid::detrend::detrend(&data, detrend);
+        let mut fit = sysid::identify(&estimation, &settings)?;
+        if op.is_some() {
+            fit.model = fit
+                .model
+                .with_operating_point(op)?
+                .with_data_range(sysid::DataRange::of(std::slice::from_ref(&data)))?;
+        }
+        IdentifyReport::assemble(
+            &fit,
+            &settings,
+            std::slice::from_ref(&data),
+            val.as_ref(),
+            resid_lags,
+        )
+    })?
+    .map_err(sysid_err)?;
     report.warnings.extend(in_sample(&data, val.as_ref()));
     let mut json = report.to_json().map_err(sysid_err)?;
     if detrend != sysid::detrend::Detrend::None {
@@ -1563,7 +1618,7 @@ fn fleet_windows<'py>(
         }
         jobs.extend((0..count).map(|j| (g, j, w[0] + j * window)));
     }
-    let results: Vec<Result<sysid_summary::monitor::WindowResult, String>> = py.detach(|| {
+    let results: Vec<Result<sysid_summary::monitor::WindowResult, String>> = compute(py, || {
         jobs.iter()
             .map(|&(g, j, start)| {
                 let signals = Signals {
@@ -1575,7 +1630,7 @@ fn fleet_windows<'py>(
                     .map_err(|e| e.render(&|s| keyword(s.flag())))
             })
             .collect()
-    });
+    })?;
     let mut names: Vec<String> = Vec::new();
     for r in results.iter().flatten() {
         for p in &r.report.parameters {
@@ -1708,8 +1763,15 @@ struct PyRls {
 #[pymethods]
 impl PyRls {
     #[new]
-    #[pyo3(signature = (n, forgetting=1.0, p0=1e6))]
-    fn new(n: &Bound<'_, PyAny>, forgetting: f64, p0: f64) -> PyResult<Self> {
+    // Taken as any object so that a bool is refused by name (audit s23 L-P7); None is the default.
+    #[pyo3(signature = (n, forgetting=None, p0=None), text_signature = "(n, forgetting=1.0, p0=1e6)")]
+    fn new(
+        n: &Bound<'_, PyAny>,
+        forgetting: Option<&Bound<'_, PyAny>>,
+        p0: Option<&Bound<'_, PyAny>>,
+    ) -> PyResult<Self> {
+        let forgetting = forgetting.map_or(Ok(1.0), |v| number("forgetting", v))?;
+        let p0 = p0.map_or(Ok(1e6), |v| number("p0", v))?;
         let n = whole("n", n)?;
         if n == 0 || n > MAX_RLS_PARAMS {
             return Err(setting_err(
@@ -1995,7 +2057,7 @@ fn simulate_plant<'py>(
         x0: Some(y0),
         ..exp
     };
-    let rec = py.detach(|| exp.run()).map_err(ipa_err)?;
+    let rec = compute(py, || exp.run())?.map_err(ipa_err)?;
     let run = sysid_summary::simulation::OpenLoopRun {
         model: model.as_ref(),
         narx_range: narx_range.as_ref(),
@@ -2078,6 +2140,24 @@ fn plant_and_limits(
     Ok((limits, plant))
 }
 
+/// Runs the PI position loop on a plant, as `ipa-sysid control --json` (same options, same numbers).
+/// `plant`: "ipa" (the physics simulator, the default), "paper", "model:FILE", a model file's path or
+/// a `Model` (e.g. `fit.model`). Give exactly one of `setpoint` (r in mm, held) and `profile` (text:
+/// "fixed:50" or "50", "staircase:20,60,100,40@3" — each level in mm held 3 s —, or "file:PATH.csv"
+/// with columns t (s) and r (mm); a list is a TypeError). `kp` in counts/mm (default 14), `ki` in
+/// counts/(mm·s) with `integral="scaled"` (default) or counts/(mm·sample) with "per-sample" (default
+/// 1); `duration` in s (default: the profile's own length, else 10 s); `y0` the start position in mm
+/// (default 0); `anti_windup`: "none" (default), "clamping" or "back-calculation" (needs
+/// `tracking_time` Tt in s); `u_max` the command limit in counts (default 255);
+/// `compensate_deadzone`: a `Model` or "paper" whose deadzone is cancelled before the valve
+/// (`compensator_slopes` "shift" or "equalise", `compensator_threshold` in mm); `plant_config`: a
+/// plant TOML for "ipa"; `controller`: a tuned controller (`tune()`'s result, its "controller" dict, a
+/// controller file's JSON text or path) instead of `kp`/`ki`.
+/// Returns a dict: "t" (s), "r" and "y" (mm), "u" (counts) numpy arrays, "ts" (s), "units",
+/// "metrics_kind", "metrics" (overshoot, undershoot, rise and settling times, steady-state error),
+/// "steps" (a staircase's steps) and "warnings" (each also issued as an `IpaSysidWarning`).
+/// Raises ValueError for a bad setting (named by its keyword), ArithmeticError when the simulation
+/// fails numerically. The GIL is released while the loop runs; Ctrl-C is taken when it ends.
 #[pyfunction]
 #[pyo3(signature = (plant=None, setpoint=None, profile=None, kp=14.0, ki=1.0, duration=None, y0=0.0,
     integral="scaled", anti_windup="none", tracking_time=None, u_max=255.0, compensate_deadzone=None,
@@ -2231,31 +2311,30 @@ fn control_loop<'py>(
     let duration_s = duration
         .or(profile.natural_duration_s())
         .unwrap_or(DEFAULT_FIXED_DURATION_S);
-    let (trace, run) = py
-        .detach(|| -> Result<_, ::control::ControlError> {
-            let controller: &mut dyn ::control::Controller = match position.as_mut() {
-                Some(p) => p,
-                None => &mut pi,
-            };
-            let trace = ::control::closed_loop::run(
-                plant.as_mut(),
-                controller,
-                compensator.as_ref(),
-                &profile,
+    let (trace, run) = compute(py, || -> Result<_, ::control::ControlError> {
+        let controller: &mut dyn ::control::Controller = match position.as_mut() {
+            Some(p) => p,
+            None => &mut pi,
+        };
+        let trace = ::control::closed_loop::run(
+            plant.as_mut(),
+            controller,
+            compensator.as_ref(),
+            &profile,
+            duration_s,
+            y0,
+        )?;
+        if trace.len() < 2 {
+            return Err(::control::ControlError::setting(
+                ::control::ControlSetting::Duration,
                 duration_s,
-                y0,
-            )?;
-            if trace.len() < 2 {
-                return Err(::control::ControlError::setting(
-                    ::control::ControlSetting::Duration,
-                    duration_s,
-                    &format!("at least one sampling period ({ts} s) to measure a response"),
-                ));
-            }
-            let run = ::control::run_metrics(&trace, &profile)?;
-            Ok((trace, run))
-        })
-        .map_err(control_err)?;
+                &format!("at least one sampling period ({ts} s) to measure a response"),
+            ));
+        }
+        let run = ::control::run_metrics(&trace, &profile)?;
+        Ok((trace, run))
+    })?
+    .map_err(control_err)?;
     // The model file's own doubts (a crossed deadzone), the controller file's, then the loop's.
     let mut warnings = ::control::trust::setup_warnings(
         &limits.model_warnings,
@@ -2401,7 +2480,7 @@ fn tune<'py>(
         check_physics,
         physics_variants,
     };
-    let report = py.detach(|| tuning::run(&req)).map_err(control_err)?;
+    let report = compute(py, || tuning::run(&req))?.map_err(control_err)?;
     // With its provenance, as `tune --out` writes it: control() repeats a missed spec (audit s18 M-4).
     let file = report.controller_file();
     let text = serde_json::to_string_pretty(&file)
@@ -2411,8 +2490,6 @@ fn tune<'py>(
     Ok(out)
 }
 
-/// ipa-sysid from Python: identification (Hammerstein/ARX by LS, RLS, OE, IV), recursive least
-/// squares, the physics IPA simulator and PI control, computed in Rust.
 /// Calibrates the physics plant to a record, as `ipa-sysid calibrate --no-baseline` (without the
 /// Hammerstein comparison, which `identify` gives): `data` and `validation` are CSV paths (columns u,
 /// y and, when present, p_a_pa, p_b_pa; the validation record's own columns `val_u_col`/`val_y_col`,
@@ -2488,7 +2565,7 @@ fn calibrate<'py>(
     )
     .map_err(ipa_err)?;
     let started = std::time::Instant::now();
-    let mut twin = py.detach(|| cal.fit(&est, val.as_ref())).map_err(ipa_err)?;
+    let mut twin = compute(py, || cal.fit(&est, val.as_ref()))?.map_err(ipa_err)?;
     let seconds = started.elapsed().as_secs_f64();
     twin.warnings.splice(0..0, notes);
     let out = PyDict::new(py);
@@ -2572,8 +2649,21 @@ fn write_output(
         .map_err(output_err)
 }
 
+/// ipa-sysid from Python: identification (Hammerstein/ARX by LS, RLS, OE, IV), recursive least
+/// squares, the physics IPA simulator and PI control, computed in Rust. The package `ipa_sysid` wraps
+/// this module; see its docstring and docs/python.md.
 #[pymodule]
 fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    // numpy's C API (its capsule, the borrow checker's) is loaded now, where a failure is an
+    // ImportError, and not by the first array a long call returns: loading it runs Python code, where
+    // a Ctrl-C pressed during the call was raised and the numpy crate panicked on it (audit s23 H-P1:
+    // `PanicException` "Failed to access NumPy array API capsule" instead of `KeyboardInterrupt`).
+    let py = m.py();
+    py.import("numpy")?;
+    py.import("numpy.lib")?;
+    let warm = PyArray1::<f64>::zeros(py, 0, false);
+    drop(numpy::PyArrayMethods::readonly(&warm));
+    drop(PyArray1::<Complex64>::zeros(py, 0, false));
     m.add_class::<PyModel>()?;
     m.add_class::<PyFit>()?;
     m.add_class::<PyNarxFit>()?;

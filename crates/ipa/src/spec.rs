@@ -104,11 +104,16 @@ impl PlantSpec {
             // A NaN --ts compares false with everything: refused by name (audit s19 L-3: `--ts nan`
             // ran at the model's Ts without a word).
             if ts.is_nan() || (ts - model_ts).abs() > 1e-9 * model_ts {
-                return Err(IpaError::Config(format!(
-                    "invalid setting --ts = {}: the {label} is sampled at Ts = {} s; leave --ts out or pass that value",
+                // A setting error, so that each front end names it (`--ts`, Python's `ts`; audit s23
+                // L-P2: the flag was in the text and reached Python unchanged).
+                return Err(IpaError::setting(
+                    IpaSetting::Ts,
                     sysid_core::format::Shortest(ts),
-                    sysid_core::format::Shortest(model_ts)
-                )));
+                    format!(
+                        "the {label} is sampled at Ts = {} s; leave it out or pass that value",
+                        sysid_core::format::Shortest(model_ts)
+                    ),
+                ));
             }
         }
         Ok(match model {

@@ -270,18 +270,13 @@ impl IdentifyReport {
         }
         report.warnings.extend(below.map(|w| w.to_string()));
         // The measured operating-point check (the same one `order` and NARX `identify` run): it names
-        // what --offset gives (audit s23 M-R1: ARX on the cascaded tanks, 46.6 % where --offset gives
-        // 72 %, had no word). When the range-based hint of `from_parts` (which the streamed path also
-        // gives) already speaks, the figures are added to it: one warning about the level, not two.
+        // what --offset gives, and replaces the range-based hint `from_parts` may have added (audit s23
+        // M-R1: ARX on the cascaded tanks, 46.6 % where --offset gives 72 %, had no word).
         if let Some(w) = measured_operating_point_hint(fit, settings, est_data, val_data) {
-            match report
+            report
                 .warnings
-                .iter_mut()
-                .find(|x| x.starts_with(OPERATING_POINT_HINT))
-            {
-                Some(range) => *range = format!("{range}; measured: {w}"),
-                None => report.warnings.push(w),
-            }
+                .retain(|x| !x.starts_with(OPERATING_POINT_HINT));
+            report.warnings.push(w);
         }
         // Few regression rows per parameter: the fits describe the noise as much as the plant (audit
         // s17 L-k: N = 5 rows for p = 4 parameters printed a 99.6 % fit).
@@ -601,7 +596,7 @@ impl ValidationReport {
 }
 
 /// How the range-based operating-point hint ([`operating_point_hint`]) begins, so that the measured
-/// one ([`measured_operating_point_hint`]) can join it.
+/// one ([`measured_operating_point_hint`]) can take its place.
 const OPERATING_POINT_HINT: &str = "the output lies far from zero";
 
 /// The fraction of the estimation record (its end) on which [`measured_operating_point_hint`] ranks

@@ -269,15 +269,6 @@ impl IdentifyReport {
             report.warnings.extend(later);
         }
         report.warnings.extend(below.map(|w| w.to_string()));
-        // The measured operating-point check (the same one `order` and NARX `identify` run): it names
-        // what --offset gives, and replaces the range-based hint `from_parts` may have added (audit s23
-        // M-R1: ARX on the cascaded tanks, 46.6 % where --offset gives 72 %, had no word).
-        if let Some(w) = measured_operating_point_hint(fit, settings, est_data, val_data) {
-            report
-                .warnings
-                .retain(|x| !x.starts_with(OPERATING_POINT_HINT));
-            report.warnings.push(w);
-        }
         // Few regression rows per parameter: the fits describe the noise as much as the plant (audit
         // s17 L-k: N = 5 rows for p = 4 parameters printed a 99.6 % fit).
         let (n, p) = (report.metrics.estimation.n, report.metrics.estimation.p);
@@ -595,73 +586,6 @@ impl ValidationReport {
     }
 }
 
-/// How the range-based operating-point hint ([`operating_point_hint`]) begins, so that the measured
-/// one ([`measured_operating_point_hint`]) can take its place.
-const OPERATING_POINT_HINT: &str = "the output lies far from zero";
-
-/// The fraction of the estimation record (its end) on which [`measured_operating_point_hint`] ranks
-/// the two ARX fits when there is no validation record: NARX's default selection part.
-pub const OPERATING_POINT_SELECTION: f64 = 1.0 / 3.0;
-
-/// For a model without a constant term and without an operating point (no `--offset`, no
-/// `--detrend`), of any structure and method: [`sysid::order::offset_hint`], the one test `order` and
-/// NARX `identify` run, on ARX of the same orders by least squares, estimated on the estimation record
-/// and ranked on the validation record (without one: on the last [`OPERATING_POINT_SELECTION`] of the
-/// estimation record, estimated on the rest). It speaks when a constant term c lifts that simulation
-/// fit by more than [`sysid::order::OFFSET_HINT_MARGIN`] points, with both figures, so a plant whose
-/// output level is not an operating point (an integrator, whose c would be a drift) stays silent
-/// unless c truly helps. One estimation record only (several merged: `None`).
-fn measured_operating_point_hint(
-    fit: &Fitted,
-    settings: &Identification,
-    est_data: &[Dataset],
-    val_data: Option<&Dataset>,
-) -> Option<String> {
-    let m = &fit.model;
-    if settings.structure.offset || m.offset().is_some() || m.operating_point().is_some() {
-        return None;
-    }
-    let [est] = est_data else { return None };
-    let o = settings.structure.orders;
-    let arx = Identification::default()
-        .with_kind(sysid::ModelKind::Arx)
-        .with_method(Method::Ls)
-        .with_orders(o.na, o.nb, o.nk);
-    let what = format!(
-        "ARX of the same orders ({}, {}, {}), by ls,",
-        o.na, o.nb, o.nk
-    );
-    let advice =
-        "identify again with --offset (a constant c) or --detrend mean (Python: offset=True)";
-    match val_data {
-        Some(v) => sysid::order::offset_hint(
-            (est, Some(v)),
-            &arx,
-            (o, None),
-            (
-                &what,
-                &format!("{advice} (figures on the validation record)"),
-            ),
-        ),
-        None => {
-            let n = est.len();
-            let k = sysid::data::split_rows(n, 1.0 - OPERATING_POINT_SELECTION).ok()?;
-            sysid::order::offset_hint(
-                (&est.rows(0..k), Some(&est.rows(k..n))),
-                &arx,
-                (o, None),
-                (
-                    &what,
-                    &format!(
-                        "{advice} (figures on the last third of the estimation record, estimated on \
-                         the rest)"
-                    ),
-                ),
-            )
-        }
-    }
-}
-
 /// When a model without a constant term and without an operating point simulates worse than the mean
 /// (a negative fit on either record) or has a fit the initial state flatters (the fits from estimated
 /// and measured initial outputs more than `INITIAL_STATE_MARGIN` points apart; audit s20 L-2), and its estimation output lies far from zero (its recorded range
@@ -700,7 +624,7 @@ fn operating_point_hint(model: &Model, m: &MetricsPair) -> Option<String> {
     let far = (lo > 0.0 || hi < 0.0) && lo.abs().min(hi.abs()) > hi - lo;
     far.then(|| {
         format!(
-            "{OPERATING_POINT_HINT} (estimation data {lo:.4} .. {hi:.4}) and the model has no \
+            "the output lies far from zero (estimation data {lo:.4} .. {hi:.4}) and the model has no \
              constant term: it can only reach that level through its dynamics, the likely cause of \
              {why}; identify again with --offset (a constant c) or --detrend mean (Python: offset=True)"
         )

@@ -737,9 +737,11 @@ mod tests {
         for (k, s) in r.step.iter().enumerate() {
             assert_eq!(*s, k as f64);
         }
-        // identify's own stability warning, then what it means for G(1).
+        // identify's own stability warning (the one verdict: a pole at z = 1 is an integrator, on the
+        // stability boundary), then what it means for G(1).
         assert!(
-            r.warnings[0].contains("pole has modulus 1.000000"),
+            r.warnings[0].contains("a pole at z = 1 (modulus 1.0000000")
+                && r.warnings[0].contains("on the stability boundary"),
             "{:?}",
             r.warnings
         );

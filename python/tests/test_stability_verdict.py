@@ -77,10 +77,11 @@ def test_validate_names_the_same_verdict(tmp_path, what, alpha, verdict):
     path = _model_file(tmp_path, alpha)
     rec = tmp_path / "val.csv"
     rng = np.random.default_rng(3)
-    rec.write_text("u,y\n" + "".join(f"{u!r},{math.sin(0.1 * k)!r}\n"
+    rec.write_text("u,y\n" + "".join(f"{float(u)!r},{math.sin(0.1 * k)!r}\n"
                                      for k, u in enumerate(rng.uniform(-1, 1, 100))))
     out = subprocess.run([binary, "validate", "--model", str(path), "--data", str(rec), "--json", "-"],
                          capture_output=True, text=True, check=False)
+    assert out.returncode == 0, (what, out.stderr)
     doc = json.loads(out.stdout)
     assert doc["stability"] == verdict, (what, doc)
     assert doc["stable"] == (verdict == "settles"), what

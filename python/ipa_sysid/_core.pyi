@@ -66,6 +66,10 @@ class Model:
         """Validation metrics (fit %, RMSE, loss, FPE, AIC, N, p) on a record, as `validate`."""
     def to_json(self) -> str:
         """The model file text (`identify --save-model` format)."""
+    @staticmethod
+    def from_json(text: str) -> Model:
+        """A model from its model-file text (`to_json()`), checked and warned of as `load_model`.
+        Models, Fits and NarxFits pickle and deep-copy (through this text)."""
     def save(self, path: str | bytes | PathLike[str] | PathLike[bytes], force: bool = False) -> None:
         """Writes the model file as the command line writes its outputs: a file atomically, a device or
         FIFO directly (never replaced); an existing file only when it is a model file (or empty) and a

@@ -159,7 +159,9 @@ def identify_partition(
 
     An actuator with fewer than ``window`` samples is one row with ``window`` 0, ``samples`` its count,
     NaN parameters and an ``error``; the samples after an actuator's last whole window are left out.
-    Both are also said by an ``IpaSysidWarning`` naming the actuators. The settings are checked first
+    Both are also said by an ``IpaSysidWarning`` naming the actuators. Rows with no ``actuator_id``
+    (NaN, None or NA) belong to no actuator: together they are one error row (``actuator_id`` NaN,
+    ``samples`` their count), also said by an ``IpaSysidWarning``. The settings are checked first
     (``ValueError`` naming the argument: ``identify``'s message for the orders, ``ts``; a whole number
     >= 0 for ``window``, the orders and the detector's counts).
     """
@@ -183,8 +185,31 @@ def identify_partition(
     for c in ("t", "u", "y"):
         _check_real(partition, c)
     cols = _columns(na, nb)
+    # Rows without an actuator id (NaN, None, pd.NA: what pandas makes of a missing identifier) belong
+    # to no actuator: one error row says how many, not one 1-sample "actuator" per row (audit s23 L-P3).
+    no_id = partition["actuator_id"].isna().to_numpy()
+    unnamed = None
+    if no_id.any():
+        k = int(no_id.sum())
+        t_no_id = partition["t"].to_numpy(dtype=np.float64)[no_id]
+        unnamed = (
+            np.nan,
+            k,
+            float(np.nanmin(t_no_id)) if np.isfinite(t_no_id).any() else np.nan,
+            float(np.nanmax(t_no_id)) if np.isfinite(t_no_id).any() else np.nan,
+            f"{k} row(s) have no actuator_id (NaN, None or NA): they belong to no actuator and are "
+            "not identified (fill the id, or drop the rows)",
+        )
+        partition = partition[~no_id]
+        _warn(
+            f"{k} of {len(no_id)} rows have no actuator_id (NaN, None or NA): one error row, not "
+            "identified; the other actuators go on"
+        )
     if len(partition) == 0:
-        return _typed(pd.DataFrame({c: [] for c in cols}))
+        frame = pd.DataFrame({c: [] for c in cols})
+        if unnamed is not None:
+            frame = _with_error_rows(frame, cols, [unnamed])
+        return _typed(frame)
     # Sorting a partition of a million rows costs more than a tenth of its identification: skipped when
     # the rows are already in (actuator_id, t) order (as `ipa-sysid simulate --fleet` writes them), where
     # the stable sort would keep them as they are.
@@ -296,6 +321,8 @@ def identify_partition(
             f"each is an error row, not identified (its error says where): first, {faulty_rows[0][0]}: "
             f"{faulty_rows[0][4]}"
         )
+    if unnamed is not None:
+        frame = _with_error_rows(frame, cols, [unnamed])
     return _typed(frame)
 
 

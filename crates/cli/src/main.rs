@@ -141,6 +141,53 @@ const MATLAB_HINTS: &[(&str, &str)] = &[
          identify --structure arx`, --method ls|rls|iv) and output error (--method oe)",
     ),
     (
+        "armax",
+        "ARMAX (a noise model C(q)) is not a model class here: the linear classes are ARX (`ipa-sysid \
+         identify --structure arx`, --method ls|rls) and output error (--method oe); under coloured noise \
+         --method iv gives consistent ARX estimates",
+    ),
+    (
+        "bj",
+        "Box-Jenkins (noise models C/D) is not a model class here: the linear classes are ARX (`ipa-sysid \
+         identify --structure arx`, --method ls|rls|iv) and output error (--method oe), whose B/F is the \
+         Box-Jenkins model's input part",
+    ),
+    (
+        "pem",
+        "the prediction-error refinement of an ARX or Hammerstein model is `ipa-sysid identify --method \
+         oe` (output error, started from least squares)",
+    ),
+    (
+        "iddata",
+        "records are CSV files (a column each for t, u, y: `ipa-sysid identify --data REC.csv --u-col U \
+         --y-col Y`) or MATLAB .mat files holding the vectors (from an iddata z: `u = z.InputData; y = \
+         z.OutputData; save('rec.mat', 'u', 'y')`, then `--data rec.mat --ts TS`); docs/data.md",
+    ),
+    (
+        "lsim",
+        "a model file or plant is simulated on an input by `ipa-sysid simulate --plant model:M.json --input \
+         file:U.csv`",
+    ),
+    (
+        "idinput",
+        "excitation signals are made by `ipa-sysid simulate --input prbs|aprbs|multisine|staircase` (the \
+         record's u column)",
+    ),
+    (
+        "margin",
+        "a PI loop's gain and phase margins are printed by `ipa-sysid response --model M.json --kp KP \
+         --ki KI` (or --controller C.json)",
+    ),
+    (
+        "impulse",
+        "the impulse and step responses of a model file are printed by `ipa-sysid response`",
+    ),
+    (
+        "step",
+        "the step response of a model file is printed by `ipa-sysid response`; a closed-loop step by \
+         `ipa-sysid control`",
+    ),
+    (
         "predict",
         "k-step-ahead prediction of a model on a record is `ipa-sysid validate --horizon K`",
     ),

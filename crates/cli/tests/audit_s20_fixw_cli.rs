@@ -281,11 +281,11 @@ fn validate_tells_an_explicit_u_col_u_from_the_default() {
         assert!(o.status.success(), "{}", stderr(&o));
         let text = std::fs::read_to_string(&out).unwrap();
         let mut lines = text.lines();
-        assert_eq!(lines.next(), Some("t,y,y_sim,y_pred,residual"));
+        assert_eq!(lines.next(), Some("t,y,y_sim,y_sim_y0meas,y_pred,residual"));
         let rows: Vec<(usize, f64)> = lines
             .map(|l| {
                 let v: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
-                ((v[0] / 0.01).round() as usize, v[4])
+                ((v[0] / 0.01).round() as usize, v[5])
             })
             .collect();
         (stderr(&o), rows)

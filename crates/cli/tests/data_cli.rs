@@ -299,6 +299,13 @@ fn detrend_mean_identifies_deviations_and_puts_the_operating_point_back() {
                 got["y_sim"][k],
                 sim[k]
             );
+            // From the measured initial output y(0): the recursion above (audit s24 M-2).
+            assert!(
+                (got["y_sim_y0meas"][k] - measured[k]).abs() < 1e-7,
+                "{how} k = {k}: {} vs {}",
+                got["y_sim_y0meas"][k],
+                measured[k]
+            );
         }
     }
     // simulate with the (last, linear-detrended) model as the plant: from rest at y0 with u = u0 + 2 from

@@ -1483,6 +1483,15 @@ fn matlab_names_are_aliases_or_name_the_command() {
         ("n4sid", "not a model class here"),
         ("predict", "ipa-sysid validate --horizon"),
         ("sim", "ipa-sysid simulate"),
+        ("armax", "not a model class here"),
+        ("bj", "not a model class here"),
+        ("pem", "ipa-sysid identify --method oe"),
+        ("iddata", "u = z.InputData"),
+        ("lsim", "ipa-sysid simulate"),
+        ("idinput", "ipa-sysid simulate --input prbs"),
+        ("margin", "ipa-sysid response"),
+        ("impulse", "ipa-sysid response"),
+        ("step", "ipa-sysid response"),
     ] {
         let out = run(name, d);
         assert_eq!(out.status.code(), Some(2), "{name}");

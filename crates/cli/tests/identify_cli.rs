@@ -531,7 +531,7 @@ fn an_output_to_standard_output_is_alone_there() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let csv = String::from_utf8(o.stdout).unwrap();
     let lines: Vec<&str> = csv.lines().collect();
-    assert_eq!(lines[0], "t,y,y_sim,y_pred,residual");
+    assert_eq!(lines[0], "t,y,y_sim,y_sim_y0meas,y_pred,residual");
     assert_eq!(lines.len(), 601, "a header and one row per sample");
     let o = run(&[&id[..], &["--save-model", "-", "--json", "-"]].concat());
     assert_eq!(o.status.code(), Some(2));

@@ -66,14 +66,16 @@ fn refused(flag: &str, path: &Path, expected: impl Into<String>) -> OutputError 
 pub enum OutputTarget {
     /// `-`: standard output.
     Stdout,
-    /// A character or block device or a FIFO (or a link to one): written directly, never replaced.
+    /// `/dev/null`, a terminal, a FIFO (or a link to one), or another character device with `--force`:
+    /// written directly, never replaced. A block device is never an output.
     Stream(PathBuf),
     /// A regular file, new or existing, replaced atomically; a symbolic link is resolved to its target.
     File(PathBuf),
 }
 
 /// Looks at the output path `path` (chosen by option `flag`) before anything is written: `-` is standard
-/// output; a device or a FIFO (or a link to one) is written directly; a symbolic link to a regular file
+/// output; `/dev/null`, a terminal or a FIFO (or a link to one) is written directly, another character
+/// device only with `--force`, a block device never (audit s24 H-1); a symbolic link to a regular file
 /// is refused unless `--force` was given ([`set_force`]), and then followed (the file it names is
 /// replaced, the link stays); a folder, a socket, a link to nothing and a read-only file are refused.
 pub fn resolve_output(path: &Path, flag: &str) -> Result<OutputTarget, OutputError> {
@@ -156,7 +158,74 @@ pub fn resolve_output_as(
             "a file, a device or a FIFO (this is a socket, which cannot be opened as a file)",
         ));
     }
+    match device_kind(&meta) {
+        Device::Block => {
+            return Err(refused(
+                flag,
+                path,
+                "a file, /dev/null, a terminal or a FIFO (this is a block device — a disk or a \
+                 partition — whose content the output would overwrite; never written, not even with \
+                 --force)",
+            ))
+        }
+        Device::OtherChar if !force => {
+            return Err(refused(
+                flag,
+                path,
+                "a file, /dev/null, a terminal or a FIFO (this is a character device that is neither; \
+                 writing into it may change a device's state: pass --force to write into it anyway)",
+            ))
+        }
+        _ => {}
+    }
     Ok(OutputTarget::Stream(path.to_path_buf()))
+}
+
+/// What kind of device an output path (already known not to be a regular file, folder or socket) is.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Device {
+    /// A FIFO (a named pipe; `/dev/stdout` of a pipeline), or not a device.
+    NotDevice,
+    /// `/dev/null`, `/dev/zero`, `/dev/full` (writes discarded or refused) or a terminal (the console, a
+    /// pseudo-terminal): written into harmlessly.
+    Harmless,
+    /// Another character device (`/dev/mem`, a serial port, …): written into only with `--force`.
+    OtherChar,
+    /// A block device (a disk, a partition, a loop device): never written (audit s24 H-1: `simulate --out
+    /// /dev/loop0` overwrote the disk image's first sector).
+    Block,
+}
+
+#[cfg(unix)]
+fn device_kind(meta: &std::fs::Metadata) -> Device {
+    use std::os::unix::fs::{FileTypeExt, MetadataExt};
+    let kind = meta.file_type();
+    if kind.is_block_device() {
+        return Device::Block;
+    }
+    if !kind.is_char_device() {
+        return Device::NotDevice;
+    }
+    // Linux's device numbers (Documentation/admin-guide/devices.txt): 1:3 /dev/null, 1:5 /dev/zero,
+    // 1:7 /dev/full (not 1:1 /dev/mem, 1:2 /dev/kmem, 1:4 /dev/port); major 4 the
+    // virtual consoles and serial ttys' 4:0-63, 5:0 /dev/tty, 5:1 /dev/console, 136-143 the
+    // pseudo-terminals (/dev/pts/N). The split of dev_t follows glibc's gnu_dev_major/minor.
+    let rdev = meta.rdev();
+    let major = ((rdev >> 8) & 0xfff) | ((rdev >> 32) & !0xfff);
+    let minor = (rdev & 0xff) | ((rdev >> 12) & !0xff);
+    let harmless = matches!((major, minor), (1, 3) | (1, 5) | (1, 7) | (5, 0) | (5, 1))
+        || (major == 4 && minor < 64)
+        || (136..=143).contains(&major);
+    if harmless {
+        Device::Harmless
+    } else {
+        Device::OtherChar
+    }
+}
+
+#[cfg(not(unix))]
+fn device_kind(_meta: &std::fs::Metadata) -> Device {
+    Device::NotDevice
 }
 
 #[cfg(unix)]
@@ -980,6 +1049,51 @@ mod folder_tests {
             .filter(|n| n.starts_with(TEMP_PREFIX))
             .collect();
         assert!(left.is_empty(), "{left:?}");
+    }
+}
+
+#[cfg(all(test, unix))]
+#[allow(clippy::unwrap_used)]
+mod device_tests {
+    use super::*;
+    use std::os::unix::fs::FileTypeExt;
+
+    // Only looks at the paths (resolve_output_as writes nothing): a block device is never an output,
+    // another character device only with --force, /dev/null always (audit s24 H-1).
+    #[test]
+    fn block_devices_are_never_outputs_and_other_character_devices_need_force() {
+        let null = Path::new("/dev/null");
+        for force in [false, true] {
+            assert_eq!(
+                resolve_output_as(null, "--out", force).unwrap(),
+                OutputTarget::Stream(null.to_path_buf())
+            );
+        }
+        let urandom = Path::new("/dev/urandom");
+        let err = resolve_output_as(urandom, "--out", false)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("character device that is neither"), "{err}");
+        assert!(err.contains("--force"), "{err}");
+        assert_eq!(
+            resolve_output_as(urandom, "--out", true).unwrap(),
+            OutputTarget::Stream(urandom.to_path_buf())
+        );
+        let block = std::fs::read_dir("/dev").ok().and_then(|d| {
+            d.flatten()
+                .map(|e| e.path())
+                .find(|p| std::fs::metadata(p).is_ok_and(|m| m.file_type().is_block_device()))
+        });
+        let Some(block) = block else {
+            eprintln!("SKIPPED the block-device half: no block device in /dev on this machine");
+            return;
+        };
+        for force in [false, true] {
+            let err = resolve_output_as(&block, "--out", force)
+                .unwrap_err()
+                .to_string();
+            assert!(err.contains("block device"), "{}: {err}", block.display());
+        }
     }
 }
 

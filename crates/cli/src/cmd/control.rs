@@ -859,8 +859,15 @@ fn summary_text(
             control::trust::fmt_value(pc)
         );
     }
+    // The error at the last sample is final only once the step has settled, as the overshoot above
+    // (audit s24 L-6; reproduce marks it "(n.f.)").
+    let ess_not_final = if m.settling_time_s.is_none() && m.steady_state_error_mm.is_some() {
+        " (not final: not settled)"
+    } else {
+        ""
+    };
     o += &format!(
-        "  steady-state error   {}\n",
+        "  steady-state error   {}{ess_not_final}\n",
         fmt_opt(m.steady_state_error_mm, units.y, m)
     );
     o += &format!(

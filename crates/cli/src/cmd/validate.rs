@@ -36,7 +36,10 @@ pub struct Args {
     /// Write the metrics as JSON here (`-` for standard output).
     #[arg(long, value_name = "OUT")]
     pub json: Option<PathBuf>,
-    /// Write the model's output as CSV: t,y,y_sim,y_pred,residual (residual = y − y_pred; y_pred is the
+    /// Write the model's output as CSV: t,y,y_sim,y_sim_y0meas,y_pred,residual (y_sim: the simulation
+    /// from the estimated initial outputs, MATLAB `compare`'s default, the "(sim., y0 est.)" fit;
+    /// y_sim_y0meas: from the measured ones, the "(sim., y0 meas.)" fit — trust it when they differ;
+    /// a NARX model has only the latter, in both; residual = y − y_pred; y_pred is the
     /// --horizon-step prediction; MATLAB `compare`/`predict`). t is the record's time: t0 + k·Ts, t0 the
     /// time column's value on the judged record's first row (its first --rows row; 0 without a time
     /// column). `-`: standard output; the text report
@@ -235,16 +238,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .map(|tk| t0 + tk)
             .collect();
         let mut w = csv::Writer::from_writer(Vec::new());
-        w.write_record(["t", "y", "y_sim", "y_pred", "residual"])?;
+        w.write_record(OUT_COLUMNS)?;
         for k in 0..data.len() {
-            let sim = out
-                .y_sim
-                .as_ref()
-                .map_or(String::new(), |s| s[k].to_string());
+            let cell =
+                |s: &Option<Vec<f64>>| s.as_ref().map_or(String::new(), |s| s[k].to_string());
             w.write_record([
                 t[k].to_string(),
                 data.y()[k].to_string(),
-                sim,
+                cell(&out.y_sim),
+                cell(&out.y_sim_measured),
                 out.y_pred[k].to_string(),
                 (data.y()[k] - out.y_pred[k]).to_string(),
             ])?;
@@ -253,6 +255,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     finish(&args, report.warnings.len(), &value, out_csv, &inputs)
 }
+
+/// The columns of `validate --out` (linear and NARX models alike): y_sim from the estimated initial
+/// outputs, y_sim_y0meas from the measured ones (audit s24 M-2: the file held only the former, the
+/// figure the warning says not to trust when the two differ).
+const OUT_COLUMNS: [&str; 6] = ["t", "y", "y_sim", "y_sim_y0meas", "y_pred", "residual"];
 
 /// `validate` of a polynomial NARX model: simulation (from the measured initial outputs) and one-step
 /// metrics, the warnings (a blow-up, a negative fit, no input term), `--out` with the columns of a
@@ -345,7 +352,7 @@ fn run_narx(
             .map(|tk| t0 + tk)
             .collect();
         let mut w = csv::Writer::from_writer(Vec::new());
-        w.write_record(["t", "y", "y_sim", "y_pred", "residual"])?;
+        w.write_record(OUT_COLUMNS)?;
         for k in 0..data.len() {
             let s = if sim[k].is_finite() {
                 sim[k].to_string()
@@ -355,6 +362,7 @@ fn run_narx(
             w.write_record([
                 t[k].to_string(),
                 data.y()[k].to_string(),
+                s.clone(),
                 s,
                 pred[k].to_string(),
                 (data.y()[k] - pred[k]).to_string(),

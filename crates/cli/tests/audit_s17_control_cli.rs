@@ -10,46 +10,19 @@ use std::process::Output;
 use serde_json::Value;
 
 mod common;
-use common::warnings;
+use common::{json, read_trace, stdout, warnings, Trace};
 
 use common::{run as ipa_sysid, stderr};
 
-fn stdout(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stdout).into_owned()
-}
-
-/// A trace's columns (t, r, u, y).
-type Columns = (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>);
-
-/// The trace CSV (header t,r,u,y): (t, r, u, y).
-fn trace(path: &Path) -> Columns {
-    let text = std::fs::read_to_string(path).unwrap();
-    let mut lines = text.lines();
-    assert_eq!(lines.next().unwrap().trim(), "t,r,u,y");
-    let (mut t, mut r, mut u, mut y) = (vec![], vec![], vec![], vec![]);
-    for l in lines {
-        let v: Vec<f64> = l.split(',').map(|x| x.trim().parse().unwrap()).collect();
-        t.push(v[0]);
-        r.push(v[1]);
-        u.push(v[2]);
-        y.push(v[3]);
-    }
-    (t, r, u, y)
-}
-
-fn json(path: &Path) -> Value {
-    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
-}
-
 /// Runs `control ARGS --out T --json J` in `dir`; (output, trace, JSON).
-fn control(dir: &Path, args: &[&str]) -> (Output, Columns, Value) {
+fn control(dir: &Path, args: &[&str]) -> (Output, Trace, Value) {
     let (t, j) = (dir.join("t.csv"), dir.join("j.json"));
     let mut a = vec!["control"];
     a.extend_from_slice(args);
     a.extend(["--out", t.to_str().unwrap(), "--json", j.to_str().unwrap()]);
     let o = ipa_sysid(&a);
     assert!(o.status.success(), "{a:?}: {}", stderr(&o));
-    (o, trace(&t), json(&j))
+    (o, read_trace(&t), json(&j))
 }
 
 // M-b: the IPA's 150 mm step cut at 1 s ends past r (y_f > 150) while its integrator still moves:
@@ -541,6 +514,6 @@ fn control_on_a_narx_model_names_commands_beyond_its_data() {
     let expected = format!("the plant model's estimation data had u in [{lo}, {hi}]");
     assert!(err.contains(&expected), "{expected}\n{err}");
     // The loop's own commands went beyond it (±255 at the start of a step of 3).
-    let c = trace(&d.join("c.csv"));
+    let c = read_trace(&d.join("c.csv"));
     assert!(c.2.iter().any(|&v| v > hi || v < lo));
 }

@@ -6,9 +6,9 @@
 
 mod common;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
-use common::{bin, run_json};
+use common::{bin, identify_arx, run_json, write_tuy};
 
 /// A ±1 pseudo-random binary input (xorshift64), deterministic.
 fn prbs(n: usize, seed: u64) -> Vec<f64> {
@@ -40,16 +40,6 @@ fn noise(n: usize, seed: u64) -> Vec<f64> {
         .collect()
 }
 
-fn write_csv(dir: &Path, name: &str, ts: f64, u: &[f64], y: &[f64]) -> PathBuf {
-    let mut s = String::from("t,u,y\n");
-    for k in 0..u.len() {
-        s += &format!("{},{},{}\n", k as f64 * ts, u[k], y[k]);
-    }
-    let p = dir.join(name);
-    std::fs::write(&p, s).unwrap();
-    p
-}
-
 fn text_of(dir: &Path, args: &[&str]) -> (i32, String, String) {
     let out = bin().current_dir(dir).args(args).output().unwrap();
     (
@@ -72,22 +62,12 @@ fn a_wrong_delay_on_a_short_record_is_not_independent() {
     for k in 1..n {
         y[k] = 0.5 * y[k - 1] + if k >= 4 { u[k - 4] } else { 0.0 } + 0.05 * w[k];
     }
-    write_csv(tmp.path(), "short.csv", 0.01, &u, &y);
+    write_tuy(tmp.path(), "short.csv", 0.01, &u, &y);
     let args = [
-        "identify",
-        "--data",
-        "short.csv",
-        "--structure",
-        "arx",
-        "--method",
-        "ls",
-        "--na",
-        "1",
-        "--nb",
-        "1",
-        "--nk",
-        "1",
-    ];
+        identify_arx(Path::new("short.csv"), "1", "1", "ls"),
+        vec!["--nk", "1"],
+    ]
+    .concat();
     let doc = run_json(tmp.path(), &args);
     let r = &doc["residuals"]["estimation"];
     let nres = r["n"].as_f64().unwrap();
@@ -176,7 +156,7 @@ fn linear_detrend_scores_the_estimation_figures_on_the_detrended_record() {
     let y: Vec<f64> = (0..n)
         .map(|k| x[k] + 0.01 * k as f64 + 0.05 * w[k])
         .collect();
-    write_csv(tmp.path(), "drift.csv", 0.1, &u, &y);
+    write_tuy(tmp.path(), "drift.csv", 0.1, &u, &y);
 
     // By hand: LS of ARX (2, 1, 1) on the detrended signals, rows k ≥ 2, and its one-step fit.
     let (ud, yd) = (undrift(&u), undrift(&y));
@@ -213,24 +193,10 @@ fn linear_detrend_scores_the_estimation_figures_on_the_detrended_record() {
         let doc = run_json(
             tmp.path(),
             &[
-                "identify",
-                "--data",
-                "drift.csv",
-                "--structure",
-                "arx",
-                "--method",
-                "ls",
-                "--na",
-                "2",
-                "--nb",
-                "1",
-                "--nk",
-                "1",
-                "--detrend",
-                "linear",
-                "--stream",
-                stream,
-            ],
+                identify_arx(Path::new("drift.csv"), "2", "1", "ls"),
+                vec!["--nk", "1", "--detrend", "linear", "--stream", stream],
+            ]
+            .concat(),
         );
         let est = &doc["metrics"]["estimation"];
         let got = est["fit_pred_percent"].as_f64().unwrap();
@@ -326,7 +292,7 @@ fn parameters_held_fixed_are_not_counted_in_fpe_and_aic() {
     for k in 1..n {
         y[k] = 0.8 * y[k - 1] + 0.01 * (u[k - 1] - 10.0).max(0.0) + 0.002 * w[k];
     }
-    write_csv(tmp.path(), "onesided.csv", 0.01, &u, &y);
+    write_tuy(tmp.path(), "onesided.csv", 0.01, &u, &y);
     let doc = run_json(
         tmp.path(),
         &[
@@ -374,26 +340,14 @@ fn validate_resample_notes_once_and_advises_the_models_period() {
     for k in 1..n {
         y[k] = 0.7 * y[k - 1] + 0.5 * u[k - 1];
     }
-    write_csv(tmp.path(), "est.csv", 0.08, &u, &y);
+    write_tuy(tmp.path(), "est.csv", 0.08, &u, &y);
     let (code, _, err) = text_of(
         tmp.path(),
         &[
-            "identify",
-            "--data",
-            "est.csv",
-            "--structure",
-            "arx",
-            "--method",
-            "ls",
-            "--na",
-            "1",
-            "--nb",
-            "1",
-            "--nk",
-            "1",
-            "--save-model",
-            "m.json",
-        ],
+            identify_arx(Path::new("est.csv"), "1", "1", "ls"),
+            vec!["--nk", "1", "--save-model", "m.json"],
+        ]
+        .concat(),
     );
     assert_eq!(code, 0, "{err}");
     // Irregular time stamps (0.05 … 0.11 s apart): the reader resamples onto the asked period.

@@ -8,7 +8,7 @@
 use std::path::{Path, PathBuf};
 
 mod common;
-use common::{run as ipa_sysid, stderr};
+use common::{identify_arx, run as ipa_sysid, stderr};
 
 /// The budget of docs/reliability.md ("Resource bounds"): 4 GiB.
 const BUDGET: f64 = 4.0 * 1024.0 * 1024.0 * 1024.0;
@@ -28,23 +28,13 @@ fn an_estimation_over_the_memory_budget_is_refused_before_it_allocates() {
     let dir = tempfile::tempdir().unwrap();
     let n = 560_000;
     let csv = zeros_csv(dir.path(), n);
-    let o = ipa_sysid(&[
-        "identify",
-        "--data",
-        csv.to_str().unwrap(),
-        "--ts",
-        "0.01",
-        "--structure",
-        "arx",
-        "--method",
-        "oe",
-        "--na",
-        "100",
-        "--nb",
-        "100",
-        "--nk",
-        "1",
-    ]);
+    let o = ipa_sysid(
+        &[
+            identify_arx(&csv, "100", "100", "oe"),
+            vec!["--ts", "0.01", "--nk", "1"],
+        ]
+        .concat(),
+    );
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(2), "{err}");
     let rows = n - 100;
@@ -78,23 +68,13 @@ fn least_squares_on_the_same_record_needs_less_and_is_checked_with_its_own_size(
     // (a zero input cannot determine the model: exit 2, not the memory message).
     let dir = tempfile::tempdir().unwrap();
     let csv = zeros_csv(dir.path(), 560_000);
-    let o = ipa_sysid(&[
-        "identify",
-        "--data",
-        csv.to_str().unwrap(),
-        "--ts",
-        "0.01",
-        "--structure",
-        "arx",
-        "--method",
-        "ls",
-        "--na",
-        "100",
-        "--nb",
-        "100",
-        "--nk",
-        "1",
-    ]);
+    let o = ipa_sysid(
+        &[
+            identify_arx(&csv, "100", "100", "ls"),
+            vec!["--ts", "0.01", "--nk", "1"],
+        ]
+        .concat(),
+    );
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(!err.contains("--max-memory"), "{err}");

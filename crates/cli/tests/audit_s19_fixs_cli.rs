@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use std::process::Stdio;
 
 mod common;
-use common::{bin, run as ipa_sysid, stderr};
+use common::{bin, identify_arx, run as ipa_sysid, s, stderr};
 
 /// A record `t,u,y` of `n` samples at Ts = 0.01 s: u a ±60-count square wave of period 40, y the ARX
 /// y(k) = 0.9 y(k−1) + 0.05 u(k−1).
@@ -44,10 +44,6 @@ fn model_file(dir: &Path) -> PathBuf {
     });
     std::fs::write(&path, doc.to_string()).unwrap();
     path
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
 }
 
 // L-3: every wrong --ts of a model plant is refused, NaN included (NaN compares false with everything,
@@ -100,21 +96,7 @@ fn a_nan_ts_is_refused_for_the_paper_and_a_model_plant() {
 fn the_time_column_cannot_be_the_input_or_the_output() {
     let dir = tempfile::tempdir().unwrap();
     let data = record(dir.path(), 400);
-    let base = [
-        "identify",
-        "--data",
-        s(&data),
-        "--structure",
-        "arx",
-        "--method",
-        "ls",
-        "--na",
-        "1",
-        "--nb",
-        "1",
-        "--nk",
-        "1",
-    ];
+    let base = [identify_arx(&data, "1", "1", "ls"), vec!["--nk", "1"]].concat();
     for stream in ["off", "on"] {
         for flag in ["--u-col", "--y-col"] {
             let mut args = base.to_vec();
@@ -131,25 +113,13 @@ fn the_time_column_cannot_be_the_input_or_the_output() {
         .unwrap()
         .replacen("t,u,y", "time,u,y", 1);
     std::fs::write(&renamed, text).unwrap();
-    let o = ipa_sysid(&[
-        "identify",
-        "--data",
-        s(&renamed),
-        "--structure",
-        "arx",
-        "--method",
-        "ls",
-        "--na",
-        "1",
-        "--nb",
-        "1",
-        "--nk",
-        "1",
-        "--t-col",
-        "time",
-        "--u-col",
-        "time",
-    ]);
+    let o = ipa_sysid(
+        &[
+            identify_arx(&renamed, "1", "1", "ls"),
+            vec!["--nk", "1", "--t-col", "time", "--u-col", "time"],
+        ]
+        .concat(),
+    );
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(
         stderr(&o).contains("invalid setting --u-col = time: a column different from --t-col"),
@@ -210,23 +180,13 @@ fn a_first_row_longer_than_the_streamed_check_is_named() {
         text.push_str(&format!("{},{},{}\n", k as f64 * 0.01, k % 7, k % 5));
     }
     std::fs::write(&long, text).unwrap();
-    let o = ipa_sysid(&[
-        "identify",
-        "--data",
-        s(&long),
-        "--structure",
-        "arx",
-        "--method",
-        "ls",
-        "--na",
-        "1",
-        "--nb",
-        "1",
-        "--nk",
-        "1",
-        "--stream",
-        "on",
-    ]);
+    let o = ipa_sysid(
+        &[
+            identify_arx(&long, "1", "1", "ls"),
+            vec!["--nk", "1", "--stream", "on"],
+        ]
+        .concat(),
+    );
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     let e = stderr(&o);
     // The row is line 2 of the file; the check reads 2^20 + 1 = 1048577 bytes.

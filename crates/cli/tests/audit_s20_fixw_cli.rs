@@ -8,11 +8,7 @@ use std::path::{Path, PathBuf};
 use std::process::Stdio;
 
 mod common;
-use common::{bin, run as ipa_sysid, stderr};
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
+use common::{bin, run as ipa_sysid, s, stderr};
 
 /// The audit's records q2.csv and q5.csv (docs/estimators.md:214): `t,u,y` of 20 000 rows at
 /// Ts = 0.01 s with the input held at `u` and the output at 1.

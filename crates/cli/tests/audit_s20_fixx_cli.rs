@@ -8,11 +8,7 @@
 use std::path::{Path, PathBuf};
 
 mod common;
-use common::{run as ipa_sysid, stderr};
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
+use common::{run as ipa_sysid, s, stderr};
 
 /// A model file at Ts = 0.05 s: A = 1 − α z⁻¹, B = β, nk = 1 (y(k) = α y(k−1) + β x(k−1)), ARX, or
 /// Hammerstein with b1 = 1 (β = 1) and the given deadzone.

@@ -8,11 +8,7 @@
 use std::path::{Path, PathBuf};
 
 mod common;
-use common::{run as ipa_sysid, stderr};
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
+use common::{run as ipa_sysid, s, stderr};
 
 /// A version-2 ARX model file with these A and B coefficients, nk = 1, Ts = 0.1 s.
 fn arx_file(dir: &Path, name: &str, a: &[f64], b: &[f64]) -> PathBuf {

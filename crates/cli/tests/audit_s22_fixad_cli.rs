@@ -12,11 +12,9 @@
 use std::path::{Path, PathBuf};
 
 mod common;
-use common::{arx_signals, lcg, run as ipa_sysid, run_json_code, stderr, warnings, write_csv};
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
+use common::{
+    arx_signals, identify_arx, lcg, run as ipa_sysid, run_json_code, s, stderr, warnings, write_csv,
+};
 
 /// `dir/two.csv` with two experiments side by side: u,y from y(k) = 0.5 y(k−1) + u(k−1) and u2,y2
 /// from y(k) = 0.8 y(k−1) + 0.3 u(k−1), each with its own random input in [−1, 1] (600 rows, Ts =
@@ -98,28 +96,23 @@ fn the_cascaded_tanks_test_columns_are_held_out() {
     }
     let dir = tempfile::tempdir().unwrap();
     let model = dir.path().join("ct.json");
-    let o = ipa_sysid(&[
-        "identify",
-        "--data",
-        s(&d),
-        "--u-col",
-        "uEst",
-        "--y-col",
-        "yEst",
-        "--ts",
-        "4",
-        "--structure",
-        "arx",
-        "--na",
-        "2",
-        "--nb",
-        "2",
-        "--method",
-        "ls",
-        "--offset",
-        "--save-model",
-        s(&model),
-    ]);
+    let o = ipa_sysid(
+        &[
+            identify_arx(&d, "2", "2", "ls"),
+            vec![
+                "--u-col",
+                "uEst",
+                "--y-col",
+                "yEst",
+                "--ts",
+                "4",
+                "--offset",
+                "--save-model",
+                s(&model),
+            ],
+        ]
+        .concat(),
+    );
     assert!(o.status.success(), "{}", stderr(&o));
     let (_, doc) = run_json_code(
         dir.path(),

@@ -11,7 +11,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 mod common;
-use common::{arx_signals, lcg, run as ipa_sysid, stderr, write_csv};
+use common::{arx_signals, identify_arx, lcg, run as ipa_sysid, stderr, write_csv};
 
 /// One miCOMPRESSED element holding a double n x 1 vector of zeros named `name`.
 fn zero_vector(name: &[u8], n: usize) -> Vec<u8> {
@@ -86,21 +86,7 @@ fn a_compressed_mat_bomb_is_a_clean_error_under_a_memory_limit() {
     let mat = bigz(dir.path());
     let out = limited(
         1_500_000,
-        &[
-            "identify",
-            "--data",
-            mat.to_str().unwrap(),
-            "--ts",
-            "1",
-            "--structure",
-            "arx",
-            "--method",
-            "ls",
-            "--na",
-            "1",
-            "--nb",
-            "1",
-        ],
+        &[identify_arx(&mat, "1", "1", "ls"), vec!["--ts", "1"]].concat(),
     );
     let err = stderr(&out);
     assert_eq!(out.status.code(), Some(2), "not a clean error: {err}");
@@ -124,23 +110,13 @@ fn validate_refuses_a_record_beyond_its_memory_budget() {
     let csv = dir.path().join("small.csv");
     write_csv(&csv, "u,y", None, &[&u, &y]);
     let model = dir.path().join("m.json");
-    let fit = ipa_sysid(&[
-        "identify",
-        "--data",
-        csv.to_str().unwrap(),
-        "--ts",
-        "1",
-        "--structure",
-        "arx",
-        "--method",
-        "ls",
-        "--na",
-        "1",
-        "--nb",
-        "1",
-        "--save-model",
-        model.to_str().unwrap(),
-    ]);
+    let fit = ipa_sysid(
+        &[
+            identify_arx(&csv, "1", "1", "ls"),
+            vec!["--ts", "1", "--save-model", model.to_str().unwrap()],
+        ]
+        .concat(),
+    );
     assert!(fit.status.success(), "{}", stderr(&fit));
     let out = limited(
         1_500_000,

@@ -3,55 +3,12 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use serde_json::Value;
 
 mod common;
-use common::bin;
-
-/// The paper model (b1 = 1, deadzone b_l = −1.5, b_r = 1.41) driven by a staircase, by a plain loop:
-/// y(k) = 1.869 y(k−1) − 0.9976 y(k−2) + 0.1284 y(k−3) + x(k−1).
-fn paper_record(n: usize, phase: usize) -> (Vec<f64>, Vec<f64>) {
-    let levels = [
-        200.0, -120.0, 0.5, 255.0, -255.0, 60.0, -30.0, 1.0, -90.0, 140.0, -4.0, 25.0,
-    ];
-    let u: Vec<f64> = (0..n)
-        .map(|k| levels[((k / 17) + phase) % levels.len()])
-        .collect();
-    let (bl, br, ml, mr) = (-1.5, 1.41, 3.46 * 15.67e-4, 2.38 * 15.67e-4);
-    let dz = |v: f64| {
-        if v >= br {
-            mr * (v - br)
-        } else if v <= bl {
-            ml * (v - bl)
-        } else {
-            0.0
-        }
-    };
-    let mut y = vec![0.0; n];
-    for k in 1..n {
-        let mut v = dz(u[k - 1]) + 1.869 * y[k - 1];
-        if k >= 2 {
-            v -= 0.9976 * y[k - 2];
-        }
-        if k >= 3 {
-            v += 0.1284 * y[k - 3];
-        }
-        y[k] = v;
-    }
-    (u, y)
-}
-
-fn write_csv(dir: &Path, name: &str, u: &[f64], y: &[f64]) -> PathBuf {
-    let mut s = String::from("t,u,y\n");
-    for k in 0..u.len() {
-        s += &format!("{},{},{}\n", k as f64 * 0.01, u[k], y[k]);
-    }
-    let p = dir.join(name);
-    std::fs::write(&p, s).unwrap();
-    p
-}
+use common::{bin, paper_record, write_tuy};
 
 fn lines(text: &str) -> Vec<Value> {
     text.lines()
@@ -66,7 +23,7 @@ fn folder_gives_one_line_per_csv_in_name_order_and_fails_at_the_end() {
     let dir = tempfile::tempdir().unwrap();
     for (i, name) in ["c.csv", "a.csv", "b.csv"].iter().enumerate() {
         let (u, y) = paper_record(900, 3 * i);
-        write_csv(dir.path(), name, &u, &y);
+        write_tuy(dir.path(), name, 0.01, &u, &y);
     }
     std::fs::write(dir.path().join("bad.csv"), "t,u,y\n0,1,2\n0.01,oops,3\n").unwrap();
     std::fs::write(dir.path().join("notes.txt"), "not data").unwrap();
@@ -109,9 +66,9 @@ fn folder_gives_one_line_per_csv_in_name_order_and_fails_at_the_end() {
 fn explicit_files_keep_their_order_and_match_single_file_output() {
     let dir = tempfile::tempdir().unwrap();
     let (u, y) = paper_record(700, 1);
-    let second = write_csv(dir.path(), "z.csv", &u, &y);
+    let second = write_tuy(dir.path(), "z.csv", 0.01, &u, &y);
     let (u, y) = paper_record(800, 4);
-    let first = write_csv(dir.path(), "m.csv", &u, &y);
+    let first = write_tuy(dir.path(), "m.csv", 0.01, &u, &y);
     let out_path = dir.path().join("all.jsonl");
     let out = bin()
         .args(["identify", "--method", "rls", "--passes", "3", "--data"])
@@ -161,8 +118,8 @@ fn explicit_files_keep_their_order_and_match_single_file_output() {
 fn save_model_is_refused_in_batch_mode() {
     let dir = tempfile::tempdir().unwrap();
     let (u, y) = paper_record(300, 0);
-    let a = write_csv(dir.path(), "a.csv", &u, &y);
-    let b = write_csv(dir.path(), "b.csv", &u, &y);
+    let a = write_tuy(dir.path(), "a.csv", 0.01, &u, &y);
+    let b = write_tuy(dir.path(), "b.csv", 0.01, &u, &y);
     let out = bin()
         .args(["identify", "--data"])
         .arg(&a)

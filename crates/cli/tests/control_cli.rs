@@ -3,11 +3,10 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
 
-use std::path::Path;
 use std::process::{Command, Output};
 
 mod common;
-use common::stderr;
+use common::{read_trace, stderr};
 
 fn ipa_sysid(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
@@ -15,23 +14,6 @@ fn ipa_sysid(args: &[&str]) -> Output {
         .args(args)
         .output()
         .expect("run ipa-sysid")
-}
-
-/// Reads a `t,r,u,y` CSV written by `--out`.
-fn read_trace(path: &Path) -> (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>) {
-    let text = std::fs::read_to_string(path).unwrap();
-    let mut lines = text.lines();
-    assert_eq!(lines.next(), Some("t,r,u,y"));
-    let (mut t, mut r, mut u, mut y) = (vec![], vec![], vec![], vec![]);
-    for line in lines {
-        let v: Vec<f64> = line.split(',').map(|s| s.parse().unwrap()).collect();
-        assert_eq!(v.len(), 4, "{line}");
-        t.push(v[0]);
-        r.push(v[1]);
-        u.push(v[2]);
-        y.push(v[3]);
-    }
-    (t, r, u, y)
 }
 
 /// First time y crosses `level` going up, linearly interpolated (independent of the library's code).

@@ -3,62 +3,17 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
 
 mod common;
-use common::bin;
+use common::{bin, paper_record, write_tuy};
 
-use std::path::{Path, PathBuf};
-
-/// Paper model (normalised b1 = 1) driven by a deterministic staircase, by a plain loop.
-fn paper_record(n: usize, phase: usize) -> (Vec<f64>, Vec<f64>) {
-    let levels = [
-        200.0, -120.0, 0.5, 255.0, -255.0, 60.0, -30.0, 1.0, -90.0, 140.0, -4.0, 25.0,
-    ];
-    let u: Vec<f64> = (0..n)
-        .map(|k| levels[((k / 17) + phase) % levels.len()])
-        .collect();
-    let (bl, br, ml, mr) = (-1.5, 1.41, 3.46 * 15.67e-4, 2.38 * 15.67e-4);
-    let x: Vec<f64> = u
-        .iter()
-        .map(|&v| {
-            if v >= br {
-                mr * (v - br)
-            } else if v <= bl {
-                ml * (v - bl)
-            } else {
-                0.0
-            }
-        })
-        .collect();
-    let a = [-1.869, 0.9976, -0.1284];
-    let mut y = vec![0.0; n];
-    for k in 1..n {
-        let mut v = x[k - 1];
-        for i in 0..3 {
-            if k > i {
-                v -= a[i] * y[k - 1 - i];
-            }
-        }
-        y[k] = v;
-    }
-    (u, y)
-}
-
-fn write_csv(dir: &Path, name: &str, u: &[f64], y: &[f64]) -> PathBuf {
-    let mut s = String::from("t,u,y\n");
-    for k in 0..u.len() {
-        s += &format!("{},{},{}\n", k as f64 * 0.01, u[k], y[k]);
-    }
-    let p = dir.join(name);
-    std::fs::write(&p, s).unwrap();
-    p
-}
+use std::path::Path;
 
 #[test]
 fn identify_writes_the_documented_json_and_recovers_the_paper_model() {
     let dir = tempfile::tempdir().unwrap();
     let (u, y) = paper_record(1200, 0);
-    let data = write_csv(dir.path(), "est.csv", &u, &y);
+    let data = write_tuy(dir.path(), "est.csv", 0.01, &u, &y);
     let (u2, y2) = paper_record(800, 5);
-    let val = write_csv(dir.path(), "val.csv", &u2, &y2);
+    let val = write_tuy(dir.path(), "val.csv", 0.01, &u2, &y2);
     let json = dir.path().join("out.json");
     let model = dir.path().join("model.json");
     let out = bin()
@@ -213,7 +168,7 @@ fn out_of_range_flags_are_refused_naming_the_flag() {
 fn an_output_path_equal_to_the_input_is_refused_and_the_input_is_untouched() {
     let dir = tempfile::tempdir().unwrap();
     let (u, y) = paper_record(300, 0);
-    let data = write_csv(dir.path(), "d.csv", &u, &y);
+    let data = write_tuy(dir.path(), "d.csv", 0.01, &u, &y);
     let before = std::fs::read(&data).unwrap();
     let out = bin()
         .args(["identify", "--method", "ls", "--data"])
@@ -249,9 +204,9 @@ fn identify_json_carries_warnings_and_residual_analysis() {
         .enumerate()
         .map(|(k, v)| v + 0.001 * (((k * 7919) % 13) as f64 - 6.0) / 6.0)
         .collect();
-    let est = write_csv(dir.path(), "est.csv", &u, &y);
+    let est = write_tuy(dir.path(), "est.csv", 0.01, &u, &y);
     let (u2, y2) = paper_record(1200, 3);
-    let val = write_csv(dir.path(), "val.csv", &u2, &y2);
+    let val = write_tuy(dir.path(), "val.csv", 0.01, &u2, &y2);
     let out = bin()
         .args(["identify", "--data"])
         .arg(&est)
@@ -296,7 +251,7 @@ fn strict_turns_warnings_into_exit_code_1() {
     for k in 1..n {
         y[k] = y[k - 1] + next();
     }
-    let est = write_csv(dir.path(), "est.csv", &u, &y);
+    let est = write_tuy(dir.path(), "est.csv", 0.01, &u, &y);
     let run = |strict: bool| {
         let mut c = bin();
         c.args(["identify", "--data"]).arg(&est).args([
@@ -328,7 +283,7 @@ fn strict_turns_warnings_into_exit_code_1() {
 fn validate_reports_residuals_and_warnings() {
     let dir = tempfile::tempdir().unwrap();
     let (u, y) = paper_record(1200, 0);
-    let est = write_csv(dir.path(), "est.csv", &u, &y);
+    let est = write_tuy(dir.path(), "est.csv", 0.01, &u, &y);
     let model = dir.path().join("m.json");
     let ok = bin()
         .args(["identify", "--data"])
@@ -344,7 +299,7 @@ fn validate_reports_residuals_and_warnings() {
         .enumerate()
         .map(|(k, v)| v + 0.001 * (((k * 104729) % 11) as f64 - 5.0) / 5.0)
         .collect();
-    let val = write_csv(dir.path(), "val.csv", &u2, &y2);
+    let val = write_tuy(dir.path(), "val.csv", 0.01, &u2, &y2);
     let out = bin()
         .args(["validate", "--model"])
         .arg(&model)
@@ -392,8 +347,8 @@ fn identify_warnings(dir: &Path, args: &[&str]) -> Vec<String> {
 fn a_validation_record_that_is_the_estimation_data_is_warned() {
     let dir = tempfile::tempdir().unwrap();
     let (u, y) = paper_record(1000, 0);
-    write_csv(dir.path(), "d.csv", &u, &y);
-    write_csv(dir.path(), "copy.csv", &u, &y);
+    write_tuy(dir.path(), "d.csv", 0.01, &u, &y);
+    write_tuy(dir.path(), "copy.csv", 0.01, &u, &y);
     let d = ["--data", "d.csv", "--ts", "0.01"];
     let in_sample = |w: &[String]| w.iter().any(|w| w.contains("in-sample"));
     let w = identify_warnings(
@@ -440,7 +395,7 @@ fn a_validation_record_that_is_the_estimation_data_is_warned() {
         "{w:?}"
     );
     let (u2, y2) = paper_record(1000, 1);
-    write_csv(dir.path(), "other.csv", &u2, &y2);
+    write_tuy(dir.path(), "other.csv", 0.01, &u2, &y2);
     let other = ["--data", "d.csv", "other.csv", "--merge", "--ts", "0.01"];
     assert!(!twice(&identify_warnings(dir.path(), &other)));
     // Two experiments side by side in one file (as the cascaded tanks' uEst, yEst, uVal, yVal): the
@@ -509,7 +464,7 @@ fn a_validation_record_that_is_the_estimation_data_is_warned() {
 fn an_output_to_standard_output_is_alone_there() {
     let dir = tempfile::tempdir().unwrap();
     let (u, y) = paper_record(600, 0);
-    write_csv(dir.path(), "d.csv", &u, &y);
+    write_tuy(dir.path(), "d.csv", 0.01, &u, &y);
     let run = |args: &[&str]| bin().current_dir(dir.path()).args(args).output().unwrap();
     let id = [
         "identify",
@@ -550,7 +505,7 @@ fn an_output_to_standard_output_is_alone_there() {
 fn swapped_columns_are_pointed_out() {
     let dir = tempfile::tempdir().unwrap();
     let (u, y) = paper_record(1000, 0);
-    write_csv(dir.path(), "d.csv", &u, &y);
+    write_tuy(dir.path(), "d.csv", 0.01, &u, &y);
     let hint = |w: &[String]| {
         w.iter()
             .any(|w| w.contains("are --u-col and --y-col swapped?"))
@@ -639,7 +594,7 @@ fn a_level_the_model_cannot_hold_is_named_with_its_fix() {
         x[k] = 0.7 * x[k - 1] + 0.1 * x[k - 2] + 0.02 * u[k - 1];
     }
     let y: Vec<f64> = x.iter().map(|v| 50.0 + v).collect();
-    let est = write_csv(dir.path(), "lvl.csv", &u, &y);
+    let est = write_tuy(dir.path(), "lvl.csv", 0.01, &u, &y);
     let run = |extra: &[&str]| {
         let o = bin()
             .args(["identify", "--data"])
@@ -682,7 +637,7 @@ fn a_level_the_model_cannot_hold_is_named_with_its_fix() {
 fn a_detrended_deadzone_says_which_input_it_maps() {
     let dir = tempfile::tempdir().unwrap();
     let (u, y) = paper_record(1200, 0);
-    let data = write_csv(dir.path(), "rec.csv", &u, &y);
+    let data = write_tuy(dir.path(), "rec.csv", 0.01, &u, &y);
     let model = dir.path().join("m.json");
     let o = bin()
         .args(["identify", "--method", "ls", "--detrend", "mean", "--data"])

@@ -6,7 +6,7 @@
 use std::path::Path;
 
 mod common;
-use common::bin;
+use common::{bin, json};
 
 /// y(k) = 0.2 y(k−1) + 0.1 y(k−1) u(k−1) + 0.9 u(k−2) (SysIdentPy's example system), noise free.
 fn write_record(path: &Path, n: usize, seed: u64) {
@@ -20,10 +20,6 @@ fn write_record(path: &Path, n: usize, seed: u64) {
         text.push_str(&format!("{},{},{}\n", k as f64, u[k], y[k]));
     }
     std::fs::write(path, text).unwrap();
-}
-
-fn json(path: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
 }
 
 // The known system's three terms and coefficients come back, the model file validates on a fresh record

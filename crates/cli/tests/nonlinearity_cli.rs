@@ -4,18 +4,9 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests may panic
 
 use std::path::Path;
-use std::process::{Command, Output};
 
-fn run(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
+mod common;
+use common::{run, s};
 
 /// Noise-free y(k) = 0.6 y(k−1) + f1(u1(k−1)) − 0.8 u2(k−1), f1 = 2 clamp(u1, −0.5, 0.6) (saturation)
 /// or f1 = piecewise-linear with one breakpoint at 0.2 (slopes 1, 3); written with columns t,u1,u2,y.

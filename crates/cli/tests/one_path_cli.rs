@@ -7,6 +7,9 @@
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
+mod common;
+use common::{identify_arx, json, s, write_csv};
+
 fn bin() -> Command {
     match std::env::var_os("IPA_SYSID_BIN") {
         Some(b) => Command::new(b),
@@ -29,14 +32,6 @@ fn ok(args: &[&str]) -> Output {
     o
 }
 
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
-fn json(p: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
-}
-
 fn warnings(j: &serde_json::Value) -> Vec<String> {
     j["warnings"]
         .as_array()
@@ -46,12 +41,7 @@ fn warnings(j: &serde_json::Value) -> Vec<String> {
 
 /// Writes columns `names` (each a signal) with a time column at Ts = 0.1 s.
 fn write(path: &Path, names: &[&str], cols: &[&[f64]]) {
-    let mut text = format!("t,{}\n", names.join(","));
-    for k in 0..cols[0].len() {
-        let row: Vec<String> = cols.iter().map(|c| c[k].to_string()).collect();
-        text.push_str(&format!("{},{}\n", k as f64 * 0.1, row.join(",")));
-    }
-    std::fs::write(path, text).unwrap();
+    write_csv(path, &format!("t,{}", names.join(",")), Some(0.1), cols);
 }
 
 /// The README's estimation record (`simulate --plant ipa --seed 1`) in `dir`.
@@ -98,26 +88,19 @@ fn one_rls_pass_on_noise_free_data_is_settled_with_one_input_or_two() {
     for (file, ucol) in [(&f1, "u"), (&f2, "u1,u2")] {
         let out = dir.path().join(format!("{ucol}.json"));
         ok(&[
-            "identify",
-            "--data",
-            s(file),
-            "--u-col",
-            ucol,
-            "--structure",
-            "arx",
-            "--na",
-            "1",
-            "--nb",
-            "1",
-            "--nk",
-            "1",
-            "--method",
-            "rls",
-            "--passes",
-            "1",
-            "--json",
-            s(&out),
-        ]);
+            identify_arx(file, "1", "1", "rls"),
+            vec![
+                "--u-col",
+                ucol,
+                "--nk",
+                "1",
+                "--passes",
+                "1",
+                "--json",
+                s(&out),
+            ],
+        ]
+        .concat());
         let j = json(&out);
         assert_eq!(j["estimation"]["converged"], true, "{ucol}: {j}");
         assert!(warnings(&j).is_empty(), "{ucol}: {:?}", warnings(&j));

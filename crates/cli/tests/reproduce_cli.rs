@@ -3,22 +3,9 @@
 
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
 
-use std::path::Path;
+mod common;
+use common::read_trace;
 use std::process::Command;
-
-fn read_trace(path: &Path) -> (Vec<f64>, Vec<f64>, Vec<f64>) {
-    let text = std::fs::read_to_string(path).unwrap();
-    let mut lines = text.lines();
-    assert_eq!(lines.next(), Some("t,r,u,y"));
-    let (mut t, mut r, mut y) = (Vec::new(), Vec::new(), Vec::new());
-    for l in lines {
-        let v: Vec<f64> = l.split(',').map(|c| c.parse().unwrap()).collect();
-        t.push(v[0]);
-        r.push(v[1]);
-        y.push(v[3]);
-    }
-    (t, r, y)
-}
 
 #[test]
 fn reproduce_on_the_paper_model_writes_report_summary_figures_and_data() {
@@ -79,7 +66,7 @@ fn reproduce_on_the_paper_model_writes_report_summary_figures_and_data() {
     );
 
     // Independent check of the plant's fixed set-point metrics from the trace file.
-    let (t, r, y) = read_trace(&out.join("data/closed_loop_fixed_plant.csv"));
+    let (t, r, _, y) = read_trace(&out.join("data/closed_loop_fixed_plant.csv"));
     let (y0, setpoint) = (y[0], r[0]);
     let fin = *y.last().unwrap();
     let peak = y.iter().cloned().fold(f64::NEG_INFINITY, f64::max);

@@ -11,11 +11,9 @@
 use std::path::{Path, PathBuf};
 
 mod common;
-use common::{arx_signals, identify_arx, lcg, run as ipa_sysid, run_json_code, stderr, warnings};
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
+use common::{
+    arx_signals, identify_arx, lcg, run as ipa_sysid, run_json_code, s, stderr, warnings,
+};
 
 /// `dir/NAME` with the header `time,u,y`: `time` ISO 8601 stamps 2026-11-27T10:00:00 + 0.1 s · k, rows
 /// 100..150 left out (a 5 s gap), u and y from y(k) = 0.5 y(k−1) + u(k−1) with a random input. Returns

@@ -11,7 +11,7 @@
 use std::path::{Path, PathBuf};
 
 mod common;
-use common::{run as ipa_sysid, stderr};
+use common::{run as ipa_sysid, s, stderr};
 
 /// The verdicts of `sysid_core::Stability`, named here from the poles placed.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -102,10 +102,6 @@ fn model_file(dir: &Path, name: &str, a: &[f64]) -> PathBuf {
     let doc = serde_json::json!({"format": "ipa-sysid-model", "version": 2, "model": model});
     std::fs::write(&path, doc.to_string()).unwrap();
     path
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
 }
 
 fn strings(v: &serde_json::Value) -> Vec<String> {

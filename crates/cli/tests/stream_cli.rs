@@ -8,7 +8,7 @@ use std::path::Path;
 use std::process::Output;
 
 mod common;
-use common::bin;
+use common::{bin, json, s};
 
 fn run(args: &[&str]) -> Output {
     let out = bin().args(args).output().unwrap();
@@ -30,10 +30,6 @@ fn fails(args: &[&str]) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()
 }
 
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
-
 /// `identify --data FILE --structure arx --method ls` followed by `extra`.
 fn arx_ls<'a>(data: &'a str, extra: &[&'a str]) -> Vec<&'a str> {
     let mut a = vec![
@@ -47,10 +43,6 @@ fn arx_ls<'a>(data: &'a str, extra: &[&'a str]) -> Vec<&'a str> {
     ];
     a.extend_from_slice(extra);
     a
-}
-
-fn json(p: &Path) -> serde_json::Value {
-    serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
 }
 
 /// A staircase input (levels from a fixed pseudo-random sequence, held 1..25 samples).

@@ -9,7 +9,7 @@
 use std::path::Path;
 
 mod common;
-use common::{bin, run_json_code, stderr, warnings};
+use common::{bin, identify_arx, run_json_code, stderr, warnings};
 
 /// A record of y(k) = 0.5 y(k−1) + u(k−3) + 0.3 u(k−4) + e(k): na = 1, nb = 2, nk = 3 (a stable pole
 /// at 0.5), u = ±1 from a linear congruential generator, e uniform in ±`noise`; Ts = 0.1 s.
@@ -126,23 +126,13 @@ fn montecarlo_strict_fails_exactly_when_the_study_warns() {
     arx_record(&dir.path().join("arx.csv"), 3000, 0.01);
     let o = bin()
         .current_dir(dir.path())
-        .args([
-            "identify",
-            "--data",
-            "arx.csv",
-            "--structure",
-            "arx",
-            "--na",
-            "1",
-            "--nb",
-            "2",
-            "--nk",
-            "3",
-            "--method",
-            "ls",
-            "--save-model",
-            "arx.json",
-        ])
+        .args(
+            [
+                identify_arx(Path::new("arx.csv"), "1", "2", "ls"),
+                vec!["--nk", "3", "--save-model", "arx.json"],
+            ]
+            .concat(),
+        )
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", stderr(&o));

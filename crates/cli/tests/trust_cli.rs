@@ -9,7 +9,7 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::{bin, run_json, warnings};
+use common::{bin, identify_arx, run_json, warnings};
 use serde_json::Value;
 
 fn data_dir() -> Option<PathBuf> {
@@ -150,30 +150,28 @@ fn hammerstein_output_error_iterates_when_a_breakpoint_leaves_the_data() {
 fn the_linear_start_still_judges_the_estimates_it_can_beat() {
     let Some(dir) = data_dir() else { return };
     let hydraulic = [
-        "identify",
-        "--data",
-        "hydraulic_actuator/actuator.csv",
-        "--u-col",
-        "u",
-        "--y-col",
-        "p",
-        "--ts",
-        "1",
-        "--structure",
-        "arx",
-        "--method",
-        "rls",
-        "--na",
-        "5",
-        "--nb",
-        "5",
-        "--nk",
-        "1",
-        "--forgetting",
-        "0.95",
-        "--passes",
-        "1",
-    ];
+        identify_arx(
+            Path::new("hydraulic_actuator/actuator.csv"),
+            "5",
+            "5",
+            "rls",
+        ),
+        vec![
+            "--u-col",
+            "u",
+            "--y-col",
+            "p",
+            "--ts",
+            "1",
+            "--nk",
+            "1",
+            "--forgetting",
+            "0.95",
+            "--passes",
+            "1",
+        ],
+    ]
+    .concat();
     let doc = run_json(&dir, &hydraulic);
     let base = run_json(&dir, &baseline_args(&hydraulic));
     let fit = guarded(&doc["metrics"]["estimation"]).unwrap();
@@ -250,23 +248,10 @@ fn the_linear_start_still_judges_the_estimates_it_can_beat() {
 fn hair_dryer_output_error_is_not_flattered_by_its_initial_state() {
     let Some(dir) = data_dir() else { return };
     let args = [
-        "identify",
-        "--data",
-        "hair_dryer_pt326/dryer.csv",
-        "--ts",
-        "0.08",
-        "--structure",
-        "arx",
-        "--method",
-        "oe",
-        "--na",
-        "5",
-        "--nb",
-        "6",
-        "--nk",
-        "3",
-        "--offset",
-    ];
+        identify_arx(Path::new("hair_dryer_pt326/dryer.csv"), "5", "6", "oe"),
+        vec!["--ts", "0.08", "--nk", "3", "--offset"],
+    ]
+    .concat();
     let oe = run_json(&dir, &args);
     let base = run_json(&dir, &baseline_args(&args));
     assert_headline_not_flattered_silently(&oe, "dryer OE (5,6,3)");
@@ -571,28 +556,26 @@ fn a_pole_held_on_the_stability_boundary_is_warned() {
     let doc = run_json(
         &dir,
         &[
-            "identify",
-            "--data",
-            "gas_furnace_box_jenkins/gas_furnace.csv",
-            "--ts",
-            "9",
-            "--u-col",
-            "InputGasRate",
-            "--y-col",
-            "CO2",
-            "--structure",
-            "arx",
-            "--method",
-            "oe",
-            "--na",
-            "2",
-            "--nb",
-            "2",
-            "--nk",
-            "3",
-            "--rows",
-            "0..148",
-        ],
+            identify_arx(
+                Path::new("gas_furnace_box_jenkins/gas_furnace.csv"),
+                "2",
+                "2",
+                "oe",
+            ),
+            vec![
+                "--ts",
+                "9",
+                "--u-col",
+                "InputGasRate",
+                "--y-col",
+                "CO2",
+                "--nk",
+                "3",
+                "--rows",
+                "0..148",
+            ],
+        ]
+        .concat(),
     );
     let a = doc["model"]["a"].as_array().unwrap();
     let (a1, a2) = (a[0].as_f64().unwrap(), a[1].as_f64().unwrap());
@@ -996,23 +979,10 @@ fn instrumental_variables_say_why_standard_deviations_are_missing() {
     let doc = run_json(
         &dir,
         &[
-            "identify",
-            "--data",
-            "ball_and_beam/ballbeam.csv",
-            "--ts",
-            "0.1",
-            "--structure",
-            "arx",
-            "--method",
-            "iv",
-            "--na",
-            "5",
-            "--nb",
-            "6",
-            "--nk",
-            "1",
-            "--offset",
-        ],
+            identify_arx(Path::new("ball_and_beam/ballbeam.csv"), "5", "6", "iv"),
+            vec!["--ts", "0.1", "--nk", "1", "--offset"],
+        ]
+        .concat(),
     );
     let missing = doc["parameters"]
         .as_array()
@@ -1038,29 +1008,18 @@ fn a_negative_fit_from_the_measured_start_is_called_negative() {
     let doc = run_json(
         &dir,
         &[
-            "identify",
-            "--data",
-            "coupled_electric_drives_prbs/DATAPRBS.csv",
-            "--ts",
-            "0.02",
-            "--u-col",
-            "u1",
-            "--y-col",
-            "z1",
-            "--structure",
-            "arx",
-            "--method",
-            "ls",
-            "--na",
-            "2",
-            "--nb",
-            "2",
-            "--nk",
-            "1",
-            "--offset",
-            "--rows",
-            "0..250",
-        ],
+            identify_arx(
+                Path::new("coupled_electric_drives_prbs/DATAPRBS.csv"),
+                "2",
+                "2",
+                "ls",
+            ),
+            vec![
+                "--ts", "0.02", "--u-col", "u1", "--y-col", "z1", "--nk", "1", "--offset",
+                "--rows", "0..250",
+            ],
+        ]
+        .concat(),
     );
     let guarded = guarded(&doc["metrics"]["estimation"]);
     let w = warnings(&doc);

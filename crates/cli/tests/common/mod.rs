@@ -25,6 +25,21 @@ pub fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
 
+/// A run's standard output as text.
+pub fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// A path as the `&str` an argument list takes (the tests' temporary paths are UTF-8).
+pub fn s(p: &Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// The JSON document a command wrote to `path` (`--json`, `--save-model`, `--out`).
+pub fn json(path: &Path) -> Value {
+    serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap()
+}
+
 /// Runs `ipa-sysid ARGS --json F` in `dir`; returns the exit code and the JSON document (the command
 /// must have written one, whatever its exit code).
 pub fn run_json_code(dir: &Path, args: &[&str]) -> (i32, Value) {
@@ -63,6 +78,26 @@ pub fn moving_output_csv(dir: &Path, n: usize) -> std::path::PathBuf {
     let path = dir.join("long.csv");
     std::fs::write(&path, format!("u,y\n{}", "0,0\n0,1\n".repeat(n / 2))).unwrap();
     path
+}
+
+/// A control trace's columns (t, r, u, y): the CSV `control --out` and `reproduce` write.
+pub type Trace = (Vec<f64>, Vec<f64>, Vec<f64>, Vec<f64>);
+
+/// Reads a control trace (header `t,r,u,y`, four numbers a row) into its columns (t, r, u, y).
+pub fn read_trace(path: &Path) -> Trace {
+    let text = std::fs::read_to_string(path).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("t,r,u,y"), "{path:?}");
+    let (mut t, mut r, mut u, mut y) = (vec![], vec![], vec![], vec![]);
+    for line in lines {
+        let v: Vec<f64> = line.split(',').map(|x| x.parse().unwrap()).collect();
+        assert_eq!(v.len(), 4, "{path:?}: {line}");
+        t.push(v[0]);
+        r.push(v[1]);
+        u.push(v[2]);
+        y.push(v[3]);
+    }
+    (t, r, u, y)
 }
 
 /// What `tune` wrote ([`tune`]): the controller file, the report's JSON document, the text printed.
@@ -158,6 +193,49 @@ pub fn arx_signals(
         y.push(v);
     }
     (u, y)
+}
+
+/// The paper's model (b1 = 1; deadzone b_l = −1.5, b_r = 1.41, m_l = 3.46·15.67e−4, m_r =
+/// 2.38·15.67e−4) driven by a deterministic staircase (twelve levels in counts, 17 samples each, started
+/// `phase` levels in), by a plain loop from rest, k = 0 … n − 1:
+/// y(k) = 1.869 y(k−1) − 0.9976 y(k−2) + 0.1284 y(k−3) + x(k−1), x the deadzone's output.
+/// Test data computed here, independent of the library. Returns (u, y).
+pub fn paper_record(n: usize, phase: usize) -> (Vec<f64>, Vec<f64>) {
+    let levels = [
+        200.0, -120.0, 0.5, 255.0, -255.0, 60.0, -30.0, 1.0, -90.0, 140.0, -4.0, 25.0,
+    ];
+    let u: Vec<f64> = (0..n)
+        .map(|k| levels[((k / 17) + phase) % levels.len()])
+        .collect();
+    let (bl, br, ml, mr) = (-1.5, 1.41, 3.46 * 15.67e-4, 2.38 * 15.67e-4);
+    let dz = |v: f64| {
+        if v >= br {
+            mr * (v - br)
+        } else if v <= bl {
+            ml * (v - bl)
+        } else {
+            0.0
+        }
+    };
+    let mut y = vec![0.0; n];
+    for k in 1..n {
+        let mut v = dz(u[k - 1]) + 1.869 * y[k - 1];
+        if k >= 2 {
+            v -= 0.9976 * y[k - 2];
+        }
+        if k >= 3 {
+            v += 0.1284 * y[k - 3];
+        }
+        y[k] = v;
+    }
+    (u, y)
+}
+
+/// Writes the record `t,u,y` (t = k·`ts_s`) to `dir/name` ([`write_csv`]) and returns its path.
+pub fn write_tuy(dir: &Path, name: &str, ts_s: f64, u: &[f64], y: &[f64]) -> std::path::PathBuf {
+    let path = dir.join(name);
+    write_csv(&path, "t,u,y", Some(ts_s), &[u, y]);
+    path
 }
 
 /// Writes `columns` (equal lengths) to `path` as CSV under `header`; with `ts_s` each row starts with

@@ -273,6 +273,13 @@ fn c_controller_with_a_breakaway_seed_matches_control_bit_for_bit_on_a_recorded_
     c_controller_matches_control(Brake::Seed);
 }
 
+// Session 23: the held nudge's learnt cut fraction (the 49th argument of position.c, after the
+// previews and the seed's two, 0 0); the same C replay without it (0) gives other commands.
+#[test]
+fn c_controller_that_learns_the_cut_fraction_matches_control_bit_for_bit_on_a_recorded_run() {
+    c_controller_matches_control(Brake::CutLearn);
+}
+
 /// Which approach the controller file of [`c_controller_matches_control`] has.
 #[derive(Clone, Copy, PartialEq)]
 enum Brake {
@@ -294,6 +301,9 @@ enum Brake {
     Preview,
     /// As `Preview`, with the short-step approach's breakaway seed κ_s = 0.8 at any speed.
     Seed,
+    /// As `Relearn`, with the held nudge's learnt cut fraction and a 3 mm rest band (held nudges
+    /// from far).
+    CutLearn,
 }
 
 fn c_controller_matches_control(brake: Brake) {
@@ -350,7 +360,12 @@ fn c_controller_matches_control(brake: Brake) {
         .remove("short_approach");
     // tune may choose the slip brake (session 19) and the relearning (session 20); only the `Slip`
     // and `Relearn` runs have them.
-    for k in ["slip_brake_fraction", "slip_brake_samples", "relearn"] {
+    for k in [
+        "slip_brake_fraction",
+        "slip_brake_samples",
+        "relearn",
+        "cut_learn",
+    ] {
         file["controller"]["nudge"]
             .as_object_mut()
             .unwrap()
@@ -383,6 +398,7 @@ fn c_controller_matches_control(brake: Brake) {
             | Brake::Relearn
             | Brake::Preview
             | Brake::Seed
+            | Brake::CutLearn
     ) {
         file["controller"]["short_approach"] = serde_json::json!({"max_step_mm": 40.0,
             "drive_fraction": 0.35, "ramp_counts_s": 500.0, "switch_mm": 0.5, "lead_s": 0.01,
@@ -390,7 +406,13 @@ fn c_controller_matches_control(brake: Brake) {
     }
     if matches!(
         brake,
-        Brake::Creep | Brake::Rebrake | Brake::Slip | Brake::Relearn | Brake::Preview | Brake::Seed
+        Brake::Creep
+            | Brake::Rebrake
+            | Brake::Slip
+            | Brake::Relearn
+            | Brake::Preview
+            | Brake::Seed
+            | Brake::CutLearn
     ) {
         file["controller"]["nudge"]["creep_step_mm"] = serde_json::json!(0.015);
     }
@@ -403,13 +425,17 @@ fn c_controller_matches_control(brake: Brake) {
     }
     if matches!(
         brake,
-        Brake::Slip | Brake::Relearn | Brake::Preview | Brake::Seed
+        Brake::Slip | Brake::Relearn | Brake::Preview | Brake::Seed | Brake::CutLearn
     ) {
         file["controller"]["nudge"]["slip_brake_fraction"] = serde_json::json!(0.25);
         file["controller"]["nudge"]["slip_brake_samples"] = serde_json::json!(5);
     }
-    if brake == Brake::Relearn {
+    if matches!(brake, Brake::Relearn | Brake::CutLearn) {
         file["controller"]["nudge"]["relearn"] = serde_json::json!(true);
+    }
+    if brake == Brake::CutLearn {
+        file["controller"]["nudge"]["cut_learn"] = serde_json::json!(true);
+        file["controller"]["nudge"]["rest_band_mm"] = serde_json::json!(3.0);
     }
     let (profile, samples) = match brake {
         Brake::Learnt => ("staircase:40,38,120,60,120,60@2", 1201),
@@ -418,7 +444,8 @@ fn c_controller_matches_control(brake: Brake) {
         | Brake::Slip
         | Brake::Relearn
         | Brake::Preview
-        | Brake::Seed => ("staircase:40,60,45,120,100@2", 1001),
+        | Brake::Seed
+        | Brake::CutLearn => ("staircase:40,60,45,120,100@2", 1001),
         Brake::Rebrake => ("staircase:40,60,45,170,100@2", 1001),
         _ => ("staircase:40,38,120,60@2", 801),
     };
@@ -514,6 +541,7 @@ fn c_controller_matches_control(brake: Brake) {
             | Brake::Relearn
             | Brake::Preview
             | Brake::Seed
+            | Brake::CutLearn
     ) {
         let b = &c["brake"];
         for k in ["learn", "lead_max_s"] {
@@ -530,6 +558,7 @@ fn c_controller_matches_control(brake: Brake) {
             | Brake::Relearn
             | Brake::Preview
             | Brake::Seed
+            | Brake::CutLearn
     ) {
         let a = &c["short_approach"];
         for k in [
@@ -582,7 +611,10 @@ fn c_controller_matches_control(brake: Brake) {
         Some(without)
     // The relearning after the slip brake: the replay without it (0) learns no breakaway at a slip.
     // The previews after the relearning (0 here): the replay with both 0 switches a sample later.
-    } else if matches!(brake, Brake::Relearn | Brake::Preview | Brake::Seed) {
+    } else if matches!(
+        brake,
+        Brake::Relearn | Brake::Preview | Brake::Seed | Brake::CutLearn
+    ) {
         args.push(format!("{:?}", nudge["creep_step_mm"].as_f64().unwrap()));
         args.push("0".into());
         args.push(format!(
@@ -591,7 +623,32 @@ fn c_controller_matches_control(brake: Brake) {
         ));
         args.push(nudge["slip_brake_samples"].as_u64().unwrap().to_string());
         let mut without = args.clone();
-        if brake == Brake::Relearn {
+        if brake == Brake::CutLearn {
+            // The relearning and the previews as the file has them, then the cut fraction's rule.
+            args.push("1".into());
+            for k in ["brake", "short_approach"] {
+                args.push(
+                    if c[k]["preview"].as_bool().unwrap_or(false) {
+                        "1"
+                    } else {
+                        "0"
+                    }
+                    .into(),
+                );
+            }
+            // The seed's two (off in this file), then the cut fraction's rule.
+            args.extend(["0".to_string(), "0".to_string()]);
+            without = args.clone();
+            without.push("0".into());
+            args.push(
+                if nudge["cut_learn"].as_bool().unwrap() {
+                    "1"
+                } else {
+                    "0"
+                }
+                .into(),
+            );
+        } else if brake == Brake::Relearn {
             without.push("0".into());
             args.push(
                 if nudge["relearn"].as_bool().unwrap() {
@@ -642,7 +699,7 @@ fn c_controller_matches_control(brake: Brake) {
     if let Some(unlearnt) = unlearnt {
         assert_ne!(
             unlearnt, recorded,
-            "the learnt lead, the short-step approach, the creep, the re-brake, the slip brake or the relearning changed no command"
+            "the learnt lead, the short-step approach, the creep, the re-brake, the slip brake, the relearning or the learnt cut fraction changed no command"
         );
     }
     for (k, (a, b)) in from_c.iter().zip(&recorded).enumerate() {

@@ -449,7 +449,7 @@ fn bad_inputs_name_the_file_or_the_flag() {
     assert!(
         e.contains("--max-evaluations = 10000")
             && e.contains("at most 1e8 simulated samples")
-            && e.contains("(10000 evaluations + 51 after the search) × 200 variants"),
+            && e.contains("(10000 evaluations + 53 after the search) × 200 variants"),
         "{e}"
     );
     assert!(!out.exists());

@@ -45,6 +45,7 @@
 //! BRAKE_CTL's tenth value 1 turns it on too.
 //! Session 20: RELEARN=1 (0) turns the nudge's relearning of its breakaway on (off)
 //! (`nudge.relearn`).
+//! Session 23: CUT_LEARN=1 (0) turns the held nudge's learnt cut fraction on (off) (`nudge.cut_learn`).
 //! Session 20: PREVIEW=S,B sets the short-step approach's (S) and the approach with braking's (B)
 //! preview (`short_approach.preview`, `brake.preview`; 1 on, 0 off); BRAKE_CTL's eleventh value and
 //! SHORT_CTL's ninth value 1 turn it on too.
@@ -262,6 +263,9 @@ fn main() {
         }
         if let Some(v) = env("RELEARN") {
             n.relearn = v != 0.0;
+        }
+        if let Some(v) = env("CUT_LEARN") {
+            n.cut_learn = v != 0.0;
         }
     }
     if let Ok(b) = std::env::var("BRAKE_CTL") {

@@ -145,6 +145,12 @@ pub struct Nudge {
     /// while the piston slips, not while it moves at all (issue 25, session 20; docs/control.md).
     #[serde(default, skip_serializing_if = "is_false")]
     pub relearn: bool,
+    /// Learn the held nudge's cut fraction per side, γ(side) = g(side) γ (false = off, as in a file
+    /// written before it existed, and not written then): at the rest after a held nudge, a move
+    /// short of half its error doubles g(side) (up to 1/γ), a move past r by more than e_h halves
+    /// it (down to 1) (issue 25, session 23; docs/control.md).
+    #[serde(default, skip_serializing_if = "is_false")]
+    pub cut_learn: bool,
 }
 
 /// The approach with braking (issue 25, session 14): for a step of at least e_a, the full command
@@ -638,6 +644,7 @@ impl ControllerSettings {
                 slip_brake: n.slip_brake_fraction,
                 slip_brake_samples: n.slip_brake_samples,
                 relearn: n.relearn,
+                cut_learn: n.cut_learn,
             }),
             brake: self.brake.map(|b| ipa_embedded::position::BrakeSettings {
                 min_step: b.min_step_mm,
@@ -975,6 +982,7 @@ mod tests {
             slip_brake_fraction: 0.0,
             slip_brake_samples: 0,
             relearn: false,
+            cut_learn: false,
         });
         s
     }

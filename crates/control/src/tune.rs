@@ -35,9 +35,11 @@
 //! [`short_range_candidates`] (session 18; after the preview since session 21) — these three judged
 //! on the wider tuning plants of [`short_stage_plants`] (session 21) —, the ramp-and-cut
 //! band e_c of
-//! [`cut_band_candidates`] (session 18: the finish's e_c, chosen by J, re-chosen by the count), and
-//! last the short-step approach's breakaway seed of [`short_seed_candidates`] (session 23), on the
-//! wider plants too.
+//! [`cut_band_candidates`] (session 18: the finish's e_c, chosen by J, re-chosen by the count), the
+//! short-step approach's breakaway seed of [`short_seed_candidates`] (session 23), on the wider
+//! plants too; and last, after the relearning, the held nudge's learnt cut fraction of
+//! [`cut_learn_candidates`] (session 23, by the count on the wide tuning plants; after the seed
+//! since session 24).
 //!
 //! **Linear margins.** [`margins`] gives the gain and phase margins of the loop's linear part: the
 //! model's B/A with the deadzone replaced by its slope (compensated, shift mode), under the PID.
@@ -713,6 +715,7 @@ pub fn settings_of(
             slip_brake_fraction: 0.0,
             slip_brake_samples: 0,
             relearn: false,
+            cut_learn: false,
         })
         .map(|n| with_cut_band(n, cut_band_mm, spec)),
         brake: None,
@@ -766,6 +769,10 @@ pub struct Tuned {
     /// ([`slip_brake_candidates`]'s: 1 with a nudge, else 0), and of its relearning, the last
     /// ([`relearn_candidates`]'s: 1 where the slip brake was kept, else 0).
     pub slip_evaluations: usize,
+    /// Evaluations of the held nudge's learnt cut fraction, the very last choice
+    /// ([`cut_learn_candidates`]'s and the controller before it, on [`short_stage_plants`] plants:
+    /// 2 with a nudge, else 0).
+    pub cut_learn_evaluations: usize,
     /// e_c of the finish (chosen by J at the search's θ, mm; 0 = none), before the choice by the count.
     pub cut_band_before_mm: f64,
     /// The approach with braking before its preview was tried ([`brake_preview_candidates`]; `None`
@@ -979,6 +986,30 @@ pub fn tune(
         evaluation = evaluate(settings.plants, make_plant, &factory, spec)?;
         settings_chosen = s;
     }
+    // Last of all, the held nudge's learnt cut fraction (issue 25, session 23), chosen by the count
+    // on the wide tuning plants ([`short_stage_plants`]; [`cut_learn_candidates`]).
+    let cut_learned = cut_learn_candidates(&settings_chosen, spec);
+    let mut cut_learn_evaluations = 0;
+    if !cut_learned.is_empty() {
+        let s = settings_chosen;
+        let factory = move || -> Result<Box<dyn Controller + Send>, ControlError> {
+            Ok(Box::new(s.build()?))
+        };
+        let before = evaluate(wide_plants, make_plant, &factory, spec)?;
+        let (chosen, on_wide, n) = choose_by_count(
+            settings_chosen,
+            before,
+            &cut_learned,
+            make_plant,
+            wide_plants,
+            spec,
+        )?;
+        cut_learn_evaluations = 1 + n;
+        if chosen != settings_chosen {
+            settings_chosen = chosen;
+            evaluation = on_first_plants(&on_wide, settings.plants, spec);
+        }
+    }
     let [slip_evaluations, brake_evaluations, rebrake_evaluations, brake_preview_evaluations, rest_evaluations, short_evaluations, range_evaluations, short_preview_evaluations, cut_evaluations, seed_evaluations] =
         counts;
     let slip_evaluations = slip_evaluations + relearned.len();
@@ -995,6 +1026,7 @@ pub fn tune(
         short_evaluations,
         cut_evaluations,
         slip_evaluations,
+        cut_learn_evaluations,
         cut_band_before_mm,
         brake_before_preview,
         short_before_preview,
@@ -1071,6 +1103,25 @@ pub fn relearn_candidates(chosen: &ControllerSettings, _spec: &Spec) -> Vec<Cont
     }
 }
 
+/// `chosen` with the held nudge's learnt cut fraction ([`crate::position::Nudge::cut_learn`]:
+/// γ(side) doubled after a held nudge that stopped short of half its error, halved back after one
+/// that passed r) when it has a nudge without it (else none). The last choice, by the count on the
+/// wide tuning plants ([`short_stage_plants`]; issue 25, session 23): it acts only where held
+/// nudges start far from r, on plants whose breakaway is above the learnt one (docs/control.md,
+/// Results' session-23 block).
+pub fn cut_learn_candidates(chosen: &ControllerSettings, _spec: &Spec) -> Vec<ControllerSettings> {
+    match chosen.nudge {
+        Some(n) if !n.cut_learn => vec![ControllerSettings {
+            nudge: Some(Nudge {
+                cut_learn: true,
+                ..n
+            }),
+            ..*chosen
+        }],
+        _ => Vec::new(),
+    }
+}
+
 /// e_s (mm) × τ_b (s) of the approach with braking tried at the end of the search (issue 25,
 /// session 15; the neighbourhood of the setting chosen on the twin in session 14, with the stop
 /// target e_s near the band of the large steps).
@@ -1089,7 +1140,8 @@ pub const BRAKE_CANDIDATES: [(f64, f64); 6] = [
 /// controller before them on the wider plants of [`short_stage_plants`] (one more; these
 /// [`SHORT_STAGE_EVALUATIONS`] on those plants), the ramp-and-cut band (at most [`CUT_BANDS_MM`]'s
 /// length, [`cut_band_candidates`]) and, first of all, the nudge's slip brake (one,
-/// [`slip_brake_candidates`]) and, last of all, the nudge's relearning (one, [`relearn_candidates`]).
+/// [`slip_brake_candidates`]), the nudge's relearning (one, [`relearn_candidates`]) and, last of
+/// all, the held nudge's learnt cut fraction ([`CUT_LEARN_EVALUATIONS`], on the wider plants too).
 pub const AFTER_SEARCH_EVALUATIONS: usize = 1
     + 1
     + BRAKE_CANDIDATES.len() * BRAKE_TIMES_S.len()
@@ -1097,7 +1149,12 @@ pub const AFTER_SEARCH_EVALUATIONS: usize = 1
     + BRAKE_PREVIEW_CANDIDATES.len()
     + NUDGE_REST_CANDIDATES.len()
     + SHORT_STAGE_EVALUATIONS
-    + CUT_BANDS_MM.len();
+    + CUT_BANDS_MM.len()
+    + CUT_LEARN_EVALUATIONS;
+
+/// Evaluations of the held nudge's learnt cut fraction, on [`short_stage_plants`] plants: the
+/// controller before it and [`cut_learn_candidates`]'s one (issue 25, session 23).
+pub const CUT_LEARN_EVALUATIONS: usize = 2;
 
 /// Evaluations of the short-step approach's choices, each on [`short_stage_plants`] plants: the
 /// controller before them, [`SHORT_CANDIDATES`], [`SHORT_PREVIEW_CANDIDATES`] and the range (one).

@@ -102,6 +102,9 @@ pub struct TuneReport {
     /// Evaluations of the nudge's slip brake, the first choice after the search
     /// (`tune::slip_brake_candidates`), and of its relearning, the last (`tune::relearn_candidates`).
     pub slip_evaluations: usize,
+    /// Evaluations of the held nudge's learnt cut fraction, the last choice
+    /// (`tune::cut_learn_candidates`, on `tune::short_stage_plants(search.plants)` plants).
+    pub cut_learn_evaluations: usize,
     /// Wall-clock time, s.
     pub seconds: f64,
     /// The tuned controller.
@@ -459,6 +462,7 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
         short_evaluations: tuned.short_evaluations,
         cut_evaluations: tuned.cut_evaluations,
         slip_evaluations: tuned.slip_evaluations,
+        cut_learn_evaluations: tuned.cut_learn_evaluations,
         seconds: started.elapsed().as_secs_f64(),
         controller: settings,
         margins,
@@ -625,11 +629,12 @@ fn check_spec(req: &Request, ts: f64, twin: &Option<ipa::PlantConfig>) -> Result
         ));
     }
     let cases = spec.cases().len() as f64;
-    // The short-step approach's choices run on more plants than the search (tune::short_stage_plants).
+    // The short-step approach's choices and the learnt cut fraction run on more plants than the
+    // search (tune::short_stage_plants).
     let wider = tune::short_stage_plants(req.search.plants) - req.search.plants;
     let search = (req.search.max_evaluations + tune::AFTER_SEARCH_EVALUATIONS) as f64
         * req.search.plants as f64
-        + (tune::SHORT_STAGE_EVALUATIONS * wider) as f64;
+        + ((tune::SHORT_STAGE_EVALUATIONS + tune::CUT_LEARN_EVALUATIONS) * wider) as f64;
     let verified = 2.0 * (req.search.plants + req.physics_variants + 1) as f64;
     let work = (search + verified) * cases * run_samples.ceil();
     if work > MAX_SIMULATED_SAMPLES {

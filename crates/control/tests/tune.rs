@@ -436,6 +436,12 @@ fn tuning_meets_the_spec_where_it_is_reachable() {
         t.settings.nudge.map(|n| n.relearn),
         t.settings.nudge.map(|_| slip_kept)
     );
+    // The learnt cut fraction (session 23): the controller before it and the candidate, on the wide
+    // plants, when the controller has a nudge.
+    assert_eq!(
+        t.cut_learn_evaluations,
+        usize::from(t.settings.nudge.is_some()) * tune::CUT_LEARN_EVALUATIONS
+    );
     assert_eq!(
         t.rest_evaluations,
         tune::NUDGE_REST_CANDIDATES
@@ -752,6 +758,7 @@ fn the_cut_band_candidates_are_the_other_bands_with_the_creep() {
         slip_brake_fraction: 0.0,
         slip_brake_samples: 0,
         relearn: false,
+        cut_learn: false,
     };
     chosen.nudge = Some(nudge);
     let c = tune::cut_band_candidates(&chosen, &spec);
@@ -805,6 +812,7 @@ fn the_slip_brake_candidate_is_the_controller_with_the_slip_brake() {
         slip_brake_fraction: 0.0,
         slip_brake_samples: 0,
         relearn: false,
+        cut_learn: false,
     };
     chosen.nudge = Some(nudge);
     let c = tune::slip_brake_candidates(&chosen, &spec);

@@ -229,6 +229,10 @@ pub struct IpaController {
     /// v_s: the seed only at a switch speed of at most v_s, mm/s (`short_approach.seed_speed_mm_s`;
     /// 0 = at any speed).
     pub short_seed_speed: f64,
+    /// 1: the held nudge learns its cut fraction per side (`nudge.cut_learn`; issue 25, session 23):
+    /// doubled after a held nudge that stopped short of half its error, halved back (to γ) after
+    /// one that passed r; 0: not (as in a struct zeroed before it existed).
+    pub nudge_cut_learn: i32,
 }
 const _: () = assert!(size_of::<CusumState>() <= IPA_CUSUM_STATE_BYTES);
 const _: () = assert!(MAX_D >= IPA_MAX_NA as usize);
@@ -744,9 +748,9 @@ pub unsafe extern "C" fn ipa_ctl_init(
         1 => Ok(true),
         _ => Err(Error::Setting),
     };
-    let nudge = match (c.has_nudge, c.nudge_relearn) {
-        (0, _) => Ok(None),
-        (1, relearn @ (0 | 1)) => Ok(Some(NudgeSettings {
+    let nudge = match (c.has_nudge, c.nudge_relearn, c.nudge_cut_learn) {
+        (0, _, _) => Ok(None),
+        (1, relearn @ (0 | 1), cut_learn @ (0 | 1)) => Ok(Some(NudgeSettings {
             band: c.nudge_band,
             ramp: c.nudge_ramp,
             start_fraction: c.nudge_start_fraction,
@@ -759,6 +763,7 @@ pub unsafe extern "C" fn ipa_ctl_init(
             slip_brake: c.nudge_slip_brake,
             slip_brake_samples: c.nudge_slip_brake_samples,
             relearn: relearn == 1,
+            cut_learn: cut_learn == 1,
         })),
         _ => Err(Error::Setting),
     };

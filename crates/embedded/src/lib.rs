@@ -155,9 +155,11 @@ mod tests {
         // whose spare values hold the `None` of the optional nudge settings: the same size) and the
         // previews (a second bool in the brake settings, within their padding; a bool in the
         // short-step settings that takes the place of their `None` tag): the same sizes; in session
-        // 23 the short-step approach's breakaway seed (two floats κ_s, v_s in its settings): 608.
+        // 23 the short-step approach's breakaway seed (two floats κ_s, v_s in its settings): 608;
+        // and the held nudge's learnt cut fraction (a second bool in the nudge settings, within
+        // their padding, and two floats g(left), g(right)): 624 bytes with both (session 24).
         let a = |f: usize| f.max(4);
-        let nudge = |f: usize| round(9 * f + 8 + 1, a(f));
+        let nudge = |f: usize| round(9 * f + 8 + 2, a(f));
         let brake = |f: usize| round(6 * f + 12 + 2, a(f));
         let short = |f: usize| round(round(8 * f + 8, a(f)) + 1, a(f));
         let settings = |f: usize| round(8 * f + 1 + nudge(f) + brake(f) + short(f), f);
@@ -178,15 +180,16 @@ mod tests {
                     + 1
                     + 2 * f
                     + cut(f)
-                    + 8,
+                    + 8
+                    + 2 * f,
                 f.max(4),
             )
         };
         assert_eq!(size_of::<PositionController<f64>>(), ctl(8));
         assert_eq!(size_of::<PositionController<f32>>(), ctl(4));
         if w == 8 {
-            assert_eq!(ctl(8), 608);
-            assert_eq!(ctl(4), 332);
+            assert_eq!(ctl(8), 624);
+            assert_eq!(ctl(4), 340);
         }
         assert!(ffi::ipa_ctl_state_size() <= ffi::IPA_CTL_STATE_BYTES);
         if w == 8 {

@@ -95,6 +95,14 @@ pub struct NudgeSettings<F: Float> {
     ///   or e_h, per sample), not while it moves at all: braked on through a one-count creep, the
     ///   reverse command drove the piston back 0.1 mm.
     pub relearn: bool,
+    /// Learn the held nudge's cut fraction per side (issue 25, session 23; `false`: as in a file
+    /// written before it existed): γ(side) = g(side) γ, g starting at 1. At the rest after a held
+    /// nudge (not ramp-and-cut) the move d = side (y − y_0) against |e_0|: short of half the error
+    /// and not past r (d < |e_0| / 2) doubles g(side), up to 1/γ (the nudge then runs to r);
+    /// past r by more than e_h (d > |e_0| + e_h) halves it, down to 1. On a plant whose breakaway
+    /// is above the learnt one each held nudge, cut at γ |e_0| with γ small, moved 0.1–0.2 mm and a
+    /// rest 1 mm short took ten nudges (the whole run).
+    pub cut_learn: bool,
 }
 
 /// The approach with braking of a [`PositionController`] (`controller.brake` of CONTROLLER.json):
@@ -318,6 +326,8 @@ pub struct PositionController<F: Float> {
     /// The slip brake under way after a nudge's cut: its direction (`true`: the nudge was to the
     /// right, the brake is to the left) and the samples given so far.
     slip_brake: Option<(bool, u32)>,
+    /// g(left), g(right): the held nudge's learnt cut fraction over γ ([`NudgeSettings::cut_learn`]).
+    cut_gain: [F; 2],
 }
 
 /// The direction's sign: +1 towards larger y (`right`, the valve side of u > 0), −1 the other way;
@@ -466,6 +476,7 @@ impl<F: Float> PositionController<F> {
             lead: initial_lead(&s.brake),
             switched: None,
             slip_brake: None,
+            cut_gain: [F::ONE, F::ONE],
         })
     }
 
@@ -869,6 +880,8 @@ impl<F: Float> PositionController<F> {
                     }
                     if self.last_learns {
                         self.learn_rate(n, right, y);
+                    } else if n.cut_learn {
+                        self.learn_cut(n, right, y);
                     }
                 }
                 let right = e > F::ZERO;
@@ -1043,8 +1056,33 @@ impl<F: Float> PositionController<F> {
         *slot = a.clamp_to(n.min_ramp / n.cut_band, n.ramp / h);
     }
 
-    /// Whether a nudge that has moved the piston ends now: once it has covered γ |e_0|, or once the
-    /// error left is at most τ_c(side) |dy/dt| + e_h (τ_c learnt after the last cut in its direction).
+    /// The held nudge's cut fraction learning at the rest after it ([`NudgeSettings::cut_learn`]):
+    /// the move d = side (y − y_0) against |e_0|; d < |e_0| / 2: g(side) × 2 (at most 1/γ);
+    /// d > |e_0| + e_h: g(side) / 2 (at least 1).
+    fn learn_cut(&mut self, n: &NudgeSettings<F>, right: bool, y: F) {
+        let (y0, e0) = self.last_start;
+        let moved = if right { y - y0 } else { y0 - y };
+        let err = e0.abs();
+        let [left, right_gain] = &mut self.cut_gain;
+        let slot = if right { right_gain } else { left };
+        let two = F::from_f64(2.0);
+        if moved < err / two {
+            let top = if n.cut_fraction > F::ZERO {
+                F::ONE / n.cut_fraction
+            } else {
+                F::ONE
+            };
+            let up = *slot * two;
+            *slot = if up < top { up } else { top };
+        } else if moved > err + self.s.hold_band {
+            let down = *slot / two;
+            *slot = if down > F::ONE { down } else { F::ONE };
+        }
+    }
+
+    /// Whether a nudge that has moved the piston ends now: once it has covered γ |e_0| (γ(side) =
+    /// g(side) γ for a held nudge with [`NudgeSettings::cut_learn`]), or once the error left is at
+    /// most τ_c(side) |dy/dt| + e_h (τ_c learnt after the last cut in its direction).
     fn cut_now(&self, n: &NudgeSettings<F>, g: &Nudging<F>, e: F, y: F, dy: F) -> bool {
         let coast = if g.right {
             self.coast_right
@@ -1052,7 +1090,18 @@ impl<F: Float> PositionController<F> {
             self.coast_left
         };
         let left = if g.right { e } else { -e };
-        (y - g.y0).abs() >= n.cut_fraction * g.e0.abs()
+        let gamma = if n.cut_learn && !g.and_cut {
+            let [left, right] = self.cut_gain;
+            let v = if g.right { right } else { left } * n.cut_fraction;
+            if v < F::ONE {
+                v
+            } else {
+                F::ONE
+            }
+        } else {
+            n.cut_fraction
+        };
+        (y - g.y0).abs() >= gamma * g.e0.abs()
             || (coast >= F::ZERO && left <= coast * dy.abs() + self.s.hold_band)
     }
 
@@ -1087,6 +1136,7 @@ impl<F: Float> PositionController<F> {
         self.r_seen = false;
         self.lead = initial_lead(&self.s.brake);
         self.switched = None;
+        self.cut_gain = [F::ONE, F::ONE];
     }
 
     /// The next move from rest, keeping what was learnt (u_b, τ_c, a(side), τ_b(side)): the law's
@@ -1192,6 +1242,7 @@ mod tests {
             slip_brake: 0.0,
             slip_brake_samples: 0,
             relearn: false,
+            cut_learn: false,
         });
         settings
     }
@@ -2010,5 +2061,59 @@ mod tests {
                 Error::Setting
             );
         }
+    }
+
+    // The learnt cut fraction (issue 25, session 23), by hand: held nudges (no ramp-and-cut band,
+    // γ = 0.25, e_n = 1, ρ Ts = 1 count per sample, β = 0.5, N_r = 2, b_r = 30) from y = 0.2 to
+    // r = 1 (e_0 = 0.8): the nudge starts at 15 after N_r samples at rest, ramps to 16, its first
+    // count (0.21) learns u_b = 16, and it is cut at 0.42 (moved 0.22 ≥ γ e_0 = 0.2). At rest at 0.45
+    // it has moved 0.25 < e_0 / 2 = 0.4: g(right) = 2 with the rule. The next nudge (e_0 = 0.55)
+    // starts at β u_b = 8, its first count (0.46) learns 9; at 0.60 it has moved 0.15 ≥ γ e_0 =
+    // 0.1375, cut without the rule, held with it (< 2 γ e_0 = 0.275; the coast rule, τ_c = 0.03 /
+    // 7 s, cuts only at e ≤ 0.04 mm here); at 0.74 (0.29) the rule cuts too. Resting at 1.10, past r
+    // by 0.10 > e_h, that nudge moved 0.65 > e_0 + e_h = 0.57: g(right) halves back to 1, and a
+    // nudge to the left starts at β |b_l| = 10. Without the rule g stays 1.
+    #[test]
+    fn a_held_nudge_that_stops_short_learns_a_larger_cut_fraction() {
+        let ys = [
+            0.2, 0.2, 0.2, 0.2, 0.21, 0.35, 0.42, 0.45, 0.45, 0.45, 0.45, 0.46, 0.55, 0.60, 0.74,
+            1.10, 1.10, 1.10,
+        ];
+        let on = [
+            0.0, 0.0, 15.0, 16.0, 16.0, 16.0, 0.0, 0.0, 0.0, 8.0, 9.0, 9.0, 9.0, 9.0, 0.0, 0.0,
+            0.0, -10.0,
+        ];
+        for cut_learn in [true, false] {
+            let mut settings = nudging(0.25);
+            settings.nudge.as_mut().unwrap().cut_learn = cut_learn;
+            let mut c = PositionController::new(settings, Some(shift_inverse())).unwrap();
+            for (k, (&y, &w)) in ys.iter().zip(on.iter()).enumerate() {
+                // Without the rule the second nudge is cut at 0.60; the piston is then at rest
+                // (0.74, 1.10) only from 1.10 on, as with it.
+                let w = if !cut_learn && k == 13 { 0.0 } else { w };
+                let u = c.step(1.0, y).unwrap();
+                assert!(
+                    (u - w).abs() < 1e-9,
+                    "cut_learn {cut_learn}, sample {k}: {u} != {w}"
+                );
+                if k == 9 {
+                    let g = if cut_learn { 2.0 } else { 1.0 };
+                    assert_eq!(c.cut_gain, [1.0, g], "cut_learn {cut_learn}");
+                }
+            }
+            assert_eq!(c.cut_gain, [1.0, 1.0], "cut_learn {cut_learn}");
+        }
+        // g(side) grows to 1/γ at most: three moves short of half the error from 1 give 2, 4, 4.
+        let mut settings = nudging(0.25);
+        settings.nudge.as_mut().unwrap().cut_learn = true;
+        let n = settings.nudge.unwrap();
+        let mut c = PositionController::new(settings, None).unwrap();
+        for want in [2.0, 4.0, 4.0] {
+            c.last_start = (0.0, 1.0);
+            c.learn_cut(&n, true, 0.1);
+            assert_eq!(c.cut_gain[1], want);
+        }
+        c.reset();
+        assert_eq!(c.cut_gain, [1.0, 1.0]);
     }
 }

@@ -678,11 +678,16 @@ pub fn tuned_line(s: &control::ControllerSettings) -> String {
         });
     let nudge = s.nudge.map_or(String::new(), |n| {
         format!(
-            ", nudge band {:.3} mm (ramp {:.1} counts/s from {} of the learnt breakaway, cut at {:.3} of the error, rest {} samples{}{})",
+            ", nudge band {:.3} mm (ramp {:.1} counts/s from {} of the learnt breakaway, cut at {:.3} of the error{}, rest {} samples{}{})",
             n.band_mm,
             n.ramp_counts_s,
             n.start_fraction,
             n.cut_fraction,
+            if n.cut_learn {
+                " (a held nudge's, raised per side after one that stopped short)"
+            } else {
+                ""
+            },
             n.rest_samples,
             if n.rest_band_mm > n.band_mm {
                 format!(", also after a rest within {:.3} mm", n.rest_band_mm)

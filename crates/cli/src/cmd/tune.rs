@@ -262,6 +262,14 @@ fn summary_text(r: &TuneReport, out: Option<&Path>) -> String {
             format!(" + {} of the ramp-and-cut band", r.cut_evaluations)
         } else {
             String::new()
+        } + &if r.cut_learn_evaluations > 0 {
+            format!(
+                " + {} of the held nudge's cut fraction on {} plants",
+                r.cut_learn_evaluations,
+                control::tune::short_stage_plants(r.search.plants)
+            )
+        } else {
+            String::new()
         },
         r.seconds
     );

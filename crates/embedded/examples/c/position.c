@@ -18,7 +18,8 @@
  * nudge has a slip brake; then the nudge's slip_brake_fraction and slip_brake_samples, when it has
  * them or relearns; then the nudge's relearn as 0/1, then the brake's preview and the short-step approach's
  * preview as 0/1, when it has them; then the short-step approach's breakaway_seed and
- * seed_speed_mm_s, when it has them). trace.csv is what `ipa-sysid control --controller
+ * seed_speed_mm_s, when it has them or the nudge learns its cut fraction; then the nudge's
+ * cut_learn as 0/1). trace.csv is what `ipa-sysid control --controller
  * CONTROLLER.json --out trace.csv` writes (header t,r,u,y): the controller is fed r(k) and y(k) of each
  * row, as firmware would feed the set-point and the encoder, and prints its command u(k) per line
  * (round-trip decimal, %.17g), to compare with the u column.
@@ -35,9 +36,9 @@ static uint64_t state[IPA_CTL_STATE_BYTES / sizeof(uint64_t) + 1];
 int main(int argc, char **argv) {
     if (argc != 10 && argc != 14 && argc != 19 && argc != 20 && argc != 22 && argc != 28 &&
         argc != 30 && argc != 31 && argc != 39 && argc != 40 && argc != 41 && argc != 43 &&
-        argc != 44 && argc != 46 && argc != 48) {
+        argc != 44 && argc != 46 && argc != 48 && argc != 49) {
         fprintf(stderr,
-                "usage: %s TS KP KI KD TF U_MAX HOLD FINE RESET [B_L B_R M_L M_R [BAND RAMP START REST CUT [REST_BAND [CUT_BAND MIN_RAMP [MIN_STEP SWITCH LEAD STRENGTH SAMPLES BRAKE_REST [LEARN LEAD_MAX [RELEASE [SHORT_MAX_STEP DRIVE RAMP SWITCH LEAD STRENGTH SAMPLES REST [CREEP [REBRAKE [SLIP_BRAKE SLIP_BRAKE_SAMPLES [RELEARN [BRAKE_PREVIEW SHORT_PREVIEW [SEED SEED_SPEED]]]]]]]]]]]]]]"
+                "usage: %s TS KP KI KD TF U_MAX HOLD FINE RESET [B_L B_R M_L M_R [BAND RAMP START REST CUT [REST_BAND [CUT_BAND MIN_RAMP [MIN_STEP SWITCH LEAD STRENGTH SAMPLES BRAKE_REST [LEARN LEAD_MAX [RELEASE [SHORT_MAX_STEP DRIVE RAMP SWITCH LEAD STRENGTH SAMPLES REST [CREEP [REBRAKE [SLIP_BRAKE SLIP_BRAKE_SAMPLES [RELEARN [BRAKE_PREVIEW SHORT_PREVIEW [SEED SEED_SPEED [CUT_LEARN]]]]]]]]]]]]]]]"
                 " < trace.csv\n",
                 argv[0]);
         return 2;
@@ -78,8 +79,11 @@ int main(int argc, char **argv) {
     c.short_preview = argc >= 46 ? atoi(argv[45]) : 0;
     /* The short-step approach's breakaway seed: off (0) unless given, as in a struct zeroed before
      * it existed. */
-    c.short_seed = argc == 48 ? atof(argv[46]) : 0.0;
-    c.short_seed_speed = argc == 48 ? atof(argv[47]) : 0.0;
+    c.short_seed = argc >= 48 ? atof(argv[46]) : 0.0;
+    c.short_seed_speed = argc >= 48 ? atof(argv[47]) : 0.0;
+    /* The held nudge's learnt cut fraction (0/1): off unless given, as in a struct zeroed before it
+     * existed. */
+    c.nudge_cut_learn = argc == 49 ? atoi(argv[48]) : 0;
     if (c.has_nudge) {
         c.nudge_band = atof(argv[14]);
         c.nudge_ramp = atof(argv[15]);

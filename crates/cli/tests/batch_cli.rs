@@ -144,3 +144,67 @@ fn folder_without_csv_files_is_a_clear_error() {
     assert_eq!(out.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&out.stderr).contains("*.csv"));
 }
+
+// The reader's notes travel with each file's line (audit s24 M-3): a --ts that contradicts the time
+// column (t steps 0.01 s, --ts 1: 100 times) is said in the folder run's warnings, as by the run on the
+// file alone — the ratio is computed here from the two steps, not read from the program.
+#[test]
+fn a_folder_run_carries_the_readers_notes_like_the_single_file_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let (u, y) = paper_record(900, 1);
+    write_tuy(dir.path(), "a.csv", 0.01, &u, &y);
+    let folder = bin()
+        .args([
+            "identify",
+            "--method",
+            "ls",
+            "--structure",
+            "arx",
+            "--ts",
+            "1",
+            "--data",
+        ])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    let v = lines(&String::from_utf8(folder.stdout).unwrap());
+    let warnings: Vec<&str> = v[0]["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w.as_str().unwrap())
+        .collect();
+    let ratio = format!("{} times", 1.0 / 0.01);
+    let said: Vec<&&str> = warnings
+        .iter()
+        .filter(|w| w.starts_with("data: ") && w.contains("contradicts the time column"))
+        .collect();
+    assert_eq!(said.len(), 1, "{warnings:?}");
+    assert!(said[0].contains(&ratio), "{said:?} ({ratio})");
+    let single = bin()
+        .args([
+            "identify",
+            "--method",
+            "ls",
+            "--structure",
+            "arx",
+            "--ts",
+            "1",
+            "--json",
+            "-",
+            "--data",
+        ])
+        .arg(dir.path().join("a.csv"))
+        .output()
+        .unwrap();
+    let one: Value = serde_json::from_slice(&single.stdout).unwrap();
+    assert!(
+        one["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|w| w.as_str() == Some(*said[0])),
+        "{}",
+        one["warnings"]
+    );
+}

@@ -206,10 +206,19 @@ pub fn run(args: Args, settings: &Identification) -> anyhow::Result<()> {
         .par_iter()
         .map(|path| {
             let file = path.display().to_string();
-            let line = match sysid::data::read_csv(path, &opts)
+            // The reader's notes (a --ts that contradicts the time column, a resampled gap) join the
+            // file's warnings, as `--data FILE` alone says them ("data: …"; audit s24 M-3: the folder
+            // run dropped them, so a Ts 100 times wrong went without a word).
+            let line = match sysid::data::read_record(path, &opts)
                 .map_err(anyhow::Error::from)
-                .and_then(|data| fit_report(&data, settings, val.as_ref(), args.resid_lags))
-            {
+                .and_then(|record| {
+                    let mut report =
+                        fit_report(&record.data, settings, val.as_ref(), args.resid_lags)?;
+                    report
+                        .warnings
+                        .extend(record.notes.iter().map(|n| format!("data: {n}")));
+                    Ok(report)
+                }) {
                 Ok(report) => (
                     serde_json::to_string(&Line {
                         file,

@@ -296,14 +296,15 @@ impl IdentifyReport {
                 .warnings
                 .extend(Self::validation_extrapolation(m, &input_extremes(v)));
         }
-        report.put_operating_point_hint(measured_operating_point_hint(
-            fit, settings, est_data, val_data,
-        ));
+        let hint =
+            measured_operating_point_hint(fit, settings, (est_data, val_data), &report.metrics);
+        report.put_operating_point_hint(hint);
         Ok(report)
     }
 
-    /// The measured operating-point check's warning ([`OperatingPointCheck`]), when it speaks, in
-    /// place of the range-based hint about the same level (which has no figures) or after the others:
+    /// The measured operating-point check's warning ([`OperatingPointCheck`]), when it speaks, added to
+    /// the range-based hint about the same level (which has no figures) after "measured:", or else
+    /// after the others (one warning about the level, not two):
     /// the one place where it joins a report, in memory ([`IdentifyReport::assemble`],
     /// [`IdentifyReport::without_residuals`]) and read in passes ([`stream::identify_report`]).
     pub fn put_operating_point_hint(&mut self, hint: Option<String>) {
@@ -313,7 +314,7 @@ impl IdentifyReport {
             .iter_mut()
             .find(|x| x.starts_with(OPERATING_POINT_HINT))
         {
-            Some(range) => *range = w,
+            Some(range) => *range = format!("{range}; measured: {w}"),
             None => self.warnings.push(w),
         }
     }
@@ -339,8 +340,8 @@ impl IdentifyReport {
     ) -> Result<Self, SysidError> {
         let est = estimation_metrics(fit, est_data)?;
         let mut report = Self::new(fit, settings, est, None);
-        report
-            .put_operating_point_hint(measured_operating_point_hint(fit, settings, est_data, None));
+        let hint = measured_operating_point_hint(fit, settings, (est_data, None), &report.metrics);
+        report.put_operating_point_hint(hint);
         Ok(report)
     }
 
@@ -609,7 +610,7 @@ impl ValidationReport {
 }
 
 /// How the range-based operating-point hint ([`operating_point_hint`]) begins, so that the measured
-/// one ([`OperatingPointCheck`]) can take its place.
+/// one ([`OperatingPointCheck`]) can join it.
 const OPERATING_POINT_HINT: &str = "the output lies far from zero";
 
 /// The fraction of the estimation record (its end) on which the measured operating-point check ranks
@@ -635,12 +636,17 @@ pub struct OperatingPointCheck {
     pub what: String,
     /// What to run again, with the record the figures are on.
     pub advice: String,
+    /// The model's own guarded fit (%) on the record that ranks (the validation record; without
+    /// one, its estimation record): ARX with c must beat it too, so that a model that already fits
+    /// (a Hammerstein model of a deadzone plant, 100 %) hears nothing of what ARX would gain.
+    pub own: Option<f64>,
 }
 
 impl OperatingPointCheck {
     /// The check for `fit` identified with `settings`, or `None` when it does not apply (a constant
     /// term or an operating point already). `validation`: a validation record ranks the fits.
-    pub fn of(fit: &Fitted, settings: &Identification, validation: bool) -> Option<Self> {
+    pub fn of(fit: &Fitted, settings: &Identification, metrics: &MetricsPair) -> Option<Self> {
+        let validation = metrics.validation.is_some();
         let m = &fit.model;
         if settings.structure.offset || m.offset().is_some() || m.operating_point().is_some() {
             return None;
@@ -661,6 +667,7 @@ impl OperatingPointCheck {
                 "identify again with --offset (a constant c) or --detrend mean (Python: offset=True) \
                  ({on})"
             ),
+            own: guarded_fit(metrics.validation.as_ref().unwrap_or(&metrics.estimation)),
         })
     }
 
@@ -675,21 +682,21 @@ impl OperatingPointCheck {
 pub fn measured_operating_point_hint(
     fit: &Fitted,
     settings: &Identification,
-    est_data: &[Dataset],
-    val_data: Option<&Dataset>,
+    (est_data, val_data): (&[Dataset], Option<&Dataset>),
+    metrics: &MetricsPair,
 ) -> Option<String> {
     let [est] = est_data else { return None };
-    let c = OperatingPointCheck::of(fit, settings, val_data.is_some())?;
+    let c = OperatingPointCheck::of(fit, settings, metrics)?;
     let words = (c.what.as_str(), c.advice.as_str());
     let o = c.arx.structure.orders;
     match val_data {
-        Some(v) => sysid::order::offset_hint((est, Some(v)), &c.arx, (o, None), words),
+        Some(v) => sysid::order::offset_hint((est, Some(v)), &c.arx, (o, None, c.own), words),
         None => {
             let (n, k) = (est.len(), OperatingPointCheck::estimation_rows(est.len())?);
             sysid::order::offset_hint(
                 (&est.rows(0..k), Some(&est.rows(k..n))),
                 &c.arx,
-                (o, None),
+                (o, None, c.own),
                 words,
             )
         }

@@ -62,10 +62,10 @@ pub fn identify_report(
     }
     // The measured operating-point check, as `IdentifyReport::assemble` runs it on records in memory:
     // more passes (ARX with and without c, their metrics, ȳ).
-    if let Some(c) = OperatingPointCheck::of(&fit, settings, val.is_some()) {
+    if let Some(c) = OperatingPointCheck::of(&fit, settings, &report.metrics) {
         let words = (c.what.as_str(), c.advice.as_str());
         let hint = match val {
-            Some(v) => Some(offset_hint(est, Some(v), &c.arx, None, words)?),
+            Some(v) => Some(offset_hint(est, Some(v), &c.arx, (None, c.own), words)?),
             // Without a validation record: estimated on the first two thirds, ranked on the last.
             None => match OperatingPointCheck::estimation_rows(shape.rows) {
                 Some(k) => {
@@ -76,7 +76,7 @@ pub fn identify_report(
                         &mut head,
                         Some(&mut tail),
                         &c.arx,
-                        None,
+                        (None, c.own),
                         words,
                     )?)
                 }

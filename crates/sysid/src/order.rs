@@ -246,7 +246,7 @@ pub const OFFSET_HINT_MARGIN: f64 = 5.0;
 pub fn offset_hint(
     (est, val): (&Dataset, Option<&Dataset>),
     base: &Identification,
-    (orders, without): (Orders, Option<f64>),
+    (orders, without, own): (Orders, Option<f64>, Option<f64>),
     (what, advice): (&str, &str),
 ) -> Option<String> {
     if base.structure.offset {
@@ -258,7 +258,7 @@ pub fn offset_hint(
         None => evaluate(est, Some(val), orders, base).ranking_fit?,
     };
     let with = evaluate(est, Some(val), orders, &base.clone().with_offset(true));
-    offset_hint_of(mean_of(est.y()), &with, without, (what, advice))
+    offset_hint_of(mean_of(est.y()), &with, (without, own), (what, advice))
 }
 
 /// The mean ȳ of a record's output (0 for an empty one), as [`offset_hint`] names it.
@@ -270,15 +270,18 @@ pub fn mean_of(y: &[f64]) -> f64 {
 /// memory, or in passes over a record too long to hold: `sysid::stream::offset_hint`): `with`, the
 /// structure with a constant term c judged as the order search judges ([`judged`]), speaks when it
 /// qualifies and its ranking fit beats `without` (the selection fit without c, %) by more than
-/// [`OFFSET_HINT_MARGIN`] points; `mean` is ȳ of the estimation part.
+/// [`OFFSET_HINT_MARGIN`] points, and beats `own` (the fit of the model identified, when the caller
+/// has one that is not this ARX: a model that already fits needs no c) by as much; `mean` is ȳ of the
+/// estimation part.
 pub fn offset_hint_of(
     mean: f64,
     with: &Candidate,
-    without: f64,
+    (without, own): (f64, Option<f64>),
     (what, advice): (&str, &str),
 ) -> Option<String> {
     let with_fit = with.ranking_fit.filter(|_| with.qualified())?;
-    (with_fit > without + OFFSET_HINT_MARGIN).then(|| {
+    let beats = |f: f64| with_fit > f + OFFSET_HINT_MARGIN;
+    (beats(without) && own.is_none_or(beats)).then(|| {
         format!(
             "the output has a non-zero operating point (mean {mean:.4} over the estimation part): {what} \
              with a constant term (--offset) fits the selection part by {with_fit:.1} % instead of \

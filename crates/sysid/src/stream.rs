@@ -179,7 +179,7 @@ pub fn identify_checked(
 /// [`crate::order::offset_hint`] on records read in passes: ARX of `base`'s orders by least squares
 /// with a constant term c, estimated on `est` and ranked on `val` as the order search ranks
 /// ([`crate::order::judged`]), against `without` (the selection fit without c, %; `None`: estimated
-/// here the same way). The decision and the words are [`crate::order::offset_hint_of`]'s, so a record
+/// here the same way) and `own` (the identified model's own fit, when known). The decision and the words are [`crate::order::offset_hint_of`]'s, so a record
 /// read in passes gets the hint a record in memory gets (to rounding). `None` with an offset already,
 /// without a selection record, or when c does not help; an identification that fails is a structure
 /// that does not qualify, as in memory. Returns the hint and the passes read (5 to 10).
@@ -187,7 +187,7 @@ pub fn offset_hint(
     est: &mut dyn RecordSource,
     val: Option<&mut dyn RecordSource>,
     base: &Identification,
-    without: Option<f64>,
+    (without, own): (Option<f64>, Option<f64>),
     (what, advice): (&str, &str),
 ) -> Result<Streamed<Option<String>>, SysidError> {
     let orders = base.structure.orders;
@@ -239,7 +239,8 @@ pub fn offset_hint(
     passes += 1;
     let mean = sum / count.max(1) as f64;
     Ok(Streamed {
-        result: without.and_then(|w| crate::order::offset_hint_of(mean, &with, w, (what, advice))),
+        result: without
+            .and_then(|w| crate::order::offset_hint_of(mean, &with, (w, own), (what, advice))),
         shape,
         val_shape: None,
         u_extremes: None,

@@ -115,10 +115,8 @@ fn every_structure_without_a_constant_hears_of_the_operating_point() {
             &["--structure", "arx", "--method", "ls", "--stream"][..],
             None,
         ),
-        (
-            &["--structure", "hammerstein", "--method", "ls"][..],
-            Some(val.as_path()),
-        ),
+        // Not Hammerstein: its deadzone's offset (b_r = −7.5 outside the input range 4..10 here) carries
+        // the level as a constant would, so its own fit is high and the check rightly stays silent.
     ] {
         let w = identify(dir.path(), &est, v, extra);
         let (with, without) = hint(&w).unwrap_or_else(|| panic!("{extra:?} {v:?}: no hint: {w:?}"));

@@ -296,7 +296,27 @@ impl IdentifyReport {
                 .warnings
                 .extend(Self::validation_extrapolation(m, &input_extremes(v)));
         }
+        let hint =
+            measured_operating_point_hint(fit, settings, (est_data, val_data), &report.metrics);
+        report.put_operating_point_hint(hint);
         Ok(report)
+    }
+
+    /// The measured operating-point check's warning ([`OperatingPointCheck`]), when it speaks, added to
+    /// the range-based hint about the same level (which has no figures) after "measured:", or else
+    /// after the others (one warning about the level, not two):
+    /// the one place where it joins a report, in memory ([`IdentifyReport::assemble`],
+    /// [`IdentifyReport::without_residuals`]) and read in passes ([`stream::identify_report`]).
+    pub fn put_operating_point_hint(&mut self, hint: Option<String>) {
+        let Some(w) = hint else { return };
+        match self
+            .warnings
+            .iter_mut()
+            .find(|x| x.starts_with(OPERATING_POINT_HINT))
+        {
+            Some(range) => *range = format!("{range}; measured: {w}"),
+            None => self.warnings.push(w),
+        }
     }
 
     /// The validation record's inputs (their [min, max], `input_extremes`) beyond the model's data range,
@@ -319,7 +339,10 @@ impl IdentifyReport {
         est_data: &[Dataset],
     ) -> Result<Self, SysidError> {
         let est = estimation_metrics(fit, est_data)?;
-        Ok(Self::new(fit, settings, est, None))
+        let mut report = Self::new(fit, settings, est, None);
+        let hint = measured_operating_point_hint(fit, settings, (est_data, None), &report.metrics);
+        report.put_operating_point_hint(hint);
+        Ok(report)
     }
 
     /// The report from metrics and residual analyses computed elsewhere (the streaming path,
@@ -586,6 +609,100 @@ impl ValidationReport {
     }
 }
 
+/// How the range-based operating-point hint ([`operating_point_hint`]) begins, so that the measured
+/// one ([`OperatingPointCheck`]) can join it.
+const OPERATING_POINT_HINT: &str = "the output lies far from zero";
+
+/// The fraction of the estimation record (its end) on which the measured operating-point check ranks
+/// the two ARX fits when there is no validation record: NARX's default selection part.
+pub const OPERATING_POINT_SELECTION: f64 = 1.0 / 3.0;
+
+/// The measured operating-point check (audit s23 M-R1): for a model without a constant term and
+/// without an operating point (no `--offset`, no `--detrend`), of any structure and method,
+/// [`sysid::order::offset_hint`] — the one test `order` and NARX `identify` run — on ARX of the same
+/// orders (na, nb, nk) by least squares, estimated on the estimation record and ranked on the
+/// validation record (without one: estimated on the first 1 − [`OPERATING_POINT_SELECTION`] of the
+/// estimation record and ranked on the rest). It speaks when a constant term c lifts that simulation fit
+/// by more than [`sysid::order::OFFSET_HINT_MARGIN`] points, with both figures, so that a plant whose
+/// output level is not an operating point (an integrator, whose c would be a drift) stays silent unless
+/// c truly helps. One estimation record only. The records in memory: [`measured_operating_point_hint`];
+/// read in passes: [`stream::identify_report`] with `sysid::stream::offset_hint`; the decision and
+/// words are `sysid::order::offset_hint_of`'s in both.
+#[derive(Debug, Clone)]
+pub struct OperatingPointCheck {
+    /// ARX of the model's orders by least squares, without c.
+    pub arx: Identification,
+    /// What is compared, in words.
+    pub what: String,
+    /// What to run again, with the record the figures are on.
+    pub advice: String,
+    /// The model's own guarded fit (%) on the record that ranks (the validation record; without
+    /// one, its estimation record): ARX with c must beat it too, so that a model that already fits
+    /// (a Hammerstein model of a deadzone plant, 100 %) hears nothing of what ARX would gain.
+    pub own: Option<f64>,
+}
+
+impl OperatingPointCheck {
+    /// The check for `fit` identified with `settings`, or `None` when it does not apply (a constant
+    /// term or an operating point already). `validation`: a validation record ranks the fits.
+    pub fn of(fit: &Fitted, settings: &Identification, metrics: &MetricsPair) -> Option<Self> {
+        let validation = metrics.validation.is_some();
+        let m = &fit.model;
+        if settings.structure.offset || m.offset().is_some() || m.operating_point().is_some() {
+            return None;
+        }
+        let o = settings.structure.orders;
+        let on = if validation {
+            "figures on the validation record"
+        } else {
+            "figures on the last third of the estimation record, estimated on the rest"
+        };
+        Some(OperatingPointCheck {
+            arx: Identification::default()
+                .with_kind(sysid::ModelKind::Arx)
+                .with_method(Method::Ls)
+                .with_orders(o.na, o.nb, o.nk),
+            what: format!("ARX of the same orders ({}, {}, {}), by ls,", o.na, o.nb, o.nk),
+            advice: format!(
+                "identify again with --offset (a constant c) or --detrend mean (Python: offset=True) \
+                 ({on})"
+            ),
+            own: guarded_fit(metrics.validation.as_ref().unwrap_or(&metrics.estimation)),
+        })
+    }
+
+    /// The estimation rows of an estimation record of `n` samples when there is no validation record
+    /// (the rest ranks).
+    pub fn estimation_rows(n: usize) -> Option<usize> {
+        sysid::data::split_rows(n, 1.0 - OPERATING_POINT_SELECTION).ok()
+    }
+}
+
+/// The [`OperatingPointCheck`] of a fit on records in memory (one estimation record; several: `None`).
+pub fn measured_operating_point_hint(
+    fit: &Fitted,
+    settings: &Identification,
+    (est_data, val_data): (&[Dataset], Option<&Dataset>),
+    metrics: &MetricsPair,
+) -> Option<String> {
+    let [est] = est_data else { return None };
+    let c = OperatingPointCheck::of(fit, settings, metrics)?;
+    let words = (c.what.as_str(), c.advice.as_str());
+    let o = c.arx.structure.orders;
+    match val_data {
+        Some(v) => sysid::order::offset_hint((est, Some(v)), &c.arx, (o, None, c.own), words),
+        None => {
+            let (n, k) = (est.len(), OperatingPointCheck::estimation_rows(est.len())?);
+            sysid::order::offset_hint(
+                (&est.rows(0..k), Some(&est.rows(k..n))),
+                &c.arx,
+                (o, None, c.own),
+                words,
+            )
+        }
+    }
+}
+
 /// When a model without a constant term and without an operating point simulates worse than the mean
 /// (a negative fit on either record) or has a fit the initial state flatters (the fits from estimated
 /// and measured initial outputs more than `INITIAL_STATE_MARGIN` points apart; audit s20 L-2), and its estimation output lies far from zero (its recorded range
@@ -624,7 +741,7 @@ fn operating_point_hint(model: &Model, m: &MetricsPair) -> Option<String> {
     let far = (lo > 0.0 || hi < 0.0) && lo.abs().min(hi.abs()) > hi - lo;
     far.then(|| {
         format!(
-            "the output lies far from zero (estimation data {lo:.4} .. {hi:.4}) and the model has no \
+            "{OPERATING_POINT_HINT} (estimation data {lo:.4} .. {hi:.4}) and the model has no \
              constant term: it can only reach that level through its dynamics, the likely cause of \
              {why}; identify again with --offset (a constant c) or --detrend mean (Python: offset=True)"
         )

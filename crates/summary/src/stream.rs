@@ -3,19 +3,20 @@
 //! [`IdentifyReport::assemble`] and [`ValidationReport::assemble`] on the same records held in memory,
 //! to rounding.
 
+use std::cell::RefCell;
 use sysid::data::stream::RecordSource;
 use sysid::detrend::Detrend;
-use sysid::stream::{identify_checked, record_metrics, Streamed, StreamedFit};
+use sysid::stream::{identify_checked, offset_hint, record_metrics, RowsOf, Streamed, StreamedFit};
 use sysid::{Fitted, Identification, Model, SysidError};
 
-use crate::{IdentifyReport, ResidualsPair, ValidationReport};
+use crate::{IdentifyReport, OperatingPointCheck, ResidualsPair, ValidationReport};
 
 /// Identifies an ARX model by least squares from `est` in passes ([`identify_checked`]) and makes the
 /// whole `identify --json` report (metrics and residual analysis with `max_lag` lags on `est` and, when
 /// given, on `val`).
 pub fn identify_report(
     est: &mut dyn RecordSource,
-    val: Option<&mut dyn RecordSource>,
+    mut val: Option<&mut dyn RecordSource>,
     settings: &Identification,
     detrend: Detrend,
     max_lag: usize,
@@ -31,8 +32,14 @@ pub fn identify_report(
         val_shape,
         u_extremes,
         val_u_extremes,
-        passes,
-    } = identify_checked(est, val, settings, detrend, max_lag)?;
+        mut passes,
+    } = identify_checked(
+        est,
+        val.as_mut().map(|v| &mut **v as &mut dyn RecordSource),
+        settings,
+        detrend,
+        max_lag,
+    )?;
     let (val_metrics, val_resid) = match validation {
         Some((m, r)) => (Some(m), Some(r.into())),
         None => (None, None),
@@ -52,6 +59,34 @@ pub fn identify_report(
         report
             .warnings
             .extend(IdentifyReport::validation_extrapolation(&fit.model, &[ext]));
+    }
+    // The measured operating-point check, as `IdentifyReport::assemble` runs it on records in memory:
+    // more passes (ARX with and without c, their metrics, ȳ).
+    if let Some(c) = OperatingPointCheck::of(&fit, settings, &report.metrics) {
+        let words = (c.what.as_str(), c.advice.as_str());
+        let hint = match val {
+            Some(v) => Some(offset_hint(est, Some(v), &c.arx, (None, c.own), words)?),
+            // Without a validation record: estimated on the first two thirds, ranked on the last.
+            None => match OperatingPointCheck::estimation_rows(shape.rows) {
+                Some(k) => {
+                    let shared = RefCell::new(est);
+                    let mut head = RowsOf::new(&shared, 0..k);
+                    let mut tail = RowsOf::new(&shared, k..shape.rows);
+                    Some(offset_hint(
+                        &mut head,
+                        Some(&mut tail),
+                        &c.arx,
+                        (None, c.own),
+                        words,
+                    )?)
+                }
+                None => None,
+            },
+        };
+        if let Some(h) = hint {
+            passes += h.passes;
+            report.put_operating_point_hint(h.result);
+        }
     }
     Ok(Streamed {
         result: (fit, report),

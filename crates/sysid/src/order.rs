@@ -246,7 +246,7 @@ pub const OFFSET_HINT_MARGIN: f64 = 5.0;
 pub fn offset_hint(
     (est, val): (&Dataset, Option<&Dataset>),
     base: &Identification,
-    (orders, without): (Orders, Option<f64>),
+    (orders, without, own): (Orders, Option<f64>, Option<f64>),
     (what, advice): (&str, &str),
 ) -> Option<String> {
     if base.structure.offset {
@@ -258,10 +258,30 @@ pub fn offset_hint(
         None => evaluate(est, Some(val), orders, base).ranking_fit?,
     };
     let with = evaluate(est, Some(val), orders, &base.clone().with_offset(true));
+    offset_hint_of(mean_of(est.y()), &with, (without, own), (what, advice))
+}
+
+/// The mean ȳ of a record's output (0 for an empty one), as [`offset_hint`] names it.
+pub fn mean_of(y: &[f64]) -> f64 {
+    y.iter().sum::<f64>() / y.len().max(1) as f64
+}
+
+/// The decision and the words of [`offset_hint`] from its figures, wherever they were computed (in
+/// memory, or in passes over a record too long to hold: `sysid::stream::offset_hint`): `with`, the
+/// structure with a constant term c judged as the order search judges ([`judged`]), speaks when it
+/// qualifies and its ranking fit beats `without` (the selection fit without c, %) by more than
+/// [`OFFSET_HINT_MARGIN`] points, and beats `own` (the fit of the model identified, when the caller
+/// has one that is not this ARX: a model that already fits needs no c) by as much; `mean` is ȳ of the
+/// estimation part.
+pub fn offset_hint_of(
+    mean: f64,
+    with: &Candidate,
+    (without, own): (f64, Option<f64>),
+    (what, advice): (&str, &str),
+) -> Option<String> {
     let with_fit = with.ranking_fit.filter(|_| with.qualified())?;
-    (with_fit > without + OFFSET_HINT_MARGIN).then(|| {
-        let y = est.y();
-        let mean = y.iter().sum::<f64>() / y.len().max(1) as f64;
+    let beats = |f: f64| with_fit > f + OFFSET_HINT_MARGIN;
+    (beats(without) && own.is_none_or(beats)).then(|| {
         format!(
             "the output has a non-zero operating point (mean {mean:.4} over the estimation part): {what} \
              with a constant term (--offset) fits the selection part by {with_fit:.1} % instead of \
@@ -313,22 +333,6 @@ pub fn grid_size(na: &[usize], nb: &[usize], nk: &[usize]) -> usize {
 }
 
 fn evaluate(est: &Dataset, val: Option<&Dataset>, o: Orders, base: &Identification) -> Candidate {
-    let mut c = Candidate {
-        orders: o,
-        p: 0,
-        fit_estimation: None,
-        fit_estimation_guarded: None,
-        fit_validation: None,
-        aic: None,
-        fpe: None,
-        stable: false,
-        stability: String::new(),
-        ranking_fit: None,
-        warnings: Vec::new(),
-        error: None,
-        error_numerical: false,
-        disqualified: None,
-    };
     let settings = Identification {
         structure: sysid_core::Structure {
             orders: o,
@@ -336,13 +340,53 @@ fn evaluate(est: &Dataset, val: Option<&Dataset>, o: Orders, base: &Identificati
         },
         ..base.clone()
     };
-    let fit = match identify(est, &settings) {
-        Ok(f) => f,
-        Err(e) => {
-            c.error = Some(e.to_string());
-            c.error_numerical = e.is_numerical();
-            return c;
+    match identify(est, &settings) {
+        Ok(fit) => judged(
+            o,
+            &fit,
+            metrics(&fit.model, est),
+            val.map(|v| metrics(&fit.model, v)),
+        ),
+        Err(e) => Candidate::failed(o, &e),
+    }
+}
+
+impl Candidate {
+    /// A structure whose identification failed with `e`.
+    pub(crate) fn failed(orders: Orders, e: &SysidError) -> Self {
+        Candidate {
+            orders,
+            p: 0,
+            fit_estimation: None,
+            fit_estimation_guarded: None,
+            fit_validation: None,
+            aic: None,
+            fpe: None,
+            stable: false,
+            stability: String::new(),
+            ranking_fit: None,
+            warnings: Vec::new(),
+            error: Some(e.to_string()),
+            error_numerical: e.is_numerical(),
+            disqualified: None,
         }
+    }
+}
+
+/// A fitted structure judged as the order search judges it: its metrics on the estimation record
+/// (`est`) and, when there is one, on the selection record (`val`, which then ranks it), its
+/// stability and the warnings that disqualify. The metrics may come from a record in memory
+/// (`sysid_core::metrics::metrics`) or read in passes (`sysid::stream::record_metrics`).
+pub fn judged(
+    o: Orders,
+    fit: &crate::fitted::Fitted,
+    est: Result<sysid_core::metrics::Metrics, SysidError>,
+    val: Option<Result<sysid_core::metrics::Metrics, SysidError>>,
+) -> Candidate {
+    let mut c = Candidate {
+        error: None,
+        error_numerical: false,
+        ..Candidate::failed(o, &SysidError::Numerical(String::new()))
     };
     c.p = fit.model.parameter_count();
     let stability = fit.model.stability();
@@ -350,7 +394,7 @@ fn evaluate(est: &Dataset, val: Option<&Dataset>, o: Orders, base: &Identificati
     c.stability = stability.name().to_string();
     c.warnings = fit.warnings.iter().map(ToString::to_string).collect();
     c.disqualified = disqualification(&fit.warnings);
-    match metrics(&fit.model, est) {
+    match est {
         Ok(m) => {
             c.fit_estimation = m.fit_sim_percent;
             c.aic = m.aic;
@@ -364,7 +408,7 @@ fn evaluate(est: &Dataset, val: Option<&Dataset>, o: Orders, base: &Identificati
         }
     }
     if let Some(v) = val {
-        match metrics(&fit.model, v) {
+        match v {
             Ok(m) => {
                 c.fit_validation = m.fit_sim_percent;
                 c.ranking_fit = guarded_fit(&m);

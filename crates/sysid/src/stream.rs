@@ -176,6 +176,125 @@ pub fn identify_checked(
     })
 }
 
+/// [`crate::order::offset_hint`] on records read in passes: ARX of `base`'s orders by least squares
+/// with a constant term c, estimated on `est` and ranked on `val` as the order search ranks
+/// ([`crate::order::judged`]), against `without` (the selection fit without c, %; `None`: estimated
+/// here the same way) and `own` (the identified model's own fit, when known). The decision and the words are [`crate::order::offset_hint_of`]'s, so a record
+/// read in passes gets the hint a record in memory gets (to rounding). `None` with an offset already,
+/// without a selection record, or when c does not help; an identification that fails is a structure
+/// that does not qualify, as in memory. Returns the hint and the passes read (5 to 10).
+pub fn offset_hint(
+    est: &mut dyn RecordSource,
+    val: Option<&mut dyn RecordSource>,
+    base: &Identification,
+    (without, own): (Option<f64>, Option<f64>),
+    (what, advice): (&str, &str),
+) -> Result<Streamed<Option<String>>, SysidError> {
+    let orders = base.structure.orders;
+    let none = || Streamed {
+        result: None,
+        shape: Shape { rows: 0, ts: 0.0 },
+        val_shape: None,
+        u_extremes: None,
+        val_u_extremes: None,
+        passes: 0,
+    };
+    let Some(val) = val.filter(|_| !base.structure.offset) else {
+        return Ok(none());
+    };
+    let mut passes = 0;
+    let mut judge = |settings: &Identification,
+                     est: &mut dyn RecordSource,
+                     val: &mut dyn RecordSource|
+     -> crate::order::Candidate {
+        match identify_checked(est, Some(val), settings, Detrend::None, 1) {
+            Ok(Streamed {
+                result: f,
+                passes: n,
+                ..
+            }) => {
+                passes += n;
+                crate::order::judged(
+                    orders,
+                    &f.fit,
+                    Ok(f.estimation.0),
+                    f.validation.map(|(m, _)| Ok(m)),
+                )
+            }
+            Err(e) => crate::order::Candidate::failed(orders, &e),
+        }
+    };
+    let without = match without {
+        Some(f) => Some(f),
+        None => judge(base, est, val).ranking_fit,
+    };
+    let with = judge(&base.clone().with_offset(true), est, val);
+    // ȳ over the whole estimation part (k < k0 included), as in memory.
+    let (mut sum, mut count) = (0.0, 0usize);
+    let shape = est.pass(&mut |_, _, y| {
+        sum += y.iter().sum::<f64>();
+        count += y.len();
+        Ok(())
+    })?;
+    passes += 1;
+    let mean = sum / count.max(1) as f64;
+    Ok(Streamed {
+        result: without
+            .and_then(|w| crate::order::offset_hint_of(mean, &with, (w, own), (what, advice))),
+        shape,
+        val_shape: None,
+        u_extremes: None,
+        val_u_extremes: None,
+        passes,
+    })
+}
+
+/// Rows `range` of a record read in passes (numbered from 0 again), the record shared by several such
+/// views read one after another (the estimation and selection parts of one record: the
+/// [`offset_hint`] of a record without a validation record).
+pub struct RowsOf<'a, 'b> {
+    inner: &'a std::cell::RefCell<&'b mut dyn RecordSource>,
+    range: std::ops::Range<usize>,
+    name: String,
+}
+
+impl<'a, 'b> RowsOf<'a, 'b> {
+    /// The rows `range` of `inner`.
+    pub fn new(
+        inner: &'a std::cell::RefCell<&'b mut dyn RecordSource>,
+        range: std::ops::Range<usize>,
+    ) -> Self {
+        let name = format!(
+            "{} (rows {}..{})",
+            inner.borrow().name(),
+            range.start,
+            range.end
+        );
+        RowsOf { inner, range, name }
+    }
+}
+
+impl RecordSource for RowsOf<'_, '_> {
+    fn name(&self) -> &str {
+        &self.name
+    }
+
+    fn pass(&mut self, consume: &mut ChunkFn<'_>) -> Result<Shape, SysidError> {
+        let r = self.range.clone();
+        let shape = self.inner.borrow_mut().pass(&mut |k0, u, y| {
+            let (a, b) = (k0.max(r.start), (k0 + u.len()).min(r.end));
+            if a < b {
+                consume(a - r.start, &u[a - k0..b - k0], &y[a - k0..b - k0])?;
+            }
+            Ok(())
+        })?;
+        Ok(Shape {
+            rows: shape.rows.min(r.end).saturating_sub(r.start),
+            ts: shape.ts,
+        })
+    }
+}
+
 /// The operating point of `--detrend` and the line removed from each signal: s(k) − s̄ − β (k − k̄)
 /// (`line_fit` of `sysid_core::detrend`, computed in passes with the same sums in the same order).
 #[derive(Debug, Clone, Copy)]

@@ -157,6 +157,7 @@ fn offset_hint(est: &sysid::Dataset, s: &NarxSettings) -> Option<String> {
                 nk: s.nk,
             },
             None,
+            None,
         ),
         (
             &format!(

@@ -298,7 +298,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             sysid::order::offset_hint(
                 (&fit_part, Some(&selection)),
                 &base,
-                (c.orders, c.ranking_fit),
+                (c.orders, c.ranking_fit, None),
                 (
                     &format!(
                         "the recommended ({}, {}, {})",

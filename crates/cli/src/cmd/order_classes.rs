@@ -116,7 +116,7 @@ pub fn run(
                 warnings.extend(sysid::order::offset_hint(
                     (fit_part, Some(selection)),
                     &base.clone().with_kind(sysid::ModelKind::Arx),
-                    (o, None),
+                    (o, None, None),
                     (
                         &format!(
                             "ARX of the recommended orders ({}, {}, {}), by {},",

@@ -220,7 +220,7 @@ fn a_data_folder_names_the_entries_it_skipped_and_opens_none() {
     let f = |name: &str| fold.join(name).display().to_string();
     assert!(
         stderr(&o).contains(&format!(
-            "note: skipped 3 entries of --data named *.csv that are not a regular file and were not \
+            "note: skipped 3 entries of --data named *.csv or *.mat that are not a regular file and were not \
              opened: {} (a FIFO), {} (a device), {} (a link to nothing: broken, or a loop)",
             f("b.csv"),
             f("c.csv"),

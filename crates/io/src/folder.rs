@@ -38,6 +38,7 @@ where
         )
         .into());
     }
+    check_folder_path(dir, flag)?;
     let existing = match std::fs::symlink_metadata(dir) {
         Ok(m) if m.is_dir() => {
             let count = std::fs::read_dir(dir).map_err(io)?.count();
@@ -55,7 +56,8 @@ where
             }
             count > 0
         }
-        Ok(_) => return Err(refused(flag, dir, "a folder (this is a file)").into()),
+        // `check_folder_path` let only a folder or nothing through.
+        Ok(_) => return Err(refused(flag, dir, "a folder").into()),
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => false,
         Err(e) => return Err(io(e).into()),
     };
@@ -95,6 +97,68 @@ where
     drop(old);
     let _ = tmp.keep();
     Ok(existing)
+}
+
+/// Refuses an output folder path `dir` (option `flag`) that names something other than a folder or
+/// nothing, in words that say what it is: a symbolic link (even to a folder: the folder is replaced by
+/// a rename, which would replace the link, not what it names), a regular file, a device, a FIFO or a
+/// socket. The one check of every folder output ([`write_folder`], [`crate::write_claimed_folder`]).
+pub fn check_folder_path(dir: &Path, flag: &str) -> Result<(), OutputError> {
+    let meta = match std::fs::symlink_metadata(dir) {
+        Ok(m) => m,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(source) => {
+            return Err(OutputError::Io {
+                path: dir.to_path_buf(),
+                source,
+            })
+        }
+    };
+    let kind = meta.file_type();
+    if kind.is_dir() {
+        return Ok(());
+    }
+    let what = if kind.is_symlink() {
+        let target = std::fs::read_link(dir)
+            .map(|t| t.display().to_string())
+            .unwrap_or_else(|_| "an unreadable target".to_string());
+        let names = match std::fs::metadata(dir) {
+            Ok(m) if m.is_dir() => "a folder",
+            Ok(m) if m.is_file() => "a file",
+            Ok(_) => "something that is not a folder",
+            Err(_) => "nothing: broken, or a loop",
+        };
+        format!(
+            "a folder, not a symbolic link ({} is a symbolic link to {target}, {names}; pass the \
+             folder itself)",
+            dir.display()
+        )
+    } else if kind.is_file() {
+        "a folder (this is a file)".to_string()
+    } else {
+        format!("a folder (this is {})", special_kind(&kind))
+    };
+    Err(refused(flag, dir, what))
+}
+
+/// "a device", "a FIFO" or "a socket": what a path that is neither a file, a folder nor a link is.
+#[cfg(unix)]
+fn special_kind(kind: &std::fs::FileType) -> &'static str {
+    use std::os::unix::fs::FileTypeExt;
+    if kind.is_char_device() || kind.is_block_device() {
+        "a device"
+    } else if kind.is_fifo() {
+        "a FIFO (named pipe)"
+    } else if kind.is_socket() {
+        "a socket"
+    } else {
+        "neither a file nor a folder"
+    }
+}
+
+#[cfg(not(unix))]
+fn special_kind(_kind: &std::fs::FileType) -> &'static str {
+    "neither a file nor a folder"
 }
 
 #[cfg(test)]

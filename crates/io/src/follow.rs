@@ -18,6 +18,29 @@ use std::time::{Duration, Instant};
 /// What a [`Follow`] is told when a followed file is read again from its beginning.
 type Note = Box<dyn FnMut(&str) + Send>;
 
+/// What a reader of lines above a [`Follow`] needs to know of its restarts ([`Follow::restarts`]): how
+/// many times the followed file was read again from its beginning, and whether the last restart skipped
+/// the header line (the first line then returned is the content's line 2). A line read after the count
+/// changed is the first line of the new content: line numbers and the time check start again there.
+#[derive(Debug, Default)]
+pub struct Restarts {
+    count: std::sync::atomic::AtomicU64,
+    header_skipped: std::sync::atomic::AtomicBool,
+}
+
+impl Restarts {
+    /// How many times the followed file was read again from its beginning.
+    pub fn count(&self) -> u64 {
+        self.count.load(std::sync::atomic::Ordering::SeqCst)
+    }
+
+    /// Whether the last restart skipped the header line the new content starts with.
+    pub fn header_skipped(&self) -> bool {
+        self.header_skipped
+            .load(std::sync::atomic::Ordering::SeqCst)
+    }
+}
+
 /// How many of a followed file's first bytes are kept to detect a rewrite.
 const HEAD_BYTES: usize = 4096;
 
@@ -42,6 +65,8 @@ pub struct Follow<R> {
     idle: bool,
     /// After a restart: the header line to skip if the file starts with it again (not yet decided).
     pending_header: Option<Vec<u8>>,
+    /// The restarts, as a reader of lines above this one sees them ([`Follow::restarts`]).
+    restarts: std::sync::Arc<Restarts>,
 }
 
 impl<R> std::fmt::Debug for Follow<R> {
@@ -156,7 +181,15 @@ impl<R: Read> Follow<R> {
             on_restart: None,
             idle: false,
             pending_header: None,
+            restarts: std::sync::Arc::default(),
         }
+    }
+
+    /// The restarts of a followed file ([`Restarts`]), shared with whoever reads lines above this
+    /// reader (`track`: line numbers and the time check start again with the new content; audit s23
+    /// L-B5).
+    pub fn restarts(&self) -> std::sync::Arc<Restarts> {
+        std::sync::Arc::clone(&self.restarts)
     }
 
     /// Calls `note` with a message when a followed file is read again from its beginning (truncated
@@ -181,6 +214,9 @@ impl<R: Read> Follow<R> {
         if !header.is_empty() {
             self.pending_header = Some(header);
         }
+        use std::sync::atomic::Ordering;
+        self.restarts.header_skipped.store(false, Ordering::SeqCst);
+        self.restarts.count.fetch_add(1, Ordering::SeqCst);
         if let Some(note) = &mut self.on_restart {
             note(&format!(
                 "{what} (log rotation by copy and truncate?): reading it again from its beginning (after \
@@ -208,6 +244,9 @@ impl<R: Read> Follow<R> {
                 seek(&mut self.inner, header.len() as u64)?;
             }
             w.saw(header);
+            self.restarts
+                .header_skipped
+                .store(true, std::sync::atomic::Ordering::SeqCst);
         }
         self.pending_header = None;
         Ok(true)

@@ -12,8 +12,8 @@ mod folder;
 pub mod follow;
 #[cfg(feature = "parquet")]
 pub mod parquet;
-pub use folder::write_folder;
-pub use follow::Follow;
+pub use folder::{check_folder_path, write_folder};
+pub use follow::{Follow, Restarts};
 
 /// Why an output could not be written. Options are named as the caller names them (`flag`).
 #[derive(Debug, thiserror::Error)]
@@ -898,6 +898,7 @@ pub fn write_claimed_folder<E>(
 where
     E: From<OutputError>,
 {
+    folder::check_folder_path(dir, flag)?;
     check_claim(dir, flag, tool)?;
     write_folder(dir, flag, true, |tmp: &Path| {
         write_atomic(

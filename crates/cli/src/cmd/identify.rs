@@ -81,8 +81,9 @@ fn method_flag(s: sysid::EstimatorSetting) -> (String, String) {
 /// Flags of `identify`.
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// CSV file with a header row (columns chosen by --u-col, --y-col, --t-col). Several files or a
-    /// folder (its *.csv files) identify each in parallel: one JSON line per file to --json or stdout.
+    /// CSV file with a header row (columns chosen by --u-col, --y-col, --t-col), or a MATLAB .mat file.
+    /// Several files or a folder (its *.csv and *.mat records) identify each in parallel: one JSON line
+    /// per file to --json or stdout.
     #[arg(long, value_name = "FILE", num_args = 1.., required = true)]
     pub data: Vec<PathBuf>,
     #[command(flatten)]

@@ -50,6 +50,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let files = ids.chunks(args.per_file).count();
     // Checked with or without --overwrite: a folder holding the user's own files gets "choose another
     // --out", never the advice to pass --overwrite (audit s23 L-B7).
+    sysid_io::check_folder_path(&args.out, "--out")?;
     check_fleet_folder(&args.out)?;
     let replaced = sysid_io::write_folder(&args.out, "--out", args.overwrite, |dir: &Path| {
         ids.chunks(args.per_file)

@@ -211,6 +211,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut tracker = Tracker::new(args.settings())?;
     let idle = args.idle()?;
     let mut inputs = Vec::new();
+    let mut restarts = None;
     let (reader, name): (Box<dyn std::io::BufRead>, String) = if let Some(p) = &args.data {
         if p.as_os_str() == "-" {
             (Box::new(std::io::stdin().lock()), "<stdin>".into())
@@ -228,6 +229,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let r = sysid_io::Follow::file(p, idle, POLL)
             .with_context(|| p.display().to_string())?
             .on_restart(move |note| eprintln!("note: {shown}: {note}"));
+        restarts = Some(r.restarts());
         (
             Box::new(BufReader::with_capacity(1 << 16, r)),
             p.display().to_string(),
@@ -265,6 +267,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ..sysid::data::CsvOptions::default()
         },
         every: args.every,
+        restarts,
     };
     let mut out = std::io::BufWriter::new(std::io::stdout().lock());
     let summary = track_stream(reader, &mut out, &mut tracker, &options)?;

@@ -22,7 +22,7 @@ use sysid_summary::{poles, Pole};
 pub use sysid::data::MAX_LINE_BYTES;
 
 /// Where the columns of a streamed CSV are, and how often to report.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct StreamOptions {
     /// The source's name in messages (`<stdin>`, a path).
     pub name: String,
@@ -32,6 +32,9 @@ pub struct StreamOptions {
     pub csv: CsvOptions,
     /// Print a line every `every` samples (≥ 1), and at every detected change.
     pub every: usize,
+    /// A followed file's restarts (`--follow`: truncated or rewritten, read again from its beginning;
+    /// [`sysid_io::Restarts`]): line numbers count in the new content and time starts again there.
+    pub restarts: Option<std::sync::Arc<sysid_io::Restarts>>,
 }
 
 /// One JSON line of `track`.
@@ -178,6 +181,9 @@ pub fn track_stream<R: BufRead, W: Write>(
     // Time that jumps (samples missing, a clock reset forwards): warnings for the next line and the end.
     let (mut time_jumps, mut new_time_warnings, mut time_warnings) =
         (0usize, Vec::new(), Vec::new());
+    let mut restarts_seen = 0u64;
+    // After a restart: the note on its first sample (line and time of the new content).
+    let mut restarted: Option<(u64, bool)> = None;
     loop {
         // A stop asked by the first Ctrl-C of a followed source (`sysid_io::accept_stop`): the run ends
         // here, between two lines, even when the data never pause (a port streaming without a gap).
@@ -203,6 +209,19 @@ pub fn track_stream<R: BufRead, W: Write>(
                     path: options.name.clone().into(),
                     source,
                 })
+            }
+        }
+        // A followed file read again from its beginning (log rotation by copy and truncate; audit s23
+        // L-B5): this line is the first of the new content. Its lines are counted from its start (line
+        // 2 when the header line was skipped) and its clock may start again: the time check starts
+        // again at its first sample (a new time origin, said in a warning), the model is kept.
+        if let Some(r) = &options.restarts {
+            let count = r.count();
+            if count != restarts_seen {
+                restarts_seen = count;
+                line_no = usize::from(r.header_skipped());
+                t_last = None;
+                restarted = Some((count, r.header_skipped()));
             }
         }
         line_no += 1;
@@ -268,6 +287,19 @@ pub fn track_stream<R: BufRead, W: Write>(
                     }
                 }
             }
+        }
+        if let Some((count, header)) = restarted.take() {
+            let w = format!(
+                "{}: the followed file was read again from its beginning (restart {count}: truncated or \
+                 rewritten; log rotation?); from line {line_no} of the new content{} on, time starts \
+                 again at t = {} s (a new time origin: times are not compared across the restart) and \
+                 the model estimated so far is kept",
+                options.name,
+                if header { " (after its header line)" } else { "" },
+                Shortest(t)
+            );
+            new_time_warnings.push(w.clone());
+            time_warnings.push(w);
         }
         t_last = Some(t);
         let step = tracker.push(u, y).map_err(|e| match e {

@@ -271,3 +271,38 @@ pub fn identify_arx<'a>(data: &'a Path, na: &'a str, nb: &'a str, method: &'a st
         method,
     ]
 }
+
+/// Writes `columns` as double 1 x n variables named by `names` into a little-endian MATLAB Level 5
+/// `.mat` file at `path` (uncompressed miMATRIX elements; MAT-File Format, MathWorks, ch. 1): test data
+/// in the format `--data FILE.mat` reads, written here independently of the library's reader.
+pub fn write_mat(path: &Path, names: &[&str], columns: &[&[f64]]) {
+    let mut bytes = b"MATLAB 5.0 MAT-file, ipa-sysid tests".to_vec();
+    bytes.resize(124, b' ');
+    bytes.extend_from_slice(&0x0100u16.to_le_bytes());
+    bytes.extend_from_slice(b"IM");
+    let tag = |out: &mut Vec<u8>, ty: u32, len: usize| {
+        out.extend_from_slice(&ty.to_le_bytes());
+        out.extend_from_slice(&(len as u32).to_le_bytes());
+    };
+    let pad = |out: &mut Vec<u8>| out.resize(out.len().div_ceil(8) * 8, 0);
+    for (name, values) in names.iter().zip(columns) {
+        let mut body = Vec::new();
+        tag(&mut body, 6, 8); // array flags: class 6 (double)
+        body.extend_from_slice(&6u32.to_le_bytes());
+        body.extend_from_slice(&0u32.to_le_bytes());
+        tag(&mut body, 5, 8); // dimensions 1 x n
+        body.extend_from_slice(&1i32.to_le_bytes());
+        body.extend_from_slice(&(values.len() as i32).to_le_bytes());
+        tag(&mut body, 1, name.len());
+        body.extend_from_slice(name.as_bytes());
+        pad(&mut body);
+        tag(&mut body, 9, 8 * values.len()); // miDOUBLE
+        for v in values.iter() {
+            body.extend_from_slice(&v.to_le_bytes());
+        }
+        pad(&mut body);
+        tag(&mut bytes, 14, body.len());
+        bytes.extend_from_slice(&body);
+    }
+    std::fs::write(path, bytes).unwrap();
+}

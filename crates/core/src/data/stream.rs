@@ -331,6 +331,31 @@ impl CsvStream {
         }
     }
 
+    /// `err` (met while reading the pass), or the error of a file that changed while it was being read
+    /// when the open `file` no longer matches `opened` (its metadata when the pass opened it): a file
+    /// truncated under the reader ends it with a half row, whose "empty cell" at a line past the new
+    /// end would blame the data (audit s23 L-B2).
+    fn or_changed(&self, err: SysidError, file: &std::fs::File, opened: &FileId) -> SysidError {
+        match self.changed_during(file, opened) {
+            Some(changed) => changed,
+            None => err,
+        }
+    }
+
+    /// The error of a file that changed while this pass read it (the open `file` against `opened`),
+    /// if it did.
+    fn changed_during(&self, file: &std::fs::File, opened: &FileId) -> Option<SysidError> {
+        let now = FileId::of(&file.metadata().ok()?);
+        let how = now.change_from(opened)?;
+        Some(SysidError::File {
+            file: self.name.clone(),
+            message: format!(
+                "the file changed while it was being read ({how}): the record would be part of one \
+                 version and part of another; run again on a file that is not being written"
+            ),
+        })
+    }
+
     /// The error at line `line`, column `col` (0-based) of the file.
     fn at(&self, line: usize, col: usize, message: String) -> SysidError {
         SysidError::Parse {
@@ -424,7 +449,10 @@ impl RecordSource for CsvStream {
                         rdr.get_ref().over.unwrap_or(0),
                     ))
                 }
-                Err(e) => return Err(csv_err(&file_name, e)),
+                Err(e) => {
+                    let e = csv_err(&file_name, e);
+                    return Err(self.or_changed(e, &rdr.get_ref().inner, &file_id));
+                }
             }
             // Fields are trimmed here (csv's own trimming allocates a new record per row).
             let blank = |f: &[u8]| f.trim_ascii().is_empty();
@@ -435,13 +463,8 @@ impl RecordSource for CsvStream {
                 .position()
                 .map_or(0, |p| p.line() as usize + usize::from(self.crlf));
             if let Some(extra) = rec.iter().skip(width).position(|f| !blank(f)) {
-                return Err(ragged_row(
-                    &file_name,
-                    line,
-                    width,
-                    extra,
-                    self.decimal_comma,
-                ));
+                let e = ragged_row(&file_name, line, width, extra, self.decimal_comma);
+                return Err(self.or_changed(e, &rdr.get_ref().inner, &file_id));
             }
             let index = row;
             row += 1;
@@ -475,14 +498,18 @@ impl RecordSource for CsvStream {
                 )
                 .map_err(|m| self.at(line, col, m))
             };
-            let (uk, yk) = (value(self.ucol)?, value(self.ycol)?);
+            let cells = value(self.ucol).and_then(|uk| Ok((uk, value(self.ycol)?)));
+            let (uk, yk) = cells.map_err(|e| self.or_changed(e, &rdr.get_ref().inner, &file_id))?;
             checksum = fnv(fnv(checksum, uk), yk);
             u.push(uk);
             y.push(yk);
             if let Some(tc) = tcol {
-                let t = value(tc)? * self.time_scale;
-                scan.push(t, line)
-                    .map_err(|fault| self.time_error(fault, tc))?;
+                value(tc)
+                    .and_then(|t| {
+                        scan.push(t * self.time_scale, line)
+                            .map_err(|f| self.time_error(f, tc))
+                    })
+                    .map_err(|e| self.or_changed(e, &rdr.get_ref().inner, &file_id))?;
             }
             used += 1;
             if u.len() == CHUNK_ROWS {
@@ -494,6 +521,10 @@ impl RecordSource for CsvStream {
         }
         if !u.is_empty() {
             consume(chunk_start, &u, &y)?;
+        }
+        // A file truncated or appended to under this pass, even at a line's end (audit s23 L-B2).
+        if let Some(changed) = self.changed_during(&rdr.get_ref().inner, &file_id) {
+            return Err(changed);
         }
         if let Some(r) = self.rows {
             // The in-memory reader's check and message (the end must lie inside the record).
@@ -638,6 +669,48 @@ mod tests {
         std::fs::rename(&other, &path).unwrap();
         let e = pass(&mut s).unwrap_err().to_string();
         assert!(e.contains("changed between the passes"), "{e}");
+    }
+
+    // Audit s23 L-B2: a file truncated while a pass reads it (here from the pass's own consumer, after
+    // its first chunk of 8192 rows: deterministic, no race) ends the pass with "the file changed while
+    // it was being read", naming both sizes, never an "empty cell" at a line past the new end; the first
+    // pass and a later one alike. Truncated at a line's end (a whole number of rows left), the same.
+    #[test]
+    fn a_file_truncated_under_a_pass_is_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("big.csv");
+        let mut text = String::from("t,u,y\n");
+        for k in 0..40_000 {
+            text.push_str(&format!("{},{},{}\n", k as f64 * 0.01, k % 3, k % 7));
+        }
+        let full = text.len();
+        // Mid-line (byte 200 001) and at a line's end (the header and the first 2000 rows).
+        let at_line_end = text.match_indices('\n').nth(2000).unwrap().0 + 1;
+        for (second_pass, cut) in [(false, 200_001), (true, 200_001), (false, at_line_end)] {
+            std::fs::write(&path, &text).unwrap();
+            let mut s = CsvStream::open(&path, &CsvOptions::default()).unwrap();
+            if second_pass {
+                pass(&mut s).unwrap();
+            }
+            let mut once = true;
+            let e = s
+                .pass(&mut |_, _, _| {
+                    if std::mem::take(&mut once) {
+                        let f = std::fs::OpenOptions::new().write(true).open(&path).unwrap();
+                        f.set_len(cut as u64).unwrap();
+                    }
+                    Ok(())
+                })
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.contains(&format!(
+                    "the file changed while it was being read (its size changed from {full} to {cut} bytes)"
+                )),
+                "{e}"
+            );
+            assert!(!e.contains("empty cell"), "{e}");
+        }
     }
 
     // Rewritten in place with the same size and different values: the checksum of the values differs,

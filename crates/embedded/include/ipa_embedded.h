@@ -354,6 +354,7 @@ typedef struct IpaController {
    * 0 = at any speed).
    */
   double short_seed_speed;
+  /**
    * 1: the held nudge learns its cut fraction per side (`nudge.cut_learn`; issue 25, session 23):
    * doubled after a held nudge that stopped short of half its error, halved back (to γ) after
    * one that passed r; 0: not (as in a struct zeroed before it existed).

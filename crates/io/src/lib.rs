@@ -185,7 +185,7 @@ pub fn resolve_output_as(
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Device {
     /// A FIFO (a named pipe; `/dev/stdout` of a pipeline), or not a device.
-    NotDevice,
+    Fifo,
     /// `/dev/null`, `/dev/zero`, `/dev/full` (writes discarded or refused) or a terminal (the console, a
     /// pseudo-terminal): written into harmlessly.
     Harmless,
@@ -204,7 +204,7 @@ fn device_kind(meta: &std::fs::Metadata) -> Device {
         return Device::Block;
     }
     if !kind.is_char_device() {
-        return Device::NotDevice;
+        return Device::Fifo;
     }
     // Linux's device numbers (Documentation/admin-guide/devices.txt): 1:3 /dev/null, 1:5 /dev/zero,
     // 1:7 /dev/full (not 1:1 /dev/mem, 1:2 /dev/kmem, 1:4 /dev/port); major 4 the
@@ -225,7 +225,7 @@ fn device_kind(meta: &std::fs::Metadata) -> Device {
 
 #[cfg(not(unix))]
 fn device_kind(_meta: &std::fs::Metadata) -> Device {
-    Device::NotDevice
+    Device::Fifo
 }
 
 #[cfg(unix)]

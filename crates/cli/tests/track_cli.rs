@@ -155,6 +155,11 @@ fn track_from_stdin_ends_at_the_model_of_the_one_pass_recursive_identification()
     let s: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
     assert_eq!(s["samples"], 3000);
+    // The same estimate, the same verdict in the same words as identify's (session 24: track's JSON had
+    // only the boolean).
+    assert!(id["stability"].is_string(), "{}", id["stability"]);
+    assert_eq!(last["stability"], id["stability"]);
+    assert_eq!(s["stability"], id["stability"]);
     for model in [&last["model"], &s["model"]] {
         for (a, b) in numbers(model).iter().zip(numbers(&id["model"])) {
             assert!((a - b).abs() <= 1e-9 * b.abs(), "track {a} identify {b}");

@@ -6,19 +6,30 @@ use crate::paper;
 use crate::study::{pole_list, validation_fit, Criterion, Study, CLOSED_LOOP_RULE};
 use crate::ReproduceSettings;
 
-/// The words a fit comparison needs when a compared model is unstable: its simulation grows without
-/// bound, so a fit over a finite record flatters it and says nothing about a longer one.
-fn unstable_caveat(models: &[(&str, bool)]) -> String {
-    let unstable: Vec<&str> = models.iter().filter(|m| !m.1).map(|m| m.0).collect();
-    if unstable.is_empty() {
+/// The words a fit comparison needs when a compared model does not settle, from its stability verdict's
+/// name (`sysid_core::Stability::name`, the report's `stability`): an unstable model's simulation
+/// diverges; an integrator's ramps and a model with a pole on the unit circle oscillates without decay.
+/// Either way a fit over a finite record flatters it and says nothing about a longer one. Before
+/// (session 24), an integrator was called UNSTABLE (the caveat read the boolean `stable`).
+fn unstable_caveat(models: &[(&str, &str)]) -> String {
+    let words = |verdict: &str| {
+        match verdict {
+        "unstable" => Some("UNSTABLE (its simulation diverges)"),
+        "integrator" => Some("an integrator (a pole at z = 1: its simulation ramps, it never settles)"),
+        "on_circle" => Some("on the stability boundary (a pole on the unit circle: its simulation oscillates without decay)"),
+        _ => None,
+    }
+    };
+    let said: Vec<String> = models
+        .iter()
+        .filter_map(|(name, verdict)| words(verdict).map(|w| format!("{name} is {w}")))
+        .collect();
+    if said.is_empty() {
         return String::new();
     }
     format!(
-        ". Caution: {} {} UNSTABLE, so {} simulation diverges and this comparison holds only over this record's \
-         length",
-        unstable.join(" and "),
-        if unstable.len() == 1 { "is" } else { "are" },
-        if unstable.len() == 1 { "its" } else { "their" }
+        ". Caution: {}, so this comparison holds only over this record's length",
+        said.join(" and ")
     )
 }
 
@@ -46,7 +57,7 @@ pub(crate) fn verdicts(s: &ReproduceSettings, st: &Study) -> Vec<Criterion> {
                 }
                 _ => "",
             },
-            unstable_caveat(&[("Hammerstein (RLS)", st.ham().rep.stable), ("ARX", st.arx().rep.stable)]),
+            unstable_caveat(&[("Hammerstein (RLS)", &st.ham().rep.stability), ("ARX", &st.arx().rep.stability)]),
         ),
     }];
     let ham = &st.ham().rep;
@@ -82,7 +93,7 @@ pub(crate) fn verdicts(s: &ReproduceSettings, st: &Study) -> Vec<Criterion> {
                 crate::study::stability_word(&oe.rep),
                 opt(fo),
                 opt(fa),
-                unstable_caveat(&[("Hammerstein (output error)", oe.rep.stable), ("ARX", st.arx().rep.stable)]),
+                unstable_caveat(&[("Hammerstein (output error)", &oe.rep.stability), ("ARX", &st.arx().rep.stability)]),
             ),
         });
     }
@@ -253,4 +264,25 @@ pub(crate) fn headline(s: &ReproduceSettings, st: &Study) -> Vec<String> {
             .join("; ")
     );
     vec![method, fresh, lp]
+}
+
+#[cfg(test)]
+mod caveat_tests {
+    use super::unstable_caveat;
+
+    // The verdict's words, each named: an integrator is not called unstable (session 24), a model that
+    // settles adds nothing.
+    #[test]
+    fn the_caveat_names_each_verdict_in_its_own_words() {
+        assert_eq!(unstable_caveat(&[("A", "settles"), ("B", "settles")]), "");
+        let c = unstable_caveat(&[("Hammerstein (RLS)", "integrator"), ("ARX", "settles")]);
+        assert!(c.contains("Hammerstein (RLS) is an integrator"), "{c}");
+        assert!(!c.contains("UNSTABLE") && !c.contains("ARX"), "{c}");
+        let c = unstable_caveat(&[("H", "unstable"), ("ARX", "on_circle")]);
+        assert!(
+            c.contains("H is UNSTABLE") && c.contains("ARX is on the stability boundary"),
+            "{c}"
+        );
+        assert!(c.ends_with("holds only over this record's length"), "{c}");
+    }
 }

@@ -51,6 +51,9 @@ pub struct TrackLine {
     /// The model settles: its stability verdict (`Model::stability`) is `settles`, every pole inside
     /// the unit circle by more than ε = 10⁻⁵ (as `identify`'s `stable`).
     pub stable: bool,
+    /// The stability verdict's name (`sysid_core::Stability::name`): `settles`, `integrator`,
+    /// `on_circle` or `unstable`, as `identify`'s `stability`.
+    pub stability: &'static str,
     /// A change was detected at this sample or since the previous line.
     pub change: bool,
     /// RMS of the last `pe_window` a-priori prediction errors (mm).
@@ -86,6 +89,9 @@ pub struct TrackSummary {
     /// The model settles: its stability verdict (`Model::stability`) is `settles`, every pole inside
     /// the unit circle by more than ε = 10⁻⁵ (as `identify`'s `stable`).
     pub stable: Option<bool>,
+    /// The stability verdict's name (`settles`, `integrator`, `on_circle`, `unstable`; `None` without
+    /// a model), as `identify`'s `stability`.
+    pub stability: Option<&'static str>,
     /// RMS of the last prediction errors (mm).
     pub pe_rms: Option<f64>,
     /// Detected changes.
@@ -407,6 +413,7 @@ fn track_line(
         t,
         poles: poles(&model),
         stable: model.stability().settles(),
+        stability: model.stability().name(),
         change,
         pe_rms: tracker.pe_rms(),
         pe_window: tracker.pe_count(),
@@ -443,6 +450,7 @@ fn summary(
         t_end,
         poles: model.as_ref().map(poles).unwrap_or_default(),
         stable: model.as_ref().map(|m| m.stability().settles()),
+        stability: model.as_ref().map(|m| m.stability().name()),
         model,
         pe_rms: tracker.pe_rms(),
         change_points,

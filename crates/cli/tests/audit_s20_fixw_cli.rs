@@ -82,9 +82,18 @@ fn track_says_a_constant_input_does_not_excite_an_arx_model() {
             .stderr(Stdio::piped())
             .spawn()
             .unwrap();
-        use std::io::Write;
-        child.stdin.take().unwrap().write_all(&text).unwrap();
-        child.wait_with_output().unwrap()
+        // Written from another thread while the output is read: a child whose standard output fills
+        // its pipe (64 KiB) before it has read all its input would otherwise wait on this test, and this
+        // test on it (the lines grew past that point with their `stability` field, session 24).
+        let mut stdin = child.stdin.take().unwrap();
+        let input = text.clone();
+        let writer = std::thread::spawn(move || {
+            use std::io::Write;
+            stdin.write_all(&input)
+        });
+        let out = child.wait_with_output().unwrap();
+        writer.join().unwrap().unwrap();
+        out
     };
     let out = run(false);
     assert!(

@@ -24,10 +24,16 @@ fn run(args: &[&str], stdin: &[u8]) -> Output {
         .spawn()
         .unwrap();
     let mut input = child.stdin.take().unwrap();
-    // The tool may stop reading early (an error): a broken pipe is then expected.
-    let _ = input.write_all(stdin);
-    drop(input);
-    child.wait_with_output().unwrap()
+    // Written from another thread while the output is read (a child whose output fills its pipe before
+    // it has read all its input would wait on this test, and this test on it). The tool may stop
+    // reading early (an error): a broken pipe is then expected.
+    let stdin = stdin.to_vec();
+    let writer = std::thread::spawn(move || {
+        let _ = input.write_all(&stdin);
+    });
+    let out = child.wait_with_output().unwrap();
+    writer.join().unwrap();
+    out
 }
 
 fn simulate(dir: &Path, samples: usize, seed: u64) -> std::path::PathBuf {

@@ -493,3 +493,10 @@ pub fn progress_bar(len: u64, template: &str) -> indicatif::ProgressBar {
     }
     bar
 }
+
+/// The reader's notes (a resampled gap, a --ts that contradicts the time column, …) as entries of a
+/// report's `warnings` list, prefixed `data: ` — one wording for identify (one file, a folder, NARX),
+/// validate and order.
+pub(super) fn data_notes(notes: &[String]) -> impl Iterator<Item = String> + '_ {
+    notes.iter().map(|n| format!("data: {n}"))
+}

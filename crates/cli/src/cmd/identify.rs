@@ -646,9 +646,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut report =
         IdentifyReport::assemble(&fit, &settings, &scored, val.as_ref(), args.resid_lags)?;
     // The reader's warnings (a resampled record...) are warnings about these numbers too.
-    report
-        .warnings
-        .extend(notes.iter().map(|n| format!("data: {n}")));
+    report.warnings.extend(super::common::data_notes(&notes));
     report
         .warnings
         .extend(in_sample_warnings(&args, &files, &records, val.as_ref()));

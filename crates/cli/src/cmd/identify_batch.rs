@@ -225,7 +225,7 @@ pub fn run(args: Args, settings: &Identification) -> anyhow::Result<()> {
                         fit_report(&record.data, settings, val.as_ref(), args.resid_lags)?;
                     report
                         .warnings
-                        .extend(record.notes.iter().map(|n| format!("data: {n}")));
+                        .extend(super::common::data_notes(&record.notes));
                     Ok(report)
                 }) {
                 Ok(report) => (

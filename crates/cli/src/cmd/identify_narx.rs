@@ -103,7 +103,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let mut report = NarxReport::assemble(fit, &settings, &records.est, records.val.as_ref())?;
     report
         .warnings
-        .extend(records.notes.iter().map(|n| format!("data: {n}")));
+        .extend(super::common::data_notes(&records.notes));
     // A validation record that is the estimation data (the same rows, or a copy) is in-sample: said as
     // for every other structure (audit s12 F2).
     report.warnings.extend(super::identify::in_sample_warnings(

@@ -422,7 +422,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     // The reader's notes (printed first, as warnings) join the JSON's warnings as identify's do, and
     // count for --strict.
-    let warnings: Vec<String> = data_notes(&notes).chain(warnings).collect();
+    let warnings: Vec<String> = super::common::data_notes(&notes).chain(warnings).collect();
     let mut json = None;
     if args.json.is_some() {
         let doc = OrderReport {
@@ -448,11 +448,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     // With --strict and warnings, --json is not written (an earlier file stays) and the exit code is 1.
     write_outputs(&outputs, &inputs, args.strict, warnings.len())
-}
-
-/// The reader's notes as entries of a JSON `warnings` list (`data: …`, as identify's).
-pub(super) fn data_notes(notes: &[String]) -> impl Iterator<Item = String> + '_ {
-    notes.iter().map(|n| format!("data: {n}"))
 }
 
 /// The error when every one of the `failed` structures of `ranked` failed to estimate: exit 1 when a

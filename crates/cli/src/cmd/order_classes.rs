@@ -208,7 +208,7 @@ pub fn run(
         text.push_str(&format!("warning: {w}\n"));
     }
     print_report(&text, &[args.json.as_deref()])?;
-    let warnings: Vec<String> = super::order::data_notes(notes).chain(warnings).collect();
+    let warnings: Vec<String> = super::common::data_notes(notes).chain(warnings).collect();
     let mut json = None;
     if args.json.is_some() {
         #[derive(serde::Serialize)]

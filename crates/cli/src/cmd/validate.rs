@@ -210,7 +210,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut report = ValidationReport::assemble(&model, &data, args.resid_lags).map_err(blame)?;
     report
         .warnings
-        .extend(record.notes.iter().map(|n| format!("data: {n}")));
+        .extend(super::common::data_notes(&record.notes));
     model_warnings(
         &mut report,
         &model,
@@ -282,7 +282,7 @@ fn run_narx(
     let data = record.data;
     sysid::metrics::check_sampling(data.name(), data.ts(), model.ts())?;
     let metrics = sysid::narx::narx_metrics(model, &data)?;
-    let mut warnings: Vec<String> = record.notes.iter().map(|n| format!("data: {n}")).collect();
+    let mut warnings: Vec<String> = super::common::data_notes(&record.notes).collect();
     if let Some(k) = metrics.blew_up_at {
         warnings.insert(
             0,

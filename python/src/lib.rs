@@ -2705,7 +2705,8 @@ fn check_output(path: PathBuf, argument: &str, force: bool) -> PyResult<()> {
 /// existing regular file is replaced only by the same kind of file (`sysid_io::FileKind`: a model file
 /// by a model file, a CSV by a CSV with the same header row) and a symbolic link to a file is refused,
 /// unless `force` (then the link is followed: the file it names is replaced, the link stays). The GIL
-/// is released while it writes (a FIFO waits for its reader, which may be another Python thread).
+/// is released while it writes (a FIFO waits for its reader, which may be another Python thread; Ctrl-C
+/// and signal handlers' exceptions end that wait).
 #[pyfunction]
 #[pyo3(signature = (path, data, argument, force = false))]
 fn write_output(
@@ -2716,9 +2717,27 @@ fn write_output(
     force: bool,
 ) -> PyResult<()> {
     check_output(path.clone(), argument, force)?;
-    py.detach(|| sysid_io::write_all_atomic_as(&[(&path, data)], force))
-        .map(drop)
-        .map_err(output_err)
+    // A FIFO waits for its reader (and a full pipe for it to read) in pieces of 10 ms, with Python's
+    // signal check between them: Ctrl-C or an alarm handler's exception ends the wait (audit s25: a
+    // blocking open is restarted after every signal, so `Model.save` into a FIFO nobody reads hung
+    // for good and no handler ran). The exception raised is the handler's own.
+    let mut raised: Option<PyErr> = None;
+    let written = py.detach(|| {
+        let mut check = || {
+            Python::attach(|py| py.check_signals()).map_err(|e| {
+                raised = Some(e);
+                std::io::Error::new(
+                    std::io::ErrorKind::Interrupted,
+                    "interrupted while waiting for the FIFO's reader",
+                )
+            })
+        };
+        sysid_io::write_all_atomic_waiting(&[(&path, data)], force, Some(&mut check))
+    });
+    if let Some(e) = raised {
+        return Err(e);
+    }
+    written.map(drop).map_err(output_err)
 }
 
 /// ipa-sysid from Python: identification (Hammerstein/ARX by LS, RLS, OE, IV), recursive least

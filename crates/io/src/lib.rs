@@ -228,6 +228,70 @@ fn device_kind(_meta: &std::fs::Metadata) -> Device {
     Device::Fifo
 }
 
+/// Whether `path` names a FIFO (a symbolic link is followed).
+#[cfg(unix)]
+fn is_fifo(path: &Path) -> bool {
+    use std::os::unix::fs::FileTypeExt;
+    std::fs::metadata(path).is_ok_and(|m| m.file_type().is_fifo())
+}
+
+#[cfg(not(unix))]
+fn is_fifo(_path: &Path) -> bool {
+    false
+}
+
+/// Writes `bytes` into the FIFO `path` without blocking ([`write_all_atomic_waiting`]): opened with
+/// `O_NONBLOCK` (which fails with ENXIO while no reader has it open), written piece by piece (a full
+/// pipe says `WouldBlock`); `keep_waiting` is called before each pause of [`FIFO_POLL`].
+#[cfg(unix)]
+fn write_fifo_waiting(
+    path: &Path,
+    bytes: &[u8],
+    keep_waiting: &mut dyn FnMut() -> std::io::Result<()>,
+) -> std::io::Result<()> {
+    use std::os::unix::fs::OpenOptionsExt;
+    let mut f = loop {
+        match std::fs::OpenOptions::new()
+            .write(true)
+            .custom_flags(libc::O_NONBLOCK)
+            .open(path)
+        {
+            Ok(f) => break f,
+            Err(e) if e.raw_os_error() == Some(libc::ENXIO) => {
+                keep_waiting()?;
+                std::thread::sleep(FIFO_POLL);
+            }
+            Err(e) => return Err(e),
+        }
+    };
+    let mut rest = bytes;
+    while !rest.is_empty() {
+        match f.write(rest) {
+            Ok(0) => return Err(std::io::ErrorKind::WriteZero.into()),
+            Ok(k) => rest = rest.get(k..).unwrap_or_default(),
+            Err(e) if e.kind() == std::io::ErrorKind::WouldBlock => {
+                keep_waiting()?;
+                std::thread::sleep(FIFO_POLL);
+            }
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(())
+}
+
+#[cfg(not(unix))]
+fn write_fifo_waiting(
+    path: &Path,
+    bytes: &[u8],
+    _keep_waiting: &mut dyn FnMut() -> std::io::Result<()>,
+) -> std::io::Result<()> {
+    std::fs::OpenOptions::new()
+        .write(true)
+        .open(path)?
+        .write_all(bytes)
+}
+
 #[cfg(unix)]
 fn is_socket(kind: &std::fs::FileType) -> bool {
     use std::os::unix::fs::FileTypeExt;
@@ -452,6 +516,27 @@ pub fn write_all_atomic_as(
     outputs: &[(&Path, &[u8])],
     force: bool,
 ) -> Result<Vec<PathBuf>, OutputError> {
+    write_all_atomic_waiting(outputs, force, None)
+}
+
+/// How often [`write_all_atomic_waiting`] calls its `keep_waiting` while a FIFO has no reader or its
+/// pipe is full.
+const FIFO_POLL: std::time::Duration = std::time::Duration::from_millis(10);
+
+/// [`write_all_atomic_as`] for a caller that must stay interruptible while a FIFO output waits: with
+/// `keep_waiting`, a FIFO is opened and written without blocking, and while it has no reader (opening
+/// it would block) or its pipe is full (writing would block) `keep_waiting` is called about every
+/// 10 ms; an error from it ends the wait, nothing more is written to that FIFO, no temporary file is
+/// renamed into place, and the error is returned (as [`OutputError::Io`] naming the FIFO). Python passes
+/// its signal check, so Ctrl-C or an alarm handler's exception ends a `Model.save` into a FIFO nobody
+/// reads (audit s25: the blocking open is restarted after every signal, and the handler never ran).
+/// The command line passes `None`: a FIFO blocks as any Unix tool's output, and a signal ends the
+/// process. Devices and standard output are written as [`write_all_atomic_as`] writes them.
+pub fn write_all_atomic_waiting(
+    outputs: &[(&Path, &[u8])],
+    force: bool,
+    mut keep_waiting: Option<&mut dyn FnMut() -> std::io::Result<()>>,
+) -> Result<Vec<PathBuf>, OutputError> {
     let mut targets = Vec::new();
     let mut replaced = Vec::new();
     for &(path, bytes) in outputs {
@@ -499,6 +584,10 @@ pub fn write_all_atomic_as(
                     path: p.clone(),
                     source,
                 };
+                if let (Some(wait), true) = (keep_waiting.as_deref_mut(), is_fifo(&p)) {
+                    write_fifo_waiting(&p, bytes, wait).map_err(io)?;
+                    continue;
+                }
                 let mut f = std::fs::OpenOptions::new()
                     .write(true)
                     .open(&p)
@@ -1191,5 +1280,98 @@ mod kind_tests {
         }
         write_all_atomic_as(&[(&model, b"a,b\n")], true).unwrap();
         assert_eq!(std::fs::read_to_string(&model).unwrap(), "a,b\n");
+    }
+}
+
+#[cfg(all(test, unix))]
+#[allow(clippy::unwrap_used)]
+mod fifo_tests {
+    use super::*;
+    use std::io::Read;
+
+    fn make_fifo(path: &Path) {
+        let c = std::ffi::CString::new(path.as_os_str().as_encoded_bytes()).unwrap();
+        // SAFETY: `c` is a NUL-terminated path that outlives the call.
+        assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+    }
+
+    fn fifo_kind(path: &Path) -> bool {
+        use std::os::unix::fs::FileTypeExt;
+        std::fs::symlink_metadata(path)
+            .unwrap()
+            .file_type()
+            .is_fifo()
+    }
+
+    // A FIFO nobody opens: the wait asks `keep_waiting` until it says stop; its error is the result,
+    // nothing is left beside the FIFO, and the FIFO stays a FIFO.
+    #[test]
+    fn a_fifo_without_reader_waits_only_while_keep_waiting_agrees() {
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("pipe");
+        make_fifo(&fifo);
+        let mut calls = 0;
+        let mut stop_at_three = || {
+            calls += 1;
+            if calls < 3 {
+                Ok(())
+            } else {
+                Err(std::io::Error::other("stop"))
+            }
+        };
+        let e = write_all_atomic_waiting(&[(&fifo, b"x")], false, Some(&mut stop_at_three))
+            .unwrap_err();
+        assert!(
+            matches!(&e, OutputError::Io { path, source } if path == &fifo && source.to_string() == "stop"),
+            "{e:?}"
+        );
+        assert_eq!(calls, 3);
+        assert!(fifo_kind(&fifo));
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    // More than a pipe holds (64 KiB on Linux), read by a slow reader: every byte arrives in order, the
+    // full pipe asking `keep_waiting` in between; a regular file beside it in the same call is written.
+    #[test]
+    fn a_fifo_with_a_slow_reader_gets_every_byte() {
+        let dir = tempfile::tempdir().unwrap();
+        let fifo = dir.path().join("pipe");
+        make_fifo(&fifo);
+        let file = dir.path().join("out.csv");
+        let data: Vec<u8> = (0..300_000u32).map(|i| (i % 251) as u8).collect();
+        let reader = {
+            let fifo = fifo.clone();
+            std::thread::spawn(move || {
+                std::thread::sleep(std::time::Duration::from_millis(50));
+                let mut f = std::fs::File::open(&fifo).unwrap();
+                let (mut got, mut buf) = (Vec::new(), [0u8; 8192]);
+                loop {
+                    let k = f.read(&mut buf).unwrap();
+                    if k == 0 {
+                        return got;
+                    }
+                    got.extend_from_slice(&buf[..k]);
+                    std::thread::sleep(std::time::Duration::from_millis(1));
+                }
+            })
+        };
+        let mut waits = 0;
+        let mut count = || {
+            waits += 1;
+            Ok(())
+        };
+        write_all_atomic_waiting(
+            &[(&fifo, &data), (&file, b"t,u,y\n0,0,0\n")],
+            false,
+            Some(&mut count),
+        )
+        .unwrap();
+        assert_eq!(reader.join().unwrap(), data);
+        assert!(
+            waits > 0,
+            "the reader opened late and the pipe filled: the wait was asked"
+        );
+        assert_eq!(std::fs::read(&file).unwrap(), b"t,u,y\n0,0,0\n");
+        assert!(fifo_kind(&fifo));
     }
 }

@@ -12,7 +12,11 @@ mod common;
 /// (0.4 ū + 3)/0.4 ≈ 14.5, an operating point only a constant term c = 3 reproduces. ARX (1, 1, 1)
 /// with c is this recursion, so its fit is 100 %.
 fn offset_record(dir: &Path, name: &str, phase: usize) -> PathBuf {
-    let n = 500;
+    offset_record_of(dir, name, phase, 500)
+}
+
+/// [`offset_record`] with `n` samples.
+fn offset_record_of(dir: &Path, name: &str, phase: usize, n: usize) -> PathBuf {
     let u: Vec<f64> = (0..n)
         .map(|k| 4.0 + ((((k / 9 + phase) * 7919) % 13) as f64) / 2.0)
         .collect();
@@ -203,6 +207,43 @@ fn streamed_and_in_memory_identification_give_the_same_operating_point_hint() {
                 .collect()
         };
         assert_eq!(said(&mem).len(), 1, "{mem:?}");
+        assert_eq!(said(&mem), said(&streamed), "{v:?}");
+    }
+}
+
+// A record longer than the check reads (sysid_summary::OPERATING_POINT_MAX_ROWS = 100 000 samples): the
+// check reads the first 100 000 samples of each record, in memory and read in passes alike (session 25:
+// read in passes it read the whole file about 11 more times), says so, and still finds what c gives
+// (100 %: the data's own term, in any part of the record).
+#[test]
+fn a_long_record_is_checked_on_its_first_samples_alike_in_memory_and_streamed() {
+    let dir = tempfile::tempdir().unwrap();
+    let est = offset_record_of(dir.path(), "est.csv", 0, 150_000);
+    let val = offset_record_of(dir.path(), "val.csv", 5, 120_000);
+    for (v, part) in [
+        (
+            Some(val.as_path()),
+            "figures on the validation record's first 100000 samples, estimated on the estimation \
+             record's first 100000",
+        ),
+        (
+            None,
+            "figures on the last third of the estimation record's first 100000 samples, estimated on \
+             the rest of them",
+        ),
+    ] {
+        let arx = ["--structure", "arx", "--method", "ls"];
+        let mem = identify(dir.path(), &est, v, &arx);
+        let streamed = identify(dir.path(), &est, v, &[&arx[..], &["--stream"]].concat());
+        let said = |w: &[String]| -> Vec<String> {
+            w.iter()
+                .filter(|w| w.contains("operating point"))
+                .cloned()
+                .collect()
+        };
+        assert_eq!(said(&mem).len(), 1, "{mem:?}");
+        assert!(said(&mem)[0].contains(part), "{mem:?}");
+        assert_eq!(hint(&mem).map(|(with, _)| with), Some(100.0), "{mem:?}");
         assert_eq!(said(&mem), said(&streamed), "{v:?}");
     }
 }

@@ -617,6 +617,14 @@ const OPERATING_POINT_HINT: &str = "the output lies far from zero";
 /// the two ARX fits when there is no validation record: NARX's default selection part.
 pub const OPERATING_POINT_SELECTION: f64 = 1.0 / 3.0;
 
+/// The most samples of each record the measured operating-point check reads: its first
+/// `OPERATING_POINT_MAX_ROWS` (1000 s at the IPA's Ts = 0.01 s, plenty to tell whether a constant term
+/// helps). A bound on the check's cost, the same in memory and read in passes: a record read in passes
+/// (`identify --stream`) has these rows copied into memory by one pass (about 1.6 MB) and checked as in
+/// memory, where the check read the whole file about 11 more times (session 25: a 1e6-row record was
+/// read in 14 passes instead of 3, the streamed identification 3–4× slower than issue 16 measured).
+pub const OPERATING_POINT_MAX_ROWS: usize = 100_000;
+
 /// The measured operating-point check (audit s23 M-R1): for a model without a constant term and
 /// without an operating point (no `--offset`, no `--detrend`), of any structure and method,
 /// [`sysid::order::offset_hint`] — the one test `order` and NARX `identify` run — on ARX of the same
@@ -626,7 +634,7 @@ pub const OPERATING_POINT_SELECTION: f64 = 1.0 / 3.0;
 /// by more than [`sysid::order::OFFSET_HINT_MARGIN`] points, with both figures, so that a plant whose
 /// output level is not an operating point (an integrator, whose c would be a drift) stays silent unless
 /// c truly helps. One estimation record only. The records in memory: [`measured_operating_point_hint`];
-/// read in passes: [`stream::identify_report`] with `sysid::stream::offset_hint`; the decision and
+/// read in passes: [`stream::identify_report`], on the same first [`OPERATING_POINT_MAX_ROWS`] rows copied into memory; the decision and
 /// words are `sysid::order::offset_hint_of`'s in both.
 #[derive(Debug, Clone)]
 pub struct OperatingPointCheck {
@@ -645,17 +653,35 @@ pub struct OperatingPointCheck {
 impl OperatingPointCheck {
     /// The check for `fit` identified with `settings`, or `None` when it does not apply (a constant
     /// term or an operating point already). `validation`: a validation record ranks the fits.
-    pub fn of(fit: &Fitted, settings: &Identification, metrics: &MetricsPair) -> Option<Self> {
+    /// `longest`: the number of samples of the longest record the check would read (estimation or
+    /// validation); beyond [`OPERATING_POINT_MAX_ROWS`] the words say which part was read.
+    pub fn of(
+        fit: &Fitted,
+        settings: &Identification,
+        metrics: &MetricsPair,
+        longest: usize,
+    ) -> Option<Self> {
         let validation = metrics.validation.is_some();
         let m = &fit.model;
         if settings.structure.offset || m.offset().is_some() || m.operating_point().is_some() {
             return None;
         }
         let o = settings.structure.orders;
-        let on = if validation {
-            "figures on the validation record"
-        } else {
-            "figures on the last third of the estimation record, estimated on the rest"
+        let cut = longest > OPERATING_POINT_MAX_ROWS;
+        let max = OPERATING_POINT_MAX_ROWS;
+        let on = match (validation, cut) {
+            (true, false) => "figures on the validation record".to_string(),
+            (true, true) => format!(
+                "figures on the validation record's first {max} samples, estimated on the estimation \
+                 record's first {max}"
+            ),
+            (false, false) => {
+                "figures on the last third of the estimation record, estimated on the rest".to_string()
+            }
+            (false, true) => format!(
+                "figures on the last third of the estimation record's first {max} samples, estimated \
+                 on the rest of them"
+            ),
         };
         Some(OperatingPointCheck {
             arx: Identification::default()
@@ -686,9 +712,30 @@ pub fn measured_operating_point_hint(
     metrics: &MetricsPair,
 ) -> Option<String> {
     let [est] = est_data else { return None };
-    let c = OperatingPointCheck::of(fit, settings, metrics)?;
+    let longest = est.len().max(val_data.map_or(0, Dataset::len));
+    measured_operating_point_hint_of(fit, settings, (est, val_data), metrics, longest)
+}
+
+/// [`measured_operating_point_hint`] on `est` and `val_data` whose longest record (before any of it was
+/// left out) had `longest` samples: the check reads their first [`OPERATING_POINT_MAX_ROWS`] samples
+/// (a record read in passes: [`stream::identify_report`] passes those, with the record's length).
+pub(crate) fn measured_operating_point_hint_of(
+    fit: &Fitted,
+    settings: &Identification,
+    (est, val_data): (&Dataset, Option<&Dataset>),
+    metrics: &MetricsPair,
+    longest: usize,
+) -> Option<String> {
+    let c = OperatingPointCheck::of(fit, settings, metrics, longest)?;
     let words = (c.what.as_str(), c.advice.as_str());
     let o = c.arx.structure.orders;
+    // The first OPERATING_POINT_MAX_ROWS samples of each record.
+    let head = |d: &Dataset| {
+        (d.len() > OPERATING_POINT_MAX_ROWS).then(|| d.rows(0..OPERATING_POINT_MAX_ROWS))
+    };
+    let (est_head, val_head) = (head(est), val_data.and_then(head));
+    let est = est_head.as_ref().unwrap_or(est);
+    let val_data = val_head.as_ref().or(val_data);
     match val_data {
         Some(v) => sysid::order::offset_hint((est, Some(v)), &c.arx, (o, None, c.own), words),
         None => {

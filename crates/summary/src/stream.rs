@@ -3,13 +3,14 @@
 //! [`IdentifyReport::assemble`] and [`ValidationReport::assemble`] on the same records held in memory,
 //! to rounding.
 
-use std::cell::RefCell;
 use sysid::data::stream::RecordSource;
 use sysid::detrend::Detrend;
-use sysid::stream::{identify_checked, offset_hint, record_metrics, RowsOf, Streamed, StreamedFit};
-use sysid::{Fitted, Identification, Model, SysidError};
+use sysid::stream::{identify_checked, record_metrics, Streamed, StreamedFit};
+use sysid::{Dataset, Fitted, Identification, Model, SysidError};
 
-use crate::{IdentifyReport, OperatingPointCheck, ResidualsPair, ValidationReport};
+use crate::{
+    IdentifyReport, OperatingPointCheck, ResidualsPair, ValidationReport, OPERATING_POINT_MAX_ROWS,
+};
 
 /// Identifies an ARX model by least squares from `est` in passes ([`identify_checked`]) and makes the
 /// whole `identify --json` report (metrics and residual analysis with `max_lag` lags on `est` and, when
@@ -60,33 +61,28 @@ pub fn identify_report(
             .warnings
             .extend(IdentifyReport::validation_extrapolation(&fit.model, &[ext]));
     }
-    // The measured operating-point check, as `IdentifyReport::assemble` runs it on records in memory:
-    // more passes (ARX with and without c, their metrics, ȳ).
-    if let Some(c) = OperatingPointCheck::of(&fit, settings, &report.metrics) {
-        let words = (c.what.as_str(), c.advice.as_str());
-        let hint = match val {
-            Some(v) => Some(offset_hint(est, Some(v), &c.arx, (None, c.own), words)?),
-            // Without a validation record: estimated on the first two thirds, ranked on the last.
-            None => match OperatingPointCheck::estimation_rows(shape.rows) {
-                Some(k) => {
-                    let shared = RefCell::new(est);
-                    let mut head = RowsOf::new(&shared, 0..k);
-                    let mut tail = RowsOf::new(&shared, k..shape.rows);
-                    Some(offset_hint(
-                        &mut head,
-                        Some(&mut tail),
-                        &c.arx,
-                        (None, c.own),
-                        words,
-                    )?)
-                }
-                None => None,
-            },
+    // The measured operating-point check, as `IdentifyReport::assemble` runs it on records in memory,
+    // on the same rows: the first OPERATING_POINT_MAX_ROWS of each record, copied into memory by one
+    // pass each (bounded memory) and checked by the in-memory code.
+    let longest = shape.rows.max(val_shape.map_or(0, |s| s.rows));
+    if OperatingPointCheck::of(&fit, settings, &report.metrics, longest).is_some() {
+        let est_head = head_of(est)?;
+        passes += 1;
+        let val_head = match val {
+            Some(v) => {
+                passes += 1;
+                Some(head_of(v)?)
+            }
+            None => None,
         };
-        if let Some(h) = hint {
-            passes += h.passes;
-            report.put_operating_point_hint(h.result);
-        }
+        let hint = crate::measured_operating_point_hint_of(
+            &fit,
+            settings,
+            (&est_head, val_head.as_ref()),
+            &report.metrics,
+            longest,
+        );
+        report.put_operating_point_hint(hint);
     }
     Ok(Streamed {
         result: (fit, report),
@@ -115,4 +111,17 @@ pub fn validation_report(
         val_u_extremes: None,
         passes: on.passes,
     })
+}
+
+/// The first [`OPERATING_POINT_MAX_ROWS`] samples of a record read in passes, in memory (one pass; the
+/// rest of the record is read and not kept).
+fn head_of(data: &mut dyn RecordSource) -> Result<Dataset, SysidError> {
+    let (mut u, mut y) = (Vec::new(), Vec::new());
+    let shape = data.pass(&mut |k, uc, yc| {
+        let take = OPERATING_POINT_MAX_ROWS.saturating_sub(k).min(yc.len());
+        u.extend_from_slice(uc.get(..take).unwrap_or_default());
+        y.extend_from_slice(yc.get(..take).unwrap_or_default());
+        Ok(())
+    })?;
+    Dataset::new(sysid::data::Signals { u, y }, shape.ts, data.name())
 }

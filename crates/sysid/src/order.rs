@@ -267,7 +267,7 @@ pub fn mean_of(y: &[f64]) -> f64 {
 }
 
 /// The decision and the words of [`offset_hint`] from its figures, wherever they were computed (in
-/// memory, or in passes over a record too long to hold: `sysid::stream::offset_hint`): `with`, the
+/// memory, or on the first rows of a record read in passes, copied into memory): `with`, the
 /// structure with a constant term c judged as the order search judges ([`judged`]), speaks when it
 /// qualifies and its ranking fit beats `without` (the selection fit without c, %) by more than
 /// [`OFFSET_HINT_MARGIN`] points, and beats `own` (the fit of the model identified, when the caller

@@ -280,6 +280,15 @@ fn run_narx(
     opts.fallback_ts = Some(model.ts());
     let record = sysid::data::read_record(&args.data, &opts)?;
     let data = record.data;
+    // The same budget as a linear model's (its simulation, predictions, residuals and the `--out`
+    // columns per sample): refused before any of them is made (audit s23 H-B1, session 25).
+    sysid::ls::MemoryNeed {
+        what: format!("validate on {}", data.name()),
+        rows: data.len(),
+        p: model.parameter_count(),
+        per_row: VALIDATE_NUMBERS_PER_SAMPLE,
+    }
+    .check(args.memory.max_memory)?;
     sysid::metrics::check_sampling(data.name(), data.ts(), model.ts())?;
     let metrics = sysid::narx::narx_metrics(model, &data)?;
     let mut warnings: Vec<String> = super::common::data_notes(&record.notes).collect();

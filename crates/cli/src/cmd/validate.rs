@@ -123,7 +123,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         sysid::model_file::AnyModel::Linear(m) => m,
         sysid::model_file::AnyModel::Narx(m) => return run_narx(&args, &m, &inputs),
     };
-    let mut opts = args.columns.csv_options();
+    let mut opts = args.columns.csv_options_within(&args.memory);
     opts.fallback_ts = Some(model.ts());
     if let Some(note) = stored_columns(&model, &mut opts, &args.given) {
         eprintln!("note: {note}");
@@ -276,7 +276,7 @@ fn run_narx(
             "1 for a polynomial NARX model (its k-step prediction is not implemented; the simulation is in y_sim)"
         ));
     }
-    let mut opts = args.columns.csv_options();
+    let mut opts = args.columns.csv_options_within(&args.memory);
     opts.fallback_ts = Some(model.ts());
     let record = sysid::data::read_record(&args.data, &opts)?;
     let data = record.data;

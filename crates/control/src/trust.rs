@@ -154,10 +154,10 @@ pub fn extrapolation_warning(
 /// `identify` reports), or `None`:
 /// - settles: none;
 /// - an integrator (poles within ε = 10⁻⁵ of z = 1): none — a position actuator integrates its
-///   velocity (the paper's IPA model has a pole at 0.99923, 7.7·10⁻⁴ from z = 1; an output-error fit holds one at
-///   1 − 10⁻⁶), and a loop closed around such a plant is the normal case, not a doubt; `identify`,
-///   `simulate` and `tune` already say what the pole means for the model, and whether the loop settles
-///   is judged from the run itself (the warnings below);
+///   velocity, so a model of it may have its pole at z = 1 (the paper's IPA model has its slowest at
+///   0.99923, which settles), and a loop closed around such a plant is the normal case, not a doubt;
+///   `identify`, `simulate` and `tune` already say what the pole means for the model, and whether the
+///   loop settles is judged from the run itself (the warnings below);
 /// - on the circle away from z = 1 (|p| within ε of 1, an undamped oscillation): the plant model rings
 ///   for ever at that pole's frequency, which an actuator does not;
 /// - unstable (|p| > 1 + ε, or a pole that is not a number): the plant model diverges.

@@ -2130,10 +2130,30 @@ fn simulate_plant<'py>(
         ..exp
     };
     let rec = compute(py, || exp.run())?.map_err(ipa_err)?;
+    // What holds the physics plant's piston, as `simulate` computes it (its config's deadzone,
+    // friction and the forces the run's commands build up).
+    // Worked out only for a record that never moved (the one it explains: `record_warnings`).
+    let hold = if physics && rec.y.windows(2).all(|w| w[0] == w[1]) {
+        let cfg = match exp.plant_config.as_deref() {
+            Some(path) => ipa::PlantConfig::from_toml_file(path).map_err(ipa_err)?,
+            None => ipa::PlantConfig::default(),
+        };
+        let (extend_n, retract_n) = cfg.largest_held_forces_n(&rec.u, y0);
+        Some(sysid_summary::simulation::PhysicsHold {
+            deadzone_counts: cfg.valve_deadzone_counts(),
+            static_friction_n: cfg.friction.static_n,
+            extend_n,
+            retract_n,
+            stroke_mm: cfg.cylinder.stroke_mm,
+        })
+    } else {
+        None
+    };
     let run = sysid_summary::simulation::OpenLoopRun {
         model: model.as_ref(),
         narx_range: narx_range.as_ref(),
         physics,
+        hold,
         paper_stroke_mm: paper.then(|| ipa::PlantConfig::default().cylinder.stroke_mm),
         y0,
         y0_default: x0.is_none(),
@@ -2451,7 +2471,7 @@ fn control_loop<'py>(
         &::control::LoopFacts {
             u_max,
             range_mm: limits.range_mm,
-            unstable_pole: limits.unstable_pole,
+            plant_stability: limits.stability,
             judge_steps: profile.has_held_steps(),
             data_u_range: limits.data_u_range,
             data_y_range: limits.data_y_range,

@@ -85,3 +85,20 @@ def test_validate_names_the_same_verdict(tmp_path, what, alpha, verdict):
     doc = json.loads(out.stdout)
     assert doc["stability"] == verdict, (what, doc)
     assert doc["stable"] == (verdict == "settles"), what
+
+
+# control()'s plant check: what an actuator does not do is warned of (an undamped oscillation, a
+# diverging model); an integrator is a position actuator's normal dynamics and is not.
+CONTROL_WORDS = {
+    "unstable": "the plant model is unstable",
+    "on_circle": "the plant model has a pole on the unit circle away from z = 1",
+}
+
+
+@pytest.mark.parametrize("what,alpha,verdict", CASES)
+def test_control_warns_of_an_on_circle_or_unstable_plant_model(tmp_path, what, alpha, verdict):
+    path = _model_file(tmp_path, alpha)
+    c, said = _caught(lambda: ipa_sysid.control(f"model:{path}", setpoint=3, duration=0.5))
+    for v, words in CONTROL_WORDS.items():
+        assert any(words in w for w in c["warnings"]) == (v == verdict), (what, c["warnings"])
+        assert any(words in w for w in said) == (v == verdict), (what, said)

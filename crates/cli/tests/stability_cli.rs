@@ -219,9 +219,11 @@ fn tune_says(dir: &Path, model: &Path) -> Verdict {
     v
 }
 
-/// `control --plant model:FILE`: only an unstable plant model is warned of (an integrator is a
-/// position actuator's normal dynamics); true when it is.
-fn control_warns_unstable(dir: &Path, model: &Path) -> bool {
+/// `control --plant model:FILE`'s plant check, in its text and in its JSON `warnings` (which must
+/// agree): an on-circle plant model (an undamped oscillation) and an unstable one are warned of; an
+/// integrator is a position actuator's normal dynamics and is not, so it reads as `Settles` here.
+fn control_says(dir: &Path, model: &Path) -> Verdict {
+    let json = dir.join("control.json");
     let o = ipa_sysid(&[
         "control",
         "--plant",
@@ -232,10 +234,32 @@ fn control_warns_unstable(dir: &Path, model: &Path) -> bool {
         "0.5",
         "--out",
         s(&dir.join("c.csv")),
+        "--json",
+        s(&json),
         "--force",
     ]);
+    assert!(o.status.success(), "control: {}", stderr(&o));
+    let said = |text: &str| {
+        one_verdict(
+            &[
+                (
+                    text.contains("the plant model is unstable"),
+                    Verdict::Unstable,
+                ),
+                (
+                    text.contains("the plant model has a pole on the unit circle away from z = 1"),
+                    Verdict::OnCircle,
+                ),
+            ],
+            text,
+        )
+    };
     let text = String::from_utf8_lossy(&o.stdout).into_owned() + &stderr(&o);
-    text.contains("the plant model is unstable")
+    let j: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    let in_json = said(&strings(&j["warnings"]).join("\n"));
+    assert_eq!(said(&text), in_json, "control: text {text}\nJSON {j}");
+    in_json
 }
 
 /// `identify` on the noise-free record y(k) = Σ α_i y(k−i) + u(k−1) of a random input: least squares
@@ -302,9 +326,14 @@ fn every_command_gives_the_verdict_of_the_poles_placed() {
         );
         assert_eq!(response_says(&model), want, "response, poles {what}");
         assert_eq!(tune_says(d, &model), want, "tune, poles {what}");
+        // control words what an actuator does not do; an integrator is what a position actuator does.
+        let control_want = match want {
+            Verdict::Integrator => Verdict::Settles,
+            v => v,
+        };
         assert_eq!(
-            control_warns_unstable(d, &model),
-            want == Verdict::Unstable,
+            control_says(d, &model),
+            control_want,
             "control, poles {what}"
         );
         assert_eq!(

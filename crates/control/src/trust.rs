@@ -106,8 +106,10 @@ pub struct LoopFacts {
     pub u_max: f64,
     /// The outputs the plant can reach, in mm (the IPA: 0..stroke); `None` when unknown.
     pub range_mm: Option<(f64, f64)>,
-    /// The largest pole modulus of a model plant when it exceeds 1 (unstable); `None` otherwise.
-    pub unstable_pole: Option<f64>,
+    /// The stability verdict of a model plant's poles ([`sysid_core::Stability`], `ipa::PlantLimits::stability`):
+    /// an on-circle or unstable plant is warned of ([`plant_stability_warning`]); `None` for a plant
+    /// without poles (the physics IPA, a NARX model).
+    pub plant_stability: Option<sysid_core::Stability>,
     /// True for a fixed set-point or a staircase: each step is judged against the paper's acceptance
     /// (a profile read from samples may change r every sample, which has no step to judge).
     pub judge_steps: bool,
@@ -148,6 +150,46 @@ pub fn extrapolation_warning(
     ))
 }
 
+/// The warning for a plant model with the stability verdict `s` ([`sysid_core::Stability`], the one
+/// `identify` reports), or `None`:
+/// - settles: none;
+/// - an integrator (poles within ε = 10⁻⁵ of z = 1): none — a position actuator integrates its
+///   velocity, so a model of it may have its pole at z = 1 (the paper's IPA model has its slowest at
+///   0.99923, which settles), and a loop closed around such a plant is the normal case, not a doubt;
+///   `identify`, `simulate` and `tune` already say what the pole means for the model, and whether the
+///   loop settles is judged from the run itself (the warnings below);
+/// - on the circle away from z = 1 (|p| within ε of 1, an undamped oscillation): the plant model rings
+///   for ever at that pole's frequency, which an actuator does not;
+/// - unstable (|p| > 1 + ε, or a pole that is not a number): the plant model diverges.
+pub fn plant_stability_warning(s: sysid_core::Stability) -> Option<String> {
+    use sysid_core::Stability;
+    match s {
+        Stability::Settles { .. } | Stability::Integrator { .. } => None,
+        Stability::OnCircle { pole } => Some(format!(
+            "the plant model has a pole on the unit circle away from z = 1 (at {:.6} {} {:.6}i, modulus \
+             {:.7}, within {:e} of 1): it oscillates without decay (at {:.4} of the sampling frequency), \
+             so its closed-loop response describes an undamped oscillating model, not the actuator",
+            pole.re,
+            if pole.im < 0.0 { "-" } else { "+" },
+            pole.im.abs(),
+            s.modulus(),
+            sysid_core::stability::MARGIN,
+            pole.im.abs().atan2(pole.re) / std::f64::consts::TAU,
+        )),
+        Stability::Unstable { .. } if !s.modulus().is_finite() => Some(
+            "the plant model is unstable (a pole is not a finite number): its closed-loop response \
+             describes a diverging model, not the actuator"
+                .to_string(),
+        ),
+        Stability::Unstable { .. } => Some(format!(
+            "the plant model is unstable (a pole has modulus {:.6} > 1 + {:e}): its closed-loop \
+             response describes a diverging model, not the actuator",
+            s.modulus(),
+            sysid_core::stability::MARGIN,
+        )),
+    }
+}
+
 /// The warnings of a run `trace` with its `steps` (from [`crate::metrics_for_steps`]).
 pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) -> Vec<String> {
     let mut w = Vec::new();
@@ -155,12 +197,7 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
         u: u_unit,
         y: y_unit,
     } = facts.units;
-    if let Some(p) = facts.unstable_pole {
-        w.push(format!(
-            "the plant model is unstable (a pole has modulus {p:.6} > 1): its closed-loop response \
-             describes a diverging model, not the actuator"
-        ));
-    }
+    w.extend(facts.plant_stability.and_then(plant_stability_warning));
     if let Some((lo, hi)) = facts.range_mm {
         let outside: Vec<f64> = steps
             .iter()
@@ -510,6 +547,7 @@ pub fn controller_model_warnings(
 mod tests {
     use super::*;
     use crate::metrics_for_steps;
+    use sysid_core::Stability;
 
     fn trace(y: Vec<f64>, u: Vec<f64>, r: f64) -> Trace {
         let n = y.len();
@@ -580,7 +618,10 @@ mod tests {
             &LoopFacts {
                 u_max: 255.0,
                 range_mm: Some((0.0, 200.0)),
-                unstable_pole: Some(1.02),
+                // A(z) = z − 1.02: one pole at 1.02.
+                plant_stability: Some(sysid_core::Stability::of_poles(
+                    &sysid_core::model::poles_of(&[-1.02]),
+                )),
                 judge_steps: true,
                 data_u_range: None,
                 data_y_range: None,
@@ -619,5 +660,23 @@ mod tests {
         for m in &w {
             assert!(!m.contains(" mm") && !m.contains("counts"), "{m}");
         }
+    }
+
+    #[test]
+    fn the_plant_check_words_an_on_circle_or_unstable_model_and_not_an_integrator() {
+        let verdict = |a: &[f64]| Stability::of_poles(&sysid_core::model::poles_of(a));
+        // A(z) = z² − 2 cos(w) z + 1 has its poles e^{±iw}: with w = 2π · 0.1, an undamped
+        // oscillation at a tenth of the sampling frequency.
+        let w = std::f64::consts::TAU * 0.1;
+        let on = plant_stability_warning(verdict(&[-2.0 * w.cos(), 1.0])).unwrap();
+        assert!(on.contains("on the unit circle away from z = 1"), "{on}");
+        assert!(on.contains("at 0.1000 of the sampling frequency"), "{on}");
+        // A(z) = z − 1.02: unstable, with its modulus.
+        let un = plant_stability_warning(verdict(&[-1.02])).unwrap();
+        assert!(un.contains("unstable (a pole has modulus 1.020000"), "{un}");
+        // A(z) = (z − 1)(z − 0.5) = z² − 1.5 z + 0.5: an integrator, a position actuator's own
+        // dynamics; A(z) = z − 0.5 settles.
+        assert_eq!(plant_stability_warning(verdict(&[-1.5, 0.5])), None);
+        assert_eq!(plant_stability_warning(verdict(&[-0.5])), None);
     }
 }

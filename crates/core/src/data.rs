@@ -311,6 +311,11 @@ pub struct CsvOptions {
     /// Resample a non-uniform time column onto this uniform Ts in s (`--resample TS`), by linear
     /// interpolation.
     pub resample: Option<f64>,
+    /// The most bytes a binary record's reader may inflate (`--max-memory`, the budget of
+    /// `crate::ls::MemoryBudget`): a compressed `.mat` variable asked for whose element declares more
+    /// inflated bytes, with those of the variables inflated before it, is refused before it is
+    /// inflated. `None`: bounded by [`MAX_SAMPLES`] only.
+    pub max_read_bytes: Option<u64>,
 }
 
 /// A record read from a file, with what the reader did to it that the user should know (resampling).
@@ -348,6 +353,7 @@ impl Default for CsvOptions {
             rows_flag: "--rows",
             time_unit: TimeUnit::S,
             resample: None,
+            max_read_bytes: None,
         }
     }
 }

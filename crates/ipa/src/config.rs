@@ -346,6 +346,96 @@ impl PlantConfig {
         (p * quarter_pi * d * d, p * quarter_pi * (d * d - r * r))
     }
 
+    /// The valves' deadzone in PWM counts: a command |u| ≤ U_MAX · t_open / T (T =
+    /// `valve.pwm_period_ms`, t_open = `valve.opening_delay_ms`) energises its valve for a pulse
+    /// |u|/U_MAX · T no longer than the opening delay, so the valve never opens (10.2 counts with the
+    /// defaults, 0.4 ms of 10 ms).
+    pub fn valve_deadzone_counts(&self) -> f64 {
+        crate::plant::U_MAX * self.valve.opening_delay_ms / self.valve.pwm_period_ms
+    }
+
+    /// F(u): the largest net driving force (N, + extends; `Dynamics::drive_force_n`, with the external
+    /// load) that the command `u` (counts), applied for good, puts on a piston held still at `x_mm`:
+    /// the peak over one PWM period of the periodic steady state. The pulsed chamber (cap side for
+    /// u > 0, rod side for u < 0; the other exhausts to p_atm) is open to the supply from t_open to
+    /// |u|/U_MAX · T + t_close of each period T (never inside the deadzone, always once the closing
+    /// runs into the next period), and its pressure follows the plant's own chamber equation and ISO
+    /// 6358 flow paths (`Dynamics::derivative` with the piston stuck), integrated by RK4 in 100 steps
+    /// per valve phase from atmospheric pressure until the period's peak changes by less than 10⁻⁹ of
+    /// itself (at most 60 s). Static friction F_s holds the piston for good when F ≤ F_s.
+    pub fn held_drive_force_n(&self, u: f64, x_mm: f64) -> f64 {
+        use crate::dynamics::{Dynamics, Mode, State, Valves};
+        let d = Dynamics::new(self);
+        let period = self.valve.pwm_period_ms * 1e-3;
+        let (t_open, t_close) = (
+            self.valve.opening_delay_ms * 1e-3,
+            self.valve.closing_delay_ms * 1e-3,
+        );
+        let pulse = (u.abs() / crate::plant::U_MAX).min(1.0) * period;
+        // The valve's phases in one period: (length s, open?).
+        let phases: Vec<(f64, bool)> = if u == 0.0 || pulse <= t_open {
+            vec![(period, false)]
+        } else if pulse + t_close >= period {
+            vec![(period, true)]
+        } else {
+            vec![
+                (t_open, false),
+                (pulse + t_close - t_open, true),
+                (period - pulse - t_close, false),
+            ]
+        };
+        let valves = |open: bool| Valves {
+            cap: open && u > 0.0,
+            rod: open && u < 0.0,
+        };
+        let x_m = (x_mm * 1e-3).clamp(0.0, d.cylinder.stroke_m);
+        let mut s = State {
+            x_m,
+            v_m_s: 0.0,
+            p_cap_pa: d.atmosphere_pa,
+            p_rod_pa: d.atmosphere_pa,
+        };
+        let sign = if u < 0.0 { -1.0 } else { 1.0 };
+        let mut last_peak = f64::NEG_INFINITY;
+        let periods = (60.0 / period).ceil().max(1.0) as usize;
+        for _ in 0..periods {
+            let mut peak = sign * d.drive_force_n(&s);
+            for &(len, open) in &phases {
+                let h = len / 100.0;
+                for _ in 0..100 {
+                    s = d.rk4(&s, Mode::Stuck, valves(open), h);
+                    peak = peak.max(sign * d.drive_force_n(&s));
+                }
+            }
+            if (peak - last_peak).abs() <= 1e-9 * peak.abs().max(1e-3) {
+                return sign * peak;
+            }
+            last_peak = peak;
+        }
+        sign * last_peak
+    }
+
+    /// The largest forces the commands `u` (counts) build up on a piston held at `x_mm`
+    /// ([`Self::held_drive_force_n`]): (extending, retracting), N, each ≥ 0 (0 when no command pushes
+    /// that way). The force grows with the duty, so the largest command each way gives it.
+    pub fn largest_held_forces_n(&self, u: &[f64], x_mm: f64) -> (f64, f64) {
+        let (lo, hi) = u
+            .iter()
+            .filter(|v| v.is_finite())
+            .fold((0.0_f64, 0.0_f64), |(lo, hi), &v| (lo.min(v), hi.max(v)));
+        let extend = if hi > 0.0 {
+            self.held_drive_force_n(hi, x_mm).max(0.0)
+        } else {
+            0.0
+        };
+        let retract = if lo < 0.0 {
+            (-self.held_drive_force_n(lo, x_mm)).max(0.0)
+        } else {
+            0.0
+        };
+        (extend, retract)
+    }
+
     /// Checks every value; the error names the key (`section.key`), the value and what is accepted.
     pub fn validate(&self) -> Result<(), IpaError> {
         self.check().map_err(|e| IpaError::Config(e.message))
@@ -888,5 +978,37 @@ mod tests {
             "{e}"
         );
         assert!(PlantConfig::from_toml_str("[cylinder]\nrod_mm = 36.0\n", "t").is_ok());
+    }
+
+    // Closed forms of the held force: a valve open all the time (|u| = 255) brings its chamber to
+    // the supply, so F = p_gauge · A: 0.6 MPa · π/4 · 40² mm² = 753.98 N extending and · π/4 ·
+    // (40² − 16²) = 633.35 N retracting (`supply_forces_n`); inside the deadzone (|u| ≤ 255 · 0.4 /
+    // 10 = 10.2 counts) no valve opens and F = 0; between, F grows with |u| and stays inside.
+    #[test]
+    fn the_held_force_has_its_closed_forms_at_the_ends() {
+        let cfg = PlantConfig::default();
+        let q = std::f64::consts::FRAC_PI_4;
+        let (ext, ret) = (0.6 * q * 1600.0, 0.6 * q * (1600.0 - 256.0));
+        assert!((cfg.valve_deadzone_counts() - 10.2).abs() < 1e-12);
+        let f = |u: f64| cfg.held_drive_force_n(u, 100.0);
+        assert!((f(255.0) - ext).abs() < 1e-6 * ext, "{}", f(255.0));
+        assert!((f(-255.0) + ret).abs() < 1e-6 * ret, "{}", f(-255.0));
+        // Atmosphere on both sides: p_atm (A_a − A_b − (A_a − A_b)) = 0 to rounding (10⁻⁹ N).
+        assert!(
+            f(10.0).abs() < 1e-9 && f(-10.0).abs() < 1e-9,
+            "{} {}",
+            f(10.0),
+            f(-10.0)
+        );
+        let mut last = 0.0;
+        for u in [20.0, 60.0, 120.0, 200.0, 250.0] {
+            assert!(f(u) > last && f(u) < ext, "{u}: {}", f(u));
+            last = f(u);
+        }
+        assert_eq!(
+            cfg.largest_held_forces_n(&[3.0, -40.0, 255.0], 100.0),
+            (f(255.0), -f(-40.0))
+        );
+        assert_eq!(cfg.largest_held_forces_n(&[5.0, 7.0], 100.0).1, 0.0);
     }
 }

@@ -167,10 +167,11 @@ pub struct PlantLimits {
     /// larger command is clipped; the physics plant and the paper's); `None` for a model file, which
     /// applies any command.
     pub u_max: Option<f64>,
-    /// The largest pole modulus of a model plant whose stability verdict is unstable
-    /// ([`sysid_core::Stability::Unstable`]: |p| > 1 + ε, ε = 10⁻⁵; an integrator's pole at 1 is a
-    /// position actuator's normal dynamics); `None` otherwise.
-    pub unstable_pole: Option<f64>,
+    /// The stability verdict of a linear model plant's poles ([`sysid_core::Model::stability`]:
+    /// settles, an integrator, on the unit circle away from z = 1, or unstable; `control` words the
+    /// last two, `control::trust::plant_stability_warning`); `None` for the physics IPA and a NARX
+    /// model, which have no poles.
+    pub stability: Option<sysid_core::Stability>,
     /// What the model file holds that the user must be told (an input or output map that breaks its
     /// kind's shape: [`sysid_core::model_file::load_warnings`]), or what the calibration of a twin
     /// config warned ([`PlantConfig::calibration_warnings`]); empty for `paper` and the defaults.
@@ -239,7 +240,7 @@ impl PlantLimits {
         PlantLimits {
             range_mm: Some((0.0, cfg.cylinder.stroke_mm)),
             u_max: Some(crate::plant::U_MAX),
-            unstable_pole: None,
+            stability: None,
             model_warnings: Vec::new(),
             data_u_range: None,
             data_y_range: None,
@@ -271,11 +272,10 @@ impl PlantLimits {
         }
     }
 
-    /// The limits of a model used as the plant: no stroke, the modulus of its pole beyond the unit
-    /// circle when its stability verdict ([`sysid_core::Model::stability`]) is unstable, and the doubts
+    /// The limits of a model used as the plant: no stroke, its stability verdict
+    /// ([`sysid_core::Model::stability`]), and the doubts
     /// its parameters raise ([`sysid_core::model_file::load_warnings`]).
     pub fn of_model(model: &sysid_core::Model) -> PlantLimits {
-        let stability = model.stability();
         // The paper's model (Table III), however it came (`--plant paper`, its model file, Python's
         // `paper_model()`), is the paper's IPA: PWM counts within its valves' ±255 and mm, so a run on
         // it speaks the IPA's units; any other model its estimation record's (`model_units`).
@@ -283,7 +283,7 @@ impl PlantLimits {
         PlantLimits {
             range_mm: None,
             u_max: paper.then_some(crate::plant::U_MAX),
-            unstable_pole: stability.is_unstable().then_some(stability.modulus()),
+            stability: Some(model.stability()),
             model_warnings: sysid_core::model_file::load_warnings(model),
             data_u_range: model
                 .data_range()

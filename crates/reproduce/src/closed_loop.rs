@@ -176,7 +176,7 @@ pub(crate) fn run_warnings(
     let facts = LoopFacts {
         u_max,
         range_mm: limits.range_mm,
-        unstable_pole: limits.unstable_pole,
+        plant_stability: limits.stability,
         judge_steps: false,
         data_u_range: limits.data_u_range,
         data_y_range: limits.data_y_range,

@@ -18,6 +18,9 @@ pub struct OpenLoopRun<'a> {
     pub narx_range: Option<&'a DataRange>,
     /// The physics plant (`ipa`): its output should move when the commands leave the valves' deadzone.
     pub physics: bool,
+    /// What holds a physics plant's piston (its deadzone, static friction and the forces the run's
+    /// commands can give: [`PhysicsHold`]); `None`: the words of a flat record name the deadzone only.
+    pub hold: Option<PhysicsHold>,
     /// The stroke 0..L (mm) of the paper's model (`paper`), which has no end stops of its own.
     pub paper_stroke_mm: Option<f64>,
     /// y0: the level held before the start.
@@ -28,6 +31,23 @@ pub struct OpenLoopRun<'a> {
     pub input_file: Option<(&'a Path, Option<f64>)>,
     /// `--ts` (Python `ts=`), if given.
     pub ts_setting: Option<f64>,
+}
+
+/// What can hold the physics plant's piston still through a run, computed by the caller from the plant's
+/// configuration (`ipa::PlantConfig::valve_deadzone_counts`, `held_drive_force_n`) and the run's commands.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct PhysicsHold {
+    /// The valves' deadzone, counts: a command within ± it never opens a valve.
+    pub deadzone_counts: f64,
+    /// F_s: the static friction, N (`friction.static_n`).
+    pub static_friction_n: f64,
+    /// The largest net force the run's commands build up on a held piston extending (N, ≥ 0; 0 when
+    /// no command extends).
+    pub extend_n: f64,
+    /// The same retracting (N, ≥ 0).
+    pub retract_n: f64,
+    /// The stroke L, mm (the end stops at 0 and L).
+    pub stroke_mm: f64,
 }
 
 /// What a model file's model says before it is simulated: its file's doubts
@@ -129,13 +149,7 @@ pub fn record_warnings(run: &OpenLoopRun, u: &[f64], y: &[f64], ts: f64) -> Vec<
         let (lo, hi) = DataRange::extremes(y);
         let largest = u.iter().fold(0.0_f64, |m, u| m.max(u.abs()));
         if lo == hi && largest > 0.0 {
-            w.push(format!(
-                "the output never moved from y0 = {} mm: the commands stay within ±{} counts, inside \
-                 the valves' deadzone (the physics plant is a pneumatic IPA driven by PWM counts up to \
-                 ±255: is this command record of such a plant, in counts?)",
-                run.y0,
-                fmt4(largest)
-            ));
+            w.push(flat_physics_words(run, largest, y[0]));
         }
     }
     // A NARX model's range, as a linear model's (audit s17 M-d).
@@ -156,6 +170,64 @@ pub fn record_warnings(run: &OpenLoopRun, u: &[f64], y: &[f64], ts: f64) -> Vec<
         }
     }
     w
+}
+
+/// Why a physics record never moved from y0 = `run.y0` under commands up to ±`largest` counts
+/// (`y_first`: its one output value): inside the valves' deadzone (or without [`PhysicsHold`]) the
+/// command record's scale is the doubt (audit s17 L-l); beyond it, the static friction that the forces
+/// the commands can give do not overcome (audit s23 L-B4: the old words blamed the command's scale), or,
+/// when they do exceed it, the run ended before the chamber's pressure built up to them.
+fn flat_physics_words(run: &OpenLoopRun, largest: f64, y_first: f64) -> String {
+    let scale = format!(
+        "the output never moved from y0 = {} mm: the commands stay within ±{} counts, inside \
+         the valves' deadzone (the physics plant is a pneumatic IPA driven by PWM counts up to \
+         ±255: is this command record of such a plant, in counts?)",
+        run.y0,
+        fmt4(largest)
+    );
+    let Some(h) = run.hold else { return scale };
+    if largest <= h.deadzone_counts {
+        return scale;
+    }
+    // A direction the piston cannot take from where it is (against its end stop) gives no motion.
+    let extend = if y_first < h.stroke_mm {
+        h.extend_n
+    } else {
+        0.0
+    };
+    let retract = if y_first > 0.0 { h.retract_n } else { 0.0 };
+    let forces = format!(
+        "the largest force those commands build up on the held piston is {:.1} N extending and {:.1} N \
+         retracting (the peak of the periodic pressure of a chamber pulsed at their duty, piston held, from the \
+         plant's chamber and valve model, with the external load)",
+        h.extend_n, h.retract_n
+    );
+    let head = format!(
+        "the output never moved from y0 = {} mm although the commands reached ±{} counts, beyond the \
+         valves' deadzone (±{} counts)",
+        run.y0,
+        fmt4(largest),
+        fmt4(h.deadzone_counts)
+    );
+    if extend.max(retract) <= h.static_friction_n {
+        format!(
+            "{head}: static friction holds the piston — friction.static_n = {:.1} N, while {forces}{}; \
+             larger commands, or a smaller friction.static_n in the plant config, move it",
+            h.static_friction_n,
+            if (extend, retract) != (h.extend_n, h.retract_n) {
+                " (the other direction pushes into the end stop)"
+            } else {
+                ""
+            }
+        )
+    } else {
+        format!(
+            "{head}: {forces}, above the static friction friction.static_n = {:.1} N, but the piston \
+             did not break away within the run: the chamber's pressure had not built up (a longer run, \
+             or commands held longer, would move it)",
+            h.static_friction_n
+        )
+    }
 }
 
 /// A value with 4 decimals, in scientific notation beyond 1e9 in magnitude (`control::trust::fmt_value`).

@@ -86,6 +86,17 @@ impl ColumnArgs {
             rows_flag: "--rows",
             time_unit: self.time_unit,
             resample: self.resample,
+            // Set by the commands with `--max-memory` (`csv_options_within`).
+            max_read_bytes: None,
+        }
+    }
+
+    /// The reader options for these flags, the reader's own bytes (a `.mat` file's inflated
+    /// variables) bounded by the budget of `--max-memory`, checked before they are allocated.
+    pub fn csv_options_within(&self, memory: &MemoryArgs) -> CsvOptions {
+        CsvOptions {
+            max_read_bytes: Some(memory.max_memory.bytes()),
+            ..self.csv_options()
         }
     }
 }

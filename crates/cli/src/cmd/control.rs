@@ -325,7 +325,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &control::LoopFacts {
             u_max: tuned.map_or(args.u_max, |t| t.u_max),
             range_mm: limits.range_mm,
-            unstable_pole: limits.unstable_pole,
+            plant_stability: limits.stability,
             judge_steps: profile.has_held_steps(),
             data_u_range: limits.data_u_range,
             data_y_range: limits.data_y_range,

@@ -98,7 +98,9 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     settings.check()?;
     let data_path = &args.data[0];
     let inputs = super::identify::checked_inputs(args, data_path)?;
-    let records = args.val.records(data_path, &args.columns.csv_options())?;
+    let records = args
+        .val
+        .records(data_path, &args.columns.csv_options_within(&args.memory))?;
     let fit = identify_narx(&records.est, &settings)?;
     let mut report = NarxReport::assemble(fit, &settings, &records.est, records.val.as_ref())?;
     report

@@ -123,7 +123,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         sysid::model_file::AnyModel::Linear(m) => m,
         sysid::model_file::AnyModel::Narx(m) => return run_narx(&args, &m, &inputs),
     };
-    let mut opts = args.columns.csv_options();
+    let mut opts = args.columns.csv_options_within(&args.memory);
     opts.fallback_ts = Some(model.ts());
     if let Some(note) = stored_columns(&model, &mut opts, &args.given) {
         eprintln!("note: {note}");
@@ -276,10 +276,19 @@ fn run_narx(
             "1 for a polynomial NARX model (its k-step prediction is not implemented; the simulation is in y_sim)"
         ));
     }
-    let mut opts = args.columns.csv_options();
+    let mut opts = args.columns.csv_options_within(&args.memory);
     opts.fallback_ts = Some(model.ts());
     let record = sysid::data::read_record(&args.data, &opts)?;
     let data = record.data;
+    // The same budget as a linear model's (its simulation, predictions, residuals and the `--out`
+    // columns per sample): refused before any of them is made (audit s23 H-B1, session 25).
+    sysid::ls::MemoryNeed {
+        what: format!("validate on {}", data.name()),
+        rows: data.len(),
+        p: model.parameter_count(),
+        per_row: VALIDATE_NUMBERS_PER_SAMPLE,
+    }
+    .check(args.memory.max_memory)?;
     sysid::metrics::check_sampling(data.name(), data.ts(), model.ts())?;
     let metrics = sysid::narx::narx_metrics(model, &data)?;
     let mut warnings: Vec<String> = super::common::data_notes(&record.notes).collect();

@@ -70,7 +70,7 @@ pub fn read_mat_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Rec
         opts.y_col.as_str(),
         opts.t_col.as_str(),
     ];
-    let vars = parse(bytes, name, &wanted)?;
+    let vars = parse(bytes, name, &wanted, opts.max_read_bytes)?;
     if vars.is_empty() {
         // A header and nothing else (audit s13 L8: "no column named 'u'; the header has: ").
         return Err(file_err(
@@ -345,6 +345,12 @@ enum Stop {
     Damaged(String),
     /// A fallible allocation of this many bytes failed (the memory left is too small for the record).
     Memory(u64),
+    /// Inflating the variable would bring the reader's inflated bytes to `need`, more than `budget`
+    /// ([`CsvOptions::max_read_bytes`], `--max-memory`).
+    Budget {
+        need: u64,
+        budget: u64,
+    },
 }
 
 const MI_INT8: u32 = 1;
@@ -406,7 +412,15 @@ impl<'a> Cursor<'a> {
 
 /// The variables of a Level 5 MAT-file (`bytes`, named `name` in messages); the values of those named
 /// in `wanted` are read (see the module documentation).
-fn parse(bytes: &[u8], name: &str, wanted: &[&str]) -> Result<Vec<Variable>, SysidError> {
+/// `budget`: the most bytes the wanted variables' compressed elements may inflate to, together.
+fn parse(
+    bytes: &[u8],
+    name: &str,
+    wanted: &[&str],
+    budget: Option<u64>,
+) -> Result<Vec<Variable>, SysidError> {
+    // Inflated bytes of the wanted variables read so far (counted against `budget`).
+    let mut inflated: u64 = 0;
     let endian = match bytes.get(126..128) {
         Some(b"IM") => Endian::Little,
         Some(b"MI") => Endian::Big,
@@ -465,7 +479,9 @@ fn parse(bytes: &[u8], name: &str, wanted: &[&str]) -> Result<Vec<Variable>, Sys
                 ))
             }
             // Not made by reading a tag.
-            Err(Stop::Memory(_)) => unreachable!("a tag is read without allocating"),
+            Err(Stop::Memory(_) | Stop::Budget { .. }) => {
+                unreachable!("a tag is read without allocating")
+            }
         };
         let var = match ty {
             MI_MATRIX => {
@@ -474,7 +490,7 @@ fn parse(bytes: &[u8], name: &str, wanted: &[&str]) -> Result<Vec<Variable>, Sys
                 top.at = top.at.div_ceil(8) * 8;
                 matrix(&bytes[start..end], endian, wanted)
             }
-            MI_COMPRESSED => compressed(data, endian, wanted),
+            MI_COMPRESSED => compressed(data, endian, wanted, budget, &mut inflated),
             // Other top-level elements (e.g. subsystem data) hold no variable.
             _ => continue,
         };
@@ -509,6 +525,20 @@ fn parse(bytes: &[u8], name: &str, wanted: &[&str]) -> Result<Vec<Variable>, Sys
             Err((var, Stop::Damaged(m))) => {
                 return Err(file_err(name, format!("{} is damaged: {m}", which(var))))
             }
+            Err((var, Stop::Budget { need, budget })) => {
+                return Err(file_err(
+                    name,
+                    format!(
+                        "reading {} would inflate the record's compressed variables to {need} bytes \
+                         ({} GB, as their elements declare), more than the budget of {budget} bytes \
+                         ({} GB, --max-memory); save a part of the record, or raise --max-memory \
+                         (max_memory_gb in Python) if this machine has the memory",
+                        which(var),
+                        crate::ls::format_gb(need),
+                        crate::ls::format_gb(budget)
+                    ),
+                ))
+            }
             Err((var, Stop::Memory(bytes))) => {
                 return Err(file_err(
                     name,
@@ -527,10 +557,14 @@ fn parse(bytes: &[u8], name: &str, wanted: &[&str]) -> Result<Vec<Variable>, Sys
 
 /// A compressed variable: its name and size from the first inflated bytes, its values (inflated in
 /// full, within the bound) only when it is wanted.
+/// `budget` bounds `inflated`, the bytes inflated for the wanted variables so far, which this one's
+/// declared size is added to before it is inflated.
 fn compressed(
     zipped: &[u8],
     endian: Endian,
     wanted: &[&str],
+    budget: Option<u64>,
+    inflated: &mut u64,
 ) -> Result<Variable, (Option<String>, Stop)> {
     let inflate = |limit: u64| -> Result<Vec<u8>, (Option<String>, Stop)> {
         // The bytes are reserved fallibly before inflating (a 622 KB file announcing 640 MB aborted the
@@ -586,6 +620,13 @@ fn compressed(
             )),
         ));
     }
+    // The reader's own bytes against the budget, before they are allocated: this element's tag and
+    // declared data with those of the variables inflated before it.
+    let need = inflated.saturating_add(declared + 8);
+    if let Some(budget) = budget.filter(|&b| need > b) {
+        return Err((Some(head.name), Stop::Budget { need, budget }));
+    }
+    *inflated = need;
     // One byte more than the element: a stream that goes on past it is damage, and one that ends
     // there is checked for bytes after it (in `inflate`).
     let whole = inflate(declared + 9)?;

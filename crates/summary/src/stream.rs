@@ -3,7 +3,7 @@
 //! [`IdentifyReport::assemble`] and [`ValidationReport::assemble`] on the same records held in memory,
 //! to rounding.
 
-use sysid::data::stream::RecordSource;
+use sysid::data::stream::{ChunkFn, RecordSource, Shape};
 use sysid::detrend::Detrend;
 use sysid::stream::{identify_checked, record_metrics, Streamed, StreamedFit};
 use sysid::{Dataset, Fitted, Identification, Model, SysidError};
@@ -17,11 +17,15 @@ use crate::{
 /// given, on `val`).
 pub fn identify_report(
     est: &mut dyn RecordSource,
-    mut val: Option<&mut dyn RecordSource>,
+    val: Option<&mut dyn RecordSource>,
     settings: &Identification,
     detrend: Detrend,
     max_lag: usize,
 ) -> Result<Streamed<(Fitted, IdentifyReport)>, SysidError> {
+    // The first rows of each record, kept from the identification's first pass for the operating-point
+    // check below (no pass of its own).
+    let mut est = HeadKept::new(est);
+    let mut val = val.map(HeadKept::new);
     let Streamed {
         result:
             StreamedFit {
@@ -33,10 +37,10 @@ pub fn identify_report(
         val_shape,
         u_extremes,
         val_u_extremes,
-        mut passes,
+        passes,
     } = identify_checked(
-        est,
-        val.as_mut().map(|v| &mut **v as &mut dyn RecordSource),
+        &mut est,
+        val.as_mut().map(|v| v as &mut dyn RecordSource),
         settings,
         detrend,
         max_lag,
@@ -62,19 +66,12 @@ pub fn identify_report(
             .extend(IdentifyReport::validation_extrapolation(&fit.model, &[ext]));
     }
     // The measured operating-point check, as `IdentifyReport::assemble` runs it on records in memory,
-    // on the same rows: the first OPERATING_POINT_MAX_ROWS of each record, copied into memory by one
-    // pass each (bounded memory) and checked by the in-memory code.
+    // on the same rows: the first OPERATING_POINT_MAX_ROWS of each record (kept by the first pass,
+    // bounded memory), checked by the in-memory code.
     let longest = shape.rows.max(val_shape.map_or(0, |s| s.rows));
     if OperatingPointCheck::of(&fit, settings, &report.metrics, longest).is_some() {
-        let est_head = head_of(est)?;
-        passes += 1;
-        let val_head = match val {
-            Some(v) => {
-                passes += 1;
-                Some(head_of(v)?)
-            }
-            None => None,
-        };
+        let est_head = est.head()?;
+        let val_head = val.map(|v| v.head()).transpose()?;
         let hint = crate::measured_operating_point_hint_of(
             &fit,
             settings,
@@ -113,15 +110,47 @@ pub fn validation_report(
     })
 }
 
-/// The first [`OPERATING_POINT_MAX_ROWS`] samples of a record read in passes, in memory (one pass; the
-/// rest of the record is read and not kept).
-fn head_of(data: &mut dyn RecordSource) -> Result<Dataset, SysidError> {
-    let (mut u, mut y) = (Vec::new(), Vec::new());
-    let shape = data.pass(&mut |k, uc, yc| {
-        let take = OPERATING_POINT_MAX_ROWS.saturating_sub(k).min(yc.len());
-        u.extend_from_slice(uc.get(..take).unwrap_or_default());
-        y.extend_from_slice(yc.get(..take).unwrap_or_default());
-        Ok(())
-    })?;
-    Dataset::new(sysid::data::Signals { u, y }, shape.ts, data.name())
+/// A record read in passes that keeps its first [`OPERATING_POINT_MAX_ROWS`] samples (u and y, in
+/// memory) as its first complete pass reads them, for the operating-point check.
+struct HeadKept<'a> {
+    inner: &'a mut dyn RecordSource,
+    /// The first samples and Ts, once a pass has completed.
+    kept: Option<(Vec<f64>, Vec<f64>, f64)>,
+}
+
+impl<'a> HeadKept<'a> {
+    fn new(inner: &'a mut dyn RecordSource) -> Self {
+        HeadKept { inner, kept: None }
+    }
+
+    /// The kept samples as a record (an error if no pass completed: not reached after a successful
+    /// identification, which reads every record).
+    fn head(self) -> Result<Dataset, SysidError> {
+        let name = self.inner.name().to_string();
+        let (u, y, ts) = self.kept.ok_or_else(|| {
+            SysidError::Numerical(format!("{name}: the record was not read before the check"))
+        })?;
+        Dataset::new(sysid::data::Signals { u, y }, ts, name)
+    }
+}
+
+impl RecordSource for HeadKept<'_> {
+    fn name(&self) -> &str {
+        self.inner.name()
+    }
+
+    fn pass(&mut self, consume: &mut ChunkFn<'_>) -> Result<Shape, SysidError> {
+        if self.kept.is_some() {
+            return self.inner.pass(consume);
+        }
+        let (mut u, mut y) = (Vec::new(), Vec::new());
+        let shape = self.inner.pass(&mut |k, uc, yc| {
+            let take = OPERATING_POINT_MAX_ROWS.saturating_sub(k).min(yc.len());
+            u.extend_from_slice(uc.get(..take).unwrap_or_default());
+            y.extend_from_slice(yc.get(..take).unwrap_or_default());
+            consume(k, uc, yc)
+        })?;
+        self.kept = Some((u, y, shape.ts));
+        Ok(shape)
+    }
 }

@@ -2132,20 +2132,12 @@ fn simulate_plant<'py>(
     let rec = compute(py, || exp.run())?.map_err(ipa_err)?;
     // What holds the physics plant's piston, as `simulate` computes it (its config's deadzone,
     // friction and the forces the run's commands build up).
-    // Worked out only for a record that never moved (the one it explains: `record_warnings`).
-    let hold = if physics && rec.y.windows(2).all(|w| w[0] == w[1]) {
+    let hold = if physics {
         let cfg = match exp.plant_config.as_deref() {
             Some(path) => ipa::PlantConfig::from_toml_file(path).map_err(ipa_err)?,
             None => ipa::PlantConfig::default(),
         };
-        let (extend_n, retract_n) = cfg.largest_held_forces_n(&rec.u, y0);
-        Some(sysid_summary::simulation::PhysicsHold {
-            deadzone_counts: cfg.valve_deadzone_counts(),
-            static_friction_n: cfg.friction.static_n,
-            extend_n,
-            retract_n,
-            stroke_mm: cfg.cylinder.stroke_mm,
-        })
+        sysid_summary::simulation::PhysicsHold::of_run(&cfg, &rec.u, &rec.y, y0)
     } else {
         None
     };

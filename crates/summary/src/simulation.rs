@@ -50,6 +50,26 @@ pub struct PhysicsHold {
     pub stroke_mm: f64,
 }
 
+impl PhysicsHold {
+    /// For a physics run that never moved (every y(k) equal): what can hold its piston, from the
+    /// plant's configuration `cfg` and the run's commands `u` with the piston at `y0` (mm); `None` for a
+    /// run that moved (the one the no-motion warning explains: `record_warnings`). `simulate` and
+    /// Python's `simulate_plant` alike.
+    pub fn of_run(cfg: &ipa::PlantConfig, u: &[f64], y: &[f64], y0: f64) -> Option<PhysicsHold> {
+        if !y.windows(2).all(|w| w[0] == w[1]) {
+            return None;
+        }
+        let (extend_n, retract_n) = cfg.largest_held_forces_n(u, y0);
+        Some(PhysicsHold {
+            deadzone_counts: cfg.valve_deadzone_counts(),
+            static_friction_n: cfg.friction.static_n,
+            extend_n,
+            retract_n,
+            stroke_mm: cfg.cylinder.stroke_mm,
+        })
+    }
+}
+
 /// What a model file's model says before it is simulated: its file's doubts
 /// ([`sysid_core::model_file::load_warnings`], what `validate` says) and [`stability_words`].
 pub fn model_file_warnings(model: &Model) -> Vec<String> {

@@ -307,20 +307,13 @@ fn run_plant(
         Shortest(rec.ts),
         start_words(y0, rec.y.first().copied(), model, args.y0.is_none()),
     );
-    // Worked out only for a record that never moved (the one it explains: `record_warnings`).
-    let hold = if physics && rec.y.windows(2).all(|w| w[0] == w[1]) {
+    // What holds the physics plant's piston when the run never moved.
+    let hold = if physics {
         let cfg = match args.plant_config.as_deref() {
             Some(path) => ipa::PlantConfig::from_toml_file(path)?,
             None => ipa::PlantConfig::default(),
         };
-        let (extend_n, retract_n) = cfg.largest_held_forces_n(&rec.u, y0);
-        Some(sysid_summary::simulation::PhysicsHold {
-            deadzone_counts: cfg.valve_deadzone_counts(),
-            static_friction_n: cfg.friction.static_n,
-            extend_n,
-            retract_n,
-            stroke_mm: cfg.cylinder.stroke_mm,
-        })
+        sysid_summary::simulation::PhysicsHold::of_run(&cfg, &rec.u, &rec.y, y0)
     } else {
         None
     };

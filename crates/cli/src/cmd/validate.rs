@@ -182,13 +182,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // The simulation, predictions, residuals and their analysis hold about 14 numbers per sample at
     // the peak (a 40 M-sample record took 4.38 GB; audit s23 H-B1): refused above the budget before
     // any of them is made.
-    sysid::ls::MemoryNeed {
-        what: format!("validate on {}", data.name()),
-        rows: data.len(),
-        p: model.parameter_count(),
-        per_row: VALIDATE_NUMBERS_PER_SAMPLE,
-    }
-    .check(args.memory.max_memory)?;
+    check_validate_memory(&data, model.parameter_count(), args.memory.max_memory)?;
     if data.inputs().len() != model.inputs().len() {
         anyhow::bail!(sysid::SysidError::setting(
             sysid::Setting::UCol,
@@ -282,13 +276,7 @@ fn run_narx(
     let data = record.data;
     // The same budget as a linear model's (its simulation, predictions, residuals and the `--out`
     // columns per sample): refused before any of them is made (audit s23 H-B1, session 25).
-    sysid::ls::MemoryNeed {
-        what: format!("validate on {}", data.name()),
-        rows: data.len(),
-        p: model.parameter_count(),
-        per_row: VALIDATE_NUMBERS_PER_SAMPLE,
-    }
-    .check(args.memory.max_memory)?;
+    check_validate_memory(&data, model.parameter_count(), args.memory.max_memory)?;
     sysid::metrics::check_sampling(data.name(), data.ts(), model.ts())?;
     let metrics = sysid::narx::narx_metrics(model, &data)?;
     let mut warnings: Vec<String> = super::common::data_notes(&record.notes).collect();
@@ -625,4 +613,22 @@ fn estimation_samples_warning(
     });
     let est = sysid::data::read_record(path, &est_opts).ok()?.data;
     sysid_summary::same_samples_warning("validation", data, &est)
+}
+
+/// Refuses a validation whose simulation, predictions, residuals and `--out` columns
+/// ([`VALIDATE_NUMBERS_PER_SAMPLE`] numbers per sample) would exceed the budget `max_memory`, before any
+/// of them is made (audit s23 H-B1): a linear model's and a polynomial NARX model's alike.
+fn check_validate_memory(
+    data: &sysid::data::Dataset,
+    p: usize,
+    max_memory: sysid::ls::MemoryBudget,
+) -> anyhow::Result<()> {
+    sysid::ls::MemoryNeed {
+        what: format!("validate on {}", data.name()),
+        rows: data.len(),
+        p,
+        per_row: VALIDATE_NUMBERS_PER_SAMPLE,
+    }
+    .check(max_memory)?;
+    Ok(())
 }

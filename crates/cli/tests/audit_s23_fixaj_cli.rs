@@ -200,12 +200,6 @@ fn streamed_and_in_memory_identification_give_the_same_operating_point_hint() {
             v,
             &["--structure", "arx", "--method", "ls", "--stream"],
         );
-        let said = |w: &[String]| -> Vec<String> {
-            w.iter()
-                .filter(|w| w.contains("operating point"))
-                .cloned()
-                .collect()
-        };
         assert_eq!(said(&mem).len(), 1, "{mem:?}");
         assert_eq!(said(&mem), said(&streamed), "{v:?}");
     }
@@ -235,15 +229,18 @@ fn a_long_record_is_checked_on_its_first_samples_alike_in_memory_and_streamed() 
         let arx = ["--structure", "arx", "--method", "ls"];
         let mem = identify(dir.path(), &est, v, &arx);
         let streamed = identify(dir.path(), &est, v, &[&arx[..], &["--stream"]].concat());
-        let said = |w: &[String]| -> Vec<String> {
-            w.iter()
-                .filter(|w| w.contains("operating point"))
-                .cloned()
-                .collect()
-        };
         assert_eq!(said(&mem).len(), 1, "{mem:?}");
         assert!(said(&mem)[0].contains(part), "{mem:?}");
         assert_eq!(hint(&mem).map(|(with, _)| with), Some(100.0), "{mem:?}");
         assert_eq!(said(&mem), said(&streamed), "{v:?}");
     }
+}
+
+/// The warnings about the operating point.
+fn said(warnings: &[String]) -> Vec<String> {
+    warnings
+        .iter()
+        .filter(|w| w.contains("operating point"))
+        .cloned()
+        .collect()
 }

@@ -314,7 +314,9 @@ pub struct CsvOptions {
     /// The most bytes a binary record's reader may inflate (`--max-memory`, the budget of
     /// `crate::ls::MemoryBudget`): a compressed `.mat` variable asked for whose element declares more
     /// inflated bytes, with those of the variables inflated before it, is refused before it is
-    /// inflated. `None`: bounded by [`MAX_SAMPLES`] only.
+    /// inflated. `None`: bounded by [`MAX_SAMPLES`] only. The default is the default budget,
+    /// [`crate::ls::MAX_ESTIMATION_BYTES`] (4 GiB), so that every reader is bounded; the commands
+    /// with `--max-memory` set their own.
     pub max_read_bytes: Option<u64>,
 }
 
@@ -353,7 +355,7 @@ impl Default for CsvOptions {
             rows_flag: "--rows",
             time_unit: TimeUnit::S,
             resample: None,
-            max_read_bytes: None,
+            max_read_bytes: Some(crate::ls::MAX_ESTIMATION_BYTES),
         }
     }
 }

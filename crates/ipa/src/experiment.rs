@@ -216,7 +216,7 @@ impl Experiment {
     }
 
     /// N: `--samples`, else the length of a file input, else [`DEFAULT_SAMPLES`].
-    fn sample_count(&self) -> Result<usize, IpaError> {
+    pub fn sample_count(&self) -> Result<usize, IpaError> {
         Ok(match (self.samples, self.input.file_commands()?) {
             (Some(n), _) => n,
             (None, Some(u)) => u.len(),

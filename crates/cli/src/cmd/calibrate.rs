@@ -215,7 +215,7 @@ struct Baseline {
 /// Ts comes from --ts or the time column; a record with neither is refused as `identify` refuses it
 /// (audit s16 M6: a twin fitted at an assumed 0.01 s is another plant, and nothing said so).
 fn record_options(args: &Args) -> anyhow::Result<sysid::data::CsvOptions> {
-    let opts = args.columns.csv_options();
+    let opts = args.columns.csv_options(&args.memory);
     if opts.input_names().len() > 1 {
         anyhow::bail!(sysid::SysidError::setting(
             sysid::Setting::UCol,

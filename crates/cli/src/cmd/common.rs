@@ -41,6 +41,31 @@ pub struct MemoryArgs {
     pub max_memory: sysid::ls::MemoryBudget,
 }
 
+/// Numbers (f64) a model's run over a record holds per sample at its peak: the record, its
+/// simulation, predictions, residuals and their copies (`validate` measured 4.38 GB for 40 M samples,
+/// 13.7 per sample; audit s23 H-B1). The one record budget of `validate` and `simulate --plant
+/// model:FILE`.
+pub const RECORD_NUMBERS_PER_SAMPLE: usize = 16;
+
+/// Refuses a run of a model with `p` parameters over a record of `rows` samples (`what` names it)
+/// whose [`RECORD_NUMBERS_PER_SAMPLE`] numbers per sample would exceed `max_memory`, before any of
+/// them is made.
+pub fn check_record_memory(
+    what: String,
+    rows: usize,
+    p: usize,
+    max_memory: sysid::ls::MemoryBudget,
+) -> anyhow::Result<()> {
+    sysid::ls::MemoryNeed {
+        what,
+        rows,
+        p,
+        per_row: RECORD_NUMBERS_PER_SAMPLE,
+    }
+    .check(max_memory)?;
+    Ok(())
+}
+
 /// Which columns of a CSV file hold the data, and its sampling period.
 #[derive(Debug, Clone, clap::Args)]
 pub struct ColumnArgs {
@@ -73,8 +98,11 @@ pub struct ColumnArgs {
 }
 
 impl ColumnArgs {
-    /// The CSV reader options for these flags.
-    pub fn csv_options(&self) -> CsvOptions {
+    /// The reader options for these flags, the reader's own bytes (a `.mat` file's inflated
+    /// variables) bounded by the budget of `--max-memory`, checked before they are allocated. The one
+    /// constructor of every command that reads a record (`identify`, `validate`, `order`, `delay`,
+    /// `calibrate`), so that the budget holds for all of them (session 26).
+    pub fn csv_options(&self, memory: &MemoryArgs) -> CsvOptions {
         CsvOptions {
             u_col: self.u_col.clone(),
             y_col: self.y_col.clone(),
@@ -86,17 +114,7 @@ impl ColumnArgs {
             rows_flag: "--rows",
             time_unit: self.time_unit,
             resample: self.resample,
-            // Set by the commands with `--max-memory` (`csv_options_within`).
-            max_read_bytes: None,
-        }
-    }
-
-    /// The reader options for these flags, the reader's own bytes (a `.mat` file's inflated
-    /// variables) bounded by the budget of `--max-memory`, checked before they are allocated.
-    pub fn csv_options_within(&self, memory: &MemoryArgs) -> CsvOptions {
-        CsvOptions {
             max_read_bytes: Some(memory.max_memory.bytes()),
-            ..self.csv_options()
         }
     }
 }

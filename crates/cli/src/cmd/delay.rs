@@ -37,7 +37,7 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let inputs: [&Path; 1] = [&args.data];
     check_outputs(&[(&args.json, "--json")], &inputs)?;
-    let record = sysid::data::read_record(&args.data, &args.columns.csv_options())?;
+    let record = sysid::data::read_record(&args.data, &args.columns.csv_options(&args.memory))?;
     print_notes(&record.notes);
     let data = record.data;
     // A long search (seconds to minutes on tens of millions of samples) says on stderr how far it

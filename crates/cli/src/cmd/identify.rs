@@ -436,7 +436,7 @@ impl Args {
 
     /// [`Args::settings`] without the output nonlinearity.
     fn settings_inputs(&self) -> anyhow::Result<Identification> {
-        let names = self.columns.csv_options().input_names();
+        let names = self.columns.csv_options(&self.memory).input_names();
         let options = IdentifyOptions {
             model: self.model.kind(),
             na: self.na,
@@ -527,7 +527,7 @@ impl Args {
 
     /// [`Args::kind_of`] before `--breakpoints` and `--degree`.
     fn kind_named(&self, arg: &NonlinearityArg, name: &str) -> anyhow::Result<NonlinearityKind> {
-        let names = self.columns.csv_options().input_names();
+        let names = self.columns.csv_options(&self.memory).input_names();
         match arg {
             NonlinearityArg::All(kind) => Ok(*kind),
             NonlinearityArg::PerInput(list) => {
@@ -791,7 +791,7 @@ pub(super) fn in_sample_warnings(
     records: &[Dataset],
     val: Option<&Dataset>,
 ) -> Vec<String> {
-    let opts = args.columns.csv_options_within(&args.memory);
+    let opts = args.columns.csv_options(&args.memory);
     let Some(data) = files.first() else {
         return Vec::new();
     };
@@ -835,7 +835,7 @@ fn read_records(
     args: &Args,
     files: &[PathBuf],
 ) -> anyhow::Result<(Vec<Dataset>, Option<Dataset>, Vec<String>)> {
-    let opts = args.columns.csv_options_within(&args.memory);
+    let opts = args.columns.csv_options(&args.memory);
     if let [one] = files {
         let r = args.val.records(one, &opts)?;
         return Ok((vec![r.est], r.val, r.notes));
@@ -959,7 +959,7 @@ fn why_not_stream(args: &Args, settings: &Identification) -> Option<String> {
 /// `identify` with the records read in passes (`sysid::stream`): memory does not grow with the record.
 fn run_streamed(args: &Args, settings: &Identification, data_path: &Path) -> anyhow::Result<()> {
     let inputs = checked_inputs(args, data_path)?;
-    let opts = args.columns.csv_options_within(&args.memory);
+    let opts = args.columns.csv_options(&args.memory);
     let mut est = CsvStream::open(data_path, &opts)?;
     let mut val = match args.val.validation_source(data_path, &opts) {
         Some((path, vopts)) => Some(CsvStream::open(path, &vopts)?),

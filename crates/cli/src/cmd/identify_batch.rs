@@ -203,7 +203,7 @@ pub fn run(args: Args, settings: &Identification) -> anyhow::Result<()> {
     let mut inputs: Vec<&Path> = files.iter().map(PathBuf::as_path).collect();
     inputs.extend(args.val.validation.as_deref());
     check_outputs(&[(&args.json, "--json")], &inputs)?;
-    let opts = args.columns.csv_options_within(&args.memory);
+    let opts = args.columns.csv_options(&args.memory);
     let val = args.val.read(&opts)?;
     let bar = progress_bar(
         files.len() as u64,

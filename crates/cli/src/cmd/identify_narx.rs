@@ -100,7 +100,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let inputs = super::identify::checked_inputs(args, data_path)?;
     let records = args
         .val
-        .records(data_path, &args.columns.csv_options_within(&args.memory))?;
+        .records(data_path, &args.columns.csv_options(&args.memory))?;
     let fit = identify_narx(&records.est, &settings)?;
     let mut report = NarxReport::assemble(fit, &settings, &records.est, records.val.as_ref())?;
     report

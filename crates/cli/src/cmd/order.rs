@@ -229,7 +229,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut inputs: Vec<&Path> = vec![&args.data];
     inputs.extend(args.val.validation.as_deref());
     check_outputs(&[(&args.json, "--json")], &inputs)?;
-    let opts = args.columns.csv_options();
+    let opts = args.columns.csv_options(&args.memory);
     let records = args.val.records(&args.data, &opts)?;
     let (data, test) = (records.est, records.val);
     let mut notes = records.notes;

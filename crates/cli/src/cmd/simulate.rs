@@ -74,6 +74,10 @@ pub struct Args {
     /// --out or --json (an earlier file there is kept; not with --fleet).
     #[arg(long, conflicts_with = "fleet")]
     pub strict: bool,
+    /// With --plant model:FILE: a record of N samples needs N × 16 × 8 bytes (the record, the
+    /// simulation and their copies; `validate`'s budget), refused beyond it before it is simulated.
+    #[command(flatten)]
+    pub memory: super::common::MemoryArgs,
 }
 
 /// Runs the subcommand.
@@ -91,7 +95,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     args.samples.unwrap_or(ipa::experiment::DEFAULT_SAMPLES),
                     m.ts(),
                 )?;
-                return run_plant(&args, plant, None, m.data_range(), warnings);
+                let p = m.parameter_count();
+                return run_plant(&args, plant, None, (m.data_range(), Some(p)), warnings);
             }
         };
         // What validate would say of this model, said before it is simulated.
@@ -105,9 +110,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         if model.inputs().len() > 1 {
             return run_miso(&args, &model, path, warnings);
         }
-        return run_plant(&args, plant, Some(&model), None, warnings);
+        let p = model.parameter_count();
+        return run_plant(&args, plant, Some(&model), (None, Some(p)), warnings);
     }
-    run_plant(&args, plant, None, None, warnings)
+    run_plant(&args, plant, None, (None, None), warnings)
 }
 
 /// The warnings of one run, kept for `--json` and `--strict`: those found before the simulation are
@@ -246,14 +252,17 @@ fn start_words(
 }
 
 /// Runs the plant of `--plant` (`model`: the model file it names, already read) on the designed
-/// input and writes the record; `warnings` are those found before (the model file's).
+/// input and writes the record; `warnings` are those found before (the model file's). `model_file`:
+/// a NARX model file's data range, and the parameter count of any model file (linear or NARX), whose
+/// run is held to the record budget of `--max-memory`.
 fn run_plant(
     args: &Args,
     plant: ipa::spec::PlantSpec,
     model: Option<&sysid::Model>,
-    narx_range: Option<&sysid::DataRange>,
+    model_file: (Option<&sysid::DataRange>, Option<usize>),
     mut warnings: Warnings,
 ) -> anyhow::Result<()> {
+    let (narx_range, model_params) = model_file;
     // A file input is read once, its commands with the Ts of its time column.
     let input = args.input.parse::<ipa::InputSpec>()?.load()?;
     // The commands of a file with a time column keep their recorded spacing: its Ts is the physics
@@ -278,6 +287,16 @@ fn run_plant(
         noise_std: args.noise_std,
     };
     exp.check()?;
+    // A model's run over N samples, bounded as `validate` bounds it, before anything is simulated
+    // (session 26: a NARX model on a long `--input file:` had no budget).
+    if let (Some(p), ipa::spec::PlantSpec::ModelFile(path)) = (model_params, &exp.plant) {
+        super::common::check_record_memory(
+            format!("simulate --plant model:{}", path.display()),
+            exp.sample_count()?,
+            p,
+            args.memory.max_memory,
+        )?;
+    }
     // The start, resolved once (a model file is read for it) and passed on.
     let y0 = match exp.x0 {
         Some(v) => v,

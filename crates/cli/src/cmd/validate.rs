@@ -105,10 +105,6 @@ fn typed(given: &[String], id: &str) -> bool {
 }
 
 /// Runs `validate`.
-/// Numbers (f64) `validate` holds per sample of the record at its peak: the record, its simulation,
-/// predictions, residuals and their copies (measured: 4.38 GB for 40 M samples is 13.7; audit s23 H-B1).
-const VALIDATE_NUMBERS_PER_SAMPLE: usize = 16;
-
 pub fn run(args: Args) -> anyhow::Result<()> {
     let inputs: [&Path; 2] = [&args.model, &args.data];
     check_outputs(&[(&args.json, "--json"), (&args.out, "--out")], &inputs)?;
@@ -123,7 +119,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         sysid::model_file::AnyModel::Linear(m) => m,
         sysid::model_file::AnyModel::Narx(m) => return run_narx(&args, &m, &inputs),
     };
-    let mut opts = args.columns.csv_options_within(&args.memory);
+    let mut opts = args.columns.csv_options(&args.memory);
     opts.fallback_ts = Some(model.ts());
     if let Some(note) = stored_columns(&model, &mut opts, &args.given) {
         eprintln!("note: {note}");
@@ -270,7 +266,7 @@ fn run_narx(
             "1 for a polynomial NARX model (its k-step prediction is not implemented; the simulation is in y_sim)"
         ));
     }
-    let mut opts = args.columns.csv_options_within(&args.memory);
+    let mut opts = args.columns.csv_options(&args.memory);
     opts.fallback_ts = Some(model.ts());
     let record = sysid::data::read_record(&args.data, &opts)?;
     let data = record.data;
@@ -615,20 +611,18 @@ fn estimation_samples_warning(
     sysid_summary::same_samples_warning("validation", data, &est)
 }
 
-/// Refuses a validation whose simulation, predictions, residuals and `--out` columns
-/// ([`VALIDATE_NUMBERS_PER_SAMPLE`] numbers per sample) would exceed the budget `max_memory`, before any
-/// of them is made (audit s23 H-B1): a linear model's and a polynomial NARX model's alike.
+/// Refuses a validation whose simulation, predictions, residuals and `--out` columns would exceed
+/// the budget `max_memory`, before any of them is made (audit s23 H-B1): a linear model's and a
+/// polynomial NARX model's alike ([`super::common::check_record_memory`]).
 fn check_validate_memory(
     data: &sysid::data::Dataset,
     p: usize,
     max_memory: sysid::ls::MemoryBudget,
 ) -> anyhow::Result<()> {
-    sysid::ls::MemoryNeed {
-        what: format!("validate on {}", data.name()),
-        rows: data.len(),
+    super::common::check_record_memory(
+        format!("validate on {}", data.name()),
+        data.len(),
         p,
-        per_row: VALIDATE_NUMBERS_PER_SAMPLE,
-    }
-    .check(max_memory)?;
-    Ok(())
+        max_memory,
+    )
 }

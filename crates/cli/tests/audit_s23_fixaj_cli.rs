@@ -217,12 +217,12 @@ fn a_long_record_is_checked_on_its_first_samples_alike_in_memory_and_streamed() 
     for (v, part) in [
         (
             Some(val.as_path()),
-            "figures on the validation record's first 100000 samples, estimated on the estimation \
+            "the selection part here: the validation record's first 100000 samples, estimated on the estimation \
              record's first 100000",
         ),
         (
             None,
-            "figures on the last third of the estimation record's first 100000 samples, estimated on \
+            "the selection part here: the last third of the estimation record's first 100000 samples, estimated on \
              the rest of them",
         ),
     ] {

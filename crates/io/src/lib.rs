@@ -40,8 +40,9 @@ pub enum OutputError {
     /// link, and replacing it was not asked for (`--force`).
     #[error(
         "{}: {holds}; this run writes {writes} there, so the file would be lost: refusing to replace it \
-         (choose another path, or pass --force to replace it anyway)",
-        path.display()
+         (choose another path, or pass {} to replace it anyway)",
+        path.display(),
+        force_word()
     )]
     Occupied {
         /// The file concerned, as the user named it.
@@ -51,6 +52,22 @@ pub enum OutputError {
         /// What the run writes, in words.
         writes: String,
     },
+}
+
+/// How the messages name the override of a refusal: the command line's `--force` unless the Python
+/// package set its keyword ([`set_force_word`]). The one place these words are chosen (audit s25 L-5:
+/// Python's `Model.save` said "not even with --force").
+static FORCE_WORD: std::sync::OnceLock<&'static str> = std::sync::OnceLock::new();
+
+/// Names the override in this process's messages (`"force=True"` for the Python package); the first
+/// call decides.
+pub fn set_force_word(word: &'static str) {
+    let _ = FORCE_WORD.set(word);
+}
+
+/// The override as the messages name it ([`set_force_word`]; `--force` by default).
+pub fn force_word() -> &'static str {
+    FORCE_WORD.get().copied().unwrap_or("--force")
 }
 
 fn refused(flag: &str, path: &Path, expected: impl Into<String>) -> OutputError {
@@ -140,8 +157,9 @@ pub fn resolve_output_as(
                     path,
                     format!(
                         "a file name, not a symbolic link (this one names the file {}, which would be \
-                         replaced; pass --force to write to it)",
-                        real.display()
+                         replaced; pass {} to write to it)",
+                        real.display(),
+                        force_word()
                     ),
                 ));
             }
@@ -163,17 +181,24 @@ pub fn resolve_output_as(
             return Err(refused(
                 flag,
                 path,
-                "a file, /dev/null, a terminal or a FIFO (this is a block device — a disk or a \
-                 partition — whose content the output would overwrite; never written, not even with \
-                 --force)",
+                format!(
+                    "a file, /dev/null, a terminal or a FIFO (this is a block device — a disk or a \
+                     partition — whose content the output would overwrite; never written, not even \
+                     with {})",
+                    force_word()
+                ),
             ))
         }
         Device::OtherChar if !force => {
             return Err(refused(
                 flag,
                 path,
-                "a file, /dev/null, a terminal or a FIFO (this is a character device that is neither; \
-                 writing into it may change a device's state: pass --force to write into it anyway)",
+                format!(
+                    "a file, /dev/null, a terminal or a FIFO (this is a character device that is \
+                     neither; writing into it may change a device's state: pass {} to write into it \
+                     anyway)",
+                    force_word()
+                ),
             ))
         }
         _ => {}

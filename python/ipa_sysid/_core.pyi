@@ -67,7 +67,7 @@ class Model:
     def to_json(self) -> str:
         """The model file text (`identify --save-model` format)."""
     @staticmethod
-    def from_json(text: str) -> Model:
+    def from_json(text: str | bytes) -> Model:
         """A model from its model-file text (`to_json()`), checked and warned of as `load_model`.
         Models, Fits and NarxFits pickle and deep-copy (through this text)."""
     def save(self, path: str | bytes | PathLike[str] | PathLike[bytes], force: bool = False) -> None:
@@ -194,7 +194,7 @@ def identify(
     forgetting: float = 1.0,
     p0: float = 1e6,
     offset: bool = False,
-    validation: tuple[ArrayLike, ArrayLike] | None = None,
+    validation: tuple[ArrayLike, ArrayLike] | Sequence[ArrayLike] | None = None,
     passes: int | None = None,
     max_iterations: int = 100,
     rls_form: Literal["standard", "ud"] = "standard",
@@ -253,13 +253,16 @@ def calibrate(
     y_col: str = "y",
     t_col: str = "t",
     no_header: bool = False,
+    val_u_col: str | None = None,
+    val_y_col: str | None = None,
+    max_memory_gb: float = 4.0,
 ) -> dict[str, Any]:
     """The physics plant calibrated to a record as `ipa-sysid calibrate`: estimates, fits, warnings, toml."""
 
 def control(
     plant: str | Model | None = None,
     setpoint: float | None = None,
-    profile: str | None = None,
+    profile: str | Sequence[tuple[float, float]] | Any | None = None,
     kp: float = 14.0,
     ki: float = 1.0,
     duration: float | None = None,

@@ -160,9 +160,10 @@ fn errno_of_kind(kind: std::io::ErrorKind) -> Option<i32> {
 fn output_err(e: sysid_io::OutputError) -> PyErr {
     match &e {
         sysid_io::OutputError::Io { path, source } => io_err(path, source),
-        // The command line's `--force` is the argument `force=True` here.
+        // The command line's `--force` is named `force=True` here (`sysid_io::set_force_word`, at
+        // the module's import).
         sysid_io::OutputError::Refused { .. } | sysid_io::OutputError::Occupied { .. } => {
-            PyValueError::new_err(e.to_string().replace("pass --force", "pass force=True"))
+            PyValueError::new_err(e.to_string())
         }
     }
 }
@@ -385,6 +386,14 @@ fn same_index<'py>(u: &Bound<'py, PyAny>, y: &Bound<'py, PyAny>) -> PyResult<()>
     if iu.call_method1("equals", (&iy,))?.is_truthy()? {
         return Ok(());
     }
+    // A label as a user wrote it: `1`, not numpy's `np.int64(1)` (audit s25 L-6); a string label
+    // keeps its quotes, so that `'1'` and `1` differ in the message as they do in the index.
+    let label = |v: &Bound<'py, PyAny>| -> PyResult<String> {
+        if v.is_instance_of::<pyo3::types::PyString>() {
+            return Ok(v.repr()?.to_string());
+        }
+        Ok(v.str()?.to_string())
+    };
     let (nu, ny) = (iu.len()?, iy.len()?);
     let first = if nu != ny {
         format!("u's index has {nu} labels, y's {ny}")
@@ -395,8 +404,8 @@ fn same_index<'py>(u: &Bound<'py, PyAny>, y: &Bound<'py, PyAny>) -> PyResult<()>
             if !a.eq(&b)? {
                 at = format!(
                     "at position {k} u's index has {} where y's has {}",
-                    a.repr()?,
-                    b.repr()?
+                    label(&a)?,
+                    label(&b)?
                 );
                 break;
             }
@@ -408,6 +417,39 @@ fn same_index<'py>(u: &Bound<'py, PyAny>, y: &Bound<'py, PyAny>) -> PyResult<()>
          by index label, so they would be misaligned: align them first (y = y.reindex(u.index), or \
          pandas.concat([u, y], axis=1).dropna()) or pass u.to_numpy() and y.to_numpy()"
     )))
+}
+
+/// `validation=`: a pair (u_val, y_val) given as a tuple, a list or any other sequence of two arrays
+/// (audit s25 L-4: a list was a raw "'list' object is not an instance of 'tuple'"). A 2-D array (a
+/// (2, N) ndarray, a DataFrame) is refused in words: which of its rows or columns is u is a guess.
+fn record_pair<'py>(
+    v: &Bound<'py, PyAny>,
+    what: &str,
+) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+    let expected = "a pair (u_val, y_val) of two arrays, as a tuple or a list";
+    let kind = v.get_type().name()?.to_string();
+    if v.hasattr("ndim")? && v.getattr("ndim")?.extract::<usize>().is_ok_and(|d| d != 1) {
+        let shape = v.getattr("shape")?.str()?.to_string();
+        return Err(PyValueError::new_err(format!(
+            "{what}: expected {expected}, got a {kind} of shape {shape}: which of its rows or columns \
+             is u is not guessed; pass (a[0], a[1]) for an array whose rows are u and y, or \
+             (df['u'], df['y']) for a DataFrame"
+        )));
+    }
+    let refused = v.is_instance_of::<pyo3::types::PyString>()
+        || v.is_instance_of::<pyo3::types::PyBytes>()
+        || v.is_instance_of::<PyDict>()
+        || v.hasattr("ndim")?;
+    let n = if refused { None } else { v.len().ok() };
+    match n {
+        Some(2) => Ok((v.get_item(0)?, v.get_item(1)?)),
+        Some(n) => Err(PyValueError::new_err(format!(
+            "{what}: expected {expected}, got a {kind} of {n} items"
+        ))),
+        None => Err(PyTypeError::new_err(format!(
+            "{what}: expected {expected}, got a {kind}"
+        ))),
+    }
 }
 
 /// A record (u, y) checked by the library (equal lengths, finite values, Ts > 0); two pandas objects
@@ -677,9 +719,24 @@ impl PyModel {
     /// without a file: `Model.from_json(m.to_json())` is `m`, bit for bit. Checked as `load_model`
     /// checks a file, and warns of the file's own doubts as `load_model` does. A NARX model file is
     /// refused (it is `identify(..., structure="narx")`'s `NarxFit.model_file()`).
+    /// `text` may be `bytes` (a file's content read in binary), decoded as UTF-8.
     #[staticmethod]
-    fn from_json(py: Python<'_>, text: &str) -> PyResult<PyModel> {
-        let inner = parse_model_text(text)?;
+    fn from_json(py: Python<'_>, text: &Bound<'_, PyAny>) -> PyResult<PyModel> {
+        let text: String = if let Ok(b) = text.cast::<pyo3::types::PyBytes>() {
+            String::from_utf8(b.as_bytes().to_vec()).map_err(|e| {
+                PyValueError::new_err(format!("text: the model text is not UTF-8 ({e})"))
+            })?
+        } else {
+            text.extract::<String>().map_err(|_| {
+                PyTypeError::new_err(format!(
+                    "text: expected the model file's text (a str, or bytes in UTF-8), got a {}",
+                    text.get_type()
+                        .name()
+                        .map_or("?".to_string(), |n| n.to_string())
+                ))
+            })?
+        };
+        let inner = parse_model_text(&text)?;
         warn_all(py, &sysid::model_file::load_warnings(&inner))?;
         Ok(PyModel { inner })
     }
@@ -1179,15 +1236,21 @@ impl PyFit {
         self.report.metrics.estimation.fit_pred_percent
     }
 
+    /// The fit % named by their record (audit s25 L-2: the estimation record's figures were shown
+    /// unlabelled also when a validation record was given, whose figure is the one to read).
     fn __repr__(&self) -> String {
-        let m = &self.report.metrics.estimation;
-        format!(
-            "Fit(method={:?}, model={:?}, stable={}, fit_sim_percent={}, fit_pred_percent={})",
-            self.report.estimation.method.to_string(),
-            self.report.model.kind().to_string(),
-            if self.report.stable { "True" } else { "False" },
-            py_float(m.fit_sim_percent),
-            py_float(m.fit_pred_percent)
+        let m = &self.report.metrics;
+        fit_repr(
+            &format!(
+                "Fit(method={:?}, model={:?}, stable={}",
+                self.report.estimation.method.to_string(),
+                self.report.model.kind().to_string(),
+                if self.report.stable { "True" } else { "False" },
+            ),
+            (m.estimation.fit_sim_percent, m.estimation.fit_pred_percent),
+            m.validation
+                .as_ref()
+                .map(|v| (v.fit_sim_percent, v.fit_pred_percent)),
         )
     }
 }
@@ -1198,6 +1261,83 @@ fn param_key(p: &sysid::Param) -> String {
         Some(input) => format!("{input}.{}", p.name),
         None => p.name.to_string(),
     }
+}
+
+/// The command line's `--max-memory GIB`, by the same function, named by its keyword
+/// `max_memory_gb` here.
+fn memory_budget(max_memory_gb: f64) -> PyResult<sysid::ls::MemoryBudget> {
+    sysid::ls::MemoryBudget::from_gib(max_memory_gb).map_err(|e| match e {
+        SysidError::Setting { expected, .. } => {
+            setting_err("max_memory_gb", max_memory_gb, &expected)
+        }
+        e => sysid_err(e),
+    })
+}
+
+/// `control(profile=...)`: the command line's text (`"fixed:MM"`, `"staircase:L1,L2,...@HOLD_S"`,
+/// `"file:PATH.csv"`), or an array of (t, r) rows (t in s, strictly increasing; r in mm), which is
+/// the `file:` profile's table without the file (audit s25 L-4: a list of rows was a raw "'list'
+/// object is not an instance of 'str'").
+fn profile_arg(spec: &Bound<'_, PyAny>) -> PyResult<::control::Profile> {
+    if let Ok(text) = spec.extract::<String>() {
+        return ::control::Profile::parse(&text).map_err(control_err);
+    }
+    let forms =
+        "a string such as \"fixed:50\", \"staircase:20,40@5\" or \"file:PATH.csv\", or an array \
+                 of (t, r) rows (t in s, increasing; r in mm)";
+    let refused =
+        |got: String| PyTypeError::new_err(format!("profile: expected {forms}, got {got}"));
+    if spec.is_instance_of::<pyo3::types::PyBytes>() || spec.is_instance_of::<PyDict>() {
+        return Err(refused(format!("a {}", spec.get_type().name()?)));
+    }
+    let np = spec.py().import("numpy")?;
+    let rows = np.call_method1("asarray", (spec,)).map_err(|_| {
+        refused(format!(
+            "a {}",
+            spec.get_type().name().map_or("?".into(), |n| n.to_string())
+        ))
+    })?;
+    let kind: String = rows.getattr("dtype")?.getattr("kind")?.extract()?;
+    let shape: Vec<usize> = rows.getattr("shape")?.extract()?;
+    if !matches!(kind.as_str(), "f" | "i" | "u") || shape.len() != 2 || shape[1] != 2 {
+        let dtype = rows.getattr("dtype")?.str()?.to_string();
+        return Err(refused(format!(
+            "an array of shape {shape:?} and dtype {dtype}"
+        )));
+    }
+    let column = |c: usize| -> PyResult<Vec<f64>> {
+        floats(
+            &rows.get_item((pyo3::types::PySlice::full(spec.py()), c))?,
+            "profile",
+        )
+    };
+    let profile = ::control::Profile::Samples {
+        path: PathBuf::from("the profile array"),
+        t_s: column(0)?,
+        r_mm: column(1)?,
+    };
+    profile.validate().map_err(control_err)?;
+    Ok(profile)
+}
+
+/// The end of `Fit`'s and `NarxFit`'s repr after `head`: the simulation and one-step prediction fit %
+/// of the estimation record and, when one was given, of the validation record, each named.
+fn fit_repr(
+    head: &str,
+    estimation: (Option<f64>, Option<f64>),
+    validation: Option<(Option<f64>, Option<f64>)>,
+) -> String {
+    let pair = |(sim, pred): (Option<f64>, Option<f64>)| {
+        format!(
+            "fit_sim_percent={}, fit_pred_percent={}",
+            py_float(sim),
+            py_float(pred)
+        )
+    };
+    let validation = validation.map_or(" (no validation record)".to_string(), |v| {
+        format!("; validation: {}", pair(v))
+    });
+    format!("{head}; estimation: {}{validation})", pair(estimation))
 }
 
 /// An optional number as Python prints it (`None` when absent).
@@ -1238,7 +1378,7 @@ fn identify<'py>(
     forgetting: f64,
     p0: f64,
     offset: bool,
-    validation: Option<(Bound<'_, PyAny>, Bound<'_, PyAny>)>,
+    validation: Option<Bound<'_, PyAny>>,
     passes: Option<usize>,
     max_iterations: usize,
     rls_form: &str,
@@ -1260,13 +1400,7 @@ fn identify<'py>(
     detrend: &str,
     max_memory_gb: f64,
 ) -> PyResult<Bound<'py, PyAny>> {
-    // The command line's --max-memory GIB, by the same function, named by its keyword here.
-    let max_memory = sysid::ls::MemoryBudget::from_gib(max_memory_gb).map_err(|e| match e {
-        SysidError::Setting { expected, .. } => {
-            setting_err("max_memory_gb", max_memory_gb, &expected)
-        }
-        e => sysid_err(e),
-    })?;
+    let max_memory = memory_budget(max_memory_gb)?;
     // `structure` is the command line's --structure (`model` its older spelling).
     let model = structure.unwrap_or(model);
     // The command line's --detrend none|mean|linear (audit s18 L-5).
@@ -1368,7 +1502,10 @@ fn identify<'py>(
         settings.check().map_err(sysid_err)?;
         let data = dataset(u, y, ts, name)?;
         let val = validation
-            .map(|(uv, yv)| dataset(&uv, &yv, ts, validation_name))
+            .map(|v| {
+                let (uv, yv) = record_pair(&v, "validation")?;
+                dataset(&uv, &yv, ts, validation_name)
+            })
             .transpose()?;
         let mut report = compute(
             py,
@@ -1482,7 +1619,10 @@ fn identify<'py>(
     settings.check().map_err(sysid_err)?;
     let data = dataset(u, y, ts, name)?;
     let val = validation
-        .map(|(uv, yv)| dataset(&uv, &yv, ts, validation_name))
+        .map(|v| {
+            let (uv, yv) = record_pair(&v, "validation")?;
+            dataset(&uv, &yv, ts, validation_name)
+        })
         .transpose()?;
     let mut report = compute(py, || -> Result<IdentifyReport, SysidError> {
         // As `identify --detrend`: estimated on the deviations from the operating point, which
@@ -1572,8 +1712,29 @@ impl PyNarxFit {
         self.model_file.clone()
     }
 
+    /// What a user needs (audit s25 L-3: it was "NarxFit(2295 bytes of JSON)"): the number of terms
+    /// of the candidates, the stopping rule, whether the simulation blew up, and the fit % named by
+    /// their record as `Fit`'s repr.
     fn __repr__(&self) -> String {
-        format!("NarxFit({} bytes of JSON)", self.json.len())
+        let doc: serde_json::Value = serde_json::from_str(&self.json).unwrap_or_default();
+        let num = |v: &serde_json::Value| v.as_f64();
+        let fits =
+            |m: &serde_json::Value| (num(&m["fit_sim_percent"]), num(&m["fit_pred_percent"]));
+        let metrics = &doc["metrics"];
+        let blew = metrics["estimation"]["blew_up_at"]
+            .as_u64()
+            .map_or(String::new(), |k| format!(", simulation blew up at k={k}"));
+        fit_repr(
+            &format!(
+                "NarxFit(terms={} of {} candidates, degree={}, stop={:?}{blew}",
+                doc["terms"].as_array().map_or(0, Vec::len),
+                doc["selection"]["candidates"].as_u64().unwrap_or(0),
+                doc["model"]["degree"].as_u64().unwrap_or(0),
+                doc["selection"]["stop"]["rule"].as_str().unwrap_or("?"),
+            ),
+            fits(&metrics["estimation"]),
+            (!metrics["validation"].is_null()).then(|| fits(&metrics["validation"])),
+        )
     }
 
     /// Pickling and copying: the JSON document and the model file (audit s23 L-P5).
@@ -2228,7 +2389,7 @@ fn plant_and_limits(
 /// `plant`: "ipa" (the physics simulator, the default), "paper", "model:FILE", a model file's path or
 /// a `Model` (e.g. `fit.model`). Give exactly one of `setpoint` (r in mm, held) and `profile` (text:
 /// "fixed:50" or "50", "staircase:20,60,100,40@3" — each level in mm held 3 s —, or "file:PATH.csv"
-/// with columns t (s) and r (mm); a list is a TypeError). `kp` in counts/mm (default 14), `ki` in
+/// with columns t (s) and r (mm); or an array of (t, r) rows, the same table without a file). `kp` in counts/mm (default 14), `ki` in
 /// counts/(mm·s) with `integral="scaled"` (default) or counts/(mm·sample) with "per-sample" (default
 /// 1); `duration` in s (default: the profile's own length, else 10 s); `y0` the start position in mm
 /// (default 0); `anti_windup`: "none" (default), "clamping" or "back-calculation" (needs
@@ -2252,7 +2413,7 @@ fn control_loop<'py>(
     py: Python<'py>,
     plant: Option<&Bound<'py, PyAny>>,
     setpoint: Option<f64>,
-    profile: Option<&str>,
+    profile: Option<Bound<'_, PyAny>>,
     kp: f64,
     ki: f64,
     duration: Option<f64>,
@@ -2284,7 +2445,7 @@ fn control_loop<'py>(
     let profile = match (setpoint, profile) {
         (Some(r), None) if r.is_finite() => Profile::Fixed { setpoint_mm: r },
         (Some(r), None) => return Err(setting_err("--setpoint", r, "a finite position in mm")),
-        (None, Some(spec)) => Profile::parse(spec).map_err(control_err)?,
+        (None, Some(spec)) => profile_arg(&spec)?,
         _ => {
             return Err(setting_err(
                 "--setpoint/--profile",
@@ -2584,11 +2745,13 @@ fn tune<'py>(
 /// "metrics" (the twin) and "start_metrics" (the start plant), each {"estimation": {...},
 /// "validation": {...}} with "fit_sim_measured_percent" and "rmse_sim_measured" — "hammerstein"
 /// (None), "seconds", "warnings"; and "toml" (the plant-config of the twin, as `--out` writes it, with
-/// its `[calibration]` table of fits and warnings).
+/// its `[calibration]` table of fits and warnings). `max_memory_gb` bounds, as `calibrate
+/// --max-memory`, the bytes the reader may inflate from a compressed `.mat` record (a file declaring
+/// more is a `ValueError` naming it, before they are allocated).
 #[pyfunction]
 #[pyo3(signature = (data, validation=None, free=None, fixed=None, plant_config=None, segment=0.5,
     max_iterations=40, ts=None, u_col="u", y_col="y", t_col="t", no_header=false, val_u_col=None,
-    val_y_col=None))]
+    val_y_col=None, max_memory_gb=4.0))]
 #[allow(clippy::too_many_arguments)]
 fn calibrate<'py>(
     py: Python<'py>,
@@ -2606,8 +2769,10 @@ fn calibrate<'py>(
     no_header: bool,
     val_u_col: Option<&str>,
     val_y_col: Option<&str>,
+    max_memory_gb: f64,
 ) -> PyResult<Bound<'py, PyDict>> {
     use ipa::calibrate::Calibration;
+    let max_memory = memory_budget(max_memory_gb)?;
     if validation.is_none() && (val_u_col.is_some() || val_y_col.is_some()) {
         return Err(PyValueError::new_err(
             "val_u_col/val_y_col name columns of the validation record: give validation=PATH",
@@ -2633,6 +2798,9 @@ fn calibrate<'py>(
         y_col: y_col.to_string(),
         t_col: t_col.to_string(),
         no_header,
+        // The reader's own bytes (a `.mat` record's inflated variables) within `max_memory_gb`, as
+        // `calibrate --max-memory` bounds them.
+        max_read_bytes: Some(max_memory.bytes()),
         ..sysid::data::CsvOptions::default()
     };
     // The validation record's own columns, as --val-u-col/--val-y-col (audit s14 L-e).
@@ -2762,6 +2930,8 @@ fn _core(m: &Bound<'_, PyModule>) -> PyResult<()> {
     // a Ctrl-C pressed during the call was raised and the numpy crate panicked on it (audit s23 H-P1:
     // `PanicException` "Failed to access NumPy array API capsule" instead of `KeyboardInterrupt`).
     let py = m.py();
+    // The output messages name the override by its keyword (`force=True`), not `--force`.
+    sysid_io::set_force_word("force=True");
     py.import("numpy")?;
     py.import("numpy.lib")?;
     let warm = PyArray1::<f64>::zeros(py, 0, false);

@@ -138,7 +138,8 @@ def test_fleet_output_dir_a_file_is_refused_by_name(tmp_path):
 
 
 def test_a_wrong_validation_pair_is_named():
-    """L-P1: the argument's name was only in an exception note."""
+    """L-P1: the argument's name was only in an exception note (session 26: any pair is taken, in
+    the words of `record_pair`)."""
     t, u, y, _ = ipa_sysid.simulate_plant("paper", samples=200, seed=1)
-    with pytest.raises(ValueError, match=r"^validation: expected tuple of length 2, but got tuple of length 3"):
+    with pytest.raises(ValueError, match=r"^validation: expected a pair \(u_val, y_val\) of two arrays, as a tuple or a list, got a tuple of 3 items"):
         ipa_sysid.identify(u, y, 0.01, validation=(u, y, y))

@@ -64,7 +64,7 @@ fn narx_validate_refuses_a_record_beyond_its_memory_budget() {
     assert_eq!(no.status.code(), Some(2), "{err}");
     assert!(err.contains("rec.csv"), "{err}");
     assert!(err.contains("--max-memory"), "{err}");
-    assert!(err.contains(&format!("{n} regression rows")), "{err}");
+    assert!(err.contains(&format!("a record of {n} samples")), "{err}");
 }
 
 /// One miCOMPRESSED element holding the double n × 1 vector `values` named `name` (MAT-File Format,

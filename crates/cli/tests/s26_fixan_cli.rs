@@ -191,7 +191,7 @@ fn simulate_of_a_model_has_the_record_budget_of_validate() {
         let err = stderr(&no);
         assert_eq!(no.status.code(), Some(2), "{err}");
         assert!(err.contains(&format!("model:{}", s(model))), "{err}");
-        assert!(err.contains("100000 regression rows"), "{err}");
+        assert!(err.contains("a record of 100000 samples"), "{err}");
         assert!(err.contains("--max-memory"), "{err}");
         assert!(!out.exists(), "nothing written: {err}");
         let ok = run("0.1");

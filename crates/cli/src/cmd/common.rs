@@ -49,21 +49,35 @@ pub const RECORD_NUMBERS_PER_SAMPLE: usize = 16;
 
 /// Refuses a run of a model with `p` parameters over a record of `rows` samples (`what` names it)
 /// whose [`RECORD_NUMBERS_PER_SAMPLE`] numbers per sample would exceed `max_memory`, before any of
-/// them is made.
+/// them is made. `shorter` says how to run on fewer samples (`--rows A..B`, `--samples N`). The words
+/// are a record's, not an estimation's (no regression rows, no orders to lower).
 pub fn check_record_memory(
     what: String,
     rows: usize,
     p: usize,
     max_memory: sysid::ls::MemoryBudget,
+    shorter: &str,
 ) -> anyhow::Result<()> {
-    sysid::ls::MemoryNeed {
+    let need = sysid::ls::MemoryNeed {
         what,
         rows,
         p,
         per_row: RECORD_NUMBERS_PER_SAMPLE,
+    };
+    let bytes = need.bytes();
+    if bytes <= max_memory.bytes() {
+        return Ok(());
     }
-    .check(max_memory)?;
-    Ok(())
+    let fit = max_memory.bytes() / (RECORD_NUMBERS_PER_SAMPLE as u64 * 8);
+    anyhow::bail!(sysid::SysidError::Data(format!(
+        "{}: a record of {rows} samples (model of {p} parameters) needs about {} GB ({} numbers of 8 \
+         bytes per sample: the record, its simulation, predictions, residuals and their copies), more \
+         than the budget of {max_memory} GiB (--max-memory); use at most {fit} samples ({shorter}), \
+         or raise --max-memory if this machine has the memory",
+        need.what,
+        sysid::ls::format_gb(bytes),
+        RECORD_NUMBERS_PER_SAMPLE,
+    )))
 }
 
 /// Which columns of a CSV file hold the data, and its sampling period.

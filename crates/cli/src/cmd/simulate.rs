@@ -295,6 +295,7 @@ fn run_plant(
             exp.sample_count()?,
             p,
             args.memory.max_memory,
+            "--samples N, or a part of the --input file",
         )?;
     }
     // The start, resolved once (a model file is read for it) and passed on.

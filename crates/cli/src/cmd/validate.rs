@@ -624,5 +624,6 @@ fn check_validate_memory(
         data.len(),
         p,
         max_memory,
+        "--rows A..B, or a coarser sampling: --resample TS",
     )
 }

@@ -69,7 +69,7 @@
 //! Σ_j d_j (Σ_(i<j) U_ij² + 1) from the new factors (n² + 4n flops). The difference loses accuracy when
 //! the downdate removes most of t, so a reference R is kept beside t: R(k) = R(k−1) · (1/ρ̃) · g with
 //! g = [`TRACE_DRIFT_GROWTH`] = 1 + 2⁻⁵, which is what t would be without the downdates since the last
-//! exact sum, grown by g per update; when t(k) < R(k)/4 (or is not a number) t is summed exactly from
+//! exact sum, grown by g per update; when t(k) < R(k)/4 (or t or R is not finite) t is summed exactly from
 //! the new factors (each column's Σ_(i<j) U_ij² over even and odd i apart, `sysid`'s order) and R = t.
 //! R/t is the product of the amplifications t(k−1)/(t(k−1) − bᵀb/α) of the relative error since the
 //! last exact sum, times g per update, so that product stays ≤ 4 and at most ln 4 / ln g = 45 updates
@@ -790,8 +790,8 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
     }
     // The guard's kept trace (module documentation, "Windup guard"): t(k) = (t(k−1) − bᵀb · (1/α))
     // · (1/ρ̃), bᵀb as two partial sums (even i, odd i, as `ud_trace`), n multiply-adds off the chain of
-    // Bierman's update; its reference R(k) = (R(k−1) · (1/ρ̃)) · g. When t(k) < R(k)/4 (or is not a
-    // number) t is summed exactly from the new factors after pass 2 (`exact`).
+    // Bierman's update; its reference R(k) = (R(k−1) · (1/ρ̃)) · g. When t(k) < R(k)/4 (or t or R is
+    // not finite) t is summed exactly from the new factors after pass 2 (`exact`).
     let (mut tr, mut tr_ref, mut exact) = (F::ZERO, F::ZERO, false);
     if GUARD {
         let (mut even, mut odd) = (-F::ZERO, -F::ZERO);
@@ -805,7 +805,9 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
         let diff = est.tr - (even + odd) * inv_last;
         tr = diff * inv_var;
         tr_ref = est.tr_ref * inv_var * F::from_f64(TRACE_DRIFT_GROWTH);
-        exact = !(tr >= tr_ref * F::from_f64(0.25));
+        // t < R/4, or t or R not finite (then t − R/4 is not: x · 0 = 0 exactly for finite x).
+        let quarter = tr_ref * F::from_f64(0.25);
+        exact = (tr < quarter) | ((tr - quarter) * F::ZERO != F::ZERO);
     }
     // Pass 2: λ_j = −f_j · (1/α_(j−1)); U_ij ← U_ij + w_i λ_j with w_i = v_i + Σ_(i<k<j) U_ik v_k (old
     // U): computed by the gain sweep (`keep_w`, N ≥ 8: copied here) or with w summed again here

@@ -20,8 +20,8 @@
 //!   and it acts when tr P · (ρ / T) > ρ (tr P > T up to the rounding of ρ̃; `ipa_embedded`'s test).
 //!   tr P of the new factors is not summed at every update but kept: t(k) = (t(k−1) − bᵀb · (1/α)) ·
 //!   (1/ρ̃) from Bierman's gain numerator b and α (bᵀb over even and odd i apart), with a reference
-//!   R(k) = R(k−1) · (1/ρ̃) · g, g = [`ipa_embedded::rls::TRACE_DRIFT_GROWTH`]; when t < R/4 (or is not a
-//!   number) t is summed exactly (`ud_trace`: each column's Σ_(i<j) U_ij² over even and odd i apart)
+//!   R(k) = R(k−1) · (1/ρ̃) · g, g = [`ipa_embedded::rls::TRACE_DRIFT_GROWTH`]; when t < R/4 (or t or R
+//!   is not finite) t is summed exactly (`ud_trace`: each column's Σ_(i<j) U_ij² over even and odd i apart)
 //!   and R = t; construction and restarts sum it exactly. The same operations and order as
 //!   `ipa_embedded` (whose module documentation bounds the drift: ≈ 400 ε relative).
 //!
@@ -257,7 +257,8 @@ impl RobustRls {
                     let diff = self.kept_trace - (even + odd) * inv_alpha;
                     let mut tr = diff * inv_var;
                     let mut tr_ref = self.trace_ref * inv_var * TRACE_DRIFT_GROWTH;
-                    if !(tr >= tr_ref * 0.25) {
+                    let quarter = tr_ref * 0.25;
+                    if tr < quarter || !(tr - quarter).is_finite() {
                         tr = ud_trace(u, d);
                         tr_ref = tr;
                     }

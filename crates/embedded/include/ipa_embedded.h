@@ -36,7 +36,7 @@
 /**
  * An upper bound, valid on every target, of [`ipa_hrls_state_size`] in bytes (for static storage).
  */
-#define IPA_HRLS_STATE_BYTES 3456
+#define IPA_HRLS_STATE_BYTES 3472
 
 /**
  * An upper bound, valid on every target, of [`ipa_pi_state_size`] in bytes.

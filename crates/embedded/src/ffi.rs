@@ -37,7 +37,7 @@ pub const IPA_MAX_NB: u32 = 8;
 /// Largest nk (input delay in samples) of the C estimator.
 pub const IPA_MAX_NK: u32 = 8;
 /// An upper bound, valid on every target, of [`ipa_hrls_state_size`] in bytes (for static storage).
-pub const IPA_HRLS_STATE_BYTES: usize = 3456;
+pub const IPA_HRLS_STATE_BYTES: usize = 3472;
 /// An upper bound, valid on every target, of [`ipa_pi_state_size`] in bytes.
 pub const IPA_PI_STATE_BYTES: usize = 80;
 

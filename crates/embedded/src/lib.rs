@@ -115,9 +115,9 @@ mod tests {
     #[test]
     fn state_sizes() {
         let w = size_of::<usize>();
-        // Rls<F, N>: N + N² + 4 floats (θ̂, P or its UD factors, ρ, T, p0, ρ̃), one usize, the one-byte
-        // form.
-        let rls = |f: usize, n: usize| round((n + n * n + 4) * f + w + 1, f.max(w));
+        // Rls<F, N>: N + N² + 6 floats (θ̂, P or its UD factors, ρ, T, p0, ρ̃, the UD guard's kept
+        // trace t and its reference R), one usize, the one-byte form.
+        let rls = |f: usize, n: usize| round((n + n * n + 6) * f + w + 1, f.max(w));
         assert_eq!(size_of::<Rls<f64, 7>>(), rls(8, 7));
         assert_eq!(size_of::<Rls<f32, 7>>(), rls(4, 7));
         // HammersteinRls<F, N, D>: the Rls, 2 D + 9 floats, five usize.
@@ -194,11 +194,13 @@ mod tests {
         assert!(ffi::ipa_ctl_state_size() <= ffi::IPA_CTL_STATE_BYTES);
         if w == 8 {
             // The numbers quoted in the documentation for a 64-bit host.
-            assert_eq!(size_of::<Rls<f64, 7>>(), 496);
-            assert_eq!(size_of::<Rls<f32, 7>>(), 256);
-            assert_eq!(size_of::<hammerstein::PaperHrls<f64>>(), 656);
-            assert_eq!(size_of::<hammerstein::PaperHrls<f32>>(), 360);
-            assert_eq!(ffi::ipa_hrls_state_size(), 3448);
+            assert_eq!(size_of::<Rls<f64, 7>>(), 512);
+            assert_eq!(size_of::<Rls<f64, 9>>(), 784);
+            assert_eq!(size_of::<Rls<f32, 7>>(), 264);
+            assert_eq!(size_of::<Rls<f32, 9>>(), 400);
+            assert_eq!(size_of::<hammerstein::PaperHrls<f64>>(), 672);
+            assert_eq!(size_of::<hammerstein::PaperHrls<f32>>(), 368);
+            assert_eq!(ffi::ipa_hrls_state_size(), 3464);
         }
         // Cusum: five floats and three usize.
         assert_eq!(size_of::<cusum::Cusum<f64>>(), 5 * 8 + 3 * w);

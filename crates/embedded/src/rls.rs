@@ -61,16 +61,32 @@
 //! beside 1/δ, not after it, and there is no second pass over P. The guard costs 3n + 4 flops and one
 //! division when it acts (if δ tr P or (Pφ)ᵀ(Pφ) overflows, possible in f32 with P ≳ 1e19, tr P(k) is
 //! summed from the new diagonal instead). `sysid` writes its guarded update in a different operation
-//! order, so results agree to rounding, not bit for bit. In the UD form tr P = Σ_j d_j (Σ_(i<j) U_ij² + 1)
-//! is summed from the new factors as the second pass writes them (n² + 4n flops, sysid's order: each
-//! column's Σ_(i<j) U_ij² as a sum over even i plus a sum over odd i, half the chain of additions), and
-//! when it exceeds T the scale c = T / tr P is not applied to D but left pending: P = c · U D Uᵀ, kept
+//! order, so results agree to rounding, not bit for bit. In the UD form the trace t = tr (U D Uᵀ) of the
+//! factors is kept in the state and updated by the rank-one formula (issue 28, twentieth round): Bierman's
+//! update of U D Uᵀ with measurement variance ρ̃ is U D Uᵀ − b bᵀ/α with b the gain numerator and α =
+//! α_(n−1), both already formed, and D ← D/ρ̃ follows, so t(k) = (t(k−1) − bᵀb · (1/α)) · (1/ρ̃): 2n + 4
+//! flops off the O(n²) chain (bᵀb as a sum over even i plus a sum over odd i) instead of summing
+//! Σ_j d_j (Σ_(i<j) U_ij² + 1) from the new factors (n² + 4n flops). The difference loses accuracy when
+//! the downdate removes most of t, so a reference R is kept beside t: R(k) = R(k−1) · (1/ρ̃) · g with
+//! g = [`TRACE_DRIFT_GROWTH`] = 1 + 2⁻⁵, which is what t would be without the downdates since the last
+//! exact sum, grown by g per update; when t(k) < R(k)/4 (or t or R is not finite) t is summed exactly from
+//! the new factors (each column's Σ_(i<j) U_ij² over even and odd i apart, `sysid`'s order) and R = t.
+//! R/t is the product of the amplifications t(k−1)/(t(k−1) − bᵀb/α) of the relative error since the
+//! last exact sum, times g per update, so that product stays ≤ 4 and at most ln 4 / ln g = 45 updates
+//! pass between exact sums: the relative error of t stays below ≈ 3ε · 4 · Σ_m g^(−m) ≈ 400 ε (ε of
+//! the type), whatever ρ and the data (the test `kept_trace_keeps_the_guard_promise` checks it against
+//! a sum in f64 over 1e5 updates). On that test's record the exact sum ran on 2.3–2.8 % of updates
+//! with ρ = 0.98 (16 % with ρ = 0.5, where each excited update removes half the trace). Two floats more
+//! of state (t, R). When t exceeds T the scale c = T / tr P is not applied to D but left pending:
+//! P = c · U D Uᵀ, kept
 //! as the next update's measurement variance ρ̃ = ρ / c = tr P · (ρ / T) (one more float of state; ρ̃ = ρ
 //! when nothing is pending). Bierman's update of (U, D) with variance ρ̃ gives the gain and the factors
 //! of c · U D Uᵀ's update (L = c U D Uᵀ φ / (ρ + c φᵀ U D Uᵀ φ) = U D Uᵀ φ / (ρ̃ + φᵀ U D Uᵀ φ)), and the
 //! closing D ← D · (1/ρ̃) = D · c / ρ applies c with the forgetting: no pass over D when the guard acts,
 //! only tr P · (ρ / T) (ρ / T divided at the start of the update, off the chain). [`Rls::p`] and
-//! [`Rls::trace`] report c · U D Uᵀ; a failed update leaves ρ̃ unchanged; a restart sets ρ̃ = ρ.
+//! [`Rls::trace`] report c · U D Uᵀ (summed exactly, not the kept t); a failed update leaves ρ̃, t and
+//! R unchanged; a restart sets ρ̃ = ρ and t = R = the exact sum, as do construction and
+//! [`Rls::with_max_trace`].
 //! `sysid::rls_ud::RobustRls` keeps the same pending variance, so f64 results are bit for bit.
 //! The guard acts when tr P · (ρ / T) > ρ (tr P > T up to the rounding of ρ̃; `sysid`'s test), and how
 //! ρ̃ is written depends on a band (issue 28, fifteenth round): with tr P > T/4, near the bound, where
@@ -113,9 +129,9 @@ pub enum Form {
 
 /// The RLS state: θ̂, P and ρ for at most `N` parameters (n ≤ N in use), with no heap.
 ///
-/// Size: `size_of::<Rls<F, N>>()` = (N + N² + 4) · `size_of::<F>()` + `size_of::<usize>()` + 1 rounded
-/// to the alignment, e.g. 496 bytes for `Rls<f64, 7>` on a 64-bit host (488 on a 32-bit target) and 248
-/// bytes for `Rls<f32, 7>` on a 32-bit target (256 on a 64-bit host); see the test `state_sizes`.
+/// Size: `size_of::<Rls<F, N>>()` = (N + N² + 6) · `size_of::<F>()` + `size_of::<usize>()` + 1 rounded
+/// to the alignment, e.g. 512 bytes for `Rls<f64, 7>` on a 64-bit host (504 on a 32-bit target) and 256
+/// bytes for `Rls<f32, 7>` on a 32-bit target (264 on a 64-bit host); see the test `state_sizes`.
 ///
 /// ```
 /// use ipa_embedded::Rls;
@@ -141,6 +157,14 @@ pub struct Rls<F: Float, const N: usize> {
     /// except after the windup guard acted, which leaves its scale c = T / tr P pending (module
     /// documentation, "Windup guard"). Unused (ρ) in the standard form.
     var: F,
+    /// UD form with the guard: t = tr (U D Uᵀ) of the factors (tr P = c t), kept by the rank-one formula
+    /// t(k) = (t(k−1) − bᵀb / α) / ρ̃ instead of summed from the factors at every update (module
+    /// documentation, "Windup guard"); summed exactly at construction, restart, [`Rls::with_max_trace`]
+    /// and whenever `tr_ref` says the drift may have grown.
+    tr: F,
+    /// UD form with the guard: R, the kept trace t as it would be without the downdates since the last
+    /// exact sum, grown by [`TRACE_DRIFT_GROWTH`] per update: t is summed exactly again when t < R/4.
+    tr_ref: F,
     /// n: parameters in use.
     n: usize,
     /// Standard: `p` is P. UD: row j of `p` holds U_0j..U_(j−1)j and d_j (at column j).
@@ -168,6 +192,8 @@ impl<F: Float, const N: usize> Rls<F, N> {
             max_trace: F::INFINITY,
             p0,
             var: forgetting,
+            tr: F::ZERO,
+            tr_ref: F::ZERO,
             n,
             form: Form::Standard,
         };
@@ -182,6 +208,7 @@ impl<F: Float, const N: usize> Rls<F, N> {
             return Err(Error::Setting);
         }
         self.max_trace = max_trace;
+        self.sum_trace();
         Ok(self)
     }
 
@@ -206,6 +233,14 @@ impl<F: Float, const N: usize> Rls<F, N> {
                 *v = if i == j && i < self.n { p0 } else { F::ZERO };
             }
         }
+        self.sum_trace();
+    }
+
+    /// The UD guard's kept trace t and its reference R, both set to tr (U D Uᵀ) summed exactly from the
+    /// factors (meaningless, and unused, in the standard form).
+    fn sum_trace(&mut self) {
+        self.tr = ud_trace(&self.p, self.n);
+        self.tr_ref = self.tr;
     }
 
     /// Restarts at θ̂ = the first n entries of `theta` and P = p0 · I (U = I, D = p0 I in the UD form),
@@ -509,6 +544,12 @@ fn symmetric_update<F: Float, const N: usize, const SCALE: bool>(
 /// steps (n(n − 1) flops fewer; measured slower at N = 4: docs/benchmarks.md, "Fifth round").
 const KEEP_GAINS_FROM: usize = 8;
 
+/// g, the growth per update of the UD guard's trace reference R (module documentation, "Windup guard"):
+/// R(k) = R(k−1) · (1/ρ̃) · g, and the kept trace t is summed exactly again when t < R/4, so after at most
+/// ln 4 / ln g = 45 updates, sooner when downdates remove much of the trace. 1 + 2⁻⁵, exact in binary;
+/// `sysid::rls_ud` uses the same constant.
+pub const TRACE_DRIFT_GROWTH: f64 = 1.03125;
+
 /// The largest capacity N for which the UD update in f32 ([`Float::SYSID_ORDER`] `false`) uses the
 /// shorter chains of dependent operations of the module documentation ("UD form": f_j as a pairwise sum,
 /// α_j from paired products, θ̂ += (b ε) (1/α), U_ij += (w_i (−f_j)) (1/α_(j−1))); written for N ≤ 4 (the
@@ -524,8 +565,8 @@ const SHORT_CHAINS_UP_TO: usize = 4;
 /// 1. reading only: f = Uᵀφ, v = D f, the prefix sums α_j = ρ + Σ_(i≤j) f_i v_i, the gain numerator
 ///    b = U v (accumulated column by column exactly as Bierman's loop builds it), the reciprocals 1/ρ̃ and
 ///    1/α_j (independent divisions: they pipeline), the new D and the new θ̂; every check is made here;
-/// 2. only when all passed: Bierman's column steps write U in place, then D and θ̂; with `GUARD`, tr P
-///    of the new factors is summed in the same pass. The partial gains w they need (w_i before column
+/// 2. only when all passed: Bierman's column steps write U in place, then D and θ̂; with `GUARD`, the
+///    kept trace (from b and 1/α, before this pass) is stored. The partial gains w they need (w_i before column
 ///    j = b_i after columns < j) are the values pass 1 accumulates in the same order: for N ≥ 8 pass 1
 ///    accumulates b in a sweep of its own after the divisions and computes there the new entries
 ///    U_ij + w_i λ_j into a local array (`u_next`, one row per column), which pass 2 copies, instead of
@@ -747,11 +788,31 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
     if !ok {
         return Err(Error::Numerical);
     }
+    // The guard's kept trace (module documentation, "Windup guard"): t(k) = (t(k−1) − bᵀb · (1/α))
+    // · (1/ρ̃), bᵀb as two partial sums (even i, odd i, as `ud_trace`), n multiply-adds off the chain of
+    // Bierman's update; its reference R(k) = (R(k−1) · (1/ρ̃)) · g. When t(k) < R(k)/4 (or t or R is
+    // not finite) t is summed exactly from the new factors after pass 2 (`exact`).
+    let (mut tr, mut tr_ref, mut exact) = (F::ZERO, F::ZERO, false);
+    if GUARD {
+        let (mut even, mut odd) = (-F::ZERO, -F::ZERO);
+        for (i, bi) in b.iter().take(m).enumerate() {
+            if i % 2 == 0 {
+                even += *bi * *bi;
+            } else {
+                odd += *bi * *bi;
+            }
+        }
+        let diff = est.tr - (even + odd) * inv_last;
+        tr = diff * inv_var;
+        tr_ref = est.tr_ref * inv_var * F::from_f64(TRACE_DRIFT_GROWTH);
+        // t < R/4, or t or R not finite (then t − R/4 is not: x · 0 = 0 exactly for finite x).
+        let quarter = tr_ref * F::from_f64(0.25);
+        exact = (tr < quarter) | ((tr - quarter) * F::ZERO != F::ZERO);
+    }
     // Pass 2: λ_j = −f_j · (1/α_(j−1)); U_ij ← U_ij + w_i λ_j with w_i = v_i + Σ_(i<k<j) U_ik v_k (old
     // U): computed by the gain sweep (`keep_w`, N ≥ 8: copied here) or with w summed again here
     // (w_i ← w_i + U_ij v_j, w_j = v_j).
     let mut w = [F::ZERO; N];
-    let mut tr = -F::ZERO;
     for_columns!(full, m, 'col, |j| {
         let (Some(row), Some(fj), Some(vj), Some(dn), Some(kept), Some((w_col, w_rest))) = (
             fac.get_mut(j),
@@ -776,15 +837,7 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
         let Some((u_col, rest)) = row.split_at_mut_checked(j) else {
             break 'col;
         };
-        // Σ_(i<j) U_ij² as two partial sums, even i and odd i (see `ud_trace`).
-        let (mut col_even, mut col_odd) = (-F::ZERO, -F::ZERO);
-        for (i, (((u, wi), wk), uo)) in u_col
-            .iter_mut()
-            .zip(w_col.iter_mut())
-            .zip(kept)
-            .zip(old)
-            .enumerate()
-        {
+        for (((u, wi), wk), uo) in u_col.iter_mut().zip(w_col.iter_mut()).zip(kept).zip(old) {
             // The first pass's copy where it made one (the same value).
             let uij = if split_row_loads { *uo } else { *u };
             // N ≥ 8: computed by the gain sweep. f32 N ≤ 4: w_i (−f_j) does not wait for the
@@ -800,23 +853,12 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
             if !keep_w {
                 *wi += uij * vj;
             }
-            if GUARD {
-                if i % 2 == 0 {
-                    col_even += un * un;
-                } else {
-                    col_odd += un * un;
-                }
-            }
         }
         if let Some(d) = rest.first_mut() {
             *d = dn;
         }
         if let Some(wj) = w_rest.first_mut() {
             *wj = vj;
-        }
-        if GUARD {
-            let col = (col_even + col_odd) + F::ONE * F::ONE;
-            tr += dn * col;
         }
     });
     for (t, tn) in theta.iter_mut().zip(theta_new) {
@@ -836,6 +878,12 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
     // here (volatile loads) instead of kept in registers through the update: fewer live values in the
     // kernel (with T live, the f64 n = 4 kernel spilled its trace sum to the stack: 32 ns instead of 20).
     if GUARD {
+        if exact {
+            tr = resum_trace(&est.p, m);
+            tr_ref = tr;
+        }
+        est.tr = tr;
+        est.tr_ref = tr_ref;
         // SAFETY: references to initialised fields of `est`.
         let (rho, bound) = unsafe {
             (
@@ -860,6 +908,13 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
         }
     }
     Ok(eps)
+}
+
+/// [`ud_trace`] for the guard's occasional exact sum (kept out of the kernel's straight-line code).
+#[cold]
+#[inline(never)]
+fn resum_trace<F: Float, const N: usize>(fac: &[[F; N]; N], n: usize) -> F {
+    ud_trace(fac, n)
 }
 
 /// tr P = Σ_j d_j Σ_(i≤j) U_ij² of UD factors stored by rows (row j: U_0j..U_(j−1)j, d_j), summed as
@@ -1402,5 +1457,80 @@ mod tests {
         assert_eq!(flops_per_update_ud(7, 7), 282);
         assert_eq!(flops_per_update_ud(9, 9), 362);
         assert_eq!(flops_per_update_ud(7, 19), 240);
+    }
+
+    // The UD guard's kept trace (t by the rank-one formula, summed exactly when t < R/4): through
+    // excitation, a quiet stretch (φ constant: P winds up, the guard acts at every update) and
+    // excitation again, 1e5 updates, n = 4 and 9, f32 and f64, ρ = 0.98 and 0.5 (each excited update
+    // then removes about half the trace, the case where the rank-one formula cancels), with T idle
+    // during excitation (p0 n) and T below the trace excitation settles at (acting then too). After every
+    // update tr P = c Σ_j d_j (1 + Σ_(i<j) U_ij²) summed in f64 from the factors stays ≤ T up to
+    // 400 ε of the type (the drift bound of the module documentation), and the kept t agrees with the
+    // same sum (c not applied) to 400 ε.
+    fn kept_trace_case<F: Float, const N: usize>(rho: f64, t_max: f64) -> (usize, usize) {
+        use rand::SeedableRng;
+        use rand_distr::{Distribution, StandardNormal};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(2028);
+        let mut est = Rls::<F, N>::new(N, F::from_f64(rho), F::from_f64(1000.0))
+            .unwrap()
+            .with_form(Form::Ud)
+            .with_max_trace(F::from_f64(t_max))
+            .unwrap();
+        let eps = if F::SYSID_ORDER {
+            f64::EPSILON
+        } else {
+            f64::from(f32::EPSILON)
+        };
+        let (mut exact_sums, mut updates) = (0, 0);
+        for k in 0..100_000 {
+            let quiet = (20_000..80_000).contains(&k);
+            let phi: [F; N] = core::array::from_fn(|i| {
+                let x: f64 = if quiet {
+                    1.0 + i as f64 * 0.1
+                } else {
+                    StandardNormal.sample(&mut rng)
+                };
+                F::from_f64(x)
+            });
+            let e: f64 = StandardNormal.sample(&mut rng);
+            let y: f64 = phi.iter().map(|v| v.to_f64()).sum::<f64>() + 0.01 * e;
+            est.update(&phi, F::from_f64(y)).unwrap();
+            updates += 1;
+            let mut sum = 0.0f64;
+            for j in 0..N {
+                let col: f64 = (0..j).map(|i| est.p[j][i].to_f64().powi(2)).sum();
+                sum += est.p[j][j].to_f64() * (1.0 + col);
+            }
+            let c = est.forgetting.to_f64() / est.var.to_f64();
+            assert!(
+                c * sum <= t_max * (1.0 + 400.0 * eps),
+                "N = {N} ρ = {rho} T = {t_max}, update {k}: tr P = {:e} > T",
+                c * sum
+            );
+            let kept = est.tr.to_f64();
+            assert!(
+                (kept - sum).abs() <= 400.0 * eps * sum,
+                "N = {N} ρ = {rho} T = {t_max}, update {k}: kept t {kept:e} vs Σ {sum:e}"
+            );
+            if est.tr == est.tr_ref {
+                exact_sums += 1;
+            }
+        }
+        (exact_sums, updates)
+    }
+
+    #[test]
+    fn kept_trace_keeps_the_guard_promise() {
+        for rho in [0.98, 0.5] {
+            for t_per_param in [1000.0, 0.005] {
+                let (a, n) = kept_trace_case::<f64, 4>(rho, 4.0 * t_per_param);
+                let (b, _) = kept_trace_case::<f32, 4>(rho, 4.0 * t_per_param);
+                let (c, _) = kept_trace_case::<f64, 9>(rho, 9.0 * t_per_param);
+                let (d, _) = kept_trace_case::<f32, 9>(rho, 9.0 * t_per_param);
+                std::println!(
+                    "ρ = {rho}, T = {t_per_param} n: exact sums per {n} updates f64/f32 n = 4 {a}/{b}, n = 9 {c}/{d}"
+                );
+            }
+        }
     }
 }

@@ -18,7 +18,12 @@
 //!   ρ̃ = ρ / c gives the gain and the factors of the update of c · U D Uᵀ, and D ← D · (1/ρ̃) both applies
 //!   c and divides by ρ. So the bound costs no pass over D; ρ̃ = tr P · (ρ / T) when it acts, ρ otherwise,
 //!   and it acts when tr P · (ρ / T) > ρ (tr P > T up to the rounding of ρ̃; `ipa_embedded`'s test).
-//!   tr P sums each column's Σ_(i<j) U_ij² over even and odd i apart (`ud_trace`): `ipa_embedded`'s order.
+//!   tr P of the new factors is not summed at every update but kept: t(k) = (t(k−1) − bᵀb · (1/α)) ·
+//!   (1/ρ̃) from Bierman's gain numerator b and α (bᵀb over even and odd i apart), with a reference
+//!   R(k) = R(k−1) · (1/ρ̃) · g, g = [`ipa_embedded::rls::TRACE_DRIFT_GROWTH`]; when t < R/4 (or t or R
+//!   is not finite) t is summed exactly (`ud_trace`: each column's Σ_(i<j) U_ij² over even and odd i apart)
+//!   and R = t; construction and restarts sum it exactly. The same operations and order as
+//!   `ipa_embedded` (whose module documentation bounds the drift: ≈ 400 ε relative).
 //!
 //! The same options exist in the standard (dense P) form, [`RlsForm::Standard`], for comparison.
 
@@ -27,6 +32,7 @@ use serde::{Deserialize, Serialize};
 
 use crate::rls::check_settings;
 use crate::windup::{directional_gamma, Windup, MIN_EXCITATION};
+use ipa_embedded::rls::TRACE_DRIFT_GROWTH;
 use sysid_core::{Setting, SysidError};
 
 /// Representation of the RLS covariance (`--rls-form`).
@@ -76,6 +82,13 @@ pub struct RobustRls {
     /// UD form with the trace bound: ρ̃ = ρ / c while the bound's scale c = T / tr P is pending
     /// (P = c · U D Uᵀ, module documentation); `None`: c = 1.
     pending_var: Option<f64>,
+    /// UD form with the trace bound: t = tr (U D Uᵀ) of the factors (tr P = c t), kept by the rank-one
+    /// formula t(k) = (t(k−1) − bᵀb / α) / ρ̃ and summed exactly again when t < R/4 (module
+    /// documentation).
+    kept_trace: f64,
+    /// R: t as it would be without the downdates since the last exact sum, grown by
+    /// [`TRACE_DRIFT_GROWTH`] per update.
+    trace_ref: f64,
     cov: Covariance,
     work: DVector<f64>,
     work2: DVector<f64>,
@@ -108,16 +121,20 @@ impl RobustRls {
                 d: DVector::from_element(n, p0),
             },
         };
-        Ok(RobustRls {
+        let mut est = RobustRls {
             theta: DVector::zeros(n),
             forgetting,
             windup,
             max_trace,
             pending_var: None,
+            kept_trace: 0.0,
+            trace_ref: 0.0,
             cov,
             work: DVector::zeros(n),
             work2: DVector::zeros(n),
-        })
+        };
+        est.sum_trace();
+        Ok(est)
     }
 
     /// The covariance form.
@@ -141,6 +158,15 @@ impl RobustRls {
                 u.fill_diagonal(1.0);
                 d.fill(p0);
             }
+        }
+        self.sum_trace();
+    }
+
+    /// The kept trace t and its reference R (UD form), both tr (U D Uᵀ) summed exactly.
+    fn sum_trace(&mut self) {
+        if let Covariance::Ud { u, d } = &self.cov {
+            self.kept_trace = ud_trace(u, d);
+            self.trace_ref = self.kept_trace;
         }
     }
 
@@ -182,16 +208,21 @@ impl RobustRls {
                 "RLS met a non-finite value at sample {sample} (error ε = {eps:e})"
             )));
         }
+        let var = self.pending_var.unwrap_or(self.forgetting);
         let step = Step {
             phi,
             eps,
             rho: self.forgetting,
-            var: self.pending_var.unwrap_or(self.forgetting),
+            var,
             windup: self.windup,
             sample,
         };
-        match &mut self.cov {
-            Covariance::Dense(p) => update_standard(p, &mut self.theta, &mut self.work, &step)?,
+        // 1/α of the UD update (unused in the dense form).
+        let inv_alpha = match &mut self.cov {
+            Covariance::Dense(p) => {
+                update_standard(p, &mut self.theta, &mut self.work, &step)?;
+                0.0
+            }
             Covariance::Ud { u, d } => {
                 let mut f = Factors {
                     u,
@@ -201,7 +232,7 @@ impl RobustRls {
                 };
                 update_ud(&mut f, &mut self.theta, &step)?
             }
-        }
+        };
         if self.windup == Windup::Trace {
             match &mut self.cov {
                 Covariance::Dense(p) => {
@@ -211,11 +242,32 @@ impl RobustRls {
                     }
                 }
                 Covariance::Ud { u, d } => {
-                    // The update consumed the pending scale: the new factors are P itself. When
-                    // tr P > T, c = T / tr P is left pending as ρ̃ = ρ / c = tr P · (ρ / T); the test
-                    // is ρ̃ > ρ, i.e. tr P > T up to the rounding of ρ̃ (`ipa_embedded`'s order: its
-                    // update writes ρ̃ as max(tr P · (ρ / T), ρ), with no branch).
-                    let var = ud_trace(u, d) * (self.forgetting / self.max_trace);
+                    // The update consumed the pending scale: the new factors are P itself, whose
+                    // trace is kept by the rank-one formula (b = work, the gain numerator), summed
+                    // exactly when t < R/4 (`ipa_embedded`'s operations and order).
+                    let (mut even, mut odd) = (-0.0, -0.0);
+                    for (i, bi) in self.work.iter().enumerate() {
+                        if i % 2 == 0 {
+                            even += bi * bi;
+                        } else {
+                            odd += bi * bi;
+                        }
+                    }
+                    let inv_var = 1.0 / var;
+                    let diff = self.kept_trace - (even + odd) * inv_alpha;
+                    let mut tr = diff * inv_var;
+                    let mut tr_ref = self.trace_ref * inv_var * TRACE_DRIFT_GROWTH;
+                    let quarter = tr_ref * 0.25;
+                    if tr < quarter || !(tr - quarter).is_finite() {
+                        tr = ud_trace(u, d);
+                        tr_ref = tr;
+                    }
+                    self.kept_trace = tr;
+                    self.trace_ref = tr_ref;
+                    // When tr P > T, c = T / tr P is left pending as ρ̃ = ρ / c = tr P · (ρ / T); the
+                    // test is ρ̃ > ρ, i.e. tr P > T up to the rounding of ρ̃ (`ipa_embedded`'s order:
+                    // its update writes ρ̃ as max(tr P · (ρ / T), ρ), with no branch).
+                    let var = tr * (self.forgetting / self.max_trace);
                     self.pending_var = (var > self.forgetting).then_some(var);
                 }
             }
@@ -389,12 +441,13 @@ fn agee_turner(u: &mut DMatrix<f64>, d: &mut DVector<f64>, mut c: f64, a: &mut D
     }
 }
 
-/// The UD update of (U, D) and θ̂ (module documentation).
+/// The UD update of (U, D) and θ̂ (module documentation); returns 1/α, f.work holding the gain
+/// numerator b.
 fn update_ud(
     f: &mut Factors<'_>,
     theta: &mut DVector<f64>,
     st: &Step<'_>,
-) -> Result<(), SysidError> {
+) -> Result<f64, SysidError> {
     let (phi, rho, sample) = (st.phi, st.rho, st.sample);
     let n = theta.len();
     let (alpha, inv_alpha) = if st.windup == Windup::Directional {
@@ -432,7 +485,7 @@ fn update_ud(
     for i in 0..n {
         theta[i] += f.work[i] * inv_alpha * st.eps;
     }
-    Ok(())
+    Ok(inv_alpha)
 }
 
 impl crate::rls::RecursiveUpdate for RobustRls {

@@ -697,6 +697,14 @@ impl OperatingPointCheck {
         })
     }
 
+    /// Whether the check may apply to a model identified with `settings` and `detrend`, as known before
+    /// the fit: never with a constant term (`--offset`) or an operating point (`--detrend`), where
+    /// [`OperatingPointCheck::of`] returns `None` whatever the fit. A record read in passes keeps its
+    /// first rows for the check only when it may apply ([`stream::identify_report`]).
+    pub fn may_apply(settings: &Identification, detrend: sysid::detrend::Detrend) -> bool {
+        !settings.structure.offset && detrend == sysid::detrend::Detrend::None
+    }
+
     /// The estimation rows of an estimation record of `n` samples when there is no validation record
     /// (the rest ranks).
     pub fn estimation_rows(n: usize) -> Option<usize> {

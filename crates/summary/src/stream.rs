@@ -23,9 +23,10 @@ pub fn identify_report(
     max_lag: usize,
 ) -> Result<Streamed<(Fitted, IdentifyReport)>, SysidError> {
     // The first rows of each record, kept from the identification's first pass for the operating-point
-    // check below (no pass of its own).
-    let mut est = HeadKept::new(est);
-    let mut val = val.map(HeadKept::new);
+    // check below (no pass of its own), when the check may apply (not with --offset or --detrend).
+    let keep = OperatingPointCheck::may_apply(settings, detrend);
+    let mut est = HeadKept::new(est, keep);
+    let mut val = val.map(|v| HeadKept::new(v, keep));
     let Streamed {
         result:
             StreamedFit {
@@ -69,7 +70,7 @@ pub fn identify_report(
     // on the same rows: the first OPERATING_POINT_MAX_ROWS of each record (kept by the first pass,
     // bounded memory), checked by the in-memory code.
     let longest = shape.rows.max(val_shape.map_or(0, |s| s.rows));
-    if OperatingPointCheck::of(&fit, settings, &report.metrics, longest).is_some() {
+    if keep && OperatingPointCheck::of(&fit, settings, &report.metrics, longest).is_some() {
         let est_head = est.head()?;
         let val_head = val.map(|v| v.head()).transpose()?;
         let hint = crate::measured_operating_point_hint_of(
@@ -111,16 +112,23 @@ pub fn validation_report(
 }
 
 /// A record read in passes that keeps its first [`OPERATING_POINT_MAX_ROWS`] samples (u and y, in
-/// memory) as its first complete pass reads them, for the operating-point check.
+/// memory) as its first complete pass reads them, for the operating-point check; or nothing, passing
+/// every pass through, when told not to keep them.
 struct HeadKept<'a> {
     inner: &'a mut dyn RecordSource,
+    /// Whether the first samples are kept.
+    keep: bool,
     /// The first samples and Ts, once a pass has completed.
     kept: Option<(Vec<f64>, Vec<f64>, f64)>,
 }
 
 impl<'a> HeadKept<'a> {
-    fn new(inner: &'a mut dyn RecordSource) -> Self {
-        HeadKept { inner, kept: None }
+    fn new(inner: &'a mut dyn RecordSource, keep: bool) -> Self {
+        HeadKept {
+            inner,
+            keep,
+            kept: None,
+        }
     }
 
     /// The kept samples as a record (an error if no pass completed: not reached after a successful
@@ -140,7 +148,7 @@ impl RecordSource for HeadKept<'_> {
     }
 
     fn pass(&mut self, consume: &mut ChunkFn<'_>) -> Result<Shape, SysidError> {
-        if self.kept.is_some() {
+        if !self.keep || self.kept.is_some() {
             return self.inner.pass(consume);
         }
         let (mut u, mut y) = (Vec::new(), Vec::new());
@@ -152,5 +160,48 @@ impl RecordSource for HeadKept<'_> {
         })?;
         self.kept = Some((u, y, shape.ts));
         Ok(shape)
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+    use sysid::data::stream::DatasetSource;
+    use sysid::data::Signals;
+
+    // The first OPERATING_POINT_MAX_ROWS samples are kept by the first pass (chunks that straddle the
+    // bound are cut), every chunk still reaches the consumer; told not to keep them, nothing is kept and
+    // the passes are the record's own.
+    #[test]
+    fn the_head_is_kept_only_when_asked() {
+        let n = OPERATING_POINT_MAX_ROWS + 12_345;
+        let u: Vec<f64> = (0..n).map(|k| k as f64).collect();
+        let y: Vec<f64> = (0..n).map(|k| -(k as f64)).collect();
+        let data = Dataset::new(Signals { u, y }, 0.01, "r").unwrap();
+        for keep in [true, false] {
+            let mut src = DatasetSource::new(&data, 7_000);
+            let mut kept = HeadKept::new(&mut src, keep);
+            for _ in 0..2 {
+                let mut seen = 0;
+                let shape = kept
+                    .pass(&mut |k, uc, _| {
+                        assert_eq!(k, seen);
+                        seen += uc.len();
+                        Ok(())
+                    })
+                    .unwrap();
+                assert_eq!((seen, shape.rows), (n, n));
+            }
+            match (keep, kept.kept.as_ref()) {
+                (true, Some((u, y, ts))) => {
+                    assert_eq!(u.len(), OPERATING_POINT_MAX_ROWS);
+                    assert_eq!(y.len(), OPERATING_POINT_MAX_ROWS);
+                    assert_eq!((u[99_999], y[99_999], *ts), (99_999.0, -99_999.0, 0.01));
+                }
+                (false, None) => {}
+                (keep, k) => panic!("keep {keep}: kept {:?}", k.map(|k| k.0.len())),
+            }
+        }
     }
 }

@@ -104,26 +104,44 @@ pub struct TrackSummary {
     pub warnings: Vec<String>,
 }
 
+/// The most time jumps listed one by one in the warnings (the rest are counted).
+const MAX_JUMPS_LISTED: usize = 10;
+
 /// The columns of u, y and (when there is one) t.
 type Columns = (usize, usize, Option<usize>);
 
 /// Reads one line of `input` into `buf` (cleared first; the line end stays), at most `max` bytes;
-/// `Ok(false)` at the end of the input. A longer line is an error of kind `InvalidData`, raised once
-/// `max` bytes have come without a line end (nothing more is buffered).
+/// `Ok(None)` at the end of the input, else `Ok(Some(dropped))`. A longer line is an error of kind
+/// `InvalidData`, raised once `max` bytes have come without a line end (nothing more is buffered).
+/// `restarts`: those of a followed file ([`sysid_io::Restarts`]); when the file is read again from its
+/// beginning while a line is unfinished (its last line was cut by a copy-truncate rotation), the
+/// unfinished bytes are dropped rather than joined to the new content's first line, and `dropped` is
+/// their number (0 when nothing was dropped).
 fn read_line_bounded<R: BufRead>(
     input: &mut R,
     buf: &mut Vec<u8>,
     max: usize,
-) -> std::io::Result<bool> {
+    restarts: Option<&sysid_io::Restarts>,
+) -> std::io::Result<Option<usize>> {
     buf.clear();
+    let mut dropped = 0;
+    let mut seen = restarts.map(sysid_io::Restarts::count);
     loop {
         let available = match input.fill_buf() {
             Ok(a) => a,
             Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
             Err(e) => return Err(e),
         };
+        // A restart happens inside `fill_buf` (the followed file's reader), whose bytes are then the new
+        // content's: what `buf` holds is the old content's unfinished last line.
+        let now = restarts.map(sysid_io::Restarts::count);
+        if now != seen {
+            seen = now;
+            dropped += buf.len();
+            buf.clear();
+        }
         if available.is_empty() {
-            return Ok(!buf.is_empty());
+            return Ok((!buf.is_empty() || dropped > 0).then_some(dropped));
         }
         let (take, done) = match available.iter().position(|&b| b == b'\n') {
             Some(i) => (i + 1, true),
@@ -138,7 +156,7 @@ fn read_line_bounded<R: BufRead>(
         buf.extend_from_slice(&available[..take]);
         input.consume(take);
         if done {
-            return Ok(true);
+            return Ok(Some(dropped));
         }
     }
 }
@@ -196,9 +214,24 @@ pub fn track_stream<R: BufRead, W: Write>(
         if sysid_io::stop_asked() {
             break;
         }
-        match read_line_bounded(&mut input, &mut buf, MAX_LINE_BYTES) {
-            Ok(true) => {}
-            Ok(false) => break,
+        match read_line_bounded(
+            &mut input,
+            &mut buf,
+            MAX_LINE_BYTES,
+            options.restarts.as_deref(),
+        ) {
+            Ok(Some(0)) => {}
+            Ok(Some(dropped)) => {
+                // The followed file's last line was unfinished when it was truncated (audit s23 L-B5).
+                let w = format!(
+                    "{}: the followed file's last line was unfinished ({dropped} bytes without a line end) \
+                     when it was read again from its beginning; that partial line was dropped, not joined \
+                     to the new content's first line",
+                    options.name
+                );
+                new_time_warnings.push(w);
+            }
+            Ok(None) => break,
             Err(e) if e.kind() == std::io::ErrorKind::InvalidData => {
                 return Err(SysidError::Parse {
                     file: options.name.clone(),
@@ -287,7 +320,7 @@ pub fn track_stream<R: BufRead, W: Write>(
                 Some(step) => {
                     if let Some(w) = check_time_step(prev, t, step, line_no, tc, &options.name)? {
                         time_jumps += 1;
-                        if time_jumps <= 10 {
+                        if time_jumps <= MAX_JUMPS_LISTED {
                             new_time_warnings.push(w);
                         }
                     }
@@ -304,8 +337,9 @@ pub fn track_stream<R: BufRead, W: Write>(
                 if header { " (after its header line)" } else { "" },
                 Shortest(t)
             );
-            new_time_warnings.push(w.clone());
-            time_warnings.push(w);
+            // Said once: in the next JSON line and in the summary (it was put in both lists, so the
+            // summary said it twice).
+            new_time_warnings.push(w);
         }
         t_last = Some(t);
         let step = tracker.push(u, y).map_err(|e| match e {
@@ -349,11 +383,11 @@ pub fn track_stream<R: BufRead, W: Write>(
     }
     let mut summary = summary(tracker, ts, t_last, change_points)?;
     time_warnings.append(&mut new_time_warnings);
-    if time_jumps > time_warnings.len() {
+    // The jumps listed are the first MAX_JUMPS_LISTED (the other time warnings — a restart, a partial
+    // line, the milliseconds hint — are not jumps).
+    if time_jumps > MAX_JUMPS_LISTED {
         time_warnings.push(format!(
-            "{} time jumps in all (the first {} are listed)",
-            time_jumps,
-            time_warnings.len()
+            "{time_jumps} time jumps in all (the first {MAX_JUMPS_LISTED} are listed)"
         ));
     }
     summary.warnings.extend(time_warnings);
@@ -470,14 +504,116 @@ mod tests {
     fn a_line_is_read_up_to_its_bound() {
         let mut buf = Vec::new();
         let mut ok: &[u8] = b"abcd\nrest";
-        assert!(read_line_bounded(&mut ok, &mut buf, 4).unwrap());
+        assert_eq!(
+            read_line_bounded(&mut ok, &mut buf, 4, None).unwrap(),
+            Some(0)
+        );
         assert_eq!(buf, b"abcd\n");
-        assert!(read_line_bounded(&mut ok, &mut buf, 4).unwrap());
+        assert_eq!(
+            read_line_bounded(&mut ok, &mut buf, 4, None).unwrap(),
+            Some(0)
+        );
         assert_eq!(buf, b"rest");
-        assert!(!read_line_bounded(&mut ok, &mut buf, 4).unwrap());
+        assert_eq!(read_line_bounded(&mut ok, &mut buf, 4, None).unwrap(), None);
         let mut long = std::io::BufReader::with_capacity(2, std::io::repeat(b'x'));
-        let e = read_line_bounded(&mut long, &mut buf, 4).unwrap_err();
+        let e = read_line_bounded(&mut long, &mut buf, 4, None).unwrap_err();
         assert_eq!(e.kind(), std::io::ErrorKind::InvalidData);
         assert!(buf.len() <= 5, "{}", buf.len());
+    }
+
+    /// A reader that runs `hook` with its call number before each read of `inner`.
+    struct Hooked<R, F> {
+        inner: R,
+        calls: usize,
+        hook: F,
+    }
+
+    impl<R: std::io::Read, F: FnMut(usize)> std::io::Read for Hooked<R, F> {
+        fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+            self.calls += 1;
+            (self.hook)(self.calls);
+            self.inner.read(buf)
+        }
+    }
+
+    // Audit s23 L-B5, deterministically (no thread, no sleep deciding the outcome): a followed file whose
+    // last line is unfinished ("0.5,0.") is truncated and written again (a copy-truncate rotation, the
+    // new content shorter than what was read, so the reader finds the end of the file first and then the
+    // truncation) between two reads of the same thread. The partial line is dropped, not joined to the
+    // new content's first line (which would read 0.5,0.0,1,2 — a ragged row — or, header skipped, a
+    // wrong sample); it is said once, and the restart's warning is said once in the summary (it was put
+    // there twice). Every sample of both contents is tracked: 50 + 20.
+    #[test]
+    fn a_partial_line_cut_by_a_rotation_is_dropped_and_said_once() {
+        let rows = |n: usize, t0: usize| -> String {
+            (0..n)
+                .map(|k| {
+                    format!(
+                        "{},{},{}\n",
+                        (t0 + k) as f64 * 0.01,
+                        (k % 3) as f64 - 1.0,
+                        k % 5
+                    )
+                })
+                .collect()
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("live.csv");
+        let first = format!("t,u,y\n{}0.5,0.", rows(50, 0));
+        let second = format!("t,u,y\n{}", rows(20, 0));
+        assert!(second.len() < first.len());
+        std::fs::write(&path, &first).unwrap();
+        let follow = sysid_io::Follow::file(
+            &path,
+            Some(std::time::Duration::from_secs(2)),
+            std::time::Duration::from_millis(5),
+        )
+        .unwrap();
+        let restarts = follow.restarts();
+        let p = path.clone();
+        let rotate = move |call: usize| {
+            if call == 2 {
+                let f = std::fs::OpenOptions::new().write(true).open(&p).unwrap();
+                f.set_len(0).unwrap();
+                drop(f);
+                std::fs::write(&p, &second).unwrap();
+            }
+        };
+        let input = std::io::BufReader::new(Hooked {
+            inner: follow,
+            calls: 0,
+            hook: rotate,
+        });
+        let mut tracker = Tracker::new(sysid::online::TrackSettings {
+            kind: sysid::ModelKind::Arx,
+            ..Default::default()
+        })
+        .unwrap();
+        let options = StreamOptions {
+            name: "live.csv".into(),
+            csv: CsvOptions::default(),
+            every: 10,
+            restarts: Some(restarts),
+        };
+        let mut out = Vec::new();
+        let summary = track_stream(input, &mut out, &mut tracker, &options).unwrap();
+        assert_eq!(summary.samples, 70, "{:?}", summary.warnings);
+        let count = |what: &str| summary.warnings.iter().filter(|w| w.contains(what)).count();
+        assert_eq!(
+            count("read again from its beginning (restart 1"),
+            1,
+            "{:?}",
+            summary.warnings
+        );
+        assert_eq!(
+            count("last line was unfinished (6 bytes without a line end)"),
+            1,
+            "{:?}",
+            summary.warnings
+        );
+        assert_eq!(
+            count("from line 2 of the new content (after its header line) on"),
+            1
+        );
     }
 }

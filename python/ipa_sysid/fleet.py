@@ -20,7 +20,6 @@ Needs the extra: ``pip install ipa-sysid[fleet]`` (pandas, pyarrow, dask[datafra
 See docs/fleet.md in the repository (one machine, a Dask cluster, Spark).
 """
 
-import glob
 import html
 import math
 import numbers
@@ -397,11 +396,72 @@ def _typed(df):
 
 
 def _parquet_files(input_dir):
-    files = sorted(glob.glob(os.path.join(os.fspath(input_dir), "**", "*.parquet"), recursive=True))
-    files = [f for f in files if not os.path.basename(f).startswith((".", "_"))]
+    """The ``*.parquet`` files under ``input_dir`` (sorted; names starting with ``.`` or ``_`` left out,
+    as Spark's ``_SUCCESS`` and Dask's ``_metadata``), found by a walk that does not descend into linked
+    folders (audit s26 M-1: a glob ``**`` followed a link loop ~40 times and a link to ``..`` pulled in
+    1 644 files from outside the folder). A file link leading outside ``input_dir`` is not read, and a
+    file reached twice (two links to one file) is read once; both are said by an ``IpaSysidWarning``.
+    The command line's folder mode reads no linked folder either."""
+    top = os.fspath(input_dir)
+    if not os.path.exists(top):
+        raise FileNotFoundError(f"{top}: no such folder (expected a folder of long-format Parquet records)")
+    if os.path.isfile(top):
+        if top.endswith(".parquet"):
+            raise ValueError(
+                f"{top}: a file; run reads a folder of Parquet files: pass the folder that holds it "
+                f"({os.path.dirname(top) or '.'}), or identify the one file with "
+                "identify_partition(pandas.read_parquet(FILE))"
+            )
+        raise ValueError(f"{top}: a file, not a folder of long-format Parquet records")
+    root = os.path.realpath(top)
+    files, seen, links, outside, twice, other = [], set(), [], [], [], []
+    for d, dirs, names in os.walk(top, followlinks=False):
+        dirs.sort()
+        links += [os.path.join(d, x) for x in dirs if os.path.islink(os.path.join(d, x))]
+        dirs[:] = [x for x in dirs if not x.startswith((".", "_"))]  # hidden, Spark's _temporary
+        # The files themselves before links to them: a file reached twice is read by its own name.
+        for x in sorted(names, key=lambda x: (os.path.islink(os.path.join(d, x)), x)):
+            f = os.path.join(d, x)
+            if x.startswith((".", "_")):
+                continue
+            if not x.endswith(".parquet"):
+                if x.endswith((".csv", ".csv.gz")):
+                    other.append(f)
+                continue
+            if os.path.isdir(f):  # a linked folder named *.parquet: not descended into
+                continue
+            real = os.path.realpath(f)
+            if os.path.commonpath([root, real]) != root:
+                outside.append(f)
+            elif real in seen:
+                twice.append(f)
+            else:
+                seen.add(real)
+                files.append(f)
     if not files:
-        raise ValueError(f"{input_dir}: no *.parquet files (expected a folder of long-format records)")
-    return files
+        if other:
+            raise ValueError(
+                f"{top}: no *.parquet files, but {len(other)} CSV file(s) ({os.path.basename(other[0])}"
+                f"{', ...' if len(other) > 1 else ''}): run reads Parquet only; convert the folder once, "
+                "e.g. dask.dataframe.read_csv(FOLDER + '/*.csv').to_parquet(NEW_FOLDER) (each actuator "
+                "whole in one file), or identify each CSV with identify_partition(pandas.read_csv(FILE))"
+            )
+        raise ValueError(f"{top}: no *.parquet files (expected a folder of long-format records)")
+    if links:
+        _warn(
+            f"{len(links)} linked folder(s) under {top} not descended into (run reads the folder's own "
+            f"files, as the command line's folder mode): {_ids(links, 5)}"
+        )
+    if outside:
+        _warn(
+            f"{len(outside)} file link(s) under {top} lead outside it and are not read: {_ids(outside, 5)}"
+        )
+    if twice:
+        _warn(
+            f"{len(twice)} file(s) under {top} are links to a file already read, and are read once: "
+            f"{_ids(twice, 5)}"
+        )
+    return sorted(files)
 
 
 def run(input_dir, output_dir, client=None, force=False, **settings):
@@ -482,6 +542,15 @@ def _check_schemas(files):
         except Exception as e:  # pyarrow raises several types for a damaged file
             raise ValueError(f"{f}: not a readable Parquet file ({e})") from e
         missing = [c for c in INPUT_COLUMNS if c not in schema.names]
+        parent = os.path.basename(os.path.dirname(f))
+        if missing == ["actuator_id"] and parent.startswith("actuator_id="):
+            raise ValueError(
+                f"{f}: no column actuator_id: the id is in the folder name {parent} (a hive-partitioned "
+                "data set, partition_cols=['actuator_id'] or Spark's partitionBy), which run does not "
+                "read; write the data set once with the column in the files, e.g. dask.dataframe."
+                "read_parquet(input_dir) (which restores the column from the folder names)"
+                ".to_parquet(new_dir), then run on new_dir"
+            )
         if missing:
             raise ValueError(
                 f"{f}: no column(s) {', '.join(missing)} (a long-format record has "

@@ -18,7 +18,7 @@ from ipa_sysid import fleet  # noqa: E402
 
 from test_ipa_sysid import cli  # noqa: E402
 
-ACTUATORS, WINDOWS, PER_FILE = 4, 4, 2
+ACTUATORS, WINDOWS, PER_FILE = 8, 4, 4
 
 
 @pytest.fixture(scope="module")
@@ -80,3 +80,57 @@ def test_run_says_what_the_input_is_when_it_is_not_a_parquet_folder(fleet_dir, t
     pd.read_parquet(src).to_parquet(hive, partition_cols=["actuator_id"], index=False)
     with pytest.raises(ValueError, match=r"the id is in the folder name actuator_id=\d+ \(a hive"):
         fleet.run(hive, tmp_path / "o4")
+
+
+def test_the_summary_names_each_actuator_s_doubts_and_the_counts_add_up(fleet_dir, tmp_path):
+    # Audit s26 M-2: an actuator logging t in ms had a width trend 1000x too small beside the others',
+    # unmarked; y in metres, a failed window, an untested and an unidentified actuator were named
+    # nowhere in trends / worn / report.
+    part = pd.concat([pd.read_parquet(f) for f in sorted(fleet_dir.glob("*.parquet"))], ignore_index=True)
+    ids = sorted(part["actuator_id"].unique())
+    ms, metres, nan_y, short, gap = ids[:5]
+    rows = {a: part["actuator_id"] == a for a in ids}
+    part.loc[rows[ms], "t"] *= 1000.0  # a logger writing milliseconds
+    part.loc[rows[metres], "y"] /= 1000.0  # y in other units
+    k = part.index[rows[nan_y]][2 * 2000 + 5]  # a NaN y in window 2 of nan_y
+    part.loc[k, "y"] = np.nan
+    part = part.drop(part.index[rows[short]][2 * 2000:])  # 2 windows: not tested
+    g = part.index[part["actuator_id"] == gap][3000]
+    part.loc[part["actuator_id"] == gap, "t"] += np.where(part.index[part["actuator_id"] == gap] >= g, 5.0, 0.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ipa_sysid.IpaSysidWarning)
+        r = fleet.identify_partition(part)
+    with pytest.warns(ipa_sysid.IpaSysidWarning) as said:
+        tr = fleet.trends(r)
+    assert len([w for w in said if w.category is ipa_sysid.IpaSysidWarning]) == 1  # one per call
+    assert sorted(tr["actuator_id"]) == ids  # every actuator has a row, the unidentified one too
+    note = dict(zip(tr["actuator_id"], tr["notes"]))
+    assert "step 10 s where ts = 0.01 s (1000x, t in ms?)" in note[ms]
+    assert "mean slope" in note[metres] and "other units" in note[metres]
+    assert note[nan_y].startswith(f"1 of {WINDOWS} window(s) not identified (first: window 2, t ")
+    assert "NaN" in note[nan_y] or "finite" in note[nan_y]
+    assert note[short] == "not tested: 2 identified window(s), fewer than 3"
+    assert note[gap].startswith("not identified")
+    for a in ids[5:]:
+        assert note[a] == "", (a, note[a])
+    failed = dict(zip(tr["actuator_id"], tr["failed_windows"]))
+    assert failed[nan_y] == 1 and failed[gap] == 1 and failed[ids[5]] == 0
+    # worn() keeps the notes; the summary's counts add up to the actuators.
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ipa_sysid.IpaSysidWarning)
+        assert "notes" in fleet.worn(r).columns
+        text = fleet.summary(r)
+    assert text.startswith(
+        f"{ACTUATORS} actuators: {ACTUATORS - 2} tested for wear ("
+    ), text
+    assert f"1 identified but not tested (id {short}: not tested: 2 identified window(s)" in text
+    assert f"1 not identified (id {gap}: not identified" in text
+    assert "3 tested actuator(s) with a doubt on their figures" in text
+    assert f"id {ms}: time column step 10 s" in text
+    with pytest.warns(ipa_sysid.IpaSysidWarning) as said:
+        fleet.report(r, tmp_path / "worn.html")
+    assert len([w for w in said if w.category is ipa_sysid.IpaSysidWarning]) == 1  # the report made the trend table once (audit s26 M-2 aside)
+    page = (tmp_path / "worn.html").read_text()
+    assert f"{ACTUATORS} actuators: {ACTUATORS - 2} tested" in page
+    assert "not tested, not identified, or with a doubt" in page and "t in ms?" in page
+    assert f"of {ACTUATORS} actuators tested" in page

@@ -280,8 +280,19 @@ def identify_partition(
         [t[s + c[0]] if c else np.nan for s, c in zip(start, r["change_points"])],
         dtype=np.float64,
     )
-    out["error"] = r["error"]
+    out["error"] = [
+        _window_error(e, ids[offsets[g]], j, t, s, window) if e else e
+        for e, g, j, s in zip(r["error"], group, out["window"], start)
+    ]
     frame = pd.DataFrame(out, columns=cols)
+    failed = [(a, j) for a, j, e in zip(frame["actuator_id"], frame["window"], frame["error"]) if e]
+    if failed:
+        first = next(e for e in frame["error"] if e)
+        _warn(
+            f"{len(failed)} window(s) of {len(set(a for a, _ in failed))} actuator(s) not identified: "
+            f"{_ids(dict.fromkeys(a for a, _ in failed))}; each is an error row, the other windows go on: "
+            f"first, {first}"
+        )
     if notes:
         said = frame["actuator_id"].map(notes).fillna("")
         frame["warnings"] = [
@@ -324,6 +335,23 @@ def identify_partition(
     if unnamed is not None:
         frame = _with_error_rows(frame, cols, [unnamed])
     return _typed(frame)
+
+
+def _window_error(error, aid, j, t, start, window):
+    """The core's error for window ``j`` of actuator ``aid`` (``group G window J: ...``, G the
+    actuator's position in the partition) in the partition's words: the actuator's id, the window's
+    time span, and a sample ``y(k)`` named by its time (audit s26 L-3: "group 2 window 3: y(1000) =
+    NaN" for actuator 7)."""
+    hit = re.match(r"group \d+ window \d+: (.*)", error, re.S)
+    body = hit.group(1) if hit else error
+
+    def at(m):
+        k = int(m.group(2))
+        when = f"t = {t[start + k]:g} s " if k < window else ""
+        return f"{m.group(1)} at {when}(sample {k} of the window) is {m.group(3)}, not a finite number"
+
+    body = re.sub(r"\b(\w+)\((\d+)\) = (\S+) is not a finite number", at, body)
+    return f"actuator {aid}, window {j} (t {t[start]:g}–{t[start + window - 1]:g} s): {body}"
 
 
 def _groups(df):

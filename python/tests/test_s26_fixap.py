@@ -108,7 +108,7 @@ def test_the_summary_names_each_actuator_s_doubts_and_the_counts_add_up(fleet_di
     assert "step 10 s where ts = 0.01 s (1000x, t in ms?)" in note[ms]
     assert "mean slope" in note[metres] and "other units" in note[metres]
     assert note[nan_y].startswith(f"1 of {WINDOWS} window(s) not identified (first: window 2, t ")
-    assert "NaN" in note[nan_y] or "finite" in note[nan_y]
+    assert f"actuator {nan_y}, window 2 (t " in note[nan_y] and "is NaN, not a finite number" in note[nan_y]
     assert note[short] == "not tested: 2 identified window(s), fewer than 3"
     assert note[gap].startswith("not identified")
     for a in ids[5:]:
@@ -134,3 +134,21 @@ def test_the_summary_names_each_actuator_s_doubts_and_the_counts_add_up(fleet_di
     assert f"{ACTUATORS} actuators: {ACTUATORS - 2} tested" in page
     assert "not tested, not identified, or with a doubt" in page and "t in ms?" in page
     assert f"of {ACTUATORS} actuators tested" in page
+
+
+def test_a_failed_window_names_the_actuator_and_its_time_and_warns(fleet_dir):
+    # Audit s26 L-3: "group 2 window 3: y(1000) = NaN" for actuator 7 (group = its position in the
+    # partition), no time, no IpaSysidWarning.
+    part = pd.read_parquet(sorted(fleet_dir.glob("*.parquet"))[1])
+    aid = sorted(part["actuator_id"].unique())[2]  # the partition's third actuator: group 2
+    rows = part.index[part["actuator_id"] == aid]
+    k = rows[3 * 2000 + 1000]
+    part.loc[k, "y"] = np.nan
+    t = part.loc[rows, "t"].to_numpy()
+    with pytest.warns(ipa_sysid.IpaSysidWarning, match=rf"1 window\(s\) of 1 actuator\(s\) not identified: {aid};"):
+        r = fleet.identify_partition(part)
+    err = r.loc[r["error"] != "", "error"].tolist()
+    assert err == [
+        f"actuator {aid}, window 3 (t {t[6000]:g}–{t[7999]:g} s): y at t = {t[7000]:g} s (sample 1000 of "
+        "the window) is NaN, not a finite number"
+    ]

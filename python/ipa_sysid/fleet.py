@@ -20,11 +20,11 @@ Needs the extra: ``pip install ipa-sysid[fleet]`` (pandas, pyarrow, dask[datafra
 See docs/fleet.md in the repository (one machine, a Dask cluster, Spark).
 """
 
-import glob
 import html
 import math
 import numbers
 import os
+import re
 import warnings
 
 import numpy as np
@@ -280,8 +280,19 @@ def identify_partition(
         [t[s + c[0]] if c else np.nan for s, c in zip(start, r["change_points"])],
         dtype=np.float64,
     )
-    out["error"] = r["error"]
+    out["error"] = [
+        _window_error(e, ids[offsets[g]], j, t, s, window) if e else e
+        for e, g, j, s in zip(r["error"], group, out["window"], start)
+    ]
     frame = pd.DataFrame(out, columns=cols)
+    failed = [(a, j) for a, j, e in zip(frame["actuator_id"], frame["window"], frame["error"]) if e]
+    if failed:
+        first = next(e for e in frame["error"] if e)
+        _warn(
+            f"{len(failed)} window(s) of {len(set(a for a, _ in failed))} actuator(s) not identified: "
+            f"{_ids(dict.fromkeys(a for a, _ in failed))}; each is an error row, the other windows go on: "
+            f"first, {first}"
+        )
     if notes:
         said = frame["actuator_id"].map(notes).fillna("")
         frame["warnings"] = [
@@ -324,6 +335,23 @@ def identify_partition(
     if unnamed is not None:
         frame = _with_error_rows(frame, cols, [unnamed])
     return _typed(frame)
+
+
+def _window_error(error, aid, j, t, start, window):
+    """The core's error for window ``j`` of actuator ``aid`` (``group G window J: ...``, G the
+    actuator's position in the partition) in the partition's words: the actuator's id, the window's
+    time span, and a sample ``y(k)`` named by its time (audit s26 L-3: "group 2 window 3: y(1000) =
+    NaN" for actuator 7)."""
+    hit = re.match(r"group \d+ window \d+: (.*)", error, re.S)
+    body = hit.group(1) if hit else error
+
+    def at(m):
+        k = int(m.group(2))
+        when = f"t = {t[start + k]:g} s " if k < window else ""
+        return f"{m.group(1)} at {when}(sample {k} of the window) is {m.group(3)}, not a finite number"
+
+    body = re.sub(r"\b(\w+)\((\d+)\) = (\S+) is not a finite number", at, body)
+    return f"actuator {aid}, window {j} (t {t[start]:g}–{t[start + window - 1]:g} s): {body}"
 
 
 def _groups(df):
@@ -397,11 +425,72 @@ def _typed(df):
 
 
 def _parquet_files(input_dir):
-    files = sorted(glob.glob(os.path.join(os.fspath(input_dir), "**", "*.parquet"), recursive=True))
-    files = [f for f in files if not os.path.basename(f).startswith((".", "_"))]
+    """The ``*.parquet`` files under ``input_dir`` (sorted; names starting with ``.`` or ``_`` left out,
+    as Spark's ``_SUCCESS`` and Dask's ``_metadata``), found by a walk that does not descend into linked
+    folders (audit s26 M-1: a glob ``**`` followed a link loop ~40 times and a link to ``..`` pulled in
+    1 644 files from outside the folder). A file link leading outside ``input_dir`` is not read, and a
+    file reached twice (two links to one file) is read once; both are said by an ``IpaSysidWarning``.
+    The command line's folder mode reads no linked folder either."""
+    top = os.fspath(input_dir)
+    if not os.path.exists(top):
+        raise FileNotFoundError(f"{top}: no such folder (expected a folder of long-format Parquet records)")
+    if os.path.isfile(top):
+        if top.endswith(".parquet"):
+            raise ValueError(
+                f"{top}: a file; run reads a folder of Parquet files: pass the folder that holds it "
+                f"({os.path.dirname(top) or '.'}), or identify the one file with "
+                "identify_partition(pandas.read_parquet(FILE))"
+            )
+        raise ValueError(f"{top}: a file, not a folder of long-format Parquet records")
+    root = os.path.realpath(top)
+    files, seen, links, outside, twice, other = [], set(), [], [], [], []
+    for d, dirs, names in os.walk(top, followlinks=False):
+        dirs.sort()
+        links += [os.path.join(d, x) for x in dirs if os.path.islink(os.path.join(d, x))]
+        dirs[:] = [x for x in dirs if not x.startswith((".", "_"))]  # hidden, Spark's _temporary
+        # The files themselves before links to them: a file reached twice is read by its own name.
+        for x in sorted(names, key=lambda x: (os.path.islink(os.path.join(d, x)), x)):
+            f = os.path.join(d, x)
+            if x.startswith((".", "_")):
+                continue
+            if not x.endswith(".parquet"):
+                if x.endswith((".csv", ".csv.gz")):
+                    other.append(f)
+                continue
+            if os.path.isdir(f):  # a linked folder named *.parquet: not descended into
+                continue
+            real = os.path.realpath(f)
+            if os.path.commonpath([root, real]) != root:
+                outside.append(f)
+            elif real in seen:
+                twice.append(f)
+            else:
+                seen.add(real)
+                files.append(f)
     if not files:
-        raise ValueError(f"{input_dir}: no *.parquet files (expected a folder of long-format records)")
-    return files
+        if other:
+            raise ValueError(
+                f"{top}: no *.parquet files, but {len(other)} CSV file(s) ({os.path.basename(other[0])}"
+                f"{', ...' if len(other) > 1 else ''}): run reads Parquet only; convert the folder once, "
+                "e.g. dask.dataframe.read_csv(FOLDER + '/*.csv').to_parquet(NEW_FOLDER) (each actuator "
+                "whole in one file), or identify each CSV with identify_partition(pandas.read_csv(FILE))"
+            )
+        raise ValueError(f"{top}: no *.parquet files (expected a folder of long-format records)")
+    if links:
+        _warn(
+            f"{len(links)} linked folder(s) under {top} not descended into (run reads the folder's own "
+            f"files, as the command line's folder mode): {_ids(links, 5)}"
+        )
+    if outside:
+        _warn(
+            f"{len(outside)} file link(s) under {top} lead outside it and are not read: {_ids(outside, 5)}"
+        )
+    if twice:
+        _warn(
+            f"{len(twice)} file(s) under {top} are links to a file already read, and are read once: "
+            f"{_ids(twice, 5)}"
+        )
+    return sorted(files)
 
 
 def run(input_dir, output_dir, client=None, force=False, **settings):
@@ -482,6 +571,15 @@ def _check_schemas(files):
         except Exception as e:  # pyarrow raises several types for a damaged file
             raise ValueError(f"{f}: not a readable Parquet file ({e})") from e
         missing = [c for c in INPUT_COLUMNS if c not in schema.names]
+        parent = os.path.basename(os.path.dirname(f))
+        if missing == ["actuator_id"] and parent.startswith("actuator_id="):
+            raise ValueError(
+                f"{f}: no column actuator_id: the id is in the folder name {parent} (a hive-partitioned "
+                "data set, partition_cols=['actuator_id'] or Spark's partitionBy), which run does not "
+                "read; write the data set once with the column in the files, e.g. dask.dataframe."
+                "read_parquet(input_dir) (which restores the column from the folder names)"
+                ".to_parquet(new_dir), then run on new_dir"
+            )
         if missing:
             raise ValueError(
                 f"{f}: no column(s) {', '.join(missing)} (a long-format record has "
@@ -593,9 +691,11 @@ def _trend(x, v):
     """Ordinary least squares slope of v on x, its standard error from the residual scatter (n - 2
     degrees of freedom) and t = slope / se."""
     n = len(x)
+    if n < 3:
+        return math.nan, math.nan, math.nan
     xm = x - x.mean()
     sxx = float(xm @ xm)
-    if n < 3 or sxx <= 0.0:
+    if sxx <= 0.0:
         return math.nan, math.nan, math.nan
     slope = float(xm @ (v - v.mean())) / sxx
     resid = v - v.mean() - slope * xm
@@ -623,9 +723,15 @@ def trends(results, alpha=ALPHA):
 
     Columns: ``actuator_id, windows, width_mean, width_trend_per_h, width_trend_sd, width_t,
     slope_mean, slope_trend_per_h, slope_trend_sd, slope_t, p_width, p_slope, p_value, tested,
-    threshold, worn``; sorted by p_value. ``tested`` is False (and ``worn`` ``<NA>``, pandas' nullable
-    boolean: no verdict) for an actuator with fewer than 3 identified windows, or windows without spread;
-    a warning (``IpaSysidWarning``) names them. Refused (``ValueError``): ``results`` with a duplicated
+    threshold, worn, failed_windows, notes``; sorted by p_value. Every actuator of ``results`` has a row,
+    one with no identified window too (``windows`` 0). ``tested`` is False (and ``worn`` ``<NA>``,
+    pandas' nullable boolean: no verdict) for an actuator with fewer than 3 identified windows, or
+    windows without spread; a warning (``IpaSysidWarning``) names them. ``failed_windows`` counts the
+    actuator's error rows; ``notes`` (empty when there is nothing to say) gives, joined by "; ", why an
+    actuator is not tested or not identified, its windows not identified (how many, the first's span
+    and error), a time column whose step contradicts ts (its t_start and trends per hour are then in the
+    column's units: 1000x for t in ms; audit s26 M-2), and a mean width or slope more than 100x off the
+    fleet's median (u or y in other units; at least 5 actuators). ``summary`` says the same in words. Refused (``ValueError``): ``results`` with a duplicated
     ``(actuator_id, window)`` row (as ``run`` refuses them: each copy would count as one more window of
     evidence), and ``alpha`` not a number in (0, 1).
     """
@@ -647,9 +753,11 @@ def trends(results, alpha=ALPHA):
             "piece numbered from window 0): identify each actuator's rows in one partition "
             "(docs/fleet.md)"
         )
-    ok = results[(results["error"].fillna("") == "")]
+    failed_mask = (results["error"].fillna("").astype(str) != "").to_numpy()
     rows = []
-    for aid, g in ok.groupby("actuator_id", sort=True):
+    for aid, g in results.assign(_failed=failed_mask).groupby("actuator_id", sort=True):
+        bad = g[g["_failed"]]
+        g = g[~g["_failed"]]
         x = g["t_start"].to_numpy(dtype=np.float64) / 3600.0
         w = g["deadzone_width"].to_numpy(dtype=np.float64)
         m = 0.5 * (g["m_l"].to_numpy(dtype=np.float64) + g["m_r"].to_numpy(dtype=np.float64))
@@ -666,6 +774,12 @@ def trends(results, alpha=ALPHA):
             p = math.exp(-chi / 2.0) * (1.0 + chi / 2.0)
         else:
             pw = pm = p = math.nan
+        if len(g) == 0 and len(bad):
+            notes = [f"not identified: {bad['error'].iloc[0]}"]
+        else:
+            notes = _window_notes(g, bad)
+            if math.isnan(p):
+                notes.insert(0, _untested_note(n))
         rows.append(
             {
                 "actuator_id": aid,
@@ -681,11 +795,16 @@ def trends(results, alpha=ALPHA):
                 "p_width": pw,
                 "p_slope": pm,
                 "p_value": p,
+                "failed_windows": len(bad),
+                "notes": notes,
             }
         )
     out = pd.DataFrame(rows)
     if out.empty:
         return out
+    _scale_notes(out)
+    notes = out.pop("notes")
+    failed = out.pop("failed_windows")
     out["tested"] = out["p_value"].notna()
     tested = int(out["tested"].sum())
     out["threshold"] = alpha / max(tested, 1)
@@ -695,21 +814,128 @@ def trends(results, alpha=ALPHA):
         [bool(p < th) if ok else pd.NA for p, th, ok in zip(out["p_value"], out["threshold"], out["tested"])],
         dtype="boolean",
     )
+    out["failed_windows"] = failed.astype("int64")
+    out["notes"] = ["; ".join(n) for n in notes]
     untested = out.loc[~out["tested"], "actuator_id"].tolist()
     if untested:
         _warn(
-            f"{len(untested)} actuator(s) not tested for wear (fewer than 3 identified windows, or "
-            f"windows without spread): {_ids(untested)}; their worn is <NA>, not a verdict"
+            f"{len(untested)} actuator(s) not tested for wear (no identified window, fewer than 3, or "
+            f"windows without spread): {_ids(untested)}; their worn is <NA>, not a verdict (notes says why)"
         )
     return out.sort_values(["p_value", "actuator_id"], kind="stable", na_position="last").reset_index(
         drop=True
     )
 
 
+#: The note ``identify_partition`` puts in each window's warnings when ts contradicts the time column.
+_TS_NOTE = re.compile(r"ts = (\S+) s contradicts the time column t \(its typical step is (\S+) s\)")
+
+
+def _window_notes(ok, bad):
+    """The doubts of one actuator read from its windows (``ok`` identified, ``bad`` with an error): a
+    time column whose step contradicts ts (the trends per hour are then in the column's time units),
+    the windows not identified (how many, the first's span and error)."""
+    notes = []
+    if "warnings" in ok.columns:
+        for text in list(ok["warnings"].fillna("").astype(str)) + list(bad.get("warnings", [])):
+            hit = _TS_NOTE.search(str(text))
+            if hit:
+                ts, step = float(hit.group(1)), float(hit.group(2))
+                hint = ", t in ms?" if ts > 0 and 900 < step / ts < 1100 else ""
+                notes.append(
+                    f"time column step {hit.group(2)} s where ts = {hit.group(1)} s ({step / ts:.6g}x{hint}): "
+                    "t_start and the trends per hour are in the column's units, not comparable with the fleet's"
+                )
+                break
+    if len(bad):
+        first = bad.iloc[0]
+        span = ""
+        if "t_start" in bad.columns and np.isfinite(first["t_start"]):
+            span = f", t {first['t_start']:g}–{first.get('t_end', math.nan):g} s"
+        win = f"window {int(first['window'])}" if "window" in bad.columns else "a window"
+        total = len(ok) + len(bad)
+        notes.append(
+            f"{len(bad)} of {total} window(s) not identified (first: {win}{span}: {first['error']})"
+        )
+    return notes
+
+
+def _untested_note(n):
+    """Why an identified actuator has no wear verdict (``n`` identified windows)."""
+    if n < 3:
+        return f"not tested: {n} identified window(s), fewer than 3"
+    return "not tested: its windows do not spread in time or in the trends"
+
+
+def _scale_notes(out, factor=100.0):
+    """Adds a note to the actuators whose mean deadzone width or mean slope is more than ``factor``
+    times off the fleet's median (at least 5 actuators with a value): another unit for u or y (y in
+    metres where the fleet logs millimetres) makes its figures incomparable, though the trend test
+    itself is scale-free."""
+    for col, what in (("width_mean", "deadzone width"), ("slope_mean", "slope")):
+        v = out[col].to_numpy(dtype=np.float64)
+        a = np.abs(v[np.isfinite(v) & (v != 0)])
+        if len(a) < 5:
+            continue
+        med = float(np.median(a))
+        for i, x in enumerate(v):
+            if np.isfinite(x) and x != 0 and not (med / factor <= abs(x) <= med * factor):
+                out.at[i, "notes"] = out.at[i, "notes"] + [
+                    f"mean {what} {x:.4g} against the fleet's median {med:.4g} ({abs(x) / med:.3g}x): "
+                    "u or y in other units?"
+                ]
+
+
+def summary(results, alpha=ALPHA, trend_table=None):
+    """The fleet in words (a string): how many actuators ``results`` holds, how many were tested for
+    wear, not tested and not identified (each named, with why: the counts add up to the actuators of
+    the results), how many flagged worn, and the actuators whose figures carry a doubt (``trends``'
+    ``notes``). ``report`` prints it; ``trend_table`` is ``trends(results, alpha)`` when already made."""
+    tr = trends(results, alpha) if trend_table is None else trend_table
+    total = len(tr)
+    if total == 0:
+        return "no actuator in the results"
+    noted = {a: n for a, n in zip(tr["actuator_id"], tr["notes"])}
+    tested = tr[tr["tested"]]
+    nid = tr[tr["windows"] == 0]
+    untested = tr[~tr["tested"] & (tr["windows"] > 0)]
+
+    def named(df, most=5):
+        items = [f"id {a}: {noted[a].split('; ')[0]}" for a in df["actuator_id"].tolist()[:most]]
+        more = f"; and {len(df) - most} more" if len(df) > most else ""
+        return f" ({'; '.join(items)}{more})" if items else ""
+
+    parts = [f"{len(tested)} tested for wear ({int(tested['worn'].fillna(False).sum())} flagged worn)"]
+    if len(untested):
+        parts.append(f"{len(untested)} identified but not tested{named(untested)}")
+    if len(nid):
+        parts.append(f"{len(nid)} not identified{named(nid)}")
+    text = f"{total} actuators: " + ", ".join(parts) + "."
+    failed = int(tr["failed_windows"].sum())
+    if failed:
+        text += f" {failed} result row(s) with an error in all."
+    doubt = tested[tested["notes"] != ""]
+    if len(doubt):
+        items = [f"id {a}: {n}" for a, n in zip(doubt["actuator_id"].tolist()[:5], doubt["notes"])]
+        text += (
+            f" {len(doubt)} tested actuator(s) with a doubt on their figures: " + "; ".join(items)
+            + ("; ..." if len(doubt) > 5 else "")
+        )
+        text += "" if text.endswith("?") else "."
+    if "actuator_id" in results.columns and results["actuator_id"].isna().any():
+        k = int(results.loc[results["actuator_id"].isna(), "samples"].sum()) if "samples" in results.columns else 0
+        text += f" {k} row(s) without actuator_id belong to no actuator."
+    return text
+
+
 def worn(results, alpha=ALPHA):
     """The actuators flagged worn by ``trends`` (p < alpha / N), most significant first, with a
     ``rank`` column (1 = most significant) and the trend columns of ``trends``."""
-    tr = trends(results, alpha)
+    return _flagged(trends(results, alpha))
+
+
+def _flagged(tr):
+    """The rows of the trend table ``tr`` flagged worn, ranked."""
     if tr.empty:
         return tr
     flagged = tr[tr["worn"].fillna(False)].reset_index(drop=True)
@@ -760,34 +986,35 @@ def glance_svg(trend_table, width=640, height=420):
     for (x, y, w) in sorted(zip(xs, ys, flags), key=lambda r: r[2]):
         colour, r = ("#d62728", 4) if w else ("#888888", 2.5)
         parts.append(f'<circle cx="{sx(x):.1f}" cy="{sy(y):.1f}" r="{r}" fill="{colour}" fill-opacity="0.8"/>')
-    n, k = len(tt), sum(flags)
+    n, k, total = len(tt), sum(flags), len(trend_table)
     parts += [
         f'<text x="{width / 2}" y="{height - 14}" text-anchor="middle">t of the deadzone-width trend '
         "(widening →)</text>",
         f'<text x="16" y="{height / 2}" text-anchor="middle" transform="rotate(-90 16 {height / 2})">'
         "t of the slope trend (dropping ↓)</text>",
         f'<text x="{width / 2}" y="22" text-anchor="middle" font-size="14">Fleet at a glance: {n} '
-        f"actuators, {k} flagged worn (red; values beyond ±40 drawn at ±40)</text>",
+        f"of {total} actuators tested, {k} flagged worn (red; values beyond ±40 drawn at ±40)</text>",
         "</svg>",
     ]
     return "\n".join(parts)
 
 
 def report(results, path, alpha=ALPHA, force=False):
-    """Writes the worn-valve report to ``path`` (HTML, written atomically): the fleet at a glance
-    (``glance_svg``) and the table of flagged actuators (``worn``), with the test and its threshold in
-    words. Returns the table of flagged actuators. ``path`` is the file to write, as the command line
+    """Writes the worn-valve report to ``path`` (HTML, written atomically): the fleet in words
+    (``summary``: the actuators tested, not tested and not identified, named, and the doubts), the fleet
+    at a glance (``glance_svg``), the table of flagged actuators (``worn``, with their notes), with the
+    test and its threshold in words, and the table of the actuators with a note (``trends``' ``notes``). Returns the table of flagged actuators. ``path`` is the file to write, as the command line
     writes its outputs (``_write_output``): an HTML page is replaced atomically, a device or a FIFO
     written into and never replaced; another kind of file, or a symbolic link, only with ``force=True``;
     a folder is refused before anything is computed
     (``ValueError``: ``invalid setting path = ...: a file name (this is a folder)``)."""
     _core.check_output(os.fspath(path), "path", force)
     tr = trends(results, alpha)
-    flagged = worn(results, alpha)
+    flagged = _flagged(tr)
     head = (
         "<th>rank</th><th>actuator</th><th>windows</th><th>width mean (counts)</th>"
         "<th>width trend (counts/h ± sd)</th><th>slope mean</th><th>slope trend (1/h ± sd)</th>"
-        "<th>p</th>"
+        "<th>p</th><th>notes</th>"
     )
     body = "".join(
         "<tr>"
@@ -796,23 +1023,36 @@ def report(results, path, alpha=ALPHA, force=False):
         f"<td>{r['width_trend_per_h']:+.2f} ± {r['width_trend_sd']:.2f}</td>"
         f"<td>{r['slope_mean']:.5f}</td>"
         f"<td>{r['slope_trend_per_h']:+.3g} ± {r['slope_trend_sd']:.2g}</td>"
-        f"<td>{r['p_value']:.2e}</td></tr>"
+        f"<td>{r['p_value']:.2e}</td><td style='text-align:left'>{html.escape(r['notes'])}</td></tr>"
         for _, r in flagged.iterrows()
     )
+    doubts = tr[tr["notes"] != ""] if not tr.empty else tr
+    doubt_rows = "".join(
+        f"<tr><td>{html.escape(str(a))}</td><td>{'yes' if t else 'no'}</td>"
+        f"<td style='text-align:left'>{html.escape(n)}</td></tr>"
+        for a, t, n in zip(doubts["actuator_id"], doubts["tested"], doubts["notes"])
+    ) if len(doubts) else ""
+    doubt_table = (
+        f"<h2>{len(doubts)} actuator(s) not tested, not identified, or with a doubt on their figures</h2>"
+        f"<table><tr><th>actuator</th><th>tested</th><th>notes</th></tr>{doubt_rows}</table>"
+        if len(doubts) else ""
+    )
     threshold = float(tr["threshold"].iloc[0]) if not tr.empty else math.nan
-    failed = int((results["error"].fillna("") != "").sum())
+    n_tested = int(tr["tested"].sum()) if not tr.empty else 0
+    words = summary(results, alpha, tr)
     doc = (
         "<!DOCTYPE html><html><head><meta charset='utf-8'><title>Worn valves</title>"
         "<style>body{font-family:sans-serif;max-width:60em;margin:2em auto}table{border-collapse:"
         "collapse}td,th{border:1px solid #ccc;padding:2px 8px;text-align:right}</style></head><body>"
-        f"<h1>Worn valves</h1><p>{len(tr)} actuators, {len(results)} windows"
-        f"{f', {failed} window(s) not identified' if failed else ''}. An actuator is flagged when the "
+        f"<h1>Worn valves</h1><p>{html.escape(words)}</p><p>{len(results)} result rows (windows). "
+        "An actuator is flagged when the "
         "trends of its deadzone width (widening) and mean slope (dropping) across windows, combined "
-        f"(Fisher), have p &lt; {alpha:g} / {len(tr)} = {threshold:.2e} (Bonferroni: at most a "
+        f"(Fisher), have p &lt; {alpha:g} / {n_tested} = {threshold:.2e} (Bonferroni over the tested "
+        "actuators: at most a "
         f"{alpha:g} chance of any false flag in a healthy fleet).</p>"
         + glance_svg(tr)
         + f"<h2>{len(flagged)} flagged, most significant first</h2><table><tr>{head}</tr>{body}"
-        "</table></body></html>"
+        "</table>" + doubt_table + "</body></html>"
     )
     _write_output(path, doc.encode("utf-8"), "path", force)
     return flagged
@@ -828,6 +1068,7 @@ __all__ = [
     "run",
     "spark_schema",
     "student_t_sf",
+    "summary",
     "trends",
     "worn",
 ]

@@ -484,7 +484,8 @@ fn malformed_model_files_exit_2_and_say_what_is_expected() {
         case(
             "validate --model {c}/good.csv --data {c}/good.csv",
             2,
-            &["good.csv:1:", "not valid JSON"],
+            // A CSV record is named as such, not as a JSON parser's "expected ident" (audit s26 L-1).
+            &["good.csv: this is CSV text (a record?)", "not a model file"],
         ),
         // The same reader serves --plant model:FILE and --compensate-deadzone.
         case(

@@ -805,6 +805,16 @@ impl ControllerFile {
 
     /// [`ControllerFile::parse`], keeping the file's provenance (what `tune` said of the controller).
     pub fn parse_file(text: &str, name: &str) -> Result<ControllerFile, ControlError> {
+        // A model file or a CSV record given as the controller is said as such (audit s26 L-1: "unknown
+        // field `model`"), by the readers' one sniffing helper.
+        use sysid_core::data::Sniffed;
+        let head = &text.as_bytes()[..text.len().min(4096)];
+        if let Some(k @ (Sniffed::ModelFile | Sniffed::Csv)) = Sniffed::of(head) {
+            return Err(ControlError::Config(format!(
+                "{name}: this is {}, not a controller file (the JSON that `ipa-sysid tune --out` writes)",
+                k.describe()
+            )));
+        }
         let f: ControllerFile = serde_json::from_str(text).map_err(|e| {
             // serde's message quotes the file (an unknown field's name): printed through `visible`.
             ControlError::Config(format!(

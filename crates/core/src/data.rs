@@ -360,18 +360,120 @@ impl Default for CsvOptions {
     }
 }
 
+/// What a file is by its first bytes: the one sniffing helper of the readers given a file of the
+/// wrong kind — the record reader ([`known_binary`], [`known_document`]), the model file reader and the
+/// controller file reader (audit s23 L-N1; audit s26 L-1: a model file given as `--data` got a
+/// "ragged row … decimal commas" hint, a CSV record given as `--model` "not valid JSON: expected ident").
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Sniffed {
+    /// A Parquet file (`PAR1`).
+    Parquet,
+    /// UTF-16 text (a byte-order mark).
+    Utf16,
+    /// An ipa-sysid model file (JSON with `"format": "ipa-sysid-model"`).
+    ModelFile,
+    /// An ipa-sysid controller file (JSON with `"format": "ipa-sysid-controller"`).
+    ControllerFile,
+    /// Another JSON document (an `identify --json` output, another tool's file).
+    Json,
+    /// Text whose first line separates fields by `,`, `;` or a tab: a CSV record, most likely.
+    Csv,
+}
+
+impl Sniffed {
+    /// The kind of a file whose first bytes are `prefix` (a few KiB are enough), if it is one of
+    /// [`Sniffed`]'s; `None` for other text.
+    pub fn of(prefix: &[u8]) -> Option<Sniffed> {
+        if prefix.starts_with(b"PAR1") {
+            return Some(Sniffed::Parquet);
+        }
+        if prefix.starts_with(b"\xff\xfe") || prefix.starts_with(b"\xfe\xff") {
+            return Some(Sniffed::Utf16);
+        }
+        let body = prefix.strip_prefix(b"\xef\xbb\xbf").unwrap_or(prefix);
+        let text = match std::str::from_utf8(body) {
+            Ok(t) => t,
+            Err(e) => std::str::from_utf8(&body[..e.valid_up_to()]).unwrap_or_default(),
+        };
+        let text = text.trim_start();
+        let mut chars = text.chars();
+        let json = match chars.next() {
+            Some('{') => true,
+            // `[` then a JSON value, not a TOML table's `[name]`.
+            Some('[') => chars
+                .next()
+                .is_some_and(|c| c.is_whitespace() || "{[\"]-".contains(c) || c.is_ascii_digit()),
+            _ => false,
+        };
+        if json {
+            return Some(match json_format_key(text) {
+                Some(f) if f == crate::model_file::FORMAT => Sniffed::ModelFile,
+                Some("ipa-sysid-controller") => Sniffed::ControllerFile,
+                _ => Sniffed::Json,
+            });
+        }
+        let line = text.lines().next().unwrap_or_default();
+        if !line.starts_with('#') && line.contains([',', ';', '\t']) {
+            return Some(Sniffed::Csv);
+        }
+        None
+    }
+
+    /// The kind in words (`this is …`), with where such a file goes.
+    pub fn describe(self) -> &'static str {
+        match self {
+            Sniffed::Parquet => {
+                "a Parquet file (PAR1); read it with the Python package (ipa_sysid.fleet) or convert \
+                 it: pandas.read_parquet('FILE.parquet').to_csv('FILE.csv', index=False)"
+            }
+            Sniffed::Utf16 => {
+                "UTF-16 text (a byte-order mark), not UTF-8; save it as UTF-8 (CSV UTF-8) and read that"
+            }
+            Sniffed::ModelFile => {
+                "a model file (JSON, \"format\": \"ipa-sysid-model\", written by identify \
+                 --save-model); give it to --model, or to --plant as model:FILE"
+            }
+            Sniffed::ControllerFile => {
+                "a controller file (JSON, \"format\": \"ipa-sysid-controller\", written by tune \
+                 --out); give it to --controller"
+            }
+            Sniffed::Json => {
+                "a JSON document (an identify --json output?); a record is CSV text or a .mat file, a \
+                 model file the JSON that identify --save-model writes"
+            }
+            Sniffed::Csv => "CSV text (a record?); give a record to --data",
+        }
+    }
+}
+
+/// The string value of the top-level-looking `"format"` key in the JSON text `text`, if any.
+fn json_format_key(text: &str) -> Option<&str> {
+    let at = text.find("\"format\"")? + "\"format\"".len();
+    let rest = text[at..].trim_start().strip_prefix(':')?.trim_start();
+    let rest = rest.strip_prefix('"')?;
+    rest.find('"').map(|end| &rest[..end])
+}
+
 /// What a data file that is not UTF-8 CSV is, when its first bytes say (audit s23 L-N1), with what
 /// reads it: a Parquet file (`PAR1`, the fleet's own output) or UTF-16 text (a byte-order mark).
-pub fn known_binary(prefix: &[u8]) -> Option<&'static str> {
-    if prefix.starts_with(b"PAR1") {
-        Some(
-            "a Parquet file (PAR1), not CSV text; read it with the Python package (ipa_sysid.fleet) or \
-             convert it: pandas.read_parquet('FILE.parquet').to_csv('FILE.csv', index=False)",
-        )
-    } else if prefix.starts_with(b"\xff\xfe") || prefix.starts_with(b"\xfe\xff") {
-        Some("UTF-16 text (a byte-order mark), not UTF-8; save it as UTF-8 (CSV UTF-8) and read that")
-    } else {
-        None
+pub fn known_binary(prefix: &[u8]) -> Option<String> {
+    match Sniffed::of(prefix)? {
+        Sniffed::Parquet => Some(format!("{}, not CSV text", Sniffed::Parquet.describe())),
+        Sniffed::Utf16 => Some(Sniffed::Utf16.describe().to_string()),
+        _ => None,
+    }
+}
+
+/// What a data file (`what`: "a data file", "a profile file", …) is when its first bytes say it is a
+/// JSON document — a model file, a controller file, an `identify --json` output — not a record
+/// (audit s26 L-1), in words naming where it goes.
+pub fn known_document(prefix: &[u8], what: &str) -> Option<String> {
+    match Sniffed::of(prefix)? {
+        k @ (Sniffed::ModelFile | Sniffed::ControllerFile | Sniffed::Json) => Some(format!(
+            "this is not {what} (CSV text or a .mat file) but {}",
+            k.describe()
+        )),
+        _ => None,
     }
 }
 
@@ -623,9 +725,27 @@ const MS_HINT_TS: f64 = 5.0;
 /// whole numbers only (0, 10, 20, ...): the usual sign of a column in milliseconds read as seconds,
 /// which makes every time figure 1000 times too large (a 10 ms record identified at Ts = 10 s; audit
 /// s10). Records sampled every second or two with whole-second stamps are common and are not flagged.
+/// "Whole" allows the rounding of a column computed in floating point (2009.9999999999998 for 2010:
+/// audit s26 L-2, a logger's t×1000 passed without the note). A column named as milliseconds (`t_ms`,
+/// `time_ms`, `t [ms]`, `t (ms)`) read in seconds is questioned whatever its Ts.
 pub fn milliseconds_hint(t: &[f64], ts: f64, unit: TimeUnit, column: &str) -> Option<String> {
-    let whole = t.iter().all(|v| v.fract() == 0.0);
-    (unit == TimeUnit::S && ts >= MS_HINT_TS && whole).then(|| {
+    let whole = t
+        .iter()
+        .all(|v| (v - v.round()).abs() <= 1e-9 * v.abs().max(1.0));
+    let lower = column.to_ascii_lowercase();
+    let named_ms = lower.ends_with("_ms") || lower.ends_with("[ms]") || lower.ends_with("(ms)");
+    if unit != TimeUnit::S {
+        return None;
+    }
+    if named_ms {
+        return Some(format!(
+            "the time column {column} is named as milliseconds but was read as seconds (Ts = {} s): \
+             if it holds milliseconds, pass --time-unit ms; read as seconds, Ts and every time \
+             figure are 1000 times too large",
+            Shortest(ts)
+        ));
+    }
+    (ts >= MS_HINT_TS && whole).then(|| {
         format!(
             "the time column {column} gives Ts = {} s from whole numbers: if it holds milliseconds \
              (or microseconds), pass --time-unit ms (or us); read as seconds, Ts and every time \

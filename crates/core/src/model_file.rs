@@ -216,8 +216,21 @@ pub fn parse_any_model(bytes: &[u8], name: &str) -> Result<AnyModel, SysidError>
             "the file is empty; expected a JSON model file written by identify --save-model".into(),
         ));
     }
-    let raw: serde_json::Value =
-        serde_json::from_slice(bytes).map_err(|e| json_err(bytes, name, &e, "not valid JSON"))?;
+    let raw: serde_json::Value = serde_json::from_slice(bytes).map_err(|e| {
+        // A file of another kind (a CSV record, a Parquet file) is said as such, not as a JSON
+        // parser's "expected ident" (audit s26 L-1).
+        match crate::data::Sniffed::of(&bytes[..bytes.len().min(4096)]) {
+            Some(
+                k @ (crate::data::Sniffed::Csv
+                | crate::data::Sniffed::Parquet
+                | crate::data::Sniffed::Utf16),
+            ) => file_err(format!(
+                "this is {}, not a model file (the JSON that identify --save-model writes)",
+                k.describe()
+            )),
+            _ => json_err(bytes, name, &e, "not valid JSON"),
+        }
+    })?;
     let Some(obj) = raw.as_object() else {
         return Err(file_err(format!(
             "the file holds a JSON {}; expected an object {{\"format\": \"{FORMAT}\", \"version\": \

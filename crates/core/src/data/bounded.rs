@@ -161,8 +161,11 @@ pub fn read_data_file(path: &Path, what: &str) -> Result<Vec<u8>, SysidError> {
                     message: message.into(),
                 })
             };
-            if let Some(what) = super::known_binary(prefix) {
-                return at(0, prefix, what);
+            if let Some(kind) = super::known_binary(prefix) {
+                return at(0, prefix, &kind);
+            }
+            if let Some(kind) = super::known_document(prefix, what) {
+                return at(0, prefix, &kind);
             }
             let body = prefix.strip_prefix(b"\xef\xbb\xbf").unwrap_or(prefix);
             let valid = match std::str::from_utf8(body) {

@@ -208,3 +208,56 @@ fn a_folder_run_carries_the_readers_notes_like_the_single_file_run() {
         one["warnings"]
     );
 }
+
+// Records sampled at different Ts in one folder (audit s26 L-5): the odd file's line says so in its
+// "warnings", the others' lines do not, and the run's summary names every Ts with its count.
+#[test]
+fn a_folder_of_records_at_different_sampling_times_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    for (name, ts) in [("a.csv", 0.01), ("b.csv", 0.01), ("c.csv", 0.02)] {
+        let (u, y) = paper_record(900, 1);
+        write_tuy(dir.path(), name, ts, &u, &y);
+    }
+    let out = bin()
+        .args(["identify", "--method", "ls", "--structure", "arx", "--data"])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("sampling times differ: Ts = 0.01 s (2 files), 0.02 s (1 file)"),
+        "{stderr}"
+    );
+    let v = lines(&String::from_utf8(out.stdout).unwrap());
+    assert_eq!(v.len(), 3);
+    let odd: Vec<bool> = v
+        .iter()
+        .map(|l| {
+            l["warnings"].as_array().unwrap().iter().any(|w| {
+                w.as_str()
+                    .unwrap()
+                    .starts_with("batch: this record is sampled every")
+            })
+        })
+        .collect();
+    assert_eq!(odd, [false, false, true], "{v:?}");
+    let said = v[2]["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w.as_str().unwrap())
+        .find(|w| w.starts_with("batch:"))
+        .unwrap();
+    assert!(
+        said.contains("every 0.02 s, 2 of the run's 3 identified records every 0.01 s"),
+        "{said}"
+    );
+    // One Ts: no word about it.
+    std::fs::remove_file(dir.path().join("c.csv")).unwrap();
+    let out = bin()
+        .args(["identify", "--method", "ls", "--structure", "arx", "--data"])
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(!String::from_utf8_lossy(&out.stderr).contains("sampling times differ"));
+}

@@ -210,15 +210,14 @@ pub fn run(args: Args, settings: &Identification) -> anyhow::Result<()> {
         "{bar:40} {pos}/{len} files  {per_sec}  eta {eta}",
     );
     let start = Instant::now();
-    // Each line with the exit code its failure would have alone (0 for success) and its warnings.
-    let lines: Vec<(String, u8, usize)> = files
+    // Each file's report and its record's Ts, or its error.
+    let results: Vec<anyhow::Result<(IdentifyReport, f64)>> = files
         .par_iter()
         .map(|path| {
-            let file = path.display().to_string();
             // The reader's notes (a --ts that contradicts the time column, a resampled gap) join the
             // file's warnings, as `--data FILE` alone says them ("data: …"; audit s24 M-3: the folder
             // run dropped them, so a Ts 100 times wrong went without a word).
-            let line = match sysid::data::read_record(path, &opts)
+            let result = sysid::data::read_record(path, &opts)
                 .map_err(anyhow::Error::from)
                 .and_then(|record| {
                     let mut report =
@@ -226,16 +225,38 @@ pub fn run(args: Args, settings: &Identification) -> anyhow::Result<()> {
                     report
                         .warnings
                         .extend(super::common::data_notes(&record.notes));
-                    Ok(report)
-                }) {
-                Ok(report) => (
-                    serde_json::to_string(&Line {
-                        file,
-                        report: &report,
-                    }),
-                    0,
-                    report.warnings.len(),
-                ),
+                    Ok((report, record.data.ts()))
+                });
+            bar.inc(1);
+            result
+        })
+        .collect();
+    // Records sampled at different Ts give coefficients per different samples (audit s26 L-5: a
+    // folder at 0.01, 0.02 and 10 s went without a word): each odd file's line says so, and the
+    // summary below.
+    let sampling = Sampling::of(
+        results
+            .iter()
+            .filter_map(|r| r.as_ref().ok().map(|(_, ts)| *ts)),
+    );
+    // Each line with the exit code its failure would have alone (0 for success) and its warnings.
+    let lines: Vec<(String, u8, usize)> = files
+        .iter()
+        .zip(results)
+        .map(|(path, result)| {
+            let file = path.display().to_string();
+            let line = match result {
+                Ok((mut report, ts)) => {
+                    report.warnings.extend(sampling.warning_for(ts));
+                    (
+                        serde_json::to_string(&Line {
+                            file,
+                            report: &report,
+                        }),
+                        0,
+                        report.warnings.len(),
+                    )
+                }
                 Err(e) => (
                     serde_json::to_string(&Failure {
                         file,
@@ -245,7 +266,6 @@ pub fn run(args: Args, settings: &Identification) -> anyhow::Result<()> {
                     0,
                 ),
             };
-            bar.inc(1);
             match line {
                 (Ok(text), code, warnings) => (text, code, warnings),
                 (Err(e), _, _) => {
@@ -306,6 +326,9 @@ pub fn run(args: Args, settings: &Identification) -> anyhow::Result<()> {
             String::new()
         }
     );
+    if let Some(summary) = sampling.summary() {
+        eprintln!("warning: {summary}");
+    }
     // The reasons not to trust a result travel in each line's "warnings"; say that there are some
     // (audit s13 L12: a batch of unstable models printed no warning at all).
     if warned > 0 {
@@ -334,6 +357,63 @@ pub fn run(args: Args, settings: &Identification) -> anyhow::Result<()> {
         .into());
     }
     crate::exit::strict(args.strict, total_warnings)
+}
+
+/// The sampling periods Ts (s) of a run's identified records, grouped (equal to 1e-9 relative), the
+/// most common first (the smaller Ts on a tie).
+struct Sampling {
+    groups: Vec<(f64, usize)>,
+}
+
+impl Sampling {
+    fn of(ts: impl Iterator<Item = f64>) -> Self {
+        let mut groups: Vec<(f64, usize)> = Vec::new();
+        for t in ts {
+            match groups
+                .iter_mut()
+                .find(|(g, _)| (t - *g).abs() <= 1e-9 * g.abs().max(t.abs()))
+            {
+                Some((_, n)) => *n += 1,
+                None => groups.push((t, 1)),
+            }
+        }
+        groups.sort_by(|a, b| b.1.cmp(&a.1).then(a.0.total_cmp(&b.0)));
+        Sampling { groups }
+    }
+
+    /// The Ts most records of the run share, when they do not all share one.
+    fn common(&self) -> Option<(f64, usize)> {
+        (self.groups.len() > 1).then(|| self.groups[0])
+    }
+
+    /// The warning of a record sampled every `ts` s when the run's common Ts differs from it.
+    fn warning_for(&self, ts: f64) -> Option<String> {
+        let (common, n) = self.common()?;
+        let total: usize = self.groups.iter().map(|(_, n)| n).sum();
+        ((ts - common).abs() > 1e-9 * common.abs().max(ts.abs())).then(|| {
+            format!(
+                "batch: this record is sampled every {ts} s, {n} of the run's {total} identified \
+                 records every {common} s: a model's coefficients are per sample of its own record, \
+                 so this one cannot be compared with theirs (a time column in ms or µs needs \
+                 --time-unit; --resample SECONDS puts records on one Ts)"
+            )
+        })
+    }
+
+    /// The run's sampling periods in words when they differ.
+    fn summary(&self) -> Option<String> {
+        self.common()?;
+        let parts: Vec<String> = self
+            .groups
+            .iter()
+            .map(|(ts, n)| format!("{ts} s ({n} file{})", if *n == 1 { "" } else { "s" }))
+            .collect();
+        Some(format!(
+            "the records' sampling times differ: Ts = {}; their models' coefficients are per sample \
+             of different lengths and cannot be compared (each odd file's line says so)",
+            parts.join(", ")
+        ))
+    }
 }
 
 /// The single-file pipeline of `identify` on one record: fit, refuse non-finite estimates, metrics on the

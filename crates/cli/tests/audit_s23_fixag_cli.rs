@@ -11,22 +11,16 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 mod common;
-use common::{arx_signals, identify_arx, lcg, run as ipa_sysid, stderr, write_csv};
+use common::{arx_signals, identify_arx, lcg, mat_tag, run as ipa_sysid, stderr, write_csv};
 
 /// One miCOMPRESSED element holding a double n x 1 vector of zeros named `name`.
 fn zero_vector(name: &[u8], n: usize) -> Vec<u8> {
-    fn tag(out: &mut Vec<u8>, ty: u32, data: &[u8]) {
-        out.extend_from_slice(&ty.to_le_bytes());
-        out.extend_from_slice(&(data.len() as u32).to_le_bytes());
-        out.extend_from_slice(data);
-        out.resize(out.len().div_ceil(8) * 8, 0);
-    }
     let mut head = Vec::new();
-    tag(&mut head, 6, &[6, 0, 0, 0, 0, 0, 0, 0]);
+    mat_tag(&mut head, 6, &[6, 0, 0, 0, 0, 0, 0, 0]);
     let mut dims = (n as i32).to_le_bytes().to_vec();
     dims.extend_from_slice(&1i32.to_le_bytes());
-    tag(&mut head, 5, &dims);
-    tag(&mut head, 1, name);
+    mat_tag(&mut head, 5, &dims);
+    mat_tag(&mut head, 1, name);
     head.extend_from_slice(&9u32.to_le_bytes());
     head.extend_from_slice(&((8 * n) as u32).to_le_bytes());
     let mut z = flate2::write::ZlibEncoder::new(Vec::new(), flate2::Compression::best());

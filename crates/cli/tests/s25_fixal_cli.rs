@@ -6,7 +6,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests may panic
 
 mod common;
-use common::{arx_signals, lcg, run as ipa_sysid, s, stderr, write_csv};
+use common::{arx_signals, lcg, mat_tag, run as ipa_sysid, s, stderr, write_csv};
 
 #[test]
 fn narx_validate_refuses_a_record_beyond_its_memory_budget() {
@@ -71,19 +71,13 @@ fn narx_validate_refuses_a_record_beyond_its_memory_budget() {
 /// Level 5): its inflated element is an 8-byte miMATRIX tag and `head.len() + 8 n` bytes of data.
 fn compressed_vector(name: &[u8], values: &[f64]) -> (Vec<u8>, u64) {
     use std::io::Write;
-    fn tag(out: &mut Vec<u8>, ty: u32, data: &[u8]) {
-        out.extend_from_slice(&ty.to_le_bytes());
-        out.extend_from_slice(&(data.len() as u32).to_le_bytes());
-        out.extend_from_slice(data);
-        out.resize(out.len().div_ceil(8) * 8, 0);
-    }
     let n = values.len();
     let mut head = Vec::new();
-    tag(&mut head, 6, &[6, 0, 0, 0, 0, 0, 0, 0]); // array flags: class double
+    mat_tag(&mut head, 6, &[6, 0, 0, 0, 0, 0, 0, 0]); // array flags: class double
     let mut dims = (n as i32).to_le_bytes().to_vec();
     dims.extend_from_slice(&1i32.to_le_bytes());
-    tag(&mut head, 5, &dims);
-    tag(&mut head, 1, name);
+    mat_tag(&mut head, 5, &dims);
+    mat_tag(&mut head, 1, name);
     head.extend_from_slice(&9u32.to_le_bytes()); // miDOUBLE
     head.extend_from_slice(&((8 * n) as u32).to_le_bytes());
     let declared = (head.len() + 8 * n) as u32;

@@ -8,7 +8,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests may panic
 
 mod common;
-use common::{arx_signals, lcg, run as ipa_sysid, s, stderr, write_tuy};
+use common::{arx_signals, lcg, mat_tag, run as ipa_sysid, s, stderr, write_tuy};
 use std::io::Write;
 use std::path::Path;
 
@@ -21,18 +21,12 @@ const DECLARED_SAMPLES: u64 = 50_000_000;
 /// header and 64 KiB of zeros: a reader that trusts the declared size allocates 400 MB for a file of
 /// a few hundred bytes. Returns the declared inflated bytes (the element's tag and data).
 fn hostile_mat(path: &Path) -> u64 {
-    fn tag(out: &mut Vec<u8>, ty: u32, data: &[u8]) {
-        out.extend_from_slice(&ty.to_le_bytes());
-        out.extend_from_slice(&(data.len() as u32).to_le_bytes());
-        out.extend_from_slice(data);
-        out.resize(out.len().div_ceil(8) * 8, 0);
-    }
     let mut head = Vec::new();
-    tag(&mut head, 6, &[6, 0, 0, 0, 0, 0, 0, 0]); // array flags: class double
+    mat_tag(&mut head, 6, &[6, 0, 0, 0, 0, 0, 0, 0]); // array flags: class double
     let mut dims = (DECLARED_SAMPLES as i32).to_le_bytes().to_vec();
     dims.extend_from_slice(&1i32.to_le_bytes());
-    tag(&mut head, 5, &dims);
-    tag(&mut head, 1, b"u");
+    mat_tag(&mut head, 5, &dims);
+    mat_tag(&mut head, 1, b"u");
     head.extend_from_slice(&9u32.to_le_bytes()); // miDOUBLE
     head.extend_from_slice(&((8 * DECLARED_SAMPLES) as u32).to_le_bytes());
     let declared = head.len() as u64 + 8 * DECLARED_SAMPLES;

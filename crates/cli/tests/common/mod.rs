@@ -306,3 +306,12 @@ pub fn write_mat(path: &Path, names: &[&str], columns: &[&[f64]]) {
     }
     std::fs::write(path, bytes).unwrap();
 }
+
+/// Appends a MAT-file (Level 5) data element: its 8-byte tag (type `ty`, byte count) and `data`,
+/// padded with zeros to a multiple of 8 bytes. The tests' one writer of hand-built `.mat` elements.
+pub fn mat_tag(out: &mut Vec<u8>, ty: u32, data: &[u8]) {
+    out.extend_from_slice(&ty.to_le_bytes());
+    out.extend_from_slice(&(data.len() as u32).to_le_bytes());
+    out.extend_from_slice(data);
+    out.resize(out.len().div_ceil(8) * 8, 0);
+}

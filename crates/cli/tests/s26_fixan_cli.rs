@@ -8,7 +8,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests may panic
 
 mod common;
-use common::{arx_signals, lcg, mat_tag, run as ipa_sysid, s, stderr, write_tuy};
+use common::{arx_signals, identify_arx, lcg, mat_tag, run as ipa_sysid, s, stderr, write_tuy};
 use std::io::Write;
 use std::path::Path;
 
@@ -62,21 +62,9 @@ fn every_command_that_reads_a_record_holds_the_mat_reader_to_max_memory() {
     let (u, y) = arx_signals(400, &[0.5], &[1.0], |_| 2.0 * r.unit() - 1.0);
     let csv = write_tuy(dir.path(), "small.csv", 1.0, &u, &y);
     let model = dir.path().join("m.json");
-    let made = ipa_sysid(&[
-        "identify",
-        "--data",
-        s(&csv),
-        "--structure",
-        "arx",
-        "--method",
-        "ls",
-        "--na",
-        "1",
-        "--nb",
-        "1",
-        "--save-model",
-        s(&model),
-    ]);
+    let mut args = identify_arx(&csv, "1", "1", "ls");
+    args.extend(["--save-model", s(&model)]);
+    let made = ipa_sysid(&args);
     assert!(made.status.success(), "{}", stderr(&made));
     let out = dir.path().join("twin.toml");
     let m = s(&mat);

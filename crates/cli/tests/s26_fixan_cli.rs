@@ -2,8 +2,10 @@
 //! reader for every command that reads a record (before, `order`, `delay` and `calibrate` read a
 //! compressed `.mat` without it), and a saved model's run by `simulate --plant model:FILE` has
 //! `validate`'s record budget (N samples × 16 numbers × 8 bytes; before, none: a NARX model on a long
-//! `--input file:` was simulated whatever its length). The expectations are computed here from the
-//! bytes written and the documented rule, never from the program's output.
+//! `--input file:` was simulated whatever its length). Session 27 (audit s27 M-1): a CSV record read
+//! into memory is held to the same budget before its rows are parsed (before, a 74 MB file took 650 MB
+//! before the estimation's budget refused it). The expectations are computed here from the bytes
+//! written and the documented rule, never from the program's output.
 
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests may panic
 
@@ -181,5 +183,68 @@ fn simulate_of_a_model_has_the_record_budget_of_validate() {
         let rows = std::fs::read_to_string(&out).unwrap().lines().count();
         assert_eq!(rows, 100_001, "header and N rows");
         std::fs::remove_file(&out).unwrap();
+    }
+}
+
+/// A CSV record read into memory holds at least its own bytes: under a budget smaller than the file
+/// every command that reads a record refuses it (exit 2, naming the file, the budget in bytes and
+/// `--max-memory`) before parsing it; under a budget above an upper bound of what its rows can take
+/// (twice the text, for the file and its cells, plus 8 bytes per cell, per row and per line number)
+/// the same commands run.
+#[test]
+fn a_csv_record_is_held_to_max_memory_before_its_rows_are_parsed() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut r = lcg(5);
+    let n = 40_000;
+    let (u, y) = arx_signals(n, &[0.5], &[1.0], |_| 2.0 * r.unit() - 1.0);
+    let csv = write_tuy(dir.path(), "long.csv", 0.01, &u, &y);
+    let small = write_tuy(dir.path(), "small.csv", 0.01, &u[..400], &y[..400]);
+    let model = dir.path().join("m.json");
+    let mut args = identify_arx(&small, "1", "1", "ls");
+    args.extend(["--save-model", s(&model)]);
+    let made = ipa_sysid(&args);
+    assert!(made.status.success(), "{}", stderr(&made));
+    let file = std::fs::metadata(&csv).unwrap().len();
+    let gib = 1024f64.powi(3);
+    let below = "0.0005"; // 536 870 bytes
+    assert!(
+        ((0.0005 * gib) as u64) < file,
+        "the file is larger than the budget"
+    );
+    let upper = 2 * file + 8 * (3 + 2) * n as u64;
+    let above = "0.01"; // 10.7 MB
+    assert!(upper < (0.01 * gib) as u64);
+    let c = s(&csv);
+    let cases: [(&str, Vec<&str>); 4] = [
+        ("identify", identify_arx(&csv, "1", "1", "ls")),
+        (
+            "validate",
+            vec!["validate", "--model", s(&model), "--data", c],
+        ),
+        (
+            "order",
+            vec![
+                "order", "--data", c, "--na", "1..2", "--nb", "1", "--nk", "1",
+            ],
+        ),
+        ("delay", vec!["delay", "--data", c]),
+    ];
+    for (command, args) in cases {
+        let mut refused = args.clone();
+        refused.extend(["--max-memory", below]);
+        let o = ipa_sysid(&refused);
+        let err = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{command}: {err}");
+        assert!(err.contains("long.csv"), "{command} names the file: {err}");
+        let budget = (0.0005 * gib) as u64;
+        assert!(
+            err.contains(&format!("budget of {budget} bytes")),
+            "{command}: {err}"
+        );
+        assert!(err.contains("--max-memory"), "{command}: {err}");
+        let mut within = args;
+        within.extend(["--max-memory", above]);
+        let o = ipa_sysid(&within);
+        assert!(o.status.success(), "{command}: {}", stderr(&o));
     }
 }

@@ -24,6 +24,7 @@ pub mod lines;
 pub mod mat;
 pub mod ranges;
 pub mod resample;
+mod rows;
 pub mod stream;
 
 pub use ranges::{split_rows, RowRange};
@@ -506,11 +507,11 @@ pub fn read_record_bytes(
     name: &str,
     opts: &CsvOptions,
 ) -> Result<Record, SysidError> {
-    let mut table = read_table_with(bytes, name, !opts.no_header)?;
+    let mut table = read_table_for(bytes, name, opts)?;
     let mut name = name.to_string();
     if let Some(r) = &opts.rows {
         let range = r.resolve(table.rows.len(), opts.rows_flag, &name)?;
-        table.rows = table.rows[range.clone()].to_vec();
+        table.rows.keep(range.clone());
         name = format!("{name}[{}..{}]", range.start, range.end);
     }
     let name = name.as_str();
@@ -628,7 +629,7 @@ fn ts_contradiction(table: &Table, opts: &CsvOptions, ts: f64) -> Option<String>
     let t: Vec<f64> = match table.numbers(tc) {
         Ok(t) => t.iter().map(|v| v * opts.time_unit.seconds()).collect(),
         Err(_) => {
-            let first = table.rows.first().and_then(|(_, rec)| rec.get(tc))?;
+            let first = table.rows.get(0).and_then(|(_, rec)| rec.get(tc))?;
             return looks_like_date_time(unquote(first.trim())).then(|| {
                 date_time_note(&format!("the time column {}", opts.t_col), first, ts, opts)
             });
@@ -669,7 +670,7 @@ fn unnamed_date_times(
     if opts.no_header || table.headers.contains(&opts.t_col) {
         return Vec::new();
     }
-    let Some((_, first_row)) = table.rows.first() else {
+    let Some((_, first_row)) = table.rows.get(0) else {
         return Vec::new();
     };
     let found: Vec<(usize, &str)> = (0..table.headers.len())
@@ -761,7 +762,7 @@ pub struct Table {
     name: String,
     /// Column names, trimmed and unquoted.
     pub headers: Vec<String>,
-    rows: Vec<(usize, csv::StringRecord)>,
+    rows: rows::Rows,
     /// Read `1,5` as 1.5 (semicolon- or tab-delimited files).
     decimal_comma: bool,
     /// False when read without a header row: `headers` are then the positions "1", "2", ...
@@ -776,16 +777,32 @@ pub fn read_table(bytes: &[u8], name: &str) -> Result<Table, SysidError> {
 /// [`read_table`], or with `has_header = false` a file without a header row (`--no-header`), whose columns
 /// are then named by their position, 1-based (`"1"`, `"2"`, ...).
 pub fn read_table_with(bytes: &[u8], name: &str, has_header: bool) -> Result<Table, SysidError> {
-    table_of(bytes, name, has_header, true)
+    table_of(
+        bytes,
+        name,
+        has_header,
+        true,
+        Some(crate::ls::MAX_ESTIMATION_BYTES),
+    )
+}
+
+/// [`read_table_with`] with the header rule (`--no-header`) and the memory budget (`--max-memory`,
+/// [`CsvOptions::max_read_bytes`]) of `opts`: the file's rows are counted and their memory checked
+/// against the budget before they are parsed.
+pub fn read_table_for(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Table, SysidError> {
+    table_of(bytes, name, !opts.no_header, true, opts.max_read_bytes)
 }
 
 /// [`read_table_with`]; with `need_rows = false` a header without data rows is accepted (the header line
-/// of a stream read line by line, [`lines::CsvLines`]).
+/// of a stream read line by line, [`lines::CsvLines`]). `budget` (`--max-memory`, bytes): the most the
+/// file's bytes and its rows may hold together, checked before the rows are allocated (`None`: bounded
+/// by [`MAX_SAMPLES`] and [`MAX_FILE_BYTES`] only).
 fn table_of(
     bytes: &[u8],
     name: &str,
     has_header: bool,
     need_rows: bool,
+    budget: Option<u64>,
 ) -> Result<Table, SysidError> {
     let file_err = |message: String| SysidError::File {
         file: name.to_string(),
@@ -912,11 +929,34 @@ fn table_of(
     }
     // A decimal comma is read only where the comma does not separate the columns.
     let decimal_comma = delimiter != b',';
-    let mut rows = Vec::new();
+    // What the rows will hold, against the budget before it is allocated (audit s27 M-1: a 74 MB file
+    // took 650 MB before the estimation's budget refused it, and a failed allocation aborted).
+    let width = headers.len();
+    let data_lines = lines.saturating_sub(usize::from(has_header));
+    let need =
+        (bytes.len() as u64).saturating_add(rows::Rows::bytes_for(data_lines, width, text.len()));
+    if let Some(budget) = budget.filter(|&b| need > b) {
+        return Err(file_err(format!(
+            "{data_lines} rows of {width} columns need about {need} bytes ({} GB) in memory with the \
+             file's text, more than the budget of {budget} bytes ({} GB, --max-memory); read it in \
+             passes (--stream on, where the command allows it), save a part of the record (--rows), or \
+             raise --max-memory (max_memory_gb in Python) if this machine has the memory",
+            crate::ls::format_gb(need),
+            crate::ls::format_gb(budget)
+        )));
+    }
+    let mut rows = rows::Rows::with_capacity(data_lines, width, text.len()).map_err(|bytes| {
+        file_err(format!(
+            "not enough memory to read the record: {bytes} bytes ({} GB) could not be allocated; \
+             read it in passes (--stream on), save a part of the record, or run where more memory is \
+             free",
+            crate::ls::format_gb(bytes)
+        ))
+    })?;
     // Line numbers from byte offsets (the csv crate's own line count is one short after CRLF line ends).
     let (mut seen_byte, mut seen_line) = (0usize, 1usize);
-    for rec in rdr.records() {
-        let rec = rec.map_err(|e| csv_err(name, e))?;
+    let mut rec = csv::StringRecord::new();
+    while rdr.read_record(&mut rec).map_err(|e| csv_err(name, e))? {
         let line = rec.position().map_or(0, |p| {
             let bytes = text.as_bytes();
             let mut at = (p.byte() as usize).min(bytes.len());
@@ -940,7 +980,7 @@ fn table_of(
                 "more than {MAX_SAMPLES} data rows (the limit); split the record"
             )));
         }
-        rows.push((line, rec));
+        rows.push(line, rec.iter(), width);
     }
     if rows.is_empty() && need_rows {
         return Err(file_err("the file has a header but no data rows".into()));
@@ -949,14 +989,14 @@ fn table_of(
         // One mark per file (audit s21 M-B5), over every cell that reads as a number, before any
         // column is used: the in-memory reader parses column by column.
         let mut marks = DecimalMarks::default();
-        for (line, rec) in &rows {
+        for (line, rec) in rows.iter() {
             for (col, cell) in rec.iter().enumerate() {
                 if parse_number(cell, true).is_some() {
                     marks
-                        .note(cell, *line, col + 1)
+                        .note(cell, line, col + 1)
                         .map_err(|message| SysidError::Parse {
                             file: name.to_string(),
-                            line: *line,
+                            line,
                             column: col + 1,
                             message,
                         })?;
@@ -1187,7 +1227,7 @@ impl Table {
                 )
                 .map_err(|message| SysidError::Parse {
                     file: self.name.clone(),
-                    line: *line,
+                    line,
                     column: col + 1,
                     message,
                 })
@@ -1204,7 +1244,7 @@ impl Table {
 
     /// The line number (1-based) of data row `row` (0 when there is no such row).
     pub fn line_of(&self, row: usize) -> usize {
-        self.rows.get(row).map_or(0, |r| r.0)
+        self.rows.get(row).map_or(0, |(line, _)| line)
     }
 }
 

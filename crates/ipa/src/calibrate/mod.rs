@@ -104,7 +104,7 @@ pub fn read_record(
     let pressures = if is_mat {
         pressures.cloned()
     } else {
-        let table = sysid_core::data::read_table_with(&bytes, &name, !opts.no_header)?;
+        let table = sysid_core::data::read_table_for(&bytes, &name, opts)?;
         let has = |c: &str| !opts.no_header && table.headers.iter().any(|h| h == c);
         let pressures = pressures.cloned().or_else(|| {
             (has("p_a_pa") && has("p_b_pa")).then(|| ("p_a_pa".to_string(), "p_b_pa".to_string()))

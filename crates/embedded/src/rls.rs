@@ -15,12 +15,15 @@
 //! exactly symmetric. (Pφ is accumulated one row of P at a time, across i: row j of the symmetric P is
 //! column j, so every (Pφ)_i still adds its terms in the order j = 0, 1, ….)
 //!
-//! f32 has no reference to agree with bit for bit ([`Float::SYSID_ORDER`] is `false`): there (Pφ)_i is
-//! the sum over the even rows j plus the sum over the odd rows, each started at −0 (no addition for the
-//! first term), and ρ + φᵀPφ is ρ + (even + odd) likewise. At small n the update is a chain of dependent
-//! operations through P (Pφ, δ, 1/δ, L̃, P), and this halves the additions on it; it also executes n
-//! additions fewer (3.5 n² + 7.5 n + 2 flops for ρ < 1). The eq. 12 formula and P's exact symmetry are
-//! unchanged; f32 results differ from the sequential order by rounding only.
+//! f32 has no reference to agree with bit for bit ([`Float::SYSID_ORDER`] is `false`): there, with a
+//! capacity N > 4, (Pφ)_i is the sum over the even rows j plus the sum over the odd rows, each started
+//! at −0 (no addition for the first term), and ρ + φᵀPφ is ρ + (even + odd) likewise. The update is a
+//! chain of dependent operations through P (Pφ, δ, 1/δ, L̃, P), and this halves the additions on it;
+//! it also executes n additions fewer (3.5 n² + 7.5 n + 2 flops for ρ < 1). With N ≤ 4 (a row of P is
+//! one 4-lane vector) f32 keeps the sequential order of f64: measured faster there (issue 28,
+//! twenty-first round: 24.3 ns per update at n = 4 against 25.2 with the split; a pairwise δ, 24.9).
+//! The eq. 12 formula and P's exact symmetry are unchanged; f32 results differ from the sequential
+//! order by rounding only.
 //!
 //! # UD form (optional)
 //!
@@ -65,12 +68,17 @@
 //! factors is kept in the state and updated by the rank-one formula (issue 28, twentieth round): Bierman's
 //! update of U D Uᵀ with measurement variance ρ̃ is U D Uᵀ − b bᵀ/α with b the gain numerator and α =
 //! α_(n−1), both already formed, and D ← D/ρ̃ follows, so t(k) = (t(k−1) − bᵀb · (1/α)) · (1/ρ̃): 2n + 4
-//! flops off the O(n²) chain (bᵀb as a sum over even i plus a sum over odd i) instead of summing
+//! flops off the O(n²) chain (bᵀb as a sum over even i plus a sum over odd i in f64, `sysid`'s order; in
+//! f32 four partial sums by i mod 4, the lanes b is held in, added pairwise) instead of summing
 //! Σ_j d_j (Σ_(i<j) U_ij² + 1) from the new factors (n² + 4n flops). The difference loses accuracy when
 //! the downdate removes most of t, so a reference R is kept beside t: R(k) = R(k−1) · (1/ρ̃) · g with
 //! g = [`TRACE_DRIFT_GROWTH`] = 1 + 2⁻⁵, which is what t would be without the downdates since the last
 //! exact sum, grown by g per update; when t(k) < R(k)/4 (or t or R is not finite) t is summed exactly from
 //! the new factors (each column's Σ_(i<j) U_ij² over even and odd i apart, `sysid`'s order) and R = t.
+//! That sum is a call, made after the update (with a capacity N > 4 outside the update's kernel, which
+//! is then a function of its own: a call inside it, even to a cold function, made the compiler spill
+//! and shuffle more on every update; issue 28, twenty-first round), and the scale ρ̃ below is set again
+//! from the exact t: the values the update would write with the exact sum in place of t.
 //! R/t is the product of the amplifications t(k−1)/(t(k−1) − bᵀb/α) of the relative error since the
 //! last exact sum, times g per update, so that product stays ≤ 4 and at most ln 4 / ln g = 45 updates
 //! pass between exact sums: the relative error of t stays below ≈ 3ε · 4 · Σ_m g^(−m) ≈ 400 ε (ε of
@@ -315,6 +323,31 @@ impl<F: Float, const N: usize> Rls<F, N> {
         self.forgetting / self.var
     }
 
+    /// The guarded UD update's result: when its kept trace t may have drifted too far (`exact`, module
+    /// documentation "Windup guard"), t and R are summed exactly from the new factors and ρ̃ is set again
+    /// from that sum ([`guard_scale`]): the values the update would have written with the exact sum.
+    /// Kept out of the update's kernel for N > 4 ([`update_ud_guarded`]): a call inside it, even to a
+    /// cold function, clobbers every vector register, and the compiler spilled and shuffled more around
+    /// it on every update (f32 n = 9: 849 instructions against 716 without the call; docs/benchmarks.md,
+    /// "Twenty-first round").
+    #[inline(always)]
+    fn guarded(&mut self, result: Result<(F, bool), Error>) -> Result<F, Error> {
+        let (eps, exact) = result?;
+        if exact {
+            self.resum_trace_and_scale();
+        }
+        Ok(eps)
+    }
+
+    /// t and R summed exactly from the factors, then ρ̃ set from this t as the kernel sets it.
+    #[cold]
+    #[inline(never)]
+    fn resum_trace_and_scale(&mut self) {
+        self.sum_trace();
+        let rho_t = self.forgetting / self.max_trace;
+        guard_scale(self, rho_t);
+    }
+
     /// ρ: the forgetting factor.
     pub fn forgetting(&self) -> F {
         self.forgetting
@@ -332,10 +365,24 @@ impl<F: Float, const N: usize> Rls<F, N> {
             (Form::Standard, true) => update_standard::<F, N, true>(self, phi, y),
             (Form::Standard, false) => update_standard::<F, N, false>(self, phi, y),
             (Form::Ud, full) => match (full, self.max_trace.is_finite()) {
-                (true, false) => update_ud::<F, N, true, false>(self, phi, y),
-                (true, true) => update_ud::<F, N, true, true>(self, phi, y),
-                (false, false) => update_ud::<F, N, false, false>(self, phi, y),
-                (false, true) => update_ud::<F, N, false, true>(self, phi, y),
+                (true, false) => update_ud::<F, N, true, false>(self, phi, y).map(|(e, _)| e),
+                (true, true) if N <= SHORT_CHAINS_UP_TO => {
+                    let result = update_ud::<F, N, true, true>(self, phi, y);
+                    self.guarded(result)
+                }
+                (true, true) => {
+                    let result = update_ud_guarded::<F, N, true>(self, phi, y);
+                    self.guarded(result)
+                }
+                (false, false) => update_ud::<F, N, false, false>(self, phi, y).map(|(e, _)| e),
+                (false, true) if N <= SHORT_CHAINS_UP_TO => {
+                    let result = update_ud::<F, N, false, true>(self, phi, y);
+                    self.guarded(result)
+                }
+                (false, true) => {
+                    let result = update_ud_guarded::<F, N, false>(self, phi, y);
+                    self.guarded(result)
+                }
             },
         }
     }
@@ -413,7 +460,7 @@ fn update_standard<F: Float, const N: usize, const FULL: bool>(
     // (Pφ)_i = Σ_j P_ij φ_j for j = 0, 1, …, accumulated one row of P at a time (P is exactly
     // symmetric, so row j is column j): the inner loop runs along contiguous memory, across i.
     let mut denom = rho;
-    if F::SYSID_ORDER {
+    if F::SYSID_ORDER || N <= 4 {
         for (row, f) in p.iter().zip(phi) {
             if let Some(row) = row.get(..m) {
                 for (acc, c) in pphi.iter_mut().zip(row) {
@@ -581,7 +628,7 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
     est: &mut Rls<F, N>,
     phi: &[F],
     y: F,
-) -> Result<F, Error> {
+) -> Result<(F, bool), Error> {
     let (rho, max_trace) = (est.forgetting, est.max_trace);
     // The measurement variance ρ̃ = ρ / c (P = c · U D Uᵀ): ρ unless the guard's scale c is pending.
     let var = if GUARD { est.var } else { rho };
@@ -789,20 +836,35 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
         return Err(Error::Numerical);
     }
     // The guard's kept trace (module documentation, "Windup guard"): t(k) = (t(k−1) − bᵀb · (1/α))
-    // · (1/ρ̃), bᵀb as two partial sums (even i, odd i, as `ud_trace`), n multiply-adds off the chain of
+    // · (1/ρ̃), bᵀb (f64: even i plus odd i, as `ud_trace`; f32: by i mod 4), n multiply-adds off the chain of
     // Bierman's update; its reference R(k) = (R(k−1) · (1/ρ̃)) · g. When t(k) < R(k)/4 (or t or R is
-    // not finite) t is summed exactly from the new factors after pass 2 (`exact`).
+    // not finite) t is summed exactly from the new factors after this function returns (`exact`,
+    // [`Rls::guarded`]).
     let (mut tr, mut tr_ref, mut exact) = (F::ZERO, F::ZERO, false);
     if GUARD {
-        let (mut even, mut odd) = (-F::ZERO, -F::ZERO);
-        for (i, bi) in b.iter().take(m).enumerate() {
-            if i % 2 == 0 {
-                even += *bi * *bi;
-            } else {
-                odd += *bi * *bi;
+        let btb = if F::SYSID_ORDER {
+            let (mut even, mut odd) = (-F::ZERO, -F::ZERO);
+            for (i, bi) in b.iter().take(m).enumerate() {
+                if i % 2 == 0 {
+                    even += *bi * *bi;
+                } else {
+                    odd += *bi * *bi;
+                }
             }
-        }
-        let diff = est.tr - (even + odd) * inv_last;
+            even + odd
+        } else {
+            // f32 (nothing to agree with bit for bit): four partial sums by i mod 4, the lanes of
+            // the vector registers b is held in, so no shuffles before the last two additions.
+            let mut lanes = [-F::ZERO; 4];
+            for (i, bi) in b.iter().take(m).enumerate() {
+                if let Some(l) = lanes.get_mut(i % 4) {
+                    *l += *bi * *bi;
+                }
+            }
+            let [l0, l1, l2, l3] = lanes;
+            (l0 + l2) + (l1 + l3)
+        };
+        let diff = est.tr - btb * inv_last;
         tr = diff * inv_var;
         tr_ref = est.tr_ref * inv_var * F::from_f64(TRACE_DRIFT_GROWTH);
         // t < R/4, or t or R not finite (then t − R/4 is not: x · 0 = 0 exactly for finite x).
@@ -878,43 +940,53 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
     // here (volatile loads) instead of kept in registers through the update: fewer live values in the
     // kernel (with T live, the f64 n = 4 kernel spilled its trace sum to the stack: 32 ns instead of 20).
     if GUARD {
-        if exact {
-            tr = resum_trace(&est.p, m);
-            tr_ref = tr;
-        }
         est.tr = tr;
         est.tr_ref = tr_ref;
-        // SAFETY: references to initialised fields of `est`.
-        let (rho, bound) = unsafe {
-            (
-                core::ptr::read_volatile(&est.forgetting),
-                core::ptr::read_volatile(&est.max_trace),
-            )
-        };
-        if tr > bound * F::from_f64(0.25) {
-            // ρ̃ = max(tr P · (ρ / T), ρ): the guard acts when tr P · (ρ / T) > ρ, i.e. tr P > T up to
-            // the rounding of ρ̃ (`sysid`'s test). The same value as a branch would write; the
-            // compiler emits a maximum (`maxsd`/`maxss` on x86-64), one operation after tr P · (ρ / T)
-            // on the next update's chain instead of a compare-and-blend (measured 0.2–0.4 ns less per
-            // update with the guard near the bound, docs/benchmarks.md "Fifteenth round").
-            let v = tr * rho_t;
-            est.var = if v > rho { v } else { rho };
-        } else {
-            // SAFETY: a reference to an initialised field of `est`.
-            let pending = unsafe { core::ptr::read_volatile(&est.var) };
-            if pending != rho {
-                est.var = rho;
-            }
-        }
+        guard_scale(est, rho_t);
     }
-    Ok(eps)
+    Ok((eps, exact))
 }
 
-/// [`ud_trace`] for the guard's occasional exact sum (kept out of the kernel's straight-line code).
-#[cold]
+/// [`update_ud`] with the guard as a function of its own, for N > 4: the exact sum of the trace, when
+/// due, is called by [`Rls::update`] after it ([`Rls::guarded`]), so the kernel calls nothing. (For
+/// N ≤ 4 the kernel stays inlined into [`Rls::update`]: the extra call cost about 1.5 ns per update at
+/// n = 4 in f32, more than the call inside saved there.)
 #[inline(never)]
-fn resum_trace<F: Float, const N: usize>(fac: &[[F; N]; N], n: usize) -> F {
-    ud_trace(fac, n)
+fn update_ud_guarded<F: Float, const N: usize, const FULL: bool>(
+    est: &mut Rls<F, N>,
+    phi: &[F],
+    y: F,
+) -> Result<(F, bool), Error> {
+    update_ud::<F, N, FULL, true>(est, phi, y)
+}
+
+/// The end of the guarded UD update, from the new factors' trace t = `est.tr` (module documentation,
+/// "Windup guard"), with `rho_t` = ρ / T.
+#[inline(always)]
+fn guard_scale<F: Float, const N: usize>(est: &mut Rls<F, N>, rho_t: F) {
+    let tr = est.tr;
+    // SAFETY: references to initialised fields of `est`.
+    let (rho, bound) = unsafe {
+        (
+            core::ptr::read_volatile(&est.forgetting),
+            core::ptr::read_volatile(&est.max_trace),
+        )
+    };
+    if tr > bound * F::from_f64(0.25) {
+        // ρ̃ = max(tr P · (ρ / T), ρ): the guard acts when tr P · (ρ / T) > ρ, i.e. tr P > T up to
+        // the rounding of ρ̃ (`sysid`'s test). The same value as a branch would write; the
+        // compiler emits a maximum (`maxsd`/`maxss` on x86-64), one operation after tr P · (ρ / T)
+        // on the next update's chain instead of a compare-and-blend (measured 0.2–0.4 ns less per
+        // update with the guard near the bound, docs/benchmarks.md "Fifteenth round").
+        let v = tr * rho_t;
+        est.var = if v > rho { v } else { rho };
+    } else {
+        // SAFETY: a reference to an initialised field of `est`.
+        let pending = unsafe { core::ptr::read_volatile(&est.var) };
+        if pending != rho {
+            est.var = rho;
+        }
+    }
 }
 
 /// tr P = Σ_j d_j Σ_(i≤j) U_ij² of UD factors stored by rows (row j: U_0j..U_(j−1)j, d_j), summed as

@@ -13,6 +13,7 @@ import signal
 import time
 
 import ipa_sysid
+from ipa_sysid import _core
 
 DELAY_S = 1.0
 
@@ -34,22 +35,29 @@ def main():
         "identify(structure='narx', degree=3, na=4, nb=4, max_terms=60), 300 000 samples": dict(
             structure="narx", degree=3, na=4, nb=4, max_terms=60
         ),
-        "identify(method='rls', passes=200), 300 000 samples": dict(method="rls", passes=200),
+        "identify(method='rls', forgetting=0.999, passes=1000), 300 000 samples": dict(
+            method="rls", forgetting=0.999, passes=1000
+        ),
     }
+    calls = {name: (lambda kw=kw: ipa_sysid.identify(u, y, 0.01, **kw)) for name, kw in calls.items()}
+    # The fleet's window identification (ipa_sysid.fleet's per-partition call): 300 windows by OE.
+    calls["fleet_windows(method='oe'), 300 windows of 1000 samples"] = lambda: _core.fleet_windows(
+        u, y, [0, len(u)], 0.01, 1000, method="oe"
+    )
     signal.signal(signal.SIGALRM, handler)
-    for name, kwargs in calls.items():
+    for name, call in calls.items():
         start = time.perf_counter()
-        ipa_sysid_warnings_off(lambda: ipa_sysid.identify(u, y, 0.01, **kwargs))
+        ipa_sysid_warnings_off(call)
         whole = time.perf_counter() - start
         signal.setitimer(signal.ITIMER_REAL, DELAY_S)
         start = time.perf_counter()
         try:
-            ipa_sysid_warnings_off(lambda: ipa_sysid.identify(u, y, 0.01, **kwargs))
+            ipa_sysid_warnings_off(call)
             outcome = "returned a result (the alarm came too late)"
         except Alarm:
             outcome = f"Alarm raised {time.perf_counter() - start - DELAY_S:.3f} s after the signal"
         signal.setitimer(signal.ITIMER_REAL, 0)
-        print(f"{name}: uninterrupted {whole:.2f} s; {outcome}")
+        print(f"{name}: uninterrupted {whole:.2f} s; {outcome}", flush=True)
 
 
 def ipa_sysid_warnings_off(call):

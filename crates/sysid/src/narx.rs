@@ -309,7 +309,7 @@ impl Frols {
 /// Orthogonal forward regression with the error-reduction ratio over the candidate columns `p` (each
 /// of the length of `y`), choosing at most `max_terms`. A candidate whose orthogonal part is below
 /// 1e-10 of its norm (dependent on the chosen ones) is never chosen. `cancel` is polled at each
-/// candidate of each term ([`SysidError::Cancelled`]).
+/// candidate of each term and at each deflation ([`SysidError::Cancelled`]).
 pub fn frols(
     p: &[Vec<f64>],
     y: &[f64],
@@ -356,6 +356,7 @@ pub fn frols(
         out.order.push(m);
         // Deflate the others by q (modified Gram–Schmidt), recording their coefficients.
         for (j, wj) in w.iter_mut().enumerate() {
+            cancel.check()?;
             if chosen[j] {
                 continue;
             }

@@ -615,6 +615,7 @@ fn search(
             return Ok(at.stopped(OeStop::GradientZero, iteration));
         }
         let theta = problem.free_values();
+        cancel.check()?;
         // One Householder triangularisation of [J D⁻¹ | r] per iteration; every damped trial step is
         // then a small 2p × p problem (Triangular::damped_step).
         let Ok(tri) = workspace.triangularise(&jac, &r, &[], false) else {

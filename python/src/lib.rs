@@ -495,12 +495,17 @@ fn compute<T: Send>(py: Python<'_>, f: impl Send + FnOnce(&sysid::Stop) -> T) ->
         // Takes the computation out of `job` (once) and runs it.
         let run = || job.lock().ok().and_then(|mut j| j.take()).map(|f| f(&stop));
         let caller = std::thread::current();
+        // Set by the worker when `f` has returned (before the thread itself has ended, which
+        // `JoinHandle::is_finished` would wait for: a 50 ms park more on every call).
+        let done = std::sync::atomic::AtomicBool::new(false);
+        let finished = || done.load(std::sync::atomic::Ordering::Acquire);
         std::thread::scope(|s| {
             let spawned = std::thread::Builder::new()
                 .name("ipa-sysid".into())
                 .stack_size(WORKER_STACK_BYTES)
                 .spawn_scoped(s, || {
                     let out = run();
+                    done.store(true, std::sync::atomic::Ordering::Release);
                     caller.unpark();
                     out
                 });
@@ -508,9 +513,10 @@ fn compute<T: Send>(py: Python<'_>, f: impl Send + FnOnce(&sysid::Stop) -> T) ->
                 // No thread to be had (a process limit): computed here, the signals taken at its end.
                 return run();
             };
-            while !worker.is_finished() {
+            // (`is_finished` too: a panic in `f` ends the thread without setting `done`.)
+            while !finished() && !worker.is_finished() {
                 std::thread::park_timeout(SIGNAL_POLL);
-                if raised.is_none() && !worker.is_finished() {
+                if raised.is_none() && !finished() && !worker.is_finished() {
                     if let Err(e) = Python::attach(|py| py.check_signals()) {
                         raised = Some(e);
                         stop.request();

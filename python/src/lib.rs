@@ -13,7 +13,8 @@ use numpy::{
     PyUntypedArrayMethods,
 };
 use pyo3::exceptions::{
-    PyArithmeticError, PyImportError, PyMemoryError, PyOSError, PyTypeError, PyValueError,
+    PyArithmeticError, PyImportError, PyKeyboardInterrupt, PyMemoryError, PyOSError,
+    PyRuntimeError, PyTypeError, PyValueError,
 };
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList};
@@ -49,6 +50,9 @@ fn sysid_err(e: SysidError) -> PyErr {
     match e {
         SysidError::Numerical(_) => PyArithmeticError::new_err(msg),
         SysidError::Io { .. } => PyOSError::new_err(msg),
+        // Stopped by `compute`'s signal watch, which raises the handler's exception first; this is
+        // only what a stop without one would say.
+        SysidError::Cancelled => PyKeyboardInterrupt::new_err(msg),
         _ => PyValueError::new_err(msg),
     }
 }
@@ -69,6 +73,8 @@ fn control_err(e: ::control::ControlError) -> PyErr {
     match e {
         ::control::ControlError::Numerical(_) => PyArithmeticError::new_err(e.to_string()),
         ::control::ControlError::Io { .. } => PyOSError::new_err(e.to_string()),
+        // As `sysid_err`: only what a stop without a signal handler's exception would say.
+        ::control::ControlError::Cancelled => PyKeyboardInterrupt::new_err(e.to_string()),
         _ => PyValueError::new_err(e.render(&|s| keyword(s.flag()))),
     }
 }
@@ -466,15 +472,68 @@ fn json_loads<'py>(py: Python<'py>, text: &str) -> PyResult<Bound<'py, PyAny>> {
     py.import("json")?.call_method1("loads", (text,))
 }
 
-/// Runs the computation `f` with the GIL released (other Python threads run meanwhile), then takes a
-/// Ctrl-C that arrived during it: `KeyboardInterrupt` before any result is built (audit s23 H-P1: the
-/// interrupt surfaced inside numpy's first array conversion as a `PanicException`). The core's loops
-/// have no cancellation hook, so the interrupt is taken when `f` returns, not while it runs (audit s23
-/// M-P1; docs/python.md "Threads and Ctrl-C").
-fn compute<T: Send>(py: Python<'_>, f: impl Send + FnOnce() -> T) -> PyResult<T> {
-    let out = py.detach(f);
+/// How often the calling thread runs Python's signal handlers while a computation runs ([`compute`]).
+const SIGNAL_POLL: std::time::Duration = std::time::Duration::from_millis(50);
+
+/// Stack of the thread a computation runs on ([`compute`]): the usual main thread's 8 MiB.
+const WORKER_STACK_BYTES: usize = 8 << 20;
+
+/// Runs the computation `f` with the GIL released (other Python threads run meanwhile) on a thread of
+/// its own, while the calling thread runs Python's signal handlers every [`SIGNAL_POLL`]
+/// (`py.check_signals()`). When a handler raises (Ctrl-C: `KeyboardInterrupt`; an alarm handler: its own
+/// exception), the [`Stop`](sysid::Stop) handed to `f` is requested, `f` ends with
+/// `SysidError::Cancelled` at its next poll (each iteration, term, window or evaluation), and that
+/// exception is raised: never a result (audit s25 M-P1: the interrupt waited for the whole computation;
+/// audit s23 H-P1: it surfaced inside numpy's first array conversion as a `PanicException`). Only the
+/// main thread runs signal handlers, so a call from another thread runs to its end (docs/python.md
+/// "Threads and Ctrl-C"). A panic in `f` is resumed here (pyo3 raises it as `PanicException`).
+fn compute<T: Send>(py: Python<'_>, f: impl Send + FnOnce(&sysid::Stop) -> T) -> PyResult<T> {
+    let stop = sysid::Stop::new();
+    let mut raised: Option<PyErr> = None;
+    let out = py.detach(|| {
+        let job = std::sync::Mutex::new(Some(f));
+        // Takes the computation out of `job` (once) and runs it.
+        let run = || job.lock().ok().and_then(|mut j| j.take()).map(|f| f(&stop));
+        let caller = std::thread::current();
+        // Set by the worker when `f` has returned (before the thread itself has ended, which
+        // `JoinHandle::is_finished` would wait for: a 50 ms park more on every call).
+        let done = std::sync::atomic::AtomicBool::new(false);
+        let finished = || done.load(std::sync::atomic::Ordering::Acquire);
+        std::thread::scope(|s| {
+            let spawned = std::thread::Builder::new()
+                .name("ipa-sysid".into())
+                .stack_size(WORKER_STACK_BYTES)
+                .spawn_scoped(s, || {
+                    let out = run();
+                    done.store(true, std::sync::atomic::Ordering::Release);
+                    caller.unpark();
+                    out
+                });
+            let Ok(worker) = spawned else {
+                // No thread to be had (a process limit): computed here, the signals taken at its end.
+                return run();
+            };
+            // (`is_finished` too: a panic in `f` ends the thread without setting `done`.)
+            while !finished() && !worker.is_finished() {
+                std::thread::park_timeout(SIGNAL_POLL);
+                if raised.is_none() && !finished() && !worker.is_finished() {
+                    if let Err(e) = Python::attach(|py| py.check_signals()) {
+                        raised = Some(e);
+                        stop.request();
+                    }
+                }
+            }
+            match worker.join() {
+                Ok(out) => out,
+                Err(panic) => std::panic::resume_unwind(panic),
+            }
+        })
+    });
+    if let Some(e) = raised {
+        return Err(e);
+    }
     py.check_signals()?;
-    Ok(out)
+    out.ok_or_else(|| PyRuntimeError::new_err("the computation did not run (internal error)"))
 }
 
 /// A serialisable value as Python objects, through its JSON form.
@@ -1509,7 +1568,11 @@ fn identify<'py>(
             .transpose()?;
         let mut report = compute(
             py,
-            || -> Result<sysid_summary::narx::NarxReport, SysidError> {
+            |stop| -> Result<sysid_summary::narx::NarxReport, SysidError> {
+                let settings = sysid::narx::NarxSettings {
+                    cancel: stop.clone(),
+                    ..settings.clone()
+                };
                 let fit = sysid::narx::identify_narx(&data, &settings)?;
                 sysid_summary::narx::NarxReport::assemble(fit, &settings, &data, val.as_ref())
             },
@@ -1624,7 +1687,11 @@ fn identify<'py>(
             dataset(&uv, &yv, ts, validation_name)
         })
         .transpose()?;
-    let mut report = compute(py, || -> Result<IdentifyReport, SysidError> {
+    let mut report = compute(py, |stop| -> Result<IdentifyReport, SysidError> {
+        let settings = sysid::Identification {
+            cancel: stop.clone(),
+            ..settings.clone()
+        };
         // As `identify --detrend`: estimated on the deviations from the operating point, which
         // the model stores (with its data range in the record's units) and puts back; metrics,
         // residuals and warnings on the record as given.
@@ -1851,19 +1918,29 @@ fn fleet_windows<'py>(
         }
         jobs.extend((0..count).map(|j| (g, j, w[0] + j * window)));
     }
-    let results: Vec<Result<sysid_summary::monitor::WindowResult, String>> = compute(py, || {
-        jobs.iter()
-            .map(|&(g, j, start)| {
-                let signals = Signals {
-                    u: u[start..start + window].to_vec(),
-                    y: y[start..start + window].to_vec(),
-                };
-                Dataset::new(signals, ts, format!("group {g} window {j}"))
-                    .and_then(|d| sysid_summary::monitor::window(&d, &settings))
-                    .map_err(|e| e.render(&|s| keyword(s.flag())))
-            })
-            .collect()
-    })?;
+    type Windows = Vec<Result<sysid_summary::monitor::WindowResult, String>>;
+    let results = compute(py, |stop| -> Result<Windows, SysidError> {
+        let mut settings = settings.clone();
+        settings.identification.cancel = stop.clone();
+        let mut results = Vec::with_capacity(jobs.len());
+        for &(g, j, start) in &jobs {
+            stop.check()?;
+            let signals = Signals {
+                u: u[start..start + window].to_vec(),
+                y: y[start..start + window].to_vec(),
+            };
+            // A window that fails is an error row (a fleet goes on past one bad record); a stop
+            // ends the whole call.
+            match Dataset::new(signals, ts, format!("group {g} window {j}"))
+                .and_then(|d| sysid_summary::monitor::window(&d, &settings))
+            {
+                Err(SysidError::Cancelled) => return Err(SysidError::Cancelled),
+                r => results.push(r.map_err(|e| e.render(&|s| keyword(s.flag())))),
+            }
+        }
+        Ok(results)
+    })?
+    .map_err(sysid_err)?;
     let mut names: Vec<String> = Vec::new();
     for r in results.iter().flatten() {
         for p in &r.report.parameters {
@@ -2290,7 +2367,7 @@ fn simulate_plant<'py>(
         x0: Some(y0),
         ..exp
     };
-    let rec = compute(py, || exp.run())?.map_err(ipa_err)?;
+    let rec = compute(py, |_| exp.run())?.map_err(ipa_err)?;
     // What holds the physics plant's piston, as `simulate` computes it (its config's deadzone,
     // friction and the forces the run's commands build up).
     let hold = if physics {
@@ -2556,7 +2633,7 @@ fn control_loop<'py>(
     let duration_s = duration
         .or(profile.natural_duration_s())
         .unwrap_or(DEFAULT_FIXED_DURATION_S);
-    let (trace, run) = compute(py, || -> Result<_, ::control::ControlError> {
+    let (trace, run) = compute(py, |_| -> Result<_, ::control::ControlError> {
         let controller: &mut dyn ::control::Controller = match position.as_mut() {
             Some(p) => p,
             None => &mut pi,
@@ -2724,8 +2801,15 @@ fn tune<'py>(
         },
         check_physics,
         physics_variants,
+        cancel: sysid::Stop::never(),
     };
-    let report = compute(py, || tuning::run(&req))?.map_err(control_err)?;
+    let report = compute(py, |stop| {
+        tuning::run(&Request {
+            cancel: stop.clone(),
+            ..req.clone()
+        })
+    })?
+    .map_err(control_err)?;
     // With its provenance, as `tune --out` writes it: control() repeats a missed spec (audit s18 M-4).
     let file = report.controller_file();
     let text = serde_json::to_string_pretty(&file)
@@ -2817,7 +2901,14 @@ fn calibrate<'py>(
     )
     .map_err(ipa_err)?;
     let started = std::time::Instant::now();
-    let mut twin = compute(py, || cal.fit(&est, val.as_ref()))?.map_err(ipa_err)?;
+    let mut twin = compute(py, |stop| {
+        let cal = Calibration {
+            cancel: stop.clone(),
+            ..cal.clone()
+        };
+        cal.fit(&est, val.as_ref())
+    })?
+    .map_err(ipa_err)?;
     let seconds = started.elapsed().as_secs_f64();
     twin.warnings.splice(0..0, notes);
     let out = PyDict::new(py);

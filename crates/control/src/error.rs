@@ -118,6 +118,10 @@ pub enum ControlError {
     /// Numerical failure: the plant's output or the controller became non-finite (says at which sample).
     #[error("numerical failure: {0}")]
     Numerical(String),
+    /// The caller asked the computation to stop ([`sysid_core::Stop`]: Ctrl-C in Python) before it
+    /// finished; there is no result.
+    #[error("stopped at the caller's request before the end (no result)")]
+    Cancelled,
 }
 
 impl ControlError {

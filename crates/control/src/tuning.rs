@@ -60,6 +60,10 @@ pub struct Request {
     pub check_physics: bool,
     /// Physics variants in the verification, beside the nominal plant.
     pub physics_variants: usize,
+    /// The caller's stop check, polled each time a plant is built for a simulation (each run of each
+    /// evaluation and verification; [`sysid_core::Stop`], default never): a stopped tuning returns
+    /// [`ControlError::Cancelled`].
+    pub cancel: sysid_core::Stop,
 }
 
 /// One verification: a set of plants, the tuned controller and the paper's PI on it, and the
@@ -352,7 +356,11 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
     }
     let ts = model.ts();
     check_spec(req, ts, &twin)?;
+    // Every simulation of the search and the verification starts by building its plant: a stop
+    // requested by the caller ends each one there.
+    let cancelled = || req.cancel.check().map_err(|_| ControlError::Cancelled);
     let model_plants = |i: usize| -> Result<Box<dyn Plant + Send>, ControlError> {
+        cancelled()?;
         let m = tune::model_variant(&model, i, SPREAD)?;
         Ok(Box::new(
             sysid_core::ModelPlant::new(m, format!("model variant {i}"))
@@ -362,6 +370,7 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
     // The twin's variants searched over are drawn with other seeds than the physics variants of the
     // verification, so that the verification's plants are not among those tuned on.
     let twin_plants = |i: usize| -> Result<Box<dyn Plant + Send>, ControlError> {
+        cancelled()?;
         let base = twin.clone().unwrap_or_default();
         let cfg = if i == 0 {
             base
@@ -378,6 +387,7 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
         twin.clone().unwrap_or_default()
     };
     let physics_plants = |i: usize| -> Result<Box<dyn Plant + Send>, ControlError> {
+        cancelled()?;
         let cfg = if i == 0 {
             physics_base.clone()
         } else {
@@ -452,6 +462,8 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
         // below is the twin's (audit s16 M8).
         warnings.splice(0..0, cfg.calibration_warnings());
     }
+    // A stop that a step took for a failed evaluation still leaves no result.
+    cancelled()?;
     Ok(TuneReport {
         source: label,
         spec: spec.clone(),

@@ -223,6 +223,9 @@ pub enum SysidError {
     Data(String),
     /// A numerical failure: non-finite values, loss of positive definiteness, singular problem.
     Numerical(String),
+    /// The caller asked the computation to stop ([`crate::Stop`]: Ctrl-C in Python) before it
+    /// finished; there is no result.
+    Cancelled,
 }
 
 /// The most characters of one word (a run without white space) or one line that an error message echoes
@@ -386,6 +389,9 @@ impl SysidError {
             ),
             SysidError::Data(m) => m.clone(),
             SysidError::Numerical(m) => format!("numerical failure: {m}"),
+            SysidError::Cancelled => {
+                "stopped at the caller's request before the end (no result)".to_string()
+            }
         }
     }
 }

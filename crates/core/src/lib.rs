@@ -22,6 +22,7 @@ pub mod nonlinearity;
 pub mod param;
 pub mod plant;
 pub mod stability;
+pub mod stop;
 pub mod structure;
 
 pub use data::Dataset;
@@ -36,4 +37,5 @@ pub use nonlinearity::{
 pub use param::{ParamName, Parameterisation};
 pub use plant::{run_open_loop, Plant};
 pub use stability::Stability;
+pub use stop::Stop;
 pub use structure::Structure;

@@ -226,3 +226,22 @@ fn worse_than_start_prints_enough_decimals_to_tell_the_fits_apart() {
         "{w}"
     );
 }
+
+// A stop requested before the call: every simulation of the search is refused and `fit` returns
+// Cancelled, never a twin (the hook of the Python binding's Ctrl-C; crates/core/src/stop.rs).
+#[test]
+fn a_requested_stop_cancels_the_calibration() {
+    let est = record(&PlantConfig::default(), InputSpec::Calibration, 800, 7).unwrap();
+    let cancel = sysid_core::Stop::new();
+    cancel.request();
+    let cal = Calibration {
+        max_iterations: 4,
+        cancel,
+        ..Calibration::default()
+    };
+    match cal.fit(&est, None) {
+        Err(ipa::IpaError::Sysid(sysid_core::SysidError::Cancelled)) => {}
+        Err(e) => panic!("expected Cancelled, got {e}"),
+        Ok(_) => panic!("expected Cancelled, got a twin"),
+    }
+}

@@ -93,6 +93,7 @@ pub(crate) fn tuned_run(
         },
         check_physics: false,
         physics_variants: 0,
+        cancel: sysid_core::Stop::never(),
     };
     let report = match control::tuning::run(&req) {
         Ok(r) => r,

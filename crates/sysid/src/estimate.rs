@@ -22,7 +22,7 @@ use sysid_core::data::SINGLE_INPUT;
 use sysid_core::ls::{MemoryBudget, MemoryNeed};
 use sysid_core::metrics::Metrics;
 use sysid_core::{
-    Dataset, InputChannel, Model, ModelKind, Orders, ParamName, Structure, SysidError,
+    Dataset, InputChannel, Model, ModelKind, Orders, ParamName, Stop, Structure, SysidError,
 };
 
 /// One input's part of a structure with several inputs: orders and static nonlinearity.
@@ -98,6 +98,10 @@ pub struct Identification {
     /// The most memory the estimation's matrices may take ([`Identification::check_memory`]; default
     /// 4 GiB, [`sysid_core::ls::MAX_ESTIMATION_BYTES`]).
     pub max_memory: MemoryBudget,
+    /// The caller's stop check, polled at each iteration, pass and stage ([`Stop`]; default
+    /// [`Stop::never`]): a stopped identification returns [`SysidError::Cancelled`]. No part of the
+    /// settings' value (equal whatever it holds; absent from reports and model files).
+    pub cancel: Stop,
 }
 
 impl Default for Identification {
@@ -115,6 +119,7 @@ impl Default for Identification {
             fallback: false,
             output: None,
             max_memory: MemoryBudget::default(),
+            cancel: Stop::never(),
         }
     }
 }
@@ -194,11 +199,12 @@ impl Identification {
                 "identification needs at least one record".into(),
             ));
         }
-        Problem::new(
+        Ok(Problem::new(
             records,
             self.regression(&names)?,
             self.drop_unexcited_branch,
-        )
+        )?
+        .with_cancel(self.cancel.clone()))
     }
 
     /// Numbers (f64) per regression row this identification holds at its peak, for `p` parameters:
@@ -421,9 +427,13 @@ pub fn identify<R: Records + ?Sized>(
         .mark_fixed(problem.starts(), &mut fit.params);
     check_finite(problem.name(), &fit.params)?;
     // The data the model was estimated on (a caller that detrended first puts back its own range).
-    safeguard(&problem, settings, fit)
+    let fit = safeguard(&problem, settings, fit)
         .map_err(named)?
-        .with_data_range(crate::DataRange::of(records.records()))
+        .with_data_range(crate::DataRange::of(records.records()))?;
+    // A stop requested while a step swallowed a failure (a restarted search, a fallback) still
+    // leaves no result.
+    settings.cancel.check()?;
+    Ok(fit)
 }
 
 /// `--breakpoints auto`: the identification with K = 1..=[`MAX_AUTO_BREAKPOINTS`] breakpoints in every
@@ -453,6 +463,7 @@ fn identify_breakpoints<R: Records + ?Sized>(
                 }
                 aic
             }
+            Err(SysidError::Cancelled) => return Err(SysidError::Cancelled),
             Err(e) => {
                 first_error.get_or_insert(e);
                 None

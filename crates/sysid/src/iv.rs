@@ -162,7 +162,8 @@ pub struct Staged {
 /// simulates the auxiliary model (first `start`, the least-squares estimate with full θ `theta_start`;
 /// then stage s−1's model) driven by every input `u`, from rest at the mean of the first k0 outputs,
 /// builds the instruments from that simulation (`rows_for(aux)` gives the regressor with the auxiliary
-/// model's static nonlinearities) and runs one [`pass`]; `model_of` turns a full θ̂ into a model. The
+/// model's static nonlinearities) and runs one [`pass`]; `model_of` turns a full θ̂ into a model;
+/// `cancel` is polled before each stage ([`SysidError::Cancelled`] when the caller asked to stop). The
 /// stage whose model simulates the record best (from the same rest) is kept. An unstable auxiliary
 /// model has its poles reflected into the unit circle first (a note says so).
 #[allow(clippy::too_many_arguments)]
@@ -173,6 +174,7 @@ pub fn staged<F: Fn(&[f64], usize, &mut [f64])>(
     r: &IvRegression<()>,
     rows_for: impl Fn(&Model) -> F,
     model_of: impl Fn(&DVector<f64>) -> Result<Model, SysidError>,
+    cancel: &sysid_core::Stop,
     stages: usize,
     forgetting: f64,
     p0: f64,
@@ -210,6 +212,7 @@ pub fn staged<F: Fn(&[f64], usize, &mut [f64])>(
         y_init[..k0].fill(mean);
     }
     for stage in 1..=stages {
+        cancel.check()?;
         run = stage;
         let y_aux = match aux.simulate(u, &y_init) {
             Ok(ys) => ys,

@@ -53,6 +53,6 @@ pub use sysid_core::{
     data, detrend, error, metrics, model, model_file, narx as narx_model, nonlinearity, param,
     plant, structure, ColumnOrigin, DataRange, Dataset, Deadzone, InputChannel, Model, ModelKind,
     ModelPlant, Orders, ParamName, Parameterisation, Plant, PlantError, Setting,
-    StaticNonlinearity, Structure, SysidError, TermSizes,
+    StaticNonlinearity, Stop, Structure, SysidError, TermSizes,
 };
 pub use warnings::Warning;

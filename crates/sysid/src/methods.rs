@@ -354,6 +354,7 @@ pub(crate) fn least_squares(p: &Problem, st: &LeastSquares) -> Result<Fitted, Sy
     // The previous iterate's Φ, solution and loss.
     let mut last: Option<(DMatrix<f64>, ls::LsSolution, f64)> = None;
     for it in 1..=st.max_iterations {
+        p.cancel().check()?;
         iterations = it;
         let (phi, y) = reg.stacked(p.records(), &f).map_err(|e| context(p, e))?;
         let (sol, rss) = match last.take() {
@@ -518,6 +519,7 @@ pub(crate) fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitte
     let mut theta = DVector::from_column_slice(est.theta());
     let mut closed: Option<ClosedPass> = None;
     for pass in 0..st.passes.max() {
+        p.cancel().check()?;
         if pass > 0 {
             if hammer {
                 reg.update(expand(theta.as_slice()).as_slice(), &mut f, p.starts());
@@ -549,6 +551,7 @@ pub(crate) fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitte
         for r in records {
             let u = r.input_signals();
             for k in k0..r.len() {
+                p.cancel().every(at)?;
                 if at == tail_start {
                     theta_tail.copy_from_slice(est.theta());
                 }
@@ -827,6 +830,7 @@ pub(crate) fn instrumental(p: &Problem, st: &InstrumentalVariables) -> Result<Fi
             move |ys: &[f64], k: usize, row: &mut [f64]| reg.fill_row(u, ys, &f, k, row)
         },
         |theta| model_from_theta(p, theta),
+        p.cancel(),
         st.stages,
         st.forgetting,
         st.p0,
@@ -908,7 +912,14 @@ pub(crate) fn output_error(p: &Problem, st: &OutputError) -> Result<Fitted, Sysi
     let start = least_squares(p, &st.start)?;
     let reg = p.regression();
     let free = reg.free_physical(p.starts());
-    let fit = oe::refine(data, reg, &free, &start.model, st.max_iterations)?;
+    let fit = oe::refine(
+        data,
+        reg,
+        &free,
+        &start.model,
+        st.max_iterations,
+        p.cancel(),
+    )?;
     let verdict = OeVerdict::judge(
         &fit,
         &start.notes,

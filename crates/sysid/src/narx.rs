@@ -30,7 +30,7 @@ use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
 use sysid_core::narx::{candidate_count, candidate_terms, Lagged, NarxModel, Term, MAX_DEGREE};
-use sysid_core::{DataRange, Dataset, Setting, SysidError};
+use sysid_core::{DataRange, Dataset, Setting, Stop, SysidError};
 
 use crate::warnings::{Record, Warning};
 
@@ -59,7 +59,7 @@ impl std::fmt::Display for StopRule {
 }
 
 /// Settings of a polynomial NARX identification.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct NarxSettings {
     /// na: output lags y(k−1)..y(k−na).
     pub na: usize,
@@ -84,6 +84,10 @@ pub struct NarxSettings {
     /// The most memory the identification's matrices may take ([`NarxSettings::memory_need`];
     /// default 4 GiB, [`sysid_core::ls::MAX_ESTIMATION_BYTES`]).
     pub max_memory: sysid_core::ls::MemoryBudget,
+    /// The caller's stop check, polled at each FROLS candidate and term and each refinement iteration
+    /// ([`Stop`]; default [`Stop::never`]): a stopped identification returns
+    /// [`SysidError::Cancelled`]. No part of the settings' value (equal whatever it holds).
+    pub cancel: Stop,
 }
 
 impl Default for NarxSettings {
@@ -102,6 +106,7 @@ impl Default for NarxSettings {
             refine: true,
             max_iterations: 50,
             max_memory: sysid_core::ls::MemoryBudget::default(),
+            cancel: Stop::never(),
         }
     }
 }
@@ -303,8 +308,14 @@ impl Frols {
 
 /// Orthogonal forward regression with the error-reduction ratio over the candidate columns `p` (each
 /// of the length of `y`), choosing at most `max_terms`. A candidate whose orthogonal part is below
-/// 1e-10 of its norm (dependent on the chosen ones) is never chosen.
-pub fn frols(p: &[Vec<f64>], y: &[f64], max_terms: usize) -> Frols {
+/// 1e-10 of its norm (dependent on the chosen ones) is never chosen. `cancel` is polled at each
+/// candidate of each term and at each deflation ([`SysidError::Cancelled`]).
+pub fn frols(
+    p: &[Vec<f64>],
+    y: &[f64],
+    max_terms: usize,
+    cancel: &Stop,
+) -> Result<Frols, SysidError> {
     let yy = dot(y, y);
     let mut w: Vec<Vec<f64>> = p.to_vec();
     let norms: Vec<f64> = p.iter().map(|c| dot(c, c)).collect();
@@ -321,6 +332,7 @@ pub fn frols(p: &[Vec<f64>], y: &[f64], max_terms: usize) -> Frols {
     while out.order.len() < max_terms.min(p.len()) {
         let mut best: Option<(usize, f64)> = None;
         for m in 0..p.len() {
+            cancel.check()?;
             if chosen[m] {
                 continue;
             }
@@ -344,6 +356,7 @@ pub fn frols(p: &[Vec<f64>], y: &[f64], max_terms: usize) -> Frols {
         out.order.push(m);
         // Deflate the others by q (modified Gram–Schmidt), recording their coefficients.
         for (j, wj) in w.iter_mut().enumerate() {
+            cancel.check()?;
             if chosen[j] {
                 continue;
             }
@@ -365,7 +378,7 @@ pub fn frols(p: &[Vec<f64>], y: &[f64], max_terms: usize) -> Frols {
     for row in &mut out.a {
         row.resize(n, 0.0);
     }
-    out
+    Ok(out)
 }
 
 /// Free-run simulation RMSE and fit % over rows k0.. of (u, y) of `model`; `None` on a blow-up.
@@ -445,7 +458,7 @@ pub fn identify_narx(data: &Dataset, settings: &NarxSettings) -> Result<NarxFit,
     let (frols_result, mut stop) = match s.stop {
         StopRule::Aic | StopRule::Bic => {
             let p = columns(&cands, u, y, k0);
-            let f = frols(&p, &y[k0..], s.max_terms);
+            let f = frols(&p, &y[k0..], s.max_terms, &s.cancel)?;
             let yy = dot(&y[k0..], &y[k0..]);
             let nn = n_rows as f64;
             let mut err_sum = 0.0;
@@ -486,7 +499,7 @@ pub fn identify_narx(data: &Dataset, settings: &NarxSettings) -> Result<NarxFit,
             let start = split.saturating_sub(k0);
             let (u_sel, y_sel) = (&u[start..], &y[start..]);
             let p = columns(&cands, u_fit, y_fit, k0);
-            let f = frols(&p, &y_fit[k0..], s.max_terms);
+            let f = frols(&p, &y_fit[k0..], s.max_terms, &s.cancel)?;
             // The patience runs out no earlier than the first term with an input (the fallback of an
             // input-free choice needs its value).
             let first_input = f.order.iter().position(|&i| cands[i].has_input());
@@ -494,6 +507,7 @@ pub fn identify_narx(data: &Dataset, settings: &NarxSettings) -> Result<NarxFit,
             let mut values: Vec<Option<f64>> = Vec::new();
             let mut fits: Vec<Option<f64>> = Vec::new();
             for n in 1..=f.order.len() {
+                s.cancel.check()?;
                 if best.1 > 0 && n > best.1 + SIM_PATIENCE && first_input.is_none_or(|i| n > i + 1)
                 {
                     break;
@@ -502,7 +516,8 @@ pub fn identify_narx(data: &Dataset, settings: &NarxSettings) -> Result<NarxFit,
                     // With refinement the candidate is judged as it will be used: refined (on the
                     // fitting part only), then simulated over the selection part.
                     let m = if s.refine {
-                        refine(&m, u_fit, y_fit, s.max_iterations).map_or(m, |(r, _, _)| r)
+                        refine(&m, u_fit, y_fit, s.max_iterations, &s.cancel)
+                            .map_or(m, |(r, _, _)| r)
                     } else {
                         m
                     };
@@ -565,7 +580,7 @@ pub fn identify_narx(data: &Dataset, settings: &NarxSettings) -> Result<NarxFit,
         .collect();
     let mut refinement = None;
     if s.refine {
-        match refine(&model, u, y, s.max_iterations) {
+        match refine(&model, u, y, s.max_iterations, &s.cancel) {
             Ok((m, r, st)) => {
                 if !r.converged {
                     warnings.push(format!(
@@ -578,6 +593,7 @@ pub fn identify_narx(data: &Dataset, settings: &NarxSettings) -> Result<NarxFit,
                 std = st;
                 refinement = Some(r);
             }
+            Err(SysidError::Cancelled) => return Err(SysidError::Cancelled),
             Err(e) => warnings.push(format!(
                 "the simulation-error refinement did not start: {e}; the one-step (least-squares) \
                  coefficients are kept"
@@ -943,12 +959,14 @@ impl ScaledNormal {
 }
 
 /// Levenberg–Marquardt on the free-run simulation error from `start`: the refined model, what it did,
-/// and the standard deviations σ̂ √[(JᵀJ)⁻¹]_ii at the end. Fails when the start's simulation blows up.
+/// and the standard deviations σ̂ √[(JᵀJ)⁻¹]_ii at the end. Fails when the start's simulation blows up,
+/// and with [`SysidError::Cancelled`] when `cancel` (polled at each trial step) was requested.
 pub fn refine(
     start: &NarxModel,
     u: &[f64],
     y: &[f64],
     max_iterations: usize,
+    cancel: &Stop,
 ) -> Result<(NarxModel, Refinement, Vec<Option<f64>>), SysidError> {
     let mut sens = simulate_with_sensitivity(start, u, y).ok_or_else(|| {
         SysidError::Numerical(
@@ -969,6 +987,7 @@ pub fn refine(
         let normal = ScaledNormal::new(&sens);
         let mut improved = false;
         for _ in 0..12 {
+            cancel.check()?;
             let Some(delta) = normal.damped_step(lambda) else {
                 lambda *= 10.0;
                 continue;

@@ -71,7 +71,7 @@ use crate::fitted::{Param, Termination};
 use crate::ls;
 use crate::regression::Regression;
 use sysid_core::model::{is_stable_polynomial_within, poles_of};
-use sysid_core::{Dataset, Model, NoiseModel, ParamName, StaticNonlinearity, SysidError};
+use sysid_core::{Dataset, Model, NoiseModel, ParamName, StaticNonlinearity, Stop, SysidError};
 
 /// The `input` label of the output nonlinearity's parameters (`s_r (output)`).
 pub const OUTPUT: &str = "output";
@@ -581,8 +581,13 @@ impl SearchEnd {
 }
 
 /// The stability-constrained Levenberg–Marquardt search (module docs): how it stopped, the
-/// iterations, the loss evaluations and the projected steps.
-fn search(problem: &mut Problem, max_iterations: usize) -> Result<SearchEnd, SysidError> {
+/// iterations, the loss evaluations and the projected steps. `cancel` is polled before each iteration and
+/// each trial step ([`SysidError::Cancelled`]).
+fn search(
+    problem: &mut Problem,
+    max_iterations: usize,
+    cancel: &Stop,
+) -> Result<SearchEnd, SysidError> {
     let mut cost = problem.cost();
     // A loss at the rounding level of the data (a noise-free record fitted exactly) has no meaningful
     // relative prediction: the first-order test is skipped there.
@@ -598,6 +603,7 @@ fn search(problem: &mut Problem, max_iterations: usize) -> Result<SearchEnd, Sys
         constrained: false,
     };
     for iteration in 1..=max_iterations {
+        cancel.check()?;
         let (Some(jac), Some(r)) = (problem.jacobian(), problem.residuals()) else {
             return Err(SysidError::Numerical(
                 "output-error search: the simulation of the current iterate diverged".into(),
@@ -609,6 +615,7 @@ fn search(problem: &mut Problem, max_iterations: usize) -> Result<SearchEnd, Sys
             return Ok(at.stopped(OeStop::GradientZero, iteration));
         }
         let theta = problem.free_values();
+        cancel.check()?;
         // One Householder triangularisation of [J D⁻¹ | r] per iteration; every damped trial step is
         // then a small 2p × p problem (Triangular::damped_step).
         let Ok(tri) = workspace.triangularise(&jac, &r, &[], false) else {
@@ -621,6 +628,7 @@ fn search(problem: &mut Problem, max_iterations: usize) -> Result<SearchEnd, Sys
         };
         at.constrained = false;
         loop {
+            cancel.check()?;
             let Ok(step) = tri.damped_step(lambda) else {
                 lambda = (lambda * 4.0).max(1e-10);
                 if lambda > LAMBDA_MAX {
@@ -821,6 +829,7 @@ fn run(
     max_iterations: usize,
     name: &str,
     param_names: &[String],
+    cancel: &Stop,
 ) -> Result<Searched, SysidError> {
     let (n, k0, np) = (problem.y.len(), problem.k0, problem.n_params());
     if model_part.len() != np {
@@ -849,8 +858,8 @@ fn run(
         }
     }
     let rss_start = problem.cost();
-    let mut end = search(&mut problem, max_iterations).map_err(|e| e.context(name))?;
-    restart(&mut problem, &mut end, max_iterations);
+    let mut end = search(&mut problem, max_iterations, cancel).map_err(|e| e.context(name))?;
+    restart(&mut problem, &mut end, max_iterations, cancel)?;
     let (stop, iterations, evaluations, projected_steps) =
         (end.stop, end.iterations, end.evaluations, end.projected);
     let d = problem.decode();
@@ -909,8 +918,14 @@ fn run(
 /// it. Each restarted search may take the iterations the first one left of `max_iterations`; the
 /// counts reported add up every search. A stop still predicted to fall becomes
 /// [`OeStop::NotStationary`] (not converged) when the last round was still lowering the loss or the
-/// breakpoints still cross, else [`OeStop::AtKink`].
-fn restart(problem: &mut Problem, end: &mut SearchEnd, max_iterations: usize) {
+/// breakpoints still cross, else [`OeStop::AtKink`]. A restarted search's failure leaves the end as it
+/// was, except [`SysidError::Cancelled`] (the caller's `cancel`), which is returned.
+fn restart(
+    problem: &mut Problem,
+    end: &mut SearchEnd,
+    max_iterations: usize,
+    cancel: &Stop,
+) -> Result<(), SysidError> {
     let stalled =
         |e: &SearchEnd| e.stop.on_tolerance() && !e.constrained && e.explained > STATIONARY;
     // Each restarted search may take the iterations the first one left.
@@ -937,7 +952,10 @@ fn restart(problem: &mut Problem, end: &mut SearchEnd, max_iterations: usize) {
         for (start, free) in starts {
             problem.full = start;
             problem.free = free.to_vec();
-            let again = search(problem, remaining).ok();
+            let again = match search(problem, remaining, cancel) {
+                Err(SysidError::Cancelled) => return Err(SysidError::Cancelled),
+                again => again.ok(),
+            };
             problem.free = all.clone();
             end.iterations += again.map_or(0, |a| a.iterations);
             end.evaluations += again.map_or(0, |a| a.evaluations) + 2;
@@ -967,6 +985,7 @@ fn restart(problem: &mut Problem, end: &mut SearchEnd, max_iterations: usize) {
             OeStop::AtKink
         };
     }
+    Ok(())
 }
 
 /// σ̂² (JᵀJ)⁻¹ over the Jacobian's non-zero columns when the whole JᵀJ is singular only because some
@@ -1085,7 +1104,8 @@ fn problem<'a>(channels: Vec<Channel<'a>>, y: &'a [f64], na: usize, offset: bool
 
 /// Refines `start` (a model of the structure `reg`) by minimising the simulation error on `data`, over
 /// the entries of `reg`'s physical layout marked in `free` (fixed entries keep the start's value), in at
-/// most `max_iterations` Levenberg–Marquardt iterations. The parameters come in the reported order of
+/// most `max_iterations` Levenberg–Marquardt iterations, polling `cancel` before each iteration and trial
+/// step ([`SysidError::Cancelled`]). The parameters come in the reported order of
 /// [`Regression::params_from`].
 pub fn refine(
     data: &Dataset,
@@ -1093,8 +1113,9 @@ pub fn refine(
     free: &[bool],
     start: &Model,
     max_iterations: usize,
+    cancel: &Stop,
 ) -> Result<OeFit, SysidError> {
-    refine_with_output(data, reg, free, start, None, max_iterations)
+    refine_with_output(data, reg, free, start, None, max_iterations, cancel)
 }
 
 /// The output nonlinearity y = g(v) of an output-error problem: its block, its start and which of its
@@ -1119,6 +1140,7 @@ pub fn refine_with_output(
     start: &Model,
     output: Option<OutputStart>,
     max_iterations: usize,
+    cancel: &Stop,
 ) -> Result<OeFit, SysidError> {
     let name = data.name();
     let u = data.input_signals();
@@ -1165,7 +1187,15 @@ pub fn refine_with_output(
                 .map(|n| format!("{n} (output)")),
         );
     }
-    let found = run(problem, full, model_free, max_iterations, name, &labels)?;
+    let found = run(
+        problem,
+        full,
+        model_free,
+        max_iterations,
+        name,
+        &labels,
+        cancel,
+    )?;
     let mut params = reg.params_from(|i| (found.full[i], found.std(i)));
     let mut model = reg
         .model_of_physical(&found.full[..n_model], data.ts())

@@ -121,6 +121,7 @@ impl IdentifyOptions {
             fallback: self.fallback,
             output: None,
             max_memory: self.max_memory,
+            cancel: sysid_core::Stop::never(),
         }
     }
 }

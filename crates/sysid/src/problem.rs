@@ -5,7 +5,7 @@
 use crate::blocks::BlockStart;
 use crate::fitted::{Fitted, Method};
 use crate::regression::{Channel, Regression};
-use sysid_core::{Dataset, Model, SysidError};
+use sysid_core::{Dataset, Model, Stop, SysidError};
 
 /// One record or several (merged experiments, MATLAB `merge`): what [`identify`](crate::identify) accepts.
 pub trait Records {
@@ -40,6 +40,7 @@ pub struct Problem<'a> {
     regression: Regression,
     starts: Vec<BlockStart>,
     name: String,
+    cancel: Stop,
 }
 
 impl<'a> Problem<'a> {
@@ -141,7 +142,19 @@ impl<'a> Problem<'a> {
             regression,
             starts,
             name,
+            cancel: Stop::never(),
         })
+    }
+
+    /// The same problem with the caller's stop check, which the estimators poll at each iteration,
+    /// pass or stage ([`Stop`]).
+    pub fn with_cancel(mut self, cancel: Stop) -> Self {
+        self.cancel = cancel;
+        self
+    }
+    /// The caller's stop check ([`Stop::never`] unless [`Problem::with_cancel`] gave one).
+    pub fn cancel(&self) -> &Stop {
+        &self.cancel
     }
 
     /// The records.
@@ -177,6 +190,7 @@ impl<'a> Problem<'a> {
             regression,
             starts,
             name: self.name.clone(),
+            cancel: self.cancel.clone(),
         })
     }
     /// Input m of every record, one after the other.

@@ -288,7 +288,7 @@ pub fn evaluate(
                     degree,
                     stop: crate::narx::StopRule::Sim,
                     selection: sel.len() as f64 / whole.len() as f64,
-                    ..*narx
+                    ..narx.clone()
                 };
                 let fit = identify_narx(whole, &s)?;
                 let m = &fit.model;
@@ -342,7 +342,7 @@ pub fn check_memory(
                 nb,
                 nk,
                 degree,
-                ..*narx
+                ..narx.clone()
             }
             .memory_need(whole),
         ),

@@ -150,6 +150,7 @@ pub(crate) fn refine(
             free: &free_g,
         }),
         max_iterations,
+        p.cancel(),
     )?;
     let refined = simulation_rmses(&fit.model, data);
     let before = simulation_rmses(&start.model, data);

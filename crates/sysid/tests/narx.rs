@@ -5,7 +5,7 @@
 use sysid::data::Signals;
 use sysid::narx::{frols, identify_narx, NarxSettings, StopRule};
 use sysid::narx_model::{candidate_terms, NarxModel, Term};
-use sysid::Dataset;
+use sysid::{Dataset, Stop};
 
 // Hand computation: p1 = (1, 1, 0), p2 = (1, 0, 1), y = (2, 1, 0), yᵀy = 5.
 // ERR(p1) = (p1ᵀy)²/(p1ᵀp1 · yᵀy) = 9/10, ERR(p2) = 4/10: p1 first. w2 = p2 − ½ p1 = (½, −½, 1),
@@ -15,7 +15,7 @@ use sysid::Dataset;
 fn err_of_a_hand_computed_case() {
     let p = vec![vec![1.0, 1.0, 0.0], vec![1.0, 0.0, 1.0]];
     let y = [2.0, 1.0, 0.0];
-    let f = frols(&p, &y, 2);
+    let f = frols(&p, &y, 2, &Stop::never()).unwrap();
     assert_eq!(f.order, vec![0, 1]);
     assert!((f.err[0] - 0.9).abs() < 1e-15);
     assert!((f.err[1] - 1.0 / 30.0).abs() < 1e-15);
@@ -83,7 +83,7 @@ fn frols_picks_exactly_the_true_terms() {
                 .collect()
         })
         .collect();
-    let f = frols(&cols, &d.y()[k0..], 8);
+    let f = frols(&cols, &d.y()[k0..], 8, &Stop::never()).unwrap();
     let mut first: Vec<Term> = f.order[..3].iter().map(|&i| cands[i].clone()).collect();
     first.sort();
     let mut want: Vec<Term> = truth().into_iter().map(|(t, _)| t).collect();
@@ -131,7 +131,7 @@ fn refinement_returns_to_the_true_coefficients() {
     let terms: Vec<Term> = truth.iter().map(|(t, _)| t.clone()).collect();
     let theta: Vec<f64> = truth.iter().map(|(_, c)| c * 1.05).collect();
     let start = NarxModel::new(1.0, 2, 2, 1, 2, terms, theta).unwrap();
-    let (m, r, _) = sysid::narx::refine(&start, d.u(), d.y(), 100).unwrap();
+    let (m, r, _) = sysid::narx::refine(&start, d.u(), d.y(), 100, &Stop::never()).unwrap();
     assert!(r.rmse_after < 1e-9 && r.rmse_before > 1e-3, "{r:?}");
     assert_true_terms(&m);
 }

@@ -88,6 +88,7 @@ fn settings(
         fallback: true,
         output: None,
         max_memory: Default::default(),
+        cancel: Default::default(),
     }
 }
 

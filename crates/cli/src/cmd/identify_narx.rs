@@ -63,6 +63,8 @@ impl NarxArgs {
             refine: !self.no_refine,
             max_iterations,
             max_memory,
+            // The command line's SIGINT ends the process.
+            cancel: sysid::Stop::never(),
         }
     }
 }

@@ -294,5 +294,6 @@ fn base_identification(args: &Args, truth_model: Option<&Model>) -> Identificati
         max_memory: args.memory.max_memory,
         // A study of the estimators' bias and spread looks at their own estimates, never a fallback.
         fallback: false,
+        cancel: sysid::Stop::never(),
     }
 }

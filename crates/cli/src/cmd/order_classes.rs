@@ -265,7 +265,7 @@ fn chosen_on_test(
                 degree,
                 stop: sysid::narx::StopRule::Sim,
                 selection: 1.0 - split_fraction,
-                ..*narx
+                ..narx.clone()
             };
             let fit = sysid::narx::identify_narx(data, &s)?;
             match test {

@@ -104,6 +104,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         },
         check_physics: args.check_physics,
         physics_variants: args.physics_variants,
+        // The command line's SIGINT ends the process.
+        cancel: sysid::Stop::never(),
     })
     .map_err(|e| match e {
         // The deadzone the compensator would invert is the model's: name the flag the user gave.

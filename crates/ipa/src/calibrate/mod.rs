@@ -219,6 +219,10 @@ pub struct Calibration {
     pub determined_rel_std: f64,
     /// Scale the supply conductance by the full-command speed ratio before the search (default true).
     pub physical_start: bool,
+    /// The caller's stop check, polled at each simulation of the record (each evaluation of the
+    /// search; [`sysid_core::Stop`], default never): a stopped calibration returns
+    /// `IpaError::Sysid(SysidError::Cancelled)`.
+    pub cancel: sysid_core::Stop,
 }
 
 /// The largest [`Calibration::max_iterations`] accepted (each iteration simulates the record a few
@@ -236,6 +240,7 @@ impl Default for Calibration {
             max_iterations: 40,
             determined_rel_std: 0.05,
             physical_start: true,
+            cancel: sysid_core::Stop::never(),
         }
     }
 }
@@ -814,6 +819,7 @@ impl Calibration {
         sol.start_cost = start_cost;
         sol.iterations = iterations;
         sol.evaluations = evaluations;
+        self.cancel.check()?;
         let coords = Coordinates::new(&self.free, &start);
         let stage_start = start.clone();
         let start_values_from = start.clone();
@@ -996,6 +1002,11 @@ impl Calibration {
         let coords = Coordinates::new(free, start);
         let theta0 = coords.theta(start);
         let residual = |theta: &[f64]| -> Option<Vec<f64>> {
+            // A stop makes every evaluation fail at once: the search ends in a few cheap steps and
+            // `fit` returns Cancelled.
+            if self.cancel.requested() {
+                return None;
+            }
             let cfg = coords.config(start, theta);
             cfg.validate().ok()?;
             self.residuals(&cfg, rec, segs).ok()

@@ -109,6 +109,51 @@ impl Input {
     }
 }
 
+/// A sample of a record that is not a finite number (NaN or ±infinite): which signal, which sample
+/// k (0-based), and its value — the fact behind the records' "`y(k) = NaN is not a finite number`"
+/// ([`Dataset::with_inputs`]), for a caller that words it itself (the fleet's windows: the actuator and
+/// the sample's time; `sysid_summary::monitor`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct NonFinite {
+    /// The signal: "y", "u" (the one input of a single-input record) or the input's name.
+    pub signal: String,
+    /// The sample k, 0-based within the signal.
+    pub sample: usize,
+    /// Its value (NaN, inf or -inf).
+    pub value: f64,
+}
+
+impl NonFinite {
+    /// The first sample that is not finite, the inputs (`(name, u)`, in order) searched before the
+    /// output `y`; `None` when every sample is finite.
+    pub fn first<'a, S: Into<String>>(
+        inputs: impl IntoIterator<Item = (S, &'a [f64])>,
+        y: &[f64],
+    ) -> Option<NonFinite> {
+        let at = |signal: String, x: &[f64]| {
+            x.iter().position(|v| !v.is_finite()).map(|k| NonFinite {
+                signal,
+                sample: k,
+                value: x[k],
+            })
+        };
+        inputs
+            .into_iter()
+            .find_map(|(name, u)| at(name.into(), u))
+            .or_else(|| at("y".into(), y))
+    }
+}
+
+impl std::fmt::Display for NonFinite {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{}({}) = {} is not a finite number",
+            self.signal, self.sample, self.value
+        )
+    }
+}
+
 /// The two signals of a record, named so that they cannot be swapped silently (`Signals { u, y }`).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Signals {
@@ -170,20 +215,14 @@ impl Dataset {
             }
         }
         check_ts(ts)?;
-        for (i, (input, u)) in inputs.iter().enumerate() {
-            let what = what(input);
+        for (i, (input, _)) in inputs.iter().enumerate() {
             if inputs[..i].iter().any(|(n, _)| n == input) {
                 return Err(bad(format!("the input {input} is named twice")));
             }
-            if let Some(k) = u.iter().position(|x| !x.is_finite()) {
-                return Err(bad(format!(
-                    "{what}({k}) = {} is not a finite number",
-                    u[k]
-                )));
-            }
         }
-        if let Some(k) = y.iter().position(|x| !x.is_finite()) {
-            return Err(bad(format!("y({k}) = {} is not a finite number", y[k])));
+        let signals = inputs.iter().map(|(input, u)| (what(input), u.as_slice()));
+        if let Some(fault) = NonFinite::first(signals, &y) {
+            return Err(bad(fault.to_string()));
         }
         let inputs = inputs
             .into_iter()
@@ -1865,7 +1904,9 @@ pub fn sample_times(n: usize, ts: f64) -> Vec<f64> {
 
 #[cfg(test)]
 mod tests {
-    use super::{check_ts, json_format_key, ts_contradicts, uniform_time, Sniffed, TimeFault};
+    use super::{
+        check_ts, json_format_key, ts_contradicts, uniform_time, NonFinite, Sniffed, TimeFault,
+    };
 
     // The one "format" rule (the two sniffers it replaced differed: the record readers' took a
     // "format" anywhere in the text, the writer's only as the first key). Hand-written documents.
@@ -1925,6 +1966,21 @@ mod tests {
         assert_eq!(json_format_key(&text).as_deref(), Some("ipa-sysid-model"));
         assert_eq!(json_format_key(&text[..4096]), None);
         assert_eq!(Sniffed::of(&text.as_bytes()[..4096]), Some(Sniffed::Json));
+    }
+
+    // The first sample that is not finite: inputs before y, the signal, the sample and the value.
+    #[test]
+    fn the_first_non_finite_sample_is_named_by_signal_sample_and_value() {
+        let y = [0.0, 1.0, f64::NAN];
+        let u = [0.0, f64::NEG_INFINITY, 0.0];
+        let f = NonFinite::first([("u", &u[..])], &y).expect("u(1)");
+        assert_eq!((f.signal.as_str(), f.sample), ("u", 1));
+        assert_eq!(f.value, f64::NEG_INFINITY);
+        let f = NonFinite::first([("u", &[0.0; 3][..])], &y).expect("y(2)");
+        assert_eq!((f.signal.as_str(), f.sample), ("y", 2));
+        assert!(f.value.is_nan());
+        assert_eq!(f.to_string(), "y(2) = NaN is not a finite number");
+        assert_eq!(NonFinite::first([("u", &[0.0; 3][..])], &[0.0; 3]), None);
     }
 
     /// t(k) = k · 0.01 s for k = 0 .. n − 1.

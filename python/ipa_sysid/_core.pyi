@@ -305,11 +305,14 @@ def fleet_windows(
     detect_warmup: int = 200,
     detect_calibration: int = 800,
 ) -> dict[str, Any]:
-    """Every window of a partition identified (LS) and tracked: the columns `ipa_sysid.fleet.identify_partition` builds its frame from."""
+    """Every window of a partition identified (LS) and tracked: the columns `ipa_sysid.fleet.identify_partition` builds its frame from;
+    a window not identified has `error` (the core's message) and, for a sample that is not finite,
+    `error_signal` ("u" or "y"), `error_sample` (within the window) and `error_value`."""
 
-def fleet_times(t: ArrayLike, offsets: list[int], ts: float) -> list[tuple[str, str]]:
-    """Per actuator (rows offsets[g] .. offsets[g + 1] of t, sorted by time): (error, note), each "" or the
-    time column's fault (NaN, not increasing, non-uniform) and a ts contradicting its typical step."""
+def fleet_times(t: ArrayLike, offsets: list[int], ts: float) -> list[tuple[str, float]]:
+    """Per actuator (rows offsets[g] .. offsets[g + 1] of t, sorted by time): (error, step): error "" or the
+    time column's fault (NaN, not increasing, non-uniform); step the column's typical step (s) where ts
+    contradicts it by more than 0.1 %, else NaN."""
 
 def check_output(path: str | PathLike[str], argument: str, force: bool = False) -> None:
     """Refuses an output path as the command line refuses an output flag (a folder, a socket, a link to

@@ -24,7 +24,6 @@ import html
 import math
 import numbers
 import os
-import re
 import warnings
 
 import numpy as np
@@ -122,6 +121,8 @@ def _columns(na, nb):
         "changes",
         "first_change_t",
         "error",
+        "ts",
+        "t_step",
     ]
     return cols
 
@@ -154,8 +155,11 @@ def identify_partition(
     parameter and its standard deviation ``<name>_sd`` (NaN where ``identify`` reports none),
     ``deadzone_width`` (b_r - b_l, counts), ``fit_sim_percent``, ``fit_pred_percent``, ``stable``,
     ``warnings`` (the ``identify --json`` warnings joined by newlines), ``changes`` (number of change
-    points the tracker found), ``first_change_t`` (time of the first, s, or NaN) and ``error`` (empty,
-    or why the window could not be identified: the other windows go on).
+    points the tracker found), ``first_change_t`` (time of the first, s, or NaN), ``error`` (empty,
+    or why the window could not be identified: the other windows go on; worded here from the core's
+    facts, a sample that is not finite by its time), ``ts`` (the sampling period used, s) and
+    ``t_step`` (the actuator's typical time step, s, where ``ts`` contradicts it; NaN where they
+    agree: ``trends`` notes it).
 
     An actuator with fewer than ``window`` samples is one row with ``window`` 0, ``samples`` its count,
     NaN parameters and an ``error``; the samples after an actuator's last whole window are left out.
@@ -208,7 +212,7 @@ def identify_partition(
     if len(partition) == 0:
         frame = pd.DataFrame({c: [] for c in cols})
         if unnamed is not None:
-            frame = _with_error_rows(frame, cols, [unnamed])
+            frame = _with_error_rows(frame, cols, ts, [unnamed])
         return _typed(frame)
     # Sorting a partition of a million rows costs more than a tenth of its identification: skipped when
     # the rows are already in (actuator_id, t) order (as `ipa-sysid simulate --fleet` writes them), where
@@ -223,7 +227,7 @@ def identify_partition(
     # contradicts the column is said in its windows' warnings.
     times = _core.fleet_times(t, offsets, ts)
     faulty = [(ids[o], o, n, e) for o, n, (e, _) in zip(offsets[:-1], np.diff(offsets), times) if e]
-    notes = {ids[o]: note for o, (_, note) in zip(offsets[:-1], times) if note}
+    steps = {ids[o]: step for o, (_, step) in zip(offsets[:-1], times) if not math.isnan(step)}
     faulty_rows = [
         (aid, n, t[o], t[o + n - 1], e) for aid, o, n, e in faulty
     ]
@@ -281,9 +285,13 @@ def identify_partition(
         dtype=np.float64,
     )
     out["error"] = [
-        _window_error(e, ids[offsets[g]], j, t, s, window) if e else e
-        for e, g, j, s in zip(r["error"], group, out["window"], start)
+        _window_error(e, ids[offsets[g]], j, t, s, window, sig, k, v) if e else e
+        for e, g, j, s, sig, k, v in zip(
+            r["error"], group, out["window"], start, r["error_signal"], r["error_sample"], r["error_value"]
+        )
     ]
+    out["ts"] = np.full(len(start), float(ts))
+    out["t_step"] = np.full(len(start), np.nan)
     frame = pd.DataFrame(out, columns=cols)
     failed = [(a, j) for a, j, e in zip(frame["actuator_id"], frame["window"], frame["error"]) if e]
     if failed:
@@ -293,14 +301,15 @@ def identify_partition(
             f"{_ids(dict.fromkeys(a for a, _ in failed))}; each is an error row, the other windows go on: "
             f"first, {first}"
         )
-    if notes:
-        said = frame["actuator_id"].map(notes).fillna("")
+    if steps:
+        frame["t_step"] = frame["actuator_id"].map(steps).astype("float64")
         frame["warnings"] = [
-            (w + "\n" + n if w else n) if n else w for w, n in zip(frame["warnings"], said)
+            (w + "\n" + _ts_note(ts, step) if w else _ts_note(ts, step)) if not math.isnan(step) else w
+            for w, step in zip(frame["warnings"], frame["t_step"])
         ]
         _warn(
-            f"{len(notes)} actuator(s) have a time column whose typical step contradicts ts = {ts} s: "
-            f"{_ids(notes)}; ts is used (each window's warnings say by how much)"
+            f"{len(steps)} actuator(s) have a time column whose typical step contradicts ts = {ts} s: "
+            f"{_ids(steps)}; ts is used (each window's warnings say by how much)"
         )
     short = [(o, n) for o, n in zip(offsets[:-1], lengths) if n < window]
     if short:
@@ -308,6 +317,7 @@ def identify_partition(
         frame = _with_error_rows(
             frame,
             cols,
+            ts,
             [
                 (
                     ids[o],
@@ -325,7 +335,7 @@ def identify_partition(
             f"{_ids(ids[o] for o, _ in short)}; each is an error row, not identified"
         )
     if faulty_rows:
-        frame = _with_error_rows(frame, cols, faulty_rows)
+        frame = _with_error_rows(frame, cols, ts, faulty_rows)
         _warn(
             f"{len(faulty_rows)} actuator(s) have a time column that cannot date a uniformly sampled "
             f"record (a NaN time, repeated or decreasing times, a gap): {_ids(r[0] for r in faulty_rows)}; "
@@ -333,25 +343,46 @@ def identify_partition(
             f"{faulty_rows[0][4]}"
         )
     if unnamed is not None:
-        frame = _with_error_rows(frame, cols, [unnamed])
+        frame = _with_error_rows(frame, cols, ts, [unnamed])
     return _typed(frame)
 
 
-def _window_error(error, aid, j, t, start, window):
-    """The core's error for window ``j`` of actuator ``aid`` (``group G window J: ...``, G the
-    actuator's position in the partition) in the partition's words: the actuator's id, the window's
-    time span, and a sample ``y(k)`` named by its time (audit s26 L-3: "group 2 window 3: y(1000) =
-    NaN" for actuator 7)."""
-    hit = re.match(r"group \d+ window \d+: (.*)", error, re.S)
-    body = hit.group(1) if hit else error
+def _window_error(error, aid, j, t, start, window, signal, sample, value):
+    """The words of window ``j`` of actuator ``aid`` (its first row ``start`` of the time column ``t``)
+    not identified, from the core's facts (``fleet_windows``): a sample that is not finite (``signal``
+    "u" or "y", ``sample`` within the window, its ``value``) named by its time, or the core's ``error``
+    message (the window's record not named in it), after the actuator's id and the window's time span
+    (audit s26 L-3: "group 2 window 3: y(1000) = NaN" for actuator 7)."""
+    if signal:
+        k = int(sample)
+        when = f"t = {t[start + k]:g} s " if 0 <= k < window else ""
+        error = f"{signal} at {when}(sample {k} of the window) is {_number(value)}, not a finite number"
+    return f"actuator {aid}, window {j} (t {t[start]:g}–{t[start + window - 1]:g} s): {error}"
 
-    def at(m):
-        k = int(m.group(2))
-        when = f"t = {t[start + k]:g} s " if k < window else ""
-        return f"{m.group(1)} at {when}(sample {k} of the window) is {m.group(3)}, not a finite number"
 
-    body = re.sub(r"\b(\w+)\((\d+)\) = (\S+) is not a finite number", at, body)
-    return f"actuator {aid}, window {j} (t {t[start]:g}–{t[start + window - 1]:g} s): {body}"
+def _number(v):
+    """A float as the core writes it: NaN, inf, -inf, or the shortest digits."""
+    v = float(v)
+    if math.isnan(v):
+        return "NaN"
+    if math.isinf(v):
+        return "inf" if v > 0 else "-inf"
+    return repr(v)
+
+
+def _g6(v):
+    """``v`` to 6 significant digits (Python's ``g``, as the other figures of this module's words)."""
+    return f"{float(v):.6g}"
+
+
+def _ts_note(ts, step):
+    """The warning of a window whose actuator's time column has the typical step ``step`` (s), which
+    the sampling period ``ts`` used contradicts (``fleet_times``)."""
+    return (
+        f"ts = {_g6(ts)} s contradicts the time column t (its typical step is {_g6(step)} s): ts is used, so "
+        f"every time figure (Ts, time constants) is {_g6(ts / step)} times what the column says; pass "
+        f"ts = {_g6(step)} to use the column"
+    )
 
 
 def _groups(df):
@@ -366,10 +397,10 @@ def _groups(df):
     return ids, t, offsets
 
 
-def _with_error_rows(frame, cols, rows):
-    """``frame`` with one error row (window 0, NaN parameters) per ``(actuator_id, samples, t_start,
-    t_end, error)`` of ``rows``: an actuator not identified is a row that says why, not a silent absence
-    from the fleet."""
+def _with_error_rows(frame, cols, ts, rows):
+    """``frame`` with one error row (window 0, NaN parameters, the ``ts`` used) per ``(actuator_id,
+    samples, t_start, t_end, error)`` of ``rows``: an actuator not identified is a row that says why, not
+    a silent absence from the fleet."""
     pd = _pandas()
     extra = pd.DataFrame(
         {
@@ -382,6 +413,7 @@ def _with_error_rows(frame, cols, rows):
             "warnings": "",
             "changes": 0,
             "error": [r[4] for r in rows],
+            "ts": float(ts),
         },
         columns=cols,
     )
@@ -827,26 +859,27 @@ def trends(results, alpha=ALPHA):
     )
 
 
-#: The note ``identify_partition`` puts in each window's warnings when ts contradicts the time column.
-_TS_NOTE = re.compile(r"ts = (\S+) s contradicts the time column t \(its typical step is (\S+) s\)")
-
-
 def _window_notes(ok, bad):
     """The doubts of one actuator read from its windows (``ok`` identified, ``bad`` with an error): a
     time column whose step contradicts ts (the trends per hour are then in the column's time units),
     the windows not identified (how many, the first's span and error)."""
     notes = []
-    if "warnings" in ok.columns:
-        for text in list(ok["warnings"].fillna("").astype(str)) + list(bad.get("warnings", [])):
-            hit = _TS_NOTE.search(str(text))
-            if hit:
-                ts, step = float(hit.group(1)), float(hit.group(2))
-                hint = ", t in ms?" if ts > 0 and 900 < step / ts < 1100 else ""
-                notes.append(
-                    f"time column step {hit.group(2)} s where ts = {hit.group(1)} s ({step / ts:.6g}x{hint}): "
-                    "t_start and the trends per hour are in the column's units, not comparable with the fleet's"
-                )
-                break
+    # The core's facts as columns (fleet_times): ts used and, where it contradicts the column, the
+    # column's typical step t_step (results written before these columns carry no such note).
+    said = [
+        (ts, step)
+        for rows in (ok, bad)
+        if "ts" in rows.columns and "t_step" in rows.columns
+        for ts, step in zip(rows["ts"].to_numpy(dtype=np.float64), rows["t_step"].to_numpy(dtype=np.float64))
+        if np.isfinite(ts) and np.isfinite(step)
+    ]
+    if said:
+        ts, step = said[0]
+        hint = ", t in ms?" if ts > 0 and 900 < step / ts < 1100 else ""
+        notes.append(
+            f"time column step {_g6(step)} s where ts = {_g6(ts)} s ({step / ts:.6g}x{hint}): "
+            "t_start and the trends per hour are in the column's units, not comparable with the fleet's"
+        )
     if len(bad):
         first = bad.iloc[0]
         span = ""

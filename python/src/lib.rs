@@ -1828,18 +1828,19 @@ fn _narx_fit_restore(json: String, model_file: String) -> PyNarxFit {
 // ---------------------------------------------------------------------------------------------------
 // fleet.
 
-/// Upper bound on the windows of one `fleet_windows` call (a partition), before anything is allocated.
-const MAX_FLEET_WINDOWS: usize = 10_000_000;
-
 /// Identification and tracking of every window of a partition of many actuators' records
-/// (`sysid_summary::monitor::window` on each): `u`, `y` hold the actuators one after the other, actuator g in
-/// rows offsets[g] .. offsets[g + 1]; each actuator's rows are cut into consecutive windows of `window`
-/// samples (an incomplete last window is left out). Returns a dict of columns, one entry per window:
-/// `group`, `window`, `start` (its first row), `names` (the parameters), `values` and `sds` (windows ×
-/// parameters; NaN where a window has no such parameter or no standard deviation), `fit_sim_percent`,
+/// (`sysid_summary::monitor::partition`: the windows cut by `monitor::windows`, each identified by
+/// `monitor::window`): `u`, `y` hold the actuators one after the other, actuator g in rows offsets[g] ..
+/// offsets[g + 1]; each actuator's rows are cut into consecutive windows of `window` samples (an
+/// incomplete last window is left out). Returns a dict of columns, one entry per window: `group`,
+/// `window`, `start` (its first row), `names` (the parameters), `values` and `sds` (windows × parameters;
+/// NaN where a window has no such parameter or no standard deviation), `fit_sim_percent`,
 /// `fit_pred_percent` (NaN when not computed), `stable`, `warnings` (one string, lines joined by "\n"),
-/// `change_points` (lists of samples within the window) and `error` ("" or the message of a window whose
-/// identification failed: a fleet goes on past one bad record). The GIL is released while computing.
+/// `change_points` (lists of samples within the window), and for a window not identified (a fleet goes
+/// on past one bad record) the facts, for the caller to word: `error` ("" or the core's message, the
+/// window's record not named), and for a sample that is not finite `error_signal` ("u" or "y"; "" for
+/// other failures), `error_sample` (the sample within the window; -1 when none) and `error_value`
+/// (its value; NaN when none). The GIL is released while computing.
 #[pyfunction]
 #[pyo3(signature = (u, y, offsets, ts, window, method="ls", na=3, nb=1, nk=1, detect_warmup=200,
     detect_calibration=800))]
@@ -1858,6 +1859,7 @@ fn fleet_windows<'py>(
     detect_warmup: usize,
     detect_calibration: usize,
 ) -> PyResult<Bound<'py, PyDict>> {
+    use sysid_summary::monitor::{self, WindowFault};
     let u = floats(u, "u")?;
     let y = floats(y, "y")?;
     if u.len() != y.len() {
@@ -1865,15 +1867,6 @@ fn fleet_windows<'py>(
             "u has {} samples but y has {}",
             u.len(),
             y.len()
-        )));
-    }
-    if offsets.first() != Some(&0)
-        || offsets.last() != Some(&u.len())
-        || offsets.windows(2).any(|w| w[1] < w[0])
-    {
-        return Err(PyValueError::new_err(format!(
-            "offsets: expected non-decreasing row offsets from 0 to {} (the number of samples)",
-            u.len()
         )));
     }
     sysid_core::data::check_ts(ts).map_err(sysid_err)?;
@@ -1884,6 +1877,7 @@ fn fleet_windows<'py>(
             &format!("2..={} samples", sysid_core::data::MAX_SAMPLES),
         ));
     }
+    let spans = monitor::windows(&offsets, u.len(), window).map_err(sysid_err)?;
     let options = IdentifyOptions {
         method: choice("--method", method)?,
         na,
@@ -1903,42 +1897,14 @@ fn fleet_windows<'py>(
         ..sysid::online::TrackSettings::default()
     };
     sysid::online::Tracker::new(track).map_err(sysid_err)?;
-    let settings = sysid_summary::monitor::WindowSettings {
+    let settings = monitor::WindowSettings {
         identification,
         track,
     };
-    // (group, window index, first row) of every complete window.
-    let mut jobs = Vec::new();
-    for (g, w) in offsets.windows(2).enumerate() {
-        let count = (w[1] - w[0]) / window;
-        if jobs.len() + count > MAX_FLEET_WINDOWS {
-            return Err(PyValueError::new_err(format!(
-                "more than {MAX_FLEET_WINDOWS} windows in one partition: use smaller partitions"
-            )));
-        }
-        jobs.extend((0..count).map(|j| (g, j, w[0] + j * window)));
-    }
-    type Windows = Vec<Result<sysid_summary::monitor::WindowResult, String>>;
-    let results = compute(py, |stop| -> Result<Windows, SysidError> {
+    let results = compute(py, |stop| {
         let mut settings = settings.clone();
         settings.identification.cancel = stop.clone();
-        let mut results = Vec::with_capacity(jobs.len());
-        for &(g, j, start) in &jobs {
-            stop.check()?;
-            let signals = Signals {
-                u: u[start..start + window].to_vec(),
-                y: y[start..start + window].to_vec(),
-            };
-            // A window that fails is an error row (a fleet goes on past one bad record); a stop
-            // ends the whole call.
-            match Dataset::new(signals, ts, format!("group {g} window {j}"))
-                .and_then(|d| sysid_summary::monitor::window(&d, &settings))
-            {
-                Err(SysidError::Cancelled) => return Err(SysidError::Cancelled),
-                r => results.push(r.map_err(|e| e.render(&|s| keyword(s.flag())))),
-            }
-        }
-        Ok(results)
+        monitor::partition(&u, &y, &spans, ts, &settings)
     })?
     .map_err(sysid_err)?;
     let mut names: Vec<String> = Vec::new();
@@ -1956,6 +1922,8 @@ fn fleet_windows<'py>(
     let (mut fit_sim, mut fit_pred) = (vec![f64::NAN; rows], vec![f64::NAN; rows]);
     let mut stable = vec![false; rows];
     let (mut warnings, mut errors) = (vec![String::new(); rows], vec![String::new(); rows]);
+    let mut signal = vec![String::new(); rows];
+    let (mut sample, mut value) = (vec![-1i64; rows], vec![f64::NAN; rows]);
     let mut changes: Vec<Vec<usize>> = vec![Vec::new(); rows];
     for (i, r) in results.into_iter().enumerate() {
         match r {
@@ -1973,13 +1941,21 @@ fn fleet_windows<'py>(
                 warnings[i] = r.report.warnings.join("\n");
                 changes[i] = r.change_points;
             }
-            Err(e) => errors[i] = e,
+            Err(WindowFault::NonFinite(f)) => {
+                errors[i] = f.to_string();
+                sample[i] = i64::try_from(f.sample).unwrap_or(i64::MAX);
+                value[i] = f.value;
+                signal[i] = f.signal;
+            }
+            Err(WindowFault::Failed(e)) => {
+                errors[i] = e.render_within(monitor::WINDOW_RECORD, &|s| keyword(s.flag()));
+            }
         }
     }
     let out = PyDict::new(py);
-    out.set_item("group", jobs.iter().map(|j| j.0).collect::<Vec<_>>())?;
-    out.set_item("window", jobs.iter().map(|j| j.1).collect::<Vec<_>>())?;
-    out.set_item("start", jobs.iter().map(|j| j.2).collect::<Vec<_>>())?;
+    out.set_item("group", spans.iter().map(|s| s.group).collect::<Vec<_>>())?;
+    out.set_item("window", spans.iter().map(|s| s.window).collect::<Vec<_>>())?;
+    out.set_item("start", spans.iter().map(|s| s.first).collect::<Vec<_>>())?;
     out.set_item("names", names)?;
     out.set_item("values", values.into_pyarray(py))?;
     out.set_item("sds", sds.into_pyarray(py))?;
@@ -1989,22 +1965,23 @@ fn fleet_windows<'py>(
     out.set_item("warnings", warnings)?;
     out.set_item("change_points", changes)?;
     out.set_item("error", errors)?;
+    out.set_item("error_signal", signal)?;
+    out.set_item("error_sample", sample.into_pyarray(py))?;
+    out.set_item("error_value", value.into_pyarray(py))?;
     Ok(out)
 }
 
 /// The time column of each actuator of a fleet partition checked as the command line's reader checks
 /// one (`sysid_core::data::uniform_time`, `ts_contradicts`; audit s16 H1): `t` (s) holds the actuators
 /// one after the other, actuator g in rows offsets[g] .. offsets[g + 1], each sorted by time. Returns
-/// one (error, note) pair of strings per actuator: error "" or why its time column cannot date a
-/// uniformly sampled record (a NaN time, a time that does not increase — duplicated rows —, a gap or
-/// other non-uniform step; the sample and its time named), note "" or why `ts` contradicts the column's
-/// typical step. An actuator of one sample has neither (it is too short for a window anyway).
+/// one (error, step) pair per actuator: error "" or why its time column cannot date a uniformly sampled
+/// record (a NaN time, a time that does not increase — duplicated rows —, a gap or other non-uniform
+/// step; the sample and its time named); step the column's typical (median) step, s, when `ts`
+/// contradicts it by more than 0.1 % (`ts_contradicts`' rule), NaN when they agree or the column has
+/// an error (the caller words the contradiction from `ts` and the step). An actuator of one sample has
+/// neither (it is too short for a window anyway).
 #[pyfunction]
-fn fleet_times(
-    t: &Bound<'_, PyAny>,
-    offsets: Vec<usize>,
-    ts: f64,
-) -> PyResult<Vec<(String, String)>> {
+fn fleet_times(t: &Bound<'_, PyAny>, offsets: Vec<usize>, ts: f64) -> PyResult<Vec<(String, f64)>> {
     let t = floats(t, "t")?;
     if offsets.first() != Some(&0)
         || offsets.last() != Some(&t.len())
@@ -2040,21 +2017,10 @@ fn fleet_times(
                     format!("time column t: {fault}{at}; not identified: {advice}")
                 }
             };
-            let note = sysid_core::data::ts_contradicts(t, ts)
+            let step = sysid_core::data::ts_contradicts(t, ts)
                 .filter(|_| error.is_empty())
-                .map(|step| {
-                    format!(
-                        "ts = {} s contradicts the time column t (its typical step is {} s): ts is \
-                         used, so every time figure (Ts, time constants) is {} times what the column \
-                         says; pass ts = {} to use the column",
-                        sysid_core::format::sig(ts, 6),
-                        sysid_core::format::sig(step, 6),
-                        sysid_core::format::sig(ts / step, 6),
-                        sysid_core::format::sig(step, 6)
-                    )
-                })
-                .unwrap_or_default();
-            (error, note)
+                .unwrap_or(f64::NAN);
+            (error, step)
         })
         .collect())
 }

@@ -110,6 +110,51 @@ impl Input {
     }
 }
 
+/// A sample of a record that is not a finite number (NaN or ±infinite): which signal, which sample
+/// k (0-based), and its value — the fact behind the records' "`y(k) = NaN is not a finite number`"
+/// ([`Dataset::with_inputs`]), for a caller that words it itself (the fleet's windows: the actuator and
+/// the sample's time; `sysid_summary::monitor`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct NonFinite {
+    /// The signal: "y", "u" (the one input of a single-input record) or the input's name.
+    pub signal: String,
+    /// The sample k, 0-based within the signal.
+    pub sample: usize,
+    /// Its value (NaN, inf or -inf).
+    pub value: f64,
+}
+
+impl NonFinite {
+    /// The first sample that is not finite, the inputs (`(name, u)`, in order) searched before the
+    /// output `y`; `None` when every sample is finite.
+    pub fn first<'a, S: Into<String>>(
+        inputs: impl IntoIterator<Item = (S, &'a [f64])>,
+        y: &[f64],
+    ) -> Option<NonFinite> {
+        let at = |signal: String, x: &[f64]| {
+            x.iter().position(|v| !v.is_finite()).map(|k| NonFinite {
+                signal,
+                sample: k,
+                value: x[k],
+            })
+        };
+        inputs
+            .into_iter()
+            .find_map(|(name, u)| at(name.into(), u))
+            .or_else(|| at("y".into(), y))
+    }
+}
+
+impl std::fmt::Display for NonFinite {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{}({}) = {} is not a finite number",
+            self.signal, self.sample, self.value
+        )
+    }
+}
+
 /// The two signals of a record, named so that they cannot be swapped silently (`Signals { u, y }`).
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Signals {
@@ -171,20 +216,14 @@ impl Dataset {
             }
         }
         check_ts(ts)?;
-        for (i, (input, u)) in inputs.iter().enumerate() {
-            let what = what(input);
+        for (i, (input, _)) in inputs.iter().enumerate() {
             if inputs[..i].iter().any(|(n, _)| n == input) {
                 return Err(bad(format!("the input {input} is named twice")));
             }
-            if let Some(k) = u.iter().position(|x| !x.is_finite()) {
-                return Err(bad(format!(
-                    "{what}({k}) = {} is not a finite number",
-                    u[k]
-                )));
-            }
         }
-        if let Some(k) = y.iter().position(|x| !x.is_finite()) {
-            return Err(bad(format!("y({k}) = {} is not a finite number", y[k])));
+        let signals = inputs.iter().map(|(input, u)| (what(input), u.as_slice()));
+        if let Some(fault) = NonFinite::first(signals, &y) {
+            return Err(bad(fault.to_string()));
         }
         let inputs = inputs
             .into_iter()
@@ -407,7 +446,7 @@ impl Sniffed {
             _ => false,
         };
         if json {
-            return Some(match json_format_key(text) {
+            return Some(match json_format_key(text).as_deref() {
                 Some(f) if f == crate::model_file::FORMAT => Sniffed::ModelFile,
                 Some("ipa-sysid-controller") => Sniffed::ControllerFile,
                 _ => Sniffed::Json,
@@ -447,12 +486,140 @@ impl Sniffed {
     }
 }
 
-/// The string value of the top-level-looking `"format"` key in the JSON text `text`, if any.
-fn json_format_key(text: &str) -> Option<&str> {
-    let at = text.find("\"format\"")? + "\"format\"".len();
-    let rest = text[at..].trim_start().strip_prefix(':')?.trim_start();
-    let rest = rest.strip_prefix('"')?;
-    rest.find('"').map(|end| &rest[..end])
+/// The string value of the `"format"` key of the JSON object that `text` opens with (white space
+/// before `{` allowed): the one rule by which a file says what it is (`"format": "ipa-sysid-model"`,
+/// `"ipa-sysid-controller"`), read by the record, model and controller readers ([`Sniffed`]) and by the
+/// output writer's check of the file it would replace (`sysid_io::FileKind`).
+///
+/// The rule: a key of the top-level object only, wherever it stands among that object's keys (after
+/// other keys too); a `"format"` inside a nested object or array, or inside a string value, does not
+/// count; the first such key wins. The value must be a string (escapes decoded); any other value, a
+/// top-level array, or text that is not JSON up to the key gives `None`. `text` is a file's first
+/// bytes, bounded by the caller (a few KiB): a key beyond them is not seen (`None`), so a huge file is
+/// never read whole to be recognised. The scan is linear and keeps no stack (nesting is counted).
+pub fn json_format_key(text: &str) -> Option<String> {
+    let mut s = JsonScan {
+        bytes: text.as_bytes(),
+        at: 0,
+    };
+    s.ws();
+    s.eat(b'{')?;
+    loop {
+        s.ws();
+        if s.peek()? == b'}' {
+            return None;
+        }
+        let key = s.string()?;
+        s.ws();
+        s.eat(b':')?;
+        s.ws();
+        if key == "format" && s.peek()? == b'"' {
+            return s.string();
+        }
+        s.skip_value()?;
+        s.ws();
+        match s.next()? {
+            b',' => continue,
+            _ => return None, // `}` (the object ends without the key) or not JSON
+        }
+    }
+}
+
+/// A cursor over JSON text for [`json_format_key`]; every method returns `None` at the end of the
+/// text or on text that is not JSON there.
+struct JsonScan<'a> {
+    bytes: &'a [u8],
+    at: usize,
+}
+
+impl JsonScan<'_> {
+    fn peek(&self) -> Option<u8> {
+        self.bytes.get(self.at).copied()
+    }
+    fn next(&mut self) -> Option<u8> {
+        let b = self.peek()?;
+        self.at += 1;
+        Some(b)
+    }
+    fn eat(&mut self, b: u8) -> Option<()> {
+        (self.next()? == b).then_some(())
+    }
+    fn ws(&mut self) {
+        while self.peek().is_some_and(|b| b.is_ascii_whitespace()) {
+            self.at += 1;
+        }
+    }
+    /// A string (the cursor on its opening quote), its escapes decoded.
+    fn string(&mut self) -> Option<String> {
+        self.eat(b'"')?;
+        let mut out = Vec::new();
+        loop {
+            match self.next()? {
+                b'"' => return String::from_utf8(out).ok(),
+                b'\\' => {
+                    let c = match self.next()? {
+                        b'"' => '"',
+                        b'\\' => '\\',
+                        b'/' => '/',
+                        b'b' => '\u{8}',
+                        b'f' => '\u{c}',
+                        b'n' => '\n',
+                        b'r' => '\r',
+                        b't' => '\t',
+                        b'u' => {
+                            let hex = self.bytes.get(self.at..self.at + 4)?;
+                            self.at += 4;
+                            let code =
+                                u32::from_str_radix(std::str::from_utf8(hex).ok()?, 16).ok()?;
+                            // A lone or paired surrogate stands for no character of a format's name.
+                            char::from_u32(code).unwrap_or(char::REPLACEMENT_CHARACTER)
+                        }
+                        _ => return None,
+                    };
+                    out.extend_from_slice(c.encode_utf8(&mut [0; 4]).as_bytes());
+                }
+                b => out.push(b),
+            }
+        }
+    }
+    /// Skips one value (a string, an object or array with all it holds, a number or a literal).
+    fn skip_value(&mut self) -> Option<()> {
+        match self.peek()? {
+            b'"' => self.string().map(|_| ()),
+            b'{' | b'[' => {
+                let mut depth = 0usize;
+                loop {
+                    match self.peek()? {
+                        b'"' => {
+                            self.string()?;
+                            continue;
+                        }
+                        b'{' | b'[' => depth += 1,
+                        b'}' | b']' => {
+                            depth -= 1;
+                            if depth == 0 {
+                                self.at += 1;
+                                return Some(());
+                            }
+                        }
+                        _ => {}
+                    }
+                    self.at += 1;
+                }
+            }
+            _ => {
+                // A number or true / false / null: up to the next separator.
+                let start = self.at;
+                while self
+                    .peek()
+                    .is_some_and(|b| !matches!(b, b',' | b'}' | b']') && !b.is_ascii_whitespace())
+                {
+                    self.at += 1;
+                }
+                (self.at > start).then_some(())
+            }
+        }
+    }
 }
 
 /// What a data file that is not UTF-8 CSV is, when its first bytes say (audit s23 L-N1), with what
@@ -1777,7 +1944,84 @@ pub fn sample_times(n: usize, ts: f64) -> Vec<f64> {
 
 #[cfg(test)]
 mod tests {
-    use super::{check_ts, ts_contradicts, uniform_time, TimeFault};
+    use super::{
+        check_ts, json_format_key, ts_contradicts, uniform_time, NonFinite, Sniffed, TimeFault,
+    };
+
+    // The one "format" rule (the two sniffers it replaced differed: the record readers' took a
+    // "format" anywhere in the text, the writer's only as the first key). Hand-written documents.
+    #[test]
+    fn the_format_key_counts_at_the_top_level_only_wherever_it_stands() {
+        let key = |t: &str| json_format_key(t);
+        assert_eq!(
+            key("{\"format\": \"ipa-sysid-model\", \"version\": 3}").as_deref(),
+            Some("ipa-sysid-model")
+        );
+        assert_eq!(key(" \n\t{ \"format\" :\"x\"}").as_deref(), Some("x"));
+        // After other keys, their values nested and holding brackets, quotes and the word itself.
+        let late = r#"{"a": {"format": "nested", "b": [1, {"c": "]}"}]}, "note": "\"format\": \"no\"",
+            "n": -1.5e3, "ok": true, "nil": null, "list": [[], {}], "format": "ipa-sysid-controller"}"#;
+        assert_eq!(key(late).as_deref(), Some("ipa-sysid-controller"));
+        // A "format" only nested, or only inside a string value: not the file's.
+        assert_eq!(
+            key(r#"{"model": {"format": "ipa-sysid-model"}, "fit": 90}"#),
+            None
+        );
+        assert_eq!(key(r#"{"title": "\"format\": \"ipa-sysid-model\""}"#), None);
+        assert_eq!(key(r#"[{"format": "ipa-sysid-model"}]"#), None);
+        // The first top-level key wins; a value that is not a string is no format.
+        assert_eq!(
+            key(r#"{"format": "a", "format": "b"}"#).as_deref(),
+            Some("a")
+        );
+        assert_eq!(key(r#"{"format": 3}"#), None);
+        // Escapes decoded; text that is not JSON before the key, or cut before it, gives nothing.
+        assert_eq!(
+            key(r#"{"form\u0061t": "ipa\u002dsysid-model"}"#).as_deref(),
+            Some("ipa-sysid-model")
+        );
+        assert_eq!(key(r#"{"a": 1 2, "format": "x"}"#), None);
+        assert_eq!(key(r#"{"a": "long value cut he"#), None);
+        assert_eq!(key("t,u,y\n0,1,2"), None);
+        assert_eq!(key(""), None);
+        // The readers' kinds follow the rule: a report embedding a model is JSON, not a model file.
+        assert_eq!(
+            Sniffed::of(br#"{"version": 3, "format": "ipa-sysid-model"}"#),
+            Some(Sniffed::ModelFile)
+        );
+        assert_eq!(
+            Sniffed::of(br#"{"model": {"format": "ipa-sysid-model"}}"#),
+            Some(Sniffed::Json)
+        );
+    }
+
+    // Only the prefix the caller passes is read: a "format" key past it is not seen (a huge file is
+    // recognised from its first bytes, never read whole).
+    #[test]
+    fn a_format_key_beyond_the_prefix_is_not_seen() {
+        let text = format!(
+            "{{\"pad\": \"{}\", \"format\": \"ipa-sysid-model\"}}",
+            "x".repeat(8192)
+        );
+        assert_eq!(json_format_key(&text).as_deref(), Some("ipa-sysid-model"));
+        assert_eq!(json_format_key(&text[..4096]), None);
+        assert_eq!(Sniffed::of(&text.as_bytes()[..4096]), Some(Sniffed::Json));
+    }
+
+    // The first sample that is not finite: inputs before y, the signal, the sample and the value.
+    #[test]
+    fn the_first_non_finite_sample_is_named_by_signal_sample_and_value() {
+        let y = [0.0, 1.0, f64::NAN];
+        let u = [0.0, f64::NEG_INFINITY, 0.0];
+        let f = NonFinite::first([("u", &u[..])], &y).expect("u(1)");
+        assert_eq!((f.signal.as_str(), f.sample), ("u", 1));
+        assert_eq!(f.value, f64::NEG_INFINITY);
+        let f = NonFinite::first([("u", &[0.0; 3][..])], &y).expect("y(2)");
+        assert_eq!((f.signal.as_str(), f.sample), ("y", 2));
+        assert!(f.value.is_nan());
+        assert_eq!(f.to_string(), "y(2) = NaN is not a finite number");
+        assert_eq!(NonFinite::first([("u", &[0.0; 3][..])], &[0.0; 3]), None);
+    }
 
     /// t(k) = k · 0.01 s for k = 0 .. n − 1.
     fn grid(n: usize) -> Vec<f64> {

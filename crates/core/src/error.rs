@@ -444,6 +444,23 @@ impl SysidError {
         }
     }
 
+    /// The message of an error about the record named `record`, without that name where the error
+    /// opens with it — a [`SysidError::File`] of that record, or the `record: ` that
+    /// [`SysidError::context`] puts before a [`SysidError::Data`] or [`SysidError::Numerical`] — for a
+    /// caller whose own words already name the record (a fleet window: "actuator 7, window 3 (t
+    /// 60–79.99 s): …"). Every other error is rendered whole ([`SysidError::render`]).
+    pub fn render_within(&self, record: &str, name: &dyn Fn(Setting) -> String) -> String {
+        match self {
+            SysidError::File { file, message } if file == record => message.clone(),
+            SysidError::Data(m) | SysidError::Numerical(m) => m
+                .strip_prefix(record)
+                .and_then(|rest| rest.strip_prefix(": "))
+                .unwrap_or(m)
+                .to_string(),
+            other => other.render(name),
+        }
+    }
+
     /// Prefixes a [`SysidError::Data`] or [`SysidError::Numerical`] message with `context` (for
     /// example the data set's name); other variants already say where they come from. A message that
     /// already starts with `context: ` is kept as it is (the callee named the record itself: audit s17

@@ -366,7 +366,8 @@ fn forced() -> bool {
 pub enum FileKind {
     /// Nothing, or only white space: nothing is lost by replacing it.
     Empty,
-    /// A JSON object whose first key is `"format"` (`ipa-sysid-model`, `ipa-sysid-controller`, ...).
+    /// A JSON object with a top-level `"format"` key (`ipa-sysid-model`, `ipa-sysid-controller`, ...;
+    /// [`sysid_core::data::json_format_key`]'s rule, within the first [`KIND_HEAD`] bytes).
     Format(String),
     /// Other JSON (the `--json` reports).
     Json,
@@ -415,11 +416,11 @@ impl FileKind {
         if body.is_empty() {
             return Self::Empty;
         }
-        if let Some(rest) = body.strip_prefix('{') {
-            if let Some(f) = format_key(rest) {
-                return Self::Format(f);
-            }
-            return Self::Json;
+        if body.starts_with('{') {
+            return match sysid_core::data::json_format_key(body) {
+                Some(f) => Self::Format(f),
+                None => Self::Json,
+            };
         }
         if body.starts_with('[') {
             return Self::Json;
@@ -485,15 +486,6 @@ fn shown(s: &str) -> String {
     let cut: String = s.chars().take(80).collect();
     let more = if cut.len() < s.len() { "..." } else { "" };
     format!("{}{more}", sysid_core::format::visible(&cut))
-}
-
-/// The value of `"format"` when it is the first key of the JSON object whose text after `{` is `rest`.
-fn format_key(rest: &str) -> Option<String> {
-    let rest = rest.trim_start().strip_prefix("\"format\"")?;
-    let rest = rest.trim_start().strip_prefix(':')?;
-    let rest = rest.trim_start().strip_prefix('"')?;
-    let end = rest.find('"')?;
-    Some(rest[..end].to_string())
 }
 
 /// Refuses (without `force`) to replace the existing regular file `real` (named `path` by the user) by
@@ -1231,6 +1223,16 @@ mod kind_tests {
             FileKind::of(b"{\"model\": {\"format\": \"x\"}}"),
             FileKind::Json
         );
+        // The core's one rule (sysid_core::data::json_format_key): a top-level "format" after other
+        // keys counts (the writer's old rule took the first key only), one in a string value does not.
+        assert_eq!(
+            FileKind::of(b"{\"version\": 3, \"format\": \"ipa-sysid-model\"}"),
+            FileKind::Format("ipa-sysid-model".into())
+        );
+        assert_eq!(
+            FileKind::of(b"{\"title\": \"\\\"format\\\": \\\"x\\\"\"}"),
+            FileKind::Json
+        );
         assert_eq!(
             FileKind::of(b"t,u,y\r\n0,1,2\n"),
             FileKind::Text("t,u,y".into())
@@ -1256,6 +1258,31 @@ mod kind_tests {
         assert_eq!(
             FileKind::Text("\u{1b}[2J".into()).describe(),
             "text beginning \"\\u{1b}[2J\""
+        );
+    }
+
+    // A file is known by its first KIND_HEAD bytes only: a "format" key past them is not seen (the file
+    // is not read whole), one within them is, wherever it stands among the top-level keys.
+    #[test]
+    fn a_file_kind_is_read_from_a_bounded_head() {
+        let dir = tempfile::tempdir().unwrap();
+        let pad = "x".repeat(KIND_HEAD);
+        let late = dir.path().join("late.json");
+        std::fs::write(
+            &late,
+            format!("{{\"pad\": \"{pad}\", \"format\": \"ipa-sysid-model\"}}"),
+        )
+        .unwrap();
+        assert_eq!(FileKind::of_file(&late).unwrap(), FileKind::Json);
+        let early = dir.path().join("early.json");
+        std::fs::write(
+            &early,
+            format!("{{\"v\": 1, \"format\": \"ipa-sysid-model\", \"pad\": \"{pad}\"}}"),
+        )
+        .unwrap();
+        assert_eq!(
+            FileKind::of_file(&early).unwrap(),
+            FileKind::Format("ipa-sysid-model".into())
         );
     }
 

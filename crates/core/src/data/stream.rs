@@ -496,16 +496,18 @@ impl RecordSource for CsvStream {
         let tcol = self.tcol.filter(|_| self.shape.is_none());
         let mut scan = TimeSteps::default();
         let mut marks = super::DecimalMarks::default();
-        // The row's record, lent to a StringRecord while its cells are read (no allocation per row).
-        let mut slot = Some(csv::ByteRecord::new());
+        // The row's record, lent to a StringRecord while its cells are read, `spare` standing in for
+        // it meanwhile: two records swapped, no allocation per row, and no `Option` whose `None` could
+        // never be met.
+        let mut rec = csv::ByteRecord::new();
+        let mut spare = csv::ByteRecord::new();
         let (mut u, mut y) = (
             Vec::with_capacity(CHUNK_ROWS),
             Vec::with_capacity(CHUNK_ROWS),
         );
         let (mut row, mut used, mut chunk_start) = (0usize, 0usize, 0usize);
         loop {
-            let rec = slot.get_or_insert_with(csv::ByteRecord::new);
-            match rdr.read_byte_record(rec) {
+            match rdr.read_byte_record(&mut rec) {
                 Ok(true) => {}
                 Ok(false) => break,
                 Err(_) if rdr.get_ref().over.is_some() => {
@@ -543,7 +545,7 @@ impl RecordSource for CsvStream {
             // `is_ascii`), rather than cell by cell (session 26: `from_utf8` per cell was 6 % of a
             // streamed identification); a row that is not UTF-8 is read cell by cell as before, so that
             // only a cell that is read is refused, at its column.
-            let Some(bytes) = slot.take() else { break };
+            let bytes = std::mem::replace(&mut rec, spare);
             let text = csv::StringRecord::from_byte_record(bytes)
                 .map_err(csv::FromUtf8Error::into_byte_record);
             let fields = text
@@ -590,7 +592,8 @@ impl RecordSource for CsvStream {
                     })
                     .map_err(|e| self.or_changed(e, &rdr.get_ref().inner, &file_id))?;
             }
-            slot = Some(text.map_or_else(|b| b, csv::StringRecord::into_byte_record));
+            let bytes = text.map_or_else(|b| b, csv::StringRecord::into_byte_record);
+            spare = std::mem::replace(&mut rec, bytes);
             used += 1;
             if u.len() == CHUNK_ROWS {
                 consume(chunk_start, &u, &y)?;

@@ -22,6 +22,7 @@ use std::path::Path;
 pub mod bounded;
 pub mod lines;
 pub mod mat;
+mod quotes;
 pub mod ranges;
 pub mod resample;
 pub mod stream;
@@ -776,16 +777,19 @@ pub fn read_table(bytes: &[u8], name: &str) -> Result<Table, SysidError> {
 /// [`read_table`], or with `has_header = false` a file without a header row (`--no-header`), whose columns
 /// are then named by their position, 1-based (`"1"`, `"2"`, ...).
 pub fn read_table_with(bytes: &[u8], name: &str, has_header: bool) -> Result<Table, SysidError> {
-    table_of(bytes, name, has_header, true)
+    table_of(bytes, name, has_header, true, true)
 }
 
 /// [`read_table_with`]; with `need_rows = false` a header without data rows is accepted (the header line
-/// of a stream read line by line, [`lines::CsvLines`]).
+/// of a stream read line by line, [`lines::CsvLines`]); with `complete = false` the bytes are the first
+/// whole lines of a longer file (the streaming reader's prefix), so a quoted cell still open at their end
+/// may close later ([`quotes`]).
 fn table_of(
     bytes: &[u8],
     name: &str,
     has_header: bool,
     need_rows: bool,
+    complete: bool,
 ) -> Result<Table, SysidError> {
     let file_err = |message: String| SysidError::File {
         file: name.to_string(),
@@ -844,6 +848,27 @@ fn table_of(
         )));
     }
     let delimiter = sniff_delimiter(text);
+    // A quoted cell not closed by the end of the file, or longer than a line may be, is refused where
+    // its quote opened (the csv crate would read the rest of the file as that cell: audit s27 H-1).
+    let quote_fault = {
+        let mut guard = quotes::QuoteGuard::new(delimiter);
+        guard
+            .feed(text.as_bytes())
+            .and_then(|()| if complete { guard.end() } else { Ok(()) })
+            .err()
+            .map(|f| (f, quotes::QuotePlace::of(text.as_bytes(), delimiter, f.open())))
+    };
+    let after_line = match quote_fault {
+        Some((quotes::QuoteFault::TextAfter { at, .. }, _)) => {
+            Some(quotes::QuotePlace::of(text.as_bytes(), delimiter, at).line)
+        }
+        _ => None,
+    };
+    if let Some((fault, place)) = quote_fault {
+        if has_header && place.record == 0 {
+            return Err(quotes::quote_error(name, fault, place, &[], true, false, after_line));
+        }
+    }
     let mut rdr = csv::ReaderBuilder::new()
         .delimiter(delimiter)
         .has_headers(has_header)
@@ -909,6 +934,11 @@ fn table_of(
             });
         }
         first_column.insert(h, i);
+    }
+    if let Some((fault, place)) = quote_fault {
+        return Err(quotes::quote_error(
+            name, fault, place, &headers, has_header, false, after_line,
+        ));
     }
     // A decimal comma is read only where the comma does not separate the columns.
     let decimal_comma = delimiter != b',';

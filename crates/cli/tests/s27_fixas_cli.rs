@@ -171,3 +171,137 @@ fn a_quoted_cell_may_span_lines_within_the_line_bound_and_not_beyond() {
         assert!(e.contains("not closed within 1048576 bytes"), "{mode}: {e}");
     }
 }
+
+/// Every number of `a` within 1e-9 (relative, floor 1) of the same entry of `b`; the same keys.
+fn assert_same(a: &serde_json::Value, b: &serde_json::Value, at: &str) {
+    use serde_json::Value;
+    match (a, b) {
+        (Value::Object(x), Value::Object(y)) => {
+            let (kx, ky): (Vec<_>, Vec<_>) = (x.keys().collect(), y.keys().collect());
+            assert_eq!(kx, ky, "{at}");
+            for (k, v) in x {
+                assert_same(v, &y[k], &format!("{at}.{k}"));
+            }
+        }
+        (Value::Array(x), Value::Array(y)) => {
+            assert_eq!(x.len(), y.len(), "{at}");
+            for (i, (v, w)) in x.iter().zip(y).enumerate() {
+                assert_same(v, w, &format!("{at}[{i}]"));
+            }
+        }
+        (Value::Number(x), Value::Number(y)) => {
+            let (x, y) = (x.as_f64().unwrap(), y.as_f64().unwrap());
+            assert!(
+                (x - y).abs() <= 1e-9 * x.abs().max(y.abs()).max(1.0),
+                "{at}: {x} vs {y}"
+            );
+        }
+        _ => assert_eq!(a, b, "{at}"),
+    }
+}
+
+// The model classes `validate` reads in passes (ARX, output error, a Hammerstein input map) give the
+// JSON of the in-memory path to 1e-9 with the same keys, the horizon fit of an output-error model
+// included (its one-step prediction is its simulation from the estimated initial outputs in both
+// paths). A model with an output nonlinearity (Wiener, Hammerstein–Wiener) is not simulated through
+// g(v) in passes: `--stream on` refuses it, naming the reason, and the default reads it in memory.
+#[test]
+fn validate_in_passes_equals_the_in_memory_path_or_refuses_an_output_map() {
+    let dir = tempfile::tempdir().unwrap();
+    let (est, val) = (dir.path().join("est.csv"), dir.path().join("val.csv"));
+    for (path, seed) in [(&est, 5), (&val, 6)] {
+        let (u, y) = signals(4000, seed);
+        // A sensor that saturates at ±2.5 (the linear output reaches about ±4).
+        let y: Vec<f64> = y.iter().map(|v| v.clamp(-2.5, 2.5)).collect();
+        common::write_csv(path, "t,u,y", Some(0.01), &[&u, &y]);
+    }
+    let classes: [(&str, &[&str], bool); 5] = [
+        ("arx", &["--structure", "arx", "--method", "ls"], false),
+        ("oe", &["--structure", "arx", "--method", "oe"], false),
+        (
+            "hammerstein",
+            &["--structure", "arx", "--nonlinearity", "polynomial", "--degree", "2"],
+            false,
+        ),
+        (
+            "wiener",
+            &["--structure", "arx", "--output-nonlinearity", "saturation"],
+            true,
+        ),
+        (
+            "hammerstein-wiener",
+            &[
+                "--structure",
+                "arx",
+                "--nonlinearity",
+                "polynomial",
+                "--degree",
+                "2",
+                "--output-nonlinearity",
+                "piecewise-linear",
+            ],
+            true,
+        ),
+    ];
+    for (name, flags, output_map) in classes {
+        let model = dir.path().join(format!("{name}.json"));
+        let mut args = vec!["identify", "--data", s(&est), "--na", "2", "--nb", "2"];
+        args.extend_from_slice(flags);
+        args.extend_from_slice(&["--save-model", s(&model)]);
+        run(&args);
+        let validate = |mode: &str, out: &Path| {
+            bin()
+                .args([
+                    "validate",
+                    "--model",
+                    s(&model),
+                    "--data",
+                    s(&val),
+                    "--stream",
+                    mode,
+                    "--json",
+                    s(out),
+                ])
+                .output()
+                .unwrap()
+        };
+        let (off, on) = (
+            dir.path().join(format!("{name}-off.json")),
+            dir.path().join(format!("{name}-on.json")),
+        );
+        assert!(validate("off", &off).status.success(), "{name}");
+        let o = validate("on", &on);
+        let e = String::from_utf8_lossy(&o.stderr);
+        if output_map {
+            assert_eq!(o.status.code(), Some(2), "{name}: {e}");
+            assert!(e.contains("output nonlinearity"), "{name}: {e}");
+            let auto = dir.path().join(format!("{name}-auto.json"));
+            let o = validate("auto", &auto);
+            assert!(o.status.success(), "{name}");
+            assert!(!String::from_utf8_lossy(&o.stderr).contains("passes"));
+            assert_same(&json(&auto), &json(&off), name);
+        } else {
+            assert!(o.status.success() && e.contains("passes"), "{name}: {e}");
+            assert_same(&json(&on), &json(&off), name);
+        }
+    }
+}
+
+// A NARX model is validated in memory: `--stream on` is an error naming it, not ignored.
+#[test]
+fn validate_stream_on_refuses_a_narx_model() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = dir.path().join("r.csv");
+    let (u, y) = signals(2000, 7);
+    common::write_csv(&f, "t,u,y", Some(0.01), &[&u, &y]);
+    let model = dir.path().join("narx.json");
+    run(&[
+        "identify", "--data", s(&f), "--structure", "narx", "--na", "2", "--nb", "2", "--degree",
+        "2", "--save-model", s(&model),
+    ]);
+    let e = fails(&[
+        "validate", "--model", s(&model), "--data", s(&f), "--stream", "on",
+    ]);
+    assert!(e.contains("--stream") && e.contains("NARX"), "{e}");
+    run(&["validate", "--model", s(&model), "--data", s(&f)]);
+}

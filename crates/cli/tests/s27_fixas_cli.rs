@@ -305,3 +305,38 @@ fn validate_stream_on_refuses_a_narx_model() {
     assert!(e.contains("--stream") && e.contains("NARX"), "{e}");
     run(&["validate", "--model", s(&model), "--data", s(&f)]);
 }
+
+// identify in passes checks the validation record's Ts against the model's as in memory: a record at
+// 0.02 s against an estimation record at 0.01 s is the in-memory error in both paths (audit s27 M-3).
+#[test]
+fn identify_in_passes_refuses_a_validation_record_at_another_ts() {
+    let dir = tempfile::tempdir().unwrap();
+    let (est, val) = (dir.path().join("est.csv"), dir.path().join("val2.csv"));
+    let (u, y) = signals(3000, 8);
+    common::write_csv(&est, "t,u,y", Some(0.01), &[&u, &y]);
+    common::write_csv(&val, "t,u,y", Some(0.02), &[&u, &y]);
+    for mode in ["off", "on"] {
+        let e = fails(&arx(s(&est), &["--stream", mode, "--validation", s(&val)]));
+        assert!(
+            e.contains("sampled at Ts = 0.02 s but the model was identified at Ts = 0.01 s"),
+            "{mode}: {e}"
+        );
+    }
+}
+
+// `--stream on` with --split (ARX by least squares asked for) names --split and the way out, not the
+// structure and method the user already gave (audit s27 L-5); an unsupported method still names them.
+#[test]
+fn stream_refusals_name_what_cannot_be_streamed() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = dir.path().join("r.csv");
+    let (u, y) = signals(2000, 9);
+    common::write_csv(&f, "t,u,y", Some(0.01), &[&u, &y]);
+    let e = fails(&arx(s(&f), &["--stream", "on", "--split", "0.7"]));
+    assert!(e.contains("--split") && e.contains("no --stream"), "{e}");
+    assert!(!e.contains("an ARX model by least squares"), "{e}");
+    let e = fails(&[
+        "identify", "--data", s(&f), "--structure", "arx", "--method", "rls", "--stream", "on",
+    ]);
+    assert!(e.contains("--structure arx --method ls"), "{e}");
+}

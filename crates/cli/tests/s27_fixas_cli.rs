@@ -44,10 +44,8 @@ fn signals(n: usize, seed: u64) -> (Vec<f64>, Vec<f64>) {
     u.truncate(n);
     let mut y = vec![0.0; n];
     for k in 2..n {
-        y[k] = 1.5 * y[k - 1] - 0.7 * y[k - 2]
-            + u[k - 1]
-            + 0.5 * u[k - 2]
-            + 0.01 * (rng.unit() - 0.5);
+        y[k] =
+            1.5 * y[k - 1] - 0.7 * y[k - 2] + u[k - 1] + 0.5 * u[k - 2] + 0.01 * (rng.unit() - 0.5);
     }
     (u, y)
 }
@@ -57,7 +55,13 @@ fn lines(n: usize, note: impl Fn(usize) -> String) -> Vec<String> {
     let (u, y) = signals(n, 3);
     let mut l = vec!["t,u,y,note".to_string()];
     for k in 0..n {
-        l.push(format!("{},{},{},{}", k as f64 / 100.0, u[k], y[k], note(k)));
+        l.push(format!(
+            "{},{},{},{}",
+            k as f64 / 100.0,
+            u[k],
+            y[k],
+            note(k)
+        ));
     }
     l
 }
@@ -110,13 +114,35 @@ fn an_unclosed_quote_is_refused_where_it_opened_by_every_reader() {
             arx(s(&f), &["--stream", "off"]),
             arx(s(&f), &["--stream", "on"]),
             vec![
-                "validate", "--model", s(&model), "--data", s(&f), "--stream", "off",
+                "validate",
+                "--model",
+                s(&model),
+                "--data",
+                s(&f),
+                "--stream",
+                "off",
             ],
             vec![
-                "validate", "--model", s(&model), "--data", s(&f), "--stream", "on",
+                "validate",
+                "--model",
+                s(&model),
+                "--data",
+                s(&f),
+                "--stream",
+                "on",
             ],
             vec!["order", "--data", s(&f), "--na", "1..2", "--nb", "1..2"],
-            vec!["track", "--data", s(&f), "--structure", "arx", "--na", "2", "--nb", "2"],
+            vec![
+                "track",
+                "--data",
+                s(&f),
+                "--structure",
+                "arx",
+                "--na",
+                "2",
+                "--nb",
+                "2",
+            ],
         ] {
             let e = fails(&args);
             assert!(e.contains(&at), "{args:?}: {e}");
@@ -220,7 +246,14 @@ fn validate_in_passes_equals_the_in_memory_path_or_refuses_an_output_map() {
         ("oe", &["--structure", "arx", "--method", "oe"], false),
         (
             "hammerstein",
-            &["--structure", "arx", "--nonlinearity", "polynomial", "--degree", "2"],
+            &[
+                "--structure",
+                "arx",
+                "--nonlinearity",
+                "polynomial",
+                "--degree",
+                "2",
+            ],
             false,
         ),
         (
@@ -296,11 +329,28 @@ fn validate_stream_on_refuses_a_narx_model() {
     common::write_csv(&f, "t,u,y", Some(0.01), &[&u, &y]);
     let model = dir.path().join("narx.json");
     run(&[
-        "identify", "--data", s(&f), "--structure", "narx", "--na", "2", "--nb", "2", "--degree",
-        "2", "--save-model", s(&model),
+        "identify",
+        "--data",
+        s(&f),
+        "--structure",
+        "narx",
+        "--na",
+        "2",
+        "--nb",
+        "2",
+        "--degree",
+        "2",
+        "--save-model",
+        s(&model),
     ]);
     let e = fails(&[
-        "validate", "--model", s(&model), "--data", s(&f), "--stream", "on",
+        "validate",
+        "--model",
+        s(&model),
+        "--data",
+        s(&f),
+        "--stream",
+        "on",
     ]);
     assert!(e.contains("--stream") && e.contains("NARX"), "{e}");
     run(&["validate", "--model", s(&model), "--data", s(&f)]);
@@ -336,7 +386,15 @@ fn stream_refusals_name_what_cannot_be_streamed() {
     assert!(e.contains("--split") && e.contains("no --stream"), "{e}");
     assert!(!e.contains("an ARX model by least squares"), "{e}");
     let e = fails(&[
-        "identify", "--data", s(&f), "--structure", "arx", "--method", "rls", "--stream", "on",
+        "identify",
+        "--data",
+        s(&f),
+        "--structure",
+        "arx",
+        "--method",
+        "rls",
+        "--stream",
+        "on",
     ]);
     assert!(e.contains("--structure arx --method ls"), "{e}");
 }

@@ -856,7 +856,12 @@ fn table_of(
             .feed(text.as_bytes())
             .and_then(|()| if complete { guard.end() } else { Ok(()) })
             .err()
-            .map(|f| (f, quotes::QuotePlace::of(text.as_bytes(), delimiter, f.open())))
+            .map(|f| {
+                (
+                    f,
+                    quotes::QuotePlace::of(text.as_bytes(), delimiter, f.open()),
+                )
+            })
     };
     let after_line = match quote_fault {
         Some((quotes::QuoteFault::TextAfter { at, .. }, _)) => {
@@ -866,7 +871,15 @@ fn table_of(
     };
     if let Some((fault, place)) = quote_fault {
         if has_header && place.record == 0 {
-            return Err(quotes::quote_error(name, fault, place, &[], true, false, after_line));
+            return Err(quotes::quote_error(
+                name,
+                fault,
+                place,
+                &[],
+                true,
+                false,
+                after_line,
+            ));
         }
     }
     let mut rdr = csv::ReaderBuilder::new()

@@ -470,7 +470,9 @@ fn streaming(args: &Args, miso: bool, output_map: bool) -> anyhow::Result<bool> 
         Some("a model with several inputs")
     } else if output_map {
         // The passes simulate the linear block only (audit s27 H-2): g(v) is applied in memory.
-        Some("a model with an output nonlinearity (Wiener, Hammerstein-Wiener), validated in memory")
+        Some(
+            "a model with an output nonlinearity (Wiener, Hammerstein-Wiener), validated in memory",
+        )
     } else if args.horizon > 1 {
         Some("--horizon above 1")
     } else if args.out.is_some() {

@@ -116,7 +116,9 @@ impl CsvLines {
                 place.line = line_no;
                 place.record = 1;
                 let headers = &self.table.headers;
-                return Err(super::quotes::quote_error(name, fault, place, headers, true, true, None));
+                return Err(super::quotes::quote_error(
+                    name, fault, place, headers, true, true, None,
+                ));
             }
             return Err(SysidError::Parse {
                 file: name.clone(),
@@ -228,7 +230,9 @@ mod tests {
         let e = r.read_line(b"0,\"1,2", 9).unwrap_err().to_string();
         // The quote opens column u's cell at byte 3 and the line ends before it closes.
         assert!(
-            e.starts_with("<test>:9:3:") && e.contains("column 'u'") && e.contains("end of the line"),
+            e.starts_with("<test>:9:3:")
+                && e.contains("column 'u'")
+                && e.contains("end of the line"),
             "{e}"
         );
     }

@@ -296,7 +296,10 @@ pub(crate) fn quote_error(
     after_line: Option<usize>,
 ) -> crate::SysidError {
     let cell = if has_header && place.record == 0 {
-        format!("a quoted name in the header row (field {})", place.field + 1)
+        format!(
+            "a quoted name in the header row (field {})",
+            place.field + 1
+        )
     } else {
         match headers.get(place.field) {
             Some(h) => format!(
@@ -431,7 +434,11 @@ mod tests {
                 .chunks(size)
                 .try_for_each(|c| guard.feed(c))
                 .and_then(|()| guard.end());
-            assert_eq!(fault, Err(QuoteFault::TooLong { open: 6 }), "chunks of {size}");
+            assert_eq!(
+                fault,
+                Err(QuoteFault::TooLong { open: 6 }),
+                "chunks of {size}"
+            );
             let mut guard = QuoteGuard::new(b',');
             let fine = ok
                 .chunks(size)

@@ -23,8 +23,8 @@ use std::path::{Path, PathBuf};
 
 use super::quotes::{quote_error, Place, QuoteFault, QuoteGuard, QuotePlace};
 use super::{
-    check_ts, csv_err, marked_cell_value, ragged_row, sniff_delimiter,
-    time_fault_message, CsvOptions, Dataset, TimeFault, TimeSteps,
+    check_ts, csv_err, marked_cell_value, ragged_row, sniff_delimiter, time_fault_message,
+    CsvOptions, Dataset, TimeFault, TimeSteps,
 };
 use crate::error::Setting;
 use crate::SysidError;
@@ -158,12 +158,7 @@ fn line_at(mut file: &std::fs::File, skip: u64, at: u64) -> std::io::Result<usiz
 
 /// The place (line, column, field) of byte `at` of `file` after its first `skip` bytes (a byte-order
 /// mark), in CSV text whose cells are separated by `delimiter` (the error of a quoted cell: [`LineBound`]).
-fn place_at(
-    mut file: &std::fs::File,
-    skip: u64,
-    at: u64,
-    delimiter: u8,
-) -> std::io::Result<Place> {
+fn place_at(mut file: &std::fs::File, skip: u64, at: u64, delimiter: u8) -> std::io::Result<Place> {
     use std::io::{Seek, SeekFrom};
     file.seek(SeekFrom::Start(skip))?;
     let mut rest = std::io::BufReader::with_capacity(1 << 16, file.take(at));

@@ -248,7 +248,7 @@ fn validate_in_passes_equals_the_in_memory_path_or_refuses_an_output_map() {
             "hammerstein",
             &[
                 "--structure",
-                "arx",
+                "hammerstein",
                 "--nonlinearity",
                 "polynomial",
                 "--degree",
@@ -265,7 +265,7 @@ fn validate_in_passes_equals_the_in_memory_path_or_refuses_an_output_map() {
             "hammerstein-wiener",
             &[
                 "--structure",
-                "arx",
+                "hammerstein",
                 "--nonlinearity",
                 "polynomial",
                 "--degree",

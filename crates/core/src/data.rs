@@ -22,6 +22,7 @@ use std::path::Path;
 pub mod bounded;
 pub mod lines;
 pub mod mat;
+mod quotes;
 pub mod ranges;
 pub mod resample;
 mod rows;
@@ -950,6 +951,7 @@ pub fn read_table_with(bytes: &[u8], name: &str, has_header: bool) -> Result<Tab
         has_header,
         true,
         Some(crate::ls::MAX_ESTIMATION_BYTES),
+        true,
     )
 }
 
@@ -957,19 +959,29 @@ pub fn read_table_with(bytes: &[u8], name: &str, has_header: bool) -> Result<Tab
 /// [`CsvOptions::max_read_bytes`]) of `opts`: the file's rows are counted and their memory checked
 /// against the budget before they are parsed.
 pub fn read_table_for(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Table, SysidError> {
-    table_of(bytes, name, !opts.no_header, true, opts.max_read_bytes)
+    table_of(
+        bytes,
+        name,
+        !opts.no_header,
+        true,
+        opts.max_read_bytes,
+        true,
+    )
 }
 
 /// [`read_table_with`]; with `need_rows = false` a header without data rows is accepted (the header line
 /// of a stream read line by line, [`lines::CsvLines`]). `budget` (`--max-memory`, bytes): the most the
 /// file's bytes and its rows may hold together, checked before the rows are allocated (`None`: bounded
-/// by [`MAX_SAMPLES`] and [`MAX_FILE_BYTES`] only).
+/// by [`MAX_SAMPLES`] and [`MAX_FILE_BYTES`] only). With `complete = false` the bytes are the first
+/// whole lines of a longer file (the streaming reader's prefix), so a quoted cell still open at their end
+/// may close later ([`quotes`]).
 fn table_of(
     bytes: &[u8],
     name: &str,
     has_header: bool,
     need_rows: bool,
     budget: Option<u64>,
+    complete: bool,
 ) -> Result<Table, SysidError> {
     let file_err = |message: String| SysidError::File {
         file: name.to_string(),
@@ -1028,6 +1040,40 @@ fn table_of(
         )));
     }
     let delimiter = sniff_delimiter(text);
+    // A quoted cell not closed by the end of the file, or longer than a line may be, is refused where
+    // its quote opened (the csv crate would read the rest of the file as that cell: audit s27 H-1).
+    let quote_fault = {
+        let mut guard = quotes::QuoteGuard::new(delimiter);
+        guard
+            .feed(text.as_bytes())
+            .and_then(|()| if complete { guard.end() } else { Ok(()) })
+            .err()
+            .map(|f| {
+                (
+                    f,
+                    quotes::QuotePlace::of(text.as_bytes(), delimiter, f.open()),
+                )
+            })
+    };
+    let after_line = match quote_fault {
+        Some((quotes::QuoteFault::TextAfter { at, .. }, _)) => {
+            Some(quotes::QuotePlace::of(text.as_bytes(), delimiter, at).line)
+        }
+        _ => None,
+    };
+    if let Some((fault, place)) = quote_fault {
+        if has_header && place.record == 0 {
+            return Err(quotes::quote_error(
+                name,
+                fault,
+                place,
+                &[],
+                true,
+                false,
+                after_line,
+            ));
+        }
+    }
     let mut rdr = csv::ReaderBuilder::new()
         .delimiter(delimiter)
         .has_headers(has_header)
@@ -1093,6 +1139,11 @@ fn table_of(
             });
         }
         first_column.insert(h, i);
+    }
+    if let Some((fault, place)) = quote_fault {
+        return Err(quotes::quote_error(
+            name, fault, place, &headers, has_header, false, after_line,
+        ));
     }
     // A decimal comma is read only where the comma does not separate the columns.
     let decimal_comma = delimiter != b',';

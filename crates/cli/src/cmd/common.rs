@@ -167,6 +167,14 @@ impl StreamMode {
                 let csv = data
                     .extension()
                     .is_none_or(|e| !e.eq_ignore_ascii_case("mat"));
+                if let (true, true, Some(why)) = (large, csv, &why_not) {
+                    // A large file read whole is said, with the reason (audit s27 L-9, M-1).
+                    eprintln!(
+                        "note: {} is {} MiB or more but is read into memory: {why}",
+                        data.display(),
+                        sysid::stream::AUTO_STREAM_BYTES >> 20
+                    );
+                }
                 Ok(large && csv && why_not.is_none())
             }
         }

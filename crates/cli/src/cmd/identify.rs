@@ -561,7 +561,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let several_inputs = args.columns.u_col.contains(',');
     let batch = super::identify_batch::is_batch(&args.data);
     if args.stream == StreamMode::On && (several_inputs || args.merge || batch) {
-        anyhow::bail!(sysid::stream::refused(
+        anyhow::bail!(refused_in_passes(
             "several inputs, --merge and several files are read in memory"
         ));
     }
@@ -925,8 +925,27 @@ fn output(
 /// Whether to read the record in passes (`--stream`, [`StreamMode::decide`]): ARX by least squares,
 /// without `--split` or `--resample`.
 fn streaming(args: &Args, settings: &Identification, data: &Path) -> anyhow::Result<bool> {
+    // The words of a refusal: the structure and method when they are what cannot be streamed, else
+    // the setting that needs the record in memory (audit s27 L-5: "expected an ARX model by least
+    // squares" was said to a user who had asked for one).
+    let model_supported = sysid::stream::unsupported(settings).is_none();
     args.stream
-        .decide(data, why_not_stream(args, settings), sysid::stream::refused)
+        .decide(data, why_not_stream(args, settings), |why| {
+            if model_supported {
+                refused_in_passes(why)
+            } else {
+                sysid::stream::refused(why)
+            }
+        })
+}
+
+/// The refusal of `--stream on` for a setting other than the model's structure and method (`why`).
+fn refused_in_passes(why: &str) -> sysid::SysidError {
+    sysid::SysidError::setting(
+        sysid::Setting::Other("--stream"),
+        "on",
+        &format!("no --stream (or --stream off) with these settings: {why}"),
+    )
 }
 
 /// Whether `--stream on` would read this record in passes, where a refusal for memory may offer it:
@@ -972,6 +991,11 @@ fn run_streamed(args: &Args, settings: &Identification, data_path: &Path) -> any
         args.detrend,
         args.resid_lags,
     )?;
+    // The validation record is sampled at the model's Ts, as the in-memory path requires (audit s27 M-3:
+    // a record at 0.02 s was scored as if at 0.01 s).
+    if let (Some(v), Some(vs)) = (&val, streamed.val_shape) {
+        sysid::metrics::check_sampling(RecordSource::name(v), vs.ts, streamed.shape.ts)?;
+    }
     let (fit, report) = &mut streamed.result;
     // After `--detrend linear`: the drift removed and the raw record's figures (a few more passes), as
     // the in-memory path reports them (audit s18 M-3).

@@ -117,7 +117,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let model = match sysid::model_file::read_any_model(&args.model)? {
         sysid::model_file::AnyModel::Linear(m) => m,
-        sysid::model_file::AnyModel::Narx(m) => return run_narx(&args, &m, &inputs),
+        sysid::model_file::AnyModel::Narx(m) => {
+            // A NARX model is validated in memory: --stream on is refused, not ignored (audit s27 L-9).
+            decide_stream(&args, Some("a polynomial NARX model, validated in memory"))?;
+            return run_narx(&args, &m, &inputs);
+        }
     };
     let mut opts = args.columns.csv_options(&args.memory);
     opts.fallback_ts = Some(model.ts());
@@ -164,7 +168,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         e => e,
     };
-    if streaming(&args, miso)? {
+    if streaming(&args, miso, model.output_nonlinearity().is_some())? {
         return run_streamed(&args, &model, &opts, &inputs).map_err(|e| {
             match e.downcast::<sysid::SysidError>() {
                 Ok(e) => from_model(e).into(),
@@ -461,9 +465,14 @@ fn report_text(
 
 /// Whether to read the record in passes (`--stream`, [`StreamMode::decide`]): one input, horizon 1,
 /// no `--out`, no `--resample`.
-fn streaming(args: &Args, miso: bool) -> anyhow::Result<bool> {
+fn streaming(args: &Args, miso: bool, output_map: bool) -> anyhow::Result<bool> {
     let why = if miso {
         Some("a model with several inputs")
+    } else if output_map {
+        // The passes simulate the linear block only (audit s27 H-2): g(v) is applied in memory.
+        Some(
+            "a model with an output nonlinearity (Wiener, Hammerstein-Wiener), validated in memory",
+        )
     } else if args.horizon > 1 {
         Some("--horizon above 1")
     } else if args.out.is_some() {
@@ -473,17 +482,22 @@ fn streaming(args: &Args, miso: bool) -> anyhow::Result<bool> {
     } else {
         None
     };
-    args.stream
-        .decide(&args.data, why.map(String::from), |why| {
-            sysid::SysidError::setting(
-                sysid::Setting::Other("--stream"),
-                "on",
-                &format!(
-                "a single-input model with --horizon 1 and no --out or --resample, or no --stream \
-                 (not {why})"
+    decide_stream(args, why)
+}
+
+/// [`common::StreamMode::decide`] for `validate`, `why` being what the settings need the whole record
+/// for (an error with `--stream on`).
+fn decide_stream(args: &Args, why: Option<&str>) -> anyhow::Result<bool> {
+    args.stream.decide(&args.data, why.map(String::from), |why| {
+        sysid::SysidError::setting(
+            sysid::Setting::Other("--stream"),
+            "on",
+            &format!(
+                "a single-input ARX, Hammerstein or output-error model with --horizon 1 and no --out or \
+                 --resample, or no --stream (not {why})"
             ),
-            )
-        })
+        )
+    })
 }
 
 /// `validate` with the record read in passes (`sysid::stream`).
@@ -511,11 +525,11 @@ fn run_streamed(
     let mut report = streamed.result;
     model_warnings(&mut report, model, &name, shape.rows, opts, None);
     // The 1-step prediction of `model_output`: the ARX predictor, or for an output-error model the
-    // simulation from the measured initial outputs.
+    // simulation from the estimated initial outputs, as in memory (`ModelOutput::y_pred`; audit s27 H-2).
     let m = &report.metrics.validation;
     let fit_horizon = match model.noise_model() {
         sysid::model::NoiseModel::EquationError => m.fit_pred_percent,
-        sysid::model::NoiseModel::OutputError => m.fit_sim_measured_percent,
+        sysid::model::NoiseModel::OutputError => m.fit_sim_percent,
     };
     let value = report_json(&report, args.horizon, fit_horizon, &[])?;
     let text = report_text(args, &report, &name, shape.rows, fit_horizon);

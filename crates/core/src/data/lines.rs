@@ -47,17 +47,20 @@ pub struct CsvLines {
     fed: u64,
     /// The decimal marks read so far (a file uses one: [`DecimalMarks`]).
     marks: std::cell::RefCell<DecimalMarks>,
+    /// The cell delimiter (to name an unclosed quote's column).
+    delimiter: u8,
 }
 
 impl CsvLines {
     /// The reader of the record whose header row is `line` (without its line end); `name` is the source
     /// in messages (`<stdin>`, a path).
     pub fn from_header(line: &[u8], name: &str) -> Result<Self, SysidError> {
-        let table = table_of(line, name, true, false, None)?;
+        let table = table_of(line, name, true, false, None, true)?;
         let text =
             std::str::from_utf8(line.strip_prefix(b"\xef\xbb\xbf").unwrap_or(line)).unwrap_or("");
+        let delimiter = sniff_delimiter(text);
         let rdr = csv::ReaderBuilder::new()
-            .delimiter(sniff_delimiter(text))
+            .delimiter(delimiter)
             .has_headers(false)
             .flexible(true)
             .from_reader(Feed::default());
@@ -67,6 +70,7 @@ impl CsvLines {
             rec: csv::ByteRecord::new(),
             fed: 0,
             marks: Default::default(),
+            delimiter,
         })
     }
 
@@ -105,6 +109,17 @@ impl CsvLines {
         // One line, one record: a carriage return inside the line or an unclosed quote would make it
         // several records, or a record that goes on into the next line.
         if !whole || self.rec.iter().any(|f| f.contains(&b'\n')) {
+            // A quoted cell still open at the line's end is named with its column, by the rule of
+            // every reader ([`super::quotes`]).
+            if let Err(fault) = super::quotes::QuoteGuard::check(line, self.delimiter) {
+                let mut place = super::quotes::QuotePlace::of(line, self.delimiter, fault.open());
+                place.line = line_no;
+                place.record = 1;
+                let headers = &self.table.headers;
+                return Err(super::quotes::quote_error(
+                    name, fault, place, headers, true, true, None,
+                ));
+            }
             return Err(SysidError::Parse {
                 file: name.clone(),
                 line: line_no,
@@ -213,7 +228,13 @@ mod tests {
         let e = r.read_line(b"0,1,2,3", 8).unwrap_err().to_string();
         assert!(e.starts_with("<test>:8:4:") && e.contains("ragged"), "{e}");
         let e = r.read_line(b"0,\"1,2", 9).unwrap_err().to_string();
-        assert!(e.starts_with("<test>:9:1:") && e.contains("quote"), "{e}");
+        // The quote opens column u's cell at byte 3 and the line ends before it closes.
+        assert!(
+            e.starts_with("<test>:9:3:")
+                && e.contains("column 'u'")
+                && e.contains("end of the line"),
+            "{e}"
+        );
     }
 
     #[test]

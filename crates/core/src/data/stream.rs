@@ -21,9 +21,10 @@
 use std::io::Read;
 use std::path::{Path, PathBuf};
 
+use super::quotes::{quote_error, Place, QuoteFault, QuoteGuard, QuotePlace};
 use super::{
-    check_ts, csv_err, marked_cell_value, ragged_row, read_table_with, sniff_delimiter,
-    time_fault_message, CsvOptions, Dataset, TimeFault, TimeSteps,
+    check_ts, csv_err, marked_cell_value, ragged_row, sniff_delimiter, time_fault_message,
+    CsvOptions, Dataset, TimeFault, TimeSteps,
 };
 use crate::error::Setting;
 use crate::SysidError;
@@ -48,15 +49,24 @@ struct LineBound<R> {
     /// Where the current line starts (an offset into what was read).
     line_start: u64,
     over: Option<u64>,
+    /// The rule of quoted cells ([`super::quotes`]): a quoted cell may hold line ends, so the bound on
+    /// lines alone would let one cell grow with the file (audit s27 H-1).
+    quotes: QuoteGuard,
+    /// The quoted cell that broke the rule.
+    quote: Option<QuoteFault>,
 }
 
 impl<R> LineBound<R> {
-    fn new(inner: R) -> Self {
+    /// Bounds the lines and quoted cells of the CSV text `inner`, whose cells are separated by
+    /// `delimiter`.
+    fn new(inner: R, delimiter: u8) -> Self {
         LineBound {
             inner,
             read: 0,
             line_start: 0,
             over: None,
+            quotes: QuoteGuard::new(delimiter),
+            quote: None,
         }
     }
 }
@@ -65,6 +75,18 @@ impl<R: Read> Read for LineBound<R> {
     fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
         let n = self.inner.read(buf)?;
         let data = &buf[..n];
+        let quotes = if n == 0 && !buf.is_empty() {
+            self.quotes.end()
+        } else {
+            self.quotes.feed(data)
+        };
+        if let Err(fault) = quotes {
+            self.quote = Some(fault);
+            return Err(std::io::Error::new(
+                std::io::ErrorKind::InvalidData,
+                "a quoted cell not closed, or longer than the bound of one CSV line",
+            ));
+        }
         let at = self.read;
         self.read += n as u64;
         // A line from `start` to `end` (its line end excluded) is too long.
@@ -129,6 +151,24 @@ fn line_at(mut file: &std::fs::File, skip: u64, at: u64) -> std::io::Result<usiz
             return Ok(lines);
         }
         lines += chunk.iter().filter(|&&b| b == b'\n').count();
+        let used = chunk.len();
+        std::io::BufRead::consume(&mut rest, used);
+    }
+}
+
+/// The place (line, column, field) of byte `at` of `file` after its first `skip` bytes (a byte-order
+/// mark), in CSV text whose cells are separated by `delimiter` (the error of a quoted cell: [`LineBound`]).
+fn place_at(mut file: &std::fs::File, skip: u64, at: u64, delimiter: u8) -> std::io::Result<Place> {
+    use std::io::{Seek, SeekFrom};
+    file.seek(SeekFrom::Start(skip))?;
+    let mut rest = std::io::BufReader::with_capacity(1 << 16, file.take(at));
+    let mut place = QuotePlace::new(delimiter);
+    loop {
+        let chunk = std::io::BufRead::fill_buf(&mut rest)?;
+        if chunk.is_empty() {
+            return Ok(place.here());
+        }
+        place.feed(chunk);
         let used = chunk.len();
         std::io::BufRead::consume(&mut rest, used);
     }
@@ -351,7 +391,8 @@ impl CsvStream {
                 ),
             });
         }
-        let table = read_table_with(checked, &name, !opts.no_header)?;
+        // The prefix of a longer file may end inside a quoted cell that closes later: the pass checks it.
+        let table = super::table_of(checked, &name, !opts.no_header, true, None, whole)?;
         let (ucol, ycol, ts_given) = table.columns(opts)?;
         let tcol = match ts_given {
             Some(ts) => {
@@ -485,7 +526,7 @@ impl RecordSource for CsvStream {
             .has_headers(self.has_header)
             .flexible(true)
             .buffer_capacity(1 << 16)
-            .from_reader(LineBound::new(file));
+            .from_reader(LineBound::new(file, self.delimiter));
         let file_name = self.path.display().to_string();
         let width = self.headers.len();
         let (first, end) = match self.rows {
@@ -510,15 +551,25 @@ impl RecordSource for CsvStream {
             match rdr.read_byte_record(&mut rec) {
                 Ok(true) => {}
                 Ok(false) => break,
-                Err(_) if rdr.get_ref().over.is_some() => {
-                    let bound = rdr.get_ref();
-                    let at = bound.over.unwrap_or(0);
-                    let line = line_at(&bound.inner, 3 * u64::from(self.bom), at).map_err(io)?;
-                    return Err(super::long_line(&file_name, line));
-                }
                 Err(e) => {
-                    let e = csv_err(&file_name, e);
-                    return Err(self.or_changed(e, &rdr.get_ref().inner, &file_id));
+                    let bound = rdr.get_ref();
+                    let skip = 3 * u64::from(self.bom);
+                    let e = if let Some(fault) = bound.quote {
+                        let place = |at| place_at(&bound.inner, skip, at, self.delimiter);
+                        let after = match fault {
+                            QuoteFault::TextAfter { at, .. } => Some(place(at).map_err(io)?.line),
+                            _ => None,
+                        };
+                        let opened = place(fault.open()).map_err(io)?;
+                        let (headers, has_header) = (&self.headers, self.has_header);
+                        quote_error(&file_name, fault, opened, headers, has_header, false, after)
+                    } else if let Some(at) = bound.over {
+                        let line = line_at(&bound.inner, skip, at).map_err(io)?;
+                        return Err(super::long_line(&file_name, line));
+                    } else {
+                        csv_err(&file_name, e)
+                    };
+                    return Err(self.or_changed(e, &bound.inner, &file_id));
                 }
             }
             // Fields are trimmed here (csv's own trimming allocates a new record per row).
@@ -755,7 +806,7 @@ mod tests {
     fn a_long_line_is_found_wherever_the_reads_cut() {
         let bound = super::super::MAX_LINE_BYTES;
         let read_all = |text: &[u8], piece: usize| {
-            let mut r = LineBound::new(text);
+            let mut r = LineBound::new(text, b',');
             let mut buf = vec![0u8; piece];
             loop {
                 match r.read(&mut buf) {

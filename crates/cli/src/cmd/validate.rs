@@ -448,7 +448,9 @@ fn report_text(
         m.loss.map_or("n/a".into(), report::format::num),
         m.loss_sim.map_or("n/a".into(), report::format::num),
         m.fpe.map_or("n/a".into(), report::format::num),
-        if report.stable { "stable" } else { "UNSTABLE" }
+        // The one verdict (`Model::stability`, as identify's "Poles: … →" line and the JSON's
+        // `stability`) in its short words: an integrator is not "UNSTABLE" (audit s27 L-10).
+        report.model.stability().word()
     );
     text.push_str(&crate::text::residuals_text(&[(
         "validation",

@@ -1399,18 +1399,44 @@ fn an_order_search_beyond_the_structure_bound_is_refused() {
 
 // `--resid-lags 0` is a usage error naming the flag (it ran and left the residual analysis "not
 // available"; audit s13 L3), and so is a lag near the integer limit, whose sizes 2(M+1) wrapped
-// around and panicked (audit s14 H-c).
+// around and panicked (audit s14 H-c); above 1000 lags the independence test's (2M+1)² matrix
+// grows past 32 MB and its O(M³) factorisation past seconds (M = 20 000 asked for 12.8 GB and
+// aborted; audit s27 M-4), so 1001 is refused too, while 1000 runs on a record long enough for it.
 #[test]
 fn zero_and_huge_residual_lags_are_refused() {
     let dir = tempfile::tempdir().unwrap();
+    // 2(M+1) = 2002 rows are needed for M = 1000: 2100 rows of a first-order system under a
+    // pseudo-random ±1 input, so 1001 would have been computed before the bound.
+    let mut csv = String::from("t,u,y\n");
+    let (mut y, mut state) = (0.0_f64, 12345_u64);
+    for k in 0..2100 {
+        state = state
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        let u = if state >> 63 == 1 { 1.0 } else { -1.0 };
+        let e = ((state >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 0.01;
+        csv.push_str(&format!("{},{u},{}\n", k as f64 * 0.01, y + e));
+        y = 0.9 * y + 0.1 * u;
+    }
+    std::fs::write(dir.path().join("long.csv"), csv).unwrap();
+    let ok = run(
+        "identify --data {t}/long.csv --structure arx --method ls --na 1 --nb 1 --resid-lags 1000",
+        dir.path(),
+    );
+    assert_eq!(ok.status.code(), Some(0), "{}", stderr(&ok));
     for lags in [
         "0",
+        "1001",
+        "20000",
         "1000001",
         "9223372036854775807",
         "18446744073709551615",
     ] {
         for cmd in [
             format!("identify --data {{c}}/good.csv --ts 0.01 --resid-lags {lags}"),
+            format!(
+                "identify --data {{t}}/long.csv --structure arx --method ls --na 1 --nb 1 --resid-lags {lags}"
+            ),
             format!(
                 "validate --model {{c}}/good_model.json --data {{c}}/good.csv --ts 0.01 --resid-lags {lags}"
             ),
@@ -1419,7 +1445,7 @@ fn zero_and_huge_residual_lags_are_refused() {
             assert_eq!(out.status.code(), Some(2), "{cmd}: {}", stderr(&out));
             assert!(
                 stderr(&out)
-                    .contains("'--resid-lags <M>': expected a whole number of lags in 1..=1000000"),
+                    .contains("'--resid-lags <M>': expected a whole number of lags in 1..=1000"),
                 "{}",
                 stderr(&out)
             );

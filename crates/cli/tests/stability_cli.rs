@@ -179,6 +179,22 @@ fn validate_says(dir: &Path, model: &Path, record: &Path) -> Verdict {
     let v = warning_verdict(&strings(&j["warnings"]));
     assert_eq!(j["stability"], v.name(), "validate: {j}");
     assert_eq!(j["stable"], v == Verdict::Settles, "validate: {j}");
+    // The summary line (on stderr beside `--json -`) ends with the same verdict in words: it said
+    // "UNSTABLE" for an integrator while the JSON said "integrator" (audit s27 L-10).
+    let text = stderr(&o);
+    let summary = text
+        .lines()
+        .find(|l| l.contains(" samples): fit "))
+        .unwrap_or_else(|| panic!("validate: no summary line; {text}"));
+    let said = summary.rsplit("; ").next().unwrap_or_default();
+    let word = match said {
+        "stable" => Verdict::Settles,
+        "an integrator" => Verdict::Integrator,
+        "on the stability boundary" => Verdict::OnCircle,
+        "UNSTABLE" => Verdict::Unstable,
+        other => panic!("validate's summary ends with {other:?}: {summary}"),
+    };
+    assert_eq!(word, v, "validate's summary line: {summary}");
     v
 }
 

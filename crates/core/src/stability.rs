@@ -120,6 +120,19 @@ impl Stability {
         }
     }
 
+    /// The verdict in a word or three, for summary lines and tables (`stable` is only
+    /// [`Stability::Settles`]): `stable`, `an integrator`, `on the stability boundary` or `UNSTABLE`.
+    /// The one short wording of `validate`'s summary line and `reproduce`'s tables (audit s27 L-10:
+    /// validate called an integrator "UNSTABLE" where identify and the JSON said "integrator").
+    pub fn word(&self) -> &'static str {
+        match self {
+            Stability::Settles { .. } => "stable",
+            Stability::Integrator { .. } => "an integrator",
+            Stability::OnCircle { .. } => "on the stability boundary",
+            Stability::Unstable { .. } => "UNSTABLE",
+        }
+    }
+
     /// max |p_i| for [`Stability::Settles`], |p| of the verdict's pole otherwise (NaN for a pole that
     /// is not a number).
     pub fn modulus(&self) -> f64 {

@@ -141,14 +141,10 @@ pub(crate) fn closed_loop_choice(models: &[Fitted]) -> Option<usize> {
 /// worse of estimated and measured initial outputs, `sysid::trust::guarded_fit`): the figure the verdict,
 /// the acceptance criteria and Table IV quote.
 /// The report's stability verdict in a word for the page's tables and headline (`stable` is only the
-/// verdict `settles`): `stable`, `an integrator`, `on the stability boundary` or `UNSTABLE`.
+/// verdict `settles`): `stable`, `an integrator`, `on the stability boundary` or `UNSTABLE`
+/// ([`sysid_core::Stability::word`], the one short wording).
 pub(crate) fn stability_word(r: &IdentifyReport) -> &'static str {
-    match r.model.stability() {
-        sysid_core::Stability::Settles { .. } => "stable",
-        sysid_core::Stability::Integrator { .. } => "an integrator",
-        sysid_core::Stability::OnCircle { .. } => "on the stability boundary",
-        sysid_core::Stability::Unstable { .. } => "UNSTABLE",
-    }
+    r.model.stability().word()
 }
 
 pub(crate) fn validation_fit(r: &IdentifyReport) -> Option<f64> {

@@ -98,9 +98,14 @@ use std::fmt;
 /// MATLAB's default maximum lag M.
 pub const DEFAULT_MAX_LAG: usize = 25;
 
-/// The largest maximum lag M accepted: the analysis needs N ≥ 2(M + 1) samples and holds sums of
-/// 2M + 1 lags, so a larger M is a typo (and near `usize::MAX` its sizes wrap around; audit s14 H-c).
-pub const MAX_LAG: usize = 1_000_000;
+/// The largest maximum lag M accepted. The independence statistic S forms and factors the
+/// (2M+1)×(2M+1) Gram matrix G of the lagged inputs: memory 8(2M+1)² bytes (three copies while it
+/// is factored) and time O(M³). M = 1000 is 32 MB per copy and about 2 s; M = 2000 took 30 s and
+/// 520 MB, M = 20 000 asked for 12.8 GB and aborted (audit s27 M-4). MATLAB's `resid` defaults to
+/// M = 25 and documents no upper bound; a maximum lag of 1000 is far beyond any model's memory, so
+/// a larger M is refused with this bound named (and near `usize::MAX` its sizes wrapped around;
+/// audit s14 H-c).
+pub const MAX_LAG: usize = 1000;
 
 /// M checked: at least 1, at most [`MAX_LAG`].
 pub fn check_max_lag(m: usize) -> Result<(), ResidError> {
@@ -170,6 +175,11 @@ pub enum ResidError {
         /// M as asked for.
         max_lag: usize,
     },
+    /// The (2M+1)² Gram matrix could not be allocated.
+    OutOfMemory {
+        /// Bytes asked for, 8(2M+1)².
+        bytes: usize,
+    },
     /// ε and u have different lengths.
     LengthMismatch {
         /// Number of residuals.
@@ -218,8 +228,13 @@ impl fmt::Display for ResidError {
             ResidError::ZeroMaxLag => write!(f, "residual analysis: the maximum lag must be at least 1"),
             ResidError::MaxLagTooLarge { max_lag } => write!(
                 f,
-                "residual analysis: maximum lag {max_lag} is above {MAX_LAG} (the analysis needs at least \
-                 2(M+1) samples)"
+                "residual analysis: maximum lag {max_lag} is above {MAX_LAG} (the independence test \
+                 factors a (2M+1)² matrix: O(M²) memory, O(M³) time; MATLAB's default is 25)"
+            ),
+            ResidError::OutOfMemory { bytes } => write!(
+                f,
+                "residual analysis: the lagged-input Gram matrix needs {bytes} bytes and the memory \
+                 could not be allocated (lower the maximum lag)"
             ),
             ResidError::LengthMismatch { residuals, input } => write!(
                 f,
@@ -723,7 +738,7 @@ pub fn finish(s: &CovarianceSums) -> Result<ResidualAnalysis, ResidError> {
 
     // Independence: S = N cᵀ G⁻¹ c with G the Gram matrix of the lagged inputs.
     let order = 2 * m + 1;
-    let gram = lagged_gram(s, nf * rv0);
+    let gram = lagged_gram(s, nf * rv0)?;
     let cross_statistic = nf * quadratic_form_inverse(&gram, &cross_correlation)?;
     let cross_p = chi2_sf(cross_statistic, order as f64);
     let cross_statistic_plain = nf * cross_correlation.iter().map(|r| r * r).sum::<f64>();
@@ -828,8 +843,9 @@ fn check_variance(r0: f64, peak: f64, signal: Signal) -> Result<(), ResidError> 
 /// G_ij = (1/scale) Σ_{k=0..N−1} v(k−τ_i) v(k−τ_j), τ_i = i − M, with v = 0 outside 0..N−1, as a
 /// row-major (2M+1)² matrix. With s = τ_i − τ_j the sum runs over a = k − τ_i in
 /// [max(0, −τ_i, −s), min(N, N−τ_i, N−s)) of v(a) v(a+s): the full lag-s sum T(s) (a in
-/// [max(0, −s), min(N, N−s))) minus at most M terms at each end. Cost O(N·M + M³).
-fn lagged_gram(sums: &CovarianceSums, scale: f64) -> Vec<f64> {
+/// [max(0, −s), min(N, N−s))) minus at most M terms at each end. Cost O(N·M + M³). The matrix is
+/// allocated fallibly ([`ResidError::OutOfMemory`]); M ≤ [`MAX_LAG`] keeps it at most 32 MB.
+fn lagged_gram(sums: &CovarianceSums, scale: f64) -> Result<Vec<f64>, ResidError> {
     let m = sums.max_lag;
     let n = sums.n as i64;
     let mi = m as i64;
@@ -837,7 +853,15 @@ fn lagged_gram(sums: &CovarianceSums, scale: f64) -> Vec<f64> {
     // T(s) for s = 0..=2M; T(−s) = T(s).
     let full = &sums.vv;
     let term = |a: i64, s: i64| sums.v_at(a as usize) * sums.v_at((a + s) as usize);
-    let mut g = vec![0.0; p * p];
+    let oom = || ResidError::OutOfMemory {
+        bytes: p
+            .saturating_mul(p)
+            .saturating_mul(std::mem::size_of::<f64>()),
+    };
+    let mut g: Vec<f64> = Vec::new();
+    g.try_reserve_exact(p.checked_mul(p).ok_or_else(oom)?)
+        .map_err(|_| oom())?;
+    g.resize(p * p, 0.0);
     for i in 0..p {
         for j in 0..=i {
             let (ti, tj) = (i as i64 - mi, j as i64 - mi);
@@ -857,7 +881,7 @@ fn lagged_gram(sums: &CovarianceSums, scale: f64) -> Vec<f64> {
             g[j * p + i] = sum / scale;
         }
     }
-    g
+    Ok(g)
 }
 
 /// cᵀ G⁻¹ c for a symmetric positive definite row-major G, by nalgebra's Cholesky G = L Lᵀ and forward
@@ -1706,6 +1730,25 @@ mod tests {
         );
         // M near the integer limit: refused, its sizes never computed (audit s14 H-c), by the
         // accumulator too (nothing of its size allocated).
+        // The bound is 1000 lags (audit s27 M-4: M = 20 000 on 100 000 samples asked for 12.8 GB):
+        // on 2100 samples, enough for M = 1001 by N ≥ 2(M+1), 1001 is refused and 1000 computed.
+        let mut state = 12345_u64;
+        let mut draw = || {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+        };
+        let long_u: Vec<f64> = (0..2100).map(|_| draw()).collect();
+        let long_e: Vec<f64> = (0..2100).map(|_| draw()).collect();
+        assert_eq!(
+            analyze(&long_e, &long_u, &opts(1001, true)),
+            Err(ResidError::MaxLagTooLarge { max_lag: 1001 })
+        );
+        assert_eq!(
+            analyze(&long_e, &long_u, &opts(1000, true)).map(|a| a.max_lag),
+            Ok(1000)
+        );
         for m in [MAX_LAG + 1, usize::MAX / 2, usize::MAX] {
             assert_eq!(
                 analyze(&ok, &ok2, &opts(m, true)),

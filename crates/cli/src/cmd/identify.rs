@@ -178,7 +178,8 @@ pub struct Args {
     pub merge: bool,
     #[command(flatten)]
     pub val: ValidationArgs,
-    /// Lags M of the residual analysis (autocorrelation τ = 1..M, cross-correlation τ = −M..M).
+    /// Lags M of the residual analysis (autocorrelation τ = 1..M, cross-correlation τ = −M..M), 1 to
+    /// 1000: the independence test factors a (2M+1)² matrix (O(M²) memory, O(M³) time).
     #[arg(long, default_value_t = sysid::residuals::DEFAULT_MAX_LAG, value_name = "M",
           value_parser = super::common::parse_lags)]
     pub resid_lags: usize,

@@ -25,7 +25,8 @@ pub struct Args {
     /// record), checked once the record is read (audit s23 H-B1).
     #[command(flatten)]
     pub memory: super::common::MemoryArgs,
-    /// Lags M of the residual analysis (autocorrelation τ = 1..M, cross-correlation τ = −M..M).
+    /// Lags M of the residual analysis (autocorrelation τ = 1..M, cross-correlation τ = −M..M), 1 to
+    /// 1000: the independence test factors a (2M+1)² matrix (O(M²) memory, O(M³) time).
     #[arg(long, default_value_t = sysid::residuals::DEFAULT_MAX_LAG, value_name = "M",
           value_parser = super::common::parse_lags)]
     pub resid_lags: usize,
@@ -451,7 +452,9 @@ fn report_text(
         m.loss.map_or("n/a".into(), report::format::num),
         m.loss_sim.map_or("n/a".into(), report::format::num),
         m.fpe.map_or("n/a".into(), report::format::num),
-        if report.stable { "stable" } else { "UNSTABLE" }
+        // The one verdict (`Model::stability`, as identify's "Poles: … →" line and the JSON's
+        // `stability`) in its short words: an integrator is not "UNSTABLE" (audit s27 L-10).
+        report.model.stability().word()
     );
     text.push_str(&crate::text::residuals_text(&[(
         "validation",

@@ -8,7 +8,7 @@ use std::path::Path;
 use std::process::Output;
 
 mod common;
-use common::{bin, json, s};
+use common::{assert_same, bin, json, s};
 
 fn run(args: &[&str]) -> Output {
     let out = bin().args(args).output().unwrap();
@@ -83,34 +83,6 @@ fn write_tuy(path: &Path, u: &[f64], y: &[f64]) {
         t.push_str(&format!("{},{},{}\n", k as f64 / 100.0, u[k], y[k]));
     }
     std::fs::write(path, t).unwrap();
-}
-
-/// Every number of `a` within 1e-9 (relative, floor 1) of the same entry of `b`; same keys and shape.
-fn assert_same(a: &serde_json::Value, b: &serde_json::Value, at: &str) {
-    use serde_json::Value;
-    match (a, b) {
-        (Value::Object(x), Value::Object(y)) => {
-            let (kx, ky): (Vec<_>, Vec<_>) = (x.keys().collect(), y.keys().collect());
-            assert_eq!(kx, ky, "{at}");
-            for (k, v) in x {
-                assert_same(v, &y[k], &format!("{at}.{k}"));
-            }
-        }
-        (Value::Array(x), Value::Array(y)) => {
-            assert_eq!(x.len(), y.len(), "{at}");
-            for (i, (v, w)) in x.iter().zip(y).enumerate() {
-                assert_same(v, w, &format!("{at}[{i}]"));
-            }
-        }
-        (Value::Number(x), Value::Number(y)) => {
-            let (x, y) = (x.as_f64().unwrap(), y.as_f64().unwrap());
-            assert!(
-                (x - y).abs() <= 1e-9 * x.abs().max(y.abs()).max(1.0),
-                "{at}: {x} vs {y}"
-            );
-        }
-        _ => assert_eq!(a, b, "{at}"),
-    }
 }
 
 // On a record both paths can hold, `--stream on` writes the JSON of `--stream off` (parameters,

@@ -8,7 +8,7 @@ use std::path::Path;
 use std::process::Output;
 
 mod common;
-use common::{bin, json, s};
+use common::{assert_same, bin, json, s};
 
 fn run(args: &[&str]) -> Output {
     let out = bin().args(args).output().unwrap();
@@ -198,34 +198,6 @@ fn a_quoted_cell_may_span_lines_within_the_line_bound_and_not_beyond() {
     }
 }
 
-/// Every number of `a` within 1e-9 (relative, floor 1) of the same entry of `b`; the same keys.
-fn assert_same(a: &serde_json::Value, b: &serde_json::Value, at: &str) {
-    use serde_json::Value;
-    match (a, b) {
-        (Value::Object(x), Value::Object(y)) => {
-            let (kx, ky): (Vec<_>, Vec<_>) = (x.keys().collect(), y.keys().collect());
-            assert_eq!(kx, ky, "{at}");
-            for (k, v) in x {
-                assert_same(v, &y[k], &format!("{at}.{k}"));
-            }
-        }
-        (Value::Array(x), Value::Array(y)) => {
-            assert_eq!(x.len(), y.len(), "{at}");
-            for (i, (v, w)) in x.iter().zip(y).enumerate() {
-                assert_same(v, w, &format!("{at}[{i}]"));
-            }
-        }
-        (Value::Number(x), Value::Number(y)) => {
-            let (x, y) = (x.as_f64().unwrap(), y.as_f64().unwrap());
-            assert!(
-                (x - y).abs() <= 1e-9 * x.abs().max(y.abs()).max(1.0),
-                "{at}: {x} vs {y}"
-            );
-        }
-        _ => assert_eq!(a, b, "{at}"),
-    }
-}
-
 // The model classes `validate` reads in passes (ARX, output error, a Hammerstein input map) give the
 // JSON of the in-memory path to 1e-9 with the same keys, the horizon fit of an output-error model
 // included (its one-step prediction is its simulation from the estimated initial outputs in both
@@ -397,4 +369,22 @@ fn stream_refusals_name_what_cannot_be_streamed() {
         "on",
     ]);
     assert!(e.contains("--structure arx --method ls"), "{e}");
+    // A `.mat` validation record is read in memory: a reason not to stream, named as one (audit s27
+    // L-12: the default `auto` on a large CSV then failed, advising to leave out a `--stream` that was
+    // not given; it now reads in memory for the same reason). In memory the same command runs.
+    let mat = dir.path().join("val.mat");
+    let (uv, yv) = signals(1000, 10);
+    common::write_mat(&mat, &["u", "y"], &[&uv, &yv]);
+    let e = fails(&arx(
+        s(&f),
+        &["--validation", s(&mat), "--ts", "0.01", "--stream", "on"],
+    ));
+    assert!(
+        e.contains("no --stream (or --stream off)")
+            && e.contains("val.mat")
+            && e.contains(".mat file"),
+        "{e}"
+    );
+    assert!(!e.contains("leave out --stream"), "{e}");
+    run(&arx(s(&f), &["--validation", s(&mat), "--ts", "0.01"]));
 }

@@ -952,16 +952,32 @@ fn refused_in_passes(why: &str) -> sysid::SysidError {
 /// Whether `--stream on` would read this record in passes, where a refusal for memory may offer it:
 /// nothing against it ([`why_not_stream`]) and CSV files (the streaming reader reads CSV only).
 fn could_stream(args: &Args, settings: &Identification, data: &Path) -> bool {
-    let csv = |p: &Path| p.extension().is_none_or(|e| !e.eq_ignore_ascii_case("mat"));
-    why_not_stream(args, settings).is_none()
-        && csv(data)
-        && args.val.validation.as_deref().is_none_or(csv)
+    why_not_stream(args, settings).is_none() && !is_mat_name(data)
+}
+
+/// A path named `*.mat` (read by the in-memory `.mat` reader; the streaming reader reads CSV text).
+fn is_mat_name(p: &Path) -> bool {
+    p.extension().is_some_and(|e| e.eq_ignore_ascii_case("mat"))
 }
 
 /// Why this identification cannot be read in passes, if it cannot: ARX by least squares only,
-/// without `--split` or `--resample`.
+/// without `--split` or `--resample`, and a CSV validation record (audit s27 L-12: a large CSV with a
+/// `.mat` validation record failed under the default `--stream auto`, advising to leave out a
+/// `--stream` that was not given; now the default reads both in memory and says why).
 fn why_not_stream(args: &Args, settings: &Identification) -> Option<String> {
     sysid::stream::unsupported(settings)
+        .or_else(|| {
+            args.val
+                .validation
+                .as_deref()
+                .filter(|v| is_mat_name(v))
+                .map(|v| {
+                    format!(
+                        "the validation record {} is a MATLAB .mat file, which is read in memory",
+                        v.display()
+                    )
+                })
+        })
         .or_else(|| {
             args.val.split.is_some().then(|| {
                 "--split needs the record's length before reading it; use --rows and --val-rows"

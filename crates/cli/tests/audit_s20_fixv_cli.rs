@@ -94,33 +94,41 @@ fn with_budget(args: &[&str], gib: &str) -> std::process::Output {
 
 #[test]
 fn a_small_record_is_refused_under_a_tiny_max_memory_and_accepted_under_a_larger_one() {
-    // ARX(2, 2, 1) by least squares on 10 000 samples: N = 10 000 − k0 rows, k0 = max(na, nk + nb −
-    // 1) = 2, p = na + nb = 4, 2p + 4 = 12 numbers of 8 bytes per row (docs/reliability.md):
-    // 959 808 bytes = 0.00096 GB, more than 0.0001 GiB (107 374 bytes), less than 0.001 GiB.
+    // ARX(8, 2, 1) by least squares on 10 000 samples (the record is ARX(2, 2, 1) without noise: nb = 2
+    // keeps the regressors independent): N = 10 000 − k0 rows, k0 = max(na, nk + nb − 1) = 8,
+    // p = na + nb = 10, 2p + 4 = 24 numbers of 8 bytes per row (docs/reliability.md):
+    // 1 918 464 bytes = 0.0019 GB, more than 0.0015 GiB (1 610 612 bytes), less than 0.003 GiB. The
+    // record itself (its text and rows, held to the same budget since audit s27 M-1) is read within
+    // 0.0015 GiB: at most twice its bytes plus 8 bytes per cell, per row and per line number.
     let dir = tempfile::tempdir().unwrap();
     let n = 10_000;
     let csv = excited_csv(dir.path(), n);
+    let file = std::fs::metadata(&csv).unwrap().len() as f64;
     let args = [
-        common::identify_arx(&csv, "2", "2", "ls"),
+        common::identify_arx(&csv, "8", "2", "ls"),
         vec!["--ts", "0.01", "--nk", "1"],
     ]
     .concat();
-    let rows = n - 2;
-    let bytes = rows * 12 * 8;
-    let tiny = 0.0001 * (1u64 << 30) as f64;
-    assert!(bytes as f64 > tiny && (bytes as f64) < 0.001 * (1u64 << 30) as f64);
-    let o = with_budget(&args, "0.0001");
+    let rows = n - 8;
+    let bytes = rows * 24 * 8;
+    let tiny = 0.0015 * (1u64 << 30) as f64;
+    assert!(bytes as f64 > tiny && (bytes as f64) < 0.003 * (1u64 << 30) as f64);
+    assert!(
+        2.0 * file + ((8 * (2 + 2) * n) as f64) < tiny,
+        "the record fits"
+    );
+    let o = with_budget(&args, "0.0015");
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(
-        err.contains(&format!("{rows} regression rows of 4 parameters")),
+        err.contains(&format!("{rows} regression rows of 10 parameters")),
         "{err}"
     );
-    // 959 808 bytes are 0.00096 GB (two significant digits below 0.1 GB).
-    assert_eq!(bytes, 959_808);
-    assert!(err.contains("about 0.00096 GB"), "{err}");
-    assert!(err.contains("budget of 0.0001 GiB (--max-memory)"), "{err}");
-    let fit = (tiny.floor() / (12.0 * 8.0)).floor() as usize;
+    // 1 918 464 bytes are 0.0019 GB (two significant digits below 0.1 GB).
+    assert_eq!(bytes, 1_918_464);
+    assert!(err.contains("about 0.0019 GB"), "{err}");
+    assert!(err.contains("budget of 0.0015 GiB (--max-memory)"), "{err}");
+    let fit = (tiny.floor() / (24.0 * 8.0)).floor() as usize;
     assert!(err.contains(&format!("at most {fit} rows")), "{err}");
     assert!(
         err.contains("raise --max-memory") && err.contains("if this machine has the memory"),
@@ -128,41 +136,51 @@ fn a_small_record_is_refused_under_a_tiny_max_memory_and_accepted_under_a_larger
     );
     // ARX by least squares from a CSV file: --stream on would read it in passes, and the refusal says so.
     assert!(err.contains("--stream on"), "{err}");
-    let o = with_budget(&args, "0.001");
+    let o = with_budget(&args, "0.003");
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-    // Hammerstein by least squares cannot be streamed: the same refusal does not offer it.
-    let mut hammerstein = args.clone();
-    let structure = args.iter().position(|a| *a == "arx").unwrap();
+    // Hammerstein by least squares cannot be streamed: the same refusal does not offer it (orders 2, 2:
+    // the key-term estimation of its deadzone and ARX parameters needs more than 0.0015 GiB here).
+    let mut hammerstein = [
+        common::identify_arx(&csv, "2", "2", "ls"),
+        vec!["--ts", "0.01", "--nk", "1"],
+    ]
+    .concat();
+    let structure = hammerstein.iter().position(|a| *a == "arx").unwrap();
     hammerstein[structure] = "hammerstein";
-    let o = with_budget(&hammerstein, "0.0001");
+    let o = with_budget(&hammerstein, "0.0015");
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("regression rows"), "{err}");
     assert!(err.contains("raise --max-memory"), "{err}");
     assert!(!err.contains("--stream on"), "{err}");
 }
 
 #[test]
 fn delay_and_order_take_the_same_budget() {
-    // delay (na = nb = 2, delays 0..=10): ARX(2, 2, 10) with c, N = 10 000 − max(2, 10 + 2 − 1) =
-    // 9989 rows, p = 5, 2p + 4 = 14 numbers per row: 1.1 MB > 0.0001 GiB.
+    // delay (na = nb = 6, delays 0..=10): ARX(6, 6, 10) with c, N = 10 000 − max(6, 10 + 6 − 1) =
+    // 9985 rows, p = 13, 2p + 4 = 30 numbers per row: 2.4 MB > 0.0015 GiB (1 610 612 bytes), within
+    // which the record itself is read (audit s27 M-1: its text and rows count against the budget too).
     let dir = tempfile::tempdir().unwrap();
     let csv = excited_csv(dir.path(), 10_000);
     let data = csv.to_str().unwrap();
-    let delay = ["delay", "--data", data, "--ts", "0.01"];
-    let o = with_budget(&delay, "0.0001");
+    let delay = [
+        "delay", "--data", data, "--ts", "0.01", "--na", "6", "--nb", "6",
+    ];
+    assert!(9985 * 30 * 8 > 1_610_612);
+    let o = with_budget(&delay, "0.0015");
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(
-        err.contains("9989 regression rows of 5 parameters"),
+        err.contains("9985 regression rows of 13 parameters"),
         "{err}"
     );
     assert!(err.contains("raise --max-memory"), "{err}");
     assert_eq!(with_budget(&delay, "0.01").status.code(), Some(0));
-    // order over na, nb = 1..2, nk = 1 by least squares, one worker thread: its largest structure
-    // ARX(2, 2, 1) on the estimation part (the first 2/3 of the record, --selection-split: 6666 rows,
-    // N = 6666 − 2) needs 6664 × 12 × 8 bytes = 0.64 MB > 0.0001 GiB, refused as one fit.
+    // order over na, nb = 1..8, nk = 1 by least squares, one worker thread: its largest structure
+    // ARX(8, 8, 1) on the estimation part (the first 2/3 of the record, --selection-split: 6666 rows,
+    // N = 6666 − 8) needs 6658 × 36 × 8 bytes = 1.9 MB > 0.0015 GiB, refused as one fit.
     let order = [
-        "order", "--data", data, "--ts", "0.01", "--na", "1..2", "--nb", "1..2", "--nk", "1",
+        "order", "--data", data, "--ts", "0.01", "--na", "1..8", "--nb", "1..8", "--nk", "1",
     ];
     let run = |gib: &str| {
         bin()
@@ -172,14 +190,15 @@ fn delay_and_order_take_the_same_budget() {
             .output()
             .unwrap()
     };
-    let o = run("0.0001");
+    assert!(6658 * 36 * 8 > 1_610_612);
+    let o = run("0.0015");
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(
-        err.contains("6664 regression rows of 4 parameters"),
+        err.contains("6658 regression rows of 16 parameters"),
         "{err}"
     );
-    assert!(err.contains("about 0.00064 GB"), "{err}");
+    assert!(err.contains("about 0.0019 GB"), "{err}");
     assert!(!err.contains("fitted at once"), "{err}");
     assert!(o.stdout.is_empty());
     assert_eq!(

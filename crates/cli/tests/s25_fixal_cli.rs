@@ -16,7 +16,14 @@ fn narx_validate_refuses_a_record_beyond_its_memory_budget() {
     let mut r = lcg(11);
     let (u, y) = arx_signals(n, &[0.5], &[1.0], |_| 2.0 * r.unit() - 1.0);
     let csv = d.join("rec.csv");
+    // Three decimals: the record's own read (its text and rows, held to the same budget since audit
+    // s27 M-1: at most twice its bytes plus 8 bytes per cell, per row and per line number) stays
+    // within the smaller budget below, so that validate's own need is what is refused.
+    let u: Vec<f64> = u.iter().map(|v| (v * 1e3).round() / 1e3).collect();
+    let y: Vec<f64> = y.iter().map(|v| (v * 1e3).round() / 1e3).collect();
     write_csv(&csv, "u,y", None, &[&u, &y]);
+    let file = std::fs::metadata(&csv).unwrap().len() as f64;
+    assert!(2.0 * file + ((8 * (2 + 2) * n) as f64) < 0.0001 * 1024f64.powi(3));
     let model = d.join("narx.json");
     let fit = ipa_sysid(&[
         "identify",

@@ -166,7 +166,6 @@ fn delay_and_order_take_the_same_budget() {
     let delay = [
         "delay", "--data", data, "--ts", "0.01", "--na", "6", "--nb", "6",
     ];
-    assert!(9985 * 30 * 8 > 1_610_612);
     let o = with_budget(&delay, "0.0015");
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(2), "{err}");
@@ -190,7 +189,6 @@ fn delay_and_order_take_the_same_budget() {
             .output()
             .unwrap()
     };
-    assert!(6658 * 36 * 8 > 1_610_612);
     let o = run("0.0015");
     let err = stderr(&o);
     assert_eq!(o.status.code(), Some(2), "{err}");

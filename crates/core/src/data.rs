@@ -654,9 +654,7 @@ pub fn read_csv(path: &Path, opts: &CsvOptions) -> Result<Dataset, SysidError> {
 /// Reads a record from a CSV file, with the reader's warnings (how non-uniform a resampled record was).
 pub fn read_record(path: &Path, opts: &CsvOptions) -> Result<Record, SysidError> {
     let name = path.display().to_string();
-    let is_mat_name = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("mat"));
+    let is_mat_name = mat::has_mat_name(path);
     let bytes = bounded::read_data_file(path, "a data file")?;
     if is_mat_name || mat::is_mat(&bytes) {
         return mat::read_mat_bytes(&bytes, &name, opts);

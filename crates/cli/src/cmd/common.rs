@@ -164,9 +164,7 @@ impl StreamMode {
             StreamMode::Auto => {
                 let large = std::fs::metadata(data)
                     .is_ok_and(|m| m.is_file() && m.len() >= sysid::stream::AUTO_STREAM_BYTES);
-                let csv = data
-                    .extension()
-                    .is_none_or(|e| !e.eq_ignore_ascii_case("mat"));
+                let csv = !sysid_core::data::mat::has_mat_name(data);
                 if let (true, true, Some(why)) = (large, csv, &why_not) {
                     // A large file read whole is said, with the reason (audit s27 L-9, M-1).
                     eprintln!(

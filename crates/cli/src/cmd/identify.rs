@@ -952,12 +952,7 @@ fn refused_in_passes(why: &str) -> sysid::SysidError {
 /// Whether `--stream on` would read this record in passes, where a refusal for memory may offer it:
 /// nothing against it ([`why_not_stream`]) and CSV files (the streaming reader reads CSV only).
 fn could_stream(args: &Args, settings: &Identification, data: &Path) -> bool {
-    why_not_stream(args, settings).is_none() && !is_mat_name(data)
-}
-
-/// A path named `*.mat` (read by the in-memory `.mat` reader; the streaming reader reads CSV text).
-fn is_mat_name(p: &Path) -> bool {
-    p.extension().is_some_and(|e| e.eq_ignore_ascii_case("mat"))
+    why_not_stream(args, settings).is_none() && !sysid_core::data::mat::has_mat_name(data)
 }
 
 /// Why this identification cannot be read in passes, if it cannot: ARX by least squares only,
@@ -970,7 +965,7 @@ fn why_not_stream(args: &Args, settings: &Identification) -> Option<String> {
             args.val
                 .validation
                 .as_deref()
-                .filter(|v| is_mat_name(v))
+                .filter(|v| sysid_core::data::mat::has_mat_name(v))
                 .map(|v| {
                     format!(
                         "the validation record {} is a MATLAB .mat file, which is read in memory",

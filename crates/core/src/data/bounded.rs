@@ -138,9 +138,7 @@ pub fn read_bounded_checked(
 /// line end would otherwise be read up to the size bound, and its one line copied several times, before
 /// the CSV reader refused it: audit s22 H-B2).
 pub fn read_data_file(path: &Path, what: &str) -> Result<Vec<u8>, SysidError> {
-    let is_mat_name = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("mat"));
+    let is_mat_name = super::mat::has_mat_name(path);
     read_bounded_checked(
         path,
         super::MAX_FILE_BYTES,

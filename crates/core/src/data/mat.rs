@@ -33,6 +33,13 @@ use super::{
 use crate::error::Setting;
 use crate::{Dataset, SysidError};
 
+/// True when `path` is named `*.mat` (any case): the readers take such a file for a MAT-file whatever
+/// its bytes, and the streaming reader, which reads CSV text, refuses it.
+pub fn has_mat_name(path: &std::path::Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("mat"))
+}
+
 /// True when `bytes` look like a MAT-file (Level 5 or v7.3 header text).
 pub fn is_mat(bytes: &[u8]) -> bool {
     bytes.starts_with(b"MATLAB 5.0 MAT-file") || bytes.starts_with(b"MATLAB 7.3 MAT-file")

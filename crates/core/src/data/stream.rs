@@ -337,9 +337,7 @@ impl CsvStream {
         file.take(PREFIX_BYTES as u64)
             .read_to_end(&mut prefix)
             .map_err(io)?;
-        let is_mat_name = path
-            .extension()
-            .is_some_and(|e| e.eq_ignore_ascii_case("mat"));
+        let is_mat_name = super::mat::has_mat_name(path);
         if is_mat_name || super::mat::is_mat(&prefix) {
             return Err(SysidError::File {
                 file: name,

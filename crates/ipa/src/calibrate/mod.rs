@@ -95,10 +95,7 @@ pub fn read_record(
     let name = path.display().to_string();
     // The file is read once: its bytes give the pressure columns (a CSV header) and the record.
     let bytes = sysid_core::data::bounded::read_data_file(path, "a calibration record")?;
-    let is_mat = path
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("mat"))
-        || sysid_core::data::mat::is_mat(&bytes);
+    let is_mat = sysid_core::data::mat::has_mat_name(path) || sysid_core::data::mat::is_mat(&bytes);
     // The pressure columns: named, or found in a CSV header (checked here, so that a missing one is
     // named by the flag that chose it).
     let pressures = if is_mat {

@@ -32,16 +32,11 @@ use serde::{Deserialize, Serialize};
 use crate::closed_loop::Controller;
 use crate::{ControlError, ControlSetting, DeadzoneCompensator};
 
-/// Largest Kp, Ki, Kd a controller file may hold (counts per mm, per mm·s, s/mm).
-pub const MAX_GAIN: f64 = 1e6;
-/// Largest band (hold, fine, nudge, rest) a controller file may hold, mm (10 m).
-pub const MAX_LENGTH_MM: f64 = 1e4;
-/// Largest time constant a controller file may hold, s.
-pub const MAX_TIME_S: f64 = 1e4;
-/// Largest command limit u_max, counts.
-pub const MAX_COMMAND: f64 = 1e6;
-/// Largest nudge ramp rate, counts/s.
-pub const MAX_RAMP_COUNTS_S: f64 = 1e9;
+/// The ranges a controller file's settings are checked against: the embedded controller's own (one
+/// range for a file and for `ipa_ctl_init`, audit s28 L-4).
+pub use ipa_embedded::position::{
+    MAX_COMMAND, MAX_GAIN, MAX_LENGTH_MM, MAX_RAMP_COUNTS_S, MAX_TIME_S,
+};
 
 /// The format name written in a controller file's `format` field.
 pub const CONTROLLER_FORMAT: &str = "ipa-sysid-controller";

@@ -645,7 +645,9 @@ pub extern "C" fn ipa_pi_state_size() -> usize {
 
 /// Initialises a PI controller in `mem`: Kp (counts/mm), Ki (counts/(mm·s)), Ts (s), u_max (counts,
 /// 255 for the IPA), `anti_windup` 0 = none, 1 = clamping, 2 = back-calculation with tracking time
-/// `tt_s` (s; ignored otherwise). Returns [`IPA_OK`] or a negative code.
+/// `tt_s` (s; ignored otherwise). Returns [`IPA_OK`] or a negative code: [`IPA_ERR_SETTING`] among
+/// others for Ts outside 1e-6 to 1e4 s, |Kp| or |Ki| above 1e6 or u_max above 1e6 counts (the tuned
+/// controller's ranges, [`ipa_ctl_init`]; a subnormal Ts and Ts = 1e300 s were taken, audit s28 L-4).
 ///
 /// # Safety
 /// `mem` null or writable for `len` bytes, aligned to 8.
@@ -711,7 +713,9 @@ pub extern "C" fn ipa_ctl_state_size() -> usize {
 /// Returns [`IPA_OK`] or a negative code (a setting out of range, bad storage): [`IPA_ERR_SETTING`]
 /// among others for Ts outside 1e-6 to 1e4 s (`ipa_embedded::position::MIN_TS_S` and
 /// `ipa_embedded::MAX_TS_S`, the range `control` applies to controller files too; a subnormal Ts gave
-/// NaN commands, audit s19 M-1, and Ts = 1e308 s an overflowing integral, audit s21 L-B1).
+/// NaN commands, audit s19 M-1, and Ts = 1e308 s an overflowing integral, audit s21 L-B1), and for
+/// Kp, Ki, Kd above 1e6, Tf above 1e4 s, a hold or fine band above 1e4 mm or u_max above 1e6 counts
+/// (`ipa_embedded::position::MAX_GAIN` etc., the ranges of a controller file, audit s28 L-4).
 ///
 /// # Safety
 /// `mem` null or writable for `len` bytes, aligned to 8; `settings` null or readable.
@@ -829,9 +833,12 @@ pub unsafe extern "C" fn ipa_ctl_init(
 
 /// One sample of the tuned controller: set-point r and position y in mm; writes the command (counts)
 /// to `*u`. Returns [`IPA_OK`] or a negative code: [`IPA_ERR_NOT_FINITE`] for a non-finite r or y,
-/// [`IPA_ERR_NUMERICAL`] when the command (or the integral or derivative term) would not be finite
-/// (finite but extreme inputs, e.g. a jump of y by 1e308 mm); `*u` is then not written and the state
-/// is unchanged (the next sample runs as if this one had not been given).
+/// [`IPA_ERR_NUMERICAL`] for a finite r or y beyond the controller's reach (64 |v| max(1, Kp, Ki Ts,
+/// (1 + Kd)/Ts) not finite: about 1e304 mm at Ts = 0.01 s; a garbage sensor read of 2e306 mm was taken
+/// and then wedged every later step, audit s28 M-1) and when the command (or the integral or
+/// derivative term) would not be finite (finite but extreme inputs, e.g. a jump of y by 1e300 mm);
+/// `*u` is then not written and the state is unchanged (the next sample runs as if this one had not
+/// been given).
 ///
 /// # Safety
 /// `mem` storage of a successful [`ipa_ctl_init`] (or null); `u` null or writable.

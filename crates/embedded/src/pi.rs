@@ -46,11 +46,23 @@ pub struct Pi<F: Float> {
 
 impl<F: Float> Pi<F> {
     /// A controller with Kp (counts/mm), Ki (counts/(mm·s)), Ts (s, > 0), u_max (counts, > 0; 255
-    /// for the IPA's PWM) and an anti-windup scheme. Non-finite gains, Ts ≤ 0, u_max ≤ 0 or Tt ≤ Ts/2
-    /// (the back-calculation would diverge) give [`Error::Setting`].
+    /// for the IPA's PWM) and an anti-windup scheme. Gains beyond ±[`MAX_GAIN`](crate::position::MAX_GAIN)
+    /// (or not finite), Ts outside [`MIN_TS_S`](crate::position::MIN_TS_S) to
+    /// [`MAX_TS_S`](crate::MAX_TS_S) (the tuned controller's range: a subnormal Ts or one of 1e300 s
+    /// was taken here, audit s28 L-4), u_max ≤ 0 or beyond [`MAX_COMMAND`](crate::position::MAX_COMMAND),
+    /// or Tt ≤ Ts/2 (the back-calculation would diverge) give [`Error::Setting`].
     pub fn new(kp: F, ki: F, ts: F, u_max: F, anti_windup: AntiWindup<F>) -> Result<Self, Error> {
+        use crate::position::{MAX_COMMAND, MAX_GAIN, MIN_TS_S};
         let positive = |v: F| v.is_finite() && v > F::ZERO;
-        if !(kp.is_finite() && ki.is_finite() && positive(ts) && positive(u_max)) {
+        let gain = |v: F| v.is_finite() && v.abs() <= F::from_f64(MAX_GAIN);
+        if !(gain(kp)
+            && gain(ki)
+            && positive(ts)
+            && ts >= F::from_f64(MIN_TS_S)
+            && ts <= F::from_f64(crate::MAX_TS_S)
+            && positive(u_max)
+            && u_max <= F::from_f64(MAX_COMMAND))
+        {
             return Err(Error::Setting);
         }
         // Tt <= Ts/2 makes the saturated back-calculation update I(k) = (1 − Ts/Tt) I(k−1) + … grow
@@ -173,6 +185,21 @@ mod tests {
         let bc = |tt_s| AntiWindup::BackCalculation { tt_s };
         assert!(Pi::new(1.0, 1.0, 0.01, 255.0, bc(0.005)).is_err());
         assert!(Pi::new(1.0, 1.0, 0.01, 255.0, bc(0.0051)).is_ok());
+        // Audit s28 L-4: the tuned controller's ranges (Ts 1e-6 to 1e4 s, |gains| ≤ 1e6, u_max ≤ 1e6).
+        let none = AntiWindup::None;
+        for ts in [1e-320, 9e-7, 1e300, 1.1e4] {
+            assert_eq!(
+                Pi::new(14.0, 1.0, ts, 255.0, none),
+                Err(Error::Setting),
+                "Ts {ts}"
+            );
+        }
+        assert!(Pi::new(14.0, 1.0, 1e-6, 255.0, none).is_ok());
+        assert!(Pi::new(14.0, 1.0, 1e4, 255.0, none).is_ok());
+        assert!(Pi::new(1e308, 1.0, 0.01, 255.0, none).is_err());
+        assert!(Pi::new(1.0, -2e6, 0.01, 255.0, none).is_err());
+        assert!(Pi::new(-1e6, 1e6, 0.01, 1e6, none).is_ok());
+        assert!(Pi::new(1.0, 1.0, 0.01, 2e6, none).is_err());
         let mut pi = Pi::new(14.0, 1.0, 0.01, 255.0, AntiWindup::None).unwrap();
         assert_eq!(pi.step(f64::INFINITY, 0.0).unwrap_err(), Error::NotFinite);
         assert_eq!(pi.integral(), 0.0);

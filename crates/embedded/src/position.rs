@@ -245,6 +245,36 @@ struct Nudging<F: Float> {
 /// s19 M-1). `control` checks controller files against the same floor.
 pub const MIN_TS_S: f64 = 1e-6;
 
+/// Largest Kp, Ki, Kd a [`PositionController`] (and a controller file) takes, counts per mm, per
+/// mm·s, s/mm: a gain of 1e308 is a corrupt setting, not a controller (audit s28 L-4).
+pub const MAX_GAIN: f64 = 1e6;
+/// Largest band (hold, fine, nudge, rest) a [`PositionController`] takes, mm (10 m).
+pub const MAX_LENGTH_MM: f64 = 1e4;
+/// Largest time constant (Tf) a [`PositionController`] takes, s.
+pub const MAX_TIME_S: f64 = 1e4;
+/// Largest command limit u_max, counts.
+pub const MAX_COMMAND: f64 = 1e6;
+/// Largest nudge ramp rate a controller file may hold, counts/s.
+pub const MAX_RAMP_COUNTS_S: f64 = 1e9;
+
+/// Whether a set-point or position v (mm) is within the controller's reach: 64 |v| max(1, Kp, Ki Ts,
+/// (1 + Kd)/Ts) finite. Every term of a later step that a stored sample enters (the velocity
+/// (y(k) − y(k−1))/Ts and Kd times it, Kp e, Ki Ts e) is then at most 1/32 of the largest float, so
+/// an accepted sample can never make every later ordinary sample overflow (audit s28 M-1: one
+/// position of 2e306 mm was accepted, and every later step returned [`Error::Numerical`] until a
+/// reset, because the refused steps kept the stored position). Far beyond any actuator: about
+/// 2.8e304 mm in f64 and 5.3e33 mm in f32 at Ts = 0.01 s, Kp = 14.
+fn within_reach<F: Float>(s: &PositionSettings<F>, v: F) -> bool {
+    let per_ts = (F::ONE + s.kd) / s.ts;
+    let mut m = F::ONE;
+    for k in [s.kp, s.ki * s.ts, per_ts] {
+        if k > m {
+            m = k;
+        }
+    }
+    (v.abs() * F::from_f64(64.0) * m).is_finite()
+}
+
 /// The settings of a [`PositionController`] (the `controller` object of CONTROLLER.json).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PositionSettings<F: Float> {
@@ -383,15 +413,18 @@ impl<F: Float> PositionController<F> {
     pub fn new(s: PositionSettings<F>, compensator: Option<Compensator<F>>) -> Result<Self, Error> {
         let nonneg = |v: F| v.is_finite() && v >= F::ZERO;
         let positive = |v: F| v.is_finite() && v > F::ZERO;
+        let at_most = |v: F, max: f64| nonneg(v) && v <= F::from_f64(max);
         if !(positive(s.ts)
             && s.ts >= F::from_f64(MIN_TS_S)
+            && s.ts <= F::from_f64(crate::MAX_TS_S)
             && positive(s.u_max)
-            && nonneg(s.kp)
-            && nonneg(s.ki)
-            && nonneg(s.kd)
-            && nonneg(s.tf)
-            && nonneg(s.hold_band)
-            && nonneg(s.fine_band))
+            && s.u_max <= F::from_f64(MAX_COMMAND)
+            && at_most(s.kp, MAX_GAIN)
+            && at_most(s.ki, MAX_GAIN)
+            && at_most(s.kd, MAX_GAIN)
+            && at_most(s.tf, MAX_TIME_S)
+            && at_most(s.hold_band, MAX_LENGTH_MM)
+            && at_most(s.fine_band, MAX_LENGTH_MM))
         {
             return Err(Error::Setting);
         }
@@ -481,12 +514,17 @@ impl<F: Float> PositionController<F> {
     }
 
     /// One sample: set-point r and position y (mm) → command u (counts). Non-finite inputs give
-    /// [`Error::NotFinite`]; a command u, integral I or derivative D that would not be finite (finite
-    /// but extreme inputs: |y(k) − y(k−1)| / Ts or Kp e overflowing) gives [`Error::Numerical`] (a
-    /// guard of last resort: audit s19 M-1). Either leaves the state unchanged.
+    /// [`Error::NotFinite`]; finite r or y beyond the controller's reach (64 |v| max(1, Kp, Ki Ts,
+    /// (1 + Kd)/Ts) not finite: about 1e304 mm in f64 at Ts = 0.01 s) give [`Error::Numerical`], as
+    /// does a command u, integral I or derivative D that would not be finite (a guard of last resort:
+    /// audit s19 M-1). Either leaves the state unchanged, and the next sample runs as if this one had
+    /// not been given.
     pub fn step(&mut self, r: F, y: F) -> Result<F, Error> {
         if !(r.is_finite() && y.is_finite()) {
             return Err(Error::NotFinite);
+        }
+        if !(within_reach(&self.s, r) && within_reach(&self.s, y)) {
+            return Err(Error::Numerical);
         }
         let before = *self;
         let u = self.law_step(r, y)?;
@@ -1201,6 +1239,85 @@ mod tests {
         assert_eq!(c.step(10.0, 0.0).unwrap(), 0.0);
         assert_eq!(c.step(10.0, 0.1).unwrap(), 2.0 * -5.0);
         assert_eq!(c.step(10.0, 0.1).unwrap(), 2.0 * -2.5);
+    }
+
+    // Audit s28 M-1: one finite but extreme position (a garbage encoder read) must not wedge the
+    // controller. With Kp = 4, Ki = 5, Kd = 0.25, Tf = 0.02 s, Ts = 0.01 s the reach is
+    // 1.8e308 / (64 (1 + Kd)/Ts) ≈ 2.2e304 mm: 1e308, 5e306 and 2e306 are refused (state unchanged),
+    // and the samples after them give the commands of a controller that never saw them.
+    #[test]
+    fn an_extreme_sample_is_refused_and_the_next_runs_as_if_it_had_not_been_given() {
+        let mut settings = s();
+        (settings.kp, settings.ki, settings.kd, settings.tf) = (4.0, 5.0, 0.25, 0.02);
+        let samples = [
+            (10.0, 0.0),
+            (10.0, 0.5),
+            (10.0, 1.2),
+            (10.0, 9.9),
+            (10.0, 9.95),
+        ];
+        let mut clean = PositionController::new(settings, None).unwrap();
+        let want = samples.map(|(r, y)| clean.step(r, y).unwrap());
+        for bad in [
+            (1e308, -1e308),
+            (0.0, 1e308),
+            (10.0, -5e306),
+            (10.0, 2e306),
+            (3e305, 0.0),
+        ] {
+            for at in 0..samples.len() {
+                let mut c = PositionController::new(settings, None).unwrap();
+                let mut got = [0.0; 5];
+                for (k, (&(r, y), out)) in samples.iter().zip(got.iter_mut()).enumerate() {
+                    if k == at {
+                        let before = c;
+                        assert_eq!(
+                            c.step(bad.0, bad.1),
+                            Err(Error::Numerical),
+                            "{bad:?} at {at}"
+                        );
+                        assert_eq!(c, before, "a refused sample leaves the state unchanged");
+                    }
+                    *out = c.step(r, y).unwrap();
+                }
+                assert_eq!(got, want, "{bad:?} at {at}");
+            }
+        }
+        // Within the reach an extreme but representable sample is taken (a derivative kick).
+        let mut c = PositionController::new(settings, None).unwrap();
+        c.step(10.0, 0.0).unwrap();
+        assert!(c.step(10.0, 1e300).is_ok());
+        assert!(c.step(10.0, 0.0).is_ok());
+    }
+
+    // Audit s28 L-4: the magnitudes a controller file may not hold, the embedded controller refuses
+    // too (one range).
+    #[test]
+    fn settings_beyond_the_file_ranges_are_refused() {
+        type Set = fn(&mut PositionSettings<f64>);
+        let cases: [(&str, Set); 8] = [
+            ("kp", |s| s.kp = 1e308),
+            ("ki", |s| s.ki = MAX_GAIN * 2.0),
+            ("kd", |s| s.kd = 1e7),
+            ("tf", |s| s.tf = 1e5),
+            ("hold band", |s| s.hold_band = 1e308),
+            ("fine band", |s| s.fine_band = 2e4),
+            ("u_max", |s| s.u_max = 1e7),
+            ("ts", |s| s.ts = 1e5),
+        ];
+        for (name, set) in cases {
+            let mut settings = s();
+            set(&mut settings);
+            assert_eq!(
+                PositionController::new(settings, None).err(),
+                Some(Error::Setting),
+                "{name}"
+            );
+        }
+        let mut at_bounds = s();
+        (at_bounds.kp, at_bounds.hold_band, at_bounds.u_max) =
+            (MAX_GAIN, MAX_LENGTH_MM, MAX_COMMAND);
+        assert!(PositionController::new(at_bounds, None).is_ok());
     }
 
     /// The shift inverse of the deadzone b_l = −20, b_r = 30 (unit slopes).

@@ -89,15 +89,15 @@ fn a_derivative_that_would_be_infinite_is_refused_even_when_the_clamp_hides_it()
 }
 
 // PI with Kp = 0, Ki = 1: r = 1e308, y = −1e308 gives e = 2e308 = +∞ and Kp e = 0 × ∞ = NaN: refused, I
-// stays 0; then e = 1 gives u = Ki Ts e = 0.01. With Ki = 1e308, Ts = 1: I = 1e308 × ∞ = ∞ while u is
-// clamped to 255: refused too.
+// stays 0; then e = 1 gives u = Ki Ts e = 0.01. With Ki = 1e6 (the largest gain `Pi::new` takes), Ts = 1:
+// I = 1e6 × ∞ = ∞ while u is clamped to 255: refused too.
 #[test]
 fn the_pi_step_refuses_a_nan_command_or_an_infinite_integral() {
     let mut pi = Pi::new(0.0, 1.0, 0.01, 255.0, AntiWindup::None).unwrap();
     assert_eq!(pi.step(1e308, -1e308).unwrap_err(), Error::Numerical);
     assert_eq!(pi.integral(), 0.0);
     assert_eq!(pi.step(1.0, 0.0).unwrap(), 0.01);
-    let mut pi = Pi::new(1.0, 1e308, 1.0, 255.0, AntiWindup::None).unwrap();
+    let mut pi = Pi::new(1.0, 1e6, 1.0, 255.0, AntiWindup::None).unwrap();
     assert_eq!(pi.step(1e308, -1e308).unwrap_err(), Error::Numerical);
     assert_eq!(pi.integral(), 0.0);
 }

@@ -377,6 +377,9 @@ pub fn response(model: &Model, s: &ResponseSettings) -> Result<Response, Control
                 .map(|w| format!("model: {w}")),
         )
         .chain(unsettled(&step, dc_gain))
+        // The loop's verdicts in `tune`'s words (one function): unstable, not computable, small or
+        // negative margins.
+        .chain(margins.iter().flat_map(crate::tuning::linear_loop_warnings))
         .collect();
     let mut r = Response {
         ts_s: ts,
@@ -625,6 +628,40 @@ mod tests {
         assert_eq!(r.zeros.len(), 1);
         assert!((r.zeros[0].0 - 0.5).abs() < 1e-12 && r.zeros[0].1 == 0.0);
         assert_eq!(&r.impulse[..4], &[0.0, 0.0, 2.0, 1.0]);
+    }
+
+    // Audit s28 M-2: y(k) = 0.9 y(k−1) + 1e160 u(k−1) under a PI (Kp = Ki = 1): the loop polynomial
+    // (1 − z⁻¹)(1 − 0.9 z⁻¹) + 1e160 (1.01 − z⁻¹) z⁻¹ has a root near −1e158 (unstable) that the
+    // companion matrix does not give as a number. Its modulus is unknown and said so, never "0".
+    // A loop of ordinary gains (b = 0.1) keeps its modulus and no such warning.
+    #[test]
+    fn a_loop_whose_poles_are_not_numbers_has_no_modulus_and_says_so() {
+        let with = |b: f64| {
+            let m = Model::arx(0.01, vec![-0.9], vec![b], 1, None).unwrap();
+            let settings = ResponseSettings {
+                controller: Some(ControllerSettings::pi(0.01, 1.0, 1.0)),
+                ..ResponseSettings::default()
+            };
+            response(&m, &settings).unwrap()
+        };
+        let r = with(1e160);
+        assert_eq!(r.margins.unwrap().closed_loop_max_pole_modulus, None);
+        assert!(
+            r.warnings.iter().any(|w| w.contains("poles could not be computed")),
+            "{:?}",
+            r.warnings
+        );
+        let r = with(0.1);
+        // 1 + (−1.9 + 0.101) z⁻¹ + (0.9 − 0.1) z⁻²: z² − 1.799 z + 0.8, |p|² = 0.8 for the complex pair.
+        let p = r.margins.unwrap().closed_loop_max_pole_modulus.unwrap();
+        let disc = 1.799f64 * 1.799 - 4.0 * 0.8;
+        let want = if disc < 0.0 {
+            0.8f64.sqrt()
+        } else {
+            (1.799 + disc.sqrt()) / 2.0
+        };
+        assert!((p - want).abs() < 1e-9, "{p} vs {want}");
+        assert!(!r.warnings.iter().any(|w| w.contains("poles could not")));
     }
 
     #[test]

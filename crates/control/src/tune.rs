@@ -1948,8 +1948,19 @@ fn closed_loop_max_pole(model: &Model, s: &ControllerSettings, slope: f64) -> Op
     if monic.is_empty() {
         return Some(0.0);
     }
-    let p = sysid_core::model::poles_of(&monic);
-    Some(p.iter().fold(0.0_f64, |m, z| m.max(z.norm())))
+    if !monic.iter().all(|v| v.is_finite()) {
+        return None;
+    }
+    // A root that is not a number (an overflowing companion matrix: b = 1e160) is no modulus: `None`,
+    // not folded away by `f64::max` into "|p| <= 0" (audit s28 M-2).
+    let moduli: Vec<f64> = sysid_core::model::poles_of(&monic)
+        .iter()
+        .map(|z| z.norm())
+        .collect();
+    if !moduli.iter().all(|m| m.is_finite()) {
+        return None;
+    }
+    Some(moduli.into_iter().fold(0.0_f64, f64::max))
 }
 
 impl Evaluation {

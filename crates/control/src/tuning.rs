@@ -488,7 +488,7 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
 /// loop from its poles (audit s18 H-2: a third gain crossover at −39° and a pole of modulus 1.012 went
 /// unreported behind the first crossover's +52°), else a negative or small phase margin, and a
 /// negative gain margin (the loop is unstable at a lower gain, conditionally stable at this one).
-fn linear_loop_warnings(margins: &Margins) -> Vec<String> {
+pub(crate) fn linear_loop_warnings(margins: &Margins) -> Vec<String> {
     // 6 decimals near the unit circle; a loop of absurd gains in scientific notation (not 300 digits).
     let modulus = |p: Option<f64>| match p {
         Some(p) if p.abs() < 1e6 => format!("{p:.6}"),
@@ -503,6 +503,15 @@ fn linear_loop_warnings(margins: &Margins) -> Vec<String> {
             String::new()
         }
     };
+    if margins.closed_loop_max_pole_modulus.is_none() {
+        w.push(
+            "the linear closed loop's poles could not be computed (its characteristic polynomial's \
+             coefficients or roots are not finite numbers: a model of absurd gains?): its stability \
+             is not known"
+                .to_string(),
+        );
+        return w;
+    }
     if margins.closed_loop_unstable() {
         w.push(format!(
             "the linear loop (the model with the deadzone's slope and this controller) is unstable: a \

@@ -647,7 +647,9 @@ mod tests {
         let r = with(1e160);
         assert_eq!(r.margins.unwrap().closed_loop_max_pole_modulus, None);
         assert!(
-            r.warnings.iter().any(|w| w.contains("poles could not be computed")),
+            r.warnings
+                .iter()
+                .any(|w| w.contains("poles could not be computed")),
             "{:?}",
             r.warnings
         );

@@ -492,6 +492,29 @@ fn shown(s: &str) -> String {
 /// `bytes` when the two are not of the same [`FileKind`]; `Ok(true)` when a file is there (and will be
 /// replaced), `Ok(false)` when the path is free.
 fn check_replace(path: &Path, real: &Path, bytes: &[u8], force: bool) -> Result<bool, OutputError> {
+    let new = FileKind::of(&bytes[..bytes.len().min(KIND_HEAD)]);
+    check_replace_kind(path, real, &new, force)
+}
+
+/// Before any work: refuses (without `--force`) an output path that holds a regular file an output of
+/// kind `new` may not replace ([`FileKind::may_replace`]), with the words [`write_all_atomic`] would use
+/// at the end (audit s28 M-3: `calibrate --out user.txt` ran its whole search before refusing). A
+/// command whose output's kind is known before it computes calls this beside
+/// [`check_writable`]; the write checks again.
+pub fn check_replaceable(path: &Path, new: &FileKind) -> Result<(), OutputError> {
+    if path.as_os_str() == "-" {
+        return Ok(());
+    }
+    check_replace_kind(path, path, new, forced()).map(|_| ())
+}
+
+/// [`check_replace`] for an output of kind `new`.
+fn check_replace_kind(
+    path: &Path,
+    real: &Path,
+    new: &FileKind,
+    force: bool,
+) -> Result<bool, OutputError> {
     match std::fs::metadata(real) {
         Ok(m) if m.is_file() => {}
         _ => return Ok(false),
@@ -503,7 +526,6 @@ fn check_replace(path: &Path, real: &Path, bytes: &[u8], force: bool) -> Result<
         path: path.to_path_buf(),
         source,
     })?;
-    let new = FileKind::of(&bytes[..bytes.len().min(KIND_HEAD)]);
     if new.may_replace(&old) {
         return Ok(true);
     }

@@ -106,6 +106,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     inputs.extend(args.validation.as_deref());
     inputs.extend(args.plant_config.as_deref());
     check_outputs(&[(&args.out, "--out"), (&args.json, "--json")], &inputs)?;
+    // A file the twin may not replace (a user's text, a model) is refused now, not after the search
+    // (audit s28 M-3); the JSON report's kind is known too.
+    sysid_io::check_replaceable(out, &sysid_io::FileKind::PlantToml)?;
+    if let Some(json) = &args.json {
+        sysid_io::check_replaceable(json, &sysid_io::FileKind::Json)?;
+    }
     let opts = record_options(&args)?;
     let val_opts = validation_options(&args, &opts);
     let pressures = args.pa_col.clone().zip(args.pb_col.clone());
@@ -150,14 +156,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     // The twin with its verdict (`[calibration]`: fits and warnings), which tune and control repeat.
     let toml = twin.twin_toml(&data.display().to_string(), est.ts);
-    // With --strict and warnings the twin is not written (`write_outputs`): no "wrote" line then.
-    let writes = !args.strict || twin.warnings.is_empty();
-    let text = report_text(
-        &twin,
-        baseline.as_ref(),
-        (est.ts, seconds),
-        writes.then_some(out.as_path()),
-    );
+    let text = report_text(&twin, baseline.as_ref(), (est.ts, seconds));
     print_report(&text, &[args.json.as_deref(), Some(out)])?;
     let json = match &args.json {
         Some(_) => {
@@ -170,7 +169,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let (Some(path), Some(s)) = (&args.json, &json) {
         outputs.push((path, s.as_bytes(), "--json"));
     }
-    super::common::write_outputs(&outputs, &inputs, args.strict, twin.warnings.len())
+    super::common::write_outputs(&outputs, &inputs, args.strict, twin.warnings.len())?;
+    // Said once the twin is written (audit s28 M-3: it was printed before the write, which could
+    // still be refused or fail); with --strict and warnings nothing is written and nothing said.
+    print_report(
+        &format!(
+            "wrote {} (use: --plant ipa --plant-config {})\n",
+            out.display(),
+            out.display()
+        ),
+        &[args.json.as_deref(), Some(out)],
+    )
 }
 
 /// The calibration settings from the flags.
@@ -298,12 +307,7 @@ fn fmt_fit(f: Option<f64>) -> String {
 }
 
 /// The text report; `(ts, seconds)`: the record's sampling period Ts and the search's wall time, s.
-fn report_text(
-    t: &Calibrated,
-    b: Option<&Baseline>,
-    (ts, seconds): (f64, f64),
-    out: Option<&Path>,
-) -> String {
+fn report_text(t: &Calibrated, b: Option<&Baseline>, (ts, seconds): (f64, f64)) -> String {
     let mut s = format!(
         "Calibrated twin of the physics IPA (Ts = {} s; {} segments, {} pressures; {} iterations, {} simulations, {}; {:.2} s)\n",
         sysid_core::format::Shortest(ts),
@@ -356,13 +360,6 @@ fn report_text(
     }
     for w in &t.warnings {
         s.push_str(&format!("warning: {w}\n"));
-    }
-    if let Some(out) = out {
-        s.push_str(&format!(
-            "wrote {} (use: --plant ipa --plant-config {})\n",
-            out.display(),
-            out.display()
-        ));
     }
     s
 }

@@ -6,14 +6,20 @@
 //! looked at again. A file **truncated** (its size is below what was read) or **rewritten** in place (its
 //! first bytes differ from those read) — log rotation by copy and truncate — is read again from its
 //! beginning (after its first line when that is the header line read before), and the note passed to
-//! [`Follow::on_restart`] says so. A file **replaced** (deleted and created again, or renamed over:
-//! another inode) stops the reader with an error ([`ErrorKind::Other`], saying what happened): `track`
-//! then stops; start it again on the new file.
+//! [`Follow::on_restart`] says so. A file **replaced** (renamed away and created again — log rotation
+//! by `create`, logrotate's default — deleted and created again, or renamed over: another inode) is
+//! followed as `tail -F` does: the descriptor still open is first read to its end (the lines the
+//! logger wrote into the renamed file before it reopened its log), then the new file is read from its
+//! beginning (after the header line read before when it starts with it again), with a note (audit
+//! s27 L-3).
 
 use std::fs::File;
 use std::io::{ErrorKind, Read};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
+
+/// Opens the file at a path, with its identity (device, inode).
+type Reopen<R> = fn(&Path) -> std::io::Result<(R, Option<(u64, u64)>)>;
 
 /// What a [`Follow`] is told when a followed file is read again from its beginning.
 type Note = Box<dyn FnMut(&str) + Send>;
@@ -59,6 +65,8 @@ pub struct Follow<R> {
     watch: Option<Watch>,
     /// Moves the reader to a byte position (a followed file read again from its beginning).
     seek_to: Option<fn(&mut R, u64) -> std::io::Result<u64>>,
+    /// Opens the file now at the followed path (a followed file replaced by another inode).
+    reopen: Option<Reopen<R>>,
     /// Told when a followed file is read again from its beginning.
     on_restart: Option<Note>,
     /// The last read found no data: the next data are checked before they are returned.
@@ -96,6 +104,9 @@ struct Watch {
     read: u64,
     head: Vec<u8>,
     checked: Instant,
+    /// The path now names another file (another inode): the open descriptor is read to its end,
+    /// then the new file is followed.
+    replaced: bool,
 }
 
 #[cfg(unix)]
@@ -119,8 +130,9 @@ impl Watch {
         self.read += bytes.len() as u64;
     }
 
-    /// Whether the file at the path is still the one being read: an error when it was replaced, a
-    /// restart when it was truncated or rewritten in place.
+    /// Whether the file at the path is still the one being read: marked `replaced` when it is another
+    /// inode (followed once the open descriptor is read to its end), a restart when it was truncated or
+    /// rewritten in place.
     fn check(&mut self) -> std::io::Result<Change> {
         self.checked = Instant::now();
         // Deleted and not yet created again: nothing to read, keep waiting.
@@ -129,12 +141,9 @@ impl Watch {
         };
         let meta = now.metadata()?;
         if self.id.is_some() && identity(&meta) != self.id {
-            return Err(std::io::Error::other(format!(
-                "the followed file was replaced (deleted and created again, or renamed over) after {} \
-                 bytes were read (log rotation?); reading on would mix two files, so track stops: start \
-                 it again on the new file",
-                self.read
-            )));
+            // Replaced: the descriptor still open is read to its end before the new file is followed.
+            self.replaced = true;
+            return Ok(Change::None);
         }
         let what = if meta.len() < self.read {
             format!(
@@ -178,6 +187,7 @@ impl<R: Read> Follow<R> {
             last_data: Instant::now(),
             watch: None,
             seek_to: None,
+            reopen: None,
             on_restart: None,
             idle: false,
             pending_header: None,
@@ -226,6 +236,49 @@ impl<R: Read> Follow<R> {
         Ok(true)
     }
 
+    /// The followed file was replaced and its open descriptor is read to its end: follows the file now
+    /// at the path from its beginning (after the header line read before when it starts with it
+    /// again). `false` when there is nothing to switch to (not replaced, or the new file cannot be
+    /// opened yet: wait).
+    fn switch_to_new_file(&mut self) -> std::io::Result<bool> {
+        let (Some(w), Some(reopen)) = (&mut self.watch, self.reopen) else {
+            return Ok(false);
+        };
+        if !w.replaced {
+            return Ok(false);
+        }
+        let Ok((file, id)) = reopen(&w.path) else {
+            return Ok(false);
+        };
+        self.inner = file;
+        let what = format!(
+            "the followed file was replaced (renamed away and created again, or deleted and created \
+             again: log rotation by create?) after {} bytes were read, the old file read to its end: \
+             reading the new file from its beginning (after its header line if it starts with it \
+             again)",
+            w.read
+        );
+        let header = match w.head.iter().position(|&b| b == b'\n') {
+            Some(end) => w.head[..=end].to_vec(),
+            None => Vec::new(),
+        };
+        w.id = id;
+        w.head.clear();
+        w.read = 0;
+        w.replaced = false;
+        w.checked = Instant::now();
+        if !header.is_empty() {
+            self.pending_header = Some(header);
+        }
+        use std::sync::atomic::Ordering;
+        self.restarts.header_skipped.store(false, Ordering::SeqCst);
+        self.restarts.count.fetch_add(1, Ordering::SeqCst);
+        if let Some(note) = &mut self.on_restart {
+            note(&what);
+        }
+        Ok(true)
+    }
+
     /// After a restart, skips the header line when the file starts with it again: `false` while the
     /// file is too short to tell (wait for more).
     fn skip_header(&mut self) -> std::io::Result<bool> {
@@ -268,12 +321,18 @@ impl Follow<File> {
             use std::io::Seek;
             file.seek(std::io::SeekFrom::Start(at))
         });
+        f.reopen = Some(|p: &Path| {
+            let file = File::open(p)?;
+            let id = identity(&file.metadata()?);
+            Ok((file, id))
+        });
         f.watch = Some(Watch {
             path: path.to_path_buf(),
             id,
             read: 0,
             head: Vec::new(),
             checked: Instant::now(),
+            replaced: false,
         });
         Ok(f)
     }
@@ -312,6 +371,10 @@ impl<R: Read> Read for Follow<R> {
                 Err(e) => return Err(e),
             };
             self.idle = true;
+            // The old descriptor of a replaced file read to its end: on to the new file.
+            if self.switch_to_new_file()? {
+                continue;
+            }
             self.watch()?;
             // No byte now: the end after the idle time-out, or when a stop was asked (the first
             // Ctrl-C of `track --follow`, [`crate::accept_stop`]; audit s16 L12).
@@ -424,19 +487,63 @@ mod tests {
         assert_eq!(notes.len(), 1, "{notes:?}");
     }
 
-    // A file deleted and created again (another inode), even longer than what was read, is detected
-    // and stops the reader.
+    // A file renamed over by another (another inode), even longer than what was read, is detected:
+    // the new file is read from its beginning, after the header line it starts with again.
     #[cfg(unix)]
     #[test]
-    fn a_recreated_file_stops_the_reader() {
-        let (out, _) = follow_through("t,u,y\n0,1,2\n", |p| {
+    fn a_file_renamed_over_is_followed_from_its_beginning() {
+        let (out, notes) = follow_through("t,u,y\n0,1,2\n", |p| {
             let other = p.with_extension("new");
-            std::fs::write(&other, "t,u,y\n0,1,2\n0.01,1,2\n0.02,1,2\n").unwrap();
+            std::fs::write(&other, "t,u,y\n5,1,2\n5.01,1,2\n5.02,1,2\n").unwrap();
             std::fs::rename(&other, p).unwrap();
         });
-        let e = out.unwrap_err();
-        assert!(e.to_string().contains("replaced"), "{e}");
-        assert_eq!(e.kind(), ErrorKind::Other);
+        assert_eq!(out.unwrap(), "t,u,y\n0,1,2\n5,1,2\n5.01,1,2\n5.02,1,2\n");
+        assert_eq!(notes.len(), 1, "{notes:?}");
+        assert!(notes[0].contains("replaced"), "{notes:?}");
+        assert!(notes[0].contains("after 12 bytes were read"), "{notes:?}");
+    }
+
+    // logrotate's `create` between two reads: the file is renamed, an empty one created at the path,
+    // and the logger writes on into the renamed file (its open descriptor) until it reopens. Those
+    // lines are read first (the old descriptor to its end), then the new file's (audit s27 L-3).
+    #[cfg(unix)]
+    #[test]
+    fn create_rotation_reads_the_renamed_file_to_its_end_then_the_new_file() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("log.csv");
+        let rotated = dir.path().join("log.csv.1");
+        std::fs::write(&path, "t,u,y\n0,1,2\n").unwrap();
+        let notes = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
+        let n = notes.clone();
+        let mut reader = BufReader::new(
+            Follow::file(
+                &path,
+                Some(Duration::from_millis(200)),
+                Duration::from_millis(5),
+            )
+            .unwrap()
+            .on_restart(move |m| n.lock().unwrap().push(m.to_string())),
+        );
+        let mut line = String::new();
+        reader.read_line(&mut line).unwrap();
+        reader.read_line(&mut line).unwrap();
+        assert_eq!(line, "t,u,y\n0,1,2\n");
+        // The rotation, deterministically between two reads.
+        std::fs::rename(&path, &rotated).unwrap();
+        std::fs::write(&path, "").unwrap();
+        let mut old = std::fs::OpenOptions::new()
+            .append(true)
+            .open(&rotated)
+            .unwrap();
+        old.write_all(b"0.01,1,2\n0.02,1,2\n").unwrap();
+        // The logger reopens (HUP) and writes into the new file, header first.
+        std::fs::write(&path, "t,u,y\n0.03,1,2\n").unwrap();
+        let mut rest = String::new();
+        reader.read_to_string(&mut rest).unwrap();
+        assert_eq!(rest, "0.01,1,2\n0.02,1,2\n0.03,1,2\n");
+        let notes = notes.lock().unwrap().clone();
+        assert_eq!(notes.len(), 1, "{notes:?}");
+        assert!(notes[0].contains("log rotation by create"), "{notes:?}");
     }
 
     // Rewritten in place with new, longer content (same inode, larger size): the first bytes differ,

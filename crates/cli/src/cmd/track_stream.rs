@@ -195,6 +195,8 @@ pub fn track_stream<R: BufRead, W: Write>(
     let mut line_no = 0;
     // The reader, once the header has come, and the columns of u, y and t.
     let mut reader: Option<(CsvLines, Columns)> = None;
+    // The header line read first: said when a rotated file's new content starts with another one.
+    let mut first_header: Vec<u8> = Vec::new();
     let mut ts = options.csv.ts;
     // The step later time steps are checked against: Ts, or the column's own first step when --ts
     // contradicts it (said once, as identify says it, not as a "time jump" at every sample).
@@ -273,18 +275,48 @@ pub fn track_stream<R: BufRead, W: Write>(
         }
         let Some((csv, (ucol, ycol, tcol))) = &mut reader else {
             let csv = CsvLines::from_header(line, &options.name)?;
+            first_header = line.to_vec();
             let cols = csv.columns(&options.csv)?;
             reader = Some((csv, cols));
             continue;
         };
-        if !csv.read_line(line, line_no)? {
+        // The first line of a followed file's new content (after a restart) that does not read as
+        // data, not skipped as the header read first: the new content starts with another header
+        // (columns moved), said so (audit s27 L-3).
+        let header_changed = |e: SysidError| {
+            match e {
+            SysidError::Parse {
+                file,
+                line,
+                column,
+                message,
+            } if matches!(restarted, Some((_, false))) => SysidError::Parse {
+                file,
+                line,
+                column,
+                message: format!(
+                    "{message}: the followed file was read again from its beginning (log rotation?) and \
+                     its new content does not start with the header line read first ({:?}): the header \
+                     changed (columns moved?), so track stops: start it again on the new file",
+                    String::from_utf8_lossy(&first_header)
+                ),
+            },
+            e => e,
+        }
+        };
+        if !csv.read_line(line, line_no).map_err(header_changed)? {
             continue;
         }
-        let (u, y) = (csv.value(*ucol, line_no)?, csv.value(*ycol, line_no)?);
+        let (u, y) = (
+            csv.value(*ucol, line_no).map_err(header_changed)?,
+            csv.value(*ycol, line_no).map_err(header_changed)?,
+        );
         let k = tracker.samples();
         // t in s: the column scaled by --time-unit, else k Ts.
         let t = match (*tcol, ts) {
-            (Some(c), _) => csv.value(c, line_no)? * options.csv.time_unit.seconds(),
+            (Some(c), _) => {
+                csv.value(c, line_no).map_err(header_changed)? * options.csv.time_unit.seconds()
+            }
             (None, Some(ts)) => k as f64 * ts,
             (None, None) => f64::NAN, // not reached: a missing t column needs `ts`
         };
@@ -329,8 +361,8 @@ pub fn track_stream<R: BufRead, W: Write>(
         }
         if let Some((count, header)) = restarted.take() {
             let w = format!(
-                "{}: the followed file was read again from its beginning (restart {count}: truncated or \
-                 rewritten; log rotation?); from line {line_no} of the new content{} on, time starts \
+                "{}: the followed file was read again from its beginning (restart {count}: truncated, \
+                 rewritten or replaced; log rotation?); from line {line_no} of the new content{} on, time starts \
                  again at t = {} s (a new time origin: times are not compared across the restart) and \
                  the model estimated so far is kept",
                 options.name,

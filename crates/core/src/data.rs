@@ -756,8 +756,10 @@ pub fn read_record_bytes(
                 .map(|v| v * opts.time_unit.seconds())
                 .collect();
             let ts = uniform_ts(&t, &table, tc)?;
-            notes.extend(milliseconds_hint(
-                &t,
+            let facts = TimeFacts::of(&t);
+            notes.extend(time_notes(
+                &facts,
+                None,
                 ts,
                 opts.time_unit,
                 &table.headers[tc],
@@ -788,21 +790,34 @@ pub fn read_record_bytes(
 /// except when it holds dates and times (`2026-01-01 00:00:00`): the error for such a column advises
 /// `--ts`, with which the stamps are not read, so the note says they were not checked (audit s21 M-B6:
 /// a --ts 100 times the stamps' step, time going back, an impossible date passed without a word).
-fn ts_contradiction(table: &Table, opts: &CsvOptions, ts: f64) -> Option<String> {
-    let tc = opts
+pub(crate) fn ts_contradiction(table: &Table, opts: &CsvOptions, ts: f64) -> Vec<String> {
+    let Some(tc) = opts
         .ts
-        .and(table.headers.iter().position(|h| *h == opts.t_col))?;
+        .and(table.headers.iter().position(|h| *h == opts.t_col))
+    else {
+        return Vec::new();
+    };
     let t: Vec<f64> = match table.numbers(tc) {
         Ok(t) => t.iter().map(|v| v * opts.time_unit.seconds()).collect(),
         Err(_) => {
-            let first = table.rows.get(0).and_then(|(_, rec)| rec.get(tc))?;
-            return looks_like_date_time(unquote(first.trim())).then(|| {
-                date_time_note(&format!("the time column {}", opts.t_col), first, ts, opts)
-            });
+            let Some(first) = table.rows.get(0).and_then(|(_, rec)| rec.get(tc)) else {
+                return Vec::new();
+            };
+            return looks_like_date_time(unquote(first.trim()))
+                .then(|| {
+                    date_time_note(&format!("the time column {}", opts.t_col), first, ts, opts)
+                })
+                .into_iter()
+                .collect();
         }
     };
-    let step = ts_contradicts(&t, ts)?;
-    ts_contradiction_note(ts, &opts.t_col, step)
+    time_notes(
+        &TimeFacts::of(&t),
+        Some(ts),
+        ts,
+        opts.time_unit,
+        &opts.t_col,
+    )
 }
 
 /// The note of a column `what` ("the time column t", "the column time") whose first cell `first` is a
@@ -826,7 +841,7 @@ fn date_time_note(what: &str, first: &str, ts: f64, opts: &CsvOptions) -> String
 /// record with a `time` column of ISO stamps and 200 rows missing was identified with --ts as if
 /// continuous, without a word; [`ts_contradiction`] spoke only of the column --t-col named). One note
 /// per such column, at most [`MAX_DATE_TIME_NOTES`] (then how many more).
-fn unnamed_date_times(
+pub(crate) fn unnamed_date_times(
     table: &Table,
     opts: &CsvOptions,
     ucols: &[usize],
@@ -885,6 +900,10 @@ pub fn ts_contradiction_note(ts: f64, column: &str, step: f64) -> Option<String>
     })
 }
 
+/// The advice of [`milliseconds_hint`]'s notes (also named by `validate`'s error of a record whose Ts
+/// is not the model's: [`crate::metrics::check_sampling_noted`]).
+pub const MS_ADVICE: &str = "pass --time-unit ms";
+
 /// The smallest Ts (s) from a whole-number time column that [`milliseconds_hint`] questions.
 const MS_HINT_TS: f64 = 5.0;
 
@@ -896,9 +915,17 @@ const MS_HINT_TS: f64 = 5.0;
 /// audit s26 L-2, a logger's t×1000 passed without the note). A column named as milliseconds (`t_ms`,
 /// `time_ms`, `t [ms]`, `t (ms)`) read in seconds is questioned whatever its Ts.
 pub fn milliseconds_hint(t: &[f64], ts: f64, unit: TimeUnit, column: &str) -> Option<String> {
-    let whole = t
-        .iter()
-        .all(|v| (v - v.round()).abs() <= 1e-9 * v.abs().max(1.0));
+    ms_note(t.iter().all(|&v| is_whole(v)), ts, unit, column)
+}
+
+/// True when `v` is a whole number, allowing the rounding of a column computed in floating point
+/// (2009.9999999999998 for 2010: audit s26 L-2).
+fn is_whole(v: f64) -> bool {
+    (v - v.round()).abs() <= 1e-9 * v.abs().max(1.0)
+}
+
+/// [`milliseconds_hint`] from what it needs of the column: whether every time is `whole`.
+fn ms_note(whole: bool, ts: f64, unit: TimeUnit, column: &str) -> Option<String> {
     let lower = column.to_ascii_lowercase();
     let named_ms = lower.ends_with("_ms") || lower.ends_with("[ms]") || lower.ends_with("(ms)");
     if unit != TimeUnit::S {
@@ -907,7 +934,7 @@ pub fn milliseconds_hint(t: &[f64], ts: f64, unit: TimeUnit, column: &str) -> Op
     if named_ms {
         return Some(format!(
             "the time column {column} is named as milliseconds but was read as seconds (Ts = {} s): \
-             if it holds milliseconds, pass --time-unit ms; read as seconds, Ts and every time \
+             if it holds milliseconds, {MS_ADVICE}; read as seconds, Ts and every time \
              figure are 1000 times too large",
             Shortest(ts)
         ));
@@ -915,11 +942,71 @@ pub fn milliseconds_hint(t: &[f64], ts: f64, unit: TimeUnit, column: &str) -> Op
     (ts >= MS_HINT_TS && whole).then(|| {
         format!(
             "the time column {column} gives Ts = {} s from whole numbers: if it holds milliseconds \
-             (or microseconds), pass --time-unit ms (or us); read as seconds, Ts and every time \
+             (or microseconds), {MS_ADVICE} (or us); read as seconds, Ts and every time \
              figure are 1000 (or 10^6) times too large",
             Shortest(ts)
         )
     })
+}
+
+/// What the reader's notes need of a time column (times in s, after `--time-unit`) beside Ts: its
+/// steps ([`resample::Spacing`]: smallest, typical, largest, the fraction more than 0.1 % off the
+/// typical one) and whether every time is a whole number. The in-memory readers (CSV, MAT-files) take
+/// it from the whole column ([`TimeFacts::of`], the typical step being the median); the streamed reader
+/// from its pass ([`TimeSteps::facts`]), the typical step being the median of the steps in the file's
+/// first 1 MiB (the stream holds no column to take a median of).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TimeFacts {
+    /// The steps of the column.
+    pub spacing: resample::Spacing,
+    /// Every time is a whole number ([`milliseconds_hint`]'s rule).
+    pub whole: bool,
+}
+
+impl TimeFacts {
+    /// The facts of a whole time column t (s).
+    pub fn of(t: &[f64]) -> Self {
+        TimeFacts {
+            spacing: resample::spacing(t),
+            whole: t.iter().all(|&v| is_whole(v)),
+        }
+    }
+}
+
+/// The reader's notes on a time column `column` whose [`TimeFacts`] are `facts`, for a record of
+/// sampling period `ts` (s), `given` by `--ts` (or a model file) or found from the column (`None`):
+/// the one set of time notes of every reader (CSV in memory and streamed, MAT-files; audit s27 M-2, the
+/// streamed reader said none of them).
+/// - Ts found from the column: [`milliseconds_hint`]'s note (a column in ms read as s).
+/// - Ts given: [`ts_contradiction_note`] (the given Ts against the typical step) and, when steps lie
+///   more than 0.1 % off the typical one, their spread in the resample note's words: `--ts` treats the
+///   rows as equally spaced (audit s27 L-8: a record with 0.268 s gaps in 0.01 s steps, unsaid).
+pub fn time_notes(
+    facts: &TimeFacts,
+    given: Option<f64>,
+    ts: f64,
+    unit: TimeUnit,
+    column: &str,
+) -> Vec<String> {
+    let sp = &facts.spacing;
+    match given {
+        None => ms_note(facts.whole, ts, unit, column).into_iter().collect(),
+        Some(given) => {
+            let mut notes: Vec<String> = ts_contradiction_note(given, column, sp.median)
+                .into_iter()
+                .collect();
+            if sp.irregular > 0.0 {
+                notes.push(format!(
+                    "the time column {column} is not uniform: {}: --ts {} s treats the rows as equally \
+                     spaced (gaps and uneven steps are not seen); leave out --ts to have the column \
+                     checked, or pass --resample TS to interpolate onto a uniform grid",
+                    resample::spacing_words(sp),
+                    sig6(given)
+                ));
+            }
+            notes
+        }
+    }
 }
 
 /// A parsed CSV table: header names and raw cells with their line numbers.
@@ -1782,9 +1869,28 @@ pub struct TimeSteps {
     /// The smallest and largest step (s), each with the locator of its later sample.
     min_step: (f64, usize),
     max_step: (f64, usize),
+    /// The typical step (s) the steps are counted against for [`TimeSteps::facts`] (0: none given).
+    reference: f64,
+    /// Steps more than 0.1 % off `reference`.
+    off: usize,
+    /// A time that is not a whole number was met.
+    fractional: bool,
 }
 
 impl TimeSteps {
+    /// A scan whose [`TimeSteps::facts`] count the steps more than 0.1 % off `reference` (s), the typical
+    /// step known beforehand (the streamed reader: the median step of the file's first 1 MiB).
+    pub fn with_reference(reference: f64) -> Self {
+        TimeSteps {
+            reference: if reference.is_finite() && reference > 0.0 {
+                reference
+            } else {
+                0.0
+            },
+            ..Self::default()
+        }
+    }
+
     /// Takes the next time t (s); `at` locates it for the caller (a sample index, a line number) and is
     /// the `k` of a fault. Fails when t is not finite or does not increase.
     pub fn push(&mut self, t: f64, at: usize) -> Result<(), TimeFault> {
@@ -1798,6 +1904,8 @@ impl TimeSteps {
                 count: 1,
                 min_step: (f64::INFINITY, at),
                 max_step: (f64::NEG_INFINITY, at),
+                fractional: !is_whole(t),
+                ..*self
             };
             return Ok(());
         }
@@ -1809,15 +1917,40 @@ impl TimeSteps {
             other => other,
         })?;
         let step = t - self.last;
+        if self.reference == 0.0 {
+            self.reference = step; // no typical step known beforehand: the first one
+        }
         if step < self.min_step.0 {
             self.min_step = (step, at);
         }
         if step > self.max_step.0 {
             self.max_step = (step, at);
         }
+        if (step - self.reference).abs() > 1e-3 * self.reference {
+            self.off += 1;
+        }
+        self.fractional |= !is_whole(t);
         self.last = t;
         self.count += 1;
         Ok(())
+    }
+
+    /// What the reader's notes need of the times pushed ([`time_notes`]): the smallest and largest
+    /// step, the reference step as the typical one (the first step without one) and the fraction of
+    /// steps more than 0.1 % off it; `None` before two times.
+    pub fn facts(&self) -> Option<TimeFacts> {
+        if self.count < 2 {
+            return None;
+        }
+        Some(TimeFacts {
+            spacing: resample::Spacing {
+                min: self.min_step.0,
+                median: self.reference,
+                max: self.max_step.0,
+                irregular: self.off as f64 / (self.count - 1) as f64,
+            },
+            whole: !self.fractional,
+        })
     }
 
     /// Ts (s) from the times pushed, or the fault: too few samples, no usable step, or the step further
@@ -1994,7 +2127,8 @@ pub fn sample_times(n: usize, ts: f64) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::{
-        check_ts, json_format_key, ts_contradicts, uniform_time, NonFinite, Sniffed, TimeFault,
+        check_ts, json_format_key, time_notes, ts_contradicts, uniform_time, NonFinite, Sniffed,
+        TimeFacts, TimeFault, TimeSteps, TimeUnit, MS_ADVICE,
     };
 
     // The one "format" rule (the two sniffers it replaced differed: the record readers' took a
@@ -2240,5 +2374,42 @@ mod tests {
         assert_eq!(ts_contradicts(&t, 0.010005), None); // 0.05 % off
         let step = ts_contradicts(&t, 0.02).expect("twice the step");
         assert!((step - 0.01).abs() < 1e-12);
+    }
+
+    // The streamed scan (TimeSteps with the median as reference) gives the facts of the whole column,
+    // so both readers make the same notes: steps 0.5 s with 3 gaps of 1.5 s in 20 steps.
+    #[test]
+    fn the_streamed_scan_gives_the_facts_of_the_whole_column() {
+        let mut t = vec![100.0];
+        for k in 1..=20 {
+            t.push(t[k - 1] + if k % 7 == 0 { 1.5 } else { 0.5 });
+        }
+        let whole = TimeFacts::of(&t);
+        assert_eq!(whole.spacing.median, 0.5);
+        assert_eq!((whole.spacing.min, whole.spacing.max), (0.5, 1.5));
+        assert_eq!(whole.spacing.irregular, 2.0 / 20.0); // k = 7, 14
+        assert!(!whole.whole);
+        let mut scan = TimeSteps::with_reference(0.5);
+        for (k, &v) in t.iter().enumerate() {
+            scan.push(v, k).unwrap();
+        }
+        assert_eq!(scan.facts(), Some(whole));
+        let notes = time_notes(&whole, Some(0.5), 0.5, TimeUnit::S, "t");
+        assert_eq!(notes.len(), 1, "{notes:?}");
+        assert!(
+            notes[0].contains("0.5 to 1.5 s (median 0.5 s), 10.0 % of them"),
+            "{notes:?}"
+        );
+        // Found from a whole-number column of Ts >= 5 s: the ms note, from either reader's facts.
+        let ms: Vec<f64> = (0..10).map(|k| 10.0 * k as f64).collect();
+        let mut scan = TimeSteps::with_reference(10.0);
+        for (k, &v) in ms.iter().enumerate() {
+            scan.push(v, k).unwrap();
+        }
+        let facts = scan.facts().unwrap();
+        assert_eq!(facts, TimeFacts::of(&ms));
+        let notes = time_notes(&facts, None, 10.0, TimeUnit::S, "t");
+        assert!(notes[0].contains(MS_ADVICE), "{notes:?}");
+        assert!(time_notes(&facts, None, 10.0, TimeUnit::Ms, "t").is_empty());
     }
 }

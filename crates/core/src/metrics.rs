@@ -434,6 +434,29 @@ pub fn pooled_metrics(model: &Model, records: &[Dataset]) -> Result<Metrics, Sys
 /// samples would not be the record's (audit s14 H-b: a 0.08 s model "validated" at 22.6 % on a
 /// 0.16 s record).
 /// `name` names the record, `ts` its sampling period (also a streamed record's, held nowhere whole).
+/// [`check_sampling`] of a record whose reader's notes are `notes`: when the reader questioned a time
+/// column in whole numbers read as seconds ([`crate::data::milliseconds_hint`]), the error names
+/// `--time-unit ms` (audit s27 M-2: a record in ms against a 0.01 s model was told only to resample).
+pub fn check_sampling_noted(
+    name: &str,
+    ts: f64,
+    model_ts: f64,
+    notes: &[String],
+) -> Result<(), SysidError> {
+    check_sampling(name, ts, model_ts).map_err(|e| match e {
+        SysidError::Data(m) if notes.iter().any(|n| n.contains(crate::data::MS_ADVICE)) => {
+            SysidError::Data(format!(
+                "{m}; or, as the reader's note says, the time column may hold milliseconds ({}: \
+                 Ts = {} s)",
+                crate::data::MS_ADVICE,
+                crate::format::Shortest(ts * 1e-3)
+            ))
+        }
+        e => e,
+    })
+}
+
+/// Refuses a record sampled at `ts` (s) for a model identified at `model_ts` (s).
 pub fn check_sampling(name: &str, ts: f64, model_ts: f64) -> Result<(), SysidError> {
     if (ts - model_ts).abs() > 1e-3 * model_ts {
         return Err(SysidError::Data(format!(

@@ -915,6 +915,16 @@ pub fn shared_run(a: &sysid::Dataset, b: &sysid::Dataset) -> Option<(usize, usiz
     best
 }
 
+/// The warning of a `what` record named `test` that holds the very samples of the estimation record
+/// named `est`: the one wording of the in-memory check ([`same_samples_warning`]) and of the streamed one
+/// (by the passes' checksums, `sysid_core::data::stream::CsvStream::checksum`).
+pub fn same_samples_words(what: &str, test: &str, est: &str) -> String {
+    format!(
+        "the {what} record {test} holds the same samples as the estimation record {est}: its fit is \
+         in-sample, not held out"
+    )
+}
+
 /// A warning when the `what` record holds exactly the samples of the estimation record `est` (a copy
 /// of the file, say), or a run of at least [`MIN_SHARED_SAMPLES`] of them (a file cut from the
 /// record, or one containing it: audit s17 M-e): its fit is then in-sample, wholly or in part.
@@ -924,12 +934,7 @@ pub fn same_samples_warning(
     est: &sysid::Dataset,
 ) -> Option<String> {
     if same_samples(test, est) {
-        return Some(format!(
-            "the {what} record {} holds the same samples as the estimation record {}: its fit is \
-             in-sample, not held out",
-            test.name(),
-            est.name()
-        ));
+        return Some(same_samples_words(what, test.name(), est.name()));
     }
     let (i, j, n) = shared_run(test, est)?;
     Some(format!(

@@ -1024,12 +1024,27 @@ fn run_streamed(args: &Args, settings: &Identification, data_path: &Path) -> any
     } else {
         None
     };
-    report.warnings.extend(in_sample_warnings(
-        args,
-        &[data_path.to_path_buf()],
-        &[],
-        None,
-    ));
+    // The readers' notes, as the in-memory path gives them (audit s27 M-2).
+    let mut notes = est.notes().to_vec();
+    notes.extend(val.iter().flat_map(|v| v.notes().iter().cloned()));
+    report.warnings.extend(super::common::data_notes(&notes));
+    let mut in_sample = in_sample_warnings(args, &[data_path.to_path_buf()], &[], None);
+    if in_sample.is_empty() {
+        // A validation file that holds the estimation record's samples, found by the passes' checksums.
+        if let Some((v, vs)) = val.as_ref().zip(streamed.val_shape) {
+            let same = vs.rows == streamed.shape.rows
+                && v.checksum().is_some()
+                && v.checksum() == est.checksum();
+            if same {
+                in_sample.push(sysid_summary::same_samples_words(
+                    "validation",
+                    v.name(),
+                    est.name(),
+                ));
+            }
+        }
+    }
+    report.warnings.extend(in_sample);
     stream_note(
         est.name(),
         streamed.passes,
@@ -1047,7 +1062,7 @@ fn run_streamed(args: &Args, settings: &Identification, data_path: &Path) -> any
         (est.name(), streamed.shape.rows),
         val_desc,
         DataRemarks {
-            notes: &[],
+            notes: &notes,
             drift: drift.as_ref(),
         },
         &inputs,

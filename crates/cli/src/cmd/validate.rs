@@ -192,7 +192,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ));
     }
     let us = data.input_signals();
-    sysid::metrics::check_sampling(data.name(), data.ts(), model.ts())?;
+    sysid::metrics::check_sampling_noted(data.name(), data.ts(), model.ts(), &record.notes)?;
     let blame = |e: sysid::SysidError| {
         blame_model(
             e.context(data.name()),
@@ -212,7 +212,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         data.name(),
         data.len(),
         &opts,
-        Some(&data),
+        Some(Samples::InMemory(&data)),
     );
     let out = sysid::metrics::model_output(&model, &us, data.y(), args.horizon).map_err(blame)?;
     let value = report_json(&report, args.horizon, out.fit_pred_percent, &record.notes)?;
@@ -278,7 +278,7 @@ fn run_narx(
     // The same budget as a linear model's (its simulation, predictions, residuals and the `--out`
     // columns per sample): refused before any of them is made (audit s23 H-B1, session 25).
     check_validate_memory(&data, model.parameter_count(), args.memory.max_memory)?;
-    sysid::metrics::check_sampling(data.name(), data.ts(), model.ts())?;
+    sysid::metrics::check_sampling_noted(data.name(), data.ts(), model.ts(), &record.notes)?;
     let metrics = sysid::narx::narx_metrics(model, &data)?;
     let mut warnings: Vec<String> = super::common::data_notes(&record.notes).collect();
     if let Some(k) = metrics.blew_up_at {
@@ -523,10 +523,17 @@ fn run_streamed(
     let shape = streamed.shape;
     // The name once read: with --rows it says which rows (`file.csv[100..600]`), as in memory.
     let name = sysid::data::stream::RecordSource::name(&src).to_string();
-    sysid::metrics::check_sampling(&name, shape.ts, model.ts())?;
+    // The reader's notes, as in memory (audit s27 M-2).
+    let notes = src.notes().to_vec();
+    sysid::metrics::check_sampling_noted(&name, shape.ts, model.ts(), &notes)?;
     stream_note(&name, streamed.passes, shape.rows, args.stream);
     let mut report = streamed.result;
-    model_warnings(&mut report, model, &name, shape.rows, opts, None);
+    report.warnings.extend(super::common::data_notes(&notes));
+    let samples = src.checksum().map(|c| Samples::Streamed {
+        checksum: c,
+        len: shape.rows,
+    });
+    model_warnings(&mut report, model, &name, shape.rows, opts, samples);
     // The 1-step prediction of `model_output`: the ARX predictor, or for an output-error model the
     // simulation from the estimated initial outputs, as in memory (`ModelOutput::y_pred`; audit s27 H-2).
     let m = &report.metrics.validation;
@@ -534,7 +541,7 @@ fn run_streamed(
         sysid::model::NoiseModel::EquationError => m.fit_pred_percent,
         sysid::model::NoiseModel::OutputError => m.fit_sim_percent,
     };
-    let value = report_json(&report, args.horizon, fit_horizon, &[])?;
+    let value = report_json(&report, args.horizon, fit_horizon, &notes)?;
     let text = report_text(args, &report, &name, shape.rows, fit_horizon);
     print_report(&text, &[args.json.as_deref(), args.out.as_deref()])?;
     finish(args, report.warnings.len(), &value, None, inputs)
@@ -570,19 +577,30 @@ fn blame_model(
 /// identification's warnings) to the report, and a record `name` of `len` rows, read with `opts`, that
 /// holds the model's own estimation rows in the same columns
 /// (`sysid_summary::estimation_rows_warning`) or, read in memory (`data`), the estimation record's
-/// samples under another name ([`estimation_samples_warning`]; audit s22 M-R2).
+/// samples under another name ([`estimation_record`]; audit s22 M-R2), by its checksum when it was
+/// streamed (audit s27 M-2).
 fn model_warnings(
     report: &mut ValidationReport,
     model: &sysid::Model,
     name: &str,
     len: usize,
     opts: &sysid::data::CsvOptions,
-    data: Option<&sysid::Dataset>,
+    data: Option<Samples<'_>>,
 ) {
     let u = opts.input_names();
     let columns = (!opts.no_header).then_some((u.as_slice(), opts.y_col.as_str()));
-    let in_sample = sysid_summary::estimation_rows_warning(model, name, len, columns)
-        .or_else(|| data.and_then(|d| estimation_samples_warning(model, opts, d)));
+    let in_sample =
+        sysid_summary::estimation_rows_warning(model, name, len, columns).or_else(|| {
+            let est = estimation_record(model, opts)?;
+            match data? {
+                Samples::InMemory(d) => sysid_summary::same_samples_warning("validation", d, &est),
+                // A streamed record: the same samples by the pass's checksum (one input).
+                Samples::Streamed { checksum, len } => (len == est.len()
+                    && est.inputs().len() == 1
+                    && sysid::data::stream::samples_checksum(est.u(), est.y()) == checksum)
+                    .then(|| sysid_summary::same_samples_words("validation", name, est.name())),
+            }
+        });
     report.warnings.extend(in_sample);
     report.warnings.extend(
         sysid::model_file::load_warnings(model)
@@ -591,18 +609,18 @@ fn model_warnings(
     );
 }
 
-/// A warning when `data` holds the samples of the model's estimation record (all of them, or a run of
-/// `sysid_summary::MIN_SHARED_SAMPLES`), compared as identify compares its validation record
-/// (`sysid_summary::same_samples_warning`): the record the model file names (`identification.record`,
+/// The model's estimation record, to find a validated record that holds its samples (all of them, or
+/// a run of `sysid_summary::MIN_SHARED_SAMPLES`), compared as identify compares its validation record
+/// (`sysid_summary::same_samples_warning`; a streamed record: all of them, by checksum): the record the
+/// model file names (`identification.record`,
 /// its rows and columns) is read again with `opts`' other settings. A copy of the estimation file
 /// under another name was validated without a word (audit s22 M-R2). `None` when the model file names
 /// no record, the file is not there (the path is as identify was given it), is one that validate would
 /// stream (`sysid::stream::AUTO_STREAM_BYTES` or more), or cannot be read: then nothing is known.
-fn estimation_samples_warning(
+fn estimation_record(
     model: &sysid::Model,
     opts: &sysid::data::CsvOptions,
-    data: &sysid::Dataset,
-) -> Option<String> {
+) -> Option<sysid::Dataset> {
     let p = model.provenance()?;
     let (file, rows) = sysid_summary::record_rows(&p.record);
     let path = Path::new(file);
@@ -624,8 +642,18 @@ fn estimation_samples_warning(
         start: Some(r.start),
         end: Some(r.end),
     });
-    let est = sysid::data::read_record(path, &est_opts).ok()?.data;
-    sysid_summary::same_samples_warning("validation", data, &est)
+    sysid::data::read_record(path, &est_opts)
+        .ok()
+        .map(|r| r.data)
+}
+
+/// The samples of the record validated, for the comparison with the estimation record's.
+#[derive(Clone, Copy)]
+enum Samples<'a> {
+    /// Read in memory.
+    InMemory(&'a sysid::Dataset),
+    /// Read in passes: the checksum of the u and y values and the number of samples.
+    Streamed { checksum: u64, len: usize },
 }
 
 /// Refuses a validation whose simulation, predictions, residuals and `--out` columns would exceed

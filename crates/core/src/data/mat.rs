@@ -27,8 +27,8 @@
 use std::io::Read;
 
 use super::{
-    check_ts, increasing_time, resample, time_fault_message, uniform_time, CsvOptions, Record,
-    Signals, TimeFault,
+    check_ts, increasing_time, resample, time_fault_message, time_notes, uniform_time, CsvOptions,
+    Record, Signals, TimeFacts, TimeFault,
 };
 use crate::error::Setting;
 use crate::{Dataset, SysidError};
@@ -224,9 +224,18 @@ pub fn read_mat_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Rec
             ),
         ));
     }
-    let has_t = opts.ts.is_none() && find(&opts.t_col)?.is_some();
-    let mut t = if has_t {
-        let t = vector(&opts.t_col, Setting::TCol)?;
+    // The time variable is read when there is one, also under --ts (its notes: audit s27 M-2).
+    let t_exists = find(&opts.t_col)?.is_some();
+    let has_t = opts.ts.is_none() && t_exists;
+    let t_read = match (has_t, t_exists) {
+        (true, _) => Some(vector(&opts.t_col, Setting::TCol)?),
+        // Under --ts a time variable that is not a vector of the record's length is not checked.
+        (false, true) => vector(&opts.t_col, Setting::TCol)
+            .ok()
+            .filter(|t| t.len() == u.len()),
+        (false, false) => None,
+    };
+    let mut t = if let Some(t) = t_read {
         if t.len() != u.len() {
             return Err(file_err(
                 name,
@@ -265,11 +274,18 @@ pub fn read_mat_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Rec
             notes.push(r.note);
             ts
         }
-        (_, _, Some(ts)) => {
+        (_, t, Some(ts)) => {
             check_ts(ts)?;
+            if let (Some(t), Some(given)) = (t, opts.ts) {
+                notes.extend(time_notes(&TimeFacts::of(t), Some(given), ts, opts.time_unit, &opts.t_col));
+            }
             ts
         }
-        (_, Some(t), None) => uniform_time(t).map_err(time_err)?,
+        (_, Some(t), None) => {
+            let ts = uniform_time(t).map_err(time_err)?;
+            notes.extend(time_notes(&TimeFacts::of(t), None, ts, opts.time_unit, &opts.t_col));
+            ts
+        }
         (_, None, None) => {
             return Err(file_err(
                 &name,

@@ -78,6 +78,19 @@ pub fn spacing(t: &[f64]) -> Spacing {
     }
 }
 
+/// The spread of a time column's steps in words, "the time steps were 0.01 to 0.268 s (median 0.01 s),
+/// 13.5 % of them more than 0.1 % off the median": the one wording of the resample note and of the
+/// note of `--ts` over a column that is not uniform ([`super::time_notes`]).
+pub fn spacing_words(sp: &Spacing) -> String {
+    format!(
+        "the time steps were {} to {} s (median {} s), {:.1} % of them more than 0.1 % off the median",
+        super::sig6(sp.min),
+        super::sig6(sp.max),
+        super::sig6(sp.median),
+        100.0 * sp.irregular
+    )
+}
+
 /// The values of the piecewise-linear interpolant through (t_i, s_i) at t_j = t_0 + j·ts, for every j with
 /// t_j <= t_last (times strictly increasing, ts > 0). Returns the new samples of each signal in `signals`.
 pub fn linear(t: &[f64], signals: &[&[f64]], ts: f64) -> Vec<Vec<f64>> {
@@ -174,15 +187,11 @@ pub fn resample_record(
     };
     let sig = super::sig6;
     let note = format!(
-        "{name}: resampled {} rows onto {} samples at Ts = {} s by linear interpolation; the time steps \
-         were {} to {} s (median {} s), {:.1} % of them more than 0.1 % off the median{}",
+        "{name}: resampled {} rows onto {} samples at Ts = {} s by linear interpolation; {}{}",
         u.len(),
         ru.len(),
         sig(ts),
-        sig(sp.min),
-        sig(sp.max),
-        sig(sp.median),
-        100.0 * sp.irregular,
+        spacing_words(&sp),
         if sp.max > 2.0 * ts {
             format!(
                 "; the largest gap, {} s, is filled with a straight line (invented data)",

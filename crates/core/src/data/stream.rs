@@ -11,8 +11,13 @@
 //! decimal comma, quoting, blank-line and ragged-row rules are shared; the first 64 KiB are checked by
 //! the in-memory reader itself), with these differences (docs/data.md, "Long records"):
 //! - the time column must be uniform within 0.1 % of the **mean** step (t_last − t_0)/(N − 1), which is
-//!   also Ts; the in-memory reader compares with the median step (the two agree on any record that passes;
-//!   [`super::TimeSteps`] is [`super::uniform_time`]'s rule sample by sample, with its words);
+//!   also Ts; the in-memory reader compares with the median step ([`super::TimeSteps`] is
+//!   [`super::uniform_time`]'s rule sample by sample, with its words). The two agree on a uniform
+//!   record and on one with a gap, not on a jitter near 0.1 % (one side of the median more often than
+//!   the other moves the mean): the refusal says so and points to `--stream off`
+//!   ([`STREAM_TIME_RULE`]; audit s27 L-7);
+//! - the reader's notes ([`CsvStream::notes`], [`super::time_notes`]) take the time column's typical
+//!   step as the median step of the first 1 MiB, not of the whole column (audit s27 M-2);
 //! - `--resample` and MATLAB `.mat` files are refused (they need the whole record);
 //! - the input must be a file that can be read again (not standard input or a pipe);
 //! - there is no limit on the number of rows or the file size ([`super::MAX_SAMPLES`],
@@ -183,6 +188,12 @@ pub struct Shape {
     pub ts: f64,
 }
 
+/// What the streamed reader's refusal of a non-uniform time column adds (audit s27 L-7): its rule is
+/// not the in-memory reader's, which may accept the record.
+pub const STREAM_TIME_RULE: &str = "; note: --stream compares each step with the mean step, the \
+     in-memory reader (--stream off) with the median step, which accepts steps that jitter within \
+     0.1 % of it: --stream off may read this record";
+
 /// The consumer of one pass: called with the index k of the chunk's first sample and the chunk's
 /// u(k..) and y(k..) (equal lengths, at most [`CHUNK_ROWS`]).
 pub type ChunkFn<'a> = dyn FnMut(usize, &[f64], &[f64]) -> Result<(), SysidError> + 'a;
@@ -257,6 +268,22 @@ pub struct CsvStream {
     shape: Option<Shape>,
     /// The file as the first pass found it: a later pass over a changed or replaced file is refused.
     first_pass: Option<Fingerprint>,
+    /// The time notes ([`CsvStream::notes`]) and what the first pass needs to make them.
+    notes: TimeNoting,
+}
+
+/// The reader's notes of a streamed record ([`super::time_notes`], the in-memory reader's notes and
+/// words: audit s27 M-2): those the first 1 MiB gives at `open` (dates and times not read under `--ts`)
+/// and those of the time column, made from the first pass's [`TimeSteps::facts`].
+#[derive(Debug, Clone)]
+struct TimeNoting {
+    /// Notes known at `open`, then every note once the first pass has ended.
+    notes: Vec<String>,
+    /// The time column read under `--ts` for its notes only (a fault there ends its scan, no error).
+    given_col: Option<usize>,
+    /// The median step (s) of the time column in the first 1 MiB: the typical step of the notes.
+    reference: f64,
+    unit: super::TimeUnit,
 }
 
 /// What identifies the content of one pass: the file (device, inode, size, modification time) when it
@@ -321,6 +348,15 @@ fn mix(hash: u64, v: f64) -> u64 {
 
 /// The checksum of a pass before its first value.
 const CHECKSUM_START: u64 = 0xcbf2_9ce4_8422_2325;
+
+/// The checksum a pass over the samples u(k), y(k) finds ([`CsvStream::checksum`]): a record read in
+/// memory is compared with a streamed one by it (the validation record that copies the estimation
+/// record, audit s27 M-2).
+pub fn samples_checksum(u: &[f64], y: &[f64]) -> u64 {
+    u.iter()
+        .zip(y)
+        .fold(CHECKSUM_START, |h, (&uk, &yk)| mix(mix(h, uk), yk))
+}
 
 impl CsvStream {
     /// Opens `path` with the reader options `opts`: checks the header and the first rows (the in-memory
@@ -399,6 +435,30 @@ impl CsvStream {
             }
             None => Some(table.time_column(opts, &name)?),
         };
+        // The notes of the in-memory reader: under --ts, a time column is read for its notes when the
+        // first 1 MiB holds numbers there (else the date-and-time notes of the first row say why not).
+        let mut notes = Vec::new();
+        let mut given_col = None;
+        if let Some(ts) = ts_given {
+            let named = opts
+                .ts
+                .and(table.headers.iter().position(|h| *h == opts.t_col));
+            match named.filter(|&c| table.numbers(c).is_ok()) {
+                Some(c) => given_col = Some(c),
+                None => notes.extend(super::ts_contradiction(&table, opts, ts)),
+            }
+            notes.extend(super::unnamed_date_times(&table, opts, &[ucol], ycol, ts));
+        }
+        let reference = tcol
+            .or(given_col)
+            .and_then(|c| table.numbers(c).ok())
+            .map(|t| {
+                t.iter()
+                    .map(|v| v * opts.time_unit.seconds())
+                    .collect::<Vec<_>>()
+            })
+            .and_then(|t| super::median_step(&t))
+            .unwrap_or(0.0);
         let bom = prefix.starts_with(b"\xef\xbb\xbf");
         let text = std::str::from_utf8(&checked[usize::from(bom) * 3..]).unwrap_or("");
         Ok(CsvStream {
@@ -419,7 +479,33 @@ impl CsvStream {
             rows_flag: opts.rows_flag,
             shape: None,
             first_pass: None,
+            notes: TimeNoting {
+                notes,
+                given_col,
+                reference,
+                unit: opts.time_unit,
+            },
         })
+    }
+
+    /// The reader's notes on the record, in the in-memory reader's words ([`super::read_record`]'s
+    /// `Record::notes`): complete once the first pass has ended.
+    pub fn notes(&self) -> &[String] {
+        &self.notes.notes
+    }
+
+    /// The checksum of the u and y values of the first complete pass (`None` before it): equal for two
+    /// records that hold the same samples ([`samples_checksum`] of a record in memory).
+    pub fn checksum(&self) -> Option<u64> {
+        self.first_pass.map(|f| f.checksum)
+    }
+
+    /// The time notes of the first pass ([`super::time_notes`]) from its scan of the time column `col`.
+    fn time_notes(&self, scan: &TimeSteps, col: usize, ts: f64) -> Vec<String> {
+        let column = &self.headers[col];
+        scan.facts()
+            .map(|f| super::time_notes(&f, self.ts_given, ts, self.notes.unit, column))
+            .unwrap_or_default()
     }
 
     /// The shape found by the first complete pass (`None` before it).
@@ -488,6 +574,8 @@ impl CsvStream {
                 "onto a uniform grid,",
                 "onto a uniform grid (in memory, without --stream),",
             );
+            // The two rules differ on a jitter near 0.1 % (audit s27 L-7): say so, and the way out.
+            message.push_str(STREAM_TIME_RULE);
         }
         match fault.sample() {
             Some(line) => self.at(line, col, message),
@@ -533,7 +621,8 @@ impl RecordSource for CsvStream {
         };
         // Time is checked on the first pass only; later passes read u and y.
         let tcol = self.tcol.filter(|_| self.shape.is_none());
-        let mut scan = TimeSteps::default();
+        let mut given_col = self.notes.given_col.filter(|_| self.shape.is_none());
+        let mut scan = TimeSteps::with_reference(self.notes.reference);
         let mut marks = super::DecimalMarks::default();
         // The row's record, lent to a StringRecord while its cells are read, `spare` standing in for
         // it meanwhile: two records swapped, no allocation per row, and no `Option` whose `None` could
@@ -640,6 +729,12 @@ impl RecordSource for CsvStream {
                             .map_err(|f| self.time_error(f, tc))
                     })
                     .map_err(|e| self.or_changed(e, &rdr.get_ref().inner, &file_id))?;
+            } else if let Some(tc) = given_col {
+                // Under --ts the column is read for its notes only: a fault ends its scan.
+                let ok = value(tc).is_ok_and(|t| scan.push(t * self.time_scale, line).is_ok());
+                if !ok {
+                    given_col = None;
+                }
             }
             let bytes = text.map_or_else(|b| b, csv::StringRecord::into_byte_record);
             spare = std::mem::replace(&mut rec, bytes);
@@ -692,6 +787,15 @@ impl RecordSource for CsvStream {
                 },
             },
         };
+        if self.shape.is_none() {
+            match (self.tcol, given_col) {
+                (Some(c), _) | (None, Some(c)) => {
+                    let notes = self.time_notes(&scan, c, shape.ts);
+                    self.notes.notes.extend(notes);
+                }
+                (None, None) => {}
+            }
+        }
         match self.first_pass {
             Some(f) if f.checksum != checksum => {
                 return Err(self.changed("its u and y values differ from the first pass's"))

@@ -182,9 +182,9 @@ pub fn plant_stability_warning(s: sysid_core::Stability) -> Option<String> {
                 .to_string(),
         ),
         Stability::Unstable { .. } => Some(format!(
-            "the plant model is unstable (a pole has modulus {:.6} > 1 + {:e}): its closed-loop \
+            "the plant model is unstable (a pole has modulus {} > 1 + {:e}): its closed-loop \
              response describes a diverging model, not the actuator",
-            s.modulus(),
+            sysid_core::format::Modulus(s.modulus()),
             sysid_core::stability::MARGIN,
         )),
     }

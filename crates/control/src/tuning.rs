@@ -491,8 +491,7 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
 pub(crate) fn linear_loop_warnings(margins: &Margins) -> Vec<String> {
     // 6 decimals near the unit circle; a loop of absurd gains in scientific notation (not 300 digits).
     let modulus = |p: Option<f64>| match p {
-        Some(p) if p.abs() < 1e6 => format!("{p:.6}"),
-        Some(p) => format!("{p:.4e}"),
+        Some(p) => sysid_core::format::Modulus(p).to_string(),
         None => "n/a".to_string(),
     };
     let mut w = Vec::new();

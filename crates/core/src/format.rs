@@ -68,6 +68,24 @@ pub fn shortest(v: f64) -> String {
     Shortest(v).to_string()
 }
 
+/// A pole's modulus |p| as the tool's verdicts print it: six decimals near the unit circle, where
+/// 1.000001 and 0.999999 differ in kind (`1.020000`), scientific with four beyond 1e6 (`1.0000e308`,
+/// not 309 digits: audit s28 L-3). NaN and ±inf print as Rust does. The one rule of every "a pole has
+/// modulus" message (stability, identify's warnings, simulate, control, tune).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Modulus(pub f64);
+
+impl std::fmt::Display for Modulus {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let p = self.0;
+        if p.is_finite() && p.abs() >= 1e6 {
+            write!(f, "{p:.4e}")
+        } else {
+            write!(f, "{p:.6}")
+        }
+    }
+}
+
 /// A string read from a file (a model file's record name, column names, identify's warnings, an
 /// input's name) made safe to print on a terminal: every control character — C0 (ESC, CR, NUL, BS,
 /// tab, newline, …), DEL, C1 (the 8-bit CSI U+009B …) — and every bidirectional-text control
@@ -117,6 +135,17 @@ pub fn visible_lines(s: &str) -> String {
 
 #[cfg(test)]
 mod tests {
+
+    // Audit s28 L-3: 1e308 printed with {:.6} took 309 digits; six decimals stay near the circle.
+    #[test]
+    fn a_modulus_is_fixed_near_the_circle_and_scientific_far_from_it() {
+        assert_eq!(Modulus(1.02).to_string(), "1.020000");
+        assert_eq!(Modulus(999_999.5).to_string(), "999999.500000");
+        assert_eq!(Modulus(1e308).to_string(), "1.0000e308");
+        assert_eq!(Modulus(2.5e6).to_string(), "2.5000e6");
+        assert_eq!(Modulus(f64::INFINITY).to_string(), "inf");
+    }
+
     use super::*;
 
     #[test]

@@ -184,8 +184,8 @@ impl std::fmt::Display for Stability {
             }
             Stability::Unstable { .. } => write!(
                 f,
-                "UNSTABLE (a pole has modulus {:.6} > 1 + {MARGIN:e})",
-                self.modulus()
+                "UNSTABLE (a pole has modulus {} > 1 + {MARGIN:e})",
+                crate::format::Modulus(self.modulus())
             ),
         }
     }

@@ -92,8 +92,8 @@ pub fn stability_words(model: &Model) -> Option<String> {
              finite number: the coefficients are beyond f64): its simulation diverges"
             .to_string(),
         Stability::Unstable { .. } => format!(
-            "unstable model (a pole has modulus {:.6} > 1): its simulation diverges",
-            s.modulus()
+            "unstable model (a pole has modulus {} > 1): its simulation diverges",
+            sysid_core::format::Modulus(s.modulus())
         ),
         Stability::Integrator { .. } => {
             "the model has a pole at 1 (an integrator): its output ramps under any net input, as an \

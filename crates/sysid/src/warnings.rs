@@ -180,8 +180,9 @@ impl std::fmt::Display for Warning {
             ),
             Warning::Unstable { max_pole_modulus } => write!(
                 f,
-                "unstable model: a pole has modulus {max_pole_modulus:.6} > 1; its simulation diverges \
-                 (do not use it for simulation or control)"
+                "unstable model: a pole has modulus {} > 1; its simulation diverges \
+                 (do not use it for simulation or control)",
+                sysid_core::format::Modulus(*max_pole_modulus)
             ),
             Warning::NearIntegrator {
                 max_pole_modulus,

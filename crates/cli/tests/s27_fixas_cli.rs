@@ -68,19 +68,7 @@ fn lines(n: usize, note: impl Fn(usize) -> String) -> Vec<String> {
 
 /// `identify --structure arx --method ls --na 2 --nb 2` of `data` with `extra`.
 fn arx<'a>(data: &'a str, extra: &[&'a str]) -> Vec<&'a str> {
-    let mut a = vec![
-        "identify",
-        "--data",
-        data,
-        "--structure",
-        "arx",
-        "--method",
-        "ls",
-        "--na",
-        "2",
-        "--nb",
-        "2",
-    ];
+    let mut a = common::identify_arx_named(data, "2", "2", "ls");
     a.extend_from_slice(extra);
     a
 }

@@ -86,19 +86,7 @@ fn strict_fails_in_both(args: &[&str]) {
 }
 
 fn arx<'a>(data: &'a str, extra: &[&'a str]) -> Vec<&'a str> {
-    let mut a = vec![
-        "identify",
-        "--data",
-        data,
-        "--structure",
-        "arx",
-        "--method",
-        "ls",
-        "--na",
-        "2",
-        "--nb",
-        "2",
-    ];
+    let mut a = common::identify_arx_named(data, "2", "2", "ls");
     a.extend_from_slice(extra);
     a
 }

@@ -257,10 +257,20 @@ pub fn write_csv(path: &Path, header: &str, ts_s: Option<f64>, columns: &[&[f64]
 /// `identify --data DATA --structure arx --na NA --nb NB --method METHOD`: the argument list the tests
 /// of an ARX identification start from (extend it with their own flags).
 pub fn identify_arx<'a>(data: &'a Path, na: &'a str, nb: &'a str, method: &'a str) -> Vec<&'a str> {
+    identify_arx_named(data.to_str().unwrap(), na, nb, method)
+}
+
+/// [`identify_arx`] of a record named by a string (a path relative to the test's folder).
+pub fn identify_arx_named<'a>(
+    data: &'a str,
+    na: &'a str,
+    nb: &'a str,
+    method: &'a str,
+) -> Vec<&'a str> {
     vec![
         "identify",
         "--data",
-        data.to_str().unwrap(),
+        data,
         "--structure",
         "arx",
         "--na",

@@ -1374,6 +1374,7 @@ fn profile_arg(spec: &Bound<'_, PyAny>) -> PyResult<::control::Profile> {
         path: PathBuf::from("the profile array"),
         t_s: column(0)?,
         r_mm: column(1)?,
+        last_t_at: None,
     };
     profile.validate().map_err(control_err)?;
     Ok(profile)

@@ -761,7 +761,7 @@ fn control_flags_out_of_range_exit_2_naming_the_flag() {
             "control --plant paper --profile staircase:10,20@1e-9",
             2,
             &[
-                "set-point profile `staircase 10, 20 mm",
+                "set-point profile `staircase:10,20@1e-9`",
                 "less than the sampling period Ts = 0.01 s",
             ],
         ),

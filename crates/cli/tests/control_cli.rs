@@ -314,6 +314,26 @@ fn refuses_to_write_the_trace_over_the_profile_file() {
     assert_eq!((r[0], r[99], r[100]), (10.0, 10.0, 20.0));
 }
 
+#[test]
+fn a_profile_too_long_for_a_run_is_blamed_on_its_file() {
+    // No --duration: the file's last time (1e308 s, line 3, column 1) sets the run's length, beyond
+    // the 1e7 samples a run may have; the error names the file's cell, not --duration (audit s28 L-7).
+    let dir = tempfile::tempdir().unwrap();
+    let prof = dir.path().join("big.csv");
+    std::fs::write(&prof, "t,r\n0,10\n1e308,20\n").unwrap();
+    let spec = format!("file:{}", prof.display());
+    let o = ipa_sysid(&["--plant", "paper", "--profile", &spec]);
+    assert_eq!(o.status.code(), Some(2));
+    let e = stderr(&o);
+    assert!(
+        e.contains("big.csv:3:1: the last time t = 1e308 s") && !e.contains("invalid setting"),
+        "{e}"
+    );
+    // With --duration the run's length is the flag's, and the same file runs.
+    let o = ipa_sysid(&["--plant", "paper", "--profile", &spec, "--duration", "1"]);
+    assert!(o.status.success(), "{}", stderr(&o));
+}
+
 /// The `warnings` of a 1 s run of the paper's plant to 5 mm with `extra` flags (JSON on standard output).
 fn paper_step_warnings(extra: &[&str]) -> Vec<String> {
     let args = [

@@ -433,6 +433,30 @@ fn bad_inputs_name_the_file_or_the_flag() {
         "{}",
         stderr(&o)
     );
+    // Huge and tiny values come back as typed, not digit by digit (audit s28 L-3: run=1e308 printed
+    // 309 digits): the error names each key with its value in exponent form.
+    for (spec, words) in [
+        ("run=1e308", "run=1e308"),
+        ("high=1e308", "high=1e308"),
+        ("low=-1e308", "low=-1e308"),
+        ("settling=1e300", "settling=1e300"),
+    ] {
+        let o = ipa_sysid(&[
+            "tune",
+            "--model",
+            model.to_str().unwrap(),
+            "--spec",
+            spec,
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert_eq!(o.status.code(), Some(2), "{spec}");
+        let e = stderr(&o);
+        assert!(
+            e.contains(words) && !e.contains("00000000000"),
+            "{spec}: {e}"
+        );
+    }
     let o = ipa_sysid(&[
         "tune",
         "--model",

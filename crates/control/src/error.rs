@@ -46,6 +46,8 @@ pub enum ControlSetting {
     PhysicsVariants,
     /// Cost evaluations a tuning may use.
     MaxEvaluations,
+    /// The lowest frequency of a frequency response (Hz).
+    FMin,
 }
 
 impl ControlSetting {
@@ -72,6 +74,7 @@ impl ControlSetting {
             ControlSetting::Variants => "variants",
             ControlSetting::PhysicsVariants => "physics_variants",
             ControlSetting::MaxEvaluations => "max_evaluations",
+            ControlSetting::FMin => "f_min_hz",
         }
     }
 }
@@ -177,6 +180,7 @@ impl ControlSetting {
             ControlSetting::Variants => "--variants",
             ControlSetting::PhysicsVariants => "--physics-variants",
             ControlSetting::MaxEvaluations => "--max-evaluations",
+            ControlSetting::FMin => "--f-min",
         }
     }
 }

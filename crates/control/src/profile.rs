@@ -44,6 +44,10 @@ pub enum Profile {
         t_s: Vec<f64>,
         /// r_i in mm.
         r_mm: Vec<f64>,
+        /// Line and column (1-based) of the last row's t in the file, for errors about the run it sets
+        /// (`None`: not read from a file, e.g. an array given to the Python package).
+        #[serde(skip)]
+        last_t_at: Option<(usize, usize)>,
     },
 }
 
@@ -88,7 +92,10 @@ impl Profile {
                     .parse()
                     .map_err(|_| err(format!("hold time `{}` is not a number; {expected}", hold.trim())))?;
                 if !(hold_s.is_finite() && hold_s > 0.0) {
-                    return Err(err(format!("hold time {hold_s} s must be finite and > 0; {expected}")));
+                    return Err(err(format!(
+                        "hold time {} s must be finite and > 0; {expected}",
+                        sysid_core::format::Shortest(hold_s)
+                    )));
                 }
                 let mut levels_mm = Vec::new();
                 for (i, l) in levels.split(',').enumerate() {
@@ -150,8 +157,8 @@ impl Profile {
                     "{file}:{}:{}: t = {} s does not increase (previous row t = {} s); expected strictly increasing times",
                     table.line_of(k + 1),
                     it + 1,
-                    w[1],
-                    w[0]
+                    sysid_core::format::Shortest(w[1]),
+                    sysid_core::format::Shortest(w[0])
                 )));
             }
         }
@@ -162,6 +169,7 @@ impl Profile {
         }
         Ok(Profile::Samples {
             path: path.to_path_buf(),
+            last_t_at: Some((table.line_of(t_s.len().saturating_sub(1)), it + 1)),
             t_s,
             r_mm,
         })
@@ -172,7 +180,7 @@ impl Profile {
     pub fn validate(&self) -> Result<(), ControlError> {
         let err = |message: &str| {
             Err(ControlError::Profile {
-                spec: self.describe(),
+                spec: self.spec(),
                 message: message.to_string(),
             })
         };
@@ -211,10 +219,11 @@ impl Profile {
         match self {
             Profile::Staircase { hold_s, .. } if *hold_s < ts * (1.0 - GRID_EPS) => {
                 Err(ControlError::Profile {
-                    spec: self.describe(),
+                    spec: self.spec(),
                     message: format!(
-                        "each level is held {hold_s} s, less than the sampling period Ts = {} s, so some \
+                        "each level is held {} s, less than the sampling period Ts = {} s, so some \
                          levels would never be applied; hold each level at least one sample",
+                        sysid_core::format::Shortest(*hold_s),
                         sysid_core::format::Shortest(ts)
                     ),
                 })
@@ -259,21 +268,94 @@ impl Profile {
         }
     }
 
+    /// The run's length when no duration is given, [`Profile::natural_duration_s`], refused when it
+    /// would take [`crate::closed_loop::MAX_SAMPLES`] samples of `ts` (s) or more, with the error
+    /// naming where the length came from: the profile file's last time (file:line:column) or the
+    /// staircase's levels and hold (audit s28 L-7: a last time of 1e308 s blamed `--duration`, which
+    /// the user had not typed). `None` for a fixed set-point, which has no length of its own.
+    pub fn natural_duration_checked(&self, ts: f64) -> Result<Option<f64>, ControlError> {
+        use sysid_core::format::Shortest;
+        let Some(d) = self.natural_duration_s() else {
+            return Ok(None);
+        };
+        let max = crate::closed_loop::MAX_SAMPLES;
+        // `d / ts` is finite or +inf for d > 0 and ts > 0; NaN (never made by a parsed profile)
+        // fails the comparison and is refused too.
+        let steps = d / ts;
+        if steps < max as f64 {
+            return Ok(Some(d));
+        }
+        let limit = format!(
+            "a run may have at most {max} samples of Ts = {} s ({} s)",
+            Shortest(ts),
+            Shortest(max as f64 * ts)
+        );
+        let message = match self {
+            Profile::Samples {
+                path, last_t_at, ..
+            } => format!(
+                "{}{}: the last time t = {} s sets the run's length, but {limit}; expected times up to \
+                 that, or pass --duration to end the run earlier",
+                sysid_core::format::visible(&path.display().to_string()),
+                last_t_at.map_or(String::new(), |(line, col)| format!(":{line}:{col}")),
+                Shortest(d)
+            ),
+            Profile::Staircase { levels_mm, hold_s } => format!(
+                "{} levels held {} s each make a run of {} s, but {limit}; expected a shorter hold, or \
+                 pass --duration to end the run earlier",
+                levels_mm.len(),
+                Shortest(*hold_s),
+                Shortest(d)
+            ),
+            // Has no natural duration (returned above); kept whole for the match.
+            Profile::Fixed { .. } => return Ok(Some(d)),
+        };
+        Err(ControlError::Profile {
+            spec: self.spec(),
+            message,
+        })
+    }
+
+    /// The profile written back as a specification (`fixed:50`, `staircase:20,60@3`, `file:PATH`),
+    /// numbers in [`sysid_core::format::Shortest`] form, for errors about a profile built or parsed.
+    fn spec(&self) -> String {
+        use sysid_core::format::Shortest;
+        match self {
+            Profile::Fixed { setpoint_mm } => format!("fixed:{}", Shortest(*setpoint_mm)),
+            Profile::Staircase { levels_mm, hold_s } => {
+                let l: Vec<String> = levels_mm.iter().map(|v| Shortest(*v).to_string()).collect();
+                format!("staircase:{}@{}", l.join(","), Shortest(*hold_s))
+            }
+            Profile::Samples { path, .. } => {
+                format!(
+                    "file:{}",
+                    sysid_core::format::visible(&path.display().to_string())
+                )
+            }
+        }
+    }
+
     /// A warning when a run of `duration_s` ends at (or before) the instant the profile's last row
     /// changes the set-point: that set-point is then applied for at most one sample and never judged
     /// (audit s11: rows `0,50` and `2,100` ran 2 s and dropped r = 100 silently).
     pub fn last_row_warning(&self, duration_s: f64) -> Option<String> {
-        let Profile::Samples { path, t_s, r_mm } = self else {
+        let Profile::Samples {
+            path, t_s, r_mm, ..
+        } = self
+        else {
             return None;
         };
         let (&t_last, &r_last) = (t_s.last()?, r_mm.last()?);
         let r_before = *r_mm.get(r_mm.len().checked_sub(2)?)?;
         (r_last != r_before && duration_s <= t_last).then(|| {
+            use sysid_core::format::Shortest;
             format!(
-                "the last row of {} changes the set-point to r = {r_last} mm at t = {t_last} s, where the \
-                 run ends ({duration_s} s): it is never held, so no step to it is judged; pass --duration \
-                 to hold it",
-                path.display()
+                "the last row of {} changes the set-point to r = {} mm at t = {} s, where the run ends \
+                 ({} s): it is never held, so no step to it is judged; pass --duration to hold it",
+                path.display(),
+                Shortest(r_last),
+                Shortest(t_last),
+                Shortest(duration_s)
             )
         })
     }
@@ -285,11 +367,18 @@ impl Profile {
 
     /// [`Profile::describe`] with the set-points in `unit` (a model plant's output units).
     pub fn describe_in(&self, unit: &str) -> String {
+        use sysid_core::format::Shortest;
         match self {
-            Profile::Fixed { setpoint_mm } => format!("fixed set-point {setpoint_mm} {unit}"),
+            Profile::Fixed { setpoint_mm } => {
+                format!("fixed set-point {} {unit}", Shortest(*setpoint_mm))
+            }
             Profile::Staircase { levels_mm, hold_s } => {
-                let l: Vec<String> = levels_mm.iter().map(|v| v.to_string()).collect();
-                format!("staircase {} {unit}, {hold_s} s each", l.join(", "))
+                let l: Vec<String> = levels_mm.iter().map(|v| Shortest(*v).to_string()).collect();
+                format!(
+                    "staircase {} {unit}, {} s each",
+                    l.join(", "),
+                    Shortest(*hold_s)
+                )
             }
             Profile::Samples { path, t_s, .. } => {
                 format!("set-points from {} ({} rows)", path.display(), t_s.len())
@@ -347,6 +436,55 @@ mod tests {
         assert_eq!(p.r_at(11.99), 40.0);
         assert_eq!(p.r_at(50.0), 40.0);
         assert_eq!(p.natural_duration_s(), Some(12.0));
+    }
+
+    #[test]
+    fn a_run_too_long_is_blamed_on_the_profile_that_sets_it() {
+        // A loop runs at most MAX_SAMPLES = 1e7 samples: 1e5 s at Ts = 0.01 s. Without --duration the
+        // profile's own length is checked against that, and the error names where the length came
+        // from (audit s28 L-7: a file's last time of 1e308 s blamed a --duration nobody typed).
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("r.csv");
+        // The last row is on line 4 (a blank line before it), its t in column 2.
+        std::fs::write(&path, "r,t\n10,0\n\n20,1e308\n").unwrap();
+        let p = Profile::parse(&format!("file:{}", path.display())).unwrap();
+        let e = p.natural_duration_checked(0.01).unwrap_err().to_string();
+        assert!(
+            e.contains("r.csv:4:2: the last time t = 1e308 s")
+                && e.contains("at most 10000000 samples of Ts = 0.01 s (100000 s)"),
+            "{e}"
+        );
+        assert!(e.len() < 400, "printed digit by digit: {e}");
+        // Just inside the bound (99999 s: 9999900 samples) the length is the last time.
+        std::fs::write(&path, "t,r\n0,10\n99999,20\n").unwrap();
+        let q = Profile::parse(&format!("file:{}", path.display())).unwrap();
+        assert_eq!(q.natural_duration_checked(0.01).unwrap(), Some(99999.0));
+        // A staircase: 2 levels of 1e300 s; its error names the levels and the hold.
+        let s = Profile::parse("staircase:10,20@1e300").unwrap();
+        let e = s.natural_duration_checked(0.01).unwrap_err().to_string();
+        assert!(
+            e.contains("`staircase:10,20@1e300`") && e.contains("2 levels held 1e300 s each"),
+            "{e}"
+        );
+        assert_eq!(
+            Profile::parse("staircase:10,20@3")
+                .unwrap()
+                .natural_duration_checked(0.01)
+                .unwrap(),
+            Some(6.0)
+        );
+        // A fixed set-point has no length of its own.
+        assert_eq!(
+            Profile::parse("fixed:50")
+                .unwrap()
+                .natural_duration_checked(0.01)
+                .unwrap(),
+            None
+        );
+        // A hold shorter than Ts is printed as typed (audit s28 L-3: 1e-300 s printed 300 digits).
+        let tiny = Profile::parse("staircase:10,20@1e-300").unwrap();
+        let e = tiny.check_sampling(0.01).unwrap_err().to_string();
+        assert!(e.contains("each level is held 1e-300 s"), "{e}");
     }
 
     #[test]

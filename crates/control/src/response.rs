@@ -287,9 +287,15 @@ pub fn response(model: &Model, s: &ResponseSettings) -> Result<Response, Control
     let nyquist_hz = 0.5 / ts;
     let f_min_hz = s.f_min_hz.unwrap_or(1e-3 * nyquist_hz);
     if !(f_min_hz > 0.0 && f_min_hz < nyquist_hz) {
-        return Err(ControlError::Config(format!(
-            "the lowest frequency {f_min_hz} Hz must be above 0 and below the Nyquist frequency {nyquist_hz} Hz"
-        )));
+        // The setting, not the model, is blamed (audit s28 L-7: `--f-min 0` named the model file).
+        return Err(ControlError::setting(
+            ControlSetting::FMin,
+            sysid_core::format::Shortest(f_min_hz),
+            &format!(
+                "a frequency in Hz above 0 and below the model's Nyquist frequency {} Hz",
+                sysid_core::format::Shortest(nyquist_hz)
+            ),
+        ));
     }
     check_coefficients(model)?;
     let (a, b) = (model.a(), model.b());
@@ -516,6 +522,34 @@ mod tests {
     /// y(k) = α y(k−1) + β u(k−1), i.e. A = 1 − α q⁻¹, B = β, nk = 1.
     fn first_order(alpha: f64, beta: f64, ts: f64) -> Model {
         Model::arx(ts, vec![-alpha], vec![beta], 1, None).unwrap()
+    }
+
+    // A lowest frequency outside (0, Nyquist) is the setting's fault, named as such (audit s28 L-7:
+    // `response --f-min 0` blamed the model file): Nyquist = 0.5 / Ts = 50 Hz at Ts = 0.01 s.
+    #[test]
+    fn a_lowest_frequency_outside_the_band_is_a_setting_error() {
+        let m = first_order(0.9, 1.0, 0.01);
+        for f in [0.0, -1.0, 50.0, 1e300] {
+            let s = ResponseSettings {
+                points: 10,
+                f_min_hz: Some(f),
+                samples: 100,
+                controller: None,
+            };
+            match response(&m, &s) {
+                Err(ControlError::Setting { setting, .. }) => {
+                    assert_eq!(setting, ControlSetting::FMin, "{f}")
+                }
+                other => panic!("{f}: {other:?}"),
+            }
+        }
+        let ok = ResponseSettings {
+            points: 10,
+            f_min_hz: Some(49.0),
+            samples: 100,
+            controller: None,
+        };
+        assert!(response(&m, &ok).is_ok());
     }
 
     // H = −1 at every frequency is a half turn: −180°, whether the minus sign is in b or in the gain

@@ -254,16 +254,20 @@ impl Spec {
         }
         if s.high_mm <= s.low_mm {
             return Err(bad(
-                &format!("low={}, high={}", s.low_mm, s.high_mm),
+                &format!(
+                    "low={}, high={}",
+                    sysid_core::format::Shortest(s.low_mm),
+                    sysid_core::format::Shortest(s.high_mm)
+                ),
                 "high > low",
             ));
         }
         if let Some(big) = s.steps_mm.iter().find(|d| **d > s.high_mm - s.low_mm) {
             return Err(bad(
-                &format!("steps={big}"),
+                &format!("steps={}", sysid_core::format::Shortest(*big)),
                 &format!(
                     "steps no longer than high − low = {} mm",
-                    s.high_mm - s.low_mm
+                    sysid_core::format::Shortest(s.high_mm - s.low_mm)
                 ),
             ));
         }

@@ -598,6 +598,7 @@ pub const MIN_U_MAX: f64 = 1e-6;
 /// stroke 0..L (its end stops would hold the piston, and the steps would be measured from a start it
 /// cannot take); also numbers below f64's normal range and a command limit below [`MIN_U_MAX`].
 fn check_spec(req: &Request, ts: f64, twin: &Option<ipa::PlantConfig>) -> Result<(), ControlError> {
+    use sysid_core::format::Shortest;
     let (spec, check_physics) = (&req.spec, req.check_physics);
     let bad = |what: String, expected: String| {
         ControlError::setting(crate::ControlSetting::Spec, what, &expected)
@@ -619,7 +620,7 @@ fn check_spec(req: &Request, ts: f64, twin: &Option<ipa::PlantConfig>) -> Result
     for (key, v) in named.into_iter().chain(steps) {
         if v != 0.0 && !v.is_normal() {
             return Err(bad(
-                format!("{key}={}", sysid_core::format::Shortest(v)),
+                format!("{key}={}", Shortest(v)),
                 format!(
                     "a number of at least {:e} (f64's smallest normal number): a smaller one is lost \
                      in rounding",
@@ -630,7 +631,7 @@ fn check_spec(req: &Request, ts: f64, twin: &Option<ipa::PlantConfig>) -> Result
     }
     if spec.u_max < MIN_U_MAX {
         return Err(bad(
-            format!("u-max={}", sysid_core::format::Shortest(spec.u_max)),
+            format!("u-max={}", Shortest(spec.u_max)),
             format!(
                 "a command limit of at least {MIN_U_MAX:e} in the plant's command units (below any \
                  actuator's resolution: a 24-bit converter over 10 V steps by 6e-7 V)"
@@ -640,11 +641,11 @@ fn check_spec(req: &Request, ts: f64, twin: &Option<ipa::PlantConfig>) -> Result
     let run_samples = spec.run_s / ts;
     if run_samples > MAX_RUN_SAMPLES {
         return Err(bad(
-            format!("run={}", spec.run_s),
+            format!("run={}", Shortest(spec.run_s)),
             format!(
                 "runs of at most {MAX_RUN_SAMPLES} samples: {} s at the model's Ts = {} s",
-                sysid_core::format::Shortest(MAX_RUN_SAMPLES * ts),
-                sysid_core::format::Shortest(ts)
+                Shortest(MAX_RUN_SAMPLES * ts),
+                Shortest(ts)
             ),
         ));
     }
@@ -681,14 +682,14 @@ fn check_spec(req: &Request, ts: f64, twin: &Option<ipa::PlantConfig>) -> Result
         return Err(bad(
             format!(
                 "run={}{}",
-                spec.run_s,
+                Shortest(spec.run_s),
                 if default { " (the default, made for Ts = 0.01 s)" } else { "" }
             ),
             format!(
                 "runs of at least {MIN_RUN_SAMPLES} samples: {} s at the model's Ts = {} s; give the \
                  specification run={need} or longer",
-                sysid_core::format::Shortest(MIN_RUN_SAMPLES * ts),
-                sysid_core::format::Shortest(ts)
+                Shortest(MIN_RUN_SAMPLES * ts),
+                Shortest(ts)
             ),
         ));
     }
@@ -696,7 +697,11 @@ fn check_spec(req: &Request, ts: f64, twin: &Option<ipa::PlantConfig>) -> Result
     // would count as settled (audit s21 L-B4).
     if spec.settling_s >= spec.run_s {
         return Err(bad(
-            format!("settling={}, run={}", spec.settling_s, spec.run_s),
+            format!(
+                "settling={}, run={}",
+                Shortest(spec.settling_s),
+                Shortest(spec.run_s)
+            ),
             "a settling target shorter than each step's run".to_string(),
         ));
     }
@@ -708,11 +713,18 @@ fn check_spec(req: &Request, ts: f64, twin: &Option<ipa::PlantConfig>) -> Result
         let down = spec.high_mm - (spec.high_mm - d);
         if (up - d).abs() > 1e-9 * d || (down - d).abs() > 1e-9 * d {
             return Err(bad(
-                format!("low={}, high={}, steps={d}", spec.low_mm, spec.high_mm),
                 format!(
-                    "set-points whose {d} mm steps are representable: at {} mm apart from 0 a step \
-                     of {d} mm is lost in rounding; set-points nearer 0 (or larger steps)",
-                    sysid_core::format::Shortest(spec.low_mm.abs().max(spec.high_mm.abs()))
+                    "low={}, high={}, steps={}",
+                    Shortest(spec.low_mm),
+                    Shortest(spec.high_mm),
+                    Shortest(d)
+                ),
+                format!(
+                    "set-points whose {} mm steps are representable: at {} mm apart from 0 a step \
+                     of {} mm is lost in rounding; set-points nearer 0 (or larger steps)",
+                    Shortest(d),
+                    Shortest(spec.low_mm.abs().max(spec.high_mm.abs())),
+                    Shortest(d)
                 ),
             ));
         }
@@ -724,8 +736,12 @@ fn check_spec(req: &Request, ts: f64, twin: &Option<ipa::PlantConfig>) -> Result
     if let Some(l) = strokes.into_iter().flatten().reduce(f64::min) {
         if spec.low_mm < 0.0 || spec.high_mm > l {
             return Err(bad(
-                format!("low={}, high={}", spec.low_mm, spec.high_mm),
-                format!("set-points within the plant's stroke 0..{l} mm"),
+                format!(
+                    "low={}, high={}",
+                    Shortest(spec.low_mm),
+                    Shortest(spec.high_mm)
+                ),
+                format!("set-points within the plant's stroke 0..{} mm", Shortest(l)),
             ));
         }
     }

@@ -383,7 +383,9 @@ pub fn run(
         Err(reason) => Err(reason),
     };
     let unfixed_profile = Profile::parse(&s.unfixed_profile)?;
-    let uf_duration = unfixed_profile.natural_duration_s().unwrap_or(20.0);
+    let uf_duration = unfixed_profile
+        .natural_duration_checked(ts)?
+        .unwrap_or(20.0);
     let (up, um) = closed_loop_pair(
         plant.as_mut(),
         model_plant.as_mut(),

@@ -251,10 +251,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let (compensator, compensator_warning) = compensator(&args, &mut inputs)?;
 
-    let duration_s = match (args.duration, profile.natural_duration_s()) {
-        (Some(d), _) => d,
-        (None, Some(d)) => d,
-        (None, None) => DEFAULT_FIXED_DURATION_S,
+    // Without --duration the profile sets the run's length, and a length too long for a run is
+    // blamed on the profile (its file's last row), not on a --duration nobody typed (audit s28 L-7).
+    let duration_s = match args.duration {
+        Some(d) => d,
+        None => profile
+            .natural_duration_checked(ts)?
+            .unwrap_or(DEFAULT_FIXED_DURATION_S),
     };
     check_outputs(&args, &inputs)?;
     let to_stdout = |p: &Option<PathBuf>| p.as_ref().is_some_and(|p| p.as_os_str() == "-");

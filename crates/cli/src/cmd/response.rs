@@ -258,8 +258,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         controller,
     };
     // The library's error kept as the cause, so that a numerical one (coefficients beyond f64) exits 1.
-    let mut r = response(&model, &settings)
-        .map_err(|e| anyhow::Error::new(e).context(args.model.display().to_string()))?;
+    // A setting's error names the flag, not the model (audit s28 L-7: `--f-min 0` blamed the model).
+    let mut r = response(&model, &settings).map_err(|e| match e {
+        control::ControlError::Setting { .. } => anyhow::Error::new(e),
+        e => anyhow::Error::new(e).context(args.model.display().to_string()),
+    })?;
     // A tuned controller that did not meet its specification says so here too, as in `control`.
     if let Some((_, f)) = &tuned {
         r.warnings

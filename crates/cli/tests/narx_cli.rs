@@ -10,7 +10,15 @@ use common::{bin, json};
 
 /// y(k) = 0.2 y(k−1) + 0.1 y(k−1) u(k−1) + 0.9 u(k−2) (SysIdentPy's example system), noise free.
 fn write_record(path: &Path, n: usize, seed: u64) {
-    let u = ipa_testdata::white(n, seed);
+    write_scaled_record(path, n, seed, 1.0);
+}
+
+/// [`write_record`] with the input multiplied by `scale`; returns u's [min, max].
+fn write_scaled_record(path: &Path, n: usize, seed: u64, scale: f64) -> (f64, f64) {
+    let u: Vec<f64> = ipa_testdata::white(n, seed)
+        .iter()
+        .map(|v| v * scale)
+        .collect();
     let mut y = vec![0.0; n];
     for k in 2..n {
         y[k] = 0.2 * y[k - 1] + 0.1 * y[k - 1] * u[k - 1] + 0.9 * u[k - 2];
@@ -20,6 +28,54 @@ fn write_record(path: &Path, n: usize, seed: u64) {
         text.push_str(&format!("{},{},{}\n", k as f64, u[k], y[k]));
     }
     std::fs::write(path, text).unwrap();
+    u.iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &v| {
+            (a.min(v), b.max(v))
+        })
+}
+
+// A validation record whose input spans twice the estimation data's is said to be extrapolated, in
+// the text and the JSON, as for every other class (audit s28 L-1: NARX said nothing); one within the
+// estimation range gets no such warning.
+#[test]
+fn a_narx_validation_record_beyond_the_estimation_input_is_warned() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (lo, hi) = write_scaled_record(&d.join("est.csv"), 600, 1, 1.0);
+    let (vlo, vhi) = write_scaled_record(&d.join("wide.csv"), 400, 2, 2.0);
+    write_scaled_record(&d.join("narrow.csv"), 400, 3, 0.5);
+    let run = |val: &str| {
+        let o = bin()
+            .current_dir(d)
+            .args(["identify", "--data", "est.csv", "--validation", val])
+            .args(["--structure", "narx", "--degree", "2", "--na", "2"])
+            .args(["--nb", "2", "--nk", "1", "--json", "fit.json"])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let words: Vec<String> = json(&d.join("fit.json"))["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|w| w.as_str().unwrap().to_string())
+            .collect();
+        (String::from_utf8_lossy(&o.stdout).to_string(), words)
+    };
+    let (text, words) = run("wide.csv");
+    let want = format!(
+        "validation: the record's input u spans [{vlo}, {vhi}] but the model's estimation data had \
+         it in [{lo}, {hi}]: outside it the model extrapolates"
+    );
+    assert!(
+        words.iter().any(|w| w.starts_with(&want)),
+        "{want}\n{words:?}"
+    );
+    assert!(text.contains(&want), "{text}");
+    let (_, words) = run("narrow.csv");
+    assert!(
+        !words.iter().any(|w| w.contains("extrapolates")),
+        "{words:?}"
+    );
 }
 
 // The known system's three terms and coefficients come back, the model file validates on a fresh record

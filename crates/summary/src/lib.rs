@@ -322,10 +322,10 @@ impl IdentifyReport {
     /// The validation record's inputs (their [min, max], `input_extremes`) beyond the model's data range,
     /// each warning headed "validation:" (in memory and read in passes alike).
     pub fn validation_extrapolation(model: &Model, input_extremes: &[(f64, f64)]) -> Vec<String> {
-        ValidationReport::extrapolation_warnings_of(model, input_extremes)
-            .into_iter()
-            .map(|w| format!("validation: {w}"))
-            .collect()
+        headed_validation(ValidationReport::extrapolation_warnings_of(
+            model,
+            input_extremes,
+        ))
     }
 
     /// [`IdentifyReport::assemble`] on one or more estimation records without validation data and
@@ -500,6 +500,43 @@ pub fn input_extremes(data: &Dataset) -> Vec<(f64, f64)> {
         .collect()
 }
 
+/// A warning per input whose [min, max] over a record (`extremes`, one pair per input, in the order of
+/// `names`) leaves the estimation data's range `range` (a model's `data_range`) by more than a tenth
+/// of it (`DataRange::excursion_of`, the rule of `simulate` and `control`): there the model
+/// extrapolates, so its fit on the record judges equations never fitted there. The one rule of every
+/// model class (ARX, Hammerstein, Wiener, several inputs, NARX: audit s28 L-1 found NARX's
+/// `identify --validation` without it). None without a recorded range.
+pub fn extrapolation_words<'a>(
+    range: Option<&sysid_core::DataRange>,
+    names: impl IntoIterator<Item = &'a str>,
+    extremes: &[(f64, f64)],
+) -> Vec<String> {
+    let Some(range) = range else {
+        return Vec::new();
+    };
+    extremes
+        .iter()
+        .zip(&range.u)
+        .zip(names)
+        .filter_map(|((&ext, &[lo, hi]), name)| {
+            let (u_min, u_max) = sysid_core::DataRange::excursion_of(ext, (lo, hi))?;
+            Some(format!(
+                "the record's input {name} spans [{u_min}, {u_max}] but the model's estimation data had \
+                 it in [{lo}, {hi}]: outside it the model extrapolates, so this fit judges equations \
+                 never fitted there"
+            ))
+        })
+        .collect()
+}
+
+/// `words` about a validation record, each headed "validation:" as identify prints them.
+pub fn headed_validation(words: Vec<String>) -> Vec<String> {
+    words
+        .into_iter()
+        .map(|w| format!("validation: {w}"))
+        .collect()
+}
+
 impl ValidationReport {
     /// Validates `model` on `data`: metrics, residual analysis with `max_lag` lags, warnings (unstable
     /// model, negative or diverging simulation fit).
@@ -520,23 +557,11 @@ impl ValidationReport {
     /// fitted there (audit s14 M-c: a fit fell from 72 to 35 % for an input scaled by 1.1, without a
     /// word). None without a recorded range.
     pub fn extrapolation_warnings_of(model: &Model, extremes: &[(f64, f64)]) -> Vec<String> {
-        let Some(range) = model.data_range() else {
-            return Vec::new();
-        };
-        extremes
-            .iter()
-            .zip(&range.u)
-            .zip(model.inputs())
-            .filter_map(|((&ext, &[lo, hi]), input)| {
-                let (u_min, u_max) = sysid_core::DataRange::excursion_of(ext, (lo, hi))?;
-                Some(format!(
-                    "the record's input {} spans [{u_min}, {u_max}] but the model's estimation data had \
-                     it in [{lo}, {hi}]: outside it the model extrapolates, so this fit judges equations \
-                     never fitted there",
-                    input.name()
-                ))
-            })
-            .collect()
+        extrapolation_words(
+            model.data_range(),
+            model.inputs().iter().map(|i| i.name()),
+            extremes,
+        )
     }
 
     /// The report from metrics, a residual analysis and each input's [min, max] over the record computed

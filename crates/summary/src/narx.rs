@@ -86,6 +86,12 @@ impl NarxReport {
                 ))
                 .map(ToString::to_string),
             );
+            // The validation record's input beyond the estimation data's, as for every other class.
+            warnings.extend(crate::headed_validation(crate::extrapolation_words(
+                fit.model.data_range(),
+                ["u"],
+                &[sysid_core::DataRange::extremes(vd.u())],
+            )));
         }
         Ok(NarxReport {
             structure: "narx",

@@ -305,22 +305,11 @@ fn run_narx(
             .map(|w| w.to_string()),
     );
     // The record's input beyond the model's estimation data, as for a linear model (audit s17 M-d).
-    if let Some(range) = model.data_range() {
-        let extremes = sysid::DataRange::extremes(data.u());
-        if let (Some([lo, hi]), Some((u_min, u_max))) = (
-            range.u.first().copied(),
-            range
-                .u
-                .first()
-                .and_then(|&[lo, hi]| sysid::DataRange::excursion_of(extremes, (lo, hi))),
-        ) {
-            warnings.push(format!(
-                "the record's input u spans [{u_min}, {u_max}] but the model's estimation data had \
-                 it in [{lo}, {hi}]: outside it the model extrapolates, so this fit judges equations \
-                 never fitted there"
-            ));
-        }
-    }
+    warnings.extend(sysid_summary::extrapolation_words(
+        model.data_range(),
+        ["u"],
+        &[sysid::DataRange::extremes(data.u())],
+    ));
     let fmt = |v: Option<f64>| v.map_or("n/a (the simulation blew up)".into(), report::format::num);
     let pct = |v: Option<f64>| v.map_or("n/a".into(), |v| format!("{} %", report::format::num(v)));
     let mut text = format!(

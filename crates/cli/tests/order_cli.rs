@@ -552,3 +552,52 @@ fn narx_settings_without_a_narx_class_are_refused() {
         "{doc}"
     );
 }
+
+// A Wiener candidate has no one-step equation error, so no AIC: null with the reason in the JSON and a
+// line under the table, while an ARX candidate keeps its one-step AIC (audit s28 L-2: the Wiener
+// row's column held a simulation-based figure under the same name).
+#[test]
+fn a_wiener_candidate_has_no_aic_and_says_why() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = two_plant_record(dir.path());
+    let d = data.to_str().unwrap();
+    let args = [
+        "order",
+        "--data",
+        d,
+        "--na",
+        "1",
+        "--nb",
+        "1",
+        "--nk",
+        "1",
+        "--classes",
+        "arx,wiener:saturation",
+    ];
+    let (doc, _) = order_json(&args, dir.path());
+    let out = bin().args(args).output().unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    let candidates = doc["candidates"].as_array().unwrap();
+    let of = |class: &str| {
+        candidates
+            .iter()
+            .find(|c| c["class"] == class)
+            .unwrap_or_else(|| panic!("{class}: {doc}"))
+    };
+    let (arx, wiener) = (of("arx"), of("wiener:saturation"));
+    assert!(
+        arx["aic"].is_f64() && arx.get("aic_note").is_none(),
+        "{arx}"
+    );
+    assert!(wiener["aic"].is_null(), "{wiener}");
+    assert!(
+        wiener["aic_note"]
+            .as_str()
+            .is_some_and(|n| n.contains("no one-step equation error")),
+        "{wiener}"
+    );
+    assert!(
+        text.contains("AIC of wiener:saturation: loss V, FPE and AIC are n/a"),
+        "{text}"
+    );
+}

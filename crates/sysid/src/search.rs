@@ -154,8 +154,14 @@ pub struct ClassCandidate {
     pub selection_rmse: Option<f64>,
     /// Fit % of that simulation.
     pub selection_fit_percent: Option<f64>,
-    /// Normalised AIC ln(mean ε²) + 2p/N of the one-step residuals on the estimation part.
+    /// Normalised AIC ln(mean ε²) + 2p/N of the one-step residuals on the estimation part; `None`
+    /// (with [`ClassCandidate::aic_note`]) for a model with an output nonlinearity, which has no
+    /// one-step equation error (as `identify` says: audit s28 L-2 found a Wiener candidate's
+    /// simulation-based figure in the same column as the others' one-step AIC).
     pub aic: Option<f64>,
+    /// Why `aic` is n/a ([`sysid_core::metrics::NO_EQUATION_ERROR`]), when it is for that reason.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub aic_note: Option<&'static str>,
     /// The identification's warnings.
     pub warnings: Vec<String>,
     /// Why the candidate could not be estimated.
@@ -252,6 +258,7 @@ pub fn evaluate(
         selection_rmse: None,
         selection_fit_percent: None,
         aic: None,
+        aic_note: None,
         warnings: Vec::new(),
         error: None,
         stable: false,
@@ -279,6 +286,12 @@ pub fn evaluate(
                 let pred = m.predict_equation_error(&est.input_signals(), est.y())?;
                 (c.selection_rmse, c.selection_fit_percent, c.aic) =
                     judge(sel.y(), sim.as_deref(), est.y(), &pred, k0, c.p);
+                // An output nonlinearity's model predicts by its linear block's unmeasured output:
+                // no one-step equation error, so no AIC comparable with the others'.
+                if m.output_nonlinearity().is_some() {
+                    c.aic = None;
+                    c.aic_note = Some(sysid_core::metrics::NO_EQUATION_ERROR);
+                }
             }
             Class::Narx(degree) => {
                 let s = NarxSettings {
@@ -439,6 +452,7 @@ mod tests {
             selection_rmse: Some(rmse),
             selection_fit_percent: Some(fit),
             aic: None,
+            aic_note: None,
             warnings: Vec::new(),
             error: None,
             stable: true,

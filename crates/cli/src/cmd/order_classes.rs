@@ -186,6 +186,22 @@ pub fn run(
             }
         ));
     }
+    // The AIC column's n/a for output-nonlinear classes, said once under the table (audit s28 L-2).
+    let mut no_aic: Vec<&str> = Vec::new();
+    for c in ranked
+        .iter()
+        .take(args.top)
+        .filter(|c| c.aic_note.is_some())
+    {
+        if !no_aic.contains(&c.class.as_str()) {
+            no_aic.push(&c.class);
+        }
+    }
+    if let Some(note) = ranked.iter().find_map(|c| c.aic_note) {
+        if !no_aic.is_empty() {
+            text.push_str(&format!("AIC of {}: {note}\n", no_aic.join(", ")));
+        }
+    }
     if let Some(c) = &chosen {
         text.push_str(&format!(
             "\nChosen: {} (na, nb, nk) = ({}, {}, {}), re-estimated on {}{}\n",

@@ -417,6 +417,9 @@ pub enum Sniffed {
     ControllerFile,
     /// Another JSON document (an `identify --json` output, another tool's file).
     Json,
+    /// TOML text (a plant configuration, as `ipa-sysid plant-config` writes it): its first line that
+    /// is not blank or a `#` comment is a table header `[name]` or a `key = value` pair.
+    Toml,
     /// Text whose first line separates fields by `,`, `;` or a tab: a CSV record, most likely.
     Csv,
 }
@@ -457,7 +460,19 @@ impl Sniffed {
         if !line.starts_with('#') && line.contains([',', ';', '\t']) {
             return Some(Sniffed::Csv);
         }
-        None
+        let mut significant = text
+            .lines()
+            .map(str::trim)
+            .filter(|l| !l.is_empty() && !l.starts_with('#'));
+        match significant.next().map(toml_line) {
+            Some(Some(TomlLine::Pair)) => Some(Sniffed::Toml),
+            // A table header must be followed by a pair (a one-column CSV headed `[mm]` is not TOML).
+            Some(Some(TomlLine::Table)) => significant
+                .next()
+                .is_some_and(|l| toml_line(l) == Some(TomlLine::Pair))
+                .then_some(Sniffed::Toml),
+            _ => None,
+        }
     }
 
     /// The kind in words (`this is …`), with where such a file goes.
@@ -482,9 +497,46 @@ impl Sniffed {
                 "a JSON document (an identify --json output?); a record is CSV text or a .mat file, a \
                  model file the JSON that identify --save-model writes"
             }
+            Sniffed::Toml => {
+                "TOML text (a plant configuration, as `ipa-sysid plant-config` writes it?); give a \
+                 plant configuration to --plant-config"
+            }
             Sniffed::Csv => "CSV text (a record?); give a record to --data",
         }
     }
+}
+
+/// A significant line of TOML text ([`toml_line`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum TomlLine {
+    /// A table header: `[cylinder]`, `[[a.b]]`.
+    Table,
+    /// A `key = value` pair.
+    Pair,
+}
+
+/// What `line` is in TOML: a table header (`[cylinder]`, `[[a.b]]`) or a `key = value` pair (a bare
+/// key of letters, digits, `_` and `-`, dotted allowed); `None` otherwise. A CSV header has commas,
+/// semicolons or tabs instead (tested first by [`Sniffed::of`]).
+fn toml_line(line: &str) -> Option<TomlLine> {
+    let key = |k: &str| {
+        !k.is_empty()
+            && k.split('.').all(|part| {
+                let part = part.trim();
+                !part.is_empty()
+                    && part
+                        .chars()
+                        .all(|c| c.is_ascii_alphanumeric() || c == '_' || c == '-')
+            })
+    };
+    if let Some(inner) = line.strip_prefix('[') {
+        let inner = inner.strip_prefix('[').unwrap_or(inner);
+        let inner = inner.trim_end();
+        let inner = inner.strip_suffix("]]").or_else(|| inner.strip_suffix(']'));
+        return inner.is_some_and(key).then_some(TomlLine::Table);
+    }
+    let (k, v) = line.split_once('=')?;
+    (key(k.trim()) && !v.trim().is_empty() && !v.starts_with('=')).then_some(TomlLine::Pair)
 }
 
 /// The string value of the `"format"` key of the JSON object that `text` opens with (white space
@@ -634,15 +686,34 @@ pub fn known_binary(prefix: &[u8]) -> Option<String> {
 }
 
 /// What a data file (`what`: "a data file", "a profile file", …) is when its first bytes say it is a
-/// JSON document — a model file, a controller file, an `identify --json` output — not a record
-/// (audit s26 L-1), in words naming where it goes.
+/// JSON document — a model file, a controller file, an `identify --json` output — or TOML text (a
+/// plant configuration), not a record (audit s26 L-1, s27 L-4), in words naming where it goes.
 pub fn known_document(prefix: &[u8], what: &str) -> Option<String> {
     match Sniffed::of(prefix)? {
-        k @ (Sniffed::ModelFile | Sniffed::ControllerFile | Sniffed::Json) => Some(format!(
-            "this is not {what} (CSV text or a .mat file) but {}",
-            k.describe()
-        )),
+        k @ (Sniffed::ModelFile | Sniffed::ControllerFile | Sniffed::Json | Sniffed::Toml) => {
+            Some(format!(
+                "this is not {what} (CSV text or a .mat file) but {}",
+                k.describe()
+            ))
+        }
         _ => None,
+    }
+}
+
+/// The error for a data file (`what`: "a data file", "a streamed record", …) named `file` whose first
+/// bytes `prefix` say it is of another kind ([`known_binary`], [`known_document`]), at its line 1,
+/// column 1: one check for the in-memory reader ([`bounded::read_data_file`]), the streaming reader
+/// (`CsvStream::open`) and `track`'s reader (audit s27 L-4: the last two took a model file's `{` for a
+/// header).
+pub fn check_record_kind(prefix: &[u8], file: &str, what: &str) -> Result<(), SysidError> {
+    match known_binary(prefix).or_else(|| known_document(prefix, what)) {
+        Some(message) => Err(SysidError::Parse {
+            file: file.to_string(),
+            line: 1,
+            column: 1,
+            message,
+        }),
+        None => Ok(()),
     }
 }
 
@@ -2130,6 +2201,31 @@ mod tests {
         check_ts, json_format_key, time_notes, ts_contradicts, uniform_time, NonFinite, Sniffed,
         TimeFacts, TimeFault, TimeSteps, TimeUnit, MS_ADVICE,
     };
+
+    // TOML text is told from a record (audit s27 L-4): a plant configuration's head, a bare pair, and
+    // a table followed by a pair (an array of tables `[[a]]` reads as JSON first: JSON wins); a one-column CSV headed `[mm]`, a comment-only file and a CSV header
+    // are not TOML.
+    #[test]
+    fn toml_text_is_sniffed_and_a_bracketed_csv_header_is_not() {
+        let toml = [
+            "# Physics IPA plant parameters\n# edit\n\n[cylinder]\nbore_mm = 40.0  # bore\n",
+            "ts_s = 0.01\n",
+            "[a.b]\nx-y = \"z\"\n",
+        ];
+        for t in toml {
+            assert_eq!(Sniffed::of(t.as_bytes()), Some(Sniffed::Toml), "{t:?}");
+        }
+        for (t, want) in [
+            ("[mm]\n1.0\n2.0\n", None),
+            ("# only a comment\n", None),
+            ("y\n1\n2\n", None),
+            ("t,u,y\n0,1,2\n", Some(Sniffed::Csv)),
+            ("a == b\n", None),
+            ("[cylinder]\n[valve]\n", None),
+        ] {
+            assert_eq!(Sniffed::of(t.as_bytes()), want, "{t:?}");
+        }
+    }
 
     // The one "format" rule (the two sniffers it replaced differed: the record readers' took a
     // "format" anywhere in the text, the writer's only as the first key). Hand-written documents.

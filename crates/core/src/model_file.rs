@@ -222,6 +222,7 @@ pub fn parse_any_model(bytes: &[u8], name: &str) -> Result<AnyModel, SysidError>
         match crate::data::Sniffed::of(&bytes[..bytes.len().min(4096)]) {
             Some(
                 k @ (crate::data::Sniffed::Csv
+                | crate::data::Sniffed::Toml
                 | crate::data::Sniffed::Parquet
                 | crate::data::Sniffed::Utf16),
             ) => file_err(format!(

@@ -293,11 +293,23 @@ impl PlantConfig {
     /// = 1e308: expected ...`) when the key is written there.
     pub fn from_toml_str(text: &str, name: &str) -> Result<Self, IpaError> {
         let cfg: PlantConfig = toml::from_str(text).map_err(|e| {
-            // The parser's snippet quotes the file's line: printed through `visible_lines`.
-            IpaError::Config(format!(
-                "{name}: invalid plant config: {}",
-                sysid_core::format::visible_lines(&e.to_string())
-            ))
+            // A model file, controller file, JSON document or CSV record given as the plant
+            // configuration is said as such, not as the TOML parser's complaint (the readers' one
+            // sniffing helper; only when the text is not TOML, so a valid file is never refused).
+            use sysid_core::data::Sniffed;
+            let head = &text.as_bytes()[..text.len().min(4096)];
+            match Sniffed::of(head) {
+                Some(k) if k != Sniffed::Toml => IpaError::Config(format!(
+                    "{name}: this is {}, not a plant configuration (the TOML that `ipa-sysid \
+                     plant-config` prints)",
+                    k.describe()
+                )),
+                // The parser's snippet quotes the file's line: printed through `visible_lines`.
+                _ => IpaError::Config(format!(
+                    "{name}: invalid plant config: {}",
+                    sysid_core::format::visible_lines(&e.to_string())
+                )),
+            }
         })?;
         cfg.check().map_err(|e| {
             IpaError::Config(match locate(text, e.section, e.key) {

@@ -196,6 +196,23 @@ const MAX_IDLE_S: f64 = 365.0 * 86_400.0;
 /// How often a followed file or serial port is polled when no data has come.
 const POLL: Duration = Duration::from_millis(20);
 
+/// Refuses a file whose first bytes say it is not a record (a model file, a plant configuration, a
+/// Parquet file…), in the words of every other reader (audit s27 L-4: `track --data m.json` said "no
+/// column named 'u' … the header has: {"). A file that does not exist yet (`--follow` waits for it)
+/// or cannot be read is left to the reader's own error.
+fn check_kind(path: &std::path::Path) -> anyhow::Result<()> {
+    use std::io::Read;
+    let mut prefix = Vec::with_capacity(4096);
+    if let Ok(f) = std::fs::File::open(path) {
+        // A device or FIFO is not read ahead here (its bytes would be lost to the tracker).
+        if f.metadata().is_ok_and(|m| m.is_file()) && f.take(4096).read_to_end(&mut prefix).is_ok()
+        {
+            sysid::data::check_record_kind(&prefix, &path.display().to_string(), "a data file")?;
+        }
+    }
+    Ok(())
+}
+
 /// Runs `track`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     // A list of inputs is the other commands' several-input form; the tracker follows one (audit s14
@@ -217,6 +234,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             (Box::new(std::io::stdin().lock()), "<stdin>".into())
         } else {
             inputs.push(p.as_path());
+            check_kind(p)?;
             let f = std::fs::File::open(p).with_context(|| p.display().to_string())?;
             (
                 Box::new(BufReader::with_capacity(1 << 16, f)),
@@ -225,6 +243,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     } else if let Some(p) = &args.follow {
         inputs.push(p.as_path());
+        check_kind(p)?;
         let shown = p.display().to_string();
         let r = sysid_io::Follow::file(p, idle, POLL)
             .with_context(|| p.display().to_string())?

@@ -159,12 +159,7 @@ pub fn read_data_file(path: &Path, what: &str) -> Result<Vec<u8>, SysidError> {
                     message: message.into(),
                 })
             };
-            if let Some(kind) = super::known_binary(prefix) {
-                return at(0, prefix, &kind);
-            }
-            if let Some(kind) = super::known_document(prefix, what) {
-                return at(0, prefix, &kind);
-            }
+            super::check_record_kind(prefix, &path.display().to_string(), what)?;
             let body = prefix.strip_prefix(b"\xef\xbb\xbf").unwrap_or(prefix);
             let valid = match std::str::from_utf8(body) {
                 Ok(_) => body.len(),

@@ -383,6 +383,8 @@ impl CsvStream {
                         .into(),
             });
         }
+        // A model file, a plant configuration, a Parquet file…: said as the in-memory reader says it.
+        super::check_record_kind(&prefix, &name, "a data file")?;
         if opts.resample.is_some() {
             return Err(SysidError::setting(
                 Setting::Other("--resample"),

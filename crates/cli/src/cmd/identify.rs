@@ -599,10 +599,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // A refusal for memory (the reader's, then the estimation's) offers `--stream on` where it would
     // read this record in passes (memory then does not grow with the record): one decision for both.
     let in_passes = (!args.merge && !several_inputs && could_stream(&args, &settings, data_path))
-        .then(|| {
+        .then_some(
             "--stream on, which reads the CSV record in passes (ARX by least squares: memory does \
-             not grow with the record)"
-        });
+             not grow with the record)",
+        );
     let (records, val, mut notes) = read_records(&args, &files, in_passes)?;
     notes.splice(0..0, skipped_note);
     // The reader's notes are printed once, among the report's warnings ("data: …"; audit s18 L-6).

@@ -981,6 +981,7 @@ impl Model {
             ));
         }
         if self.noise.is_equation_error() {
+            check_prediction_steps(y.len(), self.k0(), horizon)?;
             self.run(u, y, Some(horizon), None)
         } else {
             self.run(u, y, None, None)
@@ -1842,6 +1843,46 @@ impl ModelPlant {
     }
 }
 
+/// The most model steps a K-step prediction may take: (N − k0 − K)·K for N samples and horizon K
+/// (each sample after the first k0 + K is a run of K steps from the measured outputs). 10⁹ steps are
+/// about 20 s of an ARX(3, 1) on a loaded core; K = N/2 on 100 000 samples is 2.5·10⁹ steps and took 54 s
+/// in silence (audit s27 L-11).
+pub const MAX_PREDICTION_STEPS: u64 = 1_000_000_000;
+
+/// The model steps of a `horizon`-step prediction of `n` samples whose first `k0` copy the data:
+/// (n − k0 − K)·K, 0 when every sample is in the simulation's part (K ≥ n − k0).
+pub fn prediction_steps(n: usize, k0: usize, horizon: usize) -> u64 {
+    let m = n.saturating_sub(k0) as u64;
+    let k = horizon as u64;
+    m.saturating_sub(k).saturating_mul(k)
+}
+
+/// Refuses a `horizon`-step prediction of `n` samples beyond [`MAX_PREDICTION_STEPS`], naming its
+/// cost and the horizons that fit: K ≤ K₁ or K ≥ K₂, the roots of (M − K)·K = bound with M = n − k0.
+fn check_prediction_steps(n: usize, k0: usize, horizon: usize) -> Result<(), SysidError> {
+    let steps = prediction_steps(n, k0, horizon);
+    if steps <= MAX_PREDICTION_STEPS {
+        return Ok(());
+    }
+    let m = n.saturating_sub(k0) as f64;
+    let root = (m * m - 4.0 * MAX_PREDICTION_STEPS as f64).max(0.0).sqrt();
+    // The largest K below the lower root and the smallest above the upper one, checked exactly.
+    let mut low = ((m - root) / 2.0).floor().max(1.0) as usize;
+    while low > 1 && prediction_steps(n, k0, low) > MAX_PREDICTION_STEPS {
+        low -= 1;
+    }
+    let mut high = ((m + root) / 2.0).ceil() as usize;
+    while prediction_steps(n, k0, high) > MAX_PREDICTION_STEPS {
+        high += 1;
+    }
+    Err(SysidError::Data(format!(
+        "a {horizon}-step prediction of {n} samples takes (N − k0 − K)·K = {steps} model steps, more \
+         than the bound of {MAX_PREDICTION_STEPS} (about 20 s; sysid::model::MAX_PREDICTION_STEPS): choose a \
+         horizon K <= {low} or K >= {high} for this record, or judge the model by its simulation fit, \
+         which a horizon beyond the model's settling time approaches"
+    )))
+}
+
 /// Runs `model` open loop from rest at `y0_mm` (as [`ModelPlant`] after `reset(y0_mm)`) over one record of
 /// commands per model input, and returns the outputs a data logger would record beside them: y(0) is the
 /// output before the first commands are applied. For models with any number of inputs (`simulate` with a
@@ -2011,6 +2052,37 @@ fn run_one_input<const NA: usize, const NB: usize, const FREE: bool>(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    // Audit s27 L-11: a K-step prediction costs (N − k0 − K)·K model steps. On N = 100 000, k0 = 0 the
+    // bound 10⁹ holds for K ≤ 11 270 and K ≥ 88 730 (the roots of (10⁵ − K)·K = 10⁹ are
+    // (10⁵ ∓ √(6·10⁹))/2 = 11 270.2 and 88 729.8: 88 730·11 270 = 999 987 100 ≤ 10⁹ and
+    // 88 729·11 271 = 1 000 064 559 > 10⁹). K = N/2 (2.5·10⁹ steps, 54 s before) is refused at once,
+    // naming the cost and those horizons; K ≥ N − k0 is the simulation (0 steps beyond it).
+    #[test]
+    fn a_prediction_beyond_the_step_bound_is_refused_naming_the_horizons_that_fit() {
+        assert_eq!(prediction_steps(100_000, 0, 50_000), 2_500_000_000);
+        assert_eq!(prediction_steps(100_000, 2, 100_000), 0);
+        assert!(check_prediction_steps(100_000, 0, 11_270).is_ok());
+        assert!(check_prediction_steps(100_000, 0, 11_271).is_err());
+        assert!(check_prediction_steps(100_000, 0, 88_729).is_err());
+        assert!(check_prediction_steps(100_000, 0, 88_730).is_ok());
+        // Below M²/4 = 10⁹ (M = 63 245) every horizon fits.
+        for k in [1, 31_622, 31_623, 63_245] {
+            assert!(check_prediction_steps(63_245, 0, k).is_ok(), "{k}");
+        }
+        let n = 100_000;
+        let u: Vec<f64> = (0..n).map(|k| ((k % 7) as f64) - 3.0).collect();
+        let y = vec![0.0; n];
+        let m = Model::arx(1.0, vec![-0.5], vec![1.0], 1, None).unwrap();
+        let e = m.predict_k(&[&u], &y, 50_000).unwrap_err().to_string();
+        // ARX(1, 1, 1): k0 = 1, M = 99 999; (99 999 − K)·K ≤ 10⁹ for K ≤ 11 270 and K ≥ 88 729.
+        assert!(
+            e.contains("a 50000-step prediction of 100000 samples takes (N − k0 − K)·K = 2499950000 model steps")
+                && e.contains("K <= 11270 or K >= 88729"),
+            "{e}"
+        );
+        assert_eq!(m.predict_k(&[&u], &y, 99_999).unwrap().len(), n);
+    }
 
     // [0, 100] with its tenth (10) of margin: −10 and 110 are within, −10.5 or 110.5 leave it; NaN is
     // skipped; an infinite extreme is not judged.

@@ -129,6 +129,8 @@ impl ColumnArgs {
             time_unit: self.time_unit,
             resample: self.resample,
             max_read_bytes: Some(memory.max_memory.bytes()),
+            // The command sets it where it would read the record in passes (identify, validate).
+            in_passes: None,
         }
     }
 }

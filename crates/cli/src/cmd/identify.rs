@@ -596,7 +596,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &[(&args.json, "--json"), (&args.save_model, "--save-model")],
         &inputs,
     )?;
-    let (records, val, mut notes) = read_records(&args, &files)?;
+    // A refusal for memory (the reader's, then the estimation's) offers `--stream on` where it would
+    // read this record in passes (memory then does not grow with the record): one decision for both.
+    let in_passes = (!args.merge && !several_inputs && could_stream(&args, &settings, data_path))
+        .then_some(
+            "--stream on, which reads the CSV record in passes (ARX by least squares: memory does \
+             not grow with the record)",
+        );
+    let (records, val, mut notes) = read_records(&args, &files, in_passes)?;
     notes.splice(0..0, skipped_note);
     // The reader's notes are printed once, among the report's warnings ("data: …"; audit s18 L-6).
     let (estimation, op) = match records.as_slice() {
@@ -606,14 +613,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         _ => (records.clone(), None),
     };
-    // A refusal for memory offers `--stream on` where it would read this record in passes (memory
-    // then does not grow with the record); `identify` checks the same need again below.
+    // `identify` checks the same need again below.
     if let Err(e) = settings.check_memory(&estimation) {
-        if !args.merge && !several_inputs && could_stream(&args, &settings, data_path) {
-            anyhow::bail!(sysid::SysidError::Data(format!(
-                "{e}; or --stream on, which reads the CSV record in passes (ARX by least squares: \
-                 memory does not grow with the record)"
-            )));
+        if let Some(how) = in_passes {
+            anyhow::bail!(sysid::SysidError::Data(format!("{e}; or {how}")));
         }
         anyhow::bail!(e);
     }
@@ -831,12 +834,15 @@ pub(super) fn in_sample_warnings(
 }
 
 /// The estimation records (one per file; `--split`/`--val-rows` of a single file apply) and the
-/// validation record, with the reader's notes.
+/// validation record, with the reader's notes. `in_passes`: the `--stream on` a refusal for memory
+/// may offer.
 fn read_records(
     args: &Args,
     files: &[PathBuf],
+    in_passes: Option<&str>,
 ) -> anyhow::Result<(Vec<Dataset>, Option<Dataset>, Vec<String>)> {
-    let opts = args.columns.csv_options(&args.memory);
+    let mut opts = args.columns.csv_options(&args.memory);
+    opts.in_passes = in_passes.map(String::from);
     if let [one] = files {
         let r = args.val.records(one, &opts)?;
         return Ok((vec![r.est], r.val, r.notes));

@@ -169,13 +169,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         e => e,
     };
-    if streaming(&args, miso, model.output_nonlinearity().is_some())? {
+    let output_map = model.output_nonlinearity().is_some();
+    if streaming(&args, miso, output_map)? {
         return run_streamed(&args, &model, &opts, &inputs).map_err(|e| {
             match e.downcast::<sysid::SysidError>() {
                 Ok(e) => from_model(e).into(),
                 Err(e) => e,
             }
         });
+    }
+    // A refusal for memory offers `--stream on` only where it would read this record in passes.
+    if why_not_stream(&args, miso, output_map).is_none()
+        && !sysid_core::data::mat::has_mat_name(&args.data)
+    {
+        opts.in_passes = Some("--stream on, which reads the CSV record in passes".into());
     }
     let record = sysid::data::read_record(&args.data, &opts).map_err(from_model)?;
     // The reader's notes are printed once, among the report's warnings ("data: …"; audit s18 L-6).
@@ -458,7 +465,13 @@ fn report_text(
 /// Whether to read the record in passes (`--stream`, [`StreamMode::decide`]): one input, horizon 1,
 /// no `--out`, no `--resample`.
 fn streaming(args: &Args, miso: bool, output_map: bool) -> anyhow::Result<bool> {
-    let why = if miso {
+    decide_stream(args, why_not_stream(args, miso, output_map))
+}
+
+/// What these settings need the whole record for, if anything (then `--stream on` is refused and a
+/// refusal for memory does not offer it).
+fn why_not_stream(args: &Args, miso: bool, output_map: bool) -> Option<&'static str> {
+    if miso {
         Some("a model with several inputs")
     } else if output_map {
         // The passes simulate the linear block only (audit s27 H-2): g(v) is applied in memory.
@@ -473,8 +486,7 @@ fn streaming(args: &Args, miso: bool, output_map: bool) -> anyhow::Result<bool> 
         Some("--resample")
     } else {
         None
-    };
-    decide_stream(args, why)
+    }
 }
 
 /// [`common::StreamMode::decide`] for `validate`, `why` being what the settings need the whole record

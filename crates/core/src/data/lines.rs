@@ -55,7 +55,7 @@ impl CsvLines {
     /// The reader of the record whose header row is `line` (without its line end); `name` is the source
     /// in messages (`<stdin>`, a path).
     pub fn from_header(line: &[u8], name: &str) -> Result<Self, SysidError> {
-        let table = table_of(line, name, true, false, None, true)?;
+        let table = table_of(line, name, true, false, None, true, None)?;
         let text =
             std::str::from_utf8(line.strip_prefix(b"\xef\xbb\xbf").unwrap_or(line)).unwrap_or("");
         let delimiter = sniff_delimiter(text);

@@ -428,7 +428,7 @@ impl CsvStream {
             });
         }
         // The prefix of a longer file may end inside a quoted cell that closes later: the pass checks it.
-        let table = super::table_of(checked, &name, !opts.no_header, true, None, whole)?;
+        let table = super::table_of(checked, &name, !opts.no_header, true, None, whole, None)?;
         let (ucol, ycol, ts_given) = table.columns(opts)?;
         let tcol = match ts_given {
             Some(ts) => {

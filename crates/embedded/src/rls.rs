@@ -976,7 +976,9 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
             // T read again (volatile), not kept live through the update.
             // SAFETY: a reference to an initialised field of `est`.
             let bound = unsafe { core::ptr::read_volatile(&est.max_trace) };
-            exact = !(tr_ref <= bound * F::from_f64(0.25));
+            // R > T/4, or R not finite (x · 0 = 0 exactly for finite x).
+            let quarter = bound * F::from_f64(0.25);
+            exact = (tr_ref > quarter) | ((tr_ref - quarter) * F::ZERO != F::ZERO);
         }
         est.tr = tr;
         est.tr_ref = tr_ref;

@@ -268,7 +268,7 @@ impl RobustRls {
                         tr < quarter || !(tr - quarter).is_finite()
                     } else {
                         // t not kept: t ≤ R(k−1) ≤ T/4 and R(k) bounds tr P (module documentation).
-                        !(tr_ref <= quarter_bound)
+                        tr_ref > quarter_bound || !tr_ref.is_finite()
                     };
                     if exact {
                         tr = ud_trace(u, d);

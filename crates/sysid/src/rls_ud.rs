@@ -22,7 +22,9 @@
 //!   (1/ρ̃) from Bierman's gain numerator b and α (bᵀb over even and odd i apart), with a reference
 //!   R(k) = R(k−1) · (1/ρ̃) · g, g = [`ipa_embedded::rls::TRACE_DRIFT_GROWTH`]; when t < R/4 (or t or R
 //!   is not finite) t is summed exactly (`ud_trace`: each column's Σ_(i<j) U_ij² over even and odd i apart)
-//!   and R = t; construction and restarts sum it exactly. The same operations and order as
+//!   and R = t; construction and restarts sum it exactly. t is kept only while R > T/4: an update
+//!   starting from R ≤ T/4 computes R alone, leaves t and sets nothing pending (R bounds tr P, so the
+//!   bound cannot act), and sums t exactly when R is no longer ≤ T/4. The same operations and order as
 //!   `ipa_embedded` (whose module documentation bounds the drift: ≈ 400 ε relative).
 //!
 //! The same options exist in the standard (dense P) form, [`RlsForm::Standard`], for comparison.
@@ -83,8 +85,8 @@ pub struct RobustRls {
     /// (P = c · U D Uᵀ, module documentation); `None`: c = 1.
     pending_var: Option<f64>,
     /// UD form with the trace bound: t = tr (U D Uᵀ) of the factors (tr P = c t), kept by the rank-one
-    /// formula t(k) = (t(k−1) − bᵀb / α) / ρ̃ and summed exactly again when t < R/4 (module
-    /// documentation).
+    /// formula t(k) = (t(k−1) − bᵀb / α) / ρ̃ while R > T/4 and summed exactly again when t < R/4 or
+    /// when R leaves [0, T/4] with t not kept (module documentation).
     kept_trace: f64,
     /// R: t as it would be without the downdates since the last exact sum, grown by
     /// [`TRACE_DRIFT_GROWTH`] per update.
@@ -243,22 +245,32 @@ impl RobustRls {
                 }
                 Covariance::Ud { u, d } => {
                     // The update consumed the pending scale: the new factors are P itself, whose
-                    // trace is kept by the rank-one formula (b = work, the gain numerator), summed
-                    // exactly when t < R/4 (`ipa_embedded`'s operations and order).
-                    let (mut even, mut odd) = (-0.0, -0.0);
-                    for (i, bi) in self.work.iter().enumerate() {
-                        if i % 2 == 0 {
-                            even += bi * bi;
-                        } else {
-                            odd += bi * bi;
-                        }
-                    }
+                    // trace is kept by the rank-one formula (b = work, the gain numerator) while
+                    // R > T/4, summed exactly when t < R/4 or when R(k) leaves [0, T/4] with t not
+                    // kept (`ipa_embedded`'s operations and order).
                     let inv_var = 1.0 / var;
-                    let diff = self.kept_trace - (even + odd) * inv_alpha;
-                    let mut tr = diff * inv_var;
+                    let quarter_bound = self.max_trace * 0.25;
+                    let keep_t = self.trace_ref > quarter_bound;
                     let mut tr_ref = self.trace_ref * inv_var * TRACE_DRIFT_GROWTH;
-                    let quarter = tr_ref * 0.25;
-                    if tr < quarter || !(tr - quarter).is_finite() {
+                    let mut tr = self.kept_trace;
+                    let exact = if keep_t {
+                        let (mut even, mut odd) = (-0.0, -0.0);
+                        for (i, bi) in self.work.iter().enumerate() {
+                            if i % 2 == 0 {
+                                even += bi * bi;
+                            } else {
+                                odd += bi * bi;
+                            }
+                        }
+                        let diff = self.kept_trace - (even + odd) * inv_alpha;
+                        tr = diff * inv_var;
+                        let quarter = tr_ref * 0.25;
+                        tr < quarter || !(tr - quarter).is_finite()
+                    } else {
+                        // t not kept: t ≤ R(k−1) ≤ T/4 and R(k) bounds tr P (module documentation).
+                        tr_ref > quarter_bound || !tr_ref.is_finite()
+                    };
+                    if exact {
                         tr = ud_trace(u, d);
                         tr_ref = tr;
                     }
@@ -266,9 +278,14 @@ impl RobustRls {
                     self.trace_ref = tr_ref;
                     // When tr P > T, c = T / tr P is left pending as ρ̃ = ρ / c = tr P · (ρ / T); the
                     // test is ρ̃ > ρ, i.e. tr P > T up to the rounding of ρ̃ (`ipa_embedded`'s order:
-                    // its update writes ρ̃ as max(tr P · (ρ / T), ρ), with no branch).
-                    let var = tr * (self.forgetting / self.max_trace);
-                    self.pending_var = (var > self.forgetting).then_some(var);
+                    // its update writes ρ̃ as max(tr P · (ρ / T), ρ), with no branch). With t not
+                    // kept and no exact sum, tr P ≤ R ≤ T/4: nothing pending.
+                    self.pending_var = if keep_t || exact {
+                        let var = tr * (self.forgetting / self.max_trace);
+                        (var > self.forgetting).then_some(var)
+                    } else {
+                        None
+                    };
                 }
             }
         }

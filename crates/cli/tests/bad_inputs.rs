@@ -828,7 +828,11 @@ fn control_flags_out_of_range_exit_2_naming_the_flag() {
         case(
             "control --plant ipa --setpoint 5 --plant-config {c}/model/array.json",
             2,
-            &["array.json", "this is a JSON document", "not a plant configuration"],
+            &[
+                "array.json",
+                "this is a JSON document",
+                "not a plant configuration",
+            ],
         ),
         case("control --plant paper", 2, &["--setpoint"]),
     ]);

@@ -7,17 +7,19 @@
 use std::path::Path;
 
 mod common;
-use common::{arx_signals, bin, s, write_csv};
+use common::{arx_signals, run, s, stderr, write_csv};
 
+/// Standard error of `ipa-sysid ARGS`, which must exit 2.
 fn refused(args: &[&str]) -> String {
-    let out = bin().args(args).output().unwrap();
-    assert_eq!(
-        out.status.code(),
-        Some(2),
-        "{args:?} should fail with code 2: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    String::from_utf8_lossy(&out.stderr).into_owned()
+    let out = run(args);
+    assert_eq!(out.status.code(), Some(2), "{args:?}: {}", stderr(&out));
+    stderr(&out)
+}
+
+/// `ipa-sysid ARGS`, which must succeed.
+fn succeeds(args: &[&str]) {
+    let out = run(args);
+    assert!(out.status.success(), "{args:?}: {}", stderr(&out));
 }
 
 /// An ARX(2, 2) record of `n` samples: y(k) = 1.5 y(k−1) − 0.7 y(k−2) + 0.5 u(k−1) + 0.2 u(k−2) with a
@@ -29,16 +31,9 @@ fn record(path: &Path, n: usize) {
 }
 
 fn save_arx(data: &Path, model: &Path) {
-    let out = bin()
-        .args(common::identify_arx_named(s(data), "2", "2", "ls"))
-        .args(["--save-model", s(model)])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let mut args = common::identify_arx_named(s(data), "2", "2", "ls");
+    args.extend(["--save-model", s(model)]);
+    succeeds(&args);
 }
 
 // K = N/2 on 100 000 samples took 54 s in silence (audit s27 L-11). An ARX(2, 2, 1) copies k0 = 2
@@ -67,23 +62,15 @@ fn validate_refuses_a_horizon_beyond_the_step_bound_naming_its_cost_and_the_hori
         "{e}"
     );
     // K ≥ N − k0 is the simulation: no step beyond it, accepted.
-    let out = bin()
-        .args([
-            "validate",
-            "--model",
-            s(&model),
-            "--data",
-            s(&data),
-            "--horizon",
-            "99998",
-        ])
-        .output()
-        .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    succeeds(&[
+        "validate",
+        "--model",
+        s(&model),
+        "--data",
+        s(&data),
+        "--horizon",
+        "99998",
+    ]);
 }
 
 // 20 000 rows of t, u, y need about 2 MB with the file's text, more than --max-memory 0.001

@@ -1379,7 +1379,7 @@ fn table_of(
             for (col, cell) in rec.iter().enumerate() {
                 if parse_number(cell, true).is_some() {
                     marks
-                        .note(cell, line, col + 1)
+                        .note(cell, &|| line, col + 1)
                         .map_err(|message| SysidError::Parse {
                             file: name.to_string(),
                             line,
@@ -1701,9 +1701,15 @@ pub(crate) struct DecimalMarks {
 }
 
 impl DecimalMarks {
-    /// Notes the mark of `cell`, a number read at `line`, `column` (1-based); what is wrong, in words,
+    /// Notes the mark of `cell`, a number read at the line `line()` gives (asked only when the cell is the
+    /// file's first with its mark: a streamed reader finds it by reading again), `column` (1-based); what is wrong, in words,
     /// once the file has used both marks.
-    pub(crate) fn note(&mut self, cell: &str, line: usize, column: usize) -> Result<(), String> {
+    pub(crate) fn note(
+        &mut self,
+        cell: &str,
+        line: &dyn Fn() -> usize,
+        column: usize,
+    ) -> Result<(), String> {
         let cell = unquote(cell.trim());
         let comma = cell.contains(',');
         if !comma && !cell.contains('.') {
@@ -1730,7 +1736,7 @@ impl DecimalMarks {
             ));
         }
         if mine.is_none() {
-            *mine = Some((line, column, cell.to_string()));
+            *mine = Some((line(), column, cell.to_string()));
         }
         Ok(())
     }
@@ -1738,7 +1744,8 @@ impl DecimalMarks {
 
 /// [`cell_value`] of a reader that sees the file row by row (streamed, line by line), its decimal mark
 /// noted in `marks` when the file may write decimal commas (the in-memory reader checks every cell at
-/// once, in `table_of`). `line`, `column` (1-based) name the cell in the mixed-marks message.
+/// once, in `table_of`). `line()` (asked for the first cell of each mark only) and `column` (1-based)
+/// name the cell in the mixed-marks message.
 #[allow(clippy::too_many_arguments)] // cell_value's five and the cell's place
 pub(crate) fn marked_cell_value(
     cell: Option<&str>,
@@ -1747,7 +1754,7 @@ pub(crate) fn marked_cell_value(
     cname: &str,
     decimal_comma: bool,
     marks: &mut DecimalMarks,
-    line: usize,
+    line: &dyn Fn() -> usize,
     column: usize,
 ) -> Result<f64, String> {
     let v = cell_value(cell, fields, headers, cname, decimal_comma)?;

@@ -171,7 +171,7 @@ impl CsvLines {
             cname,
             self.table.decimal_comma,
             &mut self.marks.borrow_mut(),
-            line_no,
+            &|| line_no,
             col + 1,
         )
         .map_err(at)

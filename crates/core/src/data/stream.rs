@@ -20,6 +20,11 @@
 //!   step as the median step of the first 1 MiB, not of the whole column (audit s27 M-2);
 //! - `--resample` and MATLAB `.mat` files are refused (they need the whole record);
 //! - the input must be a file that can be read again (not standard input or a pipe);
+//! - with `--rows A..B` the pass stops at row B: what follows is not read (a fault there is not seen).
+//!
+//! Rows are located by their byte offset (the `csv` crate's position) as they pass, and a line number is
+//! counted from the bytes only for an error or a note ([`record_place`]); a row that holds a byte that is
+//! not UTF-8 text or a NUL byte is refused whatever columns are read, as in memory (audit s27 L-1, L-2).
 //! - there is no limit on the number of rows or the file size ([`super::MAX_SAMPLES`],
 //!   [`super::MAX_FILE_BYTES`] protect the in-memory reader only).
 
@@ -161,6 +166,86 @@ fn line_at(mut file: &std::fs::File, skip: u64, at: u64) -> std::io::Result<usiz
     }
 }
 
+/// Where the record that the `csv` crate positions at byte `at` of `file` (after its first `skip` bytes,
+/// a byte-order mark) lies: the line it starts on, and its first byte that is not UTF-8 text or is NUL.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+struct RecordPlace {
+    /// The line (1-based) the record starts on.
+    line: usize,
+    /// The line and byte column (1-based, as the in-memory reader's) of the record's first byte that is
+    /// not UTF-8 text, or is NUL (`true`); `None` when none was looked for or found.
+    bad: Option<(usize, usize, bool)>,
+}
+
+/// Bytes of a record looked at for its first byte that is not text (a few of its lines).
+const LOOK_BYTES: u64 = 4 * super::MAX_LINE_BYTES as u64;
+
+/// The [`RecordPlace`] of the record the `csv` crate positions at byte `at` (after the first `skip`
+/// bytes); its first byte that is not text is looked for when `look`.
+///
+/// The crate's position of a record is where the line end before it began (the record before consumed
+/// that line end's first byte), and its line count is the `\n`s before that: one short after a CRLF
+/// line end, and more after blank lines (audit s27 L-1). Here the line ends and blank lines at `at` are
+/// skipped and counted, as the in-memory reader counts lines from byte offsets. Rows are located by that
+/// byte offset while they pass; this re-reads the file up to them, on an error or a note only.
+fn record_place(
+    mut file: &std::fs::File,
+    skip: u64,
+    at: u64,
+    look: bool,
+) -> std::io::Result<RecordPlace> {
+    use std::io::{BufRead, Seek, SeekFrom};
+    file.seek(SeekFrom::Start(skip))?;
+    let mut rest = std::io::BufReader::with_capacity(1 << 16, file);
+    let newlines = |b: &[u8]| b.iter().filter(|&&c| c == b'\n').count();
+    let (mut line, mut pos) = (1usize, 0u64);
+    while pos < at {
+        let chunk = rest.fill_buf()?;
+        if chunk.is_empty() {
+            return Ok(RecordPlace { line, bad: None });
+        }
+        let n = chunk
+            .len()
+            .min(usize::try_from(at - pos).unwrap_or(usize::MAX));
+        line += newlines(&chunk[..n]);
+        rest.consume(n);
+        pos += n as u64;
+    }
+    loop {
+        let chunk = rest.fill_buf()?;
+        let run = chunk
+            .iter()
+            .take_while(|&&c| c == b'\r' || c == b'\n')
+            .count();
+        let whole = run == chunk.len() && run > 0;
+        line += newlines(&chunk[..run]);
+        rest.consume(run);
+        if !whole {
+            break;
+        }
+    }
+    if !look {
+        return Ok(RecordPlace { line, bad: None });
+    }
+    let mut bytes = Vec::new();
+    rest.take(LOOK_BYTES).read_to_end(&mut bytes)?;
+    let valid = match std::str::from_utf8(&bytes) {
+        Ok(_) => bytes.len(),
+        Err(e) => e.valid_up_to(),
+    };
+    let nul = bytes[..valid].iter().position(|&b| b == 0);
+    let (offset, is_nul) = match nul {
+        Some(k) => (k, true),
+        None if valid < bytes.len() => (valid, false),
+        None => return Ok(RecordPlace { line, bad: None }),
+    };
+    let (l, column) = super::line_col(&bytes, offset);
+    Ok(RecordPlace {
+        line,
+        bad: Some((line + l - 1, column, is_nul)),
+    })
+}
+
 /// The place (line, column, field) of byte `at` of `file` after its first `skip` bytes (a byte-order
 /// mark), in CSV text whose cells are separated by `delimiter` (the error of a quoted cell: [`LineBound`]).
 fn place_at(mut file: &std::fs::File, skip: u64, at: u64, delimiter: u8) -> std::io::Result<Place> {
@@ -252,9 +337,6 @@ pub struct CsvStream {
     delimiter: u8,
     has_header: bool,
     bom: bool,
-    /// The file ends its lines with CRLF: the csv crate then counts a record's line one short (the
-    /// in-memory reader counts from byte offsets).
-    crlf: bool,
     decimal_comma: bool,
     headers: Vec<String>,
     ucol: usize,
@@ -469,7 +551,6 @@ impl CsvStream {
             delimiter: sniff_delimiter(text),
             has_header: !opts.no_header,
             bom,
-            crlf: checked.windows(2).any(|w| w == b"\r\n"),
             decimal_comma: table.decimal_comma,
             headers: table.headers,
             ucol,
@@ -551,13 +632,47 @@ impl CsvStream {
         })
     }
 
-    /// The error at line `line`, column `col` (0-based) of the file.
-    fn at(&self, line: usize, col: usize, message: String) -> SysidError {
+    /// The [`RecordPlace`] of the record at byte `at` (its `csv` position), the file opened again.
+    fn place_of(&self, at: u64, look: bool) -> std::io::Result<RecordPlace> {
+        let file = std::fs::File::open(&self.path)?;
+        record_place(&file, 3 * u64::from(self.bom), at, look)
+    }
+
+    /// The line of the record at byte `at` (0 when the file can no longer be read).
+    fn line_of(&self, at: u64) -> usize {
+        self.place_of(at, false).map_or(0, |p| p.line)
+    }
+
+    /// The error at column `col` (0-based) of the record at byte `at` (its `csv` position).
+    fn at(&self, at: u64, col: usize, message: String) -> SysidError {
+        SysidError::Parse {
+            file: self.path.display().to_string(),
+            line: self.line_of(at),
+            column: col + 1,
+            message,
+        }
+    }
+
+    /// The error of the record at byte `at` that holds a byte that is not UTF-8 text, or a NUL byte: the
+    /// in-memory reader's words, at that byte's line and byte column (audit s27 L-2: every byte of the
+    /// record is refused, read or not, as in memory).
+    fn not_text(&self, at: u64) -> SysidError {
+        let place = self.place_of(at, true);
+        let (line, column, nul) = match place {
+            Ok(RecordPlace { bad: Some(b), .. }) => b,
+            Ok(RecordPlace { line, bad: None }) => (line, 1, false),
+            Err(_) => (0, 1, false),
+        };
         SysidError::Parse {
             file: self.path.display().to_string(),
             line,
-            column: col + 1,
-            message,
+            column,
+            message: if nul {
+                "NUL byte: the file is binary, not CSV text"
+            } else {
+                "the file is not UTF-8 text (binary data?); expected CSV"
+            }
+            .into(),
         }
     }
 
@@ -567,7 +682,8 @@ impl CsvStream {
         scan.ts().map_err(|fault| self.time_error(fault, col))
     }
 
-    /// A time fault (whose `k` is a line number, [`TimeSteps::push`]) as the reader's error.
+    /// A time fault (whose `k` is the byte offset of its row's record, [`TimeSteps::push`]) as the reader's
+    /// error, at the row's line.
     fn time_error(&self, fault: TimeFault, col: usize) -> SysidError {
         let mut message = time_fault_message(&fault);
         if matches!(fault, TimeFault::NonUniformMean { .. }) {
@@ -580,7 +696,7 @@ impl CsvStream {
             message.push_str(STREAM_TIME_RULE);
         }
         match fault.sample() {
-            Some(line) => self.at(line, col, message),
+            Some(at) => self.at(at as u64, col, message),
             None => SysidError::File {
                 file: self.name.clone(),
                 message,
@@ -666,16 +782,21 @@ impl RecordSource for CsvStream {
             if rec.iter().all(blank) {
                 continue; // a blank line or a row of bare delimiters
             }
-            let line = rec
-                .position()
-                .map_or(0, |p| p.line() as usize + usize::from(self.crlf));
+            // The row's place: the byte offset of its record, made a line only on an error or a note.
+            let at = rec.position().map_or(0, csv::Position::byte);
             if let Some(extra) = rec.iter().skip(width).position(|f| !blank(f)) {
+                let line = self.line_of(at);
                 let e = ragged_row(&file_name, line, width, extra, self.decimal_comma);
                 return Err(self.or_changed(e, &rdr.get_ref().inner, &file_id));
             }
             let index = row;
             row += 1;
             if index < first {
+                let b = rec.as_slice();
+                if !(b.is_ascii() || std::str::from_utf8(b).is_ok()) || has_nul(b) {
+                    let e = self.not_text(at);
+                    return Err(self.or_changed(e, &rdr.get_ref().inner, &file_id));
+                }
                 continue;
             }
             if end.is_some_and(|b| index >= b) {
@@ -683,41 +804,28 @@ impl RecordSource for CsvStream {
             }
             // The row is checked as UTF-8 once, whole (csv's StringRecord: an ASCII row at the speed of
             // `is_ascii`), rather than cell by cell (session 26: `from_utf8` per cell was 6 % of a
-            // streamed identification); a row that is not UTF-8 is read cell by cell as before, so that
-            // only a cell that is read is refused, at its column.
+            // streamed identification), and for a NUL byte; a row that is not text is refused whatever
+            // columns are read, at its first such byte, as the in-memory reader refuses it (audit s27 L-2).
             let bytes = std::mem::replace(&mut rec, spare);
-            let text = csv::StringRecord::from_byte_record(bytes)
-                .map_err(csv::FromUtf8Error::into_byte_record);
-            let fields = text
-                .as_ref()
-                .map_or_else(csv::ByteRecord::len, csv::StringRecord::len);
+            let text = match csv::StringRecord::from_byte_record(bytes) {
+                Ok(t) if !has_nul(t.as_slice().as_bytes()) => t,
+                _ => {
+                    return Err(self.or_changed(self.not_text(at), &rdr.get_ref().inner, &file_id))
+                }
+            };
+            let fields = text.len();
             let mut value = |col: usize| -> Result<f64, SysidError> {
-                let cell = match &text {
-                    Ok(t) => t.get(col).map(Ok),
-                    Err(b) => b.get(col).map(std::str::from_utf8),
-                };
-                let cell = match cell {
-                    Some(Err(_)) => {
-                        return Err(self.at(
-                            line,
-                            col,
-                            "the file is not UTF-8 text (binary data?); expected CSV".into(),
-                        ))
-                    }
-                    Some(Ok(c)) => Some(trimmed(c)),
-                    None => None,
-                };
                 marked_cell_value(
-                    cell,
+                    text.get(col).map(trimmed),
                     fields,
                     width,
                     &self.headers[col],
                     self.decimal_comma,
                     &mut marks,
-                    line,
+                    &|| self.line_of(at),
                     col + 1,
                 )
-                .map_err(|m| self.at(line, col, m))
+                .map_err(|m| self.at(at, col, m))
             };
             let cells = value(self.ucol).and_then(|uk| Ok((uk, value(self.ycol)?)));
             let (uk, yk) = cells.map_err(|e| self.or_changed(e, &rdr.get_ref().inner, &file_id))?;
@@ -727,19 +835,19 @@ impl RecordSource for CsvStream {
             if let Some(tc) = tcol {
                 value(tc)
                     .and_then(|t| {
-                        scan.push(t * self.time_scale, line)
+                        scan.push(t * self.time_scale, at as usize)
                             .map_err(|f| self.time_error(f, tc))
                     })
                     .map_err(|e| self.or_changed(e, &rdr.get_ref().inner, &file_id))?;
             } else if let Some(tc) = given_col {
                 // Under --ts the column is read for its notes only: a fault ends its scan.
-                let ok = value(tc).is_ok_and(|t| scan.push(t * self.time_scale, line).is_ok());
+                let ok =
+                    value(tc).is_ok_and(|t| scan.push(t * self.time_scale, at as usize).is_ok());
                 if !ok {
                     given_col = None;
                 }
             }
-            let bytes = text.map_or_else(|b| b, csv::StringRecord::into_byte_record);
-            spare = std::mem::replace(&mut rec, bytes);
+            spare = std::mem::replace(&mut rec, text.into_byte_record());
             used += 1;
             if u.len() == CHUNK_ROWS {
                 consume(chunk_start, &u, &y)?;
@@ -813,6 +921,13 @@ impl RecordSource for CsvStream {
         self.shape = Some(shape);
         Ok(shape)
     }
+}
+
+/// True when `bytes` hold a NUL byte: their smallest byte, a loop without an early exit that the
+/// compiler makes a vector minimum (a row of 20–40 bytes: `memchr` per row cost 2.4 % of a streamed
+/// identification's instructions, this about a tenth of it; callgrind, audit s27 L-2).
+fn has_nul(bytes: &[u8]) -> bool {
+    bytes.iter().fold(u8::MAX, |m, &b| m.min(b)) == 0
 }
 
 /// `cell.trim()`, without looking at its characters when it starts and ends with a printable ASCII
@@ -1059,5 +1174,116 @@ mod tests {
         std::fs::write(&path, "t;u;y\n0;0,98;1\n0,01;1,5;2\n0,02;1;3\n").unwrap();
         let mut s = CsvStream::open(&path, &CsvOptions::default()).unwrap();
         pass(&mut s).unwrap();
+    }
+
+    /// The line (1-based) of the first line of `text` that holds `marker`, counted here by splitting
+    /// the text at its `\n`s (independent of both readers).
+    fn line_holding(text: &[u8], marker: &[u8]) -> usize {
+        text.split(|&b| b == b'\n')
+            .position(|l| l.windows(marker.len()).any(|w| w == marker))
+            .unwrap()
+            + 1
+    }
+
+    /// The streamed reader's error on `text`, and the in-memory reader's.
+    fn both_errors(dir: &Path, text: &[u8], opts: &CsvOptions) -> (String, String) {
+        let path = dir.join("r.csv");
+        std::fs::write(&path, text).unwrap();
+        let streamed = CsvStream::open(&path, opts)
+            .and_then(|mut s| pass(&mut s))
+            .unwrap_err()
+            .to_string();
+        let mem = super::super::read_csv(&path, opts).unwrap_err().to_string();
+        (streamed, mem)
+    }
+
+    #[test]
+    fn lines_are_counted_across_crlf_lf_switches_and_blank_lines() {
+        // Audit s27 L-1: the line ends change after the first MiB (CRLF, then LF, then blank lines and
+        // CRLF again): the csv crate's own line count is one short after each CRLF and blank line.
+        let dir = tempfile::tempdir().unwrap();
+        let mut pieces: Vec<Vec<u8>> = Vec::new();
+        let (mut k, mut bytes) = (0, 0);
+        let mut row = |end: &str| {
+            k += 1;
+            format!("{},{},{}{end}", k as f64 * 0.01, k % 7, k % 5).into_bytes()
+        };
+        while bytes < (1 << 20) + 1000 {
+            pieces.push(row("\r\n"));
+            bytes += pieces.last().unwrap().len();
+        }
+        let crlf_end = pieces.len();
+        pieces.extend((0..100).map(|_| row("\n")));
+        let lf_end = pieces.len();
+        pieces.push(b"\r\n\n \r\n".to_vec());
+        pieces.extend((0..20).map(|_| row("\r\n")));
+        // A cell that is not a number, a ragged row, a time that goes back: each in the LF stretch, just
+        // after the blank lines, and near the end; each at its line in both readers.
+        for at in [crlf_end + 50, lf_end + 1, pieces.len() - 3] {
+            for (bad, marker) in [
+                (&b"9e9,oops,1\r\n"[..], &b"oops"[..]),
+                (&b"9e9,1,2,extra\n"[..], &b"extra"[..]),
+                (&b"0.005,1,2\n"[..], &b"0.005,1,2"[..]),
+            ] {
+                let mut text = b"t,u,y\r\n".to_vec();
+                for (i, p) in pieces.iter().enumerate() {
+                    if i == at {
+                        text.extend_from_slice(bad);
+                    }
+                    text.extend_from_slice(p);
+                }
+                let line = line_holding(&text, marker);
+                let (streamed, mem) = both_errors(dir.path(), &text, &CsvOptions::default());
+                assert!(
+                    streamed.contains(&format!("r.csv:{line}:")),
+                    "{streamed} (line {line})"
+                );
+                assert!(
+                    mem.contains(&format!("r.csv:{line}:")),
+                    "{mem} (line {line})"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn a_row_that_is_not_text_is_refused_in_a_column_that_is_not_read() {
+        // Audit s27 L-2: a byte that is not UTF-8, or a NUL, in a column neither u nor y nor t is refused
+        // as the in-memory reader refuses it, at the same line and byte column.
+        let dir = tempfile::tempdir().unwrap();
+        for (bad, nul) in [(&b"ab\xffc"[..], false), (&b"ab\x00c"[..], true)] {
+            for skipped in [false, true] {
+                let mut text = b"t,u,y,note\r\n".to_vec();
+                // Past the first MiB, which `open` checks with the in-memory reader's own rules.
+                for k in 0..100_000 {
+                    text.extend_from_slice(
+                        format!("{},{},{},ok\r\n", k as f64 * 0.01, k % 3, k).as_bytes(),
+                    );
+                }
+                text.extend_from_slice(b"9e3,1,2,");
+                text.extend_from_slice(bad);
+                text.extend_from_slice(b"\n9e4,1,2,ok\n");
+                let line = line_holding(&text, b"9e3,");
+                // The bad byte is the 11th of its line ("9e3,1,2,ab" before it).
+                let opts = CsvOptions {
+                    // The row read, or skipped by --rows (the in-memory reader refuses the file whole).
+                    rows: skipped.then_some(super::super::RowRange {
+                        start: Some(100_001),
+                        end: None,
+                    }),
+                    ..CsvOptions::default()
+                };
+                let (streamed, mem) = both_errors(dir.path(), &text, &opts);
+                let words = if nul { "NUL byte" } else { "not UTF-8 text" };
+                assert!(
+                    streamed.contains(&format!("r.csv:{line}:11:")) && streamed.contains(words),
+                    "{streamed} (line {line})"
+                );
+                assert!(
+                    mem.contains(&format!("r.csv:{line}:11:")) && mem.contains(words),
+                    "{mem}"
+                );
+            }
+        }
     }
 }

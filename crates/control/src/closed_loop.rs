@@ -45,6 +45,16 @@ impl Controller for PiController {
 /// samples needed over 5 GB and aborted on a failed allocation under a 6 GB limit; audit s13 M8).
 pub const MAX_SAMPLES: usize = 10_000_000;
 
+/// The number of samples of a run of `duration_s` (s) at `ts` (s): k = 0, 1, … while k·Ts ≤ duration (a
+/// duration within 1e-9 of a whole number of periods counts that period); `None` when the run would take
+/// [`MAX_SAMPLES`] steps or more, or the quotient is not a number. The one rule of [`run`] and of a
+/// profile's own length ([`crate::profile::Profile::natural_duration_checked`]).
+pub fn run_samples(duration_s: f64, ts: f64) -> Option<usize> {
+    let steps = (duration_s / ts + 1e-9).floor();
+    // NaN fails the first comparison.
+    (steps >= 0.0 && steps < MAX_SAMPLES as f64).then(|| steps as usize + 1)
+}
+
 /// A recorded closed-loop run: one entry per sample k.
 #[derive(Debug, Clone, Default, PartialEq, Serialize)]
 pub struct Trace {
@@ -154,15 +164,13 @@ pub fn run_with(
         ));
     }
     profile.validate()?;
-    let steps = (duration_s / ts + 1e-9).floor();
-    if steps >= MAX_SAMPLES as f64 {
-        return Err(ControlError::setting(
+    let n = run_samples(duration_s, ts).ok_or_else(|| {
+        ControlError::setting(
             ControlSetting::Duration,
             duration_s,
             &format!("at most {} samples of Ts = {ts} s", MAX_SAMPLES),
-        ));
-    }
-    let n = steps as usize + 1;
+        )
+    })?;
 
     plant.reset(y0_mm);
     controller.reset();
@@ -207,6 +215,21 @@ mod tests {
     use super::*;
     use crate::{IntegralForm, PiSettings};
     use sysid_core::{Model, ModelPlant};
+
+    #[test]
+    fn a_run_has_one_sample_per_period_up_to_the_bound() {
+        // Samples at t = 0, Ts, …, ⌊d/Ts⌋·Ts: by hand.
+        assert_eq!(run_samples(1.0, 0.01), Some(101));
+        assert_eq!(run_samples(0.0, 0.01), Some(1));
+        assert_eq!(run_samples(0.035, 0.01), Some(4));
+        // 0.3 / 0.1 is 2.9999999999999996 in f64: within 1e-9 of 3 periods, which count.
+        assert_eq!(run_samples(0.3, 0.1), Some(4));
+        // 1e7 steps is the bound: 99999.99 s at 0.01 s has 9999999 steps and 1e7 samples; 1e5 s has not.
+        assert_eq!(run_samples(99_999.99, 0.01), Some(MAX_SAMPLES));
+        assert_eq!(run_samples(100_000.0, 0.01), None);
+        assert_eq!(run_samples(f64::INFINITY, 0.01), None);
+        assert_eq!(run_samples(f64::NAN, 0.01), None);
+    }
 
     fn paper_plant() -> ModelPlant {
         ModelPlant::new(Model::paper(), "paper").unwrap()

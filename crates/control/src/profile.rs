@@ -279,10 +279,7 @@ impl Profile {
             return Ok(None);
         };
         let max = crate::closed_loop::MAX_SAMPLES;
-        // `d / ts` is finite or +inf for d > 0 and ts > 0; NaN (never made by a parsed profile)
-        // fails the comparison and is refused too.
-        let steps = d / ts;
-        if steps < max as f64 {
+        if crate::closed_loop::run_samples(d, ts).is_some() {
             return Ok(Some(d));
         }
         let limit = format!(

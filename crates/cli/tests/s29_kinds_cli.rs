@@ -102,3 +102,32 @@ fn every_reader_names_a_file_of_another_kind() {
         .unwrap();
     assert!(o.status.success(), "{}", stderr(&o));
 }
+
+#[test]
+fn track_names_a_file_of_another_kind_on_standard_input_and_keeps_a_record_whole() {
+    // The reader's own first bytes are looked at (session 30): standard input is sniffed too, and a
+    // record read that way loses none of its bytes to the look.
+    use std::io::Write;
+    let dir = tempfile::tempdir().unwrap();
+    let (data, model, _) = files(dir.path());
+    let feed = |bytes: Vec<u8>| {
+        let mut child = bin()
+            .args(["track", "--data", "-"])
+            .stdin(std::process::Stdio::piped())
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        child.stdin.take().unwrap().write_all(&bytes).unwrap();
+        child.wait_with_output().unwrap()
+    };
+    let o = feed(std::fs::read(&model).unwrap());
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(e.contains("<stdin>:1:1: this is not a data file"), "{e}");
+    // The record: as many samples from standard input as from the file (400 rows).
+    let o = feed(std::fs::read(&data).unwrap());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(e.contains("400 samples"), "{e}");
+}

@@ -196,19 +196,29 @@ const MAX_IDLE_S: f64 = 365.0 * 86_400.0;
 /// How often a followed file or serial port is polled when no data has come.
 const POLL: Duration = Duration::from_millis(20);
 
-/// Refuses a file whose first bytes say it is not a record (a model file, a plant configuration, a
-/// Parquet file…), in the words of every other reader (audit s27 L-4: `track --data m.json` said "no
-/// column named 'u' … the header has: {"). A file that does not exist yet (`--follow` waits for it)
-/// or cannot be read is left to the reader's own error.
+/// Refuses a followed file whose first bytes say it is not a record (a model file, a plant
+/// configuration, a Parquet file…), in the words of every other reader (audit s27 L-4: `track --data
+/// m.json` said "no column named 'u' … the header has: {"). A file that does not exist yet (`--follow`
+/// waits for it) or cannot be read is left to the reader's own error; a device or FIFO is not read
+/// ahead here (its bytes would be lost to the tracker).
 fn check_kind(path: &std::path::Path) -> anyhow::Result<()> {
     use std::io::Read;
     let mut prefix = Vec::with_capacity(4096);
     if let Ok(f) = std::fs::File::open(path) {
-        // A device or FIFO is not read ahead here (its bytes would be lost to the tracker).
         if f.metadata().is_ok_and(|m| m.is_file()) && f.take(4096).read_to_end(&mut prefix).is_ok()
         {
             sysid::data::check_record_kind(&prefix, &path.display().to_string(), "a data file")?;
         }
+    }
+    Ok(())
+}
+
+/// [`check_kind`] on the reader's own first bytes (`--data FILE` or `-`): they are looked at in its
+/// buffer and left there, so a file is opened once and standard input or a FIFO loses nothing. A read
+/// that fails is left to the reader's own error.
+fn peek_kind(reader: &mut dyn std::io::BufRead, name: &str) -> anyhow::Result<()> {
+    if let Ok(prefix) = reader.fill_buf() {
+        sysid::data::check_record_kind(prefix, name, "a data file")?;
     }
     Ok(())
 }
@@ -229,12 +239,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let idle = args.idle()?;
     let mut inputs = Vec::new();
     let mut restarts = None;
-    let (reader, name): (Box<dyn std::io::BufRead>, String) = if let Some(p) = &args.data {
+    let (mut reader, name): (Box<dyn std::io::BufRead>, String) = if let Some(p) = &args.data {
         if p.as_os_str() == "-" {
             (Box::new(std::io::stdin().lock()), "<stdin>".into())
         } else {
             inputs.push(p.as_path());
-            check_kind(p)?;
             let f = std::fs::File::open(p).with_context(|| p.display().to_string())?;
             (
                 Box::new(BufReader::with_capacity(1 << 16, f)),
@@ -274,6 +283,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // (audit s16 L12).
     if args.follow.is_some() || args.serial.is_some() {
         sysid_io::accept_stop();
+    }
+    if args.data.is_some() {
+        // After the output checks: standard input may wait for its first line here.
+        peek_kind(&mut reader, &name)?;
     }
     let options = StreamOptions {
         name,

@@ -75,6 +75,12 @@
 #define IPA_ALARM 2
 
 /**
+ * `ipa_hrls_deadzone`: the estimate was written but is no valve deadzone (not finite, b_l > 0 or
+ * b_r < 0, or a slope m_l, m_r ≤ 0: too few or too poorly exciting samples so far); not an error.
+ */
+#define IPA_NOT_PHYSICAL 3
+
+/**
  * An upper bound, valid on every target, of [`ipa_cusum_state_size`] in bytes.
  */
 #define IPA_CUSUM_STATE_BYTES 80
@@ -427,7 +433,8 @@ int32_t ipa_hrls_update(void *mem,
 
 /**
  * Writes the fitted deadzone (b_r = θ̂₂/θ̂₁, b_l = θ̂₄/θ̂₃, m_r = θ̂₁, m_l = θ̂₃; a non-finite ratio gives
- * 0) to `*out`. Returns [`IPA_OK`] or a negative code.
+ * 0) to `*out`. Returns [`IPA_OK`], [`IPA_NOT_PHYSICAL`] when the estimate written is no valve deadzone
+ * (not finite, b_l > 0, b_r < 0 or a slope ≤ 0: do not compensate with it yet), or a negative code.
  *
  * # Safety
  * As [`ipa_hrls_update`]; `out` null or writable.

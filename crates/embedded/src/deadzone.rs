@@ -33,6 +33,22 @@ pub struct Deadzone<F: Float> {
 }
 
 impl<F: Float> Deadzone<F> {
+    /// True when this is a valve deadzone (paper eq. 1): every parameter finite, the breakpoints on
+    /// either side of zero (b_l ≤ 0 ≤ b_r, counts) and both slopes positive (m_l, m_r > 0). An estimate
+    /// from too few or too poorly exciting samples may be none (audit s28 L-8): it is then no model of
+    /// the valve, and [`Compensator::new`] refuses it.
+    pub fn is_physical(&self) -> bool {
+        let finite = self.b_l.is_finite()
+            && self.b_r.is_finite()
+            && self.m_l.is_finite()
+            && self.m_r.is_finite();
+        finite
+            && self.b_l <= F::ZERO
+            && self.b_r >= F::ZERO
+            && self.m_l > F::ZERO
+            && self.m_r > F::ZERO
+    }
+
     /// x = f(u) (paper eq. 1); the sloped branches include their breakpoints.
     #[inline]
     pub fn apply(&self, u: F) -> F {
@@ -120,10 +136,7 @@ impl<F: Float> Compensator<F> {
         threshold: F,
         u_max: F,
     ) -> Result<Self, Error> {
-        let d = deadzone;
-        let finite =
-            d.b_l.is_finite() && d.b_r.is_finite() && d.m_l.is_finite() && d.m_r.is_finite();
-        if !finite || d.b_l > F::ZERO || d.b_r < F::ZERO || !(d.m_l > F::ZERO && d.m_r > F::ZERO) {
+        if !deadzone.is_physical() {
             return Err(Error::Setting);
         }
         if !(threshold.is_finite() && threshold >= F::ZERO && u_max.is_finite() && u_max > F::ZERO)
@@ -176,6 +189,39 @@ mod tests {
             b_r: 30.0,
             m_l: 2.0,
             m_r: 1.0,
+        }
+    }
+
+    #[test]
+    fn a_valve_deadzone_is_told_from_an_estimate_that_is_none() {
+        assert!(dz().is_physical());
+        // Zero-width deadzone (b_l = b_r = 0) is still a valve's.
+        assert!(Deadzone {
+            b_l: 0.0,
+            b_r: 0.0,
+            ..dz()
+        }
+        .is_physical());
+        for d in [
+            Deadzone { b_l: 5.0, ..dz() },  // left breakpoint right of zero
+            Deadzone { b_r: -1.0, ..dz() }, // right breakpoint left of zero
+            Deadzone { m_l: 0.0, ..dz() },  // an unexcited branch (slope 0)
+            Deadzone { m_r: -0.5, ..dz() }, // a negative slope
+            Deadzone {
+                b_r: f64::NAN,
+                ..dz()
+            }, // not finite
+            Deadzone {
+                m_l: f64::INFINITY,
+                ..dz()
+            },
+        ] {
+            assert!(!d.is_physical(), "{d:?}");
+            assert_eq!(
+                Compensator::new(d, SlopeMode::Shift, 0.0, 255.0).err(),
+                Some(Error::Setting),
+                "{d:?}"
+            );
         }
     }
 

@@ -8,7 +8,8 @@
 //! [`ipa_hrls_state_size`] bytes (≤ [`IPA_HRLS_STATE_BYTES`] on every target), aligned to
 //! [`ipa_hrls_state_align`] (8: `double` alignment).
 //!
-//! Return codes: [`IPA_OK`] (0), [`IPA_PENDING`] (1: sample buffered, no estimate update yet), a
+//! Return codes: [`IPA_OK`] (0), [`IPA_PENDING`] (1: sample buffered, no estimate update yet),
+//! [`IPA_ALARM`] (2: a change), [`IPA_NOT_PHYSICAL`] (3: a deadzone estimate that is no valve's yet), a
 //! non-negative count for the getters, or a negative [`crate::Error`] code: [`IPA_ERR_SETTING`] … .
 //! No function panics or aborts; every pointer is checked for null and alignment, the storage length
 //! against the state size, and a marker word against uninitialised storage.
@@ -56,6 +57,9 @@ pub const IPA_OK: i32 = 0;
 pub const IPA_PENDING: i32 = 1;
 /// `ipa_cusum_update`: the detector's statistic is above its threshold (a change).
 pub const IPA_ALARM: i32 = 2;
+/// `ipa_hrls_deadzone`: the estimate was written but is no valve deadzone (not finite, b_l > 0 or
+/// b_r < 0, or a slope m_l, m_r ≤ 0: too few or too poorly exciting samples so far); not an error.
+pub const IPA_NOT_PHYSICAL: i32 = 3;
 /// An upper bound, valid on every target, of [`ipa_cusum_state_size`] in bytes.
 pub const IPA_CUSUM_STATE_BYTES: usize = 80;
 /// A setting is out of range (ρ ∉ (0, 1], P(0) ≤ 0, NaN breakpoint, bad gain, ...).
@@ -449,7 +453,8 @@ pub unsafe extern "C" fn ipa_hrls_update(mem: *mut c_void, u: f64, y: f64, eps: 
 }
 
 /// Writes the fitted deadzone (b_r = θ̂₂/θ̂₁, b_l = θ̂₄/θ̂₃, m_r = θ̂₁, m_l = θ̂₃; a non-finite ratio gives
-/// 0) to `*out`. Returns [`IPA_OK`] or a negative code.
+/// 0) to `*out`. Returns [`IPA_OK`], [`IPA_NOT_PHYSICAL`] when the estimate written is no valve deadzone
+/// (not finite, b_l > 0, b_r < 0 or a slope ≤ 0: do not compensate with it yet), or a negative code.
 ///
 /// # Safety
 /// As [`ipa_hrls_update`]; `out` null or writable.
@@ -473,7 +478,11 @@ pub unsafe extern "C" fn ipa_hrls_deadzone(mem: *const c_void, out: *mut IpaDead
             m_r: d.m_r,
         })
     };
-    IPA_OK
+    if d.is_physical() {
+        IPA_OK
+    } else {
+        IPA_NOT_PHYSICAL
+    }
 }
 
 /// Which coefficient vector a getter copies.
@@ -965,6 +974,86 @@ mod tests {
             assert_eq!(ipa_hrls_restart_covariance(p), IPA_ERR_NOT_INITIALISED);
         }
         assert!(ipa_cusum_state_size() <= IPA_CUSUM_STATE_BYTES);
+    }
+
+    // Audit s28 L-8: a deadzone estimate that is no valve's is written but flagged IPA_NOT_PHYSICAL.
+    // Plant: x = f(u) with b_l = −40, b_r = 50, m_l = 0.8, m_r = 1.2 counts → mm/s scale, then
+    // y(k) = 1.2 y(k−1) − 0.35 y(k−2) + x(k−1) (na = 2, nb = 1, nk = 1: b₀ = 1, as the estimator's).
+    #[test]
+    fn a_deadzone_estimate_that_is_no_valves_is_flagged() {
+        let truth = Deadzone {
+            b_l: -40.0,
+            b_r: 50.0,
+            m_l: 0.8,
+            m_r: 1.2,
+        };
+        // A command that switches every 7 samples among levels on both sides (a fixed LCG, no crate).
+        let mut seed = 12345u64;
+        let mut level = 0.0;
+        let command = |k: usize, only_right: bool, seed: &mut u64, level: &mut f64| {
+            if k % 7 == 0 {
+                *seed = seed
+                    .wrapping_mul(6364136223846793005)
+                    .wrapping_add(1442695040888963407);
+                let r = (*seed >> 11) as f64 / (1u64 << 53) as f64; // [0, 1)
+                *level = if only_right {
+                    255.0 * r
+                } else {
+                    510.0 * r - 255.0
+                };
+            }
+            *level
+        };
+        let run = |samples: usize, only_right: bool, seed: &mut u64, level: &mut f64| {
+            let mut mem = [0u64; IPA_HRLS_STATE_BYTES / 8];
+            let p = mem.as_mut_ptr() as *mut c_void;
+            let (mut y1, mut y2, mut x1) = (0.0, 0.0, 0.0);
+            let mut out = IpaDeadzone {
+                b_l: f64::NAN,
+                b_r: f64::NAN,
+                m_l: f64::NAN,
+                m_r: f64::NAN,
+            };
+            unsafe {
+                let init = ipa_hrls_init(
+                    p,
+                    IPA_HRLS_STATE_BYTES,
+                    2,
+                    1,
+                    1,
+                    1.0,
+                    1e6,
+                    -1.0,
+                    1.0,
+                    255.0,
+                    0.0,
+                    IPA_FORM_STANDARD,
+                );
+                assert_eq!(init, IPA_OK);
+                for k in 0..samples {
+                    let u = command(k, only_right, seed, level);
+                    let y = 1.2 * y1 - 0.35 * y2 + x1;
+                    let rc = ipa_hrls_update(p, u, y, core::ptr::null_mut());
+                    assert!(rc >= 0, "update {k}: {rc}");
+                    (y2, y1, x1) = (y1, y, truth.apply(u));
+                }
+                let rc = ipa_hrls_deadzone(p, &mut out);
+                (rc, out)
+            }
+        };
+        // Both valves exercised for 3000 samples: the estimate is the valve's (signs and slopes).
+        let (rc, d) = run(3000, false, &mut seed, &mut level);
+        assert_eq!(rc, IPA_OK, "{d:?}");
+        assert!(
+            d.b_l <= 0.0 && d.b_r >= 0.0 && d.m_l > 0.0 && d.m_r > 0.0,
+            "{d:?}"
+        );
+        // Only the right valve ever opened: the left branch's parameters never move from θ̂(0) = 0,
+        // so m_l = 0 exactly: written, and flagged.
+        let (rc, d) = run(3000, true, &mut seed, &mut level);
+        assert_eq!(rc, IPA_NOT_PHYSICAL, "{d:?}");
+        assert_eq!(d.m_l, 0.0, "{d:?}");
+        assert!(d.m_r > 0.0, "the estimate is written: {d:?}");
     }
 
     // The storage is checked: null, too short, misaligned, uninitialised; a failed init marks it so.

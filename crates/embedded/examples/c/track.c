@@ -132,9 +132,15 @@ int main(int argc, char **argv) {
     IpaDeadzone dz;
     double a[IPA_MAX_NA], b[IPA_MAX_NB];
     int got_a = ipa_hrls_a(state, a, IPA_MAX_NA), got_b = ipa_hrls_b(state, b, IPA_MAX_NB);
-    if (ipa_hrls_deadzone(state, &dz) != IPA_OK || got_a < 0 || got_b < 0) {
+    int dz_rc = ipa_hrls_deadzone(state, &dz);
+    if (dz_rc < 0 || got_a < 0 || got_b < 0) {
         fprintf(stderr, "reading the model failed\n");
         return 1;
+    }
+    if (dz_rc == IPA_NOT_PHYSICAL) {
+        /* Written, but no valve deadzone yet (b_l > 0, b_r < 0 or a slope <= 0): not for compensation. */
+        fprintf(stderr, "warning: the deadzone estimate is no valve deadzone (b_l > 0, b_r < 0 or a slope <= 0); "
+                        "do not compensate with it: more exciting samples are needed\n");
     }
     printf("{\"b_l\":");
     print_number(dz.b_l);

@@ -2673,6 +2673,7 @@ fn control_loop<'py>(
             data_u_range: limits.data_u_range,
             data_y_range: limits.data_y_range,
             duration_setting: Some("duration="),
+            start_setting: Some("y0="),
             units: ::control::Units::of(limits.model_units()),
         },
     ));

@@ -474,3 +474,91 @@ fn control_refuses_nonsense_starts_and_speaks_a_model_plants_units() {
     let text = String::from_utf8_lossy(&o.stdout).into_owned() + &stderr(&o);
     assert!(text.contains("|u| <= 1e-300 counts"), "{text}");
 }
+
+/// Audit s27 L-6: a model plant identified on a record whose y stayed in about [85, 115] and run from the
+/// default y0 = 0 says that the start is outside its data, naming --y0; started inside, it does not.
+#[test]
+fn a_model_plant_started_outside_its_data_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // y(k) = 0.9 y(k−1) + 10 + 0.01 u(k−1) from y = 100, u a staircase of ±120 (no noise).
+    let (mut y, mut u) = (vec![100.0f64], vec![0.0f64]);
+    for k in 1..2000 {
+        y.push(0.9 * y[k - 1] + 10.0 + 0.01 * u[k - 1]);
+        u.push(if (k / 50) % 3 == 0 {
+            120.0
+        } else if (k / 50) % 3 == 1 {
+            -120.0
+        } else {
+            40.0
+        });
+    }
+    let (lo, hi) = y
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), &v| {
+            (l.min(v), h.max(v))
+        });
+    assert!(lo > 80.0 && hi < 120.0, "{lo} {hi}");
+    let data = common::write_tuy(d, "r.csv", 0.01, &u, &y);
+    let model = d.join("m.json");
+    let fit = Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
+        .args([
+            "identify",
+            "--data",
+            data.to_str().unwrap(),
+            "--structure",
+            "arx",
+        ])
+        .args([
+            "--method",
+            "ls",
+            "--offset",
+            "--save-model",
+            model.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert!(fit.status.success(), "{}", stderr(&fit));
+    let plant = format!("model:{}", model.display());
+    let run = |y0: &str| {
+        let json = d.join(format!("c{y0}.json"));
+        let o = ipa_sysid(&[
+            "--plant",
+            &plant,
+            "--setpoint",
+            "100",
+            "--duration",
+            "3",
+            "--y0",
+            y0,
+            "--json",
+            json.to_str().unwrap(),
+        ]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let v: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+        let words: Vec<String> = v["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|w| w.as_str().unwrap().to_string())
+            .collect();
+        (
+            String::from_utf8_lossy(&o.stdout).into_owned() + &stderr(&o),
+            words,
+        )
+    };
+    let (text, json) = run("0");
+    let said = "the run starts at y0 = 0 (y's units), outside the plant model's estimation data";
+    assert!(text.contains(said), "{text}");
+    assert!(
+        json.iter().any(|w| w.contains(said) && w.contains("--y0")),
+        "{json:?}"
+    );
+    let (text, json) = run("100");
+    assert!(!text.contains("the run starts at"), "{text}");
+    assert!(
+        !json.iter().any(|w| w.contains("the run starts at")),
+        "{json:?}"
+    );
+}

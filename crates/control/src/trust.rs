@@ -128,6 +128,9 @@ pub struct LoopFacts {
     /// the warnings then say how to run longer; `None` for a run of fixed length (`reproduce`'s tests),
     /// which says nothing the user cannot do.
     pub duration_setting: Option<&'static str>,
+    /// How the caller sets the start y0 (`--y0`, `y0=`): named when a model plant's run starts outside
+    /// its estimation data (audit s27 L-6); `None`: not named.
+    pub start_setting: Option<&'static str>,
 }
 
 /// A warning when the `what` of a loop on a model plant ("commands", "set-points"), whose [min, max]
@@ -218,6 +221,22 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
             sysid_core::DataRange::extremes(&trace.r),
             range,
         ));
+        // The start, by the same rule (audit s27 L-6: a model plant started at y0 = 0, far below a
+        // record that never went there, and nothing said so).
+        if let Some(&y0) = trace.y.first() {
+            if sysid_core::DataRange::excursion_of((y0, y0), range).is_some() {
+                let (lo, hi) = range;
+                let how = facts
+                    .start_setting
+                    .map_or(String::new(), |s| format!(" (start inside them: {s})"));
+                w.push(format!(
+                    "the run starts at y0 = {} {y_unit}, outside the plant model's estimation data, which \
+                     had y in [{lo}, {hi}]: until the loop brings y there, the response is the equations' \
+                     guess, not the plant's{how}",
+                    sysid_core::format::Shortest(y0)
+                ));
+            }
+        }
     }
     if let Some(range) = facts.data_u_range {
         w.extend(extrapolation_warning(
@@ -605,6 +624,35 @@ mod tests {
         assert!(!w.iter().any(|w| w.contains("the commands span")), "{w:?}");
     }
 
+    // A model estimated on y in [80, 120]: a start at 0 is 80 below it, beyond a tenth of its span (4),
+    // warned with the setting to move it; a start at 78 (2 below) is not.
+    #[test]
+    fn a_start_outside_a_model_plants_data_is_warned() {
+        let facts = LoopFacts {
+            u_max: 255.0,
+            data_y_range: Some((80.0, 120.0)),
+            start_setting: Some("--y0"),
+            units: Units::MODEL,
+            ..LoopFacts::default()
+        };
+        let run = |y0: f64| {
+            let mut y = vec![100.0; 101];
+            y[0] = y0;
+            let tr = trace(y, vec![0.0; 101], 100.0);
+            let steps = metrics_for_steps(&tr).unwrap();
+            loop_warnings(&tr, &steps, &facts)
+        };
+        let w = run(0.0);
+        assert!(
+            w.iter()
+                .any(|w| w.contains("the run starts at y0 = 0 (y's units)")
+                    && w.contains("y in [80, 120]")
+                    && w.contains("--y0")),
+            "{w:?}"
+        );
+        assert!(!run(78.0).iter().any(|w| w.contains("the run starts")));
+    }
+
     // 1000 of 1001 samples at −255: 99.9 % saturated; r = 300 mm beyond a 200 mm stroke.
     #[test]
     fn saturation_and_an_unreachable_set_point_are_warned() {
@@ -626,6 +674,7 @@ mod tests {
                 data_u_range: None,
                 data_y_range: None,
                 duration_setting: Some("--duration"),
+                start_setting: Some("--y0"),
                 units: Units::IPA,
             },
         );

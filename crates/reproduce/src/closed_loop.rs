@@ -182,6 +182,7 @@ pub(crate) fn run_warnings(
         data_u_range: limits.data_u_range,
         data_y_range: limits.data_y_range,
         duration_setting: None,
+        start_setting: None,
         // A model plant's own units (its estimation record's), the IPA's otherwise: as `control` says.
         units: control::Units::of(limits.model_units()),
     };

@@ -333,6 +333,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             data_u_range: limits.data_u_range,
             data_y_range: limits.data_y_range,
             duration_setting: Some("--duration"),
+            start_setting: Some("--y0"),
             units: Units::of(limits.model_units()),
         },
     ));

@@ -572,7 +572,7 @@ fn calibrate_reads_records_like_every_command() {
         .find("warning: --ts 0.02 s contradicts the time column t")
         .expect(&err);
     let start = err
-        .find("calibrating 12 parameters on est.csv (300 samples, Ts = 0.02 s): up to 1 iterations")
+        .find("calibrating 12 parameters on est.csv (300 samples, Ts = 0.02 s): up to 9 Levenberg-Marquardt")
         .expect(&err);
     assert!(contradiction < start, "{err}");
 
@@ -811,4 +811,90 @@ fn calibrate_refuses_a_users_file_before_the_search_and_says_wrote_only_after_wr
         "{out}"
     );
     assert!(p.join("twin.toml").exists());
+}
+
+// Audit s28 L-5: a record whose positions are in metres (the physics plant's own record divided by
+// 1000 here) is said to be perhaps in metres; the same record in mm is not. The banner's bound on the
+// iterations is the one the report counts against: M = 2 per search, four plans of at most
+// ⌈M/2⌉ + M, M, 2⌈M/2⌉ + M and ⌈M/2⌉ + 2M iterations: 4 + 10 = 14 in all.
+#[test]
+fn a_record_in_metres_is_questioned_and_the_iterations_are_counted_one_way() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path();
+    let o = run(
+        p,
+        &[
+            "simulate",
+            "--input",
+            "calibration",
+            "--samples",
+            "1500",
+            "--seed",
+            "3",
+            "--out",
+            "mm.csv",
+        ],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(p.join("mm.csv")).unwrap();
+    let mut lines = text.lines();
+    let header = lines.next().unwrap();
+    let yi = header.split(',').position(|c| c == "y").unwrap();
+    let mut metres = format!("{header}\n");
+    for line in lines {
+        let cells: Vec<String> = line
+            .split(',')
+            .enumerate()
+            .map(|(i, c)| {
+                if i == yi {
+                    format!("{}", c.parse::<f64>().unwrap() / 1000.0)
+                } else {
+                    c.to_string()
+                }
+            })
+            .collect();
+        metres.push_str(&cells.join(","));
+        metres.push('\n');
+    }
+    std::fs::write(p.join("m.csv"), metres).unwrap();
+    let calibrate = |data: &str| {
+        let o = run(
+            p,
+            &[
+                "calibrate",
+                "--data",
+                data,
+                "--max-iterations",
+                "2",
+                "--no-baseline",
+                "--out",
+                "twin.toml",
+                "--json",
+                "twin.json",
+            ],
+        );
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        assert!(o.status.success(), "{err}");
+        let doc: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(p.join("twin.json")).unwrap()).unwrap();
+        (String::from_utf8_lossy(&o.stdout).into_owned() + &err, doc)
+    };
+    let (err, doc) = calibrate("m.csv");
+    assert!(
+        err.contains("up to 14 Levenberg-Marquardt iterations in all"),
+        "{err}"
+    );
+    let iterations = doc["iterations"].as_u64().unwrap();
+    assert!(iterations <= 14, "{iterations}");
+    let hinted = |doc: &serde_json::Value| {
+        doc["warnings"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|w| w.as_str().unwrap().contains("is y in metres?"))
+    };
+    assert!(hinted(&doc), "{}", doc["warnings"]);
+    assert!(err.contains("is y in metres?"), "{err}");
+    let (err, doc) = calibrate("mm.csv");
+    assert!(!hinted(&doc) && !err.contains("metres"), "{err}");
 }

@@ -61,7 +61,8 @@ pub struct Args {
     /// Nominal length of a shooting segment in s (0: one free run over the record).
     #[arg(long, default_value_t = 0.5, value_name = "SECONDS")]
     pub segment: f64,
-    /// Largest number of Levenberg-Marquardt iterations.
+    /// Largest number of Levenberg-Marquardt iterations of one search; a calibration runs up to four
+    /// plans of searches, 4*ceil(M/2) + 5*M iterations in all (280 at the default 40).
     #[arg(long, default_value_t = 40)]
     pub max_iterations: usize,
     /// Do not identify the Hammerstein models for comparison.
@@ -128,13 +129,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         eprintln!("warning: {n}");
     }
     eprintln!(
-        "calibrating {} parameters on {} ({} samples, Ts = {} s{}): up to {} iterations, each simulating \
-         the record a few times",
+        "calibrating {} parameters on {} ({} samples, Ts = {} s{}): up to {} Levenberg-Marquardt \
+         iterations in all (--max-iterations {} per search, up to four plans of searches), each \
+         simulating the record a few times",
         calibration.free.len(),
         data.display(),
         est.u.len(),
         sysid_core::format::Shortest(est.ts),
-        if val.is_some() { ", and a validation record" } else { "" },
+        if val.is_some() {
+            ", and a validation record"
+        } else {
+            ""
+        },
+        ipa::calibrate::most_iterations(calibration.max_iterations),
         calibration.max_iterations
     );
     let started = std::time::Instant::now();

@@ -210,7 +210,8 @@ pub struct Calibration {
     pub position_scale_mm: f64,
     /// Scale s_p of the pressure errors, Pa (default 5000).
     pub pressure_scale_pa: f64,
-    /// Largest Levenberg–Marquardt iterations (default 40).
+    /// Largest Levenberg–Marquardt iterations of one search (default 40; a calibration runs several,
+    /// [`most_iterations`] in all).
     pub max_iterations: usize,
     /// Relative standard deviation above which a parameter is reported as not determined (default 0.05).
     pub determined_rel_std: f64,
@@ -220,6 +221,14 @@ pub struct Calibration {
     /// search; [`sysid_core::Stop`], default never): a stopped calibration returns
     /// `IpaError::Sysid(SysidError::Cancelled)`.
     pub cancel: sysid_core::Stop,
+}
+
+/// The most Levenberg–Marquardt iterations a calibration of `max_iterations` per search runs in all
+/// ([`Calibration::fit`]): up to four plans, A (a stage of ⌈m/2⌉, then m), B (m), C (two stages of ⌈m/2⌉,
+/// then m) and D (A on other segments, then m), so 4⌈m/2⌉ + 5m: 280 at the default m = 40. The banner
+/// and the report speak of the same count (audit s28 L-5: "up to 40 iterations", then "280 iterations").
+pub fn most_iterations(max_iterations: usize) -> usize {
+    4 * max_iterations.div_ceil(2) + 5 * max_iterations
 }
 
 /// The largest [`Calibration::max_iterations`] accepted (each iteration simulates the record a few
@@ -318,6 +327,9 @@ pub enum CalibrationWarning {
         twin_fit: f64,
         /// max |u| of the record, counts.
         largest_command: f64,
+        /// The record's positions [min, max] when every one of them would fit the stroke in metres
+        /// (|y| ≤ 1.25 × stroke / 1000): the record may be in metres where mm are read (audit s28 L-5).
+        metres: Option<(f64, f64)>,
     },
     /// The free run of the twin failed on a record.
     SimulationFailed {
@@ -415,6 +427,7 @@ impl std::fmt::Display for CalibrationWarning {
                 record,
                 twin_fit,
                 largest_command,
+                metres,
             } => {
                 write!(
                     f,
@@ -428,6 +441,16 @@ impl std::fmt::Display for CalibrationWarning {
                         "; the record's commands stay within ±{largest_command:.3} counts, inside the \
                          valves' deadzone (the twin is a pneumatic IPA driven by PWM counts up to \
                          ±255: is this record of such a plant, in counts?)"
+                    )?;
+                }
+                if let Some((lo, hi)) = metres {
+                    write!(
+                        f,
+                        "; the record's positions y stay within [{}, {}], which would fit the stroke if \
+                         they were metres: is y in metres? calibrate reads positions in mm (multiply \
+                         by 1000)",
+                        sysid_core::format::Shortest(*lo),
+                        sysid_core::format::Shortest(*hi)
                     )?;
                 }
                 Ok(())
@@ -944,10 +967,13 @@ impl Calibration {
             // did against its start (audit s14 M-b: fits of −1.5 % and 0.0 % were written silently).
             if let Some(tf) = t.as_ref().and_then(|t| t.fit_percent).filter(|f| *f <= 0.0) {
                 let u_max = r.u.iter().fold(0.0f64, |m, u| m.max(u.abs()));
+                let (lo, hi) = sysid_core::DataRange::extremes(&r.y);
+                let metres_bound = 1.25 * start.cylinder.stroke_mm / 1000.0;
                 warnings.push(CalibrationWarning::NoBetterThanMean {
                     record: name,
                     twin_fit: tf,
                     largest_command: u_max,
+                    metres: (lo.abs().max(hi.abs()) <= metres_bound).then_some((lo, hi)),
                 });
             }
             (s, t)

@@ -2660,6 +2660,22 @@ fn control_loop<'py>(
                 &m,
                 name.as_deref(),
             ));
+        } else if let Some(spec) = p.extract::<&str>().ok().map(str::parse::<ipa::PlantSpec>) {
+            // The physics plant (a twin or the built-in one), the paper's model, or a model file that
+            // is not linear: the provenance only (audit s28 L-6).
+            use ::control::trust::RunPlant;
+            let config = plant_config.as_ref().map(|c| c.display().to_string());
+            let run_plant = match &spec {
+                Ok(ipa::PlantSpec::Ipa) => Some(RunPlant::Physics(config.as_deref())),
+                Ok(ipa::PlantSpec::Paper) => Some(RunPlant::Paper),
+                _ => None,
+            };
+            let model_name = match &spec {
+                Ok(ipa::PlantSpec::ModelFile(path)) => Some(path.display().to_string()),
+                _ => None,
+            };
+            let run_plant = run_plant.or(model_name.as_deref().map(RunPlant::ModelFile));
+            warnings.extend(run_plant.and_then(|r| ::control::trust::provenance_warning(f, r)));
         }
     }
     warnings.extend(::control::loop_warnings(

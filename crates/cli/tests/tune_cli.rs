@@ -698,3 +698,82 @@ fn a_model_without_a_deadzone_is_refused_naming_its_input_block() {
     );
     assert!(!out.exists());
 }
+
+/// Audit s28 L-6: a controller tuned on a twin says so when it runs on another plant — the built-in
+/// physics IPA, another twin, the paper's model, a model file — and not on its own twin (by path, or
+/// a copy of the same bytes in another folder).
+#[test]
+fn a_controller_tuned_on_a_twin_says_so_on_another_plant() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let p = |name: &str| d.join(name).display().to_string();
+    let config = ipa_sysid(&["plant-config"]);
+    assert!(config.status.success(), "{}", stderr(&config));
+    std::fs::write(d.join("twin.toml"), &config.stdout).unwrap();
+    std::fs::create_dir(d.join("copy")).unwrap();
+    std::fs::write(d.join("copy").join("same.toml"), &config.stdout).unwrap();
+    // Another twin: a heavier load.
+    let other = String::from_utf8_lossy(&config.stdout)
+        .replace("moving_mass_kg = 0.6", "moving_mass_kg = 0.9");
+    assert_ne!(
+        other.as_bytes(),
+        &config.stdout[..],
+        "the mass line was found"
+    );
+    std::fs::write(d.join("other.toml"), other).unwrap();
+    let tune = ipa_sysid(&[
+        "tune",
+        "--plant-config",
+        &p("twin.toml"),
+        "--out",
+        &p("c.json"),
+        "--variants",
+        "1",
+        "--max-evaluations",
+        "8",
+        "--physics-variants",
+        "0",
+    ]);
+    assert!(tune.status.success(), "{}", stderr(&tune));
+    let words = "the controller file was tuned on the twin";
+    let control = |plant: &[String]| {
+        let c = p("c.json");
+        let mut args = vec![
+            "control",
+            "--controller",
+            &c,
+            "--setpoint",
+            "60",
+            "--duration",
+            "0.3",
+        ];
+        args.push("--plant");
+        args.extend(plant.iter().map(String::as_str));
+        let o = ipa_sysid(&args);
+        assert!(o.status.success(), "{plant:?}: {}", stderr(&o));
+        String::from_utf8_lossy(&o.stdout).into_owned() + &stderr(&o)
+    };
+    let owned = |a: &[&str]| a.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+    let other = p("other.toml");
+    for (plant, not_on) in [
+        (
+            owned(&["ipa"]),
+            "not on the built-in physics IPA".to_string(),
+        ),
+        (
+            owned(&["ipa", "--plant-config", &other]),
+            format!("not on the physics plant of {other}"),
+        ),
+        (owned(&["paper"]), "not on the paper's model".to_string()),
+    ] {
+        let text = control(&plant);
+        assert!(
+            text.contains(words) && text.contains(&not_on),
+            "{plant:?}: {text}"
+        );
+    }
+    for same in ["twin.toml", "copy/same.toml"] {
+        let text = control(&owned(&["ipa", "--plant-config", &p(same)]));
+        assert!(!text.contains(words), "{same}: {text}");
+    }
+}

@@ -510,14 +510,85 @@ fn deadzone_words(d: &sysid_core::Deadzone) -> String {
     )
 }
 
+/// The plant a controller file is run or analysed on, as its provenance ([`provenance_warning`]) can be
+/// compared with it.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum RunPlant<'a> {
+    /// A model read from this file (its name as given).
+    ModelFile(&'a str),
+    /// A model given in memory (Python's `Model`): no file to compare.
+    ModelInMemory,
+    /// The physics IPA with the plant configuration (a twin) read from this file, or the built-in one.
+    Physics(Option<&'a str>),
+    /// The paper's model (`--plant paper`).
+    Paper,
+}
+
+impl RunPlant<'_> {
+    fn words(&self) -> String {
+        match self {
+            RunPlant::ModelFile(name) => format!("the model {}", sysid_core::format::visible(name)),
+            RunPlant::ModelInMemory => "this model".into(),
+            RunPlant::Physics(Some(name)) => {
+                format!("the physics plant of {}", sysid_core::format::visible(name))
+            }
+            RunPlant::Physics(None) => "the built-in physics IPA".into(),
+            RunPlant::Paper => "the paper's model".into(),
+        }
+    }
+}
+
+/// True when the paths `a` and `b` name the same file: the same path, file name or canonical path (a
+/// path given from another folder is the same file), or two regular files of at most 16 MiB with the same
+/// bytes (a copy of the model or twin).
+fn same_file(a: &str, b: &str) -> bool {
+    let (a, b) = (std::path::Path::new(a), std::path::Path::new(b));
+    let small =
+        |p: &std::path::Path| std::fs::metadata(p).is_ok_and(|m| m.is_file() && m.len() <= 1 << 24);
+    a == b
+        || a.file_name() == b.file_name()
+        || matches!(
+            (std::fs::canonicalize(a), std::fs::canonicalize(b)),
+            (Ok(x), Ok(y)) if x == y
+        )
+        || (small(a)
+            && small(b)
+            && matches!((std::fs::read(a), std::fs::read(b)), (Ok(x), Ok(y)) if x == y))
+}
+
+/// The warning of a controller file whose provenance (`"source"`, written by `tune`: `model FILE`,
+/// `twin FILE`, or `model (Python)` for a model given in memory) names another plant than `plant`, the
+/// one it is run or analysed on (audit s22 M-B6 for two model files; audit s28 L-6: a controller tuned
+/// on a twin and run on a model, or on another twin, said nothing). Files are compared by
+/// [`same_file`]; a source or a plant given in memory is compared by kind only (a model is not a twin);
+/// `None` when they agree, or the source is not one `tune` writes.
+pub fn provenance_warning(file: &crate::ControllerFile, plant: RunPlant<'_>) -> Option<String> {
+    let source = file.provenance.as_ref()?.get("source")?.as_str()?;
+    let (kind, path) = source.split_once(' ')?;
+    let in_memory = path.starts_with('(');
+    let same = match (kind, plant) {
+        ("model", RunPlant::ModelFile(name)) => in_memory || same_file(path, name),
+        ("model", RunPlant::ModelInMemory) => true, // nothing to compare
+        ("twin", RunPlant::Physics(Some(name))) => in_memory || same_file(path, name),
+        ("model" | "twin", _) => false,
+        _ => return None,
+    };
+    (!same).then(|| {
+        format!(
+            "the controller file was tuned on the {kind} {} (its provenance), not on {}: its gains and \
+             compensator are that {kind}'s; check it here before trusting it",
+            sysid_core::format::visible(path),
+            plant.words()
+        )
+    })
+}
+
 /// What a controller file says against the plant model `model` (read from `model_name`) it is run or
 /// analysed on (audit s22 M-B6: a controller tuned on a Hammerstein model, run on a linear ARX model,
 /// stepped its command by 38..48 counts at every sign change of the error without a word): its
 /// compensator inverts a deadzone the model does not have (tune sets the compensator's own breakpoints,
-/// so one that differs from the model's is not a sign of another model); its provenance (`"source": "model FILE"`, written by `tune`)
-/// names another model file (compared by path, canonical path and file name, so a path given from
-/// another folder is the same file; only when `model_name`, the model's file, is known and the source
-/// names a file). The one check of `control --controller` and `response
+/// so one that differs from the model's is not a sign of another model); its provenance names another
+/// plant ([`provenance_warning`]). The one check of `control --controller` on a model plant and `response
 /// --controller`, and of Python's `control` and `Model.frequency_response`.
 pub fn controller_model_warnings(
     file: &crate::ControllerFile,
@@ -525,7 +596,9 @@ pub fn controller_model_warnings(
     model_name: Option<&str>,
 ) -> Vec<String> {
     let mut w = Vec::new();
-    let named = model_name.map_or(String::new(), |n| format!(" {n}"));
+    let named = model_name.map_or(String::new(), |n| {
+        format!(" {}", sysid_core::format::visible(n))
+    });
     if let (Some(c), None) = (&file.controller.compensator, model.deadzone()) {
         w.push(format!(
             "the controller's compensator inverts a deadzone ({}) that the plant model{named} \
@@ -535,30 +608,10 @@ pub fn controller_model_warnings(
             deadzone_words(&c.deadzone)
         ));
     }
-    let source = file
-        .provenance
-        .as_ref()
-        .and_then(|p| p.get("source"))
-        .and_then(|s| s.as_str())
-        .and_then(|s| s.strip_prefix("model "));
-    // A model given in memory (Python's `Model`, tune's "model (Python)") names no file to compare.
-    let source = source.filter(|s| !s.starts_with('('));
-    if let (Some(src), Some(model_name)) = (source, model_name) {
-        let (a, b) = (std::path::Path::new(src), std::path::Path::new(model_name));
-        let same = a == b
-            || a.file_name() == b.file_name()
-            || matches!(
-                (std::fs::canonicalize(a), std::fs::canonicalize(b)),
-                (Ok(x), Ok(y)) if x == y
-            );
-        if !same {
-            w.push(format!(
-                "the controller file was tuned on the model {} (its provenance), not on {model_name}: \
-                 its gains and compensator are that model's; check it here before trusting it",
-                sysid_core::format::visible(src)
-            ));
-        }
-    }
+    w.extend(provenance_warning(
+        file,
+        model_name.map_or(RunPlant::ModelInMemory, RunPlant::ModelFile),
+    ));
     w
 }
 

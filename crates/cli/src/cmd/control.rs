@@ -301,18 +301,30 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &profile,
         duration_s,
     );
-    // A controller file tuned for another model, or whose compensator inverts another deadzone.
-    if let (Some(f), Ok(ipa::PlantSpec::ModelFile(path))) =
-        (&tuned_file, args.plant.parse::<ipa::PlantSpec>())
-    {
-        if let Ok(sysid::model_file::AnyModel::Linear(m)) = sysid::model_file::read_any_model(&path)
-        {
-            let name = sysid_core::format::visible(&path.display().to_string()).into_owned();
-            warnings.extend(control::trust::controller_model_warnings(
+    // A controller file tuned for another plant, or whose compensator inverts another deadzone.
+    if let (Some(f), Ok(spec)) = (&tuned_file, args.plant.parse::<ipa::PlantSpec>()) {
+        use control::trust::RunPlant;
+        let config = args.plant_config.as_ref().map(|p| p.display().to_string());
+        match spec {
+            ipa::PlantSpec::ModelFile(path) => {
+                let name = path.display().to_string();
+                match sysid::model_file::read_any_model(&path) {
+                    Ok(sysid::model_file::AnyModel::Linear(m)) => warnings.extend(
+                        control::trust::controller_model_warnings(f, &m, Some(&name)),
+                    ),
+                    _ => warnings.extend(control::trust::provenance_warning(
+                        f,
+                        RunPlant::ModelFile(&name),
+                    )),
+                }
+            }
+            ipa::PlantSpec::Ipa => warnings.extend(control::trust::provenance_warning(
                 f,
-                &m,
-                Some(&name),
-            ));
+                RunPlant::Physics(config.as_deref()),
+            )),
+            ipa::PlantSpec::Paper => {
+                warnings.extend(control::trust::provenance_warning(f, RunPlant::Paper))
+            }
         }
     }
     if let Some(change) = args.deadzone_change.filter(|c| c.at_s >= duration_s) {

@@ -178,6 +178,29 @@ fn reproduce_on_a_model_plant_says_what_control_would_doubt() {
     assert_eq!(criterion["status"], "not judged");
     let html = std::fs::read_to_string(out.join("report.html")).unwrap();
     assert!(html.contains("outside it the model extrapolates"));
+    // Audit s28 L-9: no plant figure is labelled in the IPA's units: the acceptance, Table V's rows (the
+    // paper's columns stay mm and say so) and the figures' captions.
+    let fixed = s["acceptance"]["criteria"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|c| c["id"] == "pi_steady_state_error")
+        .unwrap()["criterion"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    assert!(
+        fixed.contains("(y's units)") && !fixed.contains(" mm"),
+        "{fixed}"
+    );
+    assert!(
+        stdout.contains("steady-state error (y's units; the paper's: mm)"),
+        "{stdout}"
+    );
+    assert!(
+        html.contains("measured position y (y&#39;s units)"),
+        "captions in the model's units"
+    );
     // A second run into the same folder (its marker says an earlier run wrote it) replaces it, and
     // says so as every other output does ("replaced FILE", session 22's M-B9).
     let again = Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
@@ -197,4 +220,44 @@ fn reproduce_on_a_model_plant_says_what_control_would_doubt() {
         "{}",
         String::from_utf8_lossy(&again.stderr)
     );
+}
+
+/// Audit s28 L-9: on a model plant sampled every 4 s the fixed set-point's 40 s run has 11 samples (t = 0,
+/// 4, …, 40), fewer than the 20 a step needs: its overshoot and steady-state error are "not judged", never
+/// "not met", in the text and summary.json.
+#[test]
+fn a_fixed_step_too_short_to_settle_is_not_judged() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("m4.json");
+    std::fs::write(
+        &model,
+        r#"{"format": "ipa-sysid-model", "version": 2, "model": {"kind": "arx", "ts": 4.0,
+        "na": 1, "nb": 1, "nk": 1, "a": [-0.5], "b": [0.1], "offset": null}}"#,
+    )
+    .unwrap();
+    let out = dir.path().join("run");
+    let o = Command::new(env!("CARGO_BIN_EXE_ipa-sysid"))
+        .args(["reproduce", "--out"])
+        .arg(&out)
+        .arg("--plant")
+        .arg(format!("model:{}", model.display()))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    for id in ["pi_overshoot", "pi_steady_state_error"] {
+        assert!(
+            stdout.contains(&format!("[not judged] {id}")),
+            "{id}: {stdout}"
+        );
+    }
+    assert!(stdout.contains("too short to settle"), "{stdout}");
+    let s: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("summary.json")).unwrap()).unwrap();
+    for c in s["acceptance"]["criteria"].as_array().unwrap() {
+        if c["id"] == "pi_overshoot" || c["id"] == "pi_steady_state_error" {
+            assert_eq!(c["status"], "not judged", "{c}");
+            assert_eq!(c["met"], false, "{c}");
+        }
+    }
 }

@@ -38,7 +38,7 @@ pub use closed_loop::Trace;
 pub use compensator::{DeadzoneCompensator, SlopeMode};
 pub use error::{ControlError, ControlSetting};
 pub use metrics::{
-    metrics_for_steps, run_metrics, RunMetrics, StepMetrics, StepSegment, Unsettled,
+    metrics_for_steps, run_metrics, EssVerdict, RunMetrics, StepMetrics, StepSegment, Unsettled,
 };
 pub use pi::{AntiWindup, AntiWindupScheme, IntegralForm, PiController, PiSettings};
 pub use position::{ControllerFile, ControllerSettings, PositionController};

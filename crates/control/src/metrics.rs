@@ -168,6 +168,12 @@ impl StepMetrics {
             rise_time_s: None,
             settling_time_s: None,
         };
+        // Audit s10 F3: an 11-sample step still rising 3.5 mm per sample, 122 mm short, had a
+        // "settling time": its tail was 2 samples, too few to see the motion. Said first: over so
+        // few samples a lagging output is not yet "no response" or "moved away" (audit s28 L-9).
+        if n < MIN_STEP_SAMPLES {
+            return Ok((error_only, Some(Unsettled::TooShort { samples: n })));
+        }
         if delta.abs() <= 16.0 * f64::EPSILON * scale {
             // The set-point moved away and the output never followed: a step that did not respond.
             let why = (r_mm != y0_mm).then_some(Unsettled::NoResponse);
@@ -178,11 +184,6 @@ impl StepMetrics {
         // approach that did not happen (MATLAB's stepinfo without a reference would call it clean).
         if r_mm != y0_mm && (r_mm - y_f).abs() > (r_mm - y0_mm).abs() {
             return Ok((error_only, Some(Unsettled::MovedAway { moved_mm: delta })));
-        }
-        // Audit s10 F3: an 11-sample step still rising 3.5 mm per sample, 122 mm short, had a
-        // "settling time": its tail was 2 samples, too few to see the motion.
-        if n < MIN_STEP_SAMPLES {
-            return Ok((error_only, Some(Unsettled::TooShort { samples: n })));
         }
         let d = delta.signum();
         let step = delta.abs();
@@ -476,6 +477,68 @@ pub struct StepSegment {
     /// words by [`crate::trust::loop_warnings`], not serialised.
     #[serde(skip)]
     pub unsettled: Option<Unsettled>,
+}
+
+/// The paper's steady-state criterion |e_ss| < `share` × |r − y0| for one step, as far as the run can
+/// judge it (audit s17 M-b; audit s28 L-9: a step called too short was still judged).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum EssVerdict {
+    /// Settled within the band and within the share.
+    Met,
+    /// Settled, and outside the share.
+    Missed,
+    /// Not settled, and outside the share at the run's end: a miss there, which a longer run may mend.
+    MissedUnsettled,
+    /// Not settled and within the share (a pass is no verdict while the output still moves), a step
+    /// too short to settle ([`Unsettled::TooShort`]), or no error: not judged.
+    NotJudged,
+}
+
+impl EssVerdict {
+    /// The verdict of `step` against `share` (0.02: the paper's 2 %).
+    pub fn of(step: &StepSegment, share: f64) -> Self {
+        let too_short = matches!(step.unsettled, Some(Unsettled::TooShort { .. }));
+        Self::of_metrics(
+            &step.metrics,
+            (step.setpoint_mm - step.y0_mm).abs(),
+            too_short,
+            share,
+        )
+    }
+
+    /// The verdict of a step's metrics `m`, of size |r − y0| = `size`, `too_short` to settle.
+    pub fn of_metrics(m: &StepMetrics, size: f64, too_short: bool, share: f64) -> Self {
+        let Some(e) = m.steady_state_error_mm else {
+            return EssVerdict::NotJudged;
+        };
+        if too_short {
+            return EssVerdict::NotJudged;
+        }
+        let within = e.abs() < share * size;
+        match (m.settling_time_s.is_some(), within) {
+            (true, true) => EssVerdict::Met,
+            (true, false) => EssVerdict::Missed,
+            (false, false) => EssVerdict::MissedUnsettled,
+            (false, true) => EssVerdict::NotJudged,
+        }
+    }
+
+    /// True when judged (met or missed).
+    pub fn judged(self) -> bool {
+        self != EssVerdict::NotJudged
+    }
+
+    /// The verdict in words (`control`'s acceptance line): "yes", "NO", "NO at the end of the run (not
+    /// settled)", or "not judged (…)" — `too_short`: the step is too short to settle.
+    pub fn words(self, too_short: bool) -> &'static str {
+        match self {
+            EssVerdict::Met => "yes",
+            EssVerdict::Missed => "NO",
+            EssVerdict::MissedUnsettled => "NO at the end of the run (not settled)",
+            EssVerdict::NotJudged if too_short => "not judged (the step is too short to settle)",
+            EssVerdict::NotJudged => "not judged (not settled)",
+        }
+    }
 }
 
 /// Splits a trace where the set-point r changes (and at sample 0) and computes the metrics of each step,

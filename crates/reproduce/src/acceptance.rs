@@ -1,5 +1,6 @@
 //! Stage 4: the acceptance criteria of the paper (and the issue), each met or not, in words.
 
+use control::{EssVerdict, Unsettled};
 use report::format::{estimate, opt};
 
 use crate::paper;
@@ -129,31 +130,48 @@ pub(crate) fn loop_verdicts(s: &ReproduceSettings, st: &Study) -> Vec<Criterion>
     // (`StepMetrics::overshoot_judged_percent`): the overshoot beyond the last sample changes with the
     // run's length while the step has not settled.
     let os = st.fixed.m_plant.overshoot_judged_percent();
+    // No overshoot (a step too short to tell, one that moved away or never responded: the warnings
+    // say which) is no verdict (audit s28 L-9: "n/a %" was "not met").
     v.push(Criterion {
         id: "pi_overshoot",
         met: os.is_some_and(|x| x < 10.0),
-        judged: true,
+        judged: os.is_some(),
         text: format!(
             "PI on the plant: overshoot past r {} % of the step to r (the peak past the set-point; paper's \
-             acceptance: < 10 %)",
-            opt(os)
+             acceptance: < 10 %){}",
+            opt(os),
+            if os.is_none() { " — not judged: the step has no overshoot to measure (see the warnings)" } else { "" }
         ),
     });
+    let y_unit = st.units.y;
+    // |e_ss| < 2 % of the step, as `control`'s acceptance line judges it (`control::EssVerdict`): a
+    // step too short to settle is not judged, an unsettled miss is a miss at the run's end and says so,
+    // an unsettled pass is no verdict (audit s28 L-9).
+    let fixed_too_short = control::metrics_for_steps(&st.fixed.plant)
+        .ok()
+        .and_then(|g| {
+            g.first()
+                .map(|g| matches!(g.unsettled, Some(Unsettled::TooShort { .. })))
+        })
+        .unwrap_or(false);
     let ess = st.fixed.m_plant.steady_state_error_mm;
+    let fixed = EssVerdict::of_metrics(&st.fixed.m_plant, step, fixed_too_short, 0.02);
     v.push(Criterion {
         id: "pi_steady_state_error",
-        met: ess.is_some_and(|e| e.abs() < 0.02 * step),
-        judged: true,
+        met: fixed == EssVerdict::Met,
+        judged: fixed.judged(),
         text: format!(
-            "PI on the plant: |steady-state error| {} mm, {} % of the {} mm step after {} s (paper's acceptance: < 2 %)",
+            "PI on the plant: |steady-state error| {} {y_unit}, {} % of the {} {y_unit} step after {} s{} \
+             (paper's acceptance: < 2 %)",
             opt(ess.map(f64::abs)),
             opt(ess.map(|e| 100.0 * e.abs() / step.max(f64::MIN_POSITIVE))),
             estimate(step),
-            estimate(s.fixed_duration_s)
+            estimate(s.fixed_duration_s),
+            verdict_note(fixed, fixed_too_short),
         ),
     });
     // Every step of the changing set-point, each against its own step size (not a field-wise maximum).
-    let per_step: Vec<(f64, Option<f64>)> = st
+    let per_step: Vec<(f64, Option<f64>, EssVerdict, bool)> = st
         .steps_plant
         .iter()
         .map(|g| {
@@ -163,38 +181,38 @@ pub(crate) fn loop_verdicts(s: &ReproduceSettings, st: &Study) -> Vec<Criterion>
                 .steady_state_error_mm
                 .filter(|_| size > 0.0)
                 .map(|e| 100.0 * e.abs() / size);
-            (g.setpoint_mm, pct)
+            let too_short = matches!(g.unsettled, Some(Unsettled::TooShort { .. }));
+            (g.setpoint_mm, pct, EssVerdict::of(g, 0.02), too_short)
         })
         .collect();
-    // A step too short to reach a steady state has no steady-state error to judge (its "error" is where
-    // the step stopped; the run's warnings say so).
-    let too_short = st
-        .steps_plant
-        .iter()
-        .filter(|g| {
-            matches!(
-                g.unsettled,
-                Some(control::metrics::Unsettled::TooShort { .. })
-            )
-        })
-        .count();
     if !per_step.is_empty() {
+        let missed = per_step
+            .iter()
+            .any(|(_, _, v, _)| matches!(v, EssVerdict::Missed | EssVerdict::MissedUnsettled));
+        let unjudged = per_step.iter().filter(|(_, _, v, _)| !v.judged()).count();
         v.push(Criterion {
             id: "pi_changing_setpoint_steady_state_error",
-            met: too_short == 0 && per_step.iter().all(|(_, p)| p.is_some_and(|p| p < 2.0)),
-            judged: too_short == 0,
+            met: per_step.iter().all(|(_, _, v, _)| *v == EssVerdict::Met),
+            // A settled miss decides it; otherwise a step that cannot be judged leaves it open.
+            judged: missed || unjudged == 0,
             text: format!(
                 "PI on the plant, changing set-point ({}): |steady-state error| of each step as % of that step — {} (paper's acceptance: < 2 %)",
                 s.unfixed_profile,
                 per_step
                     .iter()
-                    .map(|(r, p)| format!("r = {} mm: {} %", estimate(*r), opt(*p)))
+                    .map(|(r, p, v, short)| format!(
+                        "r = {} {y_unit}: {} %{}",
+                        estimate(*r),
+                        opt(*p),
+                        verdict_note(*v, *short)
+                    ))
                     .collect::<Vec<_>>()
                     .join("; ")
-            ) + &if too_short > 0 {
+            ) + &if unjudged > 0 && !missed {
                 format!(
-                    " — {too_short} of {} steps are too short to reach a steady state at this plant's \
-                     sampling period (see the warnings), so the criterion is not judged",
+                    " — {unjudged} of {} steps cannot be judged (too short to settle at this plant's \
+                     sampling period, or not settled within the run: see the warnings), so the \
+                     criterion is not judged",
                     st.steps_plant.len()
                 )
             } else {
@@ -203,6 +221,16 @@ pub(crate) fn loop_verdicts(s: &ReproduceSettings, st: &Study) -> Vec<Criterion>
         });
     }
     v
+}
+
+/// What a step's e_ss verdict adds to its figure: nothing when judged on a settled step.
+fn verdict_note(v: EssVerdict, too_short: bool) -> &'static str {
+    match v {
+        EssVerdict::Met | EssVerdict::Missed => "",
+        EssVerdict::MissedUnsettled => " (at the run's end: not settled)",
+        EssVerdict::NotJudged if too_short => " (not judged: the step is too short to settle)",
+        EssVerdict::NotJudged => " (not judged: not settled)",
+    }
 }
 
 /// The three answers a reviewer asks first, in words, each with a plain status: does the paper's

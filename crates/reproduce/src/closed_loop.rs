@@ -200,9 +200,10 @@ pub(crate) fn experiment_warning(records: &[&[f64]], limits: &ipa::PlantLimits) 
     let extremes = sysid_core::DataRange::extremes(records.iter().flat_map(|u| u.iter()));
     let (u_min, u_max) = sysid_core::DataRange::excursion_of(extremes, (lo, hi))?;
     Some(format!(
-        "the experiments' commands span [{u_min}, {u_max}] counts but the plant model's estimation data had \
+        "the experiments' commands span [{u_min}, {u_max}] {u} but the plant model's estimation data had \
          u in [{lo}, {hi}]: outside it the model extrapolates, so the records, the models identified from \
          them and the closed loops describe the equations' guess, not the plant (reproduce's experiments \
-         drive ±255 counts: give it a model estimated on commands that large)"
+         drive ±255 {u}: give it a model estimated on commands that large)",
+        u = control::Units::of(limits.model_units()).u
     ))
 }

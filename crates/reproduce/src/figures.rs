@@ -67,17 +67,21 @@ pub(crate) fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
     let t = sysid::data::sample_times(st.est.len(), ts);
     let mut figs: Vec<Fig> = Vec::new();
     let plant_c = colours::PLANT;
+    // Axis labels in the plant's units: the IPA's counts and mm, a model plant's own (audit s28 L-9).
+    let (yu, uu) = (st.y_unit(), st.u_unit());
+    let y_axis = format!("y ({yu})");
+    let u_axis = format!("u ({uu})");
     figs.push((
         "fig2_experiment",
         Figure::new("Experiment: staircase input and measured position (paper's Fig. 2)")
-            .panel(Panel::new("time (s)", "u (counts)").series(Series::step("u: PWM command", t.clone(), st.est.u().to_vec()).colour(plant_c)))
-            .panel(Panel::new("time (s)", "y (mm)").series(Series::line("y: position", t.clone(), st.est.y().to_vec()).colour(plant_c))),
-        "The estimation record: the staircase command u (PWM counts) and the measured stroke position y (mm).".into(),
+            .panel(Panel::new("time (s)", u_axis.as_str()).series(Series::step("u: PWM command", t.clone(), st.est.u().to_vec()).colour(plant_c)))
+            .panel(Panel::new("time (s)", y_axis.as_str()).series(Series::line("y: position", t.clone(), st.est.y().to_vec()).colour(plant_c))),
+        format!("The estimation record: the staircase command u ({uu}) and the measured position y ({yu})."),
     ));
 
     // Deadzone: RLS solid, the others dashed on top so that coinciding curves stay visible.
     let us: Vec<f64> = (-255..=255).map(f64::from).collect();
-    let mut dz_panel = Panel::new("u (counts)", "x (key-term units, b1 = 1)");
+    let mut dz_panel = Panel::new(u_axis.as_str(), "x (key-term units, b1 = 1)");
     for (i, m) in st.hammersteins().iter().enumerate() {
         let y = m.fit.model.internal(&us);
         let series = if i == 0 {
@@ -128,7 +132,7 @@ pub(crate) fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
     ));
 
     let tv = sysid::data::sample_times(st.val.len(), ts);
-    let mut fit_panel = Panel::new("time (s)", "y (mm)")
+    let mut fit_panel = Panel::new("time (s)", y_axis.as_str())
         .series(Series::line("measured", tv.clone(), st.val.y().to_vec()).colour(plant_c));
     // The axis is the measured range with a quarter of its span on each side: a diverging simulation
     // would otherwise scale the figure so that the measured record is a flat line. Where a model leaves
@@ -175,7 +179,7 @@ pub(crate) fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
     ));
 
     let t_ol = sysid::data::sample_times(st.u_ol.len(), ts);
-    let mut y_ol = Panel::new("time (s)", "y (mm)")
+    let mut y_ol = Panel::new("time (s)", y_axis.as_str())
         .series(Series::line("plant", t_ol.clone(), st.y_ol_plant.clone()).colour(plant_c));
     if let (Some(m), Some(y)) = (st.cl(), &st.y_ol_model) {
         y_ol = y_ol
@@ -184,7 +188,7 @@ pub(crate) fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
     figs.push((
         "fig6_open_loop",
         Figure::new("Open-loop test: stable identified model vs plant (paper's Fig. 6)")
-            .panel(Panel::new("time (s)", "u (counts)").series(
+            .panel(Panel::new("time (s)", u_axis.as_str()).series(
                 Series::step("u", t_ol.clone(), st.u_ol.clone()).colour(plant_c),
             ))
             .panel(y_ol),
@@ -210,7 +214,7 @@ pub(crate) fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
         };
         let (tp, r) = cut(&lp.plant, &lp.plant.r);
         let (_, yp) = cut(&lp.plant, &lp.plant.y);
-        let mut p = Panel::new("time (s)", "y (mm)")
+        let mut p = Panel::new("time (s)", y_axis.as_str())
             .series(Series::step("set-point r", tp.clone(), r).colour(colours::SETPOINT))
             .series(Series::line("plant", tp, yp).colour(plant_c));
         if let Some(m) = &lp.model {
@@ -221,7 +225,7 @@ pub(crate) fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
         p
     };
     let u_panel = |lp: &Loop| {
-        let mut p = Panel::new("time (s)", "u (counts)").series(
+        let mut p = Panel::new("time (s)", u_axis.as_str()).series(
             Series::step("u: plant", lp.plant.t.clone(), lp.plant.u.clone()).colour(plant_c),
         );
         if let Some(m) = &lp.model {
@@ -276,14 +280,15 @@ pub(crate) fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
         let th: Vec<f64> = ham.history_samples.iter().map(|&k| k as f64 * ts).collect();
         let skip = ham.history.len() / 10;
         let mut fig = Figure::new("RLS parameter convergence (Hammerstein, paper's method)");
+        let gain = st.gain_unit();
         for (name, unit) in [
-            ("b_r", "b_r (counts)"),
-            ("b_l", "b_l (counts)"),
-            ("m_r", "m_r (mm/count)"),
-            ("m_l", "m_l (mm/count)"),
-            ("a1", "a1 (dimensionless)"),
-            ("a2", "a2 (dimensionless)"),
-            ("a3", "a3 (dimensionless)"),
+            ("b_r", format!("b_r ({uu})")),
+            ("b_l", format!("b_l ({uu})")),
+            ("m_r", format!("m_r ({gain})")),
+            ("m_l", format!("m_l ({gain})")),
+            ("a1", "a1 (dimensionless)".into()),
+            ("a2", "a2 (dimensionless)".into()),
+            ("a3", "a3 (dimensionless)".into()),
         ] {
             let Some(i) = ham.params.iter().position(|p| p.name == name) else {
                 continue;
@@ -370,7 +375,11 @@ pub(crate) fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
     ));
 
     // Bode plots of the linear blocks.
-    let mut mag = Panel::new("frequency f (Hz, log scale)", "|G| (dB re 1 mm/count)").x_log10();
+    let mut mag = Panel::new(
+        "frequency f (Hz, log scale)",
+        format!("|G| (dB re 1 {})", st.gain_unit()),
+    )
+    .x_log10();
     let mut phase = Panel::new("frequency f (Hz, log scale)", "phase of G (degrees)").x_log10();
     for (i, (key, label, model, gain)) in bode_models(st).into_iter().enumerate() {
         let b = analysis::bode(&model, gain, 0.01, 300);
@@ -395,9 +404,10 @@ pub(crate) fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
         format!(
             "Bode magnitude and phase of G(e^(jωTs)) = m̄ B(e^(−jωTs))/A(e^(−jωTs)) from 0.01 Hz to the Nyquist \
              frequency {} Hz. The Hammerstein blocks have b1 = 1 (their static gain sits in the deadzone slopes), so \
-             they are multiplied by the mean slope m̄ = (m_l + m_r)/2 to compare with the ARX (m̄ = 1) in mm per \
-             count; the paper's actual model is scaled the same way.",
-            estimate(0.5 / ts)
+             they are multiplied by the mean slope m̄ = (m_l + m_r)/2 to compare with the ARX (m̄ = 1) in {}; \
+             the paper's actual model is scaled the same way.",
+            estimate(0.5 / ts),
+            st.gain_unit()
         ),
     ));
     figs

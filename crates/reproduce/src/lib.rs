@@ -427,6 +427,7 @@ pub fn run(
 
     let mut study = Study {
         plant_name: plant.name(),
+        units: control::Units::of(limits.model_units()),
         ts,
         est,
         val,

@@ -63,6 +63,9 @@ pub(crate) struct Tuned {
 
 pub(crate) struct Study {
     pub(crate) plant_name: String,
+    /// The units of the plant's u and y: the IPA's counts and mm, or a model plant's own (its estimation
+    /// record's, which the model does not name: "(u's units)", "(y's units)"; audit s28 L-9).
+    pub(crate) units: control::Units,
     pub(crate) ts: f64,
     pub(crate) est: Dataset,
     pub(crate) val: Dataset,
@@ -96,6 +99,26 @@ pub(crate) struct Study {
 }
 
 impl Study {
+    /// y's unit without parentheses: "mm", or a model plant's "y's units" (audit s28 L-9).
+    pub(crate) fn y_unit(&self) -> &'static str {
+        bare(self.units.y)
+    }
+    /// u's unit without parentheses: "counts", or a model plant's "u's units".
+    pub(crate) fn u_unit(&self) -> &'static str {
+        bare(self.units.u)
+    }
+    /// The unit of a gain from u to y: "mm/count", or a model plant's "y's units per u's unit".
+    pub(crate) fn gain_unit(&self) -> String {
+        if self.units == control::Units::IPA {
+            "mm/count".into()
+        } else {
+            format!(
+                "{} per {}",
+                self.y_unit(),
+                self.u_unit().trim_end_matches('s')
+            )
+        }
+    }
     pub(crate) fn arx(&self) -> &Fitted {
         &self.models[0]
     }
@@ -167,4 +190,11 @@ pub(crate) fn pole_list(r: &IdentifyReport) -> String {
         })
         .collect::<Vec<_>>()
         .join(", ")
+}
+
+/// A unit as an axis or a sentence takes it: "(y's units)" without its parentheses.
+fn bare(unit: &'static str) -> &'static str {
+    unit.strip_prefix('(')
+        .and_then(|u| u.strip_suffix(')'))
+        .unwrap_or(unit)
 }

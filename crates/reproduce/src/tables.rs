@@ -91,7 +91,7 @@ pub(crate) fn metrics_row(label: &str, rep: &IdentifyReport) -> [String; 6] {
 }
 
 /// A Table V row: criterion, the paper's simulation and experiment values, ours on model and plant.
-pub(crate) type ClosedLoopRow = (&'static str, f64, f64, String, String);
+pub(crate) type ClosedLoopRow = (String, f64, f64, String, String);
 
 /// A settling-time cell: the time, "not settled" for a step that moved but had not settled within
 /// the run (the rule of docs/control.md), "n/a" when there is no step (or no model run).
@@ -125,26 +125,41 @@ pub(crate) fn ess_cell(m: Option<&control::StepMetrics>) -> String {
     }
 }
 
-pub(crate) fn closed_loop_rows(lp: &Loop) -> [ClosedLoopRow; 4] {
+/// The rows of Table V for the loop `lp` of a plant whose y is in `y_unit` (the paper's columns are
+/// in mm: a model plant's row names both, audit s28 L-9).
+pub(crate) fn closed_loop_rows(lp: &Loop, y_unit: &str) -> [ClosedLoopRow; 4] {
     let [a, b, c, d] = paper::CLOSED_LOOP;
     let (m, p) = (lp.m_model.as_ref(), &lp.m_plant);
+    let label = |l: &str| {
+        if y_unit == "mm" {
+            l.to_string()
+        } else {
+            l.replace("(mm)", &format!("({y_unit}; the paper's: mm)"))
+        }
+    };
     [
         (
-            a.0,
+            label(a.0),
             a.1,
             a.2,
             opt(m.and_then(|m| m.overshoot_mm)),
             opt(p.overshoot_mm),
         ),
-        (b.0, b.1, b.2, ess_cell(m), ess_cell(Some(p))),
+        (label(b.0), b.1, b.2, ess_cell(m), ess_cell(Some(p))),
         (
-            c.0,
+            c.0.to_string(),
             c.1,
             c.2,
             opt(m.and_then(|m| m.rise_time_s)),
             opt(p.rise_time_s),
         ),
-        (d.0, d.1, d.2, settling_cell(m), settling_cell(Some(p))),
+        (
+            d.0.to_string(),
+            d.1,
+            d.2,
+            settling_cell(m),
+            settling_cell(Some(p)),
+        ),
     ]
 }
 
@@ -157,12 +172,12 @@ pub(crate) fn tuned_rows(st: &Study) -> Vec<(String, String, String)> {
     let (m, p) = (&t.m_model, &t.m_plant);
     vec![
         (
-            "tuned: overshoot (mm)".into(),
+            format!("tuned: overshoot ({})", st.y_unit()),
             opt(m.overshoot_mm),
             opt(p.overshoot_mm),
         ),
         (
-            "tuned: e_ss (mm)".into(),
+            format!("tuned: e_ss ({})", st.y_unit()),
             ess_cell(Some(m)),
             ess_cell(Some(p)),
         ),
@@ -184,10 +199,11 @@ pub(crate) fn tuned_text(st: &Study) -> String {
     match &st.tuned {
         Ok(t) => {
             let s = &t.settings;
+            let yu = st.y_unit();
             format!(
                 "Tuned controller (ipa-sysid tune on the output-error model, 3 variants, 40 evaluations; \
-                 docs/control.md): Kp = {}, Ki = {}, Kd = {}, deadzone inverse with fine band {} mm, hold \
-                 band {} mm (data/closed_loop_fixed_plant_tuned.csv).",
+                 docs/control.md): Kp = {}, Ki = {}, Kd = {}, deadzone inverse with fine band {} {yu}, hold \
+                 band {} {yu} (data/closed_loop_fixed_plant_tuned.csv).",
                 report::format::sig(s.kp, 4),
                 report::format::sig(s.ki, 4),
                 report::format::sig(s.kd, 3),
@@ -289,15 +305,20 @@ pub(crate) fn tables_text(s: &ReproduceSettings, st: &Study) -> String {
     }
     let _ = writeln!(
         o,
-        "\nTable V — PI (Kp = {}, Ki = {}) fixed set-point {} → {} mm, {} s",
-        s.pi.kp, s.pi.ki, s.fixed_start_mm, s.fixed_setpoint_mm, s.fixed_duration_s
+        "\nTable V — PI (Kp = {}, Ki = {}) fixed set-point {} → {} {}, {} s",
+        s.pi.kp,
+        s.pi.ki,
+        s.fixed_start_mm,
+        s.fixed_setpoint_mm,
+        st.y_unit(),
+        s.fixed_duration_s
     );
     let _ = writeln!(
         o,
         "{:<26}{:>14}{:>14}{:>14}{:>14}",
         "criterion", "model (sim.)", "plant", "paper sim.", "paper exp."
     );
-    for (label, ps, pe, a, b) in closed_loop_rows(&st.fixed) {
+    for (label, ps, pe, a, b) in closed_loop_rows(&st.fixed, st.y_unit()) {
         let _ = writeln!(
             o,
             "{label:<26}{a:>14}{b:>14}{:>14}{:>14}",
@@ -305,7 +326,7 @@ pub(crate) fn tables_text(s: &ReproduceSettings, st: &Study) -> String {
             estimate(pe)
         );
     }
-    let mut not_final = closed_loop_rows(&st.fixed)
+    let mut not_final = closed_loop_rows(&st.fixed, st.y_unit())
         .iter()
         .any(|r| r.3.ends_with(NOT_FINAL_MARK) || r.4.ends_with(NOT_FINAL_MARK));
     for (label, a, b) in tuned_rows(st) {
@@ -438,7 +459,7 @@ pub(crate) fn residual_table(st: &Study) -> Table {
     let mut t = Table::new([
         "model",
         "record",
-        "residual std (mm)",
+        &format!("residual std ({})", st.y_unit()),
         "lags outside ±2.58/√N (auto / cross)",
         "whiteness: Ljung–Box Q (p)",
         "independence of u: S (p)",

@@ -917,22 +917,19 @@ fn summary_text(
     // The paper's acceptance: overshoot < 10 %, |e_ss| < 2 % of the step. The overshoot is the peak
     // past r (OS_r, `StepMetrics::overshoot_judged_percent`, as `tune` judges it): the overshoot beyond
     // the last sample is not final while the step has not settled (audit s17 M-b, L-d).
-    if let (Some(os), Some(ess), Some(first)) = (
+    if let (Some(os), Some(_), Some(first)) = (
         m.overshoot_judged_percent(),
         m.steady_state_error_mm,
         steps.first(),
     ) {
         if metrics_kind == "fixed" {
-            let step = (first.setpoint_mm - first.y0_mm).abs();
             let yes = |b: bool| if b { "yes" } else { "NO" };
             // An error measured on a loop that has not settled is not final: a miss is a miss at the
-            // run's end, a pass is no verdict.
-            let met = ess.abs() < 0.02 * step;
-            let ess_verdict = match (m.settling_time_s, met) {
-                (Some(_), _) => yes(met),
-                (None, false) => "NO at the end of the run (not settled)",
-                (None, true) => "not judged (not settled)",
-            };
+            // run's end, a pass is no verdict; a step too short to settle is not judged.
+            let size = (first.setpoint_mm - first.y0_mm).abs();
+            let too_short = matches!(first.unsettled, Some(control::Unsettled::TooShort { .. }));
+            let ess_verdict =
+                control::EssVerdict::of_metrics(m, size, too_short, 0.02).words(too_short);
             // The paper judges overshoot and e_ss only; a large wrong-way dip is named beside its
             // verdict (and in a warning), not added to it (docs/control.md, "Step metrics").
             let dip = m

@@ -417,13 +417,32 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
                 crate::metrics::MIN_STEP_SAMPLES,
                 longer(true)
             )),
-            Some(Unsettled::NoResponse) => w.push(format!(
-                "{head} had no response: the output stayed at y0 = {} {y_unit} while the set-point moved \
-                 {} {y_unit} away (friction holds the piston, or the command is too small to open a valve), \
-                 so the step has no metrics but its error of {ess} {y_unit}",
-                fmt_mm(s.y0_mm),
-                fmt_mm((s.setpoint_mm - s.y0_mm).abs())
-            )),
+            Some(Unsettled::NoResponse) => {
+                // A command that pushed away from r for most of the step held the output at an end
+                // stop: the loop's sign, not friction (audit s30 M-4: `--kp -14` sat at −255 and was
+                // called "friction or a command too small").
+                let toward = (s.setpoint_mm - s.y0_mm).signum();
+                let away = u.iter().filter(|u| **u * toward < 0.0).count();
+                let cause = if !u.is_empty() && 10 * away >= 9 * u.len() {
+                    format!(
+                        "the command pushed the other way for {away} of its {} samples (u of the \
+                         opposite sign to r − y0, up to {} {u_unit}): the loop's sign is wrong (a negative \
+                         gain, or a plant that moves the other way), and the output was held at an end \
+                         stop",
+                        u.len(),
+                        fmt_value(u.iter().fold(0.0_f64, |m, v| m.max(v.abs())))
+                    )
+                } else {
+                    "friction holds the piston, or the command is too small to open a valve".to_string()
+                };
+                w.push(format!(
+                    "{head} had no response: the output stayed at y0 = {} {y_unit} while the set-point \
+                     moved {} {y_unit} away ({cause}), so the step has no metrics but its error of {ess} \
+                     {y_unit}",
+                    fmt_mm(s.y0_mm),
+                    fmt_mm((s.setpoint_mm - s.y0_mm).abs())
+                ))
+            }
         }
     }
     if facts.judge_steps {
@@ -675,6 +694,37 @@ mod tests {
         );
         let w = loop_warnings(&tr, &steps, &facts((-240.0, 240.0)));
         assert!(!w.iter().any(|w| w.contains("the commands span")), "{w:?}");
+    }
+
+    // Audit s30 M-4: the set-point 50 above y0 = 0, the output held at 0 while u = −255 (the other way)
+    // throughout: the loop's sign is named, not friction; with u = +3 (too small) friction is.
+    #[test]
+    fn a_step_held_by_a_command_the_wrong_way_names_the_loops_sign() {
+        let run = |u: f64| {
+            let tr = trace(vec![0.0; 101], vec![u; 101], 50.0);
+            let steps = metrics_for_steps(&tr).unwrap();
+            loop_warnings(
+                &tr,
+                &steps,
+                &LoopFacts {
+                    u_max: 255.0,
+                    ..LoopFacts::default()
+                },
+            )
+        };
+        let w = run(-255.0);
+        assert!(
+            w.iter().any(|w| w.contains("had no response")
+                && w.contains("pushed the other way for 101 of its 101 samples")
+                && w.contains("the loop's sign is wrong")),
+            "{w:?}"
+        );
+        let w = run(3.0);
+        assert!(
+            w.iter()
+                .any(|w| w.contains("had no response") && w.contains("friction holds")),
+            "{w:?}"
+        );
     }
 
     // A model estimated on y in [80, 120]: a start at 0 is 80 below it, beyond a tenth of its span (4),

@@ -71,16 +71,17 @@ pub struct ParamStats {
     pub truth: Option<f64>,
     /// Mean of the estimates.
     pub mean: f64,
-    /// Sample standard deviation of the estimates (n − 1 in the denominator; 0 for one run).
-    pub std: f64,
+    /// Sample standard deviation of the estimates (n − 1 in the denominator); `None` (JSON null) for
+    /// fewer than two runs, where it is undefined, not 0 (audit s30 M-7).
+    pub std: Option<f64>,
     /// mean − truth.
     pub bias: Option<f64>,
     /// √(mean (θ̂ − truth)²).
     pub rmse: Option<f64>,
     /// Median of the estimates.
     pub median: f64,
-    /// Robust standard deviation 1.4826 · median |θ̂ − median|.
-    pub robust_std: f64,
+    /// Robust standard deviation 1.4826 · median |θ̂ − median|; `None` for fewer than two runs.
+    pub robust_std: Option<f64>,
     /// Estimates further than [`OUTLIER_ROBUST_STDS`] robust standard deviations from the median (none
     /// when the robust std is 0).
     pub outliers: usize,
@@ -165,15 +166,16 @@ fn median_of(v: &mut [f64]) -> f64 {
 fn param_stats(name: ParamName, vals: &[f64], truth: Option<f64>) -> ParamStats {
     let n = vals.len().max(1) as f64;
     let mean = vals.iter().sum::<f64>() / n;
-    let std = if vals.len() > 1 {
+    let spread = vals.len() > 1;
+    let std = spread.then(|| {
         (vals.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / (vals.len() - 1) as f64).sqrt()
-    } else {
-        0.0
-    };
+    });
     let median = median_of(&mut vals.to_vec());
-    let robust_std =
-        1.4826 * median_of(&mut vals.iter().map(|v| (v - median).abs()).collect::<Vec<_>>());
-    let far = |v: &f64| robust_std > 0.0 && (v - median).abs() > OUTLIER_ROBUST_STDS * robust_std;
+    let robust_std = spread.then(|| {
+        1.4826 * median_of(&mut vals.iter().map(|v| (v - median).abs()).collect::<Vec<_>>())
+    });
+    let r = robust_std.unwrap_or(0.0);
+    let far = |v: &f64| r > 0.0 && (v - median).abs() > OUTLIER_ROBUST_STDS * r;
     let outliers = vals.iter().filter(|v| far(v)).count();
     let worst_outlier = vals
         .iter()
@@ -311,7 +313,7 @@ pub fn study(
                     p.outliers,
                     report::format::num(p.worst_outlier.unwrap_or(f64::NAN)),
                     report::format::num(p.median),
-                    report::format::num(p.robust_std)
+                    report::format::num(p.robust_std.unwrap_or(f64::NAN))
                 )
             })
             .collect();
@@ -321,6 +323,13 @@ pub fn study(
                  from the median: {}; its mean, std, bias and RMSE include them and may be far off: read the \
                  median and the robust std",
                 wild.join("; ")
+            ));
+        }
+        if ok.len() < 2 && !params.is_empty() {
+            warnings.push(format!(
+                "method {m}: {} run(s) gave an estimate: a spread (std, robust std) needs at least two, \
+                 so it is n/a, and the bias is one run's error, not the method's (run more: --runs)",
+                ok.len()
             ));
         }
         if let Some(w) = warned.first() {
@@ -386,10 +395,10 @@ impl StudyReport {
                     o(p.truth),
                     num(p.mean),
                     o(p.bias),
-                    num(p.std),
+                    o(p.std),
                     o(p.rmse),
                     num(p.median),
-                    num(p.robust_std),
+                    o(p.robust_std),
                     if p.outliers > 0 {
                         format!("  ({} outlier(s))", p.outliers)
                     } else {
@@ -464,11 +473,25 @@ mod tests {
             assert_eq!(m.ok_runs, 6);
             for p in &m.params {
                 assert!(
-                    p.bias.unwrap().abs() < 1e-9 && p.std < 1e-9 && p.rmse.unwrap() < 1e-9,
+                    p.bias.unwrap().abs() < 1e-9 && p.std.unwrap() < 1e-9 && p.rmse.unwrap() < 1e-9,
                     "{p:?}"
                 );
             }
         }
+    }
+
+    // Audit s30 M-7: one estimate has no spread (n − 1 = 0): std and robust std are n/a, not 0.
+    #[test]
+    fn one_run_has_no_spread() {
+        let p = param_stats(ParamName::A(1), &[2.5], Some(3.0));
+        assert_eq!(
+            (p.std, p.robust_std, p.mean, p.bias),
+            (None, None, 2.5, Some(-0.5))
+        );
+        let q = param_stats(ParamName::A(1), &[2.0, 4.0], None);
+        // Two values: s = √((1 + 1)/1) = √2; MAD = median(1, 1) = 1.
+        assert_eq!(q.std, Some(2f64.sqrt()));
+        assert_eq!(q.robust_std, Some(1.4826));
     }
 
     // Median and robust std by hand: values 1, 2, 3, 4, 100 have median 3, absolute deviations
@@ -477,12 +500,12 @@ mod tests {
     fn median_robust_std_and_outliers_by_hand() {
         let p = param_stats(ParamName::A(1), &[4.0, 100.0, 1.0, 3.0, 2.0], Some(3.0));
         assert_eq!(p.median, 3.0);
-        assert!((p.robust_std - 1.4826).abs() < 1e-12);
+        assert!((p.robust_std.unwrap() - 1.4826).abs() < 1e-12);
         assert_eq!((p.outliers, p.worst_outlier), (1, Some(100.0)));
         assert_eq!(p.mean, 22.0);
         // Equal values: robust std 0, no outliers (nothing to scale by).
         let q = param_stats(ParamName::A(1), &[2.0, 2.0, 2.0, 7.0], None);
-        assert_eq!((q.median, q.robust_std, q.outliers), (2.0, 0.0, 0));
+        assert_eq!((q.median, q.robust_std, q.outliers), (2.0, Some(0.0), 0));
     }
 
     // One run whose input is 1e6 times smaller (b1 is then not determined: noise / 1e-6) is an
@@ -510,7 +533,7 @@ mod tests {
             .unwrap();
         assert_eq!(b1.outliers, 1, "{b1:?}");
         assert!((b1.median - 2.0).abs() < 0.05, "{b1:?}");
-        assert!(b1.std > 100.0 * b1.robust_std, "{b1:?}");
+        assert!(b1.std.unwrap() > 100.0 * b1.robust_std.unwrap(), "{b1:?}");
         assert!(
             r.warnings
                 .iter()
@@ -532,7 +555,7 @@ mod tests {
         let r = study(&settings(0.3), Some(&truth), &experiment, &|| {}).unwrap();
         for p in &r.methods[0].params {
             let lhs = p.rmse.unwrap().powi(2);
-            let rhs = p.bias.unwrap().powi(2) + 5.0 / 6.0 * p.std.powi(2);
+            let rhs = p.bias.unwrap().powi(2) + 5.0 / 6.0 * p.std.unwrap().powi(2);
             assert!((lhs - rhs).abs() < 1e-12 * (1.0 + lhs), "{p:?}");
         }
         // The same seed gives the same report.

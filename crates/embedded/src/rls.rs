@@ -1147,6 +1147,7 @@ mod tests {
     // the previous state read back through `p` and `theta`; P stays exactly symmetric. Both ρ < 1 and
     // ρ = 1 (the kernel's two P updates).
     #[test]
+    #[allow(clippy::needless_range_loop)] // indices as in the formulas
     fn f32_n4_update_is_eq12_written_out_bit_for_bit() {
         for rho in [0.98f32, 1.0] {
             let mut est = Rls::<f32, 4>::new(4, rho, 1000.0).unwrap();

@@ -23,7 +23,9 @@
 //! one 4-lane vector) f32 keeps the sequential order of f64: measured faster there (issue 28,
 //! twenty-first round: 24.3 ns per update at n = 4 against 25.2 with the split; a pairwise δ, 24.9).
 //! The eq. 12 formula and P's exact symmetry are unchanged; f32 results differ from the sequential
-//! order by rounding only.
+//! order by rounding only. (f32 with N ≤ 4 also writes P_ij − (Pφ)_i L̃_j, j ≥ i, as P_ij + (Pφ)_i (−L̃_j):
+//! the same values, spelled so that the compiler does not share the products between rows; issue 28,
+//! twenty-fourth round.)
 //!
 //! # UD form (optional)
 //!
@@ -570,7 +572,8 @@ fn update_standard<F: Float, const N: usize, const FULL: bool>(
 
 /// P ← (P − (Pφ) L̃ᵀ) · s (· s only when `SCALE`) on the leading m × m block (m = `pphi.len()`), entry
 /// (r, c) computed as (P_rc − (Pφ)_min(r,c) L̃_max(r,c)) · s: row r splits at the diagonal into c < r
-/// (operands (Pφ)_c L̃_r) and c ≥ r ((Pφ)_r L̃_c), both contiguous, and P stays exactly symmetric.
+/// (operands (Pφ)_c L̃_r) and c ≥ r ((Pφ)_r L̃_c), both contiguous, and P stays exactly symmetric (f32
+/// with N ≤ 4 spells c ≥ r as P_rc + (Pφ)_r (−L̃_c): the same values).
 #[inline(always)]
 fn symmetric_update<F: Float, const N: usize, const SCALE: bool>(
     p: &mut [[F; N]],
@@ -580,13 +583,26 @@ fn symmetric_update<F: Float, const N: usize, const SCALE: bool>(
 ) {
     let m = pphi.len();
     let full = m == N;
+    // f32 with N ≤ 4 (a row is one 4-lane vector): the entries c ≥ r as P_rc + (Pφ)_r (−L̃_c), the
+    // same bits as P_rc − (Pφ)_r L̃_c (x − y = x + (−y) and a (−b) = −(a b) exactly in IEEE 754). With
+    // the two spellings alike the compiler computed each shared product (Pφ)_min L̃_max once, made rows
+    // 1–3 from row 0's product vector by shuffles and multiplied row 1 again (a lane of L̃ set to 1):
+    // rows 1–3 of P, which the next update's Pφ reads, came ≈ 5 cycles after row 0. Spelled apart, each
+    // row is its own shuffles of (Pφ, L̃), one multiplication, subtraction and scaling: 27–28 → 25.4 ns
+    // per update at n = 4 (docs/benchmarks.md, "Twenty-fourth round").
+    let neg = !F::SYSID_ORDER && N <= 4;
+    let mut ng_buf = [F::ZERO; N];
+    for (d, g) in ng_buf.iter_mut().zip(gain) {
+        *d = -*g;
+    }
     for_columns!(full, m, 'col, |r| {
-        let (Some(row), Some(pr), Some(gr), Some(q_lo), Some(g_hi)) = (
+        let (Some(row), Some(pr), Some(gr), Some(q_lo), Some(g_hi), Some(ng_hi)) = (
             p.get_mut(r).and_then(|row| row.get_mut(..m)),
             pphi.get(r),
             gain.get(r),
             pphi.get(..r),
             gain.get(r..),
+            ng_buf.get(r..m),
         ) else {
             break 'col;
         };
@@ -597,9 +613,16 @@ fn symmetric_update<F: Float, const N: usize, const SCALE: bool>(
             let v = *c - *q * *gr;
             *c = if SCALE { v * s } else { v };
         }
-        for (c, g) in hi.iter_mut().zip(g_hi) {
-            let v = *c - *pr * *g;
-            *c = if SCALE { v * s } else { v };
+        if neg {
+            for (c, g) in hi.iter_mut().zip(ng_hi) {
+                let v = *c + *pr * *g;
+                *c = if SCALE { v * s } else { v };
+            }
+        } else {
+            for (c, g) in hi.iter_mut().zip(g_hi) {
+                let v = *c - *pr * *g;
+                *c = if SCALE { v * s } else { v };
+            }
         }
     });
 }
@@ -1116,6 +1139,79 @@ mod tests {
         assert!((est.p(0, 1) - (-8.0 / d)).abs() < 1e-15);
         assert!((est.p(1, 1) - (2.0 - 16.0 / d)).abs() < 1e-15);
         assert_eq!(est.p(0, 1), est.p(1, 0));
+    }
+
+    // f32 with N = n = 4 (the kernel whose P update spells the upper entries as P + (Pφ)(−L̃)): every
+    // update equals, bit for bit, eq. 12 written out plainly in the documented order (ε, Pφ and δ summed
+    // sequentially, L̃ = Pφ · (1/δ), P_ij ← (P_ij − (Pφ)_min L̃_max) · (1/ρ), no scaling for ρ = 1), from
+    // the previous state read back through `p` and `theta`; P stays exactly symmetric. Both ρ < 1 and
+    // ρ = 1 (the kernel's two P updates).
+    #[test]
+    #[allow(clippy::needless_range_loop)] // indices as in the formulas
+    fn f32_n4_update_is_eq12_written_out_bit_for_bit() {
+        for rho in [0.98f32, 1.0] {
+            let mut est = Rls::<f32, 4>::new(4, rho, 1000.0).unwrap();
+            for k in 0..300 {
+                let x = k as f32;
+                let phi = [
+                    (0.37 * x).sin(),
+                    (0.37 * x - 0.37).sin(),
+                    (0.11 * x).cos(),
+                    0.5 - (0.23 * x).sin(),
+                ];
+                let y = 0.8 * phi[0] - 0.3 * phi[1] + 0.5 * phi[2] + 0.1 * phi[3];
+                let p: [[f32; 4]; 4] =
+                    core::array::from_fn(|i| core::array::from_fn(|j| est.p(i, j)));
+                let mut theta = *est.theta();
+                let mut eps = y;
+                for i in 0..4 {
+                    eps -= phi[i] * theta[i];
+                }
+                let mut q = [0.0f32; 4];
+                for j in 0..4 {
+                    for i in 0..4 {
+                        q[i] += p[i][j] * phi[j];
+                    }
+                }
+                let mut delta = rho;
+                for i in 0..4 {
+                    delta += phi[i] * q[i];
+                }
+                let inv = 1.0 / delta;
+                let gain: [f32; 4] = core::array::from_fn(|i| q[i] * inv);
+                for i in 0..4 {
+                    theta[i] += gain[i] * eps;
+                }
+                let s = 1.0 / rho;
+                let expected: [[f32; 4]; 4] = core::array::from_fn(|i| {
+                    core::array::from_fn(|j| {
+                        let v = p[i][j] - q[i.min(j)] * gain[i.max(j)];
+                        if rho == 1.0 {
+                            v
+                        } else {
+                            v * s
+                        }
+                    })
+                });
+                assert_eq!(est.update(&phi, y).unwrap().to_bits(), eps.to_bits());
+                for i in 0..4 {
+                    assert_eq!(
+                        est.theta()[i].to_bits(),
+                        theta[i].to_bits(),
+                        "θ̂_{i}, update {k}"
+                    );
+                    for j in 0..4 {
+                        let got = est.p(i, j);
+                        assert_eq!(
+                            got.to_bits(),
+                            expected[i][j].to_bits(),
+                            "P_{i}{j}, update {k}"
+                        );
+                        assert_eq!(got.to_bits(), est.p(j, i).to_bits(), "symmetry, update {k}");
+                    }
+                }
+            }
+        }
     }
 
     // A restart at θ̂ = (1, −2) with p0 = 3 sets exactly that state in both forms (P = 3 I), and a later

@@ -601,3 +601,52 @@ fn a_wiener_candidate_has_no_aic_and_says_why() {
         "{text}"
     );
 }
+
+// Audit s30 H-1: on a one-sided input (u only 3.4 or 6.4, never negative) the Hammerstein estimator holds
+// three deadzone parameters fixed, so its model is the ARX model with an offset: na + nb + 1 = 2 + 1 + 1
+// = 4 estimated parameters (counted here by hand), in `order`'s table as in `identify`; `order` counted 7.
+#[test]
+fn order_counts_only_the_parameters_a_one_sided_fit_estimated() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mut u, mut y) = (Vec::new(), Vec::new());
+    let mut state = 7u64;
+    let (mut y1, mut y2, mut u1) = (20.0f64, 20.0f64, 3.4f64);
+    for k in 0..600 {
+        if k % 9 == 0 {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+        }
+        let uk = if (state >> 40) & 1 == 1 { 6.4 } else { 3.4 };
+        // Small deterministic "noise" so the fit is not exact.
+        let e = 0.01 * (((k * 7919) % 13) as f64 - 6.0);
+        let yk = 1.2 * y1 - 0.4 * y2 + 0.5 * u1 + 2.0 + e;
+        u.push(uk);
+        y.push(yk);
+        (y2, y1, u1) = (y1, yk, uk);
+    }
+    let data = common::write_tuy(dir.path(), "one_sided.csv", 0.08, &u, &y);
+    let d = data.to_str().unwrap();
+    let grid = ["--na", "2..2", "--nb", "1..1", "--nk", "1..1", "--offset"];
+    let (doc, _) = order_json(
+        &[
+            &["order", "--data", d, "--structure", "hammerstein"][..],
+            &grid,
+        ]
+        .concat(),
+        dir.path(),
+    );
+    let p = doc["candidates"][0]["p"].as_u64().unwrap();
+    assert_eq!(p, 4, "{doc}");
+    let (doc, _) = order_json(
+        &[
+            &["order", "--data", d, "--classes", "arx,hammerstein"][..],
+            &grid,
+        ]
+        .concat(),
+        dir.path(),
+    );
+    for c in doc["candidates"].as_array().unwrap() {
+        assert_eq!(c["p"].as_u64(), Some(4), "{c}");
+    }
+}

@@ -239,10 +239,8 @@ impl IdentifyReport {
                         .map(|r| {
                             Ok(RecordReport {
                                 data: r.name().to_string(),
-                                metrics: metrics(m, r)?.with_parameter_count(
-                                    m.parameter_count()
-                                        .saturating_sub(sysid::fitted::held_fixed(&fit.params)),
-                                ),
+                                metrics: metrics(m, r)?
+                                    .with_parameter_count(fit.estimated_parameter_count()),
                                 residuals: residual_analysis(m, r, max_lag),
                             })
                         })
@@ -396,10 +394,7 @@ impl IdentifyReport {
         let several = fit.model.inputs().len() > 1;
         // p counts the estimated parameters only: those the estimator held fixed (a dropped deadzone
         // branch) do not enter FPE and AIC (audit s18 L-7).
-        let estimated = |m: Metrics| {
-            let p = m.p.saturating_sub(sysid::fitted::held_fixed(&fit.params));
-            m.with_parameter_count(p)
-        };
+        let estimated = |m: Metrics| fit.estimated_metrics(m);
         let (est, val) = (estimated(est), val.map(estimated));
         IdentifyReport {
             model: fit.model.clone(),

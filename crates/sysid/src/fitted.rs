@@ -458,6 +458,27 @@ impl Param {
 }
 
 impl Fitted {
+    /// p: the parameters the estimator estimated — the model's count less those it held fixed (a
+    /// deadzone branch a one-sided input never reached, [`held_fixed`]), as MATLAB counts free
+    /// parameters (audit s18 L-7).
+    pub fn estimated_parameter_count(&self) -> usize {
+        self.model
+            .parameter_count()
+            .saturating_sub(held_fixed(&self.params))
+    }
+
+    /// `m` (metrics of this fit's model) with p, FPE and AIC of the estimated parameters only
+    /// ([`Fitted::estimated_parameter_count`]): the one count of `identify` and `order` (audit s30 H-1:
+    /// `order` counted the fixed ones, so a Hammerstein candidate on a one-sided input ranked below
+    /// the ARX model it equals).
+    pub fn estimated_metrics(
+        &self,
+        m: sysid_core::metrics::Metrics,
+    ) -> sysid_core::metrics::Metrics {
+        let p = m.p.saturating_sub(held_fixed(&self.params));
+        m.with_parameter_count(p)
+    }
+
     /// True when the estimator met its convergence criterion.
     pub fn converged(&self) -> bool {
         self.termination.converged()

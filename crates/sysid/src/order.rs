@@ -388,7 +388,9 @@ pub fn judged(
         error_numerical: false,
         ..Candidate::failed(o, &SysidError::Numerical(String::new()))
     };
-    c.p = fit.model.parameter_count();
+    // The estimated parameters only, as `identify` counts them (audit s30 H-1).
+    c.p = fit.estimated_parameter_count();
+    let est = est.map(|m| fit.estimated_metrics(m));
     let stability = fit.model.stability();
     c.stable = stability.settles();
     c.stability = stability.name().to_string();

@@ -275,7 +275,8 @@ pub fn evaluate(
                     .ok_or_else(|| SysidError::Data("no identification".into()))?;
                 let fit = identify(est, &id)?;
                 let m = &fit.model;
-                c.p = m.parameter_count();
+                // The estimated parameters only, as `identify` counts them (audit s30 H-1).
+                c.p = fit.estimated_parameter_count();
                 c.warnings = fit.warnings.iter().map(ToString::to_string).collect();
                 let stability = m.stability();
                 c.stable = stability.settles();

@@ -955,3 +955,22 @@ fn an_input_inside_the_start_breakpoints_is_said_with_the_start_to_use() {
         "{d}"
     );
 }
+
+// Audit s30 M-3: a record whose lines end in CR only (an old Mac export) is read by track as by every
+// other reader: the same JSON lines as the same record with LF line ends (it was "a header but no data
+// rows").
+#[test]
+fn a_record_with_cr_line_ends_is_tracked_as_with_lf() {
+    let dir = tempfile::tempdir().unwrap();
+    let lf = std::fs::read(simulate(dir.path(), 300, 4)).unwrap();
+    let cr: Vec<u8> = lf
+        .iter()
+        .map(|&b| if b == b'\n' { b'\r' } else { b })
+        .collect();
+    let a = run(&["track", "--data", "-"], &lf);
+    let b = run(&["track", "--data", "-"], &cr);
+    assert!(a.status.success(), "{}", String::from_utf8_lossy(&a.stderr));
+    assert!(b.status.success(), "{}", String::from_utf8_lossy(&b.stderr));
+    assert_eq!(a.stdout, b.stdout);
+    assert!(!a.stdout.is_empty());
+}

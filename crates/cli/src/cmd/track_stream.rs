@@ -117,11 +117,16 @@ type Columns = (usize, usize, Option<usize>);
 /// beginning while a line is unfinished (its last line was cut by a copy-truncate rotation), the
 /// unfinished bytes are dropped rather than joined to the new content's first line, and `dropped` is
 /// their number (0 when nothing was dropped).
+///
+/// A line ends at LF, CRLF or a lone CR, as in every other reader (audit s30 M-3: a file with CR line
+/// ends was one line to `track`): a CR that ends what has come so far sets `after_cr`, and the LF of a
+/// CRLF cut between two reads is then skipped at the next call, not read as a blank line.
 fn read_line_bounded<R: BufRead>(
     input: &mut R,
     buf: &mut Vec<u8>,
     max: usize,
     restarts: Option<&sysid_io::Restarts>,
+    after_cr: &mut bool,
 ) -> std::io::Result<Option<usize>> {
     buf.clear();
     let mut dropped = 0;
@@ -139,11 +144,24 @@ fn read_line_bounded<R: BufRead>(
             seen = now;
             dropped += buf.len();
             buf.clear();
+            *after_cr = false;
         }
         if available.is_empty() {
             return Ok((!buf.is_empty() || dropped > 0).then_some(dropped));
         }
-        let (take, done) = match available.iter().position(|&b| b == b'\n') {
+        if std::mem::take(after_cr) && available.first() == Some(&b'\n') {
+            input.consume(1); // the LF of a CRLF whose CR ended the line before
+            continue;
+        }
+        let (take, done) = match available.iter().position(|&b| b == b'\n' || b == b'\r') {
+            Some(i) if available[i] == b'\r' => match available.get(i + 1) {
+                Some(b'\n') => (i + 2, true),
+                Some(_) => (i + 1, true),
+                None => {
+                    *after_cr = true;
+                    (i + 1, true)
+                }
+            },
             Some(i) => (i + 1, true),
             None => (available.len(), false),
         };
@@ -210,6 +228,7 @@ pub fn track_stream<R: BufRead, W: Write>(
     let mut restarts_seen = 0u64;
     // After a restart: the note on its first sample (line and time of the new content).
     let mut restarted: Option<(u64, bool)> = None;
+    let mut after_cr = false;
     loop {
         // A stop asked by the first Ctrl-C of a followed source (`sysid_io::accept_stop`): the run ends
         // here, between two lines, even when the data never pause (a port streaming without a gap).
@@ -221,6 +240,7 @@ pub fn track_stream<R: BufRead, W: Write>(
             &mut buf,
             MAX_LINE_BYTES,
             options.restarts.as_deref(),
+            &mut after_cr,
         ) {
             Ok(Some(0)) => {}
             Ok(Some(dropped)) => {
@@ -537,20 +557,51 @@ mod tests {
         let mut buf = Vec::new();
         let mut ok: &[u8] = b"abcd\nrest";
         assert_eq!(
-            read_line_bounded(&mut ok, &mut buf, 4, None).unwrap(),
+            read_line_bounded(&mut ok, &mut buf, 4, None, &mut false).unwrap(),
             Some(0)
         );
         assert_eq!(buf, b"abcd\n");
         assert_eq!(
-            read_line_bounded(&mut ok, &mut buf, 4, None).unwrap(),
+            read_line_bounded(&mut ok, &mut buf, 4, None, &mut false).unwrap(),
             Some(0)
         );
         assert_eq!(buf, b"rest");
-        assert_eq!(read_line_bounded(&mut ok, &mut buf, 4, None).unwrap(), None);
+        assert_eq!(
+            read_line_bounded(&mut ok, &mut buf, 4, None, &mut false).unwrap(),
+            None
+        );
         let mut long = std::io::BufReader::with_capacity(2, std::io::repeat(b'x'));
-        let e = read_line_bounded(&mut long, &mut buf, 4, None).unwrap_err();
+        let e = read_line_bounded(&mut long, &mut buf, 4, None, &mut false).unwrap_err();
         assert_eq!(e.kind(), std::io::ErrorKind::InvalidData);
         assert!(buf.len() <= 5, "{}", buf.len());
+    }
+
+    // Audit s30 M-3: LF, CRLF and lone CR all end a line, and a CRLF cut between two reads (a reader
+    // that hands out 3 bytes at a time) is one line end, not a line and a blank one.
+    #[test]
+    fn every_line_end_ends_a_line() {
+        for text in [
+            &b"a,b\r1,2\r3,4\r"[..],
+            b"a,b\r\n1,2\r\n3,4\r\n",
+            b"a,b\n1,2\r3,4",
+        ] {
+            for cap in [1, 2, 3, 64] {
+                let mut r = std::io::BufReader::with_capacity(cap, text);
+                let (mut buf, mut after_cr, mut lines) = (Vec::new(), false, Vec::new());
+                while read_line_bounded(&mut r, &mut buf, 16, None, &mut after_cr)
+                    .unwrap()
+                    .is_some()
+                {
+                    let l: Vec<u8> = buf
+                        .iter()
+                        .copied()
+                        .filter(|b| *b != b'\r' && *b != b'\n')
+                        .collect();
+                    lines.push(String::from_utf8(l).unwrap());
+                }
+                assert_eq!(lines, ["a,b", "1,2", "3,4"], "{text:?} cap {cap}");
+            }
+        }
     }
 
     /// A reader that runs `hook` with its call number before each read of `inner`.

@@ -209,8 +209,9 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
             .collect();
         if let Some(r) = outside.first() {
             w.push(format!(
-                "set-point r = {r} {y_unit} is outside the reachable range {lo}..{hi} {y_unit} (the stroke): the \
-                 piston cannot follow it, and the step metrics describe the end stop"
+                "set-point r = {} {y_unit} is outside the reachable range {lo}..{hi} {y_unit} (the stroke): the \
+                 piston cannot follow it, and the step metrics describe the end stop",
+                sysid_core::format::Shortest(*r)
             ));
         }
     }
@@ -286,7 +287,8 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
         let (m, why) = (s.metrics, s.unsettled);
         let head = format!(
             "the step to r = {} {y_unit} at t = {:.3} s",
-            s.setpoint_mm, s.start_s
+            sysid_core::format::Shortest(s.setpoint_mm),
+            s.start_s
         );
         let ess = fmt_value(m.steady_state_error_mm.unwrap_or(f64::NAN));
         let within = s.end_s - s.start_s;
@@ -471,7 +473,8 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
             } else {
                 format!(
                     "the step to r = {} {y_unit} at t = {:.3} s",
-                    s.setpoint_mm, s.start_s
+                    sysid_core::format::Shortest(s.setpoint_mm),
+                    s.start_s
                 )
             };
             if let (Some(us), Some(pc)) = (
@@ -694,6 +697,29 @@ mod tests {
         );
         let w = loop_warnings(&tr, &steps, &facts((-240.0, 240.0)));
         assert!(!w.iter().any(|w| w.contains("the commands span")), "{w:?}");
+    }
+
+    // Audit s30 L-3: a set-point of 1e300 is printed as 1e300, not as its 301 digits.
+    #[test]
+    fn a_huge_set_point_is_printed_short() {
+        let tr = trace(vec![0.0; 101], vec![255.0; 101], 1e300);
+        let steps = metrics_for_steps(&tr).unwrap();
+        let w = loop_warnings(
+            &tr,
+            &steps,
+            &LoopFacts {
+                u_max: 255.0,
+                ..LoopFacts::default()
+            },
+        );
+        assert!(
+            w.iter().any(|w| w.contains("the step to r = 1e300 ")),
+            "{w:?}"
+        );
+        assert!(
+            w.iter().all(|w| !w.contains("100000000000000000000")),
+            "{w:?}"
+        );
     }
 
     // Audit s30 M-4: the set-point 50 above y0 = 0, the output held at 0 while u = −255 (the other way)

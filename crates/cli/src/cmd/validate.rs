@@ -481,7 +481,7 @@ fn why_not_stream(args: &Args, miso: bool, output_map: bool) -> Option<&'static 
     } else if args.horizon > 1 {
         Some("--horizon above 1")
     } else if args.out.is_some() {
-        Some("--out (it writes every sample)")
+        Some("--out, which writes every sample")
     } else if args.columns.resample.is_some() {
         Some("--resample")
     } else {
@@ -498,7 +498,7 @@ fn decide_stream(args: &Args, why: Option<&str>) -> anyhow::Result<bool> {
             "on",
             &format!(
                 "a single-input ARX, Hammerstein or output-error model with --horizon 1 and no --out or \
-                 --resample, or no --stream (not {why})"
+                 --resample, or no --stream; here: {why}"
             ),
         )
     })

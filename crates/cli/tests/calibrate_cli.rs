@@ -895,6 +895,15 @@ fn a_record_in_metres_is_questioned_and_the_iterations_are_counted_one_way() {
     };
     assert!(hinted(&doc), "{}", doc["warnings"]);
     assert!(err.contains("is y in metres?"), "{err}");
+    // A twin that does not follow its record is not offered for use (audit s30 L-12).
+    assert!(
+        err.contains("it does not follow the record") && !err.contains("(use: --plant"),
+        "{err}"
+    );
     let (err, doc) = calibrate("mm.csv");
     assert!(!hinted(&doc) && !err.contains("metres"), "{err}");
+    assert!(
+        err.contains("(use: --plant ipa --plant-config twin.toml)"),
+        "{err}"
+    );
 }

@@ -179,12 +179,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     super::common::write_outputs(&outputs, &inputs, args.strict, twin.warnings.len())?;
     // Said once the twin is written (audit s28 M-3: it was printed before the write, which could
     // still be refused or fail); with --strict and warnings nothing is written and nothing said.
+    // A twin that does not follow its record is written (the report is its record) but not offered
+    // for use (audit s30 L-12).
+    let follows = !twin.warnings.iter().any(|w| {
+        matches!(
+            w,
+            ipa::calibrate::CalibrationWarning::NoBetterThanMean { .. }
+        )
+    });
+    let how = if follows {
+        format!("use: --plant ipa --plant-config {}", out.display())
+    } else {
+        "it does not follow the record (see the warnings): not a model of that plant".to_string()
+    };
     print_report(
-        &format!(
-            "wrote {} (use: --plant ipa --plant-config {})\n",
-            out.display(),
-            out.display()
-        ),
+        &format!("wrote {} ({how})\n", out.display()),
         &[args.json.as_deref(), Some(out)],
     )
 }

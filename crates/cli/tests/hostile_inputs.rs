@@ -1553,3 +1553,47 @@ fn required_alternatives_are_both_named() {
     );
     assert!(!d.join("x.json").exists());
 }
+
+// Audit s30: a FIFO output with no reader waits, as a Unix tool's output does, but says so on standard
+// error after a second; a reader that opens it then gets the whole output.
+#[cfg(unix)]
+#[test]
+fn a_fifo_output_without_a_reader_says_it_waits() {
+    use std::io::Read;
+    let dir = tempfile::tempdir().unwrap();
+    let fifo = dir.path().join("out");
+    if !Command::new("mkfifo")
+        .arg(&fifo)
+        .status()
+        .is_ok_and(|s| s.success())
+    {
+        eprintln!("SKIPPED: mkfifo is not available");
+        return;
+    }
+    let child = bin()
+        .args(["simulate", "--plant", "paper", "--samples", "20", "--out"])
+        .arg(&fifo)
+        .stdin(Stdio::null())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(std::time::Duration::from_millis(1600));
+    let mut text = String::new();
+    std::fs::File::open(&fifo)
+        .unwrap()
+        .read_to_string(&mut text)
+        .unwrap();
+    let out = child.wait_with_output().unwrap();
+    let err = stderr(&out);
+    assert!(out.status.success(), "{err}");
+    assert!(
+        err.contains("note: waiting for a reader of a FIFO output"),
+        "{err}"
+    );
+    // The header and 20 rows.
+    assert!(
+        text.starts_with("t,u,y") && text.lines().count() == 21,
+        "{text}"
+    );
+}

@@ -354,7 +354,8 @@ pub fn set_force(on: bool) {
     FORCE.store(on, std::sync::atomic::Ordering::Relaxed);
 }
 
-fn forced() -> bool {
+/// Whether `--force` was recorded ([`set_force`]).
+pub fn forced() -> bool {
     FORCE.load(std::sync::atomic::Ordering::Relaxed)
 }
 

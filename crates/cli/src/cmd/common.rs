@@ -258,8 +258,27 @@ pub fn write_output(
     flag: &str,
 ) -> anyhow::Result<()> {
     sysid_io::refuse_overwrite_input(path, inputs, flag)?;
-    print_replaced(&sysid_io::write_all_atomic(&[(path, content)])?);
+    print_replaced(&write_all(&[(path, content)])?);
     Ok(())
+}
+
+/// [`sysid_io::write_all_atomic`], saying on standard error, once, when a FIFO output has had no reader
+/// for a second (audit s30: `--out FIFO` with nobody reading it waited without a word, as a Unix tool's
+/// output does; a signal still ends the process).
+fn write_all(outputs: &[(&Path, &[u8])]) -> Result<Vec<PathBuf>, sysid_io::OutputError> {
+    let start = std::time::Instant::now();
+    let mut said = false;
+    let mut note = || {
+        if !said && start.elapsed() >= std::time::Duration::from_secs(1) {
+            said = true;
+            eprintln!(
+                "note: waiting for a reader of a FIFO output (it is written when one opens it; \
+                 Ctrl-C stops)"
+            );
+        }
+        Ok(())
+    };
+    sysid_io::write_all_atomic_waiting(outputs, sysid_io::forced(), Some(&mut note))
 }
 
 /// Says which existing files a write replaced ([`sysid_io::write_all_atomic`]: only by the same kind of
@@ -295,7 +314,7 @@ pub fn write_outputs(
         .filter(|(p, _, _)| !refused || p.as_os_str() == "-")
         .map(|(p, b, _)| (*p, *b))
         .collect();
-    print_replaced(&sysid_io::write_all_atomic(&written)?);
+    print_replaced(&write_all(&written)?);
     if refused {
         let kept: Vec<String> = outputs
             .iter()

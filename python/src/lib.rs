@@ -2635,47 +2635,19 @@ fn control_loop<'py>(
     // A controller file tuned for another model, or whose compensator inverts another deadzone
     // (`control`'s check of the command line).
     if let (Some(f), Some(p)) = (&tuned_file, plant_arg) {
-        let model = if let Ok(m) = p.cast::<PyModel>() {
-            Some((m.get().inner.clone(), None))
-        } else {
-            match p.extract::<&str>().ok().map(str::parse::<ipa::PlantSpec>) {
-                Some(Ok(ipa::PlantSpec::ModelFile(path))) => {
-                    match sysid::model_file::read_any_model(&path) {
-                        Ok(sysid::model_file::AnyModel::Linear(m)) => Some((
-                            m,
-                            Some(
-                                sysid_core::format::visible(&path.display().to_string())
-                                    .into_owned(),
-                            ),
-                        )),
-                        _ => None,
-                    }
-                }
-                _ => None,
-            }
-        };
-        if let Some((m, name)) = model {
+        if let Ok(m) = p.cast::<PyModel>() {
+            // A model given in memory names no file: its deadzone only.
             warnings.extend(::control::trust::controller_model_warnings(
                 f,
-                &m,
-                name.as_deref(),
+                &m.get().inner,
+                None,
             ));
-        } else if let Some(spec) = p.extract::<&str>().ok().map(str::parse::<ipa::PlantSpec>) {
-            // The physics plant (a twin or the built-in one), the paper's model, or a model file that
-            // is not linear: the provenance only (audit s28 L-6).
-            use ::control::trust::RunPlant;
-            let config = plant_config.as_ref().map(|c| c.display().to_string());
-            let run_plant = match &spec {
-                Ok(ipa::PlantSpec::Ipa) => Some(RunPlant::Physics(config.as_deref())),
-                Ok(ipa::PlantSpec::Paper) => Some(RunPlant::Paper),
-                _ => None,
-            };
-            let model_name = match &spec {
-                Ok(ipa::PlantSpec::ModelFile(path)) => Some(path.display().to_string()),
-                _ => None,
-            };
-            let run_plant = run_plant.or(model_name.as_deref().map(RunPlant::ModelFile));
-            warnings.extend(run_plant.and_then(|r| ::control::trust::provenance_warning(f, r)));
+        } else if let Some(Ok(spec)) = p.extract::<&str>().ok().map(str::parse::<ipa::PlantSpec>) {
+            warnings.extend(::control::trust::controller_plant_warnings(
+                f,
+                &spec,
+                plant_config.as_deref(),
+            ));
         }
     }
     warnings.extend(::control::loop_warnings(

@@ -605,6 +605,37 @@ pub fn provenance_warning(file: &crate::ControllerFile, plant: RunPlant<'_>) -> 
     })
 }
 
+/// What a controller file says against the plant of a `--plant` specification `spec` (with
+/// `plant_config`, the physics plant's `--plant-config`): a model file read from its path gets
+/// [`controller_model_warnings`] when it is a linear-block model, every other plant the provenance check
+/// ([`provenance_warning`]). The one mapping of `control --controller` and Python's `control(plant=...)`.
+pub fn controller_plant_warnings(
+    file: &crate::ControllerFile,
+    spec: &ipa::PlantSpec,
+    plant_config: Option<&std::path::Path>,
+) -> Vec<String> {
+    let config = plant_config.map(|p| p.display().to_string());
+    match spec {
+        ipa::PlantSpec::ModelFile(path) => {
+            let name = path.display().to_string();
+            match sysid_core::model_file::read_any_model(path) {
+                Ok(sysid_core::model_file::AnyModel::Linear(m)) => {
+                    controller_model_warnings(file, &m, Some(&name))
+                }
+                _ => provenance_warning(file, RunPlant::ModelFile(&name))
+                    .into_iter()
+                    .collect(),
+            }
+        }
+        ipa::PlantSpec::Ipa => provenance_warning(file, RunPlant::Physics(config.as_deref()))
+            .into_iter()
+            .collect(),
+        ipa::PlantSpec::Paper => provenance_warning(file, RunPlant::Paper)
+            .into_iter()
+            .collect(),
+    }
+}
+
 /// What a controller file says against the plant model `model` (read from `model_name`) it is run or
 /// analysed on (audit s22 M-B6: a controller tuned on a Hammerstein model, run on a linear ARX model,
 /// stepped its command by 38..48 counts at every sign change of the error without a word): its

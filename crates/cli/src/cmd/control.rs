@@ -303,29 +303,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     // A controller file tuned for another plant, or whose compensator inverts another deadzone.
     if let (Some(f), Ok(spec)) = (&tuned_file, args.plant.parse::<ipa::PlantSpec>()) {
-        use control::trust::RunPlant;
-        let config = args.plant_config.as_ref().map(|p| p.display().to_string());
-        match spec {
-            ipa::PlantSpec::ModelFile(path) => {
-                let name = path.display().to_string();
-                match sysid::model_file::read_any_model(&path) {
-                    Ok(sysid::model_file::AnyModel::Linear(m)) => warnings.extend(
-                        control::trust::controller_model_warnings(f, &m, Some(&name)),
-                    ),
-                    _ => warnings.extend(control::trust::provenance_warning(
-                        f,
-                        RunPlant::ModelFile(&name),
-                    )),
-                }
-            }
-            ipa::PlantSpec::Ipa => warnings.extend(control::trust::provenance_warning(
-                f,
-                RunPlant::Physics(config.as_deref()),
-            )),
-            ipa::PlantSpec::Paper => {
-                warnings.extend(control::trust::provenance_warning(f, RunPlant::Paper))
-            }
-        }
+        warnings.extend(control::trust::controller_plant_warnings(
+            f,
+            &spec,
+            args.plant_config.as_deref(),
+        ));
     }
     if let Some(change) = args.deadzone_change.filter(|c| c.at_s >= duration_s) {
         warnings.push(format!(

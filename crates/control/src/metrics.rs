@@ -479,6 +479,13 @@ pub struct StepSegment {
     pub unsettled: Option<Unsettled>,
 }
 
+impl StepSegment {
+    /// True when the step has fewer than [`MIN_STEP_SAMPLES`] samples ([`Unsettled::TooShort`]).
+    pub fn too_short(&self) -> bool {
+        matches!(self.unsettled, Some(Unsettled::TooShort { .. }))
+    }
+}
+
 /// The paper's steady-state criterion |e_ss| < `share` × |r − y0| for one step, as far as the run can
 /// judge it (audit s17 M-b; audit s28 L-9: a step called too short was still judged).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -497,11 +504,10 @@ pub enum EssVerdict {
 impl EssVerdict {
     /// The verdict of `step` against `share` (0.02: the paper's 2 %).
     pub fn of(step: &StepSegment, share: f64) -> Self {
-        let too_short = matches!(step.unsettled, Some(Unsettled::TooShort { .. }));
         Self::of_metrics(
             &step.metrics,
             (step.setpoint_mm - step.y0_mm).abs(),
-            too_short,
+            step.too_short(),
             share,
         )
     }

@@ -1,6 +1,6 @@
 //! Stage 4: the acceptance criteria of the paper (and the issue), each met or not, in words.
 
-use control::{EssVerdict, Unsettled};
+use control::EssVerdict;
 use report::format::{estimate, opt};
 
 use crate::paper;
@@ -147,13 +147,9 @@ pub(crate) fn loop_verdicts(s: &ReproduceSettings, st: &Study) -> Vec<Criterion>
     // |e_ss| < 2 % of the step, as `control`'s acceptance line judges it (`control::EssVerdict`): a
     // step too short to settle is not judged, an unsettled miss is a miss at the run's end and says so,
     // an unsettled pass is no verdict (audit s28 L-9).
-    let fixed_too_short = control::metrics_for_steps(&st.fixed.plant)
-        .ok()
-        .and_then(|g| {
-            g.first()
-                .map(|g| matches!(g.unsettled, Some(Unsettled::TooShort { .. })))
-        })
-        .unwrap_or(false);
+    // The fixed run is one step from its first sample: too short when the run is (the rule of
+    // `Unsettled::TooShort`, said first by `StepMetrics::assess`).
+    let fixed_too_short = st.fixed.plant.len() < control::metrics::MIN_STEP_SAMPLES;
     let ess = st.fixed.m_plant.steady_state_error_mm;
     let fixed = EssVerdict::of_metrics(&st.fixed.m_plant, step, fixed_too_short, 0.02);
     v.push(Criterion {
@@ -181,7 +177,7 @@ pub(crate) fn loop_verdicts(s: &ReproduceSettings, st: &Study) -> Vec<Criterion>
                 .steady_state_error_mm
                 .filter(|_| size > 0.0)
                 .map(|e| 100.0 * e.abs() / size);
-            let too_short = matches!(g.unsettled, Some(Unsettled::TooShort { .. }));
+            let too_short = g.too_short();
             (g.setpoint_mm, pct, EssVerdict::of(g, 0.02), too_short)
         })
         .collect();

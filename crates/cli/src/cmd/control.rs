@@ -909,7 +909,7 @@ fn summary_text(
             // An error measured on a loop that has not settled is not final: a miss is a miss at the
             // run's end, a pass is no verdict; a step too short to settle is not judged.
             let size = (first.setpoint_mm - first.y0_mm).abs();
-            let too_short = matches!(first.unsettled, Some(control::Unsettled::TooShort { .. }));
+            let too_short = first.too_short();
             let ess_verdict =
                 control::EssVerdict::of_metrics(m, size, too_short, 0.02).words(too_short);
             // The paper judges overshoot and e_ss only; a large wrong-way dip is named beside its

@@ -4,8 +4,15 @@
 //!
 //! Every candidate has the same number of parameters (na + nb + 1: a constant term c absorbs non-zero
 //! means, unlike `delayest`), and every candidate's loss is summed over the same rows k ≥ k0 =
-//! max(na, nk_max + nb − 1), so the losses compare like with like. When the runner-up's loss is within
-//! 5 % of the winner's, the delay is poorly determined by these data and the result says so.
+//! max(na, nk_max + nb − 1), so the losses compare like with like.
+//!
+//! The smallest loss alone over-estimates the input's reach: a candidate whose first input lag comes
+//! before the true delay carries one coefficient (b at lag nk) that only fits noise, and wins by a
+//! fraction of a percent (audit s30 M-1: nk = 0 for a one-sample delay, b at lag 0 = −7e-4 ± 4e-4). So
+//! the delay is the loss minimum moved to the next delay for as long as the leading coefficient, of
+//! u(k − nk), is within [`LEAD_T`] standard deviations of 0 and the next delay fits within 5 % of the
+//! minimum's loss: the first lag the data show an effect at. When another remaining candidate's loss is
+//! within 5 % of the chosen one's, the delay is poorly determined by these data and the result says so.
 
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
@@ -20,6 +27,18 @@ pub struct DelayCandidate {
     /// Loss V = (1/N) Σ ½ ε² of the one-step prediction errors (paper eq. 14), units of y²; `None` when
     /// this delay's regressors are linearly dependent (see `error`).
     pub loss: Option<f64>,
+    /// b_lead: the coefficient of u(k − nk), the first input lag of this candidate (units of y per unit
+    /// of u); `None` when the delay could not be fitted.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub b_lead: Option<f64>,
+    /// Standard deviation of `b_lead` (√(σ̂² [(ΦᵀΦ)⁻¹]_jj), σ̂² = RSS / (N − p)); `None` when N ≤ p or
+    /// it could not be computed.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub b_lead_std: Option<f64>,
+    /// Whether `b_lead` is within [`LEAD_T`] standard deviations of 0, or below 1e-9 of the largest
+    /// input coefficient (an exact fit's rounding); false when either is unknown (no standard deviation
+    /// is no evidence of a null effect).
+    pub lead_within_noise: bool,
     /// Why this delay could not be fitted (for noise-free data, delays beyond the true one make the
     /// past outputs a combination of the inputs).
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -39,8 +58,12 @@ pub struct DelayEstimate {
     pub n: usize,
     /// Every delay tried, in order of nk.
     pub candidates: Vec<DelayCandidate>,
-    /// Ratio of the runner-up's loss to the winner's (≥ 1; `None` with a single candidate).
+    /// Ratio of the runner-up's loss to the chosen delay's (≥ 1; `None` with a single candidate). The
+    /// delays set aside for a leading coefficient within noise (see `notes`) are not runners-up.
     pub margin: Option<f64>,
+    /// How the delay was chosen when it is not the loss minimum, in words (the minimum's leading input
+    /// coefficient within noise of 0).
+    pub notes: Vec<String>,
     /// Reasons not to trust the estimate, in words (empty when all is well): the delay is poorly
     /// determined, or it is the largest one tried (the optimum may lie beyond).
     pub warnings: Vec<String>,
@@ -48,6 +71,14 @@ pub struct DelayEstimate {
 
 /// Ratio of runner-up to best loss below which the delay counts as poorly determined.
 pub const CLEAR_MARGIN: f64 = 1.05;
+
+/// |b_lead| / σ(b_lead) below which a candidate's first input lag shows no effect (about 95 % two-sided
+/// for a Gaussian estimate).
+pub const LEAD_T: f64 = 2.0;
+
+/// Relative size below which a loss or a coefficient is an exact fit's rounding: losses below
+/// `ROUNDING²` · mean(y²) are equal, a lead below `ROUNDING` · max |b_j| is 0.
+const ROUNDING: f64 = 1e-9;
 
 /// Φ, y and the names of Φ's columns.
 pub(crate) type ArxRegression = (DMatrix<f64>, DVector<f64>, Vec<String>);
@@ -194,14 +225,33 @@ pub fn estimate_delay_with_progress(
     for nk in 0..=max_delay {
         let (phi, target, names) = arx_regression(data.y(), data.u(), na, nb, nk, k0)?;
         candidates.push(match crate::ls::solve(&phi, &target, &names) {
-            Ok(sol) => DelayCandidate {
-                nk,
-                loss: Some(0.5 * sol.rss / target.len() as f64),
-                error: None,
-            },
+            Ok(sol) => {
+                let rows = target.len();
+                // σ̂² from the residual degrees of freedom; none left (N = p) means no σ̂ at all.
+                let dof = rows.saturating_sub(p);
+                let var = (dof > 0).then(|| sol.rss / dof as f64 * sol.inv_gram[(na, na)]);
+                let b_lead = Some(sol.theta[na]).filter(|b| b.is_finite());
+                let b_lead_std = var.filter(|v| v.is_finite() && *v >= 0.0).map(f64::sqrt);
+                let b_max = sol.theta.rows(na, nb).amax();
+                DelayCandidate {
+                    nk,
+                    loss: Some(0.5 * sol.rss / rows as f64),
+                    b_lead,
+                    b_lead_std,
+                    lead_within_noise: match (b_lead, b_lead_std) {
+                        (Some(b), Some(s)) => b.abs() < (LEAD_T * s).max(ROUNDING * b_max),
+                        (Some(b), None) => b.abs() < ROUNDING * b_max,
+                        _ => false,
+                    },
+                    error: None,
+                }
+            }
             Err(e) if !e.is_numerical() => DelayCandidate {
                 nk,
                 loss: None,
+                b_lead: None,
+                b_lead_std: None,
+                lead_within_noise: false,
                 error: Some(e.to_string()),
             },
             Err(e) => return Err(e.context(&format!("{} (nk = {nk})", data.name()))),
@@ -215,7 +265,7 @@ pub fn estimate_delay_with_progress(
         .filter_map(|c| c.loss.map(|l| (c.nk, l)))
         .collect();
     order.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
-    let Some(&(best_nk, best_loss)) = order.first() else {
+    let Some(&(min_nk, min_loss)) = order.first() else {
         return Err(SysidError::Data(format!(
             "{}: no delay in 0..={max_delay} could be fitted: {}",
             data.name(),
@@ -225,26 +275,131 @@ pub fn estimate_delay_with_progress(
                 .unwrap_or_default()
         )));
     };
-    let margin = order.get(1).map(|r| {
-        if best_loss > 0.0 {
-            r.1 / best_loss
-        } else if r.1 > 0.0 {
-            f64::INFINITY
+    // Loss ratio of `l` to `best` (≥ 1 for l ≥ best), losses below an exact fit's rounding counted
+    // as that level (two exact fits are equal; data all zero gives 1).
+    let mean_square = data.y().iter().map(|v| v * v).sum::<f64>() / data.len() as f64;
+    let floor = ROUNDING * ROUNDING * mean_square;
+    let ratio = |l: f64, best: f64| {
+        let (l, best) = (l.max(floor), best.max(floor));
+        if best > 0.0 {
+            l / best
         } else {
             1.0
         }
-    });
-    // Every reason is kept (one used to hide the other).
+    };
+    // The delays just below `chosen` whose first input lag shows no effect: they hold `chosen`'s lags
+    // and earlier ones that fit only noise, so they are no evidence of a shorter delay.
+    let set_aside = |chosen: usize| {
+        let mut lo = chosen;
+        while lo > 0 && candidates[lo - 1].lead_within_noise {
+            lo -= 1;
+        }
+        lo..chosen
+    };
+    // The best competitor of delay `chosen` (nk, loss ratio to `chosen`'s), the delays set aside left
+    // out.
+    let runner_up = |chosen: usize| {
+        let chosen_loss = candidates[chosen].loss.unwrap_or(min_loss);
+        order
+            .iter()
+            .filter(|&&(nk, _)| nk != chosen && !set_aside(chosen).contains(&nk))
+            .map(|&(nk, l)| (nk, ratio(l, chosen_loss)))
+            .min_by(|a, b| a.1.total_cmp(&b.1))
+    };
+    // From the loss minimum on, while its first input lag shows no effect and the next delay fits
+    // almost as well, the delay is the next one (the candidates are indexed by nk). Kept only when
+    // that settles the question (no other delay fits almost as well as the one reached): when many
+    // delays fit alike (a gradual response), leads within noise tell nothing and the minimum stays,
+    // with the warning below.
+    let mut shifted = min_nk;
+    while candidates[shifted].lead_within_noise
+        && candidates
+            .get(shifted + 1)
+            .and_then(|c| c.loss)
+            .is_some_and(|l| ratio(l, min_loss) < CLEAR_MARGIN)
+    {
+        shifted += 1;
+    }
+    let best_nk = if runner_up(shifted).is_none_or(|r| r.1 >= CLEAR_MARGIN) {
+        shifted
+    } else {
+        min_nk
+    };
+    let best_loss = candidates[best_nk].loss.unwrap_or(min_loss);
+    let lead = |c: &DelayCandidate| {
+        format!(
+            "{} ± {}",
+            sysid_core::format::sig(c.b_lead.unwrap_or(f64::NAN), 3),
+            c.b_lead_std
+                .map_or_else(|| "n/a".to_string(), |s| sysid_core::format::sig(s, 2))
+        )
+    };
     let mut warnings = Vec::new();
-    if let (Some(m), Some(r)) = (margin, order.get(1)) {
+    let mut notes = Vec::new();
+    if best_nk != min_nk {
+        notes.push(format!(
+            "nk = {min_nk} has the smallest loss, but its coefficient of u(k − {min_nk}) is {} (within \
+             noise of 0){}; the delay is taken as nk = {best_nk}, which fits almost as well (loss {:.3} % \
+             higher){}, and no other delay does",
+            lead(&candidates[min_nk]),
+            match best_nk - min_nk {
+                1 => String::new(),
+                2 => format!(", as is that of nk = {}", min_nk + 1),
+                _ => format!(", as are those of nk = {}..={}", min_nk + 1, best_nk - 1),
+            },
+            100.0 * (ratio(best_loss, min_loss) - 1.0),
+            if candidates[best_nk].lead_within_noise {
+                String::new()
+            } else {
+                format!(" and whose first input lag shows an effect ({})", lead(&candidates[best_nk]))
+            }
+        ));
+    } else if let Some((nk, m)) = set_aside(best_nk)
+        .filter_map(|nk| candidates[nk].loss.map(|l| (nk, ratio(l, best_loss))))
+        .filter(|r| r.1 < CLEAR_MARGIN)
+        .min_by(|a, b| a.1.total_cmp(&b.1))
+    {
+        // A shorter delay that fits almost as well only by an input lag within noise: said, not warned.
+        notes.push(format!(
+            "nk = {nk} fits almost as well (loss {:.3} % higher), but its coefficient of u(k − {nk}) is \
+             {} (within noise of 0): it holds nk = {best_nk}'s input lags and earlier ones that fit only \
+             noise, no evidence of a shorter delay",
+            100.0 * (m - 1.0),
+            lead(&candidates[nk])
+        ));
+    }
+    let runner_up = runner_up(best_nk);
+    let margin = runner_up.map(|r| r.1);
+    // Every reason is kept (one used to hide the other).
+    if let Some((r_nk, m)) = runner_up {
         if m < CLEAR_MARGIN {
             warnings.push(format!(
-                "the delay is poorly determined: nk = {} fits almost as well (loss {:.3} % higher); the \
-                 input may not excite the system enough, or the system responds gradually",
-                r.0,
-                100.0 * (m - 1.0)
+                "the delay is poorly determined: nk = {r_nk} fits almost as well (loss {:.3} % higher); \
+                 the input may not excite the system enough, or the system responds gradually",
+                100.0 * (m - 1.0),
             ));
         }
+    }
+    if candidates[best_nk].lead_within_noise {
+        let next = candidates.get(best_nk + 1);
+        warnings.push(format!(
+            "nk = {best_nk}'s own coefficient of u(k − {best_nk}) is within noise of 0 ({}): the input \
+             may act only from a later lag{}",
+            lead(&candidates[best_nk]),
+            match next {
+                Some(c) if c.loss.is_none() => format!(
+                    ", but nk = {} could not be fitted ({})",
+                    c.nk,
+                    c.error.as_deref().unwrap_or("no fit")
+                ),
+                Some(c) if c.loss.is_some_and(|l| ratio(l, best_loss) >= CLEAR_MARGIN) => {
+                    format!(", but nk = {} fits more than 5 % worse", c.nk)
+                }
+                Some(_) => ", and the delays around it fit alike (the data do not tell them apart)"
+                    .to_string(),
+                None => String::new(),
+            }
+        ));
     }
     if best_nk == max_delay && max_delay > 0 {
         warnings.push(format!(
@@ -259,6 +414,7 @@ pub fn estimate_delay_with_progress(
         n: data.len() - k0,
         candidates,
         margin: margin.filter(|m| m.is_finite()),
+        notes,
         warnings,
     })
 }

@@ -63,7 +63,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     )?;
     let mut text = format!(
         "Delay estimate on {} ({} samples): nk = {} samples ({} s), from ARX(na = {}, nb = {}, nk) fits \
-         with a constant term on the same {} rows\n\n{:>4} {:>14}\n",
+         with a constant term on the same {} rows\n\n{:>4} {:>14} {:>24}\n",
         data.name(),
         data.len(),
         est.nk,
@@ -72,14 +72,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         est.nb,
         est.n,
         "nk",
-        "loss V"
+        "loss V",
+        "b(nk) ± std"
     );
     for c in &est.candidates {
+        // The coefficient of u(k − nk), the candidate's first input lag: the delay is the first lag whose
+        // coefficient is clear of noise (sysid::delay).
+        let lead = match (c.b_lead, c.b_lead_std) {
+            (Some(b), Some(s)) => {
+                format!("{} ± {}", report::format::num(b), report::format::num(s))
+            }
+            (Some(b), None) => format!("{} ± n/a", report::format::num(b)),
+            _ => "n/a".to_string(),
+        };
         text.push_str(&format!(
-            "{:>4} {:>14}{}\n",
+            "{:>4} {:>14} {:>24}{}\n",
             c.nk,
             c.loss
                 .map_or_else(|| "n/a".to_string(), report::format::num),
+            lead,
             match (&c.error, c.nk == est.nk) {
                 (_, true) => "  <- best".to_string(),
                 (Some(e), false) => format!("  ({e})"),
@@ -87,8 +98,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             }
         ));
     }
-    if !est.warnings.is_empty() {
+    if !est.warnings.is_empty() || !est.notes.is_empty() {
         text.push('\n');
+    }
+    for n in &est.notes {
+        text.push_str(&format!("note: {n}\n"));
     }
     for w in &est.warnings {
         text.push_str(&format!("warning: {w}\n"));
@@ -108,6 +122,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 "n": est.n,
                 "margin": est.margin,
                 "candidates": est.candidates,
+                "notes": est.notes,
                 "warnings": warnings,
             }))? + "\n",
         ),

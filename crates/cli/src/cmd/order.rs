@@ -368,6 +368,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 " (see the warnings below)"
             }
         ));
+        for n in &d.notes {
+            text.push_str(&format!("--nk auto: note: {n}\n"));
+        }
     }
     text.push('\n');
     text.push_str(&candidate_rows(&ranked, args.top));

@@ -228,7 +228,49 @@ fn a_valve_whose_deadzone_and_slope_change_is_flagged_within_a_few_hundred_sampl
             dz.m_r
         );
         assert!((dz.b_r - WORN_DZ.b_r).abs() < 1.0, "b_r = {}", dz.b_r);
+        // A tracker that follows its plant is not said to be held by the guard.
+        assert!(
+            t.warnings(&m).iter().all(|w| !w.contains("guard replaced")),
+            "seed {seed}: {:?}",
+            t.warnings(&m)
+        );
     }
+}
+
+// Audit s31 H-1: a plant the deadzone model cannot describe with plausible branches (here the right
+// branch's slope is negative: a command above b_r pushes the piston back) keeps the raw estimate outside
+// the plausible region; the guard then acts on most updates and the deadzone it shows is the start's, not
+// the data's. The tracker says so, with the count of interventions since the start; the tracker
+// of the same record without the guard says the estimate is implausible instead.
+#[test]
+fn a_tracker_held_by_the_guard_says_so() {
+    let reversed = Deadzone {
+        m_r: -PAPER_DZ.m_r,
+        ..PAPER_DZ
+    };
+    let (u, _) = record(6000, None, 0.01, 5);
+    let mut y = vec![0.0; u.len()];
+    let mut rng = ChaCha8Rng::seed_from_u64(6);
+    let e = Normal::new(0.0, 0.01).unwrap();
+    for k in 3..u.len() {
+        y[k] = -A[0] * y[k - 1] - A[1] * y[k - 2] - A[2] * y[k - 3]
+            + deadzone(&reversed, u[k - 1])
+            + e.sample(&mut rng);
+    }
+    let t = track(&u, &y, restart());
+    let m = t.model(0.01).unwrap();
+    let hits = t.guard_interventions();
+    // k0 = 3 (na = 3): an update at every sample from k = 3 on, no change point restarting the count.
+    assert!(t.change_points().is_empty(), "{:?}", t.change_points());
+    let updates = u.len() - 3;
+    assert!(hits as f64 > 0.2 * updates as f64, "{hits} of {updates}");
+    let w = t.warnings(&m);
+    assert!(
+        w.iter().any(|w| w.contains(&format!(
+            "guard replaced an implausible branch in {hits} of the {updates} updates since the start"
+        ))),
+        "{w:?}"
+    );
 }
 
 // Without the covariance restart, ρ = 1 would weigh 20 000 old samples against the new ones; the

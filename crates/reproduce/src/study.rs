@@ -160,9 +160,6 @@ pub(crate) fn closed_loop_choice(models: &[Fitted]) -> Option<usize> {
     best.or_else(|| models.first().filter(|m| m.rep.stable).map(|_| 0))
 }
 
-/// The simulation fit % of a model on the validation record that its initial state cannot flatter (the
-/// worse of estimated and measured initial outputs, `sysid::trust::guarded_fit`): the figure the verdict,
-/// the acceptance criteria and Table IV quote.
 /// The report's stability verdict in a word for the page's tables and headline (`stable` is only the
 /// verdict `settles`): `stable`, `an integrator`, `on the stability boundary` or `UNSTABLE`
 /// ([`sysid_core::Stability::word`], the one short wording).
@@ -170,6 +167,9 @@ pub(crate) fn stability_word(r: &IdentifyReport) -> &'static str {
     r.model.stability().word()
 }
 
+/// The simulation fit % of a model on the validation record that its initial state cannot flatter (the
+/// worse of estimated and measured initial outputs, `sysid::trust::guarded_fit`): the figure the verdict,
+/// the acceptance criteria, Table IV and the differences table quote.
 pub(crate) fn validation_fit(r: &IdentifyReport) -> Option<f64> {
     r.metrics
         .validation

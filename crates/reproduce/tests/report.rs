@@ -304,6 +304,46 @@ fn the_new_sections_and_figures_exist() {
     }
 }
 
+// Audit s31 M-5: the differences table quoted the fit from estimated initial outputs (61.96 % for an
+// unstable RLS model whose Table IV fit is −7.5 %). Its fit row is, for every model, the worse of the
+// validation fits from estimated and measured initial outputs, as Table IV and the verdict quote.
+#[test]
+fn the_differences_fit_is_the_worse_of_both_initial_states() {
+    let (_, s) = run_once("ipa");
+    let d = s["differences"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|d| d["id"] == "fit")
+        .unwrap();
+    let plant = d["plant"].as_object().unwrap();
+    assert!(!plant.is_empty());
+    for (label, value) in plant {
+        let (_, m) = s["models"]
+            .as_object()
+            .unwrap()
+            .iter()
+            .find(|(_, m)| {
+                // The table's short names: "RLS (paper)" is the paper's method, the others are in the
+                // model's label.
+                let l = m["label"].as_str().unwrap();
+                if label == "RLS (paper)" {
+                    l.contains("paper's method")
+                } else {
+                    l.contains(label.as_str())
+                }
+            })
+            .unwrap_or_else(|| panic!("no model labelled {label}"));
+        let v = &m["metrics"]["validation"];
+        let worse = [&v["fit_sim_percent"], &v["fit_sim_measured_percent"]]
+            .iter()
+            .filter_map(|f| f.as_f64())
+            .reduce(f64::min)
+            .unwrap();
+        assert_eq!(value.as_f64().unwrap(), worse, "{label}");
+    }
+}
+
 // Numbers in the report: 4 significant digits for estimates, 2 for standard deviations; never the
 // old 6-digit forms such as "± 3.51834".
 #[test]

@@ -2188,3 +2188,100 @@ fn several_input_hammerstein_estimates_far_worse_than_the_linear_start_are_flagg
         assert!((num(got) - want).abs() < 1e-8, "{m} vs {th:?}");
     }
 }
+
+// Audit s30 M-2: one input value of 1e200 among ±1 (data row 201, file line 202: the header is line 1)
+// made every estimate on the record meaningless (b1 = 5e-201) with exit 0 and no row named. The reader
+// names it at its line and column, identify warns (and --strict fails), validate prints it before its
+// overflow error. An impulse (one 1 among 0s) is no outlier, nor is a value 1e5 times the others.
+#[test]
+fn a_lone_outlier_is_named_at_its_line_and_column() {
+    let dir = tempfile::tempdir().unwrap();
+    let n = 500;
+    let u: Vec<f64> = (0..n)
+        .map(|k| if (k * 37 + 11) % 7 < 3 { 1.0 } else { -1.0 })
+        .collect();
+    let mut y = vec![0.0; n];
+    for k in 1..n {
+        y[k] = 0.9 * y[k - 1] + 0.5 * u[k - 1];
+    }
+    let id = |f: &Path, strict: bool| {
+        let mut a = vec![
+            "identify",
+            "--data",
+            s(f),
+            "--ts",
+            "0.1",
+            "--structure",
+            "arx",
+            "--na",
+            "1",
+            "--nb",
+            "1",
+            "--nk",
+            "1",
+            "--method",
+            "ls",
+        ];
+        if strict {
+            a.push("--strict");
+        }
+        bin().args(&a).output().unwrap()
+    };
+    let mut bad = u.clone();
+    bad[201] = 1e200;
+    let f = dir.path().join("huge.csv");
+    write_uy(&f, &bad, &y);
+    let o = id(&f, false);
+    let err = format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(o.status.success(), "{err}");
+    let named = "huge.csv:203:1: u = 1e200 is at least 1e6 times every other value";
+    assert!(err.contains(named), "{err}");
+    assert_eq!(id(&f, true).status.code(), Some(1));
+    // validate fails on the overflow, naming the row first.
+    let model = dir.path().join("m.json");
+    let clean = dir.path().join("clean.csv");
+    write_uy(&clean, &u, &y);
+    run(&[
+        "identify",
+        "--data",
+        s(&clean),
+        "--ts",
+        "0.1",
+        "--structure",
+        "arx",
+        "--na",
+        "1",
+        "--nb",
+        "1",
+        "--nk",
+        "1",
+        "--method",
+        "ls",
+        "--save-model",
+        s(&model),
+    ]);
+    let o = bin()
+        .args(["validate", "--model", s(&model), "--data", s(&f)])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr).to_string();
+    assert!(!o.status.success() && err.contains(named), "{err}");
+    // Not outliers: an impulse among zeros, a value 1e5 times the others.
+    for (name, value, others) in [("impulse.csv", 1.0, 0.0), ("big.csv", 1e5, 1.0)] {
+        let mut v: Vec<f64> = u.iter().map(|x| x * others).collect();
+        v[201] = value;
+        let f = dir.path().join(name);
+        write_uy(&f, &v, &y);
+        let o = id(&f, false);
+        let err = format!(
+            "{}{}",
+            String::from_utf8_lossy(&o.stdout),
+            String::from_utf8_lossy(&o.stderr)
+        );
+        assert!(!err.contains("outlier"), "{name}: {err}");
+    }
+}

@@ -766,6 +766,9 @@ pub fn read_record_bytes(
         .map(|&c| table.numbers(c))
         .collect::<Result<Vec<_>, _>>()?;
     let y = table.numbers(ycol)?;
+    for (&c, values) in ucols.iter().zip(&us).chain([(&ycol, &y)]) {
+        notes.extend(lone_outlier(&table, c, values));
+    }
     let record = |us: Vec<Vec<f64>>, y: Vec<f64>, ts: f64| {
         if names.len() == 1 {
             let u = us.into_iter().next().unwrap_or_default();
@@ -856,6 +859,46 @@ pub fn read_record_bytes(
         data: record(us, y, ts)?,
         notes,
         t0,
+    })
+}
+
+/// How many times every other value of its column one value must exceed to be called a lone outlier.
+pub const LONE_OUTLIER_FACTOR: f64 = 1e6;
+
+/// A note naming the one value of column `col` (its data `values`) that exceeds every other value of
+/// the column in magnitude [`LONE_OUTLIER_FACTOR`] times or more, at its file line and column: an
+/// outlier or a unit error that carries every estimate made on the record (audit s30 M-2: u = 1e200 in
+/// one row of ±1 gave b1 = 5e-201 and exit 0 with no row named; least squares names such a value only
+/// when its rank test fails). Nothing when the other values are all 0 (an impulse is a lone value by
+/// design) or the column has fewer than three values.
+pub(crate) fn lone_outlier(table: &Table, col: usize, values: &[f64]) -> Option<String> {
+    if values.len() < 3 {
+        return None;
+    }
+    let (row, big) = values
+        .iter()
+        .enumerate()
+        .map(|(i, v)| (i, v.abs()))
+        .fold((0, 0.0f64), |a, b| if b.1 > a.1 { b } else { a });
+    let rest = values
+        .iter()
+        .enumerate()
+        .filter(|&(i, _)| i != row)
+        .fold(0.0f64, |m, (_, v)| m.max(v.abs()));
+    // `big / rest` may overflow to ∞ (1e300 against 1e-10): compared as big ≥ factor · rest.
+    (rest > 0.0 && big >= LONE_OUTLIER_FACTOR * rest).then(|| {
+        format!(
+            "{}:{}:{}: {} = {} is at least {:.0e} times every other value of the column (at most {}): \
+             an outlier or a unit error; any estimate made on this record is carried by that one sample \
+             (remove or rescale it)",
+            table.name,
+            table.line_of(row),
+            col + 1,
+            table.headers.get(col).map_or("?", String::as_str),
+            crate::format::sig(values[row], 6),
+            LONE_OUTLIER_FACTOR,
+            crate::format::sig(rest, 6),
+        )
     })
 }
 

@@ -201,6 +201,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let us = data.input_signals();
     sysid::metrics::check_sampling_noted(data.name(), data.ts(), model.ts(), &record.notes)?;
     let blame = |e: sysid::SysidError| {
+        // A failure may have its cause in what the reader noted (a lone outlier: audit s30 M-2): the
+        // notes are printed before the error, which otherwise names no row.
+        for n in super::common::data_notes(&record.notes) {
+            eprintln!("warning: {n}");
+        }
         blame_model(
             e.context(data.name()),
             &model,

@@ -227,12 +227,8 @@ fn estimate_initial_through_output(
             .collect()
     };
     let loss = |v: &[f64]| -> f64 {
-        (0..n)
-            .map(|k| {
-                let yk = if k < k0 { v[k] } else { g.apply(v[k]) };
-                (dy[k] - yk).powi(2)
-            })
-            .sum()
+        // Every sample, the initial ones too, is y = g(v) (the initial outputs are v's, through g).
+        (0..n).map(|k| (dy[k] - g.apply(v[k])).powi(2)).sum()
     };
     let mut delta = vec![0.0; k0];
     let mut v = v_of(&delta);
@@ -241,11 +237,7 @@ fn estimate_initial_through_output(
         let mut jac = phi.clone();
         let mut r = nalgebra::DVector::<f64>::zeros(n);
         for k in 0..n {
-            let (yk, slope) = if k < k0 {
-                (v[k], 1.0)
-            } else {
-                (g.apply(v[k]), g.slope(v[k]))
-            };
+            let (yk, slope) = (g.apply(v[k]), g.slope(v[k]));
             r[k] = dy[k] - yk;
             for j in 0..k0 {
                 jac[(k, j)] *= slope;

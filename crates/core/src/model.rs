@@ -1021,8 +1021,10 @@ impl Model {
         free: Option<&mut Vec<f64>>,
     ) -> Result<Vec<f64>, SysidError> {
         if let Some(g) = &self.output {
-            // y = g(v): every prediction is the simulation of v from the measured initial outputs.
-            let mut out = self.run_linear(u, y, None, free)?;
+            // y = g(v): every prediction is the simulation of v from the measured initial outputs,
+            // taken through g⁻¹ (v(k) = g⁻¹(y(k)) for k < k0).
+            let y = self.initial_through_output(g, y);
+            let mut out = self.run_linear(u, &y, None, free)?;
             let k0 = self.k0().min(out.len());
             out[k0..].iter_mut().for_each(|v| *v = g.apply(*v));
             return Ok(out);
@@ -1031,13 +1033,36 @@ impl Model {
     }
 
     /// The output v of the linear block (before any output nonlinearity): free run from the measured
-    /// initial outputs (v(k) = y(k) for k < k0), in deviation units.
+    /// initial outputs (v(k) = g⁻¹(y(k)) for k < k0, [`StaticNonlinearity::preimage`]; y(k) without an
+    /// output nonlinearity), in deviation units.
     pub fn simulate_linear_part(&self, u: &[&[f64]], y: &[f64]) -> Result<Vec<f64>, SysidError> {
         let Some((du, dy)) = self.deviations(u, y) else {
-            return self.run_linear(u, y, None, None);
+            let y = match &self.output {
+                Some(g) => self.initial_through_output(g, y),
+                None => std::borrow::Cow::Borrowed(y),
+            };
+            return self.run_linear(u, &y, None, None);
         };
         let du: Vec<&[f64]> = du.iter().map(Vec::as_slice).collect();
+        let dy = match &self.output {
+            Some(g) => self.initial_through_output(g, &dy).into_owned(),
+            None => dy,
+        };
         self.run_linear(&du, &dy, None, None)
+    }
+
+    /// `y` with its first k0 samples (the linear block's measured initial outputs) taken through the
+    /// output nonlinearity's inverse, g⁻¹(y(k)); the rest as it is (only the first k0 are read as
+    /// initial outputs by a free run).
+    fn initial_through_output<'a>(
+        &self,
+        g: &crate::StaticNonlinearity,
+        y: &'a [f64],
+    ) -> std::borrow::Cow<'a, [f64]> {
+        let mut v = y.to_vec();
+        let k0 = self.k0().min(v.len());
+        v[..k0].iter_mut().for_each(|x| *x = g.preimage(*x));
+        std::borrow::Cow::Owned(v)
     }
 
     /// u − u0 (per input) and y − y0 with the operating point; `None` without one or when the number

@@ -237,6 +237,72 @@ fn simulation_and_plant_apply_the_output_nonlinearity() {
     assert!(plain.with_output_nonlinearity(Some(dz)).is_err());
 }
 
+// Audit s31 M-1: a free run from measured initial outputs starts the linear block at v(k) = g⁻¹(y(k))
+// for k < k0, not at y(k) (a gain m = 1.5 would start the state 50 % off). Measured y(0) = 0.9,
+// y(1) = 1.05 are 1.5 · v with v = 0.6, 0.7 (inside the limits); the recursion goes on from those.
+#[test]
+fn measured_initial_outputs_enter_the_linear_block_through_the_inverse_of_g() {
+    let g = StaticNonlinearity::Saturation(sysid::nonlinearity::Saturation {
+        s_l: -0.5,
+        s_r: 0.8,
+        m: 1.5,
+    });
+    let input = InputChannel::new("u", 1, vec![0.4, 0.2], StaticNonlinearity::Linear).unwrap();
+    let model = Model::new(0.1, vec![-1.2, 0.5], vec![input], Some(0.05))
+        .unwrap()
+        .with_output_nonlinearity(Some(g))
+        .unwrap();
+    let u = levels(200, -3.0, 4.0, 11);
+    let mut v = vec![0.6, 0.7];
+    for k in 2..u.len() {
+        v.push(1.2 * v[k - 1] - 0.5 * v[k - 2] + 0.4 * u[k - 1] + 0.2 * u[k - 2] + 0.05);
+    }
+    let mut y = vec![0.9, 1.05];
+    y.resize(u.len(), 0.0);
+    let sim = model.simulate(&[&u], &y).unwrap();
+    for k in 2..u.len() {
+        let want = 1.5 * v[k].clamp(-0.5, 0.8);
+        assert!(
+            (sim[k] - want).abs() < 1e-12,
+            "k = {k}: {} vs {want}",
+            sim[k]
+        );
+    }
+    let lin = model.simulate_linear_part(&[&u], &y).unwrap();
+    for k in 0..u.len() {
+        assert!((lin[k] - v[k]).abs() < 1e-12, "k = {k}");
+    }
+}
+
+// g⁻¹ of every output map kind: f(preimage(x)) = x where x is in f's range; the root nearest x for a
+// map that turns (x = 0.375 under v − 0.5 v²: roots 0.5 and 1.5, nearest 0.5); beyond the range the
+// nearest value f reaches (saturation: the limit).
+#[test]
+fn the_preimage_of_each_output_map() {
+    let sat = StaticNonlinearity::Saturation(sysid::nonlinearity::Saturation {
+        s_l: -1.0,
+        s_r: 2.0,
+        m: 3.0,
+    });
+    assert_eq!(sat.preimage(1.5), 0.5);
+    assert_eq!(sat.preimage(9.0), 2.0);
+    assert_eq!(sat.preimage(-7.0), -1.0);
+    let poly =
+        StaticNonlinearity::Polynomial(sysid::nonlinearity::Polynomial::new(&[1.0, -0.5]).unwrap());
+    let r = poly.preimage(0.375);
+    assert!((r - 0.5).abs() < 1e-12, "{r}");
+    let cubic = StaticNonlinearity::Polynomial(
+        sysid::nonlinearity::Polynomial::new(&[2.0, 0.0, 0.1]).unwrap(),
+    );
+    for x in [-30.0, -1.0, 0.0, 0.3, 7.0, 250.0] {
+        let v = cubic.preimage(x);
+        assert!(
+            (cubic.apply(v) - x).abs() < 1e-9 * (1.0 + x.abs()),
+            "{x}: {v}"
+        );
+    }
+}
+
 // Warnings on g against the range of v: a limit outside it; a polynomial that turns inside it
 // (1 v − 0.5 v²: g' = 0 at v = 1, inside [−2, 2]); a monotone map passes.
 #[test]

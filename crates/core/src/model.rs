@@ -1959,7 +1959,13 @@ impl crate::Plant for ModelPlant {
     }
 
     fn reset(&mut self, y0_mm: f64) {
+        // The history holds the linear block's output v: at rest at the output y0, v = g⁻¹(y0 − y_op)
+        // (so that the first output is y0, not g(y0)).
         let dev = y0_mm - self.y0();
+        let dev = self
+            .model
+            .output_nonlinearity()
+            .map_or(dev, |g| g.preimage(dev));
         self.y_hist.iter_mut().for_each(|v| *v = dev);
         // Past commands at the operating point: x = f(u0 − u0) = f(0) (0 for a deadzone or a linear
         // input).

@@ -272,6 +272,10 @@ fn measured_initial_outputs_enter_the_linear_block_through_the_inverse_of_g() {
     for k in 0..u.len() {
         assert!((lin[k] - v[k]).abs() < 1e-12, "k = {k}");
     }
+    // A plant reset to rest at y0 = 0.9 outputs 0.9 (v = 0.6 inside), not g(0.9) = 1.2 (clamped).
+    let mut plant = sysid::ModelPlant::new(model, "m").unwrap();
+    plant.reset(0.9);
+    assert!((plant.output() - 0.9).abs() < 1e-12, "{}", plant.output());
 }
 
 // g⁻¹ of every output map kind: f(preimage(x)) = x where x is in f's range; the root nearest x for a

@@ -105,3 +105,85 @@ fn one_residual_degree_of_freedom_gives_the_textbook_standard_deviations() {
         assert!((std - (sigma2 * g).sqrt()).abs() < 1e-12, "{q}");
     }
 }
+
+// ---------------------------------------------------------------------------------------------------
+// L-7: a time column that goes back under --ts.
+
+/// `t,u,y` rows of an ARX(1, 1) record y(k) = 0.5 y(k−1) + u(k−1), u = ±1 alternating in pairs, with
+/// the times `t`.
+fn timed_record(path: &Path, t: &[f64]) {
+    let u: Vec<f64> = (0..t.len())
+        .map(|k| if (k / 2) % 2 == 0 { 1.0 } else { -1.0 })
+        .collect();
+    let mut y = vec![0.0; t.len()];
+    for k in 1..t.len() {
+        y[k] = 0.5 * y[k - 1] + u[k - 1];
+    }
+    common::write_csv(path, "t,u,y", None, &[t, &u, &y]);
+}
+
+// 60 rows at 0.1 s, but data row 31 (0-based 30) says t = 0.5 s after 2.9 s: the header is line 1, data
+// row k is line k + 2, so the refusal is at line 32, column 1 (t), in memory and streamed.
+#[test]
+fn a_time_that_goes_back_is_refused_at_its_line_under_ts_in_memory_and_streamed() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("back.csv");
+    let mut t: Vec<f64> = (0..60).map(|k| k as f64 / 10.0).collect();
+    t[30] = 0.5;
+    timed_record(&data, &t);
+    for stream in ["off", "on"] {
+        let mut args = common::identify_arx(&data, "1", "1", "ls");
+        args.extend(["--ts", "0.1", "--stream", stream]);
+        let e = refused(&args);
+        assert!(
+            e.contains(&format!(
+                "{}:32:1: time 0.5 s goes back from 2.9 s on the previous row",
+                s(&data)
+            )),
+            "--stream {stream}: {e}"
+        );
+        assert!(e.contains("--ts spaces the rows evenly"), "{e}");
+    }
+    // Without --ts the same row is refused as not increasing (as before).
+    let e = refused(&common::identify_arx(&data, "1", "1", "ls"));
+    assert!(e.contains(":32:1: time 0.5 s does not increase"), "{e}");
+}
+
+// The same as a MAT-file: the time variable's element 31 (1-based).
+#[test]
+fn a_time_that_goes_back_in_a_mat_file_is_refused_under_ts() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("back.mat");
+    let mut t: Vec<f64> = (0..60).map(|k| k as f64 / 10.0).collect();
+    t[30] = 0.5;
+    let u: Vec<f64> = (0..60)
+        .map(|k| if k % 3 == 0 { 1.0 } else { -1.0 })
+        .collect();
+    let y: Vec<f64> = (0..60).map(|k| (k % 5) as f64).collect();
+    common::write_mat(&data, &["t", "u", "y"], &[&t, &u, &y]);
+    let mut args = common::identify_arx(&data, "1", "1", "ls");
+    args.extend(["--ts", "0.1"]);
+    let e = refused(&args);
+    assert!(
+        e.contains("time variable 't' element 31 (1-based): time 0.5 s goes back from 2.9 s"),
+        "{e}"
+    );
+}
+
+// A logger stamping whole seconds at 10 Hz repeats each time ten times: under --ts 0.1 that is read
+// (a repeated time is no reordering), with the not-uniform note.
+#[test]
+fn a_repeated_time_is_read_under_ts() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("repeat.csv");
+    let t: Vec<f64> = (0..100).map(|k| (k / 10) as f64).collect();
+    timed_record(&data, &t);
+    let mut args = common::identify_arx(&data, "1", "1", "ls");
+    args.extend(["--ts", "0.1"]);
+    let doc = run_json(dir.path(), &args);
+    assert!(
+        warnings(&doc).contains("is not uniform"),
+        "{}",
+        warnings(&doc)
+    );
+}

@@ -187,3 +187,167 @@ fn a_repeated_time_is_read_under_ts() {
         warnings(&doc)
     );
 }
+
+// ---------------------------------------------------------------------------------------------------
+// L-6: a set-point equal to y0.
+
+// r = y0 = 0: no step to settle, said on the error's line instead of a bare "not final: not settled".
+#[test]
+fn a_set_point_at_y0_says_there_is_no_step_to_settle() {
+    let out = run(&["control", "--plant", "ipa", "--setpoint", "0"]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let text = stdout(&out);
+    let line = text
+        .lines()
+        .find(|l| l.contains("steady-state error"))
+        .unwrap();
+    assert!(
+        line.contains("(no step to settle: the set-point is y0; e_ss = r − y at the last sample)"),
+        "{line}"
+    );
+    assert!(!line.contains("not settled"), "{line}");
+}
+
+// ---------------------------------------------------------------------------------------------------
+// L-2: errors name what the user typed.
+
+// `step:100` leaves the onset at its default, sample 10: with --samples 1 the record is sample 0 only.
+#[test]
+fn a_default_step_onset_is_named_as_the_default_with_the_range_of_onsets() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("s.csv");
+    let e = refused(&[
+        "simulate",
+        "--plant",
+        "ipa",
+        "--input",
+        "step:100",
+        "--samples",
+        "1",
+        "--out",
+        s(&out),
+    ]);
+    assert!(
+        e.contains("--input step:100: the step comes at sample 10 (the onset when no @K is given"),
+        "{e}"
+    );
+    assert!(!e.contains("step:100@10"), "{e}");
+    assert!(
+        e.contains("give an onset K from 0 to 0 (step:100@K)"),
+        "{e}"
+    );
+    // A typed onset is echoed as typed: 10 samples are 0..9.
+    let e = refused(&[
+        "simulate",
+        "--plant",
+        "ipa",
+        "--input",
+        "step:100@20",
+        "--samples",
+        "10",
+        "--out",
+        s(&out),
+    ]);
+    assert!(
+        e.contains("--input step:100@20: the step comes at sample 20, after the record's last sample (10 samples, 0..9); give an onset K from 0 to 9"),
+        "{e}"
+    );
+}
+
+// ess becomes the hold band (≤ 1e4 mm) and half the smallest nudge band (≤ 1e4 mm): ess ≤ 5e3 mm,
+// refused by its key, not by a field of the controller file.
+#[test]
+fn tune_refuses_a_huge_ess_by_its_key_and_range() {
+    let dir = tempfile::tempdir().unwrap();
+    let e = refused(&[
+        "tune",
+        "--model",
+        "absent.json",
+        "--spec",
+        "ess=1e9",
+        "--out",
+        s(&dir.path().join("c.json")),
+    ]);
+    assert!(
+        e.contains("--spec = ess=1e9: a finite number > 0 and at most 5e3 mm"),
+        "{e}"
+    );
+    assert!(!e.contains("hold_band_mm"), "{e}");
+}
+
+// An empty folder is refused as a folder without a record, with --stream on as without.
+#[test]
+fn an_empty_folder_is_refused_as_such_with_stream_on() {
+    let dir = tempfile::tempdir().unwrap();
+    let empty = dir.path().join("empty");
+    std::fs::create_dir(&empty).unwrap();
+    for stream in ["off", "on"] {
+        let mut args = common::identify_arx(&empty, "1", "1", "ls");
+        args.extend(["--ts", "0.1", "--stream", stream]);
+        let e = refused(&args);
+        assert!(
+            e.contains("a folder with at least one record (a *.csv or *.mat file)"),
+            "--stream {stream}: {e}"
+        );
+    }
+}
+
+// `u,y` then numbers, read with --no-header: line 1, column 1 holds 'u', and no cell of line 1 is a
+// number, so the hint names the header; a file whose bad first cell sits beside a number gets none.
+#[test]
+fn no_header_on_a_file_with_a_header_says_row_one_looks_like_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("h.csv");
+    std::fs::write(&data, "u,y\n1,2\n-1,3\n1,1\n").unwrap();
+    for stream in ["off", "on"] {
+        let e = refused(&[
+            "identify",
+            "--data",
+            s(&data),
+            "--no-header",
+            "--u-col",
+            "1",
+            "--y-col",
+            "2",
+            "--ts",
+            "0.1",
+            "--structure",
+            "arx",
+            "--method",
+            "ls",
+            "--stream",
+            stream,
+        ]);
+        assert!(
+            e.contains(&format!(
+                "{}:1:1: 'u' in column '1' is not a number",
+                s(&data)
+            )),
+            "{e}"
+        );
+        assert!(
+            e.contains("this first row looks like a header") && e.contains("leave out --no-header"),
+            "--stream {stream}: {e}"
+        );
+    }
+    let bad = dir.path().join("b.csv");
+    std::fs::write(&bad, "x,2\n1,2\n-1,3\n").unwrap();
+    let e = refused(&[
+        "identify",
+        "--data",
+        s(&bad),
+        "--no-header",
+        "--u-col",
+        "1",
+        "--y-col",
+        "2",
+        "--ts",
+        "0.1",
+        "--structure",
+        "arx",
+        "--method",
+        "ls",
+    ]);
+    assert!(e.contains(":1:1: 'x' in column '1'"), "{e}");
+    assert!(!e.contains("looks like a header"), "{e}");
+}

@@ -1610,7 +1610,8 @@ impl Table {
         let cname = self.headers.get(col).map_or("?", String::as_str);
         self.rows
             .iter()
-            .map(|(line, rec)| {
+            .enumerate()
+            .map(|(row, (line, rec))| {
                 cell_value(
                     rec.get(col),
                     rec.len(),
@@ -1618,11 +1619,16 @@ impl Table {
                     cname,
                     self.decimal_comma,
                 )
-                .map_err(|message| SysidError::Parse {
-                    file: self.name.clone(),
-                    line,
-                    column: col + 1,
-                    message,
+                .map_err(|mut message| {
+                    if row == 0 && !self.has_header && looks_like_header(rec.iter()) {
+                        message.push_str(NO_HEADER_ON_HEADER_HINT);
+                    }
+                    SysidError::Parse {
+                        file: self.name.clone(),
+                        line,
+                        column: col + 1,
+                        message,
+                    }
                 })
             })
             .collect()
@@ -1639,6 +1645,29 @@ impl Table {
     pub fn line_of(&self, row: usize) -> usize {
         self.rows.get(row).map_or(0, |(line, _)| line)
     }
+}
+
+/// The hint of a `--no-header` read whose first row [`looks_like_header`] (audit s30 L-2: the opposite
+/// mistake, a header-less file read with a header, already had its hint).
+pub(crate) const NO_HEADER_ON_HEADER_HINT: &str =
+    "; this first row looks like a header (none of its \
+     cells is a number), which --no-header reads as data: leave out --no-header";
+
+/// True when a row's cells, at least one not empty, are all text and none a number (either decimal
+/// mark): a header row.
+pub(crate) fn looks_like_header<'a>(cells: impl Iterator<Item = &'a str>) -> bool {
+    let mut any = false;
+    for c in cells {
+        let c = unquote(c.trim());
+        if c.is_empty() {
+            continue;
+        }
+        if parse_number(c, false).is_some() || parse_number(c, true).is_some() {
+            return false;
+        }
+        any = true;
+    }
+    any
 }
 
 /// The value of one cell of column `cname` (`None`: the row, of `fields` fields, ends before it) as a

@@ -206,11 +206,23 @@ pub fn generate(
         InputSpec::Multisine => multisine(samples, ts_s, amplitude, &mut rng)?,
         InputSpec::Step { level, onset } => {
             if *onset >= samples && *level != 0.0 {
-                // The record would hold no step at all (audit s11).
+                // The record would hold no step at all (audit s11). An onset left out is the default,
+                // said as such, not echoed as if typed (audit s30 L-2).
+                let (typed, default) = if *onset == DEFAULT_STEP_ONSET {
+                    (
+                        format!("step:{level}"),
+                        format!(
+                            " (the onset when no @K is given: step:{level}@K puts it at sample K)"
+                        ),
+                    )
+                } else {
+                    (format!("step:{level}@{onset}"), String::new())
+                };
                 return Err(IpaError::Config(format!(
-                    "--input step:{level}@{onset}: the step comes at sample {onset}, after the record's last \
-                     sample ({samples} samples, 0..{}); give an onset below {samples} or more --samples",
-                    samples.saturating_sub(1)
+                    "--input {typed}: the step comes at sample {onset}{default}, after the record's last \
+                     sample ({samples} samples, 0..{last}); give an onset K from 0 to {last} \
+                     (step:{level}@K) or more than {onset} --samples",
+                    last = samples.saturating_sub(1)
                 )));
             }
             (0..samples)

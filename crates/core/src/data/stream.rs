@@ -825,7 +825,12 @@ impl RecordSource for CsvStream {
                     &|| self.line_of(at),
                     col + 1,
                 )
-                .map_err(|m| self.at(at, col, m))
+                .map_err(|mut m| {
+                    if index == 0 && !self.has_header && super::looks_like_header(text.iter()) {
+                        m.push_str(super::NO_HEADER_ON_HEADER_HINT);
+                    }
+                    self.at(at, col, m)
+                })
             };
             let cells = value(self.ucol).and_then(|uk| Ok((uk, value(self.ycol)?)));
             let (uk, yk) = cells.map_err(|e| self.or_changed(e, &rdr.get_ref().inner, &file_id))?;

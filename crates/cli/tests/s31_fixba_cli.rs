@@ -351,3 +351,60 @@ fn no_header_on_a_file_with_a_header_says_row_one_looks_like_one() {
     assert!(e.contains(":1:1: 'x' in column '1'"), "{e}");
     assert!(!e.contains("looks like a header"), "{e}");
 }
+
+// ---------------------------------------------------------------------------------------------------
+// L-5: model-file checks name the field.
+
+/// A one-input ARX(1, 1) model file with `na`, `nk`, and the y range `y_range` written as given.
+fn model_file(path: &Path, na: &str, nk: &str, y_range: &str) {
+    std::fs::write(
+        path,
+        format!(
+            r#"{{"format": "ipa-sysid-model", "version": 3, "model": {{"kind": "arx", "ts": 0.1,
+  "na": {na}, "nb": 1, "nk": {nk}, "a": [-0.5], "b": [1.0],
+  "data_range": {{"u": [[-1.0, 1.0]], "y": {y_range}}}}}}}"#
+        ),
+    )
+    .unwrap();
+}
+
+#[test]
+fn model_file_orders_delays_and_ranges_are_refused_by_their_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("r.csv");
+    std::fs::write(&data, "u,y\n1,0\n-1,1\n1,-0.5\n-1,1.25\n").unwrap();
+    let model = dir.path().join("m.json");
+    for (na, nk, y, want) in [
+        (
+            "1000000000",
+            "1",
+            "[-2.0, 2.0]",
+            "invalid model: na = 1000000000; the orders na and nb are at most 100",
+        ),
+        (
+            "1",
+            "1000000000000",
+            "[-2.0, 2.0]",
+            "invalid model: nk = 1000000000000; the delay nk (in samples) is at most 100",
+        ),
+        (
+            "1",
+            "1",
+            "[60.2, 45.6]",
+            "invalid model: data_range.y = [60.2, 45.6]: its min is above its max",
+        ),
+    ] {
+        model_file(&model, na, nk, y);
+        let e = refused(&[
+            "validate",
+            "--model",
+            s(&model),
+            "--data",
+            s(&data),
+            "--ts",
+            "0.1",
+        ]);
+        assert!(e.contains(want), "{e}");
+        assert!(!e.contains("orders above"), "{e}");
+    }
+}

@@ -408,3 +408,34 @@ fn model_file_orders_delays_and_ranges_are_refused_by_their_field() {
         assert!(!e.contains("orders above"), "{e}");
     }
 }
+
+// ---------------------------------------------------------------------------------------------------
+// L-11: simulate --input file:F names a command's place as FILE:LINE:COL.
+
+// Header `t,u` is line 1; data row 2 (0-based), u = 1e200, is line 4, column 2.
+#[test]
+fn an_input_file_command_beyond_the_valves_is_named_at_its_line_and_column() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("cmd.csv");
+    std::fs::write(&input, "t,u\n0,1\n0.01,2\n0.02,1e200\n0.03,0\n").unwrap();
+    let spec = format!("file:{}", s(&input));
+    let e = refused(&[
+        "simulate",
+        "--plant",
+        "ipa",
+        "--input",
+        &spec,
+        "--samples",
+        "4",
+        "--out",
+        s(&dir.path().join("o.csv")),
+    ]);
+    assert!(
+        e.contains(&format!(
+            "{}:4:2: u = 1e200 is beyond ±255 counts",
+            s(&input)
+        )),
+        "{e}"
+    );
+    assert!(!e.contains("data row"), "{e}");
+}

@@ -314,6 +314,17 @@ fn read_columns(
     Ok((table, cols))
 }
 
+/// The file line and column (1-based) of data row `row` (0-based) of column `name` of a CSV input
+/// file, read again: for an error about one of its values, named at `FILE:LINE:COL` as every reader
+/// names a place (audit s30 L-11). `None` when the file no longer reads.
+pub fn command_position(path: &Path, name: &str, row: usize) -> Option<(usize, usize)> {
+    let (table, _) = read_columns(path, &[name]).ok()?;
+    let col = table
+        .column_index(name, sysid_core::Setting::Other("--input file:CSV"))
+        .ok()?;
+    Some((table.line_of(row), col + 1))
+}
+
 /// The columns `names` of a CSV input file and Ts (s) of its time column `t` (seconds) when it has
 /// one, by the reader's rule (non-uniform time is refused at its line), in one read. `simulate --input
 /// file:CSV` replays the commands at this Ts, or says that it does not (audit s16 L14).

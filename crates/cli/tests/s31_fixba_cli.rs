@@ -439,3 +439,58 @@ fn an_input_file_command_beyond_the_valves_is_named_at_its_line_and_column() {
     );
     assert!(!e.contains("data row"), "{e}");
 }
+
+// ---------------------------------------------------------------------------------------------------
+// L-3: huge fits in short form.
+
+// A(q) = 1 − 2.5 q⁻¹ + q⁻² has poles 2 and 0.5: simulated from the measured y(0), y(1) over 40 samples
+// it grows like 2^k, so the fit 100 (1 − ‖y − ŷ‖/‖y − ȳ‖) over k ≥ 2 is about −1e13 %: printed in 6
+// significant digits, not in full; its value is computed here by the same recursion.
+#[test]
+fn validate_prints_a_huge_negative_fit_in_short_form() {
+    let dir = tempfile::tempdir().unwrap();
+    let n = 40;
+    let u: Vec<f64> = (0..n)
+        .map(|k| if (k / 3) % 2 == 0 { 1.0 } else { -1.0 })
+        .collect();
+    let y: Vec<f64> = (0..n).map(|k| (k as f64 / 5.0).sin()).collect();
+    let data = dir.path().join("r.csv");
+    common::write_csv(&data, "u,y", None, &[&u, &y]);
+    let model = dir.path().join("m.json");
+    std::fs::write(
+        &model,
+        r#"{"format": "ipa-sysid-model", "version": 3, "model": {"kind": "arx", "ts": 0.1,
+  "na": 2, "nb": 1, "nk": 1, "a": [-2.5, 1.0], "b": [1.0]}}"#,
+    )
+    .unwrap();
+    let mut ys = vec![y[0], y[1]];
+    for k in 2..n {
+        ys.push(2.5 * ys[k - 1] - ys[k - 2] + u[k - 1]);
+    }
+    let mean = y[2..].iter().sum::<f64>() / (n - 2) as f64;
+    let err: f64 = (2..n).map(|k| (y[k] - ys[k]).powi(2)).sum::<f64>().sqrt();
+    let dev: f64 = (2..n).map(|k| (y[k] - mean).powi(2)).sum::<f64>().sqrt();
+    let fit = 100.0 * (1.0 - err / dev);
+    assert!(fit < -1e10, "{fit}");
+    let out = run(&[
+        "validate",
+        "--model",
+        s(&model),
+        "--data",
+        s(&data),
+        "--ts",
+        "0.1",
+    ]);
+    let text = stdout(&out);
+    let line = text.lines().find(|l| l.contains("fit ")).unwrap();
+    let measured = line
+        .split(" % (simulation, initial outputs measured)")
+        .next()
+        .unwrap()
+        .rsplit(' ')
+        .next()
+        .unwrap();
+    assert!(measured.len() <= 12, "{line}");
+    let printed: f64 = measured.parse().unwrap();
+    assert!(((printed - fit) / fit).abs() < 1e-5, "{printed} vs {fit}");
+}

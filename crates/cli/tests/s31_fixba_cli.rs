@@ -379,13 +379,13 @@ fn model_file_orders_delays_and_ranges_are_refused_by_their_field() {
             "1000000000",
             "1",
             "[-2.0, 2.0]",
-            "invalid model: na = 1000000000; the orders na and nb are at most 100",
+            "invalid model: na = 1000000000 is above 100, the largest order (na, nb) supported",
         ),
         (
             "1",
             "1000000000000",
             "[-2.0, 2.0]",
-            "invalid model: nk = 1000000000000; the delay nk (in samples) is at most 100",
+            "invalid model: nk = 1000000000000 is above 100, the longest delay nk (in samples) supported",
         ),
         (
             "1",

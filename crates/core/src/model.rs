@@ -92,12 +92,12 @@ pub(crate) fn check_order(field: &str, value: usize) -> Result<(), SysidError> {
         return Ok(());
     }
     let what = if field.starts_with("nk") {
-        "the delay nk (in samples) is at most"
+        "the longest delay nk (in samples) supported"
     } else {
-        "the orders na and nb are at most"
+        "the largest order (na, nb) supported"
     };
     Err(SysidError::Data(format!(
-        "invalid model: {field} = {value}; {what} {MAX_ORDER}"
+        "invalid model: {field} = {value} is above {MAX_ORDER}, {what}"
     )))
 }
 

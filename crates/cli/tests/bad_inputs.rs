@@ -1210,7 +1210,7 @@ fn saved_model_is_read_back_by_validate() {
     assert!(fit > 99.9, "{fit}");
 }
 
-/// A command file beyond the IPA's ±255 counts is refused naming the file and the data row, and nothing
+/// A command file beyond the IPA's ±255 counts is refused naming the file, line and column, and nothing
 /// is written; the paper's IPA refuses it too (its valves' PWM range, audit s13 L18); a model file
 /// applies any command, so the same amplitude is accepted there and its record differs from the ±255
 /// one (the commands were applied, not clipped).
@@ -1224,7 +1224,8 @@ fn commands_the_ipa_would_clip_are_refused_and_a_model_applies_them() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(2), "{err}");
     assert!(
-        err.contains("u.csv") && err.contains("data row 2") && err.contains("-300"),
+        // Header line 1, 10 on line 2, -300 on line 3 in column 1 (audit s30 L-11: FILE:LINE:COL).
+        err.contains("u.csv:3:1: u = -300 is beyond ±255 counts"),
         "{err}"
     );
     assert!(!dir.path().join("s.csv").exists());

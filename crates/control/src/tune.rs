@@ -211,7 +211,23 @@ impl Spec {
             };
             match key.trim() {
                 "overshoot" => s.overshoot_percent = num(value)?,
-                "ess" => s.ess_mm = num(value)?,
+                "ess" => {
+                    s.ess_mm = num(value)?;
+                    // e_ss becomes the tuned controller's hold band and half its smallest nudge band,
+                    // both bounded by the controller's MAX_LENGTH_MM: named here by the key the user
+                    // wrote (audit s30 L-2: the refusal named hold_band_mm, a field of the file).
+                    if s.ess_mm > 0.5 * crate::position::MAX_LENGTH_MM {
+                        return Err(bad(
+                            item,
+                            &format!(
+                                "a finite number > 0 and at most {:e} mm (the tuned controller holds \
+                                 within ±ess and nudges within 2·ess, at most {:e} mm)",
+                                0.5 * crate::position::MAX_LENGTH_MM,
+                                crate::position::MAX_LENGTH_MM
+                            ),
+                        ));
+                    }
+                }
                 "limit-cycle" => s.limit_cycle_mm = num(value)?,
                 "u-max" => {
                     s.u_max = num(value)?;

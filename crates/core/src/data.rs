@@ -824,7 +824,7 @@ pub fn read_record_bytes(
                     ),
                 ));
             }
-            notes.extend(ts_contradiction(&table, opts, ts));
+            notes.extend(ts_contradiction(&table, opts, ts)?);
             notes.extend(unnamed_date_times(&table, opts, &ucols, ycol, ts));
             ts
         }
@@ -910,34 +910,41 @@ pub(crate) fn lone_outlier(table: &Table, col: usize, values: &[f64]) -> Option<
 /// except when it holds dates and times (`2026-01-01 00:00:00`): the error for such a column advises
 /// `--ts`, with which the stamps are not read, so the note says they were not checked (audit s21 M-B6:
 /// a --ts 100 times the stamps' step, time going back, an impossible date passed without a word).
-pub(crate) fn ts_contradiction(table: &Table, opts: &CsvOptions, ts: f64) -> Vec<String> {
+pub(crate) fn ts_contradiction(
+    table: &Table,
+    opts: &CsvOptions,
+    ts: f64,
+) -> Result<Vec<String>, SysidError> {
     let Some(tc) = opts
         .ts
         .and(table.headers.iter().position(|h| *h == opts.t_col))
     else {
-        return Vec::new();
+        return Ok(Vec::new());
     };
     let t: Vec<f64> = match table.numbers(tc) {
         Ok(t) => t.iter().map(|v| v * opts.time_unit.seconds()).collect(),
         Err(_) => {
             let Some(first) = table.rows.get(0).and_then(|(_, rec)| rec.get(tc)) else {
-                return Vec::new();
+                return Ok(Vec::new());
             };
-            return looks_like_date_time(unquote(first.trim()))
+            return Ok(looks_like_date_time(unquote(first.trim()))
                 .then(|| {
                     date_time_note(&format!("the time column {}", opts.t_col), first, ts, opts)
                 })
                 .into_iter()
-                .collect();
+                .collect());
         }
     };
-    time_notes(
+    if let Some(fault) = time_goes_back(&t) {
+        return Err(time_error(fault, table, tc));
+    }
+    Ok(time_notes(
         &TimeFacts::of(&t),
         Some(ts),
         ts,
         opts.time_unit,
         &opts.t_col,
-    )
+    ))
 }
 
 /// The note of a column `what` ("the time column t", "the column time") whose first cell `first` is a
@@ -1646,7 +1653,8 @@ impl Table {
         let cname = self.headers.get(col).map_or("?", String::as_str);
         self.rows
             .iter()
-            .map(|(line, rec)| {
+            .enumerate()
+            .map(|(row, (line, rec))| {
                 cell_value(
                     rec.get(col),
                     rec.len(),
@@ -1654,11 +1662,16 @@ impl Table {
                     cname,
                     self.decimal_comma,
                 )
-                .map_err(|message| SysidError::Parse {
-                    file: self.name.clone(),
-                    line,
-                    column: col + 1,
-                    message,
+                .map_err(|mut message| {
+                    if row == 0 && !self.has_header && looks_like_header(rec.iter()) {
+                        message.push_str(NO_HEADER_ON_HEADER_HINT);
+                    }
+                    SysidError::Parse {
+                        file: self.name.clone(),
+                        line,
+                        column: col + 1,
+                        message,
+                    }
                 })
             })
             .collect()
@@ -1675,6 +1688,29 @@ impl Table {
     pub fn line_of(&self, row: usize) -> usize {
         self.rows.get(row).map_or(0, |(line, _)| line)
     }
+}
+
+/// The hint of a `--no-header` read whose first row [`looks_like_header`] (audit s30 L-2: the opposite
+/// mistake, a header-less file read with a header, already had its hint).
+pub(crate) const NO_HEADER_ON_HEADER_HINT: &str =
+    "; this first row looks like a header (none of its \
+     cells is a number), which --no-header reads as data: leave out --no-header";
+
+/// True when a row's cells, at least one not empty, are all text and none a number (either decimal
+/// mark): a header row.
+pub(crate) fn looks_like_header<'a>(cells: impl Iterator<Item = &'a str>) -> bool {
+    let mut any = false;
+    for c in cells {
+        let c = unquote(c.trim());
+        if c.is_empty() {
+            continue;
+        }
+        if parse_number(c, false).is_some() || parse_number(c, true).is_some() {
+            return false;
+        }
+        any = true;
+    }
+    any
 }
 
 /// The value of one cell of column `cname` (`None`: the row, of `fields` fields, ends before it) as a
@@ -1875,6 +1911,16 @@ pub enum TimeFault {
         /// t(k - 1), s.
         previous: f64,
     },
+    /// Under a given Ts (`--ts`), t(k) < t(k − 1): the time goes back (rows reordered, records joined),
+    /// which `--ts` does not mend ([`time_goes_back`]; audit s30 L-7).
+    GoesBack {
+        /// The sample.
+        k: usize,
+        /// Its time t(k), s.
+        t: f64,
+        /// t(k - 1), s.
+        previous: f64,
+    },
     /// The typical (median) step or the mean step is not a positive finite number.
     NoUsableStep {
         /// The median step, s.
@@ -1907,6 +1953,7 @@ impl TimeFault {
         match *self {
             Self::NotFinite { k, .. }
             | Self::NotIncreasing { k, .. }
+            | Self::GoesBack { k, .. }
             | Self::NonUniform { k, .. }
             | Self::NonUniformMean { k, .. } => Some(k),
             Self::TooShort | Self::NoUsableStep { .. } => None,
@@ -1928,6 +1975,13 @@ impl std::fmt::Display for TimeFault {
                 f,
                 "time {} s does not increase after {} s on the previous row; expected strictly \
                  increasing time",
+                Shortest(t),
+                Shortest(previous)
+            ),
+            Self::GoesBack { t, previous, .. } => write!(
+                f,
+                "time {} s goes back from {} s on the previous row (rows reordered, or records joined): \
+                 --ts spaces the rows evenly in the file's order and does not sort them",
                 Shortest(t),
                 Shortest(previous)
             ),
@@ -2130,6 +2184,23 @@ pub fn increasing_time(t: &[f64]) -> Result<(), TimeFault> {
     Ok(())
 }
 
+/// Under a given sampling period (`--ts`), the first sample where the time column t (s) goes back,
+/// t(k) < t(k − 1), as [`TimeFault::GoesBack`]; `None` when it never does (non-finite times are left
+/// to the notes). Without `--ts` such a row is refused as not increasing; with it the same row is
+/// refused too, at its line and column, because `--ts` spaces the rows evenly in the file's order and
+/// cannot put reordered rows or joined records back in order (audit s30 L-7: exit 0 with only "not
+/// uniform"). A repeated time is let through (a logger writing whole seconds at 10 Hz repeats each
+/// stamp ten times: `--ts` is what such a record needs), and so is a time column that is not numeric.
+pub fn time_goes_back(t: &[f64]) -> Option<TimeFault> {
+    (1..t.len())
+        .find(|&k| t[k] < t[k - 1])
+        .map(|k| TimeFault::GoesBack {
+            k,
+            t: t[k],
+            previous: t[k - 1],
+        })
+}
+
 /// The typical step (s) of the time column t when a given sampling period `ts` (s) contradicts it by
 /// more than 0.1 % (`ts` is then used, so every time figure is ts / step times what the column says);
 /// `None` when it agrees, or the column has no positive finite typical step. The rule of the reader's
@@ -2150,6 +2221,10 @@ pub(crate) fn time_fault_message(fault: &TimeFault) -> String {
     match fault {
         TimeFault::TooShort | TimeFault::NoUsableStep { .. } => format!("{fault}; pass --ts"),
         TimeFault::NotFinite { .. } | TimeFault::NotIncreasing { .. } => fault.to_string(),
+        TimeFault::GoesBack { .. } => format!(
+            "{fault}; sort the rows by time, cut the record before this row (--rows), or give each \
+             record as a file of its own"
+        ),
         TimeFault::NonUniform {
             median: typical, ..
         }

@@ -33,6 +33,25 @@ pub struct LsSolution {
     pub rss: f64,
 }
 
+/// σ̂² = RSS / (N − p), in the output's unit squared: the noise variance of `rows` regression rows
+/// (or residuals) N left after `params` estimated parameters p. NaN when N ≤ p: with no residual
+/// degrees of freedom the residuals are zero by construction and say nothing of the noise, so no
+/// standard deviation follows from them ([`NO_RESIDUAL_DOF`] says why; audit s30 L-1: N = p = 2 printed
+/// a1 = −2 ± 1.4e-15, rounding noise). The one place every estimator forms σ̂².
+pub fn noise_variance(rss: f64, rows: usize, params: usize) -> f64 {
+    if rows > params {
+        rss / (rows - params) as f64
+    } else {
+        f64::NAN
+    }
+}
+
+/// Why no standard deviation is given when [`noise_variance`] is NaN (N ≤ p).
+pub const NO_RESIDUAL_DOF: &str = "no residual degrees of freedom (no more regression rows than \
+     estimated parameters, N ≤ p): the residuals are zero by construction, so the noise variance \
+     RSS/(N − p) and every standard deviation are undetermined; use a longer record (--rows) or lower \
+     orders";
+
 /// Relative size below which a diagonal entry of R (of the column-normalised Φ) counts as zero.
 pub const RANK_TOLERANCE: f64 = 1e-10;
 
@@ -1029,6 +1048,14 @@ mod tests {
     use super::*;
     use rand::{Rng, SeedableRng};
     use rand_chacha::ChaCha8Rng;
+
+    // σ̂² = RSS/(N − p): 6/(5 − 2) = 2; with N = p (0/0) or N < p there is no residual left to say it.
+    #[test]
+    fn noise_variance_divides_by_the_residual_degrees_of_freedom_and_has_none_at_n_equal_p() {
+        assert_eq!(noise_variance(6.0, 5, 2), 2.0);
+        assert!(noise_variance(0.0, 2, 2).is_nan());
+        assert!(noise_variance(1.0, 1, 3).is_nan());
+    }
 
     // --max-memory GIB: a size in GiB (2³⁰ bytes), more than 0 and at most 1 TiB; 4 GiB by default.
     #[test]

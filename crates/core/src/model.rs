@@ -84,6 +84,23 @@ impl NoiseModel {
 /// Upper bound on model orders accepted anywhere (keeps allocations bounded for hostile inputs).
 pub const MAX_ORDER: usize = 100;
 
+/// Refuses an order (`na`, `nb`) or a delay (`nk`, samples: a delay, not an order) above
+/// [`MAX_ORDER`], naming the field and its value (audit s30 L-5: "orders above 100 are not
+/// supported" named neither, and called nk an order).
+pub(crate) fn check_order(field: &str, value: usize) -> Result<(), SysidError> {
+    if value <= MAX_ORDER {
+        return Ok(());
+    }
+    let what = if field.starts_with("nk") {
+        "the longest delay nk (in samples) supported"
+    } else {
+        "the largest order (na, nb) supported"
+    };
+    Err(SysidError::Data(format!(
+        "invalid model: {field} = {value} is above {MAX_ORDER}, {what}"
+    )))
+}
+
 /// One input of a model: its static nonlinearity f, delay nk and B polynomial.
 #[derive(Debug, Clone, PartialEq)]
 pub struct InputChannel {
@@ -104,9 +121,8 @@ impl InputChannel {
         nonlinearity: StaticNonlinearity,
     ) -> Result<Self, SysidError> {
         let bad = |m: String| Err(SysidError::Data(format!("invalid model: {m}")));
-        if nk > MAX_ORDER || b.len() > MAX_ORDER {
-            return bad(format!("orders above {MAX_ORDER} are not supported"));
-        }
+        check_order("nk", nk)?;
+        check_order("nb (the number of b coefficients)", b.len())?;
         if !nonlinearity.is_linear() && b.is_empty() {
             return bad("a hammerstein model needs nb >= 1".into());
         }
@@ -422,11 +438,28 @@ impl DataRange {
                 self.u.len()
             )));
         }
+        // The bad pair named by its field and value (audit s30 L-5: a reversed y range was not named).
         let ok = |r: &[f64; 2]| r[0].is_finite() && r[1].is_finite() && r[0] <= r[1];
-        if !(self.u.iter().all(ok) && ok(&self.y)) {
-            return Err(SysidError::Data(
-                "invalid model: data_range needs finite [min, max] pairs with min <= max".into(),
-            ));
+        let named = self
+            .u
+            .iter()
+            .enumerate()
+            .map(|(i, r)| (format!("data_range.u[{i}]"), r))
+            .chain(std::iter::once(("data_range.y".to_string(), &self.y)));
+        for (field, r) in named {
+            if !ok(r) {
+                let why = if r[0].is_finite() && r[1].is_finite() {
+                    "its min is above its max"
+                } else {
+                    "a bound is not finite"
+                };
+                return Err(SysidError::Data(format!(
+                    "invalid model: {field} = [{}, {}]: {why}; expected a finite [min, max] pair with \
+                     min <= max",
+                    crate::format::Shortest(r[0]),
+                    crate::format::Shortest(r[1])
+                )));
+            }
         }
         Ok(())
     }
@@ -530,9 +563,7 @@ impl Model {
         offset: Option<f64>,
     ) -> Result<Self, SysidError> {
         let bad = |m: String| Err(SysidError::Data(format!("invalid model: {m}")));
-        if a.len() > MAX_ORDER {
-            return bad(format!("orders above {MAX_ORDER} are not supported"));
-        }
+        check_order("na (the number of a coefficients)", a.len())?;
         if inputs.is_empty() {
             return bad("a model needs at least one input".into());
         }
@@ -1501,9 +1532,9 @@ impl TryFrom<ModelRepr> for Model {
     type Error = SysidError;
     fn try_from(r: ModelRepr) -> Result<Self, SysidError> {
         let bad = |m: String| Err(SysidError::Data(format!("invalid model: {m}")));
-        if r.na > MAX_ORDER || r.nb > MAX_ORDER || r.nk > MAX_ORDER {
-            return bad(format!("orders above {MAX_ORDER} are not supported"));
-        }
+        check_order("na", r.na)?;
+        check_order("nb", r.nb)?;
+        check_order("nk", r.nk)?;
         if r.a.len() != r.na {
             return bad(format!(
                 "na = {} but a has {} coefficients",

@@ -341,9 +341,9 @@ impl NarxModel {
         theta: Vec<f64>,
     ) -> Result<Self, SysidError> {
         let bad = |m: String| Err(SysidError::Data(format!("invalid model: {m}")));
-        if na > MAX_ORDER || nb > MAX_ORDER || nk > MAX_ORDER {
-            return bad(format!("orders above {MAX_ORDER} are not supported"));
-        }
+        crate::model::check_order("na", na)?;
+        crate::model::check_order("nb", nb)?;
+        crate::model::check_order("nk", nk)?;
         if degree == 0 || degree > MAX_DEGREE {
             return bad(format!("degree = {degree}; expected 1..{MAX_DEGREE}"));
         }

@@ -198,13 +198,27 @@ impl Experiment {
             return Ok(());
         };
         Err(match self.input.file() {
-            Some(f) => SysidError::File {
-                file: f.display().to_string(),
-                message: format!(
-                    "column u, data row {}: u = {v} is beyond ±{} counts ({WHY}); scale the commands",
-                    k + 1,
-                    crate::plant::U_MAX
-                ),
+            Some(f) => match crate::input::command_position(f, "u", k) {
+                Some((line, column)) => SysidError::Parse {
+                    file: f.display().to_string(),
+                    line,
+                    column,
+                    message: format!(
+                        "u = {} is beyond ±{} counts ({WHY}); scale the commands",
+                        sysid_core::format::Shortest(*v),
+                        crate::plant::U_MAX
+                    ),
+                },
+                None => SysidError::File {
+                    file: f.display().to_string(),
+                    message: format!(
+                        "column u, data row {}: u = {} is beyond ±{} counts ({WHY}); scale the \
+                         commands",
+                        k + 1,
+                        sysid_core::format::Shortest(*v),
+                        crate::plant::U_MAX
+                    ),
+                },
             },
             None => SysidError::setting(
                 Setting::Other("--input step:LEVEL"),

@@ -206,11 +206,23 @@ pub fn generate(
         InputSpec::Multisine => multisine(samples, ts_s, amplitude, &mut rng)?,
         InputSpec::Step { level, onset } => {
             if *onset >= samples && *level != 0.0 {
-                // The record would hold no step at all (audit s11).
+                // The record would hold no step at all (audit s11). An onset left out is the default,
+                // said as such, not echoed as if typed (audit s30 L-2).
+                let (typed, default) = if *onset == DEFAULT_STEP_ONSET {
+                    (
+                        format!("step:{level}"),
+                        format!(
+                            " (the onset when no @K is given: step:{level}@K puts it at sample K)"
+                        ),
+                    )
+                } else {
+                    (format!("step:{level}@{onset}"), String::new())
+                };
                 return Err(IpaError::Config(format!(
-                    "--input step:{level}@{onset}: the step comes at sample {onset}, after the record's last \
-                     sample ({samples} samples, 0..{}); give an onset below {samples} or more --samples",
-                    samples.saturating_sub(1)
+                    "--input {typed}: the step comes at sample {onset}{default}, after the record's last \
+                     sample ({samples} samples, 0..{last}); give an onset K from 0 to {last} \
+                     (step:{level}@K) or more than {onset} --samples",
+                    last = samples.saturating_sub(1)
                 )));
             }
             (0..samples)
@@ -300,6 +312,17 @@ fn read_columns(
         cols.push(table.numbers(col)?);
     }
     Ok((table, cols))
+}
+
+/// The file line and column (1-based) of data row `row` (0-based) of column `name` of a CSV input
+/// file, read again: for an error about one of its values, named at `FILE:LINE:COL` as every reader
+/// names a place (audit s30 L-11). `None` when the file no longer reads.
+pub fn command_position(path: &Path, name: &str, row: usize) -> Option<(usize, usize)> {
+    let (table, _) = read_columns(path, &[name]).ok()?;
+    let col = table
+        .column_index(name, sysid_core::Setting::Other("--input file:CSV"))
+        .ok()?;
+    Some((table.line_of(row), col + 1))
 }
 
 /// The columns `names` of a CSV input file and Ts (s) of its time column `t` (seconds) when it has

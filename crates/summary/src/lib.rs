@@ -52,8 +52,9 @@ pub struct EstimationInfo {
     /// `"fixed"` with 1 iteration). RLS only.
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub passes: Option<String>,
-    /// σ̂² of the one-step prediction errors.
-    pub noise_variance: f64,
+    /// σ̂² of the one-step prediction errors; `None` (JSON null) when it is undetermined (no more
+    /// regression rows than estimated parameters, N ≤ p).
+    pub noise_variance: Option<f64>,
     /// Remarks (limit cycle, best iterate kept...).
     #[serde(skip_serializing_if = "Option::is_none", default)]
     pub note: Option<String>,
@@ -419,7 +420,7 @@ impl IdentifyReport {
                     Passes::Fixed(_) => "fixed".to_string(),
                     Passes::UntilSettled { .. } => "until-settled".to_string(),
                 }),
-                noise_variance: fit.noise_variance,
+                noise_variance: (!fit.noise_variance.is_nan()).then_some(fit.noise_variance),
                 note: fit.note(),
                 returned: fit.warnings.iter().find_map(|w| match w {
                     Warning::Fallback { used, .. } => Some(used.clone()),

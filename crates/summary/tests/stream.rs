@@ -155,8 +155,8 @@ fn streamed_arx_identification_equals_the_in_memory_one() {
                 assert_close_opt(&format!("{what} std {}", a.name), a.std, b.std);
             }
             assert!(close(
-                r.estimation.noise_variance,
-                want.estimation.noise_variance,
+                r.estimation.noise_variance.unwrap(),
+                want.estimation.noise_variance.unwrap(),
                 1e-9
             ));
             assert_eq!(r.model.operating_point().is_some(), how != Detrend::None);

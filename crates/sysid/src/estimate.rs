@@ -703,6 +703,10 @@ fn unexplained_missing_std(fit: &Fitted) -> Option<Warning> {
     if missing.is_empty() {
         return None;
     }
+    if fit.noise_variance.is_nan() {
+        // N ≤ p: σ̂² undetermined (sysid_core::ls::noise_variance), every standard deviation with it.
+        return crate::trust::std_warning(Some(sysid_core::ls::NO_RESIDUAL_DOF.to_string()));
+    }
     crate::trust::std_warning(Some(format!(
         "{} of {} parameters have none ({}): the covariance gives them no positive finite variance (a \
          singular or ill-conditioned information matrix: parameters the data do not separate)",

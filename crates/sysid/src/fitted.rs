@@ -387,7 +387,8 @@ pub struct Fitted {
     pub notes: Vec<Note>,
     /// Reasons not to trust the estimate blindly (empty when all is well).
     pub warnings: Vec<Warning>,
-    /// σ̂²: residual variance of the one-step prediction errors, RSS / (N − p).
+    /// σ̂²: residual variance of the one-step prediction errors, RSS / (N − p)
+    /// ([`sysid_core::ls::noise_variance`]); NaN when N ≤ p (no residual degrees of freedom).
     pub noise_variance: f64,
     /// RLS only, when requested: the physical parameters (order of `params`) after each update.
     pub history: Vec<Vec<f64>>,

@@ -327,8 +327,7 @@ pub(crate) fn arx_ls(p: &Problem) -> Result<Fitted, SysidError> {
         .stacked(p.records(), &initial(p))
         .map_err(|e| context(p, e))?;
     let sol = ls::solve(&phi, &y, &reg.names()).map_err(|e| context(p, e))?;
-    let dof = (phi.nrows() - phi.ncols()).max(1) as f64;
-    let sigma2 = sol.rss / dof;
+    let sigma2 = ls::noise_variance(sol.rss, phi.nrows(), phi.ncols());
     let cov = &sol.inv_gram * sigma2;
     let params = reg.params_of_theta(sol.theta.as_slice(), Some(&cov));
     let model = model_from_theta(p, &sol.theta)?;
@@ -424,7 +423,7 @@ pub(crate) fn least_squares(p: &Problem, st: &LeastSquares) -> Result<Fitted, Sy
         )
     };
     let rows = reg.rows(p.records());
-    let sigma2 = rss / (rows.saturating_sub(n_free).max(1)) as f64;
+    let sigma2 = ls::noise_variance(rss, rows, n_free);
     let cov = &sol.inv_gram * sigma2;
     let model = model_from_theta(p, &theta)?;
     Ok(Fitted {
@@ -609,7 +608,7 @@ pub(crate) fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitte
     let theta_full = expand(theta.as_slice());
     let model = model_from_theta(p, &theta_full)?;
     let rss = prediction_rss(&model, records)?;
-    let sigma2 = rss / total_rows.saturating_sub(np).max(1) as f64;
+    let sigma2 = ls::noise_variance(rss, total_rows, np);
     // P at the end: the closed-form pass's when the last pass was one (a recursive pass after a
     // closed-form one clears it).
     let p_end = closed.map_or_else(|| est.covariance(), |c| c.sol.inv_gram);
@@ -836,8 +835,10 @@ pub(crate) fn instrumental(p: &Problem, st: &InstrumentalVariables) -> Result<Fi
         st.p0,
     )?;
     let rss = prediction_rss(&out.model, p.records())?;
-    let dof = (data.len() - k0).saturating_sub(n_free).max(1) as f64;
-    let sigma2 = rss / dof;
+    let rows = data.len() - k0;
+    let sigma2 = ls::noise_variance(rss, rows, n_free);
+    // The autocovariances' divisor, N − p as σ̂²'s (unused when σ̂² is NaN: no covariance then).
+    let dof = rows.saturating_sub(n_free).max(1) as f64;
     // The equation error's autocovariance r_v(τ), τ = 0..=n_a (at most iv::COV_LAGS), from the kept
     // model's one-step (equation-error) residuals, with the same divisor as σ̂²: white output noise
     // makes v = A(q) e a moving average of order n_a (see `iv::covariance`).
@@ -863,6 +864,9 @@ pub(crate) fn instrumental(p: &Problem, st: &InstrumentalVariables) -> Result<Fi
     };
     let cov = iv::covariance(&out.pass, &r_v).map(|c| scatter_matrix(&free, &c));
     let why = cov.is_none().then(|| {
+        if sigma2.is_nan() {
+            return ls::NO_RESIDUAL_DOF.to_string();
+        }
         "the instrument cross-moment matrix ZᵀΦ of the kept IV stage is singular (or its covariance \
          (ZᵀΦ)⁻¹ [Σ_τ r_v(τ) Σ z(k) z(k−τ)ᵀ] (ΦᵀZ)⁻¹ is not finite): the instruments do not determine \
          every parameter"

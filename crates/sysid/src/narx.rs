@@ -569,8 +569,7 @@ pub fn identify_narx(data: &Dataset, settings: &NarxSettings) -> Result<NarxFit,
     let target = DVector::from_column_slice(&y[k0..]);
     let names: Vec<String> = chosen_terms.iter().map(Term::to_string).collect();
     let sol = sysid_core::ls::solve(&phi, &target, &names)?;
-    let dof = n_rows.saturating_sub(p.len()).max(1) as f64;
-    let sigma2 = sol.rss / dof;
+    let sigma2 = sysid_core::ls::noise_variance(sol.rss, n_rows, p.len());
     let mut model = model_of(order, sol.theta.iter().copied().collect())?;
     let mut std: Vec<Option<f64>> = (0..p.len())
         .map(|i| {
@@ -1030,8 +1029,7 @@ pub fn refine(
             break;
         }
     }
-    let dof = (sens.resid.len().saturating_sub(p)).max(1) as f64;
-    let sigma2 = v / dof;
+    let sigma2 = sysid_core::ls::noise_variance(v, sens.resid.len(), p);
     let std = match ScaledNormal::new(&sens).inverse_diagonal() {
         Some(d) => d
             .iter()

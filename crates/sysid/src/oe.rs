@@ -871,7 +871,7 @@ fn run(
     let resid = problem.residuals_of(&d, &yh);
     let rss = resid.norm_squared();
     let jac = problem.sensitivities(&d, &yh, &x);
-    let sigma2 = rss / (n - free.len()) as f64;
+    let sigma2 = ls::noise_variance(rss, n, free.len());
     // Columns named as the parameters they belong to (η_j: the initial output y0(j)).
     let columns: Vec<String> = free
         .iter()
@@ -883,6 +883,7 @@ fn run(
         })
         .collect();
     let (cov, std_unavailable) = match ls::solve(&jac, &resid, &columns) {
+        _ if sigma2.is_nan() => (None, Some(ls::NO_RESIDUAL_DOF.to_string())),
         Ok(sol) => (Some(sol.inv_gram * sigma2), None),
         Err(e) => match covariance_without_zero_columns(&jac, &resid, &columns, sigma2) {
             Some((cov, why)) => (Some(cov), Some(why)),

@@ -342,8 +342,7 @@ pub fn identify_arx(
         SysidError::Data(m) => SysidError::Data(format!("{name}: {m}")),
         other => other,
     })?;
-    let dof = (n - k0 - p).max(1) as f64;
-    let sigma2 = sol.rss / dof;
+    let sigma2 = sysid_core::ls::noise_variance(sol.rss, n - k0, p);
     let cov = &sol.inv_gram * sigma2;
     let params = settings
         .regression(&[sysid_core::data::SINGLE_INPUT])?

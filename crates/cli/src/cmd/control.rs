@@ -864,7 +864,13 @@ fn summary_text(
     }
     // The error at the last sample is final only once the step has settled, as the overshoot above
     // (audit s24 L-6; reproduce marks it "(n.f.)").
-    let ess_not_final = if m.settling_time_s.is_none() && m.steady_state_error_mm.is_some() {
+    // With r = y0 there is no step to settle (audit s30 L-6: "not final: not settled" without a
+    // reason): e_ss is then only where the output ended.
+    let no_step =
+        metrics_kind == "fixed" && steps.first().is_some_and(|st| st.setpoint_mm == st.y0_mm);
+    let ess_not_final = if no_step && m.steady_state_error_mm.is_some() {
+        " (no step to settle: the set-point is y0; e_ss = r − y at the last sample)"
+    } else if m.settling_time_s.is_none() && m.steady_state_error_mm.is_some() {
         " (not final: not settled)"
     } else {
         ""

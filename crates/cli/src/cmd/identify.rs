@@ -562,8 +562,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let several_inputs = args.columns.u_col.contains(',');
     let batch = super::identify_batch::is_batch(&args.data);
     if args.stream == StreamMode::On && (several_inputs || args.merge || batch) {
+        if batch {
+            // A folder without a record is refused as such first, not for --stream (audit s30 L-2).
+            super::identify_batch::expand(&args.data)?;
+        }
         anyhow::bail!(refused_in_passes(
-            "several inputs, --merge and several files are read in memory"
+            "several inputs, --merge, several files and a folder are read in memory"
         ));
     }
     let settings = args.settings()?;

@@ -421,6 +421,17 @@ fn report_json(
     Ok(value)
 }
 
+/// A fit % as the summary line prints it: two decimals, or from 1e5 on (an unstable or wildly wrong
+/// model's −4e89 %) the command line's short form, `report::format::num` (6 significant digits,
+/// scientific), as identify's table prints every fit (audit s30 L-3: a 90-digit percent).
+fn fit_text(v: Option<f64>) -> String {
+    match v {
+        None => "n/a".into(),
+        Some(v) if v.abs() >= 1e5 => report::format::num(v),
+        Some(v) => format!("{v:.2}"),
+    }
+}
+
 /// The text summary of a validation on the record `name` of `len` samples.
 fn report_text(
     args: &Args,
@@ -437,14 +448,13 @@ fn report_text(
         args.model.display(),
         name,
         len,
-        m.fit_sim_percent.map_or("n/a".into(), |v| format!("{v:.2}")),
-        m.fit_sim_measured_percent
-            .map_or("n/a".into(), |v| format!("{v:.2}")),
-        m.fit_pred_percent.map_or("n/a".into(), |v| format!("{v:.2}")),
+        fit_text(m.fit_sim_percent),
+        fit_text(m.fit_sim_measured_percent),
+        fit_text(m.fit_pred_percent),
         if args.horizon > 1 {
             format!(
                 ", {} % ({}-step prediction)",
-                fit_horizon.map_or("n/a".into(), |v| format!("{v:.2}")),
+                fit_text(fit_horizon),
                 args.horizon
             )
         } else {

@@ -27,8 +27,8 @@
 use std::io::Read;
 
 use super::{
-    check_ts, increasing_time, resample, time_fault_message, time_notes, uniform_time, CsvOptions,
-    Record, Signals, TimeFacts, TimeFault,
+    check_ts, increasing_time, resample, time_fault_message, time_goes_back, time_notes,
+    uniform_time, CsvOptions, Record, Signals, TimeFacts, TimeFault,
 };
 use crate::error::Setting;
 use crate::{Dataset, SysidError};
@@ -277,6 +277,9 @@ pub fn read_mat_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Rec
         (_, t, Some(ts)) => {
             check_ts(ts)?;
             if let (Some(t), Some(given)) = (t, opts.ts) {
+                if let Some(fault) = time_goes_back(t) {
+                    return Err(time_err(fault));
+                }
                 notes.extend(time_notes(&TimeFacts::of(t), Some(given), ts, opts.time_unit, &opts.t_col));
             }
             ts

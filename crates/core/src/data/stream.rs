@@ -529,7 +529,7 @@ impl CsvStream {
                 .and(table.headers.iter().position(|h| *h == opts.t_col));
             match named.filter(|&c| table.numbers(c).is_ok()) {
                 Some(c) => given_col = Some(c),
-                None => notes.extend(super::ts_contradiction(&table, opts, ts)),
+                None => notes.extend(super::ts_contradiction(&table, opts, ts)?),
             }
             notes.extend(super::unnamed_date_times(&table, opts, &[ucol], ycol, ts));
         }
@@ -825,7 +825,12 @@ impl RecordSource for CsvStream {
                     &|| self.line_of(at),
                     col + 1,
                 )
-                .map_err(|m| self.at(at, col, m))
+                .map_err(|mut m| {
+                    if index == 0 && !self.has_header && super::looks_like_header(text.iter()) {
+                        m.push_str(super::NO_HEADER_ON_HEADER_HINT);
+                    }
+                    self.at(at, col, m)
+                })
             };
             let cells = value(self.ucol).and_then(|uk| Ok((uk, value(self.ycol)?)));
             let (uk, yk) = cells.map_err(|e| self.or_changed(e, &rdr.get_ref().inner, &file_id))?;
@@ -840,11 +845,14 @@ impl RecordSource for CsvStream {
                     })
                     .map_err(|e| self.or_changed(e, &rdr.get_ref().inner, &file_id))?;
             } else if let Some(tc) = given_col {
-                // Under --ts the column is read for its notes only: a fault ends its scan.
-                let ok =
-                    value(tc).is_ok_and(|t| scan.push(t * self.time_scale, at as usize).is_ok());
-                if !ok {
-                    given_col = None;
+                // Under --ts the column is read for its notes only: a fault ends its scan, except a
+                // time that goes back, refused as in memory (`super::time_goes_back`).
+                match value(tc).map(|t| scan.push(t * self.time_scale, at as usize)) {
+                    Ok(Ok(())) => {}
+                    Ok(Err(TimeFault::NotIncreasing { k, t, previous })) if t < previous => {
+                        return Err(self.time_error(TimeFault::GoesBack { k, t, previous }, tc));
+                    }
+                    _ => given_col = None,
                 }
             }
             spare = std::mem::replace(&mut rec, text.into_byte_record());

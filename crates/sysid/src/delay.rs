@@ -227,9 +227,10 @@ pub fn estimate_delay_with_progress(
         candidates.push(match crate::ls::solve(&phi, &target, &names) {
             Ok(sol) => {
                 let rows = target.len();
-                // σ̂² from the residual degrees of freedom; none left (N = p) means no σ̂ at all.
-                let dof = rows.saturating_sub(p);
-                let var = (dof > 0).then(|| sol.rss / dof as f64 * sol.inv_gram[(na, na)]);
+                // σ̂² from the residual degrees of freedom; none left (N = p) means no σ̂ at all (NaN,
+                // filtered below).
+                let var =
+                    Some(crate::ls::noise_variance(sol.rss, rows, p) * sol.inv_gram[(na, na)]);
                 let b_lead = Some(sol.theta[na]).filter(|b| b.is_finite());
                 let b_lead_std = var.filter(|v| v.is_finite() && *v >= 0.0).map(f64::sqrt);
                 let b_max = sol.theta.rows(na, nb).amax();

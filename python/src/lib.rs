@@ -731,10 +731,22 @@ impl PyModel {
     ) -> PyResult<Bound<'py, PyArray1<f64>>> {
         let horizon = horizon.map_or(Ok(1), |h| whole("horizon", h))?;
         let data = dataset(u, y, self.inner.ts(), "predict")?;
-        let out = self
-            .inner
-            .predict_k(&[data.u()], data.y(), horizon)
-            .map_err(sysid_err)?;
+        let k0 = self.inner.k0();
+        if data.len() <= k0 {
+            // Nothing would be predicted: the first k0 outputs are the measured initial ones (audit s31
+            // L-3: the data came back unchanged, without a word).
+            return Err(PyValueError::new_err(format!(
+                "predict: {} samples are not enough to predict with a model with k0 = {k0} (the first \
+                 k0 outputs are its measured initial ones)",
+                data.len()
+            )));
+        }
+        // validate's y_pred, one definition (audit s31 M-3: for an output-error or Wiener model this
+        // returned the simulation from the measured initial outputs while validate's y_pred and this
+        // model's metrics()["fit_pred_percent"] start from the estimated ones).
+        let out = sysid_core::metrics::model_output(&self.inner, &[data.u()], data.y(), horizon)
+            .map_err(sysid_err)?
+            .y_pred;
         warn_all(py, &extrapolation_warnings(&self.inner, data.u(), &out))?;
         Ok(out.into_pyarray(py))
     }
@@ -762,6 +774,7 @@ impl PyModel {
                 &m,
                 &sysid_summary::input_extremes(&data),
             ))
+            .chain(sysid_summary::record_outside_data(&self.inner, data.y()))
             .collect();
         warn_all(py, &result_warnings(&self.inner, &warnings))?;
         let out = to_py(py, &m)?;
@@ -2665,6 +2678,10 @@ fn control_loop<'py>(
             units: ::control::Units::of(limits.model_units()),
         },
     ));
+    // The run against the controller file's own steady-state specification, as `control`.
+    if let Some(f) = &tuned_file {
+        warnings.extend(::control::trust::spec_warnings(f, &run.steps));
+    }
     let out = PyDict::new(py);
     out.set_item("t", trace.t.into_pyarray(py))?;
     out.set_item("r", trace.r.into_pyarray(py))?;

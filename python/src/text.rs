@@ -61,10 +61,15 @@ pub(crate) fn equations(m: &Model) -> String {
     let _ = writeln!(
         o,
         "{} model, Ts = {} s ({units}; {} parameters)",
-        match m.kind().to_string().as_str() {
-            "arx" => "ARX".to_string(),
-            "hammerstein" => "Hammerstein".to_string(),
-            other => other.to_string(),
+        match (
+            m.kind().to_string().as_str(),
+            m.output_nonlinearity().is_some()
+        ) {
+            ("arx", false) => "ARX".to_string(),
+            ("hammerstein", false) => "Hammerstein".to_string(),
+            ("arx", true) => "Wiener (ARX and an output nonlinearity)".to_string(),
+            (_, true) => "Hammerstein–Wiener".to_string(),
+            (other, false) => other.to_string(),
         },
         num(m.ts()),
         m.parameter_count()
@@ -117,9 +122,8 @@ pub(crate) fn equations(m: &Model) -> String {
                     num(d.b_l)
                 );
             }
-            #[allow(unreachable_patterns)] // kinds added later print their own Debug form
             other => {
-                let _ = writeln!(o, "  {x}(k) = f({u}), f = {other:?}");
+                let _ = writeln!(o, "  {x}(k) = {}", map_text(other, &u, u_unit));
             }
         }
         for (j, b) in ch.b().iter().enumerate() {
@@ -132,6 +136,82 @@ pub(crate) fn equations(m: &Model) -> String {
     if first {
         rhs.push('0');
     }
-    let _ = write!(o, "  y(k) = {}", rhs.trim_end());
+    // With an output nonlinearity (Wiener, Hammerstein–Wiener) the recursion is the linear block's
+    // output v, and y = g(v) (audit s31 M-4: the recursion was printed as y(k)).
+    match m.output_nonlinearity() {
+        Some(g) => {
+            let rhs = rhs.replace("y(k−", "v(k−");
+            let _ = writeln!(o, "  v(k) = {}", rhs.trim_end());
+            let _ = write!(o, "  y(k) = g(v(k)) = {}", map_text(g, "v(k)", y_unit));
+        }
+        None => {
+            let _ = write!(o, "  y(k) = {}", rhs.trim_end());
+        }
+    }
     o
+}
+
+/// A static map other than the deadzone (which has its own three lines) applied to `arg`, in words
+/// and 4 significant digits (audit s31 L-2: a polynomial printed as a Rust debug dump). `unit`: the
+/// argument's unit for breakpoints and limits (" counts", " mm" or "").
+fn map_text(f: &StaticNonlinearity, arg: &str, unit: &str) -> String {
+    match f {
+        StaticNonlinearity::Linear => arg.to_string(),
+        StaticNonlinearity::Deadzone(d) => format!(
+            "deadzone({arg}; b_l = {}{unit}, b_r = {}{unit}, m_l = {}, m_r = {})",
+            num(d.b_l),
+            num(d.b_r),
+            num(d.m_l),
+            num(d.m_r)
+        ),
+        StaticNonlinearity::Saturation(s) => format!(
+            "{} clamp({arg}, {}{unit}, {}{unit})",
+            num(s.m),
+            num(s.s_l),
+            num(s.s_r)
+        ),
+        StaticNonlinearity::DeadzoneSaturation(d) => format!(
+            "{} (min({arg}, {}) − {}) if {arg} ≥ b_r = {}{unit}; 0 if b_l < {arg} < b_r; {} (max({arg}, {}) − {}) \
+             if {arg} ≤ b_l = {}{unit} (saturating at s_l = {}{unit}, s_r = {}{unit})",
+            num(d.m_r),
+            num(d.s_r),
+            num(d.b_r),
+            num(d.b_r),
+            num(d.m_l),
+            num(d.s_l),
+            num(d.b_l),
+            num(d.b_l),
+            num(d.s_l),
+            num(d.s_r)
+        ),
+        StaticNonlinearity::PiecewiseLinear(p) => {
+            let bps: Vec<String> = p.breakpoints().iter().map(|b| format!("{}{unit}", num(*b))).collect();
+            let slopes: Vec<String> = p.slopes().iter().map(|s| num(*s)).collect();
+            format!(
+                "piecewise linear in {arg} through 0: slopes {} between the breakpoints {}",
+                slopes.join(", "),
+                bps.join(", ")
+            )
+        }
+        StaticNonlinearity::Polynomial(poly) => {
+            let mut t = String::new();
+            let mut first = true;
+            for (i, g) in poly.coefficients().iter().enumerate() {
+                if *g == 0.0 {
+                    continue;
+                }
+                let power = match i {
+                    0 => arg.to_string(),
+                    1 => format!("{arg}²"),
+                    2 => format!("{arg}³"),
+                    d => format!("{arg}^{}", d + 1),
+                };
+                term(&mut t, &mut first, *g, &power);
+            }
+            if first {
+                t.push('0');
+            }
+            t
+        }
+    }
 }

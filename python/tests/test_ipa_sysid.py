@@ -928,3 +928,55 @@ def test_pandas_series_with_different_indexes_are_refused_naming_both(records):
     assert_same(b, a)
     assert_same(c, a)
 
+
+
+def test_str_of_a_wiener_model_shows_its_output_map(tmp_path):
+    # Audit s31 M-4 / L-2: str(model) printed a Wiener model's recursion as y(k) (the output map left
+    # out) and a polynomial input map as a Rust debug dump. A Hammerstein–Wiener model written here by
+    # hand: x = 0.5 u − 0.25 u² into v, y = 2 clamp(v, −1, 3).
+    import json
+
+    path = tmp_path / "hw.json"
+    fit = ipa_sysid.identify(
+        np.sin(np.arange(300) * 0.37), np.cos(np.arange(300) * 0.11), ts=0.1, na=1, nb=1, nk=1,
+        structure="arx", method="ls",
+    )
+    fit.model.save(path)
+    doc = json.loads(path.read_text())
+    doc["model"]["output_nonlinearity"] = {"kind": "saturation", "s_l": -1.0, "s_r": 3.0, "m": 2.0}
+    path.write_text(json.dumps(doc))
+    text = str(ipa_sysid.load_model(path))
+    import re
+
+    assert "Wiener" in text, text
+    assert "v(k) =" in text and "v(k−1)" in text, text
+    assert re.search(r"y\(k\) = g\(v\(k\)\) = 2 clamp\(v\(k\), -1( mm)?, 3( mm)?\)", text), text
+    assert "Polynomial {" not in text and "Saturation {" not in text, text
+
+
+def test_predict_of_an_output_error_model_is_the_prediction_metrics_score():
+    # Audit s31 M-3: for an output-error model Model.predict gave the simulation from the measured
+    # initial outputs, while validate's y_pred and metrics()["fit_pred_percent"] start from the estimated
+    # ones. The fit of predict's output, computed here over k >= k0, is the metrics' figure.
+    rng = np.random.default_rng(3)
+    u = rng.choice([-1.0, 1.0], size=400)
+    y = np.zeros(400)
+    for k in range(2, 400):
+        y[k] = 1.5 * y[k - 1] - 0.7 * y[k - 2] + 0.5 * u[k - 1]
+    y_meas = y + rng.normal(0.0, 0.05, size=400)
+    fit = ipa_sysid.identify(u, y_meas, ts=0.1, na=2, nb=1, nk=1, structure="arx", method="oe")
+    m = fit.model
+    p = m.predict(u, y_meas)
+    k0 = m.k0
+    e = y_meas[k0:] - p[k0:]
+    d = y_meas[k0:] - y_meas[k0:].mean()
+    mine = 100.0 * (1.0 - np.linalg.norm(e) / np.linalg.norm(d))
+    got = m.metrics(u, y_meas)["fit_pred_percent"]
+    assert math.isclose(mine, got, rel_tol=0, abs_tol=1e-9), (mine, got)
+
+
+def test_predict_refuses_a_record_no_longer_than_k0():
+    # Audit s31 L-3: a record of k0 samples came back unchanged, without a word.
+    m = ipa_sysid.paper_model()
+    with pytest.raises(ValueError, match="not enough to predict"):
+        m.predict(np.ones(m.k0), np.ones(m.k0))

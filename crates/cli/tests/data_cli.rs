@@ -2285,3 +2285,156 @@ fn a_lone_outlier_is_named_at_its_line_and_column() {
         assert!(!err.contains("outlier"), "{name}: {err}");
     }
 }
+
+// Audit s31 L-1: several inputs from a MAT-file (`--u-col u1,u2`) are several variables, as several
+// columns of a CSV (the list was looked up as one variable name and refused). The estimate equals the
+// normal-equations solve of the same record, as the CSV's does.
+#[test]
+fn several_inputs_are_read_from_a_mat_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_, u1, u2, y) = disturbed_miso(dir.path(), "d.csv", 0.0);
+    let (rows, z) = miso_rows(&u1, &u2, &y);
+    let theta = normal_equations(&rows, &z);
+    let n = y.len();
+    let f = dir.path().join("d.mat");
+    std::fs::write(
+        &f,
+        mat_file(
+            &[("u1", n, 1, &u1), ("u2", n, 1, &u2), ("y", n, 1, &y)],
+            true,
+        ),
+    )
+    .unwrap();
+    let out = dir.path().join("mat.json");
+    miso_identify(s(&f), "arx", "ls", &["--json", s(&out)]);
+    let j = json(&out);
+    let params = j["parameters"].as_array().unwrap();
+    assert_eq!(params.len(), theta.len());
+    for (prm, want) in params.iter().zip(&theta) {
+        let got = num(&prm["value"]);
+        assert!(
+            (got - want).abs() < 1e-9 * want.abs().max(1.0),
+            "{got} vs {want}"
+        );
+    }
+}
+
+// Audit s30 L-13: a record whose output lies wholly outside the model's estimation data (y near 50
+// there; near 0 here, beyond 10 % of the span) is said by validate; a record inside it is not.
+#[test]
+fn validate_says_an_output_wholly_outside_the_estimation_data() {
+    let dir = tempfile::tempdir().unwrap();
+    let u = input(300);
+    // y = 0.5 y(k−1) + 2 u(k−1) + 25: around 50 + 4u; the same plant without the constant: around 4u.
+    let y_est = arx1(&u, -0.5, 2.0, 25.0, 50.0);
+    let y_far = arx1(&u, -0.5, 2.0, 0.0, 0.0);
+    let (est, far) = (dir.path().join("est.csv"), dir.path().join("far.csv"));
+    write_uy(&est, &u, &y_est);
+    write_uy(&far, &u, &y_far);
+    let model = dir.path().join("m.json");
+    run(&[
+        "identify",
+        "--data",
+        s(&est),
+        "--ts",
+        "0.1",
+        "--structure",
+        "arx",
+        "--na",
+        "1",
+        "--nb",
+        "1",
+        "--nk",
+        "1",
+        "--offset",
+        "--method",
+        "ls",
+        "--save-model",
+        s(&model),
+    ]);
+    let said = |f: &Path| {
+        let o = bin()
+            .args(["validate", "--model", s(&model), "--data", s(f)])
+            .output()
+            .unwrap();
+        let text = format!(
+            "{}{}",
+            String::from_utf8_lossy(&o.stdout),
+            String::from_utf8_lossy(&o.stderr)
+        );
+        text.contains("wholly outside the model's estimation data")
+    };
+    assert!(said(&far));
+    assert!(!said(&est));
+}
+
+// Audit s30 L-14: `simulate --plant model:NARX` without --y0 started at 100 (mm), outside any record not
+// in mm around 100, and failed; it now starts at the middle of the outputs the model was estimated on
+// (its data_range), computed here from the record.
+#[test]
+fn a_narx_model_is_simulated_from_the_middle_of_its_data() {
+    let dir = tempfile::tempdir().unwrap();
+    let u: Vec<f64> = input(400).iter().map(|v| 0.5 * v - 0.5).collect();
+    let mut y = vec![4.5; u.len()];
+    for k in 1..u.len() {
+        y[k] = 2.25 + 0.5 * y[k - 1] + 0.5 * u[k - 1] + 0.02 * u[k - 1] * u[k - 1];
+    }
+    let f = dir.path().join("n.csv");
+    write_uy(&f, &u, &y);
+    let model = dir.path().join("narx.json");
+    run(&[
+        "identify",
+        "--data",
+        s(&f),
+        "--ts",
+        "0.1",
+        "--structure",
+        "narx",
+        "--degree",
+        "2",
+        "--na",
+        "1",
+        "--nb",
+        "1",
+        "--nk",
+        "1",
+        "--offset",
+        "--save-model",
+        s(&model),
+    ]);
+    let out = dir.path().join("sim.csv");
+    let spec = format!("model:{}", s(&model));
+    run(&[
+        "simulate",
+        "--plant",
+        &spec,
+        "--input",
+        "step:0.2@5",
+        "--samples",
+        "30",
+        "--out",
+        s(&out),
+    ]);
+    let text = std::fs::read_to_string(&out).unwrap();
+    let header: Vec<&str> = text.lines().next().unwrap().split(',').collect();
+    let col = header.iter().position(|h| *h == "y").unwrap();
+    let first: f64 = text
+        .lines()
+        .nth(1)
+        .unwrap()
+        .split(',')
+        .nth(col)
+        .unwrap()
+        .parse()
+        .unwrap();
+    let (lo, hi) = y
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(*v), b.max(*v))
+        });
+    assert!(
+        (first - 0.5 * (lo + hi)).abs() < 1e-9,
+        "{first} vs {}",
+        0.5 * (lo + hi)
+    );
+}

@@ -103,6 +103,24 @@ fn c_example_matches_identify_rls_single_pass() {
     }
     let tmp = tempfile::tempdir().unwrap();
     let track = build_track(tmp.path());
+    // Audit s31 L-6: a NaN in the record is named at its line (4: header, a row, a blank line, the NaN
+    // row), not reported as "ipa_hrls_init failed: -3".
+    let mut child = Command::new(&track)
+        .args(["3", "1", "1", "1"])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    {
+        use std::io::Write;
+        let mut stdin = child.stdin.take().unwrap();
+        stdin.write_all(b"u,y\n1,2\n\nnan,3\n").unwrap();
+    }
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "{err}");
+    assert!(err.contains("line 4: u = nan, y = 3: not finite"), "{err}");
     let mut bitwise = 0;
     let mut total = 0;
     for (seed, na, nb, nk, rho, form) in [

@@ -201,6 +201,34 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
         y: y_unit,
     } = facts.units;
     w.extend(facts.plant_stability.and_then(plant_stability_warning));
+    // Set-point segments of one sample have no response to measure and are not among `steps`
+    // (`metrics_for_steps` needs two samples): said, with their set-points (audit s31 L-5: a model
+    // sampled every 4 s ran a 4-s staircase, four of its five steps vanished and the run said "1 of 1
+    // steps").
+    let n = trace.r.len();
+    let single: Vec<f64> = (0..n)
+        .filter(|&k| {
+            let starts = k == 0 || trace.r[k] != trace.r[k - 1];
+            let ends = k + 1 == n || trace.r[k + 1] != trace.r[k];
+            starts && ends
+        })
+        .map(|k| trace.r[k])
+        .collect();
+    if !single.is_empty() {
+        let shown: Vec<String> = single
+            .iter()
+            .take(5)
+            .map(|r| sysid_core::format::Shortest(*r).to_string())
+            .collect();
+        w.push(format!(
+            "{} set-point step(s) lasted one sample (r = {}{} {y_unit}) and are not measured (a step \
+             needs two samples): the profile changes faster than the plant is sampled; hold each \
+             set-point longer than one sampling period",
+            single.len(),
+            shown.join(", "),
+            if single.len() > 5 { ", …" } else { "" }
+        ));
+    }
     if let Some((lo, hi)) = facts.range_mm {
         let outside: Vec<f64> = steps
             .iter()
@@ -603,6 +631,61 @@ pub fn provenance_warning(file: &crate::ControllerFile, plant: RunPlant<'_>) -> 
             plant.words()
         )
     })
+}
+
+/// The run of a controller file against the steady-state part of the specification it was tuned for
+/// (its provenance's `spec`: |e_ss| ≤ `ess_all_mm` in every step): each settled step whose |e_ss| misses
+/// it, in one warning with the worst, and when that error sits inside the file's nudge band, that the
+/// nudge and hold logic (the integrator is held at zero there) is what holds it (audit s30 M-5: a
+/// controller tuned on a model parked 0.44–0.48 mm short on `--plant paper`, 10 times its 0.05 mm
+/// specification, with only the file's generic "does not meet the specification" warning). Nothing for a
+/// file without a specification (hand-written) or steps not settled (their own warnings say so).
+pub fn spec_warnings(file: &crate::ControllerFile, steps: &[StepSegment]) -> Vec<String> {
+    let Some(limit) = file
+        .provenance
+        .as_ref()
+        .and_then(|p| p.get("spec"))
+        .and_then(|s| s.get("ess_all_mm"))
+        .and_then(serde_json::Value::as_f64)
+        .filter(|l| l.is_finite() && *l >= 0.0)
+    else {
+        return Vec::new();
+    };
+    // The rounding tune allows (`crate::tune`'s ROUNDING_MM).
+    let tol = 1e-9;
+    let missed: Vec<(f64, f64)> = steps
+        .iter()
+        .filter(|s| s.metrics.settling_time_s.is_some() && !s.too_short())
+        .filter_map(|s| {
+            let e = s.metrics.steady_state_error_mm?.abs();
+            (e > limit + tol).then_some((s.setpoint_mm, e))
+        })
+        .collect();
+    let Some(&(r, worst)) = missed.iter().max_by(|a, b| a.1.total_cmp(&b.1)) else {
+        return Vec::new();
+    };
+    let nudge = file.controller.nudge.as_ref().map(|n| n.band_mm);
+    let why = match nudge {
+        Some(band) if worst <= band + tol => format!(
+            ": the error sits inside the nudge band (e_n = {} mm), where the integrator is held at zero \
+             and only the nudges act, and they do not move this plant (a nudge and hold design tuned on \
+             another plant); tune on this plant, or run without the controller file",
+            sysid_core::format::Shortest(band)
+        ),
+        _ => String::new(),
+    };
+    vec![format!(
+        "{} of {} settled step(s) miss the controller file's steady-state specification (|e_ss| ≤ {} mm in \
+         every step, its provenance's spec): the worst |e_ss| = {} mm at r = {} mm{why}",
+        missed.len(),
+        steps
+            .iter()
+            .filter(|s| s.metrics.settling_time_s.is_some() && !s.too_short())
+            .count(),
+        sysid_core::format::Shortest(limit),
+        sysid_core::format::sig(worst, 4),
+        sysid_core::format::Shortest(r),
+    )]
 }
 
 /// What a controller file says against the plant of a `--plant` specification `spec` (with

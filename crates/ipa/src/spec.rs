@@ -131,15 +131,21 @@ impl PlantSpec {
     /// Where an open-loop experiment starts when no y0 is given (`simulate` without `--y0`), mm: a
     /// stable linear model at its own resting level with the inputs at the operating point
     /// ([`sysid_core::Model::rest_output`]), so that its record shows the input's response and not a
-    /// decay from an arbitrary start; the IPA, the paper's model and models without a resting level
-    /// (an integrator such as the IPA's position, an unstable model, a NARX model, an output
-    /// nonlinearity) at [`MID_STROKE_Y0_MM`].
+    /// decay from an arbitrary start; a NARX model at the middle of the outputs it was estimated on
+    /// (its `data_range`); the IPA, the paper's model and models without a resting level (an
+    /// integrator such as the IPA's position, an unstable model, an output nonlinearity, a NARX model
+    /// without a data range) at [`MID_STROKE_Y0_MM`].
     pub fn default_y0(&self) -> Result<f64, IpaError> {
         let rest = match self {
             PlantSpec::Ipa | PlantSpec::Paper => None,
             PlantSpec::ModelFile(path) => match sysid_core::model_file::read_any_model(path)? {
                 sysid_core::model_file::AnyModel::Linear(m) => return Ok(model_default_y0(&m)),
-                sysid_core::model_file::AnyModel::Narx(_) => None,
+                // A NARX model has no rest state to compute; the middle of the outputs it was
+                // estimated on is inside its data (audit s30 L-14: the default 100 mm was outside a
+                // hair dryer's [3.2, 6.2] V and the run failed for every such model).
+                sysid_core::model_file::AnyModel::Narx(m) => {
+                    m.data_range().map(|r| 0.5 * (r.y[0] + r.y[1]))
+                }
             },
         };
         Ok(rest.unwrap_or(MID_STROKE_Y0_MM))

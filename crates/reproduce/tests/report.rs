@@ -776,3 +776,37 @@ fn the_open_loop_fits_start_from_the_measured_outputs_as_validate_does() {
         }
     }
 }
+
+// Audit s31 L-4: the report's residual table for an output-error model used the simulation from the
+// measured initial outputs, where validate uses its y_pred (the simulation from the estimated ones). The
+// table's residual std on the validation record is the 1/N standard deviation (mean removed) of
+// y − y_pred over k ≥ k0, y_pred computed here by validate's model_output from data/validation.csv.
+#[test]
+fn the_residual_table_uses_validates_prediction() {
+    let (dir, s) = run_once("ipa");
+    let text = std::fs::read_to_string(dir.join("data/validation.csv")).unwrap();
+    let rows: Vec<Vec<f64>> = text
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(|c| c.parse().unwrap()).collect())
+        .collect();
+    let u: Vec<f64> = rows.iter().map(|r| r[1]).collect();
+    let y: Vec<f64> = rows.iter().map(|r| r[2]).collect();
+    let key = "hammerstein_oe";
+    let model = sysid::model_file::read_model(&dir.join(format!("model_{key}.json"))).unwrap();
+    let pred = sysid_core::metrics::model_output(&model, &[&u], &y, 1)
+        .unwrap()
+        .y_pred;
+    let k0 = model.k0();
+    let e: Vec<f64> = y[k0..]
+        .iter()
+        .zip(&pred[k0..])
+        .map(|(a, b)| a - b)
+        .collect();
+    let mean = e.iter().sum::<f64>() / e.len() as f64;
+    let std = (e.iter().map(|v| (v - mean).powi(2)).sum::<f64>() / e.len() as f64).sqrt();
+    let got = s["residuals"][key]["validation"]["residual_std"]
+        .as_f64()
+        .unwrap();
+    assert!((got - std).abs() <= 1e-9 * std, "{got} vs {std}");
+}

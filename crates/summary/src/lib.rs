@@ -538,12 +538,14 @@ impl ValidationReport {
     /// model, negative or diverging simulation fit).
     pub fn assemble(model: &Model, data: &Dataset, max_lag: usize) -> Result<Self, SysidError> {
         let m = metrics(model, data)?;
-        Ok(Self::from_parts(
+        let mut report = Self::from_parts(
             model,
             m,
             residual_analysis(model, data, max_lag),
             &input_extremes(data),
-        ))
+        );
+        report.warnings.extend(record_outside_data(model, data.y()));
+        Ok(report)
     }
 
     /// A warning per input whose [min, max] over the record (`extremes`, [`input_extremes`]; a record
@@ -1088,6 +1090,27 @@ pub fn output_outside_range(range: &sysid_core::DataRange, y: &[f64]) -> Option<
 pub fn input_outside_data(model: &Model, u: &[f64]) -> Option<String> {
     let name = model.inputs().first().map_or("u", |c| c.name());
     input_outside_range(model.data_range()?, name, u)
+}
+
+/// A record whose output lies wholly outside the model's estimation data (beyond 10 % of that range's
+/// span on one side: [`sysid_core::DataRange::excursion_of`]'s margin), in words: another operating
+/// point or other units, where the fit says little about the model (audit s30 L-13: a record in ±5
+/// validated against a model estimated on y in [45.6, 60.2] warned of the fit only). `None` without a
+/// recorded range, or when the ranges overlap. In-memory `validate` and Python's `Model.metrics`.
+pub fn record_outside_data(model: &Model, y: &[f64]) -> Option<String> {
+    let [lo, hi] = model.data_range()?.y;
+    let (min, max) = sysid_core::DataRange::extremes(y);
+    let margin = 0.1 * (hi - lo).abs();
+    (min.is_finite() && max.is_finite() && (max < lo - margin || min > hi + margin)).then(|| {
+        format!(
+            "the record's output spans [{}, {}], wholly outside the model's estimation data (y in [{}, \
+             {}]): another operating point or other units; the fit on it says little about the model",
+            sysid_core::format::Shortest(min),
+            sysid_core::format::Shortest(max),
+            sysid_core::format::Shortest(lo),
+            sysid_core::format::Shortest(hi)
+        )
+    })
 }
 
 /// [`input_outside_data`] for a recorded range (a linear or a NARX model's) and the input's `name`.

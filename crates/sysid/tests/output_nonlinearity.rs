@@ -360,3 +360,35 @@ fn unsupported_output_structures_are_refused() {
     .to_string();
     assert!(e.contains("one record"), "{e}");
 }
+
+// Audit s31 M-2: a fitted output saturation whose limits lie inside the measured output's range is said
+// (the samples beyond them counted here by hand); limits around every sample, or a handful beyond
+// (fewer than 1 % or 5), say nothing.
+#[test]
+fn output_limits_inside_the_measured_range_are_said() {
+    let g = StaticNonlinearity::Saturation(sysid::nonlinearity::Saturation {
+        s_l: 1.6,
+        s_r: 4.8,
+        m: 2.0,
+    });
+    // 101 outputs 2.9, 2.97, …, 9.9 (step 0.07); the limits are 2 · 1.6 = 3.2 and 2 · 4.8 = 9.6: below
+    // are 2.9, 2.97, 3.04, 3.11, 3.18 (5), above 9.62, 9.69, 9.76, 9.83, 9.9 (5).
+    let y: Vec<f64> = (0..101).map(|i| 2.9 + 0.07 * f64::from(i)).collect();
+    let w = sysid::wiener::output_limit_warning(&g, &y, 0.0).expect("a warning");
+    let text = w.to_string();
+    assert!(text.contains("5 samples below and 5 above"), "{text}");
+    // With an operating point the limits and range are printed in the record's units.
+    let dy: Vec<f64> = y.iter().map(|v| v - 1.0).collect();
+    let w = sysid::wiener::output_limit_warning(&g, &dy, 1.0).expect("a warning");
+    assert!(w.to_string().contains("(4.2 .. 10.6)"), "{w}");
+    let wide = StaticNonlinearity::Saturation(sysid::nonlinearity::Saturation {
+        s_l: 1.0,
+        s_r: 6.0,
+        m: 2.0,
+    });
+    assert!(sysid::wiener::output_limit_warning(&wide, &y, 0.0).is_none());
+    // Four samples beyond: fewer than 5.
+    let mut few = vec![5.0; 400];
+    few[..4].iter_mut().for_each(|v| *v = 20.0);
+    assert!(sysid::wiener::output_limit_warning(&g, &few, 0.0).is_none());
+}

@@ -331,6 +331,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             units: Units::of(limits.model_units()),
         },
     ));
+    // The run against the steady-state specification the controller file was tuned for.
+    if let Some(f) = &tuned_file {
+        warnings.extend(control::trust::spec_warnings(f, &steps));
+    }
 
     // The trace and the JSON are written together, after both are made (a failure of either leaves
     // both files as they were; audit s14 M-f).

@@ -72,11 +72,11 @@ pub fn read_mat_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Rec
                 .into(),
         ));
     }
-    let wanted = [
-        opts.u_col.as_str(),
-        opts.y_col.as_str(),
-        opts.t_col.as_str(),
-    ];
+    // Several inputs (`--u-col u1,u2`) are several variables, as several columns of a CSV (audit s31
+    // L-1: the list was looked up as one name, and refused while the file held u1 and u2).
+    let inputs = opts.input_names();
+    let mut wanted: Vec<&str> = inputs.iter().map(String::as_str).collect();
+    wanted.extend([opts.y_col.as_str(), opts.t_col.as_str()]);
     let vars = parse(bytes, name, &wanted, opts.max_read_bytes)?;
     if vars.is_empty() {
         // A header and nothing else (audit s13 L8: "no column named 'u'; the header has: ").
@@ -210,20 +210,25 @@ pub fn read_mat_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Rec
         }
         Ok(v)
     };
-    let mut u = vector(&opts.u_col, Setting::UCol)?;
+    let mut us = inputs
+        .iter()
+        .map(|var| vector(var, Setting::UCol))
+        .collect::<Result<Vec<_>, _>>()?;
     let mut y = vector(&opts.y_col, Setting::YCol)?;
-    if u.len() != y.len() {
-        return Err(file_err(
-            name,
-            format!(
-                "'{}' has {} samples but '{}' has {}; expected vectors of the same length",
-                opts.u_col,
-                u.len(),
-                opts.y_col,
-                y.len()
-            ),
-        ));
+    for (var, u) in inputs.iter().zip(&us) {
+        if u.len() != y.len() {
+            return Err(file_err(
+                name,
+                format!(
+                    "'{var}' has {} samples but '{}' has {}; expected vectors of the same length",
+                    u.len(),
+                    opts.y_col,
+                    y.len()
+                ),
+            ));
+        }
     }
+    let n = y.len();
     // The time variable is read when there is one, also under --ts (its notes: audit s27 M-2).
     let t_exists = find(&opts.t_col)?.is_some();
     let has_t = opts.ts.is_none() && t_exists;
@@ -232,19 +237,18 @@ pub fn read_mat_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Rec
         // Under --ts a time variable that is not a vector of the record's length is not checked.
         (false, true) => vector(&opts.t_col, Setting::TCol)
             .ok()
-            .filter(|t| t.len() == u.len()),
+            .filter(|t| t.len() == n),
         (false, false) => None,
     };
     let mut t = if let Some(t) = t_read {
-        if t.len() != u.len() {
+        if t.len() != n {
             return Err(file_err(
                 name,
                 format!(
-                    "time variable '{}' has {} samples but '{}' has {}",
+                    "time variable '{}' has {} samples but '{}' has {n}",
                     opts.t_col,
                     t.len(),
-                    opts.u_col,
-                    u.len()
+                    opts.y_col,
                 ),
             ));
         }
@@ -258,8 +262,10 @@ pub fn read_mat_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Rec
     };
     let mut name = name.to_string();
     if let Some(r) = &opts.rows {
-        let range = r.resolve(u.len(), opts.rows_flag, &name)?;
-        u = u[range.clone()].to_vec();
+        let range = r.resolve(n, opts.rows_flag, &name)?;
+        for u in &mut us {
+            *u = u[range.clone()].to_vec();
+        }
         y = y[range.clone()].to_vec();
         t = t.map(|t| t[range.clone()].to_vec());
         name = format!("{name}[{}..{}]", range.start, range.end);
@@ -269,9 +275,16 @@ pub fn read_mat_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Rec
     let ts = match (opts.resample, &t, opts.ts.or(if has_t { None } else { opts.fallback_ts })) {
         (Some(ts), Some(t), _) => {
             increasing_time(t).map_err(time_err)?;
-            let r = resample::resample_record(t, &u, &y, ts, &name)?;
-            (u, y) = (r.u, r.y);
-            notes.push(r.note);
+            let mut ry = Vec::new();
+            for u in &mut us {
+                let r = resample::resample_record(t, u, &y, ts, &name)?;
+                if ry.is_empty() {
+                    notes.push(r.note);
+                }
+                *u = r.u;
+                ry = r.y;
+            }
+            y = ry;
             ts
         }
         (_, t, Some(ts)) => {
@@ -302,11 +315,13 @@ pub fn read_mat_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Rec
         }
     };
     let t0 = t.as_ref().and_then(|t| t.first().copied());
-    Ok(Record {
-        data: Dataset::new(Signals { u, y }, ts, name)?,
-        notes,
-        t0,
-    })
+    let data = if inputs.len() == 1 {
+        let u = us.into_iter().next().unwrap_or_default();
+        Dataset::new(Signals { u, y }, ts, name)?
+    } else {
+        Dataset::with_inputs(inputs.into_iter().zip(us).collect(), y, ts, name)?
+    };
+    Ok(Record { data, notes, t0 })
 }
 
 /// A fault of the time variable `var` as the reader's error, at its element (1-based) when it has one:

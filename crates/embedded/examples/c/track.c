@@ -96,7 +96,9 @@ int main(int argc, char **argv) {
     size_t n = 0, cap = 4096;
     double *u = malloc(cap * sizeof *u), *y = malloc(cap * sizeof *y);
     if (u == NULL || y == NULL) return 1;
+    size_t lineno = 1; /* the header was line 1 */
     while (fgets(line, sizeof line, stdin) != NULL) {
+        lineno++;
         if (line[0] == '\n' || line[0] == '\r' || line[0] == '\0') continue;
         if (n == cap) {
             cap *= 2;
@@ -106,7 +108,13 @@ int main(int argc, char **argv) {
             y = ny;
         }
         if (!field(line, ucol, &u[n]) || !field(line, ycol, &y[n])) {
-            fprintf(stderr, "line %zu: u or y is not a number\n", n + 2);
+            fprintf(stderr, "line %zu: u or y is not a number\n", lineno);
+            return 1;
+        }
+        /* strtod reads "nan" and "inf": the library would refuse the record with IPA_ERR_DATA, naming
+           no line; the line is named here. */
+        if (!isfinite(u[n]) || !isfinite(y[n])) {
+            fprintf(stderr, "line %zu: u = %g, y = %g: not finite\n", lineno, u[n], y[n]);
             return 1;
         }
         n++;
@@ -114,8 +122,11 @@ int main(int argc, char **argv) {
 
     double b_l0, b_r0, limit;
     int rc = ipa_hrls_record_start(u, n, &b_l0, &b_r0, &limit);
-    if (rc == IPA_OK)
-        rc = ipa_hrls_init(state, sizeof state, na, nb, nk, rho, p0, b_l0, b_r0, limit, 0.0, form);
+    if (rc != IPA_OK) {
+        fprintf(stderr, "ipa_hrls_record_start failed: %d\n", rc);
+        return 1;
+    }
+    rc = ipa_hrls_init(state, sizeof state, na, nb, nk, rho, p0, b_l0, b_r0, limit, 0.0, form);
     if (rc != IPA_OK) {
         fprintf(stderr, "ipa_hrls_init failed: %d\n", rc);
         return 1;

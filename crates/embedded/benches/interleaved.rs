@@ -1,5 +1,6 @@
 //! Our update beside the peer's **in the same short stretches of time**: one update of `ipa_embedded::Rls`
-//! (eq. 12, UD form, UD form + guard idle (T = p0 · n) and near the bound) and of the no_std peer `oxictl` 0.1.1
+//! (eq. 12, eq. 12 + guard idle (T = p0 · n) and near the bound, UD form, UD form + guard idle and near
+//! the bound; the eq. 12 guard cases since issue 28's twenty-fifth round) and of the no_std peer `oxictl` 0.1.1
 //! (`sysid::arx::RecursiveArx`) on the record of `rls.rs` (`common`), timed in chunks of 200 updates
 //! that take turns (ours, ours, ours, the peer, then again, over the same stretch of the record).
 //!
@@ -54,8 +55,10 @@ enum Guard {
 }
 
 /// Our estimators in every group: (label, form, guard).
-const OURS: [(&str, Form, Guard); 4] = [
+const OURS: [(&str, Form, Guard); 6] = [
     ("plain", Form::Standard, Guard::Off),
+    ("guard", Form::Standard, Guard::Idle),
+    ("guard-active", Form::Standard, Guard::Active),
     ("ud", Form::Ud, Guard::Off),
     ("ud-guard", Form::Ud, Guard::Idle),
     ("ud-guard-active", Form::Ud, Guard::Active),
@@ -229,10 +232,10 @@ fn case<F, const NA: usize, const NB: usize, const P: usize, const UBN: usize>(
         if s.verbose {
             let cols: Vec<String> = med.iter().map(|m| format!("{m:.1}")).collect();
             println!(
-                "{name} {:6.1} s, states at {offset:4} mod 4096: median ns (plain, ud, ud-guard, ud-guard-active, oxictl) {}; ud / oxictl {:.2}",
+                "{name} {:6.1} s, states at {offset:4} mod 4096: median ns (plain, guard, guard-active, ud, ud-guard, ud-guard-active, oxictl) {}; ud / oxictl {:.2}",
                 begin.elapsed().as_secs_f64(),
                 cols.join(" "),
-                med[1] / med[k]
+                med[3] / med[k]
             );
         }
         let peer_med = med[k];

@@ -88,9 +88,13 @@
 //! a sum in f64 over 1e5 updates). On that test's record the exact sum ran on 2.3–2.8 % of updates
 //! with ρ = 0.98 (16 % with ρ = 0.5, where each excited update removes half the trace).
 //! t is kept only while R > T/4 (issue 28, twenty-third round): an update that starts with R(k−1) ≤ T/4
-//! computes R(k) alone (no bᵀb, no t, no ρ / T; N > 4 computes t anyway from the stale t, a value
-//! never read, ≤ R(k) as below, faster there than a branch), writes ρ̃ = ρ and leaves t; when R(k) is no
-//! longer ≤ T/4 (or not finite) t is summed exactly, R = t, and ρ̃ is set from it as above. The promise
+//! computes R(k) alone (no bᵀb, no t, no ρ / T), writes ρ̃ = ρ and leaves t; when R(k) is no
+//! longer ≤ T/4 (or not finite) t is summed exactly, R = t, and ρ̃ is set from it as above. With a
+//! capacity N > 4 such an update (R ≤ T/4 and ρ̃ = ρ, which is every one with R ≤ T/4 but the first
+//! after a bound raised by [`Rls::with_max_trace`] while a scale is pending) is the unguarded update
+//! followed by R(k) = R(k−1) · (1/ρ) · g and the test (issue 28, twenty-fifth round: the idle guard then
+//! costs what the unguarded update does); the guarded kernel with n < N, and in that one case, computes t
+//! anyway from the stale t (a value never read, ≤ R(k) as below). The promise
 //! holds: (i) R bounds the trace. At an exact sum R = t; after it each update has tr P(k) ≤
 //! tr P(k−1) · (1/ρ̃) · (1 + O(nε)) (Bierman's downdate bᵀb/α ≥ 0 only removes trace) while R(k) =
 //! R(k−1) · (1/ρ̃) · g with g = 1 + 2⁻⁵ far above 1 + O(nε); and the computed t stays ≤ the computed R
@@ -367,6 +371,30 @@ impl<F: Float, const N: usize> Rls<F, N> {
         guard_scale(self, rho_t);
     }
 
+    /// UD form with the guard: whether t is not kept (R ≤ T/4, or R not a number) and no scale is
+    /// pending (ρ̃ = ρ). Then the guard cannot act in the next update, ρ̃ = ρ is what it would write,
+    /// and the update is the unguarded one followed by R's ([`Rls::untracked_reference`]).
+    #[inline(always)]
+    fn untracked(&self) -> bool {
+        // t kept: R > T/4 (false for R not a number).
+        let keep_t = self.tr_ref > self.max_trace * F::from_f64(0.25);
+        self.max_trace.is_finite() && !keep_t && self.var == self.forgetting
+    }
+
+    /// After an unguarded update run for the guard with t not kept: R(k) = R(k−1) · (1/ρ) · g (the
+    /// guarded kernel's operations with ρ̃ = ρ), and when R(k) is no longer ≤ T/4 (or not finite) t
+    /// and R are summed exactly and ρ̃ set from t, as the guarded kernel does.
+    #[inline(always)]
+    fn untracked_reference(&mut self) {
+        let inv_var = F::ONE / self.forgetting;
+        let tr_ref = self.tr_ref * inv_var * F::from_f64(TRACE_DRIFT_GROWTH);
+        self.tr_ref = tr_ref;
+        let quarter = self.max_trace * F::from_f64(0.25);
+        if (tr_ref > quarter) | ((tr_ref - quarter) * F::ZERO != F::ZERO) {
+            self.resum_trace_and_scale();
+        }
+    }
+
     /// ρ: the forgetting factor.
     pub fn forgetting(&self) -> F {
         self.forgetting
@@ -383,26 +411,47 @@ impl<F: Float, const N: usize> Rls<F, N> {
         match (self.form, self.n == N) {
             (Form::Standard, true) => update_standard::<F, N, true>(self, phi, y),
             (Form::Standard, false) => update_standard::<F, N, false>(self, phi, y),
-            (Form::Ud, full) => match (full, self.max_trace.is_finite()) {
-                (true, false) => update_ud::<F, N, true, false>(self, phi, y).map(|(e, _)| e),
-                (true, true) if N <= SHORT_CHAINS_UP_TO => {
-                    let result = update_ud::<F, N, true, true>(self, phi, y);
-                    self.guarded(result)
+            (Form::Ud, full) => {
+                // The guard with t not kept (R ≤ T/4, nothing pending) at N > 4: the unguarded
+                // kernel, then R alone (module documentation, "Windup guard").
+                let untracked = N > SHORT_CHAINS_UP_TO && self.untracked();
+                match (full, self.max_trace.is_finite() && !untracked) {
+                    (true, false) => {
+                        let (eps, _) = update_ud::<F, N, true, false>(self, phi, y)?;
+                        if untracked {
+                            self.untracked_reference();
+                        }
+                        Ok(eps)
+                    }
+                    (true, true) if N <= SHORT_CHAINS_UP_TO => {
+                        let result = update_ud::<F, N, true, true>(self, phi, y);
+                        self.guarded(result)
+                    }
+                    (true, true) => {
+                        let result = if self.tr_ref > self.max_trace * F::from_f64(0.25) {
+                            update_ud_guarded::<F, N, true>(self, phi, y)
+                        } else {
+                            update_ud_guarded::<F, N, false>(self, phi, y)
+                        };
+                        self.guarded(result)
+                    }
+                    (false, false) => {
+                        let (eps, _) = update_ud::<F, N, false, false>(self, phi, y)?;
+                        if untracked {
+                            self.untracked_reference();
+                        }
+                        Ok(eps)
+                    }
+                    (false, true) if N <= SHORT_CHAINS_UP_TO => {
+                        let result = update_ud::<F, N, false, true>(self, phi, y);
+                        self.guarded(result)
+                    }
+                    (false, true) => {
+                        let result = update_ud_guarded::<F, N, false>(self, phi, y);
+                        self.guarded(result)
+                    }
                 }
-                (true, true) => {
-                    let result = update_ud_guarded::<F, N, true>(self, phi, y);
-                    self.guarded(result)
-                }
-                (false, false) => update_ud::<F, N, false, false>(self, phi, y).map(|(e, _)| e),
-                (false, true) if N <= SHORT_CHAINS_UP_TO => {
-                    let result = update_ud::<F, N, false, true>(self, phi, y);
-                    self.guarded(result)
-                }
-                (false, true) => {
-                    let result = update_ud_guarded::<F, N, false>(self, phi, y);
-                    self.guarded(result)
-                }
-            },
+            }
         }
     }
 }
@@ -675,11 +724,15 @@ fn update_ud<F: Float, const N: usize, const FULL: bool, const GUARD: bool>(
     // The guard keeps t only while R > T/4 (`keep_t`; module documentation, "Windup guard"): while
     // R ≤ T/4, t ≤ R ≤ T/4 and the guard cannot act, so neither t nor ρ / T is needed. N ≤ 4 skips
     // their computation then (`skip_t`, a branch that is predicted: the mode changes at an exact sum
-    // at most); N > 4 computes t at every update and stores it (a value never read: an update that
-    // reads t again starts from an exact sum), only `exact` follows the mode (with a branch there
-    // the acting guard at n = 9 took 6–8 ns more per update, with t selected 1.5–2.5 ns more;
-    // docs/benchmarks.md "Twenty-third round").
-    let keep_t = GUARD && est.tr_ref > max_trace * F::from_f64(0.25);
+    // at most). With N > 4, [`Rls::update`] runs the unguarded kernel instead while R ≤ T/4 and no
+    // scale is pending ([`Rls::untracked`]); so the written-out kernel (`FULL`) runs only with t kept
+    // (`keep_t` a constant), and the run-time-bound kernel (n < N, and for n = N the one case of a
+    // bound raised while a scale is pending) computes t at every update and stores it (a value never
+    // read: an update that reads t again starts from an exact sum), only `exact` following the mode
+    // (with a branch there the acting guard at n = 9 took 6–8 ns more per update, with t selected
+    // 1.5–2.5 ns more; docs/benchmarks.md "Twenty-third round").
+    let keep_t =
+        GUARD && ((FULL && N > SHORT_CHAINS_UP_TO) || est.tr_ref > max_trace * F::from_f64(0.25));
     let skip_t = GUARD && N <= SHORT_CHAINS_UP_TO && !keep_t;
     // ρ / T, for the guard's ρ̃ below: divided here, at the start, so that when the guard acts only a
     // multiplication follows tr P (kept here by `black_box`: the compiler would otherwise move the
@@ -1749,6 +1802,132 @@ mod tests {
             }
         }
         (exact_sums, updates, idle)
+    }
+
+    // At a capacity N > 4 the guard with t not kept (R ≤ T/4, nothing pending) runs the unguarded
+    // kernel and then updates R alone (issue 28, twenty-fifth round). `Rls<f64, 9>` with n = 9 (the
+    // written-out kernels) and n = 4 (run-time loop bounds), through excitation (the trace falls far
+    // below T: R ≤ T/4) and quiet stretches (it grows back to T and the guard acts), against
+    // `sysid::rls_ud::RobustRls` (nalgebra matrices, its own loops) at every update: ε, θ̂ and tr P
+    // bit for bit. Counted: updates that started with t not kept, with t kept, and that left the
+    // guard's scale pending; each path runs on many updates.
+    #[test]
+    fn untracked_guard_updates_are_bit_for_bit_sysid() {
+        use rand::{Rng, SeedableRng};
+        use sysid::rls_ud::{RlsForm, RobustRls};
+        use sysid::windup::Windup;
+        for n in [9, 4] {
+            let (rho, p0, t) = (0.95, 10.0, 10.0 * n as f64);
+            let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(25);
+            let mut want = RobustRls::new(n, rho, p0, RlsForm::Ud, Windup::Trace, Some(t)).unwrap();
+            let mut got = Rls::<f64, 9>::new(n, rho, p0)
+                .unwrap()
+                .with_form(Form::Ud)
+                .with_max_trace(t)
+                .unwrap();
+            let (mut untracked, mut kept, mut pending) = (0, 0, 0);
+            for k in 0..2000 {
+                let quiet = (150..350).contains(&(k % 400));
+                let scale = if quiet { 1e-9 } else { 1.0 };
+                let phi: std::vec::Vec<f64> =
+                    (0..n).map(|_| scale * rng.gen_range(-1.0..1.0)).collect();
+                let y = phi
+                    .iter()
+                    .enumerate()
+                    .map(|(i, p)| p / (1.0 + i as f64))
+                    .sum::<f64>()
+                    + 1e-3 * rng.gen::<f64>();
+                // With t not kept, R(k) = R(k−1) · (1/ρ) · g, or the exact trace when that leaves
+                // [0, T/4] (the module documentation's rule, written out here).
+                let r_next = if got.untracked() {
+                    untracked += 1;
+                    let r = got.tr_ref * (1.0 / rho) * TRACE_DRIFT_GROWTH;
+                    Some(r).filter(|r| *r <= t * 0.25)
+                } else {
+                    kept += 1;
+                    None
+                };
+                let was_untracked = got.untracked();
+                let e_want = want.update(&phi, y, k).unwrap();
+                let e = got.update(&phi, y).unwrap();
+                if was_untracked {
+                    let r = r_next.unwrap_or_else(|| got.trace());
+                    assert!(got.tr_ref == r, "n={n} k={k}: R {:e} vs {r:e}", got.tr_ref);
+                }
+                assert!(e == e_want, "n={n} k={k}: ε {e:e} vs {e_want:e}");
+                for (g, w) in got.theta().iter().zip(want.theta.iter()) {
+                    assert!(g == w, "n={n} k={k}: θ̂ {g:e} vs {w:e}");
+                }
+                assert!(
+                    got.trace() == want.trace(),
+                    "n={n} k={k}: tr P {:e} vs {:e}",
+                    got.trace(),
+                    want.trace()
+                );
+                if got.var != got.forgetting {
+                    pending += 1;
+                }
+            }
+            assert!(
+                untracked > 100 && kept > 100 && pending > 10,
+                "n={n}: t not kept on {untracked} updates, kept on {kept}, scale pending after {pending}"
+            );
+        }
+    }
+
+    // The one case where t is not kept and a scale is pending: a bound raised by `with_max_trace` while
+    // the guard's scale is pending (R = the exact trace ≤ T/4, ρ̃ ≠ ρ). The next update consumes the
+    // pending scale with t not kept, as the run-time-bound kernel does for any n: `Rls<f64, 9>` with
+    // n = 9 (which runs that kernel in this case) equals `Rls<f64, 10>` with n = 9 (which runs it at
+    // every guarded update) bit for bit, before and after.
+    #[test]
+    fn raised_bound_with_a_pending_scale_is_the_run_time_kernel() {
+        use rand::{Rng, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(26);
+        let (rho, p0, t) = (0.95, 10.0, 5.0);
+        let mut a = Rls::<f64, 9>::new(9, rho, p0)
+            .unwrap()
+            .with_form(Form::Ud)
+            .with_max_trace(t)
+            .unwrap();
+        let mut b = Rls::<f64, 10>::new(9, rho, p0)
+            .unwrap()
+            .with_form(Form::Ud)
+            .with_max_trace(t)
+            .unwrap();
+        let mut edge = 0;
+        for k in 0..300 {
+            if k % 100 == 50 {
+                assert!(a.var != a.forgetting, "k={k}: a scale is pending");
+                a = a.with_max_trace(1e6).unwrap();
+                b = b.with_max_trace(1e6).unwrap();
+                assert!(!a.untracked() && a.tr_ref <= a.max_trace * 0.25);
+                edge += 1;
+            } else if k % 100 == 60 {
+                a = a.with_max_trace(t).unwrap();
+                b = b.with_max_trace(t).unwrap();
+            }
+            let scale = if (20..50).contains(&(k % 100)) {
+                1e-9
+            } else {
+                1.0
+            };
+            let phi: [f64; 9] = core::array::from_fn(|_| scale * rng.gen_range(-1.0..1.0));
+            let y = phi.iter().sum::<f64>() + 1e-3 * rng.gen::<f64>();
+            let (ea, eb) = (a.update(&phi, y).unwrap(), b.update(&phi, y).unwrap());
+            assert!(ea == eb, "k={k}: ε {ea:e} vs {eb:e}");
+            for i in 0..9 {
+                assert!(a.theta()[i] == b.theta()[i], "k={k}: θ̂_{i}");
+                for j in 0..9 {
+                    assert!(a.p(i, j) == b.p(i, j), "k={k}: P_{i}{j}");
+                }
+            }
+            assert!(
+                a.var == b.var && a.tr_ref == b.tr_ref && a.tr == b.tr,
+                "k={k}"
+            );
+        }
+        assert_eq!(edge, 3);
     }
 
     #[test]

@@ -635,8 +635,8 @@ pub fn provenance_warning(file: &crate::ControllerFile, plant: RunPlant<'_>) -> 
 
 /// The run of a controller file against the steady-state part of the specification it was tuned for
 /// (its provenance's `spec`: |e_ss| ≤ `ess_all_mm` in every step): each settled step whose |e_ss| misses
-/// it, in one warning with the worst, and when that error sits inside the file's nudge band, that the
-/// nudge and hold logic (the integrator is held at zero there) is what holds it (audit s30 M-5: a
+/// it, in one warning with the worst, and when that error sits where the file's nudges act (its nudge
+/// band, or its rest band once the piston rests), that the nudge and hold logic is what holds it (audit s30 M-5: a
 /// controller tuned on a model parked 0.44–0.48 mm short on `--plant paper`, 10 times its 0.05 mm
 /// specification, with only the file's generic "does not meet the specification" warning). Nothing for a
 /// file without a specification (hand-written) or steps not settled (their own warnings say so).
@@ -664,13 +664,21 @@ pub fn spec_warnings(file: &crate::ControllerFile, steps: &[StepSegment]) -> Vec
     let Some(&(r, worst)) = missed.iter().max_by(|a, b| a.1.total_cmp(&b.1)) else {
         return Vec::new();
     };
-    let nudge = file.controller.nudge.as_ref().map(|n| n.band_mm);
-    let why = match nudge {
-        Some(band) if worst <= band + tol => format!(
-            ": the error sits inside the nudge band (e_n = {} mm), where the integrator is held at zero \
-             and only the nudges act, and they do not move this plant (a nudge and hold design tuned on \
-             another plant); tune on this plant, or run without the controller file",
-            sysid_core::format::Shortest(band)
+    // Where the nudges act: the nudge band e_n, and the rest band e_r once the piston rests.
+    let why = match file.controller.nudge.as_ref() {
+        Some(n) if worst <= n.band_mm.max(n.rest_band_mm) + tol => format!(
+            ": the error sits where the nudges act (nudge band e_n = {} mm{}), and their pulses do not \
+             move this plant (a nudge and hold design tuned on another plant); tune on this plant, or run \
+             without the controller file",
+            sysid_core::format::sig(n.band_mm, 4),
+            if n.rest_band_mm > n.band_mm {
+                format!(
+                    ", rest band e_r = {} mm once the piston rests",
+                    sysid_core::format::sig(n.rest_band_mm, 4)
+                )
+            } else {
+                String::new()
+            }
         ),
         _ => String::new(),
     };

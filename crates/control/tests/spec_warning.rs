@@ -57,10 +57,10 @@ fn a_run_that_misses_the_files_steady_state_spec_says_so() {
     assert_eq!(w.len(), 1, "{w:?}");
     assert!(w[0].contains("1 of 1 settled step(s) miss"), "{}", w[0]);
     assert!(w[0].contains("|e_ss| ≤ 0.05 mm"), "{}", w[0]);
-    assert!(w[0].contains("inside the nudge band"), "{}", w[0]);
+    assert!(w[0].contains("where the nudges act"), "{}", w[0]);
     // Outside the nudge band: the miss without the nudge's reason.
     let w = control::trust::spec_warnings(&file(Some(0.3), true), &[parked]);
-    assert!(w.len() == 1 && !w[0].contains("nudge band"), "{w:?}");
+    assert!(w.len() == 1 && !w[0].contains("nudges act"), "{w:?}");
     // Met (e_ss = 0.03 mm), or a hand-written file without a specification: nothing.
     assert!(control::trust::spec_warnings(&file(Some(0.5), true), &[step(49.97)]).is_empty());
     assert!(control::trust::spec_warnings(&file(Some(0.5), false), &[parked]).is_empty());

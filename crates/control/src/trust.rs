@@ -653,9 +653,12 @@ pub fn spec_warnings(file: &crate::ControllerFile, steps: &[StepSegment]) -> Vec
     };
     // The rounding tune allows (`crate::tune`'s ROUNDING_MM).
     let tol = 1e-9;
-    let missed: Vec<(f64, f64)> = steps
+    let settled: Vec<&StepSegment> = steps
         .iter()
         .filter(|s| s.metrics.settling_time_s.is_some() && !s.too_short())
+        .collect();
+    let missed: Vec<(f64, f64)> = settled
+        .iter()
         .filter_map(|s| {
             let e = s.metrics.steady_state_error_mm?.abs();
             (e > limit + tol).then_some((s.setpoint_mm, e))
@@ -686,10 +689,7 @@ pub fn spec_warnings(file: &crate::ControllerFile, steps: &[StepSegment]) -> Vec
         "{} of {} settled step(s) miss the controller file's steady-state specification (|e_ss| ≤ {} mm in \
          every step, its provenance's spec): the worst |e_ss| = {} mm at r = {} mm{why}",
         missed.len(),
-        steps
-            .iter()
-            .filter(|s| s.metrics.settling_time_s.is_some() && !s.too_short())
-            .count(),
+        settled.len(),
         sysid_core::format::Shortest(limit),
         sysid_core::format::sig(worst, 4),
         sysid_core::format::Shortest(r),

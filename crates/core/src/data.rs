@@ -875,16 +875,7 @@ pub(crate) fn lone_outlier(table: &Table, col: usize, values: &[f64]) -> Option<
     if values.len() < 3 {
         return None;
     }
-    let (row, big) = values
-        .iter()
-        .enumerate()
-        .map(|(i, v)| (i, v.abs()))
-        .fold((0, 0.0f64), |a, b| if b.1 > a.1 { b } else { a });
-    let rest = values
-        .iter()
-        .enumerate()
-        .filter(|&(i, _)| i != row)
-        .fold(0.0f64, |m, (_, v)| m.max(v.abs()));
+    let (row, big, rest) = crate::ls::largest_and_rest(values.iter().copied());
     // `big / rest` may overflow to ∞ (1e300 against 1e-10): compared as big ≥ factor · rest.
     (rest > 0.0 && big >= LONE_OUTLIER_FACTOR * rest).then(|| {
         format!(

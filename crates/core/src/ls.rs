@@ -850,16 +850,7 @@ fn one_value_column(
     name: &impl Fn(usize) -> String,
 ) -> Option<SysidError> {
     let col = phi.column(j);
-    let (row, big) = col
-        .iter()
-        .enumerate()
-        .map(|(i, v)| (i, v.abs()))
-        .fold((0, 0.0f64), |a, b| if b.1 > a.1 { b } else { a });
-    let rest = col
-        .iter()
-        .enumerate()
-        .filter(|&(i, _)| i != row)
-        .fold(0.0f64, |m, (_, v)| m.max(v.abs()));
+    let (row, big, rest) = largest_and_rest(col.iter().copied());
     (rest > 0.0 && rest < RANK_TOLERANCE * big).then(|| {
         SysidError::Numerical(format!(
             "regressor {} is carried by one value, {:e} in regression row {row} of {}, while every other \
@@ -870,6 +861,22 @@ fn one_value_column(
             col.len()
         ))
     })
+}
+
+/// The row of the largest |value|, that magnitude, and the largest |value| of every other row (0 for
+/// fewer than two values): the one measure of "a value carried alone" of least squares' regressor check
+/// ([`one_value_column`]) and the readers' outlier note (`crate::data::lone_outlier`).
+pub(crate) fn largest_and_rest(values: impl Iterator<Item = f64> + Clone) -> (usize, f64, f64) {
+    let (row, big) = values
+        .clone()
+        .map(f64::abs)
+        .enumerate()
+        .fold((0, 0.0f64), |a, b| if b.1 > a.1 { b } else { a });
+    let rest = values
+        .enumerate()
+        .filter(|&(i, _)| i != row)
+        .fold(0.0f64, |m, (_, v)| m.max(v.abs()));
+    (row, big, rest)
 }
 
 fn dependent(name: &str) -> SysidError {

@@ -101,6 +101,15 @@ fn label(p: &serde_json::Value) -> String {
     }
 }
 
+/// A command's standard output then its standard error, as text (warnings go to either).
+fn stdout_and_stderr(o: &Output) -> String {
+    format!(
+        "{}{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    )
+}
+
 fn fails(args: &[&str]) -> String {
     let out = bin().args(args).output().unwrap();
     let err = String::from_utf8_lossy(&out.stderr).to_string();
@@ -2204,7 +2213,8 @@ fn a_lone_outlier_is_named_at_its_line_and_column() {
     for k in 1..n {
         y[k] = 0.9 * y[k - 1] + 0.5 * u[k - 1];
     }
-    let id = |f: &Path, strict: bool| {
+    // identify ARX(1, 1, 1) by LS on `f` with `extra` flags.
+    let id = |f: &Path, extra: &[&str]| {
         let mut a = vec![
             "identify",
             "--data",
@@ -2222,48 +2232,24 @@ fn a_lone_outlier_is_named_at_its_line_and_column() {
             "--method",
             "ls",
         ];
-        if strict {
-            a.push("--strict");
-        }
+        a.extend_from_slice(extra);
         bin().args(&a).output().unwrap()
     };
     let mut bad = u.clone();
     bad[201] = 1e200;
     let f = dir.path().join("huge.csv");
     write_uy(&f, &bad, &y);
-    let o = id(&f, false);
-    let err = format!(
-        "{}{}",
-        String::from_utf8_lossy(&o.stdout),
-        String::from_utf8_lossy(&o.stderr)
-    );
+    let o = id(&f, &[]);
+    let err = stdout_and_stderr(&o);
     assert!(o.status.success(), "{err}");
     let named = "huge.csv:203:1: u = 1e200 is at least 1e6 times every other value";
     assert!(err.contains(named), "{err}");
-    assert_eq!(id(&f, true).status.code(), Some(1));
+    assert_eq!(id(&f, &["--strict"]).status.code(), Some(1));
     // validate fails on the overflow, naming the row first.
     let model = dir.path().join("m.json");
     let clean = dir.path().join("clean.csv");
     write_uy(&clean, &u, &y);
-    run(&[
-        "identify",
-        "--data",
-        s(&clean),
-        "--ts",
-        "0.1",
-        "--structure",
-        "arx",
-        "--na",
-        "1",
-        "--nb",
-        "1",
-        "--nk",
-        "1",
-        "--method",
-        "ls",
-        "--save-model",
-        s(&model),
-    ]);
+    assert!(id(&clean, &["--save-model", s(&model)]).status.success());
     let o = bin()
         .args(["validate", "--model", s(&model), "--data", s(&f)])
         .output()
@@ -2276,12 +2262,7 @@ fn a_lone_outlier_is_named_at_its_line_and_column() {
         v[201] = value;
         let f = dir.path().join(name);
         write_uy(&f, &v, &y);
-        let o = id(&f, false);
-        let err = format!(
-            "{}{}",
-            String::from_utf8_lossy(&o.stdout),
-            String::from_utf8_lossy(&o.stderr)
-        );
+        let err = stdout_and_stderr(&id(&f, &[]));
         assert!(!err.contains("outlier"), "{name}: {err}");
     }
 }
@@ -2353,16 +2334,13 @@ fn validate_says_an_output_wholly_outside_the_estimation_data() {
         s(&model),
     ]);
     let said = |f: &Path| {
-        let o = bin()
-            .args(["validate", "--model", s(&model), "--data", s(f)])
-            .output()
-            .unwrap();
-        let text = format!(
-            "{}{}",
-            String::from_utf8_lossy(&o.stdout),
-            String::from_utf8_lossy(&o.stderr)
-        );
-        text.contains("wholly outside the model's estimation data")
+        stdout_and_stderr(
+            &bin()
+                .args(["validate", "--model", s(&model), "--data", s(f)])
+                .output()
+                .unwrap(),
+        )
+        .contains("wholly outside the model's estimation data")
     };
     assert!(said(&far));
     assert!(!said(&est));

@@ -2245,6 +2245,15 @@ fn a_lone_outlier_is_named_at_its_line_and_column() {
     let named = "huge.csv:203:1: u = 1e200 is at least 1e6 times every other value";
     assert!(err.contains(named), "{err}");
     assert_eq!(id(&f, &["--strict"]).status.code(), Some(1));
+    // The streamed reader names it at the same place (found in its first pass), a MAT-file by the
+    // element's 1-based index in its variable.
+    let err = stdout_and_stderr(&id(&f, &["--stream", "on"]));
+    assert!(err.contains(named), "{err}");
+    let mat = dir.path().join("huge.mat");
+    common::write_mat(&mat, &["u", "y"], &[&bad, &y]);
+    let err = stdout_and_stderr(&id(&mat, &[]));
+    let named_mat = "huge.mat: variable 'u' element 202 (1-based): u = 1e200 is at least 1e6 times";
+    assert!(err.contains(named_mat), "{err}");
     // validate fails on the overflow, naming the row first.
     let model = dir.path().join("m.json");
     let clean = dir.path().join("clean.csv");
@@ -2262,8 +2271,10 @@ fn a_lone_outlier_is_named_at_its_line_and_column() {
         v[201] = value;
         let f = dir.path().join(name);
         write_uy(&f, &v, &y);
-        let err = stdout_and_stderr(&id(&f, &[]));
-        assert!(!err.contains("outlier"), "{name}: {err}");
+        for stream in ["off", "on"] {
+            let err = stdout_and_stderr(&id(&f, &["--stream", stream]));
+            assert!(!err.contains("outlier"), "{name}, --stream {stream}: {err}");
+        }
     }
 }
 

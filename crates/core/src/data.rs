@@ -872,23 +872,37 @@ pub const LONE_OUTLIER_FACTOR: f64 = 1e6;
 /// when its rank test fails). Nothing when the other values are all 0 (an impulse is a lone value by
 /// design) or the column has fewer than three values.
 pub(crate) fn lone_outlier(table: &Table, col: usize, values: &[f64]) -> Option<String> {
-    if values.len() < 3 {
-        return None;
+    let mut l = crate::ls::Largest::default();
+    for (row, &v) in values.iter().enumerate() {
+        l.push(row, v);
     }
-    let (row, big, rest) = crate::ls::largest_and_rest(values.iter().copied());
+    let place = || format!("{}:{}:{}", table.name, table.line_of(l.at), col + 1);
+    outlier_note(
+        &l,
+        place,
+        table.headers.get(col).map_or("?", String::as_str),
+    )
+}
+
+/// [`lone_outlier`]'s rule and words for a column (or variable) `name` whose values were pushed into
+/// `l`, the largest being at `place()` (`file:line:col`, or a MAT-file's `file: variable y(k)`; made only
+/// for a note: the streamed reader finds a line by reading the file again): the one outlier note of
+/// every reader (in memory, streamed, MAT-files).
+pub(crate) fn outlier_note<P>(
+    l: &crate::ls::Largest<P>,
+    place: impl FnOnce() -> String,
+    name: &str,
+) -> Option<String> {
     // `big / rest` may overflow to ∞ (1e300 against 1e-10): compared as big ≥ factor · rest.
-    (rest > 0.0 && big >= LONE_OUTLIER_FACTOR * rest).then(|| {
+    (l.count >= 3 && l.rest > 0.0 && l.big >= LONE_OUTLIER_FACTOR * l.rest).then(|| {
         format!(
-            "{}:{}:{}: {} = {} is at least {:.0e} times every other value of the column (at most {}): \
+            "{}: {name} = {} is at least {:.0e} times every other value of the column (at most {}): \
              an outlier or a unit error; any estimate made on this record is carried by that one sample \
              (remove or rescale it)",
-            table.name,
-            table.line_of(row),
-            col + 1,
-            table.headers.get(col).map_or("?", String::as_str),
-            crate::format::sig(values[row], 6),
+            place(),
+            crate::format::sig(l.value, 6),
             LONE_OUTLIER_FACTOR,
-            crate::format::sig(rest, 6),
+            crate::format::sig(l.rest, 6),
         )
     })
 }

@@ -865,18 +865,48 @@ fn one_value_column(
 
 /// The row of the largest |value|, that magnitude, and the largest |value| of every other row (0 for
 /// fewer than two values): the one measure of "a value carried alone" of least squares' regressor check
-/// ([`one_value_column`]) and the readers' outlier note (`crate::data::lone_outlier`).
-pub(crate) fn largest_and_rest(values: impl Iterator<Item = f64> + Clone) -> (usize, f64, f64) {
-    let (row, big) = values
-        .clone()
-        .map(f64::abs)
-        .enumerate()
-        .fold((0, 0.0f64), |a, b| if b.1 > a.1 { b } else { a });
-    let rest = values
-        .enumerate()
-        .filter(|&(i, _)| i != row)
-        .fold(0.0f64, |m, (_, v)| m.max(v.abs()));
-    (row, big, rest)
+/// ([`one_value_column`]), in one pass ([`Largest`], which the readers' outlier note keeps).
+pub(crate) fn largest_and_rest(values: impl Iterator<Item = f64>) -> (usize, f64, f64) {
+    let mut l = Largest::default();
+    for (i, v) in values.enumerate() {
+        l.push(i, v);
+    }
+    (l.at, l.big, l.rest)
+}
+
+/// The largest |value| of a sequence seen one value at a time, the value itself and its place `at`
+/// (a row, or the streamed reader's byte offset), and the largest |value| of every other place: what
+/// [`largest_and_rest`] folds, kept by a reader that never holds the column (the streamed CSV reader's
+/// outlier note). The first of equal largest values is kept, the others count in `rest`; a NaN is not
+/// counted.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub(crate) struct Largest<P> {
+    /// Where the largest |value| is.
+    pub at: P,
+    /// The value there (signed).
+    pub value: f64,
+    /// Its magnitude.
+    pub big: f64,
+    /// The largest magnitude of every other place (0 when none).
+    pub rest: f64,
+    /// How many values were seen.
+    pub count: usize,
+}
+
+impl<P: Copy> Largest<P> {
+    /// One more value `v` at place `at`.
+    pub fn push(&mut self, at: P, v: f64) {
+        let a = v.abs();
+        if a > self.big {
+            self.rest = self.big;
+            self.big = a;
+            self.value = v;
+            self.at = at;
+        } else {
+            self.rest = self.rest.max(a);
+        }
+        self.count += 1;
+    }
 }
 
 fn dependent(name: &str) -> SysidError {
@@ -1217,6 +1247,29 @@ mod tests {
         let phi = DMatrix::from_row_slice(3, 2, &[1.0, 0.0, 2.0, 0.0, 3.0, 0.0]);
         let e = solve(&phi, &y, &["a".into(), "b".into()]).unwrap_err();
         assert!(e.to_string().contains("regressor b is zero"), "{e}");
+    }
+
+    // By hand: the largest |value| −7 at index 2 (the later 7 ties and counts in rest), the rest 7;
+    // a NaN is not counted; nothing seen gives place 0 and magnitudes 0.
+    #[test]
+    fn largest_keeps_the_first_largest_and_the_largest_of_the_rest() {
+        assert_eq!(
+            largest_and_rest([1.0, -3.0, -7.0, f64::NAN, 7.0, 2.0].into_iter()),
+            (2, 7.0, 7.0)
+        );
+        assert_eq!(
+            largest_and_rest([0.5, -4.0, 2.0].into_iter()),
+            (1, 4.0, 2.0)
+        );
+        assert_eq!(largest_and_rest(std::iter::empty()), (0, 0.0, 0.0));
+        let mut l = Largest::default();
+        for (at, v) in [(10u64, 1.0), (20, -1e200), (30, 2.0)] {
+            l.push(at, v);
+        }
+        assert_eq!(
+            (l.at, l.value, l.big, l.rest, l.count),
+            (20, -1e200, 1e200, 2.0, 3)
+        );
     }
 
     #[test]

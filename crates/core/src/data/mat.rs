@@ -261,8 +261,10 @@ pub fn read_mat_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Rec
         None
     };
     let mut name = name.to_string();
+    let mut first = 0;
     if let Some(r) = &opts.rows {
         let range = r.resolve(n, opts.rows_flag, &name)?;
+        first = range.start;
         for u in &mut us {
             *u = u[range.clone()].to_vec();
         }
@@ -271,6 +273,20 @@ pub fn read_mat_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Rec
         name = format!("{name}[{}..{}]", range.start, range.end);
     }
     let mut notes = Vec::new();
+    // The CSV readers' outlier note (`super::lone_outlier`), at the element's place in its variable.
+    for (var, values) in inputs.iter().zip(&us).chain([(&opts.y_col, &y)]) {
+        let mut l = crate::ls::Largest::default();
+        for (k, &v) in values.iter().enumerate() {
+            l.push(k, v);
+        }
+        let place = || {
+            format!(
+                "{name}: variable '{var}' element {} (1-based)",
+                first + l.at + 1
+            )
+        };
+        notes.extend(super::outlier_note(&l, place, var));
+    }
     let time_err = |fault: TimeFault| time_error(fault, &name, &opts.t_col);
     let ts = match (opts.resample, &t, opts.ts.or(if has_t { None } else { opts.fallback_ts })) {
         (Some(ts), Some(t), _) => {

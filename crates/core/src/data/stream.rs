@@ -742,6 +742,8 @@ impl RecordSource for CsvStream {
         let mut given_col = self.notes.given_col.filter(|_| self.shape.is_none());
         let mut scan = TimeSteps::with_reference(self.notes.reference);
         let mut marks = super::DecimalMarks::default();
+        // The largest |u| and |y| of the first pass and where they are (the reader's outlier note).
+        let mut largest = [crate::ls::Largest::<u64>::default(); 2];
         // The row's record, lent to a StringRecord while its cells are read, `spare` standing in for
         // it meanwhile: two records swapped, no allocation per row, and no `Option` whose `None` could
         // never be met.
@@ -835,6 +837,10 @@ impl RecordSource for CsvStream {
             let cells = value(self.ucol).and_then(|uk| Ok((uk, value(self.ycol)?)));
             let (uk, yk) = cells.map_err(|e| self.or_changed(e, &rdr.get_ref().inner, &file_id))?;
             checksum = mix(mix(checksum, uk), yk);
+            if self.shape.is_none() {
+                largest[0].push(at, uk);
+                largest[1].push(at, yk);
+            }
             u.push(uk);
             y.push(yk);
             if let Some(tc) = tcol {
@@ -906,6 +912,12 @@ impl RecordSource for CsvStream {
             },
         };
         if self.shape.is_none() {
+            // The in-memory reader's outlier note (`super::lone_outlier`), u's before y's.
+            for (l, col) in largest.iter().zip([self.ucol, self.ycol]) {
+                let place = || format!("{file_name}:{}:{}", self.line_of(l.at), col + 1);
+                let note = super::outlier_note(l, place, &self.headers[col]);
+                self.notes.notes.extend(note);
+            }
             match (self.tcol, given_col) {
                 (Some(c), _) | (None, Some(c)) => {
                     let notes = self.time_notes(&scan, c, shape.ts);

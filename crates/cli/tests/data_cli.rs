@@ -2344,17 +2344,28 @@ fn validate_says_an_output_wholly_outside_the_estimation_data() {
         "--save-model",
         s(&model),
     ]);
-    let said = |f: &Path| {
+    // In memory and read in passes (`--stream on`: the output's extremes of the metrics' pass).
+    let said = |f: &Path, stream: &str| {
         stdout_and_stderr(
             &bin()
-                .args(["validate", "--model", s(&model), "--data", s(f)])
+                .args([
+                    "validate",
+                    "--model",
+                    s(&model),
+                    "--data",
+                    s(f),
+                    "--stream",
+                    stream,
+                ])
                 .output()
                 .unwrap(),
         )
         .contains("wholly outside the model's estimation data")
     };
-    assert!(said(&far));
-    assert!(!said(&est));
+    for stream in ["off", "on"] {
+        assert!(said(&far, stream), "--stream {stream}");
+        assert!(!said(&est, stream), "--stream {stream}");
+    }
 }
 
 // Audit s30 L-14: `simulate --plant model:NARX` without --y0 started at 100 (mm), outside any record not

@@ -1096,10 +1096,15 @@ pub fn input_outside_data(model: &Model, u: &[f64]) -> Option<String> {
 /// span on one side: [`sysid_core::DataRange::excursion_of`]'s margin), in words: another operating
 /// point or other units, where the fit says little about the model (audit s30 L-13: a record in ±5
 /// validated against a model estimated on y in [45.6, 60.2] warned of the fit only). `None` without a
-/// recorded range, or when the ranges overlap. In-memory `validate` and Python's `Model.metrics`.
+/// recorded range, or when the ranges overlap. `validate` (in memory; read in passes through
+/// [`record_outside_extremes`]) and Python's `Model.metrics`.
 pub fn record_outside_data(model: &Model, y: &[f64]) -> Option<String> {
+    record_outside_extremes(model, sysid_core::DataRange::extremes(y))
+}
+
+/// [`record_outside_data`] of an output whose [min, max] is already known (a record read in passes).
+pub fn record_outside_extremes(model: &Model, (min, max): (f64, f64)) -> Option<String> {
     let [lo, hi] = model.data_range()?.y;
-    let (min, max) = sysid_core::DataRange::extremes(y);
     let margin = 0.1 * (hi - lo).abs();
     (min.is_finite() && max.is_finite() && (max < lo - margin || min > hi + margin)).then(|| {
         format!(

@@ -38,6 +38,7 @@ pub fn identify_report(
         val_shape,
         u_extremes,
         val_u_extremes,
+        y_extremes,
         passes,
     } = identify_checked(
         &mut est,
@@ -88,6 +89,7 @@ pub fn identify_report(
         val_shape,
         u_extremes,
         val_u_extremes,
+        y_extremes,
         passes,
     })
 }
@@ -101,12 +103,19 @@ pub fn validation_report(
     let on = record_metrics(model, data, max_lag)?;
     let (m, r) = on.result;
     let extremes: Vec<(f64, f64)> = on.u_extremes.into_iter().collect();
+    let mut report = ValidationReport::from_parts(model, m, r.into(), &extremes);
+    // The output against the model's data range, as `ValidationReport::assemble` judges it.
+    let outside = on
+        .y_extremes
+        .and_then(|ext| crate::record_outside_extremes(model, ext));
+    report.warnings.extend(outside);
     Ok(Streamed {
-        result: ValidationReport::from_parts(model, m, r.into(), &extremes),
+        result: report,
         shape: on.shape,
         val_shape: None,
         u_extremes: on.u_extremes,
         val_u_extremes: None,
+        y_extremes: on.y_extremes,
         passes: on.passes,
     })
 }

@@ -57,6 +57,9 @@ pub struct Streamed<T> {
     pub u_extremes: Option<(f64, f64)>,
     /// The same of the validation record, when there was one.
     pub val_u_extremes: Option<(f64, f64)>,
+    /// The validated record's output [min, max] ([`record_metrics`]; NaN skipped), to judge it against
+    /// the model's estimation data as in-memory `validate` does; `None` when not looked at.
+    pub y_extremes: Option<(f64, f64)>,
     /// Passes over the records (every file read counts).
     pub passes: usize,
 }
@@ -172,6 +175,7 @@ pub fn identify_checked(
         val_shape,
         u_extremes: on_est.u_extremes,
         val_u_extremes,
+        y_extremes: on_est.y_extremes,
         passes,
     })
 }
@@ -349,6 +353,7 @@ pub fn identify_arx(
         .params_of_theta(sol.theta.as_slice(), Some(&cov));
     check_finite(&name, &params)?;
     let u_extremes = range.u.first().map(|[lo, hi]| (*lo, *hi));
+    let y_extremes = Some((range.y[0], range.y[1]));
     let model = key
         .model_of(sol.theta.as_slice(), shape.ts)
         .map_err(|e| SysidError::Numerical(format!("{name}: {e}")))?
@@ -363,6 +368,7 @@ pub fn identify_arx(
         val_shape: None,
         u_extremes,
         val_u_extremes: None,
+        y_extremes,
         passes,
     })
 }
@@ -569,10 +575,12 @@ pub fn record_metrics(
     let (mut sum_y, mut sum_u, mut sum_eps) = (0.0, 0.0, 0.0);
     let (mut sse_pred, mut sse_measured, mut sse_equation) = (0.0, 0.0, 0.0);
     let mut u_extremes = (f64::INFINITY, f64::NEG_INFINITY);
+    let mut y_extremes = (f64::INFINITY, f64::NEG_INFINITY);
     let shape = src.pass(&mut |start, u, y| {
         for (i, (uk, yk)) in u.iter().zip(y).enumerate() {
             let k = start + i;
             u_extremes = (u_extremes.0.min(*uk), u_extremes.1.max(*uk));
+            y_extremes = (y_extremes.0.min(*yk), y_extremes.1.max(*yk));
             let step = run.step(*uk, *yk);
             if let Some(sim) = step.sim {
                 free.step(&mut s_row);
@@ -732,6 +740,7 @@ pub fn record_metrics(
         val_shape: None,
         u_extremes: Some(u_extremes),
         val_u_extremes: None,
+        y_extremes: Some(y_extremes),
         passes,
     })
 }

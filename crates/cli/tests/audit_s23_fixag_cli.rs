@@ -13,8 +13,10 @@ use std::path::{Path, PathBuf};
 mod common;
 use common::{arx_signals, identify_arx, lcg, mat_tag, run as ipa_sysid, stderr, write_csv};
 
-/// One miCOMPRESSED element holding a double n x 1 vector of zeros named `name`.
-fn zero_vector(name: &[u8], n: usize) -> Vec<u8> {
+/// One miCOMPRESSED element holding a double n x 1 vector named `name`: `first`, then zeros (u starts
+/// with a 1 so that the input is not constant, which is refused before any memory is needed: audit
+/// s32 M-1).
+fn zero_vector(name: &[u8], n: usize, first: f64) -> Vec<u8> {
     let mut head = Vec::new();
     mat_tag(&mut head, 6, &[6, 0, 0, 0, 0, 0, 0, 0]);
     let mut dims = (n as i32).to_le_bytes().to_vec();
@@ -28,8 +30,9 @@ fn zero_vector(name: &[u8], n: usize) -> Vec<u8> {
     z.write_all(&((head.len() + 8 * n) as u32).to_le_bytes())
         .unwrap();
     z.write_all(&head).unwrap();
+    z.write_all(&first.to_le_bytes()).unwrap();
     let block = vec![0u8; 1 << 22];
-    let mut left = 8 * n;
+    let mut left = 8 * (n - 1);
     while left > 0 {
         let k = left.min(block.len());
         z.write_all(&block[..k]).unwrap();
@@ -49,8 +52,8 @@ fn bigz(dir: &Path) -> PathBuf {
     bytes.extend_from_slice(&[0; 8]);
     bytes.extend_from_slice(&0x0100u16.to_le_bytes());
     bytes.extend_from_slice(b"IM");
-    bytes.extend(zero_vector(b"u", 40_000_000));
-    bytes.extend(zero_vector(b"y", 40_000_000));
+    bytes.extend(zero_vector(b"u", 40_000_000, 1.0));
+    bytes.extend(zero_vector(b"y", 40_000_000, 0.0));
     assert!(bytes.len() < 1_000_000, "{} bytes", bytes.len());
     let path = dir.join("bigz.mat");
     std::fs::write(&path, bytes).unwrap();

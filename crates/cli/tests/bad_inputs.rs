@@ -305,7 +305,7 @@ fn data_that_cannot_support_the_estimate_exit_2_and_say_why() {
             2,
             &[
                 "constant_steady.csv",
-                "linearly dependent",
+                "the input u is 50 at every sample",
                 "not persistently exciting",
             ],
         ),

@@ -37,7 +37,12 @@ fn strict_agrees_with_the_warnings(dir: &Path, args: &[&str]) -> Vec<String> {
     assert_eq!(code, 0, "{args:?}");
     let said = warnings(&doc);
     let json = dir.join("earlier.json");
-    std::fs::write(&json, "{\"earlier\": true}\n").unwrap(); // a JSON report, as the run writes (audit s22 M-B9)
+    // An earlier JSON report, marked as the run marks it (audit s22 M-B9; s32 H-1).
+    std::fs::write(
+        &json,
+        "{\"format\": \"ipa-sysid-report\", \"earlier\": true}\n",
+    )
+    .unwrap();
     let o = bin()
         .current_dir(dir)
         .args(args)

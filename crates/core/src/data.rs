@@ -584,6 +584,38 @@ pub fn json_format_key(text: &str) -> Option<String> {
     }
 }
 
+/// The `"format"` of every `--json` report of the command line (its first key): what tells a previous
+/// report, which a new one may replace, from any other JSON document, which it may not
+/// (`sysid_io::FileKind`; audit s32 H-1). The model reader accepts an `identify --json` report as a
+/// model file ([`crate::model_file`]).
+pub const REPORT_FORMAT: &str = "ipa-sysid-report";
+
+/// A `--json` report as text: `value` (a struct or map) with [`REPORT_FORMAT`] as its first key,
+/// `"format": "ipa-sysid-report"`, pretty-printed (or on one line, `pretty` false), no newline: the mark
+/// by which a later run may replace it and by which any other JSON file (a `package.json`, a notebook)
+/// is refused (audit s32 H-1). The one serialisation of every report: the command line's `--json`
+/// documents, `identify`'s and `validate`'s summaries, Python's `to_json`.
+pub fn report_json<T: serde::Serialize + ?Sized>(
+    value: &T,
+    pretty: bool,
+) -> serde_json::Result<String> {
+    #[derive(serde::Serialize)]
+    struct Marked<'a, T: serde::Serialize + ?Sized> {
+        format: &'static str,
+        #[serde(flatten)]
+        report: &'a T,
+    }
+    let marked = Marked {
+        format: REPORT_FORMAT,
+        report: value,
+    };
+    if pretty {
+        serde_json::to_string_pretty(&marked)
+    } else {
+        serde_json::to_string(&marked)
+    }
+}
+
 /// A cursor over JSON text for [`json_format_key`]; every method returns `None` at the end of the
 /// text or on text that is not JSON there.
 struct JsonScan<'a> {

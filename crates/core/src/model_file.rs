@@ -241,7 +241,8 @@ pub fn parse_any_model(bytes: &[u8], name: &str) -> Result<AnyModel, SysidError>
     };
     match obj.get("format") {
         None => {}
-        Some(serde_json::Value::String(f)) if f == FORMAT => {}
+        // An `identify --json` report holds the model too.
+        Some(serde_json::Value::String(f)) if f == FORMAT || f == crate::data::REPORT_FORMAT => {}
         Some(other) => {
             return Err(file_err(format!(
                 "\"format\" is {other}, expected \"{FORMAT}\" (is this a model file?)"

@@ -370,10 +370,16 @@ pub enum FileKind {
     /// A JSON object with a top-level `"format"` key (`ipa-sysid-model`, `ipa-sysid-controller`, ...;
     /// [`sysid_core::data::json_format_key`]'s rule, within the first [`KIND_HEAD`] bytes).
     Format(String),
-    /// Other JSON (the `--json` reports).
+    /// Other JSON: not an output of ipa-sysid (a `package.json`, a notebook, a configuration), or a
+    /// `--json` report of a version before reports carried their [`REPORT_FORMAT`] mark (audit s32 H-1:
+    /// any JSON without a `"format"` key was taken for a report and replaced).
     Json,
-    /// An HTML page.
+    /// An HTML page written by ipa-sysid (its `<meta name="generator" content="ipa-sysid …">`, which
+    /// the report writes in its head).
     Html,
+    /// Another HTML page (audit s32 H-1: `fleet.report(results, "notebook.html")` replaced a hand-written
+    /// page).
+    OtherHtml,
     /// An SVG picture.
     Svg,
     /// A PNG picture.
@@ -388,6 +394,8 @@ pub enum FileKind {
     /// Other bytes (not UTF-8, or with NUL bytes).
     Binary,
 }
+
+pub use sysid_core::data::REPORT_FORMAT;
 
 /// How many bytes of a file [`FileKind::of`] looks at.
 pub const KIND_HEAD: usize = 64 * 1024;
@@ -432,7 +440,9 @@ impl FileKind {
             .collect::<String>()
             .to_ascii_lowercase();
         if lower.starts_with("<!doctype html") || lower.starts_with("<html") {
-            return Self::Html;
+            // The report's own mark (the report crate's head: `<meta name="generator" content="ipa-sysid …`).
+            let mine = text.contains("<meta name=\"generator\" content=\"ipa-sysid");
+            return if mine { Self::Html } else { Self::OtherHtml };
         }
         if lower.starts_with("<svg") || (lower.starts_with("<?xml") && text.contains("<svg")) {
             return Self::Svg;
@@ -465,8 +475,13 @@ impl FileKind {
         match self {
             Self::Empty => "an empty file".into(),
             Self::Format(f) => format!("an {} file (JSON)", shown(f)),
-            Self::Json => "a JSON document without a \"format\" key (a report)".into(),
-            Self::Html => "an HTML page".into(),
+            Self::Json => format!(
+                "a JSON document that is not an ipa-sysid output (no \"format\" key; a report of \
+                 this tool carries \"format\": \"{REPORT_FORMAT}\", one of a version before \
+                 2026-11-29 does not)"
+            ),
+            Self::Html => "an HTML page written by ipa-sysid".into(),
+            Self::OtherHtml => "an HTML page not written by ipa-sysid".into(),
             Self::Svg => "an SVG picture".into(),
             Self::Png => "a PNG picture".into(),
             Self::Parquet => "a Parquet file".into(),
@@ -1263,7 +1278,11 @@ mod kind_tests {
         assert_eq!(FileKind::of(b" \n\t"), FileKind::Empty);
         assert_eq!(FileKind::of(b"\x89PNG\r\n\x1a\n...."), FileKind::Png);
         assert_eq!(FileKind::of(b"PAR1...."), FileKind::Parquet);
-        assert_eq!(FileKind::of(b"<!DOCTYPE html><html>"), FileKind::Html);
+        assert_eq!(FileKind::of(b"<!DOCTYPE html><html>"), FileKind::OtherHtml);
+        assert_eq!(
+            FileKind::of(b"<!DOCTYPE html>\n<html><head><meta name=\"generator\" content=\"ipa-sysid 0.1.0\" />"),
+            FileKind::Html
+        );
         assert_eq!(FileKind::of(b"<svg xmlns="), FileKind::Svg);
         assert_eq!(FileKind::of(b"a\0b"), FileKind::Binary);
         assert_eq!(

@@ -442,9 +442,9 @@ impl IdentifyReport {
         }
     }
 
-    /// Pretty JSON text (ending with a newline).
+    /// Pretty JSON text (ending with a newline), marked as a report (`sysid_core::data::report_json`).
     pub fn to_json(&self) -> Result<String, SysidError> {
-        serde_json::to_string_pretty(self)
+        sysid_core::data::report_json(self, true)
             .map(|s| s + "\n")
             .map_err(|e| SysidError::Numerical(format!("the summary could not be serialised: {e}")))
     }
@@ -624,9 +624,9 @@ impl ValidationReport {
             .collect()
     }
 
-    /// Pretty JSON text (ending with a newline).
+    /// Pretty JSON text (ending with a newline), marked as a report (`sysid_core::data::report_json`).
     pub fn to_json(&self) -> Result<String, SysidError> {
-        serde_json::to_string_pretty(self)
+        sysid_core::data::report_json(self, true)
             .map(|s| s + "\n")
             .map_err(|e| SysidError::Numerical(format!("the report could not be serialised: {e}")))
     }

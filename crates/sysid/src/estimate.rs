@@ -399,6 +399,9 @@ pub fn identify<R: Records + ?Sized>(
     }
     settings.check_memory(records.records())?;
     let problem = settings.problem(records.records())?;
+    if let Some(e) = constant_input(records.records()) {
+        return Err(e);
+    }
     // A numerical failure names the record it happened on (once).
     let named = |e: SysidError| {
         if e.to_string().contains(problem.name()) {
@@ -434,6 +437,37 @@ pub fn identify<R: Records + ?Sized>(
     // leaves no result.
     settings.cancel.check()?;
     Ok(fit)
+}
+
+/// The refusal of an input that holds one value over every sample of `records` (audit s32 M-1: with
+/// nb = 1 and no offset its regressor is a column of one value, which least squares fits — b then only
+/// absorbs the output's level, and the "gain" it implies was printed with exit 0; with an offset or
+/// nb ≥ 2 the rank test refused it, as docs/reliability.md promises for every structure). `None` when
+/// every input changes somewhere.
+pub fn constant_input(records: &[Dataset]) -> Option<SysidError> {
+    let first = records.first()?;
+    first.inputs().iter().enumerate().find_map(|(i, input)| {
+        let mut values = records
+            .iter()
+            .filter_map(|r| r.inputs().get(i))
+            .flat_map(|c| c.u().iter().copied());
+        let v0 = values.next()?;
+        values
+            .all(|v| v == v0)
+            .then(|| constant_input_error(input.name(), v0, first.name()))
+    })
+}
+
+/// [`constant_input`]'s error for input `name` holding `value` in record `record` (also of a record
+/// read in passes, whose input extremes are equal: `crate::stream`).
+pub fn constant_input_error(name: &str, value: f64, record: &str) -> SysidError {
+    SysidError::Data(format!(
+        "{record}: the input {name} is {} at every sample: a constant input is not persistently \
+         exciting — it cannot show its effect on the output, and its b coefficients would only absorb \
+         the output's level (for a level, --offset); record the plant's response to an input that \
+         changes",
+        sysid_core::format::Shortest(value)
+    ))
 }
 
 /// `--breakpoints auto`: the identification with K = 1..=[`MAX_AUTO_BREAKPOINTS`] breakpoints in every

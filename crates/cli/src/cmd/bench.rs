@@ -183,8 +183,9 @@ pub(super) fn emit<T: Serialize>(
 ) -> anyhow::Result<()> {
     super::common::print_report(text, &[json.as_deref()])?;
     if let Some(path) = json {
-        let body =
-            serde_json::to_string_pretty(value).context("serialising the benchmark result")? + "\n";
+        let body = super::common::report_json(value, true)
+            .context("serialising the benchmark result")?
+            + "\n";
         write_output(path, body.as_bytes(), inputs, "--json")?;
     }
     Ok(())

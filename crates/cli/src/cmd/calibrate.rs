@@ -111,7 +111,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // (audit s28 M-3); the JSON report's kind is known too.
     sysid_io::check_replaceable(out, &sysid_io::FileKind::PlantToml)?;
     if let Some(json) = &args.json {
-        sysid_io::check_replaceable(json, &sysid_io::FileKind::Json)?;
+        sysid_io::check_replaceable(
+            json,
+            &sysid_io::FileKind::Format(sysid_io::REPORT_FORMAT.into()),
+        )?;
     }
     let opts = record_options(&args)?;
     let val_opts = validation_options(&args, &opts);
@@ -168,7 +171,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let json = match &args.json {
         Some(_) => {
             let value = report_json(&twin, baseline.as_ref(), est.ts, seconds);
-            Some(serde_json::to_string_pretty(&value)? + "\n")
+            Some(super::common::report_json(&value, true)? + "\n")
         }
         None => None,
     };
@@ -459,7 +462,7 @@ fn run_study(args: &Args, calibration: Calibration, n: usize) -> anyhow::Result<
                 "warnings": c.calibrated.warnings.iter().map(ToString::to_string).collect::<Vec<_>>(),
             })).collect::<Vec<_>>(),
         });
-        let s = serde_json::to_string_pretty(&value)? + "\n";
+        let s = super::common::report_json(&value, true)? + "\n";
         write_output(path, s.as_bytes(), &[], "--json")?;
     }
     Ok(())

@@ -193,6 +193,8 @@ pub fn stream_note(name: &str, passes: usize, rows: usize, mode: StreamMode) {
     );
 }
 
+pub use sysid_core::data::report_json;
+
 /// Whether any of a command's outputs is `-` (standard output).
 pub fn any_to_stdout(outputs: &[Option<&Path>]) -> bool {
     outputs.iter().flatten().any(|p| p.as_os_str() == "-")

@@ -377,8 +377,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             warnings: &warnings,
             adaptive: adaptive.as_ref(),
         };
-        json_text =
-            Some(serde_json::to_string_pretty(&doc).context("serialising the JSON output")? + "\n");
+        json_text = Some(
+            super::common::report_json(&doc, true).context("serialising the JSON output")? + "\n",
+        );
     }
     let mut outputs: Vec<(&Path, &[u8], &str)> = Vec::new();
     if let (Some(out), Some(bytes)) = (&args.out, &trace_csv) {

@@ -112,19 +112,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let warnings: Vec<&String> = est.warnings.iter().chain(&record.notes).collect();
     let json = match &args.json {
         Some(_) => Some(
-            serde_json::to_string_pretty(&serde_json::json!({
-                "data": data.name(),
-                "ts": data.ts(),
-                "nk": est.nk,
-                "delay_s": est.nk as f64 * data.ts(),
-                "na": est.na,
-                "nb": est.nb,
-                "n": est.n,
-                "margin": est.margin,
-                "candidates": est.candidates,
-                "notes": est.notes,
-                "warnings": warnings,
-            }))? + "\n",
+            super::common::report_json(
+                &serde_json::json!({
+                    "data": data.name(),
+                    "ts": data.ts(),
+                    "nk": est.nk,
+                    "delay_s": est.nk as f64 * data.ts(),
+                    "na": est.na,
+                    "nb": est.nb,
+                    "n": est.n,
+                    "margin": est.margin,
+                    "candidates": est.candidates,
+                    "notes": est.notes,
+                    "warnings": warnings,
+                }),
+                true,
+            )? + "\n",
         ),
         None => None,
     };

@@ -926,6 +926,7 @@ fn output(
                     obj.insert("detrend_scoring".into(), d.json());
                 }
             }
+            // `value` holds the report's mark already (`to_json`).
             text = serde_json::to_string_pretty(&value)? + "\n";
         }
         json = Some(text);

@@ -249,19 +249,25 @@ pub fn run(args: Args, settings: &Identification) -> anyhow::Result<()> {
                 Ok((mut report, ts)) => {
                     report.warnings.extend(sampling.warning_for(ts));
                     (
-                        serde_json::to_string(&Line {
-                            file,
-                            report: &report,
-                        }),
+                        super::common::report_json(
+                            &Line {
+                                file,
+                                report: &report,
+                            },
+                            false,
+                        ),
                         0,
                         report.warnings.len(),
                     )
                 }
                 Err(e) => (
-                    serde_json::to_string(&Failure {
-                        file,
-                        error: crate::exit::render_chain(&e),
-                    }),
+                    super::common::report_json(
+                        &Failure {
+                            file,
+                            error: crate::exit::render_chain(&e),
+                        },
+                        false,
+                    ),
                     crate::exit::code(&e),
                     0,
                 ),
@@ -274,7 +280,7 @@ pub fn run(args: Args, settings: &Identification) -> anyhow::Result<()> {
                         error: format!("cannot serialise the report: {e}"),
                     };
                     (
-                        serde_json::to_string(&f).unwrap_or_default(),
+                        super::common::report_json(&f, false).unwrap_or_default(),
                         crate::exit::USAGE,
                         0,
                     )
@@ -296,7 +302,7 @@ pub fn run(args: Args, settings: &Identification) -> anyhow::Result<()> {
             file: path.display().to_string(),
             skipped: format!("{what}: not a regular file, not opened"),
         };
-        body.push_str(&serde_json::to_string(&line)?);
+        body.push_str(&super::common::report_json(&line, false)?);
         body.push('\n');
     }
     // With --strict and any warning, the file is not written, so an earlier one stays (as for one

@@ -122,7 +122,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         &[args.json.as_deref(), args.save_model.as_deref()],
     )?;
     let json = match &args.json {
-        Some(_) => Some(serde_json::to_string_pretty(&report)? + "\n"),
+        Some(_) => Some(super::common::report_json(&report, true)? + "\n"),
         None => None,
     };
     let saved = match &args.save_model {

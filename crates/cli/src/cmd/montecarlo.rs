@@ -217,7 +217,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             // A failed study does not replace the user's file with a failure report (the table above
             // and the error below say what failed); standard output still gets the JSON.
             if json_to_stdout {
-                let json = serde_json::to_string_pretty(&report)? + "\n";
+                let json = super::common::report_json(&report, true)? + "\n";
                 write_output(path, json.as_bytes(), &inputs, "--json")?;
             } else {
                 eprintln!(
@@ -233,7 +233,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         )));
     }
     let json = match &args.json {
-        Some(_) => Some(serde_json::to_string_pretty(&report)? + "\n"),
+        Some(_) => Some(super::common::report_json(&report, true)? + "\n"),
         None => None,
     };
     let mut outputs: Vec<(&Path, &[u8], &str)> = Vec::new();

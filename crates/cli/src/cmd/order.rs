@@ -438,7 +438,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             test: test_result,
             candidates: &ranked,
         };
-        json = Some(serde_json::to_string_pretty(&doc)? + "\n");
+        json = Some(super::common::report_json(&doc, true)? + "\n");
     }
     let mut outputs: Vec<(&Path, &[u8], &str)> = Vec::new();
     if let (Some(path), Some(text)) = (&args.json, &json) {

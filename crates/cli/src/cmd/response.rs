@@ -287,7 +287,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             if let (Some(o), Some(c)) = (v.as_object_mut(), &controller_value) {
                 o.insert("controller".into(), c.clone());
             }
-            serde_json::to_string_pretty(&v).map(|s| s + "\n")
+            super::common::report_json(&v, true).map(|s| s + "\n")
         })
         .transpose()?;
     let table = args.out.as_ref().map(|_| csv(&r));

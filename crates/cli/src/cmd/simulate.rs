@@ -193,7 +193,7 @@ fn finish(
         warnings: &warnings.all,
     };
     let json = match &args.json {
-        Some(_) => Some(serde_json::to_string_pretty(&report)? + "\n"),
+        Some(_) => Some(super::common::report_json(&report, true)? + "\n"),
         None => None,
     };
     let mut outputs: Vec<(&Path, &[u8], &str)> = vec![(&args.out, &rec.csv, "--out")];

@@ -329,12 +329,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         // On standard output the summary is one more line of the JSON-lines stream (the last, with
         // `samples` and no `k`), so a line-by-line reader parses every line; in a file it is
         // pretty-printed.
-        let mut text = if path.as_os_str() == "-" {
-            serde_json::to_string(&summary)
-        } else {
-            serde_json::to_string_pretty(&summary)
-        }
-        .context("serialising the summary")?;
+        let pretty = path.as_os_str() != "-";
+        let mut text =
+            super::common::report_json(&summary, pretty).context("serialising the summary")?;
         text.push('\n');
         json = Some(text);
     }

@@ -140,7 +140,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 report: &report,
                 controller_file: args.out.display().to_string(),
             };
-            Some(serde_json::to_string_pretty(&doc).context("serialising the JSON output")? + "\n")
+            Some(
+                super::common::report_json(&doc, true).context("serialising the JSON output")?
+                    + "\n",
+            )
         }
         None => None,
     };

@@ -388,7 +388,7 @@ fn finish(
     inputs: &[&Path],
 ) -> anyhow::Result<()> {
     let json = match &args.json {
-        Some(_) => Some(serde_json::to_string_pretty(value)? + "\n"),
+        Some(_) => Some(super::common::report_json(value, true)? + "\n"),
         None => None,
     };
     let mut outputs: Vec<(&Path, &[u8], &str)> = Vec::new();

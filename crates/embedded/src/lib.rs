@@ -85,6 +85,10 @@ pub enum Error {
     Storage = -7,
     /// C interface: the storage does not hold an initialised state.
     NotInitialised = -8,
+    /// A controller sample whose set-point r or position y is outside the plausibility range the
+    /// caller set ([`Pi::with_range`]): a wild sample (an encoder
+    /// glitch, a unit slip) refused; the state is unchanged.
+    OutOfRange = -9,
 }
 
 impl Error {
@@ -126,9 +130,10 @@ mod tests {
         assert_eq!(size_of::<hammerstein::PaperHrls<f64>>(), hrls(8, 7, 3));
         assert_eq!(size_of::<hammerstein::PaperHrls<f32>>(), hrls(4, 7, 3));
         assert_eq!(size_of::<HammersteinRls<f64, 19, 15>>(), hrls(8, 19, 15));
-        // Pi: five floats and the anti-windup enum (a tag and Tt).
-        assert_eq!(size_of::<Pi<f64>>(), 5 * 8 + 16);
-        assert_eq!(size_of::<Pi<f32>>(), 5 * 4 + 8);
+        // Pi: seven floats (Kp, Ki Ts, Ts, u_max, I and the range y_min, y_max) and the anti-windup
+        // enum (a tag and Tt).
+        assert_eq!(size_of::<Pi<f64>>(), 7 * 8 + 16);
+        assert_eq!(size_of::<Pi<f32>>(), 7 * 4 + 8);
         // Deadzone: four floats; Compensator: six floats and the slope-mode byte.
         assert_eq!(size_of::<Deadzone<f64>>(), 32);
         assert_eq!(size_of::<Compensator<f64>>(), round(6 * 8 + 1, 8));

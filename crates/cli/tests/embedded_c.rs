@@ -822,6 +822,12 @@ fn c_interface_refuses_the_audit_s19_cases() {
     assert_eq!(after[3].to_bits(), after[5].to_bits(), "{after:?}");
     let by_hand = 1.4 - 9605.6 / 1400.0 + 0.001;
     assert!((after[4] - by_hand).abs() < 1e-9, "{after:?} vs {by_hand}");
+    // The tuned controller (Kp = 3) with the range [0, 200]: a crossed range −1; the glitch refused,
+    // u not written; then y = 1: 3 × 49 = 147.
+    assert_eq!(line("ctl_set_range_crossed"), [setting]);
+    assert_eq!(line("ctl_set_range"), [ok]);
+    assert_eq!(line("ctl_glitch_ranged"), [range, 42.0]);
+    assert_eq!(line("ctl_after_glitch"), [ok, 147.0]);
     // L-1: NaN and −∞ controller outputs are refused; u = 5 → b_r + m_r u / m_r = 10 + 5 = 15.
     assert_eq!(line("dz_nan"), [not_finite, 42.0]);
     assert_eq!(line("dz_minus_inf"), [not_finite, 42.0]);

@@ -44,8 +44,9 @@ pub const IPA_HRLS_STATE_BYTES: usize = 3472;
 /// since the plausibility range: the bound is unchanged).
 pub const IPA_PI_STATE_BYTES: usize = 80;
 
-/// An upper bound, valid on every target, of [`ipa_ctl_state_size`] in bytes (the tuned controller).
-pub const IPA_CTL_STATE_BYTES: usize = 640;
+/// An upper bound, valid on every target, of [`ipa_ctl_state_size`] in bytes (the tuned controller;
+/// 656 since the plausibility range, 640 before: C code built against the new header only).
+pub const IPA_CTL_STATE_BYTES: usize = 656;
 
 /// `ipa_hrls_init` form: P itself, updated by the paper's eq. 12 (`identify --rls-form standard`).
 pub const IPA_FORM_STANDARD: u32 = 0;
@@ -84,9 +85,9 @@ pub const IPA_ERR_NULL: i32 = -6;
 pub const IPA_ERR_STORAGE: i32 = -7;
 /// The storage does not hold an initialised state.
 pub const IPA_ERR_NOT_INITIALISED: i32 = -8;
-/// A controller sample with r or y outside the plausibility range set by [`ipa_pi_set_range`]: a wild
-/// sample (an encoder glitch, a unit slip) refused; the state is unchanged and `*u` not written (hold
-/// the previous command or go safe).
+/// A controller sample with r or y outside the plausibility range set by [`ipa_pi_set_range`] or
+/// [`ipa_ctl_set_range`]: a wild sample (an encoder glitch, a unit slip) refused; the state is
+/// unchanged and `*u` not written (hold the previous command or go safe).
 pub const IPA_ERR_RANGE: i32 = -9;
 
 const MAX_N: usize = 3 + IPA_MAX_NA as usize + IPA_MAX_NB as usize;
@@ -876,6 +877,7 @@ pub unsafe extern "C" fn ipa_ctl_init(
 
 /// One sample of the tuned controller: set-point r and position y in mm; writes the command (counts)
 /// to `*u`. Returns [`IPA_OK`] or a negative code: [`IPA_ERR_NOT_FINITE`] for a non-finite r or y,
+/// [`IPA_ERR_RANGE`] for r or y outside the range of [`ipa_ctl_set_range`] (when one is set),
 /// [`IPA_ERR_NUMERICAL`] for a finite r or y beyond the controller's reach (64 |v| max(1, Kp, Ki Ts,
 /// (1 + Kd)/Ts) not finite: about 1e304 mm at Ts = 0.01 s; a garbage sensor read of 2e306 mm was taken
 /// and then wedged every later step, audit s28 M-1) and when the command (or the integral or
@@ -900,6 +902,33 @@ pub unsafe extern "C" fn ipa_ctl_step(mem: *mut c_void, r: f64, y: f64, u: *mut 
         unsafe { u.write(v) };
         IPA_OK
     }))
+}
+
+/// Sets the tuned controller's plausibility range [y_min, y_max] (mm) for r and y, after
+/// [`ipa_ctl_init`]: from then on [`ipa_ctl_step`] refuses a sample with r or y outside it with
+/// [`IPA_ERR_RANGE`], the state unchanged. Without it a finite wild sample (y = −1e6 mm from an
+/// encoder glitch, G = 1e6) is taken, and the filtered derivative carries it as a reverse command
+/// for about ln(Kd Ts G/((Tf + Ts)² |u_PI|)) / ln(1 + Ts/Tf) samples, u_PI the PI part's command
+/// (`ipa_embedded::PositionController::with_range`). Typically the stroke with a margin for the
+/// sensor's noise. Returns [`IPA_OK`] or a negative code: [`IPA_ERR_SETTING`] for y_min or y_max
+/// not finite or y_min ≥ y_max (the range is then unchanged), or a storage code.
+///
+/// # Safety
+/// `mem` storage of a successful [`ipa_ctl_init`] (or null).
+#[no_mangle]
+pub unsafe extern "C" fn ipa_ctl_set_range(mem: *mut c_void, y_min: f64, y_max: f64) -> i32 {
+    // SAFETY: forwarded contract.
+    let st = match unsafe { state_mut::<CtlState>(mem, CTL_MAGIC) } {
+        Ok(st) => st,
+        Err(e) => return e.code(),
+    };
+    match st.ctl.with_range(y_min, y_max) {
+        Ok(ctl) => {
+            st.ctl = ctl;
+            IPA_OK
+        }
+        Err(e) => e.code(),
+    }
 }
 
 /// Puts the tuned controller back at rest (integral, derivative and memories to 0).

@@ -3,11 +3,13 @@
 //! counts/(mm·s), Ts = 0.01 s, u_max = 255, back-calculation with Tt = 14 s; 100 samples at r = 50 mm,
 //! y = 49.9 mm, then one sample y = −1e6 mm, then y = 49.9 mm again. With a plausibility range the
 //! wild sample is refused and the run goes on as if it had not been given; without one today's law
-//! holds (checked against the value derived by hand below).
+//! holds (checked against the value derived by hand below). The tuned controller
+//! (`PositionController`, clamping anti-windup) is not wound through its integral, but its filtered
+//! derivative carries the glitch: it takes the same range.
 
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests may panic
 
-use ipa_embedded::{AntiWindup, Error, Float, Pi};
+use ipa_embedded::{AntiWindup, Error, Float, Pi, PositionController, PositionSettings};
 
 /// The auditor's controller, without a range.
 fn auditors_pi<F: Float>() -> Pi<F> {
@@ -152,4 +154,108 @@ fn without_a_range_the_glitch_winds_the_integral_as_derived_by_hand() {
     glitch_without_range::<f64>(1e-9);
     // f32: the glitch's terms are ~1.4e7 (one ulp = 1) divided by 1400, and 10 000.6 (ulp 1e-3).
     glitch_without_range::<f32>(1e-2);
+}
+
+/// A PID of the tuned controller's kind (Kp, Ki, Kd, Tf of crates/control/tests/data/s13_b_controller.json,
+/// rounded): Ts = 0.01 s, hold band 0.02 mm, no fine band, compensator, nudge or approach.
+fn tuned<F: Float>() -> PositionController<F> {
+    let f = F::from_f64;
+    let s = PositionSettings {
+        ts: f(0.01),
+        kp: f(8.55),
+        ki: f(19.67),
+        kd: f(0.24),
+        tf: f(0.02),
+        u_max: f(255.0),
+        hold_band: f(0.02),
+        fine_band: f(0.0),
+        reset_on_crossing: true,
+        nudge: None,
+        brake: None,
+        short: None,
+    };
+    PositionController::new(s, None).unwrap()
+}
+
+fn ctl_settle<F: Float>(c: &mut PositionController<F>, n: usize) -> Vec<u64> {
+    (0..n)
+        .map(|_| {
+            let u = c.step(F::from_f64(50.0), F::from_f64(49.9)).unwrap();
+            u.to_f64().to_bits()
+        })
+        .collect()
+}
+
+// The tuned controller with the range [0, 200]: the glitch y = −1e6 mm (and r = 250 mm) is refused,
+// the state unchanged, and the commands after it are bit for bit those of a controller without a
+// range that never saw the glitch. A bad range is a Setting error; the range survives `reset`.
+fn tuned_glitch_is_refused<F: Float>() {
+    let f = F::from_f64;
+    let mut ranged = tuned::<F>().with_range(f(0.0), f(200.0)).unwrap();
+    let mut clean = tuned::<F>();
+    assert_eq!(clean.range(), None);
+    assert_eq!(ranged.range(), Some((f(0.0), f(200.0))));
+    assert_eq!(ctl_settle(&mut ranged, 100), ctl_settle(&mut clean, 100));
+    let before = ranged;
+    assert_eq!(ranged.step(f(50.0), f(-1e6)), Err(Error::OutOfRange));
+    assert_eq!(ranged.step(f(250.0), f(49.9)), Err(Error::OutOfRange));
+    assert_eq!(ranged, before);
+    assert_eq!(ctl_settle(&mut ranged, 500), ctl_settle(&mut clean, 500));
+    for (lo, hi) in [
+        (1.0, 1.0),
+        (200.0, 0.0),
+        (f64::NAN, 1.0),
+        (0.0, f64::INFINITY),
+    ] {
+        assert_eq!(
+            tuned::<F>().with_range(f(lo), f(hi)),
+            Err(Error::Setting),
+            "[{lo}, {hi}]"
+        );
+    }
+    ranged.reset();
+    assert_eq!(ranged.range(), Some((f(0.0), f(200.0))));
+}
+
+#[test]
+fn the_tuned_controller_refuses_a_wild_sample_outside_its_range() {
+    tuned_glitch_is_refused::<f64>();
+    tuned_glitch_is_refused::<f32>();
+}
+
+// Without a range the tuned controller takes the glitch: its clamping integral is held at the glitch
+// (v saturates with e v > 0), but the filtered derivative, α = Tf/(Tf + Ts) = 2/3, carries it. By
+// hand: D = 0 while y rests; the glitch gives D_g = (1 − α)(G + 49.9)/Ts, the return
+// D_1 = α D_g − (1 − α)(G + 49.9)/Ts = −(1 − α)² (G + 49.9)/Ts, then D_n = α^(n−1) D_1. Meanwhile
+// the PI part (e = 0.1 mm, unsaturated) is u_PI(n) = Kp 0.1 + I_100 + n Ki Ts 0.1 with
+// I_100 = 100 Ki Ts 0.1 and the glitch adding nothing. The command u = sat(u_PI + Kd D) is negative
+// (pushing away from r) while u_PI(n) + Kd D_n < 0: counted here from these formulas.
+#[test]
+fn without_a_range_the_tuned_controllers_derivative_carries_the_glitch() {
+    for g in [1e6, 1e300] {
+        let mut c = tuned::<f64>();
+        ctl_settle(&mut c, 100);
+        let i_100 = c.integral();
+        assert!((i_100 - 100.0 * 19.67 * 0.01 * 0.1).abs() < 1e-9, "{i_100}");
+        assert_eq!(c.step(50.0, -g), Ok(255.0));
+        assert_eq!(c.integral(), i_100, "the clamping integral is held");
+        let mut negative = 0;
+        while c.step(50.0, 49.9).unwrap() < 0.0 {
+            negative += 1;
+            assert!(negative < 100_000);
+        }
+        let (alpha, ge) = (2.0 / 3.0, 19.67 * 0.01 * 0.1);
+        let d_1 = -(1.0 - alpha) * (1.0 - alpha) * (g + 49.9) / 0.01;
+        let mut by_hand = 0;
+        let mut d = d_1;
+        while 8.55 * 0.1 + i_100 + (by_hand + 1) as f64 * ge + 0.24 * d < 0.0 {
+            by_hand += 1;
+            d *= alpha;
+        }
+        assert!(
+            (negative - by_hand as i64).abs() <= 1,
+            "G {g:e}: {negative} samples negative, by hand {by_hand}"
+        );
+        assert!(negative >= if g > 1e10 { 1_000 } else { 30 });
+    }
 }

@@ -93,6 +93,18 @@ int main(void) {
     rc3 = ipa_pi_step(pi3, 50.0, 49.9, &u3);
     printf("pi_after_glitch %d %d %d %.17g %.17g %.17g\n", rc, rc2, rc3, u, u2, u3);
 
+    /* The tuned controller (P only, Kp = 3) with the range [0, 200]: y = -1e6 is refused with u not
+     * written, then y = 1 gives 3 x 49 = 147. */
+    c = p_only(0.01);
+    ipa_ctl_init(ctl, sizeof ctl, &c);
+    printf("ctl_set_range_crossed %d\n", ipa_ctl_set_range(ctl, 200.0, 0.0));
+    printf("ctl_set_range %d\n", ipa_ctl_set_range(ctl, 0.0, 200.0));
+    u = 42.0;
+    rc = ipa_ctl_step(ctl, 50.0, -1e6, &u);
+    printf("ctl_glitch_ranged %d %.17g\n", rc, u);
+    rc = ipa_ctl_step(ctl, 50.0, 1.0, &u);
+    printf("ctl_after_glitch %d %.17g\n", rc, u);
+
     /* L-1: the deadzone inverse of a NaN / inf controller output, and of u = 5. */
     IpaDeadzone dz = {-10.0, 10.0, 0.5, 0.5};
     u = 42.0;

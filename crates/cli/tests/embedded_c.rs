@@ -766,9 +766,10 @@ fn c_controller_matches_control(brake: Brake) {
     }
 }
 
-/// Audit s19 M-1, L-1, L-2 through the C interface (crates/embedded/examples/c/refusals.c, one line
-/// `NAME RC [VALUES]` per case; outputs preset to 42). Codes: 0 OK, −1 IPA_ERR_SETTING, −3
-/// IPA_ERR_NOT_FINITE, −4 IPA_ERR_NUMERICAL.
+/// Audit s19 M-1, L-1, L-2 and s31 M-6 through the C interface (crates/embedded/examples/c/refusals.c,
+/// one line `NAME RC [VALUES]` per case; outputs preset to 42). Codes: 0 OK, −1 IPA_ERR_SETTING, −3
+/// IPA_ERR_NOT_FINITE, −4 IPA_ERR_NUMERICAL, −6 IPA_ERR_NULL, −8 IPA_ERR_NOT_INITIALISED, −9
+/// IPA_ERR_RANGE.
 #[test]
 fn c_interface_refuses_the_audit_s19_cases() {
     if no_cc() {
@@ -799,6 +800,34 @@ fn c_interface_refuses_the_audit_s19_cases() {
     // PI, Kp = 0: e = 2e308 = ∞, Kp e = NaN: refused.
     assert_eq!(line("pi_init"), [ok]);
     assert_eq!(line("pi_step_overflow"), [numerical, 42.0]);
+    // Audit s31 M-6: the plausibility range. On storage not (yet) a PI: −8; null: −6; a crossed or
+    // NaN range: −1; [0, 200]: kept.
+    let (null, not_initialised, range) = (-6.0, -8.0, -9.0);
+    assert_eq!(line("pi_set_range_uninitialised"), [not_initialised]);
+    assert_eq!(line("pi_set_range_null"), [null]);
+    assert_eq!(line("pi_set_range_crossed"), [setting]);
+    assert_eq!(line("pi_set_range_nan"), [setting]);
+    assert_eq!(line("pi_set_range"), [ok]);
+    // The glitch y = −1e6 mm (and a set-point of 250 mm) is refused with IPA_ERR_RANGE, u not
+    // written; without a range it is taken: e = 1 000 050 mm saturates at +255.
+    assert_eq!(line("pi_glitch_ranged"), [range, 42.0]);
+    assert_eq!(line("pi_set_point_out_of_range"), [range, 42.0]);
+    assert_eq!(line("pi_glitch_unranged"), [ok, 255.0]);
+    // The next sample (e = 0.1 mm): the ranged controller gives bit for bit the command of the one that
+    // never saw the glitch; the other has I = (1 − a)(0.1 + 10 000.5) + a (255 − 14 000 700) with
+    // a = Ts/Tt = 1/1400, i.e. −9 605.6/1400 (crates/embedded/tests/wild_sample.rs derives it), and
+    // commands Kp 0.1 + I + Ki Ts 0.1 = 1.4 − 6.861 142 857… + 0.001 < 0: away from r.
+    let after = line("pi_after_glitch");
+    assert_eq!(after[..3], [ok, ok, ok]);
+    assert_eq!(after[3].to_bits(), after[5].to_bits(), "{after:?}");
+    let by_hand = 1.4 - 9605.6 / 1400.0 + 0.001;
+    assert!((after[4] - by_hand).abs() < 1e-9, "{after:?} vs {by_hand}");
+    // The tuned controller (Kp = 3) with the range [0, 200]: a crossed range −1; the glitch refused,
+    // u not written; then y = 1: 3 × 49 = 147.
+    assert_eq!(line("ctl_set_range_crossed"), [setting]);
+    assert_eq!(line("ctl_set_range"), [ok]);
+    assert_eq!(line("ctl_glitch_ranged"), [range, 42.0]);
+    assert_eq!(line("ctl_after_glitch"), [ok, 147.0]);
     // L-1: NaN and −∞ controller outputs are refused; u = 5 → b_r + m_r u / m_r = 10 + 5 = 15.
     assert_eq!(line("dz_nan"), [not_finite, 42.0]);
     assert_eq!(line("dz_minus_inf"), [not_finite, 42.0]);

@@ -39,14 +39,16 @@
 #define IPA_HRLS_STATE_BYTES 3472
 
 /**
- * An upper bound, valid on every target, of [`ipa_pi_state_size`] in bytes.
+ * An upper bound, valid on every target, of [`ipa_pi_state_size`] in bytes (80 on a 64-bit host
+ * since the plausibility range: the bound is unchanged).
  */
 #define IPA_PI_STATE_BYTES 80
 
 /**
- * An upper bound, valid on every target, of [`ipa_ctl_state_size`] in bytes (the tuned controller).
+ * An upper bound, valid on every target, of [`ipa_ctl_state_size`] in bytes (the tuned controller;
+ * 656 since the plausibility range, 640 before: C code built against the new header only).
  */
-#define IPA_CTL_STATE_BYTES 640
+#define IPA_CTL_STATE_BYTES 656
 
 /**
  * `ipa_hrls_init` form: P itself, updated by the paper's eq. 12 (`identify --rls-form standard`).
@@ -128,6 +130,13 @@
  * The storage does not hold an initialised state.
  */
 #define IPA_ERR_NOT_INITIALISED -8
+
+/**
+ * A controller sample with r or y outside the plausibility range set by [`ipa_pi_set_range`] or
+ * [`ipa_ctl_set_range`]: a wild sample (an encoder glitch, a unit slip) refused; the state is
+ * unchanged and `*u` not written (hold the previous command or go safe).
+ */
+#define IPA_ERR_RANGE -9
 
 /**
  * The deadzone x = f(u) of paper eq. (1): breakpoints in counts, slopes in x per count.
@@ -552,6 +561,7 @@ int32_t ipa_pi_init(void *mem,
 /**
  * One PI sample: set-point r and position y in mm; writes the saturated command (counts) to `*u`.
  * Returns [`IPA_OK`] or a negative code: [`IPA_ERR_NOT_FINITE`] for a non-finite r or y,
+ * [`IPA_ERR_RANGE`] for r or y outside the range of [`ipa_pi_set_range`] (when one is set),
  * [`IPA_ERR_NUMERICAL`] when the command or the integral would not be finite (e.g. r − y overflowing);
  * `*u` is then not written and the state is unchanged.
  *
@@ -559,6 +569,21 @@ int32_t ipa_pi_init(void *mem,
  * `mem` storage of a successful [`ipa_pi_init`] (or null); `u` null or writable.
  */
 int32_t ipa_pi_step(void *mem, double r, double y, double *u);
+
+/**
+ * Sets the PI controller's plausibility range [y_min, y_max] (mm) for r and y, after [`ipa_pi_init`]:
+ * from then on [`ipa_pi_step`] refuses a sample with r or y outside it with [`IPA_ERR_RANGE`], the
+ * state unchanged. Without it one finite wild sample (y = −1e6 mm from an encoder glitch) winds the
+ * back-calculation integral for minutes to hours (audit s31 M-6: 54.6 s of reverse command at
+ * Kp = 14, Ki = 1, Tt = 14 s, Ts = 0.01 s; the decay time: `ipa_embedded::Pi` and docs/embedded.md).
+ * Typically the stroke with a margin for the sensor's noise.
+ * Returns [`IPA_OK`] or a negative code: [`IPA_ERR_SETTING`] for y_min or y_max not finite or
+ * y_min ≥ y_max (the range is then unchanged), or a storage code.
+ *
+ * # Safety
+ * `mem` storage of a successful [`ipa_pi_init`] (or null).
+ */
+int32_t ipa_pi_set_range(void *mem, double y_min, double y_max);
 
 /**
  * Size in bytes of the tuned position controller's state.
@@ -582,6 +607,7 @@ int32_t ipa_ctl_init(void *mem, size_t len, const IpaController *settings);
 /**
  * One sample of the tuned controller: set-point r and position y in mm; writes the command (counts)
  * to `*u`. Returns [`IPA_OK`] or a negative code: [`IPA_ERR_NOT_FINITE`] for a non-finite r or y,
+ * [`IPA_ERR_RANGE`] for r or y outside the range of [`ipa_ctl_set_range`] (when one is set),
  * [`IPA_ERR_NUMERICAL`] for a finite r or y beyond the controller's reach (64 |v| max(1, Kp, Ki Ts,
  * (1 + Kd)/Ts) not finite: about 1e304 mm at Ts = 0.01 s; a garbage sensor read of 2e306 mm was taken
  * and then wedged every later step, audit s28 M-1) and when the command (or the integral or
@@ -593,6 +619,21 @@ int32_t ipa_ctl_init(void *mem, size_t len, const IpaController *settings);
  * `mem` storage of a successful [`ipa_ctl_init`] (or null); `u` null or writable.
  */
 int32_t ipa_ctl_step(void *mem, double r, double y, double *u);
+
+/**
+ * Sets the tuned controller's plausibility range [y_min, y_max] (mm) for r and y, after
+ * [`ipa_ctl_init`]: from then on [`ipa_ctl_step`] refuses a sample with r or y outside it with
+ * [`IPA_ERR_RANGE`], the state unchanged. Without it a finite wild sample (y = −1e6 mm from an
+ * encoder glitch, G = 1e6) is taken, and the filtered derivative carries it as a reverse command
+ * for about ln(Kd Ts G/((Tf + Ts)² |u_PI|)) / ln(1 + Ts/Tf) samples, u_PI the PI part's command
+ * (`ipa_embedded::PositionController::with_range`). Typically the stroke with a margin for the
+ * sensor's noise. Returns [`IPA_OK`] or a negative code: [`IPA_ERR_SETTING`] for y_min or y_max
+ * not finite or y_min ≥ y_max (the range is then unchanged), or a storage code.
+ *
+ * # Safety
+ * `mem` storage of a successful [`ipa_ctl_init`] (or null).
+ */
+int32_t ipa_ctl_set_range(void *mem, double y_min, double y_max);
 
 /**
  * Puts the tuned controller back at rest (integral, derivative and memories to 0).

@@ -10,7 +10,8 @@
 //!
 //! Return codes: [`IPA_OK`] (0), [`IPA_PENDING`] (1: sample buffered, no estimate update yet),
 //! [`IPA_ALARM`] (2: a change), [`IPA_NOT_PHYSICAL`] (3: a deadzone estimate that is no valve's yet), a
-//! non-negative count for the getters, or a negative [`crate::Error`] code: [`IPA_ERR_SETTING`] … .
+//! non-negative count for the getters, or a negative [`crate::Error`] code: [`IPA_ERR_SETTING`] (−1)
+//! … [`IPA_ERR_RANGE`] (−9).
 //! No function panics or aborts; every pointer is checked for null and alignment, the storage length
 //! against the state size, and a marker word against uninitialised storage.
 //!
@@ -39,11 +40,13 @@ pub const IPA_MAX_NB: u32 = 8;
 pub const IPA_MAX_NK: u32 = 8;
 /// An upper bound, valid on every target, of [`ipa_hrls_state_size`] in bytes (for static storage).
 pub const IPA_HRLS_STATE_BYTES: usize = 3472;
-/// An upper bound, valid on every target, of [`ipa_pi_state_size`] in bytes.
+/// An upper bound, valid on every target, of [`ipa_pi_state_size`] in bytes (80 on a 64-bit host
+/// since the plausibility range: the bound is unchanged).
 pub const IPA_PI_STATE_BYTES: usize = 80;
 
-/// An upper bound, valid on every target, of [`ipa_ctl_state_size`] in bytes (the tuned controller).
-pub const IPA_CTL_STATE_BYTES: usize = 640;
+/// An upper bound, valid on every target, of [`ipa_ctl_state_size`] in bytes (the tuned controller;
+/// 656 since the plausibility range, 640 before: C code built against the new header only).
+pub const IPA_CTL_STATE_BYTES: usize = 656;
 
 /// `ipa_hrls_init` form: P itself, updated by the paper's eq. 12 (`identify --rls-form standard`).
 pub const IPA_FORM_STANDARD: u32 = 0;
@@ -82,6 +85,10 @@ pub const IPA_ERR_NULL: i32 = -6;
 pub const IPA_ERR_STORAGE: i32 = -7;
 /// The storage does not hold an initialised state.
 pub const IPA_ERR_NOT_INITIALISED: i32 = -8;
+/// A controller sample with r or y outside the plausibility range set by [`ipa_pi_set_range`] or
+/// [`ipa_ctl_set_range`]: a wild sample (an encoder glitch, a unit slip) refused; the state is
+/// unchanged and `*u` not written (hold the previous command or go safe).
+pub const IPA_ERR_RANGE: i32 = -9;
 
 const MAX_N: usize = 3 + IPA_MAX_NA as usize + IPA_MAX_NB as usize;
 const MAX_D: usize = IPA_MAX_NK as usize + IPA_MAX_NB as usize - 1;
@@ -690,6 +697,7 @@ pub unsafe extern "C" fn ipa_pi_init(
 
 /// One PI sample: set-point r and position y in mm; writes the saturated command (counts) to `*u`.
 /// Returns [`IPA_OK`] or a negative code: [`IPA_ERR_NOT_FINITE`] for a non-finite r or y,
+/// [`IPA_ERR_RANGE`] for r or y outside the range of [`ipa_pi_set_range`] (when one is set),
 /// [`IPA_ERR_NUMERICAL`] when the command or the integral would not be finite (e.g. r − y overflowing);
 /// `*u` is then not written and the state is unchanged.
 ///
@@ -710,6 +718,33 @@ pub unsafe extern "C" fn ipa_pi_step(mem: *mut c_void, r: f64, y: f64, u: *mut f
         unsafe { u.write(v) };
         IPA_OK
     }))
+}
+
+/// Sets the PI controller's plausibility range [y_min, y_max] (mm) for r and y, after [`ipa_pi_init`]:
+/// from then on [`ipa_pi_step`] refuses a sample with r or y outside it with [`IPA_ERR_RANGE`], the
+/// state unchanged. Without it one finite wild sample (y = −1e6 mm from an encoder glitch) winds the
+/// back-calculation integral for minutes to hours (audit s31 M-6: 54.6 s of reverse command at
+/// Kp = 14, Ki = 1, Tt = 14 s, Ts = 0.01 s; the decay time: `ipa_embedded::Pi` and docs/embedded.md).
+/// Typically the stroke with a margin for the sensor's noise.
+/// Returns [`IPA_OK`] or a negative code: [`IPA_ERR_SETTING`] for y_min or y_max not finite or
+/// y_min ≥ y_max (the range is then unchanged), or a storage code.
+///
+/// # Safety
+/// `mem` storage of a successful [`ipa_pi_init`] (or null).
+#[no_mangle]
+pub unsafe extern "C" fn ipa_pi_set_range(mem: *mut c_void, y_min: f64, y_max: f64) -> i32 {
+    // SAFETY: forwarded contract.
+    let st = match unsafe { state_mut::<PiState>(mem, PI_MAGIC) } {
+        Ok(st) => st,
+        Err(e) => return e.code(),
+    };
+    match st.pi.with_range(y_min, y_max) {
+        Ok(pi) => {
+            st.pi = pi;
+            IPA_OK
+        }
+        Err(e) => e.code(),
+    }
 }
 
 /// Size in bytes of the tuned position controller's state.
@@ -842,6 +877,7 @@ pub unsafe extern "C" fn ipa_ctl_init(
 
 /// One sample of the tuned controller: set-point r and position y in mm; writes the command (counts)
 /// to `*u`. Returns [`IPA_OK`] or a negative code: [`IPA_ERR_NOT_FINITE`] for a non-finite r or y,
+/// [`IPA_ERR_RANGE`] for r or y outside the range of [`ipa_ctl_set_range`] (when one is set),
 /// [`IPA_ERR_NUMERICAL`] for a finite r or y beyond the controller's reach (64 |v| max(1, Kp, Ki Ts,
 /// (1 + Kd)/Ts) not finite: about 1e304 mm at Ts = 0.01 s; a garbage sensor read of 2e306 mm was taken
 /// and then wedged every later step, audit s28 M-1) and when the command (or the integral or
@@ -866,6 +902,33 @@ pub unsafe extern "C" fn ipa_ctl_step(mem: *mut c_void, r: f64, y: f64, u: *mut 
         unsafe { u.write(v) };
         IPA_OK
     }))
+}
+
+/// Sets the tuned controller's plausibility range [y_min, y_max] (mm) for r and y, after
+/// [`ipa_ctl_init`]: from then on [`ipa_ctl_step`] refuses a sample with r or y outside it with
+/// [`IPA_ERR_RANGE`], the state unchanged. Without it a finite wild sample (y = −1e6 mm from an
+/// encoder glitch, G = 1e6) is taken, and the filtered derivative carries it as a reverse command
+/// for about ln(Kd Ts G/((Tf + Ts)² |u_PI|)) / ln(1 + Ts/Tf) samples, u_PI the PI part's command
+/// (`ipa_embedded::PositionController::with_range`). Typically the stroke with a margin for the
+/// sensor's noise. Returns [`IPA_OK`] or a negative code: [`IPA_ERR_SETTING`] for y_min or y_max
+/// not finite or y_min ≥ y_max (the range is then unchanged), or a storage code.
+///
+/// # Safety
+/// `mem` storage of a successful [`ipa_ctl_init`] (or null).
+#[no_mangle]
+pub unsafe extern "C" fn ipa_ctl_set_range(mem: *mut c_void, y_min: f64, y_max: f64) -> i32 {
+    // SAFETY: forwarded contract.
+    let st = match unsafe { state_mut::<CtlState>(mem, CTL_MAGIC) } {
+        Ok(st) => st,
+        Err(e) => return e.code(),
+    };
+    match st.ctl.with_range(y_min, y_max) {
+        Ok(ctl) => {
+            st.ctl = ctl;
+            IPA_OK
+        }
+        Err(e) => e.code(),
+    }
 }
 
 /// Puts the tuned controller back at rest (integral, derivative and memories to 0).
@@ -1153,6 +1216,20 @@ mod tests {
             );
             assert_eq!(ipa_pi_step(p, 1.0, 0.0, &mut u), IPA_OK);
             assert!((u - 14.01).abs() < 1e-12);
+            // A plausibility range: crossed is refused (none set: y = −1e6 still taken by a copy),
+            // [0, 200] is kept and refuses y = −1e6 with u untouched.
+            assert_eq!(ipa_pi_set_range(p, 200.0, 0.0), IPA_ERR_SETTING);
+            let mut copy = mem;
+            let c = copy.as_mut_ptr() as *mut c_void;
+            assert_eq!(ipa_pi_step(c, 1.0, -1e6, &mut u), IPA_OK);
+            assert_eq!(ipa_pi_set_range(p, 0.0, 200.0), IPA_OK);
+            u = 42.0;
+            assert_eq!(ipa_pi_step(p, 1.0, -1e6, &mut u), IPA_ERR_RANGE);
+            assert_eq!(u, 42.0);
+            assert_eq!(
+                ipa_pi_set_range(core::ptr::null_mut(), 0.0, 1.0),
+                IPA_ERR_NULL
+            );
             let dz = IpaDeadzone {
                 b_l: -20.0,
                 b_r: 30.0,

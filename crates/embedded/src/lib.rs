@@ -85,6 +85,10 @@ pub enum Error {
     Storage = -7,
     /// C interface: the storage does not hold an initialised state.
     NotInitialised = -8,
+    /// A controller sample whose set-point r or position y is outside the plausibility range the
+    /// caller set ([`Pi::with_range`], [`PositionController::with_range`]): a wild sample (an encoder
+    /// glitch, a unit slip) refused; the state is unchanged.
+    OutOfRange = -9,
 }
 
 impl Error {
@@ -126,9 +130,10 @@ mod tests {
         assert_eq!(size_of::<hammerstein::PaperHrls<f64>>(), hrls(8, 7, 3));
         assert_eq!(size_of::<hammerstein::PaperHrls<f32>>(), hrls(4, 7, 3));
         assert_eq!(size_of::<HammersteinRls<f64, 19, 15>>(), hrls(8, 19, 15));
-        // Pi: five floats and the anti-windup enum (a tag and Tt).
-        assert_eq!(size_of::<Pi<f64>>(), 5 * 8 + 16);
-        assert_eq!(size_of::<Pi<f32>>(), 5 * 4 + 8);
+        // Pi: seven floats (Kp, Ki Ts, Ts, u_max, I and the range y_min, y_max) and the anti-windup
+        // enum (a tag and Tt).
+        assert_eq!(size_of::<Pi<f64>>(), 7 * 8 + 16);
+        assert_eq!(size_of::<Pi<f32>>(), 7 * 4 + 8);
         // Deadzone: four floats; Compensator: six floats and the slope-mode byte.
         assert_eq!(size_of::<Deadzone<f64>>(), 32);
         assert_eq!(size_of::<Compensator<f64>>(), round(6 * 8 + 1, 8));
@@ -157,7 +162,8 @@ mod tests {
         // short-step settings that takes the place of their `None` tag): the same sizes; in session
         // 23 the short-step approach's breakaway seed (two floats κ_s, v_s in its settings): 608;
         // and the held nudge's learnt cut fraction (a second bool in the nudge settings, within
-        // their padding, and two floats g(left), g(right)): 624 bytes with both (session 24).
+        // their padding, and two floats g(left), g(right)): 624 bytes with both (session 24); 640
+        // with the plausibility range (session 32).
         let a = |f: usize| f.max(4);
         let nudge = |f: usize| round(9 * f + 8 + 2, a(f));
         let brake = |f: usize| round(6 * f + 12 + 2, a(f));
@@ -185,11 +191,15 @@ mod tests {
                 f.max(4),
             )
         };
-        assert_eq!(size_of::<PositionController<f64>>(), ctl(8));
-        assert_eq!(size_of::<PositionController<f32>>(), ctl(4));
+        // Since session 32 (audit s31 M-6) also the plausibility range: two floats y_min, y_max.
+        let ranged = |f: usize| round(ctl(f) + 2 * f, f.max(4));
+        assert_eq!(size_of::<PositionController<f64>>(), ranged(8));
+        assert_eq!(size_of::<PositionController<f32>>(), ranged(4));
         if w == 8 {
             assert_eq!(ctl(8), 624);
             assert_eq!(ctl(4), 340);
+            assert_eq!(ranged(8), 640);
+            assert_eq!(ranged(4), 348);
         }
         assert!(ffi::ipa_ctl_state_size() <= ffi::IPA_CTL_STATE_BYTES);
         if w == 8 {

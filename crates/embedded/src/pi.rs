@@ -24,8 +24,9 @@ pub enum AntiWindup<F: Float> {
 
 /// A PI controller: settings and the integral state I (counts).
 ///
-/// Size: 5 floats and the anti-windup enum (tag and Tt): 56 bytes for f64, 28 for f32 (test
-/// `state_sizes`). Cost per sample: 6 flops (+3 for back-calculation), one clamp.
+/// Size: 7 floats (the 5 below and the plausibility range [y_min, y_max]) and the anti-windup enum
+/// (tag and Tt): 72 bytes for f64, 36 for f32 (test `state_sizes`; 56 and 28 before the range).
+/// Cost per sample: 6 flops (+3 for back-calculation), one clamp, four comparisons for the range.
 ///
 /// ```
 /// use ipa_embedded::{AntiWindup, Pi};
@@ -33,6 +34,21 @@ pub enum AntiWindup<F: Float> {
 /// let mut pi = Pi::new(14.0f64, 1.0, 0.01, 255.0, AntiWindup::Clamping).unwrap();
 /// assert!((pi.step(1.0, 0.0).unwrap() - 14.01).abs() < 1e-12);
 /// ```
+///
+/// # A wild sample and the plausibility range
+///
+/// With back-calculation, one finite but wild position sample y (an encoder glitch, a unit slip)
+/// winds the integral: the update adds (Ts/Tt)(u − v) with v ≈ Kp (r − y), so a glitch at a
+/// distance G mm (G ≫ |r|, e ≈ G) moves I by about (Ts/Tt)(Ki Tt − Ki Ts − Kp) G counts. From there
+/// it recovers in two phases: while the command is saturated I decays towards the limit by
+/// (1 − Ts/Tt) per sample (about Tt ln(|I|/u_max) s), then it climbs back by Ki Ts |e| per sample
+/// (up to u_max/(Ki |e|) s for a remaining error e). Audit s31 M-6 (Kp = 14, Ki = 1, Tt = 14 s,
+/// Ts = 0.01 s, y held 0.1 mm short of r): a reverse command for 54.6 s after G = 1e6 mm, 45 min
+/// after 1e10 mm, 3.3 h after 1e300 mm. [`with_range`](Self::with_range)
+/// sets a plausibility range (the stroke, with a margin): a sample with r or y outside it is refused
+/// with [`Error::OutOfRange`] and leaves the state unchanged, so the caller holds its previous
+/// command (or goes to its safe state) and the next plausible sample runs as if the wild one had not
+/// been given. Without a range every finite sample is taken (the law of the module documentation).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Pi<F: Float> {
     kp: F,
@@ -42,6 +58,10 @@ pub struct Pi<F: Float> {
     u_max: F,
     anti_windup: AntiWindup<F>,
     integral: F,
+    /// y_min: the smallest plausible r or y, mm (−∞: no range).
+    y_min: F,
+    /// y_max: the largest plausible r or y, mm (+∞: no range).
+    y_max: F,
 }
 
 impl<F: Float> Pi<F> {
@@ -79,17 +99,61 @@ impl<F: Float> Pi<F> {
             u_max,
             anti_windup,
             integral: F::ZERO,
+            y_min: -F::INFINITY,
+            y_max: F::INFINITY,
         })
     }
 
+    /// The same controller with a plausibility range [y_min, y_max] (mm) for the set-point r and the
+    /// measured position y: from then on [`step`](Self::step) refuses a sample with r or y outside it
+    /// with [`Error::OutOfRange`], the state unchanged (the struct documentation says why: one wild
+    /// sample winds the back-calculation integral for minutes to hours). Typically the stroke with a
+    /// margin for the sensor's noise, e.g. [−5, 205] mm for a 200 mm stroke. The integral is kept.
+    /// y_min or y_max not finite, or y_min ≥ y_max, gives [`Error::Setting`].
+    ///
+    /// ```
+    /// use ipa_embedded::{AntiWindup, Error, Pi};
+    /// let bc = AntiWindup::BackCalculation { tt_s: 14.0 };
+    /// let mut pi = Pi::new(14.0f64, 1.0, 0.01, 255.0, bc).unwrap().with_range(0.0, 200.0).unwrap();
+    /// assert_eq!(pi.step(50.0, -1e6), Err(Error::OutOfRange)); // a glitch: refused
+    /// assert_eq!(pi.integral(), 0.0);                          // and the state unchanged
+    /// assert!(pi.step(50.0, 49.9).unwrap() > 0.0);
+    /// ```
+    pub fn with_range(self, y_min_mm: F, y_max_mm: F) -> Result<Self, Error> {
+        if !(y_min_mm.is_finite() && y_max_mm.is_finite() && y_min_mm < y_max_mm) {
+            return Err(Error::Setting);
+        }
+        Ok(Pi {
+            y_min: y_min_mm,
+            y_max: y_max_mm,
+            ..self
+        })
+    }
+
+    /// The plausibility range [y_min, y_max] in mm, `None` when none was set
+    /// ([`with_range`](Self::with_range)).
+    pub fn range(&self) -> Option<(F, F)> {
+        if self.y_min.is_finite() {
+            Some((self.y_min, self.y_max))
+        } else {
+            None
+        }
+    }
+
     /// One sample: set-point r(k) and measured position y(k) in mm → saturated command u(k) in counts.
-    /// Non-finite inputs give [`Error::NotFinite`]; a command u(k) or integral I(k) that would not be
-    /// finite (finite but extreme inputs: e = r − y, Kp e or Ki Ts e overflowing, e.g. 0 · ∞ with
-    /// Kp = 0) gives [`Error::Numerical`] (a guard of last resort: audit s19 M-1). Either leaves the
-    /// integral unchanged.
+    /// Non-finite inputs give [`Error::NotFinite`]; with a plausibility range
+    /// ([`with_range`](Self::with_range)), r or y outside it gives [`Error::OutOfRange`]; a command
+    /// u(k) or integral I(k) that would not be finite (finite but extreme inputs: e = r − y, Kp e or
+    /// Ki Ts e overflowing, e.g. 0 · ∞ with Kp = 0) gives [`Error::Numerical`] (a guard of last
+    /// resort: audit s19 M-1). Each leaves the integral unchanged: the caller holds its previous
+    /// command or goes to its safe state.
     pub fn step(&mut self, r_mm: F, y_mm: F) -> Result<F, Error> {
         if !(r_mm.is_finite() && y_mm.is_finite()) {
             return Err(Error::NotFinite);
+        }
+        let plausible = |v: F| self.y_min <= v && v <= self.y_max;
+        if !(plausible(r_mm) && plausible(y_mm)) {
+            return Err(Error::OutOfRange);
         }
         let before = self.integral;
         let u = self.law(r_mm, y_mm);

@@ -358,6 +358,10 @@ pub struct PositionController<F: Float> {
     slip_brake: Option<(bool, u32)>,
     /// g(left), g(right): the held nudge's learnt cut fraction over γ ([`NudgeSettings::cut_learn`]).
     cut_gain: [F; 2],
+    /// y_min: the smallest plausible r or y, mm (−∞: no range; [`PositionController::with_range`]).
+    y_min: F,
+    /// y_max: the largest plausible r or y, mm (+∞: no range).
+    y_max: F,
 }
 
 /// The direction's sign: +1 towards larger y (`right`, the valve side of u > 0), −1 the other way;
@@ -510,18 +514,60 @@ impl<F: Float> PositionController<F> {
             switched: None,
             slip_brake: None,
             cut_gain: [F::ONE, F::ONE],
+            y_min: -F::INFINITY,
+            y_max: F::INFINITY,
         })
     }
 
+    /// The same controller with a plausibility range [y_min, y_max] (mm) for the set-point r and the
+    /// measured position y: from then on [`step`](Self::step) refuses a sample with r or y outside it
+    /// with [`Error::OutOfRange`], the state unchanged (the caller holds its previous command or goes
+    /// to its safe state; the next plausible sample runs as if the wild one had not been given).
+    /// Typically the stroke with a margin for the sensor's noise. Without one, a finite wild sample
+    /// (an encoder glitch y = −G mm) is taken: the clamping integral shrugs it off, but the filtered
+    /// derivative D carries it: after its jump out and back,
+    /// Kd D = −Kd (Tf/(Tf + Ts))^n Ts G/(Tf + Ts)² counts n samples later, a reverse command until it falls below the PI part u_PI: about
+    /// ln(Kd Ts G/((Tf + Ts)² |u_PI|)) / ln(1 + Ts/Tf) samples (with y held 0.1 mm short of r,
+    /// Kp = 8.55, Ki = 19.67, Kd = 0.24 counts·s/mm, Tf = 0.02 s, Ts = 0.01 s: 34 samples after
+    /// G = 1e6 mm, 1 698 after 1e300 mm, tests/wild_sample.rs); and a glitch may teach the nudge and
+    /// the approach's learnt values. The range keeps all of it away.
+    /// y_min or y_max not finite, or y_min ≥ y_max, gives [`Error::Setting`]. The learnt values
+    /// and the state are kept.
+    pub fn with_range(self, y_min_mm: F, y_max_mm: F) -> Result<Self, Error> {
+        if !(y_min_mm.is_finite() && y_max_mm.is_finite() && y_min_mm < y_max_mm) {
+            return Err(Error::Setting);
+        }
+        Ok(PositionController {
+            y_min: y_min_mm,
+            y_max: y_max_mm,
+            ..self
+        })
+    }
+
+    /// The plausibility range [y_min, y_max] in mm, `None` when none was set
+    /// ([`with_range`](Self::with_range)).
+    pub fn range(&self) -> Option<(F, F)> {
+        if self.y_min.is_finite() {
+            Some((self.y_min, self.y_max))
+        } else {
+            None
+        }
+    }
+
     /// One sample: set-point r and position y (mm) → command u (counts). Non-finite inputs give
-    /// [`Error::NotFinite`]; finite r or y beyond the controller's reach (64 |v| max(1, Kp, Ki Ts,
-    /// (1 + Kd)/Ts) not finite: about 1e304 mm in f64 at Ts = 0.01 s) give [`Error::Numerical`], as
+    /// [`Error::NotFinite`]; with a plausibility range ([`with_range`](Self::with_range)), r or y
+    /// outside it gives [`Error::OutOfRange`]; finite r or y beyond the controller's reach
+    /// (64 |v| max(1, Kp, Ki Ts, (1 + Kd)/Ts) not finite: about 1e304 mm in f64 at Ts = 0.01 s) give [`Error::Numerical`], as
     /// does a command u, integral I or derivative D that would not be finite (a guard of last resort:
     /// audit s19 M-1). Either leaves the state unchanged, and the next sample runs as if this one had
     /// not been given.
     pub fn step(&mut self, r: F, y: F) -> Result<F, Error> {
         if !(r.is_finite() && y.is_finite()) {
             return Err(Error::NotFinite);
+        }
+        let plausible = |v: F| self.y_min <= v && v <= self.y_max;
+        if !(plausible(r) && plausible(y)) {
+            return Err(Error::OutOfRange);
         }
         if !(within_reach(&self.s, r) && within_reach(&self.s, y)) {
             return Err(Error::Numerical);

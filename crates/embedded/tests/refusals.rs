@@ -161,6 +161,15 @@ fn the_c_interface_reports_the_refusals_with_their_codes() {
         assert_eq!(u, 42.0);
         assert_eq!(ipa_ctl_step(p, 50.0, 1.0, &mut u), IPA_OK);
         assert_eq!(u, 147.0);
+        // Audit s31 M-6: with the range [0, 200] mm y = −1e6 is refused (u untouched), a crossed range
+        // too, and y = 2 then gives 3 × 48 = 144.
+        assert_eq!(ipa_ctl_set_range(p, 200.0, 0.0), IPA_ERR_SETTING);
+        assert_eq!(ipa_ctl_set_range(p, 0.0, 200.0), IPA_OK);
+        u = 42.0;
+        assert_eq!(ipa_ctl_step(p, 50.0, -1e6, &mut u), IPA_ERR_RANGE);
+        assert_eq!(u, 42.0);
+        assert_eq!(ipa_ctl_step(p, 50.0, 2.0, &mut u), IPA_OK);
+        assert_eq!(u, 144.0);
 
         let mut pi = [0u64; IPA_PI_STATE_BYTES / 8];
         let q = pi.as_mut_ptr() as *mut c_void;

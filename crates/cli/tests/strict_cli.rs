@@ -38,11 +38,8 @@ fn strict_agrees_with_the_warnings(dir: &Path, args: &[&str]) -> Vec<String> {
     let said = warnings(&doc);
     let json = dir.join("earlier.json");
     // An earlier JSON report, marked as the run marks it (audit s22 M-B9; s32 H-1).
-    std::fs::write(
-        &json,
-        "{\"format\": \"ipa-sysid-report\", \"earlier\": true}\n",
-    )
-    .unwrap();
+    let earlier = "{\"format\": \"ipa-sysid-report\", \"earlier\": true}\n";
+    std::fs::write(&json, earlier).unwrap();
     let o = bin()
         .current_dir(dir)
         .args(args)
@@ -58,7 +55,7 @@ fn strict_agrees_with_the_warnings(dir: &Path, args: &[&str]) -> Vec<String> {
         assert_eq!(warnings(&again), said);
     } else {
         assert_eq!(o.status.code(), Some(1), "{args:?}: {}", stderr(&o));
-        assert_eq!(written, "{\"earlier\": true}\n", "{args:?}");
+        assert_eq!(written, earlier, "{args:?}");
         let e = stderr(&o);
         assert!(
             e.contains(&format!("{} warning(s) and --strict", said.len()))

@@ -1876,11 +1876,12 @@ fn unquote(field: &str) -> &str {
     }
 }
 
-/// `x` to 6 significant digits, without trailing zeros (0.019999999999999997 -> 0.02).
+/// `x` to 6 significant digits, without trailing zeros (0.019999999999999997 -> 0.02), in
+/// [`crate::format::Shortest`] form (1e-300, not 300 digits: audit s32 L-11).
 pub(crate) fn sig6(x: f64) -> String {
     format!("{x:.5e}")
         .parse::<f64>()
-        .map_or_else(|_| x.to_string(), |v| v.to_string())
+        .map_or_else(|_| x.to_string(), crate::format::shortest)
 }
 
 /// A cell or a column name as a message echoes it: at most 40 characters ([`crate::error::cut_chars`]).

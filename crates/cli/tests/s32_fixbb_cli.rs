@@ -1,0 +1,57 @@
+//! Session 32, fixbb (audit s32 LOW findings L-11, L-12, L-1, L-2, L-3, L-4, L-6, L-8): each expectation
+//! from a hand-made file, a value computed here, or the words of the rule every other command uses.
+
+#![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)]
+
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+mod common;
+use common::{bin, paper_record, run, s, stderr, stdout, write_tuy};
+
+/// A short record of the paper plant (t, u, y at Ts = 0.01 s), 400 samples.
+fn record(dir: &Path) -> PathBuf {
+    let (u, y) = paper_record(400, 0);
+    write_tuy(dir, "rec.csv", 0.01, &u, &y)
+}
+
+// ---------------------------------------------------------------------------------------------------
+// L-11: `track --ts` by the one rule of every Ts; `--p0` named for its derived --max-trace.
+
+// 1e-300 s is below the 1e-6 s floor of every Ts: track refuses it with identify's own words (the one
+// rule), the value in %g form (1e-300, not 300 digits).
+#[test]
+fn track_refuses_a_ts_below_the_floor_with_identifys_words() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = record(dir.path());
+    let t = run(&["track", "--data", s(&data), "--ts", "1e-300"]);
+    let i = run(&["identify", "--data", s(&data), "--ts", "1e-300"]);
+    let (te, ie) = (stderr(&t), stderr(&i));
+    assert!(!t.status.success(), "{te}");
+    assert!(!i.status.success(), "{ie}");
+    let words = |e: &str| {
+        let at = e.find("invalid setting --ts = 1e-300: ").expect(e);
+        e[at..].lines().next().unwrap().to_string()
+    };
+    assert_eq!(words(&te), words(&ie));
+    assert!(te.contains("at least 1e-6 s"), "{te}");
+    assert!(!te.contains("0.000000000"), "{te}");
+    // 1e-3 s is within the rule: accepted.
+    let ok = run(&["track", "--data", s(&data), "--ts", "0.01"]);
+    assert!(ok.status.success(), "{}", stderr(&ok));
+}
+
+// --max-trace defaults to p0 · n; p0 = 1e308 times n >= 2 parameters is inf: the error names --p0,
+// the flag the user typed, and says the derived bound is what overflowed.
+#[test]
+fn track_names_p0_when_its_derived_max_trace_overflows() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = record(dir.path());
+    let o = run(&["track", "--data", s(&data), "--p0", "1e308"]);
+    let e = stderr(&o);
+    assert!(!o.status.success(), "{e}");
+    assert!(e.contains("invalid setting --p0 = 1e308"), "{e}");
+    assert!(e.contains("--max-trace") && e.contains("= inf"), "{e}");
+    assert!(!e.contains("invalid setting --max-trace"), "{e}");
+}
+

@@ -55,3 +55,66 @@ fn track_names_p0_when_its_derived_max_trace_overflows() {
     assert!(!e.contains("invalid setting --max-trace"), "{e}");
 }
 
+// ---------------------------------------------------------------------------------------------------
+// L-12: a MAT-file where a model, a controller or a plant configuration goes.
+
+/// A Level 5 MAT-file's 128-byte header (116 bytes of text, subsystem offset, version, endian mark)
+/// followed by binary bytes that are not UTF-8: what MATLAB's `save` writes first.
+fn mat_file(dir: &Path) -> PathBuf {
+    let mut bytes = format!(
+        "{:<116}",
+        "MATLAB 5.0 MAT-file, Platform: GLNXA64, Created on: Sun Nov 29 05:00:00 2026"
+    )
+    .into_bytes();
+    bytes.extend_from_slice(&[0; 8]);
+    bytes.extend_from_slice(&[0x00, 0x01, b'I', b'M']);
+    bytes.extend_from_slice(&[0x0f, 0, 0, 0, 0xff, 0xfe, 0x80, 0x81]);
+    let p = dir.join("rec.mat");
+    std::fs::write(&p, bytes).unwrap();
+    p
+}
+
+#[test]
+fn a_mat_file_as_model_controller_or_plant_config_is_named_a_matlab_record() {
+    let dir = tempfile::tempdir().unwrap();
+    let mat = mat_file(dir.path());
+    let data = record(dir.path());
+    for args in [
+        vec!["validate", "--model", s(&mat), "--data", s(&data)],
+        vec![
+            "control",
+            "--plant",
+            "paper",
+            "--controller",
+            s(&mat),
+            "--setpoint",
+            "50",
+            "--duration",
+            "1",
+        ],
+        vec![
+            "control",
+            "--plant",
+            "ipa",
+            "--plant-config",
+            s(&mat),
+            "--setpoint",
+            "50",
+            "--duration",
+            "1",
+        ],
+    ] {
+        let o = run(&args);
+        let e = stderr(&o);
+        assert!(!o.status.success(), "{args:?}: {e}");
+        assert!(
+            e.contains("MATLAB .mat record") && e.contains("give it to --data"),
+            "{args:?}: {e}"
+        );
+        assert!(
+            !e.contains("CSV text") && !e.contains("not UTF-8"),
+            "{args:?}: {e}"
+        );
+    }
+}
+

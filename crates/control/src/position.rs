@@ -804,7 +804,9 @@ impl ControllerFile {
         // field `model`"), by the readers' one sniffing helper.
         use sysid_core::data::Sniffed;
         let head = &text.as_bytes()[..text.len().min(4096)];
-        if let Some(k @ (Sniffed::ModelFile | Sniffed::Csv | Sniffed::Toml)) = Sniffed::of(head) {
+        if let Some(k @ (Sniffed::ModelFile | Sniffed::Csv | Sniffed::Toml | Sniffed::Mat)) =
+            Sniffed::of(head)
+        {
             return Err(ControlError::Config(format!(
                 "{name}: this is {}, not a controller file (the JSON that `ipa-sysid tune --out` writes)",
                 k.describe()

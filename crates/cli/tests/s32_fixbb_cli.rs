@@ -202,3 +202,144 @@ fn a_malformed_provenance_is_named_in_a_warning() {
     }
 }
 
+// ---------------------------------------------------------------------------------------------------
+// L-2: `bench narx|oe --peer`: the peer checked before any work; a late failure keeps our results.
+
+/// An executable shell script `dir/name` with `body`.
+#[cfg(unix)]
+fn script(dir: &Path, name: &str, body: &str) -> PathBuf {
+    use std::os::unix::fs::PermissionsExt;
+    let p = dir.join(name);
+    std::fs::write(&p, format!("#!/bin/sh\n{body}\n")).unwrap();
+    std::fs::set_permissions(&p, std::fs::Permissions::from_mode(0o755)).unwrap();
+    p
+}
+
+// A missing interpreter, a missing script and a Python without the peer's module are each named, at
+// once (an empty data folder: no work would be done anyway; the check comes first).
+#[cfg(unix)]
+#[test]
+fn the_peer_is_checked_before_any_work_naming_what_failed() {
+    let dir = tempfile::tempdir().unwrap();
+    let data_dir = dir.path().join("data");
+    std::fs::create_dir(&data_dir).unwrap();
+    let peer_script = dir.path().join("peer.py");
+    std::fs::write(&peer_script, "print('{}')\n").unwrap();
+    let no_module = script(
+        dir.path(),
+        "py_without",
+        "echo \"ModuleNotFoundError: No module named 'sysidentpy'\" >&2; exit 1",
+    );
+    let with_module = script(dir.path(), "py_with", "exit 0");
+    let missing_python = dir.path().join("no_such_python");
+    let missing_script = dir.path().join("no_such_script.py");
+    for bench in ["narx", "oe"] {
+        let cases: [(&Path, &Path, &[&str], &[&str]); 3] = [
+            (
+                &missing_python,
+                &peer_script,
+                &["the interpreter cannot be run"],
+                &["script"],
+            ),
+            (
+                &with_module,
+                &missing_script,
+                &["--peer-script", "is not there"],
+                &["interpreter", "import"],
+            ),
+            (
+                &no_module,
+                &peer_script,
+                &["cannot import sysidentpy", "No module named 'sysidentpy'"],
+                &["script", "interpreter cannot"],
+            ),
+        ];
+        for (python, peer, words, never) in cases {
+            let o = run(&[
+                "bench",
+                bench,
+                "--repetitions",
+                "1",
+                "--data-dir",
+                s(&data_dir),
+                "--peer",
+                s(python),
+                "--peer-script",
+                s(peer),
+            ]);
+            let e = stderr(&o);
+            assert!(!o.status.success(), "{bench}: {e}");
+            for w in words {
+                assert!(e.contains(w), "{bench} {python:?}: no {w:?} in {e}");
+            }
+            for w in never {
+                assert!(!e.contains(w), "{bench} {python:?}: {w:?} in {e}");
+            }
+            assert!(stdout(&o).is_empty(), "{bench}: {}", stdout(&o));
+        }
+    }
+}
+
+// A peer that passes the check but fails on its run: our own case's result is printed, the peer's
+// failure follows as a warning, --json keeps both, and the exit is non-zero.
+#[cfg(unix)]
+#[test]
+fn a_peer_failing_after_our_work_leaves_our_results_printed() {
+    let dir = tempfile::tempdir().unwrap();
+    let data_dir = dir.path().join("data");
+    std::fs::create_dir_all(data_dir.join("emps")).unwrap();
+    // A first-order plant y(k) = 0.9 y(k−1) + 0.1 u(k−1) under a pseudo-random input in [−1, 1),
+    // measured with noise of ±0.005 (without it the (6,5,0) regressors are exactly dependent), in the
+    // columns of bench oe's EMPS case (t, qm = y, vir = u; Ts = 1 ms).
+    let n = 600;
+    let mut rng = common::lcg(7);
+    let u: Vec<f64> = (0..n).map(|_| 2.0 * rng.unit() - 1.0).collect();
+    let mut y = vec![0.0; n];
+    for k in 1..n {
+        y[k] = 0.9 * y[k - 1] + 0.1 * u[k - 1];
+    }
+    let mut text = String::from("t,qm,vir\n");
+    for k in 0..n {
+        let noise = 0.01 * (rng.unit() - 0.5);
+        text += &format!("{},{},{}\n", k as f64 * 1e-3, y[k] + noise, u[k]);
+    }
+    std::fs::write(data_dir.join("emps/DATA_EMPS.csv"), text).unwrap();
+    let peer_script = dir.path().join("peer.py");
+    std::fs::write(&peer_script, "").unwrap();
+    let python = script(
+        dir.path(),
+        "py",
+        "if [ \"$1\" = \"-c\" ]; then exit 0; fi; echo 'peer crashed' >&2; exit 3",
+    );
+    let json = dir.path().join("b.json");
+    let o = run(&[
+        "bench",
+        "oe",
+        "--repetitions",
+        "1",
+        "--data-dir",
+        s(&data_dir),
+        "--peer",
+        s(&python),
+        "--peer-script",
+        s(&peer_script),
+        "--json",
+        s(&json),
+    ]);
+    let (out, err) = (stdout(&o), stderr(&o));
+    assert!(!o.status.success(), "{out}\n{err}");
+    assert!(out.contains("emps") && out.contains("600 samples"), "{out}");
+    assert!(
+        out.contains("warning: the peer failed") && out.contains("peer crashed"),
+        "{out}"
+    );
+    assert!(err.contains("the peer failed"), "{err}");
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&json).unwrap()).unwrap();
+    assert!(
+        v["peer_failure"].as_str().unwrap().contains("peer crashed"),
+        "{v}"
+    );
+    assert!(v["cases"][0]["output_error"].is_object(), "{v}");
+}
+

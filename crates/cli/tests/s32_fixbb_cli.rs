@@ -343,3 +343,70 @@ fn a_peer_failing_after_our_work_leaves_our_results_printed() {
     assert!(v["cases"][0]["output_error"].is_object(), "{v}");
 }
 
+// ---------------------------------------------------------------------------------------------------
+// L-3: `track --serial` whose other end hangs up.
+
+// A pseudo-terminal pair stands in for the cable; 30 samples, then the master side closes (a USB
+// adapter unplugged). No --idle-timeout: the hang-up alone ends the run, with the summary of the 30
+// samples, the note, and exit 0 (as a run ended by --idle-timeout).
+#[cfg(unix)]
+#[test]
+fn a_serial_port_that_hangs_up_ends_the_run_with_its_summary() {
+    use serialport::SerialPort;
+    use std::io::Write;
+    use std::os::unix::io::AsRawFd;
+    let (mut master, slave) = serialport::TTYPort::pair().unwrap();
+    // The master must not be inherited by track (it would then never see the other end close).
+    for fd in [master.as_raw_fd(), slave.as_raw_fd()] {
+        // SAFETY: fcntl on descriptors this test owns, setting only FD_CLOEXEC.
+        assert_eq!(
+            unsafe { libc::fcntl(fd, libc::F_SETFD, libc::FD_CLOEXEC) },
+            0
+        );
+    }
+    let name = slave.name().unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let summary = dir.path().join("s.json");
+    let mut child = bin()
+        .args([
+            "track", "--serial", &name, "--baud", "115200", "--every", "10",
+        ])
+        .args(["--no-detect", "--json", s(&summary)])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(400));
+    let (u, y) = paper_record(30, 0);
+    let mut text = String::from("t,u,y\n");
+    for k in 0..30 {
+        text += &format!("{},{},{}\n", k as f64 * 0.01, u[k], y[k]);
+    }
+    master.write_all(text.as_bytes()).unwrap();
+    master.flush().unwrap();
+    std::thread::sleep(Duration::from_millis(400));
+    drop(master);
+    drop(slave);
+    let start = Instant::now();
+    while child.try_wait().unwrap().is_none() {
+        if start.elapsed() > Duration::from_secs(20) {
+            child.kill().unwrap();
+            panic!("track still running 20 s after the hang-up");
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+    let o = child.wait_with_output().unwrap();
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(0), "{e}");
+    assert!(
+        e.contains("the serial port hung up after 30 samples"),
+        "{e}"
+    );
+    assert!(e.contains("30 samples, "), "{e}");
+    assert!(!e.contains("Broken pipe") && !e.contains("error"), "{e}");
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    assert_eq!(v["samples"].as_u64(), Some(30), "{v}");
+    assert!(v["model"].is_object(), "{v}");
+}
+

@@ -410,3 +410,121 @@ fn a_serial_port_that_hangs_up_ends_the_run_with_its_summary() {
     assert!(v["model"].is_object(), "{v}");
 }
 
+// ---------------------------------------------------------------------------------------------------
+// L-4: a NARX model whose one-step prediction overflows; `validate --out` cells; a lag too long.
+
+/// A NARX model file with the terms `(term, coefficient)` (na = nb = 1, nk = 1, degree 1, Ts 0.01 s).
+fn narx_file(dir: &Path, name: &str, terms: &[(&str, &str)]) -> PathBuf {
+    let terms: Vec<String> = terms
+        .iter()
+        .map(|(t, c)| format!("{{\"term\": \"{t}\", \"coefficient\": {c}}}"))
+        .collect();
+    let text = format!(
+        "{{\"format\": \"ipa-sysid-model\", \"version\": 3, \"model\": {{\"kind\": \"narx\", \
+         \"ts\": 0.01, \"na\": 1, \"nb\": 1, \"nk\": 1, \"degree\": 1, \"terms\": [{}]}}}}\n",
+        terms.join(", ")
+    );
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+/// A record `t,u,y` of 200 samples, |u| = 1, y(k) = 0.5 y(k−1) + u(k−1), Ts = 0.01 s.
+fn small_record(dir: &Path) -> (PathBuf, Vec<f64>) {
+    let n = 200;
+    let u: Vec<f64> = (0..n)
+        .map(|k| if (k / 7) % 2 == 0 { 1.0 } else { -1.0 })
+        .collect();
+    let mut y = vec![0.0; n];
+    for k in 1..n {
+        y[k] = 0.5 * y[k - 1] + u[k - 1];
+    }
+    (write_tuy(dir, "small.csv", 0.01, &u, &y), y)
+}
+
+// θ = 1e300 on y(k−1): each term 1e300 · |y(k−1)| is beyond √(f64::MAX / N), so the squared errors
+// overflow: a numerical failure (exit 1) naming the term and its coefficient, as for an ARX file.
+#[test]
+fn a_narx_coefficient_that_overflows_the_prediction_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    let (data, y) = small_record(dir.path());
+    let model = narx_file(
+        dir.path(),
+        "big.json",
+        &[("y(k-1)", "1e300"), ("u(k-1)", "1")],
+    );
+    let o = run(&["validate", "--model", s(&model), "--data", s(&data)]);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(1), "{e}");
+    // The largest term: 1e300 times the largest |y(k−1)| over k >= k0 = 1.
+    let y_max = y[..y.len() - 1].iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let size = format!("{:e}", 1e300 * y_max);
+    assert!(
+        e.contains("the term y(k-1) with coefficient 1e300 (the file's \"terms\"[0])")
+            && e.contains(&size),
+        "{size}: {e}"
+    );
+    assert!(!e.contains("inf"), "{e}");
+}
+
+// θ = 1e100 on y(k−1) does not overflow: y_pred = 1e100 · y(k−1) + u(k−1), written in %g form (a
+// short cell that reads back to the value computed here), never as a 100-digit decimal.
+#[test]
+fn validate_out_cells_are_in_shortest_form() {
+    let dir = tempfile::tempdir().unwrap();
+    let (data, y) = small_record(dir.path());
+    let model = narx_file(
+        dir.path(),
+        "big100.json",
+        &[("y(k-1)", "1e100"), ("u(k-1)", "1")],
+    );
+    let out = dir.path().join("v.csv");
+    let o = run(&[
+        "validate",
+        "--model",
+        s(&model),
+        "--data",
+        s(&data),
+        "--out",
+        s(&out),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = std::fs::read_to_string(&out).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = header.iter().position(|h| *h == "y_pred").unwrap();
+    let u = |k: usize| if (k / 7) % 2 == 0 { 1.0 } else { -1.0 };
+    let mut checked = 0;
+    for (k, line) in lines.enumerate() {
+        for cell in line.split(',') {
+            assert!(cell.len() <= 26, "line {}: {cell}", k + 2);
+        }
+        if k >= 1 {
+            let want = 1e100 * y[k - 1] + u(k - 1);
+            let got: f64 = line.split(',').nth(col).unwrap().parse().unwrap();
+            assert!(
+                (got - want).abs() <= 1e-12 * want.abs(),
+                "{k}: {got} {want}"
+            );
+            checked += 1;
+        }
+    }
+    assert_eq!(checked, 199);
+}
+
+// u(k−100000) is a lagged variable: its lag is what is wrong (beyond 2 · 100, the longest of any model).
+#[test]
+fn a_lag_beyond_every_model_is_said_as_such() {
+    let dir = tempfile::tempdir().unwrap();
+    let (data, _) = small_record(dir.path());
+    let model = narx_file(dir.path(), "lag.json", &[("u(k-100000)", "1")]);
+    let o = run(&["validate", "--model", s(&model), "--data", s(&data)]);
+    let e = stderr(&o);
+    assert!(!o.status.success(), "{e}");
+    assert!(
+        e.contains("'u(k-100000)': its lag 100000 is outside the model's orders"),
+        "{e}"
+    );
+    assert!(!e.contains("not a lagged variable"), "{e}");
+}
+

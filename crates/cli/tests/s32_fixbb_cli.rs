@@ -528,3 +528,33 @@ fn a_lag_beyond_every_model_is_said_as_such() {
     assert!(!e.contains("not a lagged variable"), "{e}");
 }
 
+// ---------------------------------------------------------------------------------------------------
+// L-6: a widening that leaves no command outside the deadzone.
+
+// With Δ >= u_max = 255 every command |u| <= 255 lies in the widened deadzone |u| <= Δ: no command
+// moves the plant, said in a warning; Δ = 254 leaves |u| in (254, 255], so no such warning.
+#[test]
+fn a_deadzone_change_of_at_least_u_max_is_said() {
+    for (change, said) in [("1:1e300", true), ("1:255", true), ("1:254", false)] {
+        let o = run(&[
+            "control",
+            "--plant",
+            "paper",
+            "--setpoint",
+            "50",
+            "--duration",
+            "2",
+            "--deadzone-change",
+            change,
+        ]);
+        let e = format!("{}{}", stdout(&o), stderr(&o));
+        assert!(o.status.success(), "{change}: {e}");
+        assert_eq!(
+            e.contains("no command can move the plant"),
+            said,
+            "{change}: {e}"
+        );
+        assert!(!e.contains("0000000000"), "{change}: {e}");
+    }
+}
+

@@ -558,3 +558,58 @@ fn a_deadzone_change_of_at_least_u_max_is_said() {
     }
 }
 
+// ---------------------------------------------------------------------------------------------------
+// L-8: a ratio in %g form; a linear plant's rounding-noise breakpoint.
+
+// The file's times step 0.05 s, the paper plant runs at 0.01 s: 0.01 / 0.05 = 0.2 (not the f64
+// quotient's 0.19999999999999998).
+#[test]
+fn the_replay_ratio_is_printed_in_short_form() {
+    let dir = tempfile::tempdir().unwrap();
+    let input = dir.path().join("in_t.csv");
+    std::fs::write(&input, "t,u\n0,1\n0.05,2\n").unwrap();
+    let arg = format!("file:{}", s(&input));
+    let o = run(&[
+        "simulate",
+        "--plant",
+        "paper",
+        "--input",
+        &arg,
+        "--out",
+        s(&dir.path().join("o.csv")),
+    ]);
+    let e = stderr(&o);
+    assert!(o.status.success(), "{e}");
+    assert!(
+        e.contains("replayed 0.2 times as far apart as recorded"),
+        "{e}"
+    );
+    assert!(!e.contains("0.19999"), "{e}");
+}
+
+// A linear ARX plant has no deadzone: the identified breakpoints are rounding noise around 0 (one of
+// them of either sign), within 1e-9 · u_max of it: the tuned controller runs, with no "deadzone around
+// u = 0" refusal.
+#[test]
+fn a_linear_plant_runs_the_tuned_controller() {
+    let dir = tempfile::tempdir().unwrap();
+    let model = dir.path().join("m.json");
+    std::fs::write(
+        &model,
+        r#"{"format": "ipa-sysid-model", "version": 3, "model": {"kind": "arx", "ts": 0.1,
+            "na": 1, "nb": 1, "nk": 1, "a": [-0.9001719937555707], "b": [0.4998227350064692],
+            "offset": null}}"#,
+    )
+    .unwrap();
+    let out = dir.path().join("rp");
+    let plant = format!("model:{}", s(&model));
+    let o = run(&["reproduce", "--plant", &plant, "--out", s(&out)]);
+    let e = stderr(&o);
+    assert!(o.status.success(), "{e}");
+    let summary = std::fs::read_to_string(out.join("summary.json")).unwrap();
+    let report = std::fs::read_to_string(out.join("report.html")).unwrap();
+    for text in [&summary, &report, &e] {
+        assert!(!text.contains("a deadzone around u = 0"), "{text}");
+        assert!(!text.contains("tuned controller was not run"), "{text}");
+    }
+}

@@ -63,21 +63,46 @@ pub struct DeadzoneCompensator {
     pub u_max: f64,
 }
 
+/// The rounding tolerance of a deadzone's breakpoints, relative to the command limit u_max: a b_l > 0
+/// or b_r < 0 within 1e-9 · u_max of 0 is taken as 0 by [`DeadzoneCompensator::new`] (a billionth of
+/// the command range: far below one count of the IPA's ±255, far above the 1e-16 relative rounding of
+/// an estimate whose true breakpoint is 0).
+pub const BREAKPOINT_ROUNDING: f64 = 1e-9;
+
 impl DeadzoneCompensator {
     /// Builds a compensator with threshold 0. Fails (naming [`ControlSetting::Deadzone`]) when the deadzone is not
-    /// finite, has b_l > 0, b_r < 0, b_l > b_r, or a slope that is not > 0, or when u_max is not > 0.
+    /// finite, has b_l > 0, b_r < 0 (beyond [`BREAKPOINT_ROUNDING`] · u_max, within it taken as 0), b_l > b_r, or a slope that is not > 0, or when u_max is not > 0.
     pub fn new(
         deadzone: Deadzone,
         slope_mode: SlopeMode,
         u_max: f64,
     ) -> Result<Self, ControlError> {
+        // A breakpoint on the wrong side of 0 by at most BREAKPOINT_ROUNDING · u_max is an estimate's
+        // rounding noise around a plant with no deadzone on that side (audit s32 L-8: a linear plant's
+        // estimated b_l = +6e-18 counts refused the tuned controller): it is taken as 0.
+        let mut deadzone = deadzone;
+        let tol = if u_max.is_finite() && u_max > 0.0 {
+            BREAKPOINT_ROUNDING * u_max
+        } else {
+            0.0
+        };
+        if deadzone.b_l > 0.0 && deadzone.b_l <= tol {
+            deadzone.b_l = 0.0;
+        }
+        if deadzone.b_r < 0.0 && deadzone.b_r >= -tol {
+            deadzone.b_r = 0.0;
+        }
         let d = deadzone;
         let bad = |what: &str| {
+            let v = sysid_core::format::shortest;
             Err(ControlError::setting(
                 ControlSetting::Deadzone,
                 format!(
                     "b_l = {}, b_r = {}, m_l = {}, m_r = {}",
-                    d.b_l, d.b_r, d.m_l, d.m_r
+                    v(d.b_l),
+                    v(d.b_r),
+                    v(d.m_l),
+                    v(d.m_r)
                 ),
                 what,
             ))
@@ -155,6 +180,28 @@ impl DeadzoneCompensator {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    // Audit s32 L-8: a breakpoint on the wrong side of 0 by at most 1e-9 · u_max (255e-9 counts here)
+    // is rounding noise, taken as 0; one beyond it (1e-6 counts) is refused as before.
+    #[test]
+    fn a_breakpoint_within_rounding_of_zero_is_taken_as_zero() {
+        let noisy = Deadzone {
+            b_l: 6.116393128355368e-18,
+            b_r: -2e-7,
+            m_l: 0.5,
+            m_r: 0.5,
+        };
+        let c = DeadzoneCompensator::new(noisy, SlopeMode::Shift, 255.0).unwrap();
+        assert_eq!((c.deadzone.b_l, c.deadzone.b_r), (0.0, 0.0));
+        let beyond = Deadzone { b_l: 1e-6, ..noisy };
+        let e = DeadzoneCompensator::new(beyond, SlopeMode::Shift, 255.0)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("b_l = 1e-6") && e.contains("b_l <= 0 <= b_r"),
+            "{e}"
+        );
+    }
 
     fn dz() -> Deadzone {
         Deadzone {

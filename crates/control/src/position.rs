@@ -804,7 +804,9 @@ impl ControllerFile {
         // field `model`"), by the readers' one sniffing helper.
         use sysid_core::data::Sniffed;
         let head = &text.as_bytes()[..text.len().min(4096)];
-        if let Some(k @ (Sniffed::ModelFile | Sniffed::Csv | Sniffed::Toml)) = Sniffed::of(head) {
+        if let Some(k @ (Sniffed::ModelFile | Sniffed::Csv | Sniffed::Toml | Sniffed::Mat)) =
+            Sniffed::of(head)
+        {
             return Err(ControlError::Config(format!(
                 "{name}: this is {}, not a controller file (the JSON that `ipa-sysid tune --out` writes)",
                 k.describe()
@@ -859,6 +861,76 @@ impl ControllerFile {
         Self::parse_file(&text, &name)
     }
 
+    /// What of a present provenance cannot be read, in one warning naming each part ignored (audit s32
+    /// L-1): the provenance is optional and free-form by design (a hand-written controller has none;
+    /// docs/control.md), so a malformed one does not refuse the controller, but the parts the tool reads
+    /// — `meets_spec` (true/false), `met` ({steps, of: whole numbers, on: text}), `source` (text),
+    /// `spec` (an object, its `ess_all_mm` a number ≥ 0) — of another type, a provenance that is not an
+    /// object, and keys `tune` never writes are said, not dropped without a word. `None` for a
+    /// provenance `tune` wrote, or none at all.
+    pub fn provenance_unread(&self) -> Option<String> {
+        use serde_json::Value;
+        let p = self.provenance.as_ref()?;
+        let Some(obj) = p.as_object() else {
+            return Some(format!(
+                "the controller file's provenance is not a JSON object but {}: ignored (nothing \
+                 of where the controller was tuned or of its specification is checked)",
+                json_kind(p)
+            ));
+        };
+        let mut bad: Vec<String> = Vec::new();
+        let mut unknown: Vec<String> = Vec::new();
+        for (key, v) in obj {
+            let shown = sysid_core::format::visible(key);
+            let ok = match key.as_str() {
+                "meets_spec" => v.is_boolean(),
+                "source" | "tuned_by" => v.is_string(),
+                "met" => v.as_object().is_some_and(|m| {
+                    m.get("steps").is_some_and(Value::is_u64)
+                        && m.get("of").is_some_and(Value::is_u64)
+                        && m.get("on").is_some_and(Value::is_string)
+                }),
+                "spec" => v.as_object().is_some_and(|s| {
+                    s.get("ess_all_mm")
+                        .is_none_or(|e| e.as_f64().is_some_and(|e| e.is_finite() && e >= 0.0))
+                }),
+                _ => {
+                    unknown.push(format!("`{shown}`"));
+                    continue;
+                }
+            };
+            if !ok {
+                let expected = match key.as_str() {
+                    "meets_spec" => "true or false",
+                    "source" | "tuned_by" => "text",
+                    "met" => "{\"steps\": N, \"of\": N, \"on\": \"...\"}",
+                    _ => "an object whose ess_all_mm is a number >= 0",
+                };
+                bad.push(format!(
+                    "`{shown}` is {} (expected {expected})",
+                    json_kind(v)
+                ));
+            }
+        }
+        if bad.is_empty() && unknown.is_empty() {
+            return None;
+        }
+        let mut parts = bad;
+        if !unknown.is_empty() {
+            parts.push(format!(
+                "{} {} not written by `tune`",
+                unknown.join(", "),
+                if unknown.len() == 1 { "is" } else { "are" }
+            ));
+        }
+        Some(format!(
+            "the controller file's provenance cannot be read in part: {}; ignored (the checks of \
+             where the controller was tuned and of the specification it was tuned for use only what \
+             is readable)",
+            parts.join("; ")
+        ))
+    }
+
     /// What the provenance says against the controller, in words (audit s17 L-m): `tune` wrote
     /// `"meets_spec": false`, with the steps that met the whole specification when it recorded them
     /// (the record's name through [`sysid_core::format::visible`]: audit s22 M-B5).
@@ -883,6 +955,24 @@ impl ControllerFile {
             "the controller file says it does not meet the specification it was tuned for \
              (provenance meets_spec = false{met}); see the warnings of the `tune` that wrote it"
         ))
+    }
+}
+
+/// A JSON value's kind in words, with a short value (for [`ControllerFile::provenance_unread`]).
+fn json_kind(v: &serde_json::Value) -> String {
+    use serde_json::Value;
+    match v {
+        Value::Null => "null".into(),
+        Value::Bool(b) => format!("the boolean {b}"),
+        Value::Number(n) => format!("the number {n}"),
+        Value::String(t) => format!(
+            "the text \"{}\"",
+            sysid_core::format::visible(
+                &sysid_core::error::cut_chars(t, 40).unwrap_or_else(|| t.clone())
+            )
+        ),
+        Value::Array(a) => format!("an array of {} values", a.len()),
+        Value::Object(_) => "an object".into(),
     }
 }
 

@@ -544,6 +544,7 @@ pub fn setup_warnings(
     duration_s: f64,
 ) -> Vec<String> {
     let mut w = model_warnings.to_vec();
+    w.extend(controller_file.and_then(|f| f.provenance_unread()));
     w.extend(controller_file.and_then(|f| f.provenance_warning()));
     w.extend(compensator_warning);
     w.extend(profile.last_row_warning(duration_s));

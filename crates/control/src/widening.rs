@@ -95,8 +95,9 @@ impl Plant for Widened {
         format!(
             "{} (deadzone {} counts wider from t = {} s)",
             self.inner.name(),
-            self.change.widen_counts,
-            self.change.at_s
+            // %g form: a 1e300 widening is not 300 digits (audit s32 L-6).
+            sysid_core::format::Shortest(self.change.widen_counts),
+            sysid_core::format::Shortest(self.change.at_s)
         )
     }
 }

@@ -428,12 +428,18 @@ pub enum Sniffed {
     Toml,
     /// Text whose first line separates fields by `,`, `;` or a tab: a CSV record, most likely.
     Csv,
+    /// A MATLAB MAT-file (its text header `MATLAB 5.0 MAT-file` or `MATLAB 7.3 MAT-file`,
+    /// [`mat::is_mat`]): a record for `--data` (audit s32 L-12: its header was read as CSV text).
+    Mat,
 }
 
 impl Sniffed {
     /// The kind of a file whose first bytes are `prefix` (a few KiB are enough), if it is one of
     /// [`Sniffed`]'s; `None` for other text.
     pub fn of(prefix: &[u8]) -> Option<Sniffed> {
+        if mat::is_mat(prefix) {
+            return Some(Sniffed::Mat);
+        }
         if prefix.starts_with(b"PAR1") {
             return Some(Sniffed::Parquet);
         }
@@ -508,6 +514,7 @@ impl Sniffed {
                  plant configuration to --plant-config"
             }
             Sniffed::Csv => "CSV text (a record?); give a record to --data",
+            Sniffed::Mat => "a MATLAB .mat record (a MAT-file); give it to --data",
         }
     }
 }
@@ -1908,11 +1915,12 @@ fn unquote(field: &str) -> &str {
     }
 }
 
-/// `x` to 6 significant digits, without trailing zeros (0.019999999999999997 -> 0.02).
+/// `x` to 6 significant digits, without trailing zeros (0.019999999999999997 -> 0.02), in
+/// [`crate::format::Shortest`] form (1e-300, not 300 digits: audit s32 L-11).
 pub(crate) fn sig6(x: f64) -> String {
     format!("{x:.5e}")
         .parse::<f64>()
-        .map_or_else(|_| x.to_string(), |v| v.to_string())
+        .map_or_else(|_| x.to_string(), crate::format::shortest)
 }
 
 /// A cell or a column name as a message echoes it: at most 40 characters ([`crate::error::cut_chars`]).

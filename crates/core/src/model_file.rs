@@ -224,6 +224,7 @@ pub fn parse_any_model(bytes: &[u8], name: &str) -> Result<AnyModel, SysidError>
                 k @ (crate::data::Sniffed::Csv
                 | crate::data::Sniffed::Toml
                 | crate::data::Sniffed::Parquet
+                | crate::data::Sniffed::Mat
                 | crate::data::Sniffed::Utf16),
             ) => file_err(format!(
                 "this is {}, not a model file (the JSON that identify --save-model writes)",

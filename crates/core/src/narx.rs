@@ -139,9 +139,7 @@ impl FromStr for Term {
             if power == 0 || power > MAX_DEGREE {
                 return Err(format!("'{part}': a power must be 1..{MAX_DEGREE}"));
             }
-            let lagged = parse_lagged(var).ok_or_else(|| {
-                format!("'{var}' is not a lagged variable; expected y(k-L) with L >= 1 or u(k-L) with L >= 0")
-            })?;
+            let lagged = parse_lagged(var)?;
             factors.extend(std::iter::repeat_n(lagged, power));
             if factors.len() > MAX_DEGREE {
                 return Err(format!("'{text}': degree above {MAX_DEGREE}"));
@@ -151,22 +149,52 @@ impl FromStr for Term {
     }
 }
 
-fn parse_lagged(text: &str) -> Option<Lagged> {
-    let (name, rest) = text.split_at(1.min(text.len()));
-    let inner = rest.strip_prefix("(k")?.strip_suffix(')')?;
+/// `y(k-L)` or `u(k-L)`; an error in words otherwise — a lag beyond every model's orders said as such
+/// (audit s32 L-4: `u(k-100000)` was "not a lagged variable").
+fn parse_lagged(text: &str) -> Result<Lagged, String> {
+    let not_lagged = || {
+        format!(
+            "'{text}' is not a lagged variable; expected y(k-L) with L >= 1 or u(k-L) with L >= 0"
+        )
+    };
+    let (name, rest) = text.split_at(text.chars().next().map_or(0, char::len_utf8));
+    let inner = rest
+        .strip_prefix("(k")
+        .and_then(|r| r.strip_suffix(')'))
+        .ok_or_else(not_lagged)?;
     let lag = if inner.is_empty() {
         0
     } else {
-        inner.strip_prefix('-')?.parse::<usize>().ok()?
+        // Digits only (no sign, no spaces): a lag too long for usize is beyond the orders too.
+        let digits = inner.strip_prefix('-').ok_or_else(not_lagged)?;
+        if digits.is_empty() || !digits.bytes().all(|b| b.is_ascii_digit()) {
+            return Err(not_lagged());
+        }
+        digits.parse::<usize>().unwrap_or(usize::MAX)
     };
+    if !matches!(name, "y" | "u") || (name == "y" && lag == 0) {
+        return Err(not_lagged());
+    }
+    // The longest lag of any model: y(k-na) with na <= MAX_ORDER, u(k-nk-nb+1) with nk, nb <= MAX_ORDER.
     if lag > 2 * MAX_ORDER {
-        return None;
+        return Err(format!(
+            "'{text}': its lag {} is outside the model's orders (a lag is at most {} samples: na, nb \
+             and nk are each at most {MAX_ORDER})",
+            if lag == usize::MAX { digits_of(inner) } else { lag.to_string() },
+            2 * MAX_ORDER
+        ));
     }
-    match name {
-        "y" if lag >= 1 => Some(Lagged::Y(lag)),
-        "u" => Some(Lagged::U(lag)),
-        _ => None,
-    }
+    Ok(if name == "y" {
+        Lagged::Y(lag)
+    } else {
+        Lagged::U(lag)
+    })
+}
+
+/// The digits of a lag `-DIGITS` as written (one too long for usize), at most 40 characters.
+fn digits_of(inner: &str) -> String {
+    let d = inner.trim_start_matches('-');
+    crate::error::cut_chars(d, 40).unwrap_or_else(|| d.to_string())
 }
 
 /// Every monomial of degree 1..=`degree` in the lagged variables of (na, nb, nk), plus the constant
@@ -516,13 +544,58 @@ impl NarxModel {
             self.lagged_values(k, u, |l| y[k - l], &mut vals);
             let v = self.output_of(&idx, &vals);
             if !v.is_finite() {
+                let why = self
+                    .overflowing_term(u, y)
+                    .map_or_else(String::new, |w| format!(": {w}"));
                 return Err(SysidError::Numerical(format!(
-                    "the prediction of the NARX model became non-finite at sample {k}"
+                    "the prediction of the NARX model became non-finite at sample {k}{why}"
                 )));
             }
             out.push(v);
         }
         Ok(out)
+    }
+
+    /// The term whose coefficient makes the one-step prediction overflow f64 on a record whose own
+    /// values do not, in words (audit s32 L-4; the NARX counterpart of
+    /// [`crate::Model::overflowing_term`]): the term θ_i · m_i(k) of largest size over the record,
+    /// when it exceeds √(f64::MAX / N) — beyond that its prediction errors cannot be squared and summed
+    /// over the record's N rows — while every |y| and |u| stays within it. `None` when no single term
+    /// explains it, or the record's own values are beyond the bound (the data are to blame then).
+    pub fn overflowing_term(&self, u: &[f64], y: &[f64]) -> Option<String> {
+        let rows = y.len().min(u.len());
+        let limit = (f64::MAX / rows.max(1) as f64).sqrt();
+        // NaN is beyond too.
+        let beyond = |v: f64| v.is_nan() || v.abs() > limit;
+        if y.iter().chain(u).any(|&v| beyond(v)) {
+            return None;
+        }
+        let k0 = self.k0().min(rows);
+        let idx = self.term_indices();
+        let mut vals = vec![0.0; self.na + self.nb];
+        // (size, term index) of the largest |θ_i m_i(k)|; NaN (0 · inf) counts as infinite.
+        let mut worst: Option<(f64, usize)> = None;
+        for k in k0..rows {
+            self.lagged_values(k, u, |l| y[k - l], &mut vals);
+            for (i, (ix, c)) in idx.iter().zip(&self.theta).enumerate() {
+                let t = (c * ix.iter().map(|&j| vals[j]).product::<f64>()).abs();
+                let t = if t.is_nan() { f64::INFINITY } else { t };
+                if worst.is_none_or(|(w, _)| t > w) {
+                    worst = Some((t, i));
+                }
+            }
+        }
+        let (size, i) = worst?;
+        beyond(size).then(|| {
+            format!(
+                "the term {} with coefficient {:e} (the file's \"terms\"[{i}]) gives a term of {} in \
+                 the one-step prediction, beyond what f64 can square and sum over the record's {rows} \
+                 rows (√(f64::MAX / N) = {limit:e})",
+                self.terms[i],
+                self.theta[i],
+                crate::format::shortest(size)
+            )
+        })
     }
 
     /// Free-run simulation (MATLAB `sim`/`compare`, infinite horizon) from the measured initial outputs
@@ -709,6 +782,30 @@ impl crate::Plant for NarxPlant {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    // Audit s32 L-4: a lag beyond 2 · MAX_ORDER is said as a lag outside the orders, not as "not a
+    // lagged variable" (kept for what is not y(k-L) or u(k-L)).
+    #[test]
+    fn a_lag_beyond_the_orders_is_named_as_such() {
+        let e = "u(k-100000)".parse::<Term>().unwrap_err();
+        assert!(
+            e.contains("its lag 100000 is outside the model's orders"),
+            "{e}"
+        );
+        let e = "y(k-99999999999999999999999)".parse::<Term>().unwrap_err();
+        assert!(
+            e.contains("its lag 99999999999999999999999 is outside"),
+            "{e}"
+        );
+        assert_eq!(
+            "u(k-200)".parse::<Term>().unwrap(),
+            Term::new(vec![Lagged::U(2 * MAX_ORDER)])
+        );
+        for bad in ["sin(u)", "y(k)", "u(k+1)", "u(k- 1)", "\u{fc}(k-1)"] {
+            let e = bad.parse::<Term>().unwrap_err();
+            assert!(e.contains("is not a lagged variable"), "{bad}: {e}");
+        }
+    }
 
     // Terms print and parse back; powers group repeated factors.
     #[test]

@@ -152,7 +152,8 @@ pub fn record_warnings(run: &OpenLoopRun, u: &[f64], y: &[f64], ts: f64) -> Vec<
                     path.display(),
                     sysid_core::format::Shortest(f),
                     sysid_core::format::Shortest(ts),
-                    ts / f
+                    // 6 significant digits: 0.2, not the quotient's 0.19999999999999998 (audit s32 L-8).
+                    sysid_core::format::sig(ts / f, 6)
                 )
             }),
         };

@@ -1094,6 +1094,21 @@ pub fn narx_metrics(model: &NarxModel, data: &Dataset) -> Result<NarxMetrics, Sy
             sysid_core::metrics::fit_percent(&y[k0..], &sim.y[k0..]),
         ),
     };
+    let rmse_pred = sysid_core::metrics::rmse(&y[k0..], &pred[k0..]);
+    if !rmse_pred.is_finite() {
+        // As a linear model's (audit s32 L-4: "one-step RMSE inf", exit 0): a numerical failure that
+        // names the coefficient to blame, or the data when no coefficient explains it.
+        return Err(SysidError::Numerical(match model.overflowing_term(u, y) {
+            Some(w) => format!(
+                "{}: the one-step prediction's squared errors overflow f64: {w}",
+                data.name()
+            ),
+            None => format!(
+                "{}: the squared prediction errors overflow f64 (values too large? rescale the data)",
+                data.name()
+            ),
+        }));
+    }
     Ok(NarxMetrics {
         data: data.name().to_string(),
         n: y.len() - k0,
@@ -1101,7 +1116,7 @@ pub fn narx_metrics(model: &NarxModel, data: &Dataset) -> Result<NarxMetrics, Sy
         rmse_sim_measured: rmse_sim,
         fit_sim_percent: fit_sim,
         fit_sim_measured_percent: fit_sim,
-        rmse_pred: sysid_core::metrics::rmse(&y[k0..], &pred[k0..]),
+        rmse_pred,
         fit_pred_percent: sysid_core::metrics::fit_percent(&y[k0..], &pred[k0..]),
         blew_up_at: sim.blew_up_at,
     })

@@ -107,7 +107,21 @@ impl RobustRls {
         max_trace: Option<f64>,
     ) -> Result<Self, SysidError> {
         check_settings(forgetting, p0)?;
-        let max_trace = max_trace.unwrap_or(p0 * n_params as f64);
+        let derived = p0 * n_params as f64;
+        if max_trace.is_none() && !derived.is_finite() {
+            // The bound is derived from p0 (p0 · n): the user typed --p0, so --p0 is named (audit s32
+            // L-11), with the derived bound that overflowed.
+            return Err(SysidError::setting(
+                Setting::P0,
+                p0,
+                &format!(
+                    "a p0 whose default --max-trace (p0 × {n_params} parameters = {}) is finite; \
+                     give a smaller --p0 or an explicit --max-trace",
+                    sysid_core::format::shortest(derived)
+                ),
+            ));
+        }
+        let max_trace = max_trace.unwrap_or(derived);
         if !(max_trace.is_finite() && max_trace > 0.0) {
             return Err(SysidError::setting(
                 Setting::MaxTrace,
@@ -547,6 +561,26 @@ pub fn recursive_estimator(
 mod tests {
     use super::*;
     use crate::rls::Rls;
+
+    // Audit s32 L-11: the default bound p0 · n overflows for p0 = 1e308, n = 3: the error names p0 (the
+    // setting given), not the derived max_trace; an explicit finite bound is accepted.
+    #[test]
+    fn an_overflowing_default_trace_bound_names_p0() {
+        let e = RobustRls::new(3, 1.0, 1e308, RlsForm::Ud, Windup::Trace, None)
+            .err()
+            .unwrap();
+        assert!(
+            matches!(
+                e,
+                SysidError::Setting {
+                    setting: Setting::P0,
+                    ..
+                }
+            ),
+            "{e}"
+        );
+        assert!(RobustRls::new(3, 1.0, 1e308, RlsForm::Ud, Windup::Trace, Some(1e9)).is_ok());
+    }
 
     fn regressors(n: usize, k: usize) -> (Vec<f64>, f64) {
         // A deterministic, exciting sequence.

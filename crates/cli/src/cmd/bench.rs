@@ -623,6 +623,20 @@ pub(super) struct RecordBench<C> {
     pub cases: Vec<C>,
     #[serde(skip_serializing_if = "Option::is_none")]
     pub peer_versions: Option<serde_json::Value>,
+    /// Why the peer failed after ipa-sysid's own work (its results are kept; the exit is non-zero).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub peer_failure: Option<String>,
+}
+
+/// The end of a benchmark whose results are printed: an error (non-zero exit) when its peer failed
+/// (audit s32 L-2), after the results and the warning that says why.
+pub(super) fn peer_exit<C>(out: &RecordBench<C>) -> anyhow::Result<()> {
+    match &out.peer_failure {
+        Some(_) => anyhow::bail!(
+            "--peer: the peer failed (the warning above); ipa-sysid's own results are printed"
+        ),
+        None => Ok(()),
+    }
 }
 
 /// Why a case of a benchmark on the public records is skipped: its file `path` is absent.

@@ -53,6 +53,9 @@ fn rmse(v: Option<f64>) -> String {
 /// Runs `bench narx`.
 pub fn run(a: NarxArgs) -> anyhow::Result<()> {
     super::bench::check_data_dir(&a.data_dir)?;
+    if let Some(python) = &a.peer {
+        super::bench_oe::check_peer(python, &a.peer_script, "sysidentpy")?;
+    }
     let reps = a.repetitions as usize;
     let mut text = format!(
         "Polynomial NARX identification (FROLS, the stopping rule of each case, simulation-error refinement), best of {reps}:\n"
@@ -97,9 +100,12 @@ pub fn run(a: NarxArgs) -> anyhow::Result<()> {
         inputs.push(est_path);
         cases.push(out);
     }
-    let peer = match &a.peer {
-        Some(python) if !inputs.is_empty() => Some(run_peer(python, &a, &mut cases, &mut text)?),
-        _ => None,
+    let (peer, peer_failure) = match &a.peer {
+        Some(python) if !inputs.is_empty() => {
+            let r = run_peer(python, &a, &mut cases, &mut text);
+            super::bench_oe::peer_outcome(r, &mut text)
+        }
+        _ => (None, None),
     };
     let out = super::bench::RecordBench {
         benchmark: "narx",
@@ -107,9 +113,11 @@ pub fn run(a: NarxArgs) -> anyhow::Result<()> {
         repetitions: reps,
         cases,
         peer_versions: peer,
+        peer_failure,
     };
     let ins: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
-    super::bench::emit(&text, &out, &a.json, &ins)
+    super::bench::emit(&text, &out, &a.json, &ins)?;
+    super::bench::peer_exit(&out)
 }
 
 /// Runs the peer script on the same cases (given on its standard input); adds its results.

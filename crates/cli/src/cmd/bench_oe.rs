@@ -55,6 +55,9 @@ struct Case {
 /// Runs `bench oe`.
 pub fn run(a: OeArgs) -> anyhow::Result<()> {
     super::bench::check_data_dir(&a.data_dir)?;
+    if let Some(python) = &a.peer {
+        check_peer(python, &a.peer_script, "sysidentpy")?;
+    }
     let reps = a.repetitions as usize;
     let mut text = format!(
         "Output-error identification (ARX, Levenberg-Marquardt on the simulation error), best of {reps}:\n"
@@ -97,13 +100,16 @@ pub fn run(a: OeArgs) -> anyhow::Result<()> {
         inputs.push(path);
         cases.push(out);
     }
-    let peer = match &a.peer {
-        Some(python) if !inputs.is_empty() => Some(run_peer(python, &a, &mut cases, &mut text)?),
+    let (peer, peer_failure) = match &a.peer {
+        Some(python) if !inputs.is_empty() => {
+            let r = run_peer(python, &a, &mut cases, &mut text);
+            peer_outcome(r, &mut text)
+        }
         Some(_) => {
             text.push_str("peer not run: no record was found\n");
-            None
+            (None, None)
         }
-        None => None,
+        None => (None, None),
     };
     let out = super::bench::RecordBench {
         benchmark: "oe",
@@ -111,9 +117,11 @@ pub fn run(a: OeArgs) -> anyhow::Result<()> {
         repetitions: reps,
         cases,
         peer_versions: peer,
+        peer_failure,
     };
     let ins: Vec<&Path> = inputs.iter().map(PathBuf::as_path).collect();
-    super::bench::emit(&text, &out, &a.json, &ins)
+    super::bench::emit(&text, &out, &a.json, &ins)?;
+    super::bench::peer_exit(&out)
 }
 
 fn percent(v: Option<f64>) -> String {
@@ -167,6 +175,64 @@ fn run_peer(
         case.peer = Some(p.clone());
     }
     Ok(versions)
+}
+
+/// Checks, before any work, that the peer can run (audit s32 L-2): the interpreter `python` starts,
+/// the script `script` is there, and `module` imports — in one short subprocess
+/// (`python -c "import MODULE"`); the error names which of the three failed.
+pub(super) fn check_peer(python: &Path, script: &Path, module: &str) -> anyhow::Result<()> {
+    // The interpreter first (a missing one is not the script's fault), then the script, then the
+    // module the interpreter already tried to import.
+    let out = Command::new(python)
+        .args(["-c", &format!("import {module}")])
+        .stdin(std::process::Stdio::null())
+        .output()
+        .map_err(|e| {
+            anyhow::anyhow!(
+                "--peer {}: the interpreter cannot be run ({e}); give a Python interpreter that has \
+                 {module}",
+                python.display()
+            )
+        })?;
+    if !script.is_file() {
+        anyhow::bail!(
+            "--peer-script {} is not there: run from the repository's root or pass --peer-script FILE",
+            script.display()
+        );
+    }
+    if !out.status.success() {
+        let err = String::from_utf8_lossy(&out.stderr);
+        let last = err
+            .lines()
+            .rev()
+            .find(|l| !l.trim().is_empty())
+            .unwrap_or("");
+        anyhow::bail!(
+            "--peer {}: this Python cannot import {module} ({}); install it there (pip install \
+             {module}) or give a Python that has it",
+            python.display(),
+            sysid_core::format::visible(last.trim())
+        );
+    }
+    Ok(())
+}
+
+/// The peer's result, or its failure as a warning line after ipa-sysid's own results (audit s32 L-2:
+/// a failing peer left our results unprinted): `(versions, failure)`.
+pub(super) fn peer_outcome(
+    result: anyhow::Result<serde_json::Value>,
+    text: &mut String,
+) -> (Option<serde_json::Value>, Option<String>) {
+    match result {
+        Ok(v) => (Some(v), None),
+        Err(e) => {
+            let why = format!("{e:#}");
+            text.push_str(&format!(
+                "warning: the peer failed after ipa-sysid's own results above: {why}\n"
+            ));
+            (None, Some(why))
+        }
+    }
 }
 
 /// Runs a peer benchmark script (`python script ARGS --json -`, with `stdin` on its standard input if

@@ -316,6 +316,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             change.at_s
         ));
     }
+    // A widening of at least the command limit leaves no command outside the widened deadzone: from
+    // the change on, no command moves the plant (audit s32 L-6). Said as the change after the run's end
+    // is said: a warning, the run is what was asked.
+    let u_max = tuned.map_or(args.u_max, |t| t.u_max);
+    if let Some(change) = args
+        .deadzone_change
+        .filter(|c| c.at_s < duration_s && c.widen_counts >= u_max)
+    {
+        warnings.push(format!(
+            "--deadzone-change widens the deadzone by {} counts on each side at {} s, at least the \
+             command limit u_max = {} counts: from then on every command |u| <= u_max lies inside the \
+             widened deadzone, so no command can move the plant (the run after {} s shows only the \
+             plant coasting); a widening below u_max leaves some command that can",
+            sysid_core::format::shortest(change.widen_counts),
+            sysid_core::format::shortest(change.at_s),
+            sysid_core::format::shortest(u_max),
+            sysid_core::format::shortest(change.at_s),
+        ));
+    }
     warnings.extend(control::loop_warnings(
         &trace,
         &steps,

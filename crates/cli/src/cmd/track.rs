@@ -239,6 +239,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let idle = args.idle()?;
     let mut inputs = Vec::new();
     let mut restarts = None;
+    // Set when a serial port hangs up (audit s32 L-3): the run then ends as at --idle-timeout.
+    let hung_up = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
     let (mut reader, name): (Box<dyn std::io::BufRead>, String) = if let Some(p) = &args.data {
         if p.as_os_str() == "-" {
             (Box::new(std::io::stdin().lock()), "<stdin>".into())
@@ -271,6 +273,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 format!("{path}: cannot open the serial port at {} baud", args.baud)
             })?;
         let r = sysid_io::Follow::new(port, idle, POLL);
+        let r = HangUp {
+            inner: r,
+            hung_up: hung_up.clone(),
+        };
         (Box::new(BufReader::new(r)), path)
     } else {
         anyhow::bail!(
@@ -309,6 +315,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "stopped by a signal (SIGINT or SIGTERM): the summary of the samples read until then"
         );
     }
+    if hung_up.load(std::sync::atomic::Ordering::Relaxed) {
+        eprintln!(
+            "note: {}: the serial port hung up after {} samples (the other end closed it or was \
+             unplugged): the summary of the samples read until then",
+            options.name, summary.samples
+        );
+    }
     for w in &summary.warnings {
         eprintln!("warning: {w}");
     }
@@ -342,4 +355,39 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // With --strict and end warnings, --json is not written (an earlier file stays) and the exit code
     // is 1; the lines already streamed stay as they are.
     super::common::write_outputs(&outputs, &inputs, args.strict, summary.warnings.len())
+}
+
+/// A serial port's reader whose hang-up (the other end closed, a USB adapter unplugged: EIO, EPIPE or
+/// an end of file from the tty) ends the input as `--idle-timeout` does — an end of input, so the run
+/// prints its summary and last estimate and exits as it would then — with `hung_up` set for the note
+/// that says so (audit s32 L-3: it ended with "Broken pipe" and no summary).
+struct HangUp<R> {
+    inner: R,
+    hung_up: std::sync::Arc<std::sync::atomic::AtomicBool>,
+}
+
+impl<R: std::io::Read> std::io::Read for HangUp<R> {
+    fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+        use std::io::ErrorKind;
+        if self.hung_up.load(std::sync::atomic::Ordering::Relaxed) {
+            return Ok(0);
+        }
+        match self.inner.read(buf) {
+            Err(e) if is_hang_up(&e) => {
+                self.hung_up
+                    .store(true, std::sync::atomic::Ordering::Relaxed);
+                Ok(0)
+            }
+            Err(e) if e.kind() == ErrorKind::Interrupted => Err(e),
+            other => other,
+        }
+    }
+}
+
+/// True for the errors a tty gives when its other end hangs up: EPIPE, an unexpected end of file, or
+/// EIO (errno 5 on Linux and the BSDs/macOS, what a pty's reader gets once its master is closed).
+fn is_hang_up(e: &std::io::Error) -> bool {
+    use std::io::ErrorKind;
+    matches!(e.kind(), ErrorKind::BrokenPipe | ErrorKind::UnexpectedEof)
+        || (cfg!(unix) && e.raw_os_error() == Some(5))
 }

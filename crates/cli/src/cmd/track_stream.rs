@@ -197,13 +197,8 @@ pub fn track_stream<R: BufRead, W: Write>(
         ));
     }
     if let Some(ts) = options.csv.ts {
-        if !(ts.is_finite() && ts > 0.0) {
-            return Err(SysidError::setting(
-                Setting::Ts,
-                ts,
-                "a positive sampling period in seconds",
-            ));
-        }
+        // The one rule of every Ts (`identify --ts`, a model file's, the controller's): audit s32 L-11.
+        sysid::data::check_ts(ts)?;
     }
     let write_err = |e: std::io::Error| SysidError::Io {
         path: "<output>".into(),

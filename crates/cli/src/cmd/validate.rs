@@ -247,20 +247,26 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let mut w = csv::Writer::from_writer(Vec::new());
         w.write_record(OUT_COLUMNS)?;
         for k in 0..data.len() {
-            let cell =
-                |s: &Option<Vec<f64>>| s.as_ref().map_or(String::new(), |s| s[k].to_string());
+            let cell = |s: &Option<Vec<f64>>| s.as_ref().map_or(String::new(), |s| shortest(s[k]));
             w.write_record([
-                t[k].to_string(),
-                data.y()[k].to_string(),
+                shortest(t[k]),
+                shortest(data.y()[k]),
                 cell(&out.y_sim),
                 cell(&out.y_sim_measured),
-                out.y_pred[k].to_string(),
-                (data.y()[k] - out.y_pred[k]).to_string(),
+                shortest(out.y_pred[k]),
+                shortest(data.y()[k] - out.y_pred[k]),
             ])?;
         }
         out_csv = Some(w.into_inner().map_err(|e| anyhow::anyhow!("{e}"))?);
     }
     finish(&args, report.warnings.len(), &value, out_csv, &inputs)
+}
+
+/// A cell of `validate --out`: the shortest form that reads back to the same f64, in scientific
+/// notation beyond 1e16 or below 1e-5 (`sysid_core::format::Shortest`, the form of the tool's other
+/// outputs; audit s32 L-4: a 1e300 prediction was written as 300 digits).
+fn shortest(v: f64) -> String {
+    sysid_core::format::shortest(v)
 }
 
 /// The columns of `validate --out` (linear and NARX models alike): y_sim from the estimated initial
@@ -354,17 +360,17 @@ fn run_narx(
         w.write_record(OUT_COLUMNS)?;
         for k in 0..data.len() {
             let s = if sim[k].is_finite() {
-                sim[k].to_string()
+                shortest(sim[k])
             } else {
                 String::new()
             };
             w.write_record([
-                t[k].to_string(),
-                data.y()[k].to_string(),
+                shortest(t[k]),
+                shortest(data.y()[k]),
                 s.clone(),
                 s,
-                pred[k].to_string(),
-                (data.y()[k] - pred[k]).to_string(),
+                shortest(pred[k]),
+                shortest(data.y()[k] - pred[k]),
             ])?;
         }
         out_csv = Some(w.into_inner().map_err(|e| anyhow::anyhow!("{e}"))?);

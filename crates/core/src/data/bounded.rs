@@ -189,6 +189,16 @@ pub fn read_bounded_text(
     advice: &str,
 ) -> Result<String, SysidError> {
     let bytes = read_bounded(path, max, what, advice)?;
+    // A MAT-file, a Parquet file or UTF-16 text is named as such, by the readers' one sniffing helper
+    // (audit s32 L-12: a MAT-file was "byte 132 is not UTF-8 text").
+    if let Some(k @ (super::Sniffed::Mat | super::Sniffed::Parquet | super::Sniffed::Utf16)) =
+        super::Sniffed::of(&bytes[..bytes.len().min(4096)])
+    {
+        return Err(SysidError::File {
+            file: path.display().to_string(),
+            message: format!("this is {}, not {what}", k.describe()),
+        });
+    }
     String::from_utf8(bytes).map_err(|e| SysidError::File {
         file: path.display().to_string(),
         message: format!(

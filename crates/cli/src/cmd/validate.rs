@@ -444,7 +444,8 @@ fn report_text(
     let mut text = format!(
         "{} on {} ({} samples): fit {} % (simulation, initial outputs estimated), {} % (simulation, \
          initial outputs measured), {} % (1-step prediction){}; loss V {} (one-step equation error), \
-         V_sim {} (simulation error), FPE {}; {}\n",
+         V_sim {} (simulation error), FPE {}; MATLAB's LossFcn {}, FPE {}, nAIC {} (the model's own \
+         one-step prediction errors); {}\n",
         args.model.display(),
         name,
         len,
@@ -463,6 +464,9 @@ fn report_text(
         m.loss.map_or("n/a".into(), report::format::num),
         m.loss_sim.map_or("n/a".into(), report::format::num),
         m.fpe.map_or("n/a".into(), report::format::num),
+        m.loss_fcn.map_or("n/a".into(), report::format::num),
+        m.fpe_matlab.map_or("n/a".into(), report::format::num),
+        m.aic_matlab.map_or("n/a".into(), report::format::num),
         // The one verdict (`Model::stability`, as identify's "Poles: … →" line and the JSON's
         // `stability`) in its short words: an integrator is not "UNSTABLE" (audit s27 L-10).
         report.model.stability().word()

@@ -162,3 +162,65 @@ fn the_text_table_names_matlabs_rows() {
     }
     assert!(!text.contains("half of MATLAB's"), "{text}");
 }
+
+// A polynomial NARX model: MATLAB's figures from its one-step prediction errors too, p = the number of
+// its terms (the model file's `terms`), by the same hand loop over `validate --out`.
+#[test]
+fn a_narx_model_reports_matlabs_figures_of_its_one_step_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let rec = record(dir.path());
+    let model = dir.path().join("narx.json");
+    let args = [
+        "identify",
+        "--data",
+        s(&rec),
+        "--structure",
+        "narx",
+        "--na",
+        "2",
+        "--nb",
+        "2",
+        "--degree",
+        "2",
+        "--save-model",
+        s(&model),
+    ];
+    run_json(dir.path(), &args);
+    let p = common::json(&model)["model"]["terms"]
+        .as_array()
+        .unwrap()
+        .len() as f64;
+    let out = dir.path().join("narx_out.csv");
+    let val = run_json(
+        dir.path(),
+        &[
+            "validate",
+            "--model",
+            s(&model),
+            "--data",
+            s(&rec),
+            "--out",
+            s(&out),
+        ],
+    );
+    let m = &val["metrics"]["validation"];
+    let n = m["n"].as_u64().unwrap() as usize;
+    let (y, pred) = (column(&out, "y"), column(&out, "y_pred"));
+    let mut sse = 0.0;
+    for k in y.len() - n..y.len() {
+        sse += (y[k] - pred[k]) * (y[k] - pred[k]);
+    }
+    let nf = n as f64;
+    let loss_fcn = sse / nf;
+    close(num(m, "loss_fcn"), loss_fcn, "narx loss_fcn");
+    close(
+        num(m, "fpe_matlab"),
+        loss_fcn * (nf + p) / (nf - p),
+        "narx fpe_matlab",
+    );
+    close(
+        num(m, "aic_matlab"),
+        loss_fcn.ln() + 2.0 * p / nf,
+        "narx aic_matlab",
+    );
+}

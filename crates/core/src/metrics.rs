@@ -104,7 +104,7 @@ impl Metrics {
 
 /// Akaike's final prediction error (N + p)/(N − p) · `loss` over N rows with p parameters (paper
 /// eq. 15 with V, MATLAB `fpe` with LossFcn); `None` when N <= p or it is not finite.
-fn fpe_of(loss: Option<f64>, n: usize, p: usize) -> Option<f64> {
+pub fn fpe_of(loss: Option<f64>, n: usize, p: usize) -> Option<f64> {
     loss.filter(|_| n > p)
         .map(|v| (n + p) as f64 / (n - p) as f64 * v)
         .filter(|v| v.is_finite())
@@ -112,7 +112,7 @@ fn fpe_of(loss: Option<f64>, n: usize, p: usize) -> Option<f64> {
 
 /// The normalised AIC ln(`mse`) + 2p/N of a mean squared error over N rows with p parameters (MATLAB
 /// `aic(sys)`); `None` when mse <= 0 or it is not finite.
-fn aic_of(mse: Option<f64>, n: usize, p: usize) -> Option<f64> {
+pub fn aic_of(mse: Option<f64>, n: usize, p: usize) -> Option<f64> {
     mse.filter(|mse| *mse > 0.0)
         .map(|mse| mse.ln() + 2.0 * p as f64 / n.max(1) as f64)
         .filter(|v| v.is_finite())

@@ -326,7 +326,8 @@ fn run_narx(
     let pct = |v: Option<f64>| v.map_or("n/a".into(), |v| format!("{} %", report::format::num(v)));
     let mut text = format!(
         "{} (polynomial NARX, {} terms) on {} ({} samples): simulation RMSE {}, fit {} (initial \
-         outputs measured); one-step RMSE {}, fit {}\n",
+         outputs measured); one-step RMSE {}, fit {}; MATLAB's LossFcn {}, FPE {}, nAIC {} (one-step \
+         prediction errors)\n",
         args.model.display(),
         model.terms().len(),
         data.name(),
@@ -335,6 +336,9 @@ fn run_narx(
         pct(metrics.fit_sim_percent),
         report::format::num(metrics.rmse_pred),
         pct(metrics.fit_pred_percent),
+        metrics.loss_fcn.map_or("n/a".into(), report::format::num),
+        metrics.fpe_matlab.map_or("n/a".into(), report::format::num),
+        metrics.aic_matlab.map_or("n/a".into(), report::format::num),
     );
     for w in &warnings {
         text.push_str(&format!("warning: {w}\n"));

@@ -231,3 +231,24 @@ echo
 echo '```text'
 "$bin" delay --data $P --no-header --t-col 1 --time-unit ms --resample 0.01 --u-col 6 --y-col 5 2>&1 | sed "s|$DATA/||g"
 echo '```'
+
+echo
+echo "## Ball and beam"
+BB=(--data ball_and_beam/ballbeam.csv --rows 0..500 --val-rows 500.. --ts 0.1 --offset)
+header
+row "ARX + offset, ls" "${BB[@]}" --na 2 --nb 2 --nk 1 --structure arx --method ls
+row "ARX + offset, oe" "${BB[@]}" --na 2 --nb 2 --nk 1 --structure arx --method oe
+row "Hammerstein + offset, ls" "${BB[@]}" --na 2 --nb 2 --nk 1 --structure hammerstein --method ls
+echo
+order_line "${BB[@]}"
+delay_line --data ball_and_beam/ballbeam.csv --rows 0..500 --ts 0.1
+
+echo
+echo "## Flexible robot arm"
+RA=(--data robot_arm_flexible/robot_arm.csv --rows 0..512 --val-rows 512.. --ts 1 --offset)
+header
+row "ARX + offset, ls" "${RA[@]}" --na 4 --nb 4 --nk 1 --structure arx --method ls
+row "ARX + offset, oe" "${RA[@]}" --na 4 --nb 4 --nk 1 --structure arx --method oe
+echo
+order_line "${RA[@]}"
+delay_line --data robot_arm_flexible/robot_arm.csv --rows 0..512 --ts 1

@@ -63,7 +63,8 @@ class Model:
     def predict(self, u: ArrayLike, y: ArrayLike, horizon: int = 1) -> FloatArray:
         """k-step-ahead prediction from measured u and y."""
     def metrics(self, u: ArrayLike, y: ArrayLike, name: str = "data") -> dict[str, Any]:
-        """Validation metrics (fit %, RMSE, loss, FPE, AIC, N, p) on a record, as `validate`."""
+        """Validation metrics (fit %, RMSE, loss, FPE, AIC; MATLAB's loss_fcn, fpe_matlab, aic_matlab;
+        N, p) on a record, as `validate`."""
     def to_json(self) -> str:
         """The model file text (`identify --save-model` format)."""
     @staticmethod

@@ -752,7 +752,9 @@ impl PyModel {
     }
 
     /// Validation metrics on a record (the `validate` command): fit % (simulation and 1-step), RMSE,
-    /// loss V (paper eq. 14), FPE (eq. 15), AIC, N, p, as a dict like the CLI JSON's.
+    /// loss V (paper eq. 14), FPE (eq. 15), AIC (equation error), MATLAB's LossFcn, FPE and normalised
+    /// AIC of the model's own prediction errors (`loss_fcn`, `fpe_matlab`, `aic_matlab`), N, p, as a
+    /// dict like the CLI JSON's.
     #[pyo3(signature = (u, y, name="data"))]
     fn metrics<'py>(
         &self,
@@ -1159,7 +1161,8 @@ impl PyFit {
     }
 
     /// {"estimation": {...}, "validation": {...}} (validation only when given): the `metrics` of
-    /// `identify --json` (fit_sim_percent, fit_pred_percent, rmse_sim, rmse_pred, loss, fpe, aic, n, p).
+    /// `identify --json` (fit_sim_percent, fit_pred_percent, rmse_sim, rmse_pred, loss, fpe, aic,
+    /// loss_fcn, fpe_matlab, aic_matlab, n, p).
     #[getter]
     fn metrics<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyAny>> {
         to_py(py, &self.report.metrics)

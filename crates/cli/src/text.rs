@@ -203,7 +203,7 @@ fn metrics_text(r: &IdentifyReport, s: &mut String) {
         "estimation",
         if val.is_some() { "validation" } else { "" }
     );
-    let rows: [MetricRow; 12] = [
+    let rows: [MetricRow; 15] = [
         // Which initial outputs each simulation row starts from, in every row (audit s23 L-R2: the
         // estimated start's row read plain "simulation", 92.5 % on EMPS against 69.5 % measured).
         ("fit % (sim., y0 est.)", |m| opt(m.fit_sim_percent)),
@@ -218,7 +218,11 @@ fn metrics_text(r: &IdentifyReport, s: &mut String) {
         ("loss V (eq. 14)", |m| opt(m.loss)),
         ("loss V_sim (sim.)", |m| opt(m.loss_sim)),
         ("FPE (eq. 15)", |m| opt(m.fpe)),
-        ("AIC (normalised)", |m| opt(m.aic)),
+        ("AIC (eq. error)", |m| opt(m.aic)),
+        // MATLAB's figures for this model: its own one-step prediction errors (audit s32 M-2).
+        ("LossFcn (MATLAB)", |m| opt(m.loss_fcn)),
+        ("FPE (MATLAB)", |m| opt(m.fpe_matlab)),
+        ("nAIC (MATLAB aic)", |m| opt(m.aic_matlab)),
         ("N (rows used)", |m| m.n.to_string()),
         ("p (parameters)", |m| m.p.to_string()),
     ];
@@ -239,9 +243,13 @@ fn metrics_text(r: &IdentifyReport, s: &mut String) {
     );
     let _ = writeln!(
         s,
-        "(loss V = ½·mean ε² of the one-step equation errors and FPE = V (N+p)/(N−p) as the paper's \
-         eq. 14/15: half of MATLAB's LossFcn and FPE; AIC = ln(mean ε²) + 2p/N is MATLAB's normalised \
-         AIC. An output-error model minimises the simulation error: its criterion is loss V_sim.)"
+        "(loss V = ½·mean ε², FPE = V (N+p)/(N−p) (the paper's eq. 14/15) and AIC = ln(mean ε²) + 2p/N \
+         are the one-step equation error ε's (the ARX predictor) for every method, so that one column \
+         compares models; MATLAB's LossFcn = mean e², FPE = LossFcn (N+p)/(N−p) and nAIC = ln(LossFcn) + \
+         2p/N (what MATLAB's aic(sys) returns) are from the model's own one-step prediction errors e (those of RMSE \
+         (1-step pred.): for an equation-error model 2V, 2·FPE and the same AIC; for an output-error \
+         or Wiener model the simulation error's). An output-error model minimises the simulation \
+         error: its criterion is loss V_sim.)"
     );
     if let Some(records) = &r.records {
         let _ = writeln!(

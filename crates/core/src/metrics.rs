@@ -10,9 +10,16 @@
 //!   output-error model's own criterion, the simulation-error loss (1/N) Σ ½ (y − ŷ_sim)², is reported
 //!   apart as `loss_sim` (for every model, from the estimated initial outputs);
 //! - FPE = (N + p)/(N − p) · V (paper eq. 15);
-//! - AIC = ln(2V) + 2p/N = ln(mean ε²) + 2p/N (MATLAB's normalised AIC) over the same one-step
-//!   equation-error ε as V and FPE, so that AIC, FPE and V of models estimated by different methods
-//!   compare in one column (an output-error model's own prediction errors are its simulation errors);
+//! - AIC = ln(2V) + 2p/N = ln(mean ε²) + 2p/N (the form of MATLAB's normalised AIC) over the same
+//!   one-step equation-error ε as V and FPE, so that AIC, FPE and V of models estimated by different
+//!   methods compare in one column;
+//! - MATLAB's own figures for the model, from the model's *own* one-step prediction errors e (those of
+//!   `rmse_pred`: the ARX predictor for an equation-error model, the simulation from the estimated
+//!   initial outputs for an output-error or Wiener / Hammerstein–Wiener model): `loss_fcn` =
+//!   mean e² (MATLAB's `sys.Report.Fit.LossFcn` and `MSE` with the default options, no ½),
+//!   `fpe_matlab` = LossFcn (N + p)/(N − p) (MATLAB `fpe`), `aic_matlab` = ln(LossFcn) + 2p/N (MATLAB
+//!   `aic(sys)`, the normalised AIC, `Report.Fit.nAIC`). For an equation-error model they are 2V, 2·FPE
+//!   and AIC; for an output-error model they judge the simulation error;
 //!
 //! p = number of estimated parameters. A value that cannot be computed (constant output for fit, N <= p for
 //! FPE, a simulation that diverges) is `None` (JSON `null`), never NaN.
@@ -55,6 +62,18 @@ pub struct Metrics {
     pub fpe: Option<f64>,
     /// Normalised AIC = ln(mean ε²) + 2p/N, ε the one-step equation-error prediction errors (as V).
     pub aic: Option<f64>,
+    /// MATLAB's `LossFcn` (and `MSE`): mean e² of the model's own one-step prediction errors e, those
+    /// of [`Metrics::rmse_pred`] (units of y²; no ½: `rmse_pred`²). For an equation-error model 2V; for
+    /// an output-error or Wiener model the simulation error's. `None` only in files written before it.
+    #[serde(default)]
+    pub loss_fcn: Option<f64>,
+    /// MATLAB's `fpe(sys)`: LossFcn (N + p)/(N − p); `None` when N <= p.
+    #[serde(default)]
+    pub fpe_matlab: Option<f64>,
+    /// MATLAB's `aic(sys)` (the normalised AIC, `Report.Fit.nAIC`): ln(LossFcn) + 2p/N; `None` when
+    /// LossFcn = 0.
+    #[serde(default)]
+    pub aic_matlab: Option<f64>,
     /// N: rows used (k >= k0).
     pub n: usize,
     /// p: estimated parameters.
@@ -73,21 +92,30 @@ impl Metrics {
         if p == self.p {
             return self;
         }
-        let (n, nf) = (self.n, self.n.max(1) as f64);
-        self.fpe = self
-            .loss
-            .filter(|_| n > p)
-            .map(|v| (n + p) as f64 / (n - p) as f64 * v)
-            .filter(|v| v.is_finite());
-        self.aic = self
-            .loss
-            .map(|v| 2.0 * v)
-            .filter(|mse| *mse > 0.0)
-            .map(|mse| mse.ln() + 2.0 * p as f64 / nf)
-            .filter(|v| v.is_finite());
+        let n = self.n;
+        self.fpe = fpe_of(self.loss, n, p);
+        self.aic = aic_of(self.loss.map(|v| 2.0 * v), n, p);
+        self.fpe_matlab = fpe_of(self.loss_fcn, n, p);
+        self.aic_matlab = aic_of(self.loss_fcn, n, p);
         self.p = p;
         self
     }
+}
+
+/// Akaike's final prediction error (N + p)/(N − p) · `loss` over N rows with p parameters (paper
+/// eq. 15 with V, MATLAB `fpe` with LossFcn); `None` when N <= p or it is not finite.
+pub fn fpe_of(loss: Option<f64>, n: usize, p: usize) -> Option<f64> {
+    loss.filter(|_| n > p)
+        .map(|v| (n + p) as f64 / (n - p) as f64 * v)
+        .filter(|v| v.is_finite())
+}
+
+/// The normalised AIC ln(`mse`) + 2p/N of a mean squared error over N rows with p parameters (MATLAB
+/// `aic(sys)`); `None` when mse <= 0 or it is not finite.
+pub fn aic_of(mse: Option<f64>, n: usize, p: usize) -> Option<f64> {
+    mse.filter(|mse| *mse > 0.0)
+        .map(|mse| mse.ln() + 2.0 * p as f64 / n.max(1) as f64)
+        .filter(|v| v.is_finite())
 }
 
 /// Fit % = 100 (1 − ‖y − ŷ‖ / ‖y − ȳ‖), or `None` when y is constant.
@@ -613,23 +641,20 @@ pub fn metrics_from_sums(s: &MetricSums, name: &str) -> Result<Metrics, SysidErr
     let nf = n.max(1) as f64;
     let mse = s.sse_pred / n as f64;
     let loss = s.sse_equation.map(|e| 0.5 * e / nf);
-    let fpe = loss
-        .filter(|_| n > p)
-        .map(|loss| (n + p) as f64 / (n - p) as f64 * loss)
-        .filter(|v| v.is_finite());
-    let aic = s
-        .sse_equation
-        .map(|e| e / nf)
-        .filter(|mse| *mse > 0.0)
-        .map(|mse| mse.ln() + 2.0 * p as f64 / nf)
-        .filter(|v| v.is_finite());
+    let fpe = fpe_of(loss, n, p);
+    let aic = aic_of(s.sse_equation.map(|e| e / nf), n, p);
+    // MATLAB's figures: the model's own one-step prediction errors (those of rmse_pred).
+    let loss_fcn = Some(mse).filter(|v| v.is_finite());
     // Said where the numbers are read (text and JSON), so that n/a is not taken for a failure.
     let note = match (s.sse_equation, &s.note) {
         (Some(_), n) => n.clone(),
         (None, n) => Some(
             n.iter()
                 .cloned()
-                .chain([NO_EQUATION_ERROR.to_string()])
+                .chain([format!(
+                    "{NO_EQUATION_ERROR}, or by MATLAB's LossFcn, FPE and AIC (loss_fcn, fpe_matlab, \
+                     aic_matlab: from its own prediction errors)"
+                )])
                 .collect::<Vec<_>>()
                 .join("; "),
         ),
@@ -646,6 +671,9 @@ pub fn metrics_from_sums(s: &MetricSums, name: &str) -> Result<Metrics, SysidErr
         loss_sim: s.sse_sim.map(|e| 0.5 * e / nf).filter(|v| v.is_finite()),
         fpe,
         aic,
+        loss_fcn,
+        fpe_matlab: fpe_of(loss_fcn, n, p),
+        aic_matlab: aic_of(loss_fcn, n, p),
         n,
         p,
         note,

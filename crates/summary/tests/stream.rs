@@ -74,6 +74,10 @@ fn assert_metrics(what: &str, a: &Metrics, b: &Metrics) {
     assert_close_opt(&format!("{what} loss"), a.loss, b.loss);
     assert_close_opt(&format!("{what} fpe"), a.fpe, b.fpe);
     assert_close_opt(&format!("{what} aic"), a.aic, b.aic);
+    // MATLAB's figures, from the model's own prediction errors (audit s32 M-2).
+    assert_close_opt(&format!("{what} loss_fcn"), a.loss_fcn, b.loss_fcn);
+    assert_close_opt(&format!("{what} fpe_matlab"), a.fpe_matlab, b.fpe_matlab);
+    assert_close_opt(&format!("{what} aic_matlab"), a.aic_matlab, b.aic_matlab);
     assert_eq!(a.note.is_some(), b.note.is_some(), "{what} note");
 }
 

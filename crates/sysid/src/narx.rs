@@ -1075,6 +1075,13 @@ pub struct NarxMetrics {
     pub rmse_pred: f64,
     /// Fit % of the one-step prediction.
     pub fit_pred_percent: Option<f64>,
+    /// MATLAB's `LossFcn`/`MSE`: mean e² of the one-step prediction errors (`rmse_pred`², units of y²),
+    /// as the linear models' [`Metrics::loss_fcn`](sysid_core::metrics::Metrics::loss_fcn).
+    pub loss_fcn: Option<f64>,
+    /// MATLAB's `fpe(sys)`: LossFcn (N + p)/(N − p), p the number of terms; `None` when N <= p.
+    pub fpe_matlab: Option<f64>,
+    /// MATLAB's `aic(sys)` (normalised): ln(LossFcn) + 2p/N; `None` when LossFcn = 0.
+    pub aic_matlab: Option<f64>,
     /// The sample at which the simulation blew up, if it did.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub blew_up_at: Option<usize>,
@@ -1109,15 +1116,21 @@ pub fn narx_metrics(model: &NarxModel, data: &Dataset) -> Result<NarxMetrics, Sy
             ),
         }));
     }
+    let n = y.len() - k0;
+    let loss_fcn = Some(rmse_pred * rmse_pred).filter(|v| v.is_finite());
+    let p = model.terms().len();
     Ok(NarxMetrics {
         data: data.name().to_string(),
-        n: y.len() - k0,
+        n,
         rmse_sim,
         rmse_sim_measured: rmse_sim,
         fit_sim_percent: fit_sim,
         fit_sim_measured_percent: fit_sim,
         rmse_pred,
         fit_pred_percent: sysid_core::metrics::fit_percent(&y[k0..], &pred[k0..]),
+        loss_fcn,
+        fpe_matlab: sysid_core::metrics::fpe_of(loss_fcn, n, p),
+        aic_matlab: sysid_core::metrics::aic_of(loss_fcn, n, p),
         blew_up_at: sim.blew_up_at,
     })
 }

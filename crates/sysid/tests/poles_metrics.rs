@@ -68,6 +68,11 @@ fn loss_fpe_aic_and_fit_on_a_hand_checked_record() {
     assert!((v.loss.unwrap() - 1.0 / 3.0).abs() < 1e-12);
     assert!((v.fpe.unwrap() - 2.0 / 3.0).abs() < 1e-12);
     assert!((v.aic.unwrap() - ((2.0f64 / 3.0).ln() + 2.0 / 3.0)).abs() < 1e-12);
+    // MATLAB's from the model's own (here the ARX) prediction errors: LossFcn = mean ε² = 2/3 = 2V,
+    // FPE = (4/2)(2/3), nAIC = the same AIC.
+    assert!((v.loss_fcn.unwrap() - 2.0 / 3.0).abs() < 1e-12);
+    assert!((v.fpe_matlab.unwrap() - 4.0 / 3.0).abs() < 1e-12);
+    assert!((v.aic_matlab.unwrap() - ((2.0f64 / 3.0).ln() + 2.0 / 3.0)).abs() < 1e-12);
     assert!(v.fit_pred_percent.unwrap().abs() < 1e-12);
     assert!((v.rmse_pred - (2.0f64 / 3.0).sqrt()).abs() < 1e-12);
     // With na = 0 simulation and prediction coincide.

@@ -227,15 +227,20 @@ fn render(r: &NarxReport, s: &NarxSettings) -> String {
             if f.converged { "" } else { " (not converged)" }
         );
     }
+    let na = |v: Option<f64>| v.map_or("n/a".to_string(), report::format::num);
     let mut line = |name: &str, x: &sysid::narx::NarxMetrics| {
         let _ = writeln!(
             t,
-            "{name} ({}, {} rows): simulation RMSE {}, fit {} (initial outputs measured); one-step RMSE {}",
+            "{name} ({}, {} rows): simulation RMSE {}, fit {} (initial outputs measured); one-step RMSE {}; \
+             MATLAB's LossFcn {}, FPE {}, nAIC {} (one-step prediction errors)",
             x.data,
             x.n,
             opt(x.rmse_sim, ""),
             opt(x.fit_sim_percent, " %"),
-            report::format::num(x.rmse_pred)
+            report::format::num(x.rmse_pred),
+            na(x.loss_fcn),
+            na(x.fpe_matlab),
+            na(x.aic_matlab)
         );
     };
     line("Estimation", &r.metrics.estimation);

@@ -474,7 +474,9 @@ impl std::fmt::Display for CalibrationWarning {
                 "the simulation error is at the encoder's quantisation floor ({ratio:.2} times what rounding \
                  to the encoder's resolution alone gives): the residuals are then that rounding, which \
                  follows the motion and is not independent noise, so the standard deviations (±) are lower \
-                 bounds, possibly several times too small; judge the twin by its validation fit"
+                 bounds, often ten or more times too small (4 to 42 times on plants of known truth: \
+                 docs/twin.md): do not read them as confidence intervals; judge the twin by its \
+                 validation fit"
             ),
             CalibrationWarning::PoorFit { rmse_mm, resolution_mm } => write!(
                 f,

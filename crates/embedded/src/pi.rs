@@ -58,10 +58,56 @@ pub struct Pi<F: Float> {
     u_max: F,
     anti_windup: AntiWindup<F>,
     integral: F,
+    /// The plausible r and y ([`with_range`](Self::with_range); none by default).
+    range: Range<F>,
+}
+
+/// A plausibility range [y_min, y_max] (mm) for a controller's set-point r and measured position y
+/// (audit s31 M-6): the one check of [`Pi::with_range`] and
+/// [`PositionController::with_range`](crate::PositionController::with_range). Unbounded (±∞) when none
+/// was set, which lets every finite sample through.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Range<F> {
     /// y_min: the smallest plausible r or y, mm (−∞: no range).
-    y_min: F,
+    lo: F,
     /// y_max: the largest plausible r or y, mm (+∞: no range).
-    y_max: F,
+    hi: F,
+}
+
+impl<F: Float> Range<F> {
+    /// No range: every finite sample is plausible.
+    pub(crate) fn none() -> Self {
+        Range {
+            lo: -F::INFINITY,
+            hi: F::INFINITY,
+        }
+    }
+
+    /// [y_min, y_max]; not finite, or y_min ≥ y_max, gives [`Error::Setting`].
+    pub(crate) fn new(y_min_mm: F, y_max_mm: F) -> Result<Self, Error> {
+        if !(y_min_mm.is_finite() && y_max_mm.is_finite() && y_min_mm < y_max_mm) {
+            return Err(Error::Setting);
+        }
+        Ok(Range {
+            lo: y_min_mm,
+            hi: y_max_mm,
+        })
+    }
+
+    /// The range set, `None` when none was.
+    pub(crate) fn get(&self) -> Option<(F, F)> {
+        self.lo.is_finite().then_some((self.lo, self.hi))
+    }
+
+    /// [`Error::OutOfRange`] when r or y lies outside (bounds included as plausible).
+    pub(crate) fn check(&self, r_mm: F, y_mm: F) -> Result<(), Error> {
+        let plausible = |v: F| self.lo <= v && v <= self.hi;
+        if plausible(r_mm) && plausible(y_mm) {
+            Ok(())
+        } else {
+            Err(Error::OutOfRange)
+        }
+    }
 }
 
 impl<F: Float> Pi<F> {
@@ -99,8 +145,7 @@ impl<F: Float> Pi<F> {
             u_max,
             anti_windup,
             integral: F::ZERO,
-            y_min: -F::INFINITY,
-            y_max: F::INFINITY,
+            range: Range::none(),
         })
     }
 
@@ -120,12 +165,8 @@ impl<F: Float> Pi<F> {
     /// assert!(pi.step(50.0, 49.9).unwrap() > 0.0);
     /// ```
     pub fn with_range(self, y_min_mm: F, y_max_mm: F) -> Result<Self, Error> {
-        if !(y_min_mm.is_finite() && y_max_mm.is_finite() && y_min_mm < y_max_mm) {
-            return Err(Error::Setting);
-        }
         Ok(Pi {
-            y_min: y_min_mm,
-            y_max: y_max_mm,
+            range: Range::new(y_min_mm, y_max_mm)?,
             ..self
         })
     }
@@ -133,11 +174,7 @@ impl<F: Float> Pi<F> {
     /// The plausibility range [y_min, y_max] in mm, `None` when none was set
     /// ([`with_range`](Self::with_range)).
     pub fn range(&self) -> Option<(F, F)> {
-        if self.y_min.is_finite() {
-            Some((self.y_min, self.y_max))
-        } else {
-            None
-        }
+        self.range.get()
     }
 
     /// One sample: set-point r(k) and measured position y(k) in mm → saturated command u(k) in counts.
@@ -151,10 +188,7 @@ impl<F: Float> Pi<F> {
         if !(r_mm.is_finite() && y_mm.is_finite()) {
             return Err(Error::NotFinite);
         }
-        let plausible = |v: F| self.y_min <= v && v <= self.y_max;
-        if !(plausible(r_mm) && plausible(y_mm)) {
-            return Err(Error::OutOfRange);
-        }
+        self.range.check(r_mm, y_mm)?;
         let before = self.integral;
         let u = self.law(r_mm, y_mm);
         if !(u.is_finite() && self.integral.is_finite()) {

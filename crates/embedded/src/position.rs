@@ -358,10 +358,8 @@ pub struct PositionController<F: Float> {
     slip_brake: Option<(bool, u32)>,
     /// g(left), g(right): the held nudge's learnt cut fraction over γ ([`NudgeSettings::cut_learn`]).
     cut_gain: [F; 2],
-    /// y_min: the smallest plausible r or y, mm (−∞: no range; [`PositionController::with_range`]).
-    y_min: F,
-    /// y_max: the largest plausible r or y, mm (+∞: no range).
-    y_max: F,
+    /// The plausible r and y ([`PositionController::with_range`]; none by default).
+    range: crate::pi::Range<F>,
 }
 
 /// The direction's sign: +1 towards larger y (`right`, the valve side of u > 0), −1 the other way;
@@ -514,8 +512,7 @@ impl<F: Float> PositionController<F> {
             switched: None,
             slip_brake: None,
             cut_gain: [F::ONE, F::ONE],
-            y_min: -F::INFINITY,
-            y_max: F::INFINITY,
+            range: crate::pi::Range::none(),
         })
     }
 
@@ -534,12 +531,8 @@ impl<F: Float> PositionController<F> {
     /// y_min or y_max not finite, or y_min ≥ y_max, gives [`Error::Setting`]. The learnt values
     /// and the state are kept.
     pub fn with_range(self, y_min_mm: F, y_max_mm: F) -> Result<Self, Error> {
-        if !(y_min_mm.is_finite() && y_max_mm.is_finite() && y_min_mm < y_max_mm) {
-            return Err(Error::Setting);
-        }
         Ok(PositionController {
-            y_min: y_min_mm,
-            y_max: y_max_mm,
+            range: crate::pi::Range::new(y_min_mm, y_max_mm)?,
             ..self
         })
     }
@@ -547,11 +540,7 @@ impl<F: Float> PositionController<F> {
     /// The plausibility range [y_min, y_max] in mm, `None` when none was set
     /// ([`with_range`](Self::with_range)).
     pub fn range(&self) -> Option<(F, F)> {
-        if self.y_min.is_finite() {
-            Some((self.y_min, self.y_max))
-        } else {
-            None
-        }
+        self.range.get()
     }
 
     /// One sample: set-point r and position y (mm) → command u (counts). Non-finite inputs give
@@ -565,10 +554,7 @@ impl<F: Float> PositionController<F> {
         if !(r.is_finite() && y.is_finite()) {
             return Err(Error::NotFinite);
         }
-        let plausible = |v: F| self.y_min <= v && v <= self.y_max;
-        if !(plausible(r) && plausible(y)) {
-            return Err(Error::OutOfRange);
-        }
+        self.range.check(r, y)?;
         if !(within_reach(&self.s, r) && within_reach(&self.s, y)) {
             return Err(Error::Numerical);
         }

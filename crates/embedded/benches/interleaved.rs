@@ -22,21 +22,30 @@
 //! median over windows is over placements and runs agree with each other; the slowest quarter shows the
 //! worst placements. On a microcontroller (no such aliasing) the placement does not matter.
 //!
+//! Hammerstein groups (since issue 28's twenty-sixth round): the recursive Hammerstein estimator
+//! ([`HammersteinRls`], regressor and deadzone from θ̂ included, eq. 12 and UD form) on `rls.rs`'s
+//! Hammerstein record, with the paper's orders na = 3, nb = 1, nk = 1 (n = 3 + na + nb = 7 parameters:
+//! b₁ = 1 is the key term, not estimated) and with nb = 2 (n = 8), beside the peer's plain RLS at n = 8
+//! (`RecursiveArx` with na = nb = 4 on the ARX record). The peer has no Hammerstein estimator: its linear
+//! RLS with as many parameters is the closest comparison it allows (it builds no switching regressor and
+//! no deadzone, so ours does more per sample than the RLS update alone).
+//!
 //! Run: `cargo bench -p ipa-embedded --bench interleaved -- [--seconds S] [--window W] [--verbose]
 //! [FILTER]` (S seconds per group, default 20; W default 0.5; FILTER a substring of the group names
-//! f32-n9, f64-n9, f32-n4, f64-n4). Best run `nice -n -5`.
+//! f32-n9, f64-n9, f32-n4, f64-n4, f32-hammerstein, f64-hammerstein). Best run `nice -n -5`.
 
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // benches may panic
 
 use std::hint::black_box;
 use std::time::Instant;
 
+use ipa_embedded::hammerstein::{HammersteinRls, HammersteinSettings};
 use ipa_embedded::{Float, Form, Rls};
 use oxictl::core::scalar::ControlScalar;
 use oxictl::sysid::arx::RecursiveArx;
 
 mod common;
-use common::{arx_record, new_rls, regressor, LAMBDA, P0, SAMPLES};
+use common::{arx_record, hammerstein_record, new_rls, regressor, LAMBDA, P0, SAMPLES};
 
 /// Updates per timed chunk: ≈ 10 µs at n = 9, short enough that most chunks run uninterrupted.
 const CHUNK: usize = 200;
@@ -145,6 +154,117 @@ fn chunk_peer<F, const NA: usize, const NB: usize, const P: usize, const UBN: us
     }
 }
 
+/// `CHUNK` samples of the Hammerstein estimator from sample `t0` (regressor, deadzone from θ̂ and RLS
+/// update); returns the sum of ε (kept from the optimiser).
+#[inline(never)]
+fn chunk_hammerstein<F: Float, const N: usize, const D: usize>(
+    est: &mut HammersteinRls<F, N, D>,
+    u: &[F],
+    y: &[F],
+    t0: usize,
+) -> F {
+    let mut sum = F::ZERO;
+    for t in t0..t0 + CHUNK {
+        sum += est
+            .update(black_box(u[t]), y[t])
+            .unwrap()
+            .unwrap_or(F::ZERO);
+    }
+    sum
+}
+
+/// One estimator of a group: its state at a chosen offset modulo 4096 and its record.
+trait Timed {
+    /// Moves the state to `offset` (module documentation, "Placement").
+    fn move_to(&mut self, offset: usize);
+    /// `CHUNK` updates from sample `t0`.
+    fn chunk(&mut self, t0: usize);
+}
+
+/// Our `Rls` on the ARX record.
+struct OursArx<'a, F: Float, const NA: usize, const NB: usize, const P: usize> {
+    est: Placed<Rls<F, P>>,
+    u: &'a [F],
+    y: &'a [F],
+}
+
+impl<F: Float, const NA: usize, const NB: usize, const P: usize> Timed
+    for OursArx<'_, F, NA, NB, P>
+{
+    fn move_to(&mut self, offset: usize) {
+        self.est.move_to(offset);
+    }
+    fn chunk(&mut self, t0: usize) {
+        black_box(chunk_ours::<F, NA, NB, P>(
+            self.est.get(),
+            self.u,
+            self.y,
+            t0,
+        ));
+    }
+}
+
+/// The peer on the ARX record.
+struct Peer<'a, F, const NA: usize, const NB: usize, const P: usize, const UBN: usize>
+where
+    F: Float + ControlScalar,
+{
+    est: Placed<RecursiveArx<F, NA, NB, P, 1, UBN>>,
+    u: &'a [F],
+    y: &'a [F],
+}
+
+impl<F, const NA: usize, const NB: usize, const P: usize, const UBN: usize> Timed
+    for Peer<'_, F, NA, NB, P, UBN>
+where
+    F: Float + ControlScalar,
+{
+    fn move_to(&mut self, offset: usize) {
+        self.est.move_to(offset);
+    }
+    fn chunk(&mut self, t0: usize) {
+        chunk_peer(self.est.get(), self.u, self.y, t0);
+    }
+}
+
+impl<'a, F, const NA: usize, const NB: usize, const P: usize, const UBN: usize>
+    Peer<'a, F, NA, NB, P, UBN>
+where
+    F: Float + ControlScalar,
+{
+    fn new(u: &'a [F], y: &'a [F]) -> Self {
+        Peer {
+            est: Placed::new(RecursiveArx::<F, NA, NB, P, 1, UBN>::new(
+                <F as Float>::from_f64(LAMBDA),
+                <F as Float>::from_f64(P0),
+            )),
+            u,
+            y,
+        }
+    }
+}
+
+/// Our Hammerstein estimator on the Hammerstein record.
+struct OursHammerstein<'a, F: Float, const N: usize, const D: usize> {
+    est: Placed<HammersteinRls<F, N, D>>,
+    u: &'a [F],
+    y: &'a [F],
+}
+
+impl<F: Float, const N: usize, const D: usize> Timed for OursHammerstein<'_, F, N, D> {
+    fn move_to(&mut self, offset: usize) {
+        self.est.move_to(offset);
+    }
+    fn chunk(&mut self, t0: usize) {
+        black_box(chunk_hammerstein::<F, N, D>(
+            self.est.get(),
+            self.u,
+            self.y,
+            t0,
+        ));
+    }
+}
+
 /// The median of `v` (sorted in place; `v` not empty).
 fn median(v: &mut [f64]) -> f64 {
     v.sort_by(f64::total_cmp);
@@ -158,6 +278,7 @@ struct Settings {
     filter: String,
 }
 
+/// The ARX groups: our `Rls` in every variant of `OURS` beside the peer, at n = P.
 fn case<F, const NA: usize, const NB: usize, const P: usize, const UBN: usize>(
     name: &str,
     u64_: &[f64],
@@ -179,7 +300,7 @@ fn case<F, const NA: usize, const NB: usize, const P: usize, const UBN: usize>(
             .unwrap();
     }
     let active = 0.5 * Float::to_f64(settle.trace());
-    let mut ours: Vec<Placed<Rls<F, P>>> = OURS
+    let ours: Vec<Box<dyn Timed + '_>> = OURS
         .iter()
         .map(|(_, form, guard)| {
             let bound = match guard {
@@ -187,18 +308,104 @@ fn case<F, const NA: usize, const NB: usize, const P: usize, const UBN: usize>(
                 Guard::Idle => Some(P0 * P as f64),
                 Guard::Active => Some(active),
             };
-            Placed::new(new_rls::<F, P>(*form, bound))
+            Box::new(OursArx::<F, NA, NB, P> {
+                est: Placed::new(new_rls::<F, P>(*form, bound)),
+                u: &u,
+                y: &y,
+            }) as Box<dyn Timed + '_>
         })
         .collect();
-    let mut peer = Placed::new(RecursiveArx::<F, NA, NB, P, 1, UBN>::new(
-        <F as Float>::from_f64(LAMBDA),
-        <F as Float>::from_f64(P0),
-    ));
-    // All estimators go through the record chunk by chunk, the same stretch in each round; the first
-    // chunk starts after the first 1000 samples (P(0) = 1000 I settles).
-    let start = NA.max(NB) + 1000;
+    let labels: Vec<String> = OURS
+        .iter()
+        .map(|(l, _, _)| format!("ipa-embedded/{l}"))
+        .collect();
+    let peer = Peer::<F, NA, NB, P, UBN>::new(&u, &y);
+    // The first chunk starts after the first 1000 samples (P(0) = 1000 I settles).
+    interleave(name, &labels, ours, Box::new(peer), NA.max(NB) + 1000, s);
+}
+
+/// The Hammerstein groups (module documentation): N = 7 (the paper's orders) and N = 8 (nb = 2), eq. 12
+/// and UD, beside the peer at n = 8 on the ARX record.
+fn hammerstein_case<F>(name: &str, arx: (&[f64], &[f64]), ham: (&[f64], &[f64]), s: &Settings)
+where
+    F: Float + ControlScalar,
+{
+    if !name.contains(s.filter.as_str()) {
+        return;
+    }
+    let to_f = |v: &[f64]| -> Vec<F> { v.iter().map(|x| <F as Float>::from_f64(*x)).collect() };
+    let (ua, ya) = (to_f(arx.0), to_f(arx.1));
+    let (uh, yh) = (to_f(ham.0), to_f(ham.1));
+    let settings = |nb: usize, form: Form| {
+        let mut h = HammersteinSettings::<F>::paper().from_record(&uh);
+        h.nb = nb;
+        h.forgetting = <F as Float>::from_f64(LAMBDA);
+        h.p0 = <F as Float>::from_f64(P0);
+        h.form = form;
+        h
+    };
+    // Every sample must be a real update: a failed one leaves the state as it was and would time a
+    // shorter path.
+    fn failures<F: Float, const N: usize, const D: usize>(
+        h: HammersteinSettings<F>,
+        u: &[F],
+        y: &[F],
+    ) -> usize {
+        let mut est = HammersteinRls::<F, N, D>::new(h).unwrap();
+        u.iter()
+            .zip(y)
+            .filter(|(uk, yk)| est.update(**uk, **yk).is_err())
+            .count()
+    }
+    let mut labels = Vec::new();
+    let mut ours: Vec<Box<dyn Timed + '_>> = Vec::new();
+    for (label, form) in [("standard", Form::Standard), ("ud", Form::Ud)] {
+        let h7 = settings(1, form);
+        assert_eq!(failures::<F, 7, 3>(h7, &uh, &yh), 0, "{name} n7 {label}");
+        labels.push(format!("ipa-embedded/n7-{label}"));
+        ours.push(Box::new(OursHammerstein::<F, 7, 3> {
+            est: Placed::new(HammersteinRls::new(h7).unwrap()),
+            u: &uh,
+            y: &yh,
+        }));
+    }
+    for (label, form) in [("standard", Form::Standard), ("ud", Form::Ud)] {
+        // nb = 2 on a record made with nb = 1 (b₂ = 0): in f32, eq. 12 fails on most samples
+        // (`Error::Numerical`: P loses its positive definiteness), so that case is left out.
+        let h8 = settings(2, form);
+        let failed = failures::<F, 8, 3>(h8, &uh, &yh);
+        if failed > 0 {
+            eprintln!("{name}: n8-{label} left out: {failed} of {SAMPLES} updates failed");
+            continue;
+        }
+        labels.push(format!("ipa-embedded/n8-{label}"));
+        ours.push(Box::new(OursHammerstein::<F, 8, 3> {
+            est: Placed::new(HammersteinRls::new(h8).unwrap()),
+            u: &uh,
+            y: &yh,
+        }));
+    }
+    // The peer at n = 7 and 9 too (on the ARX record), beside its n = 8 reference.
+    labels.push("oxictl/n7".into());
+    ours.push(Box::new(Peer::<F, 3, 4, 7, 5>::new(&ua, &ya)));
+    labels.push("oxictl/n9".into());
+    ours.push(Box::new(Peer::<F, 4, 5, 9, 6>::new(&ua, &ya)));
+    let peer = Peer::<F, 4, 4, 8, 5>::new(&ua, &ya);
+    interleave(name, &labels, ours, Box::new(peer), 1000, s);
+}
+
+/// Times `ours` and `peer` in turns of `CHUNK` updates over the same stretch of their records (from
+/// sample `start` on), window by window, and prints the group's summary lines.
+fn interleave(
+    name: &str,
+    labels: &[String],
+    mut ours: Vec<Box<dyn Timed + '_>>,
+    mut peer: Box<dyn Timed + '_>,
+    start: usize,
+    s: &Settings,
+) {
     let chunks_in_record = (SAMPLES - start) / CHUNK;
-    let k = OURS.len();
+    let k = ours.len();
     // Per window: the median ns per update of each of ours and of the peer.
     let mut windows: Vec<(Vec<f64>, f64)> = Vec::new();
     let mut best = vec![f64::INFINITY; k + 1];
@@ -218,11 +425,11 @@ fn case<F, const NA: usize, const NB: usize, const P: usize, const UBN: usize>(
             c += 1;
             for (i, est) in ours.iter_mut().enumerate() {
                 let clock = Instant::now();
-                black_box(chunk_ours::<F, NA, NB, P>(est.get(), &u, &y, t0));
+                est.chunk(t0);
                 times[i].push(clock.elapsed().as_nanos() as f64 / CHUNK as f64);
             }
             let clock = Instant::now();
-            chunk_peer(peer.get(), &u, &y, t0);
+            peer.chunk(t0);
             times[k].push(clock.elapsed().as_nanos() as f64 / CHUNK as f64);
         }
         for (b, t) in best.iter_mut().zip(&times) {
@@ -231,11 +438,16 @@ fn case<F, const NA: usize, const NB: usize, const P: usize, const UBN: usize>(
         let med: Vec<f64> = times.iter_mut().map(|t| median(t)).collect();
         if s.verbose {
             let cols: Vec<String> = med.iter().map(|m| format!("{m:.1}")).collect();
+            let ratios: Vec<String> = med[..k]
+                .iter()
+                .map(|m| format!("{:.2}", m / med[k]))
+                .collect();
             println!(
-                "{name} {:6.1} s, states at {offset:4} mod 4096: median ns (plain, guard, guard-active, ud, ud-guard, ud-guard-active, oxictl) {}; ud / oxictl {:.2}",
+                "{name} {:6.1} s, states at {offset:4} mod 4096: median ns ({}, oxictl) {}; / oxictl {}",
                 begin.elapsed().as_secs_f64(),
+                labels.join(", "),
                 cols.join(" "),
-                med[3] / med[k]
+                ratios.join(" ")
             );
         }
         let peer_med = med[k];
@@ -260,7 +472,7 @@ fn case<F, const NA: usize, const NB: usize, const P: usize, const UBN: usize>(
         median(&mut peer_fast),
         median(&mut peer_slow)
     );
-    for (i, (label, _, _)) in OURS.iter().enumerate() {
+    for (i, label) in labels.iter().enumerate() {
         let (all_m, all_r) = quarter(&windows, i);
         let (fast_m, fast_r) = quarter(fast, i);
         let (slow_m, slow_r) = quarter(slow, i);
@@ -268,7 +480,7 @@ fn case<F, const NA: usize, const NB: usize, const P: usize, const UBN: usize>(
         let lo = ratios.clone().fold(f64::INFINITY, f64::min);
         let hi = ratios.fold(0.0, f64::max);
         println!(
-            "| {name} | ipa-embedded/{label} | {:.1} | {all_m:.1} | {fast_m:.1} | {slow_m:.1} | {all_r:.2} ({lo:.2}–{hi:.2}) | {fast_r:.2} | {slow_r:.2} |",
+            "| {name} | {label} | {:.1} | {all_m:.1} | {fast_m:.1} | {slow_m:.1} | {all_r:.2} ({lo:.2}–{hi:.2}) | {fast_r:.2} | {slow_r:.2} |",
             best[i]
         );
     }
@@ -313,4 +525,7 @@ fn main() {
     case::<f64, 4, 5, 9, 6>("f64-n9", &u, &y, &s);
     case::<f32, 2, 2, 4, 3>("f32-n4", &u, &y, &s);
     case::<f64, 2, 2, 4, 3>("f64-n4", &u, &y, &s);
+    let (uh, yh) = hammerstein_record();
+    hammerstein_case::<f32>("f32-hammerstein", (&u, &y), (&uh, &yh), &s);
+    hammerstein_case::<f64>("f64-hammerstein", (&u, &y), (&uh, &yh), &s);
 }

@@ -31,8 +31,10 @@
 //! no deadzone, so ours does more per sample than the RLS update alone).
 //!
 //! Run: `cargo bench -p ipa-embedded --bench interleaved -- [--seconds S] [--window W] [--verbose]
-//! [FILTER]` (S seconds per group, default 20; W default 0.5; FILTER a substring of the group names
-//! f32-n9, f64-n9, f32-n4, f64-n4, f32-hammerstein, f64-hammerstein). Best run `nice -n -5`.
+//! [--line-offset B] [FILTER]` (S seconds per group, default 20; W default 0.5; FILTER a substring of the group names
+//! f32-n9, f64-n9, f32-n4, f64-n4, f32-hammerstein, f64-hammerstein; B bytes added to every
+//! state's offset, a multiple of 8 below 64, default 0: where in a cache line the states start). Best run
+//! `nice -n -5`.
 
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // benches may panic
 
@@ -104,12 +106,13 @@ impl<T> Placed<T> {
     }
 
     fn get(&mut self) -> &mut T {
-        // SAFETY: a T was written at `offset` (aligned: a multiple of 64) and not moved since.
+        // SAFETY: a T was written at `offset` (aligned: `move_to` checks it) and not moved since.
         unsafe { &mut *self.buf.0.as_mut_ptr().add(self.offset).cast::<T>() }
     }
 
-    /// Moves the value to `offset` (a multiple of 64 below 4096).
+    /// Moves the value to `offset` (below 4096, a multiple of T's alignment).
     fn move_to(&mut self, offset: usize) {
+        assert!(offset < 4096 && offset % std::mem::align_of::<T>() == 0);
         let base = self.buf.0.as_mut_ptr();
         // SAFETY: both places are aligned and inside the buffer; `copy` allows overlap.
         unsafe {
@@ -276,6 +279,9 @@ struct Settings {
     window: f64,
     verbose: bool,
     filter: String,
+    /// Bytes added to every window's offset (a multiple of 8 below 64): where in a 64-byte cache line
+    /// the states start (the states' alignment is 8; 0 puts them at the start of a line).
+    line_offset: usize,
 }
 
 /// The ARX groups: our `Rls` in every variant of `OURS` beside the peer, at n = P.
@@ -413,7 +419,7 @@ fn interleave(
     let mut c = 0usize;
     while begin.elapsed().as_secs_f64() < s.seconds {
         // Every state, ours and the peer's, moves to the window's offset modulo 4096 (module documentation).
-        let offset = placement(windows.len());
+        let offset = placement(windows.len()) + s.line_offset;
         for est in ours.iter_mut() {
             est.move_to(offset);
         }
@@ -492,6 +498,7 @@ fn main() {
         window: 0.5,
         verbose: false,
         filter: String::new(),
+        line_offset: 0,
     };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -510,6 +517,13 @@ fn main() {
                     .expect("--window W")
             }
             "--verbose" => s.verbose = true,
+            "--line-offset" => {
+                s.line_offset = args
+                    .next()
+                    .and_then(|v| v.parse().ok())
+                    .filter(|b| b % 8 == 0 && *b < 64)
+                    .expect("--line-offset B (a multiple of 8 below 64)")
+            }
             other if other.starts_with("--") => panic!("unknown option {other}"),
             other => s.filter = other.to_owned(),
         }

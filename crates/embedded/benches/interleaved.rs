@@ -12,7 +12,13 @@
 //! the two are level. Here every window of `--window` seconds gives each estimator's median chunk and
 //! the ratio of ours to the peer's in that window; the summary gives the median over windows and the
 //! ratio in the fastest and the slowest quarter of the windows (sorted by the peer's median), so that a
-//! slow stretch shows as such instead of moving the ratio.
+//! slow stretch shows as such instead of moving the ratio. The last column (since issue 28's twenty-sixth
+//! round) is the median ratio over the windows in the core's fast state, those whose peer median is
+//! within 10 % of the peer's best chunk, with their count in the peer's row: on session 32's Intel
+//! guest the core switched between at least three discrete speeds for seconds at a time (the peer's
+//! window median ≈ 61–64, 75–99 and 121–133 ns at f32 n = 9), each with its own ratios (UD / peer
+//! 0.98–1.00, 1.13–1.21 and 1.01–1.04), so a run's fastest quarter is the fast state only if the run
+//! had enough windows in it (the peer's best chunk was 58–60 ns in those runs).
 //!
 //! Placement: on x86 a load whose address equals an earlier, still pending store's in its low 12 bits
 //! waits for it ("4K aliasing"); on that Intel guest a UD f32 n = 9 state at some offsets modulo 4096
@@ -471,22 +477,38 @@ fn interleave(
     let (fast, slow) = (&windows[..q], &windows[windows.len() - q..]);
     let mut peer_fast: Vec<f64> = fast.iter().map(|w| w.1).collect();
     let mut peer_slow: Vec<f64> = slow.iter().map(|w| w.1).collect();
+    // The core's fast state (issue 28, twenty-sixth round): the windows whose peer median is within 10 %
+    // of the peer's best chunk. The host switches between discrete speeds for seconds at a time, each
+    // with its own ratios; a run with no window in the fast state says so by its count (its ratio is
+    // then NaN).
+    let fast_state: Vec<(Vec<f64>, f64)> = windows
+        .iter()
+        .filter(|w| w.1 <= 1.1 * best[k])
+        .cloned()
+        .collect();
     println!(
-        "| {name} | oxictl | {:.1} | {:.1} | {:.1} | {:.1} | 1.00 | 1.00 | 1.00 |",
+        "| {name} | oxictl | {:.1} | {:.1} | {:.1} | {:.1} | 1.00 | 1.00 | 1.00 | 1.00 ({} of {} windows) |",
         best[k],
         median(&mut peer_all),
         median(&mut peer_fast),
-        median(&mut peer_slow)
+        median(&mut peer_slow),
+        fast_state.len(),
+        windows.len()
     );
     for (i, label) in labels.iter().enumerate() {
         let (all_m, all_r) = quarter(&windows, i);
         let (fast_m, fast_r) = quarter(fast, i);
         let (slow_m, slow_r) = quarter(slow, i);
+        let state_r = if fast_state.is_empty() {
+            f64::NAN
+        } else {
+            quarter(&fast_state, i).1
+        };
         let ratios = windows.iter().map(|x| x.0[i] / x.1);
         let lo = ratios.clone().fold(f64::INFINITY, f64::min);
         let hi = ratios.fold(0.0, f64::max);
         println!(
-            "| {name} | {label} | {:.1} | {all_m:.1} | {fast_m:.1} | {slow_m:.1} | {all_r:.2} ({lo:.2}–{hi:.2}) | {fast_r:.2} | {slow_r:.2} |",
+            "| {name} | {label} | {:.1} | {all_m:.1} | {fast_m:.1} | {slow_m:.1} | {all_r:.2} ({lo:.2}–{hi:.2}) | {fast_r:.2} | {slow_r:.2} | {state_r:.2} |",
             best[i]
         );
     }
@@ -533,8 +555,8 @@ fn main() {
         "windows of {} s, {} s per group, chunks of {CHUNK} updates taking turns; ns per update",
         s.window, s.seconds
     );
-    println!("| group | estimator | best chunk | median (windows) | median, fastest ¼ | median, slowest ¼ | / oxictl, median (range) | / oxictl, fastest ¼ | / oxictl, slowest ¼ |");
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!("| group | estimator | best chunk | median (windows) | median, fastest ¼ | median, slowest ¼ | / oxictl, median (range) | / oxictl, fastest ¼ | / oxictl, slowest ¼ | / oxictl, fast state |");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
     case::<f32, 4, 5, 9, 6>("f32-n9", &u, &y, &s);
     case::<f64, 4, 5, 9, 6>("f64-n9", &u, &y, &s);
     case::<f32, 2, 2, 4, 3>("f32-n4", &u, &y, &s);

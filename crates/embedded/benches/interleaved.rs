@@ -34,7 +34,9 @@
 //! b₁ = 1 is the key term, not estimated) and with nb = 2 (n = 8), beside the peer's plain RLS at n = 8
 //! (`RecursiveArx` with na = nb = 4 on the ARX record). The peer has no Hammerstein estimator: its linear
 //! RLS with as many parameters is the closest comparison it allows (it builds no switching regressor and
-//! no deadzone, so ours does more per sample than the RLS update alone).
+//! no deadzone, so ours does more per sample than the RLS update alone). The peer at n = 7 and n = 9
+//! runs in the same turns as extra rows (their ratios also to the peer at n = 8). A case whose updates
+//! fail on the record is left out, with a line saying so (f32 eq. 12 with nb = 2: the record has b₂ = 0).
 //!
 //! Run: `cargo bench -p ipa-embedded --bench interleaved -- [--seconds S] [--window W] [--verbose]
 //! [--line-offset B] [FILTER]` (S seconds per group, default 20; W default 0.5; FILTER a substring of the group names

@@ -12,7 +12,13 @@
 //! the two are level. Here every window of `--window` seconds gives each estimator's median chunk and
 //! the ratio of ours to the peer's in that window; the summary gives the median over windows and the
 //! ratio in the fastest and the slowest quarter of the windows (sorted by the peer's median), so that a
-//! slow stretch shows as such instead of moving the ratio.
+//! slow stretch shows as such instead of moving the ratio. The last column (since issue 28's twenty-sixth
+//! round) is the median ratio over the windows in the core's fast state, those whose peer median is
+//! within 10 % of the peer's best chunk, with their count in the peer's row: on session 32's Intel
+//! guest the core switched between at least three discrete speeds for seconds at a time (the peer's
+//! window median ≈ 61–64, 75–99 and 121–133 ns at f32 n = 9), each with its own ratios (UD / peer
+//! 0.98–1.00, 1.13–1.21 and 1.01–1.04), so a run's fastest quarter is the fast state only if the run
+//! had enough windows in it (the peer's best chunk was 58–60 ns in those runs).
 //!
 //! Placement: on x86 a load whose address equals an earlier, still pending store's in its low 12 bits
 //! waits for it ("4K aliasing"); on that Intel guest a UD f32 n = 9 state at some offsets modulo 4096
@@ -22,21 +28,34 @@
 //! median over windows is over placements and runs agree with each other; the slowest quarter shows the
 //! worst placements. On a microcontroller (no such aliasing) the placement does not matter.
 //!
+//! Hammerstein groups (since issue 28's twenty-sixth round): the recursive Hammerstein estimator
+//! ([`HammersteinRls`], regressor and deadzone from θ̂ included, eq. 12 and UD form) on `rls.rs`'s
+//! Hammerstein record, with the paper's orders na = 3, nb = 1, nk = 1 (n = 3 + na + nb = 7 parameters:
+//! b₁ = 1 is the key term, not estimated) and with nb = 2 (n = 8), beside the peer's plain RLS at n = 8
+//! (`RecursiveArx` with na = nb = 4 on the ARX record). The peer has no Hammerstein estimator: its linear
+//! RLS with as many parameters is the closest comparison it allows (it builds no switching regressor and
+//! no deadzone, so ours does more per sample than the RLS update alone). The peer at n = 7 and n = 9
+//! runs in the same turns as extra rows (their ratios also to the peer at n = 8). A case whose updates
+//! fail on the record is left out, with a line saying so (f32 eq. 12 with nb = 2: the record has b₂ = 0).
+//!
 //! Run: `cargo bench -p ipa-embedded --bench interleaved -- [--seconds S] [--window W] [--verbose]
-//! [FILTER]` (S seconds per group, default 20; W default 0.5; FILTER a substring of the group names
-//! f32-n9, f64-n9, f32-n4, f64-n4). Best run `nice -n -5`.
+//! [--line-offset B] [FILTER]` (S seconds per group, default 20; W default 0.5; FILTER a substring of the group names
+//! f32-n9, f64-n9, f32-n4, f64-n4, f32-hammerstein, f64-hammerstein; B bytes added to every
+//! state's offset, a multiple of 8 below 64, default 0: where in a cache line the states start). Best run
+//! `nice -n -5`.
 
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // benches may panic
 
 use std::hint::black_box;
 use std::time::Instant;
 
+use ipa_embedded::hammerstein::{HammersteinRls, HammersteinSettings};
 use ipa_embedded::{Float, Form, Rls};
 use oxictl::core::scalar::ControlScalar;
 use oxictl::sysid::arx::RecursiveArx;
 
 mod common;
-use common::{arx_record, new_rls, regressor, LAMBDA, P0, SAMPLES};
+use common::{arx_record, hammerstein_record, new_rls, regressor, LAMBDA, P0, SAMPLES};
 
 /// Updates per timed chunk: ≈ 10 µs at n = 9, short enough that most chunks run uninterrupted.
 const CHUNK: usize = 200;
@@ -95,12 +114,13 @@ impl<T> Placed<T> {
     }
 
     fn get(&mut self) -> &mut T {
-        // SAFETY: a T was written at `offset` (aligned: a multiple of 64) and not moved since.
+        // SAFETY: a T was written at `offset` (aligned: `move_to` checks it) and not moved since.
         unsafe { &mut *self.buf.0.as_mut_ptr().add(self.offset).cast::<T>() }
     }
 
-    /// Moves the value to `offset` (a multiple of 64 below 4096).
+    /// Moves the value to `offset` (below 4096, a multiple of T's alignment).
     fn move_to(&mut self, offset: usize) {
+        assert!(offset < 4096 && offset % std::mem::align_of::<T>() == 0);
         let base = self.buf.0.as_mut_ptr();
         // SAFETY: both places are aligned and inside the buffer; `copy` allows overlap.
         unsafe {
@@ -145,6 +165,117 @@ fn chunk_peer<F, const NA: usize, const NB: usize, const P: usize, const UBN: us
     }
 }
 
+/// `CHUNK` samples of the Hammerstein estimator from sample `t0` (regressor, deadzone from θ̂ and RLS
+/// update); returns the sum of ε (kept from the optimiser).
+#[inline(never)]
+fn chunk_hammerstein<F: Float, const N: usize, const D: usize>(
+    est: &mut HammersteinRls<F, N, D>,
+    u: &[F],
+    y: &[F],
+    t0: usize,
+) -> F {
+    let mut sum = F::ZERO;
+    for t in t0..t0 + CHUNK {
+        sum += est
+            .update(black_box(u[t]), y[t])
+            .unwrap()
+            .unwrap_or(F::ZERO);
+    }
+    sum
+}
+
+/// One estimator of a group: its state at a chosen offset modulo 4096 and its record.
+trait Timed {
+    /// Moves the state to `offset` (module documentation, "Placement").
+    fn move_to(&mut self, offset: usize);
+    /// `CHUNK` updates from sample `t0`.
+    fn chunk(&mut self, t0: usize);
+}
+
+/// Our `Rls` on the ARX record.
+struct OursArx<'a, F: Float, const NA: usize, const NB: usize, const P: usize> {
+    est: Placed<Rls<F, P>>,
+    u: &'a [F],
+    y: &'a [F],
+}
+
+impl<F: Float, const NA: usize, const NB: usize, const P: usize> Timed
+    for OursArx<'_, F, NA, NB, P>
+{
+    fn move_to(&mut self, offset: usize) {
+        self.est.move_to(offset);
+    }
+    fn chunk(&mut self, t0: usize) {
+        black_box(chunk_ours::<F, NA, NB, P>(
+            self.est.get(),
+            self.u,
+            self.y,
+            t0,
+        ));
+    }
+}
+
+/// The peer on the ARX record.
+struct Peer<'a, F, const NA: usize, const NB: usize, const P: usize, const UBN: usize>
+where
+    F: Float + ControlScalar,
+{
+    est: Placed<RecursiveArx<F, NA, NB, P, 1, UBN>>,
+    u: &'a [F],
+    y: &'a [F],
+}
+
+impl<F, const NA: usize, const NB: usize, const P: usize, const UBN: usize> Timed
+    for Peer<'_, F, NA, NB, P, UBN>
+where
+    F: Float + ControlScalar,
+{
+    fn move_to(&mut self, offset: usize) {
+        self.est.move_to(offset);
+    }
+    fn chunk(&mut self, t0: usize) {
+        chunk_peer(self.est.get(), self.u, self.y, t0);
+    }
+}
+
+impl<'a, F, const NA: usize, const NB: usize, const P: usize, const UBN: usize>
+    Peer<'a, F, NA, NB, P, UBN>
+where
+    F: Float + ControlScalar,
+{
+    fn new(u: &'a [F], y: &'a [F]) -> Self {
+        Peer {
+            est: Placed::new(RecursiveArx::<F, NA, NB, P, 1, UBN>::new(
+                <F as Float>::from_f64(LAMBDA),
+                <F as Float>::from_f64(P0),
+            )),
+            u,
+            y,
+        }
+    }
+}
+
+/// Our Hammerstein estimator on the Hammerstein record.
+struct OursHammerstein<'a, F: Float, const N: usize, const D: usize> {
+    est: Placed<HammersteinRls<F, N, D>>,
+    u: &'a [F],
+    y: &'a [F],
+}
+
+impl<F: Float, const N: usize, const D: usize> Timed for OursHammerstein<'_, F, N, D> {
+    fn move_to(&mut self, offset: usize) {
+        self.est.move_to(offset);
+    }
+    fn chunk(&mut self, t0: usize) {
+        black_box(chunk_hammerstein::<F, N, D>(
+            self.est.get(),
+            self.u,
+            self.y,
+            t0,
+        ));
+    }
+}
+
 /// The median of `v` (sorted in place; `v` not empty).
 fn median(v: &mut [f64]) -> f64 {
     v.sort_by(f64::total_cmp);
@@ -156,8 +287,12 @@ struct Settings {
     window: f64,
     verbose: bool,
     filter: String,
+    /// Bytes added to every window's offset (a multiple of 8 below 64): where in a 64-byte cache line
+    /// the states start (the states' alignment is 8; 0 puts them at the start of a line).
+    line_offset: usize,
 }
 
+/// The ARX groups: our `Rls` in every variant of `OURS` beside the peer, at n = P.
 fn case<F, const NA: usize, const NB: usize, const P: usize, const UBN: usize>(
     name: &str,
     u64_: &[f64],
@@ -179,7 +314,7 @@ fn case<F, const NA: usize, const NB: usize, const P: usize, const UBN: usize>(
             .unwrap();
     }
     let active = 0.5 * Float::to_f64(settle.trace());
-    let mut ours: Vec<Placed<Rls<F, P>>> = OURS
+    let ours: Vec<Box<dyn Timed + '_>> = OURS
         .iter()
         .map(|(_, form, guard)| {
             let bound = match guard {
@@ -187,18 +322,104 @@ fn case<F, const NA: usize, const NB: usize, const P: usize, const UBN: usize>(
                 Guard::Idle => Some(P0 * P as f64),
                 Guard::Active => Some(active),
             };
-            Placed::new(new_rls::<F, P>(*form, bound))
+            Box::new(OursArx::<F, NA, NB, P> {
+                est: Placed::new(new_rls::<F, P>(*form, bound)),
+                u: &u,
+                y: &y,
+            }) as Box<dyn Timed + '_>
         })
         .collect();
-    let mut peer = Placed::new(RecursiveArx::<F, NA, NB, P, 1, UBN>::new(
-        <F as Float>::from_f64(LAMBDA),
-        <F as Float>::from_f64(P0),
-    ));
-    // All estimators go through the record chunk by chunk, the same stretch in each round; the first
-    // chunk starts after the first 1000 samples (P(0) = 1000 I settles).
-    let start = NA.max(NB) + 1000;
+    let labels: Vec<String> = OURS
+        .iter()
+        .map(|(l, _, _)| format!("ipa-embedded/{l}"))
+        .collect();
+    let peer = Peer::<F, NA, NB, P, UBN>::new(&u, &y);
+    // The first chunk starts after the first 1000 samples (P(0) = 1000 I settles).
+    interleave(name, &labels, ours, Box::new(peer), NA.max(NB) + 1000, s);
+}
+
+/// The Hammerstein groups (module documentation): N = 7 (the paper's orders) and N = 8 (nb = 2), eq. 12
+/// and UD, beside the peer at n = 8 on the ARX record.
+fn hammerstein_case<F>(name: &str, arx: (&[f64], &[f64]), ham: (&[f64], &[f64]), s: &Settings)
+where
+    F: Float + ControlScalar,
+{
+    if !name.contains(s.filter.as_str()) {
+        return;
+    }
+    let to_f = |v: &[f64]| -> Vec<F> { v.iter().map(|x| <F as Float>::from_f64(*x)).collect() };
+    let (ua, ya) = (to_f(arx.0), to_f(arx.1));
+    let (uh, yh) = (to_f(ham.0), to_f(ham.1));
+    let settings = |nb: usize, form: Form| {
+        let mut h = HammersteinSettings::<F>::paper().from_record(&uh);
+        h.nb = nb;
+        h.forgetting = <F as Float>::from_f64(LAMBDA);
+        h.p0 = <F as Float>::from_f64(P0);
+        h.form = form;
+        h
+    };
+    // Every sample must be a real update: a failed one leaves the state as it was and would time a
+    // shorter path.
+    fn failures<F: Float, const N: usize, const D: usize>(
+        h: HammersteinSettings<F>,
+        u: &[F],
+        y: &[F],
+    ) -> usize {
+        let mut est = HammersteinRls::<F, N, D>::new(h).unwrap();
+        u.iter()
+            .zip(y)
+            .filter(|(uk, yk)| est.update(**uk, **yk).is_err())
+            .count()
+    }
+    let mut labels = Vec::new();
+    let mut ours: Vec<Box<dyn Timed + '_>> = Vec::new();
+    for (label, form) in [("standard", Form::Standard), ("ud", Form::Ud)] {
+        let h7 = settings(1, form);
+        assert_eq!(failures::<F, 7, 3>(h7, &uh, &yh), 0, "{name} n7 {label}");
+        labels.push(format!("ipa-embedded/n7-{label}"));
+        ours.push(Box::new(OursHammerstein::<F, 7, 3> {
+            est: Placed::new(HammersteinRls::new(h7).unwrap()),
+            u: &uh,
+            y: &yh,
+        }));
+    }
+    for (label, form) in [("standard", Form::Standard), ("ud", Form::Ud)] {
+        // nb = 2 on a record made with nb = 1 (b₂ = 0): in f32, eq. 12 fails on most samples
+        // (`Error::Numerical`: P loses its positive definiteness), so that case is left out.
+        let h8 = settings(2, form);
+        let failed = failures::<F, 8, 3>(h8, &uh, &yh);
+        if failed > 0 {
+            eprintln!("{name}: n8-{label} left out: {failed} of {SAMPLES} updates failed");
+            continue;
+        }
+        labels.push(format!("ipa-embedded/n8-{label}"));
+        ours.push(Box::new(OursHammerstein::<F, 8, 3> {
+            est: Placed::new(HammersteinRls::new(h8).unwrap()),
+            u: &uh,
+            y: &yh,
+        }));
+    }
+    // The peer at n = 7 and 9 too (on the ARX record), beside its n = 8 reference.
+    labels.push("oxictl/n7".into());
+    ours.push(Box::new(Peer::<F, 3, 4, 7, 5>::new(&ua, &ya)));
+    labels.push("oxictl/n9".into());
+    ours.push(Box::new(Peer::<F, 4, 5, 9, 6>::new(&ua, &ya)));
+    let peer = Peer::<F, 4, 4, 8, 5>::new(&ua, &ya);
+    interleave(name, &labels, ours, Box::new(peer), 1000, s);
+}
+
+/// Times `ours` and `peer` in turns of `CHUNK` updates over the same stretch of their records (from
+/// sample `start` on), window by window, and prints the group's summary lines.
+fn interleave(
+    name: &str,
+    labels: &[String],
+    mut ours: Vec<Box<dyn Timed + '_>>,
+    mut peer: Box<dyn Timed + '_>,
+    start: usize,
+    s: &Settings,
+) {
     let chunks_in_record = (SAMPLES - start) / CHUNK;
-    let k = OURS.len();
+    let k = ours.len();
     // Per window: the median ns per update of each of ours and of the peer.
     let mut windows: Vec<(Vec<f64>, f64)> = Vec::new();
     let mut best = vec![f64::INFINITY; k + 1];
@@ -206,7 +427,7 @@ fn case<F, const NA: usize, const NB: usize, const P: usize, const UBN: usize>(
     let mut c = 0usize;
     while begin.elapsed().as_secs_f64() < s.seconds {
         // Every state, ours and the peer's, moves to the window's offset modulo 4096 (module documentation).
-        let offset = placement(windows.len());
+        let offset = placement(windows.len()) + s.line_offset;
         for est in ours.iter_mut() {
             est.move_to(offset);
         }
@@ -218,11 +439,11 @@ fn case<F, const NA: usize, const NB: usize, const P: usize, const UBN: usize>(
             c += 1;
             for (i, est) in ours.iter_mut().enumerate() {
                 let clock = Instant::now();
-                black_box(chunk_ours::<F, NA, NB, P>(est.get(), &u, &y, t0));
+                est.chunk(t0);
                 times[i].push(clock.elapsed().as_nanos() as f64 / CHUNK as f64);
             }
             let clock = Instant::now();
-            chunk_peer(peer.get(), &u, &y, t0);
+            peer.chunk(t0);
             times[k].push(clock.elapsed().as_nanos() as f64 / CHUNK as f64);
         }
         for (b, t) in best.iter_mut().zip(&times) {
@@ -231,11 +452,16 @@ fn case<F, const NA: usize, const NB: usize, const P: usize, const UBN: usize>(
         let med: Vec<f64> = times.iter_mut().map(|t| median(t)).collect();
         if s.verbose {
             let cols: Vec<String> = med.iter().map(|m| format!("{m:.1}")).collect();
+            let ratios: Vec<String> = med[..k]
+                .iter()
+                .map(|m| format!("{:.2}", m / med[k]))
+                .collect();
             println!(
-                "{name} {:6.1} s, states at {offset:4} mod 4096: median ns (plain, guard, guard-active, ud, ud-guard, ud-guard-active, oxictl) {}; ud / oxictl {:.2}",
+                "{name} {:6.1} s, states at {offset:4} mod 4096: median ns ({}, oxictl) {}; / oxictl {}",
                 begin.elapsed().as_secs_f64(),
+                labels.join(", "),
                 cols.join(" "),
-                med[3] / med[k]
+                ratios.join(" ")
             );
         }
         let peer_med = med[k];
@@ -253,22 +479,38 @@ fn case<F, const NA: usize, const NB: usize, const P: usize, const UBN: usize>(
     let (fast, slow) = (&windows[..q], &windows[windows.len() - q..]);
     let mut peer_fast: Vec<f64> = fast.iter().map(|w| w.1).collect();
     let mut peer_slow: Vec<f64> = slow.iter().map(|w| w.1).collect();
+    // The core's fast state (issue 28, twenty-sixth round): the windows whose peer median is within 10 %
+    // of the peer's best chunk. The host switches between discrete speeds for seconds at a time, each
+    // with its own ratios; a run with no window in the fast state says so by its count (its ratio is
+    // then NaN).
+    let fast_state: Vec<(Vec<f64>, f64)> = windows
+        .iter()
+        .filter(|w| w.1 <= 1.1 * best[k])
+        .cloned()
+        .collect();
     println!(
-        "| {name} | oxictl | {:.1} | {:.1} | {:.1} | {:.1} | 1.00 | 1.00 | 1.00 |",
+        "| {name} | oxictl | {:.1} | {:.1} | {:.1} | {:.1} | 1.00 | 1.00 | 1.00 | 1.00 ({} of {} windows) |",
         best[k],
         median(&mut peer_all),
         median(&mut peer_fast),
-        median(&mut peer_slow)
+        median(&mut peer_slow),
+        fast_state.len(),
+        windows.len()
     );
-    for (i, (label, _, _)) in OURS.iter().enumerate() {
+    for (i, label) in labels.iter().enumerate() {
         let (all_m, all_r) = quarter(&windows, i);
         let (fast_m, fast_r) = quarter(fast, i);
         let (slow_m, slow_r) = quarter(slow, i);
+        let state_r = if fast_state.is_empty() {
+            f64::NAN
+        } else {
+            quarter(&fast_state, i).1
+        };
         let ratios = windows.iter().map(|x| x.0[i] / x.1);
         let lo = ratios.clone().fold(f64::INFINITY, f64::min);
         let hi = ratios.fold(0.0, f64::max);
         println!(
-            "| {name} | ipa-embedded/{label} | {:.1} | {all_m:.1} | {fast_m:.1} | {slow_m:.1} | {all_r:.2} ({lo:.2}–{hi:.2}) | {fast_r:.2} | {slow_r:.2} |",
+            "| {name} | {label} | {:.1} | {all_m:.1} | {fast_m:.1} | {slow_m:.1} | {all_r:.2} ({lo:.2}–{hi:.2}) | {fast_r:.2} | {slow_r:.2} | {state_r:.2} |",
             best[i]
         );
     }
@@ -280,6 +522,7 @@ fn main() {
         window: 0.5,
         verbose: false,
         filter: String::new(),
+        line_offset: 0,
     };
     let mut args = std::env::args().skip(1);
     while let Some(a) = args.next() {
@@ -298,6 +541,13 @@ fn main() {
                     .expect("--window W")
             }
             "--verbose" => s.verbose = true,
+            "--line-offset" => {
+                s.line_offset = args
+                    .next()
+                    .and_then(|v| v.parse().ok())
+                    .filter(|b| b % 8 == 0 && *b < 64)
+                    .expect("--line-offset B (a multiple of 8 below 64)")
+            }
             other if other.starts_with("--") => panic!("unknown option {other}"),
             other => s.filter = other.to_owned(),
         }
@@ -307,10 +557,13 @@ fn main() {
         "windows of {} s, {} s per group, chunks of {CHUNK} updates taking turns; ns per update",
         s.window, s.seconds
     );
-    println!("| group | estimator | best chunk | median (windows) | median, fastest ¼ | median, slowest ¼ | / oxictl, median (range) | / oxictl, fastest ¼ | / oxictl, slowest ¼ |");
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!("| group | estimator | best chunk | median (windows) | median, fastest ¼ | median, slowest ¼ | / oxictl, median (range) | / oxictl, fastest ¼ | / oxictl, slowest ¼ | / oxictl, fast state |");
+    println!("|---|---|---|---|---|---|---|---|---|---|");
     case::<f32, 4, 5, 9, 6>("f32-n9", &u, &y, &s);
     case::<f64, 4, 5, 9, 6>("f64-n9", &u, &y, &s);
     case::<f32, 2, 2, 4, 3>("f32-n4", &u, &y, &s);
     case::<f64, 2, 2, 4, 3>("f64-n4", &u, &y, &s);
+    let (uh, yh) = hammerstein_record();
+    hammerstein_case::<f32>("f32-hammerstein", (&u, &y), (&uh, &yh), &s);
+    hammerstein_case::<f64>("f64-hammerstein", (&u, &y), (&uh, &yh), &s);
 }

@@ -29,43 +29,11 @@ use std::hint::black_box;
 use criterion::measurement::WallTime;
 use criterion::{criterion_group, criterion_main, BenchmarkGroup, BenchmarkId, Criterion};
 use ipa_embedded::hammerstein::{HammersteinRls, HammersteinSettings};
-use ipa_embedded::{Deadzone, Float, Form};
+use ipa_embedded::{Float, Form};
 use oxictl::sysid::arx::RecursiveArx;
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
-use rand_distr::{Distribution, StandardNormal};
 
 mod common;
-use common::{arx_record, new_rls, regressor, LAMBDA, P0, SAMPLES};
-
-/// (u in counts, y in mm) of a Hammerstein plant: deadzone b_l = −25, b_r = 20 counts, ARX(3, 1, 1)
-/// with poles at 0.9, 0.8, 0.5, staircase input held 10 samples, output noise 0.01 mm.
-fn hammerstein_record() -> (Vec<f64>, Vec<f64>) {
-    let mut rng = ChaCha8Rng::seed_from_u64(29);
-    let dz = Deadzone {
-        b_l: -25.0,
-        b_r: 20.0,
-        m_l: 0.05,
-        m_r: 0.04,
-    };
-    // (1 − 0.9 q⁻¹)(1 − 0.8 q⁻¹)(1 − 0.5 q⁻¹) = 1 − 2.2 q⁻¹ + 1.57 q⁻² − 0.36 q⁻³.
-    let (a1, a2, a3) = (-2.2, 1.57, -0.36);
-    let mut u = vec![0.0; SAMPLES];
-    let mut y = vec![0.0; SAMPLES];
-    let mut level = 0.0;
-    for t in 0..SAMPLES {
-        if t % 10 == 0 {
-            let g: f64 = StandardNormal.sample(&mut rng);
-            level = (g * 120.0).round().clamp(-255.0, 255.0);
-        }
-        u[t] = level;
-        if t >= 3 {
-            let e: f64 = StandardNormal.sample(&mut rng);
-            y[t] = -a1 * y[t - 1] - a2 * y[t - 2] - a3 * y[t - 3] + dz.apply(u[t - 1]) + 0.01 * e;
-        }
-    }
-    (u, y)
-}
+use common::{arx_record, hammerstein_record, new_rls, regressor, LAMBDA, P0, SAMPLES};
 
 /// Our estimator's variants: (label, form, trace bound).
 fn variants(n: usize, active_trace: f64) -> [(&'static str, Form, Option<f64>); 6] {

@@ -88,8 +88,8 @@ def test_control_with_a_controller_that_missed_its_spec_warns(tmp_path):
     assert c["warnings"] == cli and got == cli
 
 
-# L-2: calibrate() has every key of `calibrate --no-baseline --json` (seconds aside, a wall time) with
-# the same values.
+# L-2: calibrate() has every key of `calibrate --no-baseline --json` (seconds aside, a wall time, and the
+# report mark "format") with the same values.
 def test_calibrate_has_the_keys_of_the_command_line(tmp_path):
     rec = tmp_path / "ipa3.csv"
     assert run("simulate", "--plant", "ipa", "--seed", 3, "--samples", 500, "--out", rec).returncode == 0
@@ -98,6 +98,8 @@ def test_calibrate_has_the_keys_of_the_command_line(tmp_path):
             "--out", tmp_path / "cal.toml")
     assert r.returncode == 0, r.stderr
     doc = json.loads(js.read_text())
+    # "format" is the file's mark as a report (audit s32 H-1), not part of the result.
+    assert doc.pop("format") == "ipa-sysid-report"
     py, _ = recorded(ipa_sysid.calibrate, str(rec), max_iterations=5)
     assert set(doc) <= set(py), set(doc) - set(py)
     for k in ("ts", "used_pressures", "cost_floor", "segment_rmse_mm", "hammerstein", "cost", "segments"):

@@ -399,8 +399,13 @@ pub fn identify<R: Records + ?Sized>(
     }
     settings.check_memory(records.records())?;
     let problem = settings.problem(records.records())?;
-    if let Some(e) = constant_input(records.records()) {
-        return Err(e);
+    // The records' range: the constant-input check here, the model's data range at the end.
+    let range = crate::DataRange::of(records.records());
+    if let (Some(r), Some(first)) = (&range, records.records().first()) {
+        let names: Vec<&str> = first.inputs().iter().map(|i| i.name()).collect();
+        if let Some(e) = constant_input(r, &names, first.name()) {
+            return Err(e);
+        }
     }
     // A numerical failure names the record it happened on (once).
     let named = |e: SysidError| {
@@ -432,42 +437,36 @@ pub fn identify<R: Records + ?Sized>(
     // The data the model was estimated on (a caller that detrended first puts back its own range).
     let fit = safeguard(&problem, settings, fit)
         .map_err(named)?
-        .with_data_range(crate::DataRange::of(records.records()))?;
+        .with_data_range(range)?;
     // A stop requested while a step swallowed a failure (a restarted search, a fallback) still
     // leaves no result.
     settings.cancel.check()?;
     Ok(fit)
 }
 
-/// The refusal of an input that holds one value over every sample of `records` (audit s32 M-1: with
-/// nb = 1 and no offset its regressor is a column of one value, which least squares fits — b then only
-/// absorbs the output's level, and the "gain" it implies was printed with exit 0; with an offset or
-/// nb ≥ 2 the rank test refused it, as docs/reliability.md promises for every structure). `None` when
-/// every input changes somewhere.
-pub fn constant_input(records: &[Dataset]) -> Option<SysidError> {
-    let first = records.first()?;
-    first.inputs().iter().enumerate().find_map(|(i, input)| {
-        let mut values = records
-            .iter()
-            .filter_map(|r| r.inputs().get(i))
-            .flat_map(|c| c.u().iter().copied());
-        let v0 = values.next()?;
-        values
-            .all(|v| v == v0)
-            .then(|| constant_input_error(input.name(), v0, first.name()))
+/// The refusal of an input that holds one value over every sample of the records whose range is
+/// `range` (inputs named `names`, the first record `record`): audit s32 M-1: with nb = 1 and no offset
+/// its regressor is a column of one value, which least squares fits — b then only absorbs the output's
+/// level, and the "gain" it implies was printed with exit 0; with an offset or nb ≥ 2 the rank test
+/// refused it, as docs/reliability.md promises for every structure. The one check of the in-memory
+/// identification and of the streamed one (whose pass widens the same [`crate::DataRange`]). `None`
+/// when every input changes somewhere.
+pub fn constant_input(
+    range: &crate::DataRange,
+    names: &[&str],
+    record: &str,
+) -> Option<SysidError> {
+    range.u.iter().zip(names).find_map(|(&[lo, hi], name)| {
+        (lo == hi).then(|| {
+            SysidError::Data(format!(
+                "{record}: the input {name} is {} at every sample: a constant input is not \
+                 persistently exciting — it cannot show its effect on the output, and its b \
+                 coefficients would only absorb the output's level (for a level, --offset); record \
+                 the plant's response to an input that changes",
+                sysid_core::format::Shortest(lo)
+            ))
+        })
     })
-}
-
-/// [`constant_input`]'s error for input `name` holding `value` in record `record` (also of a record
-/// read in passes, whose input extremes are equal: `crate::stream`).
-pub fn constant_input_error(name: &str, value: f64, record: &str) -> SysidError {
-    SysidError::Data(format!(
-        "{record}: the input {name} is {} at every sample: a constant input is not persistently \
-         exciting — it cannot show its effect on the output, and its b coefficients would only absorb \
-         the output's level (for a level, --offset); record the plant's response to an input that \
-         changes",
-        sysid_core::format::Shortest(value)
-    ))
 }
 
 /// `--breakpoints auto`: the identification with K = 1..=[`MAX_AUTO_BREAKPOINTS`] breakpoints in every

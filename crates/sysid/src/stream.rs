@@ -341,12 +341,10 @@ pub fn identify_arx(
             s.orders.nk
         )));
     }
-    // The in-memory refusal of an input that never changes (`crate::estimate::constant_input`).
-    if let Some(&[lo, hi]) = range.u.first() {
-        if lo == hi {
-            let input = sysid_core::data::SINGLE_INPUT;
-            return Err(crate::estimate::constant_input_error(input, lo, &name));
-        }
+    // The in-memory refusal of an input that never changes, on the range this pass widened.
+    let input = [sysid_core::data::SINGLE_INPUT];
+    if let Some(e) = crate::estimate::constant_input(&range, &input, &name) {
+        return Err(e);
     }
     let key = Parameterisation::new(s, Layout::KeyTerm);
     let sol = qr.solve(&key.name_strings()).map_err(|e| match e {

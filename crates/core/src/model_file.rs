@@ -88,7 +88,7 @@ pub fn read_model(path: &Path) -> Result<Model, SysidError> {
 /// the file ([`provenance_warnings`]).
 pub fn load_warnings(model: &Model) -> Vec<String> {
     let mut w = shape_warnings(model);
-    w.extend(provenance_warnings(model));
+    w.extend(provenance_warnings(model.provenance()));
     w
 }
 
@@ -97,9 +97,10 @@ pub fn load_warnings(model: &Model) -> Vec<String> {
 /// ([`visible`]) — the words `tune --plant-config` uses for
 /// a twin's calibration warnings (audit s20 M-3): "this model's identification on rec.csv (free-run fit
 /// −38.27 % on it) warned: …". Empty for a file without an `identification` record or whose
-/// identification gave none.
-pub fn provenance_warnings(model: &Model) -> Vec<String> {
-    let Some(p) = model.provenance() else {
+/// identification gave none. A linear model's ([`Model::provenance`]) and a NARX model's
+/// ([`NarxModel::provenance`]) alike.
+pub fn provenance_warnings(provenance: Option<&crate::model::Provenance>) -> Vec<String> {
+    let Some(p) = provenance else {
         return Vec::new();
     };
     let fit = p

@@ -269,6 +269,10 @@ pub struct NarxModel {
     /// The range of the estimation data (u and y), when recorded: outside it the polynomial
     /// extrapolates, and a simulation from a y0 or an input beyond it may diverge (audit s17 M-d).
     data_range: Option<crate::DataRange>,
+    /// The identification that wrote the model file (its record, columns, estimation fit and
+    /// warnings), as a linear model's ([`crate::model::Provenance`]): `validate` compares its fit with
+    /// the estimation fit and repeats the warnings (audit s33 M-1).
+    provenance: Option<Box<crate::model::Provenance>>,
 }
 
 /// The serialised form: `kind: "narx"`, Ts, the lags, the degree and the terms with their coefficients.
@@ -284,6 +288,9 @@ struct NarxRepr {
     terms: Vec<TermRepr>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     data_range: Option<crate::DataRange>,
+    /// The identification that wrote the file; absent in files written before session 33.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    identification: Option<crate::model::Provenance>,
 }
 
 #[derive(Debug, Clone, Copy, Serialize, Deserialize)]
@@ -318,7 +325,8 @@ impl TryFrom<NarxRepr> for NarxModel {
             theta.push(t.coefficient);
         }
         NarxModel::new(r.ts, r.na, r.nb, r.nk, r.degree, terms, theta)?
-            .with_data_range(r.data_range)
+            .with_data_range(r.data_range)?
+            .with_provenance(r.identification)
     }
 }
 
@@ -332,6 +340,7 @@ impl From<NarxModel> for NarxRepr {
             nk: m.nk,
             degree: m.degree,
             data_range: m.data_range,
+            identification: m.provenance.map(|p| *p),
             terms: m
                 .terms
                 .iter()
@@ -420,7 +429,27 @@ impl NarxModel {
             terms,
             theta,
             data_range: None,
+            provenance: None,
         })
+    }
+
+    /// The same model with the identification's record `provenance` (or without one); fails on one
+    /// whose sizes a model file may not hold ([`crate::model::Provenance::check_sizes`]).
+    pub fn with_provenance(
+        mut self,
+        provenance: Option<crate::model::Provenance>,
+    ) -> Result<Self, SysidError> {
+        if let Some(p) = &provenance {
+            p.check_sizes()
+                .map_err(|m| SysidError::Data(format!("invalid model: {m}")))?;
+        }
+        self.provenance = provenance.map(Box::new);
+        Ok(self)
+    }
+
+    /// The identification that wrote the model file, if recorded.
+    pub fn provenance(&self) -> Option<&crate::model::Provenance> {
+        self.provenance.as_deref()
     }
 
     /// The same model with the estimation data's range recorded (`None` clears it); fails on a range

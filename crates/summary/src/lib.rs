@@ -1012,12 +1012,12 @@ pub fn record_rows(name: &str) -> (&str, Option<std::ops::Range<usize>>) {
 /// test record uVal/yVal beside the estimation record uEst/yEst was called in-sample). A copy of the
 /// estimation record under another name is found by its samples ([`same_samples_warning`]), not here.
 pub fn estimation_rows_warning(
-    model: &Model,
+    provenance: Option<&sysid_core::model::Provenance>,
     name: &str,
     len: usize,
     columns: Option<(&[String], &str)>,
 ) -> Option<String> {
-    let p = model.provenance()?;
+    let p = provenance?;
     if let (Some((u, y)), Some(est_y)) = (columns, p.y_column.as_deref()) {
         if !p.u_columns.is_empty() && (p.u_columns.as_slice() != u || est_y != y) {
             return None;

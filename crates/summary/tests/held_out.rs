@@ -49,32 +49,32 @@ fn a_cut_of_a_cut_names_rows_of_the_file() {
 #[test]
 fn validating_on_the_estimation_rows_is_called_in_sample() {
     let m = model_from("d/f.csv[0..148]", Some(92.0));
-    let w = estimation_rows_warning(&m, "d/f.csv[0..148]", 148, None).unwrap();
+    let w = estimation_rows_warning(m.provenance(), "d/f.csv[0..148]", 148, None).unwrap();
     assert!(
         w.starts_with("this is the data the model was estimated on"),
         "{w}"
     );
-    let w = estimation_rows_warning(&m, "d/f.csv[100..200]", 100, None).unwrap();
+    let w = estimation_rows_warning(m.provenance(), "d/f.csv[100..200]", 100, None).unwrap();
     assert!(
         w.starts_with("48 of the 100 rows of d/f.csv[100..200] (48 %)"),
         "{w}"
     );
-    assert!(estimation_rows_warning(&m, "d/f.csv[148..296]", 148, None).is_none());
-    assert!(estimation_rows_warning(&m, "d/g.csv[0..148]", 148, None).is_none());
+    assert!(estimation_rows_warning(m.provenance(), "d/f.csv[148..296]", 148, None).is_none());
+    assert!(estimation_rows_warning(m.provenance(), "d/g.csv[0..148]", 148, None).is_none());
     // The whole file (296 rows) holds the 148 estimation rows: half of it.
-    let w = estimation_rows_warning(&m, "d/f.csv", 296, None).unwrap();
+    let w = estimation_rows_warning(m.provenance(), "d/f.csv", 296, None).unwrap();
     assert!(
         w.starts_with("148 of the 296 rows of d/f.csv (50 %)"),
         "{w}"
     );
     let whole = model_from("d/f.csv", None);
-    let w = estimation_rows_warning(&whole, "d/f.csv[600..1000]", 400, None).unwrap();
+    let w = estimation_rows_warning(whole.provenance(), "d/f.csv[600..1000]", 400, None).unwrap();
     assert!(
         w.starts_with("this is the data the model was estimated on"),
         "{w}"
     );
     let plain = Model::arx(1.0, vec![-0.5], vec![1.0], 1, None).unwrap();
-    assert!(estimation_rows_warning(&plain, "d/f.csv", 10, None).is_none());
+    assert!(estimation_rows_warning(plain.provenance(), "d/f.csv", 10, None).is_none());
 }
 
 fn fits(est: f64, meas: f64) -> Metrics {
@@ -140,13 +140,17 @@ fn other_columns_of_the_estimation_file_are_held_out() {
         }));
     let est = ["uEst".to_string()];
     let val = ["uVal".to_string()];
-    assert!(estimation_rows_warning(&m, "d/f.csv", 1024, Some((&val, "yVal"))).is_none());
+    assert!(
+        estimation_rows_warning(m.provenance(), "d/f.csv", 1024, Some((&val, "yVal"))).is_none()
+    );
     // Only the output differs: still another record.
-    assert!(estimation_rows_warning(&m, "d/f.csv", 1024, Some((&est, "yVal"))).is_none());
-    let w = estimation_rows_warning(&m, "d/f.csv", 1024, Some((&est, "yEst"))).unwrap();
+    assert!(
+        estimation_rows_warning(m.provenance(), "d/f.csv", 1024, Some((&est, "yVal"))).is_none()
+    );
+    let w = estimation_rows_warning(m.provenance(), "d/f.csv", 1024, Some((&est, "yEst"))).unwrap();
     assert!(
         w.starts_with("this is the data the model was estimated on"),
         "{w}"
     );
-    assert!(estimation_rows_warning(&m, "d/f.csv", 1024, None).is_some());
+    assert!(estimation_rows_warning(m.provenance(), "d/f.csv", 1024, None).is_some());
 }

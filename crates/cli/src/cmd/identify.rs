@@ -1095,6 +1095,33 @@ pub(super) fn checked_inputs<'a>(
     Ok(inputs)
 }
 
+/// What a model file records of the identification that wrote it ([`sysid::model::Provenance`]): the
+/// estimation `record` (its name with rows), the columns it was read from (by name when it has a
+/// header), the free-run fit `fit` on it and the report's `warnings`. Linear and NARX models alike.
+pub fn provenance(
+    args: &Args,
+    record: &str,
+    fit: Option<f64>,
+    warnings: &[String],
+) -> sysid::model::Provenance {
+    let named = !args.columns.no_header;
+    sysid::model::Provenance {
+        record: record.to_string(),
+        u_columns: if named {
+            args.columns
+                .u_col
+                .split(',')
+                .map(|c| c.trim().to_string())
+                .collect()
+        } else {
+            Vec::new()
+        },
+        y_column: named.then(|| args.columns.y_col.clone()),
+        fit_estimation_percent: fit,
+        warnings: warnings.to_vec(),
+    }
+}
+
 /// Writes `--json` (its text `json`) and `--save-model`, if given, together; with `--strict` and
 /// warnings neither file ([`super::common::write_outputs`]).
 ///
@@ -1112,22 +1139,12 @@ fn write_files(
     let warnings = report.warnings.len();
     let saved = match &args.save_model {
         Some(_) => {
-            let named = !args.columns.no_header;
-            let provenance = sysid::model::Provenance {
-                record: record.to_string(),
-                u_columns: if named {
-                    args.columns
-                        .u_col
-                        .split(',')
-                        .map(|c| c.trim().to_string())
-                        .collect()
-                } else {
-                    Vec::new()
-                },
-                y_column: named.then(|| args.columns.y_col.clone()),
-                fit_estimation_percent: sysid::trust::guarded_fit(&report.metrics.estimation),
-                warnings: report.warnings.clone(),
-            };
+            let provenance = provenance(
+                args,
+                record,
+                sysid::trust::guarded_fit(&report.metrics.estimation),
+                &report.warnings,
+            );
             Some(sysid::model_file::to_json(
                 &model.clone().with_provenance(Some(provenance)),
             )?)

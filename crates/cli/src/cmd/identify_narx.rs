@@ -125,8 +125,21 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
         Some(_) => Some(super::common::report_json(&report, true)? + "\n"),
         None => None,
     };
+    // The model file records its identification, as a linear model's does: validate compares its fit
+    // with the estimation fit and repeats the warnings (audit s33 M-1). The fit is the free run's
+    // (from the measured initial outputs: a NARX model's only simulation).
     let saved = match &args.save_model {
-        Some(_) => Some(sysid::model_file::narx_to_json(&report.model)?),
+        Some(_) => {
+            let provenance = super::identify::provenance(
+                args,
+                records.est.name(),
+                report.metrics.estimation.fit_sim_percent,
+                &report.warnings,
+            );
+            Some(sysid::model_file::narx_to_json(
+                &report.model.clone().with_provenance(Some(provenance))?,
+            )?)
+        }
         None => None,
     };
     let mut outputs: Vec<(&Path, &[u8], &str)> = Vec::new();

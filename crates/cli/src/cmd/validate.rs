@@ -69,11 +69,11 @@ pub struct Args {
 /// `--u-col InputGasRate --y-col CO2` needed them again); a note saying which, `None` when none was
 /// taken. The file's strings are printed through [`visible`].
 fn stored_columns(
-    model: &sysid::Model,
+    provenance: Option<&sysid::model::Provenance>,
     opts: &mut sysid::data::CsvOptions,
     given: &[String],
 ) -> Option<String> {
-    let p = model.provenance()?;
+    let p = provenance?;
     if opts.no_header {
         return None;
     }
@@ -126,7 +126,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let mut opts = args.columns.csv_options(&args.memory);
     opts.fallback_ts = Some(model.ts());
-    if let Some(note) = stored_columns(&model, &mut opts, &args.given) {
+    if let Some(note) = stored_columns(model.provenance(), &mut opts, &args.given) {
         eprintln!("note: {note}");
     }
     // A model with several inputs reads one column per input: --u-col u1,u2 or the model's input names.
@@ -291,6 +291,9 @@ fn run_narx(
     }
     let mut opts = args.columns.csv_options(&args.memory);
     opts.fallback_ts = Some(model.ts());
+    if let Some(note) = stored_columns(model.provenance(), &mut opts, &args.given) {
+        eprintln!("note: {note}");
+    }
     let record = sysid::data::read_record(&args.data, &opts)?;
     let data = record.data;
     // The same budget as a linear model's (its simulation, predictions, residuals and the `--out`
@@ -328,6 +331,31 @@ fn run_narx(
         ["u"],
         &[sysid::DataRange::extremes(data.u())],
     ));
+    // What a linear model's file gives too (audit s33 M-1: a NARX model's held-out fit 39 points below
+    // its estimation fit was validated without a word): the fit far below the one the file records on
+    // its estimation record, the record being that record, and the identification's own warnings.
+    warnings.extend(
+        sysid::trust::held_out_drop(
+            (
+                sysid::warnings::Record::Estimation,
+                model.provenance().and_then(|p| p.fit_estimation_percent),
+            ),
+            (sysid::warnings::Record::Validation, metrics.fit_sim_percent),
+        )
+        .map(|w| w.to_string()),
+    );
+    warnings.extend(in_sample_warning(
+        model.provenance(),
+        data.name(),
+        data.len(),
+        &opts,
+        Some(Samples::InMemory(&data)),
+    ));
+    warnings.extend(
+        sysid::model_file::provenance_warnings(model.provenance())
+            .into_iter()
+            .map(|w| format!("model: {w}")),
+    );
     let fmt = |v: Option<f64>| v.map_or("n/a (the simulation blew up)".into(), report::format::num);
     let pct = |v: Option<f64>| v.map_or("n/a".into(), |v| format!("{} %", report::format::num(v)));
     let mut text = format!(
@@ -604,11 +632,8 @@ fn blame_model(
 }
 
 /// Adds what the model file itself deserves a warning for (a map that breaks its kind's shape, its
-/// identification's warnings) to the report, and a record `name` of `len` rows, read with `opts`, that
-/// holds the model's own estimation rows in the same columns
-/// (`sysid_summary::estimation_rows_warning`) or, read in memory (`data`), the estimation record's
-/// samples under another name ([`estimation_record`]; audit s22 M-R2), by its checksum when it was
-/// streamed (audit s27 M-2).
+/// identification's warnings) to the report, and the record's in-sample warning
+/// ([`in_sample_warning`]).
 fn model_warnings(
     report: &mut ValidationReport,
     model: &sysid::Model,
@@ -617,21 +642,9 @@ fn model_warnings(
     opts: &sysid::data::CsvOptions,
     data: Option<Samples<'_>>,
 ) {
-    let u = opts.input_names();
-    let columns = (!opts.no_header).then_some((u.as_slice(), opts.y_col.as_str()));
-    let in_sample =
-        sysid_summary::estimation_rows_warning(model, name, len, columns).or_else(|| {
-            let est = estimation_record(model, opts)?;
-            match data? {
-                Samples::InMemory(d) => sysid_summary::same_samples_warning("validation", d, &est),
-                // A streamed record: the same samples by the pass's checksum (one input).
-                Samples::Streamed { checksum, len } => (len == est.len()
-                    && est.inputs().len() == 1
-                    && sysid::data::stream::samples_checksum(est.u(), est.y()) == checksum)
-                    .then(|| sysid_summary::same_samples_words("validation", name, est.name())),
-            }
-        });
-    report.warnings.extend(in_sample);
+    report
+        .warnings
+        .extend(in_sample_warning(model.provenance(), name, len, opts, data));
     report.warnings.extend(
         sysid::model_file::load_warnings(model)
             .into_iter()
@@ -639,19 +652,45 @@ fn model_warnings(
     );
 }
 
+/// A record `name` of `len` rows, read with `opts`, that holds the model's own estimation rows in the
+/// same columns (`sysid_summary::estimation_rows_warning`) or, read in memory (`data`), the estimation
+/// record's samples under another name ([`estimation_record`]; audit s22 M-R2), by its checksum when it
+/// was streamed (audit s27 M-2). `provenance`: the model file's identification record (a linear
+/// model's or a NARX model's; audit s33 M-1).
+fn in_sample_warning(
+    provenance: Option<&sysid::model::Provenance>,
+    name: &str,
+    len: usize,
+    opts: &sysid::data::CsvOptions,
+    data: Option<Samples<'_>>,
+) -> Option<String> {
+    let u = opts.input_names();
+    let columns = (!opts.no_header).then_some((u.as_slice(), opts.y_col.as_str()));
+    sysid_summary::estimation_rows_warning(provenance, name, len, columns).or_else(|| {
+        let est = estimation_record(provenance?, opts)?;
+        match data? {
+            Samples::InMemory(d) => sysid_summary::same_samples_warning("validation", d, &est),
+            // A streamed record: the same samples by the pass's checksum (one input).
+            Samples::Streamed { checksum, len } => (len == est.len()
+                && est.inputs().len() == 1
+                && sysid::data::stream::samples_checksum(est.u(), est.y()) == checksum)
+                .then(|| sysid_summary::same_samples_words("validation", name, est.name())),
+        }
+    })
+}
+
 /// The model's estimation record, to find a validated record that holds its samples (all of them, or
 /// a run of `sysid_summary::MIN_SHARED_SAMPLES`), compared as identify compares its validation record
 /// (`sysid_summary::same_samples_warning`; a streamed record: all of them, by checksum): the record the
 /// model file names (`identification.record`,
 /// its rows and columns) is read again with `opts`' other settings. A copy of the estimation file
-/// under another name was validated without a word (audit s22 M-R2). `None` when the model file names
-/// no record, the file is not there (the path is as identify was given it), is one that validate would
+/// under another name was validated without a word (audit s22 M-R2). `None` when the file is not
+/// there (the path is as identify was given it), is one that validate would
 /// stream (`sysid::stream::AUTO_STREAM_BYTES` or more), or cannot be read: then nothing is known.
 fn estimation_record(
-    model: &sysid::Model,
+    p: &sysid::model::Provenance,
     opts: &sysid::data::CsvOptions,
 ) -> Option<sysid::Dataset> {
-    let p = model.provenance()?;
     let (file, rows) = sysid_summary::record_rows(&p.record);
     let path = Path::new(file);
     let small = std::fs::metadata(path)

@@ -169,3 +169,110 @@ fn a_narx_model_file_without_its_identification_still_loads() {
         "{text}"
     );
 }
+
+// H-1: an input that never goes negative leaves the deadzone's left branch undetermined; identify holds
+// it fixed and counts only the estimated parameters in p, FPE and AIC. The model file did not say so,
+// so `validate` counted every parameter: for the same model and record its p, FPE and AIC disagreed with
+// identify's (hair dryer: FPE 8.5965e-4 vs 8.4931e-4). Now the file records `fixed_parameters` and one p
+// holds for the model wherever it is scored: p = the parameters identify lists without `fixed`, FPE =
+// (N + p)/(N − p) V and AIC = ln(2V) + 2p/N by hand from validate's own N and V.
+#[test]
+fn validate_counts_the_parameters_identify_estimated() {
+    let dir = tempfile::tempdir().unwrap();
+    let n = 1200;
+    let mut r = lcg(7);
+    let levels = [0.0, 20.0, 45.0, 70.0, 100.0];
+    let mut u = vec![0.0; n];
+    for k in 0..n {
+        u[k] = if k % 10 == 0 {
+            levels[((r.unit() * 5.0) as usize).min(4)]
+        } else {
+            u[k - 1]
+        };
+    }
+    let mut y = vec![0.0; n];
+    for k in 1..n {
+        y[k] = 0.8 * y[k - 1] + 0.01 * (u[k - 1] - 10.0_f64).max(0.0) + 0.002 * (r.unit() - 0.5);
+    }
+    let data = write_tuy(dir.path(), "onesided.csv", 0.01, &u, &y);
+    let (id_json, model) = (dir.path().join("id.json"), dir.path().join("m.json"));
+    let o = bin()
+        .args([
+            "identify",
+            "--data",
+            s(&data),
+            "--rows",
+            "0..800",
+            "--method",
+            "ls",
+        ])
+        .args(["--na", "1", "--nb", "2", "--structure", "hammerstein"])
+        .args(["--validation", s(&data), "--val-rows", "800.."])
+        .args(["--json", s(&id_json), "--save-model", s(&model)])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let id: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&id_json).unwrap()).unwrap();
+    let params = id["parameters"].as_array().unwrap();
+    let fixed = params
+        .iter()
+        .filter(|q| q["fixed"] == "one-sided input")
+        .count();
+    assert!(fixed > 0, "no branch dropped: {params:?}");
+    let p = params.iter().filter(|q| q["fixed"].is_null()).count();
+    let file: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&model).unwrap()).unwrap();
+    assert_eq!(file["model"]["fixed_parameters"], fixed, "{file}");
+    let val_json = dir.path().join("val.json");
+    let o = bin()
+        .args([
+            "validate",
+            "--model",
+            s(&model),
+            "--data",
+            s(&data),
+            "--rows",
+            "800..",
+        ])
+        .args(["--json", s(&val_json)])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let val: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&val_json).unwrap()).unwrap();
+    let m = &val["metrics"]["validation"];
+    assert_eq!(m["p"].as_u64().unwrap() as usize, p, "{m}");
+    let (nn, v) = (m["n"].as_f64().unwrap(), m["loss"].as_f64().unwrap());
+    let pf = p as f64;
+    let fpe = (nn + pf) / (nn - pf) * v;
+    let aic = (2.0 * v).ln() + 2.0 * pf / nn;
+    assert!(
+        (m["fpe"].as_f64().unwrap() - fpe).abs() <= 1e-12 * fpe,
+        "{m}"
+    );
+    assert!(
+        (m["aic"].as_f64().unwrap() - aic).abs() <= 1e-12 * aic.abs(),
+        "{m}"
+    );
+    // identify's own validation figures are the same numbers.
+    let iv = &id["metrics"]["validation"];
+    for key in ["p", "n", "loss", "fpe", "aic", "fpe_matlab", "aic_matlab"] {
+        assert_eq!(iv[key], m[key], "{key}: identify {iv} validate {m}");
+    }
+    // A hand-edited file claiming more fixed parameters than the structure has is refused.
+    let mut bad = file.clone();
+    bad["model"]["fixed_parameters"] = serde_json::json!(99);
+    let bad_path = dir.path().join("bad.json");
+    std::fs::write(&bad_path, serde_json::to_string(&bad).unwrap()).unwrap();
+    let o = bin()
+        .args(["validate", "--model", s(&bad_path), "--data", s(&data)])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("fixed_parameters = 99"),
+        "{}",
+        stderr(&o)
+    );
+}

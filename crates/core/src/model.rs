@@ -198,6 +198,11 @@ pub struct Model {
     /// Where the model came from ([`Provenance`]: record, column names, identify's warnings); `None`
     /// for a model not saved by `identify` (or saved before it was recorded). Boxed as `data_range`.
     provenance: Option<Box<Provenance>>,
+    /// How many of the structure's parameters the identification held at a value instead of
+    /// estimating them (a deadzone branch a one-sided input never reached); [`Model::parameter_count`]
+    /// excludes them, as MATLAB counts free parameters (audit s33 H-1: validate counted them, so its
+    /// p, FPE and AIC disagreed with identify's for the same model and data).
+    fixed_parameters: usize,
 }
 
 /// What `identify --save-model` records of the identification that wrote a model file (model file
@@ -586,6 +591,7 @@ impl Model {
             output: None,
             data_range: None,
             provenance: None,
+            fixed_parameters: 0,
         })
     }
 
@@ -700,6 +706,7 @@ impl Model {
             output: None,
             data_range: None,
             provenance: None,
+            fixed_parameters: 0,
         }
     }
 
@@ -1346,7 +1353,35 @@ impl Model {
     /// the nonlinearity's parameters + (nb - 1) for a nonlinear input, e.g. 4 + (nb - 1) for a deadzone
     /// (b1 = 1 is fixed by normalisation), and the output nonlinearity's parameters but its unit
     /// gain (normalisation).
+    /// Parameters the identification held fixed ([`Model::with_fixed_parameters`]) are not counted.
     pub fn parameter_count(&self) -> usize {
+        self.structure_parameter_count()
+            .saturating_sub(self.fixed_parameters)
+    }
+
+    /// How many of the structure's parameters the identification held fixed (a deadzone branch a
+    /// one-sided input never reached); 0 for a model whose every parameter was estimated.
+    pub fn fixed_parameters(&self) -> usize {
+        self.fixed_parameters
+    }
+
+    /// The same model with `n` of its structure's parameters held fixed by the identification, so that
+    /// p ([`Model::parameter_count`]), FPE and AIC count the estimated ones only, whichever command
+    /// scores the model (recorded in the model file as `fixed_parameters`). Fails when `n` exceeds the
+    /// structure's parameters.
+    pub fn with_fixed_parameters(mut self, n: usize) -> Result<Self, SysidError> {
+        let all = self.structure_parameter_count();
+        if n > all {
+            return Err(SysidError::Data(format!(
+                "invalid model: fixed_parameters = {n}, more than the structure's {all} parameters"
+            )));
+        }
+        self.fixed_parameters = n;
+        Ok(self)
+    }
+
+    /// Every parameter of the structure, fixed or estimated.
+    fn structure_parameter_count(&self) -> usize {
         let lin = self.na()
             + self.offset.map_or(0, |_| 1)
             + self
@@ -1501,6 +1536,13 @@ pub(crate) struct ModelRepr {
     /// The identification that wrote the file ([`Provenance`], model file version 3); absent otherwise.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     identification: Option<Provenance>,
+    /// How many parameters the identification held fixed ([`Model::fixed_parameters`]); absent for 0.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    fixed_parameters: usize,
+}
+
+fn is_zero(n: &usize) -> bool {
+    *n == 0
 }
 
 fn is_equation_error(n: &NoiseModel) -> bool {
@@ -1644,7 +1686,8 @@ impl TryFrom<ModelRepr> for Model {
             .with_noise_model(r.noise_model)
             .with_output_nonlinearity(output)?
             .with_data_range(r.data_range)?
-            .with_provenance(r.identification);
+            .with_provenance(r.identification)
+            .with_fixed_parameters(r.fixed_parameters)?;
         if m.kind() != r.kind {
             return bad(format!(
                 "kind = {} does not match the inputs' nonlinearities",
@@ -1689,6 +1732,7 @@ impl From<Model> for ModelRepr {
             output_nonlinearity: m.output.as_ref().and_then(NonlinearityRepr::of),
             data_range: m.data_range.map(|r| *r),
             identification: m.provenance.map(|p| *p),
+            fixed_parameters: m.fixed_parameters,
         }
     }
 }

@@ -437,7 +437,8 @@ pub fn identify<R: Records + ?Sized>(
     // The data the model was estimated on (a caller that detrended first puts back its own range).
     let fit = safeguard(&problem, settings, fit)
         .map_err(named)?
-        .with_data_range(range)?;
+        .with_data_range(range)?
+        .with_fixed_parameters()?;
     // A stop requested while a step swallowed a failure (a restarted search, a fallback) still
     // leaves no result.
     settings.cancel.check()?;

@@ -459,25 +459,38 @@ impl Param {
 }
 
 impl Fitted {
-    /// p: the parameters the estimator estimated — the model's count less those it held fixed (a
-    /// deadzone branch a one-sided input never reached, [`held_fixed`]), as MATLAB counts free
-    /// parameters (audit s18 L-7).
+    /// p: the parameters the estimator estimated — the model's count, which excludes those it held
+    /// fixed (a deadzone branch a one-sided input never reached, [`held_fixed`], recorded in the model
+    /// by [`identify`](crate::identify): [`Model::fixed_parameters`]), as MATLAB counts free parameters
+    /// (audit s18 L-7).
     pub fn estimated_parameter_count(&self) -> usize {
-        self.model
-            .parameter_count()
-            .saturating_sub(held_fixed(&self.params))
+        self.model.parameter_count()
     }
 
     /// `m` (metrics of this fit's model) with p, FPE and AIC of the estimated parameters only
-    /// ([`Fitted::estimated_parameter_count`]): the one count of `identify` and `order` (audit s30 H-1:
-    /// `order` counted the fixed ones, so a Hammerstein candidate on a one-sided input ranked below
-    /// the ARX model it equals).
+    /// ([`Fitted::estimated_parameter_count`]): the one count of `identify`, `order` and `validate`
+    /// (audit s30 H-1: `order` counted the fixed ones, so a Hammerstein candidate on a one-sided input
+    /// ranked below the ARX model it equals; audit s33 H-1: `validate` did).
     pub fn estimated_metrics(
         &self,
         m: sysid_core::metrics::Metrics,
     ) -> sysid_core::metrics::Metrics {
-        let p = m.p.saturating_sub(held_fixed(&self.params));
-        m.with_parameter_count(p)
+        m.with_parameter_count(self.estimated_parameter_count())
+    }
+
+    /// The same fit with the parameters its `params` mark as held fixed ([`held_fixed`]) recorded in
+    /// its model ([`Model::with_fixed_parameters`]), and the kept metrics counted again.
+    pub(crate) fn with_fixed_parameters(mut self) -> Result<Self, sysid_core::SysidError> {
+        let n = held_fixed(&self.params);
+        self.model = self.model.with_fixed_parameters(n)?;
+        if let Some(kept) = self.kept_metrics.as_mut() {
+            kept.model = kept.model.clone().with_fixed_parameters(n)?;
+            kept.metrics = kept
+                .metrics
+                .clone()
+                .with_parameter_count(kept.model.parameter_count());
+        }
+        Ok(self)
     }
 
     /// True when the estimator met its convergence criterion.

@@ -718,7 +718,8 @@ impl PyModel {
 
     /// k-step-ahead prediction (MATLAB `predict(m, data, k)`) from measured `u` and `y` (equal lengths):
     /// ŷ(k) uses measured outputs up to k − horizon. horizon = 1 is the one-step prediction; entries
-    /// k < k0 are copies of `y`.
+    /// k < k0 are copies of `y`, except for a model that predicts by simulation (output error,
+    /// Wiener): its initial outputs estimated to fit the record, as `validate`'s `y_pred`.
     /// (`horizon` None: 1; taken as any object so that a bool, a negative or a too-large number is
     /// refused naming it.)
     #[pyo3(signature = (u, y, horizon=None))]

@@ -1,17 +1,25 @@
-"""Session 33 (branch fixpy): Ctrl-C ends `simulate_plant` and `control` promptly. Before, their one
+"""Session 33 (branch fixpy). Ctrl-C ends `simulate_plant` and `control` promptly. Before, their one
 simulation ran to its end before the interrupt was raised (`compute(py, |_| exp.run())` ignored the
 stop the other long calls poll): a million samples of the physics plant, about 10 s on a loaded
 2-core machine, then `KeyboardInterrupt`. Now the plant polls the stop every 4 096 samples
 (`sysid_core::plant::Stoppable`), as the identification polls it at each iteration.
 
 Each case runs in a subprocess of its own (as test_audit_s23_fixai.py), so that the SIGINT sent by a
-timer thread reaches a fresh interpreter's main thread."""
+timer thread reaches a fresh interpreter's main thread.
 
+The worked example (python/examples/quickstart.py, docs/python.md) prints the RMSEs the command line
+reports (over the samples k >= k0, as `validate`) and says "not settled" for a loop whose settling time
+is None; before, it averaged over every sample and left the settling time out."""
+
+import json
+import re
 import subprocess
 import sys
 import textwrap
 
 import pytest
+
+from binary import REPO, cli_path
 
 # The call is made twice, in fresh interpreters: once uninterrupted (its length is measured, so that
 # the test cannot pass by the job being short) and once with SIGINT sent 0.3 s in. After the
@@ -81,3 +89,36 @@ def test_ctrl_c_ends_a_long_simulation_within_seconds_of_the_signal(name):
     outcome, interrupted_s = _run(CALLS[name], "interrupt")
     assert outcome == "KeyboardInterrupt"
     assert interrupted_s < PROMPT_S, (name, interrupted_s, uninterrupted_s)
+
+
+def test_the_worked_examples_rmse_and_settling_are_the_command_lines(tmp_path):
+    # The command line computes the figures independently: `validate --horizon 10` of the model the
+    # example saved, on the command line's own validation record (the Python records are its records
+    # bit for bit), and `control` of that model for the same 10 s.
+    r = subprocess.run(
+        [sys.executable, str(REPO / "python" / "examples" / "quickstart.py")],
+        cwd=tmp_path,
+        capture_output=True,
+        text=True,
+    )
+    assert r.returncode == 0, r.stderr
+    line = next(l for l in r.stdout.splitlines() if l.startswith("RMSE"))
+    sim, pred = (float(v) for v in re.findall(r"(\d+\.\d+) mm", line))
+    exe = cli_path()
+
+    def run(*args):
+        subprocess.run([exe, *args], cwd=tmp_path, capture_output=True, text=True, check=True)
+
+    run("simulate", "--plant", "ipa", "--seed", "2", "--out", "val.csv")
+    run("validate", "--model", "model.json", "--data", "val.csv", "--horizon", "10", "--json", "v.json")
+    v = json.loads((tmp_path / "v.json").read_text())["metrics"]["validation"]
+    # Printed to 4 decimals: within half of the last digit.
+    assert abs(sim - v["rmse_sim_measured"]) <= 5e-5, (line, v)
+    assert abs(pred - v["rmse_pred"]) <= 5e-5, (line, v)
+    run("control", "--plant", "model:model.json", "--setpoint", "50", "--duration", "10", "--json", "c.json")
+    settling = json.loads((tmp_path / "c.json").read_text())["metrics"]["settling_time_s"]
+    shown = next(l for l in r.stdout.splitlines() if l.startswith("settling time"))
+    if settling is None:
+        assert shown == "settling time (2 %): not settled"
+    else:
+        assert shown == f"settling time (2 %): {settling:.4f} s"

@@ -4,13 +4,18 @@ Each long computation below is started, a SIGALRM handler that raises is armed t
 it (signal.setitimer), and the time from the timer's expiry to the moment the exception reaches the
 caller is printed, with the time the same call takes uninterrupted. Run:
 
-    python python/examples/interrupt_latency.py
+    python python/examples/interrupt_latency.py [WORD ...]
+
+(with words, only the calls whose name contains one of them: `simulate_plant control`).
 
 A measurement, not a test: the figures depend on the machine and its load.
 """
 
 import signal
+import sys
 import time
+
+import numpy as np
 
 import ipa_sysid
 from ipa_sysid import _core
@@ -44,8 +49,21 @@ def main():
     calls["fleet_windows(method='oe'), 300 windows of 1000 samples"] = lambda: _core.fleet_windows(
         u, y, [0, len(u)], 0.01, 1000, method="oe"
     )
+    # One simulation each, polled every 4 096 samples of the plant: 5 million samples of the physics
+    # plant; 40 000 s of the loop following a square wave (20 / 100 mm, a level per second).
+    calls["simulate_plant('ipa', samples=5_000_000)"] = lambda: ipa_sysid.simulate_plant(
+        "ipa", samples=5_000_000
+    )
+    t = np.arange(0.0, 40_000.0)
+    square = np.column_stack([t, np.where(t % 2 == 0, 20.0, 100.0)])
+    calls["control('ipa', profile=square wave, duration=40_000)"] = lambda: ipa_sysid.control(
+        "ipa", profile=square, duration=40_000
+    )
+    words = sys.argv[1:]
     signal.signal(signal.SIGALRM, handler)
     for name, call in calls.items():
+        if words and not any(w in name for w in words):
+            continue
         start = time.perf_counter()
         ipa_sysid_warnings_off(call)
         whole = time.perf_counter() - start

@@ -718,7 +718,8 @@ impl PyModel {
 
     /// k-step-ahead prediction (MATLAB `predict(m, data, k)`) from measured `u` and `y` (equal lengths):
     /// ŷ(k) uses measured outputs up to k − horizon. horizon = 1 is the one-step prediction; entries
-    /// k < k0 are copies of `y`.
+    /// k < k0 are copies of `y`, except for a model that predicts by simulation (output error,
+    /// Wiener): its initial outputs estimated to fit the record, as `validate`'s `y_pred`.
     /// (`horizon` None: 1; taken as any object so that a bool, a negative or a too-large number is
     /// refused naming it.)
     #[pyo3(signature = (u, y, horizon=None))]
@@ -2340,17 +2341,23 @@ fn simulate_plant<'py>(
         x0,
         seed,
         noise_std,
+        cancel: sysid::Stop::never(),
     };
     exp.check().map_err(ipa_err)?;
     let y0 = match exp.x0 {
         Some(v) => v,
         None => exp.plant.default_y0().map_err(ipa_err)?,
     };
-    let exp = ipa::Experiment {
+    let mut exp = ipa::Experiment {
         x0: Some(y0),
         ..exp
     };
-    let rec = compute(py, |_| exp.run())?.map_err(ipa_err)?;
+    // The plant polls `compute`'s stop: Ctrl-C ends the run within a few thousand samples.
+    let rec = compute(py, |stop| {
+        exp.cancel = stop.clone();
+        exp.run()
+    })?
+    .map_err(ipa_err)?;
     // What holds the physics plant's piston, as `simulate` computes it (its config's deadzone,
     // friction and the forces the run's commands build up).
     let hold = if physics {
@@ -2462,7 +2469,8 @@ fn plant_and_limits(
 /// "metrics_kind", "metrics" (overshoot, undershoot, rise and settling times, steady-state error),
 /// "steps" (a staircase's steps) and "warnings" (each also issued as an `IpaSysidWarning`).
 /// Raises ValueError for a bad setting (named by its keyword), ArithmeticError when the simulation
-/// fails numerically. The GIL is released while the loop runs; Ctrl-C is taken when it ends.
+/// fails numerically. The GIL is released while the loop runs; Ctrl-C raises `KeyboardInterrupt`
+/// within a few thousand samples (the plant polls the stop of docs/python.md "Threads and Ctrl-C").
 #[pyfunction]
 #[pyo3(signature = (plant=None, setpoint=None, profile=None, kp=14.0, ki=1.0, duration=None, y0=0.0,
     integral="scaled", anti_windup="none", tracking_time=None, u_max=255.0, compensate_deadzone=None,
@@ -2616,13 +2624,14 @@ fn control_loop<'py>(
     let duration_s = duration
         .or(profile.natural_duration_s())
         .unwrap_or(DEFAULT_FIXED_DURATION_S);
-    let (trace, run) = compute(py, |_| -> Result<_, ::control::ControlError> {
+    let (trace, run) = compute(py, |stop| -> Result<_, ::control::ControlError> {
         let controller: &mut dyn ::control::Controller = match position.as_mut() {
             Some(p) => p,
             None => &mut pi,
         };
+        // The plant polls `compute`'s stop: Ctrl-C ends the loop within a few thousand samples.
         let trace = ::control::closed_loop::run(
-            plant.as_mut(),
+            &mut sysid::plant::Stoppable::new(plant.as_mut(), stop),
             controller,
             compensator.as_ref(),
             &profile,

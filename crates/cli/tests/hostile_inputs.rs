@@ -455,6 +455,44 @@ fn sigterm_during_a_write_leaves_no_temporary_file() {
     assert!(!d.join("big.csv").exists());
 }
 
+// SIGINT (Ctrl-C) while `simulate` or `control` is still computing a long run ends the process by the
+// signal, with no output and no temporary file: the command line's handler ends the process (the
+// library's stop is the Python binding's; session 33 checked the command line's side).
+#[cfg(unix)]
+#[test]
+fn sigint_during_a_long_simulation_or_loop_ends_it_with_no_output() {
+    use std::os::unix::process::ExitStatusExt;
+    for args in [
+        "simulate --samples 1000000 --out out.csv",
+        "control --setpoint 50 --duration 20000 --out out.csv",
+    ] {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let mut child = bin()
+            .args(argv(args, d))
+            .current_dir(d)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(300));
+        // A million samples take seconds in a release build: the run is interrupted, not finished.
+        assert!(
+            child.try_wait().unwrap().is_none(),
+            "{args}: ended before the signal"
+        );
+        let _ = Command::new("kill")
+            .args(["-INT", &child.id().to_string()])
+            .status();
+        let status = child.wait().unwrap();
+        assert!(
+            status.signal() == Some(2) || status.code() == Some(130),
+            "{args}: {status}"
+        );
+        assert_eq!(std::fs::read_dir(d).unwrap().count(), 0, "{args}");
+    }
+}
+
 // Sizes that input drives are checked before anything is allocated: a sample count beyond the bound,
 // and a --resample period that would make billions of samples, are errors (exit 2), not aborts.
 #[test]

@@ -205,6 +205,7 @@ pub fn run_with(
             PlantError::Diverged(m) => {
                 ControlError::Numerical(format!("sample {k} (t = {t} s): {m}"))
             }
+            PlantError::Cancelled => ControlError::Cancelled,
         })?;
     }
     Ok(trace)
@@ -233,6 +234,41 @@ mod tests {
 
     fn paper_plant() -> ModelPlant {
         ModelPlant::new(Model::paper(), "paper").unwrap()
+    }
+
+    // A loop on a plant whose stop is requested ends with `Cancelled` (no trace), at its first step;
+    // never requested, the wrapped plant gives the bare plant's trace sample for sample.
+    #[test]
+    fn a_loop_on_a_stoppable_plant_ends_with_cancelled_when_asked() {
+        use sysid_core::{plant::Stoppable, Stop};
+        let fixed = Profile::Fixed { setpoint_mm: 50.0 };
+        let mut pi = PiSettings::paper().build(0.01).unwrap();
+        let mut plant = paper_plant();
+        let stop = Stop::new();
+        stop.request();
+        let stopped = run(
+            &mut Stoppable::new(&mut plant, &stop),
+            &mut pi,
+            None,
+            &fixed,
+            100.0,
+            0.0,
+        );
+        assert!(
+            matches!(stopped, Err(ControlError::Cancelled)),
+            "{stopped:?}"
+        );
+        let bare = run(&mut paper_plant(), &mut pi, None, &fixed, 100.0, 0.0).unwrap();
+        let wrapped = run(
+            &mut Stoppable::new(&mut plant, &Stop::new()),
+            &mut pi,
+            None,
+            &fixed,
+            100.0,
+            0.0,
+        )
+        .unwrap();
+        assert_eq!(bare, wrapped);
     }
 
     #[test]

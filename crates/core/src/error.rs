@@ -489,12 +489,17 @@ pub enum PlantError {
     /// The plant's state became non-finite (an unstable identified model, a diverging integration).
     #[error("{0}")]
     Diverged(String),
+    /// The caller asked the run to stop ([`crate::Stop`], polled by a [`crate::plant::Stoppable`]
+    /// plant: Ctrl-C in Python) before it finished; there is no result.
+    #[error("stopped at the caller's request before the end (no result)")]
+    Cancelled,
 }
 
 impl From<PlantError> for SysidError {
     fn from(e: PlantError) -> Self {
         match e {
             PlantError::Diverged(m) => SysidError::Numerical(m),
+            PlantError::Cancelled => SysidError::Cancelled,
         }
     }
 }

@@ -2015,6 +2015,7 @@ pub fn run_from_rest(model: &Model, u: &[&[f64]], y0_mm: f64) -> Result<Vec<f64>
             crate::PlantError::Diverged(m) => {
                 SysidError::Numerical(format!("{m} (while applying the inputs of sample {k})"))
             }
+            crate::PlantError::Cancelled => SysidError::Cancelled,
         })?;
     }
     Ok(y)

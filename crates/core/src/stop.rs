@@ -1,9 +1,11 @@
 //! A caller's request to stop a long computation ([`Stop`]): the one cancellation hook of the
-//! identification, NARX term selection, fleet windows, tuning and calibration.
+//! identification, NARX term selection, fleet windows, tuning, calibration and a plant's simulation
+//! (an open-loop experiment, a closed loop).
 //!
 //! The computation polls [`Stop::check`] at its natural boundaries (each output-error or IV iteration,
 //! each RLS pass and every few thousand samples of a pass, each FROLS term, each window, each tuning or
-//! calibration evaluation); a poll is one relaxed atomic load. When the caller has asked it to stop
+//! calibration evaluation, every few thousand steps of a plant wrapped in
+//! [`crate::plant::Stoppable`]); a poll is one relaxed atomic load. When the caller has asked it to stop
 //! ([`Stop::request`], from another thread: the Python binding's signal watcher), the next poll returns
 //! [`SysidError::Cancelled`] and the computation ends with it: no partial result leaves the library.
 //! The command line passes [`Stop::never`] (its SIGINT ends the process).

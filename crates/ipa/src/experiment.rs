@@ -5,7 +5,8 @@
 
 use std::path::PathBuf;
 
-use sysid_core::{Plant, Setting, SysidError};
+use sysid_core::plant::Stoppable;
+use sysid_core::{Plant, Setting, Stop, SysidError};
 
 use crate::input::{
     calibration_experiment_observed, staircase_experiment, staircase_experiment_observed,
@@ -38,6 +39,11 @@ pub struct Experiment {
     pub seed: u64,
     /// Standard deviation of white Gaussian noise added to y, mm (`--noise-std`).
     pub noise_std: f64,
+    /// The caller's request to stop the run (the Python binding's Ctrl-C): the plant polls it every
+    /// [`sysid_core::stop::SAMPLES_PER_POLL`] samples ([`Stoppable`]) and the run ends with
+    /// `IpaError::Sysid(SysidError::Cancelled)`. [`Stop::never`] by default (the command line's
+    /// SIGINT ends the process).
+    pub cancel: Stop,
 }
 
 impl Default for Experiment {
@@ -52,6 +58,7 @@ impl Default for Experiment {
             x0: None,
             seed: 0,
             noise_std: 0.0,
+            cancel: Stop::never(),
         }
     }
 }
@@ -121,12 +128,13 @@ impl Experiment {
             if paper {
                 self.check_applied(None)?;
             }
-            let mut plant = self.plant.build(self.plant_config.as_deref(), self.ts)?;
-            plant.reset(x0);
+            let mut built = self.plant.build(self.plant_config.as_deref(), self.ts)?;
+            built.reset(x0);
+            let mut plant = Stoppable::new(built.as_mut(), &self.cancel);
             let ts = plant.ts();
             let (u, y) = match self.input {
                 InputSpec::Staircase => staircase_experiment(
-                    plant.as_mut(),
+                    &mut plant,
                     &StaircaseDesign::default(),
                     samples,
                     self.amplitude,
@@ -137,7 +145,7 @@ impl Experiment {
                     if paper {
                         self.check_applied(Some(&u))?;
                     }
-                    let y = sysid_core::plant::run_open_loop(plant.as_mut(), &u)?;
+                    let y = sysid_core::plant::run_open_loop(&mut plant, &u)?;
                     (u, y)
                 }
             };
@@ -243,37 +251,32 @@ impl Experiment {
         crate::PlantLimits::of_ipa(&cfg).check_start(y0)?;
         self.check_applied(None)?;
         let rec = {
-            let mut plant = Ipa::with_ts(cfg, self.ts.unwrap_or(crate::DEFAULT_TS_S))?;
-            plant.reset(y0);
+            let mut ipa = Ipa::with_ts(cfg, self.ts.unwrap_or(crate::DEFAULT_TS_S))?;
+            ipa.reset(y0);
+            let ts = ipa.ts();
             let mut p = Vec::with_capacity(samples);
             let (u, y) = match self.input {
                 // The experimenter's rule watches the plant: the designed input and the record come from
                 // one run, the pressures observed at each sample before its command is applied.
                 InputSpec::Staircase => staircase_experiment_observed(
-                    &mut plant,
+                    &mut Stoppable::new(&mut ipa, &self.cancel),
                     &StaircaseDesign::default(),
                     samples,
                     self.amplitude,
                     self.seed,
-                    |ipa: &Ipa| p.push(ipa.pressures_pa()),
+                    |s: &Stoppable<Ipa>| p.push(s.inner().pressures_pa()),
                 )?,
                 InputSpec::Calibration => calibration_experiment_observed(
-                    &mut plant,
+                    &mut Stoppable::new(&mut ipa, &self.cancel),
                     samples,
                     self.amplitude,
                     self.seed,
-                    |ipa: &Ipa| p.push(ipa.pressures_pa()),
+                    |s: &Stoppable<Ipa>| p.push(s.inner().pressures_pa()),
                 )?,
                 _ => {
-                    let u = crate::generate(
-                        &self.input,
-                        samples,
-                        plant.ts(),
-                        self.amplitude,
-                        self.seed,
-                    )?;
+                    let u = crate::generate(&self.input, samples, ts, self.amplitude, self.seed)?;
                     self.check_applied(Some(&u))?;
-                    let rec = record_input(&mut plant, u)?;
+                    let rec = record_input(&mut ipa, u, &self.cancel)?;
                     p = rec.pressures.unwrap_or_default();
                     (rec.u, rec.y)
                 }
@@ -282,7 +285,7 @@ impl Experiment {
                 u,
                 y,
                 pressures: Some(p),
-                ts: plant.ts(),
+                ts,
             }
         };
         Ok(Record {
@@ -295,13 +298,15 @@ impl Experiment {
 /// Applies the command u(k) to the physics plant from its current state, recording the position y(k)
 /// (mm, encoder-quantised) and the chamber pressures [p_a, p_b] (Pa) at each sample before u(k) is
 /// applied: one open-loop run with everything the IPA measures (`simulate`, the calibrated twin of
-/// `reproduce`).
-pub fn record_input(plant: &mut Ipa, u: Vec<f64>) -> Result<Record, IpaError> {
+/// `reproduce`). The run polls `cancel` ([`Stoppable`]) and ends with
+/// `IpaError::Sysid(SysidError::Cancelled)` once it is requested.
+pub fn record_input(plant: &mut Ipa, u: Vec<f64>, cancel: &Stop) -> Result<Record, IpaError> {
+    let mut plant = Stoppable::new(plant, cancel);
     let mut y = Vec::with_capacity(u.len());
     let mut p = Vec::with_capacity(u.len());
     for (k, &uk) in u.iter().enumerate() {
         y.push(plant.output());
-        p.push(plant.pressures_pa());
+        p.push(plant.inner().pressures_pa());
         plant.step(uk).map_err(|e| {
             IpaError::Sysid(SysidError::from(e).context(&format!("simulating sample {k}")))
         })?;

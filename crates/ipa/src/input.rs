@@ -462,6 +462,7 @@ fn supervised_experiment<P: sysid_core::Plant + ?Sized>(
                     "{m} (while applying u({}) = {level})",
                     u.len() - 1
                 )),
+                sysid_core::PlantError::Cancelled => sysid_core::SysidError::Cancelled,
             })?;
         }
     }

@@ -82,3 +82,49 @@ fn a_loaded_file_input_runs_without_reading_the_file_again() {
     };
     assert!(unloaded.run().is_err());
 }
+
+// A stop requested before the run ends every kind of run at its first poll (sample 0) with
+// `Cancelled`, and no record leaves: the physics plant's supervised staircase and calibration design,
+// its designed input (`record_input`), and the paper model's staircase and designed input
+// (`run_open_loop`). The same experiment with a stop never requested gives the record of one
+// without a stop, sample for sample (the poll changes nothing else).
+#[test]
+fn a_requested_stop_ends_every_kind_of_experiment_with_cancelled() {
+    use ipa::{InputSpec, IpaError, PlantSpec};
+    use sysid_core::{Stop, SysidError};
+    let requested = Stop::new();
+    requested.request();
+    for (plant, input) in [
+        (PlantSpec::Ipa, InputSpec::Staircase),
+        (PlantSpec::Ipa, InputSpec::Calibration),
+        (PlantSpec::Ipa, InputSpec::Prbs),
+        (PlantSpec::Paper, InputSpec::Staircase),
+        (PlantSpec::Paper, InputSpec::Prbs),
+    ] {
+        let exp = Experiment {
+            plant,
+            input,
+            samples: Some(3000),
+            seed: 5,
+            ..Experiment::default()
+        };
+        let what = format!("{:?} {:?}", exp.plant, exp.input);
+        let stopped = Experiment {
+            cancel: requested.clone(),
+            ..exp.clone()
+        }
+        .run();
+        assert!(
+            matches!(stopped, Err(IpaError::Sysid(SysidError::Cancelled))),
+            "{what}: {stopped:?}"
+        );
+        let unrequested = Experiment {
+            cancel: Stop::new(),
+            ..exp.clone()
+        }
+        .run()
+        .unwrap();
+        assert_eq!(unrequested, exp.run().unwrap(), "{what}");
+        assert_eq!(unrequested.u.len(), 3000, "{what}");
+    }
+}

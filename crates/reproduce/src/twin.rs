@@ -57,7 +57,8 @@ fn record(
 ) -> Result<ipa::Record, ipa::IpaError> {
     let mut plant = Ipa::with_ts(cfg.clone(), ts)?;
     plant.reset(start_mm);
-    record_input(&mut plant, u.to_vec())
+    // The command line's SIGINT ends the process.
+    record_input(&mut plant, u.to_vec(), &sysid::Stop::never())
 }
 
 /// Calibrates the twin on the estimation input and compares it with `models`; `Err` says why there is

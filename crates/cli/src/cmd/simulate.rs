@@ -285,6 +285,8 @@ fn run_plant(
         x0: args.y0,
         seed: args.seed,
         noise_std: args.noise_std,
+        // The command line's SIGINT ends the process.
+        cancel: sysid_core::Stop::never(),
     };
     exp.check()?;
     // A model's run over N samples, bounded as `validate` bounds it, before anything is simulated

@@ -47,6 +47,33 @@ header() {
     echo "|---|---|---|---|---|---|---|"
 }
 
+# The benchmark's scoring (nonlinear_benchmarks: a 50-sample state-initialisation window on every test
+# record): `validate` of the same model on the test record without and with `--score-from 50`. SCORED_VAL
+# holds validate's record flags (--data, columns, rows).
+scored_header() {
+    echo
+    echo "| row | test RMSE, k ≥ k0 | test RMSE, k ≥ 50 (\`validate --score-from 50\`) | y0 measured: k ≥ k0 → k ≥ 50 |"
+    echo "|---|---|---|---|"
+}
+
+# scored_row LABEL ARGS...: `identify ARGS --save-model M`, then `validate --model M ${SCORED_VAL[@]}`
+# and the same with `--score-from 50`: the test simulation RMSE (estimated initial outputs) over
+# k >= k0 and over k >= 50, and the same from the measured initial outputs.
+scored_row() {
+    local label=$1
+    shift
+    "$bin" identify "$@" --save-model "$tmp/m.json" >/dev/null 2>"$tmp/err" || {
+        echo "| $label | failed: $(head -c 200 "$tmp/err") |"
+        return
+    }
+    "$bin" validate --model "$tmp/m.json" "${SCORED_VAL[@]}" --json "$tmp/v0.json" >/dev/null 2>&1
+    "$bin" validate --model "$tmp/m.json" "${SCORED_VAL[@]}" --score-from 50 --json "$tmp/v50.json" >/dev/null 2>&1
+    printf '| %s | %s | %s | %s → %s |\n' "$label" \
+        "$(sig .metrics.validation.rmse_sim "$tmp/v0.json")" "$(sig .metrics.validation.rmse_sim "$tmp/v50.json")" \
+        "$(sig .metrics.validation.rmse_sim_measured "$tmp/v0.json")" \
+        "$(sig .metrics.validation.rmse_sim_measured "$tmp/v50.json")"
+}
+
 # order_line ARGS...: `order ARGS`, the recommended structure, its ranking fit (the worse of estimated and
 # measured initial outputs on the selection part) and test fit, and the search's warnings; sets CHOSEN
 # (empty when no structure qualifies).
@@ -121,6 +148,15 @@ header
 row "Polynomial NARX, degree 3 + constant, chosen by \`order --classes\`" "${TANKS[@]}" --structure narx --degree "${CLASS#narx}" --na "$na" --nb "$nb" --nk "$nk"
 row "the same, number of terms by BIC" "${TANKS[@]}" --structure narx --degree 3 --na 2 --nb 2 --nk 0 --stop bic
 row "the same, no simulation-error refinement" "${TANKS[@]}" --structure narx --degree 3 --na 2 --nb 2 --nk 0 --no-refine
+echo
+echo "Scored as the benchmark scores (from sample 50 of the test record on):"
+SCORED_VAL=(--data $T --u-col uVal --y-col yVal)
+scored_header
+scored_row "ARX + offset, ls (2, 2, 1)" "${TANKS[@]}" --na 2 --nb 2 --nk 1 --structure arx --method ls
+scored_row "ARX + offset, oe (2, 2, 1)" "${TANKS[@]}" --na 2 --nb 2 --nk 1 --structure arx --method oe
+scored_row "Hammerstein + offset, oe" "${TANKS[@]}" --na 2 --nb 2 --nk 1 --structure hammerstein --method oe
+scored_row "ARX + offset, oe (${CH_OE[0]}, ${CH_OE[1]}, ${CH_OE[2]}), chosen by \`order --method oe\`" "${TANKS[@]}" --na "${CH_OE[0]}" --nb "${CH_OE[1]}" --nk "${CH_OE[2]}" --structure arx --method oe
+scored_row "Polynomial NARX degree 3 (2, 2, 0)" "${TANKS[@]}" --structure narx --degree 3 --na 2 --nb 2 --nk 0
 
 echo
 echo "## Hair dryer"
@@ -185,6 +221,12 @@ header
 row "Polynomial NARX + constant, chosen by \`order --classes\`" "${SB[@]}" --structure narx --degree "${CLASS#narx}" --na "$na" --nb "$nb" --nk "$nk"
 row "the same, number of terms by BIC" "${SB[@]}" --structure narx --degree "${CLASS#narx}" --na "$na" --nb "$nb" --nk "$nk" --stop bic
 row "Polynomial NARX (2, 2, 0), degree 3 + constant" "${SB[@]}" --structure narx --degree 3 --na 2 --nb 2 --nk 0
+echo
+echo "Scored as the benchmark scores (from sample 50 of the test rows on):"
+SCORED_VAL=(--data $S --u-col V1 --y-col V2 --rows 105712..127400)
+scored_header
+scored_row "ARX, --detrend mean, ls" --data $S --u-col V1 --y-col V2 --ts 0.0016384 --rows 40650..105712 --detrend mean --na 2 --nb 2 --nk 0 --structure arx --method ls
+scored_row "ARX, --detrend mean, oe" --data $S --u-col V1 --y-col V2 --ts 0.0016384 --rows 40650..105712 --detrend mean --na 2 --nb 2 --nk 0 --structure arx --method oe
 
 echo
 echo "## Coupled electric drives (PRBS record u1 -> z1, first 250 / last 250 samples)"

@@ -755,17 +755,24 @@ impl PyModel {
     /// Validation metrics on a record (the `validate` command): fit % (simulation and 1-step), RMSE,
     /// loss V (paper eq. 14), FPE (eq. 15), AIC (equation error), MATLAB's LossFcn, FPE and normalised
     /// AIC of the model's own prediction errors (`loss_fcn`, `fpe_matlab`, `aic_matlab`), N, p, as a
-    /// dict like the CLI JSON's.
-    #[pyo3(signature = (u, y, name="data"))]
+    /// dict like the CLI JSON's. `score_from` = K (`validate --score-from K`): every figure over the
+    /// samples k >= max(K, k0) only (0-based; e.g. 50 for a benchmark's state-initialisation window;
+    /// the simulations are the same, only the rows scored change); the dict's "score_from" is that
+    /// first scored sample. A K that reaches the record's end, or leaves no more samples than the
+    /// model's parameters, raises a ValueError naming score_from.
+    #[pyo3(signature = (u, y, name="data", score_from=None))]
     fn metrics<'py>(
         &self,
         py: Python<'py>,
         u: &Bound<'py, PyAny>,
         y: &Bound<'py, PyAny>,
         name: &str,
+        score_from: Option<&Bound<'py, PyAny>>,
     ) -> PyResult<Bound<'py, PyAny>> {
+        let score_from = score_from.map_or(Ok(0), |k| whole("score_from", k))?;
         let data = dataset(u, y, self.inner.ts(), name)?;
-        let m = sysid::metrics::metrics(&self.inner, &data).map_err(sysid_err)?;
+        let m = sysid::metrics::metrics_scored_from(&self.inner, &data, score_from)
+            .map_err(sysid_err)?;
         // What `validate` warns of: the model file's own doubts, an unstable model, a negative or
         // flattered fit; all in the dict's "warnings" (audit s13 M4), each of this result's own an
         // IpaSysidWarning (the file's were said by `load_model`).
@@ -782,6 +789,10 @@ impl PyModel {
         warn_all(py, &result_warnings(&self.inner, &warnings))?;
         let out = to_py(py, &m)?;
         out.set_item("warnings", warnings)?;
+        out.set_item(
+            "score_from",
+            sysid::metrics::first_scored(self.inner.k0(), score_from),
+        )?;
         Ok(out)
     }
 

@@ -39,6 +39,9 @@ pub enum Setting {
     NoHeader,
     /// The memory budget of one estimation, in GiB ([`crate::ls::MemoryBudget`]).
     MaxMemory,
+    /// K: the first sample (0-based row of the record) at which a validation's figures are scored
+    /// ([`crate::metrics::first_scored`]).
+    ScoreFrom,
     /// Any other setting, by the name the caller uses (an application's own options).
     Other(&'static str),
 }
@@ -64,6 +67,7 @@ impl Setting {
             Setting::Tolerance => "tolerance",
             Setting::NoHeader => "no_header",
             Setting::MaxMemory => "max_memory_gb",
+            Setting::ScoreFrom => "score_from",
             Setting::Other(name) => name,
         }
     }
@@ -91,6 +95,7 @@ impl Setting {
             Setting::Tolerance => "tolerance",
             Setting::NoHeader => "--no-header",
             Setting::MaxMemory => "--max-memory",
+            Setting::ScoreFrom => "--score-from",
             Setting::Other(name) => name,
         }
     }

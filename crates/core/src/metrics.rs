@@ -1,6 +1,11 @@
 //! Model validation (paper section II-D): fit %, RMSE, loss function, FPE and AIC of a model on a record.
 //!
-//! All sums run over rows k >= k0 = max(na, nk + nb − 1) (N = number of those rows):
+//! All sums run over the scored rows k >= max(K, k0), k0 = max(na, nk + nb − 1) the model's largest lag
+//! and K the caller's first scored sample (0 by default: from k0; [`first_scored`], the one place the
+//! start is decided), N = number of those rows. K leaves a record's first samples out of every figure
+//! (a benchmark's state-initialisation window, e.g. the 50 samples of `nonlinear_benchmarks`); the
+//! simulations and predictions are the same whatever K (they run over the whole record, the estimated
+//! initial outputs fitted to its rows k >= k0), only the rows scored change:
 //! - fit % = 100 (1 − ‖y − ŷ‖ / ‖y − ȳ‖) (paper eq. 13, MATLAB `compare`), ȳ the mean over the same rows,
 //!   for the free-run simulation (`fit_sim_percent`) and the one-step prediction (`fit_pred_percent`);
 //! - RMSE = √(Σ (y − ŷ)² / N), both;
@@ -74,7 +79,7 @@ pub struct Metrics {
     /// LossFcn = 0.
     #[serde(default)]
     pub aic_matlab: Option<f64>,
-    /// N: rows used (k >= k0).
+    /// N: rows used (k >= max(K, k0), [`first_scored`]).
     pub n: usize,
     /// p: estimated parameters.
     pub p: usize,
@@ -404,9 +409,19 @@ pub fn one_step_prediction(model: &Model, data: &Dataset) -> Result<Vec<f64>, Sy
 }
 
 /// Computes the validation metrics of `model` on `data` (every input of the record feeds the model's
-/// input of the same position).
+/// input of the same position), over the rows k >= k0.
 pub fn metrics(model: &Model, data: &Dataset) -> Result<Metrics, SysidError> {
-    metrics_from_sums(&record_sums(model, data)?, data.name())
+    metrics_scored_from(model, data, 0)
+}
+
+/// [`metrics`] over the rows k >= max(K, k0) only, K = `score_from` (0-based row of `data`; checked by
+/// [`check_scored`]): the same simulations and predictions, fewer rows scored.
+pub fn metrics_scored_from(
+    model: &Model,
+    data: &Dataset,
+    score_from: usize,
+) -> Result<Metrics, SysidError> {
+    metrics_from_sums(&record_sums(model, data, score_from)?, data.name())
 }
 
 /// The metrics of `model` over several records (merged experiments): every record's rows k ≥ k0
@@ -432,7 +447,7 @@ pub fn pooled_metrics(model: &Model, records: &[Dataset]) -> Result<Metrics, Sys
         note: None,
     };
     for r in records {
-        let s = record_sums(model, r)?;
+        let s = record_sums(model, r, 0)?;
         pooled.n += s.n;
         // Each record's deviation from its own mean ȳ_r: records at different levels would otherwise
         // make Σ(y − ȳ)² over all of them large and flatter every fit (audit s17 H-1).
@@ -448,6 +463,62 @@ pub fn pooled_metrics(model: &Model, records: &[Dataset]) -> Result<Metrics, Sys
     }
     let names: Vec<&str> = records.iter().map(Dataset::name).collect();
     metrics_from_sums(&pooled, &names.join(" + "))
+}
+
+/// The first scored row of a record for a model whose largest lag is `k0` (its first predicted sample)
+/// when the caller asks to score from sample `score_from` = K (0-based row of the record as read; 0:
+/// from k0): max(K, k0). The one place where the start of every validation figure is decided (fit %,
+/// RMSE, loss, FPE, AIC, MATLAB's LossFcn, FPE and nAIC, the K-step fit and the residual tests; in
+/// memory, read in passes, linear and NARX models alike); [`check_scored`] checks a record against it.
+pub fn first_scored(k0: usize, score_from: usize) -> usize {
+    k0.max(score_from)
+}
+
+/// Checks that a record `name` of `len` samples leaves rows to score a model of largest lag `k0` and
+/// `p` parameters from sample `score_from` ([`first_scored`]) and returns the first scored row. A
+/// record no longer than k0 is refused as before (a data error); a K beyond k0 (the caller's choice)
+/// that reaches the record's end, or leaves N = len − K <= p rows (too few for FPE and AIC, which
+/// need N > p), is refused naming the setting [`Setting::ScoreFrom`](crate::Setting::ScoreFrom)
+/// and the record's length.
+pub fn check_scored(
+    name: &str,
+    len: usize,
+    k0: usize,
+    p: usize,
+    score_from: usize,
+) -> Result<usize, SysidError> {
+    let first = first_scored(k0, score_from);
+    if score_from > k0 {
+        let refuse = |expected: String| {
+            Err(SysidError::setting(
+                crate::Setting::ScoreFrom,
+                score_from,
+                &expected,
+            ))
+        };
+        if score_from >= len {
+            return refuse(format!(
+                "a first scored sample inside the record: {name} has {len} samples (0-based rows 0 to \
+                 {})",
+                len.saturating_sub(1)
+            ));
+        }
+        if len - score_from <= p {
+            return refuse(format!(
+                "at most {}: {name} has {len} samples, and scoring from sample {score_from} leaves {} \
+                 of them, not more than the model's {p} parameters (FPE and AIC need more scored \
+                 samples than parameters)",
+                len.saturating_sub(p + 1),
+                len - score_from
+            ));
+        }
+    }
+    if len <= k0 {
+        return Err(SysidError::Data(format!(
+            "{name}: {len} samples are not enough to validate a model with k0 = {k0}"
+        )));
+    }
+    Ok(first)
 }
 
 /// A record sampled at another Ts than the model's (within 0.1 %) cannot judge it: the model's
@@ -490,19 +561,15 @@ pub fn check_sampling(name: &str, ts: f64, model_ts: f64) -> Result<(), SysidErr
     Ok(())
 }
 
-/// The sums of [`metrics`] over the rows k ≥ k0 of one record.
-fn record_sums(model: &Model, data: &Dataset) -> Result<MetricSums, SysidError> {
+/// The sums of [`metrics`] over the rows k ≥ max(K, k0) of one record, K = `score_from`
+/// ([`check_scored`]).
+fn record_sums(model: &Model, data: &Dataset, score_from: usize) -> Result<MetricSums, SysidError> {
     check_sampling(data.name(), data.ts(), model.ts())?;
     let (u, y_all, name) = (&data.input_signals(), data.y(), data.name());
-    let k0 = model.k0();
     let p = model.parameter_count();
-    if y_all.len() <= k0 {
-        return Err(SysidError::Data(format!(
-            "{name}: {} samples are not enough to validate a model with k0 = {k0}",
-            y_all.len()
-        )));
-    }
-    let y = &y_all[k0..];
+    // ks: the first scored row. The simulations below run over the whole record whatever it is.
+    let ks = check_scored(name, y_all.len(), model.k0(), p, score_from)?;
+    let y = &y_all[ks..];
     let n = y.len();
     // One simulation from the measured initial outputs serves both simulation metrics (and the
     // output-error predictor); the free responses for the estimated initial outputs come beside it.
@@ -517,7 +584,7 @@ fn record_sums(model: &Model, data: &Dataset) -> Result<MetricSums, SysidError> 
         // The equation-error predictor, or the output-error one's own failure (a diverging model).
         _ => one_step_prediction(model, data)?,
     };
-    let pred = &pred[k0..];
+    let pred = &pred[ks..];
     // The one-step equation-error prediction (the ARX predictor from the measured outputs) for the
     // loss V of every model; for an equation-error model it is `pred` itself.
     let sse_equation = match (model.output_nonlinearity(), model.noise_model()) {
@@ -528,7 +595,7 @@ fn record_sums(model: &Model, data: &Dataset) -> Result<MetricSums, SysidError> 
                 .clone()
                 .with_noise_model(crate::NoiseModel::EquationError)
                 .predict_k(u, y_all, 1)?;
-            Some(sse(y, &eq[k0..]))
+            Some(sse(y, &eq[ks..]))
         }
     };
     let (sim_measured, note) = match measured {
@@ -545,8 +612,8 @@ fn record_sums(model: &Model, data: &Dataset) -> Result<MetricSums, SysidError> 
         y_deviation: deviation(y),
         sse_pred: sse(y, pred),
         sse_equation,
-        sse_sim: sim.as_ref().map(|s| sse(y, &s[k0..])),
-        sse_sim_measured: sim_measured.as_ref().map(|s| sse(y, &s[k0..])),
+        sse_sim: sim.as_ref().map(|s| sse(y, &s[ks..])),
+        sse_sim_measured: sim_measured.as_ref().map(|s| sse(y, &s[ks..])),
         note,
     };
     Ok(sums)
@@ -585,11 +652,11 @@ fn sum4(x: &[f64], y: &[f64], f: impl Fn(f64, f64) -> f64) -> f64 {
     (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
 }
 
-/// The sums over the rows k ≥ k0 of a record from which its [`Metrics`] are made: by [`metrics`]
+/// The sums over the scored rows k ≥ max(K, k0) ([`first_scored`]) of a record from which its [`Metrics`] are made: by [`metrics`]
 /// from the whole record, or pass by pass from a record too long to hold (`sysid::stream`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct MetricSums {
-    /// N: rows k ≥ k0.
+    /// N: rows k ≥ max(K, k0).
     pub n: usize,
     /// p: estimated parameters.
     pub p: usize,
@@ -771,7 +838,7 @@ pub struct ModelOutput {
     /// K-step-ahead prediction ŷ(k | k − K) (MATLAB `predict(m, z, K)`); entries k < k0 are the data.
     /// An output-error model predicts by simulation at every horizon: its `y_pred` is `y_sim`.
     pub y_pred: Vec<f64>,
-    /// Fit % of `y_pred` over k >= k0.
+    /// Fit % of `y_pred` over k >= max(K, k0) ([`first_scored`]).
     pub fit_pred_percent: Option<f64>,
 }
 
@@ -783,6 +850,19 @@ pub fn model_output(
     y: &[f64],
     horizon: usize,
 ) -> Result<ModelOutput, SysidError> {
+    model_output_scored_from(model, u, y, horizon, 0)
+}
+
+/// [`model_output`] with its fit % over the rows k >= max(K, k0) only, K = `score_from`
+/// ([`first_scored`]; the record is checked by [`metrics_scored_from`]): every sample is simulated and
+/// predicted all the same.
+pub fn model_output_scored_from(
+    model: &Model,
+    u: &[&[f64]],
+    y: &[f64],
+    horizon: usize,
+    score_from: usize,
+) -> Result<ModelOutput, SysidError> {
     let y_sim_measured = model.simulate(u, y).ok();
     let y_sim = y_sim_measured
         .clone()
@@ -792,8 +872,8 @@ pub fn model_output(
         (crate::NoiseModel::OutputError, Some(s)) => s.clone(),
         _ => model.predict_k(u, y, horizon)?,
     };
-    let k0 = model.k0().min(y_pred.len());
-    let fit_pred_percent = fit_percent(&y[k0..y_pred.len()], &y_pred[k0..]);
+    let ks = first_scored(model.k0(), score_from).min(y_pred.len());
+    let fit_pred_percent = fit_percent(&y[ks..y_pred.len()], &y_pred[ks..]);
     Ok(ModelOutput {
         y_sim,
         y_sim_measured,

@@ -479,6 +479,12 @@ pub struct ValidationReport {
     /// `on_circle` or `unstable`; the same for the same model in every command.
     #[serde(default)]
     pub stability: String,
+    /// The first sample scored (0-based row of the record): max(K, k0), K the first sample asked for
+    /// (`validate --score-from K`, 0 by default) and k0 the model's largest lag
+    /// ([`sysid_core::metrics::first_scored`]). Every figure of `metrics` and `residuals` is over the
+    /// rows from it on; the simulations and predictions run over the whole record all the same.
+    #[serde(default)]
+    pub score_from: usize,
     /// Metrics on the record.
     pub metrics: ValidationMetrics,
     /// Residual analysis on the record.
@@ -537,12 +543,28 @@ impl ValidationReport {
     /// Validates `model` on `data`: metrics, residual analysis with `max_lag` lags, warnings (unstable
     /// model, negative or diverging simulation fit).
     pub fn assemble(model: &Model, data: &Dataset, max_lag: usize) -> Result<Self, SysidError> {
-        let m = metrics(model, data)?;
+        Self::assemble_scored_from(model, data, max_lag, 0)
+    }
+
+    /// [`ValidationReport::assemble`] with every figure (metrics and residual analysis) over the rows
+    /// k ≥ max(K, k0) of `data` only, K = `score_from` (0-based; `validate --score-from`, checked by
+    /// [`sysid_core::metrics::check_scored`]). The warnings judge those figures; the input and output
+    /// ranges are the whole record's (the model is driven by all of it).
+    pub fn assemble_scored_from(
+        model: &Model,
+        data: &Dataset,
+        max_lag: usize,
+        score_from: usize,
+    ) -> Result<Self, SysidError> {
+        let m = sysid_core::metrics::metrics_scored_from(model, data, score_from)?;
         let mut report = Self::from_parts(
             model,
             m,
-            residual_analysis(model, data, max_lag),
+            ResidualEntry::from(sysid::residuals::residual_analysis_scored_from(
+                model, data, max_lag, score_from,
+            )),
             &input_extremes(data),
+            score_from,
         );
         report.warnings.extend(record_outside_data(model, data.y()));
         Ok(report)
@@ -564,12 +586,14 @@ impl ValidationReport {
 
     /// The report from metrics, a residual analysis and each input's [min, max] over the record computed
     /// elsewhere (the streaming path, `sysid::stream`), with the warnings [`ValidationReport::assemble`]
-    /// gives (the one place they are put together).
+    /// gives (the one place they are put together); the figures scored from sample `score_from` = K
+    /// (max(K, k0) is reported, [`sysid_core::metrics::first_scored`]).
     pub fn from_parts(
         model: &Model,
         m: Metrics,
         residuals: ResidualEntry,
         input_extremes: &[(f64, f64)],
+        score_from: usize,
     ) -> Self {
         let mut warnings = Self::record_warnings(model, &m, input_extremes);
         // The record's input–residual test (audit s20 M-1), as identify's validation record.
@@ -585,6 +609,7 @@ impl ValidationReport {
             poles: poles(model),
             stable: model.stability().settles(),
             stability: model.stability().name().to_string(),
+            score_from: sysid_core::metrics::first_scored(model.k0(), score_from),
             metrics: ValidationMetrics { validation: m },
             residuals: ValidationResiduals {
                 validation: residuals,

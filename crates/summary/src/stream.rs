@@ -5,7 +5,7 @@
 
 use sysid::data::stream::{ChunkFn, RecordSource, Shape};
 use sysid::detrend::Detrend;
-use sysid::stream::{identify_checked, record_metrics, Streamed, StreamedFit};
+use sysid::stream::{identify_checked, record_metrics_scored_from, Streamed, StreamedFit};
 use sysid::{Dataset, Fitted, Identification, Model, SysidError};
 
 use crate::{
@@ -94,16 +94,19 @@ pub fn identify_report(
     })
 }
 
-/// The `validate --json` report of `model` on `data` read in passes (as [`ValidationReport::assemble`]).
+/// The `validate --json` report of `model` on `data` read in passes (as
+/// [`ValidationReport::assemble_scored_from`]), every figure over the rows k ≥ max(K, k0), K =
+/// `score_from` (0: from k0).
 pub fn validation_report(
     model: &Model,
     data: &mut dyn RecordSource,
     max_lag: usize,
+    score_from: usize,
 ) -> Result<Streamed<ValidationReport>, SysidError> {
-    let on = record_metrics(model, data, max_lag)?;
+    let on = record_metrics_scored_from(model, data, max_lag, score_from)?;
     let (m, r) = on.result;
     let extremes: Vec<(f64, f64)> = on.u_extremes.into_iter().collect();
-    let mut report = ValidationReport::from_parts(model, m, r.into(), &extremes);
+    let mut report = ValidationReport::from_parts(model, m, r.into(), &extremes, score_from);
     // The output against the model's data range, as `ValidationReport::assemble` judges it.
     let outside = on
         .y_extremes

@@ -188,7 +188,7 @@ fn streamed_arx_identification_equals_the_in_memory_one() {
 
 fn assert_validation(what: &str, model: &Model, data: &Dataset) {
     let want = ValidationReport::assemble(model, data, 25);
-    let got = validation_report(model, &mut DatasetSource::new(data, 1000), 25);
+    let got = validation_report(model, &mut DatasetSource::new(data, 1000), 25, 0);
     match (got, want) {
         (Ok(g), Ok(w)) => {
             assert_metrics(what, &g.result.metrics.validation, &w.metrics.validation);

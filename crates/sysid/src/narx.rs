@@ -1053,12 +1053,12 @@ pub fn refine(
 }
 
 /// Metrics of a NARX model on one record: free run from the measured initial outputs and one-step
-/// prediction, over the rows k ≥ k0.
+/// prediction, over the rows k ≥ max(K, k0) ([`narx_metrics_scored_from`]).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct NarxMetrics {
     /// The record's name.
     pub data: String,
-    /// Rows k ≥ k0 the metrics are over.
+    /// Rows k ≥ max(K, k0) the metrics are over.
     pub n: usize,
     /// Free-run simulation RMSE (units of y), from the measured initial outputs; `None` after a blow-up.
     pub rmse_sim: Option<f64>,
@@ -1089,9 +1089,31 @@ pub struct NarxMetrics {
 
 /// The metrics of `model` on `data` (its first input).
 pub fn narx_metrics(model: &NarxModel, data: &Dataset) -> Result<NarxMetrics, SysidError> {
+    narx_metrics_scored_from(model, data, 0)
+}
+
+/// [`narx_metrics`] over the rows k ≥ max(K, k0) only, K = `score_from`
+/// ([`sysid_core::metrics::check_scored`], the rule of the linear models' figures): the same simulation
+/// and prediction over the whole record, fewer rows scored. A record no longer than k0 (K = 0) keeps
+/// the behaviour of [`narx_metrics`]: figures over no rows, not an error.
+pub fn narx_metrics_scored_from(
+    model: &NarxModel,
+    data: &Dataset,
+    score_from: usize,
+) -> Result<NarxMetrics, SysidError> {
     sysid_core::metrics::check_sampling(data.name(), data.ts(), model.ts())?;
     let (u, y) = (data.u(), data.y());
-    let k0 = model.k0().min(y.len());
+    let k0 = if score_from > 0 {
+        sysid_core::metrics::check_scored(
+            data.name(),
+            y.len(),
+            model.k0(),
+            model.terms().len(),
+            score_from,
+        )?
+    } else {
+        sysid_core::metrics::first_scored(model.k0(), 0).min(y.len())
+    };
     let pred = model.predict(u, y)?;
     let sim = model.simulate(u, y)?;
     let (rmse_sim, fit_sim) = match sim.blew_up_at {

@@ -1058,23 +1058,35 @@ pub fn residual_analysis(
     data: &sysid_core::Dataset,
     max_lag: usize,
 ) -> Result<ResidualAnalysis, String> {
-    let k0 = model.k0();
+    residual_analysis_scored_from(model, data, max_lag, 0)
+}
+
+/// [`residual_analysis`] of the rows k ≥ max(K, k0) only, K = `score_from`
+/// ([`sysid_core::metrics::first_scored`], the rows every validation figure is scored on): the
+/// residuals and the input of those rows, the same predictions.
+pub fn residual_analysis_scored_from(
+    model: &sysid_core::Model,
+    data: &sysid_core::Dataset,
+    max_lag: usize,
+    score_from: usize,
+) -> Result<ResidualAnalysis, String> {
+    let ks = sysid_core::metrics::first_scored(model.k0(), score_from).min(data.len());
     let options = ResidOptions {
         max_lag,
         ..ResidOptions::default()
     };
     let (u, y) = (data.input_signals(), data.y());
     let pred = sysid_core::metrics::one_step_prediction(model, data).map_err(|e| e.to_string())?;
-    let eps: Vec<f64> = y[k0..]
+    let eps: Vec<f64> = y[ks..]
         .iter()
-        .zip(&pred[k0..])
+        .zip(&pred[ks..])
         .map(|(y, p)| y - p)
         .collect();
-    let u0 = u.first().map_or(&[][..], |u| &u[k0..]);
+    let u0 = u.first().map_or(&[][..], |u| &u[ks..]);
     let mut a = analyze(&eps, u0, &options).map_err(|e| e.to_string())?;
     if u.len() > 1 {
         for (ui, ch) in u.iter().zip(model.inputs()) {
-            let ai = analyze(&eps, &ui[k0..], &options)
+            let ai = analyze(&eps, &ui[ks..], &options)
                 .map_err(|e| format!("input {}: {e}", ch.name()))?;
             a.inputs.push(InputCorrelation::of(ch.name(), &ai));
         }

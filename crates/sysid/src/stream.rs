@@ -568,7 +568,23 @@ pub fn record_metrics(
     src: &mut dyn RecordSource,
     max_lag: usize,
 ) -> Result<Streamed<(Metrics, StreamedResiduals)>, SysidError> {
+    record_metrics_scored_from(model, src, max_lag, 0)
+}
+
+/// [`record_metrics`] over the rows k ≥ max(K, k0) only, K = `score_from` (as
+/// `metrics::metrics_scored_from` and `residuals::residual_analysis_scored_from`; the record's length,
+/// known after the first pass, is checked by `metrics::check_scored`): the same simulations, the
+/// initial outputs estimated on the rows k ≥ k0 as without K.
+pub fn record_metrics_scored_from(
+    model: &Model,
+    src: &mut dyn RecordSource,
+    max_lag: usize,
+    score_from: usize,
+) -> Result<Streamed<(Metrics, StreamedResiduals)>, SysidError> {
     let k0 = model.k0();
+    // ks: the first scored row (every sum and the residual analysis); k0 still bounds the estimated
+    // initial outputs' problem and the simulation's start.
+    let ks = sysid_core::metrics::first_scored(k0, score_from);
     let p = model.parameter_count();
     let output_error = model.noise_model() == NoiseModel::OutputError;
     // Pass 1: prediction errors, the simulation from the measured initial outputs, the means, and the
@@ -591,7 +607,7 @@ pub fn record_metrics(
                 free.step(&mut s_row);
                 eta.push(&s_row, if k < k0 { 0.0 } else { yk - sim });
             }
-            if k < k0 {
+            if k < ks {
                 continue;
             }
             sum_y += yk;
@@ -610,13 +626,8 @@ pub fn record_metrics(
     })?;
     let mut passes = 1;
     let name = src.name().to_string();
-    if shape.rows <= k0 {
-        return Err(SysidError::Data(format!(
-            "{name}: {} samples are not enough to validate a model with k0 = {k0}",
-            shape.rows
-        )));
-    }
-    let n = shape.rows - k0;
+    sysid_core::metrics::check_scored(&name, shape.rows, k0, p, score_from)?;
+    let n = shape.rows - ks;
     let nf = n as f64;
     if !output_error {
         if let Some(e) = &run.pred_failed {
@@ -666,7 +677,7 @@ pub fn record_metrics(
                 }
                 _ => None,
             };
-            if k < k0 {
+            if k < ks {
                 continue;
             }
             deviation += (yk - mean_y) * (yk - mean_y);
@@ -707,7 +718,7 @@ pub fn record_metrics(
                 let step = run.step(*uk, *yk);
                 free.step(&mut s_row);
                 let shift: f64 = s_row.iter().zip(d).map(|(s, t)| s * t).sum();
-                if start + i >= k0 {
+                if start + i >= ks {
                     acc.push(yk - (step.sim.unwrap_or(f64::NAN) + shift), *uk);
                 }
             }

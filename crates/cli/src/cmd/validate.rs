@@ -51,6 +51,17 @@ pub struct Args {
     /// 1 = one-step-ahead).
     #[arg(long, value_name = "K", default_value_t = 1)]
     pub horizon: usize,
+    /// Score from sample K on: every figure (fit %, RMSE, loss V, FPE, AIC, MATLAB's LossFcn, FPE and
+    /// nAIC, the --horizon fit, the residual tests) over the samples k >= max(K, k0) only, k0 the
+    /// model's largest lag (its first predicted sample, where scoring starts without this option).
+    /// K is 0-based, a row of the record as read (after --rows), as in --rows; e.g. 50 for the
+    /// nonlinear_benchmarks' 50-sample state-initialisation window. The simulations and predictions
+    /// are the same with or without it (run over the whole record, the initial outputs estimated on
+    /// k >= k0): only the rows scored change. --out still writes every sample, with a last column
+    /// `scored` (1 from sample max(K, k0) on, else 0). A K that reaches the record's end, or leaves no
+    /// more samples than the model's parameters, is refused.
+    #[arg(long, value_name = "K", default_value_t = 0)]
+    pub score_from: usize,
     /// Read the record in passes with bounded memory (single-input models, horizon 1, no --out;
     /// docs/data.md, "Long records"): `auto` streams a CSV file of 64 MiB or more when those hold;
     /// `--stream` alone is `on`.
@@ -214,7 +225,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             || Ok(sysid::TermSizes::of_record(&model, &us, data.y())),
         )
     };
-    let mut report = ValidationReport::assemble(&model, &data, args.resid_lags).map_err(blame)?;
+    let mut report =
+        ValidationReport::assemble_scored_from(&model, &data, args.resid_lags, args.score_from)
+            .map_err(blame)?;
     report
         .warnings
         .extend(super::common::data_notes(&record.notes));
@@ -226,7 +239,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         &opts,
         Some(Samples::InMemory(&data)),
     );
-    let out = sysid::metrics::model_output(&model, &us, data.y(), args.horizon).map_err(blame)?;
+    let out = sysid::metrics::model_output_scored_from(
+        &model,
+        &us,
+        data.y(),
+        args.horizon,
+        args.score_from,
+    )
+    .map_err(blame)?;
     let value = report_json(&report, args.horizon, out.fit_pred_percent, &record.notes)?;
     let text = report_text(
         &args,
@@ -245,17 +265,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .map(|tk| t0 + tk)
             .collect();
         let mut w = csv::Writer::from_writer(Vec::new());
-        w.write_record(OUT_COLUMNS)?;
+        let scored = ScoredColumn::of(args.score_from, report.score_from);
+        w.write_record(scored.header())?;
         for k in 0..data.len() {
             let cell = |s: &Option<Vec<f64>>| s.as_ref().map_or(String::new(), |s| shortest(s[k]));
-            w.write_record([
-                shortest(t[k]),
-                shortest(data.y()[k]),
-                cell(&out.y_sim),
-                cell(&out.y_sim_measured),
-                shortest(out.y_pred[k]),
-                shortest(data.y()[k] - out.y_pred[k]),
-            ])?;
+            w.write_record(scored.row(
+                k,
+                [
+                    shortest(t[k]),
+                    shortest(data.y()[k]),
+                    cell(&out.y_sim),
+                    cell(&out.y_sim_measured),
+                    shortest(out.y_pred[k]),
+                    shortest(data.y()[k] - out.y_pred[k]),
+                ],
+            ))?;
         }
         out_csv = Some(w.into_inner().map_err(|e| anyhow::anyhow!("{e}"))?);
     }
@@ -273,6 +297,59 @@ fn shortest(v: f64) -> String {
 /// outputs, y_sim_y0meas from the measured ones (audit s24 M-2: the file held only the former, the
 /// figure the warning says not to trust when the two differ).
 const OUT_COLUMNS: [&str; 6] = ["t", "y", "y_sim", "y_sim_y0meas", "y_pred", "residual"];
+
+/// The last column of `validate --out` with `--score-from`: `scored`, 1 for the samples every figure is
+/// over (k >= max(K, k0)), 0 before; without the option the file keeps its six columns (its readers
+/// read them by position: audit s24's awk lines, docs/real-data.md).
+#[derive(Clone, Copy)]
+struct ScoredColumn {
+    /// The first scored sample, when the column is written.
+    first: Option<usize>,
+}
+
+impl ScoredColumn {
+    /// The column for `--score-from asked` (0: not given, no column) of a model scored from sample
+    /// `first` (max(K, k0), [`sysid::metrics::first_scored`]).
+    fn of(asked: usize, first: usize) -> Self {
+        ScoredColumn {
+            first: (asked > 0).then_some(first),
+        }
+    }
+
+    /// The header row.
+    fn header(&self) -> Vec<&'static str> {
+        let mut h = OUT_COLUMNS.to_vec();
+        if self.first.is_some() {
+            h.push("scored");
+        }
+        h
+    }
+
+    /// Row `k`'s cells `cells` with the column's cell when written.
+    fn row(&self, k: usize, cells: [String; 6]) -> Vec<String> {
+        let mut r = cells.to_vec();
+        if let Some(first) = self.first {
+            r.push(if k >= first { "1" } else { "0" }.into());
+        }
+        r
+    }
+}
+
+/// The words of the summary line that say from which sample the figures are scored (`asked`: the
+/// `--score-from` given, 0 when not; `first`: the first scored sample, max(K, k0); `n`: the samples
+/// scored): nothing without the option (the figures start at k0 as ever).
+fn scored_words(asked: usize, first: usize, n: usize) -> String {
+    if asked == 0 {
+        String::new()
+    } else if first == asked {
+        format!(", scored from sample {first} on by --score-from (0-based): {n}")
+    } else {
+        format!(
+            ", scored from sample {first} on, the model's first predicted sample k0, after \
+             --score-from {asked}: {n}"
+        )
+    }
+}
 
 /// `validate` of a polynomial NARX model: simulation (from the measured initial outputs) and one-step
 /// metrics, the warnings (a blow-up, a negative fit, no input term), `--out` with the columns of a
@@ -300,7 +377,8 @@ fn run_narx(
     // columns per sample): refused before any of them is made (audit s23 H-B1, session 25).
     check_validate_memory(&data, model.parameter_count(), args.memory.max_memory)?;
     sysid::metrics::check_sampling_noted(data.name(), data.ts(), model.ts(), &record.notes)?;
-    let metrics = sysid::narx::narx_metrics(model, &data)?;
+    let metrics = sysid::narx::narx_metrics_scored_from(model, &data, args.score_from)?;
+    let first = sysid::metrics::first_scored(model.k0(), args.score_from);
     let mut warnings: Vec<String> = super::common::data_notes(&record.notes).collect();
     if let Some(k) = metrics.blew_up_at {
         warnings.insert(
@@ -359,13 +437,14 @@ fn run_narx(
     let fmt = |v: Option<f64>| v.map_or("n/a (the simulation blew up)".into(), report::format::num);
     let pct = |v: Option<f64>| v.map_or("n/a".into(), |v| format!("{} %", report::format::num(v)));
     let mut text = format!(
-        "{} (polynomial NARX, {} terms) on {} ({} samples): simulation RMSE {}, fit {} (initial \
+        "{} (polynomial NARX, {} terms) on {} ({} samples{}): simulation RMSE {}, fit {} (initial \
          outputs measured); one-step RMSE {}, fit {}; MATLAB's LossFcn {}, FPE {}, nAIC {} (one-step \
          prediction errors)\n",
         args.model.display(),
         model.terms().len(),
         data.name(),
         data.len(),
+        scored_words(args.score_from, first, metrics.n),
         fmt(metrics.rmse_sim),
         pct(metrics.fit_sim_percent),
         report::format::num(metrics.rmse_pred),
@@ -389,26 +468,31 @@ fn run_narx(
             .map(|tk| t0 + tk)
             .collect();
         let mut w = csv::Writer::from_writer(Vec::new());
-        w.write_record(OUT_COLUMNS)?;
+        let scored = ScoredColumn::of(args.score_from, first);
+        w.write_record(scored.header())?;
         for k in 0..data.len() {
             let s = if sim[k].is_finite() {
                 shortest(sim[k])
             } else {
                 String::new()
             };
-            w.write_record([
-                shortest(t[k]),
-                shortest(data.y()[k]),
-                s.clone(),
-                s,
-                shortest(pred[k]),
-                shortest(data.y()[k] - pred[k]),
-            ])?;
+            w.write_record(scored.row(
+                k,
+                [
+                    shortest(t[k]),
+                    shortest(data.y()[k]),
+                    s.clone(),
+                    s,
+                    shortest(pred[k]),
+                    shortest(data.y()[k] - pred[k]),
+                ],
+            ))?;
         }
         out_csv = Some(w.into_inner().map_err(|e| anyhow::anyhow!("{e}"))?);
     }
     let value = serde_json::json!({
         "model": model,
+        "score_from": first,
         "metrics": { "validation": metrics },
         "warnings": warnings,
         "data_notes": record.notes,
@@ -480,13 +564,14 @@ fn report_text(
 ) -> String {
     let m = &report.metrics.validation;
     let mut text = format!(
-        "{} on {} ({} samples): fit {} % (simulation, initial outputs estimated), {} % (simulation, \
+        "{} on {} ({} samples{}): fit {} % (simulation, initial outputs estimated), {} % (simulation, \
          initial outputs measured), {} % (1-step prediction){}; loss V {} (one-step equation error), \
          V_sim {} (simulation error), FPE {}; MATLAB's LossFcn {}, FPE {}, nAIC {} (the model's own \
          one-step prediction errors); {}\n",
         args.model.display(),
         name,
         len,
+        scored_words(args.score_from, report.score_from, m.n),
         fit_text(m.fit_sim_percent),
         fit_text(m.fit_sim_measured_percent),
         fit_text(m.fit_pred_percent),
@@ -572,12 +657,13 @@ fn run_streamed(
     let name = sysid::data::stream::RecordSource::name(&src).to_string();
     // A numerical failure is blamed on the model file's coefficient when one explains it, as the
     // in-memory path does (one more pass gathers the record's sizes, only on that failure).
-    let streamed = sysid_summary::stream::validation_report(model, &mut src, args.resid_lags)
-        .map_err(|e| {
-            blame_model(e, model, &args.model, &name, || {
-                sysid::stream::term_sizes(model, &mut src)
-            })
-        })?;
+    let streamed =
+        sysid_summary::stream::validation_report(model, &mut src, args.resid_lags, args.score_from)
+            .map_err(|e| {
+                blame_model(e, model, &args.model, &name, || {
+                    sysid::stream::term_sizes(model, &mut src)
+                })
+            })?;
     let shape = streamed.shape;
     // The name once read: with --rows it says which rows (`file.csv[100..600]`), as in memory.
     let name = sysid::data::stream::RecordSource::name(&src).to_string();

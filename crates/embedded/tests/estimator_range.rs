@@ -287,3 +287,83 @@ fn a_stable_plant_with_large_coefficients_passes_the_pole_bound() {
     assert!((t[4] - a[0]).abs() < 1e-6, "{t:?}");
     assert_eq!(est.plausible_deadzone(), Ok(est.deadzone()));
 }
+
+/// Audit s33 M-3's record: the plant excited for 2000 samples, at rest for `rest` samples (u = 0,
+/// y held), then excited for 6000 samples.
+fn rest_record(rest: usize) -> Vec<(f64, f64)> {
+    let mut seed = 3u64;
+    let (mut y_past, mut u1) = ([0.0f64; 3], 0.0);
+    (0..2000 + rest + 6000)
+        .map(|k| {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            let at_rest = (2000..2000 + rest).contains(&k);
+            let u = if at_rest {
+                0.0
+            } else {
+                ((seed >> 33) % 401) as f64 - 200.0
+            };
+            let y = if at_rest {
+                y_past[0]
+            } else {
+                -A[0] * y_past[0] - A[1] * y_past[1] - A[2] * y_past[2] + TRUTH.apply(u1)
+            };
+            y_past = [y, y_past[0], y_past[1]];
+            u1 = u;
+            (u, y)
+        })
+        .collect()
+}
+
+// Audit s33 M-3 (docs/embedded.md's old example: ρ < 1, no guard): at rest φ excites no deadzone
+// column, so P grows by 1/ρ per sample there; with ρ = 0.98 and p0 = 1e6 it passes f64's 1.8e308 after
+// ln(1.8e302)/ln(1/0.98) ≈ 34 430 samples at the latest, so a rest of 40 000 samples ends in
+// Error::Numerical, which then repeats on every one of the 6000 exciting samples after it. Restarting
+// the covariance on the error (what the docs now say to do) recovers the plant (at most one failed
+// update after the excitation resumes, the one that restarts); a trace guard
+// (max_trace = p0 n = 7e6, identify's default) prevents it.
+#[test]
+fn covariance_windup_repeats_until_a_restart_and_a_guard_prevents_it() {
+    let data = rest_record(40_000);
+    let resumed = data.len() - 6000;
+    let s = HammersteinSettings {
+        forgetting: 0.98,
+        ..HammersteinSettings::paper()
+    };
+    for form in [Form::Standard, Form::Ud] {
+        let s = HammersteinSettings { form, ..s };
+        // No guard, no restart: every update after the excitation resumes fails.
+        let mut est = PaperHrls::new(s).unwrap();
+        let failed: Vec<bool> = data
+            .iter()
+            .map(|&(u, y)| est.update(u, y).is_err())
+            .collect();
+        assert!(failed[..2000].iter().all(|f| !f), "{form:?}");
+        assert!(failed[resumed..].iter().all(|&f| f), "{form:?}");
+        // Restart on Numerical: the 6000 exciting samples bring the plant back.
+        let mut est = PaperHrls::new(s).unwrap();
+        let mut failed_after = 0;
+        for (k, &(u, y)) in data.iter().enumerate() {
+            if est.update(u, y) == Err(Error::Numerical) {
+                est.restart_covariance();
+                failed_after += usize::from(k >= resumed);
+            }
+        }
+        // At most the one failure that triggers the restart (the first exciting sample may meet the
+        // wound-up P), not the 6000 of the run without it.
+        assert!(failed_after <= 1, "{form:?}: {failed_after}");
+        assert!(near_truth(&est), "{form:?}: {:?}", est.deadzone());
+        // The guard: no update fails at all.
+        let guarded = HammersteinSettings {
+            max_trace: Some(7e6),
+            ..s
+        };
+        let mut est = PaperHrls::new(guarded).unwrap();
+        assert!(
+            data.iter().all(|&(u, y)| est.update(u, y).is_ok()),
+            "{form:?}"
+        );
+        assert!(near_truth(&est), "{form:?}: {:?}", est.deadzone());
+    }
+}

@@ -860,7 +860,10 @@ fn c_interface_refuses_the_audit_s19_cases() {
     assert_eq!(line("hrls_u_beyond_limit_unranged"), [ok]);
     // θ̂ = 0 (no update yet): slopes 0, IPA_NOT_PHYSICAL (3) for reason 1 (no valve deadzone).
     assert_eq!(line("hrls_deadzone_reason_fresh"), [3.0, 1.0]);
-    assert_eq!(line("hrls_deadzone_reason_uninitialised"), [not_initialised]);
+    assert_eq!(
+        line("hrls_deadzone_reason_uninitialised"),
+        [not_initialised]
+    );
 }
 
 /// docs/embedded.md's "The C example" prints what the example prints now (audit s20 D-2: the UD line

@@ -260,8 +260,8 @@ impl<F: Float, const N: usize, const D: usize> HammersteinRls<F, N, D> {
         if !(u.is_finite() && y.is_finite()) {
             return Err(Error::NotFinite);
         }
-        // With a range, |u| ≤ limit too (`!(a <= b)` so that no comparison lets a sample through).
-        if !self.range.contains(y) || (self.range.get().is_some() && !(u.abs() <= self.limit)) {
+        // With a range, |u| ≤ limit too (u is finite here and limit never NaN).
+        if !self.range.contains(y) || (self.range.get().is_some() && u.abs() > self.limit) {
             return Err(Error::OutOfRange);
         }
         let mut eps = None;
@@ -377,7 +377,8 @@ impl<F: Float, const N: usize, const D: usize> HammersteinRls<F, N, D> {
         for (i, &ai) in (1..).zip(a) {
             let (num, den) = (self.na + 1 - i, i);
             bound = bound * F::from_f64((2 * num) as f64) / F::from_f64(den as f64);
-            if !(ai.abs() <= bound) {
+            let within = ai.is_finite() && ai.abs() <= bound;
+            if !within {
                 return Err(Implausible::Diverged);
             }
         }

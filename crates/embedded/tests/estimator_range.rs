@@ -2,8 +2,8 @@
 //! for good, and `ipa_hrls_deadzone` then returned IPA_OK with slopes of 1e302. The auditor's scenario
 //! (c/glitch.c): docs/embedded.md's setup (na = 3, nb = 1, nk = 1, p0 = 1e6, b_l0 = −1, b_r0 = 1,
 //! limit = 255, no guard, UD form), a Hammerstein plant with the deadzone b_l = −40, b_r = 40,
-//! m_l = 0.012, m_r = 0.01 and A = 1 − 1.5 q⁻¹ + 0.7 q⁻² − 0.1 q⁻³ (y(k) = 1.5 y(k−1) − 0.7 y(k−2)
-//! + 0.1 y(k−3) + x(k−1) + noise), random commands in [−200, 200] counts, 3000 good samples, ONE sample
+//! m_l = 0.012, m_r = 0.01 and A = 1 − 1.5 q⁻¹ + 0.7 q⁻² − 0.1 q⁻³ (so y(k) = 1.5 y(k−1) −
+//! 0.7 y(k−2) + 0.1 y(k−3) + x(k−1) + noise), random commands in [−200, 200] counts, 3000 good samples, ONE sample
 //! whose y is a glitch G, then 6000 good samples. With a plausibility range the glitch is refused
 //! (`Error::OutOfRange`, the state unchanged) and the run ends bit for bit as one that never saw it;
 //! without one every finite sample is taken, as before. `plausible_deadzone` (the rule of

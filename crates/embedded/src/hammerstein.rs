@@ -113,7 +113,8 @@ impl<F: Float> HammersteinSettings<F> {
 /// Cost per sample ([`flops_per_sample`]): the RLS update for n parameters plus 4 + na + 2 nb flops
 /// for the deadzone from θ̂ and the regressor: 242 flops for the paper's orders with ρ < 1, 213 with
 /// ρ = 1 (UD form: 291 for either with N = 7, 249 with a capacity N ≥ 8: [`flops_per_sample_ud`]);
-/// plus D + D moves of the delay lines.
+/// plus D + D moves of the delay lines, and two comparisons for the plausibility range (four with one
+/// set: y against y_min and y_max, |u| against limit; session 33, not re-timed by the benches).
 #[derive(Debug, Clone, Copy)]
 pub struct HammersteinRls<F: Float, const N: usize, const D: usize> {
     rls: Rls<F, N>,

@@ -769,7 +769,7 @@ fn c_controller_matches_control(brake: Brake) {
 /// Audit s19 M-1, L-1, L-2 and s31 M-6 through the C interface (crates/embedded/examples/c/refusals.c,
 /// one line `NAME RC [VALUES]` per case; outputs preset to 42). Codes: 0 OK, −1 IPA_ERR_SETTING, −3
 /// IPA_ERR_NOT_FINITE, −4 IPA_ERR_NUMERICAL, −6 IPA_ERR_NULL, −8 IPA_ERR_NOT_INITIALISED, −9
-/// IPA_ERR_RANGE.
+/// IPA_ERR_RANGE (the controllers' range, audit s31 M-6, and the estimator's, audit s33 H-2).
 #[test]
 fn c_interface_refuses_the_audit_s19_cases() {
     if no_cc() {
@@ -841,6 +841,29 @@ fn c_interface_refuses_the_audit_s19_cases() {
     assert_eq!(line("hrls_init_bl0_1"), [setting]);
     assert_eq!(line("hrls_init_crossed_inf"), [setting]);
     assert_eq!(line("hrls_init_one_sided"), [ok]);
+    // Audit s33 H-2: the estimator's plausibility range [−5, 205] mm. On storage not (yet) an
+    // estimator: −8; null: −6; crossed or NaN: −1; then kept.
+    assert_eq!(line("hrls_set_range_uninitialised"), [not_initialised]);
+    assert_eq!(line("hrls_set_range_null"), [null]);
+    assert_eq!(line("hrls_set_range_crossed"), [setting]);
+    assert_eq!(line("hrls_set_range_nan"), [setting]);
+    assert_eq!(line("hrls_set_range"), [ok]);
+    // The glitch y = 1000 mm: refused with −9 and the storage byte for byte unchanged (1) with the
+    // range; taken (0) without one, as before.
+    assert_eq!(line("hrls_glitch_ranged"), [range, 1.0]);
+    assert_eq!(line("hrls_glitch_unranged"), [ok]);
+    // Every other update OK; θ̂ (n = 7) of the ranged estimator bit for bit that of one that never saw
+    // the glitch (1), the unranged one's not (0).
+    assert_eq!(line("hrls_after_glitch"), [0.0, 7.0, 1.0, 0.0]);
+    // A command beyond limit = 255 counts: refused with the range (state unchanged), taken without.
+    assert_eq!(line("hrls_u_beyond_limit_ranged"), [range, 1.0]);
+    assert_eq!(line("hrls_u_beyond_limit_unranged"), [ok]);
+    // θ̂ = 0 (no update yet): slopes 0, IPA_NOT_PHYSICAL (3) for reason 1 (no valve deadzone).
+    assert_eq!(line("hrls_deadzone_reason_fresh"), [3.0, 1.0]);
+    assert_eq!(
+        line("hrls_deadzone_reason_uninitialised"),
+        [not_initialised]
+    );
 }
 
 /// docs/embedded.md's "The C example" prints what the example prints now (audit s20 D-2: the UD line

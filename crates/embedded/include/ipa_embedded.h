@@ -34,9 +34,11 @@
 #define IPA_MAX_NK 8
 
 /**
- * An upper bound, valid on every target, of [`ipa_hrls_state_size`] in bytes (for static storage).
+ * An upper bound, valid on every target, of [`ipa_hrls_state_size`] in bytes (for static storage;
+ * 3480 since the estimator's plausibility range of [`ipa_hrls_set_range`], 3472 before: C code built
+ * against the new header only).
  */
-#define IPA_HRLS_STATE_BYTES 3472
+#define IPA_HRLS_STATE_BYTES 3480
 
 /**
  * An upper bound, valid on every target, of [`ipa_pi_state_size`] in bytes (80 on a 64-bit host
@@ -77,8 +79,11 @@
 #define IPA_ALARM 2
 
 /**
- * `ipa_hrls_deadzone`: the estimate was written but is no valve deadzone (not finite, b_l > 0 or
- * b_r < 0, or a slope m_l, m_r ≤ 0: too few or too poorly exciting samples so far); not an error.
+ * `ipa_hrls_deadzone`: the estimate was written but is not one to compensate with (not finite,
+ * b_l > 0 or b_r < 0, or a slope m_l, m_r ≤ 0: too few or too poorly exciting samples so far; a
+ * breakpoint beyond ±limit; a coefficient of A showing a pole outside |z| = 2, a diverged estimate;
+ * with a range, a slope so steep that one sample of the full command would move the position by more
+ * than the range: [`ipa_hrls_deadzone_reason`] says which); not an error.
  */
 #define IPA_NOT_PHYSICAL 3
 
@@ -104,7 +109,11 @@
 
 /**
  * A numerical failure; the state is unchanged. The RLS update ([`ipa_hrls_update`]) would lose positive
- * definiteness of P or meet a non-finite value; or a controller step's command would not be finite
+ * definiteness of P or meet a non-finite value: with ρ < 1 and no windup guard (`max_trace` 0) this
+ * is covariance windup (P grows by 1/ρ per sample while the input does not excite, e.g. an actuator
+ * at rest, until it overflows), and it then repeats on EVERY later sample, exciting or not, until
+ * [`ipa_hrls_restart_covariance`] (or [`ipa_hrls_init`]): give `max_trace` > 0 to prevent it, or
+ * restart the covariance on this code (audit s33 M-3). Or a controller step's command would not be finite
  * (a guard of last resort, audit s19 M-1: [`ipa_ctl_step`] when the command u, the integral I or the
  * derivative term D would not be, [`ipa_pi_step`] when u or the integral would not be), `*u` then not
  * written.
@@ -134,7 +143,9 @@
 /**
  * A controller sample with r or y outside the plausibility range set by [`ipa_pi_set_range`] or
  * [`ipa_ctl_set_range`]: a wild sample (an encoder glitch, a unit slip) refused; the state is
- * unchanged and `*u` not written (hold the previous command or go safe).
+ * unchanged and `*u` not written (hold the previous command or go safe). Or an estimator sample
+ * ([`ipa_hrls_update`]) with y outside the range of [`ipa_hrls_set_range`] or |u| > limit: not taken,
+ * the state unchanged.
  */
 #define IPA_ERR_RANGE -9
 
@@ -430,7 +441,10 @@ int32_t ipa_hrls_init(void *mem,
 /**
  * Feeds sample k: command u(k) (counts) and position y(k) (mm). Returns [`IPA_OK`] after an estimate
  * update (then `*eps`, when not null, is the a-priori prediction error ε(k) in mm), [`IPA_PENDING`]
- * while the delay lines fill, or a negative code (state unchanged).
+ * while the delay lines fill, or a negative code (state unchanged): [`IPA_ERR_NOT_FINITE`] for a
+ * NaN/±∞ sample, [`IPA_ERR_RANGE`] with a range ([`ipa_hrls_set_range`]) for y outside it or
+ * |u| > limit, [`IPA_ERR_NUMERICAL`] (with ρ < 1 and no `max_trace`: covariance windup, repeated on
+ * every later sample until [`ipa_hrls_restart_covariance`]).
  *
  * # Safety
  * `mem` must be storage passed to a successful [`ipa_hrls_init`] (or null); `eps` null or writable.
@@ -442,14 +456,46 @@ int32_t ipa_hrls_update(void *mem,
 
 /**
  * Writes the fitted deadzone (b_r = θ̂₂/θ̂₁, b_l = θ̂₄/θ̂₃, m_r = θ̂₁, m_l = θ̂₃; a non-finite ratio gives
- * 0) to `*out`. Returns [`IPA_OK`], [`IPA_NOT_PHYSICAL`] when the estimate written is no valve deadzone
- * (not finite, b_l > 0, b_r < 0 or a slope ≤ 0: do not compensate with it yet), or a negative code.
+ * 0) to `*out`. Returns [`IPA_OK`], [`IPA_NOT_PHYSICAL`] when the estimate written is not one to
+ * compensate with (do not compensate with it yet; [`ipa_hrls_deadzone_reason`] says why: 1 not
+ * finite, b_l > 0, b_r < 0 or a slope ≤ 0; 2 a breakpoint beyond ±limit; 3 a coefficient
+ * |a_i| > C(na, i) 2^i, a pole outside |z| = 2: a diverged estimate; 4 with a range, one sample of
+ * the full command would move the position by more than y_max − y_min), or a negative code. The
+ * rules: `ipa_embedded::HammersteinRls::plausible_deadzone`.
  *
  * # Safety
  * As [`ipa_hrls_update`]; `out` null or writable.
  */
 int32_t ipa_hrls_deadzone(const void *mem,
                           struct IpaDeadzone *out);
+
+/**
+ * Why [`ipa_hrls_deadzone`] returns [`IPA_NOT_PHYSICAL`]: 0 when it returns [`IPA_OK`], else 1 no
+ * valve deadzone (not finite, b_l > 0, b_r < 0 or a slope ≤ 0), 2 a breakpoint beyond ±limit,
+ * 3 a coefficient |a_i| > C(na, i) 2^i (a pole outside |z| = 2: a diverged estimate), 4 with a range
+ * ([`ipa_hrls_set_range`]), one sample of the full command ±limit would move the modelled position by
+ * more than y_max − y_min; or a negative code (storage).
+ *
+ * # Safety
+ * As [`ipa_hrls_update`].
+ */
+int32_t ipa_hrls_deadzone_reason(const void *mem);
+
+/**
+ * Sets the estimator's plausibility range [y_min, y_max] (mm) for the position, after
+ * [`ipa_hrls_init`] (θ̂, P and the delay lines are kept): from then on [`ipa_hrls_update`] refuses a
+ * sample with y outside it, or with a command |u| > limit (the `limit` of [`ipa_hrls_init`]), with
+ * [`IPA_ERR_RANGE`], the state unchanged; and [`ipa_hrls_deadzone`] bounds the slopes by it. Without
+ * it every finite sample is taken: one garbage position (1000 mm on a 200 mm stroke, or 2e306 from a
+ * bad read) corrupts the estimate for good (audit s33 H-2). Typically the stroke with a margin for the
+ * sensor's noise, the range of [`ipa_pi_set_range`] / [`ipa_ctl_set_range`].
+ * Returns [`IPA_OK`] or a negative code: [`IPA_ERR_SETTING`] for y_min or y_max not finite or
+ * y_min ≥ y_max (the range is then unchanged), or a storage code.
+ *
+ * # Safety
+ * `mem` storage of a successful [`ipa_hrls_init`] (or null).
+ */
+int32_t ipa_hrls_set_range(void *mem, double y_min, double y_max);
 
 /**
  * Writes a_1..a_na (A = 1 + a_1 q⁻¹ + … + a_na q^−na) to `out` (room for `len` doubles). Returns na

@@ -30,6 +30,7 @@
 //! The optional offset c of `identify --offset` is not supported.
 
 use crate::deadzone::Deadzone;
+use crate::pi::Range;
 use crate::rls::{self, Form, Rls};
 use crate::{Error, Float};
 
@@ -104,14 +105,16 @@ impl<F: Float> HammersteinSettings<F> {
 /// The recursive Hammerstein estimator for n = 3 + na + nb ≤ `N` parameters and delay lines of `D`
 /// samples (na ≤ D, nk + nb − 1 ≤ D). No heap; `Copy`.
 ///
-/// Size (`core::mem::size_of`, test `state_sizes`): the [`Rls`] state plus 2 D + 9 floats and 5 `usize`,
-/// e.g. [`PaperHrls<f64>`] (N = 7, D = 3) 656 bytes on a 64-bit host, `PaperHrls<f32>` 328 bytes on a
-/// 32-bit target (360 on a 64-bit host).
+/// Size (`core::mem::size_of`, test `state_sizes`): the [`Rls`] state plus 2 D + 11 floats (9 and the
+/// plausibility range of [`with_range`](Self::with_range)) and 5 `usize`, e.g. [`PaperHrls<f64>`]
+/// (N = 7, D = 3) 688 bytes on a 64-bit host, `PaperHrls<f32>` 344 bytes on a 32-bit target (376 on a
+/// 64-bit host); 16 (f64) or 8 (f32) bytes less before the range (audit s33 H-2).
 ///
 /// Cost per sample ([`flops_per_sample`]): the RLS update for n parameters plus 4 + na + 2 nb flops
 /// for the deadzone from θ̂ and the regressor: 242 flops for the paper's orders with ρ < 1, 213 with
 /// ρ = 1 (UD form: 291 for either with N = 7, 249 with a capacity N ≥ 8: [`flops_per_sample_ud`]);
-/// plus D + D moves of the delay lines.
+/// plus D + D moves of the delay lines, and two comparisons for the plausibility range (four with one
+/// set: y against y_min and y_max, |u| against limit; session 33, not re-timed by the benches).
 #[derive(Debug, Clone, Copy)]
 pub struct HammersteinRls<F: Float, const N: usize, const D: usize> {
     rls: Rls<F, N>,
@@ -130,6 +133,23 @@ pub struct HammersteinRls<F: Float, const N: usize, const D: usize> {
     k0: usize,
     /// Samples seen (saturating).
     k: usize,
+    /// The plausible positions y ([`with_range`](Self::with_range); none by default).
+    range: Range<F>,
+}
+
+/// Why [`HammersteinRls::plausible_deadzone`] refuses an estimated deadzone (its documentation gives
+/// each rule). The C interface's `ipa_hrls_deadzone` returns `IPA_NOT_PHYSICAL` for each, and
+/// `ipa_hrls_deadzone_reason` the code in brackets.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Implausible {
+    /// No valve deadzone: a parameter not finite, b_l > 0, b_r < 0 or a slope ≤ 0 (1).
+    NotPhysical = 1,
+    /// A breakpoint beyond ±limit, outside every command (2).
+    BeyondLimit = 2,
+    /// A coefficient of A beyond C(na, i) 2^i: a pole outside |z| = 2, a diverged estimate (3).
+    Diverged = 3,
+    /// With a range: one sample of the full command moves the model by more than the range (4).
+    TooSteep = 4,
 }
 
 /// The paper's structure na = 3, nb = 1, nk = 1: 7 parameters, delay lines of 3 samples.
@@ -185,16 +205,65 @@ impl<F: Float, const N: usize, const D: usize> HammersteinRls<F, N, D> {
             nk: s.nk,
             k0: s.na.max(u_lags),
             k: 0,
+            range: Range::none(),
         })
+    }
+
+    /// The same estimator with a plausibility range [y_min, y_max] (mm) for the measured position:
+    /// from then on [`update`](Self::update) refuses, with [`Error::OutOfRange`] and the state
+    /// unchanged, a sample whose y lies outside it or whose command |u| exceeds `limit` (the bound the
+    /// estimator already has on its breakpoints: the largest command, 255 counts for the IPA's PWM).
+    /// Typically the stroke with a margin for the sensor's noise, e.g. [−5, 205] mm for a 200 mm
+    /// stroke; the same range as the controller's ([`Pi::with_range`](crate::Pi::with_range)).
+    /// y_min or y_max not finite, or y_min ≥ y_max, gives [`Error::Setting`]. θ̂, P and the delay lines
+    /// are kept, so it can be set at any time.
+    ///
+    /// Why: without it every finite sample is taken, and one garbage position (an encoder glitch of
+    /// 1000 mm on a 200 mm stroke, or 2e306 from a bad read) corrupts θ̂ for good: audit s33 H-2
+    /// measured a deadzone of b_l −249, m_l 14× the truth after 60 s of good samples at ρ = 0.99, or
+    /// every later update failing with [`Error::Numerical`]. The range also sets the scale of
+    /// [`plausible_deadzone`](Self::plausible_deadzone)'s slope rule.
+    ///
+    /// ```
+    /// use ipa_embedded::{Error, HammersteinSettings, hammerstein::PaperHrls};
+    /// let mut est = PaperHrls::new(HammersteinSettings::<f64>::paper())
+    ///     .unwrap()
+    ///     .with_range(-5.0, 205.0)
+    ///     .unwrap();
+    /// assert_eq!(est.update(100.0, 1000.0), Err(Error::OutOfRange)); // y: a glitch
+    /// assert_eq!(est.update(300.0, 50.0), Err(Error::OutOfRange)); // |u| > limit = 255
+    /// assert_eq!(est.samples(), 0); // neither was taken
+    /// assert_eq!(est.update(100.0, 50.0), Ok(None));
+    /// ```
+    pub fn with_range(self, y_min_mm: F, y_max_mm: F) -> Result<Self, Error> {
+        Ok(HammersteinRls {
+            range: Range::new(y_min_mm, y_max_mm)?,
+            ..self
+        })
+    }
+
+    /// The plausibility range [y_min, y_max] in mm, `None` when none was set
+    /// ([`with_range`](Self::with_range)).
+    pub fn range(&self) -> Option<(F, F)> {
+        self.range.get()
     }
 
     /// Feeds sample k: the command u(k) (counts) and the measured position y(k) (mm). Returns the
     /// a-priori prediction error ε(k) = y(k) − φᵀ(k) θ̂(k−1) in mm, or `None` while the delay lines fill
     /// (k < k0). Errors leave the state unchanged: [`Error::NotFinite`] for a non-finite u or y,
-    /// [`Error::Numerical`] from the RLS update.
+    /// [`Error::OutOfRange`] with a plausibility range ([`with_range`](Self::with_range)) for y
+    /// outside it or |u| > limit, [`Error::Numerical`] from the RLS update. With ρ < 1 and no windup
+    /// guard (`max_trace`), P grows by 1/ρ per sample in the directions the input does not excite
+    /// (an actuator at rest): once it overflows, [`Error::Numerical`] repeats on every later sample,
+    /// exciting or not, until [`restart_covariance`](Self::restart_covariance) (audit s33 M-3); set
+    /// `max_trace` to prevent it.
     pub fn update(&mut self, u: F, y: F) -> Result<Option<F>, Error> {
         if !(u.is_finite() && y.is_finite()) {
             return Err(Error::NotFinite);
+        }
+        // With a range, |u| ≤ limit too (u is finite here and limit never NaN).
+        if !self.range.contains(y) || (self.range.get().is_some() && u.abs() > self.limit) {
+            return Err(Error::OutOfRange);
         }
         let mut eps = None;
         if self.k >= self.k0 {
@@ -273,6 +342,56 @@ impl<F: Float, const N: usize, const D: usize> HammersteinRls<F, N, D> {
             m_r: F::ZERO,
         };
         deadzone_from_theta(self.rls.theta(), zero, F::INFINITY)
+    }
+
+    /// The fitted deadzone ([`deadzone`](Self::deadzone)) when it is one to compensate with, or why not
+    /// (the rule of `ipa_hrls_deadzone`'s [`IPA_OK`](crate::ffi::IPA_OK)), checked in this order:
+    ///
+    /// 1. [`Implausible::NotPhysical`]: no valve deadzone ([`Deadzone::is_physical`]: a parameter not
+    ///    finite, b_l > 0, b_r < 0 or a slope ≤ 0);
+    /// 2. [`Implausible::BeyondLimit`]: |b_l| or |b_r| > `limit`, a breakpoint beyond every command;
+    /// 3. [`Implausible::Diverged`]: a coefficient |a_i| > C(na, i) 2^i. Every polynomial
+    ///    1 + a_1 z⁻¹ + … + a_na z^−na whose roots lie in |z| ≤ R has |a_i| ≤ C(na, i) R^i (Vieta), so
+    ///    this is a pole outside |z| = 2: a position that more than doubles every sample with no
+    ///    command, no actuator's (a stable or integrating plant has its poles in |z| ≤ 1);
+    /// 4. [`Implausible::TooSteep`], with a range ([`with_range`](Self::with_range)) and a finite
+    ///    `limit` only: |f̂(limit)| or |f̂(−limit)| > y_max − y_min, i.e. one sample of the full
+    ///    command would move the modelled position (b_1 = 1: x̂ adds to y(k + nk)) by more than the
+    ///    whole plausible range. Without a range slopes have no scale in mm and are not bounded.
+    ///
+    /// Audit s33 H-2: one sample y = 2e306 taken without a range left m_l = 3.85e302 and
+    /// a_1 = −5.4e303 (rule 3). No rule can tell a glitch of 1000 mm that left b_l = −249, m_l 14×
+    /// the truth but a_1 = −1.67 from a valve; only the range, which refuses the sample, prevents it.
+    /// Cost: 4 + 3 na comparisons and flops, 2 + 2 na more for the binomial bounds.
+    pub fn plausible_deadzone(&self) -> Result<Deadzone<F>, Implausible> {
+        let d = self.deadzone();
+        if !d.is_physical() {
+            return Err(Implausible::NotPhysical);
+        }
+        if !(-self.limit <= d.b_l && d.b_r <= self.limit) {
+            return Err(Implausible::BeyondLimit);
+        }
+        // C(na, i) 2^i = C(na, i − 1) 2^(i − 1) · 2 (na − i + 1) / i, exact in floating point for
+        // na ≤ 8 (integers below 2^24).
+        let mut bound = F::ONE;
+        let a = self.rls.theta().iter().skip(4).take(self.na);
+        for (i, &ai) in (1..).zip(a) {
+            let (num, den) = (self.na + 1 - i, i);
+            bound = bound * F::from_f64((2 * num) as f64) / F::from_f64(den as f64);
+            let within = ai.is_finite() && ai.abs() <= bound;
+            if !within {
+                return Err(Implausible::Diverged);
+            }
+        }
+        if let Some(span) = self.range.span() {
+            if self.limit.is_finite() {
+                let (right, left) = (d.apply(self.limit), d.apply(-self.limit));
+                if !(right <= span && -left <= span) {
+                    return Err(Implausible::TooSteep);
+                }
+            }
+        }
+        Ok(d)
     }
 
     /// The deadzone the switching functions use at the next sample's step 1 input (the one of the last

@@ -45,7 +45,7 @@ pub mod rls;
 
 pub use deadzone::{Compensator, Deadzone, SlopeMode};
 pub use float::Float;
-pub use hammerstein::{HammersteinRls, HammersteinSettings};
+pub use hammerstein::{HammersteinRls, HammersteinSettings, Implausible};
 pub use pi::{AntiWindup, Pi};
 pub use position::{PositionController, PositionSettings, ShortApproachSettings};
 pub use rls::{Form, Rls};
@@ -86,8 +86,10 @@ pub enum Error {
     /// C interface: the storage does not hold an initialised state.
     NotInitialised = -8,
     /// A controller sample whose set-point r or position y is outside the plausibility range the
-    /// caller set ([`Pi::with_range`], [`PositionController::with_range`]): a wild sample (an encoder
-    /// glitch, a unit slip) refused; the state is unchanged.
+    /// caller set ([`Pi::with_range`], [`PositionController::with_range`]), or an estimator sample
+    /// whose position y is outside it or whose command |u| exceeds its `limit`
+    /// ([`HammersteinRls::with_range`]): a wild sample (an encoder glitch, a unit slip) refused; the
+    /// state is unchanged.
     OutOfRange = -9,
 }
 
@@ -124,9 +126,10 @@ mod tests {
         let rls = |f: usize, n: usize| round((n + n * n + 6) * f + w + 1, f.max(w));
         assert_eq!(size_of::<Rls<f64, 7>>(), rls(8, 7));
         assert_eq!(size_of::<Rls<f32, 7>>(), rls(4, 7));
-        // HammersteinRls<F, N, D>: the Rls, 2 D + 9 floats, five usize.
+        // HammersteinRls<F, N, D>: the Rls, 2 D + 11 floats (9 and the plausibility range), five
+        // usize.
         let hrls =
-            |f: usize, n: usize, d: usize| round(rls(f, n) + (2 * d + 9) * f + 5 * w, f.max(w));
+            |f: usize, n: usize, d: usize| round(rls(f, n) + (2 * d + 11) * f + 5 * w, f.max(w));
         assert_eq!(size_of::<hammerstein::PaperHrls<f64>>(), hrls(8, 7, 3));
         assert_eq!(size_of::<hammerstein::PaperHrls<f32>>(), hrls(4, 7, 3));
         assert_eq!(size_of::<HammersteinRls<f64, 19, 15>>(), hrls(8, 19, 15));
@@ -208,9 +211,9 @@ mod tests {
             assert_eq!(size_of::<Rls<f64, 9>>(), 784);
             assert_eq!(size_of::<Rls<f32, 7>>(), 264);
             assert_eq!(size_of::<Rls<f32, 9>>(), 400);
-            assert_eq!(size_of::<hammerstein::PaperHrls<f64>>(), 672);
-            assert_eq!(size_of::<hammerstein::PaperHrls<f32>>(), 368);
-            assert_eq!(ffi::ipa_hrls_state_size(), 3464);
+            assert_eq!(size_of::<hammerstein::PaperHrls<f64>>(), 688);
+            assert_eq!(size_of::<hammerstein::PaperHrls<f32>>(), 376);
+            assert_eq!(ffi::ipa_hrls_state_size(), 3480);
         }
         // Cusum: five floats and three usize.
         assert_eq!(size_of::<cusum::Cusum<f64>>(), 5 * 8 + 3 * w);

@@ -63,9 +63,10 @@ pub struct Pi<F: Float> {
 }
 
 /// A plausibility range [y_min, y_max] (mm) for a controller's set-point r and measured position y
-/// (audit s31 M-6): the one check of [`Pi::with_range`] and
-/// [`PositionController::with_range`](crate::PositionController::with_range). Unbounded (±∞) when none
-/// was set, which lets every finite sample through.
+/// (audit s31 M-6) and the estimator's position samples (audit s33 H-2): the one check of
+/// [`Pi::with_range`], [`PositionController::with_range`](crate::PositionController::with_range) and
+/// [`HammersteinRls::with_range`](crate::HammersteinRls::with_range). Unbounded (±∞) when none was
+/// set, which lets every finite sample through.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct Range<F> {
     /// y_min: the smallest plausible r or y, mm (−∞: no range).
@@ -99,10 +100,19 @@ impl<F: Float> Range<F> {
         self.lo.is_finite().then_some((self.lo, self.hi))
     }
 
+    /// True when y_min ≤ v ≤ y_max (always for a finite v without a range).
+    pub(crate) fn contains(&self, v: F) -> bool {
+        self.lo <= v && v <= self.hi
+    }
+
+    /// y_max − y_min (mm), `None` when no range was set.
+    pub(crate) fn span(&self) -> Option<F> {
+        self.get().map(|(lo, hi)| hi - lo)
+    }
+
     /// [`Error::OutOfRange`] when r or y lies outside (bounds included as plausible).
     pub(crate) fn check(&self, r_mm: F, y_mm: F) -> Result<(), Error> {
-        let plausible = |v: F| self.lo <= v && v <= self.hi;
-        if plausible(r_mm) && plausible(y_mm) {
+        if self.contains(r_mm) && self.contains(y_mm) {
             Ok(())
         } else {
             Err(Error::OutOfRange)

@@ -1,6 +1,6 @@
 /*
  * refusals: the C interface's answers to the settings and samples of audit s19 M-1, L-1 and L-2 (and
- * s31 M-6, the PI's plausibility range), one
+ * s31 M-6, the PI's plausibility range; s33 H-2, the estimator's), one
  * line per case: NAME RC [VALUES...] (doubles as round-trip decimals, %.17g). Outputs are preset to 42
  * so that a line shows whether a refused call wrote them. Checked by
  * `c_interface_refuses_the_audit_s19_cases` (crates/cli/tests/embedded_c.rs).
@@ -18,6 +18,24 @@
 static uint64_t ctl[IPA_CTL_STATE_BYTES / sizeof(uint64_t)];
 static uint64_t pi[IPA_PI_STATE_BYTES / sizeof(uint64_t)];
 static uint64_t hrls[IPA_HRLS_STATE_BYTES / sizeof(uint64_t)];
+/* Audit s33 H-2: a ranged estimator, an unranged one and one that never sees the glitch. */
+static uint64_t ranged[IPA_HRLS_STATE_BYTES / sizeof(uint64_t)];
+static uint64_t unranged[IPA_HRLS_STATE_BYTES / sizeof(uint64_t)];
+static uint64_t clean[IPA_HRLS_STATE_BYTES / sizeof(uint64_t)];
+static uint64_t before[IPA_HRLS_STATE_BYTES / sizeof(uint64_t)];
+
+/* docs/embedded.md's estimator setup (3, 1, 1), rho = 0.99, UD, no guard. */
+static int hrls_paper(void *mem) {
+    return ipa_hrls_init(mem, IPA_HRLS_STATE_BYTES, 3, 1, 1, 0.99, 1e6, -1.0, 1.0, 255.0, 0.0,
+                         IPA_FORM_UD);
+}
+
+/* Sample k of a plant y(k) = 0.5 y(k-1) + x(k-1), deadzone -40/40, slopes 0.012/0.01, commands
+ * ((37 k) mod 401) - 200 counts: |y| < 4 mm. */
+static double plant_u(int k) { return (double)((37 * k) % 401) - 200.0; }
+static double plant_x(double u) {
+    return u >= 40.0 ? 0.01 * (u - 40.0) : (u <= -40.0 ? 0.012 * (u + 40.0) : 0.0);
+}
 
 /* A plain P controller, Kp = 3 counts/mm, u_max = 255 (every other field 0: no deadzone, nudge,
  * brake or short-step approach), sampled at ts. */
@@ -133,5 +151,55 @@ int main(void) {
     printf("hrls_init_bl0_1 %d\n", hrls_init(1.0, 1.0));
     printf("hrls_init_crossed_inf %d\n", hrls_init(INFINITY, -INFINITY));
     printf("hrls_init_one_sided %d\n", hrls_init(-INFINITY, INFINITY));
+
+    /* Audit s33 H-2: the estimator's plausibility range [-5, 205] mm (a 200 mm stroke). On storage
+     * not (yet) an estimator: -8; null: -6; crossed or NaN: -1; then kept. */
+    printf("hrls_set_range_uninitialised %d\n", ipa_hrls_set_range(ranged, -5.0, 205.0));
+    printf("hrls_set_range_null %d\n", ipa_hrls_set_range(NULL, -5.0, 205.0));
+    hrls_paper(ranged);
+    hrls_paper(unranged);
+    hrls_paper(clean);
+    printf("hrls_set_range_crossed %d\n", ipa_hrls_set_range(ranged, 205.0, -5.0));
+    printf("hrls_set_range_nan %d\n", ipa_hrls_set_range(ranged, NAN, 205.0));
+    printf("hrls_set_range %d\n", ipa_hrls_set_range(ranged, -5.0, 205.0));
+    printf("hrls_set_range_clean %d\n", ipa_hrls_set_range(clean, -5.0, 205.0));
+    /* 40 good samples, the glitch y = 1000 mm at k = 20 to the ranged and unranged estimators: the
+     * ranged one refuses it with -9, its storage byte for byte unchanged (1); the unranged one takes
+     * it (0). Then a command beyond limit = 255 (u = 300): -9 with the range, taken (0) without. */
+    double y = 0.0, u1 = 0.0;
+    int bad = 0;
+    for (int k = 0; k < 40; k++) {
+        double uk = plant_u(k);
+        y = 0.5 * y + plant_x(u1);
+        u1 = uk;
+        if (k == 20) {
+            memcpy(before, ranged, sizeof ranged);
+            rc = ipa_hrls_update(ranged, uk, 1000.0, NULL);
+            printf("hrls_glitch_ranged %d %d\n", rc, memcmp(before, ranged, sizeof ranged) == 0);
+            printf("hrls_glitch_unranged %d\n", ipa_hrls_update(unranged, uk, 1000.0, NULL));
+        }
+        bad += ipa_hrls_update(ranged, uk, y, NULL) != IPA_OK && k >= 3;
+        bad += ipa_hrls_update(unranged, uk, y, NULL) != IPA_OK && k >= 3;
+        bad += ipa_hrls_update(clean, uk, y, NULL) != IPA_OK && k >= 3;
+    }
+    /* After the glitch: every update OK (0 failures); the ranged estimator's theta is bit for bit the
+     * clean one's (1), the unranged one's is not (0). */
+    double th_r[16], th_u[16], th_c[16];
+    int n = ipa_hrls_theta(ranged, th_r, 16);
+    ipa_hrls_theta(unranged, th_u, 16);
+    ipa_hrls_theta(clean, th_c, 16);
+    printf("hrls_after_glitch %d %d %d %d\n", bad, n,
+           memcmp(th_r, th_c, (size_t)n * sizeof(double)) == 0,
+           memcmp(th_u, th_c, (size_t)n * sizeof(double)) == 0);
+    memcpy(before, ranged, sizeof ranged);
+    rc = ipa_hrls_update(ranged, 300.0, 0.0, NULL);
+    printf("hrls_u_beyond_limit_ranged %d %d\n", rc, memcmp(before, ranged, sizeof ranged) == 0);
+    printf("hrls_u_beyond_limit_unranged %d\n", ipa_hrls_update(unranged, 300.0, 0.0, NULL));
+    /* Why a deadzone is refused: a fresh estimator's theta = 0 has zero slopes (1, no valve
+     * deadzone); not an estimator: -8. */
+    hrls_paper(hrls);
+    printf("hrls_deadzone_reason_fresh %d %d\n", ipa_hrls_deadzone(hrls, &dz),
+           ipa_hrls_deadzone_reason(hrls));
+    printf("hrls_deadzone_reason_uninitialised %d\n", ipa_hrls_deadzone_reason(before + 1));
     return 0;
 }

@@ -111,8 +111,9 @@ int main(int argc, char **argv) {
             fprintf(stderr, "line %zu: u or y is not a number\n", lineno);
             return 1;
         }
-        /* strtod reads "nan" and "inf": the library would refuse the record with IPA_ERR_DATA, naming
-           no line; the line is named here. */
+        /* strtod reads "nan" and "inf": the library would refuse them with IPA_ERR_NOT_FINITE (-3:
+           ipa_hrls_record_start for a command, ipa_hrls_update for the sample), naming no line; the
+           line is named here. */
         if (!isfinite(u[n]) || !isfinite(y[n])) {
             fprintf(stderr, "line %zu: u = %g, y = %g: not finite\n", lineno, u[n], y[n]);
             return 1;

@@ -103,11 +103,11 @@
 #define IPA_ERR_NOT_FINITE -3
 
 /**
- * A numerical failure; the state is unchanged. The RLS update ([`ipa_hrls_update`]) would lose positive
- * definiteness of P or meet a non-finite value; or a controller step's command would not be finite
- * (a guard of last resort, audit s19 M-1: [`ipa_ctl_step`] when the command u, the integral I or the
- * derivative term D would not be, [`ipa_pi_step`] when u or the integral would not be), `*u` then not
- * written.
+ * A numerical failure; the state is unchanged. The RLS update ([`ipa_hrls_update`]) would meet a
+ * non-finite value (P or θ̂ overflowed; P found indefinite is [`IPA_ERR_INDEFINITE`]); or a
+ * controller step's command would not be finite (a guard of last resort, audit s19 M-1:
+ * [`ipa_ctl_step`] when the command u, the integral I or the derivative term D would not be,
+ * [`ipa_pi_step`] when u or the integral would not be), `*u` then not written.
  */
 #define IPA_ERR_NUMERICAL -4
 
@@ -137,6 +137,15 @@
  * unchanged and `*u` not written (hold the previous command or go safe).
  */
 #define IPA_ERR_RANGE -9
+
+/**
+ * [`ipa_hrls_update`] with [`IPA_FORM_STANDARD`] (eq. 12) found ρ + φᵀPφ ≤ 0: P has lost its positive
+ * definiteness to rounding (an ill-conditioned P: in this f64 interface when P winds up without the
+ * guard, `max_trace` 0; in f32 from Rust on IPA records). The state is unchanged but P does not
+ * recover: later samples are mostly refused the same way. Start again with [`IPA_FORM_UD`] (never
+ * refused so) or with a trace bound `max_trace`.
+ */
+#define IPA_ERR_INDEFINITE -10
 
 /**
  * The deadzone x = f(u) of paper eq. (1): breakpoints in counts, slopes in x per count.
@@ -430,7 +439,9 @@ int32_t ipa_hrls_init(void *mem,
 /**
  * Feeds sample k: command u(k) (counts) and position y(k) (mm). Returns [`IPA_OK`] after an estimate
  * update (then `*eps`, when not null, is the a-priori prediction error ε(k) in mm), [`IPA_PENDING`]
- * while the delay lines fill, or a negative code (state unchanged).
+ * while the delay lines fill, or a negative code (state unchanged): [`IPA_ERR_NOT_FINITE`] for a
+ * non-finite u or y, [`IPA_ERR_NUMERICAL`] for a non-finite value in the update,
+ * [`IPA_ERR_INDEFINITE`] when eq. 12's P has lost its positive definiteness.
  *
  * # Safety
  * `mem` must be storage passed to a successful [`ipa_hrls_init`] (or null); `eps` null or writable.

@@ -11,7 +11,7 @@
 //! Return codes: [`IPA_OK`] (0), [`IPA_PENDING`] (1: sample buffered, no estimate update yet),
 //! [`IPA_ALARM`] (2: a change), [`IPA_NOT_PHYSICAL`] (3: a deadzone estimate that is no valve's yet), a
 //! non-negative count for the getters, or a negative [`crate::Error`] code: [`IPA_ERR_SETTING`] (−1)
-//! … [`IPA_ERR_RANGE`] (−9).
+//! … [`IPA_ERR_INDEFINITE`] (−10).
 //! No function panics or aborts; every pointer is checked for null and alignment, the storage length
 //! against the state size, and a marker word against uninitialised storage.
 //!
@@ -71,11 +71,11 @@ pub const IPA_ERR_SETTING: i32 = -1;
 pub const IPA_ERR_CAPACITY: i32 = -2;
 /// A non-finite sample; the state is unchanged.
 pub const IPA_ERR_NOT_FINITE: i32 = -3;
-/// A numerical failure; the state is unchanged. The RLS update ([`ipa_hrls_update`]) would lose positive
-/// definiteness of P or meet a non-finite value; or a controller step's command would not be finite
-/// (a guard of last resort, audit s19 M-1: [`ipa_ctl_step`] when the command u, the integral I or the
-/// derivative term D would not be, [`ipa_pi_step`] when u or the integral would not be), `*u` then not
-/// written.
+/// A numerical failure; the state is unchanged. The RLS update ([`ipa_hrls_update`]) would meet a
+/// non-finite value (P or θ̂ overflowed; P found indefinite is [`IPA_ERR_INDEFINITE`]); or a
+/// controller step's command would not be finite (a guard of last resort, audit s19 M-1:
+/// [`ipa_ctl_step`] when the command u, the integral I or the derivative term D would not be,
+/// [`ipa_pi_step`] when u or the integral would not be), `*u` then not written.
 pub const IPA_ERR_NUMERICAL: i32 = -4;
 /// An output buffer is too short.
 pub const IPA_ERR_LENGTH: i32 = -5;
@@ -89,6 +89,12 @@ pub const IPA_ERR_NOT_INITIALISED: i32 = -8;
 /// [`ipa_ctl_set_range`]: a wild sample (an encoder glitch, a unit slip) refused; the state is
 /// unchanged and `*u` not written (hold the previous command or go safe).
 pub const IPA_ERR_RANGE: i32 = -9;
+/// [`ipa_hrls_update`] with [`IPA_FORM_STANDARD`] (eq. 12) found ρ + φᵀPφ ≤ 0: P has lost its positive
+/// definiteness to rounding (an ill-conditioned P: in this f64 interface when P winds up without the
+/// guard, `max_trace` 0; in f32 from Rust on IPA records). The state is unchanged but P does not
+/// recover: later samples are mostly refused the same way. Start again with [`IPA_FORM_UD`] (never
+/// refused so) or with a trace bound `max_trace`.
+pub const IPA_ERR_INDEFINITE: i32 = -10;
 
 const MAX_N: usize = 3 + IPA_MAX_NA as usize + IPA_MAX_NB as usize;
 const MAX_D: usize = IPA_MAX_NK as usize + IPA_MAX_NB as usize - 1;
@@ -436,7 +442,9 @@ pub unsafe extern "C" fn ipa_hrls_init(
 
 /// Feeds sample k: command u(k) (counts) and position y(k) (mm). Returns [`IPA_OK`] after an estimate
 /// update (then `*eps`, when not null, is the a-priori prediction error ε(k) in mm), [`IPA_PENDING`]
-/// while the delay lines fill, or a negative code (state unchanged).
+/// while the delay lines fill, or a negative code (state unchanged): [`IPA_ERR_NOT_FINITE`] for a
+/// non-finite u or y, [`IPA_ERR_NUMERICAL`] for a non-finite value in the update,
+/// [`IPA_ERR_INDEFINITE`] when eq. 12's P has lost its positive definiteness.
 ///
 /// # Safety
 /// `mem` must be storage passed to a successful [`ipa_hrls_init`] (or null); `eps` null or writable.

@@ -56,13 +56,15 @@ pub struct HammersteinSettings<F: Float> {
     /// plain forgetting.
     pub max_trace: Option<F>,
     /// Covariance form: [`Form::Standard`] (the paper's eq. 12) or [`Form::Ud`] (`--rls-form ud`; use it
-    /// with f32).
+    /// with f32: eq. 12 in f32 loses P's positive definiteness on IPA records, [`Error::Indefinite`]).
     pub form: Form,
 }
 
 impl<F: Float> HammersteinSettings<F> {
     /// The paper's structure na = 3, nb = 1, nk = 1 with ρ = 1, p0 = 1e6, b_l0 = −1, b_r0 = 1,
-    /// limit = 255 counts (the online start for integer PWM commands), no guard.
+    /// limit = 255 counts (the online start for integer PWM commands), no guard, eq. 12. With f32 set
+    /// `form` to [`Form::Ud`]: eq. 12 in f32 from p0 = 1e6 was refused ([`Error::Indefinite`]) within
+    /// 3 000 samples on most IPA records tested (from the 10th sample on the benchmark's).
     pub fn paper() -> Self {
         HammersteinSettings {
             na: 3,
@@ -191,7 +193,7 @@ impl<F: Float, const N: usize, const D: usize> HammersteinRls<F, N, D> {
     /// Feeds sample k: the command u(k) (counts) and the measured position y(k) (mm). Returns the
     /// a-priori prediction error ε(k) = y(k) − φᵀ(k) θ̂(k−1) in mm, or `None` while the delay lines fill
     /// (k < k0). Errors leave the state unchanged: [`Error::NotFinite`] for a non-finite u or y,
-    /// [`Error::Numerical`] from the RLS update.
+    /// [`Error::Numerical`] or [`Error::Indefinite`] from the RLS update ([`Rls::update`]).
     pub fn update(&mut self, u: F, y: F) -> Result<Option<F>, Error> {
         if !(u.is_finite() && y.is_finite()) {
             return Err(Error::NotFinite);

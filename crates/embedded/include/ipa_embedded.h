@@ -215,7 +215,8 @@ typedef struct IpaController {
    */
   int32_t has_deadzone;
   /**
-   * The deadzone the compensator inverts (`compensator.deadzone`).
+   * The deadzone the compensator inverts (`compensator.deadzone`; a breakpoint on the wrong side of 0
+   * by at most 1e-9 · u_max is taken as 0, as `control` loads the file).
    */
   IpaDeadzone deadzone;
   /**
@@ -658,9 +659,9 @@ int32_t ipa_ctl_reset(void *mem);
 /**
  * Deadzone-inverse compensation of a controller output `u` (counts): `*u_c` = f⁻¹(m_ref u) clamped to
  * ±u_max, 0 when |u| ≤ threshold; `mode` 0 = shift (m_ref = m_r or m_l), 1 = equalise (mean slope).
- * Returns [`IPA_OK`] or a negative code: [`IPA_ERR_SETTING`] (deadzone not finite, b_l > 0, b_r < 0, a
- * slope ≤ 0, ...), then [`IPA_ERR_NOT_FINITE`] for a NaN or ±∞ `u` (audit s19 L-1; `*u_c` is then not
- * written).
+ * Returns [`IPA_OK`] or a negative code: [`IPA_ERR_SETTING`] (deadzone not finite, b_l > 0 or b_r < 0
+ * beyond 1e-9 · u_max (within it an estimate's rounding, taken as 0, as `control` takes it), a slope ≤ 0,
+ * ...), then [`IPA_ERR_NOT_FINITE`] for a NaN or ±∞ `u` (audit s19 L-1; `*u_c` is then not written).
  *
  * # Safety
  * `dz` null or readable; `u_c` null or writable.

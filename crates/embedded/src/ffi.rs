@@ -156,7 +156,8 @@ pub struct IpaController {
     pub reset_on_crossing: i32,
     /// 1: a deadzone inverse with `deadzone` (shift mode, threshold 0, limit u_max); 0: none.
     pub has_deadzone: i32,
-    /// The deadzone the compensator inverts (`compensator.deadzone`).
+    /// The deadzone the compensator inverts (`compensator.deadzone`; a breakpoint on the wrong side of 0
+    /// by at most 1e-9 · u_max is taken as 0, as `control` loads the file).
     pub deadzone: IpaDeadzone,
     /// 1: the nudge mode with the `nudge_*` fields (`nudge`); 0: none (the fields are ignored).
     pub has_nudge: i32,
@@ -958,9 +959,9 @@ pub unsafe extern "C" fn ipa_ctl_reset(mem: *mut c_void) -> i32 {
 
 /// Deadzone-inverse compensation of a controller output `u` (counts): `*u_c` = f⁻¹(m_ref u) clamped to
 /// ±u_max, 0 when |u| ≤ threshold; `mode` 0 = shift (m_ref = m_r or m_l), 1 = equalise (mean slope).
-/// Returns [`IPA_OK`] or a negative code: [`IPA_ERR_SETTING`] (deadzone not finite, b_l > 0, b_r < 0, a
-/// slope ≤ 0, ...), then [`IPA_ERR_NOT_FINITE`] for a NaN or ±∞ `u` (audit s19 L-1; `*u_c` is then not
-/// written).
+/// Returns [`IPA_OK`] or a negative code: [`IPA_ERR_SETTING`] (deadzone not finite, b_l > 0 or b_r < 0
+/// beyond 1e-9 · u_max (within it an estimate's rounding, taken as 0, as `control` takes it), a slope ≤ 0,
+/// ...), then [`IPA_ERR_NOT_FINITE`] for a NaN or ±∞ `u` (audit s19 L-1; `*u_c` is then not written).
 ///
 /// # Safety
 /// `dz` null or readable; `u_c` null or writable.

@@ -66,8 +66,9 @@ pub struct DeadzoneCompensator {
 /// The rounding tolerance of a deadzone's breakpoints, relative to the command limit u_max: a b_l > 0
 /// or b_r < 0 within 1e-9 · u_max of 0 is taken as 0 by [`DeadzoneCompensator::new`] (a billionth of
 /// the command range: far below one count of the IPA's ±255, far above the 1e-16 relative rounding of
-/// an estimate whose true breakpoint is 0).
-pub const BREAKPOINT_ROUNDING: f64 = 1e-9;
+/// an estimate whose true breakpoint is 0). The microcontroller's compensator's constant and rule
+/// (`ipa_embedded::deadzone::rounded_breakpoints`), so a controller file loads alike in both.
+pub const BREAKPOINT_ROUNDING: f64 = ipa_embedded::deadzone::BREAKPOINT_ROUNDING;
 
 impl DeadzoneCompensator {
     /// Builds a compensator with threshold 0. Fails (naming [`ControlSetting::Deadzone`]) when the deadzone is not
@@ -80,18 +81,10 @@ impl DeadzoneCompensator {
         // A breakpoint on the wrong side of 0 by at most BREAKPOINT_ROUNDING · u_max is an estimate's
         // rounding noise around a plant with no deadzone on that side (audit s32 L-8: a linear plant's
         // estimated b_l = +6e-18 counts refused the tuned controller): it is taken as 0.
+        // One rule with the microcontroller's `Compensator::new`.
         let mut deadzone = deadzone;
-        let tol = if u_max.is_finite() && u_max > 0.0 {
-            BREAKPOINT_ROUNDING * u_max
-        } else {
-            0.0
-        };
-        if deadzone.b_l > 0.0 && deadzone.b_l <= tol {
-            deadzone.b_l = 0.0;
-        }
-        if deadzone.b_r < 0.0 && deadzone.b_r >= -tol {
-            deadzone.b_r = 0.0;
-        }
+        (deadzone.b_l, deadzone.b_r) =
+            ipa_embedded::deadzone::rounded_breakpoints(deadzone.b_l, deadzone.b_r, u_max);
         let d = deadzone;
         let bad = |what: &str| {
             let v = sysid_core::format::shortest;

@@ -36,7 +36,8 @@
 //! RLS with as many parameters is the closest comparison it allows (it builds no switching regressor and
 //! no deadzone, so ours does more per sample than the RLS update alone). The peer at n = 7 and n = 9
 //! runs in the same turns as extra rows (their ratios also to the peer at n = 8). A case whose updates
-//! fail on the record is left out, with a line saying so (f32 eq. 12 with nb = 2: the record has b₂ = 0).
+//! fail on the record is left out, with a line saying so (f32 eq. 12 with nb = 2: rounding makes P
+//! indefinite, `Error::Indefinite`; tests/indefinite.rs).
 //!
 //! Run: `cargo bench -p ipa-embedded --bench interleaved -- [--seconds S] [--window W] [--verbose]
 //! [--line-offset B] [FILTER]` (S seconds per group, default 20; W default 0.5; FILTER a substring of the group names
@@ -384,12 +385,16 @@ where
         }));
     }
     for (label, form) in [("standard", Form::Standard), ("ud", Form::Ud)] {
-        // nb = 2 on a record made with nb = 1 (b₂ = 0): in f32, eq. 12 fails on most samples
-        // (`Error::Numerical`: P loses its positive definiteness), so that case is left out.
+        // nb = 2: in f32, eq. 12 loses P's positive definiteness to rounding on this record (P's
+        // condition number ≈ 1.4e8 > 1/ε; not the record's b₂ = 0: tests/indefinite.rs) and then
+        // refuses most samples with `Error::Indefinite`, so that case is left out.
         let h8 = settings(2, form);
         let failed = failures::<F, 8, 3>(h8, &uh, &yh);
         if failed > 0 {
-            eprintln!("{name}: n8-{label} left out: {failed} of {SAMPLES} updates failed");
+            eprintln!(
+                "{name}: n8-{label} left out: {failed} of {SAMPLES} updates refused \
+                 (Error::Indefinite: eq. 12 lost P's positive definiteness; use the UD form in f32)"
+            );
             continue;
         }
         labels.push(format!("ipa-embedded/n8-{label}"));

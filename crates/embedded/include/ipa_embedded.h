@@ -108,15 +108,15 @@
 #define IPA_ERR_NOT_FINITE -3
 
 /**
- * A numerical failure; the state is unchanged. The RLS update ([`ipa_hrls_update`]) would lose positive
- * definiteness of P or meet a non-finite value: with ρ < 1 and no windup guard (`max_trace` 0) this
- * is covariance windup (P grows by 1/ρ per sample while the input does not excite, e.g. an actuator
- * at rest, until it overflows), and it then repeats on EVERY later sample, exciting or not, until
- * [`ipa_hrls_restart_covariance`] (or [`ipa_hrls_init`]): give `max_trace` > 0 to prevent it, or
- * restart the covariance on this code (audit s33 M-3). Or a controller step's command would not be finite
- * (a guard of last resort, audit s19 M-1: [`ipa_ctl_step`] when the command u, the integral I or the
- * derivative term D would not be, [`ipa_pi_step`] when u or the integral would not be), `*u` then not
- * written.
+ * A numerical failure; the state is unchanged. The RLS update ([`ipa_hrls_update`]) would meet a
+ * non-finite value (P or θ̂ overflowed; P found indefinite is [`IPA_ERR_INDEFINITE`]): with ρ < 1 and no
+ * windup guard (`max_trace` 0) this is covariance windup (P grows by 1/ρ per sample while the input
+ * does not excite, e.g. an actuator at rest, until it overflows or loses definiteness), and it then
+ * repeats on EVERY later sample, exciting or not, until [`ipa_hrls_restart_covariance`] (or
+ * [`ipa_hrls_init`]): give `max_trace` > 0 to prevent it, or restart the covariance on this code (audit
+ * s33 M-3). Or a controller step's command would not be finite (a guard of last resort, audit s19 M-1:
+ * [`ipa_ctl_step`] when the command u, the integral I or the derivative term D would not be,
+ * [`ipa_pi_step`] when u or the integral would not be), `*u` then not written.
  */
 #define IPA_ERR_NUMERICAL -4
 
@@ -148,6 +148,15 @@
  * the state unchanged.
  */
 #define IPA_ERR_RANGE -9
+
+/**
+ * [`ipa_hrls_update`] with [`IPA_FORM_STANDARD`] (eq. 12) found ρ + φᵀPφ ≤ 0: P has lost its positive
+ * definiteness to rounding (an ill-conditioned P: in this f64 interface when P winds up without the
+ * guard, `max_trace` 0; in f32 from Rust on IPA records). The state is unchanged but P does not
+ * recover: later samples are mostly refused the same way. Start again with [`IPA_FORM_UD`] (never
+ * refused so) or with a trace bound `max_trace`.
+ */
+#define IPA_ERR_INDEFINITE -10
 
 /**
  * The deadzone x = f(u) of paper eq. (1): breakpoints in counts, slopes in x per count.
@@ -217,7 +226,8 @@ typedef struct IpaController {
    */
   int32_t has_deadzone;
   /**
-   * The deadzone the compensator inverts (`compensator.deadzone`).
+   * The deadzone the compensator inverts (`compensator.deadzone`; a breakpoint on the wrong side of 0
+   * by at most 1e-9 · u_max is taken as 0, as `control` loads the file).
    */
   IpaDeadzone deadzone;
   /**
@@ -443,8 +453,9 @@ int32_t ipa_hrls_init(void *mem,
  * update (then `*eps`, when not null, is the a-priori prediction error ε(k) in mm), [`IPA_PENDING`]
  * while the delay lines fill, or a negative code (state unchanged): [`IPA_ERR_NOT_FINITE`] for a
  * NaN/±∞ sample, [`IPA_ERR_RANGE`] with a range ([`ipa_hrls_set_range`]) for y outside it or
- * |u| > limit, [`IPA_ERR_NUMERICAL`] (with ρ < 1 and no `max_trace`: covariance windup, repeated on
- * every later sample until [`ipa_hrls_restart_covariance`]).
+ * |u| > limit, [`IPA_ERR_NUMERICAL`] for a non-finite value in the update, [`IPA_ERR_INDEFINITE`]
+ * when eq. 12's P has lost its positive definiteness (with ρ < 1 and no `max_trace` either may be
+ * covariance windup, repeated on every later sample until [`ipa_hrls_restart_covariance`]).
  *
  * # Safety
  * `mem` must be storage passed to a successful [`ipa_hrls_init`] (or null); `eps` null or writable.
@@ -693,9 +704,9 @@ int32_t ipa_ctl_reset(void *mem);
 /**
  * Deadzone-inverse compensation of a controller output `u` (counts): `*u_c` = f⁻¹(m_ref u) clamped to
  * ±u_max, 0 when |u| ≤ threshold; `mode` 0 = shift (m_ref = m_r or m_l), 1 = equalise (mean slope).
- * Returns [`IPA_OK`] or a negative code: [`IPA_ERR_SETTING`] (deadzone not finite, b_l > 0, b_r < 0, a
- * slope ≤ 0, ...), then [`IPA_ERR_NOT_FINITE`] for a NaN or ±∞ `u` (audit s19 L-1; `*u_c` is then not
- * written).
+ * Returns [`IPA_OK`] or a negative code: [`IPA_ERR_SETTING`] (deadzone not finite, b_l > 0 or b_r < 0
+ * beyond 1e-9 · u_max (within it an estimate's rounding, taken as 0, as `control` takes it), a slope ≤ 0,
+ * ...), then [`IPA_ERR_NOT_FINITE`] for a NaN or ±∞ `u` (audit s19 L-1; `*u_c` is then not written).
  *
  * # Safety
  * `dz` null or readable; `u_c` null or writable.

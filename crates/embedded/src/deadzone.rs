@@ -96,6 +96,36 @@ impl<F: Float> Deadzone<F> {
     }
 }
 
+/// The rounding tolerance of a deadzone's breakpoints, relative to the command limit u_max: a b_l > 0
+/// or b_r < 0 within 1e-9 · u_max of 0 is taken as 0 ([`rounded_breakpoints`]) by [`Compensator::new`]
+/// and `control::DeadzoneCompensator::new` alike (a billionth of the command range: far below one count
+/// of the IPA's ±255, far above the 1e-16 relative rounding of an estimate whose true breakpoint is 0,
+/// e.g. b_l = +6e-18 counts from `tune` on a linear plant; audit s32 L-8).
+pub const BREAKPOINT_ROUNDING: f64 = 1e-9;
+
+/// (b_l, b_r) with a breakpoint on the wrong side of 0 by at most [`BREAKPOINT_ROUNDING`] · u_max set to
+/// 0: b_l ∈ (0, tol] → 0, b_r ∈ [−tol, 0) → 0, tol = 1e-9 · u_max (0 when u_max is not finite and
+/// positive); anything else unchanged (a breakpoint beyond the tolerance stays, for the caller to
+/// refuse). The one rule of the compensators of this crate and of `control` (1 flop).
+pub fn rounded_breakpoints<F: Float>(b_l: F, b_r: F, u_max: F) -> (F, F) {
+    let tol = if u_max.is_finite() && u_max > F::ZERO {
+        F::from_f64(BREAKPOINT_ROUNDING) * u_max
+    } else {
+        F::ZERO
+    };
+    let b_l = if b_l > F::ZERO && b_l <= tol {
+        F::ZERO
+    } else {
+        b_l
+    };
+    let b_r = if b_r < F::ZERO && b_r >= -tol {
+        F::ZERO
+    } else {
+        b_r
+    };
+    (b_l, b_r)
+}
+
 /// How the [`Compensator`] treats the slopes.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum SlopeMode {
@@ -129,13 +159,22 @@ pub struct Compensator<F: Float> {
 
 impl<F: Float> Compensator<F> {
     /// A compensator for an identified deadzone (finite, b_l ≤ 0 ≤ b_r, m_l > 0, m_r > 0), threshold
-    /// t ≥ 0 counts and saturation u_max > 0 counts; otherwise [`Error::Setting`].
+    /// t ≥ 0 counts and saturation u_max > 0 counts; otherwise [`Error::Setting`]. A breakpoint on the
+    /// wrong side of 0 by at most [`BREAKPOINT_ROUNDING`] · u_max is an estimate's rounding and taken as
+    /// 0 ([`rounded_breakpoints`], the rule of `control::DeadzoneCompensator::new`): b_l = +1e-12 · u_max
+    /// is accepted as 0, b_l = +1e-3 counts (at u_max = 255) refused.
     pub fn new(
         deadzone: Deadzone<F>,
         mode: SlopeMode,
         threshold: F,
         u_max: F,
     ) -> Result<Self, Error> {
+        let (b_l, b_r) = rounded_breakpoints(deadzone.b_l, deadzone.b_r, u_max);
+        let deadzone = Deadzone {
+            b_l,
+            b_r,
+            ..deadzone
+        };
         if !deadzone.is_physical() {
             return Err(Error::Setting);
         }
@@ -151,7 +190,7 @@ impl<F: Float> Compensator<F> {
         })
     }
 
-    /// The deadzone it inverts.
+    /// The deadzone it inverts (breakpoints within rounding of 0 taken as 0).
     pub fn deadzone(&self) -> Deadzone<F> {
         self.deadzone
     }
@@ -223,6 +262,29 @@ mod tests {
                 "{d:?}"
             );
         }
+    }
+
+    // The rounding rule: tol = 1e-9 · u_max; a wrong-side breakpoint up to tol (included) becomes 0,
+    // the next float beyond it stays (for `Compensator::new` to refuse); a right-side breakpoint
+    // never moves; u_max not finite and positive gives tol = 0 (nothing moves). f32 likewise.
+    #[test]
+    fn breakpoints_within_rounding_of_zero_become_zero() {
+        let tol: f64 = 1e-9 * 255.0;
+        let beyond = f64::from_bits(tol.to_bits() + 1);
+        assert_eq!(rounded_breakpoints(tol, -tol, 255.0), (0.0, 0.0));
+        assert_eq!(
+            rounded_breakpoints(beyond, -beyond, 255.0),
+            (beyond, -beyond)
+        );
+        assert_eq!(rounded_breakpoints(-tol, tol, 255.0), (-tol, tol));
+        for u_max in [0.0, -255.0, f64::INFINITY, f64::NAN] {
+            assert_eq!(
+                rounded_breakpoints(1e-300, -1e-300, u_max),
+                (1e-300, -1e-300)
+            );
+        }
+        assert_eq!(rounded_breakpoints(1e-10f32, -1e-10, 255.0), (0.0, 0.0));
+        assert_eq!(rounded_breakpoints(1e-3f32, -1e-3, 255.0), (1e-3, -1e-3));
     }
 
     // f(f⁻¹(x)) = x on both branches (closed form: m (b + x/m − b) = x).

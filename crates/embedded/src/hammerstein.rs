@@ -57,13 +57,15 @@ pub struct HammersteinSettings<F: Float> {
     /// plain forgetting.
     pub max_trace: Option<F>,
     /// Covariance form: [`Form::Standard`] (the paper's eq. 12) or [`Form::Ud`] (`--rls-form ud`; use it
-    /// with f32).
+    /// with f32: eq. 12 in f32 loses P's positive definiteness on IPA records, [`Error::Indefinite`]).
     pub form: Form,
 }
 
 impl<F: Float> HammersteinSettings<F> {
     /// The paper's structure na = 3, nb = 1, nk = 1 with ρ = 1, p0 = 1e6, b_l0 = −1, b_r0 = 1,
-    /// limit = 255 counts (the online start for integer PWM commands), no guard.
+    /// limit = 255 counts (the online start for integer PWM commands), no guard, eq. 12. With f32 set
+    /// `form` to [`Form::Ud`]: eq. 12 in f32 from p0 = 1e6 was refused ([`Error::Indefinite`]) within
+    /// 3 000 samples on most IPA records tested (from the 10th sample on the benchmark's).
     pub fn paper() -> Self {
         HammersteinSettings {
             na: 3,
@@ -252,11 +254,11 @@ impl<F: Float, const N: usize, const D: usize> HammersteinRls<F, N, D> {
     /// a-priori prediction error ε(k) = y(k) − φᵀ(k) θ̂(k−1) in mm, or `None` while the delay lines fill
     /// (k < k0). Errors leave the state unchanged: [`Error::NotFinite`] for a non-finite u or y,
     /// [`Error::OutOfRange`] with a plausibility range ([`with_range`](Self::with_range)) for y
-    /// outside it or |u| > limit, [`Error::Numerical`] from the RLS update. With ρ < 1 and no windup
-    /// guard (`max_trace`), P grows by 1/ρ per sample in the directions the input does not excite
-    /// (an actuator at rest): once it overflows, [`Error::Numerical`] repeats on every later sample,
-    /// exciting or not, until [`restart_covariance`](Self::restart_covariance) (audit s33 M-3); set
-    /// `max_trace` to prevent it.
+    /// outside it or |u| > limit, [`Error::Numerical`] or [`Error::Indefinite`] from the RLS update
+    /// ([`Rls::update`]). With ρ < 1 and no windup guard (`max_trace`), P grows by 1/ρ per sample in
+    /// the directions the input does not excite (an actuator at rest): once it overflows or loses
+    /// definiteness, the error repeats on every later sample, exciting or not, until
+    /// [`restart_covariance`](Self::restart_covariance) (audit s33 M-3); set `max_trace` to prevent it.
     pub fn update(&mut self, u: F, y: F) -> Result<Option<F>, Error> {
         if !(u.is_finite() && y.is_finite()) {
             return Err(Error::NotFinite);

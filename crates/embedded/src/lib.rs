@@ -73,9 +73,10 @@ pub enum Error {
     Capacity = -2,
     /// An input sample (u, y, r) is not a finite number; the state is unchanged.
     NotFinite = -3,
-    /// The update would lose positive definiteness of P or meet a non-finite value
-    /// (ρ + φᵀPφ not finite and > 0, or ε not finite), or a controller step's command would not be
-    /// finite ([`Pi::step`], [`PositionController::step`]); the state is unchanged.
+    /// The update would meet a non-finite value (ρ + φᵀPφ or ε not finite: P or θ̂ overflowed, e.g. P
+    /// wound up without the windup guard), or a controller step's command would not be finite
+    /// ([`Pi::step`], [`PositionController::step`]); the state is unchanged. (P found indefinite with
+    /// finite values is [`Error::Indefinite`].)
     Numerical = -4,
     /// A regressor or output buffer is shorter than the number of parameters / coefficients.
     Length = -5,
@@ -91,6 +92,18 @@ pub enum Error {
     /// ([`HammersteinRls::with_range`]): a wild sample (an encoder glitch, a unit slip) refused; the
     /// state is unchanged.
     OutOfRange = -9,
+    /// The RLS update in the covariance form (eq. 12, [`Form::Standard`]) found ρ + φᵀPφ ≤ 0 with finite
+    /// values: P is no longer positive definite. Rounding does this to eq. 12 when P's condition number
+    /// outgrows the type's 1/ε: in f32 (1/ε ≈ 1.7 · 10⁷) on IPA records, whose lagged outputs are
+    /// nearly collinear (docs/embedded.md "f32"), and in f64 too when P winds up without the windup
+    /// guard (a long stretch without excitation, `tests/windup.rs`). The state is unchanged, but P does not recover by
+    /// itself: later updates are mostly refused the same way, and θ̂ may have drifted in the updates
+    /// between the loss and this first refusal. Remedy: the UD form ([`Form::Ud`], which keeps P
+    /// positive semi-definite whatever the rounding, and never returns this error) in f32, or f64, and
+    /// against windup the guard ([`Rls::with_max_trace`]). A
+    /// restart of the covariance ([`Rls::restart_covariance`]) is no remedy: on the record of
+    /// `tests/indefinite.rs` eq. 12 in f32 was refused again 14 samples after it.
+    Indefinite = -10,
 }
 
 impl Error {

@@ -402,8 +402,9 @@ impl<F: Float, const N: usize> Rls<F, N> {
 
     /// One update with regressor φ(k) (its first n entries) and measurement y(k); returns the a-priori
     /// error ε(k) = y(k) − φᵀ(k) θ̂(k−1). Errors (the state is then unchanged): [`Error::Length`] when φ
-    /// has fewer than n entries, [`Error::Numerical`] when ρ + φᵀPφ is not finite and positive or ε is
-    /// not finite.
+    /// has fewer than n entries, [`Error::Numerical`] when ρ + φᵀPφ or ε is not finite,
+    /// [`Error::Indefinite`] (eq. 12 only) when ρ + φᵀPφ ≤ 0: P has lost its positive definiteness
+    /// to rounding (f32 on ill-conditioned data: use [`Form::Ud`] there).
     pub fn update(&mut self, phi: &[F], y: F) -> Result<F, Error> {
         // n = N (the state sized exactly) runs kernels whose loops all have the constant trip count N:
         // fully unrolled and vectorised, no bounds checks. n < N runs the same code with the loop
@@ -568,7 +569,7 @@ fn update_standard<F: Float, const N: usize, const FULL: bool>(
     }
     // Both finite ⇔ denom · 0 + ε · 0 = 0 (x · 0 is NaN for ±∞ and NaN): float tests, no integer-coded ones.
     if !(denom * F::ZERO + eps * F::ZERO == F::ZERO && denom > F::ZERO) {
-        return Err(Error::Numerical);
+        return Err(standard_failure(denom, eps));
     }
     let inv = F::ONE / denom;
     let mut scale = rho != F::ONE;
@@ -617,6 +618,19 @@ fn update_standard<F: Float, const N: usize, const FULL: bool>(
         symmetric_update::<F, N, false>(p, pphi, gain, s);
     }
     Ok(eps)
+}
+
+/// Which error a refused eq. 12 update is: [`Error::Indefinite`] when ρ + φᵀPφ = `denom` ≤ 0 with
+/// `denom` and ε finite (then φᵀPφ ≤ −ρ < 0: P is not positive definite), else [`Error::Numerical`]
+/// (a value that is not finite). Off the update's path (called only on a refusal).
+#[cold]
+#[inline(never)]
+fn standard_failure<F: Float>(denom: F, eps: F) -> Error {
+    if denom.is_finite() && eps.is_finite() && denom <= F::ZERO {
+        Error::Indefinite
+    } else {
+        Error::Numerical
+    }
 }
 
 /// P ← (P − (Pφ) L̃ᵀ) · s (· s only when `SCALE`) on the leading m × m block (m = `pphi.len()`), entry
@@ -1376,6 +1390,50 @@ mod tests {
         );
         assert_eq!(est.theta(), before.theta());
         assert_eq!(est.p(0, 0), before.p(0, 0));
+    }
+
+    // Eq. 12 in f32, ρ = 1, P(0) = p0 I (p0 ≈ 1e6) and twice φ = [1, 8]. In exact arithmetic
+    // P(1) = p0 I − p0² φφᵀ/δ with δ = 1 + 65 p0 has φᵀP(1)φ = 65 p0/δ ≈ 1 > 0, but P(1)'s f32 entries
+    // (up to ≈ p0, spaced 1/16 apart) leave a rounding residue s = φᵀP(1)φ of a few units and either
+    // sign. The second update's δ = 1 + s is computed here in f64 from the state's entries; with φ's
+    // entries powers of two the f32 sums of the update are exact too (products by 1 and 8; sums of
+    // nearly equal values of opposite sign; then small multiples of 1/16), so the update must be
+    // refused with `Indefinite`, the state unchanged, exactly when 1 + s ≤ 0, and accepted otherwise.
+    // Both outcomes must occur over the p0 list. The UD form on the same sequence is never refused.
+    #[test]
+    fn eq12_in_f32_that_lost_definiteness_is_indefinite() {
+        let phi = [1.0f32, 8.0];
+        let (mut refused, mut accepted) = (0, 0);
+        for i in 0..64 {
+            let p0 = 1.0e6f32 + 17.0 * i as f32;
+            let mut est = Rls::<f32, 2>::new(2, 1.0, p0).unwrap();
+            est.update(&phi, 1.0).unwrap();
+            let s: f64 = (0..2)
+                .flat_map(|r| (0..2).map(move |c| (r, c)))
+                .map(|(r, c)| f64::from(phi[r]) * f64::from(est.p(r, c)) * f64::from(phi[c]))
+                .sum();
+            let before = est;
+            let got = est.update(&phi, 1.0);
+            if 1.0 + s <= 0.0 {
+                assert_eq!(got, Err(Error::Indefinite), "p0 {p0}: s = {s}");
+                assert_eq!(est.theta(), before.theta());
+                for (r, c) in [(0, 0), (0, 1), (1, 1)] {
+                    assert_eq!(est.p(r, c).to_bits(), before.p(r, c).to_bits());
+                }
+                refused += 1;
+            } else {
+                assert!(got.is_ok(), "p0 {p0}: s = {s}: {got:?}");
+                accepted += 1;
+            }
+            let mut ud = Rls::<f32, 2>::new(2, 1.0, p0).unwrap().with_form(Form::Ud);
+            for _ in 0..3 {
+                ud.update(&phi, 1.0).unwrap();
+            }
+        }
+        assert!(
+            refused > 0 && accepted > 0,
+            "{refused} refused, {accepted} accepted"
+        );
     }
 
     // The UD form's checks (made once, after its reading pass, as x · 0 = 0 tests): a non-finite ε

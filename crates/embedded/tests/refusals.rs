@@ -277,3 +277,79 @@ fn a_sampling_period_outside_one_microsecond_to_1e4_s_is_refused_by_c_and_by_con
             .is_ok());
     }
 }
+
+// One rule for a breakpoint on the wrong side of 0 (audit s32 L-8, issue 28ac): within 1e-9 · u_max
+// (u_max = 255: 2.55e-7 counts) it is an estimate's rounding, taken as 0; beyond, refused. So
+// b_l = +1e-12 · 255 = 2.55e-10 and b_r = −2.55e-10 are accepted as 0 and b_l = +1e-3, b_r = −1e-3
+// refused, alike by `ipa_embedded::Compensator::new`, `control::DeadzoneCompensator::new`, the C
+// deadzone inverse `ipa_dz_compensate` and the C controller's `ipa_ctl_init`. With b_l taken as 0,
+// m_l = 0.5, shift mode, u = −10 gives x = 0.5 · (−10) = −5 and u_c = 0 + (−5)/0.5 = −10 exactly
+// (−10 + 2.55e-10 had b_l been kept).
+#[test]
+fn a_breakpoint_within_rounding_of_zero_loads_alike_in_every_compensator() {
+    use ipa_embedded::{Compensator, Deadzone, SlopeMode};
+    let u_max = 255.0;
+    let tiny = 1e-12 * u_max;
+    for (b_l, b_r, accepted) in [
+        (tiny, 10.0, true),
+        (-10.0, -tiny, true),
+        (tiny, -tiny, true),
+        (1e-9 * u_max, 10.0, true),
+        (1e-3, 10.0, false),
+        (-10.0, -1e-3, false),
+    ] {
+        let case = format!("b_l {b_l:e}, b_r {b_r:e}");
+        let dz = Deadzone {
+            b_l,
+            b_r,
+            m_l: 0.5,
+            m_r: 0.5,
+        };
+        let ours = Compensator::new(dz, SlopeMode::Shift, 0.0, u_max);
+        let theirs = control::DeadzoneCompensator::new(
+            sysid::Deadzone {
+                b_l,
+                b_r,
+                m_l: 0.5,
+                m_r: 0.5,
+            },
+            control::SlopeMode::Shift,
+            u_max,
+        );
+        assert_eq!(ours.is_ok(), accepted, "{case}: {ours:?}");
+        assert_eq!(theirs.is_ok(), accepted, "{case}: {theirs:?}");
+        if let (Ok(o), Ok(t)) = (&ours, &theirs) {
+            let want = (b_l.min(0.0), b_r.max(0.0));
+            assert_eq!((o.deadzone().b_l, o.deadzone().b_r), want, "{case}");
+            assert_eq!((t.deadzone.b_l, t.deadzone.b_r), want, "{case}");
+        } else {
+            assert_eq!(ours.unwrap_err(), Error::Setting, "{case}");
+        }
+        let c_dz = IpaDeadzone {
+            b_l,
+            b_r,
+            m_l: 0.5,
+            m_r: 0.5,
+        };
+        let mut u_c = 42.0;
+        let rc = unsafe { ipa_dz_compensate(&c_dz, 0, 0.0, u_max, -10.0, &mut u_c) };
+        if accepted {
+            assert_eq!(rc, IPA_OK, "{case}");
+            let want = if b_l > -10.0 { -10.0 } else { b_l - 10.0 };
+            assert_eq!(u_c, want, "{case}");
+        } else {
+            assert_eq!((rc, u_c), (IPA_ERR_SETTING, 42.0), "{case}");
+        }
+        let mut c = c_p_only(0.01);
+        c.has_deadzone = 1;
+        c.deadzone = c_dz;
+        let mut ctl = [0u64; IPA_CTL_STATE_BYTES / 8];
+        let p = ctl.as_mut_ptr() as *mut c_void;
+        let rc = unsafe { ipa_ctl_init(p, IPA_CTL_STATE_BYTES, &c) };
+        assert_eq!(
+            rc,
+            if accepted { IPA_OK } else { IPA_ERR_SETTING },
+            "{case}"
+        );
+    }
+}

@@ -226,7 +226,8 @@ fn trace_guard_matches_sysid_windup_trace_to_rounding() {
 // f32 (single-precision FPU). The paper's covariance-form RLS is fragile in f32 on this near-integrator
 // (the columns −y(k−1), −y(k−2), −y(k−3) are nearly collinear): measured on these records, it loses
 // positive definiteness for p0 ≥ 1e2 at ρ = 1 on most records and for every p0 tried (1 to 1e6) at
-// ρ = 0.99. That is reported as `Error::Numerical` (never a NaN estimate). With p0 = 1 and ρ = 1 it works
+// ρ = 0.99. That is reported as `Error::Indefinite` (ρ + φᵀPφ ≤ 0 with finite values; never a NaN
+// estimate). With p0 = 1 and ρ = 1 it works
 // and stays close to the f64 estimator started the same way (a start that regularises the estimate
 // noticeably): breakpoints within 0.1 count, slopes within 0.1 %, a within 1e-4.
 #[test]
@@ -246,9 +247,9 @@ fn f32_estimator_is_close_to_f64_where_it_works_and_fails_loudly_where_not() {
             assert!((p - q).abs() < 1e-4, "{p} vs {q}");
         }
         let e = embedded_fit_p0::<f32>(&u, &y, (3, 1, 1), 0.99, None, 1.0, Form::Standard);
-        assert_eq!(e.err(), Some(ipa_embedded::Error::Numerical));
+        assert_eq!(e.err(), Some(ipa_embedded::Error::Indefinite));
         let e = embedded_fit_p0::<f32>(&u, &y, (3, 1, 1), 1.0, None, 1e6, Form::Standard);
-        assert_eq!(e.err(), Some(ipa_embedded::Error::Numerical));
+        assert_eq!(e.err(), Some(ipa_embedded::Error::Indefinite));
     }
 }
 
@@ -299,7 +300,7 @@ fn f32_ud_form_works_where_the_standard_form_fails() {
             }
             let standard =
                 embedded_fit_p0::<f32>(&u, &y, (3, 1, 1), rho, None, 1e6, Form::Standard);
-            assert_eq!(standard.err(), Some(ipa_embedded::Error::Numerical));
+            assert_eq!(standard.err(), Some(ipa_embedded::Error::Indefinite));
         }
     }
     db.sort_by(f64::total_cmp);

@@ -319,7 +319,7 @@ fn rest_record(rest: usize) -> Vec<(f64, f64)> {
 // Audit s33 M-3 (docs/embedded.md's old example: ρ < 1, no guard): at rest φ excites no deadzone
 // column, so P grows by 1/ρ per sample there; with ρ = 0.98 and p0 = 1e6 it passes f64's 1.8e308 after
 // ln(1.8e302)/ln(1/0.98) ≈ 34 430 samples at the latest, so a rest of 40 000 samples ends in
-// Error::Numerical, which then repeats on every one of the 6000 exciting samples after it. Restarting
+// Error::Numerical (or, eq. 12, Error::Indefinite), which then repeats on every one of the 6000 exciting samples after it. Restarting
 // the covariance on the error (what the docs now say to do) recovers the plant (at most one failed
 // update after the excitation resumes, the one that restarts); a trace guard
 // (max_trace = p0 n = 7e6, identify's default) prevents it.
@@ -345,7 +345,8 @@ fn covariance_windup_repeats_until_a_restart_and_a_guard_prevents_it() {
         let mut est = PaperHrls::new(s).unwrap();
         let mut failed_after = 0;
         for (k, &(u, y)) in data.iter().enumerate() {
-            if est.update(u, y) == Err(Error::Numerical) {
+            // Eq. 12 meets the wound-up P as Indefinite (ρ + φᵀPφ ≤ 0) or Numerical (overflow).
+            if matches!(est.update(u, y), Err(Error::Numerical | Error::Indefinite)) {
                 est.restart_covariance();
                 failed_after += usize::from(k >= resumed);
             }

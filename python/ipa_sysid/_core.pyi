@@ -63,11 +63,17 @@ class Model:
     def predict(self, u: ArrayLike, y: ArrayLike, horizon: int = 1) -> FloatArray:
         """k-step-ahead prediction from measured u and y."""
     def metrics(
-        self, u: ArrayLike, y: ArrayLike, name: str = "data", score_from: int | None = None
+        self,
+        u: ArrayLike,
+        y: ArrayLike,
+        name: str = "data",
+        score_from: int | None = None,
+        resid_lags: int = 25,
     ) -> dict[str, Any]:
         """Validation metrics (fit %, RMSE, loss, FPE, AIC; MATLAB's loss_fcn, fpe_matlab, aic_matlab;
-        N, p) on a record, as `validate`; score_from=K scores the samples k >= max(K, k0) only, as
-        `validate --score-from K` (the dict's "score_from" is that first scored sample)."""
+        N, p) on a record, as `validate`, with its warnings and its residual analysis ("residuals",
+        resid_lags lags as `validate --resid-lags`); score_from=K scores the samples k >= max(K, k0)
+        only, as `validate --score-from K` (the dict's "score_from" is that first scored sample)."""
     def to_json(self) -> str:
         """The model file text (`identify --save-model` format)."""
     @staticmethod

@@ -759,8 +759,12 @@ impl PyModel {
     /// samples k >= max(K, k0) only (0-based; e.g. 50 for a benchmark's state-initialisation window;
     /// the simulations are the same, only the rows scored change); the dict's "score_from" is that
     /// first scored sample. A K that reaches the record's end, or leaves no more samples than the
-    /// model's parameters, raises a ValueError naming score_from.
-    #[pyo3(signature = (u, y, name="data", score_from=None))]
+    /// model's parameters, raises a ValueError naming score_from. The dict's "warnings" are those of
+    /// `validate` (one assembly, `sysid_summary::ValidationReport`: the model's own doubts, an unstable
+    /// model, a negative or flattered fit, a fit far below the estimation fit, the residuals correlated
+    /// with past inputs, the record beyond the model's data) and "residuals" its residual analysis with
+    /// `resid_lags` lags (`validate --resid-lags`; audit s33 M-2: the input–residual warning was missing).
+    #[pyo3(signature = (u, y, name="data", score_from=None, resid_lags=25))]
     fn metrics<'py>(
         &self,
         py: Python<'py>,
@@ -768,27 +772,38 @@ impl PyModel {
         y: &Bound<'py, PyAny>,
         name: &str,
         score_from: Option<&Bound<'py, PyAny>>,
+        resid_lags: usize,
     ) -> PyResult<Bound<'py, PyAny>> {
         let score_from = score_from.map_or(Ok(0), |k| whole("score_from", k))?;
+        if !(1..=sysid::residuals::MAX_LAG).contains(&resid_lags) {
+            return Err(setting_err(
+                "resid_lags",
+                resid_lags,
+                &format!(
+                    "a whole number of lags in 1..={}",
+                    sysid::residuals::MAX_LAG
+                ),
+            ));
+        }
         let data = dataset(u, y, self.inner.ts(), name)?;
-        let m = sysid::metrics::metrics_scored_from(&self.inner, &data, score_from)
-            .map_err(sysid_err)?;
-        // What `validate` warns of: the model file's own doubts, an unstable model, a negative or
-        // flattered fit; all in the dict's "warnings" (audit s13 M4), each of this result's own an
-        // IpaSysidWarning (the file's were said by `load_model`).
+        let report = sysid_summary::ValidationReport::assemble_scored_from(
+            &self.inner,
+            &data,
+            resid_lags,
+            score_from,
+        )
+        .map_err(sysid_err)?;
+        // The model file's own doubts first (said by `load_model` already), then validate's; all in the
+        // dict's "warnings" (audit s13 M4), each of this result's own an IpaSysidWarning.
         let warnings: Vec<String> = sysid::model_file::load_warnings(&self.inner)
             .into_iter()
             .map(|w| format!("model: {w}"))
-            .chain(sysid_summary::ValidationReport::record_warnings(
-                &self.inner,
-                &m,
-                &sysid_summary::input_extremes(&data),
-            ))
-            .chain(sysid_summary::record_outside_data(&self.inner, data.y()))
+            .chain(report.warnings.iter().cloned())
             .collect();
         warn_all(py, &result_warnings(&self.inner, &warnings))?;
-        let out = to_py(py, &m)?;
+        let out = to_py(py, &report.metrics.validation)?;
         out.set_item("warnings", warnings)?;
+        out.set_item("residuals", to_py(py, &report.residuals.validation)?)?;
         out.set_item(
             "score_from",
             sysid::metrics::first_scored(self.inner.k0(), score_from),

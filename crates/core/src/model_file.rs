@@ -103,14 +103,17 @@ pub fn provenance_warnings(provenance: Option<&crate::model::Provenance>) -> Vec
     let Some(p) = provenance else {
         return Vec::new();
     };
-    let fit = p
-        .fit_estimation_percent
-        .map_or("-".to_string(), |f| format!("{f:.2} %"));
+    // A missing fit in words, not a bare dash (audit s33 L-4: "(free-run fit - on it)").
+    let fit = p.fit_estimation_percent.map_or(
+        "free-run fit not available on it: the simulation diverged or the output is constant"
+            .to_string(),
+        |f| format!("free-run fit {f:.2} % on it"),
+    );
     p.warnings
         .iter()
         .map(|w| {
             format!(
-                "this model's identification on {} (free-run fit {fit} on it) warned: {}",
+                "this model's identification on {} ({fit}) warned: {}",
                 visible(&p.record),
                 visible(w)
             )
@@ -352,5 +355,37 @@ fn kind_of(v: &serde_json::Value) -> &'static str {
         serde_json::Value::String(_) => "string",
         serde_json::Value::Array(_) => "array",
         serde_json::Value::Object(_) => "object",
+    }
+}
+
+#[cfg(test)]
+mod provenance_tests {
+    use super::provenance_warnings;
+    use crate::model::Provenance;
+
+    // A diverged identification has no fit: the warning says so in words (audit s33 L-4), and a fit of
+    // 50 is printed as "50.00 %".
+    #[test]
+    fn a_missing_estimation_fit_is_said_in_words() {
+        let mut p = Provenance {
+            record: "rec.csv".into(),
+            u_columns: Vec::new(),
+            y_column: None,
+            fit_estimation_percent: None,
+            warnings: vec!["unstable".into()],
+        };
+        assert_eq!(
+            provenance_warnings(Some(&p)),
+            vec![
+                "this model's identification on rec.csv (free-run fit not available on it: the simulation \
+                 diverged or the output is constant) warned: unstable"
+                    .to_string()
+            ]
+        );
+        p.fit_estimation_percent = Some(50.0);
+        assert_eq!(
+            provenance_warnings(Some(&p)),
+            vec!["this model's identification on rec.csv (free-run fit 50.00 % on it) warned: unstable".to_string()]
+        );
     }
 }

@@ -26,7 +26,10 @@
 //! - non-finite samples (NaN, ±inf) are skipped: a line breaks at them instead of plunging off the axes;
 //! - the x axis spans the finite data exactly; the y axis adds 5 % above and below; a constant series
 //!   gets a padded range around its value, a panel with no finite sample gets the range 0..1;
-//! - the legend goes into the corner of the panel that the data crosses least.
+//! - the legend goes into the corner of the panel that the data crosses least; when data run through every
+//!   corner, the top of the y axis is raised to leave a band for it;
+//! - a fixed y range ([`Panel::y_range`]) clips the data at the axes drawn (the raised top included), so a
+//!   clipped curve sits on the frame; [`y_axes`] tells a caption the range drawn.
 //!
 //! Text is drawn with DejaVu Sans embedded in the binary (`assets/DejaVuSans.ttf`), so PNG rendering
 //! needs no system font.
@@ -161,7 +164,9 @@ pub struct Panel {
     pub y_label: String,
     /// The curves, drawn in order (later ones on top).
     pub series: Vec<Series>,
-    /// Fixed y range `(lo, hi)`; `None` fits the data. Values outside are clipped at the axes.
+    /// Fixed y range `(lo, hi)`; `None` fits the data. The top is raised when the legend needs a band
+    /// above the data ([`y_axes`] gives the range drawn); values outside the drawn range are clipped at
+    /// the axes.
     pub y_range: Option<(f64, f64)>,
     /// The x values are log10 of the quantity (e.g. log10 of a frequency in Hz); tick labels show
     /// 10^x (`0.1`, `1`, `10`), so the axis reads as a logarithmic one.
@@ -365,9 +370,23 @@ fn draw_figure<DB: DrawingBackend>(
     root: &DrawingArea<DB, Shift>,
     fig: &Figure,
 ) -> Result<(), ReportError> {
+    let fonts = Fonts::for_width(fig.width);
+    let areas = panel_areas(root, fig, &fonts)?;
+    for (panel, area) in fig.panels.iter().zip(areas.iter()) {
+        draw_panel(area, panel, &fonts, &fig.title)?;
+    }
+    Ok(())
+}
+
+/// Fills `root` white, draws the title and splits the rest into one area per panel (none for a figure
+/// without panels).
+fn panel_areas<DB: DrawingBackend>(
+    root: &DrawingArea<DB, Shift>,
+    fig: &Figure,
+    fonts: &Fonts,
+) -> Result<Vec<DrawingArea<DB, Shift>>, ReportError> {
     ensure_font(&fig.title)?;
     let err = |e: DrawingAreaErrorKind<DB::ErrorType>| ReportError::render(&fig.title, e);
-    let fonts = Fonts::for_width(fig.width);
     root.fill(&WHITE).map_err(err)?;
     let body = if fig.title.trim().is_empty() {
         root.clone()
@@ -376,13 +395,9 @@ fn draw_figure<DB: DrawingBackend>(
             .map_err(err)?
     };
     if fig.panels.is_empty() {
-        return Ok(());
+        return Ok(Vec::new());
     }
-    let areas = body.split_evenly((fig.panels.len(), 1));
-    for (panel, area) in fig.panels.iter().zip(areas.iter()) {
-        draw_panel(area, panel, &fonts, &fig.title)?;
-    }
-    Ok(())
+    Ok(body.split_evenly((fig.panels.len(), 1)))
 }
 
 /// The finite `(x, y)` runs of a series: a non-finite `x` or `y` ends a run.
@@ -538,15 +553,37 @@ fn legend_corner(
     (position, counts[best])
 }
 
-/// Draws one panel (axes, grid, series, legend) into `area`.
-fn draw_panel<DB: DrawingBackend>(
-    area: &DrawingArea<DB, Shift>,
+/// Where a panel's parts go, computed from its series and the pixel size of its area: one layout for
+/// drawing ([`draw_panel`]) and for telling a caller which range was drawn ([`y_axes`]).
+struct PanelLayout {
+    /// The finite runs of each series, their y clamped to the drawn `y_range` when the panel has a fixed
+    /// range (clipped curves sit on the frame).
+    runs: Vec<Vec<Vec<(f64, f64)>>>,
+    /// The drawn x range.
+    x_range: (f64, f64),
+    /// The drawn y range: the fixed or fitted range, its top raised when the legend needs a band.
+    y_range: (f64, f64),
+    /// The legend's corner; `None` when no series has a label.
+    legend_position: Option<SeriesLabelPosition>,
+    /// Gap between the legend and the plotting area's edge, px.
+    legend_margin: u32,
+    /// Width of the y tick-label area, px.
+    y_label_area: u32,
+    /// Height of the x tick-label area, px.
+    x_label_area: u32,
+}
+
+/// Lays out one panel in an area of `area_w` x `area_h` pixels.
+fn layout_panel(
     panel: &Panel,
+    (area_w, area_h): (u32, u32),
     fonts: &Fonts,
     figure: &str,
-) -> Result<(), ReportError> {
-    let err = |e: DrawingAreaErrorKind<DB::ErrorType>| ReportError::render(figure, e);
+) -> Result<PanelLayout, ReportError> {
     let mut runs: Vec<Vec<Vec<(f64, f64)>>> = panel.series.iter().map(finite_runs).collect();
+    // The legend is placed on the data as they would be drawn in the fixed range; the final clamp below
+    // uses the drawn range, which the legend's band may have raised.
+    let raw = panel.y_range.map(|_| runs.clone());
     if let Some((lo, hi)) = panel.y_range {
         for p in runs.iter_mut().flatten().flatten() {
             p.1 = p.1.clamp(lo, hi);
@@ -568,7 +605,6 @@ fn draw_panel<DB: DrawingBackend>(
         None => axis_range(all().map(|p| p.1), 0.05).ok_or_else(overflow)?,
     };
 
-    let (area_w, area_h) = area.dim_in_pixel();
     let tick_px = fonts.tick / 1.24;
     let y_label_area = (tick_px * 5.5 + fonts.label) as u32;
     let x_label_area = (tick_px * 1.6 + fonts.label * 1.3) as u32;
@@ -609,6 +645,63 @@ fn draw_panel<DB: DrawingBackend>(
             Some(SeriesLabelPosition::UpperRight)
         }
     };
+    // A fixed range clips at the axes actually drawn: where the legend's band raised the top, a curve
+    // above the fixed range is drawn up to the new top, not cut flat in mid-plot (audit s33 M-4).
+    if let Some(mut raw) = raw {
+        let (lo, hi) = y_range;
+        for p in raw.iter_mut().flatten().flatten() {
+            p.1 = p.1.clamp(lo, hi);
+        }
+        runs = raw;
+    }
+    Ok(PanelLayout {
+        runs,
+        x_range,
+        y_range,
+        legend_position,
+        legend_margin,
+        y_label_area,
+        x_label_area,
+    })
+}
+
+/// The y range each panel of `fig` is drawn with, top to bottom, as [`render_svg`] and [`render_png`]
+/// lay them out: the panel's fixed range ([`Panel::y_range`]) or the range fitted to its data, with the
+/// top raised when the legend needs a band above the data. Values outside it are clipped at these
+/// edges, so a caption can state the range a reader sees.
+pub fn y_axes(fig: &Figure) -> Result<Vec<(f64, f64)>, ReportError> {
+    check(fig)?;
+    let fonts = Fonts::for_width(fig.width);
+    let mut svg = String::new();
+    let root = SVGBackend::with_string(&mut svg, (fig.width, fig.height)).into_drawing_area();
+    let areas = panel_areas(&root, fig, &fonts)?;
+    fig.panels
+        .iter()
+        .zip(areas.iter())
+        .map(|(panel, area)| {
+            layout_panel(panel, area.dim_in_pixel(), &fonts, &fig.title).map(|l| l.y_range)
+        })
+        .collect()
+}
+
+/// Draws one panel (axes, grid, series, legend) into `area`.
+fn draw_panel<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    panel: &Panel,
+    fonts: &Fonts,
+    figure: &str,
+) -> Result<(), ReportError> {
+    let err = |e: DrawingAreaErrorKind<DB::ErrorType>| ReportError::render(figure, e);
+    let (area_w, area_h) = area.dim_in_pixel();
+    let PanelLayout {
+        runs,
+        x_range,
+        y_range,
+        legend_position,
+        legend_margin,
+        y_label_area,
+        x_label_area,
+    } = layout_panel(panel, (area_w, area_h), fonts, figure)?;
     let y_span = y_range.1 - y_range.0;
     let x_span = x_range.1 - x_range.0;
     let x_log10 = panel.x_log10;

@@ -6,7 +6,7 @@ mod common;
 
 use common::{check_well_formed, decode_rgb, png_size, PNG_SIGNATURE};
 use report::plot::{
-    render_png, render_svg, save_figure, Figure, Panel, Series, SeriesStyle, PALETTE,
+    render_png, render_svg, save_figure, y_axes, Figure, Panel, Series, SeriesStyle, PALETTE,
 };
 use report::ReportError;
 
@@ -320,6 +320,96 @@ fn a_fixed_y_range_clips_the_data() {
     // An empty or reversed range is ignored.
     assert_eq!(Panel::new("x", "y").y_range(2.0, 1.0).y_range, None);
     assert_eq!(Panel::new("x", "y").y_range(f64::NAN, 1.0).y_range, None);
+}
+
+// A fixed range 0..10 whose data fill every corner gets its top raised for the legend's band (audit
+// s33 M-4); a curve rising to 100 is then clipped at the raised top, the frame, and not at 10: its
+// highest drawn point is the frame's top row, and the fixed range's top (10) lies below the frame.
+#[test]
+fn a_fixed_range_raised_for_the_legend_clips_at_the_frame() {
+    let x: Vec<f64> = (0..=100).map(f64::from).collect();
+    // Zig-zags between 0 and 10 that fill all four corners, and a ramp from 5 to 100.
+    let zig: Vec<f64> = (0..=100)
+        .map(|i| if i % 2 == 0 { 0.0 } else { 10.0 })
+        .collect();
+    let ramp: Vec<f64> = (0..=100).map(|i| 5.0 + 0.95 * f64::from(i)).collect();
+    let fig = Figure::new("raised").size(600, 400).panel(
+        Panel::new("x", "y")
+            .y_range(0.0, 10.0)
+            .series(Series::line("zig-zag", x.clone(), zig).colour((0, 0, 0)))
+            .series(Series::line("ramp", x, ramp).colour((213, 94, 0))),
+    );
+    let axes = y_axes(&fig).unwrap();
+    assert_eq!(axes.len(), 1);
+    let (lo, hi) = axes[0];
+    assert_eq!(lo, 0.0);
+    assert!(hi > 10.0, "the legend's band raises the top: {hi}");
+    let svg = render_svg(&fig).unwrap();
+    // The y axis line: the plotting area's top and bottom pixel rows.
+    let axis = svg
+        .split("<polyline")
+        .skip(1)
+        .map(|p| {
+            p.split("points=\"")
+                .nth(1)
+                .unwrap()
+                .split('"')
+                .next()
+                .unwrap()
+        })
+        .find(|pts| {
+            let v: Vec<&str> = pts.split_whitespace().collect();
+            v.len() == 2 && v[0].split(',').next() == v[1].split(',').next()
+        })
+        .unwrap()
+        .to_string();
+    let rows: Vec<f64> = axis
+        .split_whitespace()
+        .map(|p| p.split_once(',').unwrap().1.parse().unwrap())
+        .collect();
+    let (top, bottom) = (rows[0].min(rows[1]), rows[0].max(rows[1]));
+    let ramp_rows: Vec<f64> = svg
+        .split("<polyline")
+        .skip(1)
+        .filter(|p| {
+            p.contains("stroke=\"#D55E00\"")
+                && p.split("points=\"")
+                    .nth(1)
+                    .unwrap()
+                    .split_whitespace()
+                    .count()
+                    > 10
+        })
+        .flat_map(|p| {
+            p.split("points=\"")
+                .nth(1)
+                .unwrap()
+                .split('"')
+                .next()
+                .unwrap()
+                .split_whitespace()
+                .map(|q| q.split_once(',').unwrap().1.parse::<f64>().unwrap())
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    let highest = ramp_rows.iter().copied().fold(f64::INFINITY, f64::min);
+    assert!(
+        (highest - top).abs() <= 1.0,
+        "ramp drawn up to row {highest}, frame top {top}"
+    );
+    // The row of y = 10 (the fixed range's top) lies inside the frame, below its top.
+    let row10 = bottom - (bottom - top) * (10.0 - lo) / (hi - lo);
+    assert!(row10 > top + 5.0, "row of 10: {row10}, frame top {top}");
+    // Without a legend no band is needed: the drawn range is the fixed one.
+    let plain =
+        Figure::new("plain")
+            .size(600, 400)
+            .panel(Panel::new("x", "y").y_range(0.0, 10.0).series(Series::line(
+                "",
+                (0..3).map(f64::from).collect(),
+                vec![0.0, 50.0, 5.0],
+            )));
+    assert_eq!(y_axes(&plain).unwrap(), vec![(0.0, 10.0)]);
 }
 
 // On a log10 axis the tick labels show 10^x: x = -1, 0, 1 read 0.1, 1, 10.

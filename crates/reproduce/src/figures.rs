@@ -23,21 +23,24 @@ fn sim_or_nan(model: &Model, d: &Dataset) -> Vec<f64> {
 /// estimate), padded by 10 % of the span (or of |value| for a constant).
 fn settled_range(v: &[f64], skip: usize) -> Option<(f64, f64)> {
     let tail = v.get(skip..).filter(|t| !t.is_empty()).unwrap_or(v);
-    let (lo, hi) = tail
-        .iter()
-        .filter(|x| x.is_finite())
-        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
-            (a.min(x), b.max(x))
-        });
-    if lo > hi {
-        return None;
-    }
+    let (lo, hi) = measured_range(tail)?;
     let pad = if hi > lo {
         0.1 * (hi - lo)
     } else {
         0.1 * lo.abs().max(1e-12)
     };
     Some((lo - pad, hi + pad))
+}
+
+/// The finite minimum and maximum of `v`; `None` when no sample is finite.
+fn measured_range(v: &[f64]) -> Option<(f64, f64)> {
+    let (lo, hi) = v
+        .iter()
+        .filter(|x| x.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &x| {
+            (a.min(x), b.max(x))
+        });
+    (lo <= hi).then_some((lo, hi))
 }
 
 /// Frequency responses of the linear blocks drawn in the Bode figure: (key, label, model, gain), the
@@ -132,51 +135,88 @@ pub(crate) fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
     ));
 
     let tv = sysid::data::sample_times(st.val.len(), ts);
-    let mut fit_panel = Panel::new("time (s)", y_axis.as_str())
-        .series(Series::line("measured", tv.clone(), st.val.y().to_vec()).colour(plant_c));
-    // The axis is the measured range with a quarter of its span on each side: a diverging simulation
-    // would otherwise scale the figure so that the measured record is a flat line. Where a model leaves
-    // that range, it is clipped at the edge and a point marks the first sample outside.
-    let view = settled_range(st.val.y(), 0).map(|(lo, hi)| {
-        let pad = (hi - lo) * 0.25 / 1.2;
+    let fit_title = "Validation record: measured vs simulated output (paper's Fig. 5)";
+    let measured = Series::line("measured", tv.clone(), st.val.y().to_vec()).colour(plant_c);
+    // The view is the measured range with a quarter of its span on each side: a diverging simulation
+    // would otherwise scale the figure so that the measured record is a flat line. The plot may raise the
+    // top for the legend's band; a model leaving the axes drawn is clipped at the frame, and a point
+    // marks its first sample outside (audit s33 M-4: the clip and the caption now follow the drawn axes).
+    let view = measured_range(st.val.y()).map(|(lo, hi)| {
+        let pad = if hi > lo {
+            0.25 * (hi - lo)
+        } else {
+            0.1 * lo.abs().max(1.0)
+        };
         (lo - pad, hi + pad)
     });
-    let mut leaving = Vec::new();
-    for key in ["arx", "hammerstein", "hammerstein_oe"] {
-        if let Some(m) = st.model(key) {
-            let y = sim_or_nan(&m.fit.model, &st.val);
-            if let Some((lo, hi)) = view {
-                if let Some(k) = y.iter().position(|v| !(lo..=hi).contains(v) && !v.is_nan()) {
-                    let edge = if y[k] > hi { hi } else { lo };
-                    leaving.push(format!("{} at t = {} s", m.label, estimate(tv[k])));
-                    fit_panel = fit_panel.series(
-                        Series::points("", vec![tv[k]], vec![edge]).colour(colours::model(key)),
-                    );
-                }
+    let sims: Vec<(&'static str, &'static str, Vec<f64>)> =
+        ["arx", "hammerstein", "hammerstein_oe"]
+            .into_iter()
+            .filter_map(|key| {
+                st.model(key)
+                    .map(|m| (key, m.label, sim_or_nan(&m.fit.model, &st.val)))
+            })
+            .collect();
+    let fit_panel = |marks: &[(&'static str, f64, f64)]| {
+        let mut p = Panel::new("time (s)", y_axis.as_str()).series(measured.clone());
+        for (key, label, y) in &sims {
+            for &(_, t, edge) in marks.iter().filter(|m| m.0 == *key) {
+                p = p.series(Series::points("", vec![t], vec![edge]).colour(colours::model(key)));
             }
-            fit_panel = fit_panel
-                .series(Series::dashed(m.label, tv.clone(), y).colour(colours::model(key)));
+            p = p.series(Series::dashed(*label, tv.clone(), y.clone()).colour(colours::model(key)));
+        }
+        if let Some((lo, hi)) = view {
+            p = p.y_range(lo, hi);
+        }
+        p
+    };
+    let fit_figure =
+        |marks: &[(&'static str, f64, f64)]| Figure::new(fit_title).panel(fit_panel(marks));
+    // The axes drawn without the marks; a mark sits on a clipped curve's point, so it moves neither the
+    // legend nor the axes (the caption states the final figure's range all the same).
+    let drawn = report::plot::y_axes(&fit_figure(&[]))
+        .ok()
+        .and_then(|r| r.first().copied());
+    let mut marks = Vec::new();
+    let mut leaving = Vec::new();
+    if let (Some((lo, hi)), Some(_)) = (drawn, view) {
+        for (key, label, y) in &sims {
+            if let Some(k) = y.iter().position(|v| !(lo..=hi).contains(v) && !v.is_nan()) {
+                let edge = if y[k] > hi { hi } else { lo };
+                marks.push((*key, tv[k], edge));
+                leaving.push(format!("{label} at t = {} s", estimate(tv[k])));
+            }
         }
     }
-    if let Some((lo, hi)) = view {
-        fit_panel = fit_panel.y_range(lo, hi);
-    }
+    let fig5 = fit_figure(&marks);
     let mut caption =
         "Free-run simulation of the models on the validation record (which was not used for estimation)."
             .to_string();
-    if !leaving.is_empty() {
+    let drawn = report::plot::y_axes(&fig5)
+        .ok()
+        .and_then(|r| r.first().copied());
+    if let (Some((_, vhi)), Some((lo, hi))) = (view, drawn) {
+        let raised = if hi > vhi {
+            " and at the top by a band for the legend"
+        } else {
+            ""
+        };
         caption.push_str(&format!(
-            " The y axis spans the measured range and a quarter of its span on each side; leaving it (marked by \
-             a point, then clipped at the edge): {}.",
-            leaving.join("; ")
+            " The y axis runs from {} to {} {yu}: the measured range widened by a quarter of its span on each \
+             side{raised}.",
+            estimate(lo),
+            estimate(hi)
         ));
+        if leaving.is_empty() {
+            caption.push_str(" No model leaves it.");
+        } else {
+            caption.push_str(&format!(
+                " Leaving it (marked by a point, then drawn along the frame): {}.",
+                leaving.join("; ")
+            ));
+        }
     }
-    figs.push((
-        "fig5_fit",
-        Figure::new("Validation record: measured vs simulated output (paper's Fig. 5)")
-            .panel(fit_panel),
-        caption,
-    ));
+    figs.push(("fig5_fit", fig5, caption));
 
     let t_ol = sysid::data::sample_times(st.u_ol.len(), ts);
     let mut y_ol = Panel::new("time (s)", y_axis.as_str())
@@ -312,8 +352,9 @@ pub(crate) fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
             fig.size(960, 120 + 190 * n),
             format!(
                 "The recursive estimates after each sample of the estimation record, one panel per parameter. Each \
-                 panel's y range is the range of the estimate after the first {} s (10 % of the record), so that \
-                 the settling is visible; the start-up transient is clipped at the panel's edges.",
+                 panel's y range is the range of the estimate after the first {} s (10 % of the record), widened by \
+                 10 % of its span on each side, so that the settling is visible; the start-up transient is clipped \
+                 at the panel's edges.",
                 estimate(skip as f64 * ts)
             ),
         ));

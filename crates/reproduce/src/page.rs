@@ -197,17 +197,18 @@ pub(crate) fn build_report(
     let y2 = format!("{}²", st.y_unit());
     let mut t4 = Table::new([
         "model".to_string(),
-        "best fit (%)".into(),
+        "worst-case fit (%)".into(),
         format!("loss V ({y2})"),
         format!("simulation-error loss ({y2})"),
         format!("FPE ({y2})"),
         "poles".into(),
     ])
     .caption(
-        "The paper's Table IV: validation record, free-run fit % (eq. 13; the worse of estimated and measured initial \
-         outputs, so that an initial state cannot flatter it), loss V = (1/N) Σ ½ ε² (eq. 14) and FPE (eq. 15) of \
-         the one-step equation errors (every model, so that the column compares), and the simulation-error loss \
-         (1/N) Σ ½ (y − ŷ_sim)² apart",
+        "The paper's Table IV: validation record. Worst-case fit % (the paper's \"best fit\", eq. 13): the worse of \
+         the free-run fits from estimated (est.) and measured (meas.) initial outputs, so that an initial state \
+         cannot flatter it; the cell says which. Loss V = (1/N) Σ ½ ε² (eq. 14) and FPE (eq. 15) of the one-step \
+         equation errors (every model, so that the column compares). The simulation-error loss \
+         (1/N) Σ ½ (y − ŷ_sim)² is that of the same simulation as the fit beside it",
     );
     for m in &st.models {
         t4.push_row(metrics_row(m.label, &m.rep));
@@ -227,8 +228,9 @@ pub(crate) fn build_report(
         Section::new("Validation")
             .id("validation")
             .paragraph(
-                "The fit is computed on the validation record by free-run simulation from initial outputs estimated \
-                 to fit the record (the model sees only u after its first na samples), as MATLAB's compare does; \
+                "The fit is computed on the validation record by free-run simulation (the model sees only u after \
+                 its first na samples), from initial outputs estimated to fit the record, as MATLAB's compare does, \
+                 and from the measured ones; the table quotes the worse, with that simulation's loss; \
                  loss and FPE use the one-step equation-error prediction errors ε(k) = A(q) y(k) − B(q) x(k) − c, as \
                  in the paper's equations, for every model (the output-error model too, so that the column compares); \
                  the simulation-error loss, which the output-error model minimises, is its own column. A \

@@ -401,16 +401,22 @@ fn legend_entries(svg: &str) -> Vec<(String, String)> {
         s[i..].split('"').next()?.parse().ok()
     };
     let mut out = Vec::new();
-    let boxes: Vec<(f64, f64, f64, f64)> = svg
+    // (x, y, width, height) and where in the document the box is: a legend is drawn after its panel's
+    // curves, so its marks are the lines after it (a curve may run under the box: audit s33 M-4's
+    // curves clipped at the frame, not below the legend).
+    let boxes: Vec<((f64, f64, f64, f64), usize)> = svg
         .match_indices("<rect ")
         .filter_map(|(i, _)| {
             let tag = &svg[i..i + svg[i..].find('>')?];
             (tag.contains("fill=\"none\"") && tag.contains("stroke=\"#787878\"")).then(|| {
                 (
-                    num(tag, "x").unwrap(),
-                    num(tag, "y").unwrap(),
-                    num(tag, "width").unwrap(),
-                    num(tag, "height").unwrap(),
+                    (
+                        num(tag, "x").unwrap(),
+                        num(tag, "y").unwrap(),
+                        num(tag, "width").unwrap(),
+                        num(tag, "height").unwrap(),
+                    ),
+                    i,
                 )
             })
         })
@@ -429,7 +435,7 @@ fn legend_entries(svg: &str) -> Vec<(String, String)> {
             Some((num(tag, "x")?, num(tag, "y")?, label))
         })
         .collect();
-    let lines: Vec<(f64, f64, String)> = svg
+    let lines: Vec<(f64, f64, String, usize)> = svg
         .match_indices("<polyline ")
         .filter_map(|(i, _)| {
             let tag = &svg[i..i + svg[i..].find("/>")?];
@@ -456,18 +462,19 @@ fn legend_entries(svg: &str) -> Vec<(String, String)> {
                     pts.iter().map(|p| p.0).sum::<f64>() / n,
                     pts.iter().map(|p| p.1).sum::<f64>() / n,
                     colour,
+                    i,
                 )
             })
         })
         .collect();
-    for b in &boxes {
+    for (b, at) in &boxes {
         for (tx, ty, label) in texts.iter().filter(|t| inside(b, t.0, t.1)) {
             // The mark sits left of its text, a few pixels below the text's top.
             let mark = lines
                 .iter()
-                .filter(|l| inside(b, l.0, l.1) && l.0 < *tx && l.1 >= *ty)
+                .filter(|l| l.3 > *at && inside(b, l.0, l.1) && l.0 < *tx && l.1 >= *ty)
                 .min_by(|p, q| (p.1 - ty).total_cmp(&(q.1 - ty)));
-            if let Some((_, _, c)) = mark {
+            if let Some((_, _, c, _)) = mark {
                 out.push((label.clone(), c.clone()));
             }
         }

@@ -246,7 +246,8 @@ impl Rls {
                 failure(sample, e.theta().as_slice(), |i, j| e.p(i, j), phi, y, rho)
             })
         }, h => {
-            update_heap(h, phi, y).map_err(|(denom, eps)| numerical(sample, denom, eps))
+            let rho = h.forgetting;
+            update_heap(h, phi, y).map_err(|(denom, eps)| numerical(sample, denom, eps, rho))
         })
     }
 }
@@ -298,7 +299,7 @@ impl ReferenceRls {
             denom += phi[i] * self.pphi[i];
         }
         if !(denom.is_finite() && denom > 0.0 && eps.is_finite()) {
-            return Err(numerical(sample, denom, eps));
+            return Err(numerical(sample, denom, eps, self.forgetting));
         }
         let inv = 1.0 / denom;
         let inv_rho = 1.0 / self.forgetting;
@@ -457,17 +458,41 @@ fn failure(
         }
         denom += fi * q;
     }
-    numerical(sample, denom, eps)
+    numerical(sample, denom, eps, rho)
 }
 
-fn numerical(sample: usize, denom: f64, eps: f64) -> SysidError {
-    SysidError::Numerical(format!(
+fn numerical(sample: usize, denom: f64, eps: f64, rho: f64) -> SysidError {
+    let what = format!(
         "RLS lost positive definiteness or met a non-finite value at sample {sample} \
-         (denominator ρ + φᵀPφ = {denom:e}, error ε = {eps:e}); this usually means P(0) is too large \
-         for the signals' magnitude (large numbers, e.g. µm or Pa: the rounding of P − Pφφᵀ P/δ then \
-         exceeds its smallest entries): try --rls-form ud (the factorised update stays positive \
-         definite), a smaller --p0, rescaled signals, or --method ls"
-    ))
+         (denominator ρ + φᵀPφ = {denom:e}, error ε = {eps:e})"
+    );
+    SysidError::Numerical(if rho < 1.0 {
+        format!("{what}; {}", windup_advice(rho))
+    } else {
+        format!(
+            "{what}; this usually means P(0) is too large \
+             for the signals' magnitude (large numbers, e.g. µm or Pa: the rounding of P − Pφφᵀ P/δ then \
+             exceeds its smallest entries): try --rls-form ud (the factorised update stays positive \
+             definite), a smaller --p0, rescaled signals, or --method ls"
+        )
+    })
+}
+
+/// Why an RLS with forgetting ρ < 1 most likely failed, and what helps (audit s33 L-6: the message
+/// blamed P(0) and scaling, and its remedy, the UD form, fails the same way): covariance windup. While
+/// the regressor does not excite a direction, P grows by 1/ρ per sample in it until it overflows, after
+/// about ln(1e308/P(0))/ln(1/ρ) samples (34 000 at ρ = 0.98 from P(0) = 1e6), whatever P(0) or the
+/// covariance form.
+pub(crate) fn windup_advice(rho: f64) -> String {
+    format!(
+        "with forgetting ρ = {rho} < 1 the likely cause is covariance windup: while the input does not \
+         excite (a rest, a constant command) P grows by 1/ρ per sample until it overflows, whatever P(0) or \
+         the covariance form (a smaller P(0) only delays it); bound P (--windup trace, with --max-trace), \
+         use ρ = 1 (--forgetting 1), or leave the unexciting stretch out of the record (Python Rls: \
+         restart_covariance(p0) after a rest, or forgetting=1); if the input kept exciting, P(0) may be \
+         too large for the signals' magnitude instead: a smaller --p0 (Python: p0), rescaled signals, or \
+         --method ls"
+    )
 }
 
 fn shape_error(n: usize, got: usize, p_shape: (usize, usize)) -> SysidError {

@@ -371,9 +371,14 @@ fn standard_body(
     let r: f64 = (0..n).map(|i| phi[i] * work[i]).sum();
     let denom = rho + r;
     if !(denom.is_finite() && denom > 0.0 && r >= 0.0) {
-        return Err(SysidError::Numerical(format!(
+        let what = format!(
             "RLS lost positive definiteness or met a non-finite value at sample {sample} (φᵀPφ = {r:e})"
-        )));
+        );
+        return Err(SysidError::Numerical(if rho < 1.0 {
+            format!("{what}; {}", crate::rls::windup_advice(rho))
+        } else {
+            what
+        }));
     }
     for i in 0..n {
         theta[i] += work[i] / denom * st.eps;
@@ -509,9 +514,13 @@ fn update_ud(
         a
     };
     if !(alpha.is_finite() && alpha > 0.0) || f.d.iter().any(|v| !v.is_finite() || *v < 0.0) {
-        return Err(SysidError::Numerical(format!(
-            "UD RLS met a non-finite or negative factor at sample {sample} (α = {alpha})"
-        )));
+        let what =
+            format!("UD RLS met a non-finite or negative factor at sample {sample} (α = {alpha})");
+        return Err(SysidError::Numerical(if rho < 1.0 {
+            format!("{what}; {}", crate::rls::windup_advice(rho))
+        } else {
+            what
+        }));
     }
     for i in 0..n {
         theta[i] += f.work[i] * inv_alpha * st.eps;
@@ -561,6 +570,66 @@ pub fn recursive_estimator(
 mod tests {
     use super::*;
     use crate::rls::Rls;
+
+    /// The auditor's rest.csv (audit s33 L-6), made here: y = 1.5 y₋₁ − 0.7 y₋₂ + 0.5 u₋₁, a ±1 random
+    /// input for 2000 samples, then 38 000 at rest (u = 0, y decays to 0). Regressors (−y₋₁, −y₋₂, u₋₁).
+    fn rest_record() -> Vec<([f64; 3], f64)> {
+        let mut state = 12345u64;
+        let mut u = vec![0.0; 40_000];
+        for v in u.iter_mut().take(2000) {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            *v = if state >> 63 == 1 { 1.0 } else { -1.0 };
+        }
+        let mut y = vec![0.0; u.len()];
+        for k in 2..u.len() {
+            y[k] = 1.5 * y[k - 1] - 0.7 * y[k - 2] + 0.5 * u[k - 1];
+        }
+        (2..u.len())
+            .map(|k| ([-y[k - 1], -y[k - 2], u[k - 1]], y[k]))
+            .collect()
+    }
+
+    // At rest φ → 0, so P grows by 1/ρ per sample: from P(0) = 1e6 at ρ = 0.98 it overflows after about
+    // ln(1e308 / 1e6) / ln(1/0.98) ≈ 34 400 samples of the 38 000 at rest (by hand), in the standard and
+    // the UD form alike. Both fail, and the message names covariance windup and its remedies (not P(0)
+    // and --rls-form ud); at ρ = 1 P does not grow and nothing fails.
+    #[test]
+    fn a_failure_under_forgetting_after_a_rest_names_covariance_windup() {
+        let data = rest_record();
+        let overflow_after = (1e308f64 / 1e6).ln() / (1.0f64 / 0.98).ln();
+        assert!(overflow_after < 38_000.0 - 100.0);
+        for form in [RlsForm::Standard, RlsForm::Ud] {
+            let mut rls = RobustRls::new(3, 0.98, 1e6, form, Windup::None, None).unwrap();
+            let e = data
+                .iter()
+                .enumerate()
+                .find_map(|(k, (phi, y))| rls.update(phi, *y, k).err())
+                .unwrap_or_else(|| panic!("{form}: no failure"));
+            let m = e.to_string();
+            assert!(
+                m.contains("covariance windup")
+                    && m.contains("--windup trace")
+                    && m.contains("ρ = 1"),
+                "{form}: {m}"
+            );
+            assert!(!m.contains("P(0) is too large"), "{form}: {m}");
+            let mut rls = RobustRls::new(3, 1.0, 1e6, form, Windup::None, None).unwrap();
+            for (k, (phi, y)) in data.iter().enumerate() {
+                rls.update(phi, *y, k).unwrap();
+            }
+        }
+        // The plain estimator (identify's standard form without a guard) says the same.
+        let mut rls = Rls::new(3, 0.98, 1e6).unwrap();
+        let m = data
+            .iter()
+            .enumerate()
+            .find_map(|(k, (phi, y))| rls.update(phi, *y, k).err())
+            .unwrap()
+            .to_string();
+        assert!(m.contains("covariance windup"), "{m}");
+    }
 
     // Audit s32 L-11: the default bound p0 · n overflows for p0 = 1e308, n = 3: the error names p0 (the
     // setting given), not the derived max_trace; an explicit finite bound is accepted.

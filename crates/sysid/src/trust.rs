@@ -31,10 +31,64 @@ pub const BASELINE_MARGIN: f64 = 20.0;
 /// The simulation fit % that the initial state cannot flatter: the worse of the fits from estimated and
 /// from measured initial outputs; `None` when either simulation diverges or the output is constant.
 pub fn guarded_fit(m: &Metrics) -> Option<f64> {
-    match (m.fit_sim_percent, m.fit_sim_measured_percent) {
-        (Some(a), Some(b)) => Some(a.min(b)),
-        _ => None,
+    guarded_simulation(m).map(|g| g.fit_percent)
+}
+
+/// Which initial outputs a free-run simulation started from.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum InitialOutputs {
+    /// ŷ(0..k0−1) estimated to fit the record (MATLAB `compare`'s default).
+    Estimated,
+    /// The measured y(0..k0−1).
+    Measured,
+}
+
+impl InitialOutputs {
+    /// The initial outputs in words: "estimated" or "measured".
+    pub fn word(self) -> &'static str {
+        match self {
+            InitialOutputs::Estimated => "estimated",
+            InitialOutputs::Measured => "measured",
+        }
     }
+}
+
+/// The free-run simulation whose fit [`guarded_fit`] quotes, with that same simulation's loss, so that a
+/// table row shows one simulation (audit s33 M-5: the fit was the worse simulation's, the loss beside it
+/// the estimated initial outputs').
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GuardedSimulation {
+    /// Fit % of the simulation (the worse of the two; the estimated one on a tie).
+    pub fit_percent: f64,
+    /// Its simulation-error loss (1/N) Σ ½ (y − ŷ_sim)² (units of y²): [`Metrics::loss_sim`] for the
+    /// estimated initial outputs, ½ RMSE² of [`Metrics::rmse_sim_measured`] for the measured ones (both
+    /// over the same N rows as the fit); `None` when not finite.
+    pub loss_sim: Option<f64>,
+    /// Which initial outputs the simulation started from.
+    pub initial: InitialOutputs,
+}
+
+/// The worse of the simulations from estimated and from measured initial outputs (both fits over the
+/// same rows and the same ‖y − ȳ‖, so the worse fit is the larger error); `None` when either diverges or
+/// the output is constant.
+pub fn guarded_simulation(m: &Metrics) -> Option<GuardedSimulation> {
+    let (estimated, measured) = (m.fit_sim_percent?, m.fit_sim_measured_percent?);
+    Some(if measured < estimated {
+        GuardedSimulation {
+            fit_percent: measured,
+            loss_sim: m
+                .rmse_sim_measured
+                .map(|r| 0.5 * r * r)
+                .filter(|v| v.is_finite()),
+            initial: InitialOutputs::Measured,
+        }
+    } else {
+        GuardedSimulation {
+            fit_percent: estimated,
+            loss_sim: m.loss_sim,
+            initial: InitialOutputs::Estimated,
+        }
+    })
 }
 
 /// The RMSE of the free-run simulations from both initial states together,
@@ -311,6 +365,28 @@ mod tests {
             Some(-206.0)
         );
         assert_eq!(guarded_fit(&metrics(Some(80.0), None)), None);
+    }
+
+    // The row of one simulation (audit s33 M-5): measured initial outputs fit worse (−116.5 < 37), so
+    // the loss is theirs, ½ · 94.72² = 4485.94, not the estimated one's ½ · 37.81² = 714.8; when the
+    // estimated ones fit worse, their loss_sim stands.
+    #[test]
+    fn the_guarded_simulation_carries_the_loss_of_the_same_simulation() {
+        let mut m = metrics(Some(37.0), Some(-116.5));
+        m.rmse_sim = Some(37.81);
+        m.loss_sim = Some(0.5 * 37.81 * 37.81);
+        m.rmse_sim_measured = Some(94.72);
+        let g = guarded_simulation(&m).unwrap();
+        assert_eq!(g.initial, InitialOutputs::Measured);
+        assert_eq!(g.fit_percent, -116.5);
+        assert!((g.loss_sim.unwrap() - 4485.9392).abs() < 1e-9);
+        m.fit_sim_measured_percent = Some(50.0);
+        let g = guarded_simulation(&m).unwrap();
+        assert_eq!(
+            (g.initial, g.fit_percent, g.loss_sim),
+            (InitialOutputs::Estimated, 37.0, Some(0.5 * 37.81 * 37.81))
+        );
+        assert_eq!(guarded_simulation(&metrics(Some(80.0), None)), None);
     }
 
     // 91 − 85.4 = 5.6 > 5 points: warned; 87.74 against 87.70 is not.

@@ -206,6 +206,9 @@ def test_model_file_round_trip_and_cli_reads_it(records, tmp_path):
     m = back.metrics(v["u"], v["y"])
     # ... and the same warnings (validate's also carry the reader's notes on the file, "data: ...").
     assert sorted(m.pop("warnings")) == sorted(w for w in doc["warnings"] if not w.startswith("data:"))
+    # The residual analysis and the first scored sample sit beside the metrics in validate's JSON.
+    assert_same(m.pop("residuals"), doc["residuals"]["validation"])
+    assert m.pop("score_from") == doc["score_from"]
     assert_same(m, doc["metrics"]["validation"])
 
 

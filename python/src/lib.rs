@@ -174,6 +174,22 @@ fn output_err(e: sysid_io::OutputError) -> PyErr {
     }
 }
 
+/// `resid_lags`: the lags M of the residual analysis, 1 to `sysid::residuals::MAX_LAG` (as
+/// `--resid-lags`), of `identify` and `Model.metrics` alike.
+fn check_resid_lags(resid_lags: usize) -> PyResult<()> {
+    if (1..=sysid::residuals::MAX_LAG).contains(&resid_lags) {
+        return Ok(());
+    }
+    Err(setting_err(
+        "resid_lags",
+        resid_lags,
+        &format!(
+            "a whole number of lags in 1..={}",
+            sysid::residuals::MAX_LAG
+        ),
+    ))
+}
+
 /// A `ValueError` naming a setting, worded as the library's setting errors.
 fn setting_err(name: &'static str, value: impl ToString, expected: &str) -> PyErr {
     sysid_err(SysidError::setting(Setting::Other(name), value, expected))
@@ -775,16 +791,7 @@ impl PyModel {
         resid_lags: usize,
     ) -> PyResult<Bound<'py, PyAny>> {
         let score_from = score_from.map_or(Ok(0), |k| whole("score_from", k))?;
-        if !(1..=sysid::residuals::MAX_LAG).contains(&resid_lags) {
-            return Err(setting_err(
-                "resid_lags",
-                resid_lags,
-                &format!(
-                    "a whole number of lags in 1..={}",
-                    sysid::residuals::MAX_LAG
-                ),
-            ));
-        }
+        check_resid_lags(resid_lags)?;
         let data = dataset(u, y, self.inner.ts(), name)?;
         let report = sysid_summary::ValidationReport::assemble_scored_from(
             &self.inner,
@@ -1570,16 +1577,7 @@ fn identify<'py>(
             if one { "it" } else { "them" },
         )));
     }
-    if !(1..=sysid::residuals::MAX_LAG).contains(&resid_lags) {
-        return Err(setting_err(
-            "resid_lags",
-            resid_lags,
-            &format!(
-                "a whole number of lags in 1..={}",
-                sysid::residuals::MAX_LAG
-            ),
-        ));
-    }
+    check_resid_lags(resid_lags)?;
     let method = method.unwrap_or("rls");
     if narx && detrend != sysid::detrend::Detrend::None {
         return Err(setting_err(

@@ -311,6 +311,72 @@ fn an_existing_file_of_another_kind_is_not_replaced_without_force() {
     assert!(temporaries(d).is_empty());
 }
 
+// A closed-loop log measured with exactly `control --out`'s header row (t,r,u,y) is not taken for an
+// earlier output: refused without --force, untouched (session 32's caveat; `sysid_io::OUTPUT_MARK`). The
+// same command's own output is replaced by a second run. Skipped (said so) where the file system keeps
+// no user extended attributes.
+#[cfg(target_os = "linux")]
+#[test]
+fn a_measured_log_with_an_outputs_header_is_not_replaced() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // Whether this file system keeps user extended attributes, and the mark of a file, read by
+    // Python's os.getxattr (independent of the code under test).
+    let xattr = |file: &Path, set: bool| {
+        let code = if set {
+            "import os,sys; os.setxattr(sys.argv[1], 'user.probe', b'1'); print('ok')"
+        } else {
+            "import os,sys; print(os.getxattr(sys.argv[1], 'user.ipa-sysid').decode())"
+        };
+        std::process::Command::new("python3")
+            .args(["-c", code])
+            .arg(file)
+            .output()
+            .ok()
+            .filter(|o| o.status.success())
+            .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
+    };
+    let probe = d.join("probe");
+    std::fs::write(&probe, "x").unwrap();
+    if xattr(&probe, true).is_none() {
+        eprintln!(
+            "SKIPPED: {} keeps no user extended attributes (or no python3 to tell)",
+            d.display()
+        );
+        return;
+    }
+    std::fs::remove_file(&probe).unwrap();
+    let log = d.join("log.csv");
+    let mine = "t,r,u,y\n0,50,0,0.0\n0.01,50,255,0.2\n";
+    std::fs::write(&log, mine).unwrap();
+    let out = run("control --setpoint 50 --duration 1 --out {t}/log.csv", d);
+    let text = stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{text}");
+    assert!(
+        text.contains("that ipa-sysid did not write") && text.contains("--force"),
+        "{text}"
+    );
+    assert_eq!(std::fs::read_to_string(&log).unwrap(), mine);
+    assert!(temporaries(d).is_empty());
+    // The command's own output: the same header row, the mark, replaced by a second run.
+    let ours = run("control --setpoint 50 --duration 1 --out {t}/ours.csv", d);
+    assert!(ours.status.success(), "{}", stderr(&ours));
+    let head = std::fs::read_to_string(d.join("ours.csv")).unwrap();
+    assert!(
+        head.starts_with("t,r,u,y\n"),
+        "the output's header changed: {head:.40}"
+    );
+    assert_eq!(xattr(&d.join("ours.csv"), false).as_deref(), Some("output"));
+    let again = run("control --setpoint 50 --duration 1 --out {t}/ours.csv", d);
+    assert!(again.status.success(), "{}", stderr(&again));
+    let forced = run(
+        "control --setpoint 50 --duration 1 --out {t}/log.csv --force",
+        d,
+    );
+    assert!(forced.status.success(), "{}", stderr(&forced));
+    assert_ne!(std::fs::read_to_string(&log).unwrap(), mine);
+}
+
 // Replacing an existing file keeps its owner and group (checked as root, the only user who can give a
 // file to someone else).
 #[cfg(unix)]
@@ -319,8 +385,13 @@ fn a_replaced_file_keeps_its_owner() {
     use std::os::unix::fs::MetadataExt;
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("owned.csv");
-    // A previous run's output (the same header row), which a run may replace (audit s22 M-B9).
-    std::fs::write(&p, "t,u,y\n0,0,0\n").unwrap();
+    // A previous run's output (the same header row and the output mark), which a run may replace
+    // (audit s22 M-B9; session 34: a file by hand is a user's record).
+    let first = run(
+        "simulate --plant paper --samples 2 --out {t}/owned.csv",
+        dir.path(),
+    );
+    assert!(first.status.success(), "{}", stderr(&first));
     if std::os::unix::fs::chown(&p, Some(4321), Some(4322)).is_err() {
         eprintln!("SKIPPED: not root, cannot give a file to another user");
         return;

@@ -470,6 +470,15 @@ impl FileKind {
         *old == FileKind::Empty || self == old
     }
 
+    /// Whether a file of this kind is told from a user's file of the same kind only by the
+    /// [`OUTPUT_MARK`] attribute: a CSV table or other text (known by its first line alone, which a
+    /// measured record may share with an output: `t,r,u,y` is `control --out`'s header and a
+    /// closed-loop log's), an SVG, PNG or Parquet file. The other kinds carry their own mark in their
+    /// content (a model's `"format"` key, the report's generator tag, the twin TOML's first comment).
+    pub fn known_by_mark(&self) -> bool {
+        matches!(self, Self::Text(_) | Self::Svg | Self::Png | Self::Parquet)
+    }
+
     /// The kind in words, e.g. "an ipa-sysid-model file (JSON)", "a CSV table with header t,u,y".
     pub fn describe(&self) -> String {
         match self {
@@ -543,6 +552,20 @@ fn check_replace_kind(
         source,
     })?;
     if new.may_replace(&old) {
+        if old.known_by_mark() && output_mark(real) == Mark::Unmarked {
+            // The same kind, but not written by ipa-sysid: a measured record kept with exactly an
+            // output's header row (session 32's caveat), a user's picture.
+            return Err(OutputError::Occupied {
+                path: path.to_path_buf(),
+                holds: format!(
+                    "it holds {} that ipa-sysid did not write (the file has no `{OUTPUT_MARK}` \
+                     extended attribute, which every output of ipa-sysid carries: a measured record, \
+                     a copy, an edited file, or an output of a version before 2026-11-29)",
+                    old.describe()
+                ),
+                writes: new.describe(),
+            });
+        }
         return Ok(true);
     }
     Err(OutputError::Occupied {
@@ -710,6 +733,7 @@ fn stage(path: &Path, bytes: &[u8]) -> Result<Staged, OutputError> {
         keep_owner(tmp.as_file(), m).map_err(io)?;
     }
     tmp.write_all(bytes).map_err(io)?;
+    set_output_mark(tmp.as_file());
     tmp.as_file().sync_all().map_err(io)?;
     Ok(Staged {
         tmp,
@@ -729,6 +753,79 @@ impl Staged {
         Ok(())
     }
 }
+
+/// The extended attribute every regular file ipa-sysid writes carries (value `output`), set on the
+/// temporary file before it is renamed into place. A file of a kind known only by its first line or
+/// its format ([`FileKind::known_by_mark`]: a CSV table, an SVG, a PNG) is replaced without `--force`
+/// only when it carries this mark, so a measured record whose header row is exactly an output's
+/// (`control --out`'s `t,r,u,y`) is not taken for an earlier output. Where the file system keeps no
+/// user extended attributes (the mark cannot be read or set: [`Mark::Unknown`]), the rule falls back to
+/// the kind alone (docs/reliability.md). Linux only; elsewhere [`Mark::Unknown`] always. Written with
+/// `libc`'s `fsetxattr`/`getxattr` (two calls; the `xattr` crate would add a dependency for them).
+pub const OUTPUT_MARK: &str = "user.ipa-sysid";
+
+/// Whether an existing file carries [`OUTPUT_MARK`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Mark {
+    /// It does: an output of ipa-sysid (or a copy made with its extended attributes).
+    Marked,
+    /// The file system keeps extended attributes and this file has none named so.
+    Unmarked,
+    /// Not known (the file system keeps no user extended attributes, or another error, or not Linux).
+    Unknown,
+}
+
+/// Whether the file `path` (a symbolic link followed) carries [`OUTPUT_MARK`].
+#[cfg(target_os = "linux")]
+pub fn output_mark(path: &Path) -> Mark {
+    use std::os::unix::ffi::OsStrExt;
+    let (Ok(p), Ok(name)) = (
+        std::ffi::CString::new(path.as_os_str().as_bytes()),
+        std::ffi::CString::new(OUTPUT_MARK),
+    ) else {
+        return Mark::Unknown;
+    };
+    // SAFETY: two NUL-terminated strings that live across the call; a null buffer of size 0 asks for
+    // the value's size only.
+    let n = unsafe { libc::getxattr(p.as_ptr(), name.as_ptr(), std::ptr::null_mut(), 0) };
+    if n >= 0 {
+        return Mark::Marked;
+    }
+    match std::io::Error::last_os_error().raw_os_error() {
+        Some(libc::ENODATA) => Mark::Unmarked,
+        _ => Mark::Unknown,
+    }
+}
+
+/// Whether the file `path` carries [`OUTPUT_MARK`]: not known off Linux.
+#[cfg(not(target_os = "linux"))]
+pub fn output_mark(_path: &Path) -> Mark {
+    Mark::Unknown
+}
+
+/// Sets [`OUTPUT_MARK`] on `file`; a file system that keeps no such attribute is not an error (the
+/// replacement rule then falls back to the kind: [`Mark::Unknown`]).
+#[cfg(target_os = "linux")]
+fn set_output_mark(file: &std::fs::File) {
+    use std::os::fd::AsRawFd;
+    let Ok(name) = std::ffi::CString::new(OUTPUT_MARK) else {
+        return;
+    };
+    let value = b"output";
+    // SAFETY: a valid open descriptor, a NUL-terminated name and a buffer of `value.len()` bytes.
+    let _ = unsafe {
+        libc::fsetxattr(
+            file.as_raw_fd(),
+            name.as_ptr(),
+            value.as_ptr().cast(),
+            value.len(),
+            0,
+        )
+    };
+}
+
+#[cfg(not(target_os = "linux"))]
+fn set_output_mark(_file: &std::fs::File) {}
 
 /// The prefix of the temporary files [`write_atomic`] creates beside its outputs (`.ipa-sysid-*.tmp`).
 pub const TEMP_PREFIX: &str = ".ipa-sysid-";
@@ -1374,6 +1471,77 @@ mod kind_tests {
         }
         write_all_atomic_as(&[(&model, b"a,b\n")], true).unwrap();
         assert_eq!(std::fs::read_to_string(&model).unwrap(), "a,b\n");
+    }
+}
+
+#[cfg(all(test, target_os = "linux"))]
+#[allow(clippy::unwrap_used)]
+mod mark_tests {
+    use super::*;
+
+    /// Whether the file system of `dir` keeps user extended attributes (set by hand with libc, not
+    /// through the code under test).
+    fn keeps_user_attributes(dir: &Path) -> bool {
+        use std::os::unix::ffi::OsStrExt;
+        let probe = dir.join("probe");
+        std::fs::write(&probe, "x").unwrap();
+        let p = std::ffi::CString::new(probe.as_os_str().as_bytes()).unwrap();
+        let name = std::ffi::CString::new("user.probe").unwrap();
+        // SAFETY: NUL-terminated strings and a one-byte value that live across the call.
+        let r = unsafe { libc::setxattr(p.as_ptr(), name.as_ptr(), b"1".as_ptr().cast(), 1, 0) };
+        std::fs::remove_file(&probe).unwrap();
+        r == 0
+    }
+
+    // A measured record whose header row is exactly an output's (`control --out`'s t,r,u,y) is kept
+    // without --force; an output of ipa-sysid with that header is replaced; with force both are.
+    #[test]
+    fn a_record_with_an_outputs_header_is_not_taken_for_an_output() {
+        let dir = tempfile::tempdir().unwrap();
+        if !keeps_user_attributes(dir.path()) {
+            eprintln!(
+                "SKIPPED: {} keeps no user extended attributes (the rule falls back to the kind)",
+                dir.path().display()
+            );
+            return;
+        }
+        let record = dir.path().join("log.csv");
+        std::fs::write(&record, "t,r,u,y\n0,50,0,49.9\n").unwrap();
+        assert_eq!(output_mark(&record), Mark::Unmarked);
+        let e = write_all_atomic_as(&[(&record, b"t,r,u,y\n0,1,2,3\n")], false).unwrap_err();
+        assert!(matches!(e, OutputError::Occupied { .. }), "{e}");
+        let text = e.to_string();
+        assert!(
+            text.contains("did not write") && text.contains(OUTPUT_MARK),
+            "{text}"
+        );
+        assert_eq!(
+            std::fs::read_to_string(&record).unwrap(),
+            "t,r,u,y\n0,50,0,49.9\n"
+        );
+        // A picture of the user's is kept as well.
+        let png = dir.path().join("photo.png");
+        std::fs::write(&png, b"\x89PNG\r\n\x1a\nuser").unwrap();
+        assert!(write_all_atomic_as(&[(&png, b"\x89PNG\r\n\x1a\nours")], false).is_err());
+        // An output of ipa-sysid carries the mark and is replaced by the next run's.
+        let out = dir.path().join("out.csv");
+        write_atomic(&out, b"t,r,u,y\n0,1,2,3\n").unwrap();
+        assert_eq!(output_mark(&out), Mark::Marked);
+        assert_eq!(
+            write_all_atomic_as(&[(&out, b"t,r,u,y\n4,5,6,7\n")], false).unwrap(),
+            vec![out.clone()]
+        );
+        assert_eq!(output_mark(&out), Mark::Marked);
+        // A copy without its attributes (`cp` without --preserve) is a user's file again.
+        let copy = dir.path().join("copy.csv");
+        std::fs::write(&copy, std::fs::read(&out).unwrap()).unwrap();
+        assert!(write_all_atomic_as(&[(&copy, b"t,r,u,y\n8,8,8,8\n")], false).is_err());
+        // --force replaces the record.
+        write_all_atomic_as(&[(&record, b"t,r,u,y\n9,9,9,9\n")], true).unwrap();
+        assert_eq!(
+            std::fs::read_to_string(&record).unwrap(),
+            "t,r,u,y\n9,9,9,9\n"
+        );
     }
 }
 

@@ -22,8 +22,13 @@ use crate::ReproduceSettings;
 pub(crate) struct ModelFit {
     pub(crate) key: &'static str,
     pub(crate) label: &'static str,
-    /// All poles of the linear block inside the unit circle.
+    /// All poles of the linear block inside the unit circle (the verdict `settles`).
     pub(crate) stable: bool,
+    /// The stability verdict in a word ([`crate::study::stability_word`]: `stable`, `an integrator`, `on
+    /// the stability boundary`, `UNSTABLE`) and its name (`settles`, `integrator`, `on_circle`,
+    /// `unstable`: the report's `stability`), the same words as Table IV's.
+    pub(crate) stability_word: &'static str,
+    pub(crate) stability: String,
     /// Validation record, simulated from the measured initial outputs (as the twin is).
     pub(crate) validation: Option<f64>,
     /// Fresh open-loop record (`None`: the model cannot be simulated from rest, e.g. unstable).
@@ -106,6 +111,8 @@ pub(crate) fn calibrated_twin(
             key: m.key,
             label: m.label,
             stable: m.rep.stable,
+            stability_word: crate::study::stability_word(&m.rep),
+            stability: m.rep.stability.clone(),
             validation: m
                 .rep
                 .metrics
@@ -155,15 +162,23 @@ pub(crate) fn fit_rows(t: &Twin) -> Vec<[String; 3]> {
         opt(t.validation_fit()),
         opt(t.open_loop_fit),
     ]];
-    rows.extend(t.models.iter().map(|m| {
-        let label = if m.stable {
-            m.label.to_string()
-        } else {
-            format!("{} — unstable", m.label)
-        };
-        [label, opt(m.validation), opt(m.open_loop)]
-    }));
+    rows.extend(
+        t.models
+            .iter()
+            .map(|m| [model_label(m), opt(m.validation), opt(m.open_loop)]),
+    );
     rows
+}
+
+/// A model's row label: its name, and the stability verdict's own word when it does not settle (audit
+/// s34 M-1: an integrator was called "unstable" here while Table IV and the acceptance line called it
+/// an integrator).
+fn model_label(m: &ModelFit) -> String {
+    if m.stable {
+        m.label.to_string()
+    } else {
+        format!("{} — {}", m.label, m.stability_word)
+    }
 }
 
 /// Each estimated parameter: start, estimate, standard deviation, unit.
@@ -204,10 +219,44 @@ pub(crate) fn json(twin: &Result<Twin, String>) -> serde_json::Value {
             "validation_fit_percent": t.validation_fit(),
             "open_loop_fit_percent": t.open_loop_fit,
             "models": t.models.iter().map(|m| (m.key.to_string(), serde_json::json!({
-                "stable": m.stable, "validation_fit_percent": m.validation, "open_loop_fit_percent": m.open_loop,
+                "stable": m.stable, "stability": m.stability, "validation_fit_percent": m.validation, "open_loop_fit_percent": m.open_loop,
             }))).collect::<serde_json::Map<_, _>>(),
             "warnings": warnings(t),
         }),
         Err(reason) => serde_json::json!({ "not_run": reason }),
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod tests {
+    use super::*;
+
+    // A(q) = 1 − 1.5 q⁻¹ + 0.5 q⁻² = (1 − q⁻¹)(1 − 0.5 q⁻¹): poles 1 and 0.5 by hand, an integrator; with
+    // a₁ = −2.5, a₂ = 1 the poles are 2 and 0.5: unstable.
+    #[test]
+    fn a_model_that_does_not_settle_is_labelled_with_its_verdict() {
+        let row = |a: Vec<f64>| {
+            let model = sysid_core::Model::arx(0.01, a, vec![1.0], 1, None).unwrap();
+            let st = model.stability();
+            model_label(&ModelFit {
+                key: "k",
+                label: "Hammerstein (output error, addition)",
+                stable: st.name() == "settles",
+                stability_word: st.word(),
+                stability: st.name().to_string(),
+                validation: None,
+                open_loop: None,
+            })
+        };
+        assert_eq!(
+            row(vec![-1.5, 0.5]),
+            "Hammerstein (output error, addition) — an integrator"
+        );
+        assert_eq!(
+            row(vec![-2.5, 1.0]),
+            "Hammerstein (output error, addition) — UNSTABLE"
+        );
+        assert_eq!(row(vec![-0.5]), "Hammerstein (output error, addition)");
     }
 }

@@ -2000,3 +2000,81 @@ fn a_validation_fit_below_five_percent_is_warned() {
     );
     assert!(said, "the record no longer shows a fit below 5 %: {val}");
 }
+
+// Audit s34 H-1: output error on records of the paper's model with small commands from a start that is
+// not rest (simulate's y0 = 100 mm, decaying) stopped in a local minimum from the LS start (a1 ≈ −1.0
+// to −1.2 against the paper's −1.869, "converged", at times no warning). Now the search also starts from
+// IV: every run either recovers a1 within 0.1 of the paper's value or warns of the local minima, and a
+// warned run kept the lower end (its simulation RSS, re-computed here from the JSON's own RMSE, is the
+// IV start's, below the LS start's as the warning quotes them). Truth: the paper's a1 = −1.869
+// (docs/paper.md, Table III), not a figure of this program.
+#[test]
+fn output_error_on_small_commands_recovers_the_paper_model_or_warns() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut recovered = 0;
+    for (amplitude, seed) in [("8", "1"), ("8", "2"), ("20", "1"), ("20", "2")] {
+        let out = bin()
+            .current_dir(d)
+            .args([
+                "simulate",
+                "--plant",
+                "paper",
+                "--input",
+                "staircase",
+                "--amplitude",
+            ])
+            .args([
+                amplitude,
+                "--noise-std",
+                "0.01",
+                "--seed",
+                seed,
+                "--out",
+                "r.csv",
+            ])
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let doc = run_json(d, &["identify", "--data", "r.csv", "--method", "oe"]);
+        let a1 = doc["parameters"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|p| p["name"] == "a1")
+            .and_then(|p| p["value"].as_f64())
+            .unwrap();
+        let words = warnings(&doc);
+        let local = words.iter().find(|w| w.contains("several local minima"));
+        let what = format!("amplitude {amplitude}, seed {seed}: a1 = {a1}, warnings {words:?}");
+        if (a1 + 1.869).abs() < 0.1 {
+            recovered += 1;
+        } else {
+            assert!(local.is_some(), "wrong without a word: {what}");
+        }
+        if let Some(w) = local {
+            // "… stopped in one (simulation RSS A), the search from the IV start went lower (B) …"
+            let num = |after: &str| -> f64 {
+                let rest = &w[w.find(after).unwrap() + after.len()..];
+                rest[..rest.find(')').unwrap()].parse().unwrap()
+            };
+            let (rss_ls, rss_iv) = (num("(simulation RSS "), num("went lower ("));
+            assert!(rss_iv < rss_ls * 0.99, "{what}");
+            // The kept model's own simulation RSS (estimated initial outputs) is the IV end's.
+            let est = &doc["metrics"]["estimation"];
+            let rmse = est["rmse_sim"].as_f64().unwrap();
+            let rows = 2000.0;
+            let rss = rmse * rmse * rows;
+            assert!(
+                (rss - rss_iv).abs() <= 0.02 * rss_iv,
+                "{what}: kept RSS {rss} is not the IV end's {rss_iv}"
+            );
+        }
+    }
+    // Before the second start, 1 of these 4 was recovered (amplitude 20, seed 2).
+    assert!(recovered >= 3, "only {recovered} of 4 recovered");
+}

@@ -244,6 +244,18 @@ pub enum Note {
         /// The optimiser's termination, in words.
         stopped: String,
     },
+    /// The output-error search also ran from the IV estimate (`methods::second_start`): the simulation
+    /// RSS each search ended at, and which end was kept.
+    SecondStart {
+        /// RSS at the end of the search from the LS start.
+        rss_ls: f64,
+        /// RSS at the end of the search from the IV start (`None`: IV or its search failed, `why`).
+        rss_iv: Option<f64>,
+        /// Whether the IV start's end was kept.
+        kept_iv: bool,
+        /// Why there is no second end.
+        why: Option<String>,
+    },
     /// An IV stage's auxiliary model was unstable; its poles were reflected.
     UnstableAuxiliary {
         /// The stage.
@@ -338,6 +350,30 @@ impl std::fmt::Display for Note {
                 f,
                 "output-error refinement: simulation RSS {rss_start:.6e} -> {rss:.6e} in {iterations} iterations \
                  ({evaluations} evaluations), stopped: {stopped}"
+            ),
+            Note::SecondStart {
+                rss_ls,
+                rss_iv: Some(rss_iv),
+                kept_iv,
+                ..
+            } => write!(
+                f,
+                "output-error search from two starts (LS, biased under output noise, and IV): simulation RSS \
+                 {rss_ls:.6e} from the LS start, {rss_iv:.6e} from the IV start; kept the {} start's end{}",
+                if *kept_iv { "IV" } else { "LS" },
+                if *kept_iv {
+                    " (the search from LS stopped in a local minimum)"
+                } else {
+                    ""
+                }
+            ),
+            Note::SecondStart {
+                rss_ls, why, ..
+            } => write!(
+                f,
+                "output-error search from the LS start only (simulation RSS {rss_ls:.6e}): the second \
+                 start, from IV, failed: {}",
+                why.as_deref().unwrap_or("no reason given")
             ),
             Note::UnstableAuxiliary { stage } => write!(
                 f,

@@ -167,6 +167,16 @@ pub enum Warning {
         /// The smallest and largest input of the record.
         range: (f64, f64),
     },
+    /// The output-error search from the IV start ended lower than the one from the LS start by more
+    /// than [`crate::methods::LOCAL_MINIMA_MARGIN`] (relative): the search from LS (the only one before
+    /// session 34) stopped in a local minimum, and the criterion has several on this record, so the end
+    /// kept (IV's) need not be the global minimum either (audit s34 H-1).
+    LocalMinima {
+        /// RSS at the end of the search from the LS start.
+        rss_ls: f64,
+        /// RSS at the end of the search from the IV start (the end kept).
+        rss_iv: f64,
+    },
     /// A trust check (module `trust`: initial state, baseline, standard deviations).
     Trust(Concern),
 }
@@ -312,6 +322,14 @@ impl std::fmt::Display for Warning {
                 "the deadzone [b_l, b_r] = [{b_l}, {b_r}] holds every input of the record ({lo} to {hi}): \
                  the model does not respond to the input and its simulation is only the decay of its \
                  initial outputs — do not use it; try other orders, --method ls or a linear input"
+            ),
+            Warning::LocalMinima { rss_ls, rss_iv } => write!(
+                f,
+                "the output-error criterion has several local minima on this record: the search from the \
+                 LS start stopped in one (simulation RSS {rss_ls:.4e}), the search from the IV start went \
+                 lower ({rss_iv:.4e}) and its end is kept, but it need not be the best model either: \
+                 compare --method iv, and prefer a record that starts at rest with an input of more levels \
+                 and a larger amplitude"
             ),
             Warning::Trust(c) => c.fmt(f),
         }

@@ -100,7 +100,8 @@ const KEPT_WITHIN: f64 = 0.01;
 
 // On every record of the table, output error with an offset returns a stable model whose estimation
 // simulation RMSE pooled over both initial states (the criterion it keeps its candidates on) is not
-// above least squares' by more than the 1 % a refinement is allowed; it converges within its cap.
+// above least squares' by more than the 1 % a refinement is allowed; it converges within its cap or
+// warns that it did not.
 #[test]
 fn output_error_is_stable_and_never_worse_than_least_squares_on_real_records() {
     let Some(dir) = ipa_testdata::shared_data() else {
@@ -123,7 +124,18 @@ fn output_error_is_stable_and_never_worse_than_least_squares_on_real_records() {
             rmse_oe <= rmse_ls * (1.0 + KEPT_WITHIN + 1e-12),
             "{name}: OE {rmse_oe} > LS {rmse_ls}"
         );
-        assert!(oe.converged(), "{name}: {:?}", oe.note());
+        // Converged, or it says it did not (since session 34 the lower end of the searches from the
+        // LS and the IV starts is kept even at the iteration cap: ball and beam (2, 2, 1) ends at RSS
+        // 0.907 from IV, at the cap, against 1.810 converged from LS).
+        assert!(
+            oe.converged()
+                || oe
+                    .warnings
+                    .iter()
+                    .any(|w| matches!(w, Warning::NotConverged { .. })),
+            "{name}: {:?}",
+            oe.note()
+        );
         assert!(
             !oe.warnings
                 .iter()

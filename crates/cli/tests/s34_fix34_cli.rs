@@ -244,3 +244,72 @@ fn validate_judges_a_hand_written_deadzone_by_the_compensators_rule() {
         }
     }
 }
+
+/// The value of attribute `name` in an SVG element's text.
+fn attr<'a>(element: &'a str, name: &str) -> Option<&'a str> {
+    let key = format!(" {name}=\"");
+    let start = element.find(&key)? + key.len();
+    element[start..].split('"').next()
+}
+
+// Reproduce's Fig. 5 (seed 1): its curves fill every corner and the ARX simulation leaves the top of
+// the axes, so before session 34 the legend sat in a band raised above a fixed range and the ARX
+// curve (≈ 335 mm) ran under its semi-transparent box. Now no drawn point of any curve lies inside
+// the legend box (border #787878), which sits below the frame (the y axis's bottom pixel row).
+#[test]
+fn no_curve_of_fig5_runs_under_its_legend() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("R");
+    let o = bin()
+        .args(["reproduce", "--out", s(&out)])
+        .output()
+        .unwrap();
+    assert!(o.status.code() == Some(0), "{}", stderr(&o));
+    let svg = std::fs::read_to_string(out.join("figures/fig5_fit.svg")).unwrap();
+    let mut boxes = Vec::new();
+    let mut points = Vec::new();
+    let mut axis_bottom = f64::NAN;
+    for el in svg.split('<').skip(1) {
+        let num = |n: &str| attr(el, n).unwrap().parse::<f64>().unwrap();
+        if el.starts_with("rect") && attr(el, "stroke") == Some("#787878") {
+            let (x, y) = (num("x"), num("y"));
+            boxes.push((x, y, x + num("width"), y + num("height")));
+        } else if el.starts_with("polyline") {
+            let pts: Vec<(f64, f64)> = attr(el, "points")
+                .unwrap()
+                .split_whitespace()
+                .map(|p| {
+                    let (x, y) = p.split_once(',').unwrap();
+                    (x.parse().unwrap(), y.parse().unwrap())
+                })
+                .collect();
+            let stroke = attr(el, "stroke").unwrap_or("");
+            // The y axis: the first black vertical two-point line.
+            if axis_bottom.is_nan() && stroke == "#000000" && pts.len() == 2 && pts[0].0 == pts[1].0
+            {
+                axis_bottom = pts[0].1.max(pts[1].1);
+            }
+            // The curves: the model colours and the measured record (long lines).
+            if pts.len() > 20 {
+                points.extend(pts);
+            }
+        }
+    }
+    assert_eq!(boxes.len(), 1, "one legend box");
+    let (x0, y0, x1, y1) = boxes[0];
+    assert!(
+        y0 > axis_bottom,
+        "legend box top {y0} inside the frame (bottom {axis_bottom})"
+    );
+    assert!(points.len() > 1000, "{} curve points", points.len());
+    let under: Vec<_> = points
+        .iter()
+        .filter(|(x, y)| (x0..=x1).contains(x) && (y0..=y1).contains(y))
+        .collect();
+    assert!(
+        under.is_empty(),
+        "{} curve points under the legend: {:?}",
+        under.len(),
+        &under[..under.len().min(5)]
+    );
+}

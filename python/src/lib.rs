@@ -2453,7 +2453,7 @@ fn plant_and_limits(
             return Err(setting_err(
                 "plant_config",
                 path.display(),
-                "a plant-config only with plant=\"ipa\", not with a Model",
+                "a physics plant configuration, which applies to the plant ipa only, not to a Model",
             ));
         }
         let model = m.get().inner.clone();
@@ -2538,12 +2538,17 @@ fn control_loop<'py>(
         (Some(r), None) if r.is_finite() => Profile::Fixed { setpoint_mm: r },
         (Some(r), None) => return Err(setting_err("--setpoint", r, "a finite position in mm")),
         (None, Some(spec)) => profile_arg(&spec)?,
-        _ => {
+        (given_setpoint, given_profile) => {
+            // What was given, not an empty value (audit s33 L-3).
+            let given = match (given_setpoint, given_profile) {
+                (Some(r), Some(p)) => format!("{} and {p:?}", sysid_core::format::Shortest(r)),
+                _ => "(neither given)".to_string(),
+            };
             return Err(setting_err(
                 "--setpoint/--profile",
-                "",
+                given,
                 "exactly one of setpoint=MM or profile=SPEC",
-            ))
+            ));
         }
     };
     let integral = match integral {

@@ -335,7 +335,7 @@ impl std::fmt::Display for Warning {
                 for (name, m) in [("m_l", m_l), ("m_r", m_r)] {
                     if *m == 0.0 {
                         what.push(format!("{name} = 0 (that branch does not respond)"));
-                    } else if !(*m > 0.0) {
+                    } else if *m < 0.0 {
                         what.push(format!(
                             "{name} = {} < 0 (a larger command on that side lowers the output)",
                             v(*m)

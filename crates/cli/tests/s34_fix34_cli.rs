@@ -313,3 +313,58 @@ fn no_curve_of_fig5_runs_under_its_legend() {
         &under[..under.len().min(5)]
     );
 }
+
+// Two inputs through their own deadzones (u1: b_l = −55, b_r = −12.5, left of 0; u2: −20, 25, a
+// valve's), y(k) = 0.8 y(k−1) + x1(k−1) + x2(k−1), by a hand loop: the warning is said once, for
+// input u1 only, headed by its name.
+#[test]
+fn several_inputs_name_the_input_whose_deadzone_is_not_a_valves() {
+    let levels = [
+        -200.0, -150.0, -100.0, -80.0, -40.0, -20.0, 0.0, 20.0, 40.0, 80.0, 120.0, 160.0, 200.0,
+        -120.0, 60.0, -60.0, 100.0, -180.0, 30.0, -30.0,
+    ];
+    let n = 3000;
+    let u1: Vec<f64> = (0..n).map(|k| levels[(k / 25) % 20]).collect();
+    let u2: Vec<f64> = (0..n).map(|k| levels[(k / 35 + 7) % 20]).collect();
+    let dz = |u: f64, b_l: f64, b_r: f64| {
+        if u >= b_r {
+            0.01 * (u - b_r)
+        } else if u <= b_l {
+            0.01 * (u - b_l)
+        } else {
+            0.0
+        }
+    };
+    let mut y = vec![0.0; n];
+    for k in 1..n {
+        y[k] = 0.8 * y[k - 1] + dz(u1[k - 1], -55.0, -12.5) + dz(u2[k - 1], -20.0, 25.0);
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("miso.csv");
+    common::write_csv(&data, "t,u1,u2,y", Some(0.01), &[&u1, &u2, &y]);
+    let report = dir.path().join("r.json");
+    let o = bin()
+        .args(["identify", "--data", s(&data), "--u-col", "u1,u2"])
+        .args([
+            "--na",
+            "1",
+            "--nb",
+            "1,1",
+            "--nk",
+            "1,1",
+            "--json",
+            s(&report),
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let w: Vec<String> = warnings(&json(&report))
+        .into_iter()
+        .filter(|w| w.contains(NOT_A_VALVE))
+        .collect();
+    assert_eq!(w.len(), 1, "{w:?}");
+    assert!(
+        w[0].starts_with(&format!("input u1: {NOT_A_VALVE}")),
+        "{w:?}"
+    );
+}

@@ -2151,8 +2151,8 @@ impl PyRls {
         check_finite_sample(&phi, y, None)?;
         let e = self
             .inner
-            .update(&phi, y, self.samples)
-            .map_err(sysid_err)?;
+            .try_update(&phi, y, self.samples)
+            .map_err(rls_update_err)?;
         self.samples += 1;
         Ok(e)
     }
@@ -2203,7 +2203,7 @@ impl PyRls {
         let mut errors = Vec::with_capacity(rows);
         let mut failure = None;
         for (row, yk) in data.chunks_exact(cols).zip(&y) {
-            match self.inner.update(row, *yk, self.samples) {
+            match self.inner.try_update(row, *yk, self.samples) {
                 Ok(e) => {
                     errors.push(e);
                     self.samples += 1;
@@ -2215,7 +2215,7 @@ impl PyRls {
             }
         }
         match failure {
-            Some(e) => Err(sysid_err(e)),
+            Some(e) => Err(rls_update_err(e)),
             None => Ok(errors.into_pyarray(py)),
         }
     }
@@ -2235,6 +2235,37 @@ impl PyRls {
             self.samples
         )
     }
+}
+
+/// A refused `Rls` update as the Python exception, its advice in `Rls`'s own terms (its arguments
+/// `forgetting`, `p0` and its method `restart_covariance`; audit s33 L-6: it quoted the command line's
+/// `--rls-form`, `--p0`, which `Rls` does not have): under forgetting ρ < 1 covariance windup first (P
+/// grows by 1/ρ per update while φ does not excite; the estimator then refuses every later update until
+/// its covariance is restarted), else P(0) too large for the signals.
+fn rls_update_err(e: sysid::rls::UpdateError) -> PyErr {
+    let f = match e {
+        sysid::rls::UpdateError::Shape(e) => return sysid_err(e),
+        sysid::rls::UpdateError::Failure(f) => f,
+    };
+    let advice = if f.windup_likely() {
+        format!(
+            "with forgetting ρ = {} < 1 the likely cause is covariance windup: while the regressor φ \
+             does not excite a direction (a rest, a constant command) P grows by 1/ρ per update in it \
+             until it overflows, whatever p0 (a smaller p0 only delays it), and every later update is \
+             refused as well; call restart_covariance(p0) to go on (and after each unexciting \
+             stretch, before it overflows), leave such stretches out of the updates, or use \
+             forgetting=1; if φ kept exciting, p0 may be too large for the signals' magnitude \
+             instead: a smaller p0 or rescaled signals",
+            f.forgetting
+        )
+    } else {
+        "this usually means p0 is too large for the signals' magnitude (large numbers, e.g. µm or \
+         Pa: the rounding of P − Pφφᵀ P/δ then exceeds its smallest entries): try a smaller p0 or \
+         rescaled signals (identify(..., method=\"rls\", rls_form=\"ud\") runs the factorised \
+         update, which stays positive definite)"
+            .to_string()
+    };
+    PyArithmeticError::new_err(format!("{}; {advice}", f.what()))
 }
 
 /// Refuses a non-finite regressor entry φ_i or measurement y before an RLS update, naming the
@@ -2453,7 +2484,7 @@ fn plant_and_limits(
             return Err(setting_err(
                 "plant_config",
                 path.display(),
-                "a plant-config only with plant=\"ipa\", not with a Model",
+                "a physics plant configuration, which applies to the plant ipa only, not to a Model",
             ));
         }
         let model = m.get().inner.clone();
@@ -2538,12 +2569,17 @@ fn control_loop<'py>(
         (Some(r), None) if r.is_finite() => Profile::Fixed { setpoint_mm: r },
         (Some(r), None) => return Err(setting_err("--setpoint", r, "a finite position in mm")),
         (None, Some(spec)) => profile_arg(&spec)?,
-        _ => {
+        (given_setpoint, given_profile) => {
+            // What was given, not an empty value (audit s33 L-3).
+            let given = match (given_setpoint, given_profile) {
+                (Some(r), Some(p)) => format!("{} and {p:?}", sysid_core::format::Shortest(r)),
+                _ => "(neither given)".to_string(),
+            };
             return Err(setting_err(
                 "--setpoint/--profile",
-                "",
+                given,
                 "exactly one of setpoint=MM or profile=SPEC",
-            ))
+            ));
         }
     };
     let integral = match integral {

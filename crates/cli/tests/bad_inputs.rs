@@ -823,7 +823,10 @@ fn control_flags_out_of_range_exit_2_naming_the_flag() {
         case(
             "control --plant paper --setpoint 5 --plant-config {c}/good.csv",
             2,
-            &["--plant-config", "--plant ipa only"],
+            &[
+                "--plant-config",
+                "the plant ipa only, not to the plant paper",
+            ],
         ),
         case(
             "control --plant ipa --setpoint 5 --plant-config {c}/model/array.json",

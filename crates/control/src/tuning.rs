@@ -185,11 +185,7 @@ pub fn command_deadzone(m: &Model) -> Result<Deadzone, DeadzoneProblem> {
     if m.inputs().len() > 1 {
         return Err(DeadzoneProblem::SeveralInputs(m.inputs().len()));
     }
-    let u0 = m
-        .operating_point()
-        .and_then(|o| o.u.first().copied())
-        .unwrap_or(0.0);
-    let d = m.deadzone().ok_or_else(|| {
+    m.command_deadzone(0).ok_or_else(|| {
         use sysid_core::StaticNonlinearity as S;
         DeadzoneProblem::NoDeadzone(match m.inputs().first().map(|c| c.nonlinearity()) {
             Some(S::Saturation(_)) => "a saturation",
@@ -198,11 +194,6 @@ pub fn command_deadzone(m: &Model) -> Result<Deadzone, DeadzoneProblem> {
             Some(S::Polynomial(_)) => "a polynomial",
             _ => "linear: an ARX model",
         })
-    })?;
-    Ok(Deadzone {
-        b_l: d.b_l + u0,
-        b_r: d.b_r + u0,
-        ..*d
     })
 }
 

@@ -769,6 +769,23 @@ impl Model {
     pub fn deadzone(&self) -> Option<&Deadzone> {
         self.input().deadzone()
     }
+    /// The deadzone of input `i` in the command's units (counts for the IPA), when that input's block
+    /// is a deadzone: a detrended model's deadzone acts on u − u0, so its breakpoints b_l, b_r are
+    /// shifted by the operating point's u0 (the slopes are unchanged). What a deadzone compensator
+    /// inverts (`control::tuning::command_deadzone`) and what identify and validate judge
+    /// (`sysid::Warning::if_deadzone_not_a_valve`).
+    pub fn command_deadzone(&self, i: usize) -> Option<Deadzone> {
+        let d = self.inputs.get(i)?.deadzone()?;
+        let u0 = self
+            .operating_point()
+            .and_then(|o| o.u.get(i).copied())
+            .unwrap_or(0.0);
+        Some(Deadzone {
+            b_l: d.b_l + u0,
+            b_r: d.b_r + u0,
+            ..*d
+        })
+    }
     /// Constant term c of the linear block (mm), when estimated with an offset.
     pub fn offset(&self) -> Option<f64> {
         self.offset

@@ -80,7 +80,7 @@
 
 /**
  * `ipa_hrls_deadzone`: the estimate was written but is not one to compensate with (not finite,
- * b_l > 0 or b_r < 0, or a slope m_l, m_r ≤ 0: too few or too poorly exciting samples so far; a
+ * b_l > 0 or b_r < 0 beyond the compensators' rounding 1e-9 · limit, or a slope m_l, m_r ≤ 0: too few or too poorly exciting samples so far; a
  * breakpoint beyond ±limit; a coefficient of A showing a pole outside |z| = 2, a diverged estimate;
  * with a range, a slope so steep that one sample of the full command would move the position by more
  * than the range: [`ipa_hrls_deadzone_reason`] says which); not an error.
@@ -469,7 +469,9 @@ int32_t ipa_hrls_update(void *mem,
  * Writes the fitted deadzone (b_r = θ̂₂/θ̂₁, b_l = θ̂₄/θ̂₃, m_r = θ̂₁, m_l = θ̂₃; a non-finite ratio gives
  * 0) to `*out`. Returns [`IPA_OK`], [`IPA_NOT_PHYSICAL`] when the estimate written is not one to
  * compensate with (do not compensate with it yet; [`ipa_hrls_deadzone_reason`] says why: 1 not
- * finite, b_l > 0, b_r < 0 or a slope ≤ 0; 2 a breakpoint beyond ±limit; 3 a coefficient
+ * finite, b_l > 0, b_r < 0 or a slope ≤ 0, a breakpoint within 1e-9 · limit of 0 taken as 0 as
+ * `ipa_dz_compensate` / `ipa_ctl_init` take it at u_max = limit (no tolerance for an infinite
+ * limit); 2 a breakpoint beyond ±limit; 3 a coefficient
  * |a_i| > C(na, i) 2^i, a pole outside |z| = 2: a diverged estimate; 4 with a range, one sample of
  * the full command would move the position by more than y_max − y_min), or a negative code. The
  * rules: `ipa_embedded::HammersteinRls::plausible_deadzone`.
@@ -482,7 +484,7 @@ int32_t ipa_hrls_deadzone(const void *mem,
 
 /**
  * Why [`ipa_hrls_deadzone`] returns [`IPA_NOT_PHYSICAL`]: 0 when it returns [`IPA_OK`], else 1 no
- * valve deadzone (not finite, b_l > 0, b_r < 0 or a slope ≤ 0), 2 a breakpoint beyond ±limit,
+ * valve deadzone (not finite, b_l > 0, b_r < 0 beyond 1e-9 · limit, or a slope ≤ 0), 2 a breakpoint beyond ±limit,
  * 3 a coefficient |a_i| > C(na, i) 2^i (a pole outside |z| = 2: a diverged estimate), 4 with a range
  * ([`ipa_hrls_set_range`]), one sample of the full command ±limit would move the modelled position by
  * more than y_max − y_min; or a negative code (storage).

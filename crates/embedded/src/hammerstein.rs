@@ -144,7 +144,8 @@ pub struct HammersteinRls<F: Float, const N: usize, const D: usize> {
 /// `ipa_hrls_deadzone_reason` the code in brackets.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Implausible {
-    /// No valve deadzone: a parameter not finite, b_l > 0, b_r < 0 or a slope ≤ 0 (1).
+    /// No valve deadzone: a parameter not finite, b_l > 0, b_r < 0 (beyond 1e-9 · limit, the
+    /// compensators' rounding) or a slope ≤ 0 (1).
     NotPhysical = 1,
     /// A breakpoint beyond ±limit, outside every command (2).
     BeyondLimit = 2,
@@ -350,7 +351,12 @@ impl<F: Float, const N: usize, const D: usize> HammersteinRls<F, N, D> {
     /// (the rule of `ipa_hrls_deadzone`'s [`IPA_OK`](crate::ffi::IPA_OK)), checked in this order:
     ///
     /// 1. [`Implausible::NotPhysical`]: no valve deadzone ([`Deadzone::is_physical`]: a parameter not
-    ///    finite, b_l > 0, b_r < 0 or a slope ≤ 0);
+    ///    finite, b_l > 0, b_r < 0 or a slope ≤ 0), its breakpoints rounded first as the compensators
+    ///    round them ([`rounded_breakpoints`](crate::deadzone::rounded_breakpoints) with u_max =
+    ///    `limit`: a b_l ∈ (0, 1e-9 · limit] or b_r ∈ [−1e-9 · limit, 0) is taken as 0, so an estimate
+    ///    that [`Compensator::new`](crate::Compensator::new) at u_max = `limit` accepts is not refused
+    ///    here; with `limit` = ∞ no rounding: b_l = +1e-18 is refused). The deadzone returned carries
+    ///    the rounded breakpoints;
     /// 2. [`Implausible::BeyondLimit`]: |b_l| or |b_r| > `limit`, a breakpoint beyond every command;
     /// 3. [`Implausible::Diverged`]: a coefficient |a_i| > C(na, i) 2^i. Every polynomial
     ///    1 + a_1 z⁻¹ + … + a_na z^−na whose roots lie in |z| ≤ R has |a_i| ≤ C(na, i) R^i (Vieta), so
@@ -366,7 +372,11 @@ impl<F: Float, const N: usize, const D: usize> HammersteinRls<F, N, D> {
     /// the truth but a_1 = −1.67 from a valve; only the range, which refuses the sample, prevents it.
     /// Cost: 4 + 3 na comparisons and flops, 2 + 2 na more for the binomial bounds.
     pub fn plausible_deadzone(&self) -> Result<Deadzone<F>, Implausible> {
-        let d = self.deadzone();
+        // The compensators' one rounding rule, at this estimator's command limit: a breakpoint on the
+        // wrong side of 0 by at most 1e-9 · limit is taken as 0 (none with an infinite limit).
+        let raw = self.deadzone();
+        let (b_l, b_r) = crate::deadzone::rounded_breakpoints(raw.b_l, raw.b_r, self.limit);
+        let d = Deadzone { b_l, b_r, ..raw };
         if !d.is_physical() {
             return Err(Implausible::NotPhysical);
         }

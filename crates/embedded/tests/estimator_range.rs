@@ -368,3 +368,77 @@ fn covariance_windup_repeats_until_a_restart_and_a_guard_prevents_it() {
         assert!(near_truth(&est), "{form:?}: {:?}", est.deadzone());
     }
 }
+
+/// The noise-free plant of this file with the deadzone `truth`, fed to an estimator with forgetting
+/// 0.98 (the early rows, switched by a wrong early deadzone, are forgotten) and command limit `limit`
+/// (no range): random commands in [−200, 200] counts, 6000 samples.
+fn fed(truth: Deadzone<f64>, limit: f64) -> PaperHrls<f64> {
+    let mut est = PaperHrls::new(HammersteinSettings {
+        limit,
+        ..settings(0.98)
+    })
+    .unwrap();
+    let mut seed = 11u64;
+    let (mut y_past, mut u1) = ([0.0f64; 3], 0.0);
+    for _ in 0..6000 {
+        seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        let u = ((seed >> 33) % 401) as f64 - 200.0;
+        let y = -A[0] * y_past[0] - A[1] * y_past[1] - A[2] * y_past[2] + truth.apply(u1);
+        y_past = [y, y_past[0], y_past[1]];
+        u1 = u;
+        est.update(u, y).unwrap();
+    }
+    est
+}
+
+// One rounding rule for the estimator and the compensators (brief fix34 item 4; s33 leftover:
+// `ipa_hrls_deadzone` called b_l = +1e-18 IPA_NOT_PHYSICAL while the compensators took it as 0). The
+// tolerance is 1e-9 · limit = 2.55e-7 counts at limit = 255. A plant whose left breakpoint is
+// b_l = +1e-12 counts (inside it; noise-free, so the estimate is the plant's to rounding, ~1e-14) is
+// kept by `plausible_deadzone` at limit 255 with b_l taken as 0, and `Compensator::new` at u_max = 255
+// accepts the same estimate; with an infinite limit there is no tolerance (the documented rule; a
+// compensator has no infinite u_max): refused, NotPhysical. A plant with b_l = +1e-3 counts (beyond
+// the tolerance) is refused by both at 255.
+#[test]
+fn the_estimator_rounds_breakpoints_as_the_compensators_do() {
+    use ipa_embedded::{Compensator, SlopeMode};
+    let tiny = Deadzone {
+        b_l: 1e-12,
+        ..TRUTH
+    };
+    let est = fed(tiny, 255.0);
+    let raw = est.deadzone();
+    assert!(
+        raw.b_l > 0.0 && raw.b_l <= 1e-9 * 255.0 && (raw.b_r - 40.0).abs() < 1e-6,
+        "the estimate is the plant's: {raw:?}"
+    );
+    let kept = est
+        .plausible_deadzone()
+        .expect("b_l within 1e-9 · limit of 0");
+    assert_eq!(kept.b_l, 0.0);
+    assert_eq!((kept.b_r, kept.m_l, kept.m_r), (raw.b_r, raw.m_l, raw.m_r));
+    let comp = Compensator::new(raw, SlopeMode::Shift, 0.0, 255.0).expect("the compensator too");
+    assert_eq!(comp.deadzone(), kept);
+
+    let unbounded = fed(tiny, f64::INFINITY);
+    assert_eq!(
+        unbounded.deadzone(),
+        raw,
+        "the limit does not change the updates"
+    );
+    assert_eq!(
+        unbounded.plausible_deadzone(),
+        Err(Implausible::NotPhysical)
+    );
+
+    let beyond = fed(Deadzone { b_l: 1e-3, ..TRUTH }, 255.0);
+    let d = beyond.deadzone();
+    assert!((d.b_l - 1e-3).abs() < 1e-9, "{d:?}");
+    assert_eq!(beyond.plausible_deadzone(), Err(Implausible::NotPhysical));
+    assert_eq!(
+        Compensator::new(d, SlopeMode::Shift, 0.0, 255.0),
+        Err(Error::Setting)
+    );
+}

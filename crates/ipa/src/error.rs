@@ -77,6 +77,8 @@ pub enum IpaSetting {
     Input,
     /// The plant specification (`ipa`, `paper`, `model:FILE`).
     Plant,
+    /// The physics plant's configuration file (TOML; `ipa` only).
+    PlantConfig,
 }
 
 impl IpaSetting {
@@ -88,6 +90,7 @@ impl IpaSetting {
             IpaSetting::Amplitude => "amplitude_counts",
             IpaSetting::Input => "input",
             IpaSetting::Plant => "plant",
+            IpaSetting::PlantConfig => "plant_config",
         }
     }
 }
@@ -107,6 +110,7 @@ impl IpaSetting {
             IpaSetting::Amplitude => "--amplitude",
             IpaSetting::Input => "--input",
             IpaSetting::Plant => "--plant",
+            IpaSetting::PlantConfig => "--plant-config",
         }
     }
 }

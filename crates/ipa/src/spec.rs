@@ -80,10 +80,16 @@ impl PlantSpec {
             return Ok(Box::new(Ipa::with_ts(cfg, ts_s.unwrap_or(DEFAULT_TS_S))?));
         }
         if let Some(path) = config {
-            return Err(IpaError::Config(format!(
-                "--plant-config {} applies to --plant ipa only, not to --plant {self}",
-                path.display()
-            )));
+            // A typed setting, so that each surface names it (`--plant-config`, Python's
+            // `plant_config`; audit s33 L-3).
+            return Err(IpaError::setting(
+                IpaSetting::PlantConfig,
+                path.display(),
+                format!(
+                    "a physics plant configuration, which applies to the plant ipa only, not to \
+                     the plant {self}"
+                ),
+            ));
         }
         use sysid_core::model_file::AnyModel;
         let (model, label) = match self {

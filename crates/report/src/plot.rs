@@ -26,10 +26,12 @@
 //! - non-finite samples (NaN, ±inf) are skipped: a line breaks at them instead of plunging off the axes;
 //! - the x axis spans the finite data exactly; the y axis adds 5 % above and below; a constant series
 //!   gets a padded range around its value, a panel with no finite sample gets the range 0..1;
-//! - the legend goes into the corner of the panel that the data crosses least; when data run through every
-//!   corner, the top of the y axis is raised to leave a band for it;
-//! - a fixed y range ([`Panel::y_range`]) clips the data at the axes drawn (the raised top included), so a
-//!   clipped curve sits on the frame; [`y_axes`] tells a caption the range drawn.
+//! - the legend goes into a corner of the panel that no data cross; when data run through every corner,
+//!   it goes below the plot, outside the axes (in as many columns as the width holds), so that it never
+//!   hides a curve (before session 34 the top of the y axis was raised for a band, and a curve above a
+//!   fixed range then ran under the legend: Fig. 5's ARX curve near 335 mm);
+//! - a fixed y range ([`Panel::y_range`]) clips the data at the axes drawn, so a clipped curve sits on
+//!   the frame; [`y_axes`] tells a caption the range drawn.
 //!
 //! Text is drawn with DejaVu Sans embedded in the binary (`assets/DejaVuSans.ttf`), so PNG rendering
 //! needs no system font.
@@ -164,9 +166,9 @@ pub struct Panel {
     pub y_label: String,
     /// The curves, drawn in order (later ones on top).
     pub series: Vec<Series>,
-    /// Fixed y range `(lo, hi)`; `None` fits the data. The top is raised when the legend needs a band
-    /// above the data ([`y_axes`] gives the range drawn); values outside the drawn range are clipped at
-    /// the axes.
+    /// Fixed y range `(lo, hi)`; `None` fits the data. The legend never changes it (without a free
+    /// corner it goes below the plot; [`y_axes`] gives the range drawn); values outside it are clipped
+    /// at the axes.
     pub y_range: Option<(f64, f64)>,
     /// The x values are log10 of the quantity (e.g. log10 of a frequency in Hz); tick labels show
     /// 10^x (`0.1`, `1`, `10`), so the axis reads as a logarithmic one.
@@ -561,16 +563,31 @@ struct PanelLayout {
     runs: Vec<Vec<Vec<(f64, f64)>>>,
     /// The drawn x range.
     x_range: (f64, f64),
-    /// The drawn y range: the fixed or fitted range, its top raised when the legend needs a band.
+    /// The drawn y range: the fixed or fitted range.
     y_range: (f64, f64),
-    /// The legend's corner; `None` when no series has a label.
-    legend_position: Option<SeriesLabelPosition>,
+    /// Where the legend goes; `None` when no series has a label.
+    legend: Option<LegendPlace>,
     /// Gap between the legend and the plotting area's edge, px.
     legend_margin: u32,
     /// Width of the y tick-label area, px.
     y_label_area: u32,
     /// Height of the x tick-label area, px.
     x_label_area: u32,
+}
+
+/// Where a panel's legend goes.
+#[derive(Debug, Clone)]
+enum LegendPlace {
+    /// Inside the plotting area, in a corner no data cross.
+    Corner(SeriesLabelPosition),
+    /// Below the plot, outside the axes: a band of `height` px at the panel's bottom holding the
+    /// entries in `columns` columns of `column_w` px, `row_h` px per row.
+    Below {
+        height: u32,
+        columns: usize,
+        column_w: u32,
+        row_h: u32,
+    },
 }
 
 /// Lays out one panel in an area of `area_w` x `area_h` pixels.
@@ -581,9 +598,7 @@ fn layout_panel(
     figure: &str,
 ) -> Result<PanelLayout, ReportError> {
     let mut runs: Vec<Vec<Vec<(f64, f64)>>> = panel.series.iter().map(finite_runs).collect();
-    // The legend is placed on the data as they would be drawn in the fixed range; the final clamp below
-    // uses the drawn range, which the legend's band may have raised.
-    let raw = panel.y_range.map(|_| runs.clone());
+    // A fixed range clips at the axes drawn: the legend never moves them.
     if let Some((lo, hi)) = panel.y_range {
         for p in runs.iter_mut().flatten().flatten() {
             p.1 = p.1.clamp(lo, hi);
@@ -600,7 +615,7 @@ fn layout_panel(
         )
     };
     let x_range = axis_range(all().map(|p| p.0), 0.0).ok_or_else(overflow)?;
-    let mut y_range = match panel.y_range {
+    let y_range = match panel.y_range {
         Some(r) => r,
         None => axis_range(all().map(|p| p.1), 0.05).ok_or_else(overflow)?,
     };
@@ -609,15 +624,15 @@ fn layout_panel(
     let y_label_area = (tick_px * 5.5 + fonts.label) as u32;
     let x_label_area = (tick_px * 1.6 + fonts.label * 1.3) as u32;
 
-    // Legend placement: the emptiest corner; if every corner has data under the legend, raise the
-    // top of the y axis so that the data stay below the legend's band.
+    // Legend placement: a corner no data cross; when every corner has data under the legend, below
+    // the plot, outside the axes (a curve never runs under it, whatever the range).
     let labelled: Vec<&Series> = panel
         .series
         .iter()
         .filter(|s| !s.label.is_empty())
         .collect();
     let legend_margin = (fonts.tick * 0.5) as u32;
-    let legend_position = if labelled.is_empty() {
+    let legend = if labelled.is_empty() {
         None
     } else {
         let plot_w = f64::from(area_w.saturating_sub(y_label_area).max(1));
@@ -630,35 +645,30 @@ fn layout_panel(
             .unwrap_or(0) as f64;
         let rows = labelled.len() as f64;
         let margin = f64::from(legend_margin);
-        let w_frac = (((chars * 0.62 + 4.5) * legend_px + margin) / plot_w).min(0.9);
+        let entry_w = (chars * 0.62 + 4.5) * legend_px;
+        let w_frac = ((entry_w + margin) / plot_w).min(0.9);
         let h_frac = (((rows * 1.55 + 0.8) * legend_px + margin) / plot_h).min(0.6);
         let flat: Vec<Vec<(f64, f64)>> = runs.iter().flatten().cloned().collect();
         let (position, hidden) = legend_corner(&flat, x_range, y_range, w_frac, h_frac);
         if hidden == 0 {
-            Some(position)
+            Some(LegendPlace::Corner(position))
         } else {
-            let span = y_range.1 - y_range.0;
-            let raised = y_range.1 + span * h_frac / (1.0 - h_frac);
-            if raised.is_finite() {
-                y_range.1 = raised;
-            }
-            Some(SeriesLabelPosition::UpperRight)
+            let columns = ((plot_w / (entry_w + margin)).floor() as usize).clamp(1, labelled.len());
+            let rows = labelled.len().div_ceil(columns);
+            let row_h = (1.55 * legend_px).ceil() as u32;
+            Some(LegendPlace::Below {
+                height: row_h * rows as u32 + 2 * legend_margin + (0.8 * legend_px) as u32,
+                columns,
+                column_w: (entry_w + margin) as u32,
+                row_h,
+            })
         }
     };
-    // A fixed range clips at the axes actually drawn: where the legend's band raised the top, a curve
-    // above the fixed range is drawn up to the new top, not cut flat in mid-plot (audit s33 M-4).
-    if let Some(mut raw) = raw {
-        let (lo, hi) = y_range;
-        for p in raw.iter_mut().flatten().flatten() {
-            p.1 = p.1.clamp(lo, hi);
-        }
-        runs = raw;
-    }
     Ok(PanelLayout {
         runs,
         x_range,
         y_range,
-        legend_position,
+        legend,
         legend_margin,
         y_label_area,
         x_label_area,
@@ -666,9 +676,9 @@ fn layout_panel(
 }
 
 /// The y range each panel of `fig` is drawn with, top to bottom, as [`render_svg`] and [`render_png`]
-/// lay them out: the panel's fixed range ([`Panel::y_range`]) or the range fitted to its data, with the
-/// top raised when the legend needs a band above the data. Values outside it are clipped at these
-/// edges, so a caption can state the range a reader sees.
+/// lay them out: the panel's fixed range ([`Panel::y_range`]) or the range fitted to its data (the
+/// legend never changes it). Values outside it are clipped at these edges, so a caption can state the
+/// range a reader sees.
 pub fn y_axes(fig: &Figure) -> Result<Vec<(f64, f64)>, ReportError> {
     check(fig)?;
     let fonts = Fonts::for_width(fig.width);
@@ -697,11 +707,19 @@ fn draw_panel<DB: DrawingBackend>(
         runs,
         x_range,
         y_range,
-        legend_position,
+        legend,
         legend_margin,
         y_label_area,
         x_label_area,
     } = layout_panel(panel, (area_w, area_h), fonts, figure)?;
+    // A legend below the plot takes a band at the panel's bottom, outside the axes.
+    let (plot_area, legend_band) = match legend {
+        Some(LegendPlace::Below { height, .. }) if height < area_h => {
+            let (a, b) = area.split_vertically(area_h - height);
+            (a, Some(b))
+        }
+        _ => (area.clone(), None),
+    };
     let y_span = y_range.1 - y_range.0;
     let x_span = x_range.1 - x_range.0;
     let x_log10 = panel.x_log10;
@@ -713,7 +731,7 @@ fn draw_panel<DB: DrawingBackend>(
         }
     };
     let y_fmt = move |v: &f64| tick_label(*v, y_span);
-    let mut chart = ChartBuilder::on(area)
+    let mut chart = ChartBuilder::on(&plot_area)
         .margin_top((fonts.tick * 0.6) as u32)
         .margin_bottom((fonts.tick * 0.3) as u32)
         .margin_left((fonts.tick * 0.4) as u32)
@@ -741,6 +759,8 @@ fn draw_panel<DB: DrawingBackend>(
 
     let stroke = ((f64::from(area_w.min(area_h * 3)) / 480.0).round() as u32).clamp(1, 4);
     let mut dashed_seen = 0usize;
+    // The labelled series' legend entries, for a legend drawn below the plot.
+    let mut entries: Vec<(&str, Glyph)> = Vec::new();
     for (index, (series, runs)) in panel.series.iter().zip(runs.iter()).enumerate() {
         let color = match series.colour {
             Some((r, g, b)) => RGBColor(r, g, b),
@@ -771,53 +791,127 @@ fn draw_panel<DB: DrawingBackend>(
             }
             .map_err(err)?;
             if first && !series.label.is_empty() {
-                let kind = series.style;
-                anno.label(series.label.as_str()).legend(
-                    move |(x, y)| -> DynElement<'static, DB, (i32, i32)> {
-                        match kind {
-                            SeriesStyle::Line => {
-                                PathElement::new(vec![(x, y), (x + 24, y)], style).into_dyn()
-                            }
-                            SeriesStyle::Step => PathElement::new(
-                                vec![
-                                    (x, y + 5),
-                                    (x + 12, y + 5),
-                                    (x + 12, y - 5),
-                                    (x + 24, y - 5),
-                                ],
-                                style,
-                            )
-                            .into_dyn(),
-                            SeriesStyle::Dashed => DashedPathElement::new(
-                                vec![(x, y), (x + 24, y)],
-                                dash.min(10),
-                                gap.min(5),
-                                style,
-                            )
-                            .into_dyn(),
-                            SeriesStyle::Points => {
-                                Circle::new((x + 12, y), marker, color.filled()).into_dyn()
-                            }
-                        }
-                    },
-                );
+                let glyph = Glyph {
+                    kind: series.style,
+                    style,
+                    color,
+                    dash,
+                    gap,
+                    marker,
+                };
+                entries.push((series.label.as_str(), glyph));
+                anno.label(series.label.as_str())
+                    .legend(move |at| glyph.element::<DB>(at));
             }
             first = false;
         }
     }
 
-    if let Some(position) = legend_position {
-        chart
-            .configure_series_labels()
-            .position(position)
-            .margin(legend_margin)
-            .label_font((FONT_FAMILY, fonts.legend))
-            .background_style(WHITE.mix(0.85))
-            .border_style(RGBColor(120, 120, 120))
-            .draw()
+    match (legend, legend_band) {
+        (Some(LegendPlace::Corner(position)), _) => {
+            chart
+                .configure_series_labels()
+                .position(position)
+                .margin(legend_margin)
+                .label_font((FONT_FAMILY, fonts.legend))
+                .background_style(WHITE.mix(0.85))
+                .border_style(LEGEND_BORDER)
+                .draw()
+                .map_err(err)?;
+        }
+        (
+            Some(LegendPlace::Below {
+                columns,
+                column_w,
+                row_h,
+                ..
+            }),
+            Some(band),
+        ) => {
+            // The box starts at the plotting area's left edge (after the y labels), below the x
+            // axis's labels; each entry is its glyph (24 px) then its label, as in a corner legend.
+            let m = legend_margin as i32;
+            let left = y_label_area as i32 + (fonts.tick * 0.4) as i32;
+            let rows = entries.len().div_ceil(columns.max(1));
+            let (w, h) = (
+                (column_w as usize * columns.min(entries.len())) as i32 + m,
+                (row_h as usize * rows) as i32 + m,
+            );
+            band.draw(&Rectangle::new(
+                [(left, m), (left + w, m + h)],
+                WHITE.filled(),
+            ))
             .map_err(err)?;
+            band.draw(&Rectangle::new(
+                [(left, m), (left + w, m + h)],
+                LEGEND_BORDER.stroke_width(1),
+            ))
+            .map_err(err)?;
+            let font = (FONT_FAMILY, fonts.legend).into_font();
+            let text_h = (fonts.legend / 1.24) as i32;
+            for (i, (label, glyph)) in entries.iter().enumerate() {
+                let (row, col) = ((i / columns) as i32, (i % columns) as i32);
+                let x = left + m + col * column_w as i32;
+                let y = m + m / 2 + row * row_h as i32 + row_h as i32 / 2;
+                band.draw(&glyph.element::<DB>((x, y))).map_err(err)?;
+                band.draw(&Text::new(
+                    (*label).to_string(),
+                    (x + 32, y - text_h / 2 - 1),
+                    font.clone(),
+                ))
+                .map_err(err)?;
+            }
+        }
+        _ => {}
     }
     Ok(())
+}
+
+/// The legend box's border colour.
+const LEGEND_BORDER: RGBColor = RGBColor(120, 120, 120);
+
+/// How a series is drawn in its legend entry: a 24 px sample of its line, step or marker.
+#[derive(Debug, Clone, Copy)]
+struct Glyph {
+    kind: SeriesStyle,
+    style: ShapeStyle,
+    color: RGBColor,
+    dash: u32,
+    gap: u32,
+    marker: u32,
+}
+
+impl Glyph {
+    /// The entry's sample with its left end at `(x, y)` (pixels; y the entry's centre line).
+    fn element<DB: DrawingBackend>(
+        &self,
+        (x, y): (i32, i32),
+    ) -> DynElement<'static, DB, (i32, i32)> {
+        let style = self.style;
+        match self.kind {
+            SeriesStyle::Line => PathElement::new(vec![(x, y), (x + 24, y)], style).into_dyn(),
+            SeriesStyle::Step => PathElement::new(
+                vec![
+                    (x, y + 5),
+                    (x + 12, y + 5),
+                    (x + 12, y - 5),
+                    (x + 24, y - 5),
+                ],
+                style,
+            )
+            .into_dyn(),
+            SeriesStyle::Dashed => DashedPathElement::new(
+                vec![(x, y), (x + 24, y)],
+                self.dash.min(10),
+                self.gap.min(5),
+                style,
+            )
+            .into_dyn(),
+            SeriesStyle::Points => {
+                Circle::new((x + 12, y), self.marker, self.color.filled()).into_dyn()
+            }
+        }
+    }
 }
 
 /// Encodes an 8-bit RGB buffer as PNG.

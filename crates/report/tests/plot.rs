@@ -322,28 +322,27 @@ fn a_fixed_y_range_clips_the_data() {
     assert_eq!(Panel::new("x", "y").y_range(f64::NAN, 1.0).y_range, None);
 }
 
-// A fixed range 0..10 whose data fill every corner gets its top raised for the legend's band (audit
-// s33 M-4); a curve rising to 100 is then clipped at the raised top, the frame, and not at 10: its
-// highest drawn point is the frame's top row, and the fixed range's top (10) lies below the frame.
+// A fixed range 0..10 whose data fill every corner keeps its range (the legend never raises the top:
+// a curve above a raised top ran under the legend, session 33's Fig. 5); the legend goes below the
+// plot, outside the axes: its box (border #787878) lies wholly below the frame's bottom row, so no
+// drawn point of any curve is under it; a curve rising to 100 is clipped at the frame's top row (10).
 #[test]
-fn a_fixed_range_raised_for_the_legend_clips_at_the_frame() {
+fn a_legend_that_fits_no_corner_goes_below_the_plot() {
     let x: Vec<f64> = (0..=100).map(f64::from).collect();
     // Zig-zags between 0 and 10 that fill all four corners, and a ramp from 5 to 100.
     let zig: Vec<f64> = (0..=100)
         .map(|i| if i % 2 == 0 { 0.0 } else { 10.0 })
         .collect();
     let ramp: Vec<f64> = (0..=100).map(|i| 5.0 + 0.95 * f64::from(i)).collect();
-    let fig = Figure::new("raised").size(600, 400).panel(
+    let fig = Figure::new("below").size(600, 400).panel(
         Panel::new("x", "y")
             .y_range(0.0, 10.0)
             .series(Series::line("zig-zag", x.clone(), zig).colour((0, 0, 0)))
             .series(Series::line("ramp", x, ramp).colour((213, 94, 0))),
     );
     let axes = y_axes(&fig).unwrap();
-    assert_eq!(axes.len(), 1);
+    assert_eq!(axes, vec![(0.0, 10.0)], "the legend does not move the axes");
     let (lo, hi) = axes[0];
-    assert_eq!(lo, 0.0);
-    assert!(hi > 10.0, "the legend's band raises the top: {hi}");
     let svg = render_svg(&fig).unwrap();
     // The y axis line: the plotting area's top and bottom pixel rows.
     let axis = svg
@@ -397,9 +396,32 @@ fn a_fixed_range_raised_for_the_legend_clips_at_the_frame() {
         (highest - top).abs() <= 1.0,
         "ramp drawn up to row {highest}, frame top {top}"
     );
-    // The row of y = 10 (the fixed range's top) lies inside the frame, below its top.
+    // The row of y = 10 (the fixed range's top) is the frame's top.
     let row10 = bottom - (bottom - top) * (10.0 - lo) / (hi - lo);
-    assert!(row10 > top + 5.0, "row of 10: {row10}, frame top {top}");
+    assert!(
+        (row10 - top).abs() <= 0.5,
+        "row of 10: {row10}, frame top {top}"
+    );
+    // The legend box: below the frame, and both entries' labels in it.
+    let legend = svg
+        .split('<')
+        .find(|e| e.starts_with("rect") && e.contains("stroke=\"#787878\""))
+        .expect("a legend box");
+    let attr = |name: &str| -> f64 {
+        let key = format!(" {name}=\"");
+        let at = legend.find(&key).unwrap() + key.len();
+        legend[at..].split('"').next().unwrap().parse().unwrap()
+    };
+    assert!(
+        attr("y") > bottom,
+        "legend box top {} above the frame's bottom {bottom}",
+        attr("y")
+    );
+    assert!(attr("y") + attr("height") <= 400.0);
+    assert!(
+        svg.contains(">\nzig-zag\n<") || svg.contains(">zig-zag<"),
+        "the label is drawn"
+    );
     // Without a legend no band is needed: the drawn range is the fixed one.
     let plain =
         Figure::new("plain")

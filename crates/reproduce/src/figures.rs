@@ -138,9 +138,10 @@ pub(crate) fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
     let fit_title = "Validation record: measured vs simulated output (paper's Fig. 5)";
     let measured = Series::line("measured", tv.clone(), st.val.y().to_vec()).colour(plant_c);
     // The view is the measured range with a quarter of its span on each side: a diverging simulation
-    // would otherwise scale the figure so that the measured record is a flat line. The plot may raise the
-    // top for the legend's band; a model leaving the axes drawn is clipped at the frame, and a point
-    // marks its first sample outside (audit s33 M-4: the clip and the caption now follow the drawn axes).
+    // would otherwise scale the figure so that the measured record is a flat line. A model leaving the
+    // axes drawn is clipped at the frame, and a point marks its first sample outside (audit s33 M-4: the
+    // clip and the caption follow the drawn axes; the legend goes below the plot when no corner is free,
+    // so no curve runs under it).
     let view = measured_range(st.val.y()).map(|(lo, hi)| {
         let pad = if hi > lo {
             0.25 * (hi - lo)
@@ -195,15 +196,10 @@ pub(crate) fn figures(s: &ReproduceSettings, st: &Study) -> Vec<Fig> {
     let drawn = report::plot::y_axes(&fig5)
         .ok()
         .and_then(|r| r.first().copied());
-    if let (Some((_, vhi)), Some((lo, hi))) = (view, drawn) {
-        let raised = if hi > vhi {
-            " and at the top by a band for the legend"
-        } else {
-            ""
-        };
+    if let (Some(_), Some((lo, hi))) = (view, drawn) {
         caption.push_str(&format!(
             " The y axis runs from {} to {} {yu}: the measured range widened by a quarter of its span on each \
-             side{raised}.",
+             side.",
             estimate(lo),
             estimate(hi)
         ));

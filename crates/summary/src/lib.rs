@@ -438,7 +438,15 @@ impl IdentifyReport {
                 validation: None,
             },
             records: None,
-            warnings: fit.warnings.iter().map(ToString::to_string).collect(),
+            // The fit's own warnings, then a deadzone that no compensator takes (audit s33 L-5; the
+            // model as reported: with its operating point and data range).
+            warnings: fit
+                .warnings
+                .iter()
+                .cloned()
+                .chain(Warning::if_deadzone_not_a_valve(&fit.model))
+                .map(|w| w.to_string())
+                .collect(),
         }
     }
 
@@ -633,13 +641,14 @@ impl ValidationReport {
     }
 
     /// The warnings of a model judged on a record with metrics `m`: an unstable or integrating model,
-    /// a negative or diverging simulation fit, a fit flattered by the initial state, a fit far below
+    /// a deadzone no compensator takes ([`Warning::if_deadzone_not_a_valve`]), a negative or diverging simulation fit, a fit flattered by the initial state, a fit far below
     /// the one the model file records on its estimation record (`sysid::trust::held_out_drop`; what
     /// `validate` and Python's `Model.metrics` say).
     pub fn warnings_of(model: &Model, m: &Metrics) -> Vec<String> {
         let estimation_fit = model.provenance().and_then(|p| p.fit_estimation_percent);
         Warning::if_not_settling(model)
             .into_iter()
+            .chain(Warning::if_deadzone_not_a_valve(model))
             .chain(metric_warnings(Record::Validation, m))
             .chain(held_out_drop(
                 (Record::Estimation, estimation_fit),

@@ -236,19 +236,78 @@ impl Rls {
     /// finite; the state is left unchanged then.
     #[inline]
     pub fn update(&mut self, phi: &[f64], y: f64, sample: usize) -> Result<f64, SysidError> {
+        self.try_update(phi, y, sample).map_err(|e| match e {
+            UpdateError::Shape(e) => e,
+            UpdateError::Failure(f) => f.into_error(),
+        })
+    }
+
+    /// [`Rls::update`] with a refused update kept as its numbers ([`RlsFailure`]), for a caller that
+    /// words the advice in its own terms (the Python package's `Rls` names its own arguments, not the
+    /// command line's flags); a regressor of the wrong length is [`UpdateError::Shape`].
+    #[inline]
+    pub fn try_update(&mut self, phi: &[f64], y: f64, sample: usize) -> Result<f64, UpdateError> {
         let n = self.n_params();
         if phi.len() != n {
-            return Err(shape_error(n, phi.len(), (n, n)));
+            return Err(UpdateError::Shape(shape_error(n, phi.len(), (n, n))));
         }
         on_fixed!(&mut self.state, e => {
             let rho = e.forgetting();
             e.update(phi, y).map_err(|_| {
-                failure(sample, e.theta().as_slice(), |i, j| e.p(i, j), phi, y, rho)
+                UpdateError::Failure(failure(sample, e.theta().as_slice(), |i, j| e.p(i, j), phi, y, rho))
             })
         }, h => {
             let rho = h.forgetting;
-            update_heap(h, phi, y).map_err(|(denom, eps)| numerical(sample, denom, eps, rho))
+            update_heap(h, phi, y).map_err(|(denominator, error)| {
+                UpdateError::Failure(RlsFailure { sample, denominator, error, forgetting: rho })
+            })
         })
+    }
+}
+
+/// Why [`Rls::try_update`] refused an update (the state unchanged).
+#[derive(Debug)]
+pub enum UpdateError {
+    /// The regressor's length is not n.
+    Shape(SysidError),
+    /// P lost positive definiteness or a value was not finite.
+    Failure(RlsFailure),
+}
+
+/// A refused RLS update, as numbers: what the update met and the forgetting factor that decides the
+/// likely cause ([`RlsFailure::windup_likely`]). The command line's words are
+/// [`RlsFailure::into_error`]; another surface words the advice in its own terms after
+/// [`RlsFailure::what`].
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RlsFailure {
+    /// The sample (update) number given to the update.
+    pub sample: usize,
+    /// The denominator ρ + φᵀPφ the update met.
+    pub denominator: f64,
+    /// The a-priori error ε = y − φᵀθ̂ it met.
+    pub error: f64,
+    /// ρ: the estimator's forgetting factor.
+    pub forgetting: f64,
+}
+
+impl RlsFailure {
+    /// What happened, with the numbers (no advice).
+    pub fn what(&self) -> String {
+        let (sample, denom, eps) = (self.sample, self.denominator, self.error);
+        format!(
+            "RLS lost positive definiteness or met a non-finite value at sample {sample} \
+             (denominator ρ + φᵀPφ = {denom:e}, error ε = {eps:e})"
+        )
+    }
+
+    /// Whether covariance windup is the likely cause: forgetting ρ < 1 ([`windup_advice`]).
+    pub fn windup_likely(&self) -> bool {
+        self.forgetting < 1.0
+    }
+
+    /// The error with the command line's advice (its flags).
+    pub fn into_error(self) -> SysidError {
+        numerical(self.sample, self.denominator, self.error, self.forgetting)
     }
 }
 
@@ -350,7 +409,7 @@ impl<const N: usize> RlsN<N> {
         let est = &mut self.0;
         let rho = est.forgetting();
         est.update(phi, y)
-            .map_err(|_| failure(sample, est.theta(), |i, j| est.p(i, j), phi, y, rho))
+            .map_err(|_| failure(sample, est.theta(), |i, j| est.p(i, j), phi, y, rho).into_error())
     }
 
     /// Restarts the covariance at p0 · I while keeping θ̂ (p0 positive and finite, else nothing changes).
@@ -445,7 +504,7 @@ fn failure(
     phi: &[f64],
     y: f64,
     rho: f64,
-) -> SysidError {
+) -> RlsFailure {
     let mut eps = y;
     for (f, t) in phi.iter().zip(theta) {
         eps -= f * t;
@@ -458,14 +517,22 @@ fn failure(
         }
         denom += fi * q;
     }
-    numerical(sample, denom, eps, rho)
+    RlsFailure {
+        sample,
+        denominator: denom,
+        error: eps,
+        forgetting: rho,
+    }
 }
 
 fn numerical(sample: usize, denom: f64, eps: f64, rho: f64) -> SysidError {
-    let what = format!(
-        "RLS lost positive definiteness or met a non-finite value at sample {sample} \
-         (denominator ρ + φᵀPφ = {denom:e}, error ε = {eps:e})"
-    );
+    let what = RlsFailure {
+        sample,
+        denominator: denom,
+        error: eps,
+        forgetting: rho,
+    }
+    .what();
     SysidError::Numerical(if rho < 1.0 {
         format!("{what}; {}", windup_advice(rho))
     } else {

@@ -130,6 +130,22 @@ pub enum Warning {
         /// What is wrong.
         why: String,
     },
+    /// A deadzone that is no valve deadzone around u = 0 ([`ipa_embedded::Deadzone::is_physical`]:
+    /// b_l ≤ 0 ≤ b_r and m_l, m_r > 0, in the command's units, breakpoints rounded as the compensators
+    /// round them): a deadzone compensator (`control --compensate-deadzone`, `tune`, the C API) refuses
+    /// it ([`Warning::if_deadzone_not_a_valve`]). For a record of another plant it may be right.
+    DeadzoneNotAValve {
+        /// b_l in the command's units (counts for the IPA).
+        b_l: f64,
+        /// b_r in the command's units.
+        b_r: f64,
+        /// m_l (x per unit of u).
+        m_l: f64,
+        /// m_r (x per unit of u).
+        m_r: f64,
+        /// The operating point's u0 added to the model's breakpoints (a detrended model), if not 0.
+        u0: Option<f64>,
+    },
     /// A check of an input nonlinearity other than the deadzone failed: a shape that is not physical
     /// (crossed limits, a non-monotone map), a segment without data.
     NonlinearityShape {
@@ -301,6 +317,58 @@ impl std::fmt::Display for Warning {
                  meaningful (not reported)"
             ),
             Warning::NonPhysicalDeadzone { why } => write!(f, "deadzone not physical: {why}"),
+            Warning::DeadzoneNotAValve {
+                b_l,
+                b_r,
+                m_l,
+                m_r,
+                u0,
+            } => {
+                let v = |x: f64| sysid_core::format::sig(x, 6);
+                let mut what = Vec::new();
+                if ![b_l, b_r, m_l, m_r].iter().all(|x| x.is_finite()) {
+                    what.push("a parameter is not a finite number".to_string());
+                }
+                if *b_l > 0.0 {
+                    what.push(format!(
+                        "b_l = {} > 0 (a small negative command already moves the output)",
+                        v(*b_l)
+                    ));
+                }
+                if *b_r < 0.0 {
+                    what.push(format!(
+                        "b_r = {} < 0 (a small positive command does not move the output, and a \
+                         zero command drives it)",
+                        v(*b_r)
+                    ));
+                }
+                for (name, m) in [("m_l", m_l), ("m_r", m_r)] {
+                    if *m == 0.0 {
+                        what.push(format!("{name} = 0 (that branch does not respond)"));
+                    } else if *m < 0.0 {
+                        what.push(format!(
+                            "{name} = {} < 0 (a larger command on that side lowers the output)",
+                            v(*m)
+                        ));
+                    }
+                }
+                let units = match u0 {
+                    Some(u0) => format!(
+                        " (breakpoints in the command's units: the model's plus its operating \
+                         point u0 = {})",
+                        v(*u0)
+                    ),
+                    None => String::new(),
+                };
+                write!(
+                    f,
+                    "the deadzone is not a valve deadzone around u = 0 (b_l <= 0 <= b_r, slopes \
+                     m_l, m_r > 0): {}{units}; a deadzone compensator will refuse it (control \
+                     --compensate-deadzone, tune, the C API); for a plant without such a valve the \
+                     fit itself may still be right",
+                    what.join("; ")
+                )
+            }
             Warning::NonlinearityShape { kind, why } => write!(f, "{kind} nonlinearity: {why}"),
             Warning::ForInput { input, warning } => write!(f, "input {input}: {warning}"),
             Warning::FewInputLevels { branch, levels } => write!(
@@ -387,6 +455,62 @@ impl Warning {
                 im: pole.im,
             }),
         }
+    }
+
+    /// [`Warning::DeadzoneNotAValve`] for each input of `model` whose deadzone, in the command's units
+    /// ([`Model::command_deadzone`]), is not a valve deadzone by the one rule the compensators apply:
+    /// [`ipa_embedded::Deadzone::is_physical`] after [`ipa_embedded::deadzone::rounded_breakpoints`]
+    /// with u_max the largest |u| of the model's estimation data (its `data_range`; 0 without one: no
+    /// rounding), so that a breakpoint within 1e-9 · u_max of 0 counts as 0, as `control` takes it at
+    /// its --u-max. Wrapped in [`Warning::ForInput`] for a several-input model. What `identify`
+    /// (its report, in memory and read in passes) and `validate` (its report, Python `Model.metrics`)
+    /// say of a deadzone that `control --compensate-deadzone`, `tune` and the C API refuse (audit s33
+    /// L-5).
+    pub fn if_deadzone_not_a_valve(model: &Model) -> Vec<Warning> {
+        let several = model.inputs().len() > 1;
+        let u0 = |i: usize| {
+            model
+                .operating_point()
+                .and_then(|o| o.u.get(i).copied())
+                .filter(|u0| *u0 != 0.0)
+        };
+        model
+            .inputs()
+            .iter()
+            .enumerate()
+            .filter_map(|(i, input)| {
+                let d = model.command_deadzone(i)?;
+                let u_max = model
+                    .data_range()
+                    .and_then(|r| r.u.get(i))
+                    .map_or(0.0, |[lo, hi]| lo.abs().max(hi.abs()));
+                let (b_l, b_r) = ipa_embedded::deadzone::rounded_breakpoints(d.b_l, d.b_r, u_max);
+                let valve = ipa_embedded::Deadzone {
+                    b_l,
+                    b_r,
+                    m_l: d.m_l,
+                    m_r: d.m_r,
+                };
+                if valve.is_physical() {
+                    return None;
+                }
+                let w = Warning::DeadzoneNotAValve {
+                    b_l: d.b_l,
+                    b_r: d.b_r,
+                    m_l: d.m_l,
+                    m_r: d.m_r,
+                    u0: u0(i),
+                };
+                Some(if several {
+                    Warning::ForInput {
+                        input: input.name().to_string(),
+                        warning: Box::new(w),
+                    }
+                } else {
+                    w
+                })
+            })
+            .collect()
     }
 
     /// [`Warning::PoorSimulation`] when the simulation fit % on `record` is at most 0 (no better than

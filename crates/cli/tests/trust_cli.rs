@@ -2078,3 +2078,90 @@ fn output_error_on_small_commands_recovers_the_paper_model_or_warns() {
     // Before the second start, 1 of these 4 was recovered (amplitude 20, seed 2).
     assert!(recovered >= 3, "only {recovered} of 4 recovered");
 }
+
+// Audit s34 M-2: least squares on a record of the paper's model with 0.05 mm of white output noise is
+// biased (a1 ≈ −1.64 against the paper's −1.869, many of its own ± away) and said nothing. Now the
+// warning names output noise, quoting the lag-1 correlation of the estimation residuals, which is
+// computed here from `validate --out`'s one-step residuals (k ≥ k0 = 3, mean removed); output error
+// on the same record, not biased by it, gets no such warning.
+#[test]
+fn least_squares_under_output_noise_is_warned_of() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let run = |args: &[&str]| {
+        let out = bin().current_dir(d).args(args).output().unwrap();
+        assert!(
+            out.status.success(),
+            "{args:?}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+    };
+    run(&[
+        "simulate",
+        "--plant",
+        "paper",
+        "--noise-std",
+        "0.05",
+        "--seed",
+        "7",
+        "--out",
+        "n.csv",
+    ]);
+    let ls = run_json(
+        d,
+        &[
+            "identify",
+            "--data",
+            "n.csv",
+            "--method",
+            "ls",
+            "--save-model",
+            "ls.json",
+        ],
+    );
+    let a1 = ls["model"]["a"][0].as_f64().unwrap();
+    assert!(
+        (a1 + 1.869).abs() > 0.1,
+        "a1 = {a1}: the record no longer biases ls"
+    );
+    let words = warnings(&ls);
+    let w = words
+        .iter()
+        .find(|w| w.contains("negatively correlated at lag 1"))
+        .unwrap_or_else(|| panic!("no output-noise warning: {words:?}"));
+    assert!(w.contains("--method oe") && w.contains("biased"), "{w}");
+    let quoted: f64 = {
+        let rest = &w[w.find("(r = ").unwrap() + 5..];
+        rest[..rest.find(')').unwrap()].parse().unwrap()
+    };
+    run(&[
+        "validate", "--model", "ls.json", "--data", "n.csv", "--out", "v.csv",
+    ]);
+    let text = std::fs::read_to_string(d.join("v.csv")).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let col = header.iter().position(|h| *h == "residual").unwrap();
+    let e: Vec<f64> = lines
+        .skip(3)
+        .map(|l| l.split(',').nth(col).unwrap().parse().unwrap())
+        .collect();
+    let mean = e.iter().sum::<f64>() / e.len() as f64;
+    let c = |lag: usize| -> f64 {
+        e.iter()
+            .skip(lag)
+            .zip(&e)
+            .map(|(a, b)| (a - mean) * (b - mean))
+            .sum()
+    };
+    let r1 = c(1) / c(0);
+    assert!(r1 < -0.3, "r1 = {r1}");
+    assert!((r1 - quoted).abs() < 1e-3, "quoted {quoted}, computed {r1}");
+    let oe = run_json(d, &["identify", "--data", "n.csv", "--method", "oe"]);
+    assert!(
+        !warnings(&oe)
+            .iter()
+            .any(|w| w.contains("negatively correlated at lag 1")),
+        "{:?}",
+        warnings(&oe)
+    );
+}

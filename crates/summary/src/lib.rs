@@ -366,6 +366,15 @@ impl IdentifyReport {
                     .map(ToString::to_string),
             );
         }
+        // Output noise seen through an equation-error estimate (audit s34 M-2): the estimation
+        // record's residuals, the ones the estimate was fitted to.
+        if let ResidualEntry::Analysis(a) = &report.residuals.estimation {
+            report.warnings.extend(
+                sysid::trust::output_noise_bias(fit.method, a)
+                    .iter()
+                    .map(ToString::to_string),
+            );
+        }
         // The validation record's input–residual test, the one that judges the model (audit s20 M-1).
         if let Some(ResidualEntry::Analysis(a)) = &report.residuals.validation {
             report.warnings.extend(

@@ -263,6 +263,21 @@ pub fn baseline_fit(
     guarded_fit(&sysid_core::metrics::metrics(&baseline.model, data).ok()?)
 }
 
+/// [`Concern::OutputNoiseBias`] for an equation-error estimate (`method` ls or rls) whose estimation
+/// residuals `a` are not white and have r_ε(1) < −[`OUTPUT_NOISE_LAG1`](crate::warnings::OUTPUT_NOISE_LAG1);
+/// `None` for the other methods (oe and iv are not biased by output noise) or when the test passes.
+pub fn output_noise_bias(method: crate::Method, a: &ResidualAnalysis) -> Option<Warning> {
+    let name = match method {
+        crate::Method::Ls => "ls",
+        crate::Method::Rls => "rls",
+        _ => return None,
+    };
+    let r1 = *a.autocorrelation.first()?;
+    (!a.white && r1 < -crate::warnings::OUTPUT_NOISE_LAG1).then_some(Warning::Trust(
+        Concern::OutputNoiseBias { method: name, r1 },
+    ))
+}
+
 /// [`Concern::InputDynamicsLeft`] for each input whose largest input–residual correlation at a lag
 /// τ ≥ 0 (the input leading the residual: dynamics from u to y the model misses) is beyond
 /// [`INPUT_CORRELATION_BANDS`](crate::warnings::INPUT_CORRELATION_BANDS) times the per-lag 99 % band

@@ -602,7 +602,24 @@ pub enum Concern {
         /// The per-lag 99 % band 2.58/√N.
         bound: f64,
     },
+    /// An equation-error estimate (ls, rls) whose estimation residuals are not white and correlated at
+    /// lag 1 below −[`OUTPUT_NOISE_LAG1`] (`trust::output_noise_bias`): white noise e on the measured
+    /// output makes the equation error A(q) e, whose lag-1 correlation is negative (−0.69 for the
+    /// paper's A), and biases the estimate (audit s34 M-2: a₁ −1.64 ± 0.011 against −1.869 at 0.05 mm of
+    /// noise, b_r of the wrong sign in 20 of 20 seeds, with no warning).
+    OutputNoiseBias {
+        /// The method (`ls` or `rls`).
+        method: &'static str,
+        /// r_ε(1) of the estimation residuals.
+        r1: f64,
+    },
 }
+
+/// The lag-1 residual correlation below whose negative an equation-error estimate with residuals that
+/// are not white is warned of as biased by output noise ([`Concern::OutputNoiseBias`]): 0.3, as
+/// [`INPUT_CORRELATION_LEVEL`] (9 % of the residual variance). Unmodelled dynamics leave positive lag-1
+/// correlations; a negative one this large is the moving average A(q) e of output noise.
+pub const OUTPUT_NOISE_LAG1: f64 = 0.3;
 
 impl std::fmt::Display for Concern {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -654,6 +671,14 @@ impl std::fmt::Display for Concern {
             Concern::NoStandardDeviations { why } => {
                 write!(f, "no standard deviation could be computed: {why}")
             }
+            Concern::OutputNoiseBias { method, r1 } => write!(
+                f,
+                "the estimation residuals of this {method} estimate are not white and negatively \
+                 correlated at lag 1 (r = {r1:.3}): the signature of noise on the measured output, under \
+                 which {method} is biased (its equation error is then A(q)·e, not white; the ± do not \
+                 cover the bias): estimate with --method oe or --method iv, which noise at the output \
+                 does not bias"
+            ),
             Concern::InputDynamicsLeft {
                 record,
                 input,

@@ -469,11 +469,17 @@ fn legend_entries(svg: &str) -> Vec<(String, String)> {
         .collect();
     for (b, at) in &boxes {
         for (tx, ty, label) in texts.iter().filter(|t| inside(b, t.0, t.1)) {
-            // The mark sits left of its text, a few pixels below the text's top.
+            // The mark sits left of its text, a few pixels below the text's top; in a legend of
+            // several columns (below the plot, since session 34) the entry to its left in the same
+            // row is left of it too, so of the marks nearest in height the nearest to the left.
             let mark = lines
                 .iter()
                 .filter(|l| l.3 > *at && inside(b, l.0, l.1) && l.0 < *tx && l.1 >= *ty)
-                .min_by(|p, q| (p.1 - ty).total_cmp(&(q.1 - ty)));
+                .min_by(|p, q| {
+                    (p.1 - ty)
+                        .total_cmp(&(q.1 - ty))
+                        .then((tx - p.0).total_cmp(&(tx - q.0)))
+                });
             if let Some((_, _, c, _)) = mark {
                 out.push((label.clone(), c.clone()));
             }

@@ -116,9 +116,11 @@ pub fn fpe_of(loss: Option<f64>, n: usize, p: usize) -> Option<f64> {
 }
 
 /// The normalised AIC ln(`mse`) + 2p/N of a mean squared error over N rows with p parameters (MATLAB
-/// `aic(sys)`); `None` when mse <= 0 or it is not finite.
+/// `aic(sys)`); `None` when N <= p (as [`fpe_of`]: no residual degree of freedom, the mse is the
+/// parameters' own; audit s34 L-9: `validate --rows 0..2` printed nAIC from one scored sample and two
+/// parameters), when mse <= 0 or when it is not finite.
 pub fn aic_of(mse: Option<f64>, n: usize, p: usize) -> Option<f64> {
-    mse.filter(|mse| *mse > 0.0)
+    mse.filter(|mse| *mse > 0.0 && n > p)
         .map(|mse| mse.ln() + 2.0 * p as f64 / n.max(1) as f64)
         .filter(|v| v.is_finite())
 }
@@ -750,6 +752,19 @@ pub fn metrics_from_sums(s: &MetricSums, name: &str) -> Result<Metrics, SysidErr
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    // FPE and AIC alike need N > p (audit s34 L-9): one scored sample and two parameters gave nAIC =
+    // ln(2.42036e-5) + 2·2/1 = −6.629 by hand while FPE was null.
+    #[test]
+    fn aic_and_fpe_need_more_rows_than_parameters() {
+        let mse = 2.42036e-5_f64;
+        assert_eq!(aic_of(Some(mse), 1, 2), None);
+        assert_eq!(aic_of(Some(mse), 2, 2), None);
+        assert_eq!(fpe_of(Some(mse), 2, 2), None);
+        let three = aic_of(Some(mse), 3, 2).unwrap();
+        assert!((three - (mse.ln() + 4.0 / 3.0)).abs() < 1e-12);
+        assert!((fpe_of(Some(mse), 3, 2).unwrap() - 5.0 * mse).abs() < 1e-18);
+    }
 
     // y = (1, 2, 3), ȳ = 2, ‖y − ȳ‖ = √2; ŷ = (1, 2, 4): ‖y − ŷ‖ = 1 → fit = 100 (1 − 1/√2).
     #[test]

@@ -128,6 +128,22 @@ fn on_the_physics_plant_the_adaptive_run_warns_in_text_and_json_and_ends_plausib
     assert!(warnings
         .iter()
         .any(|w| w.as_str().unwrap().contains("left (b_l, m_l) branch")));
+    // One list of the run's doubts (audit s34 L-11): every `warning:` line of the text is an entry of
+    // the JSON's `warnings`, the adaptation's among them, each printed once.
+    let all: Vec<&str> = doc["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w.as_str().unwrap())
+        .collect();
+    let lines: Vec<&str> = text
+        .lines()
+        .filter_map(|l| l.strip_prefix("warning: "))
+        .collect();
+    assert_eq!(lines, all, "{text}");
+    for w in warnings {
+        assert!(all.contains(&w.as_str().unwrap()), "{w} not in warnings");
+    }
     let d = &a["final_deadzone"];
     let (b_l, b_r) = (d["b_l"].as_f64().unwrap(), d["b_r"].as_f64().unwrap());
     assert!(

@@ -354,6 +354,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(f) = &tuned_file {
         warnings.extend(control::trust::spec_warnings(f, &steps));
     }
+    // The adaptation's own doubts are the run's warnings too: in `warnings` (text, JSON, --strict) as
+    // well as in `adaptive.warnings` (audit s34 L-11: 11 `warning:` lines, 5 JSON `warnings`, and
+    // --strict counted only the 5).
+    if let Some(a) = &adaptive {
+        warnings.extend(a.warnings.iter().cloned());
+    }
 
     // The trace and the JSON are written together, after both are made (a failure of either leaves
     // both files as they were; audit s14 M-f).
@@ -613,8 +619,8 @@ fn check_outputs(args: &Args, inputs: &[PathBuf]) -> anyhow::Result<()> {
     super::common::check_outputs(&[(&args.out, "--out"), (&args.json, "--json")], &input_refs)
 }
 
-/// The lines `--adaptive` adds to the text summary: the final compensator, the detected changes, what
-/// each branch did, and the warnings.
+/// The lines `--adaptive` adds to the text summary: the final compensator, the detected changes and what
+/// each branch did (its warnings are among the run's).
 fn adaptive_text(a: &AdaptiveOut) -> String {
     let dz = a.final_deadzone.map_or("n/a".to_string(), |d| {
         format!(
@@ -640,9 +646,7 @@ fn adaptive_text(a: &AdaptiveOut) -> String {
         counts(&a.right),
         counts(&a.left)
     );
-    for w in &a.warnings {
-        text += &format!("warning: {w}\n");
-    }
+    // Its warnings are printed with the run's (`warnings`), once.
     text
 }
 

@@ -639,7 +639,7 @@ fn adaptive_text(a: &AdaptiveOut) -> String {
             c.waiting
         )
     };
-    let mut text = format!(
+    let text = format!(
         "adaptive:     final compensator deadzone {dz}; changes detected at t = {:?} s\n\
          adaptive:     samples: right branch {}; left branch {}\n",
         a.change_points_s,

@@ -1805,7 +1805,26 @@ pub(crate) fn cell_value(
             name()
         ));
     }
+    if !decimal_comma && leading_zero(unquote(cell)) {
+        return Err(format!(
+            "'{}' in column '{}' is an integer written with a leading zero, which a measured value \
+             almost never is (the digits after a decimal comma look so: -1,048 split at the comma); \
+             expected a decimal number such as -1.5{DECIMAL_COMMA_HINT}",
+            shorten(cell),
+            name()
+        ));
+    }
     Ok(v)
+}
+
+/// True for an integer written with a leading zero (`048`, `-0529036`): in a comma-delimited file, the
+/// fraction digits of a number written with a decimal comma, split from its integer part by the
+/// comma (audit s34 L-10: a one-signal export with decimal commas under a `u,y` header was read as u =
+/// −1, y = 48 with every field count right). Cheap: only the first two bytes after a sign are looked
+/// at unless they are `0` and a digit.
+fn leading_zero(cell: &str) -> bool {
+    let digits = cell.strip_prefix(['-', '+']).unwrap_or(cell).as_bytes();
+    matches!(digits, [b'0', d, ..] if d.is_ascii_digit()) && digits.iter().all(u8::is_ascii_digit)
 }
 
 /// The decimal marks the numbers of a semicolon- or tab-delimited file (where `1,5` is read as 1.5) have
@@ -2492,6 +2511,28 @@ mod tests {
     // Audit s22 M-B4/M-B5: a cell and a column name holding ESC, BEL or a right-to-left override are
     // echoed in errors as \u{..} escapes, never as the raw characters (which would clear, ring or
     // reverse the terminal).
+    // Audit s34 L-10: one value per row written with a decimal comma under a two-name comma header
+    // (`u,y`, then -1,048) split into u = -1 and y = 48 with every field count right. The fraction
+    // digits keep the leading zero (048): refused there, at line 2 column 2; a comma-separated file of
+    // plain numbers (0, 5, 0.048) and a semicolon file with decimal commas read as written.
+    #[test]
+    fn fraction_digits_split_off_by_a_decimal_comma_are_refused() {
+        let t = crate::data::read_table(b"u,y\n-1,048\n-0,529036\n", "split.csv").unwrap();
+        let e = t.numbers(1).unwrap_err().to_string();
+        assert!(
+            e.starts_with(
+                "split.csv:2:2: '048' in column 'y' is an integer written with a leading zero"
+            ),
+            "{e}"
+        );
+        assert!(e.contains("decimal comma"), "{e}");
+        let t = crate::data::read_table(b"u,y\n0,5\n-1,0.048\n+0,-0\n", "plain.csv").unwrap();
+        assert_eq!(t.numbers(1).unwrap(), vec![5.0, 0.048, -0.0]);
+        assert_eq!(t.numbers(0).unwrap(), vec![0.0, -1.0, 0.0]);
+        let t = crate::data::read_table(b"u;y\n-1,048;0,5\n", "semi.csv").unwrap();
+        assert_eq!(t.numbers(0).unwrap(), vec![-1.048]);
+    }
+
     #[test]
     fn errors_escape_control_characters_from_the_file() {
         let t = crate::data::read_table(b"t,u\x1b[2J,y\xe2\x80\xae\n0,1,2\x1b[2J\x07\n", "esc.csv")

@@ -151,7 +151,7 @@ pub fn truth_of(model: &Model) -> Vec<NamedValue> {
 type Outcome = Result<(Vec<NamedValue>, Option<String>), String>;
 
 /// The median of `v` (sorted in place; NaN-free values), 0 for none.
-fn median_of(v: &mut [f64]) -> f64 {
+pub fn median_of(v: &mut [f64]) -> f64 {
     v.sort_by(f64::total_cmp);
     let n = v.len();
     match n {

@@ -124,9 +124,9 @@ fn output_error_is_stable_and_never_worse_than_least_squares_on_real_records() {
             rmse_oe <= rmse_ls * (1.0 + KEPT_WITHIN + 1e-12),
             "{name}: OE {rmse_oe} > LS {rmse_ls}"
         );
-        // Converged, or it says it did not (since session 34 the lower end of the searches from the
-        // LS and the IV starts is kept even at the iteration cap: ball and beam (2, 2, 1) ends at RSS
-        // 0.907 from IV, at the cap, against 1.810 converged from LS).
+        // Converged, or it says it did not (since session 34 a model with an input nonlinearity keeps
+        // the lower end of the searches from the LS and the IV starts even at the iteration cap; these
+        // ARX cases search from LS only).
         assert!(
             oe.converged()
                 || oe

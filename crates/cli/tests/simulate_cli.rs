@@ -563,3 +563,20 @@ fn a_tiny_model_ts_is_printed_compactly_and_exactly() {
     assert!(err.contains("ts = 1e-300 s is below 1e-6 s"), "{err}");
     assert!(err.lines().all(|l| l.len() < 300), "{err}");
 }
+
+// Audit s34 H-1's last point: the paper's plant leaks (A(1) ≠ 0: a pole just inside 1), so y0 = 100 held
+// before the start is not its rest and y moves away from it with the input at 0; `simulate` said "from
+// rest at y0 = 100"; now the paper plant's start is worded as a model's (held level, possible drift).
+#[test]
+fn the_paper_plant_start_is_not_called_rest() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = simulate(dir.path(), &["--plant", "paper"], "p.csv");
+    assert!(out.status.success());
+    let words = String::from_utf8_lossy(&out.stderr);
+    assert!(!words.contains("from rest"), "{words}");
+    assert!(
+        words.contains("from y0 = 100 held before the start"),
+        "{words}"
+    );
+    assert!(words.contains("drift"), "{words}");
+}

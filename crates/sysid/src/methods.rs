@@ -803,9 +803,18 @@ fn one_record<'a>(p: &Problem<'a>, method: &str) -> Result<&'a Dataset, SysidErr
 /// Recursive IV in stages ([`iv::staged`]), the first stage's instruments from the LS (key-term)
 /// estimate; the instruments use each input's nonlinearity of the auxiliary model.
 pub(crate) fn instrumental(p: &Problem, st: &InstrumentalVariables) -> Result<Fitted, SysidError> {
+    instrumental_from(p, st, &least_squares(p, &st.start)?)
+}
+
+/// [`instrumental`] from a least-squares (key-term) `start` already computed with `st.start`'s
+/// settings (output error's second start reuses its own LS start: [`second_start`]).
+fn instrumental_from(
+    p: &Problem,
+    st: &InstrumentalVariables,
+    start: &Fitted,
+) -> Result<Fitted, SysidError> {
     let data = one_record(p, "iv")?;
     let reg = p.regression();
-    let start = least_squares(p, &st.start)?;
     let free = reg.free_key(p.starts());
     let n_free = free.iter().filter(|f| **f).count();
     let k0 = reg.k0();
@@ -935,7 +944,7 @@ pub(crate) fn output_error(p: &Problem, st: &OutputError) -> Result<Fitted, Sysi
         .iter()
         .any(|c| !c.nonlinearity().is_linear());
     let (fit, second, local_minima) = if nonlinear {
-        second_start(p, st, data, &free, fit)?
+        second_start(p, st, data, &free, &start, fit)?
     } else {
         (fit, None, None)
     };
@@ -995,6 +1004,7 @@ fn second_start(
     st: &OutputError,
     data: &Dataset,
     free: &[bool],
+    ls_start: &Fitted,
     first: oe::OeFit,
 ) -> Result<(oe::OeFit, Option<Note>, Option<Warning>), SysidError> {
     let iv = InstrumentalVariables {
@@ -1011,7 +1021,7 @@ fn second_start(
             p.cancel(),
         )
     };
-    let refined = instrumental(p, &iv).and_then(|iv| search(&iv.model));
+    let refined = instrumental_from(p, &iv, ls_start).and_then(|iv| search(&iv.model));
     let second = match refined {
         Ok(f) => f,
         Err(SysidError::Cancelled) => return Err(SysidError::Cancelled),

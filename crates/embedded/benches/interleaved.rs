@@ -37,7 +37,9 @@
 //! no deadzone, so ours does more per sample than the RLS update alone). The peer at n = 7 and n = 9
 //! runs in the same turns as extra rows (their ratios also to the peer at n = 8). A case whose updates
 //! fail on the record is left out, with a line saying so (f32 eq. 12 with nb = 2: rounding makes P
-//! indefinite, `Error::Indefinite`; tests/indefinite.rs).
+//! indefinite, `Error::Indefinite`; tests/indefinite.rs). The paper's orders run a second time with
+//! the opt-in plausibility range (`HammersteinRls::with_range`, since session 35: rows `n7-…-range`),
+//! so that the range's comparisons (2–4 per update) are timed beside the same estimator without one.
 //!
 //! Run: `cargo bench -p ipa-embedded --bench interleaved -- [--seconds S] [--window W] [--verbose]
 //! [--line-offset B] [FILTER]` (S seconds per group, default 20; W default 0.5; FILTER a substring of the group names
@@ -380,6 +382,35 @@ where
         labels.push(format!("ipa-embedded/n7-{label}"));
         ours.push(Box::new(OursHammerstein::<F, 7, 3> {
             est: Placed::new(HammersteinRls::new(h7).unwrap()),
+            u: &uh,
+            y: &yh,
+        }));
+    }
+    // The paper's orders with the opt-in plausibility range (`with_range`: y within the record's
+    // span widened by a tenth on each side, |u| within the estimator's limit), so that the range's
+    // comparisons are timed too; every sample inside it (checked: no sample is refused).
+    let (lo, hi) = yh.iter().fold((yh[0], yh[0]), |(lo, hi), y| {
+        (if *y < lo { *y } else { lo }, if *y > hi { *y } else { hi })
+    });
+    let margin = (hi - lo) * <F as Float>::from_f64(0.1);
+    for (label, form) in [("standard", Form::Standard), ("ud", Form::Ud)] {
+        let h7 = settings(1, form);
+        let ranged = || {
+            HammersteinRls::<F, 7, 3>::new(h7)
+                .unwrap()
+                .with_range(lo - margin, hi + margin)
+                .unwrap()
+        };
+        let mut check = ranged();
+        let refused = uh
+            .iter()
+            .zip(&yh)
+            .filter(|(uk, yk)| check.update(**uk, **yk).is_err())
+            .count();
+        assert_eq!(refused, 0, "{name} n7 {label} with a range");
+        labels.push(format!("ipa-embedded/n7-{label}-range"));
+        ours.push(Box::new(OursHammerstein::<F, 7, 3> {
+            est: Placed::new(ranged()),
             u: &uh,
             y: &yh,
         }));

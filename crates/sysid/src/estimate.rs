@@ -355,6 +355,7 @@ impl Identification {
             Method::Oe => EstimatorSettings::Oe(OutputError {
                 start,
                 max_iterations: start.max_iterations,
+                ..OutputError::default()
             }),
             Method::Iv => EstimatorSettings::Iv(InstrumentalVariables {
                 start,

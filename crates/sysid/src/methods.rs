@@ -113,6 +113,11 @@ pub struct OutputError {
     /// Patience: the search stops after this many residual evaluations per free parameter (default
     /// 100, shared with the start's key-term iteration cap).
     pub max_iterations: usize,
+    /// For a model with an input nonlinearity, search from the IV estimate too and keep the lower end
+    /// ([`second_start`]; default true, what `identify --method oe` does). `false` searches from the
+    /// LS start alone, as before session 34: `control::tuning::twin_model` (docs/control.md, "The
+    /// twin's model and the second start").
+    pub second_start: bool,
 }
 
 impl Default for OutputError {
@@ -120,6 +125,7 @@ impl Default for OutputError {
         OutputError {
             start: LeastSquares::default(),
             max_iterations: 100,
+            second_start: true,
         }
     }
 }
@@ -943,7 +949,7 @@ pub(crate) fn output_error(p: &Problem, st: &OutputError) -> Result<Fitted, Sysi
         .inputs()
         .iter()
         .any(|c| !c.nonlinearity().is_linear());
-    let (fit, second, local_minima) = if nonlinear {
+    let (fit, second, local_minima) = if nonlinear && st.second_start {
         second_start(p, st, data, &free, &start, fit)?
     } else {
         (fit, None, None)

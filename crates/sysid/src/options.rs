@@ -95,6 +95,7 @@ impl IdentifyOptions {
             Method::Oe => EstimatorSettings::Oe(OutputError {
                 start,
                 max_iterations: self.max_iterations,
+                ..OutputError::default()
             }),
             Method::Iv => EstimatorSettings::Iv(InstrumentalVariables {
                 start,

@@ -69,6 +69,7 @@ fn settings(
         Method::Oe => EstimatorSettings::Oe(OutputError {
             start,
             max_iterations: 30,
+            ..OutputError::default()
         }),
         Method::Iv => EstimatorSettings::Iv(InstrumentalVariables {
             start,

@@ -357,6 +357,14 @@ pub fn run_adaptive(
         warnings: Vec::new(),
     };
     run.warnings = warnings(&run, &gate, comp.deadzone, ts);
+    // A long hold at a set-point does not excite the estimator: the trace bound's restarts of P
+    // (audit s35c: at 129 s the loop used to end with a numerical failure).
+    if let Some(r) = tracker.covariance_resets() {
+        run.warnings.push(format!(
+            "the online estimate: {}",
+            sysid::Warning::CovarianceReset(r)
+        ));
+    }
     Ok(run)
 }
 

@@ -681,6 +681,11 @@ pub(crate) fn recursive(p: &Problem, st: &RecursiveLeastSquares) -> Result<Fitte
         notes,
         history,
         history_samples,
+        warnings: est
+            .covariance_resets()
+            .map(Warning::CovarianceReset)
+            .into_iter()
+            .collect(),
         ..Fitted::new(model, Vec::new(), Method::Rls, sigma2)
     })
 }

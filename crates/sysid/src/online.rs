@@ -434,6 +434,13 @@ impl Tracker {
         self.k0
     }
 
+    /// The restarts of P the estimator made to keep it positive definite (standard form with the
+    /// trace bound: `rls_ud::RobustRls::update`), `None` when there were none; [`Tracker::warnings`]
+    /// says them in words.
+    pub fn covariance_resets(&self) -> Option<crate::rls_ud::CovarianceResets> {
+        self.est.covariance_resets()
+    }
+
     /// Updates of θ̂ since the start or the last covariance restart (a detected change with
     /// [`TrackSettings::restart_on_change`]).
     pub fn updates_since_restart(&self) -> usize {
@@ -829,6 +836,9 @@ impl Tracker {
                 "the change detector is warming up or calibrating: a change cannot be flagged yet"
                     .to_string(),
             );
+        }
+        if let Some(r) = self.covariance_resets() {
+            w.push(crate::Warning::CovarianceReset(r).to_string());
         }
         // The verdict every command reports (`Model::stability`), in `identify`'s words.
         if let Some(s) = crate::Warning::if_not_settling(model) {

@@ -132,6 +132,11 @@ pub trait RecursiveUpdate {
     fn restart_at(&mut self, theta: &[f64], p0: f64);
     /// P (times σ² the covariance of θ̂).
     fn covariance(&self) -> DMatrix<f64>;
+    /// The restarts of P made to keep it positive definite (only the standard form with the trace
+    /// bound makes them: `rls_ud::RobustRls::update`); `None` when there were none.
+    fn covariance_resets(&self) -> Option<crate::rls_ud::CovarianceResets> {
+        None
+    }
 }
 
 impl RecursiveUpdate for Rls {

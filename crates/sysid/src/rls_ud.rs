@@ -94,6 +94,22 @@ pub struct RobustRls {
     cov: Covariance,
     work: DVector<f64>,
     work2: DVector<f64>,
+    /// Standard form with the trace bound: the restarts of P at (T/n) I after eq. 12 lost P's
+    /// positive definiteness to rounding ([`RobustRls::update`]), and the sample of the first.
+    resets: usize,
+    first_reset: Option<usize>,
+}
+
+/// The restarts of P that [`RobustRls::update`] made (standard form with the trace bound): `count`
+/// of them, the first at sample `first_sample`, each to P = (T/n) I with tr P = `bound` = T.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CovarianceResets {
+    /// How many updates restarted P.
+    pub count: usize,
+    /// The sample k of the first.
+    pub first_sample: usize,
+    /// T, the trace bound (tr P after each restart).
+    pub bound: f64,
 }
 
 impl RobustRls {
@@ -148,6 +164,8 @@ impl RobustRls {
             cov,
             work: DVector::zeros(n),
             work2: DVector::zeros(n),
+            resets: 0,
+            first_reset: None,
         };
         est.sum_trace();
         Ok(est)
@@ -210,7 +228,29 @@ impl RobustRls {
         }
     }
 
+    /// The restarts of P the standard form with the trace bound made ([`RobustRls::update`]), `None`
+    /// when there were none.
+    pub fn covariance_resets(&self) -> Option<CovarianceResets> {
+        self.first_reset.map(|first_sample| CovarianceResets {
+            count: self.resets,
+            first_sample,
+            bound: self.max_trace,
+        })
+    }
+
     /// One update with regressor φ(k) and measurement y(k); returns the a-priori error ε(k).
+    ///
+    /// Standard form with the trace bound ([`Windup::Trace`]): the bound keeps tr P ≤ T, not P's
+    /// condition. Over a long stretch without excitation (an actuator at rest after an experiment)
+    /// forgetting grows P in the directions φ does not excite while each update shrinks it along φ and
+    /// the bound scales the whole of P down, until eq. 12's rounding makes P indefinite (φᵀPφ < 0:
+    /// audit s35c, the README's record followed by 100 000 samples at rest, ρ = 0.98, at sample
+    /// 10 360). Then P is restarted at (T/n) I (tr P = T, θ̂ kept) and the update made again, so the
+    /// estimator stays finite and bounded as the protection promises; the restarts are counted
+    /// ([`RobustRls::covariance_resets`]) and the callers warn of them. (The UD form keeps P
+    /// positive definite by construction and never restarts; without the bound the failure is the
+    /// error it always was.) When the update fails again from the restarted P (a non-finite value),
+    /// P is put back and the error returned: the state is unchanged.
     pub fn update(&mut self, phi: &[f64], y: f64, sample: usize) -> Result<f64, SysidError> {
         let n = self.theta.len();
         debug_assert_eq!(phi.len(), n);
@@ -236,7 +276,20 @@ impl RobustRls {
         // 1/α of the UD update (unused in the dense form).
         let inv_alpha = match &mut self.cov {
             Covariance::Dense(p) => {
-                update_standard(p, &mut self.theta, &mut self.work, &step)?;
+                if let Err(e) = update_standard(p, &mut self.theta, &mut self.work, &step) {
+                    if self.windup != Windup::Trace {
+                        return Err(e);
+                    }
+                    let saved = p.clone();
+                    p.fill(0.0);
+                    p.fill_diagonal(self.max_trace / n as f64);
+                    if let Err(e) = update_standard(p, &mut self.theta, &mut self.work, &step) {
+                        *p = saved;
+                        return Err(e);
+                    }
+                    self.resets += 1;
+                    self.first_reset.get_or_insert(sample);
+                }
                 0.0
             }
             Covariance::Ud { u, d } => {
@@ -545,6 +598,9 @@ impl crate::rls::RecursiveUpdate for RobustRls {
     fn covariance(&self) -> DMatrix<f64> {
         RobustRls::covariance(self)
     }
+    fn covariance_resets(&self) -> Option<CovarianceResets> {
+        RobustRls::covariance_resets(self)
+    }
 }
 
 /// The recursive estimator `identify --method rls` uses for these settings: the plain RLS for the
@@ -629,6 +685,67 @@ mod tests {
             .unwrap()
             .to_string();
         assert!(m.contains("covariance windup"), "{m}");
+    }
+
+    // Audit s35c: an actuator left at rest after an experiment. y = 1.5 y₋₁ − 0.7 y₋₂ + 0.5 u₋₁ + 20
+    // (around 100) for 2000 samples of a ±1 input, then 100 000 at rest (u = 0, y held where the
+    // experiment left it); regressors (−y₋₁, −y₋₂, u₋₁), ρ = 0.98, P(0) = 1e6 I, the trace
+    // bound T = p0 · n; a Hammerstein-like regressor of 7 entries (three lags, the two branches and
+    // their switching terms). Both forms stay finite with tr P ≤ T through the rest.
+    #[test]
+    fn the_trace_bound_keeps_the_standard_form_finite_through_a_long_rest_at_a_level() {
+        let mut state = 4242u64;
+        let n_rest = 100_000;
+        let mut u = vec![0.0f64; 2000 + n_rest];
+        for v in u.iter_mut().take(2000) {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            *v = if state >> 63 == 1 { 1.0 } else { -1.0 };
+        }
+        let mut y = vec![100.0; u.len()];
+        for k in 2..2000 {
+            y[k] = 1.5 * y[k - 1] - 0.7 * y[k - 2] + 0.5 * u[k - 1] + 20.0;
+        }
+        // At rest the position is held where the experiment left it (the valves closed; the
+        // audit's record: y held at 106.42 mm).
+        for k in 2000..u.len() {
+            y[k] = y[1999];
+        }
+        let (p0, n) = (1e6, 7);
+        for form in [RlsForm::Standard, RlsForm::Ud] {
+            let mut rls = RobustRls::new(n, 0.98, p0, form, Windup::Trace, None).unwrap();
+            for k in 3..u.len() {
+                let (l, r) = (u[k - 1].min(0.0), u[k - 1].max(0.0));
+                let phi = [
+                    -y[k - 1],
+                    -y[k - 2],
+                    -y[k - 3],
+                    l,
+                    r,
+                    f64::from(l < 0.0),
+                    f64::from(r > 0.0),
+                ];
+                rls.update(&phi, y[k], k)
+                    .unwrap_or_else(|e| panic!("{form}, sample {k}: {e}"));
+                assert!(
+                    rls.trace() <= p0 * n as f64 * (1.0 + 1e-9),
+                    "{form}, sample {k}: tr P = {}",
+                    rls.trace()
+                );
+            }
+            assert!(rls.theta.iter().all(|v| v.is_finite()), "{form}");
+            // Restarts only in the standard form, only in the rest (this record meets none; the
+            // audit's record meets one: crates/cli/tests/s35_cli.rs).
+            match (form, rls.covariance_resets()) {
+                (RlsForm::Standard, Some(r)) => {
+                    assert!(r.count >= 1 && r.first_sample > 2000, "{r:?}");
+                    assert_eq!(r.bound, p0 * n as f64);
+                }
+                (_, None) => {}
+                (f, r) => panic!("{f}: resets {r:?}"),
+            }
+        }
     }
 
     // Audit s32 L-11: the default bound p0 · n overflows for p0 = 1e308, n = 3: the error names p0 (the

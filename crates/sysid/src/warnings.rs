@@ -193,6 +193,10 @@ pub enum Warning {
         /// RSS at the end of the search from the IV start (the end kept).
         rss_iv: f64,
     },
+    /// The recursive estimator's covariance lost its positive definiteness to rounding under the
+    /// trace bound (standard form) and was restarted at P = (T/n) I, θ̂ kept
+    /// (`rls_ud::RobustRls::update`; audit s35c).
+    CovarianceReset(crate::rls_ud::CovarianceResets),
     /// A trust check (module `trust`: initial state, baseline, standard deviations).
     Trust(Concern),
 }
@@ -398,6 +402,21 @@ impl std::fmt::Display for Warning {
                  lower ({rss_iv:.4e}) and its end is kept, but it need not be the best model either: \
                  compare --method iv, and prefer a record that starts at rest with an input of more levels \
                  and a larger amplitude"
+            ),
+            Warning::CovarianceReset(r) => write!(
+                f,
+                "the RLS covariance P lost its positive definiteness to rounding {} (first at sample {}) \
+                 under the trace bound (eq. 12 in the standard form, over a stretch without excitation) \
+                 and was restarted at P = (T/n) I with tr P = T = {}, keeping θ̂: the estimate goes on, \
+                 but what P had learnt was dropped there; directional forgetting (--windup \
+                 directional) or the UD form (identify --rls-form ud) keeps P positive definite",
+                if r.count == 1 {
+                    "once".to_string()
+                } else {
+                    format!("{} times", r.count)
+                },
+                r.first_sample,
+                sysid_core::format::shortest(r.bound)
             ),
             Warning::Trust(c) => c.fmt(f),
         }

@@ -5,7 +5,7 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests may panic
 
 mod common;
-use common::{bin, run_json, s, stderr, warnings};
+use common::{arx_signals, bin, lcg, run_json, s, stderr, warnings, write_tuy};
 
 /// What the warning begins with.
 const RESTARTED: &str = "the RLS covariance P lost its positive definiteness to rounding";
@@ -134,4 +134,96 @@ fn an_adaptive_loop_holds_a_set_point_for_minutes() {
             .any(|w| w.starts_with(&format!("the online estimate: {RESTARTED}"))),
         "{w:?}"
     );
+}
+
+/// What the start-still-weighs warning contains.
+const PULLED: &str = "estimate is still pulled towards its start";
+
+/// a₁ of a model's JSON (`a` of an ARX model: A(q) = 1 + a₁ q⁻¹ + …).
+fn a1(doc: &serde_json::Value) -> f64 {
+    doc["model"]["a"][0]
+        .as_f64()
+        .or_else(|| {
+            doc["parameters"]
+                .as_array()?
+                .iter()
+                .find(|p| p["name"] == "a1")?["value"]
+                .as_f64()
+        })
+        .unwrap()
+}
+
+/// Audit s35 H-1, H-3: the recursive estimators start from P(0) = p0 I, i.e. least squares
+/// regularised by I / p0; with the output in small units the regularisation held the estimate at its
+/// start without a word (iv: its LS start as "1 stage, converged"; track: a₁ = −1.27 for −1.69). The
+/// record: y = 1.7 y₋₁ − 0.72 y₋₂ + 0.5 u₋₁ (poles 0.9, 0.8) with u = ±100 from an LCG, plus white
+/// output noise of ±5 % of y's largest |y| (uniform), 600 rows; then y × 1e-7 (iv) and y × 1e-6 (track). Least squares
+/// is scale-equivariant, so a recursion the data dominate gives a₁ scaled by 1 (a₁ is unitless): the
+/// drift of a₁ between the scales (> 1 %) witnesses the pull the warning names; at unit scale no
+/// warning.
+#[test]
+fn a_start_that_outweighs_small_signals_is_said() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut rng = lcg(35);
+    let (u, y) = arx_signals(600, &[1.7, -0.72], &[0.5], |_| {
+        if rng.unit() < 0.5 {
+            -100.0
+        } else {
+            100.0
+        }
+    });
+    let spread = y.iter().fold(0.0f64, |m, v| m.max(v.abs()));
+    let mut noise = lcg(36);
+    let y: Vec<f64> = y
+        .iter()
+        .map(|v| v + 0.1 * spread * (noise.unit() - 0.5))
+        .collect();
+    let scaled = |c: f64| y.iter().map(|v| v * c).collect::<Vec<f64>>();
+    for (cmd, small) in [("iv", 1e-7), ("track", 1e-6)] {
+        let mut a = Vec::new();
+        for (c, name) in [(1.0, "unit.csv"), (small, "small.csv")] {
+            let data = write_tuy(d, name, 0.01, &u, &scaled(c));
+            let args: Vec<&str> = if cmd == "iv" {
+                vec![
+                    "identify",
+                    "--data",
+                    s(&data),
+                    "--structure",
+                    "arx",
+                    "--na",
+                    "2",
+                    "--nb",
+                    "1",
+                    "--method",
+                    "iv",
+                ]
+            } else {
+                vec![
+                    "track",
+                    "--data",
+                    s(&data),
+                    "--structure",
+                    "arx",
+                    "--na",
+                    "2",
+                    "--nb",
+                    "1",
+                    "--no-detect",
+                    "--every",
+                    "100000",
+                ]
+            };
+            let doc = run_json(d, &args);
+            let pulled = warnings(&doc).iter().any(|w| w.contains(PULLED));
+            assert_eq!(pulled, c != 1.0, "{cmd} at y × {c}: {:?}", warnings(&doc));
+            a.push(a1(&doc));
+        }
+        assert!(
+            (a[1] - a[0]).abs() > 0.01 * a[0].abs(),
+            "{cmd}: a1 {} at unit scale, {} small: no pull to witness",
+            a[0],
+            a[1]
+        );
+    }
 }

@@ -40,6 +40,10 @@ pub struct IvPass {
     /// Σ_k z(k) z(k−τ)ᵀ for τ = 1..=[`COV_LAGS`] (entry τ − 1; free entries): the instruments' lagged
     /// moments, for the covariance under a coloured equation error ([`covariance`]).
     pub zz_lagged: Vec<DMatrix<f64>>,
+    /// The largest singular value of the pass's final P over p0: the share of the start P(0) = p0 I in
+    /// the information of the estimate's weakest direction (≈ 1 when the regressors are too small
+    /// for the data to move the estimate from its start; [`crate::trust::prior_warning`]).
+    pub prior_share: f64,
 }
 
 /// The largest lag of the equation error's autocovariance [`covariance`] uses: white output noise e
@@ -131,11 +135,13 @@ pub fn pass<F: Fn(&[f64], usize, &mut [f64])>(
             r.name
         )));
     }
+    let prior_share = pm.singular_values().max() / p0;
     Ok(IvPass {
         theta,
         zphi,
         zz,
         zz_lagged,
+        prior_share,
     })
 }
 

@@ -897,7 +897,14 @@ fn instrumental_from(
         iterations: out.stages,
         termination: out.termination,
         notes: out.notes,
-        warnings: crate::trust::std_warning(why).into_iter().collect(),
+        warnings: crate::trust::std_warning(why)
+            .into_iter()
+            .chain(crate::trust::prior_warning(
+                "iv",
+                out.pass.prior_share,
+                st.p0,
+            ))
+            .collect(),
         ..Fitted::new(out.model, Vec::new(), Method::Iv, sigma2)
     })
 }

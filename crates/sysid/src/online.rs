@@ -840,6 +840,16 @@ impl Tracker {
         if let Some(r) = self.covariance_resets() {
             w.push(crate::Warning::CovarianceReset(r).to_string());
         }
+        // Without forgetting the recursion is least squares regularised by I / p0: with regressors
+        // small against 1/p0 the start holds the estimate (audit s35 H-3). (Under forgetting, P also
+        // grows where the recent data do not excite: the other warnings say that.) Judged once the
+        // estimate has had its 10 n updates (before, the warning above says it is converging).
+        if self.settings.forgetting == 1.0 && self.updates >= 10 * n {
+            let share = self.est.covariance().singular_values().max() / self.settings.p0;
+            if let Some(p) = crate::trust::prior_warning("rls", share, self.settings.p0) {
+                w.push(p.to_string());
+            }
+        }
         // The verdict every command reports (`Model::stability`), in `identify`'s words.
         if let Some(s) = crate::Warning::if_not_settling(model) {
             w.push(format!("the current model: {s}"));

@@ -278,6 +278,14 @@ pub fn output_noise_bias(method: crate::Method, a: &ResidualAnalysis) -> Option<
     ))
 }
 
+/// [`Concern::PriorWeighs`] when a recursive estimate's final covariance `p` keeps more than
+/// [`PRIOR_SHARE`](crate::warnings::PRIOR_SHARE) of its start p0 I (σ_max(P) / p0, computed from the
+/// singular values: P of the recursive IV is not symmetric); `None` otherwise.
+pub fn prior_warning(method: &'static str, share: f64, p0: f64) -> Option<Warning> {
+    (share > crate::warnings::PRIOR_SHARE || share.is_nan())
+        .then_some(Warning::Trust(Concern::PriorWeighs { method, share, p0 }))
+}
+
 /// [`Concern::InputDynamicsLeft`] for each input whose largest input–residual correlation at a lag
 /// τ ≥ 0 (the input leading the residual: dynamics from u to y the model misses) is beyond
 /// [`INPUT_CORRELATION_BANDS`](crate::warnings::INPUT_CORRELATION_BANDS) times the per-lag 99 % band

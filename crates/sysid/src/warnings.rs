@@ -632,7 +632,26 @@ pub enum Concern {
         /// r_ε(1) of the estimation residuals.
         r1: f64,
     },
+    /// A recursive estimate (iv, `track`'s rls with ρ = 1) whose final P still holds more than
+    /// [`PRIOR_SHARE`] of its start P(0) = p0 I in some direction (`trust::prior_warning`): the
+    /// recursion is least squares regularised by I / p0, and with regressors small against 1/p0 (signals
+    /// in small units: y in metres, a sensor in volts) the regularisation pulls the estimate towards its
+    /// start (audit s35 H-1, H-3: iv returned its LS start as "1 stage, converged" at y × 1e-7; `track`
+    /// reported a₁ = −1.27 for −1.69 at y × 1e-4, both without a word).
+    PriorWeighs {
+        /// `iv` or `rls`.
+        method: &'static str,
+        /// σ_max(P) / p0.
+        share: f64,
+        /// p0.
+        p0: f64,
+    },
 }
+
+/// The share σ_max(P) / p0 of a recursive estimate's start P(0) = p0 I left in its final P above which
+/// [`Concern::PriorWeighs`] is said: 1e-3 (the start then weighs at least 0.1 % in the estimate's
+/// weakest direction). Well-scaled records are far below it (the IPA's `est.csv` for iv: about 1e-9).
+pub const PRIOR_SHARE: f64 = 1e-3;
 
 /// The lag-1 residual correlation below whose negative an equation-error estimate with residuals that
 /// are not white is warned of as biased by output noise ([`Concern::OutputNoiseBias`]): 0.3, as
@@ -697,6 +716,16 @@ impl std::fmt::Display for Concern {
                  which {method} is biased (its equation error is then A(q)·e, not white; the ± do not \
                  cover the bias): estimate with --method oe or --method iv, which noise at the output \
                  does not bias"
+            ),
+            Concern::PriorWeighs { method, share, p0 } => write!(
+                f,
+                "the {method} estimate is still pulled towards its start: the recursion's covariance \
+                 keeps {:.1} % of its start P(0) = p0·I (p0 = {}) in its weakest direction, so the \
+                 data did not outweigh the start there (regressors small against 1/p0: signals in small \
+                 units such as metres or volts?); pass a larger --p0 or rescale the signals, or use \
+                 --method ls or oe, which have no such start",
+                100.0 * share,
+                sysid_core::format::shortest(*p0)
             ),
             Concern::InputDynamicsLeft {
                 record,

@@ -140,7 +140,7 @@ impl CsvLines {
                 line_no,
                 width,
                 extra,
-                self.table.decimal_comma,
+                !self.table.marks.comma_delimited(),
             ));
         }
         Ok(true)
@@ -169,7 +169,7 @@ impl CsvLines {
             self.rec.len(),
             self.table.headers.len(),
             cname,
-            self.table.decimal_comma,
+            self.table.marks,
             &mut self.marks.borrow_mut(),
             &|| line_no,
             col + 1,

@@ -1,9 +1,15 @@
 //! Input/output data records and the CSV reader.
 //!
 //! A CSV file has a header row; columns are chosen by name. What is accepted (docs/reliability.md):
-//! - delimiter: a comma, or a semicolon or a tab when the header row has no comma but one of those (as
-//!   exported by spreadsheets in many locales); with a semicolon or tab delimiter a decimal comma
-//!   (`0,01`) is read as a decimal point;
+//! - delimiter: a comma, or a semicolon or a tab when the first line has no comma outside its quoted
+//!   names but one of those (as exported by spreadsheets in many locales), or has both and every field
+//!   the semicolon (tab) makes is a number (a header-less first row of decimal commas: [`sniff_delimiter`]);
+//!   with a semicolon or tab delimiter a decimal comma (`0,01`) is read as a decimal point, and so it is
+//!   in the quoted cells of a comma-delimited file that writes them so (`"-1,048"`, pandas'
+//!   `to_csv(decimal=',')`: [`CellMarks::QuotedComma`]);
+//! - spaces do not separate columns: a space may be part of a name (`y [mm]`), so a space-separated
+//!   file is one column, and the missing column's error says why rather than guessing a split that a
+//!   name with a space would break;
 //! - a UTF-8 byte-order mark, CRLF line ends, quoted fields, spaces around fields, blank lines, trailing
 //!   empty fields (as in some benchmark files) and extra columns that are not used;
 //! - any finite f64, however large or small (the estimators then report a numerical failure if the
@@ -13,7 +19,9 @@
 //! A..B (0-based, half-open) before anything else; `--time-unit ms|us` scales the time column to seconds;
 //! `--resample TS` interpolates a non-uniform record onto a uniform grid and says how non-uniform it was.
 //!
-//! Everything else is refused with the file, line and column and what was expected: a cell that is
+//! Everything else is refused with the file, line and column and what was expected: `#` comment lines
+//! before the header (named, not skipped: a file's first line is its header), a units row under the
+//! header (named at its first cell), a cell that is
 //! empty, not a number, NaN or infinite; a value beyond the header's columns; a time column that does
 //! not increase or is not uniform within 0.1 %; a file that is not UTF-8 text.
 

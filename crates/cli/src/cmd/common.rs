@@ -452,11 +452,22 @@ impl ValidationArgs {
                 notes,
             });
         }
-        let val = self.read_from(data, opts)?;
-        let val = val.map(|v| {
-            notes.extend(v.notes);
-            v.data
-        });
+        let val = match self.read_from(data, opts)? {
+            Some(v) => {
+                // A validation record at another Ts than the estimation record's (the model's) is
+                // refused here, with the reader's --time-unit ms hint when its time column looks like
+                // milliseconds, as `validate` refuses it (audit s34 L-8).
+                sysid::metrics::check_sampling_noted(
+                    v.data.name(),
+                    v.data.ts(),
+                    est.data.ts(),
+                    &v.notes,
+                )?;
+                notes.extend(v.notes);
+                Some(v.data)
+            }
+            None => None,
+        };
         Ok(Records {
             est: est.data,
             val,

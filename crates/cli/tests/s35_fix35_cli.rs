@@ -196,3 +196,91 @@ fn quoted_decimal_commas_give_the_plain_records_estimates_in_memory_and_in_passe
         }
     }
 }
+
+/// A one-sided Hammerstein record computed here by a plain loop: a staircase of 10 levels in 0..200
+/// counts (never negative; 25 samples each), a deadzone b_r = 20, m_r = 0.01 and
+/// y(k) = 0.8 y(k−1) + x(k−1), from rest; 2000 samples.
+fn one_sided(dir: &std::path::Path) -> std::path::PathBuf {
+    let levels = [
+        0.0, 150.0, 40.0, 200.0, 10.0, 120.0, 60.0, 180.0, 90.0, 30.0,
+    ];
+    let n = 2000;
+    let u: Vec<f64> = (0..n).map(|k| levels[(k / 25) % levels.len()]).collect();
+    let x = |v: f64| if v >= 20.0 { 0.01 * (v - 20.0) } else { 0.0 };
+    let mut y = vec![0.0; n];
+    for k in 1..n {
+        y[k] = 0.8 * y[k - 1] + x(u[k - 1]);
+    }
+    let path = dir.join("one_sided.csv");
+    write_csv(&path, "t,u,y", Some(0.01), &[&u, &y]);
+    path
+}
+
+// fix34 leftover (a): a record that never drives u < 0 holds the left slope at 0 (not estimated); the
+// warning says that, not "m_l = 0 (that branch does not respond)". (b): validate says it once, not
+// again as the identification's warning the model file repeats.
+#[test]
+fn a_one_sided_record_is_said_to_leave_a_branch_unestimated_once() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = one_sided(dir.path());
+    let model = dir.path().join("m.json");
+    let report = dir.path().join("r.json");
+    let o = bin()
+        .args([
+            "identify",
+            "--data",
+            s(&data),
+            "--structure",
+            "hammerstein",
+            "--na",
+            "1",
+            "--nb",
+            "1",
+            "--nk",
+            "1",
+            "--method",
+            "ls",
+            "--save-model",
+            s(&model),
+            "--json",
+            s(&report),
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let never = "the record never drives the left side of the deadzone (u < 0)";
+    let w = common::warnings(&json(&report));
+    let hits: Vec<&String> = w.iter().filter(|w| w.contains(never)).collect();
+    assert_eq!(hits.len(), 1, "{w:?}");
+    assert!(
+        hits[0].contains("m_l = 0 is held, not measured"),
+        "{}",
+        hits[0]
+    );
+    assert!(!w.iter().any(|w| w.contains("does not respond")), "{w:?}");
+    for stream in ["off", "on"] {
+        let out = dir.path().join(format!("v-{stream}.json"));
+        let o = bin()
+            .args([
+                "validate",
+                "--model",
+                s(&model),
+                "--data",
+                s(&data),
+                "--stream",
+                stream,
+            ])
+            .args(["--json", s(&out)])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{}", stderr(&o));
+        let w = common::warnings(&json(&out));
+        assert_eq!(
+            w.iter().filter(|w| w.contains(never)).count(),
+            1,
+            "{stream}: {w:?}"
+        );
+        let text = format!("{}{}", common::stdout(&o), stderr(&o));
+        assert_eq!(text.matches(never).count(), 1, "{stream}: {text}");
+    }
+}

@@ -41,3 +41,26 @@ def test_a_command_in_volts_or_percent_duty_is_noted_with_its_factor(tmp_path):
     for a in ids:
         if a not in (volts, duty):
             assert "other units" not in note[a], (a, note[a])
+
+
+def test_plant_library_and_rls_failures_name_python_arguments_not_flags():
+    # fix34 leftover (c): IpaError::Config texts (simulate's input / samples) and identify's RLS
+    # failure advice named the command line's --input, --samples, --rls-form, --p0.
+    with pytest.raises(ValueError) as e:
+        ipa_sysid.simulate_plant(plant="paper", input="step:100@20", samples=10)
+    text = str(e.value)
+    assert "input step:100@20: the step comes at sample 20" in text and "more than 20 samples" in text, text
+    assert "--" not in text, text
+    # u = 0 after a short excitation, under forgetting 0.98: the unexcited covariance grows by 1/0.98
+    # per sample and overflows after about ln(1.8e308 / 1e6) / ln(1 / 0.98) = 34 449 samples.
+    n = 40_000
+    u = np.zeros(n)
+    u[:20] = [1.0, -1.0] * 10
+    y = np.zeros(n)
+    for k in range(1, n):
+        y[k] = 0.5 * y[k - 1] + u[k - 1]
+    with pytest.raises((ArithmeticError, ValueError)) as e:
+        ipa_sysid.identify(u, y, 0.01, model="arx", method="rls", na=1, nb=1, nk=1, forgetting=0.98)
+    text = str(e.value)
+    assert "--" not in text, text
+    assert "forgetting" in text, text

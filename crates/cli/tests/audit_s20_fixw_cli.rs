@@ -214,8 +214,15 @@ fn a_model_file_carries_identifys_warnings_and_the_commands_that_load_it_repeat_
             .lines()
             .filter(|l| l.contains(&copy) && l.ends_with(&format!("warned: {w}")))
             .count();
-        let own = err.lines().filter(|l| *l == format!("warning: {w}")).count();
-        assert_eq!(as_copy + own, 1, "{w} said {as_copy} + {own} times in {err}");
+        let own = err
+            .lines()
+            .filter(|l| *l == format!("warning: {w}"))
+            .count();
+        assert_eq!(
+            as_copy + own,
+            1,
+            "{w} said {as_copy} + {own} times in {err}"
+        );
     }
     let out = ipa_sysid(&[
         "control",

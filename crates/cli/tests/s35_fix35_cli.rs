@@ -31,7 +31,7 @@ fn fails(args: &[&str]) -> String {
 }
 
 // L-8: a validation record whose time column counts milliseconds (0, 10, 20, ...) against a 0.01 s
-// estimation record: identify (in memory and in passes) and order name --time-unit ms and the Ts it
+// estimation record: identify (in memory, merged records and in passes) and order name --time-unit ms and the Ts it
 // gives, 10 ms = 0.01 s, as validate does.
 #[test]
 fn a_validation_record_in_milliseconds_gets_the_time_unit_hint_everywhere() {
@@ -54,9 +54,22 @@ fn a_validation_record_in_milliseconds_gets_the_time_unit_hint_everywhere() {
         "--method",
         "ls",
     ];
-    let runs: [Vec<&str>; 3] = [
+    let runs: [Vec<&str>; 4] = [
         [
             &["identify", "--data", s(&base), "--validation", s(&ms)][..],
+            &arx[..],
+        ]
+        .concat(),
+        [
+            &[
+                "identify",
+                "--data",
+                s(&base),
+                s(&base),
+                "--merge",
+                "--validation",
+                s(&ms),
+            ][..],
             &arx[..],
         ]
         .concat(),

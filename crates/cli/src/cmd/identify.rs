@@ -868,7 +868,8 @@ fn read_records(
         notes.extend(r.notes);
         records.push(r.data);
     }
-    Ok((records, args.val.read(&opts)?, notes))
+    let est_ts = records.first().map(Dataset::ts);
+    Ok((records, args.val.read(&opts, est_ts)?, notes))
 }
 
 /// What the report says about the estimation data beside the numbers: the reader's notes (a resampled

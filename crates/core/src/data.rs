@@ -1687,9 +1687,10 @@ pub(crate) fn ragged_row(
 
 /// What a cell's error adds when it is a quoted number with a decimal comma in a comma-delimited file
 /// that a row-by-row reader (`--stream`, `track`) decided, from its first rows, writes decimal points.
-const QUOTED_COMMA_LATE_HINT: &str = "; the file's first rows (from which the reader decides the \
-     decimal mark) write no quoted number with a decimal comma: write every number with the same decimal \
-     mark (or save the file with ';' as the separator)";
+const QUOTED_COMMA_LATE_HINT: &str = "; a quoted number with a decimal comma in a comma-separated file \
+     is read when the rows the reader decides the file's decimal mark from hold one (every row in memory, \
+     the first MiB with --stream, none when read line by line as track reads), and these held none: \
+     read the file in memory, or save it with ';' as the separator";
 
 /// What a comma-delimited file's error adds when its numbers may be written with decimal commas.
 const DECIMAL_COMMA_HINT: &str = "; if the numbers are written with decimal commas (-0,109), the comma \

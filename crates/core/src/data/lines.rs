@@ -1,7 +1,7 @@
 //! A CSV record read one line at a time, as its lines arrive (`track`: standard input, a file being
 //! appended, a serial port), by the rules of the in-memory reader [`super::read_record`]:
 //! - the header line is read by that reader itself (byte-order mark, delimiter — a comma, or a semicolon
-//!   or a tab when the header has no comma —, quoted and trimmed names, no empty or duplicate name, the
+//!   or a tab when the header has no comma outside its quoted names —, quoted and trimmed names, no empty or duplicate name, the
 //!   hints of a missing column);
 //! - each data line is split by the `csv` crate with that delimiter and the same quoting, a value beyond
 //!   the header's columns is refused (ragged row), a line of bare delimiters is blank;

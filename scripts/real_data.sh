@@ -248,7 +248,7 @@ E2=emps/DATA_EMPS_PULSES.csv
 header
 row "ARX + offset, ls, estimated on DATA_EMPS" --data $E1 --validation $E2 --u-col vir --y-col qm --offset --na 2 --nb 2 --nk 1 --structure arx --method ls
 "$bin" identify --data $E1 $E2 --merge --u-col vir --y-col qm --offset --na 2 --nb 2 --nk 1 --structure arx --method ls \
-    --json "$tmp/m.json" >/dev/null 2>&1
+    --json "$tmp/merged.json" >/dev/null 2>&1
 echo
 echo '`ipa-sysid identify --data '"$E1 $E2"' --merge --u-col vir --y-col qm --offset --na 2 --nb 2 --nk 1 --structure arx --method ls`'
 echo
@@ -256,13 +256,13 @@ echo "| record | fit % sim | fit % sim (y0 measured) | fit % 1-step |"
 echo "|---|---|---|---|"
 for i in 0 1; do
     # The merged document: each record's metrics under records[i].metrics, the pooled ones as metrics.estimation.
-    printf '| %s | %s | %s | %s |\n' "$(jq -er ".records[$i].data" "$tmp/m.json")" \
-        "$(pct ".records[$i].metrics.fit_sim_percent" "$tmp/m.json")" \
-        "$(pct ".records[$i].metrics.fit_sim_measured_percent" "$tmp/m.json")" \
-        "$(pct ".records[$i].metrics.fit_pred_percent" "$tmp/m.json" 4)"
+    printf '| %s | %s | %s | %s |\n' "$(jq -er ".records[$i].data" "$tmp/merged.json")" \
+        "$(pct ".records[$i].metrics.fit_sim_percent" "$tmp/merged.json")" \
+        "$(pct ".records[$i].metrics.fit_sim_measured_percent" "$tmp/merged.json")" \
+        "$(pct ".records[$i].metrics.fit_pred_percent" "$tmp/merged.json" 4)"
 done
-printf '| pooled | %s | %s | %s |\n' "$(pct .metrics.estimation.fit_sim_percent "$tmp/m.json")" \
-    "$(pct .metrics.estimation.fit_sim_measured_percent "$tmp/m.json")" "$(pct .metrics.estimation.fit_pred_percent "$tmp/m.json" 4)"
+printf '| pooled | %s | %s | %s |\n' "$(pct .metrics.estimation.fit_sim_percent "$tmp/merged.json")" \
+    "$(pct .metrics.estimation.fit_sim_measured_percent "$tmp/merged.json")" "$(pct .metrics.estimation.fit_pred_percent "$tmp/merged.json" 4)"
 
 echo
 echo "## Pneumatic cylinder friction record, read as logged"

@@ -762,8 +762,11 @@ def trends(results, alpha=ALPHA):
     actuator's error rows; ``notes`` (empty when there is nothing to say) gives, joined by "; ", why an
     actuator is not tested or not identified, its windows not identified (how many, the first's span
     and error), a time column whose step contradicts ts (its t_start and trends per hour are then in the
-    column's units: 1000x for t in ms; audit s26 M-2), and a mean width or slope more than 100x off the
-    fleet's median (u or y in other units; at least 5 actuators). ``summary`` says the same in words. Refused (``ValueError``): ``results`` with a duplicated
+    column's units: 1000x for t in ms; audit s26 M-2), a command in other units (mean width and slope moved
+    by one factor c >= 1.6 or <= 1/2.5 against the fleet's medians, their product within 1.5: volts or
+    % duty for counts),
+    and a mean width or slope more than 100x off the fleet's median (u or y in other units; at least 5
+    actuators; docs/fleet.md). ``summary`` says the same in words. Refused (``ValueError``): ``results`` with a duplicated
     ``(actuator_id, window)`` row (as ``run`` refuses them: each copy would count as one more window of
     evidence), and ``alpha`` not a number in (0, 1).
     """
@@ -900,19 +903,49 @@ def _untested_note(n):
     return "not tested: its windows do not spread in time or in the trends"
 
 
+# A command logged in other units than the fleet's (volts for counts: u / 51; % duty for counts: u / 2.55)
+# moves an actuator's deadzone width by 1/c and its slope by c for the same factor c (51, 2.55), their
+# product not at all. Wear widens the deadzone and lowers the slope, a c below 1 (about 0.7 with the
+# simulator's default wear, the product 1.1-1.2): a c of UNIT_FACTOR_UP or more is never wear (a command
+# in smaller units: volts, %), one of 1 / UNIT_FACTOR_DOWN or less is noted with a wider margin; in both
+# the product within PRODUCT_TOLERANCE of 1.
+UNIT_FACTOR_UP = 1.6
+UNIT_FACTOR_DOWN = 2.5
+PRODUCT_TOLERANCE = 1.5
+
+
 def _scale_notes(out, factor=100.0):
-    """Adds a note to the actuators whose mean deadzone width or mean slope is more than ``factor``
-    times off the fleet's median (at least 5 actuators with a value): another unit for u or y (y in
-    metres where the fleet logs millimetres) makes its figures incomparable, though the trend test
-    itself is scale-free."""
-    for col, what in (("width_mean", "deadzone width"), ("slope_mean", "slope")):
-        v = out[col].to_numpy(dtype=np.float64)
+    """Adds a note to the actuators whose figures are in other units than the fleet's (at least 5
+    actuators with a value; docs/fleet.md). A command in other units (volts, % duty for counts) divides
+    the mean deadzone width by a factor c and multiplies the mean slope by the same c: noted when,
+    against the fleet's medians, c = sqrt(slope ratio / width ratio) is at least ``UNIT_FACTOR_UP`` (a
+    command in smaller units; wear moves c below 1, never above) or at most 1 / ``UNIT_FACTOR_DOWN``, and
+    the product of the two ratios within ``PRODUCT_TOLERANCE`` of 1. Else a mean width or slope more
+    than ``factor`` times off the median (y in metres where the fleet logs millimetres moves the slope
+    alone). The trend test itself is scale-free: its verdict stands, the figures are not comparable."""
+    vals = {col: out[col].to_numpy(dtype=np.float64) for col in ("width_mean", "slope_mean")}
+    meds = {}
+    for col, v in vals.items():
         a = np.abs(v[np.isfinite(v) & (v != 0)])
-        if len(a) < 5:
-            continue
-        med = float(np.median(a))
-        for i, x in enumerate(v):
-            if np.isfinite(x) and x != 0 and not (med / factor <= abs(x) <= med * factor):
+        meds[col] = float(np.median(a)) if len(a) >= 5 else None
+    usable = lambda x: np.isfinite(x) and x != 0  # noqa: E731
+    for i in range(len(out)):
+        w, m = vals["width_mean"][i], vals["slope_mean"][i]
+        W, M = meds["width_mean"], meds["slope_mean"]
+        if W is not None and M is not None and usable(w) and usable(m):
+            rw, rm = abs(w) / W, abs(m) / M
+            c = math.sqrt(rm / rw)
+            moved = c >= UNIT_FACTOR_UP or c <= 1 / UNIT_FACTOR_DOWN
+            if moved and 1 / PRODUCT_TOLERANCE <= rw * rm <= PRODUCT_TOLERANCE:
+                out.at[i, "notes"] = out.at[i, "notes"] + [
+                    f"mean deadzone width {w:.4g} and mean slope {m:.4g} against the fleet's medians "
+                    f"{W:.4g} and {M:.4g} ({rw:.3g}x and {rm:.3g}x: one factor, the command scaled by "
+                    f"{1 / c:.3g} against the fleet's): u in other units?"
+                ]
+                continue
+        for col, what in (("width_mean", "deadzone width"), ("slope_mean", "slope")):
+            x, med = vals[col][i], meds[col]
+            if med is not None and usable(x) and not (med / factor <= abs(x) <= med * factor):
                 out.at[i, "notes"] = out.at[i, "notes"] + [
                     f"mean {what} {x:.4g} against the fleet's median {med:.4g} ({abs(x) / med:.3g}x): "
                     "u or y in other units?"

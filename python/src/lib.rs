@@ -43,10 +43,59 @@ fn keyword(flag: &str) -> String {
         .join("/")
 }
 
+/// The flags whose Python argument is the flag's [`keyword`] (`--rls-form` is `rls_form`): named in free
+/// text (an `IpaError::Config`, an RLS failure's advice) by the command line's words, said here by the
+/// Python argument's (fix34 leftover: `--input`, `--samples`, `--ts`, `--rls-form`, `--p0` reached
+/// Python users).
+const PYTHON_ARGUMENTS: [&str; 19] = [
+    "--input",
+    "--samples",
+    "--ts",
+    "--amplitude",
+    "--plant",
+    "--plant-config",
+    "--seed",
+    "--rls-form",
+    "--p0",
+    "--forgetting",
+    "--windup",
+    "--max-trace",
+    "--method",
+    "--na",
+    "--nb",
+    "--nk",
+    "--passes",
+    "--max-iterations",
+    "--iv-stages",
+];
+
+/// `msg` with each flag of [`PYTHON_ARGUMENTS`] (a whole flag: `--plant` is not the start of
+/// `--plant-config`) replaced by its Python argument ([`keyword`]); other text as it is.
+fn python_words(msg: &str) -> String {
+    let mut out = String::with_capacity(msg.len());
+    let mut rest = msg;
+    while let Some(at) = rest.find("--") {
+        out.push_str(&rest[..at]);
+        let tail = &rest[at..];
+        let len = 2 + tail[2..]
+            .find(|c: char| !(c.is_ascii_alphanumeric() || c == '-'))
+            .unwrap_or(tail.len() - 2);
+        let flag = &tail[..len];
+        if PYTHON_ARGUMENTS.contains(&flag) {
+            out.push_str(&keyword(flag));
+        } else {
+            out.push_str(flag);
+        }
+        rest = &tail[len..];
+    }
+    out.push_str(rest);
+    out
+}
+
 /// A library error as the Python exception of its kind, with the command line's message naming the
 /// Python keyword where the command line names its flag.
 fn sysid_err(e: SysidError) -> PyErr {
-    let msg = e.render(&|s| keyword(s.flag()));
+    let msg = python_words(&e.render(&|s| keyword(s.flag())));
     match e {
         SysidError::Numerical(_) => PyArithmeticError::new_err(msg),
         SysidError::Io { .. } => PyOSError::new_err(msg),
@@ -63,7 +112,7 @@ fn ipa_err(e: ipa::IpaError) -> PyErr {
         ipa::IpaError::Sysid(s) => sysid_err(s),
         ipa::IpaError::Numerical(_) => PyArithmeticError::new_err(e.to_string()),
         ipa::IpaError::Config(_) | ipa::IpaError::Setting { .. } => {
-            PyValueError::new_err(e.render(&|s| keyword(s.flag())))
+            PyValueError::new_err(python_words(&e.render(&|s| keyword(s.flag()))))
         }
     }
 }
@@ -802,11 +851,12 @@ impl PyModel {
         .map_err(sysid_err)?;
         // The model file's own doubts first (said by `load_model` already), then validate's; all in the
         // dict's "warnings" (audit s13 M4), each of this result's own an IpaSysidWarning.
-        let warnings: Vec<String> = sysid::model_file::load_warnings(&self.inner)
-            .into_iter()
-            .map(|w| format!("model: {w}"))
-            .chain(report.warnings.iter().cloned())
-            .collect();
+        let warnings: Vec<String> =
+            sysid::model_file::load_warnings_besides(&self.inner, &report.warnings)
+                .into_iter()
+                .map(|w| format!("model: {w}"))
+                .chain(report.warnings.iter().cloned())
+                .collect();
         warn_all(py, &result_warnings(&self.inner, &warnings))?;
         let out = to_py(py, &report.metrics.validation)?;
         out.set_item("warnings", warnings)?;

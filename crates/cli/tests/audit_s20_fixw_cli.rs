@@ -206,7 +206,24 @@ fn a_model_file_carries_identifys_warnings_and_the_commands_that_load_it_repeat_
     let err = stderr(&out) + &String::from_utf8_lossy(&out.stdout);
     assert!(out.status.success(), "{err}");
     assert!(err.contains("--u-col cmd --y-col pos"), "{err}");
-    repeated(&err);
+    // validate says each once (session 35): as the identification's, or in its own same words (the
+    // integrator's pole, which it finds itself), never both.
+    for w in &said {
+        let copy = format!("this model's identification on {} (free-run fit ", s(&data));
+        let as_copy = err
+            .lines()
+            .filter(|l| l.contains(&copy) && l.ends_with(&format!("warned: {w}")))
+            .count();
+        let own = err
+            .lines()
+            .filter(|l| *l == format!("warning: {w}"))
+            .count();
+        assert_eq!(
+            as_copy + own,
+            1,
+            "{w} said {as_copy} + {own} times in {err}"
+        );
+    }
     let out = ipa_sysid(&[
         "control",
         "--plant",

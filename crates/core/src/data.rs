@@ -1,9 +1,15 @@
 //! Input/output data records and the CSV reader.
 //!
 //! A CSV file has a header row; columns are chosen by name. What is accepted (docs/reliability.md):
-//! - delimiter: a comma, or a semicolon or a tab when the header row has no comma but one of those (as
-//!   exported by spreadsheets in many locales); with a semicolon or tab delimiter a decimal comma
-//!   (`0,01`) is read as a decimal point;
+//! - delimiter: a comma, or a semicolon or a tab when the first line has no comma outside its quoted
+//!   names but one of those (as exported by spreadsheets in many locales), or has both and every field
+//!   the semicolon (tab) makes is a number (a header-less first row of decimal commas: [`sniff_delimiter`]);
+//!   with a semicolon or tab delimiter a decimal comma (`0,01`) is read as a decimal point, and so it is
+//!   in the quoted cells of a comma-delimited file that writes them so (`"-1,048"`, pandas'
+//!   `to_csv(decimal=',')`: [`CellMarks::QuotedComma`]);
+//! - spaces do not separate columns: a space may be part of a name (`y [mm]`), so a space-separated
+//!   file is one column, and the missing column's error says why rather than guessing a split that a
+//!   name with a space would break;
 //! - a UTF-8 byte-order mark, CRLF line ends, quoted fields, spaces around fields, blank lines, trailing
 //!   empty fields (as in some benchmark files) and extra columns that are not used;
 //! - any finite f64, however large or small (the estimators then report a numerical failure if the
@@ -13,7 +19,9 @@
 //! A..B (0-based, half-open) before anything else; `--time-unit ms|us` scales the time column to seconds;
 //! `--resample TS` interpolates a non-uniform record onto a uniform grid and says how non-uniform it was.
 //!
-//! Everything else is refused with the file, line and column and what was expected: a cell that is
+//! Everything else is refused with the file, line and column and what was expected: `#` comment lines
+//! before the header (named, not skipped: a file's first line is its header), a units row under the
+//! header (named at its first cell), a cell that is
 //! empty, not a number, NaN or infinite; a value beyond the header's columns; a time column that does
 //! not increase or is not uniform within 0.1 %; a file that is not UTF-8 text.
 
@@ -1187,8 +1195,11 @@ pub struct Table {
     /// Column names, trimmed and unquoted.
     pub headers: Vec<String>,
     rows: rows::Rows,
-    /// Read `1,5` as 1.5 (semicolon- or tab-delimited files).
-    decimal_comma: bool,
+    /// What a comma inside a cell is ([`CellMarks`]).
+    marks: CellMarks,
+    /// The line of the first data row (0 when there is none): a row of text there, under a header,
+    /// is named as a units row.
+    first_line: usize,
     /// False when read without a header row: `headers` are then the positions "1", "2", ...
     has_header: bool,
 }
@@ -1282,6 +1293,9 @@ fn table_of(
             column,
             message: "NUL byte: the file is binary, not CSV text".into(),
         });
+    }
+    if let Some(e) = comment_lines(text, name, has_header) {
+        return Err(e);
     }
     // Rows are counted and their lengths bounded before they are parsed: a parsed row costs far more
     // memory than its text, so a file of many short rows (or one endless line) would otherwise exhaust
@@ -1405,8 +1419,6 @@ fn table_of(
             name, fault, place, &headers, has_header, false, after_line,
         ));
     }
-    // A decimal comma is read only where the comma does not separate the columns.
-    let decimal_comma = delimiter != b',';
     // What the rows will hold, against the budget before it is allocated (audit s27 M-1: a 74 MB file
     // took 650 MB before the estimation's budget refused it, and a failed allocation aborted).
     let width = headers.len();
@@ -1453,7 +1465,13 @@ fn table_of(
             continue; // a blank line or a row of bare delimiters
         }
         if let Some(extra) = rec.iter().skip(headers.len()).position(|f| !f.is_empty()) {
-            return Err(ragged_row(name, line, headers.len(), extra, decimal_comma));
+            return Err(ragged_row(
+                name,
+                line,
+                headers.len(),
+                extra,
+                delimiter != b',',
+            ));
         }
         if rows.len() >= MAX_SAMPLES {
             return Err(file_err(format!(
@@ -1465,7 +1483,17 @@ fn table_of(
     if rows.is_empty() && need_rows {
         return Err(file_err("the file has a header but no data rows".into()));
     }
-    if decimal_comma {
+    // A decimal comma is read where the comma does not separate the columns, or inside the quoted
+    // cells of a comma-delimited file that writes them so (a cell of such a file holds a comma only
+    // when it was quoted).
+    let marks = if delimiter != b',' {
+        CellMarks::Comma
+    } else if text.contains('"') {
+        quoted_commas(&rows, name)?
+    } else {
+        CellMarks::Point
+    };
+    if marks.decimal_comma() {
         // One mark per file (audit s21 M-B5), over every cell that reads as a number, before any
         // column is used: the in-memory reader parses column by column.
         let mut marks = DecimalMarks::default();
@@ -1487,23 +1515,152 @@ fn table_of(
     Ok(Table {
         name: name.to_string(),
         headers,
+        first_line: rows.get(0).map_or(0, |(line, _)| line),
         rows,
-        decimal_comma,
+        marks,
         has_header,
     })
 }
 
-/// The delimiter of CSV text, from its first non-blank line: a comma, or a semicolon or a tab when that
-/// line has no comma but one of those.
+/// The delimiter of CSV text, from its first non-blank line, outside its quoted names (`t;u;"y, mm"`
+/// is a semicolon file: audit s34 L-4): a semicolon (or else a tab) when the line has one and either no
+/// comma, or every field it separates is a number (a header-less first row of decimal commas,
+/// `0;-1,048;2,5`); a comma otherwise.
 pub(crate) fn sniff_delimiter(text: &str) -> u8 {
     let first = text.lines().find(|l| !l.trim().is_empty()).unwrap_or("");
-    if !first.contains(',') && first.contains(';') {
-        b';'
-    } else if !first.contains(',') && first.contains('\t') {
-        b'\t'
-    } else {
-        b','
+    // The line without its quoted parts (a quote opens and closes a quoted field or name).
+    let mut outside = String::with_capacity(first.len());
+    let mut quoted = false;
+    for ch in first.chars() {
+        if ch == '"' {
+            quoted = !quoted;
+        } else if !quoted {
+            outside.push(ch);
+        }
     }
+    let comma = outside.contains(',');
+    for d in [';', '\t'] {
+        if outside.contains(d)
+            && (!comma
+                || first.split(d).all(|f| {
+                    let f = unquote(f.trim());
+                    f.is_empty() || parse_number(f, true).is_some()
+                }))
+        {
+            return d as u8;
+        }
+    }
+    b','
+}
+
+/// The refusal of comment lines (`# logger v1.2`) before the header row (or, read without one, the
+/// first data row) of CSV text: they are not read, and taken as the header they would name the wrong
+/// columns (audit s34 L-4). `None` when the first non-blank line does not start with `#`.
+fn comment_lines(text: &str, name: &str, has_header: bool) -> Option<SysidError> {
+    let mut lines = text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty());
+    let (first, line) = lines.next()?;
+    if !line.trim_start().starts_with('#') {
+        return None;
+    }
+    let count = 1 + lines
+        .take_while(|(_, l)| l.trim_start().starts_with('#'))
+        .count();
+    let what = if has_header {
+        "the header row"
+    } else {
+        "the first data row"
+    };
+    Some(SysidError::Parse {
+        file: name.to_string(),
+        line: first + 1,
+        column: 1,
+        message: format!(
+            "'{}' is a comment line (it starts with '#'), which is not read; expected {what} here: \
+             remove the {count} comment line(s) before it",
+            shorten(line.trim())
+        ),
+    })
+}
+
+/// What a comma inside a cell of a CSV file is: decided once per file, from its delimiter and (in a
+/// comma-delimited file) its quoted cells, by the one rule of the three CSV readers.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum CellMarks {
+    /// A comma-delimited file none of whose cells is a number with a comma: numbers are written with a
+    /// decimal point.
+    Point,
+    /// A comma-delimited file whose quoted cells write numbers with a decimal comma (`"-1,048"`, what
+    /// `pandas.to_csv(decimal=',')` writes with its default `sep=','`): the quotes separate the fields,
+    /// so a comma inside a cell (which it can hold only quoted) is a decimal mark.
+    QuotedComma,
+    /// A semicolon- or tab-delimited file: a comma in a cell is a decimal mark.
+    Comma,
+}
+
+impl CellMarks {
+    /// True when `1,5` in a cell is read as 1.5.
+    pub(crate) fn decimal_comma(self) -> bool {
+        self != CellMarks::Point
+    }
+
+    /// True when the comma separates the fields.
+    pub(crate) fn comma_delimited(self) -> bool {
+        self != CellMarks::Comma
+    }
+}
+
+/// The marks of a comma-delimited file with quotes ([`CellMarks::Point`] or
+/// [`CellMarks::QuotedComma`]), from its data rows: a quoted number with one comma is read with a
+/// decimal comma when some such number of the file cannot be an integer with a thousands separator
+/// (`"-1,5"`, `"0,125"`, `"12,25"`); when every one could (`"1,500"`: 1.5 or 1500?) the file is
+/// refused at the first, never read either way.
+fn quoted_commas(rows: &rows::Rows, name: &str) -> Result<CellMarks, SysidError> {
+    let mut first = None;
+    for (line, rec) in rows.iter() {
+        for (col, cell) in rec.iter().enumerate() {
+            if !cell.contains(',') || parse_number(cell, true).is_none() {
+                continue;
+            }
+            if !thousands_shaped(unquote(cell)) {
+                return Ok(CellMarks::QuotedComma);
+            }
+            first.get_or_insert((line, col + 1, unquote(cell).to_string()));
+        }
+    }
+    match first {
+        None => Ok(CellMarks::Point),
+        Some((line, column, cell)) => Err(SysidError::Parse {
+            file: name.to_string(),
+            line,
+            column,
+            message: format!(
+                "'{}' is a quoted number with a comma, which may be {} (a decimal comma) or {} (a \
+                 thousands separator), and no number of the file tells which; expected numbers \
+                 written without thousands separators (or the file saved with ';' as the separator)",
+                shorten(&cell),
+                cell.replace(',', "."),
+                cell.replace(',', "")
+            ),
+        }),
+    }
+}
+
+/// True for a number that may be an integer written with a thousands separator: an optional sign, 1 to
+/// 3 digits the first not 0, a comma and 3 digits (`1,500`, `-12,048`).
+fn thousands_shaped(cell: &str) -> bool {
+    let digits = cell.strip_prefix(['-', '+']).unwrap_or(cell);
+    let Some((int, frac)) = digits.split_once(',') else {
+        return false;
+    };
+    let all_digits = |s: &str| s.bytes().all(|b| b.is_ascii_digit());
+    (1..=3).contains(&int.len())
+        && !int.starts_with('0')
+        && all_digits(int)
+        && frac.len() == 3
+        && all_digits(frac)
 }
 
 /// The error of a row with a value `extra` fields beyond the header's `width` columns; in a
@@ -1527,6 +1684,13 @@ pub(crate) fn ragged_row(
         ),
     }
 }
+
+/// What a cell's error adds when it is a quoted number with a decimal comma in a comma-delimited file
+/// that a row-by-row reader (`--stream`, `track`) decided, from its first rows, writes decimal points.
+const QUOTED_COMMA_LATE_HINT: &str = "; a quoted number with a decimal comma in a comma-separated file \
+     is read when the rows the reader decides the file's decimal mark from hold one (every row in memory, \
+     the first MiB with --stream, none when read line by line as track reads), and these held none: \
+     read the file in memory, or save it with ';' as the separator";
 
 /// What a comma-delimited file's error adds when its numbers may be written with decimal commas.
 const DECIMAL_COMMA_HINT: &str = "; if the numbers are written with decimal commas (-0,109), the comma \
@@ -1672,8 +1836,13 @@ impl Table {
         if let Some(i) = self.headers.iter().position(|h| h == col) {
             return Ok(i);
         }
+        let spaced = self.headers.iter().find(|h| {
+            h.split_whitespace().nth(1).is_some() && h.split_whitespace().any(|w| w == col)
+        });
         let hint = if !self.has_header {
             Some(ColumnHint::ByPosition(self.headers.len()))
+        } else if let Some(h) = spaced {
+            Some(ColumnHint::Spaces(h.clone()))
         } else if self.headers.iter().all(|h| parse_number(h, true).is_some()) {
             Some(ColumnHint::NoHeader)
         } else {
@@ -1704,11 +1873,23 @@ impl Table {
                     rec.len(),
                     self.headers.len(),
                     cname,
-                    self.decimal_comma,
+                    self.marks,
                 )
                 .map_err(|mut message| {
                     if row == 0 && !self.has_header && looks_like_header(rec.iter()) {
                         message.push_str(NO_HEADER_ON_HEADER_HINT);
+                    }
+                    let first = self.has_header && line == self.first_line;
+                    if let Some((column, units)) = first
+                        .then(|| units_row(&rec.iter().collect::<Vec<_>>()))
+                        .flatten()
+                    {
+                        return SysidError::Parse {
+                            file: self.name.clone(),
+                            line,
+                            column,
+                            message: units,
+                        };
                     }
                     SysidError::Parse {
                         file: self.name.clone(),
@@ -1740,6 +1921,34 @@ pub(crate) const NO_HEADER_ON_HEADER_HINT: &str =
     "; this first row looks like a header (none of its \
      cells is a number), which --no-header reads as data: leave out --no-header";
 
+/// The first data row under a header, when it [`looks_like_header`] (`s,PWM,mm`, as many loggers write
+/// under `t,u,y`): the column (1-based) of its first cell that is not empty, and the error's words
+/// (audit s34 L-4: the error named the first cell of the column being read, `PWM` at 2:2, not the
+/// row). `None` for a row that holds a number.
+pub(crate) fn units_row(cells: &[&str]) -> Option<(usize, String)> {
+    if !looks_like_header(cells.iter().copied()) {
+        return None;
+    }
+    let shown: Vec<String> = cells
+        .iter()
+        .take(10)
+        .map(|c| shorten(unquote(c.trim())))
+        .collect();
+    let column = cells
+        .iter()
+        .map(|c| unquote(c.trim()))
+        .position(|c| !c.is_empty())?
+        + 1;
+    Some((
+        column,
+        format!(
+            "this row under the header looks like a units row ({}): none of its cells is a number; \
+             expected data rows only: remove it, or read the data rows after it (--rows 1..)",
+            shown.join(", ")
+        ),
+    ))
+}
+
 /// True when a row's cells, at least one not empty, are all text and none a number (either decimal
 /// mark): a header row.
 pub(crate) fn looks_like_header<'a>(cells: impl Iterator<Item = &'a str>) -> bool {
@@ -1764,7 +1973,7 @@ pub(crate) fn cell_value(
     fields: usize,
     headers: usize,
     cname: &str,
-    decimal_comma: bool,
+    marks: CellMarks,
 ) -> Result<f64, String> {
     // Shortened only for an error: this runs once per cell of every pass (an allocation per cell
     // was a fifth of `identify --stream`'s time, session 25).
@@ -1781,9 +1990,14 @@ pub(crate) fn cell_value(
             name()
         ));
     }
-    let v = parse_number(cell, decimal_comma).ok_or_else(|| {
-        let hint = if !decimal_comma && parse_number(cell, true).is_some() {
-            DECIMAL_COMMA_HINT
+    let v = parse_number(cell, marks.decimal_comma()).ok_or_else(|| {
+        let hint = if !marks.decimal_comma() && parse_number(cell, true).is_some() {
+            if unquote(cell).contains(',') {
+                // Quoted in a comma-delimited file whose first rows (read to decide) wrote no comma.
+                QUOTED_COMMA_LATE_HINT
+            } else {
+                DECIMAL_COMMA_HINT
+            }
         } else if looks_like_date_time(unquote(cell)) {
             "; dates and times are not read as time: give the sampling period instead (--ts SECONDS; \
              Python ts=), with which the time column is not read, or a numeric time column (--t-col, \
@@ -1805,7 +2019,7 @@ pub(crate) fn cell_value(
             name()
         ));
     }
-    if !decimal_comma && leading_zero(unquote(cell)) {
+    if marks.comma_delimited() && leading_zero(unquote(cell)) {
         return Err(format!(
             "'{}' in column '{}' is an integer written with a leading zero, which a measured value \
              almost never is (the digits after a decimal comma look so: -1,048 split at the comma); \
@@ -1894,13 +2108,13 @@ pub(crate) fn marked_cell_value(
     fields: usize,
     headers: usize,
     cname: &str,
-    decimal_comma: bool,
+    cell_marks: CellMarks,
     marks: &mut DecimalMarks,
     line: &dyn Fn() -> usize,
     column: usize,
 ) -> Result<f64, String> {
-    let v = cell_value(cell, fields, headers, cname, decimal_comma)?;
-    if let (true, Some(cell)) = (decimal_comma, cell) {
+    let v = cell_value(cell, fields, headers, cname, cell_marks)?;
+    if let (true, Some(cell)) = (cell_marks.decimal_comma(), cell) {
         marks.note(cell, line, column)?;
     }
     Ok(v)
@@ -2531,6 +2745,126 @@ mod tests {
         assert_eq!(t.numbers(0).unwrap(), vec![0.0, -1.0, 0.0]);
         let t = crate::data::read_table(b"u;y\n-1,048;0,5\n", "semi.csv").unwrap();
         assert_eq!(t.numbers(0).unwrap(), vec![-1.048]);
+    }
+
+    // Audit s34 L-4 (a): pandas.to_csv(decimal=',') with its default sep=',' quotes every number
+    // that holds a comma; the quotes separate the fields (RFC 4180), so "-1,048" is -1.048 and "0,5"
+    // is 0.5 (written here by hand), in memory as in the table a stream checks.
+    #[test]
+    fn quoted_decimal_commas_in_a_comma_separated_file_are_read_as_written() {
+        let text = b"\"t\",\"u\",\"y\"\n\"0,0\",\"-1,048\",\"2\"\n\"0,01\",\"0,5\",\"-3,25\"\n";
+        let t = crate::data::read_table(text, "q.csv").unwrap();
+        assert_eq!(t.numbers(0).unwrap(), vec![0.0, 0.01]);
+        assert_eq!(t.numbers(1).unwrap(), vec![-1.048, 0.5]);
+        assert_eq!(t.numbers(2).unwrap(), vec![2.0, -3.25]);
+        // A point beside quoted decimal commas is ambiguous (1.500 = 1500 in such a locale): refused.
+        let e = crate::data::read_table(b"t,u\n0,\"1,5\"\n1,2.5\n", "mixed.csv")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("mixed.csv:3:2: '2.5' is written with a point"),
+            "{e}"
+        );
+    }
+
+    // "1,500" alone may be 1.5 or 1500: with no quoted number of the file that cannot be an integer
+    // with a thousands separator, the file is refused at the first; one "0,5" (no thousands group
+    // starts with 0) makes every comma a decimal comma, so "1,500" is 1.5.
+    #[test]
+    fn a_quoted_comma_that_may_be_a_thousands_separator_is_refused_unless_the_file_tells() {
+        let e = crate::data::read_table(b"t,u\n0,\"1,500\"\n1,\"-2,048\"\n", "k.csv")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("k.csv:2:2: '1,500' is a quoted number with a comma, which may be 1.500"),
+            "{e}"
+        );
+        assert!(e.contains("or 1500 (a thousands separator)"), "{e}");
+        let t = crate::data::read_table(b"t,u\n0,\"1,500\"\n1,\"0,5\"\n", "d.csv").unwrap();
+        assert_eq!(t.numbers(1).unwrap(), vec![1.5, 0.5]);
+    }
+
+    // L-4 (b): comment lines before the header are named, with their count, at the first.
+    #[test]
+    fn comment_lines_before_the_header_are_refused_at_the_first() {
+        let e = crate::data::read_table(b"\n# logger v1.2\n# run 7\nt,u,y\n0,1,2\n", "c.csv")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("c.csv:2:1: '# logger v1.2' is a comment line (it starts with '#')"),
+            "{e}"
+        );
+        assert!(e.contains("remove the 2 comment line(s)"), "{e}");
+    }
+
+    // L-4 (c): a space-separated header is one name; the missing column's error says why.
+    #[test]
+    fn a_space_separated_header_is_said_to_be_one_name() {
+        let opts = super::CsvOptions::default();
+        let e = super::read_record_bytes(b"t u y\n0 1 2\n0.01 1 2\n", "sp.csv", &opts)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("spaces do not separate columns"), "{e}");
+        assert!(e.contains("'t u y'"), "{e}");
+    }
+
+    // L-4 (d), (e): the separator is chosen outside quoted names and, on a header-less first row of
+    // decimal commas, by the fields it makes being numbers.
+    #[test]
+    fn the_separator_is_chosen_outside_quotes_and_on_a_headerless_row_of_decimal_commas() {
+        let t = crate::data::read_table(b"t;u;\"y, mm\"\n0;1,5;-2,25\n", "h.csv").unwrap();
+        assert_eq!(t.headers, vec!["t", "u", "y, mm"]);
+        assert_eq!(t.numbers(1).unwrap(), vec![1.5]);
+        assert_eq!(t.numbers(2).unwrap(), vec![-2.25]);
+        let t =
+            crate::data::read_table_with(b"0;-1,048;2,5\n0,01;0,5;3\n", "n.csv", false).unwrap();
+        assert_eq!(t.headers, vec!["1", "2", "3"]);
+        assert_eq!(t.numbers(1).unwrap(), vec![-1.048, 0.5]);
+        let t = crate::data::read_table_with(b"0\t-1,048\t2,5\n", "tab.csv", false).unwrap();
+        assert_eq!(t.numbers(2).unwrap(), vec![2.5]);
+        assert_eq!(super::sniff_delimiter("t,u;PWM,y\n"), b',');
+    }
+
+    // L-4 (f): a units row under the header is named as such at its first cell (2:1), whichever
+    // column is read first.
+    #[test]
+    fn a_units_row_under_the_header_is_named_at_its_first_cell() {
+        let t = crate::data::read_table(b"t,u,y\ns,PWM,mm\n0,1,2\n", "units.csv").unwrap();
+        let e = t.numbers(1).unwrap_err().to_string();
+        assert!(
+            e.starts_with(
+                "units.csv:2:1: this row under the header looks like a units row (s, PWM, mm)"
+            ),
+            "{e}"
+        );
+        assert!(e.contains("--rows 1.."), "{e}");
+    }
+
+    // One and a half written with a decimal comma, in every layout of L-4 where it is one number, is
+    // read as 1.5 or refused: never as 1, 5 or 15.
+    #[test]
+    fn one_comma_five_is_never_read_as_one_five_or_fifteen() {
+        let layouts: [(&[u8], bool, usize); 8] = [
+            (b"t,u\n0,\"1,5\"\n1,\"2,25\"\n", true, 1),
+            (b"\"t\",\"u\"\n\"0\",\"1,5\"\n", true, 1),
+            (b"t;u\n0;1,5\n", true, 1),
+            (b"t\tu\n0\t1,5\n", true, 1),
+            (b"t;\"u, PWM\"\n0;1,5\n", true, 1),
+            (b"0;1,5\n1;2,5\n", false, 1),
+            (b"u\n1,5\n", true, 0),
+            (b"u\n\"1,500\"\n", true, 0),
+        ];
+        for (text, header, col) in layouts {
+            let read =
+                crate::data::read_table_with(text, "x.csv", header).and_then(|t| t.numbers(col));
+            if let Ok(v) = &read {
+                assert!(
+                    (v[0] - 1.5).abs() < 1e-12,
+                    "{}: {v:?}",
+                    String::from_utf8_lossy(text)
+                );
+            }
+        }
     }
 
     #[test]

@@ -117,6 +117,10 @@ pub enum ColumnHint {
     ByPosition(usize),
     /// A header name equal to the requested one but for case.
     Case(String),
+    /// A header name that holds the requested one among words separated by spaces (`t u y`): the file
+    /// separates its columns by spaces, which the reader does not (a space is part of a name, as in
+    /// `y [mm]`).
+    Spaces(String),
 }
 
 /// Where the name of a column that a file lacks came from, so that its message says who chose it
@@ -336,6 +340,12 @@ impl SysidError {
                     Some(ColumnHint::Case(h)) => {
                         format!(" (names are case-sensitive: did you mean {flag} {h}?)")
                     }
+                    Some(ColumnHint::Spaces(h)) => format!(
+                        " (the header's name '{}' holds spaces: spaces do not separate columns, they \
+                         may be part of a name such as 'y [mm]'; separate the columns with commas, ';' \
+                         or tabs)",
+                        crate::data::shorten(h)
+                    ),
                 };
                 // A damaged header can hold huge or countless names: echo a bounded part of it.
                 const SHOWN: usize = 50;

@@ -92,6 +92,23 @@ pub fn load_warnings(model: &Model) -> Vec<String> {
     w
 }
 
+/// [`load_warnings`] without the identification's warnings that `said` (the warnings a report of the same
+/// model makes itself, such as `validate`'s deadzone warning) already holds word for word: each said
+/// once (fix34 leftover: `validate` printed the deadzone warning and the identification's copy of it).
+pub fn load_warnings_besides(model: &Model, said: &[String]) -> Vec<String> {
+    let mut w = shape_warnings(model);
+    if let Some(p) = model.provenance() {
+        w.extend(
+            provenance_warnings(Some(p))
+                .into_iter()
+                .zip(&p.warnings)
+                .filter(|(_, own)| !said.contains(own))
+                .map(|(words, _)| words),
+        );
+    }
+    w
+}
+
 /// The warnings `identify` gave when it wrote the model file ([`crate::model::Provenance`]), each
 /// prefixed by the record and the model's free-run fit on it, the file's strings made printable
 /// ([`visible`]) — the words `tune --plant-config` uses for

@@ -145,6 +145,9 @@ pub enum Warning {
         m_r: f64,
         /// The operating point's u0 added to the model's breakpoints (a detrended model), if not 0.
         u0: Option<f64>,
+        /// The branch whose side of u = 0 the estimation record never drove (a one-sided input): its
+        /// slope is held at 0, not estimated (fix34 leftover: it was called "does not respond").
+        not_driven: Option<Branch>,
     },
     /// A check of an input nonlinearity other than the deadzone failed: a shape that is not physical
     /// (crossed limits, a non-monotone map), a segment without data.
@@ -327,6 +330,7 @@ impl std::fmt::Display for Warning {
                 m_l,
                 m_r,
                 u0,
+                not_driven,
             } => {
                 let v = |x: f64| sysid_core::format::sig(x, 6);
                 let mut what = Vec::new();
@@ -346,7 +350,10 @@ impl std::fmt::Display for Warning {
                         v(*b_r)
                     ));
                 }
-                for (name, m) in [("m_l", m_l), ("m_r", m_r)] {
+                for (name, m, branch) in [("m_l", m_l, Branch::Left), ("m_r", m_r, Branch::Right)] {
+                    if *m == 0.0 && *not_driven == Some(branch) {
+                        continue; // said below, as the record's
+                    }
                     if *m == 0.0 {
                         what.push(format!("{name} = 0 (that branch does not respond)"));
                     } else if *m < 0.0 {
@@ -364,6 +371,25 @@ impl std::fmt::Display for Warning {
                     ),
                     None => String::new(),
                 };
+                if let Some(branch) = not_driven {
+                    let (side, m) = match branch {
+                        Branch::Left => ("u < 0", "m_l"),
+                        Branch::Right => ("u > 0", "m_r"),
+                    };
+                    let also = if what.is_empty() {
+                        String::new()
+                    } else {
+                        format!(" (and: {}{units})", what.join("; "))
+                    };
+                    return write!(
+                        f,
+                        "the record never drives the {branch} side of the deadzone ({side}): that \
+                         branch is not estimated ({m} = 0 is held, not measured), so a deadzone \
+                         compensator cannot use this deadzone (control --compensate-deadzone, tune \
+                         and the C API refuse it){also}; record both sides of the command to identify \
+                         one"
+                    );
+                }
                 write!(
                     f,
                     "the deadzone is not a valve deadzone around u = 0 (b_l <= 0 <= b_r, slopes \
@@ -513,12 +539,21 @@ impl Warning {
                 if valve.is_physical() {
                     return None;
                 }
+                // A branch held at slope 0 on a side of u = 0 the record never reached (a one-sided
+                // input: its [min, max] in the command's units).
+                let range = model.data_range().and_then(|r| r.u.get(i)).copied();
+                let not_driven = match range {
+                    Some([lo, _]) if d.m_l == 0.0 && lo >= 0.0 => Some(Branch::Left),
+                    Some([_, hi]) if d.m_r == 0.0 && hi <= 0.0 => Some(Branch::Right),
+                    _ => None,
+                };
                 let w = Warning::DeadzoneNotAValve {
                     b_l: d.b_l,
                     b_r: d.b_r,
                     m_l: d.m_l,
                     m_r: d.m_r,
                     u0: u0(i),
+                    not_driven,
                 };
                 Some(if several {
                     Warning::ForInput {

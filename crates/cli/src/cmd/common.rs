@@ -430,12 +430,24 @@ impl ValidationArgs {
         Some((path, vopts))
     }
 
-    /// Reads the validation record of `--validation` (rows `--val-rows`), if any (batch mode).
-    pub fn read(&self, opts: &CsvOptions) -> anyhow::Result<Option<sysid::Dataset>> {
-        match &self.validation {
-            None => Ok(None),
-            Some(p) => Ok(self.read_from(p, opts)?.map(|r| r.data)),
+    /// Reads the validation record of `--validation` (rows `--val-rows`), if any (batch mode, merged
+    /// records). With `est_ts` (s, the estimation records' Ts) a record at another Ts is refused as
+    /// [`ValidationArgs::records`] refuses it, with its reader's `--time-unit ms` hint.
+    pub fn read(
+        &self,
+        opts: &CsvOptions,
+        est_ts: Option<f64>,
+    ) -> anyhow::Result<Option<sysid::Dataset>> {
+        let Some(p) = &self.validation else {
+            return Ok(None);
+        };
+        let Some(v) = self.read_from(p, opts)? else {
+            return Ok(None);
+        };
+        if let Some(ts) = est_ts {
+            sysid::metrics::check_sampling_noted(v.data.name(), v.data.ts(), ts, &v.notes)?;
         }
+        Ok(Some(v.data))
     }
 
     /// The estimation record of `data` (its `--rows`) and the validation record: `--split F` of the
@@ -452,11 +464,22 @@ impl ValidationArgs {
                 notes,
             });
         }
-        let val = self.read_from(data, opts)?;
-        let val = val.map(|v| {
-            notes.extend(v.notes);
-            v.data
-        });
+        let val = match self.read_from(data, opts)? {
+            Some(v) => {
+                // A validation record at another Ts than the estimation record's (the model's) is
+                // refused here, with the reader's --time-unit ms hint when its time column looks like
+                // milliseconds, as `validate` refuses it (audit s34 L-8).
+                sysid::metrics::check_sampling_noted(
+                    v.data.name(),
+                    v.data.ts(),
+                    est.data.ts(),
+                    &v.notes,
+                )?;
+                notes.extend(v.notes);
+                Some(v.data)
+            }
+            None => None,
+        };
         Ok(Records {
             est: est.data,
             val,

@@ -868,7 +868,8 @@ fn read_records(
         notes.extend(r.notes);
         records.push(r.data);
     }
-    Ok((records, args.val.read(&opts)?, notes))
+    let est_ts = records.first().map(Dataset::ts);
+    Ok((records, args.val.read(&opts, est_ts)?, notes))
 }
 
 /// What the report says about the estimation data beside the numbers: the reader's notes (a resampled
@@ -1017,7 +1018,12 @@ fn run_streamed(args: &Args, settings: &Identification, data_path: &Path) -> any
     // The validation record is sampled at the model's Ts, as the in-memory path requires (audit s27 M-3:
     // a record at 0.02 s was scored as if at 0.01 s).
     if let (Some(v), Some(vs)) = (&val, streamed.val_shape) {
-        sysid::metrics::check_sampling(RecordSource::name(v), vs.ts, streamed.shape.ts)?;
+        sysid::metrics::check_sampling_noted(
+            RecordSource::name(v),
+            vs.ts,
+            streamed.shape.ts,
+            v.notes(),
+        )?;
     }
     let (fit, report) = &mut streamed.result;
     // After `--detrend linear`: the drift removed and the raw record's figures (a few more passes), as

@@ -204,7 +204,7 @@ pub fn run(args: Args, settings: &Identification) -> anyhow::Result<()> {
     inputs.extend(args.val.validation.as_deref());
     check_outputs(&[(&args.json, "--json")], &inputs)?;
     let opts = args.columns.csv_options(&args.memory);
-    let val = args.val.read(&opts)?;
+    let val = args.val.read(&opts, None)?;
     let bar = progress_bar(
         files.len() as u64,
         "{bar:40} {pos}/{len} files  {per_sec}  eta {eta}",

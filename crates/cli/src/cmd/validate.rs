@@ -731,8 +731,9 @@ fn model_warnings(
     report
         .warnings
         .extend(in_sample_warning(model.provenance(), name, len, opts, data));
+    let said = report.warnings.clone();
     report.warnings.extend(
-        sysid::model_file::load_warnings(model)
+        sysid::model_file::load_warnings_besides(model, &said)
             .into_iter()
             .map(|w| format!("model: {w}")),
     );

@@ -1,12 +1,14 @@
 //! A CSV record read one line at a time, as its lines arrive (`track`: standard input, a file being
 //! appended, a serial port), by the rules of the in-memory reader [`super::read_record`]:
 //! - the header line is read by that reader itself (byte-order mark, delimiter — a comma, or a semicolon
-//!   or a tab when the header has no comma —, quoted and trimmed names, no empty or duplicate name, the
+//!   or a tab when the header has no comma outside its quoted names —, quoted and trimmed names, no empty or duplicate name, the
 //!   hints of a missing column);
 //! - each data line is split by the `csv` crate with that delimiter and the same quoting, a value beyond
 //!   the header's columns is refused (ragged row), a line of bare delimiters is blank;
 //! - each cell is read by the in-memory reader's cell parser (spaces and quotes around it, a decimal comma
-//!   `0,01` with a semicolon or tab delimiter, finite numbers only).
+//!   `0,01` with a semicolon or tab delimiter, finite numbers only); a comma-separated file's quoted
+//!   decimal commas (`"1,5"`), which the in-memory reader reads when its rows show them, are refused
+//!   here with why: the mark is decided from the header line, which holds no number.
 //!
 //! What differs: a quoted field cannot span lines (a line is a record), and the caller bounds the length
 //! of a line as it reads it.
@@ -140,7 +142,7 @@ impl CsvLines {
                 line_no,
                 width,
                 extra,
-                self.table.decimal_comma,
+                !self.table.marks.comma_delimited(),
             ));
         }
         Ok(true)
@@ -169,7 +171,7 @@ impl CsvLines {
             self.rec.len(),
             self.table.headers.len(),
             cname,
-            self.table.decimal_comma,
+            self.table.marks,
             &mut self.marks.borrow_mut(),
             &|| line_no,
             col + 1,
@@ -215,6 +217,23 @@ mod tests {
         let e = r.value(1, 3).unwrap_err().to_string();
         assert!(
             e.starts_with("<test>:3:2:") && e.contains("line 2, column 2: '0,98'"),
+            "{e}"
+        );
+    }
+
+    // A line-by-line reader decides the decimal mark of a comma-separated file from its header alone:
+    // a quoted decimal comma (pandas' decimal=',') is refused with why, never read as 1 or 15.
+    #[test]
+    fn a_quoted_decimal_comma_read_line_by_line_is_refused_with_why() {
+        let mut r = CsvLines::from_header(b"\"t\",\"u\"", "<test>").unwrap();
+        assert!(r.read_line(b"\"0\",\"1,5\"", 2).unwrap());
+        let e = r.value(1, 2).unwrap_err().to_string();
+        assert!(
+            e.starts_with("<test>:2:2: '1,5' in column 'u' is not a number"),
+            "{e}"
+        );
+        assert!(
+            e.contains("none when read line by line as track reads"),
             "{e}"
         );
     }

@@ -136,6 +136,23 @@ pub fn read_mat_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Rec
                     ),
                 ));
             }
+            // A matrix of signals side by side (MATLAB's z = [u y]) in a file with no vector to
+            // choose instead: said with the way to save its columns as the vectors this reader reads
+            // (audit s34 L-8).
+            let long = |a: &&Variable| a.dims.iter().filter(|&&d| d > 1).count();
+            let matrix = vars.iter().find(|a| long(a) > 1);
+            if let Some(m) = matrix.filter(|_| !vars.iter().any(|a| long(&a) == 1)) {
+                return Err(file_err(
+                    name,
+                    format!(
+                        "no variable named '{var}'; the file holds '{}', a {} matrix, and this reader \
+                         reads vectors only{}",
+                        m.name,
+                        dims_text(&m.dims),
+                        matrix_way_out(&m.name, &m.dims)
+                    ),
+                ));
+            }
             return Err(SysidError::MissingVariable {
                 file: name.to_string(),
                 variable: var.to_string(),
@@ -188,12 +205,9 @@ pub fn read_mat_bytes(bytes: &[u8], name: &str, opts: &CsvOptions) -> Result<Rec
             return Err(file_err(
                 name,
                 format!(
-                    "variable '{var}' is a {} array; expected a vector (one row or one column)",
-                    a.dims
-                        .iter()
-                        .map(usize::to_string)
-                        .collect::<Vec<_>>()
-                        .join("x")
+                    "variable '{var}' is a {} array; expected a vector (one row or one column){}",
+                    dims_text(&a.dims),
+                    matrix_way_out(var, &a.dims)
                 ),
             ));
         }
@@ -367,6 +381,29 @@ struct Variable {
     name: String,
     dims: Vec<usize>,
     values: Values,
+}
+
+/// A variable's dimensions as MATLAB prints them (`600x2`).
+fn dims_text(dims: &[usize]) -> String {
+    dims.iter()
+        .map(usize::to_string)
+        .collect::<Vec<_>>()
+        .join("x")
+}
+
+/// The way out of a matrix variable `var` of `dims` (signals side by side, MATLAB's `z = [u y]`):
+/// the MATLAB lines that save its first two columns (or rows, for a 2xN matrix) as the vectors u and y
+/// this reader reads.
+fn matrix_way_out(var: &str, dims: &[usize]) -> String {
+    let (first, second) = if dims.first() == Some(&2) && dims.get(1).is_some_and(|&n| n > 2) {
+        (format!("{var}(1,:)"), format!("{var}(2,:)"))
+    } else {
+        (format!("{var}(:,1)"), format!("{var}(:,2)"))
+    };
+    format!(
+        " (signals side by side, as in z = [u y]?): save them as vectors, e.g. in MATLAB u = {first}; \
+         y = {second}; save('record.mat', 'u', 'y') (choose the columns that hold the input and the output)"
+    )
 }
 
 /// What was read of a variable's values.

@@ -337,7 +337,7 @@ pub struct CsvStream {
     delimiter: u8,
     has_header: bool,
     bom: bool,
-    decimal_comma: bool,
+    marks: super::CellMarks,
     headers: Vec<String>,
     ucol: usize,
     ycol: usize,
@@ -551,7 +551,7 @@ impl CsvStream {
             delimiter: sniff_delimiter(text),
             has_header: !opts.no_header,
             bom,
-            decimal_comma: table.decimal_comma,
+            marks: table.marks,
             headers: table.headers,
             ucol,
             ycol,
@@ -788,7 +788,13 @@ impl RecordSource for CsvStream {
             let at = rec.position().map_or(0, csv::Position::byte);
             if let Some(extra) = rec.iter().skip(width).position(|f| !blank(f)) {
                 let line = self.line_of(at);
-                let e = ragged_row(&file_name, line, width, extra, self.decimal_comma);
+                let e = ragged_row(
+                    &file_name,
+                    line,
+                    width,
+                    extra,
+                    !self.marks.comma_delimited(),
+                );
                 return Err(self.or_changed(e, &rdr.get_ref().inner, &file_id));
             }
             let index = row;
@@ -822,7 +828,7 @@ impl RecordSource for CsvStream {
                     fields,
                     width,
                     &self.headers[col],
-                    self.decimal_comma,
+                    self.marks,
                     &mut marks,
                     &|| self.line_of(at),
                     col + 1,
@@ -831,7 +837,13 @@ impl RecordSource for CsvStream {
                     if index == 0 && !self.has_header && super::looks_like_header(text.iter()) {
                         m.push_str(super::NO_HEADER_ON_HEADER_HINT);
                     }
-                    self.at(at, col, m)
+                    let units = (index == 0 && self.has_header)
+                        .then(|| super::units_row(&text.iter().collect::<Vec<_>>()))
+                        .flatten();
+                    match units {
+                        Some((column, words)) => self.at(at, column - 1, words),
+                        None => self.at(at, col, m),
+                    }
                 })
             };
             let cells = value(self.ucol).and_then(|uk| Ok((uk, value(self.ycol)?)));

@@ -227,3 +227,68 @@ fn a_start_that_outweighs_small_signals_is_said() {
         );
     }
 }
+
+/// Audit s35 M-1: an empty (or blank, or comments-only) plant configuration was read as "all keys left
+/// out", the default plant, and `tune` reported it as the twin it tuned on. Now every command that reads
+/// one refuses it, naming the file; a file with one key is still a configuration.
+#[test]
+fn an_empty_plant_configuration_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    for (name, text) in [
+        ("empty.toml", ""),
+        ("blank.toml", " \n\n\t\n"),
+        ("comments.toml", "# twin\n"),
+    ] {
+        let path = d.join(name);
+        std::fs::write(&path, text).unwrap();
+        for args in [
+            vec![
+                "simulate",
+                "--plant",
+                "ipa",
+                "--plant-config",
+                s(&path),
+                "--samples",
+                "10",
+                "--out",
+                "x.csv",
+            ],
+            vec![
+                "tune",
+                "--plant-config",
+                s(&path),
+                "--max-evaluations",
+                "8",
+                "--out",
+                "c.json",
+            ],
+        ] {
+            let out = bin().current_dir(d).args(&args).output().unwrap();
+            let e = stderr(&out);
+            assert_eq!(out.status.code(), Some(2), "{args:?}: {e}");
+            assert!(
+                e.contains(name) && e.contains("holds no setting"),
+                "{args:?}: {e}"
+            );
+        }
+    }
+    let one = d.join("one.toml");
+    std::fs::write(&one, "[load]\nmoving_mass_kg = 2.0\n").unwrap();
+    let out = bin()
+        .current_dir(d)
+        .args([
+            "simulate",
+            "--plant",
+            "ipa",
+            "--plant-config",
+            s(&one),
+            "--samples",
+            "10",
+            "--out",
+            "r.csv",
+        ])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", stderr(&out));
+}

@@ -291,7 +291,23 @@ impl PlantConfig {
     /// Parses TOML text (`name` is used in messages) and validates it; a value out of range is reported
     /// at its line and column in the text (`name:LINE:COLUMN: invalid plant config load.moving_mass_kg
     /// = 1e308: expected ...`) when the key is written there.
+    ///
+    /// A text with no setting at all (empty, blank or comments only) is refused: keys left out keep
+    /// their defaults, but a file with none is a failed copy or a cut-off write far more often than a
+    /// request for the default plant, which leaving the configuration out gives (audit s35 M-1: an
+    /// empty twin file was tuned on as "twin empty.toml", silently the default plant).
     pub fn from_toml_str(text: &str, name: &str) -> Result<Self, IpaError> {
+        if text.lines().all(|l| {
+            let t = l.trim();
+            t.is_empty() || t.starts_with('#')
+        }) {
+            return Err(IpaError::Config(format!(
+                "{name}: the file holds no setting (it is empty, blank or comments only): expected the \
+                 TOML settings of the physics plant, as `ipa-sysid plant-config` or `ipa-sysid \
+                 calibrate --out` write them (keys left out keep their defaults; for the default plant, \
+                 give no plant configuration)"
+            )));
+        }
         let cfg: PlantConfig = toml::from_str(text).map_err(|e| {
             // A model file, controller file, JSON document or CSV record given as the plant
             // configuration is said as such, not as the TOML parser's complaint (the readers' one
@@ -907,6 +923,14 @@ mod tests {
             "{w:?}"
         );
         // A note with a key it does not know is refused like any section.
+        for empty in ["", " \n\n \t\n", "# a comment\n\n#another\n"] {
+            let e = PlantConfig::from_toml_str(empty, "twin.toml")
+                .unwrap_err()
+                .to_string();
+            assert!(e.contains("twin.toml: the file holds no setting"), "{e}");
+        }
+        // One key is a configuration (the rest defaults).
+        assert!(PlantConfig::from_toml_str("# c\n[load]\nmoving_mass_kg = 2.0\n", "t").is_ok());
         let e = PlantConfig::from_toml_str("[calibration]\nfit = 1.0\n", "t").unwrap_err();
         assert!(e.to_string().contains("fit"), "{e}");
     }

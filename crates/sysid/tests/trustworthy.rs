@@ -119,7 +119,10 @@ fn output_error_is_stable_and_never_worse_than_least_squares_on_real_records() {
             .iter()
             .map(|p| p.norm())
             .fold(0.0, f64::max);
-        assert!(max_pole < 1.0, "{name}: OE pole modulus {max_pole}");
+        // Stable as the tool's verdict says it: not an integrator either (a pole within 1e-5 of the
+        // unit circle; audit s35c: ball and beam returned a refinement held at |p| = 1 − 1e-6, 0.6 %
+        // worse than its stable start, until session 35).
+        assert!(max_pole < 1.0 - 1e-5, "{name}: OE pole modulus {max_pole}");
         assert!(
             rmse_oe <= rmse_ls * (1.0 + KEPT_WITHIN + 1e-12),
             "{name}: OE {rmse_oe} > LS {rmse_ls}"

@@ -266,7 +266,7 @@ fn a_stable_model_starts_at_its_own_resting_level() {
     );
 }
 
-// A model without an operating point (identified with --offset) rests for every past command 0; when its
+// A model without an operating point (identified without --detrend mean) rests for every past command 0; when its
 // estimation data never had u = 0 (its stored data range) the record opens with a transient from a state
 // the data never showed, and `simulate` says so (audit s11 S3). Not said when 0 is inside the range, when
 // the model has an operating point, or when the user chose the start.

@@ -123,9 +123,10 @@ pub fn rest_outside_data(model: &Model, y0: f64, y0_default: bool) -> Option<Str
     let name = model.inputs().get(i).map_or("u", |c| c.name());
     Some(format!(
         "the model starts at its rest y0 = {y0} for every past command 0, but its estimation data had {name} \
-         in [{lo}, {hi}] (no operating point is stored: identified with --offset), so the record opens \
-         with a transient from a state the data never showed (its output was in [{}, {}]); identify \
-         with --detrend mean instead, whose model stores the operating point and rests there",
+         in [{lo}, {hi}] (no operating point is stored: identified without --detrend mean, with or \
+         without --offset), so the record opens with a transient from a state the data never showed \
+         (its output was in [{}, {}]); identify with --detrend mean instead, whose model stores the \
+         operating point and rests there",
         range.y[0], range.y[1]
     ))
 }

@@ -24,7 +24,8 @@ struct Cli {
 
 #[derive(Debug, Subcommand)]
 enum Command {
-    /// Identify an ARX or Hammerstein model from a CSV of input/output data (MATLAB `arx`).
+    /// Identify a model from a CSV or MAT record of input/output data: ARX, Hammerstein (the paper's),
+    /// Wiener / Hammerstein–Wiener, polynomial NARX (MATLAB `arx`, `oe`, `iv4`, `idnlhw`, `nlarx`).
     Identify(cmd::identify::Args),
     /// Metrics of a saved model on new data, with the residual tests (MATLAB `compare`, `resid`).
     #[command(visible_aliases = ["compare", "resid"])]

@@ -21,7 +21,8 @@ pub enum Method {
     /// Recursive least squares with forgetting (paper eqs. 9–12).
     Rls,
     /// Output-error refinement of every parameter (Levenberg–Marquardt on the free-run simulation error),
-    /// started from the LS estimate. Unbiased under white output (measurement) noise; batch. Also with
+    /// started from the LS estimate (and, for a model with an input nonlinearity, from the IV estimate too,
+    /// keeping the lower end). Unbiased under white output (measurement) noise; batch. Also with
     /// several inputs.
     Oe,
     /// Recursive instrumental variables with instruments from an auxiliary model's simulated output.

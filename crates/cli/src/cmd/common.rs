@@ -370,7 +370,7 @@ fn target(p: &Path) -> Option<PathBuf> {
 /// A separate validation record (`--validation FILE`) and its column names.
 #[derive(Debug, Clone, clap::Args)]
 pub struct ValidationArgs {
-    /// Separate CSV record to validate on.
+    /// Separate record to validate on (CSV or MATLAB .mat, read as --data is).
     #[arg(long, value_name = "FILE")]
     pub validation: Option<PathBuf>,
     /// Input column of the validation file (default: --u-col).

@@ -100,7 +100,8 @@ pub struct Args {
     pub pe_window: usize,
     /// Hammerstein: the deadzone guard — the switching functions never use a branch with a slope ≤ 0
     /// or a breakpoint on the wrong side of zero, on which the one-pass estimate can lock. Off by
-    /// default, so the estimate is exactly `identify --method rls --passes 1`'s (docs/online.md).
+    /// default, so that with `--windup none` and the record's own start the estimate is exactly
+    /// `identify --method rls --passes 1`'s (with track's defaults they differ by rounding: docs/online.md).
     #[arg(long)]
     pub guard: bool,
     /// Off by default, kept so that scripts that turned the guard off keep working.

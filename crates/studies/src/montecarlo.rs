@@ -111,9 +111,37 @@ pub struct MethodStats {
     pub params: Vec<ParamStats>,
 }
 
+/// What a study simulated and estimated, for its report (audit s35b L-21: the JSON had neither, so two
+/// studies' files were told apart only by their numbers). Set by the caller that made the records.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct StudyExperiment {
+    /// The plant (`paper`, `ipa`, `model:FILE`).
+    pub plant: String,
+    /// The input design (`staircase`, `prbs`, …, `file:CSV`).
+    pub input: String,
+    /// Its amplitude (PWM counts).
+    pub amplitude: f64,
+    /// Samples per run.
+    pub samples: usize,
+    /// Ts in s.
+    pub ts_s: f64,
+    /// The estimated structure (`hammerstein`, `arx`, …).
+    pub structure: String,
+    /// Its orders.
+    pub na: usize,
+    /// Its orders.
+    pub nb: usize,
+    /// Its orders.
+    pub nk: usize,
+    /// With a constant term.
+    pub offset: bool,
+}
+
 /// The whole study.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct StudyReport {
+    /// What was simulated and estimated (`None` until the caller sets it; JSON `null`).
+    pub experiment: Option<StudyExperiment>,
     /// Runs.
     pub runs: usize,
     /// Seed.
@@ -351,6 +379,7 @@ pub fn study(
         });
     }
     Ok(StudyReport {
+        experiment: None,
         runs: st.runs,
         seed: st.seed,
         noise_std: st.noise_std,

@@ -181,6 +181,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut report = study(&settings, truth.as_deref(), &experiment, &|| bar.inc(1))
         .context("Monte Carlo study")?;
     report.warnings.splice(0..0, extrapolation);
+    report.experiment = Some(sysid_studies::montecarlo::StudyExperiment {
+        plant: args.plant.clone(),
+        input: args.input.clone(),
+        amplitude: args.amplitude,
+        samples: args.samples,
+        ts_s,
+        structure: kind.to_string(),
+        na: orders.na,
+        nb: orders.nb,
+        nk: orders.nk,
+        offset: settings.base.structure.offset,
+    });
     bar.finish_and_clear();
     let header = format!(
         "Plant: {}; input {} ±{} counts, {} samples, Ts = {} s; estimated structure {} na = {} nb = {} nk = {}{}{}\n",

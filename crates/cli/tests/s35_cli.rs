@@ -329,3 +329,45 @@ fn a_monte_carlo_report_says_what_it_simulated() {
     );
     assert_eq!(e["offset"], false, "{e}");
 }
+
+/// Audit s35 M-3: one output value of 1e200 among values near 100 overflows least squares; the error
+/// ("least squares produced a non-finite estimate") came without the reader's note that names the
+/// value at its line and column. Now `identify` prints the reader's notes before such an error. The
+/// record (written here): u = 100 sin(k/10), y = 100 + 50 sin(k/7), k = 0..299, y(99) = 1e200 — line
+/// 101 of the file (the header is line 1), column 3 (t, u, y).
+#[test]
+fn an_estimation_that_fails_still_names_the_value_the_reader_flagged() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let u: Vec<f64> = (0..300).map(|k| 100.0 * (k as f64 / 10.0).sin()).collect();
+    let mut y: Vec<f64> = (0..300)
+        .map(|k| 100.0 + 50.0 * (k as f64 / 7.0).sin())
+        .collect();
+    y[99] = 1e200;
+    let data = write_tuy(d, "big.csv", 0.01, &u, &y);
+    let out = bin()
+        .args([
+            "identify",
+            "--data",
+            s(&data),
+            "--structure",
+            "arx",
+            "--na",
+            "2",
+            "--nb",
+            "2",
+        ])
+        .args(["--method", "ls"])
+        .output()
+        .unwrap();
+    let e = stderr(&out);
+    assert_eq!(out.status.code(), Some(1), "{e}");
+    let note = e
+        .lines()
+        .find(|l| l.starts_with("warning: data: ") && l.contains("big.csv:101:3:"))
+        .unwrap_or_else(|| panic!("no located note: {e}"));
+    assert!(note.contains("1e200"), "{note}");
+    // The note comes before the error line.
+    let error_at = e.find("error: ").unwrap();
+    assert!(e.find(note).unwrap() < error_at, "{e}");
+}

@@ -624,7 +624,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         anyhow::bail!(e);
     }
-    let mut fit = identify(&estimation, &settings)?;
+    // An estimation that fails never reaches the report: the reader's notes (a value 1e6 times every
+    // other of its column, at its line and column: often the cause) are printed before the error, as
+    // `validate` does (audit s35 M-3: a y of 1e200 at line 101 ended in "least squares produced a
+    // non-finite estimate" with the note that names it lost).
+    let said_notes = |e: sysid::SysidError| -> anyhow::Error {
+        for n in super::common::data_notes(&notes) {
+            eprintln!("warning: {n}");
+        }
+        e.into()
+    };
+    let mut fit = identify(&estimation, &settings).map_err(said_notes)?;
     if op.is_some() {
         // The range in the user's units, as the operating point is (identify saw deviations).
         fit.model = fit
@@ -652,7 +662,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         _ => (records.clone(), None),
     };
     let mut report =
-        IdentifyReport::assemble(&fit, &settings, &scored, val.as_ref(), args.resid_lags)?;
+        IdentifyReport::assemble(&fit, &settings, &scored, val.as_ref(), args.resid_lags)
+            .map_err(said_notes)?;
     // The reader's warnings (a resampled record...) are warnings about these numbers too.
     report.warnings.extend(super::common::data_notes(&notes));
     report

@@ -2703,7 +2703,7 @@ fn control_loop<'py>(
                     })?
                     .get()
                     .inner;
-                compensator_warning = ::control::tuning::compensator_scale_warning(m, u_max);
+                compensator_warning = ::control::compensator::compensator_scale_warning(m, u_max);
                 m.deadzone().copied()
             };
             let Some(deadzone) = deadzone else {
@@ -2841,7 +2841,7 @@ fn tune<'py>(
     check_physics: bool,
     physics_variants: usize,
 ) -> PyResult<Bound<'py, PyAny>> {
-    use ::control::tuning::{self, Request, Source};
+    use ::sysid_control::tuning::{self, Request, Source};
     let spec = ::control::tune::Spec::parse(spec).map_err(control_err)?;
     if variants == 0 {
         return Err(setting_err(
@@ -2867,7 +2867,7 @@ fn tune<'py>(
                     (m, format!("model {}", path.display()))
                 }
             };
-            let deadzone = tuning::command_deadzone(&m)
+            let deadzone = ::control::compensator::command_deadzone(&m)
                 .map_err(|p| setting_err("--model", &label, &p.to_string()))?;
             Source::Model {
                 model: m,

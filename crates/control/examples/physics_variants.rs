@@ -449,7 +449,7 @@ fn main() {
         .map(|p| ipa::PlantConfig::from_toml_file(std::path::Path::new(&p)).unwrap());
     let make = |i: usize| -> Result<Box<dyn Plant + Send>, control::ControlError> {
         let (base, offset) = match &twin {
-            Some(t) => (t.clone(), control::tuning::TUNING_SEED_OFFSET),
+            Some(t) => (t.clone(), control::tune::TUNING_SEED_OFFSET),
             None => (ipa::PlantConfig::default(), 0),
         };
         let offset = std::env::var("SEED_OFFSET").map_or(offset, |o| o.parse().unwrap());

@@ -23,7 +23,7 @@
 //! With an exact deadzone model, f(u_c) = m_ref u: the controller sees a linear valve.
 
 use serde::{Deserialize, Serialize};
-use sysid_core::Deadzone;
+use sysid_core::{Deadzone, Model};
 
 use crate::{ControlError, ControlSetting};
 
@@ -270,4 +270,71 @@ mod tests {
             .with_threshold(-1.0)
             .is_err());
     }
+}
+
+/// Why a model cannot give the controller's deadzone ([`command_deadzone`]).
+#[derive(Debug, Clone, PartialEq)]
+pub enum DeadzoneProblem {
+    /// A model with several inputs (the controller drives one command).
+    SeveralInputs(usize),
+    /// A model whose input block is not a deadzone (ARX, or another input nonlinearity), in words.
+    NoDeadzone(&'static str),
+}
+
+impl std::fmt::Display for DeadzoneProblem {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            DeadzoneProblem::SeveralInputs(n) => write!(
+                f,
+                "a single-input Hammerstein model file (this model has {n} inputs; the controller \
+                 drives one command)"
+            ),
+            DeadzoneProblem::NoDeadzone(block) => write!(
+                f,
+                "a model with a deadzone input block (this model's input block is {block}; identify \
+                 the record again with `--structure hammerstein` for one, or run this model as a \
+                 plant under a PI: `control --plant model:FILE --kp KP --ki KI`)"
+            ),
+        }
+    }
+}
+
+/// The deadzone of a single-input Hammerstein model in the command's units: a detrended model's
+/// deadzone acts on u − u0, so its breakpoints are shifted by u0 (the slopes are unchanged).
+pub fn command_deadzone(m: &Model) -> Result<Deadzone, DeadzoneProblem> {
+    if m.inputs().len() > 1 {
+        return Err(DeadzoneProblem::SeveralInputs(m.inputs().len()));
+    }
+    m.command_deadzone(0).ok_or_else(|| {
+        use sysid_core::StaticNonlinearity as S;
+        DeadzoneProblem::NoDeadzone(match m.inputs().first().map(|c| c.nonlinearity()) {
+            Some(S::Saturation(_)) => "a saturation",
+            Some(S::DeadzoneSaturation(_)) => "a deadzone whose branches saturate",
+            Some(S::PiecewiseLinear(_)) => "piecewise-linear",
+            Some(S::Polynomial(_)) => "a polynomial",
+            _ => "linear: an ARX model",
+        })
+    })
+}
+
+/// How many times the estimation data's largest command, or its output span, the specification's command
+/// limit or largest step may be before `tune`'s warning of a specification beyond the model's data
+/// ([`crate::trust::extrapolation_warning`]) names the units as the likely cause.
+pub const EXTRAPOLATION_FACTOR: f64 = 4.0;
+
+/// A deadzone compensator taken from `model` for a loop whose command limit is `u_max`: a warning when
+/// the model's estimation data never came near that limit (its largest |u| more than
+/// [`EXTRAPOLATION_FACTOR`] times smaller), i.e. its deadzone is probably in another plant's command
+/// units (audit s11: an EMPS model in volts compensating the IPA in PWM counts, silently).
+pub fn compensator_scale_warning(model: &Model, u_max: f64) -> Option<String> {
+    let u_data = model.data_range()?.u_magnitude(0).filter(|m| *m > 0.0)?;
+    (u_max > EXTRAPOLATION_FACTOR * u_data).then(|| {
+        format!(
+            "the compensator's model was estimated on commands within ±{} while the loop commands up to \
+             ±{u_max} ({} times more): its deadzone is probably in another plant's units; check that the \
+             model is of this plant",
+            crate::trust::fmt_value(u_data),
+            crate::trust::fmt_value(u_max / u_data)
+        )
+    })
 }

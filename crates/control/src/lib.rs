@@ -4,8 +4,11 @@
 //! Data flow: a [`Profile`] gives the set-point r(t); a [`PiController`] (built from [`PiSettings`]) turns
 //! e = r - y into the command u, optionally passed through a [`DeadzoneCompensator`];
 //! [`closed_loop::run`] drives the plant and records a [`Trace`]; [`StepMetrics`] summarise it as MATLAB
-//! `stepinfo` would. [`adaptive::run_adaptive`] lets the compensator follow the online estimate of
-//! `sysid::online`; [`Widened`] is a plant whose deadzone widens mid-run, to show it.
+//! `stepinfo` would; [`tune`] searches a controller over closed-loop simulations of a plant and its
+//! variants. [`Widened`] is a plant whose deadzone widens mid-run. What needs the estimators — `tune`'s
+//! pipeline from a twin (its model by output error) and the adaptive compensator that follows the
+//! online estimate — is in the crate `sysid-control`: this crate depends on `sysid-core`, not on
+//! `sysid` (issue 10).
 //!
 //! ```
 //! use control::{closed_loop, PiSettings, Profile, StepMetrics};
@@ -17,7 +20,6 @@
 //! assert!(m.overshoot_percent.unwrap() < 10.0);
 //! ```
 
-pub mod adaptive;
 pub mod closed_loop;
 pub mod compensator;
 pub mod error;
@@ -29,10 +31,8 @@ pub mod profile;
 pub mod response;
 pub mod trust;
 pub mod tune;
-pub mod tuning;
 pub mod widening;
 
-pub use adaptive::{run_adaptive, AdaptiveRun, AdaptiveSettings, BranchCounts};
 pub use closed_loop::Controller;
 pub use closed_loop::Trace;
 pub use compensator::{DeadzoneCompensator, SlopeMode};

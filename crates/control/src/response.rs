@@ -373,7 +373,8 @@ pub fn response(model: &Model, s: &ResponseSettings) -> Result<Response, Control
     let impulse = filter(model, s.samples.max(1), |k| if k == 0 { 1.0 } else { 0.0 });
     let step = filter(model, s.samples.max(1), |_| 1.0);
     let margins = s.controller.map(|c| margins(model, &c));
-    let mut warnings: Vec<String> = sysid::Warning::if_not_settling(model)
+    let mut warnings: Vec<String> = model
+        .not_settling()
         .map(|w| w.to_string())
         .into_iter()
         .chain(verdict.as_ref().map(|v| v.1.clone()))
@@ -385,7 +386,7 @@ pub fn response(model: &Model, s: &ResponseSettings) -> Result<Response, Control
         .chain(unsettled(&step, dc_gain))
         // The loop's verdicts in `tune`'s words (one function): unstable, not computable, small or
         // negative margins.
-        .chain(margins.iter().flat_map(crate::tuning::linear_loop_warnings))
+        .chain(margins.iter().flat_map(crate::tune::linear_loop_warnings))
         .collect();
     let mut r = Response {
         ts_s: ts,

@@ -533,7 +533,7 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
 /// The warnings of a closed-loop run that come before its loop's own ([`loop_warnings`]), in the
 /// order `ipa-sysid control` prints them: the plant model file's doubts, what a controller file's
 /// provenance says against it ([`crate::ControllerFile::provenance_warning`]), the deadzone
-/// compensator's scale ([`crate::tuning::compensator_scale_warning`]) and a profile row the run never
+/// compensator's scale ([`crate::compensator::compensator_scale_warning`]) and a profile row the run never
 /// reaches ([`crate::Profile::last_row_warning`]). One list for the command line and the Python
 /// package's `control` (audit s18 M-4: the provenance warning was the command line's only).
 pub fn setup_warnings(

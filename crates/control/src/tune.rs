@@ -818,11 +818,11 @@ pub fn tune(
             "at least 1 (the nominal plant)",
         ));
     }
-    if settings.max_evaluations < crate::tuning::MIN_EVALUATIONS {
+    if settings.max_evaluations < MIN_EVALUATIONS {
         return Err(ControlError::setting(
             crate::ControlSetting::MaxEvaluations,
             settings.max_evaluations,
-            &format!("at least {}", crate::tuning::MIN_EVALUATIONS),
+            &format!("at least {}", MIN_EVALUATIONS),
         ));
     }
     let mut search = Search {
@@ -2113,4 +2113,80 @@ pub fn compare(
         spec,
     )?;
     Ok(Comparison { tuned, paper_pi })
+}
+
+/// Fewest closed-loop evaluations a tuning needs (`--max-evaluations`).
+pub const MIN_EVALUATIONS: usize = 8;
+
+/// The twin's variants searched over are drawn with seeds from this offset + 1 (the verification's
+/// physics variants use seeds 1..).
+pub const TUNING_SEED_OFFSET: u64 = 1000;
+
+/// What the linear part's closed loop and margins say ([`margins`]): an unstable linear closed
+/// loop from its poles (audit s18 H-2: a third gain crossover at −39° and a pole of modulus 1.012 went
+/// unreported behind the first crossover's +52°), else a negative or small phase margin, and a
+/// negative gain margin (the loop is unstable at a lower gain, conditionally stable at this one).
+pub fn linear_loop_warnings(margins: &Margins) -> Vec<String> {
+    // 6 decimals near the unit circle; a loop of absurd gains in scientific notation (not 300 digits).
+    let modulus = |p: Option<f64>| match p {
+        Some(p) => sysid_core::format::Modulus(p).to_string(),
+        None => "n/a".to_string(),
+    };
+    let mut w = Vec::new();
+    let crossovers = |n: usize| {
+        if n > 1 {
+            format!(" (the smallest of {n} crossovers)")
+        } else {
+            String::new()
+        }
+    };
+    if margins.closed_loop_max_pole_modulus.is_none() {
+        w.push(
+            "the linear closed loop's poles could not be computed (its characteristic polynomial's \
+             coefficients or roots are not finite numbers: a model of absurd gains?): its stability \
+             is not known"
+                .to_string(),
+        );
+        return w;
+    }
+    if margins.closed_loop_unstable() {
+        w.push(format!(
+            "the linear loop (the model with the deadzone's slope and this controller) is unstable: a \
+             closed-loop pole has modulus {} (> 1){}",
+            modulus(margins.closed_loop_max_pole_modulus),
+            match margins.phase_margin_deg {
+                Some(pm) => format!(
+                    "; phase margin {pm:.1}° at {:.2} rad/s{}",
+                    margins.gain_crossover_rad_s.unwrap_or(f64::NAN),
+                    crossovers(margins.gain_crossovers)
+                ),
+                None => String::new(),
+            }
+        ));
+        return w;
+    }
+    match margins.phase_margin_deg {
+        Some(pm) if pm < 0.0 => w.push(format!(
+            "the linear part's phase margin is {pm:.1}° (negative) at {:.2} rad/s{}, although the \
+             linear closed loop's poles are inside the unit circle (largest modulus {}): the loop is \
+             conditionally stable, a change of gain or delay can destabilise it",
+            margins.gain_crossover_rad_s.unwrap_or(f64::NAN),
+            crossovers(margins.gain_crossovers),
+            modulus(margins.closed_loop_max_pole_modulus),
+        )),
+        Some(pm) if pm < 30.0 => w.push(format!(
+            "the linear part's phase margin is {pm:.1}° (< 30°){}: the loop is close to oscillating",
+            crossovers(margins.gain_crossovers)
+        )),
+        _ => {}
+    }
+    if let Some(gm) = margins.gain_margin_db.filter(|g| *g < 0.0) {
+        w.push(format!(
+            "the linear part's gain margin is {gm:.2} dB (negative) at {:.2} rad/s: the linear loop \
+             turns unstable if its gain falls by {:.2} dB (a smaller deadzone slope, a weaker plant)",
+            margins.phase_crossover_rad_s.unwrap_or(f64::NAN),
+            -gm
+        ));
+    }
+    w
 }

@@ -840,32 +840,3 @@ fn the_slip_brake_candidate_is_the_controller_with_the_slip_brake() {
         (0.0, 0)
     );
 }
-
-// A stop requested before the call: `tuning::run` builds no plant for any simulation and returns
-// Cancelled, never a report (the hook of the Python binding's Ctrl-C; crates/core/src/stop.rs).
-#[test]
-fn a_requested_stop_cancels_the_tuning() {
-    let cancel = sysid_core::Stop::new();
-    cancel.request();
-    let model = integrator(1, 0.002, (-30.0, 30.0));
-    let deadzone = *model.deadzone().unwrap();
-    let req = control::tuning::Request {
-        source: control::tuning::Source::Model {
-            model,
-            deadzone,
-            label: "integrator".into(),
-        },
-        spec: Spec::default(),
-        search: TuneSettings {
-            plants: 2,
-            max_evaluations: 40,
-        },
-        check_physics: false,
-        physics_variants: 0,
-        cancel,
-    };
-    match control::tuning::run(&req) {
-        Err(ControlError::Cancelled) => {}
-        other => panic!("expected Cancelled, got {:?}", other.map(|r| r.controller)),
-    }
-}

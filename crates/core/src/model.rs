@@ -772,7 +772,7 @@ impl Model {
     /// The deadzone of input `i` in the command's units (counts for the IPA), when that input's block
     /// is a deadzone: a detrended model's deadzone acts on u − u0, so its breakpoints b_l, b_r are
     /// shifted by the operating point's u0 (the slopes are unchanged). What a deadzone compensator
-    /// inverts (`control::tuning::command_deadzone`) and what identify and validate judge
+    /// inverts (`control::compensator::command_deadzone`) and what identify and validate judge
     /// (`sysid::Warning::if_deadzone_not_a_valve`).
     pub fn command_deadzone(&self, i: usize) -> Option<Deadzone> {
         let d = self.inputs.get(i)?.deadzone()?;
@@ -1303,6 +1303,15 @@ impl Model {
     /// what every command and API reports of the model.
     pub fn stability(&self) -> crate::Stability {
         crate::Stability::of_poles(&self.poles())
+    }
+
+    /// Why the model's output does not settle ([`crate::stability::NotSettling`], whose display is the
+    /// warning every command gives), or `None` when it settles.
+    pub fn not_settling(&self) -> Option<crate::stability::NotSettling> {
+        crate::stability::NotSettling::of(
+            self.stability(),
+            self.offset().is_some() || self.operating_point().is_some(),
+        )
     }
 
     /// True when every pole lies strictly inside the unit circle, |p| < 1, by any amount: the

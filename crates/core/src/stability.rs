@@ -280,3 +280,103 @@ mod tests {
         }
     }
 }
+
+/// Why a model's output does not settle, with the figures its warning names: the one wording of the
+/// stability warning every command and API gives (`identify`, `validate`, `simulate` through
+/// `sysid::Warning`; `response` and `tune` through [`crate::Model::not_settling`]), kept here so that
+/// the control crate, which does not depend on the estimators, says it in the same words (issue 10).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum NotSettling {
+    /// [`Stability::Unstable`]: the largest pole modulus (NaN for a pole that is not a number).
+    Unstable {
+        /// Largest pole modulus.
+        max_pole_modulus: f64,
+    },
+    /// [`Stability::Integrator`]: the modulus of the pole at 1, and whether the model already carries
+    /// an output level (an offset or a removed operating point: then "add one" is not the advice).
+    Integrator {
+        /// Modulus of the pole at 1.
+        max_pole_modulus: f64,
+        /// The model has an offset or an operating point.
+        has_level: bool,
+    },
+    /// [`Stability::OnCircle`]: the pole on the circle.
+    OnCircle {
+        /// Real part of the pole.
+        re: f64,
+        /// Imaginary part of the pole.
+        im: f64,
+    },
+}
+
+impl NotSettling {
+    /// The verdict's reason, or `None` for [`Stability::Settles`]; `has_level` as in
+    /// [`NotSettling::Integrator`].
+    pub fn of(stability: Stability, has_level: bool) -> Option<NotSettling> {
+        match stability {
+            Stability::Settles { .. } => None,
+            s @ Stability::Unstable { .. } => Some(NotSettling::Unstable {
+                max_pole_modulus: s.modulus(),
+            }),
+            s @ Stability::Integrator { .. } => Some(NotSettling::Integrator {
+                max_pole_modulus: s.modulus(),
+                has_level,
+            }),
+            Stability::OnCircle { pole } => Some(NotSettling::OnCircle {
+                re: pole.re,
+                im: pole.im,
+            }),
+        }
+    }
+}
+
+impl std::fmt::Display for NotSettling {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            NotSettling::Unstable { max_pole_modulus } if !max_pole_modulus.is_finite() => f
+                .write_str(
+                    "unstable model: a pole is not a finite number (coefficients beyond f64); its \
+                     simulation diverges (do not use it for simulation or control)",
+                ),
+            NotSettling::Unstable { max_pole_modulus } => write!(
+                f,
+                "unstable model: a pole has modulus {} > 1; its simulation diverges \
+                 (do not use it for simulation or control)",
+                crate::format::Modulus(*max_pole_modulus)
+            ),
+            NotSettling::Integrator {
+                max_pole_modulus,
+                has_level,
+            } => write!(
+                f,
+                "a pole at z = 1 (modulus {max_pole_modulus:.7}, within {:e} of 1), on the stability \
+                 boundary: the model integrates ({}); unless the plant integrates (a position driven by \
+                 a velocity), this is a spurious mode the data do not determine, so the static gain and \
+                 long simulations are not to be trusted ({})",
+                MARGIN,
+                if *max_pole_modulus < 1.0 {
+                    format!("time constant {:.1e} samples", -1.0 / max_pole_modulus.ln())
+                } else {
+                    "no decay".to_string()
+                },
+                if *has_level {
+                    "the model already has an output level, so a drift, a record too short for a slow \
+                     mode, or too high an order is the likelier cause: try a longer record, --detrend \
+                     linear or a lower na"
+                } else {
+                    "an output level the model cannot represent is the usual cause: try --offset or \
+                     --detrend mean"
+                }
+            ),
+            NotSettling::OnCircle { re, im } => write!(
+                f,
+                "a pole at {re:.6} {} {:.6}i (modulus {:.7}) on the unit circle away from z = 1: the \
+                 model oscillates without decay, so its simulation, static gain and frequency response \
+                 are not to be trusted (too high an order is the usual cause: try a lower na)",
+                if *im < 0.0 { "-" } else { "+" },
+                im.abs(),
+                re.hypot(*im)
+            ),
+        }
+    }
+}

@@ -76,12 +76,12 @@ pub(crate) fn tuned_run(
     duration_s: f64,
     y0_mm: f64,
 ) -> Result<Result<TunedRun, String>, ReproduceError> {
-    let deadzone = match control::tuning::command_deadzone(&fit.model) {
+    let deadzone = match control::compensator::command_deadzone(&fit.model) {
         Ok(d) => d,
         Err(p) => return Ok(Err(p.to_string())),
     };
-    let req = control::tuning::Request {
-        source: control::tuning::Source::Model {
+    let req = sysid_control::tuning::Request {
+        source: sysid_control::tuning::Source::Model {
             model: fit.model.clone(),
             deadzone,
             label: "output-error model".into(),
@@ -95,7 +95,7 @@ pub(crate) fn tuned_run(
         physics_variants: 0,
         cancel: sysid_core::Stop::never(),
     };
-    let report = match control::tuning::run(&req) {
+    let report = match sysid_control::tuning::run(&req) {
         Ok(r) => r,
         Err(e) if !e.is_numerical() => return Ok(Err(e.to_string())),
         Err(e) => return Err(e.into()),
@@ -116,11 +116,11 @@ pub(crate) fn tuned_run(
     Ok(Ok((s, verdict, on_plant, on_model)))
 }
 
-/// `tune`'s verdict on the controller it found ([`control::tuning::TuneReport`]): the same figures
+/// `tune`'s verdict on the controller it found ([`sysid_control::tuning::TuneReport`]): the same figures
 /// the controller file's provenance carries (`meets_spec`, `met`), and its warnings.
 #[derive(Debug, Clone)]
 pub(crate) struct TuneVerdict {
-    /// No verification missed the specification ([`control::tuning::TuneReport::meets_spec`]).
+    /// No verification missed the specification ([`sysid_control::tuning::TuneReport::meets_spec`]).
     pub(crate) meets_spec: bool,
     /// Steps of the last verification that met the whole specification.
     pub(crate) steps_met: usize,

@@ -105,7 +105,8 @@ impl Default for RecursiveLeastSquares {
     }
 }
 
-/// Settings of the output-error refinement, started from least squares.
+/// Settings of the output-error refinement, started from least squares (and, for a model with an
+/// input nonlinearity, from instrumental variables too: [`OutputError::second_start`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct OutputError {
     /// The least-squares start.
@@ -115,7 +116,7 @@ pub struct OutputError {
     pub max_iterations: usize,
     /// For a model with an input nonlinearity, search from the IV estimate too and keep the lower end
     /// ([`second_start`]; default true, what `identify --method oe` does). `false` searches from the
-    /// LS start alone, as before session 34: `control::tuning::twin_model` (docs/control.md, "The
+    /// LS start alone, as before session 34: `sysid_control::tuning::twin_model` (docs/control.md, "The
     /// twin's model and the second start").
     pub second_start: bool,
 }

@@ -4,7 +4,8 @@
 //! (module `blocks`).
 
 use serde::{Serialize, Serializer};
-use sysid_core::{Model, ParamName, Stability};
+use sysid_core::stability::NotSettling;
+use sysid_core::{Model, ParamName};
 
 /// Which record a warning is about.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -207,49 +208,19 @@ pub enum Warning {
 impl std::fmt::Display for Warning {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         match self {
-            Warning::Unstable { max_pole_modulus } if !max_pole_modulus.is_finite() => f.write_str(
-                "unstable model: a pole is not a finite number (coefficients beyond f64); its \
-                 simulation diverges (do not use it for simulation or control)",
-            ),
-            Warning::Unstable { max_pole_modulus } => write!(
-                f,
-                "unstable model: a pole has modulus {} > 1; its simulation diverges \
-                 (do not use it for simulation or control)",
-                sysid_core::format::Modulus(*max_pole_modulus)
-            ),
+            Warning::Unstable { max_pole_modulus } => NotSettling::Unstable {
+                max_pole_modulus: *max_pole_modulus,
+            }
+            .fmt(f),
             Warning::NearIntegrator {
                 max_pole_modulus,
                 has_level,
-            } => write!(
-                f,
-                "a pole at z = 1 (modulus {max_pole_modulus:.7}, within {:e} of 1), on the stability \
-                 boundary: the model integrates ({}); unless the plant integrates (a position driven by \
-                 a velocity), this is a spurious mode the data do not determine, so the static gain and \
-                 long simulations are not to be trusted ({})",
-                sysid_core::stability::MARGIN,
-                if *max_pole_modulus < 1.0 {
-                    format!("time constant {:.1e} samples", -1.0 / max_pole_modulus.ln())
-                } else {
-                    "no decay".to_string()
-                },
-                if *has_level {
-                    "the model already has an output level, so a drift, a record too short for a slow \
-                     mode, or too high an order is the likelier cause: try a longer record, --detrend \
-                     linear or a lower na"
-                } else {
-                    "an output level the model cannot represent is the usual cause: try --offset or \
-                     --detrend mean"
-                }
-            ),
-            Warning::OnCircle { re, im } => write!(
-                f,
-                "a pole at {re:.6} {} {:.6}i (modulus {:.7}) on the unit circle away from z = 1: the \
-                 model oscillates without decay, so its simulation, static gain and frequency response \
-                 are not to be trusted (too high an order is the usual cause: try a lower na)",
-                if *im < 0.0 { "-" } else { "+" },
-                im.abs(),
-                re.hypot(*im)
-            ),
+            } => NotSettling::Integrator {
+                max_pole_modulus: *max_pole_modulus,
+                has_level: *has_level,
+            }
+            .fmt(f),
+            Warning::OnCircle { re, im } => NotSettling::OnCircle { re: *re, im: *im }.fmt(f),
             Warning::PoorSimulation {
                 record,
                 fit_percent: Some(fit),
@@ -486,20 +457,17 @@ impl Warning {
     /// The warning of `model`'s stability verdict ([`Model::stability`]): [`Warning::Unstable`],
     /// [`Warning::NearIntegrator`] or [`Warning::OnCircle`]; `None` when it settles.
     pub fn if_not_settling(model: &Model) -> Option<Warning> {
-        match model.stability() {
-            Stability::Settles { .. } => None,
-            s @ Stability::Unstable { .. } => Some(Warning::Unstable {
-                max_pole_modulus: s.modulus(),
-            }),
-            s @ Stability::Integrator { .. } => Some(Warning::NearIntegrator {
-                max_pole_modulus: s.modulus(),
-                has_level: model.offset().is_some() || model.operating_point().is_some(),
-            }),
-            Stability::OnCircle { pole } => Some(Warning::OnCircle {
-                re: pole.re,
-                im: pole.im,
-            }),
-        }
+        model.not_settling().map(|why| match why {
+            NotSettling::Unstable { max_pole_modulus } => Warning::Unstable { max_pole_modulus },
+            NotSettling::Integrator {
+                max_pole_modulus,
+                has_level,
+            } => Warning::NearIntegrator {
+                max_pole_modulus,
+                has_level,
+            },
+            NotSettling::OnCircle { re, im } => Warning::OnCircle { re, im },
+        })
     }
 
     /// [`Warning::DeadzoneNotAValve`] for each input of `model` whose deadzone, in the command's units

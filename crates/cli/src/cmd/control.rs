@@ -71,17 +71,17 @@ pub struct Args {
     #[arg(long, requires = "compensate_deadzone")]
     pub adaptive: bool,
     /// --adaptive: RLS forgetting factor ρ of the online estimate.
-    #[arg(long, default_value_t = control::AdaptiveSettings::default().tracker.forgetting)]
+    #[arg(long, default_value_t = sysid_control::AdaptiveSettings::default().tracker.forgetting)]
     pub adaptive_forgetting: f64,
     /// --adaptive: estimator updates before its deadzone is used (again after a detected change).
-    #[arg(long, value_name = "N", default_value_t = control::AdaptiveSettings::default().min_updates)]
+    #[arg(long, value_name = "N", default_value_t = sysid_control::AdaptiveSettings::default().min_updates)]
     pub adaptive_min_updates: usize,
     /// --adaptive: a compensator breakpoint follows the estimate only when its standard deviation is at
     /// most this many counts (otherwise it is frozen).
-    #[arg(long, value_name = "COUNTS", default_value_t = control::AdaptiveSettings::default().max_breakpoint_sd_counts)]
+    #[arg(long, value_name = "COUNTS", default_value_t = sysid_control::AdaptiveSettings::default().max_breakpoint_sd_counts)]
     pub adaptive_max_sd: f64,
     /// --adaptive: largest change of a compensator breakpoint, counts per second.
-    #[arg(long, value_name = "COUNTS_PER_S", default_value_t = control::AdaptiveSettings::default().max_rate_counts_per_s)]
+    #[arg(long, value_name = "COUNTS_PER_S", default_value_t = sysid_control::AdaptiveSettings::default().max_rate_counts_per_s)]
     pub adaptive_max_rate: f64,
     /// Make the plant's valve deadzone wider during the run: `AT_S:WIDEN_COUNTS` (e.g. 30:20: from
     /// t = 30 s every command loses 20 counts towards zero, i.e. b_r + 20 and b_l − 20).
@@ -167,9 +167,9 @@ struct AdaptiveOut {
     final_estimate_sd: Option<sysid::online::DeadzoneSd>,
     /// Samples at which the right branch (b_r, m_r) waited, was frozen (implausible, undetermined) or
     /// followed the estimate.
-    right: control::BranchCounts,
+    right: sysid_control::BranchCounts,
     /// The same for the left branch (b_l, m_l).
-    left: control::BranchCounts,
+    left: sysid_control::BranchCounts,
     /// Reasons not to trust the adaptation, in words.
     warnings: Vec<String>,
     /// ρ of the online estimate.
@@ -464,14 +464,14 @@ fn run_loop(
     let ts = plant.ts();
     Ok(match (compensator, args.adaptive) {
         (Some(initial), true) => {
-            let mut adaptive_settings = control::AdaptiveSettings {
+            let mut adaptive_settings = sysid_control::AdaptiveSettings {
                 min_updates: args.adaptive_min_updates,
                 max_breakpoint_sd_counts: args.adaptive_max_sd,
                 max_rate_counts_per_s: args.adaptive_max_rate,
-                ..control::AdaptiveSettings::default()
+                ..sysid_control::AdaptiveSettings::default()
             };
             adaptive_settings.tracker.forgetting = args.adaptive_forgetting;
-            let run = control::run_adaptive(
+            let run = sysid_control::run_adaptive(
                 plant,
                 controller,
                 *initial,
@@ -565,7 +565,7 @@ fn anti_windup(args: &Args, ts: f64) -> anyhow::Result<AntiWindup> {
 /// The deadzone-inverse compensator of `--compensate-deadzone`, if any; a model file read is added to
 /// `inputs` (so that no output replaces it).
 /// The deadzone compensator of `--compensate-deadzone`, with a warning when its model's data never
-/// came near the loop's command limit ([`control::tuning::compensator_scale_warning`]).
+/// came near the loop's command limit ([`control::compensator::compensator_scale_warning`]).
 fn compensator(
     args: &Args,
     inputs: &mut Vec<PathBuf>,
@@ -584,7 +584,7 @@ fn compensator(
         let m = sysid::model_file::read_model(path).context("cannot read --compensate-deadzone")?;
         (
             command_deadzone(&m, path, "--compensate-deadzone")?,
-            control::tuning::compensator_scale_warning(&m, args.u_max),
+            control::compensator::compensator_scale_warning(&m, args.u_max),
         )
     };
     Ok((
@@ -597,13 +597,13 @@ fn compensator(
 }
 
 /// The deadzone of a single-input Hammerstein model `m` (read from `path`, given with `flag`) in the
-/// command's units (`control::tuning::command_deadzone`); errors name the file and the flag.
+/// command's units (`control::compensator::command_deadzone`); errors name the file and the flag.
 pub fn command_deadzone(
     m: &sysid::Model,
     path: &Path,
     flag: &'static str,
 ) -> anyhow::Result<sysid::Deadzone> {
-    control::tuning::command_deadzone(m).map_err(|problem| {
+    control::compensator::command_deadzone(m).map_err(|problem| {
         anyhow::Error::new(sysid::SysidError::setting(
             sysid::Setting::Other(flag),
             path.display(),
@@ -628,7 +628,7 @@ fn adaptive_text(a: &AdaptiveOut) -> String {
             d.b_l, d.b_r, d.m_l, d.m_r
         )
     });
-    let counts = |c: &control::BranchCounts| {
+    let counts = |c: &sysid_control::BranchCounts| {
         format!(
             "followed {} / frozen {} (implausible {}, undetermined {}, settling {}) / waiting {}",
             c.following,

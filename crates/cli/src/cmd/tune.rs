@@ -8,8 +8,8 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{bail, Context};
 use control::tune::{Evaluation, Spec, TuneSettings};
-use control::tuning::{self, Request, Source, TuneReport, Verification};
 use serde::Serialize;
+use sysid_control::tuning::{self, Request, Source, TuneReport, Verification};
 
 /// Flags of `ipa-sysid tune`. Exactly one of --model and --plant-config (one group, so that a missing
 /// one is named as "--model or --plant-config": audit s22 L-N6).

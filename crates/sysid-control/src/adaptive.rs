@@ -38,8 +38,8 @@
 
 use sysid_core::Deadzone;
 
-use crate::closed_loop::{run_with, Trace};
-use crate::{ControlError, DeadzoneCompensator, Profile};
+use control::closed_loop::{run_with, Trace};
+use control::{ControlError, DeadzoneCompensator, Profile};
 use sysid::online::{DeadzoneSd, DeadzoneStart, DetectorSettings, TrackSettings, Tracker};
 use sysid_core::Plant;
 
@@ -248,11 +248,11 @@ fn towards(current: f64, target: f64, step: f64) -> f64 {
     current + (target - current).clamp(-step, step)
 }
 
-/// Runs the loop as [`crate::closed_loop::run`] does, with the compensator `initial` adapted during the
+/// Runs the loop as [`control::closed_loop::run`] does, with the compensator `initial` adapted during the
 /// run (see the module documentation).
 pub fn run_adaptive(
     plant: &mut dyn Plant,
-    controller: &mut dyn crate::Controller,
+    controller: &mut dyn control::Controller,
     initial: DeadzoneCompensator,
     settings: &AdaptiveSettings,
     profile: &Profile,

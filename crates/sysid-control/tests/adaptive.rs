@@ -1,4 +1,4 @@
-//! Adaptive deadzone compensation (`control::adaptive`) on the paper's model whose deadzone widens by
+//! Adaptive deadzone compensation (`sysid_control::adaptive`) on the paper's model whose deadzone widens by
 //! Δ = 20 counts on each side at t = 30 s ([`control::Widened`]), against the fixed compensator built
 //! from the paper's deadzone. Set-point: 20 and 40 mm alternately, 10 s each, 100 s.
 //!
@@ -16,9 +16,10 @@
 #![allow(clippy::needless_range_loop)] // hold numbers index both runs and the set-point
 
 use control::{
-    closed_loop, run_adaptive, AdaptiveSettings, DeadzoneChange, DeadzoneCompensator, PiSettings,
-    Profile, SlopeMode, Trace, Widened,
+    closed_loop, DeadzoneChange, DeadzoneCompensator, PiSettings, Profile, SlopeMode, Trace,
+    Widened,
 };
+use sysid_control::{run_adaptive, AdaptiveSettings};
 use sysid_core::{Model, ModelPlant};
 
 const HOLD_S: f64 = 10.0;
@@ -46,7 +47,7 @@ fn hold_errors(trace: &Trace) -> Vec<f64> {
 }
 
 /// (fixed compensator, adaptive compensator) runs with gains Kp = 14 and `ki`.
-fn runs(ki: f64) -> (Trace, control::AdaptiveRun) {
+fn runs(ki: f64) -> (Trace, sysid_control::AdaptiveRun) {
     let profile = Profile::parse("staircase:20,40,20,40,20,40,20,40,20,40@10").unwrap();
     let comp =
         DeadzoneCompensator::new(*Model::paper().deadzone().unwrap(), SlopeMode::Shift, 255.0)

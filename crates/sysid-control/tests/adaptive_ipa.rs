@@ -17,10 +17,11 @@
 #![allow(clippy::unwrap_used, clippy::expect_used, missing_docs)] // tests, benches and examples may panic
 
 use control::{
-    closed_loop, run_adaptive, AdaptiveRun, AdaptiveSettings, DeadzoneChange, DeadzoneCompensator,
-    PiSettings, Profile, SlopeMode, Trace, Widened,
+    closed_loop, DeadzoneChange, DeadzoneCompensator, PiSettings, Profile, SlopeMode, Trace,
+    Widened,
 };
 use ipa::{Ipa, PlantConfig};
+use sysid_control::{run_adaptive, AdaptiveRun, AdaptiveSettings};
 use sysid_core::{Model, Plant};
 
 const HOLD_S: f64 = 10.0;

@@ -1,6 +1,6 @@
 //! `ipa-sysid tune` / `ipa_sysid.tune` from end to end (the command line and Python share it): the
 //! plants to tune over (an identified model and its variants, or a physics twin and its variants),
-//! the search ([`crate::tune::tune`]), the linear margins, and the verification beside the paper's PI
+//! the search ([`control::tune::tune`]), the linear margins, and the verification beside the paper's PI
 //! on the model and, for a twin or on request, on the physics plant, with the specification's misses
 //! in words. docs/control.md, section "Tuning the position loop".
 
@@ -9,21 +9,16 @@ use std::time::Instant;
 use serde::Serialize;
 use sysid_core::{Deadzone, Model, Plant};
 
-use crate::compensator::{DeadzoneCompensator, SlopeMode};
-use crate::tune::{self, Comparison, Margins, PlantFactory, Spec, TuneSettings};
-use crate::{ControlError, ControllerSettings};
+use control::compensator::{DeadzoneCompensator, SlopeMode};
+use control::tune::{self, Comparison, Margins, PlantFactory, Spec, TuneSettings};
+use control::{ControlError, ControllerSettings};
 
 /// Spread of the plant variants: ±30 %.
 pub const SPREAD: f64 = 0.3;
-/// The twin's variants searched over are drawn with seeds from this offset + 1 (the verification's
-/// physics variants use seeds 1..).
-pub const TUNING_SEED_OFFSET: u64 = 1000;
 /// Largest number of plant variants or evaluations a request may ask for (bounds the work).
 pub const MAX_VARIANTS: usize = 200;
 /// Largest number of cost evaluations of a request.
 pub const MAX_EVALUATIONS: usize = 10_000;
-/// Fewest closed-loop evaluations a tuning needs (`--max-evaluations`).
-pub const MIN_EVALUATIONS: usize = 8;
 
 /// What to tune on.
 #[derive(Debug, Clone)]
@@ -134,7 +129,7 @@ impl TuneReport {
     /// the controller with its provenance — source, spec, whether it met it and the whole-specification
     /// count of the last verification, which `control --controller` repeats when the spec was not met
     /// (audit s17 L-m; s18 M-4 for Python).
-    pub fn controller_file(&self) -> crate::ControllerFile {
+    pub fn controller_file(&self) -> control::ControllerFile {
         let last = self.on_physics.as_ref().unwrap_or(&self.on_model);
         let met = serde_json::json!({
             "steps": last.comparison.tuned.met,
@@ -148,53 +143,8 @@ impl TuneReport {
             "meets_spec": self.meets_spec(),
             "met": met,
         });
-        crate::ControllerFile::new(self.controller, Some(provenance))
+        control::ControllerFile::new(self.controller, Some(provenance))
     }
-}
-
-/// Why a model cannot give the controller's deadzone ([`command_deadzone`]).
-#[derive(Debug, Clone, PartialEq)]
-pub enum DeadzoneProblem {
-    /// A model with several inputs (the controller drives one command).
-    SeveralInputs(usize),
-    /// A model whose input block is not a deadzone (ARX, or another input nonlinearity), in words.
-    NoDeadzone(&'static str),
-}
-
-impl std::fmt::Display for DeadzoneProblem {
-    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        match self {
-            DeadzoneProblem::SeveralInputs(n) => write!(
-                f,
-                "a single-input Hammerstein model file (this model has {n} inputs; the controller \
-                 drives one command)"
-            ),
-            DeadzoneProblem::NoDeadzone(block) => write!(
-                f,
-                "a model with a deadzone input block (this model's input block is {block}; identify \
-                 the record again with `--structure hammerstein` for one, or run this model as a \
-                 plant under a PI: `control --plant model:FILE --kp KP --ki KI`)"
-            ),
-        }
-    }
-}
-
-/// The deadzone of a single-input Hammerstein model in the command's units: a detrended model's
-/// deadzone acts on u − u0, so its breakpoints are shifted by u0 (the slopes are unchanged).
-pub fn command_deadzone(m: &Model) -> Result<Deadzone, DeadzoneProblem> {
-    if m.inputs().len() > 1 {
-        return Err(DeadzoneProblem::SeveralInputs(m.inputs().len()));
-    }
-    m.command_deadzone(0).ok_or_else(|| {
-        use sysid_core::StaticNonlinearity as S;
-        DeadzoneProblem::NoDeadzone(match m.inputs().first().map(|c| c.nonlinearity()) {
-            Some(S::Saturation(_)) => "a saturation",
-            Some(S::DeadzoneSaturation(_)) => "a deadzone whose branches saturate",
-            Some(S::PiecewiseLinear(_)) => "piecewise-linear",
-            Some(S::Polynomial(_)) => "a polynomial",
-            _ => "linear: an ARX model",
-        })
-    })
 }
 
 /// A Hammerstein model of a twin: output error, orders (3, 1, 1), on 3000 samples of the staircase
@@ -262,7 +212,7 @@ fn verify(
         comparison.paper_pi.met,
         comparison.tuned.runs.len(),
     );
-    let fmt = crate::trust::fmt_value;
+    let fmt = control::trust::fmt_value;
     if met < met_pi || (met == met_pi && j > j_pi) {
         warnings.push(format!(
             "the tuned controller does not beat the paper's PI (Kp = 14, Ki = 1) on {what}: whole \
@@ -290,7 +240,7 @@ fn verify(
 
 /// Runs a tuning request (module documentation).
 pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
-    use crate::ControlSetting as S;
+    use control::ControlSetting as S;
     for (setting, v, min, max, expected) in [
         (
             S::Variants,
@@ -309,7 +259,7 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
         (
             S::MaxEvaluations,
             req.search.max_evaluations,
-            MIN_EVALUATIONS,
+            tune::MIN_EVALUATIONS,
             MAX_EVALUATIONS,
             "",
         ),
@@ -374,7 +324,11 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
         let cfg = if i == 0 {
             base
         } else {
-            ipa::calibrate::study::perturbed_from(&base, TUNING_SEED_OFFSET + i as u64, SPREAD)
+            ipa::calibrate::study::perturbed_from(
+                &base,
+                tune::TUNING_SEED_OFFSET + i as u64,
+                SPREAD,
+            )
         };
         Ok(Box::new(
             ipa::Ipa::with_ts(cfg, ts).map_err(|e| ControlError::Config(e.to_string()))?,
@@ -447,7 +401,7 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
     if let Some(p) = &on_physics {
         warnings.extend(p.warnings.iter().cloned());
     }
-    warnings.extend(linear_loop_warnings(&margins));
+    warnings.extend(tune::linear_loop_warnings(&margins));
     warnings.splice(0..0, reach_warnings(&model, &deadzone, &spec));
     if twin.is_none() {
         warnings.splice(0..0, scale_up_warning(&model, &spec));
@@ -483,81 +437,12 @@ pub fn run(req: &Request) -> Result<TuneReport, ControlError> {
     })
 }
 
-/// What the linear part's closed loop and margins say ([`tune::margins`]): an unstable linear closed
-/// loop from its poles (audit s18 H-2: a third gain crossover at −39° and a pole of modulus 1.012 went
-/// unreported behind the first crossover's +52°), else a negative or small phase margin, and a
-/// negative gain margin (the loop is unstable at a lower gain, conditionally stable at this one).
-pub(crate) fn linear_loop_warnings(margins: &Margins) -> Vec<String> {
-    // 6 decimals near the unit circle; a loop of absurd gains in scientific notation (not 300 digits).
-    let modulus = |p: Option<f64>| match p {
-        Some(p) => sysid_core::format::Modulus(p).to_string(),
-        None => "n/a".to_string(),
-    };
-    let mut w = Vec::new();
-    let crossovers = |n: usize| {
-        if n > 1 {
-            format!(" (the smallest of {n} crossovers)")
-        } else {
-            String::new()
-        }
-    };
-    if margins.closed_loop_max_pole_modulus.is_none() {
-        w.push(
-            "the linear closed loop's poles could not be computed (its characteristic polynomial's \
-             coefficients or roots are not finite numbers: a model of absurd gains?): its stability \
-             is not known"
-                .to_string(),
-        );
-        return w;
-    }
-    if margins.closed_loop_unstable() {
-        w.push(format!(
-            "the linear loop (the model with the deadzone's slope and this controller) is unstable: a \
-             closed-loop pole has modulus {} (> 1){}",
-            modulus(margins.closed_loop_max_pole_modulus),
-            match margins.phase_margin_deg {
-                Some(pm) => format!(
-                    "; phase margin {pm:.1}° at {:.2} rad/s{}",
-                    margins.gain_crossover_rad_s.unwrap_or(f64::NAN),
-                    crossovers(margins.gain_crossovers)
-                ),
-                None => String::new(),
-            }
-        ));
-        return w;
-    }
-    match margins.phase_margin_deg {
-        Some(pm) if pm < 0.0 => w.push(format!(
-            "the linear part's phase margin is {pm:.1}° (negative) at {:.2} rad/s{}, although the \
-             linear closed loop's poles are inside the unit circle (largest modulus {}): the loop is \
-             conditionally stable, a change of gain or delay can destabilise it",
-            margins.gain_crossover_rad_s.unwrap_or(f64::NAN),
-            crossovers(margins.gain_crossovers),
-            modulus(margins.closed_loop_max_pole_modulus),
-        )),
-        Some(pm) if pm < 30.0 => w.push(format!(
-            "the linear part's phase margin is {pm:.1}° (< 30°){}: the loop is close to oscillating",
-            crossovers(margins.gain_crossovers)
-        )),
-        _ => {}
-    }
-    if let Some(gm) = margins.gain_margin_db.filter(|g| *g < 0.0) {
-        w.push(format!(
-            "the linear part's gain margin is {gm:.2} dB (negative) at {:.2} rad/s: the linear loop \
-             turns unstable if its gain falls by {:.2} dB (a smaller deadzone slope, a weaker plant)",
-            margins.phase_crossover_rad_s.unwrap_or(f64::NAN),
-            -gm
-        ));
-    }
-    w
-}
-
-/// The model's own stability warning ([`sysid::Warning::if_not_settling`], the words
+/// The model's own stability warning ([`Model::not_settling`], the words
 /// `identify` uses) for the model tuned on, and for an unstable one what its margins mean: with an
 /// open-loop pole outside the unit circle the gain and phase margins do not certify closed-loop
 /// stability (audit s11 T1).
 fn model_stability_warnings(model: &Model, margins: &Margins) -> Vec<String> {
-    let Some(w) = sysid::Warning::if_not_settling(model) else {
+    let Some(w) = model.not_settling() else {
         return Vec::new();
     };
     let mut out = vec![format!("the model tuned on: {w}")];
@@ -575,7 +460,7 @@ fn model_stability_warnings(model: &Model, margins: &Margins) -> Vec<String> {
 
 /// Fewest samples in one run of the specification: a run of a handful of samples has no rise or
 /// settling to measure (every step would "settle" at its first sample).
-pub const MIN_RUN_SAMPLES: f64 = crate::metrics::MIN_STEP_SAMPLES as f64;
+pub const MIN_RUN_SAMPLES: f64 = control::metrics::MIN_STEP_SAMPLES as f64;
 
 /// Most samples in one run of the specification: 60 s at the IPA's Ts = 0.01 s (a model of Ts = 9 s
 /// may run 15 hours of its time).
@@ -600,7 +485,7 @@ fn check_spec(req: &Request, ts: f64, twin: &Option<ipa::PlantConfig>) -> Result
     use sysid_core::format::Shortest;
     let (spec, check_physics) = (&req.spec, req.check_physics);
     let bad = |what: String, expected: String| {
-        ControlError::setting(crate::ControlSetting::Spec, what, &expected)
+        ControlError::setting(control::ControlSetting::Spec, what, &expected)
     };
     // Numbers below f64's normal range (1e-320 mm) are no tolerance a measurement can meet, and a
     // command limit below MIN_U_MAX no actuator resolves (audit s22 L-B2: u-max=1e-300 tuned a
@@ -659,7 +544,7 @@ fn check_spec(req: &Request, ts: f64, twin: &Option<ipa::PlantConfig>) -> Result
     let work = (search + verified) * cases * run_samples.ceil();
     if work > MAX_SIMULATED_SAMPLES {
         return Err(ControlError::setting(
-            crate::ControlSetting::MaxEvaluations,
+            control::ControlSetting::MaxEvaluations,
             req.search.max_evaluations,
             &format!(
                 "a request of at most {MAX_SIMULATED_SAMPLES:e} simulated samples: ({} evaluations + {} \
@@ -747,28 +632,6 @@ fn check_spec(req: &Request, ts: f64, twin: &Option<ipa::PlantConfig>) -> Result
     Ok(())
 }
 
-/// How many times the estimation data's largest command, or its output span, the specification's command
-/// limit or largest step may be before `tune`'s warning of a specification beyond the model's data
-/// ([`crate::trust::extrapolation_warning`]) names the units as the likely cause.
-pub const EXTRAPOLATION_FACTOR: f64 = 4.0;
-
-/// A deadzone compensator taken from `model` for a loop whose command limit is `u_max`: a warning when
-/// the model's estimation data never came near that limit (its largest |u| more than
-/// [`EXTRAPOLATION_FACTOR`] times smaller), i.e. its deadzone is probably in another plant's command
-/// units (audit s11: an EMPS model in volts compensating the IPA in PWM counts, silently).
-pub fn compensator_scale_warning(model: &Model, u_max: f64) -> Option<String> {
-    let u_data = model.data_range()?.u_magnitude(0).filter(|m| *m > 0.0)?;
-    (u_max > EXTRAPOLATION_FACTOR * u_data).then(|| {
-        format!(
-            "the compensator's model was estimated on commands within ±{} while the loop commands up to \
-             ±{u_max} ({} times more): its deadzone is probably in another plant's units; check that the \
-             model is of this plant",
-            crate::trust::fmt_value(u_data),
-            crate::trust::fmt_value(u_max / u_data)
-        )
-    })
-}
-
 /// A warning when a model plant's units look larger-numbered than the IPA's (its estimation data reach
 /// commands beyond ±255 counts, or span more than the IPA's 200 mm stroke: µm, a 10-bit PWM) and
 /// `spec` is on that scale (its smallest step above 10 or its u_max above 255): [`tune::Scale::of_spec`]
@@ -778,7 +641,7 @@ pub fn compensator_scale_warning(model: &Model, u_max: f64) -> Option<String> {
 fn scale_up_warning(model: &Model, spec: &Spec) -> Option<String> {
     let range = model.data_range()?;
     let stroke = ipa::PlantConfig::default().cylinder.stroke_mm;
-    let fmt = crate::trust::fmt_value;
+    let fmt = control::trust::fmt_value;
     let smallest = spec.steps_mm.iter().copied().fold(f64::INFINITY, f64::min);
     let (length, command) = (
         smallest / tune::DEFAULT_SMALLEST_STEP_MM,
@@ -827,7 +690,7 @@ fn scale_up_warning(model: &Model, spec: &Spec) -> Option<String> {
 /// command at ±u_max ([`Model::held_output`]; a near-integrator has no such bound).
 fn reach_warnings(model: &Model, deadzone: &Deadzone, spec: &Spec) -> Vec<String> {
     let mut w = Vec::new();
-    let fmt = crate::trust::fmt_value;
+    let fmt = control::trust::fmt_value;
     // (name, breakpoint, the command magnitude it needs, the way it moves the model)
     for (side, b, needs, way) in [
         ("b_r", deadzone.b_r, deadzone.b_r, "up"),
@@ -853,7 +716,7 @@ fn reach_warnings(model: &Model, deadzone: &Deadzone, spec: &Spec) -> Vec<String
         // says so with the --spec keys to give in the model's units (audit s9 T10).
         let u_units = range
             .u_magnitude(0)
-            .filter(|m| *m > 0.0 && spec.u_max > EXTRAPOLATION_FACTOR * m)
+            .filter(|m| *m > 0.0 && spec.u_max > control::compensator::EXTRAPOLATION_FACTOR * m)
             .map(|u_data| {
                 format!(
                     "; the command limit u_max = {} is {} times the largest |u| = {} of those data: if \
@@ -866,7 +729,7 @@ fn reach_warnings(model: &Model, deadzone: &Deadzone, spec: &Spec) -> Vec<String
             });
         if let Some([lo, hi]) = range.u.first() {
             w.extend(
-                crate::trust::extrapolation_warning(
+                control::trust::extrapolation_warning(
                     "commands (|u| <= u_max)",
                     "u",
                     (-spec.u_max, spec.u_max),
@@ -877,7 +740,7 @@ fn reach_warnings(model: &Model, deadzone: &Deadzone, spec: &Spec) -> Vec<String
         }
         let largest = spec.steps_mm.iter().fold(0.0_f64, |m, s| m.max(s.abs()));
         let span = range.y_span();
-        let y_units = (largest > EXTRAPOLATION_FACTOR * span).then(|| {
+        let y_units = (largest > control::compensator::EXTRAPOLATION_FACTOR * span).then(|| {
             format!(
                 "; the specification's steps (up to {}) are {} times the output's span in those data: \
                  if the model's output is not in mm, give the set-points in its units (--spec \
@@ -891,7 +754,7 @@ fn reach_warnings(model: &Model, deadzone: &Deadzone, spec: &Spec) -> Vec<String
             )
         });
         w.extend(
-            crate::trust::extrapolation_warning(
+            control::trust::extrapolation_warning(
                 "set-points (low .. high)",
                 "y",
                 (spec.low_mm, spec.high_mm),

@@ -1,4 +1,4 @@
-//! The tuner's model of a twin (`control::tuning::twin_model`): output error from the LS start alone
+//! The tuner's model of a twin (`sysid_control::tuning::twin_model`): output error from the LS start alone
 //! (`sysid::OutputError::second_start = false`), the model issue 25's figures were measured with
 //! (docs/control.md, "The twin's model and the second start").
 
@@ -69,7 +69,7 @@ fn the_twin_model_is_the_search_from_the_ls_start_alone() {
     // The tuner takes the one-start model, parameter for parameter (on this plant the two differ:
     // the IV end is kept, so the test tells the two settings apart).
     assert!(*kept_iv, "the IV end was not kept here: {:?}", two.notes);
-    let twin = control::tuning::twin_model(&cfg).unwrap();
+    let twin = sysid_control::tuning::twin_model(&cfg).unwrap();
     assert_eq!(twin, one.model);
     assert_ne!(twin, two.model);
 }

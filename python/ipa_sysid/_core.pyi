@@ -247,6 +247,7 @@ def simulate_plant(
     x0: float | None = None,
     noise_std: float = 0.0,
     plant_config: str | PathLike[str] | None = None,
+    max_memory_gb: float = 4.0,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray | None]:
     """One open-loop experiment as `ipa-sysid simulate`: (t, u, y, pressures)."""
 

@@ -2381,9 +2381,11 @@ fn plant_spec(plant: &str) -> PyResult<ipa::PlantSpec> {
 /// The command line's warnings (a model file's doubts, a start outside its data, an input or output
 /// beyond its estimation data, a flat physics record, the paper model beyond the stroke) are each
 /// issued as an `IpaSysidWarning` (`sysid_summary::simulation`, the list `simulate` prints).
+/// `max_memory_gb` (the command line's `--max-memory`, 4 GiB by default) bounds the run's buffers:
+/// more samples than fit are refused before the run.
 #[pyfunction]
 #[pyo3(signature = (plant="ipa", input="staircase", samples=None, seed=0, amplitude=255.0, ts=None,
-    x0=None, noise_std=0.0, plant_config=None))]
+    x0=None, noise_std=0.0, plant_config=None, max_memory_gb=4.0))]
 #[allow(clippy::too_many_arguments, clippy::type_complexity)]
 fn simulate_plant<'py>(
     py: Python<'py>,
@@ -2396,6 +2398,7 @@ fn simulate_plant<'py>(
     x0: Option<f64>,
     noise_std: f64,
     plant_config: Option<PathBuf>,
+    max_memory_gb: f64,
 ) -> PyResult<(
     Bound<'py, PyArray1<f64>>,
     Bound<'py, PyArray1<f64>>,
@@ -2449,6 +2452,27 @@ fn simulate_plant<'py>(
         cancel: sysid::Stop::never(),
     };
     exp.check().map_err(ipa_err)?;
+    // The run's buffers, bounded before they are made (audit s36 H-1: 5 × 10^7 samples, accepted,
+    // aborted the interpreter on a failed allocation under a 1.5 GB memory limit).
+    let budget = memory_budget(max_memory_gb)?;
+    let n = exp.sample_count().map_err(ipa_err)?;
+    let per_sample = (sysid::ls::RECORD_NUMBERS_PER_SAMPLE * 8) as u64;
+    let need = (n as u64).saturating_mul(per_sample);
+    if need > budget.bytes() {
+        return Err(setting_err(
+            "samples",
+            n,
+            &format!(
+                "at most {} samples within max_memory_gb = {} (a run holds about {} numbers of 8 \
+                 bytes per sample: {} GB here); fewer samples, or a larger max_memory_gb if this \
+                 machine has the memory",
+                budget.bytes() / per_sample,
+                budget,
+                sysid::ls::RECORD_NUMBERS_PER_SAMPLE,
+                sysid::ls::format_gb(need)
+            ),
+        ));
+    }
     let y0 = match exp.x0 {
         Some(v) => v,
         None => exp.plant.default_y0().map_err(ipa_err)?,

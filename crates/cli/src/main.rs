@@ -156,7 +156,8 @@ const MATLAB_HINTS: &[(&str, &str)] = &[
     (
         "pem",
         "the prediction-error refinement of an ARX or Hammerstein model is `ipa-sysid identify --method \
-         oe` (output error, started from least squares)",
+         oe` (output error, started from least squares and, for a model with an input nonlinearity, \
+         from instrumental variables too: the lower end is kept)",
     ),
     (
         "iddata",

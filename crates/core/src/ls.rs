@@ -63,6 +63,14 @@ pub const RANK_TOLERANCE: f64 = 1e-10;
 /// against. A machine with more memory raises it ([`MemoryBudget`], `--max-memory GIB`).
 pub const MAX_ESTIMATION_BYTES: u64 = 1 << 32;
 
+/// Numbers (f64) a run over a record holds per sample at its peak: a model's run holds the record,
+/// its simulation, predictions, residuals and their copies (`validate` measured 4.38 GB for 40 M
+/// samples, 13.7 per sample; audit s23 H-B1); a physics plant's run its states, the record's columns
+/// and their CSV text (`simulate` measured about 92 bytes per sample; audit s36 H-1). The one record
+/// budget of `validate`, `simulate`, `montecarlo` and Python's `simulate_plant`, checked against
+/// [`MemoryBudget`] before the run.
+pub const RECORD_NUMBERS_PER_SAMPLE: usize = 16;
+
 /// The most memory the matrices of one estimation may take, in GiB (2³⁰ bytes): the command line's
 /// `--max-memory GIB`, the Python package's `max_memory_gb`; [`MAX_ESTIMATION_BYTES`] (4 GiB) by
 /// default. Made only by [`MemoryBudget::from_gib`], so it is always more than 0 bytes and at most

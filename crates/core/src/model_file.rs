@@ -294,6 +294,30 @@ pub fn parse_any_model(bytes: &[u8], name: &str) -> Result<AnyModel, SysidError>
                 .into(),
         ));
     }
+    // A model file holds exactly these keys (an `identify --json` report, format REPORT_FORMAT, holds
+    // more): a key beside them was ignored before, so a value put at the wrong level (`"ts"` beside
+    // `"model"` instead of in it) loaded without a word (session 36, docs as written).
+    if obj.get("format").is_none_or(|f| f == FORMAT) {
+        if let Some(key) = obj
+            .keys()
+            .find(|k| !["format", "version", "model"].contains(&k.as_str()))
+        {
+            let in_model = obj
+                .get("model")
+                .and_then(|m| m.as_object())
+                .is_some_and(|m| m.contains_key(key.as_str()));
+            return Err(file_err(format!(
+                "unknown key \"{}\" at the top level of a model file; expected only \"format\", \
+                 \"version\" and \"model\" ({})",
+                crate::format::visible(key),
+                if in_model {
+                    "the \"model\" object has its own, which is the one read: remove this one"
+                } else {
+                    "a setting of the model belongs inside the \"model\" object"
+                }
+            )));
+        }
+    }
     if obj
         .get("model")
         .and_then(|m| m.get("kind"))
@@ -404,5 +428,47 @@ mod provenance_tests {
             provenance_warnings(Some(&p)),
             vec!["this model's identification on rec.csv (free-run fit 50.00 % on it) warned: unstable".to_string()]
         );
+    }
+}
+
+#[cfg(test)]
+mod top_level_tests {
+    use super::{parse_any_model, to_json};
+    use crate::Model;
+
+    // A model file holds "format", "version" and "model"; a key beside them (a setting put at the
+    // wrong level) is refused naming it, where it used to be ignored. A report (its own format) may
+    // hold more keys.
+    #[test]
+    fn an_unknown_top_level_key_is_refused_and_a_report_keeps_its_keys() {
+        let json = to_json(&Model::paper()).unwrap();
+        assert!(parse_any_model(json.as_bytes(), "m.json").is_ok());
+        let extra = json.replacen('{', "{\n  \"ts\": 0.02,", 1);
+        let e = parse_any_model(extra.as_bytes(), "m.json")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("m.json") && e.contains("unknown key \"ts\""),
+            "{e}"
+        );
+        assert!(e.contains("has its own"), "the model has a ts: {e}");
+        let stray = json.replacen('{', "{\n  \"nb_typo\": 2,", 1);
+        let e = parse_any_model(stray.as_bytes(), "m.json")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("\"nb_typo\"") && e.contains("belongs inside"),
+            "{e}"
+        );
+        let report = json.replacen(
+            &format!("\"format\": \"{}\"", super::FORMAT),
+            &format!(
+                "\"format\": \"{}\",\n  \"fit_percent\": 87.0",
+                crate::data::REPORT_FORMAT
+            ),
+            1,
+        );
+        assert!(report.contains("fit_percent"));
+        assert!(parse_any_model(report.as_bytes(), "r.json").is_ok());
     }
 }

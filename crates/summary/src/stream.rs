@@ -40,6 +40,7 @@ pub fn identify_report(
         val_u_extremes,
         y_extremes,
         passes,
+        val_passes,
     } = identify_checked(
         &mut est,
         val.as_mut().map(|v| v as &mut dyn RecordSource),
@@ -91,6 +92,7 @@ pub fn identify_report(
         val_u_extremes,
         y_extremes,
         passes,
+        val_passes,
     })
 }
 
@@ -120,6 +122,7 @@ pub fn validation_report(
         val_u_extremes: None,
         y_extremes: on.y_extremes,
         passes: on.passes,
+        val_passes: 0,
     })
 }
 

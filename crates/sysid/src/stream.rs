@@ -60,8 +60,11 @@ pub struct Streamed<T> {
     /// The validated record's output [min, max] ([`record_metrics`]; NaN skipped), to judge it against
     /// the model's estimation data as in-memory `validate` does; `None` when not looked at.
     pub y_extremes: Option<(f64, f64)>,
-    /// Passes over the records (every file read counts).
+    /// Passes over the estimation (or validated) record.
     pub passes: usize,
+    /// Passes over the validation record (0 without one), said apart so that a note names each
+    /// file's own (session 36: `--stream on --validation` counted them with the estimation file's).
+    pub val_passes: usize,
 }
 
 /// Why an identification cannot be streamed, or `None` when it can: ARX by least squares (any
@@ -157,13 +160,17 @@ pub fn identify_checked(
         &est_metrics,
     ));
     crate::estimate::std_warnings(&mut fit);
-    let (validation, val_shape, val_u_extremes) = match val {
+    let (validation, val_shape, val_u_extremes, val_passes) = match val {
         Some(v) => {
             let on_val = record_metrics(&fit.model, v, max_lag)?;
-            passes += on_val.passes;
-            (Some(on_val.result), Some(on_val.shape), on_val.u_extremes)
+            (
+                Some(on_val.result),
+                Some(on_val.shape),
+                on_val.u_extremes,
+                on_val.passes,
+            )
         }
-        None => (None, None, None),
+        None => (None, None, None, 0),
     };
     Ok(Streamed {
         result: StreamedFit {
@@ -177,6 +184,7 @@ pub fn identify_checked(
         val_u_extremes,
         y_extremes: on_est.y_extremes,
         passes,
+        val_passes,
     })
 }
 
@@ -375,6 +383,7 @@ pub fn identify_arx(
         val_u_extremes: None,
         y_extremes,
         passes,
+        val_passes: 0,
     })
 }
 
@@ -758,5 +767,6 @@ pub fn record_metrics_scored_from(
         val_u_extremes: None,
         y_extremes: Some(y_extremes),
         passes,
+        val_passes: 0,
     })
 }

@@ -41,13 +41,10 @@ pub struct MemoryArgs {
     pub max_memory: sysid::ls::MemoryBudget,
 }
 
-/// Numbers (f64) a model's run over a record holds per sample at its peak: the record, its
-/// simulation, predictions, residuals and their copies (`validate` measured 4.38 GB for 40 M samples,
-/// 13.7 per sample; audit s23 H-B1). The one record budget of `validate` and `simulate --plant
-/// model:FILE`.
-pub const RECORD_NUMBERS_PER_SAMPLE: usize = 16;
+pub use sysid::ls::RECORD_NUMBERS_PER_SAMPLE;
 
-/// Refuses a run of a model with `p` parameters over a record of `rows` samples (`what` names it)
+/// Refuses a run of a model with `p` parameters (0: a physics plant) over a record of `rows` samples
+/// (`what` names it)
 /// whose [`RECORD_NUMBERS_PER_SAMPLE`] numbers per sample would exceed `max_memory`, before any of
 /// them is made. `shorter` says how to run on fewer samples (`--rows A..B`, `--samples N`). The words
 /// are a record's, not an estimation's (no regression rows, no orders to lower).
@@ -69,11 +66,22 @@ pub fn check_record_memory(
         return Ok(());
     }
     let fit = max_memory.bytes() / (RECORD_NUMBERS_PER_SAMPLE as u64 * 8);
+    // p = 0: a physics plant's run (its states, the record's columns and the CSV text of them).
+    let (of, held) = if p > 0 {
+        (
+            format!(" (model of {p} parameters)"),
+            "the record, its simulation, predictions, residuals and their copies",
+        )
+    } else {
+        (
+            String::new(),
+            "the plant's states, the record's columns and their text",
+        )
+    };
     anyhow::bail!(sysid::SysidError::Data(format!(
-        "{}: a record of {rows} samples (model of {p} parameters) needs about {} GB ({} numbers of 8 \
-         bytes per sample: the record, its simulation, predictions, residuals and their copies), more \
-         than the budget of {max_memory} GiB (--max-memory); use at most {fit} samples ({shorter}), \
-         or raise --max-memory if this machine has the memory",
+        "{}: a record of {rows} samples{of} needs about {} GB ({} numbers of 8 bytes per sample: \
+         {held}), more than the budget of {max_memory} GiB (--max-memory); use at most {fit} samples \
+         ({shorter}), or raise --max-memory if this machine has the memory",
         need.what,
         sysid::ls::format_gb(bytes),
         RECORD_NUMBERS_PER_SAMPLE,

@@ -1079,6 +1079,9 @@ fn run_streamed(args: &Args, settings: &Identification, data_path: &Path) -> any
         streamed.shape.rows,
         args.stream,
     );
+    if let Some((v, shape)) = val.as_ref().zip(streamed.val_shape) {
+        stream_note(v.name(), streamed.val_passes, shape.rows, args.stream);
+    }
     let val_desc = val
         .as_ref()
         .zip(streamed.val_shape)

@@ -125,6 +125,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     drop(probe);
     ipa::input::check_samples(args.samples)?;
     check_work(&args, methods.len())?;
+    // The runs in flight at once (one per worker thread) each hold a record and its estimation's
+    // numbers: bounded before any run (audit s36 H-1: 5 × 10^7 samples aborted on a failed allocation).
+    let at_once = rayon::current_num_threads().clamp(1, args.runs.max(1));
+    let per_sample = (super::common::RECORD_NUMBERS_PER_SAMPLE * 8) as u64;
+    let need = (args.samples as u64)
+        .saturating_mul(at_once as u64)
+        .saturating_mul(per_sample);
+    let budget = args.memory.max_memory.bytes();
+    if need > budget {
+        let fit = budget / (per_sample * at_once as u64);
+        anyhow::bail!(sysid::SysidError::Data(format!(
+            "montecarlo: {at_once} run(s) at once (one per worker thread) of {} samples each need about \
+             {} GB ({} numbers of 8 bytes per sample: the record, its simulation and the estimation's \
+             copies), more than the budget of {} GiB (--max-memory); use at most {fit} samples \
+             (--samples N), or raise --max-memory if this machine has the memory",
+            args.samples,
+            sysid::ls::format_gb(need),
+            super::common::RECORD_NUMBERS_PER_SAMPLE,
+            args.memory.max_memory
+        )));
+    }
     // Check the input design (samples, amplitude, file) once, before any run: a bad flag is an error,
     // not a study in which every run failed.
     let design = generate(&spec, args.samples, ts_s, args.amplitude, args.seed)?;

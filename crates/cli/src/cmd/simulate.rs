@@ -291,15 +291,21 @@ fn run_plant(
     exp.check()?;
     // A model's run over N samples, bounded as `validate` bounds it, before anything is simulated
     // (session 26: a NARX model on a long `--input file:` had no budget).
-    if let (Some(p), ipa::spec::PlantSpec::ModelFile(path)) = (model_params, &exp.plant) {
-        super::common::check_record_memory(
-            format!("simulate --plant model:{}", path.display()),
-            exp.sample_count()?,
-            p,
-            args.memory.max_memory,
-            "--samples N, or a part of the --input file",
-        )?;
-    }
+    // The physics plants too (audit s36 H-1: 5 × 10^7 samples, an accepted --samples, took about
+    // 4.6 GB and aborted on a failed allocation under a smaller memory limit).
+    let (what, p) = match (model_params, &exp.plant) {
+        (Some(p), ipa::spec::PlantSpec::ModelFile(path)) => {
+            (format!("simulate --plant model:{}", path.display()), p)
+        }
+        _ => (format!("simulate --plant {}", args.plant), 0),
+    };
+    super::common::check_record_memory(
+        what,
+        exp.sample_count()?,
+        p,
+        args.memory.max_memory,
+        "--samples N, or a part of the --input file",
+    )?;
     // The start, resolved once (a model file is read for it) and passed on.
     let y0 = match exp.x0 {
         Some(v) => v,

@@ -112,7 +112,23 @@ pub fn read_bounded_checked(
     if let Some(size) = known.filter(|&s| s > max) {
         return Err(too_large(path, max, what, advice, &format!("{size} bytes")));
     }
-    let mut bytes = Vec::with_capacity(known.unwrap_or(0).min(max) as usize);
+    // The file's size reserved at once, fallibly: a file larger than the memory this process may take
+    // (a `ulimit -v`, a container's limit) is refused in words, where an infallible reservation
+    // aborted the process (audit s36 H-2). `read_to_end` reserves what it grows by fallibly too.
+    let size = known.unwrap_or(0).min(max);
+    let mut bytes = Vec::new();
+    if bytes
+        .try_reserve_exact(usize::try_from(size).unwrap_or(usize::MAX))
+        .is_err()
+    {
+        return Err(SysidError::File {
+            file: path.display().to_string(),
+            message: format!(
+                "{size} bytes: {what} of this size cannot be held in memory here (reserving its size \
+                 failed: the memory this process may use is smaller); {advice}"
+            ),
+        });
+    }
     let mut file = file.take(max.saturating_add(1));
     (&mut file)
         .take(prefix as u64)

@@ -307,6 +307,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         },
         every: args.every,
         restarts,
+        live: args.follow.is_some() || args.serial.is_some(),
     };
     let mut out = std::io::BufWriter::new(std::io::stdout().lock());
     let summary = track_stream(reader, &mut out, &mut tracker, &options)?;

@@ -35,6 +35,12 @@ pub struct StreamOptions {
     /// A followed file's restarts (`--follow`: truncated or rewritten, read again from its beginning;
     /// [`sysid_io::Restarts`]): line numbers count in the new content and time starts again there.
     pub restarts: Option<std::sync::Arc<sysid_io::Restarts>>,
+    /// A live source (`--follow`, `--serial`): when it ends (idle time-out, Ctrl-C, hang-up) a last
+    /// line without its line end was never finished (a logger stopped, a cable pulled mid-line) and is
+    /// dropped with a warning, not read as a row (audit s36 M-3: it ended the run with a parse error,
+    /// no summary and no `--json`). A file or standard input read to its end reads such a line: a
+    /// finished file may end without a line end.
+    pub live: bool,
 }
 
 /// One JSON line of `track`.
@@ -279,6 +285,16 @@ pub fn track_stream<R: BufRead, W: Write>(
                 t_last = None;
                 restarted = Some((count, r.header_skipped()));
             }
+        }
+        // A live source's end inside a line: the line was never finished.
+        if options.live && !buf.is_empty() && !buf.ends_with(b"\n") && !buf.ends_with(b"\r") {
+            time_warnings.push(format!(
+                "{}: the source ended inside its last line ({} bytes without a line end: the logger \
+                 stopped or the connection broke mid-line); that unfinished line was dropped, not read",
+                options.name,
+                buf.len()
+            ));
+            break;
         }
         line_no += 1;
         let mut line = buf.as_slice();
@@ -672,6 +688,7 @@ mod tests {
             csv: CsvOptions::default(),
             every: 10,
             restarts: Some(restarts),
+            live: true,
         };
         let mut out = Vec::new();
         let summary = track_stream(input, &mut out, &mut tracker, &options).unwrap();
@@ -693,5 +710,69 @@ mod tests {
             count("from line 2 of the new content (after its header line) on"),
             1
         );
+    }
+
+    // Audit s36 M-3: a followed file that ends (idle time-out) inside its last line ("0.5,0.": the logger
+    // stopped mid-line) ends the run with its summary, the 50 finished rows tracked and the unfinished
+    // line dropped with a warning; the same bytes read to their end as a finished file (not live) are
+    // refused at that line, as before.
+    #[test]
+    fn a_live_source_ending_inside_its_last_line_drops_it_and_keeps_the_run() {
+        let mut text = String::from("t,u,y\n");
+        for k in 0..50 {
+            text.push_str(&format!(
+                "{},{},{}\n",
+                k as f64 * 0.01,
+                (k % 3) as f64 - 1.0,
+                k % 5
+            ));
+        }
+        text.push_str("0.5,0.");
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("live.csv");
+        std::fs::write(&path, &text).unwrap();
+        let tracker = || {
+            Tracker::new(sysid::online::TrackSettings {
+                kind: sysid::ModelKind::Arx,
+                ..Default::default()
+            })
+            .unwrap()
+        };
+        let options = |live: bool| StreamOptions {
+            name: "live.csv".into(),
+            csv: CsvOptions::default(),
+            every: 10,
+            restarts: None,
+            live,
+        };
+        let follow = sysid_io::Follow::file(
+            &path,
+            Some(std::time::Duration::from_millis(50)),
+            std::time::Duration::from_millis(5),
+        )
+        .unwrap();
+        let summary = track_stream(
+            std::io::BufReader::new(follow),
+            &mut Vec::new(),
+            &mut tracker(),
+            &options(true),
+        )
+        .unwrap();
+        assert_eq!(summary.samples, 50);
+        let said: Vec<_> = summary
+            .warnings
+            .iter()
+            .filter(|w| w.contains("ended inside its last line (6 bytes without a line end"))
+            .collect();
+        assert_eq!(said.len(), 1, "{:?}", summary.warnings);
+        let e = track_stream(
+            std::io::Cursor::new(text.as_bytes()),
+            &mut Vec::new(),
+            &mut tracker(),
+            &options(false),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("live.csv:52:"), "{e}");
     }
 }

@@ -186,3 +186,110 @@ fn a_stray_top_level_key_of_a_model_file_is_refused() {
         "{err}"
     );
 }
+
+/// `t,u,y` rows k = from..to of a first-order response to a ±1 square wave (period 10 samples).
+fn rows(from: usize, to: usize) -> String {
+    let mut y = 0.0_f64;
+    let mut out = String::new();
+    for k in 0..to {
+        let u = if (k / 5) % 2 == 0 { 1.0 } else { -1.0 };
+        if k >= from {
+            out.push_str(&format!("{:.2},{u},{y}\n", k as f64 * 0.01));
+        }
+        y = 0.9 * y + 0.1 * u;
+    }
+    out
+}
+
+/// Waits for `track`'s JSON line of sample `k` on `out`.
+#[cfg(unix)]
+fn wait_for_line(out: &mut impl std::io::BufRead, k: usize) {
+    let mut line = String::new();
+    loop {
+        line.clear();
+        assert!(out.read_line(&mut line).unwrap() > 0, "track ended early");
+        let v: serde_json::Value = serde_json::from_str(&line).unwrap();
+        if v["k"] == k {
+            return;
+        }
+    }
+}
+
+// Audit s36 L-6: `logger | track --data -` (docs/online.md's live example) stopped by Ctrl-C, which
+// reaches the logger too (its end closes the pipe, here in the middle of a line): the run ends with
+// its summary and --json of the 40 finished rows, exit 0, the unfinished line dropped with a warning.
+#[cfg(unix)]
+#[test]
+fn a_piped_track_stopped_by_ctrl_c_ends_with_its_summary() {
+    use std::io::{BufReader, Write};
+    use std::process::Stdio;
+    let dir = tempfile::tempdir().unwrap();
+    let summary = dir.path().join("s.json");
+    let mut child = bin()
+        .args(["track", "--data", "-", "--structure", "arx", "--no-detect"])
+        .args(["--every", "1", "--json", s(&summary)])
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    write!(stdin, "t,u,y\n{}0.40,1", rows(0, 40)).unwrap();
+    stdin.flush().unwrap();
+    let mut out = BufReader::new(child.stdout.take().unwrap());
+    wait_for_line(&mut out, 39);
+    let kill = std::process::Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    drop(stdin);
+    let o = child.wait_with_output().unwrap();
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(0), "{err}");
+    let doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&summary).unwrap()).unwrap();
+    assert_eq!(doc["samples"], 40);
+    let said = doc["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|w| {
+            w.as_str()
+                .unwrap()
+                .contains("ended inside its last line (6 bytes without a line end")
+        })
+        .count();
+    assert_eq!(said, 1, "{doc}");
+}
+
+// Audit s36 L-10: a followed file that holds only its header, stopped by Ctrl-C: exit 2 and no
+// --json, as the idle time-out ends the same run (it wrote a summary with "model": null, exit 0).
+#[cfg(unix)]
+#[test]
+fn a_followed_header_stopped_by_ctrl_c_is_an_error_as_at_the_idle_timeout() {
+    let dir = tempfile::tempdir().unwrap();
+    let (path, summary) = (dir.path().join("h.csv"), dir.path().join("s.json"));
+    std::fs::write(&path, "t,u,y\n").unwrap();
+    let child = bin()
+        .args(["track", "--follow", s(&path), "--json", s(&summary)])
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    // The header is read within the first 20 ms poll; the signal comes well after it.
+    std::thread::sleep(std::time::Duration::from_millis(700));
+    let kill = std::process::Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(kill.success());
+    let o = child.wait_with_output().unwrap();
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("h.csv") && err.contains("before any data row"),
+        "{err}"
+    );
+    assert!(!summary.exists());
+}

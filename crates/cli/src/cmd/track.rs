@@ -224,6 +224,27 @@ fn peek_kind(reader: &mut dyn std::io::BufRead, name: &str) -> anyhow::Result<()
     Ok(())
 }
 
+/// Whether standard input is a regular file (`track --data - < FILE`: a finished file, whose last line
+/// may end without a line end) rather than a pipe or a terminal (a live logger, whose unfinished last
+/// line is dropped when it ends: [`StreamOptions::live`]).
+fn stdin_is_a_file() -> bool {
+    #[cfg(unix)]
+    {
+        use std::os::fd::AsFd;
+        std::io::stdin()
+            .as_fd()
+            .try_clone_to_owned()
+            .ok()
+            .map(std::fs::File::from)
+            .and_then(|f| f.metadata().ok())
+            .is_some_and(|m| m.is_file())
+    }
+    #[cfg(not(unix))]
+    {
+        true
+    }
+}
+
 /// Runs `track`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     // A list of inputs is the other commands' several-input form; the tracker follows one (audit s14
@@ -285,10 +306,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     };
     check_outputs(&[(&args.json, "--json")], &inputs)?;
-    // A followed file or port ends at the first Ctrl-C (SIGINT or SIGTERM) with its summary and
+    // A followed file, port or standard input ends at the first Ctrl-C (SIGINT or SIGTERM) with its summary and
     // --json, after the line being read (or at the next poll); a second one ends the process
     // (audit s16 L12).
-    if args.follow.is_some() || args.serial.is_some() {
+    // Standard input too (audit s36 L-6): `logger | track --data -` is the live example of
+    // docs/online.md, and Ctrl-C, sent to the whole pipeline, is how it ends; the logger's end closes
+    // the pipe, and the run ends with its summary.
+    let from_stdin = args.data.as_ref().is_some_and(|p| p.as_os_str() == "-");
+    if args.follow.is_some() || args.serial.is_some() || from_stdin {
         sysid_io::accept_stop();
     }
     if args.data.is_some() {
@@ -307,7 +332,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         },
         every: args.every,
         restarts,
-        live: args.follow.is_some() || args.serial.is_some(),
+        live: args.follow.is_some() || args.serial.is_some() || (from_stdin && !stdin_is_a_file()),
     };
     let mut out = std::io::BufWriter::new(std::io::stdout().lock());
     let summary = track_stream(reader, &mut out, &mut tracker, &options)?;

@@ -35,11 +35,12 @@ pub struct StreamOptions {
     /// A followed file's restarts (`--follow`: truncated or rewritten, read again from its beginning;
     /// [`sysid_io::Restarts`]): line numbers count in the new content and time starts again there.
     pub restarts: Option<std::sync::Arc<sysid_io::Restarts>>,
-    /// A live source (`--follow`, `--serial`): when it ends (idle time-out, Ctrl-C, hang-up) a last
-    /// line without its line end was never finished (a logger stopped, a cable pulled mid-line) and is
-    /// dropped with a warning, not read as a row (audit s36 M-3: it ended the run with a parse error,
-    /// no summary and no `--json`). A file or standard input read to its end reads such a line: a
-    /// finished file may end without a line end.
+    /// A live source (`--follow`, `--serial`, standard input from a pipe): when it ends (idle
+    /// time-out, Ctrl-C, hang-up, the logger's end) a last line without its line end was never finished
+    /// (a logger stopped, a cable pulled mid-line) and is dropped with a warning, not read as a row
+    /// (audit s36 M-3: it ended the run with a parse error, no summary and no `--json`). A file, or
+    /// standard input redirected from one, is read to its end with such a line: a finished file may end
+    /// without a line end.
     pub live: bool,
 }
 
@@ -290,7 +291,8 @@ pub fn track_stream<R: BufRead, W: Write>(
         if options.live && !buf.is_empty() && !buf.ends_with(b"\n") && !buf.ends_with(b"\r") {
             time_warnings.push(format!(
                 "{}: the source ended inside its last line ({} bytes without a line end: the logger \
-                 stopped or the connection broke mid-line); that unfinished line was dropped, not read",
+                 stopped or the connection broke mid-line); that unfinished line was dropped, not read \
+                 (data that end without a final line end: add one, or pass the file with --data FILE)",
                 options.name,
                 buf.len()
             ));
@@ -436,12 +438,18 @@ pub fn track_stream<R: BufRead, W: Write>(
         });
     }
     // A source that ended after its header tracked nothing: an error, as the other commands' reader
-    // says of the same file (audit s19 L-8: exit 0 and a warning). A run stopped by Ctrl-C
-    // (`--follow`) before its first row still ends with its summary.
-    if tracker.samples() == 0 && !sysid_io::stop_asked() {
+    // says of the same file (audit s19 L-8: exit 0 and a warning), whether it ended by itself, at the
+    // idle time-out or by Ctrl-C (audit s36 L-10: the stop wrote a summary with `"model": null`,
+    // exit 0, where the idle time-out refused the same run).
+    if tracker.samples() == 0 {
         return Err(SysidError::File {
             file: options.name.clone(),
-            message: "the file has a header but no data rows".into(),
+            message: if sysid_io::stop_asked() {
+                "stopped by a signal after the header and before any data row: nothing was tracked"
+                    .into()
+            } else {
+                "the file has a header but no data rows".into()
+            },
         });
     }
     let mut summary = summary(tracker, ts, t_last, change_points)?;

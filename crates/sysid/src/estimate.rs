@@ -409,13 +409,7 @@ pub fn identify<R: Records + ?Sized>(
         }
     }
     // A numerical failure names the record it happened on (once).
-    let named = |e: SysidError| {
-        if e.to_string().contains(problem.name()) {
-            e
-        } else {
-            e.context(problem.name())
-        }
-    };
+    let named = |e: SysidError| e.naming(problem.name());
     let mut fit = settings.estimator.fit(&problem).map_err(named)?;
     if let Some(kind) = settings.output {
         let max_iterations = match settings.estimator {

@@ -70,3 +70,96 @@ fn a_streamed_estimation_that_fails_names_its_file_after_the_readers_note() {
         }
     }
 }
+
+/// y(k) = 0.9 y(k−1) + 0.5 u(k−1) (noise-free), u a ±1 pattern, both then multiplied by `scale_u` and
+/// `scale_y`: ARX(1, 1, 1) by LS recovers a1 = −0.9 and b1 = 0.5 · scale_y / scale_u exactly.
+fn scaled_first_order(
+    dir: &std::path::Path,
+    name: &str,
+    scale_u: f64,
+    scale_y: f64,
+) -> std::path::PathBuf {
+    let n = 400;
+    let u: Vec<f64> = (0..n)
+        .map(|k| if (k * 37 + 11) % 7 < 3 { 1.0 } else { -1.0 })
+        .collect();
+    let mut y = vec![0.0; n];
+    for k in 1..n {
+        y[k] = 0.9 * y[k - 1] + 0.5 * u[k - 1];
+    }
+    let u: Vec<f64> = u.iter().map(|v| v * scale_u).collect();
+    let y: Vec<f64> = y.iter().map(|v| v * scale_y).collect();
+    write_tuy(dir, name, 0.01, &u, &y)
+}
+
+/// Audit s35 H-2: an output of ~1e-168 made RLS return a1 = a2 = 0 and a wrong b with RMSE 0, loss 0,
+/// every fit n/a and no warning (the squares of the signals underflow f64). A signal whose largest
+/// magnitude is below 1e-140 (its squares below 1e-280) is now refused by every estimator, the delay
+/// search and NARX, naming the signal and the power of ten that rescales it; at 1e-130 the estimate is
+/// still exact. y here is at most 5 (|y| ≤ 0.5/(1 − 0.9)), so y × 1e-170 is at most 5e-170 and the
+/// factor that brings it to order 1 is 1e170 (5e-170 · 1e170 = 5); likewise u × 1e-200 (|u| = 1).
+#[test]
+fn a_signal_too_small_for_its_squares_is_refused_with_the_factor_that_rescales_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let tiny_y = scaled_first_order(d, "tiny_y.csv", 1.0, 1e-170);
+    let tiny_u = scaled_first_order(d, "tiny_u.csv", 1e-200, 1.0);
+    let arx = |f: &std::path::Path, method: &str| {
+        let mut a: Vec<String> = [
+            "identify",
+            "--data",
+            s(f),
+            "--structure",
+            "arx",
+            "--na",
+            "1",
+            "--nb",
+            "1",
+            "--method",
+        ]
+        .iter()
+        .map(|x| x.to_string())
+        .collect();
+        a.push(method.into());
+        a
+    };
+    let mut runs: Vec<(Vec<String>, &str, &str)> = Vec::new();
+    for m in ["rls", "ls", "oe", "iv"] {
+        runs.push((
+            arx(&tiny_y, m),
+            "the output y is at most",
+            "multiply it by 1e170",
+        ));
+        runs.push((
+            arx(&tiny_u, m),
+            "the input u is at most",
+            "multiply it by 1e200",
+        ));
+    }
+    let mut streamed = arx(&tiny_y, "ls");
+    streamed.extend(["--stream".to_string(), "on".to_string()]);
+    runs.push((streamed, "the output y is at most", "multiply it by 1e170"));
+    for what in [vec!["delay"], vec!["identify", "--structure", "narx"]] {
+        let mut a: Vec<String> = what.iter().map(|x| x.to_string()).collect();
+        a.extend(["--data".to_string(), s(&tiny_y).to_string()]);
+        runs.push((a, "the output y is at most", "multiply it by 1e170"));
+    }
+    for (args, what, factor) in &runs {
+        let out = bin().args(args).output().unwrap();
+        let e = stderr(&out);
+        assert_eq!(out.status.code(), Some(1), "{args:?}: {e}");
+        assert!(e.contains(what) && e.contains(factor), "{args:?}: {e}");
+        assert!(e.contains("rescale"), "{e}");
+    }
+    // At 1e-130 (squares 1e-260, normal) the estimate is the exact one: a1 = −0.9, b1 = 0.5e-130.
+    let small = scaled_first_order(d, "small.csv", 1.0, 1e-130);
+    let mut a = arx(&small, "ls");
+    a.extend(["--json".to_string(), "-".to_string()]);
+    let out = bin().args(&a).output().unwrap();
+    assert!(out.status.success(), "{}", stderr(&out));
+    let doc: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let a1 = doc["model"]["a"][0].as_f64().unwrap();
+    let b1 = doc["model"]["b"][0].as_f64().unwrap();
+    assert!((a1 + 0.9).abs() < 1e-9, "{a1}");
+    assert!((b1 / 0.5e-130 - 1.0).abs() < 1e-9, "{b1}");
+}

@@ -348,7 +348,9 @@ pub fn identify_arx(
     }
     // The in-memory refusal of an input that never changes, on the range this pass widened.
     let input = [sysid_core::data::SINGLE_INPUT];
-    if let Some(e) = crate::estimate::constant_input(&range, &input, &name) {
+    if let Some(e) = crate::estimate::constant_input(&range, &input, &name)
+        .or_else(|| crate::estimate::tiny_signal(&range, &input, &name))
+    {
         return Err(e);
     }
     let key = Parameterisation::new(s, Layout::KeyTerm);

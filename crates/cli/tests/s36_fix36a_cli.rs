@@ -163,3 +163,66 @@ fn a_signal_too_small_for_its_squares_is_refused_with_the_factor_that_rescales_i
     assert!((a1 + 0.9).abs() < 1e-9, "{a1}");
     assert!((b1 / 0.5e-130 - 1.0).abs() < 1e-9, "{b1}");
 }
+
+/// Audit s35 M-2: a record cut inside its last number (`0.82,242,10` for `…,107.99139766052642`) was
+/// read with the cut value, silently. A file that ends without a line end whose last cell has fewer
+/// digits than each of the same column's ten cells before it now gets a note naming that cell's line
+/// and column, in memory and under `--stream on` (same words); the same file with its line end, and a
+/// complete last row without one (as two shared real records end), get none. The record: y(k) =
+/// 100 + 10 sin(k/5) + k/1000 printed with Rust's shortest round-trip digits (13 to 17 of them for these
+/// values), 200 rows, so the cut last row `1.99,...,10` (line 201: the header is line 1, column 3)
+/// has 2 digits against at least 13.
+#[test]
+fn a_record_cut_inside_its_last_number_is_noted_at_that_cell() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let u: Vec<f64> = (0..200)
+        .map(|k| if (k / 7) % 2 == 0 { 50.0 } else { -50.0 })
+        .collect();
+    let y: Vec<f64> = (0..200)
+        .map(|k| 100.0 + 10.0 * (k as f64 / 5.0).sin() + k as f64 / 1000.0)
+        .collect();
+    let whole = write_tuy(d, "whole.csv", 0.01, &u, &y);
+    let text = std::fs::read_to_string(&whole).unwrap();
+    let body = text.trim_end_matches('\n');
+    let last_line = body.lines().last().unwrap();
+    let (head, last_y) = last_line.rsplit_once(',').unwrap();
+    assert!(
+        last_y.chars().filter(char::is_ascii_digit).count() >= 13,
+        "{last_y}"
+    );
+    let cut_text = format!("{}{head},10", &body[..body.len() - last_line.len()]);
+    let cut = d.join("cut.csv");
+    std::fs::write(&cut, &cut_text).unwrap();
+    let unterminated = d.join("unterminated.csv");
+    std::fs::write(&unterminated, body).unwrap();
+    let run = |f: &std::path::Path, stream: &str| {
+        let out = bin()
+            .args(["identify", "--data", s(f), "--structure", "arx"])
+            .args([
+                "--na", "1", "--nb", "1", "--method", "ls", "--stream", stream,
+            ])
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", stderr(&out));
+        // The report's warnings are printed with it (stdout), the reader's first ones on stderr.
+        format!("{}{}", String::from_utf8_lossy(&out.stdout), stderr(&out))
+    };
+    let mut said = Vec::new();
+    for stream in ["off", "on"] {
+        let e = run(&cut, stream);
+        let note = e
+            .lines()
+            .find(|l| l.contains("may have been cut"))
+            .unwrap_or_else(|| panic!("{stream}: no note: {e}"))
+            .to_string();
+        assert!(note.contains("cut.csv:201:3:"), "{note}");
+        assert!(note.contains("y = 10 there has 2 digit(s)"), "{note}");
+        said.push(note);
+        for f in [&whole, &unterminated] {
+            let e = run(f, stream);
+            assert!(!e.contains("may have been cut"), "{stream} {f:?}: {e}");
+        }
+    }
+    assert_eq!(said[0], said[1]);
+}

@@ -798,6 +798,8 @@ pub fn read_record_bytes(
     opts: &CsvOptions,
 ) -> Result<Record, SysidError> {
     let mut table = read_table_for(bytes, name, opts)?;
+    // Before --rows narrows the rows: the file's last row.
+    let cut = table.cut_note(bytes);
     let mut name = name.to_string();
     if let Some(r) = &opts.rows {
         let range = r.resolve(table.rows.len(), opts.rows_flag, &name)?;
@@ -805,7 +807,7 @@ pub fn read_record_bytes(
         name = format!("{name}[{}..{}]", range.start, range.end);
     }
     let name = name.as_str();
-    let mut notes = Vec::new();
+    let mut notes: Vec<String> = cut.into_iter().collect();
     let (ucols, ycol, ts_given) = table.input_columns(opts)?;
     let names = opts.input_names();
     let us = ucols
@@ -1913,6 +1915,85 @@ impl Table {
     pub fn line_of(&self, row: usize) -> usize {
         self.rows.get(row).map_or(0, |(line, _)| line)
     }
+
+    /// [`cut_note`] of the table's last row, read from `bytes` (the whole file): the rows in use are
+    /// the file's rows until `--rows` narrows them, so call it before.
+    pub(crate) fn cut_note(&self, bytes: &[u8]) -> Option<String> {
+        if ends_a_line(bytes) {
+            return None;
+        }
+        let last = self.rows.len().checked_sub(1)?;
+        let line = self.line_of(last);
+        let rows: Vec<Vec<&str>> = (last.saturating_sub(CUT_LOOKBACK)..=last)
+            .filter_map(|i| self.rows.get(i).map(|(_, r)| r.iter().collect()))
+            .collect();
+        cut_note_of_rows(&self.name, &self.headers, line, &rows)
+    }
+}
+
+/// [`cut_note`] of a file's last rows `rows` (their trimmed cells, the last row last, at `line`;
+/// blank rows left out) under `headers`, the file being known to end without a line end: the last row's
+/// last non-empty cell against the same column's cells in the rows before it. The in-memory reader
+/// gives its table's rows, the streamed one the rows it reads again from the file's end.
+pub(crate) fn cut_note_of_rows(
+    file: &str,
+    headers: &[String],
+    line: usize,
+    rows: &[Vec<&str>],
+) -> Option<String> {
+    let (last, before) = rows.split_last()?;
+    let col = last.iter().rposition(|v| !v.is_empty())?;
+    let previous: Vec<usize> = before
+        .iter()
+        .filter_map(|r| r.get(col).filter(|v| !v.is_empty()))
+        .map(|v| digits(v))
+        .collect();
+    let header = headers.get(col).map_or("?", String::as_str);
+    cut_note(file, line, col, header, last[col], &previous)
+}
+
+/// How many rows before the last one [`cut_note`] compares it with.
+pub(crate) const CUT_LOOKBACK: usize = 10;
+
+/// True when `bytes` (a whole file, or what a reader has of its end) end with a line end.
+pub(crate) fn ends_a_line(bytes: &[u8]) -> bool {
+    matches!(bytes.last(), Some(b'\n' | b'\r'))
+}
+
+/// The number of decimal digits in a cell (sign, point and exponent letters aside).
+pub(crate) fn digits(cell: &str) -> usize {
+    cell.bytes().filter(u8::is_ascii_digit).count()
+}
+
+/// The note of a file that may have been cut inside its last number (audit s35 M-2: `0.82,242,10` for
+/// `0.82,242,107.99139766052642` was read as y = 10 and made the model unstable without a word): the
+/// file ends without a line end (which alone is no fault: two shared real records end so), and its
+/// last row's last non-empty cell `cell`, in column `col` (0-based) named `header` at `line`, has fewer
+/// digits than every one of the same column's `previous` cells (their digit counts; at least three of
+/// the [`CUT_LOOKBACK`] rows before it). A note, not a refusal: the value is read as it stands, and a
+/// cut that leaves as many digits cannot be seen. The one rule and wording of the in-memory and the
+/// streamed CSV readers.
+pub(crate) fn cut_note(
+    file: &str,
+    line: usize,
+    col: usize,
+    header: &str,
+    cell: &str,
+    previous: &[usize],
+) -> Option<String> {
+    let (lo, hi) = (previous.iter().min()?, previous.iter().max()?);
+    let d = digits(cell);
+    (previous.len() >= 3 && d < *lo).then(|| {
+        format!(
+            "{file}:{line}:{}: the file ends inside its last row, without a line end, and {header} = \
+             {} there has {d} digit(s) where the column's {} values before it have {lo} to {hi}: the \
+             file may have been cut (an interrupted copy, a full disk, a logger still writing), and that \
+             value is read as it stands; check the record's end",
+            col + 1,
+            crate::format::visible(cell),
+            previous.len(),
+        )
+    })
 }
 
 /// The hint of a `--no-header` read whose first row [`looks_like_header`] (audit s30 L-2: the opposite

@@ -226,3 +226,51 @@ fn a_record_cut_inside_its_last_number_is_noted_at_that_cell() {
     }
     assert_eq!(said[0], said[1]);
 }
+
+/// fix35's known gap: in a comma-delimited file whose decimal commas are quoted, one row that wrote
+/// its `0,5` unquoted split it into two cells and, under a header wide enough (an unused `note` column
+/// here), was read as u = 0 and y = 5. Now refused at its line and column (row k = 30 is line 32: the
+/// header is line 1; u is column 2), in memory and under `--stream on`; the same file with that cell
+/// quoted is read.
+#[test]
+fn an_unquoted_decimal_comma_in_a_file_of_quoted_ones_is_refused_at_its_cell() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let write = |name: &str, bare: bool| {
+        let mut text = String::from("t,u,y,note\n");
+        for k in 0..60 {
+            let t = format!("{:.2}", k as f64 / 100.0).replace('.', ",");
+            let u = format!("{:.1}", 50.0 * (k as f64 / 3.0).sin()).replace('.', ",");
+            let y = format!("{:.3}", 10.0 + 5.0 * (k as f64 / 4.0).sin()).replace('.', ",");
+            if k == 30 && bare {
+                text.push_str(&format!("\"{t}\",0,5,\"{y}\"\n"));
+            } else if k == 30 {
+                text.push_str(&format!("\"{t}\",\"0,5\",\"{y}\",\n"));
+            } else {
+                text.push_str(&format!("\"{t}\",\"{u}\",\"{y}\",\n"));
+            }
+        }
+        let path = d.join(name);
+        std::fs::write(&path, text).unwrap();
+        path
+    };
+    let bad = write("bare.csv", true);
+    let good = write("quoted.csv", false);
+    for stream in ["off", "on"] {
+        let run = |f: &std::path::Path| {
+            bin()
+                .args(["identify", "--data", s(f), "--structure", "arx"])
+                .args([
+                    "--na", "1", "--nb", "1", "--method", "ls", "--stream", stream,
+                ])
+                .output()
+                .unwrap()
+        };
+        let out = run(&bad);
+        let e = stderr(&out);
+        assert_eq!(out.status.code(), Some(2), "{stream}: {e}");
+        assert!(e.contains("bare.csv:32:2: '0,5' reads as two cells"), "{e}");
+        let out = run(&good);
+        assert!(out.status.success(), "{stream}: {}", stderr(&out));
+    }
+}

@@ -1491,7 +1491,13 @@ fn table_of(
     let marks = if delimiter != b',' {
         CellMarks::Comma
     } else if text.contains('"') {
-        quoted_commas(&rows, name)?
+        let marks = quoted_commas(&rows, name)?;
+        if marks == CellMarks::QuotedComma {
+            if let Some(e) = unquoted_decimal_comma(&rows, name) {
+                return Err(e);
+            }
+        }
+        marks
     } else {
         CellMarks::Point
     };
@@ -1619,6 +1625,57 @@ impl CellMarks {
 /// decimal comma when some such number of the file cannot be an integer with a thousands separator
 /// (`"-1,5"`, `"0,125"`, `"12,25"`); when every one could (`"1,500"`: 1.5 or 1500?) the file is
 /// refused at the first, never read either way.
+/// In a comma-delimited file whose decimal commas are quoted ([`CellMarks::QuotedComma`]), a row
+/// where one was not (`"0,02",0,5,"1,3"`): its comma splits the number into two cells, so the row has
+/// more non-empty cells than most of the file's rows, and two of them in a row are bare integers (`0`,
+/// `5`). Refused at the first of the two (fix35's known gap: such a row was read as two numbers, or
+/// refused as a ragged row without its cause). `None` when no row is so.
+fn unquoted_decimal_comma(rows: &rows::Rows, name: &str) -> Option<SysidError> {
+    let filled = |r: &rows::Row<'_>| r.iter().filter(|c| !c.is_empty()).count();
+    // The most common number of non-empty cells (the smaller on a tie).
+    let mut counts: Vec<usize> = rows.iter().map(|(_, r)| filled(&r)).collect();
+    counts.sort_unstable();
+    let mut usual = (0, 0); // (count, how many rows)
+    for run in counts.chunk_by(|a, b| a == b) {
+        if run.len() > usual.1 {
+            usual = (run[0], run.len());
+        }
+    }
+    let integer = |c: &str, signed: bool| {
+        let digits = if signed {
+            c.strip_prefix('-').unwrap_or(c)
+        } else {
+            c
+        };
+        !digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit())
+    };
+    rows.iter()
+        .filter(|(_, r)| filled(r) > usual.0)
+        .find_map(|(line, r)| {
+            let cells: Vec<&str> = r.iter().collect();
+            let col = cells
+                .windows(2)
+                .position(|w| integer(w[0], true) && integer(w[1], false))?;
+            Some(SysidError::Parse {
+                file: name.to_string(),
+                line,
+                column: col + 1,
+                message: format!(
+                    "'{},{}' reads as two cells: this file writes its decimal commas quoted (\"0,5\"), \
+                     and this row has {} non-empty cells where most rows have {}; an unquoted decimal \
+                     comma would split one number so; expected the number quoted (\"{},{}\") or \
+                     written with a point",
+                    shorten(cells[col]),
+                    shorten(cells[col + 1]),
+                    filled(&r),
+                    usual.0,
+                    shorten(cells[col]),
+                    shorten(cells[col + 1]),
+                ),
+            })
+        })
+}
+
 fn quoted_commas(rows: &rows::Rows, name: &str) -> Result<CellMarks, SysidError> {
     let mut first = None;
     for (line, rec) in rows.iter() {

@@ -274,3 +274,46 @@ fn an_unquoted_decimal_comma_in_a_file_of_quoted_ones_is_refused_at_its_cell() {
         assert!(out.status.success(), "{stream}: {}", stderr(&out));
     }
 }
+
+/// Audit s35 L-1: a NARX model file's ts was not bounded as every other model file's is (1e300 and
+/// 1e-300 were simulated, at t = 0, 1e300, 2e300, ...). Now the one bound of model files, 1e-6 s to 1e9
+/// s, refuses both, naming ts; the file as written (ts = 0.01) simulates.
+#[test]
+fn a_narx_model_files_sampling_period_has_the_bounds_of_every_model_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let u: Vec<f64> = (0..400)
+        .map(|k| 50.0 * ((k as f64) / 9.0).sin() + 30.0 * ((k as f64) / 4.0).cos())
+        .collect();
+    let mut y = vec![0.0; 400];
+    for k in 1..400 {
+        y[k] = 0.8 * y[k - 1] + 0.02 * u[k - 1] + 0.001 * u[k - 1] * u[k - 1];
+    }
+    let data = write_tuy(d, "narx.csv", 0.01, &u, &y);
+    let model = d.join("m.json");
+    let out = bin()
+        .args(["identify", "--data", s(&data), "--structure", "narx"])
+        .args(["--save-model", s(&model)])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", stderr(&out));
+    let text = std::fs::read_to_string(&model).unwrap();
+    assert!(text.contains("\"ts\": 0.01"), "{text}");
+    let simulate = |m: &std::path::Path| {
+        let plant = format!("model:{}", s(m));
+        bin()
+            .args(["simulate", "--plant", &plant, "--samples", "20", "--out"])
+            .arg(d.join("sim.csv"))
+            .output()
+            .unwrap()
+    };
+    assert!(simulate(&model).status.success());
+    for (ts, words) in [("1e300", "above 1e9 s"), ("1e-300", "below 1e-6 s")] {
+        let bad = d.join(format!("ts{ts}.json"));
+        std::fs::write(&bad, text.replace("\"ts\": 0.01", &format!("\"ts\": {ts}"))).unwrap();
+        let out = simulate(&bad);
+        let e = stderr(&out);
+        assert_eq!(out.status.code(), Some(2), "{ts}: {e}");
+        assert!(e.contains(&format!("ts = {ts} s is {words}")), "{e}");
+    }
+}

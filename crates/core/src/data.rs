@@ -798,6 +798,8 @@ pub fn read_record_bytes(
     opts: &CsvOptions,
 ) -> Result<Record, SysidError> {
     let mut table = read_table_for(bytes, name, opts)?;
+    // Before --rows narrows the rows: the file's last row.
+    let cut = table.cut_note(bytes);
     let mut name = name.to_string();
     if let Some(r) = &opts.rows {
         let range = r.resolve(table.rows.len(), opts.rows_flag, &name)?;
@@ -805,7 +807,7 @@ pub fn read_record_bytes(
         name = format!("{name}[{}..{}]", range.start, range.end);
     }
     let name = name.as_str();
-    let mut notes = Vec::new();
+    let mut notes: Vec<String> = cut.into_iter().collect();
     let (ucols, ycol, ts_given) = table.input_columns(opts)?;
     let names = opts.input_names();
     let us = ucols
@@ -1489,7 +1491,13 @@ fn table_of(
     let marks = if delimiter != b',' {
         CellMarks::Comma
     } else if text.contains('"') {
-        quoted_commas(&rows, name)?
+        let marks = quoted_commas(&rows, name)?;
+        if marks == CellMarks::QuotedComma {
+            if let Some(e) = unquoted_decimal_comma(&rows, name) {
+                return Err(e);
+            }
+        }
+        marks
     } else {
         CellMarks::Point
     };
@@ -1617,6 +1625,57 @@ impl CellMarks {
 /// decimal comma when some such number of the file cannot be an integer with a thousands separator
 /// (`"-1,5"`, `"0,125"`, `"12,25"`); when every one could (`"1,500"`: 1.5 or 1500?) the file is
 /// refused at the first, never read either way.
+/// In a comma-delimited file whose decimal commas are quoted ([`CellMarks::QuotedComma`]), a row
+/// where one was not (`"0,02",0,5,"1,3"`): its comma splits the number into two cells, so the row has
+/// more non-empty cells than most of the file's rows, and two of them in a row are bare integers (`0`,
+/// `5`). Refused at the first of the two (fix35's known gap: such a row was read as two numbers, or
+/// refused as a ragged row without its cause). `None` when no row is so.
+fn unquoted_decimal_comma(rows: &rows::Rows, name: &str) -> Option<SysidError> {
+    let filled = |r: &rows::Row<'_>| r.iter().filter(|c| !c.is_empty()).count();
+    // The most common number of non-empty cells (the smaller on a tie).
+    let mut counts: Vec<usize> = rows.iter().map(|(_, r)| filled(&r)).collect();
+    counts.sort_unstable();
+    let mut usual = (0, 0); // (count, how many rows)
+    for run in counts.chunk_by(|a, b| a == b) {
+        if run.len() > usual.1 {
+            usual = (run[0], run.len());
+        }
+    }
+    let integer = |c: &str, signed: bool| {
+        let digits = if signed {
+            c.strip_prefix('-').unwrap_or(c)
+        } else {
+            c
+        };
+        !digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit())
+    };
+    rows.iter()
+        .filter(|(_, r)| filled(r) > usual.0)
+        .find_map(|(line, r)| {
+            let cells: Vec<&str> = r.iter().collect();
+            let col = cells
+                .windows(2)
+                .position(|w| integer(w[0], true) && integer(w[1], false))?;
+            Some(SysidError::Parse {
+                file: name.to_string(),
+                line,
+                column: col + 1,
+                message: format!(
+                    "'{},{}' reads as two cells: this file writes its decimal commas quoted (\"0,5\"), \
+                     and this row has {} non-empty cells where most rows have {}; an unquoted decimal \
+                     comma would split one number so; expected the number quoted (\"{},{}\") or \
+                     written with a point",
+                    shorten(cells[col]),
+                    shorten(cells[col + 1]),
+                    filled(&r),
+                    usual.0,
+                    shorten(cells[col]),
+                    shorten(cells[col + 1]),
+                ),
+            })
+        })
+}
+
 fn quoted_commas(rows: &rows::Rows, name: &str) -> Result<CellMarks, SysidError> {
     let mut first = None;
     for (line, rec) in rows.iter() {
@@ -1913,6 +1972,85 @@ impl Table {
     pub fn line_of(&self, row: usize) -> usize {
         self.rows.get(row).map_or(0, |(line, _)| line)
     }
+
+    /// [`cut_note`] of the table's last row, read from `bytes` (the whole file): the rows in use are
+    /// the file's rows until `--rows` narrows them, so call it before.
+    pub(crate) fn cut_note(&self, bytes: &[u8]) -> Option<String> {
+        if ends_a_line(bytes) {
+            return None;
+        }
+        let last = self.rows.len().checked_sub(1)?;
+        let line = self.line_of(last);
+        let rows: Vec<Vec<&str>> = (last.saturating_sub(CUT_LOOKBACK)..=last)
+            .filter_map(|i| self.rows.get(i).map(|(_, r)| r.iter().collect()))
+            .collect();
+        cut_note_of_rows(&self.name, &self.headers, line, &rows)
+    }
+}
+
+/// [`cut_note`] of a file's last rows `rows` (their trimmed cells, the last row last, at `line`;
+/// blank rows left out) under `headers`, the file being known to end without a line end: the last row's
+/// last non-empty cell against the same column's cells in the rows before it. The in-memory reader
+/// gives its table's rows, the streamed one the rows it reads again from the file's end.
+pub(crate) fn cut_note_of_rows(
+    file: &str,
+    headers: &[String],
+    line: usize,
+    rows: &[Vec<&str>],
+) -> Option<String> {
+    let (last, before) = rows.split_last()?;
+    let col = last.iter().rposition(|v| !v.is_empty())?;
+    let previous: Vec<usize> = before
+        .iter()
+        .filter_map(|r| r.get(col).filter(|v| !v.is_empty()))
+        .map(|v| digits(v))
+        .collect();
+    let header = headers.get(col).map_or("?", String::as_str);
+    cut_note(file, line, col, header, last[col], &previous)
+}
+
+/// How many rows before the last one [`cut_note`] compares it with.
+pub(crate) const CUT_LOOKBACK: usize = 10;
+
+/// True when `bytes` (a whole file, or what a reader has of its end) end with a line end.
+pub(crate) fn ends_a_line(bytes: &[u8]) -> bool {
+    matches!(bytes.last(), Some(b'\n' | b'\r'))
+}
+
+/// The number of decimal digits in a cell (sign, point and exponent letters aside).
+pub(crate) fn digits(cell: &str) -> usize {
+    cell.bytes().filter(u8::is_ascii_digit).count()
+}
+
+/// The note of a file that may have been cut inside its last number (audit s35 M-2: `0.82,242,10` for
+/// `0.82,242,107.99139766052642` was read as y = 10 and made the model unstable without a word): the
+/// file ends without a line end (which alone is no fault: two shared real records end so), and its
+/// last row's last non-empty cell `cell`, in column `col` (0-based) named `header` at `line`, has fewer
+/// digits than every one of the same column's `previous` cells (their digit counts; at least three of
+/// the [`CUT_LOOKBACK`] rows before it). A note, not a refusal: the value is read as it stands, and a
+/// cut that leaves as many digits cannot be seen. The one rule and wording of the in-memory and the
+/// streamed CSV readers.
+pub(crate) fn cut_note(
+    file: &str,
+    line: usize,
+    col: usize,
+    header: &str,
+    cell: &str,
+    previous: &[usize],
+) -> Option<String> {
+    let (lo, hi) = (previous.iter().min()?, previous.iter().max()?);
+    let d = digits(cell);
+    (previous.len() >= 3 && d < *lo).then(|| {
+        format!(
+            "{file}:{line}:{}: the file ends inside its last row, without a line end, and {header} = \
+             {} there has {d} digit(s) where the column's {} values before it have {lo} to {hi}: the \
+             file may have been cut (an interrupted copy, a full disk, a logger still writing), and that \
+             value is read as it stands; check the record's end",
+            col + 1,
+            crate::format::visible(cell),
+            previous.len(),
+        )
+    })
 }
 
 /// The hint of a `--no-header` read whose first row [`looks_like_header`] (audit s30 L-2: the opposite

@@ -476,6 +476,19 @@ impl SysidError {
         }
     }
 
+    /// The error as it should reach a user of the record named `record`: [`SysidError::context`] with
+    /// that name unless the message names it already (a callee named it, perhaps inside a slice name
+    /// such as `rec.csv[0..200]`). What `estimate::identify` and the streamed identification (audit s35
+    /// M-3: "least squares produced a non-finite estimate" came without any file under `--stream on`)
+    /// give for a failure on a record.
+    pub fn naming(self, record: &str) -> Self {
+        if self.to_string().contains(record) {
+            self
+        } else {
+            self.context(record)
+        }
+    }
+
     /// Prefixes a [`SysidError::Data`] or [`SysidError::Numerical`] message with `context` (for
     /// example the data set's name); other variants already say where they come from. A message that
     /// already starts with `context: ` is kept as it is (the callee named the record itself: audit s17
@@ -565,6 +578,27 @@ mod context_tests {
         assert_eq!(
             other.to_string(),
             SysidError::Numerical("rec: rec.csv: overflow".into()).to_string()
+        );
+    }
+
+    // A failure is named by its record once: added where the message does not name it, kept where it
+    // does (also inside a slice name), and another record's name does not stand for it.
+    #[test]
+    fn naming_adds_the_record_only_where_the_message_lacks_it() {
+        let bare = SysidError::Numerical("non-finite estimate".into()).naming("big.csv");
+        assert_eq!(
+            bare.to_string(),
+            "numerical failure: big.csv: non-finite estimate"
+        );
+        let sliced = SysidError::Numerical("big.csv[0..200]: non-finite estimate".into());
+        assert_eq!(
+            sliced.naming("big.csv").to_string(),
+            "numerical failure: big.csv[0..200]: non-finite estimate"
+        );
+        let other = SysidError::Numerical("val.csv: overflow".into()).naming("big.csv");
+        assert_eq!(
+            other.to_string(),
+            "numerical failure: big.csv: val.csv: overflow"
         );
     }
 }

@@ -333,6 +333,30 @@ pub struct DataRange {
     pub y: [f64; 2],
 }
 
+/// The sampling period `ts_s` (s) a model file may hold: positive, finite, within [`MIN_TS_S`] ..=
+/// [`MAX_TS_S`]; else the words of the refusal. The one check of linear and NARX model files (audit
+/// s35 L-1: a NARX file's ts of 1e300 or 1e-300 was accepted and simulated at t = 0, 1e300, 2e300, ...).
+pub(crate) fn model_ts(ts_s: f64) -> Result<(), String> {
+    if !(ts_s.is_finite() && ts_s > 0.0) {
+        return Err(format!(
+            "ts = {} must be a positive number of seconds",
+            crate::format::Shortest(ts_s)
+        ));
+    }
+    if ts_s < MIN_TS_S {
+        return Err(format!(
+            "ts = {ts_s:e} s is below {MIN_TS_S:e} s, the shortest sampling period of a model file \
+             (and of the controller)"
+        ));
+    }
+    if ts_s > MAX_TS_S {
+        return Err(format!(
+            "ts = {ts_s:e} s is above {MAX_TS_S:e} s, the longest sampling period of a model file"
+        ));
+    }
+    Ok(())
+}
+
 /// Widens [min, max] `r` to hold `v` (a NaN leaves it as it was).
 fn widen(r: &mut [f64; 2], v: f64) {
     r[0] = r[0].min(v);
@@ -1617,24 +1641,8 @@ impl TryFrom<ModelRepr> for Model {
                 r.b.len()
             ));
         }
-        if !(r.ts.is_finite() && r.ts > 0.0) {
-            return bad(format!(
-                "ts = {} must be a positive number of seconds",
-                crate::format::Shortest(r.ts)
-            ));
-        }
-        if r.ts < MIN_TS_S {
-            return bad(format!(
-                "ts = {:e} s is below {MIN_TS_S:e} s, the shortest sampling period of a model file \
-                 (and of the controller)",
-                r.ts
-            ));
-        }
-        if r.ts > MAX_TS_S {
-            return bad(format!(
-                "ts = {:e} s is above {MAX_TS_S:e} s, the longest sampling period of a model file",
-                r.ts
-            ));
+        if let Err(m) = model_ts(r.ts) {
+            return bad(m);
         }
         if let Some(p) = &r.identification {
             p.check_sizes()

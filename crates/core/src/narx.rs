@@ -384,11 +384,8 @@ impl NarxModel {
         if degree == 0 || degree > MAX_DEGREE {
             return bad(format!("degree = {degree}; expected 1..{MAX_DEGREE}"));
         }
-        if !(ts.is_finite() && ts > 0.0) {
-            return bad(format!(
-                "ts = {} must be a positive number of seconds",
-                crate::format::Shortest(ts)
-            ));
+        if let Err(m) = crate::model::model_ts(ts) {
+            return bad(m);
         }
         if terms.len() != theta.len() {
             return bad(format!(

@@ -404,18 +404,14 @@ pub fn identify<R: Records + ?Sized>(
     let range = crate::DataRange::of(records.records());
     if let (Some(r), Some(first)) = (&range, records.records().first()) {
         let names: Vec<&str> = first.inputs().iter().map(|i| i.name()).collect();
-        if let Some(e) = constant_input(r, &names, first.name()) {
+        if let Some(e) =
+            constant_input(r, &names, first.name()).or_else(|| tiny_signal(r, &names, first.name()))
+        {
             return Err(e);
         }
     }
     // A numerical failure names the record it happened on (once).
-    let named = |e: SysidError| {
-        if e.to_string().contains(problem.name()) {
-            e
-        } else {
-            e.context(problem.name())
-        }
-    };
+    let named = |e: SysidError| e.naming(problem.name());
     let mut fit = settings.estimator.fit(&problem).map_err(named)?;
     if let Some(kind) = settings.output {
         let max_iterations = match settings.estimator {
@@ -469,6 +465,49 @@ pub fn constant_input(
             ))
         })
     })
+}
+
+/// The smallest largest-magnitude a signal may have: at this scale its squares (1e-280) and those of
+/// residuals down to 1e-14 of it (about f64's rounding of the signal itself, 2.2e-16 relative) stay
+/// above f64's smallest normal number (2.2e-308). Below it the
+/// sums of squares every estimator, standard deviation and fit figure rests on lose digits or vanish
+/// (audit s35 H-2: y ~ 1e-168 made RLS return a1 = a2 = 0 with RMSE 0, loss 0, every fit n/a and no
+/// warning; at 1e-158 OE's estimate was off in the third digit, silently). Estimates scale with the
+/// signals, so rescaling loses nothing.
+pub const SMALLEST_SIGNAL: f64 = 1e-140;
+
+/// The refusal of a signal (an input named in `names`, or the output) whose largest magnitude over the
+/// records whose range is `range` is above 0 and below [`SMALLEST_SIGNAL`], with the factor that
+/// rescales it to order 1. The one check of the in-memory identification and of the streamed one, next
+/// to [`constant_input`]. `None` when every signal is large enough (or 0: the constant checks say
+/// that).
+pub fn tiny_signal(range: &crate::DataRange, names: &[&str], record: &str) -> Option<SysidError> {
+    let largest = |[lo, hi]: [f64; 2]| lo.abs().max(hi.abs());
+    let signals = range
+        .u
+        .iter()
+        .zip(names)
+        .map(|(r, name)| (largest(*r), format!("input {name}")))
+        .chain(std::iter::once((largest(range.y), "output y".to_string())));
+    signals
+        .filter(|(m, _)| *m > 0.0 && *m < SMALLEST_SIGNAL)
+        .map(|(m, what)| {
+            let factor = -m.log10().floor();
+            SysidError::Numerical(format!(
+                "{record}: the {what} is at most {m:.3e} in magnitude: at this scale f64 loses the sums \
+                 of squares every estimator, standard deviation and fit figure needs (their terms fall \
+                 below 1e-280, near f64's smallest normal number 2.2e-308), so the results would be \
+                 wrong or empty; rescale it (multiply it by 1e{factor:.0}: the estimates scale with it)"
+            ))
+        })
+        .next()
+}
+
+/// [`tiny_signal`] of one record (the delay search, NARX).
+pub fn tiny_signal_of(data: &Dataset) -> Option<SysidError> {
+    let range = crate::DataRange::of(std::slice::from_ref(data))?;
+    let names: Vec<&str> = data.inputs().iter().map(|i| i.name()).collect();
+    tiny_signal(&range, &names, data.name())
 }
 
 /// `--breakpoints auto`: the identification with K = 1..=[`MAX_AUTO_BREAKPOINTS`] breakpoints in every

@@ -427,6 +427,10 @@ pub fn identify_narx(data: &Dataset, settings: &NarxSettings) -> Result<NarxFit,
             )));
         }
     }
+    // Signals whose squares underflow (audit s35 H-2), refused as every identification refuses them.
+    if let Some(e) = crate::estimate::tiny_signal_of(data) {
+        return Err(e);
+    }
     let (u, y) = (data.u(), data.y());
     let s = settings;
     let k0 = s.k0();

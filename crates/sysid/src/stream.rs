@@ -135,20 +135,24 @@ pub fn identify_checked(
     detrend: Detrend,
     max_lag: usize,
 ) -> Result<Streamed<StreamedFit>, SysidError> {
+    // A failure names the record it happened on, as `estimate::identify` does (audit s35 M-3: under
+    // `--stream on` "least squares produced a non-finite estimate" named no file).
+    let est_name = est.name().to_string();
+    let on_est = |e: SysidError| e.naming(&est_name);
     let Streamed {
         result: mut fit,
         mut passes,
         ..
-    } = identify_arx(est, settings, detrend)?;
+    } = identify_arx(est, settings, detrend).map_err(on_est)?;
     // After `--detrend linear` the estimation figures are scored on the data the model was estimated
     // from: the drift removed, the means kept (audit s18 M-3; the in-memory path likewise).
     let on_est = if detrend == Detrend::Linear {
-        let (trend, n) = trend_of(est, detrend)?;
+        let (trend, n) = trend_of(est, detrend).map_err(on_est)?;
         passes += n;
         let mut undrifted = Undrifted { inner: est, trend };
-        record_metrics(&fit.model, &mut undrifted, max_lag)?
+        record_metrics(&fit.model, &mut undrifted, max_lag).map_err(on_est)?
     } else {
-        record_metrics(&fit.model, est, max_lag)?
+        record_metrics(&fit.model, est, max_lag).map_err(on_est)?
     };
     passes += on_est.passes;
     let (est_metrics, est_resid) = on_est.result;
@@ -162,7 +166,8 @@ pub fn identify_checked(
     crate::estimate::std_warnings(&mut fit);
     let (validation, val_shape, val_u_extremes, val_passes) = match val {
         Some(v) => {
-            let on_val = record_metrics(&fit.model, v, max_lag)?;
+            let val_name = v.name().to_string();
+            let on_val = record_metrics(&fit.model, v, max_lag).map_err(|e| e.naming(&val_name))?;
             (
                 Some(on_val.result),
                 Some(on_val.shape),
@@ -351,7 +356,9 @@ pub fn identify_arx(
     }
     // The in-memory refusal of an input that never changes, on the range this pass widened.
     let input = [sysid_core::data::SINGLE_INPUT];
-    if let Some(e) = crate::estimate::constant_input(&range, &input, &name) {
+    if let Some(e) = crate::estimate::constant_input(&range, &input, &name)
+        .or_else(|| crate::estimate::tiny_signal(&range, &input, &name))
+    {
         return Err(e);
     }
     let key = Parameterisation::new(s, Layout::KeyTerm);

@@ -603,3 +603,17 @@ pub fn progress_bar(len: u64, template: &str) -> indicatif::ProgressBar {
 pub(super) fn data_notes(notes: &[String]) -> impl Iterator<Item = String> + '_ {
     notes.iter().map(|n| format!("data: {n}"))
 }
+
+/// An estimation error after the reader's `notes`, printed first as warnings (`data: …`): a failing
+/// estimation never reaches its report, and a note (a value 1e6 times every other of its column, at its
+/// line and column) is often its cause (audit s35 M-3: a y of 1e200 at line 101 ended in "least squares
+/// produced a non-finite estimate" with the note that names it lost). One path for identify in memory
+/// and `--stream on`.
+pub(super) fn notes_before(notes: &[String]) -> impl Fn(sysid::SysidError) -> anyhow::Error + '_ {
+    move |e| {
+        for n in data_notes(notes) {
+            eprintln!("warning: {n}");
+        }
+        e.into()
+    }
+}

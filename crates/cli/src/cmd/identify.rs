@@ -624,17 +624,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         anyhow::bail!(e);
     }
-    // An estimation that fails never reaches the report: the reader's notes (a value 1e6 times every
-    // other of its column, at its line and column: often the cause) are printed before the error, as
-    // `validate` does (audit s35 M-3: a y of 1e200 at line 101 ended in "least squares produced a
-    // non-finite estimate" with the note that names it lost).
-    let said_notes = |e: sysid::SysidError| -> anyhow::Error {
-        for n in super::common::data_notes(&notes) {
-            eprintln!("warning: {n}");
-        }
-        e.into()
-    };
-    let mut fit = identify(&estimation, &settings).map_err(said_notes)?;
+    // An estimation that fails never reaches the report: the reader's notes are printed before the
+    // error, as `validate` does.
+    let said_notes = super::common::notes_before(&notes);
+    let mut fit = identify(&estimation, &settings).map_err(&said_notes)?;
     if op.is_some() {
         // The range in the user's units, as the operating point is (identify saw deviations).
         fit.model = fit
@@ -663,7 +656,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let mut report =
         IdentifyReport::assemble(&fit, &settings, &scored, val.as_ref(), args.resid_lags)
-            .map_err(said_notes)?;
+            .map_err(&said_notes)?;
     // The reader's warnings (a resampled record...) are warnings about these numbers too.
     report.warnings.extend(super::common::data_notes(&notes));
     report
@@ -1019,13 +1012,22 @@ fn run_streamed(args: &Args, settings: &Identification, data_path: &Path) -> any
         Some((path, vopts)) => Some(CsvStream::open(path, &vopts)?),
         None => None,
     };
-    let mut streamed = sysid_summary::stream::identify_report(
+    let streamed = sysid_summary::stream::identify_report(
         &mut est,
         val.as_mut().map(|v| v as &mut dyn RecordSource),
         settings,
         args.detrend,
         args.resid_lags,
-    )?;
+    );
+    // The readers' notes (the record's, then the validation record's).
+    let read_notes = |est: &CsvStream, val: &Option<CsvStream>| {
+        let mut notes = est.notes().to_vec();
+        notes.extend(val.iter().flat_map(|v| v.notes().iter().cloned()));
+        notes
+    };
+    // A failing estimation prints them before its error, as in memory.
+    let mut streamed =
+        streamed.map_err(|e| super::common::notes_before(&read_notes(&est, &val))(e))?;
     // The validation record is sampled at the model's Ts, as the in-memory path requires (audit s27 M-3:
     // a record at 0.02 s was scored as if at 0.01 s).
     if let (Some(v), Some(vs)) = (&val, streamed.val_shape) {
@@ -1053,8 +1055,7 @@ fn run_streamed(args: &Args, settings: &Identification, data_path: &Path) -> any
         None
     };
     // The readers' notes, as the in-memory path gives them (audit s27 M-2).
-    let mut notes = est.notes().to_vec();
-    notes.extend(val.iter().flat_map(|v| v.notes().iter().cloned()));
+    let notes = read_notes(&est, &val);
     report.warnings.extend(super::common::data_notes(&notes));
     let mut in_sample = in_sample_warnings(args, &[data_path.to_path_buf()], &[], None);
     if in_sample.is_empty() {

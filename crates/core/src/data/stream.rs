@@ -28,7 +28,7 @@
 //! - there is no limit on the number of rows or the file size ([`super::MAX_SAMPLES`],
 //!   [`super::MAX_FILE_BYTES`] protect the in-memory reader only).
 
-use std::io::Read;
+use std::io::{Read, Seek};
 use std::path::{Path, PathBuf};
 
 use super::quotes::{quote_error, Place, QuoteFault, QuoteGuard, QuotePlace};
@@ -638,6 +638,40 @@ impl CsvStream {
         record_place(&file, 3 * u64::from(self.bom), at, look)
     }
 
+    /// The in-memory reader's note of a file that may have been cut inside its last number
+    /// ([`super::cut_note_of_rows`]), from the rows whose records start at byte offsets `tail` (the
+    /// file's last rows, oldest first), read again from the file.
+    fn cut_note(&self, tail: &std::collections::VecDeque<u64>) -> std::io::Result<Option<String>> {
+        let (Some(&from), Some(&last)) = (tail.front(), tail.back()) else {
+            return Ok(None);
+        };
+        let mut file = std::fs::File::open(&self.path)?;
+        file.seek(std::io::SeekFrom::Start(3 * u64::from(self.bom) + from))?;
+        let mut bytes = Vec::new();
+        file.read_to_end(&mut bytes)?;
+        if super::ends_a_line(&bytes) {
+            return Ok(None);
+        }
+        let mut rdr = csv::ReaderBuilder::new()
+            .delimiter(self.delimiter)
+            .has_headers(false)
+            .flexible(true)
+            .from_reader(bytes.as_slice());
+        let records: Vec<csv::StringRecord> = rdr.records().filter_map(Result::ok).collect();
+        let rows: Vec<Vec<&str>> = records
+            .iter()
+            .map(|r| r.iter().map(trimmed).collect::<Vec<_>>())
+            .filter(|r| r.iter().any(|c| !c.is_empty()))
+            .collect();
+        let file_name = self.path.display().to_string();
+        Ok(super::cut_note_of_rows(
+            &file_name,
+            &self.headers,
+            self.line_of(last),
+            &rows,
+        ))
+    }
+
     /// The line of the record at byte `at` (0 when the file can no longer be read).
     fn line_of(&self, at: u64) -> usize {
         self.place_of(at, false).map_or(0, |p| p.line)
@@ -754,10 +788,17 @@ impl RecordSource for CsvStream {
             Vec::with_capacity(CHUNK_ROWS),
         );
         let (mut row, mut used, mut chunk_start) = (0usize, 0usize, 0usize);
+        // The first pass's last rows (their records' byte offsets) and whether it read to the file's
+        // end: the cut-file note reads them again there (`cut_note`).
+        let mut tail = std::collections::VecDeque::with_capacity(super::CUT_LOOKBACK + 1);
+        let mut to_end = false;
         loop {
             match rdr.read_byte_record(&mut rec) {
                 Ok(true) => {}
-                Ok(false) => break,
+                Ok(false) => {
+                    to_end = true;
+                    break;
+                }
                 Err(e) => {
                     let bound = rdr.get_ref();
                     let skip = 3 * u64::from(self.bom);
@@ -796,6 +837,12 @@ impl RecordSource for CsvStream {
                     !self.marks.comma_delimited(),
                 );
                 return Err(self.or_changed(e, &rdr.get_ref().inner, &file_id));
+            }
+            if self.shape.is_none() {
+                if tail.len() > super::CUT_LOOKBACK {
+                    tail.pop_front();
+                }
+                tail.push_back(at);
             }
             let index = row;
             row += 1;
@@ -923,6 +970,10 @@ impl RecordSource for CsvStream {
                 },
             },
         };
+        if self.shape.is_none() && to_end {
+            let note = self.cut_note(&tail).map_err(io)?;
+            self.notes.notes.extend(note);
+        }
         if self.shape.is_none() {
             // The in-memory reader's outlier note (`super::lone_outlier`), u's before y's.
             for (l, col) in largest.iter().zip([self.ucol, self.ycol]) {

@@ -538,7 +538,7 @@ impl NarxModel {
             .collect()
     }
 
-    /// Fills `v` (length na + nb) with y(k−1..k−na) from `y_past(lag)` and u(k−nk..k−nk−nb+1).
+    /// Fills the first na + nb entries of `v` with y(k−1..k−na) from `y_past(lag)` and u(k−nk..k−nk−nb+1).
     #[inline]
     pub fn lagged_values(&self, k: usize, u: &[f64], y_past: impl Fn(usize) -> f64, v: &mut [f64]) {
         for l in 1..=self.na {
@@ -549,26 +549,18 @@ impl NarxModel {
         }
     }
 
-    /// Σ θ_i m_i given the lagged values `v` and the terms' factor positions `idx`.
-    #[inline]
-    fn output_of(&self, idx: &[Vec<usize>], v: &[f64]) -> f64 {
-        idx.iter()
-            .zip(&self.theta)
-            .map(|(ix, c)| c * ix.iter().map(|&i| v[i]).product::<f64>())
-            .sum()
-    }
-
     /// One-step-ahead prediction ŷ(k|k−1) from the measured past outputs (the regression's fit);
     /// entries k < k0 are copies of y. Fails on records of different lengths or a non-finite value.
     pub fn predict(&self, u: &[f64], y: &[f64]) -> Result<Vec<f64>, SysidError> {
         check_lengths(u, y)?;
         let k0 = self.k0().min(y.len());
         let mut out = y[..k0].to_vec();
-        let idx = self.term_indices();
-        let mut vals = vec![0.0; self.na + self.nb];
+        let table = Monomials::of(self);
+        let mut vals = table.values();
         for k in k0..y.len() {
             self.lagged_values(k, u, |l| y[k - l], &mut vals);
-            let v = self.output_of(&idx, &vals);
+            table.eval(&mut vals);
+            let v = table.output(&self.theta, &vals);
             if !v.is_finite() {
                 let why = self
                     .overflowing_term(u, y)
@@ -632,6 +624,20 @@ impl NarxModel {
     /// in [`NarxSimulation::blew_up_at`] (the rest of ŷ is NaN); callers warn. Fails only on records of
     /// different lengths.
     pub fn simulate(&self, u: &[f64], y: &[f64]) -> Result<NarxSimulation, SysidError> {
+        self.simulate_each(u, y, &Monomials::of(self), |_, _, _| {})
+    }
+
+    /// [`NarxModel::simulate`] through the table `table` (of this model's terms, with any products a
+    /// caller added), calling `each(k, v, ŷ(k))` at each sample k ≥ k0 the run reaches without a
+    /// blow-up, v the table's values at k (the lagged values of the run and their products): what a
+    /// computation along the run (the sensitivities of a refinement) needs, without a second pass.
+    pub fn simulate_each(
+        &self,
+        u: &[f64],
+        y: &[f64],
+        table: &Monomials,
+        mut each: impl FnMut(usize, &[f64], f64),
+    ) -> Result<NarxSimulation, SysidError> {
         check_lengths(u, y)?;
         let (lo, hi) = y
             .iter()
@@ -644,11 +650,11 @@ impl NarxModel {
         let k0 = self.k0().min(n);
         let mut out = Vec::with_capacity(n);
         out.extend_from_slice(&y[..k0]);
-        let idx = self.term_indices();
-        let mut vals = vec![0.0; self.na + self.nb];
+        let mut vals = table.values();
         for k in k0..n {
             self.lagged_values(k, u, |l| out[k - l], &mut vals);
-            let v = self.output_of(&idx, &vals);
+            table.eval(&mut vals);
+            let v = table.output(&self.theta, &vals);
             if !v.is_finite() || (v - mid).abs() > band {
                 out.resize(n, f64::NAN);
                 return Ok(NarxSimulation {
@@ -656,12 +662,112 @@ impl NarxModel {
                     blew_up_at: Some(k),
                 });
             }
+            each(k, &vals, v);
             out.push(v);
         }
         Ok(NarxSimulation {
             y: out,
             blew_up_at: None,
         })
+    }
+}
+
+/// The monomials of a model's terms compiled for evaluation, sharing their products: a value vector
+/// ([`Monomials::values`]) holds the na + nb lagged values v of [`NarxModel::lagged_values`], then a 1
+/// (the empty product), then one slot per product of two or more factors that a term (or, through
+/// [`Monomials::slot`], a caller) needs, each computed by [`Monomials::eval`] as the product of its
+/// prefix (all factors but the last, itself a slot) times its last factor. A monomial's value is thus
+/// ((v_a · v_b) · v_c) · …, the same multiplications in the same order as a fold over its factors
+/// from 1 (1 · v_a = v_a exactly), so a simulation through this table gives the same numbers, to the
+/// bit, as one that multiplies each term's factors anew; each shared prefix is multiplied once a row
+/// instead of once a term.
+#[derive(Debug, Clone)]
+pub struct Monomials {
+    /// The slot of each product of two or more factors: (slot of its prefix, position of its last
+    /// factor in v), in an order where a prefix comes before the products that extend it.
+    nodes: Vec<(usize, usize)>,
+    /// Factor positions of each product's slot (for [`Monomials::slot`] to find a product again).
+    known: std::collections::HashMap<Vec<usize>, usize>,
+    /// The slot of each term of the model.
+    terms: Vec<usize>,
+    /// Position of the 1 (= na + nb); the nodes follow it.
+    one: usize,
+}
+
+impl Monomials {
+    /// The table of `model`'s terms.
+    pub fn of(model: &NarxModel) -> Self {
+        let one = model.na + model.nb;
+        let mut table = Monomials {
+            nodes: Vec::new(),
+            known: std::collections::HashMap::new(),
+            terms: Vec::new(),
+            one,
+        };
+        table.terms = model
+            .terms
+            .iter()
+            .map(|t| {
+                let pos: Vec<usize> = t.factors.iter().map(|&v| model.variable_index(v)).collect();
+                table.slot(&pos)
+            })
+            .collect();
+        table
+    }
+
+    /// The slot of the product of the values at positions `pos` of v (in the order given: a term's
+    /// factors in canonical order), added when new; the empty product is the 1's slot.
+    pub fn slot(&mut self, pos: &[usize]) -> usize {
+        match pos {
+            [] => self.one,
+            [a] => *a,
+            [prefix @ .., last] => {
+                if let Some(&s) = self.known.get(pos) {
+                    return s;
+                }
+                let parent = self.slot(prefix);
+                let s = self.one + 1 + self.nodes.len();
+                self.nodes.push((parent, *last));
+                self.known.insert(pos.to_vec(), s);
+                s
+            }
+        }
+    }
+
+    /// A value vector: na + nb zeros for the lagged values, the 1, and a slot per product.
+    pub fn values(&self) -> Vec<f64> {
+        let mut v = vec![0.0; self.one + 1 + self.nodes.len()];
+        v[self.one] = 1.0;
+        v
+    }
+
+    /// Computes every product slot of `v` from its lagged values (filled by
+    /// [`NarxModel::lagged_values`]).
+    #[inline]
+    pub fn eval(&self, v: &mut [f64]) {
+        for (s, &(parent, last)) in (self.one + 1..).zip(&self.nodes) {
+            v[s] = v[parent] * v[last];
+        }
+    }
+
+    /// The monomials m_i of the model's terms from `v` (after [`Monomials::eval`]) into `out`.
+    #[inline]
+    pub fn fill(&self, v: &[f64], out: &mut [f64]) {
+        for (m, &s) in out.iter_mut().zip(&self.terms) {
+            *m = v[s];
+        }
+    }
+
+    /// Σ θ_i m_i from `v` (after [`Monomials::eval`]), summed in the terms' order.
+    #[inline(never)]
+    pub fn output(&self, theta: &[f64], v: &[f64]) -> f64 {
+        // A loop from the neutral element of `Iterator::sum` (the number `.sum()` would give), whose
+        // accumulator the compiler keeps in a register.
+        let mut acc: f64 = std::iter::empty::<f64>().sum();
+        for (&s, c) in self.terms.iter().zip(theta) {
+            acc += c * v[s];
+        }
+        acc
     }
 }
 
@@ -808,6 +914,42 @@ impl crate::Plant for NarxPlant {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    // The shared-product table gives each monomial as the fold Π from 1 over its factors and the
+    // output as Σ θ_i m_i in the terms' order, to the bit: every term of (2, 2, 1) up to degree 3 with
+    // a constant, at values that do not round alike in any other order.
+    #[test]
+    fn shared_products_are_the_folds_to_the_bit() {
+        let terms = candidate_terms(2, 2, 1, 3, true);
+        let theta: Vec<f64> = (0..terms.len())
+            .map(|i| 0.1 + 1.0 / (3.0 + i as f64))
+            .collect();
+        let model = NarxModel::new(1.0, 2, 2, 1, 3, terms.clone(), theta.clone()).unwrap();
+        let table = Monomials::of(&model);
+        let (u, y) = (
+            [0.3, -1.7, 2.9, 0.11],
+            [1.0 / 3.0, -2.0 / 7.0, 5.0 / 11.0, 0.0],
+        );
+        let mut v = table.values();
+        model.lagged_values(3, &u, |l| y[3 - l], &mut v);
+        table.eval(&mut v);
+        let value = |f: Lagged| match f {
+            Lagged::Y(l) => y[3 - l],
+            Lagged::U(l) => u[3 - l],
+        };
+        let mut m = vec![0.0; terms.len()];
+        table.fill(&v, &mut m);
+        for (t, mi) in terms.iter().zip(&m) {
+            let fold = t.factors().iter().fold(1.0, |acc, &f| acc * value(f));
+            assert_eq!(mi.to_bits(), fold.to_bits(), "{t}");
+        }
+        let sum: f64 = terms
+            .iter()
+            .zip(&theta)
+            .map(|(t, c)| c * t.factors().iter().fold(1.0, |acc, &f| acc * value(f)))
+            .sum();
+        assert_eq!(table.output(&theta, &v).to_bits(), sum.to_bits());
+    }
 
     // Audit s32 L-4: a lag beyond 2 · MAX_ORDER is said as a lag outside the orders, not as "not a
     // lagged variable" (kept for what is not y(k-L) or u(k-L)).

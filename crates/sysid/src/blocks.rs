@@ -660,6 +660,10 @@ fn need_levels(u: &[f64], need: usize, kind: &str, name: &str) -> Result<Vec<f64
     Ok(levels)
 }
 
+/// Distinct input levels a saturation needs to be determined: one at or beyond each limit and two
+/// inside the linear interval ([`SaturationBlock`]'s start refuses fewer).
+pub(crate) const SATURATION_LEVELS: usize = 4;
+
 /// Magnitude standing for "no limit" in the linear equivalent of a saturating kind (finite, so that
 /// m s_r stays finite; far outside any record).
 const NO_LIMIT: f64 = 1e100;
@@ -761,7 +765,27 @@ impl Block for SaturationBlock {
         sat(f).m == 0.0
     }
     fn start(&self, u: &[f64], _: bool, _: bool, name: &str) -> Result<BlockStart, SysidError> {
-        let levels = need_levels(u, 3, "saturation", name)?;
+        // Each of the map's three pieces needs its levels: every level at or below s_l gives the one
+        // value m s_l, so s_l needs a level there, s_r likewise above; the slope m of the linear
+        // interval needs two levels inside it (the rule of the saturation's own warning). Fewer than
+        // 1 + 2 + 1 = 4 distinct levels leave a limit or the slope free, which the regression would
+        // only report as an unexcited regressor (audit s35b L-8: "regressor m is zero" on a
+        // three-level input).
+        let levels = levels_of(u);
+        if levels.len() < SATURATION_LEVELS {
+            let list: Vec<String> = levels
+                .iter()
+                .map(|&v| sysid_core::format::shortest(v))
+                .collect();
+            return Err(SysidError::Data(format!(
+                "{name}: the input takes only {} distinct level(s) ({}); a saturation input \
+                 nonlinearity needs at least {SATURATION_LEVELS} distinct levels: one at or beyond each \
+                 limit (s_l, s_r) and two inside the linear interval for its slope m (use a linear \
+                 input, --structure arx, or an input with several amplitudes)",
+                levels.len(),
+                list.join(", ")
+            )));
+        }
         // Limits at the 10 % and 90 % quantiles: some samples on each saturated part and inside.
         let (mut s_l, mut s_r) = (quantile(u, 0.1), quantile(u, 0.9));
         if s_l >= s_r || s_l <= levels[0] && s_r >= levels[levels.len() - 1] {

@@ -29,7 +29,9 @@
 use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
-use sysid_core::narx::{candidate_count, candidate_terms, Lagged, NarxModel, Term, MAX_DEGREE};
+use sysid_core::narx::{
+    candidate_count, candidate_terms, Lagged, Monomials, NarxModel, Term, MAX_DEGREE,
+};
 use sysid_core::{DataRange, Dataset, Setting, Stop, SysidError};
 
 use crate::warnings::{Record, Warning};
@@ -790,103 +792,218 @@ fn argmin(v: &[Option<f64>]) -> Option<usize> {
         .map(|(i, _)| i)
 }
 
-/// Σ (y(k) − ŷ_sim(k))² over rows k0.. of the free run of `model`, or `None` on a blow-up.
-fn simulation_cost(model: &NarxModel, u: &[f64], y: &[f64]) -> Option<f64> {
-    let sim = model.simulate(u, y).ok()?;
-    if sim.blew_up_at.is_some() {
-        return None;
-    }
-    let k0 = model.k0().min(y.len());
-    let v: f64 = y[k0..]
-        .iter()
-        .zip(&sim.y[k0..])
-        .map(|(a, b)| (a - b) * (a - b))
-        .sum();
-    v.is_finite().then_some(v)
+/// g_l = Σ_i θ_i ∂m_i/∂y(k − l) of a model, compiled: for each term and each distinct output variable
+/// y(k − l) in it (the terms in order, their factors in canonical order), θ_i times the power p of
+/// y(k − l) in m_i (the power rule) and the slot, in the values of a [`Monomials`] table, of the
+/// product of m_i's other factors. The entries are grouped by lag, in their order within a lag, so
+/// that each g_l is summed in a register with the additions of a loop over the terms in the same
+/// order: the same number, to the bit, as (θ_i p) · Π rest computed anew.
+struct OutputDerivatives {
+    /// (l, the entries of lag l in `coef` and `rest`).
+    lags: Vec<(usize, std::ops::Range<usize>)>,
+    coef: Vec<f64>,
+    rest: Vec<usize>,
 }
 
-/// ∂m/∂y(k − l) of each term as (l, power, the positions of the other factors in v): the power rule
-/// on a monomial.
-fn output_derivatives(model: &NarxModel) -> Vec<Vec<(usize, f64, Vec<usize>)>> {
-    model
-        .terms()
-        .iter()
-        .map(|t| {
+impl OutputDerivatives {
+    /// The derivatives of `model`'s terms; the products they need are added to `table`.
+    fn of(model: &NarxModel, table: &mut Monomials) -> Self {
+        // (l, θ_i p, slot of the rest) in the terms' order.
+        let mut entries: Vec<(usize, f64, usize)> = Vec::new();
+        for (t, th) in model.terms().iter().zip(model.theta()) {
             let f = t.factors();
-            let mut out = Vec::new();
             for (i, v) in f.iter().enumerate() {
                 if let Lagged::Y(l) = *v {
                     if i > 0 && f[i - 1] == *v {
                         continue;
                     }
                     let power = f.iter().filter(|w| *w == v).count();
-                    let mut rest = f.to_vec();
-                    rest.remove(i);
-                    let rest = rest.iter().map(|&w| model.variable_index(w)).collect();
-                    out.push((l, power as f64, rest));
+                    let rest: Vec<usize> = f
+                        .iter()
+                        .enumerate()
+                        .filter(|&(j, _)| j != i)
+                        .map(|(_, &w)| model.variable_index(w))
+                        .collect();
+                    entries.push((l, th * power as f64, table.slot(&rest)));
                 }
             }
-            out
-        })
-        .collect()
-}
-
-/// A free run with its sensitivities: residuals y − ŷ over rows k0.. and J = ∂ŷ/∂θ by rows (row-major,
-/// p numbers per row).
-struct Sensitivity {
-    resid: Vec<f64>,
-    rows: Vec<f64>,
-    p: usize,
-}
-
-/// The simulation of `model` on (u, y) with its sensitivities ∂ŷ(k)/∂θ over rows k0.., or `None` on
-/// a blow-up.
-fn simulate_with_sensitivity(model: &NarxModel, u: &[f64], y: &[f64]) -> Option<Sensitivity> {
-    let sim = model.simulate(u, y).ok()?;
-    if sim.blew_up_at.is_some() {
-        return None;
+        }
+        // A stable sort: the order within a lag is kept.
+        entries.sort_by_key(|e| e.0);
+        let mut lags: Vec<(usize, std::ops::Range<usize>)> = Vec::new();
+        for (at, e) in entries.iter().enumerate() {
+            match lags.last_mut() {
+                Some((l, r)) if *l == e.0 => r.end = at + 1,
+                _ => lags.push((e.0, at..at + 1)),
+            }
+        }
+        OutputDerivatives {
+            lags,
+            coef: entries.iter().map(|e| e.1).collect(),
+            rest: entries.iter().map(|e| e.2).collect(),
+        }
     }
-    let yh = &sim.y;
-    let k0 = model.k0();
-    let n = y.len();
+
+    /// g (length na + 1, g[0] unused) from the values `v` of the table (after its eval).
+    #[inline]
+    fn fill(&self, v: &[f64], g: &mut [f64]) {
+        g.iter_mut().for_each(|x| *x = 0.0);
+        for (l, range) in &self.lags {
+            let mut sum = 0.0;
+            for (c, &s) in self.coef[range.clone()]
+                .iter()
+                .zip(&self.rest[range.clone()])
+            {
+                sum += c * v[s];
+            }
+            g[*l] = sum;
+        }
+    }
+}
+
+/// Rows of J accumulated into JᵀJ (its upper triangle) and Jᵀr: each entry Σ_k over the rows in their
+/// order, one product added at a time, as a row-by-row loop adds them, so the sums are the same to the
+/// bit. Each row is stored as [J_k | r_k] (Jᵀr is then the last column of [J | r]ᵀ[J | r]), padded with
+/// zeros to a multiple of 4; the rows are taken in blocks of [`GRAM_BLOCK`] and the sums of a 4 × 4
+/// tile kept in registers over a block: the loop is then bound by the multiplications, not by loading
+/// and storing the sums once per row or by the latency of one chain of additions.
+struct Gram {
+    p: usize,
+    stride: usize,
+    acc: Vec<f64>,
+    block: Vec<f64>,
+    filled: usize,
+}
+
+/// Rows of J per block of [`Gram`].
+const GRAM_BLOCK: usize = 16;
+
+impl Gram {
+    fn new(p: usize) -> Self {
+        let stride = (p + 1).div_ceil(4) * 4;
+        Gram {
+            p,
+            stride,
+            acc: vec![0.0; stride * stride],
+            block: vec![0.0; GRAM_BLOCK * stride],
+            filled: 0,
+        }
+    }
+
+    /// Adds the row `row` of J with its residual `r`.
+    #[inline]
+    fn push(&mut self, row: &[f64], r: f64) {
+        let at = self.filled * self.stride;
+        self.block[at..at + self.p].copy_from_slice(row);
+        self.block[at + self.p] = r;
+        self.filled += 1;
+        if self.filled == GRAM_BLOCK {
+            self.flush();
+        }
+    }
+
+    fn flush(&mut self) {
+        let (n, s) = (self.filled, self.stride);
+        let block = &self.block[..n * s];
+        for i0 in (0..self.p).step_by(4) {
+            for j0 in (i0..s).step_by(4) {
+                let mut t = [[0.0; 4]; 4];
+                for (a, ta) in t.iter_mut().enumerate() {
+                    let at = (i0 + a) * s + j0;
+                    ta.copy_from_slice(&self.acc[at..at + 4]);
+                }
+                for row in block.chunks_exact(s) {
+                    let ri = &row[i0..i0 + 4];
+                    let rj = &row[j0..j0 + 4];
+                    for (ta, &x) in t.iter_mut().zip(ri) {
+                        ta[0] += x * rj[0];
+                        ta[1] += x * rj[1];
+                        ta[2] += x * rj[2];
+                        ta[3] += x * rj[3];
+                    }
+                }
+                for (a, ta) in t.iter().enumerate() {
+                    let at = (i0 + a) * s + j0;
+                    self.acc[at..at + 4].copy_from_slice(ta);
+                }
+            }
+        }
+        self.filled = 0;
+    }
+
+    /// The scaled normal equations of the rows pushed.
+    fn finish(mut self) -> ScaledNormal {
+        self.flush();
+        let (p, s) = (self.p, self.stride);
+        let jtj = DMatrix::from_fn(p, p, |i, j| {
+            if j >= i {
+                self.acc[i * s + j]
+            } else {
+                self.acc[j * s + i]
+            }
+        });
+        let jtr: Vec<f64> = (0..p).map(|i| self.acc[i * s + p]).collect();
+        ScaledNormal::of(jtj, &jtr)
+    }
+}
+
+/// A free run with what a Gauss–Newton step needs: the residuals y − ŷ over rows k0.. and the scaled
+/// normal equations of its sensitivities J = ∂ŷ/∂θ.
+struct Run {
+    resid: Vec<f64>,
+    normal: ScaledNormal,
+}
+
+/// The free run of `model` on (u, y) with the normal equations of its sensitivities ∂ŷ(k)/∂θ over
+/// rows k0.., computed along the run by the recursion of the module's doc and folded into [`Gram`]
+/// row by row (only the last na rows of J are kept): one pass. `None` on a blow-up, or when a residual
+/// or a sensitivity is not finite.
+fn run_of(model: &NarxModel, u: &[f64], y: &[f64]) -> Option<Run> {
     let p = model.terms().len();
     let na = model.na();
-    let derivs = output_derivatives(model);
-    let idx = model.term_indices();
-    // sens[k][j] = ∂ŷ(k)/∂θ_j, zero for k < k0.
-    let mut sens = vec![0.0; n * p];
+    let mut table = Monomials::of(model);
+    let derivs = OutputDerivatives::of(model, &mut table);
+    // The rows k−na..k of J in a ring (row k in slot k mod (na + 1)); the rows before k0 are zero.
+    let ring_len = na + 1;
+    let mut ring = vec![0.0; ring_len * p];
     let mut gl = vec![0.0; na + 1];
-    let mut vals = vec![0.0; model.na() + model.nb()];
-    for k in k0..n {
-        model.lagged_values(k, u, |l| yh[k - l], &mut vals);
-        // g_l = Σ_i θ_i ∂m_i/∂y(k − l).
-        gl.iter_mut().for_each(|g| *g = 0.0);
-        for (d, th) in derivs.iter().zip(model.theta()) {
-            for (l, power, rest) in d {
-                gl[*l] += th * power * rest.iter().map(|&i| vals[i]).product::<f64>();
+    let mut gram = Gram::new(p);
+    let mut resid = Vec::with_capacity(y.len().saturating_sub(model.k0()));
+    let mut finite = true;
+    let sim = model
+        .simulate_each(u, y, &table, |k, vals, yh| {
+            if !finite {
+                return;
             }
-        }
-        let (past, now) = sens.split_at_mut(k * p);
-        let row = &mut now[..p];
-        for (j, ix) in idx.iter().enumerate() {
-            row[j] = ix.iter().map(|&i| vals[i]).product::<f64>();
-        }
-        for (l, g) in gl.iter().enumerate().skip(1) {
-            if *g != 0.0 {
-                let prev = &past[(k - l) * p..(k - l + 1) * p];
-                row.iter_mut().zip(prev).for_each(|(r, s)| *r += g * s);
+            derivs.fill(vals, &mut gl);
+            let slot = k % ring_len;
+            let (before, rest) = ring.split_at_mut(slot * p);
+            let (now, after) = rest.split_at_mut(p);
+            // ∂ŷ(k)/∂θ_j = m_j(k) + Σ_l g_l ∂ŷ(k−l)/∂θ_j.
+            table.fill(vals, now);
+            for (l, g) in gl.iter().enumerate().skip(1) {
+                if *g != 0.0 {
+                    let prev_slot = (k + ring_len - l) % ring_len;
+                    let prev = if prev_slot < slot {
+                        &before[prev_slot * p..(prev_slot + 1) * p]
+                    } else {
+                        &after[(prev_slot - slot - 1) * p..(prev_slot - slot) * p]
+                    };
+                    now.iter_mut().zip(prev).for_each(|(r, s)| *r += g * s);
+                }
             }
-        }
-    }
-    let resid: Vec<f64> = (k0..n).map(|k| y[k] - yh[k]).collect();
-    sens.drain(..k0 * p);
-    if resid.iter().any(|v| !v.is_finite()) || sens.iter().any(|v| !v.is_finite()) {
-        return None;
-    }
-    Some(Sensitivity {
+            let r = y[k] - yh;
+            if !r.is_finite() || now.iter().any(|v| !v.is_finite()) {
+                finite = false;
+                return;
+            }
+            gram.push(now, r);
+            resid.push(r);
+        })
+        .ok()?;
+    (sim.blew_up_at.is_none() && finite).then(|| Run {
         resid,
-        rows: sens,
-        p,
+        normal: gram.finish(),
     })
 }
 
@@ -901,28 +1018,9 @@ struct ScaledNormal {
 }
 
 impl ScaledNormal {
-    fn new(sens: &Sensitivity) -> Self {
-        let p = sens.p;
-        // JᵀJ (upper triangle, then mirrored) and Jᵀr, row by row.
-        let mut jtj = DMatrix::<f64>::zeros(p, p);
-        let mut jtr = vec![0.0; p];
-        let mut acc = vec![0.0; p * p];
-        for (row, r) in sens.rows.chunks_exact(p).zip(&sens.resid) {
-            for i in 0..p {
-                let ri = row[i];
-                jtr[i] += ri * r;
-                let a = &mut acc[i * p + i..(i + 1) * p];
-                a.iter_mut()
-                    .zip(&row[i..])
-                    .for_each(|(x, rj)| *x += ri * rj);
-            }
-        }
-        for i in 0..p {
-            for j in i..p {
-                jtj[(i, j)] = acc[i * p + j];
-                jtj[(j, i)] = acc[i * p + j];
-            }
-        }
+    /// S and b of JᵀJ = `jtj` and Jᵀr = `jtr`.
+    fn of(jtj: DMatrix<f64>, jtr: &[f64]) -> Self {
+        let p = jtr.len();
         // A column that is zero over the record keeps the scale 1 (its step is then 0).
         let d: Vec<f64> = (0..p)
             .map(|i| {
@@ -971,14 +1069,14 @@ pub fn refine(
     max_iterations: usize,
     cancel: &Stop,
 ) -> Result<(NarxModel, Refinement, Vec<Option<f64>>), SysidError> {
-    let mut sens = simulate_with_sensitivity(start, u, y).ok_or_else(|| {
+    let mut run = run_of(start, u, y).ok_or_else(|| {
         SysidError::Numerical(
             "the least-squares model's free-run simulation blows up on the estimation record"
                 .into(),
         )
     })?;
-    let n = sens.resid.len() as f64;
-    let mut v = dot(&sens.resid, &sens.resid);
+    let n = run.resid.len() as f64;
+    let mut v = dot(&run.resid, &run.resid);
     let rmse_before = (v / n).sqrt();
     let mut model = start.clone();
     let mut lambda = 1e-3;
@@ -987,11 +1085,10 @@ pub fn refine(
     let p = model.terms().len();
     while iterations < max_iterations {
         iterations += 1;
-        let normal = ScaledNormal::new(&sens);
         let mut improved = false;
         for _ in 0..12 {
             cancel.check()?;
-            let Some(delta) = normal.damped_step(lambda) else {
+            let Some(delta) = run.normal.damped_step(lambda) else {
                 lambda *= 10.0;
                 continue;
             };
@@ -1005,15 +1102,14 @@ pub fn refine(
                 lambda *= 10.0;
                 continue;
             };
-            match simulation_cost(&trial, u, y)
-                .filter(|v2| *v2 < v)
-                .and_then(|_| simulate_with_sensitivity(&trial, u, y))
-            {
-                Some(s2) => {
-                    let v2 = dot(&s2.resid, &s2.resid);
+            // The trial's free run with its sensitivities (nearly every step is taken: computing them
+            // along the run saves a second simulation).
+            let next = run_of(&trial, u, y).map(|r2| (dot(&r2.resid, &r2.resid), r2));
+            match next.filter(|(v2, _)| *v2 < v) {
+                Some((v2, r2)) => {
                     let rel = (v - v2) / v.max(f64::MIN_POSITIVE);
                     model = trial;
-                    sens = s2;
+                    run = r2;
                     v = v2;
                     lambda = (lambda / 3.0).max(1e-12);
                     improved = true;
@@ -1033,8 +1129,8 @@ pub fn refine(
             break;
         }
     }
-    let sigma2 = sysid_core::ls::noise_variance(v, sens.resid.len(), p);
-    let std = match ScaledNormal::new(&sens).inverse_diagonal() {
+    let sigma2 = sysid_core::ls::noise_variance(v, run.resid.len(), p);
+    let std = match run.normal.inverse_diagonal() {
         Some(d) => d
             .iter()
             .map(|g| {
@@ -1165,6 +1261,43 @@ pub fn narx_metrics_scored_from(
 mod tests {
     use super::*;
     use sysid_core::data::Signals;
+
+    // The blocked, tiled JᵀJ and Jᵀr are the row-by-row sums (each entry += J_ki J_kj in the rows'
+    // order) to the bit, for a p that is not a multiple of 4 and a row count that is not one of the
+    // block size.
+    #[test]
+    fn the_tiled_normal_equations_are_the_row_by_row_sums() {
+        let (p, n) = (7, 37);
+        let row = |k: usize| -> Vec<f64> {
+            (0..p)
+                .map(|j| ((k * 31 + j * 17) % 23) as f64 / 7.0 - 1.3)
+                .collect()
+        };
+        let r = |k: usize| ((k * 13) % 11) as f64 / 3.0 - 1.1;
+        let mut gram = Gram::new(p);
+        let (mut jtj, mut jtr) = (vec![0.0; p * p], vec![0.0; p]);
+        for k in 0..n {
+            let x = row(k);
+            gram.push(&x, r(k));
+            for i in 0..p {
+                jtr[i] += x[i] * r(k);
+                for j in i..p {
+                    jtj[i * p + j] += x[i] * x[j];
+                }
+            }
+        }
+        let normal = gram.finish();
+        for i in 0..p {
+            let d = jtj[i * p + i].sqrt();
+            assert_eq!(normal.d[i].to_bits(), d.to_bits());
+            assert_eq!(normal.b[i].to_bits(), (jtr[i] / d).to_bits());
+            for j in i..p {
+                let s = jtj[i * p + j] / (d * jtj[j * p + j].sqrt());
+                assert_eq!(normal.s[(i, j)].to_bits(), s.to_bits(), "({i}, {j})");
+                assert_eq!(normal.s[(j, i)].to_bits(), s.to_bits());
+            }
+        }
+    }
 
     fn y1() -> Term {
         Term::new(vec![Lagged::Y(1)])

@@ -532,13 +532,19 @@ impl From<PlantError> for SysidError {
     }
 }
 
-/// A setting's value as an error message shows it: as given, unless it is a number whose plain form is
-/// longer than 24 characters (`1e300` as a `f64` prints 301 digits), which is shown in scientific
-/// notation (`1e300`).
+/// A setting's value as an error message shows it: as given, except a number, which is shown as
+/// [`crate::format::Shortest`] prints it (exponent form below 1e-5 and from 1e16: `5e-7`, not
+/// `0.0000005`; `1.7e308`, not 309 digits; docs/plant.md), the rule of Ts and times in messages (audit
+/// s35b L-12). A whole number of at most 20 digits (a count: `--samples 10000000000`, u64::MAX) is
+/// shown with its digits.
 pub fn shown_value(value: impl ToString) -> String {
     let text = value.to_string();
+    let digits = text.strip_prefix('-').unwrap_or(&text);
+    if !digits.is_empty() && digits.len() <= 20 && digits.bytes().all(|b| b.is_ascii_digit()) {
+        return text;
+    }
     match text.parse::<f64>() {
-        Ok(x) if text.len() > 24 && x.is_finite() => format!("{x:e}"),
+        Ok(x) if x.is_finite() => crate::format::shortest(x),
         _ => text,
     }
 }
@@ -548,13 +554,21 @@ mod shown_value_tests {
     use super::shown_value;
 
     #[test]
-    fn long_numbers_are_shown_in_scientific_notation_and_the_rest_as_given() {
+    fn numbers_are_shown_as_shortest_prints_them_and_counts_with_their_digits() {
         assert_eq!(shown_value(1e300), "1e300");
+        assert_eq!(shown_value(1.7e308), "1.7e308");
         assert_eq!(shown_value(-2.5e-30), "-2.5e-30");
         assert_eq!(shown_value(0.5), "0.5");
-        assert_eq!(shown_value(2e-9), "0.000000002");
+        assert_eq!(shown_value(2e-9), "2e-9");
+        assert_eq!(shown_value(5e-7), "5e-7");
+        assert_eq!(shown_value(1e-5), "0.00001");
+        assert_eq!(shown_value(2e9), "2000000000");
+        assert_eq!(shown_value(1e21), "1e21");
+        assert_eq!(shown_value(f64::NAN), "NaN");
         assert_eq!(shown_value("ipa"), "ipa");
+        assert_eq!(shown_value("1e-7"), "1e-7");
         assert_eq!(shown_value(u64::MAX), u64::MAX.to_string());
+        assert_eq!(shown_value(-12), "-12");
     }
 }
 

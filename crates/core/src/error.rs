@@ -535,12 +535,12 @@ impl From<PlantError> for SysidError {
 /// A setting's value as an error message shows it: as given, except a number, which is shown as
 /// [`crate::format::Shortest`] prints it (exponent form below 1e-5 and from 1e16: `5e-7`, not
 /// `0.0000005`; `1.7e308`, not 309 digits; docs/plant.md), the rule of Ts and times in messages (audit
-/// s35b L-12). A whole number of at most 20 digits (a count: `--samples 10000000000`, u64::MAX) is
-/// shown with its digits.
+/// s35b L-12). A whole number of at most 24 digits (a count: `--samples 10000000000`, u64::MAX, a
+/// Python integer of 2^70) is shown with its digits.
 pub fn shown_value(value: impl ToString) -> String {
     let text = value.to_string();
     let digits = text.strip_prefix('-').unwrap_or(&text);
-    if !digits.is_empty() && digits.len() <= 20 && digits.bytes().all(|b| b.is_ascii_digit()) {
+    if !digits.is_empty() && digits.len() <= 24 && digits.bytes().all(|b| b.is_ascii_digit()) {
         return text;
     }
     match text.parse::<f64>() {
@@ -563,7 +563,8 @@ mod shown_value_tests {
         assert_eq!(shown_value(5e-7), "5e-7");
         assert_eq!(shown_value(1e-5), "0.00001");
         assert_eq!(shown_value(2e9), "2000000000");
-        assert_eq!(shown_value(1e21), "1e21");
+        assert_eq!(shown_value(1e25), "1e25");
+        assert_eq!(shown_value(1u128 << 70), "1180591620717411303424");
         assert_eq!(shown_value(f64::NAN), "NaN");
         assert_eq!(shown_value("ipa"), "ipa");
         assert_eq!(shown_value("1e-7"), "1e-7");

@@ -57,7 +57,7 @@ impl IpaError {
     pub fn setting(setting: IpaSetting, value: impl ToString, expected: impl Into<String>) -> Self {
         IpaError::Setting {
             setting,
-            value: value.to_string(),
+            value: sysid_core::error::shown_value(value),
             expected: expected.into(),
         }
     }

@@ -238,9 +238,8 @@ fn a_model_file_ts_below_one_microsecond_is_refused_naming_ts() {
     ]);
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(
-        stderr(&o).contains(
-            "invalid setting --ts = 1e-7: a finite sampling period of at least 1e-6 s"
-        ),
+        stderr(&o)
+            .contains("invalid setting --ts = 1e-7: a finite sampling period of at least 1e-6 s"),
         "{}",
         stderr(&o)
     );

@@ -717,6 +717,33 @@ fn a_change_without_restart_says_the_final_model_blends_both_plants() {
     assert!(!s["warnings"].to_string().contains("blend"), "{s}");
 }
 
+// Audit s35b L-5: a change point carries the threshold it was judged against. With the excursion
+// factor 0 the threshold is the H given, before and after every re-arming.
+#[test]
+fn a_change_point_carries_the_threshold_it_was_judged_against() {
+    let dir = tempfile::tempdir().unwrap();
+    let data = dir.path().join("chg.csv");
+    deadzone_change_record(&data);
+    let args = [
+        "--na",
+        "2",
+        "--nb",
+        "1",
+        "--nk",
+        "1",
+        "--detect-excursion-factor",
+        "0",
+        "--detect-threshold",
+        "77",
+    ];
+    let s = track_summary(&data, &args);
+    let changes = s["change_points"].as_array().unwrap();
+    assert!(!changes.is_empty(), "{s}");
+    for c in changes {
+        assert_eq!(c["threshold"], 77.0, "{s}");
+    }
+}
+
 // Audit s11 A4: `track --json -` keeps standard output a JSON-lines stream: every line parses on its own,
 // one per `--every` samples, and the last is the summary (it has `samples`, the lines have `k`).
 #[test]

@@ -80,6 +80,10 @@ pub struct ChangePoint {
     pub k: usize,
     /// Time (s).
     pub t: f64,
+    /// The CUSUM threshold h the change was judged against (the one in force before this sample:
+    /// after an alarm the detector re-arms and calibrates again, so the summary's `detector_threshold`
+    /// is a later one; audit s35b L-5).
+    pub threshold: Option<f64>,
 }
 
 /// The end of a `track` run (`--json`).
@@ -103,7 +107,8 @@ pub struct TrackSummary {
     pub pe_rms: Option<f64>,
     /// Detected changes.
     pub change_points: Vec<ChangePoint>,
-    /// The CUSUM threshold in use at the end ([`Tracker::detector_threshold`]; `None` without a detector).
+    /// The CUSUM threshold in force at the end ([`Tracker::detector_threshold`]; `None` without a
+    /// detector); each change point carries the one it was judged against.
     pub detector_threshold: Option<f64>,
     /// Samples at which the deadzone guard replaced an implausible branch.
     pub guard_interventions: usize,
@@ -407,6 +412,7 @@ pub fn track_stream<R: BufRead, W: Write>(
             new_time_warnings.push(w);
         }
         t_last = Some(t);
+        let threshold = tracker.detector_threshold();
         let step = tracker.push(u, y).map_err(|e| match e {
             SysidError::Numerical(m) => {
                 SysidError::Numerical(format!("{}:{line_no}: {m}", options.name))
@@ -414,7 +420,7 @@ pub fn track_stream<R: BufRead, W: Write>(
             e => e,
         })?;
         if step.change {
-            change_points.push(ChangePoint { k, t });
+            change_points.push(ChangePoint { k, t, threshold });
             pending_change = true;
         }
         if step.error.is_some() && (step.change || (k + 1) % options.every == 0) {

@@ -2456,9 +2456,7 @@ fn simulate_plant<'py>(
     // aborted the interpreter on a failed allocation under a 1.5 GB memory limit).
     let budget = memory_budget(max_memory_gb)?;
     let n = exp.sample_count().map_err(ipa_err)?;
-    let per_sample = (sysid::ls::RECORD_NUMBERS_PER_SAMPLE * 8) as u64;
-    let need = (n as u64).saturating_mul(per_sample);
-    if need > budget.bytes() {
+    if let Err((need, fit)) = sysid::ls::record_budget(n, 1, budget) {
         return Err(setting_err(
             "samples",
             n,
@@ -2466,7 +2464,7 @@ fn simulate_plant<'py>(
                 "at most {} samples within max_memory_gb = {} (a run holds about {} numbers of 8 \
                  bytes per sample: {} GB here); fewer samples, or a larger max_memory_gb if this \
                  machine has the memory",
-                budget.bytes() / per_sample,
+                fit,
                 budget,
                 sysid::ls::RECORD_NUMBERS_PER_SAMPLE,
                 sysid::ls::format_gb(need)

@@ -167,6 +167,24 @@ pub fn estimation_bytes(rows: usize, per_row: usize) -> u64 {
         .saturating_mul(std::mem::size_of::<f64>() as u64)
 }
 
+/// Runs over `samples` samples, `at_once` of them held together (one per worker thread), against
+/// `budget`: `Ok(())` when their [`RECORD_NUMBERS_PER_SAMPLE`] numbers of 8 bytes per sample fit, else
+/// `Err((bytes needed, the most samples per run that fit))`. The one arithmetic of the record budget
+/// (`validate`, `simulate`, `montecarlo`, Python `simulate_plant`); the callers word the refusal.
+pub fn record_budget(
+    samples: usize,
+    at_once: usize,
+    budget: MemoryBudget,
+) -> Result<(), (u64, u64)> {
+    let at_once = at_once.max(1) as u64;
+    let need = estimation_bytes(samples, RECORD_NUMBERS_PER_SAMPLE).saturating_mul(at_once);
+    if need <= budget.bytes() {
+        return Ok(());
+    }
+    let per_sample = estimation_bytes(1, RECORD_NUMBERS_PER_SAMPLE).saturating_mul(at_once);
+    Err((need, budget.bytes() / per_sample))
+}
+
 /// The memory one estimation needs at its peak: `per_row` numbers (f64) for each of its `rows`
 /// regression rows (N) of `p` parameters ([`estimation_bytes`]); `what` names the record (and the fits
 /// held in memory together). Checked by [`MemoryNeed::check`] before anything is allocated.
@@ -1434,5 +1452,28 @@ mod tests {
         acc.push(&[f64::NAN], 1.0);
         acc.push(&[1.0], 1.0);
         assert!(acc.solve(&[]).unwrap_err().is_numerical());
+    }
+}
+
+#[cfg(test)]
+#[allow(clippy::unwrap_used)]
+mod record_budget_tests {
+    use super::{record_budget, MemoryBudget};
+
+    // 1 GiB holds 2^30 / (16 × 8) = 8 388 608 samples of one run, half as many of each of two runs.
+    #[test]
+    fn the_record_budget_is_sixteen_numbers_per_sample_per_run() {
+        let gib = MemoryBudget::from_gib(1.0).unwrap();
+        assert_eq!(record_budget(8_388_608, 1, gib), Ok(()));
+        assert_eq!(
+            record_budget(8_388_609, 1, gib),
+            Err((8_388_609 * 128, 8_388_608))
+        );
+        assert_eq!(record_budget(4_194_304, 2, gib), Ok(()));
+        assert_eq!(
+            record_budget(4_194_305, 2, gib),
+            Err((4_194_305 * 256, 4_194_304))
+        );
+        assert_eq!(record_budget(0, 0, gib), Ok(()));
     }
 }

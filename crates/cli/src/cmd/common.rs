@@ -55,17 +55,9 @@ pub fn check_record_memory(
     max_memory: sysid::ls::MemoryBudget,
     shorter: &str,
 ) -> anyhow::Result<()> {
-    let need = sysid::ls::MemoryNeed {
-        what,
-        rows,
-        p,
-        per_row: RECORD_NUMBERS_PER_SAMPLE,
-    };
-    let bytes = need.bytes();
-    if bytes <= max_memory.bytes() {
+    let Err((bytes, fit)) = sysid::ls::record_budget(rows, 1, max_memory) else {
         return Ok(());
-    }
-    let fit = max_memory.bytes() / (RECORD_NUMBERS_PER_SAMPLE as u64 * 8);
+    };
     // p = 0: a physics plant's run (its states, the record's columns and the CSV text of them).
     let (of, held) = if p > 0 {
         (
@@ -82,7 +74,7 @@ pub fn check_record_memory(
         "{}: a record of {rows} samples{of} needs about {} GB ({} numbers of 8 bytes per sample: \
          {held}), more than the budget of {max_memory} GiB (--max-memory); use at most {fit} samples \
          ({shorter}), or raise --max-memory if this machine has the memory",
-        need.what,
+        what,
         sysid::ls::format_gb(bytes),
         RECORD_NUMBERS_PER_SAMPLE,
     )))

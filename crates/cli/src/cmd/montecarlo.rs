@@ -128,13 +128,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // The runs in flight at once (one per worker thread) each hold a record and its estimation's
     // numbers: bounded before any run (audit s36 H-1: 5 × 10^7 samples aborted on a failed allocation).
     let at_once = rayon::current_num_threads().clamp(1, args.runs.max(1));
-    let per_sample = (super::common::RECORD_NUMBERS_PER_SAMPLE * 8) as u64;
-    let need = (args.samples as u64)
-        .saturating_mul(at_once as u64)
-        .saturating_mul(per_sample);
-    let budget = args.memory.max_memory.bytes();
-    if need > budget {
-        let fit = budget / (per_sample * at_once as u64);
+    if let Err((need, fit)) =
+        sysid::ls::record_budget(args.samples, at_once, args.memory.max_memory)
+    {
         anyhow::bail!(sysid::SysidError::Data(format!(
             "montecarlo: {at_once} run(s) at once (one per worker thread) of {} samples each need about \
              {} GB ({} numbers of 8 bytes per sample: the record, its simulation and the estimation's \

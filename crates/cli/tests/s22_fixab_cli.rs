@@ -96,7 +96,9 @@ fn a_ts_below_the_model_file_floor_is_refused_by_every_command_naming_ts() {
         let err = stderr(&o);
         assert_eq!(o.status.code(), Some(2), "{args:?}: {err}");
         assert!(
-            err.contains(&format!("invalid setting --ts = {below}")) && err.contains("1e-6"),
+            // Echoed in exponent form below 1e-5 (docs/plant.md; audit s35b L-12).
+            err.contains(&format!("invalid setting --ts = {:e}", FLOOR_S / 2.0))
+                && err.contains("1e-6"),
             "{args:?}: {err}"
         );
         assert!(!out.exists(), "{args:?} wrote its output");

@@ -477,7 +477,12 @@ impl Sniffed {
             });
         }
         let line = text.lines().next().unwrap_or_default();
-        if !line.starts_with('#') && line.contains([',', ';', '\t']) {
+        // A TOML pair whose value holds commas (`junk = [1, 2]`) is TOML, not CSV (audit s36 L-3: a
+        // plant configuration was refused as "CSV text", without its line).
+        if !line.starts_with('#')
+            && line.contains([',', ';', '\t'])
+            && toml_line(line.trim()) != Some(TomlLine::Pair)
+        {
             return Some(Sniffed::Csv);
         }
         let mut significant = text
@@ -3202,5 +3207,23 @@ mod tests {
         let notes = time_notes(&facts, None, 10.0, TimeUnit::S, "t");
         assert!(notes[0].contains(MS_ADVICE), "{notes:?}");
         assert!(time_notes(&facts, None, 10.0, TimeUnit::Ms, "t").is_empty());
+    }
+}
+
+#[cfg(test)]
+mod sniff_tests {
+    use super::Sniffed;
+
+    // Audit s36 L-3: a TOML pair whose value is an array of numbers is TOML; CSV lines stay CSV.
+    #[test]
+    fn a_toml_pair_with_commas_is_toml_and_a_csv_header_is_csv() {
+        assert_eq!(Sniffed::of(b"junk = [1, 2]\n"), Some(Sniffed::Toml));
+        assert_eq!(
+            Sniffed::of(b"[valve]\nsupply = [1, 2]\n"),
+            Some(Sniffed::Toml)
+        );
+        assert_eq!(Sniffed::of(b"t,u,y\n0,1,2\n"), Some(Sniffed::Csv));
+        assert_eq!(Sniffed::of(b"t;u;y\n0;1;2\n"), Some(Sniffed::Csv));
+        assert_eq!(Sniffed::of(b"0.01,12,3.5\n"), Some(Sniffed::Csv));
     }
 }

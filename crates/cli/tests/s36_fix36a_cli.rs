@@ -317,3 +317,94 @@ fn a_narx_model_files_sampling_period_has_the_bounds_of_every_model_file() {
         assert!(e.contains(&format!("ts = {ts} s is {words}")), "{e}");
     }
 }
+
+/// The model's parameters of `identify --structure arx --na 2 --nb 2 --method ls` on `data` (column
+/// names `u_col`, `y_col`, `--ts 4`), from its `--json` report.
+fn arx_parameters(
+    dir: &std::path::Path,
+    data: &std::path::Path,
+    u_col: &str,
+    y_col: &str,
+) -> String {
+    let doc = common::run_json(
+        dir,
+        &[
+            "identify",
+            "--data",
+            s(data),
+            "--u-col",
+            u_col,
+            "--y-col",
+            y_col,
+            "--ts",
+            "4",
+            "--structure",
+            "arx",
+            "--na",
+            "2",
+            "--nb",
+            "2",
+            "--method",
+            "ls",
+        ],
+    );
+    doc["model"].to_string()
+}
+
+/// Audit s37 H-1: the check above refused a valid file. A European logger writes the time in ms and
+/// the input in counts as bare integers, the output with a quoted decimal comma, and fills an optional
+/// column on one row (`Ts` on the first, as the cascaded tanks' file does): that row has more filled
+/// cells than the others and starts with two bare integers (`0,33`), which were taken for a split
+/// number. Columns of bare integers hold them on every row, so they are no sign of a split: the file is
+/// read, and gives the model of the same numbers written with points and no optional column.
+#[test]
+fn bare_integer_columns_beside_quoted_decimal_commas_are_read() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let (mut eu, mut plain) = (
+        String::from("t_ms,u_counts,\"y\",\"Ts\"\n"),
+        String::from("t_ms,u_counts,y\n"),
+    );
+    let mut y = [5.0f64, 5.0];
+    for k in 0..300usize {
+        let u = 30 + ((k * 7919) % 13) as i64 - 6 + if (k / 20) % 2 == 0 { 0 } else { 10 };
+        let yk = 1.5 * y[0] - 0.6 * y[1] + 0.01 * u as f64 + 0.001 * ((k * 31) % 7) as f64;
+        y = [yk, y[0]];
+        let yt = format!("{yk:.4}");
+        let t = 4000 * k;
+        let ts = if k == 0 { "4" } else { "" };
+        eu.push_str(&format!("{t},{u},\"{}\",{ts}\n", yt.replace('.', ",")));
+        plain.push_str(&format!("{t},{u},{yt}\n"));
+    }
+    let (eu_path, plain_path) = (d.join("eu.csv"), d.join("plain.csv"));
+    std::fs::write(&eu_path, eu).unwrap();
+    std::fs::write(&plain_path, plain).unwrap();
+    assert_eq!(
+        arx_parameters(d, &eu_path, "u_counts", "y"),
+        arx_parameters(d, &plain_path, "u_counts", "y")
+    );
+}
+
+/// Audit s37 M-3: a CSV whose header's first name holds `=` (`V1=in,V2=out`) was refused as "TOML text"
+/// (session 36's sniffing of a first line `key = value` with commas). Read as CSV: the same model as the
+/// same rows under the header `u,y`.
+#[test]
+fn a_csv_header_with_an_equals_sign_is_read_as_csv() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut rows = String::new();
+    let mut y = [0.0f64, 0.0];
+    for k in 0..300usize {
+        let u = if (k / 15) % 2 == 0 { 1.0 } else { -1.0 } + 0.1 * ((k * 13) % 5) as f64;
+        let yk = 1.2 * y[0] - 0.5 * y[1] + 0.3 * u;
+        y = [yk, y[0]];
+        rows.push_str(&format!("{u},{yk}\n"));
+    }
+    let (eq_path, plain_path) = (d.join("eq.csv"), d.join("plain.csv"));
+    std::fs::write(&eq_path, format!("V1=in,V2=out\n{rows}")).unwrap();
+    std::fs::write(&plain_path, format!("u,y\n{rows}")).unwrap();
+    assert_eq!(
+        arx_parameters(d, &eq_path, "V1=in", "V2=out"),
+        arx_parameters(d, &plain_path, "u", "y")
+    );
+}

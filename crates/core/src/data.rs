@@ -477,11 +477,7 @@ impl Sniffed {
             });
         }
         let line = text.lines().next().unwrap_or_default();
-        // A TOML pair whose value holds commas (`junk = [1, 2]`) is TOML, not CSV (audit s36 L-3: a
-        // plant configuration was refused as "CSV text", without its line).
-        if !line.starts_with('#')
-            && line.contains([',', ';', '\t'])
-            && toml_line(line.trim()) != Some(TomlLine::Pair)
+        if !line.starts_with('#') && line.contains([',', ';', '\t']) && !toml_pair_with_commas(text)
         {
             return Some(Sniffed::Csv);
         }
@@ -530,6 +526,39 @@ impl Sniffed {
             Sniffed::Mat => "a MATLAB .mat record (a MAT-file); give it to --data",
         }
     }
+}
+
+/// Whether the first line of `text`, which holds a comma, semicolon or tab, is a TOML pair whose value
+/// holds them (`junk = [1, 2]`, `name = "a, b"`), so the text is TOML, not CSV (audit s36 L-3: a plant
+/// configuration was refused as "CSV text", without its line). Such a value is an array, an inline
+/// table or a string, so it opens with `[`, `{`, `"` or `'`. A CSV header whose first name holds `=`
+/// (`V1=in,V2=out`, `u = heater (V), y = temp (V)`) is not (audit s37 M-3), nor one whose first name
+/// holds a quoted part (`x="a, b",y`) followed by a row of numbers.
+fn toml_pair_with_commas(text: &str) -> bool {
+    let mut lines = text
+        .lines()
+        .map(str::trim)
+        .filter(|l| !l.is_empty() && !l.starts_with('#'));
+    let Some(first) = lines.next() else {
+        return false;
+    };
+    if toml_line(first) != Some(TomlLine::Pair) {
+        return false;
+    }
+    let value = first.split_once('=').map_or("", |(_, v)| v.trim_start());
+    if value.starts_with(['[', '{']) {
+        return true;
+    }
+    // A row of at least two numbers (a data row) after a string value: a CSV header.
+    let numbers = |l: &str| {
+        let cells: Vec<&str> = l
+            .split([',', ';', '\t'])
+            .map(str::trim)
+            .filter(|c| !c.is_empty())
+            .collect();
+        cells.len() >= 2 && cells.iter().all(|c| c.parse::<f64>().is_ok())
+    };
+    value.starts_with(['"', '\'']) && !lines.next().is_some_and(numbers)
 }
 
 /// A significant line of TOML text ([`toml_line`]).
@@ -1633,8 +1662,11 @@ impl CellMarks {
 /// In a comma-delimited file whose decimal commas are quoted ([`CellMarks::QuotedComma`]), a row
 /// where one was not (`"0,02",0,5,"1,3"`): its comma splits the number into two cells, so the row has
 /// more non-empty cells than most of the file's rows, and two of them in a row are bare integers (`0`,
-/// `5`). Refused at the first of the two (fix35's known gap: such a row was read as two numbers, or
-/// refused as a ragged row without its cause). `None` when no row is so.
+/// `5`), the first in a column whose cells are mostly not bare integers (the split number's own
+/// column: a column of bare integers, a time in ms or an input in counts, holds them on every row, and a
+/// row with more filled cells may only fill an optional column, audit s37 H-1). Refused at the first of
+/// the two (fix35's known gap: such a row was read as two numbers, or refused as a ragged row without
+/// its cause). `None` when no row is so.
 fn unquoted_decimal_comma(rows: &rows::Rows, name: &str) -> Option<SysidError> {
     let filled = |r: &rows::Row<'_>| r.iter().filter(|c| !c.is_empty()).count();
     // The most common number of non-empty cells (the smaller on a tie).
@@ -1654,13 +1686,38 @@ fn unquoted_decimal_comma(rows: &rows::Rows, name: &str) -> Option<SysidError> {
         };
         !digits.is_empty() && digits.bytes().all(|b| b.is_ascii_digit())
     };
+    // Per column, over the rows with the usual count: (bare integers, non-empty cells).
+    let mut kinds: Vec<(usize, usize)> = Vec::new();
+    for (_, r) in rows.iter().filter(|(_, r)| filled(r) == usual.0) {
+        for (col, cell) in r.iter().enumerate() {
+            if cell.is_empty() {
+                continue;
+            }
+            if kinds.len() <= col {
+                kinds.resize(col + 1, (0, 0));
+            }
+            if let Some(k) = kinds.get_mut(col) {
+                k.0 += usize::from(integer(cell, true));
+                k.1 += 1;
+            }
+        }
+    }
+    // Whether most usual rows' cells in the column are bare integers.
+    let integer_column = |col: usize| {
+        kinds
+            .get(col)
+            .is_some_and(|&(ints, cells)| cells > 0 && 2 * ints > cells)
+    };
     rows.iter()
         .filter(|(_, r)| filled(r) > usual.0)
         .find_map(|(line, r)| {
             let cells: Vec<&str> = r.iter().collect();
             let col = cells
                 .windows(2)
-                .position(|w| integer(w[0], true) && integer(w[1], false))?;
+                .enumerate()
+                .position(|(c, w)| {
+                    integer(w[0], true) && integer(w[1], false) && !integer_column(c)
+                })?;
             Some(SysidError::Parse {
                 file: name.to_string(),
                 line,
@@ -3225,5 +3282,24 @@ mod sniff_tests {
         assert_eq!(Sniffed::of(b"t,u,y\n0,1,2\n"), Some(Sniffed::Csv));
         assert_eq!(Sniffed::of(b"t;u;y\n0;1;2\n"), Some(Sniffed::Csv));
         assert_eq!(Sniffed::of(b"0.01,12,3.5\n"), Some(Sniffed::Csv));
+        assert_eq!(
+            Sniffed::of(b"name = \"a, b\"\nseed = 1\n"),
+            Some(Sniffed::Toml)
+        );
+    }
+
+    // Audit s37 M-3: a CSV header whose first name holds `=` is a CSV header, not a TOML pair (the
+    // value of a TOML pair holding a comma is an array, an inline table or a string).
+    #[test]
+    fn a_csv_header_with_an_equals_sign_is_csv() {
+        assert_eq!(
+            Sniffed::of(b"V1=in,V2=out\n6.41,4.766\n"),
+            Some(Sniffed::Csv)
+        );
+        assert_eq!(
+            Sniffed::of(b"u = heater (V), y = temp (V)\n6.41,4.766\n"),
+            Some(Sniffed::Csv)
+        );
+        assert_eq!(Sniffed::of(b"x=\"a, b\",y\n1,2\n"), Some(Sniffed::Csv));
     }
 }

@@ -217,7 +217,11 @@ fn wait_for_line(out: &mut impl std::io::BufRead, k: usize) {
 
 // Audit s36 L-6: `logger | track --data -` (docs/online.md's live example) stopped by Ctrl-C, which
 // reaches the logger too (its end closes the pipe, here in the middle of a line): the run ends with
-// its summary and --json of the 40 finished rows, exit 0, the unfinished line dropped with a warning.
+// its summary and --json of the 40 finished rows, exit 0. The unfinished line is dropped with a
+// warning when track had read it before the stop; a stop seen between two lines ends the run there,
+// before reading it, and nothing was dropped (a race of the signal with the reader: both endings are
+// right, so either is accepted; the warning's own words are tested without a signal by the unit test
+// `a_live_source_ending_inside_its_last_line_drops_it_and_keeps_the_run`, crates/cli/src/cmd/track_stream.rs).
 #[cfg(unix)]
 #[test]
 fn a_piped_track_stopped_by_ctrl_c_ends_with_its_summary() {
@@ -254,13 +258,14 @@ fn a_piped_track_stopped_by_ctrl_c_ends_with_its_summary() {
         .as_array()
         .unwrap()
         .iter()
-        .filter(|w| {
-            w.as_str()
-                .unwrap()
-                .contains("ended inside its last line (6 bytes without a line end")
-        })
+        .filter(|w| w.as_str().unwrap().contains("ended inside its last line"))
         .count();
-    assert_eq!(said, 1, "{doc}");
+    assert!(said <= 1, "{doc}");
+    if said == 1 {
+        assert!(doc["warnings"]
+            .to_string()
+            .contains("ended inside its last line (6 bytes without a line end"));
+    }
 }
 
 // Audit s36 L-10: a followed file that holds only its header, stopped by Ctrl-C: exit 2 and no

@@ -180,11 +180,13 @@ fn a_start_that_outweighs_small_signals_is_said() {
         .map(|v| v + 0.1 * spread * (noise.unit() - 0.5))
         .collect();
     let scaled = |c: f64| y.iter().map(|v| v * c).collect::<Vec<f64>>();
-    for (cmd, small) in [("iv", 1e-7), ("track", 1e-6)] {
+    // rls: identify's (audit s37 M-2: not said before), its passes repeated until they settle, which
+    // they do not in 100 passes at y × 1e-7.
+    for (cmd, small) in [("iv", 1e-7), ("track", 1e-6), ("rls", 1e-7)] {
         let mut a = Vec::new();
         for (c, name) in [(1.0, "unit.csv"), (small, "small.csv")] {
             let data = write_tuy(d, name, 0.01, &u, &scaled(c));
-            let args: Vec<&str> = if cmd == "iv" {
+            let args: Vec<&str> = if cmd != "track" {
                 vec![
                     "identify",
                     "--data",
@@ -196,7 +198,7 @@ fn a_start_that_outweighs_small_signals_is_said() {
                     "--nb",
                     "1",
                     "--method",
-                    "iv",
+                    cmd,
                 ]
             } else {
                 vec![
@@ -224,6 +226,115 @@ fn a_start_that_outweighs_small_signals_is_said() {
             "{cmd}: a1 {} at unit scale, {} small: no pull to witness",
             a[0],
             a[1]
+        );
+    }
+}
+
+/// Audit s37 M-2: the share of the start in identify's one-pass RLS, against its closed form. With ρ = 1
+/// the pass is least squares regularised by I / p0: P = (ΦᵀΦ + I/p0)⁻¹, so σ_max(P) / p0 = 1 / (1 + p0
+/// λ_min(ΦᵀΦ)), computed here from the record (ARX na = nb = 1: φ(k) = (−y(k−1), u(k−1)), a 2 × 2 ΦᵀΦ
+/// whose smaller eigenvalue has a closed form). The signals are scaled so that p0 λ_min is near 1: the
+/// printed share is then neither 0 % nor 100 %.
+#[test]
+fn the_one_pass_rls_says_the_share_of_its_start() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut rng = lcg(37);
+    let (u, y) = arx_signals(400, &[0.8], &[0.5], |_| rng.unit() - 0.5);
+    let c = 4e-5;
+    let (u, y): (Vec<f64>, Vec<f64>) = (
+        u.iter().map(|v| v * c).collect(),
+        y.iter().map(|v| v * c).collect(),
+    );
+    let (mut a, mut b, mut e) = (0.0, 0.0, 0.0);
+    for k in 1..u.len() {
+        let (p, q) = (-y[k - 1], u[k - 1]);
+        a += p * p;
+        b += p * q;
+        e += q * q;
+    }
+    let lmin = 0.5 * (a + e) - (0.25 * (a - e) * (a - e) + b * b).sqrt();
+    let p0 = 1e6;
+    let share = 1.0 / (1.0 + p0 * lmin);
+    assert!(
+        share > 0.01 && share < 0.99,
+        "share {share}: rescale the test"
+    );
+    let data = write_tuy(d, "small.csv", 0.01, &u, &y);
+    let doc = run_json(
+        d,
+        &[
+            "identify",
+            "--data",
+            s(&data),
+            "--structure",
+            "arx",
+            "--na",
+            "1",
+            "--nb",
+            "1",
+            "--method",
+            "rls",
+            "--passes",
+            "1",
+            "--p0",
+            "1e6",
+        ],
+    );
+    let said = format!("keeps {:.1} % of its start P(0)", 100.0 * share);
+    assert!(
+        warnings(&doc)
+            .iter()
+            .any(|w| w.contains(PULLED) && w.contains(&said)),
+        "{said}: {:?}",
+        warnings(&doc)
+    );
+}
+
+/// Audit s37 M-1: `track`'s start-still-weighs warning measured P's largest direction over every
+/// parameter, and a deadzone branch the input never entered keeps P = p0 there exactly, whatever the
+/// units: on every one-sided real record it said "100.0 %" and advised a larger --p0, which could not
+/// help. Judged over the excited parameters: a one-sided input (u ≥ 0, Hammerstein: the left branch
+/// never entered) at unit scale is not warned; the same record with y in small units still is.
+#[test]
+fn an_unentered_deadzone_branch_is_not_taken_for_a_start_that_outweighs_the_data() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let mut rng = lcg(38);
+    let (u, y) = arx_signals(3000, &[1.2, -0.35], &[0.4], |k| {
+        if (k / 25) % 3 == 0 {
+            0.0
+        } else {
+            20.0 + 80.0 * rng.unit()
+        }
+    });
+    for (c, warned) in [(1.0, false), (1e-6, true)] {
+        let yc: Vec<f64> = y.iter().map(|v| v * c).collect();
+        let data = write_tuy(d, "one_sided.csv", 0.01, &u, &yc);
+        let doc = run_json(
+            d,
+            &[
+                "track",
+                "--data",
+                s(&data),
+                "--na",
+                "2",
+                "--nb",
+                "1",
+                "--no-detect",
+                "--every",
+                "100000",
+            ],
+        );
+        let w = warnings(&doc);
+        assert!(
+            w.iter().any(|w| w.contains("left branch")),
+            "the one-sided input is said: {w:?}"
+        );
+        assert_eq!(
+            w.iter().any(|w| w.contains(PULLED)),
+            warned,
+            "y × {c}: {w:?}"
         );
     }
 }

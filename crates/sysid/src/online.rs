@@ -333,6 +333,10 @@ pub struct Tracker {
     u_range: [f64; 2],
     max_negative: Option<f64>,
     min_positive: Option<f64>,
+    /// Per parameter, whether its regressor was non-zero in an update since the last covariance
+    /// (re)start: a parameter never excited (a deadzone branch the input never entered) keeps P = p0
+    /// exactly in its direction, whatever the data's units, so the prior's share is judged without it.
+    excited: Vec<bool>,
 }
 
 /// Distinct input levels a tracker keeps: one more than a two-branch deadzone needs (4).
@@ -415,6 +419,7 @@ impl Tracker {
             u_range: [f64::INFINITY, f64::NEG_INFINITY],
             max_negative: None,
             min_positive: None,
+            excited: vec![false; n],
             settings,
         })
     }
@@ -512,6 +517,9 @@ impl Tracker {
         self.structure
             .fill_row(&self.u, &self.y, last, &self.dz, &mut self.row);
         let eps = self.est.update(&self.row, y, k)?;
+        for (e, r) in self.excited.iter_mut().zip(&self.row) {
+            *e |= *r != 0.0;
+        }
         self.updates += 1;
         if self.errors.len() < self.settings.pe_window {
             self.errors.push(eps);
@@ -530,6 +538,7 @@ impl Tracker {
                 self.est.restart_covariance(self.settings.p0);
                 self.updates = 0;
                 self.guard_hits_since = 0;
+                self.excited.fill(false);
             }
             self.detector = self.settings.detector.map(|d| d.detector()).transpose()?;
         }
@@ -844,10 +853,19 @@ impl Tracker {
         // small against 1/p0 the start holds the estimate (audit s35 H-3). (Under forgetting, P also
         // grows where the recent data do not excite: the other warnings say that.) Judged once the
         // estimate has had its 10 n updates (before, the warning above says it is converging).
+        // Over the excited parameters only: one whose regressor was zero at every update (a branch
+        // the input never entered, said by `input_warnings`) keeps P = p0 exactly there (audit s37 M-1).
         if self.settings.forgetting == 1.0 && self.updates >= 10 * n {
-            let share = self.est.covariance().singular_values().max() / self.settings.p0;
-            if let Some(p) = crate::trust::prior_warning("rls", share, self.settings.p0) {
-                w.push(p.to_string());
+            let idx: Vec<usize> = (0..self.excited.len())
+                .filter(|&i| self.excited[i])
+                .collect();
+            if !idx.is_empty() {
+                let p = self.est.covariance();
+                let sub = p.select_rows(&idx).select_columns(&idx);
+                let share = sub.singular_values().max() / self.settings.p0;
+                if let Some(p) = crate::trust::prior_warning("track", share, self.settings.p0) {
+                    w.push(p.to_string());
+                }
             }
         }
         // The verdict every command reports (`Model::stability`), in `identify`'s words.

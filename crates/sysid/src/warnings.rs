@@ -642,7 +642,7 @@ pub enum Concern {
     /// start (audit s35 H-1, H-3: iv returned its LS start as "1 stage, converged" at y × 1e-7; `track`
     /// reported a₁ = −1.27 for −1.69 at y × 1e-4, both without a word).
     PriorWeighs {
-        /// `iv` or `rls`.
+        /// `iv` or `rls` (identify's), or `track` (`track`'s rls, whose advice is its own flags).
         method: &'static str,
         /// σ_max(P) / p0.
         share: f64,
@@ -722,13 +722,18 @@ impl std::fmt::Display for Concern {
             ),
             Concern::PriorWeighs { method, share, p0 } => write!(
                 f,
-                "the {method} estimate is still pulled towards its start: the recursion's covariance \
-                 keeps {:.1} % of its start P(0) = p0·I (p0 = {}) in its weakest direction, so the \
-                 data did not outweigh the start there (regressors small against 1/p0: signals in small \
-                 units such as metres or volts?); pass a larger --p0 or rescale the signals, or use \
-                 --method ls or oe, which have no such start",
+                "the {} estimate is still pulled towards its start: the recursion's covariance \
+                 keeps {:.1} % of its start P(0) = p0·I (p0 = {}) in its weakest excited direction, so \
+                 the data did not outweigh the start there (regressors small against 1/p0: signals in \
+                 small units such as metres or volts?); pass a larger --p0 or rescale the signals{}",
+                if *method == "track" { "rls" } else { method },
                 100.0 * share,
-                sysid_core::format::shortest(*p0)
+                sysid_core::format::shortest(*p0),
+                if *method == "track" {
+                    ""
+                } else {
+                    ", or use --method ls or oe, which have no such start"
+                }
             ),
             Concern::InputDynamicsLeft {
                 record,

@@ -307,30 +307,30 @@ fn end_child(pid: u32) {
 /// Removes a listed temporary folder that the main thread may still be filling: renamed away first
 /// (the writer's later creations under its name then fail), then removed until it is gone (an entry
 /// created by a call already under way when the rename came makes one removal fail: it is tried
-/// again); the old name is removed too if the writer made it again meanwhile.
+/// again); the old name is removed too if the writer made it again meanwhile. Gives up after
+/// [`REMOVAL_PATIENCE`] (a folder that cannot be removed at all: permissions changed under it).
 fn remove_folder_racing(path: &Path) {
     let mut name = path.as_os_str().to_owned();
     name.push(".removing");
     let away = PathBuf::from(name);
-    for _ in 0..100 {
-        let target = if std::fs::rename(path, &away).is_ok() {
+    let left = |p: &Path| std::fs::symlink_metadata(p).is_ok();
+    let start = std::time::Instant::now();
+    while start.elapsed() < REMOVAL_PATIENCE {
+        let target = if std::fs::rename(path, &away).is_ok() || !left(path) {
             away.as_path()
         } else {
             path
         };
-        for _ in 0..1000 {
-            match std::fs::remove_dir_all(target) {
-                Ok(()) => break,
-                Err(e) if e.kind() == std::io::ErrorKind::NotFound => break,
-                Err(_) => std::thread::yield_now(),
-            }
-        }
-        let left = |p: &Path| std::fs::symlink_metadata(p).is_ok();
+        let _ = std::fs::remove_dir_all(target);
         if !left(path) && !left(&away) {
             return;
         }
+        std::thread::yield_now();
     }
 }
+
+/// How long [`remove_folder_racing`] keeps trying.
+const REMOVAL_PATIENCE: std::time::Duration = std::time::Duration::from_secs(2);
 
 /// Starts (once per process) the thread that, when SIGINT, SIGTERM, SIGHUP or SIGQUIT arrives, ends
 /// the listed child processes, removes the temporary files and folders of unfinished writes, then ends

@@ -247,6 +247,25 @@ mod tests {
         assert_eq!(std::fs::read_dir(root.path()).unwrap().count(), 1);
     }
 
+    // A write inside the folder being filled that fails names the file at its place in the output
+    // folder, not in the hidden temporary one (audit s36 L-1).
+    #[test]
+    fn an_error_inside_a_folder_output_names_the_users_path() {
+        let root = tempfile::tempdir().unwrap();
+        let dir = root.path().join("fleet");
+        let e = write_folder(&dir, "--out", false, |tmp: &Path| {
+            crate::write_atomic(&tmp.join("missing/x.csv"), b"t,u,y\n")
+        })
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.starts_with(&format!("{}: ", dir.join("missing/x.csv").display())),
+            "{e}"
+        );
+        assert!(!e.contains(TEMP_PREFIX), "{e}");
+        assert_eq!(std::fs::read_dir(root.path()).unwrap().count(), 0);
+    }
+
     // A failing fill leaves no folder behind.
     #[test]
     fn a_failed_fill_leaves_nothing() {

@@ -224,8 +224,58 @@ fn an_unwritable_output_folder_is_refused_before_the_work() {
         String::from_utf8_lossy(&out.stdout)
     );
     assert_eq!(std::fs::read_dir(&nb).unwrap().count(), 0);
+    // A folder output in that folder, and an earlier run's folder (with entries) that cannot be moved
+    // aside in a writable folder: both refused before the run, nothing created in either.
+    let w = d.join("w");
+    std::fs::create_dir(&w).unwrap();
+    std::fs::set_permissions(&w, std::fs::Permissions::from_mode(0o777)).unwrap();
+    let r2 = w.join("R2");
+    std::fs::create_dir(&r2).unwrap();
+    std::fs::write(r2.join(".ipa-sysid-output"), "marker").unwrap();
+    if !root {
+        std::fs::set_permissions(&r2, std::fs::Permissions::from_mode(0o555)).unwrap();
+    }
+    let mut again = || {
+        let mut c = bin();
+        if root {
+            use std::os::unix::process::CommandExt;
+            c.uid(65534).gid(65534);
+        }
+        c.current_dir(d)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped());
+        c
+    };
+    let out = again()
+        .args(["reproduce", "--plant", "paper", "--out", "nb/R"])
+        .output()
+        .unwrap();
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("--out = nb/R") && err.contains("checked before the run"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read_dir(&nb).unwrap().count(), 0);
+    let out = again()
+        .args(["reproduce", "--plant", "paper", "--out", "w/R2"])
+        .output()
+        .unwrap();
+    let err = stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("is not writable") && err.contains("checked before the run"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read_dir(&r2).unwrap().count(), 1);
+    assert_eq!(
+        std::fs::read_dir(&w).unwrap().count(),
+        1,
+        "nothing left beside R2"
+    );
     if !root {
         std::fs::set_permissions(&nb, std::fs::Permissions::from_mode(0o755)).unwrap();
+        std::fs::set_permissions(&r2, std::fs::Permissions::from_mode(0o755)).unwrap();
     }
 }
 

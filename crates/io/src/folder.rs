@@ -107,9 +107,9 @@ where
 /// a rename, which would replace the link, not what it names), a regular file, a device, a FIFO or a
 /// socket. The one check of every folder output ([`write_folder`], [`crate::write_claimed_folder`]).
 ///
-/// Also before any work (audit s36 L-1): a folder can be created in `dir`'s parent and, when `dir`
-/// holds entries, in `dir` itself (moving a folder to another parent rewrites its `..`), each by a trial
-/// temporary; and `dir` is not a mount point (its device differs from its parent's: a rename cannot
+/// Also before any work (audit s36 L-1): a folder can be created in `dir`'s parent (a trial temporary)
+/// and, when `dir` holds entries, `dir` itself is writable (moving a folder to another parent rewrites
+/// its `..`; `access`, creating nothing there); and `dir` is not a mount point (its device differs from its parent's: a rename cannot
 /// replace it). A bind mount of a folder of the same file system is not seen by the device test.
 pub fn check_folder_path(dir: &Path, flag: &str) -> Result<(), OutputError> {
     let meta = match std::fs::symlink_metadata(dir) {
@@ -156,7 +156,7 @@ pub fn check_folder_path(dir: &Path, flag: &str) -> Result<(), OutputError> {
             "a folder in a folder this user can write",
         )?;
         if std::fs::read_dir(dir).is_ok_and(|mut d| d.next().is_some()) {
-            crate::check_can_create(dir, flag, dir, "a folder this user can write")?;
+            writable_folder(dir, flag)?;
         }
         return Ok(());
     }
@@ -181,6 +181,36 @@ pub fn check_folder_path(dir: &Path, flag: &str) -> Result<(), OutputError> {
         format!("a folder (this is {})", special_kind(&kind))
     };
     Err(refused(flag, dir, what))
+}
+
+/// Refuses the existing folder `dir` (option `flag`) that this process may not write (`access(W_OK)`:
+/// its permissions, a read-only file system), without creating anything in it: it may be a user's
+/// folder that a later check refuses. A folder with entries is moved aside by a rename that rewrites
+/// its `..`, which needs that permission.
+#[cfg(unix)]
+fn writable_folder(dir: &Path, flag: &str) -> Result<(), OutputError> {
+    use std::os::unix::ffi::OsStrExt;
+    let Ok(c) = std::ffi::CString::new(dir.as_os_str().as_bytes()) else {
+        return Ok(());
+    };
+    // SAFETY: a NUL-terminated path that outlives the call.
+    if unsafe { libc::access(c.as_ptr(), libc::W_OK) } == 0 {
+        return Ok(());
+    }
+    Err(refused(
+        flag,
+        dir,
+        format!(
+            "a folder this user can write (the folder {} is not writable: {}; checked before the run)",
+            dir.display(),
+            std::io::Error::last_os_error()
+        ),
+    ))
+}
+
+#[cfg(not(unix))]
+fn writable_folder(_dir: &Path, _flag: &str) -> Result<(), OutputError> {
+    Ok(())
 }
 
 /// Whether the folder `dir` (its metadata `meta`) is a mount point: its device differs from that of

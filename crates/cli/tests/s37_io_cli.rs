@@ -235,7 +235,7 @@ fn an_unwritable_output_folder_is_refused_before_the_work() {
     if !root {
         std::fs::set_permissions(&r2, std::fs::Permissions::from_mode(0o555)).unwrap();
     }
-    let mut again = || {
+    let again = || {
         let mut c = bin();
         if root {
             use std::os::unix::process::CommandExt;

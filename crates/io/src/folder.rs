@@ -107,10 +107,11 @@ where
 /// a rename, which would replace the link, not what it names), a regular file, a device, a FIFO or a
 /// socket. The one check of every folder output ([`write_folder`], [`crate::write_claimed_folder`]).
 ///
-/// Also before any work (audit s36 L-1): a folder can be created in `dir`'s parent (a trial temporary)
-/// and, when `dir` holds entries, `dir` itself is writable (moving a folder to another parent rewrites
-/// its `..`; `access`, creating nothing there); and `dir` is not a mount point (its device differs from its parent's: a rename cannot
-/// replace it). A bind mount of a folder of the same file system is not seen by the device test.
+/// Also before any work (audit s36 L-1): a folder can be created in `dir`'s parent (a trial
+/// temporary) and, when `dir` holds entries, `dir` itself is writable (moving a folder to another
+/// parent rewrites its `..`; checked by `access`, creating nothing there); and `dir` is not a mount
+/// point (its device differs from its parent's: a rename cannot replace it). A bind mount of a folder
+/// of the same file system is not seen by the device test.
 pub fn check_folder_path(dir: &Path, flag: &str) -> Result<(), OutputError> {
     let meta = match std::fs::symlink_metadata(dir) {
         Ok(m) => m,

@@ -280,6 +280,20 @@ fn main() -> ExitCode {
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
+        // One rule for every command (audit s36 L-2): a reader of standard output that stopped early
+        // (`| head`) is not an error, as for clap's help ([`clap_exit`]): the run ends there, quietly,
+        // with exit 0. Outputs not yet written then are not written (an earlier file stays).
+        Err(e) if reader_stopped(&e) => ExitCode::SUCCESS,
         Err(e) => exit::report(&e),
     }
+}
+
+/// Whether `e` is a broken pipe on standard output: a `BrokenPipe` error in its chain while standard
+/// output's reader is gone ([`sysid_io::stdout_reader_gone`]). A FIFO output whose reader closed
+/// stays an error (standard output is then still read).
+fn reader_stopped(e: &anyhow::Error) -> bool {
+    e.chain().any(|c| {
+        c.downcast_ref::<std::io::Error>()
+            .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe)
+    }) && sysid_io::stdout_reader_gone()
 }

@@ -61,15 +61,19 @@ where
         Err(e) if e.kind() == std::io::ErrorKind::NotFound => false,
         Err(e) => return Err(io(e).into()),
     };
-    // Listed for removal on SIGINT/SIGTERM/SIGHUP until it is renamed into place.
-    let (tmp, pending) =
-        PendingDir::create(tempfile::Builder::new().prefix(TEMP_PREFIX), parent).map_err(io)?;
+    // Listed for removal on a signal from its creation until it is renamed into place.
+    let tmp = PendingDir::create(
+        tempfile::Builder::new().prefix(TEMP_PREFIX),
+        parent,
+        Some(dir),
+    )
+    .map_err(io)?;
     fill(tmp.path())?;
+    // The holder of the previous folder, listed from its creation too (audit s36 M-2: it was not, so a
+    // signal left it behind, empty or holding the whole previous folder).
     let old = if existing {
         Some(
-            tempfile::Builder::new()
-                .prefix(TEMP_PREFIX)
-                .tempdir_in(parent)
+            PendingDir::create(tempfile::Builder::new().prefix(TEMP_PREFIX), parent, None)
                 .map_err(io)?,
         )
     } else {
@@ -77,25 +81,24 @@ where
     };
     // The renames run with the signal list locked: a signal removes the new folder before them or
     // comes after both, never between (the user's folder is never left moved aside).
-    pending.finish(|| -> Result<(), OutputError> {
+    tmp.finish(|new: &Path| -> Result<(), OutputError> {
         match &old {
             Some(old) => {
-                // The old folder moves into a temporary name (removed when `old` is dropped), the new
-                // takes its place.
+                // The old folder moves into the holder (removed, still listed, when `old` is
+                // dropped), the new takes its place.
                 let old_dir = old.path().join("old");
                 std::fs::rename(dir, &old_dir).map_err(io)?;
-                if let Err(e) = std::fs::rename(tmp.path(), dir) {
-                    // Put the old folder back; the new one is dropped with `tmp`.
+                if let Err(e) = std::fs::rename(new, dir) {
+                    // Put the old folder back; the new one is removed with `tmp`.
                     let _ = std::fs::rename(&old_dir, dir);
                     return Err(io(e));
                 }
             }
-            None => std::fs::rename(tmp.path(), dir).map_err(io)?,
+            None => std::fs::rename(new, dir).map_err(io)?,
         }
         Ok(())
     })?;
     drop(old);
-    let _ = tmp.keep();
     Ok(existing)
 }
 
@@ -103,10 +106,27 @@ where
 /// nothing, in words that say what it is: a symbolic link (even to a folder: the folder is replaced by
 /// a rename, which would replace the link, not what it names), a regular file, a device, a FIFO or a
 /// socket. The one check of every folder output ([`write_folder`], [`crate::write_claimed_folder`]).
+///
+/// Also before any work (audit s36 L-1): a folder can be created in `dir`'s parent (a trial
+/// temporary) and, when `dir` holds entries, `dir` itself is writable (moving a folder to another
+/// parent rewrites its `..`; checked by `access`, creating nothing there); and `dir` is not a mount
+/// point (its device differs from its parent's: a rename cannot replace it). A bind mount of a folder
+/// of the same file system is not seen by the device test.
 pub fn check_folder_path(dir: &Path, flag: &str) -> Result<(), OutputError> {
     let meta = match std::fs::symlink_metadata(dir) {
         Ok(m) => m,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
+            let parent = crate::parent_dir(dir);
+            if parent.is_dir() {
+                crate::check_can_create(
+                    parent,
+                    flag,
+                    dir,
+                    "a folder in a folder this user can write",
+                )?;
+            }
+            return Ok(());
+        }
         Err(source) => {
             return Err(OutputError::Io {
                 path: dir.to_path_buf(),
@@ -116,6 +136,29 @@ pub fn check_folder_path(dir: &Path, flag: &str) -> Result<(), OutputError> {
     };
     let kind = meta.file_type();
     if kind.is_dir() {
+        let parent = crate::parent_dir(dir);
+        if is_mount_point(&meta, parent) {
+            return Err(refused(
+                flag,
+                dir,
+                format!(
+                    "a folder that is not a mount point ({} is the root of another file system than \
+                     {}; the output folder is put in place by a rename, which cannot replace a mount \
+                     point: name a folder inside it)",
+                    dir.display(),
+                    parent.display()
+                ),
+            ));
+        }
+        crate::check_can_create(
+            parent,
+            flag,
+            dir,
+            "a folder in a folder this user can write",
+        )?;
+        if std::fs::read_dir(dir).is_ok_and(|mut d| d.next().is_some()) {
+            writable_folder(dir, flag)?;
+        }
         return Ok(());
     }
     let what = if kind.is_symlink() {
@@ -141,9 +184,52 @@ pub fn check_folder_path(dir: &Path, flag: &str) -> Result<(), OutputError> {
     Err(refused(flag, dir, what))
 }
 
+/// Refuses the existing folder `dir` (option `flag`) that this process may not write (`access(W_OK)`:
+/// its permissions, a read-only file system), without creating anything in it: it may be a user's
+/// folder that a later check refuses. A folder with entries is moved aside by a rename that rewrites
+/// its `..`, which needs that permission.
+#[cfg(unix)]
+fn writable_folder(dir: &Path, flag: &str) -> Result<(), OutputError> {
+    use std::os::unix::ffi::OsStrExt;
+    let Ok(c) = std::ffi::CString::new(dir.as_os_str().as_bytes()) else {
+        return Ok(());
+    };
+    // SAFETY: a NUL-terminated path that outlives the call.
+    if unsafe { libc::access(c.as_ptr(), libc::W_OK) } == 0 {
+        return Ok(());
+    }
+    Err(refused(
+        flag,
+        dir,
+        format!(
+            "a folder this user can write (the folder {} is not writable: {}; checked before the run)",
+            dir.display(),
+            std::io::Error::last_os_error()
+        ),
+    ))
+}
+
+#[cfg(not(unix))]
+fn writable_folder(_dir: &Path, _flag: &str) -> Result<(), OutputError> {
+    Ok(())
+}
+
+/// Whether the folder `dir` (its metadata `meta`) is a mount point: its device differs from that of
+/// its parent folder `parent`.
+#[cfg(unix)]
+fn is_mount_point(meta: &std::fs::Metadata, parent: &Path) -> bool {
+    use std::os::unix::fs::MetadataExt;
+    std::fs::metadata(parent).is_ok_and(|p| p.dev() != meta.dev())
+}
+
+#[cfg(not(unix))]
+fn is_mount_point(_meta: &std::fs::Metadata, _parent: &Path) -> bool {
+    false
+}
+
 /// "a device", "a FIFO" or "a socket": what a path that is neither a file, a folder nor a link is.
 #[cfg(unix)]
-fn special_kind(kind: &std::fs::FileType) -> &'static str {
+pub(crate) fn special_kind(kind: &std::fs::FileType) -> &'static str {
     use std::os::unix::fs::FileTypeExt;
     if kind.is_char_device() || kind.is_block_device() {
         "a device"
@@ -157,7 +243,7 @@ fn special_kind(kind: &std::fs::FileType) -> &'static str {
 }
 
 #[cfg(not(unix))]
-fn special_kind(_kind: &std::fs::FileType) -> &'static str {
+pub(crate) fn special_kind(_kind: &std::fs::FileType) -> &'static str {
     "neither a file nor a folder"
 }
 
@@ -192,6 +278,25 @@ mod tests {
         assert_eq!(std::fs::read_dir(root.path()).unwrap().count(), 1);
     }
 
+    // A write inside the folder being filled that fails names the file at its place in the output
+    // folder, not in the hidden temporary one (audit s36 L-1).
+    #[test]
+    fn an_error_inside_a_folder_output_names_the_users_path() {
+        let root = tempfile::tempdir().unwrap();
+        let dir = root.path().join("fleet");
+        let e = write_folder(&dir, "--out", false, |tmp: &Path| {
+            crate::write_atomic(&tmp.join("missing/x.csv"), b"t,u,y\n")
+        })
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.starts_with(&format!("{}: ", dir.join("missing/x.csv").display())),
+            "{e}"
+        );
+        assert!(!e.contains(TEMP_PREFIX), "{e}");
+        assert_eq!(std::fs::read_dir(root.path()).unwrap().count(), 0);
+    }
+
     // A failing fill leaves no folder behind.
     #[test]
     fn a_failed_fill_leaves_nothing() {
@@ -205,5 +310,33 @@ mod tests {
         });
         assert!(r.is_err());
         assert_eq!(std::fs::read_dir(root.path()).unwrap().count(), 0);
+    }
+}
+
+#[cfg(all(test, target_os = "linux"))]
+#[allow(clippy::unwrap_used)]
+mod mount_tests {
+    use super::*;
+
+    // /proc is the mount point of the proc file system, a device other than its parent's: a folder
+    // output there is refused before any work, naming the mount point (audit s36 L-1: the rename
+    // failed with "Device or resource busy" after the whole run).
+    #[test]
+    fn a_mount_point_is_refused_as_an_output_folder() {
+        let proc_dir = Path::new("/proc");
+        if !proc_dir.join("self").exists() {
+            eprintln!("SKIPPED: no /proc on this machine");
+            return;
+        }
+        let e = check_folder_path(proc_dir, "--out")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("mount point"), "{e}");
+        // A plain folder in a temporary folder is not.
+        let root = tempfile::tempdir().unwrap();
+        std::fs::create_dir(root.path().join("d")).unwrap();
+        check_folder_path(&root.path().join("d"), "--out").unwrap();
+        // The trial temporaries are gone.
+        assert_eq!(std::fs::read_dir(root.path()).unwrap().count(), 1);
     }
 }

@@ -674,31 +674,56 @@ pub fn write_all_atomic_waiting(
             }
         }
     }
-    let mut done: Vec<PathBuf> = Vec::new();
-    for s in staged {
-        let path = s.path.clone();
-        s.commit().map_err(|source| {
-            let source = if done.is_empty() {
-                source
-            } else {
-                std::io::Error::new(
-                    source.kind(),
-                    format!(
-                        "{source} (already replaced: {})",
-                        done.iter()
-                            .map(|p| p.display().to_string())
-                            .collect::<Vec<_>>()
-                            .join(", ")
-                    ),
-                )
-            };
-            OutputError::Io {
-                path: path.clone(),
-                source,
+    // Every rename of the run with the signal list locked (audit s36 M-1: a signal between two
+    // renames left the new --json beside the old --save-model): a signal comes before them all (every
+    // temporary removed, every output as it was) or after them all. The folders are synced after.
+    let (result, dirs) = cleanup::locked(|list| {
+        let mut done: Vec<PathBuf> = Vec::new();
+        let mut dirs: Vec<PathBuf> = Vec::new();
+        let mut staged = staged.into_iter();
+        while let Some(s) = staged.next() {
+            let path = s.path.clone();
+            if let Err(source) = s.pending.persist_locked(list, s.tmp, &s.path) {
+                for rest in staged.by_ref() {
+                    rest.pending.discard_locked(list, rest.tmp);
+                }
+                let source = if done.is_empty() {
+                    source
+                } else {
+                    std::io::Error::new(
+                        source.kind(),
+                        format!(
+                            "{source} (already replaced: {})",
+                            done.iter()
+                                .map(|p| p.display().to_string())
+                                .collect::<Vec<_>>()
+                                .join(", ")
+                        ),
+                    )
+                };
+                return (
+                    Err(OutputError::Io {
+                        path: cleanup::shown_path(&path),
+                        source,
+                    }),
+                    dirs,
+                );
             }
-        })?;
-        done.push(path);
+            let dir = parent_dir(&path).to_path_buf();
+            if !dirs.contains(&dir) {
+                dirs.push(dir);
+            }
+            done.push(path);
+        }
+        (Ok(()), dirs)
+    });
+    // The renames made durable where the platform can.
+    for dir in dirs {
+        if let Ok(d) = std::fs::File::open(&dir) {
+            let _ = d.sync_all();
+        }
     }
+    result?;
     Ok(replaced)
 }
 
@@ -713,9 +738,11 @@ struct Staged {
 /// Writes `bytes` to a temporary file beside `path` (flushed to disk), with the permissions and owner of
 /// the file it will replace ([`write_atomic`]).
 fn stage(path: &Path, bytes: &[u8]) -> Result<Staged, OutputError> {
+    // Named as the user named it (inside an output folder: the folder's final path), without the
+    // hidden temporary's path that `tempfile` appends (audit s36 L-1).
     let io = |source| OutputError::Io {
-        path: path.to_path_buf(),
-        source,
+        path: cleanup::shown_path(path),
+        source: without_temp_path(source),
     };
     let dir = parent_dir(path);
     let mut builder = tempfile::Builder::new();
@@ -740,18 +767,6 @@ fn stage(path: &Path, bytes: &[u8]) -> Result<Staged, OutputError> {
         pending,
         path: path.to_path_buf(),
     })
-}
-
-impl Staged {
-    /// Renames the temporary file over the output and makes the rename durable where the platform can.
-    fn commit(self) -> std::io::Result<()> {
-        let dir = parent_dir(&self.path).to_path_buf();
-        self.pending.persist(self.tmp, &self.path)?;
-        if let Ok(d) = std::fs::File::open(&dir) {
-            let _ = d.sync_all();
-        }
-        Ok(())
-    }
 }
 
 /// The extended attribute every regular file ipa-sysid writes carries (value `output`), set on the
@@ -858,7 +873,10 @@ fn keep_owner(_file: &std::fs::File, _old: &std::fs::Metadata) -> std::io::Resul
     Ok(())
 }
 
-pub use cleanup::{accept_stop, remove_temporaries_on_signals, stop_asked};
+pub use cleanup::{
+    accept_stop, remove_temporaries_on_signals, spawn_listed, stop_asked, ListedChild, ScratchDir,
+    CHILD_GRACE,
+};
 
 /// Writes a CSV table to `path` atomically ([`write_atomic`]) through `csv::Writer` (fields quoted
 /// only where needed, `\n` line ends): the `header` row, then every row of `rows`, whose cells the
@@ -1091,7 +1109,10 @@ pub fn refuse_overwrite_input(
 }
 
 /// Checks before any work that `output` can be written ([`resolve_output`]): `-`, a device or FIFO, or a
-/// writable file (or link to one) in an existing folder; `flag` names the option in messages.
+/// writable file (or link to one) in an existing folder in which this process can create a file (a
+/// trial temporary is created there and removed: the honest test, which also sees a read-only file
+/// system and access control lists; audit s36 L-1: a read-only folder was found after the whole run);
+/// `flag` names the option in messages.
 pub fn check_writable(output: &Path, flag: &str) -> Result<(), OutputError> {
     let OutputTarget::File(file) = resolve_output(output, flag)? else {
         return Ok(());
@@ -1107,7 +1128,69 @@ pub fn check_writable(output: &Path, flag: &str) -> Result<(), OutputError> {
             ),
         ));
     }
-    Ok(())
+    check_can_create(dir, flag, output, "a file in a folder this user can write")
+}
+
+/// Refuses `output` (option `flag`) unless a file can be created in the folder `dir`: a trial
+/// temporary, listed for removal on a signal, is created there and removed at once. `expected` says
+/// what is accepted.
+pub(crate) fn check_can_create(
+    dir: &Path,
+    flag: &str,
+    output: &Path,
+    expected: &str,
+) -> Result<(), OutputError> {
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(TEMP_PREFIX).suffix(".tmp");
+    match cleanup::Pending::create(&builder, dir) {
+        Ok((tmp, pending)) => {
+            drop(tmp);
+            drop(pending);
+            Ok(())
+        }
+        Err(e) => Err(refused(
+            flag,
+            output,
+            format!(
+                "{expected} (no file can be created in {}: {}; checked before the run)",
+                dir.display(),
+                without_temp_path(e)
+            ),
+        )),
+    }
+}
+
+/// `e` without the path of the hidden temporary file that `tempfile` appends to its errors
+/// (`… at path "/x/.ipa-sysid-Av9FNE.tmp"`): the message names the user's output instead.
+fn without_temp_path(e: std::io::Error) -> std::io::Error {
+    let text = e.to_string();
+    match text.find(" at path \"") {
+        Some(at) if text[at..].contains(TEMP_PREFIX) => {
+            std::io::Error::new(e.kind(), text[..at].to_string())
+        }
+        _ => e,
+    }
+}
+
+/// Whether standard output is a pipe or socket whose reader has gone (`ipa-sysid … | head` after
+/// `head` ended): `poll` reports an error or hang-up on it. The command line then ends quietly with
+/// exit 0 (a reader that stopped early is not an error, audit s36 L-2). False where unknown.
+#[cfg(unix)]
+pub fn stdout_reader_gone() -> bool {
+    let mut fd = libc::pollfd {
+        fd: libc::STDOUT_FILENO,
+        events: 0,
+        revents: 0,
+    };
+    // SAFETY: one pollfd that lives across the call; a zero time-out does not block.
+    let r = unsafe { libc::poll(&mut fd, 1, 0) };
+    r == 1 && fd.revents & (libc::POLLERR | libc::POLLHUP) != 0
+}
+
+/// Not known off Unix.
+#[cfg(not(unix))]
+pub fn stdout_reader_gone() -> bool {
+    false
 }
 
 /// The folder that holds `path` (`.` for a bare file name).
@@ -1141,6 +1224,7 @@ where
 {
     folder::check_folder_path(dir, flag)?;
     check_claim(dir, flag, tool)?;
+    refuse_special_entries(dir, flag)?;
     write_folder(dir, flag, true, |tmp: &Path| {
         write_atomic(
             &tmp.join(FOLDER_MARKER),
@@ -1185,6 +1269,48 @@ fn copy_missing(from: &Path, to: &Path) -> std::io::Result<()> {
         }
     }
     Ok(())
+}
+
+/// Refuses a folder `dir` (option `flag`) of an earlier run that holds, at any depth, an entry that
+/// [`copy_missing`] cannot carry into the new folder — a FIFO, a socket, a device — before the run:
+/// replacing the folder would delete it (audit s36 L-8: a user's named pipe and socket vanished). Links
+/// are not followed.
+fn refuse_special_entries(dir: &Path, flag: &str) -> Result<(), OutputError> {
+    fn find(d: &Path) -> std::io::Result<Option<(PathBuf, std::fs::FileType)>> {
+        for e in std::fs::read_dir(d)? {
+            let e = e?;
+            let kind = e.file_type()?;
+            if kind.is_dir() {
+                if let Some(found) = find(&e.path())? {
+                    return Ok(Some(found));
+                }
+            } else if !kind.is_file() && !kind.is_symlink() {
+                return Ok(Some((e.path(), kind)));
+            }
+        }
+        Ok(None)
+    }
+    if !std::fs::symlink_metadata(dir).is_ok_and(|m| m.is_dir()) {
+        return Ok(());
+    }
+    match find(dir) {
+        Ok(None) => Ok(()),
+        Ok(Some((entry, kind))) => Err(refused(
+            flag,
+            dir,
+            format!(
+                "a folder whose entries are files, folders and links ({} is {}, which the new \
+                 folder cannot take over: replacing the folder would delete it; move it out of the \
+                 folder first)",
+                entry.display(),
+                folder::special_kind(&kind)
+            ),
+        )),
+        Err(source) => Err(OutputError::Io {
+            path: dir.to_path_buf(),
+            source,
+        }),
+    }
 }
 
 /// Refuses `dir` unless it is missing, empty or holds [`FOLDER_MARKER`] ([`write_claimed_folder`]).
@@ -1291,6 +1417,68 @@ mod folder_tests {
             .filter(|n| n.starts_with(TEMP_PREFIX))
             .collect();
         assert!(left.is_empty(), "{left:?}");
+    }
+}
+
+#[cfg(all(test, unix))]
+#[allow(clippy::unwrap_used)]
+mod special_entry_tests {
+    use super::*;
+
+    // A folder of an earlier run holding a FIFO (at any depth) or a socket is refused before the run,
+    // naming the entry, and the entry stays (audit s36 L-8: replacing the folder deleted them); the
+    // same folder without them is written.
+    #[test]
+    fn fifos_and_sockets_in_an_earlier_runs_folder_are_refused_before_the_run() {
+        let root = tempfile::tempdir().unwrap();
+        let out = root.path().join("out");
+        let fill = |d: &Path| -> Result<(), OutputError> {
+            std::fs::write(d.join("report.html"), "new").unwrap();
+            Ok(())
+        };
+        write_claimed_folder(&out, "--out", "test", fill).unwrap();
+        std::fs::create_dir(out.join("mine")).unwrap();
+        let fifo = out.join("mine/pipe");
+        let c = std::ffi::CString::new(fifo.as_os_str().as_encoded_bytes()).unwrap();
+        // SAFETY: a NUL-terminated path that outlives the call.
+        assert_eq!(unsafe { libc::mkfifo(c.as_ptr(), 0o600) }, 0);
+        let ran = std::cell::Cell::new(false);
+        let e = write_claimed_folder(&out, "--out", "test", |d: &Path| {
+            ran.set(true);
+            fill(d)
+        })
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("mine/pipe") && e.contains("FIFO"), "{e}");
+        assert!(!ran.get(), "refused before the run");
+        assert!(is_fifo(&fifo));
+        std::fs::remove_file(&fifo).unwrap();
+        let sock = out.join("sock");
+        let _listener = std::os::unix::net::UnixListener::bind(&sock).unwrap();
+        let e = write_claimed_folder(&out, "--out", "test", fill)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("sock") && e.contains("a socket"), "{e}");
+        assert!(std::fs::symlink_metadata(&sock).is_ok());
+        std::fs::remove_file(&sock).unwrap();
+        write_claimed_folder(&out, "--out", "test", fill).unwrap();
+        assert!(out.join("mine").is_dir());
+    }
+
+    // A folder where no file can be created (/proc/self, even for root) is refused by the check before
+    // the run, in words naming the folder and not the hidden trial temporary (audit s36 L-1).
+    #[cfg(target_os = "linux")]
+    #[test]
+    fn an_output_in_a_folder_nobody_can_write_is_refused_before_the_run() {
+        let out = Path::new("/proc/self/out.json");
+        if !Path::new("/proc/self").is_dir() {
+            eprintln!("SKIPPED: no /proc on this machine");
+            return;
+        }
+        let e = check_writable(out, "--json").unwrap_err().to_string();
+        assert!(e.contains("--json") && e.contains("/proc/self"), "{e}");
+        assert!(e.contains("no file can be created"), "{e}");
+        assert!(!e.contains(TEMP_PREFIX), "{e}");
     }
 }
 

@@ -30,13 +30,12 @@ pub fn run_measured(cmd: &mut Command, log: &Path) -> Result<ChildRun, String> {
         .try_clone()
         .map_err(|e| format!("{}: {e}", log.display()))?;
     let start = Instant::now();
-    let child = cmd
-        .stdin(Stdio::null())
-        .stdout(file)
-        .stderr(err)
-        .spawn()
+    // Listed so that a signal ending the benchmark ends and waits for the child first (audit s36
+    // M-4: a SIGTERM left `simulate` running, orphaned).
+    let (child, listed) = sysid_io::spawn_listed(cmd.stdin(Stdio::null()).stdout(file).stderr(err))
         .map_err(|e| format!("cannot start {:?}: {e}", cmd.get_program()))?;
     let (ok, peak) = wait(child)?;
+    drop(listed);
     let wall_s = start.elapsed().as_secs_f64();
     if !ok {
         let text = std::fs::read_to_string(log).unwrap_or_default();

@@ -536,14 +536,21 @@ fn long(a: LongArgs) -> anyhow::Result<()> {
             a.numpy_script.display()
         );
     };
-    let (dir, remove) = match &a.dir {
-        Some(d) => (d.clone(), false),
-        None => (
-            std::env::temp_dir().join(format!("ipa-sysid-bench-long-{}", std::process::id())),
-            true,
-        ),
+    // The default folder is the run's own: listed for removal on a signal from its creation (audit
+    // s36 M-4: a SIGTERM left hundreds of MB of records in the temporary folder).
+    let (dir, scratch) = match &a.dir {
+        Some(d) => {
+            std::fs::create_dir_all(d).with_context(|| format!("creating {}", d.display()))?;
+            (d.clone(), None)
+        }
+        None => {
+            let d =
+                std::env::temp_dir().join(format!("ipa-sysid-bench-long-{}", std::process::id()));
+            let scratch = sysid_io::ScratchDir::create(&d)
+                .with_context(|| format!("creating {}", d.display()))?;
+            (d, Some(scratch))
+        }
     };
-    std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
     let cfg = LongConfig {
         exe: std::env::current_exe().context("finding the ipa-sysid binary")?,
         dir: dir.clone(),
@@ -553,8 +560,8 @@ fn long(a: LongArgs) -> anyhow::Result<()> {
     };
     let before = load_average();
     let results = bench_long(&cfg, |what| eprintln!("bench long: {what}..."));
-    if remove {
-        let _ = std::fs::remove_dir_all(&dir);
+    if let Some(scratch) = scratch {
+        scratch.remove();
     }
     let results = results.map_err(|e| anyhow::anyhow!("bench long: {e}"))?;
     let after = load_average();

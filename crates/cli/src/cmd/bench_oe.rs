@@ -183,17 +183,25 @@ fn run_peer(
 pub(super) fn check_peer(python: &Path, script: &Path, module: &str) -> anyhow::Result<()> {
     // The interpreter first (a missing one is not the script's fault), then the script, then the
     // module the interpreter already tried to import.
-    let out = Command::new(python)
-        .args(["-c", &format!("import {module}")])
-        .stdin(std::process::Stdio::null())
-        .output()
-        .map_err(|e| {
-            anyhow::anyhow!(
-                "--peer {}: the interpreter cannot be run ({e}); give a Python interpreter that has \
+    let out = sysid_io::spawn_listed(
+        Command::new(python)
+            .args(["-c", &format!("import {module}")])
+            .stdin(std::process::Stdio::null())
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped()),
+    )
+    .and_then(|(child, listed)| {
+        let out = child.wait_with_output();
+        drop(listed);
+        out
+    })
+    .map_err(|e| {
+        anyhow::anyhow!(
+            "--peer {}: the interpreter cannot be run ({e}); give a Python interpreter that has \
                  {module}",
-                python.display()
-            )
-        })?;
+            python.display()
+        )
+    })?;
     if !script.is_file() {
         anyhow::bail!(
             "--peer-script {} is not there: run from the repository's root or pass --peer-script FILE",
@@ -245,29 +253,33 @@ pub(super) fn peer_json(
 ) -> anyhow::Result<serde_json::Value> {
     use std::io::Write;
     use std::process::Stdio;
-    let mut child = Command::new(python)
-        .arg(script)
-        .args(args)
-        .args(["--json", "-"])
-        .stdin(if stdin.is_some() {
-            Stdio::piped()
-        } else {
-            Stdio::null()
-        })
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .with_context(|| {
-            format!(
-                "--peer {}: cannot run {}",
-                python.display(),
-                script.display()
-            )
-        })?;
+    // Listed: a signal that ends the benchmark ends and waits for the peer first (audit s36 M-4).
+    let (mut child, listed) = sysid_io::spawn_listed(
+        Command::new(python)
+            .arg(script)
+            .args(args)
+            .args(["--json", "-"])
+            .stdin(if stdin.is_some() {
+                Stdio::piped()
+            } else {
+                Stdio::null()
+            })
+            .stdout(Stdio::piped())
+            .stderr(Stdio::piped()),
+    )
+    .with_context(|| {
+        format!(
+            "--peer {}: cannot run {}",
+            python.display(),
+            script.display()
+        )
+    })?;
     if let (Some(text), Some(mut pipe)) = (stdin, child.stdin.take()) {
         pipe.write_all(text.as_bytes())?;
     }
-    let output = child.wait_with_output()?;
+    let output = child.wait_with_output();
+    drop(listed);
+    let output = output?;
     if !output.status.success() {
         anyhow::bail!(
             "--peer: {} {} failed ({}): {}",

@@ -220,7 +220,11 @@ pub fn print_stdout(text: &str) -> anyhow::Result<()> {
     let mut out = std::io::stdout().lock();
     out.write_all(text.as_bytes())
         .and_then(|()| out.flush())
-        .map_err(|e| anyhow::anyhow!("cannot write the report to standard output: {e}"))
+        .map_err(|e| {
+            // The operating system's error stays in the chain (a broken pipe ends the run quietly: main.rs).
+            let text = format!("cannot write the report to standard output: {e}");
+            anyhow::Error::new(e).context(text)
+        })
 }
 
 /// Refuses more than one output to standard output (`-`): two documents in one stream parse as

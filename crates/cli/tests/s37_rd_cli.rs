@@ -358,3 +358,77 @@ fn a_nanosecond_epoch_time_column_is_read_with_time_unit_ns() {
         }
     }
 }
+
+// Audit s35 L-11: a MAT-file whose first data element's type word (bytes 128..132 after the 128-byte
+// header) is 0, no MAT data type, lost that variable (`t`) without a word; now the file is refused as
+// damaged, naming the element and its byte. The same file undamaged is read.
+#[test]
+fn a_mat_element_of_no_mat_type_is_refused_as_damage() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = dir.path().join("r.mat");
+    let t: Vec<f64> = (0..300).map(|k| k as f64 * 0.01).collect();
+    let u: Vec<f64> = (0..300).map(|k| [1.0, -2.0, 3.0][k / 11 % 3]).collect();
+    let y: Vec<f64> = (0..300)
+        .map(|k| if k > 0 { u[k - 1] } else { 0.0 })
+        .collect();
+    common::write_mat(&f, &["t", "u", "y"], &[&t, &u, &y]);
+    let args = [
+        "identify",
+        "--data",
+        s(&f),
+        "--structure",
+        "arx",
+        "--method",
+        "ls",
+    ];
+    let o = run(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let mut bytes = std::fs::read(&f).unwrap();
+    bytes[128..132].copy_from_slice(&0u32.to_le_bytes());
+    std::fs::write(&f, bytes).unwrap();
+    let o = run(&args);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(
+        err.contains("data element 1 at byte 128 has type 0, not a MAT data type"),
+        "{err}"
+    );
+}
+
+// Audit s35 L-6: an output on a level of 1e12 (y + 1e12, the motion about 1e2: 1e10 times smaller)
+// is refused as linearly dependent, as before, but the words now say the level is the cause and how
+// to remove it; the same record without the level is identified.
+#[test]
+fn an_output_on_a_huge_level_is_said_to_be_one() {
+    let dir = tempfile::tempdir().unwrap();
+    let rec = dir.path().join("r.csv");
+    record(&rec, 600, 1.0);
+    let text = std::fs::read_to_string(&rec).unwrap();
+    let mut lifted = String::from("t,u,y\n");
+    for line in text.lines().skip(1) {
+        let (head, y) = line.rsplit_once(',').unwrap();
+        lifted.push_str(&format!("{head},{:?}\n", y.parse::<f64>().unwrap() + 1e12));
+    }
+    let off = dir.path().join("off.csv");
+    std::fs::write(&off, lifted).unwrap();
+    let args = |f: &std::path::Path| {
+        run(&[
+            "identify",
+            "--data",
+            s(f),
+            "--structure",
+            "arx",
+            "--method",
+            "ls",
+        ])
+    };
+    assert!(args(&rec).status.success());
+    let o = args(&off);
+    let err = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert!(err.contains("linearly dependent"), "{err}");
+    assert!(
+        err.contains("on a level of 1.000e12") && err.contains("--detrend mean"),
+        "{err}"
+    );
+}

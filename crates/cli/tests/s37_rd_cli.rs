@@ -432,3 +432,50 @@ fn an_output_on_a_huge_level_is_said_to_be_one() {
         "{err}"
     );
 }
+
+// Audit s35 L-2 through the command line: y(k) = u(k − 2) exactly. The headline says the delay is
+// not determined, the JSON holds no margin (it held 4.9e16), and `--na 0` finds nk = 2.
+#[test]
+fn delay_on_an_exact_delayed_copy_says_it_is_not_determined() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = dir.path().join("copy.csv");
+    let u: Vec<f64> = (0..400)
+        .map(|k| [3.0, -1.0, 4.0, 1.0, -5.0][k / 9 % 5])
+        .collect();
+    let y: Vec<f64> = (0..400)
+        .map(|k| if k >= 2 { u[k - 2] } else { 0.0 })
+        .collect();
+    common::write_tuy(dir.path(), "copy.csv", 0.01, &u, &y);
+    let out = dir.path().join("d.json");
+    let o = run(&[
+        "delay",
+        "--data",
+        s(&f),
+        "--max-delay",
+        "5",
+        "--json",
+        s(&out),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8_lossy(&o.stdout).into_owned() + &stderr(&o);
+    let doc = json(&out);
+    assert_eq!(doc["nk"], 1, "{doc}");
+    assert!(doc["margin"].is_null(), "{doc}");
+    assert!(
+        text.contains("nk = 1 samples (0.01 s; not determined: nk + 1 could not be fitted"),
+        "{text}"
+    );
+    let o = run(&[
+        "delay",
+        "--data",
+        s(&f),
+        "--max-delay",
+        "5",
+        "--na",
+        "0",
+        "--json",
+        s(&out),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(json(&out)["nk"], 2);
+}

@@ -69,6 +69,22 @@ pub struct DelayEstimate {
     pub warnings: Vec<String>,
 }
 
+/// Whether delay `nk` among `candidates` (indexed by nk) is blocked: its own first input lag is within
+/// noise of 0 and the next delay could not be fitted (an output that repeats the input makes its
+/// regressors dependent), so the comparison points past nk without saying where.
+fn blocked_at(candidates: &[DelayCandidate], nk: usize) -> bool {
+    candidates.get(nk).is_some_and(|c| c.lead_within_noise)
+        && candidates.get(nk + 1).is_some_and(|c| c.loss.is_none())
+}
+
+impl DelayEstimate {
+    /// The estimate is not determined by the comparison: the chosen delay is blocked (its own first
+    /// input lag within noise, the next delay not fitted; audit s35 L-2). `margin` is then `None`.
+    pub fn blocked(&self) -> bool {
+        blocked_at(&self.candidates, self.nk)
+    }
+}
+
 /// Ratio of runner-up to best loss below which the delay counts as poorly determined.
 pub const CLEAR_MARGIN: f64 = 1.05;
 
@@ -378,10 +394,7 @@ pub fn estimate_delay_with_progress(
     // The best delay's own first input lag within noise while the next delay could not be fitted: the
     // data point past nk, but the comparison cannot say where, so no margin is claimed (audit s35 L-2:
     // y(k) = u(k − 2) exactly gave nk = 1 with a margin of 4.9e16; the warning below says why).
-    let blocked = candidates[best_nk].lead_within_noise
-        && candidates
-            .get(best_nk + 1)
-            .is_some_and(|c| c.loss.is_none());
+    let blocked = blocked_at(&candidates, best_nk);
     let margin = runner_up.map(|r| r.1).filter(|_| !blocked);
     // Every reason is kept (one used to hide the other).
     if let Some((r_nk, m)) = runner_up {
@@ -458,6 +471,7 @@ mod tests {
         assert!(est.candidates[2].loss.is_none(), "{:?}", est.candidates[2]);
         assert_eq!(est.nk, 1);
         assert_eq!(est.margin, None);
+        assert!(est.blocked());
         assert!(
             est.warnings
                 .iter()
@@ -467,6 +481,7 @@ mod tests {
         );
         let est = estimate_delay(&data, 0, 2, 5).unwrap();
         assert_eq!(est.nk, 2);
+        assert!(!est.blocked());
         assert!(est.margin.is_some_and(|m| m > CLEAR_MARGIN));
     }
 

@@ -238,7 +238,7 @@ def paper_model() -> Model:
     """The paper's Table III Hammerstein model."""
 
 def simulate_plant(
-    plant: str = "ipa",
+    plant: str | bytes | PathLike[str] = "ipa",
     input: str = "staircase",
     samples: int | None = None,
     seed: int = 0,
@@ -246,17 +246,17 @@ def simulate_plant(
     ts: float | None = None,
     x0: float | None = None,
     noise_std: float = 0.0,
-    plant_config: str | PathLike[str] | None = None,
+    plant_config: str | bytes | PathLike[str] | None = None,
     max_memory_gb: float = 4.0,
 ) -> tuple[FloatArray, FloatArray, FloatArray, FloatArray | None]:
     """One open-loop experiment as `ipa-sysid simulate`: (t, u, y, pressures)."""
 
 def calibrate(
-    data: str | PathLike[str],
-    validation: str | PathLike[str] | None = None,
+    data: str | bytes | PathLike[str],
+    validation: str | bytes | PathLike[str] | None = None,
     free: str | None = None,
     fixed: str | None = None,
-    plant_config: str | PathLike[str] | None = None,
+    plant_config: str | bytes | PathLike[str] | None = None,
     segment: float = 0.5,
     max_iterations: int = 40,
     ts: float | None = None,
@@ -285,7 +285,7 @@ def control(
     compensate_deadzone: Model | Literal["paper"] | None = None,
     compensator_slopes: Literal["shift", "equalise"] = "shift",
     compensator_threshold: float = 0.0,
-    plant_config: str | PathLike[str] | None = None,
+    plant_config: str | bytes | PathLike[str] | None = None,
     controller: str | PathLike[str] | None = None,
 ) -> dict[str, Any]:
     """Closed-loop PI control as `ipa-sysid control`: trace arrays, metrics, steps. `controller`: the
@@ -294,7 +294,7 @@ def control(
 
 def tune(
     model: Model | str | PathLike[str] | None = None,
-    plant_config: str | PathLike[str] | None = None,
+    plant_config: str | bytes | PathLike[str] | None = None,
     spec: str = "",
     variants: int = 5,
     max_evaluations: int = 150,

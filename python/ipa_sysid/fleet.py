@@ -78,10 +78,18 @@ def _check_real(df, name):
     an array (``identify``'s words): a complex column lost its imaginary part silently in the cast to
     float64 (audit s19 L-6), a bool or text column is not a signal."""
     dtype = df[name].dtype
-    if getattr(dtype, "kind", "O") not in ("f", "i", "u"):
+    kind = getattr(dtype, "kind", "O")
+    if kind not in ("f", "i", "u"):
+        # Dates and durations (a logger's timestamps, audit s35 L-4): the way to seconds, said.
+        hint = (
+            f"; {name} holds dates or durations: give it in seconds, e.g. "
+            f"df['{name}'] = (df['{name}'] - df['{name}'].min()).dt.total_seconds()"
+            if kind in ("M", "m")
+            else ""
+        )
         raise ValueError(
             f"partition: column {name}: expected an array of real numbers (integers or floats), got "
-            f"dtype {dtype}"
+            f"dtype {dtype}{hint}"
         )
 
 
@@ -377,12 +385,23 @@ def _g6(v):
 
 def _ts_note(ts, step):
     """The warning of a window whose actuator's time column has the typical step ``step`` (s), which
-    the sampling period ``ts`` used contradicts (``fleet_times``)."""
-    return (
+    the sampling period ``ts`` used contradicts (``fleet_times``). A step about 1000 or 10^6 times ts
+    is a column in milliseconds or microseconds read as seconds (the command line's "--time-unit ms"
+    case): then ts is right and the advice is to convert the column, not to pass its step as ts (audit
+    s35 L-5: "pass ts = 10" for a column in ms with the right ts = 0.01)."""
+    words = (
         f"ts = {_g6(ts)} s contradicts the time column t (its typical step is {_g6(step)} s): ts is used, so "
-        f"every time figure (Ts, time constants) is {_g6(ts / step)} times what the column says; pass "
-        f"ts = {_g6(step)} to use the column"
+        f"every time figure (Ts, time constants) is {_g6(ts / step)} times what the column says; "
     )
+    ratio = step / ts if ts > 0 else math.nan
+    for factor, unit in ((1e3, "milliseconds"), (1e6, "microseconds")):
+        if 0.9 * factor < ratio < 1.1 * factor:
+            return words + (
+                f"if t holds {unit}, ts is right and t is not in seconds: divide t by {factor:g} "
+                f"(t / {factor:g}) so that the fleet's times are seconds; if t is in seconds, pass "
+                f"ts = {_g6(step)} to use the column"
+            )
+    return words + f"pass ts = {_g6(step)} to use the column"
 
 
 def _groups(df):
@@ -553,10 +572,17 @@ def run(input_dir, output_dir, client=None, force=False, **settings):
         pd.DataFrame({c: pd.Series([], dtype=ddf[c].dtype) for c in INPUT_COLUMNS}), **settings
     )
     lazy = ddf.map_partitions(identify_partition, meta=meta, **settings)
-    if client is not None:
-        results = client.compute(lazy).result()
-    else:
-        results = lazy.compute()
+    try:
+        results = client.compute(lazy).result() if client is not None else lazy.compute()
+    except Exception as e:
+        # A file damaged past its footer (a column chunk's metadata, a data page) fails only when its
+        # data are read, in pyarrow's words without the file (audit s35 L-4: "Invalid column metadata
+        # (corrupt file?)", one file of possibly thousands): on that error path only, each file is
+        # read again alone to name the first that cannot be read.
+        bad = _first_unreadable(files)
+        if bad is None:
+            raise
+        raise ValueError(f"{bad[0]}: not a readable Parquet file ({bad[1]})") from e
     _check_whole_actuators(results, files)
     results = results.sort_values(["actuator_id", "window"], kind="stable").reset_index(drop=True)
     os.makedirs(output_dir, exist_ok=True)
@@ -618,6 +644,15 @@ def _check_schemas(files):
                 f"{', '.join(INPUT_COLUMNS)}; the file has {', '.join(schema.names)})"
             )
         types = {c: schema.field(c).type for c in INPUT_COLUMNS}
+        for c in INPUT_COLUMNS:
+            # Timestamps and durations are named with the file and the way to seconds (audit s35 L-4:
+            # the partition's error named neither).
+            text = str(types[c])
+            if text.startswith(("timestamp", "date", "duration", "time")):
+                raise ValueError(
+                    f"{f}: column {c} is {text} (dates or times), where run reads numbers (t in seconds); "
+                    f"write it in seconds, e.g. df['{c}'] = (df['{c}'] - df['{c}'].min()).dt.total_seconds()"
+                )
         if first is None:
             first = (f, types)
             continue
@@ -627,6 +662,18 @@ def _check_schemas(files):
                     f"{f}: column {c} is {types[c]} where {first[0]} has {first[1][c]}: every file of "
                     "the fleet needs the same column types"
                 )
+
+
+def _first_unreadable(files):
+    """The first of ``files`` whose input columns pyarrow cannot read, with its error, or None."""
+    import pyarrow.parquet as pq
+
+    for f in files:
+        try:
+            pq.read_table(f, columns=list(INPUT_COLUMNS))
+        except Exception as e:  # pyarrow raises several types for a damaged file
+            return f, e
+    return None
 
 
 def _check_whole_actuators(results, files):

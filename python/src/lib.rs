@@ -259,8 +259,10 @@ fn refuse_bool(name: &str, v: &Bound<'_, PyAny>) -> PyResult<()> {
 /// naming `name`, where pyo3 names it only in an exception note).
 fn number(name: &str, v: &Bound<'_, PyAny>) -> PyResult<f64> {
     refuse_bool(name, v)?;
+    // The conversion's words without its type's name (`y: only 0-dimensional arrays can be converted
+    // to Python scalars`), as `whole`'s.
     v.extract::<f64>()
-        .map_err(|e| PyTypeError::new_err(format!("{name}: {e}")))
+        .map_err(|e| PyTypeError::new_err(format!("{name}: {}", e.value(v.py()))))
 }
 
 /// A path argument of a method (`str`, `bytes` or `os.PathLike`, as `os.fsdecode` takes them; audit
@@ -287,12 +289,20 @@ fn path_arg(name: &str, v: &Bound<'_, PyAny>) -> PyResult<PathBuf> {
 fn whole(name: &'static str, v: &Bound<'_, PyAny>) -> PyResult<usize> {
     refuse_bool(name, v)?;
     match v.extract::<i64>() {
-        Ok(n) => usize::try_from(n).map_err(|_| setting_err(name, n, "a whole number >= 0")),
-        // A Python int beyond 64 bits (the conversion alone raises an OverflowError naming none).
-        Err(_) if v.is_instance_of::<pyo3::types::PyInt>() => {
-            Err(setting_err(name, v, "a whole number that fits 64 bits"))
+        // The words of the Python wrapper's refusal of the core functions' whole numbers
+        // (`identify(na=-1)`: `_named_ints`), one wording for `Rls(n=-1)` and `identify(na=-1)`.
+        Ok(n) => {
+            usize::try_from(n).map_err(|_| setting_err(name, n, "expected a whole number >= 0"))
         }
-        Err(e) => Err(PyTypeError::new_err(format!("{name}: {e}"))),
+        // A Python int beyond 64 bits (the conversion alone raises an OverflowError naming none).
+        Err(_) if v.is_instance_of::<pyo3::types::PyInt>() => Err(setting_err(
+            name,
+            v,
+            "expected a whole number that fits 64 bits",
+        )),
+        // The conversion's own words without its type's name (`n: 'float' object cannot be
+        // interpreted as an integer`, as `identify(na=2.5)` says).
+        Err(e) => Err(PyTypeError::new_err(format!("{name}: {}", e.value(v.py())))),
     }
 }
 
@@ -536,6 +546,11 @@ fn dataset(u: &Bound<'_, PyAny>, y: &Bound<'_, PyAny>, ts: f64, name: &str) -> P
 fn json_loads<'py>(py: Python<'py>, text: &str) -> PyResult<Bound<'py, PyAny>> {
     py.import("json")?.call_method1("loads", (text,))
 }
+
+/// Rows of `Rls.update_many` between two runs of Python's signal handlers: 4 096 updates of n = 9
+/// parameters take about 0.5 ms at the release build's 8 million updates per second (docs/benchmarks.md),
+/// and a run of the handlers with no signal pending is one flag test.
+const RLS_SIGNAL_ROWS: usize = 4096;
 
 /// How often the calling thread runs Python's signal handlers while a computation runs ([`compute`]).
 const SIGNAL_POLL: std::time::Duration = std::time::Duration::from_millis(50);
@@ -2193,7 +2208,10 @@ impl PyRls {
     /// One update with regressor φ (n values) and measurement y; returns the a-priori error
     /// ε = y − φᵀθ̂. Raises ValueError naming the entry when φ or y is not finite, ArithmeticError
     /// when P loses positive definiteness; the state is unchanged in both cases.
-    fn update(&mut self, phi: &Bound<'_, PyAny>, y: f64) -> PyResult<f64> {
+    fn update(&mut self, phi: &Bound<'_, PyAny>, y: &Bound<'_, PyAny>) -> PyResult<f64> {
+        // y by its name (audit s35 L-7: an array for y was numpy's "only 0-dimensional arrays can be
+        // converted to Python scalars", naming nothing).
+        let y = number("y", y)?;
         let phi = floats(phi, "phi")?;
         self.check_columns(phi.len(), "phi has")?;
         // A non-finite input is the caller's, named as such (audit s19 L-5: y = NaN raised the
@@ -2212,6 +2230,10 @@ impl PyRls {
     /// non-finite φ_k or y_k is a ValueError naming the argument and the row k, the estimate unchanged
     /// (as `update`'s). On a numerical failure at row k (P losing positive definiteness), rows before
     /// k are applied, the state is that after row k − 1, and ArithmeticError names the sample.
+    /// Python's signal handlers run every [`RLS_SIGNAL_ROWS`] rows and once more after the last: when
+    /// one raises (Ctrl-C's KeyboardInterrupt), the state from before the call is put back and that
+    /// exception is raised, so that "interrupted" means "nothing was applied" (audit s36 L-9: the
+    /// interrupt came after every row, with the state advanced and the errors lost).
     #[allow(non_snake_case)]
     fn update_many<'py>(
         &mut self,
@@ -2252,7 +2274,15 @@ impl PyRls {
         }
         let mut errors = Vec::with_capacity(rows);
         let mut failure = None;
-        for (row, yk) in data.chunks_exact(cols).zip(&y) {
+        // The state before the call (θ̂, P and the count: n + n² numbers), put back on an interrupt.
+        let before = (self.inner.clone(), self.samples);
+        for (k, (row, yk)) in data.chunks_exact(cols).zip(&y).enumerate() {
+            if k % RLS_SIGNAL_ROWS == 0 && k > 0 {
+                if let Err(e) = py.check_signals() {
+                    (self.inner, self.samples) = before;
+                    return Err(e);
+                }
+            }
             match self.inner.try_update(row, *yk, self.samples) {
                 Ok(e) => {
                     errors.push(e);
@@ -2263,6 +2293,10 @@ impl PyRls {
                     break;
                 }
             }
+        }
+        if let Err(e) = py.check_signals() {
+            (self.inner, self.samples) = before;
+            return Err(e);
         }
         match failure {
             Some(e) => Err(rls_update_err(e)),
@@ -2384,12 +2418,14 @@ fn plant_spec(plant: &str) -> PyResult<ipa::PlantSpec> {
 /// `max_memory_gb` (the command line's `--max-memory`, 4 GiB by default) bounds the run's buffers:
 /// more samples than fit are refused before the run.
 #[pyfunction]
-#[pyo3(signature = (plant="ipa", input="staircase", samples=None, seed=0, amplitude=255.0, ts=None,
-    x0=None, noise_std=0.0, plant_config=None, max_memory_gb=4.0))]
+#[pyo3(signature = (plant=None, input="staircase", samples=None, seed=0, amplitude=255.0, ts=None,
+    x0=None, noise_std=0.0, plant_config=None, max_memory_gb=4.0),
+    text_signature = "(plant='ipa', input='staircase', samples=None, seed=0, amplitude=255.0, ts=None, \
+    x0=None, noise_std=0.0, plant_config=None, max_memory_gb=4.0)")]
 #[allow(clippy::too_many_arguments, clippy::type_complexity)]
 fn simulate_plant<'py>(
     py: Python<'py>,
-    plant: &str,
+    plant: Option<&Bound<'py, PyAny>>,
     input: &str,
     samples: Option<usize>,
     seed: u64,
@@ -2397,7 +2433,7 @@ fn simulate_plant<'py>(
     ts: Option<f64>,
     x0: Option<f64>,
     noise_std: f64,
-    plant_config: Option<PathBuf>,
+    plant_config: Option<&Bound<'py, PyAny>>,
     max_memory_gb: f64,
 ) -> PyResult<(
     Bound<'py, PyArray1<f64>>,
@@ -2405,7 +2441,25 @@ fn simulate_plant<'py>(
     Bound<'py, PyArray1<f64>>,
     Option<Bound<'py, PyArray2<f64>>>,
 )> {
-    let plant = plant_spec(plant)?;
+    // Every path argument by the one conversion (`str`, `bytes` or `os.PathLike`; audit s35 L-8).
+    let plant_config = plant_config
+        .map(|v| path_arg("plant_config", v))
+        .transpose()?;
+    // `plant`: a name or `model:FILE` as text, or a model file's path in any path form.
+    let plant = match plant {
+        Some(p) => path_arg("plant", p)?.to_string_lossy().into_owned(),
+        None => "ipa".to_string(),
+    };
+    // The initial position by its Python keyword (audit s35 L-7: the core's check named `y0`, the
+    // command line's `--y0`).
+    if let Some(v) = x0.filter(|v| !v.is_finite()) {
+        return Err(setting_err(
+            "x0",
+            sysid_core::format::Shortest(v),
+            "a finite position in mm",
+        ));
+    }
+    let plant = plant_spec(&plant)?;
     // The model a `model:FILE` plant names, for its warnings (those of `simulate --plant model:FILE`,
     // audit s18 M-2): its file's doubts first, said with the file's name.
     let (mut warnings, model, narx_range) = match &plant {
@@ -2620,9 +2674,13 @@ fn control_loop<'py>(
     compensate_deadzone: Option<&Bound<'py, PyAny>>,
     compensator_slopes: &str,
     compensator_threshold: f64,
-    plant_config: Option<PathBuf>,
+    plant_config: Option<&Bound<'py, PyAny>>,
     controller: Option<&Bound<'py, PyAny>>,
 ) -> PyResult<Bound<'py, PyDict>> {
+    // Every path argument by the one conversion (`str`, `bytes` or `os.PathLike`; audit s35 L-8).
+    let plant_config = plant_config
+        .map(|v| path_arg("plant_config", v))
+        .transpose()?;
     use ::control::{AntiWindup, IntegralForm, Profile, SlopeMode};
     // A tuned controller: the JSON of a controller file (the Python wrapper turns tune()'s result and
     // its "controller" dict into it), or a controller file's path, read as `control --controller` reads
@@ -2856,13 +2914,17 @@ fn control_loop<'py>(
 fn tune<'py>(
     py: Python<'py>,
     model: Option<&Bound<'py, PyAny>>,
-    plant_config: Option<PathBuf>,
+    plant_config: Option<&Bound<'py, PyAny>>,
     spec: &str,
     variants: usize,
     max_evaluations: usize,
     check_physics: bool,
     physics_variants: usize,
 ) -> PyResult<Bound<'py, PyAny>> {
+    // Every path argument by the one conversion (`str`, `bytes` or `os.PathLike`; audit s35 L-8).
+    let plant_config = plant_config
+        .map(|v| path_arg("plant_config", v))
+        .transpose()?;
     use ::sysid_control::tuning::{self, Request, Source};
     let spec = ::control::tune::Spec::parse(spec).map_err(control_err)?;
     if variants == 0 {
@@ -2877,7 +2939,9 @@ fn tune<'py>(
             let (m, label) = match obj.cast::<PyModel>() {
                 Ok(pm) => (pm.get().inner.clone(), "model (Python)".to_string()),
                 Err(_) => {
-                    let path: PathBuf = obj.extract().map_err(|_| {
+                    // A path in any of its forms (`str`, `bytes`, `os.PathLike`: audit s35 L-8,
+                    // a bytes path was refused as "a Model or the path of a model file").
+                    let path: PathBuf = path_arg("model", obj).map_err(|_| {
                         setting_err(
                             "--model",
                             obj.to_string(),
@@ -2956,11 +3020,11 @@ fn tune<'py>(
 #[allow(clippy::too_many_arguments)]
 fn calibrate<'py>(
     py: Python<'py>,
-    data: PathBuf,
-    validation: Option<PathBuf>,
+    data: &Bound<'py, PyAny>,
+    validation: Option<&Bound<'py, PyAny>>,
     free: Option<&str>,
     fixed: Option<&str>,
-    plant_config: Option<PathBuf>,
+    plant_config: Option<&Bound<'py, PyAny>>,
     segment: f64,
     max_iterations: usize,
     ts: Option<f64>,
@@ -2973,6 +3037,12 @@ fn calibrate<'py>(
     max_memory_gb: f64,
 ) -> PyResult<Bound<'py, PyDict>> {
     use ipa::calibrate::Calibration;
+    let data = path_arg("data", data)?;
+    let validation = validation.map(|v| path_arg("validation", v)).transpose()?;
+    // Every path argument by the one conversion (`str`, `bytes` or `os.PathLike`; audit s35 L-8).
+    let plant_config = plant_config
+        .map(|v| path_arg("plant_config", v))
+        .transpose()?;
     let max_memory = memory_budget(max_memory_gb)?;
     if validation.is_none() && (val_u_col.is_some() || val_y_col.is_some()) {
         return Err(PyValueError::new_err(

@@ -893,6 +893,7 @@ pub fn read_record_bytes(
                 let unit = match opts.time_unit {
                     resample::TimeUnit::Ms => "ms",
                     resample::TimeUnit::Us => "us",
+                    resample::TimeUnit::Ns => "ns",
                     resample::TimeUnit::S => "s",
                 };
                 return Err(SysidError::setting(
@@ -1122,6 +1123,10 @@ pub const MS_ADVICE: &str = "pass --time-unit ms";
 /// The smallest Ts (s) from a whole-number time column that [`milliseconds_hint`] questions.
 const MS_HINT_TS: f64 = 5.0;
 
+/// The sampling period (s) from whole numbers from which the milliseconds note offers nanoseconds
+/// too: 10^5 s, 100 µs in ns.
+const NS_HINT_TS: f64 = 1e5;
+
 /// A note when a time column read in seconds gives a sampling period of [`MS_HINT_TS`] or more from
 /// whole numbers only (0, 10, 20, ...): the usual sign of a column in milliseconds read as seconds,
 /// which makes every time figure 1000 times too large (a 10 ms record identified at Ts = 10 s; audit
@@ -1154,12 +1159,19 @@ fn ms_note(whole: bool, ts: f64, unit: TimeUnit, column: &str) -> Option<String>
             Shortest(ts)
         ));
     }
+    // A step of 10^5 s or more (a day and more) from whole numbers is more likely nanoseconds (a
+    // logger's `time.time_ns()`, 10 ms = 10^7 ns) than seconds: the unit is offered too (audit s35
+    // L-9: only ms and us were, neither of which reads such a column).
+    let ns = ts >= NS_HINT_TS;
     (ts >= MS_HINT_TS && whole).then(|| {
         format!(
             "the time column {column} gives Ts = {} s from whole numbers: if it holds milliseconds \
-             (or microseconds), {MS_ADVICE} (or us); read as seconds, Ts and every time \
-             figure are 1000 (or 10^6) times too large",
-            Shortest(ts)
+             (or microseconds{}), {MS_ADVICE} (or us{}); read as seconds, Ts and every time \
+             figure are 1000 (or 10^6{}) times too large",
+            Shortest(ts),
+            if ns { ", or nanoseconds" } else { "" },
+            if ns { ", or ns" } else { "" },
+            if ns { ", or 10^9" } else { "" },
         )
     })
 }

@@ -519,6 +519,28 @@ pub fn input_extremes(data: &Dataset) -> Vec<(f64, f64)> {
         .collect()
 }
 
+/// The warning of a record (named `record`) judged by `model` whose input (its [min, max] per input,
+/// `u`, in the model's input order) or output (`y`) is at most [`sysid::estimate::SMALLEST_SIGNAL`] in
+/// magnitude: in the words of `identify`'s refusal of such a record
+/// ([`sysid::estimate::tiny_signal`]), which say why its fit figures are "n/a" or wrong (their sums of
+/// squares underflow; audit s35 H-2: `validate` showed "fit n/a" without a word). `None` otherwise.
+pub fn tiny_signal_warning(
+    model: &Model,
+    u: &[(f64, f64)],
+    y: (f64, f64),
+    record: &str,
+) -> Option<String> {
+    let range = sysid_core::DataRange {
+        u: u.iter().map(|&(lo, hi)| [lo, hi]).collect(),
+        y: [y.0, y.1],
+    };
+    let names: Vec<&str> = model.inputs().iter().map(|i| i.name()).collect();
+    sysid::estimate::tiny_signal(&range, &names, record).map(|e| match e {
+        SysidError::Numerical(m) => m,
+        e => e.to_string(),
+    })
+}
+
 /// A warning per input whose [min, max] over a record (`extremes`, one pair per input, in the order of
 /// `names`) leaves the estimation data's range `range` (a model's `data_range`) by more than a tenth
 /// of it (`DataRange::excursion_of`, the rule of `simulate` and `control`): there the model
@@ -574,16 +596,23 @@ impl ValidationReport {
         score_from: usize,
     ) -> Result<Self, SysidError> {
         let m = sysid_core::metrics::metrics_scored_from(model, data, score_from)?;
+        let extremes = input_extremes(data);
         let mut report = Self::from_parts(
             model,
             m,
             ResidualEntry::from(sysid::residuals::residual_analysis_scored_from(
                 model, data, max_lag, score_from,
             )),
-            &input_extremes(data),
+            &extremes,
             score_from,
         );
         report.warnings.extend(record_outside_data(model, data.y()));
+        report.warnings.extend(tiny_signal_warning(
+            model,
+            &extremes,
+            sysid_core::DataRange::extremes(data.y()),
+            data.name(),
+        ));
         Ok(report)
     }
 

@@ -114,6 +114,11 @@ pub fn validation_report(
         .y_extremes
         .and_then(|ext| crate::record_outside_extremes(model, ext));
     report.warnings.extend(outside);
+    if let (Some(u), Some(y)) = (on.u_extremes, on.y_extremes) {
+        report
+            .warnings
+            .extend(crate::tiny_signal_warning(model, &[u], y, data.name()));
+    }
     Ok(Streamed {
         result: report,
         shape: on.shape,

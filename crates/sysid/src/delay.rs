@@ -69,6 +69,22 @@ pub struct DelayEstimate {
     pub warnings: Vec<String>,
 }
 
+/// Whether delay `nk` among `candidates` (indexed by nk) is blocked: its own first input lag is within
+/// noise of 0 and the next delay could not be fitted (an output that repeats the input makes its
+/// regressors dependent), so the comparison points past nk without saying where.
+fn blocked_at(candidates: &[DelayCandidate], nk: usize) -> bool {
+    candidates.get(nk).is_some_and(|c| c.lead_within_noise)
+        && candidates.get(nk + 1).is_some_and(|c| c.loss.is_none())
+}
+
+impl DelayEstimate {
+    /// The estimate is not determined by the comparison: the chosen delay is blocked (its own first
+    /// input lag within noise, the next delay not fitted; audit s35 L-2). `margin` is then `None`.
+    pub fn blocked(&self) -> bool {
+        blocked_at(&self.candidates, self.nk)
+    }
+}
+
 /// Ratio of runner-up to best loss below which the delay counts as poorly determined.
 pub const CLEAR_MARGIN: f64 = 1.05;
 
@@ -375,7 +391,11 @@ pub fn estimate_delay_with_progress(
         ));
     }
     let runner_up = runner_up(best_nk);
-    let margin = runner_up.map(|r| r.1);
+    // The best delay's own first input lag within noise while the next delay could not be fitted: the
+    // data point past nk, but the comparison cannot say where, so no margin is claimed (audit s35 L-2:
+    // y(k) = u(k − 2) exactly gave nk = 1 with a margin of 4.9e16; the warning below says why).
+    let blocked = blocked_at(&candidates, best_nk);
+    let margin = runner_up.map(|r| r.1).filter(|_| !blocked);
     // Every reason is kept (one used to hide the other).
     if let Some((r_nk, m)) = runner_up {
         if m < CLEAR_MARGIN {
@@ -394,9 +414,13 @@ pub fn estimate_delay_with_progress(
             lead(&candidates[best_nk]),
             match next {
                 Some(c) if c.loss.is_none() => format!(
-                    ", but nk = {} could not be fitted ({})",
+                    ", but nk = {} could not be fitted ({}); so the delay is not determined here (it may \
+                     be nk = {} or more: an output that repeats the input, as an exact delayed copy, \
+                     makes the past outputs and the later input lags the same regressors): try a \
+                     smaller --na, --na 0 for such a copy",
                     c.nk,
-                    c.error.as_deref().unwrap_or("no fit")
+                    c.error.as_deref().unwrap_or("no fit"),
+                    c.nk
                 ),
                 Some(c) if c.loss.is_some_and(|l| ratio(l, best_loss) >= CLEAR_MARGIN) => {
                     format!(", but nk = {} fits more than 5 % worse", c.nk)
@@ -428,6 +452,38 @@ pub fn estimate_delay_with_progress(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    // Audit s35 L-2: y(k) = u(k − 2) exactly (a staircase input). With na = nb = 2, nk = 2's regressors
+    // −y(k − 1) = −u(k − 3) and u(k − 3) coincide, so nk = 2 cannot be fitted, and nk = 1 fits exactly
+    // with its own u(k − 1) coefficient 0: no margin is claimed and the warning says the delay is not
+    // determined, with --na 0; with na = 0 the search finds nk = 2 (b(k − 2) = 1, the copy).
+    #[test]
+    fn an_exact_delayed_copy_claims_no_margin_for_a_blocked_delay() {
+        let n = 400;
+        let u: Vec<f64> = (0..n)
+            .map(|k| [3.0, -1.0, 4.0, 1.0, -5.0][k / 9 % 5])
+            .collect();
+        let y: Vec<f64> = (0..n)
+            .map(|k| if k >= 2 { u[k - 2] } else { 0.0 })
+            .collect();
+        let data = Dataset::new(sysid_core::data::Signals { u, y }, 0.01, "copy").unwrap();
+        let est = estimate_delay(&data, 2, 2, 5).unwrap();
+        assert!(est.candidates[2].loss.is_none(), "{:?}", est.candidates[2]);
+        assert_eq!(est.nk, 1);
+        assert_eq!(est.margin, None);
+        assert!(est.blocked());
+        assert!(
+            est.warnings
+                .iter()
+                .any(|w| w.contains("the delay is not determined here") && w.contains("--na 0")),
+            "{:?}",
+            est.warnings
+        );
+        let est = estimate_delay(&data, 0, 2, 5).unwrap();
+        assert_eq!(est.nk, 2);
+        assert!(!est.blocked());
+        assert!(est.margin.is_some_and(|m| m > CLEAR_MARGIN));
+    }
 
     // The delay search's memory is counted as one least-squares candidate at a time: on N samples,
     // N − k0 rows (k0 = max(na, nk_max + nb − 1)) of p = na + nb + 1 parameters (a constant term),

@@ -412,7 +412,11 @@ pub fn identify<R: Records + ?Sized>(
     }
     // A numerical failure names the record it happened on (once).
     let named = |e: SysidError| e.naming(problem.name());
-    let mut fit = settings.estimator.fit(&problem).map_err(named)?;
+    let level = range.as_ref().and_then(level_hint);
+    let mut fit = settings
+        .estimator
+        .fit(&problem)
+        .map_err(|e| with_level_hint(named(e), level.as_deref()))?;
     if let Some(kind) = settings.output {
         let max_iterations = match settings.estimator {
             EstimatorSettings::Oe(st) => st.max_iterations,
@@ -465,6 +469,33 @@ pub fn constant_input(
             ))
         })
     })
+}
+
+/// The words added to a refusal of linearly dependent regressors when the output of the records whose
+/// range is `range` sits on a level at least 1e8 times its motion (its [min, max] of one sign): f64
+/// keeps about 16 digits, so the motion keeps fewer than 8 of them and the lagged outputs lose their
+/// independence (audit s35 L-6: y + 1e12 was called "not persistently exciting … or the output never
+/// moves"). `None` otherwise.
+pub fn level_hint(range: &crate::DataRange) -> Option<String> {
+    let [lo, hi] = range.y;
+    let (level, motion) = (lo.abs().min(hi.abs()), hi - lo);
+    (lo.signum() == hi.signum() && motion > 0.0 && level > 1e8 * motion).then(|| {
+        format!(
+            "; here the output y moves over {motion:.3e} on a level of {level:.3e}: f64 keeps about 16 \
+             digits, so its motion keeps fewer than 8 of them; remove the level first (--detrend mean, \
+             or subtract it from the column)"
+        )
+    })
+}
+
+/// `e` with [`level_hint`]'s words `hint` added when it is a refusal of linearly dependent regressors.
+fn with_level_hint(e: SysidError, hint: Option<&str>) -> SysidError {
+    match (e, hint) {
+        (SysidError::Data(m), Some(h)) if m.contains("linearly dependent") => {
+            SysidError::Data(m + h)
+        }
+        (e, _) => e,
+    }
 }
 
 /// The smallest largest-magnitude a signal may have: at this scale its squares (1e-280) and those of

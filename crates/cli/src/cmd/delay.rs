@@ -62,12 +62,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.memory.max_memory,
     )?;
     let mut text = format!(
-        "Delay estimate on {} ({} samples): nk = {} samples ({} s), from ARX(na = {}, nb = {}, nk) fits \
+        "Delay estimate on {} ({} samples): nk = {} samples ({} s{}), from ARX(na = {}, nb = {}, nk) fits \
          with a constant term on the same {} rows\n\n{:>4} {:>14} {:>24}\n",
         data.name(),
         data.len(),
         est.nk,
         report::format::num(est.nk as f64 * data.ts()),
+        if est.blocked() {
+            "; not determined: nk + 1 could not be fitted, see the warning"
+        } else {
+            ""
+        },
         est.na,
         est.nb,
         est.n,

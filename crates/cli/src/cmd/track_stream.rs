@@ -122,6 +122,20 @@ const MAX_JUMPS_LISTED: usize = 10;
 /// The columns of u, y and (when there is one) t.
 type Columns = (usize, usize, Option<usize>);
 
+/// What [`read_line_bounded`] carries from one line to the next.
+#[derive(Debug, Default)]
+struct LineState {
+    /// A CR ended the bytes read so far: the LF of a CRLF cut between two reads is skipped next.
+    after_cr: bool,
+    /// A followed file was read again from its beginning and nothing of the new content has been
+    /// read yet: NUL bytes at its start are skipped (and counted in `nuls`).
+    skip_nuls: bool,
+    /// NUL bytes skipped at the start of a followed file's new content (audit s36 L-5: a logger that
+    /// does not append writes on at its old offset after a copy-and-truncate rotation, and the file
+    /// starts with a hole of that many NULs); the caller takes and reports them.
+    nuls: u64,
+}
+
 /// Reads one line of `input` into `buf` (cleared first; the line end stays), at most `max` bytes;
 /// `Ok(None)` at the end of the input, else `Ok(Some(dropped))`. A longer line is an error of kind
 /// `InvalidData`, raised once `max` bytes have come without a line end (nothing more is buffered).
@@ -130,15 +144,18 @@ type Columns = (usize, usize, Option<usize>);
 /// unfinished bytes are dropped rather than joined to the new content's first line, and `dropped` is
 /// their number (0 when nothing was dropped).
 ///
+/// After a restart the NUL bytes that start the new content are skipped, counted in `state.nuls`
+/// (a hole left by a logger that writes at its old offset: [`LineState::nuls`]).
+///
 /// A line ends at LF, CRLF or a lone CR, as in every other reader (audit s30 M-3: a file with CR line
-/// ends was one line to `track`): a CR that ends what has come so far sets `after_cr`, and the LF of a
-/// CRLF cut between two reads is then skipped at the next call, not read as a blank line.
+/// ends was one line to `track`): a CR that ends what has come so far sets `state.after_cr`, and the LF
+/// of a CRLF cut between two reads is then skipped at the next call, not read as a blank line.
 fn read_line_bounded<R: BufRead>(
     input: &mut R,
     buf: &mut Vec<u8>,
     max: usize,
     restarts: Option<&sysid_io::Restarts>,
-    after_cr: &mut bool,
+    state: &mut LineState,
 ) -> std::io::Result<Option<usize>> {
     buf.clear();
     let mut dropped = 0;
@@ -156,12 +173,22 @@ fn read_line_bounded<R: BufRead>(
             seen = now;
             dropped += buf.len();
             buf.clear();
-            *after_cr = false;
+            state.after_cr = false;
+            state.skip_nuls = true;
         }
         if available.is_empty() {
             return Ok((!buf.is_empty() || dropped > 0).then_some(dropped));
         }
-        if std::mem::take(after_cr) && available.first() == Some(&b'\n') {
+        if state.skip_nuls {
+            let nuls = available.iter().take_while(|&&b| b == 0).count();
+            if nuls > 0 {
+                state.nuls += nuls as u64;
+                input.consume(nuls);
+                continue;
+            }
+            state.skip_nuls = false;
+        }
+        if std::mem::take(&mut state.after_cr) && available.first() == Some(&b'\n') {
             input.consume(1); // the LF of a CRLF whose CR ended the line before
             continue;
         }
@@ -170,7 +197,7 @@ fn read_line_bounded<R: BufRead>(
                 Some(b'\n') => (i + 2, true),
                 Some(_) => (i + 1, true),
                 None => {
-                    *after_cr = true;
+                    state.after_cr = true;
                     (i + 1, true)
                 }
             },
@@ -235,7 +262,20 @@ pub fn track_stream<R: BufRead, W: Write>(
     let mut restarts_seen = 0u64;
     // After a restart: the note on its first sample (line and time of the new content).
     let mut restarted: Option<(u64, bool)> = None;
-    let mut after_cr = false;
+    let mut line_state = LineState::default();
+    // The range of u and y so far: a signal too small for f64's sums of squares is said in the
+    // words of `identify`'s refusal (`sysid::estimate::tiny_signal`).
+    let mut range = sysid::DataRange {
+        u: vec![[f64::INFINITY, f64::NEG_INFINITY]],
+        y: [f64::INFINITY, f64::NEG_INFINITY],
+    };
+    let u_name = [options.csv.u_col.as_str()];
+    let tiny = |range: &sysid::DataRange| {
+        sysid::estimate::tiny_signal(range, &u_name, &options.name).map(|e| match e {
+            SysidError::Numerical(m) => m,
+            e => e.to_string(),
+        })
+    };
     loop {
         // A stop asked by the first Ctrl-C of a followed source (`sysid_io::accept_stop`): the run ends
         // here, between two lines, even when the data never pause (a port streaming without a gap).
@@ -247,7 +287,7 @@ pub fn track_stream<R: BufRead, W: Write>(
             &mut buf,
             MAX_LINE_BYTES,
             options.restarts.as_deref(),
-            &mut after_cr,
+            &mut line_state,
         ) {
             Ok(Some(0)) => {}
             Ok(Some(dropped)) => {
@@ -292,8 +332,30 @@ pub fn track_stream<R: BufRead, W: Write>(
                 restarted = Some((count, r.header_skipped()));
             }
         }
+        // A followed file whose new content starts with a hole of NULs (audit s36 L-5: it ended the run
+        // with "the header changed (columns moved?)", no summary and no --json): said, and the rows
+        // after the hole are read. A header line after the hole, the one read first, is skipped.
+        let nuls = std::mem::take(&mut line_state.nuls);
+        if nuls > 0 {
+            new_time_warnings.push(format!(
+                "{}: the followed file starts with {nuls} NUL bytes after it was read again from its \
+                 beginning: the logger writes at its old offset (it does not append), so the copy and \
+                 truncate rotation left a hole of zeros up to it; the NUL bytes were skipped and the \
+                 rows after them read (open the log in append mode, O_APPEND / open(..., \"a\"), so \
+                 that a rotation leaves no hole)",
+                options.name
+            ));
+            let mut line = buf.as_slice();
+            while let [rest @ .., b'\n' | b'\r'] = line {
+                line = rest;
+            }
+            if !first_header.is_empty() && line == first_header.as_slice() {
+                continue;
+            }
+        }
         // A live source's end inside a line: the line was never finished.
-        if options.live && !buf.is_empty() && !buf.ends_with(b"\n") && !buf.ends_with(b"\r") {
+        let unended = !buf.is_empty() && !buf.ends_with(b"\n") && !buf.ends_with(b"\r");
+        if options.live && unended {
             time_warnings.push(format!(
                 "{}: the source ended inside its last line ({} bytes without a line end: the logger \
                  stopped or the connection broke mid-line); that unfinished line was dropped, not read \
@@ -423,9 +485,19 @@ pub fn track_stream<R: BufRead, W: Write>(
             change_points.push(ChangePoint { k, t, threshold });
             pending_change = true;
         }
+        for (r, v) in range.u.iter_mut().chain([&mut range.y]).zip([u, y]) {
+            r[0] = r[0].min(v);
+            r[1] = r[1].max(v);
+        }
+        // A finished file that ends inside its last row: the in-memory reader's note of a file cut
+        // inside its last number (audit s35 M-2), by its rule and in its words.
+        if unended {
+            time_warnings.extend(csv.cut_note(line_no));
+        }
         if step.error.is_some() && (step.change || (k + 1) % options.every == 0) {
             if let Some(ts) = ts {
                 let mut line = track_line(tracker, k, t, ts, pending_change)?;
+                line.warnings.extend(tiny(&range));
                 line.warnings.extend(new_time_warnings.iter().cloned());
                 time_warnings.append(&mut new_time_warnings);
                 serde_json::to_writer(&mut *out, &line).map_err(|e| {
@@ -459,6 +531,7 @@ pub fn track_stream<R: BufRead, W: Write>(
         });
     }
     let mut summary = summary(tracker, ts, t_last, change_points)?;
+    summary.warnings.extend(tiny(&range));
     time_warnings.append(&mut new_time_warnings);
     // The jumps listed are the first MAX_JUMPS_LISTED (the other time warnings — a restart, a partial
     // line, the milliseconds hint — are not jumps).
@@ -582,21 +655,22 @@ mod tests {
         let mut buf = Vec::new();
         let mut ok: &[u8] = b"abcd\nrest";
         assert_eq!(
-            read_line_bounded(&mut ok, &mut buf, 4, None, &mut false).unwrap(),
+            read_line_bounded(&mut ok, &mut buf, 4, None, &mut LineState::default()).unwrap(),
             Some(0)
         );
         assert_eq!(buf, b"abcd\n");
         assert_eq!(
-            read_line_bounded(&mut ok, &mut buf, 4, None, &mut false).unwrap(),
+            read_line_bounded(&mut ok, &mut buf, 4, None, &mut LineState::default()).unwrap(),
             Some(0)
         );
         assert_eq!(buf, b"rest");
         assert_eq!(
-            read_line_bounded(&mut ok, &mut buf, 4, None, &mut false).unwrap(),
+            read_line_bounded(&mut ok, &mut buf, 4, None, &mut LineState::default()).unwrap(),
             None
         );
         let mut long = std::io::BufReader::with_capacity(2, std::io::repeat(b'x'));
-        let e = read_line_bounded(&mut long, &mut buf, 4, None, &mut false).unwrap_err();
+        let e =
+            read_line_bounded(&mut long, &mut buf, 4, None, &mut LineState::default()).unwrap_err();
         assert_eq!(e.kind(), std::io::ErrorKind::InvalidData);
         assert!(buf.len() <= 5, "{}", buf.len());
     }
@@ -612,8 +686,9 @@ mod tests {
         ] {
             for cap in [1, 2, 3, 64] {
                 let mut r = std::io::BufReader::with_capacity(cap, text);
-                let (mut buf, mut after_cr, mut lines) = (Vec::new(), false, Vec::new());
-                while read_line_bounded(&mut r, &mut buf, 16, None, &mut after_cr)
+                let (mut buf, mut state, mut lines) =
+                    (Vec::new(), LineState::default(), Vec::new());
+                while read_line_bounded(&mut r, &mut buf, 16, None, &mut state)
                     .unwrap()
                     .is_some()
                 {
@@ -724,6 +799,194 @@ mod tests {
             count("from line 2 of the new content (after its header line) on"),
             1
         );
+    }
+
+    // Audit s36 L-5: copy and truncate under a logger that does not append. The followed file (a
+    // header and 50 rows, P bytes) is truncated to 0 between two reads of the reader's thread, and the
+    // "logger" then writes 20 more rows at its own offset P, so the file is P NUL bytes and those rows.
+    // The run goes on: the 50 + 20 samples are tracked (no "header changed" error), and a warning says
+    // the file starts with P NUL bytes (P counted here from the text written) and why.
+    #[test]
+    fn a_hole_of_nuls_after_a_copy_truncate_is_skipped_and_said() {
+        let rows = |n: usize, k0: usize| -> String {
+            (k0..k0 + n)
+                .map(|k| format!("{},{},{}\n", k as f64 * 0.01, (k % 3) as f64 - 1.0, k % 5))
+                .collect()
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("ct.csv");
+        let first = format!("t,u,y\n{}", rows(50, 0));
+        let later = rows(20, 50);
+        let hole = first.len();
+        std::fs::write(&path, &first).unwrap();
+        let follow = sysid_io::Follow::file(
+            &path,
+            Some(std::time::Duration::from_millis(1500)),
+            std::time::Duration::from_millis(5),
+        )
+        .unwrap();
+        let restarts = follow.restarts();
+        let p = path.clone();
+        let rotate = move |call: usize| {
+            if call == 2 {
+                std::fs::OpenOptions::new()
+                    .write(true)
+                    .open(&p)
+                    .unwrap()
+                    .set_len(0)
+                    .unwrap();
+                let (p, later) = (p.clone(), later.clone());
+                // The logger writes on at its offset (no O_APPEND) a moment later. Whether the reader
+                // sees the file empty first or already rewritten, it reads it again from byte 0.
+                std::thread::spawn(move || {
+                    use std::io::{Seek, Write};
+                    std::thread::sleep(std::time::Duration::from_millis(100));
+                    let mut f = std::fs::OpenOptions::new().write(true).open(&p).unwrap();
+                    f.seek(std::io::SeekFrom::Start(hole as u64)).unwrap();
+                    f.write_all(later.as_bytes()).unwrap();
+                });
+            }
+        };
+        let input = std::io::BufReader::new(Hooked {
+            inner: follow,
+            calls: 0,
+            hook: rotate,
+        });
+        let mut tracker = Tracker::new(sysid::online::TrackSettings {
+            kind: sysid::ModelKind::Arx,
+            ..Default::default()
+        })
+        .unwrap();
+        let options = StreamOptions {
+            name: "ct.csv".into(),
+            csv: CsvOptions::default(),
+            every: 10,
+            restarts: Some(restarts),
+            live: true,
+        };
+        let summary = track_stream(input, &mut Vec::new(), &mut tracker, &options).unwrap();
+        assert_eq!(summary.samples, 70, "{:?}", summary.warnings);
+        let said: Vec<_> = summary
+            .warnings
+            .iter()
+            .filter(|w| w.contains(&format!("starts with {hole} NUL bytes")))
+            .collect();
+        assert_eq!(said.len(), 1, "{:?}", summary.warnings);
+        assert!(said[0].contains("append mode"), "{}", said[0]);
+    }
+
+    // Audit s35 M-2 for `track --data FILE`: a finished file whose last row ends without a line end and
+    // whose last cell has fewer digits than the column's cells before it ("10" under values of 6
+    // digits) gets the in-memory reader's note, with that row's line and column (line 13: the header
+    // and 12 rows; column 3); the same file with its last value whole (6 digits) gets none, and so
+    // does the cut file when it ends with a line end (then it is not known to be cut).
+    #[test]
+    fn a_file_cut_inside_its_last_number_is_noted() {
+        let mut text = String::from("t,u,y\n");
+        for k in 0..11 {
+            text.push_str(&format!(
+                "{},{},{}\n",
+                k as f64 * 0.01,
+                k % 3,
+                100.125 + k as f64
+            ));
+        }
+        let options = StreamOptions {
+            name: "cut.csv".into(),
+            csv: CsvOptions::default(),
+            every: 100,
+            restarts: None,
+            live: false,
+        };
+        let run = |text: &str| {
+            let mut tracker = Tracker::new(sysid::online::TrackSettings {
+                kind: sysid::ModelKind::Arx,
+                ..Default::default()
+            })
+            .unwrap();
+            track_stream(
+                std::io::Cursor::new(text.as_bytes()),
+                &mut Vec::new(),
+                &mut tracker,
+                &options,
+            )
+            .unwrap()
+            .warnings
+        };
+        let noted = |w: &[String]| {
+            w.iter()
+                .filter(|w| w.contains("the file ends inside its last row, without a line end"))
+                .cloned()
+                .collect::<Vec<_>>()
+        };
+        let cut = format!("{text}0.11,2,10");
+        let w = run(&cut);
+        let n = noted(&w);
+        assert_eq!(n.len(), 1, "{w:?}");
+        assert!(n[0].starts_with("cut.csv:13:3: "), "{}", n[0]);
+        assert!(n[0].contains("y = 10 there has 2 digit(s)"), "{}", n[0]);
+        assert!(noted(&run(&format!("{text}0.11,2,111.125"))).is_empty());
+        assert!(noted(&run(&format!("{cut}\n"))).is_empty());
+    }
+
+    // Session 35's refusal of a signal below 1e-140 (`sysid::estimate::SMALLEST_SIGNAL`), for track: an
+    // output of about 1e-170 is tracked, but the summary and each JSON line say, in identify's words,
+    // that f64 loses its sums of squares and by what factor to rescale it (1e170: the largest |y| here
+    // is 4e-170, so -floor(log10 4e-170) = 170); the same record at y of order 1 says nothing of it.
+    #[test]
+    fn a_tiny_signal_is_said_in_identifys_words() {
+        let text = |scale: f64| {
+            let mut t = String::from("t,u,y\n");
+            for k in 0..300 {
+                t.push_str(&format!(
+                    "{},{},{:e}\n",
+                    k as f64 * 0.01,
+                    (k / 7 % 3) as f64 - 1.0,
+                    scale * (1.0 + (k % 4) as f64)
+                ));
+            }
+            t
+        };
+        let options = StreamOptions {
+            name: "tiny.csv".into(),
+            csv: CsvOptions::default(),
+            every: 100,
+            restarts: None,
+            live: false,
+        };
+        let run = |scale: f64| {
+            let mut tracker = Tracker::new(sysid::online::TrackSettings {
+                kind: sysid::ModelKind::Arx,
+                ..Default::default()
+            })
+            .unwrap();
+            let mut out = Vec::new();
+            let s = track_stream(
+                std::io::Cursor::new(text(scale).into_bytes()),
+                &mut out,
+                &mut tracker,
+                &options,
+            )
+            .unwrap();
+            (s, String::from_utf8(out).unwrap())
+        };
+        let words = "the output y is at most 4.000e-170 in magnitude: at this scale f64 loses the sums of squares";
+        let (s, lines) = run(1e-170);
+        let said: Vec<_> = s.warnings.iter().filter(|w| w.contains(words)).collect();
+        assert_eq!(said.len(), 1, "{:?}", s.warnings);
+        assert!(said[0].starts_with("tiny.csv: "), "{}", said[0]);
+        assert!(said[0].contains("multiply it by 1e170"), "{}", said[0]);
+        assert!(
+            lines.lines().count() >= 2 && lines.lines().all(|l| l.contains(words)),
+            "{lines}"
+        );
+        let (s, lines) = run(1.0);
+        assert!(
+            !s.warnings.iter().any(|w| w.contains("f64 loses")),
+            "{:?}",
+            s.warnings
+        );
+        assert!(!lines.contains("f64 loses"));
     }
 
     // Audit s36 M-3: a followed file that ends (idle time-out) inside its last line ("0.5,0.": the logger

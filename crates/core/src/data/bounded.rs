@@ -98,6 +98,21 @@ pub fn read_bounded_checked(
     prefix: usize,
     check: impl FnOnce(&[u8]) -> Result<(), SysidError>,
 ) -> Result<Vec<u8>, SysidError> {
+    read_bounded_lines(path, max, what, advice, prefix, |p| check(p).map(|()| None))
+}
+
+/// [`read_bounded_checked`] whose `check` may also ask for a bound on every line of the rest
+/// (`Some(bytes)`): the rest is then read in chunks of [`CHUNK_BYTES`] and each chunk's lines measured
+/// as it comes (audit s36 H-2: a line longer than the bound that started after the prefix was found
+/// only once the whole file had been read into memory — 1.5 GB for a 1.5 GB file).
+fn read_bounded_lines(
+    path: &Path,
+    max: u64,
+    what: &str,
+    advice: &str,
+    prefix: usize,
+    check: impl FnOnce(&[u8]) -> Result<Option<usize>, SysidError>,
+) -> Result<Vec<u8>, SysidError> {
     let io = |source| SysidError::Io {
         path: path.to_path_buf(),
         source,
@@ -134,8 +149,15 @@ pub fn read_bounded_checked(
         .take(prefix as u64)
         .read_to_end(&mut bytes)
         .map_err(io)?;
-    check(&bytes)?;
-    file.read_to_end(&mut bytes).map_err(io)?;
+    match check(&bytes)? {
+        None => {
+            file.read_to_end(&mut bytes).map_err(io)?;
+        }
+        Some(bound) => {
+            let name = path.display().to_string();
+            read_lines_bounded(&mut file, &mut bytes, bound, &name)?;
+        }
+    }
     if bytes.len() as u64 > max {
         return Err(too_large(
             path,
@@ -148,14 +170,61 @@ pub fn read_bounded_checked(
     Ok(bytes)
 }
 
+/// The chunk in which [`read_bounded_lines`] reads and measures the lines of a file after its prefix,
+/// bytes: a line beyond the bound is found at most this many bytes after its bound is crossed.
+pub const CHUNK_BYTES: usize = 1 << 20;
+
+/// Appends the rest of `reader` to `bytes` (which hold what was read of the file before), in chunks of
+/// [`CHUNK_BYTES`], refusing a line (bytes between two LF, as [`super::check_line_lengths`] counts
+/// them) longer than `bound` as soon as the chunk that crosses the bound has been read: the error of
+/// [`super::long_line`], naming `name` and the line. The one error of a long line wherever it starts,
+/// in the first MiB or after it (audit s36 H-2).
+fn read_lines_bounded<R: Read>(
+    reader: &mut R,
+    bytes: &mut Vec<u8>,
+    bound: usize,
+    name: &str,
+) -> Result<(), SysidError> {
+    let io = |source| SysidError::Io {
+        path: name.into(),
+        source,
+    };
+    // The line being measured: its number (1-based) and the offset of its first byte (after a
+    // byte-order mark, as the prefix's check counts it).
+    let (mut line, mut start) = (1usize, 3 * usize::from(bytes.starts_with(b"\xef\xbb\xbf")));
+    let mut scanned = 0usize;
+    loop {
+        for nl in memchr::memchr_iter(b'\n', &bytes[scanned..]) {
+            let at = scanned + nl;
+            if at - start > bound {
+                return Err(super::long_line(name, line));
+            }
+            line += 1;
+            start = at + 1;
+        }
+        scanned = bytes.len();
+        if scanned - start > bound {
+            return Err(super::long_line(name, line));
+        }
+        let read = (&mut *reader)
+            .take(CHUNK_BYTES as u64)
+            .read_to_end(bytes)
+            .map_err(io)?;
+        if read == 0 {
+            return Ok(());
+        }
+    }
+}
+
 /// The bytes of a record file (CSV text or a MAT-file; `what` names it in messages), at most
-/// [`super::MAX_FILE_BYTES`]: binary bytes that are not a MAT-file, and a line longer than
-/// [`super::MAX_LINE_BYTES`], are refused within the first MiB + 1 byte (a file of zeros or one with no
-/// line end would otherwise be read up to the size bound, and its one line copied several times, before
-/// the CSV reader refused it: audit s22 H-B2).
+/// [`super::MAX_FILE_BYTES`]: binary bytes that are not a MAT-file are refused within the first MiB +
+/// 1 byte, and a line longer than [`super::MAX_LINE_BYTES`] as it is read, within a MiB after its bound
+/// wherever it starts (a file of zeros or one with no line end would otherwise be read up to the size
+/// bound, and its one line copied several times, before the CSV reader refused it: audit s22 H-B2; a long
+/// line after the first MiB was found only after the whole file had been read: audit s36 H-2).
 pub fn read_data_file(path: &Path, what: &str) -> Result<Vec<u8>, SysidError> {
     let is_mat_name = super::mat::has_mat_name(path);
-    read_bounded_checked(
+    read_bounded_lines(
         path,
         super::MAX_FILE_BYTES,
         what,
@@ -163,17 +232,17 @@ pub fn read_data_file(path: &Path, what: &str) -> Result<Vec<u8>, SysidError> {
         super::MAX_LINE_BYTES + 1,
         |prefix| {
             if is_mat_name || super::mat::is_mat(prefix) {
-                return Ok(());
+                return Ok(None);
             }
             // The CSV reader's own first checks (and messages), on the first bytes only.
             let at = |offset: usize, body: &[u8], message: &str| {
                 let (line, column) = super::line_col(body, offset);
-                Err(SysidError::Parse {
+                SysidError::Parse {
                     file: path.display().to_string(),
                     line,
                     column,
                     message: message.into(),
-                })
+                }
             };
             super::check_record_kind(prefix, &path.display().to_string(), what)?;
             let body = prefix.strip_prefix(b"\xef\xbb\xbf").unwrap_or(prefix);
@@ -182,17 +251,18 @@ pub fn read_data_file(path: &Path, what: &str) -> Result<Vec<u8>, SysidError> {
                 // A character cut by the end of the prefix is not an error.
                 Err(e) if e.error_len().is_none() => e.valid_up_to(),
                 Err(e) => {
-                    return at(
+                    return Err(at(
                         e.valid_up_to(),
                         body,
                         "the file is not UTF-8 text (binary data?); expected CSV",
-                    )
+                    ))
                 }
             };
             match body[..valid].iter().position(|&b| b == 0) {
-                Some(nul) => at(nul, body, "NUL byte: the file is binary, not CSV text"),
+                Some(nul) => Err(at(nul, body, "NUL byte: the file is binary, not CSV text")),
                 None => super::check_line_lengths(body, &path.display().to_string()),
-            }
+            }?;
+            Ok(Some(super::MAX_LINE_BYTES))
         },
     )
 }
@@ -252,6 +322,56 @@ mod tests {
             e.to_string().contains("-: standard input is not read here"),
             "{e}"
         );
+    }
+
+    /// A reader that fails once it is asked for more than the bytes it was given.
+    struct Then<'a>(&'a [u8]);
+
+    impl Read for Then<'_> {
+        fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+            if self.0.is_empty() && !buf.is_empty() {
+                return Err(std::io::Error::other(
+                    "read past the end of what the test gave",
+                ));
+            }
+            let n = self.0.len().min(buf.len());
+            buf[..n].copy_from_slice(&self.0[..n]);
+            self.0 = &self.0[n..];
+            Ok(n)
+        }
+    }
+
+    // Audit s36 H-2: a line longer than the bound that starts after the first 3 MiB (a header, then
+    // rows of 100 bytes) is refused as it is read: the reader holds the file only up to two chunks past
+    // that line's start and fails on any read beyond, so the long-line error naming line L (counted
+    // here: the header and `rows` rows before it) proves the read stopped within them.
+    #[test]
+    fn a_long_line_after_the_first_mib_is_refused_as_it_is_read() {
+        let bound = 1000;
+        let row = "0.01,12,3.5".repeat(9); // 99 bytes
+        let rows = (3 * CHUNK_BYTES) / 100; // more than the first chunks
+        let mut text = String::from("t,u,y\n");
+        for _ in 0..rows {
+            text.push_str(&row);
+            text.push('\n');
+        }
+        let long_at = 1 + rows + 1;
+        text.push_str(&"7".repeat(bound + 1 + 2 * CHUNK_BYTES));
+        let (head, rest) = text.as_bytes().split_at(50);
+        let mut bytes = head.to_vec();
+        let e = read_lines_bounded(&mut Then(rest), &mut bytes, bound, "f.csv").unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            crate::data::long_line("f.csv", long_at).to_string()
+        );
+        assert!(e.to_string().contains(&format!("f.csv:{long_at}:")), "{e}");
+        // The same rows with a line end before the bound are read whole, the last line without an end.
+        let mut ok = String::from("t,u,y\n");
+        ok.push_str(&format!("{}\n", "1".repeat(bound)));
+        ok.push_str(&"2".repeat(bound));
+        let mut bytes = Vec::new();
+        read_lines_bounded(&mut ok.as_bytes(), &mut bytes, bound, "f.csv").unwrap();
+        assert_eq!(bytes, ok.as_bytes());
     }
 
     // A file of exactly max bytes is read whole; one byte more is refused.

@@ -51,6 +51,10 @@ pub struct CsvLines {
     marks: std::cell::RefCell<DecimalMarks>,
     /// The cell delimiter (to name an unclosed quote's column).
     delimiter: u8,
+    /// The digit counts of the cells ([`super::digits`]; `None`: empty) of the last data rows read, at
+    /// most [`super::CUT_LOOKBACK`] + 1, the last one last: what [`CsvLines::cut_note`] compares the
+    /// last row with.
+    recent: std::collections::VecDeque<Vec<Option<usize>>>,
 }
 
 impl CsvLines {
@@ -73,6 +77,7 @@ impl CsvLines {
             fed: 0,
             marks: Default::default(),
             delimiter,
+            recent: Default::default(),
         })
     }
 
@@ -145,7 +150,46 @@ impl CsvLines {
                 !self.table.marks.comma_delimited(),
             ));
         }
+        // The row's digit counts, a row that left the window lending its vector (no allocation per row
+        // once the window is full).
+        let mut counts = if self.recent.len() > super::CUT_LOOKBACK {
+            self.recent.pop_front().unwrap_or_default()
+        } else {
+            Vec::with_capacity(width)
+        };
+        counts.clear();
+        counts.extend(
+            self.rec
+                .iter()
+                .take(width)
+                .map(|f| (!blank(f)).then(|| f.iter().filter(|b| b.is_ascii_digit()).count())),
+        );
+        self.recent.push_back(counts);
         Ok(true)
+    }
+
+    /// The note of a source that ends inside its last row, the one last read by
+    /// [`CsvLines::read_line`] (line `line_no`), without a line end (the caller knows that): the
+    /// in-memory reader's note of a file that may have been cut inside its last number, by its rule and
+    /// in its words ([`super::cut_note`]: the row's last non-empty cell has fewer digits than each of
+    /// the same column's cells in the (up to) [`super::CUT_LOOKBACK`] rows before it, at least three).
+    /// `None` when the row does not look cut.
+    pub fn cut_note(&self, line_no: usize) -> Option<String> {
+        let (front, back) = self.recent.as_slices();
+        let rows: Vec<&Vec<Option<usize>>> = front.iter().chain(back).collect();
+        let (_, previous) = rows.split_last()?;
+        let col = self
+            .rec
+            .iter()
+            .take(self.table.headers.len())
+            .rposition(|f| !f.trim_ascii().is_empty())?;
+        let cell = std::str::from_utf8(self.rec.get(col)?).ok()?.trim();
+        let counts: Vec<usize> = previous
+            .iter()
+            .filter_map(|r| r.get(col).copied().flatten())
+            .collect();
+        let header = self.table.headers.get(col).map_or("?", String::as_str);
+        super::cut_note(&self.table.name, line_no, col, header, cell, &counts)
     }
 
     /// The number in column `col` of the line last read by [`CsvLines::read_line`] (line `line_no`).

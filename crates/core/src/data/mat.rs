@@ -585,6 +585,18 @@ fn parse(
                 matrix(&bytes[start..end], endian, wanted)
             }
             MI_COMPRESSED => compressed(data, endian, wanted, budget, &mut inflated),
+            // A type that is no MAT data type (0, or above 18, miUTF32) is damage, not content (audit
+            // s35 L-11: a first element whose type word was 0 was skipped, and the variable it held,
+            // `t`, with it, without a word).
+            0 | 19.. => {
+                return Err(file_err(
+                    name,
+                    format!(
+                        "data element {element} at byte {start} has type {ty}, not a MAT data type \
+                         (1 to 18): the file is damaged; save the record again"
+                    ),
+                ))
+            }
             // Other top-level elements (e.g. subsystem data) hold no variable.
             _ => continue,
         };

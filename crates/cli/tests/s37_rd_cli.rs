@@ -479,3 +479,83 @@ fn delay_on_an_exact_delayed_copy_says_it_is_not_determined() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert_eq!(json(&out)["nk"], 2);
 }
+
+/// Audit s37's LOW items of words: an output that is 0 at every sample is said as such, not as an
+/// input that does not excite a₁ (L-6); `track` on a header-less file asks for a header instead of a
+/// `--no-header` it lacks (L-3); the record budget's refusal gives the budget in GB beside GiB, the
+/// unit of the figure it compares (L-2); track's two-level input names what identify does with such
+/// a record instead of saying it refuses it (L-4).
+#[test]
+fn audit_s37_words_say_the_true_cause() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    // L-6: y = 0 everywhere, u moving.
+    let mut text = String::from("t,u,y\n");
+    for k in 0..200 {
+        text.push_str(&format!("{},{},0\n", k as f64 * 0.01, (k % 7) as f64 - 3.0));
+    }
+    let zero = d.join("yzero.csv");
+    std::fs::write(&zero, text).unwrap();
+    let out = run(&[
+        "identify",
+        "--data",
+        s(&zero),
+        "--structure",
+        "arx",
+        "--method",
+        "ls",
+    ]);
+    let e = stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{e}");
+    assert!(
+        e.contains("regressor a1 is zero over the whole record: the output y is 0 at every sample"),
+        "{e}"
+    );
+    // L-3: a header-less file given to track.
+    let mut text = String::new();
+    for k in 0..50 {
+        let (u, y) = ((k % 5) as f64 + 0.25, (k % 3) as f64 + 0.5);
+        text.push_str(&format!("{},{u},{y}\n", k as f64 * 0.01 + 0.005));
+    }
+    let bare = d.join("bare.csv");
+    std::fs::write(&bare, text).unwrap();
+    let out = run(&["track", "--data", s(&bare), "--u-col", "2", "--y-col", "3"]);
+    let e = stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{e}");
+    assert!(e.contains("no header row, which this command needs"), "{e}");
+    assert!(!e.contains("pass --no-header"), "{e}");
+    // L-2: 0.01 GiB = 10 737 418 bytes, 0.011 GB; 83 887 samples × 128 bytes exceed it.
+    let out = run(&[
+        "simulate",
+        "--samples",
+        "83887",
+        "--max-memory",
+        "0.01",
+        "--out",
+        s(&d.join("o.csv")),
+    ]);
+    let e = stderr(&out);
+    assert_eq!(out.status.code(), Some(2), "{e}");
+    let gb = (0.01 * (1u64 << 30) as f64) / 1e9;
+    assert!(
+        e.contains(&format!("budget of 0.01 GiB ({gb:.3} GB, --max-memory)")),
+        "{e}"
+    );
+    // L-4: a one-sided input of two levels.
+    let mut text = String::from("t,u,y\n");
+    let mut y = 0.0;
+    for k in 0..400 {
+        let u = if (k / 40) % 2 == 0 { 6.41 } else { 3.41 };
+        y = 0.9 * y + 0.1 * u;
+        text.push_str(&format!("{},{u},{y}\n", k as f64 * 0.01));
+    }
+    let two = d.join("two.csv");
+    std::fs::write(&two, text).unwrap();
+    let doc = common::run_json(d, &["track", "--data", s(&two), "--every", "100000"]);
+    let w = warnings(&doc);
+    assert!(
+        w.iter().any(|w| w.contains("only 2 distinct level(s)")
+            && w.contains("identify does not estimate it from such a record either")),
+        "{w:?}"
+    );
+}

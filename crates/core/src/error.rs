@@ -112,6 +112,9 @@ impl std::fmt::Display for Setting {
 pub enum ColumnHint {
     /// Every header cell is a number: the file has no header row.
     NoHeader,
+    /// As [`ColumnHint::NoHeader`], read by a reader that needs a header row (`track`, which has no
+    /// `--no-header`: audit s37 L-3, it advised that flag).
+    HeaderNeeded,
     /// The file was read without a header row (its columns named 1..=n by position) and the column was
     /// named otherwise.
     ByPosition(usize),
@@ -332,6 +335,11 @@ impl SysidError {
                          the columns by position ({flag} 2), or add a header such as t,u,y)",
                         name(Setting::NoHeader)
                     ),
+                    Some(ColumnHint::HeaderNeeded) => " (the first row holds numbers: the file has \
+                         no header row, which this command needs to name its columns; add one such as \
+                         t,u,y naming every column, or give the file to identify or validate, which \
+                         read it with --no-header)"
+                        .to_string(),
                     Some(ColumnHint::ByPosition(n)) => format!(
                         " (with {} the columns are named by their position, 1 to {n}: give {flag} a \
                          column number)",

@@ -229,7 +229,7 @@ impl MemoryNeed {
         let fit = budget.bytes() / (self.per_row.max(1) as u64 * std::mem::size_of::<f64>() as u64);
         Err(SysidError::Data(format!(
             "{}: {} regression rows of {} parameters need about {} GB for the estimation's \
-             matrices (N × p numbers), more than its budget of {budget} GiB (--max-memory); use at \
+             matrices (N × p numbers), more than its budget of {budget} GiB ({} GB, --max-memory); use at \
              most {fit} rows of the record (--rows A..B, or a slice of the arrays), a coarser \
              sampling (--resample TS, or decimate the record), or lower orders, or raise \
              --max-memory (max_memory_gb in Python) if this machine has the memory",
@@ -237,6 +237,7 @@ impl MemoryNeed {
             self.rows,
             self.p,
             format_gb(bytes),
+            format_gb(budget.bytes()),
         )))
     }
 }
@@ -850,12 +851,23 @@ fn column_name(names: &[String], j: usize) -> String {
         .unwrap_or_else(|| format!("column {}", j + 1))
 }
 
-/// A column norm must be positive (the input excites the regressor) and finite.
+/// A column norm must be positive (the input excites the regressor) and finite. An output lag's
+/// regressor (`a1`, `a2`, … = −y(k − i)) is zero only where y is: then the output is 0 on every row
+/// used (a dead sensor, the wrong column), not an input that fails to excite (audit s37 L-6).
 fn check_norm(norm: f64, name: impl Fn() -> String) -> Result<(), SysidError> {
     if norm == 0.0 {
+        let name = name();
+        let output_lag = name
+            .strip_prefix('a')
+            .is_some_and(|i| !i.is_empty() && i.bytes().all(|b| b.is_ascii_digit()));
+        let why = if output_lag {
+            "the output y is 0 at every sample it uses (a dead sensor, or the wrong --y-col?), so \
+             nothing determines it"
+        } else {
+            "the input does not excite it (not persistently exciting)"
+        };
         return Err(SysidError::Data(format!(
-            "regressor {} is zero over the whole record: the input does not excite it (not persistently exciting)",
-            name()
+            "regressor {name} is zero over the whole record: {why}"
         )));
     }
     if !norm.is_finite() {

@@ -710,8 +710,9 @@ impl Tracker {
             let list: Vec<String> = self.levels.iter().map(f64::to_string).collect();
             w.push(format!(
                 "the input took only {} distinct level(s) ({}): a deadzone needs at least {need} to be \
-                 determined (identify refuses such a record), so the deadzone estimate is not determined \
-                 by the data",
+                 determined (identify does not estimate it from such a record either: it refuses the \
+                 record, or with --offset fixes what the levels cannot determine and says so), so the \
+                 deadzone estimate is not determined by the data",
                 self.levels.len(),
                 list.join(", ")
             ));

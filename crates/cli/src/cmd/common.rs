@@ -34,9 +34,10 @@ pub fn parse_max_memory(text: &str) -> Result<sysid::ls::MemoryBudget, String> {
 /// `--max-memory GIB`: the memory budget of one estimation (docs/reliability.md, "Resource bounds").
 #[derive(Debug, Clone, Copy, clap::Args)]
 pub struct MemoryArgs {
-    /// The most memory one estimation's matrices may take, in GiB (2^30 bytes; more than 0, at most
-    /// 1024). An estimation that would need more is refused before anything is allocated, with the
-    /// rows that would fit; raise it on a machine that has the memory.
+    /// The most memory one run's large buffers may take (an estimation's matrices; a simulated or
+    /// read record and its copies), in GiB (2^30 bytes; more than 0, at most 1024). A run that would
+    /// need more is refused before anything is allocated, with the rows or samples that would fit;
+    /// raise it on a machine that has the memory.
     #[arg(long, value_name = "GIB", default_value = "4", value_parser = parse_max_memory)]
     pub max_memory: sysid::ls::MemoryBudget,
 }
@@ -72,11 +73,12 @@ pub fn check_record_memory(
     };
     anyhow::bail!(sysid::SysidError::Data(format!(
         "{}: a record of {rows} samples{of} needs about {} GB ({} numbers of 8 bytes per sample: \
-         {held}), more than the budget of {max_memory} GiB (--max-memory); use at most {fit} samples \
+         {held}), more than the budget of {max_memory} GiB ({} GB, --max-memory); use at most {fit} samples \
          ({shorter}), or raise --max-memory if this machine has the memory",
         what,
         sysid::ls::format_gb(bytes),
         RECORD_NUMBERS_PER_SAMPLE,
+        sysid::ls::format_gb(max_memory.bytes()),
     )))
 }
 

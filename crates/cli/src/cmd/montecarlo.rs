@@ -134,12 +134,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         anyhow::bail!(sysid::SysidError::Data(format!(
             "montecarlo: {at_once} run(s) at once (one per worker thread) of {} samples each need about \
              {} GB ({} numbers of 8 bytes per sample: the record, its simulation and the estimation's \
-             copies), more than the budget of {} GiB (--max-memory); use at most {fit} samples \
+             copies), more than the budget of {} GiB ({} GB, --max-memory); use at most {fit} samples \
              (--samples N), or raise --max-memory if this machine has the memory",
             args.samples,
             sysid::ls::format_gb(need),
             super::common::RECORD_NUMBERS_PER_SAMPLE,
-            args.memory.max_memory
+            args.memory.max_memory,
+            sysid::ls::format_gb(args.memory.max_memory.bytes())
         )));
     }
     // Check the input design (samples, amplitude, file) once, before any run: a bad flag is an error,

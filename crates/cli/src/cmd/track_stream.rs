@@ -376,7 +376,15 @@ pub fn track_stream<R: BufRead, W: Write>(
         let Some((csv, (ucol, ycol, tcol))) = &mut reader else {
             let csv = CsvLines::from_header(line, &options.name)?;
             first_header = line.to_vec();
-            let cols = csv.columns(&options.csv)?;
+            // track has no --no-header: a header-less file's hint names what it needs instead.
+            let cols = csv.columns(&options.csv).map_err(|mut e| {
+                if let SysidError::MissingColumn { hint: Some(h), .. } = &mut e {
+                    if **h == sysid::error::ColumnHint::NoHeader {
+                        **h = sysid::error::ColumnHint::HeaderNeeded;
+                    }
+                }
+                e
+            })?;
             reader = Some((csv, cols));
             continue;
         };

@@ -907,3 +907,64 @@ fn a_record_in_metres_is_questioned_and_the_iterations_are_counted_one_way() {
         "{err}"
     );
 }
+
+// Audit s37 M-4: a MAT-file holding the plant's pressure vectors p_a_pa and p_b_pa beside t, u, y was
+// calibrated without them, without a word (a CSV's header gives them by default). The same record as a
+// CSV and as a MAT-file's vectors gives the same twin, "with pressures", but for the record's name.
+#[test]
+fn calibrate_reads_the_pressures_of_a_mat_file_as_of_a_csv() {
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path();
+    let o = run(
+        p,
+        &[
+            "simulate",
+            "--input",
+            "calibration",
+            "--samples",
+            "600",
+            "--seed",
+            "1",
+            "--out",
+            "rec.csv",
+        ],
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = std::fs::read_to_string(p.join("rec.csv")).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    assert!(
+        header.contains(&"p_a_pa") && header.contains(&"p_b_pa"),
+        "{header:?}"
+    );
+    let mut columns = vec![Vec::new(); header.len()];
+    for line in lines {
+        for (c, v) in columns.iter_mut().zip(line.split(',')) {
+            c.push(v.parse::<f64>().unwrap());
+        }
+    }
+    let refs: Vec<&[f64]> = columns.iter().map(Vec::as_slice).collect();
+    common::write_mat(&p.join("rec.mat"), &header, &refs);
+    let mut twins = Vec::new();
+    for (data, out) in [("rec.csv", "twin_csv.toml"), ("rec.mat", "twin_mat.toml")] {
+        let o = run(
+            p,
+            &[
+                "calibrate",
+                "--data",
+                data,
+                "--out",
+                out,
+                "--no-baseline",
+                "--max-iterations",
+                "2",
+            ],
+        );
+        let said = String::from_utf8_lossy(&o.stdout).into_owned();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        assert!(said.contains("with pressures"), "{data}: {said}");
+        let twin = std::fs::read_to_string(p.join(out)).unwrap();
+        twins.push(twin.replace(data, "RECORD"));
+    }
+    assert_eq!(twins[0], twins[1]);
+}

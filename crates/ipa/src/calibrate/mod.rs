@@ -83,7 +83,8 @@ pub const MIN_SAMPLES: usize = 50;
 /// uniform time column, else `opts.fallback_ts`; without any of them the record is refused as
 /// `identify` refuses it, "no time column 't' and no --ts"; a non-uniform column is refused at its
 /// line): u and y from `opts.u_col`, `opts.y_col`, and the chamber pressures p_a, p_b (Pa, absolute)
-/// from the columns `pressures` names, or the plant's own `p_a_pa`, `p_b_pa` when the file has both.
+/// from the columns `pressures` names, or the plant's own `p_a_pa`, `p_b_pa` when the file has both
+/// (a CSV's header, a MAT-file's vectors).
 /// The pressures are read as two more columns of the same record, so `--rows` and `--resample` cut and interpolate them with u and y.
 /// Returns the record and the reader's notes (for example a `--ts` that contradicts the time column),
 /// which a caller shows as warnings ([`CalibrationWarning::Reader`]).
@@ -99,7 +100,15 @@ pub fn read_record(
     // The pressure columns: named, or found in a CSV header (checked here, so that a missing one is
     // named by the flag that chose it).
     let pressures = if is_mat {
-        pressures.cloned()
+        // A MAT-file's variables, as a CSV's header: the plant's own p_a_pa, p_b_pa when it holds both
+        // as vectors that read beside u and y (audit s37 M-4: they were ignored without a word).
+        pressures.cloned().or_else(|| {
+            let mut with = opts.clone();
+            with.u_col = format!("{},p_a_pa,p_b_pa", opts.u_col);
+            sysid_core::data::mat::read_mat_bytes(&bytes, &name, &with)
+                .is_ok()
+                .then(|| ("p_a_pa".to_string(), "p_b_pa".to_string()))
+        })
     } else {
         let table = sysid_core::data::read_table_for(&bytes, &name, opts)?;
         let has = |c: &str| !opts.no_header && table.headers.iter().any(|h| h == c);

@@ -185,6 +185,41 @@ fn a_stray_top_level_key_of_a_model_file_is_refused() {
         err.contains("m.json") && err.contains("unknown key \"ts\" at the top level"),
         "{err}"
     );
+    // Audit s37 L-1: an `identify --json` report without its "format" mark (as every version before
+    // session 32 wrote it) is a report, read for its model as then: `validate` prints the same fit as
+    // with the marked report.
+    let report = dir.path().join("report.json");
+    let out = bin()
+        .args([
+            "identify",
+            "--data",
+            s(&rec),
+            "--method",
+            "ls",
+            "--json",
+            s(&report),
+        ])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{}", stderr(&out));
+    let mut doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&report).unwrap()).unwrap();
+    let validate = |path: &std::path::Path| {
+        let out = bin()
+            .args(["validate", "--model", s(path), "--data", s(&rec)])
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", stderr(&out));
+        String::from_utf8_lossy(&out.stdout).into_owned()
+    };
+    let marked = validate(&report);
+    assert!(doc.as_object_mut().unwrap().remove("format").is_some());
+    let unmarked = dir.path().join("old.json");
+    std::fs::write(&unmarked, doc.to_string()).unwrap();
+    assert_eq!(
+        validate(&unmarked).replace("old.json", "report.json"),
+        marked
+    );
 }
 
 /// `t,u,y` rows k = from..to of a first-order response to a ±1 square wave (period 10 samples).

@@ -297,7 +297,14 @@ pub fn parse_any_model(bytes: &[u8], name: &str) -> Result<AnyModel, SysidError>
     // A model file holds exactly these keys (an `identify --json` report, format REPORT_FORMAT, holds
     // more): a key beside them was ignored before, so a value put at the wrong level (`"ts"` beside
     // `"model"` instead of in it) loaded without a word (session 36, docs as written).
-    if obj.get("format").is_none_or(|f| f == FORMAT) {
+    // An unmarked file holding a report's keys is an `identify --json` report written before reports
+    // were marked (session 32): it is read as a report, as it was then (audit s37 L-1: its metrics
+    // were called a misplaced model setting).
+    let old_report = obj.get("format").is_none()
+        && ["estimation", "metrics", "residuals", "parameters", "poles"]
+            .iter()
+            .any(|k| obj.contains_key(*k));
+    if obj.get("format").is_none_or(|f| f == FORMAT) && !old_report {
         if let Some(key) = obj
             .keys()
             .find(|k| !["format", "version", "model"].contains(&k.as_str()))

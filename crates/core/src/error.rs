@@ -544,12 +544,21 @@ impl From<PlantError> for SysidError {
 /// [`crate::format::Shortest`] prints it (exponent form below 1e-5 and from 1e16: `5e-7`, not
 /// `0.0000005`; `1.7e308`, not 309 digits; docs/plant.md), the rule of Ts and times in messages (audit
 /// s35b L-12). A whole number of at most 24 digits (a count: `--samples 10000000000`, u64::MAX, a
-/// Python integer of 2^70) is shown with its digits.
+/// Python integer of 2^70) is shown with its digits, unless it has more than 16 (beyond the whole
+/// numbers an f64 holds exactly) and is the text an f64 prints (its shortest digits padded with zeros:
+/// `--forgetting=123456789012345678901` read as 123456789012345680000, digits the user did not type;
+/// audit s37 L-5): that one is shown in exponent form, `1.2345678901234568e20`.
 pub fn shown_value(value: impl ToString) -> String {
     let text = value.to_string();
     let digits = text.strip_prefix('-').unwrap_or(&text);
     if !digits.is_empty() && digits.len() <= 24 && digits.bytes().all(|b| b.is_ascii_digit()) {
-        return text;
+        let padded_f64 = digits.len() > 16
+            && text
+                .parse::<f64>()
+                .is_ok_and(|x| x.is_finite() && x.to_string() == text);
+        if !padded_f64 {
+            return text;
+        }
     }
     match text.parse::<f64>() {
         Ok(x) if x.is_finite() => crate::format::shortest(x),
@@ -578,6 +587,14 @@ mod shown_value_tests {
         assert_eq!(shown_value("1e-7"), "1e-7");
         assert_eq!(shown_value(u64::MAX), u64::MAX.to_string());
         assert_eq!(shown_value(-12), "-12");
+        // Audit s37 L-5: an f64 beyond 2^53 prints its shortest digits padded with zeros.
+        assert_eq!(
+            shown_value("123456789012345678901".parse::<f64>().unwrap()),
+            "1.2345678901234568e20"
+        );
+        assert_eq!(shown_value(1e21), "1e21");
+        assert_eq!(shown_value(-1e17), "-1e17");
+        assert_eq!(shown_value(9007199254740992.0), "9007199254740992");
     }
 }
 

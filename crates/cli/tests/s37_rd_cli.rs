@@ -541,6 +541,27 @@ fn audit_s37_words_say_the_true_cause() {
         e.contains(&format!("budget of 0.01 GiB ({gb:.3} GB, --max-memory)")),
         "{e}"
     );
+    // Audit s35 L-3's rest: a tiny command limit is said in exponent form, not 320 zeros.
+    let doc = common::run_json(
+        d,
+        &[
+            "control",
+            "--plant",
+            "paper",
+            "--setpoint",
+            "50",
+            "--duration",
+            "1",
+            "--u-max",
+            "1e-320",
+        ],
+    );
+    let w = warnings(&doc);
+    assert!(
+        w.iter()
+            .any(|w| w.contains("the command is saturated at ±1e-320 ")),
+        "{w:?}"
+    );
     // L-4: a one-sided input of two levels.
     let mut text = String::from("t,u,y\n");
     let mut y = 0.0;

@@ -305,7 +305,8 @@ pub fn loop_warnings(trace: &Trace, steps: &[StepSegment], facts: &LoopFacts) ->
             w.push(format!(
                 "the command is saturated at ±{} {u_unit} for {:.1} % of the samples ({at_limit} of {n}): \
                  the loop is not in its linear range, so the step metrics describe a saturated response",
-                facts.u_max,
+                // Shortest: 1e-320 in exponent form, not 320 zeros (audit s35 L-3).
+                sysid_core::format::Shortest(facts.u_max),
                 100.0 * fraction
             ));
         }

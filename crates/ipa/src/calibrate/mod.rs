@@ -99,15 +99,17 @@ pub fn read_record(
     let is_mat = sysid_core::data::mat::has_mat_name(path) || sysid_core::data::mat::is_mat(&bytes);
     // The pressure columns: named, or found in a CSV header (checked here, so that a missing one is
     // named by the flag that chose it).
+    // A MAT-file read with the plant's own pressure vectors (below), kept as the record.
+    let mut read_with_pressures = None;
     let pressures = if is_mat {
         // A MAT-file's variables, as a CSV's header: the plant's own p_a_pa, p_b_pa when it holds both
         // as vectors that read beside u and y (audit s37 M-4: they were ignored without a word).
         pressures.cloned().or_else(|| {
             let mut with = opts.clone();
             with.u_col = format!("{},p_a_pa,p_b_pa", opts.u_col);
-            sysid_core::data::mat::read_mat_bytes(&bytes, &name, &with)
-                .is_ok()
-                .then(|| ("p_a_pa".to_string(), "p_b_pa".to_string()))
+            let read = sysid_core::data::mat::read_mat_bytes(&bytes, &name, &with).ok()?;
+            read_with_pressures = Some(read);
+            Some(("p_a_pa".to_string(), "p_b_pa".to_string()))
         })
     } else {
         let table = sysid_core::data::read_table_for(&bytes, &name, opts)?;
@@ -125,7 +127,9 @@ pub fn read_record(
     if let Some((a, b)) = &pressures {
         read_opts.u_col = format!("{},{a},{b}", opts.u_col);
     }
-    let read = if is_mat {
+    let read = if let Some(read) = read_with_pressures {
+        read
+    } else if is_mat {
         sysid_core::data::mat::read_mat_bytes(&bytes, &name, &read_opts)?
     } else {
         sysid_core::data::read_record_bytes(&bytes, &name, &read_opts)?

@@ -218,6 +218,14 @@ fn read_line_bounded<R: BufRead>(
     }
 }
 
+/// A line read by [`read_line_bounded`] without its line end (LF, CRLF or CR).
+fn line_body(mut line: &[u8]) -> &[u8] {
+    while let [rest @ .., b'\n' | b'\r'] = line {
+        line = rest;
+    }
+    line
+}
+
 /// Runs `tracker` over CSV lines from `input` (a header row, then data rows; blank lines skipped),
 /// writing a [`TrackLine`] as one JSON line to `out` every `options.every` samples and at every detected
 /// change, each flushed at once. Returns the summary at the end of the input. A malformed line stops the
@@ -345,11 +353,7 @@ pub fn track_stream<R: BufRead, W: Write>(
                  that a rotation leaves no hole)",
                 options.name
             ));
-            let mut line = buf.as_slice();
-            while let [rest @ .., b'\n' | b'\r'] = line {
-                line = rest;
-            }
-            if !first_header.is_empty() && line == first_header.as_slice() {
+            if !first_header.is_empty() && line_body(&buf) == first_header.as_slice() {
                 continue;
             }
         }
@@ -366,10 +370,7 @@ pub fn track_stream<R: BufRead, W: Write>(
             break;
         }
         line_no += 1;
-        let mut line = buf.as_slice();
-        while let [rest @ .., b'\n' | b'\r'] = line {
-            line = rest;
-        }
+        let line = line_body(&buf);
         if line.iter().all(u8::is_ascii_whitespace) {
             continue;
         }
